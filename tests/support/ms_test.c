@@ -1,0 +1,61 @@
+#include "ms_test.h"
+
+#include <stdarg.h>
+#include <stddef.h>
+#include <setjmp.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/wait.h>
+#include <cmocka.h>
+
+const char *ms_test_model_path(char *buf, size_t size, const char *file)
+{
+    const char *dir = getenv("MESHSTREAM_MODELS");
+    snprintf(buf, size, "%s/%s", dir ? dir : "../shared/data/models", file);
+    return buf;
+}
+
+const char *ms_test_bin_path(char *buf, size_t size, const char *program)
+{
+    const char *dir = getenv("MESHSTREAM_BIN");
+    snprintf(buf, size, "%s/%s", dir ? dir : "build/asan/bin", program);
+    return buf;
+}
+
+const char *ms_test_tmpdir(char *buf, size_t size)
+{
+    const char *base = getenv("TMPDIR");
+    snprintf(buf, size, "%s/mstest.XXXXXX", base ? base : "/tmp");
+    if (!mkdtemp(buf))
+        fail_msg("mkdtemp failed for %s", buf);
+    return buf;
+}
+
+void ms_test_rmdir(const char *dir)
+{
+    char cmd[4096];
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", dir);
+    if (system(cmd) != 0)
+        fail_msg("could not remove %s", dir);
+}
+
+int ms_test_run(const char *command, char *out, size_t size)
+{
+    char full[8192];
+    snprintf(full, sizeof full, "(%s) 2>&1", command);
+    FILE *p = popen(full, "r");
+    if (!p)
+        return -1;
+    size_t n = 0;
+    if (out && size) {
+        n = fread(out, 1, size - 1, p);
+        out[n] = '\0';
+    }
+    char sink[4096];
+    while (fread(sink, 1, sizeof sink, p) > 0) {
+    }
+    int status = pclose(p);
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}

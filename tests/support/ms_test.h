@@ -1,0 +1,23 @@
+/* Helpers shared by the cmocka test programs. Include after cmocka.h. */
+#ifndef MS_TEST_H
+#define MS_TEST_H
+
+#include <stddef.h>
+
+/* Full path of a model in the shared data set (MESHSTREAM_MODELS, default
+ * ../shared/data/models relative to the repository root), written into buf. */
+const char *ms_test_model_path(char *buf, size_t size, const char *file);
+
+/* Full path of a built program (MESHSTREAM_BIN, default build/asan/bin). */
+const char *ms_test_bin_path(char *buf, size_t size, const char *program);
+
+/* A fresh private directory under $TMPDIR for one test; the caller removes it with
+ * ms_test_rmdir. Aborts the test on failure. */
+const char *ms_test_tmpdir(char *buf, size_t size);
+void ms_test_rmdir(const char *dir);
+
+/* Runs a shell command line, capturing stdout+stderr into out (NUL-terminated,
+ * truncated to size). Returns the exit status, or -1 if it did not exit normally. */
+int ms_test_run(const char *command, char *out, size_t size);
+
+#endif
