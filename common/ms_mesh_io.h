@@ -1,0 +1,46 @@
+/* Whole-file mesh input and output.
+ *
+ * ms_mesh_load reads a PLY (ascii, binary little/big endian), OBJ or OFF file,
+ * optionally gzip-compressed, into an ms_mesh, applying the cleaning policy of
+ * docs/INPUT.md (faces with a repeated vertex dropped and counted; zero-area faces
+ * with distinct vertices kept; isolated vertices counted). It is built on the
+ * streaming readers (ms_mesh_reader.h) and holds the whole mesh in memory; the
+ * baker uses the streaming interface instead for models larger than memory.
+ *
+ * Errors: a non-zero ms_status and a one-line err->text naming the file and the
+ * line (text formats) or byte offset (binary) of the problem. On error *mesh is
+ * left empty (nothing to free, but ms_mesh_free is harmless).
+ * Thread-safety: independent calls may run concurrently.
+ */
+#ifndef MS_MESH_IO_H
+#define MS_MESH_IO_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "ms_error.h"
+#include "ms_mesh.h"
+
+typedef struct ms_mesh_load_report {
+    const char *format;            /* "ply-ascii", "ply-binary-le", "ply-binary-be", "obj", "off" */
+    bool gzip;                     /* input was gzip-compressed */
+    uint64_t input_bytes;          /* bytes of (uncompressed) input parsed */
+    uint64_t input_faces;          /* faces/strips as read, before triangulation */
+    uint64_t dropped_faces;        /* triangles dropped for a repeated vertex */
+    uint64_t isolated_vertices;    /* vertices referenced by no kept triangle */
+} ms_mesh_load_report;
+
+/* Reads path completely into *mesh (which must be zeroed or freed). report may be
+ * NULL. */
+ms_status ms_mesh_load(const char *path, ms_mesh *mesh, ms_mesh_load_report *report,
+                       ms_error *err);
+
+/* Writes mesh as PLY (binary little-endian when binary is true, else ascii) with
+ * float vertex coordinates (double when use_double) and uchar/int face lists.
+ * Writes to a temporary name and renames it over path on success, so a failed
+ * write never leaves a partial file under path. */
+ms_status ms_ply_write(const char *path, const ms_mesh *mesh, bool binary, bool use_double,
+                       ms_error *err);
+
+#endif
