@@ -13,26 +13,15 @@
 #include "ms_archive.h"
 #include "ms_archive_writer.h"
 #include "ms_test.h"
+#include "ms_test_archive.h"
 
-#define CELLS 129u /* root, its 64 children, and the 64 children of cell 5 */
+#define CELLS MS_TEST_ARCHIVE_CELLS
 
 typedef struct fixture {
     char dir[512];
     char path[600];
 } fixture;
 
-static ms_archive_header test_header(void)
-{
-    ms_archive_header h = {0};
-    h.box_origin[0] = -1.5, h.box_origin[1] = 2.0, h.box_origin[2] = 1e7;
-    h.box_side = 0.25;
-    h.bits = 12, h.n = 4, h.root_bits = 7;
-    h.has_apo = true, h.apo_lead = 3, h.apo_max_depth = 13;
-    h.cell_count = CELLS;
-    h.min_triangles = 8000;
-    h.vertex_count = 1234, h.triangle_count = 2468;
-    return h;
-}
 
 static void test_topology(uint32_t *first_child)
 {
@@ -42,65 +31,12 @@ static void test_topology(uint32_t *first_child)
     first_child[5] = 65;
 }
 
-/* Deterministic payload bytes for a cell. */
-static void fill(uint8_t *buf, uint32_t length, uint32_t seed)
-{
-    for (uint32_t i = 0; i < length; ++i)
-        buf[i] = (uint8_t)((i * 131u + seed * 7u) >> 1);
-}
-
-static uint32_t geometry_length(uint32_t cell) { return 20 + (cell * 37) % 300; }
-static uint32_t apo_levels(uint32_t cell) { return cell % 3 == 0 ? 0 : 1 + cell % 5; }
-
-static void write_test_archive(const char *path)
-{
-    ms_archive_header h = test_header();
-    uint32_t first_child[CELLS];
-    test_topology(first_child);
-    ms_archive_writer *w;
-    ms_error err;
-    assert_int_equal(ms_archive_writer_open(path, &h, first_child, &w, &err), MS_OK);
-    uint8_t buf[1024];
-    /* Put in post-order-like reverse order, APO before geometry for some. */
-    for (uint32_t k = 0; k < CELLS; ++k) {
-        uint32_t cell = CELLS - 1 - k;
-        uint8_t lo, hi;
-        ms_archive_writer_window(w, cell, &lo, &hi);
-        uint32_t levels = apo_levels(cell);
-        if (levels && cell % 2) {
-            uint32_t table[64], len = 40 * levels;
-            for (uint32_t l = 0; l < levels; ++l)
-                table[2 * l] = 40 * (l + 1), table[2 * l + 1] = 10 * (l + 1);
-            fill(buf, len, cell + 1000);
-            assert_int_equal(ms_archive_writer_put_apo(w, cell, buf, len, 40 * levels, table,
-                                                       (uint8_t)levels, &err), MS_OK);
-        }
-        uint32_t len = geometry_length(cell), table[32];
-        uint32_t words = hi - lo + 1u;
-        for (uint32_t b = 0; b < words; ++b)
-            table[b] = 8 + (len - 8) * b / (words - 1 ? words - 1 : 1);
-        table[words - 1] = len;
-        fill(buf, len, cell);
-        assert_int_equal(ms_archive_writer_put_geometry(w, cell, buf, len, table, cell * 3,
-                                                        cell * 5, &err), MS_OK);
-        if (levels && !(cell % 2)) {
-            uint32_t table2[64], alen = 40 * levels;
-            for (uint32_t l = 0; l < levels; ++l)
-                table2[2 * l] = 40 * (l + 1), table2[2 * l + 1] = 10 * (l + 1);
-            fill(buf, alen, cell + 1000);
-            assert_int_equal(ms_archive_writer_put_apo(w, cell, buf, alen, 40 * levels, table2,
-                                                       (uint8_t)levels, &err), MS_OK);
-        }
-    }
-    assert_int_equal(ms_archive_writer_finish(w, &err), MS_OK);
-}
-
 static int setup(void **state)
 {
     fixture *f = calloc(1, sizeof *f);
     ms_test_tmpdir(f->dir, sizeof f->dir);
     snprintf(f->path, sizeof f->path, "%s/model.msa", f->dir);
-    write_test_archive(f->path);
+    ms_test_write_archive(f->path, 0);
     *state = f;
     return 0;
 }
@@ -153,24 +89,24 @@ static void test_roundtrip(void **state)
         assert_int_equal(c->triangle_count, id * 5);
         size_t len;
         const uint8_t *g = ms_archive_geometry(a, id, &len);
-        assert_int_equal(len, geometry_length(id));
-        fill(expect, (uint32_t)len, id);
+        assert_int_equal(len, ms_test_archive_geometry_length(id));
+        ms_test_archive_fill(expect, (uint32_t)len, id);
         assert_memory_equal(g, expect, len);
         const uint8_t *apo = ms_archive_apo(a, id, &len);
-        assert_int_equal(len, 40 * apo_levels(id));
+        assert_int_equal(len, 40 * ms_test_archive_apo_levels(id));
         if (len) {
-            fill(expect, (uint32_t)len, id + 1000);
+            ms_test_archive_fill(expect, (uint32_t)len, id + 1000);
             assert_memory_equal(apo, expect, len);
         }
         assert_int_equal(ms_archive_verify_payload(a, id, &err), MS_OK);
         /* Prefix look-ups clamp to the window and end at the payload length. */
         assert_int_equal(ms_archive_geometry_prefix(a, id, 0), 8);
-        assert_int_equal(ms_archive_geometry_prefix(a, id, 99), geometry_length(id));
+        assert_int_equal(ms_archive_geometry_prefix(a, id, 99), ms_test_archive_geometry_length(id));
         uint32_t texels;
-        if (apo_levels(id)) {
+        if (ms_test_archive_apo_levels(id)) {
             assert_int_equal(ms_archive_apo_prefix(a, id, 0, &texels), 40);
             assert_int_equal(texels, 10);
-            assert_int_equal(ms_archive_apo_prefix(a, id, 99, &texels), 40 * apo_levels(id));
+            assert_int_equal(ms_archive_apo_prefix(a, id, 99, &texels), 40 * ms_test_archive_apo_levels(id));
         } else {
             assert_int_equal(ms_archive_apo_prefix(a, id, 0, &texels), 0);
             assert_int_equal(texels, 0);
@@ -328,7 +264,7 @@ static void test_structural_lies_rejected(void **state)
 static void test_writer_refuses_bad_use(void **state)
 {
     fixture *f = *state;
-    ms_archive_header h = test_header();
+    ms_archive_header h = ms_test_archive_header();
     uint32_t first_child[CELLS];
     test_topology(first_child);
     ms_archive_writer *w;
