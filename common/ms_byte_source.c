@@ -3,7 +3,10 @@
 #include <errno.h>
 #include <stdlib.h>
 #include <string.h>
+#include <fcntl.h>
+#include <sys/mman.h>
 #include <sys/stat.h>
+#include <unistd.h>
 #include <zlib.h>
 
 ms_status ms_byte_source_open(ms_byte_source *src, const char *path, size_t capacity,
@@ -29,9 +32,10 @@ ms_status ms_byte_source_open(ms_byte_source *src, const char *path, size_t capa
         return ms_error_set(err, MS_ERR_IO, "%s: cannot open: %s", path,
                             saved ? strerror(saved) : "zlib could not open it");
     }
-    /* A larger zlib window buffer cuts per-call overhead on compressed input;
-     * plain files are read straight into our buffer for big requests anyway. */
-    gzbuffer(gz, 256 * 1024);
+    /* zlib reads a plain file straight into our buffer for requests of at least
+     * twice this size (else it copies through its own); our fills ask for at
+     * least 1 MiB. */
+    gzbuffer(gz, 128 * 1024);
     src->gz = gz;
     return MS_OK;
 }
@@ -52,8 +56,11 @@ ms_status ms_byte_source_fill(ms_byte_source *src, size_t want, ms_error *err)
     }
     while (src->end - src->pos < want && !src->eof) {
         size_t room = src->capacity - src->end;
-        /* gzread takes an unsigned length; read in large but bounded steps. */
-        unsigned ask = room > (1u << 30) ? (1u << 30) : (unsigned)room;
+        size_t missing = want - (src->end - src->pos);
+        /* Big steps, but not the whole buffer for a small request (the first
+         * look at a file that will then be memory-mapped). */
+        size_t step = missing > (1u << 20) ? missing : (1u << 20);
+        unsigned ask = (unsigned)(step < room ? step : room);
         int got = gzread((gzFile)src->gz, src->buf + src->end, ask);
         if (got < 0) {
             int zerr = 0;
@@ -79,8 +86,40 @@ ms_status ms_byte_source_fill(ms_byte_source *src, size_t want, ms_error *err)
     return MS_OK;
 }
 
+ms_status ms_byte_source_map_rest(ms_byte_source *src, ms_error *err)
+{
+    (void)err;
+    if (src->gzip || src->mapped || src->file_size == 0 || src->file_size > SIZE_MAX)
+        return MS_OK;
+    uint64_t offset = ms_byte_source_offset(src);
+    int fd = open(src->path, O_RDONLY);
+    if (fd < 0)
+        return MS_OK; /* keep reading through the buffer */
+    struct stat st;
+    void *map = MAP_FAILED;
+    /* Only map what we opened before: the file must not have changed size. */
+    if (fstat(fd, &st) == 0 && (uint64_t)st.st_size == src->file_size && offset <= src->file_size)
+        map = mmap(NULL, (size_t)src->file_size, PROT_READ, MAP_PRIVATE, fd, 0);
+    close(fd);
+    if (map == MAP_FAILED)
+        return MS_OK;
+    madvise(map, (size_t)src->file_size, MADV_SEQUENTIAL | MADV_WILLNEED);
+    free(src->buf);
+    src->buf = map;
+    src->mapped = true;
+    src->map_size = (size_t)src->file_size;
+    src->capacity = src->map_size;
+    src->base = 0;
+    src->pos = (size_t)offset;
+    src->end = src->map_size;
+    src->eof = true;
+    return MS_OK;
+}
+
 uint64_t ms_byte_source_disk_offset(const ms_byte_source *src)
 {
+    if (src->mapped)
+        return ms_byte_source_offset(src);
     if (!src->gz)
         return 0;
     z_off_t off = gzoffset((gzFile)src->gz);
@@ -91,6 +130,9 @@ void ms_byte_source_close(ms_byte_source *src)
 {
     if (src->gz)
         gzclose((gzFile)src->gz);
-    free(src->buf);
+    if (src->mapped)
+        munmap(src->buf, src->map_size);
+    else
+        free(src->buf);
     memset(src, 0, sizeof *src);
 }

@@ -29,6 +29,8 @@ typedef struct ms_byte_source {
     uint64_t file_size; /* on-disk size (compressed size for gzip), 0 if unknown */
     bool eof;           /* no more bytes will arrive after `end` */
     bool gzip;          /* input is gzip-compressed */
+    bool mapped;        /* buf is a read-only mapping of the whole file */
+    size_t map_size;
 } ms_byte_source;
 
 /* Opens path for reading with a buffer of `capacity` bytes (at least 64 KiB is
@@ -54,6 +56,13 @@ static inline uint64_t ms_byte_source_offset(const ms_byte_source *src)
 {
     return src->base + src->pos;
 }
+
+/* For binary parsing of an uncompressed file: replaces the buffer by a read-only
+ * memory mapping of the whole file, keeping the current offset, which saves the
+ * copy from the page cache. Afterwards the buffer must not be written to and
+ * fill() never reads. Does nothing (and returns MS_OK) for gzip input or when
+ * mapping is not possible. */
+ms_status ms_byte_source_map_rest(ms_byte_source *src, ms_error *err);
 
 /* How far through the file on disk the reading is (compressed bytes for gzip). */
 uint64_t ms_byte_source_disk_offset(const ms_byte_source *src);

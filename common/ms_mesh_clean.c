@@ -36,16 +36,23 @@ ms_status ms_mesh_cleaner_set_vertex_count(ms_mesh_cleaner *cleaner, uint64_t ve
 
 size_t ms_mesh_cleaner_filter(ms_mesh_cleaner *cleaner, uint32_t *triangles, size_t count)
 {
+    /* Locals, so the bitmap stores do not force reloads of the counters. */
+    uint64_t *used = cleaner->used;
     size_t kept = 0;
     for (size_t t = 0; t < count; ++t) {
         uint32_t a = triangles[3 * t], b = triangles[3 * t + 1], c = triangles[3 * t + 2];
-        if (ms_mesh_cleaner_keep(cleaner, a, b, c)) {
-            triangles[3 * kept] = a;
-            triangles[3 * kept + 1] = b;
-            triangles[3 * kept + 2] = c;
-            ++kept;
-        }
+        if (a == b || b == c || a == c)
+            continue;
+        used[a >> 6] |= UINT64_C(1) << (a & 63);
+        used[b >> 6] |= UINT64_C(1) << (b & 63);
+        used[c >> 6] |= UINT64_C(1) << (c & 63);
+        triangles[3 * kept] = a;
+        triangles[3 * kept + 1] = b;
+        triangles[3 * kept + 2] = c;
+        ++kept;
     }
+    cleaner->kept_triangles += kept;
+    cleaner->dropped_faces += count - kept;
     return kept;
 }
 

@@ -63,9 +63,9 @@ static inline bool ms_mesh_cleaner_keep(ms_mesh_cleaner *cleaner, uint32_t a, ui
     return true;
 }
 
-/* Filters `count` triangles (3 indices each) in place, keeping the order of the
- * kept ones; returns how many were kept. For consumers that clean a stream
- * themselves. */
+/* Filters `count` triangles (3 indices each, all below the announced vertex
+ * count) in place, keeping the order of the kept ones; returns how many were
+ * kept. Same policy as ms_mesh_cleaner_keep, for whole batches. */
 size_t ms_mesh_cleaner_filter(ms_mesh_cleaner *cleaner, uint32_t *triangles, size_t count);
 
 /* The totals so far; isolated vertices are counted over all announced vertices. */

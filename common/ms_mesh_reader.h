@@ -45,8 +45,8 @@ typedef enum ms_mesh_format {
 const char *ms_mesh_format_name(ms_mesh_format format);
 
 /* Largest chunk handed to the sink, in vertices and in triangles. */
-#define MS_MESH_READ_CHUNK_VERTICES 65536
-#define MS_MESH_READ_CHUNK_TRIANGLES 65536
+#define MS_MESH_READ_CHUNK_VERTICES 16384
+#define MS_MESH_READ_CHUNK_TRIANGLES 16384
 
 typedef struct ms_mesh_sink {
     void *context; /* passed back to every callback */

@@ -28,41 +28,22 @@ const char *ms_parse_double(const char *s, double *out)
     } else if (*p == '+') {
         ++p;
     }
+    /* Accumulate every digit; with at most 19 of them the mantissa cannot wrap
+     * (more go to strtod). Leading zeros cost nothing numerically. */
     uint64_t mantissa = 0;
-    int significant = 0;
+    const char *digits = p;
+    while ((unsigned)(*p - '0') < 10)
+        mantissa = mantissa * 10 + (unsigned)(*p++ - '0');
+    long digit_count = p - digits;
     int exponent = 0;
-    bool any_digit = false;
-    bool inexact = false;
-    for (; (unsigned)(*p - '0') < 10; ++p) {
-        unsigned d = (unsigned)(*p - '0');
-        any_digit = true;
-        if (mantissa == 0 && d == 0)
-            continue; /* leading zero */
-        if (significant < 19) {
-            mantissa = mantissa * 10 + d;
-            ++significant;
-        } else {
-            ++exponent;
-            inexact = true;
-        }
-    }
     if (*p == '.') {
-        ++p;
-        for (; (unsigned)(*p - '0') < 10; ++p) {
-            unsigned d = (unsigned)(*p - '0');
-            any_digit = true;
-            if (mantissa == 0 && d == 0) {
-                --exponent;
-            } else if (significant < 19) {
-                mantissa = mantissa * 10 + d;
-                ++significant;
-                --exponent;
-            } else {
-                inexact = true;
-            }
-        }
+        const char *fraction = ++p;
+        while ((unsigned)(*p - '0') < 10)
+            mantissa = mantissa * 10 + (unsigned)(*p++ - '0');
+        digit_count += p - fraction;
+        exponent = -(int)(p - fraction > 100000 ? 100000 : p - fraction);
     }
-    if (!any_digit)
+    if (digit_count == 0 || digit_count > 19)
         return parse_double_slow(s, out);
     if (*p == 'e' || *p == 'E') {
         const char *q = p + 1;
@@ -87,8 +68,8 @@ const char *ms_parse_double(const char *s, double *out)
     double v;
     if (mantissa == 0) {
         v = 0.0;
-    } else if (!inexact && mantissa <= (UINT64_C(1) << 53) && exponent >= -22 &&
-               exponent <= 22) {
+    } else if (mantissa <= (UINT64_C(1) << 53) && exponent >= -22 && exponent <= 22) {
+        /* Clinger's fast path: both operands exact, so one rounding. */
         v = (double)mantissa;
         v = exponent < 0 ? v / exact_powers_of_ten[-exponent] : v * exact_powers_of_ten[exponent];
     } else {
@@ -108,16 +89,27 @@ const char *ms_parse_int64(const char *s, int64_t *out)
     } else if (*p == '+') {
         ++p;
     }
-    if ((unsigned)(*p - '0') >= 10)
-        return NULL;
+    const char *digits = p;
     uint64_t v = 0;
-    const uint64_t limit = negative ? (uint64_t)INT64_MAX + 1 : (uint64_t)INT64_MAX;
-    for (; (unsigned)(*p - '0') < 10; ++p) {
-        unsigned d = (unsigned)(*p - '0');
-        if (v > (limit - d) / 10)
-            return NULL;
-        v = v * 10 + d;
+    while ((unsigned)(*p - '0') < 10)
+        v = v * 10 + (unsigned)(*p++ - '0');
+    long count = p - digits;
+    if (count == 0)
+        return NULL;
+    if (count >= 19) {
+        /* Might have wrapped: redo with overflow checks (rare). */
+        while (*digits == '0' && count > 1) {
+            ++digits;
+            --count;
+        }
+        v = 0;
+        for (const char *q = digits; q < p; ++q)
+            if (__builtin_mul_overflow(v, 10, &v) ||
+                __builtin_add_overflow(v, (uint64_t)(*q - '0'), &v))
+                return NULL;
     }
+    if (v > (uint64_t)INT64_MAX + (negative ? 1 : 0))
+        return NULL;
     if (negative)
         *out = v == (uint64_t)INT64_MAX + 1 ? INT64_MIN : -(int64_t)v;
     else

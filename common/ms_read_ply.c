@@ -515,20 +515,34 @@ static ms_status binary_faces(ply_state *s, const ply_element *e)
             const char *end = r->src.buf + r->src.end;
             const bool is_signed = list->type == PLY_INT32;
             const int64_t limit = (int64_t)s->vertex_count;
+            /* Decode straight into the triangle chunk, then clean the batch. The
+             * vertex element is complete, so every valid index is announced. */
             while (remaining > 0 && end - p >= 13 && (uint8_t)p[0] == 3) {
-                uint32_t v[3];
-                memcpy(v, p + 1, 12);
-                int64_t a = is_signed ? (int32_t)v[0] : (int64_t)v[0];
-                int64_t b = is_signed ? (int32_t)v[1] : (int64_t)v[1];
-                int64_t c = is_signed ? (int32_t)v[2] : (int64_t)v[2];
-                if (a < 0 || a >= limit || b < 0 || b >= limit || c < 0 || c >= limit)
-                    break; /* the general path below reports it with its offset */
-                if ((st = ms_reader_add_triangle(r, (uint32_t)a, (uint32_t)b, (uint32_t)c)) !=
-                    MS_OK)
+                if (r->triangle_pending == MS_MESH_READ_CHUNK_TRIANGLES &&
+                    (st = ms_reader_flush_triangles(r)) != MS_OK)
                     return st;
-                ++r->input_faces;
-                p += 13;
-                --remaining;
+                uint32_t *out = r->triangle_chunk + 3 * r->triangle_pending;
+                size_t room = MS_MESH_READ_CHUNK_TRIANGLES - r->triangle_pending;
+                size_t n = 0;
+                while (n < room && n < remaining && end - p >= 13 && (uint8_t)p[0] == 3) {
+                    uint32_t v[3];
+                    memcpy(v, p + 1, 12);
+                    int64_t a = is_signed ? (int32_t)v[0] : (int64_t)v[0];
+                    int64_t b = is_signed ? (int32_t)v[1] : (int64_t)v[1];
+                    int64_t c = is_signed ? (int32_t)v[2] : (int64_t)v[2];
+                    if (a < 0 || a >= limit || b < 0 || b >= limit || c < 0 || c >= limit)
+                        break; /* the general path below reports it with its offset */
+                    out[3 * n] = (uint32_t)a;
+                    out[3 * n + 1] = (uint32_t)b;
+                    out[3 * n + 2] = (uint32_t)c;
+                    ++n;
+                    p += 13;
+                }
+                r->triangle_pending += ms_mesh_cleaner_filter(&r->cleaner, out, n);
+                r->input_faces += n;
+                remaining -= n;
+                if (n < room)
+                    break;
             }
             r->src.pos = (size_t)(p - r->src.buf);
             if (remaining == 0)
@@ -896,6 +910,8 @@ ms_status ms_read_ply(ms_reader *r)
     if (!h)
         return ms_error_set(r->err, MS_ERR_NOMEM, "%s: out of memory", r->path);
     ms_status st = parse_header(r, h);
+    if (st == MS_OK && h->binary)
+        st = ms_byte_source_map_rest(&r->src, r->err);
     ply_state s = {.r = r, .h = h, .vertex_count = 0};
     for (size_t i = 0; st == MS_OK && i < h->element_count; ++i) {
         const ply_element *e = &h->elements[i];
