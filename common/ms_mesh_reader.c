@@ -183,6 +183,8 @@ static ms_mesh_format detect_format(const char *data, size_t size)
         }
         break;
     }
+    if (i == size && size > 0)
+        return MS_MESH_FORMAT_OBJ; /* only comments so far: OBJ's syntax */
     size_t word = i;
     while (i < size && data[i] > ' ' && data[i] < 127 && data[i] != '#')
         ++i;

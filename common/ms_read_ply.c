@@ -125,10 +125,6 @@ static ms_status finish_element(ms_reader *r, ply_element *e)
                 return ms_reader_fail_line(r, MS_ERR_FORMAT,
                                            "vertex property %s is a list", axis[a]);
         }
-        if (e->count > UINT32_MAX)
-            return ms_reader_fail_line(r, MS_ERR_RANGE,
-                                       "%llu vertices declared; at most %u are supported",
-                                       (unsigned long long)e->count, (unsigned)UINT32_MAX);
     } else if (e->role == PLY_ROLE_FACE || e->role == PLY_ROLE_STRIPS) {
         e->index_list = -1;
         for (size_t i = 0; i < e->prop_count; ++i)
@@ -207,6 +203,10 @@ static ms_status parse_header(ms_reader *r, ply_header *h)
                 return ms_reader_fail_line(r, MS_ERR_FORMAT, "bad element line");
             if (strlen(name) >= PLY_MAX_NAME)
                 return ms_reader_fail_line(r, MS_ERR_FORMAT, "element name too long");
+            if (strcmp(name, "vertex") == 0 && n > (int64_t)UINT32_MAX)
+                return ms_reader_fail_line(r, MS_ERR_RANGE,
+                                           "%lld vertices declared; at most %u are supported",
+                                           (long long)n, (unsigned)UINT32_MAX);
             if (current && (st = finish_element(r, current)) != MS_OK)
                 return st;
             if (h->element_count == PLY_MAX_ELEMENTS)
