@@ -45,11 +45,16 @@ ms_status ms_reader_fail_offset(ms_reader *r, ms_status code, uint64_t offset, c
 
 ms_status ms_reader_fill(ms_reader *r, size_t want)
 {
-    ms_status st = ms_byte_source_fill(&r->src, want, r->err);
-    if (st == MS_OK && r->sink->progress)
+    return ms_byte_source_fill(&r->src, want, r->err);
+}
+
+/* Called once per chunk handed over, which is often enough for a progress bar
+ * and works the same for buffered and memory-mapped input. */
+static void report_progress(ms_reader *r)
+{
+    if (r->sink->progress)
         r->sink->progress(r->sink->context, ms_byte_source_disk_offset(&r->src),
                           r->src.file_size);
-    return st;
 }
 
 ms_status ms_reader_next_line(ms_reader *r, char **line)
@@ -133,6 +138,7 @@ ms_status ms_reader_flush_vertices(ms_reader *r)
     if (st != MS_OK)
         return st;
     r->vertex_pending = 0;
+    report_progress(r);
     if (r->sink->vertices)
         return r->sink->vertices(r->sink->context, v, n, r->err);
     return MS_OK;
@@ -147,6 +153,7 @@ ms_status ms_reader_flush_triangles(ms_reader *r)
     if (n == 0)
         return MS_OK;
     r->triangle_pending = 0;
+    report_progress(r);
     if (r->sink->triangles)
         return r->sink->triangles(r->sink->context, r->triangle_chunk, n, r->err);
     return MS_OK;

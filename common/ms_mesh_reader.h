@@ -56,7 +56,7 @@ typedef struct ms_mesh_sink {
     /* `count` triangles as three vertex indices each; valid only during the call.
      * May be NULL. */
     ms_status (*triangles)(void *context, const uint32_t *indices, size_t count, ms_error *err);
-    /* Called every few megabytes with how far through the file on disk the read
+    /* Called with each chunk handed over, with how far through the file on disk the read
      * is (compressed bytes for gzip input) and the file size. May be NULL. */
     void (*progress)(void *context, uint64_t disk_bytes_done, uint64_t disk_bytes_total);
 } ms_mesh_sink;

@@ -42,8 +42,7 @@ ms_status ms_reader_fail_line(ms_reader *r, ms_status code, const char *fmt, ...
 ms_status ms_reader_fail_offset(ms_reader *r, ms_status code, uint64_t offset, const char *fmt,
                                 ...) __attribute__((format(printf, 4, 5)));
 
-/* Refills the input so at least `want` bytes are available, reporting progress.
- * Running out of input is not an error here (check the available count). */
+/* Refills the input so at least `want` bytes are available. Running out of input is not an error here (check the available count). */
 ms_status ms_reader_fill(ms_reader *r, size_t want);
 
 /* Makes `want` bytes available or fails with a truncation error naming `what`. */

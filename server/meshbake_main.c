@@ -79,14 +79,23 @@ static int parse_options(int argc, char **argv, bake_options *options)
 
 typedef struct progress_state {
     const char *path;
+    struct timespec start;
     int last_percent;
     bool shown;
 } progress_state;
 
+static double seconds_since(const struct timespec *start)
+{
+    struct timespec now;
+    clock_gettime(CLOCK_MONOTONIC, &now);
+    return (double)(now.tv_sec - start->tv_sec) + 1e-9 * (double)(now.tv_nsec - start->tv_nsec);
+}
+
+/* A percentage on the terminal, only for reads that take a while. */
 static void show_progress(void *context, uint64_t done, uint64_t total)
 {
     progress_state *p = context;
-    if (total == 0)
+    if (total == 0 || (!p->shown && seconds_since(&p->start) < 0.5))
         return;
     int percent = (int)(100.0 * (double)done / (double)total);
     if (percent == p->last_percent)
@@ -156,17 +165,15 @@ static int run_info(const bake_options *options)
     ms_mesh_read_report report;
     ms_error err;
     ms_error_clear(&err);
-    struct timespec t0, t1;
-    clock_gettime(CLOCK_MONOTONIC, &t0);
+    clock_gettime(CLOCK_MONOTONIC, &progress.start);
     ms_status st = ms_mesh_read(options->input, &sink, &report, &err);
-    clock_gettime(CLOCK_MONOTONIC, &t1);
+    double seconds = seconds_since(&progress.start);
     if (progress.shown)
         fputs("\r\033[K", stderr);
     if (st != MS_OK) {
         fprintf(stderr, "meshbake: %s\n", err.text);
         return EXIT_INPUT;
     }
-    double seconds = (double)(t1.tv_sec - t0.tv_sec) + 1e-9 * (double)(t1.tv_nsec - t0.tv_nsec);
     if (options->json)
         print_json(options->input, &report, seconds);
     else
