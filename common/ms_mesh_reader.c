@@ -122,18 +122,20 @@ ms_status ms_reader_flush_vertices(ms_reader *r)
         return ms_error_set(r->err, MS_ERR_RANGE, "%s: more than %u vertices are not supported",
                             r->path, (unsigned)UINT32_MAX);
     const double *v = r->vertex_chunk;
-    double lo[3] = {r->bbox_min[0], r->bbox_min[1], r->bbox_min[2]};
-    double hi[3] = {r->bbox_max[0], r->bbox_max[1], r->bbox_max[2]};
-    for (size_t i = 0; i < n; ++i)
-        for (int a = 0; a < 3; ++a) {
-            double c = v[3 * i + (size_t)a];
-            lo[a] = c < lo[a] ? c : lo[a];
-            hi[a] = c > hi[a] ? c : hi[a];
-        }
-    for (int a = 0; a < 3; ++a) {
-        r->bbox_min[a] = lo[a];
-        r->bbox_max[a] = hi[a];
+    /* Six scalars rather than arrays, so they stay in registers. */
+    double x0 = r->bbox_min[0], y0 = r->bbox_min[1], z0 = r->bbox_min[2];
+    double x1 = r->bbox_max[0], y1 = r->bbox_max[1], z1 = r->bbox_max[2];
+    for (size_t i = 0; i < n; ++i, v += 3) {
+        x0 = v[0] < x0 ? v[0] : x0;
+        x1 = v[0] > x1 ? v[0] : x1;
+        y0 = v[1] < y0 ? v[1] : y0;
+        y1 = v[1] > y1 ? v[1] : y1;
+        z0 = v[2] < z0 ? v[2] : z0;
+        z1 = v[2] > z1 ? v[2] : z1;
     }
+    r->bbox_min[0] = x0, r->bbox_min[1] = y0, r->bbox_min[2] = z0;
+    r->bbox_max[0] = x1, r->bbox_max[1] = y1, r->bbox_max[2] = z1;
+    v = r->vertex_chunk;
     ms_status st = ms_mesh_cleaner_set_vertex_count(&r->cleaner, r->vertex_total, r->err);
     if (st != MS_OK)
         return st;

@@ -525,11 +525,13 @@ static ms_status binary_faces(ply_state *s, const ply_element *e)
                 size_t room = MS_MESH_READ_CHUNK_TRIANGLES - r->triangle_pending;
                 size_t n = 0;
                 while (n < room && n < remaining && end - p >= 13 && (uint8_t)p[0] == 3) {
-                    uint32_t v[3];
-                    memcpy(v, p + 1, 12);
-                    int64_t a = is_signed ? (int32_t)v[0] : (int64_t)v[0];
-                    int64_t b = is_signed ? (int32_t)v[1] : (int64_t)v[1];
-                    int64_t c = is_signed ? (int32_t)v[2] : (int64_t)v[2];
+                    uint32_t ua, ub, uc;
+                    memcpy(&ua, p + 1, 4);
+                    memcpy(&ub, p + 5, 4);
+                    memcpy(&uc, p + 9, 4);
+                    int64_t a = is_signed ? (int32_t)ua : (int64_t)ua;
+                    int64_t b = is_signed ? (int32_t)ub : (int64_t)ub;
+                    int64_t c = is_signed ? (int32_t)uc : (int64_t)uc;
                     if (a < 0 || a >= limit || b < 0 || b >= limit || c < 0 || c >= limit)
                         break; /* the general path below reports it with its offset */
                     out[3 * n] = (uint32_t)a;
