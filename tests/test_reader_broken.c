@@ -448,6 +448,105 @@ static void test_off_unknown_and_gzip(void **state)
     assert_int_equal(ms_mesh_load(c->dir, &mesh, NULL, &err), MS_ERR_IO);
 }
 
+static uint64_t next_random(uint64_t *state)
+{
+    *state ^= *state << 13;
+    *state ^= *state >> 7;
+    *state ^= *state << 17;
+    return *state;
+}
+
+/* Random byte changes and cuts in small files of every format: whatever comes
+ * out, the reader must not crash or leak (ASan/UBSan watch), and a failure must
+ * carry a one-line message naming the file. */
+static void test_random_mutations_never_crash(void **state)
+{
+    corpus *c = *state;
+    char model[4096], path[4200];
+    ms_test_model_path(model, sizeof model, "stanford_bunny_res3.ply.gz");
+    ms_mesh mesh = {0};
+    ms_error err;
+    assert_int_equal(ms_mesh_load(model, &mesh, NULL, &err), MS_OK);
+    mesh.vertex_count = 300; /* keep the files small: the first 300 vertices */
+    size_t kept = 0;
+    for (size_t t = 0; t < mesh.triangle_count; ++t)
+        if (mesh.triangles[3 * t] < 300 && mesh.triangles[3 * t + 1] < 300 &&
+            mesh.triangles[3 * t + 2] < 300)
+            memmove(mesh.triangles + 3 * kept++, mesh.triangles + 3 * t, 3 * sizeof(uint32_t));
+    mesh.triangle_count = kept;
+    blob sources[4];
+    for (int k = 0; k < 2; ++k) {
+        snprintf(path, sizeof path, "%s/small%d.ply", c->dir, k);
+        assert_int_equal(ms_ply_write(path, &mesh, k == 1, false, &err), MS_OK);
+        FILE *f = fopen(path, "rb");
+        sources[k].data = malloc(1 << 20);
+        sources[k].size = fread(sources[k].data, 1, 1 << 20, f);
+        fclose(f);
+    }
+    for (int k = 2; k < 4; ++k) {
+        sources[k].data = malloc(1 << 20);
+        size_t n = 0;
+        n += (size_t)snprintf(sources[k].data + n, 64, k == 2 ? "# obj\n" : "OFF\n%zu %zu 0\n",
+                              mesh.vertex_count, mesh.triangle_count);
+        for (size_t v = 0; v < mesh.vertex_count; ++v)
+            n += (size_t)snprintf(sources[k].data + n, 128, "%s%.9g %.9g %.9g\n",
+                                  k == 2 ? "v " : "", mesh.positions[3 * v],
+                                  mesh.positions[3 * v + 1], mesh.positions[3 * v + 2]);
+        for (size_t t = 0; t < mesh.triangle_count; ++t)
+            n += (size_t)snprintf(sources[k].data + n, 128, k == 2 ? "f %u %u/1 %u//2\n" : "3 %u %u %u\n",
+                                  mesh.triangles[3 * t] + (k == 2), mesh.triangles[3 * t + 1] + (k == 2),
+                                  mesh.triangles[3 * t + 2] + (k == 2));
+        sources[k].size = n;
+    }
+    ms_mesh_free(&mesh);
+    static const char *const ext[4] = {"ply", "ply", "obj", "off"};
+    static const char tokens[] = "0123456789 -.e\n\r#/nanif\xff\x00";
+    uint64_t rng = 0x1234567u;
+    int failures = 0, successes = 0;
+    for (int i = 0; i < 2400; ++i) {
+        int k = i % 4;
+        blob *src = &sources[k];
+        static char mutated[1 << 20];
+        memcpy(mutated, src->data, src->size);
+        size_t size = src->size;
+        int edits = 1 + (int)(next_random(&rng) % 4);
+        for (int e = 0; e < edits; ++e) {
+            size_t at = (size_t)(next_random(&rng) % size);
+            uint64_t how = next_random(&rng) % 4;
+            if (how == 0)
+                size = at + 1; /* cut */
+            else if (how == 1)
+                mutated[at] = (char)next_random(&rng);
+            else
+                mutated[at] = tokens[next_random(&rng) % (sizeof tokens - 1)];
+        }
+        blob m = {mutated, size};
+        snprintf(path, sizeof path, "%s/mutant.%s", c->dir, ext[k]);
+        FILE *f = fopen(path, "wb");
+        fwrite(m.data, 1, m.size, f);
+        fclose(f);
+        ms_mesh out = {0};
+        ms_error_clear(&err);
+        ms_status st = ms_mesh_load(path, &out, NULL, &err);
+        if (st == MS_OK) {
+            ++successes;
+            for (size_t t = 0; t < 3 * out.triangle_count; ++t)
+                assert_true(out.triangles[t] < out.vertex_count);
+            ms_mesh_free(&out);
+        } else {
+            ++failures;
+            assert_int_equal(err.code, st);
+            if (!strstr(err.text, path) || strchr(err.text, '\n'))
+                fail_msg("bad message: %s", err.text);
+            assert_null(out.positions);
+        }
+    }
+    assert_true(failures > 1000);
+    assert_true(successes > 10);
+    for (int k = 0; k < 4; ++k)
+        free(sources[k].data);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -457,6 +556,7 @@ int main(void)
         cmocka_unit_test(test_binary_ply),
         cmocka_unit_test(test_obj),
         cmocka_unit_test(test_off_unknown_and_gzip),
+        cmocka_unit_test(test_random_mutations_never_crash),
     };
     return cmocka_run_group_tests_name("reader_broken", tests, setup, teardown);
 }
