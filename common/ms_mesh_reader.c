@@ -277,14 +277,14 @@ done:
         report->format = r.format;
         report->gzip = r.src.gzip;
         report->input_bytes = ms_byte_source_offset(&r.src);
-        report->vertices = r.cleaner.vertex_count;
+        report->vertices = r.vertex_total - r.vertex_pending;
         report->triangles = stats.kept_triangles - r.triangle_pending;
         report->input_faces = r.input_faces;
         report->dropped_faces = stats.dropped_faces;
         report->isolated_vertices = stats.isolated_vertices;
         for (int a = 0; a < 3; ++a) {
-            report->bbox_min[a] = r.cleaner.vertex_count ? r.bbox_min[a] : 0.0;
-            report->bbox_max[a] = r.cleaner.vertex_count ? r.bbox_max[a] : 0.0;
+            report->bbox_min[a] = report->vertices ? r.bbox_min[a] : 0.0;
+            report->bbox_max[a] = report->vertices ? r.bbox_max[a] : 0.0;
         }
     }
     free(r.vertex_chunk);

@@ -91,13 +91,14 @@ static inline ms_status ms_reader_add_vertex(ms_reader *r, double x, double y, d
 }
 
 /* Appends one triangle whose indices the parser has checked against
- * r->vertex_total; applies the cleaning policy. Pending vertices are flushed
- * first when the triangle references one, which keeps the order guarantee. */
+ * r->vertex_total; applies the cleaning policy. The triangle may use vertices
+ * still pending: flush_triangles hands pending vertices over first, which keeps
+ * the order guarantee without cutting chunks short for interleaved OBJ. */
 static inline ms_status ms_reader_add_triangle(ms_reader *r, uint32_t a, uint32_t b, uint32_t c)
 {
     uint64_t announced = r->cleaner.vertex_count;
     if (a >= announced || b >= announced || c >= announced) {
-        ms_status st = ms_reader_flush_vertices(r);
+        ms_status st = ms_mesh_cleaner_set_vertex_count(&r->cleaner, r->vertex_total, r->err);
         if (st != MS_OK)
             return st;
     }

@@ -11,6 +11,7 @@
 #include <cmocka.h>
 
 #include "ms_mesh_io.h"
+#include "ms_mesh_reader.h"
 #include "support/ms_test.h"
 
 typedef struct bytes {
@@ -128,7 +129,7 @@ static void build_odd_ply(bytes *b, encoding e, bool new_type_names)
     const char *f32 = new_type_names ? "float32" : "float";
     put_text(b, "ply\nformat %s 1.0\ncomment odd layout\nobj_info made by hand\n", formats[e]);
     put_text(b, "element vertex 5\nproperty %s nx\nproperty %s z\nproperty %s red\n"
-                "property %s x\nproperty %s y\n",
+                "property list uchar int16 extra\nproperty %s x\nproperty %s y\n",
              f32, new_type_names ? "float64" : "double", new_type_names ? "uint8" : "uchar", f32,
              new_type_names ? "int32" : "int");
     put_text(b, "element edge 2\nproperty list uchar int ends\nproperty %s weight\n",
@@ -141,6 +142,9 @@ static void build_odd_ply(bytes *b, encoding e, bool new_type_names)
         put_value(b, e, 'f', 0.25 * v);
         put_value(b, e, 'd', odd_z[v]);
         put_value(b, e, 'B', 200 + v);
+        put_value(b, e, 'B', v % 3); /* a list inside the vertex: general path */
+        for (int k = 0; k < v % 3; ++k)
+            put_value(b, e, 'h', -300 * k);
         put_value(b, e, 'f', odd_x[v]);
         put_value(b, e, 'i', odd_y[v]);
         end_record(b, e);
@@ -359,6 +363,71 @@ static void test_off_variants(void **state)
     ms_test_rmdir(dir);
 }
 
+typedef struct order_check {
+    uint64_t vertices, triangles, vertex_chunks;
+} order_check;
+
+static ms_status count_vertices(void *context, const double *positions, size_t count,
+                                ms_error *err)
+{
+    (void)positions;
+    (void)err;
+    order_check *c = context;
+    c->vertices += count;
+    ++c->vertex_chunks;
+    return MS_OK;
+}
+
+static ms_status check_order(void *context, const uint32_t *indices, size_t count, ms_error *err)
+{
+    (void)err;
+    order_check *c = context;
+    for (size_t i = 0; i < 3 * count; ++i)
+        assert_true(indices[i] < c->vertices);
+    c->triangles += count;
+    return MS_OK;
+}
+
+static ms_status refuse(void *context, const uint32_t *indices, size_t count, ms_error *err)
+{
+    (void)context;
+    (void)indices;
+    (void)count;
+    return ms_error_set(err, MS_ERR_ARG, "consumer says stop");
+}
+
+/* OBJ with v and f interleaved in 40,000 blocks: every triangle reaches the sink
+ * after the vertices it uses; a sink error stops the read with its message. */
+static void test_obj_interleaved_streaming_order(void **state)
+{
+    (void)state;
+    char dir[4096], path[4200];
+    ms_test_tmpdir(dir, sizeof dir);
+    snprintf(path, sizeof path, "%s/interleaved.obj", dir);
+    FILE *f = fopen(path, "w");
+    assert_non_null(f);
+    for (int block = 0; block < 40000; ++block)
+        fprintf(f, "v %d 0 0\nv %d 1 0\nv %d 0 1\nf -3 -2 -1\nf %d %d %d\n", block, block,
+                block, 3 * block + 1, 3 * block + 3, 3 * block + 2);
+    assert_int_equal(fclose(f), 0);
+    order_check check = {0, 0, 0};
+    ms_mesh_sink sink = {.context = &check, .vertices = count_vertices, .triangles = check_order};
+    ms_mesh_read_report report;
+    ms_error err;
+    if (ms_mesh_read(path, &sink, &report, &err) != MS_OK)
+        fail_msg("%s", err.text);
+    assert_int_equal(check.vertices, 120000);
+    assert_int_equal(check.triangles, 80000);
+    assert_int_equal(report.triangles, 80000);
+    assert_int_equal(report.input_faces, 80000);
+    assert_true(check.vertex_chunks < 40); /* chunks stay large despite interleaving */
+    assert_true(report.bbox_max[0] == 39999.0);
+    sink.triangles = refuse;
+    assert_int_equal(ms_mesh_read(path, &sink, &report, &err), MS_ERR_ARG);
+    assert_string_equal(err.text, "consumer says stop");
+    ms_test_rmdir(dir);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -368,6 +437,7 @@ int main(void)
         cmocka_unit_test(test_ply_tristrips),
         cmocka_unit_test(test_obj_all_face_forms),
         cmocka_unit_test(test_off_variants),
+        cmocka_unit_test(test_obj_interleaved_streaming_order),
     };
     return cmocka_run_group_tests_name("reader_formats", tests, NULL, NULL);
 }
