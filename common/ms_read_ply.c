@@ -502,7 +502,7 @@ static ms_status binary_faces(ply_state *s, const ply_element *e)
     const ply_property *list = &e->props[e->index_list];
     const bool only_list = e->prop_count == 1;
     const size_t index_size = ply_type_size[list->type];
-    const bool fast = only_list && list->count_type == PLY_UINT8 && index_size == 4 && !swap;
+    const bool fast = only_list && list->count_type == PLY_UINT8 && index_size == 4;
     uint64_t remaining = e->count;
     while (remaining > 0) {
         if (fast) {
@@ -529,6 +529,9 @@ static ms_status binary_faces(ply_state *s, const ply_element *e)
                     memcpy(&ua, p + 1, 4);
                     memcpy(&ub, p + 5, 4);
                     memcpy(&uc, p + 9, 4);
+                    ua = bswap32_if(ua, swap);
+                    ub = bswap32_if(ub, swap);
+                    uc = bswap32_if(uc, swap);
                     int64_t a = is_signed ? (int32_t)ua : (int64_t)ua;
                     int64_t b = is_signed ? (int32_t)ub : (int64_t)ub;
                     int64_t c = is_signed ? (int32_t)uc : (int64_t)uc;
