@@ -34,7 +34,8 @@ static void start_closing(ms_proto_conn *c)
     ms_fair_scheduler_forget(&c->door->scheduler, &c->link);
     /* Keep reading (and discarding) so that the peer's last bytes do not turn
      * our close into a reset that could destroy the ERROR in flight. */
-    bufferevent_enable(c->bev, EV_READ);
+    if (!c->peer_eof)
+        bufferevent_enable(c->bev, EV_READ);
     c->reading_paused = false;
     bufferevent_setwatermark(c->bev, EV_WRITE, 0, 0);
 }
@@ -53,6 +54,8 @@ void ms_proto_conn_fail(ms_proto_conn *c, uint16_t code, uint64_t detail, const 
     metrics_of(c)->binary_errors++;
     ms_error err;
     if (ms_frame_out_error(output(c), code, 0, 0, detail, text, &err) != MS_OK) {
+        ms_server_log(server_of(c), "binary: cannot send %s: %s", ms_proto_error_name(code),
+                      err.text);
         broken(c);
         return;
     }

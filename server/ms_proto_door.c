@@ -131,13 +131,21 @@ ms_status ms_proto_door_open(ms_server *server, ms_proto_door **out, uint16_t *b
     }
     const char *address = server->config.bind_address ? server->config.bind_address : "127.0.0.1";
     struct sockaddr_storage ss;
-    int ss_length = sizeof ss;
-    char spec[300];
-    snprintf(spec, sizeof spec, strchr(address, ':') ? "[%s]:%u" : "%s:%u", address,
-             server->config.port);
-    if (evutil_parse_sockaddr_port(spec, (struct sockaddr *)&ss, &ss_length) != 0) {
+    memset(&ss, 0, sizeof ss);
+    int ss_length;
+    struct sockaddr_in *v4 = (struct sockaddr_in *)&ss;
+    struct sockaddr_in6 *v6 = (struct sockaddr_in6 *)&ss;
+    if (evutil_inet_pton(AF_INET, address, &v4->sin_addr) == 1) {
+        v4->sin_family = AF_INET;
+        v4->sin_port = htons((uint16_t)server->config.port);
+        ss_length = sizeof *v4;
+    } else if (evutil_inet_pton(AF_INET6, address, &v6->sin6_addr) == 1) {
+        v6->sin6_family = AF_INET6;
+        v6->sin6_port = htons((uint16_t)server->config.port);
+        ss_length = sizeof *v6;
+    } else {
         ms_proto_door_close(door);
-        return ms_error_set(err, MS_ERR_ARG, "binary: bad bind address '%s'", address);
+        return ms_error_set(err, MS_ERR_ARG, "binary: bad bind address '%s' (a numeric IPv4 or IPv6 address)", address);
     }
     door->listener = evconnlistener_new_bind(
         server->base, on_accept, door, LEV_OPT_CLOSE_ON_FREE | LEV_OPT_REUSEABLE | LEV_OPT_CLOSE_ON_EXEC,
