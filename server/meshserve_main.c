@@ -15,12 +15,18 @@ static void usage(FILE *out)
             "Serves the models baked into ARCHIVE_DIR (see meshbake) to meshstream clients.\n"
             "SIGTERM or Ctrl-C: finish the transfers in progress, then exit with a summary.\n"
             "SIGHUP: rescan ARCHIVE_DIR for new, changed or removed models, keeping connections.\n\n"
+            "  --port PORT          binary protocol (protocol/PROTOCOL.md), 0 = any free port\n"
+            "                       (default 7800)\n"
             "  --http-port PORT     HTTP side door (catalogue, indexes, cells, /metrics), 0 = any\n"
             "                       free port, 'off' to disable (default 7801)\n"
             "  --bind ADDRESS       address to listen on (default 127.0.0.1)\n"
-            "  --config FILE        settings file, one 'key = value' a line; keys: http_port,\n"
-            "                       bind, token, idle_timeout, http_rate, max_clients, max_frame,\n"
-            "                       max_batch, max_outstanding, max_queued_bytes, request_rate\n"
+            "  --max-clients N      simultaneous binary connections; more are answered with\n"
+            "                       ERROR TOO_MANY_CONNECTIONS (default 1024)\n"
+            "  --config FILE        settings file, one 'key = value' a line; keys: port,\n"
+            "                       http_port, bind, token, idle_timeout (s), http_rate,\n"
+            "                       max_clients, max_frame (bytes), max_batch, max_outstanding,\n"
+            "                       max_queued_bytes (per connection), request_rate (per s and\n"
+            "                       connection)\n"
             "  --port-file FILE     write \"PORT HTTP_PORT\" there once listening (for scripts)\n"
             "  --json               print the exit summary as one JSON object\n"
             "  -h, --help           show this help\n"
@@ -30,8 +36,10 @@ static void usage(FILE *out)
 
 int main(int argc, char **argv)
 {
-    enum { OPT_HTTP_PORT = 256, OPT_BIND, OPT_CONFIG, OPT_PORT_FILE, OPT_JSON };
+    enum { OPT_PORT = 256, OPT_MAX_CLIENTS, OPT_HTTP_PORT, OPT_BIND, OPT_CONFIG, OPT_PORT_FILE, OPT_JSON };
     static const struct option options[] = {
+        {"port", required_argument, NULL, OPT_PORT},
+        {"max-clients", required_argument, NULL, OPT_MAX_CLIENTS},
         {"http-port", required_argument, NULL, OPT_HTTP_PORT},
         {"bind", required_argument, NULL, OPT_BIND},
         {"config", required_argument, NULL, OPT_CONFIG},
@@ -44,12 +52,14 @@ int main(int argc, char **argv)
     typedef struct setting {
         const char *key, *value, *where;
     } setting;
-    setting overrides[8];
+    setting overrides[16];
     int override_count = 0;
     bool json = false;
     int c;
     while ((c = getopt_long(argc, argv, "h", options, NULL)) != -1) {
         switch (c) {
+        case OPT_PORT: overrides[override_count++] = (setting){"port", optarg, "--port"}; break;
+        case OPT_MAX_CLIENTS: overrides[override_count++] = (setting){"max_clients", optarg, "--max-clients"}; break;
         case OPT_HTTP_PORT: overrides[override_count++] = (setting){"http_port", optarg, "--http-port"}; break;
         case OPT_BIND: overrides[override_count++] = (setting){"bind", optarg, "--bind"}; break;
         case OPT_PORT_FILE: overrides[override_count++] = (setting){"port_file", optarg, "--port-file"}; break;
@@ -58,7 +68,7 @@ int main(int argc, char **argv)
         case 'h': usage(stdout); return 0;
         default: fprintf(stderr, "meshserve: try 'meshserve --help'\n"); return 2;
         }
-        if (override_count == 8) {
+        if (override_count == 16) {
             fprintf(stderr, "meshserve: too many options\n");
             return 2;
         }
@@ -85,22 +95,27 @@ int main(int argc, char **argv)
         fprintf(stderr, "meshserve: %s\n", err.text);
         return 1;
     }
-    ms_server_log(&server, "serving %zu models from %s; http on port %u", server.registry.count,
-                  server.config.archive_dir, server.bound_http_port);
+    ms_server_log(&server, "serving %zu models from %s; binary protocol on port %u, http on port %u",
+                  server.registry.count, server.config.archive_dir, server.bound_port,
+                  server.bound_http_port);
     ms_server_run(&server);
     const ms_server_metrics *m = &server.metrics;
     double uptime = ms_now_seconds() - server.started_at;
     if (json)
         printf("{\"uptime_seconds\": %.3f, \"models\": %zu, \"http_requests\": %llu, "
-               "\"http_errors\": %llu, \"bytes_sent\": %llu, \"rescans\": %llu}\n",
+               "\"http_errors\": %llu, \"binary_connections\": %llu, \"binary_requests\": %llu, "
+               "\"binary_errors\": %llu, \"bytes_sent\": %llu, \"rescans\": %llu}\n",
                uptime, server.registry.count, (unsigned long long)m->http_requests,
-               (unsigned long long)m->http_errors,
+               (unsigned long long)m->http_errors, (unsigned long long)m->binary_connections_total,
+               (unsigned long long)m->binary_requests, (unsigned long long)m->binary_errors,
                (unsigned long long)(m->http_bytes_sent + m->binary_bytes_sent),
                (unsigned long long)m->rescans);
     else
-        printf("meshserve: stopped after %.1f s: %llu HTTP requests (%llu errors), %llu bytes "
-               "sent, %llu rescans\n",
+        printf("meshserve: stopped after %.1f s: %llu HTTP requests (%llu errors), %llu binary "
+               "connections, %llu binary requests (%llu errors), %llu bytes sent, %llu rescans\n",
                uptime, (unsigned long long)m->http_requests, (unsigned long long)m->http_errors,
+               (unsigned long long)m->binary_connections_total,
+               (unsigned long long)m->binary_requests, (unsigned long long)m->binary_errors,
                (unsigned long long)(m->http_bytes_sent + m->binary_bytes_sent),
                (unsigned long long)m->rescans);
     ms_server_stop(&server);

@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <zlib.h>
 
 void ms_model_ref(ms_model *m) { m->refs++; }
 
@@ -96,6 +97,18 @@ static ms_model *load_model(const char *dir, const ms_catalog_entry *entry,
     const ms_archive_header *h = ms_archive_get_header(m->archive);
     if (m->entry.public_max_bits > h->bits)
         m->entry.public_max_bits = h->bits;
+    for (uint32_t cell = 0; cell < h->cell_count; ++cell) {
+        const ms_archive_cell *c = ms_archive_get_cell(m->archive, cell);
+        if (c->apo_levels > m->max_apo_levels)
+            m->max_apo_levels = c->apo_levels;
+    }
+    size_t index_size;
+    const uint8_t *index = ms_archive_index_bytes(m->archive, &index_size);
+    m->index_crc32 = (uint32_t)crc32_z(0L, index, index_size);
+    uint64_t hash = 1469598103934665603ull;
+    for (size_t i = 0; i < index_size; ++i)
+        hash = (hash ^ index[i]) * 1099511628211ull;
+    m->content_id = hash;
     m->refs = 1;
     m->file_inode = (uint64_t)st.st_ino;
     m->file_size = (uint64_t)st.st_size;

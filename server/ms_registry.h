@@ -29,6 +29,9 @@ typedef struct ms_model {
     unsigned refs;
     ms_catalog_entry entry; /* entry.source owned */
     ms_archive *archive;
+    uint8_t max_apo_levels; /* most APO levels stored in any cell (0: no APO) */
+    uint32_t index_crc32;   /* zlib crc32 of the index blob (ms_archive_index_bytes) */
+    uint64_t content_id;    /* FNV-1a 64 of the index blob, which holds every payload CRC */
     uint64_t file_inode, file_size;
     int64_t file_mtime_ns;
 } ms_model;

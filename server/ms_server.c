@@ -11,6 +11,7 @@
 
 #include "ms_http_door.h"
 #include "ms_progress.h"
+#include "ms_proto_door.h"
 
 #define DRAIN_LIMIT_SECONDS 10.0
 
@@ -48,10 +49,11 @@ static void check_drained(evutil_socket_t fd, short what, void *arg)
     (void)fd, (void)what;
     ms_server *s = arg;
     double waited = ms_now_seconds() - s->drain_started_at;
-    if (s->metrics.transfers_in_flight == 0 || waited > DRAIN_LIMIT_SECONDS) {
-        if (s->metrics.transfers_in_flight)
-            ms_server_log(s, "drain: giving up on %llu transfers after %.0f s",
-                          (unsigned long long)s->metrics.transfers_in_flight, waited);
+    size_t connections = ms_proto_door_connection_count(s->binary);
+    if ((s->metrics.transfers_in_flight == 0 && connections == 0) || waited > DRAIN_LIMIT_SECONDS) {
+        if (s->metrics.transfers_in_flight || connections)
+            ms_server_log(s, "drain: giving up on %llu transfers and %zu connections after %.0f s",
+                          (unsigned long long)s->metrics.transfers_in_flight, connections, waited);
         event_base_loopexit(s->base, NULL);
     }
 }
@@ -62,8 +64,10 @@ void ms_server_drain(ms_server *s)
         return;
     s->draining = true;
     s->drain_started_at = ms_now_seconds();
-    ms_server_log(s, "draining: %llu transfers in flight",
-                  (unsigned long long)s->metrics.transfers_in_flight);
+    ms_server_log(s, "draining: %llu transfers in flight, %zu binary connections",
+                  (unsigned long long)s->metrics.transfers_in_flight,
+                  ms_proto_door_connection_count(s->binary));
+    ms_proto_door_drain(s->binary);
     struct timeval tick = {0, 50000};
     s->drain_timer = event_new(s->base, -1, EV_PERSIST, check_drained, s);
     if (!s->drain_timer || event_add(s->drain_timer, &tick) != 0)
@@ -113,6 +117,11 @@ ms_status ms_server_start(ms_server *s, ms_server_config *config, ms_error *err)
         ms_server_stop(s);
         return ms_error_set(err, MS_ERR_NOMEM, "cannot create the event loop");
     }
+    st = ms_proto_door_open(s, &s->binary, &s->bound_port, err);
+    if (st != MS_OK) {
+        ms_server_stop(s);
+        return st;
+    }
     if (s->config.http_enabled) {
         st = ms_http_door_open(s, &s->http, &s->bound_http_port, err);
         if (st != MS_OK) {
@@ -140,6 +149,8 @@ void ms_server_run(ms_server *s) { event_base_dispatch(s->base); }
 
 void ms_server_stop(ms_server *s)
 {
+    ms_proto_door_close(s->binary);
+    s->binary = NULL;
     ms_http_door_close(s->http);
     s->http = NULL;
     for (int i = 0; i < 3; ++i)

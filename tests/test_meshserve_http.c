@@ -41,7 +41,7 @@ static int start_server(void **state)
     snprintf(port_file, sizeof port_file, "%s/ports", f->dir);
     snprintf(f->log, sizeof f->log, "%s/meshserve.log", f->dir);
     ms_test_bin_path(bin, sizeof bin, "meshserve");
-    char *argv[] = {bin, archives, "--config", config, "--http-port", "0", "--port-file",
+    char *argv[] = {bin, archives, "--config", config, "--port", "0", "--http-port", "0", "--port-file",
                     port_file, "--json", NULL};
     f->pid = ms_test_spawn(argv, f->log);
     uint16_t port;

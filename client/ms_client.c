@@ -1,0 +1,323 @@
+/* Binary-protocol client connection: see ms_client.h. */
+#include "ms_client.h"
+
+#include <event2/buffer.h>
+#include <event2/bufferevent.h>
+#include <event2/event.h>
+#include <netinet/in.h>
+#include <netinet/tcp.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/socket.h>
+#include <zlib.h>
+
+#define DEFAULT_MAX_FRAME (1u << 20)
+
+struct ms_client {
+    struct bufferevent *bev;
+    const ms_client_handlers *handlers;
+    void *arg;
+    ms_proto_decoder decoder;
+    ms_proto_hello_reply limits;
+    uint32_t next_id;
+    bool over;
+    /* The index blob being received (one OPEN_MODEL at a time is reassembled;
+     * others interleave only if the caller opens several at once, which the
+     * server answers in order anyway). */
+    uint32_t index_request;
+    ms_proto_model_opened opened;
+    uint8_t *index;
+    uint32_t index_have;
+};
+
+static void finish(ms_client *c, const char *why)
+{
+    if (c->over)
+        return;
+    c->over = true;
+    bufferevent_disable(c->bev, EV_READ | EV_WRITE);
+    if (c->handlers->closed)
+        c->handlers->closed(c, why, c->arg);
+}
+
+static ms_status send_message(ms_client *c, const ms_proto_message *msg, ms_error *err)
+{
+    if (c->over)
+        return ms_error_set(err, MS_ERR_IO, "the connection is closed");
+    size_t size;
+    ms_status st = ms_proto_encoded_size(msg, &size, err);
+    if (st != MS_OK)
+        return st;
+    uint8_t small[2048];
+    uint8_t *buf = size <= sizeof small ? small : malloc(size);
+    if (!buf)
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory for a %zu-byte frame", size);
+    size_t written;
+    st = ms_proto_encode(msg, buf, size, &written, err);
+    if (st == MS_OK && bufferevent_write(c->bev, buf, written) != 0)
+        st = ms_error_set(err, MS_ERR_NOMEM, "out of memory for the output buffer");
+    if (buf != small)
+        free(buf);
+    if (st == MS_ERR_RANGE || st == MS_ERR_FORMAT)
+        st = MS_ERR_ARG;
+    return st;
+}
+
+static uint32_t take_ids(ms_client *c, uint32_t count)
+{
+    if (c->next_id == 0 || (uint64_t)c->next_id + count > 0xFFFFFFFFull)
+        c->next_id = 1;
+    uint32_t first = c->next_id;
+    c->next_id += count;
+    return first;
+}
+
+static void handle_index(ms_client *c, const ms_proto_message *m)
+{
+    const ms_proto_index_data *d = &m->body.index_data;
+    if (m->request_id != c->index_request || !c->index || d->offset != c->index_have ||
+        (uint64_t)d->offset + d->data_length > c->opened.index_size) {
+        finish(c, "server sent INDEX_DATA out of order");
+        return;
+    }
+    memcpy(c->index + c->index_have, d->data, d->data_length);
+    c->index_have += d->data_length;
+    if (!(m->flags & MS_PROTO_FLAG_LAST))
+        return;
+    if (c->index_have != c->opened.index_size ||
+        crc32_z(0L, c->index, c->index_have) != c->opened.index_crc32) {
+        finish(c, "model index blob fails its CRC-32");
+        return;
+    }
+    uint8_t *index = c->index;
+    c->index = NULL;
+    c->index_request = 0;
+    if (c->handlers->model_opened)
+        c->handlers->model_opened(c, m->request_id, &c->opened, index, c->arg);
+    free(index);
+}
+
+/* Returns false when the connection ended. */
+static bool handle_message(ms_client *c, const ms_proto_message *m)
+{
+    switch ((ms_proto_type)m->type) {
+    case MS_PROTO_HELLO_REPLY:
+        c->limits = m->body.hello_reply;
+        if (c->handlers->ready)
+            c->handlers->ready(c, &c->limits, c->arg);
+        break;
+    case MS_PROTO_MODEL_OPENED:
+        free(c->index);
+        c->opened = m->body.model_opened;
+        c->index = malloc(c->opened.index_size);
+        c->index_have = 0;
+        c->index_request = m->request_id;
+        if (!c->index)
+            finish(c, "out of memory for a model index");
+        break;
+    case MS_PROTO_INDEX_DATA: handle_index(c, m); break;
+    case MS_PROTO_PAYLOAD:
+        if (c->handlers->payload)
+            c->handlers->payload(c, m->request_id, &m->body.payload, m->flags & MS_PROTO_FLAG_LAST,
+                                 c->arg);
+        break;
+    case MS_PROTO_ERROR:
+        if (m->body.error.fatal) {
+            char why[400];
+            snprintf(why, sizeof why, "server error %s: %.*s",
+                     ms_proto_error_name(m->body.error.code), (int)m->body.error.text_length,
+                     m->body.error.text);
+            finish(c, why);
+        } else if (c->handlers->request_error) {
+            c->handlers->request_error(c, m->request_id, m->body.error.request_count,
+                                       &m->body.error, c->arg);
+        }
+        break;
+    case MS_PROTO_PING: {
+        ms_proto_message pong = {.type = MS_PROTO_PONG};
+        pong.body.ping = m->body.ping;
+        send_message(c, &pong, NULL);
+        break;
+    }
+    case MS_PROTO_PONG:
+        if (c->handlers->pong)
+            c->handlers->pong(c, m->body.ping.opaque, c->arg);
+        break;
+    case MS_PROTO_CATALOGUE: /* listed for completeness; meshload has its own use */ break;
+    default: break;
+    }
+    return !c->over;
+}
+
+static void on_read(struct bufferevent *bev, void *arg)
+{
+    ms_client *c = arg;
+    struct evbuffer *in = bufferevent_get_input(bev);
+    while (!c->over && evbuffer_get_length(in)) {
+        struct evbuffer_iovec v;
+        if (evbuffer_peek(in, -1, NULL, &v, 1) < 1)
+            break;
+        size_t consumed;
+        ms_proto_message m;
+        bool have;
+        ms_proto_fault fault;
+        ms_error err;
+        ms_status st = ms_proto_decoder_feed(&c->decoder, v.iov_base, v.iov_len, &consumed, &m,
+                                             &have, &fault, &err);
+        evbuffer_drain(in, consumed);
+        if (st != MS_OK) {
+            char why[MS_ERROR_TEXT_MAX + 32];
+            snprintf(why, sizeof why, "bad frame from the server: %s", err.text);
+            finish(c, why);
+            return;
+        }
+        if (have && !handle_message(c, &m))
+            return;
+    }
+}
+
+static void on_event(struct bufferevent *bev, short what, void *arg)
+{
+    (void)bev;
+    ms_client *c = arg;
+    if (what & BEV_EVENT_CONNECTED) {
+        int one = 1;
+        setsockopt(bufferevent_getfd(c->bev), IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
+        return;
+    }
+    finish(c, what & BEV_EVENT_EOF ? "closed by the server" : "socket error");
+}
+
+ms_status ms_client_connect(struct event_base *base, const ms_client_options *o,
+                            const ms_client_handlers *handlers, void *arg, ms_client **out,
+                            ms_error *err)
+{
+    *out = NULL;
+    struct sockaddr_storage ss;
+    memset(&ss, 0, sizeof ss);
+    int length;
+    struct sockaddr_in *v4 = (struct sockaddr_in *)&ss;
+    struct sockaddr_in6 *v6 = (struct sockaddr_in6 *)&ss;
+    if (evutil_inet_pton(AF_INET, o->host, &v4->sin_addr) == 1) {
+        v4->sin_family = AF_INET, v4->sin_port = htons(o->port), length = sizeof *v4;
+    } else if (evutil_inet_pton(AF_INET6, o->host, &v6->sin6_addr) == 1) {
+        v6->sin6_family = AF_INET6, v6->sin6_port = htons(o->port), length = sizeof *v6;
+    } else {
+        return ms_error_set(err, MS_ERR_ARG, "'%s' is not a numeric address", o->host);
+    }
+    ms_client *c = calloc(1, sizeof *c);
+    if (!c)
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory");
+    c->handlers = handlers;
+    c->arg = arg;
+    c->next_id = 1;
+    uint32_t max_frame = o->max_frame ? o->max_frame : DEFAULT_MAX_FRAME;
+    ms_proto_decoder_config dc = {MS_PROTO_ROLE_CLIENT, max_frame, 0};
+    ms_status st = ms_proto_decoder_init(&c->decoder, &dc, err);
+    if (st != MS_OK) {
+        free(c);
+        return st;
+    }
+    c->bev = bufferevent_socket_new(base, -1, BEV_OPT_CLOSE_ON_FREE);
+    if (!c->bev) {
+        ms_client_free(c);
+        return ms_error_set(err, MS_ERR_NOMEM, "cannot create a socket buffer");
+    }
+    bufferevent_setcb(c->bev, on_read, NULL, on_event, c);
+    bufferevent_set_max_single_read(c->bev, 1u << 20);
+    bufferevent_set_max_single_write(c->bev, 1u << 20);
+    bufferevent_enable(c->bev, EV_READ | EV_WRITE);
+    if (bufferevent_socket_connect(c->bev, (struct sockaddr *)&ss, length) != 0) {
+        ms_client_free(c);
+        return ms_error_set(err, MS_ERR_IO, "cannot connect to %s:%u", o->host, o->port);
+    }
+    ms_proto_message hello = {.type = MS_PROTO_HELLO};
+    ms_proto_hello *h = &hello.body.hello;
+    h->min_version = h->max_version = MS_PROTO_VERSION;
+    h->capabilities = MS_PROTO_CAP_APO;
+    h->max_frame = max_frame;
+    h->token = o->token;
+    h->token_length = o->token ? (uint16_t)strlen(o->token) : 0;
+    h->agent = o->agent ? o->agent : "";
+    h->agent_length = (uint16_t)strlen(h->agent);
+    if ((st = send_message(c, &hello, err)) != MS_OK) {
+        ms_client_free(c);
+        return st;
+    }
+    *out = c;
+    return MS_OK;
+}
+
+void ms_client_free(ms_client *c)
+{
+    if (!c)
+        return;
+    if (c->bev)
+        bufferevent_free(c->bev);
+    ms_proto_decoder_free(&c->decoder);
+    free(c->index);
+    free(c);
+}
+
+ms_status ms_client_list_catalogue(ms_client *c, uint32_t *request_id, ms_error *err)
+{
+    ms_proto_message m = {.type = MS_PROTO_LIST_CATALOGUE, .request_id = take_ids(c, 1)};
+    *request_id = m.request_id;
+    return send_message(c, &m, err);
+}
+
+ms_status ms_client_open_model(ms_client *c, const char *name, uint32_t *request_id, ms_error *err)
+{
+    size_t n = strlen(name);
+    if (!ms_proto_model_name_valid(name, n, NULL))
+        return ms_error_set(err, MS_ERR_ARG, "'%s' is not a model name", name);
+    ms_proto_message m = {.type = MS_PROTO_OPEN_MODEL, .request_id = take_ids(c, 1)};
+    m.body.open_model.name = name;
+    m.body.open_model.name_length = (uint8_t)n;
+    *request_id = m.request_id;
+    return send_message(c, &m, err);
+}
+
+ms_status ms_client_request_cells(ms_client *c, uint32_t handle, const ms_proto_cell_request *e,
+                                  uint16_t count, uint32_t *first_id, ms_error *err)
+{
+    if (count == 0 || count > MS_PROTO_MAX_BATCH)
+        return ms_error_set(err, MS_ERR_ARG, "batch of %u requests", count);
+    ms_proto_message m = {.type = MS_PROTO_REQUEST_CELLS, .request_id = take_ids(c, count)};
+    m.body.request_cells.model_handle = handle;
+    m.body.request_cells.entries = e;
+    m.body.request_cells.count = count;
+    *first_id = m.request_id;
+    return send_message(c, &m, err);
+}
+
+ms_status ms_client_cancel(ms_client *c, const ms_proto_id_range *ranges, uint16_t count,
+                           ms_error *err)
+{
+    ms_proto_message m = {.type = MS_PROTO_CANCEL};
+    m.body.cancel.ranges = ranges;
+    m.body.cancel.range_count = count;
+    return send_message(c, &m, err);
+}
+
+ms_status ms_client_cancel_all(ms_client *c, ms_error *err)
+{
+    ms_proto_message m = {.type = MS_PROTO_CANCEL};
+    m.body.cancel.flags = MS_PROTO_CANCEL_ALL;
+    return send_message(c, &m, err);
+}
+
+ms_status ms_client_ping(ms_client *c, uint64_t opaque, ms_error *err)
+{
+    ms_proto_message m = {.type = MS_PROTO_PING};
+    m.body.ping.opaque = opaque;
+    return send_message(c, &m, err);
+}
+
+const ms_proto_hello_reply *ms_client_limits(const ms_client *c) { return &c->limits; }
+
+size_t ms_client_pending_output(const ms_client *c)
+{
+    return evbuffer_get_length(bufferevent_get_output(c->bev));
+}

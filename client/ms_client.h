@@ -1,0 +1,76 @@
+/* A binary-protocol client connection on a libevent loop (protocol/PROTOCOL.md):
+ * connect, HELLO, OPEN_MODEL (the index blob reassembled and CRC-checked),
+ * REQUEST_CELLS batches with consecutive request ids, CANCEL, PING; incoming
+ * frames are strictly validated (any bad server frame closes the connection)
+ * and handed to the caller's handlers. Used by meshloadgen and by meshload.
+ *
+ * Ownership: ms_client_free releases everything; it may be called from inside
+ * a handler only from `closed` (after which no handler runs). Pointers passed
+ * to handlers are valid during the call only. Thread-safety: the loop's thread.
+ */
+#ifndef MS_CLIENT_H
+#define MS_CLIENT_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "ms_error.h"
+#include "ms_proto.h"
+
+struct event_base;
+typedef struct ms_client ms_client;
+
+typedef struct ms_client_handlers {
+    /* HELLO_REPLY received: requests may be sent (they may also be sent before). */
+    void (*ready)(ms_client *client, const ms_proto_hello_reply *reply, void *arg);
+    /* OPEN_MODEL answered: the whole index blob, CRC-checked. */
+    void (*model_opened)(ms_client *client, uint32_t request_id, const ms_proto_model_opened *opened,
+                         const uint8_t *index, void *arg);
+    /* One PAYLOAD frame (frames of one request come in order, contiguous). */
+    void (*payload)(ms_client *client, uint32_t request_id, const ms_proto_payload *payload,
+                    bool last, void *arg);
+    /* A non-fatal ERROR ending requests first_id .. first_id + count - 1
+     * (count 0: a connection-level error such as UNKNOWN_MODEL for a handle). */
+    void (*request_error)(ms_client *client, uint32_t first_id, uint32_t count,
+                          const ms_proto_error_body *error, void *arg);
+    void (*pong)(ms_client *client, uint64_t opaque, void *arg);
+    /* The connection is over: why is one line (a fatal ERROR's text, a
+     * protocol violation, a socket error, or "closed"). */
+    void (*closed)(ms_client *client, const char *why, void *arg);
+} ms_client_handlers;
+
+typedef struct ms_client_options {
+    const char *host;     /* numeric IPv4/IPv6 address */
+    uint16_t port;
+    const char *token;    /* NULL = none */
+    const char *agent;    /* e.g. "meshloadgen/0.1" */
+    uint32_t max_frame;   /* largest body accepted; 0 = 1 MiB */
+} ms_client_options;
+
+/* Starts connecting; HELLO is queued at once. MS_ERR_ARG for a bad address,
+ * MS_ERR_IO/NOMEM otherwise. handlers and arg must outlive the client. */
+ms_status ms_client_connect(struct event_base *base, const ms_client_options *options,
+                            const ms_client_handlers *handlers, void *arg, ms_client **client,
+                            ms_error *err);
+void ms_client_free(ms_client *client);
+
+/* Each returns the request id(s) it used. MS_ERR_ARG for an invalid message
+ * (bad name, count 0 or above the protocol's maximum), MS_ERR_NOMEM. */
+ms_status ms_client_list_catalogue(ms_client *client, uint32_t *request_id, ms_error *err);
+ms_status ms_client_open_model(ms_client *client, const char *name, uint32_t *request_id,
+                               ms_error *err);
+ms_status ms_client_request_cells(ms_client *client, uint32_t model_handle,
+                                  const ms_proto_cell_request *entries, uint16_t count,
+                                  uint32_t *first_id, ms_error *err);
+ms_status ms_client_cancel(ms_client *client, const ms_proto_id_range *ranges, uint16_t count,
+                           ms_error *err);
+ms_status ms_client_cancel_all(ms_client *client, ms_error *err);
+ms_status ms_client_ping(ms_client *client, uint64_t opaque, ms_error *err);
+
+/* The server's HELLO_REPLY (zeros before it arrived). */
+const ms_proto_hello_reply *ms_client_limits(const ms_client *client);
+/* Bytes queued for sending and not yet written to the socket. */
+size_t ms_client_pending_output(const ms_client *client);
+
+#endif

@@ -1,0 +1,51 @@
+/* A blocking, bounded-in-time binary-protocol client for tests of meshserve:
+ * sends encoded messages or raw bytes, and receives decoded frames (strictly
+ * validated, client role). Every receive waits at most a few seconds. */
+#ifndef MS_TEST_PROTO_H
+#define MS_TEST_PROTO_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "ms_proto.h"
+
+typedef struct ms_test_conn {
+    int fd;
+    ms_proto_decoder decoder;
+    uint8_t buffer[65536];
+    size_t have, used;
+    bool eof;
+} ms_test_conn;
+
+/* Connects to 127.0.0.1:port. 0 on success. */
+int ms_test_conn_open(ms_test_conn *conn, uint16_t port);
+void ms_test_conn_close(ms_test_conn *conn);
+
+/* Encodes and sends msg (fails the test when it does not encode). */
+void ms_test_conn_send(ms_test_conn *conn, const ms_proto_message *msg);
+/* Sends bytes verbatim. 0 on success. */
+int ms_test_conn_send_raw(ms_test_conn *conn, const void *data, size_t size);
+
+/* Receives the next frame into msg (pointers valid until the next receive).
+ * Returns 1 for a message, 0 at end of stream, -1 on time-out, socket error or
+ * a frame the decoder rejects. */
+int ms_test_conn_recv(ms_test_conn *conn, ms_proto_message *msg, double timeout_seconds);
+
+/* HELLO with token (may be NULL) and CAP_APO; receives HELLO_REPLY into reply
+ * (fails the test otherwise). */
+void ms_test_conn_hello(ms_test_conn *conn, const char *token, ms_proto_hello_reply *reply);
+
+/* Receives frames until an ERROR; fails the test on time-out or end of stream.
+ * Returns the error code and stores the header id and body. Skips other frames. */
+uint16_t ms_test_conn_expect_error(ms_test_conn *conn, uint32_t *request_id,
+                                   ms_proto_error_body *body);
+
+/* OPEN_MODEL name with id; receives MODEL_OPENED and the index blob (malloc'd
+ * into *index). Returns the handle, 0 when the server answered with an ERROR
+ * (whose code goes to *error_code). */
+uint32_t ms_test_conn_open_model(ms_test_conn *conn, const char *name, uint32_t id,
+                                 ms_proto_model_opened *opened, uint8_t **index,
+                                 uint16_t *error_code);
+
+#endif

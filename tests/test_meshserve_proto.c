@@ -1,0 +1,876 @@
+/* meshserve's binary protocol end to end on loopback: payloads equal to the
+ * archive bytes, priorities, cancel, disconnects, SIGHUP, drain, access
+ * control, every limit, and every class of malformed frame answered with the
+ * documented error (protocol/PROTOCOL.md). */
+#include <stdarg.h>
+#include <stddef.h>
+#include <setjmp.h>
+#include <stdint.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/socket.h>
+#include <sys/stat.h>
+#include <time.h>
+#include <unistd.h>
+#include <cmocka.h>
+
+#include "ms_archive.h"
+#include "ms_synthetic_archive.h"
+#include "ms_test.h"
+#include "ms_test_archive.h"
+#include "ms_test_net.h"
+#include "ms_test_proto.h"
+
+#define TOKEN "s3cret-token"
+#define BIG_CELLS 65u
+
+typedef struct server_fixture {
+    char dir[512];
+    char archives[600];
+    char log[600];
+    pid_t pid;
+    uint16_t port, http_port;
+} server_fixture;
+
+static void write_big_model(const char *archives)
+{
+    ms_synthetic_spec spec = {1, 12, 256u << 10, 64u << 10, 4, 3, 12};
+    ms_error err;
+    if (ms_synthetic_archive_write(archives, "big", &spec, &err) != MS_OK)
+        fail_msg("%s", err.text);
+}
+
+static void launch(server_fixture *f, const char *settings)
+{
+    char config[700], port_file[700], bin[512];
+    snprintf(config, sizeof config, "%s/meshserve.conf", f->dir);
+    FILE *c = fopen(config, "w");
+    fprintf(c, "token = " TOKEN "\nhttp_rate = 100000\n%s", settings);
+    fclose(c);
+    snprintf(port_file, sizeof port_file, "%s/ports", f->dir);
+    snprintf(f->log, sizeof f->log, "%s/meshserve.log", f->dir);
+    ms_test_bin_path(bin, sizeof bin, "meshserve");
+    char *argv[] = {bin, f->archives, "--config", config, "--port", "0", "--http-port", "0",
+                    "--port-file", port_file, NULL};
+    f->pid = ms_test_spawn(argv, f->log);
+    if (ms_test_wait_ports(port_file, 10.0, &f->port, &f->http_port) != 0) {
+        ms_test_stop(f->pid, SIGKILL, 5.0);
+        f->pid = 0;
+        fail_msg("meshserve did not start (see %s)", f->log);
+    }
+}
+
+static server_fixture *prepare(void)
+{
+    server_fixture *f = calloc(1, sizeof *f);
+    ms_test_tmpdir(f->dir, sizeof f->dir);
+    snprintf(f->archives, sizeof f->archives, "%s/archive", f->dir);
+    assert_int_equal(mkdir(f->archives, 0755), 0);
+    ms_test_add_model(f->archives, "bunny", 1, 12);
+    ms_test_add_model(f->archives, "dragon", 2, 8); /* preview: 8 bits public */
+    write_big_model(f->archives);
+    return f;
+}
+
+static int start_server(void **state)
+{
+    server_fixture *f = prepare();
+    launch(f, "");
+    *state = f;
+    return 0;
+}
+
+/* Small limits, to reach each one. */
+static int start_strict_server(void **state)
+{
+    server_fixture *f = prepare();
+    launch(f, "max_clients = 2\nidle_timeout = 1\nrequest_rate = 5\nmax_batch = 16\n"
+              "max_outstanding = 8\nmax_queued_bytes = 65536\n");
+    *state = f;
+    return 0;
+}
+
+static int stop_server(void **state)
+{
+    server_fixture *f = *state;
+    if (f->pid > 0)
+        ms_test_stop(f->pid, SIGKILL, 5.0);
+    ms_test_rmdir(f->dir);
+    free(f);
+    return 0;
+}
+
+static ms_archive *open_archive(const server_fixture *f, const char *name)
+{
+    char path[800];
+    snprintf(path, sizeof path, "%s/%s.msa", f->archives, name);
+    ms_archive *a;
+    assert_int_equal(ms_archive_open(path, &a, NULL), MS_OK);
+    return a;
+}
+
+static void connect_ready(const server_fixture *f, ms_test_conn *c, const char *token)
+{
+    assert_int_equal(ms_test_conn_open(c, f->port), 0);
+    ms_test_conn_hello(c, token, NULL);
+}
+
+static ms_proto_cell_request steps(uint32_t cell, uint8_t stream, uint8_t priority, uint32_t a,
+                                   uint32_t b)
+{
+    ms_proto_cell_request e = {cell, stream, MS_PROTO_UNIT_STEPS, priority, a, b};
+    return e;
+}
+
+static void send_batch(ms_test_conn *c, uint32_t handle, uint32_t first_id,
+                       const ms_proto_cell_request *entries, uint16_t count)
+{
+    ms_proto_message m = {.type = MS_PROTO_REQUEST_CELLS, .request_id = first_id};
+    m.body.request_cells.model_handle = handle;
+    m.body.request_cells.entries = entries;
+    m.body.request_cells.count = count;
+    ms_test_conn_send(c, &m);
+}
+
+static void send_ping(ms_test_conn *c, uint64_t opaque)
+{
+    ms_proto_message m = {.type = MS_PROTO_PING};
+    m.body.ping.opaque = opaque;
+    ms_test_conn_send(c, &m);
+}
+
+static void expect_pong(ms_test_conn *c, uint64_t opaque)
+{
+    ms_proto_message m;
+    do
+        assert_int_equal(ms_test_conn_recv(c, &m, 5.0), 1);
+    while (m.type != MS_PROTO_PONG);
+    assert_true(m.body.ping.opaque == opaque);
+}
+
+/* Reassembles the answers to requests first..first+count-1: data per id,
+ * terminal frames counted, the error code of requests ended by an ERROR. */
+typedef struct answers {
+    uint32_t first, count;
+    uint8_t **data;
+    uint32_t *length, *start, *end;
+    uint16_t *error;
+    unsigned *terminals;
+    uint32_t *order; /* ids in the order their terminal frame came */
+    uint32_t done;
+} answers;
+
+static void answers_init(answers *a, uint32_t first, uint32_t count)
+{
+    memset(a, 0, sizeof *a);
+    a->first = first, a->count = count;
+    a->data = calloc(count, sizeof *a->data);
+    a->length = calloc(count, sizeof *a->length);
+    a->start = calloc(count, sizeof *a->start);
+    a->end = calloc(count, sizeof *a->end);
+    a->error = calloc(count, sizeof *a->error);
+    a->terminals = calloc(count, sizeof *a->terminals);
+    a->order = calloc(count, sizeof *a->order);
+}
+
+static void answers_free(answers *a)
+{
+    for (uint32_t i = 0; i < a->count; ++i)
+        free(a->data[i]);
+    free(a->data), free(a->length), free(a->start), free(a->end), free(a->error);
+    free(a->terminals), free(a->order);
+}
+
+/* Takes one frame into a; returns false when it is not about these requests. */
+static bool answers_take(answers *a, const ms_proto_message *m)
+{
+    if (m->request_id < a->first || m->request_id - a->first >= a->count)
+        return false;
+    uint32_t k = m->request_id - a->first;
+    if (m->type == MS_PROTO_ERROR) {
+        uint32_t n = m->body.error.request_count;
+        for (uint32_t j = 0; j < n && k + j < a->count; ++j) {
+            if (a->terminals[k + j]++ == 0)
+                a->order[a->done++] = m->request_id + j;
+            a->error[k + j] = m->body.error.code;
+        }
+        return true;
+    }
+    assert_int_equal(m->type, MS_PROTO_PAYLOAD);
+    if (a->terminals[k])
+        fail_msg("frame for request %u after its terminal frame", m->request_id);
+    const ms_proto_payload *p = &m->body.payload;
+    if (!a->data[k]) {
+        a->data[k] = malloc(p->end + 1);
+        a->start[k] = p->offset;
+        a->end[k] = p->end;
+    }
+    assert_int_equal(p->end, a->end[k]);
+    assert_int_equal(p->offset, a->start[k] + a->length[k]); /* contiguous, in order */
+    memcpy(a->data[k] + a->length[k], p->data, p->data_length);
+    a->length[k] += p->data_length;
+    if (m->flags & MS_PROTO_FLAG_LAST) {
+        a->terminals[k]++;
+        a->order[a->done++] = m->request_id;
+    }
+    return true;
+}
+
+static void answers_collect(ms_test_conn *c, answers *a)
+{
+    ms_proto_message m;
+    while (a->done < a->count) {
+        int r = ms_test_conn_recv(c, &m, 10.0);
+        if (r != 1)
+            fail_msg("%u of %u requests answered, then %s", a->done, a->count,
+                     r == 0 ? "end of stream" : "time-out");
+        if (m.type == MS_PROTO_ERROR && m.body.error.fatal)
+            fail_msg("fatal error %s: %.*s", ms_proto_error_name(m.body.error.code),
+                     (int)m.body.error.text_length, m.body.error.text);
+        answers_take(a, &m);
+    }
+    for (uint32_t i = 0; i < a->count; ++i)
+        assert_int_equal(a->terminals[i], 1);
+}
+
+/* --- Catalogue, open, payloads ------------------------------------------------ */
+
+static void list_catalogue(ms_test_conn *c, uint32_t id, char names[][65], uint8_t *permitted,
+                           size_t *count)
+{
+    ms_proto_message m = {.type = MS_PROTO_LIST_CATALOGUE, .request_id = id};
+    ms_test_conn_send(c, &m);
+    *count = 0;
+    for (bool last = false; !last;) {
+        assert_int_equal(ms_test_conn_recv(c, &m, 5.0), 1);
+        assert_int_equal(m.type, MS_PROTO_CATALOGUE);
+        assert_int_equal(m.request_id, id);
+        for (uint16_t i = 0; i < m.body.catalogue.entry_count; ++i, ++*count) {
+            const ms_proto_catalogue_entry *e = &m.body.catalogue.entries[i];
+            snprintf(names[*count], 65, "%.*s", e->name_length, e->name);
+            permitted[*count] = e->permitted_geometry_steps;
+            assert_int_equal(e->geometry_steps, 13);
+        }
+        last = m.flags & MS_PROTO_FLAG_LAST;
+    }
+}
+
+static void test_catalogue_and_open(void **state)
+{
+    server_fixture *f = *state;
+    char names[8][65];
+    uint8_t permitted[8];
+    size_t count;
+    ms_test_conn c;
+    assert_int_equal(ms_test_conn_open(&c, f->port), 0);
+    ms_proto_hello_reply reply;
+    ms_test_conn_hello(&c, NULL, &reply);
+    assert_int_equal(reply.version, 1);
+    assert_int_equal(reply.server_flags, 0);
+    assert_int_equal(reply.capabilities, MS_PROTO_CAP_APO);
+    list_catalogue(&c, 1, names, permitted, &count);
+    assert_int_equal(count, 3);
+    assert_string_equal(names[0], "big");
+    assert_string_equal(names[1], "bunny");
+    assert_string_equal(names[2], "dragon");
+    assert_int_equal(permitted[1], 13);
+    assert_int_equal(permitted[2], 9); /* preview: steps 0..8 */
+    ms_test_conn_close(&c);
+
+    assert_int_equal(ms_test_conn_open(&c, f->port), 0);
+    ms_test_conn_hello(&c, "wrong-token", &reply);
+    assert_int_equal(reply.server_flags, 0); /* a bad token is not an error */
+    ms_test_conn_close(&c);
+
+    assert_int_equal(ms_test_conn_open(&c, f->port), 0);
+    ms_test_conn_hello(&c, TOKEN, &reply);
+    assert_int_equal(reply.server_flags, MS_PROTO_SERVER_TOKEN_ACCEPTED);
+    list_catalogue(&c, 1, names, permitted, &count);
+    assert_int_equal(permitted[2], 13);
+    ms_proto_model_opened o;
+    uint8_t *index;
+    uint32_t h1 = ms_test_conn_open_model(&c, "dragon", 2, &o, &index, NULL);
+    uint32_t h2 = ms_test_conn_open_model(&c, "dragon", 3, NULL, NULL, NULL);
+    assert_true(h1 >= 1 && h2 >= 1 && h1 != h2);
+    assert_int_equal(o.cell_count, MS_TEST_ARCHIVE_CELLS);
+    assert_int_equal(o.permitted_geometry_steps, 13);
+    assert_int_equal(o.apo_steps, 5);
+    ms_archive *a = open_archive(f, "dragon");
+    size_t size;
+    const uint8_t *expected = ms_archive_index_bytes(a, &size);
+    assert_int_equal(o.index_size, size);
+    assert_memory_equal(index, expected, size);
+    ms_archive *received;
+    assert_int_equal(ms_archive_open_index(index, size, "dragon", &received, NULL), MS_OK);
+    ms_archive_close(received);
+    ms_archive_close(a);
+    free(index);
+    ms_test_conn_close(&c);
+}
+
+static void check_payloads_equal(const server_fixture *f, const char *name, uint32_t cells)
+{
+    ms_test_conn c;
+    connect_ready(f, &c, TOKEN);
+    uint32_t handle = ms_test_conn_open_model(&c, name, 1, NULL, NULL, NULL);
+    assert_true(handle >= 1);
+    ms_proto_cell_request *e = calloc(2 * cells, sizeof *e);
+    for (uint32_t i = 0; i < cells; ++i) {
+        e[2 * i] = steps(i, MS_PROTO_STREAM_GEOMETRY, (uint8_t)(i % 7), 0, 63);
+        e[2 * i + 1] = steps(i, MS_PROTO_STREAM_APO, (uint8_t)(i % 5), 0, 63);
+    }
+    send_batch(&c, handle, 100, e, (uint16_t)(2 * cells));
+    answers a;
+    answers_init(&a, 100, 2 * cells);
+    answers_collect(&c, &a);
+    ms_archive *archive = open_archive(f, name);
+    for (uint32_t i = 0; i < 2 * cells; ++i) {
+        size_t length;
+        const uint8_t *bytes = i % 2 ? ms_archive_apo(archive, i / 2, &length)
+                                     : ms_archive_geometry(archive, i / 2, &length);
+        assert_int_equal(a.error[i], 0);
+        assert_int_equal(a.start[i], 0);
+        assert_int_equal(a.length[i], length);
+        if (length)
+            assert_memory_equal(a.data[i], bytes, length);
+        assert_int_equal(ms_archive_check_payload(archive, i / 2, i % 2, a.data[i] ? a.data[i]
+                                                  : (const uint8_t *)"", length, NULL), MS_OK);
+    }
+    ms_archive_close(archive);
+    answers_free(&a);
+    free(e);
+    ms_test_conn_close(&c);
+}
+
+static void test_payloads_equal_archive(void **state)
+{
+    server_fixture *f = *state;
+    check_payloads_equal(f, "bunny", MS_TEST_ARCHIVE_CELLS);
+    check_payloads_equal(f, "big", BIG_CELLS); /* multi-frame payloads */
+}
+
+static void test_prefix_ranges(void **state)
+{
+    server_fixture *f = *state;
+    ms_test_conn c;
+    connect_ready(f, &c, TOKEN);
+    uint32_t handle = ms_test_conn_open_model(&c, "bunny", 1, NULL, NULL, NULL);
+    ms_archive *archive = open_archive(f, "bunny");
+    /* Cell 5 (internal): window 7..9; cell 2 has APO levels 0..2. */
+    ms_proto_cell_request e[6] = {
+        steps(5, MS_PROTO_STREAM_GEOMETRY, 0, 0, 8),  steps(5, MS_PROTO_STREAM_GEOMETRY, 0, 9, 9),
+        steps(5, MS_PROTO_STREAM_GEOMETRY, 0, 10, 63), steps(2, MS_PROTO_STREAM_APO, 0, 1, 1),
+        {1, MS_PROTO_STREAM_GEOMETRY, MS_PROTO_UNIT_BYTES, 0, 5, 7},
+        {1, MS_PROTO_STREAM_GEOMETRY, MS_PROTO_UNIT_BYTES, 0, 5, 100000},
+    };
+    send_batch(&c, handle, 10, e, 6);
+    answers a;
+    answers_init(&a, 10, 6);
+    answers_collect(&c, &a);
+    size_t length;
+    const uint8_t *g5 = ms_archive_geometry(archive, 5, &length);
+    const uint8_t *g = ms_archive_geometry(archive, 1, &length);
+    const uint8_t *apo = ms_archive_apo(archive, 2, &length);
+    uint32_t p8 = ms_archive_geometry_prefix(archive, 5, 8), p9 = ms_archive_geometry_prefix(archive, 5, 9);
+    assert_int_equal(a.length[0], p8);
+    assert_memory_equal(a.data[0], g5, p8);
+    assert_int_equal(a.start[1], p8);
+    assert_int_equal(a.length[1], p9 - p8);
+    assert_memory_equal(a.data[1], g5 + p8, p9 - p8);
+    assert_int_equal(a.length[2], 0); /* past the window: empty, not an error */
+    assert_int_equal(a.error[2], 0);
+    uint32_t l0 = ms_archive_apo_prefix(archive, 2, 0, NULL), l1 = ms_archive_apo_prefix(archive, 2, 1, NULL);
+    assert_int_equal(a.start[3], l0);
+    assert_int_equal(a.length[3], l1 - l0);
+    assert_memory_equal(a.data[3], apo + l0, l1 - l0);
+    assert_int_equal(a.start[4], 5);
+    assert_memory_equal(a.data[4], g + 5, 7);
+    assert_int_equal(a.error[5], MS_PROTO_E_RANGE_NOT_SATISFIABLE);
+    answers_free(&a);
+    ms_archive_close(archive);
+    ms_test_conn_close(&c);
+}
+
+/* --- Priorities and cancel -------------------------------------------------- */
+
+static void test_priorities(void **state)
+{
+    server_fixture *f = *state;
+    ms_test_conn c;
+    connect_ready(f, &c, TOKEN);
+    uint32_t handle = ms_test_conn_open_model(&c, "big", 1, NULL, NULL, NULL);
+    /* Priorities 9,8,...,0 then ties: lower first, ties in entry order. */
+    const uint8_t priority[12] = {9, 8, 7, 6, 5, 4, 3, 2, 1, 0, 5, 5};
+    ms_proto_cell_request e[12];
+    for (int i = 0; i < 12; ++i)
+        e[i] = steps((uint32_t)i + 1, MS_PROTO_STREAM_GEOMETRY, priority[i], 0, 63);
+    send_batch(&c, handle, 50, e, 12);
+    answers a;
+    answers_init(&a, 50, 12);
+    answers_collect(&c, &a);
+    const uint32_t expected[12] = {59, 58, 57, 56, 55, 54, 60, 61, 53, 52, 51, 50};
+    for (int i = 0; i < 12; ++i)
+        assert_int_equal(a.order[i], expected[i]);
+    answers_free(&a);
+
+    /* A later, more urgent batch overtakes a long one at a chunk boundary. */
+    ms_proto_cell_request slow[40], urgent[1] = {steps(64, MS_PROTO_STREAM_GEOMETRY, 0, 0, 63)};
+    for (int i = 0; i < 40; ++i)
+        slow[i] = steps((uint32_t)i + 1, MS_PROTO_STREAM_GEOMETRY, 200, 0, 63);
+    send_batch(&c, handle, 1000, slow, 40);
+    ms_proto_message m;
+    assert_int_equal(ms_test_conn_recv(&c, &m, 5.0), 1);
+    send_batch(&c, handle, 2000, urgent, 1);
+    answers all;
+    answers_init(&all, 1000, 1001);
+    answers_take(&all, &m);
+    bool urgent_done = false;
+    uint32_t slow_done_before_urgent = 0;
+    while (!urgent_done || all.done < 40) {
+        assert_int_equal(ms_test_conn_recv(&c, &m, 10.0), 1);
+        if (m.request_id == 2000 && (m.flags & MS_PROTO_FLAG_LAST)) {
+            urgent_done = true;
+            slow_done_before_urgent = all.done;
+        } else if (m.request_id != 2000) {
+            answers_take(&all, &m);
+        }
+    }
+    assert_true(urgent_done);
+    assert_true(slow_done_before_urgent < 20);
+    answers_free(&all);
+    ms_test_conn_close(&c);
+}
+
+static void send_cancel(ms_test_conn *c, uint32_t first, uint32_t count, bool all)
+{
+    ms_proto_id_range range = {first, count};
+    ms_proto_message m = {.type = MS_PROTO_CANCEL};
+    m.body.cancel.flags = all ? MS_PROTO_CANCEL_ALL : 0;
+    m.body.cancel.ranges = all ? NULL : &range;
+    m.body.cancel.range_count = all ? 0 : 1;
+    ms_test_conn_send(c, &m);
+}
+
+static void test_cancel(void **state)
+{
+    server_fixture *f = *state;
+    ms_test_conn c;
+    connect_ready(f, &c, TOKEN);
+    uint32_t handle = ms_test_conn_open_model(&c, "big", 1, NULL, NULL, NULL);
+    ms_proto_cell_request e[BIG_CELLS];
+    for (uint32_t i = 0; i < BIG_CELLS; ++i)
+        e[i] = steps(i, MS_PROTO_STREAM_GEOMETRY, (uint8_t)i, 0, 63);
+    /* Cancel a range after the first frame: every id ends exactly once. */
+    send_batch(&c, handle, 1, e, BIG_CELLS);
+    ms_proto_message m;
+    assert_int_equal(ms_test_conn_recv(&c, &m, 5.0), 1);
+    send_cancel(&c, 1, BIG_CELLS, false);
+    answers a;
+    answers_init(&a, 1, BIG_CELLS);
+    answers_take(&a, &m);
+    answers_collect(&c, &a);
+    unsigned cancelled = 0;
+    for (uint32_t i = 0; i < BIG_CELLS; ++i)
+        cancelled += a.error[i] == MS_PROTO_E_CANCELLED;
+    assert_true(cancelled >= BIG_CELLS / 2);
+    answers_free(&a);
+
+    /* Cancel everything at once, then the connection still works. */
+    send_batch(&c, handle, 500, e, BIG_CELLS);
+    send_cancel(&c, 0, 0, true);
+    answers_init(&a, 500, BIG_CELLS);
+    answers_collect(&c, &a);
+    answers_free(&a);
+    send_ping(&c, 77);
+    expect_pong(&c, 77);
+
+    /* CLOSE_MODEL cancels what is outstanding on that handle. */
+    send_batch(&c, handle, 900, e, BIG_CELLS);
+    ms_proto_message close_msg = {.type = MS_PROTO_CLOSE_MODEL};
+    close_msg.body.close_model.model_handle = handle;
+    ms_test_conn_send(&c, &close_msg);
+    answers_init(&a, 900, BIG_CELLS);
+    answers_collect(&c, &a);
+    assert_int_equal(a.error[BIG_CELLS - 1], MS_PROTO_E_CANCELLED);
+    answers_free(&a);
+    send_batch(&c, handle, 2000, e, 1);
+    uint32_t id;
+    assert_int_equal(ms_test_conn_expect_error(&c, &id, NULL), MS_PROTO_E_UNKNOWN_MODEL);
+    ms_test_conn_close(&c);
+}
+
+/* --- Disconnects, SIGHUP, drain --------------------------------------------- */
+
+static uint64_t metric(const server_fixture *f, const char *name)
+{
+    ms_test_http_response r;
+    assert_int_equal(ms_test_http_get(f->http_port, "/metrics", NULL, &r), 0);
+    char key[128];
+    snprintf(key, sizeof key, "\n%s ", name);
+    const char *at = strstr((const char *)r.body, key);
+    uint64_t v = at ? strtoull(at + strlen(key), NULL, 10) : UINT64_MAX;
+    ms_test_http_free(&r);
+    return v;
+}
+
+static void test_disconnect_mid_payload_frees_everything(void **state)
+{
+    server_fixture *f = *state;
+    ms_proto_cell_request e[BIG_CELLS];
+    for (uint32_t i = 0; i < BIG_CELLS; ++i)
+        e[i] = steps(i, MS_PROTO_STREAM_GEOMETRY, 1, 0, 63);
+    for (int round = 0; round < 3; ++round) {
+        ms_test_conn c;
+        connect_ready(f, &c, TOKEN);
+        uint32_t handle = ms_test_conn_open_model(&c, "big", 1, NULL, NULL, NULL);
+        send_batch(&c, handle, 1, e, BIG_CELLS);
+        ms_proto_message m;
+        assert_int_equal(ms_test_conn_recv(&c, &m, 5.0), 1);
+        assert_int_equal(m.type, MS_PROTO_PAYLOAD);
+        ms_test_conn_close(&c); /* mid-payload, with requests queued */
+    }
+    /* Everything is released: no connection, no queued request. */
+    double waited = 0;
+    while ((metric(f, "meshstream_connections") || metric(f, "meshstream_queued_requests")) &&
+           waited < 5.0) {
+        usleep(50000);
+        waited += 0.05;
+    }
+    assert_int_equal(metric(f, "meshstream_connections"), 0);
+    assert_int_equal(metric(f, "meshstream_queued_requests"), 0);
+    assert_int_equal(metric(f, "meshstream_queued_bytes"), 0);
+    /* The sanitizers check for leaks at exit: a clean exit is status 0. */
+    assert_int_equal(ms_test_stop(f->pid, SIGTERM, 15.0), 0);
+    f->pid = 0;
+}
+
+static void test_sighup_adds_model_live(void **state)
+{
+    server_fixture *f = *state;
+    ms_test_conn c;
+    connect_ready(f, &c, NULL);
+    uint16_t code = 0;
+    assert_int_equal(ms_test_conn_open_model(&c, "horse", 1, NULL, NULL, &code), 0);
+    assert_int_equal(code, MS_PROTO_E_UNKNOWN_MODEL);
+    ms_test_add_model(f->archives, "horse", 9, 12);
+    assert_int_equal(kill(f->pid, SIGHUP), 0);
+    char names[8][65];
+    uint8_t permitted[8];
+    size_t count = 0;
+    for (int tries = 0; tries < 100 && count != 4; ++tries) {
+        usleep(50000);
+        list_catalogue(&c, 2, names, permitted, &count);
+    }
+    assert_int_equal(count, 4);
+    assert_string_equal(names[3], "horse");
+    uint32_t handle = ms_test_conn_open_model(&c, "horse", 3, NULL, NULL, NULL);
+    assert_true(handle >= 1);
+    ms_proto_cell_request e[1] = {steps(0, MS_PROTO_STREAM_GEOMETRY, 0, 0, 63)};
+    send_batch(&c, handle, 4, e, 1);
+    answers a;
+    answers_init(&a, 4, 1);
+    answers_collect(&c, &a);
+    ms_archive *archive = open_archive(f, "horse");
+    size_t length;
+    const uint8_t *g = ms_archive_geometry(archive, 0, &length);
+    assert_int_equal(a.length[0], length);
+    assert_memory_equal(a.data[0], g, length);
+    ms_archive_close(archive);
+    answers_free(&a);
+    ms_test_conn_close(&c);
+}
+
+static void test_sigterm_finishes_transfers(void **state)
+{
+    server_fixture *f = *state;
+    ms_test_conn c;
+    connect_ready(f, &c, TOKEN);
+    uint32_t handle = ms_test_conn_open_model(&c, "big", 1, NULL, NULL, NULL);
+    ms_proto_cell_request e[20];
+    for (uint32_t i = 0; i < 20; ++i)
+        e[i] = steps(i, MS_PROTO_STREAM_GEOMETRY, 1, 0, 63);
+    send_batch(&c, handle, 1, e, 20);
+    ms_proto_message m;
+    assert_int_equal(ms_test_conn_recv(&c, &m, 5.0), 1);
+    kill(f->pid, SIGTERM);
+    answers a;
+    answers_init(&a, 1, 20);
+    answers_take(&a, &m);
+    answers_collect(&c, &a);
+    for (uint32_t i = 0; i < 20; ++i)
+        assert_int_equal(a.error[i], 0);
+    answers_free(&a);
+    ms_proto_error_body body;
+    assert_int_equal(ms_test_conn_expect_error(&c, NULL, &body), MS_PROTO_E_SHUTTING_DOWN);
+    assert_true(body.fatal);
+    assert_int_equal(ms_test_conn_recv(&c, &m, 5.0), 0);
+    ms_test_conn_close(&c);
+    assert_int_equal(ms_test_stop(f->pid, SIGTERM, 15.0), 0);
+    f->pid = 0;
+}
+
+/* --- Hostile input ------------------------------------------------------------ */
+
+/* Sends raw bytes on a fresh connection (after a HELLO if hello) and expects a
+ * fatal error code, then the end of the stream. */
+static void expect_fatal(const server_fixture *f, bool hello, const void *bytes, size_t size,
+                         uint16_t code, uint64_t detail)
+{
+    ms_test_conn c;
+    assert_int_equal(ms_test_conn_open(&c, f->port), 0);
+    if (hello)
+        ms_test_conn_hello(&c, NULL, NULL);
+    assert_int_equal(ms_test_conn_send_raw(&c, bytes, size), 0);
+    ms_proto_error_body body;
+    uint32_t id;
+    uint16_t got = ms_test_conn_expect_error(&c, &id, &body);
+    if (got != code)
+        fail_msg("expected %s, got %s: %.*s", ms_proto_error_name(code), ms_proto_error_name(got),
+                 (int)body.text_length, body.text);
+    assert_true(body.fatal);
+    assert_int_equal(id, 0);
+    if (detail != UINT64_MAX)
+        assert_true(body.detail == detail);
+    ms_proto_message m;
+    assert_int_equal(ms_test_conn_recv(&c, &m, 5.0), 0);
+    ms_test_conn_close(&c);
+}
+
+static void header(uint8_t *p, uint32_t body, uint8_t type, uint8_t flags, uint32_t id)
+{
+    p[0] = (uint8_t)body, p[1] = (uint8_t)(body >> 8), p[2] = (uint8_t)(body >> 16),
+    p[3] = (uint8_t)(body >> 24);
+    p[4] = type, p[5] = flags, p[6] = p[7] = 0;
+    p[8] = (uint8_t)id, p[9] = (uint8_t)(id >> 8), p[10] = (uint8_t)(id >> 16), p[11] = (uint8_t)(id >> 24);
+}
+
+static void test_malformed_frames(void **state)
+{
+    server_fixture *f = *state;
+    uint8_t frame[64] = {0};
+    /* Bad length: a PING body must be 8 bytes. */
+    header(frame, 9, MS_PROTO_PING, 0, 0);
+    expect_fatal(f, true, frame, 12 + 9, MS_PROTO_E_MALFORMED_FRAME, UINT64_MAX);
+    /* Body above max_frame (1 MiB by default). */
+    header(frame, (1u << 20) + 1, MS_PROTO_REQUEST_CELLS, 0, 1);
+    expect_fatal(f, true, frame, 12, MS_PROTO_E_FRAME_TOO_LARGE, 1u << 20);
+    /* Unknown type. */
+    header(frame, 0, 0x33, 0, 0);
+    expect_fatal(f, true, frame, 12, MS_PROTO_E_UNKNOWN_TYPE, 0x33);
+    /* Reserved flag bits; LAST on a type that does not allow it. */
+    header(frame, 8, MS_PROTO_PING, 0x80, 0);
+    expect_fatal(f, true, frame, 20, MS_PROTO_E_MALFORMED_FRAME, UINT64_MAX);
+    header(frame, 8, MS_PROTO_PING, MS_PROTO_FLAG_LAST, 0);
+    expect_fatal(f, true, frame, 20, MS_PROTO_E_MALFORMED_FRAME, UINT64_MAX);
+    /* A server type sent by a client; anything but HELLO first. */
+    header(frame, 8, MS_PROTO_PONG + 0x40, 0, 0);
+    expect_fatal(f, true, frame, 12, MS_PROTO_E_UNEXPECTED_MESSAGE, UINT64_MAX);
+    header(frame, 8, MS_PROTO_PING, 0, 0);
+    expect_fatal(f, false, frame, 20, MS_PROTO_E_UNEXPECTED_MESSAGE, MS_PROTO_PING);
+    /* HELLO with a bad magic; with no common version; a second HELLO. */
+    header(frame, 24, MS_PROTO_HELLO, 0, 0);
+    memcpy(frame + 12, "XSTP\1\0\1\0\0\0\0\0\0\100\0\0", 16);
+    expect_fatal(f, false, frame, 36, MS_PROTO_E_MALFORMED_FRAME, UINT64_MAX);
+    memcpy(frame + 12, "MSTP\2\0\3\0\0\0\0\0\0\100\0\0", 16);
+    expect_fatal(f, false, frame, 36, MS_PROTO_E_UNSUPPORTED_VERSION, 1u | 1u << 16);
+    memcpy(frame + 12, "MSTP\1\0\1\0\0\0\0\0\0\100\0\0", 16);
+    expect_fatal(f, true, frame, 36, MS_PROTO_E_UNEXPECTED_MESSAGE, MS_PROTO_HELLO);
+    /* A request id that breaks the rule of its type. */
+    header(frame, 0, MS_PROTO_LIST_CATALOGUE, 0, 0);
+    expect_fatal(f, true, frame, 12, MS_PROTO_E_MALFORMED_FRAME, UINT64_MAX);
+    /* Garbage after a valid frame: the PING is answered, then the error. */
+    ms_test_conn c;
+    assert_int_equal(ms_test_conn_open(&c, f->port), 0);
+    ms_test_conn_hello(&c, NULL, NULL);
+    uint8_t bytes[20 + 48];
+    header(bytes, 8, MS_PROTO_PING, 0, 0);
+    memset(bytes + 12, 0x42, 8);
+    for (int i = 0; i < 48; ++i)
+        bytes[20 + i] = (uint8_t)(0x9d + i * 37);
+    assert_int_equal(ms_test_conn_send_raw(&c, bytes, sizeof bytes), 0);
+    expect_pong(&c, 0x4242424242424242ull);
+    ms_proto_error_body body;
+    ms_test_conn_expect_error(&c, NULL, &body);
+    assert_true(body.fatal);
+    ms_proto_message m;
+    assert_int_equal(ms_test_conn_recv(&c, &m, 5.0), 0);
+    ms_test_conn_close(&c);
+    /* A frame cut short by the end of the stream. */
+    assert_int_equal(ms_test_conn_open(&c, f->port), 0);
+    ms_test_conn_hello(&c, NULL, NULL);
+    header(bytes, 8, MS_PROTO_PING, 0, 0);
+    assert_int_equal(ms_test_conn_send_raw(&c, bytes, 15), 0);
+    shutdown(c.fd, SHUT_WR);
+    assert_int_equal(ms_test_conn_expect_error(&c, NULL, &body), MS_PROTO_E_MALFORMED_FRAME);
+    ms_test_conn_close(&c);
+}
+
+static void test_bad_requests(void **state)
+{
+    server_fixture *f = *state;
+    ms_test_conn c;
+    connect_ready(f, &c, NULL);
+    uint32_t id;
+    ms_proto_error_body body;
+    /* Path-like or otherwise invalid model names, sent raw (the encoder refuses them). */
+    const char *bad_names[] = {"../bunny", "bunny/..", "a.b", "/etc/passwd", "bun ny", "bunny\\x"};
+    for (size_t i = 0; i < sizeof bad_names / sizeof *bad_names; ++i) {
+        uint8_t frame[12 + 4 + 64] = {0};
+        size_t n = strlen(bad_names[i]);
+        header(frame, (uint32_t)(4 + n), MS_PROTO_OPEN_MODEL, 0, 10 + (uint32_t)i);
+        frame[12] = (uint8_t)n;
+        memcpy(frame + 16, bad_names[i], n);
+        assert_int_equal(ms_test_conn_send_raw(&c, frame, 16 + n), 0);
+        assert_int_equal(ms_test_conn_expect_error(&c, &id, &body), MS_PROTO_E_BAD_MODEL_NAME);
+        assert_int_equal(id, 10 + i);
+        assert_false(body.fatal);
+        assert_true(body.detail == (uint64_t)strcspn(bad_names[i], "./ \\"));
+    }
+    uint16_t code = 0;
+    assert_int_equal(ms_test_conn_open_model(&c, "nosuch", 20, NULL, NULL, &code), 0);
+    assert_int_equal(code, MS_PROTO_E_UNKNOWN_MODEL);
+    uint32_t handle = ms_test_conn_open_model(&c, "dragon", 21, NULL, NULL, NULL);
+    /* Out-of-range field (a > b): FIELD_OUT_OF_RANGE, not fatal, whole batch. */
+    uint8_t frame[12 + 8 + 32] = {0};
+    header(frame, 8 + 32, MS_PROTO_REQUEST_CELLS, 0, 30);
+    frame[12] = (uint8_t)handle, frame[16] = 2;
+    frame[20 + 16 + 8] = 5, frame[20 + 16 + 12] = 3;
+    assert_int_equal(ms_test_conn_send_raw(&c, frame, sizeof frame), 0);
+    assert_int_equal(ms_test_conn_expect_error(&c, &id, &body), MS_PROTO_E_FIELD_OUT_OF_RANGE);
+    assert_int_equal(id, 30);
+    assert_int_equal(body.request_count, 2);
+    assert_false(body.fatal);
+    /* Oversized batch: max_batch is 1024. */
+    ms_proto_cell_request *many = calloc(1025, sizeof *many);
+    send_batch(&c, handle, 100, many, 1025);
+    assert_int_equal(ms_test_conn_expect_error(&c, &id, &body), MS_PROTO_E_BATCH_TOO_LARGE);
+    assert_int_equal(body.request_count, 1025);
+    assert_int_equal(body.detail, 1024);
+    free(many);
+    /* Per entry: no such cell, range outside the stream, beyond the preview. */
+    ms_proto_cell_request e[6] = {
+        steps(999999, MS_PROTO_STREAM_GEOMETRY, 0, 0, 8),
+        {1, MS_PROTO_STREAM_GEOMETRY, MS_PROTO_UNIT_BYTES, 0, 0, 1000000},
+        steps(1, MS_PROTO_STREAM_GEOMETRY, 0, 0, 12),
+        steps(1, MS_PROTO_STREAM_GEOMETRY, 0, 0, 8),
+        steps(70, MS_PROTO_STREAM_APO, 0, 0, 3), /* cell 70 starts at 9 bits */
+        steps(1, MS_PROTO_STREAM_APO, 0, 0, 3),
+    };
+    send_batch(&c, handle, 200, e, 6);
+    answers a;
+    answers_init(&a, 200, 6);
+    answers_collect(&c, &a);
+    assert_int_equal(a.error[0], MS_PROTO_E_UNKNOWN_CELL);
+    assert_int_equal(a.error[1], MS_PROTO_E_RANGE_NOT_SATISFIABLE);
+    assert_int_equal(a.error[2], MS_PROTO_E_FORBIDDEN);
+    assert_int_equal(a.error[3], 0);
+    assert_int_equal(a.error[4], MS_PROTO_E_FORBIDDEN);
+    assert_int_equal(a.error[5], 0);
+    answers_free(&a);
+    /* Unknown handles. */
+    send_batch(&c, 99, 300, e + 3, 1);
+    assert_int_equal(ms_test_conn_expect_error(&c, &id, &body), MS_PROTO_E_UNKNOWN_MODEL);
+    assert_int_equal(id, 300);
+    ms_proto_message close_msg = {.type = MS_PROTO_CLOSE_MODEL};
+    close_msg.body.close_model.model_handle = 99;
+    ms_test_conn_send(&c, &close_msg);
+    assert_int_equal(ms_test_conn_expect_error(&c, &id, &body), MS_PROTO_E_UNKNOWN_MODEL);
+    assert_int_equal(id, 0);
+    assert_true(body.detail == 99);
+    /* After all that, the connection still works. */
+    send_ping(&c, 5);
+    expect_pong(&c, 5);
+    ms_test_conn_close(&c);
+
+    /* A request id that is still outstanding: fatal. */
+    connect_ready(f, &c, TOKEN);
+    handle = ms_test_conn_open_model(&c, "big", 1, NULL, NULL, NULL);
+    ms_proto_cell_request big[BIG_CELLS];
+    for (uint32_t i = 0; i < BIG_CELLS; ++i)
+        big[i] = steps(i, MS_PROTO_STREAM_GEOMETRY, 0, 0, 63);
+    send_batch(&c, handle, 100, big, BIG_CELLS);
+    send_batch(&c, handle, 164, big, 1);
+    assert_int_equal(ms_test_conn_expect_error(&c, &id, &body), MS_PROTO_E_DUPLICATE_REQUEST_ID);
+    assert_true(body.fatal);
+    assert_true(body.detail == 164);
+    ms_test_conn_close(&c);
+}
+
+/* --- Limits (strict server) --------------------------------------------------- */
+
+static void test_limits(void **state)
+{
+    server_fixture *f = *state;
+    ms_test_conn c, d, e;
+    uint32_t id;
+    ms_proto_error_body body;
+    ms_proto_hello_reply reply;
+    assert_int_equal(ms_test_conn_open(&c, f->port), 0);
+    ms_test_conn_hello(&c, TOKEN, &reply);
+    assert_int_equal(reply.max_batch, 16);
+    assert_int_equal(reply.max_outstanding, 8);
+    assert_int_equal(reply.idle_timeout_ms, 1000);
+    assert_int_equal(reply.max_request_rate, 5);
+    uint32_t handle = ms_test_conn_open_model(&c, "big", 1, NULL, NULL, NULL);
+    ms_proto_cell_request r[16];
+    for (uint32_t i = 0; i < 16; ++i)
+        r[i] = steps(i + 1, MS_PROTO_STREAM_GEOMETRY, 0, 7, 7); /* ~5 KiB headers */
+    /* More outstanding than allowed. */
+    send_batch(&c, handle, 10, r, 9);
+    assert_int_equal(ms_test_conn_expect_error(&c, &id, &body), MS_PROTO_E_TOO_MANY_OUTSTANDING);
+    assert_int_equal(id, 10);
+    assert_int_equal(body.request_count, 9);
+    /* More bytes than max_queued_bytes (a whole 192+ KiB cell). */
+    r[15] = steps(3, MS_PROTO_STREAM_GEOMETRY, 0, 0, 63);
+    send_batch(&c, handle, 30, r + 15, 1);
+    assert_int_equal(ms_test_conn_expect_error(&c, &id, &body), MS_PROTO_E_QUEUE_FULL);
+    assert_true(body.detail == 65536);
+    /* Rate: burst of max_batch (16) then 5 per second. */
+    uint32_t next = 100;
+    uint16_t code = 0;
+    for (int round = 0; round < 10 && code != MS_PROTO_E_RATE_LIMITED; ++round) {
+        send_batch(&c, handle, next, r, 8);
+        answers a;
+        answers_init(&a, next, 8);
+        answers_collect(&c, &a);
+        code = a.error[0];
+        if (code == MS_PROTO_E_RATE_LIMITED)
+            assert_int_equal(a.error[7], MS_PROTO_E_RATE_LIMITED);
+        answers_free(&a);
+        next += 8;
+    }
+    assert_int_equal(code, MS_PROTO_E_RATE_LIMITED);
+    /* Connection limit: 2. */
+    assert_int_equal(ms_test_conn_open(&d, f->port), 0);
+    ms_test_conn_hello(&d, NULL, NULL);
+    assert_int_equal(ms_test_conn_open(&e, f->port), 0);
+    assert_int_equal(ms_test_conn_expect_error(&e, &id, &body), MS_PROTO_E_TOO_MANY_CONNECTIONS);
+    assert_true(body.fatal);
+    ms_test_conn_close(&e);
+    /* Idle time-out (1 s): d sends nothing more. */
+    assert_int_equal(ms_test_conn_expect_error(&d, &id, &body), MS_PROTO_E_IDLE_TIMEOUT);
+    assert_true(body.detail == 1000);
+    ms_test_conn_close(&d);
+    ms_test_conn_close(&c);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test_setup_teardown(test_catalogue_and_open, start_server, stop_server),
+        cmocka_unit_test_setup_teardown(test_payloads_equal_archive, start_server, stop_server),
+        cmocka_unit_test_setup_teardown(test_prefix_ranges, start_server, stop_server),
+        cmocka_unit_test_setup_teardown(test_priorities, start_server, stop_server),
+        cmocka_unit_test_setup_teardown(test_cancel, start_server, stop_server),
+        cmocka_unit_test_setup_teardown(test_disconnect_mid_payload_frees_everything, start_server,
+                                        stop_server),
+        cmocka_unit_test_setup_teardown(test_sighup_adds_model_live, start_server, stop_server),
+        cmocka_unit_test_setup_teardown(test_sigterm_finishes_transfers, start_server, stop_server),
+        cmocka_unit_test_setup_teardown(test_malformed_frames, start_server, stop_server),
+        cmocka_unit_test_setup_teardown(test_bad_requests, start_server, stop_server),
+        cmocka_unit_test_setup_teardown(test_limits, start_strict_server, stop_server),
+    };
+    return cmocka_run_group_tests_name("meshserve binary protocol", tests, NULL, NULL);
+}
