@@ -20,10 +20,10 @@ ifeq ($(MODE),asan)
 else
   OPT   := -O2 -g -DNDEBUG
 endif
-CFLAGS   := $(CSTD) $(WARN) $(OPT) -Icommon -Iprotocol -Iserver -Iclient -pthread $(EXTRA_CFLAGS)
+CFLAGS   := $(CSTD) $(WARN) $(OPT) -Icommon -Iprotocol -Iserver -Iclient -Itests/support -pthread $(EXTRA_CFLAGS)
 CXXFLAGS := -std=c++17 -Wall -Wextra -Werror $(OPT) -Icommon -Iserver -pthread $(EXTRA_CFLAGS)
 LDFLAGS  := $(OPT) -pthread
-LIBS     := -lz -lm
+LIBS     := -levent -ljansson -lz -lm
 
 ROLES      := common protocol server client
 LIB_common   := $(BUILD)/libmscommon.a

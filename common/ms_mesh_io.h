@@ -43,4 +43,21 @@ ms_status ms_mesh_load(const char *path, ms_mesh *mesh, ms_mesh_load_report *rep
 ms_status ms_ply_write(const char *path, const ms_mesh *mesh, bool binary, bool use_double,
                        ms_error *err);
 
+/* Streaming PLY writer, for meshes produced piece by piece (the demo generator,
+ * decoders). Declare the counts up front, then write exactly that many vertices
+ * followed by exactly that many triangles, then ms_ply_writer_finish, which
+ * checks the counts and renames the temporary file over path. On any error, or
+ * with ms_ply_writer_abort, the temporary file is removed and path is untouched.
+ * The writer owns its FILE and buffers; finish and abort free it. */
+typedef struct ms_ply_writer ms_ply_writer;
+
+ms_status ms_ply_writer_open(const char *path, uint64_t vertex_count, uint64_t triangle_count,
+                             bool binary, bool use_double, ms_ply_writer **writer,
+                             ms_error *err);
+ms_status ms_ply_writer_vertex(ms_ply_writer *writer, const double position[3], ms_error *err);
+ms_status ms_ply_writer_triangle(ms_ply_writer *writer, const uint32_t triangle[3],
+                                 ms_error *err);
+ms_status ms_ply_writer_finish(ms_ply_writer *writer, ms_error *err);
+void ms_ply_writer_abort(ms_ply_writer *writer);
+
 #endif
