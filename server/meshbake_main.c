@@ -254,7 +254,7 @@ static void print_bake_json(const ms_bake_options *o, const ms_bake_report *r)
                                 r->seconds_write, "total", r->seconds_total);
     json_t *root = json_pack(
         "{s:s, s:s, s:s, s:I, s:I, s:I, s:I, s:i, s:i, s:i, s:i, s:f, s:I, s:I, s:I, s:f, s:o, "
-        "s:f, s:i, s:f, s:{s:i, s:i, s:i, s:i, s:i}}",
+        "s:f, s:i, s:f, s:I, s:{s:i, s:i, s:i, s:i, s:i}}",
         "name", r->name, "archive", r->archive_path, "source", o->input,
         "input_vertices", (json_int_t)r->input_vertices,
         "input_triangles", (json_int_t)r->input_triangles,
@@ -267,6 +267,7 @@ static void print_bake_json(const ms_bake_options *o, const ms_bake_report *r)
         "bits_per_vertex", r->bits_per_vertex, "seconds", seconds,
         "triangles_per_second", r->seconds_total > 0 ? (double)r->input_triangles / r->seconds_total : 0.0,
         "threads", (int)r->threads, "peak_rss_mb", r->peak_rss_mb,
+        "spilled_blocks", (json_int_t)r->blocks_written,
         "parameters", "bits", (int)o->bits, "n", (int)o->n, "root_bits", (int)o->root_bits,
         "min_tris", (int)o->min_triangles, "mem_mb", (int)o->mem_mb);
     if (!root) {

@@ -95,7 +95,7 @@ ms_status ms_bake(const ms_bake_options *o, ms_bake_report *r, ms_error *err)
     ms_nsp_build_params bp = {
         .shape = shape,
         .min_triangles = o->min_triangles,
-        .buffer_budget = o->mem_mb * (1u << 20) / 4,
+        .buffer_budget = o->buffer_bytes ? o->buffer_bytes : o->mem_mb * (1u << 20) / 4,
         .tmp_dir = o->tmp_dir ? o->tmp_dir : o->archive_dir,
         .progress = on_progress,
         .progress_context = &progress,
@@ -112,6 +112,8 @@ ms_status ms_bake(const ms_bake_options *o, ms_bake_report *r, ms_error *err)
     r->seconds_quantise = b.stats.seconds_quantise;
     r->seconds_distribute = b.stats.seconds_distribute;
     r->cells = b.node_count;
+    r->blocks_written = b.stats.blocks_written;
+    r->flushes = b.stats.flushes;
     for (uint32_t i = 0; i < b.node_count; ++i) {
         r->leaves += b.nodes[i].first_child == MS_NSP_NONE;
         if (b.nodes[i].depth > r->depth)

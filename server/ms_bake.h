@@ -31,6 +31,7 @@ typedef struct ms_bake_options {
     unsigned bits, n, root_bits, threads;
     uint32_t min_triangles;
     size_t mem_mb;
+    size_t buffer_bytes;   /* leaf buffer budget; 0: a quarter of mem_mb (tests force flushes) */
     FILE *progress;        /* progress bar target (drawn only on a terminal), or NULL */
 } ms_bake_options;
 
@@ -51,6 +52,7 @@ typedef struct ms_bake_report {
         seconds_total;
     double peak_rss_mb;
     unsigned threads;
+    uint64_t blocks_written, flushes; /* leaf content spilled to the block file */
 } ms_bake_report;
 
 /* Derives a valid model name from a file path (basename without extensions, other
