@@ -558,7 +558,7 @@ ms_status ms_codec_decoder_create(const uint8_t *data, size_t size, const ms_cod
     ms_codec_decoder *d = calloc(1, sizeof *d);
     if (!d)
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory creating a decoder");
-    ms_status r = ms_codec_read_header(data, size, &d->h, err);
+    ms_status r = ms_codec_parse_header(data, size, &d->h, !(options && options->skip_crc), err);
     if (r != MS_OK) {
         free(d);
         return r;

@@ -2,6 +2,7 @@
 #ifndef MS_CODEC_INTERNAL_H
 #define MS_CODEC_INTERNAL_H
 
+#include <stdbool.h>
 #include <stddef.h>
 #include <stdint.h>
 
@@ -17,6 +18,9 @@ size_t ms_codec_header_size(unsigned nchunks);
  * which has ms_codec_header_size(p_max - p_min) bytes. */
 void ms_codec_write_header(uint8_t *p, const ms_codec_header *h);
 uint32_t ms_codec_crc(const uint8_t *p, size_t n);
+/* ms_codec_read_header with the header CRC check optional (fuzzing). */
+ms_status ms_codec_parse_header(const uint8_t *data, size_t size, ms_codec_header *h,
+                                bool verify_crc, ms_error *err);
 
 /* Exports a complex whose live cells (order[0..n), sorted by key) all sit at
  * `level` as a canonical ms_codec_state. */
