@@ -159,12 +159,15 @@ static ms_status split(ms_codec_decoder *d, uint32_t s, unsigned L, uint32_t *ou
     int64_t plane2 = 2 * (int64_t)cx->v[s].c[axis] + wp;
     int e12 = ms_rc_decode(&d->rc, &m[e12_ctx(st->nn)]);
     uint32_t n4 = 0;
+    unsigned nboth = 0;
     for (uint32_t i = 0; i < st->nn; ++i) {
         unsigned side = conn_side(cx, st->nbr[i], axis, plane2, wp);
         unsigned af = adj_flags(st, i, d->code);
         uint8_t c;
-        if (ms_rc_decode(&d->rc, &m[C_EA + (side * ADJS + af) * 2 + (unsigned)e12])) {
+        if (ms_rc_decode(&d->rc, &m[C_EA + ((side * ADJS + af) * 2 + (unsigned)e12) * 3 +
+                                     (nboth < 2 ? nboth : 2)])) {
             c = 3;
+            nboth++;
             if (e12 && ms_rc_decode(&d->rc, &m[C_EC + side * ADJS + af]))
                 c = 4;
         } else {
@@ -327,7 +330,7 @@ static ms_status refine_level(ms_codec_decoder *d, ms_error *err)
         uint32_t s = d->order[k];
         ms_cx_vert *v = &cx->v[s];
         unsigned run = geo_run(L, v->birth);
-        if (ms_rc_decode(&d->rc, &d->model[GEO_BOTH(L, run)])) {
+        if (ms_rc_decode(&d->rc, &d->model[GEO_BOTH(L, run, geo_deg(v))])) {
             uint32_t s2 = 0;
             if ((r = split(d, s, L, &s2, err)) != MS_OK) {
                 d->broken = true;

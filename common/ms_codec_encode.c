@@ -9,6 +9,10 @@
 #include "ms_rangecoder.h"
 
 #include <stdlib.h>
+#ifdef MS_CODEC_STATS
+#include <math.h>
+#include <stdio.h>
+#endif
 #include <string.h>
 
 typedef struct sym_buf {
@@ -113,13 +117,16 @@ static ms_status record_split(enc *e, uint32_t c0, uint32_t c1, unsigned L, ms_e
     int64_t plane2 = 2 * (int64_t)cx->v[c0].c[axis] + wp;
     int e12 = st->adj01;
     put(e, base + e12_ctx(st->nn), e12);
+    unsigned nboth = 0;
     for (uint32_t i = 0; i < st->nn; ++i) {
         uint8_t c = st->adj[i] == 1 ? 1 : st->adj[i] == 2 ? 2 : st->both[i] != MS_CX_NONE ? 4 : 3;
         unsigned side = conn_side(cx, st->nbr[i], axis, plane2, wp);
         unsigned af = adj_flags(st, i, e->code);
         e->side[i] = (uint8_t)side;
         e->code[i] = c;
-        put(e, base + C_EA + (side * ADJS + af) * 2 + (unsigned)e12, c >= 3);
+        put(e, base + C_EA + ((side * ADJS + af) * 2 + (unsigned)e12) * 3 + (nboth < 2 ? nboth : 2),
+            c >= 3);
+        nboth += c >= 3;
         if (c < 3)
             put(e, base + C_EB + side * ADJS + af, c == 2);
         else if (e12)
@@ -387,13 +394,18 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
             uint32_t lo = e.lo[keep], hi = e.hi[last];
             unsigned run = geo_run(L, birth_of(&e, lo, hi));
             if (first != MS_CX_NONE) {
-                put(&e, GEO_BOTH(L, run), 1);
+                /* The both-bit's context uses the merged cell (the decoder's view):
+                 * keep its place, record the split, merge, then fill it in. */
+                size_t both_at = e.sym.n;
+                put(&e, 0, 1);
                 if ((s = record_split(&e, first, last, L, err)) != MS_OK)
                     goto fail;
                 if ((s = ms_cx_merge(&e.cx, first, last, err)) != MS_OK)
                     goto fail;
+                if (!e.nomem)
+                    e.sym.s[both_at] = GEO_BOTH(L, run, geo_deg(&e.cx.v[keep])) << 1 | 1;
             } else {
-                put(&e, GEO_BOTH(L, run), 0);
+                put(&e, GEO_BOTH(L, run, geo_deg(&e.cx.v[keep])), 0);
             }
             ms_cx_vert *v = &e.cx.v[keep];
             int second = (v->key & child_bit) != 0;
@@ -441,11 +453,31 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
     h.end_edges = (uint32_t)canon.edge_count;
     unsigned nchunks = P - pmin;
     size_t prev_end = 0;
+#ifdef MS_CODEC_STATS
+    double stats[8] = {0};
+    size_t nstats[8] = {0};
+#endif
     for (unsigned L = Lmin; L < D; ++L) {
         for (size_t g = e.level_end[L]; g-- > e.level_first[L];) {
             size_t a = e.groups[g], b = g + 1 < e.ngroups ? e.groups[g + 1] : e.sym.n;
             for (size_t k = a; k < b; ++k) {
                 uint32_t sy = e.sym.s[k];
+#ifdef MS_CODEC_STATS
+                {
+                    uint32_t ctx = sy >> 1;
+                    double p0 = ms_rc_p0(&model[ctx]) / 65536.0;
+                    double cost = -log2((sy & 1) ? 1 - p0 : p0);
+                    int cls;
+                    if (ctx < D * GEO_PER_LEVEL)
+                        cls = (ctx % GEO_PER_LEVEL) < GEO_RUNS * GEO_DEGS ? 0 : 1;
+                    else {
+                        uint32_t c = ctx - D * GEO_PER_LEVEL;
+                        cls = c < C_EA ? 2 : c < C_EB ? 3 : c < C_EC ? 4 : c < C_TA ? 5 : c < C_O3 ? 6 : 7;
+                    }
+                    stats[cls] += cost;
+                    nstats[cls]++;
+                }
+#endif
                 ms_rc_encode(&rc, &model[sy >> 1], (int)(sy & 1));
             }
         }
@@ -461,6 +493,15 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
             prev_end = rc.size;
         }
     }
+#ifdef MS_CODEC_STATS
+    {
+        const char *names[8] = {"geo-both", "geo-half", "e12", "edge-A", "edge-B", "edge-C",
+                                "tri", "orient"};
+        for (int i = 0; i < 8; ++i)
+            fprintf(stderr, "%-9s %9zu symbols %10.0f bits %7.3f bits/vertex\n", names[i],
+                    nstats[i], stats[i], stats[i] / n);
+    }
+#endif
     if (rc.failed)
         goto nomem;
     size_t hs = ms_codec_header_size(nchunks);
