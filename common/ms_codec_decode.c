@@ -35,6 +35,7 @@ struct ms_codec_decoder {
     uint8_t *code, *side, *cov;
     uint8_t *tcode;
     size_t cap_code, cap_tcode;
+    uint32_t compact_nv;    /* slots in use after the last compaction */
     bool skip_crc;
     bool broken;
 };
@@ -188,8 +189,8 @@ static ms_status split(ms_codec_decoder *d, uint32_t s, unsigned L, uint32_t *ou
                 return corrupt(d, err, "triangle between edges of different halves");
             t = ci < 3 ? ci : cj;
         } else {
-            unsigned idx = (unsigned)((ci == 4) + (cj == 4)) * 4 + (d->side[pr->i] >= 3) * 2 +
-                           (d->side[pr->j] >= 3);
+            unsigned idx = (unsigned)((ci == 4) + (cj == 4)) * 4 + (d->side[pr->i] >= SIDES / 2) * 2 +
+                           (d->side[pr->j] >= SIDES / 2);
             if (ms_rc_decode(&d->rc, &m[C_TA + idx]))
                 t = 3;
             else
@@ -234,6 +235,7 @@ static ms_status split(ms_codec_decoder *d, uint32_t s, unsigned L, uint32_t *ou
     v = &cx->v[s];
     v->level = (uint8_t)(L + 1);
     v->birth = (uint8_t)(L + 1);
+    ms_cx_update_cen(cx, s);
     cx->v[s2].birth = (uint8_t)(L + 1);
     for (uint32_t p = 0; p < st->np; ++p) {
         const ms_cx_pair *pr = &st->pairs[p];
@@ -345,6 +347,7 @@ static ms_status refine_level(ms_codec_decoder *d, ms_error *err)
                 v->c[axis] += half;
             }
             v->level = (uint8_t)(L + 1);
+            ms_cx_update_cen(cx, s);
             d->order2[w++] = s;
         }
         if (d->rc.overrun)
@@ -355,6 +358,14 @@ static ms_status refine_level(ms_codec_decoder *d, ms_error *err)
     d->order2 = t;
     d->norder = w;
     d->level = L + 1;
+    /* Keep slots in key order (memory locality) once enough cells are new. */
+    if (w >= 4096 && cx->nv - d->compact_nv > w / 4) {
+        if ((r = ms_cx_compact(cx, d->order, w, err)) != MS_OK) {
+            d->broken = true;
+            return r;
+        }
+        d->compact_nv = cx->nv;
+    }
     if ((d->level - d->Lmin) % 3 == 0) {
         if (!ms_rc_decoder_clean_end(&d->rc))
             return corrupt(d, err, "chunk not consumed exactly");
@@ -402,6 +413,7 @@ static ms_status coarsen_level(ms_codec_decoder *d, ms_error *err)
             v->c[axis] -= half;
         }
         v->level = (uint8_t)L;
+        ms_cx_update_cen(cx, keep);
         d->order2[w++] = keep;
     }
     for (uint32_t k = 0; k < w; ++k)

@@ -138,8 +138,8 @@ static ms_status record_split(enc *e, uint32_t c0, uint32_t c1, unsigned L, ms_e
         if (ci < 3 || cj < 3)
             continue; /* implied (pruning rule) */
         int t = (pr->t0 != MS_CX_NONE) + 2 * (pr->t1 != MS_CX_NONE);
-        unsigned idx = (unsigned)((ci == 4) + (cj == 4)) * 4 + (e->side[pr->i] >= 3) * 2 +
-                       (e->side[pr->j] >= 3);
+        unsigned idx = (unsigned)((ci == 4) + (cj == 4)) * 4 + (e->side[pr->i] >= SIDES / 2) * 2 +
+                       (e->side[pr->j] >= SIDES / 2);
         put(e, base + C_TA + idx, t == 3);
         if (t != 3)
             put(e, base + C_TB + idx, t == 2);
@@ -413,6 +413,7 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
                 v->c[axis] -= ms_cx_width(&e.cx, L + 1, axis);
             v->key &= ~child_bit;
             v->level = (uint8_t)L;
+            ms_cx_update_cen(&e.cx, keep);
             e.lo[keep] = lo;
             e.hi[keep] = hi;
             if (first == MS_CX_NONE)

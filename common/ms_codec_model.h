@@ -36,7 +36,7 @@ static inline unsigned geo_deg(const ms_cx_vert *v)
 }
 
 /* Connectivity, offsets from the connectivity base. */
-#define SIDES 6
+#define SIDES 8
 #define ADJS 8
 #define C_E12 0                             /* 5: degree bucket */
 #define C_EA (C_E12 + 5)                    /* edge 3/4 vs 1/2: side x adj x e12 x nboth */
@@ -106,14 +106,14 @@ static inline unsigned geo_bucket(const ms_complex *cx, uint32_t s, unsigned lev
     return dist * GEO_SPREAD + spread;
 }
 
-/* Side of neighbour x relative to the split plane, in 6 buckets. */
+/* Side of neighbour x relative to the split plane, in 8 buckets. */
 static inline unsigned conn_side(const ms_complex *cx, uint32_t x, int axis, int64_t plane2,
                                  int64_t wp)
 {
-    int64_t d = ms_cx_centre2(cx, x, axis) - plane2;
+    int64_t d = 2 * (ms_cx_centre2(cx, x, axis) - plane2);
     if (d < 0)
-        return d <= -2 * wp ? 0 : d <= -wp ? 1 : 2;
-    return d < wp ? 3 : d < 2 * wp ? 4 : 5;
+        return d <= -4 * wp ? 0 : d <= -2 * wp ? 1 : d <= -wp ? 2 : 3;
+    return d < wp ? 4 : d < 2 * wp ? 5 : d < 4 * wp ? 6 : 7;
 }
 
 static inline unsigned e12_ctx(uint32_t nn)
