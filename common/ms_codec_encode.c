@@ -9,10 +9,6 @@
 #include "ms_rangecoder.h"
 
 #include <stdlib.h>
-#ifdef MS_CODEC_STATS
-#include <math.h>
-#include <stdio.h>
-#endif
 #include <string.h>
 
 typedef struct sym_buf {
@@ -276,7 +272,6 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
     uint32_t *order = NULL, *order2 = NULL, *slot_of = NULL;
     ms_codec_state canon = {0};
     ms_codec_state start = {0};
-    ms_rc_prob *model = NULL;
     ms_rc_encoder rc;
     ms_rc_encoder_init(&rc);
     uint8_t *buf = NULL;
@@ -432,13 +427,19 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
     if ((s = export_state(&e.cx, order, norder, Lmin, &start, err)) != MS_OK)
         goto fail;
 
-    /* Entropy-code in decode order. */
-    uint32_t nmodel = ms_model_size(D);
-    model = malloc((size_t)nmodel * sizeof *model);
-    if (!model)
+    /* Decisions in decode order: levels upwards, groups in reverse production. */
+    uint8_t *dec = malloc(e.sym.n ? e.sym.n : 1);
+    if (!dec)
         goto nomem;
-    for (uint32_t i = 0; i < nmodel; ++i)
-        model[i] = MS_RC_PROB_INIT;
+    size_t nd = 0;
+    for (unsigned L = Lmin; L < D; ++L)
+        for (size_t g = e.level_end[L]; g-- > e.level_first[L];) {
+            size_t a = e.groups[g], b = g + 1 < e.ngroups ? e.groups[g + 1] : e.sym.n;
+            for (size_t k = a; k < b; ++k)
+                dec[nd++] = (uint8_t)(e.sym.s[k] & 1);
+        }
+    free(e.sym.s);
+    e.sym.s = NULL;
     ms_codec_header h;
     memset(&h, 0, sizeof h);
     h.version = MS_CODEC_VERSION;
@@ -453,56 +454,12 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
     h.end_tris = (uint32_t)canon.tri_count;
     h.end_edges = (uint32_t)canon.edge_count;
     unsigned nchunks = P - pmin;
-    size_t prev_end = 0;
-#ifdef MS_CODEC_STATS
-    double stats[8] = {0};
-    size_t nstats[8] = {0};
-#endif
-    for (unsigned L = Lmin; L < D; ++L) {
-        for (size_t g = e.level_end[L]; g-- > e.level_first[L];) {
-            size_t a = e.groups[g], b = g + 1 < e.ngroups ? e.groups[g + 1] : e.sym.n;
-            for (size_t k = a; k < b; ++k) {
-                uint32_t sy = e.sym.s[k];
-#ifdef MS_CODEC_STATS
-                {
-                    uint32_t ctx = sy >> 1;
-                    double p0 = ms_rc_p0(&model[ctx]) / 65536.0;
-                    double cost = -log2((sy & 1) ? 1 - p0 : p0);
-                    int cls;
-                    if (ctx < D * GEO_PER_LEVEL)
-                        cls = (ctx % GEO_PER_LEVEL) < GEO_RUNS * GEO_DEGS ? 0 : 1;
-                    else {
-                        uint32_t c = ctx - D * GEO_PER_LEVEL;
-                        cls = c < C_EA ? 2 : c < C_EB ? 3 : c < C_EC ? 4 : c < C_TA ? 5 : c < C_O3 ? 6 : 7;
-                    }
-                    stats[cls] += cost;
-                    nstats[cls]++;
-                }
-#endif
-                ms_rc_encode(&rc, &model[sy >> 1], (int)(sy & 1));
-            }
-        }
-        if ((L + 1 - Lmin) % 3 == 0) {
-            ms_rc_encoder_flush(&rc);
-            unsigned c = (L + 1 - Lmin) / 3 - 1;
-            if (rc.size > (1u << 31)) {
-                s = ms_error_set(err, MS_ERR_RANGE, "stream too large");
-                goto fail;
-            }
-            h.chunk_end[c] = (uint32_t)rc.size;
-            h.chunk_crc[c] = ms_codec_crc(rc.buf + prev_end, rc.size - prev_end);
-            prev_end = rc.size;
-        }
-    }
-#ifdef MS_CODEC_STATS
-    {
-        const char *names[8] = {"geo-both", "geo-half", "e12", "edge-A", "edge-B", "edge-C",
-                                "tri", "orient"};
-        for (int i = 0; i < 8; ++i)
-            fprintf(stderr, "%-9s %9zu symbols %10.0f bits %7.3f bits/vertex\n", names[i],
-                    nstats[i], stats[i], stats[i] / n);
-    }
-#endif
+    /* Forward pass: the decoder itself chooses every context. */
+    ms_cx_free(&e.cx);
+    s = ms_codec_run_encoder(&h, pmin == 0 ? NULL : &start, dec, nd, &rc, err);
+    free(dec);
+    if (s != MS_OK)
+        goto fail;
     if (rc.failed)
         goto nomem;
     size_t hs = ms_codec_header_size(nchunks);
@@ -527,7 +484,6 @@ nomem:
 fail:
 done:
     free(buf);
-    free(model);
     ms_rc_encoder_free(&rc);
     ms_codec_state_free(&start);
     ms_codec_state_free(&canon);
