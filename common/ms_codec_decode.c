@@ -364,7 +364,9 @@ static ms_status refine_level(ms_codec_decoder *d, ms_error *err)
             d->order2[w++] = s;
             d->order2[w++] = s2;
         } else {
-            unsigned b = geo_bucket(cx, s, L, axis, v->c[axis]);
+            int64_t n;
+            int64_t sum = geo_sum(cx, s, axis, &n);
+            unsigned b = geo_bucket(cx, sum, n, L, axis, v->c[axis]);
             if (dbit(d, &d->model[GEO_HALF(L, run, b)])) {
                 v->key |= bit;
                 v->c[axis] += half;

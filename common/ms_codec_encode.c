@@ -412,7 +412,7 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
             e.lo[keep] = lo;
             e.hi[keep] = hi;
             if (first == MS_CX_NONE)
-                put(&e, GEO_HALF(L, run, geo_bucket(&e.cx, keep, L, axis, v->c[axis])), second);
+                put(&e, 0, second); /* contexts come from the forward pass */
             order2[w++] = keep;
             if (e.nomem)
                 goto nomem;

@@ -21,8 +21,7 @@
  * "which half" by run and the side/distance bucket of the neighbours' centroid. */
 #define GEO_RUNS 4
 #define GEO_DIST 14
-#define GEO_SPREAD 1
-#define GEO_BUCKETS (GEO_DIST * GEO_SPREAD + 1)
+#define GEO_BUCKETS (GEO_DIST + 1)
 #define GEO_BOTH(level, run, deg) ((level) * GEO_PER_LEVEL + (run) * GEO_DEGS + (deg))
 #define GEO_HALF(level, run, bucket) \
     ((level) * GEO_PER_LEVEL + GEO_RUNS * GEO_DEGS + (run) * GEO_BUCKETS + (bucket))
@@ -59,39 +58,38 @@ static inline unsigned geo_run(unsigned level, unsigned birth)
     return r < GEO_RUNS ? r : GEO_RUNS - 1;
 }
 
-/* Context of the "which half" bit of cell s (level `level`, axis, minimum corner
- * cmin along the axis) from its neighbours (each counted once per incident
- * simplex): the side and distance of their centroid from the split plane, in
- * units of the child cell, and the spread of the neighbours along the axis. */
-static inline unsigned geo_bucket(const ms_complex *cx, uint32_t s, unsigned level, int axis,
-                                  uint32_t cmin)
+/* Sum of the doubled centres along axis of cell s's neighbours, each counted once
+ * per incident simplex; *count receives the number of terms. */
+static inline int64_t geo_sum(const ms_complex *cx, uint32_t s, int axis, int64_t *count)
 {
     const ms_cx_vert *v = &cx->v[s];
     const uint32_t *l = v->cap ? v->ext : v->inl;
-    int64_t sum = 0, n = 0, lo = INT64_MAX, hi = INT64_MIN;
+    int64_t sum = 0, n = 0;
     for (uint32_t i = 0; i < v->n; ++i) {
         uint32_t id = l[i] >> 1;
         if (l[i] & 1) {
             uint32_t o = cx->edge[id][0] == s ? cx->edge[id][1] : cx->edge[id][0];
-            int64_t c = ms_cx_centre2(cx, o, axis);
-            sum += c;
-            lo = c < lo ? c : lo;
-            hi = c > hi ? c : hi;
+            sum += cx->cen[o][axis];
             n++;
         } else {
             const uint32_t *t = cx->tri[id];
-            for (int m = 0; m < 3; ++m)
-                if (t[m] != s) {
-                    int64_t c = ms_cx_centre2(cx, t[m], axis);
-                    sum += c;
-                    lo = c < lo ? c : lo;
-                    hi = c > hi ? c : hi;
-                }
+            sum += cx->cen[t[0]][axis] + cx->cen[t[1]][axis] + cx->cen[t[2]][axis] -
+                   cx->cen[s][axis];
             n += 2;
         }
     }
+    *count = n;
+    return sum;
+}
+
+/* Context of the "which half" bit of a cell (level `level`, axis, minimum corner
+ * cmin along the axis) from its neighbours' centroid (sum, n): side and distance
+ * from the split plane in units of the child cell. */
+static inline unsigned geo_bucket(const ms_complex *cx, int64_t sum, int64_t n, unsigned level,
+                                  int axis, uint32_t cmin)
+{
     if (n == 0)
-        return GEO_DIST * GEO_SPREAD;
+        return GEO_DIST;
     int64_t wp = ms_cx_width(cx, level, axis);
     int64_t plane2 = 2 * (int64_t)cmin + wp;
     int64_t diff = sum - n * plane2;
@@ -99,11 +97,7 @@ static inline unsigned geo_bucket(const ms_complex *cx, uint32_t s, unsigned lev
     int64_t a = 8 * (diff < 0 ? -diff : diff);
     unsigned m = a < unit ? 0 : a < 2 * unit ? 1 : a < 4 * unit ? 2 : a < 8 * unit ? 3
                : a < 16 * unit ? 4 : a < 32 * unit ? 5 : 6;
-    unsigned dist = diff < 0 ? 6 - m : 7 + m;
-    int64_t range = hi - lo;
-    unsigned spread = 0;
-    (void)range;
-    return dist * GEO_SPREAD + spread;
+    return diff < 0 ? 6 - m : 7 + m;
 }
 
 /* Side of neighbour x relative to the split plane, in 8 buckets. */
