@@ -105,7 +105,7 @@ ms_status ms_codec_read_header(const uint8_t *data, size_t size, ms_codec_header
 typedef struct ms_codec_decoder ms_codec_decoder;
 
 typedef struct ms_codec_decoder_options {
-    bool skip_crc; /* do not verify chunk CRCs (fuzzing the decoder logic) */
+    bool skip_crc; /* do not verify header and chunk CRCs (fuzzing the decoder logic) */
 } ms_codec_decoder_options;
 
 /* Creates a decoder over data[0..size) (copied; size may be a prefix of the

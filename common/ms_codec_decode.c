@@ -35,9 +35,29 @@ struct ms_codec_decoder {
     uint8_t *code, *side, *cov;
     uint8_t *tcode;
     size_t cap_code, cap_tcode;
+    uint32_t compact_nv;    /* slots in use after the last compaction */
+    /* Encode mode (the encoder's forward pass): decisions come from src and are
+     * range-coded into enc with the very contexts the decoder uses. */
+    ms_rc_encoder *enc;
+    const uint8_t *src;
+    size_t src_n, src_pos;
+    ms_codec_header *enc_h;
     bool skip_crc;
     bool broken;
 };
+
+/* One binary decision: decoded, or (encode mode) taken from src and coded. */
+static inline int dbit(ms_codec_decoder *d, ms_rc_prob *p)
+{
+    if (!d->enc)
+        return ms_rc_decode(&d->rc, p);
+    int bit = 0;
+    if (d->src_pos < d->src_n)
+        bit = d->src[d->src_pos];
+    d->src_pos++;
+    ms_rc_encode(d->enc, p, bit);
+    return bit;
+}
 
 unsigned ms_codec_decoder_level(const ms_codec_decoder *d) { return d->level; }
 unsigned ms_codec_decoder_min_level(const ms_codec_decoder *d) { return d->Lmin; }
@@ -157,18 +177,21 @@ static ms_status split(ms_codec_decoder *d, uint32_t s, unsigned L, uint32_t *ou
     int axis = (int)(L % 3);
     int64_t wp = ms_cx_width(cx, L, axis);
     int64_t plane2 = 2 * (int64_t)cx->v[s].c[axis] + wp;
-    int e12 = ms_rc_decode(&d->rc, &m[e12_ctx(st->nn)]);
+    int e12 = dbit(d, &m[e12_ctx(st->nn)]);
     uint32_t n4 = 0;
+    unsigned nboth = 0;
     for (uint32_t i = 0; i < st->nn; ++i) {
         unsigned side = conn_side(cx, st->nbr[i], axis, plane2, wp);
         unsigned af = adj_flags(st, i, d->code);
         uint8_t c;
-        if (ms_rc_decode(&d->rc, &m[C_EA + (side * ADJS + af) * 2 + (unsigned)e12])) {
+        if (dbit(d, &m[C_EA + ((side * ADJS + af) * 2 + (unsigned)e12) * 3 +
+                                     (nboth < 2 ? nboth : 2)])) {
             c = 3;
-            if (e12 && ms_rc_decode(&d->rc, &m[C_EC + side * ADJS + af]))
+            nboth++;
+            if (e12 && dbit(d, &m[C_EC + side * ADJS + af]))
                 c = 4;
         } else {
-            c = ms_rc_decode(&d->rc, &m[C_EB + side * ADJS + af]) ? 2 : 1;
+            c = dbit(d, &m[C_EB + side * ADJS + af]) ? 2 : 1;
         }
         d->side[i] = (uint8_t)side;
         d->code[i] = c;
@@ -185,12 +208,12 @@ static ms_status split(ms_codec_decoder *d, uint32_t s, unsigned L, uint32_t *ou
                 return corrupt(d, err, "triangle between edges of different halves");
             t = ci < 3 ? ci : cj;
         } else {
-            unsigned idx = (unsigned)((ci == 4) + (cj == 4)) * 4 + (d->side[pr->i] >= 3) * 2 +
-                           (d->side[pr->j] >= 3);
-            if (ms_rc_decode(&d->rc, &m[C_TA + idx]))
+            unsigned idx = (unsigned)((ci == 4) + (cj == 4)) * 4 + (d->side[pr->i] >= SIDES / 2) * 2 +
+                           (d->side[pr->j] >= SIDES / 2);
+            if (dbit(d, &m[C_TA + idx]))
                 t = 3;
             else
-                t = ms_rc_decode(&d->rc, &m[C_TB + idx]) ? 2 : 1;
+                t = dbit(d, &m[C_TB + idx]) ? 2 : 1;
         }
         d->tcode[p] = t;
         n3 += t == 3;
@@ -231,6 +254,7 @@ static ms_status split(ms_codec_decoder *d, uint32_t s, unsigned L, uint32_t *ou
     v = &cx->v[s];
     v->level = (uint8_t)(L + 1);
     v->birth = (uint8_t)(L + 1);
+    ms_cx_update_cen(cx, s);
     cx->v[s2].birth = (uint8_t)(L + 1);
     for (uint32_t p = 0; p < st->np; ++p) {
         const ms_cx_pair *pr = &st->pairs[p];
@@ -242,7 +266,7 @@ static ms_status split(ms_codec_decoder *d, uint32_t s, unsigned L, uint32_t *ou
             ms_cx_list_remove(cx, s, t << 1);
             ms_cx_list_add(cx, s2, t << 1);
         } else if (d->tcode[p] == 3) {
-            int same = ms_rc_decode(&d->rc, &m[C_O3]);
+            int same = dbit(d, &m[C_O3]);
             uint32_t x[3] = {cx->tri[t][0], cx->tri[t][1], cx->tri[t][2]};
             for (int k = 0; k < 3; ++k)
                 if (x[k] == s)
@@ -259,7 +283,7 @@ static ms_status split(ms_codec_decoder *d, uint32_t s, unsigned L, uint32_t *ou
         uint32_t x = st->nbr[i];
         int vote = orient_votes(cx, s, s2, x, MS_CX_NONE);
         int pred = vote >= 0 ? 1 : -1;
-        int flip = ms_rc_decode(&d->rc, &m[o4_ctx(vote)]);
+        int flip = dbit(d, &m[o4_ctx(vote)]);
         if ((flip ? -pred : pred) > 0)
             ms_cx_add_tri(cx, s, s2, x);
         else
@@ -283,6 +307,10 @@ static ms_status split(ms_codec_decoder *d, uint32_t s, unsigned L, uint32_t *ou
 
 static ms_status enter_chunk(ms_codec_decoder *d, unsigned c, ms_error *err)
 {
+    if (d->enc) {
+        d->rc_chunk = c;
+        return MS_OK;
+    }
     size_t a = c ? d->h.chunk_end[c - 1] : 0, b = d->h.chunk_end[c];
     if (b > d->body_avail) {
         return ms_error_set(err, MS_ERR_FORMAT, "codec stream truncated: precision bit %u "
@@ -327,7 +355,7 @@ static ms_status refine_level(ms_codec_decoder *d, ms_error *err)
         uint32_t s = d->order[k];
         ms_cx_vert *v = &cx->v[s];
         unsigned run = geo_run(L, v->birth);
-        if (ms_rc_decode(&d->rc, &d->model[GEO_BOTH(L, run)])) {
+        if (dbit(d, &d->model[GEO_BOTH(L, run, geo_deg(v))])) {
             uint32_t s2 = 0;
             if ((r = split(d, s, L, &s2, err)) != MS_OK) {
                 d->broken = true;
@@ -336,24 +364,44 @@ static ms_status refine_level(ms_codec_decoder *d, ms_error *err)
             d->order2[w++] = s;
             d->order2[w++] = s2;
         } else {
-            unsigned b = geo_bucket(cx, s, L, axis, v->c[axis]);
-            if (ms_rc_decode(&d->rc, &d->model[GEO_HALF(L, run, b)])) {
+            int64_t n;
+            int64_t sum = geo_sum(cx, s, axis, &n);
+            unsigned b = geo_bucket(cx, sum, n, L, axis, v->c[axis]);
+            if (dbit(d, &d->model[GEO_HALF(L, run, b)])) {
                 v->key |= bit;
                 v->c[axis] += half;
             }
             v->level = (uint8_t)(L + 1);
+            ms_cx_update_cen(cx, s);
             d->order2[w++] = s;
         }
         if (d->rc.overrun)
             return corrupt(d, err, "read past the end of a chunk");
+        if (d->enc && d->src_pos > d->src_n)
+            return ms_error_set(err, MS_ERR_ARG, "encoder: decision stream too short");
     }
     uint32_t *t = d->order;
     d->order = d->order2;
     d->order2 = t;
     d->norder = w;
     d->level = L + 1;
+    /* Keep slots in key order (memory locality) once enough cells are new. */
+    if (w >= 4096 && cx->nv - d->compact_nv > w / 4) {
+        if ((r = ms_cx_compact(cx, d->order, w, err)) != MS_OK) {
+            d->broken = true;
+            return r;
+        }
+        d->compact_nv = cx->nv;
+    }
     if ((d->level - d->Lmin) % 3 == 0) {
-        if (!ms_rc_decoder_clean_end(&d->rc))
+        if (d->enc) {
+            size_t start = c ? d->enc_h->chunk_end[c - 1] : 0;
+            ms_rc_encoder_flush(d->enc);
+            if (d->enc->failed || d->enc->size > (1u << 31))
+                return ms_error_set(err, MS_ERR_NOMEM, "coded stream too large");
+            d->enc_h->chunk_end[c] = (uint32_t)d->enc->size;
+            d->enc_h->chunk_crc[c] = ms_codec_crc(d->enc->buf + start, d->enc->size - start);
+        } else if (!ms_rc_decoder_clean_end(&d->rc))
             return corrupt(d, err, "chunk not consumed exactly");
         d->rc_chunk = UINT32_MAX;
         if (d->level == d->D && (cx->live_v != d->h.end_vertices ||
@@ -399,6 +447,7 @@ static ms_status coarsen_level(ms_codec_decoder *d, ms_error *err)
             v->c[axis] -= half;
         }
         v->level = (uint8_t)L;
+        ms_cx_update_cen(cx, keep);
         d->order2[w++] = keep;
     }
     for (uint32_t k = 0; k < w; ++k)
@@ -550,6 +599,35 @@ static ms_status load_start(ms_codec_decoder *d, const ms_codec_state *start, ms
                      : MS_OK;
 }
 
+/* Allocates the decoder around d->h (already validated) and loads the start state. */
+static ms_status decoder_init(ms_codec_decoder *d, const ms_codec_state *start, ms_error *err)
+{
+    ms_status r;
+    d->D = 3 * d->h.p_max;
+    d->Lmin = 3 * d->h.p_min;
+    d->level = d->Lmin;
+    d->rc_chunk = UINT32_MAX;
+    unsigned nchunks = d->h.p_max - d->h.p_min;
+    d->avail_level = d->Lmin;
+    for (unsigned c = 0; c < nchunks && (d->enc || d->h.chunk_end[c] <= d->body_avail); ++c)
+        d->avail_level = d->Lmin + 3 * (c + 1);
+    d->nmodel = ms_model_size(d->D);
+    d->model = malloc((size_t)d->nmodel * sizeof *d->model);
+    d->snap = malloc((size_t)(nchunks ? nchunks : 1) * d->nmodel * sizeof *d->snap);
+    d->snap_valid = calloc(nchunks + 1, 1);
+    d->crc_ok = calloc(nchunks + 1, 1);
+    uint32_t max_e = d->h.end_edges + d->h.end_tris;
+    if (!d->model || !d->snap || !d->snap_valid || !d->crc_ok ||
+        !order_room(d, d->h.start_vertices))
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory creating a decoder");
+    for (uint32_t i = 0; i < d->nmodel; ++i)
+        d->model[i] = MS_RC_PROB_INIT;
+    if ((r = ms_cx_init(&d->cx, d->h.p_max, d->h.end_vertices, d->h.end_tris, max_e, err)) !=
+        MS_OK)
+        return r;
+    return load_start(d, start, err);
+}
+
 ms_status ms_codec_decoder_create(const uint8_t *data, size_t size, const ms_codec_state *start,
                                   const ms_codec_decoder_options *options,
                                   ms_codec_decoder **out, ms_error *err)
@@ -558,7 +636,7 @@ ms_status ms_codec_decoder_create(const uint8_t *data, size_t size, const ms_cod
     ms_codec_decoder *d = calloc(1, sizeof *d);
     if (!d)
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory creating a decoder");
-    ms_status r = ms_codec_read_header(data, size, &d->h, err);
+    ms_status r = ms_codec_parse_header(data, size, &d->h, !(options && options->skip_crc), err);
     if (r != MS_OK) {
         free(d);
         return r;
@@ -575,37 +653,33 @@ ms_status ms_codec_decoder_create(const uint8_t *data, size_t size, const ms_cod
     d->body = d->data + hs;
     d->body_avail = body_avail;
     d->skip_crc = options && options->skip_crc;
-    d->D = 3 * d->h.p_max;
-    d->Lmin = 3 * d->h.p_min;
-    d->level = d->Lmin;
-    d->rc_chunk = UINT32_MAX;
-    unsigned nchunks = d->h.p_max - d->h.p_min;
-    d->avail_level = d->Lmin;
-    for (unsigned c = 0; c < nchunks && d->h.chunk_end[c] <= body_avail; ++c)
-        d->avail_level = d->Lmin + 3 * (c + 1);
-    d->nmodel = ms_model_size(d->D);
-    d->model = malloc((size_t)d->nmodel * sizeof *d->model);
-    d->snap = malloc((size_t)(nchunks ? nchunks : 1) * d->nmodel * sizeof *d->snap);
-    d->snap_valid = calloc(nchunks + 1, 1);
-    d->crc_ok = calloc(nchunks + 1, 1);
-    uint32_t max_e = d->h.end_edges + d->h.end_tris;
-    if (max_e > MS_CODEC_MAX_EDGES + MS_CODEC_MAX_TRIANGLES)
-        max_e = MS_CODEC_MAX_EDGES + MS_CODEC_MAX_TRIANGLES;
-    if (!d->model || !d->snap || !d->snap_valid || !d->crc_ok ||
-        !order_room(d, d->h.start_vertices)) {
-        ms_codec_decoder_destroy(d);
-        return ms_error_set(err, MS_ERR_NOMEM, "out of memory creating a decoder");
-    }
-    for (uint32_t i = 0; i < d->nmodel; ++i)
-        d->model[i] = MS_RC_PROB_INIT;
-    if ((r = ms_cx_init(&d->cx, d->h.p_max, d->h.end_vertices, d->h.end_tris, max_e, err)) !=
-            MS_OK ||
-        (r = load_start(d, start, err)) != MS_OK) {
+    if ((r = decoder_init(d, start, err)) != MS_OK) {
         ms_codec_decoder_destroy(d);
         return r;
     }
     *out = d;
     return MS_OK;
+}
+
+ms_status ms_codec_run_encoder(ms_codec_header *h, const ms_codec_state *start,
+                               const uint8_t *decisions, size_t n, ms_rc_encoder *enc,
+                               ms_error *err)
+{
+    ms_codec_decoder *d = calloc(1, sizeof *d);
+    if (!d)
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory encoding");
+    d->h = *h;
+    d->enc = enc;
+    d->enc_h = h;
+    d->src = decisions;
+    d->src_n = n;
+    ms_status r = decoder_init(d, start, err);
+    if (r == MS_OK)
+        r = ms_codec_decoder_set_level(d, d->D, err);
+    if (r == MS_OK && d->src_pos != n)
+        r = ms_error_set(err, MS_ERR_ARG, "encoder: %zu of %zu decisions used", d->src_pos, n);
+    ms_codec_decoder_destroy(d);
+    return r;
 }
 
 ms_status ms_codec_decoder_state(const ms_codec_decoder *d, ms_codec_state *out, ms_error *err)

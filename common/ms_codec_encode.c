@@ -113,13 +113,16 @@ static ms_status record_split(enc *e, uint32_t c0, uint32_t c1, unsigned L, ms_e
     int64_t plane2 = 2 * (int64_t)cx->v[c0].c[axis] + wp;
     int e12 = st->adj01;
     put(e, base + e12_ctx(st->nn), e12);
+    unsigned nboth = 0;
     for (uint32_t i = 0; i < st->nn; ++i) {
         uint8_t c = st->adj[i] == 1 ? 1 : st->adj[i] == 2 ? 2 : st->both[i] != MS_CX_NONE ? 4 : 3;
         unsigned side = conn_side(cx, st->nbr[i], axis, plane2, wp);
         unsigned af = adj_flags(st, i, e->code);
         e->side[i] = (uint8_t)side;
         e->code[i] = c;
-        put(e, base + C_EA + (side * ADJS + af) * 2 + (unsigned)e12, c >= 3);
+        put(e, base + C_EA + ((side * ADJS + af) * 2 + (unsigned)e12) * 3 + (nboth < 2 ? nboth : 2),
+            c >= 3);
+        nboth += c >= 3;
         if (c < 3)
             put(e, base + C_EB + side * ADJS + af, c == 2);
         else if (e12)
@@ -131,8 +134,8 @@ static ms_status record_split(enc *e, uint32_t c0, uint32_t c1, unsigned L, ms_e
         if (ci < 3 || cj < 3)
             continue; /* implied (pruning rule) */
         int t = (pr->t0 != MS_CX_NONE) + 2 * (pr->t1 != MS_CX_NONE);
-        unsigned idx = (unsigned)((ci == 4) + (cj == 4)) * 4 + (e->side[pr->i] >= 3) * 2 +
-                       (e->side[pr->j] >= 3);
+        unsigned idx = (unsigned)((ci == 4) + (cj == 4)) * 4 + (e->side[pr->i] >= SIDES / 2) * 2 +
+                       (e->side[pr->j] >= SIDES / 2);
         put(e, base + C_TA + idx, t == 3);
         if (t != 3)
             put(e, base + C_TB + idx, t == 2);
@@ -269,7 +272,6 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
     uint32_t *order = NULL, *order2 = NULL, *slot_of = NULL;
     ms_codec_state canon = {0};
     ms_codec_state start = {0};
-    ms_rc_prob *model = NULL;
     ms_rc_encoder rc;
     ms_rc_encoder_init(&rc);
     uint8_t *buf = NULL;
@@ -387,13 +389,18 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
             uint32_t lo = e.lo[keep], hi = e.hi[last];
             unsigned run = geo_run(L, birth_of(&e, lo, hi));
             if (first != MS_CX_NONE) {
-                put(&e, GEO_BOTH(L, run), 1);
+                /* The both-bit's context uses the merged cell (the decoder's view):
+                 * keep its place, record the split, merge, then fill it in. */
+                size_t both_at = e.sym.n;
+                put(&e, 0, 1);
                 if ((s = record_split(&e, first, last, L, err)) != MS_OK)
                     goto fail;
                 if ((s = ms_cx_merge(&e.cx, first, last, err)) != MS_OK)
                     goto fail;
+                if (!e.nomem)
+                    e.sym.s[both_at] = GEO_BOTH(L, run, geo_deg(&e.cx.v[keep])) << 1 | 1;
             } else {
-                put(&e, GEO_BOTH(L, run), 0);
+                put(&e, GEO_BOTH(L, run, geo_deg(&e.cx.v[keep])), 0);
             }
             ms_cx_vert *v = &e.cx.v[keep];
             int second = (v->key & child_bit) != 0;
@@ -401,10 +408,11 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
                 v->c[axis] -= ms_cx_width(&e.cx, L + 1, axis);
             v->key &= ~child_bit;
             v->level = (uint8_t)L;
+            ms_cx_update_cen(&e.cx, keep);
             e.lo[keep] = lo;
             e.hi[keep] = hi;
             if (first == MS_CX_NONE)
-                put(&e, GEO_HALF(L, run, geo_bucket(&e.cx, keep, L, axis, v->c[axis])), second);
+                put(&e, 0, second); /* contexts come from the forward pass */
             order2[w++] = keep;
             if (e.nomem)
                 goto nomem;
@@ -419,13 +427,19 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
     if ((s = export_state(&e.cx, order, norder, Lmin, &start, err)) != MS_OK)
         goto fail;
 
-    /* Entropy-code in decode order. */
-    uint32_t nmodel = ms_model_size(D);
-    model = malloc((size_t)nmodel * sizeof *model);
-    if (!model)
+    /* Decisions in decode order: levels upwards, groups in reverse production. */
+    uint8_t *dec = malloc(e.sym.n ? e.sym.n : 1);
+    if (!dec)
         goto nomem;
-    for (uint32_t i = 0; i < nmodel; ++i)
-        model[i] = MS_RC_PROB_INIT;
+    size_t nd = 0;
+    for (unsigned L = Lmin; L < D; ++L)
+        for (size_t g = e.level_end[L]; g-- > e.level_first[L];) {
+            size_t a = e.groups[g], b = g + 1 < e.ngroups ? e.groups[g + 1] : e.sym.n;
+            for (size_t k = a; k < b; ++k)
+                dec[nd++] = (uint8_t)(e.sym.s[k] & 1);
+        }
+    free(e.sym.s);
+    e.sym.s = NULL;
     ms_codec_header h;
     memset(&h, 0, sizeof h);
     h.version = MS_CODEC_VERSION;
@@ -440,27 +454,12 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
     h.end_tris = (uint32_t)canon.tri_count;
     h.end_edges = (uint32_t)canon.edge_count;
     unsigned nchunks = P - pmin;
-    size_t prev_end = 0;
-    for (unsigned L = Lmin; L < D; ++L) {
-        for (size_t g = e.level_end[L]; g-- > e.level_first[L];) {
-            size_t a = e.groups[g], b = g + 1 < e.ngroups ? e.groups[g + 1] : e.sym.n;
-            for (size_t k = a; k < b; ++k) {
-                uint32_t sy = e.sym.s[k];
-                ms_rc_encode(&rc, &model[sy >> 1], (int)(sy & 1));
-            }
-        }
-        if ((L + 1 - Lmin) % 3 == 0) {
-            ms_rc_encoder_flush(&rc);
-            unsigned c = (L + 1 - Lmin) / 3 - 1;
-            if (rc.size > (1u << 31)) {
-                s = ms_error_set(err, MS_ERR_RANGE, "stream too large");
-                goto fail;
-            }
-            h.chunk_end[c] = (uint32_t)rc.size;
-            h.chunk_crc[c] = ms_codec_crc(rc.buf + prev_end, rc.size - prev_end);
-            prev_end = rc.size;
-        }
-    }
+    /* Forward pass: the decoder itself chooses every context. */
+    ms_cx_free(&e.cx);
+    s = ms_codec_run_encoder(&h, pmin == 0 ? NULL : &start, dec, nd, &rc, err);
+    free(dec);
+    if (s != MS_OK)
+        goto fail;
     if (rc.failed)
         goto nomem;
     size_t hs = ms_codec_header_size(nchunks);
@@ -485,7 +484,6 @@ nomem:
 fail:
 done:
     free(buf);
-    free(model);
     ms_rc_encoder_free(&rc);
     ms_codec_state_free(&start);
     ms_codec_state_free(&canon);

@@ -20,18 +20,26 @@
 /* Geometry: "both halves?" by (run = levels since the lineage last split, capped);
  * "which half" by run and the side/distance bucket of the neighbours' centroid. */
 #define GEO_RUNS 4
-#define GEO_BUCKETS 11
-#define GEO_BOTH(level, run) ((level) * GEO_PER_LEVEL + (run))
+#define GEO_DIST 14
+#define GEO_BUCKETS (GEO_DIST + 1)
+#define GEO_BOTH(level, run, deg) ((level) * GEO_PER_LEVEL + (run) * GEO_DEGS + (deg))
 #define GEO_HALF(level, run, bucket) \
-    ((level) * GEO_PER_LEVEL + GEO_RUNS + (run) * GEO_BUCKETS + (bucket))
-#define GEO_PER_LEVEL (GEO_RUNS + GEO_RUNS * GEO_BUCKETS)
+    ((level) * GEO_PER_LEVEL + GEO_RUNS * GEO_DEGS + (run) * GEO_BUCKETS + (bucket))
+#define GEO_PER_LEVEL (GEO_RUNS * GEO_DEGS + GEO_RUNS * GEO_BUCKETS)
+#define GEO_DEGS 4
+
+/* Degree bucket of a cell for the "both halves?" bit: its incident simplex count. */
+static inline unsigned geo_deg(const ms_cx_vert *v)
+{
+    return v->n <= 4 ? 0 : v->n <= 6 ? 1 : v->n <= 8 ? 2 : 3;
+}
 
 /* Connectivity, offsets from the connectivity base. */
-#define SIDES 6
+#define SIDES 8
 #define ADJS 8
 #define C_E12 0                             /* 5: degree bucket */
-#define C_EA (C_E12 + 5)                    /* edge 3/4 vs 1/2: side x adj x e12 */
-#define C_EB (C_EA + SIDES * ADJS * 2)      /* edge 1 vs 2: side x adj */
+#define C_EA (C_E12 + 5)                    /* edge 3/4 vs 1/2: side x adj x e12 x nboth */
+#define C_EB (C_EA + SIDES * ADJS * 2 * 3)  /* edge 1 vs 2: side x adj */
 #define C_EC (C_EB + SIDES * ADJS)          /* edge 4 vs 3: side x adj */
 #define C_TA (C_EC + SIDES * ADJS)          /* triangle 3 vs 1/2: n4 x sides */
 #define C_TB (C_TA + 12)                    /* triangle 1 vs 2 */
@@ -50,11 +58,9 @@ static inline unsigned geo_run(unsigned level, unsigned birth)
     return r < GEO_RUNS ? r : GEO_RUNS - 1;
 }
 
-/* Bucket of the centroid of cell s's neighbours (each counted once per incident
- * simplex) relative to the split plane of the cell (level `level`, axis, minimum
- * corner cmin along the axis). */
-static inline unsigned geo_bucket(const ms_complex *cx, uint32_t s, unsigned level, int axis,
-                                  uint32_t cmin)
+/* Sum of the doubled centres along axis of cell s's neighbours, each counted once
+ * per incident simplex; *count receives the number of terms. */
+static inline int64_t geo_sum(const ms_complex *cx, uint32_t s, int axis, int64_t *count)
 {
     const ms_cx_vert *v = &cx->v[s];
     const uint32_t *l = v->cap ? v->ext : v->inl;
@@ -63,35 +69,45 @@ static inline unsigned geo_bucket(const ms_complex *cx, uint32_t s, unsigned lev
         uint32_t id = l[i] >> 1;
         if (l[i] & 1) {
             uint32_t o = cx->edge[id][0] == s ? cx->edge[id][1] : cx->edge[id][0];
-            sum += ms_cx_centre2(cx, o, axis);
+            sum += cx->cen[o][axis];
             n++;
         } else {
             const uint32_t *t = cx->tri[id];
-            for (int m = 0; m < 3; ++m)
-                if (t[m] != s)
-                    sum += ms_cx_centre2(cx, t[m], axis);
+            sum += cx->cen[t[0]][axis] + cx->cen[t[1]][axis] + cx->cen[t[2]][axis] -
+                   cx->cen[s][axis];
             n += 2;
         }
     }
+    *count = n;
+    return sum;
+}
+
+/* Context of the "which half" bit of a cell (level `level`, axis, minimum corner
+ * cmin along the axis) from its neighbours' centroid (sum, n): side and distance
+ * from the split plane in units of the child cell. */
+static inline unsigned geo_bucket(const ms_complex *cx, int64_t sum, int64_t n, unsigned level,
+                                  int axis, uint32_t cmin)
+{
     if (n == 0)
-        return GEO_BUCKETS - 1;
+        return GEO_DIST;
     int64_t wp = ms_cx_width(cx, level, axis);
     int64_t plane2 = 2 * (int64_t)cmin + wp;
     int64_t diff = sum - n * plane2;
     int64_t unit = n * wp;
-    int64_t a = 4 * (diff < 0 ? -diff : diff);
-    unsigned m = a < unit ? 0 : a < 2 * unit ? 1 : a < 4 * unit ? 2 : a < 8 * unit ? 3 : 4;
-    return diff < 0 ? 4 - m : 5 + m;
+    int64_t a = 8 * (diff < 0 ? -diff : diff);
+    unsigned m = a < unit ? 0 : a < 2 * unit ? 1 : a < 4 * unit ? 2 : a < 8 * unit ? 3
+               : a < 16 * unit ? 4 : a < 32 * unit ? 5 : 6;
+    return diff < 0 ? 6 - m : 7 + m;
 }
 
-/* Side of neighbour x relative to the split plane, in 6 buckets. */
+/* Side of neighbour x relative to the split plane, in 8 buckets. */
 static inline unsigned conn_side(const ms_complex *cx, uint32_t x, int axis, int64_t plane2,
                                  int64_t wp)
 {
-    int64_t d = ms_cx_centre2(cx, x, axis) - plane2;
+    int64_t d = 2 * (ms_cx_centre2(cx, x, axis) - plane2);
     if (d < 0)
-        return d <= -2 * wp ? 0 : d <= -wp ? 1 : 2;
-    return d < wp ? 3 : d < 2 * wp ? 4 : 5;
+        return d <= -4 * wp ? 0 : d <= -2 * wp ? 1 : d <= -wp ? 2 : 3;
+    return d < wp ? 4 : d < 2 * wp ? 5 : d < 4 * wp ? 6 : 7;
 }
 
 static inline unsigned e12_ctx(uint32_t nn)

@@ -259,6 +259,12 @@ void ms_codec_write_header(uint8_t *p, const ms_codec_header *h)
 ms_status ms_codec_read_header(const uint8_t *data, size_t size, ms_codec_header *h,
                                ms_error *err)
 {
+    return ms_codec_parse_header(data, size, h, true, err);
+}
+
+ms_status ms_codec_parse_header(const uint8_t *data, size_t size, ms_codec_header *h,
+                                bool verify_crc, ms_error *err)
+{
     memset(h, 0, sizeof *h);
     if (size < MS_CODEC_FIXED_HEADER)
         return ms_error_set(err, MS_ERR_FORMAT, "codec stream truncated in its header (%zu bytes)",
@@ -279,7 +285,7 @@ ms_status ms_codec_read_header(const uint8_t *data, size_t size, ms_codec_header
     if (size < hs)
         return ms_error_set(err, MS_ERR_FORMAT, "codec stream truncated in its header (%zu of %zu "
                             "bytes)", size, hs);
-    if (get32(data + hs - 4) != (uint32_t)crc32(0L, data, (uInt)(hs - 4)))
+    if (verify_crc && get32(data + hs - 4) != (uint32_t)crc32(0L, data, (uInt)(hs - 4)))
         return ms_error_set(err, MS_ERR_CORRUPT, "codec header checksum mismatch");
     for (int a = 0; a < 3; ++a)
         h->box.origin[a] = bitsd(get64(data + 8 + 8 * a));

@@ -28,6 +28,7 @@ void ms_cx_free(ms_complex *cx)
             if (cx->v[i].cap)
                 free(cx->v[i].ext);
     free(cx->v);
+    free(cx->cen);
     free(cx->tri);
     free(cx->edge);
     free(cx->free_v);
@@ -76,6 +77,10 @@ ms_status ms_cx_reserve(ms_complex *cx, uint32_t v, uint32_t t, uint32_t e, ms_e
         if (!grow(&p, &cap, want_v, cx->max_v, sizeof *cx->v))
             goto nomem;
         cx->v = p;
+        int32_t (*cen)[4] = realloc(cx->cen, (size_t)cap * sizeof *cx->cen);
+        if (!cen)
+            goto nomem;
+        cx->cen = cen;
         uint32_t c2 = cx->cv;
         p = cx->free_v;
         if (!grow(&p, &c2, cap, cap, sizeof(uint32_t)))
@@ -181,6 +186,7 @@ uint32_t ms_cx_add_vertex(ms_complex *cx, uint64_t key, unsigned level, const ui
     v->level = (uint8_t)level;
     v->alive = 1;
     memcpy(v->c, c, sizeof v->c);
+    ms_cx_update_cen(cx, s);
     cx->live_v++;
     return s;
 }
@@ -504,8 +510,19 @@ ms_status ms_cx_gather(ms_complex *cx, uint32_t c0, uint32_t c1, ms_cx_star *st,
             np++;
         }
     }
-    if (np > 1)
+    if (np > 32) {
         qsort(st->pairs, np, sizeof *st->pairs, cmp_pair);
+    } else {
+        for (uint32_t a = 1; a < np; ++a) {
+            ms_cx_pair x = st->pairs[a];
+            uint32_t b = a;
+            while (b > 0 && cmp_pair(&st->pairs[b - 1], &x) > 0) {
+                st->pairs[b] = st->pairs[b - 1];
+                --b;
+            }
+            st->pairs[b] = x;
+        }
+    }
     /* Combine (c0,x,y) and (c1,x,y) entries. */
     uint32_t w = 0;
     for (uint32_t r = 0; r < np; ++r) {
@@ -714,5 +731,64 @@ ms_status ms_cx_merge(ms_complex *cx, uint32_t c0, uint32_t c1, ms_error *err)
         return st;
     if (cx->nomem)
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory merging cells");
+    return MS_OK;
+}
+
+ms_status ms_cx_compact(ms_complex *cx, uint32_t *order, uint32_t n, ms_error *err)
+{
+    assert(n == cx->live_v);
+    uint32_t *vmap = malloc((size_t)(cx->nv ? cx->nv : 1) * sizeof *vmap);
+    uint32_t *tmap = malloc((size_t)(cx->nt ? cx->nt : 1) * sizeof *tmap);
+    ms_cx_vert *nv = malloc((size_t)cx->cv * sizeof *nv);
+    int32_t (*ncen)[4] = malloc((size_t)cx->cv * sizeof *ncen);
+    uint32_t (*ntri)[3] = malloc((size_t)(cx->ct ? cx->ct : 1) * sizeof *ntri);
+    if (!vmap || !tmap || !nv || !ncen || !ntri) {
+        free(vmap), free(tmap), free(nv), free(ncen), free(ntri);
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory compacting the complex");
+    }
+    for (uint32_t i = 0; i < n; ++i) {
+        vmap[order[i]] = i;
+        nv[i] = cx->v[order[i]];
+        memcpy(ncen[i], cx->cen[order[i]], sizeof ncen[i]);
+    }
+    memset(tmap, 0xFF, (size_t)cx->nt * sizeof *tmap);
+    uint32_t nt = 0;
+    for (uint32_t i = 0; i < n; ++i) {
+        uint32_t *l = ms_cx_list(&nv[i]);
+        for (uint32_t k = 0; k < nv[i].n; ++k) {
+            if (l[k] & 1)
+                continue;
+            uint32_t t = l[k] >> 1;
+            if (tmap[t] == MS_CX_NONE) {
+                tmap[t] = nt;
+                for (int m = 0; m < 3; ++m)
+                    ntri[nt][m] = vmap[cx->tri[t][m]];
+                nt++;
+            }
+            l[k] = tmap[t] << 1;
+        }
+    }
+    for (uint32_t e = 0; e < cx->ne; ++e)
+        if (cx->edge[e][0] != MS_CX_NONE) {
+            cx->edge[e][0] = vmap[cx->edge[e][0]];
+            cx->edge[e][1] = vmap[cx->edge[e][1]];
+        }
+    free(cx->v);
+    free(cx->cen);
+    free(cx->tri);
+    cx->v = nv;
+    cx->cen = ncen;
+    cx->tri = ntri;
+    cx->nv = n;
+    cx->nfree_v = 0;
+    cx->nt = nt;
+    cx->nfree_t = 0;
+    memset(cx->stamp, 0, (size_t)cx->cv * sizeof *cx->stamp);
+    memset(cx->stamp2, 0, (size_t)cx->cv * sizeof *cx->stamp2);
+    cx->cur = cx->cur2 = 1;
+    for (uint32_t i = 0; i < n; ++i)
+        order[i] = i;
+    free(vmap);
+    free(tmap);
     return MS_OK;
 }

@@ -42,6 +42,7 @@ typedef struct ms_cx_vert {
 typedef struct ms_complex {
     unsigned P, D;            /* bits per coordinate, D = 3P kd-levels */
     ms_cx_vert *v;
+    int32_t (*cen)[4];        /* per slot: twice the cell centre per axis (compact copy) */
     uint32_t (*tri)[3];
     uint32_t (*edge)[2];
     uint32_t nv, nt, ne;      /* slots used (live + free) */
@@ -89,8 +90,16 @@ static inline uint32_t ms_cx_width(const ms_complex *cx, unsigned level, int axi
 /* Twice the cell centre along axis (integer, full-grid units * 2). */
 static inline int64_t ms_cx_centre2(const ms_complex *cx, uint32_t s, int axis)
 {
+    return cx->cen[s][axis];
+}
+
+/* Refreshes the compact centre copy after a change of c[] or level. */
+static inline void ms_cx_update_cen(ms_complex *cx, uint32_t s)
+{
     const ms_cx_vert *v = &cx->v[s];
-    return 2 * (int64_t)v->c[axis] + ms_cx_width(cx, v->level, axis);
+    for (int a = 0; a < 3; ++a)
+        cx->cen[s][a] = (int32_t)(2 * v->c[a] + ms_cx_width(cx, v->level, a));
+    cx->cen[s][3] = v->level;
 }
 
 /* +1 when triangle t contains the directed edge a -> b in its cyclic order, -1
@@ -135,6 +144,11 @@ ms_status ms_cx_gather(ms_complex *cx, uint32_t c0, uint32_t c1, ms_cx_star *st,
  * when maximal, the edge c0-c1 disappears. Frees slot c1. Key and level of c0 are
  * left to the caller. */
 ms_status ms_cx_merge(ms_complex *cx, uint32_t c0, uint32_t c1, ms_error *err);
+
+/* Renumbers the vertex slots to follow order[0..n) (all live vertices, in key
+ * order) and the triangles by first incident vertex, for memory locality; order
+ * becomes the identity. The complex itself is unchanged. */
+ms_status ms_cx_compact(ms_complex *cx, uint32_t *order, uint32_t n, ms_error *err);
 
 /* Starts a fresh mark generation (scratch marks). */
 void ms_cx_new_marks(ms_complex *cx);
