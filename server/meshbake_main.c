@@ -1,6 +1,7 @@
-/* meshbake: the baker's command line. For now one mode, --info, which parses a
- * mesh completely and reports what it holds; the baking modes will be added as
- * further modes of the same option parser. */
+/* meshbake: the baker's command line. Two modes: baking (IN -o ARCHIVE_DIR), which
+ * turns a mesh into an archive of nSP cells (ms_bake.h), and --info, which parses
+ * a mesh completely and reports what it holds. */
+#include <errno.h>
 #include <getopt.h>
 #include <inttypes.h>
 #include <stdbool.h>
@@ -10,31 +11,52 @@
 #include <time.h>
 #include <unistd.h>
 
+#include <jansson.h>
+
+#include "ms_bake.h"
 #include "ms_mesh_reader.h"
 
 enum { EXIT_INPUT = 1, EXIT_USAGE = 2 };
 
-typedef enum bake_mode { MODE_NONE, MODE_INFO } bake_mode;
+typedef enum bake_mode { MODE_NONE, MODE_INFO, MODE_BAKE } bake_mode;
 
 typedef struct bake_options {
     bake_mode mode;
     bool json;
     const char *input;
+    ms_bake_options bake;
 } bake_options;
 
 static void print_usage(FILE *out)
 {
-    fputs("usage: meshbake --info FILE [--json]\n"
+    fputs("usage: meshbake IN -o ARCHIVE_DIR [--name NAME] [--bits 16] [--n 4]\n"
+          "                [--root-bits 7] [--min-tris 8000] [--threads N] [--mem MB]\n"
+          "                [--tmp DIR] [--json]\n"
+          "       meshbake --info FILE [--json]\n"
           "\n"
           "Reads a mesh (PLY ascii/binary, OBJ or OFF, optionally gzip-compressed).\n"
           "\n"
-          "  --info        parse FILE completely and report format, counts, bounding box,\n"
-          "                faces dropped by the cleaning policy, isolated vertices, bytes\n"
-          "                parsed and parse time\n"
-          "  --json        print the report as one JSON object on stdout\n"
-          "  -h, --help    print this help and exit\n"
+          "Baking: quantises IN, distributes its triangles into an nSP-tree out of core and\n"
+          "encodes every cell as an independent progressive stream into ARCHIVE_DIR/NAME.msa,\n"
+          "then adds NAME to ARCHIVE_DIR/catalog.json.\n"
+          "  -o, --output DIR  archive directory (must exist)\n"
+          "  --name NAME       model name (default: the input file name without extensions)\n"
+          "  --bits P          bits per coordinate, 8..20 (default 16)\n"
+          "  --n N             nSP children per axis: 2, 4 or 8 (default 4)\n"
+          "  --root-bits R     precision window of the root cell, log2(n)..P (default 7)\n"
+          "  --min-tris T      a cell splits when it holds T triangles (default 8000)\n"
+          "  --threads N       encoding threads (default: the CPUs online)\n"
+          "  --mem MB          memory budget (default 512): a quarter buffers leaf content,\n"
+          "                    plus 8 bytes per input vertex for the vertex keys\n"
+          "  --tmp DIR         temporary files (default: ARCHIVE_DIR); unlinked at creation\n"
           "\n"
-          "Exit status: 0 on success, 1 for an input error, 2 for a usage error.\n",
+          "  --info            parse FILE completely and report format, counts, bounding box,\n"
+          "                    faces dropped by the cleaning policy, isolated vertices, bytes\n"
+          "                    parsed and parse time\n"
+          "  --json            print the report as one JSON object on stdout\n"
+          "  -h, --help        print this help and exit\n"
+          "\n"
+          "Exit status: 0 on success, 1 for an input or bake error, 2 for a usage error.\n",
           out);
 }
 
@@ -45,6 +67,18 @@ static int usage_error(const char *message, const char *detail)
     return EXIT_USAGE;
 }
 
+/* A decimal integer in 1..2^31. */
+static bool parse_count(const char *text, unsigned long *value)
+{
+    char *end;
+    errno = 0;
+    unsigned long v = strtoul(text, &end, 10);
+    if (errno != 0 || end == text || *end != '\0' || text[0] == '-' || v == 0 || v > (1ul << 31))
+        return false;
+    *value = v;
+    return true;
+}
+
 /* Returns -1 to go on, or the exit status to end with. */
 static int parse_options(int argc, char **argv, bake_options *options)
 {
@@ -52,26 +86,57 @@ static int parse_options(int argc, char **argv, bake_options *options)
         {"info", no_argument, NULL, 'i'},
         {"json", no_argument, NULL, 'j'},
         {"help", no_argument, NULL, 'h'},
+        {"output", required_argument, NULL, 'o'},
+        {"name", required_argument, NULL, 'N'},
+        {"bits", required_argument, NULL, 'b'},
+        {"n", required_argument, NULL, 'n'},
+        {"root-bits", required_argument, NULL, 'r'},
+        {"min-tris", required_argument, NULL, 'm'},
+        {"threads", required_argument, NULL, 't'},
+        {"mem", required_argument, NULL, 'M'},
+        {"tmp", required_argument, NULL, 'T'},
         {NULL, 0, NULL, 0},
     };
     memset(options, 0, sizeof *options);
+    ms_bake_options_default(&options->bake);
     opterr = 0;
     int c;
-    while ((c = getopt_long(argc, argv, ":h", long_options, NULL)) != -1) {
+    unsigned long value;
+    while ((c = getopt_long(argc, argv, ":ho:", long_options, NULL)) != -1) {
         switch (c) {
         case 'i': options->mode = MODE_INFO; break;
         case 'j': options->json = true; break;
         case 'h': print_usage(stdout); return EXIT_SUCCESS;
+        case 'o': options->bake.archive_dir = optarg; break;
+        case 'N': options->bake.name = optarg; break;
+        case 'T': options->bake.tmp_dir = optarg; break;
+        case 'b': case 'n': case 'r': case 'm': case 't': case 'M':
+            if (!parse_count(optarg, &value))
+                return usage_error("not a positive integer", optarg);
+            if (c == 'b') options->bake.bits = (unsigned)value;
+            else if (c == 'n') options->bake.n = (unsigned)value;
+            else if (c == 'r') options->bake.root_bits = (unsigned)value;
+            else if (c == 'm') options->bake.min_triangles = (uint32_t)value;
+            else if (c == 't') options->bake.threads = (unsigned)value;
+            else options->bake.mem_mb = (size_t)value;
+            break;
+        case ':':
+            return usage_error("option needs a value", argv[optind - 1]);
         default:
             return usage_error("unknown option", argv[optind - 1]);
         }
+    }
+    if (options->bake.archive_dir) {
+        if (options->mode == MODE_INFO)
+            return usage_error("--info and -o are two different modes", NULL);
+        options->mode = MODE_BAKE;
     }
     if (optind < argc)
         options->input = argv[optind++];
     if (optind < argc)
         return usage_error("unexpected argument", argv[optind]);
     if (options->mode == MODE_NONE)
-        return usage_error("no mode given; baking is not implemented yet, use --info", NULL);
+        return usage_error("no mode given: bake with -o ARCHIVE_DIR, or use --info", NULL);
     if (!options->input)
         return usage_error("missing input file", NULL);
     return -1;
@@ -181,6 +246,80 @@ static int run_info(const bake_options *options)
     return fflush(stdout) == 0 ? EXIT_SUCCESS : EXIT_INPUT;
 }
 
+static void print_bake_json(const ms_bake_options *o, const ms_bake_report *r)
+{
+    json_t *seconds = json_pack("{s:f, s:f, s:f, s:f, s:f, s:f}", "read", r->seconds_read,
+                                "quantise", r->seconds_quantise, "distribute",
+                                r->seconds_distribute, "encode", r->seconds_encode, "write",
+                                r->seconds_write, "total", r->seconds_total);
+    json_t *root = json_pack(
+        "{s:s, s:s, s:s, s:I, s:I, s:I, s:I, s:i, s:i, s:i, s:i, s:f, s:I, s:I, s:I, s:f, s:o, "
+        "s:f, s:i, s:f, s:I, s:{s:i, s:i, s:i, s:i, s:i}}",
+        "name", r->name, "archive", r->archive_path, "source", o->input,
+        "input_vertices", (json_int_t)r->input_vertices,
+        "input_triangles", (json_int_t)r->input_triangles,
+        "vertices", (json_int_t)r->vertices, "triangles", (json_int_t)r->triangles,
+        "cells", (int)r->cells, "leaves", (int)r->leaves, "empty_cells", (int)r->empty_cells,
+        "depth", (int)r->depth, "duplicated_triangles", r->duplicated_percent,
+        "leaf_triangles", (json_int_t)r->leaf_triangles,
+        "archive_bytes", (json_int_t)r->archive_bytes,
+        "geometry_bytes", (json_int_t)r->geometry_bytes,
+        "bits_per_vertex", r->bits_per_vertex, "seconds", seconds,
+        "triangles_per_second", r->seconds_total > 0 ? (double)r->input_triangles / r->seconds_total : 0.0,
+        "threads", (int)r->threads, "peak_rss_mb", r->peak_rss_mb,
+        "spilled_blocks", (json_int_t)r->blocks_written,
+        "parameters", "bits", (int)o->bits, "n", (int)o->n, "root_bits", (int)o->root_bits,
+        "min_tris", (int)o->min_triangles, "mem_mb", (int)o->mem_mb);
+    if (!root) {
+        fputs("{}\n", stdout);
+        return;
+    }
+    char *text = json_dumps(root, JSON_COMPACT | JSON_REAL_PRECISION(10));
+    if (text)
+        printf("%s\n", text);
+    free(text);
+    json_decref(root);
+}
+
+static void print_bake_text(const ms_bake_report *r)
+{
+    printf("model:                %s -> %s\n", r->name, r->archive_path);
+    printf("input:                %" PRIu64 " vertices, %" PRIu64 " triangles\n", r->input_vertices,
+           r->input_triangles);
+    printf("welded:               %" PRIu64 " vertices, %" PRIu64 " triangles\n", r->vertices,
+           r->triangles);
+    printf("cells:                %u (%u leaves, %u empty, depth %u)\n", r->cells, r->leaves,
+           r->empty_cells, r->depth);
+    printf("duplicated triangles: %.2f %%\n", r->duplicated_percent);
+    printf("archive:              %" PRIu64 " bytes, %.2f bits per vertex\n", r->archive_bytes,
+           r->bits_per_vertex);
+    printf("seconds:              read %.2f, quantise %.2f, distribute %.2f, encode %.2f, "
+           "write %.2f, total %.2f (%.0f triangles/s on %u threads)\n",
+           r->seconds_read, r->seconds_quantise, r->seconds_distribute, r->seconds_encode,
+           r->seconds_write, r->seconds_total,
+           r->seconds_total > 0 ? (double)r->input_triangles / r->seconds_total : 0.0, r->threads);
+    printf("peak memory:          %.1f MB\n", r->peak_rss_mb);
+}
+
+static int run_bake(bake_options *options)
+{
+    options->bake.input = options->input;
+    options->bake.progress = isatty(STDERR_FILENO) ? stderr : NULL;
+    ms_bake_report report;
+    ms_error err;
+    ms_error_clear(&err);
+    ms_status st = ms_bake(&options->bake, &report, &err);
+    if (st != MS_OK) {
+        fprintf(stderr, "meshbake: %s\n", err.text);
+        return st == MS_ERR_ARG ? EXIT_USAGE : EXIT_INPUT;
+    }
+    if (options->json)
+        print_bake_json(&options->bake, &report);
+    else
+        print_bake_text(&report);
+    return fflush(stdout) == 0 ? EXIT_SUCCESS : EXIT_INPUT;
+}
+
 int main(int argc, char **argv)
 {
     bake_options options;
@@ -189,6 +328,7 @@ int main(int argc, char **argv)
         return status;
     switch (options.mode) {
     case MODE_INFO: return run_info(&options);
+    case MODE_BAKE: return run_bake(&options);
     case MODE_NONE: break;
     }
     return EXIT_USAGE;

@@ -41,6 +41,13 @@ static void writer_free(ms_archive_writer *w)
     free(w);
 }
 
+void ms_archive_writer_set_counts(ms_archive_writer *w, uint64_t vertex_count,
+                                  uint64_t triangle_count)
+{
+    w->header.vertex_count = vertex_count;
+    w->header.triangle_count = triangle_count;
+}
+
 void ms_archive_writer_abort(ms_archive_writer *w)
 {
     if (w)

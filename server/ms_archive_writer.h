@@ -46,6 +46,11 @@ ms_status ms_archive_writer_put_apo(ms_archive_writer *writer, uint32_t cell,
 void ms_archive_writer_window(const ms_archive_writer *writer, uint32_t cell, uint8_t *bits_min,
                               uint8_t *bits_max);
 
+/* Sets the welded input counts of the header (the baker knows them only after
+ * encoding). */
+void ms_archive_writer_set_counts(ms_archive_writer *writer, uint64_t vertex_count,
+                                  uint64_t triangle_count);
+
 /* Writes the file. Every cell must have its geometry. Frees the writer, whatever
  * the outcome. */
 ms_status ms_archive_writer_finish(ms_archive_writer *writer, ms_error *err);

@@ -1,0 +1,502 @@
+/* Codec encoder: merges the full complex back to p_min in exact reverse decode
+ * order, recording each decision with the context the decoder will see, then
+ * range-codes the recorded decisions in decode order, one chunk per bit. */
+#include "ms_codec.h"
+#include "ms_codec_internal.h"
+#include "ms_codec_model.h"
+#include "ms_complex.h"
+#include "ms_quant.h"
+#include "ms_rangecoder.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+typedef struct sym_buf {
+    uint32_t *s; /* ctx << 1 | bit */
+    size_t n, cap;
+} sym_buf;
+
+typedef struct enc {
+    ms_complex cx;
+    unsigned D;
+    uint64_t *keys;     /* sorted full keys of the vertices */
+    uint32_t nkeys;
+    uint32_t *lo, *hi;  /* per slot: range of its vertices in keys */
+    sym_buf sym;
+    size_t *groups;     /* start of each merge group in sym, production order */
+    size_t ngroups, cap_groups;
+    size_t level_first[3 * MS_CODEC_MAX_BITS + 1]; /* first group of each level */
+    size_t level_end[3 * MS_CODEC_MAX_BITS + 1];
+    ms_cx_star star;
+    uint8_t *code, *side;
+    size_t cap_code;
+    int nomem;
+} enc;
+
+static void put(enc *e, uint32_t ctx, int bit)
+{
+    if (e->sym.n == e->sym.cap) {
+        size_t c = e->sym.cap ? e->sym.cap * 2 : 1 << 16;
+        uint32_t *n = realloc(e->sym.s, c * sizeof *n);
+        if (!n) {
+            e->nomem = 1;
+            return;
+        }
+        e->sym.s = n;
+        e->sym.cap = c;
+    }
+    e->sym.s[e->sym.n++] = ctx << 1 | (uint32_t)(bit != 0);
+}
+
+static int new_group(enc *e)
+{
+    if (e->ngroups == e->cap_groups) {
+        size_t c = e->cap_groups ? e->cap_groups * 2 : 1 << 14;
+        size_t *n = realloc(e->groups, c * sizeof *n);
+        if (!n)
+            return 0;
+        e->groups = n;
+        e->cap_groups = c;
+    }
+    e->groups[e->ngroups++] = e->sym.n;
+    return 1;
+}
+
+static unsigned birth_of(const enc *e, uint32_t lo, uint32_t hi)
+{
+    unsigned b = 0;
+    if (lo > 0) {
+        unsigned l = ms_key_lcp(e->keys[lo - 1], e->keys[lo], e->D) + 1;
+        if (l > b)
+            b = l;
+    }
+    if (hi < e->nkeys) {
+        unsigned l = ms_key_lcp(e->keys[hi - 1], e->keys[hi], e->D) + 1;
+        if (l > b)
+            b = l;
+    }
+    return b;
+}
+
+static int code_room(enc *e, size_t n)
+{
+    if (n <= e->cap_code)
+        return 1;
+    size_t c = e->cap_code ? e->cap_code : 256;
+    while (c < n)
+        c *= 2;
+    uint8_t *a = realloc(e->code, c), *b = realloc(e->side, c);
+    if (a)
+        e->code = a;
+    if (b)
+        e->side = b;
+    if (!a || !b)
+        return 0;
+    e->cap_code = c;
+    return 1;
+}
+
+/* Records the connectivity of the split that separates c0 and c1 (siblings at
+ * level L + 1, parent at L), computed from the current (pre-merge) complex. */
+static ms_status record_split(enc *e, uint32_t c0, uint32_t c1, unsigned L, ms_error *err)
+{
+    ms_complex *cx = &e->cx;
+    ms_cx_star *st = &e->star;
+    ms_status s = ms_cx_gather(cx, c0, c1, st, err);
+    if (s != MS_OK)
+        return s;
+    if (!code_room(e, st->nn + 1))
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory coding a split");
+    const uint32_t base = e->D * GEO_PER_LEVEL;
+    int axis = (int)(L % 3);
+    int64_t wp = ms_cx_width(cx, L, axis);
+    int64_t plane2 = 2 * (int64_t)cx->v[c0].c[axis] + wp;
+    int e12 = st->adj01;
+    put(e, base + e12_ctx(st->nn), e12);
+    unsigned nboth = 0;
+    for (uint32_t i = 0; i < st->nn; ++i) {
+        uint8_t c = st->adj[i] == 1 ? 1 : st->adj[i] == 2 ? 2 : st->both[i] != MS_CX_NONE ? 4 : 3;
+        unsigned side = conn_side(cx, st->nbr[i], axis, plane2, wp);
+        unsigned af = adj_flags(st, i, e->code);
+        e->side[i] = (uint8_t)side;
+        e->code[i] = c;
+        put(e, base + C_EA + ((side * ADJS + af) * 2 + (unsigned)e12) * 3 + (nboth < 2 ? nboth : 2),
+            c >= 3);
+        nboth += c >= 3;
+        if (c < 3)
+            put(e, base + C_EB + side * ADJS + af, c == 2);
+        else if (e12)
+            put(e, base + C_EC + side * ADJS + af, c == 4);
+    }
+    for (uint32_t p = 0; p < st->np; ++p) {
+        const ms_cx_pair *pr = &st->pairs[p];
+        uint8_t ci = e->code[pr->i], cj = e->code[pr->j];
+        if (ci < 3 || cj < 3)
+            continue; /* implied (pruning rule) */
+        int t = (pr->t0 != MS_CX_NONE) + 2 * (pr->t1 != MS_CX_NONE);
+        unsigned idx = (unsigned)((ci == 4) + (cj == 4)) * 4 + (e->side[pr->i] >= SIDES / 2) * 2 +
+                       (e->side[pr->j] >= SIDES / 2);
+        put(e, base + C_TA + idx, t == 3);
+        if (t != 3)
+            put(e, base + C_TB + idx, t == 2);
+    }
+    for (uint32_t p = 0; p < st->np; ++p) {
+        const ms_cx_pair *pr = &st->pairs[p];
+        if (pr->t0 == MS_CX_NONE || pr->t1 == MS_CX_NONE)
+            continue;
+        uint32_t xi = st->nbr[pr->i], xj = st->nbr[pr->j];
+        int s0 = ms_cx_orient(cx, pr->t0, xi, xj), s1 = ms_cx_orient(cx, pr->t1, xi, xj);
+        put(e, base + C_O3, s0 == s1);
+    }
+    for (uint32_t i = 0; i < st->nn; ++i) {
+        if (e->code[i] != 4)
+            continue;
+        uint32_t t = st->both[i];
+        int vote = orient_votes(cx, c0, c1, st->nbr[i], t);
+        int pred = vote >= 0 ? 1 : -1;
+        int actual = ms_cx_orient(cx, t, c0, c1);
+        put(e, base + o4_ctx(vote), actual != pred);
+    }
+    return e->nomem ? ms_error_set(err, MS_ERR_NOMEM, "out of memory recording symbols") : MS_OK;
+}
+
+/* Validates the input complex (indices, repeated vertices, duplicates). */
+static ms_status validate_full(const ms_codec_state *f, ms_error *err)
+{
+    if (f->bits < 1 || f->bits > MS_CODEC_MAX_BITS || f->level != 3 * f->bits)
+        return ms_error_set(err, MS_ERR_ARG, "encoder input must be at full precision "
+                            "(level %u, bits %u)", f->level, f->bits);
+    if (f->vertex_count == 0)
+        return ms_error_set(err, MS_ERR_EMPTY, "empty mesh: nothing to encode");
+    if (f->vertex_count > MS_CODEC_MAX_VERTICES || f->tri_count > MS_CODEC_MAX_TRIANGLES ||
+        f->edge_count > MS_CODEC_MAX_EDGES)
+        return ms_error_set(err, MS_ERR_RANGE, "complex too large for the codec");
+    uint64_t lim = f->level >= 64 ? UINT64_MAX : (1ull << f->level);
+    for (size_t i = 0; i < f->vertex_count; ++i)
+        if (f->cells[i] >= lim)
+            return ms_error_set(err, MS_ERR_ARG, "vertex %zu outside the key space", i);
+    for (size_t t = 0; t < f->tri_count; ++t) {
+        const uint32_t *x = &f->tris[3 * t];
+        if (x[0] >= f->vertex_count || x[1] >= f->vertex_count || x[2] >= f->vertex_count)
+            return ms_error_set(err, MS_ERR_ARG, "triangle %zu index out of range", t);
+        if (x[0] == x[1] || x[1] == x[2] || x[0] == x[2])
+            return ms_error_set(err, MS_ERR_ARG, "triangle %zu repeats a vertex", t);
+    }
+    for (size_t k = 0; k < f->edge_count; ++k) {
+        const uint32_t *x = &f->edges[2 * k];
+        if (x[0] >= f->vertex_count || x[1] >= f->vertex_count || x[0] == x[1])
+            return ms_error_set(err, MS_ERR_ARG, "edge %zu invalid", k);
+    }
+    return MS_OK;
+}
+
+static int cmp_tri3(const void *a, const void *b)
+{
+    const uint32_t *x = a, *y = b;
+    for (int i = 0; i < 3; ++i)
+        if (x[i] != y[i])
+            return x[i] < y[i] ? -1 : 1;
+    return 0;
+}
+
+/* Exports the complex (all cells at one level) as a canonical state. */
+static ms_status export_state(const ms_complex *cx, const uint32_t *order, uint32_t n,
+                              unsigned level, ms_codec_state *out, ms_error *err)
+{
+    memset(out, 0, sizeof *out);
+    out->bits = cx->P;
+    out->level = level;
+    out->vertex_count = n;
+    out->tri_count = cx->live_t;
+    out->edge_count = cx->live_e;
+    out->cells = malloc((n ? n : 1) * sizeof *out->cells);
+    out->tris = malloc((cx->live_t ? cx->live_t : 1) * 3 * sizeof *out->tris);
+    out->edges = malloc((cx->live_e ? cx->live_e : 1) * 2 * sizeof *out->edges);
+    uint32_t *rank = malloc((cx->nv ? cx->nv : 1) * sizeof *rank);
+    if (!out->cells || !out->tris || !out->edges || !rank) {
+        free(rank);
+        ms_codec_state_free(out);
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory exporting a complex");
+    }
+    unsigned shift = cx->D - level;
+    for (uint32_t i = 0; i < n; ++i) {
+        rank[order[i]] = i;
+        out->cells[i] = shift >= 64 ? 0 : cx->v[order[i]].key >> shift;
+    }
+    size_t w = 0;
+    for (uint32_t t = 0; t < cx->nt; ++t) {
+        if (cx->tri[t][0] == MS_CX_NONE)
+            continue;
+        for (int k = 0; k < 3; ++k)
+            out->tris[3 * w + k] = rank[cx->tri[t][k]];
+        w++;
+    }
+    w = 0;
+    for (uint32_t k = 0; k < cx->ne; ++k) {
+        if (cx->edge[k][0] == MS_CX_NONE)
+            continue;
+        out->edges[2 * w] = rank[cx->edge[k][0]];
+        out->edges[2 * w + 1] = rank[cx->edge[k][1]];
+        w++;
+    }
+    free(rank);
+    return ms_codec_state_canonicalise(out, err);
+}
+
+ms_status ms_codec_export_complex(const ms_complex *cx, const uint32_t *order, uint32_t n,
+                                  unsigned level, ms_codec_state *out, ms_error *err)
+{
+    return export_state(cx, order, n, level, out, err);
+}
+
+ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_params *params,
+                          uint8_t **out, size_t *out_size, ms_codec_state *start_out,
+                          ms_error *err)
+{
+    *out = NULL;
+    *out_size = 0;
+    if (start_out)
+        memset(start_out, 0, sizeof *start_out);
+    ms_status s = validate_full(full, err);
+    if (s != MS_OK)
+        return s;
+    unsigned P = full->bits, D = 3 * P, pmin = params->p_min;
+    if (pmin > P)
+        return ms_error_set(err, MS_ERR_ARG, "p_min %u above the precision %u", pmin, P);
+    unsigned Lmin = 3 * pmin;
+
+    enc e;
+    memset(&e, 0, sizeof e);
+    e.D = D;
+    uint32_t n = (uint32_t)full->vertex_count;
+    uint32_t *order = NULL, *order2 = NULL, *slot_of = NULL;
+    ms_codec_state canon = {0};
+    ms_codec_state start = {0};
+    ms_rc_encoder rc;
+    ms_rc_encoder_init(&rc);
+    uint8_t *buf = NULL;
+
+    /* Canonical copy: vertices in key order, checks for duplicates. */
+    canon.bits = full->bits;
+    canon.level = full->level;
+    canon.vertex_count = full->vertex_count;
+    canon.tri_count = full->tri_count;
+    canon.edge_count = full->edge_count;
+    canon.cells = malloc((size_t)n * sizeof *canon.cells);
+    canon.tris = malloc((full->tri_count ? full->tri_count : 1) * 3 * sizeof *canon.tris);
+    canon.edges = malloc((full->edge_count ? full->edge_count : 1) * 2 * sizeof *canon.edges);
+    if (!canon.cells || !canon.tris || !canon.edges)
+        goto nomem;
+    memcpy(canon.cells, full->cells, (size_t)n * sizeof *canon.cells);
+    if (full->tri_count)
+        memcpy(canon.tris, full->tris, full->tri_count * 3 * sizeof *canon.tris);
+    if (full->edge_count)
+        memcpy(canon.edges, full->edges, full->edge_count * 2 * sizeof *canon.edges);
+    if ((s = ms_codec_state_canonicalise(&canon, err)) != MS_OK)
+        goto fail;
+    for (uint32_t i = 1; i < n; ++i)
+        if (canon.cells[i] == canon.cells[i - 1]) {
+            s = ms_error_set(err, MS_ERR_ARG, "two vertices share a grid cell (weld first)");
+            goto fail;
+        }
+    {
+        /* duplicate triangles (same vertex set) and duplicate edges */
+        size_t nt = canon.tri_count;
+        uint32_t *sorted = malloc((nt ? nt : 1) * 3 * sizeof *sorted);
+        if (!sorted)
+            goto nomem;
+        for (size_t t = 0; t < nt; ++t) {
+            uint32_t a = canon.tris[3 * t], b = canon.tris[3 * t + 1], c = canon.tris[3 * t + 2];
+            sorted[3 * t] = a; /* smallest after canonicalisation */
+            sorted[3 * t + 1] = b < c ? b : c;
+            sorted[3 * t + 2] = b < c ? c : b;
+        }
+        qsort(sorted, nt, 3 * sizeof *sorted, cmp_tri3);
+        int dup = 0;
+        for (size_t t = 1; t < nt && !dup; ++t)
+            dup = memcmp(&sorted[3 * t], &sorted[3 * t - 3], 3 * sizeof *sorted) == 0;
+        free(sorted);
+        if (dup) {
+            s = ms_error_set(err, MS_ERR_ARG, "duplicate triangle (same vertex set)");
+            goto fail;
+        }
+        for (size_t k = 1; k < canon.edge_count; ++k)
+            if (canon.edges[2 * k] == canon.edges[2 * k - 2] &&
+                canon.edges[2 * k + 1] == canon.edges[2 * k - 1]) {
+                s = ms_error_set(err, MS_ERR_ARG, "duplicate edge");
+                goto fail;
+            }
+    }
+
+    uint32_t max_t = (uint32_t)canon.tri_count, max_e = (uint32_t)(canon.edge_count + canon.tri_count);
+    if ((s = ms_cx_init(&e.cx, P, n, max_t, max_e, err)) != MS_OK)
+        goto fail;
+    if ((s = ms_cx_reserve(&e.cx, n, max_t, (uint32_t)canon.edge_count, err)) != MS_OK)
+        goto fail;
+    e.keys = canon.cells;
+    e.nkeys = n;
+    e.lo = malloc((size_t)n * sizeof *e.lo);
+    e.hi = malloc((size_t)n * sizeof *e.hi);
+    order = malloc((size_t)n * sizeof *order);
+    order2 = malloc((size_t)n * sizeof *order2);
+    if (!e.lo || !e.hi || !order || !order2)
+        goto nomem;
+    for (uint32_t i = 0; i < n; ++i) {
+        uint32_t c[3];
+        ms_quant_unkey(canon.cells[i], P, c);
+        uint32_t sl = ms_cx_add_vertex(&e.cx, canon.cells[i], D, c);
+        e.lo[sl] = i;
+        e.hi[sl] = i + 1;
+        order[i] = sl;
+    }
+    for (size_t t = 0; t < canon.tri_count; ++t)
+        ms_cx_add_tri(&e.cx, canon.tris[3 * t], canon.tris[3 * t + 1], canon.tris[3 * t + 2]);
+    for (size_t k = 0; k < canon.edge_count; ++k)
+        ms_cx_add_edge(&e.cx, canon.edges[2 * k], canon.edges[2 * k + 1]);
+    if (e.cx.nomem)
+        goto nomem;
+    /* Edges must be maximal: not a face of a triangle. */
+    for (size_t k = 0; k < canon.edge_count; ++k) {
+        uint32_t a = canon.edges[2 * k], b = canon.edges[2 * k + 1];
+        ms_cx_vert *v = &e.cx.v[a];
+        uint32_t *l = ms_cx_list(v);
+        for (uint32_t i = 0; i < v->n; ++i)
+            if (!(l[i] & 1)) {
+                const uint32_t *t = e.cx.tri[l[i] >> 1];
+                if (t[0] == b || t[1] == b || t[2] == b) {
+                    s = ms_error_set(err, MS_ERR_ARG, "edge %zu is a face of a triangle", k);
+                    goto fail;
+                }
+            }
+    }
+
+    /* Merge level by level, deepest first, decreasing key within a level. */
+    uint32_t norder = n;
+    for (unsigned L = D; L-- > Lmin;) {
+        e.level_first[L] = e.ngroups;
+        unsigned shift = D - L; /* bits below the parent's prefix */
+        uint64_t child_bit = 1ull << (shift - 1);
+        int axis = (int)(L % 3);
+        uint32_t w = 0;
+        for (uint32_t k = norder; k > 0;) {
+            uint32_t last = order[--k];
+            uint32_t first = MS_CX_NONE;
+            if (k > 0 && (e.cx.v[order[k - 1]].key >> shift) == (e.cx.v[last].key >> shift))
+                first = order[--k];
+            if (!new_group(&e))
+                goto nomem;
+            uint32_t keep = first != MS_CX_NONE ? first : last;
+            uint32_t lo = e.lo[keep], hi = e.hi[last];
+            unsigned run = geo_run(L, birth_of(&e, lo, hi));
+            if (first != MS_CX_NONE) {
+                /* The both-bit's context uses the merged cell (the decoder's view):
+                 * keep its place, record the split, merge, then fill it in. */
+                size_t both_at = e.sym.n;
+                put(&e, 0, 1);
+                if ((s = record_split(&e, first, last, L, err)) != MS_OK)
+                    goto fail;
+                if ((s = ms_cx_merge(&e.cx, first, last, err)) != MS_OK)
+                    goto fail;
+                if (!e.nomem)
+                    e.sym.s[both_at] = GEO_BOTH(L, run, geo_deg(&e.cx.v[keep])) << 1 | 1;
+            } else {
+                put(&e, GEO_BOTH(L, run, geo_deg(&e.cx.v[keep])), 0);
+            }
+            ms_cx_vert *v = &e.cx.v[keep];
+            int second = (v->key & child_bit) != 0;
+            if (second)
+                v->c[axis] -= ms_cx_width(&e.cx, L + 1, axis);
+            v->key &= ~child_bit;
+            v->level = (uint8_t)L;
+            ms_cx_update_cen(&e.cx, keep);
+            e.lo[keep] = lo;
+            e.hi[keep] = hi;
+            if (first == MS_CX_NONE)
+                put(&e, 0, second); /* contexts come from the forward pass */
+            order2[w++] = keep;
+            if (e.nomem)
+                goto nomem;
+        }
+        for (uint32_t k = 0; k < w; ++k)
+            order[k] = order2[w - 1 - k];
+        norder = w;
+        e.level_end[L] = e.ngroups;
+    }
+
+    /* Start state. */
+    if ((s = export_state(&e.cx, order, norder, Lmin, &start, err)) != MS_OK)
+        goto fail;
+
+    /* Decisions in decode order: levels upwards, groups in reverse production. */
+    uint8_t *dec = malloc(e.sym.n ? e.sym.n : 1);
+    if (!dec)
+        goto nomem;
+    size_t nd = 0;
+    for (unsigned L = Lmin; L < D; ++L)
+        for (size_t g = e.level_end[L]; g-- > e.level_first[L];) {
+            size_t a = e.groups[g], b = g + 1 < e.ngroups ? e.groups[g + 1] : e.sym.n;
+            for (size_t k = a; k < b; ++k)
+                dec[nd++] = (uint8_t)(e.sym.s[k] & 1);
+        }
+    free(e.sym.s);
+    e.sym.s = NULL;
+    ms_codec_header h;
+    memset(&h, 0, sizeof h);
+    h.version = MS_CODEC_VERSION;
+    h.p_min = pmin;
+    h.p_max = P;
+    h.box = params->box;
+    h.start_vertices = (uint32_t)start.vertex_count;
+    h.start_tris = (uint32_t)start.tri_count;
+    h.start_edges = (uint32_t)start.edge_count;
+    h.start_checksum = ms_codec_state_checksum(&start);
+    h.end_vertices = n;
+    h.end_tris = (uint32_t)canon.tri_count;
+    h.end_edges = (uint32_t)canon.edge_count;
+    unsigned nchunks = P - pmin;
+    /* Forward pass: the decoder itself chooses every context. */
+    ms_cx_free(&e.cx);
+    s = ms_codec_run_encoder(&h, pmin == 0 ? NULL : &start, dec, nd, &rc, err);
+    free(dec);
+    if (s != MS_OK)
+        goto fail;
+    if (rc.failed)
+        goto nomem;
+    size_t hs = ms_codec_header_size(nchunks);
+    buf = malloc(hs + rc.size + 1);
+    if (!buf)
+        goto nomem;
+    ms_codec_write_header(buf, &h);
+    if (rc.size)
+        memcpy(buf + hs, rc.buf, rc.size);
+    *out = buf;
+    *out_size = hs + rc.size;
+    buf = NULL;
+    if (start_out) {
+        *start_out = start;
+        memset(&start, 0, sizeof start);
+    }
+    s = MS_OK;
+    goto done;
+
+nomem:
+    s = ms_error_set(err, MS_ERR_NOMEM, "out of memory while encoding");
+fail:
+done:
+    free(buf);
+    ms_rc_encoder_free(&rc);
+    ms_codec_state_free(&start);
+    ms_codec_state_free(&canon);
+    ms_cx_free(&e.cx);
+    ms_cx_star_free(&e.star);
+    free(e.lo);
+    free(e.hi);
+    free(e.sym.s);
+    free(e.groups);
+    free(e.code);
+    free(e.side);
+    free(order);
+    free(order2);
+    free(slot_of);
+    return s;
+}

@@ -1,0 +1,46 @@
+/* Internal pieces shared by the codec's encoder and decoder. */
+#ifndef MS_CODEC_INTERNAL_H
+#define MS_CODEC_INTERNAL_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "ms_codec.h"
+#include "ms_complex.h"
+#include "ms_rangecoder.h"
+
+#define MS_CODEC_MAGIC "MSGC"
+#define MS_CODEC_FIXED_HEADER 72
+
+/* Bytes of a header with nchunks chunk entries (fixed part, table, CRC). */
+size_t ms_codec_header_size(unsigned nchunks);
+/* Writes h (version, window, box, counts, table) and the header CRC into p,
+ * which has ms_codec_header_size(p_max - p_min) bytes. */
+void ms_codec_write_header(uint8_t *p, const ms_codec_header *h);
+uint32_t ms_codec_crc(const uint8_t *p, size_t n);
+/* ms_codec_read_header with the header CRC check optional (fuzzing). */
+ms_status ms_codec_parse_header(const uint8_t *data, size_t size, ms_codec_header *h,
+                                bool verify_crc, ms_error *err);
+
+/* The encoder's forward pass: runs the decoder from `start` over the window of h,
+ * taking each binary decision from decisions[0..n) (decode order) and coding it
+ * into enc with the decoder's contexts; fills h's chunk table. */
+ms_status ms_codec_run_encoder(ms_codec_header *h, const ms_codec_state *start,
+                               const uint8_t *decisions, size_t n, ms_rc_encoder *enc,
+                               ms_error *err);
+
+/* Exports a complex whose live cells (order[0..n), sorted by key) all sit at
+ * `level` as a canonical ms_codec_state. */
+ms_status ms_codec_export_complex(const ms_complex *cx, const uint32_t *order, uint32_t n,
+                                  unsigned level, ms_codec_state *out, ms_error *err);
+
+/* Length in kd-levels of the common prefix of two distinct D-bit keys. */
+static inline unsigned ms_key_lcp(uint64_t a, uint64_t b, unsigned D)
+{
+    uint64_t x = a ^ b;
+    unsigned high = 63u - (unsigned)__builtin_clzll(x);
+    return D - 1 - high;
+}
+
+#endif

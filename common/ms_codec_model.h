@@ -1,0 +1,165 @@
+/* Context modelling shared by the codec's encoder and decoder (internal).
+ *
+ * Every coded decision is a binary symbol with a context index into one array of
+ * adaptive probabilities. The contexts are computed from state that both sides
+ * hold identically (the complex before a split / after the matching merge, and
+ * the symbols already coded in the same split), so the encoder can record
+ * (context, bit) pairs while merging and code them later in decode order.
+ *
+ * Layout: per kd-level, GEO_PER_LEVEL geometry contexts; then the connectivity
+ * contexts (shared by all levels).
+ */
+#ifndef MS_CODEC_MODEL_H
+#define MS_CODEC_MODEL_H
+
+#include <stdint.h>
+
+#include "ms_complex.h"
+#include "ms_rangecoder.h"
+
+/* Geometry: "both halves?" by (run = levels since the lineage last split, capped);
+ * "which half" by run and the side/distance bucket of the neighbours' centroid. */
+#define GEO_RUNS 4
+#define GEO_DIST 14
+#define GEO_BUCKETS (GEO_DIST + 1)
+#define GEO_BOTH(level, run, deg) ((level) * GEO_PER_LEVEL + (run) * GEO_DEGS + (deg))
+#define GEO_HALF(level, run, bucket) \
+    ((level) * GEO_PER_LEVEL + GEO_RUNS * GEO_DEGS + (run) * GEO_BUCKETS + (bucket))
+#define GEO_PER_LEVEL (GEO_RUNS * GEO_DEGS + GEO_RUNS * GEO_BUCKETS)
+#define GEO_DEGS 4
+
+/* Degree bucket of a cell for the "both halves?" bit: its incident simplex count. */
+static inline unsigned geo_deg(const ms_cx_vert *v)
+{
+    return v->n <= 4 ? 0 : v->n <= 6 ? 1 : v->n <= 8 ? 2 : 3;
+}
+
+/* Connectivity, offsets from the connectivity base. */
+#define SIDES 8
+#define ADJS 8
+#define C_E12 0                             /* 5: degree bucket */
+#define C_EA (C_E12 + 5)                    /* edge 3/4 vs 1/2: side x adj x e12 x nboth */
+#define C_EB (C_EA + SIDES * ADJS * 2 * 3)  /* edge 1 vs 2: side x adj */
+#define C_EC (C_EB + SIDES * ADJS)          /* edge 4 vs 3: side x adj */
+#define C_TA (C_EC + SIDES * ADJS)          /* triangle 3 vs 1/2: n4 x sides */
+#define C_TB (C_TA + 12)                    /* triangle 1 vs 2 */
+#define C_O3 (C_TB + 12)                    /* orientation of a duplicated copy */
+#define C_O4 (C_O3 + 2)                     /* orientation of a created triangle */
+#define C_TOTAL (C_O4 + 3)
+
+static inline uint32_t ms_model_size(unsigned D)
+{
+    return D * GEO_PER_LEVEL + C_TOTAL;
+}
+
+static inline unsigned geo_run(unsigned level, unsigned birth)
+{
+    unsigned r = level - birth;
+    return r < GEO_RUNS ? r : GEO_RUNS - 1;
+}
+
+/* Sum of the doubled centres along axis of cell s's neighbours, each counted once
+ * per incident simplex; *count receives the number of terms. */
+static inline int64_t geo_sum(const ms_complex *cx, uint32_t s, int axis, int64_t *count)
+{
+    const ms_cx_vert *v = &cx->v[s];
+    const uint32_t *l = v->cap ? v->ext : v->inl;
+    int64_t sum = 0, n = 0;
+    for (uint32_t i = 0; i < v->n; ++i) {
+        uint32_t id = l[i] >> 1;
+        if (l[i] & 1) {
+            uint32_t o = cx->edge[id][0] == s ? cx->edge[id][1] : cx->edge[id][0];
+            sum += cx->cen[o][axis];
+            n++;
+        } else {
+            const uint32_t *t = cx->tri[id];
+            sum += cx->cen[t[0]][axis] + cx->cen[t[1]][axis] + cx->cen[t[2]][axis] -
+                   cx->cen[s][axis];
+            n += 2;
+        }
+    }
+    *count = n;
+    return sum;
+}
+
+/* Context of the "which half" bit of a cell (level `level`, axis, minimum corner
+ * cmin along the axis) from its neighbours' centroid (sum, n): side and distance
+ * from the split plane in units of the child cell. */
+static inline unsigned geo_bucket(const ms_complex *cx, int64_t sum, int64_t n, unsigned level,
+                                  int axis, uint32_t cmin)
+{
+    if (n == 0)
+        return GEO_DIST;
+    int64_t wp = ms_cx_width(cx, level, axis);
+    int64_t plane2 = 2 * (int64_t)cmin + wp;
+    int64_t diff = sum - n * plane2;
+    int64_t unit = n * wp;
+    int64_t a = 8 * (diff < 0 ? -diff : diff);
+    unsigned m = a < unit ? 0 : a < 2 * unit ? 1 : a < 4 * unit ? 2 : a < 8 * unit ? 3
+               : a < 16 * unit ? 4 : a < 32 * unit ? 5 : 6;
+    return diff < 0 ? 6 - m : 7 + m;
+}
+
+/* Side of neighbour x relative to the split plane, in 8 buckets. */
+static inline unsigned conn_side(const ms_complex *cx, uint32_t x, int axis, int64_t plane2,
+                                 int64_t wp)
+{
+    int64_t d = 2 * (ms_cx_centre2(cx, x, axis) - plane2);
+    if (d < 0)
+        return d <= -4 * wp ? 0 : d <= -2 * wp ? 1 : d <= -wp ? 2 : 3;
+    return d < wp ? 4 : d < 2 * wp ? 5 : d < 4 * wp ? 6 : 7;
+}
+
+static inline unsigned e12_ctx(uint32_t nn)
+{
+    return C_E12 + (nn == 0 ? 0 : nn <= 2 ? 1 : nn <= 5 ? 2 : nn <= 8 ? 3 : 4);
+}
+
+/* Edge code contexts: codes so far of the partners (sharing a triangle) of x. */
+static inline unsigned adj_flags(const ms_cx_star *st, uint32_t i, const uint8_t *code)
+{
+    unsigned f = 0;
+    for (uint32_t k = st->adj_start[i]; k < st->adj_start[i + 1]; ++k) {
+        uint32_t j = st->adj_list[k];
+        if (j >= i)
+            continue;
+        uint8_t c = code[j];
+        f |= c == 1 ? 1u : c == 2 ? 2u : 4u;
+    }
+    return f;
+}
+
+/* Votes of the triangles around edges (c1,x) and (c2,x) for the orientation of a
+ * new triangle (c1,c2,x): positive predicts the cyclic order (c1,c2,x). */
+static inline int orient_votes(const ms_complex *cx, uint32_t c1, uint32_t c2, uint32_t x,
+                               uint32_t skip)
+{
+    int vote = 0;
+    const uint32_t cs[2] = {c1, c2};
+    for (int k = 0; k < 2; ++k) {
+        const ms_cx_vert *v = &cx->v[cs[k]];
+        const uint32_t *l = v->cap ? v->ext : v->inl;
+        for (uint32_t i = 0; i < v->n; ++i) {
+            if (l[i] & 1)
+                continue;
+            uint32_t t = l[i] >> 1;
+            if (t == skip)
+                continue;
+            const uint32_t *tr = cx->tri[t];
+            if (tr[0] != x && tr[1] != x && tr[2] != x)
+                continue;
+            int o = ms_cx_orient(cx, t, cs[k], x);
+            /* a neighbour with c1 -> x wants x -> c1 in the new one: (c1,c2,x) */
+            vote += k == 0 ? o : -o;
+        }
+    }
+    return vote;
+}
+
+static inline unsigned o4_ctx(int vote)
+{
+    int a = vote < 0 ? -vote : vote;
+    return C_O4 + (a == 0 ? 0 : a == 1 ? 1 : 2);
+}
+
+#endif

@@ -1,0 +1,794 @@
+#include "ms_complex.h"
+
+#include <assert.h>
+#include <stdlib.h>
+#include <string.h>
+
+ms_status ms_cx_init(ms_complex *cx, unsigned P, uint32_t max_v, uint32_t max_t, uint32_t max_e,
+                     ms_error *err)
+{
+    memset(cx, 0, sizeof *cx);
+    cx->P = P;
+    cx->D = 3 * P;
+    cx->max_v = max_v;
+    cx->max_t = max_t;
+    cx->max_e = max_e;
+    cx->cur = 1;
+    cx->cur2 = 1;
+    return ms_cx_reserve(cx, 16 < max_v ? 16 : max_v, 16 < max_t ? 16 : max_t,
+                         16 < max_e ? 16 : max_e, err);
+}
+
+void ms_cx_free(ms_complex *cx)
+{
+    if (!cx)
+        return;
+    if (cx->v)
+        for (uint32_t i = 0; i < cx->nv; ++i)
+            if (cx->v[i].cap)
+                free(cx->v[i].ext);
+    free(cx->v);
+    free(cx->cen);
+    free(cx->tri);
+    free(cx->edge);
+    free(cx->free_v);
+    free(cx->free_t);
+    free(cx->free_e);
+    free(cx->mark);
+    free(cx->stamp);
+    free(cx->mark2);
+    free(cx->stamp2);
+    memset(cx, 0, sizeof *cx);
+}
+
+/* Grows an array of `item` byte elements from *cap to at least want (capped). */
+static int grow(void **p, uint32_t *cap, uint32_t want, uint32_t hard, size_t item)
+{
+    if (want <= *cap)
+        return 1;
+    uint64_t c = *cap ? *cap : 16;
+    while (c < want)
+        c *= 2;
+    if (c > hard)
+        c = hard;
+    if (c < want)
+        return 0;
+    void *n = realloc(*p, (size_t)c * item);
+    if (!n)
+        return 0;
+    *p = n;
+    *cap = (uint32_t)c;
+    return 1;
+}
+
+ms_status ms_cx_reserve(ms_complex *cx, uint32_t v, uint32_t t, uint32_t e, ms_error *err)
+{
+    if ((uint64_t)cx->live_v + v > cx->max_v || (uint64_t)cx->live_t + t > cx->max_t ||
+        (uint64_t)cx->live_e + e > cx->max_e)
+        return ms_error_set(err, MS_ERR_CORRUPT,
+                            "complex exceeds its declared size (%u vertices, %u triangles, "
+                            "%u edges)", cx->max_v, cx->max_t, cx->max_e);
+    uint32_t want_v = cx->nfree_v >= v ? cx->nv : cx->nv + (v - cx->nfree_v);
+    uint32_t want_t = cx->nfree_t >= t ? cx->nt : cx->nt + (t - cx->nfree_t);
+    uint32_t want_e = cx->nfree_e >= e ? cx->ne : cx->ne + (e - cx->nfree_e);
+    if (want_v > cx->cv) {
+        uint32_t cap = cx->cv;
+        void *p = cx->v;
+        if (!grow(&p, &cap, want_v, cx->max_v, sizeof *cx->v))
+            goto nomem;
+        cx->v = p;
+        int32_t (*cen)[4] = realloc(cx->cen, (size_t)cap * sizeof *cx->cen);
+        if (!cen)
+            goto nomem;
+        cx->cen = cen;
+        uint32_t c2 = cx->cv;
+        p = cx->free_v;
+        if (!grow(&p, &c2, cap, cap, sizeof(uint32_t)))
+            goto nomem;
+        cx->free_v = p;
+        uint32_t *arrays[4] = {cx->mark, cx->stamp, cx->mark2, cx->stamp2};
+        for (int i = 0; i < 4; ++i) {
+            uint32_t *n = realloc(arrays[i], (size_t)cap * sizeof(uint32_t));
+            if (!n)
+                goto nomem;
+            if (i == 1 || i == 3)
+                memset(n + cx->cv, 0, (size_t)(cap - cx->cv) * sizeof(uint32_t));
+            arrays[i] = n;
+            if (i == 0) cx->mark = n;
+            if (i == 1) cx->stamp = n;
+            if (i == 2) cx->mark2 = n;
+            if (i == 3) cx->stamp2 = n;
+        }
+        cx->cv = cap;
+    }
+    if (want_t > cx->ct) {
+        uint32_t cap = cx->ct;
+        void *p = cx->tri;
+        if (!grow(&p, &cap, want_t, cx->max_t, sizeof *cx->tri))
+            goto nomem;
+        cx->tri = p;
+        uint32_t c2 = cx->ct;
+        p = cx->free_t;
+        if (!grow(&p, &c2, cap, cap, sizeof(uint32_t)))
+            goto nomem;
+        cx->free_t = p;
+        cx->ct = cap;
+    }
+    if (want_e > cx->ce) {
+        uint32_t cap = cx->ce;
+        void *p = cx->edge;
+        if (!grow(&p, &cap, want_e, cx->max_e, sizeof *cx->edge))
+            goto nomem;
+        cx->edge = p;
+        uint32_t c2 = cx->ce;
+        p = cx->free_e;
+        if (!grow(&p, &c2, cap, cap, sizeof(uint32_t)))
+            goto nomem;
+        cx->free_e = p;
+        cx->ce = cap;
+    }
+    return MS_OK;
+nomem:
+    return ms_error_set(err, MS_ERR_NOMEM, "out of memory growing the complex");
+}
+
+void ms_cx_list_add(ms_complex *cx, uint32_t s, uint32_t tagged)
+{
+    ms_cx_vert *v = &cx->v[s];
+    uint32_t cap = v->cap ? v->cap : MS_CX_INLINE;
+    if (v->n == cap) {
+        uint32_t ncap = cap * 2;
+        uint32_t *n;
+        if (v->cap) {
+            n = realloc(v->ext, (size_t)ncap * sizeof *n);
+        } else {
+            n = malloc((size_t)ncap * sizeof *n);
+            if (n)
+                memcpy(n, v->inl, sizeof v->inl);
+        }
+        if (!n) {
+            cx->nomem = 1;
+            return;
+        }
+        v->ext = n;
+        v->cap = ncap;
+    }
+    ms_cx_list(v)[v->n++] = tagged;
+}
+
+void ms_cx_list_remove(ms_complex *cx, uint32_t s, uint32_t tagged)
+{
+    ms_cx_vert *v = &cx->v[s];
+    uint32_t *l = ms_cx_list(v);
+    for (uint32_t i = 0; i < v->n; ++i) {
+        if (l[i] == tagged) {
+            l[i] = l[--v->n];
+            return;
+        }
+    }
+    /* Not found only after a list growth failure (cx->nomem already set). */
+}
+
+uint32_t ms_cx_add_vertex(ms_complex *cx, uint64_t key, unsigned level, const uint32_t c[3])
+{
+    uint32_t s;
+    if (cx->nfree_v)
+        s = cx->free_v[--cx->nfree_v];
+    else {
+        assert(cx->nv < cx->cv);
+        s = cx->nv++;
+        cx->stamp[s] = 0;
+        cx->stamp2[s] = 0;
+    }
+    ms_cx_vert *v = &cx->v[s];
+    memset(v, 0, sizeof *v);
+    v->key = key;
+    v->level = (uint8_t)level;
+    v->alive = 1;
+    memcpy(v->c, c, sizeof v->c);
+    ms_cx_update_cen(cx, s);
+    cx->live_v++;
+    return s;
+}
+
+void ms_cx_free_vertex(ms_complex *cx, uint32_t s)
+{
+    ms_cx_vert *v = &cx->v[s];
+    if (v->cap)
+        free(v->ext);
+    v->cap = 0;
+    v->ext = NULL;
+    v->n = 0;
+    v->alive = 0;
+    cx->free_v[cx->nfree_v++] = s;
+    cx->live_v--;
+}
+
+uint32_t ms_cx_add_tri(ms_complex *cx, uint32_t a, uint32_t b, uint32_t c)
+{
+    uint32_t t;
+    if (cx->nfree_t)
+        t = cx->free_t[--cx->nfree_t];
+    else {
+        assert(cx->nt < cx->ct);
+        t = cx->nt++;
+    }
+    cx->tri[t][0] = a;
+    cx->tri[t][1] = b;
+    cx->tri[t][2] = c;
+    ms_cx_list_add(cx, a, t << 1);
+    ms_cx_list_add(cx, b, t << 1);
+    ms_cx_list_add(cx, c, t << 1);
+    cx->live_t++;
+    return t;
+}
+
+uint32_t ms_cx_add_edge(ms_complex *cx, uint32_t a, uint32_t b)
+{
+    uint32_t e;
+    if (cx->nfree_e)
+        e = cx->free_e[--cx->nfree_e];
+    else {
+        assert(cx->ne < cx->ce);
+        e = cx->ne++;
+    }
+    cx->edge[e][0] = a;
+    cx->edge[e][1] = b;
+    ms_cx_list_add(cx, a, e << 1 | 1);
+    ms_cx_list_add(cx, b, e << 1 | 1);
+    cx->live_e++;
+    return e;
+}
+
+void ms_cx_del_tri(ms_complex *cx, uint32_t t)
+{
+    for (int k = 0; k < 3; ++k)
+        ms_cx_list_remove(cx, cx->tri[t][k], t << 1);
+    cx->tri[t][0] = cx->tri[t][1] = cx->tri[t][2] = MS_CX_NONE;
+    cx->free_t[cx->nfree_t++] = t;
+    cx->live_t--;
+}
+
+void ms_cx_del_edge(ms_complex *cx, uint32_t e)
+{
+    ms_cx_list_remove(cx, cx->edge[e][0], e << 1 | 1);
+    ms_cx_list_remove(cx, cx->edge[e][1], e << 1 | 1);
+    cx->edge[e][0] = cx->edge[e][1] = MS_CX_NONE;
+    cx->free_e[cx->nfree_e++] = e;
+    cx->live_e--;
+}
+
+void ms_cx_new_marks(ms_complex *cx)
+{
+    if (++cx->cur == 0) {
+        memset(cx->stamp, 0, (size_t)cx->cv * sizeof *cx->stamp);
+        cx->cur = 1;
+    }
+}
+
+void ms_cx_new_marks2(ms_complex *cx)
+{
+    if (++cx->cur2 == 0) {
+        memset(cx->stamp2, 0, (size_t)cx->cv * sizeof *cx->stamp2);
+        cx->cur2 = 1;
+    }
+}
+
+void ms_cx_star_free(ms_cx_star *st)
+{
+    free(st->nbr);
+    free(st->adj);
+    free(st->both);
+    free(st->pairs);
+    free(st->adj_start);
+    free(st->adj_list);
+    free(st->sortbuf);
+    memset(st, 0, sizeof *st);
+}
+
+static int star_room(ms_cx_star *st, size_t n, size_t p)
+{
+    if (n > st->cap_n) {
+        size_t c = st->cap_n ? st->cap_n : 64;
+        while (c < n)
+            c *= 2;
+        uint32_t *a = realloc(st->nbr, c * sizeof *a);
+        if (!a)
+            return 0;
+        st->nbr = a;
+        uint8_t *b = realloc(st->adj, c);
+        if (!b)
+            return 0;
+        st->adj = b;
+        a = realloc(st->both, c * sizeof *a);
+        if (!a)
+            return 0;
+        st->both = a;
+        a = realloc(st->adj_start, (c + 1) * sizeof *a);
+        if (!a)
+            return 0;
+        st->adj_start = a;
+        st->cap_n = c;
+    }
+    if (p > st->cap_p) {
+        size_t c = st->cap_p ? st->cap_p : 64;
+        while (c < p)
+            c *= 2;
+        ms_cx_pair *a = realloc(st->pairs, c * sizeof *a);
+        if (!a)
+            return 0;
+        st->pairs = a;
+        uint32_t *l = realloc(st->adj_list, 2 * c * sizeof *l);
+        if (!l)
+            return 0;
+        st->adj_list = l;
+        st->cap_p = c;
+    }
+    size_t s = n > p ? n : p;
+    if (s > st->cap_sort) {
+        size_t c = st->cap_sort ? st->cap_sort : 64;
+        while (c < s)
+            c *= 2;
+        uint64_t *a = realloc(st->sortbuf, c * sizeof *a);
+        if (!a)
+            return 0;
+        st->sortbuf = a;
+        st->cap_sort = c;
+    }
+    return 1;
+}
+
+static int cmp_u64(const void *a, const void *b)
+{
+    uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
+    return x < y ? -1 : (x > y);
+}
+
+static void sort_u64(uint64_t *a, size_t n)
+{
+    if (n > 24) {
+        qsort(a, n, sizeof *a, cmp_u64);
+        return;
+    }
+    for (size_t i = 1; i < n; ++i) {
+        uint64_t x = a[i];
+        size_t j = i;
+        while (j > 0 && a[j - 1] > x) {
+            a[j] = a[j - 1];
+            --j;
+        }
+        a[j] = x;
+    }
+}
+
+static int cmp_pair(const void *a, const void *b)
+{
+    const ms_cx_pair *x = a, *y = b;
+    if (x->i != y->i)
+        return x->i < y->i ? -1 : 1;
+    return x->j < y->j ? -1 : (x->j > y->j);
+}
+
+/* Adds neighbour slot s (not a centre) to the star if new; returns local index. */
+static uint32_t star_touch(ms_complex *cx, ms_cx_star *st, uint32_t s)
+{
+    if (cx->stamp[s] == cx->cur)
+        return cx->mark[s];
+    cx->stamp[s] = cx->cur;
+    cx->mark[s] = st->nn;
+    st->nbr[st->nn] = s;
+    st->adj[st->nn] = 0;
+    st->both[st->nn] = MS_CX_NONE;
+    return st->nn++;
+}
+
+ms_status ms_cx_gather(ms_complex *cx, uint32_t c0, uint32_t c1, ms_cx_star *st, ms_error *err)
+{
+    uint32_t centres[2] = {c0, c1};
+    int nc = c1 == MS_CX_NONE ? 1 : 2;
+    size_t total = cx->v[c0].n + (nc == 2 ? cx->v[c1].n : 0);
+    if (!star_room(st, 2 * total + 2, total + 1))
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory gathering a star");
+    st->nn = 0;
+    st->np = 0;
+    st->adj01 = false;
+    st->edge01 = MS_CX_NONE;
+    ms_cx_new_marks(cx);
+    /* Pass 1: neighbours. */
+    for (int k = 0; k < nc; ++k) {
+        ms_cx_vert *v = &cx->v[centres[k]];
+        uint32_t *l = ms_cx_list(v);
+        for (uint32_t i = 0; i < v->n; ++i) {
+            uint32_t id = l[i] >> 1;
+            if (l[i] & 1) {
+                uint32_t o = cx->edge[id][0] == centres[k] ? cx->edge[id][1] : cx->edge[id][0];
+                if (nc == 2 && o == centres[1 - k]) {
+                    st->adj01 = true;
+                    st->edge01 = id;
+                    continue;
+                }
+                st->adj[star_touch(cx, st, o)] |= (uint8_t)(1 << k);
+            } else {
+                const uint32_t *t = cx->tri[id];
+                bool has_other = nc == 2 && (t[0] == centres[1 - k] || t[1] == centres[1 - k] ||
+                                             t[2] == centres[1 - k]);
+                for (int m = 0; m < 3; ++m) {
+                    uint32_t o = t[m];
+                    if (o == centres[k] || (nc == 2 && o == centres[1 - k]))
+                        continue;
+                    uint32_t li = star_touch(cx, st, o);
+                    st->adj[li] |= (uint8_t)(1 << k);
+                    if (has_other)
+                        st->both[li] = id;
+                }
+                if (has_other)
+                    st->adj01 = true;
+            }
+        }
+    }
+    /* Sort neighbours by key (keys are unique among live cells). */
+    if (st->nn > 1) {
+        uint64_t *keys = st->sortbuf;
+        for (uint32_t i = 0; i < st->nn; ++i)
+            keys[i] = cx->v[st->nbr[i]].key;
+        sort_u64(keys, st->nn);
+        /* Rebuild nbr/adj/both in sorted order; marks map slot -> new index. */
+        uint32_t *oldn = st->adj_start; /* scratch, size >= nn + 1 */
+        for (uint32_t i = 0; i < st->nn; ++i)
+            oldn[i] = st->nbr[i];
+        uint32_t n = st->nn;
+        uint32_t *nb = st->nbr;
+        uint8_t adj_stack[256];
+        uint32_t both_stack[256];
+        uint8_t *adj_tmp = adj_stack;
+        uint32_t *both_tmp = both_stack;
+        if (n > 256) {
+            adj_tmp = malloc(n);
+            both_tmp = malloc((size_t)n * sizeof *both_tmp);
+            if (!adj_tmp || !both_tmp) {
+                if (n > 256) {
+                    free(adj_tmp);
+                    free(both_tmp);
+                }
+                return ms_error_set(err, MS_ERR_NOMEM, "out of memory sorting a star");
+            }
+        }
+        memcpy(adj_tmp, st->adj, n);
+        memcpy(both_tmp, st->both, (size_t)n * sizeof *both_tmp);
+        /* map key -> old index: keys sorted; for each old i, binary search its key */
+        for (uint32_t i = 0; i < n; ++i) {
+            uint64_t k = cx->v[oldn[i]].key;
+            uint32_t lo = 0, hi = n;
+            while (lo < hi) {
+                uint32_t mid = (lo + hi) / 2;
+                if (keys[mid] < k)
+                    lo = mid + 1;
+                else
+                    hi = mid;
+            }
+            nb[lo] = oldn[i];
+            st->adj[lo] = adj_tmp[i];
+            st->both[lo] = both_tmp[i];
+            cx->mark[oldn[i]] = lo;
+        }
+        if (n > 256) {
+            free(adj_tmp);
+            free(both_tmp);
+        }
+    }
+    /* Pass 2: pairs (triangles with exactly one centre). */
+    uint32_t np = 0;
+    for (int k = 0; k < nc; ++k) {
+        ms_cx_vert *v = &cx->v[centres[k]];
+        uint32_t *l = ms_cx_list(v);
+        for (uint32_t i = 0; i < v->n; ++i) {
+            if (l[i] & 1)
+                continue;
+            uint32_t id = l[i] >> 1;
+            const uint32_t *t = cx->tri[id];
+            if (nc == 2 && (t[0] == centres[1 - k] || t[1] == centres[1 - k] ||
+                            t[2] == centres[1 - k]))
+                continue;
+            uint32_t a = MS_CX_NONE, b = MS_CX_NONE;
+            for (int m = 0; m < 3; ++m) {
+                if (t[m] == centres[k])
+                    continue;
+                if (a == MS_CX_NONE)
+                    a = cx->mark[t[m]];
+                else
+                    b = cx->mark[t[m]];
+            }
+            if (a > b) {
+                uint32_t tmp = a;
+                a = b;
+                b = tmp;
+            }
+            st->pairs[np].i = a;
+            st->pairs[np].j = b;
+            st->pairs[np].t0 = k == 0 ? id : MS_CX_NONE;
+            st->pairs[np].t1 = k == 1 ? id : MS_CX_NONE;
+            np++;
+        }
+    }
+    if (np > 32) {
+        qsort(st->pairs, np, sizeof *st->pairs, cmp_pair);
+    } else {
+        for (uint32_t a = 1; a < np; ++a) {
+            ms_cx_pair x = st->pairs[a];
+            uint32_t b = a;
+            while (b > 0 && cmp_pair(&st->pairs[b - 1], &x) > 0) {
+                st->pairs[b] = st->pairs[b - 1];
+                --b;
+            }
+            st->pairs[b] = x;
+        }
+    }
+    /* Combine (c0,x,y) and (c1,x,y) entries. */
+    uint32_t w = 0;
+    for (uint32_t r = 0; r < np; ++r) {
+        if (w > 0 && st->pairs[w - 1].i == st->pairs[r].i && st->pairs[w - 1].j == st->pairs[r].j) {
+            if (st->pairs[r].t0 != MS_CX_NONE)
+                st->pairs[w - 1].t0 = st->pairs[r].t0;
+            if (st->pairs[r].t1 != MS_CX_NONE)
+                st->pairs[w - 1].t1 = st->pairs[r].t1;
+            continue;
+        }
+        st->pairs[w++] = st->pairs[r];
+    }
+    st->np = w;
+    /* Neighbour adjacency through the pairs (CSR). */
+    uint32_t *start = st->adj_start;
+    for (uint32_t i = 0; i <= st->nn; ++i)
+        start[i] = 0;
+    for (uint32_t r = 0; r < w; ++r) {
+        start[st->pairs[r].i + 1]++;
+        start[st->pairs[r].j + 1]++;
+    }
+    for (uint32_t i = 0; i < st->nn; ++i)
+        start[i + 1] += start[i];
+    /* fill using sortbuf as cursor storage */
+    uint64_t *cursor = st->sortbuf;
+    for (uint32_t i = 0; i < st->nn; ++i)
+        cursor[i] = start[i];
+    for (uint32_t r = 0; r < w; ++r) {
+        st->adj_list[cursor[st->pairs[r].i]++] = st->pairs[r].j;
+        st->adj_list[cursor[st->pairs[r].j]++] = st->pairs[r].i;
+    }
+    return MS_OK;
+}
+
+static bool tri_has(const uint32_t *t, uint32_t s)
+{
+    return t[0] == s || t[1] == s || t[2] == s;
+}
+
+/* The two vertices of triangle t other than s, smaller slot first. */
+static uint64_t tri_other_pair(const uint32_t *t, uint32_t s)
+{
+    uint32_t a = MS_CX_NONE, b = MS_CX_NONE;
+    for (int m = 0; m < 3; ++m) {
+        if (t[m] == s)
+            continue;
+        if (a == MS_CX_NONE)
+            a = t[m];
+        else
+            b = t[m];
+    }
+    if (a > b) {
+        uint32_t x = a;
+        a = b;
+        b = x;
+    }
+    return (uint64_t)a << 32 | b;
+}
+
+static bool bsearch_u64(const uint64_t *a, size_t n, uint64_t k)
+{
+    size_t lo = 0, hi = n;
+    while (lo < hi) {
+        size_t mid = (lo + hi) / 2;
+        if (a[mid] < k)
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    return lo < n && a[lo] == k;
+}
+
+ms_status ms_cx_merge(ms_complex *cx, uint32_t c0, uint32_t c1, ms_error *err)
+{
+    ms_cx_vert *v1 = &cx->v[c1];
+    uint32_t n1 = v1->n;
+    uint32_t n0 = cx->v[c0].n;
+    /* Scratch: copy of c1's list, c0's triangle pairs, collapsed third vertices. */
+    uint32_t stack[64];
+    uint64_t stack64[64];
+    uint32_t *l1 = n1 * 2 <= 64 ? stack : malloc((size_t)n1 * 2 * sizeof *l1);
+    uint64_t *pairs = n0 <= 64 ? stack64 : malloc((size_t)n0 * sizeof *pairs);
+    if (!l1 || !pairs) {
+        if (l1 != stack)
+            free(l1);
+        if (pairs != stack64)
+            free(pairs);
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory merging cells");
+    }
+    uint32_t *collapsed = l1 + n1;
+    memcpy(l1, ms_cx_list(v1), (size_t)n1 * sizeof *l1);
+    uint32_t ncol = 0;
+    /* a. triangles holding both centres collapse to edges (c0, x). */
+    for (uint32_t i = 0; i < n1; ++i) {
+        if (l1[i] & 1)
+            continue;
+        uint32_t t = l1[i] >> 1;
+        if (tri_has(cx->tri[t], c0)) {
+            for (int m = 0; m < 3; ++m)
+                if (cx->tri[t][m] != c0 && cx->tri[t][m] != c1)
+                    collapsed[ncol++] = cx->tri[t][m];
+            ms_cx_del_tri(cx, t);
+            l1[i] = MS_CX_NONE;
+        }
+    }
+    /* b. c1's other triangles move to c0 unless c0 already has the same one. */
+    ms_cx_vert *v0 = &cx->v[c0];
+    uint32_t *l0 = ms_cx_list(v0);
+    uint32_t np = 0;
+    for (uint32_t i = 0; i < v0->n; ++i)
+        if (!(l0[i] & 1))
+            pairs[np++] = tri_other_pair(cx->tri[l0[i] >> 1], c0);
+    sort_u64(pairs, np);
+    for (uint32_t i = 0; i < n1; ++i) {
+        if (l1[i] == MS_CX_NONE || (l1[i] & 1))
+            continue;
+        uint32_t t = l1[i] >> 1;
+        if (bsearch_u64(pairs, np, tri_other_pair(cx->tri[t], c1))) {
+            ms_cx_del_tri(cx, t);
+        } else {
+            for (int m = 0; m < 3; ++m)
+                if (cx->tri[t][m] == c1)
+                    cx->tri[t][m] = c0;
+            ms_cx_list_remove(cx, c1, t << 1);
+            ms_cx_list_add(cx, c0, t << 1);
+        }
+    }
+    /* c. maximal edges of c1. Mark c0's edge neighbours first. */
+    ms_cx_new_marks(cx);
+    v0 = &cx->v[c0];
+    l0 = ms_cx_list(v0);
+    for (uint32_t i = 0; i < v0->n; ++i) {
+        if (l0[i] & 1) {
+            uint32_t e = l0[i] >> 1;
+            uint32_t o = cx->edge[e][0] == c0 ? cx->edge[e][1] : cx->edge[e][0];
+            cx->stamp[o] = cx->cur;
+        }
+    }
+    for (uint32_t i = 0; i < n1; ++i) {
+        if (l1[i] == MS_CX_NONE || !(l1[i] & 1))
+            continue;
+        uint32_t e = l1[i] >> 1;
+        uint32_t o = cx->edge[e][0] == c1 ? cx->edge[e][1] : cx->edge[e][0];
+        if (o == c0 || cx->stamp[o] == cx->cur) {
+            ms_cx_del_edge(cx, e);
+        } else {
+            if (cx->edge[e][0] == c1)
+                cx->edge[e][0] = c0;
+            else
+                cx->edge[e][1] = c0;
+            ms_cx_list_remove(cx, c1, e << 1 | 1);
+            ms_cx_list_add(cx, c0, e << 1 | 1);
+            cx->stamp[o] = cx->cur;
+        }
+    }
+    /* d. c0's maximal edges covered by a triangle are no longer maximal; e. the
+     * collapsed triangles leave maximal edges where nothing covers them. */
+    ms_cx_new_marks2(cx); /* stamp2: triangle neighbours of c0 */
+    v0 = &cx->v[c0];
+    l0 = ms_cx_list(v0);
+    for (uint32_t i = 0; i < v0->n; ++i) {
+        if (!(l0[i] & 1)) {
+            const uint32_t *t = cx->tri[l0[i] >> 1];
+            for (int m = 0; m < 3; ++m)
+                cx->stamp2[t[m]] = cx->cur2;
+        }
+    }
+    for (uint32_t i = 0; i < v0->n;) {
+        if (l0[i] & 1) {
+            uint32_t e = l0[i] >> 1;
+            uint32_t o = cx->edge[e][0] == c0 ? cx->edge[e][1] : cx->edge[e][0];
+            if (cx->stamp2[o] == cx->cur2) {
+                ms_cx_del_edge(cx, e); /* swaps the last entry into i */
+                l0 = ms_cx_list(&cx->v[c0]);
+                continue;
+            }
+        }
+        ++i;
+    }
+    ms_cx_new_marks(cx); /* stamp: edge neighbours of c0 now */
+    v0 = &cx->v[c0];
+    l0 = ms_cx_list(v0);
+    for (uint32_t i = 0; i < v0->n; ++i) {
+        if (l0[i] & 1) {
+            uint32_t e = l0[i] >> 1;
+            uint32_t o = cx->edge[e][0] == c0 ? cx->edge[e][1] : cx->edge[e][0];
+            cx->stamp[o] = cx->cur;
+        }
+    }
+    ms_status st = ms_cx_reserve(cx, 0, 0, ncol, err);
+    for (uint32_t i = 0; i < ncol && st == MS_OK; ++i) {
+        uint32_t x = collapsed[i];
+        if (cx->stamp2[x] == cx->cur2 || cx->stamp[x] == cx->cur)
+            continue;
+        ms_cx_add_edge(cx, c0, x);
+        cx->stamp[x] = cx->cur;
+    }
+    /* f. c1 is gone. Any entry left in its list would be a bug. */
+    assert(cx->v[c1].n == 0 || cx->nomem);
+    ms_cx_free_vertex(cx, c1);
+    if (l1 != stack)
+        free(l1);
+    if (pairs != stack64)
+        free(pairs);
+    if (st != MS_OK)
+        return st;
+    if (cx->nomem)
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory merging cells");
+    return MS_OK;
+}
+
+ms_status ms_cx_compact(ms_complex *cx, uint32_t *order, uint32_t n, ms_error *err)
+{
+    assert(n == cx->live_v);
+    uint32_t *vmap = malloc((size_t)(cx->nv ? cx->nv : 1) * sizeof *vmap);
+    uint32_t *tmap = malloc((size_t)(cx->nt ? cx->nt : 1) * sizeof *tmap);
+    ms_cx_vert *nv = malloc((size_t)cx->cv * sizeof *nv);
+    int32_t (*ncen)[4] = malloc((size_t)cx->cv * sizeof *ncen);
+    uint32_t (*ntri)[3] = malloc((size_t)(cx->ct ? cx->ct : 1) * sizeof *ntri);
+    if (!vmap || !tmap || !nv || !ncen || !ntri) {
+        free(vmap), free(tmap), free(nv), free(ncen), free(ntri);
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory compacting the complex");
+    }
+    for (uint32_t i = 0; i < n; ++i) {
+        vmap[order[i]] = i;
+        nv[i] = cx->v[order[i]];
+        memcpy(ncen[i], cx->cen[order[i]], sizeof ncen[i]);
+    }
+    memset(tmap, 0xFF, (size_t)cx->nt * sizeof *tmap);
+    uint32_t nt = 0;
+    for (uint32_t i = 0; i < n; ++i) {
+        uint32_t *l = ms_cx_list(&nv[i]);
+        for (uint32_t k = 0; k < nv[i].n; ++k) {
+            if (l[k] & 1)
+                continue;
+            uint32_t t = l[k] >> 1;
+            if (tmap[t] == MS_CX_NONE) {
+                tmap[t] = nt;
+                for (int m = 0; m < 3; ++m)
+                    ntri[nt][m] = vmap[cx->tri[t][m]];
+                nt++;
+            }
+            l[k] = tmap[t] << 1;
+        }
+    }
+    for (uint32_t e = 0; e < cx->ne; ++e)
+        if (cx->edge[e][0] != MS_CX_NONE) {
+            cx->edge[e][0] = vmap[cx->edge[e][0]];
+            cx->edge[e][1] = vmap[cx->edge[e][1]];
+        }
+    free(cx->v);
+    free(cx->cen);
+    free(cx->tri);
+    cx->v = nv;
+    cx->cen = ncen;
+    cx->tri = ntri;
+    cx->nv = n;
+    cx->nfree_v = 0;
+    cx->nt = nt;
+    cx->nfree_t = 0;
+    memset(cx->stamp, 0, (size_t)cx->cv * sizeof *cx->stamp);
+    memset(cx->stamp2, 0, (size_t)cx->cv * sizeof *cx->stamp2);
+    cx->cur = cx->cur2 = 1;
+    for (uint32_t i = 0; i < n; ++i)
+        order[i] = i;
+    free(vmap);
+    free(tmap);
+    return MS_OK;
+}

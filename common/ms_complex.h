@@ -1,0 +1,157 @@
+/* The simplicial complex shared by the codec's encoder and decoder (internal).
+ *
+ * Vertices are kd-cells identified by an aligned key (the cell's kd prefix shifted
+ * left to the full 3P-bit width, so keys of cells at different levels compare in
+ * space order and a cell's first child keeps its key). The complex stores only
+ * maximal simplices: oriented triangles and maximal edges; a vertex with neither
+ * is isolated. Each vertex keeps one list of incident simplices (tagged ids:
+ * triangle id << 1, edge id << 1 | 1), small lists inline.
+ *
+ * Slot numbers and list orders depend on history; everything the codec codes is
+ * enumerated canonically (ms_cx_star sorts by key), so encoder and decoder agree
+ * whatever their slot assignment.
+ *
+ * Capacity: ms_cx_reserve grows the arrays up to hard caps fixed at init; adding
+ * past the reserved room is a programming error (asserted). List growth failure is
+ * sticky in cx->nomem. Not thread-safe; no global state.
+ */
+#ifndef MS_COMPLEX_H
+#define MS_COMPLEX_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "ms_error.h"
+
+#define MS_CX_INLINE 10
+#define MS_CX_NONE UINT32_MAX
+
+typedef struct ms_cx_vert {
+    uint64_t key;     /* aligned kd key */
+    uint32_t c[3];    /* cell's minimum corner on the full 2^P grid */
+    uint8_t level;    /* kd-level of the cell */
+    uint8_t birth;    /* level at which the cell's lineage last split in two */
+    uint8_t alive;
+    uint8_t pad;
+    uint32_t n, cap;  /* list size; cap 0 = inline storage */
+    uint32_t *ext;
+    uint32_t inl[MS_CX_INLINE];
+} ms_cx_vert;
+
+typedef struct ms_complex {
+    unsigned P, D;            /* bits per coordinate, D = 3P kd-levels */
+    ms_cx_vert *v;
+    int32_t (*cen)[4];        /* per slot: twice the cell centre per axis (compact copy) */
+    uint32_t (*tri)[3];
+    uint32_t (*edge)[2];
+    uint32_t nv, nt, ne;      /* slots used (live + free) */
+    uint32_t cv, ct, ce;      /* allocated slots */
+    uint32_t live_v, live_t, live_e;
+    uint32_t max_v, max_t, max_e; /* hard caps */
+    uint32_t *free_v, *free_t, *free_e;
+    uint32_t nfree_v, nfree_t, nfree_e;
+    /* scratch: per-slot marks (valid when stamp[slot] == cur) */
+    uint32_t *mark, *stamp, cur;
+    uint32_t *mark2, *stamp2, cur2;
+    int nomem;
+} ms_complex;
+
+ms_status ms_cx_init(ms_complex *cx, unsigned P, uint32_t max_v, uint32_t max_t, uint32_t max_e,
+                     ms_error *err);
+void ms_cx_free(ms_complex *cx);
+
+/* Makes room for `v` more vertices, `t` triangles and `e` edges. MS_ERR_CORRUPT
+ * when a hard cap would be exceeded, MS_ERR_NOMEM when allocation fails. */
+ms_status ms_cx_reserve(ms_complex *cx, uint32_t v, uint32_t t, uint32_t e, ms_error *err);
+
+uint32_t ms_cx_add_vertex(ms_complex *cx, uint64_t key, unsigned level, const uint32_t c[3]);
+void ms_cx_free_vertex(ms_complex *cx, uint32_t s);
+uint32_t ms_cx_add_tri(ms_complex *cx, uint32_t a, uint32_t b, uint32_t c);
+uint32_t ms_cx_add_edge(ms_complex *cx, uint32_t a, uint32_t b);
+void ms_cx_del_tri(ms_complex *cx, uint32_t t);
+void ms_cx_del_edge(ms_complex *cx, uint32_t e);
+
+static inline uint32_t *ms_cx_list(ms_cx_vert *v)
+{
+    return v->cap ? v->ext : v->inl;
+}
+
+void ms_cx_list_add(ms_complex *cx, uint32_t s, uint32_t tagged);
+void ms_cx_list_remove(ms_complex *cx, uint32_t s, uint32_t tagged);
+
+/* Width of a cell at `level` along `axis`, in full-grid units. */
+static inline uint32_t ms_cx_width(const ms_complex *cx, unsigned level, int axis)
+{
+    unsigned nb = (level + 2 - (unsigned)axis) / 3;
+    return 1u << (cx->P - nb);
+}
+
+/* Twice the cell centre along axis (integer, full-grid units * 2). */
+static inline int64_t ms_cx_centre2(const ms_complex *cx, uint32_t s, int axis)
+{
+    return cx->cen[s][axis];
+}
+
+/* Refreshes the compact centre copy after a change of c[] or level. */
+static inline void ms_cx_update_cen(ms_complex *cx, uint32_t s)
+{
+    const ms_cx_vert *v = &cx->v[s];
+    for (int a = 0; a < 3; ++a)
+        cx->cen[s][a] = (int32_t)(2 * v->c[a] + ms_cx_width(cx, v->level, a));
+    cx->cen[s][3] = v->level;
+}
+
+/* +1 when triangle t contains the directed edge a -> b in its cyclic order, -1
+ * when it contains b -> a. */
+static inline int ms_cx_orient(const ms_complex *cx, uint32_t t, uint32_t a, uint32_t b)
+{
+    const uint32_t *x = cx->tri[t];
+    if ((x[0] == a && x[1] == b) || (x[1] == a && x[2] == b) || (x[2] == a && x[0] == b))
+        return 1;
+    return -1;
+}
+
+/* The star of one or two centre vertices, canonically ordered. */
+typedef struct ms_cx_pair {
+    uint32_t i, j;    /* local neighbour indices, i < j */
+    uint32_t t0, t1;  /* triangle (c0,x_i,x_j) / (c1,x_i,x_j), or MS_CX_NONE */
+} ms_cx_pair;
+
+typedef struct ms_cx_star {
+    uint32_t nn;          /* neighbours (other than the centres) */
+    uint32_t *nbr;        /* slots, sorted by key */
+    uint8_t *adj;         /* per neighbour: 1 adjacent to c0, 2 to c1 */
+    uint32_t *both;       /* per neighbour: triangle (c0,c1,x) or MS_CX_NONE */
+    uint32_t np;
+    ms_cx_pair *pairs;    /* triangles with one centre, sorted by (i, j) */
+    bool adj01;           /* c0 and c1 adjacent */
+    uint32_t edge01;      /* maximal edge (c0,c1) or MS_CX_NONE */
+    /* neighbour adjacency through the pairs (CSR): partners of i */
+    uint32_t *adj_start, *adj_list;
+    uint64_t *sortbuf;
+    size_t cap_n, cap_p, cap_sort;
+} ms_cx_star;
+
+void ms_cx_star_free(ms_cx_star *st);
+
+/* Gathers the star of c0 (and c1 when c1 != MS_CX_NONE). MS_ERR_NOMEM on
+ * allocation failure. Uses cx's mark scratch. */
+ms_status ms_cx_gather(ms_complex *cx, uint32_t c0, uint32_t c1, ms_cx_star *st, ms_error *err);
+
+/* Merges c1 into c0: every simplex incident to c1 gets c0 instead, duplicates are
+ * dropped (c0's copy wins), triangles containing both collapse to edges kept only
+ * when maximal, the edge c0-c1 disappears. Frees slot c1. Key and level of c0 are
+ * left to the caller. */
+ms_status ms_cx_merge(ms_complex *cx, uint32_t c0, uint32_t c1, ms_error *err);
+
+/* Renumbers the vertex slots to follow order[0..n) (all live vertices, in key
+ * order) and the triangles by first incident vertex, for memory locality; order
+ * becomes the identity. The complex itself is unchanged. */
+ms_status ms_cx_compact(ms_complex *cx, uint32_t *order, uint32_t n, ms_error *err);
+
+/* Starts a fresh mark generation (scratch marks). */
+void ms_cx_new_marks(ms_complex *cx);
+void ms_cx_new_marks2(ms_complex *cx);
+
+#endif

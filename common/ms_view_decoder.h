@@ -1,0 +1,161 @@
+/* View-dependent decoding of an nSP archive (reference 003 §6): the client-side
+ * logic that keeps a cut of the nSP-tree decoded at chosen precisions and turns
+ * it into one crack-free mesh.
+ *
+ * Cells are numbered as in the archive index (docs/ARCHIVE.md). Each cell is
+ *   HIDDEN  an ancestor stands for it;
+ *   SHOWN   part of the cut, decoded at a precision `bits` within its window
+ *           [bits_min, bits_max];
+ *   SPLIT   its children stand for it; it stays decoded at bits_max so that a
+ *           merge is immediate and exact.
+ * The SHOWN cells always tile the whole cube (the root starts SHOWN at 0 bits),
+ * whether they are visible or not: culled cells stay in the cut at a low
+ * precision, which keeps the stitching rule well defined everywhere.
+ *
+ * A cell decodes from its geometry payload, which may arrive in pieces: hand over
+ * any prefix with ms_view_set_bytes (the per-bit prefix table of the index says
+ * how long a prefix each precision needs). A child's decoder starts from the
+ * complex its parent has at bits_max, split by ms_nsp_partition_state: the same
+ * start state the baker encoded it from (the codec header's checksum proves it).
+ *
+ * Stitching (ms_view_stitch): a triangle of shown cell c at kd-level L_c is drawn
+ * unless one of its vertices lies in a shown cell that is finer (higher kd-level),
+ * or equally fine with a higher cell number, which then draws its own copy; each
+ * vertex lying in another shown cell is drawn at that cell's representative of
+ * the kd-cell containing it. Every vertex thus has exactly one position, and a
+ * triangle present in several cells is drawn once: no overlap and no crack.
+ *
+ * Units: precisions in bits per coordinate (kd-level = 3 bits); world coordinates
+ * as doubles in the archive's box. Errors: ms_status with one line; MS_ERR_RANGE
+ * for a request outside a cell's window or state, MS_ERR_FORMAT for bytes not yet
+ * received, MS_ERR_CORRUPT for a damaged payload.
+ * Thread-safety: one object per client, used from one thread, except that
+ * ms_view_set_bits and ms_view_set_bytes on *distinct* cells may run concurrently
+ * when no split, merge, apply or stitch runs at the same time.
+ */
+#ifndef MS_VIEW_DECODER_H
+#define MS_VIEW_DECODER_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "ms_archive.h"
+#include "ms_camera.h"
+#include "ms_codec.h"
+#include "ms_error.h"
+
+typedef struct ms_view ms_view;
+
+typedef enum ms_view_cell_state {
+    MS_VIEW_HIDDEN = 0,
+    MS_VIEW_SHOWN = 1,
+    MS_VIEW_SPLIT = 2
+} ms_view_cell_state;
+
+/* Creates a view over a model from its header and its cell_count cell records
+ * (both copied). The root is SHOWN at 0 bits. MS_ERR_ARG when the records do not
+ * form a valid tree (the archive reader has already checked this for files). */
+ms_status ms_view_create(const ms_archive_header *header, const ms_archive_cell *cells,
+                         ms_view **view, ms_error *err);
+
+/* Convenience: a view over every record of an open archive, with every cell's
+ * full geometry payload handed over (CRC-checked). */
+ms_status ms_view_create_from_archive(const ms_archive *archive, ms_view **view, ms_error *err);
+
+void ms_view_destroy(ms_view *view);
+
+const ms_archive_header *ms_view_header(const ms_view *view);
+uint32_t ms_view_cell_count(const ms_view *view);
+const ms_archive_cell *ms_view_cell(const ms_view *view, uint32_t cell);
+
+/* Hands over the first `length` bytes of a cell's geometry payload (copied). A
+ * later call must extend what was given (a longer prefix of the same payload).
+ * MS_ERR_RANGE when length exceeds the payload length in the index. */
+ms_status ms_view_set_bytes(ms_view *view, uint32_t cell, const uint8_t *data, size_t length,
+                            ms_error *err);
+
+/* Highest precision of the cell decodable from the bytes held (bits_min when no
+ * complete bit is held; bits_max for an empty cell). */
+unsigned ms_view_available_bits(const ms_view *view, uint32_t cell);
+
+ms_view_cell_state ms_view_state(const ms_view *view, uint32_t cell);
+/* Current precision of a SHOWN cell (bits_max for a SPLIT one, 0 for HIDDEN). */
+unsigned ms_view_bits(const ms_view *view, uint32_t cell);
+
+/* Refines or coarsens a SHOWN cell to `bits` in its window. Exactly reversible:
+ * going to b' and back to b restores the identical complex. */
+ms_status ms_view_set_bits(ms_view *view, uint32_t cell, unsigned bits, ms_error *err);
+
+/* Splits a SHOWN non-leaf cell at bits_max: its children become SHOWN at their
+ * bits_min (no bytes needed for that). */
+ms_status ms_view_split(ms_view *view, uint32_t cell, ms_error *err);
+
+/* Merges a SPLIT cell back (merging split descendants first): it becomes SHOWN at
+ * bits_max, exactly as it was before the split. */
+ms_status ms_view_merge(ms_view *view, uint32_t cell, ms_error *err);
+
+/* The current complex of a SHOWN or SPLIT cell, canonical (ms_codec.h); caller
+ * frees. Empty cells give vertex_count 0. */
+ms_status ms_view_cell_state_copy(const ms_view *view, uint32_t cell, ms_codec_state *out,
+                                  ms_error *err);
+
+/* ---- selection: what the client calls every frame ---------------------- */
+
+#define MS_VIEW_TARGET_HIDDEN 0xFFu /* an ancestor is shown */
+#define MS_VIEW_TARGET_SPLIT 0xFEu  /* the children are shown */
+
+typedef struct ms_view_select_params {
+    double tolerance_px;  /* screen error allowed for a vertex, pixels (> 0) */
+    double margin;        /* frustum margin, world units (>= 0) */
+    double hysteresis;    /* bits to spare before coarsening (ms_select_bits), e.g. 0.5 */
+    double culled_bits_less; /* cells outside the frustum get their need minus this */
+} ms_view_select_params;
+
+/* Real-valued precision (bits) a cell needs for the camera, or -1 when it is
+ * outside the frustum grown by margin. */
+double ms_view_cell_need(const ms_view *view, const ms_camera *camera, uint32_t cell,
+                         const ms_view_select_params *params);
+
+/* For every cell, the target: bits to show it at, MS_VIEW_TARGET_SPLIT or
+ * MS_VIEW_TARGET_HIDDEN (target has cell_count entries). Visible cells get the
+ * precision their nearest point needs (with hysteresis against the current
+ * state); culled cells get that need less culled_bits_less bits (a large value
+ * keeps them at their bits_min; a small one keeps precision jumps at the frustum
+ * border small). */
+void ms_view_select(const ms_view *view, const ms_camera *camera,
+                    const ms_view_select_params *params, uint8_t *target);
+
+typedef struct ms_view_apply_report {
+    uint32_t splits, merges, refined, coarsened;
+    uint32_t waiting; /* cells held below their target for lack of bytes */
+} ms_view_apply_report;
+
+/* Moves the view towards target (from ms_view_select): merges, refines, splits
+ * and coarsens, as far as the bytes held allow. report may be NULL. */
+ms_status ms_view_apply(ms_view *view, const uint8_t *target, ms_view_apply_report *report,
+                        ms_error *err);
+
+/* ---- the stitched mesh --------------------------------------------------- */
+
+typedef struct ms_view_mesh {
+    size_t vertex_count, triangle_count;
+    double *positions;     /* 3 per vertex, world units (kd-cell centres) */
+    uint64_t *keys;        /* per vertex: kd prefix aligned to 3p bits */
+    uint8_t *levels;       /* per vertex: kd-level */
+    uint32_t *triangles;   /* 3 per triangle, oriented */
+    uint32_t *triangle_cell; /* per triangle: the cell that drew it */
+    size_t vertex_cap, triangle_cap;
+    /* diagnostics */
+    size_t dropped_finer;    /* triangles left to a finer (or tie-winning) cell */
+    size_t dropped_snapped;  /* triangles degenerate or repeated once their vertices snap */
+    size_t unresolved;       /* vertices whose neighbour representative is missing (0) */
+} ms_view_mesh;
+
+/* Builds the mesh of the shown cells whose visible[cell] is true (NULL: all).
+ * *out must be zeroed or previously filled (its arrays are reused). Vertices are
+ * those of the drawn triangles and every vertex inside a drawn cell. */
+ms_status ms_view_stitch(ms_view *view, const bool *visible, ms_view_mesh *out, ms_error *err);
+void ms_view_mesh_free(ms_view_mesh *mesh);
+
+#endif

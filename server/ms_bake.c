@@ -1,0 +1,205 @@
+/* A whole bake: see ms_bake.h. */
+#include "ms_bake.h"
+
+#include <errno.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "ms_archive_writer.h"
+#include "ms_catalog.h"
+#include "ms_nsp_build.h"
+#include "ms_nsp_encode.h"
+#include "ms_progress.h"
+
+void ms_bake_options_default(ms_bake_options *o)
+{
+    memset(o, 0, sizeof *o);
+    o->bits = 16;
+    o->n = 4;
+    o->root_bits = 7;
+    o->min_triangles = 8000;
+    o->mem_mb = 512;
+    long cpus = sysconf(_SC_NPROCESSORS_ONLN);
+    o->threads = cpus > 0 ? (unsigned)cpus : 1;
+}
+
+void ms_bake_default_name(const char *path, char *out, size_t size)
+{
+    const char *base = strrchr(path, '/');
+    base = base ? base + 1 : path;
+    size_t n = 0;
+    for (const char *c = base; *c && *c != '.' && n + 1 < size && n < MS_MODEL_NAME_MAX; ++c) {
+        bool ok = (*c >= 'a' && *c <= 'z') || (*c >= 'A' && *c <= 'Z') || (*c >= '0' && *c <= '9') ||
+                  *c == '_' || *c == '-';
+        out[n++] = ok ? *c : '_';
+    }
+    if (n == 0 && size > 5)
+        memcpy(out, "model", 5), n = 5;
+    out[n < size ? n : size - 1] = '\0';
+}
+
+/* Progress across phases: one bar, relabelled per phase. */
+typedef struct bake_progress {
+    ms_progress bar;
+    FILE *out;
+    const char *phase;
+    char label[64];
+} bake_progress;
+
+static void on_progress(void *context, const char *phase, double fraction)
+{
+    bake_progress *p = context;
+    if (!p->out)
+        return;
+    if (p->phase != phase) {
+        p->phase = phase;
+        snprintf(p->label, sizeof p->label, "meshbake: %s", phase);
+        ms_progress_finish(&p->bar);
+        ms_progress_init(&p->bar, p->out, p->label, 1000);
+    }
+    ms_progress_update(&p->bar, (uint64_t)(fraction * 1000.0));
+}
+
+ms_status ms_bake(const ms_bake_options *o, ms_bake_report *r, ms_error *err)
+{
+    memset(r, 0, sizeof *r);
+    double t_start = ms_now_seconds();
+    ms_nsp_shape shape;
+    ms_status s = ms_nsp_shape_init(&shape, o->bits, o->n, o->root_bits, err);
+    if (s != MS_OK)
+        return s;
+    if (o->min_triangles < 1)
+        return ms_error_set(err, MS_ERR_ARG, "--min-tris must be at least 1");
+    if (o->mem_mb < 16)
+        return ms_error_set(err, MS_ERR_ARG, "--mem must be at least 16 MB");
+    if (o->name)
+        snprintf(r->name, sizeof r->name, "%s", o->name);
+    else
+        ms_bake_default_name(o->input, r->name, sizeof r->name);
+    if (!ms_model_name_valid(r->name))
+        return ms_error_set(err, MS_ERR_ARG, "invalid model name '%s' (1-64 of A-Z a-z 0-9 _ -)",
+                            r->name);
+    struct stat sb;
+    if (stat(o->archive_dir, &sb) != 0 || !S_ISDIR(sb.st_mode))
+        return ms_error_set(err, MS_ERR_IO, "%s: not a directory", o->archive_dir);
+    int n = snprintf(r->archive_path, sizeof r->archive_path, "%s/%s.msa", o->archive_dir, r->name);
+    if (n < 0 || (size_t)n + 16 >= sizeof r->archive_path)
+        return ms_error_set(err, MS_ERR_ARG, "archive path too long");
+    char stale[4096 + 16];
+    snprintf(stale, sizeof stale, "%s.partial", r->archive_path);
+    unlink(stale);
+
+    bake_progress progress = {.out = o->progress};
+    ms_nsp_build_params bp = {
+        .shape = shape,
+        .min_triangles = o->min_triangles,
+        .buffer_budget = o->buffer_bytes ? o->buffer_bytes : o->mem_mb * (1u << 20) / 4,
+        .tmp_dir = o->tmp_dir ? o->tmp_dir : o->archive_dir,
+        .progress = on_progress,
+        .progress_context = &progress,
+    };
+    ms_nsp_build b;
+    s = ms_nsp_build_run(o->input, &bp, &b, err);
+    if (s != MS_OK) {
+        ms_progress_finish(&progress.bar);
+        return s;
+    }
+    r->input_vertices = b.stats.input_vertices;
+    r->input_triangles = b.stats.input_triangles;
+    r->seconds_read = b.stats.seconds_read;
+    r->seconds_quantise = b.stats.seconds_quantise;
+    r->seconds_distribute = b.stats.seconds_distribute;
+    r->cells = b.node_count;
+    r->blocks_written = b.stats.blocks_written;
+    r->flushes = b.stats.flushes;
+    for (uint32_t i = 0; i < b.node_count; ++i) {
+        r->leaves += b.nodes[i].first_child == MS_NSP_NONE;
+        if (b.nodes[i].depth > r->depth)
+            r->depth = b.nodes[i].depth;
+    }
+
+    uint32_t *order = NULL, *first_child = NULL, *cell_of_node = NULL;
+    ms_archive_writer *w = NULL;
+    if ((s = ms_nsp_build_bfs(&b, &order, &first_child, err)) != MS_OK)
+        goto done;
+    cell_of_node = malloc(b.node_count * sizeof *cell_of_node);
+    if (!cell_of_node) {
+        s = ms_error_set(err, MS_ERR_NOMEM, "out of memory");
+        goto done;
+    }
+    for (uint32_t i = 0; i < b.node_count; ++i)
+        cell_of_node[order[i]] = i;
+    ms_archive_header h;
+    memset(&h, 0, sizeof h);
+    for (int a = 0; a < 3; ++a)
+        h.box_origin[a] = b.box.origin[a];
+    h.box_side = b.box.size;
+    h.bits = (uint8_t)o->bits;
+    h.n = (uint8_t)o->n;
+    h.root_bits = (uint8_t)o->root_bits;
+    h.cell_count = b.node_count;
+    h.min_triangles = o->min_triangles;
+    if ((s = ms_archive_writer_open(r->archive_path, &h, first_child, &w, err)) != MS_OK)
+        goto done;
+    ms_nsp_encode_params ep = {
+        .threads = o->threads ? o->threads : 1,
+        .progress = on_progress,
+        .progress_context = &progress,
+    };
+    r->threads = ep.threads;
+    ms_nsp_encode_stats es;
+    s = ms_nsp_encode_all(&b, cell_of_node, w, &ep, &es, err);
+    if (s != MS_OK)
+        goto done;
+    r->seconds_encode = es.seconds;
+    r->vertices = es.welded_vertices;
+    r->triangles = es.welded_triangles;
+    r->leaf_triangles = es.leaf_triangles;
+    r->empty_cells = es.empty_cells;
+    r->geometry_bytes = es.geometry_bytes;
+    r->duplicated_percent = r->triangles ? 100.0 * (double)(r->leaf_triangles - r->triangles) /
+                                               (double)r->triangles
+                                         : 0.0;
+    double t_write = ms_now_seconds();
+    ms_archive_writer_set_counts(w, r->vertices, r->triangles);
+    ms_nsp_build_free(&b); /* the temporary files go now */
+    s = ms_archive_writer_finish(w, err);
+    w = NULL;
+    if (s != MS_OK)
+        goto done;
+    if (stat(r->archive_path, &sb) == 0)
+        r->archive_bytes = (uint64_t)sb.st_size;
+    r->bits_per_vertex = r->vertices ? 8.0 * (double)r->archive_bytes / (double)r->vertices : 0;
+    ms_catalog_entry e;
+    memset(&e, 0, sizeof e);
+    snprintf(e.name, sizeof e.name, "%s", r->name);
+    e.source = (char *)o->input;
+    ms_catalog_now(e.baked_at, sizeof e.baked_at);
+    e.vertices = r->vertices;
+    e.triangles = r->triangles;
+    e.archive_bytes = r->archive_bytes;
+    e.cells = r->cells;
+    e.bits = (uint8_t)o->bits;
+    e.n = (uint8_t)o->n;
+    e.root_bits = (uint8_t)o->root_bits;
+    e.min_triangles = o->min_triangles;
+    e.public_max_bits = (uint8_t)o->bits;
+    if ((s = ms_catalog_update(o->archive_dir, &e, err)) != MS_OK) {
+        unlink(r->archive_path); /* no archive without its catalogue entry */
+        goto done;
+    }
+    r->seconds_write = ms_now_seconds() - t_write;
+done:
+    ms_progress_finish(&progress.bar);
+    if (w)
+        ms_archive_writer_abort(w);
+    ms_nsp_build_free(&b);
+    free(order);
+    free(first_child);
+    free(cell_of_node);
+    r->seconds_total = ms_now_seconds() - t_start;
+    r->peak_rss_mb = ms_peak_rss_mb();
+    return s;
+}

@@ -1,0 +1,64 @@
+/* A whole bake: input mesh -> ARCHIVE_DIR/NAME.msa + its catalogue entry.
+ *
+ * Phases: read (stream the input into spools), quantise (keys), distribute (the
+ * out-of-core nSP-tree, ms_nsp_build.h), encode (ms_nsp_encode.h, on `threads`
+ * threads) and write (the archive writer's finish, then the catalogue update).
+ * Temporary files live in tmp_dir (default: the archive directory) and are unlinked
+ * when created; the archive appears under its final name only once complete
+ * (docs/ARCHIVE.md), so a failed or killed bake leaves neither a partial archive
+ * nor a catalogue entry. A stale NAME.msa.partial from an earlier killed bake is
+ * removed first.
+ *
+ * Memory: 8 bytes per input vertex (the key array) plus a quarter of mem_mb for
+ * the leaf buffers, plus per encoding thread the working set of one cell.
+ * Thread-safety: one bake per process at a time (it runs its own threads).
+ */
+#ifndef MS_BAKE_H
+#define MS_BAKE_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+
+#include "ms_error.h"
+
+typedef struct ms_bake_options {
+    const char *input;
+    const char *archive_dir;
+    const char *name;      /* NULL: derived from the input file name */
+    const char *tmp_dir;   /* NULL: archive_dir */
+    unsigned bits, n, root_bits, threads;
+    uint32_t min_triangles;
+    size_t mem_mb;
+    size_t buffer_bytes;   /* leaf buffer budget; 0: a quarter of mem_mb (tests force flushes) */
+    FILE *progress;        /* progress bar target (drawn only on a terminal), or NULL */
+} ms_bake_options;
+
+/* Defaults: 16 bits, n = 4, p_r = 7, N_min = 8000, threads = online CPUs, 512 MB. */
+void ms_bake_options_default(ms_bake_options *options);
+
+typedef struct ms_bake_report {
+    char name[65];
+    char archive_path[4096];
+    uint64_t input_vertices, input_triangles;  /* as read (after the reader's cleaning) */
+    uint64_t vertices, triangles;              /* welded, quantised */
+    uint64_t leaf_triangles;                   /* over all leaves */
+    double duplicated_percent;                 /* (leaf_triangles - triangles) / triangles */
+    uint32_t cells, leaves, empty_cells, depth;
+    uint64_t archive_bytes, geometry_bytes;
+    double bits_per_vertex;                    /* 8 archive_bytes / vertices */
+    double seconds_read, seconds_quantise, seconds_distribute, seconds_encode, seconds_write,
+        seconds_total;
+    double peak_rss_mb;
+    unsigned threads;
+    uint64_t blocks_written, flushes; /* leaf content spilled to the block file */
+} ms_bake_report;
+
+/* Derives a valid model name from a file path (basename without extensions, other
+ * characters replaced by '_'), into out (at least 65 bytes). */
+void ms_bake_default_name(const char *path, char *out, size_t size);
+
+ms_status ms_bake(const ms_bake_options *options, ms_bake_report *report, ms_error *err);
+
+#endif

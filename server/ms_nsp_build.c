@@ -1,0 +1,602 @@
+/* Out-of-core nSP-tree construction: see ms_nsp_build.h. */
+#include "ms_nsp_build.h"
+
+#include <errno.h>
+#include <inttypes.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "ms_archive.h"
+#include "ms_progress.h"
+
+#define BLOCK_BYTES 4096
+#define BLOCK_HEAD 16 /* int64 next, u32 count, u32 reserved */
+#define BLOCK_RECORDS ((BLOCK_BYTES - BLOCK_HEAD) / 12)
+#define SPOOL_CHUNK 65536
+
+/* ---- temporary files ---------------------------------------------------- */
+
+/* Creates a file in dir and unlinks it at once; returns the descriptor or -1. */
+static int unlinked_temp(const char *dir, ms_error *err)
+{
+    char path[4096];
+    int n = snprintf(path, sizeof path, "%s/.meshbake-tmp-XXXXXX", dir);
+    if (n < 0 || (size_t)n >= sizeof path) {
+        ms_error_set(err, MS_ERR_ARG, "temporary directory path too long");
+        return -1;
+    }
+    int fd = mkstemp(path);
+    if (fd < 0) {
+        ms_error_set(err, MS_ERR_IO, "%s: cannot create a temporary file: %s", dir,
+                     strerror(errno));
+        return -1;
+    }
+    unlink(path);
+    return fd;
+}
+
+static FILE *unlinked_temp_file(const char *dir, ms_error *err)
+{
+    int fd = unlinked_temp(dir, err);
+    if (fd < 0)
+        return NULL;
+    FILE *f = fdopen(fd, "w+b");
+    if (!f) {
+        close(fd);
+        ms_error_set(err, MS_ERR_NOMEM, "out of memory opening a temporary file");
+    }
+    return f;
+}
+
+/* ---- pass 1: spool the input ------------------------------------------- */
+
+typedef struct spool_sink {
+    FILE *vertices, *triangles;
+    uint64_t vertex_count, triangle_count;
+    double lo[3], hi[3];
+    const ms_nsp_build_params *params;
+} spool_sink;
+
+static ms_status spool_vertices(void *context, const double *p, size_t count, ms_error *err)
+{
+    spool_sink *s = context;
+    for (size_t i = 0; i < count; ++i)
+        for (int a = 0; a < 3; ++a) {
+            double v = p[3 * i + a];
+            if (!isfinite(v))
+                return ms_error_set(err, MS_ERR_RANGE, "vertex %" PRIu64 " has a non-finite "
+                                    "coordinate", s->vertex_count + i);
+            if (s->vertex_count + i == 0) {
+                s->lo[a] = s->hi[a] = v;
+            } else {
+                if (v < s->lo[a])
+                    s->lo[a] = v;
+                if (v > s->hi[a])
+                    s->hi[a] = v;
+            }
+        }
+    if (fwrite(p, 3 * sizeof *p, count, s->vertices) != count)
+        return ms_error_set(err, MS_ERR_IO, "cannot write the vertex spool: %s", strerror(errno));
+    s->vertex_count += count;
+    return MS_OK;
+}
+
+static ms_status spool_triangles(void *context, const uint32_t *t, size_t count, ms_error *err)
+{
+    spool_sink *s = context;
+    if (fwrite(t, 3 * sizeof *t, count, s->triangles) != count)
+        return ms_error_set(err, MS_ERR_IO, "cannot write the triangle spool: %s",
+                            strerror(errno));
+    s->triangle_count += count;
+    return MS_OK;
+}
+
+static void spool_progress(void *context, uint64_t done, uint64_t total)
+{
+    spool_sink *s = context;
+    if (s->params->progress && total > 0)
+        s->params->progress(s->params->progress_context, "reading", (double)done / (double)total);
+}
+
+/* Same formula as ms_quantise_mesh (ms_quant.h). */
+static uint32_t quantise_coordinate(double x, double origin, double size, unsigned bits)
+{
+    double cells = (double)(1u << bits);
+    double t = floor((x - origin) / size * cells);
+    if (!(t >= 0))
+        t = 0;
+    if (t > cells - 1)
+        t = cells - 1;
+    return (uint32_t)t;
+}
+
+/* ---- the tree ------------------------------------------------------------ */
+
+static unsigned child_count(const ms_nsp_build *b)
+{
+    unsigned n = b->params.shape.n;
+    return n * n * n;
+}
+
+static bool key_inside(const ms_nsp_build *b, uint64_t key, const ms_nsp_node *node)
+{
+    return ms_nsp_prefix_inside(&b->params.shape, key, 3 * b->params.shape.bits, node->depth,
+                                node->position);
+}
+
+static uint32_t leaf_below(const ms_nsp_build *b, uint32_t node, uint64_t key)
+{
+    uint32_t xyz[3];
+    ms_quant_unkey(key, b->params.shape.bits, xyz);
+    while (b->nodes[node].first_child != MS_NSP_NONE)
+        node = b->nodes[node].first_child +
+               ms_nsp_child_offset(&b->params.shape, b->nodes[node].depth, xyz);
+    return node;
+}
+
+static ms_status write_block(ms_nsp_build *b, ms_nsp_node *node, const uint32_t *records,
+                             uint32_t count, ms_error *err)
+{
+    int64_t at;
+    if (b->free_count > 0) {
+        at = b->free_blocks[--b->free_count];
+    } else {
+        at = b->block_file_end;
+        b->block_file_end += BLOCK_BYTES;
+    }
+    uint8_t *p = b->block_scratch;
+    memset(p, 0, BLOCK_HEAD);
+    memcpy(p, &node->head_block, 8);
+    memcpy(p + 8, &count, 4);
+    memcpy(p + BLOCK_HEAD, records, (size_t)count * 12);
+    size_t bytes = BLOCK_HEAD + (size_t)count * 12;
+    if (pwrite(b->block_fd, p, bytes, at) != (ssize_t)bytes)
+        return ms_error_set(err, MS_ERR_IO, "cannot write the block file: %s", strerror(errno));
+    node->head_block = at;
+    node->blocks++;
+    b->stats.blocks_written++;
+    return MS_OK;
+}
+
+static ms_status flush_node(ms_nsp_build *b, ms_nsp_node *node, ms_error *err)
+{
+    for (uint32_t i = 0; i < node->buffered; i += BLOCK_RECORDS) {
+        uint32_t count = node->buffered - i < BLOCK_RECORDS ? node->buffered - i : BLOCK_RECORDS;
+        ms_status s = write_block(b, node, node->buf + 3 * (size_t)i, count, err);
+        if (s != MS_OK)
+            return s;
+    }
+    b->buffered_bytes -= (size_t)node->buffered * 12;
+    free(node->buf);
+    node->buf = NULL;
+    node->buffered = node->buffer_cap = 0;
+    return MS_OK;
+}
+
+typedef struct fill {
+    uint32_t buffered, node;
+} fill;
+
+static int cmp_fill_desc(const void *x, const void *y)
+{
+    const fill *a = x, *b = y;
+    if (a->buffered != b->buffered)
+        return a->buffered > b->buffered ? -1 : 1;
+    return a->node < b->node ? -1 : (a->node > b->node);
+}
+
+/* Largest buffers first until the total is at most half the budget. */
+static ms_status flush_largest(ms_nsp_build *b, ms_error *err)
+{
+    size_t n = 0;
+    for (uint32_t i = 0; i < b->node_count; ++i)
+        n += b->nodes[i].buffered > 0;
+    fill *f = malloc((n ? n : 1) * sizeof *f);
+    if (!f)
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory flushing leaf buffers");
+    n = 0;
+    for (uint32_t i = 0; i < b->node_count; ++i)
+        if (b->nodes[i].buffered > 0)
+            f[n++] = (fill){b->nodes[i].buffered, i};
+    qsort(f, n, sizeof *f, cmp_fill_desc);
+    ms_status s = MS_OK;
+    for (size_t i = 0; i < n && s == MS_OK && b->buffered_bytes > b->params.buffer_budget / 2; ++i)
+        s = flush_node(b, &b->nodes[f[i].node], err);
+    free(f);
+    b->stats.flushes++;
+    return s;
+}
+
+static ms_status read_records(const ms_nsp_build *b, const ms_nsp_node *node, uint32_t **out,
+                              size_t *count, ms_error *err)
+{
+    *out = NULL;
+    *count = 0;
+    size_t cap = (size_t)node->blocks * BLOCK_RECORDS + node->buffered;
+    uint32_t *rec = malloc((cap ? cap : 1) * 12);
+    uint8_t *blocks = malloc(((size_t)node->blocks ? node->blocks : 1) * BLOCK_BYTES);
+    if (!rec || !blocks) {
+        free(rec);
+        free(blocks);
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory reading a leaf");
+    }
+    int64_t at = node->head_block;
+    for (uint32_t k = 0; k < node->blocks; ++k) {
+        uint8_t *p = blocks + (size_t)k * BLOCK_BYTES;
+        if (at < 0 || pread(b->block_fd, p, BLOCK_BYTES, at) < BLOCK_HEAD) {
+            free(rec);
+            free(blocks);
+            return ms_error_set(err, MS_ERR_IO, "cannot read the block file: %s",
+                                strerror(errno));
+        }
+        memcpy(&at, p, 8);
+    }
+    size_t n = 0;
+    for (uint32_t k = node->blocks; k-- > 0;) {
+        const uint8_t *p = blocks + (size_t)k * BLOCK_BYTES;
+        uint32_t c;
+        memcpy(&c, p + 8, 4);
+        if (c > BLOCK_RECORDS) {
+            free(rec);
+            free(blocks);
+            return ms_error_set(err, MS_ERR_CORRUPT, "block file damaged");
+        }
+        memcpy(rec + 3 * n, p + BLOCK_HEAD, (size_t)c * 12);
+        n += c;
+    }
+    if (node->buffered)
+        memcpy(rec + 3 * n, node->buf, (size_t)node->buffered * 12);
+    n += node->buffered;
+    free(blocks);
+    *out = rec;
+    *count = n;
+    return MS_OK;
+}
+
+static ms_status insert_under(ms_nsp_build *b, uint32_t top, const uint32_t rec[3], ms_error *err);
+
+static ms_status split_node(ms_nsp_build *b, uint32_t index, ms_error *err)
+{
+    unsigned nc = child_count(b);
+    if (b->node_count + (uint64_t)nc > MS_ARCHIVE_MAX_CELLS)
+        return ms_error_set(err, MS_ERR_RANGE, "too many nSP cells (raise --min-tris)");
+    if (b->node_count + nc > b->node_cap) {
+        uint32_t cap = b->node_cap * 2;
+        while (cap < b->node_count + nc)
+            cap *= 2;
+        ms_nsp_node *n = realloc(b->nodes, (size_t)cap * sizeof *n);
+        if (!n)
+            return ms_error_set(err, MS_ERR_NOMEM, "out of memory growing the tree");
+        b->nodes = n;
+        b->node_cap = cap;
+    }
+    uint32_t *rec;
+    size_t count;
+    ms_status s = read_records(b, &b->nodes[index], &rec, &count, err);
+    if (s != MS_OK)
+        return s;
+    ms_nsp_node *node = &b->nodes[index];
+    /* Its blocks go back to the free list (reading is done). */
+    int64_t at = node->head_block;
+    if (b->free_count + node->blocks > b->free_cap) {
+        size_t cap = b->free_cap ? b->free_cap : 256;
+        while (cap < b->free_count + node->blocks)
+            cap *= 2;
+        int64_t *f = realloc(b->free_blocks, cap * sizeof *f);
+        if (!f) {
+            free(rec);
+            return ms_error_set(err, MS_ERR_NOMEM, "out of memory");
+        }
+        b->free_blocks = f;
+        b->free_cap = cap;
+    }
+    for (uint32_t k = 0; k < node->blocks; ++k) {
+        b->free_blocks[b->free_count++] = at;
+        int64_t next;
+        if (pread(b->block_fd, &next, 8, at) != 8) {
+            free(rec);
+            return ms_error_set(err, MS_ERR_IO, "cannot read the block file: %s", strerror(errno));
+        }
+        at = next;
+    }
+    b->buffered_bytes -= (size_t)node->buffered * 12;
+    free(node->buf);
+    node->buf = NULL;
+    node->buffered = node->buffer_cap = node->blocks = 0;
+    node->head_block = -1;
+    node->first_child = b->node_count;
+    unsigned n = b->params.shape.n;
+    for (unsigned k = 0; k < nc; ++k) {
+        ms_nsp_node *c = &b->nodes[b->node_count + k];
+        memset(c, 0, sizeof *c);
+        c->parent = index;
+        c->first_child = MS_NSP_NONE;
+        c->depth = (uint8_t)(node->depth + 1);
+        uint32_t off[3] = {k % n, (k / n) % n, k / (n * n)};
+        for (int a = 0; a < 3; ++a)
+            c->position[a] = node->position[a] * n + off[a];
+        c->head_block = -1;
+    }
+    b->node_count += nc;
+    b->stats.leaf_triangle_records -= node->triangles;
+    b->stats.point_records -= node->records - node->triangles;
+    node->triangles = node->records = 0;
+    for (size_t i = 0; i < count && s == MS_OK; ++i)
+        s = insert_under(b, index, rec + 3 * i, err);
+    free(rec);
+    return s;
+}
+
+static ms_status append(ms_nsp_build *b, uint32_t index, const uint32_t rec[3], ms_error *err)
+{
+    ms_nsp_node *node = &b->nodes[index];
+    if (node->buffered == node->buffer_cap) {
+        uint32_t cap = node->buffer_cap ? node->buffer_cap * 2 : 64;
+        uint32_t *p = realloc(node->buf, (size_t)cap * 12);
+        if (!p)
+            return ms_error_set(err, MS_ERR_NOMEM, "out of memory buffering a leaf");
+        node->buf = p;
+        node->buffer_cap = cap;
+    }
+    memcpy(node->buf + 3 * (size_t)node->buffered, rec, 12);
+    node->buffered++;
+    node->records++;
+    b->buffered_bytes += 12;
+    bool point = rec[0] == rec[1];
+    if (point) {
+        b->stats.point_records++;
+        return MS_OK;
+    }
+    node->triangles++;
+    b->stats.leaf_triangle_records++;
+    if (node->triangles >= b->params.min_triangles &&
+        ms_nsp_can_split(&b->params.shape, node->depth))
+        return split_node(b, index, err);
+    return MS_OK;
+}
+
+/* Appends rec to every leaf below `top` holding one of its vertices. */
+static ms_status insert_under(ms_nsp_build *b, uint32_t top, const uint32_t rec[3], ms_error *err)
+{
+    uint32_t leaves[3];
+    unsigned nl = 0;
+    int verts = rec[0] == rec[1] ? 1 : 3;
+    for (int i = 0; i < verts; ++i) {
+        uint64_t key = b->keys[rec[i]];
+        if (top != 0 && !key_inside(b, key, &b->nodes[top]))
+            continue;
+        uint32_t leaf = leaf_below(b, top, key);
+        if ((nl > 0 && leaves[0] == leaf) || (nl > 1 && leaves[1] == leaf))
+            continue;
+        leaves[nl++] = leaf;
+    }
+    for (unsigned i = 0; i < nl; ++i) {
+        /* an earlier append may have split a leaf found above: look it up again */
+        uint32_t leaf = leaves[i];
+        if (b->nodes[leaf].first_child != MS_NSP_NONE)
+            continue; /* the split already redistributed this record there */
+        ms_status s = append(b, leaf, rec, err);
+        if (s != MS_OK)
+            return s;
+    }
+    if (b->buffered_bytes > b->params.buffer_budget)
+        return flush_largest(b, err);
+    return MS_OK;
+}
+
+/* ---- the run ------------------------------------------------------------- */
+
+static void report(const ms_nsp_build_params *p, const char *phase, double fraction)
+{
+    if (p->progress)
+        p->progress(p->progress_context, phase, fraction);
+}
+
+static ms_status compute_keys(ms_nsp_build *b, FILE *vspool, ms_error *err)
+{
+    const unsigned bits = b->params.shape.bits;
+    double *chunk = malloc(SPOOL_CHUNK * 3 * sizeof *chunk);
+    if (!chunk)
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory quantising");
+    rewind(vspool);
+    size_t done = 0;
+    while (done < b->vertex_count) {
+        size_t want = b->vertex_count - done < SPOOL_CHUNK ? b->vertex_count - done : SPOOL_CHUNK;
+        if (fread(chunk, 3 * sizeof *chunk, want, vspool) != want) {
+            free(chunk);
+            return ms_error_set(err, MS_ERR_IO, "cannot read the vertex spool");
+        }
+        for (size_t i = 0; i < want; ++i) {
+            uint32_t q[3];
+            for (int a = 0; a < 3; ++a)
+                q[a] = quantise_coordinate(chunk[3 * i + a], b->box.origin[a], b->box.size, bits);
+            b->keys[done + i] = ms_quant_key(q[0], q[1], q[2], bits);
+        }
+        done += want;
+        report(&b->params, "quantising", (double)done / (double)b->vertex_count);
+    }
+    free(chunk);
+    return MS_OK;
+}
+
+static ms_status distribute(ms_nsp_build *b, FILE *tspool, uint64_t triangles, ms_error *err)
+{
+    uint32_t *chunk = malloc(SPOOL_CHUNK * 3 * sizeof *chunk);
+    uint8_t *used = calloc(b->vertex_count / 8 + 1, 1);
+    if (!chunk || !used) {
+        free(chunk);
+        free(used);
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory distributing triangles");
+    }
+    rewind(tspool);
+    ms_status s = MS_OK;
+    uint64_t done = 0;
+    while (done < triangles && s == MS_OK) {
+        size_t want = triangles - done < SPOOL_CHUNK ? (size_t)(triangles - done) : SPOOL_CHUNK;
+        if (fread(chunk, 12, want, tspool) != want) {
+            s = ms_error_set(err, MS_ERR_IO, "cannot read the triangle spool");
+            break;
+        }
+        for (size_t i = 0; i < want && s == MS_OK; ++i) {
+            const uint32_t *t = chunk + 3 * i;
+            if (t[0] >= b->vertex_count || t[1] >= b->vertex_count || t[2] >= b->vertex_count) {
+                s = ms_error_set(err, MS_ERR_FORMAT, "triangle %" PRIu64 " has an index out of "
+                                 "range", done + i);
+                break;
+            }
+            uint64_t k0 = b->keys[t[0]], k1 = b->keys[t[1]], k2 = b->keys[t[2]];
+            if (k0 == k1 || k1 == k2 || k0 == k2) {
+                b->stats.degenerate_triangles++;
+                continue;
+            }
+            for (int j = 0; j < 3; ++j)
+                used[t[j] >> 3] |= (uint8_t)(1u << (t[j] & 7));
+            s = insert_under(b, 0, t, err);
+        }
+        done += want;
+        report(&b->params, "distributing", (double)done / (double)(triangles ? triangles : 1));
+    }
+    /* Isolated vertices (after welding, a key used by no kept triangle is found
+     * again in its leaf: the leaf drops points whose key a triangle uses). */
+    for (size_t v = 0; v < b->vertex_count && s == MS_OK; ++v) {
+        if (used[v >> 3] & (1u << (v & 7)))
+            continue;
+        uint32_t rec[3] = {(uint32_t)v, (uint32_t)v, (uint32_t)v};
+        s = insert_under(b, 0, rec, err);
+    }
+    free(chunk);
+    free(used);
+    return s;
+}
+
+ms_status ms_nsp_build_run(const char *path, const ms_nsp_build_params *params,
+                           ms_nsp_build *b, ms_error *err)
+{
+    memset(b, 0, sizeof *b);
+    b->params = *params;
+    b->block_fd = -1;
+    if (params->min_triangles < 1)
+        return ms_error_set(err, MS_ERR_ARG, "the split threshold must be at least 1 triangle");
+    spool_sink sink = {.params = params};
+    ms_status s = MS_OK;
+    double t0 = ms_now_seconds();
+    sink.vertices = unlinked_temp_file(params->tmp_dir, err);
+    sink.triangles = sink.vertices ? unlinked_temp_file(params->tmp_dir, err) : NULL;
+    if (!sink.vertices || !sink.triangles) {
+        s = err->code;
+        goto done;
+    }
+    ms_mesh_sink ms = {.context = &sink, .vertices = spool_vertices,
+                       .triangles = spool_triangles, .progress = spool_progress};
+    if ((s = ms_mesh_read(path, &ms, &b->stats.read, err)) != MS_OK)
+        goto done;
+    if (fflush(sink.vertices) != 0 || fflush(sink.triangles) != 0) {
+        s = ms_error_set(err, MS_ERR_IO, "cannot write the input spool: %s", strerror(errno));
+        goto done;
+    }
+    if (sink.vertex_count > UINT32_MAX) {
+        s = ms_error_set(err, MS_ERR_RANGE, "too many vertices (%" PRIu64 ")", sink.vertex_count);
+        goto done;
+    }
+    b->stats.input_vertices = sink.vertex_count;
+    b->stats.input_triangles = sink.triangle_count;
+    double t1 = ms_now_seconds();
+    b->stats.seconds_read = t1 - t0;
+
+    /* The cubic box, exactly as ms_quant_fit_box computes it from the extremes. */
+    double corners[6] = {sink.lo[0], sink.lo[1], sink.lo[2], sink.hi[0], sink.hi[1], sink.hi[2]};
+    ms_mesh extremes = {.positions = corners, .vertex_count = 2};
+    if ((s = ms_quant_fit_box(&extremes, &b->box, err)) != MS_OK)
+        goto done;
+    b->vertex_count = (size_t)sink.vertex_count;
+    b->keys = malloc((b->vertex_count ? b->vertex_count : 1) * sizeof *b->keys);
+    if (!b->keys) {
+        s = ms_error_set(err, MS_ERR_NOMEM, "out of memory for %zu vertex keys (8 bytes each)",
+                         b->vertex_count);
+        goto done;
+    }
+    if ((s = compute_keys(b, sink.vertices, err)) != MS_OK)
+        goto done;
+    fclose(sink.vertices);
+    sink.vertices = NULL;
+    double t2 = ms_now_seconds();
+    b->stats.seconds_quantise = t2 - t1;
+
+    b->node_cap = 1024;
+    b->nodes = malloc(b->node_cap * sizeof *b->nodes);
+    b->block_scratch = malloc(BLOCK_BYTES);
+    if (!b->nodes || !b->block_scratch) {
+        s = ms_error_set(err, MS_ERR_NOMEM, "out of memory for the tree");
+        goto done;
+    }
+    memset(&b->nodes[0], 0, sizeof b->nodes[0]);
+    b->nodes[0].parent = b->nodes[0].first_child = MS_NSP_NONE;
+    b->nodes[0].head_block = -1;
+    b->node_count = 1;
+    if ((b->block_fd = unlinked_temp(params->tmp_dir, err)) < 0) {
+        s = err->code;
+        goto done;
+    }
+    if ((s = distribute(b, sink.triangles, sink.triangle_count, err)) != MS_OK)
+        goto done;
+    b->stats.seconds_distribute = ms_now_seconds() - t2;
+done:
+    if (sink.vertices)
+        fclose(sink.vertices);
+    if (sink.triangles)
+        fclose(sink.triangles);
+    if (s != MS_OK)
+        ms_nsp_build_free(b);
+    return s;
+}
+
+ms_status ms_nsp_build_read_leaf(const ms_nsp_build *b, uint32_t node, uint32_t **records,
+                                 size_t *count, ms_error *err)
+{
+    return read_records(b, &b->nodes[node], records, count, err);
+}
+
+ms_status ms_nsp_build_bfs(const ms_nsp_build *b, uint32_t **order_out, uint32_t **first_out,
+                           ms_error *err)
+{
+    uint32_t n = b->node_count, nc = child_count(b);
+    uint32_t *order = malloc(n * sizeof *order), *first = malloc(n * sizeof *first);
+    if (!order || !first) {
+        free(order);
+        free(first);
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory numbering cells");
+    }
+    uint32_t tail = 1;
+    order[0] = 0;
+    for (uint32_t i = 0; i < n; ++i) {
+        const ms_nsp_node *node = &b->nodes[order[i]];
+        if (node->first_child == MS_NSP_NONE) {
+            first[i] = MS_NSP_NONE;
+            continue;
+        }
+        first[i] = tail;
+        for (uint32_t k = 0; k < nc; ++k)
+            order[tail++] = node->first_child + k;
+    }
+    *order_out = order;
+    *first_out = first;
+    return MS_OK;
+}
+
+void ms_nsp_build_free(ms_nsp_build *b)
+{
+    if (b->nodes)
+        for (uint32_t i = 0; i < b->node_count; ++i)
+            free(b->nodes[i].buf);
+    free(b->nodes);
+    free(b->keys);
+    free(b->free_blocks);
+    free(b->block_scratch);
+    if (b->block_fd >= 0)
+        close(b->block_fd);
+    memset(b, 0, sizeof *b);
+    b->block_fd = -1;
+}

@@ -1,0 +1,108 @@
+/* Out-of-core construction of the nSP-tree (reference 003 §4.2), the first half
+ * of a bake.
+ *
+ * ms_nsp_build_run streams the input mesh once (ms_mesh_read), spooling vertices
+ * (3 doubles) and triangles (3 u32) to unlinked temporary files while it finds the
+ * bounding box; fits the cubic quantisation box (as ms_quant_fit_box); turns every
+ * input vertex into its interleaved key at p bits (the one array kept in memory:
+ * 8 bytes per input vertex); then streams the triangles again and inserts each
+ * non-degenerate one (three distinct keys: welding is implicit, vertices are their
+ * keys) into every leaf holding one of its vertices. A leaf that reaches N_min
+ * triangles splits into n^3 children and redistributes its content. Input vertices
+ * used by no kept triangle are inserted as point records (isolated vertices).
+ *
+ * Leaf content is a list of 12-byte records (three input vertex indices, input
+ * order kept) held in a per-leaf memory buffer and a chain of 4 KiB blocks in an
+ * unlinked temporary file; when the buffers together exceed the budget they are
+ * flushed largest first down to half of it, and the blocks of a split leaf are
+ * reused. RAM is therefore 8 bytes per input vertex + the buffer budget + the tree
+ * (about 100 bytes per cell), whatever the number of triangles.
+ *
+ * After the run, ms_nsp_build_read_leaf may be called from several threads at
+ * once (it only reads the block file with pread). Everything else is not
+ * thread-safe. Temporary files are unlinked at creation: a killed process leaves
+ * nothing behind.
+ */
+#ifndef MS_NSP_BUILD_H
+#define MS_NSP_BUILD_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "ms_error.h"
+#include "ms_mesh_reader.h"
+#include "ms_nsp.h"
+#include "ms_quant.h"
+
+#define MS_NSP_NONE UINT32_MAX
+
+typedef struct ms_nsp_node {
+    uint32_t parent;       /* MS_NSP_NONE for the root */
+    uint32_t first_child;  /* node index of the first of n^3 children, or MS_NSP_NONE */
+    uint32_t position[3];
+    uint8_t depth;
+    uint64_t triangles;    /* triangle records inserted (leaves; duplicates of input included) */
+    uint64_t records;      /* all records (triangles and points) */
+    int64_t head_block;    /* newest block of the chain on disk, -1 for none */
+    uint32_t blocks;
+    uint32_t buffered;     /* records in buf */
+    uint32_t buffer_cap;
+    uint32_t *buf;         /* 3 * buffer_cap */
+} ms_nsp_node;
+
+typedef struct ms_nsp_build_params {
+    ms_nsp_shape shape;
+    uint32_t min_triangles;  /* N_min */
+    size_t buffer_budget;    /* bytes of record buffers before flushing */
+    const char *tmp_dir;     /* where temporary files go */
+    /* optional progress: phase name and a fraction in [0, 1] */
+    void (*progress)(void *context, const char *phase, double fraction);
+    void *progress_context;
+} ms_nsp_build_params;
+
+typedef struct ms_nsp_build_stats {
+    ms_mesh_read_report read;      /* what the reader reported */
+    uint64_t input_vertices, input_triangles;
+    uint64_t degenerate_triangles; /* dropped: two vertices weld together */
+    uint64_t leaf_triangle_records;/* triangle records over all leaves (before per-leaf dedup) */
+    uint64_t point_records;
+    uint64_t blocks_written, flushes;
+    double seconds_read, seconds_quantise, seconds_distribute;
+} ms_nsp_build_stats;
+
+typedef struct ms_nsp_build {
+    ms_nsp_build_params params;
+    ms_quant_box box;
+    uint64_t *keys;         /* input vertex -> 3p-bit key */
+    size_t vertex_count;
+    ms_nsp_node *nodes;     /* node 0 is the root; children of a node are consecutive */
+    uint32_t node_count, node_cap;
+    int block_fd;           /* -1 before use */
+    int64_t block_file_end;
+    int64_t *free_blocks;
+    size_t free_count, free_cap;
+    size_t buffered_bytes;
+    uint8_t *block_scratch;
+    ms_nsp_build_stats stats;
+} ms_nsp_build;
+
+/* Builds the tree for the mesh at path. On failure everything is released and the
+ * temporary files are gone. */
+ms_status ms_nsp_build_run(const char *path, const ms_nsp_build_params *params,
+                           ms_nsp_build *build, ms_error *err);
+
+/* Reads a leaf's records in input order into *records (3 u32 each, malloc'd, caller
+ * frees); *count receives the number of records. Thread-safe after the run. */
+ms_status ms_nsp_build_read_leaf(const ms_nsp_build *build, uint32_t node, uint32_t **records,
+                                 size_t *count, ms_error *err);
+
+/* Breadth-first numbering: order[i] is the node of cell i; first_child[i] the cell
+ * number of cell i's first child or MS_NSP_NONE (both arrays of node_count, caller
+ * frees). */
+ms_status ms_nsp_build_bfs(const ms_nsp_build *build, uint32_t **order, uint32_t **first_child,
+                           ms_error *err);
+
+void ms_nsp_build_free(ms_nsp_build *build);
+
+#endif

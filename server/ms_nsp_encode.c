@@ -1,0 +1,575 @@
+/* Post-order parallel encoding of the nSP cells: see ms_nsp_encode.h. */
+#include "ms_nsp_encode.h"
+
+#include <pthread.h>
+#include <stdbool.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "ms_codec.h"
+#include "ms_nsp.h"
+#include "ms_progress.h"
+
+typedef struct task {
+    uint32_t pending;         /* children not yet done */
+    uint32_t post;            /* post-order number (priority) */
+    ms_codec_state *starts;   /* n^3 children's start states, once the first is done */
+} task;
+
+typedef struct pool {
+    const ms_nsp_build *b;
+    const uint32_t *cell_of_node;
+    ms_archive_writer *writer;
+    const ms_nsp_encode_params *params;
+    task *tasks;
+    uint32_t *heap; /* ready nodes, min-heap on post */
+    uint32_t heap_n;
+    uint32_t remaining, done;
+    bool failed;
+    ms_error err;
+    ms_nsp_encode_stats stats;
+    pthread_mutex_t lock;
+    pthread_cond_t wake;
+} pool;
+
+/* ---- ready heap ---------------------------------------------------------- */
+
+static void heap_push(pool *p, uint32_t node)
+{
+    uint32_t i = p->heap_n++;
+    p->heap[i] = node;
+    while (i > 0) {
+        uint32_t up = (i - 1) / 2;
+        if (p->tasks[p->heap[up]].post <= p->tasks[p->heap[i]].post)
+            break;
+        uint32_t t = p->heap[up];
+        p->heap[up] = p->heap[i];
+        p->heap[i] = t;
+        i = up;
+    }
+}
+
+static uint32_t heap_pop(pool *p)
+{
+    uint32_t top = p->heap[0];
+    p->heap[0] = p->heap[--p->heap_n];
+    uint32_t i = 0;
+    for (;;) {
+        uint32_t l = 2 * i + 1, r = l + 1, m = i;
+        if (l < p->heap_n && p->tasks[p->heap[l]].post < p->tasks[p->heap[m]].post)
+            m = l;
+        if (r < p->heap_n && p->tasks[p->heap[r]].post < p->tasks[p->heap[m]].post)
+            m = r;
+        if (m == i)
+            break;
+        uint32_t t = p->heap[m];
+        p->heap[m] = p->heap[i];
+        p->heap[i] = t;
+        i = m;
+    }
+    return top;
+}
+
+/* ---- building a cell's complex ------------------------------------------- */
+
+static int cmp_u64(const void *x, const void *y)
+{
+    uint64_t a = *(const uint64_t *)x, b = *(const uint64_t *)y;
+    return a < b ? -1 : a > b;
+}
+
+static size_t unique_u64(uint64_t *v, size_t n)
+{
+    if (n == 0)
+        return 0;
+    qsort(v, n, sizeof *v, cmp_u64);
+    size_t w = 1;
+    for (size_t i = 1; i < n; ++i)
+        if (v[i] != v[w - 1])
+            v[w++] = v[i];
+    return w;
+}
+
+static uint32_t find_u64(const uint64_t *v, size_t n, uint64_t key)
+{
+    size_t lo = 0, hi = n;
+    while (lo < hi) {
+        size_t mid = lo + (hi - lo) / 2;
+        if (v[mid] < key)
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    return (uint32_t)lo;
+}
+
+typedef struct tri_key {
+    uint32_t s[3]; /* sorted vertex indices */
+    uint32_t seq;  /* position in the candidate list */
+} tri_key;
+
+static int cmp_tri_key(const void *x, const void *y)
+{
+    const tri_key *a = x, *b = y;
+    for (int i = 0; i < 3; ++i)
+        if (a->s[i] != b->s[i])
+            return a->s[i] < b->s[i] ? -1 : 1;
+    return a->seq < b->seq ? -1 : (a->seq > b->seq);
+}
+
+static void sort3(const uint32_t *t, uint32_t s[3])
+{
+    uint32_t a = t[0], b = t[1], c = t[2], x;
+    if (a > b)
+        x = a, a = b, b = x;
+    if (b > c)
+        x = b, b = c, c = x;
+    if (a > b)
+        x = a, a = b, b = x;
+    s[0] = a, s[1] = b, s[2] = c;
+}
+
+/* Same cyclic order. */
+static bool same_orientation(const uint32_t *a, const uint32_t *b)
+{
+    for (int r = 0; r < 3; ++r)
+        if (a[0] == b[r] && a[1] == b[(r + 1) % 3] && a[2] == b[(r + 2) % 3])
+            return true;
+    return false;
+}
+
+/* Removes triangles whose vertex set repeats an earlier one (earlier in the list
+ * wins). With check, a repeat with the other orientation sets *conflict. Returns
+ * the new count. */
+static ms_status unify_triangles(uint32_t *tris, size_t *count, bool check, bool *conflict,
+                                 size_t *removed, ms_error *err)
+{
+    size_t n = *count;
+    tri_key *k = malloc((n ? n : 1) * sizeof *k);
+    uint8_t *drop = calloc(n ? n : 1, 1);
+    if (!k || !drop) {
+        free(k);
+        free(drop);
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory unifying triangles");
+    }
+    for (size_t i = 0; i < n; ++i) {
+        sort3(&tris[3 * i], k[i].s);
+        k[i].seq = (uint32_t)i;
+    }
+    qsort(k, n, sizeof *k, cmp_tri_key);
+    for (size_t i = 1; i < n; ++i)
+        if (memcmp(k[i].s, k[i - 1].s, sizeof k[i].s) == 0) {
+            /* find the group's first */
+            size_t g = i - 1;
+            while (drop[k[g].seq])
+                --g;
+            drop[k[i].seq] = 1;
+            if (check && !same_orientation(&tris[3 * (size_t)k[g].seq], &tris[3 * (size_t)k[i].seq]))
+                *conflict = true;
+        }
+    size_t w = 0;
+    for (size_t i = 0; i < n; ++i)
+        if (!drop[i]) {
+            memmove(&tris[3 * w], &tris[3 * i], 12);
+            w++;
+        }
+    *removed += n - w;
+    *count = w;
+    free(k);
+    free(drop);
+    return MS_OK;
+}
+
+/* Leaf: records at full precision -> complex. */
+static ms_status leaf_state(pool *p, uint32_t node, ms_codec_state *st, ms_error *err)
+{
+    const ms_nsp_build *b = p->b;
+    uint32_t *rec;
+    size_t n;
+    ms_status s = ms_nsp_build_read_leaf(b, node, &rec, &n, err);
+    if (s != MS_OK)
+        return s;
+    memset(st, 0, sizeof *st);
+    st->bits = b->params.shape.bits;
+    st->level = 3 * st->bits;
+    st->cells = malloc((3 * n + 1) * sizeof *st->cells);
+    st->tris = malloc((3 * n + 1) * sizeof *st->tris);
+    st->edges = malloc(sizeof *st->edges);
+    if (!st->cells || !st->tris || !st->edges) {
+        free(rec);
+        ms_codec_state_free(st);
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory loading a leaf");
+    }
+    size_t nk = 0;
+    for (size_t i = 0; i < n; ++i) {
+        const uint32_t *r = rec + 3 * i;
+        int verts = r[0] == r[1] ? 1 : 3;
+        for (int j = 0; j < verts; ++j)
+            st->cells[nk++] = b->keys[r[j]];
+    }
+    nk = unique_u64(st->cells, nk);
+    st->vertex_count = nk;
+    size_t nt = 0;
+    for (size_t i = 0; i < n; ++i) {
+        const uint32_t *r = rec + 3 * i;
+        if (r[0] == r[1])
+            continue;
+        for (int j = 0; j < 3; ++j)
+            st->tris[3 * nt + (size_t)j] = find_u64(st->cells, nk, b->keys[r[j]]);
+        nt++;
+    }
+    free(rec);
+    size_t removed = 0;
+    bool conflict = false;
+    s = unify_triangles(st->tris, &nt, false, &conflict, &removed, err);
+    st->tri_count = nt;
+    if (s != MS_OK) {
+        ms_codec_state_free(st);
+        return s;
+    }
+    /* Model-wide counts: each vertex counted in its own leaf, each triangle in the
+     * leaf of its smallest key. */
+    const ms_nsp_node *nd = &b->nodes[node];
+    uint8_t *inside = malloc(nk ? nk : 1);
+    if (!inside) {
+        ms_codec_state_free(st);
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory loading a leaf");
+    }
+    uint64_t own_v = 0, own_t = 0, iso = 0;
+    for (size_t v = 0; v < nk; ++v) {
+        inside[v] = ms_nsp_prefix_inside(&b->params.shape, st->cells[v], st->level, nd->depth,
+                                         nd->position);
+        own_v += inside[v];
+    }
+    uint8_t *has = calloc(nk ? nk : 1, 1);
+    for (size_t t = 0; t < nt; ++t) {
+        uint32_t s3[3];
+        sort3(&st->tris[3 * t], s3);
+        own_t += inside[s3[0]];
+        if (has)
+            has[s3[0]] = has[s3[1]] = has[s3[2]] = 1;
+    }
+    if (has)
+        for (size_t v = 0; v < nk; ++v)
+            iso += !has[v];
+    free(has);
+    free(inside);
+    pthread_mutex_lock(&p->lock);
+    p->stats.welded_vertices += own_v;
+    p->stats.welded_triangles += own_t;
+    p->stats.leaf_triangles += nt;
+    p->stats.leaf_duplicates += removed;
+    p->stats.isolated_vertices += iso;
+    pthread_mutex_unlock(&p->lock);
+    return MS_OK;
+}
+
+static int cmp_edge(const void *x, const void *y)
+{
+    const uint32_t *a = x, *b = y;
+    if (a[0] != b[0])
+        return a[0] < b[0] ? -1 : 1;
+    return a[1] < b[1] ? -1 : (a[1] > b[1]);
+}
+
+/* Internal cell: union of the children's start states. */
+static ms_status internal_state(pool *p, uint32_t node, unsigned bits_max, ms_codec_state *st,
+                                ms_error *err)
+{
+    const ms_nsp_build *b = p->b;
+    const unsigned nc = b->params.shape.n * b->params.shape.n * b->params.shape.n;
+    const ms_codec_state *ch = p->tasks[node].starts;
+    size_t nv = 0, nt = 0, ne = 0;
+    for (unsigned k = 0; k < nc; ++k) {
+        nv += ch[k].vertex_count;
+        nt += ch[k].tri_count;
+        ne += ch[k].edge_count;
+    }
+    memset(st, 0, sizeof *st);
+    st->bits = bits_max;
+    st->level = 3 * bits_max;
+    st->cells = malloc((nv + 1) * sizeof *st->cells);
+    st->tris = malloc((3 * nt + 1) * sizeof *st->tris);
+    st->edges = malloc((2 * ne + 1) * sizeof *st->edges);
+    if (!st->cells || !st->tris || !st->edges) {
+        ms_codec_state_free(st);
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory merging children");
+    }
+    size_t w = 0;
+    for (unsigned k = 0; k < nc; ++k)
+        for (size_t i = 0; i < ch[k].vertex_count; ++i)
+            st->cells[w++] = ch[k].cells[i];
+    nv = unique_u64(st->cells, w);
+    st->vertex_count = nv;
+    size_t wt = 0, we = 0;
+    for (unsigned k = 0; k < nc; ++k) {
+        const ms_codec_state *c = &ch[k];
+        for (size_t t = 0; t < 3 * c->tri_count; ++t)
+            st->tris[wt++] = find_u64(st->cells, nv, c->cells[c->tris[t]]);
+        for (size_t e = 0; e < c->edge_count; ++e) {
+            uint32_t x = find_u64(st->cells, nv, c->cells[c->edges[2 * e]]);
+            uint32_t y = find_u64(st->cells, nv, c->cells[c->edges[2 * e + 1]]);
+            st->edges[we++] = x < y ? x : y;
+            st->edges[we++] = x < y ? y : x;
+        }
+    }
+    nt = wt / 3;
+    size_t removed = 0;
+    bool conflict = false;
+    ms_status s = unify_triangles(st->tris, &nt, true, &conflict, &removed, err);
+    st->tri_count = nt;
+    if (s == MS_OK && conflict)
+        s = ms_error_set(err, MS_ERR_CORRUPT, "cell %u: children disagree on a triangle's "
+                         "orientation", p->cell_of_node[node]);
+    ne = we / 2;
+    qsort(st->edges, ne, 8, cmp_edge);
+    size_t u = 0;
+    for (size_t e = 0; e < ne; ++e)
+        if (u == 0 || cmp_edge(&st->edges[2 * e], &st->edges[2 * (u - 1)]) != 0) {
+            st->edges[2 * u] = st->edges[2 * e];
+            st->edges[2 * u + 1] = st->edges[2 * e + 1];
+            u++;
+        }
+    st->edge_count = u;
+    if (s == MS_OK)
+        s = ms_codec_state_canonicalise(st, err);
+    if (s != MS_OK)
+        ms_codec_state_free(st);
+    return s;
+}
+
+/* The client's split of st must give back every child's start state. */
+static ms_status check_partition(pool *p, uint32_t node, const ms_codec_state *st, ms_error *err)
+{
+    const ms_nsp_build *b = p->b;
+    const unsigned nc = b->params.shape.n * b->params.shape.n * b->params.shape.n;
+    const ms_nsp_node *nd = &b->nodes[node];
+    ms_codec_state *parts = calloc(nc, sizeof *parts);
+    if (!parts)
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory checking a split");
+    const ms_codec_state *ch = p->tasks[node].starts;
+    ms_status s = ms_nsp_partition_state(&b->params.shape, st, nd->depth, nd->position,
+                                         st->bits, parts, err);
+    for (unsigned k = 0; k < nc && s == MS_OK; ++k) {
+        bool same = parts[k].vertex_count == ch[k].vertex_count &&
+                    (ch[k].vertex_count == 0 ||
+                     (parts[k].tri_count == ch[k].tri_count && parts[k].edge_count == ch[k].edge_count &&
+                      ms_codec_state_checksum(&parts[k]) == ms_codec_state_checksum(&ch[k])));
+        if (!same)
+            s = ms_error_set(err, MS_ERR_CORRUPT, "cell %u: the start state derived from its "
+                             "parent differs from the one it was encoded from",
+                             p->cell_of_node[nd->first_child + k]);
+    }
+    for (unsigned k = 0; k < nc; ++k)
+        ms_codec_state_free(&parts[k]);
+    free(parts);
+    return s;
+}
+
+/* ---- one cell ------------------------------------------------------------ */
+
+typedef struct cell_out {
+    uint8_t *stream;
+    size_t size;
+    ms_codec_state start;
+    uint32_t table[MS_CODEC_MAX_BITS + 1];
+    uint32_t vertices, triangles;
+} cell_out;
+
+static ms_status encode_cell(pool *p, uint32_t node, cell_out *out, ms_error *err)
+{
+    const ms_nsp_build *b = p->b;
+    const ms_nsp_node *nd = &b->nodes[node];
+    bool leaf = nd->first_child == MS_NSP_NONE;
+    unsigned lo, hi;
+    ms_nsp_window(&b->params.shape, nd->depth, leaf, &lo, &hi);
+    memset(out, 0, sizeof *out);
+    ms_codec_state st;
+    ms_status s = leaf ? leaf_state(p, node, &st, err) : internal_state(p, node, hi, &st, err);
+    if (s != MS_OK)
+        return s;
+    if (!leaf)
+        s = check_partition(p, node, &st, err);
+    if (s == MS_OK && st.vertex_count > 0) {
+        ms_codec_encode_params ep = {.p_min = lo, .box = b->box};
+        s = ms_codec_encode(&st, &ep, &out->stream, &out->size, &out->start, err);
+        if (s == MS_OK && out->size > UINT32_MAX)
+            s = ms_error_set(err, MS_ERR_RANGE, "cell %u: payload over 4 GiB",
+                             p->cell_of_node[node]);
+        ms_codec_header h;
+        if (s == MS_OK)
+            s = ms_codec_read_header(out->stream, out->size, &h, err);
+        if (s == MS_OK) {
+            out->table[0] = (uint32_t)h.header_size;
+            for (unsigned k = 1; k <= hi - lo; ++k)
+                out->table[k] = (uint32_t)(h.header_size + h.chunk_end[k - 1]);
+        }
+        out->vertices = (uint32_t)st.vertex_count;
+        out->triangles = (uint32_t)st.tri_count;
+    }
+    ms_codec_state_free(&st);
+    if (s != MS_OK) {
+        free(out->stream);
+        ms_codec_state_free(&out->start);
+        memset(out, 0, sizeof *out);
+    }
+    return s;
+}
+
+/* Under the lock: hands the result to the writer and to the parent. */
+static ms_status finish_cell(pool *p, uint32_t node, cell_out *out, ms_error *err)
+{
+    const ms_nsp_build *b = p->b;
+    const ms_nsp_node *nd = &b->nodes[node];
+    ms_status s = ms_archive_writer_put_geometry(p->writer, p->cell_of_node[node], out->stream,
+                                                 (uint32_t)out->size, out->table, out->vertices,
+                                                 out->triangles, err);
+    p->stats.geometry_bytes += out->size;
+    p->stats.empty_cells += out->size == 0;
+    free(out->stream);
+    out->stream = NULL;
+    if (s != MS_OK || nd->parent == MS_NSP_NONE) {
+        ms_codec_state_free(&out->start);
+        return s;
+    }
+    task *parent = &p->tasks[nd->parent];
+    if (!parent->starts) {
+        unsigned nc = b->params.shape.n * b->params.shape.n * b->params.shape.n;
+        parent->starts = calloc(nc, sizeof *parent->starts);
+        if (!parent->starts) {
+            ms_codec_state_free(&out->start);
+            return ms_error_set(err, MS_ERR_NOMEM, "out of memory");
+        }
+    }
+    parent->starts[node - b->nodes[nd->parent].first_child] = out->start;
+    memset(&out->start, 0, sizeof out->start);
+    if (--parent->pending == 0)
+        heap_push(p, nd->parent);
+    return MS_OK;
+}
+
+static void *worker(void *arg)
+{
+    pool *p = arg;
+    const ms_nsp_build *b = p->b;
+    pthread_mutex_lock(&p->lock);
+    for (;;) {
+        while (!p->failed && p->remaining > 0 && p->heap_n == 0)
+            pthread_cond_wait(&p->wake, &p->lock);
+        if (p->failed || p->remaining == 0)
+            break;
+        uint32_t node = heap_pop(p);
+        pthread_mutex_unlock(&p->lock);
+        cell_out out;
+        ms_error err;
+        ms_error_clear(&err);
+        ms_status s = encode_cell(p, node, &out, &err);
+        /* the children's states are no longer needed */
+        if (p->tasks[node].starts) {
+            unsigned nc = b->params.shape.n * b->params.shape.n * b->params.shape.n;
+            for (unsigned k = 0; k < nc; ++k)
+                ms_codec_state_free(&p->tasks[node].starts[k]);
+            free(p->tasks[node].starts);
+            p->tasks[node].starts = NULL;
+        }
+        pthread_mutex_lock(&p->lock);
+        if (s == MS_OK)
+            s = finish_cell(p, node, &out, &err);
+        if (s != MS_OK) {
+            if (!p->failed)
+                p->err = err;
+            p->failed = true;
+        } else {
+            p->remaining--;
+            p->done++;
+            if (p->params->progress)
+                p->params->progress(p->params->progress_context, "encoding",
+                                    (double)p->done / (double)b->node_count);
+        }
+        pthread_cond_broadcast(&p->wake);
+    }
+    pthread_mutex_unlock(&p->lock);
+    return NULL;
+}
+
+ms_status ms_nsp_encode_all(const ms_nsp_build *b, const uint32_t *cell_of_node,
+                            ms_archive_writer *writer, const ms_nsp_encode_params *params,
+                            ms_nsp_encode_stats *stats, ms_error *err)
+{
+    double t0 = ms_now_seconds();
+    memset(stats, 0, sizeof *stats);
+    pool p;
+    memset(&p, 0, sizeof p);
+    p.b = b;
+    p.cell_of_node = cell_of_node;
+    p.writer = writer;
+    p.params = params;
+    uint32_t n = b->node_count;
+    const unsigned nc = b->params.shape.n * b->params.shape.n * b->params.shape.n;
+    p.tasks = calloc(n, sizeof *p.tasks);
+    p.heap = malloc(n * sizeof *p.heap);
+    uint32_t *stack = malloc(n * sizeof *stack);
+    uint8_t *visited = calloc(n, 1);
+    if (!p.tasks || !p.heap || !stack || !visited) {
+        free(p.tasks);
+        free(p.heap);
+        free(stack);
+        free(visited);
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory scheduling cells");
+    }
+    /* Post-order numbers (children in offset order), iteratively. */
+    uint32_t sp = 0, post = 0;
+    stack[sp++] = 0;
+    while (sp > 0) {
+        uint32_t v = stack[sp - 1];
+        const ms_nsp_node *nd = &b->nodes[v];
+        if (nd->first_child != MS_NSP_NONE && !visited[v]) {
+            visited[v] = 1;
+            for (unsigned k = nc; k-- > 0;)
+                stack[sp++] = nd->first_child + k;
+            continue;
+        }
+        sp--;
+        p.tasks[v].post = post++;
+        p.tasks[v].pending = nd->first_child != MS_NSP_NONE ? nc : 0;
+    }
+    free(stack);
+    free(visited);
+    for (uint32_t v = 0; v < n; ++v)
+        if (p.tasks[v].pending == 0)
+            heap_push(&p, v);
+    p.remaining = n;
+    pthread_mutex_init(&p.lock, NULL);
+    pthread_cond_init(&p.wake, NULL);
+    unsigned threads = params->threads ? params->threads : 1;
+    pthread_t *tid = calloc(threads, sizeof *tid);
+    unsigned started = 0;
+    if (tid)
+        for (; started < threads; ++started)
+            if (pthread_create(&tid[started], NULL, worker, &p) != 0)
+                break;
+    if (started == 0) {
+        worker(&p); /* no thread could start: do the work here */
+    }
+    for (unsigned i = 0; i < started; ++i)
+        pthread_join(tid[i], NULL);
+    free(tid);
+    ms_status s = MS_OK;
+    if (p.failed) {
+        *err = p.err;
+        s = err->code != MS_OK ? err->code : MS_ERR_IO;
+    }
+    for (uint32_t v = 0; v < n; ++v)
+        if (p.tasks[v].starts) {
+            for (unsigned k = 0; k < nc; ++k)
+                ms_codec_state_free(&p.tasks[v].starts[k]);
+            free(p.tasks[v].starts);
+        }
+    pthread_mutex_destroy(&p.lock);
+    pthread_cond_destroy(&p.wake);
+    free(p.tasks);
+    free(p.heap);
+    p.stats.seconds = ms_now_seconds() - t0;
+    *stats = p.stats;
+    return s;
+}

@@ -1,0 +1,126 @@
+#include "ms_codec_check.h"
+
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stdlib.h>
+#include <string.h>
+#include <cmocka.h>
+
+#include "ms_ref_coarsen.h"
+
+void ms_test_torus(ms_mesh *m, unsigned nu, unsigned nv, double R, double r)
+{
+    memset(m, 0, sizeof *m);
+    ms_error err;
+    assert_int_equal(ms_mesh_reserve(m, (size_t)nu * nv, 2 * (size_t)nu * nv, &err), MS_OK);
+    const double pi = 3.14159265358979323846;
+    for (unsigned i = 0; i < nu; ++i)
+        for (unsigned j = 0; j < nv; ++j) {
+            double u = 2 * pi * i / nu, v = 2 * pi * j / nv;
+            double *p = &m->positions[3 * (i * nv + j)];
+            p[0] = (R + r * cos(v)) * cos(u);
+            p[1] = (R + r * cos(v)) * sin(u);
+            p[2] = r * sin(v);
+        }
+    size_t t = 0;
+    for (unsigned i = 0; i < nu; ++i)
+        for (unsigned j = 0; j < nv; ++j) {
+            uint32_t a = i * nv + j, b = ((i + 1) % nu) * nv + j, c = ((i + 1) % nu) * nv + (j + 1) % nv,
+                     d = i * nv + (j + 1) % nv;
+            uint32_t *x = &m->triangles[3 * t];
+            x[0] = a, x[1] = b, x[2] = c;
+            x[3] = a, x[4] = c, x[5] = d;
+            t += 2;
+        }
+    m->vertex_count = (size_t)nu * nv;
+    m->triangle_count = t;
+}
+
+void ms_codec_check_roundtrip(const ms_mesh *mesh, unsigned bits, unsigned level_step,
+                              ms_codec_check_result *res)
+{
+    ms_error err;
+    ms_qmesh q;
+    memset(res, 0, sizeof *res);
+    assert_int_equal(ms_quantise_mesh(mesh, bits, &q, &res->weld, &err), MS_OK);
+    ms_codec_state full, canon;
+    assert_int_equal(ms_codec_state_from_qmesh(&q, &full, &err), MS_OK);
+    assert_int_equal(ms_codec_state_from_qmesh(&q, &canon, &err), MS_OK);
+    assert_int_equal(ms_codec_state_canonicalise(&canon, &err), MS_OK);
+    ms_codec_encode_params par;
+    memset(&par, 0, sizeof par);
+    par.box = q.box;
+    uint8_t *buf = NULL, *buf2 = NULL;
+    size_t size = 0, size2 = 0;
+    assert_int_equal(ms_codec_encode(&full, &par, &buf, &size, NULL, &err), MS_OK);
+    assert_int_equal(ms_codec_encode(&full, &par, &buf2, &size2, NULL, &err), MS_OK);
+    assert_int_equal(size, size2);
+    assert_memory_equal(buf, buf2, size);
+    free(buf2);
+
+    ms_codec_decoder *d;
+    assert_int_equal(ms_codec_decoder_create(buf, size, NULL, NULL, &d, &err), MS_OK);
+    unsigned D = 3 * bits;
+    assert_int_equal(ms_codec_decoder_available_level(d), D);
+    if (ms_codec_decoder_set_level(d, D, &err) != MS_OK)
+        fail_msg("decode failed: %s", err.text);
+    ms_codec_state got;
+    assert_int_equal(ms_codec_decoder_state(d, &got, &err), MS_OK);
+    assert_true(ms_codec_state_equal(&got, &canon, true));
+    ms_codec_state_free(&got);
+
+    /* The renderer's view: positions are the dequantised welded points. */
+    ms_mesh rm;
+    memset(&rm, 0, sizeof rm);
+    assert_int_equal(ms_codec_decoder_mesh(d, &rm, &err), MS_OK);
+    assert_int_equal(rm.vertex_count, q.vertex_count);
+    assert_int_equal(rm.triangle_count, q.tri_count);
+    for (size_t i = 0; i < q.vertex_count; ++i)
+        for (int a = 0; a < 3; ++a)
+            assert_true(rm.positions[3 * i + a] ==
+                        ms_dequantise(&q.box, bits, a, q.coords[3 * i + a]));
+    ms_mesh_free(&rm);
+
+    if (level_step > 0) {
+        for (unsigned L = D; L-- > 0;) {
+            if (ms_codec_decoder_set_level(d, L, &err) != MS_OK)
+                fail_msg("coarsen to %u failed: %s", L, err.text);
+            if (L % level_step != 0 && L > 2)
+                continue;
+            ms_codec_state a, r;
+            assert_int_equal(ms_codec_decoder_state(d, &a, &err), MS_OK);
+            ms_ref_coarsen(&canon, L, &r);
+            if (!ms_codec_state_equal(&a, &r, false))
+                fail_msg("level %u differs from the reference: V %zu/%zu T %zu/%zu E %zu/%zu", L,
+                         a.vertex_count, r.vertex_count, a.tri_count, r.tri_count, a.edge_count,
+                         r.edge_count);
+            ms_codec_state_free(&a);
+            ms_codec_state_free(&r);
+        }
+        /* Refine again level by level: the final state is identical. Also
+         * refine/coarsen one level in the middle and compare states. */
+        unsigned mid = D / 2;
+        assert_int_equal(ms_codec_decoder_set_level(d, mid, &err), MS_OK);
+        ms_codec_state s1, s2;
+        assert_int_equal(ms_codec_decoder_state(d, &s1, &err), MS_OK);
+        assert_int_equal(ms_codec_decoder_set_level(d, mid + 1, &err), MS_OK);
+        assert_int_equal(ms_codec_decoder_set_level(d, mid, &err), MS_OK);
+        assert_int_equal(ms_codec_decoder_state(d, &s2, &err), MS_OK);
+        assert_true(ms_codec_state_equal(&s1, &s2, true));
+        ms_codec_state_free(&s1);
+        ms_codec_state_free(&s2);
+        assert_int_equal(ms_codec_decoder_set_level(d, D, &err), MS_OK);
+        assert_int_equal(ms_codec_decoder_state(d, &got, &err), MS_OK);
+        assert_true(ms_codec_state_equal(&got, &canon, true));
+        ms_codec_state_free(&got);
+    }
+    res->vertices = q.vertex_count;
+    res->triangles = q.tri_count;
+    res->bytes = size;
+    ms_codec_decoder_destroy(d);
+    free(buf);
+    ms_codec_state_free(&full);
+    ms_codec_state_free(&canon);
+    ms_qmesh_free(&q);
+}

@@ -1,0 +1,46 @@
+/* Checks shared by the nSP bake and view-decoding tests (include after cmocka.h).
+ * Failures are cmocka assertion failures. */
+#ifndef MS_NSP_CHECK_H
+#define MS_NSP_CHECK_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "ms_bake.h"
+#include "ms_quant.h"
+#include "ms_view_decoder.h"
+
+/* Bakes input into dir/name.msa with the given parameters (threads 2, --mem 64)
+ * and fills report. */
+void ms_nsp_test_bake(const char *input, const char *dir, const char *name, unsigned bits,
+                      uint32_t min_triangles, ms_bake_report *report);
+
+/* The quantised, welded reference of a model file (ms_mesh_load + ms_quantise_mesh). */
+void ms_nsp_test_reference(const char *input, unsigned bits, ms_qmesh *q);
+
+/* Writes a demo model of about `triangles` triangles as binary PLY (doubles) to path. */
+void ms_nsp_test_demo_ply(const char *path, uint64_t triangles);
+
+/* Splits every cell down to the leaves and refines each to full precision. */
+void ms_nsp_test_decode_all(ms_view *view);
+
+typedef struct ms_nsp_view_check {
+    size_t triangles;          /* in the stitched mesh */
+    size_t missing, extra;     /* against the reference image of the mixed clustering */
+    size_t duplicates;         /* stitched triangles with the same vertex set */
+    size_t boundary_edges;     /* edges with one incident triangle */
+    size_t cracks;             /* boundary edges not boundary in any uniform decode */
+    unsigned shown_cells, levels;
+} ms_nsp_view_check;
+
+/* Compares the stitched mesh of every shown cell with the reference: the image
+ * of q's triangles when each vertex is taken to the kd-cell of the precision of
+ * the shown cell holding it (the exact mesh the stitching rule must give), and
+ * checks the crack criterion: every edge with a single incident triangle is such
+ * an edge in q decoded uniformly (ms_ref_coarsen) at one of the shown precisions
+ * not above its endpoints'. With full = true, also asserts that the stitched mesh
+ * is q exactly, orientation included (every cell at full precision). */
+void ms_nsp_test_check_view(ms_view *view, const ms_qmesh *q, bool full,
+                            ms_nsp_view_check *result);
+
+#endif

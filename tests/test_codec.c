@@ -1,0 +1,531 @@
+/* Codec: quantisation, range coder, hard cases, stream handling (synthetic meshes). */
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+#include <cmocka.h>
+
+#include "ms_codec.h"
+#include "support/ms_codec_check.h"
+#include "ms_quant.h"
+#include "ms_rangecoder.h"
+
+static void make_mesh(ms_mesh *m, const double *pos, size_t nv, const uint32_t *tris, size_t nt)
+{
+    ms_error err;
+    memset(m, 0, sizeof *m);
+    assert_int_equal(ms_mesh_reserve(m, nv ? nv : 1, nt ? nt : 1, &err), MS_OK);
+    if (nv)
+        memcpy(m->positions, pos, nv * 3 * sizeof *pos);
+    if (nt)
+        memcpy(m->triangles, tris, nt * 3 * sizeof *tris);
+    m->vertex_count = nv;
+    m->triangle_count = nt;
+}
+
+/* ---- quantisation ---- */
+
+static void test_key_interleave(void **state)
+{
+    (void)state;
+    assert_true(ms_quant_key(1, 0, 0, 1) == 4);
+    assert_true(ms_quant_key(0, 1, 0, 1) == 2);
+    assert_true(ms_quant_key(0, 0, 1, 1) == 1);
+    assert_true(ms_quant_key(2, 0, 0, 2) == 32);
+    uint32_t xyz[3];
+    uint32_t m = (1u << 20) - 1;
+    ms_quant_unkey(ms_quant_key(m, 12345, 999999, 20), 20, xyz);
+    assert_int_equal(xyz[0], m);
+    assert_int_equal(xyz[1], 12345);
+    assert_int_equal(xyz[2], 999999);
+}
+
+static void test_weld_counts(void **state)
+{
+    (void)state;
+    /* vertices 0 and 3 coincide; triangle (0,1,3) degenerates; (3,1,2) duplicates
+     * (0,1,2) after welding; vertex 4 is isolated. */
+    const double pos[] = {0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 0, 1, 1, 1};
+    const uint32_t tris[] = {0, 1, 2, 0, 1, 3, 3, 2, 1};
+    ms_mesh m;
+    make_mesh(&m, pos, 5, tris, 3);
+    ms_qmesh q;
+    ms_weld_report r;
+    ms_error err;
+    assert_int_equal(ms_quantise_mesh(&m, 12, &q, &r, &err), MS_OK);
+    assert_int_equal(q.vertex_count, 4);
+    assert_int_equal(q.tri_count, 1);
+    assert_int_equal(r.welded_vertices, 1);
+    assert_int_equal(r.degenerate_triangles, 1);
+    assert_int_equal(r.duplicate_triangles, 1);
+    assert_int_equal(r.isolated_vertices, 1);
+    assert_true(q.box.size == 1.0);
+    /* max coordinate lands in the last cell */
+    for (size_t i = 0; i < q.vertex_count; ++i)
+        for (int a = 0; a < 3; ++a)
+            assert_true(q.coords[3 * i + a] == 0 || q.coords[3 * i + a] == 4095);
+    ms_qmesh_free(&q);
+    ms_mesh_free(&m);
+}
+
+static void test_quant_errors(void **state)
+{
+    (void)state;
+    ms_mesh m;
+    ms_qmesh q;
+    ms_error err;
+    make_mesh(&m, NULL, 0, NULL, 0);
+    assert_int_equal(ms_quantise_mesh(&m, 12, &q, NULL, &err), MS_ERR_EMPTY);
+    assert_non_null(strstr(err.text, "empty"));
+    ms_mesh_free(&m);
+    const double pos[] = {0, 0, 0, NAN, 1, 0, 0, 1, 0};
+    const uint32_t tri[] = {0, 1, 2};
+    make_mesh(&m, pos, 3, tri, 1);
+    assert_int_equal(ms_quantise_mesh(&m, 12, &q, NULL, &err), MS_ERR_RANGE);
+    m.positions[3] = 1;
+    assert_int_equal(ms_quantise_mesh(&m, 7, &q, NULL, &err), MS_ERR_ARG);
+    assert_int_equal(ms_quantise_mesh(&m, 21, &q, NULL, &err), MS_ERR_ARG);
+    m.triangles[1] = 9;
+    assert_int_equal(ms_quantise_mesh(&m, 12, &q, NULL, &err), MS_ERR_RANGE);
+    ms_mesh_free(&m);
+}
+
+/* ---- range coder ---- */
+
+static void test_rangecoder_roundtrip(void **state)
+{
+    (void)state;
+    ms_rc_encoder e;
+    ms_rc_encoder_init(&e);
+    ms_rc_prob p[4] = {MS_RC_PROB_INIT, MS_RC_PROB_INIT, MS_RC_PROB_INIT, MS_RC_PROB_INIT};
+    uint32_t x = 12345;
+    size_t ends[2];
+    for (int chunk = 0; chunk < 2; ++chunk) {
+        for (int i = 0; i < 100000; ++i) {
+            x = x * 1103515245u + 12345u;
+            int ctx = i & 3;
+            int bit = ((x >> 16) % 100) < (unsigned)(ctx * 30 + 2);
+            ms_rc_encode(&e, &p[ctx], bit);
+        }
+        ms_rc_encoder_flush(&e);
+        ends[chunk] = e.size;
+    }
+    assert_false(e.failed);
+    ms_rc_prob q[4] = {MS_RC_PROB_INIT, MS_RC_PROB_INIT, MS_RC_PROB_INIT, MS_RC_PROB_INIT};
+    x = 12345;
+    size_t start = 0;
+    for (int chunk = 0; chunk < 2; ++chunk) {
+        ms_rc_decoder d;
+        ms_rc_decoder_init(&d, e.buf + start, ends[chunk] - start);
+        for (int i = 0; i < 100000; ++i) {
+            x = x * 1103515245u + 12345u;
+            int ctx = i & 3;
+            int bit = ((x >> 16) % 100) < (unsigned)(ctx * 30 + 2);
+            assert_int_equal(ms_rc_decode(&d, &q[ctx]), bit);
+        }
+        assert_true(ms_rc_decoder_clean_end(&d));
+        start = ends[chunk];
+    }
+    /* A truncated chunk reads zeros and reports the overrun. */
+    ms_rc_decoder d;
+    ms_rc_decoder_init(&d, e.buf, ends[0] / 2);
+    for (int i = 0; i < 100000; ++i)
+        (void)ms_rc_decode(&d, &q[i & 3]);
+    assert_false(ms_rc_decoder_clean_end(&d));
+    ms_rc_encoder_free(&e);
+}
+
+/* ---- hard cases ---- */
+
+static void check_case(const double *pos, size_t nv, const uint32_t *tris, size_t nt,
+                       unsigned bits, size_t want_v, size_t want_t)
+{
+    ms_mesh m;
+    make_mesh(&m, pos, nv, tris, nt);
+    ms_codec_check_result r;
+    ms_codec_check_roundtrip(&m, bits, 1, &r);
+    assert_int_equal(r.vertices, want_v);
+    assert_int_equal(r.triangles, want_t);
+    ms_mesh_free(&m);
+}
+
+static void test_single_triangle(void **state)
+{
+    (void)state;
+    const double pos[] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+    const uint32_t t[] = {0, 1, 2};
+    check_case(pos, 3, t, 1, 12, 3, 1);
+    check_case(pos, 3, t, 1, 16, 3, 1);
+}
+
+static void test_two_disjoint_triangles(void **state)
+{
+    (void)state;
+    const double pos[] = {0, 0, 0, 1, 0, 0, 0, 1, 0, 5, 5, 5, 6, 5, 5, 5, 6, 5.5};
+    const uint32_t t[] = {0, 1, 2, 3, 5, 4};
+    check_case(pos, 6, t, 2, 12, 6, 2);
+}
+
+static void test_nonmanifold_edge_four_triangles(void **state)
+{
+    (void)state;
+    const double pos[] = {0, 0, 0, 0, 0, 1, 1, 0, .5, -1, 0, .5, 0, 1, .5, 0, -1, .5};
+    const uint32_t t[] = {0, 1, 2, 1, 0, 3, 0, 1, 4, 1, 0, 5};
+    check_case(pos, 6, t, 4, 12, 6, 4);
+}
+
+static void test_bowtie(void **state)
+{
+    (void)state;
+    /* two cones (fans of 4 triangles) sharing only their apex */
+    const double pos[] = {0, 0, 0,  1, 1, 1, -1, 1, 1, -1, -1, 1, 1, -1, 1,
+                          1, 1, -1, -1, 1, -1, -1, -1, -1, 1, -1, -1};
+    const uint32_t t[] = {0, 1, 2, 0, 2, 3, 0, 3, 4, 0, 4, 1,
+                          0, 6, 5, 0, 7, 6, 0, 8, 7, 0, 5, 8};
+    check_case(pos, 9, t, 8, 12, 9, 8);
+}
+
+static void test_isolated_vertices(void **state)
+{
+    (void)state;
+    const double pos[] = {0, 0, 0, 1, 0, 0, 0, 1, 0, 3, 3, 3, 2, 0, 1, 0, 2, 2};
+    const uint32_t t[] = {0, 1, 2};
+    ms_mesh m;
+    make_mesh(&m, pos, 6, t, 1);
+    ms_codec_check_result r;
+    ms_codec_check_roundtrip(&m, 12, 1, &r);
+    assert_int_equal(r.vertices, 6);
+    assert_int_equal(r.triangles, 1);
+    assert_int_equal(r.weld.isolated_vertices, 3);
+    ms_mesh_free(&m);
+    /* only isolated vertices: a point cloud */
+    make_mesh(&m, pos, 6, NULL, 0);
+    ms_codec_check_roundtrip(&m, 12, 1, &r);
+    assert_int_equal(r.vertices, 6);
+    assert_int_equal(r.triangles, 0);
+    ms_mesh_free(&m);
+}
+
+static void test_all_coincident(void **state)
+{
+    (void)state;
+    const double pos[] = {2, 2, 2, 2, 2, 2, 2, 2, 2, 2, 2, 2};
+    const uint32_t t[] = {0, 1, 2, 1, 2, 3};
+    ms_mesh m;
+    make_mesh(&m, pos, 4, t, 2);
+    ms_codec_check_result r;
+    ms_codec_check_roundtrip(&m, 12, 1, &r);
+    assert_int_equal(r.vertices, 1);
+    assert_int_equal(r.triangles, 0);
+    assert_int_equal(r.weld.welded_vertices, 3);
+    assert_int_equal(r.weld.degenerate_triangles, 2);
+    assert_int_equal(r.weld.isolated_vertices, 1);
+    ms_mesh_free(&m);
+}
+
+static void grid(ms_mesh *m, unsigned n, double ox, double oy, double oz, double step, int flat_axes)
+{
+    ms_error err;
+    memset(m, 0, sizeof *m);
+    assert_int_equal(ms_mesh_reserve(m, n * n, 2 * (n - 1) * (n - 1), &err), MS_OK);
+    for (unsigned i = 0; i < n; ++i)
+        for (unsigned j = 0; j < n; ++j) {
+            double *p = &m->positions[3 * (i * n + j)];
+            p[0] = ox + i * step;
+            p[1] = oy + (flat_axes >= 2 ? 0 : j * step);
+            p[2] = oz + (flat_axes >= 1 ? 0 : (double)((i * 7 + j * 3) % 5) * step);
+            if (flat_axes >= 2)
+                p[0] = ox + (i * n + j) * step;
+        }
+    size_t t = 0;
+    for (unsigned i = 0; i + 1 < n; ++i)
+        for (unsigned j = 0; j + 1 < n; ++j) {
+            uint32_t a = i * n + j, b = a + n, c = a + n + 1, d = a + 1;
+            uint32_t *x = &m->triangles[3 * t];
+            x[0] = a, x[1] = b, x[2] = c, x[3] = a, x[4] = c, x[5] = d;
+            t += 2;
+        }
+    m->vertex_count = n * n;
+    m->triangle_count = t;
+}
+
+static void test_flat_model(void **state)
+{
+    (void)state;
+    ms_mesh m;
+    grid(&m, 10, 0, 0, 0, 1, 1);
+    ms_codec_check_result r;
+    ms_codec_check_roundtrip(&m, 12, 1, &r);
+    assert_int_equal(r.vertices, 100);
+    assert_int_equal(r.triangles, 162);
+    ms_mesh_free(&m);
+}
+
+static void test_needle(void **state)
+{
+    (void)state;
+    /* every point on the x axis: triangles are zero-area but have distinct vertices */
+    ms_mesh m;
+    grid(&m, 6, 0, 0, 0, 1, 2);
+    ms_codec_check_result r;
+    ms_codec_check_roundtrip(&m, 12, 1, &r);
+    assert_int_equal(r.vertices, 36);
+    assert_int_equal(r.triangles, 50);
+    ms_mesh_free(&m);
+}
+
+static void test_large_offset_small_extent(void **state)
+{
+    (void)state;
+    ms_mesh m;
+    grid(&m, 8, 1e7, -1e7, 1e7, 1e-3 / 7, 0);
+    ms_codec_check_result r;
+    ms_codec_check_roundtrip(&m, 16, 1, &r);
+    assert_int_equal(r.vertices, 64);
+    assert_int_equal(r.triangles, 98);
+    /* dequantised points lie within half a cell of the input */
+    ms_qmesh q;
+    ms_error err;
+    assert_int_equal(ms_quantise_mesh(&m, 16, &q, NULL, &err), MS_OK);
+    assert_true(fabs(q.box.size - 1e-3) < 1e-8);
+    ms_qmesh_free(&q);
+    ms_mesh_free(&m);
+}
+
+static void test_precision_8_and_20(void **state)
+{
+    (void)state;
+    ms_mesh m;
+    ms_test_torus(&m, 24, 16, 1.0, 0.3);
+    ms_codec_check_result r;
+    ms_codec_check_roundtrip(&m, 20, 1, &r);
+    assert_int_equal(r.vertices, 384);
+    assert_int_equal(r.triangles, 768);
+    ms_codec_check_roundtrip(&m, 8, 1, &r);
+    assert_int_equal(r.vertices, 384);
+    assert_int_equal(r.triangles, 768);
+    ms_mesh_free(&m);
+    /* a dense torus at 8 bits welds vertices and drops collapsed triangles */
+    ms_test_torus(&m, 400, 100, 1.0, 0.3);
+    ms_codec_check_roundtrip(&m, 8, 3, &r);
+    assert_true(r.weld.welded_vertices > 0);
+    assert_int_equal(r.vertices, 40000 - r.weld.welded_vertices);
+    assert_int_equal(r.triangles, 80000 - r.weld.degenerate_triangles - r.weld.duplicate_triangles);
+    ms_mesh_free(&m);
+}
+
+static void test_empty_mesh_errors(void **state)
+{
+    (void)state;
+    ms_codec_state s;
+    memset(&s, 0, sizeof s);
+    s.bits = 12;
+    s.level = 36;
+    ms_codec_encode_params par;
+    memset(&par, 0, sizeof par);
+    par.box.size = 1;
+    uint8_t *buf;
+    size_t size;
+    ms_error err;
+    assert_int_equal(ms_codec_encode(&s, &par, &buf, &size, NULL, &err), MS_ERR_EMPTY);
+    assert_non_null(strstr(err.text, "empty"));
+    assert_null(buf);
+}
+
+/* ---- streams ---- */
+
+typedef struct coded {
+    ms_codec_state full, canon;
+    uint8_t *buf;
+    size_t size;
+    unsigned bits;
+} coded;
+
+static void code_torus(coded *c, unsigned bits, unsigned p_min, ms_codec_state *start)
+{
+    ms_mesh m;
+    ms_test_torus(&m, 60, 30, 1.0, 0.35);
+    ms_qmesh q;
+    ms_error err;
+    assert_int_equal(ms_quantise_mesh(&m, bits, &q, NULL, &err), MS_OK);
+    assert_int_equal(ms_codec_state_from_qmesh(&q, &c->full, &err), MS_OK);
+    assert_int_equal(ms_codec_state_from_qmesh(&q, &c->canon, &err), MS_OK);
+    assert_int_equal(ms_codec_state_canonicalise(&c->canon, &err), MS_OK);
+    ms_codec_encode_params par;
+    memset(&par, 0, sizeof par);
+    par.box = q.box;
+    par.p_min = p_min;
+    assert_int_equal(ms_codec_encode(&c->full, &par, &c->buf, &c->size, start, &err), MS_OK);
+    c->bits = bits;
+    ms_qmesh_free(&q);
+    ms_mesh_free(&m);
+}
+
+static void free_coded(coded *c)
+{
+    ms_codec_state_free(&c->full);
+    ms_codec_state_free(&c->canon);
+    free(c->buf);
+}
+
+static void test_subrange_from_start_state(void **state)
+{
+    (void)state;
+    ms_error err;
+    coded all, part;
+    ms_codec_state start;
+    code_torus(&all, 12, 0, NULL);
+    code_torus(&part, 12, 5, &start);
+    assert_int_equal(start.level, 15);
+    /* the start state is what the full stream's decoder gives at 5 bits */
+    ms_codec_decoder *d;
+    assert_int_equal(ms_codec_decoder_create(all.buf, all.size, NULL, NULL, &d, &err), MS_OK);
+    assert_int_equal(ms_codec_decoder_set_level(d, 15, &err), MS_OK);
+    ms_codec_state at5;
+    assert_int_equal(ms_codec_decoder_state(d, &at5, &err), MS_OK);
+    assert_true(ms_codec_state_equal(&at5, &start, true));
+    ms_codec_decoder_destroy(d);
+    /* the sub-range stream continues from it to the full mesh */
+    assert_int_equal(ms_codec_decoder_create(part.buf, part.size, &at5, NULL, &d, &err), MS_OK);
+    assert_int_equal(ms_codec_decoder_min_level(d), 15);
+    assert_int_equal(ms_codec_decoder_set_level(d, 36, &err), MS_OK);
+    ms_codec_state got;
+    assert_int_equal(ms_codec_decoder_state(d, &got, &err), MS_OK);
+    assert_true(ms_codec_state_equal(&got, &part.canon, true));
+    /* cannot coarsen below the window */
+    assert_int_equal(ms_codec_decoder_set_level(d, 14, &err), MS_ERR_ARG);
+    ms_codec_state_free(&got);
+    ms_codec_decoder_destroy(d);
+    /* a different start state is refused */
+    at5.cells[0] ^= 1;
+    assert_int_equal(ms_codec_decoder_create(part.buf, part.size, &at5, NULL, &d, &err),
+                     MS_ERR_ARG);
+    assert_int_equal(ms_codec_decoder_create(part.buf, part.size, NULL, NULL, &d, &err),
+                     MS_ERR_ARG);
+    ms_codec_state_free(&at5);
+    ms_codec_state_free(&start);
+    free_coded(&all);
+    free_coded(&part);
+}
+
+static void test_prefix_and_truncation(void **state)
+{
+    (void)state;
+    ms_error err;
+    coded c;
+    code_torus(&c, 12, 0, NULL);
+    ms_codec_header h;
+    assert_int_equal(ms_codec_read_header(c.buf, c.size, &h, &err), MS_OK);
+    assert_int_equal(h.p_max, 12);
+    assert_int_equal(h.header_size + h.body_size, c.size);
+    /* a prefix ending inside bit 8 decodes exactly up to 7 bits */
+    size_t cut = h.header_size + h.chunk_end[6] + 2;
+    ms_codec_decoder *d;
+    assert_int_equal(ms_codec_decoder_create(c.buf, cut, NULL, NULL, &d, &err), MS_OK);
+    assert_int_equal(ms_codec_decoder_available_level(d), 21);
+    assert_int_equal(ms_codec_decoder_set_level(d, 21, &err), MS_OK);
+    assert_int_equal(ms_codec_decoder_set_level(d, 22, &err), MS_ERR_FORMAT);
+    assert_non_null(strstr(err.text, "truncated"));
+    ms_codec_state a;
+    assert_int_equal(ms_codec_decoder_state(d, &a, &err), MS_OK);
+    assert_int_equal(a.level, 21);
+    ms_codec_state_free(&a);
+    ms_codec_decoder_destroy(d);
+    /* header cut short */
+    assert_int_equal(ms_codec_decoder_create(c.buf, 40, NULL, NULL, &d, &err), MS_ERR_FORMAT);
+    assert_int_equal(ms_codec_decoder_create(c.buf, h.header_size - 1, NULL, NULL, &d, &err),
+                     MS_ERR_FORMAT);
+    free_coded(&c);
+}
+
+static void test_corruption_detected(void **state)
+{
+    (void)state;
+    ms_error err;
+    coded c;
+    code_torus(&c, 12, 0, NULL);
+    ms_codec_header h;
+    assert_int_equal(ms_codec_read_header(c.buf, c.size, &h, &err), MS_OK);
+    ms_codec_decoder *d;
+    /* bad magic */
+    c.buf[0] = 'X';
+    assert_int_equal(ms_codec_decoder_create(c.buf, c.size, NULL, NULL, &d, &err), MS_ERR_FORMAT);
+    c.buf[0] = 'M';
+    /* unknown version */
+    c.buf[4] = 2;
+    assert_int_equal(ms_codec_decoder_create(c.buf, c.size, NULL, NULL, &d, &err),
+                     MS_ERR_UNSUPPORTED);
+    c.buf[4] = 1;
+    /* header byte flipped: header CRC */
+    c.buf[61] ^= 0x40;
+    assert_int_equal(ms_codec_decoder_create(c.buf, c.size, NULL, NULL, &d, &err),
+                     MS_ERR_CORRUPT);
+    c.buf[61] ^= 0x40;
+    /* body byte flipped: chunk CRC, or (CRC skipped) a structural failure or a
+     * different complex, never a crash */
+    size_t pos = h.header_size + h.chunk_end[8] + 3;
+    c.buf[pos] ^= 0x10;
+    assert_int_equal(ms_codec_decoder_create(c.buf, c.size, NULL, NULL, &d, &err), MS_OK);
+    assert_int_equal(ms_codec_decoder_set_level(d, 36, &err), MS_ERR_CORRUPT);
+    assert_non_null(strstr(err.text, "checksum"));
+    assert_int_equal(ms_codec_decoder_set_level(d, 3, &err), MS_ERR_CORRUPT);
+    ms_codec_decoder_destroy(d);
+    ms_codec_decoder_options opt = {.skip_crc = true};
+    assert_int_equal(ms_codec_decoder_create(c.buf, c.size, NULL, &opt, &d, &err), MS_OK);
+    ms_status st = ms_codec_decoder_set_level(d, 36, &err);
+    if (st == MS_OK) {
+        ms_codec_state got;
+        assert_int_equal(ms_codec_decoder_state(d, &got, &err), MS_OK);
+        assert_false(ms_codec_state_equal(&got, &c.canon, true));
+        ms_codec_state_free(&got);
+    } else {
+        assert_int_equal(st, MS_ERR_CORRUPT);
+    }
+    ms_codec_decoder_destroy(d);
+    free_coded(&c);
+}
+
+static void test_torus_levels_and_size(void **state)
+{
+    (void)state;
+    ms_mesh m;
+    ms_test_torus(&m, 60, 30, 1.0, 0.35);
+    ms_codec_check_result r;
+    ms_codec_check_roundtrip(&m, 16, 1, &r);
+    assert_int_equal(r.vertices, 1800);
+    assert_int_equal(r.triangles, 3600);
+    /* a smooth closed surface must code well below raw 16-bit coordinates */
+    print_message("torus 1800 vertices at 16 bits: %zu bytes, %.2f bits/vertex\n", r.bytes,
+                  8.0 * r.bytes / r.vertices);
+    assert_true(r.bytes * 8 < 40 * r.vertices);
+    ms_mesh_free(&m);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_key_interleave),
+        cmocka_unit_test(test_weld_counts),
+        cmocka_unit_test(test_quant_errors),
+        cmocka_unit_test(test_rangecoder_roundtrip),
+        cmocka_unit_test(test_single_triangle),
+        cmocka_unit_test(test_two_disjoint_triangles),
+        cmocka_unit_test(test_nonmanifold_edge_four_triangles),
+        cmocka_unit_test(test_bowtie),
+        cmocka_unit_test(test_isolated_vertices),
+        cmocka_unit_test(test_all_coincident),
+        cmocka_unit_test(test_flat_model),
+        cmocka_unit_test(test_needle),
+        cmocka_unit_test(test_large_offset_small_extent),
+        cmocka_unit_test(test_precision_8_and_20),
+        cmocka_unit_test(test_empty_mesh_errors),
+        cmocka_unit_test(test_subrange_from_start_state),
+        cmocka_unit_test(test_prefix_and_truncation),
+        cmocka_unit_test(test_corruption_detected),
+        cmocka_unit_test(test_torus_levels_and_size),
+    };
+    return cmocka_run_group_tests_name("codec", tests, NULL, NULL);
+}

@@ -1,0 +1,254 @@
+/* meshbake's bake mode: the report and the catalogue, flushing leaf buffers to
+ * disk changes nothing, usage and input errors, and a bake killed mid-run or
+ * failing leaves neither an archive, nor a temporary file, nor a catalogue change. */
+#include <dirent.h>
+#include <setjmp.h>
+#include <signal.h>
+#include <stdarg.h>
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+#include <cmocka.h>
+
+#include <jansson.h>
+
+#include "ms_archive.h"
+#include "ms_bake.h"
+#include "ms_catalog.h"
+#include "ms_nsp_check.h"
+#include "ms_test.h"
+#include "ms_test_archive.h"
+#include "ms_test_net.h"
+
+/* Names in dir other than the expected ones (NULL-terminated list). */
+static unsigned strays(const char *dir, const char *const *expected)
+{
+    DIR *d = opendir(dir);
+    assert_non_null(d);
+    struct dirent *e;
+    unsigned n = 0;
+    while ((e = readdir(d))) {
+        if (strcmp(e->d_name, ".") == 0 || strcmp(e->d_name, "..") == 0)
+            continue;
+        bool ok = false;
+        for (const char *const *x = expected; *x; ++x)
+            ok |= strcmp(*x, e->d_name) == 0;
+        if (!ok) {
+            print_message("unexpected file: %s\n", e->d_name);
+            n++;
+        }
+    }
+    closedir(d);
+    return n;
+}
+
+static void test_json_report_and_catalog(void **state)
+{
+    (void)state;
+    char dir[512], bin[4096], model[4096], cmd[16384], out[16384];
+    ms_test_tmpdir(dir, sizeof dir);
+    ms_test_bin_path(bin, sizeof bin, "meshbake");
+    ms_test_model_path(model, sizeof model, "stanford_dragon_vrip_res3.ply.gz");
+    snprintf(cmd, sizeof cmd, "%s '%s' -o '%s' --name dragon3 --min-tris 3000 --threads 2 --json",
+             bin, model, dir);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
+    json_error_t je;
+    json_t *j = json_loads(out, 0, &je);
+    if (!j)
+        fail_msg("not JSON: %s", out);
+    const char *keys[] = {"input_triangles", "cells", "duplicated_triangles", "archive_bytes",
+                          "bits_per_vertex", "peak_rss_mb"};
+    for (size_t i = 0; i < sizeof keys / sizeof *keys; ++i)
+        assert_true(json_is_number(json_object_get(j, keys[i])));
+    assert_true(json_is_object(json_object_get(j, "seconds")));
+    assert_true(json_is_number(json_object_get(json_object_get(j, "seconds"), "total")));
+    assert_int_equal(json_integer_value(json_object_get(j, "input_triangles")), 47794);
+    uint64_t bytes = (uint64_t)json_integer_value(json_object_get(j, "archive_bytes"));
+    uint32_t cells = (uint32_t)json_integer_value(json_object_get(j, "cells"));
+    assert_true(cells > 1 && cells % 64 == 1);
+    json_decref(j);
+
+    ms_catalog cat;
+    ms_error err;
+    assert_int_equal(ms_catalog_load(dir, &cat, &err), MS_OK);
+    const ms_catalog_entry *e = ms_catalog_find(&cat, "dragon3");
+    assert_non_null(e);
+    assert_int_equal(e->archive_bytes, bytes);
+    assert_int_equal(e->cells, cells);
+    assert_int_equal(e->bits, 16);
+    assert_int_equal(e->n, 4);
+    assert_int_equal(e->root_bits, 7);
+    assert_int_equal(e->min_triangles, 3000);
+    assert_string_equal(e->source, model);
+    ms_catalog_free(&cat);
+
+    char path[700];
+    snprintf(path, sizeof path, "%s/dragon3.msa", dir);
+    ms_archive *a;
+    assert_int_equal(ms_archive_open(path, &a, &err), MS_OK);
+    const ms_archive_header *h = ms_archive_get_header(a);
+    assert_int_equal(h->cell_count, cells);
+    assert_int_equal(h->file_size, bytes);
+    for (uint32_t c = 0; c < h->cell_count; ++c)
+        assert_int_equal(ms_archive_verify_payload(a, c, &err), MS_OK);
+    ms_archive_close(a);
+    const char *expected[] = {"dragon3.msa", "catalog.json", "catalog.lock", NULL};
+    assert_int_equal(strays(dir, expected), 0);
+
+    /* Text report on a second model; --info still works. */
+    snprintf(cmd, sizeof cmd, "%s '%s' -o '%s' --name again", bin, model, dir);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
+    assert_non_null(strstr(out, "duplicated triangles"));
+    assert_non_null(strstr(out, "bits per vertex"));
+    snprintf(cmd, sizeof cmd, "%s --info '%s'", bin, model);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
+    assert_non_null(strstr(out, "47794"));
+    ms_test_rmdir(dir);
+}
+
+/* Tiny leaf buffers force the block lists on disk: same bytes. */
+static void test_flushing_changes_nothing(void **state)
+{
+    (void)state;
+    char dir[512], model[4096], cmd[4096], out[256];
+    ms_test_tmpdir(dir, sizeof dir);
+    ms_test_model_path(model, sizeof model, "stanford_bunny.obj.gz");
+    ms_bake_options o;
+    ms_bake_options_default(&o);
+    o.input = model;
+    o.archive_dir = dir;
+    o.min_triangles = 1000;
+    o.threads = 2;
+    ms_bake_report r1, r2;
+    ms_error err;
+    o.name = "roomy";
+    assert_int_equal(ms_bake(&o, &r1, &err), MS_OK);
+    o.name = "tight";
+    o.buffer_bytes = 16384;
+    assert_int_equal(ms_bake(&o, &r2, &err), MS_OK);
+    snprintf(cmd, sizeof cmd, "cmp '%s/roomy.msa' '%s/tight.msa'", dir, dir);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
+    assert_int_equal(r1.cells, r2.cells);
+    assert_int_equal(r1.flushes, 0);
+    assert_true(r2.flushes > 0 && r2.blocks_written > 0);
+    ms_test_rmdir(dir);
+}
+
+static void test_usage_errors(void **state)
+{
+    (void)state;
+    char dir[512], bin[4096], model[4096], cmd[16384], out[4096];
+    ms_test_tmpdir(dir, sizeof dir);
+    ms_test_bin_path(bin, sizeof bin, "meshbake");
+    ms_test_model_path(model, sizeof model, "stanford_bunny_res3.ply.gz");
+    const char *bad[] = {"--n 3", "--bits 30", "--root-bits 1 --n 8", "--min-tris 0",
+                         "--threads -2", "--name ../x", "--mem 1", "--bits", "--info"};
+    for (size_t i = 0; i < sizeof bad / sizeof *bad; ++i) {
+        snprintf(cmd, sizeof cmd, "%s '%s' -o '%s' %s", bin, model, dir, bad[i]);
+        assert_int_equal(ms_test_run(cmd, out, sizeof out), 2);
+        assert_non_null(strstr(out, "meshbake: "));
+        assert_null(strchr(strchr(out, '\n') + 1, '\n')); /* one line */
+    }
+    snprintf(cmd, sizeof cmd, "%s '%s'", bin, model);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 2);
+    const char *expected[] = {NULL};
+    assert_int_equal(strays(dir, expected), 0);
+    ms_test_rmdir(dir);
+}
+
+/* A failed bake leaves the directory as it was. */
+static void test_failure_leaves_nothing(void **state)
+{
+    (void)state;
+    char dir[512], bin[4096], model[4096], bad[700], cmd[16384], out[4096];
+    ms_test_tmpdir(dir, sizeof dir);
+    ms_test_bin_path(bin, sizeof bin, "meshbake");
+    ms_test_model_path(model, sizeof model, "stanford_bunny_res3.ply.gz");
+    snprintf(cmd, sizeof cmd, "%s '%s' -o '%s' --name good", bin, model, dir);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
+    /* a truncated PLY fails while reading, after the spools exist */
+    snprintf(bad, sizeof bad, "%s/broken.ply", dir);
+    snprintf(cmd, sizeof cmd, "zcat '%s' | head -c 60000 > '%s'", model, bad);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
+    snprintf(cmd, sizeof cmd, "cp '%s/catalog.json' '%s/catalog.before'", dir, dir);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
+    snprintf(cmd, sizeof cmd, "%s '%s' -o '%s' --name broken", bin, bad, dir);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 1);
+    assert_non_null(strstr(out, "broken.ply"));
+    snprintf(cmd, sizeof cmd, "%s /nonexistent.ply -o '%s'", bin, dir);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 1);
+    snprintf(cmd, sizeof cmd, "cmp '%s/catalog.json' '%s/catalog.before'", dir, dir);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
+    const char *expected[] = {"good.msa", "catalog.json", "catalog.lock", "catalog.before",
+                              "broken.ply", NULL};
+    assert_int_equal(strays(dir, expected), 0);
+    ms_test_rmdir(dir);
+}
+
+/* SIGKILL in the middle of a bake: no archive under its name, no temporary file
+ * (they are unlinked when created), the catalogue untouched. */
+static void test_killed_bake_leaves_nothing(void **state)
+{
+    (void)state;
+    char dir[512], bin[4096], gen[4096], ply[700], cmd[16384], out[4096], log[700];
+    ms_test_tmpdir(dir, sizeof dir);
+    ms_test_bin_path(bin, sizeof bin, "meshbake");
+    ms_test_bin_path(gen, sizeof gen, "meshgen");
+    snprintf(ply, sizeof ply, "%s/big.ply", dir);
+    snprintf(cmd, sizeof cmd, "%s -o '%s' --triangles 600000", gen, ply);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
+    ms_test_add_model(dir, "other", 1, 12);
+    snprintf(cmd, sizeof cmd, "cp '%s/catalog.json' '%s/catalog.before'", dir, dir);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
+    snprintf(log, sizeof log, "%s/../bake-%d.log", dir, (int)getpid());
+    const double delays[] = {0.05, 0.4, 1.0};
+    unsigned killed = 0;
+    for (size_t i = 0; i < sizeof delays / sizeof *delays; ++i) {
+        char *argv[] = {bin, ply, "-o", dir, "--name", "big", "--threads", "2", NULL};
+        pid_t pid = ms_test_spawn(argv, log);
+        assert_true(pid > 0);
+        struct timespec ts = {0, (long)(delays[i] * 1e9)};
+        nanosleep(&ts, NULL);
+        int status;
+        if (waitpid(pid, &status, WNOHANG) == 0) {
+            kill(pid, SIGKILL);
+            waitpid(pid, &status, 0);
+            killed++;
+        } else {
+            print_message("bake finished before the kill at %.2f s\n", delays[i]);
+            char path[700];
+            snprintf(path, sizeof path, "%s/big.msa", dir);
+            unlink(path);
+            assert_int_equal(ms_catalog_remove(dir, "big", NULL), MS_OK);
+            snprintf(cmd, sizeof cmd, "cp '%s/catalog.json' '%s/catalog.before'", dir, dir);
+            assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
+            continue;
+        }
+        const char *expected[] = {"big.ply", "other.msa", "catalog.json", "catalog.lock",
+                                  "catalog.before", NULL};
+        assert_int_equal(strays(dir, expected), 0);
+        snprintf(cmd, sizeof cmd, "cmp '%s/catalog.json' '%s/catalog.before'", dir, dir);
+        assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
+    }
+    unlink(log);
+    assert_true(killed >= 1);
+    ms_test_rmdir(dir);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_json_report_and_catalog),
+        cmocka_unit_test(test_flushing_changes_nothing),
+        cmocka_unit_test(test_usage_errors),
+        cmocka_unit_test(test_failure_leaves_nothing),
+        cmocka_unit_test(test_killed_bake_leaves_nothing),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
