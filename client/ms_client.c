@@ -29,6 +29,7 @@ struct ms_client {
     ms_proto_model_opened opened;
     uint8_t *index;
     uint32_t index_have;
+    struct ev_token_bucket_cfg *rate;
 };
 
 static void finish(ms_client *c, const char *why)
@@ -255,6 +256,8 @@ void ms_client_free(ms_client *c)
         return;
     if (c->bev)
         bufferevent_free(c->bev);
+    if (c->rate)
+        ev_token_bucket_cfg_free(c->rate);
     ms_proto_decoder_free(&c->decoder);
     free(c->index);
     free(c);
@@ -320,4 +323,28 @@ const ms_proto_hello_reply *ms_client_limits(const ms_client *c) { return &c->li
 size_t ms_client_pending_output(const ms_client *c)
 {
     return evbuffer_get_length(bufferevent_get_output(c->bev));
+}
+
+ms_status ms_client_set_rate_limit(ms_client *c, double bytes_per_second, ms_error *err)
+{
+    struct ev_token_bucket_cfg *cfg = NULL;
+    if (bytes_per_second > 0) {
+        /* Refill every 10 ms; the burst is one refill (at least one TCP segment's worth). */
+        double per_tick = bytes_per_second / 100.0;
+        size_t rate = per_tick < 1 ? 1 : per_tick > 1e9 ? 1000000000u : (size_t)per_tick;
+        size_t burst = rate < 1460 ? 1460 : rate;
+        struct timeval tick = {0, 10000};
+        cfg = ev_token_bucket_cfg_new(rate, burst, EV_RATE_LIMIT_MAX, EV_RATE_LIMIT_MAX, &tick);
+        if (!cfg)
+            return ms_error_set(err, MS_ERR_NOMEM, "out of memory for a rate limit");
+    }
+    if (bufferevent_set_rate_limit(c->bev, cfg) != 0) {
+        if (cfg)
+            ev_token_bucket_cfg_free(cfg);
+        return ms_error_set(err, MS_ERR_NOMEM, "cannot set a rate limit");
+    }
+    if (c->rate)
+        ev_token_bucket_cfg_free(c->rate);
+    c->rate = cfg;
+    return MS_OK;
 }

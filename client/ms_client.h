@@ -68,6 +68,10 @@ ms_status ms_client_cancel(ms_client *client, const ms_proto_id_range *ranges, u
 ms_status ms_client_cancel_all(ms_client *client, ms_error *err);
 ms_status ms_client_ping(ms_client *client, uint64_t opaque, ms_error *err);
 
+/* Throttles what this connection reads to bytes_per_second (a token bucket
+ * refilled every 10 ms); 0 removes the limit. MS_ERR_NOMEM. */
+ms_status ms_client_set_rate_limit(ms_client *client, double bytes_per_second, ms_error *err);
+
 /* The server's HELLO_REPLY (zeros before it arrived). */
 const ms_proto_hello_reply *ms_client_limits(const ms_client *client);
 /* Bytes queued for sending and not yet written to the socket. */

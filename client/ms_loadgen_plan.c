@@ -73,7 +73,7 @@ static void move_camera(ms_loadgen_plan *p)
     size_t old_count = p->view_count;
     p->view = p->spare;
     p->spare = old;
-    size_t n = ms_view_select(p->index, &camera, TOLERANCE_PX, p->view, p->view_capacity);
+    size_t n = ms_view_select_cells(p->index, &camera, TOLERANCE_PX, p->view, p->view_capacity);
     if (n > p->view_capacity)
         n = p->view_capacity;
     for (size_t i = 0; i < n; ++i)

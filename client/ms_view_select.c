@@ -43,7 +43,7 @@ static void visit(selection *s, uint32_t id, unsigned depth)
         visit(s, c->first_child + k, depth + 1);
 }
 
-size_t ms_view_select(const ms_archive *index, const ms_camera *camera, double tolerance_px,
+size_t ms_view_select_cells(const ms_archive *index, const ms_camera *camera, double tolerance_px,
                       ms_view_cell *out, size_t capacity)
 {
     selection s = {index, camera, {{{0}}, {0}}, tolerance_px, 0, out, capacity, 0};

@@ -29,7 +29,7 @@ typedef struct ms_view_cell {
 /* Writes up to capacity cells to out, parents before children; returns how
  * many cells are selected in all (may exceed capacity: then call again with
  * more room). tolerance_px > 0. */
-size_t ms_view_select(const ms_archive *index, const ms_camera *camera, double tolerance_px,
+size_t ms_view_select_cells(const ms_archive *index, const ms_camera *camera, double tolerance_px,
                       ms_view_cell *out, size_t capacity);
 
 #endif

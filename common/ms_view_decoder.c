@@ -176,6 +176,44 @@ ms_status ms_view_set_bytes(ms_view *v, uint32_t cell, const uint8_t *data, size
     return MS_OK;
 }
 
+ms_status ms_view_append_bytes(ms_view *v, uint32_t cell, const uint8_t *data, size_t length,
+                               ms_error *err)
+{
+    if (cell >= v->count)
+        return ms_error_set(err, MS_ERR_RANGE, "no cell %u", cell);
+    vcell *c = &v->cells[cell];
+    if (length > c->rec.geometry_length - c->nbytes)
+        return ms_error_set(err, MS_ERR_RANGE, "cell %u: %zu more bytes for a %u-byte payload "
+                            "of which %zu are held", cell, length, c->rec.geometry_length,
+                            c->nbytes);
+    if (length == 0)
+        return MS_OK;
+    uint8_t *b = realloc(c->bytes, c->nbytes + length);
+    if (!b)
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory for cell %u's bytes", cell);
+    memcpy(b + c->nbytes, data, length);
+    c->bytes = b;
+    c->nbytes += length;
+    return MS_OK;
+}
+
+ms_status ms_view_forget(ms_view *v, uint32_t cell, ms_error *err)
+{
+    if (cell >= v->count || v->cells[cell].state != MS_VIEW_HIDDEN)
+        return ms_error_set(err, MS_ERR_RANGE, "cell %u is not hidden", cell);
+    vcell *c = &v->cells[cell];
+    cell_reset(c);
+    free(c->bytes);
+    c->bytes = NULL;
+    c->nbytes = 0;
+    return MS_OK;
+}
+
+size_t ms_view_held_bytes(const ms_view *v, uint32_t cell)
+{
+    return cell < v->count ? v->cells[cell].nbytes : 0;
+}
+
 /* Highest bit whose prefix the held bytes cover, from the codec header. */
 static unsigned held_bits(const vcell *c)
 {

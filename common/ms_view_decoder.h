@@ -75,6 +75,19 @@ const ms_archive_cell *ms_view_cell(const ms_view *view, uint32_t cell);
 ms_status ms_view_set_bytes(ms_view *view, uint32_t cell, const uint8_t *data, size_t length,
                             ms_error *err);
 
+/* Appends length bytes to what the cell holds (the next part of its payload,
+ * from offset ms_view_held_bytes). MS_ERR_RANGE past the payload's end. */
+ms_status ms_view_append_bytes(ms_view *view, uint32_t cell, const uint8_t *data, size_t length,
+                               ms_error *err);
+
+/* Releases the bytes and decoder of a HIDDEN cell (a client's cache eviction);
+ * the cell needs its payload again before it can be refined once shown.
+ * MS_ERR_RANGE when the cell is not HIDDEN. */
+ms_status ms_view_forget(ms_view *view, uint32_t cell, ms_error *err);
+
+/* Bytes of the cell's payload held (what ms_view_set_bytes was given). */
+size_t ms_view_held_bytes(const ms_view *view, uint32_t cell);
+
 /* Highest precision of the cell decodable from the bytes held (bits_min when no
  * complete bit is held; bits_max for an empty cell). */
 unsigned ms_view_available_bits(const ms_view *view, uint32_t cell);

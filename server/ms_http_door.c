@@ -14,7 +14,10 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/queue.h>
+#include <fcntl.h>
 #include <sys/socket.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include "ms_progress.h"
 #include "ms_server.h"
@@ -355,6 +358,45 @@ static void serve_metrics(ms_http_door *door, struct evhttp_request *req)
 
 /* --- Routing ----------------------------------------------------------------- */
 
+/* The model compressed whole with Draco (ARCHIVE_DIR/NAME.drc, written by the
+ * benchmark), for meshload's baseline: the same bytes a non-streaming viewer
+ * would download. Public models only; 404 when there is no such file. */
+static void serve_draco(ms_http_door *door, struct evhttp_request *req, ms_model *model,
+                        const char *name, const struct evkeyvalq *query)
+{
+    if (!authorized(door, req, query) &&
+        model->entry.public_max_bits < ms_archive_get_header(model->archive)->bits) {
+        send_text(door, req, 403, "Forbidden", "error: the whole model needs a token");
+        return;
+    }
+    char path[4096];
+    snprintf(path, sizeof path, "%s/%s.drc", door->server->config.archive_dir, name);
+    int fd = open(path, O_RDONLY | O_CLOEXEC);
+    struct stat st;
+    if (fd < 0 || fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
+        if (fd >= 0)
+            close(fd);
+        send_text(door, req, 404, "Not Found", "error: no Draco file for this model");
+        return;
+    }
+    struct evbuffer *body = evbuffer_new();
+    if (!body || (st.st_size > 0 && evbuffer_add_file(body, fd, 0, st.st_size) != 0)) {
+        if (body)
+            evbuffer_free(body);
+        else
+            close(fd);
+        send_text(door, req, 500, "Internal Server Error", "error: cannot send the file");
+        return;
+    }
+    if (st.st_size == 0)
+        close(fd);
+    evhttp_add_header(evhttp_request_get_output_headers(req), "Content-Type",
+                      "application/octet-stream");
+    door->server->metrics.http_bytes_sent += (uint64_t)st.st_size;
+    evhttp_send_reply(req, 200, "OK", body);
+    evbuffer_free(body);
+}
+
 static void route(ms_http_door *door, struct evhttp_request *req, char *path,
                   const struct evkeyvalq *query)
 {
@@ -380,6 +422,10 @@ static void route(ms_http_door *door, struct evhttp_request *req, char *path,
         }
         if (n == 2) {
             serve_index(door, req, model);
+            return;
+        }
+        if (n == 3 && !strcmp(seg[2], "draco")) {
+            serve_draco(door, req, model, seg[1], query);
             return;
         }
         if (n == 5 && !strcmp(seg[2], "cells") &&

@@ -1,0 +1,151 @@
+/* The client core: everything a meshstream viewer does except drawing.
+ *
+ * One ms_core streams one model from meshserve's binary door
+ * (protocol/PROTOCOL.md) for a camera the caller moves:
+ *
+ *   - a network thread (libevent) keeps the connection, reconnecting with
+ *     backoff after a drop and resuming partly received ranges with BYTES
+ *     requests (PROTOCOL.md section 10); it sends the requests the decode
+ *     thread asks for, cancels those no longer wanted, throttles its reads to
+ *     the configured bandwidth, and gives up on a server that does not answer;
+ *   - a decode thread owns the view-dependent decoder (ms_view_decoder.h): it
+ *     takes the latest camera, selects cells by frustum and projected screen
+ *     error with hysteresis, verifies received bytes (per-bit chunk CRCs, whole
+ *     payload CRC; a corrupt range is fetched once more, then the cell is
+ *     reported failed), decodes, decides what to ask for next and in which
+ *     order, keeps memory within budget, and publishes frames;
+ *   - the caller's thread (the one that draws) only sets the camera, takes
+ *     frames and reads statistics: none of these block on decoding or I/O
+ *     (they take a mutex held for a copy or a pointer swap).
+ *
+ * Request order. For every shown cell below its target, each missing precision
+ * bit is one request, with priority 128 - 8 * (need - bit) for cells in the
+ * frustum (need = the real-valued precision the camera asks for), 64 lower for
+ * culled ones: the bit that removes the most on-screen error goes first, and
+ * every visible cell gets its first bits before any gets its last. At most
+ * `window_bytes` are in flight, so priorities follow the camera.
+ *
+ * Memory budget. memory = payload bytes held (decoder and reception buffers)
+ * + an estimate of decoded complexes (64 bytes per vertex). Above
+ * memory_target the screen tolerance is raised by half a bit every 100 ms (up
+ * to 64x), and it comes back down below 0.7 x target; hidden cells (those an
+ * ancestor stands for) are evicted least useful first (usefulness = the
+ * precision the camera would want of them; culled cells least). Loading
+ * continues while memory + bytes in flight stay below memory_ceiling; a new
+ * range that would cross it may evict only cells at least one bit less
+ * useful than the cell it loads. Cells in the cut (the root, every shown
+ * cell and the split cells above them) are never evicted.
+ *
+ * Two tolerances. tolerance_px is the geometric screen tolerance; with APO on
+ * (apo_levels > 0 on a model that has APO chunks) geometry refines only to
+ * apo_geometry_tolerance_px and each visible cell's APO chunk is fetched up
+ * to apo_levels levels, handed over in frames.
+ *
+ * Ownership: the core copies its options' strings. A frame returned by
+ * ms_core_take_frame belongs to the caller (ms_core_frame_free).
+ * Errors: ms_status with one line; a core that cannot go on (server gone for
+ * longer than give_up_seconds, model changed, out of memory) keeps its last
+ * state and reports the error in ms_core_stats (error[0] != 0).
+ * Thread-safety: every function may be called from any one thread (typically
+ * the drawing thread), and ms_core_set_camera / ms_core_take_frame /
+ * ms_core_stats concurrently with each other; ms_core_stop must not race
+ * with the others.
+ */
+#ifndef MS_CLIENT_CORE_H
+#define MS_CLIENT_CORE_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "ms_camera.h"
+#include "ms_error.h"
+#include "ms_view_decoder.h"
+
+typedef struct ms_core ms_core;
+
+/* Test hook (fault injection): sees, and may alter, every received payload
+ * chunk on the decode thread before it is checked. */
+typedef void (*ms_core_payload_filter)(uint32_t cell, bool apo, uint32_t offset, uint8_t *data,
+                                       size_t length, void *arg);
+
+typedef struct ms_core_options {
+    const char *host;          /* numeric IPv4/IPv6 address */
+    uint16_t port;
+    const char *model;
+    const char *token;         /* NULL: none (preview access) */
+    const char *agent;         /* NULL: "meshstream-client" */
+    double tolerance_px;       /* geometric screen tolerance, pixels; 0 = 1 */
+    double hysteresis_bits;    /* ms_select_bits hysteresis; < 0 = 0.5 (0 is exact) */
+    double culled_bits_less;   /* culled cells' need is lowered by this; 0 = 3 */
+    double frustum_margin;     /* world units; 0 = none */
+    unsigned apo_levels;       /* APO detail target in levels; 0 = APO off */
+    double apo_geometry_tolerance_px; /* geometry tolerance with APO on; 0 = 4 */
+    uint64_t memory_target, memory_ceiling; /* bytes; 0 = no budget */
+    double bandwidth;          /* bytes per second read from the server; 0 = unlimited */
+    uint64_t window_bytes;     /* bytes in flight at most; 0 = 0.25 s of bandwidth,
+                                  at least 64 KiB (1 MiB when unlimited) */
+    double answer_timeout;     /* seconds without a byte while waiting; 0 = 5 */
+    double give_up_seconds;    /* reconnecting this long without success ends; 0 = 30 */
+    bool export_frames;        /* stitch a frame after each change (for drawing/tests) */
+    ms_core_payload_filter payload_filter;
+    void *payload_filter_arg;
+} ms_core_options;
+
+/* Starts the threads and connects; returns at once (the camera may be set
+ * before the model is open). MS_ERR_ARG for bad options, MS_ERR_NOMEM, or
+ * MS_ERR_IO when a thread cannot start. */
+ms_status ms_core_start(const ms_core_options *options, ms_core **core, ms_error *err);
+
+/* Stops the threads, closes the connection and frees everything. NULL is a no-op. */
+void ms_core_stop(ms_core *core);
+
+/* The camera to serve from now on (copied). */
+void ms_core_set_camera(ms_core *core, const ms_camera *camera);
+
+typedef struct ms_core_apo_chunk {
+    uint32_t cell;
+    unsigned levels;          /* complete octree levels in data */
+    uint8_t *data;            /* the chunk's prefix, as stored (compressed per ARCHIVE.md) */
+    size_t length;
+} ms_core_apo_chunk;
+
+/* What to draw: the stitched mesh of every shown cell (ms_view_stitch), the
+ * cut, and the APO chunks of the shown cells that have one. */
+typedef struct ms_core_frame {
+    uint64_t generation;      /* increases with each published frame */
+    double time;              /* seconds since ms_core_start */
+    ms_view_mesh mesh;
+    uint32_t cell_count;      /* cells of the model */
+    uint8_t *cell_bits;       /* per cell: shown precision, or 0xFF (hidden) / 0xFE (split) */
+    ms_core_apo_chunk *apo;
+    size_t apo_count;
+} ms_core_frame;
+
+/* The newest frame published since the last take, or NULL (never blocks on
+ * decoding). Needs export_frames. */
+ms_core_frame *ms_core_take_frame(ms_core *core);
+void ms_core_frame_free(ms_core_frame *frame);
+
+typedef struct ms_core_stats {
+    double time;               /* seconds since start */
+    bool connected, model_open;
+    bool view_complete;        /* every cell of the cut at its target, nothing missing */
+    uint64_t camera_serial;    /* the camera set-call the figures below answer */
+    double achieved_error_px;  /* largest projected error of a visible shown cell */
+    double tolerance_px;       /* effective geometric tolerance (raised over budget) */
+    double first_display;      /* seconds to the first frame with a triangle; < 0 none yet */
+    uint64_t bytes_received;   /* payload bytes */
+    uint64_t bytes_in_flight;  /* requested and not yet received */
+    uint64_t requests, cancels, reconnects, refetches, evictions;
+    uint32_t cells_shown, cells_split, cells_cached, cells_loading, cells_failed;
+    uint64_t memory, peak_memory;
+    double decode_seconds;     /* decode thread busy time (verify, decode, select) */
+    double latency_p50, latency_p99; /* request send to last byte, seconds */
+    char error[256];           /* why the core stopped, or "" */
+    char warning[256];         /* last non-fatal problem (e.g. a failed cell), or "" */
+} ms_core_stats;
+
+void ms_core_get_stats(ms_core *core, ms_core_stats *stats);
+
+#endif
