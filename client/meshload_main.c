@@ -43,7 +43,7 @@ typedef struct options {
     uint16_t port;
     unsigned clients, apo_levels;
     double bandwidth, tolerance, duration, keyframe_timeout, width, height;
-    double memory_target, memory_ceiling, hysteresis;
+    double memory_target, memory_ceiling, hysteresis, culled_less;
     bool json, skip_cold;
 } options;
 
@@ -104,6 +104,7 @@ static ms_core_options core_options(const options *o)
     co.agent = "meshload/0.1";
     co.tolerance_px = o->tolerance;
     co.hysteresis_bits = o->hysteresis;
+    co.culled_bits_less = o->culled_less;
     co.apo_levels = o->apo_levels;
     co.memory_target = (uint64_t)(o->memory_target * 1048576.0);
     co.memory_ceiling = (uint64_t)(o->memory_ceiling * 1048576.0);
@@ -515,6 +516,7 @@ static void usage(FILE *out)
             "  --viewport WxH         pixels (default 1280x720)\n"
             "  --memory-target MB, --memory-ceiling MB   the cache budget (default none)\n"
             "  --hysteresis BITS      precision hysteresis (default 0.5)\n"
+            "  --culled-bits-less B   precision given up on cells outside the view (default 3)\n"
             "  --apo-levels L         APO detail target (default 0: APO off)\n"
             "  --token TOKEN          access token\n"
             "  --no-cold              skip the cold-open phase\n"
@@ -579,6 +581,7 @@ static int parse_options(int argc, char **argv, options *o)
         {"memory-target", required_argument, NULL, 'M'},
         {"memory-ceiling", required_argument, NULL, 'C'},
         {"hysteresis", required_argument, NULL, 'H'},
+        {"culled-bits-less", required_argument, NULL, 'L'},
         {"apo-levels", required_argument, NULL, 'a'}, {"token", required_argument, NULL, 'T'},
         {"no-cold", no_argument, NULL, 'n'},       {"baseline", required_argument, NULL, 'B'},
         {"draco-decoder", required_argument, NULL, 'D'}, {"help", no_argument, NULL, 'h'},
@@ -664,6 +667,12 @@ static int parse_options(int argc, char **argv, options *o)
                 return 2;
             }
             break;
+        case 'L':
+            if (parse_double(optarg, 0.01, 64, &o->culled_less) != 0) {
+                fprintf(stderr, "meshload: --culled-bits-less wants bits in (0, 64]\n");
+                return 2;
+            }
+            break;
         case 'a':
             if (parse_double(optarg, 0, 32, &v) != 0 || v != floor(v)) {
                 fprintf(stderr, "meshload: --apo-levels wants 0..32\n");
@@ -672,6 +681,7 @@ static int parse_options(int argc, char **argv, options *o)
             o->apo_levels = (unsigned)v;
             break;
         case 'T': o->token = optarg; break;
+        case 'j': o->json = true; break;
         case 'n': o->skip_cold = true; break;
         case 'B':
             if (strcmp(optarg, "draco") != 0) {

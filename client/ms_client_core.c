@@ -27,6 +27,7 @@
  * passed from the network thread to the decode thread. */
 typedef struct chunk_msg {
     struct chunk_msg *next;
+    uint64_t seq;
     uint32_t cell, offset, length;
     bool apo, failed;
     uint8_t data[];
@@ -39,9 +40,12 @@ typedef struct want {
     uint8_t priority;
 } want;
 
-/* A request in flight on the current connection. */
+/* A request in flight on the current connection. A finished request stays
+ * (done) until the decode thread has taken its last chunk (last_seq), so
+ * that wants computed before that do not ask for its bytes again. */
 typedef struct slot {
-    bool used, cancelled, keep;
+    bool used, cancelled, keep, done;
+    uint64_t last_seq;
     uint32_t id, cell, start, end, got;
     bool apo;
     double sent_at;
@@ -63,9 +67,31 @@ typedef struct dcell {
     ms_codec_header *header; /* parsed once the header arrived */
     uint32_t given;          /* geometry bytes handed to the view */
     uint32_t apo_given;      /* APO bytes complete (in apo.buf from 0: base stays 0) */
+    uint32_t goal_bytes;     /* geometry prefix the current target needs */
+    double handed_at;        /* last hand-over, seconds since start */
     uint8_t retries;
-    bool failed;
+    bool failed, pending;    /* pending: verified bytes not yet handed over */
 } dcell;
+
+/* Decode helpers: refine distinct shown cells in parallel before the
+ * (single-threaded) apply does the splits and merges (ms_view_decoder.h
+ * allows ms_view_set_bits on distinct cells concurrently). */
+typedef struct refine_job {
+    uint32_t cell;
+    unsigned bits;
+} refine_job;
+
+typedef struct decode_pool {
+    pthread_t *threads;
+    unsigned count;
+    pthread_mutex_t lock;
+    pthread_cond_t go, done;
+    bool quit;
+    uint64_t round;          /* incremented per batch */
+    refine_job *jobs;
+    size_t job_count, next_job, finished;
+    ms_view *view;
+} decode_pool;
 
 struct ms_core {
     ms_core_options o;
@@ -85,6 +111,8 @@ struct ms_core {
     want *wants;
     size_t want_count;
     uint64_t want_serial;
+    uint64_t push_seq;          /* chunks pushed by the network thread */
+    uint64_t want_consumed_seq; /* chunks the decode thread had taken for `wants` */
     ms_core_frame *frame;
     ms_core_stats stats;        /* decode thread's figures */
     /* network figures */
@@ -107,7 +135,8 @@ struct ms_core {
     char dead_why[256];
     double last_activity, reconnect_at, down_since, backoff;
     slot slots[MAX_SLOTS];
-    unsigned slots_used;
+    unsigned slots_used, slots_active;
+    uint64_t net_consumed_seq;
     uint32_t *slot_head;        /* 2 per cell */
     uint32_t cell_count;
     want *net_wants;
@@ -121,7 +150,11 @@ struct ms_core {
     uint8_t *target;
     double tolerance_factor, last_budget_step;
     uint64_t generation;
+    uint64_t consumed_seq;
     bool first_display_seen;
+    decode_pool pool;
+    refine_job *jobs;
+    size_t job_cap;
 };
 
 static double now_s(void)
@@ -169,12 +202,14 @@ static void slot_unlink(ms_core *c, uint32_t k)
         *p = s->next;
     s->used = false;
     c->slots_used--;
+    if (!s->done)
+        c->slots_active--;
 }
 
 static uint32_t slot_find(ms_core *c, uint32_t id)
 {
     for (uint32_t k = 0; k < MAX_SLOTS; ++k)
-        if (c->slots[k].used && c->slots[k].id == id)
+        if (c->slots[k].used && !c->slots[k].done && c->slots[k].id == id)
             return k;
     return NO_SLOT;
 }
@@ -182,6 +217,7 @@ static uint32_t slot_find(ms_core *c, uint32_t id)
 static void push_chunk(ms_core *c, chunk_msg *m)
 {
     pthread_mutex_lock(&c->lock);
+    m->seq = ++c->push_seq;
     if (c->inbox_tail)
         c->inbox_tail->next = m;
     else
@@ -202,10 +238,26 @@ static void record_latency(ms_core *c, double seconds)
 static void end_slot(ms_core *c, uint32_t k)
 {
     slot *s = &c->slots[k];
+    if (!s->done) {
+        pthread_mutex_lock(&c->lock);
+        c->bytes_in_flight -= s->end - s->start - s->got;
+        pthread_mutex_unlock(&c->lock);
+    }
+    slot_unlink(c, k);
+}
+
+/* The request's last byte arrived: keep covering its range until the decode
+ * thread has taken it. */
+static void finish_slot(ms_core *c, uint32_t k)
+{
+    slot *s = &c->slots[k];
     pthread_mutex_lock(&c->lock);
     c->bytes_in_flight -= s->end - s->start - s->got;
+    s->last_seq = c->push_seq;
     pthread_mutex_unlock(&c->lock);
-    slot_unlink(c, k);
+    s->got = s->end - s->start;
+    s->done = true;
+    c->slots_active--;
 }
 
 /* Drops the connection; everything in flight is forgotten (the decode thread
@@ -254,10 +306,14 @@ static void net_fill(ms_core *c)
             memcpy(c->net_wants, c->wants, c->want_count * sizeof *c->wants);
         c->net_want_count = c->want_count;
         c->net_want_serial = c->want_serial;
+        c->net_consumed_seq = c->want_consumed_seq;
     }
     uint64_t in_flight = c->bytes_in_flight;
     pthread_mutex_unlock(&c->lock);
 
+    for (uint32_t k = 0; k < MAX_SLOTS; ++k)
+        if (c->slots[k].used && c->slots[k].done && c->slots[k].last_seq <= c->net_consumed_seq)
+            slot_unlink(c, k);
     if (fresh) {
         for (uint32_t k = 0; k < MAX_SLOTS; ++k)
             c->slots[k].keep = false;
@@ -271,7 +327,7 @@ static void net_fill(ms_core *c)
         uint16_t nr = 0;
         for (uint32_t k = 0; k < MAX_SLOTS; ++k) {
             slot *s = &c->slots[k];
-            if (!s->used || s->keep || s->cancelled)
+            if (!s->used || s->keep || s->cancelled || s->done)
                 continue;
             s->cancelled = true;
             ranges[nr].first_id = s->id, ranges[nr].count = 1;
@@ -298,7 +354,8 @@ static void net_fill(ms_core *c)
     uint32_t where[256];
     uint16_t n = 0;
     for (size_t i = 0; i < c->net_want_count && n < max_batch; ++i) {
-        if (c->slots_used + n >= max_out || (in_flight > 0 && in_flight >= c->window))
+        if (c->slots_active + n >= max_out || c->slots_used + n >= MAX_SLOTS ||
+            (in_flight > 0 && in_flight >= c->window))
             break;
         const want *w = &c->net_wants[i];
         uint32_t start = w->start, end = w->end;
@@ -336,6 +393,7 @@ static void net_fill(ms_core *c)
         s->used = true;
         s->cell = w->cell, s->apo = w->apo, s->start = start, s->end = end;
         c->slots_used++;
+        c->slots_active++;
         s->next = *head_of(c, w->cell, w->apo);
         *head_of(c, w->cell, w->apo) = k;
         batch[n] = (ms_proto_cell_request){.cell_id = w->cell,
@@ -460,7 +518,7 @@ static void on_payload(ms_client *client, uint32_t id, const ms_proto_payload *p
     }
     if (last) {
         record_latency(c, c->last_activity - s->sent_at);
-        end_slot(c, k);
+        finish_slot(c, k);
         net_fill(c);
     }
 }
@@ -593,7 +651,7 @@ static void on_tick(evutil_socket_t fd, short what, void *arg)
         }
         return;
     }
-    bool waiting = !c->ready || c->slots_used > 0;
+    bool waiting = !c->ready || c->slots_active > 0;
     if (waiting && t - c->last_activity > c->o.answer_timeout) {
         char why[128];
         snprintf(why, sizeof why, "the server sent nothing for %.1f s", t - c->last_activity);
@@ -782,6 +840,17 @@ static void dec_hand_over(ms_core *c, uint32_t cell)
     }
     if (good == d->given)
         return;
+    /* The view's decoder restarts from the cell's first bit whenever it gets
+     * more bytes, so hand over in few steps: the first bits at once (something
+     * to show), then when the target's prefix is complete, or every 0.25 s. */
+    double t = since_start(c);
+    if (good > ms_archive_geometry_prefix(c->index, cell, rec->bits_min + 3u) &&
+        good < d->goal_bytes && good < rec->geometry_length && t - d->handed_at < 0.25) {
+        d->pending = true;
+        return;
+    }
+    d->pending = false;
+    d->handed_at = t;
     ms_error err;
     if (ms_view_append_bytes(c->view, cell, d->geo.buf + (d->given - d->geo.base),
                              good - d->given, &err) != MS_OK) {
@@ -1017,6 +1086,107 @@ static bool dec_something_drawn(ms_core *c, const frame_view *fv)
     return false;
 }
 
+static void pool_run_jobs(decode_pool *p)
+{
+    for (;;) {
+        pthread_mutex_lock(&p->lock);
+        size_t k = p->next_job < p->job_count ? p->next_job++ : SIZE_MAX;
+        pthread_mutex_unlock(&p->lock);
+        if (k == SIZE_MAX)
+            return;
+        /* failures are seen again, and reported, by ms_view_apply */
+        (void)ms_view_set_bits(p->view, p->jobs[k].cell, p->jobs[k].bits, NULL);
+        pthread_mutex_lock(&p->lock);
+        if (++p->finished == p->job_count)
+            pthread_cond_broadcast(&p->done);
+        pthread_mutex_unlock(&p->lock);
+    }
+}
+
+static void *pool_main(void *arg)
+{
+    decode_pool *p = arg;
+    uint64_t seen = 0;
+    pthread_mutex_lock(&p->lock);
+    for (;;) {
+        while (!p->quit && p->round == seen)
+            pthread_cond_wait(&p->go, &p->lock);
+        if (p->quit)
+            break;
+        seen = p->round;
+        pthread_mutex_unlock(&p->lock);
+        pool_run_jobs(p);
+        pthread_mutex_lock(&p->lock);
+    }
+    pthread_mutex_unlock(&p->lock);
+    return NULL;
+}
+
+/* Runs the jobs on the helpers and this thread; returns when all are done. */
+static void pool_refine(decode_pool *p, ms_view *view, refine_job *jobs, size_t n)
+{
+    if (n == 0)
+        return;
+    if (p->count == 0 || n == 1) {
+        for (size_t k = 0; k < n; ++k)
+            (void)ms_view_set_bits(view, jobs[k].cell, jobs[k].bits, NULL);
+        return;
+    }
+    pthread_mutex_lock(&p->lock);
+    p->view = view, p->jobs = jobs, p->job_count = n, p->next_job = 0, p->finished = 0;
+    p->round++;
+    pthread_cond_broadcast(&p->go);
+    pthread_mutex_unlock(&p->lock);
+    pool_run_jobs(p);
+    pthread_mutex_lock(&p->lock);
+    while (p->finished < p->job_count)
+        pthread_cond_wait(&p->done, &p->lock);
+    p->job_count = 0;
+    pthread_mutex_unlock(&p->lock);
+}
+
+static int compare_jobs_by_work(const void *x, const void *y)
+{
+    const refine_job *a = x, *b = y;
+    return a->bits > b->bits ? -1 : a->bits < b->bits;
+}
+
+/* The parallel part of a pass: shown cells that can go up with the bytes held. */
+static size_t dec_parallel_refine(ms_core *c)
+{
+    uint32_t n = ms_view_cell_count(c->view);
+    size_t count = 0;
+    for (uint32_t i = 0; i < n; ++i) {
+        if (ms_view_state(c->view, i) != MS_VIEW_SHOWN || c->target[i] == MS_VIEW_TARGET_HIDDEN)
+            continue;
+        const ms_archive_cell *rec = ms_archive_get_cell(c->index, i);
+        if (rec->geometry_length == 0 || ms_view_held_bytes(c->view, i) == 0)
+            continue;
+        unsigned goal = c->target[i] == MS_VIEW_TARGET_SPLIT ? rec->bits_max : c->target[i];
+        unsigned cur = ms_view_bits(c->view, i);
+        if (goal <= cur)
+            continue;
+        unsigned avail = ms_view_available_bits(c->view, i);
+        if (goal > avail)
+            goal = avail;
+        if (goal <= cur)
+            continue;
+        if (count == c->job_cap) {
+            size_t cap = c->job_cap ? 2 * c->job_cap : 64;
+            refine_job *g = realloc(c->jobs, cap * sizeof *g);
+            if (!g)
+                break;
+            c->jobs = g;
+            c->job_cap = cap;
+        }
+        c->jobs[count++] = (refine_job){i, goal};
+    }
+    if (count > 1)
+        qsort(c->jobs, count, sizeof *c->jobs, compare_jobs_by_work);
+    pool_refine(&c->pool, c->view, c->jobs, count);
+    return count;
+}
+
 /* One pass: take inputs, decode, select, plan, publish. */
 static void dec_step(ms_core *c, chunk_msg *chunks, const ms_camera *cam, uint64_t serial,
                      bool have_camera)
@@ -1026,6 +1196,7 @@ static void dec_step(ms_core *c, chunk_msg *chunks, const ms_camera *cam, uint64
     while (chunks) {
         chunk_msg *m = chunks;
         chunks = m->next;
+        c->consumed_seq = m->seq;
         if (m->cell < ms_view_cell_count(c->view)) {
             dcell *d = &c->cells[m->cell];
             if (m->failed) {
@@ -1061,6 +1232,7 @@ static void dec_step(ms_core *c, chunk_msg *chunks, const ms_camera *cam, uint64
                                 .hysteresis = c->o.hysteresis_bits,
                                 .culled_bits_less = c->o.culled_bits_less};
     ms_view_select(c->view, cam, &sp, c->target);
+    size_t refined_in_parallel = dec_parallel_refine(c);
     ms_view_apply_report report;
     ms_error err;
     if (ms_view_apply(c->view, c->target, &report, &err) != MS_OK) {
@@ -1069,7 +1241,8 @@ static void dec_step(ms_core *c, chunk_msg *chunks, const ms_camera *cam, uint64
         pthread_mutex_unlock(&c->lock);
         return;
     }
-    bool changed = report.splits || report.merges || report.refined || report.coarsened;
+    bool changed = refined_in_parallel || report.splits || report.merges || report.refined ||
+                   report.coarsened;
 
     /* what is missing, and in which order */
     want_list wl = {0};
@@ -1104,6 +1277,9 @@ static void dec_step(ms_core *c, chunk_msg *chunks, const ms_camera *cam, uint64
         if (goal > rec->bits_max)
             goal = rec->bits_max;
         unsigned avail = ms_view_available_bits(c->view, i);
+        d->goal_bytes = ms_archive_geometry_prefix(c->index, i, goal);
+        if (d->pending)
+            dec_hand_over(c, i);
         bool cell_loading = false;
         if (goal > avail && rec->geometry_length > 0) {
             complete = false;
@@ -1249,6 +1425,10 @@ static void dec_step(ms_core *c, chunk_msg *chunks, const ms_camera *cam, uint64
         c->republish = false;
         wl.w = NULL;
     }
+    if (c->want_consumed_seq != c->consumed_seq) {
+        c->want_consumed_seq = c->consumed_seq;
+        c->want_serial += same; /* let the network thread release finished requests */
+    }
     if (frame) {
         if (c->frame)
             ms_core_frame_free(c->frame);
@@ -1382,6 +1562,17 @@ ms_status ms_core_start(const ms_core_options *o, ms_core **out, ms_error *err)
     pthread_condattr_init(&ca);
     pthread_cond_init(&c->wake, &ca);
     pthread_condattr_destroy(&ca);
+    decode_pool *p = &c->pool;
+    pthread_mutex_init(&p->lock, NULL);
+    pthread_cond_init(&p->go, NULL);
+    pthread_cond_init(&p->done, NULL);
+    unsigned helpers = c->o.decode_threads ? c->o.decode_threads - 1 : 1;
+    p->threads = calloc(helpers ? helpers : 1, sizeof *p->threads);
+    for (unsigned k = 0; p->threads && k < helpers; ++k) {
+        if (pthread_create(&p->threads[k], NULL, pool_main, p) != 0)
+            break;
+        p->count++;
+    }
     if (pthread_create(&c->dec_thread, NULL, dec_main, c) != 0) {
         ms_core_stop(c);
         return ms_error_set(err, MS_ERR_IO, "cannot start the decode thread");
@@ -1410,6 +1601,19 @@ void ms_core_stop(ms_core *c)
         pthread_join(c->net_thread, NULL);
     if (c->dec_started)
         pthread_join(c->dec_thread, NULL);
+    if (c->pool.threads) {
+        pthread_mutex_lock(&c->pool.lock);
+        c->pool.quit = true;
+        pthread_cond_broadcast(&c->pool.go);
+        pthread_mutex_unlock(&c->pool.lock);
+        for (unsigned k = 0; k < c->pool.count; ++k)
+            pthread_join(c->pool.threads[k], NULL);
+        free(c->pool.threads);
+        pthread_mutex_destroy(&c->pool.lock);
+        pthread_cond_destroy(&c->pool.go);
+        pthread_cond_destroy(&c->pool.done);
+    }
+    free(c->jobs);
     if (c->client)
         ms_client_free(c->client);
     if (c->tick)

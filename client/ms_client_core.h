@@ -8,7 +8,8 @@
  *     requests (PROTOCOL.md section 10); it sends the requests the decode
  *     thread asks for, cancels those no longer wanted, throttles its reads to
  *     the configured bandwidth, and gives up on a server that does not answer;
- *   - a decode thread owns the view-dependent decoder (ms_view_decoder.h): it
+ *   - a decode thread (with decode_threads - 1 helpers that refine distinct
+ *     cells in parallel) owns the view-dependent decoder (ms_view_decoder.h): it
  *     takes the latest camera, selects cells by frustum and projected screen
  *     error with hysteresis, verifies received bytes (per-bit chunk CRCs, whole
  *     payload CRC; a corrupt range is fetched once more, then the cell is
@@ -87,6 +88,8 @@ typedef struct ms_core_options {
                                   at least 64 KiB (1 MiB when unlimited) */
     double answer_timeout;     /* seconds without a byte while waiting; 0 = 5 */
     double give_up_seconds;    /* reconnecting this long without success ends; 0 = 30 */
+    unsigned decode_threads;   /* decoding threads in all (the decode thread and its
+                                  helpers); 0 = 2 */
     bool export_frames;        /* stitch a frame after each change (for drawing/tests) */
     ms_core_payload_filter payload_filter;
     void *payload_filter_arg;
