@@ -19,6 +19,7 @@
 #include <math.h>
 #include <netinet/in.h>
 #include <pthread.h>
+#include <signal.h>
 #include <spawn.h>
 #include <stdbool.h>
 #include <stdio.h>
@@ -367,6 +368,10 @@ static void baseline_client(worker *w)
 static void *worker_main(void *arg)
 {
     worker *w = arg;
+    sigset_t pipe_only;
+    sigemptyset(&pipe_only);
+    sigaddset(&pipe_only, SIGPIPE);
+    pthread_sigmask(SIG_BLOCK, &pipe_only, NULL);
     if (w->r->o->baseline) {
         baseline_client(w);
         return NULL;

@@ -6,6 +6,7 @@
 #include <event2/event.h>
 #include <math.h>
 #include <pthread.h>
+#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -38,6 +39,7 @@ typedef struct want {
     uint32_t cell, start, end;
     bool apo;
     uint8_t priority;
+    uint32_t decoded_growth; /* estimated decoded bytes the range adds */
 } want;
 
 /* A request in flight on the current connection. A finished request stays
@@ -148,7 +150,7 @@ struct ms_core {
     ms_view *view;
     dcell *cells;
     uint8_t *target;
-    double tolerance_factor, last_budget_step;
+    double tolerance_factor, last_budget_step, last_blocked;
     uint64_t generation;
     uint64_t consumed_seq;
     bool first_display_seen;
@@ -664,6 +666,12 @@ static void on_tick(evutil_socket_t fd, short what, void *arg)
 static void *net_main(void *arg)
 {
     ms_core *c = arg;
+    /* A write to a connection the server has closed raises SIGPIPE in the
+     * writing thread: block it here (only here) and see the error instead. */
+    sigset_t pipe_only;
+    sigemptyset(&pipe_only);
+    sigaddset(&pipe_only, SIGPIPE);
+    pthread_sigmask(SIG_BLOCK, &pipe_only, NULL);
     net_connect(c);
     struct timeval every = {0, 5000};
     event_add(c->tick, &every);
@@ -978,16 +986,23 @@ static bool want_push(want_list *l, want w)
     return true;
 }
 
+/* Decoded bytes of a cell shown at `bits` (an estimate: the vertex count
+ * grows about 4x a bit on a surface). */
+static double decoded_estimate(const ms_archive_cell *rec, unsigned bits)
+{
+    if (rec->geometry_length == 0)
+        return 0;
+    double v = rec->vertex_count * ldexp(1.0, -2 * (int)(rec->bits_max - bits));
+    return (v < 1 ? 1 : v) * BYTES_PER_VERTEX;
+}
+
 static uint64_t cell_memory(const ms_core *c, uint32_t cell)
 {
     const dcell *d = &c->cells[cell];
     uint64_t m = ms_view_held_bytes(c->view, cell) + d->geo.cap + d->apo.cap;
-    ms_view_cell_state st = ms_view_state(c->view, cell);
-    if (st != MS_VIEW_HIDDEN) {
-        const ms_archive_cell *rec = ms_archive_get_cell(c->index, cell);
-        double v = rec->vertex_count * ldexp(1.0, -2 * (int)(rec->bits_max - ms_view_bits(c->view, cell)));
-        m += (uint64_t)((v < 1 ? 1 : v) * BYTES_PER_VERTEX);
-    }
+    if (ms_view_state(c->view, cell) != MS_VIEW_HIDDEN)
+        m += (uint64_t)decoded_estimate(ms_archive_get_cell(c->index, cell),
+                                        ms_view_bits(c->view, cell));
     return m;
 }
 
@@ -1015,6 +1030,42 @@ static int compare_candidates(const void *x, const void *y)
 {
     const evict_candidate *a = x, *b = y;
     return a->usefulness < b->usefulness ? -1 : a->usefulness > b->usefulness;
+}
+
+static uint64_t dec_memory(const ms_core *c)
+{
+    uint64_t m = 0;
+    for (uint32_t i = 0; i < ms_view_cell_count(c->view); ++i)
+        m += cell_memory(c, i);
+    return m;
+}
+
+/* Evicts hidden cells the view does not target, least useful first, until
+ * memory is at most limit. */
+static void dec_evict_unneeded(ms_core *c, const frame_view *fv, uint64_t limit)
+{
+    uint32_t n = ms_view_cell_count(c->view);
+    evict_candidate *cand = malloc(n * sizeof *cand);
+    if (!cand)
+        return;
+    size_t nc = 0;
+    for (uint32_t i = 1; i < n; ++i) {
+        if (ms_view_state(c->view, i) != MS_VIEW_HIDDEN || c->target[i] != MS_VIEW_TARGET_HIDDEN)
+            continue;
+        uint64_t b = cell_memory(c, i);
+        if (!b)
+            continue;
+        bool visible;
+        double u = cell_need(c, fv, i, &visible);
+        cand[nc++] = (evict_candidate){i, visible ? u : u - 64.0, b};
+    }
+    qsort(cand, nc, sizeof *cand, compare_candidates);
+    uint64_t m = dec_memory(c);
+    for (size_t k = 0; k < nc && m > limit; ++k) {
+        m -= cand[k].bytes < m ? cand[k].bytes : m;
+        dec_evict(c, cand[k].cell);
+    }
+    free(cand);
 }
 
 static ms_core_frame *dec_make_frame(ms_core *c, ms_error *err)
@@ -1243,6 +1294,26 @@ static void dec_step(ms_core *c, chunk_msg *chunks, const ms_camera *cam, uint64
     }
     bool changed = refined_in_parallel || report.splits || report.merges || report.refined ||
                    report.coarsened;
+    /* Hard ceiling: evict what the view does not need; if that is not enough,
+     * coarsen at once (double the tolerance) and evict what that frees. */
+    for (int round = 0; c->o.memory_ceiling && round < 8; ++round) {
+        if (dec_memory(c) <= c->o.memory_ceiling)
+            break;
+        dec_evict_unneeded(c, &fv, (uint64_t)(0.9 * c->o.memory_target));
+        if (dec_memory(c) <= c->o.memory_ceiling || c->tolerance_factor >= MAX_TOLERANCE_FACTOR)
+            break;
+        c->tolerance_factor *= 2;
+        c->last_budget_step = since_start(c);
+        fv.tolerance = sp.tolerance_px = base_tol * c->tolerance_factor;
+        ms_view_select(c->view, cam, &sp, c->target);
+        if (ms_view_apply(c->view, c->target, &report, &err) != MS_OK) {
+            pthread_mutex_lock(&c->lock);
+            set_fatal_locked(c, "decoding failed: %.200s", err.text);
+            pthread_mutex_unlock(&c->lock);
+            return;
+        }
+        changed = true;
+    }
 
     /* what is missing, and in which order */
     want_list wl = {0};
@@ -1293,7 +1364,11 @@ static void dec_step(ms_core *c, chunk_msg *chunks, const ms_camera *cam, uint64
                     if (a >= b)
                         continue;
                     double p = (visible ? 128.0 : 192.0) - 8.0 * (need - s);
-                    want_push(&wl, (want){i, a, b, false, clamp_priority(p)});
+                    double grow = decoded_estimate(rec, s) - decoded_estimate(rec, s - 1);
+                    if (s == rec->bits_max && t == MS_VIEW_TARGET_SPLIT)
+                        grow += rec->vertex_count * BYTES_PER_VERTEX; /* the children */
+                    want_push(&wl, (want){i, a, b, false, clamp_priority(p),
+                                          (uint32_t)(grow > 4e9 ? 4e9 : grow)});
                 }
             }
         }
@@ -1311,7 +1386,8 @@ static void dec_step(ms_core *c, chunk_msg *chunks, const ms_camera *cam, uint64
                     if (la >= lb)
                         continue;
                     want_push(&wl, (want){i, la, lb, true,
-                                          clamp_priority(136.0 + 8.0 * l - 8.0 * (need - bits))});
+                                          clamp_priority(136.0 + 8.0 * l - 8.0 * (need - bits)),
+                                          0});
                 }
             }
         }
@@ -1336,7 +1412,7 @@ static void dec_step(ms_core *c, chunk_msg *chunks, const ms_camera *cam, uint64
             c->tolerance_factor *= M_SQRT2;
             c->last_budget_step = t;
         } else if (memory < 0.7 * c->o.memory_target && c->tolerance_factor > 1.0 &&
-                   t - c->last_budget_step > 0.1) {
+                   t - c->last_budget_step > 0.1 && t - c->last_blocked > 2.0) {
             c->tolerance_factor /= M_SQRT2;
             if (c->tolerance_factor < 1.0)
                 c->tolerance_factor = 1.0;
@@ -1375,7 +1451,7 @@ static void dec_step(ms_core *c, chunk_msg *chunks, const ms_camera *cam, uint64
         size_t keep = 0;
         for (; keep < wl.n; ++keep) {
             const want *w = &wl.w[keep];
-            uint64_t need_bytes = w->end - w->start;
+            uint64_t need_bytes = (uint64_t)(w->end - w->start) + w->decoded_growth;
             if (planned + need_bytes <= ceiling) {
                 planned += need_bytes;
                 continue;
@@ -1392,6 +1468,15 @@ static void dec_step(ms_core *c, chunk_msg *chunks, const ms_camera *cam, uint64
             if (planned + need_bytes > ceiling)
                 break;
             planned += need_bytes;
+        }
+        if (keep < wl.n && in_flight == 0) {
+            /* blocked by the ceiling with nothing on its way: the view cannot
+             * complete at this tolerance, so raise it (as over the target) */
+            c->last_blocked = t;
+            if (t - c->last_budget_step > 0.1 && c->tolerance_factor < MAX_TOLERANCE_FACTOR) {
+                c->tolerance_factor *= M_SQRT2;
+                c->last_budget_step = t;
+            }
         }
         wl.n = keep;
         free(cand);
@@ -1548,6 +1633,7 @@ ms_status ms_core_start(const ms_core_options *o, ms_core **out, ms_error *err)
     c->latencies = malloc(LATENCY_KEEP * sizeof *c->latencies);
     c->t0 = now_s();
     c->tolerance_factor = 1.0;
+    c->last_blocked = -1e9;
     c->down_since = -1;
     c->backoff = 0.1;
     c->stats.first_display = -1;

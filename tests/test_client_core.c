@@ -1,0 +1,581 @@
+/* The client core (client/ms_client_core.h) against a real meshserve on
+ * loopback, streaming the Stanford dragon at resolution 3 (stanford_dragon_
+ * vrip_res3, baked here; the full dragon runs in make bench): the streamed,
+ * stitched mesh at view complete equals the view-dependent decoder run on the
+ * archive directly for the same camera; the server killed and restarted
+ * mid-stream; a corrupted payload refetched once, then reported; a server that
+ * never answers; a memory budget below what the path needs; meshload's JSON and
+ * its Draco baseline. Every wait is bounded. */
+#include <stdarg.h>
+#include <stddef.h>
+#include <setjmp.h>
+#include <stdint.h>
+#include <math.h>
+#include <netinet/in.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/socket.h>
+#include <sys/stat.h>
+#include <time.h>
+#include <unistd.h>
+#include <cmocka.h>
+
+#include "ms_archive.h"
+#include "ms_camera_path.h"
+#include "ms_client_core.h"
+#include "ms_nsp_check.h"
+#include "ms_test.h"
+#include "ms_test_net.h"
+#include "ms_view_decoder.h"
+
+#define MODEL "dragon"
+#define PATH_FILE "scripts/paths/dragon-closeup.cam"
+#define WAIT_SECONDS 60.0
+
+typedef struct fixture {
+    char dir[512], archives[600], log[600], port_file[600];
+    pid_t pid;
+    uint16_t port, http_port;
+    ms_archive *archive;
+    ms_camera_path path;
+} fixture;
+
+static fixture *g; /* set by the group setup: one bake and one server for all */
+
+static double now_s(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + ts.tv_nsec * 1e-9;
+}
+
+static void sleep_s(double s)
+{
+    struct timespec ts = {(time_t)s, (long)((s - floor(s)) * 1e9)};
+    nanosleep(&ts, NULL);
+}
+
+static void launch(fixture *f, uint16_t port)
+{
+    char bin[512], port_arg[16];
+    ms_test_bin_path(bin, sizeof bin, "meshserve");
+    snprintf(port_arg, sizeof port_arg, "%u", port);
+    unlink(f->port_file);
+    char *argv[] = {bin, f->archives, "--port", port_arg, "--http-port", port ? "0" : "0",
+                    "--port-file", f->port_file, NULL};
+    f->pid = ms_test_spawn(argv, f->log);
+    if (ms_test_wait_ports(f->port_file, 15.0, &f->port, &f->http_port) != 0) {
+        ms_test_stop(f->pid, SIGKILL, 5.0);
+        f->pid = 0;
+        fail_msg("meshserve did not start (see %s)", f->log);
+    }
+}
+
+static int group_setup(void **state)
+{
+    (void)state;
+    fixture *f = calloc(1, sizeof *f);
+    ms_test_tmpdir(f->dir, sizeof f->dir);
+    snprintf(f->archives, sizeof f->archives, "%s/archive", f->dir);
+    snprintf(f->log, sizeof f->log, "%s/meshserve.log", f->dir);
+    snprintf(f->port_file, sizeof f->port_file, "%s/ports", f->dir);
+    if (mkdir(f->archives, 0755) != 0)
+        return -1;
+    char input[512], file[700];
+    ms_test_model_path(input, sizeof input, "stanford_dragon_vrip_res3.ply.gz");
+    ms_bake_report report;
+    ms_nsp_test_bake(input, f->archives, MODEL, 16, 2000, &report);
+    snprintf(file, sizeof file, "%s/" MODEL ".msa", f->archives);
+    ms_error err;
+    if (ms_archive_open(file, &f->archive, &err) != MS_OK) {
+        fprintf(stderr, "%s\n", err.text);
+        return -1;
+    }
+    if (ms_camera_path_load(PATH_FILE, &f->path, &err) != MS_OK) {
+        fprintf(stderr, "%s\n", err.text);
+        return -1;
+    }
+    launch(f, 0);
+    g = f;
+    return 0;
+}
+
+static int group_teardown(void **state)
+{
+    (void)state;
+    if (!g)
+        return 0;
+    if (g->pid)
+        ms_test_stop(g->pid, SIGTERM, 10.0);
+    ms_archive_close(g->archive);
+    ms_camera_path_free(&g->path);
+    ms_test_rmdir(g->dir);
+    free(g);
+    g = NULL;
+    return 0;
+}
+
+static ms_camera path_camera(const ms_camera_path *path, size_t k)
+{
+    ms_camera cam;
+    ms_error err;
+    double t = path->keys[k < path->count ? k : path->count - 1].time;
+    if (ms_camera_path_sample(path, t, 640, 480, 1e-4, 1e4, &cam, &err) != MS_OK)
+        fail_msg("%s", err.text);
+    return cam;
+}
+
+static ms_camera key_camera(size_t k) { return path_camera(&g->path, k); }
+
+static ms_core_options base_options(void)
+{
+    ms_core_options o = {0};
+    o.host = "127.0.0.1";
+    o.port = g->port;
+    o.model = MODEL;
+    o.tolerance_px = 1.0;
+    o.hysteresis_bits = 0.0; /* memoryless selection: equal to a fresh decode */
+    o.answer_timeout = 3.0;
+    o.give_up_seconds = 20.0;
+    return o;
+}
+
+/* Waits for view complete (or an error, or the time limit); keeps the newest
+ * frame in *frame when frames are exported. */
+static bool wait_complete(ms_core *core, double seconds, ms_core_stats *st, ms_core_frame **frame)
+{
+    double until = now_s() + seconds;
+    for (;;) {
+        if (frame) {
+            ms_core_frame *f = ms_core_take_frame(core);
+            if (f) {
+                ms_core_frame_free(*frame);
+                *frame = f;
+            }
+        }
+        ms_core_get_stats(core, st);
+        if (st->view_complete || st->error[0] || now_s() > until) {
+            if (frame && st->view_complete) {
+                ms_core_frame *f = ms_core_take_frame(core);
+                if (f) {
+                    ms_core_frame_free(*frame);
+                    *frame = f;
+                }
+            }
+            return st->view_complete;
+        }
+        sleep_s(0.005);
+    }
+}
+
+/* One triangle as the sorted keys of its vertices, rotated to its smallest
+ * (orientation kept). */
+typedef struct tri_key {
+    uint64_t k[3];
+} tri_key;
+
+static int compare_tri_keys(const void *x, const void *y)
+{
+    const tri_key *a = x, *b = y;
+    for (int i = 0; i < 3; ++i)
+        if (a->k[i] != b->k[i])
+            return a->k[i] < b->k[i] ? -1 : 1;
+    return 0;
+}
+
+static tri_key *mesh_keys(const ms_view_mesh *m)
+{
+    tri_key *t = malloc((m->triangle_count ? m->triangle_count : 1) * sizeof *t);
+    assert_non_null(t);
+    for (size_t i = 0; i < m->triangle_count; ++i) {
+        uint64_t k[3];
+        for (int j = 0; j < 3; ++j)
+            k[j] = m->keys[m->triangles[3 * i + j]] << 8 | m->levels[m->triangles[3 * i + j]];
+        int r = k[0] <= k[1] && k[0] <= k[2] ? 0 : k[1] <= k[2] ? 1 : 2;
+        for (int j = 0; j < 3; ++j)
+            t[i].k[j] = k[(r + j) % 3];
+    }
+    qsort(t, m->triangle_count, sizeof *t, compare_tri_keys);
+    return t;
+}
+
+/* The client's frame equals the direct decode of the archive for camera. */
+static void check_equals_direct(const ms_core_frame *frame, const ms_camera *camera)
+{
+    ms_view *v;
+    ms_error err;
+    if (ms_view_create_from_archive(g->archive, &v, &err) != MS_OK)
+        fail_msg("%s", err.text);
+    uint32_t n = ms_view_cell_count(v);
+    uint8_t *target = malloc(n);
+    ms_view_select_params sp = {.tolerance_px = 1.0, .margin = 0, .hysteresis = 0,
+                                .culled_bits_less = 3.0};
+    for (int pass = 0; pass < 8; ++pass) {
+        ms_view_select(v, camera, &sp, target);
+        ms_view_apply_report r;
+        if (ms_view_apply(v, target, &r, &err) != MS_OK)
+            fail_msg("%s", err.text);
+        assert_int_equal(r.waiting, 0);
+        if (!r.splits && !r.merges && !r.refined && !r.coarsened)
+            break;
+    }
+    assert_int_equal(frame->cell_count, n);
+    uint32_t shown = 0;
+    for (uint32_t i = 0; i < n; ++i) {
+        ms_view_cell_state st = ms_view_state(v, i);
+        uint8_t expect = st == MS_VIEW_SHOWN ? (uint8_t)ms_view_bits(v, i)
+                         : st == MS_VIEW_SPLIT ? MS_VIEW_TARGET_SPLIT
+                                               : MS_VIEW_TARGET_HIDDEN;
+        if (frame->cell_bits[i] != expect)
+            fail_msg("cell %u: client %u, direct %u", i, frame->cell_bits[i], expect);
+        shown += st == MS_VIEW_SHOWN;
+    }
+    assert_true(shown > 1); /* the close-up needs a real cut, not just the root */
+    ms_view_mesh direct = {0};
+    if (ms_view_stitch(v, NULL, &direct, &err) != MS_OK)
+        fail_msg("%s", err.text);
+    assert_int_equal(frame->mesh.triangle_count, direct.triangle_count);
+    assert_int_equal(frame->mesh.vertex_count, direct.vertex_count);
+    assert_true(direct.triangle_count > 1000);
+    tri_key *a = mesh_keys(&frame->mesh), *b = mesh_keys(&direct);
+    assert_memory_equal(a, b, direct.triangle_count * sizeof *a);
+    /* the same positions, vertex for vertex */
+    assert_memory_equal(frame->mesh.positions, direct.positions,
+                        3 * direct.vertex_count * sizeof *direct.positions);
+    free(a);
+    free(b);
+    ms_view_mesh_free(&direct);
+    free(target);
+    ms_view_destroy(v);
+}
+
+/* Plays the path's keyframes at 8 Mbit/s; at the last, the client's mesh
+ * equals the direct decode. */
+static void test_stream_equals_direct_decode(void **state)
+{
+    (void)state;
+    ms_core_options o = base_options();
+    o.bandwidth = 1e6;
+    o.export_frames = true;
+    ms_core *core;
+    ms_error err;
+    assert_int_equal(ms_core_start(&o, &core, &err), MS_OK);
+    ms_core_frame *frame = NULL;
+    ms_core_stats st;
+    for (size_t k = 0; k < g->path.count; k += 2) {
+        ms_camera cam = key_camera(k);
+        ms_core_set_camera(core, &cam);
+        if (!wait_complete(core, WAIT_SECONDS, &st, &frame))
+            fail_msg("keyframe %zu not complete: %s", k, st.error);
+    }
+    ms_camera cam = key_camera(g->path.count - 1);
+    ms_core_set_camera(core, &cam);
+    if (!wait_complete(core, WAIT_SECONDS, &st, &frame))
+        fail_msg("last keyframe not complete: %s", st.error);
+    assert_non_null(frame);
+    assert_true(st.first_display >= 0);
+    assert_true(st.bytes_received > 0);
+    assert_int_equal(st.bytes_in_flight, 0);
+    assert_int_equal(st.cells_failed, 0);
+    assert_int_equal(st.cells_loading, 0);
+    assert_true(st.latency_p50 > 0 && st.latency_p99 >= st.latency_p50);
+    check_equals_direct(frame, &cam);
+    ms_core_frame_free(frame);
+    ms_core_stop(core);
+}
+
+/* The server dies mid-stream and comes back on the same port: the client
+ * reconnects, resumes and completes, with the same mesh. */
+static void test_server_killed_and_restarted(void **state)
+{
+    (void)state;
+    fixture f = *g; /* a second server of the same archive directory */
+    snprintf(f.port_file, sizeof f.port_file, "%s/ports2", g->dir);
+    snprintf(f.log, sizeof f.log, "%s/meshserve2.log", g->dir);
+    launch(&f, 0);
+    uint16_t port = f.port;
+    ms_core_options o = base_options();
+    o.port = port;
+    o.bandwidth = 40000; /* slow enough to be cut mid-stream */
+    o.export_frames = true;
+    ms_core *core;
+    ms_error err;
+    assert_int_equal(ms_core_start(&o, &core, &err), MS_OK);
+    ms_camera cam = key_camera(g->path.count - 1);
+    ms_core_set_camera(core, &cam);
+    ms_core_stats st;
+    double until = now_s() + WAIT_SECONDS;
+    do {
+        sleep_s(0.01);
+        ms_core_get_stats(core, &st);
+    } while (st.bytes_received < 20000 && now_s() < until);
+    assert_true(st.bytes_received >= 20000);
+    assert_false(st.view_complete);
+    assert_int_equal(ms_test_stop(f.pid, SIGKILL, 5.0), -1);
+    sleep_s(0.5);
+    launch(&f, port);
+    assert_int_equal(f.port, port);
+    ms_core_frame *frame = NULL;
+    if (!wait_complete(core, WAIT_SECONDS, &st, &frame))
+        fail_msg("not complete after the restart: %s", st.error);
+    assert_true(st.reconnects >= 1);
+    assert_int_equal(st.cells_failed, 0);
+    check_equals_direct(frame, &cam);
+    ms_core_frame_free(frame);
+    ms_core_stop(core);
+    ms_test_stop(f.pid, SIGTERM, 10.0);
+}
+
+typedef struct corruptor {
+    uint32_t cell, position; /* the byte to flip */
+    unsigned times, done;
+} corruptor;
+
+static void corrupt(uint32_t cell, bool apo, uint32_t offset, uint8_t *data, size_t length,
+                    void *arg)
+{
+    corruptor *c = arg;
+    if (apo || cell != c->cell || c->done >= c->times)
+        return;
+    if (c->position >= offset && c->position < offset + length) {
+        data[c->position - offset] ^= 0x5A;
+        c->done++;
+    }
+}
+
+static void run_corruption(unsigned times, ms_core_stats *st, corruptor *c)
+{
+    /* flip the last byte of the root's third precision bit */
+    const ms_archive_cell *root = ms_archive_get_cell(g->archive, 0);
+    c->cell = 0;
+    c->position = ms_archive_geometry_prefix(g->archive, 0, root->bits_min + 3u) - 1;
+    c->times = times;
+    c->done = 0;
+    ms_core_options o = base_options();
+    o.payload_filter = corrupt;
+    o.payload_filter_arg = c;
+    ms_core *core;
+    ms_error err;
+    assert_int_equal(ms_core_start(&o, &core, &err), MS_OK);
+    ms_camera cam = key_camera(0);
+    ms_core_set_camera(core, &cam);
+    double until = now_s() + WAIT_SECONDS;
+    do {
+        sleep_s(0.01);
+        ms_core_get_stats(core, st);
+    } while (!st->view_complete && !st->cells_failed && now_s() < until);
+    /* give a spurious third fetch the time to show */
+    sleep_s(0.3);
+    ms_core_get_stats(core, st);
+    ms_core_stop(core);
+}
+
+static void test_corrupt_payload_refetched_once(void **state)
+{
+    (void)state;
+    ms_core_stats st;
+    corruptor c;
+    run_corruption(1, &st, &c);
+    assert_int_equal(c.done, 1);
+    assert_true(st.view_complete);
+    assert_int_equal(st.refetches, 1);
+    assert_int_equal(st.cells_failed, 0);
+}
+
+static void test_corrupt_payload_reported(void **state)
+{
+    (void)state;
+    ms_core_stats st;
+    corruptor c;
+    run_corruption(100, &st, &c);
+    assert_int_equal(c.done, 2); /* fetched twice, never a third time */
+    assert_false(st.view_complete);
+    assert_int_equal(st.cells_failed, 1);
+    assert_int_equal(st.refetches, 1);
+    assert_non_null(strstr(st.warning, "cell 0"));
+    assert_non_null(strstr(st.warning, "CRC"));
+}
+
+/* A server that accepts connections (the kernel does) but never answers. */
+static void test_server_not_answering(void **state)
+{
+    (void)state;
+    int fd = socket(AF_INET, SOCK_STREAM, 0);
+    assert_true(fd >= 0);
+    struct sockaddr_in sin = {.sin_family = AF_INET, .sin_addr.s_addr = htonl(INADDR_LOOPBACK)};
+    assert_int_equal(bind(fd, (struct sockaddr *)&sin, sizeof sin), 0);
+    assert_int_equal(listen(fd, 16), 0);
+    socklen_t len = sizeof sin;
+    assert_int_equal(getsockname(fd, (struct sockaddr *)&sin, &len), 0);
+    ms_core_options o = base_options();
+    o.port = ntohs(sin.sin_port);
+    o.answer_timeout = 0.5;
+    o.give_up_seconds = 1.5;
+    ms_core *core;
+    ms_error err;
+    assert_int_equal(ms_core_start(&o, &core, &err), MS_OK);
+    ms_camera cam = key_camera(0);
+    ms_core_set_camera(core, &cam);
+    ms_core_stats st;
+    double t0 = now_s();
+    do {
+        sleep_s(0.02);
+        ms_core_get_stats(core, &st);
+    } while (!st.error[0] && now_s() < t0 + 15.0);
+    double took = now_s() - t0;
+    ms_core_stop(core);
+    close(fd);
+    assert_non_null(strstr(st.error, "no usable connection"));
+    assert_non_null(strstr(st.warning, "sent nothing"));
+    assert_false(st.view_complete);
+    assert_false(st.model_open);
+    assert_true(took >= 1.5 && took < 10.0);
+}
+
+/* Bad options are refused with a message. */
+static void test_bad_options(void **state)
+{
+    (void)state;
+    ms_core_options o = base_options();
+    ms_core *core = NULL;
+    ms_error err;
+    o.model = "no such/model";
+    assert_int_equal(ms_core_start(&o, &core, &err), MS_ERR_ARG);
+    assert_null(core);
+    o = base_options();
+    o.memory_target = 100, o.memory_ceiling = 50;
+    assert_int_equal(ms_core_start(&o, &core, &err), MS_ERR_ARG);
+    o = base_options();
+    o.host = NULL;
+    assert_int_equal(ms_core_start(&o, &core, &err), MS_ERR_ARG);
+    o = base_options();
+    o.model = "unknown_model";
+    assert_int_equal(ms_core_start(&o, &core, &err), MS_OK);
+    ms_core_stats st;
+    double until = now_s() + WAIT_SECONDS;
+    do {
+        sleep_s(0.01);
+        ms_core_get_stats(core, &st);
+    } while (!st.error[0] && now_s() < until);
+    assert_non_null(strstr(st.error, "unknown_model"));
+    ms_core_stop(core);
+}
+
+/* A memory budget well below what the path needs: loading never stalls, the
+ * memory stays under the ceiling, every keyframe completes within the
+ * tolerance the budget allows. */
+static void test_memory_budget(void **state)
+{
+    (void)state;
+    /* what an unbudgeted client holds at the closest keyframe */
+    ms_core_options o = base_options();
+    ms_core *core;
+    ms_error err;
+    assert_int_equal(ms_core_start(&o, &core, &err), MS_OK);
+    ms_camera cam = key_camera(g->path.count - 1);
+    ms_core_set_camera(core, &cam);
+    ms_core_stats st;
+    assert_true(wait_complete(core, WAIT_SECONDS, &st, NULL));
+    uint64_t full = st.memory;
+    ms_core_stop(core);
+
+    /* the close-up, then along the body: cells leave the view and are evicted */
+    ms_camera_path fly;
+    if (ms_camera_path_load("scripts/paths/dragon-flythrough.cam", &fly, &err) != MS_OK)
+        fail_msg("%s", err.text);
+    o = base_options();
+    o.hysteresis_bits = 0.5;
+    o.memory_target = full / 2;
+    o.memory_ceiling = full * 7 / 10;
+    assert_int_equal(ms_core_start(&o, &core, &err), MS_OK);
+    unsigned raised = 0;
+    for (size_t k = 0; k < g->path.count + fly.count; ++k) {
+        cam = k < g->path.count ? key_camera(k) : path_camera(&fly, k - g->path.count);
+        ms_core_set_camera(core, &cam);
+        if (!wait_complete(core, WAIT_SECONDS, &st, NULL))
+            fail_msg("keyframe %zu not complete under the budget: %s", k, st.error);
+        if (st.memory > o.memory_ceiling)
+            fail_msg("keyframe %zu: memory %llu above the ceiling %llu (target %llu, tolerance "
+                     "%.2f px, %u shown, %u split, %u cached)", k, (unsigned long long)st.memory,
+                     (unsigned long long)o.memory_ceiling, (unsigned long long)o.memory_target,
+                     st.tolerance_px, st.cells_shown, st.cells_split, st.cells_cached);
+        raised += st.tolerance_px > o.tolerance_px;
+        /* the error stays within the budget's tolerance (or the archive's
+         * precision floor, where the camera asks for more than p bits) */
+        assert_true(st.achieved_error_px <= st.tolerance_px * 4 + 1e-9);
+    }
+    ms_core_get_stats(core, &st);
+    assert_true(st.peak_memory <= o.memory_ceiling);
+    assert_true(raised > 0);
+    /* (evictions need deeper trees: the full dragon's soak in make bench) */
+    fprintf(stderr, "budget: peak %llu of %llu, %llu evictions, tolerance up to x%.1f\n",
+            (unsigned long long)st.peak_memory, (unsigned long long)o.memory_ceiling,
+            (unsigned long long)st.evictions, st.tolerance_px / o.tolerance_px);
+    ms_core_stop(core);
+    ms_camera_path_free(&fly);
+}
+
+/* meshload end to end: JSON keys; the Draco baseline over the side door. */
+static void test_meshload_cli(void **state)
+{
+    (void)state;
+    char bin[512], cmd[4096], out[16384];
+    ms_test_bin_path(bin, sizeof bin, "meshload");
+    snprintf(cmd, sizeof cmd, "%s --server 127.0.0.1:%u --model " MODEL " --path " PATH_FILE
+             " --bandwidth 8mbit --clients 2 --duration 60 --json", bin, g->port);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
+    assert_non_null(strstr(out, "\"time_to_first_display\": "));
+    assert_non_null(strstr(out, "\"time_to_view_complete\": "));
+    assert_non_null(strstr(out, "\"keyframes\": [{"));
+    assert_null(strstr(out, "\"complete\": false"));
+    assert_null(strstr(out, "\"time_to_view_complete\": -1"));
+    snprintf(cmd, sizeof cmd, "%s --server 127.0.0.1 --model x --path y", bin);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 2);
+    assert_non_null(strstr(out, "HOST:PORT"));
+    snprintf(cmd, sizeof cmd, "%s --server 127.0.0.1:%u --model " MODEL " --path /nonexistent",
+             bin, g->port);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 1);
+
+    /* no .drc yet: a clear error */
+    snprintf(cmd, sizeof cmd, "%s --baseline draco --server 127.0.0.1:%u --model " MODEL,
+             bin, g->http_port);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 1);
+    assert_non_null(strstr(out, "HTTP 404"));
+    if (system("command -v draco_encoder >/dev/null 2>&1") != 0) {
+        fprintf(stderr, "draco_encoder not installed: baseline run skipped\n");
+        return;
+    }
+    char input[512];
+    ms_test_model_path(input, sizeof input, "stanford_dragon_vrip_res3.ply.gz");
+    snprintf(cmd, sizeof cmd, "zcat '%s' > '%s/d.ply' && draco_encoder -i '%s/d.ply' -o "
+             "'%s/" MODEL ".drc' -qp 16 -cl 7 >/dev/null", input, g->dir, g->dir, g->archives);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
+    snprintf(cmd, sizeof cmd, "%s --baseline draco --server 127.0.0.1:%u --model " MODEL
+             " --bandwidth 8mbit --json", bin, g->http_port);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
+    assert_non_null(strstr(out, "\"mode\": \"draco\""));
+    struct stat sb;
+    char drc[700];
+    snprintf(drc, sizeof drc, "%s/" MODEL ".drc", g->archives);
+    assert_int_equal(stat(drc, &sb), 0);
+    char expect[64];
+    snprintf(expect, sizeof expect, "\"draco_bytes\": %lld", (long long)sb.st_size);
+    assert_non_null(strstr(out, expect));
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_stream_equals_direct_decode),
+        cmocka_unit_test(test_server_killed_and_restarted),
+        cmocka_unit_test(test_corrupt_payload_refetched_once),
+        cmocka_unit_test(test_corrupt_payload_reported),
+        cmocka_unit_test(test_server_not_answering),
+        cmocka_unit_test(test_bad_options),
+        cmocka_unit_test(test_memory_budget),
+        cmocka_unit_test(test_meshload_cli),
+    };
+    return cmocka_run_group_tests(tests, group_setup, group_teardown);
+}
