@@ -47,7 +47,7 @@ struct ms_codec_decoder {
 };
 
 /* One binary decision: decoded, or (encode mode) taken from src and coded. */
-static inline int dbit(ms_codec_decoder *d, ms_rc_prob *p)
+static inline __attribute__((always_inline)) int dbit(ms_codec_decoder *d, ms_rc_prob *p)
 {
     if (!d->enc)
         return ms_rc_decode(&d->rc, p);
