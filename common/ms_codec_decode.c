@@ -507,10 +507,11 @@ static ms_status load_start(ms_codec_decoder *d, const ms_codec_state *start, ms
         d->norder = 1;
         return MS_OK;
     }
-    if (start->bits != h->p_max || start->level != d->Lmin)
-        return ms_error_set(err, MS_ERR_ARG, "start state at bits %u level %u does not match the "
-                            "stream (bits %u level %u)", start->bits, start->level, h->p_max,
-                            d->Lmin);
+    /* Cells are kd prefixes at level 3 p_min whatever the key space of the
+     * decoder that produced them (a parent nSP cell's stream ends at p_min). */
+    if (start->level != d->Lmin)
+        return ms_error_set(err, MS_ERR_ARG, "start state at kd-level %u does not match the "
+                            "stream's first level %u", start->level, d->Lmin);
     if (start->vertex_count != h->start_vertices || start->tri_count != h->start_tris ||
         start->edge_count != h->start_edges)
         return ms_error_set(err, MS_ERR_ARG, "start state counts differ from the stream's");

@@ -411,6 +411,46 @@ static void test_subrange_from_start_state(void **state)
     free_coded(&part);
 }
 
+/* The nSP-tree chain: a parent stream over [0, 5] codes the complex at 5 bits;
+ * its decoder's final state starts the child stream over [5, 12]. */
+static void test_parent_child_chain(void **state)
+{
+    (void)state;
+    ms_error err;
+    coded child;
+    ms_codec_state start;
+    code_torus(&child, 12, 5, &start);
+    ms_codec_state parent_full = start; /* the complex at 5 bits, in a 15-bit key space */
+    parent_full.bits = 5;
+    ms_codec_encode_params par;
+    memset(&par, 0, sizeof par);
+    par.box.size = 1;
+    uint8_t *pbuf;
+    size_t psize;
+    assert_int_equal(ms_codec_encode(&parent_full, &par, &pbuf, &psize, NULL, &err), MS_OK);
+    ms_codec_decoder *pd, *cd;
+    assert_int_equal(ms_codec_decoder_create(pbuf, psize, NULL, NULL, &pd, &err), MS_OK);
+    assert_int_equal(ms_codec_decoder_set_level(pd, 15, &err), MS_OK);
+    ms_codec_state handoff;
+    assert_int_equal(ms_codec_decoder_state(pd, &handoff, &err), MS_OK);
+    assert_int_equal(handoff.bits, 5);
+    assert_int_equal(handoff.level, 15);
+    assert_true(ms_codec_state_equal(&handoff, &start, true));
+    assert_int_equal(ms_codec_decoder_create(child.buf, child.size, &handoff, NULL, &cd, &err),
+                     MS_OK);
+    assert_int_equal(ms_codec_decoder_set_level(cd, 36, &err), MS_OK);
+    ms_codec_state got;
+    assert_int_equal(ms_codec_decoder_state(cd, &got, &err), MS_OK);
+    assert_true(ms_codec_state_equal(&got, &child.canon, true));
+    ms_codec_state_free(&got);
+    ms_codec_state_free(&handoff);
+    ms_codec_decoder_destroy(pd);
+    ms_codec_decoder_destroy(cd);
+    free(pbuf);
+    ms_codec_state_free(&start);
+    free_coded(&child);
+}
+
 static void test_prefix_and_truncation(void **state)
 {
     (void)state;
@@ -523,6 +563,7 @@ int main(void)
         cmocka_unit_test(test_precision_8_and_20),
         cmocka_unit_test(test_empty_mesh_errors),
         cmocka_unit_test(test_subrange_from_start_state),
+        cmocka_unit_test(test_parent_child_chain),
         cmocka_unit_test(test_prefix_and_truncation),
         cmocka_unit_test(test_corruption_detected),
         cmocka_unit_test(test_torus_levels_and_size),
