@@ -685,11 +685,17 @@ ms_status ms_codec_run_encoder(ms_codec_header *h, const ms_codec_state *start,
 
 ms_status ms_codec_decoder_state(const ms_codec_decoder *d, ms_codec_state *out, ms_error *err)
 {
+    if (d->broken) {
+        memset(out, 0, sizeof *out);
+        return ms_error_set(err, MS_ERR_CORRUPT, "decoder stopped after a corrupted stream");
+    }
     return ms_codec_export_complex(&d->cx, d->order, d->norder, d->level, out, err);
 }
 
 ms_status ms_codec_decoder_mesh(const ms_codec_decoder *d, ms_mesh *out, ms_error *err)
 {
+    if (d->broken)
+        return ms_error_set(err, MS_ERR_CORRUPT, "decoder stopped after a corrupted stream");
     const ms_complex *cx = &d->cx;
     ms_status r = ms_mesh_reserve(out, d->norder, cx->live_t, err);
     if (r != MS_OK)
