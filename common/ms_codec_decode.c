@@ -484,12 +484,6 @@ ms_status ms_codec_decoder_set_level(ms_codec_decoder *d, unsigned level, ms_err
     return MS_OK;
 }
 
-static int cmp_u64(const void *a, const void *b)
-{
-    uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
-    return x < y ? -1 : (x > y);
-}
-
 /* Loads and checks the caller's start state into the complex. */
 static ms_status load_start(ms_codec_decoder *d, const ms_codec_state *start, ms_error *err)
 {
@@ -595,7 +589,6 @@ static ms_status load_start(ms_codec_decoder *d, const ms_codec_state *start, ms
         ms_cx_add_edge(cx, d->order[x[0]], d->order[x[1]]);
     }
     ms_codec_state_free(&canon);
-    (void)cmp_u64;
     return cx->nomem ? ms_error_set(err, MS_ERR_NOMEM, "out of memory loading a start state")
                      : MS_OK;
 }

@@ -235,7 +235,7 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
     memset(&e, 0, sizeof e);
     e.D = D;
     uint32_t n = (uint32_t)full->vertex_count;
-    uint32_t *order = NULL, *order2 = NULL, *slot_of = NULL;
+    uint32_t *order = NULL, *order2 = NULL;
     ms_codec_state canon = {0};
     ms_codec_state start = {0};
     ms_rc_encoder rc;
@@ -444,6 +444,5 @@ done:
     free(e.code);
     free(order);
     free(order2);
-    free(slot_of);
     return s;
 }
