@@ -8,6 +8,7 @@
 #include "ms_quant.h"
 #include "ms_rangecoder.h"
 
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -230,6 +231,10 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
     if (pmin > P)
         return ms_error_set(err, MS_ERR_ARG, "p_min %u above the precision %u", pmin, P);
     unsigned Lmin = 3 * pmin;
+    if (!isfinite(params->box.size) || !(params->box.size > 0) ||
+        !isfinite(params->box.origin[0]) || !isfinite(params->box.origin[1]) ||
+        !isfinite(params->box.origin[2]))
+        return ms_error_set(err, MS_ERR_ARG, "encoder box must be finite with a positive size");
 
     enc e;
     memset(&e, 0, sizeof e);
@@ -419,6 +424,12 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
     ms_codec_write_header(buf, &h);
     if (rc.size)
         memcpy(buf + hs, rc.buf, rc.size);
+    {
+        /* The decoder must accept what we wrote (e.g. the plausibility caps). */
+        ms_codec_header check;
+        if ((s = ms_codec_read_header(buf, hs + rc.size, &check, err)) != MS_OK)
+            goto fail;
+    }
     *out = buf;
     *out_size = hs + rc.size;
     buf = NULL;
