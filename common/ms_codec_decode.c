@@ -619,6 +619,16 @@ static ms_status decoder_init(ms_codec_decoder *d, const ms_codec_state *start, 
     if ((r = ms_cx_init(&d->cx, d->h.p_max, d->h.end_vertices, d->h.end_tris, max_e, err)) !=
         MS_OK)
         return r;
+    /* Reserve the declared final size up front (no regrowth copies), as far as
+     * the body makes it plausible: real streams hold under 4 vertices per byte. */
+    uint64_t room = 16 * (uint64_t)(d->enc ? d->h.end_vertices : d->body_avail) + 1024;
+    uint32_t rv = d->h.end_vertices < room ? d->h.end_vertices : (uint32_t)room;
+    uint32_t rt = d->h.end_tris < 2 * room ? d->h.end_tris : (uint32_t)(2 * room);
+    uint32_t re = d->h.end_edges < room ? d->h.end_edges : (uint32_t)room;
+    if ((r = ms_cx_reserve(&d->cx, rv, rt, re, err)) != MS_OK)
+        return r;
+    if (!order_room(d, rv))
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory creating a decoder");
     return load_start(d, start, err);
 }
 
