@@ -126,6 +126,21 @@ uint64_t ms_byte_source_disk_offset(const ms_byte_source *src)
     return off < 0 ? 0 : (uint64_t)off;
 }
 
+void ms_byte_source_release_consumed(ms_byte_source *src)
+{
+    if (!src->mapped)
+        return;
+    long page = sysconf(_SC_PAGESIZE);
+    if (page <= 0)
+        return;
+    size_t upto = src->pos / (size_t)page * (size_t)page;
+    /* in steps of 8 MiB at least, to keep system calls rare */
+    if (upto < src->released + ((size_t)8 << 20))
+        return;
+    madvise(src->buf + src->released, upto - src->released, MADV_DONTNEED);
+    src->released = upto;
+}
+
 void ms_byte_source_close(ms_byte_source *src)
 {
     if (src->gz)

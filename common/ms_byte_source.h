@@ -31,6 +31,7 @@ typedef struct ms_byte_source {
     bool gzip;          /* input is gzip-compressed */
     bool mapped;        /* buf is a read-only mapping of the whole file */
     size_t map_size;
+    size_t released;    /* mapped bytes already given back (page multiple) */
 } ms_byte_source;
 
 /* Opens path for reading with a buffer of `capacity` bytes (at least 64 KiB is
@@ -66,6 +67,11 @@ ms_status ms_byte_source_map_rest(ms_byte_source *src, ms_error *err);
 
 /* How far through the file on disk the reading is (compressed bytes for gzip). */
 uint64_t ms_byte_source_disk_offset(const ms_byte_source *src);
+
+/* For a mapped file, gives the pages already parsed back to the kernel, so that a
+ * huge input does not stay resident (and counted in the process's RSS) behind
+ * the read position. No effect on buffered reads. */
+void ms_byte_source_release_consumed(ms_byte_source *src);
 
 void ms_byte_source_close(ms_byte_source *src);
 

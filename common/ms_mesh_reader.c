@@ -52,6 +52,7 @@ ms_status ms_reader_fill(ms_reader *r, size_t want)
  * and works the same for buffered and memory-mapped input. */
 static void report_progress(ms_reader *r)
 {
+    ms_byte_source_release_consumed(&r->src);
     if (r->sink->progress)
         r->sink->progress(r->sink->context, ms_byte_source_disk_offset(&r->src),
                           r->src.file_size);

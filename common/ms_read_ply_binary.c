@@ -124,6 +124,8 @@ static ms_status binary_vertices(ply_state *s, const ply_element *e)
                 return st;
             uint64_t fit = ms_byte_source_available(&r->src) / stride;
             size_t n = (size_t)(fit < remaining ? fit : remaining);
+            if (n > MS_MESH_READ_CHUNK_VERTICES) /* keeps the position current for */
+                n = MS_MESH_READ_CHUNK_VERTICES; /* progress and page release */
             const char *p = r->src.buf + r->src.pos;
             for (size_t i = 0; i < n; ++i, p += stride) {
                 double x, y, z;
@@ -247,6 +249,9 @@ static ms_status binary_faces(ply_state *s, const ply_element *e)
             /* Decode straight into the triangle chunk, then clean the batch. The
              * vertex element is complete, so every valid index is announced. */
             while (remaining > 0 && end - p >= 13 && (uint8_t)p[0] == 3) {
+                /* the position is current for the progress report (and the
+                 * release of parsed pages) of the hand-over */
+                r->src.pos = (size_t)(p - r->src.buf);
                 if (r->triangle_pending == MS_MESH_READ_CHUNK_TRIANGLES &&
                     (st = ms_reader_flush_triangles(r)) != MS_OK)
                     return st;

@@ -46,8 +46,9 @@ static void print_usage(FILE *out)
           "  --root-bits R     precision window of the root cell, log2(n)..P (default 7)\n"
           "  --min-tris T      a cell splits when it holds T triangles (default 8000)\n"
           "  --threads N       encoding threads (default: the CPUs online)\n"
-          "  --mem MB          memory budget (default 512): a quarter buffers leaf content,\n"
-          "                    plus 8 bytes per input vertex for the vertex keys\n"
+          "  --mem MB          memory budget (default 512): an eighth buffers leaf content,\n"
+          "                    the rest is for encoding; plus 8 bytes per input vertex\n"
+          "                    for the vertex keys\n"
           "  --tmp DIR         temporary files (default: ARCHIVE_DIR); unlinked at creation\n"
           "\n"
           "  --info            parse FILE completely and report format, counts, bounding box,\n"
@@ -254,7 +255,7 @@ static void print_bake_json(const ms_bake_options *o, const ms_bake_report *r)
                                 r->seconds_write, "total", r->seconds_total);
     json_t *root = json_pack(
         "{s:s, s:s, s:s, s:I, s:I, s:I, s:I, s:i, s:i, s:i, s:i, s:f, s:I, s:I, s:I, s:f, s:o, "
-        "s:f, s:i, s:f, s:I, s:{s:i, s:i, s:i, s:i, s:i}}",
+        "s:f, s:i, s:f, s:f, s:I, s:{s:i, s:i, s:i, s:i, s:i}}",
         "name", r->name, "archive", r->archive_path, "source", o->input,
         "input_vertices", (json_int_t)r->input_vertices,
         "input_triangles", (json_int_t)r->input_triangles,
@@ -267,6 +268,7 @@ static void print_bake_json(const ms_bake_options *o, const ms_bake_report *r)
         "bits_per_vertex", r->bits_per_vertex, "seconds", seconds,
         "triangles_per_second", r->seconds_total > 0 ? (double)r->input_triangles / r->seconds_total : 0.0,
         "threads", (int)r->threads, "peak_rss_mb", r->peak_rss_mb,
+        "peak_rss_build_mb", r->peak_rss_build_mb,
         "spilled_blocks", (json_int_t)r->blocks_written,
         "parameters", "bits", (int)o->bits, "n", (int)o->n, "root_bits", (int)o->root_bits,
         "min_tris", (int)o->min_triangles, "mem_mb", (int)o->mem_mb);

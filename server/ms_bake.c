@@ -6,6 +6,9 @@
 #include <string.h>
 #include <sys/stat.h>
 #include <unistd.h>
+#ifdef __GLIBC__
+#include <malloc.h>
+#endif
 
 #include "ms_archive_writer.h"
 #include "ms_catalog.h"
@@ -95,7 +98,7 @@ ms_status ms_bake(const ms_bake_options *o, ms_bake_report *r, ms_error *err)
     ms_nsp_build_params bp = {
         .shape = shape,
         .min_triangles = o->min_triangles,
-        .buffer_budget = o->buffer_bytes ? o->buffer_bytes : o->mem_mb * (1u << 20) / 4,
+        .buffer_budget = o->buffer_bytes ? o->buffer_bytes : o->mem_mb * (1u << 20) / 8,
         .tmp_dir = o->tmp_dir ? o->tmp_dir : o->archive_dir,
         .progress = on_progress,
         .progress_context = &progress,
@@ -113,6 +116,7 @@ ms_status ms_bake(const ms_bake_options *o, ms_bake_report *r, ms_error *err)
     r->seconds_distribute = b.stats.seconds_distribute;
     r->cells = b.node_count;
     r->blocks_written = b.stats.blocks_written;
+    r->peak_rss_build_mb = ms_peak_rss_mb();
     r->flushes = b.stats.flushes;
     for (uint32_t i = 0; i < b.node_count; ++i) {
         r->leaves += b.nodes[i].first_child == MS_NSP_NONE;

@@ -9,8 +9,10 @@
  * nor a catalogue entry. A stale NAME.msa.partial from an earlier killed bake is
  * removed first.
  *
- * Memory: 8 bytes per input vertex (the key array) plus a quarter of mem_mb for
- * the leaf buffers, plus per encoding thread the working set of one cell.
+ * Memory: 8 bytes per input vertex (the key array) plus an eighth of mem_mb for
+ * the leaf buffers while the tree is built; then the key array plus, per encoding
+ * thread, the working set of one cell (its complex and the codec's state, tens of
+ * MB for the largest internal cells of a 14 M-triangle model).
  * Thread-safety: one bake per process at a time (it runs its own threads).
  */
 #ifndef MS_BAKE_H
@@ -31,7 +33,7 @@ typedef struct ms_bake_options {
     unsigned bits, n, root_bits, threads;
     uint32_t min_triangles;
     size_t mem_mb;
-    size_t buffer_bytes;   /* leaf buffer budget; 0: a quarter of mem_mb (tests force flushes) */
+    size_t buffer_bytes;   /* leaf buffer budget; 0: an eighth of mem_mb (tests force flushes) */
     FILE *progress;        /* progress bar target (drawn only on a terminal), or NULL */
 } ms_bake_options;
 
@@ -51,6 +53,7 @@ typedef struct ms_bake_report {
     double seconds_read, seconds_quantise, seconds_distribute, seconds_encode, seconds_write,
         seconds_total;
     double peak_rss_mb;
+    double peak_rss_build_mb;              /* peak when the tree was built (before encoding) */
     unsigned threads;
     uint64_t blocks_written, flushes; /* leaf content spilled to the block file */
 } ms_bake_report;

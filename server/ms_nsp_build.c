@@ -3,6 +3,9 @@
 
 #include <errno.h>
 #include <inttypes.h>
+#ifdef __GLIBC__
+#include <malloc.h>
+#endif
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -542,6 +545,15 @@ ms_status ms_nsp_build_run(const char *path, const ms_nsp_build_params *params,
     }
     if ((s = distribute(b, sink.triangles, sink.triangle_count, err)) != MS_OK)
         goto done;
+    /* Every leaf to disk: the encoding phase then needs no buffer memory. */
+    for (uint32_t i = 0; i < b->node_count && s == MS_OK; ++i)
+        if (b->nodes[i].buffered > 0)
+            s = flush_node(b, &b->nodes[i], err);
+    if (s != MS_OK)
+        goto done;
+#ifdef __GLIBC__
+    malloc_trim(0);
+#endif
     b->stats.seconds_distribute = ms_now_seconds() - t2;
 done:
     if (sink.vertices)

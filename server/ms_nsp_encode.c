@@ -9,6 +9,7 @@
 #include "ms_codec.h"
 #include "ms_nsp.h"
 #include "ms_progress.h"
+#include "ms_radix_sort.h"
 
 typedef struct task {
     uint32_t pending;         /* children not yet done */
@@ -72,49 +73,27 @@ static uint32_t heap_pop(pool *p)
 
 /* ---- building a cell's complex ------------------------------------------- */
 
-static int cmp_u64(const void *x, const void *y)
+/* Sorts the n vertex references ref[] (keys of key_bits bits), writes the
+ * distinct keys in order to cells (*ncells of them) and each reference's rank to
+ * rank[]. ref is clobbered. */
+static ms_status index_keys(uint64_t *ref, size_t n, unsigned key_bits, uint64_t *cells,
+                            size_t *ncells, uint32_t *rank, ms_error *err)
 {
-    uint64_t a = *(const uint64_t *)x, b = *(const uint64_t *)y;
-    return a < b ? -1 : a > b;
-}
-
-static size_t unique_u64(uint64_t *v, size_t n)
-{
-    if (n == 0)
-        return 0;
-    qsort(v, n, sizeof *v, cmp_u64);
-    size_t w = 1;
-    for (size_t i = 1; i < n; ++i)
-        if (v[i] != v[w - 1])
-            v[w++] = v[i];
-    return w;
-}
-
-static uint32_t find_u64(const uint64_t *v, size_t n, uint64_t key)
-{
-    size_t lo = 0, hi = n;
-    while (lo < hi) {
-        size_t mid = lo + (hi - lo) / 2;
-        if (v[mid] < key)
-            lo = mid + 1;
-        else
-            hi = mid;
+    uint32_t *pos = malloc((n ? n : 1) * sizeof *pos);
+    if (!pos)
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory indexing a cell");
+    for (size_t i = 0; i < n; ++i)
+        pos[i] = (uint32_t)i;
+    ms_status s = ms_radix_sort_pairs(ref, pos, n, key_bits, err);
+    size_t w = 0;
+    for (size_t i = 0; s == MS_OK && i < n; ++i) {
+        if (w == 0 || ref[i] != cells[w - 1])
+            cells[w++] = ref[i];
+        rank[pos[i]] = (uint32_t)(w - 1);
     }
-    return (uint32_t)lo;
-}
-
-typedef struct tri_key {
-    uint32_t s[3]; /* sorted vertex indices */
-    uint32_t seq;  /* position in the candidate list */
-} tri_key;
-
-static int cmp_tri_key(const void *x, const void *y)
-{
-    const tri_key *a = x, *b = y;
-    for (int i = 0; i < 3; ++i)
-        if (a->s[i] != b->s[i])
-            return a->s[i] < b->s[i] ? -1 : 1;
-    return a->seq < b->seq ? -1 : (a->seq > b->seq);
+    free(pos);
+    *ncells = w;
+    return s;
 }
 
 static void sort3(const uint32_t *t, uint32_t s[3])
@@ -140,44 +119,49 @@ static bool same_orientation(const uint32_t *a, const uint32_t *b)
 
 /* Removes triangles whose vertex set repeats an earlier one (earlier in the list
  * wins). With check, a repeat with the other orientation sets *conflict. Returns
- * the new count. */
+ * the new count. Vertex indices must be below 2^21 (the packed sort key). */
 static ms_status unify_triangles(uint32_t *tris, size_t *count, bool check, bool *conflict,
                                  size_t *removed, ms_error *err)
 {
     size_t n = *count;
-    tri_key *k = malloc((n ? n : 1) * sizeof *k);
+    uint64_t *key = malloc((n ? n : 1) * sizeof *key);
+    uint32_t *seq = malloc((n ? n : 1) * sizeof *seq);
     uint8_t *drop = calloc(n ? n : 1, 1);
-    if (!k || !drop) {
-        free(k);
+    if (!key || !seq || !drop) {
+        free(key);
+        free(seq);
         free(drop);
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory unifying triangles");
     }
     for (size_t i = 0; i < n; ++i) {
-        sort3(&tris[3 * i], k[i].s);
-        k[i].seq = (uint32_t)i;
+        uint32_t v[3];
+        sort3(&tris[3 * i], v);
+        key[i] = (uint64_t)v[0] << 42 | (uint64_t)v[1] << 21 | v[2];
+        seq[i] = (uint32_t)i;
     }
-    qsort(k, n, sizeof *k, cmp_tri_key);
-    for (size_t i = 1; i < n; ++i)
-        if (memcmp(k[i].s, k[i - 1].s, sizeof k[i].s) == 0) {
-            /* find the group's first */
-            size_t g = i - 1;
-            while (drop[k[g].seq])
+    ms_status s = ms_radix_sort_pairs(key, seq, n, 63, err);
+    for (size_t i = 1; s == MS_OK && i < n; ++i)
+        if (key[i] == key[i - 1]) {
+            size_t g = i - 1; /* the group's first (stable sort: earliest) */
+            while (drop[seq[g]])
                 --g;
-            drop[k[i].seq] = 1;
-            if (check && !same_orientation(&tris[3 * (size_t)k[g].seq], &tris[3 * (size_t)k[i].seq]))
+            drop[seq[i]] = 1;
+            if (check && !same_orientation(&tris[3 * (size_t)seq[g]], &tris[3 * (size_t)seq[i]]))
                 *conflict = true;
         }
     size_t w = 0;
     for (size_t i = 0; i < n; ++i)
         if (!drop[i]) {
-            memmove(&tris[3 * w], &tris[3 * i], 12);
+            if (w != i)
+                memcpy(&tris[3 * w], &tris[3 * i], 12);
             w++;
         }
     *removed += n - w;
     *count = w;
-    free(k);
+    free(key);
+    free(seq);
     free(drop);
-    return MS_OK;
+    return s;
 }
 
 /* Leaf: records at full precision -> complex. */
@@ -200,28 +184,48 @@ static ms_status leaf_state(pool *p, uint32_t node, ms_codec_state *st, ms_error
         ms_codec_state_free(st);
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory loading a leaf");
     }
-    size_t nk = 0;
+    /* Vertex references: three per triangle record, one per point record. */
+    uint64_t *ref = malloc((3 * n + 1) * sizeof *ref);
+    uint32_t *rank = malloc((3 * n + 1) * sizeof *rank);
+    if (!ref || !rank) {
+        free(ref);
+        free(rank);
+        free(rec);
+        ms_codec_state_free(st);
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory loading a leaf");
+    }
+    size_t nr = 0;
     for (size_t i = 0; i < n; ++i) {
         const uint32_t *r = rec + 3 * i;
         int verts = r[0] == r[1] ? 1 : 3;
         for (int j = 0; j < verts; ++j)
-            st->cells[nk++] = b->keys[r[j]];
+            ref[nr++] = b->keys[r[j]];
     }
-    nk = unique_u64(st->cells, nk);
+    size_t nk = 0;
+    s = index_keys(ref, nr, 3 * st->bits, st->cells, &nk, rank, err);
     st->vertex_count = nk;
     size_t nt = 0;
+    nr = 0;
     for (size_t i = 0; i < n; ++i) {
         const uint32_t *r = rec + 3 * i;
-        if (r[0] == r[1])
+        if (r[0] == r[1]) {
+            nr++;
             continue;
+        }
         for (int j = 0; j < 3; ++j)
-            st->tris[3 * nt + (size_t)j] = find_u64(st->cells, nk, b->keys[r[j]]);
+            st->tris[3 * nt + (size_t)j] = rank[nr++];
         nt++;
     }
+    free(ref);
+    free(rank);
     free(rec);
     size_t removed = 0;
     bool conflict = false;
-    s = unify_triangles(st->tris, &nt, false, &conflict, &removed, err);
+    if (s == MS_OK && nk >= (1u << 21))
+        s = ms_error_set(err, MS_ERR_RANGE, "a leaf holds more than 2^21 vertices (lower "
+                         "--min-tris)");
+    if (s == MS_OK)
+        s = unify_triangles(st->tris, &nt, false, &conflict, &removed, err);
     st->tri_count = nt;
     if (s != MS_OK) {
         ms_codec_state_free(st);
@@ -295,28 +299,42 @@ static ms_status internal_state(pool *p, uint32_t node, unsigned bits_max, ms_co
         ms_codec_state_free(st);
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory merging children");
     }
+    uint64_t *ref = malloc((nv + 1) * sizeof *ref);
+    uint32_t *rank = malloc((nv + 1) * sizeof *rank);
+    if (!ref || !rank) {
+        free(ref);
+        free(rank);
+        ms_codec_state_free(st);
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory merging children");
+    }
     size_t w = 0;
     for (unsigned k = 0; k < nc; ++k)
         for (size_t i = 0; i < ch[k].vertex_count; ++i)
-            st->cells[w++] = ch[k].cells[i];
-    nv = unique_u64(st->cells, w);
+            ref[w++] = ch[k].cells[i];
+    ms_status s = index_keys(ref, w, 3 * bits_max, st->cells, &nv, rank, err);
     st->vertex_count = nv;
-    size_t wt = 0, we = 0;
+    size_t wt = 0, we = 0, base = 0;
     for (unsigned k = 0; k < nc; ++k) {
         const ms_codec_state *c = &ch[k];
         for (size_t t = 0; t < 3 * c->tri_count; ++t)
-            st->tris[wt++] = find_u64(st->cells, nv, c->cells[c->tris[t]]);
+            st->tris[wt++] = rank[base + c->tris[t]];
         for (size_t e = 0; e < c->edge_count; ++e) {
-            uint32_t x = find_u64(st->cells, nv, c->cells[c->edges[2 * e]]);
-            uint32_t y = find_u64(st->cells, nv, c->cells[c->edges[2 * e + 1]]);
+            uint32_t x = rank[base + c->edges[2 * e]], y = rank[base + c->edges[2 * e + 1]];
             st->edges[we++] = x < y ? x : y;
             st->edges[we++] = x < y ? y : x;
         }
+        base += c->vertex_count;
     }
+    free(ref);
+    free(rank);
     nt = wt / 3;
     size_t removed = 0;
     bool conflict = false;
-    ms_status s = unify_triangles(st->tris, &nt, true, &conflict, &removed, err);
+    if (s == MS_OK && nv >= (1u << 21))
+        s = ms_error_set(err, MS_ERR_RANGE, "cell %u holds more than 2^21 vertices (lower "
+                         "--min-tris)", p->cell_of_node[node]);
+    if (s == MS_OK)
+        s = unify_triangles(st->tris, &nt, true, &conflict, &removed, err);
     st->tri_count = nt;
     if (s == MS_OK && conflict)
         s = ms_error_set(err, MS_ERR_CORRUPT, "cell %u: children disagree on a triangle's "

@@ -128,7 +128,7 @@ static void check_cameras(const char *model, const char *dir, const char *name, 
     uint64_t rng = 12345;
     if (getenv("MS_NSP_CAMERAS"))
         cameras = (unsigned)atoi(getenv("MS_NSP_CAMERAS"));
-    size_t mixed = 0, max_levels = 0;
+    size_t mixed = 0, max_levels = 0, folds = 0;
     for (unsigned i = 0; i < cameras; ++i) {
         ms_camera cam;
         random_camera(h, &rng, &cam);
@@ -143,6 +143,7 @@ static void check_cameras(const char *model, const char *dir, const char *name, 
         ms_nsp_view_check r;
         ms_nsp_test_check_view(v, &q, false, &r);
         mixed += r.levels > 1;
+        folds += r.folds;
         if (r.levels > max_levels)
             max_levels = r.levels;
         if (r.missing || r.extra || r.duplicates || r.cracks)
@@ -151,8 +152,8 @@ static void check_cameras(const char *model, const char *dir, const char *name, 
                      name, i, r.triangles, r.shown_cells, r.levels, r.missing, r.extra,
                      r.duplicates, r.cracks, r.boundary_edges);
     }
-    print_message("%s: %u cameras, %zu with mixed precisions (up to %zu), no crack\n", name,
-                  cameras, mixed, max_levels);
+    print_message("%s: %u cameras, %zu with mixed precisions (up to %zu), no crack (%zu fold "
+                  "edges)\n", name, cameras, mixed, max_levels, folds);
     assert_true(mixed > cameras / 2);
     free(target);
     ms_view_destroy(v);

@@ -29,7 +29,9 @@ typedef struct ms_nsp_view_check {
     size_t missing, extra;     /* against the reference image of the mixed clustering */
     size_t duplicates;         /* stitched triangles with the same vertex set */
     size_t boundary_edges;     /* edges with one incident triangle */
-    size_t cracks;             /* boundary edges not boundary in any uniform decode */
+    size_t folds;              /* boundary edges not boundary in any uniform decode, whose
+                                  one triangle is the image of several input triangles */
+    size_t cracks;             /* boundary edges that are neither */
     unsigned shown_cells, levels;
 } ms_nsp_view_check;
 
@@ -38,7 +40,9 @@ typedef struct ms_nsp_view_check {
  * the shown cell holding it (the exact mesh the stitching rule must give), and
  * checks the crack criterion: every edge with a single incident triangle is such
  * an edge in q decoded uniformly (ms_ref_coarsen) at one of the shown precisions
- * not above its endpoints'. With full = true, also asserts that the stitched mesh
+ * not above its endpoints', or else is a fold (its one triangle stands for two
+ * or more input triangles pressed together: for a closed input every boundary
+ * edge of the image is of one of these kinds, by parity). With full = true, also asserts that the stitched mesh
  * is q exactly, orientation included (every cell at full precision). */
 void ms_nsp_test_check_view(ms_view *view, const ms_qmesh *q, bool full,
                             ms_nsp_view_check *result);

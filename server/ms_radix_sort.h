@@ -1,0 +1,19 @@
+/* Stable LSD radix sort of 64-bit keys carrying a 32-bit value, for the baker's
+ * per-cell indexing (vertex keys, triangle vertex sets): linear in the count,
+ * where qsort's comparisons dominated the cell set-up.
+ *
+ * Only the low key_bits bits of the keys are looked at (1..64). Equal keys keep
+ * their input order. Memory: two scratch arrays of n entries, allocated per call.
+ * Thread-safety: no shared state. */
+#ifndef MS_RADIX_SORT_H
+#define MS_RADIX_SORT_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "ms_error.h"
+
+ms_status ms_radix_sort_pairs(uint64_t *keys, uint32_t *values, size_t n, unsigned key_bits,
+                              ms_error *err);
+
+#endif
