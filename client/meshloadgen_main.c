@@ -177,18 +177,18 @@ static void finish_client(vclient *v)
     v->done = true;
 }
 
-/* Camera moves a client may make now: unpaced, up to 64 per call; paced, as
- * many as the steps its clock allows. */
+/* Camera moves a client may make now: unpaced, a few per call (each is a
+ * whole view selection); paced, as many as the steps its clock allows. */
 static unsigned moves_allowed(const vclient *v)
 {
     const loadgen *lg = v->lg;
     if (lg->o.fps <= 0)
-        return 64;
+        return 4;
     double allowed = (ms_now_seconds() - lg->first_request) * lg->o.fps;
     if (allowed <= (double)v->plan.step)
         return 0;
     double moves = allowed - (double)v->plan.step;
-    return moves > 64 ? 64 : (unsigned)moves;
+    return moves > 4 ? 4 : (unsigned)moves;
 }
 
 /* --- Binary transport ----------------------------------------------------------- */

@@ -314,6 +314,42 @@ static void handle_open_model(ms_proto_conn *c, uint32_t id, const ms_proto_open
     }
 }
 
+/* Which queued requests a CANCEL range or a CLOSE_MODEL names. */
+typedef struct request_match {
+    uint32_t handle;        /* 0: match by ids */
+    uint32_t first, count;  /* ids first .. first + count - 1 */
+} request_match;
+
+static bool matches(const ms_cell_request *r, const request_match *m)
+{
+    return m->handle ? r->handle == m->handle : r->id >= m->first && r->id - m->first < m->count;
+}
+
+/* Cancels every queued request that matches. The matches are collected
+ * before any removal, because a removal reorders the heap. */
+static void cancel_matching(ms_proto_conn *c, const request_match *m)
+{
+    ms_cell_request **doomed = c->queue.count ? malloc(c->queue.count * sizeof *doomed) : NULL;
+    if (!doomed) { /* empty queue, or out of memory: rescan after each removal */
+        for (size_t i = 0; i < c->queue.count;) {
+            if (matches(c->queue.heap[i], m)) {
+                cancel_request(c, c->queue.heap[i]);
+                i = 0;
+            } else {
+                ++i;
+            }
+        }
+        return;
+    }
+    size_t n = 0;
+    for (size_t i = 0; i < c->queue.count; ++i)
+        if (matches(c->queue.heap[i], m))
+            doomed[n++] = c->queue.heap[i];
+    for (size_t i = 0; i < n; ++i)
+        cancel_request(c, doomed[i]);
+    free(doomed);
+}
+
 static void handle_close_model(ms_proto_conn *c, uint32_t handle)
 {
     ms_open_model *slot = find_handle(c, handle);
@@ -321,13 +357,8 @@ static void handle_close_model(ms_proto_conn *c, uint32_t handle)
         send_error(c, MS_PROTO_E_UNKNOWN_MODEL, 0, 0, handle, "no open model with this handle");
         return;
     }
-    for (size_t i = c->queue.count; i-- > 0;) {
-        if (i >= c->queue.count)
-            continue;
-        ms_cell_request *r = c->queue.heap[i];
-        if (r->handle == handle)
-            cancel_request(c, r);
-    }
+    request_match m = {handle, 0, 0};
+    cancel_matching(c, &m);
     ms_model_unref(slot->model);
     memset(slot, 0, sizeof *slot);
 }
@@ -341,19 +372,14 @@ static void handle_cancel(ms_proto_conn *c, const ms_proto_cancel *k)
     }
     for (uint16_t i = 0; i < k->range_count; ++i) {
         uint32_t first = k->ranges[i].first_id, count = k->ranges[i].count;
-        if (count <= c->queue.count) {
-            for (uint32_t j = 0; j < count; ++j) {
-                ms_cell_request *r = ms_request_queue_find(&c->queue, first + j);
-                if (r)
-                    cancel_request(c, r);
-            }
+        if (count > c->queue.count) { /* a wide range: scan the queue */
+            request_match m = {0, first, count};
+            cancel_matching(c, &m);
             continue;
         }
-        for (size_t j = c->queue.count; j-- > 0;) {
-            if (j >= c->queue.count)
-                continue;
-            ms_cell_request *r = c->queue.heap[j];
-            if (r->id >= first && r->id - first < count)
+        for (uint32_t j = 0; j < count; ++j) { /* a narrow one: look each id up */
+            ms_cell_request *r = ms_request_queue_find(&c->queue, first + j);
+            if (r)
                 cancel_request(c, r);
         }
     }
