@@ -165,9 +165,11 @@ static bool may_issue(const vclient *v)
     if (!(lg->streaming && !lg->stopping && !v->done && v->planning &&
           v->in_flight < lg->o.window && (!lg->o.max_requests || v->issued < lg->o.max_requests)))
         return false;
-    /* Paced: a token bucket per client, burst 1. */
+    /* Paced: a token bucket per client, burst 1, the clients' phases spread
+     * over one period (users do not click in step). */
+    double phase = (double)v->number / lg->o.clients;
     return lg->o.rate <= 0 ||
-           (double)v->issued < (ms_now_seconds() - lg->first_request) * lg->o.rate + 1.0;
+           (double)v->issued < (ms_now_seconds() - lg->first_request) * lg->o.rate - phase;
 }
 
 static void finish_client(vclient *v)
