@@ -11,6 +11,9 @@
 #include "ms_proto.h"
 #include "ms_proto_wire.h"
 
+/* Buffers larger than this are released between frames. */
+#define MS_PROTO_DECODER_KEEP (1u << 20)
+
 ms_status ms_proto_decoder_init(ms_proto_decoder *dec, const ms_proto_decoder_config *config,
                                 ms_error *err)
 {
@@ -437,8 +440,22 @@ ms_status ms_proto_decoder_feed(ms_proto_decoder *dec, const uint8_t *data, size
     }
     size_t used = 0;
     if (dec->header_have < MS_PROTO_HEADER_SIZE) {
-        if (dec->header_have == 0 && dec->body_have == 0)
+        if (dec->header_have == 0 && dec->body_have == 0) {
             dec->frame_start = dec->stream_offset;
+            /* Between frames: the previous message's borrow has ended, so a
+             * buffer grown past MS_PROTO_DECODER_KEEP by one large frame is
+             * released rather than kept for the connection's lifetime. */
+            if (dec->body_capacity > MS_PROTO_DECODER_KEEP) {
+                free(dec->body);
+                dec->body = NULL;
+                dec->body_capacity = 0;
+            }
+            if (dec->scratch_capacity > MS_PROTO_DECODER_KEEP) {
+                free(dec->scratch);
+                dec->scratch = NULL;
+                dec->scratch_capacity = 0;
+            }
+        }
         size_t take = MS_PROTO_HEADER_SIZE - dec->header_have;
         if (take > size)
             take = size;

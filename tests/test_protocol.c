@@ -1221,6 +1221,34 @@ static void test_version_choice_and_text(void **state)
     assert_false(ms_proto_text_valid((const uint8_t *)"\x80", 1));
 }
 
+/* A large frame does not pin its buffer after the next frame starts. */
+static void test_large_buffer_released(void **state)
+{
+    (void)state;
+    fill_fixtures();
+    static uint8_t frame[MS_PROTO_HEADER_SIZE + MS_PROTO_PAYLOAD_FIXED + (2u << 20)];
+    static uint8_t big[2u << 20];
+    ms_proto_message m = {.type = MS_PROTO_PAYLOAD, .flags = MS_PROTO_FLAG_LAST, .request_id = 3,
+                          .body.payload = {.cell_id = 1, .offset = 0, .end = sizeof big,
+                                           .data = big, .data_length = sizeof big}};
+    size_t n = encode(&m, frame, sizeof frame);
+    ms_proto_decoder dec;
+    ready_decoder(&dec, MS_PROTO_ROLE_CLIENT, MS_PROTO_MAX_FRAME, 0);
+    ms_proto_message msg;
+    ms_proto_fault fault;
+    bool have;
+    assert_int_equal(feed_all(&dec, frame, n, &msg, &have, &fault, NULL), MS_OK);
+    assert_true(have);
+    assert_int_equal(msg.body.payload.data_length, sizeof big);
+    assert_true(dec.body_capacity >= sizeof big);
+    ms_proto_message ping = {.type = MS_PROTO_PING, .body.ping.opaque = 2};
+    n = encode(&ping, frame, sizeof frame);
+    assert_int_equal(feed_all(&dec, frame, n, &msg, &have, &fault, NULL), MS_OK);
+    assert_true(have);
+    assert_true(dec.body_capacity <= 1u << 20);
+    ms_proto_decoder_free(&dec);
+}
+
 static void test_decoder_init_arguments(void **state)
 {
     (void)state;
@@ -1453,6 +1481,7 @@ int main(void)
         cmocka_unit_test(test_error_from_fault),
         cmocka_unit_test(test_version_choice_and_text),
         cmocka_unit_test(test_decoder_init_arguments),
+        cmocka_unit_test(test_large_buffer_released),
         cmocka_unit_test(test_random_mutations),
         cmocka_unit_test(test_corpus_replay),
     };
