@@ -124,6 +124,9 @@ static ms_status check_header(ms_proto_decoder *dec, ms_proto_fault *fault, ms_e
     if (!(info->sender & (server ? MS_WIRE_FROM_CLIENT : MS_WIRE_FROM_SERVER)))
         return fail_fatal(dec, MS_PROTO_E_UNEXPECTED_MESSAGE, type, fault, err,
                           "%s is never sent by a %s", info->name, server ? "client" : "server");
+    if (dec->peer_closed)
+        return fail_fatal(dec, MS_PROTO_E_UNEXPECTED_MESSAGE, type, fault, err,
+                          "%s after a fatal ERROR", info->name);
     if (!dec->handshake_done) {
         bool allowed = server ? type == MS_PROTO_HELLO
                               : type == MS_PROTO_HELLO_REPLY || type == MS_PROTO_ERROR;
@@ -417,6 +420,14 @@ static ms_status finish_frame(ms_proto_decoder *dec, ms_proto_message *msg, bool
         return ms_error_set(err, status_of(found.code), "frame at byte %llu: %s: %s",
                             (unsigned long long)dec->frame_start,
                             ms_proto_error_name(found.code), check_err.text);
+    }
+    if (msg->type == MS_PROTO_ERROR && msg->body.error.fatal) {
+        dec->peer_closed = true;
+    } else if (msg->type == MS_PROTO_ERROR && !dec->handshake_done) {
+        uint16_t error_code = msg->body.error.code;
+        memset(msg, 0, sizeof *msg);
+        return fail_fatal(dec, MS_PROTO_E_UNEXPECTED_MESSAGE, MS_PROTO_ERROR, fault, err,
+                          "non-fatal ERROR %s before HELLO_REPLY", ms_proto_error_name(error_code));
     }
     if (msg->type == MS_PROTO_HELLO || msg->type == MS_PROTO_HELLO_REPLY)
         dec->handshake_done = true;

@@ -710,14 +710,19 @@ static void check_stream_splits(ms_proto_role role, size_t max_chunk, unsigned r
     }
     expected[count++] = m;
     total += encode(&m, stream + total, sizeof stream - total);
-    for (unsigned i = 0; sample_message(i, &m); ++i) {
-        if (m.type == MS_PROTO_HELLO || m.type == MS_PROTO_HELLO_REPLY)
-            continue;
-        if (client_sends(m.type) != (role == MS_PROTO_ROLE_SERVER))
-            continue;
-        expected[count++] = m;
-        total += encode(&m, stream + total, sizeof stream - total);
-    }
+    /* Fatal ERRORs last: nothing may follow one. */
+    for (int fatal_pass = 0; fatal_pass < 2; ++fatal_pass)
+        for (unsigned i = 0; sample_message(i, &m); ++i) {
+            if (m.type == MS_PROTO_HELLO || m.type == MS_PROTO_HELLO_REPLY)
+                continue;
+            if (client_sends(m.type) != (role == MS_PROTO_ROLE_SERVER))
+                continue;
+            bool fatal = m.type == MS_PROTO_ERROR && m.body.error.fatal;
+            if (fatal != (fatal_pass == 1))
+                continue;
+            expected[count++] = m;
+            total += encode(&m, stream + total, sizeof stream - total);
+        }
     for (unsigned round = 0; round < rounds; ++round) {
         ms_proto_decoder dec;
         ms_proto_decoder_config config = {role, MS_PROTO_MAX_FRAME, MS_PROTO_MAX_BATCH};
@@ -818,7 +823,7 @@ static void test_unknown_type(void **state)
 static void test_unexpected_message(void **state)
 {
     (void)state;
-    uint8_t f[64];
+    uint8_t f[512];
     /* Wrong direction. */
     raw_header(f, 16, MS_PROTO_PAYLOAD, MS_PROTO_FLAG_LAST, 1);
     expect_fault(MS_PROTO_ROLE_SERVER, 8, f, 12, MS_PROTO_E_UNEXPECTED_MESSAGE, true, 0, 0,
@@ -852,7 +857,36 @@ static void test_unexpected_message(void **state)
     assert_int_equal(feed_all(&dec, f, n, &msg, &have, &fault, NULL), MS_OK);
     assert_true(have);
     assert_int_equal(msg.body.error.code, MS_PROTO_E_TOO_MANY_CONNECTIONS);
+    /* Nothing may follow a fatal ERROR. */
+    n = encode(&(ms_proto_message){.type = MS_PROTO_HELLO_REPLY, .body.hello_reply = default_reply()},
+               f, sizeof f);
+    assert_int_equal(feed_all(&dec, f, n, &msg, &have, &fault, NULL), MS_ERR_FORMAT);
+    assert_int_equal(fault.code, MS_PROTO_E_UNEXPECTED_MESSAGE);
+    assert_true(fault.fatal);
+    ms_proto_decoder_free(&dec);
+    /* A non-fatal ERROR cannot come first. */
+    assert_int_equal(ms_proto_decoder_init(&dec, &config, NULL), MS_OK);
+    m = (ms_proto_message){.type = MS_PROTO_ERROR,
+                           .body.error = {.code = MS_PROTO_E_RATE_LIMITED, .detail = 100}};
+    n = encode(&m, f, sizeof f);
+    assert_int_equal(feed_all(&dec, f, n, &msg, &have, &fault, NULL), MS_ERR_FORMAT);
+    assert_int_equal(fault.code, MS_PROTO_E_UNEXPECTED_MESSAGE);
+    assert_int_equal(fault.detail, MS_PROTO_ERROR);
+    ms_proto_decoder_free(&dec);
+    /* A PONG before HELLO_REPLY. */
+    assert_int_equal(ms_proto_decoder_init(&dec, &config, NULL), MS_OK);
     raw_header(f, 8, MS_PROTO_PONG, 0, 0);
+    assert_int_equal(feed_all(&dec, f, 20, &msg, &have, &fault, NULL), MS_ERR_FORMAT);
+    assert_int_equal(fault.code, MS_PROTO_E_UNEXPECTED_MESSAGE);
+    ms_proto_decoder_free(&dec);
+    /* After a fatal ERROR from the client, the server decoder accepts nothing. */
+    ready_decoder(&dec, MS_PROTO_ROLE_SERVER, MS_PROTO_MIN_FRAME, 8);
+    m = (ms_proto_message){.type = MS_PROTO_ERROR,
+                           .body.error = {.code = MS_PROTO_E_MALFORMED_FRAME, .fatal = true}};
+    n = encode(&m, f, sizeof f);
+    assert_int_equal(feed_all(&dec, f, n, &msg, &have, &fault, NULL), MS_OK);
+    assert_true(have);
+    raw_header(f, 8, MS_PROTO_PING, 0, 0);
     assert_int_equal(feed_all(&dec, f, 20, &msg, &have, &fault, NULL), MS_ERR_FORMAT);
     assert_int_equal(fault.code, MS_PROTO_E_UNEXPECTED_MESSAGE);
     ms_proto_decoder_free(&dec);
