@@ -12,6 +12,7 @@
 
 #include "ms_frame_out.h"
 #include "ms_progress.h"
+#include "ms_proto_range.h"
 #include "ms_registry.h"
 #include "ms_server.h"
 
@@ -394,61 +395,35 @@ typedef struct resolved {
 
 static resolved resolve_entry(const ms_open_model *slot, const ms_proto_cell_request *e)
 {
-    resolved out = {0};
     const ms_archive *a = slot->model->archive;
     const ms_archive_cell *cell = ms_archive_get_cell(a, e->cell_id);
     if (!cell)
         return (resolved){MS_PROTO_E_UNKNOWN_CELL, e->cell_id, 0, 0};
-    unsigned geometry_steps = ms_archive_get_header(a)->bits + 1u;
-    unsigned pg = slot->permitted_geometry_steps, pa = slot->permitted_apo_steps;
-    bool geometry_restricted = pg < geometry_steps;
-    bool apo_restricted = pa < slot->model->max_apo_levels;
+    uint8_t geometry_steps = (uint8_t)(ms_archive_get_header(a)->bits + 1u);
+    uint8_t pg = slot->permitted_geometry_steps;
+    uint32_t ends[MS_PROTO_MAX_STEPS];
+    ms_proto_stream_steps steps = {0, 0, ends};
+    ms_proto_stream_access access;
     if (e->stream == MS_PROTO_STREAM_GEOMETRY) {
-        unsigned lo = cell->bits_min, hi = cell->bits_max;
-        uint32_t size = cell->geometry_length;
-        if (e->unit == MS_PROTO_UNIT_STEPS) {
-            if (geometry_restricted && e->b >= pg)
-                return (resolved){MS_PROTO_E_FORBIDDEN, pg, 0, 0};
-            unsigned first = e->a > lo ? e->a : lo, last = e->b < hi ? e->b : hi;
-            if (first > last)
-                return out;
-            out.start = first == lo ? 0 : ms_archive_geometry_prefix(a, e->cell_id, first - 1);
-            out.end = ms_archive_geometry_prefix(a, e->cell_id, last);
-            return out;
-        }
-        if ((uint64_t)e->a + e->b > size)
-            return (resolved){MS_PROTO_E_RANGE_NOT_SATISFIABLE, size, 0, 0};
-        if (geometry_restricted) {
-            uint32_t limit = pg - 1u < lo ? 0 : ms_archive_geometry_prefix(a, e->cell_id, pg - 1u);
-            if (e->a + e->b > limit)
-                return (resolved){MS_PROTO_E_FORBIDDEN, pg, 0, 0};
-        }
-        return (resolved){0, 0, e->a, e->a + e->b};
+        steps.first_step = cell->bits_min;
+        steps.step_count = cell->bits_max - cell->bits_min + 1u;
+        for (uint32_t i = 0; i < steps.step_count; ++i)
+            ends[i] = ms_archive_geometry_prefix(a, e->cell_id, cell->bits_min + i);
+        access = (ms_proto_stream_access){geometry_steps, pg};
+    } else {
+        /* APO detail follows the geometric preview cell by cell (section 8). */
+        if (pg < geometry_steps && cell->bits_min >= pg)
+            return (resolved){MS_PROTO_E_FORBIDDEN, pg, 0, 0};
+        steps.step_count = cell->apo_levels;
+        for (uint32_t i = 0; i < steps.step_count; ++i)
+            ends[i] = ms_archive_apo_prefix(a, e->cell_id, i, NULL);
+        access = (ms_proto_stream_access){slot->model->max_apo_levels, slot->permitted_apo_steps};
     }
-    /* APO: a cell whose geometry lies wholly beyond the preview shows no
-     * detail either (the same rule as the HTTP side door). */
-    if (geometry_restricted && cell->bits_min >= pg)
-        return (resolved){MS_PROTO_E_FORBIDDEN, pg, 0, 0};
-    unsigned levels = cell->apo_levels;
-    uint32_t size = cell->apo_length;
-    if (e->unit == MS_PROTO_UNIT_STEPS) {
-        if (apo_restricted && e->b >= pa)
-            return (resolved){MS_PROTO_E_FORBIDDEN, pa, 0, 0};
-        unsigned last = levels && e->b >= levels ? levels - 1 : e->b;
-        if (!levels || e->a > last)
-            return out;
-        out.start = e->a == 0 ? 0 : ms_archive_apo_prefix(a, e->cell_id, e->a - 1, NULL);
-        out.end = ms_archive_apo_prefix(a, e->cell_id, last, NULL);
-        return out;
-    }
-    if ((uint64_t)e->a + e->b > size)
-        return (resolved){MS_PROTO_E_RANGE_NOT_SATISFIABLE, size, 0, 0};
-    if (apo_restricted) {
-        uint32_t limit = pa ? ms_archive_apo_prefix(a, e->cell_id, pa - 1u, NULL) : 0;
-        if (e->a + e->b > limit)
-            return (resolved){MS_PROTO_E_FORBIDDEN, pa, 0, 0};
-    }
-    return (resolved){0, 0, e->a, e->a + e->b};
+    ms_proto_byte_range range;
+    ms_proto_fault fault;
+    if (ms_proto_resolve_range(e, &steps, &access, &range, &fault, NULL) != MS_OK)
+        return (resolved){fault.code, fault.detail, 0, 0};
+    return (resolved){0, 0, range.begin, range.end};
 }
 
 static const char *entry_error_text(uint16_t code)
