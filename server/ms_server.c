@@ -112,7 +112,15 @@ ms_status ms_server_start(ms_server *s, ms_server_config *config, ms_error *err)
         ms_server_config_free(&s->config);
         return st;
     }
-    s->base = event_base_new();
+    /* epoll's change list folds the add/delete of a socket's write interest
+     * within one loop turn into one system call (at most), which matters with
+     * many connections that each fill and drain every turn. */
+    struct event_config *event_settings = event_config_new();
+    if (event_settings)
+        event_config_set_flag(event_settings, EVENT_BASE_FLAG_EPOLL_USE_CHANGELIST);
+    s->base = event_settings ? event_base_new_with_config(event_settings) : NULL;
+    if (event_settings)
+        event_config_free(event_settings);
     if (!s->base) {
         ms_server_stop(s);
         return ms_error_set(err, MS_ERR_NOMEM, "cannot create the event loop");
