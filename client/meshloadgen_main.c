@@ -34,7 +34,8 @@ typedef struct options {
     uint16_t port;
     bool http, json;
     unsigned clients, window;
-    double duration;
+    double duration, fps;  /* fps: camera steps per second per client, 0 = unpaced */
+    double rate;           /* requests per second per client, 0 = unpaced */
     uint64_t max_requests; /* per client */
     uint32_t seed;
     long server_pid;
@@ -76,7 +77,8 @@ struct loadgen {
     vclient *clients;
     ms_archive *shared_index;   /* http */
     double started, stop_issuing, finished, first_request;
-    bool stopping;
+    bool stopping, streaming;
+    unsigned ready;             /* clients holding their model index */
     double *latencies;
     size_t latency_count, latency_capacity;
     uint64_t bytes, requests, errors, cancelled, rate_limited, connection_failures;
@@ -160,8 +162,14 @@ static void release(vclient *v, slot *s)
 static bool may_issue(const vclient *v)
 {
     const loadgen *lg = v->lg;
-    return !lg->stopping && !v->done && v->planning && v->in_flight < lg->o.window &&
-           (!lg->o.max_requests || v->issued < lg->o.max_requests);
+    if (!(lg->streaming && !lg->stopping && !v->done && v->planning &&
+          v->in_flight < lg->o.window && (!lg->o.max_requests || v->issued < lg->o.max_requests)))
+        return false;
+    /* Paced: a token bucket per client, burst 1, the clients' phases spread
+     * over one period (users do not click in step). */
+    double phase = (double)v->number / lg->o.clients;
+    return lg->o.rate <= 0 ||
+           (double)v->issued < (ms_now_seconds() - lg->first_request) * lg->o.rate - phase;
 }
 
 static void finish_client(vclient *v)
@@ -169,6 +177,20 @@ static void finish_client(vclient *v)
     if (v->done)
         return;
     v->done = true;
+}
+
+/* Camera moves a client may make now: unpaced, a few per call (each is a
+ * whole view selection); paced, as many as the steps its clock allows. */
+static unsigned moves_allowed(const vclient *v)
+{
+    const loadgen *lg = v->lg;
+    if (lg->o.fps <= 0)
+        return 4;
+    double allowed = (ms_now_seconds() - lg->first_request) * lg->o.fps;
+    if (allowed <= (double)v->plan.step)
+        return 0;
+    double moves = allowed - (double)v->plan.step;
+    return moves > 4 ? 4 : (unsigned)moves;
 }
 
 /* --- Binary transport ----------------------------------------------------------- */
@@ -196,7 +218,7 @@ static void binary_fill(vclient *v)
     uint16_t count = 0;
     while (may_issue(v) && v->in_flight + count < lg->o.window) {
         ms_loadgen_item item;
-        if (!ms_loadgen_plan_next(&v->plan, &item, 64))
+        if (!ms_loadgen_plan_next(&v->plan, &item, moves_allowed(v)))
             break;
         slot *s = NULL;
         for (unsigned i = 0; i < lg->o.window && !s; ++i)
@@ -231,8 +253,6 @@ static void binary_fill(vclient *v)
         targets[k]->sent_at = now;
         v->in_flight++;
     }
-    if (!lg->first_request)
-        lg->first_request = now;
     lg->requests += count;
 }
 
@@ -251,7 +271,7 @@ static void on_model_opened(ms_client *client, uint32_t request_id, const ms_pro
     }
     v->handle = o->model_handle;
     v->planning = true;
-    binary_fill(v);
+    v->lg->ready++;
 }
 
 static void on_payload(ms_client *client, uint32_t id, const ms_proto_payload *p, bool last,
@@ -352,7 +372,7 @@ static void http_fill(vclient *v)
     struct evbuffer *out = bufferevent_get_output(v->bev);
     while (may_issue(v)) {
         ms_loadgen_item item;
-        if (!ms_loadgen_plan_next(&v->plan, &item, 64))
+        if (!ms_loadgen_plan_next(&v->plan, &item, moves_allowed(v)))
             break;
         uint32_t start, end;
         ms_loadgen_item_range(lg->shared_index, &item, &start, &end);
@@ -369,8 +389,6 @@ static void http_fill(vclient *v)
         v->in_flight++;
         v->issued++;
         lg->requests++;
-        if (!lg->first_request)
-            lg->first_request = s->sent_at;
         v->ring[(v->ring_head + v->ring_count++) % MAX_WINDOW] = (unsigned)(s - v->slots);
         evbuffer_add_printf(out,
                             "GET /models/%s/cells/%u/%s HTTP/1.1\r\nHost: %s\r\n"
@@ -425,8 +443,16 @@ static void http_read(struct bufferevent *bev, void *arg)
         }
         size_t have = evbuffer_get_length(in);
         size_t take = have < v->body_left ? have : (size_t)v->body_left;
-        evbuffer_drain(in, take);
-        v->body_left -= take;
+        /* Copied out, as a client keeping the bytes would (the binary client's
+         * decoder copies each frame too): both transports do the same work. */
+        while (take) {
+            uint8_t sink[65536];
+            int n = evbuffer_remove(in, sink, take < sizeof sink ? take : sizeof sink);
+            if (n <= 0)
+                break;
+            take -= (size_t)n;
+            v->body_left -= (uint64_t)n;
+        }
         if (v->body_left)
             return;
         v->in_body = false;
@@ -478,6 +504,7 @@ static int http_start(vclient *v)
         return -1;
     }
     v->planning = true;
+    lg->ready++;
     v->bev = bufferevent_socket_new(lg->base, -1, BEV_OPT_CLOSE_ON_FREE);
     if (!v->bev)
         return -1;
@@ -497,12 +524,24 @@ static void tick(evutil_socket_t fd, short what, void *arg)
     (void)fd, (void)what;
     loadgen *lg = arg;
     double now = ms_now_seconds();
+    /* Every client streams from the same moment, once all hold the model index
+     * (or after a 10 s start-up limit). */
+    if (!lg->streaming) {
+        unsigned finished = 0;
+        for (unsigned i = 0; i < lg->o.clients; ++i)
+            finished += lg->clients[i].done && !lg->clients[i].planning;
+        if (lg->ready + finished < lg->o.clients && now - lg->started < 10.0)
+            return;
+        lg->streaming = true;
+        lg->first_request = now;
+        lg->stop_issuing = now + lg->o.duration;
+    }
     if (!lg->stopping && now >= lg->stop_issuing)
         lg->stopping = true;
     bool busy = false;
     for (unsigned i = 0; i < lg->o.clients; ++i) {
         vclient *v = &lg->clients[i];
-        if (v->in_flight == 0 && may_issue(v)) /* its view was complete: look again */
+        if (may_issue(v)) /* its view was complete, or its pace allows more */
             lg->o.http ? http_fill(v) : binary_fill(v);
         if (!v->done && v->in_flight)
             busy = true;
@@ -536,9 +575,15 @@ static void usage(FILE *out)
             "  --clients N          virtual clients, one connection each (default 16)\n"
             "  --window N           requests in flight per client, 1..64 (default 4); with\n"
             "                       --http they are pipelined\n"
-            "  --duration S         stop issuing after S seconds (default 5), then wait up to\n"
-            "                       3 s for answers\n"
+            "  --duration S         stream for S seconds (default 5) from the moment every\n"
+            "                       client holds the model index, then wait up to 3 s for\n"
+            "                       answers\n"
             "  --requests N         at most N requests per client (default: no limit)\n"
+            "  --fps F              move each camera at most F steps per second, like a\n"
+            "                       browsing user (default 0: as fast as answers come, to\n"
+            "                       saturate the server)\n"
+            "  --rate R             at most R requests per second per client (default 0: no\n"
+            "                       limit); paced runs measure latency under a given load\n"
             "  --token TOKEN        access token (full precision)\n"
             "  --seed S             camera phases (default 1)\n"
             "  --server-pid PID     report the server's peak RSS (VmHWM) from /proc\n"
@@ -569,6 +614,7 @@ static int parse_options(int argc, char **argv, options *o)
         {"requests", required_argument, NULL, 'r'}, {"token", required_argument, NULL, 't'},
         {"seed", required_argument, NULL, 's'},     {"server-pid", required_argument, NULL, 'P'},
         {"label", required_argument, NULL, 'l'},    {"json", no_argument, NULL, 'j'},
+        {"fps", required_argument, NULL, 'f'},      {"rate", required_argument, NULL, 'R'},
         {"help", no_argument, NULL, 'h'},           {NULL, 0, NULL, 0},
     };
     *o = (options){.host = "127.0.0.1", .clients = 16, .window = 4, .duration = 5, .seed = 1,
@@ -591,6 +637,8 @@ static int parse_options(int argc, char **argv, options *o)
         case 's': bad = parse_number(optarg, 0, 4294967295.0, &v); o->seed = (uint32_t)v; break;
         case 'P': bad = parse_number(optarg, 1, 4194304, &v); o->server_pid = (long)v; break;
         case 'l': o->label = optarg; break;
+        case 'f': bad = parse_number(optarg, 0, 1000, &v); o->fps = v; break;
+        case 'R': bad = parse_number(optarg, 0, 1e6, &v); o->rate = v; break;
         case 'j': o->json = true; break;
         case 'h': usage(stdout); exit(0);
         default: return -1;
@@ -656,14 +704,22 @@ int main(int argc, char **argv)
     }
     if (lg.o.http && !(lg.shared_index = load_index(lg.o.index_path, lg.o.model)))
         return 1;
-    lg.base = event_base_new();
+    /* epoll's change list folds the add/delete of a socket's write interest
+     * within one loop turn into one system call (at most), which matters with
+     * many connections that each fill and drain every turn. */
+    struct event_config *event_settings = event_config_new();
+    if (event_settings)
+        event_config_set_flag(event_settings, EVENT_BASE_FLAG_EPOLL_USE_CHANGELIST);
+    lg.base = event_settings ? event_base_new_with_config(event_settings) : NULL;
+    if (event_settings)
+        event_config_free(event_settings);
     lg.clients = calloc(lg.o.clients, sizeof *lg.clients);
     if (!lg.base || !lg.clients) {
         fprintf(stderr, "meshloadgen: out of memory\n");
         return 1;
     }
     lg.started = ms_now_seconds();
-    lg.stop_issuing = lg.started + lg.o.duration;
+    lg.stop_issuing = lg.started + 3600;
     int status = 0;
     for (unsigned i = 0; i < lg.o.clients && !status; ++i) {
         vclient *v = &lg.clients[i];
@@ -671,15 +727,15 @@ int main(int argc, char **argv)
         v->number = i;
         status = lg.o.http ? http_start(v) : binary_start(v);
     }
-    struct timeval every = {0, 20000};
+    struct timeval every = {0, lg.o.rate > 0 ? 5000 : 20000};
     lg.ticker = event_new(lg.base, -1, EV_PERSIST, tick, &lg);
     if (status || !lg.ticker || event_add(lg.ticker, &every) != 0) {
         fprintf(stderr, "meshloadgen: cannot start the clients\n");
         return 1;
     }
     event_base_dispatch(lg.base);
-    /* Throughput over the streaming phase: from the first cell request (after
-     * connecting and receiving the index) to the end. */
+    /* Throughput over the streaming phase: from the moment every client held
+     * the model index to the end. */
     double elapsed = lg.finished - (lg.first_request ? lg.first_request : lg.started);
 
     qsort(lg.latencies, lg.latency_count, sizeof *lg.latencies, compare_double);
@@ -689,7 +745,7 @@ int main(int argc, char **argv)
     uint64_t answered = lg.latency_count;
     double mbps = elapsed > 0 ? lg.bytes / elapsed / 1e6 : 0;
     if (lg.o.json)
-        printf("{\"label\": \"%s\", \"transport\": \"%s\", \"clients\": %u, \"window\": %u, "
+        printf("{\"label\": \"%s\", \"transport\": \"%s\", \"clients\": %u, \"window\": %u, \"fps\": %g, \"rate\": %g, "
                "\"seconds\": %.3f, \"requests\": %llu, \"answered\": %llu, \"cancelled\": %llu, "
                "\"rate_limited\": %llu, \"errors\": %llu, \"connection_failures\": %llu, "
                "\"payload_bytes\": %llu, "
@@ -697,7 +753,7 @@ int main(int argc, char **argv)
                "\"max\": %.3f}, \"server_vmhwm_kb\": %ld, \"server_vmrss_kb\": %ld, "
                "\"server_rssanon_kb\": %ld, "
                "\"first_error\": \"%s\"}\n",
-               lg.o.label, lg.o.http ? "http" : "binary", lg.o.clients, lg.o.window, elapsed,
+               lg.o.label, lg.o.http ? "http" : "binary", lg.o.clients, lg.o.window, lg.o.fps, lg.o.rate, elapsed,
                (unsigned long long)lg.requests, (unsigned long long)answered,
                (unsigned long long)lg.cancelled, (unsigned long long)lg.rate_limited,
                (unsigned long long)lg.errors, (unsigned long long)lg.connection_failures,

@@ -9,6 +9,8 @@
 #include "ms_proto.h"
 
 #define TOLERANCE_PX 1.0
+
+static void move_camera(ms_loadgen_plan *p);
 #define APO_PRIORITY 200
 
 ms_status ms_loadgen_plan_init(ms_loadgen_plan *p, const ms_archive *index, uint32_t seed,
@@ -31,6 +33,7 @@ ms_status ms_loadgen_plan_init(ms_loadgen_plan *p, const ms_archive *index, uint
         ms_loadgen_plan_free(p);
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory for a load plan of %u cells", cells);
     }
+    move_camera(p); /* the first view, now rather than on the first request */
     return MS_OK;
 }
 

@@ -40,6 +40,7 @@ typedef struct ms_loadgen_plan {
     bool pass_produced;        /* the current pass over the view yielded a request */
 } ms_loadgen_plan;
 
+/* Also selects the first view (the costly part of a step). */
 ms_status ms_loadgen_plan_init(ms_loadgen_plan *plan, const ms_archive *index, uint32_t seed,
                                uint8_t permitted_geometry_steps, bool apo, ms_error *err);
 void ms_loadgen_plan_free(ms_loadgen_plan *plan);

@@ -10,6 +10,7 @@ typedef struct selection {
     const ms_camera *camera;
     ms_frustum frustum;
     double tolerance, margin;
+    double side[MAX_DEPTH + 1]; /* cube side per nSP level */
     ms_view_cell *out;
     size_t capacity, count;
 } selection;
@@ -20,7 +21,7 @@ static void visit(selection *s, uint32_t id, unsigned depth)
     const ms_archive_cell *c = ms_archive_get_cell(s->index, id);
     if (!c || depth > MAX_DEPTH)
         return;
-    double side = h->box_side / pow(h->n, c->level), lo[3], hi[3];
+    double side = s->side[c->level < MAX_DEPTH ? c->level : MAX_DEPTH], lo[3], hi[3];
     for (int k = 0; k < 3; ++k) {
         lo[k] = h->box_origin[k] + side * c->position[k];
         hi[k] = lo[k] + side;
@@ -46,8 +47,12 @@ static void visit(selection *s, uint32_t id, unsigned depth)
 size_t ms_view_select_cells(const ms_archive *index, const ms_camera *camera, double tolerance_px,
                       ms_view_cell *out, size_t capacity)
 {
-    selection s = {index, camera, {{{0}}, {0}}, tolerance_px, 0, out, capacity, 0};
+    selection s = {index, camera, {{{0}}, {0}}, tolerance_px, 0, {0}, out, capacity, 0};
     ms_camera_frustum(camera, &s.frustum);
+    const ms_archive_header *h = ms_archive_get_header(index);
+    s.side[0] = h->box_side;
+    for (int l = 1; l <= MAX_DEPTH; ++l)
+        s.side[l] = s.side[l - 1] / h->n;
     s.margin = ms_archive_get_header(index)->box_side * 0.01;
     visit(&s, 0, 0);
     return s.count;

@@ -361,6 +361,7 @@ typedef struct ms_proto_decoder_config {
 typedef struct ms_proto_decoder {
     ms_proto_decoder_config config;
     bool handshake_done;    /* first frame (HELLO / HELLO_REPLY) seen */
+    bool peer_closed;       /* a fatal ERROR was received: nothing may follow */
     bool failed;            /* a fatal fault happened; failure/failure_text repeat it */
     ms_proto_fault failure;
     char failure_text[MS_ERROR_TEXT_MAX];

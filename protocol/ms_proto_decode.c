@@ -11,6 +11,9 @@
 #include "ms_proto.h"
 #include "ms_proto_wire.h"
 
+/* Buffers larger than this are released between frames. */
+#define MS_PROTO_DECODER_KEEP (1u << 20)
+
 ms_status ms_proto_decoder_init(ms_proto_decoder *dec, const ms_proto_decoder_config *config,
                                 ms_error *err)
 {
@@ -121,6 +124,9 @@ static ms_status check_header(ms_proto_decoder *dec, ms_proto_fault *fault, ms_e
     if (!(info->sender & (server ? MS_WIRE_FROM_CLIENT : MS_WIRE_FROM_SERVER)))
         return fail_fatal(dec, MS_PROTO_E_UNEXPECTED_MESSAGE, type, fault, err,
                           "%s is never sent by a %s", info->name, server ? "client" : "server");
+    if (dec->peer_closed)
+        return fail_fatal(dec, MS_PROTO_E_UNEXPECTED_MESSAGE, type, fault, err,
+                          "%s after a fatal ERROR", info->name);
     if (!dec->handshake_done) {
         bool allowed = server ? type == MS_PROTO_HELLO
                               : type == MS_PROTO_HELLO_REPLY || type == MS_PROTO_ERROR;
@@ -415,6 +421,14 @@ static ms_status finish_frame(ms_proto_decoder *dec, ms_proto_message *msg, bool
                             (unsigned long long)dec->frame_start,
                             ms_proto_error_name(found.code), check_err.text);
     }
+    if (msg->type == MS_PROTO_ERROR && msg->body.error.fatal) {
+        dec->peer_closed = true;
+    } else if (msg->type == MS_PROTO_ERROR && !dec->handshake_done) {
+        uint16_t error_code = msg->body.error.code;
+        memset(msg, 0, sizeof *msg);
+        return fail_fatal(dec, MS_PROTO_E_UNEXPECTED_MESSAGE, MS_PROTO_ERROR, fault, err,
+                          "non-fatal ERROR %s before HELLO_REPLY", ms_proto_error_name(error_code));
+    }
     if (msg->type == MS_PROTO_HELLO || msg->type == MS_PROTO_HELLO_REPLY)
         dec->handshake_done = true;
     *have_message = true;
@@ -437,8 +451,22 @@ ms_status ms_proto_decoder_feed(ms_proto_decoder *dec, const uint8_t *data, size
     }
     size_t used = 0;
     if (dec->header_have < MS_PROTO_HEADER_SIZE) {
-        if (dec->header_have == 0 && dec->body_have == 0)
+        if (dec->header_have == 0 && dec->body_have == 0) {
             dec->frame_start = dec->stream_offset;
+            /* Between frames: the previous message's borrow has ended, so a
+             * buffer grown past MS_PROTO_DECODER_KEEP by one large frame is
+             * released rather than kept for the connection's lifetime. */
+            if (dec->body_capacity > MS_PROTO_DECODER_KEEP) {
+                free(dec->body);
+                dec->body = NULL;
+                dec->body_capacity = 0;
+            }
+            if (dec->scratch_capacity > MS_PROTO_DECODER_KEEP) {
+                free(dec->scratch);
+                dec->scratch = NULL;
+                dec->scratch_capacity = 0;
+            }
+        }
         size_t take = MS_PROTO_HEADER_SIZE - dec->header_have;
         if (take > size)
             take = size;

@@ -12,6 +12,7 @@
 
 #include "ms_frame_out.h"
 #include "ms_progress.h"
+#include "ms_proto_range.h"
 #include "ms_registry.h"
 #include "ms_server.h"
 
@@ -314,6 +315,42 @@ static void handle_open_model(ms_proto_conn *c, uint32_t id, const ms_proto_open
     }
 }
 
+/* Which queued requests a CANCEL range or a CLOSE_MODEL names. */
+typedef struct request_match {
+    uint32_t handle;        /* 0: match by ids */
+    uint32_t first, count;  /* ids first .. first + count - 1 */
+} request_match;
+
+static bool matches(const ms_cell_request *r, const request_match *m)
+{
+    return m->handle ? r->handle == m->handle : r->id >= m->first && r->id - m->first < m->count;
+}
+
+/* Cancels every queued request that matches. The matches are collected
+ * before any removal, because a removal reorders the heap. */
+static void cancel_matching(ms_proto_conn *c, const request_match *m)
+{
+    ms_cell_request **doomed = c->queue.count ? malloc(c->queue.count * sizeof *doomed) : NULL;
+    if (!doomed) { /* empty queue, or out of memory: rescan after each removal */
+        for (size_t i = 0; i < c->queue.count;) {
+            if (matches(c->queue.heap[i], m)) {
+                cancel_request(c, c->queue.heap[i]);
+                i = 0;
+            } else {
+                ++i;
+            }
+        }
+        return;
+    }
+    size_t n = 0;
+    for (size_t i = 0; i < c->queue.count; ++i)
+        if (matches(c->queue.heap[i], m))
+            doomed[n++] = c->queue.heap[i];
+    for (size_t i = 0; i < n; ++i)
+        cancel_request(c, doomed[i]);
+    free(doomed);
+}
+
 static void handle_close_model(ms_proto_conn *c, uint32_t handle)
 {
     ms_open_model *slot = find_handle(c, handle);
@@ -321,13 +358,8 @@ static void handle_close_model(ms_proto_conn *c, uint32_t handle)
         send_error(c, MS_PROTO_E_UNKNOWN_MODEL, 0, 0, handle, "no open model with this handle");
         return;
     }
-    for (size_t i = c->queue.count; i-- > 0;) {
-        if (i >= c->queue.count)
-            continue;
-        ms_cell_request *r = c->queue.heap[i];
-        if (r->handle == handle)
-            cancel_request(c, r);
-    }
+    request_match m = {handle, 0, 0};
+    cancel_matching(c, &m);
     ms_model_unref(slot->model);
     memset(slot, 0, sizeof *slot);
 }
@@ -341,19 +373,14 @@ static void handle_cancel(ms_proto_conn *c, const ms_proto_cancel *k)
     }
     for (uint16_t i = 0; i < k->range_count; ++i) {
         uint32_t first = k->ranges[i].first_id, count = k->ranges[i].count;
-        if (count <= c->queue.count) {
-            for (uint32_t j = 0; j < count; ++j) {
-                ms_cell_request *r = ms_request_queue_find(&c->queue, first + j);
-                if (r)
-                    cancel_request(c, r);
-            }
+        if (count > c->queue.count) { /* a wide range: scan the queue */
+            request_match m = {0, first, count};
+            cancel_matching(c, &m);
             continue;
         }
-        for (size_t j = c->queue.count; j-- > 0;) {
-            if (j >= c->queue.count)
-                continue;
-            ms_cell_request *r = c->queue.heap[j];
-            if (r->id >= first && r->id - first < count)
+        for (uint32_t j = 0; j < count; ++j) { /* a narrow one: look each id up */
+            ms_cell_request *r = ms_request_queue_find(&c->queue, first + j);
+            if (r)
                 cancel_request(c, r);
         }
     }
@@ -368,61 +395,35 @@ typedef struct resolved {
 
 static resolved resolve_entry(const ms_open_model *slot, const ms_proto_cell_request *e)
 {
-    resolved out = {0};
     const ms_archive *a = slot->model->archive;
     const ms_archive_cell *cell = ms_archive_get_cell(a, e->cell_id);
     if (!cell)
         return (resolved){MS_PROTO_E_UNKNOWN_CELL, e->cell_id, 0, 0};
-    unsigned geometry_steps = ms_archive_get_header(a)->bits + 1u;
-    unsigned pg = slot->permitted_geometry_steps, pa = slot->permitted_apo_steps;
-    bool geometry_restricted = pg < geometry_steps;
-    bool apo_restricted = pa < slot->model->max_apo_levels;
+    uint8_t geometry_steps = (uint8_t)(ms_archive_get_header(a)->bits + 1u);
+    uint8_t pg = slot->permitted_geometry_steps;
+    uint32_t ends[MS_PROTO_MAX_STEPS];
+    ms_proto_stream_steps steps = {0, 0, ends};
+    ms_proto_stream_access access;
     if (e->stream == MS_PROTO_STREAM_GEOMETRY) {
-        unsigned lo = cell->bits_min, hi = cell->bits_max;
-        uint32_t size = cell->geometry_length;
-        if (e->unit == MS_PROTO_UNIT_STEPS) {
-            if (geometry_restricted && e->b >= pg)
-                return (resolved){MS_PROTO_E_FORBIDDEN, pg, 0, 0};
-            unsigned first = e->a > lo ? e->a : lo, last = e->b < hi ? e->b : hi;
-            if (first > last)
-                return out;
-            out.start = first == lo ? 0 : ms_archive_geometry_prefix(a, e->cell_id, first - 1);
-            out.end = ms_archive_geometry_prefix(a, e->cell_id, last);
-            return out;
-        }
-        if ((uint64_t)e->a + e->b > size)
-            return (resolved){MS_PROTO_E_RANGE_NOT_SATISFIABLE, size, 0, 0};
-        if (geometry_restricted) {
-            uint32_t limit = pg - 1u < lo ? 0 : ms_archive_geometry_prefix(a, e->cell_id, pg - 1u);
-            if (e->a + e->b > limit)
-                return (resolved){MS_PROTO_E_FORBIDDEN, pg, 0, 0};
-        }
-        return (resolved){0, 0, e->a, e->a + e->b};
+        steps.first_step = cell->bits_min;
+        steps.step_count = cell->bits_max - cell->bits_min + 1u;
+        for (uint32_t i = 0; i < steps.step_count; ++i)
+            ends[i] = ms_archive_geometry_prefix(a, e->cell_id, cell->bits_min + i);
+        access = (ms_proto_stream_access){geometry_steps, pg};
+    } else {
+        /* APO detail follows the geometric preview cell by cell (section 8). */
+        if (pg < geometry_steps && cell->bits_min >= pg)
+            return (resolved){MS_PROTO_E_FORBIDDEN, pg, 0, 0};
+        steps.step_count = cell->apo_levels;
+        for (uint32_t i = 0; i < steps.step_count; ++i)
+            ends[i] = ms_archive_apo_prefix(a, e->cell_id, i, NULL);
+        access = (ms_proto_stream_access){slot->model->max_apo_levels, slot->permitted_apo_steps};
     }
-    /* APO: a cell whose geometry lies wholly beyond the preview shows no
-     * detail either (the same rule as the HTTP side door). */
-    if (geometry_restricted && cell->bits_min >= pg)
-        return (resolved){MS_PROTO_E_FORBIDDEN, pg, 0, 0};
-    unsigned levels = cell->apo_levels;
-    uint32_t size = cell->apo_length;
-    if (e->unit == MS_PROTO_UNIT_STEPS) {
-        if (apo_restricted && e->b >= pa)
-            return (resolved){MS_PROTO_E_FORBIDDEN, pa, 0, 0};
-        unsigned last = levels && e->b >= levels ? levels - 1 : e->b;
-        if (!levels || e->a > last)
-            return out;
-        out.start = e->a == 0 ? 0 : ms_archive_apo_prefix(a, e->cell_id, e->a - 1, NULL);
-        out.end = ms_archive_apo_prefix(a, e->cell_id, last, NULL);
-        return out;
-    }
-    if ((uint64_t)e->a + e->b > size)
-        return (resolved){MS_PROTO_E_RANGE_NOT_SATISFIABLE, size, 0, 0};
-    if (apo_restricted) {
-        uint32_t limit = pa ? ms_archive_apo_prefix(a, e->cell_id, pa - 1u, NULL) : 0;
-        if (e->a + e->b > limit)
-            return (resolved){MS_PROTO_E_FORBIDDEN, pa, 0, 0};
-    }
-    return (resolved){0, 0, e->a, e->a + e->b};
+    ms_proto_byte_range range;
+    ms_proto_fault fault;
+    if (ms_proto_resolve_range(e, &steps, &access, &range, &fault, NULL) != MS_OK)
+        return (resolved){fault.code, fault.detail, 0, 0};
+    return (resolved){0, 0, range.begin, range.end};
 }
 
 static const char *entry_error_text(uint16_t code)

@@ -23,6 +23,7 @@ struct ms_proto_door {
     ms_proto_door_shared shared; /* first: connections point at it */
     struct evconnlistener *listener;
     struct event *sweep;
+    struct event *accept_resume;  /* after running out of descriptors */
     ms_proto_conn *connections;  /* doubly linked */
     size_t connection_count, rejected_count;
 };
@@ -75,11 +76,27 @@ static void on_accept(struct evconnlistener *listener, evutil_socket_t fd, struc
     }
 }
 
+static void resume_accepting(evutil_socket_t fd, short what, void *arg)
+{
+    (void)fd, (void)what;
+    ms_proto_door *door = arg;
+    if (!door->shared.draining)
+        evconnlistener_enable(door->listener);
+}
+
+/* Out of descriptors, the pending connection stays in the backlog and the
+ * listener stays readable: pause accepting for a moment instead of spinning. */
 static void on_accept_error(struct evconnlistener *listener, void *arg)
 {
-    (void)listener;
     ms_proto_door *door = arg;
-    ms_server_log(door->shared.server, "binary: accept failed: %s", strerror(errno));
+    int error = EVUTIL_SOCKET_ERROR();
+    ms_server_log(door->shared.server, "binary: accept failed: %s", strerror(error));
+    if (error == EMFILE || error == ENFILE || error == ENOBUFS || error == ENOMEM) {
+        struct timeval pause = {0, 100000};
+        evconnlistener_disable(listener);
+        if (door->accept_resume)
+            event_add(door->accept_resume, &pause);
+    }
 }
 
 static void sweep(evutil_socket_t fd, short what, void *arg)
@@ -157,6 +174,7 @@ ms_status ms_proto_door_open(ms_server *server, ms_proto_door **out, uint16_t *b
         return st;
     }
     evconnlistener_set_error_cb(door->listener, on_accept_error);
+    door->accept_resume = evtimer_new(server->base, resume_accepting, door);
     struct sockaddr_storage bound;
     socklen_t bound_length = sizeof bound;
     *bound_port = 0;
@@ -199,6 +217,8 @@ void ms_proto_door_close(ms_proto_door *door)
         evconnlistener_free(door->listener);
     if (door->sweep)
         event_free(door->sweep);
+    if (door->accept_resume)
+        event_free(door->accept_resume);
     while (door->connections) {
         ms_proto_conn_fail(door->connections, MS_PROTO_E_SHUTTING_DOWN, 0, "server shutting down");
         ms_proto_conn_flush_now(door->connections);

@@ -7,6 +7,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/resource.h>
 #include <time.h>
 
 #include "ms_http_door.h"
@@ -101,18 +102,41 @@ static ms_status write_port_file(const ms_server *s, ms_error *err)
     return MS_OK;
 }
 
+/* Room for max_clients connections (plus rejected ones, HTTP clients and the
+ * archives): raises the soft descriptor limit up to the hard one. */
+static void raise_descriptor_limit(ms_server *s)
+{
+    struct rlimit rl;
+    rlim_t want = (rlim_t)s->config.max_clients + 256 + 2 * 64;
+    if (getrlimit(RLIMIT_NOFILE, &rl) != 0 || rl.rlim_cur >= want)
+        return;
+    rl.rlim_cur = want < rl.rlim_max ? want : rl.rlim_max;
+    if (setrlimit(RLIMIT_NOFILE, &rl) != 0 || rl.rlim_cur < want)
+        ms_server_log(s, "warning: %llu file descriptors allowed, fewer than max_clients needs",
+                      (unsigned long long)rl.rlim_cur);
+}
+
 ms_status ms_server_start(ms_server *s, ms_server_config *config, ms_error *err)
 {
     memset(s, 0, sizeof *s);
     s->config = *config;
     memset(config, 0, sizeof *config);
     s->started_at = ms_now_seconds();
+    raise_descriptor_limit(s);
     ms_status st = ms_registry_scan(s->config.archive_dir, NULL, &s->registry, warn_model, s, err);
     if (st != MS_OK) {
         ms_server_config_free(&s->config);
         return st;
     }
-    s->base = event_base_new();
+    /* epoll's change list folds the add/delete of a socket's write interest
+     * within one loop turn into one system call (at most), which matters with
+     * many connections that each fill and drain every turn. */
+    struct event_config *event_settings = event_config_new();
+    if (event_settings)
+        event_config_set_flag(event_settings, EVENT_BASE_FLAG_EPOLL_USE_CHANGELIST);
+    s->base = event_settings ? event_base_new_with_config(event_settings) : NULL;
+    if (event_settings)
+        event_config_free(event_settings);
     if (!s->base) {
         ms_server_stop(s);
         return ms_error_set(err, MS_ERR_NOMEM, "cannot create the event loop");

@@ -27,7 +27,7 @@ typedef struct ms_server_config {
     uint32_t max_batch;       /* entries in one request batch; default 1024 */
     uint32_t max_outstanding; /* queued requests per connection; default 4096 */
     uint64_t max_queued_bytes;/* payload bytes queued per connection; default 64 MiB */
-    uint32_t request_rate;    /* requests per second per connection (burst 2x); default 20000 */
+    uint32_t request_rate;    /* requests per second per connection (burst max_batch); default 20000 */
     uint32_t http_rate;       /* HTTP requests per second per client address; default 2000 */
     char *token;              /* full-precision access token; NULL = none configured */
     char *port_file;          /* if set, "PORT HTTP_PORT\n" is written there once listening */

@@ -92,11 +92,16 @@ static int start_strict_server(void **state)
     return 0;
 }
 
+/* SIGTERM: the server must drain and exit 0, which under the sanitizers also
+ * means it leaked nothing. */
 static int stop_server(void **state)
 {
     server_fixture *f = *state;
-    if (f->pid > 0)
-        ms_test_stop(f->pid, SIGKILL, 5.0);
+    if (f->pid > 0 && ms_test_stop(f->pid, SIGTERM, 15.0) != 0) {
+        ms_test_rmdir(f->dir);
+        free(f);
+        fail_msg("meshserve did not exit cleanly after SIGTERM");
+    }
     ms_test_rmdir(f->dir);
     free(f);
     return 0;
@@ -798,6 +803,83 @@ static void test_bad_requests(void **state)
     ms_test_conn_close(&c);
 }
 
+/* Random bytes, with or without a handshake, then end of stream: the server
+ * answers or closes each connection, and keeps serving everyone else. */
+static void test_random_garbage(void **state)
+{
+    server_fixture *f = *state;
+    uint32_t seed = 12345;
+    for (int round = 0; round < 150; ++round) {
+        ms_test_conn c;
+        assert_int_equal(ms_test_conn_open(&c, f->port), 0);
+        if (round % 2)
+            ms_test_conn_hello(&c, round % 4 == 1 ? TOKEN : NULL, NULL);
+        uint8_t junk[3000];
+        size_t n = 1 + (seed = seed * 1103515245u + 12345u) % sizeof junk;
+        for (size_t i = 0; i < n; ++i)
+            junk[i] = (uint8_t)((seed = seed * 1103515245u + 12345u) >> 16);
+        if (round % 3 == 0 && n >= 12) /* a plausible header: small length, real type */
+            junk[0] = (uint8_t)(n - 12), junk[1] = junk[2] = junk[3] = 0, junk[5] = 0,
+            junk[6] = junk[7] = 0;
+        ms_test_conn_send_raw(&c, junk, n);
+        shutdown(c.fd, SHUT_WR);
+        ms_proto_message m;
+        int r;
+        while ((r = ms_test_conn_recv(&c, &m, 5.0)) == 1)
+            ;
+        assert_true(r == 0 || r == -1); /* closed (or a frame our strict decoder refuses) */
+        ms_test_conn_close(&c);
+    }
+    ms_test_conn c;
+    connect_ready(f, &c, NULL);
+    send_ping(&c, 99);
+    expect_pong(&c, 99);
+    ms_test_conn_close(&c);
+}
+
+/* Valid frames with random fields: every request gets exactly one terminal
+ * frame, with data or with the documented error. */
+static void test_random_requests(void **state)
+{
+    server_fixture *f = *state;
+    ms_test_conn c;
+    connect_ready(f, &c, NULL); /* preview access: FORBIDDEN is reachable */
+    uint32_t handle = ms_test_conn_open_model(&c, "dragon", 1, NULL, NULL, NULL);
+    uint32_t seed = 777, next = 10;
+    for (int round = 0; round < 20; ++round) {
+        ms_proto_cell_request e[50];
+        for (int i = 0; i < 50; ++i) {
+            uint32_t r = seed = seed * 1103515245u + 12345u;
+            e[i].cell_id = r % 3 ? (r >> 8) % (MS_TEST_ARCHIVE_CELLS + 5) : r >> 4;
+            e[i].stream = (uint8_t)((r >> 3) & 1);
+            e[i].unit = (uint8_t)((r >> 5) & 1);
+            e[i].priority = (uint8_t)(r >> 24);
+            uint32_t x = (seed = seed * 1103515245u + 12345u) >> 8, y = x >> 12;
+            if (e[i].unit == MS_PROTO_UNIT_STEPS) {
+                e[i].a = x % 64;
+                e[i].b = e[i].a + y % (64 - e[i].a);
+            } else {
+                e[i].a = x % 400;
+                e[i].b = 1 + y % 400;
+            }
+        }
+        send_batch(&c, handle, next, e, 50);
+        answers a;
+        answers_init(&a, next, 50);
+        answers_collect(&c, &a);
+        for (int i = 0; i < 50; ++i) {
+            uint16_t code = a.error[i];
+            assert_true(code == 0 || code == MS_PROTO_E_UNKNOWN_CELL ||
+                        code == MS_PROTO_E_RANGE_NOT_SATISFIABLE || code == MS_PROTO_E_FORBIDDEN);
+            if (code == 0 && e[i].unit == MS_PROTO_UNIT_BYTES)
+                assert_int_equal(a.length[i], e[i].b);
+        }
+        answers_free(&a);
+        next += 50;
+    }
+    ms_test_conn_close(&c);
+}
+
 /* --- Limits (strict server) --------------------------------------------------- */
 
 static void test_limits(void **state)
@@ -870,6 +952,8 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_sigterm_finishes_transfers, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_malformed_frames, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_bad_requests, start_server, stop_server),
+        cmocka_unit_test_setup_teardown(test_random_garbage, start_server, stop_server),
+        cmocka_unit_test_setup_teardown(test_random_requests, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_limits, start_strict_server, stop_server),
     };
     return cmocka_run_group_tests_name("meshserve binary protocol", tests, NULL, NULL);

@@ -710,14 +710,19 @@ static void check_stream_splits(ms_proto_role role, size_t max_chunk, unsigned r
     }
     expected[count++] = m;
     total += encode(&m, stream + total, sizeof stream - total);
-    for (unsigned i = 0; sample_message(i, &m); ++i) {
-        if (m.type == MS_PROTO_HELLO || m.type == MS_PROTO_HELLO_REPLY)
-            continue;
-        if (client_sends(m.type) != (role == MS_PROTO_ROLE_SERVER))
-            continue;
-        expected[count++] = m;
-        total += encode(&m, stream + total, sizeof stream - total);
-    }
+    /* Fatal ERRORs last: nothing may follow one. */
+    for (int fatal_pass = 0; fatal_pass < 2; ++fatal_pass)
+        for (unsigned i = 0; sample_message(i, &m); ++i) {
+            if (m.type == MS_PROTO_HELLO || m.type == MS_PROTO_HELLO_REPLY)
+                continue;
+            if (client_sends(m.type) != (role == MS_PROTO_ROLE_SERVER))
+                continue;
+            bool fatal = m.type == MS_PROTO_ERROR && m.body.error.fatal;
+            if (fatal != (fatal_pass == 1))
+                continue;
+            expected[count++] = m;
+            total += encode(&m, stream + total, sizeof stream - total);
+        }
     for (unsigned round = 0; round < rounds; ++round) {
         ms_proto_decoder dec;
         ms_proto_decoder_config config = {role, MS_PROTO_MAX_FRAME, MS_PROTO_MAX_BATCH};
@@ -818,7 +823,7 @@ static void test_unknown_type(void **state)
 static void test_unexpected_message(void **state)
 {
     (void)state;
-    uint8_t f[64];
+    uint8_t f[512];
     /* Wrong direction. */
     raw_header(f, 16, MS_PROTO_PAYLOAD, MS_PROTO_FLAG_LAST, 1);
     expect_fault(MS_PROTO_ROLE_SERVER, 8, f, 12, MS_PROTO_E_UNEXPECTED_MESSAGE, true, 0, 0,
@@ -852,7 +857,36 @@ static void test_unexpected_message(void **state)
     assert_int_equal(feed_all(&dec, f, n, &msg, &have, &fault, NULL), MS_OK);
     assert_true(have);
     assert_int_equal(msg.body.error.code, MS_PROTO_E_TOO_MANY_CONNECTIONS);
+    /* Nothing may follow a fatal ERROR. */
+    n = encode(&(ms_proto_message){.type = MS_PROTO_HELLO_REPLY, .body.hello_reply = default_reply()},
+               f, sizeof f);
+    assert_int_equal(feed_all(&dec, f, n, &msg, &have, &fault, NULL), MS_ERR_FORMAT);
+    assert_int_equal(fault.code, MS_PROTO_E_UNEXPECTED_MESSAGE);
+    assert_true(fault.fatal);
+    ms_proto_decoder_free(&dec);
+    /* A non-fatal ERROR cannot come first. */
+    assert_int_equal(ms_proto_decoder_init(&dec, &config, NULL), MS_OK);
+    m = (ms_proto_message){.type = MS_PROTO_ERROR,
+                           .body.error = {.code = MS_PROTO_E_RATE_LIMITED, .detail = 100}};
+    n = encode(&m, f, sizeof f);
+    assert_int_equal(feed_all(&dec, f, n, &msg, &have, &fault, NULL), MS_ERR_FORMAT);
+    assert_int_equal(fault.code, MS_PROTO_E_UNEXPECTED_MESSAGE);
+    assert_int_equal(fault.detail, MS_PROTO_ERROR);
+    ms_proto_decoder_free(&dec);
+    /* A PONG before HELLO_REPLY. */
+    assert_int_equal(ms_proto_decoder_init(&dec, &config, NULL), MS_OK);
     raw_header(f, 8, MS_PROTO_PONG, 0, 0);
+    assert_int_equal(feed_all(&dec, f, 20, &msg, &have, &fault, NULL), MS_ERR_FORMAT);
+    assert_int_equal(fault.code, MS_PROTO_E_UNEXPECTED_MESSAGE);
+    ms_proto_decoder_free(&dec);
+    /* After a fatal ERROR from the client, the server decoder accepts nothing. */
+    ready_decoder(&dec, MS_PROTO_ROLE_SERVER, MS_PROTO_MIN_FRAME, 8);
+    m = (ms_proto_message){.type = MS_PROTO_ERROR,
+                           .body.error = {.code = MS_PROTO_E_MALFORMED_FRAME, .fatal = true}};
+    n = encode(&m, f, sizeof f);
+    assert_int_equal(feed_all(&dec, f, n, &msg, &have, &fault, NULL), MS_OK);
+    assert_true(have);
+    raw_header(f, 8, MS_PROTO_PING, 0, 0);
     assert_int_equal(feed_all(&dec, f, 20, &msg, &have, &fault, NULL), MS_ERR_FORMAT);
     assert_int_equal(fault.code, MS_PROTO_E_UNEXPECTED_MESSAGE);
     ms_proto_decoder_free(&dec);
@@ -1221,6 +1255,34 @@ static void test_version_choice_and_text(void **state)
     assert_false(ms_proto_text_valid((const uint8_t *)"\x80", 1));
 }
 
+/* A large frame does not pin its buffer after the next frame starts. */
+static void test_large_buffer_released(void **state)
+{
+    (void)state;
+    fill_fixtures();
+    static uint8_t frame[MS_PROTO_HEADER_SIZE + MS_PROTO_PAYLOAD_FIXED + (2u << 20)];
+    static uint8_t big[2u << 20];
+    ms_proto_message m = {.type = MS_PROTO_PAYLOAD, .flags = MS_PROTO_FLAG_LAST, .request_id = 3,
+                          .body.payload = {.cell_id = 1, .offset = 0, .end = sizeof big,
+                                           .data = big, .data_length = sizeof big}};
+    size_t n = encode(&m, frame, sizeof frame);
+    ms_proto_decoder dec;
+    ready_decoder(&dec, MS_PROTO_ROLE_CLIENT, MS_PROTO_MAX_FRAME, 0);
+    ms_proto_message msg;
+    ms_proto_fault fault;
+    bool have;
+    assert_int_equal(feed_all(&dec, frame, n, &msg, &have, &fault, NULL), MS_OK);
+    assert_true(have);
+    assert_int_equal(msg.body.payload.data_length, sizeof big);
+    assert_true(dec.body_capacity >= sizeof big);
+    ms_proto_message ping = {.type = MS_PROTO_PING, .body.ping.opaque = 2};
+    n = encode(&ping, frame, sizeof frame);
+    assert_int_equal(feed_all(&dec, frame, n, &msg, &have, &fault, NULL), MS_OK);
+    assert_true(have);
+    assert_true(dec.body_capacity <= 1u << 20);
+    ms_proto_decoder_free(&dec);
+}
+
 static void test_decoder_init_arguments(void **state)
 {
     (void)state;
@@ -1453,6 +1515,7 @@ int main(void)
         cmocka_unit_test(test_error_from_fault),
         cmocka_unit_test(test_version_choice_and_text),
         cmocka_unit_test(test_decoder_init_arguments),
+        cmocka_unit_test(test_large_buffer_released),
         cmocka_unit_test(test_random_mutations),
         cmocka_unit_test(test_corpus_replay),
     };

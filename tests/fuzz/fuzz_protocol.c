@@ -24,6 +24,7 @@
 #include <string.h>
 
 #include "ms_proto.h"
+#include "ms_proto_range.h"
 
 #define MS_FUZZ_CHECK(cond)                                                                    \
     do {                                                                                       \
@@ -55,6 +56,34 @@ static size_t ms_fuzz_handshake_frame(bool client_role, uint8_t *out)
     size_t written = 0;
     MS_FUZZ_CHECK(ms_proto_encode(&m, out, 512, &written, NULL) == MS_OK);
     return written;
+}
+
+/* Every decoded cell request also goes through the range resolver, against a
+ * cell whose stream holds steps 7..9 (bytes 100, 250, 400), with full access
+ * and with a preview of 9 steps out of 16. */
+static void ms_fuzz_resolve(const ms_proto_request_cells *batch)
+{
+    static const uint32_t ends[] = {100, 250, 400};
+    const ms_proto_stream_steps steps = {7, 3, ends};
+    const ms_proto_stream_access accesses[2] = {{16, 16}, {16, 9}};
+    for (uint32_t i = 0; i < batch->count; ++i) {
+        const ms_proto_cell_request *r = &batch->entries[i];
+        ms_proto_fault fault;
+        ms_status s = ms_proto_check_cell_id(r->cell_id, 1000, &fault, NULL);
+        MS_FUZZ_CHECK(s == (r->cell_id < 1000 ? MS_OK : MS_ERR_RANGE));
+        for (int k = 0; k < 2; ++k) {
+            ms_proto_byte_range out = {0, 0};
+            memset(&fault, 0, sizeof fault);
+            s = ms_proto_resolve_range(r, &steps, &accesses[k], &out, &fault, NULL);
+            if (s == MS_OK) {
+                MS_FUZZ_CHECK(out.begin <= out.end && out.end <= 400);
+            } else {
+                MS_FUZZ_CHECK(s == MS_ERR_RANGE);
+                MS_FUZZ_CHECK(fault.code == MS_PROTO_E_RANGE_NOT_SATISFIABLE ||
+                              (fault.code == MS_PROTO_E_FORBIDDEN && k == 1));
+            }
+        }
+    }
 }
 
 static bool ms_fuzz_one_line(const char *text)
@@ -134,6 +163,8 @@ static size_t ms_fuzz_protocol_one(const uint8_t *data, size_t size, uint16_t *f
                                               MS_PROTO_MIN_FRAME, &written, NULL) == MS_OK);
                 MS_FUZZ_CHECK(written == pos - frame_start);
                 MS_FUZZ_CHECK(memcmp(reencoded, stream + frame_start, written) == 0);
+                if (msg.type == MS_PROTO_REQUEST_CELLS)
+                    ms_fuzz_resolve(&msg.body.request_cells);
                 frame_start = pos;
                 continue;
             }
