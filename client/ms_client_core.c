@@ -850,10 +850,11 @@ static void dec_hand_over(ms_core *c, uint32_t cell)
         return;
     /* The view's decoder restarts from the cell's first bit whenever it gets
      * more bytes, so hand over in few steps: the first bits at once (something
-     * to show), then when the target's prefix is complete, or every 0.25 s. */
+     * to show; the root bit by bit), then when the target's prefix is
+     * complete, or every 0.25 s. */
     double t = since_start(c);
-    if (good > ms_archive_geometry_prefix(c->index, cell, rec->bits_min + 3u) &&
-        good < d->goal_bytes && good < rec->geometry_length && t - d->handed_at < 0.25) {
+    if (d->given > 0 && rec->level > 0 && good < d->goal_bytes && good < rec->geometry_length &&
+        t - d->handed_at < 0.25) {
         d->pending = true;
         return;
     }
@@ -1332,6 +1333,33 @@ static void dec_step(ms_core *c, chunk_msg *chunks, const ms_camera *cam, uint64
         }
         if (st == MS_VIEW_HIDDEN) {
             cached += ms_view_held_bytes(c->view, i) > 0;
+            /* Prefetch: the children of a shown cell about to split can
+             * receive their bytes while it finishes (they decode once it
+             * splits), which keeps the link busy across the split. */
+            uint8_t t = c->target[i];
+            if (t == MS_VIEW_TARGET_HIDDEN || rec->parent == MS_ARCHIVE_NONE ||
+                ms_view_state(c->view, rec->parent) != MS_VIEW_SHOWN ||
+                rec->geometry_length == 0 || d->failed)
+                continue;
+            unsigned goal = t == MS_VIEW_TARGET_SPLIT ? rec->bits_max : t;
+            if (goal > rec->bits_max)
+                goal = rec->bits_max;
+            bool visible;
+            double need = cell_need(c, &fv, i, &visible);
+            unsigned have = ms_view_available_bits(c->view, i);
+            for (unsigned s2 = have + 1; s2 <= goal; ++s2) {
+                uint32_t a = s2 == have + 1 ? d->geo.end
+                                            : ms_archive_geometry_prefix(c->index, i, s2 - 1);
+                uint32_t b = ms_archive_geometry_prefix(c->index, i, s2);
+                if (a < d->geo.end)
+                    a = d->geo.end;
+                if (a >= b)
+                    continue;
+                double p = (visible ? 144.0 : 208.0) - 8.0 * (need - s2);
+                double grow = decoded_estimate(rec, s2) - decoded_estimate(rec, s2 - 1);
+                want_push(&wl, (want){i, a, b, false, clamp_priority(p),
+                                      (uint32_t)(grow > 4e9 ? 4e9 : grow)});
+            }
             continue;
         }
         shown++;
