@@ -465,7 +465,8 @@ static void print_report(const options *o, const run *r, worker *ws)
                        "\"complete\": %s, \"error_px\": %.4f, \"tolerance_px\": %.4f}",
                        k ? ", " : "", r->path.count > k ? r->path.keys[k].time : 0.0,
                        c->keys[k].arrive, c->keys[k].wait, c->keys[k].complete ? "true" : "false",
-                       c->keys[k].error_px, c->keys[k].tolerance_px);
+                       isfinite(c->keys[k].error_px) ? c->keys[k].error_px : -1.0,
+                       c->keys[k].tolerance_px);
             printf("]}");
         }
         printf("]}\n");

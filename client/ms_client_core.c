@@ -22,7 +22,7 @@
 #define LATENCY_KEEP 65536u
 #define NO_SLOT 0xFFFFFFFFu
 #define BYTES_PER_VERTEX 64.0
-#define MAX_TOLERANCE_FACTOR 64.0
+#define MAX_TOLERANCE_FACTOR 4096.0
 
 /* A received payload chunk (or a failed request: length 0, failed true),
  * passed from the network thread to the decode thread. */
@@ -948,9 +948,12 @@ static double cell_error_px(const ms_core *c, const frame_view *fv, uint32_t cel
     double lo[3], hi[3];
     cell_box(h, ms_archive_get_cell(c->index, cell), lo, hi);
     double d = ms_camera_box_distance(&fv->cam, lo, hi);
+    /* nothing nearer than the near plane is drawn */
+    if (d < fv->cam.near_distance)
+        d = fv->cam.near_distance;
     double side = h->box_side / ldexp(1.0, (int)bits);
     double px = sqrt(3.0) * side * ms_camera_pixels_per_unit(&fv->cam);
-    return d <= 0 ? INFINITY : px / d;
+    return px / d;
 }
 
 static uint8_t clamp_priority(double p)

@@ -29,7 +29,7 @@
  * Memory budget. memory = payload bytes held (decoder and reception buffers)
  * + an estimate of decoded complexes (64 bytes per vertex). Above
  * memory_target the screen tolerance is raised by half a bit every 100 ms (up
- * to 64x), and it comes back down below 0.7 x target; hidden cells (those an
+ * to 4096x), and it comes back down below 0.7 x target; hidden cells (those an
  * ancestor stands for) are evicted least useful first (usefulness = the
  * precision the camera would want of them; culled cells least). Loading
  * continues while memory + bytes in flight stay below memory_ceiling; a new

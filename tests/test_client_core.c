@@ -565,9 +565,59 @@ static void test_meshload_cli(void **state)
     assert_non_null(strstr(out, expect));
 }
 
+/* The view decoder's byte hand-over and eviction calls the core relies on. */
+static void test_view_append_and_forget(void **state)
+{
+    (void)state;
+    const ms_archive_header *h = ms_archive_get_header(g->archive);
+    ms_archive_cell *recs = malloc(h->cell_count * sizeof *recs);
+    for (uint32_t i = 0; i < h->cell_count; ++i)
+        recs[i] = *ms_archive_get_cell(g->archive, i);
+    ms_view *v;
+    ms_error err;
+    assert_int_equal(ms_view_create(h, recs, &v, &err), MS_OK);
+    free(recs);
+    size_t len;
+    const uint8_t *root = ms_archive_geometry(g->archive, 0, &len);
+    const ms_archive_cell *r0 = ms_archive_get_cell(g->archive, 0);
+    uint32_t half = ms_archive_geometry_prefix(g->archive, 0, r0->bits_min + 2u);
+    assert_int_equal(ms_view_append_bytes(v, 0, root, half, &err), MS_OK);
+    assert_int_equal(ms_view_held_bytes(v, 0), half);
+    assert_int_equal(ms_view_available_bits(v, 0), r0->bits_min + 2u);
+    assert_int_equal(ms_view_append_bytes(v, 0, root + half, len - half + 1, &err), MS_ERR_RANGE);
+    assert_int_equal(ms_view_append_bytes(v, 0, root + half, len - half, &err), MS_OK);
+    assert_int_equal(ms_view_available_bits(v, 0), r0->bits_max);
+    assert_int_equal(ms_view_forget(v, 0, &err), MS_ERR_RANGE); /* the root is shown */
+    assert_int_equal(ms_view_set_bits(v, 0, r0->bits_max, &err), MS_OK);
+    assert_int_equal(ms_view_split(v, 0, &err), MS_OK);
+    /* a child with bytes, then hidden again by the merge, can be forgotten */
+    uint32_t child = MS_ARCHIVE_NONE;
+    for (uint32_t k = 0; k < 64 && child == MS_ARCHIVE_NONE; ++k)
+        if (ms_archive_get_cell(g->archive, r0->first_child + k)->geometry_length > 0)
+            child = r0->first_child + k;
+    assert_true(child != MS_ARCHIVE_NONE);
+    const uint8_t *cb = ms_archive_geometry(g->archive, child, &len);
+    assert_int_equal(ms_view_append_bytes(v, child, cb, len, &err), MS_OK);
+    const ms_archive_cell *rc = ms_archive_get_cell(g->archive, child);
+    assert_int_equal(ms_view_set_bits(v, child, rc->bits_max, &err), MS_OK);
+    assert_int_equal(ms_view_forget(v, child, &err), MS_ERR_RANGE); /* shown */
+    assert_int_equal(ms_view_merge(v, 0, &err), MS_OK);
+    assert_int_equal(ms_view_state(v, child), MS_VIEW_HIDDEN);
+    assert_int_equal(ms_view_forget(v, child, &err), MS_OK);
+    assert_int_equal(ms_view_held_bytes(v, child), 0);
+    /* shown again, it needs its bytes again and takes them */
+    assert_int_equal(ms_view_split(v, 0, &err), MS_OK);
+    assert_int_equal(ms_view_available_bits(v, child), rc->bits_min);
+    assert_int_equal(ms_view_set_bits(v, child, rc->bits_min + 1u, &err), MS_ERR_FORMAT);
+    assert_int_equal(ms_view_append_bytes(v, child, cb, len, &err), MS_OK);
+    assert_int_equal(ms_view_set_bits(v, child, rc->bits_max, &err), MS_OK);
+    ms_view_destroy(v);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_view_append_and_forget),
         cmocka_unit_test(test_stream_equals_direct_decode),
         cmocka_unit_test(test_server_killed_and_restarted),
         cmocka_unit_test(test_corrupt_payload_refetched_once),
