@@ -42,7 +42,7 @@ extern char **environ;
 typedef struct options {
     const char *host, *model, *path_file, *token, *baseline, *draco_decoder, *tmp_dir;
     uint16_t port;
-    unsigned clients, apo_levels;
+    unsigned clients, apo_levels, decode_threads;
     double bandwidth, tolerance, duration, keyframe_timeout, width, height;
     double memory_target, memory_ceiling, hysteresis, culled_less;
     bool json, skip_cold;
@@ -55,7 +55,7 @@ typedef struct key_result {
 
 typedef struct client_result {
     /* cold phase */
-    double first_display, view_complete;
+    double first_display, view_complete, cold_last_byte;
     bool cold_complete;
     uint64_t cold_bytes;
     /* path phase */
@@ -106,6 +106,7 @@ static ms_core_options core_options(const options *o)
     co.tolerance_px = o->tolerance;
     co.hysteresis_bits = o->hysteresis;
     co.culled_bits_less = o->culled_less;
+    co.decode_threads = o->decode_threads;
     co.apo_levels = o->apo_levels;
     co.memory_target = (uint64_t)(o->memory_target * 1048576.0);
     co.memory_ceiling = (uint64_t)(o->memory_ceiling * 1048576.0);
@@ -123,10 +124,15 @@ static bool camera_at(const run *r, double t, ms_camera *cam)
 
 /* Waits until the core's view is complete for its latest camera, or until
  * `until`; returns whether it completed. */
-static bool wait_complete(ms_core *core, double until, ms_core_stats *st)
+static bool wait_complete(ms_core *core, double until, ms_core_stats *st, double *last_byte)
 {
+    uint64_t seen = 0;
     for (;;) {
         ms_core_get_stats(core, st);
+        if (last_byte && st->bytes_received != seen) {
+            seen = st->bytes_received;
+            *last_byte = st->time;
+        }
         if (st->view_complete || st->error[0])
             return st->view_complete;
         if (now_s() >= until)
@@ -153,7 +159,7 @@ static void cold_phase(worker *w)
     if (until > r->deadline)
         until = r->deadline;
     ms_core_stats st;
-    res->cold_complete = wait_complete(core, until, &st);
+    res->cold_complete = wait_complete(core, until, &st, &res->cold_last_byte);
     res->view_complete = res->cold_complete ? st.time : -1;
     res->first_display = st.first_display;
     res->cold_bytes = st.bytes_received;
@@ -193,7 +199,7 @@ static void path_phase(worker *w)
             double until = t + r->o->keyframe_timeout;
             if (until > r->deadline)
                 until = r->deadline;
-            k->complete = wait_complete(core, until, &st);
+            k->complete = wait_complete(core, until, &st, NULL);
             k->wait = now_s() - t;
             k->error_px = st.achieved_error_px;
             k->tolerance_px = st.tolerance_px;
@@ -443,14 +449,15 @@ static void print_report(const options *o, const run *r, worker *ws)
         for (unsigned i = 0; i < n; ++i) {
             const client_result *c = &ws[i].result;
             printf("%s\n  {\"client\": %u, \"time_to_first_display\": %.4f, "
-                   "\"time_to_view_complete\": %.4f, \"cold_bytes\": %llu, \"bytes\": %llu, "
+                   "\"time_to_view_complete\": %.4f, \"last_byte\": %.4f, \"cold_bytes\": %llu, "
+                   "\"bytes\": %llu, "
                    "\"requests\": %llu, \"cancels\": %llu, \"reconnects\": %llu, "
                    "\"evictions\": %llu, \"cells\": %u, \"failed_cells\": %u, "
                    "\"decode_seconds\": %.4f, \"latency_p50\": %.4f, \"latency_p99\": %.4f, "
                    "\"peak_memory\": %llu, \"download_seconds\": %.4f, "
                    "\"draco_decode_seconds\": %.4f, \"error\": \"",
                    i ? "," : "", i, c->first_display, c->cold_complete ? c->view_complete : -1.0,
-                   (unsigned long long)c->cold_bytes, (unsigned long long)c->bytes,
+                   c->cold_last_byte, (unsigned long long)c->cold_bytes, (unsigned long long)c->bytes,
                    (unsigned long long)c->requests, (unsigned long long)c->cancels,
                    (unsigned long long)c->reconnects, (unsigned long long)c->evictions,
                    c->cells_shown, c->cells_failed, c->decode_seconds, c->p50, c->p99,
@@ -522,7 +529,8 @@ static void usage(FILE *out)
             "  --viewport WxH         pixels (default 1280x720)\n"
             "  --memory-target MB, --memory-ceiling MB   the cache budget (default none)\n"
             "  --hysteresis BITS      precision hysteresis (default 0.5)\n"
-            "  --culled-bits-less B   precision given up on cells outside the view (default 3)\n"
+            "  --culled-bits-less B   precision given up on cells outside the view (default 6)\n"
+            "  --decode-threads N     decoding threads per client (default 2)\n"
             "  --apo-levels L         APO detail target (default 0: APO off)\n"
             "  --token TOKEN          access token\n"
             "  --no-cold              skip the cold-open phase\n"
@@ -588,6 +596,7 @@ static int parse_options(int argc, char **argv, options *o)
         {"memory-ceiling", required_argument, NULL, 'C'},
         {"hysteresis", required_argument, NULL, 'H'},
         {"culled-bits-less", required_argument, NULL, 'L'},
+        {"decode-threads", required_argument, NULL, 'P'},
         {"apo-levels", required_argument, NULL, 'a'}, {"token", required_argument, NULL, 'T'},
         {"no-cold", no_argument, NULL, 'n'},       {"baseline", required_argument, NULL, 'B'},
         {"draco-decoder", required_argument, NULL, 'D'}, {"help", no_argument, NULL, 'h'},
@@ -678,6 +687,13 @@ static int parse_options(int argc, char **argv, options *o)
                 fprintf(stderr, "meshload: --culled-bits-less wants bits in (0, 64]\n");
                 return 2;
             }
+            break;
+        case 'P':
+            if (parse_double(optarg, 1, 64, &v) != 0 || v != floor(v)) {
+                fprintf(stderr, "meshload: --decode-threads wants 1..64\n");
+                return 2;
+            }
+            o->decode_threads = (unsigned)v;
             break;
         case 'a':
             if (parse_double(optarg, 0, 32, &v) != 0 || v != floor(v)) {

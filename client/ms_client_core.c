@@ -1643,7 +1643,7 @@ ms_status ms_core_start(const ms_core_options *o, ms_core **out, ms_error *err)
     if (c->o.hysteresis_bits < 0)
         c->o.hysteresis_bits = 0.5;
     if (c->o.culled_bits_less == 0)
-        c->o.culled_bits_less = 3.0;
+        c->o.culled_bits_less = 6.0;
     if (c->o.apo_geometry_tolerance_px == 0)
         c->o.apo_geometry_tolerance_px = 4.0;
     if (c->o.answer_timeout == 0)

@@ -11,8 +11,9 @@
  *   - a decode thread (with decode_threads - 1 helpers that refine distinct
  *     cells in parallel) owns the view-dependent decoder (ms_view_decoder.h): it
  *     takes the latest camera, selects cells by frustum and projected screen
- *     error with hysteresis, verifies received bytes (per-bit chunk CRCs, whole
- *     payload CRC; a corrupt range is fetched once more, then the cell is
+ *     error with hysteresis, verifies received bytes (the codec header against
+ *     the index, each precision bit against its chunk CRC, a whole APO chunk
+ *     against its CRC; a corrupt range is fetched once more, then the cell is
  *     reported failed), decodes, decides what to ask for next and in which
  *     order, keeps memory within budget, and publishes frames;
  *   - the caller's thread (the one that draws) only sets the camera, takes
@@ -21,10 +22,11 @@
  *
  * Request order. For every shown cell below its target, each missing precision
  * bit is one request, with priority 128 - 8 * (need - bit) for cells in the
- * frustum (need = the real-valued precision the camera asks for), 64 lower for
+ * frustum (need = the real-valued precision the camera asks for), 64 later for
  * culled ones: the bit that removes the most on-screen error goes first, and
- * every visible cell gets its first bits before any gets its last. At most
- * `window_bytes` are in flight, so priorities follow the camera.
+ * every visible cell gets its first bits before any gets its last. The
+ * children of a cell about to split fetch theirs 16 later, while it finishes.
+ * At most `window_bytes` are in flight, so priorities follow the camera.
  *
  * Memory budget. memory = payload bytes held (decoder and reception buffers)
  * + an estimate of decoded complexes (64 bytes per vertex). Above
@@ -34,8 +36,11 @@
  * precision the camera would want of them; culled cells least). Loading
  * continues while memory + bytes in flight stay below memory_ceiling; a new
  * range that would cross it may evict only cells at least one bit less
- * useful than the cell it loads. Cells in the cut (the root, every shown
- * cell and the split cells above them) are never evicted.
+ * useful than the cell it loads; when loading is blocked so, the tolerance
+ * rises as over the target, so loading never stalls. A pass that ends above
+ * the ceiling evicts what the view does not need, then coarsens at once.
+ * Cells in the cut (the root, every shown cell and the split cells above
+ * them) are never evicted. docs/CLIENT.md has the details.
  *
  * Two tolerances. tolerance_px is the geometric screen tolerance; with APO on
  * (apo_levels > 0 on a model that has APO chunks) geometry refines only to
@@ -78,7 +83,8 @@ typedef struct ms_core_options {
     const char *agent;         /* NULL: "meshstream-client" */
     double tolerance_px;       /* geometric screen tolerance, pixels; 0 = 1 */
     double hysteresis_bits;    /* ms_select_bits hysteresis; < 0 = 0.5 (0 is exact) */
-    double culled_bits_less;   /* culled cells' need is lowered by this; 0 = 3 */
+    double culled_bits_less;   /* culled cells' need is lowered by this; 0 = 6 (64x the
+                                  error outside the view) */
     double frustum_margin;     /* world units; 0 = none */
     unsigned apo_levels;       /* APO detail target in levels; 0 = APO off */
     double apo_geometry_tolerance_px; /* geometry tolerance with APO on; 0 = 4 */

@@ -211,7 +211,7 @@ static void check_equals_direct(const ms_core_frame *frame, const ms_camera *cam
     uint32_t n = ms_view_cell_count(v);
     uint8_t *target = malloc(n);
     ms_view_select_params sp = {.tolerance_px = 1.0, .margin = 0, .hysteresis = 0,
-                                .culled_bits_less = 3.0};
+                                .culled_bits_less = 6.0};
     for (int pass = 0; pass < 8; ++pass) {
         ms_view_select(v, camera, &sp, target);
         ms_view_apply_report r;
