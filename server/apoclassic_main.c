@@ -1,0 +1,228 @@
+/* apoclassic: whole-model APO for comparison with the published results. The
+ * same options will become `meshbake IN --apo-classic ...`. */
+#include <errno.h>
+#include <getopt.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "ms_apo_blob.h"
+#include "ms_apo_classic.h"
+#include "ms_demo_model.h"
+#include "ms_error.h"
+#include "ms_mesh.h"
+#include "ms_mesh_io.h"
+#include "ms_progress.h"
+
+/* The mesh readers live on another branch until they are merged; until then only
+ * the built-in demo model can be read. */
+#if defined(__has_include)
+#if __has_include("ms_mesh_reader.h")
+#define APOCLASSIC_HAVE_READERS 1
+#endif
+#endif
+
+static void usage(FILE *out)
+{
+    fputs("usage: apoclassic IN --apo-classic --simplify N [options]\n"
+          "Builds one APO (appearance-preserving octree) over a whole model, as in the\n"
+          "published method, and reports its size and the time of every phase.\n"
+          "IN is a mesh file (PLY, OBJ, OFF, optionally gzip'd) or demo:T, the built-in\n"
+          "relief sculpture with about T triangles.\n"
+          "  --apo-classic          whole-model mode (the only mode of this program)\n"
+          "  --simplify N           simplify to N triangles (quadric decimation) [3000]\n"
+          "  --apo-tol T            tolerance on the variation measure [0.05]\n"
+          "  --apo-init-depth D     depth split unconditionally [5]\n"
+          "  --apo-max-depth D      deepest level, at most 30 [13]\n"
+          "  --apo-measure NAME     classic (published, sum of squared deviations) or\n"
+          "                         spread (area-weighted angular spread, radians) [classic]\n"
+          "  --apo-search S         fixed ray search half-length in cube units [automatic]\n"
+          "  --threads N            worker threads, 0 = all cores [0]\n"
+          "  -o FILE                write the stored chunk (zlib + CRC) to FILE\n"
+          "  --json                 print the report as one JSON object\n"
+          "  --help                 show this help\n",
+          out);
+}
+
+static int parse_double(const char *s, const char *what, double lo, double hi, double *out)
+{
+    char *end;
+    errno = 0;
+    double v = strtod(s, &end);
+    if (errno || end == s || *end || !(v >= lo && v <= hi)) {
+        fprintf(stderr, "apoclassic: %s must be a number in [%g, %g], got '%s'\n", what, lo, hi, s);
+        return -1;
+    }
+    *out = v;
+    return 0;
+}
+
+static int load_input(const char *in, ms_mesh *mesh, ms_error *err)
+{
+    if (strncmp(in, "demo:", 5) == 0) {
+        double t;
+        if (parse_double(in + 5, "demo:T", 8, 2e8, &t) != 0)
+            return -1;
+        ms_demo_model model = {.grid = ms_demo_grid_for_triangles((uint64_t)t), .seed = 0};
+        return ms_demo_build(&model, mesh, err) == MS_OK ? 0 : -2;
+    }
+#ifdef APOCLASSIC_HAVE_READERS
+    return ms_mesh_load(in, mesh, NULL, err) == MS_OK ? 0 : -2;
+#else
+    ms_error_set(err, MS_ERR_UNSUPPORTED, "%s: this build has no mesh reader yet (use demo:T)", in);
+    return -2;
+#endif
+}
+
+static int write_file(const char *path, const uint8_t *data, size_t size)
+{
+    FILE *f = fopen(path, "wb");
+    if (!f || fwrite(data, 1, size, f) != size || fclose(f) != 0) {
+        fprintf(stderr, "apoclassic: cannot write %s: %s\n", path, strerror(errno));
+        if (f)
+            fclose(f);
+        return -1;
+    }
+    return 0;
+}
+
+int main(int argc, char **argv)
+{
+    enum { OPT_CLASSIC = 256, OPT_SIMPLIFY, OPT_TOL, OPT_INIT, OPT_MAX, OPT_MEASURE, OPT_SEARCH, OPT_THREADS, OPT_JSON, OPT_HELP };
+    static const struct option longs[] = {
+        {"apo-classic", no_argument, NULL, OPT_CLASSIC},     {"simplify", required_argument, NULL, OPT_SIMPLIFY},
+        {"apo-tol", required_argument, NULL, OPT_TOL},       {"apo-init-depth", required_argument, NULL, OPT_INIT},
+        {"apo-max-depth", required_argument, NULL, OPT_MAX}, {"apo-measure", required_argument, NULL, OPT_MEASURE},
+        {"apo-search", required_argument, NULL, OPT_SEARCH}, {"threads", required_argument, NULL, OPT_THREADS},
+        {"json", no_argument, NULL, OPT_JSON},               {"help", no_argument, NULL, OPT_HELP},
+        {NULL, 0, NULL, 0}};
+    ms_apo_classic_options o;
+    ms_apo_classic_options_default(&o);
+    const char *out_path = NULL;
+    int json = 0, c;
+    double v;
+    while ((c = getopt_long(argc, argv, "o:", longs, NULL)) != -1) {
+        switch (c) {
+        case OPT_CLASSIC: break;
+        case OPT_SIMPLIFY:
+            if (parse_double(optarg, "--simplify", 4, 1e9, &v) != 0)
+                return 2;
+            o.simplify_triangles = (size_t)v;
+            break;
+        case OPT_TOL:
+            if (parse_double(optarg, "--apo-tol", 0, 1e12, &o.tolerance) != 0)
+                return 2;
+            break;
+        case OPT_INIT:
+            if (parse_double(optarg, "--apo-init-depth", 0, 30, &v) != 0)
+                return 2;
+            o.init_depth = (uint32_t)v;
+            break;
+        case OPT_MAX:
+            if (parse_double(optarg, "--apo-max-depth", 0, 30, &v) != 0)
+                return 2;
+            o.max_depth = (uint32_t)v;
+            break;
+        case OPT_MEASURE:
+            if (strcmp(optarg, "classic") == 0)
+                o.measure = MS_APO_MEASURE_CLASSIC;
+            else if (strcmp(optarg, "spread") == 0)
+                o.measure = MS_APO_MEASURE_SPREAD;
+            else {
+                fprintf(stderr, "apoclassic: --apo-measure is classic or spread, got '%s'\n", optarg);
+                return 2;
+            }
+            break;
+        case OPT_SEARCH:
+            if (parse_double(optarg, "--apo-search", 0, 1, &o.search_distance) != 0)
+                return 2;
+            break;
+        case OPT_THREADS:
+            if (parse_double(optarg, "--threads", 0, 1024, &v) != 0)
+                return 2;
+            o.threads = (unsigned)v;
+            break;
+        case 'o': out_path = optarg; break;
+        case OPT_JSON: json = 1; break;
+        case OPT_HELP: usage(stdout); return 0;
+        default: usage(stderr); return 2;
+        }
+    }
+    if (optind != argc - 1) {
+        fprintf(stderr, "apoclassic: expected one input (try --help)\n");
+        return 2;
+    }
+    const char *in = argv[optind];
+    ms_error err;
+    ms_error_clear(&err);
+    ms_mesh mesh;
+    memset(&mesh, 0, sizeof mesh);
+    double t0 = ms_now_seconds();
+    int lr = load_input(in, &mesh, &err);
+    if (lr == -1)
+        return 2;
+    if (lr != 0) {
+        fprintf(stderr, "apoclassic: %s\n", err.text);
+        return 1;
+    }
+    double load_seconds = ms_now_seconds() - t0;
+    ms_apo_classic_report r;
+    ms_apo_chunk chunk;
+    ms_status st = ms_apo_classic_run(&mesh, &o, out_path ? &chunk : NULL, &r, &err);
+    ms_mesh_free(&mesh);
+    if (st != MS_OK) {
+        fprintf(stderr, "apoclassic: %s\n", err.text);
+        return 1;
+    }
+    if (out_path) {
+        uint8_t *blob = NULL;
+        size_t size = 0;
+        st = ms_apo_blob_write(&chunk, o.zlib_level, &blob, &size, &err);
+        ms_apo_chunk_free(&chunk);
+        int wr = st == MS_OK ? write_file(out_path, blob, size) : -1;
+        free(blob);
+        if (st != MS_OK)
+            fprintf(stderr, "apoclassic: %s\n", err.text);
+        if (st != MS_OK || wr != 0)
+            return 1;
+    }
+    const char *measure = o.measure == MS_APO_MEASURE_CLASSIC ? "classic" : "spread";
+    if (json) {
+        printf("{\"input\":\"%s\",\"input_triangles\":%zu,\"simplified_triangles\":%zu,\"refused_faces\":%zu,"
+               "\"tolerance\":%g,\"measure\":\"%s\",\"init_depth\":%u,\"max_depth\":%u,"
+               "\"internal_nodes\":%zu,\"leaves\":%zu,\"cells\":%zu,\"texels\":%zu,\"bytes\":%zu,"
+               "\"stored_bytes\":%zu,\"levels\":%u,\"texture\":[%u,%u],\"level_texels\":[",
+               in, r.input_triangles, r.simplified_triangles, r.refused_faces, o.tolerance, measure, o.init_depth,
+               o.max_depth, r.internal_nodes, r.leaves, r.internal_nodes + r.leaves, r.texels, r.bytes,
+               r.stored_bytes, r.levels, r.texture_width, r.texture_height);
+        for (uint32_t d = 0; d < r.levels; ++d)
+            printf("%s%u", d ? "," : "", r.level_texels[d]);
+        printf("],\"samples\":%llu,\"ray_hits\":%llu,\"closest_points\":%llu,\"unsampled\":%llu,"
+               "\"m_to_M_distance\":%.6g,\"seconds\":%.3f,\"seconds_apo\":%.3f,\"phases\":{\"load\":%.3f,"
+               "\"simplify\":%.3f,\"prepare\":%.3f,\"octree\":%.3f,\"sample\":%.3f,\"encode\":%.3f,"
+               "\"store\":%.3f},\"peak_rss_mb\":%.1f}\n",
+               (unsigned long long)r.build.samples, (unsigned long long)r.build.ray_hits,
+               (unsigned long long)r.build.closest_points, (unsigned long long)r.build.unsampled,
+               r.build.m_to_M_distance, r.seconds_total, r.seconds_apo, load_seconds, r.seconds_simplify,
+               r.seconds_prepare, r.seconds_octree, r.seconds_sample, r.seconds_encode, r.seconds_store,
+               ms_peak_rss_mb());
+    } else {
+        printf("input            %s: %zu triangles, simplified to %zu (%zu refused)\n", in, r.input_triangles,
+               r.simplified_triangles, r.refused_faces);
+        printf("settings         measure %s, tolerance %g, depths %u..%u\n", measure, o.tolerance, o.init_depth,
+               o.max_depth);
+        printf("octree           %zu internal nodes, %zu leaves, %zu cells, %u levels\n", r.internal_nodes,
+               r.leaves, r.internal_nodes + r.leaves, r.levels);
+        printf("texels           %zu (%zu bytes, stored %zu bytes; 2D layout %ux%u)\n", r.texels, r.bytes,
+               r.stored_bytes, r.texture_width, r.texture_height);
+        printf("samples          %llu: %llu ray hits, %llu closest points, %llu unsampled; m-to-M %.3g\n",
+               (unsigned long long)r.build.samples, (unsigned long long)r.build.ray_hits,
+               (unsigned long long)r.build.closest_points, (unsigned long long)r.build.unsampled,
+               r.build.m_to_M_distance);
+        printf("seconds          load %.2f, simplify %.2f, prepare %.2f, octree %.2f, sample %.2f, encode %.2f, "
+               "store %.2f; APO %.2f, total %.2f (without load)\n",
+               load_seconds, r.seconds_simplify, r.seconds_prepare, r.seconds_octree, r.seconds_sample,
+               r.seconds_encode, r.seconds_store, r.seconds_apo, r.seconds_total);
+    }
+    return 0;
+}

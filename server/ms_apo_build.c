@@ -1,0 +1,934 @@
+/* APO builder: level-by-level adaptive octree around m, Embree sampling of M. */
+#include "ms_apo_build.h"
+
+#include <embree3/rtcore.h>
+#include <math.h>
+#include <stdbool.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "ms_parallel.h"
+#include "ms_progress.h"
+#include "ms_tri_box.h"
+
+struct ms_apo_builder {
+    RTCDevice device;
+};
+
+/* ---------------------------------------------------------------- growable arrays */
+
+typedef struct u32vec {
+    uint32_t *v;
+    size_t n, cap;
+} u32vec;
+
+static bool u32vec_push(u32vec *a, uint32_t x)
+{
+    if (a->n == a->cap) {
+        size_t cap = a->cap ? 2 * a->cap : 64;
+        uint32_t *v = realloc(a->v, cap * sizeof *v);
+        if (!v)
+            return false;
+        a->v = v;
+        a->cap = cap;
+    }
+    a->v[a->n++] = x;
+    return true;
+}
+
+static void u32vec_free(u32vec *a)
+{
+    free(a->v);
+    memset(a, 0, sizeof *a);
+}
+
+/* ---------------------------------------------------------------- meshes in cube space */
+
+/* A triangle mesh moved into the cube's frame (cube = [0,1]^3), single precision,
+ * with per-triangle bounds, unit face normals and areas, and area-weighted vertex
+ * normals. */
+typedef struct local_mesh {
+    float *pos;      /* 3 per vertex */
+    uint32_t *tri;   /* 3 per triangle */
+    float *bounds;   /* 6 per triangle: min xyz, max xyz */
+    float *fnormal;  /* 3 per triangle, unit (0 for degenerate) */
+    float *area;     /* per triangle */
+    float *vnormal;  /* 3 per vertex, unit (0 if no valid face) */
+    size_t vertex_count, triangle_count;
+} local_mesh;
+
+static void local_mesh_free(local_mesh *lm)
+{
+    free(lm->pos);
+    free(lm->bounds);
+    free(lm->fnormal);
+    free(lm->area);
+    free(lm->vnormal);
+    memset(lm, 0, sizeof *lm);
+}
+
+static ms_status local_mesh_make(const ms_mesh *mesh, const ms_apo_build_options *o, const char *name,
+                                 local_mesh *lm, ms_error *err)
+{
+    memset(lm, 0, sizeof *lm);
+    size_t nv = mesh->vertex_count, nt = mesh->triangle_count;
+    if (nv > UINT32_MAX || nt > UINT32_MAX / 3)
+        return ms_error_set(err, MS_ERR_ARG, "apo build: %s is too large", name);
+    lm->vertex_count = nv;
+    lm->triangle_count = nt;
+    lm->tri = mesh->triangles;
+    lm->pos = malloc((3 * nv + 1) * sizeof *lm->pos);
+    lm->bounds = malloc((6 * nt + 1) * sizeof *lm->bounds);
+    lm->fnormal = malloc((3 * nt + 1) * sizeof *lm->fnormal);
+    lm->area = malloc((nt + 1) * sizeof *lm->area);
+    double *acc = calloc(3 * nv + 1, sizeof *acc);
+    if (!lm->pos || !lm->bounds || !lm->fnormal || !lm->area || !acc || !(lm->vnormal = malloc((3 * nv + 1) * sizeof(float)))) {
+        free(acc);
+        local_mesh_free(lm);
+        return ms_error_set(err, MS_ERR_NOMEM, "apo build: no memory for %s", name);
+    }
+    double inv = 1.0 / o->cube_size;
+    for (size_t i = 0; i < nv; ++i)
+        for (int a = 0; a < 3; ++a) {
+            double p = mesh->positions[3 * i + a];
+            if (!isfinite(p)) {
+                free(acc);
+                local_mesh_free(lm);
+                return ms_error_set(err, MS_ERR_RANGE, "apo build: %s vertex %zu is not finite", name, i);
+            }
+            lm->pos[3 * i + a] = (float)((p - o->cube_origin[a]) * inv);
+        }
+    for (size_t t = 0; t < nt; ++t) {
+        const uint32_t *v = &mesh->triangles[3 * t];
+        if (v[0] >= nv || v[1] >= nv || v[2] >= nv) {
+            free(acc);
+            local_mesh_free(lm);
+            return ms_error_set(err, MS_ERR_ARG, "apo build: %s triangle %zu has a bad vertex index", name, t);
+        }
+        const float *p0 = &lm->pos[3 * v[0]], *p1 = &lm->pos[3 * v[1]], *p2 = &lm->pos[3 * v[2]];
+        for (int a = 0; a < 3; ++a) {
+            lm->bounds[6 * t + a] = fminf(p0[a], fminf(p1[a], p2[a]));
+            lm->bounds[6 * t + 3 + a] = fmaxf(p0[a], fmaxf(p1[a], p2[a]));
+        }
+        double e1[3], e2[3];
+        for (int a = 0; a < 3; ++a) {
+            e1[a] = (double)p1[a] - p0[a];
+            e2[a] = (double)p2[a] - p0[a];
+        }
+        double c[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
+        double len = sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
+        lm->area[t] = (float)(0.5 * len);
+        for (int a = 0; a < 3; ++a) {
+            lm->fnormal[3 * t + a] = len > 0.0 ? (float)(c[a] / len) : 0.0f;
+            for (int k = 0; k < 3; ++k)
+                acc[3 * v[k] + a] += c[a]; /* area-weighted (|c| = 2 area) */
+        }
+    }
+    for (size_t i = 0; i < nv; ++i) {
+        double *s = &acc[3 * i];
+        double len = sqrt(s[0] * s[0] + s[1] * s[1] + s[2] * s[2]);
+        for (int a = 0; a < 3; ++a)
+            lm->vnormal[3 * i + a] = len > 0.0 ? (float)(s[a] / len) : 0.0f;
+    }
+    free(acc);
+    return MS_OK;
+}
+
+/* ---------------------------------------------------------------- octree levels */
+
+/* One level under construction: its nodes' cells and the triangle lists. */
+typedef struct build_level {
+    size_t count;
+    uint32_t *cell;      /* 3 per node */
+    uint64_t *m_off;     /* count + 1 offsets into m_idx */
+    uint32_t *m_idx;
+    uint64_t *big_off;   /* count + 1 offsets into big_idx (M-triangles) */
+    uint32_t *big_idx;
+    uint8_t *child_mask; /* decided while splitting */
+} build_level;
+
+static void build_level_free_big(build_level *l)
+{
+    free(l->big_off);
+    free(l->big_idx);
+    l->big_off = NULL;
+    l->big_idx = NULL;
+}
+
+static void build_level_free(build_level *l)
+{
+    free(l->cell);
+    free(l->m_off);
+    free(l->m_idx);
+    free(l->child_mask);
+    build_level_free_big(l);
+    memset(l, 0, sizeof *l);
+}
+
+/* Output of one block of a level split: the children it created, in order. */
+typedef struct split_out {
+    u32vec cells;     /* 3 per child */
+    u32vec m_count;   /* per child */
+    u32vec big_count; /* per child */
+    u32vec m_idx;
+    u32vec big_idx;
+    bool failed;
+} split_out;
+
+static void split_out_free(split_out *s)
+{
+    u32vec_free(&s->cells);
+    u32vec_free(&s->m_count);
+    u32vec_free(&s->big_count);
+    u32vec_free(&s->m_idx);
+    u32vec_free(&s->big_idx);
+}
+
+typedef struct split_job {
+    const ms_apo_build_options *o;
+    const local_mesh *m, *big;
+    build_level *level;
+    uint32_t depth;
+    size_t block_size;
+    split_out *out;
+} split_job;
+
+static double variation(const split_job *job, const uint32_t *idx, size_t n)
+{
+    const local_mesh *big = job->big;
+    double s[3] = {0, 0, 0}, weight = 0.0;
+    if (job->o->measure == MS_APO_MEASURE_CLASSIC) {
+        for (size_t i = 0; i < n; ++i) {
+            uint32_t t = idx[i];
+            if (big->area[t] <= 0.0f)
+                continue;
+            for (int a = 0; a < 3; ++a)
+                s[a] += big->fnormal[3 * t + a];
+            weight += 1.0;
+        }
+        if (weight == 0.0)
+            return 0.0;
+        /* sum |n_i - mean|^2 = N - |S|^2 / N for unit n_i. */
+        return weight - (s[0] * s[0] + s[1] * s[1] + s[2] * s[2]) / weight;
+    }
+    for (size_t i = 0; i < n; ++i) {
+        uint32_t t = idx[i];
+        double a_t = big->area[t];
+        for (int a = 0; a < 3; ++a)
+            s[a] += a_t * big->fnormal[3 * t + a];
+        weight += a_t;
+    }
+    if (weight <= 0.0)
+        return 0.0;
+    double mean_len = sqrt(s[0] * s[0] + s[1] * s[1] + s[2] * s[2]) / weight;
+    double chord2 = 2.0 * (1.0 - mean_len);
+    return chord2 > 0.0 ? sqrt(chord2) : 0.0;
+}
+
+/* Which children of the cell (centre c, half-width h of the parent) triangle t
+ * touches: a bit mask of octants. */
+static uint32_t child_octants(const local_mesh *lm, uint32_t t, const float c[3], float quarter)
+{
+    const float *b = &lm->bounds[6 * t];
+    uint32_t lower[3], upper[3];
+    for (int a = 0; a < 3; ++a) {
+        lower[a] = b[a] <= c[a];
+        upper[a] = b[3 + a] >= c[a];
+    }
+    uint32_t mask = 0, candidates = 0;
+    for (uint32_t o = 0; o < 8; ++o) {
+        uint32_t sx = o >> 2 & 1u, sy = o >> 1 & 1u, sz = o & 1u;
+        if ((sx ? upper[0] : lower[0]) && (sy ? upper[1] : lower[1]) && (sz ? upper[2] : lower[2])) {
+            mask |= 1u << o;
+            ++candidates;
+        }
+    }
+    if (candidates <= 1)
+        return mask;
+    const uint32_t *v = &lm->tri[3 * t];
+    uint32_t kept = 0;
+    for (uint32_t o = 0; o < 8; ++o) {
+        if (!(mask >> o & 1u))
+            continue;
+        float cc[3] = {c[0] + ((o >> 2 & 1u) ? quarter : -quarter), c[1] + ((o >> 1 & 1u) ? quarter : -quarter),
+                       c[2] + ((o & 1u) ? quarter : -quarter)};
+        if (ms_tri_cube_overlap(cc, quarter, &lm->pos[3 * v[0]], &lm->pos[3 * v[1]], &lm->pos[3 * v[2]]))
+            kept |= 1u << o;
+    }
+    return kept;
+}
+
+static void split_block(void *ctx, size_t block)
+{
+    split_job *job = ctx;
+    build_level *l = job->level;
+    split_out *out = &job->out[block];
+    size_t first = block * job->block_size, last = first + job->block_size;
+    if (last > l->count)
+        last = l->count;
+    uint32_t depth = job->depth;
+    float width = ldexpf(1.0f, -(int)depth), quarter = width * 0.25f;
+    u32vec child_m[8], child_big[8];
+    memset(child_m, 0, sizeof child_m);
+    memset(child_big, 0, sizeof child_big);
+    for (size_t i = first; i < last && !out->failed; ++i) {
+        l->child_mask[i] = 0;
+        const uint32_t *big_idx = &l->big_idx[l->big_off[i]];
+        size_t big_n = (size_t)(l->big_off[i + 1] - l->big_off[i]);
+        bool split;
+        if (depth >= job->o->max_depth)
+            split = false;
+        else if (depth < job->o->init_depth)
+            split = true;
+        else
+            split = big_n > 0 && variation(job, big_idx, big_n) > job->o->tolerance;
+        if (!split)
+            continue;
+        const uint32_t *cell = &l->cell[3 * i];
+        float c[3];
+        for (int a = 0; a < 3; ++a)
+            c[a] = ((float)cell[a] + 0.5f) * width;
+        for (int o = 0; o < 8; ++o) {
+            child_m[o].n = 0;
+            child_big[o].n = 0;
+        }
+        bool ok = true;
+        for (uint64_t k = l->m_off[i]; k < l->m_off[i + 1] && ok; ++k) {
+            uint32_t t = l->m_idx[k], mask = child_octants(job->m, t, c, quarter);
+            for (uint32_t o = 0; o < 8 && ok; ++o)
+                if (mask >> o & 1u)
+                    ok = u32vec_push(&child_m[o], t);
+        }
+        uint32_t exist = 0;
+        for (uint32_t o = 0; o < 8; ++o)
+            if (child_m[o].n)
+                exist |= 1u << o;
+        for (size_t k = 0; k < big_n && ok && exist; ++k) {
+            uint32_t t = big_idx[k], mask = child_octants(job->big, t, c, quarter) & exist;
+            for (uint32_t o = 0; o < 8 && ok; ++o)
+                if (mask >> o & 1u)
+                    ok = u32vec_push(&child_big[o], t);
+        }
+        for (uint32_t o = 0; o < 8 && ok; ++o) {
+            if (!(exist >> o & 1u))
+                continue;
+            ok = u32vec_push(&out->cells, 2 * cell[0] + (o >> 2 & 1u)) &&
+                 u32vec_push(&out->cells, 2 * cell[1] + (o >> 1 & 1u)) &&
+                 u32vec_push(&out->cells, 2 * cell[2] + (o & 1u)) &&
+                 u32vec_push(&out->m_count, (uint32_t)child_m[o].n) &&
+                 u32vec_push(&out->big_count, (uint32_t)child_big[o].n);
+            for (size_t k = 0; k < child_m[o].n && ok; ++k)
+                ok = u32vec_push(&out->m_idx, child_m[o].v[k]);
+            for (size_t k = 0; k < child_big[o].n && ok; ++k)
+                ok = u32vec_push(&out->big_idx, child_big[o].v[k]);
+        }
+        if (!ok)
+            out->failed = true;
+        l->child_mask[i] = (uint8_t)exist;
+    }
+    for (int o = 0; o < 8; ++o) {
+        u32vec_free(&child_m[o]);
+        u32vec_free(&child_big[o]);
+    }
+}
+
+/* ---------------------------------------------------------------- Embree */
+
+typedef struct closest_query {
+    const local_mesh *big;
+    float point[3];
+    double best_d2;
+    uint32_t best_prim;
+    float best_uv[2];
+} closest_query;
+
+/* Closest point of triangle (a, b, c) to p, as barycentric weights of b and c. */
+static double closest_on_triangle(const float p[3], const float a[3], const float b[3], const float c[3],
+                                  float *wb, float *wc)
+{
+    double ab[3], ac[3], ap[3];
+    for (int k = 0; k < 3; ++k) {
+        ab[k] = (double)b[k] - a[k];
+        ac[k] = (double)c[k] - a[k];
+        ap[k] = (double)p[k] - a[k];
+    }
+#define DOT(u, v) ((u)[0] * (v)[0] + (u)[1] * (v)[1] + (u)[2] * (v)[2])
+    double d1 = DOT(ab, ap), d2 = DOT(ac, ap);
+    double v, w;
+    if (d1 <= 0 && d2 <= 0) {
+        v = 0;
+        w = 0;
+    } else {
+        double bp[3], cp[3];
+        for (int k = 0; k < 3; ++k) {
+            bp[k] = (double)p[k] - b[k];
+            cp[k] = (double)p[k] - c[k];
+        }
+        double d3 = DOT(ab, bp), d4 = DOT(ac, bp), d5 = DOT(ab, cp), d6 = DOT(ac, cp);
+        double vc = d1 * d4 - d3 * d2, vb = d5 * d2 - d1 * d6, va = d3 * d6 - d5 * d4;
+        if (d3 >= 0 && d4 <= d3) {
+            v = 1;
+            w = 0;
+        } else if (d6 >= 0 && d5 <= d6) {
+            v = 0;
+            w = 1;
+        } else if (vc <= 0 && d1 >= 0 && d3 <= 0) {
+            v = d1 / (d1 - d3);
+            w = 0;
+        } else if (vb <= 0 && d2 >= 0 && d6 <= 0) {
+            v = 0;
+            w = d2 / (d2 - d6);
+        } else if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
+            w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+            v = 1 - w;
+        } else {
+            double sum = va + vb + vc;
+            if (!(sum > 0)) { /* degenerate triangle: fall back to vertex a */
+                v = 0;
+                w = 0;
+            } else {
+                v = vb / sum;
+                w = vc / sum;
+            }
+        }
+    }
+#undef DOT
+    double d2sum = 0;
+    for (int k = 0; k < 3; ++k) {
+        double q = a[k] + v * ab[k] + w * ac[k] - p[k];
+        d2sum += q * q;
+    }
+    *wb = (float)v;
+    *wc = (float)w;
+    return d2sum;
+}
+
+static bool closest_callback(struct RTCPointQueryFunctionArguments *args)
+{
+    closest_query *q = args->userPtr;
+    uint32_t prim = args->primID;
+    const uint32_t *v = &q->big->tri[3 * prim];
+    const float *pos = q->big->pos;
+    float wb, wc;
+    double d2 = closest_on_triangle(q->point, &pos[3 * v[0]], &pos[3 * v[1]], &pos[3 * v[2]], &wb, &wc);
+    double r = args->query->radius;
+    if (d2 > r * r)
+        return false;
+    if (d2 < q->best_d2 || (d2 == q->best_d2 && prim < q->best_prim)) {
+        q->best_d2 = d2;
+        q->best_prim = prim;
+        q->best_uv[0] = wb;
+        q->best_uv[1] = wc;
+        args->query->radius = (float)sqrt(d2);
+        return true;
+    }
+    return false;
+}
+
+/* Interpolated vertex normal of `lm` at barycentric (1-u-v, u, v) of triangle t;
+ * the face normal where the vertex normals cancel. */
+static void interpolated_normal(const local_mesh *lm, uint32_t t, float u, float v, double out[3])
+{
+    const uint32_t *i = &lm->tri[3 * t];
+    double w0 = 1.0 - u - v, len2 = 0;
+    for (int a = 0; a < 3; ++a) {
+        out[a] = w0 * lm->vnormal[3 * i[0] + a] + u * lm->vnormal[3 * i[1] + a] + v * lm->vnormal[3 * i[2] + a];
+        len2 += out[a] * out[a];
+    }
+    if (len2 > 1e-24) {
+        double len = sqrt(len2);
+        for (int a = 0; a < 3; ++a)
+            out[a] /= len;
+    } else {
+        for (int a = 0; a < 3; ++a)
+            out[a] = lm->fnormal[3 * t + a];
+    }
+}
+
+/* Closest point of M to p within radius: true and its normal, or false. */
+static bool closest_normal(RTCScene scene, const local_mesh *big, const float p[3], float radius, double n[3])
+{
+    closest_query q = {.big = big, .best_d2 = INFINITY, .best_prim = UINT32_MAX};
+    memcpy(q.point, p, sizeof q.point);
+    struct RTCPointQuery query = {.x = p[0], .y = p[1], .z = p[2], .time = 0.0f, .radius = radius};
+    struct RTCPointQueryContext ctx;
+    rtcInitPointQueryContext(&ctx);
+    rtcPointQuery(scene, &query, &ctx, closest_callback, &q);
+    if (q.best_prim == UINT32_MAX)
+        return false;
+    interpolated_normal(big, q.best_prim, q.best_uv[0], q.best_uv[1], n);
+    return true;
+}
+
+/* Nearest hit along +dir or -dir within [0, s]; +dir wins ties. */
+static bool ray_normal(RTCScene scene, const local_mesh *big, const float o[3], const double dir[3], float s,
+                       double n[3])
+{
+    float best_t = INFINITY, best_u = 0, best_v = 0;
+    uint32_t best_prim = UINT32_MAX;
+    for (int sign = 1; sign >= -1; sign -= 2) {
+        struct RTCRayHit rh;
+        memset(&rh, 0, sizeof rh);
+        rh.ray.org_x = o[0];
+        rh.ray.org_y = o[1];
+        rh.ray.org_z = o[2];
+        rh.ray.dir_x = (float)(sign * dir[0]);
+        rh.ray.dir_y = (float)(sign * dir[1]);
+        rh.ray.dir_z = (float)(sign * dir[2]);
+        rh.ray.tnear = 0.0f;
+        rh.ray.tfar = s;
+        rh.ray.mask = UINT32_MAX;
+        rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+        rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
+        struct RTCIntersectContext ctx;
+        rtcInitIntersectContext(&ctx);
+        rtcIntersect1(scene, &ctx, &rh);
+        if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID && rh.ray.tfar < best_t) {
+            best_t = rh.ray.tfar;
+            best_u = rh.hit.u;
+            best_v = rh.hit.v;
+            best_prim = rh.hit.primID;
+        }
+    }
+    if (best_prim == UINT32_MAX)
+        return false;
+    interpolated_normal(big, best_prim, best_u, best_v, n);
+    return true;
+}
+
+static ms_status make_scene(RTCDevice device, const local_mesh *big, RTCScene *out, ms_error *err)
+{
+    *out = NULL;
+    RTCScene scene = rtcNewScene(device);
+    RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+    if (!scene || !g) {
+        if (scene)
+            rtcReleaseScene(scene);
+        if (g)
+            rtcReleaseGeometry(g);
+        return ms_error_set(err, MS_ERR_UNSUPPORTED, "apo build: Embree could not create a scene");
+    }
+    size_t nv = big->vertex_count ? big->vertex_count : 1, nt = big->triangle_count;
+    float *vb = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), nv);
+    unsigned *ib = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned),
+                                           nt ? nt : 1);
+    if (!vb || !ib) {
+        rtcReleaseGeometry(g);
+        rtcReleaseScene(scene);
+        return ms_error_set(err, MS_ERR_NOMEM, "apo build: Embree buffers for %zu triangles", nt);
+    }
+    if (big->vertex_count)
+        memcpy(vb, big->pos, 3 * big->vertex_count * sizeof(float));
+    else
+        memset(vb, 0, 3 * sizeof(float));
+    if (nt)
+        memcpy(ib, big->tri, 3 * nt * sizeof(unsigned));
+    else
+        memset(ib, 0, 3 * sizeof(unsigned)); /* one degenerate triangle: never hit */
+    rtcCommitGeometry(g);
+    rtcAttachGeometry(scene, g);
+    rtcReleaseGeometry(g);
+    rtcCommitScene(scene);
+    if (rtcGetDeviceError(device) != RTC_ERROR_NONE) {
+        rtcReleaseScene(scene);
+        return ms_error_set(err, MS_ERR_UNSUPPORTED, "apo build: Embree failed to build the scene");
+    }
+    *out = scene;
+    return MS_OK;
+}
+
+/* ---------------------------------------------------------------- sampling */
+
+typedef struct sample_job {
+    const ms_apo_build_options *o;
+    const local_mesh *m, *big;
+    RTCScene scene;
+    ms_apo_tree *tree;
+    const build_level *levels;
+    double h;                 /* m-to-M distance estimate */
+    size_t block_size;
+    uint64_t (*counts)[4];    /* per block: samples, hits, closest, unsampled */
+} sample_job;
+
+static void sample_block(void *ctx, size_t block)
+{
+    sample_job *job = ctx;
+    ms_apo_tree *tree = job->tree;
+    size_t first = block * job->block_size, last = first + job->block_size;
+    if (last > tree->node_count)
+        last = tree->node_count;
+    uint64_t *cnt = job->counts[block];
+    for (size_t i = first; i < last; ++i) {
+        ms_apo_node *node = &tree->nodes[i];
+        if (node->child_mask)
+            continue;
+        const build_level *l = &job->levels[node->depth];
+        size_t li = i - tree->level_start[node->depth];
+        float width = ldexpf(1.0f, -(int)node->depth);
+        float centre[3];
+        for (int a = 0; a < 3; ++a)
+            centre[a] = ((float)node->cell[a] + 0.5f) * width;
+        float s = job->o->search_distance > 0 ? (float)job->o->search_distance
+                                               : (float)(2.0 * job->h + 0.8660254037844386 * width);
+        double sum[3] = {0, 0, 0}, first_sample[3] = {0, 0, 1};
+        bool have_closest = false, closest_done = false;
+        double closest[3] = {0, 0, 0};
+        for (uint64_t k = l->m_off[li]; k < l->m_off[li + 1]; ++k) {
+            uint32_t t = l->m_idx[k];
+            const uint32_t *v = &job->m->tri[3 * t];
+            const float *pos = job->m->pos;
+            float wb, wc;
+            closest_on_triangle(centre, &pos[3 * v[0]], &pos[3 * v[1]], &pos[3 * v[2]], &wb, &wc);
+            double dir[3], n[3];
+            interpolated_normal(job->m, t, wb, wc, dir);
+            cnt[0]++;
+            if (ray_normal(job->scene, job->big, centre, dir, s, n)) {
+                cnt[1]++;
+            } else {
+                if (!closest_done) {
+                    have_closest = closest_normal(job->scene, job->big, centre, s, closest);
+                    closest_done = true;
+                }
+                if (have_closest) {
+                    cnt[2]++;
+                    memcpy(n, closest, sizeof n);
+                } else {
+                    cnt[3]++;
+                    memcpy(n, dir, sizeof n);
+                }
+            }
+            if (k == l->m_off[li])
+                memcpy(first_sample, n, sizeof n);
+            for (int a = 0; a < 3; ++a)
+                sum[a] += n[a];
+        }
+        double len = sqrt(sum[0] * sum[0] + sum[1] * sum[1] + sum[2] * sum[2]);
+        for (int a = 0; a < 3; ++a)
+            node->normal[a] = (float)(len > 1e-12 ? sum[a] / len : first_sample[a]);
+    }
+}
+
+/* h: the largest distance from m's vertices and face centroids to M. */
+typedef struct distance_job {
+    const local_mesh *m, *big;
+    RTCScene scene;
+    size_t block_size, points;
+    double *block_max;
+} distance_job;
+
+static void distance_block(void *ctx, size_t block)
+{
+    distance_job *job = ctx;
+    size_t first = block * job->block_size, last = first + job->block_size;
+    if (last > job->points)
+        last = job->points;
+    double worst = 0.0;
+    for (size_t i = first; i < last; ++i) {
+        float p[3];
+        if (i < job->m->vertex_count) {
+            memcpy(p, &job->m->pos[3 * i], sizeof p);
+        } else {
+            const uint32_t *v = &job->m->tri[3 * (i - job->m->vertex_count)];
+            for (int a = 0; a < 3; ++a)
+                p[a] = (job->m->pos[3 * v[0] + a] + job->m->pos[3 * v[1] + a] + job->m->pos[3 * v[2] + a]) / 3.0f;
+        }
+        closest_query q = {.big = job->big, .best_d2 = INFINITY, .best_prim = UINT32_MAX};
+        memcpy(q.point, p, sizeof p);
+        struct RTCPointQuery query = {.x = p[0], .y = p[1], .z = p[2], .time = 0.0f, .radius = INFINITY};
+        struct RTCPointQueryContext pctx;
+        rtcInitPointQueryContext(&pctx);
+        rtcPointQuery(job->scene, &query, &pctx, closest_callback, &q);
+        if (q.best_prim != UINT32_MAX && sqrt(q.best_d2) > worst)
+            worst = sqrt(q.best_d2);
+    }
+    job->block_max[block] = worst;
+}
+
+/* ---------------------------------------------------------------- driver */
+
+void ms_apo_build_options_default(ms_apo_build_options *o)
+{
+    memset(o, 0, sizeof *o);
+    o->cube_size = 1.0;
+    o->init_depth = 0;
+    o->max_depth = 12;
+    o->tolerance = 0.05;
+    o->measure = MS_APO_MEASURE_SPREAD;
+}
+
+ms_status ms_apo_builder_create(ms_apo_builder **builder, ms_error *err)
+{
+    *builder = NULL;
+    ms_apo_builder *b = calloc(1, sizeof *b);
+    if (!b)
+        return ms_error_set(err, MS_ERR_NOMEM, "apo builder: no memory");
+    b->device = rtcNewDevice(NULL);
+    if (!b->device) {
+        free(b);
+        return ms_error_set(err, MS_ERR_UNSUPPORTED, "apo builder: Embree device creation failed");
+    }
+    *builder = b;
+    return MS_OK;
+}
+
+void ms_apo_builder_destroy(ms_apo_builder *builder)
+{
+    if (!builder)
+        return;
+    rtcReleaseDevice(builder->device);
+    free(builder);
+}
+
+#define SPLIT_BLOCKS_MAX 512u
+#define SPLIT_BLOCK_MIN 64u
+
+static size_t block_size_for(size_t count, size_t max_blocks, size_t min_size)
+{
+    size_t bs = (count + max_blocks - 1) / max_blocks;
+    return bs < min_size ? min_size : bs;
+}
+
+/* Splits level `d` into level d+1 (possibly empty). */
+static ms_status split_level(const ms_apo_build_options *o, unsigned threads, const local_mesh *m,
+                             const local_mesh *big, build_level *l, uint32_t d, build_level *next, ms_error *err)
+{
+    memset(next, 0, sizeof *next);
+    size_t bs = block_size_for(l->count, SPLIT_BLOCKS_MAX, SPLIT_BLOCK_MIN);
+    size_t blocks = (l->count + bs - 1) / bs;
+    split_out *out = calloc(blocks, sizeof *out);
+    l->child_mask = calloc(l->count + 1, 1);
+    if (!out || !l->child_mask) {
+        free(out);
+        return ms_error_set(err, MS_ERR_NOMEM, "apo build: no memory to split level %u", d);
+    }
+    split_job job = {.o = o, .m = m, .big = big, .level = l, .depth = d, .block_size = bs, .out = out};
+    ms_status st = ms_parallel_for(threads, blocks, split_block, &job, err);
+    size_t children = 0, m_total = 0, big_total = 0;
+    for (size_t b = 0; b < blocks && st == MS_OK; ++b) {
+        if (out[b].failed)
+            st = ms_error_set(err, MS_ERR_NOMEM, "apo build: no memory while splitting level %u", d);
+        children += out[b].m_count.n;
+        m_total += out[b].m_idx.n;
+        big_total += out[b].big_idx.n;
+    }
+    if (st == MS_OK && children > 0) {
+        next->count = children;
+        next->cell = malloc(3 * children * sizeof *next->cell);
+        next->m_off = malloc((children + 1) * sizeof *next->m_off);
+        next->big_off = malloc((children + 1) * sizeof *next->big_off);
+        next->m_idx = malloc((m_total + 1) * sizeof *next->m_idx);
+        next->big_idx = malloc((big_total + 1) * sizeof *next->big_idx);
+        if (!next->cell || !next->m_off || !next->big_off || !next->m_idx || !next->big_idx) {
+            st = ms_error_set(err, MS_ERR_NOMEM, "apo build: no memory for level %u", d + 1);
+        } else {
+            size_t c = 0, mi = 0, bi = 0;
+            next->m_off[0] = 0;
+            next->big_off[0] = 0;
+            for (size_t b = 0; b < blocks; ++b) {
+                split_out *s = &out[b];
+                memcpy(&next->cell[3 * c], s->cells.v, s->cells.n * sizeof *s->cells.v);
+                if (s->m_idx.n)
+                    memcpy(&next->m_idx[mi], s->m_idx.v, s->m_idx.n * sizeof *s->m_idx.v);
+                if (s->big_idx.n)
+                    memcpy(&next->big_idx[bi], s->big_idx.v, s->big_idx.n * sizeof *s->big_idx.v);
+                for (size_t k = 0; k < s->m_count.n; ++k) {
+                    next->m_off[c + k + 1] = next->m_off[c + k] + s->m_count.v[k];
+                    next->big_off[c + k + 1] = next->big_off[c + k] + s->big_count.v[k];
+                }
+                c += s->m_count.n;
+                mi += s->m_idx.n;
+                bi += s->big_idx.n;
+            }
+        }
+    }
+    for (size_t b = 0; b < blocks; ++b)
+        split_out_free(&out[b]);
+    free(out);
+    if (st != MS_OK)
+        build_level_free(next);
+    return st;
+}
+
+ms_status ms_apo_builder_build_tree(ms_apo_builder *builder, const ms_mesh *m_mesh, const ms_mesh *big_mesh,
+                                    const ms_apo_build_options *o, ms_apo_tree *tree, ms_apo_build_stats *stats,
+                                    ms_error *err)
+{
+    memset(tree, 0, sizeof *tree);
+    ms_apo_build_stats st_local;
+    if (!stats)
+        stats = &st_local;
+    memset(stats, 0, sizeof *stats);
+    if (!(o->cube_size > 0.0) || !isfinite(o->cube_size) || o->max_depth > MS_APO_MAX_DEPTH ||
+        !(o->tolerance >= 0.0) || !isfinite(o->cube_origin[0] + o->cube_origin[1] + o->cube_origin[2]) ||
+        (o->measure != MS_APO_MEASURE_SPREAD && o->measure != MS_APO_MEASURE_CLASSIC) ||
+        !(o->search_distance < 1e30))
+        return ms_error_set(err, MS_ERR_ARG, "apo build: bad options (cube size %g, max depth %u, tolerance %g)",
+                            o->cube_size, o->max_depth, o->tolerance);
+    unsigned threads = o->threads ? o->threads : ms_parallel_cores();
+    double t0 = ms_now_seconds();
+    local_mesh m, big;
+    ms_status st = local_mesh_make(m_mesh, o, "m", &m, err);
+    if (st != MS_OK)
+        return st;
+    st = local_mesh_make(big_mesh, o, "M", &big, err);
+    if (st != MS_OK) {
+        local_mesh_free(&m);
+        return st;
+    }
+    RTCScene scene = NULL;
+    build_level levels[MS_APO_MAX_LEVELS];
+    memset(levels, 0, sizeof levels);
+    uint32_t level_count = 0;
+
+    /* Root: every m- and M-triangle that touches the cube. */
+    {
+        build_level *root = &levels[0];
+        u32vec mi = {0}, bi = {0};
+        const float c[3] = {0.5f, 0.5f, 0.5f};
+        bool ok = true;
+        for (uint32_t t = 0; t < m.triangle_count && ok; ++t) {
+            const uint32_t *v = &m.tri[3 * t];
+            if (ms_tri_cube_overlap(c, 0.5f, &m.pos[3 * v[0]], &m.pos[3 * v[1]], &m.pos[3 * v[2]]))
+                ok = u32vec_push(&mi, t);
+        }
+        for (uint32_t t = 0; t < big.triangle_count && ok && mi.n; ++t) {
+            const uint32_t *v = &big.tri[3 * t];
+            if (ms_tri_cube_overlap(c, 0.5f, &big.pos[3 * v[0]], &big.pos[3 * v[1]], &big.pos[3 * v[2]]))
+                ok = u32vec_push(&bi, t);
+        }
+        if (ok && mi.n) {
+            root->count = 1;
+            root->cell = calloc(3, sizeof *root->cell);
+            root->m_off = malloc(2 * sizeof *root->m_off);
+            root->big_off = malloc(2 * sizeof *root->big_off);
+            ok = root->cell && root->m_off && root->big_off;
+            if (ok) {
+                root->m_off[0] = root->big_off[0] = 0;
+                root->m_off[1] = mi.n;
+                root->big_off[1] = bi.n;
+                root->m_idx = mi.v;
+                root->big_idx = bi.v ? bi.v : malloc(sizeof(uint32_t));
+                mi.v = NULL;
+                bi.v = NULL;
+                ok = root->big_idx != NULL;
+            }
+            level_count = 1;
+        }
+        u32vec_free(&mi);
+        u32vec_free(&bi);
+        if (!ok)
+            st = ms_error_set(err, MS_ERR_NOMEM, "apo build: no memory for the root");
+    }
+    /* Embree scene for M, and h. */
+    if (st == MS_OK && level_count)
+        st = make_scene(builder->device, &big, &scene, err);
+    if (st == MS_OK && level_count && o->search_distance <= 0 && big.triangle_count) {
+        size_t points = m.vertex_count + m.triangle_count;
+        size_t bs = block_size_for(points, 256, 256), blocks = (points + bs - 1) / bs;
+        double *block_max = calloc(blocks + 1, sizeof *block_max);
+        if (!block_max) {
+            st = ms_error_set(err, MS_ERR_NOMEM, "apo build: no memory");
+        } else {
+            distance_job dj = {.m = &m, .big = &big, .scene = scene, .block_size = bs, .points = points,
+                               .block_max = block_max};
+            st = ms_parallel_for(threads, blocks, distance_block, &dj, err);
+            for (size_t b = 0; b < blocks; ++b)
+                if (block_max[b] > stats->m_to_M_distance)
+                    stats->m_to_M_distance = block_max[b];
+            free(block_max);
+        }
+    }
+    double t1 = ms_now_seconds();
+    stats->seconds_prepare = t1 - t0;
+
+    /* Octree, level by level. */
+    for (uint32_t d = 0; st == MS_OK && d < level_count && d < MS_APO_MAX_DEPTH; ++d) {
+        build_level next;
+        st = split_level(o, threads, &m, &big, &levels[d], d, &next, err);
+        build_level_free_big(&levels[d]);
+        if (st == MS_OK && next.count) {
+            levels[d + 1] = next;
+            level_count = d + 2;
+        }
+    }
+    if (st == MS_OK && level_count) {
+        size_t total = 0;
+        for (uint32_t d = 0; d < level_count; ++d)
+            total += levels[d].count;
+        tree->nodes = calloc(total, sizeof *tree->nodes);
+        if (!tree->nodes) {
+            st = ms_error_set(err, MS_ERR_NOMEM, "apo build: no memory for %zu nodes", total);
+        } else {
+            size_t idx = 0;
+            for (uint32_t d = 0; d < level_count; ++d) {
+                tree->level_start[d] = idx;
+                size_t child = idx + levels[d].count;
+                for (size_t i = 0; i < levels[d].count; ++i, ++idx) {
+                    ms_apo_node *n = &tree->nodes[idx];
+                    memcpy(n->cell, &levels[d].cell[3 * i], sizeof n->cell);
+                    n->depth = (uint8_t)d;
+                    n->child_mask = levels[d].child_mask ? levels[d].child_mask[i] : 0;
+                    if (n->child_mask) {
+                        n->first_child = (uint32_t)child;
+                        child += (size_t)__builtin_popcount(n->child_mask);
+                    }
+                }
+            }
+            tree->node_count = total;
+            tree->level_count = level_count;
+            tree->level_start[level_count] = total;
+        }
+    }
+    double t2 = ms_now_seconds();
+    stats->seconds_octree = t2 - t1;
+
+    /* Leaf normals, then the means. */
+    if (st == MS_OK && tree->node_count) {
+        size_t bs = block_size_for(tree->node_count, 1024, 256);
+        size_t blocks = (tree->node_count + bs - 1) / bs;
+        uint64_t (*counts)[4] = calloc(blocks, sizeof *counts);
+        if (!counts) {
+            st = ms_error_set(err, MS_ERR_NOMEM, "apo build: no memory");
+        } else {
+            sample_job sj = {.o = o, .m = &m, .big = &big, .scene = scene, .tree = tree, .levels = levels,
+                             .h = stats->m_to_M_distance, .block_size = bs, .counts = counts};
+            st = ms_parallel_for(threads, blocks, sample_block, &sj, err);
+            for (size_t b = 0; b < blocks; ++b) {
+                stats->samples += counts[b][0];
+                stats->ray_hits += counts[b][1];
+                stats->closest_points += counts[b][2];
+                stats->unsampled += counts[b][3];
+            }
+            free(counts);
+            ms_apo_tree_average_normals(tree);
+        }
+    }
+    stats->seconds_sample = ms_now_seconds() - t2;
+    if (st == MS_OK) {
+        ms_apo_tree_counts(tree, &stats->internal_nodes, &stats->leaves);
+        stats->levels = tree->level_count;
+    } else {
+        ms_apo_tree_free(tree);
+    }
+    for (uint32_t d = 0; d < MS_APO_MAX_LEVELS; ++d)
+        build_level_free(&levels[d]);
+    if (scene)
+        rtcReleaseScene(scene);
+    local_mesh_free(&m);
+    local_mesh_free(&big);
+    return st;
+}
+
+ms_status ms_apo_builder_build_chunk(ms_apo_builder *builder, const ms_mesh *m, const ms_mesh *M,
+                                     const ms_apo_build_options *options, ms_apo_chunk *chunk,
+                                     ms_apo_build_stats *stats, ms_error *err)
+{
+    memset(chunk, 0, sizeof *chunk);
+    ms_apo_tree tree;
+    ms_status st = ms_apo_builder_build_tree(builder, m, M, options, &tree, stats, err);
+    if (st != MS_OK)
+        return st;
+    st = ms_apo_chunk_encode(&tree, chunk, err);
+    ms_apo_tree_free(&tree);
+    return st;
+}
