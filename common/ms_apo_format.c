@@ -77,5 +77,13 @@ uint32_t ms_apo_normal_encode(const float n[3])
                 best = code;
             }
         }
-    return best;
+    /* Canonical form on the octahedron's seams, where two codes decode to the
+     * same direction: |u| = 1 ignores the sign of v, |v| = 1 that of u. Keep the
+     * non-negative one so that re-encoding a decoded normal gives its code back. */
+    uint32_t qu = best & 0xFFFu, qv = best >> 12;
+    if (qu == 0 || qu == MS_APO_NORMAL_MAX_CODE)
+        qv = qv < MS_APO_NORMAL_MAX_CODE - qv ? MS_APO_NORMAL_MAX_CODE - qv : qv;
+    if (qv == 0 || qv == MS_APO_NORMAL_MAX_CODE)
+        qu = qu < MS_APO_NORMAL_MAX_CODE - qu ? MS_APO_NORMAL_MAX_CODE - qu : qu;
+    return qu | (qv << 12);
 }
