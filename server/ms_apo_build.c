@@ -726,7 +726,8 @@ static ms_status split_level(const ms_apo_build_options *o, unsigned threads, co
             next->big_off[0] = 0;
             for (size_t b = 0; b < blocks; ++b) {
                 split_out *s = &out[b];
-                memcpy(&next->cell[3 * c], s->cells.v, s->cells.n * sizeof *s->cells.v);
+                if (s->cells.n)
+                    memcpy(&next->cell[3 * c], s->cells.v, s->cells.n * sizeof *s->cells.v);
                 if (s->m_idx.n)
                     memcpy(&next->m_idx[mi], s->m_idx.v, s->m_idx.n * sizeof *s->m_idx.v);
                 if (s->big_idx.n)
