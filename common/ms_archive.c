@@ -1,0 +1,565 @@
+/* Archive reader and the record codec shared with the writer. See ms_archive.h
+ * and docs/ARCHIVE.md. */
+#include "ms_archive.h"
+
+#include <errno.h>
+#include <fcntl.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
+#include <zlib.h>
+
+static const uint8_t archive_magic[8] = {'M', 'S', 'A', 'R', 'C', 'H', '\r', '\n'};
+
+struct ms_archive {
+    const uint8_t *map;
+    size_t map_size;
+    bool index_only; /* a malloc'd copy of header + index, no payloads */
+    ms_archive_header header;
+    ms_archive_cell *cells;
+    const uint8_t *tables; /* table words, little-endian */
+    const uint8_t *payload;
+    uint64_t payload_size;
+    uint64_t index_size;
+};
+
+/* --- Little-endian field access ------------------------------------------- */
+
+static uint32_t get_u32(const uint8_t *p)
+{
+    return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
+}
+
+static uint64_t get_u64(const uint8_t *p) { return get_u32(p) | (uint64_t)get_u32(p + 4) << 32; }
+
+static double get_f64(const uint8_t *p)
+{
+    uint64_t bits = get_u64(p);
+    double d;
+    memcpy(&d, &bits, sizeof d);
+    return d;
+}
+
+static void put_u32(uint8_t *p, uint32_t v)
+{
+    for (int i = 0; i < 4; ++i)
+        p[i] = (uint8_t)(v >> (8 * i));
+}
+
+static void put_u64(uint8_t *p, uint64_t v)
+{
+    put_u32(p, (uint32_t)v);
+    put_u32(p + 4, (uint32_t)(v >> 32));
+}
+
+static void put_f64(uint8_t *p, double d)
+{
+    uint64_t bits;
+    memcpy(&bits, &d, sizeof bits);
+    put_u64(p, bits);
+}
+
+static bool all_zero(const uint8_t *p, size_t n)
+{
+    for (size_t i = 0; i < n; ++i)
+        if (p[i])
+            return false;
+    return true;
+}
+
+static unsigned log2_exact(unsigned n)
+{
+    unsigned k = 0;
+    while ((1u << k) < n)
+        ++k;
+    return k;
+}
+
+/* --- Encoding (used by the writer) ---------------------------------------- */
+
+void ms_archive_encode_header(const ms_archive_header *h, uint64_t index_size,
+                              uint64_t payload_size, uint32_t index_crc,
+                              uint8_t out[MS_ARCHIVE_HEADER_SIZE])
+{
+    memset(out, 0, MS_ARCHIVE_HEADER_SIZE);
+    memcpy(out, archive_magic, 8);
+    put_u32(out + 8, MS_ARCHIVE_VERSION);
+    put_u32(out + 12, MS_ARCHIVE_HEADER_SIZE);
+    for (int a = 0; a < 3; ++a)
+        put_f64(out + 16 + 8 * a, h->box_origin[a]);
+    put_f64(out + 40, h->box_side);
+    out[48] = h->bits;
+    out[49] = h->n;
+    out[50] = h->root_bits;
+    out[51] = h->has_apo ? 1 : 0;
+    put_u32(out + 52, h->cell_count);
+    put_u64(out + 56, h->vertex_count);
+    put_u64(out + 64, h->triangle_count);
+    put_u32(out + 72, h->table_words);
+    put_u32(out + 76, h->min_triangles);
+    put_u64(out + 80, index_size);
+    put_u64(out + 88, payload_size);
+    put_u64(out + 96, MS_ARCHIVE_HEADER_SIZE + index_size + payload_size);
+    out[104] = h->apo_lead;
+    out[105] = h->apo_max_depth;
+    put_u32(out + 108, index_crc);
+    put_u32(out + 124, (uint32_t)crc32(0L, out, 124));
+}
+
+void ms_archive_encode_cell(const ms_archive_cell *c, uint8_t out[MS_ARCHIVE_RECORD_SIZE])
+{
+    memset(out, 0, MS_ARCHIVE_RECORD_SIZE);
+    put_u32(out, c->parent);
+    put_u32(out + 4, c->first_child);
+    out[8] = c->level;
+    out[9] = c->bits_min;
+    out[10] = c->bits_max;
+    for (int a = 0; a < 3; ++a)
+        put_u32(out + 12 + 4 * a, c->position[a]);
+    put_u32(out + 24, c->vertex_count);
+    put_u32(out + 28, c->triangle_count);
+    put_u64(out + 32, c->geometry_offset);
+    put_u32(out + 40, c->geometry_length);
+    put_u32(out + 44, c->geometry_crc);
+    put_u64(out + 48, c->apo_offset);
+    put_u32(out + 56, c->apo_length);
+    put_u32(out + 60, c->apo_crc);
+    put_u32(out + 64, c->apo_raw_length);
+    put_u32(out + 68, c->table_first);
+    out[72] = c->apo_levels;
+}
+
+void ms_archive_cell_window(const ms_archive_header *h, unsigned level, bool leaf,
+                            uint8_t *bits_min, uint8_t *bits_max)
+{
+    unsigned step = log2_exact(h->n);
+    unsigned lo = level == 0 ? 0 : h->root_bits + (level - 1) * step;
+    unsigned hi = level == 0 ? h->root_bits : lo + step;
+    if (lo > h->bits)
+        lo = h->bits;
+    if (hi > h->bits || leaf)
+        hi = h->bits;
+    *bits_min = (uint8_t)lo;
+    *bits_max = (uint8_t)hi;
+}
+
+/* --- Validation ----------------------------------------------------------- */
+
+static ms_status parse_header(const char *path, const uint8_t *p, size_t size, bool index_only,
+                              ms_archive_header *h, uint64_t *index_size, uint64_t *payload_size,
+                              uint32_t *index_crc, ms_error *err)
+{
+    if (size < MS_ARCHIVE_HEADER_SIZE)
+        return ms_error_set(err, MS_ERR_FORMAT, "%s: %zu bytes is too short for an archive header",
+                            path, size);
+    if (memcmp(p, archive_magic, 8) != 0)
+        return ms_error_set(err, MS_ERR_FORMAT, "%s: not a meshstream archive (bad magic)", path);
+    uint32_t version = get_u32(p + 8);
+    if (version != MS_ARCHIVE_VERSION)
+        return ms_error_set(err, MS_ERR_UNSUPPORTED, "%s: archive version %u, this build reads %u",
+                            path, version, MS_ARCHIVE_VERSION);
+    if ((uint32_t)crc32(0L, p, 124) != get_u32(p + 124))
+        return ms_error_set(err, MS_ERR_CORRUPT, "%s: header checksum mismatch", path);
+    if (get_u32(p + 12) != MS_ARCHIVE_HEADER_SIZE || !all_zero(p + 106, 2) ||
+        !all_zero(p + 112, 12) || (p[51] & ~1u))
+        return ms_error_set(err, MS_ERR_FORMAT, "%s: bad header size or reserved bytes", path);
+    memset(h, 0, sizeof *h);
+    for (int a = 0; a < 3; ++a)
+        h->box_origin[a] = get_f64(p + 16 + 8 * a);
+    h->box_side = get_f64(p + 40);
+    h->bits = p[48];
+    h->n = p[49];
+    h->root_bits = p[50];
+    h->has_apo = p[51] & 1;
+    h->cell_count = get_u32(p + 52);
+    h->vertex_count = get_u64(p + 56);
+    h->triangle_count = get_u64(p + 64);
+    h->table_words = get_u32(p + 72);
+    h->min_triangles = get_u32(p + 76);
+    *index_size = get_u64(p + 80);
+    *payload_size = get_u64(p + 88);
+    h->file_size = get_u64(p + 96);
+    h->apo_lead = p[104];
+    h->apo_max_depth = p[105];
+    *index_crc = get_u32(p + 108);
+    for (int a = 0; a < 3; ++a)
+        if (!isfinite(h->box_origin[a]))
+            return ms_error_set(err, MS_ERR_RANGE, "%s: box origin is not finite", path);
+    if (!isfinite(h->box_side) || !(h->box_side > 0))
+        return ms_error_set(err, MS_ERR_RANGE, "%s: box side %g is not a positive number", path,
+                            h->box_side);
+    if (h->bits < 8 || h->bits > 20)
+        return ms_error_set(err, MS_ERR_RANGE, "%s: %u bits per coordinate outside 8..20", path,
+                            h->bits);
+    if (h->n != 2 && h->n != 4 && h->n != 8)
+        return ms_error_set(err, MS_ERR_RANGE, "%s: n = %u is not 2, 4 or 8", path, h->n);
+    if (h->root_bits < 1 || h->root_bits > h->bits)
+        return ms_error_set(err, MS_ERR_RANGE, "%s: root bits %u outside 1..%u", path,
+                            h->root_bits, h->bits);
+    if (h->cell_count < 1 || h->cell_count > MS_ARCHIVE_MAX_CELLS)
+        return ms_error_set(err, MS_ERR_RANGE, "%s: %u cells outside 1..%u", path, h->cell_count,
+                            MS_ARCHIVE_MAX_CELLS);
+    if (h->table_words > MS_ARCHIVE_MAX_TABLE_WORDS || h->vertex_count > (1ull << 32) ||
+        h->triangle_count > (1ull << 34) || h->apo_lead > 16 || h->apo_max_depth > 24)
+        return ms_error_set(err, MS_ERR_RANGE, "%s: header count out of range", path);
+    uint64_t expect_index = (uint64_t)h->cell_count * MS_ARCHIVE_RECORD_SIZE +
+                            4ull * h->table_words;
+    if (*index_size != expect_index)
+        return ms_error_set(err, MS_ERR_FORMAT, "%s: index size %llu, expected %llu", path,
+                            (unsigned long long)*index_size, (unsigned long long)expect_index);
+    if (index_only) {
+        if (size != MS_ARCHIVE_HEADER_SIZE + *index_size)
+            return ms_error_set(err, MS_ERR_FORMAT, "%s: index blob is %zu bytes, expected %llu",
+                                path, size,
+                                (unsigned long long)(MS_ARCHIVE_HEADER_SIZE + *index_size));
+        if (*payload_size > UINT64_MAX / 2 ||
+            h->file_size != MS_ARCHIVE_HEADER_SIZE + *index_size + *payload_size)
+            return ms_error_set(err, MS_ERR_FORMAT, "%s: section sizes do not add up", path);
+        return MS_OK;
+    }
+    if (h->file_size != size)
+        return ms_error_set(err, MS_ERR_FORMAT,
+                            "%s: file is %zu bytes but its header says %llu (truncated?)", path,
+                            size, (unsigned long long)h->file_size);
+    if (*payload_size > size || MS_ARCHIVE_HEADER_SIZE + *index_size > size - *payload_size ||
+        MS_ARCHIVE_HEADER_SIZE + *index_size + *payload_size != size)
+        return ms_error_set(err, MS_ERR_FORMAT, "%s: section sizes do not add up to the file size",
+                            path);
+    return MS_OK;
+}
+
+static void decode_cell(const uint8_t *p, ms_archive_cell *c)
+{
+    c->parent = get_u32(p);
+    c->first_child = get_u32(p + 4);
+    c->level = p[8];
+    c->bits_min = p[9];
+    c->bits_max = p[10];
+    for (int a = 0; a < 3; ++a)
+        c->position[a] = get_u32(p + 12 + 4 * a);
+    c->vertex_count = get_u32(p + 24);
+    c->triangle_count = get_u32(p + 28);
+    c->geometry_offset = get_u64(p + 32);
+    c->geometry_length = get_u32(p + 40);
+    c->geometry_crc = get_u32(p + 44);
+    c->apo_offset = get_u64(p + 48);
+    c->apo_length = get_u32(p + 56);
+    c->apo_crc = get_u32(p + 60);
+    c->apo_raw_length = get_u32(p + 64);
+    c->table_first = get_u32(p + 68);
+    c->apo_levels = p[72];
+}
+
+static uint32_t table_word(const ms_archive *a, uint64_t index)
+{
+    return get_u32(a->tables + 4 * index);
+}
+
+/* Checks one record on its own and against its parent. */
+static ms_status check_cell(const char *path, const ms_archive *a, uint32_t id,
+                            const uint8_t *raw, uint64_t *next_table, ms_error *err)
+{
+    const ms_archive_header *h = &a->header;
+    const ms_archive_cell *c = &a->cells[id];
+    uint32_t children = (uint32_t)h->n * h->n * h->n;
+#define CELL_FAIL(...) ms_error_set(err, MS_ERR_FORMAT, __VA_ARGS__)
+    if (raw[11] != 0 || !all_zero(raw + 73, 7))
+        return CELL_FAIL("%s: cell %u: reserved bytes are not zero", path, id);
+    bool leaf = c->first_child == MS_ARCHIVE_NONE;
+    if (id == 0) {
+        if (c->parent != MS_ARCHIVE_NONE || c->level != 0 || c->position[0] || c->position[1] ||
+            c->position[2])
+            return CELL_FAIL("%s: cell 0 is not a root", path);
+    } else {
+        if (c->parent >= id)
+            return CELL_FAIL("%s: cell %u: parent %u does not precede it", path, id, c->parent);
+        const ms_archive_cell *parent = &a->cells[c->parent];
+        if (parent->first_child == MS_ARCHIVE_NONE || id < parent->first_child ||
+            id - parent->first_child >= children)
+            return CELL_FAIL("%s: cell %u: not among the children of its parent %u", path, id,
+                             c->parent);
+        uint32_t k = id - parent->first_child, n = h->n;
+        uint32_t offset[3] = {k % n, (k / n) % n, k / (n * n)};
+        if (c->level != parent->level + 1)
+            return CELL_FAIL("%s: cell %u: level %u under a level-%u parent", path, id, c->level,
+                             parent->level);
+        for (int ax = 0; ax < 3; ++ax)
+            if (c->position[ax] != parent->position[ax] * n + offset[ax])
+                return CELL_FAIL("%s: cell %u: position does not match its place in the parent",
+                                 path, id);
+    }
+    uint8_t lo, hi;
+    ms_archive_cell_window(h, c->level, leaf, &lo, &hi);
+    if (c->bits_min != lo || c->bits_max != hi || (!leaf && hi >= h->bits) || lo > hi)
+        return CELL_FAIL("%s: cell %u: precision window [%u, %u] breaks the tree rules", path, id,
+                         c->bits_min, c->bits_max);
+    if (!leaf) {
+        if (c->first_child <= id || c->first_child > h->cell_count ||
+            h->cell_count - c->first_child < children)
+            return CELL_FAIL("%s: cell %u: children out of range", path, id);
+    }
+    if (c->geometry_offset > a->payload_size ||
+        c->geometry_length > a->payload_size - c->geometry_offset || c->apo_offset > a->payload_size ||
+        c->apo_length > a->payload_size - c->apo_offset)
+        return CELL_FAIL("%s: cell %u: payload outside the payload area", path, id);
+    if (c->apo_levels > MS_ARCHIVE_MAX_APO_LEVELS || (c->apo_raw_length & 3) ||
+        ((c->apo_levels == 0) != (c->apo_length == 0)) || (!h->has_apo && c->apo_levels))
+        return CELL_FAIL("%s: cell %u: bad APO chunk description", path, id);
+    /* Tables: inside the table words, monotone, ending at the lengths. */
+    uint64_t geometry_words = (uint64_t)c->bits_max - c->bits_min + 1;
+    uint64_t words = geometry_words + 2ull * c->apo_levels;
+    /* Tables are laid out in cell order with no gaps, so no two cells share one. */
+    if (c->table_first != *next_table)
+        return CELL_FAIL("%s: cell %u: tables out of order", path, id);
+    *next_table += words;
+    if (c->table_first > h->table_words || words > h->table_words - c->table_first)
+        return CELL_FAIL("%s: cell %u: tables outside the table area", path, id);
+    uint32_t previous = 0;
+    for (uint64_t k = 0; k < geometry_words; ++k) {
+        uint32_t v = table_word(a, c->table_first + k);
+        if (v < previous || v > c->geometry_length)
+            return CELL_FAIL("%s: cell %u: geometry prefix table is not monotone", path, id);
+        previous = v;
+    }
+    if (previous != c->geometry_length)
+        return CELL_FAIL("%s: cell %u: geometry prefix table does not end at the payload length",
+                         path, id);
+    uint32_t prev_bytes = 0, prev_texels = 0;
+    for (uint32_t l = 0; l < c->apo_levels; ++l) {
+        uint32_t bytes = table_word(a, c->table_first + geometry_words + 2 * l);
+        uint32_t texels = table_word(a, c->table_first + geometry_words + 2 * l + 1);
+        if (bytes < prev_bytes || texels < prev_texels || bytes > c->apo_length)
+            return CELL_FAIL("%s: cell %u: APO level table is not monotone", path, id);
+        prev_bytes = bytes, prev_texels = texels;
+    }
+    if (c->apo_levels && (prev_bytes != c->apo_length || prev_texels != c->apo_raw_length / 4))
+        return CELL_FAIL("%s: cell %u: APO level table does not end at the chunk size", path, id);
+#undef CELL_FAIL
+    return MS_OK;
+}
+
+/* Every non-root cell must be claimed by exactly one parent, and the tables must
+ * fill the table words exactly. */
+static ms_status check_tree_cover(const char *path, const ms_archive *a, ms_error *err)
+{
+    const ms_archive_header *h = &a->header;
+    uint64_t claimed = 0, table_used = 0;
+    uint32_t children = (uint32_t)h->n * h->n * h->n;
+    for (uint32_t id = 0; id < h->cell_count; ++id) {
+        const ms_archive_cell *c = &a->cells[id];
+        if (c->first_child != MS_ARCHIVE_NONE) {
+            for (uint32_t k = 0; k < children; ++k)
+                if (a->cells[c->first_child + k].parent != id)
+                    return ms_error_set(err, MS_ERR_FORMAT, "%s: cell %u: child %u names another parent",
+                                        path, id, c->first_child + k);
+            claimed += children;
+        }
+        table_used += (uint64_t)c->bits_max - c->bits_min + 1 + 2ull * c->apo_levels;
+    }
+    if (claimed != (uint64_t)h->cell_count - 1)
+        return ms_error_set(err, MS_ERR_FORMAT, "%s: the cell tree does not cover the index", path);
+    if (table_used != h->table_words)
+        return ms_error_set(err, MS_ERR_FORMAT, "%s: table words do not match the cells' tables",
+                            path);
+    return MS_OK;
+}
+
+/* Validates header and index of a->map (a whole file, or header + index only). */
+static ms_status archive_validate(const char *path, ms_archive *a, ms_error *err)
+{
+    uint32_t index_crc = 0;
+    ms_status status = parse_header(path, a->map, a->map_size, a->index_only, &a->header,
+                                    &a->index_size, &a->payload_size, &index_crc, err);
+    if (status == MS_OK) {
+        const uint8_t *index = a->map + MS_ARCHIVE_HEADER_SIZE;
+        if (crc32_z(0L, index, (z_size_t)a->index_size) != index_crc)
+            status = ms_error_set(err, MS_ERR_CORRUPT, "%s: index checksum mismatch", path);
+    }
+    if (status == MS_OK) {
+        a->cells = calloc(a->header.cell_count, sizeof *a->cells);
+        if (!a->cells)
+            status = ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory for %u cells", path,
+                                  a->header.cell_count);
+    }
+    if (status == MS_OK) {
+        const uint8_t *records = a->map + MS_ARCHIVE_HEADER_SIZE;
+        a->tables = records + (size_t)a->header.cell_count * MS_ARCHIVE_RECORD_SIZE;
+        a->payload = a->index_only ? NULL : a->map + MS_ARCHIVE_HEADER_SIZE + a->index_size;
+        for (uint32_t id = 0; id < a->header.cell_count; ++id)
+            decode_cell(records + (size_t)id * MS_ARCHIVE_RECORD_SIZE, &a->cells[id]);
+        uint64_t next_table = 0;
+        for (uint32_t id = 0; status == MS_OK && id < a->header.cell_count; ++id)
+            status = check_cell(path, a, id, records + (size_t)id * MS_ARCHIVE_RECORD_SIZE,
+                                &next_table, err);
+        if (status == MS_OK)
+            status = check_tree_cover(path, a, err);
+    }
+    return status;
+}
+
+ms_status ms_archive_open(const char *path, ms_archive **out, ms_error *err)
+{
+    *out = NULL;
+    int fd = open(path, O_RDONLY | O_CLOEXEC);
+    if (fd < 0)
+        return ms_error_set(err, MS_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    struct stat st;
+    if (fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
+        close(fd);
+        return ms_error_set(err, MS_ERR_IO, "%s: not a regular file", path);
+    }
+    size_t size = (size_t)st.st_size;
+    if (size < MS_ARCHIVE_HEADER_SIZE) {
+        close(fd);
+        return ms_error_set(err, MS_ERR_FORMAT, "%s: %zu bytes is too short for an archive header",
+                            path, size);
+    }
+    void *map = mmap(NULL, size, PROT_READ, MAP_SHARED, fd, 0);
+    close(fd);
+    if (map == MAP_FAILED)
+        return ms_error_set(err, MS_ERR_IO, "%s: cannot map: %s", path, strerror(errno));
+    ms_archive *a = calloc(1, sizeof *a);
+    if (!a) {
+        munmap(map, size);
+        return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory", path);
+    }
+    a->map = map;
+    a->map_size = size;
+    ms_status status = archive_validate(path, a, err);
+    if (status != MS_OK) {
+        ms_archive_close(a);
+        return status;
+    }
+    *out = a;
+    return MS_OK;
+}
+
+ms_status ms_archive_open_index(const uint8_t *blob, size_t size, const char *name,
+                                ms_archive **out, ms_error *err)
+{
+    *out = NULL;
+    if (size < MS_ARCHIVE_HEADER_SIZE)
+        return ms_error_set(err, MS_ERR_FORMAT, "%s: %zu bytes is too short for an archive header",
+                            name, size);
+    ms_archive *a = calloc(1, sizeof *a);
+    uint8_t *copy = malloc(size);
+    if (!a || !copy) {
+        free(a);
+        free(copy);
+        return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory", name);
+    }
+    memcpy(copy, blob, size);
+    a->map = copy;
+    a->map_size = size;
+    a->index_only = true;
+    ms_status status = archive_validate(name, a, err);
+    if (status != MS_OK) {
+        ms_archive_close(a);
+        return status;
+    }
+    *out = a;
+    return MS_OK;
+}
+
+void ms_archive_close(ms_archive *a)
+{
+    if (!a)
+        return;
+    if (a->index_only)
+        free((void *)a->map);
+    else
+        munmap((void *)a->map, a->map_size);
+    free(a->cells);
+    free(a);
+}
+
+const ms_archive_header *ms_archive_get_header(const ms_archive *a) { return &a->header; }
+
+const ms_archive_cell *ms_archive_get_cell(const ms_archive *a, uint32_t cell)
+{
+    return cell < a->header.cell_count ? &a->cells[cell] : NULL;
+}
+
+const uint8_t *ms_archive_index_bytes(const ms_archive *a, size_t *size)
+{
+    *size = MS_ARCHIVE_HEADER_SIZE + (size_t)a->index_size;
+    return a->map;
+}
+
+const uint8_t *ms_archive_geometry(const ms_archive *a, uint32_t cell, size_t *length)
+{
+    const ms_archive_cell *c = ms_archive_get_cell(a, cell);
+    *length = c ? c->geometry_length : 0;
+    return c && a->payload ? a->payload + c->geometry_offset : NULL;
+}
+
+const uint8_t *ms_archive_apo(const ms_archive *a, uint32_t cell, size_t *length)
+{
+    const ms_archive_cell *c = ms_archive_get_cell(a, cell);
+    *length = c ? c->apo_length : 0;
+    return c && a->payload ? a->payload + c->apo_offset : NULL;
+}
+
+uint32_t ms_archive_geometry_prefix(const ms_archive *a, uint32_t cell, unsigned bits)
+{
+    const ms_archive_cell *c = ms_archive_get_cell(a, cell);
+    if (!c)
+        return 0;
+    if (bits < c->bits_min)
+        bits = c->bits_min;
+    if (bits > c->bits_max)
+        bits = c->bits_max;
+    return table_word(a, (uint64_t)c->table_first + (bits - c->bits_min));
+}
+
+uint32_t ms_archive_apo_prefix(const ms_archive *a, uint32_t cell, unsigned level,
+                               uint32_t *texels)
+{
+    const ms_archive_cell *c = ms_archive_get_cell(a, cell);
+    if (texels)
+        *texels = 0;
+    if (!c || c->apo_levels == 0)
+        return 0;
+    if (level >= c->apo_levels)
+        level = c->apo_levels - 1u;
+    uint64_t base = (uint64_t)c->table_first + (c->bits_max - c->bits_min + 1u) + 2u * level;
+    if (texels)
+        *texels = table_word(a, base + 1);
+    return table_word(a, base);
+}
+
+ms_status ms_archive_verify_payload(const ms_archive *a, uint32_t cell, ms_error *err)
+{
+    const ms_archive_cell *c = ms_archive_get_cell(a, cell);
+    if (!c)
+        return ms_error_set(err, MS_ERR_RANGE, "cell %u does not exist (%u cells)", cell,
+                            a->header.cell_count);
+    if (a->index_only)
+        return ms_error_set(err, MS_ERR_ARG, "cell %u: this archive holds no payloads", cell);
+    if (crc32_z(0L, a->payload + c->geometry_offset, c->geometry_length) != c->geometry_crc)
+        return ms_error_set(err, MS_ERR_CORRUPT, "cell %u: geometry payload checksum mismatch", cell);
+    if (crc32_z(0L, a->payload + c->apo_offset, c->apo_length) != c->apo_crc)
+        return ms_error_set(err, MS_ERR_CORRUPT, "cell %u: APO chunk checksum mismatch", cell);
+    return MS_OK;
+}
+
+ms_status ms_archive_check_payload(const ms_archive *a, uint32_t cell, bool apo,
+                                   const uint8_t *data, size_t length, ms_error *err)
+{
+    const ms_archive_cell *c = ms_archive_get_cell(a, cell);
+    if (!c)
+        return ms_error_set(err, MS_ERR_RANGE, "cell %u does not exist (%u cells)", cell,
+                            a->header.cell_count);
+    uint32_t expect_length = apo ? c->apo_length : c->geometry_length;
+    uint32_t expect_crc = apo ? c->apo_crc : c->geometry_crc;
+    const char *kind = apo ? "APO chunk" : "geometry payload";
+    if (length != expect_length)
+        return ms_error_set(err, MS_ERR_CORRUPT, "cell %u: %s is %zu bytes, expected %u", cell,
+                            kind, length, expect_length);
+    if (crc32_z(0L, data, length) != expect_crc)
+        return ms_error_set(err, MS_ERR_CORRUPT, "cell %u: %s checksum mismatch", cell, kind);
+    return MS_OK;
+}

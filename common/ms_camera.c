@@ -1,0 +1,170 @@
+/* Camera maths: see ms_camera.h. */
+#include "ms_camera.h"
+
+#include <math.h>
+
+static double dot3(const double a[3], const double b[3])
+{
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
+
+static void cross3(const double a[3], const double b[3], double out[3])
+{
+    out[0] = a[1] * b[2] - a[2] * b[1];
+    out[1] = a[2] * b[0] - a[0] * b[2];
+    out[2] = a[0] * b[1] - a[1] * b[0];
+}
+
+/* Normalises v in place; false when it is (nearly) zero. */
+static bool normalise3(double v[3])
+{
+    double len = sqrt(dot3(v, v));
+    if (!(len > 1e-300) || !isfinite(len))
+        return false;
+    for (int i = 0; i < 3; ++i)
+        v[i] /= len;
+    return true;
+}
+
+static bool finite3(const double v[3])
+{
+    return isfinite(v[0]) && isfinite(v[1]) && isfinite(v[2]);
+}
+
+ms_status ms_camera_look_at(const double position[3], const double target[3],
+                            const double up[3], double fovy_degrees, double width,
+                            double height, double near_distance, double far_distance,
+                            ms_camera *c, ms_error *err)
+{
+    if (!finite3(position) || !finite3(target) || !finite3(up))
+        return ms_error_set(err, MS_ERR_ARG, "camera: position, target and up must be finite");
+    if (!(fovy_degrees > 0.0 && fovy_degrees < 180.0))
+        return ms_error_set(err, MS_ERR_ARG, "camera: field of view %g is not in (0, 180) degrees",
+                            fovy_degrees);
+    if (!(width >= 1.0 && height >= 1.0 && width <= 1e6 && height <= 1e6))
+        return ms_error_set(err, MS_ERR_ARG, "camera: viewport %gx%g is not in [1, 1e6] pixels",
+                            width, height);
+    if (!(near_distance > 0.0 && far_distance > near_distance && isfinite(far_distance)))
+        return ms_error_set(err, MS_ERR_ARG, "camera: need 0 < near < far, finite");
+    double f[3] = {target[0] - position[0], target[1] - position[1], target[2] - position[2]};
+    if (!normalise3(f))
+        return ms_error_set(err, MS_ERR_ARG, "camera: position and target coincide");
+    double r[3];
+    cross3(f, up, r);
+    double up_len = sqrt(dot3(up, up));
+    if (!(sqrt(dot3(r, r)) > 1e-9 * up_len) || !normalise3(r))
+        return ms_error_set(err, MS_ERR_ARG, "camera: up is parallel to the view direction");
+    double u[3];
+    cross3(r, f, u);
+    normalise3(u);
+    for (int i = 0; i < 3; ++i) {
+        c->position[i] = position[i];
+        c->forward[i] = f[i];
+        c->up[i] = u[i];
+        c->right[i] = r[i];
+    }
+    c->fovy = fovy_degrees * (M_PI / 180.0);
+    c->width = width;
+    c->height = height;
+    c->near_distance = near_distance;
+    c->far_distance = far_distance;
+    return MS_OK;
+}
+
+double ms_camera_pixels_per_unit(const ms_camera *c)
+{
+    return c->height / (2.0 * tan(c->fovy / 2.0));
+}
+
+/* Stores plane k through point p with inward normal n. */
+static void set_plane(ms_frustum *fr, int k, const double n[3], const double p[3])
+{
+    double m[3] = {n[0], n[1], n[2]};
+    normalise3(m);
+    for (int i = 0; i < 3; ++i)
+        fr->normal[k][i] = m[i];
+    fr->offset[k] = -dot3(m, p);
+}
+
+void ms_camera_frustum(const ms_camera *c, ms_frustum *fr)
+{
+    double ty = tan(c->fovy / 2.0), tx = ty * c->width / c->height;
+    const double *f = c->forward, *u = c->up, *r = c->right, *p = c->position;
+    double near_point[3], far_point[3], back[3];
+    for (int i = 0; i < 3; ++i) {
+        near_point[i] = p[i] + f[i] * c->near_distance;
+        far_point[i] = p[i] + f[i] * c->far_distance;
+        back[i] = -f[i];
+    }
+    set_plane(fr, 0, f, near_point);
+    set_plane(fr, 1, back, far_point);
+    /* Side planes contain the eye; their inward normals lean towards forward. */
+    double n[3];
+    for (int i = 0; i < 3; ++i)
+        n[i] = r[i] + f[i] * tx; /* left plane */
+    set_plane(fr, 2, n, p);
+    for (int i = 0; i < 3; ++i)
+        n[i] = -r[i] + f[i] * tx; /* right plane */
+    set_plane(fr, 3, n, p);
+    for (int i = 0; i < 3; ++i)
+        n[i] = u[i] + f[i] * ty; /* bottom plane */
+    set_plane(fr, 4, n, p);
+    for (int i = 0; i < 3; ++i)
+        n[i] = -u[i] + f[i] * ty; /* top plane */
+    set_plane(fr, 5, n, p);
+}
+
+bool ms_frustum_keeps_box(const ms_frustum *fr, const double lo[3], const double hi[3],
+                          double margin)
+{
+    for (int k = 0; k < 6; ++k) {
+        /* The box corner furthest along the inward normal. */
+        double best[3];
+        for (int i = 0; i < 3; ++i)
+            best[i] = fr->normal[k][i] >= 0.0 ? hi[i] : lo[i];
+        if (dot3(fr->normal[k], best) + fr->offset[k] < -margin)
+            return false;
+    }
+    return true;
+}
+
+double ms_camera_box_distance(const ms_camera *c, const double lo[3], const double hi[3])
+{
+    double sum = 0.0;
+    for (int i = 0; i < 3; ++i) {
+        double d = 0.0;
+        if (c->position[i] < lo[i])
+            d = lo[i] - c->position[i];
+        else if (c->position[i] > hi[i])
+            d = c->position[i] - hi[i];
+        sum += d * d;
+    }
+    return sqrt(sum);
+}
+
+double ms_screen_bits_needed(const ms_camera *c, double cube_side, double distance,
+                             double tolerance_px)
+{
+    if (!(distance > 0.0))
+        return INFINITY;
+    return log2(sqrt(3.0) * cube_side * ms_camera_pixels_per_unit(c) / (distance * tolerance_px));
+}
+
+unsigned ms_select_bits(double need, unsigned current, unsigned min_bits, unsigned max_bits,
+                        double hysteresis)
+{
+    double up = isnan(need) ? (double)max_bits : ceil(need);
+    unsigned chosen = current;
+    if (up > (double)current) {
+        chosen = up >= (double)max_bits ? max_bits : (unsigned)up;
+    } else {
+        double down = ceil(need + hysteresis);
+        if (down < (double)current)
+            chosen = down <= (double)min_bits ? min_bits : (unsigned)down;
+    }
+    if (chosen < min_bits)
+        chosen = min_bits;
+    if (chosen > max_bits)
+        chosen = max_bits;
+    return chosen;
+}

@@ -1,0 +1,72 @@
+/* Camera, frustum culling and screen-space error: the maths the client runs every
+ * frame to choose which nSP cells to show and at what precision.
+ *
+ * World coordinates are doubles (the model's units). A camera looks from
+ * `position` along `forward`, with `up` orthogonal to it, a vertical field of
+ * view `fovy` (radians) and a viewport in pixels. A kd-cell at q bits of a model
+ * whose quantisation cube has side S is a cube of side S / 2^q; the error of a
+ * vertex drawn at its cell centre is at most half the cell diagonal, and we use
+ * the whole diagonal √3·S/2^q as the conservative bound.
+ *
+ * All functions are pure; thread-safe.
+ */
+#ifndef MS_CAMERA_H
+#define MS_CAMERA_H
+
+#include <stdbool.h>
+
+#include "ms_error.h"
+
+typedef struct ms_camera {
+    double position[3];
+    double forward[3];  /* unit */
+    double up[3];       /* unit, orthogonal to forward */
+    double right[3];    /* unit, forward x up */
+    double fovy;        /* radians, in (0, pi) */
+    double width, height; /* viewport in pixels, >= 1 */
+    double near_distance, far_distance; /* > 0, far > near */
+} ms_camera;
+
+/* Builds a camera at position looking at target. up need only be roughly up.
+ * fovy_degrees in (0, 180). MS_ERR_ARG for NaN/infinite input, position equal to
+ * target, up parallel to the view direction, or an empty viewport. */
+ms_status ms_camera_look_at(const double position[3], const double target[3],
+                            const double up[3], double fovy_degrees, double width,
+                            double height, double near_distance, double far_distance,
+                            ms_camera *camera, ms_error *err);
+
+/* Pixels covered by one world unit seen face-on at distance 1: H / (2 tan(fovy/2)). */
+double ms_camera_pixels_per_unit(const ms_camera *camera);
+
+/* The six frustum planes, normals pointing inwards: a point p is inside plane k
+ * when dot(normal_k, p) + offset_k >= 0. */
+typedef struct ms_frustum {
+    double normal[6][3];
+    double offset[6];
+} ms_frustum;
+
+void ms_camera_frustum(const ms_camera *camera, ms_frustum *frustum);
+
+/* True when the box [lo, hi] intersects the frustum grown by margin (world units)
+ * on every side (conservative: may keep a box slightly outside near a corner). */
+bool ms_frustum_keeps_box(const ms_frustum *frustum, const double lo[3], const double hi[3],
+                          double margin);
+
+/* Distance from the camera position to the nearest point of the box (0 inside). */
+double ms_camera_box_distance(const ms_camera *camera, const double lo[3], const double hi[3]);
+
+/* The precision, as a real number of bits, at which kd-cells of a cube of side
+ * `cube_side` project to `tolerance_px` pixels at `distance`:
+ * log2(√3 · cube_side · pixels_per_unit / (distance · tolerance_px)).
+ * +infinity at distance 0. */
+double ms_screen_bits_needed(const ms_camera *camera, double cube_side, double distance,
+                             double tolerance_px);
+
+/* The integer precision in [min_bits, max_bits] to show, given the current one
+ * and the real-valued need: refine at once to ceil(need); coarsen only when at
+ * least one bit can go with `hysteresis` bits to spare (e.g. 0.5), so that a cell
+ * does not flicker between two precisions when the camera hovers at a boundary. */
+unsigned ms_select_bits(double need, unsigned current, unsigned min_bits, unsigned max_bits,
+                        double hysteresis);
+
+#endif

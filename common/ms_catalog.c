@@ -1,0 +1,287 @@
+/* catalog.json reading and locked updating. See ms_catalog.h. */
+#include "ms_catalog.h"
+
+#include <errno.h>
+#include <fcntl.h>
+#include <jansson.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/file.h>
+#include <time.h>
+#include <unistd.h>
+
+bool ms_model_name_valid(const char *name)
+{
+    size_t len = 0;
+    for (const char *c = name; *c; ++c, ++len) {
+        bool ok = (*c >= 'a' && *c <= 'z') || (*c >= 'A' && *c <= 'Z') ||
+                  (*c >= '0' && *c <= '9') || *c == '_' || *c == '-';
+        if (!ok || len >= MS_MODEL_NAME_MAX)
+            return false;
+    }
+    return len > 0;
+}
+
+void ms_catalog_now(char *out, size_t size)
+{
+    time_t now = time(NULL);
+    struct tm tm;
+    gmtime_r(&now, &tm);
+    strftime(out, size, "%Y-%m-%dT%H:%M:%SZ", &tm);
+}
+
+void ms_catalog_free(ms_catalog *c)
+{
+    if (!c)
+        return;
+    for (size_t i = 0; i < c->count; ++i)
+        free(c->entries[i].source);
+    free(c->entries);
+    c->entries = NULL;
+    c->count = 0;
+}
+
+static int compare_entries(const void *a, const void *b)
+{
+    return strcmp(((const ms_catalog_entry *)a)->name, ((const ms_catalog_entry *)b)->name);
+}
+
+const ms_catalog_entry *ms_catalog_find(const ms_catalog *c, const char *name)
+{
+    ms_catalog_entry key;
+    if (c->count == 0 || !ms_model_name_valid(name))
+        return NULL;
+    snprintf(key.name, sizeof key.name, "%s", name);
+    return bsearch(&key, c->entries, c->count, sizeof key, compare_entries);
+}
+
+static void catalog_path(const char *dir, const char *file, char *out, size_t size)
+{
+    snprintf(out, size, "%s/%s", dir, file);
+}
+
+/* --- JSON to entries ------------------------------------------------------- */
+
+/* Reads an unsigned integer field in [0, max]. */
+static bool get_uint(json_t *obj, const char *key, uint64_t max, uint64_t *out)
+{
+    json_t *v = json_object_get(obj, key);
+    if (!json_is_integer(v) || json_integer_value(v) < 0 ||
+        (uint64_t)json_integer_value(v) > max)
+        return false;
+    *out = (uint64_t)json_integer_value(v);
+    return true;
+}
+
+static ms_status parse_entry(const char *path, size_t index, json_t *obj, ms_catalog_entry *e,
+                             ms_error *err)
+{
+    memset(e, 0, sizeof *e);
+    json_t *name = json_object_get(obj, "name"), *source = json_object_get(obj, "source"),
+           *baked = json_object_get(obj, "baked_at"), *apo = json_object_get(obj, "apo"),
+           *tol = json_object_get(obj, "apo_tolerance");
+    if (!json_is_object(obj) || !json_is_string(name) || !json_is_string(source) ||
+        !json_is_string(baked) || !json_is_boolean(apo) || !json_is_number(tol))
+        return ms_error_set(err, MS_ERR_FORMAT, "%s: model %zu: missing or mistyped field", path,
+                            index);
+    if (!ms_model_name_valid(json_string_value(name)))
+        return ms_error_set(err, MS_ERR_FORMAT, "%s: model %zu: invalid name", path, index);
+    if (strlen(json_string_value(baked)) >= sizeof e->baked_at)
+        return ms_error_set(err, MS_ERR_FORMAT, "%s: model %zu: bad baked_at", path, index);
+    uint64_t vertices, triangles, bytes, cells, bits, n, root_bits, min_tris, lead, depth, pub;
+    if (!get_uint(obj, "vertices", UINT32_MAX + 1ull, &vertices) ||
+        !get_uint(obj, "triangles", 1ull << 34, &triangles) ||
+        !get_uint(obj, "archive_bytes", UINT64_MAX >> 1, &bytes) ||
+        !get_uint(obj, "cells", 1u << 24, &cells) || !get_uint(obj, "bits", 20, &bits) ||
+        !get_uint(obj, "n", 8, &n) || !get_uint(obj, "root_bits", 20, &root_bits) ||
+        !get_uint(obj, "min_triangles", UINT32_MAX, &min_tris) ||
+        !get_uint(obj, "apo_lead", 16, &lead) || !get_uint(obj, "apo_max_depth", 24, &depth) ||
+        !get_uint(obj, "public_max_bits", 20, &pub))
+        return ms_error_set(err, MS_ERR_FORMAT, "%s: model %zu: numeric field missing or out of range",
+                            path, index);
+    e->source = strdup(json_string_value(source));
+    if (!e->source)
+        return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory", path);
+    snprintf(e->name, sizeof e->name, "%s", json_string_value(name));
+    snprintf(e->baked_at, sizeof e->baked_at, "%s", json_string_value(baked));
+    e->vertices = vertices, e->triangles = triangles, e->archive_bytes = bytes;
+    e->cells = (uint32_t)cells, e->bits = (uint8_t)bits, e->n = (uint8_t)n;
+    e->root_bits = (uint8_t)root_bits, e->min_triangles = (uint32_t)min_tris;
+    e->apo = json_is_true(apo), e->apo_lead = (uint8_t)lead, e->apo_max_depth = (uint8_t)depth;
+    e->apo_tolerance = json_number_value(tol);
+    e->public_max_bits = (uint8_t)pub;
+    return MS_OK;
+}
+
+static ms_status parse_catalog(const char *path, json_t *root, ms_catalog *c, ms_error *err)
+{
+    json_t *version = json_object_get(root, "version"), *models = json_object_get(root, "models");
+    if (!json_is_object(root) || !json_is_integer(version) || !json_is_array(models))
+        return ms_error_set(err, MS_ERR_FORMAT, "%s: not a meshstream catalogue", path);
+    if (json_integer_value(version) != MS_CATALOG_VERSION)
+        return ms_error_set(err, MS_ERR_UNSUPPORTED, "%s: catalogue version %lld, this build reads %d",
+                            path, (long long)json_integer_value(version), MS_CATALOG_VERSION);
+    size_t count = json_array_size(models);
+    if (count > MS_CATALOG_MAX_ENTRIES)
+        return ms_error_set(err, MS_ERR_RANGE, "%s: %zu models exceed the limit", path, count);
+    c->entries = calloc(count ? count : 1, sizeof *c->entries);
+    if (!c->entries)
+        return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory", path);
+    for (size_t i = 0; i < count; ++i) {
+        ms_status st = parse_entry(path, i, json_array_get(models, i), &c->entries[i], err);
+        if (st != MS_OK)
+            return st;
+        c->count++;
+    }
+    qsort(c->entries, c->count, sizeof *c->entries, compare_entries);
+    for (size_t i = 1; i < c->count; ++i)
+        if (!strcmp(c->entries[i].name, c->entries[i - 1].name))
+            return ms_error_set(err, MS_ERR_FORMAT, "%s: model '%s' listed twice", path,
+                                c->entries[i].name);
+    return MS_OK;
+}
+
+ms_status ms_catalog_load(const char *dir, ms_catalog *c, ms_error *err)
+{
+    memset(c, 0, sizeof *c);
+    char path[4096];
+    catalog_path(dir, "catalog.json", path, sizeof path);
+    FILE *f = fopen(path, "rb");
+    if (!f)
+        return errno == ENOENT ? MS_OK
+                               : ms_error_set(err, MS_ERR_IO, "%s: cannot open: %s", path,
+                                              strerror(errno));
+    char *text = malloc(MS_CATALOG_MAX_BYTES + 1);
+    size_t size = text ? fread(text, 1, MS_CATALOG_MAX_BYTES + 1, f) : 0;
+    int read_error = ferror(f);
+    fclose(f);
+    if (!text)
+        return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory", path);
+    if (read_error || size > MS_CATALOG_MAX_BYTES) {
+        free(text);
+        return ms_error_set(err, read_error ? MS_ERR_IO : MS_ERR_RANGE, "%s: %s", path,
+                            read_error ? "read failed" : "larger than 64 MiB");
+    }
+    json_error_t jerr;
+    json_t *root = json_loadb(text, size, JSON_REJECT_DUPLICATES, &jerr);
+    free(text);
+    if (!root)
+        return ms_error_set(err, MS_ERR_FORMAT, "%s: line %d: %s", path, jerr.line, jerr.text);
+    ms_status st = parse_catalog(path, root, c, err);
+    json_decref(root);
+    if (st != MS_OK)
+        ms_catalog_free(c);
+    return st;
+}
+
+/* --- Entries to JSON ------------------------------------------------------- */
+
+static json_t *entry_to_json(const ms_catalog_entry *e)
+{
+    return json_pack("{s:s, s:s, s:s, s:I, s:I, s:I, s:I, s:i, s:i, s:i, s:I, s:b, s:i, s:i, s:f, s:i}",
+                     "name", e->name, "source", e->source ? e->source : "", "baked_at", e->baked_at,
+                     "vertices", (json_int_t)e->vertices, "triangles", (json_int_t)e->triangles,
+                     "archive_bytes", (json_int_t)e->archive_bytes, "cells", (json_int_t)e->cells,
+                     "bits", (int)e->bits, "n", (int)e->n, "root_bits", (int)e->root_bits,
+                     "min_triangles", (json_int_t)e->min_triangles, "apo", (int)e->apo,
+                     "apo_lead", (int)e->apo_lead, "apo_max_depth", (int)e->apo_max_depth,
+                     "apo_tolerance", isfinite(e->apo_tolerance) ? e->apo_tolerance : 0.0,
+                     "public_max_bits", (int)e->public_max_bits);
+}
+
+static ms_status catalog_save(const char *dir, const ms_catalog *c, ms_error *err)
+{
+    char path[4096], tmp[4200];
+    catalog_path(dir, "catalog.json", path, sizeof path);
+    snprintf(tmp, sizeof tmp, "%s.partial", path);
+    json_t *models = json_array();
+    json_t *root = json_pack("{s:i, s:o}", "version", MS_CATALOG_VERSION, "models", models);
+    int failed = !root;
+    for (size_t i = 0; !failed && i < c->count; ++i) {
+        json_t *e = entry_to_json(&c->entries[i]);
+        failed = !e || json_array_append_new(models, e) != 0;
+    }
+    if (failed) {
+        json_decref(root);
+        return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory building JSON", path);
+    }
+    failed = json_dump_file(root, tmp, JSON_INDENT(2) | JSON_SORT_KEYS) != 0;
+    json_decref(root);
+    if (!failed) {
+        int fd = open(tmp, O_RDONLY);
+        failed = fd < 0 || fsync(fd) != 0;
+        if (fd >= 0)
+            close(fd);
+    }
+    if (failed || rename(tmp, path) != 0) {
+        remove(tmp);
+        return ms_error_set(err, MS_ERR_IO, "%s: cannot write the catalogue", path);
+    }
+    return MS_OK;
+}
+
+/* Runs the read-modify-write under DIR/catalog.lock. */
+static ms_status catalog_change(const char *dir, const ms_catalog_entry *add,
+                                const char *remove_name, ms_error *err)
+{
+    char lock_path[4096];
+    catalog_path(dir, "catalog.lock", lock_path, sizeof lock_path);
+    int lock = open(lock_path, O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+    if (lock < 0)
+        return ms_error_set(err, MS_ERR_IO, "%s: cannot open: %s", lock_path, strerror(errno));
+    if (flock(lock, LOCK_EX) != 0) {
+        close(lock);
+        return ms_error_set(err, MS_ERR_IO, "%s: cannot lock: %s", lock_path, strerror(errno));
+    }
+    ms_catalog c;
+    ms_status st = ms_catalog_load(dir, &c, err);
+    if (st == MS_OK) {
+        const char *name = add ? add->name : remove_name;
+        ms_catalog_entry *found = (ms_catalog_entry *)ms_catalog_find(&c, name);
+        if (found) { /* drop the old entry, keeping the array sorted */
+            free(found->source);
+            size_t at = (size_t)(found - c.entries);
+            memmove(found, found + 1, (c.count - at - 1) * sizeof *found);
+            c.count--;
+        }
+        if (add) {
+            ms_catalog_entry *grown = realloc(c.entries, (c.count + 1) * sizeof *grown);
+            char *source = strdup(add->source ? add->source : "");
+            if (!grown || !source) {
+                free(source);
+                if (grown)
+                    c.entries = grown;
+                st = ms_error_set(err, MS_ERR_NOMEM, "catalogue: out of memory");
+            } else {
+                c.entries = grown;
+                c.entries[c.count] = *add;
+                c.entries[c.count].source = source;
+                c.count++;
+                qsort(c.entries, c.count, sizeof *c.entries, compare_entries);
+            }
+        }
+        if (st == MS_OK)
+            st = catalog_save(dir, &c, err);
+        ms_catalog_free(&c);
+    }
+    flock(lock, LOCK_UN);
+    close(lock);
+    return st;
+}
+
+ms_status ms_catalog_update(const char *dir, const ms_catalog_entry *entry, ms_error *err)
+{
+    if (!ms_model_name_valid(entry->name))
+        return ms_error_set(err, MS_ERR_ARG, "invalid model name '%s' (use 1-64 of A-Z a-z 0-9 _ -)",
+                            entry->name);
+    return catalog_change(dir, entry, NULL, err);
+}
+
+ms_status ms_catalog_remove(const char *dir, const char *name, ms_error *err)
+{
+    if (!ms_model_name_valid(name))
+        return ms_error_set(err, MS_ERR_ARG, "invalid model name '%s'", name);
+    return catalog_change(dir, NULL, name, err);
+}

@@ -1,0 +1,73 @@
+/* The archive catalogue: `catalog.json` in an archive directory, listing every
+ * model baked there (docs/ARCHIVE.md). Read and written with jansson.
+ *
+ * Model names are identifiers, never paths: 1 to 64 characters of [A-Za-z0-9_-].
+ * The archive file of model NAME is DIR/NAME.msa.
+ *
+ * ms_catalog_update is the only way the baker changes the catalogue: it takes an
+ * exclusive lock on DIR/catalog.lock, re-reads the file, replaces or adds the
+ * entry, and writes the new file under a temporary name renamed over the old one,
+ * so concurrent bakes never lose each other's entries and readers never see a
+ * half-written file.
+ *
+ * Ownership: an ms_catalog owns its entries and their strings; free it with
+ * ms_catalog_free. Thread-safety: a catalogue object is not shared between
+ * threads; the file-level protocol is safe across processes.
+ */
+#ifndef MS_CATALOG_H
+#define MS_CATALOG_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "ms_error.h"
+
+#define MS_CATALOG_VERSION 1
+#define MS_MODEL_NAME_MAX 64
+#define MS_CATALOG_MAX_ENTRIES 100000
+#define MS_CATALOG_MAX_BYTES (64u << 20)
+
+typedef struct ms_catalog_entry {
+    char name[MS_MODEL_NAME_MAX + 1];
+    char *source;              /* input file the model was baked from (owned) */
+    char baked_at[32];         /* ISO 8601 UTC, e.g. 2026-11-22T02:30:00Z */
+    uint64_t vertices;         /* welded input */
+    uint64_t triangles;
+    uint64_t archive_bytes;
+    uint32_t cells;
+    uint8_t bits, n, root_bits;
+    uint32_t min_triangles;
+    bool apo;
+    uint8_t apo_lead, apo_max_depth;
+    double apo_tolerance;
+    uint8_t public_max_bits;   /* preview precision open to everyone; bits = fully public */
+} ms_catalog_entry;
+
+typedef struct ms_catalog {
+    ms_catalog_entry *entries; /* sorted by name */
+    size_t count;
+} ms_catalog;
+
+/* True when name is a valid model name. */
+bool ms_model_name_valid(const char *name);
+
+/* Reads DIR/catalog.json. A missing file is an empty catalogue; a malformed one
+ * (bad JSON, wrong version, missing or mistyped field, invalid name, duplicate
+ * name, more than MS_CATALOG_MAX_ENTRIES) is MS_ERR_FORMAT with the reason. */
+ms_status ms_catalog_load(const char *dir, ms_catalog *catalog, ms_error *err);
+void ms_catalog_free(ms_catalog *catalog);
+
+/* The entry named name, or NULL. */
+const ms_catalog_entry *ms_catalog_find(const ms_catalog *catalog, const char *name);
+
+/* Adds or replaces entry (copied) in DIR/catalog.json, under the lock. */
+ms_status ms_catalog_update(const char *dir, const ms_catalog_entry *entry, ms_error *err);
+
+/* Removes the entry named name, if any, under the lock. */
+ms_status ms_catalog_remove(const char *dir, const char *name, ms_error *err);
+
+/* Formats the current UTC time as ISO 8601 into out (at least 21 bytes). */
+void ms_catalog_now(char *out, size_t size);
+
+#endif

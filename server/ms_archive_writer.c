@@ -1,0 +1,309 @@
+/* Archive writer: see ms_archive_writer.h. */
+#include "ms_archive_writer.h"
+
+#include <errno.h>
+#include <stdbool.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+#include <zlib.h>
+
+typedef struct cell_state {
+    ms_archive_cell cell;
+    uint64_t geometry_spool, apo_spool; /* offsets in the spool file */
+    uint32_t *geometry_table;           /* bits_max - bits_min + 1 words */
+    uint32_t *apo_table;                /* 2 * apo_levels words */
+    bool has_geometry, has_apo;
+} cell_state;
+
+struct ms_archive_writer {
+    char *path;
+    char *partial_path;
+    FILE *spool;
+    uint64_t spool_size;
+    ms_archive_header header;
+    cell_state *cells;
+};
+
+static void writer_free(ms_archive_writer *w)
+{
+    if (!w)
+        return;
+    if (w->spool)
+        fclose(w->spool);
+    if (w->cells)
+        for (uint32_t i = 0; i < w->header.cell_count; ++i)
+            free(w->cells[i].geometry_table), free(w->cells[i].apo_table);
+    free(w->cells);
+    free(w->path);
+    free(w->partial_path);
+    free(w);
+}
+
+void ms_archive_writer_abort(ms_archive_writer *w)
+{
+    if (w)
+        remove(w->partial_path);
+    writer_free(w);
+}
+
+/* Derives parent, level, position and window of every cell from first_child. */
+static ms_status build_topology(ms_archive_writer *w, const uint32_t *first_child, ms_error *err)
+{
+    ms_archive_header *h = &w->header;
+    uint32_t children = (uint32_t)h->n * h->n * h->n;
+    for (uint32_t id = 0; id < h->cell_count; ++id)
+        w->cells[id].cell.parent = MS_ARCHIVE_NONE;
+    uint32_t expected_next = 1;
+    for (uint32_t id = 0; id < h->cell_count; ++id) {
+        ms_archive_cell *c = &w->cells[id].cell;
+        if (id > 0 && c->parent == MS_ARCHIVE_NONE)
+            return ms_error_set(err, MS_ERR_ARG, "archive writer: cell %u has no parent", id);
+        c->first_child = first_child[id];
+        bool leaf = c->first_child == MS_ARCHIVE_NONE;
+        ms_archive_cell_window(h, c->level, leaf, &c->bits_min, &c->bits_max);
+        if (leaf)
+            continue;
+        if (c->first_child != expected_next || c->first_child > h->cell_count ||
+            h->cell_count - c->first_child < children || c->bits_max >= h->bits)
+            return ms_error_set(err, MS_ERR_ARG,
+                                "archive writer: cell %u: children at %u break breadth-first order",
+                                id, c->first_child);
+        expected_next += children;
+        for (uint32_t k = 0; k < children; ++k) {
+            ms_archive_cell *child = &w->cells[c->first_child + k].cell;
+            uint32_t offset[3] = {k % h->n, (k / h->n) % h->n, k / (h->n * h->n)};
+            child->parent = id;
+            child->level = (uint8_t)(c->level + 1);
+            for (int a = 0; a < 3; ++a)
+                child->position[a] = c->position[a] * h->n + offset[a];
+        }
+    }
+    if (expected_next != h->cell_count)
+        return ms_error_set(err, MS_ERR_ARG, "archive writer: topology covers %u of %u cells",
+                            expected_next, h->cell_count);
+    return MS_OK;
+}
+
+ms_status ms_archive_writer_open(const char *path, const ms_archive_header *header,
+                                 const uint32_t *first_child, ms_archive_writer **out,
+                                 ms_error *err)
+{
+    *out = NULL;
+    if (header->cell_count < 1 || header->cell_count > MS_ARCHIVE_MAX_CELLS ||
+        (header->n != 2 && header->n != 4 && header->n != 8) || header->bits < 8 ||
+        header->bits > 20 || header->root_bits < 1 || header->root_bits > header->bits)
+        return ms_error_set(err, MS_ERR_ARG, "archive writer: header parameters out of range");
+    ms_archive_writer *w = calloc(1, sizeof *w);
+    if (!w)
+        return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory", path);
+    w->header = *header;
+    size_t len = strlen(path);
+    w->path = strdup(path);
+    w->partial_path = malloc(len + 16);
+    w->cells = calloc(header->cell_count, sizeof *w->cells);
+    if (!w->path || !w->partial_path || !w->cells) {
+        writer_free(w);
+        return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory", path);
+    }
+    snprintf(w->partial_path, len + 16, "%s.partial", path);
+    ms_status st = build_topology(w, first_child, err);
+    if (st != MS_OK) {
+        writer_free(w);
+        return st;
+    }
+    /* The spool lives next to the output and is unlinked at once: the kernel
+     * reclaims it however the process ends. */
+    char spool_path[4096];
+    snprintf(spool_path, sizeof spool_path, "%s.spool.XXXXXX", path);
+    int fd = mkstemp(spool_path);
+    if (fd < 0) {
+        st = ms_error_set(err, MS_ERR_IO, "%s: cannot create spool file: %s", path, strerror(errno));
+        writer_free(w);
+        return st;
+    }
+    unlink(spool_path);
+    w->spool = fdopen(fd, "w+b");
+    if (!w->spool) {
+        close(fd);
+        writer_free(w);
+        return ms_error_set(err, MS_ERR_IO, "%s: cannot open spool file", path);
+    }
+    *out = w;
+    return MS_OK;
+}
+
+void ms_archive_writer_window(const ms_archive_writer *w, uint32_t cell, uint8_t *bits_min,
+                              uint8_t *bits_max)
+{
+    *bits_min = w->cells[cell].cell.bits_min;
+    *bits_max = w->cells[cell].cell.bits_max;
+}
+
+static ms_status spool_append(ms_archive_writer *w, const uint8_t *data, uint32_t length,
+                              uint64_t *offset, ms_error *err)
+{
+    *offset = w->spool_size;
+    if (length && (fseeko(w->spool, (off_t)w->spool_size, SEEK_SET) != 0 ||
+                   fwrite(data, 1, length, w->spool) != length))
+        return ms_error_set(err, MS_ERR_IO, "%s: spool write failed: %s", w->path, strerror(errno));
+    w->spool_size += length;
+    return MS_OK;
+}
+
+/* A heap copy of `words` table words. */
+static uint32_t *copy_table(const uint32_t *table, size_t words)
+{
+    uint32_t *copy = malloc(words * sizeof *copy);
+    if (copy)
+        memcpy(copy, table, words * sizeof *copy);
+    return copy;
+}
+
+ms_status ms_archive_writer_put_geometry(ms_archive_writer *w, uint32_t cell,
+                                         const uint8_t *data, uint32_t length,
+                                         const uint32_t *prefix_table, uint32_t vertex_count,
+                                         uint32_t triangle_count, ms_error *err)
+{
+    if (cell >= w->header.cell_count || w->cells[cell].has_geometry)
+        return ms_error_set(err, MS_ERR_ARG, "archive writer: geometry for cell %u given twice or out of range", cell);
+    cell_state *s = &w->cells[cell];
+    size_t words = (size_t)s->cell.bits_max - s->cell.bits_min + 1;
+    uint32_t previous = 0;
+    for (size_t k = 0; k < words; ++k) {
+        if (prefix_table[k] < previous || prefix_table[k] > length)
+            return ms_error_set(err, MS_ERR_ARG, "archive writer: cell %u: bad geometry prefix table", cell);
+        previous = prefix_table[k];
+    }
+    if (previous != length)
+        return ms_error_set(err, MS_ERR_ARG, "archive writer: cell %u: prefix table must end at %u", cell, length);
+    s->geometry_table = copy_table(prefix_table, words);
+    if (!s->geometry_table)
+        return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory", w->path);
+    ms_status st = spool_append(w, data, length, &s->geometry_spool, err);
+    if (st != MS_OK)
+        return st;
+    s->cell.geometry_length = length;
+    s->cell.geometry_crc = (uint32_t)crc32_z(0L, data, length);
+    s->cell.vertex_count = vertex_count;
+    s->cell.triangle_count = triangle_count;
+    s->has_geometry = true;
+    return MS_OK;
+}
+
+ms_status ms_archive_writer_put_apo(ms_archive_writer *w, uint32_t cell, const uint8_t *data,
+                                    uint32_t length, uint32_t raw_length,
+                                    const uint32_t *level_table, uint8_t levels, ms_error *err)
+{
+    if (!w->header.has_apo || cell >= w->header.cell_count || w->cells[cell].has_apo)
+        return ms_error_set(err, MS_ERR_ARG, "archive writer: unexpected APO chunk for cell %u", cell);
+    if (levels == 0 || levels > MS_ARCHIVE_MAX_APO_LEVELS || (raw_length & 3))
+        return ms_error_set(err, MS_ERR_ARG, "archive writer: cell %u: bad APO chunk shape", cell);
+    uint32_t prev_bytes = 0, prev_texels = 0;
+    for (uint8_t l = 0; l < levels; ++l) {
+        if (level_table[2 * l] < prev_bytes || level_table[2 * l + 1] < prev_texels ||
+            level_table[2 * l] > length)
+            return ms_error_set(err, MS_ERR_ARG, "archive writer: cell %u: bad APO level table", cell);
+        prev_bytes = level_table[2 * l], prev_texels = level_table[2 * l + 1];
+    }
+    if (prev_bytes != length || prev_texels != raw_length / 4)
+        return ms_error_set(err, MS_ERR_ARG, "archive writer: cell %u: APO level table must end at the chunk size", cell);
+    cell_state *s = &w->cells[cell];
+    s->apo_table = copy_table(level_table, 2u * levels);
+    if (!s->apo_table)
+        return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory", w->path);
+    ms_status st = spool_append(w, data, length, &s->apo_spool, err);
+    if (st != MS_OK)
+        return st;
+    s->cell.apo_length = length;
+    s->cell.apo_raw_length = raw_length;
+    s->cell.apo_crc = (uint32_t)crc32_z(0L, data, length);
+    s->cell.apo_levels = levels;
+    s->has_apo = true;
+    return MS_OK;
+}
+
+/* Copies `length` spool bytes from `offset` to the output. */
+static int copy_from_spool(ms_archive_writer *w, FILE *out, uint64_t offset, uint32_t length)
+{
+    uint8_t buf[1 << 16];
+    if (fseeko(w->spool, (off_t)offset, SEEK_SET) != 0)
+        return 1;
+    while (length) {
+        size_t chunk = length < sizeof buf ? length : sizeof buf;
+        if (fread(buf, 1, chunk, w->spool) != chunk || fwrite(buf, 1, chunk, out) != chunk)
+            return 1;
+        length -= (uint32_t)chunk;
+    }
+    return 0;
+}
+
+ms_status ms_archive_writer_finish(ms_archive_writer *w, ms_error *err)
+{
+    ms_archive_header *h = &w->header;
+    /* Place payloads in cell order and lay the tables out without gaps. */
+    uint64_t payload = 0, table_words = 0;
+    for (uint32_t id = 0; id < h->cell_count; ++id) {
+        cell_state *s = &w->cells[id];
+        if (!s->has_geometry) {
+            ms_status st = ms_error_set(err, MS_ERR_ARG, "archive writer: cell %u has no geometry", id);
+            ms_archive_writer_abort(w);
+            return st;
+        }
+        s->cell.geometry_offset = payload;
+        payload += s->cell.geometry_length;
+        s->cell.apo_offset = s->has_apo ? payload : 0;
+        payload += s->cell.apo_length;
+        s->cell.table_first = (uint32_t)table_words;
+        table_words += (uint64_t)s->cell.bits_max - s->cell.bits_min + 1 + 2u * s->cell.apo_levels;
+    }
+    if (table_words > MS_ARCHIVE_MAX_TABLE_WORDS) {
+        ms_archive_writer_abort(w);
+        return ms_error_set(err, MS_ERR_RANGE, "archive writer: too many table words");
+    }
+    h->table_words = (uint32_t)table_words;
+    uint64_t index_size = (uint64_t)h->cell_count * MS_ARCHIVE_RECORD_SIZE + 4 * table_words;
+    uint8_t *index = malloc(index_size);
+    if (!index) {
+        ms_archive_writer_abort(w);
+        return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory for the index", w->path);
+    }
+    uint8_t *words = index + (size_t)h->cell_count * MS_ARCHIVE_RECORD_SIZE;
+    for (uint32_t id = 0; id < h->cell_count; ++id) {
+        cell_state *s = &w->cells[id];
+        ms_archive_encode_cell(&s->cell, index + (size_t)id * MS_ARCHIVE_RECORD_SIZE);
+        size_t geometry_words = (size_t)s->cell.bits_max - s->cell.bits_min + 1;
+        size_t n = geometry_words + 2u * s->cell.apo_levels;
+        for (size_t k = 0; k < n; ++k) {
+            uint32_t v = k < geometry_words ? s->geometry_table[k] : s->apo_table[k - geometry_words];
+            uint8_t *p = words + 4 * ((size_t)s->cell.table_first + k);
+            p[0] = (uint8_t)v, p[1] = (uint8_t)(v >> 8), p[2] = (uint8_t)(v >> 16), p[3] = (uint8_t)(v >> 24);
+        }
+    }
+    uint8_t head[MS_ARCHIVE_HEADER_SIZE];
+    ms_archive_encode_header(h, index_size, payload, (uint32_t)crc32_z(0L, index, index_size), head);
+
+    FILE *out = fopen(w->partial_path, "wb");
+    int failed = !out;
+    if (out) {
+        failed |= fwrite(head, 1, sizeof head, out) != sizeof head;
+        failed |= fwrite(index, 1, index_size, out) != index_size;
+        for (uint32_t id = 0; !failed && id < h->cell_count; ++id) {
+            cell_state *s = &w->cells[id];
+            failed |= copy_from_spool(w, out, s->geometry_spool, s->cell.geometry_length);
+            if (s->has_apo)
+                failed |= copy_from_spool(w, out, s->apo_spool, s->cell.apo_length);
+        }
+        failed |= fflush(out) != 0 || fsync(fileno(out)) != 0;
+        failed |= fclose(out) != 0;
+    }
+    free(index);
+    if (failed || rename(w->partial_path, w->path) != 0) {
+        ms_status st = ms_error_set(err, MS_ERR_IO, "%s: write failed: %s", w->path, strerror(errno));
+        ms_archive_writer_abort(w);
+        return st;
+    }
+    writer_free(w);
+    return MS_OK;
+}

@@ -1,0 +1,56 @@
+/* Writing a meshstream archive file (docs/ARCHIVE.md, version 1).
+ *
+ * Usage: open with the header fields and the tree topology (for each cell in
+ * breadth-first order, the index of its first child or MS_ARCHIVE_NONE), put each
+ * cell's geometry payload (and APO chunk when the header says so) in any order —
+ * the baker produces them in post-order, from several threads — then finish.
+ * Payloads are spooled to an unlinked temporary file, so memory stays bounded by
+ * the index; finish writes `path.partial`, flushes it to disk and renames it to
+ * `path`. Abort, any error, or a killed process never leaves a file at `path`
+ * that looks complete.
+ *
+ * Ownership: the writer copies what it is given. Thread-safety: calls on one
+ * writer must be serialised by the caller.
+ */
+#ifndef MS_ARCHIVE_WRITER_H
+#define MS_ARCHIVE_WRITER_H
+
+#include <stdint.h>
+
+#include "ms_archive.h"
+#include "ms_error.h"
+
+typedef struct ms_archive_writer ms_archive_writer;
+
+/* header: every field but table_words and file_size is used; cell_count gives
+ * the length of first_child. The topology is checked against the breadth-first
+ * rules (MS_ERR_ARG when it breaks them). */
+ms_status ms_archive_writer_open(const char *path, const ms_archive_header *header,
+                                 const uint32_t *first_child, ms_archive_writer **writer,
+                                 ms_error *err);
+
+/* prefix_table has bits_max - bits_min + 1 entries (see docs/ARCHIVE.md); counts
+ * are the cell's vertices and triangles at bits_max. Once per cell. */
+ms_status ms_archive_writer_put_geometry(ms_archive_writer *writer, uint32_t cell,
+                                         const uint8_t *data, uint32_t length,
+                                         const uint32_t *prefix_table, uint32_t vertex_count,
+                                         uint32_t triangle_count, ms_error *err);
+
+/* level_table has 2 * levels words (compressed bytes, texels per complete level
+ * prefix). At most once per cell; only when the header has has_apo. */
+ms_status ms_archive_writer_put_apo(ms_archive_writer *writer, uint32_t cell,
+                                    const uint8_t *data, uint32_t length, uint32_t raw_length,
+                                    const uint32_t *level_table, uint8_t levels, ms_error *err);
+
+/* The precision window the writer expects for a cell (from the topology). */
+void ms_archive_writer_window(const ms_archive_writer *writer, uint32_t cell, uint8_t *bits_min,
+                              uint8_t *bits_max);
+
+/* Writes the file. Every cell must have its geometry. Frees the writer, whatever
+ * the outcome. */
+ms_status ms_archive_writer_finish(ms_archive_writer *writer, ms_error *err);
+
+/* Drops everything written so far. Accepts NULL. */
+void ms_archive_writer_abort(ms_archive_writer *writer);
+
+#endif

@@ -1,0 +1,473 @@
+/* HTTP side door: see ms_http_door.h. */
+#include "ms_http_door.h"
+
+#include <errno.h>
+#include <event2/buffer.h>
+#include <event2/event.h>
+#include <event2/http.h>
+#include <event2/keyvalq_struct.h>
+#include <inttypes.h>
+#include <jansson.h>
+#include <netinet/in.h>
+#include <stdbool.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/queue.h>
+#include <sys/socket.h>
+
+#include "ms_progress.h"
+#include "ms_server.h"
+
+#define RATE_BUCKETS 1024
+
+/* Token bucket per hashed client address (collisions share, which only errs on
+ * the strict side). */
+typedef struct rate_bucket {
+    double tokens;
+    double updated;
+} rate_bucket;
+
+struct ms_http_door {
+    ms_server *server;
+    struct evhttp *http;
+    rate_bucket buckets[RATE_BUCKETS];
+};
+
+/* --- Small helpers ---------------------------------------------------------- */
+
+static void send_text(ms_http_door *door, struct evhttp_request *req, int code,
+                      const char *reason, const char *text)
+{
+    struct evbuffer *body = evbuffer_new();
+    if (body)
+        evbuffer_add_printf(body, "%s\n", text);
+    evhttp_add_header(evhttp_request_get_output_headers(req), "Content-Type",
+                      "text/plain; charset=utf-8");
+    if (code >= 400)
+        door->server->metrics.http_errors++;
+    evhttp_send_reply(req, code, reason, body);
+    if (body)
+        evbuffer_free(body);
+}
+
+static bool parse_u32(const char *text, uint32_t max, uint32_t *out)
+{
+    if (!text || *text < '0' || *text > '9' || strlen(text) > 10)
+        return false;
+    char *end;
+    errno = 0;
+    unsigned long v = strtoul(text, &end, 10);
+    if (errno || *end || v > max)
+        return false;
+    *out = (uint32_t)v;
+    return true;
+}
+
+/* Compares without an early exit, so response time does not leak the token. */
+static bool token_equal(const char *given, const char *expected)
+{
+    size_t a = strlen(given), b = strlen(expected);
+    unsigned diff = (unsigned)(a ^ b);
+    for (size_t i = 0; i < b; ++i)
+        diff |= (unsigned char)(i < a ? given[i] : 0) ^ (unsigned char)expected[i];
+    return diff == 0;
+}
+
+static bool authorized(const ms_http_door *door, struct evhttp_request *req,
+                       const struct evkeyvalq *query)
+{
+    const char *expected = door->server->config.token;
+    if (!expected)
+        return false;
+    const char *auth = evhttp_find_header(evhttp_request_get_input_headers(req), "Authorization");
+    if (auth && !strncmp(auth, "Bearer ", 7) && token_equal(auth + 7, expected))
+        return true;
+    const char *q = evhttp_find_header(query, "token");
+    return q && token_equal(q, expected);
+}
+
+static bool rate_allowed(ms_http_door *door, struct evhttp_request *req)
+{
+    struct evhttp_connection *conn = evhttp_request_get_connection(req);
+    char *host = NULL;
+    ev_uint16_t port = 0;
+    if (conn)
+        evhttp_connection_get_peer(conn, &host, &port);
+    uint64_t h = 1469598103934665603ull;
+    for (const char *c = host ? host : ""; *c; ++c)
+        h = (h ^ (unsigned char)*c) * 1099511628211ull;
+    rate_bucket *b = &door->buckets[h % RATE_BUCKETS];
+    double now = ms_now_seconds(), rate = door->server->config.http_rate;
+    if (b->updated == 0.0)
+        b->tokens = 2.0 * rate;
+    b->tokens += (now - b->updated) * rate;
+    if (b->tokens > 2.0 * rate)
+        b->tokens = 2.0 * rate;
+    b->updated = now;
+    if (b->tokens < 1.0)
+        return false;
+    b->tokens -= 1.0;
+    return true;
+}
+
+/* Splits path into at most `max` segments; false on empty segments or too many. */
+static int split_path(char *path, char **segments, int max)
+{
+    int n = 0;
+    char *save = NULL;
+    if (path[0] != '/')
+        return -1;
+    for (char *s = strtok_r(path + 1, "/", &save); s; s = strtok_r(NULL, "/", &save)) {
+        if (n == max)
+            return -1;
+        segments[n++] = s;
+    }
+    return n;
+}
+
+/* --- Payload responses ------------------------------------------------------ */
+
+/* A payload reference handed to libevent: keeps the model mapped until sent. */
+typedef struct transfer {
+    ms_model *model;
+    ms_server *server;
+} transfer;
+
+static void release_transfer(const void *data, size_t length, void *extra)
+{
+    (void)data, (void)length;
+    transfer *t = extra;
+    t->server->metrics.transfers_in_flight--;
+    ms_model_unref(t->model);
+    free(t);
+}
+
+/* Sends bytes [0, length) of data (inside model's mapping) honouring Range. */
+static void send_bytes(ms_http_door *door, struct evhttp_request *req, ms_model *model,
+                       const uint8_t *data, uint64_t length, const char *etag)
+{
+    struct evkeyvalq *out = evhttp_request_get_output_headers(req);
+    struct evkeyvalq *in = evhttp_request_get_input_headers(req);
+    evhttp_add_header(out, "Content-Type", "application/octet-stream");
+    evhttp_add_header(out, "Accept-Ranges", "bytes");
+    evhttp_add_header(out, "ETag", etag);
+    evhttp_add_header(out, "Cache-Control", "public, max-age=3600");
+    const char *inm = evhttp_find_header(in, "If-None-Match");
+    if (inm && !strcmp(inm, etag)) {
+        evhttp_send_reply(req, 304, "Not Modified", NULL);
+        return;
+    }
+    uint64_t first = 0, last = length ? length - 1 : 0;
+    int code = 200;
+    const char *range = evhttp_find_header(in, "Range");
+    if (range && !strncmp(range, "bytes=", 6) && !strchr(range, ',')) {
+        const char *spec = range + 6;
+        unsigned long long a = 0, b = 0;
+        int ok;
+        char tail;
+        if (spec[0] == '-') {
+            ok = sscanf(spec + 1, "%llu%c", &b, &tail) == 1 && b > 0;
+            if (ok) {
+                first = b >= length ? 0 : length - b;
+                last = length ? length - 1 : 0;
+            }
+        } else if (spec[strlen(spec) - 1] == '-') {
+            ok = sscanf(spec, "%llu-%c", &a, &tail) == 1;
+            first = a, last = length ? length - 1 : 0;
+        } else {
+            ok = sscanf(spec, "%llu-%llu%c", &a, &b, &tail) == 2 && a <= b;
+            first = a, last = b < length ? b : (length ? length - 1 : 0);
+        }
+        if (!ok || length == 0 || first >= length) {
+            char cr[64];
+            snprintf(cr, sizeof cr, "bytes */%" PRIu64, length);
+            evhttp_add_header(out, "Content-Range", cr);
+            send_text(door, req, 416, "Range Not Satisfiable", "error: range not satisfiable");
+            return;
+        }
+        char cr[96];
+        snprintf(cr, sizeof cr, "bytes %" PRIu64 "-%" PRIu64 "/%" PRIu64, first, last, length);
+        evhttp_add_header(out, "Content-Range", cr);
+        code = 206;
+    }
+    uint64_t count = length ? last - first + 1 : 0;
+    struct evbuffer *body = evbuffer_new();
+    if (!body) {
+        send_text(door, req, 500, "Internal Server Error", "error: out of memory");
+        return;
+    }
+    if (count) {
+        transfer *t = malloc(sizeof *t);
+        if (t) {
+            t->model = model, t->server = door->server;
+            ms_model_ref(model);
+            door->server->metrics.transfers_in_flight++;
+        }
+        if (!t || evbuffer_add_reference(body, data + first, (size_t)count, release_transfer, t) != 0) {
+            if (t)
+                release_transfer(NULL, 0, t);
+            evbuffer_free(body);
+            send_text(door, req, 500, "Internal Server Error", "error: out of memory");
+            return;
+        }
+    }
+    door->server->metrics.http_bytes_sent += count;
+    evhttp_send_reply(req, code, code == 206 ? "Partial Content" : "OK", body);
+    evbuffer_free(body);
+}
+
+static void serve_index(ms_http_door *door, struct evhttp_request *req, ms_model *model)
+{
+    size_t size;
+    const uint8_t *index = ms_archive_index_bytes(model->archive, &size);
+    char etag[128];
+    snprintf(etag, sizeof etag, "\"%" PRIx64 "-%" PRIx64 "-index\"", model->file_inode,
+             (uint64_t)model->file_mtime_ns);
+    send_bytes(door, req, model, index, size, etag);
+}
+
+static void serve_cell(ms_http_door *door, struct evhttp_request *req, ms_model *model,
+                       const char *cell_text, const char *kind, const struct evkeyvalq *query)
+{
+    uint32_t cell;
+    const ms_archive_cell *c = NULL;
+    if (parse_u32(cell_text, UINT32_MAX, &cell))
+        c = ms_archive_get_cell(model->archive, cell);
+    if (!c) {
+        send_text(door, req, 404, "Not Found", "error: no such cell");
+        return;
+    }
+    bool full = authorized(door, req, query);
+    unsigned public_bits = model->entry.public_max_bits;
+    if (!full && c->bits_min > public_bits) {
+        send_text(door, req, 403, "Forbidden", "error: this cell is beyond the public preview; a token is required");
+        return;
+    }
+    char etag[160];
+    if (!strcmp(kind, "geometry")) {
+        unsigned allowed = full || c->bits_max < public_bits ? c->bits_max : public_bits;
+        uint32_t bits = allowed;
+        const char *bits_text = evhttp_find_header(query, "bits");
+        if (bits_text && !parse_u32(bits_text, 64, &bits)) {
+            send_text(door, req, 400, "Bad Request", "error: bits must be an integer in 0..64");
+            return;
+        }
+        if (bits > allowed && bits <= c->bits_max) {
+            send_text(door, req, 403, "Forbidden", "error: precision beyond the public preview needs a token");
+            return;
+        }
+        if (bits > c->bits_max)
+            bits = c->bits_max;
+        size_t total;
+        const uint8_t *data = ms_archive_geometry(model->archive, cell, &total);
+        uint32_t length = ms_archive_geometry_prefix(model->archive, cell, bits);
+        snprintf(etag, sizeof etag, "\"%" PRIx64 "-%" PRIx64 "-%u-g%u\"", model->file_inode,
+                 (uint64_t)model->file_mtime_ns, cell, bits);
+        send_bytes(door, req, model, data, length, etag);
+    } else {
+        uint32_t levels = c->apo_levels;
+        const char *levels_text = evhttp_find_header(query, "levels");
+        if (levels_text && (!parse_u32(levels_text, 64, &levels) || levels == 0)) {
+            send_text(door, req, 400, "Bad Request", "error: levels must be an integer in 1..64");
+            return;
+        }
+        size_t total;
+        const uint8_t *data = ms_archive_apo(model->archive, cell, &total);
+        uint32_t length = levels ? ms_archive_apo_prefix(model->archive, cell, levels - 1, NULL) : 0;
+        snprintf(etag, sizeof etag, "\"%" PRIx64 "-%" PRIx64 "-%u-a%u\"", model->file_inode,
+                 (uint64_t)model->file_mtime_ns, cell, levels);
+        send_bytes(door, req, model, data, length, etag);
+    }
+}
+
+/* --- JSON and metrics -------------------------------------------------------- */
+
+static void serve_catalog(ms_http_door *door, struct evhttp_request *req)
+{
+    const ms_registry *r = &door->server->registry;
+    json_t *models = json_array();
+    for (size_t i = 0; models && i < r->count; ++i) {
+        const ms_catalog_entry *e = &r->models[i]->entry;
+        json_array_append_new(
+            models, json_pack("{s:s, s:I, s:I, s:I, s:i, s:i, s:b, s:I, s:s}", "name", e->name,
+                              "vertices", (json_int_t)e->vertices, "triangles",
+                              (json_int_t)e->triangles, "cells", (json_int_t)e->cells, "bits",
+                              (int)e->bits, "public_max_bits", (int)e->public_max_bits, "apo",
+                              (int)e->apo, "archive_bytes", (json_int_t)e->archive_bytes,
+                              "baked_at", e->baked_at));
+    }
+    json_t *root = models ? json_pack("{s:i, s:o}", "version", 1, "models", models) : NULL;
+    char *text = root ? json_dumps(root, JSON_INDENT(2) | JSON_SORT_KEYS) : NULL;
+    json_decref(root);
+    if (!text) {
+        send_text(door, req, 500, "Internal Server Error", "error: out of memory");
+        return;
+    }
+    struct evbuffer *body = evbuffer_new();
+    if (body) {
+        evbuffer_add_printf(body, "%s\n", text);
+        evhttp_add_header(evhttp_request_get_output_headers(req), "Content-Type", "application/json");
+        evhttp_send_reply(req, 200, "OK", body);
+        evbuffer_free(body);
+    }
+    free(text);
+}
+
+static void serve_metrics(ms_http_door *door, struct evhttp_request *req)
+{
+    const ms_server *s = door->server;
+    const ms_server_metrics *m = &s->metrics;
+    struct evbuffer *body = evbuffer_new();
+    if (!body)
+        return;
+    const struct {
+        const char *name, *type, *help;
+        uint64_t value;
+    } rows[] = {
+        {"meshstream_models", "gauge", "Models being served", s->registry.count},
+        {"meshstream_connections", "gauge", "Open binary-protocol connections", m->binary_connections},
+        {"meshstream_connections_total", "counter", "Binary-protocol connections accepted", m->binary_connections_total},
+        {"meshstream_requests_total{door=\"binary\"}", "counter", "Requests received", m->binary_requests},
+        {"meshstream_requests_total{door=\"http\"}", NULL, NULL, m->http_requests},
+        {"meshstream_errors_total{door=\"binary\"}", "counter", "Requests answered with an error", m->binary_errors},
+        {"meshstream_errors_total{door=\"http\"}", NULL, NULL, m->http_errors},
+        {"meshstream_bytes_sent_total{door=\"binary\"}", "counter", "Payload bytes sent", m->binary_bytes_sent},
+        {"meshstream_bytes_sent_total{door=\"http\"}", NULL, NULL, m->http_bytes_sent},
+        {"meshstream_queued_requests", "gauge", "Requests queued over all connections", m->queued_requests},
+        {"meshstream_queued_bytes", "gauge", "Payload bytes queued over all connections", m->queued_bytes},
+        {"meshstream_rescans_total", "counter", "Archive directory rescans", m->rescans},
+        {"meshstream_rescan_failures_total", "counter", "Rescans that failed", m->rescan_failures},
+    };
+    for (size_t i = 0; i < sizeof rows / sizeof *rows; ++i) {
+        if (rows[i].type) {
+            size_t base = strcspn(rows[i].name, "{");
+            evbuffer_add_printf(body, "# HELP %.*s %s\n# TYPE %.*s %s\n", (int)base, rows[i].name,
+                                rows[i].help, (int)base, rows[i].name, rows[i].type);
+        }
+        evbuffer_add_printf(body, "%s %" PRIu64 "\n", rows[i].name, rows[i].value);
+    }
+    evhttp_add_header(evhttp_request_get_output_headers(req), "Content-Type",
+                      "text/plain; version=0.0.4");
+    evhttp_send_reply(req, 200, "OK", body);
+    evbuffer_free(body);
+}
+
+/* --- Routing ----------------------------------------------------------------- */
+
+static void route(ms_http_door *door, struct evhttp_request *req, char *path,
+                  const struct evkeyvalq *query)
+{
+    char *seg[6];
+    int n = split_path(path, seg, 6);
+    if (n == 1 && !strcmp(seg[0], "healthz")) {
+        send_text(door, req, 200, "OK", door->server->draining ? "draining" : "ok");
+        return;
+    }
+    if (n == 1 && !strcmp(seg[0], "catalog")) {
+        serve_catalog(door, req);
+        return;
+    }
+    if (n == 1 && !strcmp(seg[0], "metrics")) {
+        serve_metrics(door, req);
+        return;
+    }
+    if (n >= 2 && !strcmp(seg[0], "models")) {
+        ms_model *model = ms_registry_find(&door->server->registry, seg[1]);
+        if (!model) {
+            send_text(door, req, 404, "Not Found", "error: no such model");
+            return;
+        }
+        if (n == 2) {
+            serve_index(door, req, model);
+            return;
+        }
+        if (n == 5 && !strcmp(seg[2], "cells") &&
+            (!strcmp(seg[4], "geometry") || !strcmp(seg[4], "apo"))) {
+            serve_cell(door, req, model, seg[3], seg[4], query);
+            return;
+        }
+    }
+    send_text(door, req, 404, "Not Found", "error: no such resource");
+}
+
+static void handle_request(struct evhttp_request *req, void *arg)
+{
+    ms_http_door *door = arg;
+    door->server->metrics.http_requests++;
+    enum evhttp_cmd_type cmd = evhttp_request_get_command(req);
+    if (cmd != EVHTTP_REQ_GET && cmd != EVHTTP_REQ_HEAD) {
+        evhttp_add_header(evhttp_request_get_output_headers(req), "Allow", "GET, HEAD");
+        send_text(door, req, 405, "Method Not Allowed", "error: only GET and HEAD");
+        return;
+    }
+    if (!rate_allowed(door, req)) {
+        evhttp_add_header(evhttp_request_get_output_headers(req), "Retry-After", "1");
+        send_text(door, req, 429, "Too Many Requests", "error: request rate limit");
+        return;
+    }
+    const struct evhttp_uri *uri = evhttp_request_get_evhttp_uri(req);
+    const char *raw_path = uri ? evhttp_uri_get_path(uri) : NULL;
+    if (!raw_path || strlen(raw_path) > 512) {
+        send_text(door, req, 400, "Bad Request", "error: bad path");
+        return;
+    }
+    char path[513];
+    snprintf(path, sizeof path, "%s", raw_path);
+    struct evkeyvalq query;
+    TAILQ_INIT(&query);
+    const char *query_text = evhttp_uri_get_query(uri);
+    if (query_text && evhttp_parse_query_str(query_text, &query) != 0) {
+        send_text(door, req, 400, "Bad Request", "error: bad query string");
+        return;
+    }
+    route(door, req, path, &query);
+    evhttp_clear_headers(&query);
+}
+
+ms_status ms_http_door_open(ms_server *server, ms_http_door **out, uint16_t *bound_port,
+                            ms_error *err)
+{
+    *out = NULL;
+    ms_http_door *door = calloc(1, sizeof *door);
+    if (!door)
+        return ms_error_set(err, MS_ERR_NOMEM, "http: out of memory");
+    door->server = server;
+    door->http = evhttp_new(server->base);
+    if (!door->http) {
+        free(door);
+        return ms_error_set(err, MS_ERR_NOMEM, "http: cannot create the HTTP server");
+    }
+    evhttp_set_allowed_methods(door->http, EVHTTP_REQ_GET | EVHTTP_REQ_HEAD | EVHTTP_REQ_POST |
+                                               EVHTTP_REQ_PUT | EVHTTP_REQ_DELETE);
+    evhttp_set_max_headers_size(door->http, 16384);
+    evhttp_set_max_body_size(door->http, 4096);
+    evhttp_set_timeout(door->http, (int)server->config.idle_timeout_s);
+    evhttp_set_gencb(door->http, handle_request, door);
+    const char *address = server->config.bind_address ? server->config.bind_address : "127.0.0.1";
+    struct evhttp_bound_socket *socket =
+        evhttp_bind_socket_with_handle(door->http, address, (ev_uint16_t)server->config.http_port);
+    if (!socket) {
+        ms_status st = ms_error_set(err, MS_ERR_IO, "http: cannot listen on %s:%u: %s", address,
+                                    server->config.http_port, strerror(errno));
+        ms_http_door_close(door);
+        return st;
+    }
+    struct sockaddr_storage ss;
+    socklen_t len = sizeof ss;
+    *bound_port = 0;
+    if (getsockname(evhttp_bound_socket_get_fd(socket), (struct sockaddr *)&ss, &len) == 0)
+        *bound_port = ntohs(ss.ss_family == AF_INET6 ? ((struct sockaddr_in6 *)&ss)->sin6_port
+                                                     : ((struct sockaddr_in *)&ss)->sin_port);
+    *out = door;
+    return MS_OK;
+}
+
+void ms_http_door_close(ms_http_door *door)
+{
+    if (!door)
+        return;
+    if (door->http)
+        evhttp_free(door->http);
+    free(door);
+}

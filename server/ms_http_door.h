@@ -1,0 +1,32 @@
+/* The HTTP side door of meshserve (libevent evhttp): the same catalogue, model
+ * indexes and cell payloads as the binary protocol, for browsers, curl and
+ * caching proxies. Routes (GET and HEAD only):
+ *
+ *   /healthz                              "ok"
+ *   /catalog                              JSON list of the models
+ *   /models/NAME                          the model's header and cell index (binary)
+ *   /models/NAME/cells/ID/geometry[?bits=B]   geometry prefix complete at B bits
+ *   /models/NAME/cells/ID/apo[?levels=L]      APO chunk prefix of L levels
+ *   /metrics                              Prometheus text format
+ *
+ * Payloads honour a single `Range: bytes=...` (206 / 416), carry an ETag and are
+ * sent from the archive mapping without copying. Access: above a model's public
+ * precision a client must present the operator's token (`Authorization: Bearer
+ * TOKEN` or `?token=TOKEN`), else 403. Requests per client address are
+ * rate-limited (429). Thread-safety: runs on the server loop.
+ */
+#ifndef MS_HTTP_DOOR_H
+#define MS_HTTP_DOOR_H
+
+#include <stdint.h>
+
+#include "ms_error.h"
+
+struct ms_server;
+typedef struct ms_http_door ms_http_door;
+
+ms_status ms_http_door_open(struct ms_server *server, ms_http_door **door, uint16_t *bound_port,
+                            ms_error *err);
+void ms_http_door_close(ms_http_door *door);
+
+#endif

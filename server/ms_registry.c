@@ -1,0 +1,132 @@
+/* Model registry: see ms_registry.h. */
+#include "ms_registry.h"
+
+#include <stdbool.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+void ms_model_ref(ms_model *m) { m->refs++; }
+
+void ms_model_unref(ms_model *m)
+{
+    if (!m || --m->refs > 0)
+        return;
+    ms_archive_close(m->archive);
+    free(m->entry.source);
+    free(m);
+}
+
+void ms_registry_release(ms_registry *r)
+{
+    if (!r)
+        return;
+    for (size_t i = 0; i < r->count; ++i)
+        ms_model_unref(r->models[i]);
+    free(r->models);
+    free(r->dir);
+    memset(r, 0, sizeof *r);
+}
+
+ms_model *ms_registry_find(const ms_registry *r, const char *name)
+{
+    if (!ms_model_name_valid(name))
+        return NULL;
+    size_t lo = 0, hi = r->count;
+    while (lo < hi) {
+        size_t mid = lo + (hi - lo) / 2;
+        int c = strcmp(r->models[mid]->entry.name, name);
+        if (c == 0)
+            return r->models[mid];
+        if (c < 0)
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    return NULL;
+}
+
+static void warn_model(ms_registry_warn_fn warn, void *arg, const char *fmt, const char *name,
+                       const char *detail)
+{
+    if (!warn)
+        return;
+    char line[MS_ERROR_TEXT_MAX + 128];
+    snprintf(line, sizeof line, fmt, name, detail);
+    warn(arg, line);
+}
+
+/* Opens (or reuses from previous) the archive of one catalogue entry. */
+static ms_model *load_model(const char *dir, const ms_catalog_entry *entry,
+                            const ms_registry *previous, ms_registry_warn_fn warn, void *warn_arg)
+{
+    char path[4096];
+    snprintf(path, sizeof path, "%s/%s.msa", dir, entry->name);
+    struct stat st;
+    if (stat(path, &st) != 0) {
+        warn_model(warn, warn_arg, "model '%s' skipped: %s", entry->name, "archive file missing");
+        return NULL;
+    }
+    int64_t mtime_ns = (int64_t)st.st_mtim.tv_sec * 1000000000 + st.st_mtim.tv_nsec;
+    ms_model *old = previous ? ms_registry_find(previous, entry->name) : NULL;
+    if (old && old->file_inode == (uint64_t)st.st_ino && old->file_size == (uint64_t)st.st_size &&
+        old->file_mtime_ns == mtime_ns) {
+        ms_model_ref(old);
+        return old;
+    }
+    ms_model *m = calloc(1, sizeof *m);
+    if (!m) {
+        warn_model(warn, warn_arg, "model '%s' skipped: %s", entry->name, "out of memory");
+        return NULL;
+    }
+    ms_error err;
+    if (ms_archive_open(path, &m->archive, &err) != MS_OK) {
+        warn_model(warn, warn_arg, "model '%s' skipped: %s", entry->name, err.text);
+        free(m);
+        return NULL;
+    }
+    m->entry = *entry;
+    m->entry.source = strdup(entry->source ? entry->source : "");
+    if (!m->entry.source) {
+        ms_archive_close(m->archive);
+        free(m);
+        return NULL;
+    }
+    const ms_archive_header *h = ms_archive_get_header(m->archive);
+    if (m->entry.public_max_bits > h->bits)
+        m->entry.public_max_bits = h->bits;
+    m->refs = 1;
+    m->file_inode = (uint64_t)st.st_ino;
+    m->file_size = (uint64_t)st.st_size;
+    m->file_mtime_ns = mtime_ns;
+    return m;
+}
+
+ms_status ms_registry_scan(const char *dir, const ms_registry *previous, ms_registry *out,
+                           ms_registry_warn_fn warn, void *warn_arg, ms_error *err)
+{
+    memset(out, 0, sizeof *out);
+    struct stat st;
+    if (stat(dir, &st) != 0 || !S_ISDIR(st.st_mode))
+        return ms_error_set(err, MS_ERR_IO, "%s: not a directory", dir);
+    ms_catalog catalog;
+    ms_status status = ms_catalog_load(dir, &catalog, err);
+    if (status != MS_OK)
+        return status;
+    out->dir = strdup(dir);
+    out->models = calloc(catalog.count ? catalog.count : 1, sizeof *out->models);
+    if (!out->dir || !out->models) {
+        ms_catalog_free(&catalog);
+        ms_registry_release(out);
+        return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory", dir);
+    }
+    /* The catalogue is sorted by name, so the registry is too. */
+    for (size_t i = 0; i < catalog.count; ++i) {
+        ms_model *m = load_model(dir, &catalog.entries[i], previous, warn, warn_arg);
+        if (m)
+            out->models[out->count++] = m;
+    }
+    ms_catalog_free(&catalog);
+    return MS_OK;
+}

@@ -1,0 +1,60 @@
+/* The models a server offers: the catalogue of an archive directory and each
+ * model's archive, opened (mapped and validated) once.
+ *
+ * A registry snapshot is immutable. ms_registry_scan builds a new one from the
+ * directory, reusing the already-open archive of every model whose file did not
+ * change (same inode, size and modification time), so a rescan (SIGHUP) costs
+ * little and never disturbs transfers in progress: each model is reference-
+ * counted, and a connection that holds a model keeps its mapping alive after the
+ * model has been removed or replaced.
+ *
+ * Only names that ms_model_name_valid accepts ever reach the file system, and
+ * only as DIR/NAME.msa. A catalogue entry whose archive is missing or invalid is
+ * skipped with a one-line warning (reported through the callback), not fatal.
+ *
+ * Thread-safety: reference counts are not atomic; use from one thread (the
+ * server's event loop).
+ */
+#ifndef MS_REGISTRY_H
+#define MS_REGISTRY_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "ms_archive.h"
+#include "ms_catalog.h"
+#include "ms_error.h"
+
+typedef struct ms_model {
+    unsigned refs;
+    ms_catalog_entry entry; /* entry.source owned */
+    ms_archive *archive;
+    uint64_t file_inode, file_size;
+    int64_t file_mtime_ns;
+} ms_model;
+
+typedef struct ms_registry {
+    char *dir;
+    ms_model **models; /* sorted by name, each holding one reference */
+    size_t count;
+} ms_registry;
+
+/* Called with a one-line message for each model skipped during a scan. */
+typedef void (*ms_registry_warn_fn)(void *arg, const char *message);
+
+/* Builds *out from DIR. previous (may be NULL) lends its open archives. A
+ * catalogue that cannot be read at all is an error; models that fail are warned
+ * about and skipped. */
+ms_status ms_registry_scan(const char *dir, const ms_registry *previous, ms_registry *out,
+                           ms_registry_warn_fn warn, void *warn_arg, ms_error *err);
+
+/* Drops the registry's references (models still held elsewhere stay alive). */
+void ms_registry_release(ms_registry *registry);
+
+/* The model named name (validated first), or NULL. Does not take a reference. */
+ms_model *ms_registry_find(const ms_registry *registry, const char *name);
+
+void ms_model_ref(ms_model *model);
+void ms_model_unref(ms_model *model);
+
+#endif

@@ -1,0 +1,97 @@
+#include "ms_test_archive.h"
+
+#include <stdarg.h>
+#include <stddef.h>
+#include <setjmp.h>
+#include <stdio.h>
+#include <string.h>
+#include <cmocka.h>
+
+#include "ms_archive_writer.h"
+
+ms_archive_header ms_test_archive_header(void)
+{
+    ms_archive_header h = {0};
+    h.box_origin[0] = -1.5, h.box_origin[1] = 2.0, h.box_origin[2] = 1e7;
+    h.box_side = 0.25;
+    h.bits = 12, h.n = 4, h.root_bits = 7;
+    h.has_apo = true, h.apo_lead = 3, h.apo_max_depth = 13;
+    h.cell_count = MS_TEST_ARCHIVE_CELLS;
+    h.min_triangles = 8000;
+    h.vertex_count = 1234, h.triangle_count = 2468;
+    return h;
+}
+
+void ms_test_archive_fill(uint8_t *buf, uint32_t length, uint32_t seed)
+{
+    for (uint32_t i = 0; i < length; ++i)
+        buf[i] = (uint8_t)((i * 131u + seed * 7u) >> 1);
+}
+
+uint32_t ms_test_archive_geometry_length(uint32_t cell) { return 20 + (cell * 37) % 300; }
+uint32_t ms_test_archive_apo_levels(uint32_t cell) { return cell % 3 == 0 ? 0 : 1 + cell % 5; }
+
+void ms_test_write_archive(const char *path, uint32_t salt)
+{
+    ms_archive_header h = ms_test_archive_header();
+    uint32_t first_child[MS_TEST_ARCHIVE_CELLS];
+    for (uint32_t i = 0; i < MS_TEST_ARCHIVE_CELLS; ++i)
+        first_child[i] = MS_ARCHIVE_NONE;
+    first_child[0] = 1;
+    first_child[5] = 65;
+    ms_archive_writer *w;
+    ms_error err;
+    if (ms_archive_writer_open(path, &h, first_child, &w, &err) != MS_OK)
+        fail_msg("%s", err.text);
+    uint8_t buf[1024];
+    /* Reverse order, APO before geometry on odd cells: the writer must not care. */
+    for (uint32_t k = 0; k < MS_TEST_ARCHIVE_CELLS; ++k) {
+        uint32_t cell = MS_TEST_ARCHIVE_CELLS - 1 - k;
+        uint8_t lo, hi;
+        ms_archive_writer_window(w, cell, &lo, &hi);
+        uint32_t levels = ms_test_archive_apo_levels(cell), apo_table[64];
+        for (uint32_t l = 0; l < levels; ++l)
+            apo_table[2 * l] = 40 * (l + 1), apo_table[2 * l + 1] = 10 * (l + 1);
+        for (int pass = 0; pass < 2; ++pass) {
+            bool apo_now = levels && (pass == 0) == (cell % 2 == 1);
+            if (apo_now) {
+                ms_test_archive_fill(buf, 40 * levels, cell + 1000 + salt);
+                if (ms_archive_writer_put_apo(w, cell, buf, 40 * levels, 40 * levels, apo_table,
+                                              (uint8_t)levels, &err) != MS_OK)
+                    fail_msg("%s", err.text);
+            }
+            if (pass == 0) {
+                uint32_t len = ms_test_archive_geometry_length(cell), table[32];
+                uint32_t words = hi - lo + 1u;
+                for (uint32_t b = 0; b < words; ++b)
+                    table[b] = 8 + (len - 8) * b / (words - 1 ? words - 1 : 1);
+                table[words - 1] = len;
+                ms_test_archive_fill(buf, len, cell + salt);
+                if (ms_archive_writer_put_geometry(w, cell, buf, len, table, cell * 3, cell * 5,
+                                                   &err) != MS_OK)
+                    fail_msg("%s", err.text);
+            }
+        }
+    }
+    if (ms_archive_writer_finish(w, &err) != MS_OK)
+        fail_msg("%s", err.text);
+}
+
+void ms_test_add_model(const char *dir, const char *name, uint32_t salt, uint8_t public_max_bits)
+{
+    char path[4096];
+    snprintf(path, sizeof path, "%s/%s.msa", dir, name);
+    ms_test_write_archive(path, salt);
+    ms_catalog_entry e;
+    memset(&e, 0, sizeof e);
+    snprintf(e.name, sizeof e.name, "%s", name);
+    e.source = (char *)"synthetic";
+    ms_catalog_now(e.baked_at, sizeof e.baked_at);
+    e.vertices = 1234, e.triangles = 2468, e.cells = MS_TEST_ARCHIVE_CELLS;
+    e.bits = 12, e.n = 4, e.root_bits = 7, e.min_triangles = 8000;
+    e.apo = true, e.apo_lead = 3, e.apo_max_depth = 13, e.apo_tolerance = 0.1;
+    e.public_max_bits = public_max_bits;
+    ms_error err;
+    if (ms_catalog_update(dir, &e, &err) != MS_OK)
+        fail_msg("%s", err.text);
+}

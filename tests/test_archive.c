@@ -1,0 +1,355 @@
+/* Archive container: write, read back, and reject every kind of damage. */
+#include <stdarg.h>
+#include <stddef.h>
+#include <setjmp.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+#include <zlib.h>
+#include <cmocka.h>
+
+#include "ms_archive.h"
+#include "ms_archive_writer.h"
+#include "ms_test.h"
+#include "ms_test_archive.h"
+
+#define CELLS MS_TEST_ARCHIVE_CELLS
+
+typedef struct fixture {
+    char dir[512];
+    char path[600];
+} fixture;
+
+
+static void test_topology(uint32_t *first_child)
+{
+    for (uint32_t i = 0; i < CELLS; ++i)
+        first_child[i] = MS_ARCHIVE_NONE;
+    first_child[0] = 1;
+    first_child[5] = 65;
+}
+
+static int setup(void **state)
+{
+    fixture *f = calloc(1, sizeof *f);
+    ms_test_tmpdir(f->dir, sizeof f->dir);
+    snprintf(f->path, sizeof f->path, "%s/model.msa", f->dir);
+    ms_test_write_archive(f->path, 0);
+    *state = f;
+    return 0;
+}
+
+static int teardown(void **state)
+{
+    fixture *f = *state;
+    ms_test_rmdir(f->dir);
+    free(f);
+    return 0;
+}
+
+static uint8_t *read_file(const char *path, size_t *size)
+{
+    FILE *fp = fopen(path, "rb");
+    assert_non_null(fp);
+    fseek(fp, 0, SEEK_END);
+    *size = (size_t)ftell(fp);
+    fseek(fp, 0, SEEK_SET);
+    uint8_t *data = malloc(*size ? *size : 1);
+    assert_int_equal(fread(data, 1, *size, fp), *size);
+    fclose(fp);
+    return data;
+}
+
+static void write_file(const char *path, const uint8_t *data, size_t size)
+{
+    FILE *fp = fopen(path, "wb");
+    assert_non_null(fp);
+    assert_int_equal(fwrite(data, 1, size, fp), size);
+    fclose(fp);
+}
+
+static void test_roundtrip(void **state)
+{
+    fixture *f = *state;
+    ms_archive *a;
+    ms_error err;
+    assert_int_equal(ms_archive_open(f->path, &a, &err), MS_OK);
+    const ms_archive_header *h = ms_archive_get_header(a);
+    assert_true(h->box_origin[2] == 1e7 && h->box_side == 0.25);
+    assert_int_equal(h->cell_count, CELLS);
+    assert_int_equal(h->bits, 12);
+    assert_int_equal(h->vertex_count, 1234);
+    assert_null(ms_archive_get_cell(a, CELLS));
+    uint8_t expect[1024];
+    for (uint32_t id = 0; id < CELLS; ++id) {
+        const ms_archive_cell *c = ms_archive_get_cell(a, id);
+        assert_int_equal(c->vertex_count, id * 3);
+        assert_int_equal(c->triangle_count, id * 5);
+        size_t len;
+        const uint8_t *g = ms_archive_geometry(a, id, &len);
+        assert_int_equal(len, ms_test_archive_geometry_length(id));
+        ms_test_archive_fill(expect, (uint32_t)len, id);
+        assert_memory_equal(g, expect, len);
+        const uint8_t *apo = ms_archive_apo(a, id, &len);
+        assert_int_equal(len, 40 * ms_test_archive_apo_levels(id));
+        if (len) {
+            ms_test_archive_fill(expect, (uint32_t)len, id + 1000);
+            assert_memory_equal(apo, expect, len);
+        }
+        assert_int_equal(ms_archive_verify_payload(a, id, &err), MS_OK);
+        /* Prefix look-ups clamp to the window and end at the payload length. */
+        assert_int_equal(ms_archive_geometry_prefix(a, id, 0), 8);
+        assert_int_equal(ms_archive_geometry_prefix(a, id, 99), ms_test_archive_geometry_length(id));
+        uint32_t texels;
+        if (ms_test_archive_apo_levels(id)) {
+            assert_int_equal(ms_archive_apo_prefix(a, id, 0, &texels), 40);
+            assert_int_equal(texels, 10);
+            assert_int_equal(ms_archive_apo_prefix(a, id, 99, &texels), 40 * ms_test_archive_apo_levels(id));
+        } else {
+            assert_int_equal(ms_archive_apo_prefix(a, id, 0, &texels), 0);
+            assert_int_equal(texels, 0);
+        }
+    }
+    /* Tree and windows follow docs/ARCHIVE.md. */
+    const ms_archive_cell *root = ms_archive_get_cell(a, 0), *c5 = ms_archive_get_cell(a, 5),
+                          *c6 = ms_archive_get_cell(a, 6), *c70 = ms_archive_get_cell(a, 70);
+    assert_int_equal(root->bits_min, 0);
+    assert_int_equal(root->bits_max, 7);
+    assert_int_equal(c5->bits_min, 7);
+    assert_int_equal(c5->bits_max, 9);
+    assert_int_equal(c6->bits_max, 12);
+    assert_int_equal(c70->parent, 5);
+    assert_int_equal(c70->level, 2);
+    assert_int_equal(c70->bits_min, 9);
+    assert_int_equal(c70->bits_max, 12);
+    /* cell 5 is child 4 of the root: position (0, 1, 0); cell 70 is child 5 of it. */
+    assert_int_equal(c5->position[0], 0);
+    assert_int_equal(c5->position[1], 1);
+    assert_int_equal(c70->position[0], 1);
+    assert_int_equal(c70->position[1], 5);
+    assert_int_equal(c70->position[2], 0);
+    /* Payloads are placed in cell order. */
+    assert_true(ms_archive_get_cell(a, 1)->geometry_offset < ms_archive_get_cell(a, 2)->geometry_offset);
+    ms_archive_close(a);
+}
+
+static void expect_open_fails(const char *path, ms_status code, const char *text)
+{
+    ms_archive *a = (ms_archive *)1;
+    ms_error err;
+    ms_status st = ms_archive_open(path, &a, &err);
+    if (st == MS_OK)
+        fail_msg("archive accepted; expected '%s'", text ? text : "an error");
+    assert_null(a);
+    if (code != MS_OK)
+        assert_int_equal(st, code);
+    if (text && !strstr(err.text, text))
+        fail_msg("error '%s' does not mention '%s'", err.text, text);
+    assert_non_null(strstr(err.text, path));
+}
+
+static void test_every_header_byte_flip_rejected(void **state)
+{
+    fixture *f = *state;
+    size_t size;
+    uint8_t *data = read_file(f->path, &size);
+    char bad[700];
+    snprintf(bad, sizeof bad, "%s/bad.msa", f->dir);
+    for (size_t i = 0; i < MS_ARCHIVE_HEADER_SIZE; ++i) {
+        data[i] ^= 0x10;
+        write_file(bad, data, size);
+        expect_open_fails(bad, MS_OK, NULL);
+        data[i] ^= 0x10;
+    }
+    free(data);
+}
+
+static void test_index_damage_and_truncation(void **state)
+{
+    fixture *f = *state;
+    size_t size;
+    uint8_t *data = read_file(f->path, &size);
+    char bad[700];
+    snprintf(bad, sizeof bad, "%s/bad.msa", f->dir);
+    for (size_t i = MS_ARCHIVE_HEADER_SIZE; i < MS_ARCHIVE_HEADER_SIZE + CELLS * 80; i += 97) {
+        data[i] ^= 1;
+        write_file(bad, data, size);
+        expect_open_fails(bad, MS_ERR_CORRUPT, "index checksum mismatch");
+        data[i] ^= 1;
+    }
+    const size_t cuts[] = {0, 7, 127, 128, 129, 1000, size - 1};
+    for (size_t k = 0; k < sizeof cuts / sizeof *cuts; ++k) {
+        write_file(bad, data, cuts[k]);
+        expect_open_fails(bad, MS_ERR_FORMAT, NULL);
+    }
+    write_file(bad, (const uint8_t *)"hello", 5);
+    expect_open_fails(bad, MS_ERR_FORMAT, "too short");
+    /* Version from the future. */
+    data[8] = 2;
+    uLong crc = crc32(0L, data, 124);
+    for (int i = 0; i < 4; ++i)
+        data[124 + i] = (uint8_t)(crc >> (8 * i));
+    write_file(bad, data, size);
+    expect_open_fails(bad, MS_ERR_UNSUPPORTED, "version 2");
+    free(data);
+    expect_open_fails("/nonexistent/x.msa", MS_ERR_IO, "cannot open");
+}
+
+static void test_payload_damage_found_by_verify(void **state)
+{
+    fixture *f = *state;
+    size_t size;
+    uint8_t *data = read_file(f->path, &size);
+    data[size - 1] ^= 0xff; /* last byte: the last cell's payload */
+    char bad[700];
+    snprintf(bad, sizeof bad, "%s/bad.msa", f->dir);
+    write_file(bad, data, size);
+    ms_archive *a;
+    ms_error err;
+    assert_int_equal(ms_archive_open(bad, &a, &err), MS_OK);
+    assert_int_equal(ms_archive_verify_payload(a, 0, &err), MS_OK);
+    ms_status st = ms_archive_verify_payload(a, CELLS - 1, &err);
+    assert_int_equal(st, MS_ERR_CORRUPT);
+    assert_non_null(strstr(err.text, "cell 128"));
+    assert_int_equal(ms_archive_verify_payload(a, CELLS, &err), MS_ERR_RANGE);
+    ms_archive_close(a);
+    free(data);
+}
+
+/* Rewrites one cell record field with valid CRCs, so only the structural checks
+ * can catch it. */
+static void tamper(const fixture *f, uint32_t cell, size_t field, uint32_t value,
+                   const char *expect)
+{
+    size_t size;
+    uint8_t *data = read_file(f->path, &size);
+    uint8_t *p = data + MS_ARCHIVE_HEADER_SIZE + (size_t)cell * 80 + field;
+    for (int i = 0; i < 4; ++i)
+        p[i] = (uint8_t)(value >> (8 * i));
+    uint64_t index_size = 0;
+    for (int i = 0; i < 8; ++i)
+        index_size |= (uint64_t)data[80 + i] << (8 * i);
+    uLong crc = crc32_z(0L, data + MS_ARCHIVE_HEADER_SIZE, index_size);
+    for (int i = 0; i < 4; ++i)
+        data[108 + i] = (uint8_t)(crc >> (8 * i));
+    crc = crc32(0L, data, 124);
+    for (int i = 0; i < 4; ++i)
+        data[124 + i] = (uint8_t)(crc >> (8 * i));
+    char bad[700];
+    snprintf(bad, sizeof bad, "%s/tampered.msa", f->dir);
+    write_file(bad, data, size);
+    expect_open_fails(bad, MS_ERR_FORMAT, expect);
+    free(data);
+}
+
+static void test_structural_lies_rejected(void **state)
+{
+    fixture *f = *state;
+    tamper(f, 0, 0, 3, "cell 0 is not a root");
+    tamper(f, 7, 0, 9, "parent 9 does not precede it");
+    tamper(f, 70, 0, 4, "not among the children");
+    tamper(f, 5, 4, 200, "children out of range");
+    tamper(f, 6, 4, 65, "precision window");         /* a leaf turned into a bogus parent */
+    tamper(f, 9, 8, 0x00090703, "level 3 under a level-0 parent");
+    tamper(f, 9, 12, 3, "position does not match");
+    tamper(f, 9, 32, 0xfffffff0, "payload outside");
+    tamper(f, 9, 64, 7, "bad APO chunk description");
+    tamper(f, 9, 68, 0x0fffffff, "tables out of order");
+    tamper(f, 10, 68, 0, "tables out of order");
+    tamper(f, 12, 40, 5, "geometry prefix table");
+}
+
+static void test_writer_refuses_bad_use(void **state)
+{
+    fixture *f = *state;
+    ms_archive_header h = ms_test_archive_header();
+    uint32_t first_child[CELLS];
+    test_topology(first_child);
+    ms_archive_writer *w;
+    ms_error err;
+    char path[700];
+    snprintf(path, sizeof path, "%s/w.msa", f->dir);
+    /* Children not in breadth-first place. */
+    first_child[5] = 66;
+    assert_int_equal(ms_archive_writer_open(path, &h, first_child, &w, &err), MS_ERR_ARG);
+    test_topology(first_child);
+    assert_int_equal(ms_archive_writer_open(path, &h, first_child, &w, &err), MS_OK);
+    uint8_t data[16] = {0};
+    uint32_t table[8] = {1, 2, 3, 4, 5, 6, 7, 16};
+    uint32_t shrink[8] = {5, 2, 3, 4, 5, 6, 7, 16};
+    assert_int_equal(ms_archive_writer_put_geometry(w, 0, data, 16, shrink, 0, 0, &err), MS_ERR_ARG);
+    assert_int_equal(ms_archive_writer_put_geometry(w, 0, data, 16, table, 0, 0, &err), MS_OK);
+    assert_int_equal(ms_archive_writer_put_geometry(w, 0, data, 16, table, 0, 0, &err), MS_ERR_ARG);
+    assert_int_equal(ms_archive_writer_put_geometry(w, CELLS, data, 16, table, 0, 0, &err), MS_ERR_ARG);
+    /* Missing geometry for the other cells: finish fails and leaves nothing. */
+    assert_int_equal(ms_archive_writer_finish(w, &err), MS_ERR_ARG);
+    assert_non_null(strstr(err.text, "cell 1 has no geometry"));
+    assert_int_equal(access(path, F_OK), -1);
+    char partial[720];
+    snprintf(partial, sizeof partial, "%s.partial", path);
+    assert_int_equal(access(partial, F_OK), -1);
+}
+
+static void test_index_blob_and_payload_checks(void **state)
+{
+    fixture *f = *state;
+    ms_archive *full, *idx;
+    ms_error err;
+    assert_int_equal(ms_archive_open(f->path, &full, &err), MS_OK);
+    size_t size;
+    const uint8_t *blob = ms_archive_index_bytes(full, &size);
+    assert_int_equal(ms_archive_open_index(blob, size, "net:bunny", &idx, &err), MS_OK);
+    for (uint32_t id = 0; id < CELLS; ++id) {
+        assert_memory_equal(ms_archive_get_cell(idx, id), ms_archive_get_cell(full, id),
+                            sizeof(ms_archive_cell));
+        assert_int_equal(ms_archive_geometry_prefix(idx, id, 10),
+                         ms_archive_geometry_prefix(full, id, 10));
+        size_t len, full_len;
+        assert_null(ms_archive_geometry(idx, id, &len));
+        const uint8_t *g = ms_archive_geometry(full, id, &full_len);
+        assert_int_equal(len, full_len);
+        assert_int_equal(ms_archive_check_payload(idx, id, false, g, full_len, &err), MS_OK);
+        const uint8_t *apo = ms_archive_apo(full, id, &full_len);
+        assert_int_equal(ms_archive_check_payload(idx, id, true, apo, full_len, &err), MS_OK);
+    }
+    size_t len;
+    const uint8_t *g = ms_archive_geometry(full, 9, &len);
+    uint8_t *copy = malloc(len);
+    memcpy(copy, g, len);
+    copy[len / 2] ^= 4;
+    assert_int_equal(ms_archive_check_payload(idx, 9, false, copy, len, &err), MS_ERR_CORRUPT);
+    assert_string_equal(err.text, "cell 9: geometry payload checksum mismatch");
+    assert_int_equal(ms_archive_check_payload(idx, 9, false, copy, len - 1, &err), MS_ERR_CORRUPT);
+    assert_int_equal(ms_archive_check_payload(idx, CELLS, false, copy, len, &err), MS_ERR_RANGE);
+    assert_int_equal(ms_archive_verify_payload(idx, 0, &err), MS_ERR_ARG);
+    free(copy);
+    ms_archive_close(idx);
+    /* The blob must be exactly header + index, intact. */
+    uint8_t *bad = malloc(size + 1);
+    memcpy(bad, blob, size);
+    bad[size] = 0;
+    assert_int_equal(ms_archive_open_index(bad, size + 1, "net:x", &idx, &err), MS_ERR_FORMAT);
+    assert_int_equal(ms_archive_open_index(bad, size - 1, "net:x", &idx, &err), MS_ERR_FORMAT);
+    assert_int_equal(ms_archive_open_index(bad, 100, "net:x", &idx, &err), MS_ERR_FORMAT);
+    bad[MS_ARCHIVE_HEADER_SIZE + 5] ^= 1;
+    assert_int_equal(ms_archive_open_index(bad, size, "net:x", &idx, &err), MS_ERR_CORRUPT);
+    assert_null(idx);
+    free(bad);
+    ms_archive_close(full);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test_setup_teardown(test_roundtrip, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_every_header_byte_flip_rejected, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_index_damage_and_truncation, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_payload_damage_found_by_verify, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_structural_lies_rejected, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_writer_refuses_bad_use, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_index_blob_and_payload_checks, setup, teardown),
+    };
+    return cmocka_run_group_tests_name("archive", tests, NULL, NULL);
+}

@@ -1,0 +1,122 @@
+/* Camera, frustum culling, screen-space precision and hysteresis. */
+#include <stdarg.h>
+#include <stddef.h>
+#include <setjmp.h>
+#include <stdint.h>
+#include <math.h>
+#include <string.h>
+#include <cmocka.h>
+
+#include "ms_camera.h"
+
+static ms_camera standard_camera(void)
+{
+    /* At (0,0,10) looking at the origin, y up, 90 degrees, 1000x1000. */
+    const double pos[3] = {0, 0, 10}, target[3] = {0, 0, 0}, up[3] = {0, 1, 0};
+    ms_camera c;
+    assert_int_equal(ms_camera_look_at(pos, target, up, 90.0, 1000, 1000, 0.01, 1000, &c, NULL),
+                     MS_OK);
+    return c;
+}
+
+static void test_look_at_basis_and_errors(void **state)
+{
+    (void)state;
+    ms_camera c = standard_camera();
+    assert_true(c.forward[2] == -1.0 && c.up[1] == 1.0 && c.right[0] == 1.0);
+    assert_float_equal(ms_camera_pixels_per_unit(&c), 500.0, 1e-9);
+    const double p[3] = {1, 2, 3}, up[3] = {0, 0, 1}, nan3[3] = {NAN, 0, 0};
+    const double along[3] = {1, 2, 10};
+    ms_camera out;
+    ms_error err;
+    assert_int_equal(ms_camera_look_at(p, p, up, 60, 100, 100, 0.1, 10, &out, &err), MS_ERR_ARG);
+    assert_string_equal(err.text, "camera: position and target coincide");
+    assert_int_equal(ms_camera_look_at(p, along, up, 60, 100, 100, 0.1, 10, &out, &err), MS_ERR_ARG);
+    assert_string_equal(err.text, "camera: up is parallel to the view direction");
+    const double target[3] = {0, 0, 0};
+    assert_int_equal(ms_camera_look_at(p, target, up, 0, 100, 100, 0.1, 10, &out, &err), MS_ERR_ARG);
+    assert_int_equal(ms_camera_look_at(p, target, up, 180, 100, 100, 0.1, 10, &out, &err), MS_ERR_ARG);
+    assert_int_equal(ms_camera_look_at(p, target, up, NAN, 100, 100, 0.1, 10, &out, &err), MS_ERR_ARG);
+    assert_int_equal(ms_camera_look_at(nan3, target, up, 60, 100, 100, 0.1, 10, &out, &err), MS_ERR_ARG);
+    assert_int_equal(ms_camera_look_at(p, target, up, 60, 0, 100, 0.1, 10, &out, &err), MS_ERR_ARG);
+    assert_int_equal(ms_camera_look_at(p, target, up, 60, 100, 100, 1, 1, &out, &err), MS_ERR_ARG);
+}
+
+static void test_frustum_culling(void **state)
+{
+    (void)state;
+    ms_camera c = standard_camera();
+    ms_frustum fr;
+    ms_camera_frustum(&c, &fr);
+    const double centre_lo[3] = {-1, -1, -1}, centre_hi[3] = {1, 1, 1};
+    assert_true(ms_frustum_keeps_box(&fr, centre_lo, centre_hi, 0));
+    const double behind_lo[3] = {-1, -1, 11}, behind_hi[3] = {1, 1, 12};
+    assert_false(ms_frustum_keeps_box(&fr, behind_lo, behind_hi, 0));
+    const double far_lo[3] = {-1, -1, -2000}, far_hi[3] = {1, 1, -995};
+    assert_false(ms_frustum_keeps_box(&fr, far_lo, far_hi, 0));
+    /* 90 degrees: at depth 10 (z = 0) the frustum spans x in [-10, 10]. */
+    const double left_lo[3] = {-12, -1, -0.5}, left_hi[3] = {-10.5, 1, 0};
+    assert_false(ms_frustum_keeps_box(&fr, left_lo, left_hi, 0));
+    assert_true(ms_frustum_keeps_box(&fr, left_lo, left_hi, 1.0)); /* margin keeps it */
+    const double edge_lo[3] = {-12, -1, -0.5}, edge_hi[3] = {-9.5, 1, 0};
+    assert_true(ms_frustum_keeps_box(&fr, edge_lo, edge_hi, 0));
+    const double top_lo[3] = {-1, 10.5, -0.5}, top_hi[3] = {1, 11, 0};
+    assert_false(ms_frustum_keeps_box(&fr, top_lo, top_hi, 0));
+}
+
+static void test_distance_and_precision(void **state)
+{
+    (void)state;
+    ms_camera c = standard_camera();
+    const double lo[3] = {-1, -1, -1}, hi[3] = {1, 1, 1};
+    assert_float_equal(ms_camera_box_distance(&c, lo, hi), 9.0, 1e-12);
+    const double around_lo[3] = {-1, -1, 9}, around_hi[3] = {1, 1, 11};
+    assert_true(ms_camera_box_distance(&c, around_lo, around_hi) == 0.0);
+    const double corner_lo[3] = {3, 4, 10}, corner_hi[3] = {5, 5, 11};
+    assert_float_equal(ms_camera_box_distance(&c, corner_lo, corner_hi), 5.0, 1e-12);
+    /* Side 1 at distance 10 with 500 px per unit: sqrt(3)*50 px at 0 bits. */
+    double need = ms_screen_bits_needed(&c, 1.0, 10.0, 1.0);
+    assert_float_equal(need, log2(sqrt(3.0) * 50.0), 1e-12);
+    assert_int_equal(ms_select_bits(need, 0, 0, 16, 0.5), 7);
+    /* Coarser tolerance, fewer bits: 4 px is 2 bits less. */
+    assert_float_equal(ms_screen_bits_needed(&c, 1.0, 10.0, 4.0), need - 2.0, 1e-12);
+    /* Camera very near: everything; very far: nothing beyond the minimum. */
+    assert_true(isinf(ms_screen_bits_needed(&c, 1.0, 0.0, 1.0)));
+    assert_int_equal(ms_select_bits(ms_screen_bits_needed(&c, 1.0, 0.0, 1.0), 3, 0, 16, 0.5), 16);
+    assert_int_equal(ms_select_bits(ms_screen_bits_needed(&c, 1.0, 1e12, 1.0), 9, 7, 16, 0.5), 7);
+}
+
+static void test_hysteresis(void **state)
+{
+    (void)state;
+    /* Refines at once when the need exceeds the current precision. */
+    assert_int_equal(ms_select_bits(8.01, 8, 0, 16, 0.5), 9);
+    assert_int_equal(ms_select_bits(8.0, 8, 0, 16, 0.5), 8);
+    /* Hovering just under a boundary does not coarsen... */
+    assert_int_equal(ms_select_bits(7.9, 8, 0, 16, 0.5), 8);
+    assert_int_equal(ms_select_bits(7.0, 8, 0, 16, 0.5), 8);
+    /* ...only a clear margin does. */
+    assert_int_equal(ms_select_bits(6.5, 8, 0, 16, 0.5), 7);
+    assert_int_equal(ms_select_bits(2.2, 8, 0, 16, 0.5), 3);
+    /* Oscillating need around 7.0 +- 0.2 settles, never flips back and forth. */
+    unsigned bits = 8, changes = 0;
+    for (int frame = 0; frame < 100; ++frame) {
+        unsigned next = ms_select_bits(7.0 + ((frame & 1) ? 0.2 : -0.2), bits, 0, 16, 0.5);
+        changes += next != bits;
+        bits = next;
+    }
+    assert_int_equal(bits, 8);
+    assert_int_equal(changes, 0);
+    assert_int_equal(ms_select_bits(NAN, 4, 0, 16, 0.5), 16);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_look_at_basis_and_errors),
+        cmocka_unit_test(test_frustum_culling),
+        cmocka_unit_test(test_distance_and_precision),
+        cmocka_unit_test(test_hysteresis),
+    };
+    return cmocka_run_group_tests_name("camera", tests, NULL, NULL);
+}

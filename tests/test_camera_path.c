@@ -1,0 +1,130 @@
+/* Camera path files: parsing, interpolation, and every kind of bad line. */
+#include <stdarg.h>
+#include <stddef.h>
+#include <setjmp.h>
+#include <stdint.h>
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+#include <stdlib.h>
+#include <cmocka.h>
+
+#include "ms_camera_path.h"
+
+static const char good[] =
+    "meshstream-camera-path 1\n"
+    "# orbit start\n"
+    "0    0 0 10   0 0 0   0 1 0   60\n"
+    "\n"
+    "2.0  10 0 0   0 0 0   0 1 0   30   # quarter turn, zoom\r\n"
+    "4.5  10 0 0   0 0 0   0 1 0   30\n";
+
+static void test_parse_and_sample(void **state)
+{
+    (void)state;
+    ms_camera_path p;
+    ms_error err;
+    assert_int_equal(ms_camera_path_parse(good, strlen(good), "orbit.cam", &p, &err), MS_OK);
+    assert_int_equal(p.count, 3);
+    assert_true(ms_camera_path_duration(&p) == 4.5);
+    ms_camera c;
+    assert_int_equal(ms_camera_path_sample(&p, 1.0, 640, 480, 0.1, 100, &c, &err), MS_OK);
+    assert_float_equal(c.position[0], 5.0, 1e-12);
+    assert_float_equal(c.position[2], 5.0, 1e-12);
+    assert_float_equal(c.fovy, 45.0 * M_PI / 180.0, 1e-12);
+    /* Clamped before the start and after the end. */
+    assert_int_equal(ms_camera_path_sample(&p, -3.0, 640, 480, 0.1, 100, &c, &err), MS_OK);
+    assert_float_equal(c.position[2], 10.0, 1e-12);
+    assert_int_equal(ms_camera_path_sample(&p, 99.0, 640, 480, 0.1, 100, &c, &err), MS_OK);
+    assert_float_equal(c.position[0], 10.0, 1e-12);
+    assert_float_equal(c.fovy, 30.0 * M_PI / 180.0, 1e-12);
+    ms_camera_path_free(&p);
+}
+
+static void expect_error(const char *text, ms_status code, const char *message)
+{
+    ms_camera_path p;
+    ms_error err;
+    assert_int_equal(ms_camera_path_parse(text, strlen(text), "bad.cam", &p, &err), code);
+    if (!strstr(err.text, message))
+        fail_msg("'%s' does not mention '%s'", err.text, message);
+    assert_null(p.keys);
+}
+
+static void test_bad_files(void **state)
+{
+    (void)state;
+    const char *magic = "meshstream-camera-path 1\n";
+    char text[4096];
+    expect_error("", MS_ERR_FORMAT, "bad.cam: empty file");
+    expect_error("meshstream-camera-path 2\n0 0 0 1 0 0 0 0 1 0 60\n", MS_ERR_FORMAT,
+                 "bad.cam:1: not a camera path");
+    expect_error(magic, MS_ERR_EMPTY, "no keyframe");
+    snprintf(text, sizeof text, "%s0 0 0 1 0 0 0 0 1 0\n", magic);
+    expect_error(text, MS_ERR_FORMAT, "bad.cam:2: expected 11 finite numbers");
+    snprintf(text, sizeof text, "%s0 0 0 1 0 0 0 0 1 0 60 7\n", magic);
+    expect_error(text, MS_ERR_FORMAT, "bad.cam:2:");
+    snprintf(text, sizeof text, "%s0 0 0 1 0 0 0 0 1 0 60x\n", magic);
+    expect_error(text, MS_ERR_FORMAT, "expected 11");
+    snprintf(text, sizeof text, "%s0 nan 0 1 0 0 0 0 1 0 60\n", magic);
+    expect_error(text, MS_ERR_FORMAT, "finite");
+    snprintf(text, sizeof text, "%s0 1e999 0 1 0 0 0 0 1 0 60\n", magic);
+    expect_error(text, MS_ERR_FORMAT, "finite");
+    snprintf(text, sizeof text, "%s1 0 0 1 0 0 0 0 1 0 60\n1 0 0 2 0 0 0 0 1 0 60\n", magic);
+    expect_error(text, MS_ERR_RANGE, "bad.cam:3: times must start at >= 0 and increase");
+    snprintf(text, sizeof text, "%s-1 0 0 1 0 0 0 0 1 0 60\n", magic);
+    expect_error(text, MS_ERR_RANGE, "times must");
+    snprintf(text, sizeof text, "%s0 1 1 1 1 1 1 0 1 0 60\n", magic);
+    expect_error(text, MS_ERR_RANGE, "bad.cam:2: camera: position and target coincide");
+    snprintf(text, sizeof text, "%s0 0 0 1 0 0 0 0 0 1 60\n", magic);
+    expect_error(text, MS_ERR_RANGE, "up is parallel");
+    snprintf(text, sizeof text, "%s0 0 0 1 0 0 0 0 1 0 180\n", magic);
+    expect_error(text, MS_ERR_RANGE, "field of view");
+    char *longline = malloc(3000);
+    memset(longline, ' ', 2999);
+    longline[2999] = '\0';
+    snprintf(text, sizeof text, "%s%.2000s0\n", magic, longline);
+    expect_error(text, MS_ERR_FORMAT, "line longer");
+    free(longline);
+    ms_camera_path p;
+    ms_error err;
+    assert_int_equal(ms_camera_path_load("/nonexistent.cam", &p, &err), MS_ERR_IO);
+    char with_nul[] = "meshstream-camera-path 1\n0 0 0 1 0\0 0 0 0 1 0 60\n";
+    assert_int_equal(ms_camera_path_parse(with_nul, sizeof with_nul - 1, "nul.cam", &p, &err),
+                     MS_ERR_FORMAT);
+}
+
+/* The six shipped paths parse, and their durations are the documented ones. */
+static void test_shipped_paths(void **state)
+{
+    (void)state;
+    const struct {
+        const char *file;
+        double seconds;
+    } shipped[] = {
+        {"scripts/paths/demo-overview.cam", 12}, {"scripts/paths/demo-closeup.cam", 8},
+        {"scripts/paths/demo-flythrough.cam", 12}, {"scripts/paths/dragon-overview.cam", 12},
+        {"scripts/paths/dragon-closeup.cam", 8}, {"scripts/paths/dragon-flythrough.cam", 10},
+    };
+    for (size_t i = 0; i < sizeof shipped / sizeof *shipped; ++i) {
+        ms_camera_path p;
+        ms_error err;
+        if (ms_camera_path_load(shipped[i].file, &p, &err) != MS_OK)
+            fail_msg("%s", err.text);
+        assert_true(ms_camera_path_duration(&p) == shipped[i].seconds);
+        ms_camera c;
+        for (double t = 0; t <= shipped[i].seconds; t += 0.25)
+            assert_int_equal(ms_camera_path_sample(&p, t, 800, 600, 0.001, 100, &c, &err), MS_OK);
+        ms_camera_path_free(&p);
+    }
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_parse_and_sample),
+        cmocka_unit_test(test_bad_files),
+        cmocka_unit_test(test_shipped_paths),
+    };
+    return cmocka_run_group_tests_name("camera_path", tests, NULL, NULL);
+}

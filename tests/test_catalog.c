@@ -1,0 +1,174 @@
+/* catalog.json: names, add/replace/remove, malformed files, concurrent bakers. */
+#include <stdarg.h>
+#include <stddef.h>
+#include <setjmp.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/wait.h>
+#include <unistd.h>
+#include <cmocka.h>
+
+#include "ms_catalog.h"
+#include "ms_test.h"
+
+static ms_catalog_entry sample(const char *name, uint64_t triangles)
+{
+    ms_catalog_entry e;
+    memset(&e, 0, sizeof e);
+    snprintf(e.name, sizeof e.name, "%s", name);
+    e.source = (char *)"/data/dragon.ply.gz";
+    snprintf(e.baked_at, sizeof e.baked_at, "2026-11-22T02:30:00Z");
+    e.vertices = 437645, e.triangles = triangles, e.archive_bytes = 1 << 20, e.cells = 65;
+    e.bits = 16, e.n = 4, e.root_bits = 7, e.min_triangles = 8000;
+    e.apo = true, e.apo_lead = 3, e.apo_max_depth = 13, e.apo_tolerance = 0.05;
+    e.public_max_bits = 10;
+    return e;
+}
+
+static void test_model_names(void **state)
+{
+    (void)state;
+    assert_true(ms_model_name_valid("dragon"));
+    assert_true(ms_model_name_valid("Igea_2-x"));
+    char longest[65];
+    memset(longest, 'a', 64);
+    longest[64] = '\0';
+    assert_true(ms_model_name_valid(longest));
+    const char *bad[] = {"", "../etc", "a/b", "a.b", "x y", "dragon\n", "é", "..", "/abs"};
+    for (size_t i = 0; i < sizeof bad / sizeof *bad; ++i)
+        assert_false(ms_model_name_valid(bad[i]));
+    char too_long[66];
+    memset(too_long, 'a', 65);
+    too_long[65] = '\0';
+    assert_false(ms_model_name_valid(too_long));
+}
+
+static void test_add_replace_remove(void **state)
+{
+    (void)state;
+    char dir[512];
+    ms_test_tmpdir(dir, sizeof dir);
+    ms_catalog c;
+    ms_error err;
+    assert_int_equal(ms_catalog_load(dir, &c, &err), MS_OK);
+    assert_int_equal(c.count, 0);
+    ms_catalog_entry e = sample("dragon", 871414);
+    assert_int_equal(ms_catalog_update(dir, &e, &err), MS_OK);
+    e = sample("bunny", 69451);
+    assert_int_equal(ms_catalog_update(dir, &e, &err), MS_OK);
+    e = sample("dragon", 871000);
+    assert_int_equal(ms_catalog_update(dir, &e, &err), MS_OK);
+    assert_int_equal(ms_catalog_load(dir, &c, &err), MS_OK);
+    assert_int_equal(c.count, 2);
+    assert_string_equal(c.entries[0].name, "bunny");
+    const ms_catalog_entry *d = ms_catalog_find(&c, "dragon");
+    assert_non_null(d);
+    assert_int_equal(d->triangles, 871000);
+    assert_int_equal(d->vertices, 437645);
+    assert_string_equal(d->source, "/data/dragon.ply.gz");
+    assert_string_equal(d->baked_at, "2026-11-22T02:30:00Z");
+    assert_true(d->apo && d->apo_tolerance == 0.05 && d->public_max_bits == 10);
+    assert_null(ms_catalog_find(&c, "../dragon"));
+    ms_catalog_free(&c);
+    assert_int_equal(ms_catalog_remove(dir, "dragon", &err), MS_OK);
+    assert_int_equal(ms_catalog_load(dir, &c, &err), MS_OK);
+    assert_int_equal(c.count, 1);
+    assert_null(ms_catalog_find(&c, "dragon"));
+    ms_catalog_free(&c);
+    e = sample("../evil", 1);
+    assert_int_equal(ms_catalog_update(dir, &e, &err), MS_ERR_ARG);
+    assert_non_null(strstr(err.text, "invalid model name"));
+    ms_test_rmdir(dir);
+}
+
+static void expect_load_error(const char *text, ms_status code, const char *message)
+{
+    char dir[512], path[600];
+    ms_test_tmpdir(dir, sizeof dir);
+    snprintf(path, sizeof path, "%s/catalog.json", dir);
+    FILE *f = fopen(path, "w");
+    assert_non_null(f);
+    fputs(text, f);
+    fclose(f);
+    ms_catalog c;
+    ms_error err;
+    assert_int_equal(ms_catalog_load(dir, &c, &err), code);
+    if (!strstr(err.text, message))
+        fail_msg("'%s' does not mention '%s'", err.text, message);
+    assert_int_equal(c.count, 0);
+    assert_null(c.entries);
+    ms_test_rmdir(dir);
+}
+
+static void test_malformed_catalogues(void **state)
+{
+    (void)state;
+    expect_load_error("{\"version\": 1, \"models\": [", MS_ERR_FORMAT, "line 1");
+    expect_load_error("[]", MS_ERR_FORMAT, "not a meshstream catalogue");
+    expect_load_error("{\"version\": 9, \"models\": []}", MS_ERR_UNSUPPORTED, "version 9");
+    expect_load_error("{\"version\": 1, \"models\": [{\"name\": \"x\"}]}", MS_ERR_FORMAT,
+                      "model 0: missing or mistyped field");
+    const char *entry =
+        "{\"name\": \"%s\", \"source\": \"s\", \"baked_at\": \"t\", \"vertices\": %s, "
+        "\"triangles\": 1, \"archive_bytes\": 1, \"cells\": 1, \"bits\": 16, \"n\": 4, "
+        "\"root_bits\": 7, \"min_triangles\": 1, \"apo\": false, \"apo_lead\": 3, "
+        "\"apo_max_depth\": 13, \"apo_tolerance\": 0.1, \"public_max_bits\": 16}";
+    char one[1024], two[1024], text[4096];
+    snprintf(one, sizeof one, entry, "a/b", "1");
+    snprintf(text, sizeof text, "{\"version\": 1, \"models\": [%s]}", one);
+    expect_load_error(text, MS_ERR_FORMAT, "invalid name");
+    snprintf(one, sizeof one, entry, "a", "-5");
+    snprintf(text, sizeof text, "{\"version\": 1, \"models\": [%s]}", one);
+    expect_load_error(text, MS_ERR_FORMAT, "out of range");
+    snprintf(one, sizeof one, entry, "a", "1");
+    snprintf(two, sizeof two, entry, "a", "2");
+    snprintf(text, sizeof text, "{\"version\": 1, \"models\": [%s, %s]}", one, two);
+    expect_load_error(text, MS_ERR_FORMAT, "listed twice");
+}
+
+/* Several processes updating at once: every entry survives. */
+static void test_concurrent_updates_lose_nothing(void **state)
+{
+    (void)state;
+    char dir[512];
+    ms_test_tmpdir(dir, sizeof dir);
+    enum { WRITERS = 4, EACH = 10 };
+    pid_t pids[WRITERS];
+    for (int w = 0; w < WRITERS; ++w) {
+        pids[w] = fork();
+        assert_true(pids[w] >= 0);
+        if (pids[w] == 0) {
+            for (int k = 0; k < EACH; ++k) {
+                char name[32];
+                snprintf(name, sizeof name, "m%d_%d", w, k);
+                ms_catalog_entry e = sample(name, (uint64_t)k);
+                if (ms_catalog_update(dir, &e, NULL) != MS_OK)
+                    _exit(1);
+            }
+            _exit(0);
+        }
+    }
+    for (int w = 0; w < WRITERS; ++w) {
+        int status;
+        assert_int_equal(waitpid(pids[w], &status, 0), pids[w]);
+        assert_true(WIFEXITED(status) && WEXITSTATUS(status) == 0);
+    }
+    ms_catalog c;
+    assert_int_equal(ms_catalog_load(dir, &c, NULL), MS_OK);
+    assert_int_equal(c.count, WRITERS * EACH);
+    ms_catalog_free(&c);
+    ms_test_rmdir(dir);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_model_names),
+        cmocka_unit_test(test_add_replace_remove),
+        cmocka_unit_test(test_malformed_catalogues),
+        cmocka_unit_test(test_concurrent_updates_lose_nothing),
+    };
+    return cmocka_run_group_tests_name("catalog", tests, NULL, NULL);
+}

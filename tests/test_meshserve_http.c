@@ -1,0 +1,286 @@
+/* meshserve's HTTP side door, end to end on loopback: catalogue, indexes, cell
+ * payloads equal to the archive bytes, Range, access control, hostile paths,
+ * metrics, SIGHUP rescans, SIGTERM drains. */
+#include <stdarg.h>
+#include <stddef.h>
+#include <setjmp.h>
+#include <stdint.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+#include <cmocka.h>
+
+#include "ms_archive.h"
+#include "ms_test.h"
+#include "ms_test_archive.h"
+#include "ms_test_net.h"
+
+typedef struct server_fixture {
+    char dir[512];
+    char log[600];
+    pid_t pid;
+    uint16_t http_port;
+} server_fixture;
+
+static int start_server(void **state)
+{
+    server_fixture *f = calloc(1, sizeof *f);
+    ms_test_tmpdir(f->dir, sizeof f->dir);
+    char archives[600], config[600], port_file[600], bin[512];
+    snprintf(archives, sizeof archives, "%s/archive", f->dir);
+    assert_int_equal(mkdir(archives, 0755), 0);
+    ms_test_add_model(archives, "bunny", 1, 12);
+    ms_test_add_model(archives, "dragon", 2, 8); /* preview: 8 bits public */
+    snprintf(config, sizeof config, "%s/meshserve.conf", f->dir);
+    FILE *c = fopen(config, "w");
+    fputs("# test settings\ntoken = s3cret-token\nhttp_rate = 100000\n", c);
+    fclose(c);
+    snprintf(port_file, sizeof port_file, "%s/ports", f->dir);
+    snprintf(f->log, sizeof f->log, "%s/meshserve.log", f->dir);
+    ms_test_bin_path(bin, sizeof bin, "meshserve");
+    char *argv[] = {bin, archives, "--config", config, "--http-port", "0", "--port-file",
+                    port_file, "--json", NULL};
+    f->pid = ms_test_spawn(argv, f->log);
+    uint16_t port;
+    if (ms_test_wait_ports(port_file, 10.0, &port, &f->http_port) != 0)
+        fail_msg("meshserve did not start (see %s)", f->log);
+    *state = f;
+    return 0;
+}
+
+static int stop_server(void **state)
+{
+    server_fixture *f = *state;
+    if (f->pid > 0)
+        ms_test_stop(f->pid, SIGKILL, 5.0);
+    ms_test_rmdir(f->dir);
+    free(f);
+    return 0;
+}
+
+static ms_archive *open_model(const server_fixture *f, const char *name)
+{
+    char path[700];
+    snprintf(path, sizeof path, "%s/archive/%s.msa", f->dir, name);
+    ms_archive *a;
+    assert_int_equal(ms_archive_open(path, &a, NULL), MS_OK);
+    return a;
+}
+
+static void get(const server_fixture *f, const char *path, const char *headers, int status,
+                ms_test_http_response *r)
+{
+    assert_int_equal(ms_test_http_get(f->http_port, path, headers, r), 0);
+    if (r->status != status)
+        fail_msg("GET %s: status %d, expected %d: %s", path, r->status, status, (char *)r->body);
+}
+
+static void test_catalog_index_and_payloads(void **state)
+{
+    server_fixture *f = *state;
+    ms_test_http_response r;
+    get(f, "/healthz", NULL, 200, &r);
+    assert_string_equal((char *)r.body, "ok\n");
+    ms_test_http_free(&r);
+    get(f, "/catalog", NULL, 200, &r);
+    assert_non_null(strstr((char *)r.body, "\"name\": \"bunny\""));
+    assert_non_null(strstr((char *)r.body, "\"name\": \"dragon\""));
+    assert_null(strstr((char *)r.body, "synthetic")); /* the source path is not disclosed */
+    ms_test_http_free(&r);
+
+    ms_archive *a = open_model(f, "bunny");
+    size_t size;
+    const uint8_t *index = ms_archive_index_bytes(a, &size);
+    get(f, "/models/bunny", NULL, 200, &r);
+    assert_int_equal(r.body_length, size);
+    assert_memory_equal(r.body, index, size);
+    ms_test_http_free(&r);
+    /* Every cell's full geometry and APO equal the archive bytes (fully public). */
+    for (uint32_t cell = 0; cell < MS_TEST_ARCHIVE_CELLS; cell += 7) {
+        char path[128];
+        size_t len;
+        snprintf(path, sizeof path, "/models/bunny/cells/%u/geometry", cell);
+        get(f, path, NULL, 200, &r);
+        const uint8_t *g = ms_archive_geometry(a, cell, &len);
+        assert_int_equal(r.body_length, len);
+        assert_memory_equal(r.body, g, len);
+        ms_test_http_free(&r);
+        snprintf(path, sizeof path, "/models/bunny/cells/%u/apo", cell);
+        get(f, path, NULL, 200, &r);
+        const uint8_t *apo = ms_archive_apo(a, cell, &len);
+        assert_int_equal(r.body_length, len);
+        if (len)
+            assert_memory_equal(r.body, apo, len);
+        ms_test_http_free(&r);
+    }
+    /* Prefixes by precision bits and by APO levels. */
+    get(f, "/models/bunny/cells/70/geometry?bits=10", NULL, 200, &r);
+    assert_int_equal(r.body_length, ms_archive_geometry_prefix(a, 70, 10));
+    ms_test_http_free(&r);
+    get(f, "/models/bunny/cells/70/apo?levels=1", NULL, 200, &r);
+    assert_int_equal(r.body_length, 40);
+    ms_test_http_free(&r);
+    ms_archive_close(a);
+}
+
+static void test_ranges_and_etags(void **state)
+{
+    server_fixture *f = *state;
+    ms_archive *a = open_model(f, "bunny");
+    size_t len;
+    const uint8_t *g = ms_archive_geometry(a, 3, &len);
+    ms_test_http_response r;
+    char value[256];
+    get(f, "/models/bunny/cells/3/geometry", "Range: bytes=5-9\r\n", 206, &r);
+    assert_int_equal(r.body_length, 5);
+    assert_memory_equal(r.body, g + 5, 5);
+    char expect[64];
+    snprintf(expect, sizeof expect, "bytes 5-9/%zu", len);
+    assert_string_equal(ms_test_http_header(&r, "Content-Range", value, sizeof value), expect);
+    ms_test_http_free(&r);
+    get(f, "/models/bunny/cells/3/geometry", "Range: bytes=-4\r\n", 206, &r);
+    assert_int_equal(r.body_length, 4);
+    assert_memory_equal(r.body, g + len - 4, 4);
+    ms_test_http_free(&r);
+    get(f, "/models/bunny/cells/3/geometry", "Range: bytes=10-\r\n", 206, &r);
+    assert_int_equal(r.body_length, len - 10);
+    ms_test_http_free(&r);
+    get(f, "/models/bunny/cells/3/geometry", "Range: bytes=99999-\r\n", 416, &r);
+    snprintf(expect, sizeof expect, "bytes */%zu", len);
+    assert_string_equal(ms_test_http_header(&r, "Content-Range", value, sizeof value), expect);
+    ms_test_http_free(&r);
+    get(f, "/models/bunny/cells/3/geometry", "Range: bytes=abc\r\n", 416, &r);
+    ms_test_http_free(&r);
+    /* ETag revalidation. */
+    get(f, "/models/bunny/cells/3/geometry", NULL, 200, &r);
+    assert_non_null(ms_test_http_header(&r, "ETag", value, sizeof value));
+    ms_test_http_free(&r);
+    char headers[400];
+    snprintf(headers, sizeof headers, "If-None-Match: %s\r\n", value);
+    get(f, "/models/bunny/cells/3/geometry", headers, 304, &r);
+    assert_int_equal(r.body_length, 0);
+    ms_test_http_free(&r);
+    ms_archive_close(a);
+}
+
+static void test_access_control(void **state)
+{
+    server_fixture *f = *state;
+    ms_archive *a = open_model(f, "dragon");
+    ms_test_http_response r;
+    /* Root window [0, 7] is inside the 8-bit preview: all of it is public. */
+    get(f, "/models/dragon/cells/0/geometry", NULL, 200, &r);
+    assert_int_equal(r.body_length, ms_archive_get_cell(a, 0)->geometry_length);
+    ms_test_http_free(&r);
+    /* Cell 6 spans [7, 12]: without a token only the prefix up to 8 bits. */
+    get(f, "/models/dragon/cells/6/geometry", NULL, 200, &r);
+    assert_int_equal(r.body_length, ms_archive_geometry_prefix(a, 6, 8));
+    ms_test_http_free(&r);
+    get(f, "/models/dragon/cells/6/geometry?bits=11", NULL, 403, &r);
+    ms_test_http_free(&r);
+    get(f, "/models/dragon/cells/6/geometry?bits=11", "Authorization: Bearer wrong\r\n", 403, &r);
+    ms_test_http_free(&r);
+    get(f, "/models/dragon/cells/6/geometry?bits=11", "Authorization: Bearer s3cret-token\r\n",
+        200, &r);
+    assert_int_equal(r.body_length, ms_archive_geometry_prefix(a, 6, 11));
+    ms_test_http_free(&r);
+    get(f, "/models/dragon/cells/6/geometry?token=s3cret-token", NULL, 200, &r);
+    assert_int_equal(r.body_length, ms_archive_get_cell(a, 6)->geometry_length);
+    ms_test_http_free(&r);
+    /* Cell 70 starts at 9 bits: entirely beyond the preview. */
+    get(f, "/models/dragon/cells/70/geometry", NULL, 403, &r);
+    ms_test_http_free(&r);
+    get(f, "/models/dragon/cells/70/apo", NULL, 403, &r);
+    ms_test_http_free(&r);
+    ms_archive_close(a);
+}
+
+static void test_hostile_requests(void **state)
+{
+    server_fixture *f = *state;
+    ms_test_http_response r;
+    const char *not_found[] = {
+        "/models/../catalog.json", "/models/..%2Fcatalog.json/cells/0/geometry",
+        "/models/bunny.msa", "/models/bunny/cells/129/geometry", "/models/bunny/cells/-1/geometry",
+        "/models/bunny/cells/99999999999/geometry", "/models/bunny/cells/0/texture",
+        "/models/zebra", "/", "/catalog/extra", "/models/bunny/cells/0/geometry/x/y",
+    };
+    for (size_t i = 0; i < sizeof not_found / sizeof *not_found; ++i) {
+        get(f, not_found[i], NULL, 404, &r);
+        ms_test_http_free(&r);
+    }
+    get(f, "/models/bunny/cells/0/geometry?bits=x", NULL, 400, &r);
+    ms_test_http_free(&r);
+    get(f, "/models/bunny/cells/0/apo?levels=0", NULL, 400, &r);
+    ms_test_http_free(&r);
+    const char post[] = "POST /catalog HTTP/1.1\r\nHost: x\r\nContent-Length: 2\r\nConnection: close\r\n\r\nhi";
+    assert_int_equal(ms_test_http_raw(f->http_port, post, sizeof post - 1, &r), 0);
+    assert_int_equal(r.status, 405);
+    ms_test_http_free(&r);
+    /* A header block far over the limit is refused, and the server lives on. */
+    size_t big = 64 * 1024;
+    char *request = malloc(big + 256);
+    int n = snprintf(request, 256, "GET /healthz HTTP/1.1\r\nX-Big: ");
+    memset(request + n, 'a', big);
+    memcpy(request + n + big, "\r\nConnection: close\r\n\r\n", 24);
+    if (ms_test_http_raw(f->http_port, request, (size_t)n + big + 24, &r) == 0) {
+        assert_true(r.status >= 400);
+        ms_test_http_free(&r);
+    }
+    free(request);
+    const char garbage[] = "\x16\x03\x01garbage\r\n\r\n";
+    if (ms_test_http_raw(f->http_port, garbage, sizeof garbage - 1, &r) == 0)
+        ms_test_http_free(&r);
+    get(f, "/healthz", NULL, 200, &r);
+    ms_test_http_free(&r);
+    get(f, "/metrics", NULL, 200, &r);
+    assert_non_null(strstr((char *)r.body, "# TYPE meshstream_requests_total counter"));
+    assert_non_null(strstr((char *)r.body, "meshstream_models 2\n"));
+    assert_non_null(strstr((char *)r.body, "meshstream_errors_total{door=\"http\"} "));
+    ms_test_http_free(&r);
+}
+
+static void test_sighup_adds_model_and_sigterm_drains(void **state)
+{
+    server_fixture *f = *state;
+    char archives[600];
+    snprintf(archives, sizeof archives, "%s/archive", f->dir);
+    ms_test_add_model(archives, "late_arrival", 5, 12);
+    ms_test_http_response r;
+    get(f, "/models/late_arrival", NULL, 404, &r);
+    ms_test_http_free(&r);
+    assert_int_equal(kill(f->pid, SIGHUP), 0);
+    int found = 0;
+    for (int attempt = 0; attempt < 100 && !found; ++attempt) {
+        assert_int_equal(ms_test_http_get(f->http_port, "/models/late_arrival", NULL, &r), 0);
+        found = r.status == 200;
+        ms_test_http_free(&r);
+        if (!found)
+            usleep(20000);
+    }
+    assert_true(found);
+    assert_int_equal(ms_test_stop(f->pid, SIGTERM, 15.0), 0);
+    f->pid = 0;
+    FILE *log = fopen(f->log, "r");
+    char text[8192];
+    size_t n = fread(text, 1, sizeof text - 1, log);
+    fclose(log);
+    text[n] = '\0';
+    assert_non_null(strstr(text, "rescan: 3 models"));
+    assert_non_null(strstr(text, "\"rescans\": 1}"));
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test_setup_teardown(test_catalog_index_and_payloads, start_server, stop_server),
+        cmocka_unit_test_setup_teardown(test_ranges_and_etags, start_server, stop_server),
+        cmocka_unit_test_setup_teardown(test_access_control, start_server, stop_server),
+        cmocka_unit_test_setup_teardown(test_hostile_requests, start_server, stop_server),
+        cmocka_unit_test_setup_teardown(test_sighup_adds_model_and_sigterm_drains, start_server, stop_server),
+    };
+    return cmocka_run_group_tests_name("meshserve_http", tests, NULL, NULL);
+}

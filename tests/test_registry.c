@@ -1,0 +1,122 @@
+/* Model registry: scan, reuse on rescan, replacement, removal while held,
+ * broken archives skipped, names never used as paths. */
+#include <stdarg.h>
+#include <stddef.h>
+#include <setjmp.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+#include <cmocka.h>
+
+#include "ms_registry.h"
+#include "ms_test.h"
+#include "ms_test_archive.h"
+
+typedef struct warnings {
+    int count;
+    char last[1024];
+} warnings;
+
+static void collect(void *arg, const char *message)
+{
+    warnings *w = arg;
+    w->count++;
+    snprintf(w->last, sizeof w->last, "%s", message);
+}
+
+static void test_scan_rescan_replace_remove(void **state)
+{
+    (void)state;
+    char dir[512], path[700];
+    ms_test_tmpdir(dir, sizeof dir);
+    ms_test_add_model(dir, "bunny", 1, 12);
+    ms_test_add_model(dir, "dragon", 2, 9);
+    warnings w = {0};
+    ms_registry r1, r2, r3;
+    ms_error err;
+    assert_int_equal(ms_registry_scan(dir, NULL, &r1, collect, &w, &err), MS_OK);
+    assert_int_equal(r1.count, 2);
+    assert_int_equal(w.count, 0);
+    ms_model *dragon = ms_registry_find(&r1, "dragon");
+    assert_non_null(dragon);
+    assert_int_equal(dragon->entry.public_max_bits, 9);
+    assert_null(ms_registry_find(&r1, "../dragon"));
+    assert_null(ms_registry_find(&r1, "dragon.msa"));
+    assert_null(ms_registry_find(&r1, "zebra"));
+
+    /* Unchanged files are reused, not reopened. */
+    assert_int_equal(ms_registry_scan(dir, &r1, &r2, collect, &w, &err), MS_OK);
+    assert_ptr_equal(ms_registry_find(&r2, "dragon"), dragon);
+    assert_int_equal(dragon->refs, 2);
+
+    /* Hold the dragon (a transfer in progress), then replace bunny and remove it. */
+    ms_model_ref(dragon);
+    ms_test_add_model(dir, "bunny", 99, 12);
+    assert_int_equal(ms_catalog_remove(dir, "dragon", &err), MS_OK);
+    snprintf(path, sizeof path, "%s/dragon.msa", dir);
+    assert_int_equal(unlink(path), 0);
+    assert_int_equal(ms_registry_scan(dir, &r2, &r3, collect, &w, &err), MS_OK);
+    assert_int_equal(r3.count, 1);
+    assert_null(ms_registry_find(&r3, "dragon"));
+    ms_model *bunny_new = ms_registry_find(&r3, "bunny");
+    assert_true(bunny_new != ms_registry_find(&r2, "bunny"));
+    size_t len;
+    const uint8_t *g = ms_archive_geometry(bunny_new->archive, 3, &len);
+    uint8_t expect[1024];
+    ms_test_archive_fill(expect, (uint32_t)len, 3 + 99);
+    assert_memory_equal(g, expect, len);
+    ms_registry_release(&r1);
+    ms_registry_release(&r2);
+    /* Still readable after every registry let go of it. */
+    assert_int_equal(dragon->refs, 1);
+    assert_int_equal(ms_archive_verify_payload(dragon->archive, 7, &err), MS_OK);
+    ms_model_unref(dragon);
+    ms_registry_release(&r3);
+    ms_test_rmdir(dir);
+}
+
+static void test_broken_models_are_skipped(void **state)
+{
+    (void)state;
+    char dir[512], path[700];
+    ms_test_tmpdir(dir, sizeof dir);
+    ms_test_add_model(dir, "good", 1, 12);
+    ms_test_add_model(dir, "broken", 2, 12);
+    ms_test_add_model(dir, "missing", 3, 12);
+    snprintf(path, sizeof path, "%s/broken.msa", dir);
+    FILE *f = fopen(path, "r+b");
+    assert_non_null(f);
+    fseek(f, 200, SEEK_SET);
+    fputc('X', f);
+    fclose(f);
+    snprintf(path, sizeof path, "%s/missing.msa", dir);
+    assert_int_equal(unlink(path), 0);
+    warnings w = {0};
+    ms_registry r;
+    assert_int_equal(ms_registry_scan(dir, NULL, &r, collect, &w, NULL), MS_OK);
+    assert_int_equal(r.count, 1);
+    assert_non_null(ms_registry_find(&r, "good"));
+    assert_int_equal(w.count, 2);
+    assert_non_null(strstr(w.last, "model 'missing' skipped: archive file missing"));
+    ms_registry_release(&r);
+
+    ms_error err;
+    assert_int_equal(ms_registry_scan("/nonexistent", NULL, &r, NULL, NULL, &err), MS_ERR_IO);
+    snprintf(path, sizeof path, "%s/catalog.json", dir);
+    f = fopen(path, "w");
+    fputs("{", f);
+    fclose(f);
+    assert_int_equal(ms_registry_scan(dir, NULL, &r, NULL, NULL, &err), MS_ERR_FORMAT);
+    ms_test_rmdir(dir);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_scan_rescan_replace_remove),
+        cmocka_unit_test(test_broken_models_are_skipped),
+    };
+    return cmocka_run_group_tests_name("registry", tests, NULL, NULL);
+}
