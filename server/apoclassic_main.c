@@ -14,14 +14,6 @@
 #include "ms_mesh_io.h"
 #include "ms_progress.h"
 
-/* The mesh readers live on another branch until they are merged; until then only
- * the built-in demo model can be read. */
-#if defined(__has_include)
-#if __has_include("ms_mesh_reader.h")
-#define APOCLASSIC_HAVE_READERS 1
-#endif
-#endif
-
 static void usage(FILE *out)
 {
     fputs("usage: apoclassic IN --apo-classic --simplify N [options]\n"
@@ -66,12 +58,7 @@ static int load_input(const char *in, ms_mesh *mesh, ms_error *err)
         ms_demo_model model = {.grid = ms_demo_grid_for_triangles((uint64_t)t), .seed = 0};
         return ms_demo_build(&model, mesh, err) == MS_OK ? 0 : -2;
     }
-#ifdef APOCLASSIC_HAVE_READERS
     return ms_mesh_load(in, mesh, NULL, err) == MS_OK ? 0 : -2;
-#else
-    ms_error_set(err, MS_ERR_UNSUPPORTED, "%s: this build has no mesh reader yet (use demo:T)", in);
-    return -2;
-#endif
 }
 
 static int write_file(const char *path, const uint8_t *data, size_t size)

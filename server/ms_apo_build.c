@@ -11,6 +11,11 @@
 #include "ms_progress.h"
 #include "ms_tri_box.h"
 
+/* Plain comparisons (fminf/fmaxf are library calls here, and NaN never
+ * reaches them: coordinates are checked finite first). */
+static inline float min_f(float a, float b) { return a < b ? a : b; }
+static inline float max_f(float a, float b) { return a > b ? a : b; }
+
 struct ms_apo_builder {
     RTCDevice device;
 };
@@ -107,8 +112,8 @@ static ms_status local_mesh_make(const ms_mesh *mesh, const ms_apo_build_options
         }
         const float *p0 = &lm->pos[3 * v[0]], *p1 = &lm->pos[3 * v[1]], *p2 = &lm->pos[3 * v[2]];
         for (int a = 0; a < 3; ++a) {
-            lm->bounds[6 * t + a] = fminf(p0[a], fminf(p1[a], p2[a]));
-            lm->bounds[6 * t + 3 + a] = fmaxf(p0[a], fmaxf(p1[a], p2[a]));
+            lm->bounds[6 * t + a] = min_f(p0[a], min_f(p1[a], p2[a]));
+            lm->bounds[6 * t + 3 + a] = max_f(p0[a], max_f(p1[a], p2[a]));
         }
         double e1[3], e2[3];
         for (int a = 0; a < 3; ++a) {

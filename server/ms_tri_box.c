@@ -4,13 +4,18 @@
 
 #include <math.h>
 
+/* Plain comparisons (fminf/fmaxf are library calls here, and NaN never
+ * reaches them: coordinates are checked finite first). */
+static inline float min_f(float a, float b) { return a < b ? a : b; }
+static inline float max_f(float a, float b) { return a > b ? a : b; }
+
 static float dot3(const float a[3], const float b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
 
 /* True when the projections of the triangle on `axis` miss [-r, r]. */
 static bool separated(const float axis[3], float half, const float v0[3], const float v1[3], const float v2[3])
 {
     float p0 = dot3(axis, v0), p1 = dot3(axis, v1), p2 = dot3(axis, v2);
-    float lo = fminf(p0, fminf(p1, p2)), hi = fmaxf(p0, fmaxf(p1, p2));
+    float lo = min_f(p0, min_f(p1, p2)), hi = max_f(p0, max_f(p1, p2));
     float r = half * (fabsf(axis[0]) + fabsf(axis[1]) + fabsf(axis[2]));
     return lo > r || hi < -r;
 }
@@ -22,7 +27,7 @@ bool ms_tri_cube_overlap(const float centre[3], float half, const float a[3], co
         v0[k] = a[k] - centre[k];
         v1[k] = b[k] - centre[k];
         v2[k] = c[k] - centre[k];
-        float lo = fminf(v0[k], fminf(v1[k], v2[k])), hi = fmaxf(v0[k], fmaxf(v1[k], v2[k]));
+        float lo = min_f(v0[k], min_f(v1[k], v2[k])), hi = max_f(v0[k], max_f(v1[k], v2[k]));
         if (lo > half || hi < -half)
             return false;
     }
