@@ -29,6 +29,8 @@ static void usage(FILE *out)
           "  --apo-measure NAME     classic (published, sum of squared deviations) or\n"
           "                         spread (area-weighted angular spread, radians) [classic]\n"
           "  --apo-search S         fixed ray search half-length in cube units [automatic]\n"
+          "  --simplified FILE      use FILE as the simplified mesh (no simplification)\n"
+          "  --save-simplified FILE write the simplified mesh to FILE (binary PLY)\n"
           "  --threads N            worker threads, 0 = all cores [0]\n"
           "  -o FILE                write the stored chunk (zlib + CRC) to FILE\n"
           "  --json                 print the report as one JSON object\n"
@@ -75,17 +77,18 @@ static int write_file(const char *path, const uint8_t *data, size_t size)
 
 int main(int argc, char **argv)
 {
-    enum { OPT_CLASSIC = 256, OPT_SIMPLIFY, OPT_TOL, OPT_INIT, OPT_MAX, OPT_MEASURE, OPT_SEARCH, OPT_THREADS, OPT_JSON, OPT_HELP };
+    enum { OPT_CLASSIC = 256, OPT_SIMPLIFY, OPT_TOL, OPT_INIT, OPT_MAX, OPT_MEASURE, OPT_SEARCH, OPT_THREADS, OPT_JSON, OPT_HELP, OPT_SIMPLIFIED, OPT_SAVE };
     static const struct option longs[] = {
         {"apo-classic", no_argument, NULL, OPT_CLASSIC},     {"simplify", required_argument, NULL, OPT_SIMPLIFY},
         {"apo-tol", required_argument, NULL, OPT_TOL},       {"apo-init-depth", required_argument, NULL, OPT_INIT},
         {"apo-max-depth", required_argument, NULL, OPT_MAX}, {"apo-measure", required_argument, NULL, OPT_MEASURE},
         {"apo-search", required_argument, NULL, OPT_SEARCH}, {"threads", required_argument, NULL, OPT_THREADS},
         {"json", no_argument, NULL, OPT_JSON},               {"help", no_argument, NULL, OPT_HELP},
+        {"simplified", required_argument, NULL, OPT_SIMPLIFIED}, {"save-simplified", required_argument, NULL, OPT_SAVE},
         {NULL, 0, NULL, 0}};
     ms_apo_classic_options o;
     ms_apo_classic_options_default(&o);
-    const char *out_path = NULL;
+    const char *out_path = NULL, *simplified_path = NULL, *save_path = NULL;
     int json = 0, c;
     double v;
     while ((c = getopt_long(argc, argv, "o:", longs, NULL)) != -1) {
@@ -130,6 +133,8 @@ int main(int argc, char **argv)
             o.threads = (unsigned)v;
             break;
         case 'o': out_path = optarg; break;
+        case OPT_SIMPLIFIED: simplified_path = optarg; break;
+        case OPT_SAVE: save_path = optarg; break;
         case OPT_JSON: json = 1; break;
         case OPT_HELP: usage(stdout); return 0;
         default: usage(stderr); return 2;
@@ -152,12 +157,31 @@ int main(int argc, char **argv)
         fprintf(stderr, "apoclassic: %s\n", err.text);
         return 1;
     }
+    ms_mesh given, kept;
+    memset(&given, 0, sizeof given);
+    memset(&kept, 0, sizeof kept);
+    if (simplified_path) {
+        if (ms_mesh_load(simplified_path, &given, NULL, &err) != MS_OK) {
+            fprintf(stderr, "apoclassic: %s\n", err.text);
+            ms_mesh_free(&mesh);
+            return 1;
+        }
+        o.simplified = &given;
+    }
+    if (save_path)
+        o.keep_simplified = &kept;
     double load_seconds = ms_now_seconds() - t0;
     ms_apo_classic_report r;
     ms_apo_chunk chunk;
     ms_status st = ms_apo_classic_run(&mesh, &o, out_path ? &chunk : NULL, &r, &err);
     ms_mesh_free(&mesh);
+    ms_mesh_free(&given);
+    if (st == MS_OK && save_path && kept.triangle_count)
+        st = ms_ply_write(save_path, &kept, true, true, &err);
+    ms_mesh_free(&kept);
     if (st != MS_OK) {
+        if (out_path)
+            ms_apo_chunk_free(&chunk);
         fprintf(stderr, "apoclassic: %s\n", err.text);
         return 1;
     }

@@ -55,12 +55,18 @@ ms_status ms_apo_classic_run(const ms_mesh *M, const ms_apo_classic_options *o, 
 
     double t0 = ms_now_seconds();
     ms_mesh m;
-    ms_simplify_report sr;
-    ms_status st = ms_simplify(M, o->simplify_triangles, &m, &sr, err);
-    if (st != MS_OK)
-        return st;
-    r->simplified_triangles = sr.output_triangles;
-    r->refused_faces = sr.refused_faces;
+    memset(&m, 0, sizeof m);
+    ms_status st = MS_OK;
+    const ms_mesh *surface = o->simplified;
+    if (!surface) {
+        ms_simplify_report sr;
+        st = ms_simplify(M, o->simplify_triangles, &m, &sr, err);
+        if (st != MS_OK)
+            return st;
+        r->refused_faces = sr.refused_faces;
+        surface = &m;
+    }
+    r->simplified_triangles = surface->triangle_count;
     double t1 = ms_now_seconds();
     r->seconds_simplify = t1 - t0;
 
@@ -79,9 +85,12 @@ ms_status ms_apo_classic_run(const ms_mesh *M, const ms_apo_classic_options *o, 
     memset(&tree, 0, sizeof tree);
     st = ms_apo_builder_create(&builder, err);
     if (st == MS_OK)
-        st = ms_apo_builder_build_tree(builder, &m, M, &bo, &tree, &r->build, err);
+        st = ms_apo_builder_build_tree(builder, surface, M, &bo, &tree, &r->build, err);
     ms_apo_builder_destroy(builder);
-    ms_mesh_free(&m);
+    if (o->keep_simplified && !o->simplified && st == MS_OK)
+        *o->keep_simplified = m;
+    else
+        ms_mesh_free(&m);
     if (st != MS_OK)
         return st;
     r->seconds_prepare = r->build.seconds_prepare;

@@ -29,6 +29,8 @@ typedef struct ms_apo_classic_options {
     double search_distance;     /* cube units; <= 0: automatic (default) */
     unsigned threads;           /* 0 = all cores */
     int zlib_level;             /* for the compressed size; default 6 */
+    const ms_mesh *simplified;  /* borrowed: use this m instead of simplifying (NULL) */
+    ms_mesh *keep_simplified;   /* if non-NULL (zeroed), receives m; caller frees it */
 } ms_apo_classic_options;
 
 void ms_apo_classic_options_default(ms_apo_classic_options *options);
