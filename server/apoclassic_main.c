@@ -210,12 +210,12 @@ int main(int argc, char **argv)
             printf("%s%u", d ? "," : "", r.level_texels[d]);
         printf("],\"samples\":%llu,\"ray_hits\":%llu,\"closest_points\":%llu,\"unsampled\":%llu,"
                "\"m_to_M_distance\":%.6g,\"seconds\":%.3f,\"seconds_apo\":%.3f,\"phases\":{\"load\":%.3f,"
-               "\"simplify\":%.3f,\"prepare\":%.3f,\"octree\":%.3f,\"sample\":%.3f,\"encode\":%.3f,"
+               "\"simplify\":%.3f,\"prepare\":%.3f,\"embree_scene\":%.3f,\"distance\":%.3f,\"octree\":%.3f,\"sample\":%.3f,\"encode\":%.3f,"
                "\"store\":%.3f},\"peak_rss_mb\":%.1f}\n",
                (unsigned long long)r.build.samples, (unsigned long long)r.build.ray_hits,
                (unsigned long long)r.build.closest_points, (unsigned long long)r.build.unsampled,
                r.build.m_to_M_distance, r.seconds_total, r.seconds_apo, load_seconds, r.seconds_simplify,
-               r.seconds_prepare, r.seconds_octree, r.seconds_sample, r.seconds_encode, r.seconds_store,
+               r.seconds_prepare, r.build.seconds_scene, r.build.seconds_distance, r.seconds_octree, r.seconds_sample, r.seconds_encode, r.seconds_store,
                ms_peak_rss_mb());
     } else {
         printf("input            %s: %zu triangles, simplified to %zu (%zu refused)\n", in, r.input_triangles,

@@ -79,7 +79,9 @@ typedef struct ms_apo_build_stats {
     uint64_t closest_points;   /* samples answered by the closest-point query */
     uint64_t unsampled;        /* samples that fell back to m's normal */
     double m_to_M_distance;    /* h, cube units */
-    double seconds_prepare;    /* transforms, normals, Embree scene, h */
+    double seconds_prepare;    /* transforms, normals, root lists, Embree scene, h */
+    double seconds_scene;      /* of which: Embree's BVH over M */
+    double seconds_distance;   /* of which: h */
     double seconds_octree;
     double seconds_sample;
 } ms_apo_build_stats;

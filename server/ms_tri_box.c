@@ -1,23 +1,30 @@
 /* Triangle / cube overlap: the 13 separating axes (3 cube normals, the triangle
- * normal, and the 9 cross products of triangle edges with the cube axes). */
+ * normal, and the 9 cross products of triangle edges with the cube axes). On an
+ * edge's axis the edge's two corners project to the same value, so only two
+ * projections are needed per edge axis. */
 #include "ms_tri_box.h"
 
 #include <math.h>
 
-/* Plain comparisons (fminf/fmaxf are library calls here, and NaN never
- * reaches them: coordinates are checked finite first). */
 static inline float min_f(float a, float b) { return a < b ? a : b; }
 static inline float max_f(float a, float b) { return a > b ? a : b; }
 
-static float dot3(const float a[3], const float b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+/* True when the interval of the two projections p, q misses [-r, r]. */
+static inline bool apart(float p, float q, float r) { return min_f(p, q) > r || max_f(p, q) < -r; }
 
-/* True when the projections of the triangle on `axis` miss [-r, r]. */
-static bool separated(const float axis[3], float half, const float v0[3], const float v1[3], const float v2[3])
+/* The three cube-axis cross products of edge e, tested with corners s and t (one
+ * on the edge, the other off it). */
+static inline bool edge_separates(const float e[3], const float s[3], const float t[3], float half)
 {
-    float p0 = dot3(axis, v0), p1 = dot3(axis, v1), p2 = dot3(axis, v2);
-    float lo = min_f(p0, min_f(p1, p2)), hi = max_f(p0, max_f(p1, p2));
-    float r = half * (fabsf(axis[0]) + fabsf(axis[1]) + fabsf(axis[2]));
-    return lo > r || hi < -r;
+    float ax = fabsf(e[0]), ay = fabsf(e[1]), az = fabsf(e[2]);
+    /* x-axis x e = (0, -e.z, e.y) */
+    if (apart(e[2] * s[1] - e[1] * s[2], e[2] * t[1] - e[1] * t[2], half * (az + ay)))
+        return true;
+    /* y-axis x e = (e.z, 0, -e.x) */
+    if (apart(e[0] * s[2] - e[2] * s[0], e[0] * t[2] - e[2] * t[0], half * (az + ax)))
+        return true;
+    /* z-axis x e = (-e.y, e.x, 0) */
+    return apart(e[1] * s[0] - e[0] * s[1], e[1] * t[0] - e[0] * t[1], half * (ay + ax));
 }
 
 bool ms_tri_cube_overlap(const float centre[3], float half, const float a[3], const float b[3], const float c[3])
@@ -31,22 +38,18 @@ bool ms_tri_cube_overlap(const float centre[3], float half, const float a[3], co
         if (lo > half || hi < -half)
             return false;
     }
-    float e[3][3];
+    float e0[3], e1[3], e2[3];
     for (int k = 0; k < 3; ++k) {
-        e[0][k] = v1[k] - v0[k];
-        e[1][k] = v2[k] - v1[k];
-        e[2][k] = v0[k] - v2[k];
+        e0[k] = v1[k] - v0[k];
+        e1[k] = v2[k] - v1[k];
+        e2[k] = v0[k] - v2[k];
     }
-    float n[3] = {e[0][1] * e[1][2] - e[0][2] * e[1][1], e[0][2] * e[1][0] - e[0][0] * e[1][2],
-                  e[0][0] * e[1][1] - e[0][1] * e[1][0]};
-    if (separated(n, half, v0, v1, v2))
+    /* The triangle's plane. */
+    float n[3] = {e0[1] * e1[2] - e0[2] * e1[1], e0[2] * e1[0] - e0[0] * e1[2], e0[0] * e1[1] - e0[1] * e1[0]};
+    float d = n[0] * v0[0] + n[1] * v0[1] + n[2] * v0[2];
+    if (fabsf(d) > half * (fabsf(n[0]) + fabsf(n[1]) + fabsf(n[2])))
         return false;
-    for (int i = 0; i < 3; ++i) {
-        const float *d = e[i];
-        float ax[3][3] = {{0.0f, d[2], -d[1]}, {-d[2], 0.0f, d[0]}, {d[1], -d[0], 0.0f}};
-        for (int k = 0; k < 3; ++k)
-            if (separated(ax[k], half, v0, v1, v2))
-                return false;
-    }
-    return true;
+    /* Edge v0-v1 (v2 off it), edge v1-v2 (v0 off it), edge v2-v0 (v1 off it). */
+    return !edge_separates(e0, v0, v2, half) && !edge_separates(e1, v1, v0, half) &&
+           !edge_separates(e2, v2, v1, half);
 }
