@@ -1,6 +1,7 @@
 /* apoclassic: whole-model APO for comparison with the published results. The
  * same options will become `meshbake IN --apo-classic ...`. */
 #include <errno.h>
+#include <stdbool.h>
 #include <getopt.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -8,6 +9,7 @@
 
 #include "ms_apo_blob.h"
 #include "ms_apo_classic.h"
+#include "ms_apo_traverse.h"
 #include "ms_demo_model.h"
 #include "ms_error.h"
 #include "ms_mesh.h"
@@ -31,6 +33,7 @@ static void usage(FILE *out)
           "  --apo-search S         fixed ray search half-length in cube units [automatic]\n"
           "  --simplified FILE      use FILE as the simplified mesh (no simplification)\n"
           "  --save-simplified FILE write the simplified mesh to FILE (binary PLY)\n"
+          "  --bench-lookups N      time N CPU reference lookups at random points\n"
           "  --threads N            worker threads, 0 = all cores [0]\n"
           "  -o FILE                write the stored chunk (zlib + CRC) to FILE\n"
           "  --json                 print the report as one JSON object\n"
@@ -75,9 +78,31 @@ static int write_file(const char *path, const uint8_t *data, size_t size)
     return 0;
 }
 
+/* Lookups per second of the CPU reference traversal at pseudo-random points
+ * (xorshift, fixed seed), one thread, both missing-child rules alternating. */
+static double time_lookups(const ms_apo_view *view, uint64_t count)
+{
+    uint64_t state = 88172645463325252ull, sink = 0;
+    double t0 = ms_now_seconds();
+    for (uint64_t i = 0; i < count; ++i) {
+        uint32_t u[3];
+        for (int a = 0; a < 3; ++a) {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            u[a] = (uint32_t)(state >> 32);
+        }
+        ms_apo_lookup_result r;
+        ms_apo_lookup_fixed(view, u, MS_APO_MAX_DEPTH, (i & 1) ? MS_APO_MISSING_NEAREST : MS_APO_MISSING_STOP, &r);
+        sink += r.code;
+    }
+    double dt = ms_now_seconds() - t0;
+    return sink == 1 ? 0.0 : (double)count / (dt > 0 ? dt : 1e-9);
+}
+
 int main(int argc, char **argv)
 {
-    enum { OPT_CLASSIC = 256, OPT_SIMPLIFY, OPT_TOL, OPT_INIT, OPT_MAX, OPT_MEASURE, OPT_SEARCH, OPT_THREADS, OPT_JSON, OPT_HELP, OPT_SIMPLIFIED, OPT_SAVE };
+    enum { OPT_CLASSIC = 256, OPT_SIMPLIFY, OPT_TOL, OPT_INIT, OPT_MAX, OPT_MEASURE, OPT_SEARCH, OPT_THREADS, OPT_JSON, OPT_HELP, OPT_SIMPLIFIED, OPT_SAVE, OPT_LOOKUPS };
     static const struct option longs[] = {
         {"apo-classic", no_argument, NULL, OPT_CLASSIC},     {"simplify", required_argument, NULL, OPT_SIMPLIFY},
         {"apo-tol", required_argument, NULL, OPT_TOL},       {"apo-init-depth", required_argument, NULL, OPT_INIT},
@@ -85,11 +110,13 @@ int main(int argc, char **argv)
         {"apo-search", required_argument, NULL, OPT_SEARCH}, {"threads", required_argument, NULL, OPT_THREADS},
         {"json", no_argument, NULL, OPT_JSON},               {"help", no_argument, NULL, OPT_HELP},
         {"simplified", required_argument, NULL, OPT_SIMPLIFIED}, {"save-simplified", required_argument, NULL, OPT_SAVE},
+        {"bench-lookups", required_argument, NULL, OPT_LOOKUPS},
         {NULL, 0, NULL, 0}};
     ms_apo_classic_options o;
     ms_apo_classic_options_default(&o);
     const char *out_path = NULL, *simplified_path = NULL, *save_path = NULL;
     int json = 0, c;
+    uint64_t lookups = 0;
     double v;
     while ((c = getopt_long(argc, argv, "o:", longs, NULL)) != -1) {
         switch (c) {
@@ -135,6 +162,11 @@ int main(int argc, char **argv)
         case 'o': out_path = optarg; break;
         case OPT_SIMPLIFIED: simplified_path = optarg; break;
         case OPT_SAVE: save_path = optarg; break;
+        case OPT_LOOKUPS:
+            if (parse_double(optarg, "--bench-lookups", 0, 1e9, &v) != 0)
+                return 2;
+            lookups = (uint64_t)v;
+            break;
         case OPT_JSON: json = 1; break;
         case OPT_HELP: usage(stdout); return 0;
         default: usage(stderr); return 2;
@@ -173,23 +205,33 @@ int main(int argc, char **argv)
     double load_seconds = ms_now_seconds() - t0;
     ms_apo_classic_report r;
     ms_apo_chunk chunk;
-    ms_status st = ms_apo_classic_run(&mesh, &o, out_path ? &chunk : NULL, &r, &err);
+    bool keep_chunk = out_path || lookups;
+    ms_status st = ms_apo_classic_run(&mesh, &o, keep_chunk ? &chunk : NULL, &r, &err);
     ms_mesh_free(&mesh);
     ms_mesh_free(&given);
     if (st == MS_OK && save_path && kept.triangle_count)
         st = ms_ply_write(save_path, &kept, true, true, &err);
     ms_mesh_free(&kept);
     if (st != MS_OK) {
-        if (out_path)
+        if (keep_chunk)
             ms_apo_chunk_free(&chunk);
         fprintf(stderr, "apoclassic: %s\n", err.text);
         return 1;
+    }
+    double lookup_rate = 0.0;
+    if (lookups) {
+        ms_apo_view view;
+        if (ms_apo_view_of_chunk(&view, &chunk, &err) != MS_OK) {
+            fprintf(stderr, "apoclassic: %s\n", err.text);
+            ms_apo_chunk_free(&chunk);
+            return 1;
+        }
+        lookup_rate = time_lookups(&view, lookups);
     }
     if (out_path) {
         uint8_t *blob = NULL;
         size_t size = 0;
         st = ms_apo_blob_write(&chunk, o.zlib_level, &blob, &size, &err);
-        ms_apo_chunk_free(&chunk);
         int wr = st == MS_OK ? write_file(out_path, blob, size) : -1;
         free(blob);
         if (st != MS_OK)
@@ -197,6 +239,8 @@ int main(int argc, char **argv)
         if (st != MS_OK || wr != 0)
             return 1;
     }
+    if (keep_chunk)
+        ms_apo_chunk_free(&chunk);
     const char *measure = o.measure == MS_APO_MEASURE_CLASSIC ? "classic" : "spread";
     if (json) {
         printf("{\"input\":\"%s\",\"input_triangles\":%zu,\"simplified_triangles\":%zu,\"refused_faces\":%zu,"
@@ -211,12 +255,12 @@ int main(int argc, char **argv)
         printf("],\"samples\":%llu,\"ray_hits\":%llu,\"closest_points\":%llu,\"unsampled\":%llu,"
                "\"m_to_M_distance\":%.6g,\"seconds\":%.3f,\"seconds_apo\":%.3f,\"phases\":{\"load\":%.3f,"
                "\"simplify\":%.3f,\"prepare\":%.3f,\"embree_scene\":%.3f,\"distance\":%.3f,\"octree\":%.3f,\"sample\":%.3f,\"encode\":%.3f,"
-               "\"store\":%.3f},\"peak_rss_mb\":%.1f}\n",
+               "\"store\":%.3f},\"lookups_per_second\":%.0f,\"peak_rss_mb\":%.1f}\n",
                (unsigned long long)r.build.samples, (unsigned long long)r.build.ray_hits,
                (unsigned long long)r.build.closest_points, (unsigned long long)r.build.unsampled,
                r.build.m_to_M_distance, r.seconds_total, r.seconds_apo, load_seconds, r.seconds_simplify,
                r.seconds_prepare, r.build.seconds_scene, r.build.seconds_distance, r.seconds_octree, r.seconds_sample, r.seconds_encode, r.seconds_store,
-               ms_peak_rss_mb());
+               lookup_rate, ms_peak_rss_mb());
     } else {
         printf("input            %s: %zu triangles, simplified to %zu (%zu refused)\n", in, r.input_triangles,
                r.simplified_triangles, r.refused_faces);
@@ -234,6 +278,8 @@ int main(int argc, char **argv)
                "store %.2f; APO %.2f, total %.2f (without load)\n",
                load_seconds, r.seconds_simplify, r.seconds_prepare, r.seconds_octree, r.seconds_sample,
                r.seconds_encode, r.seconds_store, r.seconds_apo, r.seconds_total);
+        if (lookups)
+            printf("lookups          %.3g per second (CPU reference, one thread, random points)\n", lookup_rate);
     }
     return 0;
 }
