@@ -110,7 +110,11 @@ ms_status ms_apo_view_init(ms_apo_view *view, const uint32_t *level_texels, uint
     /* Walk the complete levels breadth-first. `kinds` lists the kind (1 =
      * internal) of every node of the level being checked, in order; it is
      * produced by the level above. */
-    size_t kinds_cap = v.complete_levels ? (size_t)total : 1;
+    /* A level holds at most as many nodes as words. */
+    size_t kinds_cap = 2;
+    for (uint32_t d = 0; d < level_count; ++d)
+        if (level_texels[d] > kinds_cap)
+            kinds_cap = level_texels[d];
     uint8_t *kinds = malloc(kinds_cap), *next_kinds = malloc(kinds_cap);
     if (!kinds || !next_kinds) {
         free(kinds);
@@ -151,12 +155,21 @@ ms_status ms_apo_view_init(ms_apo_view *view, const uint32_t *level_texels, uint
                                       (unsigned long long)offset, (unsigned long long)(w + offset), child_cursor);
                 if (st != MS_OK)
                     break;
-                for (uint32_t o = 0; o < 8; ++o)
+                for (uint32_t o = 0; o < 8 && st == MS_OK; ++o)
                     if (exist >> o & 1u) {
                         bool child_internal = kind >> o & 1u;
+                        /* Children must fit in the next level (this also bounds
+                         * next_kinds, as every child takes at least one word). */
+                        if (child_cursor + ms_apo_node_words(child_internal) > v.level_start[d + 2]) {
+                            st = ms_error_set(err, MS_ERR_CORRUPT,
+                                              "apo chunk: word %zu has more children than level %u holds", w, d + 1);
+                            break;
+                        }
                         next_kinds[next_count++] = child_internal;
                         child_cursor += ms_apo_node_words(child_internal);
                     }
+                if (st != MS_OK)
+                    break;
                 w += 2;
             }
             if (st != MS_OK)

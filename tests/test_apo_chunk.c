@@ -227,6 +227,10 @@ static void test_loader_rejects_corruption(void **state)
     memcpy(w, c.texels, sizeof w);
     w[6] = 0xFFFu;
     assert_int_equal(load_words(&c, w, 7), MS_ERR_CORRUPT);
+    /* More children than the next level holds (a mask with every bit set). */
+    memcpy(w, c.texels, sizeof w);
+    w[0] = (2u << 8) | 0xFFu;
+    assert_int_equal(load_words(&c, w, 7), MS_ERR_CORRUPT);
     /* Tables that do not match the words. */
     ms_apo_view v;
     uint32_t table[3] = {2, 3, 2};
@@ -247,6 +251,49 @@ static void test_loader_rejects_corruption(void **state)
 
 /* A prefix cut in the middle of a level: only the whole levels are used, and a
  * corruption in the partial level does not matter because it is never read. */
+/* Random damage to the words of random chunks: the loader either rejects the
+ * words or accepts words that are a consistent tree, which lookups then walk
+ * safely (ASan watches every read). */
+static void test_loader_random_damage(void **state)
+{
+    (void)state;
+    uint64_t rng = 4242;
+    size_t accepted = 0, rejected = 0;
+    for (uint64_t seed = 0; seed < 20; ++seed) {
+        ms_apo_tree tree;
+        ms_test_random_tree(500 + seed, 7, 0.5, &tree);
+        ms_apo_chunk c;
+        assert_int_equal(ms_apo_chunk_encode(&tree, &c, NULL), MS_OK);
+        uint32_t *w = malloc(c.texel_count * sizeof *w);
+        assert_non_null(w);
+        for (int k = 0; k < 200; ++k) {
+            memcpy(w, c.texels, c.texel_count * sizeof *w);
+            size_t at = (size_t)(ms_test_rand(&rng) % c.texel_count);
+            w[at] ^= 1u << (ms_test_rand(&rng) % 32);
+            ms_apo_view v;
+            size_t received = (k & 3) ? c.texel_count : (size_t)(ms_test_rand(&rng) % (c.texel_count + 1));
+            if (ms_apo_view_init(&v, c.level_texels, c.level_count, w, received, NULL) != MS_OK) {
+                ++rejected;
+                continue;
+            }
+            ++accepted;
+            for (int i = 0; i < 200; ++i) {
+                float p[3] = {ms_test_randf(&rng), ms_test_randf(&rng), ms_test_randf(&rng)};
+                ms_apo_lookup_result r;
+                ms_apo_lookup(&v, p, 30, (i & 1) ? MS_APO_MISSING_NEAREST : MS_APO_MISSING_STOP, &r);
+                if (r.stop != MS_APO_STOP_EMPTY)
+                    assert_true(r.word + (r.stop == MS_APO_STOP_LEAF ? 0u : 1u) < v.texel_count);
+            }
+        }
+        free(w);
+        ms_apo_chunk_free(&c);
+        ms_apo_tree_free(&tree);
+    }
+    print_message("random damage: %zu rejected, %zu accepted (normal bits only, or beyond the prefix)\n", rejected,
+                  accepted);
+    assert_true(rejected > 1000);
+}
+
 static void test_truncated_mid_level(void **state)
 {
     (void)state;
@@ -371,7 +418,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_normal_quantisation_bound), cmocka_unit_test(test_round_trip),
         cmocka_unit_test(test_exact_words),               cmocka_unit_test(test_loader_rejects_corruption),
-        cmocka_unit_test(test_truncated_mid_level),       cmocka_unit_test(test_empty_chunk),
+        cmocka_unit_test(test_loader_random_damage),      cmocka_unit_test(test_truncated_mid_level),       cmocka_unit_test(test_empty_chunk),
         cmocka_unit_test(test_blob_damage),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
