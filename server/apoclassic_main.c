@@ -3,6 +3,7 @@
 #include <errno.h>
 #include <stdbool.h>
 #include <getopt.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -34,6 +35,8 @@ static void usage(FILE *out)
           "  --simplified FILE      use FILE as the simplified mesh (no simplification)\n"
           "  --save-simplified FILE write the simplified mesh to FILE (binary PLY)\n"
           "  --bench-lookups N      time N CPU reference lookups at random points\n"
+          "  --bench-accuracy N     angle between the looked-up normal and M's face normal\n"
+          "                         at N centroids of M, for both missing-child rules\n"
           "  --threads N            worker threads, 0 = all cores [0]\n"
           "  -o FILE                write the stored chunk (zlib + CRC) to FILE\n"
           "  --json                 print the report as one JSON object\n"
@@ -78,6 +81,65 @@ static int write_file(const char *path, const uint8_t *data, size_t size)
     return 0;
 }
 
+/* Angles (degrees) between the APO normal and M's face normal at M's
+ * centroids, which lie off m by up to the simplification error: a stress test of
+ * the missing-child rules. Index 0: MS_APO_MISSING_STOP, 1: NEAREST. */
+typedef struct accuracy {
+    double mean, median, p90;
+    size_t points, off_tree; /* lookups that met a missing child */
+} accuracy;
+
+static int compare_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+static ms_status measure_accuracy(const ms_apo_view *view, const ms_mesh *M, const ms_apo_classic_report *r,
+                                  size_t wanted, accuracy acc[2], ms_error *err)
+{
+    size_t stride = M->triangle_count / wanted ? M->triangle_count / wanted : 1;
+    size_t n = (M->triangle_count + stride - 1) / stride;
+    double *angles = malloc((n + 1) * sizeof *angles);
+    if (!angles)
+        return ms_error_set(err, MS_ERR_NOMEM, "accuracy: no memory");
+    for (int rule = 0; rule < 2; ++rule) {
+        size_t k = 0, off = 0;
+        double sum = 0;
+        for (size_t t = 0; t < M->triangle_count; t += stride) {
+            const uint32_t *v = &M->triangles[3 * t];
+            const double *a = &M->positions[3 * v[0]], *b = &M->positions[3 * v[1]], *c = &M->positions[3 * v[2]];
+            double e1[3], e2[3], nrm[3];
+            float p[3];
+            for (int i = 0; i < 3; ++i) {
+                e1[i] = b[i] - a[i];
+                e2[i] = c[i] - a[i];
+                p[i] = (float)(((a[i] + b[i] + c[i]) / 3.0 - r->cube_origin[i]) / r->cube_size);
+            }
+            nrm[0] = e1[1] * e2[2] - e1[2] * e2[1];
+            nrm[1] = e1[2] * e2[0] - e1[0] * e2[2];
+            nrm[2] = e1[0] * e2[1] - e1[1] * e2[0];
+            double len = sqrt(nrm[0] * nrm[0] + nrm[1] * nrm[1] + nrm[2] * nrm[2]);
+            if (!(len > 0))
+                continue;
+            ms_apo_lookup_result res;
+            ms_apo_lookup(view, p, MS_APO_MAX_DEPTH, rule ? MS_APO_MISSING_NEAREST : MS_APO_MISSING_STOP, &res);
+            off += res.stop == MS_APO_STOP_MISSING || res.substitutions > 0;
+            double dot = (res.normal[0] * nrm[0] + res.normal[1] * nrm[1] + res.normal[2] * nrm[2]) / len;
+            angles[k] = acos(dot > 1 ? 1 : dot < -1 ? -1 : dot) * 180.0 / M_PI;
+            sum += angles[k++];
+        }
+        qsort(angles, k, sizeof *angles, compare_double);
+        acc[rule].points = k;
+        acc[rule].off_tree = off;
+        acc[rule].mean = k ? sum / (double)k : 0;
+        acc[rule].median = k ? angles[k / 2] : 0;
+        acc[rule].p90 = k ? angles[(size_t)(0.9 * (double)(k - 1))] : 0;
+    }
+    free(angles);
+    return MS_OK;
+}
+
 /* Lookups per second of the CPU reference traversal at pseudo-random points
  * (xorshift, fixed seed), one thread, both missing-child rules alternating. */
 static double time_lookups(const ms_apo_view *view, uint64_t count)
@@ -102,7 +164,7 @@ static double time_lookups(const ms_apo_view *view, uint64_t count)
 
 int main(int argc, char **argv)
 {
-    enum { OPT_CLASSIC = 256, OPT_SIMPLIFY, OPT_TOL, OPT_INIT, OPT_MAX, OPT_MEASURE, OPT_SEARCH, OPT_THREADS, OPT_JSON, OPT_HELP, OPT_SIMPLIFIED, OPT_SAVE, OPT_LOOKUPS };
+    enum { OPT_CLASSIC = 256, OPT_SIMPLIFY, OPT_TOL, OPT_INIT, OPT_MAX, OPT_MEASURE, OPT_SEARCH, OPT_THREADS, OPT_JSON, OPT_HELP, OPT_SIMPLIFIED, OPT_SAVE, OPT_LOOKUPS, OPT_ACCURACY };
     static const struct option longs[] = {
         {"apo-classic", no_argument, NULL, OPT_CLASSIC},     {"simplify", required_argument, NULL, OPT_SIMPLIFY},
         {"apo-tol", required_argument, NULL, OPT_TOL},       {"apo-init-depth", required_argument, NULL, OPT_INIT},
@@ -111,12 +173,14 @@ int main(int argc, char **argv)
         {"json", no_argument, NULL, OPT_JSON},               {"help", no_argument, NULL, OPT_HELP},
         {"simplified", required_argument, NULL, OPT_SIMPLIFIED}, {"save-simplified", required_argument, NULL, OPT_SAVE},
         {"bench-lookups", required_argument, NULL, OPT_LOOKUPS},
+        {"bench-accuracy", required_argument, NULL, OPT_ACCURACY},
         {NULL, 0, NULL, 0}};
     ms_apo_classic_options o;
     ms_apo_classic_options_default(&o);
     const char *out_path = NULL, *simplified_path = NULL, *save_path = NULL;
     int json = 0, c;
     uint64_t lookups = 0;
+    size_t accuracy_points = 0;
     double v;
     while ((c = getopt_long(argc, argv, "o:", longs, NULL)) != -1) {
         switch (c) {
@@ -167,6 +231,11 @@ int main(int argc, char **argv)
                 return 2;
             lookups = (uint64_t)v;
             break;
+        case OPT_ACCURACY:
+            if (parse_double(optarg, "--bench-accuracy", 0, 1e9, &v) != 0)
+                return 2;
+            accuracy_points = (size_t)v;
+            break;
         case OPT_JSON: json = 1; break;
         case OPT_HELP: usage(stdout); return 0;
         default: usage(stderr); return 2;
@@ -205,8 +274,16 @@ int main(int argc, char **argv)
     double load_seconds = ms_now_seconds() - t0;
     ms_apo_classic_report r;
     ms_apo_chunk chunk;
-    bool keep_chunk = out_path || lookups;
+    bool keep_chunk = out_path || lookups || accuracy_points;
     ms_status st = ms_apo_classic_run(&mesh, &o, keep_chunk ? &chunk : NULL, &r, &err);
+    accuracy acc[2];
+    memset(acc, 0, sizeof acc);
+    if (st == MS_OK && accuracy_points) {
+        ms_apo_view view;
+        st = ms_apo_view_of_chunk(&view, &chunk, &err);
+        if (st == MS_OK)
+            st = measure_accuracy(&view, &mesh, &r, accuracy_points, acc, &err);
+    }
     ms_mesh_free(&mesh);
     ms_mesh_free(&given);
     if (st == MS_OK && save_path && kept.triangle_count)
@@ -255,12 +332,16 @@ int main(int argc, char **argv)
         printf("],\"samples\":%llu,\"ray_hits\":%llu,\"closest_points\":%llu,\"unsampled\":%llu,"
                "\"m_to_M_distance\":%.6g,\"seconds\":%.3f,\"seconds_apo\":%.3f,\"phases\":{\"load\":%.3f,"
                "\"simplify\":%.3f,\"prepare\":%.3f,\"embree_scene\":%.3f,\"distance\":%.3f,\"octree\":%.3f,\"sample\":%.3f,\"encode\":%.3f,"
-               "\"store\":%.3f},\"lookups_per_second\":%.0f,\"peak_rss_mb\":%.1f}\n",
+               "\"store\":%.3f},\"lookups_per_second\":%.0f,\"accuracy\":{\"points\":%zu,"
+               "\"stop\":{\"off_tree\":%zu,\"mean_deg\":%.3f,\"median_deg\":%.3f,\"p90_deg\":%.3f},"
+               "\"nearest\":{\"off_tree\":%zu,\"mean_deg\":%.3f,\"median_deg\":%.3f,\"p90_deg\":%.3f}},"
+               "\"peak_rss_mb\":%.1f}\n",
                (unsigned long long)r.build.samples, (unsigned long long)r.build.ray_hits,
                (unsigned long long)r.build.closest_points, (unsigned long long)r.build.unsampled,
                r.build.m_to_M_distance, r.seconds_total, r.seconds_apo, load_seconds, r.seconds_simplify,
                r.seconds_prepare, r.build.seconds_scene, r.build.seconds_distance, r.seconds_octree, r.seconds_sample, r.seconds_encode, r.seconds_store,
-               lookup_rate, ms_peak_rss_mb());
+               lookup_rate, acc[0].points, acc[0].off_tree, acc[0].mean, acc[0].median, acc[0].p90,
+               acc[1].off_tree, acc[1].mean, acc[1].median, acc[1].p90, ms_peak_rss_mb());
     } else {
         printf("input            %s: %zu triangles, simplified to %zu (%zu refused)\n", in, r.input_triangles,
                r.simplified_triangles, r.refused_faces);
@@ -278,6 +359,11 @@ int main(int argc, char **argv)
                "store %.2f; APO %.2f, total %.2f (without load)\n",
                load_seconds, r.seconds_simplify, r.seconds_prepare, r.seconds_octree, r.seconds_sample,
                r.seconds_encode, r.seconds_store, r.seconds_apo, r.seconds_total);
+        for (int rule = 0; rule < 2 && accuracy_points; ++rule)
+            printf("accuracy %-7s  %zu centroids of M, %zu off the tree: angle to M mean %.2f, median %.2f, "
+                   "p90 %.2f degrees\n",
+                   rule ? "nearest" : "stop", acc[rule].points, acc[rule].off_tree, acc[rule].mean,
+                   acc[rule].median, acc[rule].p90);
         if (lookups)
             printf("lookups          %.3g per second (CPU reference, one thread, random points)\n", lookup_rate);
     }

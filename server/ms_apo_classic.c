@@ -53,6 +53,8 @@ ms_status ms_apo_classic_run(const ms_mesh *M, const ms_apo_classic_options *o, 
     if (!(size > 0.0))
         return ms_error_set(err, MS_ERR_RANGE, "apo classic: the mesh has no extent");
 
+    memcpy(r->cube_origin, lo, sizeof lo);
+    r->cube_size = size;
     double t0 = ms_now_seconds();
     ms_mesh m;
     memset(&m, 0, sizeof m);

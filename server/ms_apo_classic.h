@@ -46,6 +46,8 @@ typedef struct ms_apo_classic_report {
     size_t stored_bytes;           /* the stored chunk (zlib + header) */
     uint32_t levels;
     uint32_t level_texels[MS_APO_MAX_LEVELS];
+    double cube_origin[3];         /* the cube around the model, mesh units */
+    double cube_size;
     uint32_t texture_width;        /* the published 2D layout, for comparison */
     uint32_t texture_height;
     ms_apo_build_stats build;
