@@ -583,7 +583,12 @@ static void sample_block(void *ctx, size_t block)
             double dir[3], n[3];
             interpolated_normal(job->m, t, wb, wc, dir);
             cnt[0]++;
-            if (ray_normal(job->scene, job->big, centre, dir, s, n)) {
+            /* A degenerate m-triangle whose vertices touch no valid face has no
+             * direction: it can only use the closest point, else +z. */
+            bool has_dir = dir[0] != 0.0 || dir[1] != 0.0 || dir[2] != 0.0;
+            if (!has_dir)
+                dir[2] = 1.0;
+            if (has_dir && ray_normal(job->scene, job->big, centre, dir, s, n)) {
                 cnt[1]++;
             } else {
                 if (!closest_done) {

@@ -12,7 +12,8 @@
  *    that triangle, both ways, over [-s, s]; the nearest hit on M (Embree) wins
  *    and contributes M's interpolated vertex normal there. Without a hit, the
  *    closest point of M within s of the centre is used (Embree point query);
- *    without that either, m's own normal (counted as unsampled). The leaf normal
+ *    without that either, m's own normal (counted as unsampled; +z for a
+ *    degenerate m-triangle that has no normal, which casts no ray). The leaf normal
  *    is the normalised sum of its samples. The search half-length is
  *        s = 2 h + (sqrt(3)/2) w
  *    where w is the leaf's width and h estimates m's distance to M (the largest

@@ -261,6 +261,35 @@ static void test_leaf_without_hit_or_nearby_triangle(void **state)
     ms_mesh_free(&big);
 }
 
+/* A degenerate m (a triangle collapsed to a point) has no direction: no ray,
+ * no nearby M, so the documented +z. */
+static void test_degenerate_m_triangle(void **state)
+{
+    (void)state;
+    const double point[1][3][3] = {{{0.3, 0.6, 0.2}, {0.3, 0.6, 0.2}, {0.3, 0.6, 0.2}}};
+    const double far_away[1][3][3] = {{{0.9, 0.9, 0.9}, {1.0, 0.9, 0.9}, {0.9, 1.0, 0.9}}};
+    ms_mesh m, big;
+    triangles(&m, point, 1);
+    triangles(&big, far_away, 1);
+    ms_apo_build_options o;
+    ms_apo_build_options_default(&o);
+    o.init_depth = 4;
+    o.max_depth = 4;
+    o.search_distance = 0.05;
+    ms_apo_tree t;
+    ms_apo_build_stats st;
+    build(&m, &big, &o, &t, &st);
+    assert_int_equal(t.level_count, 5); /* a single chain of cells down to the point */
+    assert_int_equal(t.node_count, 5);
+    assert_int_equal(st.unsampled, 1);
+    const float up[3] = {0, 0, 1};
+    for (size_t i = 0; i < t.node_count; ++i)
+        assert_int_equal(ms_apo_normal_encode(t.nodes[i].normal), ms_apo_normal_encode(up));
+    ms_apo_tree_free(&t);
+    ms_mesh_free(&m);
+    ms_mesh_free(&big);
+}
+
 /* Rays parallel to M (a wall at x = 0.95) never hit; the closest point of the
  * wall is within the search distance: every sample takes the wall's normal. */
 static void test_closest_point_fallback(void **state)
@@ -404,6 +433,7 @@ int main(void)
         cmocka_unit_test(test_same_output_whatever_the_threads),
         cmocka_unit_test(test_measure_density),
         cmocka_unit_test(test_leaf_without_hit_or_nearby_triangle),
+        cmocka_unit_test(test_degenerate_m_triangle),
         cmocka_unit_test(test_closest_point_fallback),
         cmocka_unit_test(test_rays_hit_both_ways),
         cmocka_unit_test(test_empty_and_bad_input),
