@@ -230,9 +230,9 @@ static double variation(const split_job *job, const uint32_t *idx, size_t n)
     return chord2 > 0.0 ? sqrt(chord2) : 0.0;
 }
 
-/* Which children of the cell (centre c, half-width h of the parent) triangle t
- * touches: a bit mask of octants. */
-static uint32_t child_octants(const local_mesh *lm, uint32_t t, const float c[3], float quarter)
+/* Which of the `wanted` children of the cell (centre c; children of half-width
+ * `quarter`) triangle t touches: a bit mask of octants. */
+static uint32_t child_octants(const local_mesh *lm, uint32_t t, const float c[3], float quarter, uint32_t wanted)
 {
     const float *b = &lm->bounds[6 * t];
     /* Octants on the lower / upper side of each axis, as masks (x is bit 2). */
@@ -240,9 +240,11 @@ static uint32_t child_octants(const local_mesh *lm, uint32_t t, const float c[3]
     uint32_t y = (b[1] <= c[1] ? 0x33u : 0u) | (b[4] >= c[1] ? 0xCCu : 0u);
     uint32_t z = (b[2] <= c[2] ? 0x55u : 0u) | (b[5] >= c[2] ? 0xAAu : 0u);
     uint32_t mask = x & y & z;
-    int candidates = __builtin_popcount(mask);
-    if (candidates <= 1)
-        return mask;
+    /* A single candidate needs no test: the triangle touches the parent, and
+     * its bounds lie on one side of every mid-plane. */
+    if (__builtin_popcount(mask) <= 1)
+        return mask & wanted;
+    mask &= wanted;
     const uint32_t *v = &lm->tri[3 * t];
     uint32_t kept = 0;
     for (uint32_t o = 0; o < 8; ++o) {
@@ -292,7 +294,7 @@ static void split_block(void *ctx, size_t block)
         }
         bool ok = true;
         for (uint64_t k = l->m_off[i]; k < l->m_off[i + 1] && ok; ++k) {
-            uint32_t t = l->m_idx[k], mask = child_octants(job->m, t, c, quarter);
+            uint32_t t = l->m_idx[k], mask = child_octants(job->m, t, c, quarter, 0xFFu);
             for (uint32_t o = 0; o < 8 && ok; ++o)
                 if (mask >> o & 1u)
                     ok = u32vec_push(&child_m[o], t);
@@ -302,7 +304,7 @@ static void split_block(void *ctx, size_t block)
             if (child_m[o].n)
                 exist |= 1u << o;
         for (size_t k = 0; k < big_n && ok && exist; ++k) {
-            uint32_t t = big_idx[k], mask = child_octants(job->big, t, c, quarter) & exist;
+            uint32_t t = big_idx[k], mask = child_octants(job->big, t, c, quarter, exist);
             for (uint32_t o = 0; o < 8 && ok; ++o)
                 if (mask >> o & 1u)
                     ok = u32vec_push(&child_big[o], t);
