@@ -165,6 +165,43 @@ static void subdivide(const ms_mesh *in, ms_mesh *out)
     out->triangle_count = 4 * in->triangle_count;
 }
 
+/* A chunk for one cell (the upper octant of the model's cube), as meshbake will
+ * build them: m and M are the whole meshes, only the part in the cube is kept,
+ * and rays near the cube's faces still find M outside it. */
+static void test_cell_chunk(void **state)
+{
+    (void)state;
+    ms_mesh big, m;
+    demo(30, &big);
+    demo(10, &m);
+    ms_apo_build_options o;
+    ms_apo_build_options_default(&o);
+    cube_around(&big, &o);
+    o.cube_size *= 0.5;
+    for (int a = 0; a < 3; ++a)
+        o.cube_origin[a] += o.cube_size;
+    o.max_depth = 6;
+    o.tolerance = 0.05;
+    ms_apo_builder *b;
+    ms_apo_chunk c;
+    ms_apo_build_stats st;
+    assert_int_equal(ms_apo_builder_create(&b, NULL), MS_OK);
+    assert_int_equal(ms_apo_builder_build_chunk(b, &m, &big, &o, &c, &st, NULL), MS_OK);
+    ms_apo_builder_destroy(b);
+    assert_true(c.level_count == 7 && c.texel_count > 1000);
+    assert_int_equal(st.unsampled, 0);
+    assert_true(st.ray_hits > 0.95 * st.samples);
+    ms_apo_view v;
+    ms_apo_tree t;
+    assert_int_equal(ms_apo_view_of_chunk(&v, &c, NULL), MS_OK);
+    assert_int_equal(ms_apo_view_decode(&v, &t, NULL), MS_OK);
+    assert_int_equal(t.node_count, st.internal_nodes + st.leaves);
+    ms_apo_tree_free(&t);
+    ms_apo_chunk_free(&c);
+    ms_mesh_free(&big);
+    ms_mesh_free(&m);
+}
+
 /* The same surface at two densities (4x the triangles): the spread measure gives
  * nearly the same octree, the published measure a much larger one. */
 static void test_measure_density(void **state)
@@ -431,6 +468,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_demo_structure_and_normals),
         cmocka_unit_test(test_same_output_whatever_the_threads),
+        cmocka_unit_test(test_cell_chunk),
         cmocka_unit_test(test_measure_density),
         cmocka_unit_test(test_leaf_without_hit_or_nearby_triangle),
         cmocka_unit_test(test_degenerate_m_triangle),
