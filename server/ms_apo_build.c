@@ -303,7 +303,9 @@ static void split_block(void *ctx, size_t block)
         for (uint32_t o = 0; o < 8; ++o)
             if (child_m[o].n)
                 exist |= 1u << o;
-        for (size_t k = 0; k < big_n && ok && exist; ++k) {
+        /* Children at the maximum depth never decide a split: they need no M list. */
+        bool children_split = depth + 1 < job->o->max_depth;
+        for (size_t k = 0; k < big_n && ok && exist && children_split; ++k) {
             uint32_t t = big_idx[k], mask = child_octants(job->big, t, c, quarter, exist);
             for (uint32_t o = 0; o < 8 && ok; ++o)
                 if (mask >> o & 1u)
@@ -476,7 +478,7 @@ static bool ray_normal(RTCScene scene, const local_mesh *big, const float o[3], 
         rh.ray.dir_y = (float)(sign * dir[1]);
         rh.ray.dir_z = (float)(sign * dir[2]);
         rh.ray.tnear = 0.0f;
-        rh.ray.tfar = s;
+        rh.ray.tfar = best_t < s ? best_t : s; /* the second ray only needs to beat the first */
         rh.ray.mask = UINT32_MAX;
         rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
         rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
