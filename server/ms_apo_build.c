@@ -1,4 +1,5 @@
-/* APO builder: level-by-level adaptive octree around m, Embree sampling of M. */
+/* APO builder: level-by-level adaptive octree around m, then the leaves sampled
+ * from M (ms_apo_sample.c) and the means. */
 #include "ms_apo_build.h"
 
 #include <embree3/rtcore.h>
@@ -7,14 +8,11 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "ms_apo_local_mesh.h"
+#include "ms_apo_sample.h"
 #include "ms_parallel.h"
 #include "ms_progress.h"
 #include "ms_tri_box.h"
-
-/* Plain comparisons (fminf/fmaxf are library calls here, and NaN never
- * reaches them: coordinates are checked finite first). */
-static inline float min_f(float a, float b) { return a < b ? a : b; }
-static inline float max_f(float a, float b) { return a > b ? a : b; }
 
 struct ms_apo_builder {
     RTCDevice device;
@@ -45,98 +43,6 @@ static void u32vec_free(u32vec *a)
 {
     free(a->v);
     memset(a, 0, sizeof *a);
-}
-
-/* ---------------------------------------------------------------- meshes in cube space */
-
-/* A triangle mesh moved into the cube's frame (cube = [0,1]^3), single precision,
- * with per-triangle bounds, unit face normals and areas, and area-weighted vertex
- * normals. */
-typedef struct local_mesh {
-    float *pos;      /* 3 per vertex */
-    uint32_t *tri;   /* 3 per triangle */
-    float *bounds;   /* 6 per triangle: min xyz, max xyz */
-    float *fnormal;  /* 3 per triangle, unit (0 for degenerate) */
-    float *area;     /* per triangle */
-    float *vnormal;  /* 3 per vertex, unit (0 if no valid face) */
-    size_t vertex_count, triangle_count;
-} local_mesh;
-
-static void local_mesh_free(local_mesh *lm)
-{
-    free(lm->pos);
-    free(lm->bounds);
-    free(lm->fnormal);
-    free(lm->area);
-    free(lm->vnormal);
-    memset(lm, 0, sizeof *lm);
-}
-
-static ms_status local_mesh_make(const ms_mesh *mesh, const ms_apo_build_options *o, const char *name,
-                                 local_mesh *lm, ms_error *err)
-{
-    memset(lm, 0, sizeof *lm);
-    size_t nv = mesh->vertex_count, nt = mesh->triangle_count;
-    if (nv > UINT32_MAX || nt > UINT32_MAX / 3)
-        return ms_error_set(err, MS_ERR_ARG, "apo build: %s is too large", name);
-    lm->vertex_count = nv;
-    lm->triangle_count = nt;
-    lm->tri = mesh->triangles;
-    lm->pos = malloc((3 * nv + 1) * sizeof *lm->pos);
-    lm->bounds = malloc((6 * nt + 1) * sizeof *lm->bounds);
-    lm->fnormal = malloc((3 * nt + 1) * sizeof *lm->fnormal);
-    lm->area = malloc((nt + 1) * sizeof *lm->area);
-    double *acc = calloc(3 * nv + 1, sizeof *acc);
-    if (!lm->pos || !lm->bounds || !lm->fnormal || !lm->area || !acc || !(lm->vnormal = malloc((3 * nv + 1) * sizeof(float)))) {
-        free(acc);
-        local_mesh_free(lm);
-        return ms_error_set(err, MS_ERR_NOMEM, "apo build: no memory for %s", name);
-    }
-    double inv = 1.0 / o->cube_size;
-    for (size_t i = 0; i < nv; ++i)
-        for (int a = 0; a < 3; ++a) {
-            double p = mesh->positions[3 * i + a];
-            if (!isfinite(p)) {
-                free(acc);
-                local_mesh_free(lm);
-                return ms_error_set(err, MS_ERR_RANGE, "apo build: %s vertex %zu is not finite", name, i);
-            }
-            lm->pos[3 * i + a] = (float)((p - o->cube_origin[a]) * inv);
-        }
-    for (size_t t = 0; t < nt; ++t) {
-        const uint32_t *v = &mesh->triangles[3 * t];
-        if (v[0] >= nv || v[1] >= nv || v[2] >= nv) {
-            free(acc);
-            local_mesh_free(lm);
-            return ms_error_set(err, MS_ERR_ARG, "apo build: %s triangle %zu has a bad vertex index", name, t);
-        }
-        const float *p0 = &lm->pos[3 * v[0]], *p1 = &lm->pos[3 * v[1]], *p2 = &lm->pos[3 * v[2]];
-        for (int a = 0; a < 3; ++a) {
-            lm->bounds[6 * t + a] = min_f(p0[a], min_f(p1[a], p2[a]));
-            lm->bounds[6 * t + 3 + a] = max_f(p0[a], max_f(p1[a], p2[a]));
-        }
-        double e1[3], e2[3];
-        for (int a = 0; a < 3; ++a) {
-            e1[a] = (double)p1[a] - p0[a];
-            e2[a] = (double)p2[a] - p0[a];
-        }
-        double c[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
-        double len = sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
-        lm->area[t] = (float)(0.5 * len);
-        for (int a = 0; a < 3; ++a) {
-            lm->fnormal[3 * t + a] = len > 0.0 ? (float)(c[a] / len) : 0.0f;
-            for (int k = 0; k < 3; ++k)
-                acc[3 * v[k] + a] += c[a]; /* area-weighted (|c| = 2 area) */
-        }
-    }
-    for (size_t i = 0; i < nv; ++i) {
-        double *s = &acc[3 * i];
-        double len = sqrt(s[0] * s[0] + s[1] * s[1] + s[2] * s[2]);
-        for (int a = 0; a < 3; ++a)
-            lm->vnormal[3 * i + a] = len > 0.0 ? (float)(s[a] / len) : 0.0f;
-    }
-    free(acc);
-    return MS_OK;
 }
 
 /* ---------------------------------------------------------------- octree levels */
@@ -191,7 +97,7 @@ static void split_out_free(split_out *s)
 
 typedef struct split_job {
     const ms_apo_build_options *o;
-    const local_mesh *m, *big;
+    const ms_apo_local_mesh *m, *big;
     build_level *level;
     uint32_t depth;
     size_t block_size;
@@ -200,7 +106,7 @@ typedef struct split_job {
 
 static double variation(const split_job *job, const uint32_t *idx, size_t n)
 {
-    const local_mesh *big = job->big;
+    const ms_apo_local_mesh *big = job->big;
     double s[3] = {0, 0, 0}, weight = 0.0;
     if (job->o->measure == MS_APO_MEASURE_CLASSIC) {
         for (size_t i = 0; i < n; ++i) {
@@ -232,7 +138,7 @@ static double variation(const split_job *job, const uint32_t *idx, size_t n)
 
 /* Which of the `wanted` children of the cell (centre c; children of half-width
  * `quarter`) triangle t touches: a bit mask of octants. */
-static uint32_t child_octants(const local_mesh *lm, uint32_t t, const float c[3], float quarter, uint32_t wanted)
+static uint32_t child_octants(const ms_apo_local_mesh *lm, uint32_t t, const float c[3], float quarter, uint32_t wanted)
 {
     const float *b = &lm->bounds[6 * t];
     /* Octants on the lower / upper side of each axis, as masks (x is bit 2). */
@@ -334,225 +240,17 @@ static void split_block(void *ctx, size_t block)
     }
 }
 
-/* ---------------------------------------------------------------- Embree */
-
-typedef struct closest_query {
-    const local_mesh *big;
-    float point[3];
-    double best_d2;
-    uint32_t best_prim;
-    float best_uv[2];
-} closest_query;
-
-/* Closest point of triangle (a, b, c) to p, as barycentric weights of b and c. */
-static double closest_on_triangle(const float p[3], const float a[3], const float b[3], const float c[3],
-                                  float *wb, float *wc)
-{
-    double ab[3], ac[3], ap[3];
-    for (int k = 0; k < 3; ++k) {
-        ab[k] = (double)b[k] - a[k];
-        ac[k] = (double)c[k] - a[k];
-        ap[k] = (double)p[k] - a[k];
-    }
-#define DOT(u, v) ((u)[0] * (v)[0] + (u)[1] * (v)[1] + (u)[2] * (v)[2])
-    double d1 = DOT(ab, ap), d2 = DOT(ac, ap);
-    double v, w;
-    if (d1 <= 0 && d2 <= 0) {
-        v = 0;
-        w = 0;
-    } else {
-        double bp[3], cp[3];
-        for (int k = 0; k < 3; ++k) {
-            bp[k] = (double)p[k] - b[k];
-            cp[k] = (double)p[k] - c[k];
-        }
-        double d3 = DOT(ab, bp), d4 = DOT(ac, bp), d5 = DOT(ab, cp), d6 = DOT(ac, cp);
-        double vc = d1 * d4 - d3 * d2, vb = d5 * d2 - d1 * d6, va = d3 * d6 - d5 * d4;
-        if (d3 >= 0 && d4 <= d3) {
-            v = 1;
-            w = 0;
-        } else if (d6 >= 0 && d5 <= d6) {
-            v = 0;
-            w = 1;
-        } else if (vc <= 0 && d1 >= 0 && d3 <= 0) {
-            v = d1 / (d1 - d3);
-            w = 0;
-        } else if (vb <= 0 && d2 >= 0 && d6 <= 0) {
-            v = 0;
-            w = d2 / (d2 - d6);
-        } else if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
-            w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-            v = 1 - w;
-        } else {
-            double sum = va + vb + vc;
-            if (!(sum > 0)) { /* degenerate triangle: fall back to vertex a */
-                v = 0;
-                w = 0;
-            } else {
-                v = vb / sum;
-                w = vc / sum;
-            }
-        }
-    }
-#undef DOT
-    double d2sum = 0;
-    for (int k = 0; k < 3; ++k) {
-        double q = a[k] + v * ab[k] + w * ac[k] - p[k];
-        d2sum += q * q;
-    }
-    *wb = (float)v;
-    *wc = (float)w;
-    return d2sum;
-}
-
-static bool closest_callback(struct RTCPointQueryFunctionArguments *args)
-{
-    closest_query *q = args->userPtr;
-    uint32_t prim = args->primID;
-    const uint32_t *v = &q->big->tri[3 * prim];
-    const float *pos = q->big->pos;
-    float wb, wc;
-    double d2 = closest_on_triangle(q->point, &pos[3 * v[0]], &pos[3 * v[1]], &pos[3 * v[2]], &wb, &wc);
-    double r = args->query->radius;
-    if (d2 > r * r)
-        return false;
-    if (d2 < q->best_d2 || (d2 == q->best_d2 && prim < q->best_prim)) {
-        q->best_d2 = d2;
-        q->best_prim = prim;
-        q->best_uv[0] = wb;
-        q->best_uv[1] = wc;
-        args->query->radius = (float)sqrt(d2);
-        return true;
-    }
-    return false;
-}
-
-/* Interpolated vertex normal of `lm` at barycentric (1-u-v, u, v) of triangle t;
- * the face normal where the vertex normals cancel. */
-static void interpolated_normal(const local_mesh *lm, uint32_t t, float u, float v, double out[3])
-{
-    const uint32_t *i = &lm->tri[3 * t];
-    double w0 = 1.0 - u - v, len2 = 0;
-    for (int a = 0; a < 3; ++a) {
-        out[a] = w0 * lm->vnormal[3 * i[0] + a] + u * lm->vnormal[3 * i[1] + a] + v * lm->vnormal[3 * i[2] + a];
-        len2 += out[a] * out[a];
-    }
-    if (len2 > 1e-24) {
-        double len = sqrt(len2);
-        for (int a = 0; a < 3; ++a)
-            out[a] /= len;
-    } else {
-        for (int a = 0; a < 3; ++a)
-            out[a] = lm->fnormal[3 * t + a];
-    }
-}
-
-/* Closest point of M to p within radius: true and its normal, or false. */
-static bool closest_normal(RTCScene scene, const local_mesh *big, const float p[3], float radius, double n[3])
-{
-    closest_query q = {.big = big, .best_d2 = INFINITY, .best_prim = UINT32_MAX};
-    memcpy(q.point, p, sizeof q.point);
-    struct RTCPointQuery query = {.x = p[0], .y = p[1], .z = p[2], .time = 0.0f, .radius = radius};
-    struct RTCPointQueryContext ctx;
-    rtcInitPointQueryContext(&ctx);
-    rtcPointQuery(scene, &query, &ctx, closest_callback, &q);
-    if (q.best_prim == UINT32_MAX)
-        return false;
-    interpolated_normal(big, q.best_prim, q.best_uv[0], q.best_uv[1], n);
-    return true;
-}
-
-/* Nearest hit along +dir or -dir within [0, s]; +dir wins ties. */
-static bool ray_normal(RTCScene scene, const local_mesh *big, const float o[3], const double dir[3], float s,
-                       double n[3])
-{
-    float best_t = INFINITY, best_u = 0, best_v = 0;
-    uint32_t best_prim = UINT32_MAX;
-    for (int sign = 1; sign >= -1; sign -= 2) {
-        struct RTCRayHit rh;
-        memset(&rh, 0, sizeof rh);
-        rh.ray.org_x = o[0];
-        rh.ray.org_y = o[1];
-        rh.ray.org_z = o[2];
-        rh.ray.dir_x = (float)(sign * dir[0]);
-        rh.ray.dir_y = (float)(sign * dir[1]);
-        rh.ray.dir_z = (float)(sign * dir[2]);
-        rh.ray.tnear = 0.0f;
-        rh.ray.tfar = best_t < s ? best_t : s; /* the second ray only needs to beat the first */
-        rh.ray.mask = UINT32_MAX;
-        rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-        rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
-        struct RTCIntersectContext ctx;
-        rtcInitIntersectContext(&ctx);
-        rtcIntersect1(scene, &ctx, &rh);
-        if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID && rh.ray.tfar < best_t) {
-            best_t = rh.ray.tfar;
-            best_u = rh.hit.u;
-            best_v = rh.hit.v;
-            best_prim = rh.hit.primID;
-        }
-    }
-    if (best_prim == UINT32_MAX)
-        return false;
-    interpolated_normal(big, best_prim, best_u, best_v, n);
-    return true;
-}
-
-static ms_status make_scene(RTCDevice device, const local_mesh *big, RTCScene *out, ms_error *err)
-{
-    *out = NULL;
-    RTCScene scene = rtcNewScene(device);
-    RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
-    if (!scene || !g) {
-        if (scene)
-            rtcReleaseScene(scene);
-        if (g)
-            rtcReleaseGeometry(g);
-        return ms_error_set(err, MS_ERR_UNSUPPORTED, "apo build: Embree could not create a scene");
-    }
-    size_t nv = big->vertex_count ? big->vertex_count : 1, nt = big->triangle_count;
-    float *vb = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), nv);
-    unsigned *ib = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned),
-                                           nt ? nt : 1);
-    if (!vb || !ib) {
-        rtcReleaseGeometry(g);
-        rtcReleaseScene(scene);
-        return ms_error_set(err, MS_ERR_NOMEM, "apo build: Embree buffers for %zu triangles", nt);
-    }
-    if (big->vertex_count)
-        memcpy(vb, big->pos, 3 * big->vertex_count * sizeof(float));
-    else
-        memset(vb, 0, 3 * sizeof(float));
-    if (nt)
-        memcpy(ib, big->tri, 3 * nt * sizeof(unsigned));
-    else
-        memset(ib, 0, 3 * sizeof(unsigned)); /* one degenerate triangle: never hit */
-    /* A few million rays per build: a fast (Morton) BVH build beats a better BVH. */
-    rtcSetGeometryBuildQuality(g, RTC_BUILD_QUALITY_LOW);
-    rtcSetSceneBuildQuality(scene, RTC_BUILD_QUALITY_LOW);
-    rtcCommitGeometry(g);
-    rtcAttachGeometry(scene, g);
-    rtcReleaseGeometry(g);
-    rtcCommitScene(scene);
-    if (rtcGetDeviceError(device) != RTC_ERROR_NONE) {
-        rtcReleaseScene(scene);
-        return ms_error_set(err, MS_ERR_UNSUPPORTED, "apo build: Embree failed to build the scene");
-    }
-    *out = scene;
-    return MS_OK;
-}
-
 /* ---------------------------------------------------------------- sampling */
 
 typedef struct sample_job {
     const ms_apo_build_options *o;
-    const local_mesh *m, *big;
-    RTCScene scene;
+    const ms_apo_local_mesh *m;
+    const ms_apo_sampler *sampler;
     ms_apo_tree *tree;
     const build_level *levels;
-    double h;                 /* m-to-M distance estimate */
+    double h;                      /* m-to-M distance estimate */
     size_t block_size;
-    uint64_t (*counts)[4];    /* per block: samples, hits, closest, unsampled */
+    ms_apo_sample_counts *counts;  /* per block */
 } sample_job;
 
 static void sample_block(void *ctx, size_t block)
@@ -562,7 +260,6 @@ static void sample_block(void *ctx, size_t block)
     size_t first = block * job->block_size, last = first + job->block_size;
     if (last > tree->node_count)
         last = tree->node_count;
-    uint64_t *cnt = job->counts[block];
     for (size_t i = first; i < last; ++i) {
         ms_apo_node *node = &tree->nodes[i];
         if (node->child_mask)
@@ -575,83 +272,9 @@ static void sample_block(void *ctx, size_t block)
             centre[a] = ((float)node->cell[a] + 0.5f) * width;
         float s = job->o->search_distance > 0 ? (float)job->o->search_distance
                                                : (float)(2.0 * job->h + 0.8660254037844386 * width);
-        double sum[3] = {0, 0, 0}, first_sample[3] = {0, 0, 1};
-        bool have_closest = false, closest_done = false;
-        double closest[3] = {0, 0, 0};
-        for (uint64_t k = l->m_off[li]; k < l->m_off[li + 1]; ++k) {
-            uint32_t t = l->m_idx[k];
-            const uint32_t *v = &job->m->tri[3 * t];
-            const float *pos = job->m->pos;
-            float wb, wc;
-            closest_on_triangle(centre, &pos[3 * v[0]], &pos[3 * v[1]], &pos[3 * v[2]], &wb, &wc);
-            double dir[3], n[3];
-            interpolated_normal(job->m, t, wb, wc, dir);
-            cnt[0]++;
-            /* A degenerate m-triangle whose vertices touch no valid face has no
-             * direction: it can only use the closest point, else +z. */
-            bool has_dir = dir[0] != 0.0 || dir[1] != 0.0 || dir[2] != 0.0;
-            if (!has_dir)
-                dir[2] = 1.0;
-            if (has_dir && ray_normal(job->scene, job->big, centre, dir, s, n)) {
-                cnt[1]++;
-            } else {
-                if (!closest_done) {
-                    have_closest = closest_normal(job->scene, job->big, centre, s, closest);
-                    closest_done = true;
-                }
-                if (have_closest) {
-                    cnt[2]++;
-                    memcpy(n, closest, sizeof n);
-                } else {
-                    cnt[3]++;
-                    memcpy(n, dir, sizeof n);
-                }
-            }
-            if (k == l->m_off[li])
-                memcpy(first_sample, n, sizeof n);
-            for (int a = 0; a < 3; ++a)
-                sum[a] += n[a];
-        }
-        double len = sqrt(sum[0] * sum[0] + sum[1] * sum[1] + sum[2] * sum[2]);
-        for (int a = 0; a < 3; ++a)
-            node->normal[a] = (float)(len > 1e-12 ? sum[a] / len : first_sample[a]);
+        ms_apo_sample_leaf(job->sampler, job->m, &l->m_idx[l->m_off[li]], (size_t)(l->m_off[li + 1] - l->m_off[li]),
+                           centre, s, node->normal, &job->counts[block]);
     }
-}
-
-/* h: the largest distance from m's vertices and face centroids to M. */
-typedef struct distance_job {
-    const local_mesh *m, *big;
-    RTCScene scene;
-    size_t block_size, points;
-    double *block_max;
-} distance_job;
-
-static void distance_block(void *ctx, size_t block)
-{
-    distance_job *job = ctx;
-    size_t first = block * job->block_size, last = first + job->block_size;
-    if (last > job->points)
-        last = job->points;
-    double worst = 0.0;
-    for (size_t i = first; i < last; ++i) {
-        float p[3];
-        if (i < job->m->vertex_count) {
-            memcpy(p, &job->m->pos[3 * i], sizeof p);
-        } else {
-            const uint32_t *v = &job->m->tri[3 * (i - job->m->vertex_count)];
-            for (int a = 0; a < 3; ++a)
-                p[a] = (job->m->pos[3 * v[0] + a] + job->m->pos[3 * v[1] + a] + job->m->pos[3 * v[2] + a]) / 3.0f;
-        }
-        closest_query q = {.big = job->big, .best_d2 = INFINITY, .best_prim = UINT32_MAX};
-        memcpy(q.point, p, sizeof p);
-        struct RTCPointQuery query = {.x = p[0], .y = p[1], .z = p[2], .time = 0.0f, .radius = INFINITY};
-        struct RTCPointQueryContext pctx;
-        rtcInitPointQueryContext(&pctx);
-        rtcPointQuery(job->scene, &query, &pctx, closest_callback, &q);
-        if (q.best_prim != UINT32_MAX && sqrt(q.best_d2) > worst)
-            worst = sqrt(q.best_d2);
-    }
-    job->block_max[block] = worst;
 }
 
 /* ---------------------------------------------------------------- driver */
@@ -699,8 +322,8 @@ static size_t block_size_for(size_t count, size_t max_blocks, size_t min_size)
 }
 
 /* Splits level `d` into level d+1 (possibly empty). */
-static ms_status split_level(const ms_apo_build_options *o, unsigned threads, const local_mesh *m,
-                             const local_mesh *big, build_level *l, uint32_t d, build_level *next, ms_error *err)
+static ms_status split_level(const ms_apo_build_options *o, unsigned threads, const ms_apo_local_mesh *m,
+                             const ms_apo_local_mesh *big, build_level *l, uint32_t d, build_level *next, ms_error *err)
 {
     memset(next, 0, sizeof *next);
     size_t bs = block_size_for(l->count, SPLIT_BLOCKS_MAX, SPLIT_BLOCK_MIN);
@@ -777,16 +400,17 @@ ms_status ms_apo_builder_build_tree(ms_apo_builder *builder, const ms_mesh *m_me
                             o->cube_size, o->max_depth, o->tolerance);
     unsigned threads = o->threads ? o->threads : ms_parallel_cores();
     double t0 = ms_now_seconds();
-    local_mesh m, big;
-    ms_status st = local_mesh_make(m_mesh, o, "m", &m, err);
+    ms_apo_local_mesh m, big;
+    ms_status st = ms_apo_local_mesh_make(m_mesh, o->cube_origin, o->cube_size, "m", &m, err);
     if (st != MS_OK)
         return st;
-    st = local_mesh_make(big_mesh, o, "M", &big, err);
+    st = ms_apo_local_mesh_make(big_mesh, o->cube_origin, o->cube_size, "M", &big, err);
     if (st != MS_OK) {
-        local_mesh_free(&m);
+        ms_apo_local_mesh_free(&m);
         return st;
     }
-    RTCScene scene = NULL;
+    ms_apo_sampler sampler;
+    memset(&sampler, 0, sizeof sampler);
     build_level levels[MS_APO_MAX_LEVELS];
     memset(levels, 0, sizeof levels);
     uint32_t level_count = 0;
@@ -833,25 +457,11 @@ ms_status ms_apo_builder_build_tree(ms_apo_builder *builder, const ms_mesh *m_me
     /* Embree scene for M, and h. */
     double ts = ms_now_seconds();
     if (st == MS_OK && level_count)
-        st = make_scene(builder->device, &big, &scene, err);
+        st = ms_apo_sampler_init(&sampler, builder->device, &big, err);
     double td = ms_now_seconds();
     stats->seconds_scene = td - ts;
-    if (st == MS_OK && level_count && o->search_distance <= 0 && big.triangle_count) {
-        size_t points = m.vertex_count + m.triangle_count;
-        size_t bs = block_size_for(points, 256, 256), blocks = (points + bs - 1) / bs;
-        double *block_max = calloc(blocks + 1, sizeof *block_max);
-        if (!block_max) {
-            st = ms_error_set(err, MS_ERR_NOMEM, "apo build: no memory");
-        } else {
-            distance_job dj = {.m = &m, .big = &big, .scene = scene, .block_size = bs, .points = points,
-                               .block_max = block_max};
-            st = ms_parallel_for(threads, blocks, distance_block, &dj, err);
-            for (size_t b = 0; b < blocks; ++b)
-                if (block_max[b] > stats->m_to_M_distance)
-                    stats->m_to_M_distance = block_max[b];
-            free(block_max);
-        }
-    }
+    if (st == MS_OK && level_count && o->search_distance <= 0)
+        st = ms_apo_sampler_distance(&sampler, &m, threads, &stats->m_to_M_distance, err);
     double t1 = ms_now_seconds();
     stats->seconds_distance = t1 - td;
     stats->seconds_prepare = t1 - t0;
@@ -901,18 +511,18 @@ ms_status ms_apo_builder_build_tree(ms_apo_builder *builder, const ms_mesh *m_me
     if (st == MS_OK && tree->node_count) {
         size_t bs = block_size_for(tree->node_count, 1024, 256);
         size_t blocks = (tree->node_count + bs - 1) / bs;
-        uint64_t (*counts)[4] = calloc(blocks, sizeof *counts);
+        ms_apo_sample_counts *counts = calloc(blocks, sizeof *counts);
         if (!counts) {
             st = ms_error_set(err, MS_ERR_NOMEM, "apo build: no memory");
         } else {
-            sample_job sj = {.o = o, .m = &m, .big = &big, .scene = scene, .tree = tree, .levels = levels,
+            sample_job sj = {.o = o, .m = &m, .sampler = &sampler, .tree = tree, .levels = levels,
                              .h = stats->m_to_M_distance, .block_size = bs, .counts = counts};
             st = ms_parallel_for(threads, blocks, sample_block, &sj, err);
             for (size_t b = 0; b < blocks; ++b) {
-                stats->samples += counts[b][0];
-                stats->ray_hits += counts[b][1];
-                stats->closest_points += counts[b][2];
-                stats->unsampled += counts[b][3];
+                stats->samples += counts[b].samples;
+                stats->ray_hits += counts[b].ray_hits;
+                stats->closest_points += counts[b].closest_points;
+                stats->unsampled += counts[b].unsampled;
             }
             free(counts);
             ms_apo_tree_average_normals(tree);
@@ -927,10 +537,9 @@ ms_status ms_apo_builder_build_tree(ms_apo_builder *builder, const ms_mesh *m_me
     }
     for (uint32_t d = 0; d < MS_APO_MAX_LEVELS; ++d)
         build_level_free(&levels[d]);
-    if (scene)
-        rtcReleaseScene(scene);
-    local_mesh_free(&m);
-    local_mesh_free(&big);
+    ms_apo_sampler_release(&sampler);
+    ms_apo_local_mesh_free(&m);
+    ms_apo_local_mesh_free(&big);
     return st;
 }
 
