@@ -61,10 +61,19 @@ static inline uint32_t ms_apo_node_words(bool internal) { return internal ? 2u :
 /* Position of child `octant` inside its sibling block, in words: the stored
  * siblings below it, internal ones counted twice. This is the bitCount rule the
  * shader uses. */
+/* Set bits of an 8-bit mask (plain arithmetic: no popcnt instruction assumed). */
+static inline uint32_t ms_apo_popcount8(uint32_t x)
+{
+    x &= 0xFFu;
+    x = x - ((x >> 1) & 0x55u);
+    x = (x & 0x33u) + ((x >> 2) & 0x33u);
+    return (x + (x >> 4)) & 0x0Fu;
+}
+
 static inline uint32_t ms_apo_sibling_words_below(uint32_t exist, uint32_t kind, uint32_t octant)
 {
     uint32_t below = (1u << octant) - 1u;
-    return (uint32_t)__builtin_popcount(exist & below) + (uint32_t)__builtin_popcount(exist & kind & below);
+    return ms_apo_popcount8(exist & below) + ms_apo_popcount8(exist & kind & below);
 }
 
 /* Encodes a direction (need not be unit length; the zero vector and non-finite

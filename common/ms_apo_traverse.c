@@ -42,7 +42,7 @@ static uint32_t nearest_existing_child(uint32_t exist, uint32_t octant, uint32_t
         for (int a = 0; a < 3; ++a)
             if (diff >> (2 - a) & 1u && dist[a] > cost)
                 cost = dist[a];
-        uint32_t axes = (uint32_t)__builtin_popcount(diff);
+        uint32_t axes = ms_apo_popcount8(diff);
         if (best == 8 || cost < best_cost || (cost == best_cost && axes < best_axes)) {
             best = o;
             best_cost = cost;

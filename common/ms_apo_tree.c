@@ -66,7 +66,7 @@ void ms_apo_tree_average_normals(ms_apo_tree *tree)
         if (!n->child_mask)
             continue;
         double s[3] = {0, 0, 0};
-        uint32_t count = (uint32_t)__builtin_popcount(n->child_mask);
+        uint32_t count = ms_apo_popcount8(n->child_mask);
         for (uint32_t k = 0; k < count; ++k)
             for (int a = 0; a < 3; ++a)
                 s[a] += tree->nodes[n->first_child + k].normal[a];

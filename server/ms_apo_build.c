@@ -148,7 +148,7 @@ static uint32_t child_octants(const ms_apo_local_mesh *lm, uint32_t t, const flo
     uint32_t mask = x & y & z;
     /* A single candidate needs no test: the triangle touches the parent, and
      * its bounds lie on one side of every mid-plane. */
-    if (__builtin_popcount(mask) <= 1)
+    if ((mask & (mask - 1u)) == 0)
         return mask & wanted;
     mask &= wanted;
     const uint32_t *v = &lm->tri[3 * t];
@@ -495,7 +495,7 @@ ms_status ms_apo_builder_build_tree(ms_apo_builder *builder, const ms_mesh *m_me
                     n->child_mask = levels[d].child_mask ? levels[d].child_mask[i] : 0;
                     if (n->child_mask) {
                         n->first_child = (uint32_t)child;
-                        child += (size_t)__builtin_popcount(n->child_mask);
+                        child += (size_t)ms_apo_popcount8(n->child_mask);
                     }
                 }
             }
