@@ -165,6 +165,64 @@ static void subdivide(const ms_mesh *in, ms_mesh *out)
     out->triangle_count = 4 * in->triangle_count;
 }
 
+static void transform(ms_mesh *mesh, double scale, const double offset[3])
+{
+    for (size_t i = 0; i < mesh->vertex_count; ++i)
+        for (int a = 0; a < 3; ++a)
+            mesh->positions[3 * i + a] = mesh->positions[3 * i + a] * scale + offset[a];
+}
+
+static void build_words(const ms_mesh *m, const ms_mesh *big, const ms_apo_build_options *o, ms_apo_chunk *c)
+{
+    ms_apo_builder *b;
+    assert_int_equal(ms_apo_builder_create(&b, NULL), MS_OK);
+    assert_int_equal(ms_apo_builder_build_chunk(b, m, big, o, c, NULL, NULL), MS_OK);
+    ms_apo_builder_destroy(b);
+}
+
+/* Tiny extents and huge offsets: a power-of-two scale changes nothing at all
+ * (every step is exact); an offset of ten million units changes almost nothing
+ * (the cube frame is computed in double precision before going to float). */
+static void test_tiny_extent_and_huge_offset(void **state)
+{
+    (void)state;
+    ms_mesh big, m;
+    demo(20, &big);
+    demo(6, &m);
+    ms_apo_build_options o;
+    ms_apo_build_options_default(&o);
+    cube_around(&big, &o);
+    o.max_depth = 7;
+    o.tolerance = 0.1;
+    ms_apo_chunk ref, tiny, far;
+    build_words(&m, &big, &o, &ref);
+    const double zero[3] = {0, 0, 0}, shift[3] = {1e7, -3e6, 5e5};
+    double scale = ldexp(1.0, -20);
+    transform(&big, scale, zero);
+    transform(&m, scale, zero);
+    ms_apo_build_options ot = o;
+    ot.cube_size *= scale;
+    for (int a = 0; a < 3; ++a)
+        ot.cube_origin[a] *= scale;
+    build_words(&m, &big, &ot, &tiny);
+    assert_int_equal(tiny.texel_count, ref.texel_count);
+    assert_memory_equal(tiny.texels, ref.texels, 4 * ref.texel_count);
+    transform(&big, 1.0 / scale, shift);
+    transform(&m, 1.0 / scale, shift);
+    ms_apo_build_options of = o;
+    for (int a = 0; a < 3; ++a)
+        of.cube_origin[a] += shift[a];
+    build_words(&m, &big, &of, &far);
+    double ratio = (double)far.texel_count / (double)ref.texel_count;
+    print_message("offset 1e7: %zu words against %zu\n", far.texel_count, ref.texel_count);
+    assert_true(ratio > 0.995 && ratio < 1.005);
+    ms_apo_chunk_free(&ref);
+    ms_apo_chunk_free(&tiny);
+    ms_apo_chunk_free(&far);
+    ms_mesh_free(&big);
+    ms_mesh_free(&m);
+}
+
 /* A chunk for one cell (the upper octant of the model's cube), as meshbake will
  * build them: m and M are the whole meshes, only the part in the cube is kept,
  * and rays near the cube's faces still find M outside it. */
@@ -469,6 +527,7 @@ int main(void)
         cmocka_unit_test(test_demo_structure_and_normals),
         cmocka_unit_test(test_same_output_whatever_the_threads),
         cmocka_unit_test(test_cell_chunk),
+        cmocka_unit_test(test_tiny_extent_and_huge_offset),
         cmocka_unit_test(test_measure_density),
         cmocka_unit_test(test_leaf_without_hit_or_nearby_triangle),
         cmocka_unit_test(test_degenerate_m_triangle),
