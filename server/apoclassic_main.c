@@ -141,6 +141,21 @@ static ms_status measure_accuracy(const ms_apo_view *view, const ms_mesh *M, con
     return MS_OK;
 }
 
+/* s as a JSON string (quotes, backslashes and control characters escaped). */
+static void print_json_string(const char *s)
+{
+    putchar('"');
+    for (const unsigned char *c = (const unsigned char *)s; *c; ++c) {
+        if (*c == '"' || *c == '\\')
+            printf("\\%c", *c);
+        else if (*c < 0x20)
+            printf("\\u%04x", *c);
+        else
+            putchar(*c);
+    }
+    putchar('"');
+}
+
 /* CPU seconds (user + system, all threads) used by this process so far. */
 static double cpu_seconds(void)
 {
@@ -332,28 +347,37 @@ int main(int argc, char **argv)
         ms_apo_chunk_free(&chunk);
     const char *measure = o.measure == MS_APO_MEASURE_CLASSIC ? "classic" : "spread";
     if (json) {
-        printf("{\"input\":\"%s\",\"input_triangles\":%zu,\"simplified_triangles\":%zu,\"refused_faces\":%zu,"
+        printf("{\"input\":");
+        print_json_string(in);
+        printf(",\"input_triangles\":%zu,\"simplified_triangles\":%zu,\"refused_faces\":%zu,"
                "\"tolerance\":%g,\"measure\":\"%s\",\"init_depth\":%u,\"max_depth\":%u,"
                "\"internal_nodes\":%zu,\"leaves\":%zu,\"cells\":%zu,\"texels\":%zu,\"bytes\":%zu,"
                "\"stored_bytes\":%zu,\"levels\":%u,\"texture\":[%u,%u],\"level_texels\":[",
-               in, r.input_triangles, r.simplified_triangles, r.refused_faces, o.tolerance, measure, o.init_depth,
+               r.input_triangles, r.simplified_triangles, r.refused_faces, o.tolerance, measure, o.init_depth,
                o.max_depth, r.internal_nodes, r.leaves, r.internal_nodes + r.leaves, r.texels, r.bytes,
                r.stored_bytes, r.levels, r.texture_width, r.texture_height);
         for (uint32_t d = 0; d < r.levels; ++d)
             printf("%s%u", d ? "," : "", r.level_texels[d]);
         printf("],\"samples\":%llu,\"ray_hits\":%llu,\"closest_points\":%llu,\"unsampled\":%llu,"
-               "\"m_to_M_distance\":%.6g,\"cpu_seconds\":%.3f,\"seconds\":%.3f,\"seconds_apo\":%.3f,\"phases\":{\"load\":%.3f,"
-               "\"simplify\":%.3f,\"prepare\":%.3f,\"embree_scene\":%.3f,\"distance\":%.3f,\"octree\":%.3f,\"sample\":%.3f,\"encode\":%.3f,"
-               "\"store\":%.3f},\"lookups_per_second\":%.0f,\"accuracy\":{\"points\":%zu,"
-               "\"stop\":{\"off_tree\":%zu,\"mean_deg\":%.3f,\"median_deg\":%.3f,\"p90_deg\":%.3f},"
-               "\"nearest\":{\"off_tree\":%zu,\"mean_deg\":%.3f,\"median_deg\":%.3f,\"p90_deg\":%.3f}},"
-               "\"peak_rss_mb\":%.1f}\n",
+               "\"m_to_M_distance\":%.6g,\"cpu_seconds\":%.3f,\"seconds\":%.3f,\"seconds_apo\":%.3f,",
                (unsigned long long)r.build.samples, (unsigned long long)r.build.ray_hits,
                (unsigned long long)r.build.closest_points, (unsigned long long)r.build.unsampled,
-               r.build.m_to_M_distance, run_cpu, r.seconds_total, r.seconds_apo, load_seconds, r.seconds_simplify,
-               r.seconds_prepare, r.build.seconds_scene, r.build.seconds_distance, r.seconds_octree, r.seconds_sample, r.seconds_encode, r.seconds_store,
-               lookup_rate, acc[0].points, acc[0].off_tree, acc[0].mean, acc[0].median, acc[0].p90,
-               acc[1].off_tree, acc[1].mean, acc[1].median, acc[1].p90, ms_peak_rss_mb());
+               r.build.m_to_M_distance, run_cpu, r.seconds_total, r.seconds_apo);
+        printf("\"phases\":{\"load\":%.3f,\"simplify\":%.3f,\"prepare\":%.3f,\"embree_scene\":%.3f,"
+               "\"distance\":%.3f,\"octree\":%.3f,\"sample\":%.3f,\"encode\":%.3f,\"store\":%.3f},",
+               load_seconds, r.seconds_simplify, r.seconds_prepare, r.build.seconds_scene, r.build.seconds_distance,
+               r.seconds_octree, r.seconds_sample, r.seconds_encode, r.seconds_store);
+        if (lookups)
+            printf("\"lookups_per_second\":%.0f,", lookup_rate);
+        if (accuracy_points) {
+            printf("\"accuracy\":{\"points\":%zu", acc[0].points);
+            for (int rule = 0; rule < 2; ++rule)
+                printf(",\"%s\":{\"off_tree\":%zu,\"mean_deg\":%.3f,\"median_deg\":%.3f,\"p90_deg\":%.3f}",
+                       rule ? "nearest" : "stop", acc[rule].off_tree, acc[rule].mean, acc[rule].median,
+                       acc[rule].p90);
+            printf("},");
+        }
+        printf("\"peak_rss_mb\":%.1f}\n", ms_peak_rss_mb());
     } else {
         printf("input            %s: %zu triangles, simplified to %zu (%zu refused)\n", in, r.input_triangles,
                r.simplified_triangles, r.refused_faces);
