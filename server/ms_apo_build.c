@@ -136,6 +136,16 @@ static double variation(const split_job *job, const uint32_t *idx, size_t n)
     return chord2 > 0.0 ? sqrt(chord2) : 0.0;
 }
 
+/* The split rule for a node at `depth` touching the M-triangles idx[0..n). */
+static bool splits(const split_job *job, uint32_t depth, const uint32_t *idx, size_t n)
+{
+    if (depth >= job->o->max_depth)
+        return false;
+    if (depth < job->o->init_depth)
+        return true;
+    return n > 0 && variation(job, idx, n) > job->o->tolerance;
+}
+
 /* Which of the `wanted` children of the cell (centre c; children of half-width
  * `quarter`) triangle t touches: a bit mask of octants. */
 static uint32_t child_octants(const ms_apo_local_mesh *lm, uint32_t t, const float c[3], float quarter, uint32_t wanted)
@@ -181,14 +191,7 @@ static void split_block(void *ctx, size_t block)
         l->child_mask[i] = 0;
         const uint32_t *big_idx = &l->big_idx[l->big_off[i]];
         size_t big_n = (size_t)(l->big_off[i + 1] - l->big_off[i]);
-        bool split;
-        if (depth >= job->o->max_depth)
-            split = false;
-        else if (depth < job->o->init_depth)
-            split = true;
-        else
-            split = big_n > 0 && variation(job, big_idx, big_n) > job->o->tolerance;
-        if (!split)
+        if (!splits(job, depth, big_idx, big_n))
             continue;
         const uint32_t *cell = &l->cell[3 * i];
         float c[3];
@@ -220,14 +223,17 @@ static void split_block(void *ctx, size_t block)
         for (uint32_t o = 0; o < 8 && ok; ++o) {
             if (!(exist >> o & 1u))
                 continue;
+            /* A child that will not split needs no M list: with an empty list
+             * the rule above gives it the same answer (no split). */
+            size_t big_keep = splits(job, depth + 1, child_big[o].v, child_big[o].n) ? child_big[o].n : 0;
             ok = u32vec_push(&out->cells, 2 * cell[0] + (o >> 2 & 1u)) &&
                  u32vec_push(&out->cells, 2 * cell[1] + (o >> 1 & 1u)) &&
                  u32vec_push(&out->cells, 2 * cell[2] + (o & 1u)) &&
                  u32vec_push(&out->m_count, (uint32_t)child_m[o].n) &&
-                 u32vec_push(&out->big_count, (uint32_t)child_big[o].n);
+                 u32vec_push(&out->big_count, (uint32_t)big_keep);
             for (size_t k = 0; k < child_m[o].n && ok; ++k)
                 ok = u32vec_push(&out->m_idx, child_m[o].v[k]);
-            for (size_t k = 0; k < child_big[o].n && ok; ++k)
+            for (size_t k = 0; k < big_keep && ok; ++k)
                 ok = u32vec_push(&out->big_idx, child_big[o].v[k]);
         }
         if (!ok)
