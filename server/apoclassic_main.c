@@ -11,11 +11,13 @@
 
 #include "ms_apo_blob.h"
 #include "ms_apo_classic.h"
+#include "ms_apo_render.h"
 #include "ms_apo_traverse.h"
 #include "ms_demo_model.h"
 #include "ms_error.h"
 #include "ms_mesh.h"
 #include "ms_mesh_io.h"
+#include "ms_png.h"
 #include "ms_progress.h"
 
 static void usage(FILE *out)
@@ -35,6 +37,7 @@ static void usage(FILE *out)
           "  --apo-search S         fixed ray search half-length in cube units [automatic]\n"
           "  --simplified FILE      use FILE as the simplified mesh (no simplification)\n"
           "  --save-simplified FILE write the simplified mesh to FILE (binary PLY)\n"
+          "  --png FILE             write a 1024x1024 picture of the APO seen along -z\n"
           "  --bench-lookups N      time N CPU reference lookups at random points\n"
           "  --bench-accuracy N     angle between the looked-up normal and M's face normal\n"
           "                         at N centroids of M, for both missing-child rules\n"
@@ -190,7 +193,7 @@ static double time_lookups(const ms_apo_view *view, uint64_t count)
 
 int main(int argc, char **argv)
 {
-    enum { OPT_CLASSIC = 256, OPT_SIMPLIFY, OPT_TOL, OPT_INIT, OPT_MAX, OPT_MEASURE, OPT_SEARCH, OPT_THREADS, OPT_JSON, OPT_HELP, OPT_SIMPLIFIED, OPT_SAVE, OPT_LOOKUPS, OPT_ACCURACY };
+    enum { OPT_CLASSIC = 256, OPT_SIMPLIFY, OPT_TOL, OPT_INIT, OPT_MAX, OPT_MEASURE, OPT_SEARCH, OPT_THREADS, OPT_JSON, OPT_HELP, OPT_SIMPLIFIED, OPT_SAVE, OPT_LOOKUPS, OPT_ACCURACY, OPT_PNG };
     static const struct option longs[] = {
         {"apo-classic", no_argument, NULL, OPT_CLASSIC},     {"simplify", required_argument, NULL, OPT_SIMPLIFY},
         {"apo-tol", required_argument, NULL, OPT_TOL},       {"apo-init-depth", required_argument, NULL, OPT_INIT},
@@ -200,10 +203,11 @@ int main(int argc, char **argv)
         {"simplified", required_argument, NULL, OPT_SIMPLIFIED}, {"save-simplified", required_argument, NULL, OPT_SAVE},
         {"bench-lookups", required_argument, NULL, OPT_LOOKUPS},
         {"bench-accuracy", required_argument, NULL, OPT_ACCURACY},
+        {"png", required_argument, NULL, OPT_PNG},
         {NULL, 0, NULL, 0}};
     ms_apo_classic_options o;
     ms_apo_classic_options_default(&o);
-    const char *out_path = NULL, *simplified_path = NULL, *save_path = NULL;
+    const char *out_path = NULL, *simplified_path = NULL, *save_path = NULL, *png_path = NULL;
     int json = 0, c;
     uint64_t lookups = 0;
     size_t accuracy_points = 0;
@@ -257,6 +261,7 @@ int main(int argc, char **argv)
                 return 2;
             lookups = (uint64_t)v;
             break;
+        case OPT_PNG: png_path = optarg; break;
         case OPT_ACCURACY:
             if (parse_double(optarg, "--bench-accuracy", 0, 1e9, &v) != 0)
                 return 2;
@@ -300,7 +305,7 @@ int main(int argc, char **argv)
     double load_seconds = ms_now_seconds() - t0;
     ms_apo_classic_report r;
     ms_apo_chunk chunk;
-    bool keep_chunk = out_path || lookups || accuracy_points;
+    bool keep_chunk = out_path || lookups || accuracy_points || png_path;
     ms_status st = ms_apo_classic_run(&mesh, &o, keep_chunk ? &chunk : NULL, &r, &err);
     double run_cpu = cpu_seconds(); /* reading + the whole run, before any extra measurement */
     accuracy acc[2];
@@ -321,6 +326,23 @@ int main(int argc, char **argv)
             ms_apo_chunk_free(&chunk);
         fprintf(stderr, "apoclassic: %s\n", err.text);
         return 1;
+    }
+    if (png_path) {
+        enum { PNG_SIZE = 1024 };
+        ms_apo_view view;
+        uint8_t *grey = malloc((size_t)PNG_SIZE * PNG_SIZE);
+        st = grey ? ms_apo_view_of_chunk(&view, &chunk, &err)
+                  : ms_error_set(&err, MS_ERR_NOMEM, "no memory for the picture");
+        if (st == MS_OK) {
+            ms_apo_render_top_view(&view, MS_APO_MAX_DEPTH, PNG_SIZE, PNG_SIZE, grey);
+            st = ms_png_write(png_path, grey, PNG_SIZE, PNG_SIZE, 1, &err);
+        }
+        free(grey);
+        if (st != MS_OK) {
+            fprintf(stderr, "apoclassic: %s\n", err.text);
+            ms_apo_chunk_free(&chunk);
+            return 1;
+        }
     }
     double lookup_rate = 0.0;
     if (lookups) {

@@ -13,6 +13,7 @@
 
 #include "ms_apo_build.h"
 #include "ms_apo_chunk.h"
+#include "ms_apo_render.h"
 #include "ms_demo_model.h"
 #include "ms_simplify.h"
 #include "ms_tri_box.h"
@@ -431,6 +432,44 @@ static void test_rays_hit_both_ways(void **state)
     ms_mesh_free(&big);
 }
 
+/* The debug picture of a plane: every pixel meets it, all with the same normal,
+ * so the same Lambert value; a small disc of m shows only where it is. */
+static void test_render_top_view(void **state)
+{
+    (void)state;
+    const double plane[2][3][3] = {{{0.0, 0.0, 0.5}, {1.0, 0.0, 0.5}, {0.0, 1.0, 0.5}},
+                                   {{1.0, 0.0, 0.5}, {1.0, 1.0, 0.5}, {0.0, 1.0, 0.5}}};
+    ms_mesh m, big;
+    triangles(&m, plane, 2);
+    triangles(&big, plane, 2);
+    ms_apo_build_options o;
+    fallback_options(&o, 0.0);
+    ms_apo_builder *b;
+    ms_apo_chunk c;
+    assert_int_equal(ms_apo_builder_create(&b, NULL), MS_OK);
+    assert_int_equal(ms_apo_builder_build_chunk(b, &m, &big, &o, &c, NULL, NULL), MS_OK);
+    ms_apo_view v;
+    assert_int_equal(ms_apo_view_of_chunk(&v, &c, NULL), MS_OK);
+    uint8_t grey[64 * 48];
+    assert_int_equal(ms_apo_render_top_view(&v, 30, 64, 48, grey), 64 * 48);
+    for (size_t i = 0; i < sizeof grey; ++i)
+        assert_int_equal(grey[i], 231); /* 30.5 + 225 / |(0.3, 0.4, 1)| */
+    ms_apo_chunk_free(&c);
+    /* m a single small triangle in the middle: only its cells show. */
+    ms_mesh_free(&m);
+    triangles(&m, m_triangle, 1);
+    assert_int_equal(ms_apo_builder_build_chunk(b, &m, &big, &o, &c, NULL, NULL), MS_OK);
+    assert_int_equal(ms_apo_view_of_chunk(&v, &c, NULL), MS_OK);
+    uint64_t hits = ms_apo_render_top_view(&v, 30, 64, 48, grey);
+    assert_true(hits > 0 && hits < 64 * 48 / 2);
+    assert_int_equal(grey[0], 0);
+    assert_int_equal(grey[24 * 64 + 32], 231);
+    ms_apo_chunk_free(&c);
+    ms_apo_builder_destroy(b);
+    ms_mesh_free(&m);
+    ms_mesh_free(&big);
+}
+
 static void test_empty_and_bad_input(void **state)
 {
     (void)state;
@@ -533,6 +572,7 @@ int main(void)
         cmocka_unit_test(test_degenerate_m_triangle),
         cmocka_unit_test(test_closest_point_fallback),
         cmocka_unit_test(test_rays_hit_both_ways),
+        cmocka_unit_test(test_render_top_view),
         cmocka_unit_test(test_empty_and_bad_input),
         cmocka_unit_test(test_triangle_cube_overlap),
         cmocka_unit_test(test_simplify),
