@@ -385,8 +385,8 @@ static ms_status refine_level(ms_codec_decoder *d, ms_error *err)
     d->order2 = t;
     d->norder = w;
     d->level = L + 1;
-    /* Keep slots in key order (memory locality) once enough cells are new. */
-    if (w >= 4096 && cx->nv - d->compact_nv > w / 4) {
+    /* Keep slots in key order (memory locality) once half as many cells are new. */
+    if (w >= 4096 && cx->nv - d->compact_nv > w / 2) {
         if ((r = ms_cx_compact(cx, d->order, w, err)) != MS_OK) {
             d->broken = true;
             return r;
