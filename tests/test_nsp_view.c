@@ -31,12 +31,25 @@ static ms_view *open_view(const char *path, ms_archive **archive)
     return v;
 }
 
-static void check_full(const char *model, const char *dir, const char *name, uint32_t min_tris)
+static void check_full_with(const char *model, const char *dir, const char *name,
+                            uint32_t min_tris, unsigned bits, unsigned n, unsigned root_bits)
 {
     ms_bake_report rep;
-    ms_nsp_test_bake(model, dir, name, 16, min_tris, &rep);
+    ms_bake_options o;
+    ms_bake_options_default(&o);
+    o.input = model;
+    o.archive_dir = dir;
+    o.name = name;
+    o.bits = bits;
+    o.n = n;
+    o.root_bits = root_bits;
+    o.min_triangles = min_tris;
+    o.threads = 2;
+    ms_error err;
+    if (ms_bake(&o, &rep, &err) != MS_OK)
+        fail_msg("bake: %s", err.text);
     ms_qmesh q = {0};
-    ms_nsp_test_reference(model, 16, &q);
+    ms_nsp_test_reference(model, bits, &q);
     assert_int_equal(rep.vertices, q.vertex_count);
     assert_int_equal(rep.triangles, q.tri_count);
     ms_archive *a;
@@ -53,6 +66,26 @@ static void check_full(const char *model, const char *dir, const char *name, uin
     ms_view_destroy(v);
     ms_archive_close(a);
     ms_qmesh_free(&q);
+}
+
+static void check_full(const char *model, const char *dir, const char *name, uint32_t min_tris)
+{
+    check_full_with(model, dir, name, min_tris, 16, 4, 7);
+}
+
+/* Other tree shapes and precisions, down to one-triangle cells. */
+static void test_full_precision_parameters(void **state)
+{
+    (void)state;
+    char dir[512], model[4096];
+    ms_test_tmpdir(dir, sizeof dir);
+    ms_test_model_path(model, sizeof model, "stanford_bunny_res3.ply.gz");
+    check_full_with(model, dir, "p12n2", 200, 12, 2, 3);
+    check_full_with(model, dir, "p10n8", 300, 10, 8, 3);
+    check_full_with(model, dir, "p20n4", 400, 20, 4, 7);
+    check_full_with(model, dir, "p8n4", 100, 8, 4, 2);
+    check_full_with(model, dir, "p16min1", 1, 16, 4, 7);
+    ms_test_rmdir(dir);
 }
 
 /* Every shared model (the full-size dragon only with MESHSTREAM_BIG=1: it is run
@@ -352,6 +385,7 @@ int main(void)
         cmocka_unit_test(test_threads_identical),
         cmocka_unit_test(test_no_crack_demo),
         cmocka_unit_test(test_no_crack_dragon),
+        cmocka_unit_test(test_full_precision_parameters),
         cmocka_unit_test(test_full_precision_all_models),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
