@@ -17,6 +17,7 @@ static const uint8_t archive_magic[8] = {'M', 'S', 'A', 'R', 'C', 'H', '\r', '\n
 struct ms_archive {
     const uint8_t *map;
     size_t map_size;
+    bool index_only; /* a malloc'd copy of header + index, no payloads */
     ms_archive_header header;
     ms_archive_cell *cells;
     const uint8_t *tables; /* table words, little-endian */
@@ -147,7 +148,7 @@ void ms_archive_cell_window(const ms_archive_header *h, unsigned level, bool lea
 
 /* --- Validation ----------------------------------------------------------- */
 
-static ms_status parse_header(const char *path, const uint8_t *p, size_t size,
+static ms_status parse_header(const char *path, const uint8_t *p, size_t size, bool index_only,
                               ms_archive_header *h, uint64_t *index_size, uint64_t *payload_size,
                               uint32_t *index_crc, ms_error *err)
 {
@@ -209,6 +210,16 @@ static ms_status parse_header(const char *path, const uint8_t *p, size_t size,
     if (*index_size != expect_index)
         return ms_error_set(err, MS_ERR_FORMAT, "%s: index size %llu, expected %llu", path,
                             (unsigned long long)*index_size, (unsigned long long)expect_index);
+    if (index_only) {
+        if (size != MS_ARCHIVE_HEADER_SIZE + *index_size)
+            return ms_error_set(err, MS_ERR_FORMAT, "%s: index blob is %zu bytes, expected %llu",
+                                path, size,
+                                (unsigned long long)(MS_ARCHIVE_HEADER_SIZE + *index_size));
+        if (*payload_size > UINT64_MAX / 2 ||
+            h->file_size != MS_ARCHIVE_HEADER_SIZE + *index_size + *payload_size)
+            return ms_error_set(err, MS_ERR_FORMAT, "%s: section sizes do not add up", path);
+        return MS_OK;
+    }
     if (h->file_size != size)
         return ms_error_set(err, MS_ERR_FORMAT,
                             "%s: file is %zu bytes but its header says %llu (truncated?)", path,
@@ -356,6 +367,39 @@ static ms_status check_tree_cover(const char *path, const ms_archive *a, ms_erro
     return MS_OK;
 }
 
+/* Validates header and index of a->map (a whole file, or header + index only). */
+static ms_status archive_validate(const char *path, ms_archive *a, ms_error *err)
+{
+    uint32_t index_crc = 0;
+    ms_status status = parse_header(path, a->map, a->map_size, a->index_only, &a->header,
+                                    &a->index_size, &a->payload_size, &index_crc, err);
+    if (status == MS_OK) {
+        const uint8_t *index = a->map + MS_ARCHIVE_HEADER_SIZE;
+        if (crc32_z(0L, index, (z_size_t)a->index_size) != index_crc)
+            status = ms_error_set(err, MS_ERR_CORRUPT, "%s: index checksum mismatch", path);
+    }
+    if (status == MS_OK) {
+        a->cells = calloc(a->header.cell_count, sizeof *a->cells);
+        if (!a->cells)
+            status = ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory for %u cells", path,
+                                  a->header.cell_count);
+    }
+    if (status == MS_OK) {
+        const uint8_t *records = a->map + MS_ARCHIVE_HEADER_SIZE;
+        a->tables = records + (size_t)a->header.cell_count * MS_ARCHIVE_RECORD_SIZE;
+        a->payload = a->index_only ? NULL : a->map + MS_ARCHIVE_HEADER_SIZE + a->index_size;
+        for (uint32_t id = 0; id < a->header.cell_count; ++id)
+            decode_cell(records + (size_t)id * MS_ARCHIVE_RECORD_SIZE, &a->cells[id]);
+        uint64_t next_table = 0;
+        for (uint32_t id = 0; status == MS_OK && id < a->header.cell_count; ++id)
+            status = check_cell(path, a, id, records + (size_t)id * MS_ARCHIVE_RECORD_SIZE,
+                                &next_table, err);
+        if (status == MS_OK)
+            status = check_tree_cover(path, a, err);
+    }
+    return status;
+}
+
 ms_status ms_archive_open(const char *path, ms_archive **out, ms_error *err)
 {
     *out = NULL;
@@ -384,33 +428,34 @@ ms_status ms_archive_open(const char *path, ms_archive **out, ms_error *err)
     }
     a->map = map;
     a->map_size = size;
-    uint32_t index_crc = 0;
-    ms_status status = parse_header(path, map, size, &a->header, &a->index_size,
-                                    &a->payload_size, &index_crc, err);
-    if (status == MS_OK) {
-        const uint8_t *index = a->map + MS_ARCHIVE_HEADER_SIZE;
-        if (crc32_z(0L, index, (z_size_t)a->index_size) != index_crc)
-            status = ms_error_set(err, MS_ERR_CORRUPT, "%s: index checksum mismatch", path);
+    ms_status status = archive_validate(path, a, err);
+    if (status != MS_OK) {
+        ms_archive_close(a);
+        return status;
     }
-    if (status == MS_OK) {
-        a->cells = calloc(a->header.cell_count, sizeof *a->cells);
-        if (!a->cells)
-            status = ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory for %u cells", path,
-                                  a->header.cell_count);
+    *out = a;
+    return MS_OK;
+}
+
+ms_status ms_archive_open_index(const uint8_t *blob, size_t size, const char *name,
+                                ms_archive **out, ms_error *err)
+{
+    *out = NULL;
+    if (size < MS_ARCHIVE_HEADER_SIZE)
+        return ms_error_set(err, MS_ERR_FORMAT, "%s: %zu bytes is too short for an archive header",
+                            name, size);
+    ms_archive *a = calloc(1, sizeof *a);
+    uint8_t *copy = malloc(size);
+    if (!a || !copy) {
+        free(a);
+        free(copy);
+        return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory", name);
     }
-    if (status == MS_OK) {
-        const uint8_t *records = a->map + MS_ARCHIVE_HEADER_SIZE;
-        a->tables = records + (size_t)a->header.cell_count * MS_ARCHIVE_RECORD_SIZE;
-        a->payload = a->map + MS_ARCHIVE_HEADER_SIZE + a->index_size;
-        for (uint32_t id = 0; id < a->header.cell_count; ++id)
-            decode_cell(records + (size_t)id * MS_ARCHIVE_RECORD_SIZE, &a->cells[id]);
-        uint64_t next_table = 0;
-        for (uint32_t id = 0; status == MS_OK && id < a->header.cell_count; ++id)
-            status = check_cell(path, a, id, records + (size_t)id * MS_ARCHIVE_RECORD_SIZE,
-                                &next_table, err);
-        if (status == MS_OK)
-            status = check_tree_cover(path, a, err);
-    }
+    memcpy(copy, blob, size);
+    a->map = copy;
+    a->map_size = size;
+    a->index_only = true;
+    ms_status status = archive_validate(name, a, err);
     if (status != MS_OK) {
         ms_archive_close(a);
         return status;
@@ -423,7 +468,10 @@ void ms_archive_close(ms_archive *a)
 {
     if (!a)
         return;
-    munmap((void *)a->map, a->map_size);
+    if (a->index_only)
+        free((void *)a->map);
+    else
+        munmap((void *)a->map, a->map_size);
     free(a->cells);
     free(a);
 }
@@ -445,14 +493,14 @@ const uint8_t *ms_archive_geometry(const ms_archive *a, uint32_t cell, size_t *l
 {
     const ms_archive_cell *c = ms_archive_get_cell(a, cell);
     *length = c ? c->geometry_length : 0;
-    return c ? a->payload + c->geometry_offset : NULL;
+    return c && a->payload ? a->payload + c->geometry_offset : NULL;
 }
 
 const uint8_t *ms_archive_apo(const ms_archive *a, uint32_t cell, size_t *length)
 {
     const ms_archive_cell *c = ms_archive_get_cell(a, cell);
     *length = c ? c->apo_length : 0;
-    return c ? a->payload + c->apo_offset : NULL;
+    return c && a->payload ? a->payload + c->apo_offset : NULL;
 }
 
 uint32_t ms_archive_geometry_prefix(const ms_archive *a, uint32_t cell, unsigned bits)
@@ -489,9 +537,29 @@ ms_status ms_archive_verify_payload(const ms_archive *a, uint32_t cell, ms_error
     if (!c)
         return ms_error_set(err, MS_ERR_RANGE, "cell %u does not exist (%u cells)", cell,
                             a->header.cell_count);
+    if (a->index_only)
+        return ms_error_set(err, MS_ERR_ARG, "cell %u: this archive holds no payloads", cell);
     if (crc32_z(0L, a->payload + c->geometry_offset, c->geometry_length) != c->geometry_crc)
         return ms_error_set(err, MS_ERR_CORRUPT, "cell %u: geometry payload checksum mismatch", cell);
     if (crc32_z(0L, a->payload + c->apo_offset, c->apo_length) != c->apo_crc)
         return ms_error_set(err, MS_ERR_CORRUPT, "cell %u: APO chunk checksum mismatch", cell);
+    return MS_OK;
+}
+
+ms_status ms_archive_check_payload(const ms_archive *a, uint32_t cell, bool apo,
+                                   const uint8_t *data, size_t length, ms_error *err)
+{
+    const ms_archive_cell *c = ms_archive_get_cell(a, cell);
+    if (!c)
+        return ms_error_set(err, MS_ERR_RANGE, "cell %u does not exist (%u cells)", cell,
+                            a->header.cell_count);
+    uint32_t expect_length = apo ? c->apo_length : c->geometry_length;
+    uint32_t expect_crc = apo ? c->apo_crc : c->geometry_crc;
+    const char *kind = apo ? "APO chunk" : "geometry payload";
+    if (length != expect_length)
+        return ms_error_set(err, MS_ERR_CORRUPT, "cell %u: %s is %zu bytes, expected %u", cell,
+                            kind, length, expect_length);
+    if (crc32_z(0L, data, length) != expect_crc)
+        return ms_error_set(err, MS_ERR_CORRUPT, "cell %u: %s checksum mismatch", cell, kind);
     return MS_OK;
 }

@@ -66,6 +66,13 @@ typedef struct ms_archive ms_archive;
 ms_status ms_archive_open(const char *path, ms_archive **archive, ms_error *err);
 void ms_archive_close(ms_archive *archive);
 
+/* Validates and copies an index blob (header + cell index, as
+ * ms_archive_index_bytes gives it and the server sends it); name is used in
+ * errors. The result has no payloads: ms_archive_geometry/apo return NULL (with
+ * the stored lengths) and the prefix look-ups work as usual. */
+ms_status ms_archive_open_index(const uint8_t *blob, size_t size, const char *name,
+                                ms_archive **archive, ms_error *err);
+
 const ms_archive_header *ms_archive_get_header(const ms_archive *archive);
 /* NULL when cell >= cell_count. */
 const ms_archive_cell *ms_archive_get_cell(const ms_archive *archive, uint32_t cell);
@@ -73,7 +80,8 @@ const ms_archive_cell *ms_archive_get_cell(const ms_archive *archive, uint32_t c
 /* The whole index blob (header + records + tables) as stored, for sending. */
 const uint8_t *ms_archive_index_bytes(const ms_archive *archive, size_t *size);
 
-/* Payload bytes (not yet CRC-checked). Zero length for an absent APO chunk. */
+/* Payload bytes (not yet CRC-checked). Zero length for an absent APO chunk; NULL
+ * on an index-only archive. */
 const uint8_t *ms_archive_geometry(const ms_archive *archive, uint32_t cell, size_t *length);
 const uint8_t *ms_archive_apo(const ms_archive *archive, uint32_t cell, size_t *length);
 
@@ -84,8 +92,14 @@ uint32_t ms_archive_geometry_prefix(const ms_archive *archive, uint32_t cell, un
 uint32_t ms_archive_apo_prefix(const ms_archive *archive, uint32_t cell, unsigned level,
                                uint32_t *texels);
 
-/* Checks both payload CRCs of a cell: MS_ERR_CORRUPT naming the cell on mismatch. */
+/* Checks both payload CRCs of a cell: MS_ERR_CORRUPT naming the cell on mismatch;
+ * MS_ERR_ARG on an index-only archive. */
 ms_status ms_archive_verify_payload(const ms_archive *archive, uint32_t cell, ms_error *err);
+
+/* Checks a whole payload received from elsewhere against the index (length and
+ * CRC32): MS_ERR_CORRUPT on mismatch. */
+ms_status ms_archive_check_payload(const ms_archive *archive, uint32_t cell, bool apo,
+                                   const uint8_t *data, size_t length, ms_error *err);
 
 /* --- Shared with the writer (server/ms_archive_writer.c) ------------------- */
 

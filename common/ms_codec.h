@@ -110,8 +110,10 @@ typedef struct ms_codec_decoder_options {
 
 /* Creates a decoder over data[0..size) (copied; size may be a prefix of the
  * stream: bits whose chunk is incomplete are unavailable). start is the state at
- * p_min (NULL allowed when p_min = 0). options may be NULL. The decoder starts at
- * precision p_min. */
+ * kd-level 3 p_min (NULL allowed when p_min = 0); its `bits` field does not
+ * matter, so the final state of a parent stream whose p_max is this stream's
+ * p_min is a valid start state. It must equal (checksum) the start state the
+ * encoder reported. options may be NULL. The decoder starts at precision p_min. */
 ms_status ms_codec_decoder_create(const uint8_t *data, size_t size, const ms_codec_state *start,
                                   const ms_codec_decoder_options *options,
                                   ms_codec_decoder **out, ms_error *err);

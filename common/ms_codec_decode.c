@@ -47,7 +47,7 @@ struct ms_codec_decoder {
 };
 
 /* One binary decision: decoded, or (encode mode) taken from src and coded. */
-static inline int dbit(ms_codec_decoder *d, ms_rc_prob *p)
+static inline __attribute__((always_inline)) int dbit(ms_codec_decoder *d, ms_rc_prob *p)
 {
     if (!d->enc)
         return ms_rc_decode(&d->rc, p);
@@ -484,12 +484,6 @@ ms_status ms_codec_decoder_set_level(ms_codec_decoder *d, unsigned level, ms_err
     return MS_OK;
 }
 
-static int cmp_u64(const void *a, const void *b)
-{
-    uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
-    return x < y ? -1 : (x > y);
-}
-
 /* Loads and checks the caller's start state into the complex. */
 static ms_status load_start(ms_codec_decoder *d, const ms_codec_state *start, ms_error *err)
 {
@@ -507,10 +501,11 @@ static ms_status load_start(ms_codec_decoder *d, const ms_codec_state *start, ms
         d->norder = 1;
         return MS_OK;
     }
-    if (start->bits != h->p_max || start->level != d->Lmin)
-        return ms_error_set(err, MS_ERR_ARG, "start state at bits %u level %u does not match the "
-                            "stream (bits %u level %u)", start->bits, start->level, h->p_max,
-                            d->Lmin);
+    /* Cells are kd prefixes at level 3 p_min whatever the key space of the
+     * decoder that produced them (a parent nSP cell's stream ends at p_min). */
+    if (start->level != d->Lmin)
+        return ms_error_set(err, MS_ERR_ARG, "start state at kd-level %u does not match the "
+                            "stream's first level %u", start->level, d->Lmin);
     if (start->vertex_count != h->start_vertices || start->tri_count != h->start_tris ||
         start->edge_count != h->start_edges)
         return ms_error_set(err, MS_ERR_ARG, "start state counts differ from the stream's");
@@ -594,7 +589,6 @@ static ms_status load_start(ms_codec_decoder *d, const ms_codec_state *start, ms
         ms_cx_add_edge(cx, d->order[x[0]], d->order[x[1]]);
     }
     ms_codec_state_free(&canon);
-    (void)cmp_u64;
     return cx->nomem ? ms_error_set(err, MS_ERR_NOMEM, "out of memory loading a start state")
                      : MS_OK;
 }
@@ -625,6 +619,16 @@ static ms_status decoder_init(ms_codec_decoder *d, const ms_codec_state *start, 
     if ((r = ms_cx_init(&d->cx, d->h.p_max, d->h.end_vertices, d->h.end_tris, max_e, err)) !=
         MS_OK)
         return r;
+    /* Reserve the declared final size up front (no regrowth copies), as far as
+     * the body makes it plausible: real streams hold under 4 vertices per byte. */
+    uint64_t room = 16 * (uint64_t)(d->enc ? d->h.end_vertices : d->body_avail) + 1024;
+    uint32_t rv = d->h.end_vertices < room ? d->h.end_vertices : (uint32_t)room;
+    uint32_t rt = d->h.end_tris < 2 * room ? d->h.end_tris : (uint32_t)(2 * room);
+    uint32_t re = d->h.end_edges < room ? d->h.end_edges : (uint32_t)room;
+    if ((r = ms_cx_reserve(&d->cx, rv, rt, re, err)) != MS_OK)
+        return r;
+    if (!order_room(d, rv))
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory creating a decoder");
     return load_start(d, start, err);
 }
 
@@ -684,11 +688,17 @@ ms_status ms_codec_run_encoder(ms_codec_header *h, const ms_codec_state *start,
 
 ms_status ms_codec_decoder_state(const ms_codec_decoder *d, ms_codec_state *out, ms_error *err)
 {
+    if (d->broken) {
+        memset(out, 0, sizeof *out);
+        return ms_error_set(err, MS_ERR_CORRUPT, "decoder stopped after a corrupted stream");
+    }
     return ms_codec_export_complex(&d->cx, d->order, d->norder, d->level, out, err);
 }
 
 ms_status ms_codec_decoder_mesh(const ms_codec_decoder *d, ms_mesh *out, ms_error *err)
 {
+    if (d->broken)
+        return ms_error_set(err, MS_ERR_CORRUPT, "decoder stopped after a corrupted stream");
     const ms_complex *cx = &d->cx;
     ms_status r = ms_mesh_reserve(out, d->norder, cx->live_t, err);
     if (r != MS_OK)

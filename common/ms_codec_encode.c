@@ -8,36 +8,34 @@
 #include "ms_quant.h"
 #include "ms_rangecoder.h"
 
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
 typedef struct sym_buf {
-    uint32_t *s; /* ctx << 1 | bit */
+    uint8_t *s; /* decisions (0/1), per group in decode order */
     size_t n, cap;
 } sym_buf;
 
 typedef struct enc {
     ms_complex cx;
     unsigned D;
-    uint64_t *keys;     /* sorted full keys of the vertices */
-    uint32_t nkeys;
-    uint32_t *lo, *hi;  /* per slot: range of its vertices in keys */
     sym_buf sym;
     size_t *groups;     /* start of each merge group in sym, production order */
     size_t ngroups, cap_groups;
     size_t level_first[3 * MS_CODEC_MAX_BITS + 1]; /* first group of each level */
     size_t level_end[3 * MS_CODEC_MAX_BITS + 1];
     ms_cx_star star;
-    uint8_t *code, *side;
+    uint8_t *code;
     size_t cap_code;
     int nomem;
 } enc;
 
-static void put(enc *e, uint32_t ctx, int bit)
+static void put(enc *e, int bit)
 {
     if (e->sym.n == e->sym.cap) {
         size_t c = e->sym.cap ? e->sym.cap * 2 : 1 << 16;
-        uint32_t *n = realloc(e->sym.s, c * sizeof *n);
+        uint8_t *n = realloc(e->sym.s, c * sizeof *n);
         if (!n) {
             e->nomem = 1;
             return;
@@ -45,7 +43,7 @@ static void put(enc *e, uint32_t ctx, int bit)
         e->sym.s = n;
         e->sym.cap = c;
     }
-    e->sym.s[e->sym.n++] = ctx << 1 | (uint32_t)(bit != 0);
+    e->sym.s[e->sym.n++] = (uint8_t)(bit != 0);
 }
 
 static int new_group(enc *e)
@@ -62,22 +60,6 @@ static int new_group(enc *e)
     return 1;
 }
 
-static unsigned birth_of(const enc *e, uint32_t lo, uint32_t hi)
-{
-    unsigned b = 0;
-    if (lo > 0) {
-        unsigned l = ms_key_lcp(e->keys[lo - 1], e->keys[lo], e->D) + 1;
-        if (l > b)
-            b = l;
-    }
-    if (hi < e->nkeys) {
-        unsigned l = ms_key_lcp(e->keys[hi - 1], e->keys[hi], e->D) + 1;
-        if (l > b)
-            b = l;
-    }
-    return b;
-}
-
 static int code_room(enc *e, size_t n)
 {
     if (n <= e->cap_code)
@@ -85,20 +67,19 @@ static int code_room(enc *e, size_t n)
     size_t c = e->cap_code ? e->cap_code : 256;
     while (c < n)
         c *= 2;
-    uint8_t *a = realloc(e->code, c), *b = realloc(e->side, c);
-    if (a)
-        e->code = a;
-    if (b)
-        e->side = b;
-    if (!a || !b)
+    uint8_t *a = realloc(e->code, c);
+    if (!a)
         return 0;
+    e->code = a;
     e->cap_code = c;
     return 1;
 }
 
-/* Records the connectivity of the split that separates c0 and c1 (siblings at
- * level L + 1, parent at L), computed from the current (pre-merge) complex. */
-static ms_status record_split(enc *e, uint32_t c0, uint32_t c1, unsigned L, ms_error *err)
+/* Records the connectivity decisions of the split that separates c0 and c1
+ * (siblings at level L + 1), read off the current (pre-merge) complex, in the
+ * order the decoder's split consumes them. Contexts are chosen later, in the
+ * forward pass. */
+static ms_status record_split(enc *e, uint32_t c0, uint32_t c1, ms_error *err)
 {
     ms_complex *cx = &e->cx;
     ms_cx_star *st = &e->star;
@@ -107,38 +88,25 @@ static ms_status record_split(enc *e, uint32_t c0, uint32_t c1, unsigned L, ms_e
         return s;
     if (!code_room(e, st->nn + 1))
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory coding a split");
-    const uint32_t base = e->D * GEO_PER_LEVEL;
-    int axis = (int)(L % 3);
-    int64_t wp = ms_cx_width(cx, L, axis);
-    int64_t plane2 = 2 * (int64_t)cx->v[c0].c[axis] + wp;
     int e12 = st->adj01;
-    put(e, base + e12_ctx(st->nn), e12);
-    unsigned nboth = 0;
+    put(e, e12);
     for (uint32_t i = 0; i < st->nn; ++i) {
         uint8_t c = st->adj[i] == 1 ? 1 : st->adj[i] == 2 ? 2 : st->both[i] != MS_CX_NONE ? 4 : 3;
-        unsigned side = conn_side(cx, st->nbr[i], axis, plane2, wp);
-        unsigned af = adj_flags(st, i, e->code);
-        e->side[i] = (uint8_t)side;
         e->code[i] = c;
-        put(e, base + C_EA + ((side * ADJS + af) * 2 + (unsigned)e12) * 3 + (nboth < 2 ? nboth : 2),
-            c >= 3);
-        nboth += c >= 3;
+        put(e, c >= 3);
         if (c < 3)
-            put(e, base + C_EB + side * ADJS + af, c == 2);
+            put(e, c == 2);
         else if (e12)
-            put(e, base + C_EC + side * ADJS + af, c == 4);
+            put(e, c == 4);
     }
     for (uint32_t p = 0; p < st->np; ++p) {
         const ms_cx_pair *pr = &st->pairs[p];
-        uint8_t ci = e->code[pr->i], cj = e->code[pr->j];
-        if (ci < 3 || cj < 3)
+        if (e->code[pr->i] < 3 || e->code[pr->j] < 3)
             continue; /* implied (pruning rule) */
         int t = (pr->t0 != MS_CX_NONE) + 2 * (pr->t1 != MS_CX_NONE);
-        unsigned idx = (unsigned)((ci == 4) + (cj == 4)) * 4 + (e->side[pr->i] >= SIDES / 2) * 2 +
-                       (e->side[pr->j] >= SIDES / 2);
-        put(e, base + C_TA + idx, t == 3);
+        put(e, t == 3);
         if (t != 3)
-            put(e, base + C_TB + idx, t == 2);
+            put(e, t == 2);
     }
     for (uint32_t p = 0; p < st->np; ++p) {
         const ms_cx_pair *pr = &st->pairs[p];
@@ -146,7 +114,7 @@ static ms_status record_split(enc *e, uint32_t c0, uint32_t c1, unsigned L, ms_e
             continue;
         uint32_t xi = st->nbr[pr->i], xj = st->nbr[pr->j];
         int s0 = ms_cx_orient(cx, pr->t0, xi, xj), s1 = ms_cx_orient(cx, pr->t1, xi, xj);
-        put(e, base + C_O3, s0 == s1);
+        put(e, s0 == s1);
     }
     for (uint32_t i = 0; i < st->nn; ++i) {
         if (e->code[i] != 4)
@@ -154,8 +122,7 @@ static ms_status record_split(enc *e, uint32_t c0, uint32_t c1, unsigned L, ms_e
         uint32_t t = st->both[i];
         int vote = orient_votes(cx, c0, c1, st->nbr[i], t);
         int pred = vote >= 0 ? 1 : -1;
-        int actual = ms_cx_orient(cx, t, c0, c1);
-        put(e, base + o4_ctx(vote), actual != pred);
+        put(e, ms_cx_orient(cx, t, c0, c1) != pred);
     }
     return e->nomem ? ms_error_set(err, MS_ERR_NOMEM, "out of memory recording symbols") : MS_OK;
 }
@@ -264,12 +231,16 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
     if (pmin > P)
         return ms_error_set(err, MS_ERR_ARG, "p_min %u above the precision %u", pmin, P);
     unsigned Lmin = 3 * pmin;
+    if (!isfinite(params->box.size) || !(params->box.size > 0) ||
+        !isfinite(params->box.origin[0]) || !isfinite(params->box.origin[1]) ||
+        !isfinite(params->box.origin[2]))
+        return ms_error_set(err, MS_ERR_ARG, "encoder box must be finite with a positive size");
 
     enc e;
     memset(&e, 0, sizeof e);
     e.D = D;
     uint32_t n = (uint32_t)full->vertex_count;
-    uint32_t *order = NULL, *order2 = NULL, *slot_of = NULL;
+    uint32_t *order = NULL, *order2 = NULL;
     ms_codec_state canon = {0};
     ms_codec_state start = {0};
     ms_rc_encoder rc;
@@ -333,21 +304,14 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
         goto fail;
     if ((s = ms_cx_reserve(&e.cx, n, max_t, (uint32_t)canon.edge_count, err)) != MS_OK)
         goto fail;
-    e.keys = canon.cells;
-    e.nkeys = n;
-    e.lo = malloc((size_t)n * sizeof *e.lo);
-    e.hi = malloc((size_t)n * sizeof *e.hi);
     order = malloc((size_t)n * sizeof *order);
     order2 = malloc((size_t)n * sizeof *order2);
-    if (!e.lo || !e.hi || !order || !order2)
+    if (!order || !order2)
         goto nomem;
     for (uint32_t i = 0; i < n; ++i) {
         uint32_t c[3];
         ms_quant_unkey(canon.cells[i], P, c);
-        uint32_t sl = ms_cx_add_vertex(&e.cx, canon.cells[i], D, c);
-        e.lo[sl] = i;
-        e.hi[sl] = i + 1;
-        order[i] = sl;
+        order[i] = ms_cx_add_vertex(&e.cx, canon.cells[i], D, c);
     }
     for (size_t t = 0; t < canon.tri_count; ++t)
         ms_cx_add_tri(&e.cx, canon.tris[3 * t], canon.tris[3 * t + 1], canon.tris[3 * t + 2]);
@@ -386,21 +350,14 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
             if (!new_group(&e))
                 goto nomem;
             uint32_t keep = first != MS_CX_NONE ? first : last;
-            uint32_t lo = e.lo[keep], hi = e.hi[last];
-            unsigned run = geo_run(L, birth_of(&e, lo, hi));
             if (first != MS_CX_NONE) {
-                /* The both-bit's context uses the merged cell (the decoder's view):
-                 * keep its place, record the split, merge, then fill it in. */
-                size_t both_at = e.sym.n;
-                put(&e, 0, 1);
-                if ((s = record_split(&e, first, last, L, err)) != MS_OK)
+                put(&e, 1);
+                if ((s = record_split(&e, first, last, err)) != MS_OK)
                     goto fail;
                 if ((s = ms_cx_merge(&e.cx, first, last, err)) != MS_OK)
                     goto fail;
-                if (!e.nomem)
-                    e.sym.s[both_at] = GEO_BOTH(L, run, geo_deg(&e.cx.v[keep])) << 1 | 1;
             } else {
-                put(&e, GEO_BOTH(L, run, geo_deg(&e.cx.v[keep])), 0);
+                put(&e, 0);
             }
             ms_cx_vert *v = &e.cx.v[keep];
             int second = (v->key & child_bit) != 0;
@@ -409,10 +366,8 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
             v->key &= ~child_bit;
             v->level = (uint8_t)L;
             ms_cx_update_cen(&e.cx, keep);
-            e.lo[keep] = lo;
-            e.hi[keep] = hi;
             if (first == MS_CX_NONE)
-                put(&e, 0, second); /* contexts come from the forward pass */
+                put(&e, second);
             order2[w++] = keep;
             if (e.nomem)
                 goto nomem;
@@ -436,7 +391,7 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
         for (size_t g = e.level_end[L]; g-- > e.level_first[L];) {
             size_t a = e.groups[g], b = g + 1 < e.ngroups ? e.groups[g + 1] : e.sym.n;
             for (size_t k = a; k < b; ++k)
-                dec[nd++] = (uint8_t)(e.sym.s[k] & 1);
+                dec[nd++] = e.sym.s[k];
         }
     free(e.sym.s);
     e.sym.s = NULL;
@@ -469,6 +424,12 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
     ms_codec_write_header(buf, &h);
     if (rc.size)
         memcpy(buf + hs, rc.buf, rc.size);
+    {
+        /* The decoder must accept what we wrote (e.g. the plausibility caps). */
+        ms_codec_header check;
+        if ((s = ms_codec_read_header(buf, hs + rc.size, &check, err)) != MS_OK)
+            goto fail;
+    }
     *out = buf;
     *out_size = hs + rc.size;
     buf = NULL;
@@ -489,14 +450,10 @@ done:
     ms_codec_state_free(&canon);
     ms_cx_free(&e.cx);
     ms_cx_star_free(&e.star);
-    free(e.lo);
-    free(e.hi);
     free(e.sym.s);
     free(e.groups);
     free(e.code);
-    free(e.side);
     free(order);
     free(order2);
-    free(slot_of);
     return s;
 }

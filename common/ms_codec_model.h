@@ -95,8 +95,9 @@ static inline unsigned geo_bucket(const ms_complex *cx, int64_t sum, int64_t n, 
     int64_t diff = sum - n * plane2;
     int64_t unit = n * wp;
     int64_t a = 8 * (diff < 0 ? -diff : diff);
-    unsigned m = a < unit ? 0 : a < 2 * unit ? 1 : a < 4 * unit ? 2 : a < 8 * unit ? 3
-               : a < 16 * unit ? 4 : a < 32 * unit ? 5 : 6;
+    /* number of thresholds unit * {1, 2, 4, 8, 16, 32} reached (branch-free) */
+    unsigned m = (unsigned)(a >= unit) + (a >= 2 * unit) + (a >= 4 * unit) + (a >= 8 * unit) +
+                 (a >= 16 * unit) + (a >= 32 * unit);
     return diff < 0 ? 6 - m : 7 + m;
 }
 

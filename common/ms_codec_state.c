@@ -324,6 +324,16 @@ ms_status ms_codec_parse_header(const uint8_t *data, size_t size, ms_codec_heade
             return ms_error_set(err, MS_ERR_FORMAT, "bad chunk offset table (entry %u)", i);
         prev = h->chunk_end[i];
     }
+    /* Plausibility: even a perfectly regular complex costs more than 1/32 bit
+     * per new vertex; this bounds what a short hostile stream can make the
+     * decoder allocate. */
+    uint64_t room = 256ull * ((uint64_t)prev + 16);
+    if ((uint64_t)h->end_vertices > h->start_vertices + room ||
+        (uint64_t)h->end_tris > h->start_tris + 2 * room ||
+        (uint64_t)h->end_edges > (uint64_t)h->start_edges + 2 * room)
+        return ms_error_set(err, MS_ERR_FORMAT, "declared complex (%u vertices, %u triangles) "
+                            "implausibly large for a %u-byte body", h->end_vertices,
+                            h->end_tris, prev);
     h->header_size = hs;
     h->body_size = prev;
     return MS_OK;

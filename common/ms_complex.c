@@ -30,6 +30,9 @@ void ms_cx_free(ms_complex *cx)
     free(cx->v);
     free(cx->cen);
     free(cx->tri);
+    free(cx->spare_v);
+    free(cx->spare_cen);
+    free(cx->spare_tri);
     free(cx->edge);
     free(cx->free_v);
     free(cx->free_t);
@@ -370,7 +373,7 @@ static int cmp_pair(const void *a, const void *b)
 }
 
 /* Adds neighbour slot s (not a centre) to the star if new; returns local index. */
-static uint32_t star_touch(ms_complex *cx, ms_cx_star *st, uint32_t s)
+static inline uint32_t star_touch(ms_complex *cx, ms_cx_star *st, uint32_t s)
 {
     if (cx->stamp[s] == cx->cur)
         return cx->mark[s];
@@ -426,54 +429,72 @@ ms_status ms_cx_gather(ms_complex *cx, uint32_t c0, uint32_t c1, ms_cx_star *st,
             }
         }
     }
-    /* Sort neighbours by key (keys are unique among live cells). */
+    /* Sort neighbours by key (keys are unique among live cells): insertion sort
+     * of (key, old index) for the usual small stars, qsort beyond. */
     if (st->nn > 1) {
-        uint64_t *keys = st->sortbuf;
-        for (uint32_t i = 0; i < st->nn; ++i)
-            keys[i] = cx->v[st->nbr[i]].key;
-        sort_u64(keys, st->nn);
-        /* Rebuild nbr/adj/both in sorted order; marks map slot -> new index. */
-        uint32_t *oldn = st->adj_start; /* scratch, size >= nn + 1 */
-        for (uint32_t i = 0; i < st->nn; ++i)
-            oldn[i] = st->nbr[i];
         uint32_t n = st->nn;
-        uint32_t *nb = st->nbr;
-        uint8_t adj_stack[256];
-        uint32_t both_stack[256];
+        uint64_t *keys = st->sortbuf;         /* n keys */
+        uint32_t *perm = st->adj_start;       /* n old indices (scratch, >= nn + 1) */
+        for (uint32_t i = 0; i < n; ++i) {
+            keys[i] = cx->v[st->nbr[i]].key;
+            perm[i] = i;
+        }
+        if (n <= 48) {
+            for (uint32_t i = 1; i < n; ++i) {
+                uint64_t k = keys[i];
+                uint32_t p = perm[i], j = i;
+                while (j > 0 && keys[j - 1] > k) {
+                    keys[j] = keys[j - 1];
+                    perm[j] = perm[j - 1];
+                    --j;
+                }
+                keys[j] = k;
+                perm[j] = p;
+            }
+        } else {
+            sort_u64(keys, n);
+            for (uint32_t i = 0; i < n; ++i) {
+                uint64_t k = cx->v[st->nbr[i]].key;
+                uint32_t lo = 0, hi = n;
+                while (lo < hi) {
+                    uint32_t mid = (lo + hi) / 2;
+                    if (keys[mid] < k)
+                        lo = mid + 1;
+                    else
+                        hi = mid;
+                }
+                perm[lo] = i;
+            }
+        }
+        uint8_t adj_stack[64];
+        uint32_t both_stack[64], nbr_stack[64];
         uint8_t *adj_tmp = adj_stack;
-        uint32_t *both_tmp = both_stack;
-        if (n > 256) {
+        uint32_t *both_tmp = both_stack, *nbr_tmp = nbr_stack;
+        if (n > 64) {
             adj_tmp = malloc(n);
             both_tmp = malloc((size_t)n * sizeof *both_tmp);
-            if (!adj_tmp || !both_tmp) {
-                if (n > 256) {
-                    free(adj_tmp);
-                    free(both_tmp);
-                }
+            nbr_tmp = malloc((size_t)n * sizeof *nbr_tmp);
+            if (!adj_tmp || !both_tmp || !nbr_tmp) {
+                free(adj_tmp);
+                free(both_tmp);
+                free(nbr_tmp);
                 return ms_error_set(err, MS_ERR_NOMEM, "out of memory sorting a star");
             }
         }
         memcpy(adj_tmp, st->adj, n);
         memcpy(both_tmp, st->both, (size_t)n * sizeof *both_tmp);
-        /* map key -> old index: keys sorted; for each old i, binary search its key */
+        memcpy(nbr_tmp, st->nbr, (size_t)n * sizeof *nbr_tmp);
         for (uint32_t i = 0; i < n; ++i) {
-            uint64_t k = cx->v[oldn[i]].key;
-            uint32_t lo = 0, hi = n;
-            while (lo < hi) {
-                uint32_t mid = (lo + hi) / 2;
-                if (keys[mid] < k)
-                    lo = mid + 1;
-                else
-                    hi = mid;
-            }
-            nb[lo] = oldn[i];
-            st->adj[lo] = adj_tmp[i];
-            st->both[lo] = both_tmp[i];
-            cx->mark[oldn[i]] = lo;
+            uint32_t o = perm[i];
+            st->nbr[i] = nbr_tmp[o];
+            st->adj[i] = adj_tmp[o];
+            st->both[i] = both_tmp[o];
+            cx->mark[nbr_tmp[o]] = i;
         }
-        if (n > 256) {
+        if (n > 64) {
             free(adj_tmp);
             free(both_tmp);
+            free(nbr_tmp);
         }
     }
     /* Pass 2: pairs (triangles with exactly one centre). */
@@ -739,11 +760,23 @@ ms_status ms_cx_compact(ms_complex *cx, uint32_t *order, uint32_t n, ms_error *e
     assert(n == cx->live_v);
     uint32_t *vmap = malloc((size_t)(cx->nv ? cx->nv : 1) * sizeof *vmap);
     uint32_t *tmap = malloc((size_t)(cx->nt ? cx->nt : 1) * sizeof *tmap);
-    ms_cx_vert *nv = malloc((size_t)cx->cv * sizeof *nv);
-    int32_t (*ncen)[4] = malloc((size_t)cx->cv * sizeof *ncen);
-    uint32_t (*ntri)[3] = malloc((size_t)(cx->ct ? cx->ct : 1) * sizeof *ntri);
+    if (cx->spare_cv < cx->cv) {
+        free(cx->spare_v);
+        free(cx->spare_cen);
+        cx->spare_v = malloc((size_t)cx->cv * sizeof *cx->spare_v);
+        cx->spare_cen = malloc((size_t)cx->cv * sizeof *cx->spare_cen);
+        cx->spare_cv = cx->spare_v && cx->spare_cen ? cx->cv : 0;
+    }
+    if (cx->spare_ct < cx->ct || !cx->spare_tri) {
+        free(cx->spare_tri);
+        cx->spare_tri = malloc((size_t)(cx->ct ? cx->ct : 1) * sizeof *cx->spare_tri);
+        cx->spare_ct = cx->spare_tri ? cx->ct : 0;
+    }
+    ms_cx_vert *nv = cx->spare_cv >= cx->cv ? cx->spare_v : NULL;
+    int32_t (*ncen)[4] = cx->spare_cv >= cx->cv ? cx->spare_cen : NULL;
+    uint32_t (*ntri)[3] = cx->spare_ct >= cx->ct ? cx->spare_tri : NULL;
     if (!vmap || !tmap || !nv || !ncen || !ntri) {
-        free(vmap), free(tmap), free(nv), free(ncen), free(ntri);
+        free(vmap), free(tmap);
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory compacting the complex");
     }
     for (uint32_t i = 0; i < n; ++i) {
@@ -773,9 +806,11 @@ ms_status ms_cx_compact(ms_complex *cx, uint32_t *order, uint32_t n, ms_error *e
             cx->edge[e][0] = vmap[cx->edge[e][0]];
             cx->edge[e][1] = vmap[cx->edge[e][1]];
         }
-    free(cx->v);
-    free(cx->cen);
-    free(cx->tri);
+    cx->spare_v = cx->v;
+    cx->spare_cen = cx->cen;
+    cx->spare_tri = cx->tri;
+    cx->spare_cv = cx->cv;
+    cx->spare_ct = cx->ct;
     cx->v = nv;
     cx->cen = ncen;
     cx->tri = ntri;

@@ -55,6 +55,11 @@ typedef struct ms_complex {
     uint32_t *mark, *stamp, cur;
     uint32_t *mark2, *stamp2, cur2;
     int nomem;
+    /* previous arrays kept by ms_cx_compact for reuse (no fresh page faults) */
+    ms_cx_vert *spare_v;
+    int32_t (*spare_cen)[4];
+    uint32_t (*spare_tri)[3];
+    uint32_t spare_cv, spare_ct;
 } ms_complex;
 
 ms_status ms_cx_init(ms_complex *cx, unsigned P, uint32_t max_v, uint32_t max_t, uint32_t max_e,

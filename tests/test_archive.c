@@ -292,6 +292,54 @@ static void test_writer_refuses_bad_use(void **state)
     assert_int_equal(access(partial, F_OK), -1);
 }
 
+static void test_index_blob_and_payload_checks(void **state)
+{
+    fixture *f = *state;
+    ms_archive *full, *idx;
+    ms_error err;
+    assert_int_equal(ms_archive_open(f->path, &full, &err), MS_OK);
+    size_t size;
+    const uint8_t *blob = ms_archive_index_bytes(full, &size);
+    assert_int_equal(ms_archive_open_index(blob, size, "net:bunny", &idx, &err), MS_OK);
+    for (uint32_t id = 0; id < CELLS; ++id) {
+        assert_memory_equal(ms_archive_get_cell(idx, id), ms_archive_get_cell(full, id),
+                            sizeof(ms_archive_cell));
+        assert_int_equal(ms_archive_geometry_prefix(idx, id, 10),
+                         ms_archive_geometry_prefix(full, id, 10));
+        size_t len, full_len;
+        assert_null(ms_archive_geometry(idx, id, &len));
+        const uint8_t *g = ms_archive_geometry(full, id, &full_len);
+        assert_int_equal(len, full_len);
+        assert_int_equal(ms_archive_check_payload(idx, id, false, g, full_len, &err), MS_OK);
+        const uint8_t *apo = ms_archive_apo(full, id, &full_len);
+        assert_int_equal(ms_archive_check_payload(idx, id, true, apo, full_len, &err), MS_OK);
+    }
+    size_t len;
+    const uint8_t *g = ms_archive_geometry(full, 9, &len);
+    uint8_t *copy = malloc(len);
+    memcpy(copy, g, len);
+    copy[len / 2] ^= 4;
+    assert_int_equal(ms_archive_check_payload(idx, 9, false, copy, len, &err), MS_ERR_CORRUPT);
+    assert_string_equal(err.text, "cell 9: geometry payload checksum mismatch");
+    assert_int_equal(ms_archive_check_payload(idx, 9, false, copy, len - 1, &err), MS_ERR_CORRUPT);
+    assert_int_equal(ms_archive_check_payload(idx, CELLS, false, copy, len, &err), MS_ERR_RANGE);
+    assert_int_equal(ms_archive_verify_payload(idx, 0, &err), MS_ERR_ARG);
+    free(copy);
+    ms_archive_close(idx);
+    /* The blob must be exactly header + index, intact. */
+    uint8_t *bad = malloc(size + 1);
+    memcpy(bad, blob, size);
+    bad[size] = 0;
+    assert_int_equal(ms_archive_open_index(bad, size + 1, "net:x", &idx, &err), MS_ERR_FORMAT);
+    assert_int_equal(ms_archive_open_index(bad, size - 1, "net:x", &idx, &err), MS_ERR_FORMAT);
+    assert_int_equal(ms_archive_open_index(bad, 100, "net:x", &idx, &err), MS_ERR_FORMAT);
+    bad[MS_ARCHIVE_HEADER_SIZE + 5] ^= 1;
+    assert_int_equal(ms_archive_open_index(bad, size, "net:x", &idx, &err), MS_ERR_CORRUPT);
+    assert_null(idx);
+    free(bad);
+    ms_archive_close(full);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -301,6 +349,7 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_payload_damage_found_by_verify, setup, teardown),
         cmocka_unit_test_setup_teardown(test_structural_lies_rejected, setup, teardown),
         cmocka_unit_test_setup_teardown(test_writer_refuses_bad_use, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_index_blob_and_payload_checks, setup, teardown),
     };
     return cmocka_run_group_tests_name("archive", tests, NULL, NULL);
 }

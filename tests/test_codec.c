@@ -335,6 +335,71 @@ static void test_empty_mesh_errors(void **state)
     assert_null(buf);
 }
 
+/* A mixed-dimension complex given directly as a state: a triangle, a dangling
+ * edge, an isolated edge and an isolated vertex, all carried losslessly; and the
+ * encoder's input checks. */
+static void test_edges_in_input_complex(void **state)
+{
+    (void)state;
+    ms_error err;
+    uint64_t cells[7];
+    const uint32_t q[7][3] = {{0, 0, 0}, {100, 0, 0}, {0, 100, 0}, {200, 200, 0},
+                              {900, 900, 900}, {950, 880, 870}, {500, 20, 700}};
+    for (int i = 0; i < 7; ++i)
+        cells[i] = ms_quant_key(q[i][0], q[i][1], q[i][2], 10);
+    uint32_t tris[3] = {0, 1, 2};
+    uint32_t edges[4] = {2, 3, 4, 5};
+    ms_codec_state full = {.bits = 10, .level = 30, .vertex_count = 7, .tri_count = 1,
+                           .edge_count = 2, .cells = cells, .tris = tris, .edges = edges};
+    ms_codec_encode_params par;
+    memset(&par, 0, sizeof par);
+    par.box.size = 1;
+    uint8_t *buf;
+    size_t size;
+    assert_int_equal(ms_codec_encode(&full, &par, &buf, &size, NULL, &err), MS_OK);
+    ms_codec_decoder *d;
+    assert_int_equal(ms_codec_decoder_create(buf, size, NULL, NULL, &d, &err), MS_OK);
+    assert_int_equal(ms_codec_decoder_set_level(d, 30, &err), MS_OK);
+    assert_int_equal(ms_codec_decoder_vertex_count(d), 7);
+    assert_int_equal(ms_codec_decoder_tri_count(d), 1);
+    assert_int_equal(ms_codec_decoder_edge_count(d), 2);
+    ms_codec_state got, want = {0};
+    assert_int_equal(ms_codec_decoder_state(d, &got, &err), MS_OK);
+    want.bits = 10, want.level = 30, want.vertex_count = 7, want.tri_count = 1,
+    want.edge_count = 2;
+    want.cells = malloc(sizeof cells);
+    want.tris = malloc(sizeof tris);
+    want.edges = malloc(sizeof edges);
+    memcpy(want.cells, cells, sizeof cells);
+    memcpy(want.tris, tris, sizeof tris);
+    memcpy(want.edges, edges, sizeof edges);
+    assert_int_equal(ms_codec_state_canonicalise(&want, &err), MS_OK);
+    assert_true(ms_codec_state_equal(&got, &want, true));
+    /* at level 0 everything is one vertex */
+    assert_int_equal(ms_codec_decoder_set_level(d, 0, &err), MS_OK);
+    assert_int_equal(ms_codec_decoder_vertex_count(d), 1);
+    assert_int_equal(ms_codec_decoder_tri_count(d), 0);
+    assert_int_equal(ms_codec_decoder_edge_count(d), 0);
+    ms_codec_state_free(&got);
+    ms_codec_state_free(&want);
+    ms_codec_decoder_destroy(d);
+    free(buf);
+    /* invalid inputs */
+    edges[0] = 0, edges[1] = 1; /* a face of the triangle: not maximal */
+    assert_int_equal(ms_codec_encode(&full, &par, &buf, &size, NULL, &err), MS_ERR_ARG);
+    edges[0] = 2, edges[1] = 3;
+    uint32_t two[6] = {0, 1, 2, 2, 1, 0};
+    full.tris = two;
+    full.tri_count = 2;
+    assert_int_equal(ms_codec_encode(&full, &par, &buf, &size, NULL, &err), MS_ERR_ARG);
+    assert_non_null(strstr(err.text, "duplicate"));
+    full.tri_count = 1;
+    cells[1] = cells[0];
+    assert_int_equal(ms_codec_encode(&full, &par, &buf, &size, NULL, &err), MS_ERR_ARG);
+    cells[1] = 1ull << 30;
+    assert_int_equal(ms_codec_encode(&full, &par, &buf, &size, NULL, &err), MS_ERR_ARG);
+}
+
 /* ---- streams ---- */
 
 typedef struct coded {
@@ -409,6 +474,46 @@ static void test_subrange_from_start_state(void **state)
     ms_codec_state_free(&start);
     free_coded(&all);
     free_coded(&part);
+}
+
+/* The nSP-tree chain: a parent stream over [0, 5] codes the complex at 5 bits;
+ * its decoder's final state starts the child stream over [5, 12]. */
+static void test_parent_child_chain(void **state)
+{
+    (void)state;
+    ms_error err;
+    coded child;
+    ms_codec_state start;
+    code_torus(&child, 12, 5, &start);
+    ms_codec_state parent_full = start; /* the complex at 5 bits, in a 15-bit key space */
+    parent_full.bits = 5;
+    ms_codec_encode_params par;
+    memset(&par, 0, sizeof par);
+    par.box.size = 1;
+    uint8_t *pbuf;
+    size_t psize;
+    assert_int_equal(ms_codec_encode(&parent_full, &par, &pbuf, &psize, NULL, &err), MS_OK);
+    ms_codec_decoder *pd, *cd;
+    assert_int_equal(ms_codec_decoder_create(pbuf, psize, NULL, NULL, &pd, &err), MS_OK);
+    assert_int_equal(ms_codec_decoder_set_level(pd, 15, &err), MS_OK);
+    ms_codec_state handoff;
+    assert_int_equal(ms_codec_decoder_state(pd, &handoff, &err), MS_OK);
+    assert_int_equal(handoff.bits, 5);
+    assert_int_equal(handoff.level, 15);
+    assert_true(ms_codec_state_equal(&handoff, &start, true));
+    assert_int_equal(ms_codec_decoder_create(child.buf, child.size, &handoff, NULL, &cd, &err),
+                     MS_OK);
+    assert_int_equal(ms_codec_decoder_set_level(cd, 36, &err), MS_OK);
+    ms_codec_state got;
+    assert_int_equal(ms_codec_decoder_state(cd, &got, &err), MS_OK);
+    assert_true(ms_codec_state_equal(&got, &child.canon, true));
+    ms_codec_state_free(&got);
+    ms_codec_state_free(&handoff);
+    ms_codec_decoder_destroy(pd);
+    ms_codec_decoder_destroy(cd);
+    free(pbuf);
+    ms_codec_state_free(&start);
+    free_coded(&child);
 }
 
 static void test_prefix_and_truncation(void **state)
@@ -522,7 +627,9 @@ int main(void)
         cmocka_unit_test(test_large_offset_small_extent),
         cmocka_unit_test(test_precision_8_and_20),
         cmocka_unit_test(test_empty_mesh_errors),
+        cmocka_unit_test(test_edges_in_input_complex),
         cmocka_unit_test(test_subrange_from_start_state),
+        cmocka_unit_test(test_parent_child_chain),
         cmocka_unit_test(test_prefix_and_truncation),
         cmocka_unit_test(test_corruption_detected),
         cmocka_unit_test(test_torus_levels_and_size),

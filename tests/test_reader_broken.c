@@ -422,6 +422,26 @@ static void test_off_unknown_and_gzip(void **state)
         {"\x89PNG\r\n\x1a\n", MS_ERR_UNSUPPORTED, "byte offset 0: unknown format"},
         {"plyx\n", MS_ERR_UNSUPPORTED, "unknown format"},
         {"", MS_ERR_EMPTY, "file is empty"},
+        {"ply\nformat ascii 1.0\nelement face 1\nproperty list uchar int vertex_indices\n"
+         "element vertex 3\nproperty float x\nproperty float y\nproperty float z\nend_header\n",
+         MS_ERR_UNSUPPORTED, "line 9: element face before element vertex"},
+        {"ply\nformat ascii 1.0\nproperty float x\n", MS_ERR_FORMAT,
+         "line 3: property before any element"},
+        {"ply\nelement vertex 3\n", MS_ERR_FORMAT, "line 2: 'element' before the format line"},
+        {"ply\nformat ascii 2.0\n", MS_ERR_UNSUPPORTED, "line 2: PLY version 2.0"},
+        {"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float x\n",
+         MS_ERR_FORMAT, "line 5: duplicate property x"},
+        {"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
+         "property float z\nelement face 1\nproperty list float int vertex_indices\n",
+         MS_ERR_FORMAT, "line 8: list count type must be an integer"},
+        {"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
+         "property float z\nelement face 1\nproperty list uchar int corners\nend_header\n",
+         MS_ERR_FORMAT, "line 9: element face has no vertex_indices list"},
+        {"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+         "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+         "0 0 0\n1 0 0\n0 1 0\n3 0 1 1\n",
+         MS_ERR_EMPTY, "no triangles (1 faces read, 1 dropped)"},
+        {"ply\nformat ascii 1.0\nbogus line\n", MS_ERR_FORMAT, "line 3: unknown header keyword"},
     };
     blob none = {NULL, 0};
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; ++i)

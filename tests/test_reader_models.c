@@ -60,6 +60,44 @@ static void test_every_model_loads_with_readme_counts(void **state)
     }
 }
 
+static int compare_u64(const void *a, const void *b)
+{
+    uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
+    return x < y ? -1 : x > y;
+}
+
+/* Igea is a closed surface stored as strips: if the strip unrolling flips every
+ * other triangle correctly, each directed edge occurs once and its reverse once. */
+static void test_igea_strips_are_consistently_oriented(void **state)
+{
+    (void)state;
+    char path[4096];
+    ms_test_model_path(path, sizeof path, "igea_tristrips.ply.gz");
+    ms_mesh mesh = {0};
+    ms_error err;
+    assert_int_equal(ms_mesh_load(path, &mesh, NULL, &err), MS_OK);
+    size_t n = 3 * mesh.triangle_count;
+    uint64_t *edges = malloc(n * sizeof *edges);
+    uint64_t *reversed = malloc(n * sizeof *reversed);
+    assert_non_null(edges);
+    assert_non_null(reversed);
+    for (size_t t = 0; t < mesh.triangle_count; ++t)
+        for (int k = 0; k < 3; ++k) {
+            uint64_t a = mesh.triangles[3 * t + (size_t)k];
+            uint64_t b = mesh.triangles[3 * t + (size_t)(k + 1) % 3];
+            edges[3 * t + (size_t)k] = a << 32 | b;
+            reversed[3 * t + (size_t)k] = b << 32 | a;
+        }
+    qsort(edges, n, sizeof *edges, compare_u64);
+    qsort(reversed, n, sizeof *reversed, compare_u64);
+    for (size_t i = 1; i < n; ++i)
+        assert_true(edges[i] != edges[i - 1]);
+    assert_memory_equal(edges, reversed, n * sizeof *edges);
+    free(edges);
+    free(reversed);
+    ms_mesh_free(&mesh);
+}
+
 typedef struct stream_check {
     uint64_t vertices;
     uint64_t triangles;
@@ -205,6 +243,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_every_model_loads_with_readme_counts),
+        cmocka_unit_test(test_igea_strips_are_consistently_oriented),
         cmocka_unit_test(test_streaming_chunks_are_bounded_and_ordered),
         cmocka_unit_test(test_meshbake_info_json),
         cmocka_unit_test(test_meshbake_usage),

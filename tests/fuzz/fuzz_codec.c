@@ -1,4 +1,5 @@
-/* libFuzzer target: the codec decoder on arbitrary bytes. Header and chunk CRCs
+/* libFuzzer target `codec` (corpus tests/corpus/codec): the codec decoder on
+ * arbitrary bytes. Header and chunk CRCs
  * are skipped (otherwise nearly every mutation stops at a checksum) so the
  * decoder's own validation is exercised; the stream is decoded to full
  * precision, coarsened to the middle level and exported. The first input byte

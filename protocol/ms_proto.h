@@ -1,0 +1,419 @@
+/* The meshstream wire protocol, version 1: message structs, encoders, and an
+ * incremental frame decoder with strict validation. protocol/PROTOCOL.md is the
+ * normative specification; the numbers of sections quoted here are its sections.
+ *
+ * Pure code: no I/O, no global mutable state, no threads. Encoding functions are
+ * thread-safe. A decoder object is used by one thread at a time; distinct
+ * decoder objects are independent.
+ *
+ * Errors follow common/ms_error.h: functions return an ms_status and fill an
+ * optional ms_error with one line of text. Decoding also fills an ms_proto_fault
+ * with the wire error code (section 9) to send to the peer, whether it is fatal,
+ * and which request ids it ends, so that a server can answer every bad frame
+ * with the documented ERROR frame.
+ */
+#ifndef MS_PROTO_H
+#define MS_PROTO_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "ms_error.h"
+
+/* ---- Constants of version 1 (section numbers refer to PROTOCOL.md) ---- */
+
+#define MS_PROTO_VERSION 1u                 /* the version this code speaks */
+#define MS_PROTO_HEADER_SIZE 12u            /* frame header bytes (section 2) */
+#define MS_PROTO_MIN_FRAME 16384u           /* least max_frame; pre-handshake limit */
+#define MS_PROTO_MAX_FRAME 16777216u        /* greatest max_frame (16 MiB) */
+#define MS_PROTO_MAX_BATCH 4096u            /* greatest max_batch */
+#define MS_PROTO_MAX_OUTSTANDING 1048576u   /* greatest max_outstanding */
+#define MS_PROTO_MAX_QUEUED_BYTES (1ull << 40)
+#define MS_PROTO_MIN_IDLE_TIMEOUT_MS 1000u
+#define MS_PROTO_MAX_IDLE_TIMEOUT_MS 86400000u
+#define MS_PROTO_MAX_OPEN_MODELS 1024u
+#define MS_PROTO_MAX_TOKEN 256u             /* token bytes, 0x21..0x7E */
+#define MS_PROTO_MAX_LABEL 64u              /* agent / server name, 0x20..0x7E */
+#define MS_PROTO_MAX_MODEL_NAME 64u         /* [A-Za-z0-9_-]{1,64} */
+#define MS_PROTO_MAX_TEXT 256u              /* error text, catalogue title: UTF-8 */
+#define MS_PROTO_MAX_CANCEL_RANGES 256u
+#define MS_PROTO_MAX_CELLS (1u << 26)       /* greatest cell_count */
+#define MS_PROTO_MAX_INDEX_SIZE (64u << 20) /* greatest header + index blob */
+#define MS_PROTO_MAX_STEPS 64u              /* greatest geometry/APO step count */
+#define MS_PROTO_MAX_STEP 63u               /* greatest step number in a request */
+#define MS_PROTO_PAYLOAD_CHUNK 65536u       /* advised payload data per frame */
+
+/* Fixed parts of the bodies, in bytes (section 4). */
+#define MS_PROTO_HELLO_FIXED 24u
+#define MS_PROTO_HELLO_REPLY_FIXED 48u
+#define MS_PROTO_PING_SIZE 8u
+#define MS_PROTO_OPEN_MODEL_FIXED 4u
+#define MS_PROTO_CLOSE_MODEL_SIZE 4u
+#define MS_PROTO_REQUEST_CELLS_FIXED 8u
+#define MS_PROTO_CELL_REQUEST_SIZE 16u
+#define MS_PROTO_CANCEL_FIXED 4u
+#define MS_PROTO_CANCEL_RANGE_SIZE 8u
+#define MS_PROTO_ERROR_FIXED 18u
+#define MS_PROTO_CATALOGUE_FIXED 4u
+#define MS_PROTO_CATALOGUE_ENTRY_FIXED 32u
+#define MS_PROTO_MODEL_OPENED_SIZE 32u
+#define MS_PROTO_INDEX_DATA_FIXED 4u
+#define MS_PROTO_PAYLOAD_FIXED 16u
+
+/* The four bytes HELLO and HELLO_REPLY start with. */
+#define MS_PROTO_MAGIC "MSTP"
+
+/* Header flag bits. */
+#define MS_PROTO_FLAG_LAST 0x01u
+/* Capability bits (section 3). */
+#define MS_PROTO_CAP_APO 0x00000001u
+/* HELLO_REPLY server_flags bits. */
+#define MS_PROTO_SERVER_TOKEN_ACCEPTED 0x0001u
+/* CANCEL flags bits. */
+#define MS_PROTO_CANCEL_ALL 0x0001u
+/* ERROR flags bits. */
+#define MS_PROTO_ERROR_FATAL 0x01u
+
+typedef enum ms_proto_type {
+    MS_PROTO_NONE = 0x00, /* no message (decoder: nothing complete yet) */
+    MS_PROTO_HELLO = 0x01,
+    MS_PROTO_LIST_CATALOGUE = 0x02,
+    MS_PROTO_OPEN_MODEL = 0x03,
+    MS_PROTO_CLOSE_MODEL = 0x04,
+    MS_PROTO_REQUEST_CELLS = 0x05,
+    MS_PROTO_CANCEL = 0x06,
+    MS_PROTO_PING = 0x40,
+    MS_PROTO_PONG = 0x41,
+    MS_PROTO_ERROR = 0x7F,
+    MS_PROTO_HELLO_REPLY = 0x81,
+    MS_PROTO_CATALOGUE = 0x82,
+    MS_PROTO_MODEL_OPENED = 0x83,
+    MS_PROTO_INDEX_DATA = 0x84,
+    MS_PROTO_PAYLOAD = 0x85
+} ms_proto_type;
+
+/* Wire error codes (section 9). */
+typedef enum ms_proto_error_code {
+    MS_PROTO_E_MALFORMED_FRAME = 1,
+    MS_PROTO_E_FRAME_TOO_LARGE = 2,
+    MS_PROTO_E_UNKNOWN_TYPE = 3,
+    MS_PROTO_E_UNEXPECTED_MESSAGE = 4,
+    MS_PROTO_E_UNSUPPORTED_VERSION = 5,
+    MS_PROTO_E_FIELD_OUT_OF_RANGE = 6,
+    MS_PROTO_E_BATCH_TOO_LARGE = 7,
+    MS_PROTO_E_TOO_MANY_OUTSTANDING = 8,
+    MS_PROTO_E_RATE_LIMITED = 9,
+    MS_PROTO_E_QUEUE_FULL = 10,
+    MS_PROTO_E_DUPLICATE_REQUEST_ID = 11,
+    MS_PROTO_E_BAD_MODEL_NAME = 12,
+    MS_PROTO_E_UNKNOWN_MODEL = 13,
+    MS_PROTO_E_TOO_MANY_MODELS = 14,
+    MS_PROTO_E_UNKNOWN_CELL = 15,
+    MS_PROTO_E_RANGE_NOT_SATISFIABLE = 16,
+    MS_PROTO_E_FORBIDDEN = 17,
+    MS_PROTO_E_CANCELLED = 18,
+    MS_PROTO_E_IDLE_TIMEOUT = 19,
+    MS_PROTO_E_TOO_MANY_CONNECTIONS = 20,
+    MS_PROTO_E_SHUTTING_DOWN = 21,
+    MS_PROTO_E_INTERNAL = 22
+} ms_proto_error_code;
+#define MS_PROTO_E_FIRST 1
+#define MS_PROTO_E_LAST 22
+
+/* Whether an error code is fatal (the FATAL column of section 9). */
+typedef enum ms_proto_fatality {
+    MS_PROTO_FATAL_NEVER = 0,
+    MS_PROTO_FATAL_ALWAYS = 1,
+    MS_PROTO_FATAL_EITHER = 2
+} ms_proto_fatality;
+
+typedef enum ms_proto_stream {
+    MS_PROTO_STREAM_GEOMETRY = 0,
+    MS_PROTO_STREAM_APO = 1
+} ms_proto_stream;
+
+typedef enum ms_proto_unit {
+    MS_PROTO_UNIT_STEPS = 0, /* precision bits (geometry) or octree levels (APO) */
+    MS_PROTO_UNIT_BYTES = 1
+} ms_proto_unit;
+
+/* ---- Message bodies. Strings are (pointer, length), never NUL-terminated.
+ * In a decoded message every pointer points into the decoder's memory (valid
+ * until the next call on that decoder); for encoding they point to the
+ * caller's memory, which is only read. ---- */
+
+typedef struct ms_proto_hello {
+    uint16_t min_version, max_version; /* 1 <= min <= max */
+    uint32_t capabilities;             /* MS_PROTO_CAP_* bits; unknown bits allowed */
+    uint32_t max_frame;                /* [MS_PROTO_MIN_FRAME, MS_PROTO_MAX_FRAME] */
+    const char *token;                 /* token_length bytes in 0x21..0x7E */
+    uint16_t token_length;             /* [0, MS_PROTO_MAX_TOKEN] */
+    const char *agent;                 /* agent_length bytes in 0x20..0x7E */
+    uint16_t agent_length;             /* [0, MS_PROTO_MAX_LABEL] */
+} ms_proto_hello;
+
+typedef struct ms_proto_hello_reply {
+    uint16_t version;           /* >= 1 */
+    uint16_t server_flags;      /* MS_PROTO_SERVER_* bits only */
+    uint32_t capabilities;
+    uint32_t max_frame;         /* [MS_PROTO_MIN_FRAME, MS_PROTO_MAX_FRAME] */
+    uint32_t max_batch;         /* [1, MS_PROTO_MAX_BATCH] */
+    uint32_t max_outstanding;   /* [1, MS_PROTO_MAX_OUTSTANDING] */
+    uint64_t max_queued_bytes;  /* [1, MS_PROTO_MAX_QUEUED_BYTES] */
+    uint32_t idle_timeout_ms;   /* 0 or [MIN_IDLE_TIMEOUT_MS, MAX_IDLE_TIMEOUT_MS] */
+    uint32_t max_request_rate;  /* requests per second, 0 = unlimited */
+    uint16_t max_open_models;   /* [1, MS_PROTO_MAX_OPEN_MODELS] */
+    const char *server_name;    /* 0x20..0x7E */
+    uint16_t server_name_length; /* [0, MS_PROTO_MAX_LABEL] */
+} ms_proto_hello_reply;
+
+typedef struct ms_proto_ping {
+    uint64_t opaque; /* echoed by PONG */
+} ms_proto_ping;
+
+typedef struct ms_proto_catalogue_entry {
+    const char *name;          /* model name, [A-Za-z0-9_-] */
+    uint8_t name_length;       /* [1, 64] */
+    uint8_t geometry_steps;    /* [1, 64] */
+    uint8_t apo_steps;         /* [0, 64] */
+    uint8_t permitted_geometry_steps; /* [1, geometry_steps] */
+    uint8_t permitted_apo_steps;      /* [0, apo_steps] */
+    const char *title;         /* UTF-8 text, no control characters */
+    uint16_t title_length;     /* [0, MS_PROTO_MAX_TEXT] */
+    uint32_t cell_count;       /* [1, MS_PROTO_MAX_CELLS] */
+    uint64_t content_id;
+    uint64_t archive_bytes;
+} ms_proto_catalogue_entry;
+
+typedef struct ms_proto_catalogue {
+    const ms_proto_catalogue_entry *entries;
+    uint16_t entry_count; /* 0 only with MS_PROTO_FLAG_LAST */
+} ms_proto_catalogue;
+
+typedef struct ms_proto_open_model {
+    const char *name;    /* [A-Za-z0-9_-], else MS_PROTO_E_BAD_MODEL_NAME */
+    uint8_t name_length; /* [1, 64] */
+} ms_proto_open_model;
+
+typedef struct ms_proto_model_opened {
+    uint32_t model_handle;   /* >= 1 */
+    uint32_t cell_count;     /* [1, MS_PROTO_MAX_CELLS] */
+    uint64_t content_id;
+    uint32_t index_size;     /* [1, MS_PROTO_MAX_INDEX_SIZE] bytes */
+    uint32_t index_crc32;    /* zlib crc32 of the whole blob */
+    uint16_t archive_version; /* >= 1 */
+    uint8_t geometry_steps, apo_steps;                     /* as in the catalogue */
+    uint8_t permitted_geometry_steps, permitted_apo_steps; /* as in the catalogue */
+} ms_proto_model_opened;
+
+typedef struct ms_proto_close_model {
+    uint32_t model_handle; /* >= 1 */
+} ms_proto_close_model;
+
+/* One entry of a REQUEST_CELLS batch (section 4.10). */
+typedef struct ms_proto_cell_request {
+    uint32_t cell_id;
+    uint8_t stream;   /* ms_proto_stream */
+    uint8_t unit;     /* ms_proto_unit */
+    uint8_t priority; /* lower is sooner; ties FIFO */
+    /* unit STEPS: a = first step, b = last step, a <= b <= MS_PROTO_MAX_STEP.
+     * unit BYTES: a = byte offset, b = byte length >= 1, a + b <= UINT32_MAX. */
+    uint32_t a, b;
+} ms_proto_cell_request;
+
+typedef struct ms_proto_request_cells {
+    uint32_t model_handle; /* >= 1 */
+    const ms_proto_cell_request *entries; /* entry i has request id first + i */
+    uint16_t count;        /* [1, max_batch] */
+} ms_proto_request_cells;
+
+typedef struct ms_proto_id_range {
+    uint32_t first_id; /* >= 1 */
+    uint32_t count;    /* >= 1, first_id + count - 1 <= UINT32_MAX */
+} ms_proto_id_range;
+
+typedef struct ms_proto_cancel {
+    uint16_t flags;    /* MS_PROTO_CANCEL_ALL or 0 */
+    const ms_proto_id_range *ranges;
+    uint16_t range_count; /* [0, 256]; 0 if and only if CANCEL_ALL */
+} ms_proto_cancel;
+
+/* A chunk of a model's header + cell index blob (section 4.8). */
+typedef struct ms_proto_index_data {
+    uint32_t offset;        /* offset + data_length <= MS_PROTO_MAX_INDEX_SIZE */
+    const uint8_t *data;
+    uint32_t data_length;   /* >= 1 */
+} ms_proto_index_data;
+
+typedef struct ms_proto_payload {
+    uint32_t cell_id;
+    uint8_t stream;          /* ms_proto_stream */
+    uint32_t offset;         /* byte offset in the cell stream of data[0] */
+    uint32_t end;            /* end of the request's range: offset + data_length <= end */
+    const uint8_t *data;
+    uint32_t data_length;    /* 0 only with MS_PROTO_FLAG_LAST; with LAST, offset + data_length == end */
+} ms_proto_payload;
+
+typedef struct ms_proto_error_body {
+    uint16_t code;          /* ms_proto_error_code */
+    bool fatal;             /* must match ms_proto_error_fatality(code) */
+    uint32_t request_count; /* 0 if and only if the frame's request_id is 0 */
+    uint64_t detail;
+    const char *text;       /* UTF-8 text, one line */
+    uint16_t text_length;   /* [0, MS_PROTO_MAX_TEXT] */
+} ms_proto_error_body;
+
+/* One message: the frame header fields plus the body of its type. */
+typedef struct ms_proto_message {
+    uint8_t type;        /* ms_proto_type */
+    uint8_t flags;       /* MS_PROTO_FLAG_LAST where the type allows it */
+    uint32_t request_id; /* section 5 */
+    union {
+        ms_proto_hello hello;
+        ms_proto_hello_reply hello_reply;
+        ms_proto_ping ping;                 /* PING and PONG */
+        ms_proto_catalogue catalogue;
+        ms_proto_open_model open_model;
+        ms_proto_model_opened model_opened;
+        ms_proto_close_model close_model;
+        ms_proto_request_cells request_cells;
+        ms_proto_cancel cancel;
+        ms_proto_index_data index_data;
+        ms_proto_payload payload;
+        ms_proto_error_body error;
+    } body;
+} ms_proto_message;
+
+/* What a receiver must answer to a rejected frame (section 9). */
+typedef struct ms_proto_fault {
+    uint16_t code;          /* ms_proto_error_code */
+    bool fatal;             /* true: send the ERROR, then close */
+    uint8_t frame_type;     /* type byte of the offending frame, 0 if none */
+    uint32_t request_id;    /* first request id the error ends, 0 = connection level */
+    uint32_t request_count; /* 0 when request_id is 0 */
+    uint64_t detail;        /* the code's detail value */
+} ms_proto_fault;
+
+/* ---- Names and small helpers (ms_proto_validate.c) ---- */
+
+/* "HELLO", "PAYLOAD", ...; "?" for an undefined type. */
+const char *ms_proto_type_name(uint8_t type);
+/* "MALFORMED_FRAME", ...; "?" for an undefined code. */
+const char *ms_proto_error_name(uint16_t code);
+/* Fatality of a defined code; MS_PROTO_FATAL_ALWAYS for an undefined one. */
+ms_proto_fatality ms_proto_error_fatality(uint16_t code);
+
+/* True when name[0..length) is a model name ([A-Za-z0-9_-]{1,64}). Otherwise,
+ * if bad_offset is non-NULL, stores the offset of the first bad byte (length
+ * itself when the length is 0 or above 64). */
+bool ms_proto_model_name_valid(const char *name, size_t length, size_t *bad_offset);
+/* True for well-formed UTF-8 without control characters (section 1). */
+bool ms_proto_text_valid(const uint8_t *text, size_t length);
+
+/* Version negotiation (section 3): the highest version in both ranges. Returns
+ * MS_ERR_UNSUPPORTED when the ranges do not intersect (or one is empty). */
+ms_status ms_proto_choose_version(uint16_t client_min, uint16_t client_max, uint16_t server_min,
+                                  uint16_t server_max, uint16_t *chosen);
+
+/* Checks every field range and cross-field rule of msg, header fields
+ * included, exactly as a receiver would (max_batch: the batch limit to apply,
+ * MS_PROTO_MAX_BATCH for the protocol's own). Returns MS_OK, or MS_ERR_RANGE /
+ * MS_ERR_FORMAT with fault (if non-NULL) set to the wire error: code, detail
+ * (field offset in the body for FIELD_OUT_OF_RANGE) and the request ids the
+ * error ends. fault->fatal is left false; the decoder decides it by role. */
+ms_status ms_proto_check_message(const ms_proto_message *msg, uint32_t max_batch,
+                                 ms_proto_fault *fault, ms_error *err);
+
+/* Fills out as an ERROR message describing fault, with text (may be NULL) cut
+ * to at most MS_PROTO_MAX_TEXT bytes on a UTF-8 boundary. out->body.error.text
+ * points into text, which must outlive out. */
+void ms_proto_error_from_fault(const ms_proto_fault *fault, const char *text,
+                               ms_proto_message *out);
+
+/* ---- Encoding (ms_proto_encode.c) ---- */
+
+/* Size in bytes of the whole frame (header included) msg encodes to. Does not
+ * validate; returns MS_ERR_ARG for an undefined type. */
+ms_status ms_proto_encoded_size(const ms_proto_message *msg, size_t *size, ms_error *err);
+
+/* Validates msg with ms_proto_check_message(msg, MS_PROTO_MAX_BATCH) and writes
+ * its frame to out[0..capacity). On success *written is the frame size. Errors:
+ * MS_ERR_RANGE / MS_ERR_FORMAT (invalid message, nothing written), MS_ERR_ARG
+ * (NULL argument, or capacity too small: *written is then the size needed). */
+ms_status ms_proto_encode(const ms_proto_message *msg, uint8_t *out, size_t capacity,
+                          size_t *written, ms_error *err);
+
+/* ---- Decoding (ms_proto_decode.c) ---- */
+
+typedef enum ms_proto_role {
+    MS_PROTO_ROLE_SERVER = 1, /* decodes what clients send */
+    MS_PROTO_ROLE_CLIENT = 2  /* decodes what servers send */
+} ms_proto_role;
+
+typedef struct ms_proto_decoder_config {
+    ms_proto_role role;
+    uint32_t max_frame; /* largest body this side accepts (what its hello announces) */
+    uint32_t max_batch; /* server: largest batch accepted; client: ignored (use 0) */
+} ms_proto_decoder_config;
+
+/* Incremental decoder state. Treat every field as private. */
+typedef struct ms_proto_decoder {
+    ms_proto_decoder_config config;
+    bool handshake_done;    /* first frame (HELLO / HELLO_REPLY) seen */
+    bool peer_closed;       /* a fatal ERROR was received: nothing may follow */
+    bool failed;            /* a fatal fault happened; failure/failure_text repeat it */
+    ms_proto_fault failure;
+    char failure_text[MS_ERROR_TEXT_MAX];
+    uint8_t header[MS_PROTO_HEADER_SIZE];
+    size_t header_have;     /* bytes of header buffered */
+    uint32_t body_length;   /* of the current frame, once the header is complete */
+    uint8_t *body;          /* owned; grown up to body_length only */
+    size_t body_capacity;
+    size_t body_have;
+    void *scratch;          /* owned; decoded arrays (batch entries, ...) */
+    size_t scratch_capacity;
+    uint64_t stream_offset; /* bytes consumed since init, for error texts */
+    uint64_t frame_start;   /* stream offset of the current frame */
+} ms_proto_decoder;
+
+/* Prepares a decoder; allocates nothing. config->max_frame must be in
+ * [MS_PROTO_MIN_FRAME, MS_PROTO_MAX_FRAME] and, for a server, max_batch in
+ * [1, MS_PROTO_MAX_BATCH]; else MS_ERR_ARG. */
+ms_status ms_proto_decoder_init(ms_proto_decoder *dec, const ms_proto_decoder_config *config,
+                                ms_error *err);
+
+/* Releases the decoder's buffers; the decoder may be init'ed again. Accepts NULL. */
+void ms_proto_decoder_free(ms_proto_decoder *dec);
+
+/* Feeds bytes as they arrive, in any split. Consumes input until one frame is
+ * complete or the input is exhausted; *consumed says how many bytes were used,
+ * so call again with the rest.
+ *
+ * Returns MS_OK with *have_message true when msg holds a validated message (its
+ * pointers borrow decoder memory until the next call on dec), or with
+ * *have_message false when all input was consumed without completing a frame.
+ *
+ * Returns an error status when a frame is rejected: fault says what to answer
+ * (section 9) and err has one line of text. If fault->fatal is false the frame
+ * was consumed whole and decoding can continue after it; if true, the decoder
+ * is failed and every later call returns the same fault, consuming nothing.
+ * Status: MS_ERR_FORMAT (malformed, unknown or unexpected type),
+ * MS_ERR_NOMEM (frame too large, or memory exhausted: INTERNAL),
+ * MS_ERR_RANGE (field out of range, batch too large, bad model name).
+ *
+ * Memory: the body buffer grows to the frame's declared body length only after
+ * that length passed every header check (at most max_frame); decoded arrays
+ * are bounded by the same length and by max_batch. */
+ms_status ms_proto_decoder_feed(ms_proto_decoder *dec, const uint8_t *data, size_t size,
+                                size_t *consumed, ms_proto_message *msg, bool *have_message,
+                                ms_proto_fault *fault, ms_error *err);
+
+/* To call at end of stream: MS_OK when no partial frame is buffered, else a
+ * fatal MALFORMED_FRAME fault (truncated frame). */
+ms_status ms_proto_decoder_finish(ms_proto_decoder *dec, ms_proto_fault *fault, ms_error *err);
+
+/* Bytes of an incomplete frame currently buffered (header and body). */
+size_t ms_proto_decoder_buffered(const ms_proto_decoder *dec);
+
+#endif

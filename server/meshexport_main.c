@@ -1,0 +1,143 @@
+/* meshexport: writes a model's archive as the static file tree of meshserve's
+ * HTTP side door, so any static web server (nginx, a CDN) can serve the same
+ * bytes at the same paths. */
+#include <errno.h>
+#include <getopt.h>
+#include <stdbool.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#include "ms_archive.h"
+#include "ms_catalog.h"
+#include "ms_progress.h"
+
+static void usage(FILE *out)
+{
+    fprintf(out,
+            "Usage: meshexport ARCHIVE_DIR NAME -o OUT_DIR [--json]\n"
+            "Writes model NAME of ARCHIVE_DIR as static files laid out like meshserve's HTTP\n"
+            "side door: OUT_DIR/models/NAME (header and cell index),\n"
+            "OUT_DIR/models/NAME/cells/ID/geometry and .../apo (whole payloads; prefixes are\n"
+            "byte ranges of these files, served with Range by any static web server).\n\n"
+            "  -o, --output DIR   where to write (created; existing files are replaced)\n"
+            "      --json         print the summary as one JSON object\n"
+            "  -h, --help         show this help\n");
+}
+
+static int make_dir(const char *path)
+{
+    return mkdir(path, 0755) == 0 || errno == EEXIST ? 0 : -1;
+}
+
+static int write_file(const char *path, const uint8_t *data, size_t size)
+{
+    char tmp[4200];
+    snprintf(tmp, sizeof tmp, "%s.partial", path);
+    FILE *f = fopen(tmp, "wb");
+    if (!f)
+        return -1;
+    int failed = (size && fwrite(data, 1, size, f) != size);
+    failed |= fclose(f) != 0;
+    if (failed || rename(tmp, path) != 0) {
+        remove(tmp);
+        return -1;
+    }
+    return 0;
+}
+
+int main(int argc, char **argv)
+{
+    static const struct option options[] = {
+        {"output", required_argument, NULL, 'o'},
+        {"json", no_argument, NULL, 'j'},
+        {"help", no_argument, NULL, 'h'},
+        {NULL, 0, NULL, 0},
+    };
+    const char *out_dir = NULL;
+    bool json = false;
+    int c;
+    while ((c = getopt_long(argc, argv, "o:h", options, NULL)) != -1) {
+        switch (c) {
+        case 'o': out_dir = optarg; break;
+        case 'j': json = true; break;
+        case 'h': usage(stdout); return 0;
+        default: fprintf(stderr, "meshexport: try 'meshexport --help'\n"); return 2;
+        }
+    }
+    if (optind != argc - 2 || !out_dir) {
+        fprintf(stderr, "meshexport: expected ARCHIVE_DIR NAME -o OUT_DIR (try 'meshexport --help')\n");
+        return 2;
+    }
+    const char *archive_dir = argv[optind], *name = argv[optind + 1];
+    if (!ms_model_name_valid(name)) {
+        fprintf(stderr, "meshexport: invalid model name '%s'\n", name);
+        return 2;
+    }
+    char path[4096];
+    snprintf(path, sizeof path, "%s/%s.msa", archive_dir, name);
+    ms_archive *a;
+    ms_error err;
+    if (ms_archive_open(path, &a, &err) != MS_OK) {
+        fprintf(stderr, "meshexport: %s\n", err.text);
+        return 1;
+    }
+    double start = ms_now_seconds();
+    const ms_archive_header *h = ms_archive_get_header(a);
+    int failed = 0;
+    uint64_t bytes = 0, files = 0;
+    /* The index is served at models/NAME and the cells under models/NAME/cells/,
+     * so "models/NAME" would have to be both a file and a directory: the index
+     * goes to models/NAME.index and a static server maps the path (see
+     * scripts/bench-serve for the nginx rule). */
+    snprintf(path, sizeof path, "%s", out_dir);
+    failed |= make_dir(path);
+    snprintf(path, sizeof path, "%s/models", out_dir);
+    failed |= make_dir(path);
+    snprintf(path, sizeof path, "%s/models/%s", out_dir, name);
+    failed |= make_dir(path);
+    snprintf(path, sizeof path, "%s/models/%s/cells", out_dir, name);
+    failed |= make_dir(path);
+    size_t size;
+    const uint8_t *index = ms_archive_index_bytes(a, &size);
+    snprintf(path, sizeof path, "%s/models/%s.index", out_dir, name);
+    failed |= write_file(path, index, size);
+    bytes += size, files++;
+    ms_progress progress;
+    ms_progress_init(&progress, stderr, "meshexport", h->cell_count);
+    for (uint32_t cell = 0; !failed && cell < h->cell_count; ++cell) {
+        if (ms_archive_verify_payload(a, cell, &err) != MS_OK) {
+            fprintf(stderr, "meshexport: %s: %s\n", archive_dir, err.text);
+            ms_archive_close(a);
+            return 1;
+        }
+        snprintf(path, sizeof path, "%s/models/%s/cells/%u", out_dir, name, cell);
+        failed |= make_dir(path);
+        const uint8_t *g = ms_archive_geometry(a, cell, &size);
+        snprintf(path, sizeof path, "%s/models/%s/cells/%u/geometry", out_dir, name, cell);
+        failed |= write_file(path, g, size);
+        bytes += size, files++;
+        const uint8_t *apo = ms_archive_apo(a, cell, &size);
+        if (size) {
+            snprintf(path, sizeof path, "%s/models/%s/cells/%u/apo", out_dir, name, cell);
+            failed |= write_file(path, apo, size);
+            bytes += size, files++;
+        }
+        ms_progress_update(&progress, cell);
+    }
+    ms_progress_finish(&progress);
+    ms_archive_close(a);
+    if (failed) {
+        fprintf(stderr, "meshexport: cannot write under %s: %s\n", out_dir, strerror(errno));
+        return 1;
+    }
+    double seconds = ms_now_seconds() - start;
+    if (json)
+        printf("{\"model\": \"%s\", \"files\": %llu, \"bytes\": %llu, \"seconds\": %.3f}\n", name,
+               (unsigned long long)files, (unsigned long long)bytes, seconds);
+    else
+        printf("meshexport: %s: %llu files, %llu bytes in %.2f s\n", name,
+               (unsigned long long)files, (unsigned long long)bytes, seconds);
+    return 0;
+}
