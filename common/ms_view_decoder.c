@@ -115,6 +115,8 @@ ms_status ms_view_create_from_archive(const ms_archive *a, ms_view **out, ms_err
     for (uint32_t i = 0; s == MS_OK && i < h->cell_count; ++i) {
         size_t len;
         const uint8_t *g = ms_archive_geometry(a, i, &len);
+        if (!g)
+            break; /* an index without payloads: the bytes will come later */
         if ((s = ms_archive_verify_payload(a, i, err)) == MS_OK)
             s = ms_view_set_bytes(*out, i, g, len, err);
     }

@@ -59,8 +59,9 @@ typedef enum ms_view_cell_state {
 ms_status ms_view_create(const ms_archive_header *header, const ms_archive_cell *cells,
                          ms_view **view, ms_error *err);
 
-/* Convenience: a view over every record of an open archive, with every cell's
- * full geometry payload handed over (CRC-checked). */
+/* A view over every record of an open archive: with every cell's full geometry
+ * payload handed over (CRC-checked) for an archive file, with none for an index
+ * received alone (ms_archive_open_index), whose bytes come by ms_view_set_bytes. */
 ms_status ms_view_create_from_archive(const ms_archive *archive, ms_view **view, ms_error *err);
 
 void ms_view_destroy(ms_view *view);
