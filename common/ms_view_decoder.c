@@ -386,6 +386,14 @@ static void cell_box(const ms_view *v, const ms_archive_cell *c, double lo[3], d
     }
 }
 
+void ms_view_select_params_default(ms_view_select_params *p)
+{
+    p->tolerance_px = 1.0;
+    p->margin = 0.0;
+    p->hysteresis = 0.5;
+    p->culled_bits_less = 2.0;
+}
+
 double ms_view_cell_need(const ms_view *v, const ms_camera *cam, uint32_t cell,
                          const ms_view_select_params *p)
 {
