@@ -349,8 +349,7 @@ static ms_status internal_state(pool *p, uint32_t node, unsigned bits_max, ms_co
             u++;
         }
     st->edge_count = u;
-    if (s == MS_OK)
-        s = ms_codec_state_canonicalise(st, err);
+    /* vertices are already in key order; the codec canonicalises the rest */
     if (s != MS_OK)
         ms_codec_state_free(st);
     return s;
