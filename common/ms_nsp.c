@@ -77,6 +77,8 @@ bool ms_nsp_prefix_inside(const ms_nsp_shape *shape, uint64_t prefix, unsigned l
     return true;
 }
 
+#define FOREIGN 0xFFFFu /* owner of a vertex outside the parent (n^3 <= 512 children) */
+
 /* Per-child lists in compressed rows: start[k]..start[k+1] in items. */
 typedef struct rows {
     uint32_t *start; /* children + 1 */
@@ -97,7 +99,7 @@ ms_status ms_nsp_partition_state(const ms_nsp_shape *shape, const ms_codec_state
     for (unsigned k = 0; k < nc; ++k)
         memset(&children[k], 0, sizeof children[k]);
     const size_t nv = parent->vertex_count, nt = parent->tri_count, ne = parent->edge_count;
-    uint8_t *owner = malloc(nv ? nv : 1);    /* child offset, or 0xFF for foreign */
+    uint16_t *owner = malloc((nv ? nv : 1) * sizeof *owner); /* child offset, or FOREIGN */
     uint8_t *used = calloc(nv ? nv : 1, 1);  /* vertex has a simplex */
     uint32_t *local = malloc((nv ? nv : 1) * sizeof *local);
     uint32_t *stamp = malloc((nv ? nv : 1) * sizeof *stamp);
@@ -112,13 +114,13 @@ ms_status ms_nsp_partition_state(const ms_nsp_shape *shape, const ms_codec_state
     }
     const unsigned child_depth = depth + 1;
     for (size_t v = 0; v < nv; ++v) {
-        owner[v] = 0xFF;
+        owner[v] = FOREIGN;
         stamp[v] = UINT32_MAX;
         if (ms_nsp_prefix_inside(shape, parent->cells[v], parent->level, depth, position)) {
             uint32_t xyz[3];
             ms_nsp_prefix_corner(shape, parent->cells[v], parent->level, xyz);
             if (parent->level >= 3 * child_depth * shape->log2n)
-                owner[v] = (uint8_t)ms_nsp_child_offset(shape, depth, xyz);
+                owner[v] = (uint16_t)ms_nsp_child_offset(shape, depth, xyz);
         }
     }
     /* Count, then fill, each simplex into the distinct children of its vertices. */
@@ -142,7 +144,7 @@ ms_status ms_nsp_partition_state(const ms_nsp_shape *shape, const ms_codec_state
             for (int i = 0; i < 3; ++i) {
                 used[x[i]] = 1;
                 unsigned o = owner[x[i]];
-                if (o == 0xFF || (ns > 0 && seen[0] == o) || (ns > 1 && seen[1] == o))
+                if (o == FOREIGN || (ns > 0 && seen[0] == o) || (ns > 1 && seen[1] == o))
                     continue;
                 seen[ns++] = o;
             }
@@ -159,7 +161,7 @@ ms_status ms_nsp_partition_state(const ms_nsp_shape *shape, const ms_codec_state
             unsigned o0 = owner[x[0]], o1 = owner[x[1]];
             for (int i = 0; i < 2; ++i) {
                 unsigned o = i == 0 ? o0 : o1;
-                if (o == 0xFF || (i == 1 && o == o0))
+                if (o == FOREIGN || (i == 1 && o == o0))
                     continue;
                 if (pass == 0)
                     ed.start[o + 1]++;
@@ -168,7 +170,7 @@ ms_status ms_nsp_partition_state(const ms_nsp_shape *shape, const ms_codec_state
             }
         }
         for (size_t v = 0; v < nv; ++v) {
-            if (used[v] || owner[v] == 0xFF)
+            if (used[v] || owner[v] == FOREIGN)
                 continue;
             if (pass == 0)
                 iso.start[owner[v] + 1]++;

@@ -115,6 +115,8 @@ ms_status ms_view_create_from_archive(const ms_archive *a, ms_view **out, ms_err
     for (uint32_t i = 0; s == MS_OK && i < h->cell_count; ++i) {
         size_t len;
         const uint8_t *g = ms_archive_geometry(a, i, &len);
+        if (!g)
+            break; /* an index without payloads: the bytes will come later */
         if ((s = ms_archive_verify_payload(a, i, err)) == MS_OK)
             s = ms_view_set_bytes(*out, i, g, len, err);
     }
@@ -420,6 +422,14 @@ static void cell_box(const ms_view *v, const ms_archive_cell *c, double lo[3], d
         lo[a] = v->header.box_origin[a] + side * c->position[a];
         hi[a] = lo[a] + side;
     }
+}
+
+void ms_view_select_params_default(ms_view_select_params *p)
+{
+    p->tolerance_px = 1.0;
+    p->margin = 0.0;
+    p->hysteresis = 0.5;
+    p->culled_bits_less = 2.0;
 }
 
 double ms_view_cell_need(const ms_view *v, const ms_camera *cam, uint32_t cell,

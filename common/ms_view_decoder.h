@@ -22,8 +22,14 @@
  * unless one of its vertices lies in a shown cell that is finer (higher kd-level),
  * or equally fine with a higher cell number, which then draws its own copy; each
  * vertex lying in another shown cell is drawn at that cell's representative of
- * the kd-cell containing it. Every vertex thus has exactly one position, and a
- * triangle present in several cells is drawn once: no overlap and no crack.
+ * the kd-cell containing it; triangles made degenerate or repeated by this
+ * snapping are dropped. The result is exactly the image of the model with every
+ * vertex rounded to the precision of the shown cell holding it: every vertex has
+ * one position, a triangle present in several cells is drawn once, and nothing
+ * is missing along cell borders. (Where two sheets of the surface press together,
+ * one triangle stands for both, as in a uniform decode; with very different
+ * precisions side by side this can happen where no uniform decode does it, which
+ * is why culled cells are kept only a couple of bits coarser than they need.)
  *
  * Units: precisions in bits per coordinate (kd-level = 3 bits); world coordinates
  * as doubles in the archive's box. Errors: ms_status with one line; MS_ERR_RANGE
@@ -59,8 +65,9 @@ typedef enum ms_view_cell_state {
 ms_status ms_view_create(const ms_archive_header *header, const ms_archive_cell *cells,
                          ms_view **view, ms_error *err);
 
-/* Convenience: a view over every record of an open archive, with every cell's
- * full geometry payload handed over (CRC-checked). */
+/* A view over every record of an open archive: with every cell's full geometry
+ * payload handed over (CRC-checked) for an archive file, with none for an index
+ * received alone (ms_archive_open_index), whose bytes come by ms_view_set_bytes. */
 ms_status ms_view_create_from_archive(const ms_archive *archive, ms_view **view, ms_error *err);
 
 void ms_view_destroy(ms_view *view);
@@ -124,6 +131,10 @@ typedef struct ms_view_select_params {
     double hysteresis;    /* bits to spare before coarsening (ms_select_bits), e.g. 0.5 */
     double culled_bits_less; /* cells outside the frustum get their need minus this */
 } ms_view_select_params;
+
+/* 1 pixel, no margin, 0.5 bit of hysteresis, culled cells 2 bits coarser (keeps
+ * the precision steps at the frustum border small: see ms_view_stitch). */
+void ms_view_select_params_default(ms_view_select_params *params);
 
 /* Real-valued precision (bits) a cell needs for the camera, or -1 when it is
  * outside the frustum grown by margin. */

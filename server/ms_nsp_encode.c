@@ -349,8 +349,7 @@ static ms_status internal_state(pool *p, uint32_t node, unsigned bits_max, ms_co
             u++;
         }
     st->edge_count = u;
-    if (s == MS_OK)
-        s = ms_codec_state_canonicalise(st, err);
+    /* vertices are already in key order; the codec canonicalises the rest */
     if (s != MS_OK)
         ms_codec_state_free(st);
     return s;
@@ -375,8 +374,11 @@ static ms_status check_partition(pool *p, uint32_t node, const ms_codec_state *s
                       ms_codec_state_checksum(&parts[k]) == ms_codec_state_checksum(&ch[k])));
         if (!same)
             s = ms_error_set(err, MS_ERR_CORRUPT, "cell %u: the start state derived from its "
-                             "parent differs from the one it was encoded from",
-                             p->cell_of_node[nd->first_child + k]);
+                             "parent (%zu vertices, %zu triangles, %zu edges) differs from the "
+                             "one it was encoded from (%zu, %zu, %zu)",
+                             p->cell_of_node[nd->first_child + k], parts[k].vertex_count,
+                             parts[k].tri_count, parts[k].edge_count, ch[k].vertex_count,
+                             ch[k].tri_count, ch[k].edge_count);
     }
     for (unsigned k = 0; k < nc; ++k)
         ms_codec_state_free(&parts[k]);

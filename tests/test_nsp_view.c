@@ -31,12 +31,25 @@ static ms_view *open_view(const char *path, ms_archive **archive)
     return v;
 }
 
-static void check_full(const char *model, const char *dir, const char *name, uint32_t min_tris)
+static void check_full_with(const char *model, const char *dir, const char *name,
+                            uint32_t min_tris, unsigned bits, unsigned n, unsigned root_bits)
 {
     ms_bake_report rep;
-    ms_nsp_test_bake(model, dir, name, 16, min_tris, &rep);
+    ms_bake_options o;
+    ms_bake_options_default(&o);
+    o.input = model;
+    o.archive_dir = dir;
+    o.name = name;
+    o.bits = bits;
+    o.n = n;
+    o.root_bits = root_bits;
+    o.min_triangles = min_tris;
+    o.threads = 2;
+    ms_error err;
+    if (ms_bake(&o, &rep, &err) != MS_OK)
+        fail_msg("bake: %s", err.text);
     ms_qmesh q = {0};
-    ms_nsp_test_reference(model, 16, &q);
+    ms_nsp_test_reference(model, bits, &q);
     assert_int_equal(rep.vertices, q.vertex_count);
     assert_int_equal(rep.triangles, q.tri_count);
     ms_archive *a;
@@ -53,6 +66,26 @@ static void check_full(const char *model, const char *dir, const char *name, uin
     ms_view_destroy(v);
     ms_archive_close(a);
     ms_qmesh_free(&q);
+}
+
+static void check_full(const char *model, const char *dir, const char *name, uint32_t min_tris)
+{
+    check_full_with(model, dir, name, min_tris, 16, 4, 7);
+}
+
+/* Other tree shapes and precisions, down to cells of a few triangles. */
+static void test_full_precision_parameters(void **state)
+{
+    (void)state;
+    char dir[512], model[4096];
+    ms_test_tmpdir(dir, sizeof dir);
+    ms_test_model_path(model, sizeof model, "stanford_bunny_res3.ply.gz");
+    check_full_with(model, dir, "p12n2", 200, 12, 2, 3);
+    check_full_with(model, dir, "p10n8", 300, 10, 8, 3);
+    check_full_with(model, dir, "p20n4", 400, 20, 4, 7);
+    check_full_with(model, dir, "p8n4", 100, 8, 4, 2);
+    check_full_with(model, dir, "p16min4", 4, 16, 4, 7);
+    ms_test_rmdir(dir);
 }
 
 /* Every shared model (the full-size dragon only with MESHSTREAM_BIG=1: it is run
@@ -168,7 +201,7 @@ static void test_no_crack_demo(void **state)
     ms_test_tmpdir(dir, sizeof dir);
     snprintf(ply, sizeof ply, "%s/demo.ply", dir);
     ms_nsp_test_demo_ply(ply, 60000);
-    check_cameras(ply, dir, "demo", 1500, 16, 1.0, 2.0);
+    check_cameras(ply, dir, "demo", 1500, 10, 1.0, 2.0);
     ms_test_rmdir(dir);
 }
 
@@ -180,7 +213,7 @@ static void test_no_crack_dragon(void **state)
     ms_test_model_path(model, sizeof model,
                        getenv("MESHSTREAM_BIG") ? "stanford_dragon_vrip.ply.gz"
                                                 : "stanford_dragon_vrip_res3.ply.gz");
-    check_cameras(model, dir, "dragon", getenv("MESHSTREAM_BIG") ? 8000 : 1500, 16, 1.0, 2.0);
+    check_cameras(model, dir, "dragon", getenv("MESHSTREAM_BIG") ? 8000 : 1500, 10, 1.0, 2.0);
     ms_test_rmdir(dir);
 }
 
@@ -281,13 +314,14 @@ static void test_prefixes(void **state)
     ms_archive *a;
     ms_error err;
     assert_int_equal(ms_archive_open(rep.archive_path, &a, &err), MS_OK);
-    const ms_archive_header *h = ms_archive_get_header(a);
-    ms_archive_cell *recs = malloc(h->cell_count * sizeof *recs);
-    for (uint32_t i = 0; i < h->cell_count; ++i)
-        recs[i] = *ms_archive_get_cell(a, i);
+    /* What a client has: the index blob alone. */
+    size_t index_size;
+    const uint8_t *index = ms_archive_index_bytes(a, &index_size);
+    ms_archive *ia;
+    assert_int_equal(ms_archive_open_index(index, index_size, "prefix", &ia, &err), MS_OK);
     ms_view *v;
-    assert_int_equal(ms_view_create(h, recs, &v, &err), MS_OK);
-    free(recs);
+    assert_int_equal(ms_view_create_from_archive(ia, &v, &err), MS_OK);
+    ms_archive_close(ia);
     size_t len;
     const uint8_t *g = ms_archive_geometry(a, 0, &len);
     const ms_archive_cell *root = ms_archive_get_cell(a, 0);
@@ -352,6 +386,7 @@ int main(void)
         cmocka_unit_test(test_threads_identical),
         cmocka_unit_test(test_no_crack_demo),
         cmocka_unit_test(test_no_crack_dragon),
+        cmocka_unit_test(test_full_precision_parameters),
         cmocka_unit_test(test_full_precision_all_models),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

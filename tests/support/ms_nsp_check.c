@@ -122,7 +122,22 @@ static void rotate_min(uint64_t *t)
     }
 }
 
-#define ID(level, aligned) ((uint64_t)(level) << 56 | (aligned))
+/* A vertex identity: kd-cell (level, aligned key) as one integer, the aligned key
+ * shifted left by one with a marker bit just below the prefix (D + 1 <= 61 bits). */
+static uint64_t vid(unsigned D, unsigned level, uint64_t aligned)
+{
+    return aligned << 1 | 1ull << (D - level);
+}
+
+static unsigned vid_level(unsigned D, uint64_t id)
+{
+    return D - (unsigned)__builtin_ctzll(id);
+}
+
+static uint64_t vid_aligned(unsigned D, uint64_t id)
+{
+    return (id - (1ull << (D - vid_level(D, id)))) >> 1;
+}
 
 /* Level of the shown cell holding full key `key`. */
 static unsigned shown_level(const ms_view *v, const ms_nsp_shape *shape, uint64_t key)
@@ -244,7 +259,6 @@ void ms_nsp_test_check_view(ms_view *v, const ms_qmesh *q, bool full, ms_nsp_vie
     ms_error err;
     assert_int_equal(ms_nsp_shape_init(&shape, h->bits, h->n, h->root_bits, &err), MS_OK);
     const unsigned P = h->bits, D = 3 * P;
-    assert_true(P <= 18);
     ms_view_mesh m = {0};
     if (ms_view_stitch(v, NULL, &m, &err) != MS_OK)
         fail_msg("stitch: %s", err.text);
@@ -257,7 +271,7 @@ void ms_nsp_test_check_view(ms_view *v, const ms_qmesh *q, bool full, ms_nsp_vie
     for (size_t t = 0; t < m.triangle_count; ++t)
         for (int k = 0; k < 3; ++k) {
             uint32_t x = m.triangles[3 * t + (size_t)k];
-            st[3 * t + (size_t)k] = ID(m.levels[x], m.keys[x]);
+            st[3 * t + (size_t)k] = vid(D, m.levels[x], m.keys[x]);
         }
     /* Reference: the mixed clustering's image of q. */
     uint64_t *key = malloc((q->vertex_count + 1) * sizeof *key);
@@ -267,7 +281,7 @@ void ms_nsp_test_check_view(ms_view *v, const ms_qmesh *q, bool full, ms_nsp_vie
     for (size_t i = 0; i < q->vertex_count; ++i) {
         key[i] = ms_quant_key(q->coords[3 * i], q->coords[3 * i + 1], q->coords[3 * i + 2], P);
         unsigned L = shown_level(v, &shape, key[i]);
-        phi[i] = ID(L, key[i] >> (D - L) << (D - L));
+        phi[i] = vid(D, L, L == 0 ? 0 : key[i] >> (D - L) << (D - L));
     }
     size_t nref = 0;
     for (size_t t = 0; t < q->tri_count; ++t) {
@@ -320,7 +334,7 @@ void ms_nsp_test_check_view(ms_view *v, const ms_qmesh *q, bool full, ms_nsp_vie
         assert_true(a && b);
         for (size_t t = 0; t < q->tri_count; ++t) {
             for (int k = 0; k < 3; ++k) {
-                a[3 * t + (size_t)k] = ID(D, key[q->tris[3 * t + (size_t)k]]);
+                a[3 * t + (size_t)k] = vid(D, D, key[q->tris[3 * t + (size_t)k]]);
                 b[3 * t + (size_t)k] = st[3 * t + (size_t)k];
             }
             rotate_min(&a[3 * t]);
@@ -372,11 +386,11 @@ void ms_nsp_test_check_view(ms_view *v, const ms_qmesh *q, bool full, ms_nsp_vie
             for (size_t e = 0; e < nbe; ++e) {
                 if (ok[e])
                     continue;
-                unsigned la = (unsigned)(be[2 * e] >> 56), lb = (unsigned)(be[2 * e + 1] >> 56);
+                unsigned la = vid_level(D, be[2 * e]), lb = vid_level(D, be[2 * e + 1]);
                 if (L > la || L > lb)
                     continue;
-                uint64_t mask = (1ull << 56) - 1;
-                uint64_t pa = (be[2 * e] & mask) >> (D - L), pb = (be[2 * e + 1] & mask) >> (D - L);
+                uint64_t pa = L == 0 ? 0 : vid_aligned(D, be[2 * e]) >> (D - L);
+                uint64_t pb = L == 0 ? 0 : vid_aligned(D, be[2 * e + 1]) >> (D - L);
                 if (pa == pb)
                     continue;
                 uint64_t pair[2] = {pa < pb ? pa : pb, pa < pb ? pb : pa};
@@ -404,9 +418,9 @@ void ms_nsp_test_check_view(ms_view *v, const ms_qmesh *q, bool full, ms_nsp_vie
             r->cracks++;
             if (getenv("MS_NSP_DEBUG"))
                 print_message("crack edge: levels %u %u keys %llx %llx\n",
-                              (unsigned)(be[2 * e] >> 56), (unsigned)(be[2 * e + 1] >> 56),
-                              (unsigned long long)(be[2 * e] & ((1ull << 56) - 1)),
-                              (unsigned long long)(be[2 * e + 1] & ((1ull << 56) - 1)));
+                              vid_level(D, be[2 * e]), vid_level(D, be[2 * e + 1]),
+                              (unsigned long long)vid_aligned(D, be[2 * e]),
+                              (unsigned long long)vid_aligned(D, be[2 * e + 1]));
         }
         free(ok);
         ms_codec_state_free(&fullst);
