@@ -17,6 +17,7 @@
 #include <cmocka.h>
 
 #include "ms_archive.h"
+#include "ms_catalog.h"
 #include "ms_synthetic_archive.h"
 #include "ms_test.h"
 #include "ms_test_archive.h"
@@ -554,8 +555,11 @@ static void test_disconnect_mid_payload_frees_everything(void **state)
 static void test_sighup_adds_model_live(void **state)
 {
     server_fixture *f = *state;
-    ms_test_conn c;
+    ms_test_conn c, keeper;
     connect_ready(f, &c, NULL);
+    connect_ready(f, &keeper, NULL);
+    uint32_t kept = ms_test_conn_open_model(&keeper, "bunny", 1, NULL, NULL, NULL);
+    assert_true(ms_catalog_remove(f->archives, "bunny", NULL) == MS_OK);
     uint16_t code = 0;
     assert_int_equal(ms_test_conn_open_model(&c, "horse", 1, NULL, NULL, &code), 0);
     assert_int_equal(code, MS_PROTO_E_UNKNOWN_MODEL);
@@ -564,12 +568,24 @@ static void test_sighup_adds_model_live(void **state)
     char names[8][65];
     uint8_t permitted[8];
     size_t count = 0;
-    for (int tries = 0; tries < 100 && count != 4; ++tries) {
+    for (int tries = 0; tries < 100 && !(count == 3 && !strcmp(names[2], "horse")); ++tries) {
         usleep(50000);
         list_catalogue(&c, 2, names, permitted, &count);
     }
-    assert_int_equal(count, 4);
-    assert_string_equal(names[3], "horse");
+    assert_int_equal(count, 3); /* horse added, bunny removed */
+    assert_string_equal(names[2], "horse");
+    /* A removed model stays readable where it is open, and only there. */
+    ms_proto_cell_request k[1] = {steps(0, MS_PROTO_STREAM_GEOMETRY, 0, 0, 63)};
+    send_batch(&keeper, kept, 2, k, 1);
+    answers ka;
+    answers_init(&ka, 2, 1);
+    answers_collect(&keeper, &ka);
+    assert_int_equal(ka.error[0], 0);
+    assert_true(ka.length[0] > 0);
+    answers_free(&ka);
+    ms_test_conn_close(&keeper);
+    assert_int_equal(ms_test_conn_open_model(&c, "bunny", 5, NULL, NULL, &code), 0);
+    assert_int_equal(code, MS_PROTO_E_UNKNOWN_MODEL);
     uint32_t handle = ms_test_conn_open_model(&c, "horse", 3, NULL, NULL, NULL);
     assert_true(handle >= 1);
     ms_proto_cell_request e[1] = {steps(0, MS_PROTO_STREAM_GEOMETRY, 0, 0, 63)};
