@@ -6,7 +6,7 @@
  *
  * Memory per connection is bounded: input is read only while the output
  * buffer holds less than MS_PROTO_CONN_OUTPUT_LIMIT bytes, the decoder holds at
- * most one frame (max_frame), payload chunks are added only while the output
+ * most one frame (max_frame, at most 64 KiB + 8: the largest batch), payload chunks are added only while the output
  * holds less than MS_PROTO_CONN_HIGH_WATER, and the queue is bounded by
  * max_outstanding. Payload bytes are references into the archive mapping.
  *
