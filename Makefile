@@ -23,7 +23,7 @@ endif
 CFLAGS   := $(CSTD) $(WARN) $(OPT) -Icommon -Iprotocol -Iserver -Iclient -Itests/support -pthread $(EXTRA_CFLAGS)
 CXXFLAGS := -std=c++17 -Wall -Wextra -Werror $(OPT) -Icommon -Iserver -pthread $(EXTRA_CFLAGS)
 LDFLAGS  := $(OPT) -pthread
-LIBS     := -levent -ljansson -lz -lm
+LIBS     := -lembree3 -lOpenMeshTools -lOpenMeshCore -levent -ljansson -lz -lm
 
 ROLES      := common protocol server client
 LIB_common   := $(BUILD)/libmscommon.a

@@ -94,11 +94,37 @@ static void test_bad_files(void **state)
                      MS_ERR_FORMAT);
 }
 
+/* The six shipped paths parse, and their durations are the documented ones. */
+static void test_shipped_paths(void **state)
+{
+    (void)state;
+    const struct {
+        const char *file;
+        double seconds;
+    } shipped[] = {
+        {"scripts/paths/demo-overview.cam", 12}, {"scripts/paths/demo-closeup.cam", 8},
+        {"scripts/paths/demo-flythrough.cam", 12}, {"scripts/paths/dragon-overview.cam", 12},
+        {"scripts/paths/dragon-closeup.cam", 8}, {"scripts/paths/dragon-flythrough.cam", 10},
+    };
+    for (size_t i = 0; i < sizeof shipped / sizeof *shipped; ++i) {
+        ms_camera_path p;
+        ms_error err;
+        if (ms_camera_path_load(shipped[i].file, &p, &err) != MS_OK)
+            fail_msg("%s", err.text);
+        assert_true(ms_camera_path_duration(&p) == shipped[i].seconds);
+        ms_camera c;
+        for (double t = 0; t <= shipped[i].seconds; t += 0.25)
+            assert_int_equal(ms_camera_path_sample(&p, t, 800, 600, 0.001, 100, &c, &err), MS_OK);
+        ms_camera_path_free(&p);
+    }
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_parse_and_sample),
         cmocka_unit_test(test_bad_files),
+        cmocka_unit_test(test_shipped_paths),
     };
     return cmocka_run_group_tests_name("camera_path", tests, NULL, NULL);
 }

@@ -1,0 +1,306 @@
+/* Embree probes of M for the APO builder (see ms_apo_sample.h). */
+#include "ms_apo_sample.h"
+
+#include <math.h>
+#include <stdbool.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "ms_parallel.h"
+
+typedef struct closest_query {
+    const ms_apo_local_mesh *big;
+    float point[3];
+    double best_d2;
+    uint32_t best_prim;
+    float best_uv[2];
+} closest_query;
+
+/* Closest point of triangle (a, b, c) to p, as barycentric weights of b and c. */
+static double closest_on_triangle(const float p[3], const float a[3], const float b[3], const float c[3],
+                                  float *wb, float *wc)
+{
+    double ab[3], ac[3], ap[3];
+    for (int k = 0; k < 3; ++k) {
+        ab[k] = (double)b[k] - a[k];
+        ac[k] = (double)c[k] - a[k];
+        ap[k] = (double)p[k] - a[k];
+    }
+#define DOT(u, v) ((u)[0] * (v)[0] + (u)[1] * (v)[1] + (u)[2] * (v)[2])
+    double d1 = DOT(ab, ap), d2 = DOT(ac, ap);
+    double v, w;
+    if (d1 <= 0 && d2 <= 0) {
+        v = 0;
+        w = 0;
+    } else {
+        double bp[3], cp[3];
+        for (int k = 0; k < 3; ++k) {
+            bp[k] = (double)p[k] - b[k];
+            cp[k] = (double)p[k] - c[k];
+        }
+        double d3 = DOT(ab, bp), d4 = DOT(ac, bp), d5 = DOT(ab, cp), d6 = DOT(ac, cp);
+        double vc = d1 * d4 - d3 * d2, vb = d5 * d2 - d1 * d6, va = d3 * d6 - d5 * d4;
+        if (d3 >= 0 && d4 <= d3) {
+            v = 1;
+            w = 0;
+        } else if (d6 >= 0 && d5 <= d6) {
+            v = 0;
+            w = 1;
+        } else if (vc <= 0 && d1 >= 0 && d3 <= 0) {
+            v = d1 / (d1 - d3);
+            w = 0;
+        } else if (vb <= 0 && d2 >= 0 && d6 <= 0) {
+            v = 0;
+            w = d2 / (d2 - d6);
+        } else if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
+            w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+            v = 1 - w;
+        } else {
+            double sum = va + vb + vc;
+            if (!(sum > 0)) { /* degenerate triangle: fall back to vertex a */
+                v = 0;
+                w = 0;
+            } else {
+                v = vb / sum;
+                w = vc / sum;
+            }
+        }
+    }
+#undef DOT
+    double d2sum = 0;
+    for (int k = 0; k < 3; ++k) {
+        double q = a[k] + v * ab[k] + w * ac[k] - p[k];
+        d2sum += q * q;
+    }
+    *wb = (float)v;
+    *wc = (float)w;
+    return d2sum;
+}
+
+static bool closest_callback(struct RTCPointQueryFunctionArguments *args)
+{
+    closest_query *q = args->userPtr;
+    uint32_t prim = args->primID;
+    const uint32_t *v = &q->big->tri[3 * prim];
+    const float *pos = q->big->pos;
+    float wb, wc;
+    double d2 = closest_on_triangle(q->point, &pos[3 * v[0]], &pos[3 * v[1]], &pos[3 * v[2]], &wb, &wc);
+    double r = args->query->radius;
+    if (d2 > r * r)
+        return false;
+    if (d2 < q->best_d2 || (d2 == q->best_d2 && prim < q->best_prim)) {
+        q->best_d2 = d2;
+        q->best_prim = prim;
+        q->best_uv[0] = wb;
+        q->best_uv[1] = wc;
+        args->query->radius = (float)sqrt(d2);
+        return true;
+    }
+    return false;
+}
+
+/* Closest point of M to p within radius: true and its normal, or false. */
+static bool closest_normal(RTCScene scene, const ms_apo_local_mesh *big, const float p[3], float radius, double n[3])
+{
+    closest_query q = {.big = big, .best_d2 = INFINITY, .best_prim = UINT32_MAX};
+    memcpy(q.point, p, sizeof q.point);
+    struct RTCPointQuery query = {.x = p[0], .y = p[1], .z = p[2], .time = 0.0f, .radius = radius};
+    struct RTCPointQueryContext ctx;
+    rtcInitPointQueryContext(&ctx);
+    rtcPointQuery(scene, &query, &ctx, closest_callback, &q);
+    if (q.best_prim == UINT32_MAX)
+        return false;
+    ms_apo_local_mesh_normal_at(big, q.best_prim, q.best_uv[0], q.best_uv[1], n);
+    return true;
+}
+
+/* Nearest hit along +dir or -dir within [0, s]; +dir wins ties. */
+static bool ray_normal(RTCScene scene, const ms_apo_local_mesh *big, const float o[3], const double dir[3], float s,
+                       double n[3])
+{
+    float best_t = INFINITY, best_u = 0, best_v = 0;
+    uint32_t best_prim = UINT32_MAX;
+    for (int sign = 1; sign >= -1; sign -= 2) {
+        struct RTCRayHit rh;
+        memset(&rh, 0, sizeof rh);
+        rh.ray.org_x = o[0];
+        rh.ray.org_y = o[1];
+        rh.ray.org_z = o[2];
+        rh.ray.dir_x = (float)(sign * dir[0]);
+        rh.ray.dir_y = (float)(sign * dir[1]);
+        rh.ray.dir_z = (float)(sign * dir[2]);
+        rh.ray.tnear = 0.0f;
+        rh.ray.tfar = best_t < s ? best_t : s; /* the second ray only needs to beat the first */
+        rh.ray.mask = UINT32_MAX;
+        rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+        rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
+        struct RTCIntersectContext ctx;
+        rtcInitIntersectContext(&ctx);
+        rtcIntersect1(scene, &ctx, &rh);
+        if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID && rh.ray.tfar < best_t) {
+            best_t = rh.ray.tfar;
+            best_u = rh.hit.u;
+            best_v = rh.hit.v;
+            best_prim = rh.hit.primID;
+        }
+    }
+    if (best_prim == UINT32_MAX)
+        return false;
+    ms_apo_local_mesh_normal_at(big, best_prim, best_u, best_v, n);
+    return true;
+}
+
+ms_status ms_apo_sampler_init(ms_apo_sampler *sampler, RTCDevice device, const ms_apo_local_mesh *big,
+                              ms_error *err)
+{
+    memset(sampler, 0, sizeof *sampler);
+    RTCScene scene = rtcNewScene(device);
+    RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+    if (!scene || !g) {
+        if (scene)
+            rtcReleaseScene(scene);
+        if (g)
+            rtcReleaseGeometry(g);
+        return ms_error_set(err, MS_ERR_UNSUPPORTED, "apo build: Embree could not create a scene");
+    }
+    size_t nv = big->vertex_count ? big->vertex_count : 1, nt = big->triangle_count;
+    float *vb = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), nv);
+    unsigned *ib = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned),
+                                           nt ? nt : 1);
+    if (!vb || !ib) {
+        rtcReleaseGeometry(g);
+        rtcReleaseScene(scene);
+        return ms_error_set(err, MS_ERR_NOMEM, "apo build: Embree buffers for %zu triangles", nt);
+    }
+    if (big->vertex_count)
+        memcpy(vb, big->pos, 3 * big->vertex_count * sizeof(float));
+    else
+        memset(vb, 0, 3 * sizeof(float));
+    if (nt)
+        memcpy(ib, big->tri, 3 * nt * sizeof(unsigned));
+    else
+        memset(ib, 0, 3 * sizeof(unsigned)); /* one degenerate triangle: never hit */
+    /* A few million rays per build: a fast (Morton) BVH build beats a better BVH. */
+    rtcSetGeometryBuildQuality(g, RTC_BUILD_QUALITY_LOW);
+    rtcSetSceneBuildQuality(scene, RTC_BUILD_QUALITY_LOW);
+    rtcCommitGeometry(g);
+    rtcAttachGeometry(scene, g);
+    rtcReleaseGeometry(g);
+    rtcCommitScene(scene);
+    if (rtcGetDeviceError(device) != RTC_ERROR_NONE) {
+        rtcReleaseScene(scene);
+        return ms_error_set(err, MS_ERR_UNSUPPORTED, "apo build: Embree failed to build the scene");
+    }
+    sampler->scene = scene;
+    sampler->big = big;
+    return MS_OK;
+}
+
+void ms_apo_sampler_release(ms_apo_sampler *sampler)
+{
+    if (sampler->scene)
+        rtcReleaseScene(sampler->scene);
+    memset(sampler, 0, sizeof *sampler);
+}
+
+
+void ms_apo_sample_leaf(const ms_apo_sampler *sampler, const ms_apo_local_mesh *m, const uint32_t *m_tris,
+                        size_t count, const float centre[3], float search, float normal[3],
+                        ms_apo_sample_counts *counts)
+{
+    double sum[3] = {0, 0, 0}, first_sample[3] = {0, 0, 1};
+    bool have_closest = false, closest_done = false;
+    double closest[3] = {0, 0, 0};
+    for (size_t k = 0; k < count; ++k) {
+        uint32_t t = m_tris[k];
+        const uint32_t *v = &m->tri[3 * t];
+        float wb, wc;
+        closest_on_triangle(centre, &m->pos[3 * v[0]], &m->pos[3 * v[1]], &m->pos[3 * v[2]], &wb, &wc);
+        double dir[3], n[3];
+        ms_apo_local_mesh_normal_at(m, t, wb, wc, dir);
+        counts->samples++;
+        /* A degenerate m-triangle whose vertices touch no valid face has no
+         * direction: it can only use the closest point, else +z. */
+        bool has_dir = dir[0] != 0.0 || dir[1] != 0.0 || dir[2] != 0.0;
+        if (!has_dir)
+            dir[2] = 1.0;
+        if (has_dir && ray_normal(sampler->scene, sampler->big, centre, dir, search, n)) {
+            counts->ray_hits++;
+        } else {
+            if (!closest_done) {
+                have_closest = closest_normal(sampler->scene, sampler->big, centre, search, closest);
+                closest_done = true;
+            }
+            if (have_closest) {
+                counts->closest_points++;
+                memcpy(n, closest, sizeof n);
+            } else {
+                counts->unsampled++;
+                memcpy(n, dir, sizeof n);
+            }
+        }
+        if (k == 0)
+            memcpy(first_sample, n, sizeof n);
+        for (int a = 0; a < 3; ++a)
+            sum[a] += n[a];
+    }
+    double len = sqrt(sum[0] * sum[0] + sum[1] * sum[1] + sum[2] * sum[2]);
+    for (int a = 0; a < 3; ++a)
+        normal[a] = (float)(len > 1e-12 ? sum[a] / len : first_sample[a]);
+}
+
+/* h: the largest distance from m's vertices and face centroids to M. */
+typedef struct distance_job {
+    const ms_apo_local_mesh *m;
+    const ms_apo_sampler *sampler;
+    size_t block_size, points;
+    double *block_max;
+} distance_job;
+
+static void distance_block(void *ctx, size_t block)
+{
+    distance_job *job = ctx;
+    size_t first = block * job->block_size, last = first + job->block_size;
+    if (last > job->points)
+        last = job->points;
+    double worst = 0.0;
+    for (size_t i = first; i < last; ++i) {
+        float p[3];
+        if (i < job->m->vertex_count) {
+            memcpy(p, &job->m->pos[3 * i], sizeof p);
+        } else {
+            const uint32_t *v = &job->m->tri[3 * (i - job->m->vertex_count)];
+            for (int a = 0; a < 3; ++a)
+                p[a] = (job->m->pos[3 * v[0] + a] + job->m->pos[3 * v[1] + a] + job->m->pos[3 * v[2] + a]) / 3.0f;
+        }
+        closest_query q = {.big = job->sampler->big, .best_d2 = INFINITY, .best_prim = UINT32_MAX};
+        memcpy(q.point, p, sizeof p);
+        struct RTCPointQuery query = {.x = p[0], .y = p[1], .z = p[2], .time = 0.0f, .radius = INFINITY};
+        struct RTCPointQueryContext pctx;
+        rtcInitPointQueryContext(&pctx);
+        rtcPointQuery(job->sampler->scene, &query, &pctx, closest_callback, &q);
+        if (q.best_prim != UINT32_MAX && sqrt(q.best_d2) > worst)
+            worst = sqrt(q.best_d2);
+    }
+    job->block_max[block] = worst;
+}
+
+ms_status ms_apo_sampler_distance(const ms_apo_sampler *sampler, const ms_apo_local_mesh *m, unsigned threads,
+                                  double *h, ms_error *err)
+{
+    *h = 0.0;
+    if (sampler->big->triangle_count == 0)
+        return MS_OK;
+    size_t points = m->vertex_count + m->triangle_count;
+    size_t bs = points / 256 + 1 > 256 ? points / 256 + 1 : 256, blocks = (points + bs - 1) / bs;
+    double *block_max = calloc(blocks + 1, sizeof *block_max);
+    if (!block_max)
+        return ms_error_set(err, MS_ERR_NOMEM, "apo build: no memory");
+    distance_job dj = {.m = m, .sampler = sampler, .block_size = bs, .points = points, .block_max = block_max};
+    ms_status st = ms_parallel_for(threads, blocks, distance_block, &dj, err);
+    for (size_t b = 0; b < blocks; ++b)
+        if (block_max[b] > *h)
+            *h = block_max[b];
+    free(block_max);
+    return st;
+}
