@@ -23,6 +23,7 @@
 #include "ms_archive.h"
 #include "ms_client.h"
 #include "ms_loadgen_plan.h"
+#include "ms_payload_assembly.h"
 #include "ms_progress.h"
 #include "ms_proto.h"
 
@@ -58,6 +59,7 @@ typedef struct vclient {
     bool planning, done;
     ms_archive *own_index;      /* binary: from MODEL_OPENED */
     ms_client *client;          /* binary */
+    ms_payload_assembly *assembly; /* binary: checks every PAYLOAD frame */
     uint32_t handle;
     struct bufferevent *bev;    /* http */
     slot slots[MAX_WINDOW];
@@ -252,6 +254,9 @@ static void binary_fill(vclient *v)
         targets[k]->id = first + k;
         targets[k]->sent_at = now;
         v->in_flight++;
+        if (ms_payload_assembly_expect(v->assembly, first + k, batch[k].cell_id, batch[k].stream,
+                                       &err) != MS_OK)
+            note_error(lg, err.text);
     }
     lg->requests += count;
 }
@@ -284,16 +289,17 @@ static void on_payload(ms_client *client, uint32_t id, const ms_proto_payload *p
         note_error(v->lg, "payload for an unknown request");
         return;
     }
-    if (!s->received && !s->start && !s->end)
-        s->start = p->offset, s->end = p->end;
-    if (p->offset != s->start + s->received) {
-        note_error(v->lg, "payload frames out of order");
+    bool done;
+    ms_assembled_range range;
+    ms_error err;
+    if (ms_payload_assembly_add(v->assembly, id, p, last, &done, &range, &err) != MS_OK) {
+        note_error(v->lg, err.text);
         finish_client(v);
         return;
     }
     s->received += p->data_length;
     v->lg->bytes += p->data_length;
-    if (!last)
+    if (!done)
         return;
     record_latency(v->lg, ms_now_seconds() - s->sent_at);
     release(v, s);
@@ -319,6 +325,7 @@ static void on_request_error(ms_client *client, uint32_t first, uint32_t count,
             note_error(v->lg, what);
         }
         ms_loadgen_plan_forget(&v->plan, &s->item);
+        ms_payload_assembly_forget(v->assembly, s->id);
         release(v, s);
     }
     if (!count) {
@@ -354,7 +361,8 @@ static int binary_start(vclient *v)
     ms_client_options co = {o->host, o->port, o->token, "meshloadgen/0.1", 0};
     ms_error err;
     uint32_t id;
-    if (ms_client_connect(v->lg->base, &co, &binary_handlers, v, &v->client, &err) != MS_OK ||
+    if (ms_payload_assembly_new(false, 0, &v->assembly, &err) != MS_OK ||
+        ms_client_connect(v->lg->base, &co, &binary_handlers, v, &v->client, &err) != MS_OK ||
         ms_client_open_model(v->client, o->model, &id, &err) != MS_OK) {
         fprintf(stderr, "meshloadgen: %s\n", err.text);
         return -1;
@@ -771,6 +779,7 @@ int main(int argc, char **argv)
     for (unsigned i = 0; i < lg.o.clients; ++i) {
         vclient *v = &lg.clients[i];
         ms_client_free(v->client);
+        ms_payload_assembly_free(v->assembly);
         if (v->bev)
             bufferevent_free(v->bev);
         ms_loadgen_plan_free(&v->plan);
