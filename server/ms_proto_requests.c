@@ -162,7 +162,8 @@ static void handle_list_catalogue(ms_proto_conn *c, uint32_t id)
                      (unsigned long long)m->entry.vertices, (unsigned long long)m->entry.triangles);
             entry_size = MS_PROTO_CATALOGUE_ENTRY_FIXED + name_length + strlen(titles[count]);
         }
-        bool flush = !m || body + entry_size > limit || count == 65535 || listed == 65535;
+        bool flush = !m || body + entry_size > limit || count + 1 == sizeof entries / sizeof *entries ||
+                     listed == 65535;
         if (flush && (count || !m)) {
             ms_proto_message msg = {.type = MS_PROTO_CATALOGUE, .request_id = id};
             msg.flags = !m || listed == 65535 ? MS_PROTO_FLAG_LAST : 0;
