@@ -394,8 +394,8 @@ static void route(ms_http_door *door, struct evhttp_request *req, char *path,
 }
 
 /* Pipelined answers must not wait for the client's delayed ACK (Nagle's
- * algorithm): evhttp offers no hook at accept time, so the first request of
- * each connection turns it off (once: the flag lives on the socket). */
+ * algorithm): evhttp offers no hook at accept time, so each request turns it
+ * off on its connection's socket (one cheap system call; idempotent). */
 static void disable_nagle(struct evhttp_request *req)
 {
     struct evhttp_connection *conn = evhttp_request_get_connection(req);
