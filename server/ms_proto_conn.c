@@ -284,7 +284,13 @@ bool ms_proto_conn_sweep(ms_proto_conn *c, double now)
 {
     if (c->state == MS_CONN_CLOSING)
         return now - c->closing_since < MS_PROTO_CONN_LINGER_SECONDS;
+    /* Idle: no frame for idle_timeout while nothing is outstanding; before
+     * the handshake, at most MS_PROTO_CONN_HANDSHAKE_SECONDS (a connection
+     * that never says HELLO only holds a slot). */
     uint32_t idle_ms = c->door->limits.idle_timeout_ms;
+    if (c->state == MS_CONN_AWAIT_HELLO &&
+        (!idle_ms || idle_ms > MS_PROTO_CONN_HANDSHAKE_SECONDS * 1000u))
+        idle_ms = MS_PROTO_CONN_HANDSHAKE_SECONDS * 1000u;
     if (idle_ms && !c->queue.count && (now - c->last_frame_at) * 1000.0 > idle_ms)
         ms_proto_conn_fail(c, MS_PROTO_E_IDLE_TIMEOUT, idle_ms, "idle time-out");
     return true;

@@ -33,6 +33,7 @@ struct ms_model;
 #define MS_PROTO_CONN_OUTPUT_LIMIT (1u << 20)   /* stop reading input */
 #define MS_PROTO_CONN_MAX_OPEN_MODELS 64u
 #define MS_PROTO_CONN_LINGER_SECONDS 2.0        /* wait for the peer's EOF after a fatal error */
+#define MS_PROTO_CONN_HANDSHAKE_SECONDS 10u     /* most time from accept to HELLO */
 
 /* What the door shares with its connections. */
 typedef struct ms_proto_door_shared {

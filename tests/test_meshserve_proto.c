@@ -952,6 +952,11 @@ static void test_limits(void **state)
     assert_int_equal(ms_test_conn_expect_error(&d, &id, &body), MS_PROTO_E_IDLE_TIMEOUT);
     assert_true(body.detail == 1000);
     ms_test_conn_close(&d);
+    /* A connection that never says HELLO is closed the same way. */
+    assert_int_equal(ms_test_conn_open(&d, f->port), 0);
+    assert_int_equal(ms_test_conn_expect_error(&d, &id, &body), MS_PROTO_E_IDLE_TIMEOUT);
+    assert_true(body.fatal);
+    ms_test_conn_close(&d);
     ms_test_conn_close(&c);
 }
 
