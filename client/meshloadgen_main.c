@@ -81,8 +81,8 @@ struct loadgen {
     double started, stop_issuing, finished, first_request;
     bool stopping, streaming;
     unsigned ready;             /* clients holding their model index */
-    double *latencies;
-    size_t latency_count, latency_capacity;
+    double *latencies, *apo_latencies;
+    size_t latency_count, latency_capacity, apo_latency_count, apo_latency_capacity;
     uint64_t bytes, requests, errors, cancelled, rate_limited, connection_failures;
     char first_error[256];
 };
@@ -96,17 +96,28 @@ static void note_error(loadgen *lg, const char *what)
         snprintf(lg->first_error, sizeof lg->first_error, "%.200s", what);
 }
 
-static void record_latency(loadgen *lg, double seconds)
+/* Appends to a growable array of latencies (seconds). */
+static void append_latency(double **values, size_t *count, size_t *capacity, double seconds)
 {
-    if (lg->latency_count == lg->latency_capacity) {
-        size_t capacity = lg->latency_capacity ? lg->latency_capacity * 2 : 65536;
-        double *grown = realloc(lg->latencies, capacity * sizeof *grown);
+    if (*count == *capacity) {
+        size_t grown_capacity = *capacity ? *capacity * 2 : 65536;
+        double *grown = realloc(*values, grown_capacity * sizeof *grown);
         if (!grown)
             return;
-        lg->latencies = grown;
-        lg->latency_capacity = capacity;
+        *values = grown;
+        *capacity = grown_capacity;
     }
-    lg->latencies[lg->latency_count++] = seconds;
+    (*values)[(*count)++] = seconds;
+}
+
+/* Every answered request, and the APO ones apart (their priority puts them
+ * behind the same client's geometry). */
+static void record_latency(loadgen *lg, double seconds, uint8_t stream)
+{
+    append_latency(&lg->latencies, &lg->latency_count, &lg->latency_capacity, seconds);
+    if (stream == MS_PROTO_STREAM_APO)
+        append_latency(&lg->apo_latencies, &lg->apo_latency_count, &lg->apo_latency_capacity,
+                       seconds);
 }
 
 static int compare_double(const void *a, const void *b)
@@ -115,12 +126,13 @@ static int compare_double(const void *a, const void *b)
     return x < y ? -1 : x > y;
 }
 
-static double percentile(const loadgen *lg, double q)
+/* Of sorted values. */
+static double percentile(const double *values, size_t count, double q)
 {
-    if (!lg->latency_count)
+    if (!count)
         return 0;
-    size_t k = (size_t)ceil(q * (double)lg->latency_count);
-    return lg->latencies[k ? k - 1 : 0];
+    size_t k = (size_t)ceil(q * (double)count);
+    return values[k ? k - 1 : 0];
 }
 
 static long status_kb(long pid, const char *key)
@@ -301,7 +313,7 @@ static void on_payload(ms_client *client, uint32_t id, const ms_proto_payload *p
     v->lg->bytes += p->data_length;
     if (!done)
         return;
-    record_latency(v->lg, ms_now_seconds() - s->sent_at);
+    record_latency(v->lg, ms_now_seconds() - s->sent_at, s->item.stream);
     release(v, s);
     binary_fill(v);
 }
@@ -473,7 +485,7 @@ static void http_read(struct bufferevent *bev, void *arg)
         v->ring_count--;
         if (v->status == 206 || v->status == 200) {
             v->lg->bytes += s->end - s->start;
-            record_latency(v->lg, ms_now_seconds() - s->sent_at);
+            record_latency(v->lg, ms_now_seconds() - s->sent_at, s->item.stream);
         } else {
             char what[64];
             snprintf(what, sizeof what, "HTTP status %d", v->status);
@@ -747,6 +759,11 @@ int main(int argc, char **argv)
     double elapsed = lg.finished - (lg.first_request ? lg.first_request : lg.started);
 
     qsort(lg.latencies, lg.latency_count, sizeof *lg.latencies, compare_double);
+    qsort(lg.apo_latencies, lg.apo_latency_count, sizeof *lg.apo_latencies, compare_double);
+    double p50 = percentile(lg.latencies, lg.latency_count, 0.5),
+           p99 = percentile(lg.latencies, lg.latency_count, 0.99),
+           max = percentile(lg.latencies, lg.latency_count, 1.0),
+           apo_p99 = percentile(lg.apo_latencies, lg.apo_latency_count, 0.99);
     long hwm = lg.o.server_pid > 0 ? status_kb(lg.o.server_pid, "VmHWM:") : -1;
     long rss = lg.o.server_pid > 0 ? status_kb(lg.o.server_pid, "VmRSS:") : -1;
     long anon = lg.o.server_pid > 0 ? status_kb(lg.o.server_pid, "RssAnon:") : -1;
@@ -758,7 +775,7 @@ int main(int argc, char **argv)
                "\"rate_limited\": %llu, \"errors\": %llu, \"connection_failures\": %llu, "
                "\"payload_bytes\": %llu, "
                "\"throughput_MBps\": %.1f, \"latency_ms\": {\"p50\": %.3f, \"p99\": %.3f, "
-               "\"max\": %.3f}, \"server_vmhwm_kb\": %ld, \"server_vmrss_kb\": %ld, "
+               "\"max\": %.3f, \"apo_p99\": %.3f}, \"server_vmhwm_kb\": %ld, \"server_vmrss_kb\": %ld, "
                "\"server_rssanon_kb\": %ld, "
                "\"first_error\": \"%s\"}\n",
                lg.o.label, lg.o.http ? "http" : "binary", lg.o.clients, lg.o.window, lg.o.fps, lg.o.rate, elapsed,
@@ -766,16 +783,14 @@ int main(int argc, char **argv)
                (unsigned long long)lg.cancelled, (unsigned long long)lg.rate_limited,
                (unsigned long long)lg.errors, (unsigned long long)lg.connection_failures,
                (unsigned long long)lg.bytes, mbps,
-               percentile(&lg, 0.5) * 1e3, percentile(&lg, 0.99) * 1e3, percentile(&lg, 1.0) * 1e3,
-               hwm, rss, anon, lg.first_error);
+               p50 * 1e3, p99 * 1e3, max * 1e3, apo_p99 * 1e3, hwm, rss, anon, lg.first_error);
     else
         printf("meshloadgen: %u %s clients, %.2f s: %llu requests (%llu answered, %llu cancelled, "
                "%llu errors), %.1f MB/s payload, latency p50 %.2f ms p99 %.2f ms%s%s\n",
                lg.o.clients, lg.o.http ? "HTTP" : "binary", elapsed,
                (unsigned long long)lg.requests, (unsigned long long)answered,
                (unsigned long long)lg.cancelled, (unsigned long long)lg.errors, mbps,
-               percentile(&lg, 0.5) * 1e3, percentile(&lg, 0.99) * 1e3,
-               lg.first_error[0] ? "; first error: " : "", lg.first_error);
+               p50 * 1e3, p99 * 1e3, lg.first_error[0] ? "; first error: " : "", lg.first_error);
     for (unsigned i = 0; i < lg.o.clients; ++i) {
         vclient *v = &lg.clients[i];
         ms_client_free(v->client);
@@ -787,6 +802,7 @@ int main(int argc, char **argv)
     }
     free(lg.clients);
     free(lg.latencies);
+    free(lg.apo_latencies);
     event_free(lg.ticker);
     event_base_free(lg.base);
     ms_archive_close(lg.shared_index);
