@@ -758,8 +758,10 @@ int main(int argc, char **argv)
      * the model index to the end. */
     double elapsed = lg.finished - (lg.first_request ? lg.first_request : lg.started);
 
-    qsort(lg.latencies, lg.latency_count, sizeof *lg.latencies, compare_double);
-    qsort(lg.apo_latencies, lg.apo_latency_count, sizeof *lg.apo_latencies, compare_double);
+    if (lg.latency_count)
+        qsort(lg.latencies, lg.latency_count, sizeof *lg.latencies, compare_double);
+    if (lg.apo_latency_count)
+        qsort(lg.apo_latencies, lg.apo_latency_count, sizeof *lg.apo_latencies, compare_double);
     double p50 = percentile(lg.latencies, lg.latency_count, 0.5),
            p99 = percentile(lg.latencies, lg.latency_count, 0.99),
            max = percentile(lg.latencies, lg.latency_count, 1.0),
