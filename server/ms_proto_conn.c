@@ -62,7 +62,7 @@ void ms_proto_conn_fail(ms_proto_conn *c, uint16_t code, uint64_t detail, const 
 /* --- Sending answers ---------------------------------------------------------- */
 
 void ms_proto_conn_send_error(ms_proto_conn *c, uint16_t code, uint32_t request_id, uint32_t count,
-                       uint64_t detail, const char *text)
+                              uint64_t detail, const char *text)
 {
     if (ms_proto_error_fatality(code) == MS_PROTO_FATAL_ALWAYS) {
         ms_proto_conn_fail(c, code, detail, text);
@@ -88,7 +88,8 @@ void ms_proto_conn_send_message(ms_proto_conn *c, const ms_proto_message *msg)
 
 static void pause_reading_if_full(ms_proto_conn *c)
 {
-    if (c->state != MS_CONN_CLOSING && evbuffer_get_length(output(c)) > MS_PROTO_CONN_OUTPUT_LIMIT) {
+    if (c->state != MS_CONN_CLOSING &&
+        evbuffer_get_length(output(c)) > MS_PROTO_CONN_OUTPUT_LIMIT) {
         bufferevent_disable(c->bev, EV_READ);
         c->reading_paused = true;
     }
@@ -116,8 +117,8 @@ static void process_input(ms_proto_conn *c)
                 ms_proto_conn_fail(c, fault.code, fault.detail, err.text);
             } else {
                 metrics_of(c)->binary_requests += fault.request_count ? fault.request_count : 0;
-                ms_proto_conn_send_error(c, fault.code, fault.request_id, fault.request_count, fault.detail,
-                           err.text);
+                ms_proto_conn_send_error(c, fault.code, fault.request_id, fault.request_count,
+                                         fault.detail, err.text);
             }
         } else if (have) {
             c->last_frame_at = ms_now_seconds();
@@ -202,9 +203,8 @@ bool ms_proto_conn_send_chunk(ms_fair_link *link, void *arg)
     bool last = r->next + chunk == r->end;
     ms_error err;
     ms_server_metrics *m = metrics_of(c);
-    if (ms_frame_out_payload(out, r->id, r->cell, r->stream, r->next, r->end, last,
-                             base + r->next, chunk, r->model, &m->transfers_in_flight,
-                             &err) != MS_OK) {
+    if (ms_frame_out_payload(out, r->id, r->cell, r->stream, r->next, r->end, last, base + r->next,
+                             chunk, r->model, &m->transfers_in_flight, &err) != MS_OK) {
         ms_proto_conn_broken(c);
         return false;
     }

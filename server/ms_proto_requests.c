@@ -76,8 +76,8 @@ static bool ids_free(ms_proto_conn *c, uint32_t first, uint32_t count)
 }
 
 /* Steps of a model and those this connection may read (section 8). */
-static void model_steps(const ms_proto_conn *c, const ms_model *m, uint8_t *geometry,
-                        uint8_t *apo, uint8_t *permitted_geometry, uint8_t *permitted_apo)
+static void model_steps(const ms_proto_conn *c, const ms_model *m, uint8_t *geometry, uint8_t *apo,
+                        uint8_t *permitted_geometry, uint8_t *permitted_apo)
 {
     unsigned bits = ms_archive_get_header(m->archive)->bits;
     *geometry = (uint8_t)(bits + 1);
@@ -119,8 +119,8 @@ static void cancel_request(ms_proto_conn *c, ms_cell_request *r)
 static void handle_hello(ms_proto_conn *c, const ms_proto_hello *h)
 {
     uint16_t version;
-    if (ms_proto_choose_version(h->min_version, h->max_version, MS_PROTO_VERSION,
-                                MS_PROTO_VERSION, &version) != MS_OK) {
+    if (ms_proto_choose_version(h->min_version, h->max_version, MS_PROTO_VERSION, MS_PROTO_VERSION,
+                                &version) != MS_OK) {
         ms_proto_conn_fail(c, MS_PROTO_E_UNSUPPORTED_VERSION,
                            MS_PROTO_VERSION | (uint64_t)MS_PROTO_VERSION << 16,
                            "no common protocol version");
@@ -148,8 +148,8 @@ static void handle_list_catalogue(ms_proto_conn *c, uint32_t id)
     const ms_registry *r = &server_of(c)->registry;
     ms_proto_catalogue_entry entries[CATALOGUE_FRAME_BYTES / MS_PROTO_CATALOGUE_ENTRY_FIXED];
     char titles[CATALOGUE_FRAME_BYTES / MS_PROTO_CATALOGUE_ENTRY_FIXED][64];
-    uint32_t limit = c->client_max_frame < CATALOGUE_FRAME_BYTES ? c->client_max_frame
-                                                                 : CATALOGUE_FRAME_BYTES;
+    uint32_t limit =
+        c->client_max_frame < CATALOGUE_FRAME_BYTES ? c->client_max_frame : CATALOGUE_FRAME_BYTES;
     size_t count = 0, body = MS_PROTO_CATALOGUE_FIXED, listed = 0;
     for (size_t i = 0; i <= r->count; ++i) {
         const ms_model *m = i < r->count ? r->models[i] : NULL;
@@ -162,8 +162,8 @@ static void handle_list_catalogue(ms_proto_conn *c, uint32_t id)
                      (unsigned long long)m->entry.vertices, (unsigned long long)m->entry.triangles);
             entry_size = MS_PROTO_CATALOGUE_ENTRY_FIXED + name_length + strlen(titles[count]);
         }
-        bool flush = !m || body + entry_size > limit || count + 1 == sizeof entries / sizeof *entries ||
-                     listed == 65535;
+        bool flush = !m || body + entry_size > limit ||
+                     count + 1 == sizeof entries / sizeof *entries || listed == 65535;
         if (flush && (count || !m)) {
             ms_proto_message msg = {.type = MS_PROTO_CATALOGUE, .request_id = id};
             msg.flags = !m || listed == 65535 ? MS_PROTO_FLAG_LAST : 0;
@@ -212,8 +212,8 @@ static void handle_open_model(ms_proto_conn *c, uint32_t id, const ms_proto_open
         if (!c->models[i].handle)
             slot = &c->models[i];
     if (!slot) {
-        ms_proto_conn_send_error(c, MS_PROTO_E_TOO_MANY_MODELS, id, 1, MS_PROTO_CONN_MAX_OPEN_MODELS,
-                   "too many open models");
+        ms_proto_conn_send_error(c, MS_PROTO_E_TOO_MANY_MODELS, id, 1,
+                                 MS_PROTO_CONN_MAX_OPEN_MODELS, "too many open models");
         return;
     }
     do
@@ -243,9 +243,8 @@ static void handle_open_model(ms_proto_conn *c, uint32_t id, const ms_proto_open
     for (uint32_t offset = 0; offset < index_size && c->state != MS_CONN_CLOSING;) {
         uint32_t n = (uint32_t)index_size - offset < chunk ? (uint32_t)index_size - offset : chunk;
         ms_error err;
-        if (ms_frame_out_index_data(output(c), id, offset, offset + n == index_size,
-                                    index + offset, n, m,
-                                    &metrics_of(c)->transfers_in_flight, &err) != MS_OK)
+        if (ms_frame_out_index_data(output(c), id, offset, offset + n == index_size, index + offset,
+                                    n, m, &metrics_of(c)->transfers_in_flight, &err) != MS_OK)
             ms_proto_conn_broken(c);
         offset += n;
     }
@@ -253,8 +252,8 @@ static void handle_open_model(ms_proto_conn *c, uint32_t id, const ms_proto_open
 
 /* Which queued requests a CANCEL range or a CLOSE_MODEL names. */
 typedef struct request_match {
-    uint32_t handle;        /* 0: match by ids */
-    uint32_t first, count;  /* ids first .. first + count - 1 */
+    uint32_t handle;       /* 0: match by ids */
+    uint32_t first, count; /* ids first .. first + count - 1 */
 } request_match;
 
 static bool matches(const ms_cell_request *r, const request_match *m)
@@ -291,7 +290,8 @@ static void handle_close_model(ms_proto_conn *c, uint32_t handle)
 {
     ms_open_model *slot = find_handle(c, handle);
     if (!slot) {
-        ms_proto_conn_send_error(c, MS_PROTO_E_UNKNOWN_MODEL, 0, 0, handle, "no open model with this handle");
+        ms_proto_conn_send_error(c, MS_PROTO_E_UNKNOWN_MODEL, 0, 0, handle,
+                                 "no open model with this handle");
         return;
     }
     request_match m = {handle, 0, 0};
@@ -381,22 +381,23 @@ static void handle_request_cells(ms_proto_conn *c, uint32_t first_id,
     ms_open_model *slot = find_handle(c, b->model_handle);
     if (!slot) {
         ms_proto_conn_send_error(c, MS_PROTO_E_UNKNOWN_MODEL, first_id, n, b->model_handle,
-                   "no open model with this handle");
+                                 "no open model with this handle");
         return;
     }
     if (!(c->capabilities & MS_PROTO_CAP_APO))
         for (uint32_t i = 0; i < n; ++i)
             if (b->entries[i].stream == MS_PROTO_STREAM_APO) {
                 ms_proto_conn_send_error(c, MS_PROTO_E_FIELD_OUT_OF_RANGE, first_id, n,
-                           MS_PROTO_REQUEST_CELLS_FIXED + MS_PROTO_CELL_REQUEST_SIZE * i + 4,
-                           "APO requested without the APO capability");
+                                         MS_PROTO_REQUEST_CELLS_FIXED +
+                                             MS_PROTO_CELL_REQUEST_SIZE * i + 4,
+                                         "APO requested without the APO capability");
                 return;
             }
     if (!ids_free(c, first_id, n))
         return;
     if (c->queue.count + n > limits->max_outstanding) {
-        ms_proto_conn_send_error(c, MS_PROTO_E_TOO_MANY_OUTSTANDING, first_id, n, limits->max_outstanding,
-                   "too many outstanding requests");
+        ms_proto_conn_send_error(c, MS_PROTO_E_TOO_MANY_OUTSTANDING, first_id, n,
+                                 limits->max_outstanding, "too many outstanding requests");
         return;
     }
     resolved *ranges = malloc(n * sizeof *ranges);
@@ -413,7 +414,7 @@ static void handle_request_cells(ms_proto_conn *c, uint32_t first_id,
     ms_error err;
     if (c->queue.queued_bytes + bytes > limits->max_queued_bytes) {
         ms_proto_conn_send_error(c, MS_PROTO_E_QUEUE_FULL, first_id, n, limits->max_queued_bytes,
-                   "too many payload bytes queued");
+                                 "too many payload bytes queued");
     } else if (rate_allows(c, first_id, n)) {
         if (ms_request_queue_reserve(&c->queue, n, &err) != MS_OK) {
             ms_proto_conn_send_error(c, MS_PROTO_E_INTERNAL, first_id, n, 0, "out of memory");
@@ -424,14 +425,16 @@ static void handle_request_cells(ms_proto_conn *c, uint32_t first_id,
                 const resolved *r = &ranges[i];
                 ms_cell_request *q = r->code || r->start == r->end ? NULL : malloc(sizeof *q);
                 if (r->code) {
-                    ms_proto_conn_send_error(c, r->code, first_id + i, 1, r->detail, entry_error_text(r->code));
+                    ms_proto_conn_send_error(c, r->code, first_id + i, 1, r->detail,
+                                             entry_error_text(r->code));
                 } else if (r->start == r->end) {
                     if (ms_frame_out_payload(output(c), first_id + i, e->cell_id, e->stream,
                                              r->start, r->end, true, NULL, 0, slot->model,
                                              &metrics_of(c)->transfers_in_flight, &err) != MS_OK)
                         ms_proto_conn_broken(c);
                 } else if (!q) {
-                    ms_proto_conn_send_error(c, MS_PROTO_E_INTERNAL, first_id + i, 1, 0, "out of memory");
+                    ms_proto_conn_send_error(c, MS_PROTO_E_INTERNAL, first_id + i, 1, 0,
+                                             "out of memory");
                 } else {
                     memset(q, 0, sizeof *q);
                     q->id = first_id + i;
