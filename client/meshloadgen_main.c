@@ -23,6 +23,7 @@
 #include "ms_archive.h"
 #include "ms_client.h"
 #include "ms_loadgen_plan.h"
+#include "ms_payload_assembly.h"
 #include "ms_progress.h"
 #include "ms_proto.h"
 
@@ -58,6 +59,7 @@ typedef struct vclient {
     bool planning, done;
     ms_archive *own_index;      /* binary: from MODEL_OPENED */
     ms_client *client;          /* binary */
+    ms_payload_assembly *assembly; /* binary: checks every PAYLOAD frame */
     uint32_t handle;
     struct bufferevent *bev;    /* http */
     slot slots[MAX_WINDOW];
@@ -79,8 +81,8 @@ struct loadgen {
     double started, stop_issuing, finished, first_request;
     bool stopping, streaming;
     unsigned ready;             /* clients holding their model index */
-    double *latencies;
-    size_t latency_count, latency_capacity;
+    double *latencies, *apo_latencies;
+    size_t latency_count, latency_capacity, apo_latency_count, apo_latency_capacity;
     uint64_t bytes, requests, errors, cancelled, rate_limited, connection_failures;
     char first_error[256];
 };
@@ -94,17 +96,28 @@ static void note_error(loadgen *lg, const char *what)
         snprintf(lg->first_error, sizeof lg->first_error, "%.200s", what);
 }
 
-static void record_latency(loadgen *lg, double seconds)
+/* Appends to a growable array of latencies (seconds). */
+static void append_latency(double **values, size_t *count, size_t *capacity, double seconds)
 {
-    if (lg->latency_count == lg->latency_capacity) {
-        size_t capacity = lg->latency_capacity ? lg->latency_capacity * 2 : 65536;
-        double *grown = realloc(lg->latencies, capacity * sizeof *grown);
+    if (*count == *capacity) {
+        size_t grown_capacity = *capacity ? *capacity * 2 : 65536;
+        double *grown = realloc(*values, grown_capacity * sizeof *grown);
         if (!grown)
             return;
-        lg->latencies = grown;
-        lg->latency_capacity = capacity;
+        *values = grown;
+        *capacity = grown_capacity;
     }
-    lg->latencies[lg->latency_count++] = seconds;
+    (*values)[(*count)++] = seconds;
+}
+
+/* Every answered request, and the APO ones apart (their priority puts them
+ * behind the same client's geometry). */
+static void record_latency(loadgen *lg, double seconds, uint8_t stream)
+{
+    append_latency(&lg->latencies, &lg->latency_count, &lg->latency_capacity, seconds);
+    if (stream == MS_PROTO_STREAM_APO)
+        append_latency(&lg->apo_latencies, &lg->apo_latency_count, &lg->apo_latency_capacity,
+                       seconds);
 }
 
 static int compare_double(const void *a, const void *b)
@@ -113,12 +126,13 @@ static int compare_double(const void *a, const void *b)
     return x < y ? -1 : x > y;
 }
 
-static double percentile(const loadgen *lg, double q)
+/* Of sorted values. */
+static double percentile(const double *values, size_t count, double q)
 {
-    if (!lg->latency_count)
+    if (!count)
         return 0;
-    size_t k = (size_t)ceil(q * (double)lg->latency_count);
-    return lg->latencies[k ? k - 1 : 0];
+    size_t k = (size_t)ceil(q * (double)count);
+    return values[k ? k - 1 : 0];
 }
 
 static long status_kb(long pid, const char *key)
@@ -252,6 +266,9 @@ static void binary_fill(vclient *v)
         targets[k]->id = first + k;
         targets[k]->sent_at = now;
         v->in_flight++;
+        if (ms_payload_assembly_expect(v->assembly, first + k, batch[k].cell_id, batch[k].stream,
+                                       &err) != MS_OK)
+            note_error(lg, err.text);
     }
     lg->requests += count;
 }
@@ -284,18 +301,19 @@ static void on_payload(ms_client *client, uint32_t id, const ms_proto_payload *p
         note_error(v->lg, "payload for an unknown request");
         return;
     }
-    if (!s->received && !s->start && !s->end)
-        s->start = p->offset, s->end = p->end;
-    if (p->offset != s->start + s->received) {
-        note_error(v->lg, "payload frames out of order");
+    bool done;
+    ms_assembled_range range;
+    ms_error err;
+    if (ms_payload_assembly_add(v->assembly, id, p, last, &done, &range, &err) != MS_OK) {
+        note_error(v->lg, err.text);
         finish_client(v);
         return;
     }
     s->received += p->data_length;
     v->lg->bytes += p->data_length;
-    if (!last)
+    if (!done)
         return;
-    record_latency(v->lg, ms_now_seconds() - s->sent_at);
+    record_latency(v->lg, ms_now_seconds() - s->sent_at, s->item.stream);
     release(v, s);
     binary_fill(v);
 }
@@ -319,6 +337,7 @@ static void on_request_error(ms_client *client, uint32_t first, uint32_t count,
             note_error(v->lg, what);
         }
         ms_loadgen_plan_forget(&v->plan, &s->item);
+        ms_payload_assembly_forget(v->assembly, s->id);
         release(v, s);
     }
     if (!count) {
@@ -354,7 +373,8 @@ static int binary_start(vclient *v)
     ms_client_options co = {o->host, o->port, o->token, "meshloadgen/0.1", 0};
     ms_error err;
     uint32_t id;
-    if (ms_client_connect(v->lg->base, &co, &binary_handlers, v, &v->client, &err) != MS_OK ||
+    if (ms_payload_assembly_new(false, 0, &v->assembly, &err) != MS_OK ||
+        ms_client_connect(v->lg->base, &co, &binary_handlers, v, &v->client, &err) != MS_OK ||
         ms_client_open_model(v->client, o->model, &id, &err) != MS_OK) {
         fprintf(stderr, "meshloadgen: %s\n", err.text);
         return -1;
@@ -465,7 +485,7 @@ static void http_read(struct bufferevent *bev, void *arg)
         v->ring_count--;
         if (v->status == 206 || v->status == 200) {
             v->lg->bytes += s->end - s->start;
-            record_latency(v->lg, ms_now_seconds() - s->sent_at);
+            record_latency(v->lg, ms_now_seconds() - s->sent_at, s->item.stream);
         } else {
             char what[64];
             snprintf(what, sizeof what, "HTTP status %d", v->status);
@@ -738,7 +758,14 @@ int main(int argc, char **argv)
      * the model index to the end. */
     double elapsed = lg.finished - (lg.first_request ? lg.first_request : lg.started);
 
-    qsort(lg.latencies, lg.latency_count, sizeof *lg.latencies, compare_double);
+    if (lg.latency_count)
+        qsort(lg.latencies, lg.latency_count, sizeof *lg.latencies, compare_double);
+    if (lg.apo_latency_count)
+        qsort(lg.apo_latencies, lg.apo_latency_count, sizeof *lg.apo_latencies, compare_double);
+    double p50 = percentile(lg.latencies, lg.latency_count, 0.5),
+           p99 = percentile(lg.latencies, lg.latency_count, 0.99),
+           max = percentile(lg.latencies, lg.latency_count, 1.0),
+           apo_p99 = percentile(lg.apo_latencies, lg.apo_latency_count, 0.99);
     long hwm = lg.o.server_pid > 0 ? status_kb(lg.o.server_pid, "VmHWM:") : -1;
     long rss = lg.o.server_pid > 0 ? status_kb(lg.o.server_pid, "VmRSS:") : -1;
     long anon = lg.o.server_pid > 0 ? status_kb(lg.o.server_pid, "RssAnon:") : -1;
@@ -750,7 +777,7 @@ int main(int argc, char **argv)
                "\"rate_limited\": %llu, \"errors\": %llu, \"connection_failures\": %llu, "
                "\"payload_bytes\": %llu, "
                "\"throughput_MBps\": %.1f, \"latency_ms\": {\"p50\": %.3f, \"p99\": %.3f, "
-               "\"max\": %.3f}, \"server_vmhwm_kb\": %ld, \"server_vmrss_kb\": %ld, "
+               "\"max\": %.3f, \"apo_p99\": %.3f}, \"server_vmhwm_kb\": %ld, \"server_vmrss_kb\": %ld, "
                "\"server_rssanon_kb\": %ld, "
                "\"first_error\": \"%s\"}\n",
                lg.o.label, lg.o.http ? "http" : "binary", lg.o.clients, lg.o.window, lg.o.fps, lg.o.rate, elapsed,
@@ -758,19 +785,18 @@ int main(int argc, char **argv)
                (unsigned long long)lg.cancelled, (unsigned long long)lg.rate_limited,
                (unsigned long long)lg.errors, (unsigned long long)lg.connection_failures,
                (unsigned long long)lg.bytes, mbps,
-               percentile(&lg, 0.5) * 1e3, percentile(&lg, 0.99) * 1e3, percentile(&lg, 1.0) * 1e3,
-               hwm, rss, anon, lg.first_error);
+               p50 * 1e3, p99 * 1e3, max * 1e3, apo_p99 * 1e3, hwm, rss, anon, lg.first_error);
     else
         printf("meshloadgen: %u %s clients, %.2f s: %llu requests (%llu answered, %llu cancelled, "
                "%llu errors), %.1f MB/s payload, latency p50 %.2f ms p99 %.2f ms%s%s\n",
                lg.o.clients, lg.o.http ? "HTTP" : "binary", elapsed,
                (unsigned long long)lg.requests, (unsigned long long)answered,
                (unsigned long long)lg.cancelled, (unsigned long long)lg.errors, mbps,
-               percentile(&lg, 0.5) * 1e3, percentile(&lg, 0.99) * 1e3,
-               lg.first_error[0] ? "; first error: " : "", lg.first_error);
+               p50 * 1e3, p99 * 1e3, lg.first_error[0] ? "; first error: " : "", lg.first_error);
     for (unsigned i = 0; i < lg.o.clients; ++i) {
         vclient *v = &lg.clients[i];
         ms_client_free(v->client);
+        ms_payload_assembly_free(v->assembly);
         if (v->bev)
             bufferevent_free(v->bev);
         ms_loadgen_plan_free(&v->plan);
@@ -778,6 +804,7 @@ int main(int argc, char **argv)
     }
     free(lg.clients);
     free(lg.latencies);
+    free(lg.apo_latencies);
     event_free(lg.ticker);
     event_base_free(lg.base);
     ms_archive_close(lg.shared_index);

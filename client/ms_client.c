@@ -145,7 +145,11 @@ static bool handle_message(ms_client *c, const ms_proto_message *m)
         if (c->handlers->pong)
             c->handlers->pong(c, m->body.ping.opaque, c->arg);
         break;
-    case MS_PROTO_CATALOGUE: /* listed for completeness; meshload has its own use */ break;
+    case MS_PROTO_CATALOGUE:
+        if (c->handlers->catalogue)
+            c->handlers->catalogue(c, m->request_id, &m->body.catalogue,
+                                   m->flags & MS_PROTO_FLAG_LAST, c->arg);
+        break;
     default: break;
     }
     return !c->over;

@@ -35,6 +35,9 @@ typedef struct ms_client_handlers {
     void (*request_error)(ms_client *client, uint32_t first_id, uint32_t count,
                           const ms_proto_error_body *error, void *arg);
     void (*pong)(ms_client *client, uint64_t opaque, void *arg);
+    /* One CATALOGUE frame of the answer to request_id (last: the final one). */
+    void (*catalogue)(ms_client *client, uint32_t request_id, const ms_proto_catalogue *catalogue,
+                      bool last, void *arg);
     /* The connection is over: why is one line (a fatal ERROR's text, a
      * protocol violation, a socket error, or "closed"). */
     void (*closed)(ms_client *client, const char *why, void *arg);

@@ -26,9 +26,10 @@ static void pump(evutil_socket_t fd, short what, void *arg)
     (void)fd, (void)what;
     ms_fair_scheduler *s = arg;
     for (unsigned served = 0; served < s->chunks_per_turn && !ring_empty(s); ++served) {
+        /* Out of the ring while it sends (send may wake or forget it), back at
+         * the tail if it has more and room for it. */
         ms_fair_link *link = s->ring.next;
         unlink_node(link);
-        /* Re-append before sending would let send() forget it safely too. */
         if (s->send(link, s->arg) && !link->next)
             append(s, link);
     }

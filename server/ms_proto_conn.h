@@ -1,11 +1,12 @@
 /* One binary-protocol connection of meshserve: its socket (a bufferevent), the
  * incremental decoder, the handshake, the open models, the request queue and
  * the per-connection limits (outstanding requests, queued bytes, request rate,
- * idle time-out), and the answers to every message a client may send.
+ * idle time-out). ms_proto_conn.c moves bytes (input, output, closing);
+ * ms_proto_requests.c answers every message a client may send.
  *
  * Memory per connection is bounded: input is read only while the output
  * buffer holds less than MS_PROTO_CONN_OUTPUT_LIMIT bytes, the decoder holds at
- * most one frame (max_frame), payload chunks are added only while the output
+ * most one frame (max_frame, at most 64 KiB + 8: the largest batch), payload chunks are added only while the output
  * holds less than MS_PROTO_CONN_HIGH_WATER, and the queue is bounded by
  * max_outstanding. Payload bytes are references into the archive mapping.
  *
@@ -32,6 +33,7 @@ struct ms_model;
 #define MS_PROTO_CONN_OUTPUT_LIMIT (1u << 20)   /* stop reading input */
 #define MS_PROTO_CONN_MAX_OPEN_MODELS 64u
 #define MS_PROTO_CONN_LINGER_SECONDS 2.0        /* wait for the peer's EOF after a fatal error */
+#define MS_PROTO_CONN_HANDSHAKE_SECONDS 10u     /* most time from accept to HELLO */
 
 /* What the door shares with its connections. */
 typedef struct ms_proto_door_shared {
@@ -86,6 +88,21 @@ void ms_proto_conn_free(ms_proto_conn *conn);
 
 /* Sends a fatal ERROR and starts the lingering close. */
 void ms_proto_conn_fail(ms_proto_conn *conn, uint16_t code, uint64_t detail, const char *text);
+
+/* Sends an ERROR ending requests request_id .. request_id + count - 1 (count
+ * 0: connection level); an always-fatal code goes through ms_proto_conn_fail. */
+void ms_proto_conn_send_error(ms_proto_conn *conn, uint16_t code, uint32_t request_id,
+                              uint32_t count, uint64_t detail, const char *text);
+/* Encodes and queues a control message. */
+void ms_proto_conn_send_message(ms_proto_conn *conn, const ms_proto_message *msg);
+/* Closes without a word: stops answering, flushes what is queued, shuts down
+ * writing and waits (a while) for the peer's end of stream. */
+void ms_proto_conn_start_closing(ms_proto_conn *conn);
+/* The output buffer refused bytes: close without another word. */
+void ms_proto_conn_broken(ms_proto_conn *conn);
+
+/* Answers one decoded message (ms_proto_requests.c). */
+void ms_proto_conn_handle_message(ms_proto_conn *conn, const ms_proto_message *msg);
 
 /* The scheduler's callback: sends one payload chunk. */
 bool ms_proto_conn_send_chunk(ms_fair_link *link, void *arg);

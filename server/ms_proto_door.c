@@ -116,7 +116,12 @@ static void announce_limits(const ms_server_config *config, ms_proto_hello_reply
     memset(r, 0, sizeof *r);
     r->version = MS_PROTO_VERSION;
     r->capabilities = MS_PROTO_CAP_APO;
-    r->max_frame = config->max_frame;
+    /* Nothing a client may send is larger than a batch of the protocol's
+     * largest size, so that bounds what a connection's decoder ever holds. */
+    const uint32_t largest_client_frame =
+        MS_PROTO_REQUEST_CELLS_FIXED + MS_PROTO_CELL_REQUEST_SIZE * MS_PROTO_MAX_BATCH;
+    r->max_frame = config->max_frame < largest_client_frame ? config->max_frame
+                                                             : largest_client_frame;
     r->max_batch = config->max_batch < MS_PROTO_MAX_BATCH ? config->max_batch : MS_PROTO_MAX_BATCH;
     r->max_outstanding = config->max_outstanding < MS_PROTO_MAX_OUTSTANDING
                              ? config->max_outstanding

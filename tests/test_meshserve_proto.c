@@ -17,6 +17,7 @@
 #include <cmocka.h>
 
 #include "ms_archive.h"
+#include "ms_catalog.h"
 #include "ms_synthetic_archive.h"
 #include "ms_test.h"
 #include "ms_test_archive.h"
@@ -554,8 +555,11 @@ static void test_disconnect_mid_payload_frees_everything(void **state)
 static void test_sighup_adds_model_live(void **state)
 {
     server_fixture *f = *state;
-    ms_test_conn c;
+    ms_test_conn c, keeper;
     connect_ready(f, &c, NULL);
+    connect_ready(f, &keeper, NULL);
+    uint32_t kept = ms_test_conn_open_model(&keeper, "bunny", 1, NULL, NULL, NULL);
+    assert_true(ms_catalog_remove(f->archives, "bunny", NULL) == MS_OK);
     uint16_t code = 0;
     assert_int_equal(ms_test_conn_open_model(&c, "horse", 1, NULL, NULL, &code), 0);
     assert_int_equal(code, MS_PROTO_E_UNKNOWN_MODEL);
@@ -564,12 +568,24 @@ static void test_sighup_adds_model_live(void **state)
     char names[8][65];
     uint8_t permitted[8];
     size_t count = 0;
-    for (int tries = 0; tries < 100 && count != 4; ++tries) {
+    for (int tries = 0; tries < 100 && !(count == 3 && !strcmp(names[2], "horse")); ++tries) {
         usleep(50000);
         list_catalogue(&c, 2, names, permitted, &count);
     }
-    assert_int_equal(count, 4);
-    assert_string_equal(names[3], "horse");
+    assert_int_equal(count, 3); /* horse added, bunny removed */
+    assert_string_equal(names[2], "horse");
+    /* A removed model stays readable where it is open, and only there. */
+    ms_proto_cell_request k[1] = {steps(0, MS_PROTO_STREAM_GEOMETRY, 0, 0, 63)};
+    send_batch(&keeper, kept, 2, k, 1);
+    answers ka;
+    answers_init(&ka, 2, 1);
+    answers_collect(&keeper, &ka);
+    assert_int_equal(ka.error[0], 0);
+    assert_true(ka.length[0] > 0);
+    answers_free(&ka);
+    ms_test_conn_close(&keeper);
+    assert_int_equal(ms_test_conn_open_model(&c, "bunny", 5, NULL, NULL, &code), 0);
+    assert_int_equal(code, MS_PROTO_E_UNKNOWN_MODEL);
     uint32_t handle = ms_test_conn_open_model(&c, "horse", 3, NULL, NULL, NULL);
     assert_true(handle >= 1);
     ms_proto_cell_request e[1] = {steps(0, MS_PROTO_STREAM_GEOMETRY, 0, 0, 63)};
@@ -658,9 +674,10 @@ static void test_malformed_frames(void **state)
     /* Bad length: a PING body must be 8 bytes. */
     header(frame, 9, MS_PROTO_PING, 0, 0);
     expect_fatal(f, true, frame, 12 + 9, MS_PROTO_E_MALFORMED_FRAME, UINT64_MAX);
-    /* Body above max_frame (1 MiB by default). */
-    header(frame, (1u << 20) + 1, MS_PROTO_REQUEST_CELLS, 0, 1);
-    expect_fatal(f, true, frame, 12, MS_PROTO_E_FRAME_TOO_LARGE, 1u << 20);
+    /* Body above max_frame: the server accepts no more than the largest batch
+     * the protocol allows, 8 + 16 x 4096 bytes, whatever its config says. */
+    header(frame, 65545, MS_PROTO_REQUEST_CELLS, 0, 1);
+    expect_fatal(f, true, frame, 12, MS_PROTO_E_FRAME_TOO_LARGE, 65544);
     /* Unknown type. */
     header(frame, 0, 0x33, 0, 0);
     expect_fatal(f, true, frame, 12, MS_PROTO_E_UNKNOWN_TYPE, 0x33);
@@ -934,6 +951,11 @@ static void test_limits(void **state)
     /* Idle time-out (1 s): d sends nothing more. */
     assert_int_equal(ms_test_conn_expect_error(&d, &id, &body), MS_PROTO_E_IDLE_TIMEOUT);
     assert_true(body.detail == 1000);
+    ms_test_conn_close(&d);
+    /* A connection that never says HELLO is closed the same way. */
+    assert_int_equal(ms_test_conn_open(&d, f->port), 0);
+    assert_int_equal(ms_test_conn_expect_error(&d, &id, &body), MS_PROTO_E_IDLE_TIMEOUT);
+    assert_true(body.fatal);
     ms_test_conn_close(&d);
     ms_test_conn_close(&c);
 }
