@@ -30,6 +30,7 @@ struct ms_client {
     uint8_t *index;
     uint32_t index_have;
     struct ev_token_bucket_cfg *rate;
+    uint64_t bytes_read;
 };
 
 static void finish(ms_client *c, const char *why)
@@ -171,6 +172,7 @@ static void on_read(struct bufferevent *bev, void *arg)
         ms_status st = ms_proto_decoder_feed(&c->decoder, v.iov_base, v.iov_len, &consumed, &m,
                                              &have, &fault, &err);
         evbuffer_drain(in, consumed);
+        c->bytes_read += consumed;
         if (st != MS_OK) {
             char why[MS_ERROR_TEXT_MAX + 32];
             snprintf(why, sizeof why, "bad frame from the server: %s", err.text);
@@ -352,3 +354,5 @@ ms_status ms_client_set_rate_limit(ms_client *c, double bytes_per_second, ms_err
     c->rate = cfg;
     return MS_OK;
 }
+
+uint64_t ms_client_bytes_read(const ms_client *c) { return c->bytes_read; }

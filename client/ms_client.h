@@ -75,6 +75,9 @@ ms_status ms_client_ping(ms_client *client, uint64_t opaque, ms_error *err);
  * refilled every 10 ms); 0 removes the limit. MS_ERR_NOMEM. */
 ms_status ms_client_set_rate_limit(ms_client *client, double bytes_per_second, ms_error *err);
 
+/* Bytes received from the server so far (every frame, index data included). */
+uint64_t ms_client_bytes_read(const ms_client *client);
+
 /* The server's HELLO_REPLY (zeros before it arrived). */
 const ms_proto_hello_reply *ms_client_limits(const ms_client *client);
 /* Bytes queued for sending and not yet written to the socket. */

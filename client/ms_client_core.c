@@ -136,6 +136,7 @@ struct ms_core {
     bool dead;                  /* the connection ended: freed on the next tick */
     char dead_why[256];
     double last_activity, reconnect_at, down_since, backoff;
+    uint64_t last_read;         /* ms_client_bytes_read at the last tick */
     slot slots[MAX_SLOTS];
     unsigned slots_used, slots_active;
     uint64_t net_consumed_seq;
@@ -600,6 +601,7 @@ static void net_connect(ms_core *c)
                             .agent = c->agent, .max_frame = 1u << 20};
     ms_error err;
     c->last_activity = since_start(c);
+    c->last_read = 0;
     if (ms_client_connect(c->base, &co, &core_handlers, c, &c->client, &err) != MS_OK) {
         c->client = NULL;
         net_drop(c, err.text);
@@ -652,6 +654,11 @@ static void on_tick(evutil_socket_t fd, short what, void *arg)
             net_connect(c);
         }
         return;
+    }
+    uint64_t read = ms_client_bytes_read(c->client);
+    if (read != c->last_read) { /* any frame counts, index data included */
+        c->last_read = read;
+        c->last_activity = t;
     }
     bool waiting = !c->ready || c->slots_active > 0;
     if (waiting && t - c->last_activity > c->o.answer_timeout) {

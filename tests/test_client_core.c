@@ -328,6 +328,45 @@ static void test_server_killed_and_restarted(void **state)
     ms_test_stop(f.pid, SIGTERM, 10.0);
 }
 
+/* Turning away from the model cancels what is in flight for it. */
+static void test_turning_away_cancels(void **state)
+{
+    (void)state;
+    ms_core_options o = base_options();
+    o.bandwidth = 20000;  /* slow: requests stay in flight */
+    o.window_bytes = 65536;
+    ms_core *core;
+    ms_error err;
+    assert_int_equal(ms_core_start(&o, &core, &err), MS_OK);
+    ms_camera cam = key_camera(g->path.count - 1);
+    ms_core_set_camera(core, &cam);
+    ms_core_stats st;
+    double until = now_s() + WAIT_SECONDS;
+    do {
+        sleep_s(0.01);
+        ms_core_get_stats(core, &st);
+    } while (!(st.bytes_received > 0 && st.bytes_in_flight > 2000) && now_s() < until);
+    if (st.bytes_in_flight <= 2000)
+        fail_msg("in flight %llu, received %llu, requests %llu, complete %d",
+                 (unsigned long long)st.bytes_in_flight, (unsigned long long)st.bytes_received,
+                 (unsigned long long)st.requests, st.view_complete);
+    /* the same place, looking the other way */
+    double away[3];
+    for (int a = 0; a < 3; ++a)
+        away[a] = 2 * cam.position[a] - (cam.position[a] + cam.forward[a]);
+    ms_camera back;
+    assert_int_equal(ms_camera_look_at(cam.position, away, cam.up, 40, 640, 480, 1e-4, 1e4, &back,
+                                       &err), MS_OK);
+    ms_core_set_camera(core, &back);
+    until = now_s() + WAIT_SECONDS;
+    do {
+        sleep_s(0.01);
+        ms_core_get_stats(core, &st);
+    } while (st.cancels == 0 && now_s() < until);
+    assert_true(st.cancels > 0);
+    ms_core_stop(core);
+}
+
 typedef struct corruptor {
     uint32_t cell, position; /* the byte to flip */
     unsigned times, done;
@@ -620,6 +659,7 @@ int main(void)
         cmocka_unit_test(test_view_append_and_forget),
         cmocka_unit_test(test_stream_equals_direct_decode),
         cmocka_unit_test(test_server_killed_and_restarted),
+        cmocka_unit_test(test_turning_away_cancels),
         cmocka_unit_test(test_corrupt_payload_refetched_once),
         cmocka_unit_test(test_corrupt_payload_reported),
         cmocka_unit_test(test_server_not_answering),
