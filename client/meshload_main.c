@@ -484,6 +484,12 @@ static void print_report(const options *o, const run *r, worker *ws)
                med_first, med_complete, worst_complete);
         for (unsigned i = 0; i < n; ++i) {
             const client_result *c = &ws[i].result;
+            if (o->baseline) {
+                printf("  client %u: downloaded %llu bytes in %.3f s, %s %.3f s%s%s\n", i,
+                       (unsigned long long)c->draco_bytes, c->download_seconds, o->draco_decoder,
+                       c->decode_draco_seconds, c->error[0] ? "; error: " : "", c->error);
+                continue;
+            }
             printf("  client %u: first display %.3f s, view complete %.3f s, %llu bytes cold, "
                    "%llu bytes on the path, %u cells, decode %.3f s, latency p50 %.1f ms p99 "
                    "%.1f ms, peak memory %.1f MB%s%s\n",

@@ -84,7 +84,12 @@ ms_status ms_bake(const ms_bake_options *o, ms_bake_report *r, ms_error *err)
     if (!ms_model_name_valid(r->name))
         return ms_error_set(err, MS_ERR_ARG, "invalid model name '%s' (1-64 of A-Z a-z 0-9 _ -)",
                             r->name);
+    /* A missing archive directory is created (its parent must exist); an existing
+     * path that is not a directory is an error. */
     struct stat sb;
+    if (stat(o->archive_dir, &sb) != 0 && mkdir(o->archive_dir, 0777) != 0 && errno != EEXIST)
+        return ms_error_set(err, MS_ERR_IO, "%s: cannot create directory: %s", o->archive_dir,
+                            strerror(errno));
     if (stat(o->archive_dir, &sb) != 0 || !S_ISDIR(sb.st_mode))
         return ms_error_set(err, MS_ERR_IO, "%s: not a directory", o->archive_dir);
     int n = snprintf(r->archive_path, sizeof r->archive_path, "%s/%s.msa", o->archive_dir, r->name);

@@ -162,6 +162,33 @@ static void test_usage_errors(void **state)
     ms_test_rmdir(dir);
 }
 
+/* A missing archive directory is created; a path that is a file, or a directory
+ * whose parent is missing, is a one-line error and leaves nothing behind. */
+static void test_archive_directory(void **state)
+{
+    (void)state;
+    char dir[512], bin[4096], model[4096], sub[700], cmd[16384], out[4096];
+    ms_test_tmpdir(dir, sizeof dir);
+    ms_test_bin_path(bin, sizeof bin, "meshbake");
+    ms_test_model_path(model, sizeof model, "stanford_bunny_res3.ply.gz");
+    snprintf(sub, sizeof sub, "%s/new", dir);
+    snprintf(cmd, sizeof cmd, "%s '%s' -o '%s' --name b", bin, model, sub);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
+    const char *made[] = {"b.msa", "catalog.json", "catalog.lock", NULL};
+    assert_int_equal(strays(sub, made), 0);
+
+    snprintf(cmd, sizeof cmd, "%s '%s' -o '%s/b.msa' --name c", bin, model, sub);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 1);
+    assert_non_null(strstr(out, "b.msa: not a directory"));
+    assert_null(strchr(strchr(out, '\n') + 1, '\n'));
+
+    snprintf(cmd, sizeof cmd, "%s '%s' -o '%s/none/deeper' --name c", bin, model, dir);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 1);
+    assert_non_null(strstr(out, "deeper: cannot create directory: No such file or directory"));
+    assert_int_equal(strays(sub, made), 0);
+    ms_test_rmdir(dir);
+}
+
 /* A failed bake leaves the directory as it was. */
 static void test_failure_leaves_nothing(void **state)
 {
@@ -247,6 +274,7 @@ int main(void)
         cmocka_unit_test(test_json_report_and_catalog),
         cmocka_unit_test(test_flushing_changes_nothing),
         cmocka_unit_test(test_usage_errors),
+        cmocka_unit_test(test_archive_directory),
         cmocka_unit_test(test_failure_leaves_nothing),
         cmocka_unit_test(test_killed_bake_leaves_nothing),
     };
