@@ -38,7 +38,10 @@
 #include "ms_mesh.h"
 #include "ms_quant.h"
 
-#define MS_CODEC_VERSION 1
+/* Version 2 starts every context from the built-in prior (ms_codec_prior.h);
+ * version 1 streams, whose contexts start flat, are still decoded. */
+#define MS_CODEC_VERSION 2
+#define MS_CODEC_VERSION_FLAT 1
 #define MS_CODEC_MAX_BITS 20
 #define MS_CODEC_MAX_VERTICES (1u << 26)
 #define MS_CODEC_MAX_TRIANGLES (1u << 27)
@@ -74,7 +77,16 @@ bool ms_codec_state_equal(const ms_codec_state *a, const ms_codec_state *b, bool
 typedef struct ms_codec_encode_params {
     unsigned p_min;       /* first precision bit of the window (0 = from one vertex) */
     ms_quant_box box;     /* world box written to the header */
+    /* Training the prior (meshcodec train), normally NULL: when set, every coded
+     * decision adds 1 to context_counts[2 i + bit], i its context in the prior's
+     * layout; the array has 2 * ms_codec_prior_contexts() entries, owned by the
+     * caller and accumulated across calls. Not thread-safe across concurrent
+     * encodes sharing one array. */
+    uint64_t *context_counts;
 } ms_codec_encode_params;
+
+/* Number of contexts of the prior (every kd-level of 20 bits plus connectivity). */
+size_t ms_codec_prior_contexts(void);
 
 /* Encodes `full` (level must be 3 * full->bits, the p_max of the stream) over
  * [params->p_min, full->bits]. On success *out (malloc'd, caller frees) holds the

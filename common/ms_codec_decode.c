@@ -2,6 +2,7 @@
 #include "ms_codec.h"
 #include "ms_codec_internal.h"
 #include "ms_codec_model.h"
+#include "ms_codec_prior.h"
 #include "ms_complex.h"
 #include "ms_quant.h"
 #include "ms_rangecoder.h"
@@ -42,6 +43,7 @@ struct ms_codec_decoder {
     const uint8_t *src;
     size_t src_n, src_pos;
     ms_codec_header *enc_h;
+    uint64_t *train;        /* encode mode: context counts in the prior's layout */
     bool skip_crc;
     bool broken;
 };
@@ -55,6 +57,8 @@ static inline __attribute__((always_inline)) int dbit(ms_codec_decoder *d, ms_rc
     if (d->src_pos < d->src_n)
         bit = d->src[d->src_pos];
     d->src_pos++;
+    if (d->train)
+        d->train[2 * ms_prior_index((uint32_t)(p - d->model), d->D) + (unsigned)bit]++;
     ms_rc_encode(d->enc, p, bit);
     return bit;
 }
@@ -614,8 +618,7 @@ static ms_status decoder_init(ms_codec_decoder *d, const ms_codec_state *start, 
     if (!d->model || !d->snap || !d->snap_valid || !d->crc_ok ||
         !order_room(d, d->h.start_vertices))
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory creating a decoder");
-    for (uint32_t i = 0; i < d->nmodel; ++i)
-        d->model[i] = MS_RC_PROB_INIT;
+    ms_codec_model_init(d->model, d->D, d->h.version);
     if ((r = ms_cx_init(&d->cx, d->h.p_max, d->h.end_vertices, d->h.end_tris, max_e, err)) !=
         MS_OK)
         return r;
@@ -667,7 +670,7 @@ ms_status ms_codec_decoder_create(const uint8_t *data, size_t size, const ms_cod
 
 ms_status ms_codec_run_encoder(ms_codec_header *h, const ms_codec_state *start,
                                const uint8_t *decisions, size_t n, ms_rc_encoder *enc,
-                               ms_error *err)
+                               uint64_t *context_counts, ms_error *err)
 {
     ms_codec_decoder *d = calloc(1, sizeof *d);
     if (!d)
@@ -677,6 +680,7 @@ ms_status ms_codec_run_encoder(ms_codec_header *h, const ms_codec_state *start,
     d->enc_h = h;
     d->src = decisions;
     d->src_n = n;
+    d->train = context_counts;
     ms_status r = decoder_init(d, start, err);
     if (r == MS_OK)
         r = ms_codec_decoder_set_level(d, d->D, err);

@@ -411,7 +411,8 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
     unsigned nchunks = P - pmin;
     /* Forward pass: the decoder itself chooses every context. */
     ms_cx_free(&e.cx);
-    s = ms_codec_run_encoder(&h, pmin == 0 ? NULL : &start, dec, nd, &rc, err);
+    s = ms_codec_run_encoder(&h, pmin == 0 ? NULL : &start, dec, nd, &rc, params->context_counts,
+                             err);
     free(dec);
     if (s != MS_OK)
         goto fail;

@@ -25,10 +25,11 @@ ms_status ms_codec_parse_header(const uint8_t *data, size_t size, ms_codec_heade
 
 /* The encoder's forward pass: runs the decoder from `start` over the window of h,
  * taking each binary decision from decisions[0..n) (decode order) and coding it
- * into enc with the decoder's contexts; fills h's chunk table. */
+ * into enc with the decoder's contexts; fills h's chunk table. context_counts
+ * (may be NULL) accumulates the decisions per context (ms_codec_encode_params). */
 ms_status ms_codec_run_encoder(ms_codec_header *h, const ms_codec_state *start,
                                const uint8_t *decisions, size_t n, ms_rc_encoder *enc,
-                               ms_error *err);
+                               uint64_t *context_counts, ms_error *err);
 
 /* Exports a complex whose live cells (order[0..n), sorted by key) all sit at
  * `level` as a canonical ms_codec_state. */

@@ -14,6 +14,7 @@
 
 #include <stdint.h>
 
+#include "ms_codec.h"
 #include "ms_complex.h"
 #include "ms_rangecoder.h"
 
@@ -50,6 +51,20 @@ static inline unsigned geo_deg(const ms_cx_vert *v)
 static inline uint32_t ms_model_size(unsigned D)
 {
     return D * GEO_PER_LEVEL + C_TOTAL;
+}
+
+/* The prior's layout (ms_codec_prior.h): every kd-level a stream can reach, then
+ * the connectivity contexts. A model index i of a stream with D kd-levels is
+ * prior index i below D * GEO_PER_LEVEL (geometry is level-major and absolute),
+ * else i shifted to the connectivity block. */
+#define MS_PRIOR_LEVELS (3 * MS_CODEC_MAX_BITS)
+#define MS_PRIOR_GEO (MS_PRIOR_LEVELS * GEO_PER_LEVEL)
+#define MS_PRIOR_SIZE (MS_PRIOR_GEO + C_TOTAL)
+
+static inline uint32_t ms_prior_index(uint32_t model_index, unsigned D)
+{
+    uint32_t geo = D * GEO_PER_LEVEL;
+    return model_index < geo ? model_index : MS_PRIOR_GEO + (model_index - geo);
 }
 
 static inline unsigned geo_run(unsigned level, unsigned birth)

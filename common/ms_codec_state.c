@@ -272,7 +272,7 @@ ms_status ms_codec_parse_header(const uint8_t *data, size_t size, ms_codec_heade
     if (memcmp(data, MS_CODEC_MAGIC, 4) != 0)
         return ms_error_set(err, MS_ERR_FORMAT, "not a meshstream codec stream (bad magic)");
     h->version = data[4];
-    if (h->version != MS_CODEC_VERSION)
+    if (h->version != MS_CODEC_VERSION && h->version != MS_CODEC_VERSION_FLAT)
         return ms_error_set(err, MS_ERR_UNSUPPORTED, "codec stream version %u not supported",
                             h->version);
     h->p_max = data[5];

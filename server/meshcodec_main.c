@@ -3,6 +3,7 @@
  *   meshcodec encode IN -o OUT --bits P
  *   meshcodec decode IN -o OUT.ply [--bits Q]
  *   meshcodec roundtrip IN --bits P [--json]
+ *   meshcodec train IN... -o TABLE.c [--bits P]
  */
 #include <errno.h>
 #include <getopt.h>
@@ -14,6 +15,7 @@
 #include <unistd.h>
 
 #include "ms_codec.h"
+#include "ms_codec_prior.h"
 #include "ms_mesh_io.h"
 #include "ms_quant.h"
 
@@ -28,6 +30,7 @@ static const char *const top_usage =
     "  encode IN -o OUT --bits P      quantise IN (PLY/OBJ/OFF, .gz ok) to P bits and code it\n"
     "  decode IN -o OUT.ply [--bits Q] decode a stream, at Q <= P bits for a coarser level\n"
     "  roundtrip IN --bits P [--json] encode, decode, check losslessness, report sizes/times\n"
+    "  train IN... -o TABLE.c         estimate the built-in prior from meshes (developers)\n"
     "\n"
     "`meshcodec COMMAND --help` describes each command.\n"
     "Exit status: 0 on success, 1 for an input or processing error, 2 for a usage error.\n";
@@ -68,6 +71,18 @@ static const char *const roundtrip_usage =
     "      --json         print one JSON object on stdout\n"
     "  -h, --help         print this help and exit\n";
 
+static const char *const train_usage =
+    "usage: meshcodec train IN... -o TABLE.c [--bits P]\n"
+    "\n"
+    "Encodes every IN at P bits (default 16), counts the decisions of every context\n"
+    "and writes the prior they give as the C source of common/ms_codec_prior_table.c\n"
+    "(docs/CODEC.md, section 4). For developers: the table is compiled into the codec,\n"
+    "and changing it changes every stream of the current version.\n"
+    "\n"
+    "  -o, --output OUT   output C file\n"
+    "  -b, --bits P       precision in bits per coordinate (default 16)\n"
+    "  -h, --help         print this help and exit\n";
+
 static int usage_error(const char *cmd, const char *message, const char *detail)
 {
     fprintf(stderr, "meshcodec%s%s: %s%s%s (see meshcodec%s%s --help)\n", cmd ? " " : "",
@@ -91,13 +106,15 @@ static double now_seconds(void)
 
 typedef struct options {
     const char *input, *output;
+    char **inputs; /* every input (train) */
+    int input_count;
     int bits; /* -1 when not given */
     bool json, ascii;
 } options;
 
 /* Parses argv (after the command word). Returns -1 to go on, else an exit status. */
 static int parse(const char *cmd, const char *help, int argc, char **argv, options *o,
-                 bool want_output, bool allow_json, bool allow_ascii)
+                 bool want_output, bool allow_json, bool allow_ascii, bool many_inputs)
 {
     static const struct option longs[] = {
         {"output", required_argument, NULL, 'o'}, {"bits", required_argument, NULL, 'b'},
@@ -140,9 +157,11 @@ static int parse(const char *cmd, const char *help, int argc, char **argv, optio
         default: return usage_error(cmd, "unknown option", argv[optind - 1]);
         }
     }
+    o->inputs = argv + optind;
+    o->input_count = argc - optind;
     if (optind < argc)
         o->input = argv[optind++];
-    if (optind < argc)
+    if (optind < argc && !many_inputs)
         return usage_error(cmd, "unexpected argument", argv[optind]);
     if (!o->input)
         return usage_error(cmd, "missing input file", NULL);
@@ -167,7 +186,8 @@ static ms_status load_quantised(const char *path, unsigned bits, ms_qmesh *q,
     return st;
 }
 
-static ms_status encode_q(const ms_qmesh *q, uint8_t **buf, size_t *size, ms_error *err)
+static ms_status encode_q(const ms_qmesh *q, uint64_t *context_counts, uint8_t **buf,
+                          size_t *size, ms_error *err)
 {
     ms_codec_state full;
     ms_status st = ms_codec_state_from_qmesh(q, &full, err);
@@ -176,6 +196,7 @@ static ms_status encode_q(const ms_qmesh *q, uint8_t **buf, size_t *size, ms_err
     ms_codec_encode_params par;
     memset(&par, 0, sizeof par);
     par.box = q->box;
+    par.context_counts = context_counts;
     st = ms_codec_encode(&full, &par, buf, size, NULL, err);
     ms_codec_state_free(&full);
     return st;
@@ -258,7 +279,7 @@ static int check_bits(const char *cmd, int bits)
 static int cmd_encode(int argc, char **argv)
 {
     options o;
-    int r = parse("encode", encode_usage, argc, argv, &o, true, false, false);
+    int r = parse("encode", encode_usage, argc, argv, &o, true, false, false, false);
     if (r >= 0)
         return r;
     if (o.bits < 0)
@@ -272,7 +293,7 @@ static int cmd_encode(int argc, char **argv)
         return input_error("encode", &err);
     uint8_t *buf = NULL;
     size_t size = 0;
-    ms_status st = encode_q(&q, &buf, &size, &err);
+    ms_status st = encode_q(&q, NULL, &buf, &size, &err);
     if (st == MS_OK)
         st = write_file(o.output, buf, size, &err);
     free(buf);
@@ -290,7 +311,7 @@ static int cmd_encode(int argc, char **argv)
 static int cmd_decode(int argc, char **argv)
 {
     options o;
-    int r = parse("decode", decode_usage, argc, argv, &o, true, false, true);
+    int r = parse("decode", decode_usage, argc, argv, &o, true, false, true, false);
     if (r >= 0)
         return r;
     ms_error err;
@@ -334,7 +355,7 @@ static int cmd_decode(int argc, char **argv)
 static int cmd_roundtrip(int argc, char **argv)
 {
     options o;
-    int r = parse("roundtrip", roundtrip_usage, argc, argv, &o, false, true, false);
+    int r = parse("roundtrip", roundtrip_usage, argc, argv, &o, false, true, false, false);
     if (r >= 0)
         return r;
     if (o.bits < 0)
@@ -350,7 +371,7 @@ static int cmd_roundtrip(int argc, char **argv)
     uint8_t *buf = NULL;
     size_t size = 0;
     double t0 = now_seconds();
-    ms_status st = encode_q(&q, &buf, &size, &err);
+    ms_status st = encode_q(&q, NULL, &buf, &size, &err);
     double t1 = now_seconds();
     ms_codec_decoder *d = NULL;
     double t2 = 0, t3 = 0;
@@ -418,6 +439,91 @@ static int cmd_roundtrip(int argc, char **argv)
     return EXIT_SUCCESS;
 }
 
+static const char *base_name(const char *path)
+{
+    const char *slash = strrchr(path, '/');
+    return slash ? slash + 1 : path;
+}
+
+/* Writes the prior table as C source. */
+static ms_status write_prior_table(const char *path, const uint16_t *p0, int bits,
+                                   int input_count, char **inputs, ms_error *err)
+{
+    size_t n = ms_codec_prior_contexts();
+    size_t cap = 4096 + 8 * n;
+    for (int i = 0; i < input_count; ++i)
+        cap += strlen(inputs[i]) + 8;
+    char *text = malloc(cap);
+    if (!text)
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory");
+    size_t w = (size_t)snprintf(text, cap,
+                                "/* Generated by `meshcodec train --bits %d` from:\n", bits);
+    for (int i = 0; i < input_count; ++i)
+        w += (size_t)snprintf(text + w, cap - w, " *   %s\n", base_name(inputs[i]));
+    w += (size_t)snprintf(text + w, cap - w,
+                          " * Do not edit: regenerate (docs/CODEC.md, section 4). */\n"
+                          "#include \"ms_codec_prior.h\"\n\n"
+                          "const uint16_t ms_codec_prior_p0[MS_PRIOR_SIZE] = {");
+    for (size_t i = 0; i < n; ++i)
+        w += (size_t)snprintf(text + w, cap - w, "%s%u,", i % 10 ? " " : "\n    ", p0[i]);
+    w += (size_t)snprintf(text + w, cap - w, "\n};\n");
+    ms_status st = write_file(path, (const uint8_t *)text, w, err);
+    free(text);
+    return st;
+}
+
+static int cmd_train(int argc, char **argv)
+{
+    options o;
+    int r = parse("train", train_usage, argc, argv, &o, true, false, false, true);
+    if (r >= 0)
+        return r;
+    if (o.bits < 0)
+        o.bits = 16;
+    if ((r = check_bits("train", o.bits)) >= 0)
+        return r;
+    size_t n = ms_codec_prior_contexts();
+    uint64_t *counts = calloc(2 * n, sizeof *counts);
+    uint16_t *p0 = malloc(n * sizeof *p0);
+    if (!counts || !p0) {
+        free(counts);
+        free(p0);
+        fprintf(stderr, "meshcodec train: out of memory\n");
+        return EXIT_INPUT;
+    }
+    ms_error err;
+    ms_status st = MS_OK;
+    for (int i = 0; i < o.input_count && st == MS_OK; ++i) {
+        ms_qmesh q;
+        ms_weld_report weld;
+        st = load_quantised(o.inputs[i], (unsigned)o.bits, &q, &weld, NULL, &err);
+        if (st != MS_OK)
+            break;
+        uint8_t *buf = NULL;
+        size_t size = 0;
+        st = encode_q(&q, counts, &buf, &size, &err);
+        if (st == MS_OK)
+            printf("%s: %zu vertices, %zu bytes with the current prior\n", o.inputs[i],
+                   q.vertex_count, size);
+        free(buf);
+        ms_qmesh_free(&q);
+    }
+    if (st == MS_OK) {
+        ms_codec_prior_estimate(counts, p0);
+        st = write_prior_table(o.output, p0, o.bits, o.input_count, o.inputs, &err);
+    }
+    uint64_t decisions = 0;
+    for (size_t i = 0; i < 2 * n; ++i)
+        decisions += counts[i];
+    free(counts);
+    free(p0);
+    if (st != MS_OK)
+        return input_error("train", &err);
+    printf("%s: prior of %zu contexts from %d meshes (%llu decisions)\n", o.output, n,
+           o.input_count, (unsigned long long)decisions);
+    return EXIT_SUCCESS;
+}
+
 int main(int argc, char **argv)
 {
     if (argc < 2)
@@ -433,5 +539,7 @@ int main(int argc, char **argv)
         return cmd_decode(argc - 1, argv + 1);
     if (!strcmp(cmd, "roundtrip"))
         return cmd_roundtrip(argc - 1, argv + 1);
+    if (!strcmp(cmd, "train"))
+        return cmd_train(argc - 1, argv + 1);
     return usage_error(NULL, "unknown command", cmd);
 }

@@ -560,10 +560,11 @@ static void test_corruption_detected(void **state)
     assert_int_equal(ms_codec_decoder_create(c.buf, c.size, NULL, NULL, &d, &err), MS_ERR_FORMAT);
     c.buf[0] = 'M';
     /* unknown version */
-    c.buf[4] = 2;
+    assert_int_equal(c.buf[4], MS_CODEC_VERSION);
+    c.buf[4] = MS_CODEC_VERSION + 1;
     assert_int_equal(ms_codec_decoder_create(c.buf, c.size, NULL, NULL, &d, &err),
                      MS_ERR_UNSUPPORTED);
-    c.buf[4] = 1;
+    c.buf[4] = MS_CODEC_VERSION;
     /* header byte flipped: header CRC */
     c.buf[61] ^= 0x40;
     assert_int_equal(ms_codec_decoder_create(c.buf, c.size, NULL, NULL, &d, &err),

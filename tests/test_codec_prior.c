@@ -1,0 +1,197 @@
+/* The codec's built-in prior (common/ms_codec_prior.h): its estimate from counts,
+ * model initialisation per stream version, the training counts of an encode, and
+ * version-1 streams (flat contexts) still decoding exactly. */
+#include <stdarg.h>
+#include <stdbool.h>
+#include <stddef.h>
+#include <setjmp.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <cmocka.h>
+
+#include "ms_codec.h"
+#include "ms_codec_model.h"
+#include "ms_codec_prior.h"
+#include "ms_mesh_io.h"
+#include "ms_quant.h"
+#include "support/ms_codec_check.h"
+#include "support/ms_test.h"
+
+#define V1_FIXTURE "tests/data/codec-v1-bunny_res3-12bits.msc"
+
+static void test_estimate(void **state)
+{
+    (void)state;
+    uint64_t *counts = calloc(2 * MS_PRIOR_SIZE, sizeof *counts);
+    uint16_t *p0 = malloc(MS_PRIOR_SIZE * sizeof *p0);
+    assert_non_null(counts);
+    assert_non_null(p0);
+    assert_int_equal(ms_codec_prior_contexts(), MS_PRIOR_SIZE);
+    counts[2 * 1] = 1, counts[2 * 1 + 1] = 1;      /* (n0 + 1) / (n + 2) = 1/2 */
+    counts[2 * 2] = 3, counts[2 * 2 + 1] = 1;      /* 4/6 */
+    counts[2 * 3] = 99;                            /* 100/101, capped at 63/64 */
+    counts[2 * 4 + 1] = 1000;                      /* 1/1002, raised to 1/64 */
+    counts[2 * (MS_PRIOR_SIZE - 1) + 1] = 2;       /* 1/4 */
+    ms_codec_prior_estimate(counts, p0);
+    assert_int_equal(p0[0], 32768);
+    assert_int_equal(p0[1], 32768);
+    assert_int_equal(p0[2], 43691);
+    assert_int_equal(p0[3], 65536 - 1024);
+    assert_int_equal(p0[4], 1024);
+    assert_int_equal(p0[MS_PRIOR_SIZE - 1], 16384);
+    free(counts);
+    free(p0);
+}
+
+static void test_model_init(void **state)
+{
+    (void)state;
+    const unsigned D = 36; /* a 12-bit stream */
+    uint32_t n = ms_model_size(D);
+    ms_rc_prob *m = malloc(n * sizeof *m);
+    assert_non_null(m);
+    ms_codec_model_init(m, D, MS_CODEC_VERSION_FLAT);
+    for (uint32_t i = 0; i < n; ++i) {
+        assert_int_equal(m[i].fast, 32768);
+        assert_int_equal(m[i].slow, 32768);
+    }
+    ms_codec_model_init(m, D, MS_CODEC_VERSION);
+    /* Geometry is indexed by absolute kd-level, connectivity follows every level. */
+    assert_int_equal(ms_prior_index(GEO_HALF(35, 3, 14), D), GEO_HALF(35, 3, 14));
+    assert_int_equal(ms_prior_index(D * GEO_PER_LEVEL, D), MS_PRIOR_GEO);
+    assert_int_equal(ms_prior_index(n - 1, D), MS_PRIOR_SIZE - 1);
+    for (uint32_t i = 0; i < n; ++i) {
+        uint16_t want = ms_codec_prior_p0[ms_prior_index(i, D)];
+        assert_int_equal(m[i].fast, want);
+        assert_int_equal(m[i].slow, want);
+    }
+    /* The trained table is not flat where decisions are frequent: the root cell of
+     * every training mesh splits in two at level 0. */
+    assert_true(ms_codec_prior_p0[GEO_BOTH(0, 0, 0)] < 32768);
+    free(m);
+}
+
+static void load_qmesh(const char *file, unsigned bits, ms_codec_state *canonical)
+{
+    char path[4096];
+    ms_test_model_path(path, sizeof path, file);
+    ms_mesh m;
+    memset(&m, 0, sizeof m);
+    ms_error err;
+    if (ms_mesh_load(path, &m, NULL, &err) != MS_OK)
+        fail_msg("%s", err.text);
+    ms_qmesh q;
+    ms_weld_report weld;
+    assert_int_equal(ms_quantise_mesh(&m, bits, &q, &weld, &err), MS_OK);
+    assert_int_equal(ms_codec_state_from_qmesh(&q, canonical, &err), MS_OK);
+    assert_int_equal(ms_codec_state_canonicalise(canonical, &err), MS_OK);
+    ms_qmesh_free(&q);
+    ms_mesh_free(&m);
+}
+
+static void decode_full(const uint8_t *data, size_t size, ms_codec_state *out)
+{
+    ms_error err;
+    ms_codec_decoder *d = NULL;
+    assert_int_equal(ms_codec_decoder_create(data, size, NULL, NULL, &d, &err), MS_OK);
+    assert_int_equal(ms_codec_decoder_set_level(d, ms_codec_decoder_max_level(d), &err), MS_OK);
+    assert_int_equal(ms_codec_decoder_state(d, out, &err), MS_OK);
+    ms_codec_decoder_destroy(d);
+}
+
+/* A stream written before the prior (version 1, flat contexts) decodes to exactly
+ * the quantised mesh; today's encoder writes version 2 for the same mesh, smaller,
+ * decoding to the same complex. */
+static void test_version_1_still_decodes(void **state)
+{
+    (void)state;
+    FILE *f = fopen(V1_FIXTURE, "rb");
+    assert_non_null(f);
+    uint8_t v1[16384];
+    size_t n1 = fread(v1, 1, sizeof v1, f);
+    fclose(f);
+    assert_int_equal(n1, 7909);
+    ms_codec_header h;
+    ms_error err;
+    assert_int_equal(ms_codec_read_header(v1, n1, &h, &err), MS_OK);
+    assert_int_equal(h.version, MS_CODEC_VERSION_FLAT);
+
+    ms_codec_state want = {0}, got1 = {0}, got2 = {0};
+    load_qmesh("stanford_bunny_res3.ply.gz", 12, &want);
+    decode_full(v1, n1, &got1);
+    assert_true(ms_codec_state_equal(&got1, &want, true));
+
+    ms_codec_encode_params par;
+    memset(&par, 0, sizeof par);
+    par.box = h.box;
+    uint8_t *v2 = NULL;
+    size_t n2 = 0;
+    assert_int_equal(ms_codec_encode(&want, &par, &v2, &n2, NULL, &err), MS_OK);
+    assert_int_equal(v2[4], MS_CODEC_VERSION);
+    assert_true(n2 < n1);
+    decode_full(v2, n2, &got2);
+    assert_true(ms_codec_state_equal(&got2, &want, true));
+    /* A version the decoder does not know is refused, not guessed. */
+    v2[4] = MS_CODEC_VERSION + 1;
+    assert_int_equal(ms_codec_read_header(v2, n2, &h, &err), MS_ERR_UNSUPPORTED);
+    free(v2);
+    ms_codec_state_free(&want);
+    ms_codec_state_free(&got1);
+    ms_codec_state_free(&got2);
+}
+
+/* Counting decisions for training leaves the stream unchanged and counts what the
+ * window codes: the root's one "both halves?" decision at level 0, nothing at
+ * kd-levels past the stream's precision. */
+static void test_training_counts(void **state)
+{
+    (void)state;
+    ms_codec_state full = {0};
+    load_qmesh("stanford_bunny_res3.ply.gz", 12, &full);
+    ms_codec_encode_params par;
+    memset(&par, 0, sizeof par);
+    par.box.size = 1.0;
+    uint8_t *a = NULL, *b = NULL;
+    size_t na = 0, nb = 0;
+    ms_error err;
+    assert_int_equal(ms_codec_encode(&full, &par, &a, &na, NULL, &err), MS_OK);
+    uint64_t *counts = calloc(2 * MS_PRIOR_SIZE, sizeof *counts);
+    assert_non_null(counts);
+    par.context_counts = counts;
+    assert_int_equal(ms_codec_encode(&full, &par, &b, &nb, NULL, &err), MS_OK);
+    assert_int_equal(na, nb);
+    assert_memory_equal(a, b, na);
+    uint64_t level0 = 0, beyond = 0, conn = 0;
+    for (uint32_t i = 0; i < GEO_PER_LEVEL; ++i)
+        level0 += counts[2 * i] + counts[2 * i + 1];
+    for (uint32_t i = 36 * GEO_PER_LEVEL; i < MS_PRIOR_GEO; ++i)
+        beyond += counts[2 * i] + counts[2 * i + 1];
+    for (uint32_t i = MS_PRIOR_GEO; i < MS_PRIOR_SIZE; ++i)
+        conn += counts[2 * i] + counts[2 * i + 1];
+    assert_int_equal(counts[2 * GEO_BOTH(0, 0, 0)], 0); /* bit 1: the root splits */
+    assert_int_equal(counts[2 * GEO_BOTH(0, 0, 0) + 1], 1);
+    assert_int_equal(level0, 1);
+    assert_int_equal(beyond, 0);
+    assert_true(conn > 0);
+    /* Counting again accumulates. */
+    free(b);
+    assert_int_equal(ms_codec_encode(&full, &par, &b, &nb, NULL, &err), MS_OK);
+    assert_int_equal(counts[2 * GEO_BOTH(0, 0, 0) + 1], 2);
+    free(counts);
+    free(a);
+    free(b);
+    ms_codec_state_free(&full);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_estimate),
+        cmocka_unit_test(test_model_init),
+        cmocka_unit_test(test_version_1_still_decodes),
+        cmocka_unit_test(test_training_counts),
+    };
+    return cmocka_run_group_tests_name("codec_prior", tests, NULL, NULL);
+}
