@@ -23,6 +23,8 @@
 #include <stdint.h>
 #include <stdio.h>
 
+#include "ms_apo_format.h"
+#include "ms_bake_apo.h"
 #include "ms_error.h"
 
 typedef struct ms_bake_options {
@@ -35,9 +37,11 @@ typedef struct ms_bake_options {
     size_t mem_mb;
     size_t buffer_bytes;   /* leaf buffer budget; 0: an eighth of mem_mb (tests force flushes) */
     FILE *progress;        /* progress bar target (drawn only on a terminal), or NULL */
+    ms_bake_apo_params apo; /* per-cell APO chunks (ms_bake_apo.h) */
 } ms_bake_options;
 
-/* Defaults: 16 bits, n = 4, p_r = 7, N_min = 8000, threads = online CPUs, 512 MB. */
+/* Defaults: 16 bits, n = 4, p_r = 7, N_min = 8000, threads = online CPUs, 512 MB,
+ * APO on with ms_bake_apo_params_default. */
 void ms_bake_options_default(ms_bake_options *options);
 
 typedef struct ms_bake_report {
@@ -56,6 +60,13 @@ typedef struct ms_bake_report {
     double peak_rss_build_mb;              /* peak when the tree was built (before encoding) */
     unsigned threads;
     uint64_t blocks_written, flushes; /* leaf content spilled to the block file */
+    /* APO (all zero when off) */
+    uint64_t apo_bytes, apo_raw_bytes;         /* compressed in the archive / texel bytes */
+    uint64_t apo_level_texels[MS_APO_MAX_LEVELS]; /* texels per depth over all chunks */
+    uint32_t apo_levels;                       /* entries of apo_level_texels used */
+    uint32_t apo_chunks;
+    uint64_t apo_internal_nodes, apo_leaves;
+    double seconds_apo;   /* APO's share of the encode phase: thread-seconds / threads */
 } ms_bake_report;
 
 /* Derives a valid model name from a file path (basename without extensions, other
