@@ -92,3 +92,17 @@ uint32_t ms_apo_normal_encode(const float n[3])
         qu = qu < MS_APO_NORMAL_MAX_CODE - qu ? MS_APO_NORMAL_MAX_CODE - qu : qu;
     return qu | (qv << 12);
 }
+
+void ms_apo_words_to_bytes(const uint32_t *words, size_t count, uint8_t *bytes)
+{
+    for (size_t i = 0; i < count; ++i)
+        for (int k = 0; k < 4; ++k)
+            bytes[4 * i + (size_t)k] = (uint8_t)(words[i] >> (8 * k));
+}
+
+void ms_apo_words_from_bytes(const uint8_t *bytes, size_t count, uint32_t *words)
+{
+    for (size_t i = 0; i < count; ++i)
+        words[i] = (uint32_t)bytes[4 * i] | (uint32_t)bytes[4 * i + 1] << 8 | (uint32_t)bytes[4 * i + 2] << 16 |
+                   (uint32_t)bytes[4 * i + 3] << 24;
+}

@@ -26,9 +26,7 @@ ms_status ms_apo_stream_compress(const ms_apo_chunk *chunk, int zlib_level, uint
         free(raw);
         return ms_error_set(err, MS_ERR_NOMEM, "apo stream: no memory for %zu bytes", raw_size);
     }
-    for (size_t i = 0; i < chunk->texel_count; ++i)
-        for (int k = 0; k < 4; ++k)
-            raw[4 * i + (size_t)k] = (uint8_t)(chunk->texels[i] >> (8 * k));
+    ms_apo_words_to_bytes(chunk->texels, chunk->texel_count, raw);
     /* A sync flush per level costs a few bytes each and at most 5 more than the bound. */
     size_t cap = deflateBound(&z, (uLong)raw_size) + 6u * chunk->level_count + 16;
     uint8_t *buf = malloc(cap);
@@ -121,17 +119,12 @@ ms_status ms_apo_stream_inflate(const uint8_t *data, size_t size, const uint32_t
                               "level table (%u of %u levels)", complete, levels);
         inflateEnd(&z);
     }
-    for (size_t i = 0; st == MS_OK && i < want_words; ++i)
-        words[i] = (uint32_t)raw[4 * i] | (uint32_t)raw[4 * i + 1] << 8 | (uint32_t)raw[4 * i + 2] << 16 |
-                   (uint32_t)raw[4 * i + 3] << 24;
+    if (st == MS_OK)
+        ms_apo_words_from_bytes(raw, want_words, words);
     free(raw);
-    if (st != MS_OK) {
+    if (st != MS_OK)
         free(words);
-        return st;
-    }
-    chunk->texels = words;
-    chunk->texel_count = want_words;
-    chunk->level_count = levels;
-    memcpy(chunk->level_texels, per_level, levels * sizeof *per_level);
-    return MS_OK;
+    else
+        ms_apo_chunk_adopt(chunk, words, want_words, levels, per_level);
+    return st;
 }

@@ -17,6 +17,7 @@
 
 #include "ms_apo_classic_cli.h"
 #include "ms_bake.h"
+#include "ms_json_string.h"
 #include "ms_mesh_reader.h"
 
 enum { EXIT_INPUT = 1, EXIT_USAGE = 2 };
@@ -223,24 +224,10 @@ static void show_progress(void *context, uint64_t done, uint64_t total)
     fflush(stderr);
 }
 
-static void print_json_string(const char *s)
-{
-    putchar('"');
-    for (const unsigned char *c = (const unsigned char *)s; *c; ++c) {
-        if (*c == '"' || *c == '\\')
-            printf("\\%c", *c);
-        else if (*c < 0x20)
-            printf("\\u%04x", *c);
-        else
-            putchar(*c);
-    }
-    putchar('"');
-}
-
 static void print_json(const char *path, const ms_mesh_read_report *r, double seconds)
 {
     fputs("{\"file\": ", stdout);
-    print_json_string(path);
+    ms_json_print_string(stdout, path);
     printf(", \"format\": \"%s\", \"gzip\": %s", ms_mesh_format_name(r->format),
            r->gzip ? "true" : "false");
     printf(", \"vertices\": %" PRIu64 ", \"triangles\": %" PRIu64 ", \"input_faces\": %" PRIu64,

@@ -17,6 +17,7 @@
 #include "ms_apo_traverse.h"
 #include "ms_demo_model.h"
 #include "ms_error.h"
+#include "ms_json_string.h"
 #include "ms_mesh.h"
 #include "ms_mesh_io.h"
 #include "ms_png.h"
@@ -150,21 +151,6 @@ static ms_status measure_accuracy(const ms_apo_view *view, const ms_mesh *M, con
     }
     free(angles);
     return MS_OK;
-}
-
-/* s as a JSON string (quotes, backslashes and control characters escaped). */
-static void print_json_string(const char *s)
-{
-    putchar('"');
-    for (const unsigned char *c = (const unsigned char *)s; *c; ++c) {
-        if (*c == '"' || *c == '\\')
-            printf("\\%c", *c);
-        else if (*c < 0x20)
-            printf("\\u%04x", *c);
-        else
-            putchar(*c);
-    }
-    putchar('"');
 }
 
 /* CPU seconds (user + system, all threads) used by this process so far. */
@@ -380,7 +366,7 @@ int ms_apo_classic_cli(int argc, char **argv)
     const char *measure = o.measure == MS_APO_MEASURE_CLASSIC ? "classic" : "spread";
     if (json) {
         printf("{\"input\":");
-        print_json_string(in);
+        ms_json_print_string(stdout, in);
         printf(",\"input_triangles\":%zu,\"simplified_triangles\":%zu,\"refused_faces\":%zu,"
                "\"tolerance\":%g,\"measure\":\"%s\",\"init_depth\":%u,\"max_depth\":%u,"
                "\"internal_nodes\":%zu,\"leaves\":%zu,\"cells\":%zu,\"texels\":%zu,\"bytes\":%zu,"

@@ -95,7 +95,8 @@ static ms_status verify_stored(const ms_apo_tree *built, const ms_bake_apo_resul
 
 ms_status ms_bake_apo_cell(ms_apo_builder *builder, const ms_bake_apo_params *p, const ms_nsp_shape *shape,
                            const ms_quant_box *box, unsigned depth, const uint32_t position[3], unsigned bits_max,
-                           const ms_mesh *m, const ms_mesh *M, ms_bake_apo_result *out, ms_error *err)
+                           const ms_mesh *m, const ms_mesh *M, unsigned threads, ms_bake_apo_result *out,
+                           ms_error *err)
 {
     memset(out, 0, sizeof *out);
     ms_apo_build_options o;
@@ -105,7 +106,7 @@ ms_status ms_bake_apo_cell(ms_apo_builder *builder, const ms_bake_apo_params *p,
     o.init_depth = p->init_depth < o.max_depth ? p->init_depth : o.max_depth;
     o.tolerance = p->tolerance;
     o.measure = MS_APO_MEASURE_SPREAD;
-    o.threads = 1; /* the bake runs one cell per thread */
+    o.threads = threads ? threads : 1;
     ms_apo_tree tree;
     memset(&tree, 0, sizeof tree);
     ms_status st = ms_apo_builder_build_tree(builder, m, M, &o, &tree, NULL, err);

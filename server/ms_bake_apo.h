@@ -65,7 +65,8 @@ typedef struct ms_bake_apo_result {
 
 void ms_bake_apo_result_free(ms_bake_apo_result *result);
 
-/* Builds, encodes and compresses one cell's chunk into *out (zeroed first). With
+/* Builds, encodes and compresses one cell's chunk into *out (zeroed first), the
+ * builder running on `threads` threads (the output does not depend on it). With
  * params->verify, also inflates the stored bytes, loads them (ms_apo_view_init),
  * decodes them into a tree and fails with MS_ERR_CORRUPT unless it has exactly the
  * built tree's nodes and normal codes. Errors: those of the builder, the encoder,
@@ -73,7 +74,8 @@ void ms_bake_apo_result_free(ms_bake_apo_result *result);
 ms_status ms_bake_apo_cell(ms_apo_builder *builder, const ms_bake_apo_params *params,
                            const ms_nsp_shape *shape, const ms_quant_box *box, unsigned depth,
                            const uint32_t position[3], unsigned bits_max, const ms_mesh *m,
-                           const ms_mesh *M, ms_bake_apo_result *out, ms_error *err);
+                           const ms_mesh *M, unsigned threads, ms_bake_apo_result *out,
+                           ms_error *err);
 
 /* True when two trees have the same nodes (depth, cell, children) and the same
  * normal codes; on a difference, writes the first differing node into *node. */

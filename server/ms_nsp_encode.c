@@ -496,13 +496,11 @@ static ms_status full_precision_mesh(const ms_nsp_build *b, uint32_t node, ms_me
         free(drop);
     }
     if (s == MS_OK) {
-        /* grid cell centres, as the decoder places full-precision vertices */
-        double scale = b->box.size / (double)(1u << p);
-        for (size_t v = 0; v < nk; ++v) {
+        for (size_t v = 0; v < nk; ++v) { /* grid cell centres */
             uint32_t q[3];
             ms_quant_unkey(keys[v], p, q);
             for (int a = 0; a < 3; ++a)
-                M->positions[3 * v + (size_t)a] = b->box.origin[a] + 0.5 * (2.0 * q[a] + 1.0) * scale;
+                M->positions[3 * v + (size_t)a] = ms_dequantise(&b->box, p, a, q[a]);
         }
         M->vertex_count = nk;
     }
@@ -535,9 +533,12 @@ static ms_status apo_cell(pool *p, uint32_t node, unsigned hi, ms_apo_builder *b
     ms_codec_decoder_destroy(d);
     if (s == MS_OK)
         s = full_precision_mesh(b, node, &M, err);
+    /* Leaves run one per thread; internal cells, few, large and last in
+     * post-order (the root ends the bake alone), use every thread. */
+    unsigned threads = nd->first_child == MS_NSP_NONE ? 1 : p->params->threads;
     if (s == MS_OK)
         s = ms_bake_apo_cell(builder, p->params->apo, &b->params.shape, &b->box, nd->depth, nd->position, hi,
-                             &m, &M, &out->apo, err);
+                             &m, &M, threads, &out->apo, err);
     if (s != MS_OK) {
         char why[sizeof err->text];
         snprintf(why, sizeof why, "%s", err->text);

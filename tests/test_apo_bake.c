@@ -205,28 +205,6 @@ static void test_depth_rule_exact(void **state)
     ms_test_rmdir(dir);
 }
 
-static uint8_t *read_file(const char *path, size_t *size)
-{
-    FILE *f = fopen(path, "rb");
-    assert_non_null(f);
-    fseek(f, 0, SEEK_END);
-    *size = (size_t)ftell(f);
-    fseek(f, 0, SEEK_SET);
-    uint8_t *b = malloc(*size);
-    assert_non_null(b);
-    assert_int_equal(fread(b, 1, *size, f), *size);
-    fclose(f);
-    return b;
-}
-
-static void write_file(const char *path, const uint8_t *b, size_t size)
-{
-    FILE *f = fopen(path, "wb");
-    assert_non_null(f);
-    assert_int_equal(fwrite(b, 1, size, f), size);
-    fclose(f);
-}
-
 /* Damage: a flipped byte inside a chunk fails its CRC and its inflation; a
  * damaged level table fails the index CRC at open; a truncated file does not
  * open; an inconsistent table given to the inflater is a format error. */
@@ -243,7 +221,7 @@ static void test_damaged_chunks_are_rejected(void **state)
     snprintf(path, sizeof path, "%s/good.msa", dir);
     snprintf(bad, sizeof bad, "%s/bad.msa", dir);
     size_t size;
-    uint8_t *file = read_file(path, &size);
+    uint8_t *file = ms_test_read_file(path, &size);
     ms_archive *a;
     ms_error err;
     assert_int_equal(ms_archive_open(path, &a, &err), MS_OK);
@@ -262,7 +240,7 @@ static void test_damaged_chunks_are_rejected(void **state)
     /* a byte of the root's chunk, in the middle of its last level */
     uint64_t at = payload_start + root.apo_offset + (table[2 * (root.apo_levels - 2)] + root.apo_length) / 2;
     file[at] ^= 0x5A;
-    write_file(bad, file, size);
+    ms_test_write_file(bad, file, size);
     assert_int_equal(ms_archive_open(bad, &a, &err), MS_OK); /* payloads are checked on demand */
     assert_int_equal(ms_archive_verify_payload(a, 0, &err), MS_ERR_CORRUPT);
     assert_non_null(strstr(err.text, "APO chunk checksum mismatch"));
@@ -281,14 +259,14 @@ static void test_damaged_chunks_are_rejected(void **state)
 
     /* the level table in the index */
     file[table_at + 4] ^= 1;
-    write_file(bad, file, size);
+    ms_test_write_file(bad, file, size);
     a = NULL;
     assert_int_not_equal(ms_archive_open(bad, &a, &err), MS_OK);
     assert_null(a);
     file[table_at + 4] ^= 1;
 
     /* the file cut inside the last chunk */
-    write_file(bad, file, size - 3);
+    ms_test_write_file(bad, file, size - 3);
     assert_int_not_equal(ms_archive_open(bad, &a, &err), MS_OK);
 
     /* inconsistent tables handed to the inflater */
