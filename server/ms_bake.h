@@ -2,7 +2,8 @@
  *
  * Phases: read (stream the input into spools), quantise (keys), distribute (the
  * out-of-core nSP-tree, ms_nsp_build.h), encode (ms_nsp_encode.h, on `threads`
- * threads) and write (the archive writer's finish, then the catalogue update).
+ * threads, each cell's APO chunk built right after its stream when apo.enabled;
+ * report.seconds_apo is APO's share of this phase) and write (the archive writer's finish, then the catalogue update).
  * Temporary files live in tmp_dir (default: the archive directory) and are unlinked
  * when created; the archive appears under its final name only once complete
  * (docs/ARCHIVE.md), so a failed or killed bake leaves neither a partial archive
@@ -12,7 +13,9 @@
  * Memory: 8 bytes per input vertex (the key array) plus an eighth of mem_mb for
  * the leaf buffers while the tree is built; then the key array plus, per encoding
  * thread, the working set of one cell (its complex and the codec's state, tens of
- * MB for the largest internal cells of a 14 M-triangle model).
+ * MB for the largest internal cells of a 14 M-triangle model); with APO, also the
+ * full-precision triangles below the cell whose chunk is being built and an
+ * Embree scene over them (the whole model for the root: not bounded by mem_mb).
  * Thread-safety: one bake per process at a time (it runs its own threads).
  */
 #ifndef MS_BAKE_H
