@@ -26,8 +26,7 @@ static uint8_t *words_to_bytes(const uint32_t *words, size_t count)
 {
     uint8_t *b = malloc(count * 4 + 1);
     if (b)
-        for (size_t i = 0; i < count; ++i)
-            put_u32(b + 4 * i, words[i]);
+        ms_apo_words_to_bytes(words, count, b);
     return b;
 }
 
@@ -137,19 +136,14 @@ ms_status ms_apo_blob_read(const uint8_t *data, size_t size, ms_apo_chunk *chunk
     else if (crc_of(raw, raw_size) != get_u32(data + 16))
         st = ms_error_set(err, MS_ERR_CORRUPT, "apo blob: texel CRC mismatch");
     if (st == MS_OK) {
-        for (size_t i = 0; i < texels; ++i)
-            words[i] = get_u32(raw + 4 * i);
+        ms_apo_words_from_bytes(raw, texels, words);
         ms_apo_view view;
         st = ms_apo_view_init(&view, table, levels, words, texels, err);
     }
     free(raw);
-    if (st != MS_OK) {
+    if (st != MS_OK)
         free(words);
-        return st;
-    }
-    chunk->texels = words;
-    chunk->texel_count = texels;
-    chunk->level_count = levels;
-    memcpy(chunk->level_texels, table, levels * sizeof *table);
-    return MS_OK;
+    else
+        ms_apo_chunk_adopt(chunk, words, texels, levels, table);
+    return st;
 }

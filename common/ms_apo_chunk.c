@@ -12,6 +12,16 @@ void ms_apo_chunk_free(ms_apo_chunk *chunk)
     memset(chunk, 0, sizeof *chunk);
 }
 
+void ms_apo_chunk_adopt(ms_apo_chunk *chunk, uint32_t *words, size_t count, uint32_t level_count,
+                        const uint32_t *level_texels)
+{
+    memset(chunk, 0, sizeof *chunk);
+    chunk->texels = words;
+    chunk->texel_count = count;
+    chunk->level_count = level_count;
+    memcpy(chunk->level_texels, level_texels, level_count * sizeof *level_texels);
+}
+
 ms_status ms_apo_chunk_encode(const ms_apo_tree *tree, ms_apo_chunk *chunk, ms_error *err)
 {
     ms_status st = ms_apo_tree_check(tree, err);

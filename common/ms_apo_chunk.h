@@ -43,6 +43,11 @@ typedef struct ms_apo_view {
 
 void ms_apo_chunk_free(ms_apo_chunk *chunk);
 
+/* Makes *chunk own `words` (malloc'd, count of them) under the given table of the
+ * complete chunk (level_count <= MS_APO_MAX_LEVELS words per level). */
+void ms_apo_chunk_adopt(ms_apo_chunk *chunk, uint32_t *words, size_t count, uint32_t level_count,
+                        const uint32_t *level_texels);
+
 /* Encodes a tree (checked with ms_apo_tree_check first). *chunk must be zeroed.
  * Errors: MS_ERR_CORRUPT for a malformed tree, MS_ERR_RANGE when a relative offset
  * does not fit in 24 bits or the chunk exceeds MS_APO_MAX_TEXELS, MS_ERR_NOMEM. */

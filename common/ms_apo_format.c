@@ -61,7 +61,10 @@ uint32_t ms_apo_normal_encode(const float n[3])
     double sv = v * MS_APO_NORMAL_STEPS + MS_APO_NORMAL_STEPS;
     int64_t bu = (int64_t)floor(su), bv = (int64_t)floor(sv);
     /* Of the four codes around the exact point, keep the one whose decoded
-     * direction is nearest to the input (largest cosine). Ties: first found. */
+     * direction is nearest to the input (largest cosine). Ties: first found. A
+     * code that decodes to exactly the input wins outright: neighbouring codes
+     * are only ~1e-7 apart in cosine, within float rounding, and re-encoding a
+     * decoded normal must give its code back. */
     double len = sqrt(x * x + y * y + z * z);
     uint32_t best = 0;
     double best_cos = -2.0;
@@ -72,6 +75,8 @@ uint32_t ms_apo_normal_encode(const float n[3])
             float d[3];
             ms_apo_normal_decode(code, d);
             double c = (d[0] * x + d[1] * y + d[2] * z) / len;
+            if (d[0] == n[0] && d[1] == n[1] && d[2] == n[2])
+                c = 2.0;
             if (c > best_cos) {
                 best_cos = c;
                 best = code;
@@ -86,4 +91,18 @@ uint32_t ms_apo_normal_encode(const float n[3])
     if (qv == 0 || qv == MS_APO_NORMAL_MAX_CODE)
         qu = qu < MS_APO_NORMAL_MAX_CODE - qu ? MS_APO_NORMAL_MAX_CODE - qu : qu;
     return qu | (qv << 12);
+}
+
+void ms_apo_words_to_bytes(const uint32_t *words, size_t count, uint8_t *bytes)
+{
+    for (size_t i = 0; i < count; ++i)
+        for (int k = 0; k < 4; ++k)
+            bytes[4 * i + (size_t)k] = (uint8_t)(words[i] >> (8 * k));
+}
+
+void ms_apo_words_from_bytes(const uint8_t *bytes, size_t count, uint32_t *words)
+{
+    for (size_t i = 0; i < count; ++i)
+        words[i] = (uint32_t)bytes[4 * i] | (uint32_t)bytes[4 * i + 1] << 8 | (uint32_t)bytes[4 * i + 2] << 16 |
+                   (uint32_t)bytes[4 * i + 3] << 24;
 }

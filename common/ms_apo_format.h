@@ -24,6 +24,7 @@
 #define MS_APO_FORMAT_H
 
 #include <stdbool.h>
+#include <stddef.h>
 #include <stdint.h>
 
 #define MS_APO_MAX_DEPTH 30u                    /* deepest level a chunk may hold */
@@ -75,6 +76,10 @@ static inline uint32_t ms_apo_sibling_words_below(uint32_t exist, uint32_t kind,
     uint32_t below = (1u << octant) - 1u;
     return ms_apo_popcount8(exist & below) + ms_apo_popcount8(exist & kind & below);
 }
+
+/* The byte form of texel words: 4 little-endian bytes each, whatever the host. */
+void ms_apo_words_to_bytes(const uint32_t *words, size_t count, uint8_t *bytes);
+void ms_apo_words_from_bytes(const uint8_t *bytes, size_t count, uint32_t *words);
 
 /* Encodes a direction (need not be unit length; the zero vector and non-finite
  * input encode +z) into a 24-bit normal code. */

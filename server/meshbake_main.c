@@ -1,6 +1,8 @@
-/* meshbake: the baker's command line. Two modes: baking (IN -o ARCHIVE_DIR), which
- * turns a mesh into an archive of nSP cells (ms_bake.h), and --info, which parses
- * a mesh completely and reports what it holds. */
+/* meshbake: the baker's command line. Three modes: baking (IN -o ARCHIVE_DIR), which
+ * turns a mesh into an archive of nSP cells with their APO chunks (ms_bake.h);
+ * --info, which parses a mesh completely and reports what it holds; and
+ * --apo-classic, one whole-model APO for comparison with the published method
+ * (ms_apo_classic_cli.h). */
 #include <errno.h>
 #include <getopt.h>
 #include <inttypes.h>
@@ -13,7 +15,9 @@
 
 #include <jansson.h>
 
+#include "ms_apo_classic_cli.h"
 #include "ms_bake.h"
+#include "ms_json_string.h"
 #include "ms_mesh_reader.h"
 
 enum { EXIT_INPUT = 1, EXIT_USAGE = 2 };
@@ -31,7 +35,8 @@ static void print_usage(FILE *out)
 {
     fputs("usage: meshbake IN -o ARCHIVE_DIR [--name NAME] [--bits 16] [--n 4]\n"
           "                [--root-bits 7] [--min-tris 8000] [--threads N] [--mem MB]\n"
-          "                [--tmp DIR] [--json]\n"
+          "                [--tmp DIR] [--no-apo] [--apo-lead 3] [--apo-max-depth 10]\n"
+          "                [--apo-tol 0.2] [--apo-init-depth 0] [--apo-verify] [--json]\n"
           "       meshbake --info FILE [--json]\n"
           "\n"
           "Reads a mesh (PLY ascii/binary, OBJ or OFF, optionally gzip-compressed).\n"
@@ -50,15 +55,24 @@ static void print_usage(FILE *out)
           "                    the rest is for encoding; plus 8 bytes per input vertex\n"
           "                    for the vertex keys\n"
           "  --tmp DIR         temporary files (default: ARCHIVE_DIR); unlinked at creation\n"
+          "  --apo, --no-apo   give every cell an APO chunk of normals (default: on)\n"
+          "  --apo-lead L      chunk depth: L levels below the cell's finest geometric\n"
+          "                    precision, 0..16 (default 3)\n"
+          "  --apo-max-depth D cap on the chunk depth, 0..24 (default 10)\n"
+          "  --apo-tol T       split while the normals of the original mesh in a node\n"
+          "                    spread more than T radians (default 0.2)\n"
+          "  --apo-init-depth D  split unconditionally above depth D (default 0)\n"
+          "  --apo-verify      decode every chunk back and check it gives the built tree\n"
           "\n"
           "  --info            parse FILE completely and report format, counts, bounding box,\n"
           "                    faces dropped by the cleaning policy, isolated vertices, bytes\n"
           "                    parsed and parse time\n"
           "  --json            print the report as one JSON object on stdout\n"
           "  -h, --help        print this help and exit\n"
-          "\n"
-          "Exit status: 0 on success, 1 for an input or bake error, 2 for a usage error.\n",
+          "\n",
           out);
+    ms_apo_classic_cli_usage(out);
+    fputs("\nExit status: 0 on success, 1 for an input or bake error, 2 for a usage error.\n", out);
 }
 
 static int usage_error(const char *message, const char *detail)
@@ -80,6 +94,18 @@ static bool parse_count(const char *text, unsigned long *value)
     return true;
 }
 
+/* A decimal integer in 0..30. */
+static bool parse_depth(const char *text, unsigned long *value)
+{
+    char *end;
+    errno = 0;
+    unsigned long v = strtoul(text, &end, 10);
+    if (errno != 0 || end == text || *end != '\0' || text[0] == '-' || v > 30)
+        return false;
+    *value = v;
+    return true;
+}
+
 /* Returns -1 to go on, or the exit status to end with. */
 static int parse_options(int argc, char **argv, bake_options *options)
 {
@@ -96,6 +122,13 @@ static int parse_options(int argc, char **argv, bake_options *options)
         {"threads", required_argument, NULL, 't'},
         {"mem", required_argument, NULL, 'M'},
         {"tmp", required_argument, NULL, 'T'},
+        {"apo", no_argument, NULL, 'A'},
+        {"no-apo", no_argument, NULL, 'a'},
+        {"apo-lead", required_argument, NULL, 'L'},
+        {"apo-max-depth", required_argument, NULL, 'D'},
+        {"apo-init-depth", required_argument, NULL, 'I'},
+        {"apo-tol", required_argument, NULL, 'E'},
+        {"apo-verify", no_argument, NULL, 'V'},
         {NULL, 0, NULL, 0},
     };
     memset(options, 0, sizeof *options);
@@ -121,6 +154,25 @@ static int parse_options(int argc, char **argv, bake_options *options)
             else if (c == 't') options->bake.threads = (unsigned)value;
             else options->bake.mem_mb = (size_t)value;
             break;
+        case 'A': options->bake.apo.enabled = true; break;
+        case 'a': options->bake.apo.enabled = false; break;
+        case 'V': options->bake.apo.verify = true; break;
+        case 'L': case 'D': case 'I':
+            if (!parse_depth(optarg, &value))
+                return usage_error("not a depth (0..30)", optarg);
+            if (c == 'L') options->bake.apo.lead = (uint32_t)value;
+            else if (c == 'D') options->bake.apo.max_depth = (uint32_t)value;
+            else options->bake.apo.init_depth = (uint32_t)value;
+            break;
+        case 'E': {
+            char *end;
+            errno = 0;
+            double t = strtod(optarg, &end);
+            if (errno != 0 || end == optarg || *end != '\0' || !(t >= 0.0 && t < 1e12))
+                return usage_error("--apo-tol needs a number >= 0", optarg);
+            options->bake.apo.tolerance = t;
+            break;
+        }
         case ':':
             return usage_error("option needs a value", argv[optind - 1]);
         default:
@@ -172,24 +224,10 @@ static void show_progress(void *context, uint64_t done, uint64_t total)
     fflush(stderr);
 }
 
-static void print_json_string(const char *s)
-{
-    putchar('"');
-    for (const unsigned char *c = (const unsigned char *)s; *c; ++c) {
-        if (*c == '"' || *c == '\\')
-            printf("\\%c", *c);
-        else if (*c < 0x20)
-            printf("\\u%04x", *c);
-        else
-            putchar(*c);
-    }
-    putchar('"');
-}
-
 static void print_json(const char *path, const ms_mesh_read_report *r, double seconds)
 {
     fputs("{\"file\": ", stdout);
-    print_json_string(path);
+    ms_json_print_string(stdout, path);
     printf(", \"format\": \"%s\", \"gzip\": %s", ms_mesh_format_name(r->format),
            r->gzip ? "true" : "false");
     printf(", \"vertices\": %" PRIu64 ", \"triangles\": %" PRIu64 ", \"input_faces\": %" PRIu64,
@@ -249,13 +287,25 @@ static int run_info(const bake_options *options)
 
 static void print_bake_json(const ms_bake_options *o, const ms_bake_report *r)
 {
-    json_t *seconds = json_pack("{s:f, s:f, s:f, s:f, s:f, s:f}", "read", r->seconds_read,
+    json_t *seconds = json_pack("{s:f, s:f, s:f, s:f, s:f, s:f, s:f}", "read", r->seconds_read,
                                 "quantise", r->seconds_quantise, "distribute",
-                                r->seconds_distribute, "encode", r->seconds_encode, "write",
-                                r->seconds_write, "total", r->seconds_total);
+                                r->seconds_distribute, "encode", r->seconds_encode, "apo",
+                                r->seconds_apo, "write", r->seconds_write, "total",
+                                r->seconds_total);
+    json_t *per_level = json_array();
+    for (uint32_t d = 0; per_level && d < r->apo_levels; ++d)
+        json_array_append_new(per_level, json_integer((json_int_t)r->apo_level_texels[d]));
+    json_t *apo = json_pack("{s:b, s:i, s:i, s:i, s:f, s:I, s:I, s:i, s:I, s:I, s:o}",
+                            "enabled", o->apo.enabled, "lead", (int)o->apo.lead, "max_depth",
+                            (int)o->apo.max_depth, "init_depth", (int)o->apo.init_depth,
+                            "tolerance", o->apo.tolerance, "bytes", (json_int_t)r->apo_bytes,
+                            "raw_bytes", (json_int_t)r->apo_raw_bytes, "chunks",
+                            (int)r->apo_chunks, "internal_nodes",
+                            (json_int_t)r->apo_internal_nodes, "leaves",
+                            (json_int_t)r->apo_leaves, "level_texels", per_level);
     json_t *root = json_pack(
         "{s:s, s:s, s:s, s:I, s:I, s:I, s:I, s:i, s:i, s:i, s:i, s:f, s:I, s:I, s:I, s:f, s:o, "
-        "s:f, s:i, s:f, s:f, s:I, s:{s:i, s:i, s:i, s:i, s:i}}",
+        "s:f, s:i, s:f, s:f, s:I, s:o, s:{s:i, s:i, s:i, s:i, s:i}}",
         "name", r->name, "archive", r->archive_path, "source", o->input,
         "input_vertices", (json_int_t)r->input_vertices,
         "input_triangles", (json_int_t)r->input_triangles,
@@ -269,7 +319,7 @@ static void print_bake_json(const ms_bake_options *o, const ms_bake_report *r)
         "triangles_per_second", r->seconds_total > 0 ? (double)r->input_triangles / r->seconds_total : 0.0,
         "threads", (int)r->threads, "peak_rss_mb", r->peak_rss_mb,
         "peak_rss_build_mb", r->peak_rss_build_mb,
-        "spilled_blocks", (json_int_t)r->blocks_written,
+        "spilled_blocks", (json_int_t)r->blocks_written, "apo", apo,
         "parameters", "bits", (int)o->bits, "n", (int)o->n, "root_bits", (int)o->root_bits,
         "min_tris", (int)o->min_triangles, "mem_mb", (int)o->mem_mb);
     if (!root) {
@@ -295,10 +345,19 @@ static void print_bake_text(const ms_bake_report *r)
     printf("duplicated triangles: %.2f %%\n", r->duplicated_percent);
     printf("archive:              %" PRIu64 " bytes, %.2f bits per vertex\n", r->archive_bytes,
            r->bits_per_vertex);
-    printf("seconds:              read %.2f, quantise %.2f, distribute %.2f, encode %.2f, "
-           "write %.2f, total %.2f (%.0f triangles/s on %u threads)\n",
+    if (r->apo_chunks > 0) {
+        printf("APO:                  %u chunks, %" PRIu64 " bytes (%" PRIu64 " raw), %" PRIu64
+               " internal nodes, %" PRIu64 " leaves\n",
+               r->apo_chunks, r->apo_bytes, r->apo_raw_bytes, r->apo_internal_nodes, r->apo_leaves);
+        printf("APO texels per level:");
+        for (uint32_t d = 0; d < r->apo_levels; ++d)
+            printf(" %" PRIu64, r->apo_level_texels[d]);
+        printf("\n");
+    }
+    printf("seconds:              read %.2f, quantise %.2f, distribute %.2f, encode %.2f "
+           "(APO %.2f), write %.2f, total %.2f (%.0f triangles/s on %u threads)\n",
            r->seconds_read, r->seconds_quantise, r->seconds_distribute, r->seconds_encode,
-           r->seconds_write, r->seconds_total,
+           r->seconds_apo, r->seconds_write, r->seconds_total,
            r->seconds_total > 0 ? (double)r->input_triangles / r->seconds_total : 0.0, r->threads);
     printf("peak memory:          %.1f MB\n", r->peak_rss_mb);
 }
@@ -324,6 +383,9 @@ static int run_bake(bake_options *options)
 
 int main(int argc, char **argv)
 {
+    for (int i = 1; i < argc; ++i)
+        if (strcmp(argv[i], "--apo-classic") == 0)
+            return ms_apo_classic_cli(argc, argv);
     bake_options options;
     int status = parse_options(argc, argv, &options);
     if (status >= 0)

@@ -26,6 +26,7 @@ void ms_bake_options_default(ms_bake_options *o)
     o->mem_mb = 512;
     long cpus = sysconf(_SC_NPROCESSORS_ONLN);
     o->threads = cpus > 0 ? (unsigned)cpus : 1;
+    ms_bake_apo_params_default(&o->apo);
 }
 
 void ms_bake_default_name(const char *path, char *out, size_t size)
@@ -77,6 +78,8 @@ ms_status ms_bake(const ms_bake_options *o, ms_bake_report *r, ms_error *err)
         return ms_error_set(err, MS_ERR_ARG, "--min-tris must be at least 1");
     if (o->mem_mb < 16)
         return ms_error_set(err, MS_ERR_ARG, "--mem must be at least 16 MB");
+    if (o->apo.enabled && (s = ms_bake_apo_params_check(&o->apo, err)) != MS_OK)
+        return s;
     if (o->name)
         snprintf(r->name, sizeof r->name, "%s", o->name);
     else
@@ -150,10 +153,14 @@ ms_status ms_bake(const ms_bake_options *o, ms_bake_report *r, ms_error *err)
     h.root_bits = (uint8_t)o->root_bits;
     h.cell_count = b.node_count;
     h.min_triangles = o->min_triangles;
+    h.has_apo = o->apo.enabled;
+    h.apo_lead = o->apo.enabled ? (uint8_t)o->apo.lead : 0;
+    h.apo_max_depth = o->apo.enabled ? (uint8_t)o->apo.max_depth : 0;
     if ((s = ms_archive_writer_open(r->archive_path, &h, first_child, &w, err)) != MS_OK)
         goto done;
     ms_nsp_encode_params ep = {
         .threads = o->threads ? o->threads : 1,
+        .apo = &o->apo,
         .progress = on_progress,
         .progress_context = &progress,
     };
@@ -168,6 +175,14 @@ ms_status ms_bake(const ms_bake_options *o, ms_bake_report *r, ms_error *err)
     r->leaf_triangles = es.leaf_triangles;
     r->empty_cells = es.empty_cells;
     r->geometry_bytes = es.geometry_bytes;
+    r->apo_bytes = es.apo_bytes;
+    r->apo_raw_bytes = es.apo_raw_bytes;
+    r->apo_levels = es.apo_levels;
+    memcpy(r->apo_level_texels, es.apo_level_texels, sizeof r->apo_level_texels);
+    r->apo_chunks = es.apo_chunks;
+    r->apo_internal_nodes = es.apo_internal_nodes;
+    r->apo_leaves = es.apo_leaves;
+    r->seconds_apo = es.apo_thread_seconds / ep.threads;
     r->duplicated_percent = r->triangles ? 100.0 * (double)(r->leaf_triangles - r->triangles) /
                                                (double)r->triangles
                                          : 0.0;
@@ -195,6 +210,10 @@ ms_status ms_bake(const ms_bake_options *o, ms_bake_report *r, ms_error *err)
     e.root_bits = (uint8_t)o->root_bits;
     e.min_triangles = o->min_triangles;
     e.public_max_bits = (uint8_t)o->bits;
+    e.apo = o->apo.enabled;
+    e.apo_lead = h.apo_lead;
+    e.apo_max_depth = h.apo_max_depth;
+    e.apo_tolerance = o->apo.enabled ? o->apo.tolerance : 0.0;
     if ((s = ms_catalog_update(o->archive_dir, &e, err)) != MS_OK) {
         unlink(r->archive_path); /* no archive without its catalogue entry */
         goto done;

@@ -2,7 +2,8 @@
  *
  * Phases: read (stream the input into spools), quantise (keys), distribute (the
  * out-of-core nSP-tree, ms_nsp_build.h), encode (ms_nsp_encode.h, on `threads`
- * threads) and write (the archive writer's finish, then the catalogue update).
+ * threads, each cell's APO chunk built right after its stream when apo.enabled;
+ * report.seconds_apo is APO's share of this phase) and write (the archive writer's finish, then the catalogue update).
  * Temporary files live in tmp_dir (default: the archive directory) and are unlinked
  * when created; the archive appears under its final name only once complete
  * (docs/ARCHIVE.md), so a failed or killed bake leaves neither a partial archive
@@ -12,7 +13,9 @@
  * Memory: 8 bytes per input vertex (the key array) plus an eighth of mem_mb for
  * the leaf buffers while the tree is built; then the key array plus, per encoding
  * thread, the working set of one cell (its complex and the codec's state, tens of
- * MB for the largest internal cells of a 14 M-triangle model).
+ * MB for the largest internal cells of a 14 M-triangle model); with APO, also the
+ * full-precision triangles below the cell whose chunk is being built and an
+ * Embree scene over them (the whole model for the root: not bounded by mem_mb).
  * Thread-safety: one bake per process at a time (it runs its own threads).
  */
 #ifndef MS_BAKE_H
@@ -23,6 +26,8 @@
 #include <stdint.h>
 #include <stdio.h>
 
+#include "ms_apo_format.h"
+#include "ms_bake_apo.h"
 #include "ms_error.h"
 
 typedef struct ms_bake_options {
@@ -35,9 +40,11 @@ typedef struct ms_bake_options {
     size_t mem_mb;
     size_t buffer_bytes;   /* leaf buffer budget; 0: an eighth of mem_mb (tests force flushes) */
     FILE *progress;        /* progress bar target (drawn only on a terminal), or NULL */
+    ms_bake_apo_params apo; /* per-cell APO chunks (ms_bake_apo.h) */
 } ms_bake_options;
 
-/* Defaults: 16 bits, n = 4, p_r = 7, N_min = 8000, threads = online CPUs, 512 MB. */
+/* Defaults: 16 bits, n = 4, p_r = 7, N_min = 8000, threads = online CPUs, 512 MB,
+ * APO on with ms_bake_apo_params_default. */
 void ms_bake_options_default(ms_bake_options *options);
 
 typedef struct ms_bake_report {
@@ -56,6 +63,13 @@ typedef struct ms_bake_report {
     double peak_rss_build_mb;              /* peak when the tree was built (before encoding) */
     unsigned threads;
     uint64_t blocks_written, flushes; /* leaf content spilled to the block file */
+    /* APO (all zero when off) */
+    uint64_t apo_bytes, apo_raw_bytes;         /* compressed in the archive / texel bytes */
+    uint64_t apo_level_texels[MS_APO_MAX_LEVELS]; /* texels per depth over all chunks */
+    uint32_t apo_levels;                       /* entries of apo_level_texels used */
+    uint32_t apo_chunks;
+    uint64_t apo_internal_nodes, apo_leaves;
+    double seconds_apo;   /* APO's share of the encode phase: thread-seconds / threads */
 } ms_bake_report;
 
 /* Derives a valid model name from a file path (basename without extensions, other

@@ -2,10 +2,12 @@
 #include "ms_nsp_encode.h"
 
 #include <pthread.h>
+#include <stdio.h>
 #include <stdbool.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "ms_apo_build.h"
 #include "ms_codec.h"
 #include "ms_nsp.h"
 #include "ms_progress.h"
@@ -394,9 +396,161 @@ typedef struct cell_out {
     ms_codec_state start;
     uint32_t table[MS_CODEC_MAX_BITS + 1];
     uint32_t vertices, triangles;
+    ms_bake_apo_result apo;
+    double apo_seconds;
 } cell_out;
 
-static ms_status encode_cell(pool *p, uint32_t node, cell_out *out, ms_error *err)
+/* ---- APO inputs ---------------------------------------------------------- */
+
+typedef struct keyed_triangle {
+    uint32_t v[3];  /* sorted vertex ranks */
+    uint32_t seq;   /* position in the gathered list */
+} keyed_triangle;
+
+static int cmp_keyed(const void *x, const void *y)
+{
+    const keyed_triangle *a = x, *b = y;
+    for (int i = 0; i < 3; ++i)
+        if (a->v[i] != b->v[i])
+            return a->v[i] < b->v[i] ? -1 : 1;
+    return a->seq < b->seq ? -1 : (a->seq > b->seq);
+}
+
+/* Appends the triangle records of every leaf below (or at) node to *tri (input
+ * vertex indices, 3 per triangle), leaves in node order. */
+static ms_status gather_records(const ms_nsp_build *b, uint32_t node, uint32_t **tri, size_t *count,
+                                size_t *cap, ms_error *err)
+{
+    const ms_nsp_node *nd = &b->nodes[node];
+    if (nd->first_child != MS_NSP_NONE) {
+        unsigned nc = b->params.shape.n * b->params.shape.n * b->params.shape.n;
+        for (unsigned k = 0; k < nc; ++k) {
+            ms_status s = gather_records(b, nd->first_child + k, tri, count, cap, err);
+            if (s != MS_OK)
+                return s;
+        }
+        return MS_OK;
+    }
+    uint32_t *rec;
+    size_t n;
+    ms_status s = ms_nsp_build_read_leaf(b, node, &rec, &n, err);
+    if (s != MS_OK)
+        return s;
+    if (*count + n > *cap) {
+        size_t want = (*count + n) * 2;
+        uint32_t *grown = realloc(*tri, want * 3 * sizeof *grown);
+        if (!grown) {
+            free(rec);
+            return ms_error_set(err, MS_ERR_NOMEM, "out of memory gathering a cell's triangles");
+        }
+        *tri = grown, *cap = want;
+    }
+    for (size_t i = 0; i < n; ++i)
+        if (rec[3 * i] != rec[3 * i + 1])
+            memcpy(*tri + 3 * (*count)++, rec + 3 * i, 12);
+    free(rec);
+    return MS_OK;
+}
+
+/* M of a cell: its input triangles at full precision (see ms_nsp_encode.h). */
+static ms_status full_precision_mesh(const ms_nsp_build *b, uint32_t node, ms_mesh *M, ms_error *err)
+{
+    memset(M, 0, sizeof *M);
+    uint32_t *tri = NULL;
+    size_t nt = 0, cap = 0;
+    ms_status s = gather_records(b, node, &tri, &nt, &cap, err);
+    uint64_t *ref = s == MS_OK ? malloc((3 * nt + 1) * sizeof *ref) : NULL;
+    uint64_t *keys = s == MS_OK ? malloc((3 * nt + 1) * sizeof *keys) : NULL;
+    uint32_t *rank = s == MS_OK ? malloc((3 * nt + 1) * sizeof *rank) : NULL;
+    keyed_triangle *kt = s == MS_OK ? malloc((nt + 1) * sizeof *kt) : NULL;
+    if (s == MS_OK && (!ref || !keys || !rank || !kt))
+        s = ms_error_set(err, MS_ERR_NOMEM, "out of memory gathering a cell's triangles");
+    const unsigned p = b->params.shape.bits;
+    size_t nk = 0;
+    if (s == MS_OK) {
+        for (size_t i = 0; i < 3 * nt; ++i)
+            ref[i] = b->keys[tri[i]];
+        s = index_keys(ref, 3 * nt, 3 * p, keys, &nk, rank, err);
+    }
+    if (s == MS_OK) {
+        for (size_t t = 0; t < nt; ++t) {
+            sort3(&rank[3 * t], kt[t].v);
+            kt[t].seq = (uint32_t)t;
+        }
+        qsort(kt, nt, sizeof *kt, cmp_keyed);
+        /* keep the first of each group of equal vertex sets, then restore leaf order */
+        uint8_t *drop = calloc(nt + 1, 1);
+        if (!drop)
+            s = ms_error_set(err, MS_ERR_NOMEM, "out of memory gathering a cell's triangles");
+        for (size_t t = 1; drop && t < nt; ++t)
+            if (memcmp(kt[t].v, kt[t - 1].v, sizeof kt[t].v) == 0)
+                drop[kt[t].seq] = 1;
+        size_t kept = 0;
+        for (size_t t = 0; drop && t < nt; ++t)
+            kept += !drop[t];
+        if (s == MS_OK)
+            s = ms_mesh_reserve(M, nk, kept, err);
+        for (size_t t = 0; s == MS_OK && t < nt; ++t)
+            if (!drop[t])
+                memcpy(&M->triangles[3 * M->triangle_count++], &rank[3 * t], 12);
+        free(drop);
+    }
+    if (s == MS_OK) {
+        for (size_t v = 0; v < nk; ++v) { /* grid cell centres */
+            uint32_t q[3];
+            ms_quant_unkey(keys[v], p, q);
+            for (int a = 0; a < 3; ++a)
+                M->positions[3 * v + (size_t)a] = ms_dequantise(&b->box, p, a, q[a]);
+        }
+        M->vertex_count = nk;
+    }
+    free(tri);
+    free(ref);
+    free(keys);
+    free(rank);
+    free(kt);
+    if (s != MS_OK)
+        ms_mesh_free(M);
+    return s;
+}
+
+/* The cell's chunk: m from its stream decoded to bits_max, M from its leaves. */
+static ms_status apo_cell(pool *p, uint32_t node, unsigned hi, ms_apo_builder *builder, cell_out *out,
+                          ms_error *err)
+{
+    const ms_nsp_build *b = p->b;
+    const ms_nsp_node *nd = &b->nodes[node];
+    double t0 = ms_now_seconds();
+    ms_codec_decoder *d = NULL;
+    ms_mesh m, M;
+    memset(&m, 0, sizeof m);
+    memset(&M, 0, sizeof M);
+    ms_status s = ms_codec_decoder_create(out->stream, out->size, &out->start, NULL, &d, err);
+    if (s == MS_OK)
+        s = ms_codec_decoder_set_level(d, 3 * hi, err);
+    if (s == MS_OK)
+        s = ms_codec_decoder_mesh(d, &m, err);
+    ms_codec_decoder_destroy(d);
+    if (s == MS_OK)
+        s = full_precision_mesh(b, node, &M, err);
+    /* Leaves run one per thread; internal cells, few, large and last in
+     * post-order (the root ends the bake alone), use every thread. */
+    unsigned threads = nd->first_child == MS_NSP_NONE ? 1 : p->params->threads;
+    if (s == MS_OK)
+        s = ms_bake_apo_cell(builder, p->params->apo, &b->params.shape, &b->box, nd->depth, nd->position, hi,
+                             &m, &M, threads, &out->apo, err);
+    if (s != MS_OK) {
+        char why[sizeof err->text];
+        snprintf(why, sizeof why, "%s", err->text);
+        s = ms_error_set(err, s, "cell %u: APO: %s", p->cell_of_node[node], why);
+    }
+    ms_mesh_free(&m);
+    ms_mesh_free(&M);
+    out->apo_seconds = ms_now_seconds() - t0;
+    return s;
+}
+
+static ms_status encode_cell(pool *p, uint32_t node, ms_apo_builder **builder, cell_out *out, ms_error *err)
 {
     const ms_nsp_build *b = p->b;
     const ms_nsp_node *nd = &b->nodes[node];
@@ -428,9 +582,15 @@ static ms_status encode_cell(pool *p, uint32_t node, cell_out *out, ms_error *er
         out->triangles = (uint32_t)st.tri_count;
     }
     ms_codec_state_free(&st);
+    bool apo = p->params->apo && p->params->apo->enabled;
+    if (s == MS_OK && apo && out->size > 0 && !*builder)
+        s = ms_apo_builder_create(builder, err);
+    if (s == MS_OK && apo && out->size > 0)
+        s = apo_cell(p, node, hi, *builder, out, err);
     if (s != MS_OK) {
         free(out->stream);
         ms_codec_state_free(&out->start);
+        ms_bake_apo_result_free(&out->apo);
         memset(out, 0, sizeof *out);
     }
     return s;
@@ -448,6 +608,22 @@ static ms_status finish_cell(pool *p, uint32_t node, cell_out *out, ms_error *er
     p->stats.empty_cells += out->size == 0;
     free(out->stream);
     out->stream = NULL;
+    const ms_bake_apo_result *a = &out->apo;
+    if (s == MS_OK && a->levels > 0) {
+        s = ms_archive_writer_put_apo(p->writer, p->cell_of_node[node], a->data, (uint32_t)a->size,
+                                      (uint32_t)(4 * a->texels), a->level_table, (uint8_t)a->levels, err);
+        p->stats.apo_bytes += a->size;
+        p->stats.apo_raw_bytes += 4 * a->texels;
+        p->stats.apo_chunks++;
+        p->stats.apo_internal_nodes += a->internal_nodes;
+        p->stats.apo_leaves += a->leaves;
+        for (uint32_t d = 0; d < a->levels; ++d)
+            p->stats.apo_level_texels[d] += a->level_texels[d];
+        if (a->levels > p->stats.apo_levels)
+            p->stats.apo_levels = a->levels;
+    }
+    p->stats.apo_thread_seconds += out->apo_seconds;
+    ms_bake_apo_result_free(&out->apo);
     if (s != MS_OK || nd->parent == MS_NSP_NONE) {
         ms_codec_state_free(&out->start);
         return s;
@@ -472,6 +648,7 @@ static void *worker(void *arg)
 {
     pool *p = arg;
     const ms_nsp_build *b = p->b;
+    ms_apo_builder *builder = NULL; /* created on this thread's first APO chunk */
     pthread_mutex_lock(&p->lock);
     for (;;) {
         while (!p->failed && p->remaining > 0 && p->heap_n == 0)
@@ -483,7 +660,7 @@ static void *worker(void *arg)
         cell_out out;
         ms_error err;
         ms_error_clear(&err);
-        ms_status s = encode_cell(p, node, &out, &err);
+        ms_status s = encode_cell(p, node, &builder, &out, &err);
         /* the children's states are no longer needed */
         if (p->tasks[node].starts) {
             unsigned nc = b->params.shape.n * b->params.shape.n * b->params.shape.n;
@@ -495,6 +672,8 @@ static void *worker(void *arg)
         pthread_mutex_lock(&p->lock);
         if (s == MS_OK)
             s = finish_cell(p, node, &out, &err);
+        else
+            ms_bake_apo_result_free(&out.apo);
         if (s != MS_OK) {
             if (!p->failed)
                 p->err = err;
@@ -509,6 +688,7 @@ static void *worker(void *arg)
         pthread_cond_broadcast(&p->wake);
     }
     pthread_mutex_unlock(&p->lock);
+    ms_apo_builder_destroy(builder);
     return NULL;
 }
 

@@ -14,6 +14,14 @@
  * thread count. Ready cells are taken lowest post-order number first, which keeps
  * the pending children's states to about one path of the tree.
  *
+ * With APO on (params->apo enabled), each cell with vertices also gets its APO
+ * chunk (ms_bake_apo.h) on the same thread, right after its stream: m is the
+ * stream just encoded, decoded to bits_max (exactly what a client gets); M is the
+ * cell's input triangles at full precision (p bits, positions at their grid
+ * cells' centres): a leaf's records, or for an internal cell the records of every
+ * leaf below it, re-read from the block file, duplicates (same three vertices)
+ * kept once in leaf order. Each worker thread owns one APO builder.
+ *
  * Thread-safety: one call at a time; it runs its own threads.
  */
 #ifndef MS_NSP_ENCODE_H
@@ -21,12 +29,15 @@
 
 #include <stdint.h>
 
+#include "ms_apo_format.h"
 #include "ms_archive_writer.h"
+#include "ms_bake_apo.h"
 #include "ms_error.h"
 #include "ms_nsp_build.h"
 
 typedef struct ms_nsp_encode_params {
     unsigned threads; /* >= 1 */
+    const ms_bake_apo_params *apo; /* NULL or not enabled: no APO chunks */
     void (*progress)(void *context, const char *phase, double fraction);
     void *progress_context;
 } ms_nsp_encode_params;
@@ -39,6 +50,13 @@ typedef struct ms_nsp_encode_stats {
     uint64_t isolated_vertices;
     uint64_t geometry_bytes;    /* all payloads */
     uint32_t empty_cells;
+    uint64_t apo_bytes;         /* compressed chunks */
+    uint64_t apo_raw_bytes;     /* texel bytes */
+    uint64_t apo_level_texels[MS_APO_MAX_LEVELS]; /* over all chunks, per depth */
+    uint32_t apo_levels;        /* deepest chunk's level count */
+    uint32_t apo_chunks;        /* cells with a chunk */
+    uint64_t apo_internal_nodes, apo_leaves;
+    double apo_thread_seconds;  /* time spent on APO, summed over the threads */
     double seconds;
 } ms_nsp_encode_stats;
 

@@ -97,6 +97,32 @@ static void assert_same_structure(const ms_apo_tree *a, const ms_apo_tree *b)
     }
 }
 
+/* Re-encoding a decoded normal gives its code back (seam codes: their canonical
+ * twin), over every 7th code and one that used to flip to a neighbour: adjacent
+ * codes are ~1e-7 apart in cosine, within float rounding. */
+static void test_reencoding_decoded_normals(void **state)
+{
+    (void)state;
+    uint64_t checked = 0;
+    for (uint32_t code = 0; code < (1u << 24); code += 7) {
+        uint32_t qu = code & 0xFFFu, qv = code >> 12;
+        if (qu > MS_APO_NORMAL_MAX_CODE || qv > MS_APO_NORMAL_MAX_CODE)
+            continue;
+        if (qu == 0 || qu == MS_APO_NORMAL_MAX_CODE)
+            qv = qv < MS_APO_NORMAL_MAX_CODE - qv ? MS_APO_NORMAL_MAX_CODE - qv : qv;
+        if (qv == 0 || qv == MS_APO_NORMAL_MAX_CODE)
+            qu = qu < MS_APO_NORMAL_MAX_CODE - qu ? MS_APO_NORMAL_MAX_CODE - qu : qu;
+        float d[3];
+        ms_apo_normal_decode(code, d);
+        assert_int_equal(ms_apo_normal_encode(d), qu | qv << 12);
+        checked++;
+    }
+    assert_int_equal(checked, 2395575);
+    float d[3];
+    ms_apo_normal_decode(20u | 1615u << 12, d);
+    assert_int_equal(ms_apo_normal_encode(d), 20u | 1615u << 12);
+}
+
 static void test_round_trip(void **state)
 {
     (void)state;
@@ -416,7 +442,8 @@ static void test_blob_damage(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_normal_quantisation_bound), cmocka_unit_test(test_round_trip),
+        cmocka_unit_test(test_normal_quantisation_bound), cmocka_unit_test(test_reencoding_decoded_normals),
+        cmocka_unit_test(test_round_trip),
         cmocka_unit_test(test_exact_words),               cmocka_unit_test(test_loader_rejects_corruption),
         cmocka_unit_test(test_loader_random_damage),      cmocka_unit_test(test_truncated_mid_level),       cmocka_unit_test(test_empty_chunk),
         cmocka_unit_test(test_blob_damage),

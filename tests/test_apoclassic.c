@@ -1,6 +1,6 @@
-/* apoclassic command line: help, argument errors, a whole run with --json, the
- * stored chunk it writes (loaded back and validated), a saved and reused
- * simplified mesh, and a missing input. */
+/* meshbake --apo-classic (the whole-model mode): help, argument errors, a whole
+ * run with --json, the stored chunk it writes (loaded back and validated), a
+ * saved and reused simplified mesh, and a missing input. */
 #include <stdarg.h>
 #include <stddef.h>
 #include <setjmp.h>
@@ -18,23 +18,36 @@ static void test_help_and_usage_errors(void **state)
 {
     (void)state;
     char bin[512], cmd[2048], out[8192];
-    ms_test_bin_path(bin, sizeof bin, "apoclassic");
+    ms_test_bin_path(bin, sizeof bin, "meshbake");
     snprintf(cmd, sizeof cmd, "%s --help", bin);
     assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
-    assert_non_null(strstr(out, "usage: apoclassic IN --apo-classic --simplify N"));
-    snprintf(cmd, sizeof cmd, "%s", bin);
+    assert_non_null(strstr(out, "meshbake IN --apo-classic --simplify N"));
+    snprintf(cmd, sizeof cmd, "%s --apo-classic --help", bin);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
+    assert_non_null(strstr(out, "--apo-init-depth D"));
+    snprintf(cmd, sizeof cmd, "%s --apo-classic", bin);
     assert_int_equal(ms_test_run(cmd, out, sizeof out), 2);
-    assert_string_equal(out, "apoclassic: expected one input (try --help)\n");
-    snprintf(cmd, sizeof cmd, "%s demo:1000 --apo-max-depth 31", bin);
+    assert_string_equal(out, "meshbake: missing input file (see meshbake --help)\n");
+    snprintf(cmd, sizeof cmd, "%s demo:1000 demo:2000 --apo-classic", bin);
     assert_int_equal(ms_test_run(cmd, out, sizeof out), 2);
-    assert_non_null(strstr(out, "--apo-max-depth must be a number in [0, 30]"));
-    snprintf(cmd, sizeof cmd, "%s demo:1000 --apo-tol -1", bin);
+    assert_string_equal(out, "meshbake: expected one input, got more (see meshbake --help)\n");
+    snprintf(cmd, sizeof cmd, "%s demo:1000 --apo-classic --frobnicate", bin);
     assert_int_equal(ms_test_run(cmd, out, sizeof out), 2);
-    snprintf(cmd, sizeof cmd, "%s demo:1000 --apo-measure fancy", bin);
+    assert_string_equal(out, "meshbake: unknown option: --frobnicate (see meshbake --help)\n");
+    snprintf(cmd, sizeof cmd, "%s demo:1000 --apo-classic --simplify", bin);
     assert_int_equal(ms_test_run(cmd, out, sizeof out), 2);
-    snprintf(cmd, sizeof cmd, "%s /nonexistent/model.ply --simplify 100", bin);
+    assert_string_equal(out, "meshbake: option needs a value: --simplify (see meshbake --help)\n");
+    snprintf(cmd, sizeof cmd, "%s demo:1000 --apo-classic --apo-max-depth 31", bin);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 2);
+    assert_string_equal(out, "meshbake: --apo-max-depth must be a number in [0, 30], got '31'\n");
+    snprintf(cmd, sizeof cmd, "%s demo:1000 --apo-classic --apo-tol -1", bin);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 2);
+    snprintf(cmd, sizeof cmd, "%s demo:1000 --apo-classic --apo-measure fancy", bin);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 2);
+    assert_int_equal(strchr(out, '\n') - out + 1, (long)strlen(out)); /* one line */
+    snprintf(cmd, sizeof cmd, "%s /nonexistent/model.ply --apo-classic --simplify 100", bin);
     assert_int_equal(ms_test_run(cmd, out, sizeof out), 1);
-    assert_non_null(strstr(out, "apoclassic: "));
+    assert_non_null(strstr(out, "meshbake: "));
     assert_non_null(strstr(out, "/nonexistent/model.ply"));
     assert_int_equal(strchr(out, '\n') - out + 1, (long)strlen(out)); /* one line */
 }
@@ -52,7 +65,7 @@ static void test_run_json_and_chunk(void **state)
 {
     (void)state;
     char bin[512], dir[512], cmd[2048], out[8192], first[8192];
-    ms_test_bin_path(bin, sizeof bin, "apoclassic");
+    ms_test_bin_path(bin, sizeof bin, "meshbake");
     ms_test_tmpdir(dir, sizeof dir);
     snprintf(cmd, sizeof cmd,
              "%s demo:12000 --apo-classic --simplify 400 --apo-tol 0.5 --apo-init-depth 3 --apo-max-depth 8 "
@@ -89,13 +102,13 @@ static void test_run_json_and_chunk(void **state)
     ms_apo_chunk_free(&chunk);
     /* Reusing the saved simplified mesh gives the same octree. */
     snprintf(cmd, sizeof cmd,
-             "%s demo:12000 --simplified %s/m.ply --apo-tol 0.5 --apo-init-depth 3 --apo-max-depth 8 --json", bin,
+             "%s demo:12000 --apo-classic --simplified %s/m.ply --apo-tol 0.5 --apo-init-depth 3 --apo-max-depth 8 --json", bin,
              dir);
     assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
     assert_int_equal(json_number(out, "internal_nodes"), internal);
     assert_int_equal(json_number(out, "leaves"), leaves);
     /* The text report. */
-    snprintf(cmd, sizeof cmd, "%s demo:2000 --simplify 100 --apo-max-depth 6", bin);
+    snprintf(cmd, sizeof cmd, "%s demo:2000 --apo-classic --simplify 100 --apo-max-depth 6", bin);
     assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
     assert_non_null(strstr(out, "octree "));
     ms_test_rmdir(dir);

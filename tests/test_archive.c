@@ -49,27 +49,6 @@ static int teardown(void **state)
     return 0;
 }
 
-static uint8_t *read_file(const char *path, size_t *size)
-{
-    FILE *fp = fopen(path, "rb");
-    assert_non_null(fp);
-    fseek(fp, 0, SEEK_END);
-    *size = (size_t)ftell(fp);
-    fseek(fp, 0, SEEK_SET);
-    uint8_t *data = malloc(*size ? *size : 1);
-    assert_int_equal(fread(data, 1, *size, fp), *size);
-    fclose(fp);
-    return data;
-}
-
-static void write_file(const char *path, const uint8_t *data, size_t size)
-{
-    FILE *fp = fopen(path, "wb");
-    assert_non_null(fp);
-    assert_int_equal(fwrite(data, 1, size, fp), size);
-    fclose(fp);
-}
-
 static void test_roundtrip(void **state)
 {
     fixture *f = *state;
@@ -154,12 +133,12 @@ static void test_every_header_byte_flip_rejected(void **state)
 {
     fixture *f = *state;
     size_t size;
-    uint8_t *data = read_file(f->path, &size);
+    uint8_t *data = ms_test_read_file(f->path, &size);
     char bad[700];
     snprintf(bad, sizeof bad, "%s/bad.msa", f->dir);
     for (size_t i = 0; i < MS_ARCHIVE_HEADER_SIZE; ++i) {
         data[i] ^= 0x10;
-        write_file(bad, data, size);
+        ms_test_write_file(bad, data, size);
         expect_open_fails(bad, MS_OK, NULL);
         data[i] ^= 0x10;
     }
@@ -170,28 +149,28 @@ static void test_index_damage_and_truncation(void **state)
 {
     fixture *f = *state;
     size_t size;
-    uint8_t *data = read_file(f->path, &size);
+    uint8_t *data = ms_test_read_file(f->path, &size);
     char bad[700];
     snprintf(bad, sizeof bad, "%s/bad.msa", f->dir);
     for (size_t i = MS_ARCHIVE_HEADER_SIZE; i < MS_ARCHIVE_HEADER_SIZE + CELLS * 80; i += 97) {
         data[i] ^= 1;
-        write_file(bad, data, size);
+        ms_test_write_file(bad, data, size);
         expect_open_fails(bad, MS_ERR_CORRUPT, "index checksum mismatch");
         data[i] ^= 1;
     }
     const size_t cuts[] = {0, 7, 127, 128, 129, 1000, size - 1};
     for (size_t k = 0; k < sizeof cuts / sizeof *cuts; ++k) {
-        write_file(bad, data, cuts[k]);
+        ms_test_write_file(bad, data, cuts[k]);
         expect_open_fails(bad, MS_ERR_FORMAT, NULL);
     }
-    write_file(bad, (const uint8_t *)"hello", 5);
+    ms_test_write_file(bad, (const uint8_t *)"hello", 5);
     expect_open_fails(bad, MS_ERR_FORMAT, "too short");
     /* Version from the future. */
     data[8] = 2;
     uLong crc = crc32(0L, data, 124);
     for (int i = 0; i < 4; ++i)
         data[124 + i] = (uint8_t)(crc >> (8 * i));
-    write_file(bad, data, size);
+    ms_test_write_file(bad, data, size);
     expect_open_fails(bad, MS_ERR_UNSUPPORTED, "version 2");
     free(data);
     expect_open_fails("/nonexistent/x.msa", MS_ERR_IO, "cannot open");
@@ -201,11 +180,11 @@ static void test_payload_damage_found_by_verify(void **state)
 {
     fixture *f = *state;
     size_t size;
-    uint8_t *data = read_file(f->path, &size);
+    uint8_t *data = ms_test_read_file(f->path, &size);
     data[size - 1] ^= 0xff; /* last byte: the last cell's payload */
     char bad[700];
     snprintf(bad, sizeof bad, "%s/bad.msa", f->dir);
-    write_file(bad, data, size);
+    ms_test_write_file(bad, data, size);
     ms_archive *a;
     ms_error err;
     assert_int_equal(ms_archive_open(bad, &a, &err), MS_OK);
@@ -224,7 +203,7 @@ static void tamper(const fixture *f, uint32_t cell, size_t field, uint32_t value
                    const char *expect)
 {
     size_t size;
-    uint8_t *data = read_file(f->path, &size);
+    uint8_t *data = ms_test_read_file(f->path, &size);
     uint8_t *p = data + MS_ARCHIVE_HEADER_SIZE + (size_t)cell * 80 + field;
     for (int i = 0; i < 4; ++i)
         p[i] = (uint8_t)(value >> (8 * i));
@@ -239,7 +218,7 @@ static void tamper(const fixture *f, uint32_t cell, size_t field, uint32_t value
         data[124 + i] = (uint8_t)(crc >> (8 * i));
     char bad[700];
     snprintf(bad, sizeof bad, "%s/tampered.msa", f->dir);
-    write_file(bad, data, size);
+    ms_test_write_file(bad, data, size);
     expect_open_fails(bad, MS_ERR_FORMAT, expect);
     free(data);
 }

@@ -55,7 +55,7 @@ static void test_json_report_and_catalog(void **state)
     ms_test_tmpdir(dir, sizeof dir);
     ms_test_bin_path(bin, sizeof bin, "meshbake");
     ms_test_model_path(model, sizeof model, "stanford_dragon_vrip_res3.ply.gz");
-    snprintf(cmd, sizeof cmd, "%s '%s' -o '%s' --name dragon3 --min-tris 3000 --threads 2 --json",
+    snprintf(cmd, sizeof cmd, "%s '%s' -o '%s' --name dragon3 --min-tris 3000 --threads 2 --no-apo --json",
              bin, model, dir);
     assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
     json_error_t je;
@@ -68,6 +68,9 @@ static void test_json_report_and_catalog(void **state)
         assert_true(json_is_number(json_object_get(j, keys[i])));
     assert_true(json_is_object(json_object_get(j, "seconds")));
     assert_true(json_is_number(json_object_get(json_object_get(j, "seconds"), "total")));
+    assert_true(json_is_number(json_object_get(json_object_get(j, "seconds"), "apo")));
+    assert_true(json_is_false(json_object_get(json_object_get(j, "apo"), "enabled")));
+    assert_int_equal(json_integer_value(json_object_get(json_object_get(j, "apo"), "bytes")), 0);
     assert_int_equal(json_integer_value(json_object_get(j, "input_triangles")), 47794);
     uint64_t bytes = (uint64_t)json_integer_value(json_object_get(j, "archive_bytes"));
     uint32_t cells = (uint32_t)json_integer_value(json_object_get(j, "cells"));
@@ -102,7 +105,7 @@ static void test_json_report_and_catalog(void **state)
     assert_int_equal(strays(dir, expected), 0);
 
     /* Text report on a second model; --info still works. */
-    snprintf(cmd, sizeof cmd, "%s '%s' -o '%s' --name again", bin, model, dir);
+    snprintf(cmd, sizeof cmd, "%s '%s' -o '%s' --name again --no-apo", bin, model, dir);
     assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
     assert_non_null(strstr(out, "duplicated triangles"));
     assert_non_null(strstr(out, "bits per vertex"));
@@ -121,6 +124,7 @@ static void test_flushing_changes_nothing(void **state)
     ms_test_model_path(model, sizeof model, "stanford_bunny.obj.gz");
     ms_bake_options o;
     ms_bake_options_default(&o);
+    o.apo.enabled = false; /* geometry only: APO has its own tests */
     o.input = model;
     o.archive_dir = dir;
     o.min_triangles = 1000;
@@ -148,7 +152,9 @@ static void test_usage_errors(void **state)
     ms_test_bin_path(bin, sizeof bin, "meshbake");
     ms_test_model_path(model, sizeof model, "stanford_bunny_res3.ply.gz");
     const char *bad[] = {"--n 3", "--bits 30", "--root-bits 1 --n 8", "--min-tris 0",
-                         "--threads -2", "--name ../x", "--mem 1", "--bits", "--info"};
+                         "--threads -2", "--name ../x", "--mem 1", "--bits", "--info",
+                         "--apo-lead 17", "--apo-max-depth 25", "--apo-tol -1", "--apo-tol x",
+                         "--apo-lead 31"};
     for (size_t i = 0; i < sizeof bad / sizeof *bad; ++i) {
         snprintf(cmd, sizeof cmd, "%s '%s' -o '%s' %s", bin, model, dir, bad[i]);
         assert_int_equal(ms_test_run(cmd, out, sizeof out), 2);
@@ -172,7 +178,7 @@ static void test_archive_directory(void **state)
     ms_test_bin_path(bin, sizeof bin, "meshbake");
     ms_test_model_path(model, sizeof model, "stanford_bunny_res3.ply.gz");
     snprintf(sub, sizeof sub, "%s/new", dir);
-    snprintf(cmd, sizeof cmd, "%s '%s' -o '%s' --name b", bin, model, sub);
+    snprintf(cmd, sizeof cmd, "%s '%s' -o '%s' --name b --no-apo", bin, model, sub);
     assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
     const char *made[] = {"b.msa", "catalog.json", "catalog.lock", NULL};
     assert_int_equal(strays(sub, made), 0);
@@ -197,7 +203,7 @@ static void test_failure_leaves_nothing(void **state)
     ms_test_tmpdir(dir, sizeof dir);
     ms_test_bin_path(bin, sizeof bin, "meshbake");
     ms_test_model_path(model, sizeof model, "stanford_bunny_res3.ply.gz");
-    snprintf(cmd, sizeof cmd, "%s '%s' -o '%s' --name good", bin, model, dir);
+    snprintf(cmd, sizeof cmd, "%s '%s' -o '%s' --name good --no-apo", bin, model, dir);
     assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
     /* a truncated PLY fails while reading, after the spools exist */
     snprintf(bad, sizeof bad, "%s/broken.ply", dir);

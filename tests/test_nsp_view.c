@@ -37,6 +37,7 @@ static void check_full_with(const char *model, const char *dir, const char *name
     ms_bake_report rep;
     ms_bake_options o;
     ms_bake_options_default(&o);
+    o.apo.enabled = false; /* geometry only: APO has its own tests */
     o.input = model;
     o.archive_dir = dir;
     o.name = name;
@@ -359,6 +360,7 @@ static void test_threads_identical(void **state)
     ms_test_model_path(model, sizeof model, "stanford_dragon_vrip_res3.ply.gz");
     ms_bake_options o;
     ms_bake_options_default(&o);
+    o.apo.enabled = false; /* geometry only: APO has its own tests */
     o.input = model;
     o.archive_dir = dir;
     o.min_triangles = 1000;

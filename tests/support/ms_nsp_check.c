@@ -22,6 +22,7 @@ void ms_nsp_test_bake(const char *input, const char *dir, const char *name, unsi
 {
     ms_bake_options o;
     ms_bake_options_default(&o);
+    o.apo.enabled = false; /* geometry only: APO has its own tests */
     o.input = input;
     o.archive_dir = dir;
     o.name = name;

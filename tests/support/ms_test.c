@@ -59,3 +59,25 @@ int ms_test_run(const char *command, char *out, size_t size)
     int status = pclose(p);
     return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
+
+unsigned char *ms_test_read_file(const char *path, size_t *size)
+{
+    FILE *fp = fopen(path, "rb");
+    assert_non_null(fp);
+    fseek(fp, 0, SEEK_END);
+    *size = (size_t)ftell(fp);
+    fseek(fp, 0, SEEK_SET);
+    unsigned char *data = malloc(*size ? *size : 1);
+    assert_non_null(data);
+    assert_int_equal(fread(data, 1, *size, fp), *size);
+    fclose(fp);
+    return data;
+}
+
+void ms_test_write_file(const char *path, const void *data, size_t size)
+{
+    FILE *fp = fopen(path, "wb");
+    assert_non_null(fp);
+    assert_int_equal(fwrite(data, 1, size, fp), size);
+    fclose(fp);
+}

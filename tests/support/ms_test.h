@@ -20,4 +20,9 @@ void ms_test_rmdir(const char *dir);
  * truncated to size). Returns the exit status, or -1 if it did not exit normally. */
 int ms_test_run(const char *command, char *out, size_t size);
 
+/* A whole file into a malloc'd buffer (the caller frees it), and a buffer into
+ * a file; both fail the test on any error. */
+unsigned char *ms_test_read_file(const char *path, size_t *size);
+void ms_test_write_file(const char *path, const void *data, size_t size);
+
 #endif

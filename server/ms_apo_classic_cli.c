@@ -1,5 +1,7 @@
-/* apoclassic: whole-model APO for comparison with the published results. The
- * same options will become `meshbake IN --apo-classic ...`. */
+/* `meshbake IN --apo-classic ...`: whole-model APO for comparison with the
+ * published results (see ms_apo_classic_cli.h). */
+#include "ms_apo_classic_cli.h"
+
 #include <errno.h>
 #include <stdbool.h>
 #include <getopt.h>
@@ -15,19 +17,21 @@
 #include "ms_apo_traverse.h"
 #include "ms_demo_model.h"
 #include "ms_error.h"
+#include "ms_json_string.h"
 #include "ms_mesh.h"
 #include "ms_mesh_io.h"
 #include "ms_png.h"
 #include "ms_progress.h"
 
-static void usage(FILE *out)
+void ms_apo_classic_cli_usage(FILE *out)
 {
-    fputs("usage: apoclassic IN --apo-classic --simplify N [options]\n"
-          "Builds one APO (appearance-preserving octree) over a whole model, as in the\n"
-          "published method, and reports its size and the time of every phase.\n"
-          "IN is a mesh file (PLY, OBJ, OFF, optionally gzip'd) or demo:T, the built-in\n"
-          "relief sculpture with about T triangles.\n"
-          "  --apo-classic          whole-model mode (the only mode of this program)\n"
+    fputs("       meshbake IN --apo-classic --simplify N [options]\n"
+          "\n"
+          "Classic mode: builds one APO (appearance-preserving octree) over a whole model,\n"
+          "as in the published method, and reports its size and the time of every phase;\n"
+          "no archive is written. IN is a mesh file or demo:T, the built-in relief\n"
+          "sculpture with about T triangles.\n"
+          "  --apo-classic          whole-model mode\n"
           "  --simplify N           simplify to N triangles (quadric decimation) [3000]\n"
           "  --apo-tol T            tolerance on the variation measure [0.05]\n"
           "  --apo-init-depth D     depth split unconditionally [5]\n"
@@ -43,9 +47,14 @@ static void usage(FILE *out)
           "                         at N centroids of M, for both missing-child rules\n"
           "  --threads N            worker threads, 0 = all cores [0]\n"
           "  -o FILE                write the stored chunk (zlib + CRC) to FILE\n"
-          "  --json                 print the report as one JSON object\n"
-          "  --help                 show this help\n",
+          "  --json                 print the report as one JSON object\n",
           out);
+}
+
+static int usage_error(const char *message, const char *detail)
+{
+    fprintf(stderr, "meshbake: %s%s%s (see meshbake --help)\n", message, detail ? ": " : "", detail ? detail : "");
+    return 2;
 }
 
 static int parse_double(const char *s, const char *what, double lo, double hi, double *out)
@@ -54,7 +63,7 @@ static int parse_double(const char *s, const char *what, double lo, double hi, d
     errno = 0;
     double v = strtod(s, &end);
     if (errno || end == s || *end || !(v >= lo && v <= hi)) {
-        fprintf(stderr, "apoclassic: %s must be a number in [%g, %g], got '%s'\n", what, lo, hi, s);
+        fprintf(stderr, "meshbake: %s must be a number in [%g, %g], got '%s'\n", what, lo, hi, s);
         return -1;
     }
     *out = v;
@@ -77,7 +86,7 @@ static int write_file(const char *path, const uint8_t *data, size_t size)
 {
     FILE *f = fopen(path, "wb");
     if (!f || fwrite(data, 1, size, f) != size || fclose(f) != 0) {
-        fprintf(stderr, "apoclassic: cannot write %s: %s\n", path, strerror(errno));
+        fprintf(stderr, "meshbake: cannot write %s: %s\n", path, strerror(errno));
         if (f)
             fclose(f);
         return -1;
@@ -144,21 +153,6 @@ static ms_status measure_accuracy(const ms_apo_view *view, const ms_mesh *M, con
     return MS_OK;
 }
 
-/* s as a JSON string (quotes, backslashes and control characters escaped). */
-static void print_json_string(const char *s)
-{
-    putchar('"');
-    for (const unsigned char *c = (const unsigned char *)s; *c; ++c) {
-        if (*c == '"' || *c == '\\')
-            printf("\\%c", *c);
-        else if (*c < 0x20)
-            printf("\\u%04x", *c);
-        else
-            putchar(*c);
-    }
-    putchar('"');
-}
-
 /* CPU seconds (user + system, all threads) used by this process so far. */
 static double cpu_seconds(void)
 {
@@ -191,7 +185,7 @@ static double time_lookups(const ms_apo_view *view, uint64_t count)
     return sink == 1 ? 0.0 : (double)count / (dt > 0 ? dt : 1e-9);
 }
 
-int main(int argc, char **argv)
+int ms_apo_classic_cli(int argc, char **argv)
 {
     enum { OPT_CLASSIC = 256, OPT_SIMPLIFY, OPT_TOL, OPT_INIT, OPT_MAX, OPT_MEASURE, OPT_SEARCH, OPT_THREADS, OPT_JSON, OPT_HELP, OPT_SIMPLIFIED, OPT_SAVE, OPT_LOOKUPS, OPT_ACCURACY, OPT_PNG };
     static const struct option longs[] = {
@@ -200,6 +194,7 @@ int main(int argc, char **argv)
         {"apo-max-depth", required_argument, NULL, OPT_MAX}, {"apo-measure", required_argument, NULL, OPT_MEASURE},
         {"apo-search", required_argument, NULL, OPT_SEARCH}, {"threads", required_argument, NULL, OPT_THREADS},
         {"json", no_argument, NULL, OPT_JSON},               {"help", no_argument, NULL, OPT_HELP},
+        {"output", required_argument, NULL, 'o'},
         {"simplified", required_argument, NULL, OPT_SIMPLIFIED}, {"save-simplified", required_argument, NULL, OPT_SAVE},
         {"bench-lookups", required_argument, NULL, OPT_LOOKUPS},
         {"bench-accuracy", required_argument, NULL, OPT_ACCURACY},
@@ -212,7 +207,9 @@ int main(int argc, char **argv)
     uint64_t lookups = 0;
     size_t accuracy_points = 0;
     double v;
-    while ((c = getopt_long(argc, argv, "o:", longs, NULL)) != -1) {
+    opterr = 0;
+    optind = 1;
+    while ((c = getopt_long(argc, argv, ":ho:", longs, NULL)) != -1) {
         switch (c) {
         case OPT_CLASSIC: break;
         case OPT_SIMPLIFY:
@@ -240,8 +237,7 @@ int main(int argc, char **argv)
             else if (strcmp(optarg, "spread") == 0)
                 o.measure = MS_APO_MEASURE_SPREAD;
             else {
-                fprintf(stderr, "apoclassic: --apo-measure is classic or spread, got '%s'\n", optarg);
-                return 2;
+                return usage_error("--apo-measure is classic or spread", optarg);
             }
             break;
         case OPT_SEARCH:
@@ -268,14 +264,14 @@ int main(int argc, char **argv)
             accuracy_points = (size_t)v;
             break;
         case OPT_JSON: json = 1; break;
-        case OPT_HELP: usage(stdout); return 0;
-        default: usage(stderr); return 2;
+        case 'h':
+        case OPT_HELP: ms_apo_classic_cli_usage(stdout); return 0;
+        case ':': return usage_error("option needs a value", argv[optind - 1]);
+        default: return usage_error("unknown option", argv[optind - 1]);
         }
     }
-    if (optind != argc - 1) {
-        fprintf(stderr, "apoclassic: expected one input (try --help)\n");
-        return 2;
-    }
+    if (optind != argc - 1)
+        return usage_error(optind < argc ? "expected one input, got more" : "missing input file", NULL);
     const char *in = argv[optind];
     ms_error err;
     ms_error_clear(&err);
@@ -286,7 +282,7 @@ int main(int argc, char **argv)
     if (lr == -1)
         return 2;
     if (lr != 0) {
-        fprintf(stderr, "apoclassic: %s\n", err.text);
+        fprintf(stderr, "meshbake: %s\n", err.text);
         return 1;
     }
     ms_mesh given, kept;
@@ -294,7 +290,7 @@ int main(int argc, char **argv)
     memset(&kept, 0, sizeof kept);
     if (simplified_path) {
         if (ms_mesh_load(simplified_path, &given, NULL, &err) != MS_OK) {
-            fprintf(stderr, "apoclassic: %s\n", err.text);
+            fprintf(stderr, "meshbake: %s\n", err.text);
             ms_mesh_free(&mesh);
             return 1;
         }
@@ -324,7 +320,7 @@ int main(int argc, char **argv)
     if (st != MS_OK) {
         if (keep_chunk)
             ms_apo_chunk_free(&chunk);
-        fprintf(stderr, "apoclassic: %s\n", err.text);
+        fprintf(stderr, "meshbake: %s\n", err.text);
         return 1;
     }
     if (png_path) {
@@ -339,7 +335,7 @@ int main(int argc, char **argv)
         }
         free(grey);
         if (st != MS_OK) {
-            fprintf(stderr, "apoclassic: %s\n", err.text);
+            fprintf(stderr, "meshbake: %s\n", err.text);
             ms_apo_chunk_free(&chunk);
             return 1;
         }
@@ -348,7 +344,7 @@ int main(int argc, char **argv)
     if (lookups) {
         ms_apo_view view;
         if (ms_apo_view_of_chunk(&view, &chunk, &err) != MS_OK) {
-            fprintf(stderr, "apoclassic: %s\n", err.text);
+            fprintf(stderr, "meshbake: %s\n", err.text);
             ms_apo_chunk_free(&chunk);
             return 1;
         }
@@ -361,7 +357,7 @@ int main(int argc, char **argv)
         int wr = st == MS_OK ? write_file(out_path, blob, size) : -1;
         free(blob);
         if (st != MS_OK)
-            fprintf(stderr, "apoclassic: %s\n", err.text);
+            fprintf(stderr, "meshbake: %s\n", err.text);
         if (st != MS_OK || wr != 0)
             return 1;
     }
@@ -370,7 +366,7 @@ int main(int argc, char **argv)
     const char *measure = o.measure == MS_APO_MEASURE_CLASSIC ? "classic" : "spread";
     if (json) {
         printf("{\"input\":");
-        print_json_string(in);
+        ms_json_print_string(stdout, in);
         printf(",\"input_triangles\":%zu,\"simplified_triangles\":%zu,\"refused_faces\":%zu,"
                "\"tolerance\":%g,\"measure\":\"%s\",\"init_depth\":%u,\"max_depth\":%u,"
                "\"internal_nodes\":%zu,\"leaves\":%zu,\"cells\":%zu,\"texels\":%zu,\"bytes\":%zu,"

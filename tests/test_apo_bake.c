@@ -1,0 +1,378 @@
+/* Per-cell APO chunks baked by meshbake (docs/APO.md "Per-cell chunks",
+ * docs/ARCHIVE.md): every chunk of a baked archive passes its CRC, inflates, has
+ * the level table the index says, loads, and decodes into a tree that encodes
+ * back to the very same words (the baker also compared it with the tree it built:
+ * verify on); chunk depths follow the depth rule exactly; the archive is
+ * byte-identical for 1 and 2 threads; a prefix of L levels inflates to exactly
+ * the first L levels' words; damaged chunks and tables are rejected with errors;
+ * the CLI reports APO figures. MESHSTREAM_BIG=1 adds the 871k-triangle dragon. */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <cmocka.h>
+
+#include <jansson.h>
+
+#include "ms_apo_chunk.h"
+#include "ms_apo_stream.h"
+#include "ms_archive.h"
+#include "ms_bake.h"
+#include "ms_test.h"
+
+static void bake(const char *model, const char *dir, const char *name, unsigned threads,
+                 const ms_bake_apo_params *apo, unsigned bits, unsigned n, unsigned root_bits,
+                 uint32_t min_tris)
+{
+    ms_bake_options o;
+    ms_bake_options_default(&o);
+    o.input = model;
+    o.archive_dir = dir;
+    o.name = name;
+    o.threads = threads;
+    o.min_triangles = min_tris;
+    o.bits = bits, o.n = n, o.root_bits = root_bits;
+    o.apo = *apo;
+    ms_bake_report r;
+    ms_error err;
+    ms_error_clear(&err);
+    if (ms_bake(&o, &r, &err) != MS_OK)
+        fail_msg("bake of %s failed: %s", model, err.text);
+}
+
+static unsigned log2_of(unsigned n) { return n == 2 ? 1 : n == 4 ? 2 : 3; }
+
+/* The depth rule, written out independently of the baker's function. */
+static uint32_t expected_depth(const ms_archive_header *h, const ms_archive_cell *c)
+{
+    int finest = (int)c->bits_max - (int)(log2_of(h->n) * c->level);
+    int d = (finest > 0 ? finest : 0) + h->apo_lead;
+    return d < h->apo_max_depth ? (uint32_t)d : h->apo_max_depth;
+}
+
+typedef struct archive_check {
+    uint32_t chunks, at_rule_depth;  /* cells with a chunk; of them, as deep as the rule allows */
+    uint32_t multi_level;            /* chunks with at least 2 levels */
+    uint32_t internal_with_chunk;    /* internal cells (M gathered from several leaves) */
+} archive_check;
+
+/* Everything a client may rely on, for every cell of the archive at path. */
+static archive_check check_archive(const char *path)
+{
+    archive_check k = {0};
+    ms_archive *a;
+    ms_error err;
+    if (ms_archive_open(path, &a, &err) != MS_OK)
+        fail_msg("%s", err.text);
+    const ms_archive_header *h = ms_archive_get_header(a);
+    assert_true(h->has_apo);
+    for (uint32_t i = 0; i < h->cell_count; ++i) {
+        const ms_archive_cell *c = ms_archive_get_cell(a, i);
+        /* a chunk exactly where m has triangles */
+        assert_int_equal(c->apo_levels > 0, c->triangle_count > 0);
+        if (c->apo_levels == 0) {
+            assert_int_equal(c->apo_length, 0);
+            continue;
+        }
+        k.chunks++;
+        k.multi_level += c->apo_levels >= 2;
+        k.internal_with_chunk += c->first_child != MS_ARCHIVE_NONE;
+        assert_int_equal(ms_archive_verify_payload(a, i, &err), MS_OK);
+        size_t length;
+        const uint8_t *data = ms_archive_apo(a, i, &length);
+        assert_int_equal(length, c->apo_length);
+        uint32_t table[2 * MS_APO_MAX_LEVELS];
+        for (uint32_t l = 0; l < c->apo_levels; ++l)
+            table[2 * l] = ms_archive_apo_prefix(a, i, l, &table[2 * l + 1]);
+        assert_int_equal(table[2 * (c->apo_levels - 1)], c->apo_length);
+        assert_int_equal(table[2 * (c->apo_levels - 1) + 1], c->apo_raw_length / 4);
+        ms_apo_chunk chunk;
+        if (ms_apo_stream_inflate(data, length, table, c->apo_levels, &chunk, &err) != MS_OK)
+            fail_msg("cell %u: %s", i, err.text);
+        assert_int_equal(chunk.texel_count, c->apo_raw_length / 4);
+        assert_int_equal(chunk.level_count, c->apo_levels);
+        uint32_t sum = 0;
+        for (uint32_t l = 0; l < chunk.level_count; ++l) {
+            sum += chunk.level_texels[l];
+            assert_int_equal(sum, table[2 * l + 1]);
+        }
+        ms_apo_view view;
+        if (ms_apo_view_of_chunk(&view, &chunk, &err) != MS_OK)
+            fail_msg("cell %u: %s", i, err.text);
+        assert_int_equal(view.complete_levels, c->apo_levels);
+        /* decode, encode again: the same words */
+        ms_apo_tree tree = {0};
+        assert_int_equal(ms_apo_view_decode(&view, &tree, &err), MS_OK);
+        ms_apo_chunk again = {0};
+        assert_int_equal(ms_apo_chunk_encode(&tree, &again, &err), MS_OK);
+        assert_int_equal(again.texel_count, chunk.texel_count);
+        assert_memory_equal(again.level_texels, chunk.level_texels, chunk.level_count * 4);
+        assert_memory_equal(again.texels, chunk.texels, chunk.texel_count * 4);
+        /* the depth rule */
+        uint32_t depth = c->apo_levels - 1, rule = expected_depth(h, c);
+        assert_true(depth <= rule);
+        k.at_rule_depth += depth == rule;
+        /* every prefix of whole levels inflates to exactly those levels' words;
+         * one byte short of a boundary gives one level less */
+        for (uint32_t l = 1; l <= c->apo_levels; ++l) {
+            size_t bytes = table[2 * (l - 1)];
+            ms_apo_chunk part;
+            assert_int_equal(ms_apo_stream_inflate(data, bytes, table, c->apo_levels, &part, &err), MS_OK);
+            assert_int_equal(part.texel_count, table[2 * (l - 1) + 1]);
+            assert_memory_equal(part.texels, chunk.texels, part.texel_count * 4);
+            ms_apo_view pv;
+            assert_int_equal(ms_apo_view_init(&pv, part.level_texels, part.level_count, part.texels,
+                                              part.texel_count, &err), MS_OK);
+            assert_int_equal(pv.complete_levels, l);
+            ms_apo_chunk_free(&part);
+            assert_int_equal(ms_apo_stream_inflate(data, bytes - 1, table, c->apo_levels, &part, &err), MS_OK);
+            assert_int_equal(part.texel_count, l >= 2 ? table[2 * (l - 2) + 1] : 0);
+            ms_apo_chunk_free(&part);
+        }
+        ms_apo_chunk_free(&again);
+        ms_apo_tree_free(&tree);
+        ms_apo_chunk_free(&chunk);
+    }
+    ms_archive_close(a);
+    return k;
+}
+
+static void test_chunks_round_trip_and_threads_agree(void **state)
+{
+    (void)state;
+    char dir[512], model[4096], cmd[2048], out[256], path[700];
+    ms_test_tmpdir(dir, sizeof dir);
+    ms_test_model_path(model, sizeof model, "stanford_bunny_res3.ply.gz");
+    ms_bake_apo_params apo;
+    ms_bake_apo_params_default(&apo);
+    apo.max_depth = 8;
+    apo.tolerance = 0.15;
+    apo.verify = true;
+    bake(model, dir, "t1", 1, &apo, 16, 4, 7, 200);
+    bake(model, dir, "t2", 2, &apo, 16, 4, 7, 200);
+    snprintf(cmd, sizeof cmd, "cmp '%s/t1.msa' '%s/t2.msa'", dir, dir);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
+    snprintf(path, sizeof path, "%s/t2.msa", dir);
+    archive_check k = check_archive(path);
+    assert_true(k.chunks > 10);
+    assert_true(k.multi_level >= 10);
+    assert_true(k.internal_with_chunk >= 2); /* the root and a level-1 cell that split */
+    assert_true(k.at_rule_depth >= 1);
+    ms_test_rmdir(dir);
+}
+
+/* Splitting unconditionally (init depth above every cap) takes every chunk to
+ * exactly the rule's depth: once through the cap, once through the finest
+ * precision (lead 0, n = 2, p = 8, so that it stays small). */
+static void test_depth_rule_exact(void **state)
+{
+    (void)state;
+    char dir[512], model[4096], path[700];
+    ms_test_tmpdir(dir, sizeof dir);
+    ms_test_model_path(model, sizeof model, "stanford_bunny_res3.ply.gz");
+    ms_bake_apo_params apo;
+    ms_bake_apo_params_default(&apo);
+    apo.init_depth = 30;
+    apo.max_depth = 4;
+    apo.verify = true;
+    bake(model, dir, "cap", 2, &apo, 16, 4, 7, 800);
+    snprintf(path, sizeof path, "%s/cap.msa", dir);
+    archive_check k = check_archive(path);
+    assert_true(k.chunks > 10);
+    assert_int_equal(k.at_rule_depth, k.chunks);
+
+    apo.max_depth = 24;
+    apo.lead = 0;
+    bake(model, dir, "lead", 2, &apo, 8, 2, 1, 400);
+    snprintf(path, sizeof path, "%s/lead.msa", dir);
+    k = check_archive(path);
+    assert_true(k.chunks > 10 && k.internal_with_chunk >= 3);
+    assert_int_equal(k.at_rule_depth, k.chunks);
+    /* and the depths differ between cells: the rule is per cell */
+    ms_archive *a;
+    assert_int_equal(ms_archive_open(path, &a, NULL), MS_OK);
+    uint32_t seen = 0;
+    for (uint32_t i = 0; i < ms_archive_get_header(a)->cell_count; ++i) {
+        const ms_archive_cell *c = ms_archive_get_cell(a, i);
+        if (c->apo_levels)
+            seen |= 1u << (c->apo_levels - 1);
+    }
+    ms_archive_close(a);
+    assert_true(seen & (seen - 1)); /* at least two distinct depths */
+    ms_test_rmdir(dir);
+}
+
+/* Damage: a flipped byte inside a chunk fails its CRC and its inflation; a
+ * damaged level table fails the index CRC at open; a truncated file does not
+ * open; an inconsistent table given to the inflater is a format error. */
+static void test_damaged_chunks_are_rejected(void **state)
+{
+    (void)state;
+    char dir[512], model[4096], path[700], bad[700];
+    ms_test_tmpdir(dir, sizeof dir);
+    ms_test_model_path(model, sizeof model, "stanford_bunny_res3.ply.gz");
+    ms_bake_apo_params apo;
+    ms_bake_apo_params_default(&apo);
+    apo.max_depth = 7;
+    bake(model, dir, "good", 2, &apo, 16, 4, 7, 8000);
+    snprintf(path, sizeof path, "%s/good.msa", dir);
+    snprintf(bad, sizeof bad, "%s/bad.msa", dir);
+    size_t size;
+    uint8_t *file = ms_test_read_file(path, &size);
+    ms_archive *a;
+    ms_error err;
+    assert_int_equal(ms_archive_open(path, &a, &err), MS_OK);
+    const ms_archive_header *h = ms_archive_get_header(a);
+    const ms_archive_cell root = *ms_archive_get_cell(a, 0);
+    assert_true(root.apo_levels >= 3);
+    uint32_t table[2 * MS_APO_MAX_LEVELS];
+    for (uint32_t l = 0; l < root.apo_levels; ++l)
+        table[2 * l] = ms_archive_apo_prefix(a, 0, l, &table[2 * l + 1]);
+    uint64_t payload_start = MS_ARCHIVE_HEADER_SIZE + (uint64_t)MS_ARCHIVE_RECORD_SIZE * h->cell_count +
+                             4ull * h->table_words;
+    uint64_t table_at = MS_ARCHIVE_HEADER_SIZE + (uint64_t)MS_ARCHIVE_RECORD_SIZE * h->cell_count +
+                        4ull * (root.table_first + root.bits_max - root.bits_min + 1u);
+    ms_archive_close(a);
+
+    /* a byte of the root's chunk, in the middle of its last level */
+    uint64_t at = payload_start + root.apo_offset + (table[2 * (root.apo_levels - 2)] + root.apo_length) / 2;
+    file[at] ^= 0x5A;
+    ms_test_write_file(bad, file, size);
+    assert_int_equal(ms_archive_open(bad, &a, &err), MS_OK); /* payloads are checked on demand */
+    assert_int_equal(ms_archive_verify_payload(a, 0, &err), MS_ERR_CORRUPT);
+    assert_non_null(strstr(err.text, "APO chunk checksum mismatch"));
+    size_t length;
+    const uint8_t *data = ms_archive_apo(a, 0, &length);
+    ms_apo_chunk chunk;
+    assert_int_equal(ms_apo_stream_inflate(data, length, table, root.apo_levels, &chunk, &err), MS_ERR_CORRUPT);
+    assert_null(chunk.texels);
+    /* the levels before the damage still inflate, as a prefix */
+    assert_int_equal(ms_apo_stream_inflate(data, table[2 * (root.apo_levels - 2)], table, root.apo_levels,
+                                           &chunk, &err), MS_OK);
+    assert_int_equal(chunk.texel_count, table[2 * (root.apo_levels - 2) + 1]);
+    ms_apo_chunk_free(&chunk);
+    ms_archive_close(a);
+    file[at] ^= 0x5A;
+
+    /* the level table in the index */
+    file[table_at + 4] ^= 1;
+    ms_test_write_file(bad, file, size);
+    a = NULL;
+    assert_int_not_equal(ms_archive_open(bad, &a, &err), MS_OK);
+    assert_null(a);
+    file[table_at + 4] ^= 1;
+
+    /* the file cut inside the last chunk */
+    ms_test_write_file(bad, file, size - 3);
+    assert_int_not_equal(ms_archive_open(bad, &a, &err), MS_OK);
+
+    /* inconsistent tables handed to the inflater */
+    const uint8_t *root_data = file + payload_start + root.apo_offset;
+    uint32_t swapped[2 * MS_APO_MAX_LEVELS];
+    memcpy(swapped, table, sizeof swapped);
+    swapped[0] = table[2], swapped[2] = table[0];
+    assert_int_equal(ms_apo_stream_inflate(root_data, root.apo_length, swapped, root.apo_levels, &chunk, &err),
+                     MS_ERR_FORMAT);
+    assert_int_equal(ms_apo_stream_inflate(root_data, root.apo_length + 1, table, root.apo_levels, &chunk, &err),
+                     MS_ERR_FORMAT);
+    assert_int_equal(ms_apo_stream_inflate(root_data, root.apo_length, table, MS_APO_MAX_LEVELS + 1, &chunk, &err),
+                     MS_ERR_FORMAT);
+    /* a table claiming one texel more than the stream holds */
+    uint32_t more[2 * MS_APO_MAX_LEVELS];
+    memcpy(more, table, sizeof more);
+    more[2 * (root.apo_levels - 1) + 1] += 1;
+    assert_int_equal(ms_apo_stream_inflate(root_data, root.apo_length, more, root.apo_levels, &chunk, &err),
+                     MS_ERR_CORRUPT);
+    free(file);
+    ms_test_rmdir(dir);
+}
+
+static void test_cli_reports_apo(void **state)
+{
+    (void)state;
+    char dir[512], bin[4096], model[4096], cmd[16384], out[16384];
+    ms_test_tmpdir(dir, sizeof dir);
+    ms_test_bin_path(bin, sizeof bin, "meshbake");
+    ms_test_model_path(model, sizeof model, "stanford_bunny_res3.ply.gz");
+    snprintf(cmd, sizeof cmd, "%s '%s' -o '%s' --name b --apo-max-depth 6 --apo-verify --json", bin, model, dir);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
+    json_error_t je;
+    json_t *j = json_loads(out, 0, &je);
+    if (!j)
+        fail_msg("not JSON: %s", out);
+    json_t *apo = json_object_get(j, "apo");
+    assert_true(json_is_true(json_object_get(apo, "enabled")));
+    assert_int_equal(json_integer_value(json_object_get(apo, "max_depth")), 6);
+    assert_int_equal(json_integer_value(json_object_get(apo, "lead")), 3);
+    json_int_t bytes = json_integer_value(json_object_get(apo, "bytes"));
+    json_int_t raw = json_integer_value(json_object_get(apo, "raw_bytes"));
+    json_int_t internal = json_integer_value(json_object_get(apo, "internal_nodes"));
+    json_int_t leaves = json_integer_value(json_object_get(apo, "leaves"));
+    json_t *levels = json_object_get(apo, "level_texels");
+    assert_int_equal(json_array_size(levels), 7);
+    json_int_t texels = 0;
+    for (size_t l = 0; l < json_array_size(levels); ++l)
+        texels += json_integer_value(json_array_get(levels, l));
+    assert_true(bytes > 0 && internal > 0 && leaves > internal);
+    assert_int_equal(raw, 4 * texels);
+    assert_int_equal(texels, leaves + 2 * internal);
+    assert_true(json_is_number(json_object_get(json_object_get(j, "seconds"), "apo")));
+    json_decref(j);
+    /* the archive's chunks add up to the report */
+    char path[700];
+    snprintf(path, sizeof path, "%s/b.msa", dir);
+    ms_archive *a;
+    assert_int_equal(ms_archive_open(path, &a, NULL), MS_OK);
+    json_int_t sum = 0, sum_raw = 0;
+    for (uint32_t i = 0; i < ms_archive_get_header(a)->cell_count; ++i) {
+        sum += ms_archive_get_cell(a, i)->apo_length;
+        sum_raw += ms_archive_get_cell(a, i)->apo_raw_length;
+    }
+    assert_int_equal(ms_archive_get_header(a)->apo_max_depth, 6);
+    ms_archive_close(a);
+    assert_int_equal(sum, bytes);
+    assert_int_equal(sum_raw, raw);
+    /* text report */
+    snprintf(cmd, sizeof cmd, "%s '%s' -o '%s' --name t --apo-max-depth 4", bin, model, dir);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
+    assert_non_null(strstr(out, "APO texels per level: "));
+    assert_non_null(strstr(out, "(APO "));
+    ms_test_rmdir(dir);
+}
+
+/* MESHSTREAM_BIG=1: the 871k dragon with the default settings, verified by the
+ * baker and then chunk by chunk here. */
+static void test_big_dragon(void **state)
+{
+    (void)state;
+    const char *big = getenv("MESHSTREAM_BIG");
+    if (!big || strcmp(big, "1") != 0)
+        skip();
+    char dir[512], model[4096], path[700];
+    ms_test_tmpdir(dir, sizeof dir);
+    ms_test_model_path(model, sizeof model, "stanford_dragon_vrip.ply.gz");
+    ms_bake_apo_params apo;
+    ms_bake_apo_params_default(&apo);
+    apo.verify = true;
+    bake(model, dir, "dragon", 2, &apo, 16, 4, 7, 8000);
+    snprintf(path, sizeof path, "%s/dragon.msa", dir);
+    archive_check k = check_archive(path);
+    print_message("dragon: %u chunks, %u at the rule's depth\n", k.chunks, k.at_rule_depth);
+    assert_true(k.chunks > 100);
+    ms_test_rmdir(dir);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_chunks_round_trip_and_threads_agree),
+        cmocka_unit_test(test_depth_rule_exact),
+        cmocka_unit_test(test_damaged_chunks_are_rejected),
+        cmocka_unit_test(test_cli_reports_apo),
+        cmocka_unit_test(test_big_dragon),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
