@@ -253,6 +253,7 @@ static void assert_same(const ms_proto_message *a, const ms_proto_message *b)
         assert_int_equal(x->apo_steps, y->apo_steps);
         assert_int_equal(x->permitted_geometry_steps, y->permitted_geometry_steps);
         assert_int_equal(x->permitted_apo_steps, y->permitted_apo_steps);
+        assert_int_equal(x->index_encoding, y->index_encoding);
         break;
     }
     case MS_PROTO_CLOSE_MODEL:
@@ -448,7 +449,8 @@ static bool sample_message(unsigned i, ms_proto_message *m)
             .model_handle = UINT32_MAX, .cell_count = MS_PROTO_MAX_CELLS,
             .content_id = UINT64_MAX, .index_size = MS_PROTO_MAX_INDEX_SIZE,
             .index_crc32 = UINT32_MAX, .archive_version = UINT16_MAX, .geometry_steps = 64,
-            .apo_steps = 64, .permitted_geometry_steps = 64, .permitted_apo_steps = 64};
+            .apo_steps = 64, .permitted_geometry_steps = 64, .permitted_apo_steps = 64,
+            .index_encoding = MS_PROTO_INDEX_ZLIB};
         return true;
     case 13:
         m->type = MS_PROTO_CLOSE_MODEL;
@@ -669,6 +671,8 @@ static void test_encoder_refuses_out_of_range(void **state)
     REFUSE((sample_message(12, &m), m.body.model_opened.cell_count = MS_PROTO_MAX_CELLS + 1),
            MS_PROTO_E_FIELD_OUT_OF_RANGE);
     REFUSE((sample_message(11, &m), m.body.model_opened.permitted_geometry_steps = 2),
+           MS_PROTO_E_FIELD_OUT_OF_RANGE);
+    REFUSE((sample_message(12, &m), m.body.model_opened.index_encoding = MS_PROTO_INDEX_ZLIB + 1),
            MS_PROTO_E_FIELD_OUT_OF_RANGE);
     REFUSE((sample_message(14, &m), m.request_id = 0), MS_PROTO_E_MALFORMED_FRAME);
     REFUSE((sample_message(6, &m), m.flags = MS_PROTO_FLAG_LAST), MS_PROTO_E_MALFORMED_FRAME);
@@ -1044,6 +1048,13 @@ static void test_out_of_range_fields(void **state)
     f[12 + 26] = 65; /* geometry_steps above 64 */
     f[12 + 28] = 1;
     expect_fault(MS_PROTO_ROLE_CLIENT, 0, f, 44, MS_PROTO_E_FIELD_OUT_OF_RANGE, true, 0, 0, 26);
+    /* Version 2's index_encoding: 0 and 1 only; the byte after it is reserved. */
+    f[12 + 26] = 1;
+    f[12 + 30] = 2;
+    expect_fault(MS_PROTO_ROLE_CLIENT, 0, f, 44, MS_PROTO_E_FIELD_OUT_OF_RANGE, true, 0, 0, 30);
+    f[12 + 30] = MS_PROTO_INDEX_ZLIB;
+    f[12 + 31] = 1;
+    expect_fault(MS_PROTO_ROLE_CLIENT, 0, f, 44, MS_PROTO_E_MALFORMED_FRAME, true, 0, 0, 0);
     /* ERROR frame whose fatal flag contradicts its code. */
     raw_header(f, 18, MS_PROTO_ERROR, 0, 0);
     memset(f + 12, 0, 18);
