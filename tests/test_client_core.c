@@ -327,6 +327,43 @@ static void test_compressed_index_same_result(void **state)
     assert_true(socket_bytes[0] + index_size / 2 < socket_bytes[1]);
 }
 
+/* A loopback listener on an ephemeral port (the kernel accepts for it). */
+static int listen_loopback(uint16_t *port)
+{
+    int fd = socket(AF_INET, SOCK_STREAM, 0);
+    assert_true(fd >= 0);
+    struct sockaddr_in sin = {.sin_family = AF_INET, .sin_addr.s_addr = htonl(INADDR_LOOPBACK)};
+    assert_int_equal(bind(fd, (struct sockaddr *)&sin, sizeof sin), 0);
+    assert_int_equal(listen(fd, 16), 0);
+    socklen_t len = sizeof sin;
+    assert_int_equal(getsockname(fd, (struct sockaddr *)&sin, &len), 0);
+    *port = ntohs(sin.sin_port);
+    return fd;
+}
+
+/* Runs a core against port with short time-outs until it gives up (at most
+ * 15 s); returns how long that took, the last stats in *st. */
+static double run_until_error(uint16_t port, ms_core_stats *st)
+{
+    ms_core_options o = base_options();
+    o.port = port;
+    o.answer_timeout = 0.5;
+    o.give_up_seconds = 1.5;
+    ms_core *core;
+    ms_error err;
+    assert_int_equal(ms_core_start(&o, &core, &err), MS_OK);
+    ms_camera cam = key_camera(0);
+    ms_core_set_camera(core, &cam);
+    double t0 = now_s();
+    do {
+        sleep_s(0.02);
+        ms_core_get_stats(core, st);
+    } while (!st->error[0] && now_s() < t0 + 15.0);
+    double took = now_s() - t0;
+    ms_core_stop(core);
+    return took;
+}
+
 /* A server that speaks version 2 and sends a compressed index that inflates
  * past its declared size (a zip bomb) on every connection. */
 typedef struct hostile_server {
@@ -426,30 +463,11 @@ static void *hostile_serve(void *arg)
 static void test_hostile_compressed_index(void **state)
 {
     (void)state;
-    hostile_server h = {.fd = socket(AF_INET, SOCK_STREAM, 0)};
-    assert_true(h.fd >= 0);
-    struct sockaddr_in sin = {.sin_family = AF_INET, .sin_addr.s_addr = htonl(INADDR_LOOPBACK)};
-    assert_int_equal(bind(h.fd, (struct sockaddr *)&sin, sizeof sin), 0);
-    assert_int_equal(listen(h.fd, 16), 0);
-    socklen_t len = sizeof sin;
-    assert_int_equal(getsockname(h.fd, (struct sockaddr *)&sin, &len), 0);
+    uint16_t port;
+    hostile_server h = {.fd = listen_loopback(&port)};
     assert_int_equal(pthread_create(&h.thread, NULL, hostile_serve, &h), 0);
-    ms_core_options o = base_options();
-    o.port = ntohs(sin.sin_port);
-    o.answer_timeout = 0.5;
-    o.give_up_seconds = 1.5;
-    ms_core *core;
-    ms_error err;
-    assert_int_equal(ms_core_start(&o, &core, &err), MS_OK);
-    ms_camera cam = key_camera(0);
-    ms_core_set_camera(core, &cam);
     ms_core_stats st;
-    double t0 = now_s();
-    do {
-        sleep_s(0.02);
-        ms_core_get_stats(core, &st);
-    } while (!st.error[0] && now_s() < t0 + 15.0);
-    ms_core_stop(core);
+    run_until_error(port, &st);
     h.stop = 1;
     pthread_join(h.thread, NULL);
     close(h.fd);
@@ -615,30 +633,10 @@ static void test_corrupt_payload_reported(void **state)
 static void test_server_not_answering(void **state)
 {
     (void)state;
-    int fd = socket(AF_INET, SOCK_STREAM, 0);
-    assert_true(fd >= 0);
-    struct sockaddr_in sin = {.sin_family = AF_INET, .sin_addr.s_addr = htonl(INADDR_LOOPBACK)};
-    assert_int_equal(bind(fd, (struct sockaddr *)&sin, sizeof sin), 0);
-    assert_int_equal(listen(fd, 16), 0);
-    socklen_t len = sizeof sin;
-    assert_int_equal(getsockname(fd, (struct sockaddr *)&sin, &len), 0);
-    ms_core_options o = base_options();
-    o.port = ntohs(sin.sin_port);
-    o.answer_timeout = 0.5;
-    o.give_up_seconds = 1.5;
-    ms_core *core;
-    ms_error err;
-    assert_int_equal(ms_core_start(&o, &core, &err), MS_OK);
-    ms_camera cam = key_camera(0);
-    ms_core_set_camera(core, &cam);
+    uint16_t port;
+    int fd = listen_loopback(&port);
     ms_core_stats st;
-    double t0 = now_s();
-    do {
-        sleep_s(0.02);
-        ms_core_get_stats(core, &st);
-    } while (!st.error[0] && now_s() < t0 + 15.0);
-    double took = now_s() - t0;
-    ms_core_stop(core);
+    double took = run_until_error(port, &st);
     close(fd);
     assert_non_null(strstr(st.error, "no usable connection"));
     assert_non_null(strstr(st.warning, "sent nothing"));
