@@ -45,7 +45,7 @@ typedef struct options {
     unsigned clients, apo_levels, decode_threads;
     double bandwidth, tolerance, duration, keyframe_timeout, width, height;
     double memory_target, memory_ceiling, hysteresis, culled_less;
-    bool json, skip_cold;
+    bool json, skip_cold, raw_index;
 } options;
 
 typedef struct key_result {
@@ -106,6 +106,7 @@ static ms_core_options core_options(const options *o)
     co.tolerance_px = o->tolerance;
     co.hysteresis_bits = o->hysteresis;
     co.culled_bits_less = o->culled_less;
+    co.raw_index = o->raw_index;
     co.decode_threads = o->decode_threads;
     co.apo_levels = o->apo_levels;
     co.memory_target = (uint64_t)(o->memory_target * 1048576.0);
@@ -540,6 +541,7 @@ static void usage(FILE *out)
             "  --apo-levels L         APO detail target (default 0: APO off)\n"
             "  --token TOKEN          access token\n"
             "  --no-cold              skip the cold-open phase\n"
+            "  --raw-index            ask for the model index uncompressed (protocol v1 way)\n"
             "  --baseline draco       download /models/NAME/draco (ARCHIVE_DIR/NAME.drc) from\n"
             "                         the HTTP side door and decode it with draco_decoder\n"
             "  --draco-decoder PATH   (default draco_decoder)\n"
@@ -605,6 +607,7 @@ static int parse_options(int argc, char **argv, options *o)
         {"decode-threads", required_argument, NULL, 'P'},
         {"apo-levels", required_argument, NULL, 'a'}, {"token", required_argument, NULL, 'T'},
         {"no-cold", no_argument, NULL, 'n'},       {"baseline", required_argument, NULL, 'B'},
+        {"raw-index", no_argument, NULL, 'R'},
         {"draco-decoder", required_argument, NULL, 'D'}, {"help", no_argument, NULL, 'h'},
         {NULL, 0, NULL, 0}};
     memset(o, 0, sizeof *o);
@@ -711,6 +714,7 @@ static int parse_options(int argc, char **argv, options *o)
         case 'T': o->token = optarg; break;
         case 'j': o->json = true; break;
         case 'n': o->skip_cold = true; break;
+        case 'R': o->raw_index = true; break;
         case 'B':
             if (strcmp(optarg, "draco") != 0) {
                 fprintf(stderr, "meshload: the only baseline is 'draco'\n");

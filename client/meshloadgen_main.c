@@ -370,7 +370,7 @@ static const ms_client_handlers binary_handlers = {
 static int binary_start(vclient *v)
 {
     const options *o = &v->lg->o;
-    ms_client_options co = {o->host, o->port, o->token, "meshloadgen/0.1", 0};
+    ms_client_options co = {o->host, o->port, o->token, "meshloadgen/0.1", 0, false};
     ms_error err;
     uint32_t id;
     if (ms_payload_assembly_new(false, 0, &v->assembly, &err) != MS_OK ||

@@ -27,8 +27,10 @@ struct ms_client {
      * server answers in order anyway). */
     uint32_t index_request;
     ms_proto_model_opened opened;
-    uint8_t *index;
-    uint32_t index_have;
+    uint8_t *index;         /* index_size bytes: the blob, received or inflated */
+    uint32_t index_have;    /* bytes of INDEX_DATA received (the wire form's) */
+    uint8_t *index_zlib;    /* the compressed form as it arrives (ZLIB encoding) */
+    bool ask_index_zlib;    /* offer CAP_INDEX_ZLIB in HELLO */
     struct ev_token_bucket_cfg *rate;
     uint64_t bytes_read;
 };
@@ -75,23 +77,55 @@ static uint32_t take_ids(ms_client *c, uint32_t count)
     return first;
 }
 
-static void handle_index(ms_client *c, const ms_proto_message *m)
+/* Checks the received wire form and leaves the decoded blob in c->index. */
+static bool index_complete(ms_client *c)
 {
-    const ms_proto_index_data *d = &m->body.index_data;
-    if (m->request_id != c->index_request || !c->index || d->offset != c->index_have ||
-        (uint64_t)d->offset + d->data_length > c->opened.index_size) {
-        finish(c, "server sent INDEX_DATA out of order");
-        return;
+    if (c->opened.index_encoding == MS_PROTO_INDEX_ZLIB) {
+        ms_error err;
+        ms_status st = ms_proto_index_inflate(c->index_zlib, c->index_have, c->opened.index_size,
+                                              c->opened.index_crc32, c->index, &err);
+        free(c->index_zlib);
+        c->index_zlib = NULL;
+        if (st != MS_OK) {
+            char why[MS_ERROR_TEXT_MAX + 40];
+            snprintf(why, sizeof why, "bad model index from the server: %s", err.text);
+            finish(c, why);
+        }
+        return st == MS_OK;
     }
-    memcpy(c->index + c->index_have, d->data, d->data_length);
-    c->index_have += d->data_length;
-    if (!(m->flags & MS_PROTO_FLAG_LAST))
-        return;
     if (c->index_have != c->opened.index_size ||
         crc32_z(0L, c->index, c->index_have) != c->opened.index_crc32) {
         finish(c, "model index blob fails its CRC-32");
+        return false;
+    }
+    return true;
+}
+
+static void handle_index(ms_client *c, const ms_proto_message *m)
+{
+    const ms_proto_index_data *d = &m->body.index_data;
+    bool zlib = c->opened.index_encoding == MS_PROTO_INDEX_ZLIB;
+    /* A compressed index is shorter than the blob (section 4.8): that bounds
+     * what a hostile server can make us buffer before inflating. */
+    uint64_t wire_limit = zlib ? (uint64_t)c->opened.index_size - 1 : c->opened.index_size;
+    if (m->request_id != c->index_request || !c->index || d->offset != c->index_have ||
+        (uint64_t)d->offset + d->data_length > wire_limit) {
+        finish(c, "server sent INDEX_DATA out of order");
         return;
     }
+    uint8_t *to = c->index;
+    if (zlib) {
+        to = realloc(c->index_zlib, (size_t)c->index_have + d->data_length);
+        if (!to) {
+            finish(c, "out of memory for a model index");
+            return;
+        }
+        c->index_zlib = to;
+    }
+    memcpy(to + c->index_have, d->data, d->data_length);
+    c->index_have += d->data_length;
+    if (!(m->flags & MS_PROTO_FLAG_LAST) || !index_complete(c))
+        return;
     uint8_t *index = c->index;
     c->index = NULL;
     c->index_request = 0;
@@ -100,17 +134,46 @@ static void handle_index(ms_client *c, const ms_proto_message *m)
     free(index);
 }
 
+/* The server must pick a version and capabilities out of what HELLO offered
+ * (section 3); anything else ends the connection with a clear reason. */
+static bool reply_acceptable(ms_client *c, const ms_proto_hello_reply *r)
+{
+    char why[160];
+    uint32_t asked = MS_PROTO_CAP_APO | (c->ask_index_zlib ? MS_PROTO_CAP_INDEX_ZLIB : 0);
+    if (r->version < MS_PROTO_MIN_VERSION || r->version > MS_PROTO_VERSION)
+        snprintf(why, sizeof why, "server chose protocol version %u, outside our %u..%u",
+                 r->version, MS_PROTO_MIN_VERSION, MS_PROTO_VERSION);
+    else if (r->capabilities & ~asked)
+        snprintf(why, sizeof why, "server granted capabilities 0x%x beyond the 0x%x asked",
+                 (unsigned)r->capabilities, (unsigned)asked);
+    else if (r->version < 2 && (r->capabilities & MS_PROTO_CAP_INDEX_ZLIB))
+        snprintf(why, sizeof why, "server granted CAP_INDEX_ZLIB in protocol version 1");
+    else
+        return true;
+    finish(c, why);
+    return false;
+}
+
 /* Returns false when the connection ended. */
 static bool handle_message(ms_client *c, const ms_proto_message *m)
 {
     switch ((ms_proto_type)m->type) {
     case MS_PROTO_HELLO_REPLY:
+        if (!reply_acceptable(c, &m->body.hello_reply))
+            break;
         c->limits = m->body.hello_reply;
         if (c->handlers->ready)
             c->handlers->ready(c, &c->limits, c->arg);
         break;
     case MS_PROTO_MODEL_OPENED:
+        if (m->body.model_opened.index_encoding != MS_PROTO_INDEX_RAW &&
+            !(c->limits.capabilities & MS_PROTO_CAP_INDEX_ZLIB)) {
+            finish(c, "server sent a compressed index without CAP_INDEX_ZLIB");
+            break;
+        }
         free(c->index);
+        free(c->index_zlib);
+        c->index_zlib = NULL;
         c->opened = m->body.model_opened;
         c->index = malloc(c->opened.index_size);
         c->index_have = 0;
@@ -241,8 +304,10 @@ ms_status ms_client_connect(struct event_base *base, const ms_client_options *o,
     }
     ms_proto_message hello = {.type = MS_PROTO_HELLO};
     ms_proto_hello *h = &hello.body.hello;
-    h->min_version = h->max_version = MS_PROTO_VERSION;
-    h->capabilities = MS_PROTO_CAP_APO;
+    h->min_version = MS_PROTO_MIN_VERSION;
+    h->max_version = MS_PROTO_VERSION;
+    c->ask_index_zlib = !o->raw_index;
+    h->capabilities = MS_PROTO_CAP_APO | (c->ask_index_zlib ? MS_PROTO_CAP_INDEX_ZLIB : 0);
     h->max_frame = max_frame;
     h->token = o->token;
     h->token_length = o->token ? (uint16_t)strlen(o->token) : 0;
@@ -266,6 +331,7 @@ void ms_client_free(ms_client *c)
         ev_token_bucket_cfg_free(c->rate);
     ms_proto_decoder_free(&c->decoder);
     free(c->index);
+    free(c->index_zlib);
     free(c);
 }
 

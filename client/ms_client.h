@@ -1,5 +1,6 @@
 /* A binary-protocol client connection on a libevent loop (protocol/PROTOCOL.md):
- * connect, HELLO, OPEN_MODEL (the index blob reassembled and CRC-checked),
+ * connect, HELLO (versions 1..2, offering CAP_APO and CAP_INDEX_ZLIB), OPEN_MODEL
+ * (the index blob reassembled, inflated if compressed, and CRC-checked),
  * REQUEST_CELLS batches with consecutive request ids, CANCEL, PING; incoming
  * frames are strictly validated (any bad server frame closes the connection)
  * and handed to the caller's handlers. Used by meshloadgen and by meshload.
@@ -24,7 +25,8 @@ typedef struct ms_client ms_client;
 typedef struct ms_client_handlers {
     /* HELLO_REPLY received: requests may be sent (they may also be sent before). */
     void (*ready)(ms_client *client, const ms_proto_hello_reply *reply, void *arg);
-    /* OPEN_MODEL answered: the whole index blob, CRC-checked. */
+    /* OPEN_MODEL answered: the whole index blob, CRC-checked (and inflated
+     * first when it came compressed). */
     void (*model_opened)(ms_client *client, uint32_t request_id, const ms_proto_model_opened *opened,
                          const uint8_t *index, void *arg);
     /* One PAYLOAD frame (frames of one request come in order, contiguous). */
@@ -49,6 +51,7 @@ typedef struct ms_client_options {
     const char *token;    /* NULL = none */
     const char *agent;    /* e.g. "meshloadgen/0.1" */
     uint32_t max_frame;   /* largest body accepted; 0 = 1 MiB */
+    bool raw_index;       /* do not offer CAP_INDEX_ZLIB: the index comes uncompressed */
 } ms_client_options;
 
 /* Starts connecting; HELLO is queued at once. MS_ERR_ARG for a bad address,

@@ -120,6 +120,7 @@ struct ms_core {
     /* network figures */
     bool connected, model_open;
     uint64_t bytes_received, bytes_in_flight, requests, cancels, reconnects;
+    uint64_t socket_bytes;      /* read from every connection, frames and index included */
     double *latencies;
     size_t latency_count;
 
@@ -265,9 +266,24 @@ static void finish_slot(ms_core *c, uint32_t k)
 
 /* Drops the connection; everything in flight is forgotten (the decode thread
  * knows exactly what arrived and asks for the rest again, as BYTES ranges). */
+/* Adds what the connection read since the last look to the socket total;
+ * true when it read anything. */
+static bool note_socket_bytes(ms_core *c)
+{
+    uint64_t read = ms_client_bytes_read(c->client);
+    if (read == c->last_read)
+        return false;
+    pthread_mutex_lock(&c->lock);
+    c->socket_bytes += read - c->last_read;
+    pthread_mutex_unlock(&c->lock);
+    c->last_read = read;
+    return true;
+}
+
 static void net_drop(ms_core *c, const char *why)
 {
     if (c->client) {
+        note_socket_bytes(c);
         ms_client_free(c->client);
         c->client = NULL;
     }
@@ -598,7 +614,8 @@ static const ms_client_handlers core_handlers = {
 static void net_connect(ms_core *c)
 {
     ms_client_options co = {.host = c->host, .port = c->o.port, .token = c->token,
-                            .agent = c->agent, .max_frame = 1u << 20};
+                            .agent = c->agent, .max_frame = 1u << 20,
+                            .raw_index = c->o.raw_index};
     ms_error err;
     c->last_activity = since_start(c);
     c->last_read = 0;
@@ -655,11 +672,8 @@ static void on_tick(evutil_socket_t fd, short what, void *arg)
         }
         return;
     }
-    uint64_t read = ms_client_bytes_read(c->client);
-    if (read != c->last_read) { /* any frame counts, index data included */
-        c->last_read = read;
+    if (note_socket_bytes(c)) /* any frame counts, index data included */
         c->last_activity = t;
-    }
     bool waiting = !c->ready || c->slots_active > 0;
     if (waiting && t - c->last_activity > c->o.answer_timeout) {
         char why[128];
@@ -1823,6 +1837,7 @@ void ms_core_get_stats(ms_core *c, ms_core_stats *out)
     out->connected = c->connected;
     out->model_open = c->model_open;
     out->bytes_received = c->bytes_received;
+    out->socket_bytes = c->socket_bytes;
     out->bytes_in_flight = c->bytes_in_flight;
     out->requests = c->requests;
     out->cancels = c->cancels;

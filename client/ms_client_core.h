@@ -97,6 +97,7 @@ typedef struct ms_core_options {
     unsigned decode_threads;   /* decoding threads in all (the decode thread and its
                                   helpers); 0 = 2 */
     bool export_frames;        /* stitch a frame after each change (for drawing/tests) */
+    bool raw_index;            /* ask for the model index uncompressed (no CAP_INDEX_ZLIB) */
     ms_core_payload_filter payload_filter;
     void *payload_filter_arg;
 } ms_core_options;
@@ -145,6 +146,8 @@ typedef struct ms_core_stats {
     double tolerance_px;       /* effective geometric tolerance (raised over budget) */
     double first_display;      /* seconds to the first frame with a triangle; < 0 none yet */
     uint64_t bytes_received;   /* payload bytes */
+    uint64_t socket_bytes;     /* everything read from the server (frames, index), counted
+                                  at each loop tick */
     uint64_t bytes_in_flight;  /* requested and not yet received */
     uint64_t requests, cancels, reconnects, refetches, evictions;
     uint32_t cells_shown, cells_split, cells_cached, cells_loading, cells_failed;

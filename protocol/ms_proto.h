@@ -1,4 +1,4 @@
-/* The meshstream wire protocol, version 1: message structs, encoders, and an
+/* The meshstream wire protocol, versions 1 and 2: message structs, encoders, and an
  * incremental frame decoder with strict validation. protocol/PROTOCOL.md is the
  * normative specification; the numbers of sections quoted here are its sections.
  *
@@ -21,9 +21,10 @@
 
 #include "ms_error.h"
 
-/* ---- Constants of version 1 (section numbers refer to PROTOCOL.md) ---- */
+/* ---- Constants (section numbers refer to PROTOCOL.md) ---- */
 
-#define MS_PROTO_VERSION 1u                 /* the version this code speaks */
+#define MS_PROTO_VERSION 2u                 /* the highest version this code speaks */
+#define MS_PROTO_MIN_VERSION 1u             /* the lowest version this code speaks */
 #define MS_PROTO_HEADER_SIZE 12u            /* frame header bytes (section 2) */
 #define MS_PROTO_MIN_FRAME 16384u           /* least max_frame; pre-handshake limit */
 #define MS_PROTO_MAX_FRAME 16777216u        /* greatest max_frame (16 MiB) */
@@ -68,6 +69,8 @@
 #define MS_PROTO_FLAG_LAST 0x01u
 /* Capability bits (section 3). */
 #define MS_PROTO_CAP_APO 0x00000001u
+/* Version 2: the index blob may be sent zlib-compressed (section 4.7). */
+#define MS_PROTO_CAP_INDEX_ZLIB 0x00000002u
 /* HELLO_REPLY server_flags bits. */
 #define MS_PROTO_SERVER_TOKEN_ACCEPTED 0x0001u
 /* CANCEL flags bits. */
@@ -132,6 +135,12 @@ typedef enum ms_proto_stream {
     MS_PROTO_STREAM_GEOMETRY = 0,
     MS_PROTO_STREAM_APO = 1
 } ms_proto_stream;
+
+/* How INDEX_DATA carries the index blob (MODEL_OPENED index_encoding). */
+typedef enum ms_proto_index_encoding {
+    MS_PROTO_INDEX_RAW = 0, /* the blob itself */
+    MS_PROTO_INDEX_ZLIB = 1 /* one zlib (RFC 1950) stream, shorter than the blob */
+} ms_proto_index_encoding;
 
 typedef enum ms_proto_unit {
     MS_PROTO_UNIT_STEPS = 0, /* precision bits (geometry) or octree levels (APO) */
@@ -200,8 +209,9 @@ typedef struct ms_proto_model_opened {
     uint32_t model_handle;   /* >= 1 */
     uint32_t cell_count;     /* [1, MS_PROTO_MAX_CELLS] */
     uint64_t content_id;
-    uint32_t index_size;     /* [1, MS_PROTO_MAX_INDEX_SIZE] bytes */
-    uint32_t index_crc32;    /* zlib crc32 of the whole blob */
+    uint32_t index_size;     /* [1, MS_PROTO_MAX_INDEX_SIZE] bytes of the blob (decoded) */
+    uint32_t index_crc32;    /* zlib crc32 of the whole blob (decoded) */
+    uint8_t index_encoding;  /* ms_proto_index_encoding; ZLIB only with CAP_INDEX_ZLIB */
     uint16_t archive_version; /* >= 1 */
     uint8_t geometry_steps, apo_steps;                     /* as in the catalogue */
     uint8_t permitted_geometry_steps, permitted_apo_steps; /* as in the catalogue */
@@ -343,6 +353,32 @@ ms_status ms_proto_encoded_size(const ms_proto_message *msg, size_t *size, ms_er
  * (NULL argument, or capacity too small: *written is then the size needed). */
 ms_status ms_proto_encode(const ms_proto_message *msg, uint8_t *out, size_t capacity,
                           size_t *written, ms_error *err);
+
+/* ---- The index blob's wire encoding (ms_proto_index.c, section 4.8) ---- */
+
+/* Compresses blob[0..size) into one zlib stream (level 9). On MS_OK, *encoded
+ * is a malloc'd buffer the caller frees, of *encoded_size bytes. Returns
+ * MS_ERR_RANGE (nothing allocated) when the stream would not be shorter than
+ * the blob, in which case the blob is to be sent raw; MS_ERR_ARG for a size of
+ * 0 or above MS_PROTO_MAX_INDEX_SIZE; MS_ERR_NOMEM. */
+ms_status ms_proto_index_deflate(const uint8_t *blob, size_t size, uint8_t **encoded,
+                                 size_t *encoded_size, ms_error *err);
+
+/* Inflates a ZLIB-encoded index into out[0..declared_size) and checks the
+ * CRC-32 of the result, never writing past out + declared_size (a stream that
+ * would inflate further is rejected, not followed). The declared size comes
+ * from MODEL_OPENED and is checked first. Errors, each with one line of text:
+ *   MS_ERR_RANGE    declared_size 0 or above MS_PROTO_MAX_INDEX_SIZE, or
+ *                   encoded_size 0 or not below declared_size;
+ *   MS_ERR_FORMAT   not a zlib stream, truncated (input ends before the
+ *                   stream), inflating to more or to fewer bytes than
+ *                   declared, or bytes after the end of the stream;
+ *   MS_ERR_CORRUPT  the inflated blob fails index_crc32;
+ *   MS_ERR_NOMEM    zlib's own state could not be allocated.
+ * out holds garbage after an error. Thread-safe. */
+ms_status ms_proto_index_inflate(const uint8_t *encoded, size_t encoded_size,
+                                 uint32_t declared_size, uint32_t index_crc32, uint8_t *out,
+                                 ms_error *err);
 
 /* ---- Decoding (ms_proto_decode.c) ---- */
 

@@ -268,7 +268,7 @@ static uint16_t parse_body(ms_proto_decoder *dec, ms_proto_message *msg, char *w
     }
     case MS_PROTO_MODEL_OPENED: {
         ms_proto_model_opened *m = &msg->body.model_opened;
-        if (ms_wire_get16(b + 30) != 0)
+        if (b[31] != 0)
             return MALFORMED("MODEL_OPENED: reserved field is not 0");
         m->model_handle = ms_wire_get32(b);
         m->cell_count = ms_wire_get32(b + 4);
@@ -280,6 +280,7 @@ static uint16_t parse_body(ms_proto_decoder *dec, ms_proto_message *msg, char *w
         m->apo_steps = b[27];
         m->permitted_geometry_steps = b[28];
         m->permitted_apo_steps = b[29];
+        m->index_encoding = b[30];
         return 0;
     }
     case MS_PROTO_CLOSE_MODEL:

@@ -154,7 +154,8 @@ static void write_body(const ms_proto_message *msg, uint8_t *b)
         b[27] = m->apo_steps;
         b[28] = m->permitted_geometry_steps;
         b[29] = m->permitted_apo_steps;
-        ms_wire_put16(b + 30, 0);
+        b[30] = m->index_encoding;
+        b[31] = 0;
         break;
     }
     case MS_PROTO_CLOSE_MODEL:

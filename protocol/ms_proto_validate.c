@@ -377,6 +377,8 @@ static ms_status check_model_opened(check_ctx *c, const ms_proto_model_opened *m
                             MS_PROTO_MAX_INDEX_SIZE);
     if (m->archive_version < 1)
         return OUT_OF_RANGE(c, 24, "archive_version 0");
+    if (m->index_encoding > MS_PROTO_INDEX_ZLIB)
+        return OUT_OF_RANGE(c, 30, "index_encoding %u undefined", m->index_encoding);
     return check_steps(c, 26, m->geometry_steps, m->apo_steps, m->permitted_geometry_steps,
                        m->permitted_apo_steps, "");
 }

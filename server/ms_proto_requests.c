@@ -119,16 +119,18 @@ static void cancel_request(ms_proto_conn *c, ms_cell_request *r)
 static void handle_hello(ms_proto_conn *c, const ms_proto_hello *h)
 {
     uint16_t version;
-    if (ms_proto_choose_version(h->min_version, h->max_version, MS_PROTO_VERSION, MS_PROTO_VERSION,
-                                &version) != MS_OK) {
+    if (ms_proto_choose_version(h->min_version, h->max_version, MS_PROTO_MIN_VERSION,
+                                MS_PROTO_VERSION, &version) != MS_OK) {
         ms_proto_conn_fail(c, MS_PROTO_E_UNSUPPORTED_VERSION,
-                           MS_PROTO_VERSION | (uint64_t)MS_PROTO_VERSION << 16,
+                           MS_PROTO_MIN_VERSION | (uint64_t)MS_PROTO_VERSION << 16,
                            "no common protocol version");
         return;
     }
     const char *token = server_of(c)->config.token;
     c->client_max_frame = h->max_frame;
-    c->capabilities = h->capabilities & MS_PROTO_CAP_APO;
+    /* CAP_INDEX_ZLIB is a version-2 capability: a version-1 peer never gets it. */
+    uint32_t offered = MS_PROTO_CAP_APO | (version >= 2 ? MS_PROTO_CAP_INDEX_ZLIB : 0);
+    c->capabilities = h->capabilities & offered;
     c->token_accepted = token && h->token_length && token_matches(h->token, h->token_length, token);
     ms_proto_message reply = {.type = MS_PROTO_HELLO_REPLY};
     reply.body.hello_reply = c->door->limits;
@@ -226,6 +228,14 @@ static void handle_open_model(ms_proto_conn *c, uint32_t id, const ms_proto_open
     ms_proto_model_opened *mo = &msg.body.model_opened;
     size_t index_size;
     const uint8_t *index = ms_archive_index_bytes(m->archive, &index_size);
+    /* What INDEX_DATA carries: the blob, or its zlib stream (a fifth of it). */
+    const uint8_t *wire = index;
+    size_t wire_size = index_size;
+    if ((c->capabilities & MS_PROTO_CAP_INDEX_ZLIB) && m->index_zlib) {
+        wire = m->index_zlib;
+        wire_size = m->index_zlib_size;
+        mo->index_encoding = MS_PROTO_INDEX_ZLIB;
+    }
     mo->model_handle = slot->handle;
     mo->cell_count = ms_archive_get_header(m->archive)->cell_count;
     mo->content_id = m->content_id;
@@ -240,10 +250,10 @@ static void handle_open_model(ms_proto_conn *c, uint32_t id, const ms_proto_open
     uint32_t chunk = c->client_max_frame - MS_PROTO_INDEX_DATA_FIXED;
     if (chunk > INDEX_CHUNK_BYTES)
         chunk = INDEX_CHUNK_BYTES;
-    for (uint32_t offset = 0; offset < index_size && c->state != MS_CONN_CLOSING;) {
-        uint32_t n = (uint32_t)index_size - offset < chunk ? (uint32_t)index_size - offset : chunk;
+    for (uint32_t offset = 0; offset < wire_size && c->state != MS_CONN_CLOSING;) {
+        uint32_t n = (uint32_t)wire_size - offset < chunk ? (uint32_t)wire_size - offset : chunk;
         ms_error err;
-        if (ms_frame_out_index_data(output(c), id, offset, offset + n == index_size, index + offset,
+        if (ms_frame_out_index_data(output(c), id, offset, offset + n == wire_size, wire + offset,
                                     n, m, &metrics_of(c)->transfers_in_flight, &err) != MS_OK)
             ms_proto_conn_broken(c);
         offset += n;

@@ -8,6 +8,8 @@
 #include <sys/stat.h>
 #include <zlib.h>
 
+#include "ms_proto.h"
+
 void ms_model_ref(ms_model *m) { m->refs++; }
 
 void ms_model_unref(ms_model *m)
@@ -15,6 +17,7 @@ void ms_model_unref(ms_model *m)
     if (!m || --m->refs > 0)
         return;
     ms_archive_close(m->archive);
+    free(m->index_zlib);
     free(m->entry.source);
     free(m);
 }
@@ -105,6 +108,10 @@ static ms_model *load_model(const char *dir, const ms_catalog_entry *entry,
     size_t index_size;
     const uint8_t *index = ms_archive_index_bytes(m->archive, &index_size);
     m->index_crc32 = (uint32_t)crc32_z(0L, index, index_size);
+    /* Not shrinking, or no memory: the blob simply goes out raw. */
+    if (ms_proto_index_deflate(index, index_size, &m->index_zlib, &m->index_zlib_size, NULL) !=
+        MS_OK)
+        m->index_zlib = NULL, m->index_zlib_size = 0;
     uint64_t hash = 1469598103934665603ull;
     for (size_t i = 0; i < index_size; ++i)
         hash = (hash ^ index[i]) * 1099511628211ull;

@@ -31,6 +31,10 @@ typedef struct ms_model {
     ms_archive *archive;
     uint8_t max_apo_levels; /* most APO levels stored in any cell (0: no APO) */
     uint32_t index_crc32;   /* zlib crc32 of the index blob (ms_archive_index_bytes) */
+    /* The index blob as one zlib stream, sent to clients that negotiated
+     * CAP_INDEX_ZLIB (compressed once, at load); NULL when it does not shrink. */
+    uint8_t *index_zlib;
+    size_t index_zlib_size;
     uint64_t content_id;    /* FNV-1a 64 of the index blob, which holds every payload CRC */
     uint64_t file_inode, file_size;
     int64_t file_mtime_ns;

@@ -12,6 +12,8 @@
 #include <stdint.h>
 #include <math.h>
 #include <netinet/in.h>
+#include <poll.h>
+#include <pthread.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -20,12 +22,14 @@
 #include <sys/stat.h>
 #include <time.h>
 #include <unistd.h>
+#include <zlib.h>
 #include <cmocka.h>
 
 #include "ms_archive.h"
 #include "ms_camera_path.h"
 #include "ms_client_core.h"
 #include "ms_nsp_check.h"
+#include "ms_proto.h"
 #include "ms_test.h"
 #include "ms_test_net.h"
 #include "ms_view_decoder.h"
@@ -286,6 +290,194 @@ static void test_stream_equals_direct_decode(void **state)
     ms_core_stop(core);
 }
 
+/* The same view opened cold with the index compressed (the default,
+ * protocol version 2) and raw (raw_index, as a version-1 exchange sends it):
+ * both give exactly the direct decode, and the compressed open reads fewer
+ * bytes from the socket. */
+static void test_compressed_index_same_result(void **state)
+{
+    (void)state;
+    ms_camera cam = key_camera(g->path.count - 1);
+    uint64_t socket_bytes[2];
+    for (int raw = 0; raw < 2; ++raw) {
+        ms_core_options o = base_options();
+        o.export_frames = true;
+        o.raw_index = raw;
+        ms_core *core;
+        ms_error err;
+        assert_int_equal(ms_core_start(&o, &core, &err), MS_OK);
+        ms_core_set_camera(core, &cam);
+        ms_core_frame *frame = NULL;
+        ms_core_stats st;
+        if (!wait_complete(core, WAIT_SECONDS, &st, &frame))
+            fail_msg("%s index: view not complete: %s", raw ? "raw" : "compressed", st.error);
+        assert_non_null(frame);
+        assert_true(st.first_display >= 0);
+        assert_int_equal(st.cells_failed, 0);
+        check_equals_direct(frame, &cam);
+        sleep_s(0.2); /* a few loop ticks: every byte read is counted */
+        ms_core_get_stats(core, &st);
+        socket_bytes[raw] = st.socket_bytes;
+        ms_core_frame_free(frame);
+        ms_core_stop(core);
+    }
+    size_t index_size;
+    ms_archive_index_bytes(g->archive, &index_size);
+    /* The payload requests are the same; the index shrinks by more than half. */
+    assert_true(socket_bytes[0] + index_size / 2 < socket_bytes[1]);
+}
+
+/* A loopback listener on an ephemeral port (the kernel accepts for it). */
+static int listen_loopback(uint16_t *port)
+{
+    int fd = socket(AF_INET, SOCK_STREAM, 0);
+    assert_true(fd >= 0);
+    struct sockaddr_in sin = {.sin_family = AF_INET, .sin_addr.s_addr = htonl(INADDR_LOOPBACK)};
+    assert_int_equal(bind(fd, (struct sockaddr *)&sin, sizeof sin), 0);
+    assert_int_equal(listen(fd, 16), 0);
+    socklen_t len = sizeof sin;
+    assert_int_equal(getsockname(fd, (struct sockaddr *)&sin, &len), 0);
+    *port = ntohs(sin.sin_port);
+    return fd;
+}
+
+/* Runs a core against port with short time-outs until it gives up (at most
+ * 15 s); returns how long that took, the last stats in *st. */
+static double run_until_error(uint16_t port, ms_core_stats *st)
+{
+    ms_core_options o = base_options();
+    o.port = port;
+    o.answer_timeout = 0.5;
+    o.give_up_seconds = 1.5;
+    ms_core *core;
+    ms_error err;
+    assert_int_equal(ms_core_start(&o, &core, &err), MS_OK);
+    ms_camera cam = key_camera(0);
+    ms_core_set_camera(core, &cam);
+    double t0 = now_s();
+    do {
+        sleep_s(0.02);
+        ms_core_get_stats(core, st);
+    } while (!st->error[0] && now_s() < t0 + 15.0);
+    double took = now_s() - t0;
+    ms_core_stop(core);
+    return took;
+}
+
+/* A server that speaks version 2 and sends a compressed index that inflates
+ * past its declared size (a zip bomb) on every connection. */
+typedef struct hostile_server {
+    int fd;
+    pthread_t thread;
+    volatile int stop;
+    int served;
+} hostile_server;
+
+static void hostile_send(int fd, const ms_proto_message *m)
+{
+    uint8_t out[MS_PROTO_HEADER_SIZE + 65536];
+    size_t n = 0;
+    if (ms_proto_encode(m, out, sizeof out, &n, NULL) == MS_OK)
+        (void)!write(fd, out, n);
+}
+
+/* Answers HELLO, then OPEN_MODEL with the bomb; then waits for the close. */
+static void hostile_conversation(int conn, const uint8_t *bomb, size_t bomb_size)
+{
+    ms_proto_decoder dec;
+    ms_proto_decoder_config dc = {MS_PROTO_ROLE_SERVER, MS_PROTO_MIN_FRAME, 64};
+    ms_proto_decoder_init(&dec, &dc, NULL);
+    uint8_t buf[4096];
+    double until = now_s() + 5.0;
+    for (bool opened = false; !opened && now_s() < until;) {
+        struct pollfd p = {conn, POLLIN, 0};
+        if (poll(&p, 1, 100) <= 0)
+            continue;
+        ssize_t got = read(conn, buf, sizeof buf);
+        if (got <= 0)
+            break;
+        for (size_t at = 0; at < (size_t)got;) {
+            size_t used;
+            ms_proto_message m;
+            bool have;
+            ms_proto_fault fault;
+            if (ms_proto_decoder_feed(&dec, buf + at, (size_t)got - at, &used, &m, &have, &fault,
+                                      NULL) != MS_OK)
+                break;
+            at += used;
+            if (have && m.type == MS_PROTO_HELLO) {
+                ms_proto_message r = {.type = MS_PROTO_HELLO_REPLY};
+                r.body.hello_reply = (ms_proto_hello_reply){
+                    .version = 2, .capabilities = MS_PROTO_CAP_APO | MS_PROTO_CAP_INDEX_ZLIB,
+                    .max_frame = MS_PROTO_MIN_FRAME, .max_batch = 64, .max_outstanding = 1024,
+                    .max_queued_bytes = 1u << 26, .max_open_models = 4};
+                hostile_send(conn, &r);
+            } else if (have && m.type == MS_PROTO_OPEN_MODEL) {
+                ms_proto_message r = {.type = MS_PROTO_MODEL_OPENED, .request_id = m.request_id};
+                r.body.model_opened = (ms_proto_model_opened){
+                    .model_handle = 1, .cell_count = 1, .index_size = 1u << 20,
+                    .archive_version = 1, .geometry_steps = 16, .permitted_geometry_steps = 16,
+                    .index_encoding = MS_PROTO_INDEX_ZLIB};
+                hostile_send(conn, &r);
+                ms_proto_message d = {.type = MS_PROTO_INDEX_DATA, .request_id = m.request_id,
+                                      .flags = MS_PROTO_FLAG_LAST};
+                d.body.index_data = (ms_proto_index_data){0, bomb, (uint32_t)bomb_size};
+                hostile_send(conn, &d);
+                opened = true;
+            }
+        }
+    }
+    for (; now_s() < until;) { /* until the client hangs up */
+        struct pollfd p = {conn, POLLIN, 0};
+        if (poll(&p, 1, 100) > 0 && read(conn, buf, sizeof buf) <= 0)
+            break;
+    }
+    ms_proto_decoder_free(&dec);
+}
+
+static void *hostile_serve(void *arg)
+{
+    hostile_server *h = arg;
+    /* 8 MiB of zeros: about 8 KB of zlib, declared as 1 MiB. */
+    size_t big = 8u << 20;
+    uint8_t *zeros = calloc(1, big);
+    uLongf bomb_size = compressBound(big);
+    uint8_t *bomb = malloc(bomb_size);
+    compress2(bomb, &bomb_size, zeros, big, 9);
+    free(zeros);
+    while (!h->stop) {
+        struct pollfd p = {h->fd, POLLIN, 0};
+        if (poll(&p, 1, 50) <= 0)
+            continue;
+        int conn = accept(h->fd, NULL, NULL);
+        if (conn < 0)
+            continue;
+        hostile_conversation(conn, bomb, bomb_size);
+        close(conn);
+        h->served++;
+    }
+    free(bomb);
+    return NULL;
+}
+
+static void test_hostile_compressed_index(void **state)
+{
+    (void)state;
+    uint16_t port;
+    hostile_server h = {.fd = listen_loopback(&port)};
+    assert_int_equal(pthread_create(&h.thread, NULL, hostile_serve, &h), 0);
+    ms_core_stats st;
+    run_until_error(port, &st);
+    h.stop = 1;
+    pthread_join(h.thread, NULL);
+    close(h.fd);
+    assert_true(h.served >= 1);
+    if (!strstr(st.warning, "inflates to more than the declared 1048576 bytes"))
+        fail_msg("warning '%s', error '%s'", st.warning, st.error);
+    assert_false(st.model_open);
+    assert_false(st.view_complete);
+}
+
 /* The server dies mid-stream and comes back on the same port: the client
  * reconnects, resumes and completes, with the same mesh. */
 static void test_server_killed_and_restarted(void **state)
@@ -441,30 +633,10 @@ static void test_corrupt_payload_reported(void **state)
 static void test_server_not_answering(void **state)
 {
     (void)state;
-    int fd = socket(AF_INET, SOCK_STREAM, 0);
-    assert_true(fd >= 0);
-    struct sockaddr_in sin = {.sin_family = AF_INET, .sin_addr.s_addr = htonl(INADDR_LOOPBACK)};
-    assert_int_equal(bind(fd, (struct sockaddr *)&sin, sizeof sin), 0);
-    assert_int_equal(listen(fd, 16), 0);
-    socklen_t len = sizeof sin;
-    assert_int_equal(getsockname(fd, (struct sockaddr *)&sin, &len), 0);
-    ms_core_options o = base_options();
-    o.port = ntohs(sin.sin_port);
-    o.answer_timeout = 0.5;
-    o.give_up_seconds = 1.5;
-    ms_core *core;
-    ms_error err;
-    assert_int_equal(ms_core_start(&o, &core, &err), MS_OK);
-    ms_camera cam = key_camera(0);
-    ms_core_set_camera(core, &cam);
+    uint16_t port;
+    int fd = listen_loopback(&port);
     ms_core_stats st;
-    double t0 = now_s();
-    do {
-        sleep_s(0.02);
-        ms_core_get_stats(core, &st);
-    } while (!st.error[0] && now_s() < t0 + 15.0);
-    double took = now_s() - t0;
-    ms_core_stop(core);
+    double took = run_until_error(port, &st);
     close(fd);
     assert_non_null(strstr(st.error, "no usable connection"));
     assert_non_null(strstr(st.warning, "sent nothing"));
@@ -658,6 +830,8 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_view_append_and_forget),
         cmocka_unit_test(test_stream_equals_direct_decode),
+        cmocka_unit_test(test_compressed_index_same_result),
+        cmocka_unit_test(test_hostile_compressed_index),
         cmocka_unit_test(test_server_killed_and_restarted),
         cmocka_unit_test(test_turning_away_cancels),
         cmocka_unit_test(test_corrupt_payload_refetched_once),

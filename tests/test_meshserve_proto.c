@@ -316,6 +316,51 @@ static void test_catalogue_and_open(void **state)
     ms_test_conn_close(&c);
 }
 
+/* Protocol version 2's compressed index, and its interplay with version 1:
+ * the index comes ZLIB-encoded exactly when the client offered
+ * CAP_INDEX_ZLIB in a version-2 HELLO; either way it is the archive's blob
+ * (ms_test_conn_open_model inflates and CRC-checks it). A version-1 HELLO
+ * never gets the capability, even with its bit set. */
+static void test_index_compressed(void **state)
+{
+    server_fixture *f = *state;
+    static const struct {
+        uint16_t max_version;
+        uint32_t asked;
+        uint16_t version;
+        uint32_t granted;
+        uint8_t encoding;
+    } cases[] = {
+        {2, MS_PROTO_CAP_APO | MS_PROTO_CAP_INDEX_ZLIB, 2,
+         MS_PROTO_CAP_APO | MS_PROTO_CAP_INDEX_ZLIB, MS_PROTO_INDEX_ZLIB},
+        {2, MS_PROTO_CAP_APO, 2, MS_PROTO_CAP_APO, MS_PROTO_INDEX_RAW},
+        {1, MS_PROTO_CAP_APO | MS_PROTO_CAP_INDEX_ZLIB, 1, MS_PROTO_CAP_APO, MS_PROTO_INDEX_RAW},
+        /* A later client: the server picks 2 and ignores the bits it does not know. */
+        {9, 0x80000000u | MS_PROTO_CAP_INDEX_ZLIB, 2, MS_PROTO_CAP_INDEX_ZLIB,
+         MS_PROTO_INDEX_ZLIB},
+    };
+    ms_archive *a = open_archive(f, "dragon");
+    size_t size;
+    const uint8_t *expected = ms_archive_index_bytes(a, &size);
+    for (size_t i = 0; i < sizeof cases / sizeof *cases; ++i) {
+        ms_test_conn c;
+        assert_int_equal(ms_test_conn_open(&c, f->port), 0);
+        ms_proto_hello_reply reply;
+        ms_test_conn_hello_with(&c, TOKEN, cases[i].max_version, cases[i].asked, &reply);
+        assert_int_equal(reply.version, cases[i].version);
+        assert_int_equal(reply.capabilities, cases[i].granted);
+        ms_proto_model_opened o;
+        uint8_t *index;
+        assert_true(ms_test_conn_open_model(&c, "dragon", 5, &o, &index, NULL) >= 1);
+        assert_int_equal(o.index_encoding, cases[i].encoding);
+        assert_int_equal(o.index_size, size);
+        assert_memory_equal(index, expected, size);
+        free(index);
+        ms_test_conn_close(&c);
+    }
+    ms_archive_close(a);
+}
+
 static void check_payloads_equal(const server_fixture *f, const char *name, uint32_t cells)
 {
     ms_test_conn c;
@@ -695,8 +740,8 @@ static void test_malformed_frames(void **state)
     header(frame, 24, MS_PROTO_HELLO, 0, 0);
     memcpy(frame + 12, "XSTP\1\0\1\0\0\0\0\0\0\100\0\0", 16);
     expect_fatal(f, false, frame, 36, MS_PROTO_E_MALFORMED_FRAME, UINT64_MAX);
-    memcpy(frame + 12, "MSTP\2\0\3\0\0\0\0\0\0\100\0\0", 16);
-    expect_fatal(f, false, frame, 36, MS_PROTO_E_UNSUPPORTED_VERSION, 1u | 1u << 16);
+    memcpy(frame + 12, "MSTP\3\0\4\0\0\0\0\0\0\100\0\0", 16);
+    expect_fatal(f, false, frame, 36, MS_PROTO_E_UNSUPPORTED_VERSION, 1u | 2u << 16);
     memcpy(frame + 12, "MSTP\1\0\1\0\0\0\0\0\0\100\0\0", 16);
     expect_fatal(f, true, frame, 36, MS_PROTO_E_UNEXPECTED_MESSAGE, MS_PROTO_HELLO);
     /* A request id that breaks the rule of its type. */
@@ -964,6 +1009,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test_setup_teardown(test_catalogue_and_open, start_server, stop_server),
+        cmocka_unit_test_setup_teardown(test_index_compressed, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_payloads_equal_archive, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_prefix_ranges, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_priorities, start_server, stop_server),

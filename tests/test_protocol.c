@@ -11,6 +11,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <dirent.h>
+#include <zlib.h>
 #include <cmocka.h>
 
 #include "ms_proto.h"
@@ -253,6 +254,7 @@ static void assert_same(const ms_proto_message *a, const ms_proto_message *b)
         assert_int_equal(x->apo_steps, y->apo_steps);
         assert_int_equal(x->permitted_geometry_steps, y->permitted_geometry_steps);
         assert_int_equal(x->permitted_apo_steps, y->permitted_apo_steps);
+        assert_int_equal(x->index_encoding, y->index_encoding);
         break;
     }
     case MS_PROTO_CLOSE_MODEL:
@@ -448,7 +450,8 @@ static bool sample_message(unsigned i, ms_proto_message *m)
             .model_handle = UINT32_MAX, .cell_count = MS_PROTO_MAX_CELLS,
             .content_id = UINT64_MAX, .index_size = MS_PROTO_MAX_INDEX_SIZE,
             .index_crc32 = UINT32_MAX, .archive_version = UINT16_MAX, .geometry_steps = 64,
-            .apo_steps = 64, .permitted_geometry_steps = 64, .permitted_apo_steps = 64};
+            .apo_steps = 64, .permitted_geometry_steps = 64, .permitted_apo_steps = 64,
+            .index_encoding = MS_PROTO_INDEX_ZLIB};
         return true;
     case 13:
         m->type = MS_PROTO_CLOSE_MODEL;
@@ -669,6 +672,8 @@ static void test_encoder_refuses_out_of_range(void **state)
     REFUSE((sample_message(12, &m), m.body.model_opened.cell_count = MS_PROTO_MAX_CELLS + 1),
            MS_PROTO_E_FIELD_OUT_OF_RANGE);
     REFUSE((sample_message(11, &m), m.body.model_opened.permitted_geometry_steps = 2),
+           MS_PROTO_E_FIELD_OUT_OF_RANGE);
+    REFUSE((sample_message(12, &m), m.body.model_opened.index_encoding = MS_PROTO_INDEX_ZLIB + 1),
            MS_PROTO_E_FIELD_OUT_OF_RANGE);
     REFUSE((sample_message(14, &m), m.request_id = 0), MS_PROTO_E_MALFORMED_FRAME);
     REFUSE((sample_message(6, &m), m.flags = MS_PROTO_FLAG_LAST), MS_PROTO_E_MALFORMED_FRAME);
@@ -1044,6 +1049,13 @@ static void test_out_of_range_fields(void **state)
     f[12 + 26] = 65; /* geometry_steps above 64 */
     f[12 + 28] = 1;
     expect_fault(MS_PROTO_ROLE_CLIENT, 0, f, 44, MS_PROTO_E_FIELD_OUT_OF_RANGE, true, 0, 0, 26);
+    /* Version 2's index_encoding: 0 and 1 only; the byte after it is reserved. */
+    f[12 + 26] = 1;
+    f[12 + 30] = 2;
+    expect_fault(MS_PROTO_ROLE_CLIENT, 0, f, 44, MS_PROTO_E_FIELD_OUT_OF_RANGE, true, 0, 0, 30);
+    f[12 + 30] = MS_PROTO_INDEX_ZLIB;
+    f[12 + 31] = 1;
+    expect_fault(MS_PROTO_ROLE_CLIENT, 0, f, 44, MS_PROTO_E_MALFORMED_FRAME, true, 0, 0, 0);
     /* ERROR frame whose fatal flag contradicts its code. */
     raw_header(f, 18, MS_PROTO_ERROR, 0, 0);
     memset(f + 12, 0, 18);
@@ -1415,6 +1427,78 @@ static void write_seed(const char *dir, const char *name, uint8_t control, const
     fclose(f);
 }
 
+/* A ZLIB-encoded index as MODEL_OPENED + INDEX_DATA frames (all valid frames:
+ * the fuzz target inflates the stream), declared_delta bytes off the real size,
+ * the CRC off by crc_xor, the stream cut by cut bytes or followed by trailing
+ * junk, in one frame or two. */
+typedef struct index_seed {
+    const char *name;
+    int declared_delta;
+    uint32_t crc_xor;
+    size_t cut, trailing;
+    bool two_frames;
+    uint8_t encoding;
+} index_seed;
+
+static void write_index_seed(const char *dir, const index_seed *x, const uint8_t *index_blob,
+                             uint32_t index_blob_size, const uint8_t *z, size_t z_size)
+{
+    static uint8_t out[4][4096];
+    size_t sizes[4] = {0}, frames = 0;
+    ms_proto_message m = {.type = MS_PROTO_MODEL_OPENED, .request_id = 7};
+    m.body.model_opened = (ms_proto_model_opened){
+        .model_handle = 1, .cell_count = 1, .index_size = (uint32_t)((int)index_blob_size + x->declared_delta),
+        .index_crc32 = (uint32_t)crc32_z(0L, index_blob, index_blob_size) ^ x->crc_xor, .archive_version = 1,
+        .geometry_steps = 16, .permitted_geometry_steps = 16,
+        .index_encoding = MS_PROTO_INDEX_ZLIB};
+    uint8_t *f = out[frames];
+    sizes[frames++] = encode(&m, f, sizeof out[0]);
+    f[MS_PROTO_HEADER_SIZE + 30] = x->encoding; /* the encoder refuses a bad one */
+    static uint8_t wire[4096];
+    size_t wire_size = z_size - x->cut;
+    memcpy(wire, z, wire_size);
+    memset(wire + wire_size, 'x', x->trailing);
+    wire_size += x->trailing;
+    size_t split = x->two_frames ? wire_size / 2 : wire_size;
+    for (size_t at = 0; at < wire_size; at = split, split = wire_size) {
+        m = (ms_proto_message){.type = MS_PROTO_INDEX_DATA, .request_id = 7};
+        m.flags = split == wire_size ? MS_PROTO_FLAG_LAST : 0;
+        m.body.index_data = (ms_proto_index_data){(uint32_t)at, wire + at, (uint32_t)(split - at)};
+        sizes[frames] = encode(&m, out[frames], sizeof out[0]);
+        ++frames;
+    }
+    static uint8_t all[3 * 4096];
+    size_t n = 0;
+    for (size_t i = 0; i < frames; ++i)
+        memcpy(all + n, out[i], sizes[i]), n += sizes[i];
+    write_seed(dir, x->name, x->two_frames ? 3 | 0x14 : 3, all, n, NULL, 0);
+}
+
+static void write_index_seeds(const char *dir)
+{
+    static uint8_t index_blob[16000];
+    for (size_t i = 0; i < sizeof index_blob; i += 80)
+        index_blob[i] = (uint8_t)(i / 80), index_blob[i + 8] = (uint8_t)(i % 7);
+    uint8_t *z;
+    size_t z_size;
+    assert_int_equal(ms_proto_index_deflate(index_blob, sizeof index_blob, &z, &z_size, NULL), MS_OK);
+    assert_true(z_size < 2000);
+    const index_seed seeds[] = {
+        {"client-ok-index-zlib.bin", 0, 0, 0, 0, false, MS_PROTO_INDEX_ZLIB},
+        {"client-ok-index-zlib-two-frames.bin", 0, 0, 0, 0, true, MS_PROTO_INDEX_ZLIB},
+        {"client-ok-index-zlib-truncated.bin", 0, 0, 3, 0, false, MS_PROTO_INDEX_ZLIB},
+        {"client-ok-index-zlib-crc-mismatch.bin", 0, 1, 0, 0, false, MS_PROTO_INDEX_ZLIB},
+        {"client-ok-index-zlib-declared-short.bin", -1, 0, 0, 0, false, MS_PROTO_INDEX_ZLIB},
+        {"client-ok-index-zlib-declared-long.bin", 1, 0, 0, 0, false, MS_PROTO_INDEX_ZLIB},
+        {"client-ok-index-zlib-trailing.bin", 0, 0, 0, 3, false, MS_PROTO_INDEX_ZLIB},
+        {"client-ok-index-zlib-bomb.bin", -15000, 0, 0, 0, false, MS_PROTO_INDEX_ZLIB},
+        {"client-FIELD_OUT_OF_RANGE-index-encoding.bin", 0, 0, 0, 0, false, 2},
+    };
+    for (size_t i = 0; i < sizeof seeds / sizeof *seeds; ++i)
+        write_index_seed(dir, &seeds[i], index_blob, sizeof index_blob, z, z_size);
+    free(z);
+}
+
 static void write_corpus(const char *dir)
 {
     fill_fixtures();
@@ -1487,6 +1571,7 @@ static void write_corpus(const char *dir)
     write_seed(dir, "client-FIELD_OUT_OF_RANGE-payload-end.bin", 3, f, 32, NULL, 0);
     raw_header(f, 0, MS_PROTO_LIST_CATALOGUE, 0, 1);
     write_seed(dir, "client-UNEXPECTED_MESSAGE.bin", 3, f, 12, NULL, 0);
+    write_index_seeds(dir);
 }
 
 int main(void)

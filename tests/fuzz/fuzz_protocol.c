@@ -14,6 +14,11 @@
  * usable and fatal ones make it refuse everything after; every fault can be
  * answered with an encodable ERROR frame; error texts are one line.
  *
+ * A ZLIB-encoded index (MODEL_OPENED then INDEX_DATA frames, client role) is
+ * reassembled as the client does and inflated with ms_proto_index_inflate:
+ * only its documented statuses may come out, and MS_OK only for a blob whose
+ * CRC-32 matches. Declared sizes above 1 MiB are not inflated (speed).
+ *
  * tests/test_protocol.c includes this file to replay tests/corpus/protocol/
  * in `make test`; it then calls ms_fuzz_protocol_one() directly. */
 #include <stdbool.h>
@@ -91,6 +96,53 @@ static bool ms_fuzz_one_line(const char *text)
     return text[0] != '\0' && strchr(text, '\n') == NULL && strchr(text, '\r') == NULL;
 }
 
+/* A compressed index being reassembled (at most one at a time). */
+typedef struct ms_fuzz_index {
+    ms_proto_model_opened opened;
+    uint32_t request_id;
+    uint8_t *wire;
+    size_t have;
+    bool active;
+} ms_fuzz_index;
+
+#define MS_FUZZ_MAX_INFLATE (1u << 20)
+
+static void ms_fuzz_index_message(ms_fuzz_index *x, const ms_proto_message *msg)
+{
+    if (msg->type == MS_PROTO_MODEL_OPENED) {
+        free(x->wire);
+        memset(x, 0, sizeof *x);
+        x->opened = msg->body.model_opened;
+        x->request_id = msg->request_id;
+        x->active = x->opened.index_encoding == MS_PROTO_INDEX_ZLIB &&
+                    x->opened.index_size <= MS_FUZZ_MAX_INFLATE;
+        return;
+    }
+    const ms_proto_index_data *d = &msg->body.index_data;
+    if (msg->type != MS_PROTO_INDEX_DATA || !x->active || msg->request_id != x->request_id ||
+        d->offset != x->have || (uint64_t)d->offset + d->data_length >= x->opened.index_size) {
+        x->active = false;
+        return;
+    }
+    uint8_t *grown = realloc(x->wire, x->have + d->data_length);
+    MS_FUZZ_CHECK(grown != NULL);
+    x->wire = grown;
+    memcpy(x->wire + x->have, d->data, d->data_length);
+    x->have += d->data_length;
+    if (!(msg->flags & MS_PROTO_FLAG_LAST))
+        return;
+    uint8_t *out = malloc(x->opened.index_size);
+    MS_FUZZ_CHECK(out != NULL);
+    ms_error err;
+    ms_status s = ms_proto_index_inflate(x->wire, x->have, x->opened.index_size,
+                                         x->opened.index_crc32, out, &err);
+    MS_FUZZ_CHECK(s == MS_OK || s == MS_ERR_FORMAT || s == MS_ERR_CORRUPT || s == MS_ERR_RANGE);
+    MS_FUZZ_CHECK(s == MS_OK || ms_fuzz_one_line(err.text));
+    free(out);
+    x->active = false;
+}
+
+
 /* Runs one input; returns the number of messages decoded and, if first_fault
  * is non-NULL, the code of the first fault (0 if none), for tests. */
 static size_t ms_fuzz_protocol_one(const uint8_t *data, size_t size, uint16_t *first_fault)
@@ -123,6 +175,7 @@ static size_t ms_fuzz_protocol_one(const uint8_t *data, size_t size, uint16_t *f
     bool dead = false;
     uint8_t *reencoded = malloc(MS_PROTO_HEADER_SIZE + MS_PROTO_MIN_FRAME);
     MS_FUZZ_CHECK(reencoded != NULL);
+    ms_fuzz_index index = {0};
 
     while (pos < total && !dead) {
         size_t chunk = total - pos;
@@ -165,6 +218,8 @@ static size_t ms_fuzz_protocol_one(const uint8_t *data, size_t size, uint16_t *f
                 MS_FUZZ_CHECK(memcmp(reencoded, stream + frame_start, written) == 0);
                 if (msg.type == MS_PROTO_REQUEST_CELLS)
                     ms_fuzz_resolve(&msg.body.request_cells);
+                if (client_role)
+                    ms_fuzz_index_message(&index, &msg);
                 frame_start = pos;
                 continue;
             }
@@ -210,6 +265,7 @@ static size_t ms_fuzz_protocol_one(const uint8_t *data, size_t size, uint16_t *f
         }
     }
     ms_proto_decoder_free(&dec);
+    free(index.wire);
     free(reencoded);
     free(stream);
     return messages;

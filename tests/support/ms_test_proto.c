@@ -122,10 +122,16 @@ int ms_test_conn_recv(ms_test_conn *c, ms_proto_message *msg, double timeout)
 
 void ms_test_conn_hello(ms_test_conn *c, const char *token, ms_proto_hello_reply *reply)
 {
+    ms_test_conn_hello_with(c, token, 1, MS_PROTO_CAP_APO, reply);
+}
+
+void ms_test_conn_hello_with(ms_test_conn *c, const char *token, uint16_t max_version,
+                             uint32_t capabilities, ms_proto_hello_reply *reply)
+{
     ms_proto_message m = {.type = MS_PROTO_HELLO};
     m.body.hello.min_version = 1;
-    m.body.hello.max_version = 1;
-    m.body.hello.capabilities = MS_PROTO_CAP_APO;
+    m.body.hello.max_version = max_version;
+    m.body.hello.capabilities = capabilities;
     m.body.hello.max_frame = 1u << 20;
     m.body.hello.token = token;
     m.body.hello.token_length = token ? (uint16_t)strlen(token) : 0;
@@ -187,6 +193,16 @@ uint32_t ms_test_conn_open_model(ms_test_conn *c, const char *name, uint32_t id,
         memcpy(blob + have, m.body.index_data.data, m.body.index_data.data_length);
         have += m.body.index_data.data_length;
         last = m.flags & MS_PROTO_FLAG_LAST;
+    }
+    if (o.index_encoding == MS_PROTO_INDEX_ZLIB) {
+        uint8_t *inflated = malloc(o.index_size);
+        ms_error err;
+        if (ms_proto_index_inflate(blob, have, o.index_size, o.index_crc32, inflated, &err) !=
+            MS_OK)
+            fail_msg("compressed index: %s", err.text);
+        free(blob);
+        blob = inflated;
+        have = o.index_size;
     }
     assert_int_equal(have, o.index_size);
     if (index)

@@ -32,9 +32,12 @@ int ms_test_conn_send_raw(ms_test_conn *conn, const void *data, size_t size);
  * a frame the decoder rejects. */
 int ms_test_conn_recv(ms_test_conn *conn, ms_proto_message *msg, double timeout_seconds);
 
-/* HELLO with token (may be NULL) and CAP_APO; receives HELLO_REPLY into reply
- * (fails the test otherwise). */
+/* HELLO with token (may be NULL), versions 1..1 and CAP_APO, as a version-1
+ * client sends it; receives HELLO_REPLY into reply (fails the test otherwise). */
 void ms_test_conn_hello(ms_test_conn *conn, const char *token, ms_proto_hello_reply *reply);
+/* The same with versions 1..max_version and the given capability bits. */
+void ms_test_conn_hello_with(ms_test_conn *conn, const char *token, uint16_t max_version,
+                             uint32_t capabilities, ms_proto_hello_reply *reply);
 
 /* Receives frames until an ERROR; fails the test on time-out or end of stream.
  * Returns the error code and stores the header id and body. Skips other frames. */
@@ -42,7 +45,8 @@ uint16_t ms_test_conn_expect_error(ms_test_conn *conn, uint32_t *request_id,
                                    ms_proto_error_body *body);
 
 /* OPEN_MODEL name with id; receives MODEL_OPENED and the index blob (malloc'd
- * into *index). Returns the handle, 0 when the server answered with an ERROR
+ * into *index; inflated and CRC-checked when it came ZLIB-encoded, else as
+ * received). Returns the handle, 0 when the server answered with an ERROR
  * (whose code goes to *error_code). */
 uint32_t ms_test_conn_open_model(ms_test_conn *conn, const char *name, uint32_t id,
                                  ms_proto_model_opened *opened, uint8_t **index,
