@@ -2,6 +2,9 @@
 #include "ms_nsp_encode.h"
 
 #include <pthread.h>
+#ifdef __GLIBC__
+#include <malloc.h>
+#endif
 #include <stdio.h>
 #include <stdbool.h>
 #include <stdlib.h>
@@ -487,6 +490,18 @@ static ms_status full_precision_mesh(const ms_nsp_build *b, uint32_t node, ms_me
     return s;
 }
 
+/* Returns freed heap memory to the kernel. An internal cell's APO work frees
+ * tens to hundreds of MB in large blocks that glibc keeps (its mmap threshold
+ * grows with them), and Embree takes its BVH memory with mmap, not from that
+ * heap: without this, the union's temporaries and the last build's arrays stay in
+ * the RSS under the next build. */
+static void give_back_memory(void)
+{
+#ifdef __GLIBC__
+    malloc_trim(0);
+#endif
+}
+
 /* Frees the children's parts of node (its M has been built from them). */
 static void free_child_parts(pool *p, uint32_t node)
 {
@@ -555,6 +570,8 @@ static ms_status apo_cell(pool *p, uint32_t node, unsigned hi, ms_apo_builder *b
         s = ms_bake_apo_union(p->tasks[node].parts, nc, &b->box, &M, &owned, err);
     /* the children's parts are in M now: free them before the build's peak */
     free_child_parts(p, node);
+    if (!leaf)
+        give_back_memory();
     bool measured = ap->accuracy && !leaf;
     if (s == MS_OK && measured && !ap->sample_leaves)
         s = full_precision_mesh(b, node, &reference, err);
@@ -714,6 +731,8 @@ static void *worker(void *arg)
             p->tasks[node].starts = NULL;
         }
         free_child_parts(p, node);
+        if (b->nodes[node].first_child != MS_NSP_NONE && p->params->apo && p->params->apo->enabled)
+            give_back_memory();
         pthread_mutex_lock(&p->lock);
         if (s == MS_OK)
             s = finish_cell(p, node, &out, &err);
