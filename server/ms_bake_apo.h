@@ -2,9 +2,10 @@
  * cell, the octree of normals rooted at the cell's cube, built around m (the
  * cell's mesh as the decoder gives it at the cell's bits_max) from M (the surface
  * whose normals are sampled: a leaf's input triangles at full precision; for an
- * internal cell the union of its children's m, ms_bake_apo_union, i.e. log2(n)
- * bits finer than the cell's own m), encoded into texel words and compressed as
- * the archive stores them (ms_apo_stream.h).
+ * internal cell the union of its children's m, log2(n) bits finer than the
+ * cell's own m, vertices at the means of the input vertices they stand for:
+ * ms_bake_apo_part, ms_bake_apo_union, ms_bake_apo_smooth), encoded into texel
+ * words and compressed as the archive stores them (ms_apo_stream.h).
  *
  * Depth rule: the cell's finest geometric precision, in octree levels of its own
  * cube, is g = bits_max - log2(n) * depth (its grid has 2^g steps per side); the
