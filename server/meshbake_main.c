@@ -36,7 +36,8 @@ static void print_usage(FILE *out)
     fputs("usage: meshbake IN -o ARCHIVE_DIR [--name NAME] [--bits 16] [--n 4]\n"
           "                [--root-bits 7] [--min-tris 8000] [--threads N] [--mem MB]\n"
           "                [--tmp DIR] [--no-apo] [--apo-lead 3] [--apo-max-depth 10]\n"
-          "                [--apo-tol 0.2] [--apo-init-depth 0] [--apo-verify] [--json]\n"
+          "                [--apo-tol 0.2] [--apo-init-depth 0] [--apo-verify]\n"
+          "                [--apo-sample-leaves] [--apo-accuracy] [--json]\n"
           "       meshbake --info FILE [--json]\n"
           "\n"
           "Reads a mesh (PLY ascii/binary, OBJ or OFF, optionally gzip-compressed).\n"
@@ -63,6 +64,11 @@ static void print_usage(FILE *out)
           "                    spread more than T radians (default 0.2)\n"
           "  --apo-init-depth D  split unconditionally above depth D (default 0)\n"
           "  --apo-verify      decode every chunk back and check it gives the built tree\n"
+          "  --apo-sample-leaves  sample an internal cell's normals on every full-precision\n"
+          "                    triangle below it (the former rule; memory grows with the\n"
+          "                    model) instead of its children's meshes\n"
+          "  --apo-accuracy    measure the internal cells' chunks against the full-precision\n"
+          "                    triangles below them (degrees; needs that memory too)\n"
           "\n"
           "  --info            parse FILE completely and report format, counts, bounding box,\n"
           "                    faces dropped by the cleaning policy, isolated vertices, bytes\n"
@@ -129,6 +135,8 @@ static int parse_options(int argc, char **argv, bake_options *options)
         {"apo-init-depth", required_argument, NULL, 'I'},
         {"apo-tol", required_argument, NULL, 'E'},
         {"apo-verify", no_argument, NULL, 'V'},
+        {"apo-sample-leaves", no_argument, NULL, 'S'},
+        {"apo-accuracy", no_argument, NULL, 'C'},
         {NULL, 0, NULL, 0},
     };
     memset(options, 0, sizeof *options);
@@ -157,6 +165,8 @@ static int parse_options(int argc, char **argv, bake_options *options)
         case 'A': options->bake.apo.enabled = true; break;
         case 'a': options->bake.apo.enabled = false; break;
         case 'V': options->bake.apo.verify = true; break;
+        case 'S': options->bake.apo.sample_leaves = true; break;
+        case 'C': options->bake.apo.accuracy = true; break;
         case 'L': case 'D': case 'I':
             if (!parse_depth(optarg, &value))
                 return usage_error("not a depth (0..30)", optarg);
@@ -295,14 +305,21 @@ static void print_bake_json(const ms_bake_options *o, const ms_bake_report *r)
     json_t *per_level = json_array();
     for (uint32_t d = 0; per_level && d < r->apo_levels; ++d)
         json_array_append_new(per_level, json_integer((json_int_t)r->apo_level_texels[d]));
-    json_t *apo = json_pack("{s:b, s:i, s:i, s:i, s:f, s:I, s:I, s:i, s:I, s:I, s:o}",
+    json_t *apo = json_pack("{s:b, s:i, s:i, s:i, s:f, s:I, s:I, s:i, s:I, s:I, s:o, s:I, s:I}",
                             "enabled", o->apo.enabled, "lead", (int)o->apo.lead, "max_depth",
                             (int)o->apo.max_depth, "init_depth", (int)o->apo.init_depth,
                             "tolerance", o->apo.tolerance, "bytes", (json_int_t)r->apo_bytes,
                             "raw_bytes", (json_int_t)r->apo_raw_bytes, "chunks",
                             (int)r->apo_chunks, "internal_nodes",
                             (json_int_t)r->apo_internal_nodes, "leaves",
-                            (json_int_t)r->apo_leaves, "level_texels", per_level);
+                            (json_int_t)r->apo_leaves, "level_texels", per_level,
+                            "sample_triangles", (json_int_t)r->apo_sample_triangles,
+                            "sample_triangles_max", (json_int_t)r->apo_sample_triangles_max);
+    if (apo && o->apo.accuracy)
+        json_object_set_new(apo, "accuracy",
+                            json_pack("{s:I, s:f, s:f, s:f}", "points", (json_int_t)r->apo_accuracy_points,
+                                      "mean_deg", r->apo_accuracy_mean, "median_deg",
+                                      r->apo_accuracy_median, "p90_deg", r->apo_accuracy_p90));
     json_t *root = json_pack(
         "{s:s, s:s, s:s, s:I, s:I, s:I, s:I, s:i, s:i, s:i, s:i, s:f, s:I, s:I, s:I, s:f, s:o, "
         "s:f, s:i, s:f, s:f, s:I, s:o, s:{s:i, s:i, s:i, s:i, s:i}}",
@@ -349,6 +366,12 @@ static void print_bake_text(const ms_bake_report *r)
         printf("APO:                  %u chunks, %" PRIu64 " bytes (%" PRIu64 " raw), %" PRIu64
                " internal nodes, %" PRIu64 " leaves\n",
                r->apo_chunks, r->apo_bytes, r->apo_raw_bytes, r->apo_internal_nodes, r->apo_leaves);
+        printf("APO sampling:         internal cells' M %" PRIu64 " triangles, largest %" PRIu64 "\n",
+               r->apo_sample_triangles, r->apo_sample_triangles_max);
+        if (r->apo_accuracy_points > 0)
+            printf("APO accuracy:         %" PRIu64 " full-precision centroids of internal cells: "
+                   "mean %.2f, median %.2f, p90 %.2f degrees\n",
+                   r->apo_accuracy_points, r->apo_accuracy_mean, r->apo_accuracy_median, r->apo_accuracy_p90);
         printf("APO texels per level:");
         for (uint32_t d = 0; d < r->apo_levels; ++d)
             printf(" %" PRIu64, r->apo_level_texels[d]);

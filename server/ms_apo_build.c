@@ -150,7 +150,16 @@ static bool splits(const split_job *job, uint32_t depth, const uint32_t *idx, si
  * `quarter`) triangle t touches: a bit mask of octants. */
 static uint32_t child_octants(const ms_apo_local_mesh *lm, uint32_t t, const float c[3], float quarter, uint32_t wanted)
 {
-    const float *b = &lm->bounds[6 * t];
+    /* The triangle's bounds, from its vertices: the same floats a stored copy
+     * would hold, without 24 bytes per M-triangle for the whole build. */
+    const uint32_t *v = &lm->tri[3 * t];
+    const float *p0 = &lm->pos[3 * v[0]], *p1 = &lm->pos[3 * v[1]], *p2 = &lm->pos[3 * v[2]];
+    float b[6];
+    for (int a = 0; a < 3; ++a) {
+        float lo = p1[a] < p2[a] ? p1[a] : p2[a], hi = p1[a] > p2[a] ? p1[a] : p2[a];
+        b[a] = p0[a] < lo ? p0[a] : lo;
+        b[3 + a] = p0[a] > hi ? p0[a] : hi;
+    }
     /* Octants on the lower / upper side of each axis, as masks (x is bit 2). */
     uint32_t x = (b[0] <= c[0] ? 0x0Fu : 0u) | (b[3] >= c[0] ? 0xF0u : 0u);
     uint32_t y = (b[1] <= c[1] ? 0x33u : 0u) | (b[4] >= c[1] ? 0xCCu : 0u);
@@ -161,7 +170,6 @@ static uint32_t child_octants(const ms_apo_local_mesh *lm, uint32_t t, const flo
     if ((mask & (mask - 1u)) == 0)
         return mask & wanted;
     mask &= wanted;
-    const uint32_t *v = &lm->tri[3 * t];
     uint32_t kept = 0;
     for (uint32_t o = 0; o < 8; ++o) {
         if (!(mask >> o & 1u))

@@ -7,13 +7,10 @@
 
 /* Plain comparisons (fminf/fmaxf are library calls here); coordinates are
  * checked finite before they get here. */
-static inline float min_f(float a, float b) { return a < b ? a : b; }
-static inline float max_f(float a, float b) { return a > b ? a : b; }
 
 void ms_apo_local_mesh_free(ms_apo_local_mesh *lm)
 {
     free(lm->pos);
-    free(lm->bounds);
     free(lm->fnormal);
     free(lm->area);
     free(lm->vnormal);
@@ -31,16 +28,16 @@ ms_status ms_apo_local_mesh_make(const ms_mesh *mesh, const double origin[3], do
     lm->triangle_count = nt;
     lm->tri = mesh->triangles;
     lm->pos = malloc((3 * nv + 1) * sizeof *lm->pos);
-    lm->bounds = malloc((6 * nt + 1) * sizeof *lm->bounds);
     lm->fnormal = malloc((3 * nt + 1) * sizeof *lm->fnormal);
     lm->area = malloc((nt + 1) * sizeof *lm->area);
     double *acc = calloc(3 * nv + 1, sizeof *acc); /* area-weighted vertex normal sums */
     lm->vnormal = malloc((3 * nv + 1) * sizeof *lm->vnormal);
-    if (!lm->pos || !lm->bounds || !lm->fnormal || !lm->area || !lm->vnormal || !acc) {
+    if (!lm->pos || !lm->fnormal || !lm->area || !lm->vnormal || !acc) {
         free(acc);
         ms_apo_local_mesh_free(lm);
         return ms_error_set(err, MS_ERR_NOMEM, "apo build: no memory for %s", name);
     }
+    lm->pos[3 * nv] = 0.0f; /* the padding Embree's 16-byte loads read past the last vertex */
     double inv = 1.0 / size;
     for (size_t i = 0; i < nv; ++i)
         for (int a = 0; a < 3; ++a) {
@@ -60,10 +57,6 @@ ms_status ms_apo_local_mesh_make(const ms_mesh *mesh, const double origin[3], do
             return ms_error_set(err, MS_ERR_ARG, "apo build: %s triangle %zu has a bad vertex index", name, t);
         }
         const float *p0 = &lm->pos[3 * v[0]], *p1 = &lm->pos[3 * v[1]], *p2 = &lm->pos[3 * v[2]];
-        for (int a = 0; a < 3; ++a) {
-            lm->bounds[6 * t + a] = min_f(p0[a], min_f(p1[a], p2[a]));
-            lm->bounds[6 * t + 3 + a] = max_f(p0[a], max_f(p1[a], p2[a]));
-        }
         double e1[3], e2[3];
         for (int a = 0; a < 3; ++a) {
             e1[a] = (double)p1[a] - p0[a];

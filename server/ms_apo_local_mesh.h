@@ -1,6 +1,9 @@
 /* A triangle mesh moved into an APO cube's frame (the cube becomes [0,1]^3), in
- * single precision, with what the builder needs per triangle (bounds, unit face
- * normal, area) and per vertex (area-weighted unit normal). Internal to the APO
+ * single precision, with what the builder needs per triangle (unit face normal,
+ * area; bounds are recomputed from the vertices where needed, which costs less
+ * than 24 bytes per triangle of a large M) and per vertex (area-weighted unit
+ * normal). pos has one float of padding after the last vertex (Embree reads
+ * vertices 16 bytes at a time from the buffer it shares). Internal to the APO
  * builder (server/ms_apo_build.c, server/ms_apo_sample.c).
  *
  * Ownership: the struct owns every array except `tri`, which borrows the source
@@ -19,7 +22,6 @@
 typedef struct ms_apo_local_mesh {
     float *pos;      /* 3 per vertex */
     uint32_t *tri;   /* 3 per triangle */
-    float *bounds;   /* 6 per triangle: min xyz, max xyz */
     float *fnormal;  /* 3 per triangle, unit (0 for degenerate) */
     float *area;     /* per triangle */
     float *vnormal;  /* 3 per vertex, unit (0 if no valid face) */

@@ -163,26 +163,38 @@ ms_status ms_apo_sampler_init(ms_apo_sampler *sampler, RTCDevice device, const m
             rtcReleaseGeometry(g);
         return ms_error_set(err, MS_ERR_UNSUPPORTED, "apo build: Embree could not create a scene");
     }
-    size_t nv = big->vertex_count ? big->vertex_count : 1, nt = big->triangle_count;
-    float *vb = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), nv);
-    unsigned *ib = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned),
-                                           nt ? nt : 1);
-    if (!vb || !ib) {
+    /* Embree reads M from the local mesh's own arrays (shared, not copied: 24
+     * bytes per triangle less at the root's build); the local mesh outlives the
+     * scene and its positions carry the padding Embree's 16-byte loads need. An
+     * empty M gets one degenerate triangle of its own: never hit. */
+    size_t nt = big->triangle_count;
+    bool ok;
+    if (nt && big->vertex_count) {
+        rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, big->pos, 0, 3 * sizeof(float),
+                                   big->vertex_count);
+        rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, big->tri, 0, 3 * sizeof(unsigned),
+                                   nt);
+        ok = rtcGetDeviceError(device) == RTC_ERROR_NONE;
+    } else {
+        float *vb = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), 1);
+        unsigned *ib = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), 1);
+        ok = vb && ib;
+        if (ok) {
+            memset(vb, 0, 3 * sizeof(float));
+            memset(ib, 0, 3 * sizeof(unsigned));
+        }
+    }
+    if (!ok) {
         rtcReleaseGeometry(g);
         rtcReleaseScene(scene);
         return ms_error_set(err, MS_ERR_NOMEM, "apo build: Embree buffers for %zu triangles", nt);
     }
-    if (big->vertex_count)
-        memcpy(vb, big->pos, 3 * big->vertex_count * sizeof(float));
-    else
-        memset(vb, 0, 3 * sizeof(float));
-    if (nt)
-        memcpy(ib, big->tri, 3 * nt * sizeof(unsigned));
-    else
-        memset(ib, 0, 3 * sizeof(unsigned)); /* one degenerate triangle: never hit */
     /* A few million rays per build: a fast (Morton) BVH build beats a better BVH. */
     rtcSetGeometryBuildQuality(g, RTC_BUILD_QUALITY_LOW);
     rtcSetSceneBuildQuality(scene, RTC_BUILD_QUALITY_LOW);
+    /* Compact leaves (vertex indices, not copies): a smaller BVH for the large M
+     * of internal cells, which bound the bake's peak memory. */
+    rtcSetSceneFlags(scene, RTC_SCENE_FLAG_COMPACT);
     rtcCommitGeometry(g);
     rtcAttachGeometry(scene, g);
     rtcReleaseGeometry(g);

@@ -183,6 +183,13 @@ ms_status ms_bake(const ms_bake_options *o, ms_bake_report *r, ms_error *err)
     r->apo_internal_nodes = es.apo_internal_nodes;
     r->apo_leaves = es.apo_leaves;
     r->seconds_apo = es.apo_thread_seconds / ep.threads;
+    r->apo_sample_triangles = es.apo_sample_triangles;
+    r->apo_sample_triangles_max = es.apo_sample_triangles_max;
+    r->apo_accuracy_points = es.apo_accuracy.points;
+    r->apo_accuracy_mean = es.apo_accuracy.points ? es.apo_accuracy.sum_degrees / (double)es.apo_accuracy.points
+                                                  : 0.0;
+    r->apo_accuracy_median = ms_bake_apo_accuracy_quantile(&es.apo_accuracy, 0.5);
+    r->apo_accuracy_p90 = ms_bake_apo_accuracy_quantile(&es.apo_accuracy, 0.9);
     r->duplicated_percent = r->triangles ? 100.0 * (double)(r->leaf_triangles - r->triangles) /
                                                (double)r->triangles
                                          : 0.0;

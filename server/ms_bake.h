@@ -14,8 +14,11 @@
  * the leaf buffers while the tree is built; then the key array plus, per encoding
  * thread, the working set of one cell (its complex and the codec's state, tens of
  * MB for the largest internal cells of a 14 M-triangle model); with APO, also the
- * full-precision triangles below the cell whose chunk is being built and an
- * Embree scene over them (the whole model for the root: not bounded by mem_mb).
+ * cell's M (a leaf's own triangles; an internal cell's children's meshes at their
+ * bits_max, bounded by the precision window, not by the model: ms_nsp_encode.h)
+ * with an Embree scene over it, and the finished cells' meshes waiting for their
+ * parents. With apo.sample_leaves or apo.accuracy, the full-precision triangles
+ * below the internal cell (the whole model for the root: not bounded).
  * Thread-safety: one bake per process at a time (it runs its own threads).
  */
 #ifndef MS_BAKE_H
@@ -70,6 +73,12 @@ typedef struct ms_bake_report {
     uint32_t apo_chunks;
     uint64_t apo_internal_nodes, apo_leaves;
     double seconds_apo;   /* APO's share of the encode phase: thread-seconds / threads */
+    uint64_t apo_sample_triangles;     /* triangles of the internal cells' M, summed */
+    uint64_t apo_sample_triangles_max; /* the largest internal cell's M (memory driver) */
+    /* with apo.accuracy: internal cells' chunks against the full-precision
+     * triangles below them (ms_bake_apo_accuracy), degrees */
+    uint64_t apo_accuracy_points;
+    double apo_accuracy_mean, apo_accuracy_median, apo_accuracy_p90;
 } ms_bake_report;
 
 /* Derives a valid model name from a file path (basename without extensions, other

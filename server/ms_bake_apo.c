@@ -1,11 +1,13 @@
 /* Per-cell APO chunks: see ms_bake_apo.h. */
 #include "ms_bake_apo.h"
 
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "ms_apo_chunk.h"
 #include "ms_apo_stream.h"
+#include "ms_apo_traverse.h"
 
 void ms_bake_apo_params_default(ms_bake_apo_params *p)
 {
@@ -93,10 +95,315 @@ static ms_status verify_stored(const ms_apo_tree *built, const ms_bake_apo_resul
     return st;
 }
 
+void ms_bake_apo_accuracy_add(ms_bake_apo_accuracy *a, const ms_bake_apo_accuracy *b)
+{
+    a->points += b->points;
+    a->sum_degrees += b->sum_degrees;
+    for (unsigned i = 0; i < MS_BAKE_APO_ANGLE_BINS; ++i)
+        a->bins[i] += b->bins[i];
+}
+
+double ms_bake_apo_accuracy_quantile(const ms_bake_apo_accuracy *a, double q)
+{
+    if (a->points == 0)
+        return 0.0;
+    uint64_t want = (uint64_t)(q * (double)(a->points - 1)), seen = 0;
+    unsigned i = 0;
+    for (; i + 1 < MS_BAKE_APO_ANGLE_BINS; ++i) {
+        seen += a->bins[i];
+        if (seen > want)
+            break;
+    }
+    return 0.1 * ((double)i + 0.5);
+}
+
+/* The chunk's normals at the reference's centroids against its face normals. */
+static ms_status measure(const ms_apo_chunk *chunk, const double origin[3], double size, const ms_mesh *ref,
+                         ms_bake_apo_accuracy *acc, ms_error *err)
+{
+    ms_apo_view view;
+    ms_status st = ms_apo_view_of_chunk(&view, chunk, err);
+    for (size_t t = 0; st == MS_OK && t < ref->triangle_count; ++t) {
+        const uint32_t *v = &ref->triangles[3 * t];
+        const double *a = &ref->positions[3 * v[0]], *b = &ref->positions[3 * v[1]], *c = &ref->positions[3 * v[2]];
+        double e1[3], e2[3], n[3];
+        float at[3];
+        for (int i = 0; i < 3; ++i) {
+            e1[i] = b[i] - a[i];
+            e2[i] = c[i] - a[i];
+            at[i] = (float)(((a[i] + b[i] + c[i]) / 3.0 - origin[i]) / size);
+        }
+        n[0] = e1[1] * e2[2] - e1[2] * e2[1];
+        n[1] = e1[2] * e2[0] - e1[0] * e2[2];
+        n[2] = e1[0] * e2[1] - e1[1] * e2[0];
+        double len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        if (!(len > 0))
+            continue;
+        ms_apo_lookup_result r;
+        ms_apo_lookup(&view, at, MS_APO_MAX_DEPTH, MS_APO_MISSING_NEAREST, &r);
+        double dot = (r.normal[0] * n[0] + r.normal[1] * n[1] + r.normal[2] * n[2]) / len;
+        double deg = acos(dot > 1 ? 1 : dot < -1 ? -1 : dot) * (180.0 / M_PI);
+        unsigned bin = (unsigned)(deg * 10.0);
+        acc->bins[bin < MS_BAKE_APO_ANGLE_BINS ? bin : MS_BAKE_APO_ANGLE_BINS - 1]++;
+        acc->points++;
+        acc->sum_degrees += deg;
+    }
+    return st;
+}
+
+void ms_bake_apo_part_free(ms_bake_apo_part *part)
+{
+    ms_mesh_free(&part->mesh);
+    free(part->weight);
+    memset(part, 0, sizeof *part);
+}
+
+/* The grid cell of x at `bits` (x lies inside the box). */
+static uint64_t cell_key(const ms_quant_box *box, unsigned bits, const double *x)
+{
+    uint64_t key = 0;
+    double cells = (double)(1u << bits);
+    for (int a = 0; a < 3; ++a) {
+        double t = floor((x[a] - box->origin[a]) / box->size * cells);
+        uint64_t q = t < 0 ? 0 : t >= cells ? (1u << bits) - 1 : (uint64_t)t;
+        key = key << 21 | q;
+    }
+    return key;
+}
+
+static bool inside_cube(const double *x, const double origin[3], double size)
+{
+    for (int a = 0; a < 3; ++a)
+        if (!(x[a] >= origin[a] && x[a] < origin[a] + size))
+            return false;
+    return true;
+}
+
+typedef struct vertex_key {
+    uint32_t bits;   /* the vertex is (bits, grid cell key) */
+    uint64_t key;
+    uint32_t weight; /* owned: weight; foreign: 0 */
+    uint32_t copy;   /* weight of the copy, for the choice among foreign ones */
+    uint32_t seq;    /* index in the concatenated parts */
+} vertex_key;
+
+/* Same vertex together; in each group the copy to keep first. */
+static int cmp_vertex_key(const void *x, const void *y)
+{
+    const vertex_key *a = x, *b = y;
+    if (a->bits != b->bits)
+        return a->bits < b->bits ? -1 : 1;
+    if (a->key != b->key)
+        return a->key < b->key ? -1 : 1;
+    if ((a->weight > 0) != (b->weight > 0))
+        return a->weight > 0 ? -1 : 1;
+    if (a->copy != b->copy)
+        return a->copy > b->copy ? -1 : 1;
+    return a->seq < b->seq ? -1 : (a->seq > b->seq);
+}
+
+ms_status ms_bake_apo_union(const ms_bake_apo_part *parts, size_t count, const ms_quant_box *box, ms_mesh *M,
+                            uint32_t **owned, ms_error *err)
+{
+    memset(M, 0, sizeof *M);
+    *owned = NULL;
+    size_t nv = 0, nt = 0;
+    for (size_t k = 0; k < count; ++k) {
+        nv += parts[k].mesh.vertex_count;
+        nt += parts[k].mesh.triangle_count;
+    }
+    if (nv >= UINT32_MAX)
+        return ms_error_set(err, MS_ERR_RANGE, "an APO sampling surface of %zu vertices", nv);
+    vertex_key *vk = malloc((nv + 1) * sizeof *vk);
+    uint32_t *id = malloc((nv + 1) * sizeof *id);
+    const double **from = malloc((nv + 1) * sizeof *from);
+    if (!vk || !id || !from) {
+        free(vk);
+        free(id);
+        free(from);
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory joining the children's meshes");
+    }
+    size_t w = 0;
+    for (size_t k = 0; k < count; ++k) {
+        const ms_bake_apo_part *pt = &parts[k];
+        for (size_t v = 0; v < pt->mesh.vertex_count; ++v, ++w) {
+            const double *x = &pt->mesh.positions[3 * v];
+            from[w] = x;
+            vk[w].bits = pt->bits;
+            vk[w].key = cell_key(box, pt->bits, x);
+            vk[w].copy = pt->weight[v];
+            vk[w].weight = inside_cube(x, pt->origin, pt->size) ? pt->weight[v] : 0;
+            vk[w].seq = (uint32_t)w;
+        }
+    }
+    qsort(vk, nv, sizeof *vk, cmp_vertex_key);
+    size_t distinct = 0; /* vk[0..distinct) becomes the kept copies, in order */
+    for (size_t i = 0; i < nv; ++i) {
+        uint32_t seq = vk[i].seq;
+        if (distinct == 0 || vk[i].key != vk[distinct - 1].key || vk[i].bits != vk[distinct - 1].bits)
+            vk[distinct++] = vk[i];
+        id[seq] = (uint32_t)(distinct - 1);
+    }
+    ms_status s = ms_mesh_reserve(M, distinct, nt, err);
+    *owned = s == MS_OK ? malloc((distinct + 1) * sizeof **owned) : NULL;
+    if (s == MS_OK && !*owned)
+        s = ms_error_set(err, MS_ERR_NOMEM, "out of memory joining the children's meshes");
+    if (s == MS_OK) {
+        for (size_t v = 0; v < distinct; ++v) {
+            memcpy(&M->positions[3 * v], from[vk[v].seq], 3 * sizeof(double));
+            (*owned)[v] = vk[v].weight;
+        }
+        M->vertex_count = distinct;
+        size_t base = 0, t3 = 0;
+        for (size_t k = 0; k < count; ++k) {
+            for (size_t i = 0; i < 3 * parts[k].mesh.triangle_count; ++i)
+                M->triangles[t3++] = id[base + parts[k].mesh.triangles[i]];
+            base += parts[k].mesh.vertex_count;
+        }
+        M->triangle_count = nt;
+        s = ms_bake_apo_drop_repeats(M->triangles, &M->triangle_count, err);
+    }
+    free(vk);
+    free(id);
+    free(from);
+    if (s != MS_OK) {
+        ms_mesh_free(M);
+        free(*owned);
+        *owned = NULL;
+    }
+    return s;
+}
+
+typedef struct keyed_vertex {
+    uint64_t key;
+    uint32_t seq;
+} keyed_vertex;
+
+static int cmp_keyed_vertex(const void *x, const void *y)
+{
+    const keyed_vertex *a = x, *b = y;
+    if (a->key != b->key)
+        return a->key < b->key ? -1 : 1;
+    return a->seq < b->seq ? -1 : (a->seq > b->seq);
+}
+
+ms_status ms_bake_apo_smooth(ms_mesh *m, unsigned bits, const ms_quant_box *box, const double origin[3],
+                             double size, const ms_mesh *M, const uint32_t *owned, ms_bake_apo_part *out,
+                             ms_error *err)
+{
+    memset(out, 0, sizeof *out);
+    size_t n = M->vertex_count;
+    keyed_vertex *kv = malloc((n + 1) * sizeof *kv);
+    uint32_t *weight = malloc((m->vertex_count + 1) * sizeof *weight);
+    if (!kv || !weight) {
+        free(kv);
+        free(weight);
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory averaging a cell's vertices");
+    }
+    for (size_t v = 0; v < n; ++v) {
+        kv[v].key = cell_key(box, bits, &M->positions[3 * v]);
+        kv[v].seq = (uint32_t)v;
+    }
+    qsort(kv, n, sizeof *kv, cmp_keyed_vertex);
+    for (size_t v = 0; v < m->vertex_count; ++v) {
+        double *x = &m->positions[3 * v];
+        uint64_t key = cell_key(box, bits, x);
+        size_t lo = 0, hi = n; /* first entry with kv.key >= key */
+        while (lo < hi) {
+            size_t mid = lo + (hi - lo) / 2;
+            if (kv[mid].key < key)
+                lo = mid + 1;
+            else
+                hi = mid;
+        }
+        double sum[3] = {0, 0, 0}, any[3] = {0, 0, 0};
+        uint64_t total = 0, seen = 0;
+        for (size_t i = lo; i < n && kv[i].key == key; ++i) {
+            const double *y = &M->positions[3 * (size_t)kv[i].seq];
+            uint32_t wt = owned[kv[i].seq];
+            for (int a = 0; a < 3; ++a) {
+                sum[a] += wt * y[a];
+                any[a] += y[a];
+            }
+            total += wt;
+            seen++;
+        }
+        if (total > 0)
+            for (int a = 0; a < 3; ++a)
+                x[a] = sum[a] / (double)total;
+        else if (seen > 0)
+            for (int a = 0; a < 3; ++a)
+                x[a] = any[a] / (double)seen;
+        uint64_t wv = total > 0 ? total : seen > 0 ? seen : 1;
+        weight[v] = wv < UINT32_MAX ? (uint32_t)wv : UINT32_MAX;
+    }
+    free(kv);
+    out->mesh = *m;
+    memset(m, 0, sizeof *m);
+    out->weight = weight;
+    out->bits = bits;
+    memcpy(out->origin, origin, sizeof out->origin);
+    out->size = size;
+    return MS_OK;
+}
+
+typedef struct keyed_triangle {
+    uint32_t v[3]; /* sorted vertex indices */
+    uint32_t seq;  /* position in the list */
+} keyed_triangle;
+
+static int cmp_keyed(const void *x, const void *y)
+{
+    const keyed_triangle *a = x, *b = y;
+    for (int i = 0; i < 3; ++i)
+        if (a->v[i] != b->v[i])
+            return a->v[i] < b->v[i] ? -1 : 1;
+    return a->seq < b->seq ? -1 : (a->seq > b->seq);
+}
+
+ms_status ms_bake_apo_drop_repeats(uint32_t *tris, size_t *count, ms_error *err)
+{
+    size_t n = *count;
+    keyed_triangle *kt = malloc((n + 1) * sizeof *kt);
+    uint8_t *drop = calloc(n + 1, 1);
+    if (!kt || !drop) {
+        free(kt);
+        free(drop);
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory removing repeated triangles");
+    }
+    for (size_t t = 0; t < n; ++t) {
+        uint32_t *v = kt[t].v, x;
+        memcpy(v, &tris[3 * t], sizeof kt[t].v);
+        if (v[0] > v[1])
+            x = v[0], v[0] = v[1], v[1] = x;
+        if (v[1] > v[2])
+            x = v[1], v[1] = v[2], v[2] = x;
+        if (v[0] > v[1])
+            x = v[0], v[0] = v[1], v[1] = x;
+        kt[t].seq = (uint32_t)t;
+    }
+    /* ties by seq: the earliest of each group comes first and is kept */
+    qsort(kt, n, sizeof *kt, cmp_keyed);
+    for (size_t t = 1; t < n; ++t)
+        if (memcmp(kt[t].v, kt[t - 1].v, sizeof kt[t].v) == 0)
+            drop[kt[t].seq] = 1;
+    size_t w = 0;
+    for (size_t t = 0; t < n; ++t)
+        if (!drop[t]) {
+            if (w != t)
+                memcpy(&tris[3 * w], &tris[3 * t], 12);
+            w++;
+        }
+    *count = w;
+    free(kt);
+    free(drop);
+    return MS_OK;
+}
+
 ms_status ms_bake_apo_cell(ms_apo_builder *builder, const ms_bake_apo_params *p, const ms_nsp_shape *shape,
                            const ms_quant_box *box, unsigned depth, const uint32_t position[3], unsigned bits_max,
-                           const ms_mesh *m, const ms_mesh *M, unsigned threads, ms_bake_apo_result *out,
-                           ms_error *err)
+                           const ms_mesh *m, const ms_mesh *M, const ms_mesh *reference, unsigned threads,
+                           ms_bake_apo_result *out, ms_error *err)
 {
     memset(out, 0, sizeof *out);
     ms_apo_build_options o;
@@ -123,6 +430,8 @@ ms_status ms_bake_apo_cell(ms_apo_builder *builder, const ms_bake_apo_params *p,
         ms_apo_tree_counts(&tree, &out->internal_nodes, &out->leaves);
         if (p->verify && out->levels > 0)
             st = verify_stored(&tree, out, err);
+        if (st == MS_OK && reference && out->levels > 0)
+            st = measure(&chunk, o.cube_origin, o.cube_size, reference, &out->accuracy, err);
     }
     ms_apo_chunk_free(&chunk);
     ms_apo_tree_free(&tree);

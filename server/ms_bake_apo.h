@@ -1,8 +1,11 @@
 /* Per-cell APO chunks of a bake (docs/APO.md, "Per-cell chunks"): for one nSP
  * cell, the octree of normals rooted at the cell's cube, built around m (the
- * cell's mesh as the decoder gives it at the cell's bits_max) from M (the input's
- * triangles of the cell at full precision), encoded into texel words and
- * compressed as the archive stores them (ms_apo_stream.h).
+ * cell's mesh as the decoder gives it at the cell's bits_max) from M (the surface
+ * whose normals are sampled: a leaf's input triangles at full precision; for an
+ * internal cell the union of its children's m, log2(n) bits finer than the
+ * cell's own m, vertices at the means of the input vertices they stand for:
+ * ms_bake_apo_part, ms_bake_apo_union, ms_bake_apo_smooth), encoded into texel
+ * words and compressed as the archive stores them (ms_apo_stream.h).
  *
  * Depth rule: the cell's finest geometric precision, in octree levels of its own
  * cube, is g = bits_max - log2(n) * depth (its grid has 2^g steps per side); the
@@ -37,6 +40,13 @@ typedef struct ms_bake_apo_params {
     double tolerance;     /* spread of M's normals, radians (default 0.2) */
     int zlib_level;       /* 0..9 (default 6) */
     bool verify;          /* decode each stored chunk back and compare it with the built tree */
+    /* Diagnostics, off by default. sample_leaves: an internal cell's M is every
+     * full-precision leaf triangle below it (the former rule: memory grows with the
+     * model, the root holds all of it). accuracy: measure each internal cell's
+     * chunk against those full-precision triangles (ms_bake_apo_result.accuracy),
+     * which costs the same memory. */
+    bool sample_leaves;
+    bool accuracy;
 } ms_bake_apo_params;
 
 /* Defaults as above, enabled. */
@@ -53,6 +63,24 @@ uint32_t ms_bake_apo_depth(const ms_nsp_shape *shape, unsigned depth, unsigned b
 void ms_bake_apo_cube(const ms_nsp_shape *shape, const ms_quant_box *box, unsigned depth,
                       const uint32_t position[3], double origin[3], double *size);
 
+/* Angles between the chunk's normal (CPU traversal, MS_APO_MISSING_NEAREST, no
+ * depth cap) and a reference mesh's face normal at the reference's triangle
+ * centroids, as a histogram of MS_BAKE_APO_ANGLE_BINS bins of 0.1 degree (the last
+ * bin holds everything above). Degenerate reference triangles are skipped. */
+#define MS_BAKE_APO_ANGLE_BINS 1800u
+typedef struct ms_bake_apo_accuracy {
+    uint64_t points;
+    double sum_degrees;
+    uint64_t bins[MS_BAKE_APO_ANGLE_BINS];
+} ms_bake_apo_accuracy;
+
+/* Adds b's points into a. */
+void ms_bake_apo_accuracy_add(ms_bake_apo_accuracy *a, const ms_bake_apo_accuracy *b);
+
+/* The angle (degrees, bin centre) below which a fraction q (0..1) of the points
+ * lie; 0 without points. */
+double ms_bake_apo_accuracy_quantile(const ms_bake_apo_accuracy *a, double q);
+
 typedef struct ms_bake_apo_result {
     uint8_t *data;             /* compressed chunk, NULL when the chunk is empty */
     size_t size;
@@ -61,6 +89,7 @@ typedef struct ms_bake_apo_result {
     uint32_t level_texels[MS_APO_MAX_LEVELS];    /* words per level */
     uint64_t texels;
     size_t internal_nodes, leaves;
+    ms_bake_apo_accuracy accuracy; /* filled when a reference mesh was given */
 } ms_bake_apo_result;
 
 void ms_bake_apo_result_free(ms_bake_apo_result *result);
@@ -69,13 +98,57 @@ void ms_bake_apo_result_free(ms_bake_apo_result *result);
  * builder running on `threads` threads (the output does not depend on it). With
  * params->verify, also inflates the stored bytes, loads them (ms_apo_view_init),
  * decodes them into a tree and fails with MS_ERR_CORRUPT unless it has exactly the
- * built tree's nodes and normal codes. Errors: those of the builder, the encoder,
- * the compressor. */
+ * built tree's nodes and normal codes. reference may be NULL; otherwise the chunk
+ * is measured against it into out->accuracy (nothing else depends on it). Errors:
+ * those of the builder, the encoder, the compressor. */
 ms_status ms_bake_apo_cell(ms_apo_builder *builder, const ms_bake_apo_params *params,
                            const ms_nsp_shape *shape, const ms_quant_box *box, unsigned depth,
                            const uint32_t position[3], unsigned bits_max, const ms_mesh *m,
-                           const ms_mesh *M, unsigned threads, ms_bake_apo_result *out,
-                           ms_error *err);
+                           const ms_mesh *M, const ms_mesh *reference, unsigned threads,
+                           ms_bake_apo_result *out, ms_error *err);
+
+/* What a cell hands its parent for the parent's M: its m (decoded at its
+ * bits_max) with every vertex moved from its grid cell's centre to the mean of the
+ * full-precision input vertices that cell stands for (found level by level: a
+ * leaf's vertices are themselves, weight 1; see ms_bake_apo_smooth). Centres at
+ * 9 bits make a staircase whose face normals spread everywhere; the means give
+ * the surface back its shape at the same size. */
+typedef struct ms_bake_apo_part {
+    ms_mesh mesh;
+    uint32_t *weight;       /* per vertex: input vertices its position averages (>= 1) */
+    unsigned bits;          /* the cell's bits_max: each vertex lies in one grid cell of it */
+    double origin[3], size; /* the cell's cube: vertices inside it are its own */
+} ms_bake_apo_part;
+
+void ms_bake_apo_part_free(ms_bake_apo_part *part);
+
+/* M of an internal cell: the union of the `count` parts (its children; empty ones
+ * allowed) into *M (zeroed first; caller frees with ms_mesh_free) and *owned
+ * (malloc'd, one per M vertex, caller frees): the vertex's weight when it lies in
+ * the cube of the part it comes from, else 0. Vertices are one per (bits, grid
+ * cell): siblings share their border vertices, and a vertex held by several parts
+ * takes the position of its owner (the part whose cube holds it, which saw all of
+ * its input vertices), else of the heaviest copy, else the first; they are
+ * ordered by (bits, cell). Triangles are then kept once per set of three
+ * vertices, the first in part order, in part order. The output depends only on
+ * the input. box: the archive's. Errors: MS_ERR_NOMEM, MS_ERR_RANGE (2^32 vertices
+ * or more). */
+ms_status ms_bake_apo_union(const ms_bake_apo_part *parts, size_t count, const ms_quant_box *box, ms_mesh *M,
+                            uint32_t **owned, ms_error *err);
+
+/* The part an internal cell hands up: its m (bits_max `bits`, vertices at grid
+ * cell centres) with each vertex at the weighted mean of M's owned vertices in
+ * its grid cell (owned from ms_bake_apo_union); a cell without any takes the plain
+ * mean of M's vertices there, else keeps its centre. *out takes m's arrays (m is
+ * left zeroed). cube: the cell's. Errors: MS_ERR_NOMEM (m is then left as given). */
+ms_status ms_bake_apo_smooth(ms_mesh *m, unsigned bits, const ms_quant_box *box, const double origin[3],
+                             double size, const ms_mesh *M, const uint32_t *owned, ms_bake_apo_part *out,
+                             ms_error *err);
+
+/* Removes from tris (3 vertex indices each) every triangle whose set of vertices
+ * repeats an earlier one, keeping the order of the others; *count is updated.
+ * MS_ERR_NOMEM leaves the list unchanged. */
+ms_status ms_bake_apo_drop_repeats(uint32_t *tris, size_t *count, ms_error *err);
 
 /* True when two trees have the same nodes (depth, cell, children) and the same
  * normal codes; on a difference, writes the first differing node into *node. */

@@ -2,6 +2,9 @@
 #include "ms_nsp_encode.h"
 
 #include <pthread.h>
+#ifdef __GLIBC__
+#include <malloc.h>
+#endif
 #include <stdio.h>
 #include <stdbool.h>
 #include <stdlib.h>
@@ -17,6 +20,7 @@ typedef struct task {
     uint32_t pending;         /* children not yet done */
     uint32_t post;            /* post-order number (priority) */
     ms_codec_state *starts;   /* n^3 children's start states, once the first is done */
+    ms_bake_apo_part *parts;  /* n^3 children's APO parts (this cell's M), likewise */
 } task;
 
 typedef struct pool {
@@ -398,23 +402,11 @@ typedef struct cell_out {
     uint32_t vertices, triangles;
     ms_bake_apo_result apo;
     double apo_seconds;
+    ms_bake_apo_part part;    /* the APO m, averaged, kept for the parent's M */
+    size_t sample_triangles;  /* M's triangles */
 } cell_out;
 
 /* ---- APO inputs ---------------------------------------------------------- */
-
-typedef struct keyed_triangle {
-    uint32_t v[3];  /* sorted vertex ranks */
-    uint32_t seq;   /* position in the gathered list */
-} keyed_triangle;
-
-static int cmp_keyed(const void *x, const void *y)
-{
-    const keyed_triangle *a = x, *b = y;
-    for (int i = 0; i < 3; ++i)
-        if (a->v[i] != b->v[i])
-            return a->v[i] < b->v[i] ? -1 : 1;
-    return a->seq < b->seq ? -1 : (a->seq > b->seq);
-}
 
 /* Appends the triangle records of every leaf below (or at) node to *tri (input
  * vertex indices, 3 per triangle), leaves in node order. */
@@ -462,8 +454,7 @@ static ms_status full_precision_mesh(const ms_nsp_build *b, uint32_t node, ms_me
     uint64_t *ref = s == MS_OK ? malloc((3 * nt + 1) * sizeof *ref) : NULL;
     uint64_t *keys = s == MS_OK ? malloc((3 * nt + 1) * sizeof *keys) : NULL;
     uint32_t *rank = s == MS_OK ? malloc((3 * nt + 1) * sizeof *rank) : NULL;
-    keyed_triangle *kt = s == MS_OK ? malloc((nt + 1) * sizeof *kt) : NULL;
-    if (s == MS_OK && (!ref || !keys || !rank || !kt))
+    if (s == MS_OK && (!ref || !keys || !rank))
         s = ms_error_set(err, MS_ERR_NOMEM, "out of memory gathering a cell's triangles");
     const unsigned p = b->params.shape.bits;
     size_t nk = 0;
@@ -472,28 +463,14 @@ static ms_status full_precision_mesh(const ms_nsp_build *b, uint32_t node, ms_me
             ref[i] = b->keys[tri[i]];
         s = index_keys(ref, 3 * nt, 3 * p, keys, &nk, rank, err);
     }
+    /* keep the first of each group of equal vertex sets, in leaf order */
+    if (s == MS_OK)
+        s = ms_bake_apo_drop_repeats(rank, &nt, err);
+    if (s == MS_OK)
+        s = ms_mesh_reserve(M, nk, nt, err);
     if (s == MS_OK) {
-        for (size_t t = 0; t < nt; ++t) {
-            sort3(&rank[3 * t], kt[t].v);
-            kt[t].seq = (uint32_t)t;
-        }
-        qsort(kt, nt, sizeof *kt, cmp_keyed);
-        /* keep the first of each group of equal vertex sets, then restore leaf order */
-        uint8_t *drop = calloc(nt + 1, 1);
-        if (!drop)
-            s = ms_error_set(err, MS_ERR_NOMEM, "out of memory gathering a cell's triangles");
-        for (size_t t = 1; drop && t < nt; ++t)
-            if (memcmp(kt[t].v, kt[t - 1].v, sizeof kt[t].v) == 0)
-                drop[kt[t].seq] = 1;
-        size_t kept = 0;
-        for (size_t t = 0; drop && t < nt; ++t)
-            kept += !drop[t];
-        if (s == MS_OK)
-            s = ms_mesh_reserve(M, nk, kept, err);
-        for (size_t t = 0; s == MS_OK && t < nt; ++t)
-            if (!drop[t])
-                memcpy(&M->triangles[3 * M->triangle_count++], &rank[3 * t], 12);
-        free(drop);
+        memcpy(M->triangles, rank, 3 * nt * sizeof *rank);
+        M->triangle_count = nt;
     }
     if (s == MS_OK) {
         for (size_t v = 0; v < nk; ++v) { /* grid cell centres */
@@ -508,44 +485,115 @@ static ms_status full_precision_mesh(const ms_nsp_build *b, uint32_t node, ms_me
     free(ref);
     free(keys);
     free(rank);
-    free(kt);
     if (s != MS_OK)
         ms_mesh_free(M);
     return s;
 }
 
-/* The cell's chunk: m from its stream decoded to bits_max, M from its leaves. */
+/* Returns freed heap memory to the kernel. An internal cell's APO work frees
+ * tens to hundreds of MB in large blocks that glibc keeps (its mmap threshold
+ * grows with them), and Embree takes its BVH memory with mmap, not from that
+ * heap: without this, the union's temporaries and the last build's arrays stay in
+ * the RSS under the next build. */
+static void give_back_memory(void)
+{
+#ifdef __GLIBC__
+    malloc_trim(0);
+#endif
+}
+
+/* Frees the children's parts of node (its M has been built from them). */
+static void free_child_parts(pool *p, uint32_t node)
+{
+    const unsigned nc = p->b->params.shape.n * p->b->params.shape.n * p->b->params.shape.n;
+    if (!p->tasks[node].parts)
+        return;
+    for (unsigned k = 0; k < nc; ++k)
+        ms_bake_apo_part_free(&p->tasks[node].parts[k]);
+    free(p->tasks[node].parts);
+    p->tasks[node].parts = NULL;
+}
+
+/* What a cell hands up for its parent's M (ms_bake_apo_part): a leaf's m as it
+ * is, each vertex standing for itself; an internal cell's m averaged over M. m is
+ * taken. */
+static ms_status hand_up(pool *p, uint32_t node, unsigned hi, ms_mesh *m, const ms_mesh *M, const uint32_t *owned,
+                         ms_bake_apo_part *out, ms_error *err)
+{
+    const ms_nsp_build *b = p->b;
+    const ms_nsp_node *nd = &b->nodes[node];
+    double origin[3], size;
+    ms_bake_apo_cube(&b->params.shape, &b->box, nd->depth, nd->position, origin, &size);
+    if (nd->first_child != MS_NSP_NONE)
+        return ms_bake_apo_smooth(m, hi, &b->box, origin, size, M, owned, out, err);
+    memset(out, 0, sizeof *out);
+    out->weight = malloc((m->vertex_count + 1) * sizeof *out->weight);
+    if (!out->weight)
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory keeping a cell's mesh");
+    for (size_t v = 0; v < m->vertex_count; ++v)
+        out->weight[v] = 1;
+    out->mesh = *m;
+    memset(m, 0, sizeof *m);
+    out->bits = hi;
+    memcpy(out->origin, origin, sizeof origin);
+    out->size = size;
+    return MS_OK;
+}
+
+/* The cell's chunk: m from its stream decoded to bits_max; M from its own records
+ * (a leaf) or from its children's parts (an internal cell, see ms_nsp_encode.h).
+ * The part for the parent goes to out->part when the parent will need it. */
 static ms_status apo_cell(pool *p, uint32_t node, unsigned hi, ms_apo_builder *builder, cell_out *out,
                           ms_error *err)
 {
     const ms_nsp_build *b = p->b;
     const ms_nsp_node *nd = &b->nodes[node];
+    const ms_bake_apo_params *ap = p->params->apo;
+    const unsigned nc = b->params.shape.n * b->params.shape.n * b->params.shape.n;
+    bool leaf = nd->first_child == MS_NSP_NONE;
     double t0 = ms_now_seconds();
     ms_codec_decoder *d = NULL;
-    ms_mesh m, M;
+    ms_mesh m, M, reference;
+    uint32_t *owned = NULL;
     memset(&m, 0, sizeof m);
     memset(&M, 0, sizeof M);
+    memset(&reference, 0, sizeof reference);
     ms_status s = ms_codec_decoder_create(out->stream, out->size, &out->start, NULL, &d, err);
     if (s == MS_OK)
         s = ms_codec_decoder_set_level(d, 3 * hi, err);
     if (s == MS_OK)
         s = ms_codec_decoder_mesh(d, &m, err);
     ms_codec_decoder_destroy(d);
-    if (s == MS_OK)
+    if (s == MS_OK && (leaf || ap->sample_leaves))
         s = full_precision_mesh(b, node, &M, err);
+    else if (s == MS_OK && p->tasks[node].parts)
+        s = ms_bake_apo_union(p->tasks[node].parts, nc, &b->box, &M, &owned, err);
+    /* the children's parts are in M now: free them before the build's peak */
+    free_child_parts(p, node);
+    if (!leaf)
+        give_back_memory();
+    bool measured = ap->accuracy && !leaf;
+    if (s == MS_OK && measured && !ap->sample_leaves)
+        s = full_precision_mesh(b, node, &reference, err);
     /* Leaves run one per thread; internal cells, few, large and last in
      * post-order (the root ends the bake alone), use every thread. */
-    unsigned threads = nd->first_child == MS_NSP_NONE ? 1 : p->params->threads;
+    unsigned threads = leaf ? 1 : p->params->threads;
     if (s == MS_OK)
-        s = ms_bake_apo_cell(builder, p->params->apo, &b->params.shape, &b->box, nd->depth, nd->position, hi,
-                             &m, &M, threads, &out->apo, err);
+        s = ms_bake_apo_cell(builder, ap, &b->params.shape, &b->box, nd->depth, nd->position, hi, &m, &M,
+                             !measured ? NULL : ap->sample_leaves ? &M : &reference, threads, &out->apo,
+                             err);
+    ms_mesh_free(&reference);
+    if (s == MS_OK && nd->parent != MS_NSP_NONE && !ap->sample_leaves)
+        s = hand_up(p, node, hi, &m, &M, owned, &out->part, err);
     if (s != MS_OK) {
         char why[sizeof err->text];
         snprintf(why, sizeof why, "%s", err->text);
         s = ms_error_set(err, s, "cell %u: APO: %s", p->cell_of_node[node], why);
     }
+    out->sample_triangles = M.triangle_count;
     ms_mesh_free(&m);
     ms_mesh_free(&M);
+    free(owned);
     out->apo_seconds = ms_now_seconds() - t0;
     return s;
 }
@@ -591,6 +639,7 @@ static ms_status encode_cell(pool *p, uint32_t node, ms_apo_builder **builder, c
         free(out->stream);
         ms_codec_state_free(&out->start);
         ms_bake_apo_result_free(&out->apo);
+        ms_bake_apo_part_free(&out->part);
         memset(out, 0, sizeof *out);
     }
     return s;
@@ -621,24 +670,36 @@ static ms_status finish_cell(pool *p, uint32_t node, cell_out *out, ms_error *er
             p->stats.apo_level_texels[d] += a->level_texels[d];
         if (a->levels > p->stats.apo_levels)
             p->stats.apo_levels = a->levels;
+        ms_bake_apo_accuracy_add(&p->stats.apo_accuracy, &a->accuracy);
+    }
+    if (nd->first_child != MS_NSP_NONE) {
+        p->stats.apo_sample_triangles += out->sample_triangles;
+        if (out->sample_triangles > p->stats.apo_sample_triangles_max)
+            p->stats.apo_sample_triangles_max = out->sample_triangles;
     }
     p->stats.apo_thread_seconds += out->apo_seconds;
     ms_bake_apo_result_free(&out->apo);
     if (s != MS_OK || nd->parent == MS_NSP_NONE) {
         ms_codec_state_free(&out->start);
+        ms_bake_apo_part_free(&out->part);
         return s;
     }
     task *parent = &p->tasks[nd->parent];
-    if (!parent->starts) {
-        unsigned nc = b->params.shape.n * b->params.shape.n * b->params.shape.n;
+    unsigned nc = b->params.shape.n * b->params.shape.n * b->params.shape.n;
+    if (!parent->starts)
         parent->starts = calloc(nc, sizeof *parent->starts);
-        if (!parent->starts) {
-            ms_codec_state_free(&out->start);
-            return ms_error_set(err, MS_ERR_NOMEM, "out of memory");
-        }
+    if (!parent->parts)
+        parent->parts = calloc(nc, sizeof *parent->parts);
+    if (!parent->starts || !parent->parts) {
+        ms_codec_state_free(&out->start);
+        ms_bake_apo_part_free(&out->part);
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory");
     }
-    parent->starts[node - b->nodes[nd->parent].first_child] = out->start;
+    unsigned k = node - b->nodes[nd->parent].first_child;
+    parent->starts[k] = out->start;
+    parent->parts[k] = out->part;
     memset(&out->start, 0, sizeof out->start);
+    memset(&out->part, 0, sizeof out->part);
     if (--parent->pending == 0)
         heap_push(p, nd->parent);
     return MS_OK;
@@ -669,6 +730,9 @@ static void *worker(void *arg)
             free(p->tasks[node].starts);
             p->tasks[node].starts = NULL;
         }
+        free_child_parts(p, node);
+        if (b->nodes[node].first_child != MS_NSP_NONE && p->params->apo && p->params->apo->enabled)
+            give_back_memory();
         pthread_mutex_lock(&p->lock);
         if (s == MS_OK)
             s = finish_cell(p, node, &out, &err);
@@ -759,12 +823,14 @@ ms_status ms_nsp_encode_all(const ms_nsp_build *b, const uint32_t *cell_of_node,
         *err = p.err;
         s = err->code != MS_OK ? err->code : MS_ERR_IO;
     }
-    for (uint32_t v = 0; v < n; ++v)
+    for (uint32_t v = 0; v < n; ++v) {
         if (p.tasks[v].starts) {
             for (unsigned k = 0; k < nc; ++k)
                 ms_codec_state_free(&p.tasks[v].starts[k]);
             free(p.tasks[v].starts);
         }
+        free_child_parts(&p, v);
+    }
     pthread_mutex_destroy(&p.lock);
     pthread_cond_destroy(&p.wake);
     free(p.tasks);

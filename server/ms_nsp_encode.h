@@ -16,11 +16,17 @@
  *
  * With APO on (params->apo enabled), each cell with vertices also gets its APO
  * chunk (ms_bake_apo.h) on the same thread, right after its stream: m is the
- * stream just encoded, decoded to bits_max (exactly what a client gets); M is the
- * cell's input triangles at full precision (p bits, positions at their grid
- * cells' centres): a leaf's records, or for an internal cell the records of every
- * leaf below it, re-read from the block file, duplicates (same three vertices)
- * kept once in leaf order. Each worker thread owns one APO builder.
+ * stream just encoded, decoded to bits_max (exactly what a client gets); M is,
+ * for a leaf, its input triangles at full precision (p bits, positions at their
+ * grid cells' centres; duplicates, same three vertices, kept once in record
+ * order), and for an internal cell the union of its children's m
+ * (ms_bake_apo_union): each child decoded at its own bits_max, log2(n) bits finer
+ * than the cell's (a leaf child: full precision). A child's m waits in its
+ * parent's task and is freed as soon as the parent's M is built, so the meshes
+ * held are bounded like the pending start states, not by the model: the root's M
+ * is the model at root_bits + log2(n) bits, not the whole input. (With
+ * apo->sample_leaves, the former rule: an internal cell's M is every leaf record
+ * below it, re-read from the block file.) Each worker thread owns one APO builder.
  *
  * Thread-safety: one call at a time; it runs its own threads.
  */
@@ -57,6 +63,9 @@ typedef struct ms_nsp_encode_stats {
     uint32_t apo_chunks;        /* cells with a chunk */
     uint64_t apo_internal_nodes, apo_leaves;
     double apo_thread_seconds;  /* time spent on APO, summed over the threads */
+    uint64_t apo_sample_triangles;     /* M's triangles, summed over the internal cells */
+    uint64_t apo_sample_triangles_max; /* the largest internal cell's M */
+    ms_bake_apo_accuracy apo_accuracy; /* internal cells, with apo->accuracy */
     double seconds;
 } ms_nsp_encode_stats;
 

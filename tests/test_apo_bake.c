@@ -22,10 +22,11 @@
 #include "ms_archive.h"
 #include "ms_bake.h"
 #include "ms_test.h"
+#include "ms_view_decoder.h"
 
-static void bake(const char *model, const char *dir, const char *name, unsigned threads,
-                 const ms_bake_apo_params *apo, unsigned bits, unsigned n, unsigned root_bits,
-                 uint32_t min_tris)
+static void bake_report(const char *model, const char *dir, const char *name, unsigned threads,
+                        const ms_bake_apo_params *apo, unsigned bits, unsigned n, unsigned root_bits,
+                        uint32_t min_tris, ms_bake_report *r)
 {
     ms_bake_options o;
     ms_bake_options_default(&o);
@@ -36,11 +37,18 @@ static void bake(const char *model, const char *dir, const char *name, unsigned 
     o.min_triangles = min_tris;
     o.bits = bits, o.n = n, o.root_bits = root_bits;
     o.apo = *apo;
-    ms_bake_report r;
     ms_error err;
     ms_error_clear(&err);
-    if (ms_bake(&o, &r, &err) != MS_OK)
+    if (ms_bake(&o, r, &err) != MS_OK)
         fail_msg("bake of %s failed: %s", model, err.text);
+}
+
+static void bake(const char *model, const char *dir, const char *name, unsigned threads,
+                 const ms_bake_apo_params *apo, unsigned bits, unsigned n, unsigned root_bits,
+                 uint32_t min_tris)
+{
+    ms_bake_report r;
+    bake_report(model, dir, name, threads, apo, bits, n, root_bits, min_tris, &r);
 }
 
 static unsigned log2_of(unsigned n) { return n == 2 ? 1 : n == 4 ? 2 : 3; }
@@ -343,6 +351,179 @@ static void test_cli_reports_apo(void **state)
     ms_test_rmdir(dir);
 }
 
+/* ms_bake_apo_union by hand, in the unit box at 2 bits (cells of 0.25): parts A
+ * and B (cubes x < 0.5 and x >= 0.5) share three grid cells, each taking its
+ * owner's copy whatever the part order; B's second triangle repeats A's (other
+ * vertices, same cells, reversed) and goes; part C at 3 bits stays apart; an empty
+ * part changes nothing. */
+static void test_union_of_parts(void **state)
+{
+    (void)state;
+    const ms_quant_box box = {{0, 0, 0}, 1.0};
+    double pa[] = {0.1, 0.1, 0.1, 0.3, 0.1, 0.1, 0.6, 0.1, 0.1};
+    uint32_t ta[] = {0, 1, 2}, wa[] = {1, 2, 3};
+    double pb[] = {0.65, 0.15, 0.1, 0.9, 0.1, 0.1, 0.3, 0.2, 0.2, 0.1, 0.2, 0.1};
+    uint32_t tb[] = {0, 1, 2, 2, 3, 0}, wb[] = {5, 1, 1, 1};
+    double pc[] = {0.3, 0.1, 0.1, 0.2, 0.2, 0.1, 0.1, 0.3, 0.1};
+    uint32_t tc[] = {0, 1, 2}, wc[] = {1, 1, 1};
+    ms_bake_apo_part parts[4] = {
+        {.mesh = {.positions = pa, .triangles = ta, .vertex_count = 3, .triangle_count = 1}, .weight = wa,
+         .bits = 2, .origin = {0, 0, 0}, .size = 0.5},
+        {.mesh = {.positions = pb, .triangles = tb, .vertex_count = 4, .triangle_count = 2}, .weight = wb,
+         .bits = 2, .origin = {0.5, 0, 0}, .size = 0.5},
+        {.bits = 2, .size = 0.5},
+        {.mesh = {.positions = pc, .triangles = tc, .vertex_count = 3, .triangle_count = 1}, .weight = wc,
+         .bits = 3, .origin = {0, 0, 0}, .size = 0.5},
+    };
+    ms_mesh u;
+    uint32_t *owned;
+    ms_error err;
+    assert_int_equal(ms_bake_apo_union(parts, 4, &box, &u, &owned, &err), MS_OK);
+    assert_int_equal(u.vertex_count, 7); /* 4 cells at 2 bits, 3 at 3 bits */
+    assert_int_equal(u.triangle_count, 3);
+    const double *want[3][3] = {{&pa[0], &pa[3], &pb[0]}, {&pb[0], &pb[3], &pa[3]}, {&pc[0], &pc[3], &pc[6]}};
+    for (int t = 0; t < 3; ++t)
+        for (int k = 0; k < 3; ++k)
+            assert_memory_equal(&u.positions[3 * u.triangles[3 * t + k]], want[t][k], 24);
+    /* ordered by (bits, cell): the 2-bit cells x = 0, 1, 2, 3 first */
+    const uint32_t owned_want[7] = {1, 2, 5, 1, 1, 1, 1};
+    assert_memory_equal(owned, owned_want, sizeof owned_want);
+    assert_memory_equal(&u.positions[0], &pa[0], 24);
+    assert_memory_equal(&u.positions[9], &pb[3], 24);
+    ms_mesh_free(&u);
+    free(owned);
+    assert_int_equal(ms_bake_apo_union(parts, 0, &box, &u, &owned, &err), MS_OK);
+    assert_int_equal(u.vertex_count + u.triangle_count, 0);
+    ms_mesh_free(&u);
+    free(owned);
+}
+
+/* ms_bake_apo_smooth at 1 bit: a vertex moves to the weighted mean of the owned M
+ * vertices in its cell, to the plain mean where M has only foreign ones, and keeps
+ * its centre where M has none; the weights add up. */
+static void test_smooth_to_means(void **state)
+{
+    (void)state;
+    const ms_quant_box box = {{0, 0, 0}, 1.0};
+    double mp[] = {0.25, 0.25, 0.25, 0.75, 0.25, 0.25, 0.75, 0.75, 0.75};
+    uint32_t mt[] = {0, 1, 2};
+    ms_mesh m = {0};
+    ms_error err;
+    assert_int_equal(ms_mesh_reserve(&m, 3, 1, &err), MS_OK);
+    memcpy(m.positions, mp, sizeof mp);
+    memcpy(m.triangles, mt, sizeof mt);
+    m.vertex_count = 3, m.triangle_count = 1;
+    double Mp[] = {0.1, 0.1, 0.1, 0.3, 0.2, 0.1, 0.6, 0.1, 0.1, 0.7, 0.3, 0.1};
+    uint32_t Mt[] = {0, 1, 2, 1, 2, 3}, owned[] = {1, 3, 0, 0};
+    const ms_mesh M = {.positions = Mp, .triangles = Mt, .vertex_count = 4, .triangle_count = 2};
+    const double origin[3] = {0, 0, 0};
+    ms_bake_apo_part part;
+    assert_int_equal(ms_bake_apo_smooth(&m, 1, &box, origin, 1.0, &M, owned, &part, &err), MS_OK);
+    assert_null(m.positions);
+    assert_int_equal(part.mesh.vertex_count, 3);
+    assert_int_equal(part.bits, 1);
+    const double want[9] = {(1 * 0.1 + 3 * 0.3) / 4, (1 * 0.1 + 3 * 0.2) / 4, (1 * 0.1 + 3 * 0.1) / 4,
+                            (0.6 + 0.7) / 2, (0.1 + 0.3) / 2, (0.1 + 0.1) / 2,
+                            0.75, 0.75, 0.75};
+    assert_memory_equal(part.mesh.positions, want, sizeof want);
+    const uint32_t weight_want[3] = {4, 2, 1};
+    assert_memory_equal(part.weight, weight_want, sizeof weight_want);
+    assert_memory_equal(part.mesh.triangles, mt, sizeof mt);
+    ms_bake_apo_part_free(&part);
+}
+
+static int cmp_triple(const void *x, const void *y)
+{
+    return memcmp(x, y, 3 * sizeof(uint64_t)); /* any total order groups equal triples */
+}
+
+static size_t children_union(ms_view *v, const ms_archive_cell *cells, uint32_t cell, unsigned nc)
+{
+    ms_error err;
+    size_t nt = 0, cap = 0;
+    uint64_t *tris = NULL; /* 3 ids per triangle, sorted */
+    for (unsigned k = 0; k < nc; ++k) {
+        uint32_t c = cells[cell].first_child + k;
+        if (ms_view_set_bits(v, c, cells[c].bits_max, &err) != MS_OK)
+            fail_msg("cell %u: %s", c, err.text);
+        ms_codec_state st = {0};
+        assert_int_equal(ms_view_cell_state_copy(v, c, &st, &err), MS_OK);
+        if (st.vertex_count > 0)
+            assert_int_equal(st.level, 3u * cells[c].bits_max);
+        if (nt + st.tri_count > cap) {
+            cap = 2 * (nt + st.tri_count);
+            tris = realloc(tris, cap * 3 * sizeof *tris);
+            assert_non_null(tris);
+        }
+        for (size_t t = 0; t < st.tri_count; ++t) {
+            uint64_t x[3];
+            for (int j = 0; j < 3; ++j)
+                x[j] = (uint64_t)cells[c].bits_max << 56 | st.cells[st.tris[3 * t + (size_t)j]];
+            for (int i = 0; i < 2; ++i)
+                for (int j = 0; j < 2 - i; ++j)
+                    if (x[j] > x[j + 1]) {
+                        uint64_t y = x[j];
+                        x[j] = x[j + 1], x[j + 1] = y;
+                    }
+            memcpy(&tris[3 * nt++], x, sizeof x);
+        }
+        ms_codec_state_free(&st);
+    }
+    qsort(tris, nt, 3 * sizeof *tris, cmp_triple);
+    size_t distinct = 0;
+    for (size_t t = 0; t < nt; ++t)
+        distinct += t == 0 || memcmp(&tris[3 * t], &tris[3 * (t - 1)], 24) != 0;
+    free(tris);
+    return distinct;
+}
+
+/* An internal cell's APO sampling surface is exactly the union of its children's
+ * decoded meshes: the triangles of all internal cells' M add up to the unions
+ * computed here from the archive through the client's view, and the largest
+ * matches too. */
+static void test_internal_sampling_surface_is_children_union(void **state)
+{
+    (void)state;
+    char dir[512], model[4096], path[700];
+    ms_test_tmpdir(dir, sizeof dir);
+    ms_test_model_path(model, sizeof model, "stanford_bunny_res3.ply.gz");
+    ms_bake_apo_params apo;
+    ms_bake_apo_params_default(&apo);
+    apo.max_depth = 5;
+    ms_bake_report r;
+    bake_report(model, dir, "u", 2, &apo, 16, 2, 3, 200, &r); /* n = 2: a deep tree */
+    snprintf(path, sizeof path, "%s/u.msa", dir);
+    ms_archive *a;
+    ms_error err;
+    assert_int_equal(ms_archive_open(path, &a, &err), MS_OK);
+    const ms_archive_header *h = ms_archive_get_header(a);
+    const unsigned nc = h->n * h->n * h->n;
+    ms_view *v;
+    assert_int_equal(ms_view_create_from_archive(a, &v, &err), MS_OK);
+    const ms_archive_cell *cells = ms_archive_get_cell(a, 0);
+    assert_int_equal(ms_view_set_bits(v, 0, cells[0].bits_max, &err), MS_OK);
+    /* cells are numbered parents first: split each internal cell in turn */
+    size_t sum = 0, largest = 0, internal = 0, deeper = 0;
+    for (uint32_t c = 0; c < h->cell_count; ++c) {
+        if (cells[c].first_child == MS_ARCHIVE_NONE)
+            continue;
+        assert_int_equal(ms_view_split(v, c, &err), MS_OK);
+        size_t u = children_union(v, cells, c, nc);
+        internal++;
+        deeper += cells[c].level > 0;
+        sum += u;
+        largest = u > largest ? u : largest;
+    }
+    assert_true(internal >= 3 && deeper >= 2); /* the root and level-1 cells */
+    assert_int_equal(r.apo_sample_triangles, sum);
+    assert_int_equal(r.apo_sample_triangles_max, largest);
+    /* the root's M is coarser than the model: log2(n) bits above its window */
+    assert_true(largest < r.triangles);
+    ms_view_destroy(v);
+    ms_archive_close(a);
+    ms_test_rmdir(dir);
+}
+
 /* MESHSTREAM_BIG=1: the 871k dragon with the default settings, verified by the
  * baker and then chunk by chunk here. */
 static void test_big_dragon(void **state)
@@ -372,6 +553,9 @@ int main(void)
         cmocka_unit_test(test_depth_rule_exact),
         cmocka_unit_test(test_damaged_chunks_are_rejected),
         cmocka_unit_test(test_cli_reports_apo),
+        cmocka_unit_test(test_union_of_parts),
+        cmocka_unit_test(test_smooth_to_means),
+        cmocka_unit_test(test_internal_sampling_surface_is_children_union),
         cmocka_unit_test(test_big_dragon),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
