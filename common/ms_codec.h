@@ -131,6 +131,15 @@ ms_status ms_codec_decoder_create(const uint8_t *data, size_t size, const ms_cod
                                   ms_codec_decoder **out, ms_error *err);
 void ms_codec_decoder_destroy(ms_codec_decoder *d);
 
+/* Gives the decoder a longer prefix of its stream: data[0..size) must begin with
+ * the bytes it holds (size at least as many; the header is compared). The new
+ * bytes are copied; decoding goes on from the current level, so bits that arrive
+ * one by one cost no re-decoding. Errors: MS_ERR_ARG when the bytes do not
+ * continue the stream, MS_ERR_CORRUPT after a corrupted stream, MS_ERR_NOMEM;
+ * the decoder is unchanged on error. */
+ms_status ms_codec_decoder_extend(ms_codec_decoder *d, const uint8_t *data, size_t size,
+                                  ms_error *err);
+
 /* Current kd-level and the window. Precision bits reached = level / 3. */
 unsigned ms_codec_decoder_level(const ms_codec_decoder *d);
 unsigned ms_codec_decoder_min_level(const ms_codec_decoder *d);

@@ -597,6 +597,15 @@ static ms_status load_start(ms_codec_decoder *d, const ms_codec_state *start, ms
                      : MS_OK;
 }
 
+/* Highest kd-level the held body bytes allow (complete chunks only). */
+static unsigned available_level(const ms_codec_decoder *d)
+{
+    unsigned level = d->Lmin, nchunks = d->h.p_max - d->h.p_min;
+    for (unsigned c = 0; c < nchunks && (d->enc || d->h.chunk_end[c] <= d->body_avail); ++c)
+        level = d->Lmin + 3 * (c + 1);
+    return level;
+}
+
 /* Allocates the decoder around d->h (already validated) and loads the start state. */
 static ms_status decoder_init(ms_codec_decoder *d, const ms_codec_state *start, ms_error *err)
 {
@@ -606,9 +615,7 @@ static ms_status decoder_init(ms_codec_decoder *d, const ms_codec_state *start, 
     d->level = d->Lmin;
     d->rc_chunk = UINT32_MAX;
     unsigned nchunks = d->h.p_max - d->h.p_min;
-    d->avail_level = d->Lmin;
-    for (unsigned c = 0; c < nchunks && (d->enc || d->h.chunk_end[c] <= d->body_avail); ++c)
-        d->avail_level = d->Lmin + 3 * (c + 1);
+    d->avail_level = available_level(d);
     d->nmodel = ms_model_size(d->D);
     d->model = malloc((size_t)d->nmodel * sizeof *d->model);
     d->snap = malloc((size_t)(nchunks ? nchunks : 1) * d->nmodel * sizeof *d->snap);
@@ -665,6 +672,33 @@ ms_status ms_codec_decoder_create(const uint8_t *data, size_t size, const ms_cod
         return r;
     }
     *out = d;
+    return MS_OK;
+}
+
+ms_status ms_codec_decoder_extend(ms_codec_decoder *d, const uint8_t *data, size_t size,
+                                  ms_error *err)
+{
+    if (d->broken)
+        return ms_error_set(err, MS_ERR_CORRUPT, "decoder stopped after a corrupted stream");
+    size_t hs = d->h.header_size;
+    if (size < d->size || memcmp(data, d->data, hs) != 0)
+        return ms_error_set(err, MS_ERR_ARG, "extending a decoder with bytes that do not "
+                            "continue its stream");
+    size_t body_avail = size - hs < d->h.body_size ? size - hs : d->h.body_size;
+    if (body_avail == d->body_avail)
+        return MS_OK;
+    uint8_t *b = realloc(d->data, hs + body_avail + 1);
+    if (!b)
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory extending a decoder");
+    memcpy(b + d->size, data + d->size, hs + body_avail - d->size);
+    /* The range decoder may sit inside a chunk: keep it on the moved bytes. */
+    if (d->rc_chunk != UINT32_MAX)
+        d->rc.data = b + hs + (d->rc.data - d->body);
+    d->data = b;
+    d->body = b + hs;
+    d->size = hs + body_avail;
+    d->body_avail = body_avail;
+    d->avail_level = available_level(d);
     return MS_OK;
 }
 

@@ -236,8 +236,8 @@ unsigned ms_view_available_bits(const ms_view *v, uint32_t cell)
     return cell < v->count ? held_bits(&v->cells[cell]) : 0;
 }
 
-/* Makes sure the cell's decoder exists and can reach `bits` (recreating it over a
- * longer prefix when more bytes came), keeping its current level. */
+/* Makes sure the cell's decoder exists and can reach `bits` (extending it with
+ * the bytes that came since, so decoding goes on from its current level). */
 static ms_status ensure_decoder(ms_view *v, uint32_t cell, unsigned bits, ms_error *err)
 {
     vcell *c = &v->cells[cell];
@@ -246,6 +246,16 @@ static ms_status ensure_decoder(ms_view *v, uint32_t cell, unsigned bits, ms_err
     if (c->dec && c->nbytes == c->dec_bytes)
         return ms_error_set(err, MS_ERR_FORMAT, "cell %u: bytes for %u bits not received yet",
                             cell, bits);
+    if (c->dec) {
+        ms_status s = ms_codec_decoder_extend(c->dec, c->bytes, c->nbytes, err);
+        if (s != MS_OK)
+            return s;
+        c->dec_bytes = c->nbytes;
+        if (ms_codec_decoder_available_level(c->dec) < 3 * bits)
+            return ms_error_set(err, MS_ERR_FORMAT, "cell %u: bytes for %u bits not received "
+                                "yet", cell, bits);
+        return MS_OK;
+    }
     if (cell != 0 && !c->has_start)
         return ms_error_set(err, MS_ERR_RANGE, "cell %u is not shown", cell);
     ms_codec_decoder *d;
@@ -259,13 +269,6 @@ static ms_status ensure_decoder(ms_view *v, uint32_t cell, unsigned bits, ms_err
         return ms_error_set(err, MS_ERR_CORRUPT, "cell %u: stream window [%u, %u] differs from "
                             "the index", cell, h->p_min, h->p_max);
     }
-    unsigned level = c->dec ? ms_codec_decoder_level(c->dec) : 3u * c->rec.bits_min;
-    if ((s = ms_codec_decoder_set_level(d, level, err)) != MS_OK) {
-        ms_codec_decoder_destroy(d);
-        return s;
-    }
-    if (c->dec)
-        ms_codec_decoder_destroy(c->dec);
     c->dec = d;
     c->dec_bytes = c->nbytes;
     if (ms_codec_decoder_available_level(d) < 3 * bits)

@@ -594,6 +594,54 @@ static void test_corruption_detected(void **state)
     free_coded(&c);
 }
 
+/* A decoder extended bit by bit with longer prefixes decodes exactly what a fresh
+ * decoder over the same prefix does, at every level (also from mid-chunk levels),
+ * and refuses bytes that do not continue its stream. */
+static void test_extend_with_longer_prefixes(void **state)
+{
+    (void)state;
+    ms_error err;
+    coded c;
+    code_torus(&c, 12, 0, NULL);
+    ms_codec_header h;
+    assert_int_equal(ms_codec_read_header(c.buf, c.size, &h, &err), MS_OK);
+    ms_codec_decoder *d;
+    assert_int_equal(ms_codec_decoder_create(c.buf, h.header_size, NULL, NULL, &d, &err), MS_OK);
+    assert_int_equal(ms_codec_decoder_available_level(d), 0);
+    for (unsigned k = 0; k < h.p_max; ++k) {
+        size_t prefix = h.header_size + h.chunk_end[k];
+        /* a shorter prefix, or one with another header, is not a continuation */
+        assert_int_equal(ms_codec_decoder_extend(d, c.buf, h.header_size - 1, &err), MS_ERR_ARG);
+        c.buf[40] ^= 1;
+        assert_int_equal(ms_codec_decoder_extend(d, c.buf, prefix, &err), MS_ERR_ARG);
+        c.buf[40] ^= 1;
+        assert_int_equal(ms_codec_decoder_extend(d, c.buf, prefix, &err), MS_OK);
+        assert_int_equal(ms_codec_decoder_available_level(d), 3 * (k + 1));
+        /* stop mid-chunk once, so the range decoder is inside the moved bytes */
+        unsigned target = 3 * (k + 1) - (k % 2 ? 1 : 0);
+        assert_int_equal(ms_codec_decoder_set_level(d, target, &err), MS_OK);
+        ms_codec_decoder *fresh;
+        assert_int_equal(ms_codec_decoder_create(c.buf, prefix, NULL, NULL, &fresh, &err), MS_OK);
+        assert_int_equal(ms_codec_decoder_set_level(fresh, target, &err), MS_OK);
+        ms_codec_state a, b;
+        assert_int_equal(ms_codec_decoder_state(d, &a, &err), MS_OK);
+        assert_int_equal(ms_codec_decoder_state(fresh, &b, &err), MS_OK);
+        assert_true(ms_codec_state_equal(&a, &b, true));
+        ms_codec_state_free(&a);
+        ms_codec_state_free(&b);
+        ms_codec_decoder_destroy(fresh);
+    }
+    assert_int_equal(ms_codec_decoder_set_level(d, 36, &err), MS_OK);
+    ms_codec_state got;
+    assert_int_equal(ms_codec_decoder_state(d, &got, &err), MS_OK);
+    assert_true(ms_codec_state_equal(&got, &c.canon, true));
+    ms_codec_state_free(&got);
+    /* the same bytes again: nothing to do */
+    assert_int_equal(ms_codec_decoder_extend(d, c.buf, c.size, &err), MS_OK);
+    ms_codec_decoder_destroy(d);
+    free_coded(&c);
+}
+
 static void test_torus_levels_and_size(void **state)
 {
     (void)state;
@@ -633,6 +681,7 @@ int main(void)
         cmocka_unit_test(test_parent_child_chain),
         cmocka_unit_test(test_prefix_and_truncation),
         cmocka_unit_test(test_corruption_detected),
+        cmocka_unit_test(test_extend_with_longer_prefixes),
         cmocka_unit_test(test_torus_levels_and_size),
     };
     return cmocka_run_group_tests_name("codec", tests, NULL, NULL);
