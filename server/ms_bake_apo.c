@@ -8,6 +8,7 @@
 #include "ms_apo_chunk.h"
 #include "ms_apo_stream.h"
 #include "ms_apo_traverse.h"
+#include "ms_tri_unify.h"
 
 void ms_bake_apo_params_default(ms_bake_apo_params *p)
 {
@@ -261,7 +262,7 @@ ms_status ms_bake_apo_union(const ms_bake_apo_part *parts, size_t count, const m
             base += parts[k].mesh.vertex_count;
         }
         M->triangle_count = nt;
-        s = ms_bake_apo_drop_repeats(M->triangles, &M->triangle_count, err);
+        s = ms_tri_unify(M->triangles, &M->triangle_count, NULL, NULL, err);
     }
     free(vk);
     free(id);
@@ -344,59 +345,6 @@ ms_status ms_bake_apo_smooth(ms_mesh *m, unsigned bits, const ms_quant_box *box,
     out->bits = bits;
     memcpy(out->origin, origin, sizeof out->origin);
     out->size = size;
-    return MS_OK;
-}
-
-typedef struct keyed_triangle {
-    uint32_t v[3]; /* sorted vertex indices */
-    uint32_t seq;  /* position in the list */
-} keyed_triangle;
-
-static int cmp_keyed(const void *x, const void *y)
-{
-    const keyed_triangle *a = x, *b = y;
-    for (int i = 0; i < 3; ++i)
-        if (a->v[i] != b->v[i])
-            return a->v[i] < b->v[i] ? -1 : 1;
-    return a->seq < b->seq ? -1 : (a->seq > b->seq);
-}
-
-ms_status ms_bake_apo_drop_repeats(uint32_t *tris, size_t *count, ms_error *err)
-{
-    size_t n = *count;
-    keyed_triangle *kt = malloc((n + 1) * sizeof *kt);
-    uint8_t *drop = calloc(n + 1, 1);
-    if (!kt || !drop) {
-        free(kt);
-        free(drop);
-        return ms_error_set(err, MS_ERR_NOMEM, "out of memory removing repeated triangles");
-    }
-    for (size_t t = 0; t < n; ++t) {
-        uint32_t *v = kt[t].v, x;
-        memcpy(v, &tris[3 * t], sizeof kt[t].v);
-        if (v[0] > v[1])
-            x = v[0], v[0] = v[1], v[1] = x;
-        if (v[1] > v[2])
-            x = v[1], v[1] = v[2], v[2] = x;
-        if (v[0] > v[1])
-            x = v[0], v[0] = v[1], v[1] = x;
-        kt[t].seq = (uint32_t)t;
-    }
-    /* ties by seq: the earliest of each group comes first and is kept */
-    qsort(kt, n, sizeof *kt, cmp_keyed);
-    for (size_t t = 1; t < n; ++t)
-        if (memcmp(kt[t].v, kt[t - 1].v, sizeof kt[t].v) == 0)
-            drop[kt[t].seq] = 1;
-    size_t w = 0;
-    for (size_t t = 0; t < n; ++t)
-        if (!drop[t]) {
-            if (w != t)
-                memcpy(&tris[3 * w], &tris[3 * t], 12);
-            w++;
-        }
-    *count = w;
-    free(kt);
-    free(drop);
     return MS_OK;
 }
 

@@ -145,10 +145,6 @@ ms_status ms_bake_apo_smooth(ms_mesh *m, unsigned bits, const ms_quant_box *box,
                              double size, const ms_mesh *M, const uint32_t *owned, ms_bake_apo_part *out,
                              ms_error *err);
 
-/* Removes from tris (3 vertex indices each) every triangle whose set of vertices
- * repeats an earlier one, keeping the order of the others; *count is updated.
- * MS_ERR_NOMEM leaves the list unchanged. */
-ms_status ms_bake_apo_drop_repeats(uint32_t *tris, size_t *count, ms_error *err);
 
 /* True when two trees have the same nodes (depth, cell, children) and the same
  * normal codes; on a difference, writes the first differing node into *node. */

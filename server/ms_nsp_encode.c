@@ -1,5 +1,6 @@
 /* Post-order parallel encoding of the nSP cells: see ms_nsp_encode.h. */
 #include "ms_nsp_encode.h"
+#include "ms_tri_unify.h"
 
 #include <pthread.h>
 #ifdef __GLIBC__
@@ -102,74 +103,6 @@ static ms_status index_keys(uint64_t *ref, size_t n, unsigned key_bits, uint64_t
     return s;
 }
 
-static void sort3(const uint32_t *t, uint32_t s[3])
-{
-    uint32_t a = t[0], b = t[1], c = t[2], x;
-    if (a > b)
-        x = a, a = b, b = x;
-    if (b > c)
-        x = b, b = c, c = x;
-    if (a > b)
-        x = a, a = b, b = x;
-    s[0] = a, s[1] = b, s[2] = c;
-}
-
-/* Same cyclic order. */
-static bool same_orientation(const uint32_t *a, const uint32_t *b)
-{
-    for (int r = 0; r < 3; ++r)
-        if (a[0] == b[r] && a[1] == b[(r + 1) % 3] && a[2] == b[(r + 2) % 3])
-            return true;
-    return false;
-}
-
-/* Removes triangles whose vertex set repeats an earlier one (earlier in the list
- * wins). With check, a repeat with the other orientation sets *conflict. Returns
- * the new count. Vertex indices must be below 2^21 (the packed sort key). */
-static ms_status unify_triangles(uint32_t *tris, size_t *count, bool check, bool *conflict,
-                                 size_t *removed, ms_error *err)
-{
-    size_t n = *count;
-    uint64_t *key = malloc((n ? n : 1) * sizeof *key);
-    uint32_t *seq = malloc((n ? n : 1) * sizeof *seq);
-    uint8_t *drop = calloc(n ? n : 1, 1);
-    if (!key || !seq || !drop) {
-        free(key);
-        free(seq);
-        free(drop);
-        return ms_error_set(err, MS_ERR_NOMEM, "out of memory unifying triangles");
-    }
-    for (size_t i = 0; i < n; ++i) {
-        uint32_t v[3];
-        sort3(&tris[3 * i], v);
-        key[i] = (uint64_t)v[0] << 42 | (uint64_t)v[1] << 21 | v[2];
-        seq[i] = (uint32_t)i;
-    }
-    ms_status s = ms_radix_sort_pairs(key, seq, n, 63, err);
-    for (size_t i = 1; s == MS_OK && i < n; ++i)
-        if (key[i] == key[i - 1]) {
-            size_t g = i - 1; /* the group's first (stable sort: earliest) */
-            while (drop[seq[g]])
-                --g;
-            drop[seq[i]] = 1;
-            if (check && !same_orientation(&tris[3 * (size_t)seq[g]], &tris[3 * (size_t)seq[i]]))
-                *conflict = true;
-        }
-    size_t w = 0;
-    for (size_t i = 0; i < n; ++i)
-        if (!drop[i]) {
-            if (w != i)
-                memcpy(&tris[3 * w], &tris[3 * i], 12);
-            w++;
-        }
-    *removed += n - w;
-    *count = w;
-    free(key);
-    free(seq);
-    free(drop);
-    return s;
-}
-
 /* Leaf: records at full precision -> complex. */
 static ms_status leaf_state(pool *p, uint32_t node, ms_codec_state *st, ms_error *err)
 {
@@ -226,12 +159,8 @@ static ms_status leaf_state(pool *p, uint32_t node, ms_codec_state *st, ms_error
     free(rank);
     free(rec);
     size_t removed = 0;
-    bool conflict = false;
-    if (s == MS_OK && nk >= (1u << 21))
-        s = ms_error_set(err, MS_ERR_RANGE, "a leaf holds more than 2^21 vertices (lower "
-                         "--min-tris)");
     if (s == MS_OK)
-        s = unify_triangles(st->tris, &nt, false, &conflict, &removed, err);
+        s = ms_tri_unify(st->tris, &nt, NULL, &removed, err);
     st->tri_count = nt;
     if (s != MS_OK) {
         ms_codec_state_free(st);
@@ -254,7 +183,7 @@ static ms_status leaf_state(pool *p, uint32_t node, ms_codec_state *st, ms_error
     uint8_t *has = calloc(nk ? nk : 1, 1);
     for (size_t t = 0; t < nt; ++t) {
         uint32_t s3[3];
-        sort3(&st->tris[3 * t], s3);
+        ms_tri_sort3(&st->tris[3 * t], s3);
         own_t += inside[s3[0]];
         if (has)
             has[s3[0]] = has[s3[1]] = has[s3[2]] = 1;
@@ -336,11 +265,8 @@ static ms_status internal_state(pool *p, uint32_t node, unsigned bits_max, ms_co
     nt = wt / 3;
     size_t removed = 0;
     bool conflict = false;
-    if (s == MS_OK && nv >= (1u << 21))
-        s = ms_error_set(err, MS_ERR_RANGE, "cell %u holds more than 2^21 vertices (lower "
-                         "--min-tris)", p->cell_of_node[node]);
     if (s == MS_OK)
-        s = unify_triangles(st->tris, &nt, true, &conflict, &removed, err);
+        s = ms_tri_unify(st->tris, &nt, &conflict, &removed, err);
     st->tri_count = nt;
     if (s == MS_OK && conflict)
         s = ms_error_set(err, MS_ERR_CORRUPT, "cell %u: children disagree on a triangle's "
@@ -465,7 +391,7 @@ static ms_status full_precision_mesh(const ms_nsp_build *b, uint32_t node, ms_me
     }
     /* keep the first of each group of equal vertex sets, in leaf order */
     if (s == MS_OK)
-        s = ms_bake_apo_drop_repeats(rank, &nt, err);
+        s = ms_tri_unify(rank, &nt, NULL, NULL, err);
     if (s == MS_OK)
         s = ms_mesh_reserve(M, nk, nt, err);
     if (s == MS_OK) {
