@@ -578,6 +578,7 @@ static void test_corruption_detected(void **state)
     assert_int_equal(ms_codec_decoder_set_level(d, 36, &err), MS_ERR_CORRUPT);
     assert_non_null(strstr(err.text, "checksum"));
     assert_int_equal(ms_codec_decoder_set_level(d, 3, &err), MS_ERR_CORRUPT);
+    assert_int_equal(ms_codec_decoder_extend(d, c.buf, c.size, &err), MS_ERR_CORRUPT);
     ms_codec_decoder_destroy(d);
     ms_codec_decoder_options opt = {.skip_crc = true};
     assert_int_equal(ms_codec_decoder_create(c.buf, c.size, NULL, &opt, &d, &err), MS_OK);

@@ -185,6 +185,45 @@ static void test_training_counts(void **state)
     ms_codec_state_free(&full);
 }
 
+/* meshcodec train: writes a table of exactly the prior's size; usage and input
+ * errors give exit statuses 2 and 1. */
+static void test_train_cli(void **state)
+{
+    (void)state;
+    char bin[1024], model[4096], dir[1024], out[8192], table[1200];
+    static char cmd[16384];
+    ms_test_bin_path(bin, sizeof bin, "meshcodec");
+    ms_test_model_path(model, sizeof model, "stanford_bunny_res3.ply.gz");
+    ms_test_tmpdir(dir, sizeof dir);
+    snprintf(table, sizeof table, "%s/prior.c", dir);
+    snprintf(cmd, sizeof cmd, "%s train %s %s --bits 8 -o %s", bin, model, model, table);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
+    assert_non_null(strstr(out, "prior of 5106 contexts from 2 meshes"));
+    size_t n = 0;
+    unsigned char *bytes = ms_test_read_file(table, &n);
+    char *text = malloc(n + 1);
+    assert_non_null(text);
+    memcpy(text, bytes, n);
+    text[n] = 0;
+    free(bytes);
+    assert_non_null(strstr(text, " *   stanford_bunny_res3.ply.gz\n"));
+    const char *body = strstr(text, "ms_codec_prior_p0[MS_PRIOR_SIZE] = {");
+    assert_non_null(body);
+    size_t commas = 0;
+    for (const char *c = body; *c; ++c)
+        commas += *c == ',';
+    assert_int_equal(commas, MS_PRIOR_SIZE);
+    free(text);
+    snprintf(cmd, sizeof cmd, "%s train -o %s ", bin, table);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 2);
+    snprintf(cmd, sizeof cmd, "%s train %s --bits 7 -o %s ", bin, model, table);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 2);
+    snprintf(cmd, sizeof cmd, "%s train %s/missing.ply -o %s ", bin, dir, table);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 1);
+    assert_non_null(strstr(out, "meshcodec train: "));
+    ms_test_rmdir(dir);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -192,6 +231,7 @@ int main(void)
         cmocka_unit_test(test_model_init),
         cmocka_unit_test(test_version_1_still_decodes),
         cmocka_unit_test(test_training_counts),
+        cmocka_unit_test(test_train_cli),
     };
     return cmocka_run_group_tests_name("codec_prior", tests, NULL, NULL);
 }
