@@ -1,5 +1,6 @@
 /* Codec decoder: incremental and reversible refinement of the complex. */
 #include "ms_codec.h"
+#include "ms_big_alloc.h"
 #include "ms_codec_internal.h"
 #include "ms_codec_model.h"
 #include "ms_codec_prior.h"
@@ -123,10 +124,10 @@ static int order_room(ms_codec_decoder *d, uint32_t n)
     uint32_t c = d->cap_order ? d->cap_order : 64;
     while (c < n)
         c *= 2;
-    uint32_t *a = realloc(d->order, (size_t)c * sizeof *a);
+    uint32_t *a = ms_big_realloc(d->order, (size_t)c * sizeof *a);
     if (a)
         d->order = a;
-    uint32_t *b = realloc(d->order2, (size_t)c * sizeof *b);
+    uint32_t *b = ms_big_realloc(d->order2, (size_t)c * sizeof *b);
     if (b)
         d->order2 = b;
     if (!a || !b)

@@ -2,6 +2,7 @@
  * order, recording each decision with the context the decoder will see, then
  * range-codes the recorded decisions in decode order, one chunk per bit. */
 #include "ms_codec.h"
+#include "ms_big_alloc.h"
 #include "ms_codec_internal.h"
 #include "ms_codec_model.h"
 #include "ms_complex.h"
@@ -21,9 +22,10 @@ typedef struct enc {
     ms_complex cx;
     unsigned D;
     sym_buf sym;
-    size_t *groups;     /* start of each merge group in sym, production order */
-    size_t ngroups, cap_groups;
-    size_t level_first[3 * MS_CODEC_MAX_BITS + 1]; /* first group of each level */
+    /* Each level's decisions, sym[level_first[L], level_end[L]), already in decode
+     * order: the merge pass visits a level's cells in reverse decode order, so it
+     * writes every cell's group reversed and then reverses the level once. */
+    size_t level_first[3 * MS_CODEC_MAX_BITS + 1];
     size_t level_end[3 * MS_CODEC_MAX_BITS + 1];
     ms_cx_star star;
     uint8_t *code;
@@ -35,7 +37,7 @@ static void put(enc *e, int bit)
 {
     if (e->sym.n == e->sym.cap) {
         size_t c = e->sym.cap ? e->sym.cap * 2 : 1 << 16;
-        uint8_t *n = realloc(e->sym.s, c * sizeof *n);
+        uint8_t *n = ms_big_realloc(e->sym.s, c * sizeof *n);
         if (!n) {
             e->nomem = 1;
             return;
@@ -46,18 +48,13 @@ static void put(enc *e, int bit)
     e->sym.s[e->sym.n++] = (uint8_t)(bit != 0);
 }
 
-static int new_group(enc *e)
+static void reverse_bytes(uint8_t *p, size_t n)
 {
-    if (e->ngroups == e->cap_groups) {
-        size_t c = e->cap_groups ? e->cap_groups * 2 : 1 << 14;
-        size_t *n = realloc(e->groups, c * sizeof *n);
-        if (!n)
-            return 0;
-        e->groups = n;
-        e->cap_groups = c;
+    for (size_t i = 0, j = n; i + 1 < j; ++i, --j) {
+        uint8_t t = p[i];
+        p[i] = p[j - 1];
+        p[j - 1] = t;
     }
-    e->groups[e->ngroups++] = e->sym.n;
-    return 1;
 }
 
 static int code_room(enc *e, size_t n)
@@ -157,15 +154,6 @@ static ms_status validate_full(const ms_codec_state *f, ms_error *err)
     return MS_OK;
 }
 
-static int cmp_tri3(const void *a, const void *b)
-{
-    const uint32_t *x = a, *y = b;
-    for (int i = 0; i < 3; ++i)
-        if (x[i] != y[i])
-            return x[i] < y[i] ? -1 : 1;
-    return 0;
-}
-
 /* Exports the complex (all cells at one level) as a canonical state. */
 static ms_status export_state(const ms_complex *cx, const uint32_t *order, uint32_t n,
                               unsigned level, ms_codec_state *out, ms_error *err)
@@ -253,9 +241,9 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
     canon.vertex_count = full->vertex_count;
     canon.tri_count = full->tri_count;
     canon.edge_count = full->edge_count;
-    canon.cells = malloc((size_t)n * sizeof *canon.cells);
-    canon.tris = malloc((full->tri_count ? full->tri_count : 1) * 3 * sizeof *canon.tris);
-    canon.edges = malloc((full->edge_count ? full->edge_count : 1) * 2 * sizeof *canon.edges);
+    canon.cells = ms_big_malloc((size_t)n * sizeof *canon.cells);
+    canon.tris = ms_big_malloc((full->tri_count ? full->tri_count : 1) * 3 * sizeof *canon.tris);
+    canon.edges = ms_big_malloc((full->edge_count ? full->edge_count : 1) * 2 * sizeof *canon.edges);
     if (!canon.cells || !canon.tris || !canon.edges)
         goto nomem;
     memcpy(canon.cells, full->cells, (size_t)n * sizeof *canon.cells);
@@ -273,7 +261,7 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
     {
         /* duplicate triangles (same vertex set) and duplicate edges */
         size_t nt = canon.tri_count;
-        uint32_t *sorted = malloc((nt ? nt : 1) * 3 * sizeof *sorted);
+        uint32_t *sorted = ms_big_malloc((nt ? nt : 1) * 3 * sizeof *sorted);
         if (!sorted)
             goto nomem;
         for (size_t t = 0; t < nt; ++t) {
@@ -282,7 +270,10 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
             sorted[3 * t + 1] = b < c ? b : c;
             sorted[3 * t + 2] = b < c ? c : b;
         }
-        qsort(sorted, nt, 3 * sizeof *sorted, cmp_tri3);
+        if ((s = ms_sort_index_tuples(sorted, nt, 3, n, err)) != MS_OK) {
+            free(sorted);
+            goto fail;
+        }
         int dup = 0;
         for (size_t t = 1; t < nt && !dup; ++t)
             dup = memcmp(&sorted[3 * t], &sorted[3 * t - 3], 3 * sizeof *sorted) == 0;
@@ -304,8 +295,8 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
         goto fail;
     if ((s = ms_cx_reserve(&e.cx, n, max_t, (uint32_t)canon.edge_count, err)) != MS_OK)
         goto fail;
-    order = malloc((size_t)n * sizeof *order);
-    order2 = malloc((size_t)n * sizeof *order2);
+    order = ms_big_malloc((size_t)n * sizeof *order);
+    order2 = ms_big_malloc((size_t)n * sizeof *order2);
     if (!order || !order2)
         goto nomem;
     for (uint32_t i = 0; i < n; ++i) {
@@ -337,7 +328,7 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
     /* Merge level by level, deepest first, decreasing key within a level. */
     uint32_t norder = n;
     for (unsigned L = D; L-- > Lmin;) {
-        e.level_first[L] = e.ngroups;
+        e.level_first[L] = e.sym.n;
         unsigned shift = D - L; /* bits below the parent's prefix */
         uint64_t child_bit = 1ull << (shift - 1);
         int axis = (int)(L % 3);
@@ -347,8 +338,7 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
             uint32_t first = MS_CX_NONE;
             if (k > 0 && (e.cx.v[order[k - 1]].key >> shift) == (e.cx.v[last].key >> shift))
                 first = order[--k];
-            if (!new_group(&e))
-                goto nomem;
+            size_t group = e.sym.n;
             uint32_t keep = first != MS_CX_NONE ? first : last;
             if (first != MS_CX_NONE) {
                 put(&e, 1);
@@ -371,28 +361,28 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
             order2[w++] = keep;
             if (e.nomem)
                 goto nomem;
+            reverse_bytes(e.sym.s + group, e.sym.n - group);
         }
+        reverse_bytes(e.sym.s + e.level_first[L], e.sym.n - e.level_first[L]);
         for (uint32_t k = 0; k < w; ++k)
             order[k] = order2[w - 1 - k];
         norder = w;
-        e.level_end[L] = e.ngroups;
+        e.level_end[L] = e.sym.n;
     }
 
     /* Start state. */
     if ((s = export_state(&e.cx, order, norder, Lmin, &start, err)) != MS_OK)
         goto fail;
 
-    /* Decisions in decode order: levels upwards, groups in reverse production. */
-    uint8_t *dec = malloc(e.sym.n ? e.sym.n : 1);
+    /* Decisions in decode order: levels upwards. */
+    uint8_t *dec = ms_big_malloc(e.sym.n ? e.sym.n : 1);
     if (!dec)
         goto nomem;
     size_t nd = 0;
-    for (unsigned L = Lmin; L < D; ++L)
-        for (size_t g = e.level_end[L]; g-- > e.level_first[L];) {
-            size_t a = e.groups[g], b = g + 1 < e.ngroups ? e.groups[g + 1] : e.sym.n;
-            for (size_t k = a; k < b; ++k)
-                dec[nd++] = e.sym.s[k];
-        }
+    for (unsigned L = Lmin; L < D; ++L) {
+        memcpy(dec + nd, e.sym.s + e.level_first[L], e.level_end[L] - e.level_first[L]);
+        nd += e.level_end[L] - e.level_first[L];
+    }
     free(e.sym.s);
     e.sym.s = NULL;
     ms_codec_header h;
@@ -452,7 +442,6 @@ done:
     ms_cx_free(&e.cx);
     ms_cx_star_free(&e.star);
     free(e.sym.s);
-    free(e.groups);
     free(e.code);
     free(order);
     free(order2);

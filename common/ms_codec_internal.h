@@ -36,6 +36,12 @@ ms_status ms_codec_run_encoder(ms_codec_header *h, const ms_codec_state *start,
 ms_status ms_codec_export_complex(const ms_complex *cx, const uint32_t *order, uint32_t n,
                                   unsigned level, ms_codec_state *out, ms_error *err);
 
+/* Sorts n tuples of `arity` (2 or 3) vertex indices, each below index_limit,
+ * lexicographically in place (stable; radix sort). MS_ERR_NOMEM on allocation
+ * failure, x unchanged. */
+ms_status ms_sort_index_tuples(uint32_t *x, size_t n, unsigned arity, size_t index_limit,
+                               ms_error *err);
+
 /* Length in kd-levels of the common prefix of two distinct D-bit keys. */
 static inline unsigned ms_key_lcp(uint64_t a, uint64_t b, unsigned D)
 {

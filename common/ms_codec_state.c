@@ -1,6 +1,8 @@
 /* ms_codec_state helpers and the stream header (shared by encoder and decoder). */
 #include "ms_codec.h"
 #include "ms_codec_internal.h"
+#include "ms_big_alloc.h"
+#include "ms_radix_sort.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -42,55 +44,77 @@ ms_status ms_codec_state_from_qmesh(const ms_qmesh *q, ms_codec_state *out, ms_e
     return MS_OK;
 }
 
-typedef struct idx_key {
-    uint64_t key;
-    uint32_t index;
-} idx_key;
-
-static int cmp_idx_key(const void *a, const void *b)
+/* Bits needed for the indices 0..n-1 (at least 1). */
+static unsigned index_bits(size_t n)
 {
-    const idx_key *x = a, *y = b;
-    if (x->key != y->key)
-        return x->key < y->key ? -1 : 1;
-    return x->index < y->index ? -1 : (x->index > y->index);
+    unsigned w = 1;
+    while (w < 32 && ((size_t)1 << w) < n)
+        ++w;
+    return w;
 }
 
-static int cmp_tri3(const void *a, const void *b)
+ms_status ms_sort_index_tuples(uint32_t *x, size_t n, unsigned arity, size_t index_limit,
+                               ms_error *err)
 {
-    const uint32_t *x = a, *y = b;
-    for (int i = 0; i < 3; ++i)
-        if (x[i] != y[i])
-            return x[i] < y[i] ? -1 : 1;
-    return 0;
-}
-
-static int cmp_edge2(const void *a, const void *b)
-{
-    const uint32_t *x = a, *y = b;
-    for (int i = 0; i < 2; ++i)
-        if (x[i] != y[i])
-            return x[i] < y[i] ? -1 : 1;
-    return 0;
+    if (n < 2)
+        return MS_OK;
+    unsigned w = index_bits(index_limit);
+    uint64_t *key = ms_big_malloc(n * sizeof *key);
+    uint32_t *perm = ms_big_malloc(n * sizeof *perm);
+    uint32_t *copy = ms_big_malloc(n * arity * sizeof *copy);
+    ms_status s = MS_OK;
+    if (!key || !perm || !copy)
+        s = ms_error_set(err, MS_ERR_NOMEM, "out of memory sorting %zu simplices", n);
+    for (size_t i = 0; s == MS_OK && i < n; ++i)
+        perm[i] = (uint32_t)i;
+    /* LSD over whole columns: one sort when the tuple fits a 64-bit key, else the
+     * trailing columns first, then the leading one (the sort is stable). */
+    unsigned first = arity * w <= 64 ? 0 : 1;
+    for (int pass = 0; s == MS_OK && pass < 2; ++pass) {
+        unsigned c0 = pass == 0 ? first : 0, c1 = pass == 0 ? arity : first;
+        if (c0 == c1)
+            continue;
+        for (size_t i = 0; i < n; ++i) {
+            uint64_t k = 0;
+            for (unsigned c = c0; c < c1; ++c)
+                k = k << w | x[(size_t)perm[i] * arity + c];
+            key[i] = k;
+        }
+        s = ms_radix_sort_pairs(key, perm, n, (c1 - c0) * w, err);
+    }
+    if (s == MS_OK) {
+        memcpy(copy, x, n * arity * sizeof *copy);
+        for (size_t i = 0; i < n; ++i)
+            memcpy(x + i * arity, copy + (size_t)perm[i] * arity, arity * sizeof *x);
+    }
+    free(key);
+    free(perm);
+    free(copy);
+    return s;
 }
 
 ms_status ms_codec_state_canonicalise(ms_codec_state *s, ms_error *err)
 {
     size_t n = s->vertex_count;
-    idx_key *ik = malloc((n ? n : 1) * sizeof *ik);
+    uint32_t *pos = malloc((n ? n : 1) * sizeof *pos);
     uint32_t *remap = malloc((n ? n : 1) * sizeof *remap);
-    if (!ik || !remap) {
-        free(ik);
+    if (!pos || !remap) {
+        free(pos);
         free(remap);
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory canonicalising a complex");
     }
     for (size_t i = 0; i < n; ++i)
-        ik[i] = (idx_key){s->cells[i], (uint32_t)i};
-    qsort(ik, n, sizeof *ik, cmp_idx_key);
-    for (size_t i = 0; i < n; ++i) {
-        remap[ik[i].index] = (uint32_t)i;
-        s->cells[i] = ik[i].key;
-    }
-    for (size_t t = 0; t < s->tri_count; ++t) {
+        pos[i] = (uint32_t)i;
+    /* every bit of the widest cell, so that even a hostile start state sorts
+     * exactly; equal cells (invalid, refused by the callers) keep their order */
+    uint64_t widest = 0;
+    for (size_t i = 0; i < n; ++i)
+        widest |= s->cells[i];
+    unsigned key_bits = widest ? 64u - (unsigned)__builtin_clzll(widest) : 1u;
+    ms_status st = ms_radix_sort_pairs(s->cells, pos, n, key_bits, err);
+    for (size_t i = 0; st == MS_OK && i < n; ++i)
+        remap[pos[i]] = (uint32_t)i;
+    for (size_t t = 0; st == MS_OK && t < s->tri_count; ++t) {
         uint32_t *x = &s->tris[3 * t];
         uint32_t a = remap[x[0]], b = remap[x[1]], c = remap[x[2]];
         if (b < a && b < c) {
@@ -101,16 +125,18 @@ ms_status ms_codec_state_canonicalise(ms_codec_state *s, ms_error *err)
             x[0] = a, x[1] = b, x[2] = c;
         }
     }
-    qsort(s->tris, s->tri_count, 3 * sizeof *s->tris, cmp_tri3);
-    for (size_t e = 0; e < s->edge_count; ++e) {
+    for (size_t e = 0; st == MS_OK && e < s->edge_count; ++e) {
         uint32_t a = remap[s->edges[2 * e]], b = remap[s->edges[2 * e + 1]];
         s->edges[2 * e] = a < b ? a : b;
         s->edges[2 * e + 1] = a < b ? b : a;
     }
-    qsort(s->edges, s->edge_count, 2 * sizeof *s->edges, cmp_edge2);
-    free(ik);
+    free(pos);
     free(remap);
-    return MS_OK;
+    if (st == MS_OK)
+        st = ms_sort_index_tuples(s->tris, s->tri_count, 3, n, err);
+    if (st == MS_OK)
+        st = ms_sort_index_tuples(s->edges, s->edge_count, 2, n, err);
+    return st;
 }
 
 static void sort3(uint32_t *x)
@@ -143,9 +169,10 @@ bool ms_codec_state_equal(const ms_codec_state *a, const ms_codec_state *b, bool
             sort3(&x[3 * t]);
             sort3(&y[3 * t]);
         }
-        qsort(x, a->tri_count, 3 * sizeof *x, cmp_tri3);
-        qsort(y, a->tri_count, 3 * sizeof *y, cmp_tri3);
-        eq = memcmp(x, y, n * sizeof *x) == 0;
+        /* unoriented comparison: a sort failure (no memory) reports "different" */
+        eq = ms_sort_index_tuples(x, a->tri_count, 3, a->vertex_count, NULL) == MS_OK &&
+             ms_sort_index_tuples(y, a->tri_count, 3, a->vertex_count, NULL) == MS_OK &&
+             memcmp(x, y, n * sizeof *x) == 0;
     }
     free(x);
     free(y);

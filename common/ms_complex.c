@@ -1,5 +1,7 @@
 #include "ms_complex.h"
 
+#include "ms_big_alloc.h"
+
 #include <assert.h>
 #include <stdlib.h>
 #include <string.h>
@@ -56,7 +58,7 @@ static int grow(void **p, uint32_t *cap, uint32_t want, uint32_t hard, size_t it
         c = hard;
     if (c < want)
         return 0;
-    void *n = realloc(*p, (size_t)c * item);
+    void *n = ms_big_realloc(*p, (size_t)c * item);
     if (!n)
         return 0;
     *p = n;
@@ -80,7 +82,7 @@ ms_status ms_cx_reserve(ms_complex *cx, uint32_t v, uint32_t t, uint32_t e, ms_e
         if (!grow(&p, &cap, want_v, cx->max_v, sizeof *cx->v))
             goto nomem;
         cx->v = p;
-        int32_t (*cen)[4] = realloc(cx->cen, (size_t)cap * sizeof *cx->cen);
+        int32_t (*cen)[4] = ms_big_realloc(cx->cen, (size_t)cap * sizeof *cx->cen);
         if (!cen)
             goto nomem;
         cx->cen = cen;
@@ -91,7 +93,7 @@ ms_status ms_cx_reserve(ms_complex *cx, uint32_t v, uint32_t t, uint32_t e, ms_e
         cx->free_v = p;
         uint32_t *arrays[4] = {cx->mark, cx->stamp, cx->mark2, cx->stamp2};
         for (int i = 0; i < 4; ++i) {
-            uint32_t *n = realloc(arrays[i], (size_t)cap * sizeof(uint32_t));
+            uint32_t *n = ms_big_realloc(arrays[i], (size_t)cap * sizeof(uint32_t));
             if (!n)
                 goto nomem;
             if (i == 1 || i == 3)
@@ -763,13 +765,13 @@ ms_status ms_cx_compact(ms_complex *cx, uint32_t *order, uint32_t n, ms_error *e
     if (cx->spare_cv < cx->cv) {
         free(cx->spare_v);
         free(cx->spare_cen);
-        cx->spare_v = malloc((size_t)cx->cv * sizeof *cx->spare_v);
-        cx->spare_cen = malloc((size_t)cx->cv * sizeof *cx->spare_cen);
+        cx->spare_v = ms_big_malloc((size_t)cx->cv * sizeof *cx->spare_v);
+        cx->spare_cen = ms_big_malloc((size_t)cx->cv * sizeof *cx->spare_cen);
         cx->spare_cv = cx->spare_v && cx->spare_cen ? cx->cv : 0;
     }
     if (cx->spare_ct < cx->ct || !cx->spare_tri) {
         free(cx->spare_tri);
-        cx->spare_tri = malloc((size_t)(cx->ct ? cx->ct : 1) * sizeof *cx->spare_tri);
+        cx->spare_tri = ms_big_malloc((size_t)(cx->ct ? cx->ct : 1) * sizeof *cx->spare_tri);
         cx->spare_ct = cx->spare_tri ? cx->ct : 0;
     }
     ms_cx_vert *nv = cx->spare_cv >= cx->cv ? cx->spare_v : NULL;

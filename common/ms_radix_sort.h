@@ -1,6 +1,7 @@
 /* Stable LSD radix sort of 64-bit keys carrying a 32-bit value, for the baker's
- * per-cell indexing (vertex keys, triangle vertex sets): linear in the count,
- * where qsort's comparisons dominated the cell set-up.
+ * per-cell indexing (vertex keys, triangle vertex sets) and the codec's canonical
+ * ordering of complexes: linear in the count, where qsort's comparisons
+ * dominated.
  *
  * Only the low key_bits bits of the keys are looked at (1..64). Equal keys keep
  * their input order. Memory: two scratch arrays of n entries, allocated per call.

@@ -1,6 +1,8 @@
 /* Stable LSD radix sort: see ms_radix_sort.h. */
 #include "ms_radix_sort.h"
 
+#include "ms_big_alloc.h"
+
 #include <stdlib.h>
 #include <string.h>
 
@@ -12,8 +14,8 @@ ms_status ms_radix_sort_pairs(uint64_t *keys, uint32_t *values, size_t n, unsign
 {
     if (n < 2)
         return MS_OK;
-    uint64_t *k2 = malloc(n * sizeof *k2);
-    uint32_t *v2 = malloc(n * sizeof *v2);
+    uint64_t *k2 = ms_big_malloc(n * sizeof *k2);
+    uint32_t *v2 = ms_big_malloc(n * sizeof *v2);
     size_t *count = malloc(BUCKETS * sizeof *count);
     if (!k2 || !v2 || !count) {
         free(k2);
