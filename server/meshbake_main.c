@@ -339,6 +339,11 @@ static void print_bake_json(const ms_bake_options *o, const ms_bake_report *r)
         "spilled_blocks", (json_int_t)r->blocks_written, "apo", apo,
         "parameters", "bits", (int)o->bits, "n", (int)o->n, "root_bits", (int)o->root_bits,
         "min_tris", (int)o->min_triangles, "mem_mb", (int)o->mem_mb);
+    if (root) {
+        json_object_set_new(root, "duplicated_at_insertion",
+                            json_real(r->duplicated_at_insertion_percent));
+        json_object_set_new(root, "insertion_copies", json_integer((json_int_t)r->insertion_copies));
+    }
     if (!root) {
         fputs("{}\n", stdout);
         return;
@@ -359,7 +364,8 @@ static void print_bake_text(const ms_bake_report *r)
            r->triangles);
     printf("cells:                %u (%u leaves, %u empty, depth %u)\n", r->cells, r->leaves,
            r->empty_cells, r->depth);
-    printf("duplicated triangles: %.2f %%\n", r->duplicated_percent);
+    printf("duplicated triangles: %.2f %% (%.2f %% counted at insertion, as the thesis)\n",
+           r->duplicated_percent, r->duplicated_at_insertion_percent);
     printf("archive:              %" PRIu64 " bytes, %.2f bits per vertex\n", r->archive_bytes,
            r->bits_per_vertex);
     if (r->apo_chunks > 0) {

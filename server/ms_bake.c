@@ -193,6 +193,9 @@ ms_status ms_bake(const ms_bake_options *o, ms_bake_report *r, ms_error *err)
     r->duplicated_percent = r->triangles ? 100.0 * (double)(r->leaf_triangles - r->triangles) /
                                                (double)r->triangles
                                          : 0.0;
+    r->insertion_copies = b.stats.insertion_copies;
+    r->duplicated_at_insertion_percent =
+        r->triangles ? 100.0 * (double)r->insertion_copies / (double)r->triangles : 0.0;
     double t_write = ms_now_seconds();
     ms_archive_writer_set_counts(w, r->vertices, r->triangles);
     ms_nsp_build_free(&b); /* the temporary files go now */

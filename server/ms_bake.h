@@ -57,6 +57,10 @@ typedef struct ms_bake_report {
     uint64_t vertices, triangles;              /* welded, quantised */
     uint64_t leaf_triangles;                   /* over all leaves */
     double duplicated_percent;                 /* (leaf_triangles - triangles) / triangles */
+    uint64_t insertion_copies;                 /* ms_nsp_build_stats.insertion_copies */
+    double duplicated_at_insertion_percent;    /* insertion_copies / triangles: the thesis's
+                                                * table 4.1 figure, lower than the stored
+                                                * overhead (docs/ARCHIVE.md, "Duplication") */
     uint32_t cells, leaves, empty_cells, depth;
     uint64_t archive_bytes, geometry_bytes;
     double bits_per_vertex;                    /* 8 archive_bytes / vertices */

@@ -259,7 +259,8 @@ static ms_status read_records(const ms_nsp_build *b, const ms_nsp_node *node, ui
     return MS_OK;
 }
 
-static ms_status insert_under(ms_nsp_build *b, uint32_t top, const uint32_t rec[3], ms_error *err);
+static ms_status insert_under(ms_nsp_build *b, uint32_t top, const uint32_t rec[3],
+                              unsigned *reached, ms_error *err);
 
 static ms_status split_node(ms_nsp_build *b, uint32_t index, ms_error *err)
 {
@@ -328,7 +329,7 @@ static ms_status split_node(ms_nsp_build *b, uint32_t index, ms_error *err)
     b->stats.point_records -= node->records - node->triangles;
     node->triangles = node->records = 0;
     for (size_t i = 0; i < count && s == MS_OK; ++i)
-        s = insert_under(b, index, rec + 3 * i, err);
+        s = insert_under(b, index, rec + 3 * i, NULL, err);
     free(rec);
     return s;
 }
@@ -361,8 +362,10 @@ static ms_status append(ms_nsp_build *b, uint32_t index, const uint32_t rec[3], 
     return MS_OK;
 }
 
-/* Appends rec to every leaf below `top` holding one of its vertices. */
-static ms_status insert_under(ms_nsp_build *b, uint32_t top, const uint32_t rec[3], ms_error *err)
+/* Appends rec to every leaf below `top` holding one of its vertices; *reached (if
+ * not NULL) receives the number of those leaves. */
+static ms_status insert_under(ms_nsp_build *b, uint32_t top, const uint32_t rec[3],
+                              unsigned *reached, ms_error *err)
 {
     uint32_t leaves[3];
     unsigned nl = 0;
@@ -376,6 +379,8 @@ static ms_status insert_under(ms_nsp_build *b, uint32_t top, const uint32_t rec[
             continue;
         leaves[nl++] = leaf;
     }
+    if (reached)
+        *reached = nl;
     for (unsigned i = 0; i < nl; ++i) {
         /* an earlier append may have split a leaf found above: look it up again */
         uint32_t leaf = leaves[i];
@@ -457,7 +462,10 @@ static ms_status distribute(ms_nsp_build *b, FILE *tspool, uint64_t triangles, m
             }
             for (int j = 0; j < 3; ++j)
                 used[t[j] >> 3] |= (uint8_t)(1u << (t[j] & 7));
-            s = insert_under(b, 0, t, err);
+            unsigned reached = 0;
+            s = insert_under(b, 0, t, &reached, err);
+            if (reached > 1)
+                b->stats.insertion_copies += reached - 1;
         }
         done += want;
         report(&b->params, "distributing", (double)done / (double)(triangles ? triangles : 1));
@@ -468,7 +476,7 @@ static ms_status distribute(ms_nsp_build *b, FILE *tspool, uint64_t triangles, m
         if (used[v >> 3] & (1u << (v & 7)))
             continue;
         uint32_t rec[3] = {(uint32_t)v, (uint32_t)v, (uint32_t)v};
-        s = insert_under(b, 0, rec, err);
+        s = insert_under(b, 0, rec, NULL, err);
     }
     free(chunk);
     free(used);

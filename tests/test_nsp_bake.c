@@ -1,6 +1,7 @@
-/* meshbake's bake mode: the report and the catalogue, flushing leaf buffers to
- * disk changes nothing, usage and input errors, and a bake killed mid-run or
- * failing leaves neither an archive, nor a temporary file, nor a catalogue change. */
+/* meshbake's bake mode: the report and the catalogue, the two duplication
+ * figures, flushing leaf buffers to disk changes nothing, usage and input errors,
+ * and a bake killed mid-run or failing leaves neither an archive, nor a temporary
+ * file, nor a catalogue change. */
 #include <dirent.h>
 #include <setjmp.h>
 #include <signal.h>
@@ -21,6 +22,7 @@
 #include "ms_archive.h"
 #include "ms_bake.h"
 #include "ms_catalog.h"
+#include "ms_nsp_build.h"
 #include "ms_nsp_check.h"
 #include "ms_test.h"
 #include "ms_test_archive.h"
@@ -112,6 +114,78 @@ static void test_json_report_and_catalog(void **state)
     snprintf(cmd, sizeof cmd, "%s --info '%s'", bin, model);
     assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
     assert_non_null(strstr(out, "47794"));
+    ms_test_rmdir(dir);
+}
+
+/* Four triangles, 8 bits, n = 4, p_r = 2, N_min = 3, unit cube (x spans [0, 1]);
+ * level-1 cells are quarters, cell x + 4 (y + 4 z). A straddles cells 0 and 1
+ * but arrives while the root is the only leaf: no copy at insertion. B (cell 2)
+ * and C (cell 3) fill the root to N_min: it splits, and A is redistributed into
+ * cells 0 and 1 (a copy made by the split). D straddles cells 4 and 5 and
+ * arrives after the split: one copy at insertion. Stored: 6 triangles for 4
+ * (50 %); counted at insertion as the thesis does: 1 copy (25 %). */
+static void test_duplication_figures(void **state)
+{
+    (void)state;
+    char dir[512], bin[4096], obj[700], cmd[16384], out[16384];
+    ms_test_tmpdir(dir, sizeof dir);
+    ms_test_bin_path(bin, sizeof bin, "meshbake");
+    snprintf(obj, sizeof obj, "%s/four.obj", dir);
+    static const char text[] =
+        "v 0 0 0\nv 0.3 0 0\nv 0.1 0.1 0\n"       /* A: cells 0, 1 */
+        "v 0.55 0 0\nv 0.6 0 0\nv 0.55 0.1 0\n"   /* B: cell 2 */
+        "v 0.8 0 0\nv 1 0 0\nv 0.8 0.1 0\n"       /* C: cell 3 */
+        "v 0.1 0.3 0\nv 0.3 0.3 0\nv 0.1 0.4 0\n" /* D: cells 4, 5 */
+        "f 1 2 3\nf 4 5 6\nf 7 8 9\nf 10 11 12\n";
+    ms_test_write_file(obj, text, sizeof text - 1);
+    snprintf(cmd, sizeof cmd,
+             "%s '%s' -o '%s' --name four --bits 8 --n 4 --root-bits 2 --min-tris 3 "
+             "--threads 1 --no-apo --json",
+             bin, obj, dir);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
+    json_error_t je;
+    json_t *j = json_loads(out, 0, &je);
+    if (!j)
+        fail_msg("not JSON: %s", out);
+    assert_int_equal(json_integer_value(json_object_get(j, "cells")), 65);
+    assert_int_equal(json_integer_value(json_object_get(j, "triangles")), 4);
+    assert_int_equal(json_integer_value(json_object_get(j, "leaf_triangles")), 6);
+    assert_int_equal(json_integer_value(json_object_get(j, "insertion_copies")), 1);
+    assert_true(json_real_value(json_object_get(j, "duplicated_triangles")) == 50.0);
+    assert_true(json_real_value(json_object_get(j, "duplicated_at_insertion")) == 25.0);
+    json_decref(j);
+    ms_test_rmdir(dir);
+}
+
+/* The full Stanford dragon with the thesis's parameters (p = 16, n = 4, p_r = 7,
+ * N_min = 8000; tables 4.1 and 4.2 of reference 003): the tree has the thesis's
+ * 1,281 cells; the leaves store 929,901 triangles for 866,613 (7.30 %), while
+ * the copies made at insertion are 55,814 (6.44 %; thesis 55,981 of 866,508,
+ * 6.46 %). Tree construction only (no encoding). */
+static void test_dragon_duplication(void **state)
+{
+    (void)state;
+    char dir[512], model[4096];
+    ms_test_tmpdir(dir, sizeof dir);
+    ms_test_model_path(model, sizeof model, "stanford_dragon_vrip.ply.gz");
+    ms_nsp_build_params p = {.min_triangles = 8000, .buffer_budget = 64u << 20, .tmp_dir = dir};
+    ms_error err;
+    assert_int_equal(ms_nsp_shape_init(&p.shape, 16, 4, 7, &err), MS_OK);
+    ms_nsp_build b;
+    assert_int_equal(ms_nsp_build_run(model, &p, &b, &err), MS_OK);
+    uint32_t leaves = 0, level1_splits = 0;
+    for (uint32_t i = 0; i < b.node_count; ++i) {
+        leaves += b.nodes[i].first_child == MS_NSP_NONE;
+        level1_splits += b.nodes[i].depth == 1 && b.nodes[i].first_child != MS_NSP_NONE;
+    }
+    assert_int_equal(b.node_count, 1281);
+    assert_int_equal(leaves, 1261);
+    assert_int_equal(level1_splits, 19);
+    /* records: the 866,613 distinct triangles' copies plus the 5 repeated vertex
+     * sets (unified later, in the encoder), none of which straddles */
+    assert_int_equal(b.stats.leaf_triangle_records, 929901 + 5);
+    assert_int_equal(b.stats.insertion_copies, 55814);
+    ms_nsp_build_free(&b);
     ms_test_rmdir(dir);
 }
 
@@ -278,6 +352,8 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_json_report_and_catalog),
+        cmocka_unit_test(test_duplication_figures),
+        cmocka_unit_test(test_dragon_duplication),
         cmocka_unit_test(test_flushing_changes_nothing),
         cmocka_unit_test(test_usage_errors),
         cmocka_unit_test(test_archive_directory),
