@@ -289,7 +289,8 @@ ms_status ms_archive_writer_finish(ms_archive_writer *w, ms_error *err)
         }
     }
     uint8_t head[MS_ARCHIVE_HEADER_SIZE];
-    ms_archive_encode_header(h, index_size, payload, (uint32_t)crc32_z(0L, index, index_size), head);
+    ms_archive_encode_header(h, MS_ARCHIVE_VERSION_RAW_INDEX, index_size, index_size, payload,
+                             (uint32_t)crc32_z(0L, index, index_size), head);
 
     FILE *out = fopen(w->partial_path, "wb");
     int failed = !out;

@@ -166,12 +166,12 @@ static void test_index_damage_and_truncation(void **state)
     ms_test_write_file(bad, (const uint8_t *)"hello", 5);
     expect_open_fails(bad, MS_ERR_FORMAT, "too short");
     /* Version from the future. */
-    data[8] = 2;
+    data[8] = 3;
     uLong crc = crc32(0L, data, 124);
     for (int i = 0; i < 4; ++i)
         data[124 + i] = (uint8_t)(crc >> (8 * i));
     ms_test_write_file(bad, data, size);
-    expect_open_fails(bad, MS_ERR_UNSUPPORTED, "version 2");
+    expect_open_fails(bad, MS_ERR_UNSUPPORTED, "version 3");
     free(data);
     expect_open_fails("/nonexistent/x.msa", MS_ERR_IO, "cannot open");
 }
