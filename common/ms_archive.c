@@ -202,8 +202,9 @@ static ms_status parse_header(const char *path, const uint8_t *p, size_t size, b
         !all_zero(p + (zlib_index ? 121 : 112), zlib_index ? 3 : 12) || (p[51] & ~1u))
         return ms_error_set(err, MS_ERR_FORMAT, "%s: bad header size or reserved bytes", path);
     if (zlib_index && p[120] != MS_ARCHIVE_INDEX_ZLIB)
-        return ms_error_set(err, MS_ERR_FORMAT, "%s: index encoding %u, version %u stores zlib (%u)",
-                            path, p[120], version, MS_ARCHIVE_INDEX_ZLIB);
+        return ms_error_set(err, MS_ERR_FORMAT,
+                            "%s: index encoding %u, version %u stores zlib (%u)", path, p[120],
+                            version, MS_ARCHIVE_INDEX_ZLIB);
     memset(h, 0, sizeof *h);
     for (int a = 0; a < 3; ++a)
         h->box_origin[a] = get_f64(p + 16 + 8 * a);
@@ -281,7 +282,8 @@ static ms_status parse_header(const char *path, const uint8_t *p, size_t size, b
                                 path, (unsigned long long)sec->stored_size,
                                 (unsigned long long)sec->index_size);
     }
-    if (sec->payload_size > size || MS_ARCHIVE_HEADER_SIZE + sec->stored_size > size - sec->payload_size ||
+    if (sec->payload_size > size ||
+        MS_ARCHIVE_HEADER_SIZE + sec->stored_size > size - sec->payload_size ||
         MS_ARCHIVE_HEADER_SIZE + sec->stored_size + sec->payload_size != size)
         return ms_error_set(err, MS_ERR_FORMAT, "%s: section sizes do not add up to the file size",
                             path);
@@ -316,8 +318,9 @@ static ms_status inflate_index(const char *path, const uint8_t *in, uint64_t sto
     uint64_t unread = z.avail_in + left;
     ms_status st = MS_OK;
     if (r == Z_STREAM_END && z.total_out != raw)
-        st = ms_error_set(err, MS_ERR_FORMAT, "%s: index inflates to %llu bytes, the header says %llu",
-                          path, (unsigned long long)z.total_out, (unsigned long long)raw);
+        st = ms_error_set(err, MS_ERR_FORMAT,
+                          "%s: index inflates to %llu bytes, the header says %llu", path,
+                          (unsigned long long)z.total_out, (unsigned long long)raw);
     else if (r == Z_STREAM_END && unread)
         st = ms_error_set(err, MS_ERR_FORMAT,
                           "%s: %llu bytes follow the end of the index's zlib stream", path,

@@ -9,8 +9,8 @@
  * what it receives).
  *
  * Ownership: the ms_archive owns the mapping (and a version-2 file's inflated
- * index); pointers it returns stay valid until ms_archive_close. Thread-safety: after open, any number of threads may read the
- * same archive concurrently.
+ * index); pointers it returns stay valid until ms_archive_close. Thread-safety:
+ * after open, any number of threads may read the same archive concurrently.
  */
 #ifndef MS_ARCHIVE_H
 #define MS_ARCHIVE_H

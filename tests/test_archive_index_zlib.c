@@ -221,7 +221,8 @@ static void test_version_1_still_read(void **state)
         assert_memory_equal(ms_archive_get_cell(v1, id), ms_archive_get_cell(v2, id),
                             sizeof(ms_archive_cell));
         size_t l1, l2;
-        const uint8_t *g1 = ms_archive_geometry(v1, id, &l1), *g2 = ms_archive_geometry(v2, id, &l2);
+        const uint8_t *g1 = ms_archive_geometry(v1, id, &l1);
+        const uint8_t *g2 = ms_archive_geometry(v2, id, &l2);
         assert_int_equal(l1, l2);
         assert_memory_equal(g1, g2, l1);
         g1 = ms_archive_apo(v1, id, &l1), g2 = ms_archive_apo(v2, id, &l2);
