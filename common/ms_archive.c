@@ -1,5 +1,5 @@
-/* Archive reader and the record codec shared with the writer. See ms_archive.h
- * and docs/ARCHIVE.md. */
+/* Archive reader (versions 1 and 2) and the record codec shared with the
+ * writer. See ms_archive.h and docs/ARCHIVE.md. */
 #include "ms_archive.h"
 
 #include <errno.h>
@@ -20,11 +20,33 @@ struct ms_archive {
     bool index_only; /* a malloc'd copy of header + index, no payloads */
     ms_archive_header header;
     ms_archive_cell *cells;
-    const uint8_t *tables; /* table words, little-endian */
+    /* The index blob (version-1 header + raw index): the start of map for a
+     * version-1 file or an index blob, else inflated_blob. */
+    const uint8_t *blob;
+    uint8_t *inflated_blob; /* version 2: malloc'd, MS_ARCHIVE_HEADER_SIZE + index_size */
+    const uint8_t *tables;  /* table words, little-endian */
     const uint8_t *payload;
     uint64_t payload_size;
-    uint64_t index_size;
+    uint64_t index_size; /* raw */
 };
+
+/* The header's sections, as parse_header reads them. */
+typedef struct archive_sections {
+    uint64_t index_size;  /* raw: 80 * cells + 4 * table words */
+    uint64_t stored_size; /* bytes of the index in the file */
+    uint64_t payload_size;
+    uint32_t index_crc;   /* of the raw index */
+} archive_sections;
+
+/* Deflate's densest code is a 258-byte match in 2 bits, so a zlib stream of s
+ * bytes never inflates to more than 1032 * s: a header that claims more is
+ * rejected before anything is allocated. */
+#define ZLIB_MAX_RATIO 1032u
+
+/* The raw index is inflated in one call, into at most this many bytes. */
+_Static_assert((uint64_t)MS_ARCHIVE_MAX_CELLS * MS_ARCHIVE_RECORD_SIZE +
+                       4ull * MS_ARCHIVE_MAX_TABLE_WORDS <= UINT32_MAX,
+               "the largest raw index must fit zlib's avail_out");
 
 /* --- Little-endian field access ------------------------------------------- */
 
@@ -80,13 +102,15 @@ static unsigned log2_exact(unsigned n)
 
 /* --- Encoding (used by the writer) ---------------------------------------- */
 
-void ms_archive_encode_header(const ms_archive_header *h, uint64_t index_size,
-                              uint64_t payload_size, uint32_t index_crc,
-                              uint8_t out[MS_ARCHIVE_HEADER_SIZE])
+void ms_archive_encode_header(const ms_archive_header *h, unsigned version, uint64_t index_size,
+                              uint64_t stored_index_size, uint64_t payload_size,
+                              uint32_t index_crc, uint8_t out[MS_ARCHIVE_HEADER_SIZE])
 {
+    bool zlib_index = version != MS_ARCHIVE_VERSION_RAW_INDEX;
+    uint64_t stored = zlib_index ? stored_index_size : index_size;
     memset(out, 0, MS_ARCHIVE_HEADER_SIZE);
     memcpy(out, archive_magic, 8);
-    put_u32(out + 8, MS_ARCHIVE_VERSION);
+    put_u32(out + 8, version);
     put_u32(out + 12, MS_ARCHIVE_HEADER_SIZE);
     for (int a = 0; a < 3; ++a)
         put_f64(out + 16 + 8 * a, h->box_origin[a]);
@@ -102,10 +126,14 @@ void ms_archive_encode_header(const ms_archive_header *h, uint64_t index_size,
     put_u32(out + 76, h->min_triangles);
     put_u64(out + 80, index_size);
     put_u64(out + 88, payload_size);
-    put_u64(out + 96, MS_ARCHIVE_HEADER_SIZE + index_size + payload_size);
+    put_u64(out + 96, MS_ARCHIVE_HEADER_SIZE + stored + payload_size);
     out[104] = h->apo_lead;
     out[105] = h->apo_max_depth;
     put_u32(out + 108, index_crc);
+    if (zlib_index) {
+        put_u64(out + 112, stored_index_size);
+        out[120] = MS_ARCHIVE_INDEX_ZLIB;
+    }
     put_u32(out + 124, (uint32_t)crc32(0L, out, 124));
 }
 
@@ -149,8 +177,7 @@ void ms_archive_cell_window(const ms_archive_header *h, unsigned level, bool lea
 /* --- Validation ----------------------------------------------------------- */
 
 static ms_status parse_header(const char *path, const uint8_t *p, size_t size, bool index_only,
-                              ms_archive_header *h, uint64_t *index_size, uint64_t *payload_size,
-                              uint32_t *index_crc, ms_error *err)
+                              ms_archive_header *h, archive_sections *sec, ms_error *err)
 {
     if (size < MS_ARCHIVE_HEADER_SIZE)
         return ms_error_set(err, MS_ERR_FORMAT, "%s: %zu bytes is too short for an archive header",
@@ -158,14 +185,26 @@ static ms_status parse_header(const char *path, const uint8_t *p, size_t size, b
     if (memcmp(p, archive_magic, 8) != 0)
         return ms_error_set(err, MS_ERR_FORMAT, "%s: not a meshstream archive (bad magic)", path);
     uint32_t version = get_u32(p + 8);
-    if (version != MS_ARCHIVE_VERSION)
-        return ms_error_set(err, MS_ERR_UNSUPPORTED, "%s: archive version %u, this build reads %u",
-                            path, version, MS_ARCHIVE_VERSION);
+    if (index_only && version != MS_ARCHIVE_BLOB_VERSION)
+        return ms_error_set(err, MS_ERR_UNSUPPORTED,
+                            "%s: index blob version %u, this build reads version %u", path,
+                            version, MS_ARCHIVE_BLOB_VERSION);
+    if (version != MS_ARCHIVE_VERSION_RAW_INDEX && version != MS_ARCHIVE_VERSION)
+        return ms_error_set(err, MS_ERR_UNSUPPORTED,
+                            "%s: archive version %u, this build reads %u and %u", path, version,
+                            MS_ARCHIVE_VERSION_RAW_INDEX, MS_ARCHIVE_VERSION);
+    bool zlib_index = version == MS_ARCHIVE_VERSION;
     if ((uint32_t)crc32(0L, p, 124) != get_u32(p + 124))
         return ms_error_set(err, MS_ERR_CORRUPT, "%s: header checksum mismatch", path);
+    /* Version 1 reserves bytes 112..123; version 2 stores the index's size
+     * (112..119) and encoding (120) there. */
     if (get_u32(p + 12) != MS_ARCHIVE_HEADER_SIZE || !all_zero(p + 106, 2) ||
-        !all_zero(p + 112, 12) || (p[51] & ~1u))
+        !all_zero(p + (zlib_index ? 121 : 112), zlib_index ? 3 : 12) || (p[51] & ~1u))
         return ms_error_set(err, MS_ERR_FORMAT, "%s: bad header size or reserved bytes", path);
+    if (zlib_index && p[120] != MS_ARCHIVE_INDEX_ZLIB)
+        return ms_error_set(err, MS_ERR_FORMAT,
+                            "%s: index encoding %u, version %u stores zlib (%u)", path, p[120],
+                            version, MS_ARCHIVE_INDEX_ZLIB);
     memset(h, 0, sizeof *h);
     for (int a = 0; a < 3; ++a)
         h->box_origin[a] = get_f64(p + 16 + 8 * a);
@@ -179,12 +218,15 @@ static ms_status parse_header(const char *path, const uint8_t *p, size_t size, b
     h->triangle_count = get_u64(p + 64);
     h->table_words = get_u32(p + 72);
     h->min_triangles = get_u32(p + 76);
-    *index_size = get_u64(p + 80);
-    *payload_size = get_u64(p + 88);
+    sec->index_size = get_u64(p + 80);
+    sec->payload_size = get_u64(p + 88);
     h->file_size = get_u64(p + 96);
     h->apo_lead = p[104];
     h->apo_max_depth = p[105];
-    *index_crc = get_u32(p + 108);
+    sec->index_crc = get_u32(p + 108);
+    sec->stored_size = zlib_index ? get_u64(p + 112) : sec->index_size;
+    h->version = version;
+    h->index_stored_size = sec->stored_size;
     for (int a = 0; a < 3; ++a)
         if (!isfinite(h->box_origin[a]))
             return ms_error_set(err, MS_ERR_RANGE, "%s: box origin is not finite", path);
@@ -205,18 +247,21 @@ static ms_status parse_header(const char *path, const uint8_t *p, size_t size, b
     if (h->table_words > MS_ARCHIVE_MAX_TABLE_WORDS || h->vertex_count > (1ull << 32) ||
         h->triangle_count > (1ull << 34) || h->apo_lead > 16 || h->apo_max_depth > 24)
         return ms_error_set(err, MS_ERR_RANGE, "%s: header count out of range", path);
+    /* The raw size follows from two counts capped above: never trust it alone. */
     uint64_t expect_index = (uint64_t)h->cell_count * MS_ARCHIVE_RECORD_SIZE +
                             4ull * h->table_words;
-    if (*index_size != expect_index)
-        return ms_error_set(err, MS_ERR_FORMAT, "%s: index size %llu, expected %llu", path,
-                            (unsigned long long)*index_size, (unsigned long long)expect_index);
+    if (sec->index_size != expect_index)
+        return ms_error_set(err, MS_ERR_FORMAT,
+                            "%s: index size %llu, expected %llu (%u cells, %u table words)", path,
+                            (unsigned long long)sec->index_size, (unsigned long long)expect_index,
+                            h->cell_count, h->table_words);
     if (index_only) {
-        if (size != MS_ARCHIVE_HEADER_SIZE + *index_size)
+        if (size != MS_ARCHIVE_HEADER_SIZE + sec->index_size)
             return ms_error_set(err, MS_ERR_FORMAT, "%s: index blob is %zu bytes, expected %llu",
                                 path, size,
-                                (unsigned long long)(MS_ARCHIVE_HEADER_SIZE + *index_size));
-        if (*payload_size > UINT64_MAX / 2 ||
-            h->file_size != MS_ARCHIVE_HEADER_SIZE + *index_size + *payload_size)
+                                (unsigned long long)(MS_ARCHIVE_HEADER_SIZE + sec->index_size));
+        if (sec->payload_size > UINT64_MAX / 2 ||
+            h->file_size != MS_ARCHIVE_HEADER_SIZE + sec->index_size + sec->payload_size)
             return ms_error_set(err, MS_ERR_FORMAT, "%s: section sizes do not add up", path);
         return MS_OK;
     }
@@ -224,11 +269,79 @@ static ms_status parse_header(const char *path, const uint8_t *p, size_t size, b
         return ms_error_set(err, MS_ERR_FORMAT,
                             "%s: file is %zu bytes but its header says %llu (truncated?)", path,
                             size, (unsigned long long)h->file_size);
-    if (*payload_size > size || MS_ARCHIVE_HEADER_SIZE + *index_size > size - *payload_size ||
-        MS_ARCHIVE_HEADER_SIZE + *index_size + *payload_size != size)
+    if (zlib_index) {
+        if (sec->stored_size > size - MS_ARCHIVE_HEADER_SIZE)
+            return ms_error_set(err, MS_ERR_FORMAT,
+                                "%s: compressed index of %llu bytes runs past the end of the "
+                                "%zu-byte file", path, (unsigned long long)sec->stored_size, size);
+        /* index_size is capped by now, so the sum cannot wrap. */
+        if (sec->stored_size < (sec->index_size + ZLIB_MAX_RATIO - 1) / ZLIB_MAX_RATIO ||
+            sec->stored_size == 0)
+            return ms_error_set(err, MS_ERR_FORMAT,
+                                "%s: a compressed index of %llu bytes cannot inflate to %llu",
+                                path, (unsigned long long)sec->stored_size,
+                                (unsigned long long)sec->index_size);
+    }
+    if (sec->payload_size > size ||
+        MS_ARCHIVE_HEADER_SIZE + sec->stored_size > size - sec->payload_size ||
+        MS_ARCHIVE_HEADER_SIZE + sec->stored_size + sec->payload_size != size)
         return ms_error_set(err, MS_ERR_FORMAT, "%s: section sizes do not add up to the file size",
                             path);
     return MS_OK;
+}
+
+/* Inflates a version-2 index (the `stored` bytes at in) into exactly `raw`
+ * bytes at out, and classifies every way the stream can disagree with the
+ * header: not zlib or damaged (MS_ERR_CORRUPT), ending early or late, cut, or
+ * followed by other bytes (MS_ERR_FORMAT). */
+static ms_status inflate_index(const char *path, const uint8_t *in, uint64_t stored,
+                               uint8_t *out, uint64_t raw, ms_error *err)
+{
+    z_stream z;
+    memset(&z, 0, sizeof z);
+    if (inflateInit(&z) != Z_OK)
+        return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory inflating the index", path);
+    z.next_out = out;
+    z.avail_out = (uInt)raw; /* fits: see the static assertion above */
+    uint64_t left = stored;  /* input not yet handed to zlib */
+    int r;
+    do {
+        if (z.avail_in == 0 && left > 0) {
+            uInt chunk = left > (1u << 30) ? (1u << 30) : (uInt)left;
+            z.next_in = (Bytef *)(uintptr_t)in; /* zlib's API is not const-correct */
+            z.avail_in = chunk;
+            in += chunk;
+            left -= chunk;
+        }
+        r = inflate(&z, Z_NO_FLUSH);
+    } while (r == Z_OK);
+    uint64_t unread = z.avail_in + left;
+    ms_status st = MS_OK;
+    if (r == Z_STREAM_END && z.total_out != raw)
+        st = ms_error_set(err, MS_ERR_FORMAT,
+                          "%s: index inflates to %llu bytes, the header says %llu", path,
+                          (unsigned long long)z.total_out, (unsigned long long)raw);
+    else if (r == Z_STREAM_END && unread)
+        st = ms_error_set(err, MS_ERR_FORMAT,
+                          "%s: %llu bytes follow the end of the index's zlib stream", path,
+                          (unsigned long long)unread);
+    else if (r == Z_BUF_ERROR && unread == 0)
+        st = ms_error_set(err, MS_ERR_FORMAT,
+                          "%s: index's zlib stream is cut short (%llu of %llu bytes inflated)",
+                          path, (unsigned long long)z.total_out, (unsigned long long)raw);
+    else if (r == Z_BUF_ERROR)
+        st = ms_error_set(err, MS_ERR_FORMAT,
+                          "%s: index inflates to more than the %llu bytes the header says", path,
+                          (unsigned long long)raw);
+    else if (r == Z_MEM_ERROR)
+        st = ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory inflating the index", path);
+    else if (r != Z_STREAM_END)
+        st = ms_error_set(err, MS_ERR_CORRUPT, "%s: index is not a valid zlib stream: %s", path,
+                          r == Z_NEED_DICT ? "it needs a preset dictionary"
+                          : z.msg          ? z.msg
+                                           : "bad data");
+    inflateEnd(&z);
+    return st;
 }
 
 static void decode_cell(const uint8_t *p, ms_archive_cell *c)
@@ -370,12 +483,33 @@ static ms_status check_tree_cover(const char *path, const ms_archive *a, ms_erro
 /* Validates header and index of a->map (a whole file, or header + index only). */
 static ms_status archive_validate(const char *path, ms_archive *a, ms_error *err)
 {
-    uint32_t index_crc = 0;
-    ms_status status = parse_header(path, a->map, a->map_size, a->index_only, &a->header,
-                                    &a->index_size, &a->payload_size, &index_crc, err);
+    archive_sections sec = {0};
+    ms_status status = parse_header(path, a->map, a->map_size, a->index_only, &a->header, &sec,
+                                    err);
     if (status == MS_OK) {
-        const uint8_t *index = a->map + MS_ARCHIVE_HEADER_SIZE;
-        if (crc32_z(0L, index, (z_size_t)a->index_size) != index_crc)
+        a->index_size = sec.index_size;
+        a->payload_size = sec.payload_size;
+        a->blob = a->map;
+    }
+    if (status == MS_OK && a->header.version != MS_ARCHIVE_VERSION_RAW_INDEX) {
+        /* Version 2: the blob is a version-1 header and the inflated index. */
+        a->inflated_blob = malloc(MS_ARCHIVE_HEADER_SIZE + (size_t)sec.index_size);
+        if (!a->inflated_blob)
+            status = ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory for a %llu-byte index",
+                                  path, (unsigned long long)sec.index_size);
+        else
+            status = inflate_index(path, a->map + MS_ARCHIVE_HEADER_SIZE, sec.stored_size,
+                                   a->inflated_blob + MS_ARCHIVE_HEADER_SIZE, sec.index_size, err);
+        if (status == MS_OK) {
+            ms_archive_encode_header(&a->header, MS_ARCHIVE_VERSION_RAW_INDEX, sec.index_size,
+                                     sec.index_size, sec.payload_size, sec.index_crc,
+                                     a->inflated_blob);
+            a->blob = a->inflated_blob;
+        }
+    }
+    if (status == MS_OK) {
+        const uint8_t *index = a->blob + MS_ARCHIVE_HEADER_SIZE;
+        if (crc32_z(0L, index, (z_size_t)a->index_size) != sec.index_crc)
             status = ms_error_set(err, MS_ERR_CORRUPT, "%s: index checksum mismatch", path);
     }
     if (status == MS_OK) {
@@ -385,9 +519,10 @@ static ms_status archive_validate(const char *path, ms_archive *a, ms_error *err
                                   a->header.cell_count);
     }
     if (status == MS_OK) {
-        const uint8_t *records = a->map + MS_ARCHIVE_HEADER_SIZE;
+        const uint8_t *records = a->blob + MS_ARCHIVE_HEADER_SIZE;
         a->tables = records + (size_t)a->header.cell_count * MS_ARCHIVE_RECORD_SIZE;
-        a->payload = a->index_only ? NULL : a->map + MS_ARCHIVE_HEADER_SIZE + a->index_size;
+        /* Payload offsets count from the end of the index as stored. */
+        a->payload = a->index_only ? NULL : a->map + MS_ARCHIVE_HEADER_SIZE + sec.stored_size;
         for (uint32_t id = 0; id < a->header.cell_count; ++id)
             decode_cell(records + (size_t)id * MS_ARCHIVE_RECORD_SIZE, &a->cells[id]);
         uint64_t next_table = 0;
@@ -472,6 +607,7 @@ void ms_archive_close(ms_archive *a)
         free((void *)a->map);
     else
         munmap((void *)a->map, a->map_size);
+    free(a->inflated_blob);
     free(a->cells);
     free(a);
 }
@@ -486,7 +622,7 @@ const ms_archive_cell *ms_archive_get_cell(const ms_archive *a, uint32_t cell)
 const uint8_t *ms_archive_index_bytes(const ms_archive *a, size_t *size)
 {
     *size = MS_ARCHIVE_HEADER_SIZE + (size_t)a->index_size;
-    return a->map;
+    return a->blob;
 }
 
 const uint8_t *ms_archive_geometry(const ms_archive *a, uint32_t cell, size_t *length)

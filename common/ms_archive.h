@@ -1,14 +1,16 @@
-/* Reading a meshstream archive file (docs/ARCHIVE.md, version 1).
+/* Reading a meshstream archive file (docs/ARCHIVE.md: version 2, whose index is
+ * stored zlib-compressed, and version 1, whose index is stored raw).
  *
- * ms_archive_open maps the file read-only and validates the header, the index CRC,
- * every cell record, the tree structure and the per-cell tables before returning;
- * afterwards every accessor is a bounds-safe look-up. Payload CRCs are checked on
+ * ms_archive_open maps the file read-only and validates the header, inflates a
+ * version-2 index into memory (into exactly the size the header declares), checks
+ * the index CRC, every cell record, the tree structure and the per-cell tables
+ * before returning; afterwards every accessor is a bounds-safe look-up. Payload CRCs are checked on
  * demand by ms_archive_verify_payload (the server checks once, the client checks
  * what it receives).
  *
- * Ownership: the ms_archive owns the mapping; pointers it returns stay valid until
- * ms_archive_close. Thread-safety: after open, any number of threads may read the
- * same archive concurrently.
+ * Ownership: the ms_archive owns the mapping (and a version-2 file's inflated
+ * index); pointers it returns stay valid until ms_archive_close. Thread-safety:
+ * after open, any number of threads may read the same archive concurrently.
  */
 #ifndef MS_ARCHIVE_H
 #define MS_ARCHIVE_H
@@ -19,7 +21,15 @@
 
 #include "ms_error.h"
 
-#define MS_ARCHIVE_VERSION 1u
+/* The version meshbake writes: the index is stored as one zlib stream. */
+#define MS_ARCHIVE_VERSION 2u
+/* The oldest version still read: the index is stored raw. */
+#define MS_ARCHIVE_VERSION_RAW_INDEX 1u
+/* The version of the index blob (ms_archive_index_bytes, what the server sends):
+ * always a version-1 header followed by the raw index, whatever the file's. */
+#define MS_ARCHIVE_BLOB_VERSION 1u
+/* Header byte 120 of a version-2 file: how the index is stored. */
+#define MS_ARCHIVE_INDEX_ZLIB 1u
 #define MS_ARCHIVE_HEADER_SIZE 128u
 #define MS_ARCHIVE_RECORD_SIZE 80u
 #define MS_ARCHIVE_MAX_CELLS (1u << 24)
@@ -42,6 +52,11 @@ typedef struct ms_archive_header {
     uint64_t vertex_count;
     uint64_t triangle_count;
     uint64_t file_size;
+    /* Set by the reader, ignored by the writer: the version read (an index blob
+     * is version 1) and the bytes the index occupies there (the zlib stream in
+     * version 2; the raw index, 80 * cell_count + 4 * table_words, in version 1). */
+    uint32_t version;
+    uint64_t index_stored_size;
 } ms_archive_header;
 
 typedef struct ms_archive_cell {
@@ -66,7 +81,7 @@ typedef struct ms_archive ms_archive;
 ms_status ms_archive_open(const char *path, ms_archive **archive, ms_error *err);
 void ms_archive_close(ms_archive *archive);
 
-/* Validates and copies an index blob (header + cell index, as
+/* Validates and copies an index blob (version-1 header + raw cell index, as
  * ms_archive_index_bytes gives it and the server sends it); name is used in
  * errors. The result has no payloads: ms_archive_geometry/apo return NULL (with
  * the stored lengths) and the prefix look-ups work as usual. */
@@ -77,7 +92,11 @@ const ms_archive_header *ms_archive_get_header(const ms_archive *archive);
 /* NULL when cell >= cell_count. */
 const ms_archive_cell *ms_archive_get_cell(const ms_archive *archive, uint32_t cell);
 
-/* The whole index blob (header + records + tables) as stored, for sending. */
+/* The whole index blob, for sending: a version-1 header (docs/ARCHIVE.md, "The
+ * index blob") followed by the raw index (records + tables). For a version-1
+ * file these are its first bytes; for a version-2 file the header is the one a
+ * version-1 file of the same model would have, and the index the inflated one,
+ * so the blob does not depend on how the file stores its index. */
 const uint8_t *ms_archive_index_bytes(const ms_archive *archive, size_t *size);
 
 /* Payload bytes (not yet CRC-checked). Zero length for an absent APO chunk; NULL
@@ -104,10 +123,15 @@ ms_status ms_archive_check_payload(const ms_archive *archive, uint32_t cell, boo
 /* --- Shared with the writer (server/ms_archive_writer.c) ------------------- */
 
 /* Encodes / decodes the fixed-size parts. Decoding checks only field-local
- * ranges; cross-checks are done by ms_archive_open. */
-void ms_archive_encode_header(const ms_archive_header *h, uint64_t index_size,
-                              uint64_t payload_size, uint32_t index_crc,
-                              uint8_t out[MS_ARCHIVE_HEADER_SIZE]);
+ * ranges; cross-checks are done by ms_archive_open. The header is encoded as
+ * `version` (1 or MS_ARCHIVE_VERSION) from h's model fields (h->version,
+ * h->index_stored_size and h->file_size are not used): index_size is the raw
+ * index (80 * cells + 4 * table words), index_crc its CRC32; stored_index_size
+ * the zlib stream's length (version 2; a version-1 header stores the index raw
+ * and ignores it). */
+void ms_archive_encode_header(const ms_archive_header *h, unsigned version, uint64_t index_size,
+                              uint64_t stored_index_size, uint64_t payload_size,
+                              uint32_t index_crc, uint8_t out[MS_ARCHIVE_HEADER_SIZE]);
 void ms_archive_encode_cell(const ms_archive_cell *c, uint8_t out[MS_ARCHIVE_RECORD_SIZE]);
 
 /* Window rules of docs/ARCHIVE.md: the precision window of a cell at `level`. */

@@ -231,6 +231,49 @@ ms_status ms_archive_writer_put_apo(ms_archive_writer *w, uint32_t cell, const u
     return MS_OK;
 }
 
+/* The index as one zlib stream (RFC 1950). The parameters are fixed, so the
+ * stream depends only on the index bytes (and the zlib build), never on the
+ * baker's threads. Z_FILTERED suits the records' small numbers: on the dragon it
+ * is 4 % shorter than the default strategy. */
+#define INDEX_ZLIB_LEVEL 9
+#define INDEX_ZLIB_WINDOW_BITS 15
+#define INDEX_ZLIB_MEM_LEVEL 8
+#define INDEX_ZLIB_STRATEGY Z_FILTERED
+
+static ms_status compress_index(const ms_archive_writer *w, const uint8_t *index, uint64_t size,
+                                uint8_t **out, uint64_t *out_size, ms_error *err)
+{
+    *out = NULL;
+    *out_size = 0;
+    z_stream z;
+    memset(&z, 0, sizeof z);
+    if (deflateInit2(&z, INDEX_ZLIB_LEVEL, Z_DEFLATED, INDEX_ZLIB_WINDOW_BITS, INDEX_ZLIB_MEM_LEVEL,
+                     INDEX_ZLIB_STRATEGY) != Z_OK)
+        return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory compressing the index", w->path);
+    /* The index is capped far below 4 GiB (MS_ARCHIVE_MAX_*), so one call. */
+    uLong bound = deflateBound(&z, (uLong)size);
+    uint8_t *z_out = malloc(bound);
+    if (!z_out) {
+        deflateEnd(&z);
+        return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory compressing the index", w->path);
+    }
+    z.next_in = (Bytef *)(uintptr_t)index; /* zlib's API is not const-correct */
+    z.avail_in = (uInt)size;
+    z.next_out = z_out;
+    z.avail_out = (uInt)bound;
+    int r = deflate(&z, Z_FINISH);
+    uint64_t produced = z.total_out;
+    deflateEnd(&z);
+    if (r != Z_STREAM_END) {
+        free(z_out);
+        return ms_error_set(err, r == Z_MEM_ERROR ? MS_ERR_NOMEM : MS_ERR_ARG,
+                            "%s: zlib could not compress the index (%d)", w->path, r);
+    }
+    *out = z_out;
+    *out_size = produced;
+    return MS_OK;
+}
+
 /* Copies `length` spool bytes from `offset` to the output. */
 static int copy_from_spool(ms_archive_writer *w, FILE *out, uint64_t offset, uint32_t length)
 {
@@ -288,14 +331,25 @@ ms_status ms_archive_writer_finish(ms_archive_writer *w, ms_error *err)
             p[0] = (uint8_t)v, p[1] = (uint8_t)(v >> 8), p[2] = (uint8_t)(v >> 16), p[3] = (uint8_t)(v >> 24);
         }
     }
+    /* Version 2: the CRC covers the raw index, the file holds its zlib stream. */
+    uint32_t index_crc = (uint32_t)crc32_z(0L, index, index_size);
+    uint8_t *stored = NULL;
+    uint64_t stored_size = 0;
+    ms_status zst = compress_index(w, index, index_size, &stored, &stored_size, err);
+    free(index);
+    if (zst != MS_OK) {
+        ms_archive_writer_abort(w);
+        return zst;
+    }
     uint8_t head[MS_ARCHIVE_HEADER_SIZE];
-    ms_archive_encode_header(h, index_size, payload, (uint32_t)crc32_z(0L, index, index_size), head);
+    ms_archive_encode_header(h, MS_ARCHIVE_VERSION, index_size, stored_size, payload, index_crc,
+                             head);
 
     FILE *out = fopen(w->partial_path, "wb");
     int failed = !out;
     if (out) {
         failed |= fwrite(head, 1, sizeof head, out) != sizeof head;
-        failed |= fwrite(index, 1, index_size, out) != index_size;
+        failed |= fwrite(stored, 1, stored_size, out) != stored_size;
         for (uint32_t id = 0; !failed && id < h->cell_count; ++id) {
             cell_state *s = &w->cells[id];
             failed |= copy_from_spool(w, out, s->geometry_spool, s->cell.geometry_length);
@@ -305,7 +359,7 @@ ms_status ms_archive_writer_finish(ms_archive_writer *w, ms_error *err)
         failed |= fflush(out) != 0 || fsync(fileno(out)) != 0;
         failed |= fclose(out) != 0;
     }
-    free(index);
+    free(stored);
     if (failed || rename(w->partial_path, w->path) != 0) {
         ms_status st = ms_error_set(err, MS_ERR_IO, "%s: write failed: %s", w->path, strerror(errno));
         ms_archive_writer_abort(w);

@@ -1,4 +1,5 @@
-/* Writing a meshstream archive file (docs/ARCHIVE.md, version 1).
+/* Writing a meshstream archive file (docs/ARCHIVE.md, version 2: the index is
+ * stored as one zlib stream, level 9, fixed parameters).
  *
  * Usage: open with the header fields and the tree topology (for each cell in
  * breadth-first order, the index of its first child or MS_ARCHIVE_NONE), put each
@@ -22,7 +23,8 @@
 
 typedef struct ms_archive_writer ms_archive_writer;
 
-/* header: every field but table_words and file_size is used; cell_count gives
+/* header: every field but table_words, file_size, version and index_stored_size
+ * is used (the writer sets those); cell_count gives
  * the length of first_child. The topology is checked against the breadth-first
  * rules (MS_ERR_ARG when it breaks them). */
 ms_status ms_archive_writer_open(const char *path, const ms_archive_header *header,

@@ -241,7 +241,7 @@ static void handle_open_model(ms_proto_conn *c, uint32_t id, const ms_proto_open
     mo->content_id = m->content_id;
     mo->index_size = (uint32_t)index_size;
     mo->index_crc32 = m->index_crc32;
-    mo->archive_version = MS_ARCHIVE_VERSION;
+    mo->archive_version = MS_ARCHIVE_BLOB_VERSION; /* the blob, not the file: always 1 */
     model_steps(c, m, &mo->geometry_steps, &mo->apo_steps, &mo->permitted_geometry_steps,
                 &mo->permitted_apo_steps);
     slot->permitted_geometry_steps = mo->permitted_geometry_steps;

@@ -16,12 +16,14 @@
 #include <cmocka.h>
 
 #include <jansson.h>
+#include <zlib.h>
 
 #include "ms_apo_chunk.h"
 #include "ms_apo_stream.h"
 #include "ms_archive.h"
 #include "ms_bake.h"
 #include "ms_test.h"
+#include "ms_test_archive.h"
 #include "ms_view_decoder.h"
 
 static void bake_report(const char *model, const char *dir, const char *name, unsigned threads,
@@ -239,9 +241,11 @@ static void test_damaged_chunks_are_rejected(void **state)
     uint32_t table[2 * MS_APO_MAX_LEVELS];
     for (uint32_t l = 0; l < root.apo_levels; ++l)
         table[2 * l] = ms_archive_apo_prefix(a, 0, l, &table[2 * l + 1]);
-    uint64_t payload_start = MS_ARCHIVE_HEADER_SIZE + (uint64_t)MS_ARCHIVE_RECORD_SIZE * h->cell_count +
-                             4ull * h->table_words;
-    uint64_t table_at = MS_ARCHIVE_HEADER_SIZE + (uint64_t)MS_ARCHIVE_RECORD_SIZE * h->cell_count +
+    /* Version 2: the payload area follows the zlib-stored index; the level
+     * table lies in the raw (inflated) index. */
+    assert_int_equal(h->version, MS_ARCHIVE_VERSION);
+    uint64_t payload_start = MS_ARCHIVE_HEADER_SIZE + h->index_stored_size;
+    uint64_t table_at = (uint64_t)MS_ARCHIVE_RECORD_SIZE * h->cell_count +
                         4ull * (root.table_first + root.bits_max - root.bits_min + 1u);
     ms_archive_close(a);
 
@@ -265,13 +269,23 @@ static void test_damaged_chunks_are_rejected(void **state)
     ms_archive_close(a);
     file[at] ^= 0x5A;
 
-    /* the level table in the index */
-    file[table_at + 4] ^= 1;
-    ms_test_write_file(bad, file, size);
+    /* the level table in the index (stored again as valid zlib, so the index
+     * CRC, which covers the raw index, is what catches it) */
+    size_t raw_size, bad_size;
+    uint8_t *raw = ms_test_archive_raw_index(file, size, &raw_size);
+    uint32_t raw_crc = (uint32_t)crc32_z(0L, raw, raw_size);
+    raw[table_at + 4] ^= 1;
+    size_t z_size;
+    uint8_t *z = ms_test_zlib(raw, raw_size, &z_size);
+    uint8_t *image = ms_test_archive_compose(file, size, z, z_size, raw_size, raw_crc, &bad_size);
+    ms_test_write_file(bad, image, bad_size);
     a = NULL;
-    assert_int_not_equal(ms_archive_open(bad, &a, &err), MS_OK);
+    assert_int_equal(ms_archive_open(bad, &a, &err), MS_ERR_CORRUPT);
+    assert_non_null(strstr(err.text, "index checksum mismatch"));
     assert_null(a);
-    file[table_at + 4] ^= 1;
+    free(image);
+    free(z);
+    free(raw);
 
     /* the file cut inside the last chunk */
     ms_test_write_file(bad, file, size - 3);

@@ -152,12 +152,22 @@ static void test_index_damage_and_truncation(void **state)
     uint8_t *data = ms_test_read_file(f->path, &size);
     char bad[700];
     snprintf(bad, sizeof bad, "%s/bad.msa", f->dir);
-    for (size_t i = MS_ARCHIVE_HEADER_SIZE; i < MS_ARCHIVE_HEADER_SIZE + CELLS * 80; i += 97) {
-        data[i] ^= 1;
-        ms_test_write_file(bad, data, size);
+    /* A damaged raw index, stored as a valid zlib stream: the CRC catches it. */
+    size_t raw_size;
+    uint8_t *raw = ms_test_archive_raw_index(data, size, &raw_size);
+    uint32_t crc = (uint32_t)crc32_z(0L, raw, raw_size);
+    for (size_t i = 0; i < CELLS * 80; i += 97) {
+        raw[i] ^= 1;
+        size_t z_size, bad_size;
+        uint8_t *z = ms_test_zlib(raw, raw_size, &z_size);
+        uint8_t *image = ms_test_archive_compose(data, size, z, z_size, raw_size, crc, &bad_size);
+        ms_test_write_file(bad, image, bad_size);
         expect_open_fails(bad, MS_ERR_CORRUPT, "index checksum mismatch");
-        data[i] ^= 1;
+        free(image);
+        free(z);
+        raw[i] ^= 1;
     }
+    free(raw);
     const size_t cuts[] = {0, 7, 127, 128, 129, 1000, size - 1};
     for (size_t k = 0; k < sizeof cuts / sizeof *cuts; ++k) {
         ms_test_write_file(bad, data, cuts[k]);
@@ -166,12 +176,10 @@ static void test_index_damage_and_truncation(void **state)
     ms_test_write_file(bad, (const uint8_t *)"hello", 5);
     expect_open_fails(bad, MS_ERR_FORMAT, "too short");
     /* Version from the future. */
-    data[8] = 2;
-    uLong crc = crc32(0L, data, 124);
-    for (int i = 0; i < 4; ++i)
-        data[124 + i] = (uint8_t)(crc >> (8 * i));
+    data[8] = 3;
+    ms_test_archive_seal(data);
     ms_test_write_file(bad, data, size);
-    expect_open_fails(bad, MS_ERR_UNSUPPORTED, "version 2");
+    expect_open_fails(bad, MS_ERR_UNSUPPORTED, "version 3");
     free(data);
     expect_open_fails("/nonexistent/x.msa", MS_ERR_IO, "cannot open");
 }
@@ -197,29 +205,24 @@ static void test_payload_damage_found_by_verify(void **state)
     free(data);
 }
 
-/* Rewrites one cell record field with valid CRCs, so only the structural checks
- * can catch it. */
+/* Rewrites one cell record field of the raw index and stores it again with
+ * valid CRCs, so only the structural checks can catch it. */
 static void tamper(const fixture *f, uint32_t cell, size_t field, uint32_t value,
                    const char *expect)
 {
-    size_t size;
+    size_t size, raw_size, bad_size;
     uint8_t *data = ms_test_read_file(f->path, &size);
-    uint8_t *p = data + MS_ARCHIVE_HEADER_SIZE + (size_t)cell * 80 + field;
+    uint8_t *raw = ms_test_archive_raw_index(data, size, &raw_size);
+    uint8_t *p = raw + (size_t)cell * 80 + field;
     for (int i = 0; i < 4; ++i)
         p[i] = (uint8_t)(value >> (8 * i));
-    uint64_t index_size = 0;
-    for (int i = 0; i < 8; ++i)
-        index_size |= (uint64_t)data[80 + i] << (8 * i);
-    uLong crc = crc32_z(0L, data + MS_ARCHIVE_HEADER_SIZE, index_size);
-    for (int i = 0; i < 4; ++i)
-        data[108 + i] = (uint8_t)(crc >> (8 * i));
-    crc = crc32(0L, data, 124);
-    for (int i = 0; i < 4; ++i)
-        data[124 + i] = (uint8_t)(crc >> (8 * i));
+    uint8_t *image = ms_test_archive_with_index(data, size, raw, raw_size, &bad_size);
     char bad[700];
     snprintf(bad, sizeof bad, "%s/tampered.msa", f->dir);
-    ms_test_write_file(bad, data, size);
+    ms_test_write_file(bad, image, bad_size);
     expect_open_fails(bad, MS_ERR_FORMAT, expect);
+    free(image);
+    free(raw);
     free(data);
 }
 

@@ -4,7 +4,9 @@
 #include <stddef.h>
 #include <setjmp.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
+#include <zlib.h>
 #include <cmocka.h>
 
 #include "ms_archive_writer.h"
@@ -75,6 +77,99 @@ void ms_test_write_archive(const char *path, uint32_t salt)
     }
     if (ms_archive_writer_finish(w, &err) != MS_OK)
         fail_msg("%s", err.text);
+}
+
+static uint64_t le_get(const uint8_t *p, int bytes)
+{
+    uint64_t v = 0;
+    for (int i = 0; i < bytes; ++i)
+        v |= (uint64_t)p[i] << (8 * i);
+    return v;
+}
+
+static void le_put(uint8_t *p, uint64_t v, int bytes)
+{
+    for (int i = 0; i < bytes; ++i)
+        p[i] = (uint8_t)(v >> (8 * i));
+}
+
+/* Header fields of docs/ARCHIVE.md, version 2. */
+#define AT_RAW_SIZE 80
+#define AT_PAYLOAD_SIZE 88
+#define AT_FILE_SIZE 96
+#define AT_INDEX_CRC 108
+#define AT_STORED_SIZE 112
+
+static void check_v2(const uint8_t *file, size_t size)
+{
+    if (size < 128 || le_get(file + 8, 4) != 2)
+        fail_msg("not a version-2 archive image (%zu bytes)", size);
+    uint64_t stored = le_get(file + AT_STORED_SIZE, 8), payload = le_get(file + AT_PAYLOAD_SIZE, 8);
+    if (stored > size - 128 || payload != size - 128 - stored)
+        fail_msg("version-2 image with inconsistent sizes");
+}
+
+uint8_t *ms_test_archive_raw_index(const uint8_t *file, size_t size, size_t *raw_size)
+{
+    check_v2(file, size);
+    uLongf raw = (uLongf)le_get(file + AT_RAW_SIZE, 8);
+    uint8_t *out = malloc(raw ? raw : 1);
+    assert_non_null(out);
+    uLongf got = raw;
+    if (uncompress(out, &got, file + 128, (uLong)le_get(file + AT_STORED_SIZE, 8)) != Z_OK ||
+        got != raw)
+        fail_msg("the stored index does not inflate to its %lu bytes", (unsigned long)raw);
+    *raw_size = raw;
+    return out;
+}
+
+uint8_t *ms_test_zlib(const uint8_t *data, size_t size, size_t *out_size)
+{
+    uLongf n = compressBound((uLong)size);
+    uint8_t *out = malloc(n);
+    assert_non_null(out);
+    if (compress2(out, &n, data, (uLong)size, 9) != Z_OK)
+        fail_msg("compress2 failed");
+    *out_size = n;
+    return out;
+}
+
+void ms_test_archive_seal(uint8_t *file)
+{
+    le_put(file + 124, crc32(0L, file, 124), 4);
+}
+
+uint8_t *ms_test_archive_compose(const uint8_t *file, size_t size, const uint8_t *stored,
+                                 size_t stored_size, uint64_t raw_size, uint32_t index_crc,
+                                 size_t *out_size)
+{
+    check_v2(file, size);
+    uint64_t old_stored = le_get(file + AT_STORED_SIZE, 8);
+    size_t payload = size - 128 - (size_t)old_stored;
+    size_t n = 128 + stored_size + payload;
+    uint8_t *out = malloc(n);
+    assert_non_null(out);
+    memcpy(out, file, 128);
+    memcpy(out + 128, stored, stored_size);
+    memcpy(out + 128 + stored_size, file + 128 + old_stored, payload);
+    le_put(out + AT_RAW_SIZE, raw_size, 8);
+    le_put(out + AT_FILE_SIZE, n, 8);
+    le_put(out + AT_INDEX_CRC, index_crc, 4);
+    le_put(out + AT_STORED_SIZE, stored_size, 8);
+    ms_test_archive_seal(out);
+    *out_size = n;
+    return out;
+}
+
+uint8_t *ms_test_archive_with_index(const uint8_t *file, size_t size, const uint8_t *raw,
+                                    size_t raw_size, size_t *out_size)
+{
+    size_t z_size;
+    uint8_t *z = ms_test_zlib(raw, raw_size, &z_size);
+    uint8_t *out = ms_test_archive_compose(file, size, z, z_size, raw_size,
+                                           (uint32_t)crc32_z(0L, raw, raw_size), out_size);
+    free(z);
+    return out;
 }
 
 void ms_test_add_model(const char *dir, const char *name, uint32_t salt, uint8_t public_max_bits)

@@ -21,6 +21,27 @@ uint32_t ms_test_archive_apo_levels(uint32_t cell);      /* 0 = no chunk; 40 byt
  * payload byte, to tell two versions of a model apart. */
 void ms_test_write_archive(const char *path, uint32_t salt);
 
+/* --- File images of version 2 (docs/ARCHIVE.md), for tests that take them
+ * apart. These read the header fields themselves (not through the reader), and
+ * fail the test on any error; every buffer they return is malloc'd. */
+
+/* The stored index of a version-2 image, inflated (*raw_size bytes). */
+uint8_t *ms_test_archive_raw_index(const uint8_t *file, size_t size, size_t *raw_size);
+/* One zlib stream (level 9) of data. */
+uint8_t *ms_test_zlib(const uint8_t *data, size_t size, size_t *out_size);
+/* Recomputes the header CRC (bytes 124..127) of an image. */
+void ms_test_archive_seal(uint8_t *file);
+/* A new image from a version-2 image: its header and payload area, with `stored`
+ * as the stored index and the header saying raw size raw_size and index CRC
+ * index_crc; the file and stored sizes follow, and the header CRC is redone. */
+uint8_t *ms_test_archive_compose(const uint8_t *file, size_t size, const uint8_t *stored,
+                                 size_t stored_size, uint64_t raw_size, uint32_t index_crc,
+                                 size_t *out_size);
+/* ms_test_archive_compose with the zlib stream and the CRC of `raw`: a
+ * consistent image whose raw index is `raw`. */
+uint8_t *ms_test_archive_with_index(const uint8_t *file, size_t size, const uint8_t *raw,
+                                    size_t raw_size, size_t *out_size);
+
 /* Writes DIR/NAME.msa and adds NAME to DIR/catalog.json. */
 void ms_test_add_model(const char *dir, const char *name, uint32_t salt, uint8_t public_max_bits);
 
