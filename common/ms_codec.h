@@ -74,9 +74,34 @@ ms_status ms_codec_state_canonicalise(ms_codec_state *s, ms_error *err);
  * orientation (cyclic order). Both must be canonicalised. */
 bool ms_codec_state_equal(const ms_codec_state *a, const ms_codec_state *b, bool oriented);
 
+/* The region a stream owns (an nSP cell): the cube [min, min + 2^log2_side) on
+ * every axis of the 2^P grid, aligned (min a multiple of the side) and coarse
+ * enough that every kd-cell of the window lies wholly inside or outside it
+ * (3 (P - log2_side) <= 3 p_min). A cell outside is *foreign*: a copy of a
+ * neighbour's vertex that a renderer snaps to the neighbour's own vertex, so its
+ * stream may stop refining it ("freeze" it) once its kd-cell holds no other
+ * vertex of the whole model: refining it further would repeat the neighbour's
+ * bits. Each foreign cell not yet frozen codes one "frozen?" decision per
+ * kd-level; a frozen cell keeps its kd-level and codes nothing more. */
+typedef struct ms_codec_region {
+    uint32_t min[3];
+    unsigned log2_side;
+} ms_codec_region;
+
+#define MS_CODEC_NO_FREEZE 255
+
 typedef struct ms_codec_encode_params {
     unsigned p_min;       /* first precision bit of the window (0 = from one vertex) */
     ms_quant_box box;     /* world box written to the header */
+    /* Optional (both NULL for a stream without a region). region: the owned
+     * region, written to the header. freeze_level[i] (vertex i of `full`): the
+     * kd-level at which its foreign cell freezes, or MS_CODEC_NO_FREEZE. The caller
+     * guarantees what the encoder cannot see, that the kd-cell at that level holds
+     * no other vertex of the model; the encoder checks what it can: the vertex is
+     * foreign, 3 p_min <= level < 3 P, and no other vertex of `full` shares that
+     * kd-cell (else MS_ERR_ARG). */
+    const ms_codec_region *region;
+    const uint8_t *freeze_level;
     /* Training the prior (meshcodec train), normally NULL: when set, every coded
      * decision adds 1 to context_counts[2 i + bit], i its context in the prior's
      * layout; the array has 2 * ms_codec_prior_contexts() entries, owned by the
@@ -102,6 +127,8 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
 typedef struct ms_codec_header {
     unsigned version, p_min, p_max;
     ms_quant_box box;
+    bool has_region;            /* flags bit 0: a 16-byte region follows the counts */
+    ms_codec_region region;
     uint32_t start_vertices, start_tris, start_edges;
     uint64_t start_checksum;
     uint32_t end_vertices, end_tris, end_edges;
@@ -163,8 +190,16 @@ size_t ms_codec_decoder_edge_count(const ms_codec_decoder *d);
  * included. *out must be zeroed or freed; it is reused when it has room. */
 ms_status ms_codec_decoder_mesh(const ms_codec_decoder *d, ms_mesh *out, ms_error *err);
 
-/* The current complex as an ms_codec_state (vertices in kd order). */
+/* The current complex as an ms_codec_state (vertices in kd order). A frozen
+ * foreign cell, which stays at a coarser kd-level than the others, is given as
+ * the prefix of its first descendant at the state's level (its lower bits zero);
+ * ms_codec_decoder_vertex_levels tells which. */
 ms_status ms_codec_decoder_state(const ms_codec_decoder *d, ms_codec_state *out, ms_error *err);
+
+/* levels[i] = kd-level of vertex i of ms_codec_decoder_state (the current level,
+ * or the coarser one at which a foreign cell froze); levels has
+ * ms_codec_decoder_vertex_count entries. Returns the number of frozen cells. */
+size_t ms_codec_decoder_vertex_levels(const ms_codec_decoder *d, uint8_t *levels);
 
 /* 64-bit checksum of a complex (canonical form), as stored for the start state. */
 uint64_t ms_codec_state_checksum(const ms_codec_state *canonical);

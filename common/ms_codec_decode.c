@@ -38,6 +38,7 @@ struct ms_codec_decoder {
     uint8_t *tcode;
     size_t cap_code, cap_tcode;
     uint32_t compact_nv;    /* slots in use after the last compaction */
+    uint32_t frozen;        /* frozen foreign cells now */
     /* Encode mode (the encoder's forward pass): decisions come from src and are
      * range-coded into enc with the very contexts the decoder uses. */
     ms_rc_encoder *enc;
@@ -58,7 +59,7 @@ static inline __attribute__((always_inline)) int dbit(ms_codec_decoder *d, ms_rc
     if (d->src_pos < d->src_n)
         bit = d->src[d->src_pos];
     d->src_pos++;
-    if (d->train)
+    if (d->train && ms_prior_has((uint32_t)(p - d->model), d->D))
         d->train[2 * ms_prior_index((uint32_t)(p - d->model), d->D) + (unsigned)bit]++;
     ms_rc_encode(d->enc, p, bit);
     return bit;
@@ -356,10 +357,23 @@ static ms_status refine_level(ms_codec_decoder *d, ms_error *err)
     if (!order_room(d, 2 * d->norder))
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory decoding a level");
     uint32_t w = 0;
+    const ms_codec_region *region = d->h.has_region ? &d->h.region : NULL;
+    unsigned bits_in = (L - d->Lmin) / 3;
     for (uint32_t k = 0; k < d->norder; ++k) {
         uint32_t s = d->order[k];
         ms_cx_vert *v = &cx->v[s];
+        if (v->frozen) {
+            d->order2[w++] = s;
+            continue;
+        }
         unsigned run = geo_run(L, v->birth);
+        if (region && ms_codec_outside(region, v->c) &&
+            dbit(d, &d->model[frz_ctx(d->D, run, bits_in)])) {
+            v->frozen = 1; /* stays at kd-level L */
+            d->frozen++;
+            d->order2[w++] = s;
+            continue;
+        }
         if (dbit(d, &d->model[GEO_BOTH(L, run, geo_deg(v))])) {
             uint32_t s2 = 0;
             if ((r = split(d, s, L, &s2, err)) != MS_OK) {
@@ -429,8 +443,19 @@ static ms_status coarsen_level(ms_codec_decoder *d, ms_error *err)
     uint32_t w = 0;
     for (uint32_t k = d->norder; k > 0;) {
         uint32_t last = d->order[--k];
+        ms_cx_vert *lv = &cx->v[last];
+        if (lv->frozen && lv->level <= L) {
+            /* frozen at L: refining L decided it, coarsening undoes it */
+            if (lv->level == L) {
+                lv->frozen = 0;
+                d->frozen--;
+            }
+            d->order2[w++] = last;
+            continue;
+        }
         uint32_t first = MS_CX_NONE;
-        if (k > 0 && (cx->v[d->order[k - 1]].key >> shift) == (cx->v[last].key >> shift))
+        /* a frozen cell never shares its parent (it is alone in its kd-cell) */
+        if (k > 0 && (cx->v[d->order[k - 1]].key >> shift) == (lv->key >> shift))
             first = d->order[--k];
         uint32_t keep = last;
         if (first != MS_CX_NONE) {
@@ -732,6 +757,13 @@ ms_status ms_codec_decoder_state(const ms_codec_decoder *d, ms_codec_state *out,
         return ms_error_set(err, MS_ERR_CORRUPT, "decoder stopped after a corrupted stream");
     }
     return ms_codec_export_complex(&d->cx, d->order, d->norder, d->level, out, err);
+}
+
+size_t ms_codec_decoder_vertex_levels(const ms_codec_decoder *d, uint8_t *levels)
+{
+    for (uint32_t i = 0; i < d->norder; ++i)
+        levels[i] = d->cx.v[d->order[i]].level;
+    return d->frozen;
 }
 
 ms_status ms_codec_decoder_mesh(const ms_codec_decoder *d, ms_mesh *out, ms_error *err)

@@ -7,6 +7,7 @@
 #include "ms_codec_model.h"
 #include "ms_complex.h"
 #include "ms_quant.h"
+#include "ms_radix_sort.h"
 #include "ms_rangecoder.h"
 
 #include <math.h>
@@ -154,6 +155,57 @@ static ms_status validate_full(const ms_codec_state *f, ms_error *err)
     return MS_OK;
 }
 
+/* Freeze levels in the canonical (key) order of `canon`, checked (ms_codec.h,
+ * ms_codec_encode_params): *out = NULL when nothing freezes. */
+static ms_status freeze_levels(const ms_codec_state *full, const ms_codec_state *canon,
+                               const ms_codec_encode_params *params, uint8_t **out, ms_error *err)
+{
+    *out = NULL;
+    if (!params->freeze_level)
+        return MS_OK;
+    if (!params->region)
+        return ms_error_set(err, MS_ERR_ARG, "freeze levels need a region");
+    size_t n = full->vertex_count;
+    unsigned P = full->bits, D = 3 * P, Lmin = 3 * params->p_min;
+    uint64_t *keys = malloc(n * sizeof *keys);
+    uint32_t *pos = malloc(n * sizeof *pos);
+    uint8_t *fl = malloc(n);
+    ms_status s = MS_OK;
+    if (!keys || !pos || !fl)
+        s = ms_error_set(err, MS_ERR_NOMEM, "out of memory reading freeze levels");
+    for (size_t i = 0; s == MS_OK && i < n; ++i) {
+        keys[i] = full->cells[i];
+        pos[i] = (uint32_t)i;
+    }
+    if (s == MS_OK)
+        s = ms_radix_sort_pairs(keys, pos, n, D, err);
+    for (size_t i = 0; s == MS_OK && i < n; ++i) {
+        uint8_t f = params->freeze_level[pos[i]];
+        fl[i] = f;
+        if (f == MS_CODEC_NO_FREEZE)
+            continue;
+        uint32_t c[3];
+        ms_quant_unkey(canon->cells[i], P, c);
+        if (f < Lmin || f >= D)
+            s = ms_error_set(err, MS_ERR_ARG, "vertex %u: freeze level %u outside [%u, %u)",
+                             pos[i], f, Lmin, D);
+        else if (!ms_codec_outside(params->region, c))
+            s = ms_error_set(err, MS_ERR_ARG, "vertex %u: only a foreign vertex freezes", pos[i]);
+        else if ((i > 0 && ms_key_lcp(canon->cells[i - 1], canon->cells[i], D) >= f) ||
+                 (i + 1 < n && ms_key_lcp(canon->cells[i], canon->cells[i + 1], D) >= f))
+            s = ms_error_set(err, MS_ERR_ARG, "vertex %u: freezes at kd-level %u in a cell it "
+                             "shares", pos[i], f);
+    }
+    free(keys);
+    free(pos);
+    if (s != MS_OK) {
+        free(fl);
+        return s;
+    }
+    *out = fl;
+    return MS_OK;
+}
+
 /* Exports the complex (all cells at one level) as a canonical state. */
 static ms_status export_state(const ms_complex *cx, const uint32_t *order, uint32_t n,
                               unsigned level, ms_codec_state *out, ms_error *err)
@@ -229,6 +281,7 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
     e.D = D;
     uint32_t n = (uint32_t)full->vertex_count;
     uint32_t *order = NULL, *order2 = NULL;
+    uint8_t *frozen_at = NULL; /* per canonical vertex, or NULL */
     ms_codec_state canon = {0};
     ms_codec_state start = {0};
     ms_rc_encoder rc;
@@ -290,6 +343,20 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
             }
     }
 
+    if (params->region) {
+        uint8_t q[MS_CODEC_REGION_BYTES] = {0};
+        for (int a = 0; a < 3; ++a)
+            for (int b = 0; b < 4; ++b)
+                q[4 * a + b] = (uint8_t)(params->region->min[a] >> (8 * b));
+        q[12] = (uint8_t)(params->region->log2_side > 255 ? 255 : params->region->log2_side);
+        ms_codec_region checked;
+        if ((s = ms_codec_region_check(q, pmin, P, &checked, err)) != MS_OK) {
+            s = ms_error_set(err, MS_ERR_ARG, "encoder region invalid: %s", err->text);
+            goto fail;
+        }
+    }
+    if ((s = freeze_levels(full, &canon, params, &frozen_at, err)) != MS_OK)
+        goto fail;
     uint32_t max_t = (uint32_t)canon.tri_count, max_e = (uint32_t)(canon.edge_count + canon.tri_count);
     if ((s = ms_cx_init(&e.cx, P, n, max_t, max_e, err)) != MS_OK)
         goto fail;
@@ -301,8 +368,18 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
         goto nomem;
     for (uint32_t i = 0; i < n; ++i) {
         uint32_t c[3];
-        ms_quant_unkey(canon.cells[i], P, c);
-        order[i] = ms_cx_add_vertex(&e.cx, canon.cells[i], D, c);
+        unsigned f = frozen_at ? frozen_at[i] : MS_CODEC_NO_FREEZE;
+        if (f == MS_CODEC_NO_FREEZE) {
+            ms_quant_unkey(canon.cells[i], P, c);
+            order[i] = ms_cx_add_vertex(&e.cx, canon.cells[i], D, c);
+        } else {
+            /* a frozen cell enters at the level it freezes at: the merge pass
+             * never refines it below that */
+            uint64_t key = canon.cells[i] & ~((1ull << (D - f)) - 1);
+            ms_quant_unkey(key, P, c);
+            order[i] = ms_cx_add_vertex(&e.cx, key, f, c);
+            e.cx.v[order[i]].frozen = 1;
+        }
     }
     for (size_t t = 0; t < canon.tri_count; ++t)
         ms_cx_add_tri(&e.cx, canon.tris[3 * t], canon.tris[3 * t + 1], canon.tris[3 * t + 2]);
@@ -335,10 +412,22 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
         uint32_t w = 0;
         for (uint32_t k = norder; k > 0;) {
             uint32_t last = order[--k];
+            ms_cx_vert *lv = &e.cx.v[last];
+            if (lv->frozen) {
+                /* frozen at f <= L: nothing below f; at f, the "frozen" decision */
+                if (lv->level == L) {
+                    put(&e, 1);
+                    lv->frozen = 0;
+                }
+                order2[w++] = last;
+                continue;
+            }
             uint32_t first = MS_CX_NONE;
             if (k > 0 && (e.cx.v[order[k - 1]].key >> shift) == (e.cx.v[last].key >> shift))
                 first = order[--k];
             size_t group = e.sym.n;
+            if (params->region && ms_codec_outside(params->region, lv->c))
+                put(&e, 0); /* foreign, not frozen at L */
             uint32_t keep = first != MS_CX_NONE ? first : last;
             if (first != MS_CX_NONE) {
                 put(&e, 1);
@@ -391,6 +480,10 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
     h.p_min = pmin;
     h.p_max = P;
     h.box = params->box;
+    if (params->region) {
+        h.has_region = true;
+        h.region = *params->region;
+    }
     h.start_vertices = (uint32_t)start.vertex_count;
     h.start_tris = (uint32_t)start.tri_count;
     h.start_edges = (uint32_t)start.edge_count;
@@ -408,7 +501,7 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
         goto fail;
     if (rc.failed)
         goto nomem;
-    size_t hs = ms_codec_header_size(nchunks);
+    size_t hs = ms_codec_header_size(nchunks, h.has_region);
     buf = malloc(hs + rc.size + 1);
     if (!buf)
         goto nomem;
@@ -445,5 +538,6 @@ done:
     free(e.code);
     free(order);
     free(order2);
+    free(frozen_at);
     return s;
 }

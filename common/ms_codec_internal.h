@@ -13,12 +13,28 @@
 #define MS_CODEC_MAGIC "MSGC"
 #define MS_CODEC_FIXED_HEADER 72
 
-/* Bytes of a header with nchunks chunk entries (fixed part, table, CRC). */
-size_t ms_codec_header_size(unsigned nchunks);
-/* Writes h (version, window, box, counts, table) and the header CRC into p,
- * which has ms_codec_header_size(p_max - p_min) bytes. */
+#define MS_CODEC_REGION_BYTES 16
+
+/* Bytes of a header with nchunks chunk entries (fixed part, region when present,
+ * table, CRC). */
+size_t ms_codec_header_size(unsigned nchunks, bool has_region);
+/* Writes h (version, window, box, counts, region, table) and the header CRC into
+ * p, which has ms_codec_header_size(p_max - p_min, h->has_region) bytes. */
 void ms_codec_write_header(uint8_t *p, const ms_codec_header *h);
 uint32_t ms_codec_crc(const uint8_t *p, size_t n);
+/* Reads and validates the 16 region bytes q of a header with window
+ * [p_min, p_max] (ms_codec_region's rules). */
+ms_status ms_codec_region_check(const uint8_t *q, unsigned p_min, unsigned p_max,
+                                ms_codec_region *out, ms_error *err);
+
+/* Whether the cell with minimum corner c lies outside the region (cells of the
+ * window lie wholly inside or outside). */
+static inline bool ms_codec_outside(const ms_codec_region *r, const uint32_t c[3])
+{
+    uint32_t side = 1u << r->log2_side;
+    return (uint32_t)(c[0] - r->min[0]) >= side || (uint32_t)(c[1] - r->min[1]) >= side ||
+           (uint32_t)(c[2] - r->min[2]) >= side;
+}
 /* ms_codec_read_header with the header CRC check optional (fuzzing). */
 ms_status ms_codec_parse_header(const uint8_t *data, size_t size, ms_codec_header *h,
                                 bool verify_crc, ms_error *err);

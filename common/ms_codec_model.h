@@ -12,6 +12,7 @@
 #ifndef MS_CODEC_MODEL_H
 #define MS_CODEC_MODEL_H
 
+#include <stdbool.h>
 #include <stdint.h>
 
 #include "ms_codec.h"
@@ -48,9 +49,20 @@ static inline unsigned geo_deg(const ms_cx_vert *v)
 #define C_O4 (C_O3 + 2)                     /* orientation of a created triangle */
 #define C_TOTAL (C_O4 + 3)
 
+/* "Frozen?" of a foreign cell (streams with an owned region, ms_codec.h): run x
+ * precision bits into the window (0, 1, 2, 3+). After the connectivity block and
+ * outside the prior (single streams, which the prior is trained on, have none):
+ * they start at 1/2. */
+#define FRZ_CONTEXTS (GEO_RUNS * 4)
+
 static inline uint32_t ms_model_size(unsigned D)
 {
-    return D * GEO_PER_LEVEL + C_TOTAL;
+    return D * GEO_PER_LEVEL + C_TOTAL + FRZ_CONTEXTS;
+}
+
+static inline uint32_t frz_ctx(unsigned D, unsigned run, unsigned bits_in)
+{
+    return D * GEO_PER_LEVEL + C_TOTAL + run * 4 + (bits_in < 3 ? bits_in : 3);
 }
 
 /* The prior's layout (ms_codec_prior.h): every kd-level a stream can reach, then
@@ -65,6 +77,12 @@ static inline uint32_t ms_prior_index(uint32_t model_index, unsigned D)
 {
     uint32_t geo = D * GEO_PER_LEVEL;
     return model_index < geo ? model_index : MS_PRIOR_GEO + (model_index - geo);
+}
+
+/* Whether a model index has an entry in the prior (the freeze contexts do not). */
+static inline bool ms_prior_has(uint32_t model_index, unsigned D)
+{
+    return model_index < D * GEO_PER_LEVEL + C_TOTAL;
 }
 
 static inline unsigned geo_run(unsigned level, unsigned birth)

@@ -11,7 +11,7 @@ void ms_codec_model_init(ms_rc_prob *model, unsigned D, unsigned version)
 {
     uint32_t n = ms_model_size(D);
     for (uint32_t i = 0; i < n; ++i) {
-        if (version == MS_CODEC_VERSION_FLAT) {
+        if (version == MS_CODEC_VERSION_FLAT || !ms_prior_has(i, D)) {
             model[i] = MS_RC_PROB_INIT;
         } else {
             uint16_t p0 = ms_codec_prior_p0[ms_prior_index(i, D)];

@@ -251,9 +251,10 @@ static double bitsd(uint64_t u)
     return d;
 }
 
-size_t ms_codec_header_size(unsigned nchunks)
+size_t ms_codec_header_size(unsigned nchunks, bool has_region)
 {
-    return MS_CODEC_FIXED_HEADER + 8 * (size_t)nchunks + 4;
+    return MS_CODEC_FIXED_HEADER + (has_region ? MS_CODEC_REGION_BYTES : 0) +
+           8 * (size_t)nchunks + 4;
 }
 
 void ms_codec_write_header(uint8_t *p, const ms_codec_header *h)
@@ -263,7 +264,7 @@ void ms_codec_write_header(uint8_t *p, const ms_codec_header *h)
     p[4] = (uint8_t)h->version;
     p[5] = (uint8_t)h->p_max;
     p[6] = (uint8_t)h->p_min;
-    p[7] = 0;
+    p[7] = h->has_region ? 1 : 0;
     for (int a = 0; a < 3; ++a)
         put64(p + 8 + 8 * a, dbits(h->box.origin[a]));
     put64(p + 32, dbits(h->box.size));
@@ -275,12 +276,39 @@ void ms_codec_write_header(uint8_t *p, const ms_codec_header *h)
     put32(p + 64, h->end_tris);
     put32(p + 68, h->end_edges);
     uint8_t *q = p + MS_CODEC_FIXED_HEADER;
+    if (h->has_region) {
+        for (int a = 0; a < 3; ++a)
+            put32(q + 4 * a, h->region.min[a]);
+        memset(q + 12, 0, 4);
+        q[12] = (uint8_t)h->region.log2_side;
+        q += MS_CODEC_REGION_BYTES;
+    }
     for (unsigned i = 0; i < nchunks; ++i) {
         put32(q + 8 * i, h->chunk_end[i]);
         put32(q + 8 * i + 4, h->chunk_crc[i]);
     }
-    size_t n = ms_codec_header_size(nchunks) - 4;
+    size_t n = ms_codec_header_size(nchunks, h->has_region) - 4;
     put32(p + n, (uint32_t)crc32(0L, p, (uInt)n));
+}
+
+ms_status ms_codec_region_check(const uint8_t *q, unsigned p_min, unsigned p_max,
+                                ms_codec_region *out, ms_error *err)
+{
+    ms_codec_region r;
+    for (int a = 0; a < 3; ++a)
+        r.min[a] = get32(q + 4 * a);
+    r.log2_side = q[12];
+    if (q[13] || q[14] || q[15])
+        return ms_error_set(err, MS_ERR_FORMAT, "codec region: reserved bytes not zero");
+    if (r.log2_side > p_max || 3 * (p_max - r.log2_side) > 3 * p_min)
+        return ms_error_set(err, MS_ERR_FORMAT, "codec region of side 2^%u does not fit the "
+                            "window [%u, %u]", r.log2_side, p_min, p_max);
+    uint64_t side = 1ull << r.log2_side, grid = 1ull << p_max;
+    for (int a = 0; a < 3; ++a)
+        if (r.min[a] % side != 0 || r.min[a] + side > grid)
+            return ms_error_set(err, MS_ERR_FORMAT, "codec region not aligned inside the grid");
+    *out = r;
+    return MS_OK;
 }
 
 ms_status ms_codec_read_header(const uint8_t *data, size_t size, ms_codec_header *h,
@@ -304,11 +332,13 @@ ms_status ms_codec_parse_header(const uint8_t *data, size_t size, ms_codec_heade
                             h->version);
     h->p_max = data[5];
     h->p_min = data[6];
-    if (h->p_max < 1 || h->p_max > MS_CODEC_MAX_BITS || h->p_min > h->p_max || data[7] != 0)
+    if (h->p_max < 1 || h->p_max > MS_CODEC_MAX_BITS || h->p_min > h->p_max || (data[7] & ~1u) ||
+        (data[7] && h->version == MS_CODEC_VERSION_FLAT))
         return ms_error_set(err, MS_ERR_FORMAT, "bad precision window [%u, %u] or flags",
                             h->p_min, h->p_max);
+    h->has_region = data[7] & 1;
     unsigned nchunks = h->p_max - h->p_min;
-    size_t hs = ms_codec_header_size(nchunks);
+    size_t hs = ms_codec_header_size(nchunks, h->has_region);
     if (size < hs)
         return ms_error_set(err, MS_ERR_FORMAT, "codec stream truncated in its header (%zu of %zu "
                             "bytes)", size, hs);
@@ -342,9 +372,17 @@ ms_status ms_codec_parse_header(const uint8_t *data, size_t size, ms_codec_heade
         return ms_error_set(err, MS_ERR_FORMAT, "start state larger than the final complex");
     if (h->p_min == 0 && (h->start_vertices != 1 || h->start_tris || h->start_edges))
         return ms_error_set(err, MS_ERR_FORMAT, "a stream from precision 0 starts at one vertex");
+    size_t table = MS_CODEC_FIXED_HEADER;
+    if (h->has_region) {
+        const uint8_t *q = data + MS_CODEC_FIXED_HEADER;
+        ms_status r = ms_codec_region_check(q, h->p_min, h->p_max, &h->region, err);
+        if (r != MS_OK)
+            return r;
+        table += MS_CODEC_REGION_BYTES;
+    }
     uint32_t prev = 0;
     for (unsigned i = 0; i < nchunks; ++i) {
-        const uint8_t *q = data + MS_CODEC_FIXED_HEADER + 8 * i;
+        const uint8_t *q = data + table + 8 * i;
         h->chunk_end[i] = get32(q);
         h->chunk_crc[i] = get32(q + 4);
         if (h->chunk_end[i] < prev + 4 || h->chunk_end[i] > (1u << 31))

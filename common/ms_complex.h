@@ -33,7 +33,7 @@ typedef struct ms_cx_vert {
     uint8_t level;    /* kd-level of the cell */
     uint8_t birth;    /* level at which the cell's lineage last split in two */
     uint8_t alive;
-    uint8_t pad;
+    uint8_t frozen;   /* codec: a foreign cell no longer refined (ms_codec.h, regions) */
     uint32_t n, cap;  /* list size; cap 0 = inline storage */
     uint32_t *ext;
     uint32_t inl[MS_CX_INLINE];

@@ -24,6 +24,8 @@ typedef struct vcell {
     ms_codec_state cache;
     uint32_t *out_index;    /* per cache vertex: index in the stitched mesh, or NONE */
     uint32_t *owner;        /* per cache vertex: shown cell holding it, NONE = finer cells */
+    uint8_t *levels;        /* per cache vertex: its kd-level, when some foreign vertex is
+                             * frozen coarser than the cell (else NULL: all at its level) */
 } vcell;
 
 struct ms_view {
@@ -42,7 +44,9 @@ static void cache_drop(vcell *c)
     ms_codec_state_free(&c->cache);
     free(c->out_index);
     free(c->owner);
+    free(c->levels);
     c->out_index = c->owner = NULL;
+    c->levels = NULL;
     c->cache_valid = false;
 }
 
@@ -576,6 +580,21 @@ static ms_status refresh_cache(ms_view *v, uint32_t cell, ms_error *err)
         cache_drop(c);
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory stitching");
     }
+    if (c->dec) {
+        if (ms_codec_decoder_vertex_count(c->dec) != n) {
+            cache_drop(c);
+            return ms_error_set(err, MS_ERR_CORRUPT, "cell %u: state and decoder disagree", cell);
+        }
+        c->levels = malloc(n ? n : 1);
+        if (!c->levels) {
+            cache_drop(c);
+            return ms_error_set(err, MS_ERR_NOMEM, "out of memory stitching");
+        }
+        if (ms_codec_decoder_vertex_levels(c->dec, c->levels) == 0) {
+            free(c->levels);
+            c->levels = NULL;
+        }
+    }
     c->cache_valid = true;
     c->cache_bits = c->bits;
     return MS_OK;
@@ -595,6 +614,22 @@ static uint32_t owner_of(const ms_view *v, uint64_t prefix, unsigned level)
         cell = r->first_child + ms_nsp_child_offset(&v->shape, r->level, xyz);
     }
     return cell;
+}
+
+/* The vertex of s lying inside kd-cell `prefix` of level s->level - coarser (the
+ * first, and for a frozen foreign cell's lone kd-cell the only, one), or NONE. */
+static uint32_t find_inside(const ms_codec_state *s, uint64_t prefix, unsigned coarser)
+{
+    uint64_t first = prefix << coarser;
+    size_t lo = 0, hi = s->vertex_count;
+    while (lo < hi) {
+        size_t mid = lo + (hi - lo) / 2;
+        if (s->cells[mid] < first)
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    return lo < s->vertex_count && s->cells[lo] >> coarser == prefix ? (uint32_t)lo : NONE;
 }
 
 static uint32_t find_prefix(const ms_codec_state *s, uint64_t prefix)
@@ -756,7 +791,7 @@ ms_status ms_view_stitch(ms_view *v, const bool *visible, ms_view_mesh *m, ms_er
     uint8_t *snapped = NULL;
     size_t snapped_cap = 0;
     m->vertex_count = m->triangle_count = 0;
-    m->dropped_finer = m->dropped_snapped = m->unresolved = 0;
+    m->dropped_finer = m->dropped_snapped = m->unresolved = m->snapped_frozen = 0;
     ms_status s = MS_OK;
     /* Caches and owners of every shown cell. */
     for (uint32_t id = 0; id < v->count && s == MS_OK; ++id) {
@@ -813,13 +848,19 @@ ms_status ms_view_stitch(ms_view *v, const bool *visible, ms_view_mesh *m, ms_er
                     m->dropped_finer++;
                     break;
                 }
-                uint64_t prefix = c->cache.cells[x[j]] >> (Lc - Lo);
-                uint32_t k = find_prefix(&oc->cache, prefix);
+                /* a frozen foreign vertex is known only to its lone kd-cell (level
+                 * lx): the holder's vertex inside it is the one it stands for */
+                unsigned lx = c->levels ? c->levels[x[j]] : Lc;
+                uint32_t k = lx >= Lo
+                                 ? find_prefix(&oc->cache, c->cache.cells[x[j]] >> (Lc - Lo))
+                                 : find_inside(&oc->cache, c->cache.cells[x[j]] >> (Lc - lx),
+                                               Lo - lx);
                 if (k == NONE) {
                     keep = false;
                     m->unresolved++;
                     break;
                 }
+                m->snapped_frozen += lx < Lo;
                 if ((s = out_vertex(v, m, o, k, &idx[j], err)) != MS_OK)
                     break;
                 moved = true;

@@ -174,6 +174,9 @@ typedef struct ms_view_mesh {
     size_t dropped_finer;    /* triangles left to a finer (or tie-winning) cell */
     size_t dropped_snapped;  /* triangles degenerate or repeated once their vertices snap */
     size_t unresolved;       /* vertices whose neighbour representative is missing (0) */
+    size_t snapped_frozen;   /* triangle corners given by a frozen foreign vertex (known
+                              * only to a lone kd-cell coarser than its holder: ms_codec.h,
+                              * regions) resolved to the holder's vertex inside that cell */
 } ms_view_mesh;
 
 /* Builds the mesh of the shown cells whose visible[cell] is true (NULL: all).

@@ -14,6 +14,7 @@
 #include "ms_apo_build.h"
 #include "ms_codec.h"
 #include "ms_nsp.h"
+#include "ms_nsp_lone.h"
 #include "ms_progress.h"
 #include "ms_radix_sort.h"
 
@@ -29,6 +30,8 @@ typedef struct pool {
     const uint32_t *cell_of_node;
     ms_archive_writer *writer;
     const ms_nsp_encode_params *params;
+    uint8_t *lone;  /* per input vertex: its lone level (ms_nsp_lone.h) */
+    unsigned max_depth; /* of the tree's cells */
     task *tasks;
     uint32_t *heap; /* ready nodes, min-heap on post */
     uint32_t heap_n;
@@ -103,9 +106,13 @@ static ms_status index_keys(uint64_t *ref, size_t n, unsigned key_bits, uint64_t
     return s;
 }
 
-/* Leaf: records at full precision -> complex. */
-static ms_status leaf_state(pool *p, uint32_t node, ms_codec_state *st, ms_error *err)
+/* Leaf: records at full precision -> complex; *lone_out (malloc'd, one per
+ * vertex of st) receives each foreign vertex's lone level, MS_CODEC_NO_FREEZE for
+ * the leaf's own vertices. */
+static ms_status leaf_state(pool *p, uint32_t node, ms_codec_state *st, uint8_t **lone_out,
+                            ms_error *err)
 {
+    *lone_out = NULL;
     const ms_nsp_build *b = p->b;
     uint32_t *rec;
     size_t n;
@@ -126,9 +133,13 @@ static ms_status leaf_state(pool *p, uint32_t node, ms_codec_state *st, ms_error
     /* Vertex references: three per triangle record, one per point record. */
     uint64_t *ref = malloc((3 * n + 1) * sizeof *ref);
     uint32_t *rank = malloc((3 * n + 1) * sizeof *rank);
-    if (!ref || !rank) {
+    uint8_t *ref_lone = malloc(3 * n + 1);
+    uint8_t *lone = malloc(3 * n + 1);
+    if (!ref || !rank || !ref_lone || !lone) {
         free(ref);
         free(rank);
+        free(ref_lone);
+        free(lone);
         free(rec);
         ms_codec_state_free(st);
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory loading a leaf");
@@ -137,12 +148,17 @@ static ms_status leaf_state(pool *p, uint32_t node, ms_codec_state *st, ms_error
     for (size_t i = 0; i < n; ++i) {
         const uint32_t *r = rec + 3 * i;
         int verts = r[0] == r[1] ? 1 : 3;
-        for (int j = 0; j < verts; ++j)
+        for (int j = 0; j < verts; ++j) {
+            ref_lone[nr] = p->lone[r[j]];
             ref[nr++] = b->keys[r[j]];
+        }
     }
     size_t nk = 0;
     s = index_keys(ref, nr, 3 * st->bits, st->cells, &nk, rank, err);
     st->vertex_count = nk;
+    for (size_t i = 0; s == MS_OK && i < nr; ++i)
+        lone[rank[i]] = ref_lone[i];
+    free(ref_lone);
     size_t nt = 0;
     nr = 0;
     for (size_t i = 0; i < n; ++i) {
@@ -159,11 +175,14 @@ static ms_status leaf_state(pool *p, uint32_t node, ms_codec_state *st, ms_error
     free(rank);
     free(rec);
     size_t removed = 0;
+    *lone_out = lone;
     if (s == MS_OK)
         s = ms_tri_unify(st->tris, &nt, NULL, &removed, err);
     st->tri_count = nt;
     if (s != MS_OK) {
         ms_codec_state_free(st);
+        free(lone);
+        *lone_out = NULL;
         return s;
     }
     /* Model-wide counts: each vertex counted in its own leaf, each triangle in the
@@ -172,6 +191,8 @@ static ms_status leaf_state(pool *p, uint32_t node, ms_codec_state *st, ms_error
     uint8_t *inside = malloc(nk ? nk : 1);
     if (!inside) {
         ms_codec_state_free(st);
+        free(lone);
+        *lone_out = NULL;
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory loading a leaf");
     }
     uint64_t own_v = 0, own_t = 0, iso = 0;
@@ -179,6 +200,8 @@ static ms_status leaf_state(pool *p, uint32_t node, ms_codec_state *st, ms_error
         inside[v] = ms_nsp_prefix_inside(&b->params.shape, st->cells[v], st->level, nd->depth,
                                          nd->position);
         own_v += inside[v];
+        if (inside[v])
+            lone[v] = MS_CODEC_NO_FREEZE;
     }
     uint8_t *has = calloc(nk ? nk : 1, 1);
     for (size_t t = 0; t < nt; ++t) {
@@ -469,8 +492,8 @@ static ms_status hand_up(pool *p, uint32_t node, unsigned hi, ms_mesh *m, const 
 /* The cell's chunk: m from its stream decoded to bits_max; M from its own records
  * (a leaf) or from its children's parts (an internal cell, see ms_nsp_encode.h).
  * The part for the parent goes to out->part when the parent will need it. */
-static ms_status apo_cell(pool *p, uint32_t node, unsigned hi, ms_apo_builder *builder, cell_out *out,
-                          ms_error *err)
+static ms_status apo_cell(pool *p, uint32_t node, unsigned hi, ms_apo_builder *builder,
+                          ms_mesh *given_m, cell_out *out, ms_error *err)
 {
     const ms_nsp_build *b = p->b;
     const ms_nsp_node *nd = &b->nodes[node];
@@ -484,12 +507,18 @@ static ms_status apo_cell(pool *p, uint32_t node, unsigned hi, ms_apo_builder *b
     memset(&m, 0, sizeof m);
     memset(&M, 0, sizeof M);
     memset(&reference, 0, sizeof reference);
-    ms_status s = ms_codec_decoder_create(out->stream, out->size, &out->start, NULL, &d, err);
-    if (s == MS_OK)
-        s = ms_codec_decoder_set_level(d, 3 * hi, err);
-    if (s == MS_OK)
-        s = ms_codec_decoder_mesh(d, &m, err);
-    ms_codec_decoder_destroy(d);
+    ms_status s = MS_OK;
+    if (given_m) {
+        m = *given_m; /* taken */
+        memset(given_m, 0, sizeof *given_m);
+    } else {
+        s = ms_codec_decoder_create(out->stream, out->size, &out->start, NULL, &d, err);
+        if (s == MS_OK)
+            s = ms_codec_decoder_set_level(d, 3 * hi, err);
+        if (s == MS_OK)
+            s = ms_codec_decoder_mesh(d, &m, err);
+        ms_codec_decoder_destroy(d);
+    }
     if (s == MS_OK && (leaf || ap->sample_leaves))
         s = full_precision_mesh(b, node, &M, err);
     else if (s == MS_OK && p->tasks[node].parts)
@@ -524,6 +553,55 @@ static ms_status apo_cell(pool *p, uint32_t node, unsigned hi, ms_apo_builder *b
     return s;
 }
 
+/* A leaf's region and the levels its foreign vertices freeze at: the lone level,
+ * not before the window starts, nor before a kd-cell lies inside one cell of the
+ * deepest nSP level (a renderer finds the shown cell holding a frozen vertex
+ * from its kd-cell). False when the tree's shape gives a region too fine for the
+ * window (p_r < log2 n), where nothing freezes. */
+static bool leaf_freezing(const pool *p, const ms_nsp_node *nd, unsigned lo, uint8_t *lone,
+                          size_t n, ms_codec_region *region)
+{
+    const ms_nsp_shape *sh = &p->b->params.shape;
+    unsigned depth_bits = nd->depth * sh->log2n;
+    if (nd->depth == 0 || depth_bits > lo)
+        return false;
+    region->log2_side = sh->bits - depth_bits;
+    for (int a = 0; a < 3; ++a)
+        region->min[a] = nd->position[a] << region->log2_side;
+    unsigned Lmin = 3 * lo, D = 3 * sh->bits;
+    if (Lmin < 3 * sh->log2n * p->max_depth)
+        Lmin = 3 * sh->log2n * p->max_depth;
+    for (size_t v = 0; v < n; ++v) {
+        if (lone[v] == MS_CODEC_NO_FREEZE)
+            continue;
+        unsigned f = lone[v] < Lmin ? Lmin : lone[v];
+        lone[v] = f < D ? (uint8_t)f : MS_CODEC_NO_FREEZE;
+    }
+    return true;
+}
+
+/* A leaf's full-precision complex as the mesh its stream decodes to at bits_max
+ * (same positions as ms_codec_decoder_mesh), for its APO chunk: the decoded one
+ * has its frozen foreign vertices at coarse positions. */
+static ms_status leaf_mesh(const ms_codec_state *st, const ms_quant_box *box, ms_mesh *m,
+                           ms_error *err)
+{
+    ms_status s = ms_mesh_reserve(m, st->vertex_count, st->tri_count, err);
+    if (s != MS_OK)
+        return s;
+    double scale = box->size / (double)(1u << st->bits);
+    for (size_t i = 0; i < st->vertex_count; ++i) {
+        uint32_t c[3];
+        ms_quant_unkey(st->cells[i], st->bits, c);
+        for (int a = 0; a < 3; ++a)
+            m->positions[3 * i + (size_t)a] = box->origin[a] + 0.5 * (2.0 * c[a] + 1.0) * scale;
+    }
+    memcpy(m->triangles, st->tris, 3 * st->tri_count * sizeof *m->triangles);
+    m->vertex_count = st->vertex_count;
+    m->triangle_count = st->tri_count;
+    return MS_OK;
+}
+
 static ms_status encode_cell(pool *p, uint32_t node, ms_apo_builder **builder, cell_out *out, ms_error *err)
 {
     const ms_nsp_build *b = p->b;
@@ -533,13 +611,26 @@ static ms_status encode_cell(pool *p, uint32_t node, ms_apo_builder **builder, c
     ms_nsp_window(&b->params.shape, nd->depth, leaf, &lo, &hi);
     memset(out, 0, sizeof *out);
     ms_codec_state st;
-    ms_status s = leaf ? leaf_state(p, node, &st, err) : internal_state(p, node, hi, &st, err);
+    uint8_t *freeze = NULL;
+    ms_status s = leaf ? leaf_state(p, node, &st, &freeze, err)
+                       : internal_state(p, node, hi, &st, err);
     if (s != MS_OK)
         return s;
     if (!leaf)
         s = check_partition(p, node, &st, err);
+    ms_codec_region region;
+    bool freezing = leaf && leaf_freezing(p, nd, lo, freeze, st.vertex_count, &region);
+    bool apo = p->params->apo && p->params->apo->enabled;
+    ms_mesh m_leaf;
+    memset(&m_leaf, 0, sizeof m_leaf);
+    if (s == MS_OK && apo && leaf && st.vertex_count > 0)
+        s = leaf_mesh(&st, &b->box, &m_leaf, err);
     if (s == MS_OK && st.vertex_count > 0) {
         ms_codec_encode_params ep = {.p_min = lo, .box = b->box};
+        if (freezing) {
+            ep.region = &region;
+            ep.freeze_level = freeze;
+        }
         s = ms_codec_encode(&st, &ep, &out->stream, &out->size, &out->start, err);
         if (s == MS_OK && out->size > UINT32_MAX)
             s = ms_error_set(err, MS_ERR_RANGE, "cell %u: payload over 4 GiB",
@@ -556,11 +647,12 @@ static ms_status encode_cell(pool *p, uint32_t node, ms_apo_builder **builder, c
         out->triangles = (uint32_t)st.tri_count;
     }
     ms_codec_state_free(&st);
-    bool apo = p->params->apo && p->params->apo->enabled;
+    free(freeze);
     if (s == MS_OK && apo && out->size > 0 && !*builder)
         s = ms_apo_builder_create(builder, err);
     if (s == MS_OK && apo && out->size > 0)
-        s = apo_cell(p, node, hi, *builder, out, err);
+        s = apo_cell(p, node, hi, *builder, leaf ? &m_leaf : NULL, out, err);
+    ms_mesh_free(&m_leaf);
     if (s != MS_OK) {
         free(out->stream);
         ms_codec_state_free(&out->start);
@@ -696,11 +788,19 @@ ms_status ms_nsp_encode_all(const ms_nsp_build *b, const uint32_t *cell_of_node,
     p.params = params;
     uint32_t n = b->node_count;
     const unsigned nc = b->params.shape.n * b->params.shape.n * b->params.shape.n;
+    ms_status ls = ms_nsp_lone_levels(b->keys, b->vertex_count, 3 * b->params.shape.bits, &p.lone,
+                                      err);
+    if (ls != MS_OK)
+        return ls;
+    for (uint32_t v = 0; v < n; ++v)
+        if (b->nodes[v].depth > p.max_depth)
+            p.max_depth = b->nodes[v].depth;
     p.tasks = calloc(n, sizeof *p.tasks);
     p.heap = malloc(n * sizeof *p.heap);
     uint32_t *stack = malloc(n * sizeof *stack);
     uint8_t *visited = calloc(n, 1);
     if (!p.tasks || !p.heap || !stack || !visited) {
+        free(p.lone);
         free(p.tasks);
         free(p.heap);
         free(stack);
@@ -761,6 +861,7 @@ ms_status ms_nsp_encode_all(const ms_nsp_build *b, const uint32_t *cell_of_node,
     pthread_cond_destroy(&p.wake);
     free(p.tasks);
     free(p.heap);
+    free(p.lone);
     p.stats.seconds = ms_now_seconds() - t0;
     *stats = p.stats;
     return s;

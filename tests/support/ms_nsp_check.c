@@ -265,6 +265,7 @@ void ms_nsp_test_check_view(ms_view *v, const ms_qmesh *q, bool full, ms_nsp_vie
         fail_msg("stitch: %s", err.text);
     assert_int_equal(m.unresolved, 0);
     r->triangles = m.triangle_count;
+    r->snapped_frozen = m.snapped_frozen;
 
     /* Stitched triangles as vertex identities. */
     uint64_t *st = malloc((3 * m.triangle_count + 3) * sizeof *st);

@@ -32,6 +32,7 @@ typedef struct ms_nsp_view_check {
     size_t folds;              /* boundary edges not boundary in any uniform decode, whose
                                   one triangle is the image of several input triangles */
     size_t cracks;             /* boundary edges that are neither */
+    size_t snapped_frozen;     /* corners resolved through a frozen vertex's lone kd-cell */
     unsigned shown_cells, levels;
 } ms_nsp_view_check;
 
