@@ -22,6 +22,8 @@
 #include "ms_apo_stream.h"
 #include "ms_archive.h"
 #include "ms_bake.h"
+#include "ms_nsp_check.h"
+#include "ms_quant.h"
 #include "ms_test.h"
 #include "ms_test_archive.h"
 #include "ms_view_decoder.h"
@@ -451,7 +453,31 @@ static int cmp_triple(const void *x, const void *y)
     return memcmp(x, y, 3 * sizeof(uint64_t)); /* any total order groups equal triples */
 }
 
-static size_t children_union(ms_view *v, const ms_archive_cell *cells, uint32_t cell, unsigned nc)
+static int cmp_u64(const void *a, const void *b)
+{
+    uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
+    return x < y ? -1 : x > y;
+}
+
+/* A leaf's vertex as the model's vertex: a frozen foreign vertex (ms_codec.h,
+ * regions) is given as the first key of its lone kd-cell, which holds exactly one
+ * model vertex: the first model key at or after it. */
+static uint64_t model_vertex(const uint64_t *keys, size_t n, uint64_t key)
+{
+    size_t lo = 0, hi = n;
+    while (lo < hi) {
+        size_t mid = lo + (hi - lo) / 2;
+        if (keys[mid] < key)
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    assert_true(lo < n);
+    return keys[lo];
+}
+
+static size_t children_union(ms_view *v, const ms_archive_cell *cells, uint32_t cell, unsigned nc,
+                             const uint64_t *keys, size_t nkeys)
 {
     ms_error err;
     size_t nt = 0, cap = 0;
@@ -471,8 +497,11 @@ static size_t children_union(ms_view *v, const ms_archive_cell *cells, uint32_t 
         }
         for (size_t t = 0; t < st.tri_count; ++t) {
             uint64_t x[3];
-            for (int j = 0; j < 3; ++j)
-                x[j] = (uint64_t)cells[c].bits_max << 56 | st.cells[st.tris[3 * t + (size_t)j]];
+            bool leaf = cells[c].first_child == MS_ARCHIVE_NONE;
+            for (int j = 0; j < 3; ++j) {
+                uint64_t id = st.cells[st.tris[3 * t + (size_t)j]];
+                x[j] = (uint64_t)cells[c].bits_max << 56 | (leaf ? model_vertex(keys, nkeys, id) : id);
+            }
             for (int i = 0; i < 2; ++i)
                 for (int j = 0; j < 2 - i; ++j)
                     if (x[j] > x[j + 1]) {
@@ -516,13 +545,20 @@ static void test_internal_sampling_surface_is_children_union(void **state)
     assert_int_equal(ms_view_create_from_archive(a, &v, &err), MS_OK);
     const ms_archive_cell *cells = ms_archive_get_cell(a, 0);
     assert_int_equal(ms_view_set_bits(v, 0, cells[0].bits_max, &err), MS_OK);
+    ms_qmesh q = {0};
+    ms_nsp_test_reference(model, 16, &q);
+    uint64_t *keys = malloc((q.vertex_count + 1) * sizeof *keys);
+    assert_non_null(keys);
+    for (size_t i = 0; i < q.vertex_count; ++i)
+        keys[i] = ms_quant_key(q.coords[3 * i], q.coords[3 * i + 1], q.coords[3 * i + 2], 16);
+    qsort(keys, q.vertex_count, sizeof *keys, cmp_u64);
     /* cells are numbered parents first: split each internal cell in turn */
     size_t sum = 0, largest = 0, internal = 0, deeper = 0;
     for (uint32_t c = 0; c < h->cell_count; ++c) {
         if (cells[c].first_child == MS_ARCHIVE_NONE)
             continue;
         assert_int_equal(ms_view_split(v, c, &err), MS_OK);
-        size_t u = children_union(v, cells, c, nc);
+        size_t u = children_union(v, cells, c, nc, keys, q.vertex_count);
         internal++;
         deeper += cells[c].level > 0;
         sum += u;
@@ -533,6 +569,8 @@ static void test_internal_sampling_surface_is_children_union(void **state)
     assert_int_equal(r.apo_sample_triangles_max, largest);
     /* the root's M is coarser than the model: log2(n) bits above its window */
     assert_true(largest < r.triangles);
+    free(keys);
+    ms_qmesh_free(&q);
     ms_view_destroy(v);
     ms_archive_close(a);
     ms_test_rmdir(dir);

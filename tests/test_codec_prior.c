@@ -61,9 +61,15 @@ static void test_model_init(void **state)
     /* Geometry is indexed by absolute kd-level, connectivity follows every level. */
     assert_int_equal(ms_prior_index(GEO_HALF(35, 3, 14), D), GEO_HALF(35, 3, 14));
     assert_int_equal(ms_prior_index(D * GEO_PER_LEVEL, D), MS_PRIOR_GEO);
-    assert_int_equal(ms_prior_index(n - 1, D), MS_PRIOR_SIZE - 1);
+    /* the freeze contexts (regions) close the model, outside the prior */
+    assert_int_equal(n, D * GEO_PER_LEVEL + C_TOTAL + FRZ_CONTEXTS);
+    assert_int_equal(ms_prior_index(n - 1 - FRZ_CONTEXTS, D), MS_PRIOR_SIZE - 1);
+    assert_true(ms_prior_has(n - 1 - FRZ_CONTEXTS, D));
+    assert_false(ms_prior_has(n - FRZ_CONTEXTS, D));
+    assert_int_equal(frz_ctx(D, 0, 0), n - FRZ_CONTEXTS);
+    assert_int_equal(frz_ctx(D, GEO_RUNS - 1, 9), n - 1);
     for (uint32_t i = 0; i < n; ++i) {
-        uint16_t want = ms_codec_prior_p0[ms_prior_index(i, D)];
+        uint16_t want = ms_prior_has(i, D) ? ms_codec_prior_p0[ms_prior_index(i, D)] : 32768;
         assert_int_equal(m[i].fast, want);
         assert_int_equal(m[i].slow, want);
     }
