@@ -102,6 +102,10 @@ typedef struct ms_codec_encode_params {
      * kd-cell (else MS_ERR_ARG). */
     const ms_codec_region *region;
     const uint8_t *freeze_level;
+    /* The compact header of a stream inside an archive: the box is left out (the
+     * archive has it; decoders are given it, ms_codec_decoder_options.box), counts
+     * and chunk ends are varints. */
+    bool compact_header;
     /* Training the prior (meshcodec train), normally NULL: when set, every coded
      * decision adds 1 to context_counts[2 i + bit], i its context in the prior's
      * layout; the array has 2 * ms_codec_prior_contexts() entries, owned by the
@@ -127,8 +131,10 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
 typedef struct ms_codec_header {
     unsigned version, p_min, p_max;
     ms_quant_box box;
-    bool has_region;            /* flags bit 0: a 16-byte region follows the counts */
+    bool has_region;            /* flags bit 0: a region follows the counts */
     ms_codec_region region;
+    bool compact;               /* flags bit 1: compact layout, box not in the stream (zero
+                                 * here unless the decoder was given it) */
     uint32_t start_vertices, start_tris, start_edges;
     uint64_t start_checksum;
     uint32_t end_vertices, end_tris, end_edges;
@@ -145,6 +151,10 @@ typedef struct ms_codec_decoder ms_codec_decoder;
 
 typedef struct ms_codec_decoder_options {
     bool skip_crc; /* do not verify header and chunk CRCs (fuzzing the decoder logic) */
+    /* The world box of a compact-header stream (its archive's); ignored for a
+     * stream that carries its own. Without it a compact stream decodes, but
+     * ms_codec_decoder_mesh, which needs world positions, fails. */
+    const ms_quant_box *box;
 } ms_codec_decoder_options;
 
 /* Creates a decoder over data[0..size) (copied; size may be a prefix of the

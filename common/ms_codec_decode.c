@@ -47,6 +47,7 @@ struct ms_codec_decoder {
     ms_codec_header *enc_h;
     uint64_t *train;        /* encode mode: context counts in the prior's layout */
     bool skip_crc;
+    bool has_box;           /* world positions known (ms_codec_decoder_mesh) */
     bool broken;
 };
 
@@ -693,6 +694,11 @@ ms_status ms_codec_decoder_create(const uint8_t *data, size_t size, const ms_cod
     d->body = d->data + hs;
     d->body_avail = body_avail;
     d->skip_crc = options && options->skip_crc;
+    if (d->h.compact && options && options->box) {
+        d->h.box = *options->box;
+        d->has_box = true;
+    }
+    d->has_box |= !d->h.compact;
     if ((r = decoder_init(d, start, err)) != MS_OK) {
         ms_codec_decoder_destroy(d);
         return r;
@@ -770,6 +776,9 @@ ms_status ms_codec_decoder_mesh(const ms_codec_decoder *d, ms_mesh *out, ms_erro
 {
     if (d->broken)
         return ms_error_set(err, MS_ERR_CORRUPT, "decoder stopped after a corrupted stream");
+    if (!d->has_box)
+        return ms_error_set(err, MS_ERR_ARG, "a compact codec stream needs its archive's box "
+                            "for world positions");
     const ms_complex *cx = &d->cx;
     ms_status r = ms_mesh_reserve(out, d->norder, cx->live_t, err);
     if (r != MS_OK)

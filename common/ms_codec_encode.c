@@ -480,6 +480,7 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
     h.p_min = pmin;
     h.p_max = P;
     h.box = params->box;
+    h.compact = params->compact_header;
     if (params->region) {
         h.has_region = true;
         h.region = *params->region;
@@ -491,7 +492,6 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
     h.end_vertices = n;
     h.end_tris = (uint32_t)canon.tri_count;
     h.end_edges = (uint32_t)canon.edge_count;
-    unsigned nchunks = P - pmin;
     /* Forward pass: the decoder itself chooses every context. */
     ms_cx_free(&e.cx);
     s = ms_codec_run_encoder(&h, pmin == 0 ? NULL : &start, dec, nd, &rc, params->context_counts,
@@ -501,7 +501,7 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
         goto fail;
     if (rc.failed)
         goto nomem;
-    size_t hs = ms_codec_header_size(nchunks, h.has_region);
+    size_t hs = ms_codec_write_header(NULL, &h);
     buf = malloc(hs + rc.size + 1);
     if (!buf)
         goto nomem;

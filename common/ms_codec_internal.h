@@ -15,12 +15,9 @@
 
 #define MS_CODEC_REGION_BYTES 16
 
-/* Bytes of a header with nchunks chunk entries (fixed part, region when present,
- * table, CRC). */
-size_t ms_codec_header_size(unsigned nchunks, bool has_region);
-/* Writes h (version, window, box, counts, region, table) and the header CRC into
- * p, which has ms_codec_header_size(p_max - p_min, h->has_region) bytes. */
-void ms_codec_write_header(uint8_t *p, const ms_codec_header *h);
+/* Writes h (version, window, box unless compact, counts, region, table) and the
+ * header CRC into p and returns its size; with p NULL only returns the size. */
+size_t ms_codec_write_header(uint8_t *p, const ms_codec_header *h);
 uint32_t ms_codec_crc(const uint8_t *p, size_t n);
 /* Reads and validates the 16 region bytes q of a header with window
  * [p_min, p_max] (ms_codec_region's rules). */

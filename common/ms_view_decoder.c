@@ -263,7 +263,11 @@ static ms_status ensure_decoder(ms_view *v, uint32_t cell, unsigned bits, ms_err
     if (cell != 0 && !c->has_start)
         return ms_error_set(err, MS_ERR_RANGE, "cell %u is not shown", cell);
     ms_codec_decoder *d;
-    ms_status s = ms_codec_decoder_create(c->bytes, c->nbytes, cell == 0 ? NULL : &c->start, NULL,
+    /* archive streams leave the box to the archive (compact headers) */
+    ms_quant_box box = {{v->header.box_origin[0], v->header.box_origin[1], v->header.box_origin[2]},
+                        v->header.box_side};
+    ms_codec_decoder_options o = {.box = &box};
+    ms_status s = ms_codec_decoder_create(c->bytes, c->nbytes, cell == 0 ? NULL : &c->start, &o,
                                           &d, err);
     if (s != MS_OK)
         return s;

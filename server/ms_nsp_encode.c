@@ -512,7 +512,8 @@ static ms_status apo_cell(pool *p, uint32_t node, unsigned hi, ms_apo_builder *b
         m = *given_m; /* taken */
         memset(given_m, 0, sizeof *given_m);
     } else {
-        s = ms_codec_decoder_create(out->stream, out->size, &out->start, NULL, &d, err);
+        ms_codec_decoder_options o = {.box = &b->box};
+        s = ms_codec_decoder_create(out->stream, out->size, &out->start, &o, &d, err);
         if (s == MS_OK)
             s = ms_codec_decoder_set_level(d, 3 * hi, err);
         if (s == MS_OK)
@@ -626,7 +627,7 @@ static ms_status encode_cell(pool *p, uint32_t node, ms_apo_builder **builder, c
     if (s == MS_OK && apo && leaf && st.vertex_count > 0)
         s = leaf_mesh(&st, &b->box, &m_leaf, err);
     if (s == MS_OK && st.vertex_count > 0) {
-        ms_codec_encode_params ep = {.p_min = lo, .box = b->box};
+        ms_codec_encode_params ep = {.p_min = lo, .box = b->box, .compact_header = true};
         if (freezing) {
             ep.region = &region;
             ep.freeze_level = freeze;

@@ -100,8 +100,9 @@ static void free_cell(cell_case *k)
     free(k->freeze);
 }
 
-static ms_status encode(const cell_case *k, const ms_codec_region *region, const uint8_t *freeze,
-                        uint8_t **buf, size_t *size, ms_codec_state *start, ms_error *err)
+static ms_status encode_with(const cell_case *k, const ms_codec_region *region,
+                             const uint8_t *freeze, bool compact, uint8_t **buf, size_t *size,
+                             ms_codec_state *start, ms_error *err)
 {
     ms_codec_encode_params par;
     memset(&par, 0, sizeof par);
@@ -109,7 +110,14 @@ static ms_status encode(const cell_case *k, const ms_codec_region *region, const
     par.p_min = PMIN;
     par.region = region;
     par.freeze_level = freeze;
+    par.compact_header = compact;
     return ms_codec_encode(&k->full, &par, buf, size, start, err);
+}
+
+static ms_status encode(const cell_case *k, const ms_codec_region *region, const uint8_t *freeze,
+                        uint8_t **buf, size_t *size, ms_codec_state *start, ms_error *err)
+{
+    return encode_with(k, region, freeze, false, buf, size, start, err);
 }
 
 static void test_frozen_levels_and_state(void **state)
@@ -297,7 +305,7 @@ static void test_damaged_region_bytes(void **state)
         {72 + 13, 1, "reserved bytes"},
         {72 + 0, 1, "not aligned"},                     /* min x = 1 */
         {72 + 1, 0x10, "not aligned"},                  /* min x = 4096: off the grid */
-        {7, 3, "flags"},                                /* an unknown flag */
+        {7, 5, "flags"},                                /* an unknown flag (bit 2) */
     };
     for (size_t i = 0; i < sizeof cases / sizeof *cases; ++i) {
         memcpy(x, buf, size);
@@ -368,6 +376,101 @@ static void test_damaged_bodies(void **state)
     free_cell(&k);
 }
 
+static size_t varint_len(uint32_t v)
+{
+    size_t n = 1;
+    while (v >= 128)
+        v >>= 7, n++;
+    return n;
+}
+
+/* The compact header (an archive's streams): the same fields but the box, the
+ * same body byte for byte, a size that is the sum of its varints; a decoder
+ * without the box gives the complex but no world mesh, with it the same mesh;
+ * every truncation, an overlong and an unterminated number are refused. */
+static void test_compact_header(void **state)
+{
+    (void)state;
+    cell_case k;
+    make_cell(&k);
+    ms_error err;
+    uint8_t *full, *compact;
+    size_t nfull, ncompact;
+    ms_codec_state start;
+    assert_int_equal(encode(&k, &k.region, k.freeze, &full, &nfull, &start, &err), MS_OK);
+    assert_int_equal(encode_with(&k, &k.region, k.freeze, true, &compact, &ncompact, NULL, &err),
+                     MS_OK);
+    ms_codec_header hf, hc;
+    assert_int_equal(ms_codec_read_header(full, nfull, &hf, &err), MS_OK);
+    assert_int_equal(ms_codec_read_header(compact, ncompact, &hc, &err), MS_OK);
+    assert_true(hc.compact && !hf.compact && hc.has_region);
+    assert_int_equal(hc.box.size, 0);
+    assert_memory_equal(&hc.region, &hf.region, sizeof hc.region);
+    assert_int_equal(hc.start_vertices, hf.start_vertices);
+    assert_int_equal(hc.end_tris, hf.end_tris);
+    assert_int_equal(hc.start_checksum, hf.start_checksum);
+    assert_memory_equal(hc.chunk_end, hf.chunk_end, sizeof hc.chunk_end);
+    assert_memory_equal(hc.chunk_crc, hf.chunk_crc, sizeof hc.chunk_crc);
+    size_t want = 8 + varint_len(hc.start_vertices) + varint_len(hc.start_tris) +
+                  varint_len(hc.start_edges) + 8 + varint_len(hc.end_vertices) +
+                  varint_len(hc.end_tris) + varint_len(hc.end_edges) + 1 + 4;
+    for (int a = 0; a < 3; ++a)
+        want += varint_len(hc.region.min[a] >> hc.region.log2_side);
+    for (unsigned i = 0; i < BITS - PMIN; ++i)
+        want += varint_len(hc.chunk_end[i] - (i ? hc.chunk_end[i - 1] : 0)) + 4;
+    assert_int_equal(hc.header_size, want);
+    assert_true(hc.header_size < hf.header_size - 40);
+    assert_int_equal(ncompact - hc.header_size, nfull - hf.header_size);
+    assert_memory_equal(compact + hc.header_size, full + hf.header_size, nfull - hf.header_size);
+    /* decoding */
+    ms_codec_decoder *dc, *df;
+    assert_int_equal(ms_codec_decoder_create(compact, ncompact, &start, NULL, &dc, &err), MS_OK);
+    assert_int_equal(ms_codec_decoder_set_level(dc, D, &err), MS_OK);
+    ms_mesh mc = {0}, mf = {0};
+    assert_int_equal(ms_codec_decoder_mesh(dc, &mc, &err), MS_ERR_ARG);
+    assert_non_null(strstr(err.text, "box"));
+    ms_codec_decoder_destroy(dc);
+    ms_codec_decoder_options o = {.box = &k.box};
+    assert_int_equal(ms_codec_decoder_create(compact, ncompact, &start, &o, &dc, &err), MS_OK);
+    assert_int_equal(ms_codec_decoder_create(full, nfull, &start, NULL, &df, &err), MS_OK);
+    assert_int_equal(ms_codec_decoder_set_level(dc, D, &err), MS_OK);
+    assert_int_equal(ms_codec_decoder_set_level(df, D, &err), MS_OK);
+    assert_int_equal(ms_codec_decoder_mesh(dc, &mc, &err), MS_OK);
+    assert_int_equal(ms_codec_decoder_mesh(df, &mf, &err), MS_OK);
+    assert_int_equal(mc.vertex_count, mf.vertex_count);
+    assert_int_equal(mc.triangle_count, mf.triangle_count);
+    assert_memory_equal(mc.positions, mf.positions, 3 * mc.vertex_count * sizeof *mc.positions);
+    assert_memory_equal(mc.triangles, mf.triangles, 3 * mc.triangle_count * sizeof *mc.triangles);
+    ms_mesh_free(&mc);
+    ms_mesh_free(&mf);
+    ms_codec_decoder_destroy(dc);
+    ms_codec_decoder_destroy(df);
+    /* hostile headers */
+    for (size_t cut = 0; cut < hc.header_size; ++cut)
+        assert_int_equal(ms_codec_read_header(compact, cut, &hc, &err), MS_ERR_FORMAT);
+    uint8_t *x = malloc(ncompact);
+    assert_non_null(x);
+    size_t at_end_v = 8 + varint_len(hf.start_vertices) + varint_len(hf.start_tris) +
+                      varint_len(hf.start_edges) + 8;
+    assert_true(varint_len(hf.end_vertices) == 2);
+    memcpy(x, compact, ncompact);
+    x[at_end_v + 1] = 0; /* the low 7 bits alone, spelt in two bytes */
+    x[at_end_v] = (uint8_t)(x[at_end_v] | 0x80);
+    assert_int_equal(ms_codec_parse_header(x, ncompact, &hc, false, &err), MS_ERR_FORMAT);
+    assert_non_null(strstr(err.text, "malformed number"));
+    memcpy(x, compact, ncompact);
+    memset(x + 8, 0xFF, 5); /* a number that never ends */
+    assert_int_equal(ms_codec_parse_header(x, ncompact, &hc, false, &err), MS_ERR_FORMAT);
+    memcpy(x, compact, ncompact);
+    x[7] = 2; /* compact without the region: the fields shift, the CRC is elsewhere */
+    assert_int_not_equal(ms_codec_read_header(x, ncompact, &hc, &err), MS_OK);
+    free(x);
+    free(full);
+    free(compact);
+    ms_codec_state_free(&start);
+    free_cell(&k);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -375,6 +478,7 @@ int main(void)
         cmocka_unit_test(test_encoder_refuses),
         cmocka_unit_test(test_damaged_region_bytes),
         cmocka_unit_test(test_damaged_bodies),
+        cmocka_unit_test(test_compact_header),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
