@@ -30,7 +30,10 @@ typedef struct pool {
     const uint32_t *cell_of_node;
     ms_archive_writer *writer;
     const ms_nsp_encode_params *params;
-    uint8_t *lone;  /* per input vertex: its lone level (ms_nsp_lone.h) */
+    uint8_t *lone;  /* per input vertex: its lone level (ms_nsp_lone.h), until the last
+                     * leaf is encoded (internal cells, last, are the memory peak) */
+    uint32_t leaves_left;
+    ms_nsp_build *release_keys; /* its keys go with the lone levels, or NULL */
     unsigned max_depth; /* of the tree's cells */
     task *tasks;
     uint32_t *heap; /* ready nodes, min-heap on post */
@@ -753,6 +756,14 @@ static void *worker(void *arg)
         if (b->nodes[node].first_child != MS_NSP_NONE && p->params->apo && p->params->apo->enabled)
             give_back_memory();
         pthread_mutex_lock(&p->lock);
+        if (b->nodes[node].first_child == MS_NSP_NONE && --p->leaves_left == 0) {
+            free(p->lone);
+            p->lone = NULL;
+            if (p->release_keys) {
+                free(p->release_keys->keys);
+                p->release_keys->keys = NULL;
+            }
+        }
         if (s == MS_OK)
             s = finish_cell(p, node, &out, &err);
         else
@@ -775,15 +786,19 @@ static void *worker(void *arg)
     return NULL;
 }
 
-ms_status ms_nsp_encode_all(const ms_nsp_build *b, const uint32_t *cell_of_node,
+ms_status ms_nsp_encode_all(ms_nsp_build *build, const uint32_t *cell_of_node,
                             ms_archive_writer *writer, const ms_nsp_encode_params *params,
                             ms_nsp_encode_stats *stats, ms_error *err)
 {
     double t0 = ms_now_seconds();
     memset(stats, 0, sizeof *stats);
+    const ms_nsp_build *b = build;
     pool p;
     memset(&p, 0, sizeof p);
     p.b = b;
+    const ms_bake_apo_params *ap = params->apo;
+    if (!(ap && ap->enabled && (ap->accuracy || ap->sample_leaves)))
+        p.release_keys = build;
     p.cell_of_node = cell_of_node;
     p.writer = writer;
     p.params = params;
@@ -793,9 +808,11 @@ ms_status ms_nsp_encode_all(const ms_nsp_build *b, const uint32_t *cell_of_node,
                                       err);
     if (ls != MS_OK)
         return ls;
-    for (uint32_t v = 0; v < n; ++v)
+    for (uint32_t v = 0; v < n; ++v) {
         if (b->nodes[v].depth > p.max_depth)
             p.max_depth = b->nodes[v].depth;
+        p.leaves_left += b->nodes[v].first_child == MS_NSP_NONE;
+    }
     p.tasks = calloc(n, sizeof *p.tasks);
     p.heap = malloc(n * sizeof *p.heap);
     uint32_t *stack = malloc(n * sizeof *stack);

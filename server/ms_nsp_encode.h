@@ -69,8 +69,11 @@ typedef struct ms_nsp_encode_stats {
     double seconds;
 } ms_nsp_encode_stats;
 
-/* cell_of_node[i] is the archive cell number of build node i. */
-ms_status ms_nsp_encode_all(const ms_nsp_build *build, const uint32_t *cell_of_node,
+/* cell_of_node[i] is the archive cell number of build node i. Once the last
+ * leaf is encoded, and when no internal cell reads the input again (APO
+ * accuracy and leaf sampling off), build->keys is freed and set to NULL: the
+ * internal cells that follow are a bake's memory peak. */
+ms_status ms_nsp_encode_all(ms_nsp_build *build, const uint32_t *cell_of_node,
                             ms_archive_writer *writer, const ms_nsp_encode_params *params,
                             ms_nsp_encode_stats *stats, ms_error *err);
 
