@@ -621,7 +621,8 @@ static uint32_t owner_of(const ms_view *v, uint64_t prefix, unsigned level)
 }
 
 /* The vertex of s lying inside kd-cell `prefix` of level s->level - coarser (the
- * first, and for a frozen foreign cell's lone kd-cell the only, one), or NONE. */
+ * first, and for a frozen foreign cell's lone kd-cell the only, one), or NONE;
+ * coarser = 0: the vertex that is that kd-cell. */
 static uint32_t find_inside(const ms_codec_state *s, uint64_t prefix, unsigned coarser)
 {
     uint64_t first = prefix << coarser;
@@ -634,19 +635,6 @@ static uint32_t find_inside(const ms_codec_state *s, uint64_t prefix, unsigned c
             hi = mid;
     }
     return lo < s->vertex_count && s->cells[lo] >> coarser == prefix ? (uint32_t)lo : NONE;
-}
-
-static uint32_t find_prefix(const ms_codec_state *s, uint64_t prefix)
-{
-    size_t lo = 0, hi = s->vertex_count;
-    while (lo < hi) {
-        size_t mid = lo + (hi - lo) / 2;
-        if (s->cells[mid] < prefix)
-            lo = mid + 1;
-        else
-            hi = mid;
-    }
-    return lo < s->vertex_count && s->cells[lo] == prefix ? (uint32_t)lo : NONE;
 }
 
 static size_t grown(size_t cap, size_t need)
@@ -854,11 +842,8 @@ ms_status ms_view_stitch(ms_view *v, const bool *visible, ms_view_mesh *m, ms_er
                 }
                 /* a frozen foreign vertex is known only to its lone kd-cell (level
                  * lx): the holder's vertex inside it is the one it stands for */
-                unsigned lx = c->levels ? c->levels[x[j]] : Lc;
-                uint32_t k = lx >= Lo
-                                 ? find_prefix(&oc->cache, c->cache.cells[x[j]] >> (Lc - Lo))
-                                 : find_inside(&oc->cache, c->cache.cells[x[j]] >> (Lc - lx),
-                                               Lo - lx);
+                unsigned lx = c->levels ? c->levels[x[j]] : Lc, at = lx < Lo ? lx : Lo;
+                uint32_t k = find_inside(&oc->cache, c->cache.cells[x[j]] >> (Lc - at), Lo - at);
                 if (k == NONE) {
                     keep = false;
                     m->unresolved++;

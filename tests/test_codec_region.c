@@ -281,19 +281,28 @@ static void reseal(uint8_t *buf, size_t header_size)
         buf[header_size - 4 + (size_t)i] = (uint8_t)(crc >> (8 * i));
 }
 
+/* The torus cell coded with its region (full header), its start state, and a
+ * scratch buffer of the stream's size. */
+static void encoded_cell(cell_case *k, uint8_t **buf, size_t *size, ms_codec_state *start,
+                         uint8_t **scratch)
+{
+    make_cell(k);
+    ms_error err;
+    assert_int_equal(encode(k, &k->region, k->freeze, buf, size, start, &err), MS_OK);
+    *scratch = malloc(*size);
+    assert_non_null(*scratch);
+}
+
 static void test_damaged_region_bytes(void **state)
 {
     (void)state;
     cell_case k;
-    make_cell(&k);
-    ms_error err;
-    uint8_t *buf;
+    uint8_t *buf, *x;
     size_t size;
     ms_codec_state start;
-    assert_int_equal(encode(&k, &k.region, k.freeze, &buf, &size, &start, &err), MS_OK);
+    ms_error err;
+    encoded_cell(&k, &buf, &size, &start, &x);
     const size_t hs = 72 + 16 + 8 * (BITS - PMIN) + 4;
-    uint8_t *x = malloc(size);
-    assert_non_null(x);
     ms_codec_decoder *d = NULL;
     struct {
         size_t at;
@@ -337,15 +346,12 @@ static void test_damaged_bodies(void **state)
 {
     (void)state;
     cell_case k;
-    make_cell(&k);
-    ms_error err;
-    uint8_t *buf;
+    uint8_t *buf, *x;
     size_t size;
     ms_codec_state start;
-    assert_int_equal(encode(&k, &k.region, k.freeze, &buf, &size, &start, &err), MS_OK);
+    ms_error err;
+    encoded_cell(&k, &buf, &size, &start, &x);
     const size_t hs = 72 + 16 + 8 * (BITS - PMIN) + 4;
-    uint8_t *x = malloc(size);
-    assert_non_null(x);
     uint64_t rng = 12345;
     unsigned ok = 0, refused = 0;
     ms_codec_decoder_options opt = {.skip_crc = true};
