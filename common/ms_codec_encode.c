@@ -343,17 +343,9 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
             }
     }
 
-    if (params->region) {
-        uint8_t q[MS_CODEC_REGION_BYTES] = {0};
-        for (int a = 0; a < 3; ++a)
-            for (int b = 0; b < 4; ++b)
-                q[4 * a + b] = (uint8_t)(params->region->min[a] >> (8 * b));
-        q[12] = (uint8_t)(params->region->log2_side > 255 ? 255 : params->region->log2_side);
-        ms_codec_region checked;
-        if ((s = ms_codec_region_check(q, pmin, P, &checked, err)) != MS_OK) {
-            s = ms_error_set(err, MS_ERR_ARG, "encoder region invalid: %s", err->text);
-            goto fail;
-        }
+    if (params->region && (s = ms_codec_region_check(params->region, pmin, P, err)) != MS_OK) {
+        s = ms_error_set(err, MS_ERR_ARG, "encoder region invalid: %s", err->text);
+        goto fail;
     }
     if ((s = freeze_levels(full, &canon, params, &frozen_at, err)) != MS_OK)
         goto fail;

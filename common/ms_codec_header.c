@@ -148,23 +148,16 @@ size_t ms_codec_write_header(uint8_t *p, const ms_codec_header *h)
 
 /* ---- reading ---- */
 
-ms_status ms_codec_region_check(const uint8_t *q, unsigned p_min, unsigned p_max,
-                                ms_codec_region *out, ms_error *err)
+ms_status ms_codec_region_check(const ms_codec_region *r, unsigned p_min, unsigned p_max,
+                                ms_error *err)
 {
-    ms_codec_region r;
-    for (int a = 0; a < 3; ++a)
-        r.min[a] = get32(q + 4 * a);
-    r.log2_side = q[12];
-    if (q[13] || q[14] || q[15])
-        return ms_error_set(err, MS_ERR_FORMAT, "codec region: reserved bytes not zero");
-    if (r.log2_side > p_max || 3 * (p_max - r.log2_side) > 3 * p_min)
+    if (r->log2_side > p_max || p_max - r->log2_side > p_min)
         return ms_error_set(err, MS_ERR_FORMAT, "codec region of side 2^%u does not fit the "
-                            "window [%u, %u]", r.log2_side, p_min, p_max);
-    uint64_t side = 1ull << r.log2_side, grid = 1ull << p_max;
+                            "window [%u, %u]", r->log2_side, p_min, p_max);
+    uint64_t side = 1ull << r->log2_side, grid = 1ull << p_max;
     for (int a = 0; a < 3; ++a)
-        if (r.min[a] % side != 0 || r.min[a] + side > grid)
+        if (r->min[a] % side != 0 || r->min[a] + side > grid)
             return ms_error_set(err, MS_ERR_FORMAT, "codec region not aligned inside the grid");
-    *out = r;
     return MS_OK;
 }
 
@@ -224,11 +217,11 @@ ms_status ms_codec_read_header(const uint8_t *data, size_t size, ms_codec_header
     return ms_codec_parse_header(data, size, h, true, err);
 }
 
-/* Reads the fields after the 8 lead bytes, in either layout; region16 receives
- * the region in the full layout's 16 bytes. */
-static void read_fields(rcur *r, ms_codec_header *h, unsigned nchunks, uint8_t region16[16])
+/* Reads the fields after the 8 lead bytes, in either layout; *reserved is set
+ * when the full layout's region has non-zero reserved bytes. */
+static void read_fields(rcur *r, ms_codec_header *h, unsigned nchunks, bool *reserved)
 {
-    memset(region16, 0, 16);
+    *reserved = false;
     if (h->compact) {
         h->start_vertices = r_var(r);
         h->start_tris = r_var(r);
@@ -242,13 +235,13 @@ static void read_fields(rcur *r, ms_codec_header *h, unsigned nchunks, uint8_t r
             for (int a = 0; a < 3; ++a)
                 pos[a] = r_var(r);
             const uint8_t *l = r_bytes(r, 1);
-            unsigned log2 = l ? *l : 0;
+            h->region.log2_side = l ? *l : 0;
             for (int a = 0; a < 3; ++a) {
-                /* out of the grid: the region check refuses an unaligned corner */
-                uint64_t m = log2 <= 32 ? (uint64_t)pos[a] << log2 : UINT64_MAX;
-                put32(region16 + 4 * a, m > UINT32_MAX ? 1u : (uint32_t)m);
+                /* a corner off the grid becomes 1: refused as unaligned */
+                uint64_t m = h->region.log2_side <= 32 ? (uint64_t)pos[a] << h->region.log2_side
+                                                       : UINT64_MAX;
+                h->region.min[a] = m > UINT32_MAX ? 1u : (uint32_t)m;
             }
-            region16[12] = (uint8_t)log2;
         }
         uint64_t end = 0;
         for (unsigned i = 0; i < nchunks; ++i) {
@@ -270,8 +263,12 @@ static void read_fields(rcur *r, ms_codec_header *h, unsigned nchunks, uint8_t r
     h->end_edges = r_u32(r);
     if (h->has_region) {
         const uint8_t *q = r_bytes(r, MS_CODEC_REGION_BYTES);
-        if (q)
-            memcpy(region16, q, MS_CODEC_REGION_BYTES);
+        if (q) {
+            for (int a = 0; a < 3; ++a)
+                h->region.min[a] = get32(q + 4 * a);
+            h->region.log2_side = q[12];
+            *reserved = q[13] || q[14] || q[15];
+        }
     }
     for (unsigned i = 0; i < nchunks; ++i) {
         h->chunk_end[i] = r_u32(r);
@@ -303,8 +300,8 @@ ms_status ms_codec_parse_header(const uint8_t *data, size_t size, ms_codec_heade
     h->compact = data[7] & FLAG_COMPACT;
     unsigned nchunks = h->p_max - h->p_min;
     rcur r = {data, size, 8, false, false};
-    uint8_t region16[16];
-    read_fields(&r, h, nchunks, region16);
+    bool reserved;
+    read_fields(&r, h, nchunks, &reserved);
     size_t hs = r.at + 4;
     if (r.short_read || size < hs)
         return ms_error_set(err, MS_ERR_FORMAT, "codec stream truncated in its header (%zu "
@@ -333,8 +330,10 @@ ms_status ms_codec_parse_header(const uint8_t *data, size_t size, ms_codec_heade
         return ms_error_set(err, MS_ERR_FORMAT, "start state larger than the final complex");
     if (h->p_min == 0 && (h->start_vertices != 1 || h->start_tris || h->start_edges))
         return ms_error_set(err, MS_ERR_FORMAT, "a stream from precision 0 starts at one vertex");
+    if (reserved)
+        return ms_error_set(err, MS_ERR_FORMAT, "codec region: reserved bytes not zero");
     if (h->has_region) {
-        ms_status rs = ms_codec_region_check(region16, h->p_min, h->p_max, &h->region, err);
+        ms_status rs = ms_codec_region_check(&h->region, h->p_min, h->p_max, err);
         if (rs != MS_OK)
             return rs;
     }

@@ -19,10 +19,10 @@
  * header CRC into p and returns its size; with p NULL only returns the size. */
 size_t ms_codec_write_header(uint8_t *p, const ms_codec_header *h);
 uint32_t ms_codec_crc(const uint8_t *p, size_t n);
-/* Reads and validates the 16 region bytes q of a header with window
- * [p_min, p_max] (ms_codec_region's rules). */
-ms_status ms_codec_region_check(const uint8_t *q, unsigned p_min, unsigned p_max,
-                                ms_codec_region *out, ms_error *err);
+/* Whether r obeys ms_codec_region's rules for the window [p_min, p_max]
+ * (MS_ERR_FORMAT with the reason otherwise). */
+ms_status ms_codec_region_check(const ms_codec_region *r, unsigned p_min, unsigned p_max,
+                                ms_error *err);
 
 /* Whether the cell with minimum corner c lies outside the region (cells of the
  * window lie wholly inside or outside). */
@@ -54,13 +54,5 @@ ms_status ms_codec_export_complex(const ms_complex *cx, const uint32_t *order, u
  * failure, x unchanged. */
 ms_status ms_sort_index_tuples(uint32_t *x, size_t n, unsigned arity, size_t index_limit,
                                ms_error *err);
-
-/* Length in kd-levels of the common prefix of two distinct D-bit keys. */
-static inline unsigned ms_key_lcp(uint64_t a, uint64_t b, unsigned D)
-{
-    uint64_t x = a ^ b;
-    unsigned high = 63u - (unsigned)__builtin_clzll(x);
-    return D - 1 - high;
-}
 
 #endif

@@ -72,6 +72,14 @@ uint64_t ms_quant_key(uint32_t x, uint32_t y, uint32_t z, unsigned bits);
 /* Inverse of ms_quant_key. */
 void ms_quant_unkey(uint64_t key, unsigned bits, uint32_t xyz[3]);
 
+/* Length in kd-levels of the common prefix of two distinct D-bit keys. */
+static inline unsigned ms_key_lcp(uint64_t a, uint64_t b, unsigned D)
+{
+    uint64_t x = a ^ b;
+    unsigned high = 63u - (unsigned)__builtin_clzll(x);
+    return D - 1 - high;
+}
+
 void ms_qmesh_free(ms_qmesh *q);
 
 #endif

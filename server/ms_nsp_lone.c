@@ -4,13 +4,8 @@
 #include <stdlib.h>
 
 #include "ms_big_alloc.h"
+#include "ms_quant.h"
 #include "ms_radix_sort.h"
-
-/* Leading kd-levels two distinct keys of key_bits bits have in common. */
-static unsigned common_levels(uint64_t a, uint64_t b, unsigned key_bits)
-{
-    return key_bits - (64u - (unsigned)__builtin_clzll(a ^ b));
-}
 
 ms_status ms_nsp_lone_levels(const uint64_t *keys, size_t n, unsigned key_bits, uint8_t **out,
                              ms_error *err)
@@ -36,9 +31,9 @@ ms_status ms_nsp_lone_levels(const uint64_t *keys, size_t n, unsigned key_bits, 
         while (j < n && sorted[j] == sorted[i])
             ++j;
         unsigned level = 0, l;
-        if (i > 0 && (l = common_levels(sorted[i - 1], sorted[i], key_bits) + 1) > level)
+        if (i > 0 && (l = ms_key_lcp(sorted[i - 1], sorted[i], key_bits) + 1) > level)
             level = l;
-        if (j < n && (l = common_levels(sorted[i], sorted[j], key_bits) + 1) > level)
+        if (j < n && (l = ms_key_lcp(sorted[i], sorted[j], key_bits) + 1) > level)
             level = l;
         for (size_t k = i; k < j; ++k)
             lone[who[k]] = (uint8_t)level;

@@ -25,6 +25,8 @@
 #define PMIN 5
 #define D (3 * BITS)
 #define LMIN (3 * PMIN)
+/* full header with a region: fixed part, region, chunk table, CRC */
+#define REGION_HEADER (72 + 16 + 8 * (BITS - PMIN) + 4)
 
 typedef struct cell_case {
     ms_codec_state full;    /* the cell's complex at full precision */
@@ -139,7 +141,7 @@ static void test_frozen_levels_and_state(void **state)
     assert_int_equal(ms_codec_read_header(with, nwith, &h, &err), MS_OK);
     assert_true(h.has_region);
     assert_int_equal(h.region.log2_side, BITS - 1);
-    assert_int_equal(h.header_size, 72 + 16 + 8 * (BITS - PMIN) + 4);
+    assert_int_equal(h.header_size, REGION_HEADER);
 
     ms_codec_decoder *d;
     assert_int_equal(ms_codec_decoder_create(with, nwith, &start, NULL, &d, &err), MS_OK);
@@ -302,7 +304,7 @@ static void test_damaged_region_bytes(void **state)
     ms_codec_state start;
     ms_error err;
     encoded_cell(&k, &buf, &size, &start, &x);
-    const size_t hs = 72 + 16 + 8 * (BITS - PMIN) + 4;
+    const size_t hs = REGION_HEADER;
     ms_codec_decoder *d = NULL;
     struct {
         size_t at;
@@ -351,7 +353,7 @@ static void test_damaged_bodies(void **state)
     ms_codec_state start;
     ms_error err;
     encoded_cell(&k, &buf, &size, &start, &x);
-    const size_t hs = 72 + 16 + 8 * (BITS - PMIN) + 4;
+    const size_t hs = REGION_HEADER;
     uint64_t rng = 12345;
     unsigned ok = 0, refused = 0;
     ms_codec_decoder_options opt = {.skip_crc = true};
