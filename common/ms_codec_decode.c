@@ -183,7 +183,7 @@ static ms_status split(ms_codec_decoder *d, uint32_t s, unsigned L, uint32_t *ou
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory decoding a split");
     int axis = (int)(L % 3);
     int64_t wp = ms_cx_width(cx, L, axis);
-    int64_t plane2 = 2 * (int64_t)cx->v[s].c[axis] + wp;
+    int64_t plane2 = cx->cen[s][axis]; /* s is at level L: its centre is the plane */
     int e12 = dbit(d, &m[e12_ctx(st->nn)]);
     uint32_t n4 = 0;
     unsigned nboth = 0;
@@ -254,14 +254,13 @@ static ms_status split(ms_codec_decoder *d, uint32_t s, unsigned L, uint32_t *ou
     v = &cx->v[s];
     if (!push_birth(d, L, v->birth))
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory decoding a split");
-    uint32_t c2[3] = {v->c[0], v->c[1], v->c[2]};
+    uint32_t c2[3];
+    ms_cx_corner(cx, s, c2);
     c2[axis] += (uint32_t)(wp / 2);
     uint64_t key2 = v->key | (1ull << (d->D - L - 1));
     uint32_t s2 = ms_cx_add_vertex(cx, key2, L + 1, c2);
-    v = &cx->v[s];
-    v->level = (uint8_t)(L + 1);
-    v->birth = (uint8_t)(L + 1);
-    ms_cx_update_cen(cx, s);
+    ms_cx_refine_cell(cx, s, L, 0);
+    cx->v[s].birth = (uint8_t)(L + 1);
     cx->v[s2].birth = (uint8_t)(L + 1);
     for (uint32_t p = 0; p < st->np; ++p) {
         const ms_cx_pair *pr = &st->pairs[p];
@@ -354,7 +353,6 @@ static ms_status refine_level(ms_codec_decoder *d, ms_error *err)
     ms_complex *cx = &d->cx;
     int axis = (int)(L % 3);
     uint64_t bit = 1ull << (d->D - L - 1);
-    uint32_t half = ms_cx_width(cx, L, axis) / 2;
     if (!order_room(d, 2 * d->norder))
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory decoding a level");
     uint32_t w = 0;
@@ -368,7 +366,7 @@ static ms_status refine_level(ms_codec_decoder *d, ms_error *err)
             continue;
         }
         unsigned run = geo_run(L, v->birth);
-        if (region && ms_codec_outside(region, v->c) &&
+        if (region && cell_outside(cx, region, s) &&
             dbit(d, &d->model[frz_ctx(d->D, run, bits_in)])) {
             v->frozen = 1; /* stays at kd-level L */
             d->frozen++;
@@ -386,13 +384,11 @@ static ms_status refine_level(ms_codec_decoder *d, ms_error *err)
         } else {
             int64_t n;
             int64_t sum = geo_sum(cx, s, axis, &n);
-            unsigned b = geo_bucket(cx, sum, n, L, axis, v->c[axis]);
-            if (dbit(d, &d->model[GEO_HALF(L, run, b)])) {
+            unsigned b = geo_bucket(cx, sum, n, L, axis, cx->cen[s][axis]);
+            int second = dbit(d, &d->model[GEO_HALF(L, run, b)]);
+            if (second)
                 v->key |= bit;
-                v->c[axis] += half;
-            }
-            v->level = (uint8_t)(L + 1);
-            ms_cx_update_cen(cx, s);
+            ms_cx_refine_cell(cx, s, L, second);
             d->order2[w++] = s;
         }
         if (d->rc.overrun)
@@ -438,8 +434,6 @@ static ms_status coarsen_level(ms_codec_decoder *d, ms_error *err)
     ms_complex *cx = &d->cx;
     unsigned shift = d->D - L;
     uint64_t child_bit = 1ull << (shift - 1);
-    int axis = (int)(L % 3);
-    uint32_t half = ms_cx_width(cx, L, axis) / 2;
     birth_stack *bs = &d->births[L];
     uint32_t w = 0;
     for (uint32_t k = d->norder; k > 0;) {
@@ -473,12 +467,9 @@ static ms_status coarsen_level(ms_codec_decoder *d, ms_error *err)
             cx->v[keep].birth = bs->b[--bs->n];
         }
         ms_cx_vert *v = &cx->v[keep];
-        if (v->key & child_bit) {
-            v->key &= ~child_bit;
-            v->c[axis] -= half;
-        }
-        v->level = (uint8_t)L;
-        ms_cx_update_cen(cx, keep);
+        int second = (v->key & child_bit) != 0;
+        v->key &= ~child_bit;
+        ms_cx_coarsen_cell(cx, keep, L, second);
         d->order2[w++] = keep;
     }
     for (uint32_t k = 0; k < w; ++k)
@@ -790,12 +781,9 @@ ms_status ms_codec_decoder_mesh(const ms_codec_decoder *d, ms_mesh *out, ms_erro
     double scale = d->h.box.size / (double)(1u << cx->P);
     for (uint32_t i = 0; i < d->norder; ++i) {
         uint32_t s = d->order[i];
-        const ms_cx_vert *v = &cx->v[s];
         rank[s] = i;
-        for (int a = 0; a < 3; ++a) {
-            double c2 = 2.0 * v->c[a] + ms_cx_width(cx, v->level, a);
-            out->positions[3 * i + a] = d->h.box.origin[a] + 0.5 * c2 * scale;
-        }
+        for (int a = 0; a < 3; ++a)
+            out->positions[3 * i + a] = d->h.box.origin[a] + 0.5 * cx->cen[s][a] * scale;
     }
     size_t w = 0;
     for (uint32_t t = 0; t < cx->nt; ++t) {

@@ -400,7 +400,6 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
         e.level_first[L] = e.sym.n;
         unsigned shift = D - L; /* bits below the parent's prefix */
         uint64_t child_bit = 1ull << (shift - 1);
-        int axis = (int)(L % 3);
         uint32_t w = 0;
         for (uint32_t k = norder; k > 0;) {
             uint32_t last = order[--k];
@@ -418,7 +417,7 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
             if (k > 0 && (e.cx.v[order[k - 1]].key >> shift) == (e.cx.v[last].key >> shift))
                 first = order[--k];
             size_t group = e.sym.n;
-            if (params->region && ms_codec_outside(params->region, lv->c))
+            if (params->region && cell_outside(&e.cx, params->region, last))
                 put(&e, 0); /* foreign, not frozen at L */
             uint32_t keep = first != MS_CX_NONE ? first : last;
             if (first != MS_CX_NONE) {
@@ -432,11 +431,8 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
             }
             ms_cx_vert *v = &e.cx.v[keep];
             int second = (v->key & child_bit) != 0;
-            if (second)
-                v->c[axis] -= ms_cx_width(&e.cx, L + 1, axis);
             v->key &= ~child_bit;
-            v->level = (uint8_t)L;
-            ms_cx_update_cen(&e.cx, keep);
+            ms_cx_coarsen_cell(&e.cx, keep, L, second);
             if (first == MS_CX_NONE)
                 put(&e, second);
             order2[w++] = keep;

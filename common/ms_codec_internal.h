@@ -32,6 +32,13 @@ static inline bool ms_codec_outside(const ms_codec_region *r, const uint32_t c[3
     return (uint32_t)(c[0] - r->min[0]) >= side || (uint32_t)(c[1] - r->min[1]) >= side ||
            (uint32_t)(c[2] - r->min[2]) >= side;
 }
+/* Whether cell s of cx lies outside the region. */
+static inline bool cell_outside(const ms_complex *cx, const ms_codec_region *r, uint32_t s)
+{
+    uint32_t c[3];
+    ms_cx_corner(cx, s, c);
+    return ms_codec_outside(r, c);
+}
 /* ms_codec_read_header with the header CRC check optional (fuzzing). */
 ms_status ms_codec_parse_header(const uint8_t *data, size_t size, ms_codec_header *h,
                                 bool verify_crc, ms_error *err);

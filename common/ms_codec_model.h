@@ -115,16 +115,15 @@ static inline int64_t geo_sum(const ms_complex *cx, uint32_t s, int axis, int64_
     return sum;
 }
 
-/* Context of the "which half" bit of a cell (level `level`, axis, minimum corner
- * cmin along the axis) from its neighbours' centroid (sum, n): side and distance
- * from the split plane in units of the child cell. */
+/* Context of the "which half" bit of a cell (level `level`, axis, doubled centre
+ * plane2 along the axis: the split plane) from its neighbours' centroid (sum, n):
+ * side and distance from the split plane in units of the child cell. */
 static inline unsigned geo_bucket(const ms_complex *cx, int64_t sum, int64_t n, unsigned level,
-                                  int axis, uint32_t cmin)
+                                  int axis, int64_t plane2)
 {
     if (n == 0)
         return GEO_DIST;
     int64_t wp = ms_cx_width(cx, level, axis);
-    int64_t plane2 = 2 * (int64_t)cmin + wp;
     int64_t diff = sum - n * plane2;
     int64_t unit = n * wp;
     int64_t a = 8 * (diff < 0 ? -diff : diff);

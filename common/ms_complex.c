@@ -6,6 +6,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+_Static_assert(sizeof(ms_cx_vert) == 64, "a vertex record is one cache line");
+
 ms_status ms_cx_init(ms_complex *cx, unsigned P, uint32_t max_v, uint32_t max_t, uint32_t max_e,
                      ms_error *err)
 {
@@ -190,8 +192,9 @@ uint32_t ms_cx_add_vertex(ms_complex *cx, uint64_t key, unsigned level, const ui
     v->key = key;
     v->level = (uint8_t)level;
     v->alive = 1;
-    memcpy(v->c, c, sizeof v->c);
-    ms_cx_update_cen(cx, s);
+    for (int a = 0; a < 3; ++a)
+        cx->cen[s][a] = (int32_t)(2 * c[a] + ms_cx_width(cx, level, a));
+    cx->cen[s][3] = (int32_t)level;
     cx->live_v++;
     return s;
 }

@@ -24,25 +24,30 @@
 
 #include "ms_error.h"
 
+/* Inline list entries: with the list pointer overlapping them the vertex record
+ * is 64 bytes, one cache line. */
 #define MS_CX_INLINE 10
 #define MS_CX_NONE UINT32_MAX
 
+/* The cell's geometry (corner and centre) lives in ms_complex.cen, derived from
+ * key and level; the record holds what the codec touches on every visit. */
 typedef struct ms_cx_vert {
     uint64_t key;     /* aligned kd key */
-    uint32_t c[3];    /* cell's minimum corner on the full 2^P grid */
     uint8_t level;    /* kd-level of the cell */
     uint8_t birth;    /* level at which the cell's lineage last split in two */
     uint8_t alive;
     uint8_t frozen;   /* codec: a foreign cell no longer refined (ms_codec.h, regions) */
     uint32_t n, cap;  /* list size; cap 0 = inline storage */
-    uint32_t *ext;
-    uint32_t inl[MS_CX_INLINE];
+    union {
+        uint32_t *ext;               /* cap > 0 */
+        uint32_t inl[MS_CX_INLINE];  /* cap == 0 */
+    };
 } ms_cx_vert;
 
 typedef struct ms_complex {
     unsigned P, D;            /* bits per coordinate, D = 3P kd-levels */
     ms_cx_vert *v;
-    int32_t (*cen)[4];        /* per slot: twice the cell centre per axis (compact copy) */
+    int32_t (*cen)[4];        /* per slot: twice the cell centre per axis, then the level */
     uint32_t (*tri)[3];
     uint32_t (*edge)[2];
     uint32_t nv, nt, ne;      /* slots used (live + free) */
@@ -98,13 +103,33 @@ static inline int64_t ms_cx_centre2(const ms_complex *cx, uint32_t s, int axis)
     return cx->cen[s][axis];
 }
 
-/* Refreshes the compact centre copy after a change of c[] or level. */
-static inline void ms_cx_update_cen(ms_complex *cx, uint32_t s)
+/* Minimum corner of cell s on the full grid. */
+static inline void ms_cx_corner(const ms_complex *cx, uint32_t s, uint32_t c[3])
 {
-    const ms_cx_vert *v = &cx->v[s];
+    unsigned level = (unsigned)cx->cen[s][3];
     for (int a = 0; a < 3; ++a)
-        cx->cen[s][a] = (int32_t)(2 * v->c[a] + ms_cx_width(cx, v->level, a));
-    cx->cen[s][3] = v->level;
+        c[a] = ((uint32_t)cx->cen[s][a] - ms_cx_width(cx, level, a)) >> 1;
+}
+
+/* Cell s (at kd-level L) becomes its first or second half along L's axis: level
+ * L + 1, centre moved by the child's width. The key is the caller's. */
+static inline void ms_cx_refine_cell(ms_complex *cx, uint32_t s, unsigned L, int second)
+{
+    int axis = (int)(L % 3);
+    int32_t w = (int32_t)ms_cx_width(cx, L + 1, axis);
+    cx->cen[s][axis] += second ? w : -w;
+    cx->cen[s][3] = (int32_t)(L + 1);
+    cx->v[s].level = (uint8_t)(L + 1);
+}
+
+/* Inverse of ms_cx_refine_cell: cell s (at L + 1, `second` half) back to L. */
+static inline void ms_cx_coarsen_cell(ms_complex *cx, uint32_t s, unsigned L, int second)
+{
+    int axis = (int)(L % 3);
+    int32_t w = (int32_t)ms_cx_width(cx, L + 1, axis);
+    cx->cen[s][axis] -= second ? w : -w;
+    cx->cen[s][3] = (int32_t)L;
+    cx->v[s].level = (uint8_t)L;
 }
 
 /* +1 when triangle t contains the directed edge a -> b in its cyclic order, -1
