@@ -1,6 +1,7 @@
 #include "ms_complex.h"
 
 #include "ms_big_alloc.h"
+#include "ms_quant.h"
 
 #include <assert.h>
 #include <stdlib.h>
@@ -390,7 +391,134 @@ static inline uint32_t star_touch(ms_complex *cx, ms_cx_star *st, uint32_t s)
     return st->nn++;
 }
 
+/* Neighbour adjacency through the pairs (CSR) of a gathered star. */
+static void star_link_pairs(ms_cx_star *st)
+{
+    uint32_t *start = st->adj_start;
+    for (uint32_t i = 0; i <= st->nn; ++i)
+        start[i] = 0;
+    for (uint32_t r = 0; r < st->np; ++r) {
+        start[st->pairs[r].i + 1]++;
+        start[st->pairs[r].j + 1]++;
+    }
+    for (uint32_t i = 0; i < st->nn; ++i)
+        start[i + 1] += start[i];
+    /* fill using sortbuf as cursor storage */
+    uint64_t *cursor = st->sortbuf;
+    for (uint32_t i = 0; i < st->nn; ++i)
+        cursor[i] = start[i];
+    for (uint32_t r = 0; r < st->np; ++r) {
+        st->adj_list[cursor[st->pairs[r].i]++] = st->pairs[r].j;
+        st->adj_list[cursor[st->pairs[r].j]++] = st->pairs[r].i;
+    }
+}
+
+/* Local index of neighbour slot s in a small star, added if new (linear search:
+ * cheaper than the slot-indexed marks, which cost two cache misses, for the
+ * usual handful of neighbours). */
+static inline uint32_t small_star_touch(ms_cx_star *st, uint32_t s)
+{
+    for (uint32_t i = 0; i < st->nn; ++i)
+        if (st->nbr[i] == s)
+            return i;
+    st->nbr[st->nn] = s;
+    return st->nn++;
+}
+
+/* ms_cx_gather for one centre with at most MS_CX_SMALL_STAR incident simplices:
+ * the same star, built without the per-slot marks. */
+static void gather_small(ms_complex *cx, uint32_t c0, ms_cx_star *st)
+{
+    const ms_cx_vert *v = &cx->v[c0];
+    const uint32_t *l = v->cap ? v->ext : v->inl;
+    uint32_t nl = v->n, np = 0;
+    uint32_t pi[MS_CX_SMALL_STAR], pj[MS_CX_SMALL_STAR], pt[MS_CX_SMALL_STAR];
+    st->nn = 0;
+    for (uint32_t k = 0; k < nl; ++k) {
+        uint32_t id = l[k] >> 1;
+        if (l[k] & 1) {
+            const uint32_t *e = cx->edge[id];
+            small_star_touch(st, e[0] == c0 ? e[1] : e[0]);
+            continue;
+        }
+        const uint32_t *t = cx->tri[id];
+        uint32_t a = t[0] == c0 ? t[1] : t[0];
+        uint32_t b = t[2] == c0 ? t[1] : t[2];
+        pi[np] = small_star_touch(st, a);
+        pj[np] = small_star_touch(st, b);
+        pt[np++] = id;
+    }
+    uint32_t n = st->nn;
+    /* order the neighbours by key: perm[new] = old, rank[old] = new */
+    uint64_t key[2 * MS_CX_SMALL_STAR];
+    uint32_t perm[2 * MS_CX_SMALL_STAR], rank[2 * MS_CX_SMALL_STAR], slot[2 * MS_CX_SMALL_STAR];
+    for (uint32_t i = 0; i < n; ++i) {
+        uint32_t c[3];
+        ms_cx_corner(cx, st->nbr[i], c);
+        uint64_t k = ms_quant_key(c[0], c[1], c[2], cx->P);
+        uint32_t j = i;
+        while (j > 0 && key[j - 1] > k) {
+            key[j] = key[j - 1];
+            perm[j] = perm[j - 1];
+            --j;
+        }
+        key[j] = k;
+        perm[j] = i;
+    }
+    memcpy(slot, st->nbr, (size_t)n * sizeof *slot);
+    for (uint32_t i = 0; i < n; ++i) {
+        st->nbr[i] = slot[perm[i]];
+        st->adj[i] = 1;
+        st->both[i] = MS_CX_NONE;
+        rank[perm[i]] = i;
+    }
+    /* pairs sorted by (i, j); a repeated pair (a duplicate triangle) keeps the
+     * later triangle, as the general gather does */
+    uint64_t pk[MS_CX_SMALL_STAR];
+    for (uint32_t p = 0; p < np; ++p) {
+        uint32_t i = rank[pi[p]], j = rank[pj[p]];
+        if (i > j) {
+            uint32_t tmp = i;
+            i = j;
+            j = tmp;
+        }
+        uint64_t x = (uint64_t)i << 40 | (uint64_t)j << 20 | p;
+        uint32_t q = p;
+        while (q > 0 && pk[q - 1] > x) {
+            pk[q] = pk[q - 1];
+            --q;
+        }
+        pk[q] = x;
+    }
+    uint32_t w = 0;
+    for (uint32_t r = 0; r < np; ++r) {
+        uint32_t i = (uint32_t)(pk[r] >> 40), j = (uint32_t)(pk[r] >> 20) & 0xFFFFF;
+        uint32_t t = pt[pk[r] & 0xFFFFF];
+        if (w > 0 && st->pairs[w - 1].i == i && st->pairs[w - 1].j == j) {
+            st->pairs[w - 1].t0 = t;
+            continue;
+        }
+        st->pairs[w++] = (ms_cx_pair){i, j, t, MS_CX_NONE};
+    }
+    st->np = w;
+    star_link_pairs(st);
+}
+
 ms_status ms_cx_gather(ms_complex *cx, uint32_t c0, uint32_t c1, ms_cx_star *st, ms_error *err)
+{
+    if (c1 == MS_CX_NONE && cx->v[c0].n <= MS_CX_SMALL_STAR) {
+        if (!star_room(st, 2 * MS_CX_SMALL_STAR + 2, MS_CX_SMALL_STAR + 1))
+            return ms_error_set(err, MS_ERR_NOMEM, "out of memory gathering a star");
+        st->adj01 = false;
+        st->edge01 = MS_CX_NONE;
+        gather_small(cx, c0, st);
+        return MS_OK;
+    }
+    return ms_cx_gather_general(cx, c0, c1, st, err);
+}
+
+ms_status ms_cx_gather_general(ms_complex *cx, uint32_t c0, uint32_t c1, ms_cx_star *st,
+                               ms_error *err)
 {
     uint32_t centres[2] = {c0, c1};
     int nc = c1 == MS_CX_NONE ? 1 : 2;
@@ -562,24 +690,7 @@ ms_status ms_cx_gather(ms_complex *cx, uint32_t c0, uint32_t c1, ms_cx_star *st,
         st->pairs[w++] = st->pairs[r];
     }
     st->np = w;
-    /* Neighbour adjacency through the pairs (CSR). */
-    uint32_t *start = st->adj_start;
-    for (uint32_t i = 0; i <= st->nn; ++i)
-        start[i] = 0;
-    for (uint32_t r = 0; r < w; ++r) {
-        start[st->pairs[r].i + 1]++;
-        start[st->pairs[r].j + 1]++;
-    }
-    for (uint32_t i = 0; i < st->nn; ++i)
-        start[i + 1] += start[i];
-    /* fill using sortbuf as cursor storage */
-    uint64_t *cursor = st->sortbuf;
-    for (uint32_t i = 0; i < st->nn; ++i)
-        cursor[i] = start[i];
-    for (uint32_t r = 0; r < w; ++r) {
-        st->adj_list[cursor[st->pairs[r].i]++] = st->pairs[r].j;
-        st->adj_list[cursor[st->pairs[r].j]++] = st->pairs[r].i;
-    }
+    star_link_pairs(st);
     return MS_OK;
 }
 

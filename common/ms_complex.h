@@ -166,8 +166,14 @@ typedef struct ms_cx_star {
 void ms_cx_star_free(ms_cx_star *st);
 
 /* Gathers the star of c0 (and c1 when c1 != MS_CX_NONE). MS_ERR_NOMEM on
- * allocation failure. Uses cx's mark scratch. */
+ * allocation failure. A single centre with at most MS_CX_SMALL_STAR incident
+ * simplices (every split the decoder makes, nearly) takes a path without the
+ * per-slot marks; anything else is ms_cx_gather_general, which uses cx's mark
+ * scratch. Both give the same star. */
+#define MS_CX_SMALL_STAR 24
 ms_status ms_cx_gather(ms_complex *cx, uint32_t c0, uint32_t c1, ms_cx_star *st, ms_error *err);
+ms_status ms_cx_gather_general(ms_complex *cx, uint32_t c0, uint32_t c1, ms_cx_star *st,
+                               ms_error *err);
 
 /* Merges c1 into c0: every simplex incident to c1 gets c0 instead, duplicates are
  * dropped (c0's copy wins), triangles containing both collapse to edges kept only

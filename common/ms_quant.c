@@ -13,18 +13,6 @@ void ms_qmesh_free(ms_qmesh *q)
     memset(q, 0, sizeof *q);
 }
 
-/* Spreads the low 21 bits of v so that bit i lands at bit 3*i. */
-static uint64_t spread3(uint32_t v)
-{
-    uint64_t x = v & 0x1FFFFFu;
-    x = (x | (x << 32)) & 0x001F00000000FFFFull;
-    x = (x | (x << 16)) & 0x001F0000FF0000FFull;
-    x = (x | (x << 8)) & 0x100F00F00F00F00Full;
-    x = (x | (x << 4)) & 0x10C30C30C30C30C3ull;
-    x = (x | (x << 2)) & 0x1249249249249249ull;
-    return x;
-}
-
 static uint32_t gather3(uint64_t x)
 {
     x &= 0x1249249249249249ull;
@@ -34,12 +22,6 @@ static uint32_t gather3(uint64_t x)
     x = (x | (x >> 16)) & 0x001F00000000FFFFull;
     x = (x | (x >> 32)) & 0x1FFFFFull;
     return (uint32_t)x;
-}
-
-uint64_t ms_quant_key(uint32_t x, uint32_t y, uint32_t z, unsigned bits)
-{
-    (void)bits; /* x occupies the most significant bit of each triple */
-    return (spread3(x) << 2) | (spread3(y) << 1) | spread3(z);
 }
 
 void ms_quant_unkey(uint64_t key, unsigned bits, uint32_t xyz[3])
