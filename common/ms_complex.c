@@ -35,9 +35,6 @@ void ms_cx_free(ms_complex *cx)
     free(cx->v);
     free(cx->cen);
     free(cx->tri);
-    free(cx->spare_v);
-    free(cx->spare_cen);
-    free(cx->spare_tri);
     free(cx->edge);
     free(cx->free_v);
     free(cx->free_t);
@@ -871,68 +868,112 @@ ms_status ms_cx_merge(ms_complex *cx, uint32_t c0, uint32_t c1, ms_error *err)
     return MS_OK;
 }
 
+/* Puts the element at src[i] of each array at i (src a permutation of [0, n)),
+ * in place, one copy per element by following cycles; src becomes the
+ * identity. One function per element type, so the copies are plain moves. */
+static void permute_vertices(ms_complex *cx, uint32_t *src, uint32_t n)
+{
+    for (uint32_t i = 0; i < n; ++i) {
+        if (src[i] == i)
+            continue;
+        ms_cx_vert tv = cx->v[i];
+        int32_t tc[4];
+        memcpy(tc, cx->cen[i], sizeof tc);
+        uint32_t j = i;
+        for (;;) {
+            uint32_t k = src[j];
+            src[j] = j;
+            if (k == i)
+                break;
+            cx->v[j] = cx->v[k];
+            memcpy(cx->cen[j], cx->cen[k], sizeof tc);
+            j = k;
+        }
+        cx->v[j] = tv;
+        memcpy(cx->cen[j], tc, sizeof tc);
+    }
+}
+
+static void permute_triangles(ms_complex *cx, uint32_t *src, uint32_t n)
+{
+    for (uint32_t i = 0; i < n; ++i) {
+        if (src[i] == i)
+            continue;
+        uint32_t tt[3];
+        memcpy(tt, cx->tri[i], sizeof tt);
+        uint32_t j = i;
+        for (;;) {
+            uint32_t k = src[j];
+            src[j] = j;
+            if (k == i)
+                break;
+            memcpy(cx->tri[j], cx->tri[k], sizeof tt);
+            j = k;
+        }
+        memcpy(cx->tri[j], tt, sizeof tt);
+    }
+}
+
 ms_status ms_cx_compact(ms_complex *cx, uint32_t *order, uint32_t n, ms_error *err)
 {
     assert(n == cx->live_v);
+    /* maps old -> new and new -> old */
     uint32_t *vmap = malloc((size_t)(cx->nv ? cx->nv : 1) * sizeof *vmap);
+    uint32_t *vsrc = malloc((size_t)(cx->nv ? cx->nv : 1) * sizeof *vsrc);
     uint32_t *tmap = malloc((size_t)(cx->nt ? cx->nt : 1) * sizeof *tmap);
-    if (cx->spare_cv < cx->cv) {
-        free(cx->spare_v);
-        free(cx->spare_cen);
-        cx->spare_v = ms_big_malloc((size_t)cx->cv * sizeof *cx->spare_v);
-        cx->spare_cen = ms_big_malloc((size_t)cx->cv * sizeof *cx->spare_cen);
-        cx->spare_cv = cx->spare_v && cx->spare_cen ? cx->cv : 0;
-    }
-    if (cx->spare_ct < cx->ct || !cx->spare_tri) {
-        free(cx->spare_tri);
-        cx->spare_tri = ms_big_malloc((size_t)(cx->ct ? cx->ct : 1) * sizeof *cx->spare_tri);
-        cx->spare_ct = cx->spare_tri ? cx->ct : 0;
-    }
-    ms_cx_vert *nv = cx->spare_cv >= cx->cv ? cx->spare_v : NULL;
-    int32_t (*ncen)[4] = cx->spare_cv >= cx->cv ? cx->spare_cen : NULL;
-    uint32_t (*ntri)[3] = cx->spare_ct >= cx->ct ? cx->spare_tri : NULL;
-    if (!vmap || !tmap || !nv || !ncen || !ntri) {
-        free(vmap), free(tmap);
+    uint32_t *tsrc = malloc((size_t)(cx->nt ? cx->nt : 1) * sizeof *tsrc);
+    if (!vmap || !vsrc || !tmap || !tsrc) {
+        free(vmap), free(vsrc), free(tmap), free(tsrc);
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory compacting the complex");
     }
+    /* Vertex slots: live ones in the given order, free ones after them. */
+    memset(vmap, 0xFF, (size_t)cx->nv * sizeof *vmap);
     for (uint32_t i = 0; i < n; ++i) {
         vmap[order[i]] = i;
-        nv[i] = cx->v[order[i]];
-        memcpy(ncen[i], cx->cen[order[i]], sizeof ncen[i]);
+        vsrc[i] = order[i];
     }
+    uint32_t next = n;
+    for (uint32_t s = 0; s < cx->nv; ++s)
+        if (vmap[s] == MS_CX_NONE) {
+            vsrc[next] = s;
+            vmap[s] = next++;
+        }
+    /* Triangles: numbered as first met along the new vertex order, free ones
+     * after; the lists and simplices get the new numbers before anything moves. */
     memset(tmap, 0xFF, (size_t)cx->nt * sizeof *tmap);
     uint32_t nt = 0;
     for (uint32_t i = 0; i < n; ++i) {
-        uint32_t *l = ms_cx_list(&nv[i]);
-        for (uint32_t k = 0; k < nv[i].n; ++k) {
+        ms_cx_vert *v = &cx->v[order[i]];
+        uint32_t *l = ms_cx_list(v);
+        for (uint32_t k = 0; k < v->n; ++k) {
             if (l[k] & 1)
                 continue;
             uint32_t t = l[k] >> 1;
-            if (tmap[t] == MS_CX_NONE) {
-                tmap[t] = nt;
-                for (int m = 0; m < 3; ++m)
-                    ntri[nt][m] = vmap[cx->tri[t][m]];
-                nt++;
-            }
+            if (tmap[t] == MS_CX_NONE)
+                tmap[t] = nt++;
             l[k] = tmap[t] << 1;
         }
+    }
+    uint32_t live_t = nt;
+    for (uint32_t t = 0; t < cx->nt; ++t) {
+        if (tmap[t] == MS_CX_NONE)
+            tmap[t] = nt++;
+        tsrc[tmap[t]] = t;
+        if (tmap[t] >= live_t)
+            continue;
+        for (int m = 0; m < 3; ++m)
+            cx->tri[t][m] = vmap[cx->tri[t][m]];
     }
     for (uint32_t e = 0; e < cx->ne; ++e)
         if (cx->edge[e][0] != MS_CX_NONE) {
             cx->edge[e][0] = vmap[cx->edge[e][0]];
             cx->edge[e][1] = vmap[cx->edge[e][1]];
         }
-    cx->spare_v = cx->v;
-    cx->spare_cen = cx->cen;
-    cx->spare_tri = cx->tri;
-    cx->spare_cv = cx->cv;
-    cx->spare_ct = cx->ct;
-    cx->v = nv;
-    cx->cen = ncen;
-    cx->tri = ntri;
+    permute_triangles(cx, tsrc, cx->nt);
+    permute_vertices(cx, vsrc, cx->nv);
     cx->nv = n;
     cx->nfree_v = 0;
-    cx->nt = nt;
+    cx->nt = live_t;
     cx->nfree_t = 0;
     memset(cx->stamp, 0, (size_t)cx->cv * sizeof *cx->stamp);
     memset(cx->stamp2, 0, (size_t)cx->cv * sizeof *cx->stamp2);
@@ -940,6 +981,8 @@ ms_status ms_cx_compact(ms_complex *cx, uint32_t *order, uint32_t n, ms_error *e
     for (uint32_t i = 0; i < n; ++i)
         order[i] = i;
     free(vmap);
+    free(vsrc);
     free(tmap);
+    free(tsrc);
     return MS_OK;
 }

@@ -60,11 +60,6 @@ typedef struct ms_complex {
     uint32_t *mark, *stamp, cur;
     uint32_t *mark2, *stamp2, cur2;
     int nomem;
-    /* previous arrays kept by ms_cx_compact for reuse (no fresh page faults) */
-    ms_cx_vert *spare_v;
-    int32_t (*spare_cen)[4];
-    uint32_t (*spare_tri)[3];
-    uint32_t spare_cv, spare_ct;
 } ms_complex;
 
 ms_status ms_cx_init(ms_complex *cx, unsigned P, uint32_t max_v, uint32_t max_t, uint32_t max_e,
@@ -183,7 +178,8 @@ ms_status ms_cx_merge(ms_complex *cx, uint32_t c0, uint32_t c1, ms_error *err);
 
 /* Renumbers the vertex slots to follow order[0..n) (all live vertices, in key
  * order) and the triangles by first incident vertex, for memory locality; order
- * becomes the identity. The complex itself is unchanged. */
+ * becomes the identity. The complex itself is unchanged. Works in place: besides
+ * two index maps it allocates nothing, so a compaction costs no fresh pages. */
 ms_status ms_cx_compact(ms_complex *cx, uint32_t *order, uint32_t n, ms_error *err);
 
 /* Starts a fresh mark generation (scratch marks). */

@@ -1,8 +1,9 @@
 /* The codec complex's decoder fast paths (ms_complex.h): the one-centre star
  * gathered without per-slot marks equals the general gather on every vertex of
  * random complexes (small and large stars, edges, duplicate triangles, keys in
- * any discovery order), a hand-built star has its exact canonical form, and a
- * cell's corner, refinement and coarsening agree with its key. */
+ * any discovery order), a hand-built star has its exact canonical form, a
+ * cell's corner, refinement and coarsening agree with its key, and the in-place
+ * compaction keeps the complex while renumbering around freed slots. */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stdbool.h>
@@ -191,12 +192,124 @@ static void test_cell_refine_coarsen(void **state)
     ms_cx_free(&cx);
 }
 
+/* The complex as sorted key triples (triangles, in their cyclic order starting
+ * at the smallest key) and key pairs (edges): independent of slot numbers. */
+static size_t complex_keys(const ms_complex *cx, uint64_t *out)
+{
+    size_t w = 0;
+    for (uint32_t t = 0; t < cx->nt; ++t) {
+        if (cx->tri[t][0] == MS_CX_NONE)
+            continue;
+        uint64_t k[3];
+        for (int m = 0; m < 3; ++m)
+            k[m] = cx->v[cx->tri[t][m]].key;
+        int r = k[0] < k[1] ? (k[0] < k[2] ? 0 : 2) : (k[1] < k[2] ? 1 : 2);
+        for (int m = 0; m < 3; ++m)
+            out[w++] = k[(r + m) % 3];
+    }
+    for (uint32_t e = 0; e < cx->ne; ++e) {
+        if (cx->edge[e][0] == MS_CX_NONE)
+            continue;
+        uint64_t a = cx->v[cx->edge[e][0]].key, b = cx->v[cx->edge[e][1]].key;
+        out[w++] = a < b ? a : b;
+        out[w++] = a < b ? b : a;
+        out[w++] = UINT64_MAX; /* edge marker */
+    }
+    return w;
+}
+
+static int cmp_triple(const void *a, const void *b)
+{
+    const uint64_t *x = a, *y = b;
+    for (int m = 0; m < 3; ++m)
+        if (x[m] != y[m])
+            return x[m] < y[m] ? -1 : 1;
+    return 0;
+}
+
+static void test_compact_in_place(void **state)
+{
+    (void)state;
+    ms_complex cx;
+    ms_error err;
+    random_complex(&cx, 500, 8);
+    /* free some triangles and, with their simplices, some vertices */
+    for (uint32_t t = 0; t < cx.nt; t += 7)
+        if (cx.tri[t][0] != MS_CX_NONE)
+            ms_cx_del_tri(&cx, t);
+    uint32_t freed = 0;
+    for (uint32_t s = 0; s < cx.nv; s += 11) {
+        ms_cx_vert *v = &cx.v[s];
+        while (v->n > 0) {
+            uint32_t x = ms_cx_list(v)[0];
+            if (x & 1)
+                ms_cx_del_edge(&cx, x >> 1);
+            else
+                ms_cx_del_tri(&cx, x >> 1);
+        }
+        ms_cx_free_vertex(&cx, s);
+        freed++;
+    }
+    assert_int_equal(cx.live_v, 500 - freed);
+    uint64_t *before = malloc(3 * (cx.nt + cx.ne) * sizeof *before);
+    uint64_t *after = malloc(3 * (cx.nt + cx.ne) * sizeof *after);
+    assert_non_null(before);
+    assert_non_null(after);
+    size_t nb = complex_keys(&cx, before);
+    uint32_t live_t = cx.live_t;
+    /* live slots in a shuffled order */
+    uint32_t *order = malloc(cx.live_v * sizeof *order), n = 0;
+    assert_non_null(order);
+    for (uint32_t s = 0; s < cx.nv; ++s)
+        if (cx.v[s].alive)
+            order[n++] = s;
+    for (uint32_t i = n; i > 1; --i) {
+        uint32_t j = rnd(i), tmp = order[i - 1];
+        order[i - 1] = order[j];
+        order[j] = tmp;
+    }
+    uint64_t *want_keys = malloc(n * sizeof *want_keys);
+    assert_non_null(want_keys);
+    for (uint32_t i = 0; i < n; ++i)
+        want_keys[i] = cx.v[order[i]].key;
+    assert_int_equal(ms_cx_compact(&cx, order, n, &err), MS_OK);
+    assert_int_equal(cx.nv, n);
+    assert_int_equal(cx.nt, live_t);
+    for (uint32_t i = 0; i < n; ++i) {
+        assert_int_equal(order[i], i);
+        assert_true(cx.v[i].alive);
+        assert_true(cx.v[i].key == want_keys[i]);
+    }
+    /* every list entry points at a simplex holding the vertex */
+    for (uint32_t s = 0; s < n; ++s) {
+        const uint32_t *l = ms_cx_list(&cx.v[s]);
+        for (uint32_t k = 0; k < cx.v[s].n; ++k) {
+            const uint32_t *x = l[k] & 1 ? cx.edge[l[k] >> 1] : cx.tri[l[k] >> 1];
+            int arity = l[k] & 1 ? 2 : 3, found = 0;
+            for (int m = 0; m < arity; ++m)
+                found |= x[m] == s;
+            assert_true(found);
+        }
+    }
+    size_t na = complex_keys(&cx, after);
+    assert_int_equal(na, nb);
+    qsort(before, nb / 3, 3 * sizeof *before, cmp_triple);
+    qsort(after, na / 3, 3 * sizeof *after, cmp_triple);
+    assert_memory_equal(before, after, nb * sizeof *before);
+    free(before);
+    free(after);
+    free(order);
+    free(want_keys);
+    ms_cx_free(&cx);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_fast_star_equals_general),
         cmocka_unit_test(test_star_exact),
         cmocka_unit_test(test_cell_refine_coarsen),
+        cmocka_unit_test(test_compact_in_place),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
