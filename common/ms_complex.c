@@ -868,49 +868,36 @@ ms_status ms_cx_merge(ms_complex *cx, uint32_t c0, uint32_t c1, ms_error *err)
     return MS_OK;
 }
 
-/* Puts the element at src[i] of each array at i (src a permutation of [0, n)),
- * in place, one copy per element by following cycles; src becomes the
- * identity. One function per element type, so the copies are plain moves. */
-static void permute_vertices(ms_complex *cx, uint32_t *src, uint32_t n)
+/* Puts element src[i] of array a (and of b, when not NULL) at i, src a
+ * permutation of [0, n), in place with one copy per element by following
+ * cycles; src becomes the identity. Inlined so that each caller's element
+ * sizes are constants and the copies plain moves. */
+static inline __attribute__((always_inline)) void permute_in_place(uint32_t *src, uint32_t n,
+                                                                   unsigned char *a, size_t sa,
+                                                                   unsigned char *b, size_t sb)
 {
+    unsigned char ta[sizeof(ms_cx_vert)], tb[sizeof(ms_cx_vert)];
+    assert(sa <= sizeof ta && sb <= sizeof tb);
     for (uint32_t i = 0; i < n; ++i) {
         if (src[i] == i)
             continue;
-        ms_cx_vert tv = cx->v[i];
-        int32_t tc[4];
-        memcpy(tc, cx->cen[i], sizeof tc);
+        memcpy(ta, a + (size_t)i * sa, sa);
+        if (b)
+            memcpy(tb, b + (size_t)i * sb, sb);
         uint32_t j = i;
         for (;;) {
             uint32_t k = src[j];
             src[j] = j;
             if (k == i)
                 break;
-            cx->v[j] = cx->v[k];
-            memcpy(cx->cen[j], cx->cen[k], sizeof tc);
+            memcpy(a + (size_t)j * sa, a + (size_t)k * sa, sa);
+            if (b)
+                memcpy(b + (size_t)j * sb, b + (size_t)k * sb, sb);
             j = k;
         }
-        cx->v[j] = tv;
-        memcpy(cx->cen[j], tc, sizeof tc);
-    }
-}
-
-static void permute_triangles(ms_complex *cx, uint32_t *src, uint32_t n)
-{
-    for (uint32_t i = 0; i < n; ++i) {
-        if (src[i] == i)
-            continue;
-        uint32_t tt[3];
-        memcpy(tt, cx->tri[i], sizeof tt);
-        uint32_t j = i;
-        for (;;) {
-            uint32_t k = src[j];
-            src[j] = j;
-            if (k == i)
-                break;
-            memcpy(cx->tri[j], cx->tri[k], sizeof tt);
-            j = k;
-        }
-        memcpy(cx->tri[j], tt, sizeof tt);
+        memcpy(a + (size_t)j * sa, ta, sa);
+        if (b)
+            memcpy(b + (size_t)j * sb, tb, sb);
     }
 }
 
@@ -969,8 +956,9 @@ ms_status ms_cx_compact(ms_complex *cx, uint32_t *order, uint32_t n, ms_error *e
             cx->edge[e][0] = vmap[cx->edge[e][0]];
             cx->edge[e][1] = vmap[cx->edge[e][1]];
         }
-    permute_triangles(cx, tsrc, cx->nt);
-    permute_vertices(cx, vsrc, cx->nv);
+    permute_in_place(tsrc, cx->nt, (unsigned char *)cx->tri, sizeof *cx->tri, NULL, 0);
+    permute_in_place(vsrc, cx->nv, (unsigned char *)cx->v, sizeof *cx->v,
+                     (unsigned char *)cx->cen, sizeof *cx->cen);
     cx->nv = n;
     cx->nfree_v = 0;
     cx->nt = live_t;

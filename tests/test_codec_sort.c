@@ -16,15 +16,13 @@
 #include "ms_big_alloc.h"
 #include "ms_codec.h"
 #include "ms_codec_internal.h"
+#include "ms_test.h"
 
 static uint64_t rng_state = 88172645463325252ull;
 
 static uint32_t rnd(uint32_t below)
 {
-    rng_state ^= rng_state << 13;
-    rng_state ^= rng_state >> 7;
-    rng_state ^= rng_state << 17;
-    return (uint32_t)(rng_state % below);
+    return (uint32_t)(ms_test_random(&rng_state) % below);
 }
 
 static unsigned cmp_arity;

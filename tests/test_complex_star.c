@@ -15,6 +15,7 @@
 
 #include "ms_complex.h"
 #include "ms_quant.h"
+#include "ms_test.h"
 
 #define P 8
 
@@ -22,10 +23,7 @@ static uint64_t rng_state = 0x9E3779B97F4A7C15ull;
 
 static uint32_t rnd(uint32_t below)
 {
-    rng_state ^= rng_state << 13;
-    rng_state ^= rng_state >> 7;
-    rng_state ^= rng_state << 17;
-    return (uint32_t)(rng_state % below);
+    return (uint32_t)(ms_test_random(&rng_state) % below);
 }
 
 /* A full-precision cell (level 3P) at grid point (x, y, z). */

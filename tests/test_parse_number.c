@@ -9,15 +9,8 @@
 #include <cmocka.h>
 
 #include "ms_parse_number.h"
+#include "ms_test.h"
 
-/* Deterministic generator so a failure reproduces. */
-static uint64_t next_random(uint64_t *state)
-{
-    *state ^= *state << 13;
-    *state ^= *state >> 7;
-    *state ^= *state << 17;
-    return *state;
-}
 
 static void expect_same_as_strtod(const char *text)
 {
@@ -47,7 +40,7 @@ static void test_doubles_match_strtod(void **state)
     uint64_t rng = 0x9e3779b97f4a7c15u;
     char text[64];
     for (int i = 0; i < 300000; ++i) {
-        uint64_t bits = next_random(&rng);
+        uint64_t bits = ms_test_random(&rng);
         double value;
         int kind = i % 6;
         if (kind == 0) {
@@ -70,14 +63,14 @@ static void test_doubles_match_strtod(void **state)
         } else {
             /* Random digit strings with a random point and exponent. */
             int n = 1 + (int)(bits % 22), pos = 0;
-            uint64_t more = next_random(&rng);
+            uint64_t more = ms_test_random(&rng);
             if (more & 1)
                 text[pos++] = '-';
             int point = (int)((more >> 1) % (uint64_t)(n + 1));
             for (int d = 0; d < n; ++d) {
                 if (d == point)
                     text[pos++] = '.';
-                text[pos++] = (char)('0' + (next_random(&rng) % 10));
+                text[pos++] = (char)('0' + (ms_test_random(&rng) % 10));
             }
             if (point == n)
                 text[pos++] = '0';
@@ -143,7 +136,7 @@ static void test_integers(void **state)
     uint64_t rng = 12345;
     char text[32];
     for (int i = 0; i < 100000; ++i) {
-        int64_t want = (int64_t)next_random(&rng) >> (next_random(&rng) % 63);
+        int64_t want = (int64_t)ms_test_random(&rng) >> (ms_test_random(&rng) % 63);
         snprintf(text, sizeof text, "%lld", (long long)want);
         assert_non_null(ms_parse_int64(text, &v));
         assert_true(v == want);

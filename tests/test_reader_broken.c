@@ -468,13 +468,6 @@ static void test_off_unknown_and_gzip(void **state)
     assert_int_equal(ms_mesh_load(c->dir, &mesh, NULL, &err), MS_ERR_IO);
 }
 
-static uint64_t next_random(uint64_t *state)
-{
-    *state ^= *state << 13;
-    *state ^= *state >> 7;
-    *state ^= *state << 17;
-    return *state;
-}
 
 /* Random byte changes and cuts in small files of every format: whatever comes
  * out, the reader must not crash or leak (ASan/UBSan watch), and a failure must
@@ -529,16 +522,16 @@ static void test_random_mutations_never_crash(void **state)
         static char mutated[1 << 20];
         memcpy(mutated, src->data, src->size);
         size_t size = src->size;
-        int edits = 1 + (int)(next_random(&rng) % 4);
+        int edits = 1 + (int)(ms_test_random(&rng) % 4);
         for (int e = 0; e < edits; ++e) {
-            size_t at = (size_t)(next_random(&rng) % size);
-            uint64_t how = next_random(&rng) % 4;
+            size_t at = (size_t)(ms_test_random(&rng) % size);
+            uint64_t how = ms_test_random(&rng) % 4;
             if (how == 0)
                 size = at + 1; /* cut */
             else if (how == 1)
-                mutated[at] = (char)next_random(&rng);
+                mutated[at] = (char)ms_test_random(&rng);
             else
-                mutated[at] = tokens[next_random(&rng) % (sizeof tokens - 1)];
+                mutated[at] = tokens[ms_test_random(&rng) % (sizeof tokens - 1)];
         }
         blob m = {mutated, size};
         snprintf(path, sizeof path, "%s/mutant.%s", c->dir, ext[k]);

@@ -3,6 +3,7 @@
 #define MS_TEST_H
 
 #include <stddef.h>
+#include <stdint.h>
 
 /* Full path of a model in the shared data set (MESHSTREAM_MODELS, default
  * ../shared/data/models relative to the repository root), written into buf. */
@@ -24,5 +25,15 @@ int ms_test_run(const char *command, char *out, size_t size);
  * a file; both fail the test on any error. */
 unsigned char *ms_test_read_file(const char *path, size_t *size);
 void ms_test_write_file(const char *path, const void *data, size_t size);
+
+/* Deterministic xorshift64 generator, so that a failing random test reproduces:
+ * advances *state (never 0) and returns it. */
+static inline uint64_t ms_test_random(uint64_t *state)
+{
+    *state ^= *state << 13;
+    *state ^= *state >> 7;
+    *state ^= *state << 17;
+    return *state;
+}
 
 #endif
