@@ -170,6 +170,19 @@ static int code_room(ms_codec_decoder *d, size_t n, size_t np)
     return 1;
 }
 
+/* Takes off s's list the triangles that no longer hold s (order kept). */
+static void drop_moved_triangles(ms_complex *cx, uint32_t s)
+{
+    ms_cx_vert *v = &cx->v[s];
+    uint32_t *l = ms_cx_list(v), w = 0;
+    for (uint32_t i = 0; i < v->n; ++i) {
+        const uint32_t *t = cx->tri[l[i] >> 1];
+        if ((l[i] & 1) || t[0] == s || t[1] == s || t[2] == s)
+            l[w++] = l[i];
+    }
+    v->n = w;
+}
+
 /* Splits cell s (level L) in two after a "both" symbol. */
 static ms_status split(ms_codec_decoder *d, uint32_t s, unsigned L, uint32_t *out2, ms_error *err)
 {
@@ -262,6 +275,7 @@ static ms_status split(ms_codec_decoder *d, uint32_t s, unsigned L, uint32_t *ou
     ms_cx_refine_cell(cx, s, L, 0);
     cx->v[s].birth = (uint8_t)(L + 1);
     cx->v[s2].birth = (uint8_t)(L + 1);
+    uint32_t moved = 0; /* triangles handed to s2, taken off s's list in one pass */
     for (uint32_t p = 0; p < st->np; ++p) {
         const ms_cx_pair *pr = &st->pairs[p];
         uint32_t t = pr->t0;
@@ -269,8 +283,8 @@ static ms_status split(ms_codec_decoder *d, uint32_t s, unsigned L, uint32_t *ou
             for (int k = 0; k < 3; ++k)
                 if (cx->tri[t][k] == s)
                     cx->tri[t][k] = s2;
-            ms_cx_list_remove(cx, s, t << 1);
             ms_cx_list_add(cx, s2, t << 1);
+            moved++;
         } else if (d->tcode[p] == 3) {
             int same = dbit(d, &m[C_O3]);
             uint32_t x[3] = {cx->tri[t][0], cx->tri[t][1], cx->tri[t][2]};
@@ -283,6 +297,8 @@ static ms_status split(ms_codec_decoder *d, uint32_t s, unsigned L, uint32_t *ou
                 ms_cx_add_tri(cx, x[0], x[2], x[1]);
         }
     }
+    if (moved)
+        drop_moved_triangles(cx, s);
     for (uint32_t i = 0; i < st->nn; ++i) {
         if (d->code[i] != 4)
             continue;

@@ -415,11 +415,14 @@ static void star_link_pairs(ms_cx_star *st)
  * usual handful of neighbours). */
 static inline uint32_t small_star_touch(ms_cx_star *st, uint32_t s)
 {
+    /* no early exit: where a neighbour is found is unpredictable, the loop
+     * length is not */
+    uint32_t found = st->nn;
     for (uint32_t i = 0; i < st->nn; ++i)
-        if (st->nbr[i] == s)
-            return i;
-    st->nbr[st->nn] = s;
-    return st->nn++;
+        found = st->nbr[i] == s ? i : found;
+    if (found == st->nn)
+        st->nbr[st->nn++] = s;
+    return found;
 }
 
 /* ms_cx_gather for one centre with at most MS_CX_SMALL_STAR incident simplices:
