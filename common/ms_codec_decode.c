@@ -176,8 +176,12 @@ static void drop_moved_triangles(ms_complex *cx, uint32_t s)
     ms_cx_vert *v = &cx->v[s];
     uint32_t *l = ms_cx_list(v), w = 0;
     for (uint32_t i = 0; i < v->n; ++i) {
-        const uint32_t *t = cx->tri[l[i] >> 1];
-        if ((l[i] & 1) || t[0] == s || t[1] == s || t[2] == s)
+        bool keep = l[i] & 1;
+        if (!keep) {
+            const uint32_t *t = cx->tri[l[i] >> 1];
+            keep = t[0] == s || t[1] == s || t[2] == s;
+        }
+        if (keep)
             l[w++] = l[i];
     }
     v->n = w;
