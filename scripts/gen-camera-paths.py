@@ -4,7 +4,12 @@
 Run from the repository root; the output is committed, so this only needs to run
 again when the paths change. Format: docs in common/ms_camera_path.h.
 """
+import argparse
 import math
+
+# No arguments: --help prints the docstring, anything else is refused (exit 2).
+argparse.ArgumentParser(description=__doc__,
+                        formatter_class=argparse.RawDescriptionHelpFormatter).parse_args()
 
 MAGIC = "meshstream-camera-path 1"
 
