@@ -35,6 +35,8 @@ struct ms_codec_decoder {
     birth_stack births[3 * MS_CODEC_MAX_BITS];
     ms_cx_star star;
     uint8_t *code, *side, *cov;
+    uint8_t *partners;      /* per neighbour: partner_flag of its partners coded so far */
+    int32_t *vote;          /* per neighbour: orientation votes around it (orient_votes) */
     uint8_t *tcode;
     size_t cap_code, cap_tcode;
     uint32_t compact_nv;    /* slots in use after the last compaction */
@@ -93,6 +95,8 @@ void ms_codec_decoder_destroy(ms_codec_decoder *d)
     free(d->code);
     free(d->side);
     free(d->cov);
+    free(d->partners);
+    free(d->vote);
     free(d->tcode);
     free(d);
 }
@@ -153,7 +157,13 @@ static int code_room(ms_codec_decoder *d, size_t n, size_t np)
         uint8_t *cv = realloc(d->cov, c);
         if (cv)
             d->cov = cv;
-        if (!a || !b || !cv)
+        uint8_t *pf = realloc(d->partners, c);
+        if (pf)
+            d->partners = pf;
+        int32_t *vt = realloc(d->vote, c * sizeof *vt);
+        if (vt)
+            d->vote = vt;
+        if (!a || !b || !cv || !pf || !vt)
             return 0;
         d->cap_code = c;
     }
@@ -204,9 +214,13 @@ static ms_status split(ms_codec_decoder *d, uint32_t s, unsigned L, uint32_t *ou
     int e12 = dbit(d, &m[e12_ctx(st->nn)]);
     uint32_t n4 = 0;
     unsigned nboth = 0;
+    /* pairs are sorted by their smaller index i: once x_i has its code, the
+     * pairs from pp on with that i tell its later partners */
+    uint32_t pp = 0;
+    memset(d->partners, 0, st->nn);
     for (uint32_t i = 0; i < st->nn; ++i) {
         unsigned side = conn_side(cx, st->nbr[i], axis, plane2, wp);
-        unsigned af = adj_flags(st, i, d->code);
+        unsigned af = d->partners[i];
         uint8_t c;
         if (dbit(d, &m[C_EA + ((side * ADJS + af) * 2 + (unsigned)e12) * 3 +
                                      (nboth < 2 ? nboth : 2)])) {
@@ -220,7 +234,10 @@ static ms_status split(ms_codec_decoder *d, uint32_t s, unsigned L, uint32_t *ou
         d->side[i] = (uint8_t)side;
         d->code[i] = c;
         d->cov[i] = 0;
+        d->vote[i] = 0;
         n4 += c == 4;
+        for (; pp < st->np && st->pairs[pp].i == i; ++pp)
+            d->partners[st->pairs[pp].j] |= (uint8_t)partner_flag(c);
     }
     uint32_t n3 = 0;
     for (uint32_t p = 0; p < st->np; ++p) {
@@ -283,6 +300,17 @@ static ms_status split(ms_codec_decoder *d, uint32_t s, unsigned L, uint32_t *ou
     for (uint32_t p = 0; p < st->np; ++p) {
         const ms_cx_pair *pr = &st->pairs[p];
         uint32_t t = pr->t0;
+        int same = d->tcode[p] == 3 ? dbit(d, &m[C_O3]) : 0;
+        if (n4 && (d->code[pr->i] == 4 || d->code[pr->j] == 4)) {
+            /* the votes this triangle and its copy will cast, as orient_votes
+             * would count them on the lists of s and s2 after the split: kept
+             * on s +o, moved to s2 -o, duplicated with the same cyclic order 0
+             * (the copies cancel), with the opposite one +2o */
+            int w = d->tcode[p] == 1 ? 1 : d->tcode[p] == 2 ? -1 : same ? 0 : 2;
+            int o = ms_cx_orient(cx, t, s, st->nbr[pr->i]); /* the other one: -o */
+            d->vote[pr->i] += w * o;
+            d->vote[pr->j] -= w * o;
+        }
         if (d->tcode[p] == 2) {
             for (int k = 0; k < 3; ++k)
                 if (cx->tri[t][k] == s)
@@ -290,7 +318,6 @@ static ms_status split(ms_codec_decoder *d, uint32_t s, unsigned L, uint32_t *ou
             ms_cx_list_add(cx, s2, t << 1);
             moved++;
         } else if (d->tcode[p] == 3) {
-            int same = dbit(d, &m[C_O3]);
             uint32_t x[3] = {cx->tri[t][0], cx->tri[t][1], cx->tri[t][2]};
             for (int k = 0; k < 3; ++k)
                 if (x[k] == s)
@@ -307,7 +334,7 @@ static ms_status split(ms_codec_decoder *d, uint32_t s, unsigned L, uint32_t *ou
         if (d->code[i] != 4)
             continue;
         uint32_t x = st->nbr[i];
-        int vote = orient_votes(cx, s, s2, x, MS_CX_NONE);
+        int vote = d->vote[i];
         int pred = vote >= 0 ? 1 : -1;
         int flip = dbit(d, &m[o4_ctx(vote)]);
         if ((flip ? -pred : pred) > 0)
@@ -373,6 +400,8 @@ static ms_status refine_level(ms_codec_decoder *d, ms_error *err)
     ms_complex *cx = &d->cx;
     int axis = (int)(L % 3);
     uint64_t bit = 1ull << (d->D - L - 1);
+    int64_t width = ms_cx_width(cx, L, axis);                 /* of the cells at L */
+    int32_t child_width = (int32_t)ms_cx_width(cx, L + 1, axis);
     if (!order_room(d, 2 * d->norder))
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory decoding a level");
     uint32_t w = 0;
@@ -404,11 +433,11 @@ static ms_status refine_level(ms_codec_decoder *d, ms_error *err)
         } else {
             int64_t n;
             int64_t sum = geo_sum(cx, s, axis, &n);
-            unsigned b = geo_bucket(cx, sum, n, L, axis, cx->cen[s][axis]);
+            unsigned b = geo_bucket(sum, n, width, cx->cen[s][axis]);
             int second = dbit(d, &d->model[GEO_HALF(L, run, b)]);
             if (second)
                 v->key |= bit;
-            ms_cx_refine_cell(cx, s, L, second);
+            ms_cx_refine_cell_by(cx, s, L, axis, child_width, second);
             d->order2[w++] = s;
         }
         if (d->rc.overrun)

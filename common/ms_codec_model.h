@@ -92,38 +92,41 @@ static inline unsigned geo_run(unsigned level, unsigned birth)
 }
 
 /* Sum of the doubled centres along axis of cell s's neighbours, each counted once
- * per incident simplex; *count receives the number of terms. */
+ * per incident simplex; *count receives the number of terms. (The hottest loop
+ * of the decoder: one column of the centres, cell s's own term taken out once.) */
 static inline int64_t geo_sum(const ms_complex *cx, uint32_t s, int axis, int64_t *count)
 {
     const ms_cx_vert *v = &cx->v[s];
     const uint32_t *l = v->cap ? v->ext : v->inl;
-    int64_t sum = 0, n = 0;
+    const int32_t *col = &cx->cen[0][axis]; /* centre of slot x: col[4 * x] */
+    const uint32_t(*tri)[3] = (const uint32_t(*)[3])cx->tri;
+    int64_t sum = 0;
+    uint32_t edges = 0;
     for (uint32_t i = 0; i < v->n; ++i) {
         uint32_t id = l[i] >> 1;
         if (l[i] & 1) {
-            uint32_t o = cx->edge[id][0] == s ? cx->edge[id][1] : cx->edge[id][0];
-            sum += cx->cen[o][axis];
-            n++;
+            const uint32_t *e = cx->edge[id];
+            sum += col[4 * (size_t)(e[0] == s ? e[1] : e[0])];
+            edges++;
         } else {
-            const uint32_t *t = cx->tri[id];
-            sum += cx->cen[t[0]][axis] + cx->cen[t[1]][axis] + cx->cen[t[2]][axis] -
-                   cx->cen[s][axis];
-            n += 2;
+            const uint32_t *t = tri[id];
+            sum += col[4 * (size_t)t[0]] + col[4 * (size_t)t[1]] + col[4 * (size_t)t[2]];
         }
     }
-    *count = n;
+    uint32_t tris = v->n - edges;
+    sum -= (int64_t)tris * col[4 * (size_t)s];
+    *count = 2 * (int64_t)tris + edges;
     return sum;
 }
 
-/* Context of the "which half" bit of a cell (level `level`, axis, doubled centre
- * plane2 along the axis: the split plane) from its neighbours' centroid (sum, n):
- * side and distance from the split plane in units of the child cell. */
-static inline unsigned geo_bucket(const ms_complex *cx, int64_t sum, int64_t n, unsigned level,
-                                  int axis, int64_t plane2)
+/* Context of the "which half" bit of a cell (width wp along the level's axis,
+ * doubled centre plane2 along it: the split plane) from its neighbours'
+ * centroid (sum, n): side and distance from the split plane in units of the
+ * child cell. */
+static inline unsigned geo_bucket(int64_t sum, int64_t n, int64_t wp, int64_t plane2)
 {
     if (n == 0)
         return GEO_DIST;
-    int64_t wp = ms_cx_width(cx, level, axis);
     int64_t diff = sum - n * plane2;
     int64_t unit = n * wp;
     int64_t a = 8 * (diff < 0 ? -diff : diff);
@@ -148,18 +151,12 @@ static inline unsigned e12_ctx(uint32_t nn)
     return C_E12 + (nn == 0 ? 0 : nn <= 2 ? 1 : nn <= 5 ? 2 : nn <= 8 ? 3 : 4);
 }
 
-/* Edge code contexts: codes so far of the partners (sharing a triangle) of x. */
-static inline unsigned adj_flags(const ms_cx_star *st, uint32_t i, const uint8_t *code)
+/* Edge code contexts: the codes already decoded of the partners of x (the
+ * neighbours sharing a triangle with it), one flag per kind: 1 (code 1), 2
+ * (code 2), 4 (code 3 or 4); ADJS combinations. */
+static inline unsigned partner_flag(uint8_t code)
 {
-    unsigned f = 0;
-    for (uint32_t k = st->adj_start[i]; k < st->adj_start[i + 1]; ++k) {
-        uint32_t j = st->adj_list[k];
-        if (j >= i)
-            continue;
-        uint8_t c = code[j];
-        f |= c == 1 ? 1u : c == 2 ? 2u : 4u;
-    }
-    return f;
+    return code == 1 ? 1u : code == 2 ? 2u : 4u;
 }
 
 /* Votes of the triangles around edges (c1,x) and (c2,x) for the orientation of a

@@ -3,7 +3,7 @@
 
 #include "ms_codec.h"
 
-enum { PRIOR_MIN = 1024, PRIOR_MAX = 65536 - 1024 };
+enum { PRIOR_MIN = MS_RC_PROB_MIN, PRIOR_MAX = MS_RC_PROB_MAX };
 
 size_t ms_codec_prior_contexts(void) { return MS_PRIOR_SIZE; }
 
@@ -14,7 +14,10 @@ void ms_codec_model_init(ms_rc_prob *model, unsigned D, unsigned version)
         if (version == MS_CODEC_VERSION_FLAT || !ms_prior_has(i, D)) {
             model[i] = MS_RC_PROB_INIT;
         } else {
+            /* the table is estimated inside the bounds (ms_codec_prior_estimate);
+             * clamping again keeps the coder's invariant whatever it holds */
             uint16_t p0 = ms_codec_prior_p0[ms_prior_index(i, D)];
+            p0 = p0 < PRIOR_MIN ? PRIOR_MIN : p0 > PRIOR_MAX ? PRIOR_MAX : p0;
             model[i] = (ms_rc_prob){p0, p0};
         }
     }

@@ -137,28 +137,25 @@ nomem:
     return ms_error_set(err, MS_ERR_NOMEM, "out of memory growing the complex");
 }
 
-void ms_cx_list_add(ms_complex *cx, uint32_t s, uint32_t tagged)
+bool ms_cx_list_grow(ms_complex *cx, ms_cx_vert *v)
 {
-    ms_cx_vert *v = &cx->v[s];
     uint32_t cap = v->cap ? v->cap : MS_CX_INLINE;
-    if (v->n == cap) {
-        uint32_t ncap = cap * 2;
-        uint32_t *n;
-        if (v->cap) {
-            n = realloc(v->ext, (size_t)ncap * sizeof *n);
-        } else {
-            n = malloc((size_t)ncap * sizeof *n);
-            if (n)
-                memcpy(n, v->inl, sizeof v->inl);
-        }
-        if (!n) {
-            cx->nomem = 1;
-            return;
-        }
-        v->ext = n;
-        v->cap = ncap;
+    uint32_t ncap = cap * 2;
+    uint32_t *n;
+    if (v->cap) {
+        n = realloc(v->ext, (size_t)ncap * sizeof *n);
+    } else {
+        n = malloc((size_t)ncap * sizeof *n);
+        if (n)
+            memcpy(n, v->inl, sizeof v->inl);
     }
-    ms_cx_list(v)[v->n++] = tagged;
+    if (!n) {
+        cx->nomem = 1;
+        return false;
+    }
+    v->ext = n;
+    v->cap = ncap;
+    return true;
 }
 
 void ms_cx_list_remove(ms_complex *cx, uint32_t s, uint32_t tagged)
@@ -286,8 +283,7 @@ void ms_cx_star_free(ms_cx_star *st)
     free(st->adj);
     free(st->both);
     free(st->pairs);
-    free(st->adj_start);
-    free(st->adj_list);
+    free(st->perm);
     free(st->sortbuf);
     memset(st, 0, sizeof *st);
 }
@@ -310,10 +306,10 @@ static int star_room(ms_cx_star *st, size_t n, size_t p)
         if (!a)
             return 0;
         st->both = a;
-        a = realloc(st->adj_start, (c + 1) * sizeof *a);
+        a = realloc(st->perm, (c + 1) * sizeof *a);
         if (!a)
             return 0;
-        st->adj_start = a;
+        st->perm = a;
         st->cap_n = c;
     }
     if (p > st->cap_p) {
@@ -324,10 +320,6 @@ static int star_room(ms_cx_star *st, size_t n, size_t p)
         if (!a)
             return 0;
         st->pairs = a;
-        uint32_t *l = realloc(st->adj_list, 2 * c * sizeof *l);
-        if (!l)
-            return 0;
-        st->adj_list = l;
         st->cap_p = c;
     }
     size_t s = n > p ? n : p;
@@ -388,28 +380,6 @@ static inline uint32_t star_touch(ms_complex *cx, ms_cx_star *st, uint32_t s)
     return st->nn++;
 }
 
-/* Neighbour adjacency through the pairs (CSR) of a gathered star. */
-static void star_link_pairs(ms_cx_star *st)
-{
-    uint32_t *start = st->adj_start;
-    for (uint32_t i = 0; i <= st->nn; ++i)
-        start[i] = 0;
-    for (uint32_t r = 0; r < st->np; ++r) {
-        start[st->pairs[r].i + 1]++;
-        start[st->pairs[r].j + 1]++;
-    }
-    for (uint32_t i = 0; i < st->nn; ++i)
-        start[i + 1] += start[i];
-    /* fill using sortbuf as cursor storage */
-    uint64_t *cursor = st->sortbuf;
-    for (uint32_t i = 0; i < st->nn; ++i)
-        cursor[i] = start[i];
-    for (uint32_t r = 0; r < st->np; ++r) {
-        st->adj_list[cursor[st->pairs[r].i]++] = st->pairs[r].j;
-        st->adj_list[cursor[st->pairs[r].j]++] = st->pairs[r].i;
-    }
-}
-
 /* Local index of neighbour slot s in a small star, added if new (linear search:
  * cheaper than the slot-indexed marks, which cost two cache misses, for the
  * usual handful of neighbours). */
@@ -453,9 +423,11 @@ static void gather_small(ms_complex *cx, uint32_t c0, ms_cx_star *st)
     uint64_t key[2 * MS_CX_SMALL_STAR];
     uint32_t perm[2 * MS_CX_SMALL_STAR], rank[2 * MS_CX_SMALL_STAR], slot[2 * MS_CX_SMALL_STAR];
     for (uint32_t i = 0; i < n; ++i) {
-        uint32_t c[3];
-        ms_cx_corner(cx, st->nbr[i], c);
-        uint64_t k = ms_quant_key(c[0], c[1], c[2], cx->P);
+        /* the Morton key of the doubled centre on the doubled (P + 1 bit) grid:
+         * it lies inside the cell's key range there as the corner's does here,
+         * so distinct (disjoint) cells sort as their keys do */
+        const int32_t *c = cx->cen[st->nbr[i]];
+        uint64_t k = ms_quant_key((uint32_t)c[0], (uint32_t)c[1], (uint32_t)c[2], cx->P + 1);
         uint32_t j = i;
         while (j > 0 && key[j - 1] > k) {
             key[j] = key[j - 1];
@@ -501,7 +473,6 @@ static void gather_small(ms_complex *cx, uint32_t c0, ms_cx_star *st)
         st->pairs[w++] = (ms_cx_pair){i, j, t, MS_CX_NONE};
     }
     st->np = w;
-    star_link_pairs(st);
 }
 
 ms_status ms_cx_gather(ms_complex *cx, uint32_t c0, uint32_t c1, ms_cx_star *st, ms_error *err)
@@ -567,7 +538,7 @@ ms_status ms_cx_gather_general(ms_complex *cx, uint32_t c0, uint32_t c1, ms_cx_s
     if (st->nn > 1) {
         uint32_t n = st->nn;
         uint64_t *keys = st->sortbuf;         /* n keys */
-        uint32_t *perm = st->adj_start;       /* n old indices (scratch, >= nn + 1) */
+        uint32_t *perm = st->perm;            /* n old indices */
         for (uint32_t i = 0; i < n; ++i) {
             keys[i] = cx->v[st->nbr[i]].key;
             perm[i] = i;
@@ -690,7 +661,6 @@ ms_status ms_cx_gather_general(ms_complex *cx, uint32_t c0, uint32_t c1, ms_cx_s
         st->pairs[w++] = st->pairs[r];
     }
     st->np = w;
-    star_link_pairs(st);
     return MS_OK;
 }
 

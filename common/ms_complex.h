@@ -82,7 +82,17 @@ static inline uint32_t *ms_cx_list(ms_cx_vert *v)
     return v->cap ? v->ext : v->inl;
 }
 
-void ms_cx_list_add(ms_complex *cx, uint32_t s, uint32_t tagged);
+/* Doubles v's list room (moving it off the inline entries); false, with
+ * cx->nomem set, when that fails. */
+bool ms_cx_list_grow(ms_complex *cx, ms_cx_vert *v);
+/* Appends a tagged entry to s's list; on growth failure, cx->nomem. */
+static inline void ms_cx_list_add(ms_complex *cx, uint32_t s, uint32_t tagged)
+{
+    ms_cx_vert *v = &cx->v[s];
+    if (v->n == (v->cap ? v->cap : MS_CX_INLINE) && !ms_cx_list_grow(cx, v))
+        return;
+    ms_cx_list(v)[v->n++] = tagged;
+}
 void ms_cx_list_remove(ms_complex *cx, uint32_t s, uint32_t tagged);
 
 /* Width of a cell at `level` along `axis`, in full-grid units. */
@@ -106,15 +116,21 @@ static inline void ms_cx_corner(const ms_complex *cx, uint32_t s, uint32_t c[3])
         c[a] = ((uint32_t)cx->cen[s][a] - ms_cx_width(cx, level, a)) >> 1;
 }
 
+/* ms_cx_refine_cell with L's axis and the child's width w along it given (a
+ * loop over one level computes them once). */
+static inline void ms_cx_refine_cell_by(ms_complex *cx, uint32_t s, unsigned L, int axis,
+                                        int32_t w, int second)
+{
+    cx->cen[s][axis] += second ? w : -w;
+    cx->cen[s][3] = (int32_t)(L + 1);
+    cx->v[s].level = (uint8_t)(L + 1);
+}
 /* Cell s (at kd-level L) becomes its first or second half along L's axis: level
  * L + 1, centre moved by the child's width. The key is the caller's. */
 static inline void ms_cx_refine_cell(ms_complex *cx, uint32_t s, unsigned L, int second)
 {
     int axis = (int)(L % 3);
-    int32_t w = (int32_t)ms_cx_width(cx, L + 1, axis);
-    cx->cen[s][axis] += second ? w : -w;
-    cx->cen[s][3] = (int32_t)(L + 1);
-    cx->v[s].level = (uint8_t)(L + 1);
+    ms_cx_refine_cell_by(cx, s, L, axis, (int32_t)ms_cx_width(cx, L + 1, axis), second);
 }
 
 /* Inverse of ms_cx_refine_cell: cell s (at L + 1, `second` half) back to L. */
@@ -152,8 +168,7 @@ typedef struct ms_cx_star {
     ms_cx_pair *pairs;    /* triangles with one centre, sorted by (i, j) */
     bool adj01;           /* c0 and c1 adjacent */
     uint32_t edge01;      /* maximal edge (c0,c1) or MS_CX_NONE */
-    /* neighbour adjacency through the pairs (CSR): partners of i */
-    uint32_t *adj_start, *adj_list;
+    uint32_t *perm;       /* scratch */
     uint64_t *sortbuf;
     size_t cap_n, cap_p, cap_sort;
 } ms_cx_star;

@@ -22,25 +22,26 @@
 
 #include "ms_error.h"
 
-/* Adaptive probability: two estimators of P(0) in 1/65536 units, fast and slow. */
+/* Adaptive probability: two estimators of P(0) in 1/65536 units, fast and slow.
+ * Both must start inside [MS_RC_PROB_MIN, MS_RC_PROB_MAX]; the updates then keep
+ * fast inside [15, 65520] and slow inside [127, 65408] (a step moves an estimate
+ * by its distance to the bound >> shift, which is 0 that close), so P(0) =
+ * their mean stays inside [71, 65464]: neither symbol ever becomes impossible,
+ * with no clamp in the coder's inner loop. */
 typedef struct ms_rc_prob {
     uint16_t fast;
     uint16_t slow;
 } ms_rc_prob;
 
 #define MS_RC_PROB_INIT ((ms_rc_prob){32768, 32768})
+#define MS_RC_PROB_MIN 1024
+#define MS_RC_PROB_MAX (65536 - 1024)
 #define MS_RC_FAST_SHIFT 4
 #define MS_RC_SLOW_SHIFT 7
 
 static inline uint32_t ms_rc_p0(const ms_rc_prob *p)
 {
-    uint32_t q = ((uint32_t)p->fast + p->slow) >> 1;
-    /* Keep the estimate strictly inside (0, 65536) so neither symbol is impossible. */
-    if (q < 32)
-        q = 32;
-    else if (q > 65536 - 32)
-        q = 65536 - 32;
-    return q;
+    return ((uint32_t)p->fast + p->slow) >> 1;
 }
 
 static inline void ms_rc_update(ms_rc_prob *p, int bit)

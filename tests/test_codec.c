@@ -95,6 +95,32 @@ static void test_quant_errors(void **state)
 
 /* ---- range coder ---- */
 
+/* From any start inside [MS_RC_PROB_MIN, MS_RC_PROB_MAX], long runs of one
+ * symbol drive both estimates to their fixed points and no further: P(0) stays
+ * inside [71, 65464] / 65536, which is why the coder needs no clamp. */
+static void test_rangecoder_probability_bounds(void **state)
+{
+    (void)state;
+    for (uint32_t start = MS_RC_PROB_MIN; start <= MS_RC_PROB_MAX; start += 1009) {
+        for (int bit = 0; bit < 2; ++bit) {
+            ms_rc_prob p = {(uint16_t)start, (uint16_t)start};
+            for (int i = 0; i < 4000; ++i) {
+                ms_rc_update(&p, bit);
+                uint32_t q = ms_rc_p0(&p);
+                assert_true(q >= 71 && q <= 65464);
+                assert_true(p.fast >= 15 && p.fast <= 65520);
+                assert_true(p.slow >= 127 && p.slow <= 65408);
+            }
+            assert_int_equal(p.fast, bit ? 15 : 65520);
+            assert_int_equal(p.slow, bit ? 127 : 65408);
+            assert_int_equal(ms_rc_p0(&p), bit ? 71 : 65464);
+            /* and a run of the other symbol leaves the fixed point at once */
+            ms_rc_update(&p, !bit);
+            assert_true(bit ? p.fast > 15 : p.fast < 65520);
+        }
+    }
+}
+
 static void test_rangecoder_roundtrip(void **state)
 {
     (void)state;
@@ -665,6 +691,7 @@ int main(void)
         cmocka_unit_test(test_key_interleave),
         cmocka_unit_test(test_weld_counts),
         cmocka_unit_test(test_quant_errors),
+        cmocka_unit_test(test_rangecoder_probability_bounds),
         cmocka_unit_test(test_rangecoder_roundtrip),
         cmocka_unit_test(test_single_triangle),
         cmocka_unit_test(test_two_disjoint_triangles),
