@@ -440,11 +440,13 @@ static ms_status refine_level(ms_codec_decoder *d, ms_error *err)
             ms_cx_refine_cell_by(cx, s, L, axis, child_width, second);
             d->order2[w++] = s;
         }
-        if (d->rc.overrun)
-            return corrupt(d, err, "read past the end of a chunk");
-        if (d->enc && d->src_pos > d->src_n)
-            return ms_error_set(err, MS_ERR_ARG, "encoder: decision stream too short");
     }
+    /* Checked once per level: past the end, the decisions read as zeros and
+     * the work stays bounded by the declared counts until here. */
+    if (d->rc.overrun)
+        return corrupt(d, err, "read past the end of a chunk");
+    if (d->enc && d->src_pos > d->src_n)
+        return ms_error_set(err, MS_ERR_ARG, "encoder: decision stream too short");
     uint32_t *t = d->order;
     d->order = d->order2;
     d->order2 = t;

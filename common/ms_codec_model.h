@@ -129,10 +129,15 @@ static inline unsigned geo_bucket(int64_t sum, int64_t n, int64_t wp, int64_t pl
         return GEO_DIST;
     int64_t diff = sum - n * plane2;
     int64_t unit = n * wp;
-    int64_t a = 8 * (diff < 0 ? -diff : diff);
-    /* number of thresholds unit * {1, 2, 4, 8, 16, 32} reached (branch-free) */
-    unsigned m = (unsigned)(a >= unit) + (a >= 2 * unit) + (a >= 4 * unit) + (a >= 8 * unit) +
-                 (a >= 16 * unit) + (a >= 32 * unit);
+    uint64_t a = 8 * (uint64_t)(diff < 0 ? -diff : diff), u = (uint64_t)unit;
+    /* m = number of thresholds u * {1, 2, 4, 8, 16, 32} that a reaches: with
+     * r = floor(log2(a / u)) from the leading bits, m = min(r + 1, 6) */
+    unsigned m = 0;
+    if (a >= u) {
+        unsigned r = (unsigned)(__builtin_clzll(u) - __builtin_clzll(a));
+        r -= a < (u << r);
+        m = r < 5 ? r + 1 : 6;
+    }
     return diff < 0 ? 6 - m : 7 + m;
 }
 

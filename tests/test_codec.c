@@ -9,6 +9,7 @@
 #include <cmocka.h>
 
 #include "ms_codec.h"
+#include "ms_codec_model.h"
 #include "support/ms_codec_check.h"
 #include "ms_quant.h"
 #include "ms_rangecoder.h"
@@ -91,6 +92,58 @@ static void test_quant_errors(void **state)
     m.triangles[1] = 9;
     assert_int_equal(ms_quantise_mesh(&m, 12, &q, NULL, &err), MS_ERR_RANGE);
     ms_mesh_free(&m);
+}
+
+/* ---- contexts ---- */
+
+/* The "which half" bucket: the centroid's offset from the split plane in child
+ * cells, |offset| against 1/8, 1/4, 1/2, 1, 2, 4 (format, docs/CODEC.md §4),
+ * checked at every threshold and either side of it, for several widths and
+ * neighbour counts, against the definition written out. */
+static unsigned bucket_by_definition(int64_t diff, int64_t unit)
+{
+    int64_t a = 8 * (diff < 0 ? -diff : diff);
+    unsigned m = 0;
+    for (int64_t t = unit; t <= 32 * unit; t *= 2)
+        m += a >= t;
+    return diff < 0 ? 6 - m : 7 + m;
+}
+
+static void test_geo_bucket_thresholds(void **state)
+{
+    (void)state;
+    const int64_t widths[] = {1, 2, 8, 1 << 20};
+    const int64_t counts[] = {1, 2, 3, 7, 1000};
+    unsigned seen[GEO_BUCKETS] = {0};
+    for (size_t wi = 0; wi < sizeof widths / sizeof *widths; ++wi) {
+        for (size_t ni = 0; ni < sizeof counts / sizeof *counts; ++ni) {
+            int64_t wp = widths[wi], n = counts[ni], plane2 = 4 * wp + 6;
+            for (int64_t t = n * wp; t <= 64 * n * wp; t *= 2) {
+                /* offsets around the threshold t / 8 of a*8 = t, both signs */
+                for (int64_t e = -2; e <= 2; ++e) {
+                    for (int sign = -1; sign <= 1; sign += 2) {
+                        int64_t diff = sign * (t / 8 + e);
+                        int64_t sum = diff + n * plane2;
+                        unsigned b = geo_bucket(sum, n, wp, plane2);
+                        assert_int_equal(b, bucket_by_definition(diff, n * wp));
+                        seen[b]++;
+                    }
+                }
+            }
+        }
+    }
+    for (unsigned b = 0; b < GEO_DIST; ++b)
+        assert_true(seen[b] > 0); /* every bucket but "no neighbour" reached */
+    assert_int_equal(geo_bucket(12345, 0, 8, 77), GEO_DIST);
+    /* exact values, one neighbour, cell width 8 (child 4 grid units, 8 in the
+     * doubled units of centres): on the plane 7; half a child cell above 7 + 3
+     * (1/8, 1/4, 1/2 reached), one child cell above 7 + 4, below 6 - 4 */
+    assert_int_equal(geo_bucket(100, 1, 8, 100), 7);
+    assert_int_equal(geo_bucket(104, 1, 8, 100), 10);
+    assert_int_equal(geo_bucket(108, 1, 8, 100), 11);
+    assert_int_equal(geo_bucket(92, 1, 8, 100), 2);
+    assert_int_equal(geo_bucket(100 + 1000, 1, 8, 100), 13);
+    assert_int_equal(geo_bucket(100 - 1000, 1, 8, 100), 0);
 }
 
 /* ---- range coder ---- */
@@ -691,6 +744,7 @@ int main(void)
         cmocka_unit_test(test_key_interleave),
         cmocka_unit_test(test_weld_counts),
         cmocka_unit_test(test_quant_errors),
+        cmocka_unit_test(test_geo_bucket_thresholds),
         cmocka_unit_test(test_rangecoder_probability_bounds),
         cmocka_unit_test(test_rangecoder_roundtrip),
         cmocka_unit_test(test_single_triangle),
