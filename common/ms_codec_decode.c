@@ -197,7 +197,10 @@ static void drop_moved_triangles(ms_complex *cx, uint32_t s)
     v->n = w;
 }
 
-/* Splits cell s (level L) in two after a "both" symbol. */
+/* Splits cell s (level L) in two after a "both" symbol. The per-neighbour and
+ * per-triangle arrays are read through restrict locals: they are distinct
+ * allocations, and without that every byte store would make the compiler
+ * reload every bound and base pointer. */
 static ms_status split(ms_codec_decoder *d, uint32_t s, unsigned L, uint32_t *out2, ms_error *err)
 {
     ms_complex *cx = &d->cx;
@@ -206,69 +209,75 @@ static ms_status split(ms_codec_decoder *d, uint32_t s, unsigned L, uint32_t *ou
     ms_status r = ms_cx_gather(cx, s, MS_CX_NONE, st, err);
     if (r != MS_OK)
         return r;
-    if (!code_room(d, st->nn + 1, st->np + 1))
+    const uint32_t nn = st->nn, np = st->np;
+    if (!code_room(d, nn + 1, np + 1))
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory decoding a split");
+    const uint32_t *restrict nbr = st->nbr;
+    const ms_cx_pair *restrict pairs = st->pairs;
+    uint8_t *restrict code = d->code, *restrict side = d->side, *restrict cov = d->cov;
+    uint8_t *restrict partners = d->partners, *restrict tcode = d->tcode;
+    int32_t *restrict vote = d->vote;
     int axis = (int)(L % 3);
     int64_t wp = ms_cx_width(cx, L, axis);
     int64_t plane2 = cx->cen[s][axis]; /* s is at level L: its centre is the plane */
-    int e12 = dbit(d, &m[e12_ctx(st->nn)]);
+    int e12 = dbit(d, &m[e12_ctx(nn)]);
     uint32_t n4 = 0;
     unsigned nboth = 0;
     /* pairs are sorted by their smaller index i: once x_i has its code, the
      * pairs from pp on with that i tell its later partners */
     uint32_t pp = 0;
-    memset(d->partners, 0, st->nn);
-    for (uint32_t i = 0; i < st->nn; ++i) {
-        unsigned side = conn_side(cx, st->nbr[i], axis, plane2, wp);
-        unsigned af = d->partners[i];
+    memset(partners, 0, nn);
+    for (uint32_t i = 0; i < nn; ++i) {
+        unsigned sd = conn_side(cx, nbr[i], axis, plane2, wp);
+        unsigned af = partners[i];
         uint8_t c;
-        if (dbit(d, &m[C_EA + ((side * ADJS + af) * 2 + (unsigned)e12) * 3 +
-                                     (nboth < 2 ? nboth : 2)])) {
+        if (dbit(d, &m[C_EA + ((sd * ADJS + af) * 2 + (unsigned)e12) * 3 +
+                         (nboth < 2 ? nboth : 2)])) {
             c = 3;
             nboth++;
-            if (e12 && dbit(d, &m[C_EC + side * ADJS + af]))
+            if (e12 && dbit(d, &m[C_EC + sd * ADJS + af]))
                 c = 4;
         } else {
-            c = dbit(d, &m[C_EB + side * ADJS + af]) ? 2 : 1;
+            c = dbit(d, &m[C_EB + sd * ADJS + af]) ? 2 : 1;
         }
-        d->side[i] = (uint8_t)side;
-        d->code[i] = c;
-        d->cov[i] = 0;
-        d->vote[i] = 0;
+        side[i] = (uint8_t)sd;
+        code[i] = c;
+        cov[i] = 0;
+        vote[i] = 0;
         n4 += c == 4;
-        for (; pp < st->np && st->pairs[pp].i == i; ++pp)
-            d->partners[st->pairs[pp].j] |= (uint8_t)partner_flag(c);
+        for (; pp < np && pairs[pp].i == i; ++pp)
+            partners[pairs[pp].j] |= (uint8_t)partner_flag(c);
     }
     uint32_t n3 = 0;
-    for (uint32_t p = 0; p < st->np; ++p) {
-        const ms_cx_pair *pr = &st->pairs[p];
-        uint8_t ci = d->code[pr->i], cj = d->code[pr->j];
+    for (uint32_t p = 0; p < np; ++p) {
+        uint32_t pi = pairs[p].i, pj = pairs[p].j;
+        uint8_t ci = code[pi], cj = code[pj];
         uint8_t t;
         if (ci < 3 || cj < 3) {
             if (ci < 3 && cj < 3 && ci != cj)
                 return corrupt(d, err, "triangle between edges of different halves");
             t = ci < 3 ? ci : cj;
         } else {
-            unsigned idx = (unsigned)((ci == 4) + (cj == 4)) * 4 + (d->side[pr->i] >= SIDES / 2) * 2 +
-                           (d->side[pr->j] >= SIDES / 2);
+            unsigned idx = (unsigned)((ci == 4) + (cj == 4)) * 4 + (side[pi] >= SIDES / 2) * 2 +
+                           (side[pj] >= SIDES / 2);
             if (dbit(d, &m[C_TA + idx]))
                 t = 3;
             else
                 t = dbit(d, &m[C_TB + idx]) ? 2 : 1;
         }
-        d->tcode[p] = t;
+        tcode[p] = t;
         n3 += t == 3;
-        d->cov[pr->i] |= t;
-        d->cov[pr->j] |= t;
+        cov[pi] |= t;
+        cov[pj] |= t;
     }
-    ms_cx_vert *v = &cx->v[s];
     /* Maximal edges of s are rebuilt below. */
     {
+        ms_cx_vert *v = &cx->v[s];
         uint32_t *l = ms_cx_list(v);
         for (uint32_t i = 0; i < v->n;) {
             if (l[i] & 1) {
                 ms_cx_del_edge(cx, l[i] >> 1);
-                l = ms_cx_list(&cx->v[s]);
+                l = ms_cx_list(v);
                 continue;
             }
             ++i;
@@ -276,79 +285,76 @@ static ms_status split(ms_codec_decoder *d, uint32_t s, unsigned L, uint32_t *ou
     }
     /* Room for everything this split creates (within the declared sizes). */
     uint32_t ne_new = e12 && n4 == 0;
-    for (uint32_t i = 0; i < st->nn; ++i) {
-        uint8_t c = d->code[i];
-        ne_new += (c == 1 || c == 3) && !(d->cov[i] & 1);
-        ne_new += (c == 2 || c == 3) && !(d->cov[i] & 2);
+    for (uint32_t i = 0; i < nn; ++i) {
+        uint8_t c = code[i];
+        ne_new += (c == 1 || c == 3) && !(cov[i] & 1);
+        ne_new += (c == 2 || c == 3) && !(cov[i] & 2);
     }
     if ((r = ms_cx_reserve(cx, 1, n3 + n4, ne_new, err)) != MS_OK) {
         d->broken = true;
         return r;
     }
-    v = &cx->v[s];
-    if (!push_birth(d, L, v->birth))
+    if (!push_birth(d, L, cx->v[s].birth))
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory decoding a split");
     uint32_t c2[3];
     ms_cx_corner(cx, s, c2);
     c2[axis] += (uint32_t)(wp / 2);
-    uint64_t key2 = v->key | (1ull << (d->D - L - 1));
+    uint64_t key2 = cx->v[s].key | (1ull << (d->D - L - 1));
     uint32_t s2 = ms_cx_add_vertex(cx, key2, L + 1, c2);
     ms_cx_refine_cell(cx, s, L, 0);
     cx->v[s].birth = (uint8_t)(L + 1);
     cx->v[s2].birth = (uint8_t)(L + 1);
     uint32_t moved = 0; /* triangles handed to s2, taken off s's list in one pass */
-    for (uint32_t p = 0; p < st->np; ++p) {
-        const ms_cx_pair *pr = &st->pairs[p];
-        uint32_t t = pr->t0;
-        int same = d->tcode[p] == 3 ? dbit(d, &m[C_O3]) : 0;
-        if (n4 && (d->code[pr->i] == 4 || d->code[pr->j] == 4)) {
+    for (uint32_t p = 0; p < np; ++p) {
+        uint32_t pi = pairs[p].i, pj = pairs[p].j, t = pairs[p].t0;
+        uint8_t tc = tcode[p];
+        int same = tc == 3 ? dbit(d, &m[C_O3]) : 0;
+        uint32_t *x = cx->tri[t];
+        if (n4 && (code[pi] == 4 || code[pj] == 4)) {
             /* the votes this triangle and its copy will cast, as orient_votes
              * would count them on the lists of s and s2 after the split: kept
              * on s +o, moved to s2 -o, duplicated with the same cyclic order 0
              * (the copies cancel), with the opposite one +2o */
-            int w = d->tcode[p] == 1 ? 1 : d->tcode[p] == 2 ? -1 : same ? 0 : 2;
-            int o = ms_cx_orient(cx, t, s, st->nbr[pr->i]); /* the other one: -o */
-            d->vote[pr->i] += w * o;
-            d->vote[pr->j] -= w * o;
+            int w = tc == 1 ? 1 : tc == 2 ? -1 : same ? 0 : 2;
+            int o = ms_cx_orient(cx, t, s, nbr[pi]); /* the other one: -o */
+            vote[pi] += w * o;
+            vote[pj] -= w * o;
         }
-        if (d->tcode[p] == 2) {
-            for (int k = 0; k < 3; ++k)
-                if (cx->tri[t][k] == s)
-                    cx->tri[t][k] = s2;
-            ms_cx_list_add(cx, s2, t << 1);
-            moved++;
-        } else if (d->tcode[p] == 3) {
-            uint32_t x[3] = {cx->tri[t][0], cx->tri[t][1], cx->tri[t][2]};
+        if (tc == 2) {
             for (int k = 0; k < 3; ++k)
                 if (x[k] == s)
                     x[k] = s2;
+            ms_cx_list_add(cx, s2, t << 1);
+            moved++;
+        } else if (tc == 3) {
+            uint32_t y[3] = {x[0], x[1], x[2]};
+            for (int k = 0; k < 3; ++k)
+                if (y[k] == s)
+                    y[k] = s2;
             if (same)
-                ms_cx_add_tri(cx, x[0], x[1], x[2]);
+                ms_cx_add_tri(cx, y[0], y[1], y[2]);
             else
-                ms_cx_add_tri(cx, x[0], x[2], x[1]);
+                ms_cx_add_tri(cx, y[0], y[2], y[1]);
         }
     }
     if (moved)
         drop_moved_triangles(cx, s);
-    for (uint32_t i = 0; i < st->nn; ++i) {
-        if (d->code[i] != 4)
+    for (uint32_t i = 0; i < nn; ++i) {
+        if (code[i] != 4)
             continue;
-        uint32_t x = st->nbr[i];
-        int vote = d->vote[i];
-        int pred = vote >= 0 ? 1 : -1;
-        int flip = dbit(d, &m[o4_ctx(vote)]);
+        int pred = vote[i] >= 0 ? 1 : -1;
+        int flip = dbit(d, &m[o4_ctx(vote[i])]);
         if ((flip ? -pred : pred) > 0)
-            ms_cx_add_tri(cx, s, s2, x);
+            ms_cx_add_tri(cx, s, s2, nbr[i]);
         else
-            ms_cx_add_tri(cx, s2, s, x);
+            ms_cx_add_tri(cx, s2, s, nbr[i]);
     }
-    for (uint32_t i = 0; i < st->nn; ++i) {
-        uint8_t c = d->code[i];
-        uint32_t x = st->nbr[i];
-        if ((c == 1 || c == 3) && !(d->cov[i] & 1))
-            ms_cx_add_edge(cx, s, x);
-        if ((c == 2 || c == 3) && !(d->cov[i] & 2))
-            ms_cx_add_edge(cx, s2, x);
+    for (uint32_t i = 0; i < nn; ++i) {
+        uint8_t c = code[i];
+        if ((c == 1 || c == 3) && !(cov[i] & 1))
+            ms_cx_add_edge(cx, s, nbr[i]);
+        if ((c == 2 || c == 3) && !(cov[i] & 2))
+            ms_cx_add_edge(cx, s2, nbr[i]);
     }
     if (e12 && n4 == 0)
         ms_cx_add_edge(cx, s, s2);
