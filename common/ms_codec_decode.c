@@ -189,7 +189,7 @@ static void drop_moved_triangles(ms_complex *cx, uint32_t s)
         bool keep = l[i] & 1;
         if (!keep) {
             const uint32_t *t = cx->tri[l[i] >> 1];
-            keep = t[0] == s || t[1] == s || t[2] == s;
+            keep = (t[0] == s) | (t[1] == s) | (t[2] == s); /* no short circuit */
         }
         if (keep)
             l[w++] = l[i];
@@ -284,11 +284,13 @@ static ms_status split(ms_codec_decoder *d, uint32_t s, unsigned L, uint32_t *ou
         }
     }
     /* Room for everything this split creates (within the declared sizes). */
+    /* x needs a maximal edge to s when its code holds s (1, 3: bit 0) and no
+     * triangle of s covers it (cov bit 0), to s2 likewise with bit 1 (2, 3;
+     * code 4 has neither bit, its triangle covers both) */
     uint32_t ne_new = e12 && n4 == 0;
     for (uint32_t i = 0; i < nn; ++i) {
-        uint8_t c = code[i];
-        ne_new += (c == 1 || c == 3) && !(cov[i] & 1);
-        ne_new += (c == 2 || c == 3) && !(cov[i] & 2);
+        unsigned bare = code[i] & ~cov[i];
+        ne_new += (bare & 1) + ((bare >> 1) & 1);
     }
     if ((r = ms_cx_reserve(cx, 1, n3 + n4, ne_new, err)) != MS_OK) {
         d->broken = true;
@@ -310,11 +312,12 @@ static ms_status split(ms_codec_decoder *d, uint32_t s, unsigned L, uint32_t *ou
         uint8_t tc = tcode[p];
         int same = tc == 3 ? dbit(d, &m[C_O3]) : 0;
         uint32_t *x = cx->tri[t];
-        if (n4 && (code[pi] == 4 || code[pj] == 4)) {
+        if (n4) {
             /* the votes this triangle and its copy will cast, as orient_votes
              * would count them on the lists of s and s2 after the split: kept
              * on s +o, moved to s2 -o, duplicated with the same cyclic order 0
-             * (the copies cancel), with the opposite one +2o */
+             * (the copies cancel), with the opposite one +2o. Cast for every
+             * pair (only code-4 neighbours read them): cheaper than testing. */
             int w = tc == 1 ? 1 : tc == 2 ? -1 : same ? 0 : 2;
             int o = ms_cx_orient(cx, t, s, nbr[pi]); /* the other one: -o */
             vote[pi] += w * o;
@@ -350,11 +353,13 @@ static ms_status split(ms_codec_decoder *d, uint32_t s, unsigned L, uint32_t *ou
             ms_cx_add_tri(cx, s2, s, nbr[i]);
     }
     for (uint32_t i = 0; i < nn; ++i) {
-        uint8_t c = code[i];
-        if ((c == 1 || c == 3) && !(cov[i] & 1))
-            ms_cx_add_edge(cx, s, nbr[i]);
-        if ((c == 2 || c == 3) && !(cov[i] & 2))
-            ms_cx_add_edge(cx, s2, nbr[i]);
+        unsigned bare = code[i] & ~cov[i];
+        if (bare & 3) { /* rare: most neighbours share a triangle with both */
+            if (bare & 1)
+                ms_cx_add_edge(cx, s, nbr[i]);
+            if (bare & 2)
+                ms_cx_add_edge(cx, s2, nbr[i]);
+        }
     }
     if (e12 && n4 == 0)
         ms_cx_add_edge(cx, s, s2);

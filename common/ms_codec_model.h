@@ -33,7 +33,8 @@
 /* Degree bucket of a cell for the "both halves?" bit: its incident simplex count. */
 static inline unsigned geo_deg(const ms_cx_vert *v)
 {
-    return v->n <= 4 ? 0 : v->n <= 6 ? 1 : v->n <= 8 ? 2 : 3;
+    /* 0 (<= 4), 1 (<= 6), 2 (<= 8), 3: counted, not branched on */
+    return (unsigned)(v->n > 4) + (v->n > 6) + (v->n > 8);
 }
 
 /* Connectivity, offsets from the connectivity base. */
@@ -146,9 +147,11 @@ static inline unsigned conn_side(const ms_complex *cx, uint32_t x, int axis, int
                                  int64_t wp)
 {
     int64_t d = 2 * (ms_cx_centre2(cx, x, axis) - plane2);
-    if (d < 0)
-        return d <= -4 * wp ? 0 : d <= -2 * wp ? 1 : d <= -wp ? 2 : 3;
-    return d < wp ? 4 : d < 2 * wp ? 5 : d < 4 * wp ? 6 : 7;
+    /* below: 0 (<= -4 wp), 1 (<= -2 wp), 2 (<= -wp), 3; above: 4 (< wp), 5
+     * (< 2 wp), 6 (< 4 wp), 7; thresholds counted, not branched on */
+    unsigned below = 3 - (unsigned)((d <= -wp) + (d <= -2 * wp) + (d <= -4 * wp));
+    unsigned above = 4 + (unsigned)((d >= wp) + (d >= 2 * wp) + (d >= 4 * wp));
+    return d < 0 ? below : above;
 }
 
 static inline unsigned e12_ctx(uint32_t nn)

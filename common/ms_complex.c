@@ -385,13 +385,15 @@ static inline uint32_t star_touch(ms_complex *cx, ms_cx_star *st, uint32_t s)
  * usual handful of neighbours). */
 static inline uint32_t small_star_touch(ms_cx_star *st, uint32_t s)
 {
-    /* no early exit: where a neighbour is found is unpredictable, the loop
-     * length is not */
-    uint32_t found = st->nn;
-    for (uint32_t i = 0; i < st->nn; ++i)
+    /* no early exit and no branch on the outcome: where a neighbour is found,
+     * and whether it is new, are unpredictable; the loop length is not. The
+     * candidate is written past the end either way (room: star_room's
+     * 2 * MS_CX_SMALL_STAR + 2) and kept when new. */
+    uint32_t n = st->nn, found = n;
+    for (uint32_t i = 0; i < n; ++i)
         found = st->nbr[i] == s ? i : found;
-    if (found == st->nn)
-        st->nbr[st->nn++] = s;
+    st->nbr[n] = s;
+    st->nn = n + (found == n);
     return found;
 }
 
@@ -412,8 +414,10 @@ static void gather_small(ms_complex *cx, uint32_t c0, ms_cx_star *st)
             continue;
         }
         const uint32_t *t = cx->tri[id];
-        uint32_t a = t[0] == c0 ? t[1] : t[0];
-        uint32_t b = t[2] == c0 ? t[1] : t[2];
+        /* the two corners other than c0, selected by masks (no branch) */
+        uint32_t m0 = 0u - (uint32_t)(t[0] == c0), m2 = 0u - (uint32_t)(t[2] == c0);
+        uint32_t a = (t[1] & m0) | (t[0] & ~m0);
+        uint32_t b = (t[1] & m2) | (t[2] & ~m2);
         pi[np] = small_star_touch(st, a);
         pj[np] = small_star_touch(st, b);
         pt[np++] = id;
@@ -427,40 +431,36 @@ static void gather_small(ms_complex *cx, uint32_t c0, ms_cx_star *st)
          * it lies inside the cell's key range there as the corner's does here,
          * so distinct (disjoint) cells sort as their keys do */
         const int32_t *c = cx->cen[st->nbr[i]];
-        uint64_t k = ms_quant_key((uint32_t)c[0], (uint32_t)c[1], (uint32_t)c[2], cx->P + 1);
-        uint32_t j = i;
-        while (j > 0 && key[j - 1] > k) {
-            key[j] = key[j - 1];
-            perm[j] = perm[j - 1];
-            --j;
-        }
-        key[j] = k;
-        perm[j] = i;
+        key[i] = ms_quant_key((uint32_t)c[0], (uint32_t)c[1], (uint32_t)c[2], cx->P + 1);
+    }
+    /* rank by counting (keys are distinct): comparisons without branches,
+     * where an insertion sort mispredicts about once per neighbour */
+    for (uint32_t i = 0; i < n; ++i) {
+        uint32_t r = 0;
+        for (uint32_t j = 0; j < n; ++j)
+            r += key[j] < key[i];
+        rank[i] = r;
+        perm[r] = i;
     }
     memcpy(slot, st->nbr, (size_t)n * sizeof *slot);
     for (uint32_t i = 0; i < n; ++i) {
         st->nbr[i] = slot[perm[i]];
         st->adj[i] = 1;
         st->both[i] = MS_CX_NONE;
-        rank[perm[i]] = i;
     }
     /* pairs sorted by (i, j); a repeated pair (a duplicate triangle) keeps the
      * later triangle, as the general gather does */
-    uint64_t pk[MS_CX_SMALL_STAR];
+    uint64_t x[MS_CX_SMALL_STAR], pk[MS_CX_SMALL_STAR];
     for (uint32_t p = 0; p < np; ++p) {
         uint32_t i = rank[pi[p]], j = rank[pj[p]];
-        if (i > j) {
-            uint32_t tmp = i;
-            i = j;
-            j = tmp;
-        }
-        uint64_t x = (uint64_t)i << 40 | (uint64_t)j << 20 | p;
-        uint32_t q = p;
-        while (q > 0 && pk[q - 1] > x) {
-            pk[q] = pk[q - 1];
-            --q;
-        }
-        pk[q] = x;
+        uint32_t lo = i < j ? i : j, hi = i < j ? j : i;
+        x[p] = (uint64_t)lo << 40 | (uint64_t)hi << 20 | p; /* distinct: p */
+    }
+    for (uint32_t p = 0; p < np; ++p) { /* ranked by counting, as above */
+        uint32_t r = 0;
+        for (uint32_t q = 0; q < np; ++q)
+            r += x[q] < x[p];
+        pk[r] = x[p];
     }
     uint32_t w = 0;
     for (uint32_t r = 0; r < np; ++r) {

@@ -148,9 +148,10 @@ static inline void ms_cx_coarsen_cell(ms_complex *cx, uint32_t s, unsigned L, in
 static inline int ms_cx_orient(const ms_complex *cx, uint32_t t, uint32_t a, uint32_t b)
 {
     const uint32_t *x = cx->tri[t];
-    if ((x[0] == a && x[1] == b) || (x[1] == a && x[2] == b) || (x[2] == a && x[0] == b))
-        return 1;
-    return -1;
+    /* bitwise, not short-circuit: which corner holds a is unpredictable */
+    int fwd = ((x[0] == a) & (x[1] == b)) | ((x[1] == a) & (x[2] == b)) |
+              ((x[2] == a) & (x[0] == b));
+    return 2 * fwd - 1;
 }
 
 /* The star of one or two centre vertices, canonically ordered. */
