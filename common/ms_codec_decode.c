@@ -53,11 +53,9 @@ struct ms_codec_decoder {
     bool broken;
 };
 
-/* One binary decision: decoded, or (encode mode) taken from src and coded. */
-static inline __attribute__((always_inline)) int dbit(ms_codec_decoder *d, ms_rc_prob *p)
+/* Encode mode: the next decision taken from src, counted and coded. */
+static int dbit_encode(ms_codec_decoder *d, ms_rc_prob *p)
 {
-    if (!d->enc)
-        return ms_rc_decode(&d->rc, p);
     int bit = 0;
     if (d->src_pos < d->src_n)
         bit = d->src[d->src_pos];
@@ -66,6 +64,18 @@ static inline __attribute__((always_inline)) int dbit(ms_codec_decoder *d, ms_rc
         d->train[2 * ms_prior_index((uint32_t)(p - d->model), d->D) + (unsigned)bit]++;
     ms_rc_encode(d->enc, p, bit);
     return bit;
+}
+
+/* One binary decision: decoded, or (encode mode) taken from src and coded. */
+static inline __attribute__((always_inline)) int dbit(ms_codec_decoder *d, ms_rc_prob *p)
+{
+    return d->enc ? dbit_encode(d, p) : ms_rc_decode(&d->rc, p);
+}
+
+/* dbit for a decision close to a coin toss (ms_rc_decode_unpredictable). */
+static inline __attribute__((always_inline)) int dbit_coin(ms_codec_decoder *d, ms_rc_prob *p)
+{
+    return d->enc ? dbit_encode(d, p) : ms_rc_decode_unpredictable(&d->rc, p);
 }
 
 unsigned ms_codec_decoder_level(const ms_codec_decoder *d) { return d->level; }
@@ -445,9 +455,8 @@ static ms_status refine_level(ms_codec_decoder *d, ms_error *err)
             int64_t n;
             int64_t sum = geo_sum(cx, s, axis, &n);
             unsigned b = geo_bucket(sum, n, width, cx->cen[s][axis]);
-            int second = dbit(d, &d->model[GEO_HALF(L, run, b)]);
-            if (second)
-                v->key |= bit;
+            int second = dbit_coin(d, &d->model[GEO_HALF(L, run, b)]);
+            v->key |= bit & (0 - (uint64_t)second); /* no branch: a coin toss, nearly */
             ms_cx_refine_cell_by(cx, s, L, axis, child_width, second);
             d->order2[w++] = s;
         }

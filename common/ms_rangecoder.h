@@ -129,6 +129,27 @@ static inline int ms_rc_decode(ms_rc_decoder *d, ms_rc_prob *p)
     return bit;
 }
 
+/* ms_rc_decode for a decision close to a coin toss: the same arithmetic with
+ * no branch on the decoded bit, which a predictor would miss half the time. */
+static inline int ms_rc_decode_unpredictable(ms_rc_decoder *d, ms_rc_prob *p)
+{
+    uint32_t bound = (d->range >> 16) * ms_rc_p0(p);
+    uint32_t bit = d->code >= bound;
+    uint32_t ones = 0u - bit;
+    d->code -= bound & ones;
+    d->range = (bound & ~ones) | ((d->range - bound) & ones);
+    uint32_t f = p->fast, s = p->slow;
+    uint32_t f0 = f + ((65535u - f) >> MS_RC_FAST_SHIFT), f1 = f - (f >> MS_RC_FAST_SHIFT);
+    uint32_t s0 = s + ((65535u - s) >> MS_RC_SLOW_SHIFT), s1 = s - (s >> MS_RC_SLOW_SHIFT);
+    p->fast = (uint16_t)((f0 & ~ones) | (f1 & ones));
+    p->slow = (uint16_t)((s0 & ~ones) | (s1 & ones));
+    while (d->range < (1u << 24)) {
+        d->range <<= 8;
+        d->code = (d->code << 8) | ms_rc_next_byte(d);
+    }
+    return (int)bit;
+}
+
 /* True when the chunk was consumed exactly and nothing was read past its end. */
 static inline int ms_rc_decoder_clean_end(const ms_rc_decoder *d)
 {

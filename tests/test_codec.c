@@ -174,6 +174,51 @@ static void test_rangecoder_probability_bounds(void **state)
     }
 }
 
+/* The branch-free decode is the same coder: same bits, same probabilities,
+ * same position, on skewed and on even decisions. */
+static void test_rangecoder_unpredictable_decode(void **state)
+{
+    (void)state;
+    ms_rc_encoder e;
+    ms_rc_encoder_init(&e);
+    ms_rc_prob p[3] = {MS_RC_PROB_INIT, MS_RC_PROB_INIT, {60000, 61000}};
+    uint32_t x = 777;
+    enum { N = 200000 };
+    for (int i = 0; i < N; ++i) {
+        x = x * 1103515245u + 12345u;
+        int ctx = i % 3;
+        int bit = ((x >> 16) % 100) < (unsigned)(ctx == 0 ? 50 : ctx == 1 ? 10 : 97);
+        ms_rc_encode(&e, &p[ctx], bit);
+    }
+    ms_rc_encoder_flush(&e);
+    assert_false(e.failed);
+    ms_rc_prob a[3] = {MS_RC_PROB_INIT, MS_RC_PROB_INIT, {60000, 61000}};
+    ms_rc_prob b[3] = {MS_RC_PROB_INIT, MS_RC_PROB_INIT, {60000, 61000}};
+    ms_rc_decoder da, db;
+    ms_rc_decoder_init(&da, e.buf, e.size);
+    ms_rc_decoder_init(&db, e.buf, e.size);
+    x = 777;
+    unsigned ones = 0;
+    for (int i = 0; i < N; ++i) {
+        x = x * 1103515245u + 12345u;
+        int ctx = i % 3;
+        int bit = ((x >> 16) % 100) < (unsigned)(ctx == 0 ? 50 : ctx == 1 ? 10 : 97);
+        int ba = ms_rc_decode(&da, &a[ctx]);
+        int bb = ms_rc_decode_unpredictable(&db, &b[ctx]);
+        assert_int_equal(ba, bit);
+        assert_int_equal(bb, bit);
+        assert_int_equal(da.range, db.range);
+        assert_int_equal(da.code, db.code);
+        assert_int_equal(a[ctx].fast, b[ctx].fast);
+        assert_int_equal(a[ctx].slow, b[ctx].slow);
+        ones += (unsigned)bb;
+    }
+    assert_true(ms_rc_decoder_clean_end(&db));
+    assert_int_equal(da.pos, db.pos);
+    assert_true(ones > N / 3 && ones < 2 * N / 3); /* both symbols decoded often */
+    ms_rc_encoder_free(&e);
+}
+
 static void test_rangecoder_roundtrip(void **state)
 {
     (void)state;
@@ -747,6 +792,7 @@ int main(void)
         cmocka_unit_test(test_geo_bucket_thresholds),
         cmocka_unit_test(test_rangecoder_probability_bounds),
         cmocka_unit_test(test_rangecoder_roundtrip),
+        cmocka_unit_test(test_rangecoder_unpredictable_decode),
         cmocka_unit_test(test_single_triangle),
         cmocka_unit_test(test_two_disjoint_triangles),
         cmocka_unit_test(test_nonmanifold_edge_four_triangles),
