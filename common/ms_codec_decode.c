@@ -37,6 +37,7 @@ struct ms_codec_decoder {
     uint8_t *code, *side, *cov;
     uint8_t *partners;      /* per neighbour: partner_flag of its partners coded so far */
     int32_t *vote;          /* per neighbour: orientation votes around it (orient_votes) */
+    uint32_t *pivot;        /* the neighbours with code 4, in order */
     uint8_t *tcode;
     size_t cap_code, cap_tcode;
     uint32_t compact_nv;    /* slots in use after the last compaction */
@@ -107,6 +108,7 @@ void ms_codec_decoder_destroy(ms_codec_decoder *d)
     free(d->cov);
     free(d->partners);
     free(d->vote);
+    free(d->pivot);
     free(d->tcode);
     free(d);
 }
@@ -173,7 +175,10 @@ static int code_room(ms_codec_decoder *d, size_t n, size_t np)
         int32_t *vt = realloc(d->vote, c * sizeof *vt);
         if (vt)
             d->vote = vt;
-        if (!a || !b || !cv || !pf || !vt)
+        uint32_t *pv = realloc(d->pivot, c * sizeof *pv);
+        if (pv)
+            d->pivot = pv;
+        if (!a || !b || !cv || !pf || !vt || !pv)
             return 0;
         d->cap_code = c;
     }
@@ -201,8 +206,8 @@ static void drop_moved_triangles(ms_complex *cx, uint32_t s)
             const uint32_t *t = cx->tri[l[i] >> 1];
             keep = (t[0] == s) | (t[1] == s) | (t[2] == s); /* no short circuit */
         }
-        if (keep)
-            l[w++] = l[i];
+        l[w] = l[i]; /* kept or overwritten next: no branch on keep */
+        w += keep;
     }
     v->n = w;
 }
@@ -227,6 +232,7 @@ static ms_status split(ms_codec_decoder *d, uint32_t s, unsigned L, uint32_t *ou
     uint8_t *restrict code = d->code, *restrict side = d->side, *restrict cov = d->cov;
     uint8_t *restrict partners = d->partners, *restrict tcode = d->tcode;
     int32_t *restrict vote = d->vote;
+    uint32_t *restrict pivot = d->pivot;
     int axis = (int)(L % 3);
     int64_t wp = ms_cx_width(cx, L, axis);
     int64_t plane2 = cx->cen[s][axis]; /* s is at level L: its centre is the plane */
@@ -254,6 +260,7 @@ static ms_status split(ms_codec_decoder *d, uint32_t s, unsigned L, uint32_t *ou
         code[i] = c;
         cov[i] = 0;
         vote[i] = 0;
+        pivot[n4] = i; /* kept when code 4 */
         n4 += c == 4;
         for (; pp < np && pairs[pp].i == i; ++pp)
             partners[pairs[pp].j] |= (uint8_t)partner_flag(c);
@@ -333,13 +340,15 @@ static ms_status split(ms_codec_decoder *d, uint32_t s, unsigned L, uint32_t *ou
             vote[pi] += w * o;
             vote[pj] -= w * o;
         }
-        if (tc == 2) {
-            for (int k = 0; k < 3; ++k)
-                if (x[k] == s)
-                    x[k] = s2;
-            ms_cx_list_add(cx, s2, t << 1);
-            moved++;
-        } else if (tc == 3) {
+        /* handing a triangle to s2 (code 2) or not is a coin toss: renamed
+         * and listed by selection, not by a branch */
+        bool to_s2 = tc == 2;
+        uint32_t to = to_s2 ? s2 : s;
+        for (int k = 0; k < 3; ++k)
+            x[k] = x[k] == s ? to : x[k];
+        ms_cx_list_add_if(cx, s2, t << 1, to_s2);
+        moved += to_s2;
+        if (tc == 3) {
             uint32_t y[3] = {x[0], x[1], x[2]};
             for (int k = 0; k < 3; ++k)
                 if (y[k] == s)
@@ -352,9 +361,8 @@ static ms_status split(ms_codec_decoder *d, uint32_t s, unsigned L, uint32_t *ou
     }
     if (moved)
         drop_moved_triangles(cx, s);
-    for (uint32_t i = 0; i < nn; ++i) {
-        if (code[i] != 4)
-            continue;
+    for (uint32_t k = 0; k < n4; ++k) {
+        uint32_t i = pivot[k];
         int pred = vote[i] >= 0 ? 1 : -1;
         int flip = dbit(d, &m[o4_ctx(vote[i])]);
         if ((flip ? -pred : pred) > 0)

@@ -85,6 +85,16 @@ static inline uint32_t *ms_cx_list(ms_cx_vert *v)
 /* Doubles v's list room (moving it off the inline entries); false, with
  * cx->nomem set, when that fails. */
 bool ms_cx_list_grow(ms_complex *cx, ms_cx_vert *v);
+/* Appends a tagged entry to s's list when `keep`, without a branch on it (the
+ * entry is written past the end either way); on growth failure, cx->nomem. */
+static inline void ms_cx_list_add_if(ms_complex *cx, uint32_t s, uint32_t tagged, bool keep)
+{
+    ms_cx_vert *v = &cx->v[s];
+    if (v->n == (v->cap ? v->cap : MS_CX_INLINE) && !ms_cx_list_grow(cx, v))
+        return;
+    ms_cx_list(v)[v->n] = tagged;
+    v->n += keep;
+}
 /* Appends a tagged entry to s's list; on growth failure, cx->nomem. */
 static inline void ms_cx_list_add(ms_complex *cx, uint32_t s, uint32_t tagged)
 {
