@@ -300,10 +300,10 @@ static ms_status split(ms_codec_decoder *d, uint32_t s, unsigned L, uint32_t *ou
             ++i;
         }
     }
-    /* Room for everything this split creates (within the declared sizes). */
-    /* x needs a maximal edge to s when its code holds s (1, 3: bit 0) and no
-     * triangle of s covers it (cov bit 0), to s2 likewise with bit 1 (2, 3;
-     * code 4 has neither bit, its triangle covers both) */
+    /* Room for everything this split creates (within the declared sizes). A
+     * neighbour needs a maximal edge to s when its code holds s (1, 3: bit 0)
+     * and no triangle of s covers it (cov bit 0), to s2 likewise with bit 1
+     * (2, 3; code 4 has neither bit, its triangle covers both). */
     uint32_t ne_new = e12 && n4 == 0;
     for (uint32_t i = 0; i < nn; ++i) {
         unsigned bare = code[i] & ~cov[i];
