@@ -908,10 +908,13 @@ ms_status ms_cx_compact(ms_complex *cx, uint32_t *order, uint32_t n, ms_error *e
         for (uint32_t k = 0; k < v->n; ++k) {
             if (l[k] & 1)
                 continue;
-            uint32_t t = l[k] >> 1;
-            if (tmap[t] == MS_CX_NONE)
-                tmap[t] = nt++;
-            l[k] = tmap[t] << 1;
+            /* first met or not is a coin toss: numbered by selection */
+            uint32_t t = l[k] >> 1, m = tmap[t];
+            uint32_t fresh = m == MS_CX_NONE;
+            m = fresh ? nt : m;
+            nt += fresh;
+            tmap[t] = m;
+            l[k] = m << 1;
         }
     }
     uint32_t live_t = nt;
