@@ -518,9 +518,9 @@ static ms_status coarsen_level(ms_codec_decoder *d, ms_error *err)
     for (uint32_t k = d->norder; k > 0;) {
         uint32_t last = d->order[--k];
         ms_cx_vert *lv = &cx->v[last];
-        if (lv->frozen && lv->level <= L) {
+        if (lv->frozen && ms_cx_level(cx, last) <= L) {
             /* frozen at L: refining L decided it, coarsening undoes it */
-            if (lv->level == L) {
+            if (ms_cx_level(cx, last) == L) {
                 lv->frozen = 0;
                 d->frozen--;
             }
@@ -838,7 +838,7 @@ ms_status ms_codec_decoder_state(const ms_codec_decoder *d, ms_codec_state *out,
 size_t ms_codec_decoder_vertex_levels(const ms_codec_decoder *d, uint8_t *levels)
 {
     for (uint32_t i = 0; i < d->norder; ++i)
-        levels[i] = d->cx.v[d->order[i]].level;
+        levels[i] = (uint8_t)ms_cx_level(&d->cx, d->order[i]);
     return d->frozen;
 }
 

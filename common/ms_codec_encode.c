@@ -406,7 +406,7 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
             ms_cx_vert *lv = &e.cx.v[last];
             if (lv->frozen) {
                 /* frozen at f <= L: nothing below f; at f, the "frozen" decision */
-                if (lv->level == L) {
+                if (ms_cx_level(&e.cx, last) == L) {
                     put(&e, 1);
                     lv->frozen = 0;
                 }

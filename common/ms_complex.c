@@ -185,7 +185,6 @@ uint32_t ms_cx_add_vertex(ms_complex *cx, uint64_t key, unsigned level, const ui
     ms_cx_vert *v = &cx->v[s];
     memset(v, 0, sizeof *v);
     v->key = key;
-    v->level = (uint8_t)level;
     v->alive = 1;
     for (int a = 0; a < 3; ++a)
         cx->cen[s][a] = (int32_t)(2 * c[a] + ms_cx_width(cx, level, a));

@@ -29,11 +29,11 @@
 #define MS_CX_INLINE 10
 #define MS_CX_NONE UINT32_MAX
 
-/* The cell's geometry (corner and centre) lives in ms_complex.cen, derived from
- * key and level; the record holds what the codec touches on every visit. */
+/* The cell's geometry (level, corner and centre) lives in ms_complex.cen,
+ * derived from key and level; the record holds what the codec touches on every
+ * visit. */
 typedef struct ms_cx_vert {
-    uint64_t key;     /* aligned kd key */
-    uint8_t level;    /* kd-level of the cell */
+    uint64_t key;     /* aligned kd key (the kd-level is ms_cx_level) */
     uint8_t birth;    /* level at which the cell's lineage last split in two */
     uint8_t alive;
     uint8_t frozen;   /* codec: a foreign cell no longer refined (ms_codec.h, regions) */
@@ -98,10 +98,7 @@ static inline void ms_cx_list_add_if(ms_complex *cx, uint32_t s, uint32_t tagged
 /* Appends a tagged entry to s's list; on growth failure, cx->nomem. */
 static inline void ms_cx_list_add(ms_complex *cx, uint32_t s, uint32_t tagged)
 {
-    ms_cx_vert *v = &cx->v[s];
-    if (v->n == (v->cap ? v->cap : MS_CX_INLINE) && !ms_cx_list_grow(cx, v))
-        return;
-    ms_cx_list(v)[v->n++] = tagged;
+    ms_cx_list_add_if(cx, s, tagged, true);
 }
 void ms_cx_list_remove(ms_complex *cx, uint32_t s, uint32_t tagged);
 
@@ -118,10 +115,16 @@ static inline int64_t ms_cx_centre2(const ms_complex *cx, uint32_t s, int axis)
     return cx->cen[s][axis];
 }
 
+/* kd-level of cell s. */
+static inline unsigned ms_cx_level(const ms_complex *cx, uint32_t s)
+{
+    return (unsigned)cx->cen[s][3];
+}
+
 /* Minimum corner of cell s on the full grid. */
 static inline void ms_cx_corner(const ms_complex *cx, uint32_t s, uint32_t c[3])
 {
-    unsigned level = (unsigned)cx->cen[s][3];
+    unsigned level = ms_cx_level(cx, s);
     for (int a = 0; a < 3; ++a)
         c[a] = ((uint32_t)cx->cen[s][a] - ms_cx_width(cx, level, a)) >> 1;
 }
@@ -133,7 +136,6 @@ static inline void ms_cx_refine_cell_by(ms_complex *cx, uint32_t s, unsigned L, 
 {
     cx->cen[s][axis] += second ? w : -w;
     cx->cen[s][3] = (int32_t)(L + 1);
-    cx->v[s].level = (uint8_t)(L + 1);
 }
 /* Cell s (at kd-level L) becomes its first or second half along L's axis: level
  * L + 1, centre moved by the child's width. The key is the caller's. */
@@ -150,7 +152,6 @@ static inline void ms_cx_coarsen_cell(ms_complex *cx, uint32_t s, unsigned L, in
     int32_t w = (int32_t)ms_cx_width(cx, L + 1, axis);
     cx->cen[s][axis] -= second ? w : -w;
     cx->cen[s][3] = (int32_t)L;
-    cx->v[s].level = (uint8_t)L;
 }
 
 /* +1 when triangle t contains the directed edge a -> b in its cyclic order, -1
@@ -205,7 +206,8 @@ ms_status ms_cx_merge(ms_complex *cx, uint32_t c0, uint32_t c1, ms_error *err);
 /* Renumbers the vertex slots to follow order[0..n) (all live vertices, in key
  * order) and the triangles by first incident vertex, for memory locality; order
  * becomes the identity. The complex itself is unchanged. Works in place: besides
- * two index maps it allocates nothing, so a compaction costs no fresh pages. */
+ * four index arrays (old to new and new to old, for vertices and triangles) it
+ * allocates nothing, so a compaction costs no fresh pages. */
 ms_status ms_cx_compact(ms_complex *cx, uint32_t *order, uint32_t n, ms_error *err);
 
 /* Starts a fresh mark generation (scratch marks). */

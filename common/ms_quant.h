@@ -78,8 +78,8 @@ static inline uint64_t ms_quant_spread3(uint32_t v)
 }
 
 /* Interleaves x, y, z (each < 2^bits) most significant bit first, x before y
- * before z, into a 3*bits-bit key (inline: the codec derives neighbour keys
- * from cell corners in its inner loop). */
+ * before z, into a 3*bits-bit key (inline: the codec orders a split's
+ * neighbours by the keys of their doubled centres in its inner loop). */
 static inline uint64_t ms_quant_key(uint32_t x, uint32_t y, uint32_t z, unsigned bits)
 {
     (void)bits; /* x occupies the most significant bit of each triple */

@@ -168,7 +168,7 @@ static void test_cell_refine_coarsen(void **state)
         uint32_t c[3];
         ms_cx_corner(&cx, s, c);
         assert_memory_equal(c, want, sizeof c);
-        assert_int_equal(cx.v[s].level, L + 1);
+        assert_int_equal(ms_cx_level(&cx, s), L + 1);
         assert_int_equal(cx.cen[s][3], (int32_t)(L + 1));
         for (int a = 0; a < 3; ++a)
             assert_int_equal(cx.cen[s][a], (int32_t)(2 * want[a] + ms_cx_width(&cx, L + 1, a)));
@@ -178,7 +178,7 @@ static void test_cell_refine_coarsen(void **state)
     uint32_t c[3];
     ms_cx_corner(&cx, s, c);
     assert_memory_equal(c, zero, sizeof c);
-    assert_int_equal(cx.v[s].level, 0);
+    assert_int_equal(ms_cx_level(&cx, s), 0);
     assert_int_equal(cx.cen[s][2], 256);
     ms_cx_free(&cx);
 }
