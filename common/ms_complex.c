@@ -396,6 +396,51 @@ static inline uint32_t small_star_touch(ms_cx_star *st, uint32_t s)
     return found;
 }
 
+/* Bit i of a 10-bit value moved to bit 3 i (a constant table: 4 KiB). */
+#define SPREAD10(x)                                                                         \
+    (((x)&1u) | (((x)&2u) << 2) | (((x)&4u) << 4) | (((x)&8u) << 6) | (((x)&16u) << 8) |   \
+     (((x)&32u) << 10) | (((x)&64u) << 12) | (((x)&128u) << 14) | (((x)&256u) << 16) |     \
+     (((x)&512u) << 18))
+#define SPREAD10_4(b) SPREAD10(b), SPREAD10(b + 1), SPREAD10(b + 2), SPREAD10(b + 3)
+#define SPREAD10_16(b) SPREAD10_4(b), SPREAD10_4(b + 4), SPREAD10_4(b + 8), SPREAD10_4(b + 12)
+#define SPREAD10_64(b) SPREAD10_16(b), SPREAD10_16(b + 16), SPREAD10_16(b + 32), SPREAD10_16(b + 48)
+#define SPREAD10_256(b) SPREAD10_64(b), SPREAD10_64(b + 64), SPREAD10_64(b + 128), SPREAD10_64(b + 192)
+static const uint32_t spread10[1024] = {SPREAD10_256(0u), SPREAD10_256(256u), SPREAD10_256(512u),
+                                        SPREAD10_256(768u)};
+
+/* Sort keys of the n neighbours nbr of a small star: keys that order them as
+ * their cells' keys do. That is the Morton order of their doubled centres on
+ * the doubled (P + 1 bit) grid, where each lies inside its cell's key range
+ * as its corner does on the grid, so distinct (disjoint) cells sort as their
+ * keys do. The centres of a star nearly always differ only within ten
+ * consecutive bit positions; the bits above and below those are common to
+ * all and cannot change the order, so the ten are interleaved from a table.
+ * Wider stars take the full 63-bit interleave. */
+static void small_star_keys(const ms_complex *cx, const uint32_t *nbr, uint32_t n, uint64_t *key)
+{
+    if (n == 0)
+        return;
+    const int32_t *first = cx->cen[nbr[0]];
+    uint32_t differ = 0;
+    for (uint32_t i = 1; i < n; ++i) {
+        const int32_t *c = cx->cen[nbr[i]];
+        differ |= (uint32_t)((c[0] ^ first[0]) | (c[1] ^ first[1]) | (c[2] ^ first[2]));
+    }
+    unsigned low = differ ? (unsigned)__builtin_ctz(differ) : 0;
+    if ((differ >> low) < 1024u) {
+        for (uint32_t i = 0; i < n; ++i) {
+            const uint32_t *c = (const uint32_t *)cx->cen[nbr[i]];
+            key[i] = spread10[(c[0] >> low) & 1023] << 2 | spread10[(c[1] >> low) & 1023] << 1 |
+                     spread10[(c[2] >> low) & 1023];
+        }
+        return;
+    }
+    for (uint32_t i = 0; i < n; ++i) {
+        const int32_t *c = cx->cen[nbr[i]];
+        key[i] = ms_quant_key((uint32_t)c[0], (uint32_t)c[1], (uint32_t)c[2], cx->P + 1);
+    }
+}
+
 /* ms_cx_gather for one centre with at most MS_CX_SMALL_STAR incident simplices:
  * the same star, built without the per-slot marks. */
 static void gather_small(ms_complex *cx, uint32_t c0, ms_cx_star *st)
@@ -425,13 +470,7 @@ static void gather_small(ms_complex *cx, uint32_t c0, ms_cx_star *st)
     /* order the neighbours by key: perm[new] = old, rank[old] = new */
     uint64_t key[2 * MS_CX_SMALL_STAR];
     uint32_t perm[2 * MS_CX_SMALL_STAR], rank[2 * MS_CX_SMALL_STAR], slot[2 * MS_CX_SMALL_STAR];
-    for (uint32_t i = 0; i < n; ++i) {
-        /* the Morton key of the doubled centre on the doubled (P + 1 bit) grid:
-         * it lies inside the cell's key range there as the corner's does here,
-         * so distinct (disjoint) cells sort as their keys do */
-        const int32_t *c = cx->cen[st->nbr[i]];
-        key[i] = ms_quant_key((uint32_t)c[0], (uint32_t)c[1], (uint32_t)c[2], cx->P + 1);
-    }
+    small_star_keys(cx, st->nbr, n, key);
     /* rank by counting (keys are distinct): comparisons without branches,
      * where an insertion sort mispredicts about once per neighbour */
     for (uint32_t i = 0; i < n; ++i) {

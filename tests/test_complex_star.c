@@ -112,6 +112,62 @@ static void test_fast_star_equals_general(void **state)
     assert_true(small > 0 && small < 300);
 }
 
+/* Stars of points clustered within 2^k grid steps of a base at 16 bits: the
+ * small gather sorts their neighbours from the bits where their centres differ
+ * when those fit in ten positions, from full keys otherwise; both must order
+ * as the cells' keys do (the general gather), and both must occur here. The
+ * clusters straddle the boundary: 2^9 and 2^10 steps stay within ten bit
+ * positions of the doubled centres, 2^11 and 2^16 mostly do not. */
+static void test_fast_star_key_widths(void **state)
+{
+    (void)state;
+    const unsigned bits = 16;
+    uint32_t narrow = 0, wide = 0;
+    for (unsigned k = 9; k <= 16; ++k) {
+        if (k > 11 && k < 16)
+            continue;
+        const uint32_t nv = 400, nt = 900;
+        ms_complex cx;
+        ms_error err;
+        assert_int_equal(ms_cx_init(&cx, bits, nv, nt, 8, &err), MS_OK);
+        assert_int_equal(ms_cx_reserve(&cx, nv, nt, 0, &err), MS_OK);
+        uint32_t base = k < 16 ? (1 + rnd(8)) << 12 : 0; /* aligned: no carries */
+        for (uint32_t i = 0; i < nv; ++i) {
+            /* distinct cells: i spread over the cluster's cube */
+            uint32_t c[3] = {base + (i * 2654435761u >> (32 - k)), base + rnd(1u << k),
+                             base + i % (1u << (k < 9 ? k : 9))};
+            ms_cx_add_vertex(&cx, ms_quant_key(c[0], c[1], c[2], bits), 3 * bits, c);
+        }
+        for (uint32_t t = 0; t < nt; ++t) {
+            uint32_t a = rnd(nv), b = rnd(nv), c = rnd(nv);
+            if (a != b && b != c && a != c)
+                ms_cx_add_tri(&cx, a, b, c);
+        }
+        ms_cx_star fast = {0}, general = {0};
+        for (uint32_t s = 0; s < nv; ++s) {
+            if (cx.v[s].n > MS_CX_SMALL_STAR)
+                continue;
+            assert_int_equal(ms_cx_gather(&cx, s, MS_CX_NONE, &fast, &err), MS_OK);
+            assert_int_equal(ms_cx_gather_general(&cx, s, MS_CX_NONE, &general, &err), MS_OK);
+            star_equal(&fast, &general);
+            uint32_t differ = 0;
+            for (uint32_t i = 1; i < fast.nn; ++i)
+                for (int a = 0; a < 3; ++a)
+                    differ |= (uint32_t)(cx.cen[fast.nbr[i]][a] ^ cx.cen[fast.nbr[0]][a]);
+            unsigned low = differ ? (unsigned)__builtin_ctz(differ) : 0;
+            if ((differ >> low) < 1024)
+                narrow++;
+            else
+                wide++;
+        }
+        ms_cx_star_free(&fast);
+        ms_cx_star_free(&general);
+        ms_cx_free(&cx);
+    }
+    assert_true(narrow > 200);
+    assert_true(wide > 200);
+}
+
 /* Centre c with triangles (c,a,b), (c,d,b), an edge (c,e) and an isolated
  * neighbourhood elsewhere: neighbours sorted by key, pairs by local index. */
 static void test_star_exact(void **state)
@@ -298,6 +354,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_fast_star_equals_general),
+        cmocka_unit_test(test_fast_star_key_widths),
         cmocka_unit_test(test_star_exact),
         cmocka_unit_test(test_cell_refine_coarsen),
         cmocka_unit_test(test_compact_in_place),
