@@ -415,11 +415,12 @@ static const uint32_t spread10[1024] = {SPREAD10_256(0u), SPREAD10_256(256u), SP
  * keys do. The centres of a star nearly always differ only within ten
  * consecutive bit positions; the bits above and below those are common to
  * all and cannot change the order, so the ten are interleaved from a table.
- * Wider stars take the full 63-bit interleave. */
-static void small_star_keys(const ms_complex *cx, const uint32_t *nbr, uint32_t n, uint64_t *key)
+ * Wider stars take the full 63-bit interleave. Returns whether the keys are
+ * the narrow ones (below 2^30). */
+static bool small_star_keys(const ms_complex *cx, const uint32_t *nbr, uint32_t n, uint64_t *key)
 {
     if (n == 0)
-        return;
+        return true;
     const int32_t *first = cx->cen[nbr[0]];
     uint32_t differ = 0;
     for (uint32_t i = 1; i < n; ++i) {
@@ -433,11 +434,68 @@ static void small_star_keys(const ms_complex *cx, const uint32_t *nbr, uint32_t 
             key[i] = spread10[(c[0] >> low) & 1023] << 2 | spread10[(c[1] >> low) & 1023] << 1 |
                      spread10[(c[2] >> low) & 1023];
         }
-        return;
+        return true;
     }
     for (uint32_t i = 0; i < n; ++i) {
         const int32_t *c = cx->cen[nbr[i]];
         key[i] = ms_quant_key((uint32_t)c[0], (uint32_t)c[1], (uint32_t)c[2], cx->P + 1);
+    }
+    return false;
+}
+
+/* Compare-exchange of v[a] and v[b], the smaller to a (selects, no branch). */
+static inline void sort_exchange(uint64_t *v, int a, int b)
+{
+    uint64_t x = v[a], y = v[b];
+    v[a] = x < y ? x : y;
+    v[b] = x < y ? y : x;
+}
+
+/* Sorts eight values with the 19-comparator network of depth 6 (Knuth, TAOCP
+ * 5.3.4): a fixed sequence of selections, where a comparison sort branches
+ * unpredictably. */
+static inline void sort8_u64(uint64_t v[8])
+{
+    sort_exchange(v, 0, 2);
+    sort_exchange(v, 1, 3);
+    sort_exchange(v, 4, 6);
+    sort_exchange(v, 5, 7);
+    sort_exchange(v, 0, 4);
+    sort_exchange(v, 1, 5);
+    sort_exchange(v, 2, 6);
+    sort_exchange(v, 3, 7);
+    sort_exchange(v, 0, 1);
+    sort_exchange(v, 2, 3);
+    sort_exchange(v, 4, 5);
+    sort_exchange(v, 6, 7);
+    sort_exchange(v, 2, 4);
+    sort_exchange(v, 3, 5);
+    sort_exchange(v, 1, 4);
+    sort_exchange(v, 3, 6);
+    sort_exchange(v, 1, 2);
+    sort_exchange(v, 3, 4);
+    sort_exchange(v, 5, 6);
+}
+
+/* Sorts x[0..n) (distinct, below UINT64_MAX) ascending in place; x has room
+ * for eight at least. Up to eight (most stars) go through the network, the
+ * room past n padded with values that sort last; more are ranked by
+ * counting, also without branches on the comparisons. */
+static void sort_distinct_u64(uint64_t *x, uint32_t n)
+{
+    if (n <= 8) {
+        for (uint32_t i = n; i < 8; ++i)
+            x[i] = UINT64_MAX;
+        sort8_u64(x);
+        return;
+    }
+    uint64_t in[2 * MS_CX_SMALL_STAR];
+    memcpy(in, x, (size_t)n * sizeof *x);
+    for (uint32_t i = 0; i < n; ++i) {
+        uint32_t r = 0;
+        for (uint32_t j = 0; j < n; ++j)
+            r += in[j] < in[i];
+        x[r] = in[i];
     }
 }
 
@@ -470,15 +528,23 @@ static void gather_small(ms_complex *cx, uint32_t c0, ms_cx_star *st)
     /* order the neighbours by key: perm[new] = old, rank[old] = new */
     uint64_t key[2 * MS_CX_SMALL_STAR];
     uint32_t perm[2 * MS_CX_SMALL_STAR], rank[2 * MS_CX_SMALL_STAR], slot[2 * MS_CX_SMALL_STAR];
-    small_star_keys(cx, st->nbr, n, key);
-    /* rank by counting (keys are distinct): comparisons without branches,
-     * where an insertion sort mispredicts about once per neighbour */
-    for (uint32_t i = 0; i < n; ++i) {
-        uint32_t r = 0;
-        for (uint32_t j = 0; j < n; ++j)
-            r += key[j] < key[i];
-        rank[i] = r;
-        perm[r] = i;
+    if (small_star_keys(cx, st->nbr, n, key)) {
+        /* narrow keys leave room for the old index below them */
+        for (uint32_t i = 0; i < n; ++i)
+            key[i] = key[i] << 6 | i;
+        sort_distinct_u64(key, n);
+        for (uint32_t r = 0; r < n; ++r) {
+            perm[r] = (uint32_t)(key[r] & 63);
+            rank[perm[r]] = r;
+        }
+    } else {
+        for (uint32_t i = 0; i < n; ++i) { /* ranked by counting (keys are distinct) */
+            uint32_t r = 0;
+            for (uint32_t j = 0; j < n; ++j)
+                r += key[j] < key[i];
+            rank[i] = r;
+            perm[r] = i;
+        }
     }
     memcpy(slot, st->nbr, (size_t)n * sizeof *slot);
     for (uint32_t i = 0; i < n; ++i) {
@@ -488,22 +554,17 @@ static void gather_small(ms_complex *cx, uint32_t c0, ms_cx_star *st)
     }
     /* pairs sorted by (i, j); a repeated pair (a duplicate triangle) keeps the
      * later triangle, as the general gather does */
-    uint64_t x[MS_CX_SMALL_STAR], pk[MS_CX_SMALL_STAR];
+    uint64_t x[MS_CX_SMALL_STAR];
     for (uint32_t p = 0; p < np; ++p) {
         uint32_t i = rank[pi[p]], j = rank[pj[p]];
         uint32_t lo = i < j ? i : j, hi = i < j ? j : i;
         x[p] = (uint64_t)lo << 40 | (uint64_t)hi << 20 | p; /* distinct: p */
     }
-    for (uint32_t p = 0; p < np; ++p) { /* ranked by counting, as above */
-        uint32_t r = 0;
-        for (uint32_t q = 0; q < np; ++q)
-            r += x[q] < x[p];
-        pk[r] = x[p];
-    }
+    sort_distinct_u64(x, np);
     uint32_t w = 0;
     for (uint32_t r = 0; r < np; ++r) {
-        uint32_t i = (uint32_t)(pk[r] >> 40), j = (uint32_t)(pk[r] >> 20) & 0xFFFFF;
-        uint32_t t = pt[pk[r] & 0xFFFFF];
+        uint32_t i = (uint32_t)(x[r] >> 40), j = (uint32_t)(x[r] >> 20) & 0xFFFFF;
+        uint32_t t = pt[x[r] & 0xFFFFF];
         if (w > 0 && st->pairs[w - 1].i == i && st->pairs[w - 1].j == j) {
             st->pairs[w - 1].t0 = t;
             continue;
