@@ -133,9 +133,8 @@ static void test_fast_star_key_widths(void **state)
         assert_int_equal(ms_cx_reserve(&cx, nv, nt, 0, &err), MS_OK);
         uint32_t base = k < 16 ? (1 + rnd(8)) << 12 : 0; /* aligned: no carries */
         for (uint32_t i = 0; i < nv; ++i) {
-            /* distinct cells: i spread over the cluster's cube */
-            uint32_t c[3] = {base + (i * 2654435761u >> (32 - k)), base + rnd(1u << k),
-                             base + i % (1u << (k < 9 ? k : 9))};
+            /* distinct cells (z = base + i, i < 2^9), x and y anywhere in the cube */
+            uint32_t c[3] = {base + rnd(1u << k), base + rnd(1u << k), base + i};
             ms_cx_add_vertex(&cx, ms_quant_key(c[0], c[1], c[2], bits), 3 * bits, c);
         }
         for (uint32_t t = 0; t < nt; ++t) {
