@@ -3,7 +3,11 @@
 
 #include "ms_codec.h"
 
-enum { PRIOR_MIN = MS_RC_PROB_MIN, PRIOR_MAX = MS_RC_PROB_MAX };
+/* An estimate of P(0) brought inside the coder's start bounds (ms_rangecoder.h). */
+static uint16_t prior_clamp(uint64_t q)
+{
+    return (uint16_t)(q < MS_RC_PROB_MIN ? MS_RC_PROB_MIN : q > MS_RC_PROB_MAX ? MS_RC_PROB_MAX : q);
+}
 
 size_t ms_codec_prior_contexts(void) { return MS_PRIOR_SIZE; }
 
@@ -16,8 +20,7 @@ void ms_codec_model_init(ms_rc_prob *model, unsigned D, unsigned version)
         } else {
             /* the table is estimated inside the bounds (ms_codec_prior_estimate);
              * clamping again keeps the coder's invariant whatever it holds */
-            uint16_t p0 = ms_codec_prior_p0[ms_prior_index(i, D)];
-            p0 = p0 < PRIOR_MIN ? PRIOR_MIN : p0 > PRIOR_MAX ? PRIOR_MAX : p0;
+            uint16_t p0 = prior_clamp(ms_codec_prior_p0[ms_prior_index(i, D)]);
             model[i] = (ms_rc_prob){p0, p0};
         }
     }
@@ -28,6 +31,6 @@ void ms_codec_prior_estimate(const uint64_t *counts, uint16_t p0[MS_PRIOR_SIZE])
     for (uint32_t i = 0; i < MS_PRIOR_SIZE; ++i) {
         uint64_t n0 = counts[2 * i], n = n0 + counts[2 * i + 1];
         uint64_t q = ((n0 + 1) * 65536 + (n + 2) / 2) / (n + 2);
-        p0[i] = (uint16_t)(q < PRIOR_MIN ? PRIOR_MIN : q > PRIOR_MAX ? PRIOR_MAX : q);
+        p0[i] = prior_clamp(q);
     }
 }

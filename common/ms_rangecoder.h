@@ -109,6 +109,15 @@ static inline uint32_t ms_rc_next_byte(ms_rc_decoder *d)
     return 0;
 }
 
+/* Refills the range to at least 2^24, a byte at a time. */
+static inline void ms_rc_decoder_normalize(ms_rc_decoder *d)
+{
+    while (d->range < (1u << 24)) {
+        d->range <<= 8;
+        d->code = (d->code << 8) | ms_rc_next_byte(d);
+    }
+}
+
 static inline int ms_rc_decode(ms_rc_decoder *d, ms_rc_prob *p)
 {
     uint32_t bound = (d->range >> 16) * ms_rc_p0(p);
@@ -122,10 +131,7 @@ static inline int ms_rc_decode(ms_rc_decoder *d, ms_rc_prob *p)
         bit = 1;
     }
     ms_rc_update(p, bit);
-    while (d->range < (1u << 24)) {
-        d->range <<= 8;
-        d->code = (d->code << 8) | ms_rc_next_byte(d);
-    }
+    ms_rc_decoder_normalize(d);
     return bit;
 }
 
@@ -143,10 +149,7 @@ static inline int ms_rc_decode_unpredictable(ms_rc_decoder *d, ms_rc_prob *p)
     uint32_t s0 = s + ((65535u - s) >> MS_RC_SLOW_SHIFT), s1 = s - (s >> MS_RC_SLOW_SHIFT);
     p->fast = (uint16_t)((f0 & ~ones) | (f1 & ones));
     p->slow = (uint16_t)((s0 & ~ones) | (s1 & ones));
-    while (d->range < (1u << 24)) {
-        d->range <<= 8;
-        d->code = (d->code << 8) | ms_rc_next_byte(d);
-    }
+    ms_rc_decoder_normalize(d);
     return (int)bit;
 }
 
