@@ -477,6 +477,18 @@ static inline void sort8_u64(uint64_t v[8])
     sort_exchange(v, 5, 6);
 }
 
+/* rank[i] = number of values of x[0..n) (distinct) below x[i]: a count, with
+ * no branch on the comparisons. */
+static void rank_distinct_u64(const uint64_t *x, uint32_t n, uint32_t *rank)
+{
+    for (uint32_t i = 0; i < n; ++i) {
+        uint32_t r = 0;
+        for (uint32_t j = 0; j < n; ++j)
+            r += x[j] < x[i];
+        rank[i] = r;
+    }
+}
+
 /* Sorts x[0..n) (distinct, below UINT64_MAX) ascending in place; x has room
  * for eight at least. Up to eight (most stars) go through the network, the
  * room past n padded with values that sort last; more are ranked by
@@ -490,13 +502,11 @@ static void sort_distinct_u64(uint64_t *x, uint32_t n)
         return;
     }
     uint64_t in[2 * MS_CX_SMALL_STAR];
+    uint32_t rank[2 * MS_CX_SMALL_STAR];
     memcpy(in, x, (size_t)n * sizeof *x);
-    for (uint32_t i = 0; i < n; ++i) {
-        uint32_t r = 0;
-        for (uint32_t j = 0; j < n; ++j)
-            r += in[j] < in[i];
-        x[r] = in[i];
-    }
+    rank_distinct_u64(in, n, rank);
+    for (uint32_t i = 0; i < n; ++i)
+        x[rank[i]] = in[i];
 }
 
 /* ms_cx_gather for one centre with at most MS_CX_SMALL_STAR incident simplices:
@@ -538,13 +548,9 @@ static void gather_small(ms_complex *cx, uint32_t c0, ms_cx_star *st)
             rank[perm[r]] = r;
         }
     } else {
-        for (uint32_t i = 0; i < n; ++i) { /* ranked by counting (keys are distinct) */
-            uint32_t r = 0;
-            for (uint32_t j = 0; j < n; ++j)
-                r += key[j] < key[i];
-            rank[i] = r;
-            perm[r] = i;
-        }
+        rank_distinct_u64(key, n, rank); /* the keys of distinct cells are distinct */
+        for (uint32_t i = 0; i < n; ++i)
+            perm[rank[i]] = i;
     }
     memcpy(slot, st->nbr, (size_t)n * sizeof *slot);
     for (uint32_t i = 0; i < n; ++i) {

@@ -44,14 +44,24 @@ static inline uint32_t ms_rc_p0(const ms_rc_prob *p)
     return ((uint32_t)p->fast + p->slow) >> 1;
 }
 
+/* One estimator's step after a 0 (towards 65535) or a 1 (towards 0). */
+static inline uint32_t ms_rc_step_after_0(uint32_t x, unsigned shift)
+{
+    return x + ((65535u - x) >> shift);
+}
+static inline uint32_t ms_rc_step_after_1(uint32_t x, unsigned shift)
+{
+    return x - (x >> shift);
+}
+
 static inline void ms_rc_update(ms_rc_prob *p, int bit)
 {
     if (bit) {
-        p->fast = (uint16_t)(p->fast - (p->fast >> MS_RC_FAST_SHIFT));
-        p->slow = (uint16_t)(p->slow - (p->slow >> MS_RC_SLOW_SHIFT));
+        p->fast = (uint16_t)ms_rc_step_after_1(p->fast, MS_RC_FAST_SHIFT);
+        p->slow = (uint16_t)ms_rc_step_after_1(p->slow, MS_RC_SLOW_SHIFT);
     } else {
-        p->fast = (uint16_t)(p->fast + ((65535u - p->fast) >> MS_RC_FAST_SHIFT));
-        p->slow = (uint16_t)(p->slow + ((65535u - p->slow) >> MS_RC_SLOW_SHIFT));
+        p->fast = (uint16_t)ms_rc_step_after_0(p->fast, MS_RC_FAST_SHIFT);
+        p->slow = (uint16_t)ms_rc_step_after_0(p->slow, MS_RC_SLOW_SHIFT);
     }
 }
 
@@ -144,9 +154,11 @@ static inline int ms_rc_decode_unpredictable(ms_rc_decoder *d, ms_rc_prob *p)
     uint32_t ones = 0u - bit;
     d->code -= bound & ones;
     d->range = (bound & ~ones) | ((d->range - bound) & ones);
-    uint32_t f = p->fast, s = p->slow;
-    uint32_t f0 = f + ((65535u - f) >> MS_RC_FAST_SHIFT), f1 = f - (f >> MS_RC_FAST_SHIFT);
-    uint32_t s0 = s + ((65535u - s) >> MS_RC_SLOW_SHIFT), s1 = s - (s >> MS_RC_SLOW_SHIFT);
+    /* ms_rc_update, both steps computed and one selected */
+    uint32_t f0 = ms_rc_step_after_0(p->fast, MS_RC_FAST_SHIFT);
+    uint32_t f1 = ms_rc_step_after_1(p->fast, MS_RC_FAST_SHIFT);
+    uint32_t s0 = ms_rc_step_after_0(p->slow, MS_RC_SLOW_SHIFT);
+    uint32_t s1 = ms_rc_step_after_1(p->slow, MS_RC_SLOW_SHIFT);
     p->fast = (uint16_t)((f0 & ~ones) | (f1 & ones));
     p->slow = (uint16_t)((s0 & ~ones) | (s1 & ones));
     ms_rc_decoder_normalize(d);
