@@ -1,0 +1,130 @@
+/* The GPU side of meshview: draws a frame of the client core (ms_client_core.h)
+ * cell by cell, shaded with the APO shader (docs/APO.md, "Traversal"; the GLSL
+ * lives in client/view/shaders/ and is embedded at build time).
+ *
+ * Cells. A frame's stitched mesh (ms_view_mesh) is split by triangle_cell into one
+ * vertex/index buffer per drawing cell. Vertices go to the GPU in cell-local
+ * coordinates: (world - cube origin) / cube side, as floats in about [0, 1]
+ * (a stitched corner snapped into a neighbour lies slightly outside). The cube is
+ * the cell's own (header box divided by n^level at the cell's position). The
+ * cell-to-eye transform is computed in doubles on the CPU each draw, so 20-bit
+ * models far from the origin keep their precision.
+ *
+ * Uploads. ms_render_set_frame finds the cells whose drawn triangles or vertex
+ * positions changed since the previous frame (per-cell content hash) and queues
+ * them; ms_render_upload sends queued data to the GPU within a byte budget per
+ * call (a cell larger than the budget goes up in pieces over several calls). A
+ * cell keeps drawing its previous mesh until its new one is wholly on the GPU;
+ * cells absent from the new frame stop drawing at once.
+ *
+ * APO. Each drawn cell with a chunk prefix in the frame gets its texel words
+ * (decompressed) in one unsigned-integer buffer texture shared by all cells; the
+ * shader walks the octree with texelFetch, children addressed with bitCount on
+ * the child mask, and reads a level not wholly received as absent, exactly as
+ * ms_apo_lookup (ms_apo_traverse.h) with depth_cap and the missing-child rule of
+ * the options. A cell without a chunk falls back to its geometric normal.
+ *
+ * Shading (ms_render_options.shading):
+ *   MS_SHADING_LIT      head light at the camera: Lambert + Blinn-Phong with the
+ *                       normal N (APO or geometric), times the self-shadowing
+ *                       factor max(0, L . N_geometric); gamma-correct (sRGB) output.
+ *   MS_SHADING_NORMALS  N as a colour, rgb = (N + 1) / 2, linear (no gamma), N in
+ *                       world coordinates, so a test can read it back exactly.
+ *   MS_SHADING_CELLS    LIT tinted by a colour hashed from the cell number.
+ *   MS_SHADING_CELL_ID  rgb = the drawing cell's number + 1 as 24 bits (r low
+ *                       byte), a = 1; 0 is background. For picking and tests.
+ * N_geometric is the flat normal of the triangle (oriented as stored, facing the
+ * camera side of front faces). wireframe overlays the triangle edges.
+ *
+ * Camera. The projection is OpenGL's perspective from ms_camera (fovy, width /
+ * height aspect, near and far distance), clip depth in [-1, 1], window depth in
+ * [0, 1]; ms_render_camera_matrices and ms_render_unproject give it to callers in
+ * doubles (double-click re-centring, tests).
+ *
+ * Requires: a current OpenGL 4.1 core context (ms_gl_window.h) on the calling
+ * thread, for every function except ms_render_camera_matrices and
+ * ms_render_unproject, which are pure.
+ * Ownership: the renderer copies what it keeps of a frame; the caller keeps the
+ * frame. Errors: ms_status with one line (MS_ERR_UNSUPPORTED when a shader does
+ * not compile or link, with the driver's log's first line; MS_ERR_NOMEM).
+ * Thread-safety: one renderer per context, used from the context's thread.
+ */
+#ifndef MS_RENDER_H
+#define MS_RENDER_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "ms_archive.h"
+#include "ms_camera.h"
+#include "ms_client_core.h"
+#include "ms_error.h"
+#include "ms_view_decoder.h"
+
+typedef struct ms_render ms_render;
+
+typedef enum ms_shading {
+    MS_SHADING_LIT = 0,
+    MS_SHADING_NORMALS = 1,
+    MS_SHADING_CELLS = 2,
+    MS_SHADING_CELL_ID = 3
+} ms_shading;
+
+typedef struct ms_render_options {
+    ms_shading shading;
+    bool apo;                 /* APO normals where a chunk is held; false: geometric */
+    bool wireframe;           /* overlay triangle edges */
+    uint32_t apo_depth_cap;   /* 0: no cap */
+    bool apo_nearest;         /* missing child: MS_APO_MISSING_NEAREST (true) or STOP */
+    float background[3];      /* linear RGB the colour buffer is cleared to */
+} ms_render_options;
+
+/* LIT, APO on, no wireframe, no cap, nearest rule, dark grey background. */
+void ms_render_options_default(ms_render_options *options);
+
+/* Compiles the shaders and sets up the buffers for a model (header and its
+ * cell_count cell records, copied). */
+ms_status ms_render_new(const ms_archive_header *header, const ms_archive_cell *cells,
+                        ms_render **render, ms_error *err);
+/* Frees every GL object and the renderer. NULL is a no-op. */
+void ms_render_free(ms_render *render);
+
+/* A new frame to draw: the stitched mesh and the APO chunk prefixes of the core's
+ * frame (apo may be NULL when apo_count is 0). Queues the changed cells. */
+ms_status ms_render_set_frame(ms_render *render, const ms_view_mesh *mesh,
+                              const ms_core_apo_chunk *apo, size_t apo_count, ms_error *err);
+
+typedef struct ms_render_upload_stats {
+    uint64_t bytes;            /* sent to the GPU by this call (vertices, indices, texels) */
+    uint32_t cells_completed;  /* cells whose new mesh became current in this call */
+    uint32_t cells_pending;    /* changed cells still waiting for their turn */
+} ms_render_upload_stats;
+
+/* Uploads queued data, at most budget_bytes (> 0) in this call. */
+ms_status ms_render_upload(ms_render *render, uint64_t budget_bytes, ms_render_upload_stats *stats,
+                           ms_error *err);
+
+typedef struct ms_render_draw_stats {
+    uint32_t cells_drawn;
+    uint64_t triangles_drawn;
+} ms_render_draw_stats;
+
+/* Clears the bound framebuffer (colour to options->background, depth to 1), sets
+ * the viewport to the camera's width x height (framebuffer pixels) and draws
+ * every current cell. stats may be NULL. */
+ms_status ms_render_draw(ms_render *render, const ms_camera *camera,
+                         const ms_render_options *options, ms_render_draw_stats *stats,
+                         ms_error *err);
+
+/* Column-major view (world to eye) and projection matrices the renderer draws
+ * with, in doubles. */
+void ms_render_camera_matrices(const ms_camera *camera, double view[16], double projection[16]);
+
+/* World point seen at framebuffer pixel (x, y), measured from the bottom-left
+ * corner (pixel centres at + 0.5), at window depth depth in [0, 1); false for
+ * depth >= 1 (background) or a non-finite result. */
+bool ms_render_unproject(const ms_camera *camera, double x, double y, double depth,
+                         double world[3]);
+
+#endif
