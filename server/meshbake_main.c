@@ -37,7 +37,8 @@ static void print_usage(FILE *out)
           "                [--root-bits 7] [--min-tris 8000] [--threads N] [--mem MB]\n"
           "                [--tmp DIR] [--no-apo] [--apo-lead 3] [--apo-max-depth 10]\n"
           "                [--apo-tol 0.2] [--apo-init-depth 0] [--apo-verify]\n"
-          "                [--apo-sample-leaves] [--apo-accuracy] [--json]\n"
+          "                [--apo-sample-leaves] [--apo-accuracy] [--apo-every-cell]\n"
+          "                [--json]\n"
           "       meshbake --info FILE [--json]\n"
           "\n"
           "Reads a mesh (PLY ascii/binary, OBJ or OFF, optionally gzip-compressed).\n"
@@ -67,6 +68,9 @@ static void print_usage(FILE *out)
           "  --apo-sample-leaves  sample an internal cell's normals on every full-precision\n"
           "                    triangle below it (the former rule; memory grows with the\n"
           "                    model) instead of its children's meshes\n"
+          "  --apo-every-cell  a chunk for every cell with triangles, also where the cell's\n"
+          "                    own geometry already renders the input's normals (every\n"
+          "                    leaf cell; the former rule, for comparison)\n"
           "  --apo-accuracy    measure the internal cells' chunks against the full-precision\n"
           "                    triangles below them (degrees; needs that memory too)\n"
           "\n"
@@ -137,6 +141,7 @@ static int parse_options(int argc, char **argv, bake_options *options)
         {"apo-verify", no_argument, NULL, 'V'},
         {"apo-sample-leaves", no_argument, NULL, 'S'},
         {"apo-accuracy", no_argument, NULL, 'C'},
+        {"apo-every-cell", no_argument, NULL, 'W'},
         {NULL, 0, NULL, 0},
     };
     memset(options, 0, sizeof *options);
@@ -167,6 +172,7 @@ static int parse_options(int argc, char **argv, bake_options *options)
         case 'V': options->bake.apo.verify = true; break;
         case 'S': options->bake.apo.sample_leaves = true; break;
         case 'C': options->bake.apo.accuracy = true; break;
+        case 'W': options->bake.apo.every_cell = true; break;
         case 'L': case 'D': case 'I':
             if (!parse_depth(optarg, &value))
                 return usage_error("not a depth (0..30)", optarg);
