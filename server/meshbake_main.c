@@ -35,7 +35,7 @@ static void print_usage(FILE *out)
 {
     fputs("usage: meshbake IN -o ARCHIVE_DIR [--name NAME] [--bits 16] [--n 4]\n"
           "                [--root-bits 7] [--min-tris 8000] [--threads N] [--mem MB]\n"
-          "                [--tmp DIR] [--no-apo] [--apo-lead 3] [--apo-max-depth 10]\n"
+          "                [--tmp DIR] [--no-apo] [--apo-lead 1] [--apo-max-depth 10]\n"
           "                [--apo-tol 0.2] [--apo-init-depth 0] [--apo-verify]\n"
           "                [--apo-sample-leaves] [--apo-accuracy] [--apo-every-cell]\n"
           "                [--json]\n"
@@ -59,7 +59,7 @@ static void print_usage(FILE *out)
           "  --tmp DIR         temporary files (default: ARCHIVE_DIR); unlinked at creation\n"
           "  --apo, --no-apo   give every cell an APO chunk of normals (default: on)\n"
           "  --apo-lead L      chunk depth: L levels below the cell's finest geometric\n"
-          "                    precision, 0..16 (default 3)\n"
+          "                    precision, 0..16 (default 1)\n"
           "  --apo-max-depth D cap on the chunk depth, 0..24 (default 10)\n"
           "  --apo-tol T       split while the normals of the original mesh in a node\n"
           "                    spread more than T radians (default 0.2)\n"
@@ -311,8 +311,9 @@ static void print_bake_json(const ms_bake_options *o, const ms_bake_report *r)
     json_t *per_level = json_array();
     for (uint32_t d = 0; per_level && d < r->apo_levels; ++d)
         json_array_append_new(per_level, json_integer((json_int_t)r->apo_level_texels[d]));
-    json_t *apo = json_pack("{s:b, s:i, s:i, s:i, s:f, s:I, s:I, s:i, s:I, s:I, s:o, s:I, s:I}",
-                            "enabled", o->apo.enabled, "lead", (int)o->apo.lead, "max_depth",
+    json_t *apo = json_pack("{s:b, s:b, s:i, s:i, s:i, s:f, s:I, s:I, s:i, s:I, s:I, s:o, s:I, s:I}",
+                            "enabled", o->apo.enabled, "every_cell", o->apo.every_cell, "lead", (int)o->apo.lead,
+                            "max_depth",
                             (int)o->apo.max_depth, "init_depth", (int)o->apo.init_depth,
                             "tolerance", o->apo.tolerance, "bytes", (json_int_t)r->apo_bytes,
                             "raw_bytes", (json_int_t)r->apo_raw_bytes, "chunks",

@@ -15,7 +15,7 @@ void ms_bake_apo_params_default(ms_bake_apo_params *p)
 {
     memset(p, 0, sizeof *p);
     p->enabled = true;
-    p->lead = 3;
+    p->lead = 1;
     p->max_depth = 10;
     p->init_depth = 0;
     p->tolerance = 0.2;

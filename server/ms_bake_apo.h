@@ -37,7 +37,7 @@
 
 typedef struct ms_bake_apo_params {
     bool enabled;
-    uint32_t lead;        /* levels below the finest geometric precision, <= 16 (default 3) */
+    uint32_t lead;        /* levels below the finest geometric precision, <= 16 (default 1) */
     uint32_t max_depth;   /* cap on the chunk's depth, <= 24 (default 10) */
     uint32_t init_depth;  /* split unconditionally above this depth (default 0) */
     double tolerance;     /* spread of M's normals, radians (default 0.2) */
