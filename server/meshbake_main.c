@@ -322,6 +322,9 @@ static void print_bake_json(const ms_bake_options *o, const ms_bake_report *r)
                             (json_int_t)r->apo_leaves, "level_texels", per_level,
                             "sample_triangles", (json_int_t)r->apo_sample_triangles,
                             "sample_triangles_max", (json_int_t)r->apo_sample_triangles_max);
+    if (apo)
+        json_object_set_new(apo, "sampling", json_pack("{s:I, s:I}", "rays", (json_int_t)r->apo_rays,
+                                                       "point_queries", (json_int_t)r->apo_point_queries));
     if (apo && o->apo.accuracy)
         json_object_set_new(apo, "accuracy",
                             json_pack("{s:I, s:f, s:f, s:f}", "points", (json_int_t)r->apo_accuracy_points,
@@ -379,8 +382,9 @@ static void print_bake_text(const ms_bake_report *r)
         printf("APO:                  %u chunks, %" PRIu64 " bytes (%" PRIu64 " raw), %" PRIu64
                " internal nodes, %" PRIu64 " leaves\n",
                r->apo_chunks, r->apo_bytes, r->apo_raw_bytes, r->apo_internal_nodes, r->apo_leaves);
-        printf("APO sampling:         internal cells' M %" PRIu64 " triangles, largest %" PRIu64 "\n",
-               r->apo_sample_triangles, r->apo_sample_triangles_max);
+        printf("APO sampling:         internal cells' M %" PRIu64 " triangles, largest %" PRIu64 "; %" PRIu64
+               " rays, %" PRIu64 " closest-point queries\n",
+               r->apo_sample_triangles, r->apo_sample_triangles_max, r->apo_rays, r->apo_point_queries);
         if (r->apo_accuracy_points > 0)
             printf("APO accuracy:         %" PRIu64 " full-precision centroids of internal cells: "
                    "mean %.2f, median %.2f, p90 %.2f degrees\n",

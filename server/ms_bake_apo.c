@@ -448,7 +448,8 @@ ms_status ms_bake_apo_cell(ms_apo_builder *builder, const ms_bake_apo_params *p,
     o.threads = threads ? threads : 1;
     ms_apo_tree tree;
     memset(&tree, 0, sizeof tree);
-    ms_status st = ms_apo_builder_build_tree(builder, m, M, &o, &tree, NULL, err);
+    ms_apo_build_stats stats;
+    ms_status st = ms_apo_builder_build_tree(builder, m, M, &o, &tree, &stats, err);
     ms_apo_chunk chunk;
     memset(&chunk, 0, sizeof chunk);
     if (st == MS_OK && tree.level_count > 0)
@@ -460,6 +461,8 @@ ms_status ms_bake_apo_cell(ms_apo_builder *builder, const ms_bake_apo_params *p,
         memcpy(out->level_texels, chunk.level_texels, chunk.level_count * sizeof *chunk.level_texels);
         out->texels = chunk.texel_count;
         ms_apo_tree_counts(&tree, &out->internal_nodes, &out->leaves);
+        out->rays = stats.rays;
+        out->point_queries = stats.point_queries;
         if (p->verify && out->levels > 0)
             st = verify_stored(&tree, out, err);
         if (st == MS_OK && reference && out->levels > 0)

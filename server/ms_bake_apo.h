@@ -96,6 +96,7 @@ typedef struct ms_bake_apo_result {
     uint32_t level_texels[MS_APO_MAX_LEVELS];    /* words per level */
     uint64_t texels;
     size_t internal_nodes, leaves;
+    uint64_t rays, point_queries; /* the builder's sampling work (ms_apo_build_stats) */
     ms_bake_apo_accuracy accuracy; /* filled when a reference mesh was given */
 } ms_bake_apo_result;
 

@@ -21,6 +21,7 @@
 #include <zlib.h>
 
 #include "ms_apo_chunk.h"
+#include "ms_apo_sample.h"
 #include "ms_apo_stream.h"
 #include "ms_archive.h"
 #include "ms_bake.h"
@@ -354,6 +355,10 @@ static void test_cli_reports_apo(void **state)
     assert_int_equal(raw, 4 * texels);
     assert_int_equal(texels, leaves + 2 * internal);
     assert_true(json_is_number(json_object_get(json_object_get(j, "seconds"), "apo")));
+    json_t *sampling = json_object_get(apo, "sampling");
+    json_int_t rays = json_integer_value(json_object_get(sampling, "rays"));
+    assert_true(rays > 0 && rays <= 2 * (json_int_t)MS_APO_SAMPLES_PER_LEAF * leaves);
+    assert_true(json_is_integer(json_object_get(sampling, "point_queries")));
     json_decref(j);
     /* the archive's chunks add up to the report */
     char path[700];
@@ -733,6 +738,10 @@ static void test_flat_fan_bakes(void **state)
     assert_int_equal(r.apo_internal_nodes, 0);
     assert_int_equal(r.apo_leaves, r.apo_chunks); /* one texel per chunk */
     assert_int_equal(r.apo_levels, 1);
+    /* each one-texel chunk: at most 8 samples, 2 rays each, however many of the
+     * fan's triangles it touches (the root's m alone has thousands) */
+    assert_true(r.apo_rays > 0 && r.apo_rays <= 2 * MS_APO_SAMPLES_PER_LEAF * r.apo_leaves);
+    assert_true(r.apo_point_queries <= r.apo_leaves);
     snprintf(path, sizeof path, "%s/fan.msa", dir);
     archive_check k = check_archive(path, false);
     assert_int_equal(k.chunks, r.apo_chunks);
