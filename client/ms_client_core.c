@@ -154,6 +154,7 @@ struct ms_core {
     ms_view *view;
     dcell *cells;
     uint8_t *target;
+    float *tolerance_scale; /* per cell, on the geometric tolerance (APO on: see dec_take_index) */
     double tolerance_factor, last_budget_step, last_blocked;
     uint64_t generation;
     uint64_t consumed_seq;
@@ -1037,13 +1038,23 @@ static bool dec_take_index(ms_core *c, ms_error *err)
     ms_archive_cell *recs = malloc((size_t)h->cell_count * sizeof *recs);
     c->cells = calloc(h->cell_count, sizeof *c->cells);
     c->target = malloc(h->cell_count);
-    if (!recs || !c->cells || !c->target) {
+    c->tolerance_scale = malloc((size_t)h->cell_count * sizeof *c->tolerance_scale);
+    if (!recs || !c->cells || !c->target || !c->tolerance_scale) {
         free(recs);
         ms_error_set(err, MS_ERR_NOMEM, "out of memory for %u cells", h->cell_count);
         return false;
     }
-    for (uint32_t i = 0; i < h->cell_count; ++i)
+    /* With APO on, geometry refines only to apo_geometry_tolerance_px where a
+     * chunk carries the shading; a cell baked without one (its geometry renders
+     * the input: every leaf, docs/APO.md) is shaded by its triangles alone, so
+     * it refines to tolerance_px as with APO off. */
+    bool apo_on = c->o.apo_levels > 0 && h->has_apo;
+    for (uint32_t i = 0; i < h->cell_count; ++i) {
         recs[i] = *ms_archive_get_cell(c->index, i);
+        c->tolerance_scale[i] = apo_on && recs[i].apo_levels == 0
+                                    ? (float)(c->o.tolerance_px / c->o.apo_geometry_tolerance_px)
+                                    : 1.0f;
+    }
     ms_status s = ms_view_create(h, recs, &c->view, err);
     free(recs);
     return s == MS_OK;
@@ -1435,7 +1446,8 @@ static void dec_step(ms_core *c, chunk_msg *chunks, const ms_camera *cam, uint64
     ms_view_select_params sp = {.tolerance_px = fv.tolerance,
                                 .margin = c->o.frustum_margin,
                                 .hysteresis = c->o.hysteresis_bits,
-                                .culled_bits_less = c->o.culled_bits_less};
+                                .culled_bits_less = c->o.culled_bits_less,
+                                .tolerance_scale = c->tolerance_scale};
     ms_view_select(c->view, cam, &sp, c->target);
     size_t refined_in_parallel = dec_parallel_refine(c);
     ms_view_apply_report report;
@@ -1922,6 +1934,7 @@ void ms_core_stop(ms_core *c)
     free(c->cells);
     ms_view_destroy(c->view);
     free(c->target);
+    free(c->tolerance_scale);
     ms_archive_close(c->index);
     free(c->slot_head);
     free(c->wants);

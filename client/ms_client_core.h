@@ -53,7 +53,9 @@
  *
  * Two tolerances. tolerance_px is the geometric screen tolerance; with APO on
  * (apo_levels > 0 on a model that has APO chunks) geometry refines only to
- * apo_geometry_tolerance_px and tolerance_px is the detail tolerance: each
+ * apo_geometry_tolerance_px in the cells that carry a chunk (a cell baked
+ * without one, such as every leaf, whose geometry renders the input, still
+ * refines to tolerance_px) and tolerance_px is the detail tolerance: each
  * visible shown cell's APO chunk is fetched by footprint, down to the level
  * whose texel projects to tolerance_px (ms_apo_footprint_levels, ms_camera.h,
  * at the cell's nearest point; raised with the budget's tolerance), at most

@@ -441,6 +441,12 @@ void ms_view_select_params_default(ms_view_select_params *p)
     p->margin = 0.0;
     p->hysteresis = 0.5;
     p->culled_bits_less = 2.0;
+    p->tolerance_scale = NULL;
+}
+
+static double cell_tolerance(const ms_view_select_params *p, uint32_t cell)
+{
+    return p->tolerance_scale ? p->tolerance_px * p->tolerance_scale[cell] : p->tolerance_px;
 }
 
 double ms_view_cell_need(const ms_view *v, const ms_camera *cam, uint32_t cell,
@@ -453,7 +459,7 @@ double ms_view_cell_need(const ms_view *v, const ms_camera *cam, uint32_t cell,
     if (!ms_frustum_keeps_box(&f, lo, hi, p->margin))
         return -1.0;
     double d = ms_camera_box_distance(cam, lo, hi);
-    return ms_screen_bits_needed(cam, v->header.box_side, d, p->tolerance_px);
+    return ms_screen_bits_needed(cam, v->header.box_side, d, cell_tolerance(p, cell));
 }
 
 static void select_cell(const ms_view *v, const ms_camera *cam, const ms_frustum *f,
@@ -463,7 +469,8 @@ static void select_cell(const ms_view *v, const ms_camera *cam, const ms_frustum
     double lo[3], hi[3];
     cell_box(v, &c->rec, lo, hi);
     double need = ms_screen_bits_needed(cam, v->header.box_side,
-                                        ms_camera_box_distance(cam, lo, hi), p->tolerance_px);
+                                        ms_camera_box_distance(cam, lo, hi),
+                                        cell_tolerance(p, cell));
     if (!ms_frustum_keeps_box(f, lo, hi, p->margin))
         need -= p->culled_bits_less;
     unsigned current = c->state == MS_VIEW_SHOWN ? c->bits

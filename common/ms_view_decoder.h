@@ -130,10 +130,16 @@ typedef struct ms_view_select_params {
     double margin;        /* frustum margin, world units (>= 0) */
     double hysteresis;    /* bits to spare before coarsening (ms_select_bits), e.g. 0.5 */
     double culled_bits_less; /* cells outside the frustum get their need minus this */
+    /* NULL, or per cell a factor on tolerance_px (> 0): a client with APO on
+     * refines cells that carry a chunk only to a coarse geometric tolerance and
+     * the cells without one (their geometry is all the shading they get) to the
+     * full one. Borrowed; cell_count entries. */
+    const float *tolerance_scale;
 } ms_view_select_params;
 
 /* 1 pixel, no margin, 0.5 bit of hysteresis, culled cells 2 bits coarser (keeps
- * the precision steps at the frustum border small: see ms_view_stitch). */
+ * the precision steps at the frustum border small: see ms_view_stitch), one
+ * tolerance for every cell. */
 void ms_view_select_params_default(ms_view_select_params *params);
 
 /* Real-valued precision (bits) a cell needs for the camera, or -1 when it is

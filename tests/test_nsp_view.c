@@ -232,6 +232,68 @@ static bool states_equal(ms_view *v, uint32_t cell, const ms_codec_state *s)
     return eq;
 }
 
+/* A per-cell tolerance scale (ms_view_select_params.tolerance_scale): a uniform
+ * scale s at tolerance t selects exactly what tolerance s*t does, and scaling
+ * the leaves alone changes only the targets of leaves (the split decisions of
+ * internal cells, taken at their own tolerance, stay those of the unscaled
+ * selection). This is how a client with APO on refines the cells baked without
+ * a chunk to the full tolerance. */
+static void test_tolerance_scale(void **state)
+{
+    (void)state;
+    char dir[512], ply[600];
+    ms_test_tmpdir(dir, sizeof dir);
+    snprintf(ply, sizeof ply, "%s/demo.ply", dir);
+    ms_nsp_test_demo_ply(ply, 60000);
+    ms_bake_report rep;
+    ms_nsp_test_bake(ply, dir, "demo", 16, 1500, &rep);
+    ms_archive *a;
+    ms_view *v = open_view(rep.archive_path, &a);
+    const ms_archive_header *h = ms_view_header(v);
+    uint32_t n = h->cell_count;
+    uint8_t *coarse = malloc(n), *fine = malloc(n), *scaled = malloc(n), *mixed = malloc(n);
+    float *uniform = malloc(n * sizeof *uniform), *leaves = malloc(n * sizeof *leaves);
+    assert_true(coarse && fine && scaled && mixed && uniform && leaves);
+    for (uint32_t i = 0; i < n; ++i) {
+        uniform[i] = 0.25f;
+        leaves[i] = ms_view_cell(v, i)->first_child == MS_ARCHIVE_NONE ? 0.25f : 1.0f;
+    }
+    uint64_t rng = 777;
+    size_t leaf_changes = 0;
+    for (unsigned k = 0; k < 8; ++k) {
+        ms_camera cam;
+        random_camera(h, &rng, &cam);
+        ms_view_select_params sp;
+        ms_view_select_params_default(&sp);
+        sp.tolerance_px = 4.0;
+        ms_view_select(v, &cam, &sp, coarse);
+        sp.tolerance_px = 1.0;
+        ms_view_select(v, &cam, &sp, fine);
+        sp.tolerance_px = 4.0;
+        sp.tolerance_scale = uniform;
+        ms_view_select(v, &cam, &sp, scaled);
+        assert_memory_equal(scaled, fine, n);
+        sp.tolerance_scale = leaves;
+        ms_view_select(v, &cam, &sp, mixed);
+        for (uint32_t i = 0; i < n; ++i) {
+            bool leaf = ms_view_cell(v, i)->first_child == MS_ARCHIVE_NONE;
+            if (!leaf)
+                assert_int_equal(mixed[i], coarse[i]);
+            else if (coarse[i] == MS_VIEW_TARGET_HIDDEN)
+                assert_int_equal(mixed[i], MS_VIEW_TARGET_HIDDEN);
+            else {
+                assert_int_equal(mixed[i], fine[i]); /* shown leaf: the fine need */
+                leaf_changes += mixed[i] != coarse[i];
+            }
+        }
+    }
+    assert_true(leaf_changes > 0); /* the cameras do reach leaves that refine */
+    free(coarse), free(fine), free(scaled), free(mixed), free(uniform), free(leaves);
+    ms_view_destroy(v);
+    ms_archive_close(a);
+    ms_test_rmdir(dir);
+}
+
 static void test_reversible(void **state)
 {
     (void)state;
@@ -387,6 +449,7 @@ static void test_threads_identical(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_tolerance_scale),
         cmocka_unit_test(test_prefixes),
         cmocka_unit_test(test_reversible),
         cmocka_unit_test(test_threads_identical),
