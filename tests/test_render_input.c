@@ -430,6 +430,123 @@ static void test_camera(void **state)
         assert_true(fabs(out[k] - (cam.position[k] + cam.near_distance * cam.forward[k])) < 1e-9);
 }
 
+/* ---- shading modes on one hand-made triangle ---------------------------- */
+
+static float srgb(double c)
+{
+    return (float)(c <= 0.0031308 ? 12.92 * c : 1.055 * pow(c, 1.0 / 2.4) - 0.055);
+}
+
+/* Draws one triangle of a one-cell model (the unit box) through the plane
+ * through the box centre with normal (0, sin t, cos t), seen from +z; returns the
+ * centre pixel's colour (corner: the bottom-left one's). reversed flips the
+ * winding (a back face). */
+static void draw_plane_pixel(double tilt_deg, bool reversed, const ms_render_options *o, bool corner, float rgba[4])
+{
+    ms_archive_header h;
+    memset(&h, 0, sizeof h);
+    h.box_side = 1.0;
+    h.bits = 16;
+    h.n = 4;
+    h.root_bits = 7;
+    h.cell_count = 1;
+    ms_archive_cell cell;
+    memset(&cell, 0, sizeof cell);
+    cell.parent = cell.first_child = MS_ARCHIVE_NONE;
+    ms_render *r;
+    ms_error err;
+    expect(ms_render_new(&h, &cell, &r, &err), MS_OK, &err);
+    double t = tilt_deg * M_PI / 180.0;
+    /* in-plane axes: x, and (0, cos t, -sin t) */
+    double corners[3][2] = {{-20, -20}, {20, -20}, {0, 20}};
+    double positions[9];
+    for (int k = 0; k < 3; ++k) {
+        positions[3 * k] = 0.5 + corners[k][0];
+        positions[3 * k + 1] = 0.5 + corners[k][1] * cos(t);
+        positions[3 * k + 2] = 0.5 - corners[k][1] * sin(t);
+    }
+    uint32_t tri[3] = {0, reversed ? 2u : 1u, reversed ? 1u : 2u}, tri_cell[1] = {0};
+    ms_view_mesh mesh;
+    memset(&mesh, 0, sizeof mesh);
+    mesh.vertex_count = 3;
+    mesh.triangle_count = 1;
+    mesh.positions = positions;
+    mesh.triangles = tri;
+    mesh.triangle_cell = tri_cell;
+    expect(ms_render_set_frame(r, &mesh, NULL, 0, &err), MS_OK, &err);
+    ms_render_upload_stats up;
+    expect(ms_render_upload(r, UINT64_MAX, &up, &err), MS_OK, &err);
+    ms_camera cam;
+    const double eye[3] = {0.5, 0.5, 3.0}, centre[3] = {0.5, 0.5, 0.5}, upv[3] = {0, 1, 0};
+    assert_int_equal(ms_camera_look_at(eye, centre, upv, 40.0, WIDTH + 1, HEIGHT + 1, 0.5, 10.0, &cam, NULL), MS_OK);
+    ms_test_fbo fbo;
+    ms_test_fbo_new(&fbo, WIDTH + 1, HEIGHT + 1); /* odd sizes: a pixel centre on the axis */
+    expect(ms_render_draw(r, &cam, o, NULL, &err), MS_OK, &err);
+    size_t np = (size_t)(WIDTH + 1) * (HEIGHT + 1);
+    float *px = malloc(np * 4 * sizeof *px);
+    ms_test_fbo_read(&fbo, px, NULL);
+    size_t at = corner ? 0 : (size_t)(HEIGHT / 2) * (WIDTH + 1) + WIDTH / 2;
+    memcpy(rgba, &px[4 * at], 4 * sizeof(float));
+    free(px);
+    ms_test_fbo_free(&fbo);
+    ms_render_free(r);
+}
+
+static void draw_plane(double tilt_deg, bool reversed, const ms_render_options *o, float rgba[4])
+{
+    draw_plane_pixel(tilt_deg, reversed, o, false, rgba);
+}
+
+static void expect_colour(const float got[4], double r, double g, double b)
+{
+    if (fabs(got[0] - r) > 2e-3 || fabs(got[1] - g) > 2e-3 || fabs(got[2] - b) > 2e-3)
+        fail_msg("colour (%.4f %.4f %.4f), expected (%.4f %.4f %.4f)", got[0], got[1], got[2], r, g, b);
+}
+
+/* LIT: albedo (0.72, 0.69, 0.64) times (0.05 + 0.95 * Lambert * self-shadow) plus
+ * 0.18 * specular^40 * self-shadow, sRGB-encoded; both sides lit alike. NORMALS:
+ * the stored orientation's normal. CELL_ID: cell + 1. */
+static void test_shading(void **state)
+{
+    (void)state;
+    const double albedo[3] = {0.72, 0.69, 0.64};
+    ms_render_options o;
+    ms_render_options_default(&o);
+    float c[4];
+    for (int back = 0; back < 2; ++back) {
+        draw_plane(0.0, back, &o, c);
+        expect_colour(c, srgb(albedo[0] + 0.18), srgb(albedo[1] + 0.18), srgb(albedo[2] + 0.18));
+        draw_plane(60.0, back, &o, c);
+        double lambert = 0.5, spec = pow(0.5, 40.0) * 0.5;
+        expect_colour(c, srgb(albedo[0] * (0.05 + 0.95 * lambert * lambert) + 0.18 * spec),
+                      srgb(albedo[1] * (0.05 + 0.95 * lambert * lambert) + 0.18 * spec),
+                      srgb(albedo[2] * (0.05 + 0.95 * lambert * lambert) + 0.18 * spec));
+    }
+    o.shading = MS_SHADING_NORMALS;
+    draw_plane(60.0, false, &o, c);
+    expect_colour(c, 0.5, (sin(M_PI / 3) + 1) / 2, (cos(M_PI / 3) + 1) / 2);
+    draw_plane(60.0, true, &o, c);
+    expect_colour(c, 0.5, (-sin(M_PI / 3) + 1) / 2, (-cos(M_PI / 3) + 1) / 2);
+    o.shading = MS_SHADING_CELL_ID;
+    draw_plane(0.0, false, &o, c);
+    expect_colour(c, 1.0 / 255.0, 0.0, 0.0);
+    /* the background: linear as given for NORMALS, sRGB-encoded for LIT */
+    o.shading = MS_SHADING_NORMALS;
+    o.background[0] = 0.25f, o.background[1] = 0.5f, o.background[2] = 0.0f;
+    draw_plane_pixel(89.0, false, &o, true, c); /* nearly edge-on: the corner misses */
+    expect_colour(c, 0.25, 0.5, 0.0);
+    o.shading = MS_SHADING_LIT;
+    draw_plane_pixel(89.0, false, &o, true, c);
+    expect_colour(c, srgb(0.25), srgb(0.5), 0.0);
+    o.shading = MS_SHADING_CELL_ID; /* background is 0 whatever the colour asked */
+    draw_plane_pixel(89.0, false, &o, true, c);
+    expect_colour(c, 0.0, 0.0, 0.0);
+    o.shading = MS_SHADING_LIT;
+    o.wireframe = true; /* far from any edge: no change */
+    draw_plane(0.0, false, &o, c);
+    expect_colour(c, srgb(albedo[0] + 0.18), srgb(albedo[1] + 0.18), srgb(albedo[2] + 0.18));
+}
+
 static int setup(void **state)
 {
     (void)state;
@@ -456,6 +573,7 @@ int main(void)
         cmocka_unit_test(test_bad_model),   cmocka_unit_test(test_bad_calls),
         cmocka_unit_test(test_corrupt_apo), cmocka_unit_test(test_prefix_words),
         cmocka_unit_test(test_texel_ranges), cmocka_unit_test(test_camera),
+        cmocka_unit_test(test_shading),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }

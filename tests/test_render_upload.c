@@ -244,7 +244,7 @@ static void test_budget_and_same_frame(void **state)
 }
 
 /* A shown cell that can refine and draws triangles. */
-static uint32_t refinable_cell(const ms_view_mesh *mesh)
+static uint32_t refinable_cell(const ms_view_mesh *mesh, uint32_t except)
 {
     uint32_t best = UINT32_MAX;
     size_t best_tris = 0;
@@ -252,8 +252,8 @@ static uint32_t refinable_cell(const ms_view_mesh *mesh)
     for (size_t t = 0; t < mesh->triangle_count; ++t)
         tris[mesh->triangle_cell[t]]++;
     for (uint32_t c = 0; c < fx.cell_count; ++c)
-        if (ms_view_state(fx.view, c) == MS_VIEW_SHOWN && ms_view_bits(fx.view, c) < ms_view_cell(fx.view, c)->bits_max &&
-            tris[c] > best_tris)
+        if (c != except && ms_view_state(fx.view, c) == MS_VIEW_SHOWN &&
+            ms_view_bits(fx.view, c) < ms_view_cell(fx.view, c)->bits_max && tris[c] > best_tris)
             best = c, best_tris = tris[c];
     free(tris);
     assert_true(best != UINT32_MAX);
@@ -275,7 +275,7 @@ static void test_refinement_queues_changed_cells(void **state)
     ms_render_draw_stats d0 = draw(old_ids);
     assert_int_equal(d0.triangles_drawn, before.triangle_count);
 
-    uint32_t cell = refinable_cell(&before);
+    uint32_t cell = refinable_cell(&before, UINT32_MAX);
     ms_error err;
     assert_int_equal(ms_view_set_bits(fx.view, cell, ms_view_bits(fx.view, cell) + 1, &err), MS_OK);
     assert_int_equal(ms_view_stitch(fx.view, NULL, &after, &err), MS_OK);
@@ -325,7 +325,8 @@ static void test_refinement_queues_changed_cells(void **state)
 }
 
 /* A split: the parent leaves the frame and stops drawing at once, before any of
- * its children is uploaded. */
+ * its children is uploaded; the children (holes) go up before a refinement of
+ * another cell queued with them. */
 static void test_leaving_cell_stops_at_once(void **state)
 {
     (void)state;
@@ -346,6 +347,8 @@ static void test_leaving_cell_stops_at_once(void **state)
     ms_error err;
     if (ms_view_bits(fx.view, parent) < ms_view_cell(fx.view, parent)->bits_max)
         assert_int_equal(ms_view_set_bits(fx.view, parent, ms_view_cell(fx.view, parent)->bits_max, &err), MS_OK);
+    uint32_t other = refinable_cell(&before, parent);
+    assert_int_equal(ms_view_set_bits(fx.view, other, ms_view_bits(fx.view, other) + 1, &err), MS_OK);
     assert_int_equal(ms_view_split(fx.view, parent, &err), MS_OK);
     assert_int_equal(ms_view_stitch(fx.view, NULL, &after, &err), MS_OK);
     set_frame(&after, NULL, 0);
@@ -355,11 +358,20 @@ static void test_leaving_cell_stops_at_once(void **state)
     for (size_t t = 0; t < before.triangle_count; ++t)
         others += before.triangle_cell[t] != parent;
     assert_int_equal(d.triangles_drawn, others);
+    uint32_t final_cells = drawing_cells(&after, fx.cell_count), drawn = d.cells_drawn, holes = final_cells - drawn;
+    assert_true(holes > 0);
     ms_render_upload_stats s;
-    do
-        s = upload(1 << 20);
-    while (s.cells_pending > 0);
-    d = draw(NULL);
+    do {
+        s = upload(8192);
+        d = draw(NULL);
+        /* while holes remain, whatever completes is a hole */
+        if (d.cells_drawn < final_cells)
+            assert_int_equal(d.cells_drawn, drawn + s.cells_completed);
+        drawn = d.cells_drawn;
+    } while (s.cells_pending > 0);
+    print_message("split of cell %u: %u new cells uploaded before the refinement of cell %u\n", parent, holes,
+                  other);
+    assert_int_equal(d.cells_drawn, final_cells);
     assert_int_equal(d.triangles_drawn, after.triangle_count);
     ms_view_mesh_free(&before);
     ms_view_mesh_free(&after);
