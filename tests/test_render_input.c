@@ -347,6 +347,8 @@ static void test_texel_ranges(void **state)
     ms_render_texels t;
     ms_error err;
     expect(ms_render_texels_init(&t, &err), MS_OK, &err);
+    print_message("texel buffer: %u words to start, at most %u (GL_MAX_TEXTURE_BUFFER_SIZE)\n", t.capacity,
+                  t.max_words);
     uint32_t a, b, c;
     assert_true(ms_render_texels_alloc(&t, 1000, &a));
     assert_true(ms_render_texels_alloc(&t, 2000, &b));
