@@ -15,6 +15,9 @@
 #include <string.h>
 #include <cmocka.h>
 
+#define GLFW_INCLUDE_NONE
+#include <GLFW/glfw3.h>
+
 #include "ms_apo_stream.h"
 #include "ms_render.h"
 #include "ms_render_internal.h"
@@ -77,6 +80,12 @@ static void test_bad_model(void **state)
     free(copy);
     assert_null(r);
     ms_render_free(NULL);
+    /* no current context: an error, not a crash */
+    glfwMakeContextCurrent(NULL);
+    ms_status st = ms_render_new(h, cells, &r, &err);
+    glfwMakeContextCurrent(gl.window);
+    expect(st, MS_ERR_UNSUPPORTED, &err);
+    assert_null(r);
 }
 
 /* Bad frames, uploads and draws: errors, then a good frame still draws. */

@@ -534,6 +534,7 @@ ms_status ms_render_draw(ms_render *r, const ms_camera *camera, const ms_render_
     glDepthFunc(GL_LESS);
     glDisable(GL_CULL_FACE);
     glDisable(GL_BLEND);
+    glDisable(GL_FRAMEBUFFER_SRGB); /* the shader encodes sRGB itself */
     const ms_render_program *p = &r->program;
     glUseProgram(p->program);
     glUniformMatrix4fv(p->projection, 1, GL_FALSE, projection);
