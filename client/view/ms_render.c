@@ -590,3 +590,18 @@ ms_status ms_render_draw(ms_render *r, const ms_camera *camera, const ms_render_
                             "render: GL error 0x%x while drawing", e);
     return MS_OK;
 }
+
+bool ms_render_cell_texels(const ms_render *r, uint32_t cell, uint32_t *start, uint32_t *count, uint32_t *levels)
+{
+    if (!r || cell >= r->header.cell_count || r->cells[cell].apo.count == 0)
+        return false;
+    *start = r->cells[cell].apo.start;
+    *count = r->cells[cell].apo.count;
+    *levels = r->cells[cell].apo.levels;
+    return true;
+}
+
+GLuint ms_render_texel_buffer(const ms_render *r)
+{
+    return r ? r->texels.buffer : 0;
+}

@@ -137,4 +137,12 @@ typedef struct ms_render_program {
 ms_status ms_render_program_build(ms_render_program *program, bool wireframe, ms_error *err);
 void ms_render_program_free(ms_render_program *program);
 
+/* ---- ms_render.c: for tests ----------------------------------------------- */
+
+/* The texel range a cell currently draws with (false: none), and the GL buffer
+ * holding the words, so that a test can read them back. */
+bool ms_render_cell_texels(const ms_render *render, uint32_t cell, uint32_t *start, uint32_t *count,
+                           uint32_t *levels);
+GLuint ms_render_texel_buffer(const ms_render *render);
+
 #endif
