@@ -66,8 +66,12 @@ static double triangle_distance2(const double p[3], const double a[3], const dou
             }
             return best;
         }
-        v = vb / sum;
-        w = vc / sum;
+        /* Inside the face's region: the distance to its plane, (ap . n)^2 / |n|^2,
+         * which is exactly 0 for a point in the plane of an axis-aligned face
+         * (no rounding through the barycentrics). */
+        double n[3] = {ab[1] * ac[2] - ab[2] * ac[1], ab[2] * ac[0] - ab[0] * ac[2], ab[0] * ac[1] - ab[1] * ac[0]};
+        double h = ap[0] * n[0] + ap[1] * n[1] + ap[2] * n[2];
+        return h * h / (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
     }
     double d = 0;
     for (int k = 0; k < 3; ++k) {
