@@ -10,8 +10,8 @@
 
 /* Squared distance from p to triangle (a, b, c), all in doubles: the closest
  * point is found by the Voronoi region of p among the vertices, edges and face
- * (Ericson, Real-Time Collision Detection, 5.1.5), which is exact for points in
- * the plane and degrades to the nearest vertex/edge for degenerate triangles. */
+ * (the classic region test); inside the face's region the distance is the
+ * distance to the plane. A degenerate triangle gives its nearest edge point. */
 static double triangle_distance2(const double p[3], const double a[3], const double b[3], const double c[3])
 {
     double ab[3], ac[3], ap[3], bp[3], cp[3];
