@@ -184,3 +184,43 @@ ms_status ms_study_image_write_png(const ms_study_image *im, const char *path, m
 {
     return ms_png_write(path, im->rgb, im->width, im->height, 3, err);
 }
+
+ms_status ms_study_image_write_normals_png(const ms_study_image *im, const char *path, ms_error *err)
+{
+    size_t n = (size_t)im->width * im->height;
+    uint8_t *rgb = malloc(3 * n);
+    if (!rgb)
+        return ms_error_set(err, MS_ERR_NOMEM, "study image: out of memory for %zu pixels", n);
+    for (size_t p = 0; p < 3 * n; ++p)
+        rgb[p] = ms_study_image_covered(im, p / 3) ? (uint8_t)lround(255 * (im->normal[p] + 1) / 2) : 0;
+    ms_status st = ms_png_write(path, rgb, im->width, im->height, 3, err);
+    free(rgb);
+    return st;
+}
+
+ms_status ms_study_key_camera(const ms_camera_path *path, size_t key, double width, double height,
+                              double near_distance, double far_distance, const double lo[3], const double hi[3],
+                              ms_camera *camera, ms_error *err)
+{
+    if (key >= path->count)
+        return ms_error_set(err, MS_ERR_RANGE, "camera path: keyframe %zu of %zu", key, path->count);
+    const ms_camera_key *k = &path->keys[key];
+    if (!(far_distance > 0)) {
+        double farthest2 = 0;
+        for (int corner = 0; corner < 8; ++corner) {
+            double d2 = 0;
+            for (int a = 0; a < 3; ++a) {
+                double c = (corner >> a) & 1 ? hi[a] : lo[a], d = c - k->position[a];
+                d2 += d * d;
+            }
+            farthest2 = fmax(farthest2, d2);
+        }
+        far_distance = 1.01 * sqrt(farthest2);
+        if (!(far_distance > 0))
+            far_distance = 1;
+    }
+    if (!(near_distance > 0))
+        near_distance = far_distance * 1e-5;
+    return ms_camera_look_at(k->position, k->target, k->up, k->fovy_degrees, width, height, near_distance,
+                             far_distance, camera, err);
+}

@@ -44,6 +44,7 @@
 #include <stdint.h>
 
 #include "ms_camera.h"
+#include "ms_camera_path.h"
 #include "ms_error.h"
 #include "ms_study_apo.h"
 #include "ms_study_scene.h"
@@ -90,6 +91,19 @@ ms_status ms_study_render(const ms_study_scene *scene, const ms_camera *camera,
 
 /* Writes the shaded image as PNG (ms_png.h). */
 ms_status ms_study_image_write_png(const ms_study_image *image, const char *path, ms_error *err);
+
+/* The normal buffer as an RGB image, rgb = (N + 1) / 2 (linear, as the viewer's
+ * MS_SHADING_NORMALS), background black; written as PNG. */
+ms_status ms_study_image_write_normals_png(const ms_study_image *image, const char *path, ms_error *err);
+
+/* The camera of keyframe `key` of a path for a width x height viewport. A near or
+ * far distance <= 0 is chosen from the box [lo, hi] the scene lies in: far = 1.01
+ * times the distance to the box's farthest corner, near = far / 10^5 (the
+ * renderer casts rays, so a deep range costs nothing). MS_ERR_RANGE for a key
+ * out of range; the camera's errors. */
+ms_status ms_study_key_camera(const ms_camera_path *path, size_t key, double width, double height,
+                              double near_distance, double far_distance, const double lo[3], const double hi[3],
+                              ms_camera *camera, ms_error *err);
 
 /* sRGB encoding of a linear value in [0, 1] (clamped), rounded to 8 bits. */
 uint8_t ms_study_srgb8(double linear);
