@@ -41,8 +41,8 @@ static void usage(FILE *out)
           "      --keys LIST       keyframe numbers, comma-separated (default: every one)\n"
           "      --tolerances LIST screen tolerances in pixels (default 1,4,16)\n"
           "      --width N, --height N   viewport in pixels (default 320 x 240)\n"
-          "      --spacing S       geometric sample spacing, model units (default: the\n"
-          "                        diagonal of MESH's bounding box / 1000)\n"
+          "      --spacing S       geometric sample spacing, model units (default:\n"
+          "                        sqrt(area of MESH / 10^5))\n"
           "      --threads N       threads (default: every core)\n"
           "      --json            print the results as one JSON object\n"
           "  -h, --help            show this help\n\n"
@@ -255,11 +255,10 @@ static ms_status open_study(const options *o, study *s, ms_error *err)
         return st;
     if (!ms_study_scene_triangle_count(s->full))
         return ms_error_set(err, MS_ERR_EMPTY, "%s: no triangle", o->mesh);
-    double lo[3], hi[3];
-    ms_study_scene_bounds(s->full, lo, hi);
-    double diagonal = sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
-                           (hi[2] - lo[2]) * (hi[2] - lo[2]));
-    s->spacing = o->spacing > 0 ? o->spacing : diagonal > 0 ? diagonal / 1000 : 1;
+    /* About 10^5 sub-triangles of side s on MESH (each triangle has at least one
+     * sample and its vertices besides). */
+    double area = ms_study_scene_area(s->full);
+    s->spacing = o->spacing > 0 ? o->spacing : area > 0 ? sqrt(area / 1e5) : 1;
     if ((st = ms_archive_open(o->archive, &s->archive, err)) != MS_OK ||
         (st = ms_view_create_from_archive(s->archive, &s->view, err)) != MS_OK)
         return st;

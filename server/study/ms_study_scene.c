@@ -201,6 +201,19 @@ void ms_study_scene_bounds(const ms_study_scene *s, double lo[3], double hi[3])
     memcpy(hi, s->hi, sizeof s->hi);
 }
 
+double ms_study_scene_area(const ms_study_scene *s)
+{
+    double area = 0;
+    for (size_t t = 0; t < s->triangle_count; ++t) {
+        const uint32_t *v = &s->triangles[3 * t];
+        const double *a = &s->local[3 * v[0]], *b = &s->local[3 * v[1]], *c = &s->local[3 * v[2]];
+        double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, w[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+        double n[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
+        area += 0.5 * sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    }
+    return area;
+}
+
 typedef struct closest_query {
     const ms_study_scene *scene;
     double point[3]; /* local frame */

@@ -40,6 +40,9 @@ size_t ms_study_scene_triangle_count(const ms_study_scene *scene);
  * (+inf, -inf) for a mesh without vertices. */
 void ms_study_scene_bounds(const ms_study_scene *scene, double lo[3], double hi[3]);
 
+/* Total area of the triangles (world units squared). */
+double ms_study_scene_area(const ms_study_scene *scene);
+
 /* The closest point of the scene's surface to `point` (world units): returns the
  * distance (+infinity for an empty scene) and, when triangle is not NULL, the
  * triangle it lies on (the lowest index among equally close ones). */
