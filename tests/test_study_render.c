@@ -179,6 +179,40 @@ static void test_sphere(void **state)
             covered += hit;
         }
     assert_true(covered > 100);
+    /* Smooth shading: the interpolated vertex normals of a UV sphere are nearly
+     * radial (exactly at the vertices); flat normals are off by up to half a
+     * facet's angle. */
+    ms_study_image smooth = {0};
+    ms_study_render_options so = {.threads = 2, .smooth = true};
+    assert_int_equal(ms_study_render(s, &cam, &so, &smooth, &err), MS_OK);
+    double worst_flat = 0, worst_smooth = 0;
+    for (uint32_t j = 0; j < im.height; ++j)
+        for (uint32_t i = 0; i < im.width; ++i) {
+            size_t p = (size_t)j * im.width + i;
+            if (!ms_study_image_covered(&im, p))
+                continue;
+            assert_true(ms_study_image_covered(&smooth, p));
+            assert_true(im.depth[p] == smooth.depth[p]);
+            double x, y, hit[3], len = 0;
+            slopes(&cam, i, j, &x, &y);
+            const double dir[3] = {x, y, -1};
+            for (int k = 0; k < 3; ++k) {
+                hit[k] = eye[k] + im.depth[p] * dir[k];
+                len += hit[k] * hit[k];
+            }
+            double flat_cos = 0, smooth_cos = 0;
+            for (int k = 0; k < 3; ++k) {
+                flat_cos += im.normal[3 * p + k] * hit[k] / sqrt(len);
+                smooth_cos += smooth.normal[3 * p + k] * hit[k] / sqrt(len);
+            }
+            worst_flat = fmax(worst_flat, acos(fmin(1, flat_cos)));
+            worst_smooth = fmax(worst_smooth, acos(fmin(1, smooth_cos)));
+        }
+    print_message("sphere: worst normal off the radius %.3f deg flat, %.3f deg smooth\n", worst_flat * 180 / M_PI,
+                  worst_smooth * 180 / M_PI);
+    assert_true(worst_flat > 0.5 * M_PI / 180);
+    assert_true(worst_smooth < 0.1 * worst_flat);
+    ms_study_image_free(&smooth);
     ms_study_image_free(&im);
     ms_study_scene_free(s);
 }

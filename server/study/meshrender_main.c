@@ -25,7 +25,7 @@ enum { EXIT_INPUT = 1, EXIT_USAGE = 2 };
 static void usage(FILE *out)
 {
     fputs("usage: meshrender INPUT -p CAMERA_PATH -o OUT_DIR [--width 640] [--height 480]\n"
-          "                  [--near D] [--far D] [--tolerance 1] [--apo] [--normals]\n"
+          "                  [--near D] [--far D] [--tolerance 1] [--apo] [--smooth] [--normals]\n"
           "                  [--threads N] [--json]\n"
           "Ray casts INPUT on the CPU (Embree) at every keyframe of CAMERA_PATH and writes\n"
           "OUT_DIR/frame_K.png (K = keyframe number, 3 digits): head light at the camera,\n"
@@ -38,6 +38,8 @@ static void usage(FILE *out)
           "      --near D, --far D       clipping distances (default: from the bounds)\n"
           "      --tolerance PX  archive: screen tolerance of the cut (default 1)\n"
           "      --apo           archive: shade with the APO chunks (CPU traversal)\n"
+          "      --smooth        interpolated vertex normals instead of flat ones (where\n"
+          "                      APO gives none)\n"
           "      --normals       also write OUT_DIR/normals_K.png, rgb = (N + 1) / 2\n"
           "      --threads N     render threads (default: every core)\n"
           "      --json          print the summary as one JSON object\n"
@@ -62,7 +64,7 @@ typedef struct options {
     const char *input, *path, *out_dir;
     double width, height, near_distance, far_distance, tolerance;
     unsigned threads;
-    bool apo, normals, json;
+    bool apo, smooth, normals, json;
 } options;
 
 /* Parses argv; returns -1 to go on, else the exit status. */
@@ -74,6 +76,7 @@ static int parse_options(int argc, char **argv, options *o)
         {"near", required_argument, NULL, 'n'},     {"far", required_argument, NULL, 'f'},
         {"tolerance", required_argument, NULL, 't'}, {"threads", required_argument, NULL, 'T'},
         {"apo", no_argument, NULL, 'a'},            {"normals", no_argument, NULL, 'N'},
+        {"smooth", no_argument, NULL, 'S'},
         {"json", no_argument, NULL, 'j'},           {"help", no_argument, NULL, 'h'},
         {NULL, 0, NULL, 0},
     };
@@ -86,6 +89,7 @@ static int parse_options(int argc, char **argv, options *o)
         case 'o': o->out_dir = optarg; break;
         case 'a': o->apo = true; break;
         case 'N': o->normals = true; break;
+        case 'S': o->smooth = true; break;
         case 'j': o->json = true; break;
         case 'h': usage(stdout); return 0;
         case 'W':
@@ -222,7 +226,8 @@ int main(int argc, char **argv)
                 break;
             scene = cut_scene;
         }
-        ms_study_render_options ro = {.threads = o.threads, .apo = src.apo, .triangle_cell = cut.triangle_cell};
+        ms_study_render_options ro = {.threads = o.threads, .apo = src.apo, .triangle_cell = cut.triangle_cell,
+                                   .smooth = o.smooth};
         st = ms_study_render(scene, &camera, &ro, &image, &err);
         size_t triangles = ms_study_scene_triangle_count(scene);
         ms_study_scene_free(cut_scene);

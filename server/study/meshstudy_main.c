@@ -29,7 +29,8 @@ enum { EXIT_INPUT = 1, EXIT_USAGE = 2 };
 static void usage(FILE *out)
 {
     fputs("usage: meshstudy MESH ARCHIVE -p CAMERA_PATH [--keys 0,4,8] [--tolerances 1,4,16]\n"
-          "                 [--width 320] [--height 240] [--spacing S] [--threads N] [--json]\n"
+          "                 [--width 320] [--height 240] [--spacing S] [--reference flat|smooth]\n"
+          "                 [--threads N] [--json]\n"
           "For every chosen keyframe of CAMERA_PATH and every screen tolerance (pixels),\n"
           "makes the cut of ARCHIVE (baked from MESH) a client shows for that camera and\n"
           "measures it against MESH at full resolution: bytes (index, geometry, APO),\n"
@@ -43,6 +44,9 @@ static void usage(FILE *out)
           "      --width N, --height N   viewport in pixels (default 320 x 240)\n"
           "      --spacing S       geometric sample spacing, model units (default:\n"
           "                        sqrt(area of MESH / 10^5))\n"
+          "      --reference R     how MESH's reference render shades: flat (its geometric\n"
+          "                        normals, the default) or smooth (its interpolated\n"
+          "                        vertex normals: the surface APO samples)\n"
           "      --threads N       threads (default: every core)\n"
           "      --json            print the results as one JSON object\n"
           "  -h, --help            show this help\n\n"
@@ -80,7 +84,7 @@ typedef struct options {
     size_t key_count, tolerance_count;
     double width, height, spacing;
     unsigned threads;
-    bool json;
+    bool smooth_reference, json;
 } options;
 
 static int parse_options(int argc, char **argv, options *o)
@@ -90,6 +94,7 @@ static int parse_options(int argc, char **argv, options *o)
         {"tolerances", required_argument, NULL, 't'}, {"width", required_argument, NULL, 'W'},
         {"height", required_argument, NULL, 'H'}, {"spacing", required_argument, NULL, 's'},
         {"threads", required_argument, NULL, 'T'}, {"json", no_argument, NULL, 'j'},
+        {"reference", required_argument, NULL, 'r'},
         {"help", no_argument, NULL, 'h'},         {NULL, 0, NULL, 0},
     };
     *o = (options){.width = 320, .height = 240, .tolerances = {1, 4, 16}, .tolerance_count = 3};
@@ -99,6 +104,13 @@ static int parse_options(int argc, char **argv, options *o)
         switch (c) {
         case 'p': o->path = optarg; break;
         case 'j': o->json = true; break;
+        case 'r':
+            if (strcmp(optarg, "flat") && strcmp(optarg, "smooth")) {
+                fprintf(stderr, "meshstudy: --reference must be flat or smooth\n");
+                return EXIT_USAGE;
+            }
+            o->smooth_reference = !strcmp(optarg, "smooth");
+            break;
         case 'h': usage(stdout); return 0;
         case 'k':
         case 't':
@@ -173,9 +185,10 @@ static ms_status study_key(study *s, size_t key, json_t *points, ms_error *err)
     if (st != MS_OK)
         return st;
     ms_study_render_options plain = {.threads = o->threads};
+    ms_study_render_options truth = {.threads = o->threads, .smooth = o->smooth_reference};
     ms_study_image reference = {0}, image = {0};
     ms_view_mesh cut = {0};
-    if ((st = ms_study_render(s->full, &camera, &plain, &reference, err)) != MS_OK)
+    if ((st = ms_study_render(s->full, &camera, &truth, &reference, err)) != MS_OK)
         return st;
     for (size_t t = 0; st == MS_OK && t < o->tolerance_count; ++t) {
         ms_view_select_params params;
@@ -283,8 +296,8 @@ int main(int argc, char **argv)
         st = study_key(&s, o.key_count ? (size_t)o.keys[k] : k, points, &err);
     json_t *root = NULL;
     if (st == MS_OK)
-        root = json_pack("{s:s, s:s, s:s, s:I, s:I, s:I, s:f, s:b, s:o, s:f}", "mesh", o.mesh, "archive", o.archive,
-                         "path", o.path, "width", (json_int_t)o.width, "height", (json_int_t)o.height,
+        root = json_pack("{s:s, s:s, s:s, s:s, s:I, s:I, s:I, s:f, s:b, s:o, s:f}", "mesh", o.mesh, "archive",
+                         o.archive, "path", o.path, "reference", o.smooth_reference ? "smooth" : "flat", "width", (json_int_t)o.width, "height", (json_int_t)o.height,
                          "mesh_triangles", (json_int_t)ms_study_scene_triangle_count(s.full), "spacing", s.spacing,
                          "apo", s.apo != NULL, "points", points, "seconds", ms_now_seconds() - start);
     else

@@ -93,6 +93,22 @@ static void shade_pixel(const render_job *job, size_t p, uint32_t t, double dept
             ng[k] = -ng[k];
     double n[3];
     memcpy(n, ng, sizeof n);
+    if (job->options->smooth) {
+        /* The interpolated vertex normal (the APO builder's rule for M), turned
+         * to the facing side; the face normal where the vertex normals cancel. */
+        const uint32_t *tv = &s->triangles[3 * t];
+        double sm[3], len2 = 0;
+        for (int k = 0; k < 3; ++k) {
+            sm[k] = (1 - u - v) * s->vertex_normal[3 * tv[0] + k] + u * s->vertex_normal[3 * tv[1] + k] +
+                    v * s->vertex_normal[3 * tv[2] + k];
+            len2 += sm[k] * sm[k];
+        }
+        if (len2 > 0) {
+            double scale = (dot3(sm, ng) < 0 ? -1 : 1) / sqrt(len2);
+            for (int k = 0; k < 3; ++k)
+                n[k] = scale * sm[k];
+        }
+    }
     if (job->options->apo) {
         /* The hit from its barycentrics, in doubles: on the triangle, so inside
          * (or on the border of) the drawing cell's cube. */

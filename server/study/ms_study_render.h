@@ -17,9 +17,12 @@
  *   depth     eye depth of the nearest hit; +infinity for background;
  *   triangle  the scene triangle hit; MS_STUDY_NO_HIT for background;
  *   normal    the shading normal N, unit, world axes: the hit triangle's
- *             geometric normal turned to face the camera (two-sided), or, with
- *             APO, the APO normal of the drawing cell at the hit, turned to the
- *             same side as that geometric normal; (0, 0, 0) for background;
+ *             geometric normal Ng turned to face the camera (two-sided); with
+ *             `smooth`, the barycentric interpolation of the area-weighted vertex
+ *             normals (the rule the APO builder samples M with), normalised and
+ *             turned to Ng's side; with APO, the APO normal of the drawing cell
+ *             at the hit, turned to Ng's side (where the cell has a chunk);
+ *             (0, 0, 0) for background;
  *   rgb       the shaded colour, 8-bit sRGB.
  *
  * Shading (head light at the camera, as the viewer's MS_SHADING_LIT): with L = V
@@ -41,6 +44,7 @@
 #ifndef MS_STUDY_RENDER_H
 #define MS_STUDY_RENDER_H
 
+#include <stdbool.h>
 #include <stdint.h>
 
 #include "ms_camera.h"
@@ -80,6 +84,7 @@ typedef struct ms_study_render_options {
     unsigned threads;               /* 0: every core */
     const ms_study_apo *apo;        /* NULL: geometric normals */
     const uint32_t *triangle_cell;  /* with apo: the drawing cell of every scene triangle */
+    bool smooth;                    /* interpolated vertex normals instead of flat ones */
 } ms_study_render_options;
 
 /* Renders scene at camera into *image, (re)allocated to the camera's viewport

@@ -117,7 +117,8 @@ ms_status ms_study_scene_new(const double *positions, size_t vertex_count, const
     s->local_f = malloc((3 * vertex_count + 4) * sizeof *s->local_f);
     s->triangles = malloc((3 * triangle_count + 1) * sizeof *s->triangles);
     s->face_normal = malloc((3 * triangle_count + 1) * sizeof *s->face_normal);
-    if (!s->local || !s->local_f || !s->triangles || !s->face_normal) {
+    s->vertex_normal = calloc(3 * vertex_count + 1, sizeof *s->vertex_normal);
+    if (!s->local || !s->local_f || !s->triangles || !s->face_normal || !s->vertex_normal) {
         ms_study_scene_free(s);
         return ms_error_set(err, MS_ERR_NOMEM, "study scene: out of memory for %zu vertices", vertex_count);
     }
@@ -134,8 +135,17 @@ ms_status ms_study_scene_new(const double *positions, size_t vertex_count, const
         double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, v[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
         double n[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};
         double len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-        for (int k = 0; k < 3; ++k)
+        for (int k = 0; k < 3; ++k) {
             s->face_normal[3 * t + k] = len > 0 ? n[k] / len : 0;
+            /* |n| is twice the area: the sum weights faces by area */
+            for (int corner = 0; corner < 3; ++corner)
+                s->vertex_normal[3 * triangles[3 * t + corner] + k] += n[k];
+        }
+    }
+    for (size_t v = 0; v < vertex_count; ++v) {
+        double *n = &s->vertex_normal[3 * v], len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        for (int k = 0; k < 3; ++k)
+            n[k] = len > 0 ? n[k] / len : 0;
     }
     s->device = rtcNewDevice(NULL);
     if (!s->device) {
@@ -187,6 +197,7 @@ void ms_study_scene_free(ms_study_scene *s)
     free(s->local_f);
     free(s->triangles);
     free(s->face_normal);
+    free(s->vertex_normal);
     free(s);
 }
 

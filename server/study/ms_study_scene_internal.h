@@ -17,6 +17,7 @@ struct ms_study_scene {
     float *local_f;        /* 3 per vertex + 1 float of padding (Embree's 16-byte loads) */
     uint32_t *triangles;   /* 3 per triangle */
     double *face_normal;   /* 3 per triangle: unit, as oriented; 0 for a degenerate one */
+    double *vertex_normal; /* 3 per vertex: area-weighted mean of its faces' normals, unit (0 if none) */
     size_t vertex_count, triangle_count;
     double lo[3], hi[3];   /* world bounds */
 };
