@@ -257,7 +257,7 @@ static void test_deterministic_and_far_origin(void **state)
     bad.width = 70000;
     assert_int_equal(ms_study_render(near_scene, &bad, NULL, &one, &err), MS_ERR_RANGE);
     ms_study_apo *apo;
-    assert_int_equal(ms_study_apo_new(1, UINT32_MAX, MS_APO_MISSING_NEAREST, &apo, &err), MS_OK);
+    assert_int_equal(ms_study_apo_new(1, 0, UINT32_MAX, MS_APO_MISSING_NEAREST, &apo, &err), MS_OK);
     ms_study_render_options o = {.apo = apo};
     assert_int_equal(ms_study_render(near_scene, &cam, &o, &one, &err), MS_ERR_ARG);
     ms_study_apo_free(apo);
@@ -310,7 +310,7 @@ static void test_apo_normals(void **state)
     ms_apo_chunk_adopt(&chunk, words, 10, 2, levels);
     ms_study_apo *apo;
     ms_error err;
-    assert_int_equal(ms_study_apo_new(1, UINT32_MAX, MS_APO_MISSING_NEAREST, &apo, &err), MS_OK);
+    assert_int_equal(ms_study_apo_new(1, 0, UINT32_MAX, MS_APO_MISSING_NEAREST, &apo, &err), MS_OK);
     const double origin[3] = {-0.5, -0.5, -0.5};
     assert_int_equal(ms_study_apo_put(apo, 0, origin, 1.0, &chunk, &err), MS_OK);
     assert_int_equal(ms_study_apo_chunk_count(apo), 1);
@@ -346,6 +346,23 @@ static void test_apo_normals(void **state)
     double angle_a = acos(a[2]) * 180 / M_PI, angle_b = acos(b[2]) * 180 / M_PI;
     assert_true(fabs(e.normal_max_deg - fmax(angle_a, angle_b)) < 1e-3);
     assert_true(e.psnr_db < 60);
+    /* the same chunk read with its first level only: the root's mean normal, +z */
+    uint32_t *again = malloc(10 * sizeof *again);
+    assert_non_null(again);
+    memcpy(again, words, 10 * sizeof *words);
+    ms_apo_chunk_adopt(&chunk, again, 10, 2, levels);
+    ms_study_apo *first_level;
+    assert_int_equal(ms_study_apo_new(1, 1, UINT32_MAX, MS_APO_MISSING_NEAREST, &first_level, &err), MS_OK);
+    assert_int_equal(ms_study_apo_put(first_level, 0, origin, 1.0, &chunk, &err), MS_OK);
+    o.apo = first_level;
+    assert_int_equal(ms_study_render(s, &cam, &o, &im, &err), MS_OK);
+    float up[3];
+    ms_apo_normal_decode(ms_apo_normal_encode((const float[3]){0, 0, 1}), up);
+    for (size_t p = 0; p < (size_t)im.width * im.height; ++p)
+        if (ms_study_image_covered(&im, p))
+            for (int k = 0; k < 3; ++k)
+                assert_true(fabs(im.normal[3 * p + k] - up[k]) < 1e-6);
+    ms_study_apo_free(first_level);
     ms_study_image_free(&im);
     ms_study_image_free(&plain);
     ms_study_apo_free(apo);

@@ -25,7 +25,8 @@ enum { EXIT_INPUT = 1, EXIT_USAGE = 2 };
 static void usage(FILE *out)
 {
     fputs("usage: meshrender INPUT -p CAMERA_PATH -o OUT_DIR [--width 640] [--height 480]\n"
-          "                  [--near D] [--far D] [--tolerance 1] [--apo] [--smooth] [--normals]\n"
+          "                  [--near D] [--far D] [--tolerance 1] [--apo] [--apo-levels L]\n"
+          "                  [--smooth] [--normals]\n"
           "                  [--threads N] [--json]\n"
           "Ray casts INPUT on the CPU (Embree) at every keyframe of CAMERA_PATH and writes\n"
           "OUT_DIR/frame_K.png (K = keyframe number, 3 digits): head light at the camera,\n"
@@ -38,6 +39,8 @@ static void usage(FILE *out)
           "      --near D, --far D       clipping distances (default: from the bounds)\n"
           "      --tolerance PX  archive: screen tolerance of the cut (default 1)\n"
           "      --apo           archive: shade with the APO chunks (CPU traversal)\n"
+          "      --apo-levels L  only the first L levels of each chunk, as a client that\n"
+          "                      fetched that many (default: whole chunks)\n"
           "      --smooth        interpolated vertex normals instead of flat ones (where\n"
           "                      APO gives none)\n"
           "      --normals       also write OUT_DIR/normals_K.png, rgb = (N + 1) / 2\n"
@@ -63,7 +66,7 @@ static bool ends_with(const char *s, const char *suffix)
 typedef struct options {
     const char *input, *path, *out_dir;
     double width, height, near_distance, far_distance, tolerance;
-    unsigned threads;
+    unsigned threads, apo_levels;
     bool apo, smooth, normals, json;
 } options;
 
@@ -76,7 +79,7 @@ static int parse_options(int argc, char **argv, options *o)
         {"near", required_argument, NULL, 'n'},     {"far", required_argument, NULL, 'f'},
         {"tolerance", required_argument, NULL, 't'}, {"threads", required_argument, NULL, 'T'},
         {"apo", no_argument, NULL, 'a'},            {"normals", no_argument, NULL, 'N'},
-        {"smooth", no_argument, NULL, 'S'},
+        {"smooth", no_argument, NULL, 'S'},         {"apo-levels", required_argument, NULL, 'L'},
         {"json", no_argument, NULL, 'j'},           {"help", no_argument, NULL, 'h'},
         {NULL, 0, NULL, 0},
     };
@@ -111,11 +114,13 @@ static int parse_options(int argc, char **argv, options *o)
             *(c == 'n' ? &o->near_distance : c == 'f' ? &o->far_distance : &o->tolerance) = v;
             break;
         case 'T':
+        case 'L':
             if (!parse_positive(optarg, &v) || v != (double)(long)v || v > 1024) {
-                fprintf(stderr, "meshrender: --threads must be a whole number from 1 to 1024\n");
+                fprintf(stderr, "meshrender: --%s must be a whole number from 1 to 1024\n",
+                        c == 'T' ? "threads" : "apo-levels");
                 return EXIT_USAGE;
             }
-            o->threads = (unsigned)v;
+            *(c == 'T' ? &o->threads : &o->apo_levels) = (unsigned)v;
             break;
         default: fprintf(stderr, "meshrender: try 'meshrender --help'\n"); return EXIT_USAGE;
         }
@@ -172,7 +177,7 @@ static ms_status open_source(const options *o, source *s, ms_error *err)
     if (o->apo) {
         if (!h->has_apo)
             return ms_error_set(err, MS_ERR_ARG, "%s: the archive has no APO chunks (baked with --no-apo)", o->input);
-        return ms_study_apo_from_archive(s->archive, UINT32_MAX, MS_APO_MISSING_NEAREST, &s->apo, err);
+        return ms_study_apo_from_archive(s->archive, o->apo_levels, UINT32_MAX, MS_APO_MISSING_NEAREST, &s->apo, err);
     }
     return MS_OK;
 }
@@ -220,7 +225,7 @@ int main(int argc, char **argv)
         ms_study_scene *scene = src.mesh_scene, *cut_scene = NULL;
         ms_study_cut_report report = {0};
         if (!scene) {
-            if ((st = ms_study_cut(src.archive, src.view, &camera, &params, &cut, &report, &err)) != MS_OK ||
+            if ((st = ms_study_cut(src.archive, src.view, &camera, &params, o.apo_levels, &cut, &report, &err)) != MS_OK ||
                 (st = ms_study_scene_new(cut.positions, cut.vertex_count, cut.triangles, cut.triangle_count,
                                          &cut_scene, &err)) != MS_OK)
                 break;

@@ -30,7 +30,7 @@ static void usage(FILE *out)
 {
     fputs("usage: meshstudy MESH ARCHIVE -p CAMERA_PATH [--keys 0,4,8] [--tolerances 1,4,16]\n"
           "                 [--width 320] [--height 240] [--spacing S] [--reference flat|smooth]\n"
-          "                 [--threads N] [--json]\n"
+          "                 [--apo-levels L] [--threads N] [--json]\n"
           "For every chosen keyframe of CAMERA_PATH and every screen tolerance (pixels),\n"
           "makes the cut of ARCHIVE (baked from MESH) a client shows for that camera and\n"
           "measures it against MESH at full resolution: bytes (index, geometry, APO),\n"
@@ -47,6 +47,8 @@ static void usage(FILE *out)
           "      --reference R     how MESH's reference render shades: flat (its geometric\n"
           "                        normals, the default) or smooth (its interpolated\n"
           "                        vertex normals: the surface APO samples)\n"
+          "      --apo-levels L    APO as a client that fetches the first L levels of each\n"
+          "                        visible cell's chunk (default: whole chunks)\n"
           "      --threads N       threads (default: every core)\n"
           "      --json            print the results as one JSON object\n"
           "  -h, --help            show this help\n\n"
@@ -83,7 +85,7 @@ typedef struct options {
     double keys[MAX_LIST], tolerances[MAX_LIST];
     size_t key_count, tolerance_count;
     double width, height, spacing;
-    unsigned threads;
+    unsigned threads, apo_levels;
     bool smooth_reference, json;
 } options;
 
@@ -94,7 +96,7 @@ static int parse_options(int argc, char **argv, options *o)
         {"tolerances", required_argument, NULL, 't'}, {"width", required_argument, NULL, 'W'},
         {"height", required_argument, NULL, 'H'}, {"spacing", required_argument, NULL, 's'},
         {"threads", required_argument, NULL, 'T'}, {"json", no_argument, NULL, 'j'},
-        {"reference", required_argument, NULL, 'r'},
+        {"reference", required_argument, NULL, 'r'}, {"apo-levels", required_argument, NULL, 'L'},
         {"help", no_argument, NULL, 'h'},         {NULL, 0, NULL, 0},
     };
     *o = (options){.width = 320, .height = 240, .tolerances = {1, 4, 16}, .tolerance_count = 3};
@@ -123,12 +125,13 @@ static int parse_options(int argc, char **argv, options *o)
         case 'W':
         case 'H':
         case 'T':
-            if (!parse_positive(optarg, &v) || v != floor(v) || v > (c == 'T' ? 1024 : 65535)) {
+        case 'L':
+            if (!parse_positive(optarg, &v) || v != floor(v) || v > (c == 'W' || c == 'H' ? 65535 : 1024)) {
                 fprintf(stderr, "meshstudy: '%s' is not a valid count\n", optarg);
                 return EXIT_USAGE;
             }
-            if (c == 'T')
-                o->threads = (unsigned)v;
+            if (c == 'T' || c == 'L')
+                *(c == 'T' ? &o->threads : &o->apo_levels) = (unsigned)v;
             else
                 *(c == 'W' ? &o->width : &o->height) = v;
             break;
@@ -197,7 +200,7 @@ static ms_status study_key(study *s, size_t key, json_t *points, ms_error *err)
         params.hysteresis = 0; /* the cut depends on the camera and tolerance only */
         ms_study_cut_report cr;
         ms_study_scene *cut_scene = NULL;
-        if ((st = ms_study_cut(s->archive, s->view, &camera, &params, &cut, &cr, err)) != MS_OK)
+        if ((st = ms_study_cut(s->archive, s->view, &camera, &params, o->apo_levels, &cut, &cr, err)) != MS_OK)
             break;
         if (!cut.triangle_count) {
             st = ms_error_set(err, MS_ERR_EMPTY, "key %zu, %g px: the cut has no triangle", key, o->tolerances[t]);
@@ -276,7 +279,7 @@ static ms_status open_study(const options *o, study *s, ms_error *err)
         (st = ms_view_create_from_archive(s->archive, &s->view, err)) != MS_OK)
         return st;
     if (ms_archive_get_header(s->archive)->has_apo)
-        return ms_study_apo_from_archive(s->archive, UINT32_MAX, MS_APO_MISSING_NEAREST, &s->apo, err);
+        return ms_study_apo_from_archive(s->archive, o->apo_levels, UINT32_MAX, MS_APO_MISSING_NEAREST, &s->apo, err);
     return MS_OK;
 }
 
@@ -296,8 +299,9 @@ int main(int argc, char **argv)
         st = study_key(&s, o.key_count ? (size_t)o.keys[k] : k, points, &err);
     json_t *root = NULL;
     if (st == MS_OK)
-        root = json_pack("{s:s, s:s, s:s, s:s, s:I, s:I, s:I, s:f, s:b, s:o, s:f}", "mesh", o.mesh, "archive",
-                         o.archive, "path", o.path, "reference", o.smooth_reference ? "smooth" : "flat", "width", (json_int_t)o.width, "height", (json_int_t)o.height,
+        root = json_pack("{s:s, s:s, s:s, s:s, s:I, s:I, s:I, s:I, s:f, s:b, s:o, s:f}", "mesh", o.mesh, "archive",
+                         o.archive, "path", o.path, "reference", o.smooth_reference ? "smooth" : "flat", "apo_levels",
+                         (json_int_t)o.apo_levels, "width", (json_int_t)o.width, "height", (json_int_t)o.height,
                          "mesh_triangles", (json_int_t)ms_study_scene_triangle_count(s.full), "spacing", s.spacing,
                          "apo", s.apo != NULL, "points", points, "seconds", ms_now_seconds() - start);
     else

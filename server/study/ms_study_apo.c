@@ -17,11 +17,11 @@ typedef struct apo_cell {
 struct ms_study_apo {
     apo_cell *cells;
     uint32_t cell_count, chunk_count;
-    uint32_t depth_cap;
+    uint32_t levels, depth_cap;
     ms_apo_missing_rule rule;
 };
 
-ms_status ms_study_apo_new(uint32_t cell_count, uint32_t depth_cap, ms_apo_missing_rule rule,
+ms_status ms_study_apo_new(uint32_t cell_count, uint32_t levels, uint32_t depth_cap, ms_apo_missing_rule rule,
                            ms_study_apo **out, ms_error *err)
 {
     *out = NULL;
@@ -31,6 +31,7 @@ ms_status ms_study_apo_new(uint32_t cell_count, uint32_t depth_cap, ms_apo_missi
         return ms_error_set(err, MS_ERR_NOMEM, "study apo: out of memory for %u cells", cell_count);
     }
     s->cell_count = cell_count;
+    s->levels = levels;
     s->depth_cap = depth_cap;
     s->rule = rule;
     *out = s;
@@ -60,7 +61,13 @@ ms_status ms_study_apo_put(ms_study_apo *s, uint32_t cell, const double origin[3
     }
     apo_cell *c = &s->cells[cell];
     ms_apo_view view;
-    ms_status st = ms_apo_view_of_chunk(&view, &taken, err);
+    size_t received = taken.texel_count;
+    if (s->levels && s->levels < taken.level_count) {
+        received = 0;
+        for (uint32_t l = 0; l < s->levels; ++l)
+            received += taken.level_texels[l];
+    }
+    ms_status st = ms_apo_view_init(&view, taken.level_texels, taken.level_count, taken.texels, received, err);
     if (st != MS_OK) {
         ms_apo_chunk_free(&taken);
         return st;
@@ -77,12 +84,12 @@ ms_status ms_study_apo_put(ms_study_apo *s, uint32_t cell, const double origin[3
     return MS_OK;
 }
 
-ms_status ms_study_apo_from_archive(const ms_archive *a, uint32_t depth_cap, ms_apo_missing_rule rule,
-                                    ms_study_apo **out, ms_error *err)
+ms_status ms_study_apo_from_archive(const ms_archive *a, uint32_t levels, uint32_t depth_cap,
+                                    ms_apo_missing_rule rule, ms_study_apo **out, ms_error *err)
 {
     const ms_archive_header *h = ms_archive_get_header(a);
     ms_study_apo *s;
-    ms_status st = ms_study_apo_new(h->cell_count, depth_cap, rule, &s, err);
+    ms_status st = ms_study_apo_new(h->cell_count, levels, depth_cap, rule, &s, err);
     if (st != MS_OK)
         return st;
     for (uint32_t i = 0; i < h->cell_count; ++i) {

@@ -26,10 +26,12 @@
 
 typedef struct ms_study_apo ms_study_apo;
 
-/* An empty set for cell_count cells (none has a chunk yet). depth_cap:
+/* An empty set for cell_count cells (none has a chunk yet). levels: every chunk
+ * is read as if only its first `levels` levels had been received (what a client
+ * that fetches that many levels shows), 0 for whole chunks. depth_cap:
  * UINT32_MAX for none (what the viewer's default does); rule: the missing-child
  * rule (the viewer's default is MS_APO_MISSING_NEAREST). */
-ms_status ms_study_apo_new(uint32_t cell_count, uint32_t depth_cap, ms_apo_missing_rule rule,
+ms_status ms_study_apo_new(uint32_t cell_count, uint32_t levels, uint32_t depth_cap, ms_apo_missing_rule rule,
                            ms_study_apo **set, ms_error *err);
 void ms_study_apo_free(ms_study_apo *set);
 
@@ -41,8 +43,8 @@ ms_status ms_study_apo_put(ms_study_apo *set, uint32_t cell, const double origin
 
 /* Every chunk of an archive file, whole (each CRC-checked and inflated), cubes
  * from the header and the cell records. MS_ERR_ARG on an index-only archive. */
-ms_status ms_study_apo_from_archive(const ms_archive *archive, uint32_t depth_cap, ms_apo_missing_rule rule,
-                                    ms_study_apo **set, ms_error *err);
+ms_status ms_study_apo_from_archive(const ms_archive *archive, uint32_t levels, uint32_t depth_cap,
+                                    ms_apo_missing_rule rule, ms_study_apo **set, ms_error *err);
 
 /* The APO normal (unit, in world axes) at world point x of cell; false when the
  * cell has no chunk or the lookup finds nothing. */

@@ -9,8 +9,8 @@
 #define MAX_PASSES 64u
 
 ms_status ms_study_cut(const ms_archive *archive, ms_view *view, const ms_camera *camera,
-                       const ms_view_select_params *params, ms_view_mesh *mesh, ms_study_cut_report *report,
-                       ms_error *err)
+                       const ms_view_select_params *params, unsigned apo_levels, ms_view_mesh *mesh,
+                       ms_study_cut_report *report, ms_error *err)
 {
     memset(report, 0, sizeof *report);
     double start = ms_now_seconds();
@@ -53,7 +53,8 @@ ms_status ms_study_cut(const ms_archive *archive, ms_view *view, const ms_camera
         if (s == MS_VIEW_SHOWN) {
             report->shown_cells++;
             if (draws[c] && ms_view_cell_need(view, camera, c, params) >= 0)
-                report->apo_bytes += ms_archive_get_cell(archive, c)->apo_length;
+                report->apo_bytes += apo_levels ? ms_archive_apo_prefix(archive, c, apo_levels - 1, NULL)
+                                                : ms_archive_get_cell(archive, c)->apo_length;
         }
     }
     free(draws);

@@ -5,9 +5,10 @@
  *
  * Bytes of a cut: the index blob (ms_archive_index_bytes), plus per cell the
  * geometry prefix it is decoded at (a SHOWN cell at its precision, a SPLIT cell
- * at its bits_max: both are what a client must hold), plus, with APO, the whole
- * chunk of every SHOWN cell that draws triangles and meets the frustum (grown by
- * the selection's margin): culled cells get no APO.
+ * at its bits_max: both are what a client must hold), plus, with APO, the chunk
+ * prefix of apo_levels whole levels (0: the whole chunk) of every SHOWN cell
+ * that draws triangles and meets the frustum (grown by the selection's margin):
+ * culled cells get no APO.
  *
  * Thread-safety: the view is changed; one caller per view.
  */
@@ -33,7 +34,7 @@ typedef struct ms_study_cut_report {
  * MS_ERR_RANGE beyond, which would be a selection that oscillates), then
  * stitches every shown cell into *mesh (zeroed or previously filled). */
 ms_status ms_study_cut(const ms_archive *archive, ms_view *view, const ms_camera *camera,
-                       const ms_view_select_params *params, ms_view_mesh *mesh, ms_study_cut_report *report,
-                       ms_error *err);
+                       const ms_view_select_params *params, unsigned apo_levels, ms_view_mesh *mesh,
+                       ms_study_cut_report *report, ms_error *err);
 
 #endif
