@@ -198,6 +198,7 @@ static ms_status study_key(study *s, size_t key, json_t *points, ms_error *err)
         ms_view_select_params_default(&params);
         params.tolerance_px = o->tolerances[t];
         params.hysteresis = 0; /* the cut depends on the camera and tolerance only */
+        params.culled_bits_less = 6; /* the client core's default (docs/CLIENT.md) */
         ms_study_cut_report cr;
         ms_study_scene *cut_scene = NULL;
         if ((st = ms_study_cut(s->archive, s->view, &camera, &params, o->apo_levels, &cut, &cr, err)) != MS_OK)
