@@ -40,7 +40,7 @@ static void usage(FILE *out)
           "      --tolerance PX  archive: screen tolerance of the cut (default 1)\n"
           "      --apo           archive: shade with the APO chunks (CPU traversal)\n"
           "      --apo-levels L  only the first L levels of each chunk, as a client that\n"
-          "                      fetched that many (default: whole chunks)\n"
+          "                      fetched that many (default 0: whole chunks)\n"
           "      --smooth        interpolated vertex normals instead of flat ones (where\n"
           "                      APO gives none)\n"
           "      --normals       also write OUT_DIR/normals_K.png, rgb = (N + 1) / 2\n"
@@ -115,6 +115,10 @@ static int parse_options(int argc, char **argv, options *o)
             break;
         case 'T':
         case 'L':
+            if (c == 'L' && strcmp(optarg, "0") == 0) { /* whole chunks */
+                o->apo_levels = 0;
+                break;
+            }
             if (!parse_positive(optarg, &v) || v != (double)(long)v || v > 1024) {
                 fprintf(stderr, "meshrender: --%s must be a whole number from 1 to 1024\n",
                         c == 'T' ? "threads" : "apo-levels");

@@ -48,7 +48,7 @@ static void usage(FILE *out)
           "                        normals, the default) or smooth (its interpolated\n"
           "                        vertex normals: the surface APO samples)\n"
           "      --apo-levels L    APO as a client that fetches the first L levels of each\n"
-          "                        visible cell's chunk (default: whole chunks)\n"
+          "                        visible cell's chunk (default 0: whole chunks)\n"
           "      --threads N       threads (default: every core)\n"
           "      --json            print the results as one JSON object\n"
           "  -h, --help            show this help\n\n"
@@ -126,6 +126,10 @@ static int parse_options(int argc, char **argv, options *o)
         case 'H':
         case 'T':
         case 'L':
+            if (c == 'L' && strcmp(optarg, "0") == 0) { /* whole chunks */
+                o->apo_levels = 0;
+                break;
+            }
             if (!parse_positive(optarg, &v) || v != floor(v) || v > (c == 'W' || c == 'H' ? 65535 : 1024)) {
                 fprintf(stderr, "meshstudy: '%s' is not a valid count\n", optarg);
                 return EXIT_USAGE;
