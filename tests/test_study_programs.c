@@ -177,7 +177,24 @@ static void test_small_study(void **state)
     /* 16 px is a real coarsening: fewer bytes than at 1 px */
     assert_true(number(json_array_get(points, 2), "bytes", "geometry") <
                 number(json_array_get(points, 0), "bytes", "geometry"));
+    /* APO read to 2 levels: the same cut and geometry, fewer APO bytes; 0 levels
+     * means whole chunks */
+    double whole_apo = number(json_array_get(points, 1), "bytes", "apo");
+    double whole_geometry = number(json_array_get(points, 1), "bytes", "geometry");
     json_decref(root);
+    for (int levels = 0; levels <= 2; levels += 2) {
+        snprintf(cmd, sizeof cmd,
+                 "%s %s %s -p %s --keys 0 --tolerances 4 --width 80 --height 60 --spacing 0.004 --apo-levels %d --json",
+                 f->study, f->mesh, f->archive, f->path, levels);
+        root = run_json(cmd);
+        json_t *p = json_array_get(json_object_get(root, "points"), 0);
+        assert_true(number(p, "bytes", "geometry") == whole_geometry);
+        if (levels == 0)
+            assert_true(number(p, "bytes", "apo") == whole_apo);
+        else
+            assert_true(number(p, "bytes", "apo") > 0 && number(p, "bytes", "apo") < whole_apo);
+        json_decref(root);
+    }
 }
 
 int main(void)
