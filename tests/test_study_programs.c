@@ -56,14 +56,17 @@ static int teardown(void **state)
 
 static json_t *run_json(const char *cmd)
 {
-    static char out[1 << 20];
-    int rc = ms_test_run(cmd, out, sizeof out);
+    const size_t size = 1 << 20;
+    char *out = malloc(size);
+    assert_non_null(out);
+    int rc = ms_test_run(cmd, out, size);
     if (rc != 0)
         fail_msg("%s: exit %d: %.300s", cmd, rc, out);
     json_error_t je;
     json_t *root = json_loads(out, 0, &je);
     if (!root)
         fail_msg("%s: not JSON (%s): %.300s", cmd, je.text, out);
+    free(out);
     return root;
 }
 
