@@ -151,6 +151,7 @@ typedef struct source {
     ms_archive *archive;
     ms_view *view;
     ms_study_apo *apo;
+    uint32_t *apo_levels; /* per cell, with --apo-levels */
     double lo[3], hi[3];
 } source;
 
@@ -178,6 +179,12 @@ static ms_status open_source(const options *o, source *s, ms_error *err)
     }
     if ((st = ms_view_create_from_archive(s->archive, &s->view, err)) != MS_OK)
         return st;
+    if (o->apo_levels) {
+        if (!(s->apo_levels = malloc(h->cell_count * sizeof *s->apo_levels + 1)))
+            return ms_error_set(err, MS_ERR_NOMEM, "out of memory for %u cells", h->cell_count);
+        for (uint32_t c = 0; c < h->cell_count; ++c)
+            s->apo_levels[c] = o->apo_levels;
+    }
     if (o->apo) {
         if (!h->has_apo)
             return ms_error_set(err, MS_ERR_ARG, "%s: the archive has no APO chunks (baked with --no-apo)", o->input);
@@ -190,6 +197,7 @@ static void close_source(source *s)
 {
     ms_study_scene_free(s->mesh_scene);
     ms_study_apo_free(s->apo);
+    free(s->apo_levels);
     ms_view_destroy(s->view);
     ms_archive_close(s->archive);
 }
@@ -229,7 +237,7 @@ int main(int argc, char **argv)
         ms_study_scene *scene = src.mesh_scene, *cut_scene = NULL;
         ms_study_cut_report report = {0};
         if (!scene) {
-            if ((st = ms_study_cut(src.archive, src.view, &camera, &params, o.apo_levels, &cut, &report, &err)) != MS_OK ||
+            if ((st = ms_study_cut(src.archive, src.view, &camera, &params, src.apo_levels, &cut, &report, &err)) != MS_OK ||
                 (st = ms_study_scene_new(cut.positions, cut.vertex_count, cut.triangles, cut.triangle_count,
                                          &cut_scene, &err)) != MS_OK)
                 break;

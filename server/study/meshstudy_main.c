@@ -30,7 +30,7 @@ static void usage(FILE *out)
 {
     fputs("usage: meshstudy MESH ARCHIVE -p CAMERA_PATH [--keys 0,4,8] [--tolerances 1,4,16]\n"
           "                 [--width 320] [--height 240] [--spacing S] [--reference flat|smooth]\n"
-          "                 [--apo-levels L] [--threads N] [--json]\n"
+          "                 [--apo-levels L|footprint] [--apo-texel PX] [--threads N] [--json]\n"
           "For every chosen keyframe of CAMERA_PATH and every screen tolerance (pixels),\n"
           "makes the cut of ARCHIVE (baked from MESH) a client shows for that camera and\n"
           "measures it against MESH at full resolution: bytes (index, geometry, APO),\n"
@@ -48,7 +48,10 @@ static void usage(FILE *out)
           "                        normals, the default) or smooth (its interpolated\n"
           "                        vertex normals: the surface APO samples)\n"
           "      --apo-levels L    APO as a client that fetches the first L levels of each\n"
-          "                        visible cell's chunk (default 0: whole chunks)\n"
+          "                        visible cell's chunk (default 0: whole chunks), or\n"
+          "                        'footprint': per cell, the levels whose finest texel\n"
+          "                        still looks --apo-texel PX pixels wide (default 1) at\n"
+          "                        the cell's distance\n"
           "      --threads N       threads (default: every core)\n"
           "      --json            print the results as one JSON object\n"
           "  -h, --help            show this help\n\n"
@@ -86,7 +89,8 @@ typedef struct options {
     size_t key_count, tolerance_count;
     double width, height, spacing;
     unsigned threads, apo_levels;
-    bool smooth_reference, json;
+    double apo_texel_px;
+    bool apo_footprint, smooth_reference, json;
 } options;
 
 static int parse_options(int argc, char **argv, options *o)
@@ -97,9 +101,10 @@ static int parse_options(int argc, char **argv, options *o)
         {"height", required_argument, NULL, 'H'}, {"spacing", required_argument, NULL, 's'},
         {"threads", required_argument, NULL, 'T'}, {"json", no_argument, NULL, 'j'},
         {"reference", required_argument, NULL, 'r'}, {"apo-levels", required_argument, NULL, 'L'},
+        {"apo-texel", required_argument, NULL, 'X'},
         {"help", no_argument, NULL, 'h'},         {NULL, 0, NULL, 0},
     };
-    *o = (options){.width = 320, .height = 240, .tolerances = {1, 4, 16}, .tolerance_count = 3};
+    *o = (options){.width = 320, .height = 240, .tolerances = {1, 4, 16}, .tolerance_count = 3, .apo_texel_px = 1};
     int c;
     double v;
     while ((c = getopt_long(argc, argv, "p:h", long_options, NULL)) != -1) {
@@ -130,6 +135,10 @@ static int parse_options(int argc, char **argv, options *o)
                 o->apo_levels = 0;
                 break;
             }
+            if (c == 'L' && strcmp(optarg, "footprint") == 0) {
+                o->apo_footprint = true;
+                break;
+            }
             if (!parse_positive(optarg, &v) || v != floor(v) || v > (c == 'W' || c == 'H' ? 65535 : 1024)) {
                 fprintf(stderr, "meshstudy: '%s' is not a valid count\n", optarg);
                 return EXIT_USAGE;
@@ -138,6 +147,12 @@ static int parse_options(int argc, char **argv, options *o)
                 *(c == 'T' ? &o->threads : &o->apo_levels) = (unsigned)v;
             else
                 *(c == 'W' ? &o->width : &o->height) = v;
+            break;
+        case 'X':
+            if (!parse_positive(optarg, &o->apo_texel_px)) {
+                fprintf(stderr, "meshstudy: '%s' is not a positive texel size\n", optarg);
+                return EXIT_USAGE;
+            }
             break;
         case 's':
             if (!parse_positive(optarg, &o->spacing)) {
@@ -177,9 +192,34 @@ typedef struct study {
     ms_archive *archive;
     ms_view *view;
     ms_study_apo *apo;
+    uint32_t *apo_levels; /* per cell, for the current camera */
     ms_camera_path path;
     double spacing;
 } study;
+
+/* The APO levels every cell is read to for this camera (uniform, or by
+ * footprint), set on the APO set and kept for the cut's bytes. */
+static ms_status choose_apo_levels(study *s, const ms_camera *camera, ms_error *err)
+{
+    const ms_archive_header *h = ms_archive_get_header(s->archive);
+    for (uint32_t c = 0; c < h->cell_count; ++c) {
+        const ms_archive_cell *rec = ms_archive_get_cell(s->archive, c);
+        uint32_t levels = s->o->apo_levels;
+        if (s->o->apo_footprint) {
+            double lo[3], hi[3], side;
+            ms_study_cell_cube(h, rec, lo, &side);
+            for (int k = 0; k < 3; ++k)
+                hi[k] = lo[k] + side;
+            levels = ms_study_footprint_levels(camera, side, ms_camera_box_distance(camera, lo, hi),
+                                               s->o->apo_texel_px, rec->apo_levels);
+        }
+        s->apo_levels[c] = levels;
+        ms_status st = ms_study_apo_set_levels(s->apo, c, levels, err);
+        if (st != MS_OK)
+            return st;
+    }
+    return MS_OK;
+}
 
 /* One keyframe: the reference render, then every tolerance. */
 static ms_status study_key(study *s, size_t key, json_t *points, ms_error *err)
@@ -205,7 +245,9 @@ static ms_status study_key(study *s, size_t key, json_t *points, ms_error *err)
         params.culled_bits_less = 6; /* the client core's default (docs/CLIENT.md) */
         ms_study_cut_report cr;
         ms_study_scene *cut_scene = NULL;
-        if ((st = ms_study_cut(s->archive, s->view, &camera, &params, o->apo_levels, &cut, &cr, err)) != MS_OK)
+        if (s->apo && (st = choose_apo_levels(s, &camera, err)) != MS_OK)
+            break;
+        if ((st = ms_study_cut(s->archive, s->view, &camera, &params, s->apo_levels, &cut, &cr, err)) != MS_OK)
             break;
         if (!cut.triangle_count) {
             st = ms_error_set(err, MS_ERR_EMPTY, "key %zu, %g px: the cut has no triangle", key, o->tolerances[t]);
@@ -283,9 +325,12 @@ static ms_status open_study(const options *o, study *s, ms_error *err)
     if ((st = ms_archive_open(o->archive, &s->archive, err)) != MS_OK ||
         (st = ms_view_create_from_archive(s->archive, &s->view, err)) != MS_OK)
         return st;
-    if (ms_archive_get_header(s->archive)->has_apo)
-        return ms_study_apo_from_archive(s->archive, o->apo_levels, UINT32_MAX, MS_APO_MISSING_NEAREST, &s->apo, err);
-    return MS_OK;
+    const ms_archive_header *h = ms_archive_get_header(s->archive);
+    if (!h->has_apo)
+        return MS_OK;
+    if (!(s->apo_levels = calloc(h->cell_count + 1, sizeof *s->apo_levels)))
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory for %u cells", h->cell_count);
+    return ms_study_apo_from_archive(s->archive, 0, UINT32_MAX, MS_APO_MISSING_NEAREST, &s->apo, err);
 }
 
 int main(int argc, char **argv)
@@ -304,15 +349,16 @@ int main(int argc, char **argv)
         st = study_key(&s, o.key_count ? (size_t)o.keys[k] : k, points, &err);
     json_t *root = NULL;
     if (st == MS_OK)
-        root = json_pack("{s:s, s:s, s:s, s:s, s:I, s:I, s:I, s:I, s:f, s:b, s:o, s:f}", "mesh", o.mesh, "archive",
+        root = json_pack("{s:s, s:s, s:s, s:s, s:o, s:I, s:I, s:I, s:f, s:b, s:o, s:f}", "mesh", o.mesh, "archive",
                          o.archive, "path", o.path, "reference", o.smooth_reference ? "smooth" : "flat", "apo_levels",
-                         (json_int_t)o.apo_levels, "width", (json_int_t)o.width, "height", (json_int_t)o.height,
+                         o.apo_footprint ? json_string("footprint") : json_integer((json_int_t)o.apo_levels), "width", (json_int_t)o.width, "height", (json_int_t)o.height,
                          "mesh_triangles", (json_int_t)ms_study_scene_triangle_count(s.full), "spacing", s.spacing,
                          "apo", s.apo != NULL, "points", points, "seconds", ms_now_seconds() - start);
     else
         json_decref(points);
     ms_study_scene_free(s.full);
     ms_study_apo_free(s.apo);
+    free(s.apo_levels);
     ms_view_destroy(s.view);
     ms_archive_close(s.archive);
     ms_camera_path_free(&s.path);

@@ -21,6 +21,53 @@ struct ms_study_apo {
     ms_apo_missing_rule rule;
 };
 
+/* A view of the chunk's first `levels` levels (0: all). */
+static ms_status view_levels(const ms_apo_chunk *chunk, uint32_t levels, ms_apo_view *view, ms_error *err)
+{
+    size_t received = chunk->texel_count;
+    if (levels && levels < chunk->level_count) {
+        received = 0;
+        for (uint32_t l = 0; l < levels; ++l)
+            received += chunk->level_texels[l];
+    }
+    return ms_apo_view_init(view, chunk->level_texels, chunk->level_count, chunk->texels, received, err);
+}
+
+ms_status ms_study_apo_set_levels(ms_study_apo *s, uint32_t cell, uint32_t levels, ms_error *err)
+{
+    if (cell >= s->cell_count)
+        return ms_error_set(err, MS_ERR_RANGE, "study apo: cell %u of %u", cell, s->cell_count);
+    apo_cell *c = &s->cells[cell];
+    if (!c->present)
+        return MS_OK;
+    ms_apo_view view;
+    ms_status st = view_levels(&c->chunk, levels, &view, err);
+    if (st == MS_OK)
+        c->view = view;
+    return st;
+}
+
+void ms_study_cell_cube(const ms_archive_header *h, const ms_archive_cell *c, double origin[3], double *side)
+{
+    *side = h->box_side / pow((double)h->n, c->level);
+    for (int k = 0; k < 3; ++k)
+        origin[k] = h->box_origin[k] + *side * c->position[k];
+}
+
+uint32_t ms_study_footprint_levels(const ms_camera *camera, double cube_side, double distance, double texel_px,
+                                   uint32_t level_count)
+{
+    if (!level_count)
+        return 0;
+    if (!(distance > 0))
+        return level_count;
+    double ratio = cube_side * ms_camera_pixels_per_unit(camera) / (distance * texel_px);
+    if (!(ratio >= 1))
+        return 1;
+    double deepest = floor(log2(ratio));
+    return deepest + 1 >= level_count ? level_count : (uint32_t)deepest + 1;
+}
+
 ms_status ms_study_apo_new(uint32_t cell_count, uint32_t levels, uint32_t depth_cap, ms_apo_missing_rule rule,
                            ms_study_apo **out, ms_error *err)
 {
@@ -61,13 +108,7 @@ ms_status ms_study_apo_put(ms_study_apo *s, uint32_t cell, const double origin[3
     }
     apo_cell *c = &s->cells[cell];
     ms_apo_view view;
-    size_t received = taken.texel_count;
-    if (s->levels && s->levels < taken.level_count) {
-        received = 0;
-        for (uint32_t l = 0; l < s->levels; ++l)
-            received += taken.level_texels[l];
-    }
-    ms_status st = ms_apo_view_init(&view, taken.level_texels, taken.level_count, taken.texels, received, err);
+    ms_status st = view_levels(&taken, s->levels, &view, err);
     if (st != MS_OK) {
         ms_apo_chunk_free(&taken);
         return st;
@@ -114,10 +155,8 @@ ms_status ms_study_apo_from_archive(const ms_archive *a, uint32_t levels, uint32
             ms_study_apo_free(s);
             return st;
         }
-        /* The cell's own cube: the quantisation box divided by n^level. */
-        double cells_per_side = pow((double)h->n, c->level), side = h->box_side / cells_per_side, origin[3];
-        for (int k = 0; k < 3; ++k)
-            origin[k] = h->box_origin[k] + side * c->position[k];
+        double origin[3], side;
+        ms_study_cell_cube(h, c, origin, &side);
         if ((st = ms_study_apo_put(s, i, origin, side, &chunk, err)) != MS_OK) {
             ms_study_apo_free(s);
             return st;

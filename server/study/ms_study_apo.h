@@ -22,6 +22,7 @@
 #include "ms_apo_chunk.h"
 #include "ms_apo_traverse.h"
 #include "ms_archive.h"
+#include "ms_camera.h"
 #include "ms_error.h"
 
 typedef struct ms_study_apo ms_study_apo;
@@ -45,6 +46,25 @@ ms_status ms_study_apo_put(ms_study_apo *set, uint32_t cell, const double origin
  * from the header and the cell records. MS_ERR_ARG on an index-only archive. */
 ms_status ms_study_apo_from_archive(const ms_archive *archive, uint32_t levels, uint32_t depth_cap,
                                     ms_apo_missing_rule rule, ms_study_apo **set, ms_error *err);
+
+/* Reads cell's chunk as if only its first `levels` levels had been received
+ * (0: the whole chunk), as a client that fetched that prefix; nothing for a cell
+ * without a chunk. MS_ERR_RANGE for a cell out of range. Not thread-safe against
+ * lookups of the same set. */
+ms_status ms_study_apo_set_levels(ms_study_apo *set, uint32_t cell, uint32_t levels, ms_error *err);
+
+/* The cube of an archive cell (the header's box divided by n^level, at the
+ * cell's position): origin in world units and side. */
+void ms_study_cell_cube(const ms_archive_header *header, const ms_archive_cell *cell, double origin[3],
+                        double *side);
+
+/* APO levels by footprint: the number of levels (1 to level_count) whose finest
+ * nodes, of side cube_side / 2^(levels - 1), still look at least texel_px pixels
+ * wide face-on at `distance` (ms_camera_pixels_per_unit): levels = floor(log2(
+ * cube_side * pixels_per_unit / (distance * texel_px))) + 1, clamped; all of
+ * them at distance 0. 0 for a cell without levels. */
+uint32_t ms_study_footprint_levels(const ms_camera *camera, double cube_side, double distance, double texel_px,
+                                   uint32_t level_count);
 
 /* The APO normal (unit, in world axes) at world point x of cell; false when the
  * cell has no chunk or the lookup finds nothing. */

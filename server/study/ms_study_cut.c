@@ -9,7 +9,7 @@
 #define MAX_PASSES 64u
 
 ms_status ms_study_cut(const ms_archive *archive, ms_view *view, const ms_camera *camera,
-                       const ms_view_select_params *params, unsigned apo_levels, ms_view_mesh *mesh,
+                       const ms_view_select_params *params, const uint32_t *apo_levels, ms_view_mesh *mesh,
                        ms_study_cut_report *report, ms_error *err)
 {
     memset(report, 0, sizeof *report);
@@ -53,8 +53,9 @@ ms_status ms_study_cut(const ms_archive *archive, ms_view *view, const ms_camera
         if (s == MS_VIEW_SHOWN) {
             report->shown_cells++;
             if (draws[c] && ms_view_cell_need(view, camera, c, params) >= 0)
-                report->apo_bytes += apo_levels ? ms_archive_apo_prefix(archive, c, apo_levels - 1, NULL)
-                                                : ms_archive_get_cell(archive, c)->apo_length;
+                report->apo_bytes += apo_levels && apo_levels[c]
+                                         ? ms_archive_apo_prefix(archive, c, apo_levels[c] - 1, NULL)
+                                         : ms_archive_get_cell(archive, c)->apo_length;
         }
     }
     free(draws);

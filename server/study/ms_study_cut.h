@@ -6,7 +6,8 @@
  * Bytes of a cut: the index blob (ms_archive_index_bytes), plus per cell the
  * geometry prefix it is decoded at (a SHOWN cell at its precision, a SPLIT cell
  * at its bits_max: both are what a client must hold), plus, with APO, the chunk
- * prefix of apo_levels whole levels (0: the whole chunk) of every SHOWN cell
+ * prefix of apo_levels[cell] whole levels (0, or apo_levels NULL: the whole
+ * chunk) of every SHOWN cell
  * that draws triangles and meets the frustum (grown by the selection's margin):
  * culled cells get no APO.
  *
@@ -34,7 +35,7 @@ typedef struct ms_study_cut_report {
  * MS_ERR_RANGE beyond, which would be a selection that oscillates), then
  * stitches every shown cell into *mesh (zeroed or previously filled). */
 ms_status ms_study_cut(const ms_archive *archive, ms_view *view, const ms_camera *camera,
-                       const ms_view_select_params *params, unsigned apo_levels, ms_view_mesh *mesh,
+                       const ms_view_select_params *params, const uint32_t *apo_levels, ms_view_mesh *mesh,
                        ms_study_cut_report *report, ms_error *err);
 
 #endif
