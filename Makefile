@@ -20,20 +20,21 @@ ifeq ($(MODE),asan)
 else
   OPT   := -O2 -g -DNDEBUG
 endif
-CFLAGS   := $(CSTD) $(WARN) $(OPT) -Icommon -Iprotocol -Iserver -Iclient -Iclient/view -Itests/support -pthread $(EXTRA_CFLAGS)
+CFLAGS   := $(CSTD) $(WARN) $(OPT) -Icommon -Iprotocol -Iserver -Iclient -Iclient/view -Iserver/study -Itests/support -pthread $(EXTRA_CFLAGS)
 CXXFLAGS := -std=c++17 -Wall -Wextra -Werror $(OPT) -Icommon -Iserver -pthread $(EXTRA_CFLAGS)
 LDFLAGS  := $(OPT) -pthread
 GL_LIBS  := $(shell pkg-config --libs glfw3 epoxy libpng 2>/dev/null || echo -lglfw -lepoxy -lpng16)
 LIBS     := -lembree3 -lOpenMeshTools -lOpenMeshCore -levent -ljansson $(GL_LIBS) -lz -lm
 
-ROLES      := common protocol server client client/view
+ROLES      := common protocol server client client/view server/study
 LIB_common   := $(BUILD)/libmscommon.a
 LIB_protocol := $(BUILD)/libmsprotocol.a
 LIB_server   := $(BUILD)/libmsserver.a
 LIB_client   := $(BUILD)/libmsclient.a
 LIB_client/view := $(BUILD)/libmsview.a
+LIB_server/study := $(BUILD)/libmsstudy.a
 # Link order: higher layers first.
-ALL_LIBS   := $(LIB_server) $(LIB_client/view) $(LIB_client) $(LIB_protocol) $(LIB_common)
+ALL_LIBS   := $(LIB_server/study) $(LIB_server) $(LIB_client/view) $(LIB_client) $(LIB_protocol) $(LIB_common)
 
 lib_srcs  = $(filter-out %_main.c,$(wildcard $(1)/*.c))
 lib_objs  = $(patsubst %.c,$(BUILD)/%.o,$(call lib_srcs,$(1))) $(patsubst %.cpp,$(BUILD)/%.o,$(wildcard $(1)/*.cpp))
@@ -94,6 +95,9 @@ $(BUILD)/bin/%: $(BUILD)/client/%_main.o $(ALL_LIBS)
 	@mkdir -p $(dir $@)
 	$(LINK) $(LDFLAGS) $< $(ALL_LIBS) $(LIBS) -o $@
 $(BUILD)/bin/%: $(BUILD)/client/view/%_main.o $(ALL_LIBS)
+	@mkdir -p $(dir $@)
+	$(LINK) $(LDFLAGS) $< $(ALL_LIBS) $(LIBS) -o $@
+$(BUILD)/bin/%: $(BUILD)/server/study/%_main.o $(ALL_LIBS)
 	@mkdir -p $(dir $@)
 	$(LINK) $(LDFLAGS) $< $(ALL_LIBS) $(LIBS) -o $@
 $(BUILD)/bin/%: $(BUILD)/protocol/%_main.o $(ALL_LIBS)

@@ -1,0 +1,76 @@
+/* APO chunks for the CPU renderer: per nSP cell, the cell's cube and a validated
+ * view of its chunk (or none), so that a hit on a triangle drawn by cell c can be
+ * shaded with the normal the client's shader would read (docs/APO.md,
+ * "Traversal"; the CPU oracle ms_apo_lookup).
+ *
+ * The normal at a world point x in cell c: the cell-local coordinate
+ * (x - cube origin) / cube side (as float, per axis), looked up in c's chunk with
+ * the set's depth cap and missing-child rule. A cell without a chunk, or a lookup
+ * that finds nothing (MS_APO_STOP_EMPTY), gives no normal: the renderer falls back
+ * to the geometric one.
+ *
+ * Ownership: the set owns its chunks (adopted by ms_study_apo_put or inflated
+ * from an archive). Thread-safety: read-only after it is filled; any number of
+ * threads may look up at once.
+ */
+#ifndef MS_STUDY_APO_H
+#define MS_STUDY_APO_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "ms_apo_chunk.h"
+#include "ms_apo_traverse.h"
+#include "ms_archive.h"
+#include "ms_camera.h"
+#include "ms_error.h"
+
+typedef struct ms_study_apo ms_study_apo;
+
+/* An empty set for cell_count cells (none has a chunk yet). levels: every chunk
+ * is read as if only its first `levels` levels had been received (what a client
+ * that fetches that many levels shows), 0 for whole chunks. depth_cap:
+ * UINT32_MAX for none (what the viewer's default does); rule: the missing-child
+ * rule (the viewer's default is MS_APO_MISSING_NEAREST). */
+ms_status ms_study_apo_new(uint32_t cell_count, uint32_t levels, uint32_t depth_cap, ms_apo_missing_rule rule,
+                           ms_study_apo **set, ms_error *err);
+void ms_study_apo_free(ms_study_apo *set);
+
+/* Gives cell its cube (origin in world units, side > 0) and its chunk, whose
+ * words the set adopts (*chunk is zeroed, also on error). Errors: MS_ERR_RANGE
+ * for a cell out of range or a bad cube, the loader's errors for a bad chunk. */
+ms_status ms_study_apo_put(ms_study_apo *set, uint32_t cell, const double origin[3], double side,
+                           ms_apo_chunk *chunk, ms_error *err);
+
+/* Every chunk of an archive file, whole (each CRC-checked and inflated), cubes
+ * from the header and the cell records. MS_ERR_ARG on an index-only archive. */
+ms_status ms_study_apo_from_archive(const ms_archive *archive, uint32_t levels, uint32_t depth_cap,
+                                    ms_apo_missing_rule rule, ms_study_apo **set, ms_error *err);
+
+/* Reads cell's chunk as if only its first `levels` levels had been received
+ * (0: the whole chunk), as a client that fetched that prefix; nothing for a cell
+ * without a chunk. MS_ERR_RANGE for a cell out of range. Not thread-safe against
+ * lookups of the same set. */
+ms_status ms_study_apo_set_levels(ms_study_apo *set, uint32_t cell, uint32_t levels, ms_error *err);
+
+/* The cube of an archive cell (the header's box divided by n^level, at the
+ * cell's position): origin in world units and side. */
+void ms_study_cell_cube(const ms_archive_header *header, const ms_archive_cell *cell, double origin[3],
+                        double *side);
+
+/* APO levels by footprint: the number of levels (1 to level_count) whose finest
+ * nodes, of side cube_side / 2^(levels - 1), still look at least texel_px pixels
+ * wide face-on at `distance` (ms_camera_pixels_per_unit): levels = floor(log2(
+ * cube_side * pixels_per_unit / (distance * texel_px))) + 1, clamped; all of
+ * them at distance 0. 0 for a cell without levels. */
+uint32_t ms_study_footprint_levels(const ms_camera *camera, double cube_side, double distance, double texel_px,
+                                   uint32_t level_count);
+
+/* The APO normal (unit, in world axes) at world point x of cell; false when the
+ * cell has no chunk or the lookup finds nothing. */
+bool ms_study_apo_normal(const ms_study_apo *set, uint32_t cell, const double x[3], double normal[3]);
+
+/* Cells holding a chunk. */
+uint32_t ms_study_apo_chunk_count(const ms_study_apo *set);
+
+#endif
