@@ -104,6 +104,9 @@ ms_archive *ms_test_render_bake(const char *input, const char *dir, const char *
     o.bits = bits;
     o.min_triangles = min_triangles;
     o.threads = 2;
+    /* every cell gets a chunk (the default leaves none where the geometry
+     * renders the input, i.e. in every leaf): the shader is tested on chunks */
+    o.apo.every_cell = true;
     if (apo_max_depth)
         o.apo.max_depth = apo_max_depth;
     ms_bake_report rep;

@@ -42,7 +42,8 @@ void ms_test_fbo_free(ms_test_fbo *fbo);
 void ms_test_fbo_read(const ms_test_fbo *fbo, float *rgba, float *depth);
 
 /* Bakes input (a mesh file) at `bits` with N_min = min_triangles into
- * dir/NAME.msa (APO on with max depth apo_max_depth; 0 = default) and opens it. */
+ * dir/NAME.msa (APO on in every cell, leaves included, with max depth apo_max_depth;
+ * 0 = default) and opens it. */
 ms_archive *ms_test_render_bake(const char *input, const char *dir, const char *name, unsigned bits,
                                 uint32_t min_triangles, unsigned apo_max_depth);
 /* The demo model at `grid` (ms_demo_model.h), written to dir/demo.ply, baked. */
