@@ -3,7 +3,8 @@
  * (the index blob reassembled, inflated if compressed, and CRC-checked),
  * REQUEST_CELLS batches with consecutive request ids, CANCEL, PING; incoming
  * frames are strictly validated (any bad server frame closes the connection)
- * and handed to the caller's handlers. Used by meshloadgen and by meshload.
+ * and handed to the caller's handlers. Used by meshloadgen, the client core,
+ * and (ms_client_fetch_catalogue) by front ends listing a server's models.
  *
  * Ownership: ms_client_free releases everything; it may be called from inside
  * a handler only from `closed` (after which no handler runs). Pointers passed
@@ -73,6 +74,36 @@ ms_status ms_client_cancel(ms_client *client, const ms_proto_id_range *ranges, u
                            ms_error *err);
 ms_status ms_client_cancel_all(ms_client *client, ms_error *err);
 ms_status ms_client_ping(ms_client *client, uint64_t opaque, ms_error *err);
+
+/* One model of a server's catalogue (PROTOCOL.md 4.5), as a front end lists it. */
+typedef struct ms_client_catalogue_entry {
+    char name[MS_PROTO_MAX_MODEL_NAME + 1];    /* model name, NUL-terminated */
+    char title[MS_PROTO_MAX_TEXT + 1];   /* the server's title (meshserve: "V vertices,
+                                            T triangles"), NUL-terminated */
+    uint8_t geometry_steps, apo_steps;   /* precision bits, APO levels (0: no APO) */
+    uint8_t permitted_geometry_steps, permitted_apo_steps; /* what this token may read */
+    uint32_t cell_count;
+    uint64_t content_id;
+    uint64_t archive_bytes;              /* size of the model's archive file */
+} ms_client_catalogue_entry;
+
+typedef struct ms_client_catalogue {
+    ms_client_catalogue_entry *entries;  /* in the server's order: by name */
+    size_t count;
+} ms_client_catalogue;
+
+/* The models a server offers this token: connects to options->host:port
+ * (token, agent, max_frame as for ms_client_connect), sends LIST_CATALOGUE,
+ * gathers every CATALOGUE frame and closes. Blocks for at most timeout_s
+ * seconds (0 = 5) on its own event loop, so it may run on any thread (a
+ * viewer runs it before its window, or on a thread of its own). An empty
+ * catalogue is MS_OK with count 0. Errors (one line naming the server):
+ * MS_ERR_ARG for bad options, MS_ERR_IO for a refused or dropped connection,
+ * an ERROR answer or the time-out, MS_ERR_NOMEM. The caller frees the result
+ * with ms_client_catalogue_free (also safe on a zeroed or failed one). */
+ms_status ms_client_fetch_catalogue(const ms_client_options *options, double timeout_s,
+                                    ms_client_catalogue *catalogue, ms_error *err);
+void ms_client_catalogue_free(ms_client_catalogue *catalogue);
 
 /* Throttles what this connection reads to bytes_per_second (a token bucket
  * refilled every 10 ms); 0 removes the limit. MS_ERR_NOMEM. */

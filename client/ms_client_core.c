@@ -1,5 +1,6 @@
 /* The client core: see ms_client_core.h. Three parts share one mutex:
- * the network thread (net_*), the decode thread (dec_*) and the caller. */
+ * the byte source (the network thread, net_*, or with archive_path the local
+ * responder, local_*), the decode thread (dec_*) and the caller. */
 #include "ms_client_core.h"
 
 #include <errno.h>
@@ -97,7 +98,7 @@ typedef struct decode_pool {
 
 struct ms_core {
     ms_core_options o;
-    char *host, *model, *token, *agent;
+    char *host, *model, *token, *agent, *archive_path;
     double t0;
 
     pthread_mutex_t lock;
@@ -120,6 +121,7 @@ struct ms_core {
     /* network figures */
     bool connected, model_open;
     uint64_t bytes_received, bytes_in_flight, requests, cancels, reconnects;
+    uint64_t geometry_bytes_received, apo_bytes_received;
     uint64_t socket_bytes;      /* read from every connection, frames and index included */
     double *latencies;
     size_t latency_count;
@@ -529,6 +531,7 @@ static void on_payload(ms_client *client, uint32_t id, const ms_proto_payload *p
             got = s->end - s->start;
         pthread_mutex_lock(&c->lock);
         c->bytes_received += p->data_length;
+        *(s->apo ? &c->apo_bytes_received : &c->geometry_bytes_received) += p->data_length;
         if (got > s->got)
             c->bytes_in_flight -= got - s->got;
         pthread_mutex_unlock(&c->lock);
@@ -704,6 +707,120 @@ static void *net_main(void *arg)
     pthread_mutex_lock(&c->lock);
     c->connected = false;
     pthread_mutex_unlock(&c->lock);
+    return NULL;
+}
+
+
+/* ======================== local responder ================================ */
+
+/* With archive_path, this thread stands where the network thread stands: it
+ * opens the archive (the whole file, so the decode thread's index is the
+ * archive itself), then answers the decode thread's want lists from the
+ * mapping. It hands over at most `window` bytes of the best ranges, in the
+ * list's order, as chunk messages like the network's, then waits until the
+ * decode thread has taken them and published its next list (which then asks
+ * only for what is still missing, so nothing is handed over twice and a new
+ * camera reorders what comes next). With `bandwidth` it sleeps as long as the
+ * bytes would take on such a link. */
+
+/* Waits up to `seconds` unless the core stops; caller holds the lock. */
+static void local_pause_locked(ms_core *c, double seconds)
+{
+    struct timespec until;
+    clock_gettime(CLOCK_REALTIME, &until);
+    double whole = floor(seconds);
+    until.tv_sec += (time_t)whole;
+    until.tv_nsec += (long)((seconds - whole) * 1e9);
+    if (until.tv_nsec >= 1000000000L)
+        until.tv_sec++, until.tv_nsec -= 1000000000L;
+    while (!c->stopping && !c->fatal &&
+           pthread_cond_timedwait(&c->wake, &c->lock, &until) != ETIMEDOUT)
+        ;
+}
+
+/* One want as a chunk message from the archive (a failed one if the archive
+ * does not hold the range, which its validated index rules out). */
+static chunk_msg *local_chunk(const ms_archive *a, const want *w)
+{
+    size_t length;
+    const uint8_t *src = w->apo ? ms_archive_apo(a, w->cell, &length)
+                                : ms_archive_geometry(a, w->cell, &length);
+    bool held = src && w->start < w->end && w->end <= length;
+    uint32_t n = held ? w->end - w->start : 0;
+    chunk_msg *m = malloc(sizeof *m + n);
+    if (!m)
+        return NULL;
+    memset(m, 0, sizeof *m);
+    m->cell = w->cell, m->apo = w->apo, m->offset = w->start, m->length = n;
+    m->failed = !held;
+    if (held)
+        memcpy(m->data, src + w->start, n);
+    return m;
+}
+
+static void *local_main(void *arg)
+{
+    ms_core *c = arg;
+    ms_archive *a;
+    ms_error err;
+    if (ms_archive_open(c->archive_path, &a, &err) != MS_OK) {
+        set_fatal(c, "%.240s", err.text);
+        return NULL;
+    }
+    want *list = NULL;
+    size_t cap = 0;
+    uint64_t served_serial = 0, handed_seq = 0;
+    pthread_mutex_lock(&c->lock);
+    c->index = a;
+    c->index_new = true;
+    c->connected = c->model_open = true;
+    pthread_cond_broadcast(&c->wake);
+    for (;;) {
+        /* a fresh list, computed after the decode thread took what we handed */
+        while (!c->stopping && !c->fatal &&
+               (c->want_serial == served_serial || c->want_consumed_seq < handed_seq))
+            pthread_cond_wait(&c->wake, &c->lock);
+        if (c->stopping || c->fatal)
+            break;
+        served_serial = c->want_serial;
+        size_t count = c->want_count;
+        if (count > cap) {
+            want *grown = realloc(list, count * sizeof *grown);
+            if (!grown) {
+                set_fatal_locked(c, "%.240s", "out of memory for the local responder");
+                break;
+            }
+            list = grown;
+            cap = count;
+        }
+        if (count)
+            memcpy(list, c->wants, count * sizeof *list);
+        pthread_mutex_unlock(&c->lock);
+
+        uint64_t handed = 0, geometry = 0, apo = 0, ranges = 0;
+        for (size_t i = 0; i < count && handed < c->window; ++i) {
+            chunk_msg *m = local_chunk(a, &list[i]);
+            if (!m) {
+                set_fatal(c, "%.240s", "out of memory for the local responder");
+                break;
+            }
+            handed += m->length;
+            *(m->apo ? &apo : &geometry) += m->length;
+            ranges++;
+            push_chunk(c, m);
+        }
+        pthread_mutex_lock(&c->lock);
+        c->bytes_received += handed;
+        c->geometry_bytes_received += geometry;
+        c->apo_bytes_received += apo;
+        c->requests += ranges;
+        handed_seq = c->push_seq;
+        if (c->o.bandwidth > 0 && handed > 0)
+            local_pause_locked(c, (double)handed / c->o.bandwidth);
+    }
+    c->connected = false;
+    pthread_mutex_unlock(&c->lock);
+    free(list);
     return NULL;
 }
 
@@ -1268,7 +1385,8 @@ static void dec_step(ms_core *c, chunk_msg *chunks, const ms_camera *cam, uint64
                      bool have_camera)
 {
     double t_start = now_s();
-    /* received bytes */
+    /* received bytes; new APO bytes change the frame as new geometry does */
+    bool apo_changed = false;
     while (chunks) {
         chunk_msg *m = chunks;
         chunks = m->next;
@@ -1286,8 +1404,11 @@ static void dec_step(ms_core *c, chunk_msg *chunks, const ms_camera *cam, uint64
                     set_warning(c, "out of memory for received bytes");
                 else if (!m->apo)
                     dec_hand_over(c, m->cell);
-                else
+                else {
+                    uint32_t before = d->apo_given;
                     dec_apo_received(c, m->cell);
+                    apo_changed |= d->apo_given != before;
+                }
             }
         }
         free(m);
@@ -1318,7 +1439,7 @@ static void dec_step(ms_core *c, chunk_msg *chunks, const ms_camera *cam, uint64
         return;
     }
     bool changed = refined_in_parallel || report.splits || report.merges || report.refined ||
-                   report.coarsened;
+                   report.coarsened || apo_changed;
     /* Hard ceiling: evict what the view does not need; if that is not enough,
      * coarsen at once (double the tolerance) and evict what that frees. */
     for (int round = 0; c->o.memory_ceiling && round < 8; ++round) {
@@ -1424,7 +1545,7 @@ static void dec_step(ms_core *c, chunk_msg *chunks, const ms_camera *cam, uint64
                 }
             }
         }
-        if (apo_on && visible && rec->apo_length > 0) {
+        if (apo_on && visible && rec->apo_length > 0 && !d->failed) {
             unsigned levels = c->o.apo_levels < rec->apo_levels ? c->o.apo_levels : rec->apo_levels;
             uint32_t b = ms_archive_apo_prefix(c->index, i, levels, NULL);
             if (d->apo.end < b) {
@@ -1566,6 +1687,7 @@ static void dec_step(ms_core *c, chunk_msg *chunks, const ms_camera *cam, uint64
         c->want_consumed_seq = c->consumed_seq;
         c->want_serial += same; /* let the network thread release finished requests */
     }
+    pthread_cond_broadcast(&c->wake); /* the local responder waits for a new list */
     if (frame) {
         if (c->frame)
             ms_core_frame_free(c->frame);
@@ -1646,9 +1768,13 @@ static char *dup_or_null(const char *s, bool *fail)
 ms_status ms_core_start(const ms_core_options *o, ms_core **out, ms_error *err)
 {
     *out = NULL;
-    if (!o || !o->host || !o->model || o->port == 0)
-        return ms_error_set(err, MS_ERR_ARG, "client core: host, port and model are required");
-    if (!ms_proto_model_name_valid(o->model, strlen(o->model), NULL))
+    bool local = o && o->archive_path;
+    if (local && !o->archive_path[0])
+        return ms_error_set(err, MS_ERR_ARG, "client core: empty archive path");
+    if (!o || (!local && (!o->host || !o->model || o->port == 0)))
+        return ms_error_set(err, MS_ERR_ARG, "client core: host, port and model (or an archive "
+                            "path) are required");
+    if (o->model && !ms_proto_model_name_valid(o->model, strlen(o->model), NULL))
         return ms_error_set(err, MS_ERR_ARG, "'%s' is not a model name", o->model);
     if (o->tolerance_px < 0 || o->bandwidth < 0 || o->answer_timeout < 0 ||
         o->give_up_seconds < 0 || !isfinite(o->tolerance_px) || !isfinite(o->bandwidth) ||
@@ -1682,6 +1808,7 @@ ms_status ms_core_start(const ms_core_options *o, ms_core **out, ms_error *err)
     c->model = dup_or_null(o->model, &fail);
     c->token = dup_or_null(o->token, &fail);
     c->agent = dup_or_null(o->agent ? o->agent : "meshstream-client", &fail);
+    c->archive_path = dup_or_null(o->archive_path, &fail);
     c->latencies = malloc(LATENCY_KEEP * sizeof *c->latencies);
     c->t0 = now_s();
     c->tolerance_factor = 1.0;
@@ -1716,9 +1843,10 @@ ms_status ms_core_start(const ms_core_options *o, ms_core **out, ms_error *err)
         return ms_error_set(err, MS_ERR_IO, "cannot start the decode thread");
     }
     c->dec_started = true;
-    if (pthread_create(&c->net_thread, NULL, net_main, c) != 0) {
+    if (pthread_create(&c->net_thread, NULL, local ? local_main : net_main, c) != 0) {
         ms_core_stop(c);
-        return ms_error_set(err, MS_ERR_IO, "cannot start the network thread");
+        return ms_error_set(err, MS_ERR_IO, "cannot start the %s thread",
+                            local ? "local responder" : "network");
     }
     c->net_started = true;
     *out = c;
@@ -1787,6 +1915,7 @@ void ms_core_stop(ms_core *c)
     free(c->model);
     free(c->token);
     free(c->agent);
+    free(c->archive_path);
     free(c);
 }
 
@@ -1837,6 +1966,8 @@ void ms_core_get_stats(ms_core *c, ms_core_stats *out)
     out->connected = c->connected;
     out->model_open = c->model_open;
     out->bytes_received = c->bytes_received;
+    out->geometry_bytes_received = c->geometry_bytes_received;
+    out->apo_bytes_received = c->apo_bytes_received;
     out->socket_bytes = c->socket_bytes;
     out->bytes_in_flight = c->bytes_in_flight;
     out->requests = c->requests;

@@ -20,6 +20,15 @@
  *     frames and reads statistics: none of these block on decoding or I/O
  *     (they take a mutex held for a copy or a pointer swap).
  *
+ * Local mode (archive_path set: a kiosk, offline): the network thread is
+ * replaced by a local responder that maps the archive and hands the decode
+ * thread the byte ranges of its want list, best first, at most window_bytes
+ * before the decode thread takes them and plans again; everything else (the
+ * index, verification, selection, budget, frames, statistics) is the same code.
+ * A missing, truncated or malformed archive stops the core with stats.error
+ * (one line naming the file); a corrupt payload is handled as a corrupt range
+ * from the network (fetched again once, then the cell is reported failed).
+ *
  * Request order. For every shown cell below its target, each missing precision
  * bit is one request, with priority 128 - 8 * (need - bit) for cells in the
  * frustum (need = the real-valued precision the camera asks for), 64 later for
@@ -78,7 +87,15 @@ typedef void (*ms_core_payload_filter)(uint32_t cell, bool apo, uint32_t offset,
 typedef struct ms_core_options {
     const char *host;          /* numeric IPv4/IPv6 address */
     uint16_t port;
-    const char *model;
+    const char *model;         /* the model's name (optional with archive_path) */
+    const char *archive_path;  /* NULL: stream from host:port. Else the path of a local
+                                  archive file (DIR/NAME.msa, ms_catalog.h): host, port,
+                                  token, raw_index and the time-outs are ignored and
+                                  no network is used; the same decode, selection,
+                                  verification, budget and frames run on the byte
+                                  ranges a local responder hands over from the mapped
+                                  file (at most window_bytes a pass, in request order,
+                                  throttled to `bandwidth` when set) */
     const char *token;         /* NULL: none (preview access) */
     const char *agent;         /* NULL: "meshstream-client" */
     double tolerance_px;       /* geometric screen tolerance, pixels; 0 = 1 */
@@ -139,15 +156,16 @@ void ms_core_frame_free(ms_core_frame *frame);
 
 typedef struct ms_core_stats {
     double time;               /* seconds since start */
-    bool connected, model_open;
+    bool connected, model_open; /* local mode: both true once the archive is open */
     bool view_complete;        /* every cell of the cut at its target, nothing missing */
     uint64_t camera_serial;    /* the camera set-call the figures below answer */
     double achieved_error_px;  /* largest projected error of a visible shown cell */
     double tolerance_px;       /* effective geometric tolerance (raised over budget) */
     double first_display;      /* seconds to the first frame with a triangle; < 0 none yet */
-    uint64_t bytes_received;   /* payload bytes */
+    uint64_t bytes_received;   /* payload bytes (local mode: bytes handed over) */
+    uint64_t geometry_bytes_received, apo_bytes_received; /* bytes_received by stream */
     uint64_t socket_bytes;     /* everything read from the server (frames, index), counted
-                                  at each loop tick */
+                                  at each loop tick; 0 in local mode */
     uint64_t bytes_in_flight;  /* requested and not yet received */
     uint64_t requests, cancels, reconnects, refetches, evictions;
     uint32_t cells_shown, cells_split, cells_cached, cells_loading, cells_failed;

@@ -1,0 +1,427 @@
+/* The client core's local mode (ms_core_options.archive_path: an archive read
+ * from disk, no server) and the two ways a front end lists models (a server's
+ * catalogue, ms_client_fetch_catalogue; a directory's catalog.json,
+ * ms_catalog_load). On the built-in demo model, small (about 30,000
+ * triangles), baked here with APO chunks:
+ *   - for the demo close-up's last keyframe, the local mode's frame at view
+ *     complete equals, byte for byte (mesh, cut, APO chunk prefixes), the frame
+ *     of the network mode against meshserve for the same camera and tolerance;
+ *   - the local mode completes every keyframe of the path;
+ *   - a missing file, a file that is no archive, a truncated archive and a
+ *     corrupted payload give one clear line each (error or failed cell), with
+ *     nothing leaked (AddressSanitizer's leak check);
+ *   - the catalogue of the server and of the directory list the model.
+ * Every wait is bounded. */
+#include <setjmp.h>
+#include <signal.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <time.h>
+#include <unistd.h>
+#include <cmocka.h>
+
+#include "ms_archive.h"
+#include "ms_bake.h"
+#include "ms_camera_path.h"
+#include "ms_catalog.h"
+#include "ms_client.h"
+#include "ms_client_core.h"
+#include "ms_nsp_check.h"
+#include "ms_test.h"
+#include "ms_test_net.h"
+
+#define MODEL "demo"
+#define PATH_FILE "scripts/paths/demo-closeup.cam"
+#define TRIANGLES 30000
+#define WAIT_SECONDS 60.0
+#define APO_LEVELS 11
+
+typedef struct fixture {
+    char dir[512], archives[600], file[700], log[600], port_file[600];
+    pid_t pid;
+    uint16_t port, http_port;
+    ms_archive *archive;
+    ms_camera_path path;
+} fixture;
+
+static fixture *g;
+
+static double now_s(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + ts.tv_nsec * 1e-9;
+}
+
+static void sleep_s(double s)
+{
+    struct timespec ts = {(time_t)s, (long)((s - floor(s)) * 1e9)};
+    nanosleep(&ts, NULL);
+}
+
+static int group_setup(void **state)
+{
+    (void)state;
+    fixture *f = calloc(1, sizeof *f);
+    ms_test_tmpdir(f->dir, sizeof f->dir);
+    snprintf(f->archives, sizeof f->archives, "%s/archive", f->dir);
+    snprintf(f->file, sizeof f->file, "%s/" MODEL ".msa", f->archives);
+    snprintf(f->log, sizeof f->log, "%s/meshserve.log", f->dir);
+    snprintf(f->port_file, sizeof f->port_file, "%s/ports", f->dir);
+    if (mkdir(f->archives, 0755) != 0)
+        return -1;
+    char ply[600];
+    snprintf(ply, sizeof ply, "%s/demo.ply", f->dir);
+    ms_nsp_test_demo_ply(ply, TRIANGLES);
+    ms_bake_options o;
+    ms_bake_options_default(&o); /* APO on */
+    o.input = ply;
+    o.archive_dir = f->archives;
+    o.name = MODEL;
+    o.min_triangles = 2000;
+    o.threads = 2;
+    o.mem_mb = 64;
+    ms_bake_report report;
+    ms_error err;
+    if (ms_bake(&o, &report, &err) != MS_OK) {
+        fprintf(stderr, "bake: %s\n", err.text);
+        return -1;
+    }
+    if (ms_archive_open(f->file, &f->archive, &err) != MS_OK ||
+        ms_camera_path_load(PATH_FILE, &f->path, &err) != MS_OK) {
+        fprintf(stderr, "%s\n", err.text);
+        return -1;
+    }
+    char bin[512];
+    ms_test_bin_path(bin, sizeof bin, "meshserve");
+    char *argv[] = {bin, f->archives, "--port", "0", "--http-port", "0", "--port-file",
+                    f->port_file, NULL};
+    f->pid = ms_test_spawn(argv, f->log);
+    if (ms_test_wait_ports(f->port_file, 15.0, &f->port, &f->http_port) != 0) {
+        fprintf(stderr, "meshserve did not start (see %s)\n", f->log);
+        ms_test_stop(f->pid, SIGKILL, 5.0);
+        return -1;
+    }
+    g = f;
+    return 0;
+}
+
+static int group_teardown(void **state)
+{
+    (void)state;
+    if (!g)
+        return 0;
+    if (g->pid)
+        ms_test_stop(g->pid, SIGTERM, 10.0);
+    ms_archive_close(g->archive);
+    ms_camera_path_free(&g->path);
+    ms_test_rmdir(g->dir);
+    free(g);
+    g = NULL;
+    return 0;
+}
+
+static ms_camera key_camera(size_t k)
+{
+    ms_camera cam;
+    ms_error err;
+    double t = g->path.keys[k < g->path.count ? k : g->path.count - 1].time;
+    if (ms_camera_path_sample(&g->path, t, 640, 480, 1e-4, 1e4, &cam, &err) != MS_OK)
+        fail_msg("%s", err.text);
+    return cam;
+}
+
+static ms_core_options network_options(void)
+{
+    ms_core_options o = {0};
+    o.host = "127.0.0.1";
+    o.port = g->port;
+    o.model = MODEL;
+    o.tolerance_px = 1.0;
+    o.hysteresis_bits = 0.0;
+    o.apo_levels = APO_LEVELS;
+    o.answer_timeout = 3.0;
+    o.give_up_seconds = 20.0;
+    o.export_frames = true;
+    return o;
+}
+
+static ms_core_options local_options(const char *file)
+{
+    ms_core_options o = network_options();
+    o.host = NULL, o.port = 0, o.model = NULL;
+    o.archive_path = file;
+    return o;
+}
+
+/* Waits for view complete (or an error, or the time limit); keeps the newest
+ * frame in *frame when given. */
+static bool wait_complete(ms_core *core, double seconds, ms_core_stats *st, ms_core_frame **frame)
+{
+    double until = now_s() + seconds;
+    for (;;) {
+        if (frame) {
+            ms_core_frame *f = ms_core_take_frame(core);
+            if (f) {
+                ms_core_frame_free(*frame);
+                *frame = f;
+            }
+        }
+        ms_core_get_stats(core, st);
+        if (st->view_complete || st->error[0] || now_s() > until) {
+            if (frame && st->view_complete) {
+                ms_core_frame *f = ms_core_take_frame(core);
+                if (f) {
+                    ms_core_frame_free(*frame);
+                    *frame = f;
+                }
+            }
+            return st->view_complete;
+        }
+        sleep_s(0.005);
+    }
+}
+
+/* Runs a core on options for camera until view complete; returns its frame. */
+static ms_core_frame *complete_frame(const ms_core_options *o, const ms_camera *cam,
+                                     ms_core_stats *st)
+{
+    ms_core *core;
+    ms_error err;
+    if (ms_core_start(o, &core, &err) != MS_OK)
+        fail_msg("%s", err.text);
+    ms_core_set_camera(core, cam);
+    ms_core_frame *frame = NULL;
+    if (!wait_complete(core, WAIT_SECONDS, st, &frame))
+        fail_msg("%s: view not complete: '%s' '%s'", o->archive_path ? "local" : "network",
+                 st->error, st->warning);
+    ms_core_stop(core);
+    assert_non_null(frame);
+    return frame;
+}
+
+static void assert_frames_equal(const ms_core_frame *a, const ms_core_frame *b)
+{
+    assert_int_equal(a->cell_count, b->cell_count);
+    assert_memory_equal(a->cell_bits, b->cell_bits, a->cell_count);
+    const ms_view_mesh *x = &a->mesh, *y = &b->mesh;
+    assert_int_equal(x->vertex_count, y->vertex_count);
+    assert_int_equal(x->triangle_count, y->triangle_count);
+    assert_memory_equal(x->positions, y->positions, 3 * x->vertex_count * sizeof *x->positions);
+    assert_memory_equal(x->keys, y->keys, x->vertex_count * sizeof *x->keys);
+    assert_memory_equal(x->levels, y->levels, x->vertex_count);
+    assert_memory_equal(x->triangles, y->triangles, 3 * x->triangle_count * sizeof *x->triangles);
+    assert_memory_equal(x->triangle_cell, y->triangle_cell,
+                        x->triangle_count * sizeof *x->triangle_cell);
+    assert_int_equal(a->apo_count, b->apo_count);
+    for (size_t i = 0; i < a->apo_count; ++i) {
+        assert_int_equal(a->apo[i].cell, b->apo[i].cell);
+        assert_int_equal(a->apo[i].levels, b->apo[i].levels);
+        assert_int_equal(a->apo[i].length, b->apo[i].length);
+        assert_memory_equal(a->apo[i].data, b->apo[i].data, a->apo[i].length);
+    }
+}
+
+/* The close-up's last keyframe: the local frame is the network frame. */
+static void test_local_equals_network(void **state)
+{
+    (void)state;
+    ms_camera cam = key_camera(g->path.count - 1);
+    ms_core_options on = network_options(), ol = local_options(g->file);
+    ms_core_stats sn, sl;
+    ms_core_frame *fn = complete_frame(&on, &cam, &sn);
+    ms_core_frame *fl = complete_frame(&ol, &cam, &sl);
+    assert_true(fn->mesh.triangle_count > 1000);
+    uint32_t shown = 0;
+    for (uint32_t i = 0; i < fn->cell_count; ++i)
+        shown += fn->cell_bits[i] < MS_VIEW_TARGET_SPLIT;
+    assert_true(shown > 1);    /* a real cut, not the root alone */
+    assert_true(fn->apo_count > 0);
+    assert_frames_equal(fl, fn);
+    /* the local figures: what was handed over, by stream; no socket */
+    assert_true(sl.model_open);
+    assert_int_equal(sl.error[0], 0);
+    assert_int_equal(sl.cells_failed, 0);
+    assert_int_equal(sl.socket_bytes, 0);
+    assert_int_equal(sl.bytes_in_flight, 0);
+    assert_true(sl.geometry_bytes_received > 0 && sl.apo_bytes_received > 0);
+    assert_int_equal(sl.bytes_received, sl.geometry_bytes_received + sl.apo_bytes_received);
+    assert_int_equal(sn.bytes_received, sn.geometry_bytes_received + sn.apo_bytes_received);
+    assert_true(sl.first_display >= 0);
+    ms_core_frame_free(fn);
+    ms_core_frame_free(fl);
+}
+
+/* Along the path, each keyframe completes locally; throttled, the view
+ * refines over several passes: the first frame that draws something is
+ * coarser than the complete one. */
+static void test_local_path(void **state)
+{
+    (void)state;
+    ms_core_options o = local_options(g->file);
+    o.hysteresis_bits = 0.5;
+    o.bandwidth = 2e6;
+    ms_core *core;
+    ms_error err;
+    assert_int_equal(ms_core_start(&o, &core, &err), MS_OK);
+    ms_core_frame *first = NULL, *frame = NULL;
+    ms_core_stats st;
+    for (size_t k = 0; k < g->path.count; ++k) {
+        ms_camera cam = key_camera(k);
+        ms_core_set_camera(core, &cam);
+        double until = now_s() + WAIT_SECONDS;
+        while (k == 0 && !first && now_s() < until) {
+            ms_core_frame *f = ms_core_take_frame(core);
+            if (f && f->mesh.triangle_count > 0)
+                first = f;
+            else
+                ms_core_frame_free(f);
+            sleep_s(0.002);
+        }
+        if (!wait_complete(core, WAIT_SECONDS, &st, &frame))
+            fail_msg("keyframe %zu not complete: %s", k, st.error);
+        if (k == 0) {
+            assert_non_null(first);
+            assert_non_null(frame);
+            assert_true(frame->mesh.triangle_count > first->mesh.triangle_count);
+        }
+    }
+    fprintf(stderr, "local path: %llu bytes (%llu geometry, %llu APO) in %.2f s\n",
+            (unsigned long long)st.bytes_received, (unsigned long long)st.geometry_bytes_received,
+            (unsigned long long)st.apo_bytes_received, st.time);
+    assert_int_equal(st.cells_failed, 0);
+    assert_true(st.requests > 0);
+    ms_core_frame_free(first);
+    ms_core_frame_free(frame);
+    ms_core_stop(core);
+}
+
+/* Starts a local core on file and waits for an error or view complete. */
+static void run_local(const char *file, ms_core_stats *st)
+{
+    ms_core_options o = local_options(file);
+    ms_core *core;
+    ms_error err;
+    assert_int_equal(ms_core_start(&o, &core, &err), MS_OK);
+    ms_camera cam = key_camera(0);
+    ms_core_set_camera(core, &cam);
+    double until = now_s() + WAIT_SECONDS;
+    do {
+        sleep_s(0.01);
+        ms_core_get_stats(core, st);
+    } while (!st->error[0] && !st->view_complete && !st->cells_failed && now_s() < until);
+    sleep_s(0.2); /* a pass more: the failed cell stays failed, nothing else happens */
+    ms_core_get_stats(core, st);
+    ms_core_stop(core);
+}
+
+static void test_local_bad_archives(void **state)
+{
+    (void)state;
+    ms_core_stats st;
+    ms_core *core = NULL;
+    ms_error err;
+    ms_core_options o = local_options("");
+    assert_int_equal(ms_core_start(&o, &core, &err), MS_ERR_ARG);
+    assert_null(core);
+
+    char path[800];
+    snprintf(path, sizeof path, "%s/missing.msa", g->dir);
+    run_local(path, &st);
+    assert_non_null(strstr(st.error, path));
+    assert_false(st.model_open);
+    assert_false(st.view_complete);
+
+    snprintf(path, sizeof path, "%s/catalog.json", g->archives);
+    run_local(path, &st);
+    assert_non_null(strstr(st.error, "not a meshstream archive"));
+
+    size_t size;
+    unsigned char *bytes = ms_test_read_file(g->file, &size);
+    snprintf(path, sizeof path, "%s/truncated.msa", g->dir);
+    ms_test_write_file(path, bytes, size - 1000);
+    run_local(path, &st);
+    assert_non_null(strstr(st.error, path));
+    assert_false(st.model_open);
+    assert_int_equal(st.bytes_received, 0);
+
+    /* the last byte of the root's third precision bit, flipped */
+    const ms_archive_header *h = ms_archive_get_header(g->archive);
+    const ms_archive_cell *root = ms_archive_get_cell(g->archive, 0);
+    uint64_t at = MS_ARCHIVE_HEADER_SIZE + h->index_stored_size + root->geometry_offset +
+                  ms_archive_geometry_prefix(g->archive, 0, root->bits_min + 3u) - 1;
+    assert_true(at < size);
+    bytes[at] ^= 0x5A;
+    snprintf(path, sizeof path, "%s/corrupt.msa", g->dir);
+    ms_test_write_file(path, bytes, size);
+    free(bytes);
+    run_local(path, &st);
+    assert_int_equal(st.error[0], 0);
+    assert_true(st.model_open);
+    assert_false(st.view_complete);
+    assert_int_equal(st.cells_failed, 1);
+    assert_int_equal(st.refetches, 1);
+    assert_non_null(strstr(st.warning, "cell 0"));
+    assert_non_null(strstr(st.warning, "CRC"));
+}
+
+/* Listing models: a server's catalogue and a directory's catalog.json. */
+static void test_catalogues(void **state)
+{
+    (void)state;
+    ms_client_options co = {.host = "127.0.0.1", .port = g->port, .agent = "test"};
+    ms_client_catalogue cat;
+    ms_error err;
+    if (ms_client_fetch_catalogue(&co, 10.0, &cat, &err) != MS_OK)
+        fail_msg("%s", err.text);
+    assert_int_equal(cat.count, 1);
+    const ms_client_catalogue_entry *e = &cat.entries[0];
+    assert_string_equal(e->name, MODEL);
+    const ms_archive_header *h = ms_archive_get_header(g->archive);
+    assert_int_equal(e->cell_count, h->cell_count);
+    assert_int_equal(e->archive_bytes, h->file_size);
+    assert_true(e->apo_steps > 0);
+    char triangles[64];
+    snprintf(triangles, sizeof triangles, "%llu triangles", (unsigned long long)h->triangle_count);
+    if (!strstr(e->title, triangles))
+        fail_msg("title '%s' lacks '%s'", e->title, triangles);
+    ms_client_catalogue_free(&cat);
+    assert_null(cat.entries);
+    ms_client_catalogue_free(&cat); /* twice is harmless */
+
+    /* nobody listening: a clear error, quickly */
+    co.port = 1; /* nothing listens on port 1 of loopback: refused */
+    double t0 = now_s();
+    assert_int_equal(ms_client_fetch_catalogue(&co, 5.0, &cat, &err), MS_ERR_IO);
+    assert_true(now_s() - t0 < 5.0);
+    assert_non_null(strstr(err.text, "127.0.0.1:1"));
+    assert_int_equal(cat.count, 0);
+    co.host = NULL;
+    assert_int_equal(ms_client_fetch_catalogue(&co, 5.0, &cat, &err), MS_ERR_ARG);
+
+    ms_catalog local;
+    if (ms_catalog_load(g->archives, &local, &err) != MS_OK)
+        fail_msg("%s", err.text);
+    const ms_catalog_entry *le = ms_catalog_find(&local, MODEL);
+    assert_non_null(le);
+    assert_int_equal(le->triangles, h->triangle_count);
+    assert_int_equal(le->archive_bytes, h->file_size);
+    ms_catalog_free(&local);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_local_equals_network),
+        cmocka_unit_test(test_local_path),
+        cmocka_unit_test(test_local_bad_archives),
+        cmocka_unit_test(test_catalogues),
+    };
+    return cmocka_run_group_tests(tests, group_setup, group_teardown);
+}
