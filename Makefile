@@ -67,6 +67,17 @@ $(LIB_$(1)): $(call lib_objs,$(1))
 endef
 $(foreach r,$(ROLES),$(eval $(call role_lib,$(r))))
 
+# The viewer's GLSL (client/view/shaders/*.glsl) is embedded into libmsview as C
+# strings (declared in client/view/ms_render_shaders.h) by a generated source.
+SHADER_SRCS := $(wildcard client/view/shaders/*.glsl)
+SHADER_GEN  := $(BUILD)/gen/ms_render_shaders.c
+$(SHADER_GEN): $(SHADER_SRCS) client/view/shaders/embed_shaders.py
+	@mkdir -p $(dir $@)
+	python3 client/view/shaders/embed_shaders.py $@ $(SHADER_SRCS)
+$(BUILD)/gen/ms_render_shaders.o: $(SHADER_GEN)
+	$(CC) $(CFLAGS) -MMD -MP -c $< -o $@
+$(LIB_client/view): $(BUILD)/gen/ms_render_shaders.o
+
 # An empty archive still needs one member for ar on some systems.
 $(BUILD)/empty.o:
 	@mkdir -p $(dir $@)

@@ -1,0 +1,583 @@
+/* The renderer (ms_render.h): frames in, an upload queue within a byte budget,
+ * one draw call per drawing cell.
+ *
+ * Each cell has a current state (what is drawn: a mesh on the GPU and a range of
+ * the texel buffer) and a pending one (what the latest frame wants and is not yet
+ * wholly on the GPU). A pending mesh goes up in pieces into buffers of its own
+ * and replaces the current one only once complete; the same for a pending APO
+ * prefix and its texel range. Cells wait in a queue in the order they changed. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "ms_render_internal.h"
+
+typedef struct gpu_mesh {
+    GLuint vao, vbo, ibo;
+    uint32_t vertex_count, triangle_count;
+    uint64_t hash;
+} gpu_mesh;
+
+typedef struct pending_mesh {
+    bool active;
+    float *vertices;        /* 3 per vertex, owned */
+    uint32_t *indices;      /* 3 per triangle, owned */
+    gpu_mesh gpu;           /* buffers being filled (created with the first piece) */
+    uint64_t sent;          /* bytes of vertices then indices already sent */
+} pending_mesh;
+
+typedef struct apo_range {
+    uint32_t levels;        /* complete levels held; 0: no APO */
+    uint32_t start, count;  /* words in the texel buffer */
+    bool root_internal;
+} apo_range;
+
+typedef struct pending_apo {
+    bool active;
+    uint32_t *words;        /* owned */
+    apo_range range;        /* start valid once allocated */
+    bool allocated;
+    uint64_t sent;          /* bytes */
+} pending_apo;
+
+typedef struct render_cell {
+    gpu_mesh mesh;          /* current; vao 0 when nothing is drawn */
+    apo_range apo;          /* current */
+    pending_mesh next_mesh;
+    pending_apo next_apo;
+    uint32_t failed_apo_levels; /* a prefix that did not load: not retried until it changes */
+    bool queued;
+    bool in_frame;
+} render_cell;
+
+struct ms_render {
+    ms_archive_header header;
+    ms_archive_cell *records;
+    render_cell *cells;
+    ms_render_split split;
+    ms_render_program program;
+    ms_render_texels texels;
+    uint32_t *frame_cells;      /* cells with triangles in the latest frame */
+    uint32_t frame_cell_count;
+    uint32_t *queue;            /* cells with something pending, oldest first */
+    uint32_t queue_count;
+    uint32_t *apo_levels;       /* per cell, scratch for set_frame */
+    uint32_t *apo_entry;        /* per cell: index into the frame's apo array + 1 */
+};
+
+void ms_render_options_default(ms_render_options *o)
+{
+    memset(o, 0, sizeof *o);
+    o->shading = MS_SHADING_LIT;
+    o->apo = true;
+    o->wireframe = false;
+    o->apo_depth_cap = 0;
+    o->apo_nearest = true;
+    o->background[0] = o->background[1] = o->background[2] = 0.02f;
+}
+
+/* ---- per-cell GPU state ---------------------------------------------------- */
+
+static void delete_gpu_mesh(gpu_mesh *m)
+{
+    if (m->vao)
+        glDeleteVertexArrays(1, &m->vao);
+    if (m->vbo)
+        glDeleteBuffers(1, &m->vbo);
+    if (m->ibo)
+        glDeleteBuffers(1, &m->ibo);
+    memset(m, 0, sizeof *m);
+}
+
+static void drop_pending_mesh(pending_mesh *p)
+{
+    free(p->vertices);
+    free(p->indices);
+    delete_gpu_mesh(&p->gpu);
+    memset(p, 0, sizeof *p);
+}
+
+static void drop_pending_apo(ms_render *r, pending_apo *p)
+{
+    if (p->allocated)
+        ms_render_texels_release(&r->texels, p->range.start, p->range.count);
+    free(p->words);
+    memset(p, 0, sizeof *p);
+}
+
+static void drop_current_apo(ms_render *r, render_cell *c)
+{
+    if (c->apo.count)
+        ms_render_texels_release(&r->texels, c->apo.start, c->apo.count);
+    memset(&c->apo, 0, sizeof c->apo);
+}
+
+static void drop_cell(ms_render *r, render_cell *c)
+{
+    delete_gpu_mesh(&c->mesh);
+    drop_pending_mesh(&c->next_mesh);
+    drop_pending_apo(r, &c->next_apo);
+    drop_current_apo(r, c);
+    c->failed_apo_levels = 0;
+    c->in_frame = false;
+}
+
+/* ---- life cycle ------------------------------------------------------------ */
+
+static ms_status check_model(const ms_archive_header *h, const ms_archive_cell *cells, ms_error *err)
+{
+    if (!h || !cells)
+        return ms_error_set(err, MS_ERR_ARG, "render: no model header or cells");
+    if (h->cell_count == 0 || h->cell_count > MS_ARCHIVE_MAX_CELLS)
+        return ms_error_set(err, MS_ERR_ARG, "render: %u cells", h->cell_count);
+    if (!(h->box_side > 0.0) || !isfinite(h->box_side) || !isfinite(h->box_origin[0]) ||
+        !isfinite(h->box_origin[1]) || !isfinite(h->box_origin[2]))
+        return ms_error_set(err, MS_ERR_ARG, "render: model box not finite and positive");
+    if (h->n < 2)
+        return ms_error_set(err, MS_ERR_ARG, "render: %u children per axis", h->n);
+    for (uint32_t i = 0; i < h->cell_count; ++i) {
+        const ms_archive_cell *c = &cells[i];
+        double cells_per_side = pow((double)h->n, (double)c->level);
+        if (c->level > 32 || c->position[0] >= cells_per_side || c->position[1] >= cells_per_side ||
+            c->position[2] >= cells_per_side)
+            return ms_error_set(err, MS_ERR_ARG, "render: cell %u position outside its level %u", i, c->level);
+        if (c->apo_levels > MS_APO_MAX_LEVELS)
+            return ms_error_set(err, MS_ERR_ARG, "render: cell %u has %u APO levels", i, c->apo_levels);
+    }
+    return MS_OK;
+}
+
+ms_status ms_render_new(const ms_archive_header *header, const ms_archive_cell *cells, ms_render **out,
+                        ms_error *err)
+{
+    if (!out)
+        return ms_error_set(err, MS_ERR_ARG, "render: no result pointer");
+    *out = NULL;
+    ms_status st = check_model(header, cells, err);
+    if (st != MS_OK)
+        return st;
+    if (!glGetString(GL_VERSION))
+        return ms_error_set(err, MS_ERR_UNSUPPORTED, "render: no current OpenGL context");
+    if (epoxy_gl_version() < 41)
+        return ms_error_set(err, MS_ERR_UNSUPPORTED, "render: OpenGL %d.%d, 4.1 needed", epoxy_gl_version() / 10,
+                            epoxy_gl_version() % 10);
+    ms_render *r = calloc(1, sizeof *r);
+    if (!r)
+        return ms_error_set(err, MS_ERR_NOMEM, "render: no memory");
+    r->header = *header;
+    size_t n = header->cell_count;
+    r->records = malloc(n * sizeof *r->records);
+    r->cells = calloc(n, sizeof *r->cells);
+    r->frame_cells = malloc(n * sizeof *r->frame_cells);
+    r->queue = malloc(n * sizeof *r->queue);
+    r->apo_levels = calloc(n, sizeof *r->apo_levels);
+    r->apo_entry = calloc(n, sizeof *r->apo_entry);
+    if (!r->records || !r->cells || !r->frame_cells || !r->queue || !r->apo_levels || !r->apo_entry) {
+        ms_render_free(r);
+        return ms_error_set(err, MS_ERR_NOMEM, "render: no memory for %zu cells", n);
+    }
+    memcpy(r->records, cells, n * sizeof *r->records);
+    ms_render_split_init(&r->split, &r->header, r->records);
+    st = ms_render_program_build(&r->program, err);
+    if (st == MS_OK)
+        st = ms_render_texels_init(&r->texels, err);
+    if (st != MS_OK) {
+        ms_render_free(r);
+        return st;
+    }
+    *out = r;
+    return MS_OK;
+}
+
+void ms_render_free(ms_render *r)
+{
+    if (!r)
+        return;
+    if (r->cells)
+        for (uint32_t i = 0; i < r->header.cell_count; ++i)
+            drop_cell(r, &r->cells[i]);
+    ms_render_texels_free(&r->texels);
+    ms_render_program_free(&r->program);
+    ms_render_split_free(&r->split);
+    free(r->records);
+    free(r->cells);
+    free(r->frame_cells);
+    free(r->queue);
+    free(r->apo_levels);
+    free(r->apo_entry);
+    free(r);
+}
+
+/* ---- frames ------------------------------------------------------------------ */
+
+/* The cell's mesh in the new frame: nothing to do when it is what the cell draws
+ * or already waits for; otherwise it becomes the pending mesh. */
+static ms_status take_mesh(render_cell *c, const ms_render_cell_mesh *m, ms_error *err)
+{
+    bool same_as_current = c->mesh.vao && c->mesh.hash == m->hash && c->mesh.vertex_count == m->vertex_count &&
+                           c->mesh.triangle_count == m->triangle_count;
+    if (c->next_mesh.active) {
+        const gpu_mesh *g = &c->next_mesh.gpu;
+        if (g->hash == m->hash && g->vertex_count == m->vertex_count && g->triangle_count == m->triangle_count)
+            return MS_OK;
+        drop_pending_mesh(&c->next_mesh);
+    }
+    if (same_as_current)
+        return MS_OK;
+    pending_mesh *p = &c->next_mesh;
+    p->vertices = malloc(3 * (size_t)m->vertex_count * sizeof *p->vertices);
+    p->indices = malloc(3 * (size_t)m->triangle_count * sizeof *p->indices);
+    if (!p->vertices || !p->indices) {
+        drop_pending_mesh(p);
+        return ms_error_set(err, MS_ERR_NOMEM, "render: no memory for cell %u", m->cell);
+    }
+    memcpy(p->vertices, m->vertices, 3 * (size_t)m->vertex_count * sizeof *p->vertices);
+    memcpy(p->indices, m->indices, 3 * (size_t)m->triangle_count * sizeof *p->indices);
+    p->gpu.vertex_count = m->vertex_count;
+    p->gpu.triangle_count = m->triangle_count;
+    p->gpu.hash = m->hash;
+    p->active = true;
+    return MS_OK;
+}
+
+/* The cell's APO prefix in the new frame (levels 0: none). A prefix that does not
+ * load leaves the cell on its geometric normals. */
+static ms_status take_apo(ms_render *r, uint32_t cell, const ms_core_apo_chunk *chunk, unsigned levels,
+                          ms_error *err)
+{
+    render_cell *c = &r->cells[cell];
+    if (levels == 0) {
+        drop_pending_apo(r, &c->next_apo);
+        drop_current_apo(r, c);
+        c->failed_apo_levels = 0;
+        return MS_OK;
+    }
+    if (c->next_apo.active) {
+        if (c->next_apo.range.levels == levels)
+            return MS_OK;
+        drop_pending_apo(r, &c->next_apo);
+    }
+    if (c->apo.levels == levels || c->failed_apo_levels == levels)
+        return MS_OK;
+    uint32_t *words;
+    size_t count;
+    bool root_internal;
+    ms_error why;
+    ms_status st =
+        ms_render_apo_words(&r->records[cell], chunk->data, chunk->length, levels, &words, &count, &root_internal, &why);
+    if (st == MS_ERR_NOMEM)
+        return ms_error_set(err, st, "%s", why.text);
+    if (st != MS_OK || count > UINT32_MAX) {
+        if (st == MS_OK)
+            free(words);
+        c->failed_apo_levels = levels;
+        return MS_OK;
+    }
+    c->failed_apo_levels = 0;
+    pending_apo *p = &c->next_apo;
+    p->words = words;
+    p->range = (apo_range){levels, 0, (uint32_t)count, root_internal};
+    p->active = true;
+    return MS_OK;
+}
+
+ms_status ms_render_set_frame(ms_render *r, const ms_view_mesh *mesh, const ms_core_apo_chunk *apo, size_t apo_count,
+                              ms_error *err)
+{
+    if (!r)
+        return ms_error_set(err, MS_ERR_ARG, "render: no renderer");
+    if (apo_count && !apo)
+        return ms_error_set(err, MS_ERR_ARG, "render: %zu APO chunks but no array", apo_count);
+    uint32_t n = r->header.cell_count;
+    for (size_t i = 0; i < apo_count; ++i) {
+        if (apo[i].cell >= n)
+            return ms_error_set(err, MS_ERR_ARG, "render: APO chunk %zu for cell %u of %u", i, apo[i].cell, n);
+        if (apo[i].length && !apo[i].data)
+            return ms_error_set(err, MS_ERR_ARG, "render: APO chunk %zu has no bytes", i);
+    }
+    ms_status st = ms_render_split_frame(&r->split, mesh, err);
+    if (st != MS_OK)
+        return st;
+    for (size_t i = 0; i < apo_count; ++i) {
+        const ms_archive_cell *rec = &r->records[apo[i].cell];
+        unsigned levels = apo[i].levels < rec->apo_levels ? apo[i].levels : rec->apo_levels;
+        r->apo_levels[apo[i].cell] = apo[i].length ? levels : 0;
+        r->apo_entry[apo[i].cell] = (uint32_t)i + 1;
+    }
+    /* cells leaving the frame stop drawing at once */
+    for (uint32_t k = 0; k < r->frame_cell_count; ++k)
+        r->cells[r->frame_cells[k]].in_frame = false;
+    for (uint32_t k = 0; k < r->split.present_count && st == MS_OK; ++k)
+        r->cells[r->split.present[k]].in_frame = true;
+    for (uint32_t k = 0; k < r->frame_cell_count; ++k) {
+        render_cell *c = &r->cells[r->frame_cells[k]];
+        if (!c->in_frame)
+            drop_cell(r, c);
+    }
+    for (uint32_t k = 0; k < r->split.present_count && st == MS_OK; ++k) {
+        ms_render_cell_mesh m;
+        st = ms_render_split_cell(&r->split, k, &m, err);
+        if (st == MS_OK)
+            st = take_mesh(&r->cells[m.cell], &m, err);
+        if (st == MS_OK) {
+            uint32_t e = r->apo_entry[m.cell];
+            st = take_apo(r, m.cell, e ? &apo[e - 1] : NULL, e ? r->apo_levels[m.cell] : 0, err);
+        }
+    }
+    for (size_t i = 0; i < apo_count; ++i)
+        r->apo_levels[apo[i].cell] = r->apo_entry[apo[i].cell] = 0;
+    memcpy(r->frame_cells, r->split.present, r->split.present_count * sizeof *r->frame_cells);
+    r->frame_cell_count = r->split.present_count;
+    /* the queue: cells still waiting keep their turn, newly changed ones follow */
+    uint32_t kept = 0;
+    for (uint32_t k = 0; k < r->queue_count; ++k) {
+        render_cell *c = &r->cells[r->queue[k]];
+        if (c->next_mesh.active || c->next_apo.active)
+            r->queue[kept++] = r->queue[k];
+        else
+            c->queued = false;
+    }
+    r->queue_count = kept;
+    for (uint32_t k = 0; k < r->frame_cell_count; ++k) {
+        uint32_t cell = r->frame_cells[k];
+        render_cell *c = &r->cells[cell];
+        if ((c->next_mesh.active || c->next_apo.active) && !c->queued) {
+            c->queued = true;
+            r->queue[r->queue_count++] = cell;
+        }
+    }
+    return st;
+}
+
+/* ---- uploads ----------------------------------------------------------------- */
+
+/* Sends up to *left bytes of a pending mesh; true once it is current. */
+static bool upload_mesh(render_cell *c, uint64_t *left, uint64_t *bytes)
+{
+    pending_mesh *p = &c->next_mesh;
+    gpu_mesh *g = &p->gpu;
+    uint64_t vertex_bytes = 12ull * g->vertex_count, index_bytes = 12ull * g->triangle_count;
+    if (!g->vbo) {
+        glGenBuffers(1, &g->vbo);
+        glGenBuffers(1, &g->ibo);
+        glBindBuffer(GL_ARRAY_BUFFER, g->vbo);
+        glBufferData(GL_ARRAY_BUFFER, (GLsizeiptr)vertex_bytes, NULL, GL_STATIC_DRAW);
+        glBindBuffer(GL_ARRAY_BUFFER, g->ibo); /* bound as an array buffer to fill: no VAO needed */
+        glBufferData(GL_ARRAY_BUFFER, (GLsizeiptr)index_bytes, NULL, GL_STATIC_DRAW);
+        glBindBuffer(GL_ARRAY_BUFFER, 0);
+    }
+    while (p->sent < vertex_bytes + index_bytes && *left > 0) {
+        bool vertices = p->sent < vertex_bytes;
+        uint64_t offset = vertices ? p->sent : p->sent - vertex_bytes;
+        uint64_t part = (vertices ? vertex_bytes : index_bytes) - offset;
+        if (part > *left)
+            part = *left;
+        const uint8_t *src = vertices ? (const uint8_t *)p->vertices : (const uint8_t *)p->indices;
+        glBindBuffer(GL_ARRAY_BUFFER, vertices ? g->vbo : g->ibo);
+        glBufferSubData(GL_ARRAY_BUFFER, (GLintptr)offset, (GLsizeiptr)part, src + offset);
+        p->sent += part;
+        *left -= part;
+        *bytes += part;
+    }
+    glBindBuffer(GL_ARRAY_BUFFER, 0);
+    if (p->sent < vertex_bytes + index_bytes)
+        return false;
+    glGenVertexArrays(1, &g->vao);
+    glBindVertexArray(g->vao);
+    glBindBuffer(GL_ARRAY_BUFFER, g->vbo);
+    glEnableVertexAttribArray(0);
+    glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 12, NULL);
+    glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, g->ibo);
+    glBindVertexArray(0);
+    glBindBuffer(GL_ARRAY_BUFFER, 0);
+    delete_gpu_mesh(&c->mesh);
+    c->mesh = *g;
+    memset(g, 0, sizeof *g);
+    drop_pending_mesh(p);
+    return true;
+}
+
+/* Sends up to *left bytes of a pending APO prefix; true once it is current (or
+ * given up for lack of texel space: the cell then has no APO). */
+static bool upload_apo(ms_render *r, render_cell *c, uint64_t *left, uint64_t *bytes)
+{
+    pending_apo *p = &c->next_apo;
+    if (!p->allocated) {
+        if (!ms_render_texels_alloc(&r->texels, p->range.count, &p->range.start)) {
+            drop_pending_apo(r, p);
+            drop_current_apo(r, c);
+            return true;
+        }
+        p->allocated = true;
+    }
+    uint64_t total = 4ull * p->range.count;
+    if (p->sent < total && *left > 0) {
+        uint64_t part = total - p->sent < *left ? total - p->sent : *left;
+        glBindBuffer(GL_TEXTURE_BUFFER, r->texels.buffer);
+        glBufferSubData(GL_TEXTURE_BUFFER, (GLintptr)(4ull * p->range.start + p->sent), (GLsizeiptr)part,
+                        (const uint8_t *)p->words + p->sent);
+        glBindBuffer(GL_TEXTURE_BUFFER, 0);
+        p->sent += part;
+        *left -= part;
+        *bytes += part;
+    }
+    if (p->sent < total)
+        return false;
+    drop_current_apo(r, c);
+    c->apo = p->range;
+    p->allocated = false; /* the range now belongs to the current state */
+    drop_pending_apo(r, p);
+    return true;
+}
+
+ms_status ms_render_upload(ms_render *r, uint64_t budget_bytes, ms_render_upload_stats *stats, ms_error *err)
+{
+    if (stats)
+        memset(stats, 0, sizeof *stats);
+    if (!r)
+        return ms_error_set(err, MS_ERR_ARG, "render: no renderer");
+    if (budget_bytes == 0)
+        return ms_error_set(err, MS_ERR_ARG, "render: upload budget of 0 bytes");
+    uint64_t left = budget_bytes, bytes = 0;
+    uint32_t completed = 0, kept = 0, k = 0;
+    for (; k < r->queue_count && left > 0; ++k) {
+        uint32_t cell = r->queue[k];
+        render_cell *c = &r->cells[cell];
+        if (c->next_mesh.active && upload_mesh(c, &left, &bytes))
+            c->next_mesh.active = false;
+        if (!c->next_mesh.active && c->next_apo.active && left > 0 && upload_apo(r, c, &left, &bytes))
+            c->next_apo.active = false;
+        if (c->next_mesh.active || c->next_apo.active) {
+            r->queue[kept++] = cell;
+        } else {
+            c->queued = false;
+            completed++;
+        }
+    }
+    for (; k < r->queue_count; ++k)
+        r->queue[kept++] = r->queue[k];
+    r->queue_count = kept;
+    if (stats) {
+        stats->bytes = bytes;
+        stats->cells_completed = completed;
+        stats->cells_pending = kept;
+    }
+    GLenum e = glGetError();
+    if (e == GL_OUT_OF_MEMORY)
+        return ms_error_set(err, MS_ERR_NOMEM, "render: the GPU is out of memory");
+    if (e != GL_NO_ERROR)
+        return ms_error_set(err, MS_ERR_UNSUPPORTED, "render: GL error 0x%x while uploading", e);
+    return MS_OK;
+}
+
+/* ---- drawing ------------------------------------------------------------------ */
+
+static float srgb_encode(float c)
+{
+    c = c < 0.0f ? 0.0f : (c > 1.0f ? 1.0f : c);
+    return c <= 0.0031308f ? 12.92f * c : 1.055f * powf(c, 1.0f / 2.4f) - 0.055f;
+}
+
+/* A light, distinct linear colour per cell number (golden-ratio hue steps). */
+static void cell_tint(uint32_t cell, float rgb[3])
+{
+    double hue = fmod((double)cell * 0.6180339887498949, 1.0) * 6.0;
+    double s = 0.55, v = 0.85, f = hue - floor(hue);
+    double p = v * (1 - s), q = v * (1 - s * f), t = v * (1 - s * (1 - f));
+    double out[6][3] = {{v, t, p}, {q, v, p}, {p, v, t}, {p, q, v}, {t, p, v}, {v, p, q}};
+    int i = (int)floor(hue) % 6;
+    for (int a = 0; a < 3; ++a)
+        rgb[a] = (float)(out[i][a] * out[i][a]); /* roughly to linear */
+}
+
+ms_status ms_render_draw(ms_render *r, const ms_camera *camera, const ms_render_options *o,
+                         ms_render_draw_stats *stats, ms_error *err)
+{
+    if (stats)
+        memset(stats, 0, sizeof *stats);
+    if (!r || !o)
+        return ms_error_set(err, MS_ERR_ARG, "render: no renderer or options");
+    ms_status st = ms_render_camera_check(camera, err);
+    if (st != MS_OK)
+        return st;
+    if ((unsigned)o->shading > MS_SHADING_CELL_ID)
+        return ms_error_set(err, MS_ERR_ARG, "render: shading mode %d unknown", (int)o->shading);
+    double view[16], proj[16];
+    ms_render_camera_matrices(camera, view, proj);
+    float projection[16], world_to_eye[9];
+    for (int i = 0; i < 16; ++i)
+        projection[i] = (float)proj[i];
+    for (int col = 0; col < 3; ++col)
+        for (int row = 0; row < 3; ++row)
+            world_to_eye[3 * col + row] = (float)view[4 * col + row];
+    int width = (int)lround(camera->width), height = (int)lround(camera->height);
+    glViewport(0, 0, width, height);
+    float bg[3] = {0, 0, 0};
+    for (int a = 0; a < 3 && o->shading != MS_SHADING_CELL_ID; ++a) {
+        float c = isfinite(o->background[a]) ? o->background[a] : 0.0f;
+        bg[a] = o->shading == MS_SHADING_NORMALS ? c : srgb_encode(c);
+    }
+    glClearColor(bg[0], bg[1], bg[2], o->shading == MS_SHADING_CELL_ID ? 0.0f : 1.0f);
+    glClearDepth(1.0);
+    glDepthMask(GL_TRUE);
+    glColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+    glDisable(GL_SCISSOR_TEST);
+    glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+    glEnable(GL_DEPTH_TEST);
+    glDepthFunc(GL_LESS);
+    glDisable(GL_CULL_FACE);
+    glDisable(GL_BLEND);
+    const ms_render_program *p = &r->program;
+    glUseProgram(p->program);
+    glUniformMatrix4fv(p->projection, 1, GL_FALSE, projection);
+    glUniformMatrix3fv(p->world_to_eye, 1, GL_FALSE, world_to_eye);
+    glUniform2f(p->viewport, (float)width, (float)height);
+    glUniform1i(p->shading, (int)o->shading);
+    glUniform1i(p->wireframe, o->wireframe && o->shading != MS_SHADING_CELL_ID);
+    glUniform1i(p->apo_nearest, o->apo_nearest);
+    glActiveTexture(GL_TEXTURE0);
+    glBindTexture(GL_TEXTURE_BUFFER, r->texels.texture);
+    glUniform1i(p->apo_words, 0);
+    uint32_t cap = o->apo_depth_cap ? o->apo_depth_cap : UINT32_MAX;
+    uint32_t drawn = 0;
+    uint64_t triangles = 0;
+    for (uint32_t k = 0; k < r->frame_cell_count; ++k) {
+        uint32_t cell = r->frame_cells[k];
+        const render_cell *c = &r->cells[cell];
+        if (!c->mesh.vao)
+            continue;
+        double origin[3], side;
+        ms_render_cell_cube(&r->header, &r->records[cell], origin, &side);
+        float modelview[16], tint[3];
+        ms_render_cell_modelview(view, origin, side, modelview);
+        cell_tint(cell, tint);
+        glUniformMatrix4fv(p->modelview, 1, GL_FALSE, modelview);
+        glUniform1ui(p->cell_number, cell);
+        glUniform3fv(p->cell_tint, 1, tint);
+        bool apo_on = o->apo && c->apo.count > 0;
+        glUniform1i(p->apo_on, apo_on);
+        if (apo_on) {
+            uint32_t last = c->apo.levels - 1;
+            glUniform1i(p->apo_base, (GLint)c->apo.start);
+            glUniform1i(p->apo_root_internal, c->apo.root_internal);
+            glUniform1ui(p->apo_stop_depth, cap < last ? cap : last);
+        }
+        glBindVertexArray(c->mesh.vao);
+        glDrawElements(GL_TRIANGLES, (GLsizei)(3 * c->mesh.triangle_count), GL_UNSIGNED_INT, NULL);
+        drawn++;
+        triangles += c->mesh.triangle_count;
+    }
+    glBindVertexArray(0);
+    glBindTexture(GL_TEXTURE_BUFFER, 0);
+    glUseProgram(0);
+    if (stats) {
+        stats->cells_drawn = drawn;
+        stats->triangles_drawn = triangles;
+    }
+    GLenum e = glGetError();
+    if (e != GL_NO_ERROR)
+        return ms_error_set(err, e == GL_OUT_OF_MEMORY ? MS_ERR_NOMEM : MS_ERR_UNSUPPORTED,
+                            "render: GL error 0x%x while drawing", e);
+    return MS_OK;
+}

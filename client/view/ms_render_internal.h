@@ -1,0 +1,137 @@
+/* Internals of the renderer (ms_render.h), shared by its files and its tests;
+ * not part of the contract the program codes against.
+ *
+ *   ms_render_camera.c  cell cubes, matrices and unprojection in doubles
+ *   ms_render_split.c   a frame's stitched mesh split by drawing cell, cell-local
+ *                       floats, one content hash per cell (CPU only)
+ *   ms_render_apo.c     a stored chunk prefix to validated texel words (CPU), and
+ *                       the shared GL_R32UI texel buffer with its range allocator
+ *   ms_render_program.c shader compilation and uniform locations
+ *   ms_render.c         the renderer: frames, the upload queue, drawing
+ *
+ * Thread-safety: as ms_render.h (the CPU-only parts are pure or per object).
+ */
+#ifndef MS_RENDER_INTERNAL_H
+#define MS_RENDER_INTERNAL_H
+
+#include <epoxy/gl.h>
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "ms_apo_chunk.h"
+#include "ms_render.h"
+
+/* ---- ms_render_camera.c ------------------------------------------------ */
+
+/* MS_ERR_ARG unless the camera is finite, its viewport in [1, 16384] pixels per
+ * side, fovy in (0, pi), 0 < near < far and its axes unit length. */
+ms_status ms_render_camera_check(const ms_camera *camera, ms_error *err);
+
+/* A cell's cube: the header box divided by n^level at the cell's position. */
+void ms_render_cell_cube(const ms_archive_header *header, const ms_archive_cell *cell,
+                         double origin[3], double *side);
+
+/* Column-major float matrix taking cell-local coordinates to eye space:
+ * view * translate(origin) * scale(side), multiplied out in doubles. */
+void ms_render_cell_modelview(const double view[16], const double origin[3], double side,
+                              float out[16]);
+
+/* ---- ms_render_split.c ------------------------------------------------- */
+
+/* One drawing cell's part of a frame, in buffers owned by the splitter (valid
+ * until the next ms_render_split_cell or ms_render_split_free). */
+typedef struct ms_render_cell_mesh {
+    uint32_t cell;
+    uint32_t vertex_count, triangle_count;
+    const float *vertices;   /* 3 per vertex: (world - cube origin) / cube side */
+    const uint32_t *indices; /* 3 per triangle, into vertices, orientation kept */
+    uint64_t hash;           /* of the counts, vertex floats and indices */
+} ms_render_cell_mesh;
+
+typedef struct ms_render_split {
+    const ms_archive_header *header;
+    const ms_archive_cell *cells;
+    uint32_t cell_count;
+    const ms_view_mesh *mesh;
+    uint32_t *cell_start;    /* cell_count + 1: first entry of each cell in order */
+    uint32_t *order;         /* triangles sorted by drawing cell */
+    size_t order_cap;
+    uint32_t *present;       /* cells with triangles in this frame, ascending */
+    uint32_t present_count;
+    uint32_t *local;         /* per mesh vertex: its index in the current cell */
+    uint32_t *stamp;         /* per mesh vertex: the cell pass that set local */
+    size_t vertex_cap;
+    uint32_t pass;
+    float *vertices;
+    uint32_t *indices;
+    size_t cell_vertex_cap, cell_triangle_cap;
+} ms_render_split;
+
+/* Zeroes the splitter for a model (header and cells are borrowed). */
+void ms_render_split_init(ms_render_split *split, const ms_archive_header *header,
+                          const ms_archive_cell *cells);
+void ms_render_split_free(ms_render_split *split);
+
+/* Checks the mesh (indices in range, drawing cells in the model, positions
+ * finite, counts below 2^32) and groups its triangles by cell; the mesh is
+ * borrowed until the next call. MS_ERR_ARG for a bad mesh, MS_ERR_NOMEM. */
+ms_status ms_render_split_frame(ms_render_split *split, const ms_view_mesh *mesh, ms_error *err);
+
+/* The k-th present cell's mesh (k < present_count). MS_ERR_NOMEM. */
+ms_status ms_render_split_cell(ms_render_split *split, uint32_t k, ms_render_cell_mesh *out,
+                               ms_error *err);
+
+/* ---- ms_render_apo.c --------------------------------------------------- */
+
+/* The texel words of a stored chunk prefix (docs/ARCHIVE.md: zlib with a sync
+ * flush after every level), for a cell whose record says apo_levels levels:
+ * inflates what data holds, finds the levels' sizes from the words themselves
+ * (breadth-first: a level's size follows from the masks of the level above, so
+ * no level table is needed), keeps the words of levels [0, levels) and validates
+ * them with ms_apo_view_init. *words (malloc'd, caller frees) receives *count
+ * words; *root_internal says whether level 0 is an internal node.
+ * Errors: MS_ERR_ARG (levels 0 or beyond the record), MS_ERR_CORRUPT (zlib or the
+ * words disagree, or fewer words than `levels` levels), MS_ERR_NOMEM. */
+ms_status ms_render_apo_words(const ms_archive_cell *record, const uint8_t *data, size_t length,
+                              unsigned levels, uint32_t **words, size_t *count, bool *root_internal,
+                              ms_error *err);
+
+/* The shared texel buffer: one GL buffer of words behind a GL_R32UI buffer
+ * texture, ranges handed out first fit from a sorted free list; it grows by
+ * doubling (a copy on the GPU) up to GL_MAX_TEXTURE_BUFFER_SIZE words. */
+typedef struct ms_render_texel_range {
+    uint32_t start, count;
+} ms_render_texel_range;
+
+typedef struct ms_render_texels {
+    GLuint buffer, texture;
+    uint32_t capacity;     /* words */
+    uint32_t max_words;    /* GL_MAX_TEXTURE_BUFFER_SIZE */
+    ms_render_texel_range *free_ranges;
+    size_t free_count, free_cap;
+    uint64_t used;         /* words handed out */
+} ms_render_texels;
+
+ms_status ms_render_texels_init(ms_render_texels *texels, ms_error *err);
+void ms_render_texels_free(ms_render_texels *texels);
+/* A range of count words; false when the buffer cannot hold it (too big for the
+ * driver, or out of memory): the cell then goes without APO. */
+bool ms_render_texels_alloc(ms_render_texels *texels, uint32_t count, uint32_t *start);
+void ms_render_texels_release(ms_render_texels *texels, uint32_t start, uint32_t count);
+
+/* ---- ms_render_program.c ----------------------------------------------- */
+
+typedef struct ms_render_program {
+    GLuint program;
+    GLint modelview, projection, viewport;
+    GLint shading, apo_on, apo_base, apo_root_internal, apo_stop_depth, apo_nearest;
+    GLint world_to_eye, cell_number, cell_tint, wireframe, apo_words;
+} ms_render_program;
+
+/* Compiles and links the embedded shaders. MS_ERR_UNSUPPORTED with the first
+ * line of the driver's log. */
+ms_status ms_render_program_build(ms_render_program *program, ms_error *err);
+void ms_render_program_free(ms_render_program *program);
+
+#endif

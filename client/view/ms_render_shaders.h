@@ -1,0 +1,13 @@
+/* The viewer's GLSL sources, embedded at build time: the Makefile runs
+ * client/view/shaders/embed_shaders.py over client/view/shaders/ (every .glsl file) into a
+ * generated C file of libmsview (one NUL-terminated string per file, named after
+ * it). Read-only constants: thread-safe. */
+#ifndef MS_RENDER_SHADERS_H
+#define MS_RENDER_SHADERS_H
+
+extern const char ms_shader_cell_vert[]; /* shaders/cell.vert.glsl */
+extern const char ms_shader_cell_geom[]; /* shaders/cell.geom.glsl */
+extern const char ms_shader_cell_frag[]; /* shaders/cell.frag.glsl (#version on its first line) */
+extern const char ms_shader_apo[];       /* shaders/apo.glsl, inserted after frag's #version */
+
+#endif

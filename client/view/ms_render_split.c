@@ -1,0 +1,176 @@
+/* A frame's stitched mesh split by drawing cell (ms_render_internal.h).
+ *
+ * Triangles are grouped by triangle_cell with one counting sort per frame; each
+ * cell's vertices are numbered in the order its triangles first use them, so the
+ * same cell content always gives the same arrays and the same hash, and a cell
+ * whose drawn triangles did not change is not uploaded again. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "ms_render_internal.h"
+
+void ms_render_split_init(ms_render_split *s, const ms_archive_header *header, const ms_archive_cell *cells)
+{
+    memset(s, 0, sizeof *s);
+    s->header = header;
+    s->cells = cells;
+    s->cell_count = header->cell_count;
+}
+
+void ms_render_split_free(ms_render_split *s)
+{
+    free(s->cell_start);
+    free(s->order);
+    free(s->present);
+    free(s->local);
+    free(s->stamp);
+    free(s->vertices);
+    free(s->indices);
+    memset(s, 0, sizeof *s);
+}
+
+/* Grows *array to hold at least need elements of size bytes (contents kept). */
+static bool grow(void **array, size_t *cap, size_t need, size_t size)
+{
+    if (need <= *cap)
+        return true;
+    size_t cap2 = *cap ? *cap : 64;
+    while (cap2 < need)
+        cap2 *= 2;
+    void *p = realloc(*array, cap2 * size);
+    if (!p)
+        return false;
+    *array = p;
+    *cap = cap2;
+    return true;
+}
+
+ms_status ms_render_split_frame(ms_render_split *s, const ms_view_mesh *mesh, ms_error *err)
+{
+    s->mesh = NULL;
+    s->present_count = 0;
+    if (!mesh)
+        return ms_error_set(err, MS_ERR_ARG, "render: no mesh");
+    size_t nv = mesh->vertex_count, nt = mesh->triangle_count;
+    if (nv >= UINT32_MAX || nt >= UINT32_MAX / 3)
+        return ms_error_set(err, MS_ERR_ARG, "render: mesh of %zu vertices, %zu triangles too large", nv, nt);
+    if ((nv && !mesh->positions) || (nt && (!mesh->triangles || !mesh->triangle_cell)))
+        return ms_error_set(err, MS_ERR_ARG, "render: mesh arrays missing");
+    for (size_t i = 0; i < 3 * nv; ++i)
+        if (!isfinite(mesh->positions[i]))
+            return ms_error_set(err, MS_ERR_ARG, "render: vertex %zu is not finite", i / 3);
+    for (size_t t = 0; t < nt; ++t) {
+        if (mesh->triangle_cell[t] >= s->cell_count)
+            return ms_error_set(err, MS_ERR_ARG, "render: triangle %zu drawn by cell %u of %u", t,
+                                mesh->triangle_cell[t], s->cell_count);
+        for (int k = 0; k < 3; ++k)
+            if (mesh->triangles[3 * t + (size_t)k] >= nv)
+                return ms_error_set(err, MS_ERR_ARG, "render: triangle %zu uses vertex %u of %zu", t,
+                                    mesh->triangles[3 * t + (size_t)k], nv);
+    }
+    if (!s->cell_start) {
+        s->cell_start = calloc((size_t)s->cell_count + 1, sizeof *s->cell_start);
+        s->present = malloc(((size_t)s->cell_count + 1) * sizeof *s->present);
+        if (!s->cell_start || !s->present)
+            return ms_error_set(err, MS_ERR_NOMEM, "render: no memory for %u cells", s->cell_count);
+    }
+    size_t local_cap = s->vertex_cap;
+    if (!grow((void **)&s->order, &s->order_cap, nt ? nt : 1, sizeof *s->order) ||
+        !grow((void **)&s->local, &local_cap, nv ? nv : 1, sizeof *s->local))
+        return ms_error_set(err, MS_ERR_NOMEM, "render: no memory to split %zu triangles", nt);
+    if (local_cap != s->vertex_cap) {
+        uint32_t *stamp = realloc(s->stamp, local_cap * sizeof *stamp);
+        if (!stamp)
+            return ms_error_set(err, MS_ERR_NOMEM, "render: no memory to split %zu vertices", nv);
+        memset(stamp + s->vertex_cap, 0, (local_cap - s->vertex_cap) * sizeof *stamp);
+        s->stamp = stamp;
+        s->vertex_cap = local_cap;
+    }
+    /* counting sort of the triangles by cell */
+    uint32_t *start = s->cell_start;
+    memset(start, 0, ((size_t)s->cell_count + 1) * sizeof *start);
+    for (size_t t = 0; t < nt; ++t)
+        start[mesh->triangle_cell[t] + 1]++;
+    for (uint32_t c = 0; c < s->cell_count; ++c) {
+        if (start[c + 1])
+            s->present[s->present_count++] = c;
+        start[c + 1] += start[c];
+    }
+    for (size_t t = 0; t < nt; ++t)
+        s->order[start[mesh->triangle_cell[t]]++] = (uint32_t)t;
+    for (uint32_t c = s->cell_count; c > 0; --c) /* back to first entries */
+        start[c] = start[c - 1];
+    start[0] = 0;
+    s->mesh = mesh;
+    return MS_OK;
+}
+
+/* 64-bit hash of words (a multiply-xorshift chain: fast, well mixed; not
+ * cryptographic, a collision only re-uses a cell's previous mesh). */
+static uint64_t hash_words(uint64_t h, const uint32_t *words, size_t count)
+{
+    for (size_t i = 0; i < count; ++i) {
+        h ^= words[i];
+        h *= 0x9E3779B97F4A7C15ull;
+        h ^= h >> 29;
+    }
+    return h;
+}
+
+static uint64_t hash_floats(uint64_t h, const float *values, size_t count)
+{
+    for (size_t i = 0; i < count; ++i) {
+        uint32_t w;
+        memcpy(&w, &values[i], sizeof w);
+        h = hash_words(h, &w, 1);
+    }
+    return h;
+}
+
+ms_status ms_render_split_cell(ms_render_split *s, uint32_t k, ms_render_cell_mesh *out, ms_error *err)
+{
+    const ms_view_mesh *m = s->mesh;
+    uint32_t cell = s->present[k];
+    uint32_t first = s->cell_start[cell], end = s->cell_start[cell + 1];
+    uint32_t tris = end - first;
+    if (!grow((void **)&s->indices, &s->cell_triangle_cap, 3 * (size_t)tris, sizeof *s->indices))
+        return ms_error_set(err, MS_ERR_NOMEM, "render: no memory for cell %u", cell);
+    if (++s->pass == 0) { /* wrapped: every stamp is stale again */
+        memset(s->stamp, 0, s->vertex_cap * sizeof *s->stamp);
+        s->pass = 1;
+    }
+    double origin[3], side;
+    ms_render_cell_cube(s->header, &s->cells[cell], origin, &side);
+    uint32_t verts = 0;
+    for (uint32_t i = first; i < end; ++i) {
+        const uint32_t *tri = &m->triangles[3 * (size_t)s->order[i]];
+        for (int c = 0; c < 3; ++c) {
+            uint32_t v = tri[c];
+            if (s->stamp[v] != s->pass) {
+                if (!grow((void **)&s->vertices, &s->cell_vertex_cap, 3 * ((size_t)verts + 1),
+                          sizeof *s->vertices))
+                    return ms_error_set(err, MS_ERR_NOMEM, "render: no memory for cell %u", cell);
+                s->stamp[v] = s->pass;
+                s->local[v] = verts;
+                for (int a = 0; a < 3; ++a)
+                    s->vertices[3 * (size_t)verts + (size_t)a] =
+                        (float)((m->positions[3 * (size_t)v + (size_t)a] - origin[a]) / side);
+                verts++;
+            }
+            s->indices[3 * (size_t)(i - first) + (size_t)c] = s->local[v];
+        }
+    }
+    uint64_t h = 0xCBF29CE484222325ull;
+    uint32_t counts[2] = {verts, tris};
+    h = hash_words(h, counts, 2);
+    h = hash_floats(h, s->vertices, 3 * (size_t)verts);
+    h = hash_words(h, s->indices, 3 * (size_t)tris);
+    out->cell = cell;
+    out->vertex_count = verts;
+    out->triangle_count = tris;
+    out->vertices = s->vertices;
+    out->indices = s->indices;
+    out->hash = h;
+    return MS_OK;
+}

@@ -1,0 +1,88 @@
+// The APO traversal (docs/APO.md, "Traversal"), step for step as the CPU oracle
+// ms_apo_lookup (common/ms_apo_traverse.c). Words of every cell's chunk prefix
+// live in one GL_R32UI buffer texture; a cell's words start at apo_base.
+// Included into the fragment shader (no #version here).
+
+uniform usamplerBuffer apo_words;
+
+uvec3 apo_fixed(vec3 p)
+{
+    uvec3 u;
+    for (int a = 0; a < 3; ++a)
+        u[a] = p[a] >= 1.0 ? 0xFFFFFFFFu : (p[a] > 0.0 ? uint(p[a] * 4294967296.0) : 0u);
+    return u;
+}
+
+// 24-bit octahedral code to a unit vector; s(t) = +1 for t >= 0 (not sign()).
+vec3 apo_decode(uint code)
+{
+    float u = float(int(min(code & 0xFFFu, 4094u)) - 2047) / 2047.0;
+    float v = float(int(min((code >> 12) & 0xFFFu, 4094u)) - 2047) / 2047.0;
+    vec3 n = vec3(u, v, 1.0 - abs(u) - abs(v));
+    if (n.z < 0.0)
+        n.xy = vec2((1.0 - abs(v)) * (u >= 0.0 ? 1.0 : -1.0), (1.0 - abs(u)) * (v >= 0.0 ? 1.0 : -1.0));
+    return normalize(n);
+}
+
+// The stored child nearest to the point (L-infinity distance to its cell; ties:
+// fewer differing axes, then the lower octant), and the point moved into it.
+uint apo_nearest(uint exist, uint oct, inout uvec3 u, uint depth)
+{
+    uint mid = 1u << (31u - depth);
+    uint low = 2u * mid - 1u; // all ones at depth 0
+    uvec3 r = u & uvec3(low);
+    uvec3 dist; // mix() on unsigned vectors needs GLSL 4.50
+    for (int a = 0; a < 3; ++a)
+        dist[a] = r[a] >= mid ? r[a] - mid : mid - r[a];
+    uint best = 8u, best_cost = 0u, best_axes = 0u;
+    for (uint o = 0u; o < 8u; ++o) {
+        if (((exist >> o) & 1u) == 0u)
+            continue;
+        uint diff = o ^ oct, cost = 0u;
+        if ((diff & 4u) != 0u)
+            cost = max(cost, dist.x);
+        if ((diff & 2u) != 0u)
+            cost = max(cost, dist.y);
+        if ((diff & 1u) != 0u)
+            cost = max(cost, dist.z);
+        uint axes = uint(bitCount(diff));
+        if (best == 8u || cost < best_cost || (cost == best_cost && axes < best_axes)) {
+            best = o;
+            best_cost = cost;
+            best_axes = axes;
+        }
+    }
+    uint diff = best ^ oct;
+    for (int a = 0; a < 3; ++a)
+        if (((diff >> uint(2 - a)) & 1u) != 0u)
+            u[a] = (u[a] & ~low) | (r[a] >= mid ? mid - 1u : mid);
+    return best;
+}
+
+// stop_depth = min(depth cap, last complete level): an internal node there
+// returns its mean normal (CAP / PREFIX); a level not wholly received is never
+// read. Offsets were validated on the CPU (ms_apo_view_init) before upload.
+vec3 apo_lookup(vec3 p, int base, bool root_internal, uint stop_depth, bool nearest)
+{
+    uvec3 u = apo_fixed(p);
+    int word = base;
+    bool internal = root_internal;
+    uint depth = 0u;
+    while (internal && depth < stop_depth) {
+        uint header = texelFetch(apo_words, word).r;
+        uint kind = texelFetch(apo_words, word + 1).r >> 24;
+        uint exist = header & 0xFFu;
+        uint bit = 31u - depth;
+        uint oct = (((u.x >> bit) & 1u) << 2) | (((u.y >> bit) & 1u) << 1) | ((u.z >> bit) & 1u);
+        if (((exist >> oct) & 1u) == 0u) {
+            if (!nearest)
+                break; // MISSING: the node's mean normal
+            oct = apo_nearest(exist, oct, u, depth);
+        }
+        uint below = (1u << oct) - 1u;
+        word += int((header >> 8) + uint(bitCount(exist & below) + bitCount(exist & kind & below)));
+        internal = ((kind >> oct) & 1u) != 0u;
+        ++depth;
+    }
+    return apo_decode(texelFetch(apo_words, internal ? word + 1 : word).r & 0xFFFFFFu);
+}

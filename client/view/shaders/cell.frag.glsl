@@ -1,0 +1,65 @@
+#version 410 core
+// meshview: shading of one drawing cell (modes of ms_render.h). The renderer
+// inserts the APO traversal (apo.glsl) right after the first line.
+
+in vec3 g_cell;
+in vec3 g_eye;
+flat in vec3 g_normal;
+noperspective in vec3 g_edge;
+
+uniform int shading;          // 0 LIT, 1 NORMALS, 2 CELLS, 3 CELL_ID
+uniform bool apo_on;          // this cell has a chunk prefix and APO is wanted
+uniform int apo_base;         // first word of the cell's chunk in apo_words
+uniform bool apo_root_internal;
+uniform uint apo_stop_depth;  // min(depth cap, complete levels - 1)
+uniform bool apo_nearest_rule; // missing child: nearest (true) or stop
+uniform mat3 world_to_eye;    // rotation part of the view
+uniform uint cell_number;
+uniform vec3 cell_tint;       // linear albedo for CELLS
+uniform bool wireframe;
+
+out vec4 colour;
+
+vec3 srgb_encode(vec3 c)
+{
+    c = clamp(c, 0.0, 1.0);
+    return mix(12.92 * c, 1.055 * pow(c, vec3(1.0 / 2.4)) - 0.055, greaterThan(c, vec3(0.0031308)));
+}
+
+void main()
+{
+    if (shading == 3) {
+        uint id = cell_number + 1u;
+        colour = vec4(float(id & 0xFFu), float((id >> 8) & 0xFFu), float((id >> 16) & 0xFFu), 255.0) / 255.0;
+        return;
+    }
+    vec3 n_world = apo_on ? apo_lookup(g_cell, apo_base, apo_root_internal, apo_stop_depth, apo_nearest_rule)
+                          : g_normal;
+    vec3 rgb;
+    if (shading == 1) {
+        rgb = (n_world + 1.0) * 0.5;
+    } else {
+        // Head light: light and view directions are both towards the eye, so the
+        // Blinn-Phong half vector is L itself. Two-sided: a surface seen from
+        // behind is lit as its other side.
+        vec3 l = normalize(-g_eye);
+        vec3 ng = normalize(world_to_eye * g_normal);
+        vec3 n = normalize(world_to_eye * n_world);
+        if (dot(ng, l) < 0.0) {
+            ng = -ng;
+            n = -n;
+        }
+        float self_shadow = max(0.0, dot(l, ng));
+        float lambert = max(0.0, dot(n, l));
+        float specular = pow(max(0.0, dot(n, l)), 40.0);
+        vec3 albedo = shading == 2 ? cell_tint : vec3(0.72, 0.69, 0.64);
+        vec3 linear = albedo * (0.05 + 0.95 * lambert * self_shadow) + vec3(0.18) * specular * self_shadow;
+        rgb = srgb_encode(linear);
+    }
+    if (wireframe) {
+        float d = min(g_edge.x, min(g_edge.y, g_edge.z));
+        float line = 1.0 - smoothstep(0.5, 1.5, d);
+        rgb = mix(rgb, vec3(0.05, 0.05, 0.08), 0.85 * line);
+    }
+    colour = vec4(rgb, 1.0);
+}

@@ -1,0 +1,68 @@
+/* Scaffolding for the renderer's tests (tests/test_render_*.c): a hidden GL 4.1
+ * window under Xvfb, an offscreen framebuffer with a float colour and a 32F depth
+ * attachment, small baked models, and a view decoded for a camera, stitched, with
+ * the APO prefixes of the archive as the client core hands them over.
+ * Every helper fails the test on error. Include after cmocka.h. Not
+ * thread-safe (GL and the environment). */
+#ifndef MS_TEST_RENDER_H
+#define MS_TEST_RENDER_H
+
+#include <epoxy/gl.h>
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "ms_archive.h"
+#include "ms_camera.h"
+#include "ms_client_core.h"
+#include "ms_test_display.h"
+#include "ms_view_decoder.h"
+
+typedef struct GLFWwindow GLFWwindow;
+
+typedef struct ms_test_gl {
+    ms_test_display display;
+    GLFWwindow *window;
+} ms_test_gl;
+
+/* Display (Xvfb if needed) and a hidden 64x64 window whose context is current. */
+void ms_test_gl_start(ms_test_gl *gl);
+void ms_test_gl_stop(ms_test_gl *gl);
+
+typedef struct ms_test_fbo {
+    GLuint fbo, colour, depth;
+    int width, height;
+} ms_test_fbo;
+
+/* An RGBA32F colour + DEPTH_COMPONENT32F framebuffer, bound for drawing. */
+void ms_test_fbo_new(ms_test_fbo *fbo, int width, int height);
+void ms_test_fbo_free(ms_test_fbo *fbo);
+/* Reads back rows bottom-up: rgba 4 floats per pixel and depth 1 per pixel (either
+ * may be NULL). */
+void ms_test_fbo_read(const ms_test_fbo *fbo, float *rgba, float *depth);
+
+/* Bakes input (a mesh file) at `bits` with N_min = min_triangles into
+ * dir/NAME.msa (APO on with max depth apo_max_depth; 0 = default) and opens it. */
+ms_archive *ms_test_render_bake(const char *input, const char *dir, const char *name, unsigned bits,
+                                uint32_t min_triangles, unsigned apo_max_depth);
+/* The demo model at `grid` (ms_demo_model.h), written to dir/demo.ply, baked. */
+ms_archive *ms_test_render_bake_demo(uint32_t grid, const char *dir, unsigned bits, uint32_t min_triangles,
+                                     unsigned apo_max_depth);
+
+/* A camera at distance times the box side from the box centre, in direction dir
+ * (need not be unit), near/far just around the box. */
+void ms_test_render_camera(const ms_archive_header *h, const double dir[3], double distance, double fovy_degrees,
+                           int width, int height, ms_camera *camera);
+
+/* Selects and applies cells for the camera (tolerance_px) until the view stops
+ * changing, then stitches every shown cell into *mesh (zeroed or reused). */
+void ms_test_render_view(ms_view *view, const ms_camera *camera, double tolerance_px, ms_view_mesh *mesh);
+
+/* The APO chunks of every cell drawing a triangle in mesh, as the core hands them
+ * over: at most max_levels complete levels (0: all), data borrowed from the
+ * archive; mid_level adds half of the next level's bytes (a level in transit).
+ * *chunks is malloc'd (free it; the data is the archive's). */
+void ms_test_render_apo(const ms_archive *archive, const ms_view_mesh *mesh, unsigned max_levels, bool mid_level,
+                        ms_core_apo_chunk **chunks, size_t *count);
+
+#endif

@@ -1,0 +1,350 @@
+/* APO shader = CPU oracle (issue 17, docs/VIEWER-render.md "Tests"): the dragon at
+ * resolution 3 and the demo model are baked, decoded for fixed cameras and drawn
+ * with the renderer in NORMALS mode into a float colour + 32F depth framebuffer,
+ * and in CELL_ID mode. For every covered pixel the surface point is recomputed
+ * from the depth (ms_render_unproject), taken to the drawing cell's local
+ * coordinates, and ms_apo_lookup is evaluated there on the chunk prefix inflated
+ * independently (ms_apo_stream_inflate with the archive's level table), with the
+ * same depth cap and missing-child rule. The angle between the two normals must
+ * be within 1 degree at >= 99.5 % of covered pixels and within 5 degrees
+ * everywhere except on borders: a pixel whose 3x3 neighbourhood holds another
+ * cell id or background (silhouettes and cell borders), which is counted and
+ * printed. A truncated prefix (fewer levels, and half of the next level's bytes
+ * in transit) must match the oracle of that prefix, and visibly differ from the
+ * full chunk's. */
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <cmocka.h>
+
+#include "ms_apo_stream.h"
+#include "ms_apo_traverse.h"
+#include "ms_render.h"
+#include "ms_render_internal.h"
+#include "ms_test.h"
+#include "ms_test_render.h"
+
+#define WIDTH 200
+#define HEIGHT 150
+
+typedef struct figures {
+    size_t covered, within_1, border, border_over_5, ambiguous, inner_over_5, disagree_full;
+    double worst_inner, worst_border;
+} figures;
+
+/* Per cell: the oracle's view of the prefix the renderer was given. */
+typedef struct oracle {
+    ms_apo_chunk *chunks;
+    ms_apo_view *views;
+    bool *have;
+    uint32_t cell_count;
+} oracle;
+
+static void oracle_build(oracle *o, const ms_archive *a, const ms_core_apo_chunk *apo, size_t apo_count)
+{
+    o->cell_count = ms_archive_get_header(a)->cell_count;
+    o->chunks = calloc(o->cell_count, sizeof *o->chunks);
+    o->views = calloc(o->cell_count, sizeof *o->views);
+    o->have = calloc(o->cell_count, sizeof *o->have);
+    assert_true(o->chunks && o->views && o->have);
+    for (size_t i = 0; i < apo_count; ++i) {
+        uint32_t c = apo[i].cell;
+        const ms_archive_cell *rec = ms_archive_get_cell(a, c);
+        uint32_t table[2 * MS_APO_MAX_LEVELS];
+        for (unsigned l = 0; l < rec->apo_levels; ++l)
+            table[2 * l] = ms_archive_apo_prefix(a, c, l, &table[2 * l + 1]);
+        ms_error err;
+        if (ms_apo_stream_inflate(apo[i].data, apo[i].length, table, rec->apo_levels, &o->chunks[c], &err) != MS_OK)
+            fail_msg("cell %u: %s", c, err.text);
+        if (ms_apo_view_of_chunk(&o->views[c], &o->chunks[c], &err) != MS_OK)
+            fail_msg("cell %u: %s", c, err.text);
+        assert_int_equal(o->views[c].complete_levels, apo[i].levels);
+        o->have[c] = true;
+    }
+}
+
+static void oracle_free(oracle *o)
+{
+    for (uint32_t c = 0; c < o->cell_count; ++c)
+        ms_apo_chunk_free(&o->chunks[c]);
+    free(o->chunks);
+    free(o->views);
+    free(o->have);
+    memset(o, 0, sizeof *o);
+}
+
+static uint32_t pixel_id(const float *rgba, size_t p)
+{
+    uint32_t r = (uint32_t)lroundf(rgba[4 * p] * 255.0f), g = (uint32_t)lroundf(rgba[4 * p + 1] * 255.0f),
+             b = (uint32_t)lroundf(rgba[4 * p + 2] * 255.0f);
+    return r | g << 8 | b << 16;
+}
+
+static double angle_deg(const double a[3], const double b[3])
+{
+    double la = sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]), lb = sqrt(b[0] * b[0] + b[1] * b[1] + b[2] * b[2]);
+    double c = (a[0] * b[0] + a[1] * b[1] + a[2] * b[2]) / (la * lb);
+    c = c > 1.0 ? 1.0 : (c < -1.0 ? -1.0 : c);
+    return acos(c) * 180.0 / M_PI;
+}
+
+/* How far apart, in cell-local units, the GPU's interpolated position and the
+ * one recomputed from the 32F depth may be (both are float computations; the
+ * depth alone is good to about 1e-7 of the box side here). */
+#define POSITION_SLACK (1.0 / (1 << 18))
+
+/* The oracle's normal at a pixel of the drawing cell, the cell-local position
+ * moved by offset[k] * POSITION_SLACK (false: no chunk). */
+static bool oracle_normal_at(const oracle *o, const ms_archive *a, uint32_t cell, const double world[3],
+                             const int offset[3], uint32_t cap, ms_apo_missing_rule rule, double n[3])
+{
+    if (cell >= o->cell_count || !o->have[cell])
+        return false;
+    double origin[3], side;
+    ms_render_cell_cube(ms_archive_get_header(a), ms_archive_get_cell(a, cell), origin, &side);
+    float p[3];
+    for (int k = 0; k < 3; ++k)
+        p[k] = (float)((world[k] - origin[k]) / side + offset[k] * POSITION_SLACK);
+    ms_apo_lookup_result res;
+    ms_apo_lookup(&o->views[cell], p, cap, rule, &res);
+    for (int k = 0; k < 3; ++k)
+        n[k] = res.normal[k];
+    return true;
+}
+
+static bool oracle_normal(const oracle *o, const ms_archive *a, uint32_t cell, const double world[3],
+                          uint32_t cap, ms_apo_missing_rule rule, double n[3])
+{
+    static const int here[3] = {0, 0, 0};
+    return oracle_normal_at(o, a, cell, world, here, cap, rule, n);
+}
+
+/* True when the oracle gives got (within 1 degree) somewhere within the position
+ * slack of the point: the pixel sits on an octree node's face. */
+static bool near_node_face(const oracle *o, const ms_archive *a, uint32_t cell, const double world[3],
+                           uint32_t cap, ms_apo_missing_rule rule, const double got[3])
+{
+    for (int i = 0; i < 27; ++i) {
+        int offset[3] = {i % 3 - 1, i / 3 % 3 - 1, i / 9 - 1};
+        double n[3];
+        if (oracle_normal_at(o, a, cell, world, offset, cap, rule, n) && angle_deg(n, got) <= 1.0)
+            return true;
+    }
+    return false;
+}
+
+/* Draws the frame at the camera, compares every covered pixel with the oracle of
+ * the given prefixes (and, when full is not NULL, counts pixels where the oracle
+ * of the full chunks differs by more than 1 degree). */
+static void compare(const ms_archive *a, ms_render *r, const ms_camera *cam, const ms_render_options *opt,
+                    const oracle *given, const oracle *full, figures *f)
+{
+    memset(f, 0, sizeof *f);
+    ms_test_fbo fbo;
+    ms_test_fbo_new(&fbo, WIDTH, HEIGHT);
+    size_t np = (size_t)WIDTH * HEIGHT;
+    float *normals = malloc(np * 4 * sizeof *normals), *ids = malloc(np * 4 * sizeof *ids),
+          *depth = malloc(np * sizeof *depth);
+    assert_true(normals && ids && depth);
+    ms_render_options o = *opt;
+    o.shading = MS_SHADING_NORMALS;
+    ms_error err;
+    if (ms_render_draw(r, cam, &o, NULL, &err) != MS_OK)
+        fail_msg("%s", err.text);
+    ms_test_fbo_read(&fbo, normals, depth);
+    o.shading = MS_SHADING_CELL_ID;
+    if (ms_render_draw(r, cam, &o, NULL, &err) != MS_OK)
+        fail_msg("%s", err.text);
+    ms_test_fbo_read(&fbo, ids, NULL);
+    ms_test_fbo_free(&fbo);
+    uint32_t cap = opt->apo_depth_cap ? opt->apo_depth_cap : UINT32_MAX;
+    ms_apo_missing_rule rule = opt->apo_nearest ? MS_APO_MISSING_NEAREST : MS_APO_MISSING_STOP;
+    for (int y = 0; y < HEIGHT; ++y)
+        for (int x = 0; x < WIDTH; ++x) {
+            size_t p = (size_t)y * WIDTH + (size_t)x;
+            uint32_t id = pixel_id(ids, p);
+            if (depth[p] >= 1.0f) {
+                assert_int_equal(id, 0);
+                continue;
+            }
+            assert_true(id > 0);
+            f->covered++;
+            bool border = false;
+            for (int dy = -1; dy <= 1; ++dy)
+                for (int dx = -1; dx <= 1; ++dx) {
+                    int xx = x + dx, yy = y + dy;
+                    if (xx < 0 || yy < 0 || xx >= WIDTH || yy >= HEIGHT ||
+                        pixel_id(ids, (size_t)yy * WIDTH + (size_t)xx) != id)
+                        border = true;
+                }
+            double world[3], want[3], got[3];
+            assert_true(ms_render_unproject(cam, x + 0.5, y + 0.5, depth[p], world));
+            if (!oracle_normal(given, a, id - 1, world, cap, rule, want))
+                fail_msg("pixel (%d, %d) drawn by cell %u, which has no chunk", x, y, id - 1);
+            for (int k = 0; k < 3; ++k)
+                got[k] = 2.0 * normals[4 * p + (size_t)k] - 1.0;
+            double angle = angle_deg(got, want);
+            if (angle <= 1.0)
+                f->within_1++;
+            if (border) {
+                f->border++;
+                f->border_over_5 += angle > 5.0;
+                if (angle > f->worst_border)
+                    f->worst_border = angle;
+            } else if (angle > 1.0 && near_node_face(given, a, id - 1, world, cap, rule, got)) {
+                f->ambiguous++;
+            } else {
+                f->inner_over_5 += angle > 5.0;
+                if (angle > f->worst_inner)
+                    f->worst_inner = angle;
+            }
+            double other[3];
+            if (full && oracle_normal(full, a, id - 1, world, cap, rule, other) && angle_deg(other, want) > 1.0)
+                f->disagree_full++;
+        }
+    free(normals);
+    free(ids);
+    free(depth);
+}
+
+static void print_figures(const char *what, const figures *f)
+{
+    print_message("%-44s %6zu px, %6.3f %% within 1 deg, worst inner %.3f deg; on a node face %zu px; "
+                  "border %zu px (%zu over 5 deg, worst %.2f)\n",
+                  what, f->covered, 100.0 * (double)f->within_1 / (double)f->covered, f->worst_inner, f->ambiguous,
+                  f->border, f->border_over_5, f->worst_border);
+}
+
+static void check_figures(const figures *f)
+{
+    assert_true(f->covered > WIDTH * HEIGHT / 10); /* the model fills a good part of the picture */
+    assert_true((double)f->within_1 >= 0.995 * (double)f->covered);
+    assert_int_equal(f->inner_over_5, 0);
+}
+
+/* Renders a model at a few cameras and prefixes, each compared with the oracle. */
+static void run_model(ms_archive *a, const char *name, const double dirs[][3], size_t dir_count)
+{
+    ms_view *view;
+    ms_error err;
+    if (ms_view_create_from_archive(a, &view, &err) != MS_OK)
+        fail_msg("%s", err.text);
+    const ms_archive_header *h = ms_archive_get_header(a);
+    ms_render *r;
+    if (ms_render_new(h, ms_archive_get_cell(a, 0), &r, &err) != MS_OK)
+        fail_msg("%s", err.text);
+    ms_view_mesh mesh = {0};
+    for (size_t d = 0; d < dir_count; ++d) {
+        ms_camera cam;
+        ms_test_render_camera(h, dirs[d], 1.1, 40.0, WIDTH, HEIGHT, &cam);
+        ms_test_render_view(view, &cam, 1.0, &mesh);
+        uint32_t cells_drawing = 0;
+        {
+            bool *seen = calloc(h->cell_count, 1);
+            for (size_t t = 0; t < mesh.triangle_count; ++t)
+                if (!seen[mesh.triangle_cell[t]])
+                    seen[mesh.triangle_cell[t]] = true, cells_drawing++;
+            free(seen);
+        }
+        struct {
+            unsigned levels;
+            bool mid;
+            bool nearest;
+            uint32_t cap;
+        } cases[] = {{0, false, true, 0}, {0, false, false, 4}, {3, true, true, 0}};
+        for (size_t k = 0; k < sizeof cases / sizeof *cases; ++k) {
+            ms_core_apo_chunk *apo, *apo_full;
+            size_t count, count_full;
+            ms_test_render_apo(a, &mesh, cases[k].levels, cases[k].mid, &apo, &count);
+            ms_test_render_apo(a, &mesh, 0, false, &apo_full, &count_full);
+            if (ms_render_set_frame(r, &mesh, apo, count, &err) != MS_OK)
+                fail_msg("%s", err.text);
+            ms_render_upload_stats up;
+            if (ms_render_upload(r, UINT64_MAX, &up, &err) != MS_OK)
+                fail_msg("%s", err.text);
+            assert_int_equal(up.cells_pending, 0);
+            oracle given = {0}, full = {0};
+            oracle_build(&given, a, apo, count);
+            oracle_build(&full, a, apo_full, count_full);
+            ms_render_options o;
+            ms_render_options_default(&o);
+            o.apo_nearest = cases[k].nearest;
+            o.apo_depth_cap = cases[k].cap;
+            figures f;
+            compare(a, r, &cam, &o, &given, cases[k].levels ? &full : NULL, &f);
+            char what[128];
+            snprintf(what, sizeof what, "%s view %zu%s%s (%u cells)", name, d,
+                     cases[k].levels ? ", 3 levels + half" : "", cases[k].cap ? ", STOP cap 4" : "", cells_drawing);
+            print_figures(what, &f);
+            check_figures(&f);
+            if (cases[k].levels) {
+                /* the prefix really is read short: the full chunk would shade differently */
+                print_message("%-44s %6zu px differ from the full chunk by > 1 deg\n", "", f.disagree_full);
+                assert_true(f.disagree_full > f.covered / 20);
+            }
+            oracle_free(&given);
+            oracle_free(&full);
+            free(apo);
+            free(apo_full);
+        }
+    }
+    ms_view_mesh_free(&mesh);
+    ms_render_free(r);
+    ms_view_destroy(view);
+}
+
+static void test_dragon(void **state)
+{
+    (void)state;
+    char dir[512], model[4096];
+    ms_test_tmpdir(dir, sizeof dir);
+    ms_test_model_path(model, sizeof model, "stanford_dragon_vrip_res3.ply.gz");
+    ms_archive *a = ms_test_render_bake(model, dir, "dragon", 16, 1500, 0);
+    const double dirs[][3] = {{0.3, 0.2, 1.0}, {-1.0, 0.4, -0.2}};
+    run_model(a, "dragon res3", dirs, 2);
+    ms_archive_close(a);
+    ms_test_rmdir(dir);
+}
+
+static void test_demo(void **state)
+{
+    (void)state;
+    char dir[512];
+    ms_test_tmpdir(dir, sizeof dir);
+    ms_archive *a = ms_test_render_bake_demo(40, dir, 14, 2000, 0);
+    const double dirs[][3] = {{1.0, 0.5, 0.7}};
+    run_model(a, "demo 40", dirs, 1);
+    ms_archive_close(a);
+    ms_test_rmdir(dir);
+}
+
+static ms_test_gl gl;
+
+static int setup(void **state)
+{
+    (void)state;
+    ms_test_gl_start(&gl);
+    return 0;
+}
+
+static int teardown(void **state)
+{
+    (void)state;
+    ms_test_gl_stop(&gl);
+    return 0;
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_dragon),
+        cmocka_unit_test(test_demo),
+    };
+    return cmocka_run_group_tests(tests, setup, teardown);
+}
