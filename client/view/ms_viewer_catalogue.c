@@ -81,7 +81,8 @@ void ms_viewer_catalogue_draw(ms_viewer_text *text, const ms_viewer_catalogue *c
     snprintf(line, sizeof line, "meshstream models - %s", cat->where ? cat->where : "");
     ms_viewer_text_print(text, x, y, title, line);
     y += 2 * MS_FONT_LINE_HEIGHT * s;
-    ms_viewer_text_print(text, x, y, dim, "name                         triangles      size");
+    snprintf(line, sizeof line, "%-24s %13s %12s", "name", "triangles", "size");
+    ms_viewer_text_print(text, x, y, dim, line);
     if (!cat->list->count) {
         ms_viewer_text_print(text, x, FIRST_ROW_Y * s, ink, "(no models)");
         return;
