@@ -380,12 +380,36 @@ static void test_server_gone_mid_stream(void **state)
     free(text);
 }
 
+/* The interactive viewer (a visible window on the test display) on the
+ * catalogue screen and on a model with the HUD: it draws until SIGTERM, then
+ * ends with status 0 and prints nothing (no error, no leak report). */
+static void test_interactive_until_terminated(void **state)
+{
+    fixture *f = *state;
+    const char *modes[2] = {NULL, MODEL};
+    for (int i = 0; i < 2; ++i) {
+        char log[700];
+        snprintf(log, sizeof log, "%s/interactive-%d.txt", f->dir, i);
+        char *argv[] = {f->bin, f->archives, "--size", "320x200",
+                        modes[i] ? "--model" : NULL, (char *)modes[i], NULL};
+        pid_t viewer = ms_test_spawn(argv, log);
+        struct timespec wait = {2, 500000000};
+        nanosleep(&wait, NULL);
+        assert_int_equal(ms_test_stop(viewer, SIGTERM, 20.0), 0);
+        char *text = read_text(log);
+        if (text[0])
+            fail_msg("meshview printed: %.2000s", text);
+        free(text);
+    }
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_help_and_usage_errors),
         cmocka_unit_test(test_streaming_and_local_archive),
         cmocka_unit_test(test_catalogue_screen),
+        cmocka_unit_test(test_interactive_until_terminated),
         cmocka_unit_test(test_server_gone_mid_stream),
         cmocka_unit_test(test_runtime_errors), /* stops the server: last */
     };

@@ -28,6 +28,7 @@
 #include "ms_viewer_options.h"
 #include "ms_viewer_readback.h"
 #include "ms_viewer_script.h"
+#include "ms_viewer_signals.h"
 #include "ms_viewer_stream.h"
 #include "ms_viewer_text.h"
 
@@ -467,7 +468,7 @@ static int interactive(viewer *v)
         }
     }
     v->last_frame = now_s();
-    while (!glfwWindowShouldClose(v->window)) {
+    while (!glfwWindowShouldClose(v->window) && !ms_viewer_signals_pending()) {
         glfwPollEvents();
         double t = now_s(), seconds = t - v->last_frame;
         v->last_frame = t;
@@ -553,6 +554,7 @@ static int scripted(viewer *v)
 
 int main(int argc, char **argv)
 {
+    ms_viewer_signals_block(); /* before the core's threads exist */
     ms_viewer_options o;
     int rc = ms_viewer_options_parse(argc, argv, &o, stderr);
     if (rc)

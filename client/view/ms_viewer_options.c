@@ -32,6 +32,7 @@ void ms_viewer_options_usage(FILE *out)
           "                         without --model); also where the S key writes\n"
           "  --frames N             frames drawn between two keyframes (default 8)\n"
           "  --keyframe-timeout S   longest wait for a complete view (default 30)\n"
+          "  --hud                  draw the HUD into the pictures too\n"
           "  --json                 one JSON report on stdout\n"
           "  -h, --help             this help\n"
           "Mouse: left drag orbits (fly mode: looks around), right or shift drag pans,\n"
@@ -100,6 +101,7 @@ int ms_viewer_options_parse(int argc, char **argv, ms_viewer_options *o, FILE *e
         {"frames", required_argument, NULL, 'f'},
         {"keyframe-timeout", required_argument, NULL, 'k'},
         {"json", no_argument, NULL, 'j'},             {"help", no_argument, NULL, 'h'},
+        {"hud", no_argument, NULL, 'H'},
         {NULL, 0, NULL, 0}};
     memset(o, 0, sizeof *o);
     o->width = 1280, o->height = 720;
@@ -196,6 +198,7 @@ int ms_viewer_options_parse(int argc, char **argv, ms_viewer_options *o, FILE *e
             }
             break;
         case 'j': o->json = true; break;
+        case 'H': o->hud = true; break;
         case 'h': o->help = true; return 0;
         case ':':
             fprintf(err, "meshview: %s wants a value\n", argv[optind - 1]);

@@ -37,6 +37,7 @@ typedef struct ms_viewer_options {
     double memory_mb, bandwidth, keyframe_timeout;
     int up_axis;               /* 0..2 */
     bool json, scripted, help;
+    bool hud;                  /* scripted: draw the HUD into the pictures */
 } ms_viewer_options;
 
 /* 0: parsed (o->help for --help); 2: a usage error, one line written to err. */

@@ -13,7 +13,9 @@
 #include "ms_camera_path.h"
 #include "ms_viewer_catalogue.h"
 #include "ms_viewer_controls.h"
+#include "ms_viewer_hud.h"
 #include "ms_viewer_readback.h"
+#include "ms_viewer_signals.h"
 #include "ms_viewer_stream.h"
 #include "ms_viewer_text.h"
 
@@ -128,6 +130,8 @@ typedef struct script {
     ms_viewer_target target;
     ms_render_options render;
     GLFWwindow *window;
+    ms_viewer_text *text;       /* with --hud */
+    double last_ms;
     frame_log log;
     bool first_written;
     char first_png[4200];
@@ -140,6 +144,8 @@ static ms_status frame(script *s, const ms_camera *camera, ms_viewer_step *step,
     glfwPollEvents();
     if (glfwWindowShouldClose(s->window))
         return ms_error_set(err, MS_ERR_IO, "the window was closed while the model streamed");
+    if (ms_viewer_signals_pending())
+        return ms_error_set(err, MS_ERR_IO, "interrupted while the model streamed");
     double t0 = now_s();
     ms_status st = ms_viewer_stream_step(s->stream, camera, s->o->upload_budget, step, err);
     if (st != MS_OK)
@@ -148,9 +154,28 @@ static ms_status frame(script *s, const ms_camera *camera, ms_viewer_step *step,
     ms_render_draw_stats drawn;
     if ((st = ms_viewer_stream_draw(s->stream, camera, &s->render, &drawn, err)) != MS_OK)
         return st;
+    if (s->text) {
+        ms_core_stats cs;
+        ms_viewer_stream_stats(s->stream, &cs);
+        ms_viewer_hud_info info = {.model = ms_viewer_stream_model(s->stream)->name,
+                                   .mode = s->render.shading == MS_SHADING_NORMALS ? "normals"
+                                           : s->render.apo                        ? "APO lit"
+                                                                                  : "geometry lit",
+                                   .frame_ms = s->last_ms,
+                                   .fps = s->last_ms > 0 ? 1e3 / s->last_ms : 0,
+                                   .triangles_drawn = drawn.triangles_drawn,
+                                   .cells_drawn = drawn.cells_drawn,
+                                   .core = &cs,
+                                   .settled = step->settled};
+        ms_viewer_text_begin(s->text, s->o->width, s->o->height, s->o->height >= 600 ? 2 : 1);
+        ms_viewer_hud_draw(s->text, &info, s->o->width, s->o->height, true);
+        if ((st = ms_viewer_text_draw(s->text, err)) != MS_OK)
+            return st;
+    }
     glFinish();
+    s->last_ms = (now_s() - t0) * 1e3;
     s->last_triangles = drawn.triangles_drawn;
-    if ((st = log_frame(&s->log, (now_s() - t0) * 1e3, step->upload.bytes, err)) != MS_OK)
+    if ((st = log_frame(&s->log, s->last_ms, step->upload.bytes, err)) != MS_OK)
         return st;
     if (!s->first_written && drawn.triangles_drawn > 0) {
         s->first_written = true;
@@ -294,7 +319,8 @@ ms_status ms_viewer_script_run(const ms_viewer_options *o, const ms_viewer_sourc
                                           .bandwidth = o->bandwidth};
     json_t *keys = json_array();
     double started = now_s();
-    if ((st = ms_viewer_target_init(&s.target, o->width, o->height, err)) != MS_OK ||
+    if ((o->hud && (st = ms_viewer_text_new(&s.text, err)) != MS_OK) ||
+        (st = ms_viewer_target_init(&s.target, o->width, o->height, err)) != MS_OK ||
         (st = ms_viewer_stream_open(source, &model, &settings, &s.stream, err)) != MS_OK)
         goto done;
     if ((st = play(&s, &model, keys, complete, err)) != MS_OK)
@@ -320,6 +346,7 @@ done:
     json_decref(keys);
     ms_viewer_stream_close(s.stream);
     ms_viewer_target_free(&s.target);
+    ms_viewer_text_free(s.text);
     free(s.log.ms);
     free(s.log.upload);
     ms_viewer_model_close(&model);
