@@ -393,7 +393,7 @@ static void test_interactive_until_terminated(void **state)
         char *argv[] = {f->bin, f->archives, "--size", "320x200",
                         modes[i] ? "--model" : NULL, (char *)modes[i], NULL};
         pid_t viewer = ms_test_spawn(argv, log);
-        struct timespec wait = {2, 500000000};
+        struct timespec wait = {1, 500000000};
         nanosleep(&wait, NULL);
         assert_int_equal(ms_test_stop(viewer, SIGTERM, 20.0), 0);
         char *text = read_text(log);

@@ -55,11 +55,12 @@ static double dist3(const double a[3], const double b[3])
 static void test_controls(void **state)
 {
     (void)state;
-    const double origin[3] = {10, -4, 2};
+    const double lo[3] = {10, -4, 2}, hi[3] = {12, -2.5, 4};
     ms_viewer_controls c;
-    ms_viewer_controls_init(&c, origin, 2.0, 1);
+    ms_viewer_controls_init(&c, lo, hi, 1);
+    assert_near(c.model_size, 2, 1e-12);
     assert_near(c.target[0], 11, 1e-12);
-    assert_near(c.target[1], -3, 1e-12);
+    assert_near(c.target[1], -3.25, 1e-12);
     assert_near(c.target[2], 3, 1e-12);
     double eye[3], forward[3];
     ms_viewer_controls_eye(&c, eye);

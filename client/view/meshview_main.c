@@ -108,13 +108,11 @@ static double pixel_ratio(GLFWwindow *w)
     return ww > 0 ? (double)fw / ww : 1;
 }
 
-static int text_scale(GLFWwindow *w)
+static int text_scale(const viewer *v)
 {
     int fw, fh;
-    glfwGetFramebufferSize(w, &fw, &fh);
-    double ratio = pixel_ratio(w);
-    int base = ratio >= 1.5 ? (int)lround(ratio) : 1;
-    return fh >= 900 * base ? 2 * base : base;
+    glfwGetFramebufferSize(v->window, &fw, &fh);
+    return ms_viewer_text_auto_scale(fh, pixel_ratio(v->window), v->on_catalogue || !v->stream);
 }
 
 static void update_shading(viewer *v)
@@ -153,8 +151,9 @@ static bool open_model(viewer *v, const char *name)
         close_model(v);
         return false;
     }
-    ms_viewer_controls_init(&v->controls, v->model.header.box_origin, v->model.header.box_side,
-                            v->o->up_axis);
+    double lo[3], hi[3];
+    ms_viewer_model_bounds(&v->model, lo, hi);
+    ms_viewer_controls_init(&v->controls, lo, hi, v->o->up_axis);
     v->on_catalogue = false;
     v->message[0] = 0;
     char title[128];
@@ -192,7 +191,7 @@ static void on_key(GLFWwindow *w, int key, int scancode, int action, int mods)
     if (v->on_catalogue) {
         int fw, fh;
         glfwGetFramebufferSize(w, &fw, &fh);
-        int s = text_scale(w);
+        int s = text_scale(v);
         if (key == GLFW_KEY_DOWN)
             ms_viewer_catalogue_move(&v->catalogue, 1, fh, s);
         else if (key == GLFW_KEY_UP)
@@ -275,7 +274,7 @@ static void on_mouse_button(GLFWwindow *w, int button, int action, int mods)
         int fw, fh;
         glfwGetFramebufferSize(w, &fw, &fh);
         long row = ms_viewer_catalogue_row_at(&v->catalogue, x * ratio, y * ratio, fw, fh,
-                                              text_scale(w));
+                                              text_scale(v));
         if (row >= 0) {
             v->catalogue.selected = (size_t)row;
             if (twice)
@@ -317,7 +316,7 @@ static void on_scroll(GLFWwindow *w, double dx, double dy)
     if (v->on_catalogue) {
         int fw, fh;
         glfwGetFramebufferSize(w, &fw, &fh);
-        ms_viewer_catalogue_move(&v->catalogue, dy > 0 ? -1 : 1, fh, text_scale(w));
+        ms_viewer_catalogue_move(&v->catalogue, dy > 0 ? -1 : 1, fh, text_scale(v));
         return;
     }
     ms_viewer_controls_zoom(&v->controls, dy);
@@ -392,7 +391,7 @@ static int view_frame(viewer *v, int fw, int fh, double seconds)
                                .core = &cs,
                                .settled = v->settled,
                                .fly = v->controls.fly};
-    ms_viewer_text_begin(v->text, fw, fh, text_scale(v->window));
+    ms_viewer_text_begin(v->text, fw, fh, text_scale(v));
     ms_viewer_hud_draw(v->text, &info, fw, fh, v->hud);
     if (ms_viewer_text_draw(v->text, &err) != MS_OK) {
         fprintf(stderr, "meshview: %s\n", err.text);
@@ -407,7 +406,7 @@ static int catalogue_frame(viewer *v, int fw, int fh)
     glViewport(0, 0, fw, fh);
     glClearColor(0.08f, 0.08f, 0.09f, 1);
     glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
-    int s = text_scale(v->window);
+    int s = text_scale(v);
     ms_viewer_text_begin(v->text, fw, fh, s);
     ms_viewer_catalogue_draw(v->text, &v->catalogue, fw, fh);
     if (v->message[0]) {

@@ -58,26 +58,41 @@ static void look_along(ms_viewer_controls *c, const double direction[3])
 void ms_viewer_controls_reset(ms_viewer_controls *c)
 {
     memcpy(c->target, c->home_target, sizeof c->target);
-    c->distance = 1.9 * c->model_size;
-    c->yaw = 0.35;
+    c->distance = 1.6 * c->model_size;
+    c->yaw = c->home_yaw;
     c->pitch = -0.3;
     c->fovy_degrees = 40;
 }
 
-void ms_viewer_controls_init(ms_viewer_controls *c, const double origin[3], double side,
+void ms_viewer_controls_init(ms_viewer_controls *c, const double lo[3], const double hi[3],
                              int up_axis)
 {
     memset(c, 0, sizeof *c);
-    for (int k = 0; k < 3; ++k)
-        c->home_target[k] = origin[k] + side / 2;
+    double side = 0;
+    for (int k = 0; k < 3; ++k) {
+        c->home_target[k] = (lo[k] + hi[k]) / 2;
+        if (hi[k] - lo[k] > side)
+            side = hi[k] - lo[k];
+    }
     c->model_size = side > 0 ? side : 1;
     c->up_axis = up_axis >= 0 && up_axis <= 2 ? up_axis : 2;
-    ms_viewer_controls_reset(c);
+    memcpy(c->home_lo, lo, sizeof c->home_lo);
+    memcpy(c->home_hi, hi, sizeof c->home_hi);
+    ms_viewer_controls_set_up(c, c->up_axis);
 }
 
 void ms_viewer_controls_set_up(ms_viewer_controls *c, int up_axis)
 {
     c->up_axis = up_axis >= 0 && up_axis <= 2 ? up_axis : 2;
+    /* Yaw 0 looks along -h0: when the box is longer along h0 than along h1,
+     * turn a quarter to look across it. */
+    double up[3], h0[3], h1[3], along0 = 0, along1 = 0;
+    world_frame(c->up_axis, up, h0, h1);
+    for (int k = 0; k < 3; ++k) {
+        along0 += (c->home_hi[k] - c->home_lo[k]) * h0[k];
+        along1 += (c->home_hi[k] - c->home_lo[k]) * h1[k];
+    }
+    c->home_yaw = (along0 > along1 ? M_PI / 2 : 0) + 0.35;
     ms_viewer_controls_reset(c);
 }
 

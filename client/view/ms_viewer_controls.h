@@ -23,7 +23,9 @@
 
 typedef struct ms_viewer_controls {
     double home_target[3];  /* the model's centre */
-    double model_size;      /* the model's cube side: sets the home distance and speeds */
+    double home_yaw;
+    double home_lo[3], home_hi[3]; /* the model's bounds */
+    double model_size;      /* the model's largest side: sets the home distance and speeds */
     int up_axis;            /* 0 = x, 1 = y, 2 = z: world up */
     double fovy_degrees;
     double target[3];
@@ -32,9 +34,11 @@ typedef struct ms_viewer_controls {
     bool fly;
 } ms_viewer_controls;
 
-/* A home view of the cube [origin, origin + side]^3: looking at its centre from
- * about 1.9 sides away, a little from above, fovy 40 degrees. */
-void ms_viewer_controls_init(ms_viewer_controls *c, const double origin[3], double side,
+/* A home view of the box [lo, hi] (the model's bounds): looking at its centre
+ * from 1.6 times its largest side away, a little from above and to the side,
+ * across the box's longer horizontal side (a model is seen along its length,
+ * not end-on), fovy 40 degrees. */
+void ms_viewer_controls_init(ms_viewer_controls *c, const double lo[3], const double hi[3],
                              int up_axis);
 /* Back to the home view (keeps up_axis and fly). */
 void ms_viewer_controls_reset(ms_viewer_controls *c);

@@ -2,6 +2,7 @@
 
 #include <event2/event.h>
 #include <inttypes.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -250,6 +251,29 @@ ms_status ms_viewer_model_open(const ms_viewer_source *source, const char *name,
     if (st != MS_OK)
         ms_viewer_model_close(model);
     return st;
+}
+
+void ms_viewer_model_bounds(const ms_viewer_model *model, double lo[3], double hi[3])
+{
+    const ms_archive_header *h = &model->header;
+    bool any = false;
+    for (uint32_t i = 0; i < h->cell_count; ++i) {
+        const ms_archive_cell *c = &model->cells[i];
+        if (c->first_child != MS_ARCHIVE_NONE || c->triangle_count == 0)
+            continue;
+        double side = h->box_side / pow((double)h->n, (double)c->level);
+        for (int k = 0; k < 3; ++k) {
+            double a = h->box_origin[k] + c->position[k] * side, b = a + side;
+            lo[k] = any && lo[k] < a ? lo[k] : a;
+            hi[k] = any && hi[k] > b ? hi[k] : b;
+        }
+        any = true;
+    }
+    if (!any)
+        for (int k = 0; k < 3; ++k) {
+            lo[k] = h->box_origin[k];
+            hi[k] = h->box_origin[k] + h->box_side;
+        }
 }
 
 void ms_viewer_model_close(ms_viewer_model *model)

@@ -58,6 +58,11 @@ typedef struct ms_viewer_model {
     ms_archive_cell *cells;   /* header.cell_count records */
 } ms_viewer_model;
 
+/* The box the model's surface occupies, as far as the index tells: the union of
+ * the cubes of its leaf cells that hold triangles (the whole cube when none
+ * does). The model's cube is usually much larger on two axes. */
+void ms_viewer_model_bounds(const ms_viewer_model *model, double lo[3], double hi[3]);
+
 /* Opens the index of model `name` (a valid model name, else MS_ERR_ARG). */
 ms_status ms_viewer_model_open(const ms_viewer_source *source, const char *name,
                                ms_viewer_model *model, ms_error *err);

@@ -18,7 +18,7 @@ void ms_viewer_options_usage(FILE *out)
           "  --model NAME           open this model directly\n"
           "  --token T              access token\n"
           "  --size WxH             window size in pixels (default 1280x720)\n"
-          "  --tolerance PX         geometric screen tolerance (default 1)\n"
+          "  --tolerance PX         geometric screen tolerance (default 4 with APO, 1 without)\n"
           "  --apo-levels L         APO detail fetched, in octree levels (default 8)\n"
           "  --no-apo               fetch no APO; shade with geometry normals\n"
           "  --shading MODE         apo | geometry | normals | cells (default apo)\n"
@@ -108,7 +108,7 @@ int ms_viewer_options_parse(int argc, char **argv, ms_viewer_options *o, FILE *e
     o->frames = 8;
     o->shading = MS_SHADING_LIT;
     o->apo_shading = true;
-    o->tolerance_px = 1;
+    o->tolerance_px = 0; /* the stream's default */
     o->apo_levels = 8;
     o->upload_budget = 4000000;
     o->keyframe_timeout = 30;

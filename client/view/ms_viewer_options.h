@@ -31,7 +31,7 @@ typedef struct ms_viewer_options {
     unsigned frames;           /* scripted: frames drawn between two keyframes */
     ms_shading shading;
     bool apo_shading;          /* shade with APO normals (false: geometry normals) */
-    double tolerance_px;
+    double tolerance_px;       /* geometric; 0: the default (ms_viewer_stream.h) */
     unsigned apo_levels;       /* fetched; 0: none */
     uint64_t upload_budget;    /* bytes per frame */
     double memory_mb, bandwidth, keyframe_timeout;

@@ -104,7 +104,7 @@ static ms_status catalogue_shot(const ms_viewer_options *o, const ms_viewer_sour
     glClearColor(0.08f, 0.08f, 0.09f, 1);
     glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
     ms_viewer_catalogue cat = {.list = &list, .where = where};
-    ms_viewer_text_begin(text, o->width, o->height, o->height >= 600 ? 2 : 1);
+    ms_viewer_text_begin(text, o->width, o->height, ms_viewer_text_auto_scale(o->height, 1, true));
     ms_viewer_catalogue_draw(text, &cat, o->width, o->height);
     if ((st = ms_viewer_text_draw(text, err)) != MS_OK ||
         (st = ms_viewer_screenshot(png, o->width, o->height, err)) != MS_OK)
@@ -167,7 +167,8 @@ static ms_status frame(script *s, const ms_camera *camera, ms_viewer_step *step,
                                    .cells_drawn = drawn.cells_drawn,
                                    .core = &cs,
                                    .settled = step->settled};
-        ms_viewer_text_begin(s->text, s->o->width, s->o->height, s->o->height >= 600 ? 2 : 1);
+        ms_viewer_text_begin(s->text, s->o->width, s->o->height,
+                             ms_viewer_text_auto_scale(s->o->height, 1, false));
         ms_viewer_hud_draw(s->text, &info, s->o->width, s->o->height, true);
         if ((st = ms_viewer_text_draw(s->text, err)) != MS_OK)
             return st;
@@ -239,7 +240,9 @@ static ms_status play(script *s, const ms_viewer_model *model, json_t *keys, boo
             return st;
     } else { /* the home view as a path of one keyframe */
         ms_viewer_controls c;
-        ms_viewer_controls_init(&c, model->header.box_origin, model->header.box_side, o->up_axis);
+        double lo[3], hi[3];
+        ms_viewer_model_bounds(model, lo, hi);
+        ms_viewer_controls_init(&c, lo, hi, o->up_axis);
         path.keys = calloc(1, sizeof *path.keys);
         if (!path.keys)
             return ms_error_set(err, MS_ERR_NOMEM, "out of memory for a path");
@@ -334,7 +337,8 @@ ms_status ms_viewer_script_run(const ms_viewer_options *o, const ms_viewer_sourc
                         : o->shading == MS_SHADING_CELLS ? "cells"
                         : o->apo_shading                 ? "apo"
                                                          : "geometry",
-                        "width", o->width, "height", o->height, "tolerance_px", o->tolerance_px,
+                        "width", o->width, "height", o->height, "tolerance_px",
+                        ms_viewer_stream_tolerance(s.stream),
                         "complete", *complete, "keyframes", keys, "frames",
                         frame_summary(&s.log, o->upload_budget), "first_frame_png",
                         s.first_written ? s.first_png : NULL, "geometry_bytes",

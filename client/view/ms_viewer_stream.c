@@ -24,7 +24,12 @@ ms_status ms_viewer_stream_open(const ms_viewer_source *source, const ms_viewer_
     if (!s)
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory for a stream");
     s->model = model;
-    s->start_tolerance = s->tolerance = settings->tolerance_px > 0 ? settings->tolerance_px : 1;
+    /* With APO the core refines geometry to apo_geometry_tolerance_px (the
+     * normals carry the finer detail), else to tolerance_px: the viewer's
+     * tolerance is whichever of the two is in effect. */
+    bool apo = settings->apo_levels > 0 && model->header.has_apo;
+    double fallback = apo ? 4.0 : 1.0;
+    s->start_tolerance = s->tolerance = settings->tolerance_px > 0 ? settings->tolerance_px : fallback;
     ms_status st = ms_render_new(&model->header, model->cells, &s->render, err);
     if (st != MS_OK) {
         free(s);
@@ -37,7 +42,10 @@ ms_status ms_viewer_stream_open(const ms_viewer_source *source, const ms_viewer_
         co.host = source->host, co.port = source->port, co.token = source->token;
     co.model = model->name;
     co.agent = "meshview/0.1";
-    co.tolerance_px = s->start_tolerance;
+    if (apo)
+        co.apo_geometry_tolerance_px = s->start_tolerance;
+    else
+        co.tolerance_px = s->start_tolerance;
     co.apo_levels = settings->apo_levels;
     if (settings->memory_mb > 0) {
         co.memory_target = (uint64_t)(settings->memory_mb * 1048576.0);
@@ -45,7 +53,7 @@ ms_status ms_viewer_stream_open(const ms_viewer_source *source, const ms_viewer_
     }
     co.bandwidth = settings->bandwidth;
     co.decode_threads = settings->decode_threads;
-    co.give_up_seconds = 10;
+    co.give_up_seconds = 8; /* a server gone this long ends the viewer (exit 1) */
     co.export_frames = true;
     if ((st = ms_core_start(&co, &s->core, err)) != MS_OK) {
         ms_render_free(s->render);

@@ -29,7 +29,9 @@
 typedef struct ms_viewer_stream ms_viewer_stream;
 
 typedef struct ms_viewer_stream_settings {
-    double tolerance_px;       /* geometric screen tolerance at start, > 0 */
+    double tolerance_px;       /* geometric screen tolerance at start; 0: the core's
+                                  default (4 px with APO, whose normals carry the
+                                  finer detail, 1 px without) */
     unsigned apo_levels;       /* 0: no APO fetched */
     double memory_mb;          /* core memory target; 0 = none (ceiling 1.5x) */
     double bandwidth;          /* bytes per second; 0 = unlimited */

@@ -177,6 +177,13 @@ void ms_viewer_text_begin(ms_viewer_text *t, int width, int height, int scale)
 
 int ms_viewer_text_scale(const ms_viewer_text *t) { return t->scale; }
 
+int ms_viewer_text_auto_scale(int height, double pixel_ratio, bool large)
+{
+    int base = pixel_ratio >= 1.5 ? (int)(pixel_ratio + 0.5) : 1;
+    double points = height / (double)base;
+    return points >= (large ? 400 : 700) ? 2 * base : base;
+}
+
 /* Appends a quad: corners (x0, y0)-(x1, y1), texels (u0, v0)-(u1, v1). */
 static void quad(ms_viewer_text *t, float x0, float y0, float x1, float y1, float u0, float v0,
                  float u1, float v1, const float rgba[4])

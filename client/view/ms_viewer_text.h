@@ -15,12 +15,20 @@
 #ifndef MS_VIEWER_TEXT_H
 #define MS_VIEWER_TEXT_H
 
+#include <stdbool.h>
+
 #include "ms_error.h"
 
 typedef struct ms_viewer_text ms_viewer_text;
 
 ms_status ms_viewer_text_new(ms_viewer_text **text, ms_error *err);
 void ms_viewer_text_free(ms_viewer_text *text);
+
+/* The scale for a framebuffer `height` pixels tall with `pixel_ratio`
+ * framebuffer pixels per screen point (HiDPI): the ratio rounded, doubled on
+ * tall framebuffers (700 points, or 400 for `large` text such as the
+ * catalogue's). */
+int ms_viewer_text_auto_scale(int height, double pixel_ratio, bool large);
 
 /* Starts an empty batch for a framebuffer of width x height pixels. */
 void ms_viewer_text_begin(ms_viewer_text *text, int width, int height, int scale);
