@@ -21,6 +21,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 #include <cmocka.h>
 
 #include "ms_apo_stream.h"
@@ -29,6 +30,13 @@
 #include "ms_render_internal.h"
 #include "ms_test.h"
 #include "ms_test_render.h"
+
+static double now_seconds(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
 
 #define WIDTH 200
 #define HEIGHT 150
@@ -257,7 +265,7 @@ static void run_model(ms_archive *a, const char *name, const double dirs[][3], s
             bool mid;
             bool nearest;
             uint32_t cap;
-        } cases[] = {{0, false, true, 0}, {0, false, false, 4}, {3, true, true, 0}};
+        } cases[] = {{0, false, true, 0}, {0, false, false, 4}, {3, true, true, 0}, {2, false, true, 0}};
         for (size_t k = 0; k < sizeof cases / sizeof *cases; ++k) {
             ms_core_apo_chunk *apo, *apo_full;
             size_t count, count_full;
@@ -280,7 +288,7 @@ static void run_model(ms_archive *a, const char *name, const double dirs[][3], s
             compare(a, r, &cam, &o, &given, cases[k].levels ? &full : NULL, &f);
             char what[128];
             snprintf(what, sizeof what, "%s view %zu%s%s (%u cells)", name, d,
-                     cases[k].levels ? ", 3 levels + half" : "", cases[k].cap ? ", STOP cap 4" : "", cells_drawing);
+                     cases[k].levels ? (cases[k].mid ? ", 3 levels + half" : ", 2 levels") : "", cases[k].cap ? ", STOP cap 4" : "", cells_drawing);
             print_figures(what, &f);
             check_figures(&f);
             if (cases[k].levels) {
@@ -305,7 +313,9 @@ static void test_dragon(void **state)
     char dir[512], model[4096];
     ms_test_tmpdir(dir, sizeof dir);
     ms_test_model_path(model, sizeof model, "stanford_dragon_vrip_res3.ply.gz");
-    ms_archive *a = ms_test_render_bake(model, dir, "dragon", 16, 1500, 0);
+    double t0 = now_seconds();
+    ms_archive *a = ms_test_render_bake(model, dir, "dragon", 16, 1500, 7);
+    print_message("dragon baked in %.1f s (APO depth <= 7)\n", now_seconds() - t0);
     const double dirs[][3] = {{0.3, 0.2, 1.0}, {-1.0, 0.4, -0.2}};
     run_model(a, "dragon res3", dirs, 2);
     ms_archive_close(a);

@@ -5,7 +5,9 @@
  * the texel buffer) and a pending one (what the latest frame wants and is not yet
  * wholly on the GPU). A pending mesh goes up in pieces into buffers of its own
  * and replaces the current one only once complete; the same for a pending APO
- * prefix and its texel range. Cells wait in a queue in the order they changed. */
+ * prefix and its texel range (sent after the cell's mesh). Cells wait in a queue
+ * in the order they changed; an upload serves first the queued cells that draw
+ * nothing yet (holes), then the others. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -440,23 +442,27 @@ ms_status ms_render_upload(ms_render *r, uint64_t budget_bytes, ms_render_upload
     if (budget_bytes == 0)
         return ms_error_set(err, MS_ERR_ARG, "render: upload budget of 0 bytes");
     uint64_t left = budget_bytes, bytes = 0;
-    uint32_t completed = 0, kept = 0, k = 0;
-    for (; k < r->queue_count && left > 0; ++k) {
-        uint32_t cell = r->queue[k];
-        render_cell *c = &r->cells[cell];
-        if (c->next_mesh.active && upload_mesh(c, &left, &bytes))
-            c->next_mesh.active = false;
-        if (!c->next_mesh.active && c->next_apo.active && left > 0 && upload_apo(r, c, &left, &bytes))
-            c->next_apo.active = false;
-        if (c->next_mesh.active || c->next_apo.active) {
-            r->queue[kept++] = cell;
-        } else {
-            c->queued = false;
-            completed++;
+    uint32_t completed = 0;
+    /* Two passes in queue order: first the cells that draw nothing yet (a hole
+     * in the picture), then the ones that will replace what they draw. */
+    for (int pass = 0; pass < 2 && left > 0; ++pass)
+        for (uint32_t k = 0; k < r->queue_count && left > 0; ++k) {
+            render_cell *c = &r->cells[r->queue[k]];
+            if (!c->queued || (pass == 0 && c->mesh.vao))
+                continue;
+            if (c->next_mesh.active && upload_mesh(c, &left, &bytes))
+                c->next_mesh.active = false;
+            if (!c->next_mesh.active && c->next_apo.active && left > 0 && upload_apo(r, c, &left, &bytes))
+                c->next_apo.active = false;
+            if (!c->next_mesh.active && !c->next_apo.active) {
+                c->queued = false;
+                completed++;
+            }
         }
-    }
-    for (; k < r->queue_count; ++k)
-        r->queue[kept++] = r->queue[k];
+    uint32_t kept = 0;
+    for (uint32_t k = 0; k < r->queue_count; ++k)
+        if (r->cells[r->queue[k]].queued)
+            r->queue[kept++] = r->queue[k];
     r->queue_count = kept;
     if (stats) {
         stats->bytes = bytes;

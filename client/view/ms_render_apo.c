@@ -104,7 +104,10 @@ ms_status ms_render_apo_words(const ms_archive_cell *record, const uint8_t *data
      * a level's nodes come from the kind masks of the level above. */
     uint32_t level_texels[MS_APO_MAX_LEVELS];
     bool internal_root = total_levels >= 2;
-    uint8_t *kinds = malloc(have + 2), *next_kinds = malloc(have + 2);
+    /* a level's nodes: at most 8 per internal node of the level above, which
+     * has at most have / 2 of them */
+    size_t kinds_cap = 4 * have + 8;
+    uint8_t *kinds = malloc(kinds_cap), *next_kinds = malloc(kinds_cap);
     if (!kinds || !next_kinds) {
         free(kinds);
         free(next_kinds);
@@ -128,7 +131,7 @@ ms_status ms_render_apo_words(const ms_archive_cell *record, const uint8_t *data
                 uint32_t kind = ms_apo_mean_kind(w[cursor + 1]) & exist;
                 for (uint32_t o = 0; o < 8; ++o)
                     if (exist >> o & 1u) {
-                        if (next_count >= have + 2) {
+                        if (next_count >= kinds_cap) {
                             st = ms_error_set(err, MS_ERR_CORRUPT, "apo prefix: level %u too large", d + 1);
                             break;
                         }

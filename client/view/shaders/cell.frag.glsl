@@ -45,6 +45,10 @@ void main()
         vec3 l = normalize(-g_eye);
         vec3 ng = normalize(world_to_eye * g_normal);
         vec3 n = normalize(world_to_eye * n_world);
+        // An APO normal against the triangle's own was sampled on another sheet
+        // of the surface (a thin part): the triangle's normal stands in for it.
+        if (dot(n, ng) < 0.0)
+            n = ng;
         if (dot(ng, l) < 0.0) {
             ng = -ng;
             n = -n;
