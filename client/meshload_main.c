@@ -41,6 +41,7 @@ extern char **environ;
 
 typedef struct options {
     const char *host, *model, *path_file, *token, *baseline, *draco_decoder, *tmp_dir;
+    const char *archive; /* local archive file instead of a server */
     uint16_t port;
     unsigned clients, apo_levels, decode_threads;
     double bandwidth, tolerance, duration, keyframe_timeout, width, height;
@@ -57,11 +58,11 @@ typedef struct client_result {
     /* cold phase */
     double first_display, view_complete, cold_last_byte;
     bool cold_complete;
-    uint64_t cold_bytes;
+    uint64_t cold_bytes, cold_apo_bytes; /* payload, and of it APO */
     /* path phase */
     key_result keys[MAX_KEYS];
     size_t key_count;
-    uint64_t bytes, requests, cancels, reconnects, evictions;
+    uint64_t bytes, apo_bytes, requests, cancels, reconnects, evictions;
     uint32_t cells_shown, cells_failed;
     double decode_seconds, p50, p99;
     uint64_t peak_memory;
@@ -102,6 +103,7 @@ static ms_core_options core_options(const options *o)
 {
     ms_core_options co = {0};
     co.host = o->host, co.port = o->port, co.model = o->model, co.token = o->token;
+    co.archive_path = o->archive;
     co.agent = "meshload/0.1";
     co.tolerance_px = o->tolerance;
     co.hysteresis_bits = o->hysteresis;
@@ -164,6 +166,7 @@ static void cold_phase(worker *w)
     res->view_complete = res->cold_complete ? st.time : -1;
     res->first_display = st.first_display;
     res->cold_bytes = st.bytes_received;
+    res->cold_apo_bytes = st.apo_bytes_received;
     if (st.error[0])
         snprintf(res->error, sizeof res->error, "%.250s", st.error);
     ms_core_stop(core);
@@ -218,6 +221,7 @@ static void path_phase(worker *w)
     ms_core_get_stats(core, &st);
     res->path_seconds = now_s() - started;
     res->bytes = st.bytes_received;
+    res->apo_bytes = st.apo_bytes_received;
     res->requests = st.requests, res->cancels = st.cancels, res->reconnects = st.reconnects;
     res->evictions = st.evictions;
     res->cells_shown = st.cells_shown, res->cells_failed = st.cells_failed;
@@ -412,6 +416,7 @@ static void print_report(const options *o, const run *r, worker *ws)
     double *first = calloc(n, sizeof *first), *complete = calloc(n, sizeof *complete);
     double worst_complete = 0, decode = 0, p50 = 0, p99 = 0;
     uint64_t bytes = 0, cold_bytes = 0, peak = 0, failures = 0, draco_bytes = 0;
+    uint64_t apo_bytes = 0, cold_apo_bytes = 0;
     size_t nf = 0, nc = 0;
     for (unsigned i = 0; i < n; ++i) {
         const client_result *c = &ws[i].result;
@@ -424,6 +429,7 @@ static void print_report(const options *o, const run *r, worker *ws)
         }
         failures += c->error[0] != 0;
         bytes += c->bytes, cold_bytes += c->cold_bytes, decode += c->decode_seconds;
+        apo_bytes += c->apo_bytes, cold_apo_bytes += c->cold_apo_bytes;
         draco_bytes += c->draco_bytes;
         if (c->peak_memory > peak)
             peak = c->peak_memory;
@@ -440,10 +446,16 @@ static void print_report(const options *o, const run *r, worker *ws)
                o->bandwidth, o->tolerance);
         printf(" \"time_to_first_display\": %.4f, \"time_to_view_complete\": %.4f, "
                "\"time_to_view_complete_max\": %.4f, \"cold_bytes\": %llu, \"path_bytes\": %llu, "
+               "\"cold_geometry_bytes\": %llu, \"cold_apo_bytes\": %llu, "
+               "\"path_geometry_bytes\": %llu, \"path_apo_bytes\": %llu, "
                "\"draco_bytes\": %llu, \"decode_seconds\": %.4f, \"latency_p50\": %.4f, "
                "\"latency_p99\": %.4f, \"peak_memory\": %llu, \"failures\": %llu,\n",
                med_first, med_complete, nc == n ? worst_complete : -1.0,
                (unsigned long long)(n ? cold_bytes / n : 0), (unsigned long long)(n ? bytes / n : 0),
+               (unsigned long long)(n ? (cold_bytes - cold_apo_bytes) / n : 0),
+               (unsigned long long)(n ? cold_apo_bytes / n : 0),
+               (unsigned long long)(n ? (bytes - apo_bytes) / n : 0),
+               (unsigned long long)(n ? apo_bytes / n : 0),
                (unsigned long long)(n ? draco_bytes / n : 0), n ? decode / n : 0.0, p50, p99,
                (unsigned long long)peak, (unsigned long long)failures);
         printf(" \"per_client\": [");
@@ -451,14 +463,18 @@ static void print_report(const options *o, const run *r, worker *ws)
             const client_result *c = &ws[i].result;
             printf("%s\n  {\"client\": %u, \"time_to_first_display\": %.4f, "
                    "\"time_to_view_complete\": %.4f, \"last_byte\": %.4f, \"cold_bytes\": %llu, "
-                   "\"bytes\": %llu, "
+                   "\"cold_geometry_bytes\": %llu, \"cold_apo_bytes\": %llu, "
+                   "\"bytes\": %llu, \"geometry_bytes\": %llu, \"apo_bytes\": %llu, "
                    "\"requests\": %llu, \"cancels\": %llu, \"reconnects\": %llu, "
                    "\"evictions\": %llu, \"cells\": %u, \"failed_cells\": %u, "
                    "\"decode_seconds\": %.4f, \"latency_p50\": %.4f, \"latency_p99\": %.4f, "
                    "\"peak_memory\": %llu, \"download_seconds\": %.4f, "
                    "\"draco_decode_seconds\": %.4f, \"error\": \"",
                    i ? "," : "", i, c->first_display, c->cold_complete ? c->view_complete : -1.0,
-                   c->cold_last_byte, (unsigned long long)c->cold_bytes, (unsigned long long)c->bytes,
+                   c->cold_last_byte, (unsigned long long)c->cold_bytes,
+                   (unsigned long long)(c->cold_bytes - c->cold_apo_bytes),
+                   (unsigned long long)c->cold_apo_bytes, (unsigned long long)c->bytes,
+                   (unsigned long long)(c->bytes - c->apo_bytes), (unsigned long long)c->apo_bytes,
                    (unsigned long long)c->requests, (unsigned long long)c->cancels,
                    (unsigned long long)c->reconnects, (unsigned long long)c->evictions,
                    c->cells_shown, c->cells_failed, c->decode_seconds, c->p50, c->p99,
@@ -491,11 +507,15 @@ static void print_report(const options *o, const run *r, worker *ws)
                        c->decode_draco_seconds, c->error[0] ? "; error: " : "", c->error);
                 continue;
             }
-            printf("  client %u: first display %.3f s, view complete %.3f s, %llu bytes cold, "
-                   "%llu bytes on the path, %u cells, decode %.3f s, latency p50 %.1f ms p99 "
+            printf("  client %u: first display %.3f s, view complete %.3f s, %llu bytes cold "
+                   "(%llu geometry, %llu APO), %llu bytes on the path (%llu geometry, %llu APO), "
+                   "%u cells, decode %.3f s, latency p50 %.1f ms p99 "
                    "%.1f ms, peak memory %.1f MB%s%s\n",
                    i, c->first_display, c->view_complete, (unsigned long long)c->cold_bytes,
-                   (unsigned long long)c->bytes, c->cells_shown, c->decode_seconds, c->p50 * 1e3,
+                   (unsigned long long)(c->cold_bytes - c->cold_apo_bytes),
+                   (unsigned long long)c->cold_apo_bytes, (unsigned long long)c->bytes,
+                   (unsigned long long)(c->bytes - c->apo_bytes), (unsigned long long)c->apo_bytes,
+                   c->cells_shown, c->decode_seconds, c->p50 * 1e3,
                    c->p99 * 1e3, c->peak_memory / 1048576.0, c->error[0] ? "; error: " : "",
                    c->error);
             for (size_t k = 0; k < c->key_count; ++k)
@@ -517,6 +537,7 @@ static void usage(FILE *out)
     fprintf(out,
             "usage: meshload --server HOST:PORT --model NAME --path CAMERA_FILE [--clients N]\n"
             "                [--bandwidth 8mbit] [--tolerance PX] [--duration S] [--json]\n"
+            "       meshload --archive DIR/NAME.msa --path CAMERA_FILE [options as above]\n"
             "       meshload --baseline draco --server HOST:HTTP_PORT --model NAME [--clients N]\n"
             "                [--bandwidth 8mbit] [--json]\n\n"
             "Streams a model from meshserve through the client core along a camera path\n"
@@ -527,6 +548,8 @@ static void usage(FILE *out)
             "complete there (time to view complete per keyframe).\n"
             "  --server HOST:PORT     numeric address and binary port (HTTP port for --baseline)\n"
             "  --model NAME           model name in the server's catalogue\n"
+            "  --archive FILE         read a local archive file instead (no server; the\n"
+            "                         client core's local mode, docs/CLIENT.md)\n"
             "  --path FILE            camera path file\n"
             "  --clients N            virtual clients, 1..%d (default 1)\n"
             "  --bandwidth RATE       per client, e.g. 8mbit, 500kbit, 2mbyte (default unlimited)\n"
@@ -538,7 +561,8 @@ static void usage(FILE *out)
             "  --hysteresis BITS      precision hysteresis (default 0.5)\n"
             "  --culled-bits-less B   precision given up on cells outside the view (default 6)\n"
             "  --decode-threads N     decoding threads per client (default 2)\n"
-            "  --apo-levels L         APO detail target (default 0: APO off)\n"
+            "  --apo-levels L         APO on, fetching at most L levels of a chunk (default 0:\n"
+            "                         APO off); bytes are reported as geometry and APO\n"
             "  --token TOKEN          access token\n"
             "  --no-cold              skip the cold-open phase\n"
             "  --raw-index            ask for the model index uncompressed (protocol v1 way)\n"
@@ -607,7 +631,7 @@ static int parse_options(int argc, char **argv, options *o)
         {"decode-threads", required_argument, NULL, 'P'},
         {"apo-levels", required_argument, NULL, 'a'}, {"token", required_argument, NULL, 'T'},
         {"no-cold", no_argument, NULL, 'n'},       {"baseline", required_argument, NULL, 'B'},
-        {"raw-index", no_argument, NULL, 'R'},
+        {"raw-index", no_argument, NULL, 'R'},   {"archive", required_argument, NULL, 'A'},
         {"draco-decoder", required_argument, NULL, 'D'}, {"help", no_argument, NULL, 'h'},
         {NULL, 0, NULL, 0}};
     memset(o, 0, sizeof *o);
@@ -715,6 +739,7 @@ static int parse_options(int argc, char **argv, options *o)
         case 'j': o->json = true; break;
         case 'n': o->skip_cold = true; break;
         case 'R': o->raw_index = true; break;
+        case 'A': o->archive = optarg; break;
         case 'B':
             if (strcmp(optarg, "draco") != 0) {
                 fprintf(stderr, "meshload: the only baseline is 'draco'\n");
@@ -727,9 +752,16 @@ static int parse_options(int argc, char **argv, options *o)
         default: usage(stderr); return 2;
         }
     }
-    if (optind != argc || !o->host || !o->model || (!o->baseline && !o->path_file)) {
-        fprintf(stderr, "meshload: --server, --model and (unless --baseline) --path are "
-                        "required; see --help\n");
+    if (o->archive && (o->host || o->baseline)) {
+        fprintf(stderr, "meshload: --archive reads a local file: no --server, no --baseline\n");
+        return 2;
+    }
+    if (o->archive && !o->model)
+        o->model = "local";
+    if (optind != argc || (!o->host && !o->archive) || !o->model ||
+        (!o->baseline && !o->path_file)) {
+        fprintf(stderr, "meshload: --server (or --archive), --model and (unless --baseline) "
+                        "--path are required; see --help\n");
         return 2;
     }
     if (o->memory_ceiling && o->memory_target > o->memory_ceiling) {

@@ -1049,12 +1049,19 @@ static bool dec_take_index(ms_core *c, ms_error *err)
     return s == MS_OK;
 }
 
-static void cell_box(const ms_archive_header *h, const ms_archive_cell *rec, double lo[3],
-                     double hi[3])
+/* The side of a cell's cube, world units. */
+static double cell_side(const ms_archive_header *h, const ms_archive_cell *rec)
 {
     double side = h->box_side;
     for (unsigned l = 0; l < rec->level; ++l)
         side /= h->n;
+    return side;
+}
+
+static void cell_box(const ms_archive_header *h, const ms_archive_cell *rec, double lo[3],
+                     double hi[3])
+{
+    double side = cell_side(h, rec);
     for (int a = 0; a < 3; ++a) {
         lo[a] = h->box_origin[a] + side * rec->position[a];
         hi[a] = lo[a] + side;
@@ -1239,11 +1246,12 @@ static ms_core_frame *dec_make_frame(ms_core *c, ms_error *err)
             }
             f->apo = g;
             memcpy(copy, d->apo.buf, d->apo_given);
+            /* complete levels: ms_archive_apo_prefix(depth) ends depth's level */
             unsigned levels = 0;
             const ms_archive_cell *rec = ms_archive_get_cell(c->index, i);
-            for (unsigned l = 1; l <= rec->apo_levels; ++l)
-                if (ms_archive_apo_prefix(c->index, i, l, NULL) <= d->apo_given)
-                    levels = l;
+            for (unsigned depth = 0; depth < rec->apo_levels; ++depth)
+                if (ms_archive_apo_prefix(c->index, i, depth, NULL) <= d->apo_given)
+                    levels = depth + 1;
             f->apo[f->apo_count++] = (ms_core_apo_chunk){i, levels, copy, d->apo_given};
         }
     }
@@ -1545,15 +1553,25 @@ static void dec_step(ms_core *c, chunk_msg *chunks, const ms_camera *cam, uint64
                 }
             }
         }
-        if (apo_on && visible && rec->apo_length > 0 && !d->failed) {
-            unsigned levels = c->o.apo_levels < rec->apo_levels ? c->o.apo_levels : rec->apo_levels;
-            uint32_t b = ms_archive_apo_prefix(c->index, i, levels, NULL);
+        /* APO by footprint: down to the level whose texel projects to the
+         * detail tolerance, at most apo_levels; none for a cell about to
+         * split (its children replace it as soon as its last bits arrive:
+         * on the demo close-up such passing cells would take half the APO
+         * bytes) */
+        if (apo_on && visible && rec->apo_length > 0 && !d->failed && t != MS_VIEW_TARGET_SPLIT) {
+            unsigned cap = c->o.apo_levels < rec->apo_levels ? c->o.apo_levels : rec->apo_levels;
+            double lo[3], hi[3];
+            cell_box(h, rec, lo, hi);
+            unsigned levels = ms_apo_footprint_levels(&fv.cam, lo, cell_side(h, rec),
+                                                      c->o.tolerance_px * c->tolerance_factor, cap);
+            /* levels 0 .. levels - 1; ms_archive_apo_prefix(depth) ends depth's level */
+            uint32_t b = ms_archive_apo_prefix(c->index, i, levels - 1, NULL);
             if (d->apo.end < b) {
                 complete = false;
                 cell_loading = true;
                 for (unsigned l = 1; l <= levels; ++l) {
-                    uint32_t lb = ms_archive_apo_prefix(c->index, i, l, NULL);
-                    uint32_t la = l == 1 ? 0 : ms_archive_apo_prefix(c->index, i, l - 1, NULL);
+                    uint32_t lb = ms_archive_apo_prefix(c->index, i, l - 1, NULL);
+                    uint32_t la = l == 1 ? 0 : ms_archive_apo_prefix(c->index, i, l - 2, NULL);
                     if (la < d->apo.end)
                         la = d->apo.end;
                     if (la >= lb)

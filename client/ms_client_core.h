@@ -53,8 +53,12 @@
  *
  * Two tolerances. tolerance_px is the geometric screen tolerance; with APO on
  * (apo_levels > 0 on a model that has APO chunks) geometry refines only to
- * apo_geometry_tolerance_px and each visible cell's APO chunk is fetched up
- * to apo_levels levels, handed over in frames.
+ * apo_geometry_tolerance_px and tolerance_px is the detail tolerance: each
+ * visible shown cell's APO chunk is fetched by footprint, down to the level
+ * whose texel projects to tolerance_px (ms_apo_footprint_levels, ms_camera.h,
+ * at the cell's nearest point; raised with the budget's tolerance), at most
+ * apo_levels levels and no deeper; a cell about to split fetches none (its
+ * children replace it). The chunk prefixes held are handed over in frames.
  *
  * Ownership: the core copies its options' strings. A frame returned by
  * ms_core_take_frame belongs to the caller (ms_core_frame_free).
@@ -103,7 +107,9 @@ typedef struct ms_core_options {
     double culled_bits_less;   /* culled cells' need is lowered by this; 0 = 6 (64x the
                                   error outside the view) */
     double frustum_margin;     /* world units; 0 = none */
-    unsigned apo_levels;       /* APO detail target in levels; 0 = APO off */
+    unsigned apo_levels;       /* APO on when > 0: the most levels of a chunk fetched
+                                  (MS_ARCHIVE_MAX_APO_LEVELS: no cap but the chunk's);
+                                  0 = APO off */
     double apo_geometry_tolerance_px; /* geometry tolerance with APO on; 0 = 4 */
     uint64_t memory_target, memory_ceiling; /* bytes; 0 = no budget */
     double bandwidth;          /* bytes per second read from the server; 0 = unlimited */

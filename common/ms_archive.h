@@ -106,7 +106,9 @@ const uint8_t *ms_archive_apo(const ms_archive *archive, uint32_t cell, size_t *
 
 /* Byte length of the geometry prefix complete at `bits` (clamped to the cell's
  * window), and of the APO prefix complete at `level` (clamped to the levels
- * stored); *texels (may be NULL) receives the texel count of that APO prefix. */
+ * stored); *texels (may be NULL) receives the texel count of that APO prefix.
+ * The APO `level` is a depth, from 0: the prefix holds levels 0 .. level, that
+ * is level + 1 levels (so the first L levels end at level L - 1). */
 uint32_t ms_archive_geometry_prefix(const ms_archive *archive, uint32_t cell, unsigned bits);
 uint32_t ms_archive_apo_prefix(const ms_archive *archive, uint32_t cell, unsigned level,
                                uint32_t *texels);

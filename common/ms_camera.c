@@ -150,6 +150,23 @@ double ms_screen_bits_needed(const ms_camera *c, double cube_side, double distan
     return log2(sqrt(3.0) * cube_side * ms_camera_pixels_per_unit(c) / (distance * tolerance_px));
 }
 
+unsigned ms_apo_footprint_levels(const ms_camera *c, const double cube_lo[3], double cube_side,
+                                 double tolerance_px, unsigned max_levels)
+{
+    if (max_levels == 0)
+        return 0;
+    double hi[3] = {cube_lo[0] + cube_side, cube_lo[1] + cube_side, cube_lo[2] + cube_side};
+    double distance = ms_camera_box_distance(c, cube_lo, hi);
+    if (!(distance >= c->near_distance))
+        distance = c->near_distance;
+    double depth = log2(cube_side * ms_camera_pixels_per_unit(c) / (distance * tolerance_px));
+    if (!(depth < (double)max_levels)) /* NaN too: the cap */
+        return max_levels;
+    double d = ceil(depth - 1e-9);
+    unsigned levels = d > 0 ? (unsigned)d + 1 : 1;
+    return levels < max_levels ? levels : max_levels;
+}
+
 unsigned ms_select_bits(double need, unsigned current, unsigned min_bits, unsigned max_bits,
                         double hysteresis)
 {

@@ -62,6 +62,25 @@ double ms_camera_box_distance(const ms_camera *camera, const double lo[3], const
 double ms_screen_bits_needed(const ms_camera *camera, double cube_side, double distance,
                              double tolerance_px);
 
+/* APO fetched by footprint: how many levels of the APO chunk of a cell whose
+ * cube is [cube_lo, cube_lo + cube_side]^3 (world units) are worth fetching for
+ * the camera. A texel at depth d of the chunk is a cube of side
+ * cube_side / 2^d (docs/APO.md); seen at the cube's nearest point, at distance
+ * D (ms_camera_box_distance, but not nearer than the near plane: nothing
+ * nearer is drawn), it covers
+ *     px(d) = cube_side / 2^d * ms_camera_pixels_per_unit(camera) / D
+ * pixels. The chunk is wanted down to the first depth whose texel projects to
+ * at most tolerance_px, and no deeper:
+ *     d* = max(0, ceil(log2(cube_side * pixels_per_unit / (D * tolerance_px))))
+ * (with a 1e-9 allowance, so that a texel projecting exactly to the tolerance
+ * counts as within it): d* + 1 levels (depths 0 .. d*), clamped to max_levels
+ * (the caller's cap: the client's apo_levels, the chunk's stored levels).
+ * Unlike ms_screen_bits_needed, no sqrt(3): the texel's side, not its
+ * diagonal, is held against the tolerance (a texel is one normal, not a
+ * position error). Returns 0 only when max_levels is 0; tolerance_px > 0. */
+unsigned ms_apo_footprint_levels(const ms_camera *camera, const double cube_lo[3], double cube_side,
+                                 double tolerance_px, unsigned max_levels);
+
 /* The integer precision in [min_bits, max_bits] to show, given the current one
  * and the real-valued need: refine at once to ceil(need); coarsen only when at
  * least one bit can go with `hysteresis` bits to spare (e.g. 0.5), so that a cell

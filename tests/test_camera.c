@@ -110,6 +110,47 @@ static void test_hysteresis(void **state)
     assert_int_equal(ms_select_bits(NAN, 4, 0, 16, 0.5), 16);
 }
 
+/* APO levels by footprint: exact levels for a camera whose pixels per unit
+ * is 100 (height 200, fovy 90 degrees), a unit cube 4 units away: a texel at
+ * depth d covers 25 / 2^d pixels. */
+static void test_apo_footprint_levels(void **state)
+{
+    (void)state;
+    ms_camera c;
+    const double pos[3] = {0, 0, 0}, target[3] = {1, 0, 0}, up[3] = {0, 0, 1};
+    assert_int_equal(ms_camera_look_at(pos, target, up, 90.0, 100, 200, 0.01, 100, &c, NULL),
+                     MS_OK);
+    assert_true(fabs(ms_camera_pixels_per_unit(&c) - 100.0) < 1e-9);
+    const double cube[3] = {4, -0.5, -0.5};
+    /* 25 / 2^d <= 1: d = 5 (0.78 px), six levels */
+    assert_int_equal(ms_apo_footprint_levels(&c, cube, 1.0, 1.0, 11), 6);
+    /* 25 / 2^d <= 3: d = 4 (1.56 px; d = 3 gives 3.1 px) */
+    assert_int_equal(ms_apo_footprint_levels(&c, cube, 1.0, 3.0, 11), 5);
+    /* exactly at the tolerance counts as within: 12.5 px at d = 1, 25 px at d = 0 */
+    assert_int_equal(ms_apo_footprint_levels(&c, cube, 1.0, 12.5, 11), 2);
+    assert_int_equal(ms_apo_footprint_levels(&c, cube, 1.0, 25.0, 11), 1);
+    /* the root texel is always wanted, however small the cell looks */
+    assert_int_equal(ms_apo_footprint_levels(&c, cube, 1.0, 50.0, 11), 1);
+    /* twice as far, one level less; a cube twice as large, one level more */
+    const double far_cube[3] = {8, -0.5, -0.5};
+    assert_int_equal(ms_apo_footprint_levels(&c, far_cube, 1.0, 1.0, 11), 5);
+    const double big_cube[3] = {4, -1, -1};
+    assert_int_equal(ms_apo_footprint_levels(&c, big_cube, 2.0, 1.0, 11), 7);
+    /* the cap: the caller's apo_levels, or the chunk's levels; 0 is off */
+    assert_int_equal(ms_apo_footprint_levels(&c, cube, 1.0, 1.0, 4), 4);
+    assert_int_equal(ms_apo_footprint_levels(&c, cube, 1.0, 1.0, 0), 0);
+    /* inside the cube: measured from the near plane (0.01): 10,000 px at d = 0,
+     * d = 14 (0.61 px), 15 levels, or the cap */
+    const double around[3] = {-0.5, -0.5, -0.5};
+    assert_int_equal(ms_apo_footprint_levels(&c, around, 1.0, 1.0, 32), 15);
+    assert_int_equal(ms_apo_footprint_levels(&c, around, 1.0, 1.0, 11), 11);
+    /* a cube off to the side is measured at its nearest point: (4, 3, 0) is 5 away:
+     * 20 / 2^d <= 1 at d = 5 */
+    const double side_cube[3] = {4, 3, -0.5};
+    assert_int_equal(ms_apo_footprint_levels(&c, side_cube, 1.0, 1.0, 11), 6);
+    assert_int_equal(ms_apo_footprint_levels(&c, side_cube, 1.0, 20.0 / 16.0, 11), 5);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -117,6 +158,7 @@ int main(void)
         cmocka_unit_test(test_frustum_culling),
         cmocka_unit_test(test_distance_and_precision),
         cmocka_unit_test(test_hysteresis),
+        cmocka_unit_test(test_apo_footprint_levels),
     };
     return cmocka_run_group_tests_name("camera", tests, NULL, NULL);
 }

@@ -25,6 +25,7 @@
 #include <time.h>
 #include <unistd.h>
 #include <cmocka.h>
+#include <jansson.h>
 
 #include "ms_archive.h"
 #include "ms_bake.h"
@@ -228,6 +229,53 @@ static void assert_frames_equal(const ms_core_frame *a, const ms_core_frame *b)
     }
 }
 
+/* APO by footprint: the frame holds, for every visible shown cell with a
+ * chunk, exactly the levels ms_apo_footprint_levels gives (tolerance 1 px,
+ * at most APO_LEVELS), and nothing else; returns the bytes held. */
+static uint64_t check_apo_footprint(const ms_core_frame *f, const ms_camera *cam)
+{
+    const ms_archive_header *h = ms_archive_get_header(g->archive);
+    ms_frustum fr;
+    ms_camera_frustum(cam, &fr);
+    uint64_t bytes = 0;
+    size_t k = 0, clipped = 0;
+    for (uint32_t i = 0; i < f->cell_count; ++i) {
+        const ms_archive_cell *rec = ms_archive_get_cell(g->archive, i);
+        double side = h->box_side, lo[3], hi[3];
+        for (unsigned l = 0; l < rec->level; ++l)
+            side /= h->n;
+        for (int a = 0; a < 3; ++a) {
+            lo[a] = h->box_origin[a] + side * rec->position[a];
+            hi[a] = lo[a] + side;
+        }
+        bool wanted = f->cell_bits[i] < MS_VIEW_TARGET_SPLIT && rec->apo_length > 0 &&
+                      ms_frustum_keeps_box(&fr, lo, hi, 0);
+        if (!wanted) {
+            assert_true(k == f->apo_count || f->apo[k].cell != i);
+            continue;
+        }
+        assert_true(k < f->apo_count);
+        assert_int_equal(f->apo[k].cell, i);
+        unsigned cap = rec->apo_levels < APO_LEVELS ? rec->apo_levels : APO_LEVELS;
+        unsigned levels = ms_apo_footprint_levels(cam, lo, side, 1.0, cap);
+        if (f->apo[k].levels != levels)
+            fail_msg("cell %u (level %u, %u APO levels): %u levels held (%zu bytes), footprint %u "
+                     "(prefixes %u %u %u)", i, rec->level, rec->apo_levels, f->apo[k].levels,
+                     f->apo[k].length, levels,
+                     ms_archive_apo_prefix(g->archive, i, levels - 2, NULL),
+                     ms_archive_apo_prefix(g->archive, i, levels - 1, NULL),
+                     ms_archive_apo_prefix(g->archive, i, levels, NULL));
+        /* ms_archive_apo_prefix(depth): the bytes of levels 0 .. depth */
+        assert_int_equal(f->apo[k].length, ms_archive_apo_prefix(g->archive, i, levels - 1, NULL));
+        clipped += levels < cap;
+        bytes += f->apo[k].length;
+        k++;
+    }
+    assert_int_equal(k, f->apo_count);
+    assert_true(clipped > 0); /* the footprint, not the cap, decides somewhere */
+    return bytes;
+}
+
 /* The close-up's last keyframe: the local frame is the network frame. */
 static void test_local_equals_network(void **state)
 {
@@ -244,6 +292,11 @@ static void test_local_equals_network(void **state)
     assert_true(shown > 1);    /* a real cut, not the root alone */
     assert_true(fn->apo_count > 0);
     assert_frames_equal(fl, fn);
+    uint64_t apo_held = check_apo_footprint(fl, &cam);
+    /* from cold at a fixed camera, nothing but those prefixes is fetched (a
+     * cell about to split fetches no APO) */
+    assert_int_equal(sl.apo_bytes_received, apo_held);
+    assert_int_equal(sn.apo_bytes_received, apo_held);
     /* the local figures: what was handed over, by stream; no socket */
     assert_true(sl.model_open);
     assert_int_equal(sl.error[0], 0);
@@ -258,15 +311,18 @@ static void test_local_equals_network(void **state)
     ms_core_frame_free(fl);
 }
 
-/* Along the path, each keyframe completes locally; throttled, the view
- * refines over several passes: the first frame that draws something is
- * coarser than the complete one. */
+/* Along the path, each keyframe completes locally; throttled (64 KiB a
+ * hand-over at 200 kB/s), the view refines over several passes: the first
+ * frame that draws something is not yet the complete one. Geometry only, at
+ * 1 px, so that there are bytes enough to spread. */
 static void test_local_path(void **state)
 {
     (void)state;
     ms_core_options o = local_options(g->file);
     o.hysteresis_bits = 0.5;
-    o.bandwidth = 2e6;
+    o.apo_levels = 0;
+    o.bandwidth = 200e3;
+    o.window_bytes = 65536;
     ms_core *core;
     ms_error err;
     assert_int_equal(ms_core_start(&o, &core, &err), MS_OK);
@@ -289,12 +345,16 @@ static void test_local_path(void **state)
         if (k == 0) {
             assert_non_null(first);
             assert_non_null(frame);
-            assert_true(frame->mesh.triangle_count > first->mesh.triangle_count);
+            assert_true(frame->mesh.triangle_count != first->mesh.triangle_count ||
+                        memcmp(frame->cell_bits, first->cell_bits, frame->cell_count) != 0);
+            fprintf(stderr, "local path: first drawn frame %zu triangles, complete %zu\n",
+                    first->mesh.triangle_count, frame->mesh.triangle_count);
         }
     }
-    fprintf(stderr, "local path: %llu bytes (%llu geometry, %llu APO) in %.2f s\n",
-            (unsigned long long)st.bytes_received, (unsigned long long)st.geometry_bytes_received,
-            (unsigned long long)st.apo_bytes_received, st.time);
+    fprintf(stderr, "local path: %llu bytes in %.2f s\n", (unsigned long long)st.bytes_received,
+            st.time);
+    assert_int_equal(st.apo_bytes_received, 0);
+    assert_int_equal(st.geometry_bytes_received, st.bytes_received);
     assert_int_equal(st.cells_failed, 0);
     assert_true(st.requests > 0);
     ms_core_frame_free(first);
@@ -415,6 +475,55 @@ static void test_catalogues(void **state)
     ms_catalog_free(&local);
 }
 
+static uint64_t json_u64(json_t *o, const char *key)
+{
+    json_t *v = json_object_get(o, key);
+    if (!json_is_integer(v))
+        fail_msg("no integer '%s'", key);
+    return (uint64_t)json_integer_value(v);
+}
+
+/* meshload on the local file: APO bytes apart from geometry bytes. */
+static void test_meshload_local(void **state)
+{
+    (void)state;
+    char bin[512], cmd[4096], out[32768];
+    ms_test_bin_path(bin, sizeof bin, "meshload");
+    for (int apo = 0; apo < 2; ++apo) {
+        snprintf(cmd, sizeof cmd, "%s --archive %s --path " PATH_FILE " --viewport 640x480 "
+                 "--apo-levels %d --duration 60 --json 2>/dev/null", bin, g->file,
+                 apo ? APO_LEVELS : 0);
+        assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
+        json_error_t je;
+        json_t *r = json_loads(out, 0, &je);
+        if (!r)
+            fail_msg("meshload output is not JSON (%s): %.300s", je.text, out);
+        uint64_t cold = json_u64(r, "cold_bytes"), path = json_u64(r, "path_bytes");
+        uint64_t cold_apo = json_u64(r, "cold_apo_bytes"), path_apo = json_u64(r, "path_apo_bytes");
+        assert_int_equal(json_u64(r, "cold_geometry_bytes") + cold_apo, cold);
+        assert_int_equal(json_u64(r, "path_geometry_bytes") + path_apo, path);
+        assert_true(json_u64(r, "path_geometry_bytes") > 0);
+        json_t *c0 = json_array_get(json_object_get(r, "per_client"), 0);
+        assert_non_null(c0);
+        assert_int_equal(json_u64(c0, "apo_bytes"), path_apo);
+        assert_int_equal(json_u64(c0, "geometry_bytes") + path_apo, path);
+        if (apo)
+            assert_true(cold_apo > 0 && path_apo > cold_apo);
+        else
+            assert_true(cold_apo == 0 && path_apo == 0);
+        json_decref(r);
+    }
+    /* --archive with --server is a usage error */
+    snprintf(cmd, sizeof cmd, "%s --archive %s --server 127.0.0.1:1 --path " PATH_FILE, bin,
+             g->file);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 2);
+    /* a missing file: the core's error, exit 1 */
+    snprintf(cmd, sizeof cmd, "%s --archive %s/none.msa --path " PATH_FILE " --duration 20", bin,
+             g->dir);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 1);
+    assert_non_null(strstr(out, "none.msa"));
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -422,6 +531,7 @@ int main(void)
         cmocka_unit_test(test_local_path),
         cmocka_unit_test(test_local_bad_archives),
         cmocka_unit_test(test_catalogues),
+        cmocka_unit_test(test_meshload_local),
     };
     return cmocka_run_group_tests(tests, group_setup, group_teardown);
 }
