@@ -19,7 +19,8 @@ void ms_viewer_options_usage(FILE *out)
           "  --token T              access token\n"
           "  --size WxH             window size in pixels (default 1280x720)\n"
           "  --tolerance PX         geometric screen tolerance (default 4 with APO, 1 without)\n"
-          "  --apo-levels L         APO detail fetched, in octree levels (default 8)\n"
+          "  --apo-levels L         most APO octree levels fetched; the core fetches down to\n"
+          "                         the level whose texel covers about a pixel (default 16)\n"
           "  --no-apo               fetch no APO; shade with geometry normals\n"
           "  --shading MODE         apo | geometry | normals | cells (default apo)\n"
           "  --upload-budget BYTES  GPU upload per frame at most (default 4000000)\n"
@@ -109,7 +110,7 @@ int ms_viewer_options_parse(int argc, char **argv, ms_viewer_options *o, FILE *e
     o->shading = MS_SHADING_LIT;
     o->apo_shading = true;
     o->tolerance_px = 0; /* the stream's default */
-    o->apo_levels = 8;
+    o->apo_levels = 16;
     o->upload_budget = 4000000;
     o->keyframe_timeout = 30;
     o->up_axis = 2;
