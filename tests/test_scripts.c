@@ -15,7 +15,7 @@
 
 static const char *const SCRIPTS[] = {
     "bench",       "bench-apo",  "bench-apo-bake", "bench-bake",   "bench-client",
-    "bench-codec", "bench-codec-peer", "bench-read", "bench-serve", "demo",
+    "bench-codec", "bench-codec-peer", "bench-read", "bench-serve", "bench-viewer", "demo",
     "install-deps", "run-tests", "screenshots",
 };
 
