@@ -75,6 +75,29 @@ static void test_controls(void **state)
     assert_true(dist3(eye, before) > 0.1);
     assert_near(c.target[0], 11, 1e-12);
 
+    /* Directions: orbiting, a drag to the right moves the eye to the screen's
+     * left and a drag down lifts it; flying, the view turns right and down. */
+    ms_camera cam0;
+    ms_error err0;
+    assert_int_equal(ms_viewer_controls_camera(&c, 800, 600, &cam0, &err0), MS_OK);
+    ms_viewer_controls_eye(&c, before);
+    ms_viewer_controls_rotate(&c, 10, 0, 600);
+    ms_viewer_controls_eye(&c, eye);
+    assert_true((eye[0] - before[0]) * cam0.right[0] + (eye[1] - before[1]) * cam0.right[1] +
+                    (eye[2] - before[2]) * cam0.right[2] < 0);
+    ms_viewer_controls_eye(&c, before);
+    ms_viewer_controls_rotate(&c, 0, 10, 600);
+    ms_viewer_controls_eye(&c, eye);
+    assert_true(eye[1] > before[1]); /* y is up here */
+    c.fly = true;
+    assert_int_equal(ms_viewer_controls_camera(&c, 800, 600, &cam0, &err0), MS_OK);
+    ms_viewer_controls_rotate(&c, 10, 10, 600);
+    ms_viewer_controls_forward(&c, forward);
+    assert_true(forward[0] * cam0.right[0] + forward[1] * cam0.right[1] +
+                    forward[2] * cam0.right[2] > 0);
+    assert_true(forward[1] < cam0.forward[1]);
+    c.fly = false;
+
     /* Pan: eye and target move together; the direction stays. */
     double f0[3], f1[3], e0[3];
     ms_viewer_controls_forward(&c, f0);

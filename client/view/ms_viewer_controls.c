@@ -103,11 +103,11 @@ void ms_viewer_controls_rotate(ms_viewer_controls *c, double dx, double dy, doub
     double eye[3];
     ms_viewer_controls_eye(c, eye);
     double per_pixel = M_PI / height;
-    /* Orbit: dragging right swings the eye to the left round the model (the
-     * model turns with the hand); fly: the view turns with the hand. */
-    double sign = c->fly ? -1 : 1;
-    c->yaw -= sign * dx * per_pixel;
-    c->pitch += sign * dy * per_pixel;
+    /* The same signs serve both modes: orbiting, a drag to the right swings the
+     * eye to the left round the model (the model turns with the hand) and a drag
+     * down lifts the eye; flying, the view turns right and down with the hand. */
+    c->yaw += dx * per_pixel;
+    c->pitch -= dy * per_pixel;
     if (c->pitch > PITCH_LIMIT)
         c->pitch = PITCH_LIMIT;
     if (c->pitch < -PITCH_LIMIT)
