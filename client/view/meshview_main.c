@@ -23,6 +23,7 @@
 #include "ms_gl_window.h"
 #include "ms_viewer_catalogue.h"
 #include "ms_viewer_controls.h"
+#include "ms_viewer_font.h"
 #include "ms_viewer_hud.h"
 #include "ms_viewer_model.h"
 #include "ms_viewer_options.h"
@@ -136,11 +137,22 @@ static void close_model(viewer *v)
     ms_viewer_model_close(&v->model);
 }
 
-/* Opens model `name`; on failure stays where it is with the message set. */
+static int catalogue_frame(viewer *v, int fw, int fh);
+
+/* Opens model `name`; on failure stays where it is with the message set. The
+ * index fetch is a bounded wait (the source's time-out): a frame saying so is
+ * shown first. */
 static bool open_model(viewer *v, const char *name)
 {
     close_model(v);
     ms_error err;
+    if (v->text) {
+        int fw, fh;
+        glfwGetFramebufferSize(v->window, &fw, &fh);
+        snprintf(v->message, sizeof v->message, "opening %s ...", name);
+        if (fw > 0 && fh > 0 && catalogue_frame(v, fw, fh) == 0)
+            glfwSwapBuffers(v->window);
+    }
     ms_viewer_stream_settings settings = {.tolerance_px = v->o->tolerance_px,
                                           .apo_levels = v->o->apo_levels,
                                           .memory_mb = v->o->memory_mb,
@@ -411,7 +423,8 @@ static int catalogue_frame(viewer *v, int fw, int fh)
     ms_viewer_catalogue_draw(v->text, &v->catalogue, fw, fh);
     if (v->message[0]) {
         static const float alert[4] = {1.0f, 0.55f, 0.45f, 1};
-        ms_viewer_text_print(v->text, 12.0 * s, fh - 4.0 * 10 * s, alert, v->message);
+        ms_viewer_text_print(v->text, 12.0 * s, fh - 4.0 * MS_FONT_LINE_HEIGHT * s, alert,
+                             v->message);
     }
     ms_error err;
     if (ms_viewer_text_draw(v->text, &err) != MS_OK) {
