@@ -15,6 +15,9 @@
 #include <string.h>
 #include <cmocka.h>
 
+#define GLFW_INCLUDE_NONE
+#include <GLFW/glfw3.h>
+
 #include "ms_apo_stream.h"
 #include "ms_render.h"
 #include "ms_render_internal.h"
@@ -77,6 +80,12 @@ static void test_bad_model(void **state)
     free(copy);
     assert_null(r);
     ms_render_free(NULL);
+    /* no current context: an error, not a crash */
+    glfwMakeContextCurrent(NULL);
+    ms_status st = ms_render_new(h, cells, &r, &err);
+    glfwMakeContextCurrent(gl.window);
+    expect(st, MS_ERR_UNSUPPORTED, &err);
+    assert_null(r);
 }
 
 /* Bad frames, uploads and draws: errors, then a good frame still draws. */
@@ -347,6 +356,8 @@ static void test_texel_ranges(void **state)
     ms_render_texels t;
     ms_error err;
     expect(ms_render_texels_init(&t, &err), MS_OK, &err);
+    print_message("texel buffer: %u words to start, at most %u (GL_MAX_TEXTURE_BUFFER_SIZE)\n", t.capacity,
+                  t.max_words);
     uint32_t a, b, c;
     assert_true(ms_render_texels_alloc(&t, 1000, &a));
     assert_true(ms_render_texels_alloc(&t, 2000, &b));

@@ -43,7 +43,7 @@ static double now_seconds(void)
 
 typedef struct figures {
     size_t covered, within_1, border, border_over_5, ambiguous, inner_over_5, disagree_full;
-    double worst_inner, worst_border;
+    double worst_inner, worst_border, worst_face;
 } figures;
 
 /* Per cell: the oracle's view of the prefix the renderer was given. */
@@ -85,6 +85,23 @@ static void oracle_free(oracle *o)
     free(o->views);
     free(o->have);
     memset(o, 0, sizeof *o);
+}
+
+/* Every cell's words on the GPU are the oracle's words of the prefix given. */
+static void check_texels(const ms_render *r, const oracle *o, const ms_core_apo_chunk *apo, size_t count)
+{
+    glBindBuffer(GL_TEXTURE_BUFFER, ms_render_texel_buffer(r));
+    for (size_t i = 0; i < count; ++i) {
+        uint32_t c = apo[i].cell, start, words, levels;
+        assert_true(ms_render_cell_texels(r, c, &start, &words, &levels));
+        assert_int_equal(levels, o->views[c].complete_levels);
+        assert_int_equal(words, o->views[c].level_start[levels]);
+        uint32_t *back = malloc(words * sizeof *back);
+        glGetBufferSubData(GL_TEXTURE_BUFFER, 4 * (GLintptr)start, 4 * (GLsizeiptr)words, back);
+        assert_memory_equal(back, o->chunks[c].texels, words * sizeof *back);
+        free(back);
+    }
+    glBindBuffer(GL_TEXTURE_BUFFER, 0);
 }
 
 static uint32_t pixel_id(const float *rgba, size_t p)
@@ -207,6 +224,8 @@ static void compare(const ms_archive *a, ms_render *r, const ms_camera *cam, con
                     f->worst_border = angle;
             } else if (angle > 1.0 && near_node_face(given, a, id - 1, world, cap, rule, got)) {
                 f->ambiguous++;
+                if (angle > f->worst_face)
+                    f->worst_face = angle;
             } else {
                 f->inner_over_5 += angle > 5.0;
                 if (angle > f->worst_inner)
@@ -223,10 +242,10 @@ static void compare(const ms_archive *a, ms_render *r, const ms_camera *cam, con
 
 static void print_figures(const char *what, const figures *f)
 {
-    print_message("%-44s %6zu px, %6.3f %% within 1 deg, worst inner %.3f deg; on a node face %zu px; "
+    print_message("%-44s %6zu px, %6.3f %% within 1 deg, worst inner %.3f deg; on a node face %zu px (worst %.2f); "
                   "border %zu px (%zu over 5 deg, worst %.2f)\n",
                   what, f->covered, 100.0 * (double)f->within_1 / (double)f->covered, f->worst_inner, f->ambiguous,
-                  f->border, f->border_over_5, f->worst_border);
+                  f->worst_face, f->border, f->border_over_5, f->worst_border);
 }
 
 static void check_figures(const figures *f)
@@ -265,7 +284,8 @@ static void run_model(ms_archive *a, const char *name, const double dirs[][3], s
             bool mid;
             bool nearest;
             uint32_t cap;
-        } cases[] = {{0, false, true, 0}, {0, false, false, 4}, {3, true, true, 0}, {2, false, true, 0}};
+        } cases[] = {{0, false, true, 0}, {0, false, false, 0}, {0, false, false, 4}, {3, true, true, 0},
+                     {2, false, true, 0}};
         for (size_t k = 0; k < sizeof cases / sizeof *cases; ++k) {
             ms_core_apo_chunk *apo, *apo_full;
             size_t count, count_full;
@@ -280,6 +300,7 @@ static void run_model(ms_archive *a, const char *name, const double dirs[][3], s
             oracle given = {0}, full = {0};
             oracle_build(&given, a, apo, count);
             oracle_build(&full, a, apo_full, count_full);
+            check_texels(r, &given, apo, count);
             ms_render_options o;
             ms_render_options_default(&o);
             o.apo_nearest = cases[k].nearest;
@@ -288,7 +309,7 @@ static void run_model(ms_archive *a, const char *name, const double dirs[][3], s
             compare(a, r, &cam, &o, &given, cases[k].levels ? &full : NULL, &f);
             char what[128];
             snprintf(what, sizeof what, "%s view %zu%s%s (%u cells)", name, d,
-                     cases[k].levels ? (cases[k].mid ? ", 3 levels + half" : ", 2 levels") : "", cases[k].cap ? ", STOP cap 4" : "", cells_drawing);
+                     cases[k].levels ? (cases[k].mid ? ", 3 levels + half" : ", 2 levels") : "", !cases[k].nearest ? (cases[k].cap ? ", STOP, cap 4" : ", STOP") : "", cells_drawing);
             print_figures(what, &f);
             check_figures(&f);
             if (cases[k].levels) {

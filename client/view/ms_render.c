@@ -58,7 +58,7 @@ struct ms_render {
     ms_archive_cell *records;
     render_cell *cells;
     ms_render_split split;
-    ms_render_program program;
+    ms_render_program program[2]; /* without and with the wireframe overlay */
     ms_render_texels texels;
     uint32_t *frame_cells;      /* cells with triangles in the latest frame */
     uint32_t frame_cell_count;
@@ -181,7 +181,9 @@ ms_status ms_render_new(const ms_archive_header *header, const ms_archive_cell *
     }
     memcpy(r->records, cells, n * sizeof *r->records);
     ms_render_split_init(&r->split, &r->header, r->records);
-    st = ms_render_program_build(&r->program, err);
+    st = ms_render_program_build(&r->program[0], false, err);
+    if (st == MS_OK)
+        st = ms_render_program_build(&r->program[1], true, err);
     if (st == MS_OK)
         st = ms_render_texels_init(&r->texels, err);
     if (st != MS_OK) {
@@ -200,7 +202,8 @@ void ms_render_free(ms_render *r)
         for (uint32_t i = 0; i < r->header.cell_count; ++i)
             drop_cell(r, &r->cells[i]);
     ms_render_texels_free(&r->texels);
-    ms_render_program_free(&r->program);
+    ms_render_program_free(&r->program[0]);
+    ms_render_program_free(&r->program[1]);
     ms_render_split_free(&r->split);
     free(r->records);
     free(r->cells);
@@ -534,13 +537,13 @@ ms_status ms_render_draw(ms_render *r, const ms_camera *camera, const ms_render_
     glDepthFunc(GL_LESS);
     glDisable(GL_CULL_FACE);
     glDisable(GL_BLEND);
-    const ms_render_program *p = &r->program;
+    glDisable(GL_FRAMEBUFFER_SRGB); /* the shader encodes sRGB itself */
+    const ms_render_program *p = &r->program[o->wireframe && o->shading != MS_SHADING_CELL_ID];
     glUseProgram(p->program);
     glUniformMatrix4fv(p->projection, 1, GL_FALSE, projection);
     glUniformMatrix3fv(p->world_to_eye, 1, GL_FALSE, world_to_eye);
     glUniform2f(p->viewport, (float)width, (float)height);
     glUniform1i(p->shading, (int)o->shading);
-    glUniform1i(p->wireframe, o->wireframe && o->shading != MS_SHADING_CELL_ID);
     glUniform1i(p->apo_nearest, o->apo_nearest);
     glActiveTexture(GL_TEXTURE0);
     glBindTexture(GL_TEXTURE_BUFFER, r->texels.texture);
@@ -586,4 +589,19 @@ ms_status ms_render_draw(ms_render *r, const ms_camera *camera, const ms_render_
         return ms_error_set(err, e == GL_OUT_OF_MEMORY ? MS_ERR_NOMEM : MS_ERR_UNSUPPORTED,
                             "render: GL error 0x%x while drawing", e);
     return MS_OK;
+}
+
+bool ms_render_cell_texels(const ms_render *r, uint32_t cell, uint32_t *start, uint32_t *count, uint32_t *levels)
+{
+    if (!r || cell >= r->header.cell_count || r->cells[cell].apo.count == 0)
+        return false;
+    *start = r->cells[cell].apo.start;
+    *count = r->cells[cell].apo.count;
+    *levels = r->cells[cell].apo.levels;
+    return true;
+}
+
+GLuint ms_render_texel_buffer(const ms_render *r)
+{
+    return r ? r->texels.buffer : 0;
 }

@@ -126,12 +126,23 @@ typedef struct ms_render_program {
     GLuint program;
     GLint modelview, projection, viewport;
     GLint shading, apo_on, apo_base, apo_root_internal, apo_stop_depth, apo_nearest;
-    GLint world_to_eye, cell_number, cell_tint, wireframe, apo_words;
+    GLint world_to_eye, cell_number, cell_tint, apo_words;
 } ms_render_program;
 
-/* Compiles and links the embedded shaders. MS_ERR_UNSUPPORTED with the first
- * line of the driver's log. */
-ms_status ms_render_program_build(ms_render_program *program, ms_error *err);
+/* Compiles and links the embedded shaders: with wireframe, the program with the
+ * geometry shader (flat normal and edge distances per triangle, the overlay);
+ * without, vertex + fragment only (the flat normal from screen derivatives),
+ * several times faster on software rasterisers. MS_ERR_UNSUPPORTED with the
+ * first line of the driver's log. */
+ms_status ms_render_program_build(ms_render_program *program, bool wireframe, ms_error *err);
 void ms_render_program_free(ms_render_program *program);
+
+/* ---- ms_render.c: for tests ----------------------------------------------- */
+
+/* The texel range a cell currently draws with (false: none), and the GL buffer
+ * holding the words, so that a test can read them back. */
+bool ms_render_cell_texels(const ms_render *render, uint32_t cell, uint32_t *start, uint32_t *count,
+                           uint32_t *levels);
+GLuint ms_render_texel_buffer(const ms_render *render);
 
 #endif

@@ -43,11 +43,11 @@ static ms_status compile(GLenum type, const char *const *sources, GLsizei count,
     return MS_OK;
 }
 
-ms_status ms_render_program_build(ms_render_program *p, ms_error *err)
+ms_status ms_render_program_build(ms_render_program *p, bool wireframe, ms_error *err)
 {
     memset(p, 0, sizeof *p);
     /* the fragment shader: its first line (#version, which Mesa wants first),
-     * then the APO traversal, then the rest */
+     * the variant's define, the APO traversal, then the rest */
     const char *frag = ms_shader_cell_frag;
     const char *after = strncmp(frag, "#version", 8) == 0 ? strchr(frag, '\n') : NULL;
     if (!after)
@@ -61,18 +61,19 @@ ms_status ms_render_program_build(ms_render_program *p, ms_error *err)
     head[head_len] = 0;
     const char *vert_src[] = {ms_shader_cell_vert};
     const char *geom_src[] = {ms_shader_cell_geom};
-    const char *frag_src[] = {head, ms_shader_apo, after};
+    const char *frag_src[] = {head, wireframe ? "#define MS_WIREFRAME 1\n" : "", ms_shader_apo, after};
     GLuint vs = 0, gs = 0, fs = 0;
     ms_status st = compile(GL_VERTEX_SHADER, vert_src, 1, "vertex", &vs, err);
-    if (st == MS_OK)
+    if (st == MS_OK && wireframe)
         st = compile(GL_GEOMETRY_SHADER, geom_src, 1, "geometry", &gs, err);
     if (st == MS_OK)
-        st = compile(GL_FRAGMENT_SHADER, frag_src, 3, "fragment", &fs, err);
+        st = compile(GL_FRAGMENT_SHADER, frag_src, 4, "fragment", &fs, err);
     free(head);
     if (st == MS_OK) {
         p->program = glCreateProgram();
         glAttachShader(p->program, vs);
-        glAttachShader(p->program, gs);
+        if (gs)
+            glAttachShader(p->program, gs);
         glAttachShader(p->program, fs);
         glBindAttribLocation(p->program, 0, "cell_position");
         glBindFragDataLocation(p->program, 0, "colour");
@@ -108,7 +109,6 @@ ms_status ms_render_program_build(ms_render_program *p, ms_error *err)
     p->world_to_eye = glGetUniformLocation(g, "world_to_eye");
     p->cell_number = glGetUniformLocation(g, "cell_number");
     p->cell_tint = glGetUniformLocation(g, "cell_tint");
-    p->wireframe = glGetUniformLocation(g, "wireframe");
     p->apo_words = glGetUniformLocation(g, "apo_words");
     return MS_OK;
 }

@@ -1,11 +1,23 @@
 #version 410 core
 // meshview: shading of one drawing cell (modes of ms_render.h). The renderer
-// inserts the APO traversal (apo.glsl) right after the first line.
+// inserts, right after the first line, "#define MS_WIREFRAME" for the program
+// with the geometry shader (wireframe overlay), then the APO traversal (apo.glsl).
+// Without the geometry shader (much faster on software rasterisers) the flat
+// normal comes from the screen derivatives of the cell-local position.
 
+#ifdef MS_WIREFRAME
 in vec3 g_cell;
 in vec3 g_eye;
 flat in vec3 g_normal;
 noperspective in vec3 g_edge;
+#define FRAG_CELL g_cell
+#define FRAG_EYE g_eye
+#else
+in vec3 v_cell;
+in vec3 v_eye;
+#define FRAG_CELL v_cell
+#define FRAG_EYE v_eye
+#endif
 
 uniform int shading;          // 0 LIT, 1 NORMALS, 2 CELLS, 3 CELL_ID
 uniform bool apo_on;          // this cell has a chunk prefix and APO is wanted
@@ -16,7 +28,6 @@ uniform bool apo_nearest_rule; // missing child: nearest (true) or stop
 uniform mat3 world_to_eye;    // rotation part of the view
 uniform uint cell_number;
 uniform vec3 cell_tint;       // linear albedo for CELLS
-uniform bool wireframe;
 
 out vec4 colour;
 
@@ -26,6 +37,22 @@ vec3 srgb_encode(vec3 c)
     return mix(12.92 * c, 1.055 * pow(c, vec3(1.0 / 2.4)) - 0.055, greaterThan(c, vec3(0.0031308)));
 }
 
+// The triangle's normal in its stored orientation (cell frame = world frame up
+// to a uniform scale).
+vec3 geometric_normal()
+{
+#ifdef MS_WIREFRAME
+    return g_normal;
+#else
+    // cross(d/dx, d/dy) points towards the eye whatever the winding; a front
+    // face (counter-clockwise on screen) is stored with its normal that way.
+    vec3 n = cross(dFdx(v_cell), dFdy(v_cell));
+    float len = length(n);
+    n = len > 0.0 ? n / len : vec3(0.0, 0.0, 1.0);
+    return gl_FrontFacing ? n : -n;
+#endif
+}
+
 void main()
 {
     if (shading == 3) {
@@ -33,8 +60,9 @@ void main()
         colour = vec4(float(id & 0xFFu), float((id >> 8) & 0xFFu), float((id >> 16) & 0xFFu), 255.0) / 255.0;
         return;
     }
-    vec3 n_world = apo_on ? apo_lookup(g_cell, apo_base, apo_root_internal, apo_stop_depth, apo_nearest_rule)
-                          : g_normal;
+    vec3 g_n = geometric_normal();
+    vec3 n_world = apo_on ? apo_lookup(FRAG_CELL, apo_base, apo_root_internal, apo_stop_depth, apo_nearest_rule)
+                          : g_n;
     vec3 rgb;
     if (shading == 1) {
         rgb = (n_world + 1.0) * 0.5;
@@ -42,8 +70,8 @@ void main()
         // Head light: light and view directions are both towards the eye, so the
         // Blinn-Phong half vector is L itself. Two-sided: a surface seen from
         // behind is lit as its other side.
-        vec3 l = normalize(-g_eye);
-        vec3 ng = normalize(world_to_eye * g_normal);
+        vec3 l = normalize(-FRAG_EYE);
+        vec3 ng = normalize(world_to_eye * g_n);
         vec3 n = normalize(world_to_eye * n_world);
         // An APO normal against the triangle's own was sampled on another sheet
         // of the surface (a thin part): the triangle's normal stands in for it.
@@ -60,10 +88,10 @@ void main()
         vec3 linear = albedo * (0.05 + 0.95 * lambert * self_shadow) + vec3(0.18) * specular * self_shadow;
         rgb = srgb_encode(linear);
     }
-    if (wireframe) {
-        float d = min(g_edge.x, min(g_edge.y, g_edge.z));
-        float line = 1.0 - smoothstep(0.5, 1.5, d);
-        rgb = mix(rgb, vec3(0.05, 0.05, 0.08), 0.85 * line);
-    }
+#ifdef MS_WIREFRAME
+    float d = min(g_edge.x, min(g_edge.y, g_edge.z));
+    float line = 1.0 - smoothstep(0.5, 1.5, d);
+    rgb = mix(rgb, vec3(0.05, 0.05, 0.08), 0.85 * line);
+#endif
     colour = vec4(rgb, 1.0);
 }
