@@ -35,9 +35,10 @@ static void print_usage(FILE *out)
 {
     fputs("usage: meshbake IN -o ARCHIVE_DIR [--name NAME] [--bits 16] [--n 4]\n"
           "                [--root-bits 7] [--min-tris 8000] [--threads N] [--mem MB]\n"
-          "                [--tmp DIR] [--no-apo] [--apo-lead 3] [--apo-max-depth 10]\n"
+          "                [--tmp DIR] [--no-apo] [--apo-lead 1] [--apo-max-depth 10]\n"
           "                [--apo-tol 0.2] [--apo-init-depth 0] [--apo-verify]\n"
-          "                [--apo-sample-leaves] [--apo-accuracy] [--json]\n"
+          "                [--apo-sample-leaves] [--apo-accuracy] [--apo-every-cell]\n"
+          "                [--json]\n"
           "       meshbake --info FILE [--json]\n"
           "\n"
           "Reads a mesh (PLY ascii/binary, OBJ or OFF, optionally gzip-compressed).\n"
@@ -58,7 +59,7 @@ static void print_usage(FILE *out)
           "  --tmp DIR         temporary files (default: ARCHIVE_DIR); unlinked at creation\n"
           "  --apo, --no-apo   give every cell an APO chunk of normals (default: on)\n"
           "  --apo-lead L      chunk depth: L levels below the cell's finest geometric\n"
-          "                    precision, 0..16 (default 3)\n"
+          "                    precision, 0..16 (default 1)\n"
           "  --apo-max-depth D cap on the chunk depth, 0..24 (default 10)\n"
           "  --apo-tol T       split while the normals of the original mesh in a node\n"
           "                    spread more than T radians (default 0.2)\n"
@@ -67,6 +68,9 @@ static void print_usage(FILE *out)
           "  --apo-sample-leaves  sample an internal cell's normals on every full-precision\n"
           "                    triangle below it (the former rule; memory grows with the\n"
           "                    model) instead of its children's meshes\n"
+          "  --apo-every-cell  a chunk for every cell with triangles, also where the cell's\n"
+          "                    own geometry already renders the input's normals (every\n"
+          "                    leaf cell; the former rule, for comparison)\n"
           "  --apo-accuracy    measure the internal cells' chunks against the full-precision\n"
           "                    triangles below them (degrees; needs that memory too)\n"
           "\n"
@@ -137,6 +141,7 @@ static int parse_options(int argc, char **argv, bake_options *options)
         {"apo-verify", no_argument, NULL, 'V'},
         {"apo-sample-leaves", no_argument, NULL, 'S'},
         {"apo-accuracy", no_argument, NULL, 'C'},
+        {"apo-every-cell", no_argument, NULL, 'W'},
         {NULL, 0, NULL, 0},
     };
     memset(options, 0, sizeof *options);
@@ -167,6 +172,7 @@ static int parse_options(int argc, char **argv, bake_options *options)
         case 'V': options->bake.apo.verify = true; break;
         case 'S': options->bake.apo.sample_leaves = true; break;
         case 'C': options->bake.apo.accuracy = true; break;
+        case 'W': options->bake.apo.every_cell = true; break;
         case 'L': case 'D': case 'I':
             if (!parse_depth(optarg, &value))
                 return usage_error("not a depth (0..30)", optarg);
@@ -305,8 +311,9 @@ static void print_bake_json(const ms_bake_options *o, const ms_bake_report *r)
     json_t *per_level = json_array();
     for (uint32_t d = 0; per_level && d < r->apo_levels; ++d)
         json_array_append_new(per_level, json_integer((json_int_t)r->apo_level_texels[d]));
-    json_t *apo = json_pack("{s:b, s:i, s:i, s:i, s:f, s:I, s:I, s:i, s:I, s:I, s:o, s:I, s:I}",
-                            "enabled", o->apo.enabled, "lead", (int)o->apo.lead, "max_depth",
+    json_t *apo = json_pack("{s:b, s:b, s:i, s:i, s:i, s:f, s:I, s:I, s:i, s:I, s:I, s:o, s:I, s:I}",
+                            "enabled", o->apo.enabled, "every_cell", o->apo.every_cell, "lead", (int)o->apo.lead,
+                            "max_depth",
                             (int)o->apo.max_depth, "init_depth", (int)o->apo.init_depth,
                             "tolerance", o->apo.tolerance, "bytes", (json_int_t)r->apo_bytes,
                             "raw_bytes", (json_int_t)r->apo_raw_bytes, "chunks",
@@ -315,6 +322,9 @@ static void print_bake_json(const ms_bake_options *o, const ms_bake_report *r)
                             (json_int_t)r->apo_leaves, "level_texels", per_level,
                             "sample_triangles", (json_int_t)r->apo_sample_triangles,
                             "sample_triangles_max", (json_int_t)r->apo_sample_triangles_max);
+    if (apo)
+        json_object_set_new(apo, "sampling", json_pack("{s:I, s:I}", "rays", (json_int_t)r->apo_rays,
+                                                       "point_queries", (json_int_t)r->apo_point_queries));
     if (apo && o->apo.accuracy)
         json_object_set_new(apo, "accuracy",
                             json_pack("{s:I, s:f, s:f, s:f}", "points", (json_int_t)r->apo_accuracy_points,
@@ -372,8 +382,9 @@ static void print_bake_text(const ms_bake_report *r)
         printf("APO:                  %u chunks, %" PRIu64 " bytes (%" PRIu64 " raw), %" PRIu64
                " internal nodes, %" PRIu64 " leaves\n",
                r->apo_chunks, r->apo_bytes, r->apo_raw_bytes, r->apo_internal_nodes, r->apo_leaves);
-        printf("APO sampling:         internal cells' M %" PRIu64 " triangles, largest %" PRIu64 "\n",
-               r->apo_sample_triangles, r->apo_sample_triangles_max);
+        printf("APO sampling:         internal cells' M %" PRIu64 " triangles, largest %" PRIu64 "; %" PRIu64
+               " rays, %" PRIu64 " closest-point queries\n",
+               r->apo_sample_triangles, r->apo_sample_triangles_max, r->apo_rays, r->apo_point_queries);
         if (r->apo_accuracy_points > 0)
             printf("APO accuracy:         %" PRIu64 " full-precision centroids of internal cells: "
                    "mean %.2f, median %.2f, p90 %.2f degrees\n",

@@ -409,7 +409,7 @@ ms_status ms_apo_builder_build_tree(ms_apo_builder *builder, const ms_mesh *m_me
     if (!(o->cube_size > 0.0) || !isfinite(o->cube_size) || o->max_depth > MS_APO_MAX_DEPTH ||
         !(o->tolerance >= 0.0) || !isfinite(o->cube_origin[0] + o->cube_origin[1] + o->cube_origin[2]) ||
         (o->measure != MS_APO_MEASURE_SPREAD && o->measure != MS_APO_MEASURE_CLASSIC) ||
-        !(o->search_distance < 1e30))
+        !(o->search_distance < 1e30) || !(o->distance_bound < 1e30))
         return ms_error_set(err, MS_ERR_ARG, "apo build: bad options (cube size %g, max depth %u, tolerance %g)",
                             o->cube_size, o->max_depth, o->tolerance);
     unsigned threads = o->threads ? o->threads : ms_parallel_cores();
@@ -474,7 +474,9 @@ ms_status ms_apo_builder_build_tree(ms_apo_builder *builder, const ms_mesh *m_me
         st = ms_apo_sampler_init(&sampler, builder->device, &big, err);
     double td = ms_now_seconds();
     stats->seconds_scene = td - ts;
-    if (st == MS_OK && level_count && o->search_distance <= 0)
+    if (st == MS_OK && level_count && o->search_distance <= 0 && o->distance_bound > 0)
+        stats->m_to_M_distance = o->distance_bound;
+    else if (st == MS_OK && level_count && o->search_distance <= 0)
         st = ms_apo_sampler_distance(&sampler, &m, threads, &stats->m_to_M_distance, err);
     double t1 = ms_now_seconds();
     stats->seconds_distance = t1 - td;
@@ -535,6 +537,8 @@ ms_status ms_apo_builder_build_tree(ms_apo_builder *builder, const ms_mesh *m_me
             for (size_t b = 0; b < blocks; ++b) {
                 stats->samples += counts[b].samples;
                 stats->ray_hits += counts[b].ray_hits;
+                stats->rays += counts[b].rays;
+                stats->point_queries += counts[b].point_queries;
                 stats->closest_points += counts[b].closest_points;
                 stats->unsampled += counts[b].unsampled;
             }

@@ -7,9 +7,10 @@
  *    depth < max_depth, it touches at least one M-triangle and the variation of
  *    M's normals over those triangles exceeds `tolerance`. Only children that
  *    touch m are kept. The tree is built level by level, in parallel.
- * 2. Sampling. Every leaf casts, for each m-triangle it touches, a ray from its
- *    centre along m's interpolated vertex normal at the centre's closest point on
- *    that triangle, both ways, over [-s, s]; the nearest hit on M (Embree) wins
+ * 2. Sampling. Every leaf casts, for each of the (at most
+ *    MS_APO_SAMPLES_PER_LEAF, ms_apo_sample.h) m-triangles it touches whose
+ *    closest point to its centre is nearest, a ray from its centre along m's
+ *    interpolated vertex normal at that closest point, both ways, over [-s, s]; the nearest hit on M (Embree) wins
  *    and contributes M's interpolated vertex normal there. Without a hit, the
  *    closest point of M within s of the centre is used (Embree point query);
  *    without that either, m's own normal (counted as unsampled; +z for a
@@ -17,8 +18,8 @@
  *    is the normalised sum of its samples. The search half-length is
  *        s = 2 h + (sqrt(3)/2) w
  *    where w is the leaf's width and h estimates m's distance to M (the largest
- *    distance from m's vertices and face centroids to M), unless the options fix
- *    s. Internal nodes get the normalised mean of their children's normals.
+ *    distance from m's vertices and face centroids to M, or the caller's bound),
+ *    unless the options fix s. Internal nodes get the normalised mean of their children's normals.
  *
  * Determinism: the output depends only on the inputs and options, never on the
  * thread count (work is split into blocks fixed by the work size; every block
@@ -64,6 +65,11 @@ typedef struct ms_apo_build_options {
     double tolerance;        /* on the chosen measure */
     ms_apo_measure measure;
     double search_distance;  /* fixed s in cube units; <= 0: the automatic rule */
+    /* h for the automatic rule, cube units: > 0 uses this bound instead of
+     * measuring m's distance to M (a point query per vertex and face of m, whose
+     * cost grows with M's valence: Embree's boxes of a fan's slivers all hold its
+     * hub); <= 0 measures it. */
+    double distance_bound;
     unsigned threads;        /* 0 = all cores */
 } ms_apo_build_options;
 
@@ -79,6 +85,8 @@ typedef struct ms_apo_build_stats {
     uint64_t ray_hits;         /* samples answered by a ray */
     uint64_t closest_points;   /* samples answered by the closest-point query */
     uint64_t unsampled;        /* samples that fell back to m's normal */
+    uint64_t rays;             /* rays cast while sampling (<= 2 * MS_APO_SAMPLES_PER_LEAF per leaf) */
+    uint64_t point_queries;    /* closest-point queries while sampling (<= 1 per leaf; h's not counted) */
     double m_to_M_distance;    /* h, cube units */
     double seconds_prepare;    /* transforms, normals, root lists, Embree scene, h */
     double seconds_scene;      /* of which: Embree's BVH over M */

@@ -116,7 +116,7 @@ static bool closest_normal(RTCScene scene, const ms_apo_local_mesh *big, const f
 
 /* Nearest hit along +dir or -dir within [0, s]; +dir wins ties. */
 static bool ray_normal(RTCScene scene, const ms_apo_local_mesh *big, const float o[3], const double dir[3], float s,
-                       double n[3])
+                       double n[3], uint64_t *rays)
 {
     float best_t = INFINITY, best_u = 0, best_v = 0;
     uint32_t best_prim = UINT32_MAX;
@@ -137,6 +137,7 @@ static bool ray_normal(RTCScene scene, const ms_apo_local_mesh *big, const float
         struct RTCIntersectContext ctx;
         rtcInitIntersectContext(&ctx);
         rtcIntersect1(scene, &ctx, &rh);
+        ++*rays;
         if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID && rh.ray.tfar < best_t) {
             best_t = rh.ray.tfar;
             best_u = rh.hit.u;
@@ -216,32 +217,58 @@ void ms_apo_sampler_release(ms_apo_sampler *sampler)
 }
 
 
+/* One candidate sample of a leaf: an m-triangle and its closest point to the centre. */
+typedef struct leaf_candidate {
+    double d2;
+    uint32_t tri;
+    float wb, wc;
+} leaf_candidate;
+
+static bool candidate_before(const leaf_candidate *a, const leaf_candidate *b)
+{
+    return a->d2 < b->d2 || (a->d2 == b->d2 && a->tri < b->tri);
+}
+
 void ms_apo_sample_leaf(const ms_apo_sampler *sampler, const ms_apo_local_mesh *m, const uint32_t *m_tris,
                         size_t count, const float centre[3], float search, float normal[3],
                         ms_apo_sample_counts *counts)
 {
+    /* The nearest MS_APO_SAMPLES_PER_LEAF m-triangles, kept sorted (insertion:
+     * the list is short), so that the rays cast do not grow with the leaf's list. */
+    leaf_candidate kept[MS_APO_SAMPLES_PER_LEAF];
+    size_t kept_n = 0;
+    for (size_t k = 0; k < count; ++k) {
+        leaf_candidate c = {.tri = m_tris[k]};
+        const uint32_t *v = &m->tri[3 * c.tri];
+        c.d2 = closest_on_triangle(centre, &m->pos[3 * v[0]], &m->pos[3 * v[1]], &m->pos[3 * v[2]], &c.wb, &c.wc);
+        if (kept_n == MS_APO_SAMPLES_PER_LEAF && !candidate_before(&c, &kept[kept_n - 1]))
+            continue;
+        size_t at = kept_n < MS_APO_SAMPLES_PER_LEAF ? kept_n++ : kept_n - 1;
+        while (at > 0 && candidate_before(&c, &kept[at - 1])) {
+            kept[at] = kept[at - 1];
+            --at;
+        }
+        kept[at] = c;
+    }
     double sum[3] = {0, 0, 0}, first_sample[3] = {0, 0, 1};
     bool have_closest = false, closest_done = false;
     double closest[3] = {0, 0, 0};
-    for (size_t k = 0; k < count; ++k) {
-        uint32_t t = m_tris[k];
-        const uint32_t *v = &m->tri[3 * t];
-        float wb, wc;
-        closest_on_triangle(centre, &m->pos[3 * v[0]], &m->pos[3 * v[1]], &m->pos[3 * v[2]], &wb, &wc);
+    for (size_t k = 0; k < kept_n; ++k) {
         double dir[3], n[3];
-        ms_apo_local_mesh_normal_at(m, t, wb, wc, dir);
+        ms_apo_local_mesh_normal_at(m, kept[k].tri, kept[k].wb, kept[k].wc, dir);
         counts->samples++;
         /* A degenerate m-triangle whose vertices touch no valid face has no
          * direction: it can only use the closest point, else +z. */
         bool has_dir = dir[0] != 0.0 || dir[1] != 0.0 || dir[2] != 0.0;
         if (!has_dir)
             dir[2] = 1.0;
-        if (has_dir && ray_normal(sampler->scene, sampler->big, centre, dir, search, n)) {
+        if (has_dir && ray_normal(sampler->scene, sampler->big, centre, dir, search, n, &counts->rays)) {
             counts->ray_hits++;
         } else {
             if (!closest_done) {
                 have_closest = closest_normal(sampler->scene, sampler->big, centre, search, closest);
                 closest_done = true;
+                counts->point_queries++;
             }
             if (have_closest) {
                 counts->closest_points++;

@@ -23,11 +23,19 @@ typedef struct ms_apo_sampler {
 } ms_apo_sampler;
 
 typedef struct ms_apo_sample_counts {
-    uint64_t samples;        /* (leaf, m-triangle) pairs */
+    uint64_t samples;        /* (leaf, m-triangle) pairs sampled */
     uint64_t ray_hits;
     uint64_t closest_points;
     uint64_t unsampled;      /* fell back to m's normal (or +z) */
+    uint64_t rays;           /* rtcIntersect1 calls (at most 2 per sample) */
+    uint64_t point_queries;  /* rtcPointQuery calls (at most 1 per leaf) */
 } ms_apo_sample_counts;
+
+/* A leaf samples at most this many of the m-triangles it touches: those whose
+ * closest point to its centre is nearest (ties: lower triangle index), so that a
+ * leaf costs at most 2 * MS_APO_SAMPLES_PER_LEAF rays whatever m's valence or
+ * triangle count there (a fan's hub). */
+#define MS_APO_SAMPLES_PER_LEAF 8u
 
 /* Builds the scene (a fast Morton BVH). MS_ERR_UNSUPPORTED / MS_ERR_NOMEM when
  * Embree fails. On error *sampler is zeroed. */
@@ -41,7 +49,8 @@ ms_status ms_apo_sampler_distance(const ms_apo_sampler *sampler, const ms_apo_lo
                                   double *h, ms_error *err);
 
 /* The normal of a leaf with centre `centre` touching the m-triangles
- * m_tris[0..count): one sample per m-triangle within half-length `search`,
+ * m_tris[0..count): one sample for each of the (at most MS_APO_SAMPLES_PER_LEAF)
+ * m-triangles nearest to the centre, within half-length `search`,
  * normalised sum (the first sample where the sum vanishes; +z for no sample).
  * Adds what happened to *counts. */
 void ms_apo_sample_leaf(const ms_apo_sampler *sampler, const ms_apo_local_mesh *m, const uint32_t *m_tris,

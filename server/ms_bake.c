@@ -182,6 +182,8 @@ ms_status ms_bake(const ms_bake_options *o, ms_bake_report *r, ms_error *err)
     r->apo_chunks = es.apo_chunks;
     r->apo_internal_nodes = es.apo_internal_nodes;
     r->apo_leaves = es.apo_leaves;
+    r->apo_rays = es.apo_rays;
+    r->apo_point_queries = es.apo_point_queries;
     r->seconds_apo = es.apo_thread_seconds / ep.threads;
     r->apo_sample_triangles = es.apo_sample_triangles;
     r->apo_sample_triangles_max = es.apo_sample_triangles_max;

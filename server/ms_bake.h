@@ -76,6 +76,7 @@ typedef struct ms_bake_report {
     uint32_t apo_levels;                       /* entries of apo_level_texels used */
     uint32_t apo_chunks;
     uint64_t apo_internal_nodes, apo_leaves;
+    uint64_t apo_rays, apo_point_queries; /* sampling work: rays and closest-point queries cast */
     double seconds_apo;   /* APO's share of the encode phase: thread-seconds / threads */
     uint64_t apo_sample_triangles;     /* triangles of the internal cells' M, summed */
     uint64_t apo_sample_triangles_max; /* the largest internal cell's M (memory driver) */

@@ -2,6 +2,7 @@
 #include "ms_bake_apo.h"
 
 #include <math.h>
+#include <stdbool.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -14,7 +15,7 @@ void ms_bake_apo_params_default(ms_bake_apo_params *p)
 {
     memset(p, 0, sizeof *p);
     p->enabled = true;
-    p->lead = 3;
+    p->lead = 1;
     p->max_depth = 10;
     p->init_depth = 0;
     p->tolerance = 0.2;
@@ -348,12 +349,88 @@ ms_status ms_bake_apo_smooth(ms_mesh *m, unsigned bits, const ms_quant_box *box,
     return MS_OK;
 }
 
+/* A triangle as the set of its three vertex positions: sorted lexicographically. */
+typedef struct tri_key {
+    double p[9];
+} tri_key;
+
+static int cmp_point(const double *a, const double *b)
+{
+    for (int k = 0; k < 3; ++k)
+        if (a[k] != b[k])
+            return a[k] < b[k] ? -1 : 1;
+    return 0;
+}
+
+static int cmp_tri_key(const void *x, const void *y)
+{
+    const tri_key *a = x, *b = y;
+    for (int k = 0; k < 3; ++k) {
+        int c = cmp_point(&a->p[3 * k], &b->p[3 * k]);
+        if (c)
+            return c;
+    }
+    return 0;
+}
+
+static void make_tri_key(const ms_mesh *mesh, size_t t, tri_key *key)
+{
+    const double *v[3];
+    for (int k = 0; k < 3; ++k)
+        v[k] = &mesh->positions[3 * (size_t)mesh->triangles[3 * t + k]];
+    /* three elements: a fixed sorting network */
+    const double *tmp;
+    if (cmp_point(v[0], v[1]) > 0)
+        tmp = v[0], v[0] = v[1], v[1] = tmp;
+    if (cmp_point(v[1], v[2]) > 0)
+        tmp = v[1], v[1] = v[2], v[2] = tmp;
+    if (cmp_point(v[0], v[1]) > 0)
+        tmp = v[0], v[0] = v[1], v[1] = tmp;
+    for (int k = 0; k < 3; ++k)
+        memcpy(&key->p[3 * k], v[k], 3 * sizeof(double));
+}
+
+static bool has_area(const ms_mesh *mesh, size_t t)
+{
+    const uint32_t *v = &mesh->triangles[3 * t];
+    const double *a = &mesh->positions[3 * v[0]], *b = &mesh->positions[3 * v[1]], *c = &mesh->positions[3 * v[2]];
+    double e1[3], e2[3];
+    for (int i = 0; i < 3; ++i) {
+        e1[i] = b[i] - a[i];
+        e2[i] = c[i] - a[i];
+    }
+    double n0 = e1[1] * e2[2] - e1[2] * e2[1], n1 = e1[2] * e2[0] - e1[0] * e2[2], n2 = e1[0] * e2[1] - e1[1] * e2[0];
+    return n0 != 0.0 || n1 != 0.0 || n2 != 0.0;
+}
+
+bool ms_bake_apo_geometry_renders(const ms_mesh *m, const ms_mesh *M)
+{
+    tri_key *keys = malloc((m->triangle_count + 1) * sizeof *keys);
+    if (!keys)
+        return false;
+    for (size_t t = 0; t < m->triangle_count; ++t)
+        make_tri_key(m, t, &keys[t]);
+    qsort(keys, m->triangle_count, sizeof *keys, cmp_tri_key);
+    bool all = true;
+    for (size_t t = 0; t < M->triangle_count && all; ++t) {
+        if (!has_area(M, t))
+            continue;
+        tri_key key;
+        make_tri_key(M, t, &key);
+        all = bsearch(&key, keys, m->triangle_count, sizeof *keys, cmp_tri_key) != NULL;
+    }
+    free(keys);
+    return all;
+}
+
 ms_status ms_bake_apo_cell(ms_apo_builder *builder, const ms_bake_apo_params *p, const ms_nsp_shape *shape,
                            const ms_quant_box *box, unsigned depth, const uint32_t position[3], unsigned bits_max,
                            const ms_mesh *m, const ms_mesh *M, const ms_mesh *reference, unsigned threads,
                            ms_bake_apo_result *out, ms_error *err)
 {
     memset(out, 0, sizeof *out);
+    if (!p->every_cell && ms_bake_apo_geometry_renders(m, M))
+        return MS_OK; /* no chunk: the client draws m's own normals */
     ms_apo_build_options o;
     ms_apo_build_options_default(&o);
     ms_bake_apo_cube(shape, box, depth, position, o.cube_origin, &o.cube_size);
@@ -361,10 +438,18 @@ ms_status ms_bake_apo_cell(ms_apo_builder *builder, const ms_bake_apo_params *p,
     o.init_depth = p->init_depth < o.max_depth ? p->init_depth : o.max_depth;
     o.tolerance = p->tolerance;
     o.measure = MS_APO_MEASURE_SPREAD;
+    /* h from the grid: each vertex of m is the centre of a grid cell of its
+     * precision (2^-g of the cube) that holds input, hence M, within half its
+     * diagonal; a whole diagonal leaves room for points inside m's triangles.
+     * Measuring h instead costs a point query per vertex and face of m, which
+     * grows with M's valence (a fan's hub). */
+    unsigned g = bits_max > shape->log2n * depth ? bits_max - shape->log2n * depth : 0;
+    o.distance_bound = sqrt(3.0) * ldexp(1.0, -(int)g);
     o.threads = threads ? threads : 1;
     ms_apo_tree tree;
     memset(&tree, 0, sizeof tree);
-    ms_status st = ms_apo_builder_build_tree(builder, m, M, &o, &tree, NULL, err);
+    ms_apo_build_stats stats;
+    ms_status st = ms_apo_builder_build_tree(builder, m, M, &o, &tree, &stats, err);
     ms_apo_chunk chunk;
     memset(&chunk, 0, sizeof chunk);
     if (st == MS_OK && tree.level_count > 0)
@@ -376,6 +461,8 @@ ms_status ms_bake_apo_cell(ms_apo_builder *builder, const ms_bake_apo_params *p,
         memcpy(out->level_texels, chunk.level_texels, chunk.level_count * sizeof *chunk.level_texels);
         out->texels = chunk.texel_count;
         ms_apo_tree_counts(&tree, &out->internal_nodes, &out->leaves);
+        out->rays = stats.rays;
+        out->point_queries = stats.point_queries;
         if (p->verify && out->levels > 0)
             st = verify_stored(&tree, out, err);
         if (st == MS_OK && reference && out->levels > 0)

@@ -12,6 +12,9 @@
  * chunk goes down at most min(g + lead, max_depth) levels, splitting where M's
  * normals spread more than `tolerance` radians (the builder's spread measure).
  *
+ * No chunk where the geometry renders M (ms_bake_apo_geometry_renders: every
+ * leaf cell), unless params->every_cell.
+ *
  * Units: meshes in world units (the archive box's); the cube is derived from the
  * box and the cell. Ownership: the result owns its bytes (ms_bake_apo_result_free).
  * Thread-safety: one builder per thread; distinct calls are independent.
@@ -34,7 +37,7 @@
 
 typedef struct ms_bake_apo_params {
     bool enabled;
-    uint32_t lead;        /* levels below the finest geometric precision, <= 16 (default 3) */
+    uint32_t lead;        /* levels below the finest geometric precision, <= 16 (default 1) */
     uint32_t max_depth;   /* cap on the chunk's depth, <= 24 (default 10) */
     uint32_t init_depth;  /* split unconditionally above this depth (default 0) */
     double tolerance;     /* spread of M's normals, radians (default 0.2) */
@@ -47,6 +50,10 @@ typedef struct ms_bake_apo_params {
      * which costs the same memory. */
     bool sample_leaves;
     bool accuracy;
+    /* every_cell: a chunk for every cell with triangles, also where the cell's
+     * geometry already renders M (ms_bake_apo_geometry_renders); the former rule,
+     * kept to measure the trade and to exercise the format on small models. */
+    bool every_cell;
 } ms_bake_apo_params;
 
 /* Defaults as above, enabled. */
@@ -89,10 +96,21 @@ typedef struct ms_bake_apo_result {
     uint32_t level_texels[MS_APO_MAX_LEVELS];    /* words per level */
     uint64_t texels;
     size_t internal_nodes, leaves;
+    uint64_t rays, point_queries; /* the builder's sampling work (ms_apo_build_stats) */
     ms_bake_apo_accuracy accuracy; /* filled when a reference mesh was given */
 } ms_bake_apo_result;
 
 void ms_bake_apo_result_free(ms_bake_apo_result *result);
+
+/* True when the geometry the client shows at the cell's finest precision (m)
+ * already renders M's normals: every M-triangle of non-zero area is an m-triangle
+ * (the same three vertex positions, exactly, in any order), so the flat shading
+ * of m gives M's face normals and a chunk could only replace them with coarser
+ * ones. True for a leaf cell, whose m at bits_max is its input at full precision
+ * (foreign triangles aside), hence for a small model that fits in one cell (a
+ * cube). False when M has a triangle m lacks, or when memory runs out (the caller
+ * then builds the chunk, which is always correct). */
+bool ms_bake_apo_geometry_renders(const ms_mesh *m, const ms_mesh *M);
 
 /* Builds, encodes and compresses one cell's chunk into *out (zeroed first), the
  * builder running on `threads` threads (the output does not depend on it). With

@@ -688,6 +688,8 @@ static ms_status finish_cell(pool *p, uint32_t node, cell_out *out, ms_error *er
         p->stats.apo_chunks++;
         p->stats.apo_internal_nodes += a->internal_nodes;
         p->stats.apo_leaves += a->leaves;
+        p->stats.apo_rays += a->rays;
+        p->stats.apo_point_queries += a->point_queries;
         for (uint32_t d = 0; d < a->levels; ++d)
             p->stats.apo_level_texels[d] += a->level_texels[d];
         if (a->levels > p->stats.apo_levels)

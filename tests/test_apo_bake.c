@@ -6,8 +6,10 @@
  * byte-identical for 1 and 2 threads; a prefix of L levels inflates to exactly
  * the first L levels' words; damaged chunks and tables are rejected with errors;
  * the CLI reports APO figures. MESHSTREAM_BIG=1 adds the 871k-triangle dragon. */
+#include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
+#include <stdbool.h>
 #include <stddef.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -19,6 +21,7 @@
 #include <zlib.h>
 
 #include "ms_apo_chunk.h"
+#include "ms_apo_sample.h"
 #include "ms_apo_stream.h"
 #include "ms_archive.h"
 #include "ms_bake.h"
@@ -71,8 +74,10 @@ typedef struct archive_check {
     uint32_t internal_with_chunk;    /* internal cells (M gathered from several leaves) */
 } archive_check;
 
-/* Everything a client may rely on, for every cell of the archive at path. */
-static archive_check check_archive(const char *path)
+/* Everything a client may rely on, for every cell of the archive at path.
+ * every_cell: the archive was baked with apo.every_cell (a chunk exactly where m
+ * has triangles); otherwise leaf cells, whose geometry renders M, have none. */
+static archive_check check_archive(const char *path, bool every_cell)
 {
     archive_check k = {0};
     ms_archive *a;
@@ -83,8 +88,9 @@ static archive_check check_archive(const char *path)
     assert_true(h->has_apo);
     for (uint32_t i = 0; i < h->cell_count; ++i) {
         const ms_archive_cell *c = ms_archive_get_cell(a, i);
-        /* a chunk exactly where m has triangles */
-        assert_int_equal(c->apo_levels > 0, c->triangle_count > 0);
+        /* a chunk exactly where m has triangles, leaf cells aside by default */
+        bool leaf = c->first_child == MS_ARCHIVE_NONE;
+        assert_int_equal(c->apo_levels > 0, c->triangle_count > 0 && (every_cell || !leaf));
         if (c->apo_levels == 0) {
             assert_int_equal(c->apo_length, 0);
             continue;
@@ -163,12 +169,13 @@ static void test_chunks_round_trip_and_threads_agree(void **state)
     apo.max_depth = 8;
     apo.tolerance = 0.15;
     apo.verify = true;
+    apo.every_cell = true;
     bake(model, dir, "t1", 1, &apo, 16, 4, 7, 200);
     bake(model, dir, "t2", 2, &apo, 16, 4, 7, 200);
     snprintf(cmd, sizeof cmd, "cmp '%s/t1.msa' '%s/t2.msa'", dir, dir);
     assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
     snprintf(path, sizeof path, "%s/t2.msa", dir);
-    archive_check k = check_archive(path);
+    archive_check k = check_archive(path, true);
     assert_true(k.chunks > 10);
     assert_true(k.multi_level >= 10);
     assert_true(k.internal_with_chunk >= 2); /* the root and a level-1 cell that split */
@@ -190,9 +197,10 @@ static void test_depth_rule_exact(void **state)
     apo.init_depth = 30;
     apo.max_depth = 4;
     apo.verify = true;
+    apo.every_cell = true;
     bake(model, dir, "cap", 2, &apo, 16, 4, 7, 800);
     snprintf(path, sizeof path, "%s/cap.msa", dir);
-    archive_check k = check_archive(path);
+    archive_check k = check_archive(path, true);
     assert_true(k.chunks > 10);
     assert_int_equal(k.at_rule_depth, k.chunks);
 
@@ -200,7 +208,7 @@ static void test_depth_rule_exact(void **state)
     apo.lead = 0;
     bake(model, dir, "lead", 2, &apo, 8, 2, 1, 400);
     snprintf(path, sizeof path, "%s/lead.msa", dir);
-    k = check_archive(path);
+    k = check_archive(path, true);
     assert_true(k.chunks > 10 && k.internal_with_chunk >= 3);
     assert_int_equal(k.at_rule_depth, k.chunks);
     /* and the depths differ between cells: the rule is per cell */
@@ -229,6 +237,7 @@ static void test_damaged_chunks_are_rejected(void **state)
     ms_bake_apo_params apo;
     ms_bake_apo_params_default(&apo);
     apo.max_depth = 7;
+    apo.every_cell = true;
     bake(model, dir, "good", 2, &apo, 16, 4, 7, 8000);
     snprintf(path, sizeof path, "%s/good.msa", dir);
     snprintf(bad, sizeof bad, "%s/bad.msa", dir);
@@ -321,7 +330,8 @@ static void test_cli_reports_apo(void **state)
     ms_test_tmpdir(dir, sizeof dir);
     ms_test_bin_path(bin, sizeof bin, "meshbake");
     ms_test_model_path(model, sizeof model, "stanford_bunny_res3.ply.gz");
-    snprintf(cmd, sizeof cmd, "%s '%s' -o '%s' --name b --apo-max-depth 6 --apo-verify --json", bin, model, dir);
+    snprintf(cmd, sizeof cmd, "%s '%s' -o '%s' --name b --apo-max-depth 6 --apo-verify --apo-every-cell --json",
+             bin, model, dir);
     assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
     json_error_t je;
     json_t *j = json_loads(out, 0, &je);
@@ -329,8 +339,9 @@ static void test_cli_reports_apo(void **state)
         fail_msg("not JSON: %s", out);
     json_t *apo = json_object_get(j, "apo");
     assert_true(json_is_true(json_object_get(apo, "enabled")));
+    assert_true(json_is_true(json_object_get(apo, "every_cell")));
     assert_int_equal(json_integer_value(json_object_get(apo, "max_depth")), 6);
-    assert_int_equal(json_integer_value(json_object_get(apo, "lead")), 3);
+    assert_int_equal(json_integer_value(json_object_get(apo, "lead")), 1);
     json_int_t bytes = json_integer_value(json_object_get(apo, "bytes"));
     json_int_t raw = json_integer_value(json_object_get(apo, "raw_bytes"));
     json_int_t internal = json_integer_value(json_object_get(apo, "internal_nodes"));
@@ -344,6 +355,10 @@ static void test_cli_reports_apo(void **state)
     assert_int_equal(raw, 4 * texels);
     assert_int_equal(texels, leaves + 2 * internal);
     assert_true(json_is_number(json_object_get(json_object_get(j, "seconds"), "apo")));
+    json_t *sampling = json_object_get(apo, "sampling");
+    json_int_t rays = json_integer_value(json_object_get(sampling, "rays"));
+    assert_true(rays > 0 && rays <= 2 * (json_int_t)MS_APO_SAMPLES_PER_LEAF * leaves);
+    assert_true(json_is_integer(json_object_get(sampling, "point_queries")));
     json_decref(j);
     /* the archive's chunks add up to the report */
     char path[700];
@@ -360,7 +375,7 @@ static void test_cli_reports_apo(void **state)
     assert_int_equal(sum, bytes);
     assert_int_equal(sum_raw, raw);
     /* text report */
-    snprintf(cmd, sizeof cmd, "%s '%s' -o '%s' --name t --apo-max-depth 4", bin, model, dir);
+    snprintf(cmd, sizeof cmd, "%s '%s' -o '%s' --name t --apo-max-depth 4 --apo-every-cell", bin, model, dir);
     assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
     assert_non_null(strstr(out, "APO texels per level: "));
     assert_non_null(strstr(out, "(APO "));
@@ -576,6 +591,164 @@ static void test_internal_sampling_surface_is_children_union(void **state)
     ms_test_rmdir(dir);
 }
 
+/* An ascii PLY of nv vertices and nf triangles. */
+static void write_ply(const char *path, const double *v, size_t nv, const uint32_t *f, size_t nf)
+{
+    size_t cap = 256 + 80 * (nv + nf), len = 0;
+    char *text = malloc(cap);
+    assert_non_null(text);
+    len += (size_t)snprintf(text + len, cap - len,
+                            "ply\nformat ascii 1.0\nelement vertex %zu\nproperty double x\nproperty double y\n"
+                            "property double z\nelement face %zu\nproperty list uchar int vertex_indices\n"
+                            "end_header\n", nv, nf);
+    for (size_t i = 0; i < nv; ++i)
+        len += (size_t)snprintf(text + len, cap - len, "%.17g %.17g %.17g\n", v[3 * i], v[3 * i + 1], v[3 * i + 2]);
+    for (size_t i = 0; i < nf; ++i)
+        len += (size_t)snprintf(text + len, cap - len, "3 %u %u %u\n", f[3 * i], f[3 * i + 1], f[3 * i + 2]);
+    ms_test_write_file(path, text, len);
+    free(text);
+}
+
+/* The 12-triangle cube (issue 18: 211 KB of APO before, 926 times its geometry):
+ * its one cell is a leaf whose geometry renders every face and crease, so a
+ * default bake stores no chunk (0 bytes, within the issue's geometry + 2 KB);
+ * --apo-every-cell, the former rule, refines its 12 creases to the cap. */
+static void test_cube_costs_no_apo(void **state)
+{
+    (void)state;
+    char dir[512], path[700];
+    ms_test_tmpdir(dir, sizeof dir);
+    static const double v[8][3] = {{0, 0, 0}, {0, 0, 1}, {0, 1, 0}, {0, 1, 1},
+                                   {1, 0, 0}, {1, 0, 1}, {1, 1, 0}, {1, 1, 1}};
+    static const uint32_t f[12][3] = {{0, 1, 3}, {0, 3, 2}, {4, 6, 7}, {4, 7, 5}, {0, 4, 5}, {0, 5, 1},
+                                      {2, 3, 7}, {2, 7, 6}, {0, 2, 6}, {0, 6, 4}, {1, 5, 7}, {1, 7, 3}};
+    snprintf(path, sizeof path, "%s/cube.ply", dir);
+    write_ply(path, &v[0][0], 8, &f[0][0], 12);
+    ms_bake_apo_params apo;
+    ms_bake_apo_params_default(&apo);
+    apo.verify = true;
+    ms_bake_report r;
+    bake_report(path, dir, "cube", 1, &apo, 16, 4, 7, 8000, &r);
+    assert_int_equal(r.cells, 1);
+    assert_int_equal(r.apo_chunks, 0);
+    assert_int_equal(r.apo_bytes, 0);
+    assert_true(r.apo_bytes <= r.geometry_bytes + 2048);
+    apo.every_cell = true;
+    bake_report(path, dir, "cube_every", 1, &apo, 16, 4, 7, 8000, &r);
+    assert_int_equal(r.apo_chunks, 1);
+    assert_int_equal(r.apo_levels, apo.max_depth + 1); /* the creases go to the cap */
+    assert_true(r.apo_bytes > r.geometry_bytes + 2048);
+    ms_test_rmdir(dir);
+}
+
+/* ms_bake_apo_geometry_renders on a crease between two flat faces (a roof of
+ * four triangles): m as the decoder gives it (other vertex order, other
+ * numbering, a foreign triangle more) renders it, so no chunk: the crease stops
+ * where the geometry already draws it; an M triangle m lacks (a detail) needs a
+ * chunk; a degenerate M triangle needs nothing. The cell's chunk follows. */
+static void test_crease_rendered_by_geometry(void **state)
+{
+    (void)state;
+    static const double roof[6][3] = {{0.1, 0.1, 0.3}, {0.5, 0.1, 0.6}, {0.9, 0.1, 0.3},
+                                      {0.1, 0.9, 0.3}, {0.5, 0.9, 0.6}, {0.9, 0.9, 0.3}};
+    static const uint32_t big_tris[4][3] = {{0, 1, 4}, {0, 4, 3}, {1, 2, 5}, {1, 5, 4}};
+    /* m: vertices renumbered (reversed), triangles rotated, one more (foreign) */
+    static const uint32_t m_tris[5][3] = {{4, 1, 5}, {5, 1, 2}, {1, 4, 0}, {4, 0, 3}, {0, 1, 2}};
+    ms_mesh M, m;
+    memset(&M, 0, sizeof M);
+    memset(&m, 0, sizeof m);
+    assert_int_equal(ms_mesh_reserve(&M, 7, 5, NULL), MS_OK);
+    assert_int_equal(ms_mesh_reserve(&m, 7, 5, NULL), MS_OK);
+    for (int i = 0; i < 6; ++i) {
+        memcpy(&M.positions[3 * i], roof[i], sizeof roof[i]);
+        memcpy(&m.positions[3 * (5 - i)], roof[i], sizeof roof[i]);
+    }
+    M.vertex_count = m.vertex_count = 6;
+    memcpy(M.triangles, big_tris, sizeof big_tris);
+    M.triangle_count = 4;
+    memcpy(m.triangles, m_tris, sizeof m_tris);
+    m.triangle_count = 5;
+    assert_true(ms_bake_apo_geometry_renders(&m, &M));
+    /* a degenerate M triangle (two equal corners) asks for nothing */
+    M.triangles[12] = 0, M.triangles[13] = 0, M.triangles[14] = 2;
+    M.triangle_count = 5;
+    assert_true(ms_bake_apo_geometry_renders(&m, &M));
+    /* a detail: M's triangle over a vertex m does not have */
+    M.positions[18] = 0.5, M.positions[19] = 0.5, M.positions[20] = 0.62;
+    M.vertex_count = 7;
+    M.triangles[12] = 1, M.triangles[13] = 6, M.triangles[14] = 4;
+    assert_false(ms_bake_apo_geometry_renders(&m, &M));
+    /* through the cell: no chunk where the geometry renders M, one otherwise */
+    M.triangle_count = 4;
+    ms_nsp_shape shape = {.n = 4, .log2n = 2};
+    ms_quant_box box = {.origin = {0, 0, 0}, .size = 1.0};
+    const uint32_t position[3] = {0, 0, 0};
+    ms_bake_apo_params p;
+    ms_bake_apo_params_default(&p);
+    p.verify = true;
+    ms_apo_builder *builder;
+    ms_error err;
+    assert_int_equal(ms_apo_builder_create(&builder, &err), MS_OK);
+    ms_bake_apo_result out;
+    assert_int_equal(ms_bake_apo_cell(builder, &p, &shape, &box, 0, position, 8, &m, &M, NULL, 1, &out, &err),
+                     MS_OK);
+    assert_int_equal(out.levels, 0);
+    assert_null(out.data);
+    p.every_cell = true;
+    assert_int_equal(ms_bake_apo_cell(builder, &p, &shape, &box, 0, position, 8, &m, &M, NULL, 1, &out, &err),
+                     MS_OK);
+    uint32_t rule = 8 + p.lead < p.max_depth ? 8 + p.lead : p.max_depth; /* the crease splits to the rule */
+    assert_int_equal(out.levels, rule + 1);
+    ms_bake_apo_result_free(&out);
+    ms_apo_builder_destroy(builder);
+    ms_mesh_free(&M);
+    ms_mesh_free(&m);
+}
+
+/* A flat fan of 20,000 triangles (issue 18: 100,000 took 182 s with APO): its
+ * leaf cells get no chunk (their geometry renders M), its internal cells one
+ * leaf each (M flat), and each leaf samples at most MS_APO_SAMPLES_PER_LEAF
+ * triangles (test_apo_build.c counts the rays). */
+static void test_flat_fan_bakes(void **state)
+{
+    (void)state;
+    char dir[512], path[700];
+    ms_test_tmpdir(dir, sizeof dir);
+    const uint32_t n = 20000;
+    double *v = malloc(3 * (n + 1) * sizeof *v);
+    uint32_t *f = malloc(3 * n * sizeof *f);
+    assert_true(v && f);
+    v[0] = v[1] = v[2] = 0.0;
+    for (uint32_t i = 0; i < n; ++i) {
+        v[3 * (i + 1)] = cos(2.0 * M_PI * i / n);
+        v[3 * (i + 1) + 1] = sin(2.0 * M_PI * i / n);
+        v[3 * (i + 1) + 2] = 0.0;
+        f[3 * i] = 0, f[3 * i + 1] = 1 + i, f[3 * i + 2] = 1 + (i + 1) % n;
+    }
+    snprintf(path, sizeof path, "%s/fan.ply", dir);
+    write_ply(path, v, n + 1, f, n);
+    free(v);
+    free(f);
+    ms_bake_apo_params apo;
+    ms_bake_apo_params_default(&apo);
+    apo.verify = true;
+    ms_bake_report r;
+    bake_report(path, dir, "fan", 2, &apo, 16, 4, 7, 8000, &r);
+    assert_true(r.cells > r.leaves && r.apo_chunks > 0);
+    assert_int_equal(r.apo_internal_nodes, 0);
+    assert_int_equal(r.apo_leaves, r.apo_chunks); /* one texel per chunk */
+    assert_int_equal(r.apo_levels, 1);
+    /* each one-texel chunk: at most 8 samples, 2 rays each, however many of the
+     * fan's triangles it touches (the root's m alone has thousands) */
+    assert_true(r.apo_rays > 0 && r.apo_rays <= 2 * MS_APO_SAMPLES_PER_LEAF * r.apo_leaves);
+    assert_true(r.apo_point_queries <= r.apo_leaves);
+    snprintf(path, sizeof path, "%s/fan.msa", dir);
+    archive_check k = check_archive(path, false);
+    assert_int_equal(k.chunks, r.apo_chunks);
+    assert_int_equal(k.multi_level, 0);
+    ms_test_rmdir(dir);
+}
+
 /* MESHSTREAM_BIG=1: the 871k dragon with the default settings, verified by the
  * baker and then chunk by chunk here. */
 static void test_big_dragon(void **state)
@@ -590,11 +763,15 @@ static void test_big_dragon(void **state)
     ms_bake_apo_params apo;
     ms_bake_apo_params_default(&apo);
     apo.verify = true;
-    bake(model, dir, "dragon", 2, &apo, 16, 4, 7, 8000);
+    ms_bake_report r;
+    bake_report(model, dir, "dragon", 2, &apo, 16, 4, 7, 8000, &r);
     snprintf(path, sizeof path, "%s/dragon.msa", dir);
-    archive_check k = check_archive(path);
-    print_message("dragon: %u chunks, %u at the rule's depth\n", k.chunks, k.at_rule_depth);
-    assert_true(k.chunks > 100);
+    archive_check k = check_archive(path, false);
+    print_message("dragon: %u chunks, %u at the rule's depth, APO %llu bytes, geometry %llu\n", k.chunks,
+                  k.at_rule_depth, (unsigned long long)r.apo_bytes, (unsigned long long)r.geometry_bytes);
+    assert_true(k.chunks >= 10);
+    assert_int_equal(k.chunks, k.internal_with_chunk);
+    assert_true(r.apo_bytes <= r.geometry_bytes); /* issue 18: APO pays for itself */
     ms_test_rmdir(dir);
 }
 
@@ -608,6 +785,9 @@ int main(void)
         cmocka_unit_test(test_union_of_parts),
         cmocka_unit_test(test_smooth_to_means),
         cmocka_unit_test(test_internal_sampling_surface_is_children_union),
+        cmocka_unit_test(test_cube_costs_no_apo),
+        cmocka_unit_test(test_crease_rendered_by_geometry),
+        cmocka_unit_test(test_flat_fan_bakes),
         cmocka_unit_test(test_big_dragon),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -14,6 +14,7 @@
 #include "ms_apo_build.h"
 #include "ms_apo_chunk.h"
 #include "ms_apo_render.h"
+#include "ms_apo_sample.h"
 #include "ms_demo_model.h"
 #include "ms_simplify.h"
 #include "ms_tri_box.h"
@@ -560,6 +561,83 @@ static void test_simplify(void **state)
     ms_mesh_free(&big);
 }
 
+/* A flat cell: M's normals do not spread, so the root stays a leaf (one texel)
+ * whatever the depth cap, and its normal is the plane's. */
+static void test_flat_cell_is_one_leaf(void **state)
+{
+    (void)state;
+    const double square[2][3][3] = {{{0.1, 0.2, 0.4}, {0.9, 0.2, 0.4}, {0.9, 0.8, 0.4}},
+                                    {{0.1, 0.2, 0.4}, {0.9, 0.8, 0.4}, {0.1, 0.8, 0.4}}};
+    ms_mesh m;
+    triangles(&m, square, 2);
+    ms_apo_build_options o;
+    ms_apo_build_options_default(&o);
+    o.max_depth = 12;
+    o.tolerance = 0.01;
+    o.threads = 1;
+    ms_apo_tree t;
+    ms_apo_build_stats st;
+    build(&m, &m, &o, &t, &st);
+    assert_int_equal(t.node_count, 1);
+    assert_int_equal(t.level_count, 1);
+    assert_int_equal(t.nodes[0].child_mask, 0);
+    const float up[3] = {0, 0, 1};
+    assert_int_equal(ms_apo_normal_encode(t.nodes[0].normal), ms_apo_normal_encode(up));
+    assert_int_equal(st.samples, 2); /* the leaf touches both triangles */
+    ms_apo_tree_free(&t);
+    ms_mesh_free(&m);
+}
+
+/* A fan of 20,000 triangles around one hub, raised into a cone so that the
+ * octree refines around the hub, where every leaf touches thousands of them:
+ * each leaf samples at most MS_APO_SAMPLES_PER_LEAF of its m-triangles (2 rays
+ * each, at most one closest-point query per leaf), so the work follows the
+ * leaves, not the hub's valence (the former rule cast 2 rays per (leaf,
+ * m-triangle): 40,000 for each leaf at the hub). h is given (distance_bound)
+ * as the baker gives it; measuring it costs point queries that grow with the
+ * valence. */
+static void test_fan_rays_bounded_by_leaves(void **state)
+{
+    (void)state;
+    const uint32_t n = 20000;
+    ms_mesh fan;
+    memset(&fan, 0, sizeof fan);
+    assert_int_equal(ms_mesh_reserve(&fan, n + 1, n, NULL), MS_OK);
+    fan.positions[0] = 0.0, fan.positions[1] = 0.0, fan.positions[2] = 0.5;
+    for (uint32_t i = 0; i < n; ++i) {
+        double a = 2.0 * M_PI * i / n;
+        fan.positions[3 * (i + 1)] = cos(a);
+        fan.positions[3 * (i + 1) + 1] = sin(a);
+        fan.positions[3 * (i + 1) + 2] = 0.0;
+        fan.triangles[3 * i] = 0;
+        fan.triangles[3 * i + 1] = 1 + i;
+        fan.triangles[3 * i + 2] = 1 + (i + 1) % n;
+    }
+    fan.vertex_count = n + 1;
+    fan.triangle_count = n;
+    ms_apo_build_options o;
+    ms_apo_build_options_default(&o);
+    o.cube_origin[0] = o.cube_origin[1] = -1.0;
+    o.cube_origin[2] = -0.5;
+    o.cube_size = 2.0;
+    o.max_depth = 8;
+    o.tolerance = 0.2;
+    o.distance_bound = 1.0 / 256;
+    o.threads = 2;
+    ms_apo_tree t;
+    ms_apo_build_stats st;
+    build(&fan, &fan, &o, &t, &st);
+    assert_int_equal(t.level_count, 9); /* refined to the cap at the hub */
+    assert_true(st.leaves > 0);
+    assert_true(st.samples <= MS_APO_SAMPLES_PER_LEAF * st.leaves);
+    assert_true(st.rays <= 2 * MS_APO_SAMPLES_PER_LEAF * st.leaves);
+    assert_true(st.point_queries <= st.leaves);
+    assert_true(st.rays < 2 * (uint64_t)n); /* less than one hub leaf of the former rule */
+    assert_true(st.m_to_M_distance == 1.0 / 256);
+    ms_apo_tree_free(&t);
+    ms_mesh_free(&fan);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -576,6 +654,8 @@ int main(void)
         cmocka_unit_test(test_empty_and_bad_input),
         cmocka_unit_test(test_triangle_cube_overlap),
         cmocka_unit_test(test_simplify),
+        cmocka_unit_test(test_flat_cell_is_one_leaf),
+        cmocka_unit_test(test_fan_rays_bounded_by_leaves),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
