@@ -4,7 +4,8 @@
  *     settles (view complete, nothing left to upload) at every keyframe, no
  *     frame uploads more than --upload-budget, and the coarse first frame
  *     differs from the final one;
- *   - the local-archive mode draws the same pictures;
+ *   - the local-archive mode draws the same pictures (with --compare-apo, which
+ *     times both shadings of each frame and still pictures the run's own);
  *   - the catalogue screen lists the model;
  *   - bad input: --help (0), bad options (2), no display (1), unknown model (1),
  *     no server (1), server gone mid-stream (1): one line on stderr each, and
@@ -234,12 +235,19 @@ static void test_streaming_and_local_archive(void **state)
     snprintf(out, sizeof out, "%s/local.json", f->dir);
     snprintf(args, sizeof args,
              "%s --model " MODEL " --path " PATH_FILE " --size " SIZE
-             " --upload-budget %d --screenshot-dir %s/local --json",
+             " --upload-budget %d --screenshot-dir %s/local --compare-apo --json",
              f->archives, BUDGET, f->dir);
     assert_int_equal(run_viewer(f, args, out, err_text, sizeof err_text), 0);
     json_t *local = load_report(out);
     assert_int_equal(check_streaming_report(local), count);
     assert_string_equal(json_string_value(json_object_get(local, "source")), "archive");
+    /* --compare-apo timed both shadings of every frame and still pictured the
+     * run's own (the pictures below equal the server run's). */
+    json_t *compare = json_object_get(local, "compare_apo");
+    assert_true(json_integer_value(json_object_get(compare, "draws")) > 0);
+    assert_true(json_real_value(json_object_get(compare, "apo_draw_ms_p50")) > 0);
+    assert_true(json_real_value(json_object_get(compare, "plain_draw_ms_p50")) > 0);
+    assert_null(json_object_get(server, "compare_apo"));
     json_t *local_keys = json_object_get(local, "keyframes");
     for (size_t k = 0; k < count; ++k) {
         const char *a = json_string_value(json_object_get(json_array_get(keys, k), "png"));

@@ -30,10 +30,12 @@ void ms_viewer_options_usage(FILE *out)
           "Scripted, headless (on with --path or --screenshot-dir):\n"
           "  --path FILE            camera path (docs/CAMERA_PATHS.md); without it the home view\n"
           "  --screenshot-dir DIR   one PNG per keyframe (keyframe-NN.png; catalogue.png\n"
-          "                         without --model); also where the S key writes\n"
+          "                         without --model); also where the P key writes\n"
           "  --frames N             frames drawn between two keyframes (default 8)\n"
           "  --keyframe-timeout S   longest wait for a complete view (default 30)\n"
           "  --hud                  draw the HUD into the pictures too\n"
+          "  --compare-apo          draw every frame with APO and with plain shading, each\n"
+          "                         timed (the report's compare_apo)\n"
           "  --json                 one JSON report on stdout\n"
           "  -h, --help             this help\n"
           "Mouse: left drag orbits (fly mode: looks around), right or shift drag pans,\n"
@@ -103,6 +105,7 @@ int ms_viewer_options_parse(int argc, char **argv, ms_viewer_options *o, FILE *e
         {"keyframe-timeout", required_argument, NULL, 'k'},
         {"json", no_argument, NULL, 'j'},             {"help", no_argument, NULL, 'h'},
         {"hud", no_argument, NULL, 'H'},
+        {"compare-apo", no_argument, NULL, 'A'},
         {NULL, 0, NULL, 0}};
     memset(o, 0, sizeof *o);
     o->width = 1280, o->height = 720;
@@ -200,6 +203,7 @@ int ms_viewer_options_parse(int argc, char **argv, ms_viewer_options *o, FILE *e
             break;
         case 'j': o->json = true; break;
         case 'H': o->hud = true; break;
+        case 'A': o->compare_apo = true; break;
         case 'h': o->help = true; return 0;
         case ':':
             fprintf(err, "meshview: %s wants a value\n", argv[optind - 1]);

@@ -38,6 +38,7 @@ typedef struct ms_viewer_options {
     int up_axis;               /* 0..2 */
     bool json, scripted, help;
     bool hud;                  /* scripted: draw the HUD into the pictures */
+    bool compare_apo;          /* scripted: time APO and plain shading of every frame */
 } ms_viewer_options;
 
 /* 0: parsed (o->help for --help); 2: a usage error, one line written to err. */

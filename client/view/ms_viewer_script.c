@@ -78,6 +78,26 @@ static ms_status log_frame(frame_log *log, double ms, double step_ms, uint64_t u
     return MS_OK;
 }
 
+/* A growing list of timings. */
+typedef struct samples {
+    double *v;
+    size_t count, cap;
+} samples;
+
+static bool push_sample(samples *list, double value)
+{
+    if (list->count == list->cap) {
+        size_t cap = list->cap ? 2 * list->cap : 256;
+        double *grown = realloc(list->v, cap * sizeof *grown);
+        if (!grown)
+            return false;
+        list->v = grown;
+        list->cap = cap;
+    }
+    list->v[list->count++] = value;
+    return true;
+}
+
 static ms_status make_dir(const char *dir, ms_error *err)
 {
     if (mkdir(dir, 0777) != 0 && errno != EEXIST)
@@ -138,6 +158,7 @@ typedef struct script {
     ms_viewer_text *text;       /* with --hud */
     double last_ms;
     frame_log log;
+    samples apo_draw_ms, plain_draw_ms; /* --compare-apo */
     bool first_written;
     char first_png[4200];
     uint64_t last_triangles;
@@ -159,7 +180,29 @@ static ms_status frame(script *s, const ms_camera *camera, ms_viewer_step *step,
     double step_ms = (now_s() - t0) * 1e3;
     ms_viewer_target_bind(&s->target);
     ms_render_draw_stats drawn;
-    if ((st = ms_viewer_stream_draw(s->stream, camera, &s->render, &drawn, err)) != MS_OK)
+    if (s->o->compare_apo) {
+        /* Both shadings of the same uploaded frame, back to back, each timed to
+         * glFinish, in alternating order (neither always warms the caches for
+         * the other); the run's own shading is drawn last for the picture. */
+        ms_render_options other = s->render;
+        other.apo = !s->render.apo;
+        bool other_first = s->log.count % 2 == 0;
+        for (int pass = 0; pass < 2; ++pass) {
+            bool primary = (pass == 1) == other_first;
+            const ms_render_options *ro = primary ? &s->render : &other;
+            double d0 = now_s();
+            if ((st = ms_viewer_stream_draw(s->stream, camera, ro, &drawn, err)) != MS_OK)
+                return st;
+            glFinish();
+            double ms = (now_s() - d0) * 1e3;
+            if (drawn.triangles_drawn > 0 &&
+                !push_sample(ro->apo ? &s->apo_draw_ms : &s->plain_draw_ms, ms))
+                return ms_error_set(err, MS_ERR_NOMEM, "out of memory for frame figures");
+        }
+        if (!other_first) /* the picture must show the run's own shading */
+            if ((st = ms_viewer_stream_draw(s->stream, camera, &s->render, &drawn, err)) != MS_OK)
+                return st;
+    } else if ((st = ms_viewer_stream_draw(s->stream, camera, &s->render, &drawn, err)) != MS_OK)
         return st;
     if (s->text) {
         ms_core_stats cs;
@@ -343,7 +386,19 @@ ms_status ms_viewer_script_run(const ms_viewer_options *o, const ms_viewer_sourc
         goto done;
     ms_core_stats cs;
     ms_viewer_stream_stats(s.stream, &cs);
-    *report = json_pack("{s:s, s:s, s:s, s:i, s:i, s:f, s:b, s:O, s:o, s:s?, s:I, s:I, s:f}",
+    json_t *compare = NULL;
+    if (o->compare_apo) {
+        double a50 = ms_viewer_quantile(s.apo_draw_ms.v, s.apo_draw_ms.count, 0.5);
+        double a95 = ms_viewer_quantile(s.apo_draw_ms.v, s.apo_draw_ms.count, 0.95);
+        double p50 = ms_viewer_quantile(s.plain_draw_ms.v, s.plain_draw_ms.count, 0.5);
+        double p95 = ms_viewer_quantile(s.plain_draw_ms.v, s.plain_draw_ms.count, 0.95);
+        compare = json_pack("{s:I, s:f, s:f, s:f, s:f, s:f, s:f}", "draws",
+                            (json_int_t)s.apo_draw_ms.count, "apo_draw_ms_p50", a50,
+                            "apo_draw_ms_p95", a95, "plain_draw_ms_p50", p50,
+                            "plain_draw_ms_p95", p95, "ratio_p50", p50 > 0 ? a50 / p50 : 0,
+                            "ratio_p95", p95 > 0 ? a95 / p95 : 0);
+    }
+    *report = json_pack("{s:s, s:s, s:s, s:i, s:i, s:f, s:b, s:O, s:o, s:s?, s:I, s:I, s:f, s:o*}",
                         "model", model.name, "source", source->archive_dir ? "archive" : "server",
                         "shading",
                         o->shading == MS_SHADING_NORMALS ? "normals"
@@ -356,7 +411,8 @@ ms_status ms_viewer_script_run(const ms_viewer_options *o, const ms_viewer_sourc
                         frame_summary(&s.log, o->upload_budget), "first_frame_png",
                         s.first_written ? s.first_png : NULL, "geometry_bytes",
                         (json_int_t)cs.geometry_bytes_received, "apo_bytes",
-                        (json_int_t)cs.apo_bytes_received, "seconds", now_s() - started);
+                        (json_int_t)cs.apo_bytes_received, "seconds", now_s() - started,
+                        "compare_apo", compare);
     if (!*report)
         st = ms_error_set(err, MS_ERR_NOMEM, "out of memory for the report");
 done:
@@ -366,6 +422,8 @@ done:
     ms_viewer_text_free(s.text);
     free(s.log.ms);
     free(s.log.step_ms);
+    free(s.apo_draw_ms.v);
+    free(s.plain_draw_ms.v);
     free(s.log.upload);
     ms_viewer_model_close(&model);
     return st;
