@@ -51,7 +51,8 @@ ms_status ms_apo_sampler_distance(const ms_apo_sampler *sampler, const ms_apo_lo
 /* The normal of a leaf with centre `centre` touching the m-triangles
  * m_tris[0..count): one sample for each of the (at most MS_APO_SAMPLES_PER_LEAF)
  * m-triangles nearest to the centre, within half-length `search`,
- * normalised sum (the first sample where the sum vanishes; +z for no sample).
+ * normalised sum (the nearest triangle's sample where the sum vanishes; +z for
+ * no sample).
  * Adds what happened to *counts. */
 void ms_apo_sample_leaf(const ms_apo_sampler *sampler, const ms_apo_local_mesh *m, const uint32_t *m_tris,
                         size_t count, const float centre[3], float search, float normal[3],
