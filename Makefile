@@ -46,7 +46,7 @@ TESTSUPPORT := $(patsubst %.c,$(BUILD)/%.o,$(wildcard tests/support/*.c))
 HAVE_CXX  := $(strip $(foreach r,$(ROLES),$(wildcard $(r)/*.cpp)))
 LINK      := $(if $(HAVE_CXX),$(CXX),$(CC))
 
-.PHONY: all test bench demo fuzz clean programs tests deps
+.PHONY: all test bench demo fuzz clean programs tests deps screenshots
 .SECONDARY:
 all: programs
 
@@ -116,6 +116,10 @@ test:
 
 bench: programs
 	@scripts/bench
+
+# The viewer's pictures in docs/images/ (headless meshview; Xvfb when no DISPLAY).
+screenshots: programs
+	@scripts/screenshots
 
 demo:
 	@scripts/install-deps

@@ -1,32 +1,66 @@
+/* ms_png_write on libpng: the rows go through png_write_row one at a time (no
+ * copy of the image), into DIR/NAME.partial renamed over the target on success.
+ * libpng reports errors by longjmp; everything the jump could skip is kept in a
+ * struct reachable after it (volatile where setjmp's rules ask for it). */
 #include "ms_png.h"
 
 #include <errno.h>
+#include <png.h>
+#include <setjmp.h>
+#include <stdbool.h>
 #include <stdio.h>
-#include <stdlib.h>
 #include <string.h>
-#include <zlib.h>
 
-static void put_be32(uint8_t *out, uint32_t v)
+typedef struct png_failure {
+    char text[200];
+} png_failure;
+
+static void on_png_error(png_structp png, png_const_charp message)
 {
-    out[0] = (uint8_t)(v >> 24);
-    out[1] = (uint8_t)(v >> 16);
-    out[2] = (uint8_t)(v >> 8);
-    out[3] = (uint8_t)v;
+    png_failure *failure = png_get_error_ptr(png);
+    snprintf(failure->text, sizeof failure->text, "%s", message);
+    png_longjmp(png, 1);
 }
 
-/* Writes one chunk: length, type, data, CRC over type and data. */
-static int write_chunk(FILE *f, const char type[4], const uint8_t *data, uint32_t size)
+static void on_png_warning(png_structp png, png_const_charp message)
 {
-    uint8_t head[8];
-    put_be32(head, size);
-    memcpy(head + 4, type, 4);
-    uLong crc = crc32(0L, (const Bytef *)type, 4);
-    if (size)
-        crc = crc32(crc, data, size);
-    uint8_t tail[4];
-    put_be32(tail, (uint32_t)crc);
-    return fwrite(head, 1, 8, f) != 8 || (size && fwrite(data, 1, size, f) != size) ||
-           fwrite(tail, 1, 4, f) != 4;
+    (void)png, (void)message; /* warnings are not failures of the written file */
+}
+
+/* Writes the whole image to f; false with failure->text set on any libpng error. */
+static bool write_image(FILE *f, const uint8_t *pixels, uint32_t width, uint32_t height,
+                        int channels, png_failure *failure)
+{
+    png_structp png =
+        png_create_write_struct(PNG_LIBPNG_VER_STRING, failure, on_png_error, on_png_warning);
+    if (!png) {
+        snprintf(failure->text, sizeof failure->text, "cannot start libpng");
+        return false;
+    }
+    png_infop info = png_create_info_struct(png);
+    if (!info) {
+        png_destroy_write_struct(&png, NULL);
+        snprintf(failure->text, sizeof failure->text, "cannot start libpng");
+        return false;
+    }
+    if (setjmp(png_jmpbuf(png))) {
+        png_destroy_write_struct(&png, &info);
+        return false;
+    }
+    png_init_io(png, f);
+    png_set_IHDR(png, info, width, height, 8, channels == 3 ? PNG_COLOR_TYPE_RGB : PNG_COLOR_TYPE_GRAY,
+                 PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+    png_set_compression_level(png, 6);
+    /* Rows stored unfiltered: the inflated stream is the image itself, byte for
+     * byte (what tests/test_png.c checks); screenshots stay small enough. */
+    png_set_filter(png, PNG_FILTER_TYPE_BASE, PNG_FILTER_NONE);
+    png_write_info(png, info);
+    size_t row_bytes = (size_t)width * (size_t)channels;
+    for (uint32_t y = 0; y < height; ++y)
+        png_write_row(png, pixels + (size_t)y * row_bytes);
+    png_write_end(png, info);
+    png_destroy_write_struct(&png, &info);
+    return true;
 }
 
 ms_status ms_png_write(const char *path, const uint8_t *pixels, uint32_t width, uint32_t height,
@@ -36,48 +70,18 @@ ms_status ms_png_write(const char *path, const uint8_t *pixels, uint32_t width, 
         (channels != 1 && channels != 3))
         return ms_error_set(err, MS_ERR_ARG, "%s: bad PNG size %ux%u x%d", path, width, height,
                             channels);
-    size_t row = (size_t)width * (size_t)channels + 1; /* filter byte + samples */
-    size_t raw_size = row * height;
-    uint8_t *raw = malloc(raw_size);
-    uLongf packed_size = compressBound((uLong)raw_size);
-    uint8_t *packed = malloc(packed_size);
-    if (!raw || !packed) {
-        free(raw);
-        free(packed);
-        return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory", path);
-    }
-    for (uint32_t y = 0; y < height; ++y) {
-        raw[y * row] = 0; /* filter: none */
-        memcpy(raw + y * row + 1, pixels + (size_t)y * (row - 1), row - 1);
-    }
-    int zst = compress2(packed, &packed_size, raw, (uLong)raw_size, 6);
-    free(raw);
-    if (zst != Z_OK) {
-        free(packed);
-        return ms_error_set(err, MS_ERR_NOMEM, "%s: zlib compression failed", path);
-    }
     char tmp[4096];
     snprintf(tmp, sizeof tmp, "%s.partial", path);
     FILE *f = fopen(tmp, "wb");
-    if (!f) {
-        free(packed);
+    if (!f)
         return ms_error_set(err, MS_ERR_IO, "%s: cannot create: %s", tmp, strerror(errno));
-    }
-    static const uint8_t signature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
-    uint8_t ihdr[13];
-    put_be32(ihdr, width);
-    put_be32(ihdr + 4, height);
-    ihdr[8] = 8;                       /* bit depth */
-    ihdr[9] = channels == 3 ? 2 : 0;   /* colour type: RGB or grey */
-    ihdr[10] = ihdr[11] = ihdr[12] = 0; /* deflate, adaptive filter, no interlace */
-    int failed = fwrite(signature, 1, 8, f) != 8 || write_chunk(f, "IHDR", ihdr, 13) ||
-                 write_chunk(f, "IDAT", packed, (uint32_t)packed_size) ||
-                 write_chunk(f, "IEND", NULL, 0);
-    free(packed);
-    failed |= fclose(f) != 0;
-    if (failed || rename(tmp, path) != 0) {
+    png_failure failure = {{0}};
+    bool written = write_image(f, pixels, width, height, channels, &failure);
+    bool closed = fclose(f) == 0;
+    if (!written || !closed || rename(tmp, path) != 0) {
         remove(tmp);
-        return ms_error_set(err, MS_ERR_IO, "%s: write failed", path);
+        return ms_error_set(err, MS_ERR_IO, "%s: write failed%s%s", path, failure.text[0] ? ": " : "",
+                            failure.text);
     }
     return MS_OK;
 }

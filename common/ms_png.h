@@ -1,4 +1,4 @@
-/* Minimal PNG writer (8-bit RGB or grey, no interlace), compressed with zlib.
+/* PNG writer (8-bit RGB or grey, no interlace, rows unfiltered) on libpng.
  * Used for reference renders, screenshots and plots. Writes to a temporary name
  * and renames on success. Thread-safe (no shared state). */
 #ifndef MS_PNG_H

@@ -1,0 +1,592 @@
+/* meshview: the window that shows streamed models (docs/VIEWER.md).
+ *
+ * One loop, one frame per turn: poll GLFW's events (they only change the
+ * viewer's state: camera controls, toggles, requests), step the stream (the
+ * core gets the camera, the newest frame goes to the renderer, at most the
+ * upload budget goes to the GPU), draw, overlay the HUD, swap. Nothing in the
+ * loop waits for the network or for decoding. Models open from the catalogue
+ * screen or --model; opening fetches the model's index first (a bounded wait,
+ * with a message on screen) and starts a fresh stream.
+ *
+ * Scripted runs (--path / --screenshot-dir) go to ms_viewer_script.h.
+ */
+#include <dlfcn.h>
+#include <epoxy/gl.h>
+#include <GLFW/glfw3.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <time.h>
+
+#include "ms_gl_window.h"
+#include "ms_viewer_catalogue.h"
+#include "ms_viewer_controls.h"
+#include "ms_viewer_font.h"
+#include "ms_viewer_hud.h"
+#include "ms_viewer_model.h"
+#include "ms_viewer_options.h"
+#include "ms_viewer_readback.h"
+#include "ms_viewer_script.h"
+#include "ms_viewer_signals.h"
+#include "ms_viewer_stream.h"
+#include "ms_viewer_text.h"
+
+#define DOUBLE_CLICK_S 0.35
+#define DOUBLE_CLICK_PX 4.0
+
+typedef struct viewer {
+    const ms_viewer_options *o;
+    ms_viewer_source source;
+    char where[128];
+    GLFWwindow *window;
+    ms_viewer_text *text;
+    ms_viewer_model_list list;
+    bool have_list;
+    ms_viewer_catalogue catalogue;
+    bool on_catalogue;
+    /* the open model */
+    ms_viewer_model model;
+    ms_viewer_stream *stream;
+    ms_viewer_controls controls;
+    ms_render_options render;
+    bool apo, geometry_normals, hud;
+    char message[256];             /* shown on the catalogue screen (last failure) */
+    int screenshots;
+    /* input */
+    bool rotating, panning;
+    double cursor_x, cursor_y;     /* window coordinates */
+    double last_click_time, last_click_x, last_click_y;
+    bool recentre_requested;
+    double recentre_x, recentre_y; /* framebuffer pixels, top-left origin */
+    bool screenshot_requested;
+    long open_delta;               /* next/previous model requested */
+    bool open_requested;           /* Enter / double-click on the catalogue */
+    /* frame timing */
+    double frame_ms, fps, last_frame;
+    ms_render_draw_stats drawn;
+    bool settled;
+} viewer;
+
+/* Mesa's software driver leaks a few bytes of its own when it is unloaded, where
+ * LeakSanitizer can no longer name it: meshview keeps it loaded to the end
+ * (RTLD_NODELETE) so that a leak report names it, and suppresses exactly that
+ * module (the same rule as tests/support/ms_test_render.c). Used only by
+ * sanitizer builds. */
+const char *__lsan_default_suppressions(void);
+const char *__lsan_default_suppressions(void)
+{
+    return "leak:swrast_dri.so\nleak:libgallium\nleak:libLLVM\n";
+}
+
+static void keep_gl_driver_loaded(void)
+{
+    static const char *const drivers[] = {"swrast_dri.so",
+                                          "/usr/lib/x86_64-linux-gnu/dri/swrast_dri.so"};
+    for (size_t i = 0; i < sizeof drivers / sizeof *drivers; ++i) {
+        void *h = dlopen(drivers[i], RTLD_NOW | RTLD_NOLOAD | RTLD_NODELETE);
+        if (h) {
+            dlclose(h);
+            return;
+        }
+    }
+}
+
+static double now_s(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + ts.tv_nsec * 1e-9;
+}
+
+/* Framebuffer pixels per window coordinate (HiDPI: 2 on a retina screen). */
+static double pixel_ratio(GLFWwindow *w)
+{
+    int ww, wh, fw, fh;
+    glfwGetWindowSize(w, &ww, &wh);
+    glfwGetFramebufferSize(w, &fw, &fh);
+    return ww > 0 ? (double)fw / ww : 1;
+}
+
+static int text_scale(const viewer *v)
+{
+    int fw, fh;
+    glfwGetFramebufferSize(v->window, &fw, &fh);
+    return ms_viewer_text_auto_scale(fh, pixel_ratio(v->window), v->on_catalogue || !v->stream);
+}
+
+static void update_shading(viewer *v)
+{
+    v->render.apo = v->apo && !v->geometry_normals;
+}
+
+static const char *mode_name(const viewer *v)
+{
+    switch (v->render.shading) {
+    case MS_SHADING_NORMALS: return v->render.apo ? "normals (APO)" : "normals (geometry)";
+    case MS_SHADING_CELLS: return v->render.apo ? "cells, APO lit" : "cells, geometry lit";
+    default: return v->render.apo ? "APO lit" : "geometry lit";
+    }
+}
+
+static void close_model(viewer *v)
+{
+    ms_viewer_stream_close(v->stream);
+    v->stream = NULL;
+    ms_viewer_model_close(&v->model);
+}
+
+static int catalogue_frame(viewer *v, int fw, int fh);
+
+/* Opens model `name`; on failure stays where it is with the message set. The
+ * index fetch is a bounded wait (the source's time-out): a frame saying so is
+ * shown first. */
+static bool open_model(viewer *v, const char *name)
+{
+    close_model(v);
+    ms_error err;
+    if (v->text) {
+        int fw, fh;
+        glfwGetFramebufferSize(v->window, &fw, &fh);
+        snprintf(v->message, sizeof v->message, "opening %s ...", name);
+        if (fw > 0 && fh > 0 && catalogue_frame(v, fw, fh) == 0)
+            glfwSwapBuffers(v->window);
+    }
+    ms_viewer_stream_settings settings = {.tolerance_px = v->o->tolerance_px,
+                                          .apo_levels = v->o->apo_levels,
+                                          .memory_mb = v->o->memory_mb,
+                                          .bandwidth = v->o->bandwidth};
+    if (ms_viewer_model_open(&v->source, name, &v->model, &err) != MS_OK ||
+        ms_viewer_stream_open(&v->source, &v->model, &settings, &v->stream, &err) != MS_OK) {
+        snprintf(v->message, sizeof v->message, "%.250s", err.text);
+        close_model(v);
+        return false;
+    }
+    double lo[3], hi[3];
+    ms_viewer_model_bounds(&v->model, lo, hi);
+    ms_viewer_controls_init(&v->controls, lo, hi, v->o->up_axis);
+    v->on_catalogue = false;
+    v->message[0] = 0;
+    char title[128];
+    snprintf(title, sizeof title, "meshview - %s", name);
+    glfwSetWindowTitle(v->window, title);
+    return true;
+}
+
+static void open_neighbour(viewer *v, long delta)
+{
+    if (!v->have_list || !v->list.count)
+        return;
+    size_t n = v->list.count, at = v->catalogue.selected;
+    for (size_t i = 0; i < n; ++i)
+        if (!strcmp(v->list.entries[i].name, v->model.name))
+            at = i;
+    size_t next = (size_t)(((long)at + delta % (long)n + (long)n) % (long)n);
+    v->catalogue.selected = next;
+    if (!open_model(v, v->list.entries[next].name))
+        v->on_catalogue = true;
+}
+
+/* --- GLFW callbacks: they only record what the loop acts on ---------------- */
+
+static void on_key(GLFWwindow *w, int key, int scancode, int action, int mods)
+{
+    (void)scancode, (void)mods;
+    viewer *v = glfwGetWindowUserPointer(w);
+    if (action != GLFW_PRESS && action != GLFW_REPEAT)
+        return;
+    if (key == GLFW_KEY_ESCAPE) {
+        glfwSetWindowShouldClose(w, GLFW_TRUE);
+        return;
+    }
+    if (v->on_catalogue) {
+        int fw, fh;
+        glfwGetFramebufferSize(w, &fw, &fh);
+        int s = text_scale(v);
+        if (key == GLFW_KEY_DOWN)
+            ms_viewer_catalogue_move(&v->catalogue, 1, fh, s);
+        else if (key == GLFW_KEY_UP)
+            ms_viewer_catalogue_move(&v->catalogue, -1, fh, s);
+        else if (key == GLFW_KEY_PAGE_DOWN)
+            ms_viewer_catalogue_move(&v->catalogue, 10, fh, s);
+        else if (key == GLFW_KEY_PAGE_UP)
+            ms_viewer_catalogue_move(&v->catalogue, -10, fh, s);
+        else if (key == GLFW_KEY_ENTER || key == GLFW_KEY_KP_ENTER)
+            v->open_requested = true;
+        else if (key == GLFW_KEY_TAB && v->stream)
+            v->on_catalogue = false;
+        return;
+    }
+    if (action == GLFW_REPEAT && key != GLFW_KEY_EQUAL && key != GLFW_KEY_MINUS &&
+        key != GLFW_KEY_KP_ADD && key != GLFW_KEY_KP_SUBTRACT)
+        return;
+    ms_viewer_controls *c = &v->controls;
+    switch (key) {
+    case GLFW_KEY_O: v->apo = !v->apo; break;
+    case GLFW_KEY_G: v->geometry_normals = !v->geometry_normals; break;
+    case GLFW_KEY_N:
+        v->render.shading =
+            v->render.shading == MS_SHADING_NORMALS ? MS_SHADING_LIT : MS_SHADING_NORMALS;
+        break;
+    case GLFW_KEY_C:
+        v->render.shading = v->render.shading == MS_SHADING_CELLS ? MS_SHADING_LIT : MS_SHADING_CELLS;
+        break;
+    case GLFW_KEY_X: v->render.wireframe = !v->render.wireframe; break;
+    case GLFW_KEY_H: v->hud = !v->hud; break;
+    case GLFW_KEY_P: v->screenshot_requested = true; break;
+    case GLFW_KEY_EQUAL:
+    case GLFW_KEY_KP_ADD:
+        ms_viewer_stream_set_tolerance(v->stream, ms_viewer_stream_tolerance(v->stream) / 1.5);
+        break;
+    case GLFW_KEY_MINUS:
+    case GLFW_KEY_KP_SUBTRACT:
+        ms_viewer_stream_set_tolerance(v->stream, ms_viewer_stream_tolerance(v->stream) * 1.5);
+        break;
+    case GLFW_KEY_R: ms_viewer_controls_reset(c); break;
+    case GLFW_KEY_U: ms_viewer_controls_set_up(c, (c->up_axis + 1) % 3); break;
+    case GLFW_KEY_F: c->fly = !c->fly; break;
+    case GLFW_KEY_RIGHT_BRACKET:
+    case GLFW_KEY_PAGE_DOWN: v->open_delta = 1; break;
+    case GLFW_KEY_LEFT_BRACKET:
+    case GLFW_KEY_PAGE_UP: v->open_delta = -1; break;
+    case GLFW_KEY_TAB:
+        if (v->have_list)
+            v->on_catalogue = true;
+        break;
+    default: break;
+    }
+    update_shading(v);
+}
+
+static void on_mouse_button(GLFWwindow *w, int button, int action, int mods)
+{
+    viewer *v = glfwGetWindowUserPointer(w);
+    double x, y;
+    glfwGetCursorPos(w, &x, &y);
+    v->cursor_x = x, v->cursor_y = y;
+    double ratio = pixel_ratio(w);
+    if (action == GLFW_RELEASE) {
+        v->rotating = v->panning = false;
+        return;
+    }
+    bool pan = button == GLFW_MOUSE_BUTTON_RIGHT || button == GLFW_MOUSE_BUTTON_MIDDLE ||
+               (button == GLFW_MOUSE_BUTTON_LEFT && (mods & GLFW_MOD_SHIFT));
+    double t = glfwGetTime();
+    bool twice = button == GLFW_MOUSE_BUTTON_LEFT && t - v->last_click_time < DOUBLE_CLICK_S &&
+                 fabs(x - v->last_click_x) < DOUBLE_CLICK_PX &&
+                 fabs(y - v->last_click_y) < DOUBLE_CLICK_PX;
+    if (button == GLFW_MOUSE_BUTTON_LEFT) {
+        v->last_click_time = twice ? -1 : t;
+        v->last_click_x = x, v->last_click_y = y;
+    }
+    if (v->on_catalogue) {
+        if (button != GLFW_MOUSE_BUTTON_LEFT)
+            return;
+        int fw, fh;
+        glfwGetFramebufferSize(w, &fw, &fh);
+        long row = ms_viewer_catalogue_row_at(&v->catalogue, x * ratio, y * ratio, fw, fh,
+                                              text_scale(v));
+        if (row >= 0) {
+            v->catalogue.selected = (size_t)row;
+            if (twice)
+                v->open_requested = true;
+        }
+        return;
+    }
+    if (twice) {
+        v->recentre_requested = true;
+        v->recentre_x = x * ratio, v->recentre_y = y * ratio;
+        return;
+    }
+    if (pan)
+        v->panning = true;
+    else if (button == GLFW_MOUSE_BUTTON_LEFT)
+        v->rotating = true;
+}
+
+static void on_cursor(GLFWwindow *w, double x, double y)
+{
+    viewer *v = glfwGetWindowUserPointer(w);
+    double ratio = pixel_ratio(w);
+    double dx = (x - v->cursor_x) * ratio, dy = (y - v->cursor_y) * ratio;
+    v->cursor_x = x, v->cursor_y = y;
+    if (v->on_catalogue || (!v->rotating && !v->panning))
+        return;
+    int fw, fh;
+    glfwGetFramebufferSize(w, &fw, &fh);
+    if (v->panning)
+        ms_viewer_controls_pan(&v->controls, dx, dy, fh);
+    else
+        ms_viewer_controls_rotate(&v->controls, dx, dy, fh);
+}
+
+static void on_scroll(GLFWwindow *w, double dx, double dy)
+{
+    (void)dx;
+    viewer *v = glfwGetWindowUserPointer(w);
+    if (v->on_catalogue) {
+        int fw, fh;
+        glfwGetFramebufferSize(w, &fw, &fh);
+        ms_viewer_catalogue_move(&v->catalogue, dy > 0 ? -1 : 1, fh, text_scale(v));
+        return;
+    }
+    ms_viewer_controls_zoom(&v->controls, dy);
+}
+
+/* --- the loop ------------------------------------------------------------ */
+
+static void fly_keys(viewer *v, double seconds)
+{
+    if (!v->controls.fly)
+        return;
+    GLFWwindow *w = v->window;
+    double f = (glfwGetKey(w, GLFW_KEY_W) == GLFW_PRESS) - (glfwGetKey(w, GLFW_KEY_S) == GLFW_PRESS);
+    double r = (glfwGetKey(w, GLFW_KEY_D) == GLFW_PRESS) - (glfwGetKey(w, GLFW_KEY_A) == GLFW_PRESS);
+    double u = (glfwGetKey(w, GLFW_KEY_E) == GLFW_PRESS) - (glfwGetKey(w, GLFW_KEY_Q) == GLFW_PRESS);
+    if (f || r || u)
+        ms_viewer_controls_fly(&v->controls, f, r, u, seconds);
+}
+
+static void take_screenshot(viewer *v, int fw, int fh)
+{
+    const char *dir = v->o->screenshot_dir ? v->o->screenshot_dir : ".";
+    char path[4200];
+    ms_error err;
+    struct stat sb;
+    do
+        snprintf(path, sizeof path, "%s/meshview-%s-%03d.png", dir, v->model.name, v->screenshots++);
+    while (stat(path, &sb) == 0 && v->screenshots < 1000);
+    if (ms_viewer_screenshot(path, fw, fh, &err) != MS_OK)
+        snprintf(v->message, sizeof v->message, "%.250s", err.text);
+    else
+        fprintf(stderr, "meshview: wrote %s\n", path);
+}
+
+/* One frame of the model view. 1 on a fatal error (printed). */
+static int view_frame(viewer *v, int fw, int fh, double seconds)
+{
+    ms_error err;
+    fly_keys(v, seconds);
+    ms_camera camera;
+    if (ms_viewer_controls_camera(&v->controls, fw, fh, &camera, &err) != MS_OK)
+        ms_viewer_controls_reset(&v->controls);
+    else {
+        ms_viewer_step step;
+        if (ms_viewer_stream_step(v->stream, &camera, v->o->upload_budget, &step, &err) != MS_OK ||
+            ms_viewer_stream_draw(v->stream, &camera, &v->render, &v->drawn, &err) != MS_OK) {
+            fprintf(stderr, "meshview: %s\n", err.text);
+            return 1;
+        }
+        v->settled = step.settled;
+        if (v->recentre_requested) {
+            v->recentre_requested = false;
+            double depth, world[3];
+            int px = (int)v->recentre_x, py = fh - 1 - (int)v->recentre_y;
+            if (ms_viewer_read_depth(px, py, fw, fh, &depth) &&
+                ms_render_unproject(&camera, px + 0.5, py + 0.5, depth, world))
+                ms_viewer_controls_recentre(&v->controls, world);
+        }
+        if (v->screenshot_requested) {
+            v->screenshot_requested = false;
+            take_screenshot(v, fw, fh);
+        }
+    }
+    ms_core_stats cs;
+    ms_viewer_stream_stats(v->stream, &cs);
+    ms_viewer_hud_info info = {.model = v->model.name,
+                               .mode = mode_name(v),
+                               .frame_ms = v->frame_ms,
+                               .fps = v->fps,
+                               .triangles_drawn = v->drawn.triangles_drawn,
+                               .cells_drawn = v->drawn.cells_drawn,
+                               .core = &cs,
+                               .settled = v->settled,
+                               .fly = v->controls.fly};
+    ms_viewer_text_begin(v->text, fw, fh, text_scale(v));
+    ms_viewer_hud_draw(v->text, &info, fw, fh, v->hud);
+    if (ms_viewer_text_draw(v->text, &err) != MS_OK) {
+        fprintf(stderr, "meshview: %s\n", err.text);
+        return 1;
+    }
+    return 0;
+}
+
+static int catalogue_frame(viewer *v, int fw, int fh)
+{
+    glBindFramebuffer(GL_FRAMEBUFFER, 0);
+    glViewport(0, 0, fw, fh);
+    glClearColor(0.08f, 0.08f, 0.09f, 1);
+    glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+    int s = text_scale(v);
+    ms_viewer_text_begin(v->text, fw, fh, s);
+    ms_viewer_catalogue_draw(v->text, &v->catalogue, fw, fh);
+    if (v->message[0]) {
+        static const float alert[4] = {1.0f, 0.55f, 0.45f, 1};
+        ms_viewer_text_print(v->text, 12.0 * s, fh - 4.0 * MS_FONT_LINE_HEIGHT * s, alert,
+                             v->message);
+    }
+    ms_error err;
+    if (ms_viewer_text_draw(v->text, &err) != MS_OK) {
+        fprintf(stderr, "meshview: %s\n", err.text);
+        return 1;
+    }
+    return 0;
+}
+
+static int interactive(viewer *v)
+{
+    const ms_viewer_options *o = v->o;
+    ms_error err;
+    if (o->model) {
+        /* An unknown model or a missing server is an error before any window. */
+        if (ms_viewer_model_open(&v->source, o->model, &v->model, &err) != MS_OK) {
+            fprintf(stderr, "meshview: %s\n", err.text);
+            return 1;
+        }
+        ms_viewer_model_close(&v->model);
+    }
+    v->have_list = ms_viewer_list_models(&v->source, &v->list, &err) == MS_OK;
+    if (!v->have_list && !o->model) {
+        fprintf(stderr, "meshview: %s\n", err.text);
+        return 1;
+    }
+    if (ms_gl_window_new(o->width, o->height, "meshview", true, &v->window, &err) != MS_OK) {
+        fprintf(stderr, "meshview: %s\n", err.text);
+        return 1;
+    }
+    keep_gl_driver_loaded();
+    int rc = 0;
+    if (ms_viewer_text_new(&v->text, &err) != MS_OK) {
+        fprintf(stderr, "meshview: %s\n", err.text);
+        rc = 1;
+        goto done;
+    }
+    glfwSetWindowUserPointer(v->window, v);
+    glfwSetKeyCallback(v->window, on_key);
+    glfwSetMouseButtonCallback(v->window, on_mouse_button);
+    glfwSetCursorPosCallback(v->window, on_cursor);
+    glfwSetScrollCallback(v->window, on_scroll);
+    v->catalogue = (ms_viewer_catalogue){.list = &v->list, .where = v->where};
+    v->on_catalogue = true;
+    if (o->model) {
+        for (size_t i = 0; v->have_list && i < v->list.count; ++i)
+            if (!strcmp(v->list.entries[i].name, o->model))
+                v->catalogue.selected = i;
+        if (!open_model(v, o->model)) {
+            fprintf(stderr, "meshview: %s\n", v->message);
+            rc = 1;
+            goto done;
+        }
+    }
+    v->last_frame = now_s();
+    while (!glfwWindowShouldClose(v->window) && !ms_viewer_signals_pending()) {
+        glfwPollEvents();
+        double t = now_s(), seconds = t - v->last_frame;
+        v->last_frame = t;
+        /* Smoothed over about half a second of frames. */
+        double a = seconds > 0.5 ? 1 : seconds / 0.5;
+        v->frame_ms += (seconds * 1e3 - v->frame_ms) * (v->frame_ms ? a : 1);
+        v->fps = v->frame_ms > 0 ? 1e3 / v->frame_ms : 0;
+        if (v->open_requested) {
+            v->open_requested = false;
+            if (v->list.count)
+                open_model(v, v->list.entries[v->catalogue.selected].name);
+        }
+        if (v->open_delta) {
+            open_neighbour(v, v->open_delta);
+            v->open_delta = 0;
+        }
+        int fw, fh;
+        glfwGetFramebufferSize(v->window, &fw, &fh);
+        if (fw < 1 || fh < 1) { /* minimised */
+            glfwWaitEventsTimeout(0.05);
+            continue;
+        }
+        if ((v->on_catalogue || !v->stream) ? catalogue_frame(v, fw, fh)
+                                            : view_frame(v, fw, fh, seconds)) {
+            rc = 1;
+            break;
+        }
+        glfwSwapBuffers(v->window);
+    }
+done:
+    close_model(v);
+    ms_viewer_text_free(v->text);
+    ms_gl_window_free(v->window);
+    ms_viewer_model_list_free(&v->list);
+    return rc;
+}
+
+static int scripted(viewer *v)
+{
+    const ms_viewer_options *o = v->o;
+    ms_error err;
+    GLFWwindow *window;
+    if (ms_gl_window_new(o->width, o->height, "meshview", false, &window, &err) != MS_OK) {
+        fprintf(stderr, "meshview: %s\n", err.text);
+        return 1;
+    }
+    keep_gl_driver_loaded();
+    json_t *report = NULL;
+    bool complete = false;
+    ms_status st = ms_viewer_script_run(o, &v->source, window, &report, &complete, &err);
+    ms_gl_window_free(window);
+    if (st != MS_OK) {
+        fprintf(stderr, "meshview: %s\n", err.text);
+        return 1;
+    }
+    if (o->json) {
+        char *text = json_dumps(report, JSON_INDENT(2) | JSON_PRESERVE_ORDER | JSON_REAL_PRECISION(6));
+        if (text)
+            printf("%s\n", text);
+        free(text);
+    } else {
+        json_t *keys = json_object_get(report, "keyframes");
+        size_t i;
+        json_t *k;
+        json_array_foreach(keys, i, k)
+            printf("keyframe %zu: %s, %s in %.2f s, %lld triangles, error %.2f px\n", i,
+                   json_string_value(json_object_get(k, "png")),
+                   json_is_true(json_object_get(k, "complete")) ? "complete" : "NOT complete",
+                   json_real_value(json_object_get(k, "seconds_to_complete")),
+                   (long long)json_integer_value(json_object_get(k, "triangles_drawn")),
+                   json_real_value(json_object_get(k, "achieved_error_px")));
+        if (!json_array_size(keys))
+            printf("wrote %s\n", json_string_value(json_object_get(report, "png")));
+    }
+    json_decref(report);
+    if (!complete) {
+        fprintf(stderr, "meshview: the view did not complete at every keyframe within %.1f s\n",
+                o->keyframe_timeout);
+        return 1;
+    }
+    return 0;
+}
+
+int main(int argc, char **argv)
+{
+    ms_viewer_signals_block(); /* before the core's threads exist */
+    ms_viewer_options o;
+    int rc = ms_viewer_options_parse(argc, argv, &o, stderr);
+    if (rc)
+        return rc;
+    if (o.help) {
+        ms_viewer_options_usage(stdout);
+        return 0;
+    }
+    viewer v = {.o = &o, .hud = true, .apo = o.apo_shading};
+    v.source = (ms_viewer_source){.archive_dir = o.archive_dir,
+                                  .host = o.host,
+                                  .port = o.port,
+                                  .token = o.token,
+                                  .timeout_s = 5};
+    if (o.archive_dir)
+        snprintf(v.where, sizeof v.where, "%.120s", o.archive_dir);
+    else
+        snprintf(v.where, sizeof v.where, "server %s:%u", o.host, o.port);
+    ms_render_options_default(&v.render);
+    v.render.shading = o.shading;
+    update_shading(&v);
+    return o.scripted ? scripted(&v) : interactive(&v);
+}

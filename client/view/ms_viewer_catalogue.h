@@ -1,0 +1,36 @@
+/* meshview's catalogue screen: the models of a server or archive directory as
+ * a list (name, triangles, size) to pick from with the arrow keys and Enter, or
+ * with the mouse (a click selects, a double click or Enter opens). Layout in
+ * framebuffer pixels through the overlay pass (ms_viewer_text.h), so a click
+ * maps to a row with the same arithmetic the drawing used.
+ * Thread-safety: none shared.
+ */
+#ifndef MS_VIEWER_CATALOGUE_H
+#define MS_VIEWER_CATALOGUE_H
+
+#include <stddef.h>
+
+#include "ms_viewer_model.h"
+#include "ms_viewer_text.h"
+
+typedef struct ms_viewer_catalogue {
+    const ms_viewer_model_list *list; /* not owned */
+    const char *where;                /* "server 127.0.0.1:7000" or the directory */
+    size_t selected;
+    size_t first;                     /* first row shown (scrolling) */
+} ms_viewer_catalogue;
+
+/* Moves the selection by delta rows (clamped) and scrolls to keep it shown. */
+void ms_viewer_catalogue_move(ms_viewer_catalogue *cat, long delta, int height, int scale);
+
+/* The row under framebuffer point (x, y), or -1. */
+long ms_viewer_catalogue_row_at(const ms_viewer_catalogue *cat, double x, double y, int width,
+                                int height, int scale);
+
+/* One row's text: name, triangles and size in columns. */
+void ms_viewer_catalogue_row_text(const ms_viewer_model_entry *e, char *out, size_t size);
+
+void ms_viewer_catalogue_draw(ms_viewer_text *text, const ms_viewer_catalogue *cat, int width,
+                              int height);
+
+#endif

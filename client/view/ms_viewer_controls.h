@@ -1,0 +1,75 @@
+/* meshview's camera controller: the maths behind mouse orbit, pan, zoom,
+ * double-click re-centring and fly mode, kept apart from GLFW so that it can be
+ * tested and used by scripted runs.
+ *
+ * State: an orbit centre `target`, the eye's `distance` from it and the view
+ * direction as yaw and pitch (radians) about the world up axis. The eye is
+ * target - distance * forward. Orbit turns the direction about the target; fly
+ * mode turns it about the eye (looking around) and moves eye and target
+ * together (WASD). Pitch stays within +-89 degrees so up never lines up with
+ * the view. Lengths are in model units; pixel arguments are framebuffer pixels
+ * (HiDPI: never window coordinates), so a drag across the whole framebuffer
+ * height turns the view by half a turn whatever the pixel density.
+ *
+ * Pure functions on a caller-owned value; thread-safe.
+ */
+#ifndef MS_VIEWER_CONTROLS_H
+#define MS_VIEWER_CONTROLS_H
+
+#include <stdbool.h>
+
+#include "ms_camera.h"
+#include "ms_error.h"
+
+typedef struct ms_viewer_controls {
+    double home_target[3];  /* the model's centre */
+    double home_yaw;
+    double home_lo[3], home_hi[3]; /* the model's bounds */
+    double model_size;      /* the model's largest side: sets the home distance and speeds */
+    int up_axis;            /* 0 = x, 1 = y, 2 = z: world up */
+    double fovy_degrees;
+    double target[3];
+    double distance;        /* > 0 */
+    double yaw, pitch;      /* radians */
+    bool fly;
+} ms_viewer_controls;
+
+/* A home view of the box [lo, hi] (the model's bounds): looking at its centre
+ * from 1.6 times its largest side away, a little from above and to the side,
+ * across the box's longer horizontal side (a model is seen along its length,
+ * not end-on), fovy 40 degrees. */
+void ms_viewer_controls_init(ms_viewer_controls *c, const double lo[3], const double hi[3],
+                             int up_axis);
+/* Back to the home view (keeps up_axis and fly). */
+void ms_viewer_controls_reset(ms_viewer_controls *c);
+/* Changes the up axis (0..2) and goes home. */
+void ms_viewer_controls_set_up(ms_viewer_controls *c, int up_axis);
+
+/* The unit view direction and the eye position. */
+void ms_viewer_controls_forward(const ms_viewer_controls *c, double forward[3]);
+void ms_viewer_controls_eye(const ms_viewer_controls *c, double eye[3]);
+
+/* A mouse drag of (dx, dy) framebuffer pixels (y down) on a framebuffer
+ * `height` pixels tall: orbits about the target, or looks around in fly mode. */
+void ms_viewer_controls_rotate(ms_viewer_controls *c, double dx, double dy, double height);
+/* Moves eye and target in the view plane so the point under the cursor follows it. */
+void ms_viewer_controls_pan(ms_viewer_controls *c, double dx, double dy, double height);
+/* Scroll: each step brings the eye 15 % closer (steps > 0) or farther. In fly
+ * mode it moves eye and target along the view instead. */
+void ms_viewer_controls_zoom(ms_viewer_controls *c, double steps);
+/* Makes point the orbit centre, keeping the eye where it is (the view turns to
+ * it). A point at the eye is ignored. */
+void ms_viewer_controls_recentre(ms_viewer_controls *c, const double point[3]);
+/* Fly mode: moves eye and target by (forward, right, up) times the speed for
+ * `seconds` (speed: a quarter of the distance to the target per second, at
+ * least model_size / 1000). */
+void ms_viewer_controls_fly(ms_viewer_controls *c, double forward, double right, double up,
+                            double seconds);
+
+/* The camera for a framebuffer of width x height pixels; near and far follow
+ * the distance (near = distance / 500, far = distance + 4 model sizes).
+ * MS_ERR_ARG only for an empty framebuffer or a degenerate state. */
+ms_status ms_viewer_controls_camera(const ms_viewer_controls *c, double width, double height,
+                                    ms_camera *camera, ms_error *err);
+
+#endif

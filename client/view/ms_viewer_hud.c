@@ -1,0 +1,79 @@
+#include "ms_viewer_hud.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "ms_viewer_font.h"
+
+static double mb(uint64_t bytes) { return (double)bytes / 1e6; }
+
+size_t ms_viewer_hud_lines(const ms_viewer_hud_info *info,
+                           char lines[MS_HUD_MAX_LINES][MS_HUD_LINE_MAX])
+{
+    const ms_core_stats *c = info->core;
+    size_t n = 0;
+    snprintf(lines[n++], MS_HUD_LINE_MAX, "%s  %s%s", info->model, info->mode,
+             info->fly ? "  (fly)" : "");
+    snprintf(lines[n++], MS_HUD_LINE_MAX, "frame %.1f ms  %.0f fps", info->frame_ms, info->fps);
+    snprintf(lines[n++], MS_HUD_LINE_MAX, "triangles %llu in %u cells",
+             (unsigned long long)info->triangles_drawn, info->cells_drawn);
+    snprintf(lines[n++], MS_HUD_LINE_MAX, "cells %u shown  %u loading  %u cached", c->cells_shown,
+             c->cells_loading, c->cells_cached);
+    snprintf(lines[n++], MS_HUD_LINE_MAX, "received %.2f MB geometry  %.2f MB APO",
+             mb(c->geometry_bytes_received), mb(c->apo_bytes_received));
+    snprintf(lines[n++], MS_HUD_LINE_MAX, "error %.2f px  tolerance %.2f px",
+             c->achieved_error_px, c->tolerance_px);
+    snprintf(lines[n++], MS_HUD_LINE_MAX, "%s  memory %.1f MB",
+             c->error[0]     ? "stopped"
+             : info->settled ? "view complete"
+             : c->model_open ? "refining"
+                             : "connecting",
+             mb(c->memory));
+    if (c->error[0])
+        snprintf(lines[n++], MS_HUD_LINE_MAX, "%.90s", c->error);
+    else if (c->warning[0])
+        snprintf(lines[n++], MS_HUD_LINE_MAX, "%.90s", c->warning);
+    return n;
+}
+
+double ms_viewer_hud_progress(const ms_viewer_hud_info *info)
+{
+    if (info->settled)
+        return 1;
+    const ms_core_stats *c = info->core;
+    if (!(c->achieved_error_px > 0) || !isfinite(c->achieved_error_px))
+        return 0;
+    double p = c->tolerance_px / c->achieved_error_px;
+    /* Complete geometry can still wait for uploads or APO: never show it full. */
+    return p > 0.97 ? 0.97 : p < 0 ? 0 : p;
+}
+
+void ms_viewer_hud_draw(ms_viewer_text *text, const ms_viewer_hud_info *info, int width,
+                        int height, bool show_text)
+{
+    (void)height;
+    int s = ms_viewer_text_scale(text);
+    if (!info->settled) {
+        static const float track[4] = {0, 0, 0, 0.35f}, bar[4] = {0.35f, 0.75f, 1.0f, 0.9f};
+        double h = 2.0 * s;
+        ms_viewer_text_rect(text, 0, 0, width, h, track);
+        ms_viewer_text_rect(text, 0, 0, width * ms_viewer_hud_progress(info), h, bar);
+    }
+    if (!show_text)
+        return;
+    char lines[MS_HUD_MAX_LINES][MS_HUD_LINE_MAX];
+    size_t n = ms_viewer_hud_lines(info, lines);
+    size_t longest = 0;
+    for (size_t i = 0; i < n; ++i)
+        if (strlen(lines[i]) > longest)
+            longest = strlen(lines[i]);
+    double pad = 4.0 * s, line = MS_FONT_LINE_HEIGHT * s;
+    static const float panel[4] = {0, 0, 0, 0.55f}, ink[4] = {0.92f, 0.92f, 0.88f, 1},
+                       alert[4] = {1.0f, 0.55f, 0.45f, 1};
+    ms_viewer_text_rect(text, pad, 3 * pad, longest * MS_FONT_ADVANCE_X * s + 2 * pad,
+                        n * line + 2 * pad - 2.0 * s, panel);
+    for (size_t i = 0; i < n; ++i)
+        ms_viewer_text_print(text, 2 * pad, 4 * pad + i * line,
+                             i == 7 && info->core->error[0] ? alert : ink, lines[i]);
+}

@@ -1,0 +1,45 @@
+/* meshview's heads-up display: what the viewer is doing, as text in the
+ * overlay pass (ms_viewer_text.h), top-left, on a translucent panel, and a
+ * thin progress bar along the top edge while the view refines.
+ *
+ * The lines are composed by ms_viewer_hud_lines (pure, so tests check the
+ * words) and drawn by ms_viewer_hud_draw. Units: milliseconds, pixels, MB
+ * (10^6 bytes). Thread-safety: none shared.
+ */
+#ifndef MS_VIEWER_HUD_H
+#define MS_VIEWER_HUD_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "ms_client_core.h"
+#include "ms_viewer_text.h"
+
+#define MS_HUD_MAX_LINES 10
+#define MS_HUD_LINE_MAX 96
+
+typedef struct ms_viewer_hud_info {
+    const char *model;           /* model name */
+    const char *mode;            /* e.g. "APO lit", "geometry normals" */
+    double frame_ms, fps;        /* smoothed */
+    uint64_t triangles_drawn;
+    uint32_t cells_drawn;
+    const ms_core_stats *core;   /* errors and tolerance in screen pixels */
+    bool settled;                /* view complete and uploaded */
+    bool fly;
+} ms_viewer_hud_info;
+
+/* Writes the HUD's lines; returns how many (at most MS_HUD_MAX_LINES). */
+size_t ms_viewer_hud_lines(const ms_viewer_hud_info *info,
+                           char lines[MS_HUD_MAX_LINES][MS_HUD_LINE_MAX]);
+
+/* Refinement progress in [0, 1]: tolerance / achieved error (1 when settled). */
+double ms_viewer_hud_progress(const ms_viewer_hud_info *info);
+
+/* Adds the panel, its lines and (unless settled) the progress bar to the batch
+ * (the caller began it for a framebuffer of width x height and draws it). */
+void ms_viewer_hud_draw(ms_viewer_text *text, const ms_viewer_hud_info *info, int width,
+                        int height, bool show_text);
+
+#endif

@@ -1,0 +1,71 @@
+/* Where meshview's models come from: a meshserve server or a local archive
+ * directory (DIR/catalog.json and DIR/NAME.msa, ms_catalog.h). Lists the models
+ * for the catalogue screen and opens one model's index (header and cell
+ * records), which the renderer needs (ms_render_new) and which tells the
+ * viewer where the model is (its cube) before the first frame arrives.
+ *
+ * Server: the list comes from ms_client_fetch_catalogue; the index from one
+ * short connection of its own (HELLO, OPEN_MODEL, the index blob, close),
+ * bounded by a time-out, so an unknown model or a server that is not there is
+ * one clear error before any window opens. Local: ms_catalog_load and
+ * ms_archive_open.
+ *
+ * Ownership: lists and models own their memory (_free / _close, both safe on
+ * zeroed values). Errors: ms_status with one line naming the server or file:
+ * MS_ERR_IO (no server, connection dropped, time-out), MS_ERR_RANGE (no such
+ * model), MS_ERR_FORMAT (bad catalogue or archive), MS_ERR_NOMEM.
+ * Thread-safety: none shared; each call runs its own event loop.
+ */
+#ifndef MS_VIEWER_MODEL_H
+#define MS_VIEWER_MODEL_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "ms_archive.h"
+#include "ms_catalog.h"
+#include "ms_error.h"
+
+typedef struct ms_viewer_source {
+    const char *archive_dir; /* non-NULL: a local archive directory; else the server */
+    const char *host;        /* numeric address */
+    uint16_t port;
+    const char *token;       /* NULL: none */
+    double timeout_s;        /* for the server's answers; 0 = 5 */
+} ms_viewer_source;
+
+typedef struct ms_viewer_model_entry {
+    char name[MS_MODEL_NAME_MAX + 1];
+    uint64_t triangles;      /* 0 when the server does not say */
+    uint64_t bytes;          /* archive size */
+    bool apo;
+} ms_viewer_model_entry;
+
+typedef struct ms_viewer_model_list {
+    ms_viewer_model_entry *entries; /* by name */
+    size_t count;
+} ms_viewer_model_list;
+
+ms_status ms_viewer_list_models(const ms_viewer_source *source, ms_viewer_model_list *list,
+                                ms_error *err);
+void ms_viewer_model_list_free(ms_viewer_model_list *list);
+
+typedef struct ms_viewer_model {
+    char name[MS_MODEL_NAME_MAX + 1];
+    char archive_path[4096];  /* local: DIR/NAME.msa; "" for a server */
+    ms_archive_header header;
+    ms_archive_cell *cells;   /* header.cell_count records */
+} ms_viewer_model;
+
+/* The box the model's surface occupies, as far as the index tells: the union of
+ * the cubes of its leaf cells that hold triangles (the whole cube when none
+ * does). The model's cube is usually much larger on two axes. */
+void ms_viewer_model_bounds(const ms_viewer_model *model, double lo[3], double hi[3]);
+
+/* Opens the index of model `name` (a valid model name, else MS_ERR_ARG). */
+ms_status ms_viewer_model_open(const ms_viewer_source *source, const char *name,
+                               ms_viewer_model *model, ms_error *err);
+void ms_viewer_model_close(ms_viewer_model *model);
+
+#endif

@@ -1,0 +1,256 @@
+#include "ms_viewer_options.h"
+
+#include <getopt.h>
+#include <math.h>
+#include <string.h>
+
+#include "ms_catalog.h"
+#include "ms_parse_number.h"
+
+void ms_viewer_options_usage(FILE *out)
+{
+    fputs("usage: meshview --server HOST:PORT [--model NAME] [--token T] [options]\n"
+          "       meshview ARCHIVE_DIR [--model NAME] [options]\n\n"
+          "Shows a model streamed from meshserve, or read from a local archive directory\n"
+          "(the same client core, without a network), shaded with its APO normals. Without\n"
+          "--model it opens on the catalogue (name, triangles, size) to pick from.\n"
+          "  --server HOST:PORT     numeric address and binary port of meshserve\n"
+          "  --model NAME           open this model directly\n"
+          "  --token T              access token\n"
+          "  --size WxH             window size in pixels (default 1280x720)\n"
+          "  --tolerance PX         geometric screen tolerance (default 4 with APO, 1 without)\n"
+          "  --apo-levels L         most APO octree levels fetched; the core fetches down to\n"
+          "                         the level whose texel covers about a pixel (default 16)\n"
+          "  --no-apo               fetch no APO; shade with geometry normals\n"
+          "  --shading MODE         apo | geometry | normals | cells (default apo)\n"
+          "  --upload-budget BYTES  GPU upload per frame at most (default 4000000)\n"
+          "  --memory MB            client cache target (default none)\n"
+          "  --bandwidth B          bytes per second read (default unlimited)\n"
+          "  --up x|y|z             the model's up axis (default z)\n"
+          "Scripted, headless (on with --path or --screenshot-dir):\n"
+          "  --path FILE            camera path (docs/CAMERA_PATHS.md); without it the home view\n"
+          "  --screenshot-dir DIR   one PNG per keyframe (keyframe-NN.png; catalogue.png\n"
+          "                         without --model); also where the P key writes\n"
+          "  --frames N             frames drawn between two keyframes (default 8)\n"
+          "  --keyframe-timeout S   longest wait for a complete view (default 30)\n"
+          "  --hud                  draw the HUD into the pictures too\n"
+          "  --compare-apo          draw every frame with APO and with plain shading, each\n"
+          "                         timed (the report's compare_apo)\n"
+          "  --json                 one JSON report on stdout\n"
+          "  -h, --help             this help\n"
+          "Mouse: left drag orbits (fly mode: looks around), right or shift drag pans,\n"
+          "scroll zooms, double-click re-centres on the surface under the cursor.\n"
+          "Keys:  O  APO normals on/off        G  geometry-normal shading on/off\n"
+          "       N  normals as colours        C  cell colours\n"
+          "       X  wireframe overlay         H  HUD on/off\n"
+          "       P  screenshot (into --screenshot-dir, default .)\n"
+          "       + / -  tolerance down / up (finer / coarser)\n"
+          "       R  reset view                U  cycle the up axis (x, y, z)\n"
+          "       ] / [  (or PgDn / PgUp)  next / previous model\n"
+          "       F  fly mode: W A S D move, Q / E down / up, mouse looks around\n"
+          "       Tab  back to the catalogue   Esc  quit\n"
+          "Exit status: 0 on success, 1 on an error (no OpenGL 4.1, server gone, unknown\n"
+          "model, window closed while a scripted run streams), 2 for a usage error.\n",
+          out);
+}
+
+static bool number(const char *text, double lo, double hi, double *out)
+{
+    double v;
+    const char *end = ms_parse_double(text, &v);
+    if (!end || *end || !isfinite(v) || v < lo || v > hi)
+        return false;
+    *out = v;
+    return true;
+}
+
+static bool integer(const char *text, int64_t lo, int64_t hi, int64_t *out)
+{
+    int64_t v;
+    const char *end = ms_parse_int64(text, &v);
+    if (!end || *end || v < lo || v > hi)
+        return false;
+    *out = v;
+    return true;
+}
+
+/* "1280x720" */
+static bool size_pair(const char *text, int *w, int *h)
+{
+    const char *x = strchr(text, 'x');
+    char first[16];
+    if (!x || x == text || (size_t)(x - text) >= sizeof first)
+        return false;
+    memcpy(first, text, (size_t)(x - text));
+    first[x - text] = 0;
+    int64_t a, b;
+    if (!integer(first, 16, 16384, &a) || !integer(x + 1, 16, 16384, &b))
+        return false;
+    *w = (int)a, *h = (int)b;
+    return true;
+}
+
+int ms_viewer_options_parse(int argc, char **argv, ms_viewer_options *o, FILE *err)
+{
+    static const struct option opts[] = {
+        {"server", required_argument, NULL, 's'},     {"model", required_argument, NULL, 'm'},
+        {"token", required_argument, NULL, 'T'},      {"size", required_argument, NULL, 'z'},
+        {"tolerance", required_argument, NULL, 't'},  {"apo-levels", required_argument, NULL, 'a'},
+        {"no-apo", no_argument, NULL, 'n'},           {"shading", required_argument, NULL, 'S'},
+        {"upload-budget", required_argument, NULL, 'u'},
+        {"memory", required_argument, NULL, 'M'},     {"bandwidth", required_argument, NULL, 'b'},
+        {"up", required_argument, NULL, 'U'},         {"path", required_argument, NULL, 'p'},
+        {"screenshot-dir", required_argument, NULL, 'd'},
+        {"frames", required_argument, NULL, 'f'},
+        {"keyframe-timeout", required_argument, NULL, 'k'},
+        {"json", no_argument, NULL, 'j'},             {"help", no_argument, NULL, 'h'},
+        {"hud", no_argument, NULL, 'H'},
+        {"compare-apo", no_argument, NULL, 'A'},
+        {NULL, 0, NULL, 0}};
+    memset(o, 0, sizeof *o);
+    o->width = 1280, o->height = 720;
+    o->frames = 8;
+    o->shading = MS_SHADING_LIT;
+    o->apo_shading = true;
+    o->tolerance_px = 0; /* the stream's default */
+    o->apo_levels = 16;
+    o->upload_budget = 4000000;
+    o->keyframe_timeout = 30;
+    o->up_axis = 2;
+    bool no_apo = false;
+    const char *shading = NULL;
+    int ch;
+    int64_t i;
+    opterr = 0;
+    optind = 1;
+    while ((ch = getopt_long(argc, argv, ":h", opts, NULL)) != -1) {
+        switch (ch) {
+        case 's': {
+            const char *colon = strrchr(optarg, ':');
+            if (!colon || colon == optarg || (size_t)(colon - optarg) >= sizeof o->host ||
+                !integer(colon + 1, 1, 65535, &i)) {
+                fprintf(err, "meshview: --server wants HOST:PORT, not '%s'\n", optarg);
+                return 2;
+            }
+            memcpy(o->host, optarg, (size_t)(colon - optarg));
+            o->host[colon - optarg] = 0;
+            o->port = (uint16_t)i;
+            break;
+        }
+        case 'm': o->model = optarg; break;
+        case 'T': o->token = optarg; break;
+        case 'z':
+            if (!size_pair(optarg, &o->width, &o->height)) {
+                fprintf(err, "meshview: --size wants WxH, each in [16, 16384], not '%s'\n", optarg);
+                return 2;
+            }
+            break;
+        case 't':
+            if (!number(optarg, 0.05, 256, &o->tolerance_px)) {
+                fprintf(err, "meshview: --tolerance wants pixels in [0.05, 256]\n");
+                return 2;
+            }
+            break;
+        case 'a':
+            if (!integer(optarg, 0, 32, &i)) {
+                fprintf(err, "meshview: --apo-levels wants 0..32\n");
+                return 2;
+            }
+            o->apo_levels = (unsigned)i;
+            break;
+        case 'n': no_apo = true; break;
+        case 'S': shading = optarg; break;
+        case 'u':
+            if (!integer(optarg, 4096, INT64_C(1) << 40, &i)) {
+                fprintf(err, "meshview: --upload-budget wants bytes, at least 4096\n");
+                return 2;
+            }
+            o->upload_budget = (uint64_t)i;
+            break;
+        case 'M':
+            if (!number(optarg, 1, 1e7, &o->memory_mb)) {
+                fprintf(err, "meshview: --memory wants MB in [1, 1e7]\n");
+                return 2;
+            }
+            break;
+        case 'b':
+            if (!number(optarg, 1000, 1e12, &o->bandwidth)) {
+                fprintf(err, "meshview: --bandwidth wants bytes per second, at least 1000\n");
+                return 2;
+            }
+            break;
+        case 'U':
+            if (strlen(optarg) != 1 || optarg[0] < 'x' || optarg[0] > 'z') {
+                fprintf(err, "meshview: --up wants x, y or z\n");
+                return 2;
+            }
+            o->up_axis = optarg[0] - 'x';
+            break;
+        case 'p': o->path_file = optarg; break;
+        case 'd': o->screenshot_dir = optarg; break;
+        case 'f':
+            if (!integer(optarg, 1, 100000, &i)) {
+                fprintf(err, "meshview: --frames wants 1..100000\n");
+                return 2;
+            }
+            o->frames = (unsigned)i;
+            break;
+        case 'k':
+            if (!number(optarg, 0.1, 86400, &o->keyframe_timeout)) {
+                fprintf(err, "meshview: --keyframe-timeout wants seconds in [0.1, 86400]\n");
+                return 2;
+            }
+            break;
+        case 'j': o->json = true; break;
+        case 'H': o->hud = true; break;
+        case 'A': o->compare_apo = true; break;
+        case 'h': o->help = true; return 0;
+        case ':':
+            fprintf(err, "meshview: %s wants a value\n", argv[optind - 1]);
+            return 2;
+        default:
+            fprintf(err, "meshview: unknown option '%s' (see --help)\n", argv[optind - 1]);
+            return 2;
+        }
+    }
+    if (optind < argc)
+        o->archive_dir = argv[optind++];
+    if (optind < argc) {
+        fprintf(err, "meshview: one archive directory at most, not also '%s'\n", argv[optind]);
+        return 2;
+    }
+    if (!o->archive_dir == !o->port) {
+        fprintf(err, "meshview: give either --server HOST:PORT or an ARCHIVE_DIR (see --help)\n");
+        return 2;
+    }
+    if (o->model && !ms_model_name_valid(o->model)) {
+        fprintf(err, "meshview: '%s' is not a model name\n", o->model);
+        return 2;
+    }
+    if (shading) {
+        if (!strcmp(shading, "apo"))
+            o->shading = MS_SHADING_LIT;
+        else if (!strcmp(shading, "geometry"))
+            o->shading = MS_SHADING_LIT, o->apo_shading = false;
+        else if (!strcmp(shading, "normals"))
+            o->shading = MS_SHADING_NORMALS;
+        else if (!strcmp(shading, "cells"))
+            o->shading = MS_SHADING_CELLS;
+        else {
+            fprintf(err, "meshview: --shading wants apo, geometry, normals or cells\n");
+            return 2;
+        }
+    }
+    if (no_apo)
+        o->apo_levels = 0, o->apo_shading = false;
+    o->scripted = o->path_file || o->screenshot_dir;
+    if (o->path_file && !o->model) {
+        fprintf(err, "meshview: --path needs --model\n");
+        return 2;
+    }
+    if (o->json && !o->scripted) {
+        fprintf(err, "meshview: --json reports a scripted run (--path or --screenshot-dir)\n");
+        return 2;
+    }
+    return 0;
+}

@@ -1,0 +1,50 @@
+/* meshview's command line (README "Programs": --help, exit 2 for a usage error
+ * with one line on stderr). Numbers go through ms_parse_number.h.
+ *
+ *   meshview --server HOST:PORT [--model NAME] [--token T] [options]
+ *   meshview ARCHIVE_DIR [--model NAME] [options]
+ *
+ * Scripted (headless) mode is on when --path or --screenshot-dir is given:
+ * no visible window, the camera follows the path (or stays at the home view),
+ * one PNG per keyframe, a JSON report with --json. Without --model a scripted
+ * run pictures the catalogue screen.
+ *
+ * Ownership: string fields point into argv. Thread-safety: getopt's (main
+ * thread, once).
+ */
+#ifndef MS_VIEWER_OPTIONS_H
+#define MS_VIEWER_OPTIONS_H
+
+#include <stdbool.h>
+#include <stdint.h>
+#include <stdio.h>
+
+#include "ms_render.h"
+
+typedef struct ms_viewer_options {
+    const char *archive_dir;   /* positional: a local archive directory */
+    char host[64];
+    uint16_t port;             /* with host: the server (0: none) */
+    const char *model, *token;
+    const char *path_file, *screenshot_dir;
+    int width, height;         /* window (scripted: framebuffer) size */
+    unsigned frames;           /* scripted: frames drawn between two keyframes */
+    ms_shading shading;
+    bool apo_shading;          /* shade with APO normals (false: geometry normals) */
+    double tolerance_px;       /* geometric; 0: the default (ms_viewer_stream.h) */
+    unsigned apo_levels;       /* fetched; 0: none */
+    uint64_t upload_budget;    /* bytes per frame */
+    double memory_mb, bandwidth, keyframe_timeout;
+    int up_axis;               /* 0..2 */
+    bool json, scripted, help;
+    bool hud;                  /* scripted: draw the HUD into the pictures */
+    bool compare_apo;          /* scripted: time APO and plain shading of every frame */
+} ms_viewer_options;
+
+/* 0: parsed (o->help for --help); 2: a usage error, one line written to err. */
+int ms_viewer_options_parse(int argc, char **argv, ms_viewer_options *o, FILE *err);
+
+/* The usage text with the key list. */
+void ms_viewer_options_usage(FILE *out);
+
+#endif

@@ -1,0 +1,430 @@
+#include "ms_viewer_script.h"
+
+#include <epoxy/gl.h>
+#include <GLFW/glfw3.h>
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <time.h>
+
+#include "ms_camera_path.h"
+#include "ms_viewer_catalogue.h"
+#include "ms_viewer_controls.h"
+#include "ms_viewer_hud.h"
+#include "ms_viewer_readback.h"
+#include "ms_viewer_signals.h"
+#include "ms_viewer_stream.h"
+#include "ms_viewer_text.h"
+
+static double now_s(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + ts.tv_nsec * 1e-9;
+}
+
+static void nap(double seconds)
+{
+    struct timespec ts = {0, (long)(seconds * 1e9)};
+    nanosleep(&ts, NULL);
+}
+
+static int by_value(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return x < y ? -1 : x > y;
+}
+
+double ms_viewer_quantile(double *values, size_t n, double q)
+{
+    if (!n)
+        return 0;
+    qsort(values, n, sizeof *values, by_value);
+    size_t rank = (size_t)ceil(q * (double)n);
+    return values[rank ? rank - 1 : 0];
+}
+
+/* Per-frame figures of a run. */
+typedef struct frame_log {
+    double *ms, *step_ms;       /* whole frame; of it, the stream step */
+    uint64_t *upload;
+    size_t count, cap;
+} frame_log;
+
+static ms_status log_frame(frame_log *log, double ms, double step_ms, uint64_t upload,
+                           ms_error *err)
+{
+    if (log->count == log->cap) {
+        size_t cap = log->cap ? 2 * log->cap : 1024;
+        double *m = realloc(log->ms, cap * sizeof *m);
+        if (m)
+            log->ms = m;
+        double *sm = realloc(log->step_ms, cap * sizeof *sm);
+        if (sm)
+            log->step_ms = sm;
+        uint64_t *u = realloc(log->upload, cap * sizeof *u);
+        if (u)
+            log->upload = u;
+        if (!m || !sm || !u)
+            return ms_error_set(err, MS_ERR_NOMEM, "out of memory for frame figures");
+        log->cap = cap;
+    }
+    log->ms[log->count] = ms;
+    log->step_ms[log->count] = step_ms;
+    log->upload[log->count++] = upload;
+    return MS_OK;
+}
+
+/* A growing list of timings. */
+typedef struct samples {
+    double *v;
+    size_t count, cap;
+} samples;
+
+static bool push_sample(samples *list, double value)
+{
+    if (list->count == list->cap) {
+        size_t cap = list->cap ? 2 * list->cap : 256;
+        double *grown = realloc(list->v, cap * sizeof *grown);
+        if (!grown)
+            return false;
+        list->v = grown;
+        list->cap = cap;
+    }
+    list->v[list->count++] = value;
+    return true;
+}
+
+static ms_status make_dir(const char *dir, ms_error *err)
+{
+    if (mkdir(dir, 0777) != 0 && errno != EEXIST)
+        return ms_error_set(err, MS_ERR_IO, "%s: cannot create: %s", dir, strerror(errno));
+    return MS_OK;
+}
+
+static ms_status catalogue_shot(const ms_viewer_options *o, const ms_viewer_source *source,
+                                json_t **report, ms_error *err)
+{
+    ms_viewer_model_list list;
+    ms_status st = ms_viewer_list_models(source, &list, err);
+    if (st != MS_OK)
+        return st;
+    char where[128], png[4200];
+    if (source->archive_dir)
+        snprintf(where, sizeof where, "%.120s", source->archive_dir);
+    else
+        snprintf(where, sizeof where, "server %s:%u", source->host, source->port);
+    snprintf(png, sizeof png, "%s/catalogue.png", o->screenshot_dir);
+    ms_viewer_text *text = NULL;
+    ms_viewer_target target = {0};
+    if ((st = make_dir(o->screenshot_dir, err)) != MS_OK ||
+        (st = ms_viewer_text_new(&text, err)) != MS_OK ||
+        (st = ms_viewer_target_init(&target, o->width, o->height, err)) != MS_OK)
+        goto done;
+    ms_viewer_target_bind(&target);
+    glViewport(0, 0, o->width, o->height);
+    glClearColor(0.08f, 0.08f, 0.09f, 1);
+    glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+    ms_viewer_catalogue cat = {.list = &list, .where = where};
+    ms_viewer_text_begin(text, o->width, o->height, ms_viewer_text_auto_scale(o->height, 1, true));
+    ms_viewer_catalogue_draw(text, &cat, o->width, o->height);
+    if ((st = ms_viewer_text_draw(text, err)) != MS_OK ||
+        (st = ms_viewer_screenshot(png, o->width, o->height, err)) != MS_OK)
+        goto done;
+    json_t *models = json_array();
+    for (size_t i = 0; i < list.count; ++i)
+        json_array_append_new(models, json_pack("{s:s, s:I, s:I, s:b}", "name", list.entries[i].name,
+                                                "triangles", (json_int_t)list.entries[i].triangles,
+                                                "bytes", (json_int_t)list.entries[i].bytes, "apo",
+                                                list.entries[i].apo));
+    *report = json_pack("{s:s, s:o}", "png", png, "models", models);
+done:
+    ms_viewer_target_free(&target);
+    ms_viewer_text_free(text);
+    ms_viewer_model_list_free(&list);
+    return st;
+}
+
+/* The run's state while it plays the path. */
+typedef struct script {
+    const ms_viewer_options *o;
+    ms_viewer_stream *stream;
+    ms_viewer_target target;
+    ms_render_options render;
+    GLFWwindow *window;
+    ms_viewer_text *text;       /* with --hud */
+    double last_ms;
+    frame_log log;
+    samples apo_draw_ms, plain_draw_ms; /* --compare-apo */
+    bool first_written;
+    char first_png[4200];
+    uint64_t last_triangles;
+} script;
+
+/* One frame at camera: step, draw, finish; logs its figures. */
+static ms_status frame(script *s, const ms_camera *camera, ms_viewer_step *step, ms_error *err)
+{
+    glfwPollEvents();
+    if (glfwWindowShouldClose(s->window))
+        return ms_error_set(err, MS_ERR_IO, "the window was closed while the model streamed");
+    if (ms_viewer_signals_pending())
+        return ms_error_set(err, MS_ERR_IO, "interrupted while the model streamed");
+    double t0 = now_s();
+    ms_status st = ms_viewer_stream_step(s->stream, camera, s->o->upload_budget, step, err);
+    if (st != MS_OK)
+        return st;
+    glFinish(); /* the upload's share of the GPU's work counts to the step */
+    double step_ms = (now_s() - t0) * 1e3;
+    ms_viewer_target_bind(&s->target);
+    ms_render_draw_stats drawn;
+    if (s->o->compare_apo) {
+        /* Both shadings of the same uploaded frame, back to back, each timed to
+         * glFinish, in alternating order (neither always warms the caches for
+         * the other); the run's own shading is drawn last for the picture. */
+        ms_render_options other = s->render;
+        other.apo = !s->render.apo;
+        bool other_first = s->log.count % 2 == 0;
+        for (int pass = 0; pass < 2; ++pass) {
+            bool primary = (pass == 1) == other_first;
+            const ms_render_options *ro = primary ? &s->render : &other;
+            double d0 = now_s();
+            if ((st = ms_viewer_stream_draw(s->stream, camera, ro, &drawn, err)) != MS_OK)
+                return st;
+            glFinish();
+            double ms = (now_s() - d0) * 1e3;
+            if (drawn.triangles_drawn > 0 &&
+                !push_sample(ro->apo ? &s->apo_draw_ms : &s->plain_draw_ms, ms))
+                return ms_error_set(err, MS_ERR_NOMEM, "out of memory for frame figures");
+        }
+        if (!other_first) /* the picture must show the run's own shading */
+            if ((st = ms_viewer_stream_draw(s->stream, camera, &s->render, &drawn, err)) != MS_OK)
+                return st;
+    } else if ((st = ms_viewer_stream_draw(s->stream, camera, &s->render, &drawn, err)) != MS_OK)
+        return st;
+    if (s->text) {
+        ms_core_stats cs;
+        ms_viewer_stream_stats(s->stream, &cs);
+        ms_viewer_hud_info info = {.model = ms_viewer_stream_model(s->stream)->name,
+                                   .mode = s->render.shading == MS_SHADING_NORMALS ? "normals"
+                                           : s->render.apo                        ? "APO lit"
+                                                                                  : "geometry lit",
+                                   .frame_ms = s->last_ms,
+                                   .fps = s->last_ms > 0 ? 1e3 / s->last_ms : 0,
+                                   .triangles_drawn = drawn.triangles_drawn,
+                                   .cells_drawn = drawn.cells_drawn,
+                                   .core = &cs,
+                                   .settled = step->settled};
+        ms_viewer_text_begin(s->text, s->o->width, s->o->height,
+                             ms_viewer_text_auto_scale(s->o->height, 1, false));
+        ms_viewer_hud_draw(s->text, &info, s->o->width, s->o->height, true);
+        if ((st = ms_viewer_text_draw(s->text, err)) != MS_OK)
+            return st;
+    }
+    glFinish();
+    s->last_ms = (now_s() - t0) * 1e3;
+    s->last_triangles = drawn.triangles_drawn;
+    /* Frames before the first triangle (opening, the first bytes) draw nothing
+     * and would only dilute the figures. */
+    if (drawn.triangles_drawn > 0 &&
+        (st = log_frame(&s->log, s->last_ms, step_ms, step->upload.bytes, err)) != MS_OK)
+        return st;
+    if (!s->first_written && drawn.triangles_drawn > 0) {
+        s->first_written = true;
+        snprintf(s->first_png, sizeof s->first_png, "%s/first-frame.png", s->o->screenshot_dir);
+        if ((st = ms_viewer_screenshot(s->first_png, s->o->width, s->o->height, err)) != MS_OK)
+            return st;
+    }
+    return MS_OK;
+}
+
+/* Holds the camera until the view settles or the time-out; returns the wait. */
+static ms_status hold(script *s, const ms_camera *camera, bool *settled, double *waited,
+                      ms_error *err)
+{
+    double start = now_s();
+    *settled = false;
+    for (;;) {
+        ms_viewer_step step;
+        ms_status st = frame(s, camera, &step, err);
+        if (st != MS_OK)
+            return st;
+        *waited = now_s() - start;
+        if (step.settled) {
+            *settled = true;
+            return MS_OK;
+        }
+        if (*waited >= s->o->keyframe_timeout)
+            return MS_OK;
+        /* Nothing arrived: let the decode threads have the CPU for a moment. */
+        if (!step.new_frame && !step.upload.bytes)
+            nap(0.004);
+    }
+}
+
+static json_t *frame_summary(frame_log *log, uint64_t budget)
+{
+    uint64_t upload_max = 0, upload_sum = 0;
+    for (size_t i = 0; i < log->count; ++i) {
+        upload_sum += log->upload[i];
+        if (log->upload[i] > upload_max)
+            upload_max = log->upload[i];
+    }
+    double mean = log->count ? (double)upload_sum / (double)log->count : 0;
+    double p50 = ms_viewer_quantile(log->ms, log->count, 0.50);
+    double p95 = ms_viewer_quantile(log->ms, log->count, 0.95);
+    double max = log->count ? log->ms[log->count - 1] : 0; /* sorted by the quantiles */
+    double step_p50 = ms_viewer_quantile(log->step_ms, log->count, 0.50);
+    double step_p95 = ms_viewer_quantile(log->step_ms, log->count, 0.95);
+    return json_pack("{s:I, s:f, s:f, s:f, s:f, s:f, s:I, s:f, s:I}", "frames",
+                     (json_int_t)log->count, "frame_ms_p50", p50, "frame_ms_p95", p95,
+                     "frame_ms_max", max, "step_ms_p50", step_p50, "step_ms_p95", step_p95,
+                     "upload_bytes_max", (json_int_t)upload_max, "upload_bytes_mean", mean,
+                     "upload_budget", (json_int_t)budget);
+}
+
+static ms_status play(script *s, const ms_viewer_model *model, json_t *keys, bool *all_complete,
+                      ms_error *err)
+{
+    const ms_viewer_options *o = s->o;
+    ms_camera_path path = {0};
+    ms_status st;
+    if (o->path_file) {
+        if ((st = ms_camera_path_load(o->path_file, &path, err)) != MS_OK)
+            return st;
+    } else { /* the home view as a path of one keyframe */
+        ms_viewer_controls c;
+        double lo[3], hi[3];
+        ms_viewer_model_bounds(model, lo, hi);
+        ms_viewer_controls_init(&c, lo, hi, o->up_axis);
+        path.keys = calloc(1, sizeof *path.keys);
+        if (!path.keys)
+            return ms_error_set(err, MS_ERR_NOMEM, "out of memory for a path");
+        path.count = 1;
+        ms_viewer_controls_eye(&c, path.keys[0].position);
+        memcpy(path.keys[0].target, c.target, sizeof c.target);
+        path.keys[0].up[o->up_axis] = 1;
+        path.keys[0].fovy_degrees = c.fovy_degrees;
+    }
+    /* Near and far from the model's size, as the interactive view has them. */
+    double side = model->header.box_side;
+    *all_complete = true;
+    for (size_t k = 0; k < path.count; ++k) {
+        ms_camera camera;
+        if (k > 0)
+            for (unsigned f = 1; f < o->frames; ++f) {
+                double t = path.keys[k - 1].time +
+                           (path.keys[k].time - path.keys[k - 1].time) * f / (double)o->frames;
+                if ((st = ms_camera_path_sample(&path, t, o->width, o->height, side * 1e-4,
+                                                side * 8, &camera, err)) != MS_OK)
+                    goto done;
+                ms_viewer_step step;
+                if ((st = frame(s, &camera, &step, err)) != MS_OK)
+                    goto done;
+            }
+        if ((st = ms_camera_path_sample(&path, path.keys[k].time, o->width, o->height, side * 1e-4,
+                                        side * 8, &camera, err)) != MS_OK)
+            goto done;
+        bool settled;
+        double waited;
+        if ((st = hold(s, &camera, &settled, &waited, err)) != MS_OK)
+            goto done;
+        char png[4200];
+        snprintf(png, sizeof png, "%s/keyframe-%02zu.png", o->screenshot_dir, k);
+        if ((st = ms_viewer_screenshot(png, o->width, o->height, err)) != MS_OK)
+            goto done;
+        ms_core_stats cs;
+        ms_viewer_stream_stats(s->stream, &cs);
+        *all_complete &= settled;
+        json_array_append_new(
+            keys, json_pack("{s:I, s:f, s:s, s:b, s:f, s:I, s:I, s:I, s:I, s:f, s:f}", "keyframe",
+                            (json_int_t)k, "time", path.keys[k].time, "png", png, "complete",
+                            settled, "seconds_to_complete", waited, "triangles_drawn",
+                            (json_int_t)s->last_triangles, "bytes", (json_int_t)cs.bytes_received,
+                            "geometry_bytes", (json_int_t)cs.geometry_bytes_received, "apo_bytes",
+                            (json_int_t)cs.apo_bytes_received, "achieved_error_px",
+                            cs.achieved_error_px, "tolerance_px", cs.tolerance_px));
+    }
+    st = MS_OK;
+done:
+    ms_camera_path_free(&path);
+    return st;
+}
+
+ms_status ms_viewer_script_run(const ms_viewer_options *o, const ms_viewer_source *source,
+                               GLFWwindow *window, json_t **report, bool *complete, ms_error *err)
+{
+    *report = NULL;
+    *complete = false;
+    ms_status st = make_dir(o->screenshot_dir, err);
+    if (st != MS_OK)
+        return st;
+    if (!o->model) {
+        *complete = true;
+        return catalogue_shot(o, source, report, err);
+    }
+    ms_viewer_model model;
+    if ((st = ms_viewer_model_open(source, o->model, &model, err)) != MS_OK)
+        return st;
+    script s = {.o = o, .window = window};
+    ms_render_options_default(&s.render);
+    s.render.shading = o->shading;
+    s.render.apo = o->apo_shading;
+    ms_viewer_stream_settings settings = {.tolerance_px = o->tolerance_px,
+                                          .apo_levels = o->apo_levels,
+                                          .memory_mb = o->memory_mb,
+                                          .bandwidth = o->bandwidth};
+    json_t *keys = json_array();
+    double started = now_s();
+    if ((o->hud && (st = ms_viewer_text_new(&s.text, err)) != MS_OK) ||
+        (st = ms_viewer_target_init(&s.target, o->width, o->height, err)) != MS_OK ||
+        (st = ms_viewer_stream_open(source, &model, &settings, &s.stream, err)) != MS_OK)
+        goto done;
+    if ((st = play(&s, &model, keys, complete, err)) != MS_OK)
+        goto done;
+    ms_core_stats cs;
+    ms_viewer_stream_stats(s.stream, &cs);
+    json_t *compare = NULL;
+    if (o->compare_apo) {
+        double a50 = ms_viewer_quantile(s.apo_draw_ms.v, s.apo_draw_ms.count, 0.5);
+        double a95 = ms_viewer_quantile(s.apo_draw_ms.v, s.apo_draw_ms.count, 0.95);
+        double p50 = ms_viewer_quantile(s.plain_draw_ms.v, s.plain_draw_ms.count, 0.5);
+        double p95 = ms_viewer_quantile(s.plain_draw_ms.v, s.plain_draw_ms.count, 0.95);
+        compare = json_pack("{s:I, s:f, s:f, s:f, s:f, s:f, s:f}", "draws",
+                            (json_int_t)s.apo_draw_ms.count, "apo_draw_ms_p50", a50,
+                            "apo_draw_ms_p95", a95, "plain_draw_ms_p50", p50,
+                            "plain_draw_ms_p95", p95, "ratio_p50", p50 > 0 ? a50 / p50 : 0,
+                            "ratio_p95", p95 > 0 ? a95 / p95 : 0);
+    }
+    *report = json_pack("{s:s, s:s, s:s, s:i, s:i, s:f, s:b, s:O, s:o, s:s?, s:I, s:I, s:f, s:o*}",
+                        "model", model.name, "source", source->archive_dir ? "archive" : "server",
+                        "shading",
+                        o->shading == MS_SHADING_NORMALS ? "normals"
+                        : o->shading == MS_SHADING_CELLS ? "cells"
+                        : o->apo_shading                 ? "apo"
+                                                         : "geometry",
+                        "width", o->width, "height", o->height, "tolerance_px",
+                        ms_viewer_stream_tolerance(s.stream),
+                        "complete", *complete, "keyframes", keys, "frames",
+                        frame_summary(&s.log, o->upload_budget), "first_frame_png",
+                        s.first_written ? s.first_png : NULL, "geometry_bytes",
+                        (json_int_t)cs.geometry_bytes_received, "apo_bytes",
+                        (json_int_t)cs.apo_bytes_received, "seconds", now_s() - started,
+                        "compare_apo", compare);
+    if (!*report)
+        st = ms_error_set(err, MS_ERR_NOMEM, "out of memory for the report");
+done:
+    json_decref(keys);
+    ms_viewer_stream_close(s.stream);
+    ms_viewer_target_free(&s.target);
+    ms_viewer_text_free(s.text);
+    free(s.log.ms);
+    free(s.log.step_ms);
+    free(s.apo_draw_ms.v);
+    free(s.plain_draw_ms.v);
+    free(s.log.upload);
+    ms_viewer_model_close(&model);
+    return st;
+}

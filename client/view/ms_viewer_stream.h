@@ -1,0 +1,78 @@
+/* One model on screen: the client core streaming it (ms_client_core.h) and the
+ * renderer drawing it (ms_render.h), driven once per drawn frame from the
+ * viewer's loop. Nothing here waits for the network or for decoding:
+ * ms_viewer_stream_step sets the camera, takes the newest frame if there is one,
+ * hands it to the renderer and uploads at most the per-frame byte budget.
+ *
+ * Tolerance. The core's tolerance is fixed when it starts; the viewer changes
+ * it at run time by handing the core a camera whose viewport is scaled by
+ * k = start tolerance / wanted tolerance (same frustum, k times the pixels per
+ * unit), which selects exactly what the wanted tolerance would; figures the
+ * core reports in its pixels are divided by k back into screen pixels.
+ *
+ * Requires the renderer's GL context current on the calling thread for _open,
+ * _step, _draw and _close. Ownership: the stream owns its core, renderer and
+ * last frame. Errors: ms_status with one line; a core that stopped (server gone,
+ * model changed) is reported by ms_viewer_stream_step as MS_ERR_IO with the
+ * core's reason. Thread-safety: the drawing thread only.
+ */
+#ifndef MS_VIEWER_STREAM_H
+#define MS_VIEWER_STREAM_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "ms_client_core.h"
+#include "ms_render.h"
+#include "ms_viewer_model.h"
+
+typedef struct ms_viewer_stream ms_viewer_stream;
+
+typedef struct ms_viewer_stream_settings {
+    double tolerance_px;       /* geometric screen tolerance at start; 0: the core's
+                                  default (4 px with APO, whose normals carry the
+                                  finer detail, 1 px without) */
+    unsigned apo_levels;       /* 0: no APO fetched */
+    double memory_mb;          /* core memory target; 0 = none (ceiling 1.5x) */
+    double bandwidth;          /* bytes per second; 0 = unlimited */
+    unsigned decode_threads;   /* 0 = the core's default */
+} ms_viewer_stream_settings;
+
+ms_status ms_viewer_stream_open(const ms_viewer_source *source, const ms_viewer_model *model,
+                                const ms_viewer_stream_settings *settings,
+                                ms_viewer_stream **stream, ms_error *err);
+void ms_viewer_stream_close(ms_viewer_stream *stream);
+
+/* The tolerance asked of the core from now on (screen pixels, clamped to
+ * [0.05, 256]), and the current one. */
+void ms_viewer_stream_set_tolerance(ms_viewer_stream *stream, double tolerance_px);
+double ms_viewer_stream_tolerance(const ms_viewer_stream *stream);
+
+typedef struct ms_viewer_step {
+    bool new_frame;                 /* a frame was taken and handed to the renderer */
+    uint64_t generation;            /* of the frame being drawn (0: none yet) */
+    ms_render_upload_stats upload;  /* this step's upload */
+    uint64_t frame_triangles;       /* triangles of the newest frame */
+    bool settled;                   /* as ms_viewer_stream_settled after this step */
+} ms_viewer_step;
+
+/* Sets the camera, takes a new frame if any, uploads within budget_bytes. */
+ms_status ms_viewer_stream_step(ms_viewer_stream *stream, const ms_camera *camera,
+                                uint64_t budget_bytes, ms_viewer_step *step, ms_error *err);
+
+/* Draws what the renderer holds into the bound framebuffer. */
+ms_status ms_viewer_stream_draw(ms_viewer_stream *stream, const ms_camera *camera,
+                                const ms_render_options *options, ms_render_draw_stats *stats,
+                                ms_error *err);
+
+/* The core's figures with achieved_error_px and tolerance_px in screen pixels. */
+void ms_viewer_stream_stats(ms_viewer_stream *stream, ms_core_stats *stats);
+
+/* True when, at the latest step, the core's view was complete for that step's
+ * camera, its complete frame was in the renderer and nothing was left queued
+ * for upload: what is drawn now is the finished view. */
+bool ms_viewer_stream_settled(const ms_viewer_stream *stream);
+
+const ms_viewer_model *ms_viewer_stream_model(const ms_viewer_stream *stream);
+
+#endif

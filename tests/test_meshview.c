@@ -1,0 +1,425 @@
+/* meshview, the built program (build/asan/bin/meshview), under Xvfb with Mesa
+ * llvmpipe at 160x120:
+ *   - streaming from meshserve on loopback along scripts/paths/demo-closeup.cam
+ *     settles (view complete, nothing left to upload) at every keyframe, no
+ *     frame uploads more than --upload-budget, and the coarse first frame
+ *     differs from the final one;
+ *   - the local-archive mode draws the same pictures (with --compare-apo, which
+ *     times both shadings of each frame and still pictures the run's own);
+ *   - the catalogue screen lists the model;
+ *   - bad input: --help (0), bad options (2), no display (1), unknown model (1),
+ *     no server (1), server gone mid-stream (1): one line on stderr each, and
+ *     nothing leaked (the program runs under LeakSanitizer). */
+#include <setjmp.h>
+#include <signal.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <png.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+#include <cmocka.h>
+#include <jansson.h>
+
+#include "ms_bake.h"
+#include "ms_nsp_check.h"
+#include "ms_test.h"
+#include "ms_test_display.h"
+#include "ms_test_net.h"
+
+#define MODEL "demo"
+#define PATH_FILE "scripts/paths/demo-closeup.cam"
+#define TRIANGLES 20000
+#define BUDGET 65536
+#define SIZE "160x120"
+
+typedef struct fixture {
+    ms_test_display display;
+    char dir[512], archives[600], log[600], port_file[600], bin[600];
+    pid_t server;
+    uint16_t port, http_port;
+} fixture;
+
+static int group_setup(void **state)
+{
+    fixture *f = calloc(1, sizeof *f);
+    char why[256];
+    if (!f || !ms_test_display_start(&f->display, why, sizeof why)) {
+        fprintf(stderr, "no X display: %s\n", why);
+        free(f);
+        return -1;
+    }
+    ms_test_tmpdir(f->dir, sizeof f->dir);
+    snprintf(f->archives, sizeof f->archives, "%s/archive", f->dir);
+    snprintf(f->log, sizeof f->log, "%s/meshserve.log", f->dir);
+    snprintf(f->port_file, sizeof f->port_file, "%s/ports", f->dir);
+    ms_test_bin_path(f->bin, 512, "meshview");
+    if (mkdir(f->archives, 0755) != 0)
+        return -1;
+    char ply[700];
+    snprintf(ply, sizeof ply, "%s/demo.ply", f->dir);
+    ms_nsp_test_demo_ply(ply, TRIANGLES);
+    ms_bake_options o;
+    ms_bake_options_default(&o); /* APO on */
+    o.input = ply;
+    o.archive_dir = f->archives;
+    o.name = MODEL;
+    o.min_triangles = 1500;
+    o.threads = 2;
+    o.mem_mb = 64;
+    ms_bake_report report;
+    ms_error err;
+    if (ms_bake(&o, &report, &err) != MS_OK) {
+        fprintf(stderr, "bake: %s\n", err.text);
+        return -1;
+    }
+    char serve[512];
+    ms_test_bin_path(serve, sizeof serve, "meshserve");
+    char *argv[] = {serve, f->archives, "--bind", "127.0.0.1", "--port", "0", "--http-port", "0",
+                    "--port-file", f->port_file, NULL};
+    f->server = ms_test_spawn(argv, f->log);
+    if (ms_test_wait_ports(f->port_file, 15.0, &f->port, &f->http_port) != 0) {
+        fprintf(stderr, "meshserve did not start (see %s)\n", f->log);
+        ms_test_stop(f->server, SIGKILL, 5.0);
+        return -1;
+    }
+    *state = f;
+    return 0;
+}
+
+static int group_teardown(void **state)
+{
+    fixture *f = *state;
+    if (!f)
+        return 0;
+    if (f->server)
+        ms_test_stop(f->server, SIGTERM, 10.0);
+    ms_test_display_stop(&f->display);
+    ms_test_rmdir(f->dir);
+    free(f);
+    return 0;
+}
+
+/* Runs meshview with args; stdout to out_file (when given), stderr captured. */
+static int run_viewer(const fixture *f, const char *args, const char *out_file, char *err_text,
+                      size_t size)
+{
+    char command[4096], err_file[700];
+    snprintf(err_file, sizeof err_file, "%s/stderr.txt", f->dir);
+    snprintf(command, sizeof command, "%s %s > %s 2> %s", f->bin, args,
+             out_file ? out_file : "/dev/null", err_file);
+    char ignored[64];
+    int status = ms_test_run(command, ignored, sizeof ignored);
+    size_t length;
+    unsigned char *text = ms_test_read_file(err_file, &length);
+    snprintf(err_text, size, "%.*s", (int)length, (const char *)text);
+    free(text);
+    return status;
+}
+
+/* A whole file as a NUL-terminated string (the caller frees it). */
+static char *read_text(const char *path)
+{
+    size_t length;
+    unsigned char *data = ms_test_read_file(path, &length);
+    char *text = malloc(length + 1);
+    assert_non_null(text);
+    memcpy(text, data, length);
+    text[length] = 0;
+    free(data);
+    return text;
+}
+
+static size_t count_lines(const char *text)
+{
+    size_t n = 0;
+    for (const char *p = text; *p; ++p)
+        n += *p == '\n';
+    return n;
+}
+
+/* Decodes an RGB PNG through libpng's simplified reader (malloc'd pixels). */
+static uint8_t *read_png(const char *path, uint32_t *width, uint32_t *height)
+{
+    png_image image;
+    memset(&image, 0, sizeof image);
+    image.version = PNG_IMAGE_VERSION;
+    assert_true(png_image_begin_read_from_file(&image, path));
+    image.format = PNG_FORMAT_RGB;
+    uint8_t *pixels = malloc(PNG_IMAGE_SIZE(image));
+    assert_non_null(pixels);
+    assert_true(png_image_finish_read(&image, NULL, pixels, 0, NULL));
+    *width = image.width, *height = image.height;
+    return pixels;
+}
+
+/* Pixels whose colour differs by more than `tolerance` in a channel. */
+static size_t pixels_differing(const char *a_path, const char *b_path, int tolerance)
+{
+    uint32_t aw, ah, bw, bh;
+    uint8_t *a = read_png(a_path, &aw, &ah), *b = read_png(b_path, &bw, &bh);
+    assert_int_equal(aw, bw);
+    assert_int_equal(ah, bh);
+    size_t n = 0;
+    for (size_t i = 0; i < (size_t)aw * ah; ++i)
+        for (int c = 0; c < 3; ++c)
+            if (abs(a[3 * i + c] - b[3 * i + c]) > tolerance) {
+                ++n;
+                break;
+            }
+    free(a);
+    free(b);
+    return n;
+}
+
+static json_t *load_report(const char *path)
+{
+    json_error_t jerr;
+    json_t *report = json_load_file(path, 0, &jerr);
+    if (!report)
+        fail_msg("%s: %s", path, jerr.text);
+    return report;
+}
+
+/* Checks a scripted run's report: every keyframe settled with a PNG of the
+ * right size, no frame above the budget. Returns the keyframe count. */
+static size_t check_streaming_report(json_t *report)
+{
+    assert_true(json_is_true(json_object_get(report, "complete")));
+    json_t *keys = json_object_get(report, "keyframes");
+    size_t count = json_array_size(keys);
+    assert_int_equal(count, 9); /* demo-closeup.cam */
+    for (size_t k = 0; k < count; ++k) {
+        json_t *key = json_array_get(keys, k);
+        assert_true(json_is_true(json_object_get(key, "complete")));
+        assert_true(json_integer_value(json_object_get(key, "triangles_drawn")) > 0);
+        uint32_t w, h;
+        free(read_png(json_string_value(json_object_get(key, "png")), &w, &h));
+        assert_int_equal(w, 160);
+        assert_int_equal(h, 120);
+    }
+    json_t *frames = json_object_get(report, "frames");
+    assert_true(json_integer_value(json_object_get(frames, "frames")) >= (json_int_t)count);
+    assert_true(json_integer_value(json_object_get(frames, "upload_bytes_max")) > 0);
+    assert_true(json_integer_value(json_object_get(frames, "upload_bytes_max")) <= BUDGET);
+    assert_true(json_integer_value(json_object_get(report, "geometry_bytes")) > 0);
+    return count;
+}
+
+static void test_streaming_and_local_archive(void **state)
+{
+    fixture *f = *state;
+    char args[2048], out[700], err_text[4096];
+    snprintf(out, sizeof out, "%s/server.json", f->dir);
+    snprintf(args, sizeof args,
+             "--server 127.0.0.1:%u --model " MODEL " --path " PATH_FILE " --size " SIZE
+             " --upload-budget %d --screenshot-dir %s/server --json",
+             f->port, BUDGET, f->dir);
+    assert_int_equal(run_viewer(f, args, out, err_text, sizeof err_text), 0);
+    json_t *server = load_report(out);
+    size_t count = check_streaming_report(server);
+
+    /* The coarse first frame and the final one are different pictures. */
+    const char *first = json_string_value(json_object_get(server, "first_frame_png"));
+    assert_non_null(first);
+    json_t *keys = json_object_get(server, "keyframes");
+    const char *last = json_string_value(json_object_get(json_array_get(keys, count - 1), "png"));
+    assert_true(pixels_differing(first, last, 8) > 160 * 120 / 10);
+
+    /* The same path from the archive directory, without a server. */
+    snprintf(out, sizeof out, "%s/local.json", f->dir);
+    snprintf(args, sizeof args,
+             "%s --model " MODEL " --path " PATH_FILE " --size " SIZE
+             " --upload-budget %d --screenshot-dir %s/local --compare-apo --json",
+             f->archives, BUDGET, f->dir);
+    assert_int_equal(run_viewer(f, args, out, err_text, sizeof err_text), 0);
+    json_t *local = load_report(out);
+    assert_int_equal(check_streaming_report(local), count);
+    assert_string_equal(json_string_value(json_object_get(local, "source")), "archive");
+    /* --compare-apo timed both shadings of every frame and still pictured the
+     * run's own (the pictures below equal the server run's). */
+    json_t *compare = json_object_get(local, "compare_apo");
+    assert_true(json_integer_value(json_object_get(compare, "draws")) > 0);
+    assert_true(json_real_value(json_object_get(compare, "apo_draw_ms_p50")) > 0);
+    assert_true(json_real_value(json_object_get(compare, "plain_draw_ms_p50")) > 0);
+    assert_null(json_object_get(server, "compare_apo"));
+    json_t *local_keys = json_object_get(local, "keyframes");
+    for (size_t k = 0; k < count; ++k) {
+        const char *a = json_string_value(json_object_get(json_array_get(keys, k), "png"));
+        const char *b = json_string_value(json_object_get(json_array_get(local_keys, k), "png"));
+        /* The same settled view, drawn the same way: at most a few pixels where
+         * a rounding differs. */
+        assert_true(pixels_differing(a, b, 2) <= 160 * 120 / 500);
+    }
+    json_decref(server);
+    json_decref(local);
+}
+
+static void test_catalogue_screen(void **state)
+{
+    fixture *f = *state;
+    char args[2048], out[700], err_text[4096];
+    snprintf(out, sizeof out, "%s/catalogue.json", f->dir);
+    snprintf(args, sizeof args, "--server 127.0.0.1:%u --size 320x200 --screenshot-dir %s/cat --json",
+             f->port, f->dir);
+    assert_int_equal(run_viewer(f, args, out, err_text, sizeof err_text), 0);
+    json_t *report = load_report(out);
+    json_t *models = json_object_get(report, "models");
+    assert_int_equal(json_array_size(models), 1);
+    json_t *m = json_array_get(models, 0);
+    assert_string_equal(json_string_value(json_object_get(m, "name")), MODEL);
+    assert_true(json_integer_value(json_object_get(m, "triangles")) > 0);
+    uint32_t w, h;
+    uint8_t *pixels = read_png(json_string_value(json_object_get(report, "png")), &w, &h);
+    assert_int_equal(w, 320);
+    assert_int_equal(h, 200);
+    size_t bright = 0; /* text and the selection band */
+    for (size_t i = 0; i < (size_t)w * h; ++i)
+        bright += pixels[3 * i] > 100 || pixels[3 * i + 2] > 100;
+    assert_true(bright > 200);
+    free(pixels);
+    json_decref(report);
+}
+
+static void test_help_and_usage_errors(void **state)
+{
+    fixture *f = *state;
+    char out[700], err_text[4096];
+    snprintf(out, sizeof out, "%s/help.txt", f->dir);
+    assert_int_equal(run_viewer(f, "--help", out, err_text, sizeof err_text), 0);
+    char *help = read_text(out);
+    assert_non_null(strstr(help, "usage: meshview"));
+    assert_non_null(strstr(help, "wireframe"));
+    assert_non_null(strstr(help, "fly mode"));
+    free(help);
+    static const char *const bad[] = {
+        "--bogus",
+        "",                                               /* neither server nor archive */
+        "--server 127.0.0.1 --model demo",                /* no port */
+        "--server 127.0.0.1:70000",
+        "/tmp --server 127.0.0.1:7000",                   /* both */
+        "/tmp --size 12x9000000",
+        "/tmp --tolerance 0",
+        "/tmp --shading shiny",
+        "/tmp --upload-budget 12",
+        "/tmp --model ../etc",
+        "/tmp --path " PATH_FILE,                         /* a path needs a model */
+        "/tmp --json",                                    /* JSON reports scripted runs */
+        "/tmp /var",
+    };
+    for (size_t i = 0; i < sizeof bad / sizeof *bad; ++i) {
+        int status = run_viewer(f, bad[i], NULL, err_text, sizeof err_text);
+        if (status != 2 || count_lines(err_text) != 1 || strncmp(err_text, "meshview: ", 10))
+            fail_msg("'%s': status %d, stderr '%s'", bad[i], status, err_text);
+    }
+}
+
+static void test_runtime_errors(void **state)
+{
+    fixture *f = *state;
+    char args[2048], err_text[4096];
+    /* No display, so no OpenGL 4.1 context. */
+    snprintf(args, sizeof args, "%s --model " MODEL " --screenshot-dir %s/none", f->archives, f->dir);
+    fixture no_display = *f;
+    snprintf(no_display.bin, sizeof no_display.bin, "env DISPLAY=:1999 %.500s", f->bin);
+    int status = run_viewer(&no_display, args, NULL, err_text, sizeof err_text);
+    assert_int_equal(status, 1);
+    assert_int_equal(count_lines(err_text), 1);
+    assert_non_null(strstr(err_text, "OpenGL 4.1"));
+
+    /* Unknown model, from the server and from the archive. */
+    snprintf(args, sizeof args, "--server 127.0.0.1:%u --model nothere --screenshot-dir %s/x",
+             f->port, f->dir);
+    assert_int_equal(run_viewer(f, args, NULL, err_text, sizeof err_text), 1);
+    assert_int_equal(count_lines(err_text), 1);
+    assert_non_null(strstr(err_text, "does not exist"));
+    snprintf(args, sizeof args, "%s --model nothere --screenshot-dir %s/x", f->archives, f->dir);
+    assert_int_equal(run_viewer(f, args, NULL, err_text, sizeof err_text), 1);
+    assert_non_null(strstr(err_text, "does not exist"));
+
+    /* No server: the port of the fixture's server once it has stopped. */
+    pid_t pid = f->server;
+    f->server = 0;
+    assert_int_equal(ms_test_stop(pid, SIGTERM, 10.0), 0);
+    snprintf(args, sizeof args, "--server 127.0.0.1:%u --model " MODEL " --screenshot-dir %s/x",
+             f->port, f->dir);
+    assert_int_equal(run_viewer(f, args, NULL, err_text, sizeof err_text), 1);
+    assert_int_equal(count_lines(err_text), 1);
+    assert_non_null(strstr(err_text, "127.0.0.1"));
+}
+
+/* The server goes away while the viewer streams: the core gives up after its
+ * reconnect time and the viewer ends with status 1 and one line. */
+static void test_server_gone_mid_stream(void **state)
+{
+    fixture *f = *state;
+    char serve[512], log[700], port_file[700];
+    ms_test_bin_path(serve, sizeof serve, "meshserve");
+    snprintf(log, sizeof log, "%s/meshserve2.log", f->dir);
+    snprintf(port_file, sizeof port_file, "%s/ports2", f->dir);
+    char *argv[] = {serve, f->archives, "--bind", "127.0.0.1", "--port", "0", "--http-port", "0",
+                    "--port-file", port_file, NULL};
+    pid_t server = ms_test_spawn(argv, log);
+    uint16_t port, http_port;
+    assert_int_equal(ms_test_wait_ports(port_file, 15.0, &port, &http_port), 0);
+    char err_file[700], args[1024];
+    snprintf(err_file, sizeof err_file, "%s/gone.txt", f->dir);
+    snprintf(args, sizeof args, "%s/gone-shots", f->dir);
+    char addr[64];
+    snprintf(addr, sizeof addr, "127.0.0.1:%u", port);
+    /* Slow enough (20 kB/s) that the path is far from done after a second. */
+    char *view_argv[] = {f->bin, "--server", addr, "--model", MODEL, "--path", PATH_FILE,
+                         "--size", SIZE, "--bandwidth", "20000", "--screenshot-dir", args,
+                         "--keyframe-timeout", "60", "--json", NULL};
+    pid_t viewer = ms_test_spawn(view_argv, err_file);
+    struct timespec second = {1, 0};
+    nanosleep(&second, NULL);
+    assert_int_equal(ms_test_stop(server, SIGKILL, 5.0), -1); /* killed */
+    int status = ms_test_stop(viewer, 0, 40.0);                /* waits for its own exit */
+    assert_int_equal(status, 1);
+    char *text = read_text(err_file);
+    assert_int_equal(count_lines(text), 1);
+    assert_non_null(strstr(text, "meshview: "));
+    free(text);
+}
+
+/* The interactive viewer (a visible window on the test display) on the
+ * catalogue screen and on a model with the HUD: it draws until SIGTERM, then
+ * ends with status 0 and prints nothing (no error, no leak report). */
+static void test_interactive_until_terminated(void **state)
+{
+    fixture *f = *state;
+    const char *modes[2] = {NULL, MODEL};
+    for (int i = 0; i < 2; ++i) {
+        char log[700];
+        snprintf(log, sizeof log, "%s/interactive-%d.txt", f->dir, i);
+        char *argv[] = {f->bin, f->archives, "--size", "320x200",
+                        modes[i] ? "--model" : NULL, (char *)modes[i], NULL};
+        pid_t viewer = ms_test_spawn(argv, log);
+        struct timespec wait = {1, 500000000};
+        nanosleep(&wait, NULL);
+        assert_int_equal(ms_test_stop(viewer, SIGTERM, 20.0), 0);
+        char *text = read_text(log);
+        if (text[0])
+            fail_msg("meshview printed: %.2000s", text);
+        free(text);
+    }
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_help_and_usage_errors),
+        cmocka_unit_test(test_streaming_and_local_archive),
+        cmocka_unit_test(test_catalogue_screen),
+        cmocka_unit_test(test_interactive_until_terminated),
+        cmocka_unit_test(test_server_gone_mid_stream),
+        cmocka_unit_test(test_runtime_errors), /* stops the server: last */
+    };
+    return cmocka_run_group_tests_name("meshview", tests, group_setup, group_teardown);
+}

@@ -1,0 +1,239 @@
+/* meshview's parts that need no window: the bitmap font (every printable
+ * character has its own non-empty glyph), the camera controller (orbit keeps
+ * the distance, pan keeps the direction, re-centring looks at the point, the
+ * camera it gives is valid), the HUD's lines, the catalogue's row layout and
+ * the nearest-rank quantile of the scripted report. */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+#include <cmocka.h>
+
+#include "ms_viewer_catalogue.h"
+#include "ms_viewer_controls.h"
+#include "ms_viewer_font.h"
+#include "ms_viewer_hud.h"
+#include "ms_viewer_script.h"
+
+/* |a - b| <= eps (cmocka's double comparison is not in every version). */
+#define assert_near(a, b, eps) assert_true(fabs((double)(a) - (double)(b)) <= (eps))
+
+static void test_font_glyphs_distinct(void **state)
+{
+    (void)state;
+    for (int c = MS_FONT_FIRST; c <= MS_FONT_LAST; ++c) {
+        unsigned set = 0;
+        for (unsigned y = 0; y < MS_FONT_GLYPH_H; ++y)
+            for (unsigned x = 0; x < MS_FONT_GLYPH_W; ++x)
+                set += ms_font_pixel((char)c, x, y);
+        if (c == ' ')
+            assert_int_equal(set, 0);
+        else if (set == 0)
+            fail_msg("glyph '%c' is empty", c);
+        for (int d = MS_FONT_FIRST; d < c; ++d)
+            if (!memcmp(ms_font_glyph((char)c), ms_font_glyph((char)d), MS_FONT_GLYPH_H))
+                fail_msg("glyphs '%c' and '%c' are the same", c, d);
+    }
+    /* Outside 32..126: the '?' glyph; outside the cell: unset. */
+    assert_memory_equal(ms_font_glyph('\n'), ms_font_glyph('?'), MS_FONT_GLYPH_H);
+    assert_false(ms_font_pixel('#', MS_FONT_GLYPH_W, 0));
+    assert_false(ms_font_pixel('#', 0, MS_FONT_GLYPH_H));
+    /* 'I' is a centred bar: its middle column set in rows 0..6. */
+    for (unsigned y = 0; y < 7; ++y)
+        assert_true(ms_font_pixel('I', 2, y));
+}
+
+static double dist3(const double a[3], const double b[3])
+{
+    return sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
+                (a[2] - b[2]) * (a[2] - b[2]));
+}
+
+static void test_controls(void **state)
+{
+    (void)state;
+    const double lo[3] = {10, -4, 2}, hi[3] = {12, -2.5, 4};
+    ms_viewer_controls c;
+    ms_viewer_controls_init(&c, lo, hi, 1);
+    assert_near(c.model_size, 2, 1e-12);
+    assert_near(c.target[0], 11, 1e-12);
+    assert_near(c.target[1], -3.25, 1e-12);
+    assert_near(c.target[2], 3, 1e-12);
+    double eye[3], forward[3];
+    ms_viewer_controls_eye(&c, eye);
+    assert_near(dist3(eye, c.target), c.distance, 1e-9);
+
+    /* Orbit: target and distance stay, the eye moves. */
+    double before[3];
+    memcpy(before, eye, sizeof eye);
+    ms_viewer_controls_rotate(&c, 120, -40, 600);
+    ms_viewer_controls_eye(&c, eye);
+    assert_near(dist3(eye, c.target), c.distance, 1e-9);
+    assert_true(dist3(eye, before) > 0.1);
+    assert_near(c.target[0], 11, 1e-12);
+
+    /* Directions: orbiting, a drag to the right moves the eye to the screen's
+     * left and a drag down lifts it; flying, the view turns right and down. */
+    ms_camera cam0;
+    ms_error err0;
+    assert_int_equal(ms_viewer_controls_camera(&c, 800, 600, &cam0, &err0), MS_OK);
+    ms_viewer_controls_eye(&c, before);
+    ms_viewer_controls_rotate(&c, 10, 0, 600);
+    ms_viewer_controls_eye(&c, eye);
+    assert_true((eye[0] - before[0]) * cam0.right[0] + (eye[1] - before[1]) * cam0.right[1] +
+                    (eye[2] - before[2]) * cam0.right[2] < 0);
+    ms_viewer_controls_eye(&c, before);
+    ms_viewer_controls_rotate(&c, 0, 10, 600);
+    ms_viewer_controls_eye(&c, eye);
+    assert_true(eye[1] > before[1]); /* y is up here */
+    c.fly = true;
+    assert_int_equal(ms_viewer_controls_camera(&c, 800, 600, &cam0, &err0), MS_OK);
+    ms_viewer_controls_rotate(&c, 10, 10, 600);
+    ms_viewer_controls_forward(&c, forward);
+    assert_true(forward[0] * cam0.right[0] + forward[1] * cam0.right[1] +
+                    forward[2] * cam0.right[2] > 0);
+    assert_true(forward[1] < cam0.forward[1]);
+    c.fly = false;
+
+    /* Pan: eye and target move together; the direction stays. */
+    double f0[3], f1[3], e0[3];
+    ms_viewer_controls_forward(&c, f0);
+    ms_viewer_controls_eye(&c, e0);
+    ms_viewer_controls_pan(&c, 30, 10, 600);
+    ms_viewer_controls_forward(&c, f1);
+    assert_near(dist3(f0, f1), 0, 1e-12);
+    ms_viewer_controls_eye(&c, eye);
+    assert_true(dist3(eye, e0) > 0);
+
+    /* Zoom in: closer. */
+    double d0 = c.distance;
+    ms_viewer_controls_zoom(&c, 2);
+    assert_near(c.distance, d0 * 0.85 * 0.85, 1e-12);
+
+    /* Re-centre: the eye stays and looks at the point. */
+    ms_viewer_controls_eye(&c, e0);
+    const double point[3] = {11.3, -3.2, 2.5};
+    ms_viewer_controls_recentre(&c, point);
+    ms_viewer_controls_eye(&c, eye);
+    assert_near(dist3(eye, e0), 0, 1e-9);
+    assert_near(dist3(c.target, point), 0, 1e-9);
+
+    /* Fly: looking around keeps the eye; moving keeps the direction. */
+    c.fly = true;
+    ms_viewer_controls_rotate(&c, 50, 20, 600);
+    ms_viewer_controls_eye(&c, eye);
+    assert_near(dist3(eye, e0), 0, 1e-9);
+    ms_viewer_controls_forward(&c, f0);
+    ms_viewer_controls_fly(&c, 1, 0, 0, 1);
+    ms_viewer_controls_forward(&c, f1);
+    assert_near(dist3(f0, f1), 0, 1e-12);
+    ms_viewer_controls_eye(&c, eye);
+    double moved[3] = {eye[0] - e0[0], eye[1] - e0[1], eye[2] - e0[2]};
+    double along = moved[0] * f0[0] + moved[1] * f0[1] + moved[2] * f0[2];
+    assert_true(along > 0);
+    assert_near(along, dist3(eye, e0), 1e-9);
+
+    /* The camera: a valid ms_camera at the framebuffer size, looking along forward. */
+    ms_camera cam;
+    ms_error err;
+    assert_int_equal(ms_viewer_controls_camera(&c, 1920, 1080, &cam, &err), MS_OK);
+    assert_near(cam.width, 1920, 0);
+    assert_near(cam.height, 1080, 0);
+    ms_viewer_controls_forward(&c, forward);
+    assert_near(dist3(cam.forward, forward), 0, 1e-9);
+    assert_true(cam.near_distance > 0 && cam.far_distance > c.distance);
+    assert_int_equal(ms_viewer_controls_camera(&c, 0, 1080, &cam, &err), MS_ERR_ARG);
+
+    /* Pitch never reaches the pole. */
+    ms_viewer_controls_reset(&c);
+    c.fly = false;
+    ms_viewer_controls_rotate(&c, 0, 100000, 600);
+    assert_true(fabs(c.pitch) < M_PI / 2);
+    assert_int_equal(ms_viewer_controls_camera(&c, 64, 64, &cam, &err), MS_OK);
+}
+
+static void test_hud_lines(void **state)
+{
+    (void)state;
+    ms_core_stats cs;
+    memset(&cs, 0, sizeof cs);
+    cs.model_open = true;
+    cs.cells_shown = 12, cs.cells_loading = 3, cs.cells_cached = 40;
+    cs.geometry_bytes_received = 2500000, cs.apo_bytes_received = 1250000;
+    cs.achieved_error_px = 2.5, cs.tolerance_px = 1;
+    cs.memory = 7300000;
+    ms_viewer_hud_info info = {.model = "dragon", .mode = "APO lit", .frame_ms = 16.7, .fps = 60,
+                               .triangles_drawn = 123456, .cells_drawn = 9, .core = &cs};
+    char lines[MS_HUD_MAX_LINES][MS_HUD_LINE_MAX];
+    size_t n = ms_viewer_hud_lines(&info, lines);
+    assert_int_equal(n, 7);
+    assert_string_equal(lines[0], "dragon  APO lit");
+    assert_string_equal(lines[1], "frame 16.7 ms  60 fps");
+    assert_string_equal(lines[2], "triangles 123456 in 9 cells");
+    assert_string_equal(lines[3], "cells 12 shown  3 loading  40 cached");
+    assert_string_equal(lines[4], "received 2.50 MB geometry  1.25 MB APO");
+    assert_string_equal(lines[5], "error 2.50 px  tolerance 1.00 px");
+    assert_string_equal(lines[6], "refining  memory 7.3 MB");
+    assert_near(ms_viewer_hud_progress(&info), 0.4, 1e-12);
+    info.settled = true;
+    n = ms_viewer_hud_lines(&info, lines);
+    assert_string_equal(lines[6], "view complete  memory 7.3 MB");
+    assert_near(ms_viewer_hud_progress(&info), 1, 0);
+    snprintf(cs.error, sizeof cs.error, "server gone");
+    n = ms_viewer_hud_lines(&info, lines);
+    assert_int_equal(n, 8);
+    assert_string_equal(lines[7], "server gone");
+}
+
+static void test_catalogue_rows(void **state)
+{
+    (void)state;
+    ms_viewer_model_entry entries[30];
+    memset(entries, 0, sizeof entries);
+    for (int i = 0; i < 30; ++i)
+        snprintf(entries[i].name, sizeof entries[i].name, "model%02d", i);
+    ms_viewer_model_list list = {entries, 30};
+    ms_viewer_catalogue cat = {.list = &list};
+    char row[160];
+    entries[0].triangles = 1234567, entries[0].bytes = 2500000, entries[0].apo = true;
+    ms_viewer_catalogue_row_text(&entries[0], row, sizeof row);
+    assert_non_null(strstr(row, "1,234,567"));
+    assert_non_null(strstr(row, "2.5 MB"));
+    assert_non_null(strstr(row, "APO"));
+    /* Rows under the cursor: the first row, not the title; scrolling follows
+     * the selection. */
+    long first = -1;
+    for (double y = 0; y < 200 && first < 0; y += 1)
+        first = ms_viewer_catalogue_row_at(&cat, 100, y, 640, 200, 1);
+    assert_int_equal(first, 0);
+    assert_int_equal(ms_viewer_catalogue_row_at(&cat, 100, 1, 640, 200, 1), -1);
+    ms_viewer_catalogue_move(&cat, 29, 200, 1);
+    assert_int_equal(cat.selected, 29);
+    assert_true(cat.first > 0);
+    ms_viewer_catalogue_move(&cat, -100, 200, 1);
+    assert_int_equal(cat.selected, 0);
+    assert_int_equal(cat.first, 0);
+}
+
+static void test_quantile(void **state)
+{
+    (void)state;
+    double v[] = {5, 1, 4, 2, 3, 10, 9, 8, 7, 6};
+    assert_near(ms_viewer_quantile(v, 10, 0.5), 5, 0);
+    assert_near(ms_viewer_quantile(v, 10, 0.95), 10, 0);
+    assert_near(ms_viewer_quantile(v, 10, 0), 1, 0);
+    assert_near(ms_viewer_quantile(v, 0, 0.5), 0, 0);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_font_glyphs_distinct), cmocka_unit_test(test_controls),
+        cmocka_unit_test(test_hud_lines),            cmocka_unit_test(test_catalogue_rows),
+        cmocka_unit_test(test_quantile),
+    };
+    return cmocka_run_group_tests_name("viewer_parts", tests, NULL, NULL);
+}
