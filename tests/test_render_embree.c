@@ -1,4 +1,4 @@
-/* Geometry = Embree (issue 17, docs/VIEWER-render.md "Tests"): the silhouette
+/* Geometry = Embree (issue 17, docs/RENDERER.md "Tests"): the silhouette
  * mask of a renderer frame equals an Embree 3 ray cast of the same stitched mesh,
  * one ray through every pixel centre with the same projection (ms_render_unproject
  * gives the ray): intersection over union >= 0.995. Where both hit, the GL depth

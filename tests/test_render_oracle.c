@@ -1,4 +1,4 @@
-/* APO shader = CPU oracle (issue 17, docs/VIEWER-render.md "Tests"): the dragon at
+/* APO shader = CPU oracle (issue 17, docs/RENDERER.md "Tests"): the dragon at
  * resolution 3 and the demo model are baked, decoded for fixed cameras and drawn
  * with the renderer in NORMALS mode into a float colour + 32F depth framebuffer,
  * and in CELL_ID mode. For every covered pixel the surface point is recomputed

@@ -1,4 +1,4 @@
-/* The renderer's upload rule (ms_render.h, "Uploads"; docs/VIEWER-render.md):
+/* The renderer's upload rule (ms_render.h, "Uploads"; docs/RENDERER.md):
  * the same frame twice queues nothing; refining one cell queues exactly the cells
  * whose drawn triangles changed (found here independently, by comparing each
  * cell's triangles as world positions); with a small budget no call sends more
