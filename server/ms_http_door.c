@@ -21,6 +21,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "ms_access.h"
 #include "ms_progress.h"
 #include "ms_server.h"
 
@@ -232,6 +233,10 @@ static void serve_index(ms_http_door *door, struct evhttp_request *req, ms_model
     send_bytes(door, req, model, index, size, etag);
 }
 
+/* A cell's geometry (?bits=B: the prefix complete at B bits; bits above the
+ * cell's own top mean all of it) or APO (?levels=L: the first L levels). The
+ * URL is turned into a request entry and ms_access_resolve decides, as for the
+ * binary door: the preview check runs on the clamped precision. */
 static void serve_cell(ms_http_door *door, struct evhttp_request *req, ms_model *model,
                        const char *cell_text, const char *kind, const struct evkeyvalq *query)
 {
@@ -243,33 +248,25 @@ static void serve_cell(ms_http_door *door, struct evhttp_request *req, ms_model 
         send_text(door, req, 404, "Not Found", "error: no such cell");
         return;
     }
-    bool full = authorized(door, req, query);
-    unsigned public_bits = model->entry.public_max_bits;
-    if (!full && c->bits_min > public_bits) {
+    ms_access grant = ms_access_grant(model, authorized(door, req, query));
+    if (ms_access_cell_hidden(model, &grant, cell)) {
         send_text(door, req, 403, "Forbidden", "error: this cell is beyond the public preview; a token is required");
         return;
     }
-    char etag[160];
-    if (!strcmp(kind, "geometry")) {
-        unsigned allowed = full || c->bits_max < public_bits ? c->bits_max : public_bits;
-        uint32_t bits = allowed;
+    bool geometry = !strcmp(kind, "geometry");
+    ms_proto_cell_request entry = {cell, geometry ? MS_PROTO_STREAM_GEOMETRY : MS_PROTO_STREAM_APO,
+                                   MS_PROTO_UNIT_STEPS, 0, 0, 0};
+    bool empty = false;
+    if (geometry) {
+        uint32_t bits = c->bits_max;
+        if (grant.permitted_geometry_steps - 1u < bits)
+            bits = grant.permitted_geometry_steps - 1u; /* by default, all the grant allows */
         const char *bits_text = evhttp_find_header(query, "bits");
         if (bits_text && !parse_u32(bits_text, 64, &bits)) {
             send_text(door, req, 400, "Bad Request", "error: bits must be an integer in 0..64");
             return;
         }
-        if (bits > allowed && bits <= c->bits_max) {
-            send_text(door, req, 403, "Forbidden", "error: precision beyond the public preview needs a token");
-            return;
-        }
-        if (bits > c->bits_max)
-            bits = c->bits_max;
-        size_t total;
-        const uint8_t *data = ms_archive_geometry(model->archive, cell, &total);
-        uint32_t length = ms_archive_geometry_prefix(model->archive, cell, bits);
-        snprintf(etag, sizeof etag, "\"%" PRIx64 "-%" PRIx64 "-%u-g%u\"", model->file_inode,
-                 (uint64_t)model->file_mtime_ns, cell, bits);
-        send_bytes(door, req, model, data, length, etag);
+        entry.b = bits < c->bits_max ? bits : c->bits_max;
     } else {
         uint32_t levels = c->apo_levels;
         const char *levels_text = evhttp_find_header(query, "levels");
@@ -277,13 +274,29 @@ static void serve_cell(ms_http_door *door, struct evhttp_request *req, ms_model 
             send_text(door, req, 400, "Bad Request", "error: levels must be an integer in 1..64");
             return;
         }
-        size_t total;
-        const uint8_t *data = ms_archive_apo(model->archive, cell, &total);
-        uint32_t length = levels ? ms_archive_apo_prefix(model->archive, cell, levels - 1, NULL) : 0;
-        snprintf(etag, sizeof etag, "\"%" PRIx64 "-%" PRIx64 "-%u-a%u\"", model->file_inode,
-                 (uint64_t)model->file_mtime_ns, cell, levels);
-        send_bytes(door, req, model, data, length, etag);
+        empty = levels == 0; /* a cell without APO */
+        entry.b = levels ? levels - 1 : 0;
     }
+    if (entry.b > MS_PROTO_MAX_STEP)
+        entry.b = MS_PROTO_MAX_STEP;
+    ms_proto_byte_range range = {0, 0};
+    ms_proto_fault fault = {.code = MS_PROTO_E_INTERNAL};
+    if (!empty && ms_access_resolve(model, &grant, &entry, &range, &fault, NULL) != MS_OK) {
+        if (fault.code == MS_PROTO_E_FORBIDDEN)
+            send_text(door, req, 403, "Forbidden", "error: precision beyond the public preview needs a token");
+        else
+            send_text(door, req, 500, "Internal Server Error", "error: the cell's index is inconsistent");
+        return;
+    }
+    size_t total;
+    const uint8_t *data = geometry ? ms_archive_geometry(model->archive, cell, &total)
+                                   : ms_archive_apo(model->archive, cell, &total);
+    char etag[160];
+    snprintf(etag, sizeof etag, "\"%" PRIx64 "-%" PRIx64 "-%u-%c%u\"", model->file_inode,
+             (uint64_t)model->file_mtime_ns, cell, geometry ? 'g' : 'a',
+             geometry ? entry.b : (empty ? 0 : entry.b + 1));
+    /* Resolved ranges of a STEPS request from step 0 start at byte 0. */
+    send_bytes(door, req, model, data, range.end, etag);
 }
 
 /* --- JSON and metrics -------------------------------------------------------- */
@@ -366,8 +379,8 @@ static void serve_metrics(ms_http_door *door, struct evhttp_request *req)
 static void serve_draco(ms_http_door *door, struct evhttp_request *req, ms_model *model,
                         const char *name, const struct evkeyvalq *query)
 {
-    if (!authorized(door, req, query) &&
-        model->entry.public_max_bits < ms_archive_get_header(model->archive)->bits) {
+    ms_access grant = ms_access_grant(model, authorized(door, req, query));
+    if (!ms_access_is_full(&grant)) {
         send_text(door, req, 403, "Forbidden", "error: the whole model needs a token");
         return;
     }

@@ -20,6 +20,7 @@
 #include <stdbool.h>
 #include <stdint.h>
 
+#include "ms_access.h"
 #include "ms_fair_scheduler.h"
 #include "ms_proto.h"
 #include "ms_request_queue.h"
@@ -47,7 +48,7 @@ typedef struct ms_proto_door_shared {
 typedef struct ms_open_model {
     uint32_t handle;        /* 0 = free slot */
     struct ms_model *model; /* one reference held */
-    uint8_t permitted_geometry_steps, permitted_apo_steps;
+    ms_access grant;        /* what this connection may read of it, fixed at open */
 } ms_open_model;
 
 typedef enum ms_conn_state {

@@ -61,41 +61,29 @@ static void warn_model(ms_registry_warn_fn warn, void *arg, const char *fmt, con
     warn(arg, line);
 }
 
-/* Opens (or reuses from previous) the archive of one catalogue entry. */
-static ms_model *load_model(const char *dir, const ms_catalog_entry *entry,
-                            const ms_registry *previous, ms_registry_warn_fn warn, void *warn_arg)
+ms_status ms_model_open(const char *dir, const ms_catalog_entry *entry, ms_model **out,
+                        ms_error *err)
 {
+    *out = NULL;
     char path[4096];
     snprintf(path, sizeof path, "%s/%s.msa", dir, entry->name);
     struct stat st;
-    if (stat(path, &st) != 0) {
-        warn_model(warn, warn_arg, "model '%s' skipped: %s", entry->name, "archive file missing");
-        return NULL;
-    }
-    int64_t mtime_ns = (int64_t)st.st_mtim.tv_sec * 1000000000 + st.st_mtim.tv_nsec;
-    ms_model *old = previous ? ms_registry_find(previous, entry->name) : NULL;
-    if (old && old->file_inode == (uint64_t)st.st_ino && old->file_size == (uint64_t)st.st_size &&
-        old->file_mtime_ns == mtime_ns) {
-        ms_model_ref(old);
-        return old;
-    }
+    if (stat(path, &st) != 0)
+        return ms_error_set(err, MS_ERR_IO, "%s: archive file missing", path);
     ms_model *m = calloc(1, sizeof *m);
-    if (!m) {
-        warn_model(warn, warn_arg, "model '%s' skipped: %s", entry->name, "out of memory");
-        return NULL;
-    }
-    ms_error err;
-    if (ms_archive_open(path, &m->archive, &err) != MS_OK) {
-        warn_model(warn, warn_arg, "model '%s' skipped: %s", entry->name, err.text);
+    if (!m)
+        return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory", path);
+    ms_status status = ms_archive_open(path, &m->archive, err);
+    if (status != MS_OK) {
         free(m);
-        return NULL;
+        return status;
     }
     m->entry = *entry;
     m->entry.source = strdup(entry->source ? entry->source : "");
     if (!m->entry.source) {
         ms_archive_close(m->archive);
         free(m);
-        return NULL;
+        return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory", path);
     }
     const ms_archive_header *h = ms_archive_get_header(m->archive);
     if (m->entry.public_max_bits > h->bits)
@@ -119,7 +107,35 @@ static ms_model *load_model(const char *dir, const ms_catalog_entry *entry,
     m->refs = 1;
     m->file_inode = (uint64_t)st.st_ino;
     m->file_size = (uint64_t)st.st_size;
-    m->file_mtime_ns = mtime_ns;
+    m->file_mtime_ns = (int64_t)st.st_mtim.tv_sec * 1000000000 + st.st_mtim.tv_nsec;
+    *out = m;
+    return MS_OK;
+}
+
+/* Opens (or reuses from previous) the archive of one catalogue entry. */
+static ms_model *load_model(const char *dir, const ms_catalog_entry *entry,
+                            const ms_registry *previous, ms_registry_warn_fn warn, void *warn_arg)
+{
+    char path[4096];
+    snprintf(path, sizeof path, "%s/%s.msa", dir, entry->name);
+    struct stat st;
+    if (stat(path, &st) != 0) {
+        warn_model(warn, warn_arg, "model '%s' skipped: %s", entry->name, "archive file missing");
+        return NULL;
+    }
+    int64_t mtime_ns = (int64_t)st.st_mtim.tv_sec * 1000000000 + st.st_mtim.tv_nsec;
+    ms_model *old = previous ? ms_registry_find(previous, entry->name) : NULL;
+    if (old && old->file_inode == (uint64_t)st.st_ino && old->file_size == (uint64_t)st.st_size &&
+        old->file_mtime_ns == mtime_ns) {
+        ms_model_ref(old);
+        return old;
+    }
+    ms_model *m;
+    ms_error err;
+    if (ms_model_open(dir, entry, &m, &err) != MS_OK) {
+        warn_model(warn, warn_arg, "model '%s' skipped: %s", entry->name, err.text);
+        return NULL;
+    }
     return m;
 }
 

@@ -61,6 +61,12 @@ void ms_registry_release(ms_registry *registry);
 /* The model named name (validated first), or NULL. Does not take a reference. */
 ms_model *ms_registry_find(const ms_registry *registry, const char *name);
 
+/* Opens DIR/NAME.msa for the catalogue entry (copied; public_max_bits clamped
+ * to the archive's bits) as a model holding one reference. Errors: MS_ERR_IO
+ * (missing file), the archive reader's errors, MS_ERR_NOMEM. */
+ms_status ms_model_open(const char *dir, const ms_catalog_entry *entry, ms_model **out,
+                        ms_error *err);
+
 void ms_model_ref(ms_model *model);
 void ms_model_unref(ms_model *model);
 

@@ -198,6 +198,55 @@ static void test_access_control(void **state)
     ms_archive_close(a);
 }
 
+/* Issue 19, item 1: the preview check runs on the clamped precision. Cell 6 of
+ * dragon spans [7, 12] bits with an 8-bit preview: bits above the cell's top
+ * (13, 17, 64) mean "all of it", which is beyond the preview without a token. */
+static void test_preview_bypass_refused(void **state)
+{
+    server_fixture *f = *state;
+    ms_archive *a = open_model(f, "dragon");
+    const uint32_t full = ms_archive_get_cell(a, 6)->geometry_length;
+    const uint32_t preview = ms_archive_geometry_prefix(a, 6, 8);
+    assert_true(preview < full);
+    ms_test_http_response r;
+    const char *beyond[] = {"/models/dragon/cells/6/geometry?bits=17",
+                            "/models/dragon/cells/6/geometry?bits=13",
+                            "/models/dragon/cells/6/geometry?bits=64",
+                            "/models/dragon/cells/6/geometry?bits=9"};
+    for (size_t i = 0; i < sizeof beyond / sizeof *beyond; ++i) {
+        get(f, beyond[i], NULL, 403, &r);
+        assert_string_equal((char *)r.body,
+                            "error: precision beyond the public preview needs a token\n");
+        ms_test_http_free(&r);
+        /* A Range inside the preview's bytes does not open the rest either. */
+        get(f, beyond[i], "Range: bytes=0-3\r\n", 403, &r);
+        ms_test_http_free(&r);
+    }
+    get(f, "/models/dragon/cells/6/geometry?bits=8", NULL, 200, &r);
+    assert_int_equal(r.body_length, preview);
+    ms_test_http_free(&r);
+    /* Without bits, the preview's prefix; a suffix range ends at the preview. */
+    char value[128], expect[64];
+    get(f, "/models/dragon/cells/6/geometry", "Range: bytes=-4\r\n", 206, &r);
+    snprintf(expect, sizeof expect, "bytes %u-%u/%u", preview - 4, preview - 1, preview);
+    assert_string_equal(ms_test_http_header(&r, "Content-Range", value, sizeof value), expect);
+    ms_test_http_free(&r);
+    get(f, "/models/dragon/cells/6/geometry?bits=17", "Authorization: Bearer s3cret-token\r\n",
+        200, &r);
+    assert_int_equal(r.body_length, full);
+    ms_test_http_free(&r);
+    /* A cell inside the preview: clamping to its own top stays public. */
+    get(f, "/models/dragon/cells/0/geometry?bits=17", NULL, 200, &r);
+    assert_int_equal(r.body_length, ms_archive_get_cell(a, 0)->geometry_length);
+    ms_test_http_free(&r);
+    /* A cell wholly beyond the preview: nothing, whatever the bits. */
+    get(f, "/models/dragon/cells/70/geometry?bits=8", NULL, 403, &r);
+    ms_test_http_free(&r);
+    get(f, "/models/dragon/cells/70/geometry?bits=17", NULL, 403, &r);
+    ms_test_http_free(&r);
+    ms_archive_close(a);
+}
+
 static void test_hostile_requests(void **state)
 {
     server_fixture *f = *state;
@@ -279,6 +328,7 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_catalog_index_and_payloads, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_ranges_and_etags, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_access_control, start_server, stop_server),
+        cmocka_unit_test_setup_teardown(test_preview_bypass_refused, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_hostile_requests, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_sighup_adds_model_and_sigterm_drains, start_server, stop_server),
     };

@@ -444,6 +444,51 @@ static void test_prefix_ranges(void **state)
     ms_test_conn_close(&c);
 }
 
+/* Issue 19, item 1, through the binary door: the requests that leaked over
+ * HTTP. Dragon's cell 6 spans [7, 12] bits, the preview is 8 bits. */
+static void test_preview_bypass_refused(void **state)
+{
+    server_fixture *f = *state;
+    ms_archive *archive = open_archive(f, "dragon");
+    const uint32_t full = ms_archive_get_cell(archive, 6)->geometry_length;
+    const uint32_t preview = ms_archive_geometry_prefix(archive, 6, 8);
+    ms_test_conn c;
+    connect_ready(f, &c, NULL);
+    uint32_t handle = ms_test_conn_open_model(&c, "dragon", 1, NULL, NULL, NULL);
+    ms_proto_cell_request e[6] = {
+        steps(6, MS_PROTO_STREAM_GEOMETRY, 0, 0, 17),
+        steps(6, MS_PROTO_STREAM_GEOMETRY, 0, 0, 13),
+        steps(6, MS_PROTO_STREAM_GEOMETRY, 0, 0, 63),
+        steps(6, MS_PROTO_STREAM_GEOMETRY, 0, 0, 8),
+        {6, MS_PROTO_STREAM_GEOMETRY, MS_PROTO_UNIT_BYTES, 0, 0, preview + 1},
+        {6, MS_PROTO_STREAM_GEOMETRY, MS_PROTO_UNIT_BYTES, 0, 0, preview},
+    };
+    send_batch(&c, handle, 10, e, 6);
+    answers a;
+    answers_init(&a, 10, 6);
+    answers_collect(&c, &a);
+    for (int i = 0; i < 3; ++i)
+        assert_int_equal(a.error[i], MS_PROTO_E_FORBIDDEN);
+    assert_int_equal(a.error[3], 0);
+    assert_int_equal(a.length[3], preview);
+    assert_int_equal(a.error[4], MS_PROTO_E_FORBIDDEN);
+    assert_int_equal(a.error[5], 0);
+    assert_int_equal(a.length[5], preview);
+    answers_free(&a);
+    ms_test_conn_close(&c);
+
+    connect_ready(f, &c, TOKEN);
+    handle = ms_test_conn_open_model(&c, "dragon", 1, NULL, NULL, NULL);
+    send_batch(&c, handle, 10, e, 1);
+    answers_init(&a, 10, 1);
+    answers_collect(&c, &a);
+    assert_int_equal(a.error[0], 0);
+    assert_int_equal(a.length[0], full);
+    answers_free(&a);
+    ms_test_conn_close(&c);
+    ms_archive_close(archive);
+}
+
 /* --- Priorities and cancel -------------------------------------------------- */
 
 static void test_priorities(void **state)
@@ -1012,6 +1057,7 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_index_compressed, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_payloads_equal_archive, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_prefix_ranges, start_server, stop_server),
+        cmocka_unit_test_setup_teardown(test_preview_bypass_refused, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_priorities, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_cancel, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_disconnect_mid_payload_frees_everything, start_server,
