@@ -80,17 +80,25 @@ static bool token_equal(const char *given, const char *expected)
     return diff == 0;
 }
 
-static bool authorized(const ms_http_door *door, struct evhttp_request *req,
-                       const struct evkeyvalq *query)
+/* True when the request carries the configured token in an Authorization:
+ * Bearer header (the only place it is accepted: a URL ends up in logs). */
+static bool authorized(const ms_http_door *door, struct evhttp_request *req)
 {
     const char *expected = door->server->config.token;
     if (!expected)
         return false;
     const char *auth = evhttp_find_header(evhttp_request_get_input_headers(req), "Authorization");
-    if (auth && !strncmp(auth, "Bearer ", 7) && token_equal(auth + 7, expected))
-        return true;
-    const char *q = evhttp_find_header(query, "token");
-    return q && token_equal(q, expected);
+    return auth && !strncmp(auth, "Bearer ", 7) && token_equal(auth + 7, expected);
+}
+
+/* The reader's grant of model; *token_used says whether the token widened it
+ * (the answer then depends on the token and must not reach a shared cache). */
+static ms_access reader_grant(const ms_http_door *door, struct evhttp_request *req,
+                              const ms_model *model, bool *token_used)
+{
+    ms_access anonymous = ms_access_grant(model, false);
+    *token_used = !ms_access_is_full(&anonymous) && authorized(door, req);
+    return *token_used ? ms_access_grant(model, true) : anonymous;
 }
 
 static bool rate_allowed(ms_http_door *door, struct evhttp_request *req)
@@ -149,16 +157,20 @@ static void release_transfer(const void *data, size_t length, void *extra)
     free(t);
 }
 
-/* Sends bytes [0, length) of data (inside model's mapping) honouring Range. */
+/* Sends bytes [0, length) of data (inside model's mapping) honouring Range.
+ * private_answer: the body depends on the reader's token, so only the reader's
+ * own cache may keep it; every answer varies with Authorization. */
 static void send_bytes(ms_http_door *door, struct evhttp_request *req, ms_model *model,
-                       const uint8_t *data, uint64_t length, const char *etag)
+                       const uint8_t *data, uint64_t length, const char *etag, bool private_answer)
 {
     struct evkeyvalq *out = evhttp_request_get_output_headers(req);
     struct evkeyvalq *in = evhttp_request_get_input_headers(req);
     evhttp_add_header(out, "Content-Type", "application/octet-stream");
     evhttp_add_header(out, "Accept-Ranges", "bytes");
     evhttp_add_header(out, "ETag", etag);
-    evhttp_add_header(out, "Cache-Control", "public, max-age=3600");
+    evhttp_add_header(out, "Cache-Control",
+                      private_answer ? "private, max-age=3600" : "public, max-age=3600");
+    evhttp_add_header(out, "Vary", "Authorization");
     const char *inm = evhttp_find_header(in, "If-None-Match");
     if (inm && !strcmp(inm, etag)) {
         evhttp_send_reply(req, 304, "Not Modified", NULL);
@@ -230,7 +242,7 @@ static void serve_index(ms_http_door *door, struct evhttp_request *req, ms_model
     char etag[128];
     snprintf(etag, sizeof etag, "\"%" PRIx64 "-%" PRIx64 "-index\"", model->file_inode,
              (uint64_t)model->file_mtime_ns);
-    send_bytes(door, req, model, index, size, etag);
+    send_bytes(door, req, model, index, size, etag, false);
 }
 
 /* A cell's geometry (?bits=B: the prefix complete at B bits; bits above the
@@ -248,7 +260,8 @@ static void serve_cell(ms_http_door *door, struct evhttp_request *req, ms_model 
         send_text(door, req, 404, "Not Found", "error: no such cell");
         return;
     }
-    ms_access grant = ms_access_grant(model, authorized(door, req, query));
+    bool token_used;
+    ms_access grant = reader_grant(door, req, model, &token_used);
     if (ms_access_cell_hidden(model, &grant, cell)) {
         send_text(door, req, 403, "Forbidden", "error: this cell is beyond the public preview; a token is required");
         return;
@@ -296,7 +309,7 @@ static void serve_cell(ms_http_door *door, struct evhttp_request *req, ms_model 
              (uint64_t)model->file_mtime_ns, cell, geometry ? 'g' : 'a',
              geometry ? entry.b : (empty ? 0 : entry.b + 1));
     /* Resolved ranges of a STEPS request from step 0 start at byte 0. */
-    send_bytes(door, req, model, data, range.end, etag);
+    send_bytes(door, req, model, data, range.end, etag, token_used);
 }
 
 /* --- JSON and metrics -------------------------------------------------------- */
@@ -377,9 +390,10 @@ static void serve_metrics(ms_http_door *door, struct evhttp_request *req)
  * benchmark), for meshload's baseline: the same bytes a non-streaming viewer
  * would download. Public models only; 404 when there is no such file. */
 static void serve_draco(ms_http_door *door, struct evhttp_request *req, ms_model *model,
-                        const char *name, const struct evkeyvalq *query)
+                        const char *name)
 {
-    ms_access grant = ms_access_grant(model, authorized(door, req, query));
+    bool token_used;
+    ms_access grant = reader_grant(door, req, model, &token_used);
     if (!ms_access_is_full(&grant)) {
         send_text(door, req, 403, "Forbidden", "error: the whole model needs a token");
         return;
@@ -405,8 +419,10 @@ static void serve_draco(ms_http_door *door, struct evhttp_request *req, ms_model
     }
     if (st.st_size == 0)
         close(fd);
-    evhttp_add_header(evhttp_request_get_output_headers(req), "Content-Type",
-                      "application/octet-stream");
+    struct evkeyvalq *out = evhttp_request_get_output_headers(req);
+    evhttp_add_header(out, "Content-Type", "application/octet-stream");
+    evhttp_add_header(out, "Cache-Control", token_used ? "private, max-age=3600" : "public, max-age=3600");
+    evhttp_add_header(out, "Vary", "Authorization");
     door->server->metrics.http_bytes_sent += (uint64_t)st.st_size;
     evhttp_send_reply(req, 200, "OK", body);
     evbuffer_free(body);
@@ -440,7 +456,7 @@ static void route(ms_http_door *door, struct evhttp_request *req, char *path,
             return;
         }
         if (n == 3 && !strcmp(seg[2], "draco")) {
-            serve_draco(door, req, model, seg[1], query);
+            serve_draco(door, req, model, seg[1]);
             return;
         }
         if (n == 5 && !strcmp(seg[2], "cells") &&
@@ -493,7 +509,15 @@ static void handle_request(struct evhttp_request *req, void *arg)
     TAILQ_INIT(&query);
     const char *query_text = evhttp_uri_get_query(uri);
     if (query_text && evhttp_parse_query_str(query_text, &query) != 0) {
+        evhttp_clear_headers(&query);
         send_text(door, req, 400, "Bad Request", "error: bad query string");
+        return;
+    }
+    if (evhttp_find_header(&query, "token")) {
+        send_text(door, req, 400, "Bad Request",
+                  "error: the token is not accepted in the URL (URLs end up in logs); send "
+                  "Authorization: Bearer TOKEN");
+        evhttp_clear_headers(&query);
         return;
     }
     route(door, req, path, &query);

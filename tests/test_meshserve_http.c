@@ -187,9 +187,6 @@ static void test_access_control(void **state)
         200, &r);
     assert_int_equal(r.body_length, ms_archive_geometry_prefix(a, 6, 11));
     ms_test_http_free(&r);
-    get(f, "/models/dragon/cells/6/geometry?token=s3cret-token", NULL, 200, &r);
-    assert_int_equal(r.body_length, ms_archive_get_cell(a, 6)->geometry_length);
-    ms_test_http_free(&r);
     /* Cell 70 starts at 9 bits: entirely beyond the preview. */
     get(f, "/models/dragon/cells/70/geometry", NULL, 403, &r);
     ms_test_http_free(&r);
@@ -245,6 +242,60 @@ static void test_preview_bypass_refused(void **state)
     get(f, "/models/dragon/cells/70/geometry?bits=17", NULL, 403, &r);
     ms_test_http_free(&r);
     ms_archive_close(a);
+}
+
+/* Issue 19, item 2: an answer that depends on the token is private (a shared
+ * cache must never hand it to the next anonymous visitor); public answers say
+ * what a cache keys on; the token is never accepted in the URL. */
+static void test_cache_headers(void **state)
+{
+    server_fixture *f = *state;
+    const char *bearer = "Authorization: Bearer s3cret-token\r\n";
+    ms_test_http_response r;
+    char value[256];
+    /* Public: anonymous answers, and a fully public model's. */
+    const char *public_paths[] = {"/models/dragon/cells/6/geometry", "/models/bunny/cells/6/geometry",
+                                  "/models/bunny/cells/7/apo", "/models/dragon"};
+    for (size_t i = 0; i < sizeof public_paths / sizeof *public_paths; ++i) {
+        get(f, public_paths[i], NULL, 200, &r);
+        assert_string_equal(ms_test_http_header(&r, "Cache-Control", value, sizeof value),
+                            "public, max-age=3600");
+        assert_string_equal(ms_test_http_header(&r, "Vary", value, sizeof value), "Authorization");
+        assert_non_null(ms_test_http_header(&r, "ETag", value, sizeof value));
+        ms_test_http_free(&r);
+    }
+    /* Token-dependent: private, in the 200, the 206 and the 304. */
+    get(f, "/models/dragon/cells/6/geometry?bits=12", bearer, 200, &r);
+    assert_string_equal(ms_test_http_header(&r, "Cache-Control", value, sizeof value),
+                        "private, max-age=3600");
+    assert_string_equal(ms_test_http_header(&r, "Vary", value, sizeof value), "Authorization");
+    char etag[256], headers[600];
+    ms_test_http_header(&r, "ETag", etag, sizeof etag);
+    ms_test_http_free(&r);
+    snprintf(headers, sizeof headers, "%sRange: bytes=0-3\r\n", bearer);
+    get(f, "/models/dragon/cells/6/geometry?bits=12", headers, 206, &r);
+    assert_string_equal(ms_test_http_header(&r, "Cache-Control", value, sizeof value),
+                        "private, max-age=3600");
+    ms_test_http_free(&r);
+    snprintf(headers, sizeof headers, "%sIf-None-Match: %s\r\n", bearer, etag);
+    get(f, "/models/dragon/cells/6/geometry?bits=12", headers, 304, &r);
+    assert_string_equal(ms_test_http_header(&r, "Cache-Control", value, sizeof value),
+                        "private, max-age=3600");
+    ms_test_http_free(&r);
+    get(f, "/models/dragon/cells/70/apo", bearer, 200, &r);
+    assert_string_equal(ms_test_http_header(&r, "Cache-Control", value, sizeof value),
+                        "private, max-age=3600");
+    ms_test_http_free(&r);
+    /* The token in the query string: refused, whatever the path, even when valid. */
+    const char *query_token[] = {"/models/dragon/cells/6/geometry?token=s3cret-token",
+                                 "/models/dragon/cells/6/geometry?bits=12&token=wrong",
+                                 "/catalog?token=s3cret-token"};
+    for (size_t i = 0; i < sizeof query_token / sizeof *query_token; ++i) {
+        get(f, query_token[i], NULL, 400, &r);
+        assert_string_equal((char *)r.body, "error: the token is not accepted in the URL (URLs "
+                                            "end up in logs); send Authorization: Bearer TOKEN\n");
+        ms_test_http_free(&r);
+    }
 }
 
 static void test_hostile_requests(void **state)
@@ -329,6 +380,7 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_ranges_and_etags, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_access_control, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_preview_bypass_refused, start_server, stop_server),
+        cmocka_unit_test_setup_teardown(test_cache_headers, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_hostile_requests, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_sighup_adds_model_and_sigterm_drains, start_server, stop_server),
     };
