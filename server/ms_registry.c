@@ -112,7 +112,23 @@ ms_status ms_model_open(const char *dir, const ms_catalog_entry *entry, ms_model
     return MS_OK;
 }
 
-/* Opens (or reuses from previous) the archive of one catalogue entry. */
+/* True when the catalogue says the same of a model as when it was loaded: its
+ * access rule (public_max_bits, clamped as loaded) and what /catalog shows. */
+static bool entry_unchanged(const ms_model *m, const ms_catalog_entry *e)
+{
+    unsigned bits = ms_archive_get_header(m->archive)->bits;
+    unsigned public_bits = e->public_max_bits > bits ? bits : e->public_max_bits;
+    return m->entry.public_max_bits == public_bits && m->entry.vertices == e->vertices &&
+           m->entry.triangles == e->triangles && m->entry.cells == e->cells &&
+           m->entry.bits == e->bits && m->entry.apo == e->apo &&
+           m->entry.archive_bytes == e->archive_bytes &&
+           !strcmp(m->entry.baked_at, e->baked_at) &&
+           !strcmp(m->entry.source, e->source ? e->source : "");
+}
+
+/* Opens (or reuses from previous) the archive of one catalogue entry. A model
+ * is reused only when neither its file nor its catalogue entry changed, so a
+ * rescan applies a new preview to every later request. */
 static ms_model *load_model(const char *dir, const ms_catalog_entry *entry,
                             const ms_registry *previous, ms_registry_warn_fn warn, void *warn_arg)
 {
@@ -126,7 +142,7 @@ static ms_model *load_model(const char *dir, const ms_catalog_entry *entry,
     int64_t mtime_ns = (int64_t)st.st_mtim.tv_sec * 1000000000 + st.st_mtim.tv_nsec;
     ms_model *old = previous ? ms_registry_find(previous, entry->name) : NULL;
     if (old && old->file_inode == (uint64_t)st.st_ino && old->file_size == (uint64_t)st.st_size &&
-        old->file_mtime_ns == mtime_ns) {
+        old->file_mtime_ns == mtime_ns && entry_unchanged(old, entry)) {
         ms_model_ref(old);
         return old;
     }

@@ -3,7 +3,9 @@
  *
  * A registry snapshot is immutable. ms_registry_scan builds a new one from the
  * directory, reusing the already-open archive of every model whose file did not
- * change (same inode, size and modification time), so a rescan (SIGHUP) costs
+ * change (same inode, size and modification time) and whose catalogue entry
+ * did not change either (a new public_max_bits takes effect at the rescan; an
+ * open binary-protocol handle keeps the grant it was given), so a rescan (SIGHUP) costs
  * little and never disturbs transfers in progress: each model is reference-
  * counted, and a connection that holds a model keeps its mapping alive after the
  * model has been removed or replaced.

@@ -14,6 +14,7 @@
 #include <cmocka.h>
 
 #include "ms_archive.h"
+#include "ms_catalog.h"
 #include "ms_test.h"
 #include "ms_test_archive.h"
 #include "ms_test_net.h"
@@ -298,6 +299,48 @@ static void test_cache_headers(void **state)
     }
 }
 
+/* Issue 19, item 3: SIGHUP applies a changed preview (catalogue
+ * public_max_bits) to the next request, not at the next restart, in both
+ * directions, and /catalog shows it. */
+static void test_sighup_reloads_access_rules(void **state)
+{
+    server_fixture *f = *state;
+    char archives[600];
+    snprintf(archives, sizeof archives, "%s/archive", f->dir);
+    ms_test_http_response r;
+    const char *url = "/models/bunny/cells/6/geometry?bits=12";
+    get(f, url, NULL, 200, &r);
+    ms_test_http_free(&r);
+    const int limits[2] = {8, 12}, expect[2] = {403, 200};
+    for (int round = 0; round < 2; ++round) {
+        ms_catalog catalog;
+        assert_int_equal(ms_catalog_load(archives, &catalog, NULL), MS_OK);
+        ms_catalog_entry entry = *ms_catalog_find(&catalog, "bunny");
+        entry.public_max_bits = (uint8_t)limits[round];
+        assert_int_equal(ms_catalog_update(archives, &entry, NULL), MS_OK);
+        ms_catalog_free(&catalog);
+        assert_int_equal(kill(f->pid, SIGHUP), 0);
+        int status = 0;
+        for (int attempt = 0; attempt < 100 && status != expect[round]; ++attempt) {
+            assert_int_equal(ms_test_http_get(f->http_port, url, NULL, &r), 0);
+            status = r.status;
+            ms_test_http_free(&r);
+            if (status != expect[round])
+                usleep(20000);
+        }
+        assert_int_equal(status, expect[round]);
+        get(f, "/catalog", NULL, 200, &r);
+        char line[64];
+        snprintf(line, sizeof line, "\"public_max_bits\": %d", limits[round]);
+        char *bunny = strstr((char *)r.body, "\"name\": \"bunny\"");
+        assert_non_null(bunny);
+        char *next = strstr(bunny, "}");
+        char *found = strstr((char *)r.body, line);
+        assert_true(found && found < next && found > (char *)r.body);
+        ms_test_http_free(&r);
+    }
+}
+
 static void test_hostile_requests(void **state)
 {
     server_fixture *f = *state;
@@ -381,6 +424,7 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_access_control, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_preview_bypass_refused, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_cache_headers, start_server, stop_server),
+        cmocka_unit_test_setup_teardown(test_sighup_reloads_access_rules, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_hostile_requests, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_sighup_adds_model_and_sigterm_drains, start_server, stop_server),
     };
