@@ -42,6 +42,30 @@ struct ms_http_door {
 
 /* --- Small helpers ---------------------------------------------------------- */
 
+static bool is_head(struct evhttp_request *req)
+{
+    return evhttp_request_get_command(req) == EVHTTP_REQ_HEAD;
+}
+
+/* Sends an answer whose body is `length` bytes. A HEAD gets the GET's headers,
+ * Content-Length included, and no body: evhttp neither adds the length for HEAD
+ * nor leaves the body out, which would desynchronise a keep-alive connection. */
+static void reply(struct evhttp_request *req, int code, const char *reason,
+                  struct evbuffer *body, uint64_t length)
+{
+    if (is_head(req)) {
+        if (code != 304) {
+            char text[32];
+            snprintf(text, sizeof text, "%" PRIu64, length);
+            evhttp_remove_header(evhttp_request_get_output_headers(req), "Content-Length");
+            evhttp_add_header(evhttp_request_get_output_headers(req), "Content-Length", text);
+        }
+        evhttp_send_reply(req, code, reason, NULL);
+        return;
+    }
+    evhttp_send_reply(req, code, reason, body);
+}
+
 static void send_text(ms_http_door *door, struct evhttp_request *req, int code,
                       const char *reason, const char *text)
 {
@@ -52,7 +76,7 @@ static void send_text(ms_http_door *door, struct evhttp_request *req, int code,
                       "text/plain; charset=utf-8");
     if (code >= 400)
         door->server->metrics.http_errors++;
-    evhttp_send_reply(req, code, reason, body);
+    reply(req, code, reason, body, body ? evbuffer_get_length(body) : 0);
     if (body)
         evbuffer_free(body);
 }
@@ -173,7 +197,7 @@ static void send_bytes(ms_http_door *door, struct evhttp_request *req, ms_model 
     evhttp_add_header(out, "Vary", "Authorization");
     const char *inm = evhttp_find_header(in, "If-None-Match");
     if (inm && !strcmp(inm, etag)) {
-        evhttp_send_reply(req, 304, "Not Modified", NULL);
+        reply(req, 304, "Not Modified", NULL, 0);
         return;
     }
     uint64_t first = 0, last = length ? length - 1 : 0;
@@ -210,6 +234,10 @@ static void send_bytes(ms_http_door *door, struct evhttp_request *req, ms_model 
         code = 206;
     }
     uint64_t count = length ? last - first + 1 : 0;
+    if (is_head(req)) {
+        reply(req, code, code == 206 ? "Partial Content" : "OK", NULL, count);
+        return;
+    }
     struct evbuffer *body = evbuffer_new();
     if (!body) {
         send_text(door, req, 500, "Internal Server Error", "error: out of memory");
@@ -339,7 +367,7 @@ static void serve_catalog(ms_http_door *door, struct evhttp_request *req)
     if (body) {
         evbuffer_add_printf(body, "%s\n", text);
         evhttp_add_header(evhttp_request_get_output_headers(req), "Content-Type", "application/json");
-        evhttp_send_reply(req, 200, "OK", body);
+        reply(req, 200, "OK", body, evbuffer_get_length(body));
         evbuffer_free(body);
     }
     free(text);
@@ -380,7 +408,7 @@ static void serve_metrics(ms_http_door *door, struct evhttp_request *req)
     }
     evhttp_add_header(evhttp_request_get_output_headers(req), "Content-Type",
                       "text/plain; version=0.0.4");
-    evhttp_send_reply(req, 200, "OK", body);
+    reply(req, 200, "OK", body, evbuffer_get_length(body));
     evbuffer_free(body);
 }
 
@@ -423,8 +451,9 @@ static void serve_draco(ms_http_door *door, struct evhttp_request *req, ms_model
     evhttp_add_header(out, "Content-Type", "application/octet-stream");
     evhttp_add_header(out, "Cache-Control", token_used ? "private, max-age=3600" : "public, max-age=3600");
     evhttp_add_header(out, "Vary", "Authorization");
-    door->server->metrics.http_bytes_sent += (uint64_t)st.st_size;
-    evhttp_send_reply(req, 200, "OK", body);
+    if (!is_head(req))
+        door->server->metrics.http_bytes_sent += (uint64_t)st.st_size;
+    reply(req, 200, "OK", body, (uint64_t)st.st_size); /* a HEAD: freeing body closes fd */
     evbuffer_free(body);
 }
 

@@ -341,6 +341,53 @@ static void test_sighup_reloads_access_rules(void **state)
     }
 }
 
+/* Issue 19, item 6: HEAD answers the GET's headers, Content-Length included,
+ * and no body, so a keep-alive connection stays in step: the answer to a
+ * pipelined GET follows the HEAD's header block directly. */
+static void test_head_sends_headers_only(void **state)
+{
+    server_fixture *f = *state;
+    ms_archive *a = open_model(f, "bunny");
+    size_t apo_length;
+    ms_archive_apo(a, 7, &apo_length);
+    assert_true(apo_length > 0);
+    char catalog_length[32];
+    ms_test_http_response r;
+    get(f, "/catalog", NULL, 200, &r);
+    snprintf(catalog_length, sizeof catalog_length, "%zu", r.body_length);
+    ms_test_http_free(&r);
+    struct {
+        const char *path, *headers;
+        int status;
+        char length[32];
+    } cases[] = {
+        {"/models/bunny/cells/7/apo", "", 200, ""},
+        {"/models/bunny/cells/7/apo", "Range: bytes=0-9\r\n", 206, "10"},
+        {"/catalog", "", 200, ""},
+        {"/healthz", "", 200, "3"},
+        {"/models/bunny/cells/999/apo", "", 404, "20"}, /* "error: no such cell\n" */
+    };
+    snprintf(cases[0].length, sizeof cases[0].length, "%zu", apo_length);
+    snprintf(cases[2].length, sizeof cases[2].length, "%s", catalog_length);
+    for (size_t i = 0; i < sizeof cases / sizeof *cases; ++i) {
+        char request[1024], value[64];
+        int n = snprintf(request, sizeof request,
+                         "HEAD %s HTTP/1.1\r\nHost: x\r\n%s\r\n"
+                         "GET /healthz HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n",
+                         cases[i].path, cases[i].headers);
+        assert_int_equal(ms_test_http_raw(f->http_port, request, (size_t)n, &r), 0);
+        assert_int_equal(r.status, cases[i].status);
+        assert_non_null(ms_test_http_header(&r, "Content-Length", value, sizeof value));
+        assert_string_equal(value, cases[i].length);
+        /* What follows the HEAD's headers is the next answer, nothing else. */
+        assert_true(r.body_length > 17);
+        assert_memory_equal(r.body, "HTTP/1.1 200 OK\r\n", 17);
+        assert_string_equal((char *)r.body + r.body_length - 7, "\r\n\r\nok\n");
+        ms_test_http_free(&r);
+    }
+    ms_archive_close(a);
+}
+
 static void test_hostile_requests(void **state)
 {
     server_fixture *f = *state;
@@ -425,6 +472,7 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_preview_bypass_refused, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_cache_headers, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_sighup_reloads_access_rules, start_server, stop_server),
+        cmocka_unit_test_setup_teardown(test_head_sends_headers_only, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_hostile_requests, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_sighup_adds_model_and_sigterm_drains, start_server, stop_server),
     };
