@@ -22,6 +22,7 @@
 #include <unistd.h>
 
 #include "ms_access.h"
+#include "ms_http_parse.h"
 #include "ms_progress.h"
 #include "ms_server.h"
 
@@ -72,6 +73,7 @@ static void send_text(ms_http_door *door, struct evhttp_request *req, int code,
     struct evbuffer *body = evbuffer_new();
     if (body)
         evbuffer_add_printf(body, "%s\n", text);
+    evhttp_remove_header(evhttp_request_get_output_headers(req), "Content-Type");
     evhttp_add_header(evhttp_request_get_output_headers(req), "Content-Type",
                       "text/plain; charset=utf-8");
     if (code >= 400)
@@ -195,43 +197,28 @@ static void send_bytes(ms_http_door *door, struct evhttp_request *req, ms_model 
     evhttp_add_header(out, "Cache-Control",
                       private_answer ? "private, max-age=3600" : "public, max-age=3600");
     evhttp_add_header(out, "Vary", "Authorization");
-    const char *inm = evhttp_find_header(in, "If-None-Match");
-    if (inm && !strcmp(inm, etag)) {
+    if (ms_http_none_match(evhttp_find_header(in, "If-None-Match"), etag)) {
         reply(req, 304, "Not Modified", NULL, 0);
         return;
     }
     uint64_t first = 0, last = length ? length - 1 : 0;
     int code = 200;
-    const char *range = evhttp_find_header(in, "Range");
-    if (range && !strncmp(range, "bytes=", 6) && !strchr(range, ',')) {
-        const char *spec = range + 6;
-        unsigned long long a = 0, b = 0;
-        int ok;
-        char tail;
-        if (spec[0] == '-') {
-            ok = sscanf(spec + 1, "%llu%c", &b, &tail) == 1 && b > 0;
-            if (ok) {
-                first = b >= length ? 0 : length - b;
-                last = length ? length - 1 : 0;
-            }
-        } else if (spec[strlen(spec) - 1] == '-') {
-            ok = sscanf(spec, "%llu-%c", &a, &tail) == 1;
-            first = a, last = length ? length - 1 : 0;
-        } else {
-            ok = sscanf(spec, "%llu-%llu%c", &a, &b, &tail) == 2 && a <= b;
-            first = a, last = b < length ? b : (length ? length - 1 : 0);
-        }
-        if (!ok || length == 0 || first >= length) {
-            char cr[64];
-            snprintf(cr, sizeof cr, "bytes */%" PRIu64, length);
-            evhttp_add_header(out, "Content-Range", cr);
-            send_text(door, req, 416, "Range Not Satisfiable", "error: range not satisfiable");
-            return;
-        }
+    switch (ms_http_parse_range(evhttp_find_header(in, "Range"), length, &first, &last)) {
+    case MS_HTTP_RANGE_NONE: break;
+    case MS_HTTP_RANGE_UNSATISFIABLE: {
+        char cr[64];
+        snprintf(cr, sizeof cr, "bytes */%" PRIu64, length);
+        evhttp_add_header(out, "Content-Range", cr);
+        send_text(door, req, 416, "Range Not Satisfiable", "error: range not satisfiable");
+        return;
+    }
+    case MS_HTTP_RANGE_OK: {
         char cr[96];
         snprintf(cr, sizeof cr, "bytes %" PRIu64 "-%" PRIu64 "/%" PRIu64, first, last, length);
         evhttp_add_header(out, "Content-Range", cr);
         code = 206;
+        break;
+    }
     }
     uint64_t count = length ? last - first + 1 : 0;
     if (is_head(req)) {

@@ -388,6 +388,62 @@ static void test_head_sends_headers_only(void **state)
     ms_archive_close(a);
 }
 
+/* Issue 19, item 8: Range and If-None-Match answered as nginx answers them. */
+static void test_strict_range_and_conditionals(void **state)
+{
+    server_fixture *f = *state;
+    ms_archive *a = open_model(f, "bunny");
+    size_t len;
+    const uint8_t *g = ms_archive_geometry(a, 3, &len);
+    ms_test_http_response r;
+    char value[256], expect[64], headers[300];
+    snprintf(expect, sizeof expect, "bytes */%zu", len);
+    const char *unsatisfiable[] = {"bytes=5--3", "bytes=--1", "bytes=+1-2",
+                                   "bytes=-18446744073709551616", "bytes=18446744073709551616-",
+                                   "bytes=9223372036854775808-", "bytes=9-5", "bytes=-0",
+                                   "bytes=0x10-20", "bytes=5-9x", "bytes=", "bytes=a-b"};
+    for (size_t i = 0; i < sizeof unsatisfiable / sizeof *unsatisfiable; ++i) {
+        snprintf(headers, sizeof headers, "Range: %s\r\n", unsatisfiable[i]);
+        get(f, "/models/bunny/cells/3/geometry", headers, 416, &r);
+        assert_string_equal(ms_test_http_header(&r, "Content-Range", value, sizeof value), expect);
+        ms_test_http_free(&r);
+    }
+    /* Spaces around the parts, a last byte past the end, a suffix longer
+     * than the body: as nginx, 206. */
+    get(f, "/models/bunny/cells/3/geometry", "Range: bytes= 5 - 9\r\n", 206, &r);
+    assert_int_equal(r.body_length, 5);
+    assert_memory_equal(r.body, g + 5, 5);
+    ms_test_http_free(&r);
+    get(f, "/models/bunny/cells/3/geometry", "Range: bytes=5-99999999\r\n", 206, &r);
+    assert_int_equal(r.body_length, len - 5);
+    ms_test_http_free(&r);
+    get(f, "/models/bunny/cells/3/geometry", "Range: bytes=-99999999\r\n", 206, &r);
+    assert_int_equal(r.body_length, len);
+    ms_test_http_free(&r);
+    /* Not a byte range, or several: the whole body. */
+    get(f, "/models/bunny/cells/3/geometry", "Range: items=0-5\r\n", 200, &r);
+    assert_int_equal(r.body_length, len);
+    ms_test_http_free(&r);
+    /* If-None-Match: "*", a list holding the tag, a weak form of it. */
+    get(f, "/models/bunny/cells/3/geometry", NULL, 200, &r);
+    char etag[128];
+    ms_test_http_header(&r, "ETag", etag, sizeof etag);
+    ms_test_http_free(&r);
+    const char *matching[] = {"*", "\"nope\", %s", "W/%s", " %s , \"x\""};
+    for (size_t i = 0; i < sizeof matching / sizeof *matching; ++i) {
+        char list[200];
+        snprintf(list, sizeof list, matching[i], etag);
+        snprintf(headers, sizeof headers, "If-None-Match: %s\r\n", list);
+        get(f, "/models/bunny/cells/3/geometry", headers, 304, &r);
+        assert_int_equal(r.body_length, 0);
+        ms_test_http_free(&r);
+    }
+    get(f, "/models/bunny/cells/3/geometry", "If-None-Match: \"nope\", \"other\"\r\n", 200, &r);
+    assert_int_equal(r.body_length, len);
+    ms_test_http_free(&r);
+    ms_archive_close(a);
+}
+
 static void test_hostile_requests(void **state)
 {
     server_fixture *f = *state;
@@ -473,6 +529,7 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_cache_headers, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_sighup_reloads_access_rules, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_head_sends_headers_only, start_server, stop_server),
+        cmocka_unit_test_setup_teardown(test_strict_range_and_conditionals, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_hostile_requests, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_sighup_adds_model_and_sigterm_drains, start_server, stop_server),
     };
