@@ -50,7 +50,7 @@ void ms_proto_conn_fail(ms_proto_conn *c, uint16_t code, uint64_t detail, const 
         return;
     metrics_of(c)->binary_errors++;
     ms_error err;
-    if (ms_frame_out_error(output(c), code, 0, 0, detail, text, &err) != MS_OK) {
+    if (ms_frame_out_error(output(c), code, true, 0, 0, detail, text, &err) != MS_OK) {
         ms_server_log(server_of(c), "binary: cannot send %s: %s", ms_proto_error_name(code),
                       err.text);
         ms_proto_conn_broken(c);
@@ -70,7 +70,7 @@ void ms_proto_conn_send_error(ms_proto_conn *c, uint16_t code, uint32_t request_
     }
     metrics_of(c)->binary_errors += count ? count : 1;
     ms_error err;
-    if (ms_frame_out_error(output(c), code, request_id, count, detail, text, &err) != MS_OK)
+    if (ms_frame_out_error(output(c), code, false, request_id, count, detail, text, &err) != MS_OK)
         ms_proto_conn_broken(c);
 }
 

@@ -757,6 +757,40 @@ static void header(uint8_t *p, uint32_t body, uint8_t type, uint8_t flags, uint3
     p[8] = (uint8_t)id, p[9] = (uint8_t)(id >> 8), p[10] = (uint8_t)(id >> 16), p[11] = (uint8_t)(id >> 24);
 }
 
+/* Issue 19, item 9: field errors in a HELLO are fatal (section 4.1: "any error
+ * found in a HELLO is fatal"): the ERROR carries FATAL, then the stream ends. */
+static void test_hello_field_errors_fatal(void **state)
+{
+    server_fixture *f = *state;
+    uint8_t frame[12 + 24 + 300] = {0};
+    struct {
+        uint16_t min_version, max_version;
+        uint32_t max_frame;
+        uint16_t token_length;
+        uint64_t detail; /* offset of the field */
+    } cases[] = {
+        {2, 1, 65536, 0, 6},          /* max_version < min_version */
+        {1, 1, 0, 0, 12},             /* max_frame 0 */
+        {1, 1, UINT32_MAX, 0, 12},    /* max_frame 2^32 - 1 */
+        {1, 1, 65536, 300, 16},       /* a 300-byte token */
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof *cases; ++i) {
+        memset(frame, 0, sizeof frame);
+        uint32_t body = 24u + cases[i].token_length;
+        header(frame, body, MS_PROTO_HELLO, 0, 0);
+        uint8_t *b = frame + 12;
+        memcpy(b, "MSTP", 4);
+        b[4] = (uint8_t)cases[i].min_version, b[5] = (uint8_t)(cases[i].min_version >> 8);
+        b[6] = (uint8_t)cases[i].max_version, b[7] = (uint8_t)(cases[i].max_version >> 8);
+        uint32_t mf = cases[i].max_frame;
+        b[12] = (uint8_t)mf, b[13] = (uint8_t)(mf >> 8), b[14] = (uint8_t)(mf >> 16),
+        b[15] = (uint8_t)(mf >> 24);
+        b[16] = (uint8_t)cases[i].token_length, b[17] = (uint8_t)(cases[i].token_length >> 8);
+        memset(b + 24, 't', cases[i].token_length);
+        expect_fatal(f, false, frame, 12 + body, MS_PROTO_E_FIELD_OUT_OF_RANGE, cases[i].detail);
+    }
+}
+
 static void test_malformed_frames(void **state)
 {
     server_fixture *f = *state;
@@ -1065,6 +1099,7 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_sighup_adds_model_live, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_sigterm_finishes_transfers, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_malformed_frames, start_server, stop_server),
+        cmocka_unit_test_setup_teardown(test_hello_field_errors_fatal, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_bad_requests, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_random_garbage, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_random_requests, start_server, stop_server),
