@@ -43,6 +43,7 @@ typedef struct ms_proto_door_shared {
     bool draining;
     /* Limits announced in HELLO_REPLY, derived once from the config. */
     ms_proto_hello_reply limits;
+    double send_timeout_s; /* config send_timeout: most time without send progress */
 } ms_proto_door_shared;
 
 typedef struct ms_open_model {
@@ -76,6 +77,10 @@ typedef struct ms_proto_conn {
     ms_request_queue queue;
     double rate_tokens, rate_updated;
     double last_frame_at, closing_since;
+    /* When the output buffer last shrank (the peer read), or last filled from
+     * empty: a connection with bytes waiting and no progress for
+     * send_timeout_s is a slow reader, dropped by the sweep. */
+    double last_send_progress;
 } ms_proto_conn;
 
 /* Takes fd; creates the bufferevent and starts reading. NULL on failure (fd

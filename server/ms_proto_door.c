@@ -145,6 +145,7 @@ ms_status ms_proto_door_open(ms_server *server, ms_proto_door **out, uint16_t *b
         return ms_error_set(err, MS_ERR_NOMEM, "binary: out of memory");
     door->shared.server = server;
     announce_limits(&server->config, &door->shared.limits);
+    door->shared.send_timeout_s = server->config.send_timeout_s;
     ms_status st = ms_fair_scheduler_init(&door->shared.scheduler, server->base,
                                           ms_proto_conn_send_chunk, door, CHUNKS_PER_TURN, err);
     if (st != MS_OK) {

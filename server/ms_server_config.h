@@ -23,6 +23,8 @@ typedef struct ms_server_config {
     int http_enabled;         /* 0 when http_port is "off" */
     uint32_t max_clients;     /* simultaneous binary connections; default 1024 */
     uint32_t idle_timeout_s;  /* close a connection idle this long; default 120 */
+    uint32_t send_timeout_s;  /* close a binary connection whose peer reads nothing of
+                                 what waits for it this long (a slow reader); default 60 */
     uint32_t max_frame;       /* largest frame body accepted (binary door: at most 65,544, the largest batch); default 1 MiB */
     uint32_t max_batch;       /* entries in one request batch; default 1024 */
     uint32_t max_outstanding; /* queued requests per connection; default 4096 */

@@ -642,6 +642,60 @@ static void test_disconnect_mid_payload_frees_everything(void **state)
     f->pid = 0;
 }
 
+/* A server that drops readers making no progress after 1 s. */
+static int start_send_timeout_server(void **state)
+{
+    server_fixture *f = prepare();
+    launch(f, "send_timeout = 1\n");
+    *state = f;
+    return 0;
+}
+
+/* Issue 19, item 5: a client that requests far more than the socket buffers
+ * hold and never reads is dropped after send_timeout without progress (the
+ * idle timeout never fires: its queue is not empty), and everything it held
+ * is released; a reader that keeps reading is not. */
+static void test_slow_reader_dropped(void **state)
+{
+    server_fixture *f = *state;
+    ms_proto_cell_request e[BIG_CELLS];
+    for (uint32_t i = 0; i < BIG_CELLS; ++i)
+        e[i] = steps(i, MS_PROTO_STREAM_GEOMETRY, 1, 0, 63);
+    ms_test_conn stalled, reader;
+    connect_ready(f, &stalled, TOKEN);
+    uint32_t handle = ms_test_conn_open_model(&stalled, "big", 1, NULL, NULL, NULL);
+    /* 3 x 65 cells x 256 KiB: about 50 MB, far beyond the kernel's buffers. */
+    for (uint32_t round = 0; round < 3; ++round)
+        send_batch(&stalled, handle, 10 + round * 100, e, BIG_CELLS);
+    /* Meanwhile a well-behaved client streams the same model in full. */
+    connect_ready(f, &reader, TOKEN);
+    uint32_t reader_handle = ms_test_conn_open_model(&reader, "big", 1, NULL, NULL, NULL);
+    send_batch(&reader, reader_handle, 10, e, BIG_CELLS);
+    answers a;
+    answers_init(&a, 10, BIG_CELLS);
+    answers_collect(&reader, &a);
+    answers_free(&a);
+    double waited = 0;
+    while (metric(f, "meshstream_connections") != 1 && waited < 10.0) {
+        usleep(100000);
+        waited += 0.1;
+    }
+    assert_int_equal(metric(f, "meshstream_connections"), 1); /* the reader only */
+    assert_int_equal(metric(f, "meshstream_queued_requests"), 0);
+    assert_int_equal(metric(f, "meshstream_queued_bytes"), 0);
+    assert_true(waited >= 0.5); /* not before the time-out */
+    send_ping(&reader, 7);
+    expect_pong(&reader, 7);
+    ms_test_conn_close(&reader);
+    ms_test_conn_close(&stalled);
+    FILE *log = fopen(f->log, "r");
+    char text[16384];
+    size_t n = fread(text, 1, sizeof text - 1, log);
+    fclose(log);
+    text[n] = '\0';
+    assert_non_null(strstr(text, "no send progress for 1 s"));
+}
+
 static void test_sighup_adds_model_live(void **state)
 {
     server_fixture *f = *state;
@@ -1097,6 +1151,8 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_disconnect_mid_payload_frees_everything, start_server,
                                         stop_server),
         cmocka_unit_test_setup_teardown(test_sighup_adds_model_live, start_server, stop_server),
+        cmocka_unit_test_setup_teardown(test_slow_reader_dropped, start_send_timeout_server,
+                                        stop_server),
         cmocka_unit_test_setup_teardown(test_sigterm_finishes_transfers, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_malformed_frames, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_hello_field_errors_fatal, start_server, stop_server),
