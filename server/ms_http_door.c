@@ -316,6 +316,11 @@ static void serve_cell(ms_http_door *door, struct evhttp_request *req, ms_model 
             send_text(door, req, 500, "Internal Server Error", "error: the cell's index is inconsistent");
         return;
     }
+    if (range.end > 0 && !ms_server_payload_intact(door->server, model, cell, !geometry)) {
+        send_text(door, req, 500, "Internal Server Error",
+                  "error: the archive's copy of this payload is damaged");
+        return;
+    }
     size_t total;
     const uint8_t *data = geometry ? ms_archive_geometry(model->archive, cell, &total)
                                    : ms_archive_apo(model->archive, cell, &total);

@@ -338,12 +338,18 @@ typedef struct resolved {
     uint32_t start, end;
 } resolved;
 
-static resolved resolve_entry(const ms_open_model *slot, const ms_proto_cell_request *e)
+/* What may be sent (ms_access_resolve), and only from an intact payload. */
+static resolved resolve_entry(const ms_proto_conn *c, const ms_open_model *slot,
+                              const ms_proto_cell_request *e)
 {
     ms_proto_byte_range range;
     ms_proto_fault fault = {.code = MS_PROTO_E_INTERNAL};
     if (ms_access_resolve(slot->model, &slot->grant, e, &range, &fault, NULL) != MS_OK)
         return (resolved){fault.code, fault.detail, 0, 0};
+    if (range.begin < range.end &&
+        !ms_server_payload_intact(server_of(c), slot->model, e->cell_id,
+                                  e->stream == MS_PROTO_STREAM_APO))
+        return (resolved){MS_PROTO_E_INTERNAL, 0, 0, 0};
     return (resolved){0, 0, range.begin, range.end};
 }
 
@@ -353,6 +359,7 @@ static const char *entry_error_text(uint16_t code)
     case MS_PROTO_E_UNKNOWN_CELL: return "no such cell";
     case MS_PROTO_E_RANGE_NOT_SATISFIABLE: return "byte range outside the stream";
     case MS_PROTO_E_FORBIDDEN: return "beyond the public preview; a token is required";
+    case MS_PROTO_E_INTERNAL: return "the archive's copy of this payload is damaged";
     default: return "request failed";
     }
 }
@@ -392,7 +399,7 @@ static void handle_request_cells(ms_proto_conn *c, uint32_t first_id,
     }
     uint64_t bytes = 0;
     for (uint32_t i = 0; i < n; ++i) {
-        ranges[i] = resolve_entry(slot, &b->entries[i]);
+        ranges[i] = resolve_entry(c, slot, &b->entries[i]);
         if (!ranges[i].code)
             bytes += ranges[i].end - ranges[i].start;
     }

@@ -18,8 +18,34 @@ void ms_model_unref(ms_model *m)
         return;
     ms_archive_close(m->archive);
     free(m->index_zlib);
+    free(m->payload_checks);
     free(m->entry.source);
     free(m);
+}
+
+ms_status ms_model_check_payload(ms_model *m, uint32_t cell, bool apo, bool *first_report,
+                                 ms_error *err)
+{
+    *first_report = false;
+    const ms_archive_cell *c = ms_archive_get_cell(m->archive, cell);
+    if (!c)
+        return ms_error_set(err, MS_ERR_RANGE, "cell %u does not exist", cell);
+    uint8_t checked = apo ? MS_PAYLOAD_APO_CHECKED : MS_PAYLOAD_GEOMETRY_CHECKED;
+    uint8_t bad = apo ? MS_PAYLOAD_APO_BAD : MS_PAYLOAD_GEOMETRY_BAD;
+    uint8_t *state = &m->payload_checks[cell];
+    if (!(*state & checked)) {
+        size_t length;
+        const uint8_t *data = apo ? ms_archive_apo(m->archive, cell, &length)
+                                  : ms_archive_geometry(m->archive, cell, &length);
+        ms_status st = ms_archive_check_payload(m->archive, cell, apo, data, length, err);
+        *state |= checked | (st != MS_OK ? bad : 0);
+        *first_report = st != MS_OK;
+        return st;
+    }
+    if (*state & bad)
+        return ms_error_set(err, MS_ERR_CORRUPT, "cell %u: %s checksum mismatch", cell,
+                            apo ? "APO chunk" : "geometry payload");
+    return MS_OK;
 }
 
 void ms_registry_release(ms_registry *r)
@@ -86,6 +112,13 @@ ms_status ms_model_open(const char *dir, const ms_catalog_entry *entry, ms_model
         return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory", path);
     }
     const ms_archive_header *h = ms_archive_get_header(m->archive);
+    m->payload_checks = calloc(h->cell_count ? h->cell_count : 1, 1);
+    if (!m->payload_checks) {
+        ms_archive_close(m->archive);
+        free(m->entry.source);
+        free(m);
+        return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory", path);
+    }
     if (m->entry.public_max_bits > h->bits)
         m->entry.public_max_bits = h->bits;
     for (uint32_t cell = 0; cell < h->cell_count; ++cell) {

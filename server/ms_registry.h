@@ -20,6 +20,7 @@
 #ifndef MS_REGISTRY_H
 #define MS_REGISTRY_H
 
+#include <stdbool.h>
 #include <stddef.h>
 #include <stdint.h>
 
@@ -40,7 +41,17 @@ typedef struct ms_model {
     uint64_t content_id;    /* FNV-1a 64 of the index blob, which holds every payload CRC */
     uint64_t file_inode, file_size;
     int64_t file_mtime_ns;
+    /* Per cell, what ms_model_check_payload found (MS_PAYLOAD_* bits), so that
+     * each payload's CRC is computed once, on first use. */
+    uint8_t *payload_checks;
 } ms_model;
+
+enum {
+    MS_PAYLOAD_GEOMETRY_CHECKED = 1,
+    MS_PAYLOAD_GEOMETRY_BAD = 2,
+    MS_PAYLOAD_APO_CHECKED = 4,
+    MS_PAYLOAD_APO_BAD = 8,
+};
 
 typedef struct ms_registry {
     char *dir;
@@ -68,6 +79,14 @@ ms_model *ms_registry_find(const ms_registry *registry, const char *name);
  * (missing file), the archive reader's errors, MS_ERR_NOMEM. */
 ms_status ms_model_open(const char *dir, const ms_catalog_entry *entry, ms_model **out,
                         ms_error *err);
+
+/* Checks one payload of a cell (its geometry, or its APO chunk when apo)
+ * against the CRC-32 in the index, the first time it is asked, and remembers
+ * the answer. MS_OK when it is intact; MS_ERR_CORRUPT naming the cell and the
+ * stream when not, with *first_report true only the first time (to log it
+ * once); MS_ERR_RANGE for a cell that does not exist. */
+ms_status ms_model_check_payload(ms_model *model, uint32_t cell, bool apo, bool *first_report,
+                                 ms_error *err);
 
 void ms_model_ref(ms_model *model);
 void ms_model_unref(ms_model *model);

@@ -29,6 +29,17 @@ void ms_server_log(const ms_server *server, const char *fmt, ...)
     fprintf(stderr, "%s meshserve: %s\n", stamp, line);
 }
 
+bool ms_server_payload_intact(const ms_server *s, ms_model *model, uint32_t cell, bool apo)
+{
+    bool first_report;
+    ms_error err;
+    if (ms_model_check_payload(model, cell, apo, &first_report, &err) == MS_OK)
+        return true;
+    if (first_report)
+        ms_server_log(s, "model '%s': %s; not served", model->entry.name, err.text);
+    return false;
+}
+
 static void warn_model(void *arg, const char *message) { ms_server_log(arg, "%s", message); }
 
 ms_status ms_server_rescan(ms_server *s, ms_error *err)

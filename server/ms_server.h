@@ -69,6 +69,12 @@ void ms_server_drain(ms_server *server);
 
 void ms_server_stop(ms_server *server);
 
+/* True when payload (a cell's geometry, or its APO chunk when apo) is intact:
+ * checked against its CRC once, on first use (ms_model_check_payload); a
+ * damaged one is logged once, and both doors refuse to serve it (INTERNAL,
+ * 500). */
+bool ms_server_payload_intact(const ms_server *server, ms_model *model, uint32_t cell, bool apo);
+
 /* Logs one line to stderr with a timestamp. */
 void ms_server_log(const ms_server *server, const char *fmt, ...)
     __attribute__((format(printf, 2, 3)));

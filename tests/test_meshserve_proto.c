@@ -696,6 +696,93 @@ static void test_slow_reader_dropped(void **state)
     assert_non_null(strstr(text, "no send progress for 1 s"));
 }
 
+/* Flips one byte in the middle of a payload of model name's file (the
+ * payload area follows the header and the index as stored, docs/ARCHIVE.md). */
+static void corrupt_payload(const server_fixture *f, const char *name, uint32_t cell, bool apo)
+{
+    char path[800];
+    snprintf(path, sizeof path, "%s/%s.msa", f->archives, name);
+    ms_archive *a = open_archive(f, name);
+    const ms_archive_cell *c = ms_archive_get_cell(a, cell);
+    uint64_t at = MS_ARCHIVE_HEADER_SIZE + ms_archive_get_header(a)->index_stored_size +
+                  (apo ? c->apo_offset + c->apo_length / 2 : c->geometry_offset + c->geometry_length / 2);
+    assert_true(apo ? c->apo_length >= 8 : c->geometry_length >= 8);
+    ms_archive_close(a);
+    size_t size;
+    uint8_t *file = ms_test_read_file(path, &size);
+    assert_true(at < size);
+    file[at] ^= 0x40;
+    ms_test_write_file(path, file, size);
+    free(file);
+}
+
+/* Issue 19, item 7: a payload that fails its CRC is never served, by either
+ * door: ERROR INTERNAL (not fatal) and HTTP 500, one log line per payload;
+ * the good payloads of the same model are served as usual. */
+static void test_corrupt_payload_refused(void **state)
+{
+    server_fixture *f = *state;
+    ms_test_add_model(f->archives, "cracked", 9, 12);
+    corrupt_payload(f, "cracked", 4, false);
+    corrupt_payload(f, "cracked", 8, true);
+    assert_int_equal(kill(f->pid, SIGHUP), 0);
+    ms_test_http_response r;
+    int status = 0;
+    for (int attempt = 0; attempt < 100 && status != 200; ++attempt) {
+        assert_int_equal(ms_test_http_get(f->http_port, "/models/cracked", NULL, &r), 0);
+        status = r.status;
+        ms_test_http_free(&r);
+        if (status != 200)
+            usleep(20000);
+    }
+    assert_int_equal(status, 200);
+    for (int round = 0; round < 2; ++round) { /* the second time from the cache */
+        assert_int_equal(ms_test_http_get(f->http_port, "/models/cracked/cells/4/geometry", NULL, &r), 0);
+        assert_int_equal(r.status, 500);
+        assert_string_equal((char *)r.body, "error: the archive's copy of this payload is damaged\n");
+        ms_test_http_free(&r);
+        assert_int_equal(ms_test_http_get(f->http_port, "/models/cracked/cells/8/apo", "Range: bytes=0-3\r\n", &r), 0);
+        assert_int_equal(r.status, 500);
+        ms_test_http_free(&r);
+        assert_int_equal(ms_test_http_get(f->http_port, "/models/cracked/cells/8/geometry", NULL, &r), 0);
+        assert_int_equal(r.status, 200);
+        ms_test_http_free(&r);
+    }
+    ms_test_conn c;
+    connect_ready(f, &c, NULL);
+    uint32_t handle = ms_test_conn_open_model(&c, "cracked", 1, NULL, NULL, NULL);
+    ms_proto_cell_request e[4] = {
+        steps(4, MS_PROTO_STREAM_GEOMETRY, 0, 0, 63), steps(8, MS_PROTO_STREAM_APO, 0, 0, 63),
+        steps(5, MS_PROTO_STREAM_GEOMETRY, 0, 0, 63),
+        {4, MS_PROTO_STREAM_GEOMETRY, MS_PROTO_UNIT_BYTES, 0, 0, 1},
+    };
+    send_batch(&c, handle, 10, e, 4);
+    answers a;
+    answers_init(&a, 10, 4);
+    answers_collect(&c, &a); /* fails on any fatal error */
+    assert_int_equal(a.error[0], MS_PROTO_E_INTERNAL);
+    assert_int_equal(a.error[1], MS_PROTO_E_INTERNAL);
+    assert_int_equal(a.error[2], 0);
+    assert_int_equal(a.length[2], ms_test_archive_geometry_length(5));
+    assert_int_equal(a.error[3], MS_PROTO_E_INTERNAL);
+    answers_free(&a);
+    send_ping(&c, 3);
+    expect_pong(&c, 3);
+    ms_test_conn_close(&c);
+    FILE *log = fopen(f->log, "r");
+    char text[16384];
+    size_t n = fread(text, 1, sizeof text - 1, log);
+    fclose(log);
+    text[n] = '\0';
+    const char *lines[] = {"model 'cracked': cell 4: geometry payload checksum mismatch",
+                           "model 'cracked': cell 8: APO chunk checksum mismatch"};
+    for (int i = 0; i < 2; ++i) {
+        const char *at = strstr(text, lines[i]);
+        assert_non_null(at);
+        assert_null(strstr(at + 1, lines[i])); /* logged once */
+    }
+}
+
 static void test_sighup_adds_model_live(void **state)
 {
     server_fixture *f = *state;
@@ -1151,6 +1238,7 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_disconnect_mid_payload_frees_everything, start_server,
                                         stop_server),
         cmocka_unit_test_setup_teardown(test_sighup_adds_model_live, start_server, stop_server),
+        cmocka_unit_test_setup_teardown(test_corrupt_payload_refused, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_slow_reader_dropped, start_send_timeout_server,
                                         stop_server),
         cmocka_unit_test_setup_teardown(test_sigterm_finishes_transfers, start_server, stop_server),
