@@ -395,6 +395,7 @@ static int run_bake(bake_options *options)
 {
     options->bake.input = options->input;
     options->bake.progress = isatty(STDERR_FILENO) ? stderr : NULL;
+    options->bake.notes = stderr;
     ms_bake_report report;
     ms_error err;
     ms_error_clear(&err);

@@ -66,6 +66,12 @@ static void on_progress(void *context, const char *phase, double fraction)
     ms_progress_update(&p->bar, (uint64_t)(fraction * 1000.0));
 }
 
+static void note_stale(void *arg, const char *file_name)
+{
+    if (arg)
+        fprintf(arg, "meshbake: removed %s, left by an interrupted bake\n", file_name);
+}
+
 ms_status ms_bake(const ms_bake_options *o, ms_bake_report *r, ms_error *err)
 {
     memset(r, 0, sizeof *r);
@@ -80,6 +86,9 @@ ms_status ms_bake(const ms_bake_options *o, ms_bake_report *r, ms_error *err)
         return ms_error_set(err, MS_ERR_ARG, "--mem must be at least 16 MB");
     if (o->apo.enabled && (s = ms_bake_apo_params_check(&o->apo, err)) != MS_OK)
         return s;
+    if (o->name && strlen(o->name) > MS_MODEL_NAME_MAX)
+        return ms_error_set(err, MS_ERR_ARG, "model name of %zu characters; at most %d",
+                            strlen(o->name), MS_MODEL_NAME_MAX);
     if (o->name)
         snprintf(r->name, sizeof r->name, "%s", o->name);
     else
@@ -98,9 +107,8 @@ ms_status ms_bake(const ms_bake_options *o, ms_bake_report *r, ms_error *err)
     int n = snprintf(r->archive_path, sizeof r->archive_path, "%s/%s.msa", o->archive_dir, r->name);
     if (n < 0 || (size_t)n + 16 >= sizeof r->archive_path)
         return ms_error_set(err, MS_ERR_ARG, "archive path too long");
-    char stale[4096 + 16];
-    snprintf(stale, sizeof stale, "%s.partial", r->archive_path);
-    unlink(stale);
+    /* Leftovers of killed bakes into this directory (not of bakes at work). */
+    ms_archive_writer_remove_stale(o->archive_dir, note_stale, o->notes);
 
     bake_progress progress = {.out = o->progress};
     ms_nsp_build_params bp = {

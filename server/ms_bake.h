@@ -43,6 +43,7 @@ typedef struct ms_bake_options {
     size_t mem_mb;
     size_t buffer_bytes;   /* leaf buffer budget; 0: an eighth of mem_mb (tests force flushes) */
     FILE *progress;        /* progress bar target (drawn only on a terminal), or NULL */
+    FILE *notes;           /* one-line notices (stale files removed), or NULL */
     ms_bake_apo_params apo; /* per-cell APO chunks (ms_bake_apo.h) */
 } ms_bake_options;
 
