@@ -180,6 +180,12 @@ ms_status ms_bake(const ms_bake_options *o, ms_bake_report *r, ms_error *err)
     r->seconds_encode = es.seconds;
     r->vertices = es.welded_vertices;
     r->triangles = es.welded_triangles;
+    if (r->triangles == 0) {
+        s = ms_error_set(err, MS_ERR_FORMAT,
+                         "every triangle of the model degenerates at %u bits (welded away): "
+                         "nothing to bake; try more --bits", o->bits);
+        goto done;
+    }
     r->leaf_triangles = es.leaf_triangles;
     r->empty_cells = es.empty_cells;
     r->geometry_bytes = es.geometry_bytes;

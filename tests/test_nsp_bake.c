@@ -379,6 +379,31 @@ static void test_stale_partial_removed(void **state)
     ms_test_rmdir(dir);
 }
 
+/* Issue 19, item 13: a model whose every triangle welds away at the chosen
+ * precision is refused with a clear error (it made a 0-triangle archive with
+ * exit 0, and tripped UBSan in the encoder), and leaves nothing behind. */
+static void test_all_welded_away_refused(void **state)
+{
+    (void)state;
+    char dir[512], bin[4096], ply[700], cmd[16384], out[4096];
+    ms_test_tmpdir(dir, sizeof dir);
+    ms_test_bin_path(bin, sizeof bin, "meshbake");
+    snprintf(ply, sizeof ply, "%s/specks.ply", dir);
+    const char text[] = "ply\nformat ascii 1.0\nelement vertex 6\nproperty float x\n"
+                        "property float y\nproperty float z\nelement face 2\n"
+                        "property list uchar int vertex_indices\nend_header\n"
+                        "0 0 0\n0.0000001 0 0\n0 0.0000001 0\n"
+                        "1 1 1\n1.0000001 1 1\n1 1.0000001 1\n3 0 1 2\n3 3 4 5\n";
+    ms_test_write_file(ply, text, sizeof text - 1);
+    snprintf(cmd, sizeof cmd, "%s '%s' -o '%s' --name specks --bits 8", bin, ply, dir);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 1);
+    assert_string_equal(out, "meshbake: every triangle of the model degenerates at 8 bits "
+                             "(welded away): nothing to bake; try more --bits\n");
+    const char *expected[] = {"specks.ply", NULL};
+    assert_int_equal(strays(dir, expected), 0);
+    ms_test_rmdir(dir);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -390,6 +415,7 @@ int main(void)
         cmocka_unit_test(test_archive_directory),
         cmocka_unit_test(test_failure_leaves_nothing),
         cmocka_unit_test(test_stale_partial_removed),
+        cmocka_unit_test(test_all_welded_away_refused),
         cmocka_unit_test(test_killed_bake_leaves_nothing),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
