@@ -24,6 +24,7 @@ void ms_bake_options_default(ms_bake_options *o)
     o->root_bits = 7;
     o->min_triangles = 8000;
     o->mem_mb = 512;
+    o->public_bits = -1;
     long cpus = sysconf(_SC_NPROCESSORS_ONLN);
     o->threads = cpus > 0 ? (unsigned)cpus : 1;
     ms_bake_apo_params_default(&o->apo);
@@ -80,6 +81,9 @@ ms_status ms_bake(const ms_bake_options *o, ms_bake_report *r, ms_error *err)
     ms_status s = ms_nsp_shape_init(&shape, o->bits, o->n, o->root_bits, err);
     if (s != MS_OK)
         return s;
+    if (o->public_bits > (int)o->bits)
+        return ms_error_set(err, MS_ERR_ARG, "--public-bits %d is more than --bits %u",
+                            o->public_bits, o->bits);
     if (o->min_triangles < 1)
         return ms_error_set(err, MS_ERR_ARG, "--min-tris must be at least 1");
     if (o->mem_mb < 16)
@@ -233,7 +237,7 @@ ms_status ms_bake(const ms_bake_options *o, ms_bake_report *r, ms_error *err)
     e.n = (uint8_t)o->n;
     e.root_bits = (uint8_t)o->root_bits;
     e.min_triangles = o->min_triangles;
-    e.public_max_bits = (uint8_t)o->bits;
+    e.public_max_bits = (uint8_t)(o->public_bits < 0 ? (int)o->bits : o->public_bits);
     e.apo = o->apo.enabled;
     e.apo_lead = h.apo_lead;
     e.apo_max_depth = h.apo_max_depth;
