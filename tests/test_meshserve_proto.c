@@ -1225,6 +1225,46 @@ static void test_limits(void **state)
     ms_test_conn_close(&c);
 }
 
+/* Two clients at most. */
+static int start_two_client_server(void **state)
+{
+    server_fixture *f = prepare();
+    launch(f, "max_clients = 2\n");
+    *state = f;
+    return 0;
+}
+
+/* Issue 19, item 10: past max_clients every excess connection is told ERROR
+ * TOO_MANY_CONNECTIONS (fatal) before the close, also past the 64 that may
+ * linger; none is closed without a word. */
+static void test_every_excess_connection_told(void **state)
+{
+    server_fixture *f = *state;
+    enum { EXCESS = 100 };
+    ms_test_conn good[2];
+    for (int i = 0; i < 2; ++i)
+        connect_ready(f, &good[i], NULL);
+    ms_test_conn *excess = calloc(EXCESS, sizeof *excess);
+    for (int i = 0; i < EXCESS; ++i)
+        assert_int_equal(ms_test_conn_open(&excess[i], f->port), 0);
+    unsigned told = 0;
+    for (int i = 0; i < EXCESS; ++i) {
+        ms_proto_message m;
+        int r = ms_test_conn_recv(&excess[i], &m, 5.0);
+        if (r == 1 && m.type == MS_PROTO_ERROR && m.body.error.fatal &&
+            m.body.error.code == MS_PROTO_E_TOO_MANY_CONNECTIONS)
+            ++told;
+        ms_test_conn_close(&excess[i]);
+    }
+    free(excess);
+    assert_int_equal(told, EXCESS);
+    for (int i = 0; i < 2; ++i) { /* the admitted ones were not disturbed */
+        send_ping(&good[i], 40 + (uint64_t)i);
+        expect_pong(&good[i], 40 + (uint64_t)i);
+        ms_test_conn_close(&good[i]);
+    }
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -1248,6 +1288,8 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_random_garbage, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_random_requests, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_limits, start_strict_server, stop_server),
+        cmocka_unit_test_setup_teardown(test_every_excess_connection_told, start_two_client_server,
+                                        stop_server),
     };
     return cmocka_run_group_tests_name("meshserve binary protocol", tests, NULL, NULL);
 }
