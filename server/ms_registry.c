@@ -19,6 +19,7 @@ void ms_model_unref(ms_model *m)
     ms_archive_close(m->archive);
     free(m->index_zlib);
     free(m->payload_checks);
+    free(m->file_path);
     free(m->entry.source);
     free(m);
 }
@@ -32,7 +33,21 @@ ms_status ms_model_check_payload(ms_model *m, uint32_t cell, bool apo, bool *fir
         return ms_error_set(err, MS_ERR_RANGE, "cell %u does not exist", cell);
     uint8_t checked = apo ? MS_PAYLOAD_APO_CHECKED : MS_PAYLOAD_GEOMETRY_CHECKED;
     uint8_t bad = apo ? MS_PAYLOAD_APO_BAD : MS_PAYLOAD_GEOMETRY_BAD;
+    uint8_t gone = apo ? MS_PAYLOAD_APO_GONE : MS_PAYLOAD_GEOMETRY_GONE;
     uint8_t *state = &m->payload_checks[cell];
+    /* Truncated in place? Then the mapping's pages past the end are gone. */
+    uint64_t end = MS_ARCHIVE_HEADER_SIZE + ms_archive_get_header(m->archive)->index_stored_size +
+                   (apo ? c->apo_offset + c->apo_length : c->geometry_offset + c->geometry_length);
+    struct stat now;
+    if (stat(m->file_path, &now) == 0 && (uint64_t)now.st_ino == m->file_inode &&
+        (uint64_t)now.st_size < end) {
+        *first_report = !(*state & gone);
+        *state |= gone;
+        return ms_error_set(err, MS_ERR_IO,
+                            "cell %u: the archive file shrank to %llu bytes under the server; "
+                            "the %s ended at %llu", cell, (unsigned long long)now.st_size,
+                            apo ? "APO chunk" : "geometry payload", (unsigned long long)end);
+    }
     if (!(*state & checked)) {
         size_t length;
         const uint8_t *data = apo ? ms_archive_apo(m->archive, cell, &length)
@@ -106,7 +121,10 @@ ms_status ms_model_open(const char *dir, const ms_catalog_entry *entry, ms_model
     }
     m->entry = *entry;
     m->entry.source = strdup(entry->source ? entry->source : "");
-    if (!m->entry.source) {
+    m->file_path = strdup(path);
+    if (!m->entry.source || !m->file_path) {
+        free(m->entry.source);
+        free(m->file_path);
         ms_archive_close(m->archive);
         free(m);
         return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory", path);
@@ -115,6 +133,7 @@ ms_status ms_model_open(const char *dir, const ms_catalog_entry *entry, ms_model
     m->payload_checks = calloc(h->cell_count ? h->cell_count : 1, 1);
     if (!m->payload_checks) {
         ms_archive_close(m->archive);
+        free(m->file_path);
         free(m->entry.source);
         free(m);
         return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory", path);
@@ -182,6 +201,12 @@ static ms_model *load_model(const char *dir, const ms_catalog_entry *entry,
     ms_model *m;
     ms_error err;
     if (ms_model_open(dir, entry, &m, &err) != MS_OK) {
+        if (old) { /* a broken replacement: the verified mapping goes on */
+            warn_model(warn, warn_arg, "model '%s': keeping the version being served: %s",
+                       entry->name, err.text);
+            ms_model_ref(old);
+            return old;
+        }
         warn_model(warn, warn_arg, "model '%s' skipped: %s", entry->name, err.text);
         return NULL;
     }

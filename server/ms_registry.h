@@ -11,7 +11,9 @@
  * model has been removed or replaced.
  *
  * Only names that ms_model_name_valid accepts ever reach the file system, and
- * only as DIR/NAME.msa. A catalogue entry whose archive is missing or invalid is
+ * only as DIR/NAME.msa. A model whose file changed but no longer opens (a
+ * broken replacement) keeps its previous, verified version, with a warning:
+ * publish a new version by writing it aside and renaming it over the old. A catalogue entry whose archive is missing or invalid is
  * skipped with a one-line warning (reported through the callback), not fatal.
  *
  * Thread-safety: reference counts are not atomic; use from one thread (the
@@ -39,6 +41,7 @@ typedef struct ms_model {
     uint8_t *index_zlib;
     size_t index_zlib_size;
     uint64_t content_id;    /* FNV-1a 64 of the index blob, which holds every payload CRC */
+    char *file_path;        /* DIR/NAME.msa, owned */
     uint64_t file_inode, file_size;
     int64_t file_mtime_ns;
     /* Per cell, what ms_model_check_payload found (MS_PAYLOAD_* bits), so that
@@ -51,6 +54,8 @@ enum {
     MS_PAYLOAD_GEOMETRY_BAD = 2,
     MS_PAYLOAD_APO_CHECKED = 4,
     MS_PAYLOAD_APO_BAD = 8,
+    MS_PAYLOAD_GEOMETRY_GONE = 16, /* reported: the file shrank under it */
+    MS_PAYLOAD_APO_GONE = 32,
 };
 
 typedef struct ms_registry {
@@ -84,7 +89,10 @@ ms_status ms_model_open(const char *dir, const ms_catalog_entry *entry, ms_model
  * against the CRC-32 in the index, the first time it is asked, and remembers
  * the answer. MS_OK when it is intact; MS_ERR_CORRUPT naming the cell and the
  * stream when not, with *first_report true only the first time (to log it
- * once); MS_ERR_RANGE for a cell that does not exist. */
+ * once); MS_ERR_RANGE for a cell that does not exist. Every call also checks
+ * that the file under the mapping (same inode at file_path) still reaches past
+ * the payload: a file truncated in place gives MS_ERR_IO ("the archive file
+ * shrank"), never a read past its end (SIGBUS) or a silent short answer. */
 ms_status ms_model_check_payload(ms_model *model, uint32_t cell, bool apo, bool *first_report,
                                  ms_error *err);
 

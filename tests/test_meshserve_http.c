@@ -444,6 +444,76 @@ static void test_strict_range_and_conditionals(void **state)
     ms_archive_close(a);
 }
 
+static unsigned count_in_log(const server_fixture *f, const char *needle)
+{
+    size_t size;
+    unsigned char *log = ms_test_read_file(f->log, &size);
+    char *text = calloc(size + 1, 1);
+    memcpy(text, log, size);
+    unsigned n = 0;
+    for (const char *at = strstr(text, needle); at; at = strstr(at + 1, needle))
+        ++n;
+    free(text);
+    free(log);
+    return n;
+}
+
+/* Issue 19, item 10: an archive replaced by a broken copy (atomic rename, then
+ * SIGHUP) does not take the model away: the verified mapping goes on serving,
+ * with a warning; an archive truncated in place answers errors for the
+ * payloads it lost, never silence, and the server lives on. */
+static void test_replaced_and_truncated_archives(void **state)
+{
+    server_fixture *f = *state;
+    ms_archive *a = open_model(f, "bunny");
+    size_t g100_length;
+    const uint8_t *g100 = ms_archive_geometry(a, 100, &g100_length);
+    uint8_t *expect = malloc(g100_length);
+    memcpy(expect, g100, g100_length);
+    ms_archive_close(a);
+    char path[700], fresh[720];
+    snprintf(path, sizeof path, "%s/archive/bunny.msa", f->dir);
+    snprintf(fresh, sizeof fresh, "%s/archive/bunny.msa.new", f->dir);
+    size_t size;
+    unsigned char *file = ms_test_read_file(path, &size);
+    ms_test_write_file(fresh, file, size / 2);
+    free(file);
+    assert_int_equal(rename(fresh, path), 0);
+    assert_int_equal(kill(f->pid, SIGHUP), 0);
+    for (int attempt = 0; attempt < 100 && !count_in_log(f, "rescan: "); ++attempt)
+        usleep(20000);
+    assert_int_equal(count_in_log(f, "rescan: 2 models"), 1);
+    assert_int_equal(count_in_log(f, "model 'bunny': keeping the version being served"), 1);
+    ms_test_http_response r;
+    get(f, "/models/bunny/cells/100/geometry", NULL, 200, &r);
+    assert_int_equal(r.body_length, g100_length);
+    assert_memory_equal(r.body, expect, g100_length);
+    ms_test_http_free(&r);
+    free(expect);
+
+    /* dragon, truncated in place: the payloads past the cut answer 500. */
+    snprintf(path, sizeof path, "%s/archive/dragon.msa", f->dir);
+    a = open_model(f, "dragon");
+    const ms_archive_header *h = ms_archive_get_header(a);
+    uint64_t payload_start = MS_ARCHIVE_HEADER_SIZE + h->index_stored_size;
+    const ms_archive_cell *last = ms_archive_get_cell(a, 128);
+    uint64_t cut = payload_start + last->geometry_offset + last->geometry_length / 2;
+    const ms_archive_cell *first = ms_archive_get_cell(a, 0);
+    assert_true(payload_start + first->geometry_offset + first->geometry_length < cut);
+    ms_archive_close(a);
+    assert_int_equal(truncate(path, (off_t)cut), 0);
+    for (int round = 0; round < 2; ++round) {
+        get(f, "/models/dragon/cells/128/geometry", "Authorization: Bearer s3cret-token\r\n", 500, &r);
+        assert_string_equal((char *)r.body, "error: the archive's copy of this payload is damaged\n");
+        ms_test_http_free(&r);
+    }
+    get(f, "/models/dragon/cells/0/geometry", NULL, 200, &r);
+    ms_test_http_free(&r);
+    get(f, "/healthz", NULL, 200, &r);
+    ms_test_http_free(&r);
+    assert_int_equal(count_in_log(f, "model 'dragon': cell 128: the archive file shrank"), 1);
+}
+
 static void test_hostile_requests(void **state)
 {
     server_fixture *f = *state;
@@ -530,6 +600,7 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_sighup_reloads_access_rules, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_head_sends_headers_only, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_strict_range_and_conditionals, start_server, stop_server),
+        cmocka_unit_test_setup_teardown(test_replaced_and_truncated_archives, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_hostile_requests, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_sighup_adds_model_and_sigterm_drains, start_server, stop_server),
     };
