@@ -7,6 +7,7 @@
 #include <event2/event.h>
 #include <event2/http.h>
 #include <event2/keyvalq_struct.h>
+#include <event2/listener.h>
 #include <inttypes.h>
 #include <jansson.h>
 #include <netinet/in.h>
@@ -35,9 +36,25 @@ typedef struct rate_bucket {
     double updated;
 } rate_bucket;
 
+/* One HTTP connection, as the door tracks it: evhttp owns the connection;
+ * the door holds a reference on its bufferevent (so the record never points
+ * at freed memory) and notices evhttp's free when the callbacks are gone. */
+typedef struct tracked_connection {
+    struct bufferevent *bev;
+    double deadline_from;  /* accept, or the last request received */
+    size_t output_length;  /* bytes waiting at the last sweep */
+    double output_since;   /* when output_length last changed */
+    bool dropped;          /* shut down by the door; evhttp frees it next */
+} tracked_connection;
+
 struct ms_http_door {
     ms_server *server;
     struct evhttp *http;
+    struct evconnlistener *listener;
+    struct event *sweep;
+    tracked_connection *connections;
+    size_t connection_count, connection_capacity;
+    bool accept_paused_full;    /* at http_max_connections */
     rate_bucket buckets[RATE_BUCKETS];
 };
 
@@ -389,6 +406,10 @@ static void serve_metrics(ms_http_door *door, struct evhttp_request *req)
         {"meshstream_queued_bytes", "gauge", "Payload bytes queued over all connections", m->queued_bytes},
         {"meshstream_rescans_total", "counter", "Archive directory rescans", m->rescans},
         {"meshstream_rescan_failures_total", "counter", "Rescans that failed", m->rescan_failures},
+        {"meshstream_http_connections", "gauge", "Open HTTP connections", m->http_connections},
+        {"meshstream_http_connections_dropped_total", "counter",
+         "HTTP connections closed for a late request header or no send progress",
+         m->http_connections_dropped},
     };
     for (size_t i = 0; i < sizeof rows / sizeof *rows; ++i) {
         if (rows[i].type) {
@@ -502,10 +523,23 @@ static void disable_nagle(struct evhttp_request *req)
         setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
 }
 
+static tracked_connection *find_tracked(ms_http_door *door, struct evhttp_request *req)
+{
+    struct evhttp_connection *conn = evhttp_request_get_connection(req);
+    struct bufferevent *bev = conn ? evhttp_connection_get_bufferevent(conn) : NULL;
+    for (size_t i = 0; bev && i < door->connection_count; ++i)
+        if (door->connections[i].bev == bev)
+            return &door->connections[i];
+    return NULL;
+}
+
 static void handle_request(struct evhttp_request *req, void *arg)
 {
     ms_http_door *door = arg;
     disable_nagle(req);
+    tracked_connection *t = find_tracked(door, req);
+    if (t)
+        t->deadline_from = ms_now_seconds();
     door->server->metrics.http_requests++;
     enum evhttp_cmd_type cmd = evhttp_request_get_command(req);
     if (cmd != EVHTTP_REQ_GET && cmd != EVHTTP_REQ_HEAD) {
@@ -545,6 +579,105 @@ static void handle_request(struct evhttp_request *req, void *arg)
     evhttp_clear_headers(&query);
 }
 
+/* --- Connections: a cap, a header deadline, a send deadline ------------------ */
+
+#define SWEEP_INTERVAL_US 250000
+
+static void update_accepting(ms_http_door *door)
+{
+    bool full = door->connection_count >= door->server->config.http_max_connections;
+    if (!door->listener || (full && door->accept_paused_full))
+        return;
+    door->accept_paused_full = full;
+    /* At the cap, further clients wait in the kernel's backlog: they hold no
+     * descriptor of ours, and the binary door's stay free. Below it, enabling
+     * also ends a pause after an accept failure (on_accept_error). */
+    if (full)
+        evconnlistener_disable(door->listener);
+    else
+        evconnlistener_enable(door->listener);
+}
+
+/* evhttp asks for each accepted connection's bufferevent: the door makes it,
+ * and keeps a reference to track it. */
+static struct bufferevent *new_connection(struct event_base *base, void *arg)
+{
+    ms_http_door *door = arg;
+    struct bufferevent *bev = bufferevent_socket_new(base, -1, BEV_OPT_CLOSE_ON_FREE);
+    if (!bev)
+        return NULL; /* evhttp makes one itself; that one goes untracked */
+    if (door->connection_count == door->connection_capacity) {
+        size_t capacity = door->connection_capacity ? 2 * door->connection_capacity : 64;
+        tracked_connection *grown = realloc(door->connections, capacity * sizeof *grown);
+        if (!grown)
+            return bev;
+        door->connections = grown;
+        door->connection_capacity = capacity;
+    }
+    bufferevent_incref(bev);
+    double now = ms_now_seconds();
+    door->connections[door->connection_count++] = (tracked_connection){bev, now, 0, now, false};
+    door->server->metrics.http_connections = door->connection_count;
+    update_accepting(door);
+    return bev;
+}
+
+/* Ends a connection evhttp still owns: shutting the socket down makes evhttp
+ * see the end of stream and free it. */
+static void drop_connection(ms_http_door *door, tracked_connection *t)
+{
+    if (t->dropped)
+        return;
+    t->dropped = true;
+    evutil_socket_t fd = bufferevent_getfd(t->bev);
+    if (fd >= 0)
+        shutdown(fd, SHUT_RDWR);
+    door->server->metrics.http_connections_dropped++;
+}
+
+static void sweep(evutil_socket_t fd, short what, void *arg)
+{
+    (void)fd, (void)what;
+    ms_http_door *door = arg;
+    const ms_server_config *config = &door->server->config;
+    double now = ms_now_seconds();
+    for (size_t i = 0; i < door->connection_count;) {
+        tracked_connection *t = &door->connections[i];
+        bufferevent_data_cb read_cb, write_cb;
+        bufferevent_event_cb event_cb;
+        void *cb_arg;
+        bufferevent_getcb(t->bev, &read_cb, &write_cb, &event_cb, &cb_arg);
+        if (!read_cb && !write_cb && !event_cb) { /* evhttp freed it: let it go */
+            bufferevent_decref(t->bev);
+            door->connections[i] = door->connections[--door->connection_count];
+            continue;
+        }
+        size_t waiting = evbuffer_get_length(bufferevent_get_output(t->bev));
+        if (waiting != t->output_length) {
+            t->output_length = waiting;
+            t->output_since = now;
+        }
+        if (waiting && now - t->output_since > config->send_timeout_s)
+            drop_connection(door, t); /* a slow reader */
+        else if (!waiting && now - t->deadline_from > config->http_header_timeout_s)
+            drop_connection(door, t); /* no complete request header in time */
+        ++i;
+    }
+    door->server->metrics.http_connections = door->connection_count;
+    update_accepting(door);
+}
+
+/* Out of descriptors (or another accept failure): the listener stays
+ * readable, so instead of spinning (and libevent logging each failure)
+ * accepting pauses until the next sweep, at most SWEEP_INTERVAL_US. evhttp
+ * owns the listener and its argument, so this callback knows nothing of the
+ * door: it only pauses; the sweep resumes. */
+static void on_accept_error(struct evconnlistener *listener, void *arg)
+{
+    (void)arg;
+    evconnlistener_disable(listener);
+}
+
 ms_status ms_http_door_open(ms_server *server, ms_http_door **out, uint16_t *bound_port,
                             ms_error *err)
 {
@@ -564,6 +697,7 @@ ms_status ms_http_door_open(ms_server *server, ms_http_door **out, uint16_t *bou
     evhttp_set_max_body_size(door->http, 4096);
     evhttp_set_timeout(door->http, (int)server->config.idle_timeout_s);
     evhttp_set_gencb(door->http, handle_request, door);
+    evhttp_set_bevcb(door->http, new_connection, door);
     const char *address = server->config.bind_address ? server->config.bind_address : "127.0.0.1";
     struct evhttp_bound_socket *socket =
         evhttp_bind_socket_with_handle(door->http, address, (ev_uint16_t)server->config.http_port);
@@ -573,6 +707,15 @@ ms_status ms_http_door_open(ms_server *server, ms_http_door **out, uint16_t *bou
         ms_http_door_close(door);
         return st;
     }
+    door->listener = evhttp_bound_socket_get_listener(socket);
+    door->sweep = event_new(server->base, -1, EV_PERSIST, sweep, door);
+    struct timeval tick = {0, SWEEP_INTERVAL_US};
+    if (!door->listener || !door->sweep ||
+        event_add(door->sweep, &tick) != 0) {
+        ms_http_door_close(door);
+        return ms_error_set(err, MS_ERR_NOMEM, "http: cannot set up connection tracking");
+    }
+    evconnlistener_set_error_cb(door->listener, on_accept_error);
     struct sockaddr_storage ss;
     socklen_t len = sizeof ss;
     *bound_port = 0;
@@ -588,6 +731,11 @@ void ms_http_door_close(ms_http_door *door)
     if (!door)
         return;
     if (door->http)
-        evhttp_free(door->http);
+        evhttp_free(door->http); /* frees its connections, then the door's references go */
+    for (size_t i = 0; i < door->connection_count; ++i)
+        bufferevent_decref(door->connections[i].bev);
+    free(door->connections);
+    if (door->sweep)
+        event_free(door->sweep);
     free(door);
 }

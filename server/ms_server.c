@@ -118,7 +118,7 @@ static ms_status write_port_file(const ms_server *s, ms_error *err)
 static void raise_descriptor_limit(ms_server *s)
 {
     struct rlimit rl;
-    rlim_t want = (rlim_t)s->config.max_clients + 256 + 2 * 64;
+    rlim_t want = (rlim_t)s->config.max_clients + s->config.http_max_connections + 256 + 2 * 64;
     if (getrlimit(RLIMIT_NOFILE, &rl) != 0 || rl.rlim_cur >= want)
         return;
     rl.rlim_cur = want < rl.rlim_max ? want : rl.rlim_max;

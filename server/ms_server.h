@@ -34,6 +34,8 @@ typedef struct ms_server_metrics {
     uint64_t rescans;
     uint64_t rescan_failures;
     uint64_t transfers_in_flight;      /* payload buffers not yet sent, both doors */
+    uint64_t http_connections;         /* open now */
+    uint64_t http_connections_dropped; /* closed for a late header or no send progress */
 } ms_server_metrics;
 
 typedef struct ms_http_door ms_http_door;

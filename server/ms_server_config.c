@@ -23,6 +23,8 @@ void ms_server_config_defaults(ms_server_config *c)
     c->max_queued_bytes = 64ull << 20;
     c->request_rate = 20000;
     c->http_rate = 2000;
+    c->http_max_connections = 256;
+    c->http_header_timeout_s = 30;
 }
 
 void ms_server_config_free(ms_server_config *c)
@@ -88,6 +90,8 @@ ms_status ms_server_config_set(ms_server_config *c, const char *key, const char 
         {"max_queued_bytes", offsetof(ms_server_config, max_queued_bytes), 8, 1u << 16, 1ull << 34},
         {"request_rate", offsetof(ms_server_config, request_rate), 4, 1, 10000000},
         {"http_rate", offsetof(ms_server_config, http_rate), 4, 1, 10000000},
+        {"http_max_connections", offsetof(ms_server_config, http_max_connections), 4, 1, 100000},
+        {"http_header_timeout", offsetof(ms_server_config, http_header_timeout_s), 4, 1, 3600},
     };
     for (size_t i = 0; i < sizeof numbers / sizeof *numbers; ++i) {
         if (strcmp(key, numbers[i].key) != 0)

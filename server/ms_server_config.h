@@ -31,6 +31,9 @@ typedef struct ms_server_config {
     uint64_t max_queued_bytes;/* payload bytes queued per connection; default 64 MiB */
     uint32_t request_rate;    /* requests per second per connection (burst max_batch); default 20000 */
     uint32_t http_rate;       /* HTTP requests per second per client address; default 2000 */
+    uint32_t http_max_connections; /* open HTTP connections; more wait in the backlog; default 256 */
+    uint32_t http_header_timeout_s; /* most time for an HTTP request header to arrive (after
+                                       the accept or the previous request); default 30 */
     char *token;              /* full-precision access token; NULL = none configured */
     char *port_file;          /* if set, "PORT HTTP_PORT\n" is written there once listening */
 } ms_server_config;

@@ -9,24 +9,30 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
 #include <sys/stat.h>
+#include <sys/time.h>
 #include <unistd.h>
 #include <cmocka.h>
 
 #include "ms_archive.h"
 #include "ms_catalog.h"
+#include "ms_progress.h"
 #include "ms_test.h"
 #include "ms_test_archive.h"
 #include "ms_test_net.h"
+#include "ms_test_proto.h"
 
 typedef struct server_fixture {
     char dir[512];
     char log[600];
     pid_t pid;
-    uint16_t http_port;
+    uint16_t port, http_port;
 } server_fixture;
 
-static int start_server(void **state)
+static int start_server_with(void **state, const char *settings)
 {
     server_fixture *f = calloc(1, sizeof *f);
     ms_test_tmpdir(f->dir, sizeof f->dir);
@@ -38,6 +44,7 @@ static int start_server(void **state)
     snprintf(config, sizeof config, "%s/meshserve.conf", f->dir);
     FILE *c = fopen(config, "w");
     fputs("# test settings\ntoken = s3cret-token\nhttp_rate = 100000\n", c);
+    fputs(settings, c);
     fclose(c);
     snprintf(port_file, sizeof port_file, "%s/ports", f->dir);
     snprintf(f->log, sizeof f->log, "%s/meshserve.log", f->dir);
@@ -48,8 +55,17 @@ static int start_server(void **state)
     uint16_t port;
     if (ms_test_wait_ports(port_file, 10.0, &port, &f->http_port) != 0)
         fail_msg("meshserve did not start (see %s)", f->log);
+    f->port = port;
     *state = f;
     return 0;
+}
+
+static int start_server(void **state) { return start_server_with(state, ""); }
+
+/* At most 8 HTTP connections, each with 1 s to deliver a request header. */
+static int start_guarded_server(void **state)
+{
+    return start_server_with(state, "http_max_connections = 8\nhttp_header_timeout = 1\n");
 }
 
 static int stop_server(void **state)
@@ -514,6 +530,56 @@ static void test_replaced_and_truncated_archives(void **state)
     assert_int_equal(count_in_log(f, "model 'dragon': cell 128: the archive file shrank"), 1);
 }
 
+static int connect_loopback(uint16_t port)
+{
+    int fd = socket(AF_INET, SOCK_STREAM, 0);
+    struct sockaddr_in addr = {0};
+    addr.sin_family = AF_INET;
+    addr.sin_port = htons(port);
+    addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    assert_int_equal(connect(fd, (struct sockaddr *)&addr, sizeof addr), 0);
+    struct timeval tv = {5, 0};
+    setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+    return fd;
+}
+
+/* Issue 19, item 4: slowloris. Connections that never finish their request
+ * header hold at most http_max_connections slots, and only for
+ * http_header_timeout; meanwhile later HTTP clients wait in the backlog (they
+ * are served once slots free) and the binary door is not touched. */
+static void test_slowloris_bounded(void **state)
+{
+    server_fixture *f = *state;
+    enum { LORIS = 20 };
+    int loris[LORIS];
+    for (int i = 0; i < LORIS; ++i) {
+        loris[i] = connect_loopback(f->http_port);
+        assert_int_equal(send(loris[i], "GET /healthz HTTP/1.1\r\nX-A: ", 29, MSG_NOSIGNAL), 29);
+    }
+    /* The binary door answers at once, saturated HTTP or not. */
+    ms_test_conn c;
+    assert_int_equal(ms_test_conn_open(&c, f->port), 0);
+    ms_test_conn_hello(&c, NULL, NULL);
+    ms_test_conn_close(&c);
+    /* Every slow connection ends (EOF or reset) within a few header time-outs. */
+    double start = ms_now_seconds();
+    for (int i = 0; i < LORIS; ++i) {
+        char byte;
+        ssize_t n = recv(loris[i], &byte, 1, 0);
+        assert_true(n <= 0 || byte == 'H'); /* a 408 answer is fine too */
+        close(loris[i]);
+    }
+    assert_true(ms_now_seconds() - start < 8.0);
+    /* And the door serves again. */
+    ms_test_http_response r;
+    get(f, "/healthz", NULL, 200, &r);
+    ms_test_http_free(&r);
+    get(f, "/metrics", NULL, 200, &r);
+    /* Each slow connection was dropped once, by the door (none by evhttp). */
+    assert_non_null(strstr((char *)r.body, "\nmeshstream_http_connections_dropped_total 20\n"));
+    ms_test_http_free(&r);
+}
+
 static void test_hostile_requests(void **state)
 {
     server_fixture *f = *state;
@@ -601,6 +667,7 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_head_sends_headers_only, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_strict_range_and_conditionals, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_replaced_and_truncated_archives, start_server, stop_server),
+        cmocka_unit_test_setup_teardown(test_slowloris_bounded, start_guarded_server, stop_server),
         cmocka_unit_test_setup_teardown(test_hostile_requests, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_sighup_adds_model_and_sigterm_drains, start_server, stop_server),
     };
