@@ -2,6 +2,7 @@
 #include "ms_nsp_build.h"
 
 #include <errno.h>
+#include <float.h>
 #include <inttypes.h>
 #ifdef __GLIBC__
 #include <malloc.h>
@@ -522,6 +523,14 @@ ms_status ms_nsp_build_run(const char *path, const ms_nsp_build_params *params,
     ms_mesh extremes = {.positions = corners, .vertex_count = 2};
     if ((s = ms_quant_fit_box(&extremes, &b->box, err)) != MS_OK)
         goto done;
+    /* A denormal extent loses precision in every step after it, and the
+     * normals of its triangles underflow (no APO): refuse it. */
+    if (b->box.size < DBL_MIN) {
+        s = ms_error_set(err, MS_ERR_RANGE,
+                         "the model's extent %g is below the smallest normal double (%g): scale "
+                         "it up", b->box.size, DBL_MIN);
+        goto done;
+    }
     b->vertex_count = (size_t)sink.vertex_count;
     b->keys = malloc((b->vertex_count ? b->vertex_count : 1) * sizeof *b->keys);
     if (!b->keys) {

@@ -404,6 +404,36 @@ static void test_all_welded_away_refused(void **state)
     ms_test_rmdir(dir);
 }
 
+/* Issue 19, item 13: a model whose extent is not a normal double (1e-310)
+ * baked cells with triangles and no APO chunk (the normals underflow): it is
+ * refused; 1e-300 still bakes, with its chunk. */
+static void test_denormal_extent_refused(void **state)
+{
+    (void)state;
+    char dir[512], bin[4096], obj[700], cmd[16384], out[4096];
+    ms_test_tmpdir(dir, sizeof dir);
+    ms_test_bin_path(bin, sizeof bin, "meshbake");
+    snprintf(obj, sizeof obj, "%s/speck.obj", dir);
+    const char *extents[] = {"1e-310", "1e-300"};
+    for (int i = 0; i < 2; ++i) {
+        char text[400];
+        int n = snprintf(text, sizeof text,
+                         "v 0 0 0\nv %s 0 0\nv 0 %s 0\nv %s %s %s\nf 1 2 3\nf 1 2 4\nf 1 3 4\n"
+                         "f 2 3 4\n", extents[i], extents[i], extents[i], extents[i], extents[i]);
+        ms_test_write_file(obj, text, (size_t)n);
+        snprintf(cmd, sizeof cmd, "%s '%s' -o '%s' --name speck --json", bin, obj, dir);
+        if (i == 0) {
+            assert_int_equal(ms_test_run(cmd, out, sizeof out), 1);
+            assert_string_equal(out, "meshbake: the model's extent 1e-310 is below the smallest "
+                                     "normal double (2.22507e-308): scale it up\n");
+        } else {
+            assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
+            assert_non_null(strstr(out, "\"chunks\":1,"));
+        }
+    }
+    ms_test_rmdir(dir);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -416,6 +446,7 @@ int main(void)
         cmocka_unit_test(test_failure_leaves_nothing),
         cmocka_unit_test(test_stale_partial_removed),
         cmocka_unit_test(test_all_welded_away_refused),
+        cmocka_unit_test(test_denormal_extent_refused),
         cmocka_unit_test(test_killed_bake_leaves_nothing),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
