@@ -1,12 +1,19 @@
 /* The side door's Range and If-None-Match parsing (server/ms_http_parse.h),
- * case by case, with nginx's answers as the reference. */
+ * case by case, with nginx's answers as the reference; and the replay of the
+ * fuzz corpus tests/corpus/http_request/ through the fuzz target's checks. */
 #include <stdarg.h>
 #include <stddef.h>
 #include <setjmp.h>
 #include <stdint.h>
+#include <dirent.h>
+#include <stdio.h>
+#include <string.h>
 #include <cmocka.h>
 
 #include "ms_http_parse.h"
+
+#define MS_FUZZ_NO_ENTRY_POINT
+#include "fuzz/fuzz_http_request.c"
 
 static void expect_range(const char *header, uint64_t length, ms_http_range_result result,
                          uint64_t first, uint64_t last)
@@ -68,11 +75,38 @@ static void test_none_match(void **state)
     assert_false(ms_http_none_match(",,,", etag));
 }
 
+static void test_corpus_replay(void **state)
+{
+    (void)state;
+    const char *dir_path = "tests/corpus/http_request";
+    DIR *dir = opendir(dir_path);
+    if (!dir)
+        fail_msg("cannot open %s (run the tests from the repository root)", dir_path);
+    unsigned files = 0;
+    static uint8_t data[1 << 16];
+    struct dirent *entry;
+    while ((entry = readdir(dir)) != NULL) {
+        if (entry->d_name[0] == '.')
+            continue;
+        char path[1024];
+        snprintf(path, sizeof path, "%s/%s", dir_path, entry->d_name);
+        FILE *f = fopen(path, "rb");
+        assert_non_null(f);
+        size_t n = fread(data, 1, sizeof data, f);
+        fclose(f);
+        ms_fuzz_http_one(data, n); /* aborts on a broken contract */
+        ++files;
+    }
+    closedir(dir);
+    assert_true(files >= 12);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_ranges),
         cmocka_unit_test(test_none_match),
+        cmocka_unit_test(test_corpus_replay),
     };
     return cmocka_run_group_tests_name("http_parse", tests, NULL, NULL);
 }
