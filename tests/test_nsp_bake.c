@@ -26,6 +26,7 @@
 #include "ms_catalog.h"
 #include "ms_nsp_build.h"
 #include "ms_nsp_check.h"
+#include "ms_progress.h"
 #include "ms_test.h"
 #include "ms_test_archive.h"
 #include "ms_test_net.h"
@@ -434,6 +435,39 @@ static void test_denormal_extent_refused(void **state)
     ms_test_rmdir(dir);
 }
 
+/* Issue 19, item 11: repeated triangles cost O(n log n) and do not split
+ * cells: a PLY of 3 vertices and 30,000 copies of one triangle bakes into one
+ * cell holding one triangle (it made 833 cells, in time growing with the
+ * square of the copies). */
+static void test_repeated_triangles_do_not_split(void **state)
+{
+    (void)state;
+    char dir[512], bin[4096], ply[700], cmd[16384], out[8192];
+    ms_test_tmpdir(dir, sizeof dir);
+    ms_test_bin_path(bin, sizeof bin, "meshbake");
+    snprintf(ply, sizeof ply, "%s/copies.ply", dir);
+    FILE *f = fopen(ply, "w");
+    assert_non_null(f);
+    fprintf(f, "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+               "property float z\nelement face 30000\nproperty list uchar int vertex_indices\n"
+               "end_header\n0 0 0\n1 0 0\n0 1 0\n");
+    for (int i = 0; i < 30000; ++i)
+        fputs(i % 2 ? "3 0 1 2\n" : "3 1 2 0\n", f);
+    fclose(f);
+    snprintf(cmd, sizeof cmd, "%s '%s' -o '%s' --name copies --json", bin, ply, dir);
+    double start = ms_now_seconds();
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
+    double seconds = ms_now_seconds() - start;
+    json_error_t jerr;
+    json_t *report = json_loads(strchr(out, '{'), JSON_DISABLE_EOF_CHECK, &jerr);
+    assert_non_null(report);
+    assert_int_equal(json_integer_value(json_object_get(report, "cells")), 1);
+    assert_int_equal(json_integer_value(json_object_get(report, "triangles")), 1);
+    json_decref(report);
+    assert_true(seconds < 20.0); /* under ASan, on a shared machine */
+    ms_test_rmdir(dir);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -447,6 +481,7 @@ int main(void)
         cmocka_unit_test(test_stale_partial_removed),
         cmocka_unit_test(test_all_welded_away_refused),
         cmocka_unit_test(test_denormal_extent_refused),
+        cmocka_unit_test(test_repeated_triangles_do_not_split),
         cmocka_unit_test(test_killed_bake_leaves_nothing),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
