@@ -1,7 +1,9 @@
-/* Replays the regression corpora of two libFuzzer targets through their
+/* Replays the regression corpora of three libFuzzer targets through their
  * contract checks: tests/corpus/archive_index/ (the archive index reader,
- * tests/fuzz/fuzz_archive_index.c) and tests/corpus/camera_path/ (the
- * camera-path parser, tests/fuzz/fuzz_camera_path.c). Seeds named
+ * tests/fuzz/fuzz_archive_index.c), tests/corpus/camera_path/ (the
+ * camera-path parser, tests/fuzz/fuzz_camera_path.c) and
+ * tests/corpus/config_catalog/ (meshserve's config file and catalog.json,
+ * tests/fuzz/fuzz_config_catalog.c). Seeds named
  * seed-*-ok and seed-*.cam must be accepted, the other seed-* refused;
  * fuzzer finds only need to run clean. */
 #include <dirent.h>
@@ -13,9 +15,12 @@
 #include <string.h>
 #include <cmocka.h>
 
+#include "ms_test.h"
+
 #define MS_FUZZ_NO_ENTRY_POINT
 #include "fuzz/fuzz_archive_index.c"
 #include "fuzz/fuzz_camera_path.c"
+#include "fuzz/fuzz_config_catalog.c"
 
 typedef bool (*fuzz_one_fn)(const uint8_t *data, size_t size);
 
@@ -67,11 +72,20 @@ static void test_camera_path_corpus(void **state)
     assert_true(replay("tests/corpus/camera_path", ms_fuzz_camera_path_one) >= 10);
 }
 
+static void test_config_catalog_corpus(void **state)
+{
+    (void)state;
+    assert_true(replay("tests/corpus/config_catalog", ms_fuzz_config_catalog_one) >= 6);
+    if (ms_fuzz_files_dir[0])
+        ms_test_rmdir(ms_fuzz_files_dir);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_archive_index_corpus),
         cmocka_unit_test(test_camera_path_corpus),
+        cmocka_unit_test(test_config_catalog_corpus),
     };
     return cmocka_run_group_tests_name("fuzz_replay", tests, NULL, NULL);
 }

@@ -20,8 +20,10 @@ FUZZ_ALL     := $(patsubst tests/fuzz/fuzz_%.c,%,$(FUZZ_SRCS))
 FUZZ_TARGETS ?= $(FUZZ_ALL)
 FUZZ_BINS    := $(patsubst %,$(FUZZ_DIR)/fuzz_%,$(FUZZ_TARGETS))
 
-# server/ms_http_parse.c: the side door's header parsing (fuzz_http_request).
-LIB_SRCS   := $(filter-out %_main.c,$(wildcard common/*.c protocol/*.c)) server/ms_http_parse.c
+# From server/: the side door's header parsing (fuzz_http_request) and the
+# config reader (fuzz_config_catalog).
+LIB_SRCS   := $(filter-out %_main.c,$(wildcard common/*.c protocol/*.c)) \
+              server/ms_http_parse.c server/ms_server_config.c
 LIB_OBJS   := $(patsubst %.c,$(FUZZ_DIR)/obj/%.o,$(LIB_SRCS))
 SAN        := -fsanitize=address,undefined -fno-sanitize-recover=undefined
 FUZZ_CFLAGS := -std=c11 -D_DEFAULT_SOURCE -D_FILE_OFFSET_BITS=64 -O1 -g \
