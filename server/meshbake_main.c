@@ -17,29 +17,32 @@
 
 #include "ms_apo_classic_cli.h"
 #include "ms_bake.h"
+#include "ms_catalog.h"
 #include "ms_json_string.h"
 #include "ms_mesh_reader.h"
 
 enum { EXIT_INPUT = 1, EXIT_USAGE = 2 };
 
-typedef enum bake_mode { MODE_NONE, MODE_INFO, MODE_BAKE } bake_mode;
+typedef enum bake_mode { MODE_NONE, MODE_INFO, MODE_BAKE, MODE_SET_PUBLIC } bake_mode;
 
 typedef struct bake_options {
     bake_mode mode;
     bool json;
     const char *input;
     ms_bake_options bake;
+    unsigned set_public_bits; /* MODE_SET_PUBLIC */
 } bake_options;
 
 static void print_usage(FILE *out)
 {
     fputs("usage: meshbake IN -o ARCHIVE_DIR [--name NAME] [--bits 16] [--n 4]\n"
           "                [--root-bits 7] [--min-tris 8000] [--threads N] [--mem MB]\n"
-          "                [--tmp DIR] [--no-apo] [--apo-lead 1] [--apo-max-depth 10]\n"
-          "                [--apo-tol 0.2] [--apo-init-depth 0] [--apo-verify]\n"
-          "                [--apo-sample-leaves] [--apo-accuracy] [--apo-every-cell]\n"
-          "                [--json]\n"
+          "                [--tmp DIR] [--public-bits B] [--no-apo] [--apo-lead 1]\n"
+          "                [--apo-max-depth 10] [--apo-tol 0.2] [--apo-init-depth 0]\n"
+          "                [--apo-verify] [--apo-sample-leaves] [--apo-accuracy]\n"
+          "                [--apo-every-cell] [--json]\n"
           "       meshbake --info FILE [--json]\n"
+          "       meshbake --set-public-bits B -o ARCHIVE_DIR --name NAME\n"
           "\n"
           "Reads a mesh (PLY ascii/binary, OBJ or OFF, optionally gzip-compressed).\n"
           "\n"
@@ -52,6 +55,8 @@ static void print_usage(FILE *out)
           "  --n N             nSP children per axis: 2, 4 or 8 (default 4)\n"
           "  --root-bits R     precision window of the root cell, log2(n)..P (default 7)\n"
           "  --min-tris T      a cell splits when it holds T triangles (default 8000)\n"
+          "  --public-bits B   preview: precision anyone may read, 0..P; beyond it a\n"
+          "                    client needs meshserve's token (default P: all public)\n"
           "  --threads N       encoding threads (default: the CPUs online)\n"
           "  --mem MB          memory budget (default 512): an eighth buffers leaf content,\n"
           "                    the rest is for encoding; plus 8 bytes per input vertex\n"
@@ -74,6 +79,9 @@ static void print_usage(FILE *out)
           "  --apo-accuracy    measure the internal cells' chunks against the full-precision\n"
           "                    triangles below them (degrees; needs that memory too)\n"
           "\n"
+          "  --set-public-bits B  change the preview of the baked model NAME in\n"
+          "                    ARCHIVE_DIR/catalog.json (0..its P); SIGHUP a running\n"
+          "                    meshserve to apply it\n"
           "  --info            parse FILE completely and report format, counts, bounding box,\n"
           "                    faces dropped by the cleaning policy, isolated vertices, bytes\n"
           "                    parsed and parse time\n"
@@ -142,6 +150,8 @@ static int parse_options(int argc, char **argv, bake_options *options)
         {"apo-sample-leaves", no_argument, NULL, 'S'},
         {"apo-accuracy", no_argument, NULL, 'C'},
         {"apo-every-cell", no_argument, NULL, 'W'},
+        {"public-bits", required_argument, NULL, 'P'},
+        {"set-public-bits", required_argument, NULL, 'U'},
         {NULL, 0, NULL, 0},
     };
     memset(options, 0, sizeof *options);
@@ -173,6 +183,17 @@ static int parse_options(int argc, char **argv, bake_options *options)
         case 'S': options->bake.apo.sample_leaves = true; break;
         case 'C': options->bake.apo.accuracy = true; break;
         case 'W': options->bake.apo.every_cell = true; break;
+        case 'P': case 'U':
+            if (!parse_depth(optarg, &value) || value > 20)
+                return usage_error(c == 'P' ? "--public-bits needs 0..20"
+                                            : "--set-public-bits needs 0..20", optarg);
+            if (c == 'P') {
+                options->bake.public_bits = (int)value;
+            } else {
+                options->set_public_bits = (unsigned)value;
+                options->mode = MODE_SET_PUBLIC;
+            }
+            break;
         case 'L': case 'D': case 'I':
             if (!parse_depth(optarg, &value))
                 return usage_error("not a depth (0..30)", optarg);
@@ -194,6 +215,21 @@ static int parse_options(int argc, char **argv, bake_options *options)
         default:
             return usage_error("unknown option", argv[optind - 1]);
         }
+    }
+    if (options->mode == MODE_SET_PUBLIC) {
+        if (!options->bake.archive_dir || !options->bake.name)
+            return usage_error("--set-public-bits needs -o ARCHIVE_DIR and --name NAME", NULL);
+        if (optind < argc)
+            return usage_error("unexpected argument", argv[optind]);
+        return -1;
+    }
+    if (options->bake.public_bits > (int)options->bake.bits) {
+        char detail[64];
+        snprintf(detail, sizeof detail, "%d", options->bake.public_bits);
+        char message[80];
+        snprintf(message, sizeof message, "--public-bits must be at most --bits (%u)",
+                 options->bake.bits);
+        return usage_error(message, detail);
     }
     if (options->bake.archive_dir) {
         if (options->mode == MODE_INFO)
@@ -406,6 +442,7 @@ static int run_bake(bake_options *options)
 {
     options->bake.input = options->input;
     options->bake.progress = isatty(STDERR_FILENO) ? stderr : NULL;
+    options->bake.notes = stderr;
     ms_bake_report report;
     ms_error err;
     ms_error_clear(&err);
@@ -421,6 +458,42 @@ static int run_bake(bake_options *options)
     return fflush(stdout) == 0 ? EXIT_SUCCESS : EXIT_INPUT;
 }
 
+/* Changes the preview of a baked model in its catalogue (under the
+ * catalogue's lock, like a bake). */
+static int run_set_public(const bake_options *o)
+{
+    const char *dir = o->bake.archive_dir, *name = o->bake.name;
+    ms_catalog catalog;
+    ms_error err;
+    if (ms_catalog_load(dir, &catalog, &err) != MS_OK) {
+        fprintf(stderr, "meshbake: %s\n", err.text);
+        return EXIT_INPUT;
+    }
+    const ms_catalog_entry *found = ms_catalog_find(&catalog, name);
+    int status = EXIT_SUCCESS;
+    if (!found) {
+        fprintf(stderr, "meshbake: no model '%s' in %s/catalog.json\n", name, dir);
+        status = EXIT_INPUT;
+    } else if (o->set_public_bits > found->bits) {
+        fprintf(stderr, "meshbake: model '%s' has %u bits; --set-public-bits %u is more\n", name,
+                found->bits, o->set_public_bits);
+        status = EXIT_INPUT;
+    } else {
+        ms_catalog_entry e = *found;
+        unsigned before = e.public_max_bits;
+        e.public_max_bits = (uint8_t)o->set_public_bits;
+        if (ms_catalog_update(dir, &e, &err) != MS_OK) {
+            fprintf(stderr, "meshbake: %s\n", err.text);
+            status = EXIT_INPUT;
+        } else {
+            printf("meshbake: model '%s': public_max_bits %u -> %u (SIGHUP a running meshserve "
+                   "to apply it)\n", name, before, o->set_public_bits);
+        }
+    }
+    ms_catalog_free(&catalog);
+    return status;
+}
+
 int main(int argc, char **argv)
 {
     for (int i = 1; i < argc; ++i)
@@ -433,6 +506,7 @@ int main(int argc, char **argv)
     switch (options.mode) {
     case MODE_INFO: return run_info(&options);
     case MODE_BAKE: return run_bake(&options);
+    case MODE_SET_PUBLIC: return run_set_public(&options);
     case MODE_NONE: break;
     }
     return EXIT_USAGE;

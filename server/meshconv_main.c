@@ -1,5 +1,7 @@
 /* meshconv: converts any mesh ms_mesh_load reads into PLY (binary by default). */
+#include <float.h>
 #include <getopt.h>
+#include <math.h>
 #include <stdbool.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -19,7 +21,8 @@ static void print_usage(FILE *out)
           "  -o, --output FILE  where to write (replaced atomically)\n"
           "  --binary           binary little-endian PLY (default)\n"
           "  --ascii            ascii PLY\n"
-          "  --double           double-precision coordinates (default float)\n"
+          "  --double           double-precision coordinates (default float; a coordinate\n"
+          "                     a float cannot hold is refused without it)\n"
           "  -h, --help         print this help and exit\n",
           out);
 }
@@ -29,6 +32,18 @@ static int usage_error(const char *message, const char *detail)
     fprintf(stderr, "meshconv: %s%s%s (see meshconv --help)\n", message, detail ? ": " : "",
             detail ? detail : "");
     return EXIT_USAGE;
+}
+
+/* A float PLY must not turn a coordinate into Inf: refuse the first one past
+ * FLT_MAX (the reader gives finite values only). */
+static ms_status check_fits_float(const ms_mesh *mesh, ms_error *err)
+{
+    for (size_t i = 0; i < 3 * mesh->vertex_count; ++i)
+        if (fabs(mesh->positions[i]) > FLT_MAX)
+            return ms_error_set(err, MS_ERR_RANGE,
+                                "vertex %zu: coordinate %g does not fit a float; use --double",
+                                i / 3, mesh->positions[i]);
+    return MS_OK;
 }
 
 int main(int argc, char **argv)
@@ -64,6 +79,8 @@ int main(int argc, char **argv)
     ms_error err;
     ms_error_clear(&err);
     ms_status st = ms_mesh_load(input, &mesh, NULL, &err);
+    if (st == MS_OK && !use_double)
+        st = check_fits_float(&mesh, &err);
     if (st == MS_OK)
         st = ms_ply_write(output, &mesh, binary, use_double, &err);
     ms_mesh_free(&mesh);

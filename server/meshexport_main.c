@@ -8,20 +8,28 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
+#include "ms_access.h"
 #include "ms_archive.h"
 #include "ms_catalog.h"
 #include "ms_progress.h"
+#include "ms_registry.h"
 
 static void usage(FILE *out)
 {
     fprintf(out,
-            "Usage: meshexport ARCHIVE_DIR NAME -o OUT_DIR [--json]\n"
+            "Usage: meshexport ARCHIVE_DIR NAME -o OUT_DIR [--full] [--json]\n"
             "Writes model NAME of ARCHIVE_DIR as static files laid out like meshserve's HTTP\n"
             "side door: OUT_DIR/models/NAME (header and cell index),\n"
-            "OUT_DIR/models/NAME/cells/ID/geometry and .../apo (whole payloads; prefixes are\n"
-            "byte ranges of these files, served with Range by any static web server).\n\n"
+            "OUT_DIR/models/NAME/cells/ID/geometry and .../apo (prefixes are byte ranges of\n"
+            "these files, served with Range by any static web server).\n"
+            "Only what an anonymous reader may read is written: a model with a public\n"
+            "preview (catalogue public_max_bits) gets each geometry cut at the preview, and\n"
+            "no files for cells wholly beyond it.\n\n"
             "  -o, --output DIR   where to write (created; existing files are replaced)\n"
+            "      --full         write every byte, as a token holder reads them (for a\n"
+            "                     server that is itself access-controlled)\n"
             "      --json         print the summary as one JSON object\n"
             "  -h, --help         show this help\n");
 }
@@ -52,16 +60,18 @@ int main(int argc, char **argv)
     static const struct option options[] = {
         {"output", required_argument, NULL, 'o'},
         {"json", no_argument, NULL, 'j'},
+        {"full", no_argument, NULL, 'f'},
         {"help", no_argument, NULL, 'h'},
         {NULL, 0, NULL, 0},
     };
     const char *out_dir = NULL;
-    bool json = false;
+    bool json = false, full = false;
     int c;
     while ((c = getopt_long(argc, argv, "o:h", options, NULL)) != -1) {
         switch (c) {
         case 'o': out_dir = optarg; break;
         case 'j': json = true; break;
+        case 'f': full = true; break;
         case 'h': usage(stdout); return 0;
         default: fprintf(stderr, "meshexport: try 'meshexport --help'\n"); return 2;
         }
@@ -76,13 +86,25 @@ int main(int argc, char **argv)
         return 2;
     }
     char path[4096];
-    snprintf(path, sizeof path, "%s/%s.msa", archive_dir, name);
-    ms_archive *a;
+    ms_catalog catalog;
     ms_error err;
-    if (ms_archive_open(path, &a, &err) != MS_OK) {
+    if (ms_catalog_load(archive_dir, &catalog, &err) != MS_OK) {
         fprintf(stderr, "meshexport: %s\n", err.text);
         return 1;
     }
+    const ms_catalog_entry *entry = ms_catalog_find(&catalog, name);
+    ms_model *model = NULL;
+    if (!entry)
+        ms_error_set(&err, MS_ERR_ARG, "model '%s' is not in %s/catalog.json", name, archive_dir);
+    ms_status opened = entry ? ms_model_open(archive_dir, entry, &model, &err) : MS_ERR_ARG;
+    ms_catalog_free(&catalog);
+    if (opened != MS_OK) {
+        fprintf(stderr, "meshexport: %s\n", err.text);
+        return 1;
+    }
+    const ms_archive *a = model->archive;
+    /* The same grant and the same resolution as meshserve's doors. */
+    const ms_access grant = ms_access_grant(model, full);
     double start = ms_now_seconds();
     const ms_archive_header *h = ms_archive_get_header(a);
     int failed = 0;
@@ -109,25 +131,47 @@ int main(int argc, char **argv)
     for (uint32_t cell = 0; !failed && cell < h->cell_count; ++cell) {
         if (ms_archive_verify_payload(a, cell, &err) != MS_OK) {
             fprintf(stderr, "meshexport: %s: %s\n", archive_dir, err.text);
-            ms_archive_close(a);
+            ms_model_unref(model);
             return 1;
+        }
+        if (ms_access_cell_hidden(model, &grant, cell)) {
+            /* An earlier --full export into OUT_DIR must not stay behind. */
+            for (int apo = 0; apo < 2; ++apo) {
+                snprintf(path, sizeof path, "%s/models/%s/cells/%u/%s", out_dir, name, cell,
+                         apo ? "apo" : "geometry");
+                remove(path);
+            }
+            snprintf(path, sizeof path, "%s/models/%s/cells/%u", out_dir, name, cell);
+            rmdir(path);
+            ms_progress_update(&progress, cell);
+            continue;
         }
         snprintf(path, sizeof path, "%s/models/%s/cells/%u", out_dir, name, cell);
         failed |= make_dir(path);
-        const uint8_t *g = ms_archive_geometry(a, cell, &size);
-        snprintf(path, sizeof path, "%s/models/%s/cells/%u/geometry", out_dir, name, cell);
-        failed |= write_file(path, g, size);
-        bytes += size, files++;
-        const uint8_t *apo = ms_archive_apo(a, cell, &size);
-        if (size) {
-            snprintf(path, sizeof path, "%s/models/%s/cells/%u/apo", out_dir, name, cell);
-            failed |= write_file(path, apo, size);
-            bytes += size, files++;
+        for (int apo = 0; apo < 2 && !failed; ++apo) {
+            uint8_t permitted = apo ? grant.permitted_apo_steps : grant.permitted_geometry_steps;
+            const uint8_t *data = apo ? ms_archive_apo(a, cell, &size) : ms_archive_geometry(a, cell, &size);
+            if (apo && (!size || !permitted))
+                continue; /* no APO chunk */
+            ms_proto_cell_request all = {cell, apo ? MS_PROTO_STREAM_APO : MS_PROTO_STREAM_GEOMETRY,
+                                         MS_PROTO_UNIT_STEPS, 0, 0, permitted - 1u};
+            if (all.b > MS_PROTO_MAX_STEP)
+                all.b = MS_PROTO_MAX_STEP;
+            ms_proto_byte_range range;
+            if (ms_access_resolve(model, &grant, &all, &range, NULL, &err) != MS_OK) {
+                fprintf(stderr, "meshexport: %s: cell %u: %s\n", archive_dir, cell, err.text);
+                ms_model_unref(model);
+                return 1;
+            }
+            snprintf(path, sizeof path, "%s/models/%s/cells/%u/%s", out_dir, name, cell,
+                     apo ? "apo" : "geometry");
+            failed |= write_file(path, data, range.end);
+            bytes += range.end, files++;
         }
         ms_progress_update(&progress, cell);
     }
     ms_progress_finish(&progress);
-    ms_archive_close(a);
+    ms_model_unref(model);
     if (failed) {
         fprintf(stderr, "meshexport: cannot write under %s: %s\n", out_dir, strerror(errno));
         return 1;

@@ -1,11 +1,15 @@
 /* Archive writer: see ms_archive_writer.h. */
 #include "ms_archive_writer.h"
 
+#include <dirent.h>
 #include <errno.h>
+#include <fcntl.h>
 #include <stdbool.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/file.h>
+#include <sys/stat.h>
 #include <unistd.h>
 #include <zlib.h>
 
@@ -347,6 +351,9 @@ ms_status ms_archive_writer_finish(ms_archive_writer *w, ms_error *err)
 
     FILE *out = fopen(w->partial_path, "wb");
     int failed = !out;
+    /* Held until the rename: a bake starting meanwhile leaves this file alone. */
+    if (out && flock(fileno(out), LOCK_EX) != 0)
+        failed = 1;
     if (out) {
         failed |= fwrite(head, 1, sizeof head, out) != sizeof head;
         failed |= fwrite(stored, 1, stored_size, out) != stored_size;
@@ -367,4 +374,36 @@ ms_status ms_archive_writer_finish(ms_archive_writer *w, ms_error *err)
     }
     writer_free(w);
     return MS_OK;
+}
+
+unsigned ms_archive_writer_remove_stale(const char *dir, ms_archive_stale_fn removed, void *arg)
+{
+    static const char suffix[] = ".msa.partial";
+    const size_t suffix_length = sizeof suffix - 1;
+    DIR *d = opendir(dir);
+    if (!d)
+        return 0;
+    unsigned count = 0;
+    struct dirent *e;
+    while ((e = readdir(d))) {
+        size_t n = strlen(e->d_name);
+        if (n <= suffix_length || strcmp(e->d_name + n - suffix_length, suffix) != 0)
+            continue;
+        char path[4096 + 256];
+        snprintf(path, sizeof path, "%s/%s", dir, e->d_name);
+        int fd = open(path, O_RDONLY | O_CLOEXEC | O_NOFOLLOW);
+        if (fd < 0)
+            continue;
+        struct stat st;
+        /* Unlinked under the lock, so a writer cannot take it in between. */
+        if (fstat(fd, &st) == 0 && S_ISREG(st.st_mode) && flock(fd, LOCK_EX | LOCK_NB) == 0 &&
+            unlink(path) == 0) {
+            ++count;
+            if (removed)
+                removed(arg, e->d_name);
+        }
+        close(fd);
+    }
+    closedir(d);
+    return count;
 }

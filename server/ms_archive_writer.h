@@ -8,7 +8,9 @@
  * Payloads are spooled to an unlinked temporary file, so memory stays bounded by
  * the index; finish writes `path.partial`, flushes it to disk and renames it to
  * `path`. Abort, any error, or a killed process never leaves a file at `path`
- * that looks complete.
+ * that looks complete. While it writes `path.partial` the writer holds an
+ * exclusive flock on it, so that ms_archive_writer_remove_stale can tell the
+ * leftovers of a killed writer from the file of one at work.
  *
  * Ownership: the writer copies what it is given. Thread-safety: calls on one
  * writer must be serialised by the caller.
@@ -59,5 +61,14 @@ ms_status ms_archive_writer_finish(ms_archive_writer *writer, ms_error *err);
 
 /* Drops everything written so far. Accepts NULL. */
 void ms_archive_writer_abort(ms_archive_writer *writer);
+
+/* Called with the file name (not the path) of each leftover removed. */
+typedef void (*ms_archive_stale_fn)(void *arg, const char *file_name);
+
+/* Removes every *.msa.partial in dir that no writer holds (left by a killed
+ * bake); a file whose lock cannot be taken at once belongs to a bake at work
+ * and stays. Returns how many were removed; a directory that cannot be read
+ * removes nothing. */
+unsigned ms_archive_writer_remove_stale(const char *dir, ms_archive_stale_fn removed, void *arg);
 
 #endif

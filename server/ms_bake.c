@@ -24,6 +24,7 @@ void ms_bake_options_default(ms_bake_options *o)
     o->root_bits = 7;
     o->min_triangles = 8000;
     o->mem_mb = 512;
+    o->public_bits = -1;
     long cpus = sysconf(_SC_NPROCESSORS_ONLN);
     o->threads = cpus > 0 ? (unsigned)cpus : 1;
     ms_bake_apo_params_default(&o->apo);
@@ -66,6 +67,12 @@ static void on_progress(void *context, const char *phase, double fraction)
     ms_progress_update(&p->bar, (uint64_t)(fraction * 1000.0));
 }
 
+static void note_stale(void *arg, const char *file_name)
+{
+    if (arg)
+        fprintf(arg, "meshbake: removed %s, left by an interrupted bake\n", file_name);
+}
+
 ms_status ms_bake(const ms_bake_options *o, ms_bake_report *r, ms_error *err)
 {
     memset(r, 0, sizeof *r);
@@ -74,12 +81,18 @@ ms_status ms_bake(const ms_bake_options *o, ms_bake_report *r, ms_error *err)
     ms_status s = ms_nsp_shape_init(&shape, o->bits, o->n, o->root_bits, err);
     if (s != MS_OK)
         return s;
+    if (o->public_bits > (int)o->bits)
+        return ms_error_set(err, MS_ERR_ARG, "--public-bits %d is more than --bits %u",
+                            o->public_bits, o->bits);
     if (o->min_triangles < 1)
         return ms_error_set(err, MS_ERR_ARG, "--min-tris must be at least 1");
     if (o->mem_mb < 16)
         return ms_error_set(err, MS_ERR_ARG, "--mem must be at least 16 MB");
     if (o->apo.enabled && (s = ms_bake_apo_params_check(&o->apo, err)) != MS_OK)
         return s;
+    if (o->name && strlen(o->name) > MS_MODEL_NAME_MAX)
+        return ms_error_set(err, MS_ERR_ARG, "model name of %zu characters; at most %d",
+                            strlen(o->name), MS_MODEL_NAME_MAX);
     if (o->name)
         snprintf(r->name, sizeof r->name, "%s", o->name);
     else
@@ -98,9 +111,8 @@ ms_status ms_bake(const ms_bake_options *o, ms_bake_report *r, ms_error *err)
     int n = snprintf(r->archive_path, sizeof r->archive_path, "%s/%s.msa", o->archive_dir, r->name);
     if (n < 0 || (size_t)n + 16 >= sizeof r->archive_path)
         return ms_error_set(err, MS_ERR_ARG, "archive path too long");
-    char stale[4096 + 16];
-    snprintf(stale, sizeof stale, "%s.partial", r->archive_path);
-    unlink(stale);
+    /* Leftovers of killed bakes into this directory (not of bakes at work). */
+    ms_archive_writer_remove_stale(o->archive_dir, note_stale, o->notes);
 
     bake_progress progress = {.out = o->progress};
     ms_nsp_build_params bp = {
@@ -172,6 +184,12 @@ ms_status ms_bake(const ms_bake_options *o, ms_bake_report *r, ms_error *err)
     r->seconds_encode = es.seconds;
     r->vertices = es.welded_vertices;
     r->triangles = es.welded_triangles;
+    if (r->triangles == 0) {
+        s = ms_error_set(err, MS_ERR_FORMAT,
+                         "every triangle of the model degenerates at %u bits (welded away): "
+                         "nothing to bake; try more --bits", o->bits);
+        goto done;
+    }
     r->leaf_triangles = es.leaf_triangles;
     r->empty_cells = es.empty_cells;
     r->geometry_bytes = es.geometry_bytes;
@@ -221,7 +239,7 @@ ms_status ms_bake(const ms_bake_options *o, ms_bake_report *r, ms_error *err)
     e.n = (uint8_t)o->n;
     e.root_bits = (uint8_t)o->root_bits;
     e.min_triangles = o->min_triangles;
-    e.public_max_bits = (uint8_t)o->bits;
+    e.public_max_bits = (uint8_t)(o->public_bits < 0 ? (int)o->bits : o->public_bits);
     e.apo = o->apo.enabled;
     e.apo_lead = h.apo_lead;
     e.apo_max_depth = h.apo_max_depth;

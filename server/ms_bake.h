@@ -39,10 +39,12 @@ typedef struct ms_bake_options {
     const char *name;      /* NULL: derived from the input file name */
     const char *tmp_dir;   /* NULL: archive_dir */
     unsigned bits, n, root_bits, threads;
+    int public_bits;       /* catalogue public_max_bits (preview), 0..bits; < 0: bits (all public) */
     uint32_t min_triangles;
     size_t mem_mb;
     size_t buffer_bytes;   /* leaf buffer budget; 0: an eighth of mem_mb (tests force flushes) */
     FILE *progress;        /* progress bar target (drawn only on a terminal), or NULL */
+    FILE *notes;           /* one-line notices (stale files removed), or NULL */
     ms_bake_apo_params apo; /* per-cell APO chunks (ms_bake_apo.h) */
 } ms_bake_options;
 

@@ -26,13 +26,13 @@ ms_status ms_frame_out_message(struct evbuffer *out, const ms_proto_message *msg
     return st;
 }
 
-ms_status ms_frame_out_error(struct evbuffer *out, uint16_t code, uint32_t request_id,
+ms_status ms_frame_out_error(struct evbuffer *out, uint16_t code, bool fatal, uint32_t request_id,
                              uint32_t request_count, uint64_t detail, const char *text,
                              ms_error *err)
 {
     ms_proto_fault fault = {0};
     fault.code = code;
-    fault.fatal = ms_proto_error_fatality(code) == MS_PROTO_FATAL_ALWAYS;
+    fault.fatal = fatal || ms_proto_error_fatality(code) == MS_PROTO_FATAL_ALWAYS;
     fault.request_id = request_count ? request_id : 0;
     fault.request_count = request_count;
     fault.detail = detail;

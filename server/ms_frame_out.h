@@ -24,8 +24,10 @@ struct ms_model;
  * MS_ERR_NOMEM when the buffer cannot grow. */
 ms_status ms_frame_out_message(struct evbuffer *out, const ms_proto_message *msg, ms_error *err);
 
-/* An ERROR frame; request_count 0 makes it connection-level (request_id 0). */
-ms_status ms_frame_out_error(struct evbuffer *out, uint16_t code, uint32_t request_id,
+/* An ERROR frame; request_count 0 makes it connection-level (request_id 0).
+ * FATAL is set when fatal is true (the sender closes after it: any error in
+ * answer to a HELLO, for instance) or when the code is always fatal. */
+ms_status ms_frame_out_error(struct evbuffer *out, uint16_t code, bool fatal, uint32_t request_id,
                              uint32_t request_count, uint64_t detail, const char *text,
                              ms_error *err);
 

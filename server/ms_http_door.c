@@ -7,6 +7,7 @@
 #include <event2/event.h>
 #include <event2/http.h>
 #include <event2/keyvalq_struct.h>
+#include <event2/listener.h>
 #include <inttypes.h>
 #include <jansson.h>
 #include <netinet/in.h>
@@ -21,6 +22,8 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "ms_access.h"
+#include "ms_http_parse.h"
 #include "ms_progress.h"
 #include "ms_server.h"
 
@@ -33,13 +36,53 @@ typedef struct rate_bucket {
     double updated;
 } rate_bucket;
 
+/* One HTTP connection, as the door tracks it: evhttp owns the connection;
+ * the door holds a reference on its bufferevent (so the record never points
+ * at freed memory) and notices evhttp's free when the callbacks are gone. */
+typedef struct tracked_connection {
+    struct bufferevent *bev;
+    double deadline_from;  /* accept, or the last request received */
+    size_t output_length;  /* bytes waiting at the last sweep */
+    double output_since;   /* when output_length last changed */
+    bool dropped;          /* shut down by the door; evhttp frees it next */
+} tracked_connection;
+
 struct ms_http_door {
     ms_server *server;
     struct evhttp *http;
+    struct evconnlistener *listener;
+    struct event *sweep;
+    tracked_connection *connections;
+    size_t connection_count, connection_capacity;
+    bool accept_paused_full;    /* at http_max_connections */
     rate_bucket buckets[RATE_BUCKETS];
 };
 
 /* --- Small helpers ---------------------------------------------------------- */
+
+static bool is_head(struct evhttp_request *req)
+{
+    return evhttp_request_get_command(req) == EVHTTP_REQ_HEAD;
+}
+
+/* Sends an answer whose body is `length` bytes. A HEAD gets the GET's headers,
+ * Content-Length included, and no body: evhttp neither adds the length for HEAD
+ * nor leaves the body out, which would desynchronise a keep-alive connection. */
+static void reply(struct evhttp_request *req, int code, const char *reason,
+                  struct evbuffer *body, uint64_t length)
+{
+    if (is_head(req)) {
+        if (code != 304) {
+            char text[32];
+            snprintf(text, sizeof text, "%" PRIu64, length);
+            evhttp_remove_header(evhttp_request_get_output_headers(req), "Content-Length");
+            evhttp_add_header(evhttp_request_get_output_headers(req), "Content-Length", text);
+        }
+        evhttp_send_reply(req, code, reason, NULL);
+        return;
+    }
+    evhttp_send_reply(req, code, reason, body);
+}
 
 static void send_text(ms_http_door *door, struct evhttp_request *req, int code,
                       const char *reason, const char *text)
@@ -47,11 +90,12 @@ static void send_text(ms_http_door *door, struct evhttp_request *req, int code,
     struct evbuffer *body = evbuffer_new();
     if (body)
         evbuffer_add_printf(body, "%s\n", text);
+    evhttp_remove_header(evhttp_request_get_output_headers(req), "Content-Type");
     evhttp_add_header(evhttp_request_get_output_headers(req), "Content-Type",
                       "text/plain; charset=utf-8");
     if (code >= 400)
         door->server->metrics.http_errors++;
-    evhttp_send_reply(req, code, reason, body);
+    reply(req, code, reason, body, body ? evbuffer_get_length(body) : 0);
     if (body)
         evbuffer_free(body);
 }
@@ -79,17 +123,25 @@ static bool token_equal(const char *given, const char *expected)
     return diff == 0;
 }
 
-static bool authorized(const ms_http_door *door, struct evhttp_request *req,
-                       const struct evkeyvalq *query)
+/* True when the request carries the configured token in an Authorization:
+ * Bearer header (the only place it is accepted: a URL ends up in logs). */
+static bool authorized(const ms_http_door *door, struct evhttp_request *req)
 {
     const char *expected = door->server->config.token;
     if (!expected)
         return false;
     const char *auth = evhttp_find_header(evhttp_request_get_input_headers(req), "Authorization");
-    if (auth && !strncmp(auth, "Bearer ", 7) && token_equal(auth + 7, expected))
-        return true;
-    const char *q = evhttp_find_header(query, "token");
-    return q && token_equal(q, expected);
+    return auth && !strncmp(auth, "Bearer ", 7) && token_equal(auth + 7, expected);
+}
+
+/* The reader's grant of model; *token_used says whether the token widened it
+ * (the answer then depends on the token and must not reach a shared cache). */
+static ms_access reader_grant(const ms_http_door *door, struct evhttp_request *req,
+                              const ms_model *model, bool *token_used)
+{
+    ms_access anonymous = ms_access_grant(model, false);
+    *token_used = !ms_access_is_full(&anonymous) && authorized(door, req);
+    return *token_used ? ms_access_grant(model, true) : anonymous;
 }
 
 static bool rate_allowed(ms_http_door *door, struct evhttp_request *req)
@@ -148,55 +200,48 @@ static void release_transfer(const void *data, size_t length, void *extra)
     free(t);
 }
 
-/* Sends bytes [0, length) of data (inside model's mapping) honouring Range. */
+/* Sends bytes [0, length) of data (inside model's mapping) honouring Range.
+ * private_answer: the body depends on the reader's token, so only the reader's
+ * own cache may keep it; every answer varies with Authorization. */
 static void send_bytes(ms_http_door *door, struct evhttp_request *req, ms_model *model,
-                       const uint8_t *data, uint64_t length, const char *etag)
+                       const uint8_t *data, uint64_t length, const char *etag, bool private_answer)
 {
     struct evkeyvalq *out = evhttp_request_get_output_headers(req);
     struct evkeyvalq *in = evhttp_request_get_input_headers(req);
     evhttp_add_header(out, "Content-Type", "application/octet-stream");
     evhttp_add_header(out, "Accept-Ranges", "bytes");
     evhttp_add_header(out, "ETag", etag);
-    evhttp_add_header(out, "Cache-Control", "public, max-age=3600");
-    const char *inm = evhttp_find_header(in, "If-None-Match");
-    if (inm && !strcmp(inm, etag)) {
-        evhttp_send_reply(req, 304, "Not Modified", NULL);
+    evhttp_add_header(out, "Cache-Control",
+                      private_answer ? "private, max-age=3600" : "public, max-age=3600");
+    evhttp_add_header(out, "Vary", "Authorization");
+    if (ms_http_none_match(evhttp_find_header(in, "If-None-Match"), etag)) {
+        reply(req, 304, "Not Modified", NULL, 0);
         return;
     }
     uint64_t first = 0, last = length ? length - 1 : 0;
     int code = 200;
-    const char *range = evhttp_find_header(in, "Range");
-    if (range && !strncmp(range, "bytes=", 6) && !strchr(range, ',')) {
-        const char *spec = range + 6;
-        unsigned long long a = 0, b = 0;
-        int ok;
-        char tail;
-        if (spec[0] == '-') {
-            ok = sscanf(spec + 1, "%llu%c", &b, &tail) == 1 && b > 0;
-            if (ok) {
-                first = b >= length ? 0 : length - b;
-                last = length ? length - 1 : 0;
-            }
-        } else if (spec[strlen(spec) - 1] == '-') {
-            ok = sscanf(spec, "%llu-%c", &a, &tail) == 1;
-            first = a, last = length ? length - 1 : 0;
-        } else {
-            ok = sscanf(spec, "%llu-%llu%c", &a, &b, &tail) == 2 && a <= b;
-            first = a, last = b < length ? b : (length ? length - 1 : 0);
-        }
-        if (!ok || length == 0 || first >= length) {
-            char cr[64];
-            snprintf(cr, sizeof cr, "bytes */%" PRIu64, length);
-            evhttp_add_header(out, "Content-Range", cr);
-            send_text(door, req, 416, "Range Not Satisfiable", "error: range not satisfiable");
-            return;
-        }
+    switch (ms_http_parse_range(evhttp_find_header(in, "Range"), length, &first, &last)) {
+    case MS_HTTP_RANGE_NONE: break;
+    case MS_HTTP_RANGE_UNSATISFIABLE: {
+        char cr[64];
+        snprintf(cr, sizeof cr, "bytes */%" PRIu64, length);
+        evhttp_add_header(out, "Content-Range", cr);
+        send_text(door, req, 416, "Range Not Satisfiable", "error: range not satisfiable");
+        return;
+    }
+    case MS_HTTP_RANGE_OK: {
         char cr[96];
         snprintf(cr, sizeof cr, "bytes %" PRIu64 "-%" PRIu64 "/%" PRIu64, first, last, length);
         evhttp_add_header(out, "Content-Range", cr);
         code = 206;
+        break;
+    }
     }
     uint64_t count = length ? last - first + 1 : 0;
+    if (is_head(req)) {
+        reply(req, code, code == 206 ? "Partial Content" : "OK", NULL, count);
+        return;
+    }
     struct evbuffer *body = evbuffer_new();
     if (!body) {
         send_text(door, req, 500, "Internal Server Error", "error: out of memory");
@@ -229,9 +274,13 @@ static void serve_index(ms_http_door *door, struct evhttp_request *req, ms_model
     char etag[128];
     snprintf(etag, sizeof etag, "\"%" PRIx64 "-%" PRIx64 "-index\"", model->file_inode,
              (uint64_t)model->file_mtime_ns);
-    send_bytes(door, req, model, index, size, etag);
+    send_bytes(door, req, model, index, size, etag, false);
 }
 
+/* A cell's geometry (?bits=B: the prefix complete at B bits; bits above the
+ * cell's own top mean all of it) or APO (?levels=L: the first L levels). The
+ * URL is turned into a request entry and ms_access_resolve decides, as for the
+ * binary door: the preview check runs on the clamped precision. */
 static void serve_cell(ms_http_door *door, struct evhttp_request *req, ms_model *model,
                        const char *cell_text, const char *kind, const struct evkeyvalq *query)
 {
@@ -243,33 +292,26 @@ static void serve_cell(ms_http_door *door, struct evhttp_request *req, ms_model 
         send_text(door, req, 404, "Not Found", "error: no such cell");
         return;
     }
-    bool full = authorized(door, req, query);
-    unsigned public_bits = model->entry.public_max_bits;
-    if (!full && c->bits_min > public_bits) {
+    bool token_used;
+    ms_access grant = reader_grant(door, req, model, &token_used);
+    if (ms_access_cell_hidden(model, &grant, cell)) {
         send_text(door, req, 403, "Forbidden", "error: this cell is beyond the public preview; a token is required");
         return;
     }
-    char etag[160];
-    if (!strcmp(kind, "geometry")) {
-        unsigned allowed = full || c->bits_max < public_bits ? c->bits_max : public_bits;
-        uint32_t bits = allowed;
+    bool geometry = !strcmp(kind, "geometry");
+    ms_proto_cell_request entry = {cell, geometry ? MS_PROTO_STREAM_GEOMETRY : MS_PROTO_STREAM_APO,
+                                   MS_PROTO_UNIT_STEPS, 0, 0, 0};
+    bool empty = false;
+    if (geometry) {
+        uint32_t bits = c->bits_max;
+        if (grant.permitted_geometry_steps - 1u < bits)
+            bits = grant.permitted_geometry_steps - 1u; /* by default, all the grant allows */
         const char *bits_text = evhttp_find_header(query, "bits");
         if (bits_text && !parse_u32(bits_text, 64, &bits)) {
             send_text(door, req, 400, "Bad Request", "error: bits must be an integer in 0..64");
             return;
         }
-        if (bits > allowed && bits <= c->bits_max) {
-            send_text(door, req, 403, "Forbidden", "error: precision beyond the public preview needs a token");
-            return;
-        }
-        if (bits > c->bits_max)
-            bits = c->bits_max;
-        size_t total;
-        const uint8_t *data = ms_archive_geometry(model->archive, cell, &total);
-        uint32_t length = ms_archive_geometry_prefix(model->archive, cell, bits);
-        snprintf(etag, sizeof etag, "\"%" PRIx64 "-%" PRIx64 "-%u-g%u\"", model->file_inode,
-                 (uint64_t)model->file_mtime_ns, cell, bits);
-        send_bytes(door, req, model, data, length, etag);
+        entry.b = bits < c->bits_max ? bits : c->bits_max;
     } else {
         uint32_t levels = c->apo_levels;
         const char *levels_text = evhttp_find_header(query, "levels");
@@ -277,13 +319,34 @@ static void serve_cell(ms_http_door *door, struct evhttp_request *req, ms_model 
             send_text(door, req, 400, "Bad Request", "error: levels must be an integer in 1..64");
             return;
         }
-        size_t total;
-        const uint8_t *data = ms_archive_apo(model->archive, cell, &total);
-        uint32_t length = levels ? ms_archive_apo_prefix(model->archive, cell, levels - 1, NULL) : 0;
-        snprintf(etag, sizeof etag, "\"%" PRIx64 "-%" PRIx64 "-%u-a%u\"", model->file_inode,
-                 (uint64_t)model->file_mtime_ns, cell, levels);
-        send_bytes(door, req, model, data, length, etag);
+        empty = levels == 0; /* a cell without APO */
+        entry.b = levels ? levels - 1 : 0;
     }
+    if (entry.b > MS_PROTO_MAX_STEP)
+        entry.b = MS_PROTO_MAX_STEP;
+    ms_proto_byte_range range = {0, 0};
+    ms_proto_fault fault = {.code = MS_PROTO_E_INTERNAL};
+    if (!empty && ms_access_resolve(model, &grant, &entry, &range, &fault, NULL) != MS_OK) {
+        if (fault.code == MS_PROTO_E_FORBIDDEN)
+            send_text(door, req, 403, "Forbidden", "error: precision beyond the public preview needs a token");
+        else
+            send_text(door, req, 500, "Internal Server Error", "error: the cell's index is inconsistent");
+        return;
+    }
+    if (range.end > 0 && !ms_server_payload_intact(door->server, model, cell, !geometry)) {
+        send_text(door, req, 500, "Internal Server Error",
+                  "error: the archive's copy of this payload is damaged");
+        return;
+    }
+    size_t total;
+    const uint8_t *data = geometry ? ms_archive_geometry(model->archive, cell, &total)
+                                   : ms_archive_apo(model->archive, cell, &total);
+    char etag[160];
+    snprintf(etag, sizeof etag, "\"%" PRIx64 "-%" PRIx64 "-%u-%c%u\"", model->file_inode,
+             (uint64_t)model->file_mtime_ns, cell, geometry ? 'g' : 'a',
+             geometry ? entry.b : (empty ? 0 : entry.b + 1));
+    /* Resolved ranges of a STEPS request from step 0 start at byte 0. */
+    send_bytes(door, req, model, data, range.end, etag, token_used);
 }
 
 /* --- JSON and metrics -------------------------------------------------------- */
@@ -313,7 +376,7 @@ static void serve_catalog(ms_http_door *door, struct evhttp_request *req)
     if (body) {
         evbuffer_add_printf(body, "%s\n", text);
         evhttp_add_header(evhttp_request_get_output_headers(req), "Content-Type", "application/json");
-        evhttp_send_reply(req, 200, "OK", body);
+        reply(req, 200, "OK", body, evbuffer_get_length(body));
         evbuffer_free(body);
     }
     free(text);
@@ -343,6 +406,10 @@ static void serve_metrics(ms_http_door *door, struct evhttp_request *req)
         {"meshstream_queued_bytes", "gauge", "Payload bytes queued over all connections", m->queued_bytes},
         {"meshstream_rescans_total", "counter", "Archive directory rescans", m->rescans},
         {"meshstream_rescan_failures_total", "counter", "Rescans that failed", m->rescan_failures},
+        {"meshstream_http_connections", "gauge", "Open HTTP connections", m->http_connections},
+        {"meshstream_http_connections_dropped_total", "counter",
+         "HTTP connections closed for a late request header or no send progress",
+         m->http_connections_dropped},
     };
     for (size_t i = 0; i < sizeof rows / sizeof *rows; ++i) {
         if (rows[i].type) {
@@ -354,7 +421,7 @@ static void serve_metrics(ms_http_door *door, struct evhttp_request *req)
     }
     evhttp_add_header(evhttp_request_get_output_headers(req), "Content-Type",
                       "text/plain; version=0.0.4");
-    evhttp_send_reply(req, 200, "OK", body);
+    reply(req, 200, "OK", body, evbuffer_get_length(body));
     evbuffer_free(body);
 }
 
@@ -364,10 +431,11 @@ static void serve_metrics(ms_http_door *door, struct evhttp_request *req)
  * benchmark), for meshload's baseline: the same bytes a non-streaming viewer
  * would download. Public models only; 404 when there is no such file. */
 static void serve_draco(ms_http_door *door, struct evhttp_request *req, ms_model *model,
-                        const char *name, const struct evkeyvalq *query)
+                        const char *name)
 {
-    if (!authorized(door, req, query) &&
-        model->entry.public_max_bits < ms_archive_get_header(model->archive)->bits) {
+    bool token_used;
+    ms_access grant = reader_grant(door, req, model, &token_used);
+    if (!ms_access_is_full(&grant)) {
         send_text(door, req, 403, "Forbidden", "error: the whole model needs a token");
         return;
     }
@@ -392,10 +460,13 @@ static void serve_draco(ms_http_door *door, struct evhttp_request *req, ms_model
     }
     if (st.st_size == 0)
         close(fd);
-    evhttp_add_header(evhttp_request_get_output_headers(req), "Content-Type",
-                      "application/octet-stream");
-    door->server->metrics.http_bytes_sent += (uint64_t)st.st_size;
-    evhttp_send_reply(req, 200, "OK", body);
+    struct evkeyvalq *out = evhttp_request_get_output_headers(req);
+    evhttp_add_header(out, "Content-Type", "application/octet-stream");
+    evhttp_add_header(out, "Cache-Control", token_used ? "private, max-age=3600" : "public, max-age=3600");
+    evhttp_add_header(out, "Vary", "Authorization");
+    if (!is_head(req))
+        door->server->metrics.http_bytes_sent += (uint64_t)st.st_size;
+    reply(req, 200, "OK", body, (uint64_t)st.st_size); /* a HEAD: freeing body closes fd */
     evbuffer_free(body);
 }
 
@@ -427,7 +498,7 @@ static void route(ms_http_door *door, struct evhttp_request *req, char *path,
             return;
         }
         if (n == 3 && !strcmp(seg[2], "draco")) {
-            serve_draco(door, req, model, seg[1], query);
+            serve_draco(door, req, model, seg[1]);
             return;
         }
         if (n == 5 && !strcmp(seg[2], "cells") &&
@@ -452,10 +523,23 @@ static void disable_nagle(struct evhttp_request *req)
         setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
 }
 
+static tracked_connection *find_tracked(ms_http_door *door, struct evhttp_request *req)
+{
+    struct evhttp_connection *conn = evhttp_request_get_connection(req);
+    struct bufferevent *bev = conn ? evhttp_connection_get_bufferevent(conn) : NULL;
+    for (size_t i = 0; bev && i < door->connection_count; ++i)
+        if (door->connections[i].bev == bev)
+            return &door->connections[i];
+    return NULL;
+}
+
 static void handle_request(struct evhttp_request *req, void *arg)
 {
     ms_http_door *door = arg;
     disable_nagle(req);
+    tracked_connection *t = find_tracked(door, req);
+    if (t)
+        t->deadline_from = ms_now_seconds();
     door->server->metrics.http_requests++;
     enum evhttp_cmd_type cmd = evhttp_request_get_command(req);
     if (cmd != EVHTTP_REQ_GET && cmd != EVHTTP_REQ_HEAD) {
@@ -480,11 +564,118 @@ static void handle_request(struct evhttp_request *req, void *arg)
     TAILQ_INIT(&query);
     const char *query_text = evhttp_uri_get_query(uri);
     if (query_text && evhttp_parse_query_str(query_text, &query) != 0) {
+        evhttp_clear_headers(&query);
         send_text(door, req, 400, "Bad Request", "error: bad query string");
+        return;
+    }
+    if (evhttp_find_header(&query, "token")) {
+        send_text(door, req, 400, "Bad Request",
+                  "error: the token is not accepted in the URL (URLs end up in logs); send "
+                  "Authorization: Bearer TOKEN");
+        evhttp_clear_headers(&query);
         return;
     }
     route(door, req, path, &query);
     evhttp_clear_headers(&query);
+}
+
+/* --- Connections: a cap, a header deadline, a send deadline ------------------ */
+
+#define SWEEP_INTERVAL_US 250000
+
+static void update_accepting(ms_http_door *door)
+{
+    bool full = door->connection_count >= door->server->config.http_max_connections;
+    if (!door->listener || (full && door->accept_paused_full))
+        return;
+    door->accept_paused_full = full;
+    /* At the cap, further clients wait in the kernel's backlog: they hold no
+     * descriptor of ours, and the binary door's stay free. Below it, enabling
+     * also ends a pause after an accept failure (on_accept_error). */
+    if (full)
+        evconnlistener_disable(door->listener);
+    else
+        evconnlistener_enable(door->listener);
+}
+
+/* evhttp asks for each accepted connection's bufferevent: the door makes it,
+ * and keeps a reference to track it. */
+static struct bufferevent *new_connection(struct event_base *base, void *arg)
+{
+    ms_http_door *door = arg;
+    struct bufferevent *bev = bufferevent_socket_new(base, -1, BEV_OPT_CLOSE_ON_FREE);
+    if (!bev)
+        return NULL; /* evhttp makes one itself; that one goes untracked */
+    if (door->connection_count == door->connection_capacity) {
+        size_t capacity = door->connection_capacity ? 2 * door->connection_capacity : 64;
+        tracked_connection *grown = realloc(door->connections, capacity * sizeof *grown);
+        if (!grown)
+            return bev;
+        door->connections = grown;
+        door->connection_capacity = capacity;
+    }
+    bufferevent_incref(bev);
+    double now = ms_now_seconds();
+    door->connections[door->connection_count++] = (tracked_connection){bev, now, 0, now, false};
+    door->server->metrics.http_connections = door->connection_count;
+    update_accepting(door);
+    return bev;
+}
+
+/* Ends a connection evhttp still owns: shutting the socket down makes evhttp
+ * see the end of stream and free it. */
+static void drop_connection(ms_http_door *door, tracked_connection *t)
+{
+    if (t->dropped)
+        return;
+    t->dropped = true;
+    evutil_socket_t fd = bufferevent_getfd(t->bev);
+    if (fd >= 0)
+        shutdown(fd, SHUT_RDWR);
+    door->server->metrics.http_connections_dropped++;
+}
+
+static void sweep(evutil_socket_t fd, short what, void *arg)
+{
+    (void)fd, (void)what;
+    ms_http_door *door = arg;
+    const ms_server_config *config = &door->server->config;
+    double now = ms_now_seconds();
+    for (size_t i = 0; i < door->connection_count;) {
+        tracked_connection *t = &door->connections[i];
+        bufferevent_data_cb read_cb, write_cb;
+        bufferevent_event_cb event_cb;
+        void *cb_arg;
+        bufferevent_getcb(t->bev, &read_cb, &write_cb, &event_cb, &cb_arg);
+        if (!read_cb && !write_cb && !event_cb) { /* evhttp freed it: let it go */
+            bufferevent_decref(t->bev);
+            door->connections[i] = door->connections[--door->connection_count];
+            continue;
+        }
+        size_t waiting = evbuffer_get_length(bufferevent_get_output(t->bev));
+        if (waiting != t->output_length) {
+            t->output_length = waiting;
+            t->output_since = now;
+        }
+        if (waiting && now - t->output_since > config->send_timeout_s)
+            drop_connection(door, t); /* a slow reader */
+        else if (!waiting && now - t->deadline_from > config->http_header_timeout_s)
+            drop_connection(door, t); /* no complete request header in time */
+        ++i;
+    }
+    door->server->metrics.http_connections = door->connection_count;
+    update_accepting(door);
+}
+
+/* Out of descriptors (or another accept failure): the listener stays
+ * readable, so instead of spinning (and libevent logging each failure)
+ * accepting pauses until the next sweep, at most SWEEP_INTERVAL_US. evhttp
+ * owns the listener and its argument, so this callback knows nothing of the
+ * door: it only pauses; the sweep resumes. */
+static void on_accept_error(struct evconnlistener *listener, void *arg)
+{
+    (void)arg;
+    evconnlistener_disable(listener);
 }
 
 ms_status ms_http_door_open(ms_server *server, ms_http_door **out, uint16_t *bound_port,
@@ -506,6 +697,7 @@ ms_status ms_http_door_open(ms_server *server, ms_http_door **out, uint16_t *bou
     evhttp_set_max_body_size(door->http, 4096);
     evhttp_set_timeout(door->http, (int)server->config.idle_timeout_s);
     evhttp_set_gencb(door->http, handle_request, door);
+    evhttp_set_bevcb(door->http, new_connection, door);
     const char *address = server->config.bind_address ? server->config.bind_address : "127.0.0.1";
     struct evhttp_bound_socket *socket =
         evhttp_bind_socket_with_handle(door->http, address, (ev_uint16_t)server->config.http_port);
@@ -515,6 +707,15 @@ ms_status ms_http_door_open(ms_server *server, ms_http_door **out, uint16_t *bou
         ms_http_door_close(door);
         return st;
     }
+    door->listener = evhttp_bound_socket_get_listener(socket);
+    door->sweep = event_new(server->base, -1, EV_PERSIST, sweep, door);
+    struct timeval tick = {0, SWEEP_INTERVAL_US};
+    if (!door->listener || !door->sweep ||
+        event_add(door->sweep, &tick) != 0) {
+        ms_http_door_close(door);
+        return ms_error_set(err, MS_ERR_NOMEM, "http: cannot set up connection tracking");
+    }
+    evconnlistener_set_error_cb(door->listener, on_accept_error);
     struct sockaddr_storage ss;
     socklen_t len = sizeof ss;
     *bound_port = 0;
@@ -530,6 +731,11 @@ void ms_http_door_close(ms_http_door *door)
     if (!door)
         return;
     if (door->http)
-        evhttp_free(door->http);
+        evhttp_free(door->http); /* frees its connections, then the door's references go */
+    for (size_t i = 0; i < door->connection_count; ++i)
+        bufferevent_decref(door->connections[i].bev);
+    free(door->connections);
+    if (door->sweep)
+        event_free(door->sweep);
     free(door);
 }

@@ -10,10 +10,13 @@
  *   /metrics                              Prometheus text format
  *
  * Payloads honour a single `Range: bytes=...` (206 / 416), carry an ETag and are
- * sent from the archive mapping without copying. Access: above a model's public
- * precision a client must present the operator's token (`Authorization: Bearer
- * TOKEN` or `?token=TOKEN`), else 403. Requests per client address are
- * rate-limited (429). Thread-safety: runs on the server loop.
+ * sent from the archive mapping without copying. Access (ms_access.h decides):
+ * above a model's public precision a client must present the operator's token
+ * in `Authorization: Bearer TOKEN`, else 403; a `token` query parameter is
+ * refused (400: URLs end up in logs). Answers whose body the token widened are
+ * `Cache-Control: private`, the others `public`, all with `Vary: Authorization`.
+ * Requests per client address are rate-limited (429). Thread-safety: runs on
+ * the server loop.
  */
 #ifndef MS_HTTP_DOOR_H
 #define MS_HTTP_DOOR_H

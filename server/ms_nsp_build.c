@@ -2,6 +2,7 @@
 #include "ms_nsp_build.h"
 
 #include <errno.h>
+#include <float.h>
 #include <inttypes.h>
 #ifdef __GLIBC__
 #include <malloc.h>
@@ -261,6 +262,69 @@ static ms_status read_records(const ms_nsp_build *b, const ms_nsp_node *node, ui
 
 static ms_status insert_under(ms_nsp_build *b, uint32_t top, const uint32_t rec[3],
                               unsigned *reached, ms_error *err);
+static ms_status append(ms_nsp_build *b, uint32_t index, const uint32_t rec[3], ms_error *err);
+
+/* A triangle record by its welded vertices (sorted keys), for finding repeats. */
+typedef struct keyed_record {
+    uint64_t key[3];
+    size_t at; /* record index */
+} keyed_record;
+
+static int cmp_keyed_record(const void *x, const void *y)
+{
+    const keyed_record *a = x, *b = y;
+    for (int i = 0; i < 3; ++i)
+        if (a->key[i] != b->key[i])
+            return a->key[i] < b->key[i] ? -1 : 1;
+    return a->at < b->at ? -1 : (a->at > b->at);
+}
+
+/* Removes from rec[0..*count) every triangle record whose welded vertex set
+ * an earlier record already has (the first stays, in order, as the encoder's
+ * ms_tri_unify would keep it); point records stay. *distinct: the triangle
+ * records left. */
+static ms_status drop_repeated_triangles(const ms_nsp_build *b, uint32_t *rec, size_t *count,
+                                         size_t *distinct, ms_error *err)
+{
+    size_t n = *count, triangles = 0;
+    keyed_record *k = malloc((n ? n : 1) * sizeof *k);
+    bool *drop = calloc(n ? n : 1, sizeof *drop);
+    if (!k || !drop) {
+        free(k);
+        free(drop);
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory finding repeated triangles");
+    }
+    for (size_t i = 0; i < n; ++i) {
+        const uint32_t *r = rec + 3 * i;
+        if (r[0] == r[1])
+            continue; /* a point record */
+        uint64_t a = b->keys[r[0]], c = b->keys[r[1]], d = b->keys[r[2]], x;
+        if (a > c)
+            x = a, a = c, c = x;
+        if (c > d)
+            x = c, c = d, d = x;
+        if (a > c)
+            x = a, a = c, c = x;
+        k[triangles++] = (keyed_record){{a, c, d}, i};
+    }
+    qsort(k, triangles, sizeof *k, cmp_keyed_record);
+    size_t kept = 0;
+    for (size_t i = 0; i < triangles; ++i) {
+        if (i > 0 && !memcmp(k[i].key, k[i - 1].key, sizeof k[i].key))
+            drop[k[i].at] = true;
+        else
+            ++kept;
+    }
+    size_t out = 0;
+    for (size_t i = 0; i < n; ++i)
+        if (!drop[i])
+            memmove(rec + 3 * out++, rec + 3 * i, 12);
+    free(k);
+    free(drop);
+    *count = out;
+    *distinct = kept;
+    return MS_OK;
+}
 
 static ms_status split_node(ms_nsp_build *b, uint32_t index, ms_error *err)
 {
@@ -311,6 +375,25 @@ static ms_status split_node(ms_nsp_build *b, uint32_t index, ms_error *err)
     node->buf = NULL;
     node->buffered = node->buffer_cap = node->blocks = 0;
     node->head_block = -1;
+    /* Split on distinct triangles: repeated ones (the same welded vertices)
+     * go now, and a node they alone filled takes the rest back and stays a
+     * leaf. Each such check costs O(m log m) for the m records of a node that
+     * just reached the threshold, so copies cost O(n log n) in all. */
+    size_t distinct = 0;
+    s = drop_repeated_triangles(b, rec, &count, &distinct, err);
+    if (s != MS_OK) {
+        free(rec);
+        return s;
+    }
+    if (distinct < b->params.min_triangles) {
+        b->stats.leaf_triangle_records -= node->triangles;
+        b->stats.point_records -= node->records - node->triangles;
+        node->triangles = node->records = 0;
+        for (size_t i = 0; i < count && s == MS_OK; ++i)
+            s = append(b, index, rec + 3 * i, err);
+        free(rec);
+        return s;
+    }
     node->first_child = b->node_count;
     unsigned n = b->params.shape.n;
     for (unsigned k = 0; k < nc; ++k) {
@@ -522,6 +605,14 @@ ms_status ms_nsp_build_run(const char *path, const ms_nsp_build_params *params,
     ms_mesh extremes = {.positions = corners, .vertex_count = 2};
     if ((s = ms_quant_fit_box(&extremes, &b->box, err)) != MS_OK)
         goto done;
+    /* A denormal extent loses precision in every step after it, and the
+     * normals of its triangles underflow (no APO): refuse it. */
+    if (b->box.size < DBL_MIN) {
+        s = ms_error_set(err, MS_ERR_RANGE,
+                         "the model's extent %g is below the smallest normal double (%g): scale "
+                         "it up", b->box.size, DBL_MIN);
+        goto done;
+    }
     b->vertex_count = (size_t)sink.vertex_count;
     b->keys = malloc((b->vertex_count ? b->vertex_count : 1) * sizeof *b->keys);
     if (!b->keys) {

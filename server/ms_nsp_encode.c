@@ -421,7 +421,8 @@ static ms_status full_precision_mesh(const ms_nsp_build *b, uint32_t node, ms_me
     if (s == MS_OK)
         s = ms_mesh_reserve(M, nk, nt, err);
     if (s == MS_OK) {
-        memcpy(M->triangles, rank, 3 * nt * sizeof *rank);
+        if (nt) /* no triangle left: no array to copy into */
+            memcpy(M->triangles, rank, 3 * nt * sizeof *rank);
         M->triangle_count = nt;
     }
     if (s == MS_OK) {
@@ -600,7 +601,8 @@ static ms_status leaf_mesh(const ms_codec_state *st, const ms_quant_box *box, ms
         for (int a = 0; a < 3; ++a)
             m->positions[3 * i + (size_t)a] = box->origin[a] + 0.5 * (2.0 * c[a] + 1.0) * scale;
     }
-    memcpy(m->triangles, st->tris, 3 * st->tri_count * sizeof *m->triangles);
+    if (st->tri_count) /* an empty cell may have no triangle array at all */
+        memcpy(m->triangles, st->tris, 3 * st->tri_count * sizeof *m->triangles);
     m->vertex_count = st->vertex_count;
     m->triangle_count = st->tri_count;
     return MS_OK;

@@ -50,7 +50,7 @@ void ms_proto_conn_fail(ms_proto_conn *c, uint16_t code, uint64_t detail, const 
         return;
     metrics_of(c)->binary_errors++;
     ms_error err;
-    if (ms_frame_out_error(output(c), code, 0, 0, detail, text, &err) != MS_OK) {
+    if (ms_frame_out_error(output(c), code, true, 0, 0, detail, text, &err) != MS_OK) {
         ms_server_log(server_of(c), "binary: cannot send %s: %s", ms_proto_error_name(code),
                       err.text);
         ms_proto_conn_broken(c);
@@ -70,7 +70,7 @@ void ms_proto_conn_send_error(ms_proto_conn *c, uint16_t code, uint32_t request_
     }
     metrics_of(c)->binary_errors += count ? count : 1;
     ms_error err;
-    if (ms_frame_out_error(output(c), code, request_id, count, detail, text, &err) != MS_OK)
+    if (ms_frame_out_error(output(c), code, false, request_id, count, detail, text, &err) != MS_OK)
         ms_proto_conn_broken(c);
 }
 
@@ -226,6 +226,15 @@ bool ms_proto_conn_send_chunk(ms_fair_link *link, void *arg)
 
 /* --- Life cycle ------------------------------------------------------------- */
 
+static void on_output_change(struct evbuffer *buffer, const struct evbuffer_cb_info *info,
+                             void *arg)
+{
+    (void)buffer;
+    ms_proto_conn *c = arg;
+    if (info->n_deleted || (info->orig_size == 0 && info->n_added))
+        c->last_send_progress = ms_now_seconds();
+}
+
 ms_proto_conn *ms_proto_conn_new(ms_proto_door_shared *door, evutil_socket_t fd, bool rejected)
 {
     ms_proto_conn *c = calloc(1, sizeof *c);
@@ -237,7 +246,7 @@ ms_proto_conn *ms_proto_conn_new(ms_proto_door_shared *door, evutil_socket_t fd,
     c->rejected = rejected;
     c->state = MS_CONN_AWAIT_HELLO;
     c->client_max_frame = MS_PROTO_MIN_FRAME;
-    c->last_frame_at = c->rate_updated = ms_now_seconds();
+    c->last_frame_at = c->rate_updated = c->last_send_progress = ms_now_seconds();
     c->rate_tokens = door->limits.max_batch;
     ms_request_queue_init(&c->queue);
     ms_proto_decoder_config dc = {MS_PROTO_ROLE_SERVER, door->limits.max_frame,
@@ -252,6 +261,12 @@ ms_proto_conn *ms_proto_conn_new(ms_proto_door_shared *door, evutil_socket_t fd,
         return NULL;
     }
     bufferevent_setcb(c->bev, on_read, on_write, on_event, c);
+    if (!evbuffer_add_cb(bufferevent_get_output(c->bev), on_output_change, c)) {
+        ms_proto_decoder_free(&c->decoder);
+        bufferevent_free(c->bev);
+        free(c);
+        return NULL;
+    }
     bufferevent_setwatermark(c->bev, EV_WRITE, MS_PROTO_CONN_LOW_WATER, 0);
     bufferevent_setwatermark(c->bev, EV_READ, 0, 256u << 10);
     bufferevent_set_max_single_read(c->bev, 256u << 10);
@@ -293,6 +308,19 @@ bool ms_proto_conn_sweep(ms_proto_conn *c, double now)
         idle_ms = MS_PROTO_CONN_HANDSHAKE_SECONDS * 1000u;
     if (idle_ms && !c->queue.count && (now - c->last_frame_at) * 1000.0 > idle_ms)
         ms_proto_conn_fail(c, MS_PROTO_E_IDLE_TIMEOUT, idle_ms, "idle time-out");
+    /* A slow reader: bytes wait for it and it has read none of them for
+     * send_timeout. Its slot, queue and buffers go; the ERROR may never reach
+     * it, the linger bounds the rest. */
+    size_t waiting = evbuffer_get_length(output(c));
+    if (c->state != MS_CONN_CLOSING && waiting && c->door->send_timeout_s > 0 &&
+        now - c->last_send_progress > c->door->send_timeout_s) {
+        char text[96];
+        snprintf(text, sizeof text, "no send progress for %.0f s", c->door->send_timeout_s);
+        ms_server_log(server_of(c), "binary: connection dropped: %s (%zu bytes waiting)", text,
+                      waiting);
+        ms_proto_conn_fail(c, MS_PROTO_E_IDLE_TIMEOUT, (uint64_t)(c->door->send_timeout_s * 1000),
+                           text);
+    }
     return true;
 }
 

@@ -20,6 +20,7 @@
 #include <stdbool.h>
 #include <stdint.h>
 
+#include "ms_access.h"
 #include "ms_fair_scheduler.h"
 #include "ms_proto.h"
 #include "ms_request_queue.h"
@@ -42,12 +43,13 @@ typedef struct ms_proto_door_shared {
     bool draining;
     /* Limits announced in HELLO_REPLY, derived once from the config. */
     ms_proto_hello_reply limits;
+    double send_timeout_s; /* config send_timeout: most time without send progress */
 } ms_proto_door_shared;
 
 typedef struct ms_open_model {
     uint32_t handle;        /* 0 = free slot */
     struct ms_model *model; /* one reference held */
-    uint8_t permitted_geometry_steps, permitted_apo_steps;
+    ms_access grant;        /* what this connection may read of it, fixed at open */
 } ms_open_model;
 
 typedef enum ms_conn_state {
@@ -75,6 +77,10 @@ typedef struct ms_proto_conn {
     ms_request_queue queue;
     double rate_tokens, rate_updated;
     double last_frame_at, closing_since;
+    /* When the output buffer last shrank (the peer read), or last filled from
+     * empty: a connection with bytes waiting and no progress for
+     * send_timeout_s is a slow reader, dropped by the sweep. */
+    double last_send_progress;
 } ms_proto_conn;
 
 /* Takes fd; creates the bufferevent and starts reading. NULL on failure (fd

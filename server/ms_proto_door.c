@@ -2,6 +2,7 @@
 #include "ms_proto_door.h"
 
 #include <errno.h>
+#include <event2/buffer.h>
 #include <event2/event.h>
 #include <event2/listener.h>
 #include <netinet/in.h>
@@ -10,6 +11,7 @@
 #include <string.h>
 #include <sys/socket.h>
 
+#include "ms_frame_out.h"
 #include "ms_progress.h"
 #include "ms_proto_conn.h"
 #include "ms_server.h"
@@ -26,6 +28,10 @@ struct ms_proto_door {
     struct event *accept_resume;  /* after running out of descriptors */
     ms_proto_conn *connections;  /* doubly linked */
     size_t connection_count, rejected_count;
+    /* ERROR TOO_MANY_CONNECTIONS, encoded once: what a connection past the
+     * lingering cap gets straight from accept, so none is closed unanswered. */
+    uint8_t reject_frame[128];
+    size_t reject_frame_length;
 };
 
 static ms_proto_door *door_of(ms_proto_door_shared *shared) { return (ms_proto_door *)shared; }
@@ -55,6 +61,14 @@ static void on_accept(struct evconnlistener *listener, evutil_socket_t fd, struc
     ms_server *s = door->shared.server;
     bool rejected = s->metrics.binary_connections >= s->config.max_clients;
     if (rejected && door->rejected_count >= MAX_REJECTED_LINGERING) {
+        /* No room to linger: the answer goes in one send (a fresh socket's
+         * buffer takes it whole), what the peer sent is read away so that the
+         * close is a FIN, not a reset that could destroy the answer. */
+        send(fd, door->reject_frame, door->reject_frame_length, MSG_DONTWAIT | MSG_NOSIGNAL);
+        shutdown(fd, SHUT_WR);
+        uint8_t sink[4096];
+        while (recv(fd, sink, sizeof sink, MSG_DONTWAIT) > 0) {
+        }
         evutil_closesocket(fd);
         return;
     }
@@ -145,6 +159,18 @@ ms_status ms_proto_door_open(ms_server *server, ms_proto_door **out, uint16_t *b
         return ms_error_set(err, MS_ERR_NOMEM, "binary: out of memory");
     door->shared.server = server;
     announce_limits(&server->config, &door->shared.limits);
+    struct evbuffer *frame = evbuffer_new();
+    if (!frame || ms_frame_out_error(frame, MS_PROTO_E_TOO_MANY_CONNECTIONS, true, 0, 0, 0,
+                                     "too many connections", err) != MS_OK ||
+        evbuffer_get_length(frame) > sizeof door->reject_frame) {
+        if (frame)
+            evbuffer_free(frame);
+        free(door);
+        return ms_error_set(err, MS_ERR_NOMEM, "binary: cannot encode the rejection frame");
+    }
+    door->reject_frame_length = evbuffer_remove(frame, door->reject_frame, sizeof door->reject_frame);
+    evbuffer_free(frame);
+    door->shared.send_timeout_s = server->config.send_timeout_s;
     ms_status st = ms_fair_scheduler_init(&door->shared.scheduler, server->base,
                                           ms_proto_conn_send_chunk, door, CHUNKS_PER_TURN, err);
     if (st != MS_OK) {

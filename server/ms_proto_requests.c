@@ -9,6 +9,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "ms_access.h"
 #include "ms_frame_out.h"
 #include "ms_progress.h"
 #include "ms_proto_conn.h"
@@ -79,12 +80,11 @@ static bool ids_free(ms_proto_conn *c, uint32_t first, uint32_t count)
 static void model_steps(const ms_proto_conn *c, const ms_model *m, uint8_t *geometry, uint8_t *apo,
                         uint8_t *permitted_geometry, uint8_t *permitted_apo)
 {
-    unsigned bits = ms_archive_get_header(m->archive)->bits;
-    *geometry = (uint8_t)(bits + 1);
-    *apo = m->max_apo_levels;
-    bool full = c->token_accepted || m->entry.public_max_bits >= bits;
-    *permitted_geometry = (uint8_t)(full ? bits + 1 : m->entry.public_max_bits + 1u);
-    *permitted_apo = m->max_apo_levels;
+    ms_access grant = ms_access_grant(m, c->token_accepted);
+    *geometry = grant.geometry_steps;
+    *apo = grant.apo_steps;
+    *permitted_geometry = grant.permitted_geometry_steps;
+    *permitted_apo = grant.permitted_apo_steps;
 }
 
 static bool model_servable(const ms_model *m)
@@ -244,8 +244,7 @@ static void handle_open_model(ms_proto_conn *c, uint32_t id, const ms_proto_open
     mo->archive_version = MS_ARCHIVE_BLOB_VERSION; /* the blob, not the file: always 1 */
     model_steps(c, m, &mo->geometry_steps, &mo->apo_steps, &mo->permitted_geometry_steps,
                 &mo->permitted_apo_steps);
-    slot->permitted_geometry_steps = mo->permitted_geometry_steps;
-    slot->permitted_apo_steps = mo->permitted_apo_steps;
+    slot->grant = ms_access_grant(m, c->token_accepted);
     ms_proto_conn_send_message(c, &msg);
     uint32_t chunk = c->client_max_frame - MS_PROTO_INDEX_DATA_FIXED;
     if (chunk > INDEX_CHUNK_BYTES)
@@ -339,36 +338,18 @@ typedef struct resolved {
     uint32_t start, end;
 } resolved;
 
-static resolved resolve_entry(const ms_open_model *slot, const ms_proto_cell_request *e)
+/* What may be sent (ms_access_resolve), and only from an intact payload. */
+static resolved resolve_entry(const ms_proto_conn *c, const ms_open_model *slot,
+                              const ms_proto_cell_request *e)
 {
-    const ms_archive *a = slot->model->archive;
-    const ms_archive_cell *cell = ms_archive_get_cell(a, e->cell_id);
-    if (!cell)
-        return (resolved){MS_PROTO_E_UNKNOWN_CELL, e->cell_id, 0, 0};
-    uint8_t geometry_steps = (uint8_t)(ms_archive_get_header(a)->bits + 1u);
-    uint8_t pg = slot->permitted_geometry_steps;
-    uint32_t ends[MS_PROTO_MAX_STEPS];
-    ms_proto_stream_steps steps = {0, 0, ends};
-    ms_proto_stream_access access;
-    if (e->stream == MS_PROTO_STREAM_GEOMETRY) {
-        steps.first_step = cell->bits_min;
-        steps.step_count = cell->bits_max - cell->bits_min + 1u;
-        for (uint32_t i = 0; i < steps.step_count; ++i)
-            ends[i] = ms_archive_geometry_prefix(a, e->cell_id, cell->bits_min + i);
-        access = (ms_proto_stream_access){geometry_steps, pg};
-    } else {
-        /* APO detail follows the geometric preview cell by cell (section 8). */
-        if (pg < geometry_steps && cell->bits_min >= pg)
-            return (resolved){MS_PROTO_E_FORBIDDEN, pg, 0, 0};
-        steps.step_count = cell->apo_levels;
-        for (uint32_t i = 0; i < steps.step_count; ++i)
-            ends[i] = ms_archive_apo_prefix(a, e->cell_id, i, NULL);
-        access = (ms_proto_stream_access){slot->model->max_apo_levels, slot->permitted_apo_steps};
-    }
     ms_proto_byte_range range;
-    ms_proto_fault fault;
-    if (ms_proto_resolve_range(e, &steps, &access, &range, &fault, NULL) != MS_OK)
+    ms_proto_fault fault = {.code = MS_PROTO_E_INTERNAL};
+    if (ms_access_resolve(slot->model, &slot->grant, e, &range, &fault, NULL) != MS_OK)
         return (resolved){fault.code, fault.detail, 0, 0};
+    if (range.begin < range.end &&
+        !ms_server_payload_intact(server_of(c), slot->model, e->cell_id,
+                                  e->stream == MS_PROTO_STREAM_APO))
+        return (resolved){MS_PROTO_E_INTERNAL, 0, 0, 0};
     return (resolved){0, 0, range.begin, range.end};
 }
 
@@ -378,6 +359,7 @@ static const char *entry_error_text(uint16_t code)
     case MS_PROTO_E_UNKNOWN_CELL: return "no such cell";
     case MS_PROTO_E_RANGE_NOT_SATISFIABLE: return "byte range outside the stream";
     case MS_PROTO_E_FORBIDDEN: return "beyond the public preview; a token is required";
+    case MS_PROTO_E_INTERNAL: return "the archive's copy of this payload is damaged";
     default: return "request failed";
     }
 }
@@ -417,7 +399,7 @@ static void handle_request_cells(ms_proto_conn *c, uint32_t first_id,
     }
     uint64_t bytes = 0;
     for (uint32_t i = 0; i < n; ++i) {
-        ranges[i] = resolve_entry(slot, &b->entries[i]);
+        ranges[i] = resolve_entry(c, slot, &b->entries[i]);
         if (!ranges[i].code)
             bytes += ranges[i].end - ranges[i].start;
     }

@@ -3,13 +3,17 @@
  *
  * A registry snapshot is immutable. ms_registry_scan builds a new one from the
  * directory, reusing the already-open archive of every model whose file did not
- * change (same inode, size and modification time), so a rescan (SIGHUP) costs
+ * change (same inode, size and modification time) and whose catalogue entry
+ * did not change either (a new public_max_bits takes effect at the rescan; an
+ * open binary-protocol handle keeps the grant it was given), so a rescan (SIGHUP) costs
  * little and never disturbs transfers in progress: each model is reference-
  * counted, and a connection that holds a model keeps its mapping alive after the
  * model has been removed or replaced.
  *
  * Only names that ms_model_name_valid accepts ever reach the file system, and
- * only as DIR/NAME.msa. A catalogue entry whose archive is missing or invalid is
+ * only as DIR/NAME.msa. A model whose file changed but no longer opens (a
+ * broken replacement) keeps its previous, verified version, with a warning:
+ * publish a new version by writing it aside and renaming it over the old. A catalogue entry whose archive is missing or invalid is
  * skipped with a one-line warning (reported through the callback), not fatal.
  *
  * Thread-safety: reference counts are not atomic; use from one thread (the
@@ -18,6 +22,7 @@
 #ifndef MS_REGISTRY_H
 #define MS_REGISTRY_H
 
+#include <stdbool.h>
 #include <stddef.h>
 #include <stdint.h>
 
@@ -36,9 +41,22 @@ typedef struct ms_model {
     uint8_t *index_zlib;
     size_t index_zlib_size;
     uint64_t content_id;    /* FNV-1a 64 of the index blob, which holds every payload CRC */
+    char *file_path;        /* DIR/NAME.msa, owned */
     uint64_t file_inode, file_size;
     int64_t file_mtime_ns;
+    /* Per cell, what ms_model_check_payload found (MS_PAYLOAD_* bits), so that
+     * each payload's CRC is computed once, on first use. */
+    uint8_t *payload_checks;
 } ms_model;
+
+enum {
+    MS_PAYLOAD_GEOMETRY_CHECKED = 1,
+    MS_PAYLOAD_GEOMETRY_BAD = 2,
+    MS_PAYLOAD_APO_CHECKED = 4,
+    MS_PAYLOAD_APO_BAD = 8,
+    MS_PAYLOAD_GEOMETRY_GONE = 16, /* reported: the file shrank under it */
+    MS_PAYLOAD_APO_GONE = 32,
+};
 
 typedef struct ms_registry {
     char *dir;
@@ -60,6 +78,23 @@ void ms_registry_release(ms_registry *registry);
 
 /* The model named name (validated first), or NULL. Does not take a reference. */
 ms_model *ms_registry_find(const ms_registry *registry, const char *name);
+
+/* Opens DIR/NAME.msa for the catalogue entry (copied; public_max_bits clamped
+ * to the archive's bits) as a model holding one reference. Errors: MS_ERR_IO
+ * (missing file), the archive reader's errors, MS_ERR_NOMEM. */
+ms_status ms_model_open(const char *dir, const ms_catalog_entry *entry, ms_model **out,
+                        ms_error *err);
+
+/* Checks one payload of a cell (its geometry, or its APO chunk when apo)
+ * against the CRC-32 in the index, the first time it is asked, and remembers
+ * the answer. MS_OK when it is intact; MS_ERR_CORRUPT naming the cell and the
+ * stream when not, with *first_report true only the first time (to log it
+ * once); MS_ERR_RANGE for a cell that does not exist. Every call also checks
+ * that the file under the mapping (same inode at file_path) still reaches past
+ * the payload: a file truncated in place gives MS_ERR_IO ("the archive file
+ * shrank"), never a read past its end (SIGBUS) or a silent short answer. */
+ms_status ms_model_check_payload(ms_model *model, uint32_t cell, bool apo, bool *first_report,
+                                 ms_error *err);
 
 void ms_model_ref(ms_model *model);
 void ms_model_unref(ms_model *model);

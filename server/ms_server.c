@@ -29,6 +29,17 @@ void ms_server_log(const ms_server *server, const char *fmt, ...)
     fprintf(stderr, "%s meshserve: %s\n", stamp, line);
 }
 
+bool ms_server_payload_intact(const ms_server *s, ms_model *model, uint32_t cell, bool apo)
+{
+    bool first_report;
+    ms_error err;
+    if (ms_model_check_payload(model, cell, apo, &first_report, &err) == MS_OK)
+        return true;
+    if (first_report)
+        ms_server_log(s, "model '%s': %s; not served", model->entry.name, err.text);
+    return false;
+}
+
 static void warn_model(void *arg, const char *message) { ms_server_log(arg, "%s", message); }
 
 ms_status ms_server_rescan(ms_server *s, ms_error *err)
@@ -107,7 +118,7 @@ static ms_status write_port_file(const ms_server *s, ms_error *err)
 static void raise_descriptor_limit(ms_server *s)
 {
     struct rlimit rl;
-    rlim_t want = (rlim_t)s->config.max_clients + 256 + 2 * 64;
+    rlim_t want = (rlim_t)s->config.max_clients + s->config.http_max_connections + 256 + 2 * 64;
     if (getrlimit(RLIMIT_NOFILE, &rl) != 0 || rl.rlim_cur >= want)
         return;
     rl.rlim_cur = want < rl.rlim_max ? want : rl.rlim_max;

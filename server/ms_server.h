@@ -34,6 +34,8 @@ typedef struct ms_server_metrics {
     uint64_t rescans;
     uint64_t rescan_failures;
     uint64_t transfers_in_flight;      /* payload buffers not yet sent, both doors */
+    uint64_t http_connections;         /* open now */
+    uint64_t http_connections_dropped; /* closed for a late header or no send progress */
 } ms_server_metrics;
 
 typedef struct ms_http_door ms_http_door;
@@ -68,6 +70,12 @@ ms_status ms_server_rescan(ms_server *server, ms_error *err);
 void ms_server_drain(ms_server *server);
 
 void ms_server_stop(ms_server *server);
+
+/* True when payload (a cell's geometry, or its APO chunk when apo) is intact:
+ * checked against its CRC once, on first use (ms_model_check_payload); a
+ * damaged one is logged once, and both doors refuse to serve it (INTERNAL,
+ * 500). */
+bool ms_server_payload_intact(const ms_server *server, ms_model *model, uint32_t cell, bool apo);
 
 /* Logs one line to stderr with a timestamp. */
 void ms_server_log(const ms_server *server, const char *fmt, ...)

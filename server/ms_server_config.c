@@ -16,12 +16,15 @@ void ms_server_config_defaults(ms_server_config *c)
     c->http_enabled = 1;
     c->max_clients = 1024;
     c->idle_timeout_s = 120;
+    c->send_timeout_s = 60;
     c->max_frame = 1u << 20;
     c->max_batch = 1024;
     c->max_outstanding = 4096;
     c->max_queued_bytes = 64ull << 20;
     c->request_rate = 20000;
     c->http_rate = 2000;
+    c->http_max_connections = 256;
+    c->http_header_timeout_s = 30;
 }
 
 void ms_server_config_free(ms_server_config *c)
@@ -80,12 +83,15 @@ ms_status ms_server_config_set(ms_server_config *c, const char *key, const char 
         {"port", offsetof(ms_server_config, port), 4, 0, 65535},
         {"max_clients", offsetof(ms_server_config, max_clients), 4, 1, 100000},
         {"idle_timeout", offsetof(ms_server_config, idle_timeout_s), 4, 1, 86400},
+        {"send_timeout", offsetof(ms_server_config, send_timeout_s), 4, 1, 86400},
         {"max_frame", offsetof(ms_server_config, max_frame), 4, 16384, 16u << 20},
         {"max_batch", offsetof(ms_server_config, max_batch), 4, 1, 65536},
         {"max_outstanding", offsetof(ms_server_config, max_outstanding), 4, 1, 1u << 20},
         {"max_queued_bytes", offsetof(ms_server_config, max_queued_bytes), 8, 1u << 16, 1ull << 34},
         {"request_rate", offsetof(ms_server_config, request_rate), 4, 1, 10000000},
         {"http_rate", offsetof(ms_server_config, http_rate), 4, 1, 10000000},
+        {"http_max_connections", offsetof(ms_server_config, http_max_connections), 4, 1, 100000},
+        {"http_header_timeout", offsetof(ms_server_config, http_header_timeout_s), 4, 1, 3600},
     };
     for (size_t i = 0; i < sizeof numbers / sizeof *numbers; ++i) {
         if (strcmp(key, numbers[i].key) != 0)

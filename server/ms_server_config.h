@@ -23,12 +23,17 @@ typedef struct ms_server_config {
     int http_enabled;         /* 0 when http_port is "off" */
     uint32_t max_clients;     /* simultaneous binary connections; default 1024 */
     uint32_t idle_timeout_s;  /* close a connection idle this long; default 120 */
+    uint32_t send_timeout_s;  /* close a binary connection whose peer reads nothing of
+                                 what waits for it this long (a slow reader); default 60 */
     uint32_t max_frame;       /* largest frame body accepted (binary door: at most 65,544, the largest batch); default 1 MiB */
     uint32_t max_batch;       /* entries in one request batch; default 1024 */
     uint32_t max_outstanding; /* queued requests per connection; default 4096 */
     uint64_t max_queued_bytes;/* payload bytes queued per connection; default 64 MiB */
     uint32_t request_rate;    /* requests per second per connection (burst max_batch); default 20000 */
     uint32_t http_rate;       /* HTTP requests per second per client address; default 2000 */
+    uint32_t http_max_connections; /* open HTTP connections; more wait in the backlog; default 256 */
+    uint32_t http_header_timeout_s; /* most time for an HTTP request header to arrive (after
+                                       the accept or the previous request); default 30 */
     char *token;              /* full-precision access token; NULL = none configured */
     char *port_file;          /* if set, "PORT HTTP_PORT\n" is written there once listening */
 } ms_server_config;

@@ -67,9 +67,78 @@ static void test_export_tree_matches_archive(void **state)
     assert_string_equal(text, "meshexport: invalid model name '../bust'\n");
     snprintf(cmd, sizeof cmd, "%s %s nothere -o %s", bin, archives, out);
     assert_int_equal(ms_test_run(cmd, text, sizeof text), 1);
-    assert_non_null(strstr(text, "nothere.msa: cannot open"));
+    char expect_text[1000];
+    snprintf(expect_text, sizeof expect_text,
+             "meshexport: model 'nothere' is not in %s/catalog.json\n", archives);
+    assert_string_equal(text, expect_text);
     snprintf(cmd, sizeof cmd, "%s %s", bin, archives);
     assert_int_equal(ms_test_run(cmd, text, sizeof text), 2);
+    ms_test_rmdir(dir);
+}
+
+/* Issue 19, item 1: a preview-limited model exports only what an anonymous
+ * reader may have (the same grant as both doors of meshserve): geometry up to
+ * the preview, nothing of cells wholly beyond it; --full exports everything. */
+static void test_export_respects_preview(void **state)
+{
+    (void)state;
+    char dir[512], archives[600], out[600], bin[512], cmd[4096], text[4096], path[900];
+    ms_test_tmpdir(dir, sizeof dir);
+    snprintf(archives, sizeof archives, "%s/a", dir);
+    snprintf(out, sizeof out, "%s/www", dir);
+    assert_int_equal(mkdir(archives, 0755), 0);
+    ms_test_add_model(archives, "vault", 2, 8); /* preview: 8 of 12 bits */
+    ms_test_bin_path(bin, sizeof bin, "meshexport");
+    snprintf(cmd, sizeof cmd, "%s %s vault -o %s", bin, archives, out);
+    assert_int_equal(ms_test_run(cmd, text, sizeof text), 0);
+    snprintf(path, sizeof path, "%s/vault.msa", archives);
+    ms_archive *a;
+    assert_int_equal(ms_archive_open(path, &a, NULL), MS_OK);
+    unsigned hidden = 0, cut = 0;
+    for (uint32_t cell = 0; cell < MS_TEST_ARCHIVE_CELLS; ++cell) {
+        const ms_archive_cell *c = ms_archive_get_cell(a, cell);
+        size_t size, expect_size;
+        snprintf(path, sizeof path, "%s/models/vault/cells/%u/geometry", out, cell);
+        char apo_path[1000];
+        snprintf(apo_path, sizeof apo_path, "%s/models/vault/cells/%u/apo", out, cell);
+        if (c->bits_min > 8) { /* nothing of it is public */
+            assert_int_equal(access(path, F_OK), -1);
+            assert_int_equal(access(apo_path, F_OK), -1);
+            ++hidden;
+            continue;
+        }
+        uint8_t *data = slurp(path, &size);
+        const uint8_t *expect = ms_archive_geometry(a, cell, &expect_size);
+        uint32_t allowed = ms_archive_geometry_prefix(a, cell, 8);
+        assert_int_equal(size, allowed);
+        assert_memory_equal(data, expect, size);
+        cut += allowed < expect_size;
+        free(data);
+        ms_archive_apo(a, cell, &expect_size);
+        assert_int_equal(access(apo_path, F_OK) == 0, expect_size > 0);
+    }
+    assert_true(hidden > 0 && cut > 0);
+    /* --full: what a token holder reads, every byte. */
+    snprintf(cmd, sizeof cmd, "%s %s vault -o %s --full", bin, archives, out);
+    assert_int_equal(ms_test_run(cmd, text, sizeof text), 0);
+    for (uint32_t cell = 0; cell < MS_TEST_ARCHIVE_CELLS; ++cell) {
+        size_t size, expect_size;
+        snprintf(path, sizeof path, "%s/models/vault/cells/%u/geometry", out, cell);
+        uint8_t *data = slurp(path, &size);
+        ms_archive_geometry(a, cell, &expect_size);
+        assert_int_equal(size, expect_size);
+        free(data);
+    }
+    /* Back to the preview: the files of hidden cells go. */
+    snprintf(cmd, sizeof cmd, "%s %s vault -o %s", bin, archives, out);
+    assert_int_equal(ms_test_run(cmd, text, sizeof text), 0);
+    snprintf(path, sizeof path, "%s/models/vault/cells/70/geometry", out);
+    assert_int_equal(access(path, F_OK), -1);
+    snprintf(path, sizeof path, "%s/models/vault/cells/6/geometry", out);
+    size_t size;
+    free(slurp(path, &size));
+    assert_int_equal(size, ms_archive_geometry_prefix(a, 6, 8));
+    ms_archive_close(a);
     ms_test_rmdir(dir);
 }
 
@@ -77,6 +146,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_export_tree_matches_archive),
+        cmocka_unit_test(test_export_respects_preview),
     };
     return cmocka_run_group_tests_name("meshexport", tests, NULL, NULL);
 }

@@ -9,23 +9,30 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
 #include <sys/stat.h>
+#include <sys/time.h>
 #include <unistd.h>
 #include <cmocka.h>
 
 #include "ms_archive.h"
+#include "ms_catalog.h"
+#include "ms_progress.h"
 #include "ms_test.h"
 #include "ms_test_archive.h"
 #include "ms_test_net.h"
+#include "ms_test_proto.h"
 
 typedef struct server_fixture {
     char dir[512];
     char log[600];
     pid_t pid;
-    uint16_t http_port;
+    uint16_t port, http_port;
 } server_fixture;
 
-static int start_server(void **state)
+static int start_server_with(void **state, const char *settings)
 {
     server_fixture *f = calloc(1, sizeof *f);
     ms_test_tmpdir(f->dir, sizeof f->dir);
@@ -37,6 +44,7 @@ static int start_server(void **state)
     snprintf(config, sizeof config, "%s/meshserve.conf", f->dir);
     FILE *c = fopen(config, "w");
     fputs("# test settings\ntoken = s3cret-token\nhttp_rate = 100000\n", c);
+    fputs(settings, c);
     fclose(c);
     snprintf(port_file, sizeof port_file, "%s/ports", f->dir);
     snprintf(f->log, sizeof f->log, "%s/meshserve.log", f->dir);
@@ -47,8 +55,17 @@ static int start_server(void **state)
     uint16_t port;
     if (ms_test_wait_ports(port_file, 10.0, &port, &f->http_port) != 0)
         fail_msg("meshserve did not start (see %s)", f->log);
+    f->port = port;
     *state = f;
     return 0;
+}
+
+static int start_server(void **state) { return start_server_with(state, ""); }
+
+/* At most 8 HTTP connections, each with 1 s to deliver a request header. */
+static int start_guarded_server(void **state)
+{
+    return start_server_with(state, "http_max_connections = 8\nhttp_header_timeout = 1\n");
 }
 
 static int stop_server(void **state)
@@ -187,15 +204,380 @@ static void test_access_control(void **state)
         200, &r);
     assert_int_equal(r.body_length, ms_archive_geometry_prefix(a, 6, 11));
     ms_test_http_free(&r);
-    get(f, "/models/dragon/cells/6/geometry?token=s3cret-token", NULL, 200, &r);
-    assert_int_equal(r.body_length, ms_archive_get_cell(a, 6)->geometry_length);
-    ms_test_http_free(&r);
     /* Cell 70 starts at 9 bits: entirely beyond the preview. */
     get(f, "/models/dragon/cells/70/geometry", NULL, 403, &r);
     ms_test_http_free(&r);
     get(f, "/models/dragon/cells/70/apo", NULL, 403, &r);
     ms_test_http_free(&r);
     ms_archive_close(a);
+}
+
+/* Issue 19, item 1: the preview check runs on the clamped precision. Cell 6 of
+ * dragon spans [7, 12] bits with an 8-bit preview: bits above the cell's top
+ * (13, 17, 64) mean "all of it", which is beyond the preview without a token. */
+static void test_preview_bypass_refused(void **state)
+{
+    server_fixture *f = *state;
+    ms_archive *a = open_model(f, "dragon");
+    const uint32_t full = ms_archive_get_cell(a, 6)->geometry_length;
+    const uint32_t preview = ms_archive_geometry_prefix(a, 6, 8);
+    assert_true(preview < full);
+    ms_test_http_response r;
+    const char *beyond[] = {"/models/dragon/cells/6/geometry?bits=17",
+                            "/models/dragon/cells/6/geometry?bits=13",
+                            "/models/dragon/cells/6/geometry?bits=64",
+                            "/models/dragon/cells/6/geometry?bits=9"};
+    for (size_t i = 0; i < sizeof beyond / sizeof *beyond; ++i) {
+        get(f, beyond[i], NULL, 403, &r);
+        assert_string_equal((char *)r.body,
+                            "error: precision beyond the public preview needs a token\n");
+        ms_test_http_free(&r);
+        /* A Range inside the preview's bytes does not open the rest either. */
+        get(f, beyond[i], "Range: bytes=0-3\r\n", 403, &r);
+        ms_test_http_free(&r);
+    }
+    get(f, "/models/dragon/cells/6/geometry?bits=8", NULL, 200, &r);
+    assert_int_equal(r.body_length, preview);
+    ms_test_http_free(&r);
+    /* Without bits, the preview's prefix; a suffix range ends at the preview. */
+    char value[128], expect[64];
+    get(f, "/models/dragon/cells/6/geometry", "Range: bytes=-4\r\n", 206, &r);
+    snprintf(expect, sizeof expect, "bytes %u-%u/%u", preview - 4, preview - 1, preview);
+    assert_string_equal(ms_test_http_header(&r, "Content-Range", value, sizeof value), expect);
+    ms_test_http_free(&r);
+    get(f, "/models/dragon/cells/6/geometry?bits=17", "Authorization: Bearer s3cret-token\r\n",
+        200, &r);
+    assert_int_equal(r.body_length, full);
+    ms_test_http_free(&r);
+    /* A cell inside the preview: clamping to its own top stays public. */
+    get(f, "/models/dragon/cells/0/geometry?bits=17", NULL, 200, &r);
+    assert_int_equal(r.body_length, ms_archive_get_cell(a, 0)->geometry_length);
+    ms_test_http_free(&r);
+    /* A cell wholly beyond the preview: nothing, whatever the bits. */
+    get(f, "/models/dragon/cells/70/geometry?bits=8", NULL, 403, &r);
+    ms_test_http_free(&r);
+    get(f, "/models/dragon/cells/70/geometry?bits=17", NULL, 403, &r);
+    ms_test_http_free(&r);
+    ms_archive_close(a);
+}
+
+/* Issue 19, item 2: an answer that depends on the token is private (a shared
+ * cache must never hand it to the next anonymous visitor); public answers say
+ * what a cache keys on; the token is never accepted in the URL. */
+static void test_cache_headers(void **state)
+{
+    server_fixture *f = *state;
+    const char *bearer = "Authorization: Bearer s3cret-token\r\n";
+    ms_test_http_response r;
+    char value[256];
+    /* Public: anonymous answers, and a fully public model's. */
+    const char *public_paths[] = {"/models/dragon/cells/6/geometry", "/models/bunny/cells/6/geometry",
+                                  "/models/bunny/cells/7/apo", "/models/dragon"};
+    for (size_t i = 0; i < sizeof public_paths / sizeof *public_paths; ++i) {
+        get(f, public_paths[i], NULL, 200, &r);
+        assert_string_equal(ms_test_http_header(&r, "Cache-Control", value, sizeof value),
+                            "public, max-age=3600");
+        assert_string_equal(ms_test_http_header(&r, "Vary", value, sizeof value), "Authorization");
+        assert_non_null(ms_test_http_header(&r, "ETag", value, sizeof value));
+        ms_test_http_free(&r);
+    }
+    /* Token-dependent: private, in the 200, the 206 and the 304. */
+    get(f, "/models/dragon/cells/6/geometry?bits=12", bearer, 200, &r);
+    assert_string_equal(ms_test_http_header(&r, "Cache-Control", value, sizeof value),
+                        "private, max-age=3600");
+    assert_string_equal(ms_test_http_header(&r, "Vary", value, sizeof value), "Authorization");
+    char etag[256], headers[600];
+    ms_test_http_header(&r, "ETag", etag, sizeof etag);
+    ms_test_http_free(&r);
+    snprintf(headers, sizeof headers, "%sRange: bytes=0-3\r\n", bearer);
+    get(f, "/models/dragon/cells/6/geometry?bits=12", headers, 206, &r);
+    assert_string_equal(ms_test_http_header(&r, "Cache-Control", value, sizeof value),
+                        "private, max-age=3600");
+    ms_test_http_free(&r);
+    snprintf(headers, sizeof headers, "%sIf-None-Match: %s\r\n", bearer, etag);
+    get(f, "/models/dragon/cells/6/geometry?bits=12", headers, 304, &r);
+    assert_string_equal(ms_test_http_header(&r, "Cache-Control", value, sizeof value),
+                        "private, max-age=3600");
+    ms_test_http_free(&r);
+    get(f, "/models/dragon/cells/70/apo", bearer, 200, &r);
+    assert_string_equal(ms_test_http_header(&r, "Cache-Control", value, sizeof value),
+                        "private, max-age=3600");
+    ms_test_http_free(&r);
+    /* The token in the query string: refused, whatever the path, even when valid. */
+    const char *query_token[] = {"/models/dragon/cells/6/geometry?token=s3cret-token",
+                                 "/models/dragon/cells/6/geometry?bits=12&token=wrong",
+                                 "/catalog?token=s3cret-token"};
+    for (size_t i = 0; i < sizeof query_token / sizeof *query_token; ++i) {
+        get(f, query_token[i], NULL, 400, &r);
+        assert_string_equal((char *)r.body, "error: the token is not accepted in the URL (URLs "
+                                            "end up in logs); send Authorization: Bearer TOKEN\n");
+        ms_test_http_free(&r);
+    }
+}
+
+/* Issue 19, item 3: SIGHUP applies a changed preview (catalogue
+ * public_max_bits) to the next request, not at the next restart, in both
+ * directions, and /catalog shows it. */
+static void test_sighup_reloads_access_rules(void **state)
+{
+    server_fixture *f = *state;
+    char archives[600];
+    snprintf(archives, sizeof archives, "%s/archive", f->dir);
+    ms_test_http_response r;
+    const char *url = "/models/bunny/cells/6/geometry?bits=12";
+    get(f, url, NULL, 200, &r);
+    ms_test_http_free(&r);
+    const int limits[2] = {8, 12}, expect[2] = {403, 200};
+    for (int round = 0; round < 2; ++round) {
+        ms_catalog catalog;
+        assert_int_equal(ms_catalog_load(archives, &catalog, NULL), MS_OK);
+        ms_catalog_entry entry = *ms_catalog_find(&catalog, "bunny");
+        entry.public_max_bits = (uint8_t)limits[round];
+        assert_int_equal(ms_catalog_update(archives, &entry, NULL), MS_OK);
+        ms_catalog_free(&catalog);
+        assert_int_equal(kill(f->pid, SIGHUP), 0);
+        int status = 0;
+        for (int attempt = 0; attempt < 100 && status != expect[round]; ++attempt) {
+            assert_int_equal(ms_test_http_get(f->http_port, url, NULL, &r), 0);
+            status = r.status;
+            ms_test_http_free(&r);
+            if (status != expect[round])
+                usleep(20000);
+        }
+        assert_int_equal(status, expect[round]);
+        get(f, "/catalog", NULL, 200, &r);
+        char line[64];
+        snprintf(line, sizeof line, "\"public_max_bits\": %d", limits[round]);
+        char *bunny = strstr((char *)r.body, "\"name\": \"bunny\"");
+        assert_non_null(bunny);
+        char *next = strstr(bunny, "}");
+        char *found = strstr((char *)r.body, line);
+        assert_true(found && found < next && found > (char *)r.body);
+        ms_test_http_free(&r);
+    }
+}
+
+/* Issue 19, item 6: HEAD answers the GET's headers, Content-Length included,
+ * and no body, so a keep-alive connection stays in step: the answer to a
+ * pipelined GET follows the HEAD's header block directly. */
+static void test_head_sends_headers_only(void **state)
+{
+    server_fixture *f = *state;
+    ms_archive *a = open_model(f, "bunny");
+    size_t apo_length;
+    ms_archive_apo(a, 7, &apo_length);
+    assert_true(apo_length > 0);
+    char catalog_length[32];
+    ms_test_http_response r;
+    get(f, "/catalog", NULL, 200, &r);
+    snprintf(catalog_length, sizeof catalog_length, "%zu", r.body_length);
+    ms_test_http_free(&r);
+    struct {
+        const char *path, *headers;
+        int status;
+        char length[32];
+    } cases[] = {
+        {"/models/bunny/cells/7/apo", "", 200, ""},
+        {"/models/bunny/cells/7/apo", "Range: bytes=0-9\r\n", 206, "10"},
+        {"/catalog", "", 200, ""},
+        {"/healthz", "", 200, "3"},
+        {"/models/bunny/cells/999/apo", "", 404, "20"}, /* "error: no such cell\n" */
+    };
+    snprintf(cases[0].length, sizeof cases[0].length, "%zu", apo_length);
+    snprintf(cases[2].length, sizeof cases[2].length, "%s", catalog_length);
+    for (size_t i = 0; i < sizeof cases / sizeof *cases; ++i) {
+        char request[1024], value[64];
+        int n = snprintf(request, sizeof request,
+                         "HEAD %s HTTP/1.1\r\nHost: x\r\n%s\r\n"
+                         "GET /healthz HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n",
+                         cases[i].path, cases[i].headers);
+        assert_int_equal(ms_test_http_raw(f->http_port, request, (size_t)n, &r), 0);
+        assert_int_equal(r.status, cases[i].status);
+        assert_non_null(ms_test_http_header(&r, "Content-Length", value, sizeof value));
+        assert_string_equal(value, cases[i].length);
+        /* What follows the HEAD's headers is the next answer, nothing else. */
+        assert_true(r.body_length > 17);
+        assert_memory_equal(r.body, "HTTP/1.1 200 OK\r\n", 17);
+        assert_string_equal((char *)r.body + r.body_length - 7, "\r\n\r\nok\n");
+        ms_test_http_free(&r);
+    }
+    ms_archive_close(a);
+}
+
+/* Issue 19, item 8: Range and If-None-Match answered as nginx answers them. */
+static void test_strict_range_and_conditionals(void **state)
+{
+    server_fixture *f = *state;
+    ms_archive *a = open_model(f, "bunny");
+    size_t len;
+    const uint8_t *g = ms_archive_geometry(a, 3, &len);
+    ms_test_http_response r;
+    char value[256], expect[64], headers[300];
+    snprintf(expect, sizeof expect, "bytes */%zu", len);
+    const char *unsatisfiable[] = {"bytes=5--3", "bytes=--1", "bytes=+1-2",
+                                   "bytes=-18446744073709551616", "bytes=18446744073709551616-",
+                                   "bytes=9223372036854775808-", "bytes=9-5", "bytes=-0",
+                                   "bytes=0x10-20", "bytes=5-9x", "bytes=", "bytes=a-b"};
+    for (size_t i = 0; i < sizeof unsatisfiable / sizeof *unsatisfiable; ++i) {
+        snprintf(headers, sizeof headers, "Range: %s\r\n", unsatisfiable[i]);
+        get(f, "/models/bunny/cells/3/geometry", headers, 416, &r);
+        assert_string_equal(ms_test_http_header(&r, "Content-Range", value, sizeof value), expect);
+        ms_test_http_free(&r);
+    }
+    /* Spaces around the parts, a last byte past the end, a suffix longer
+     * than the body: as nginx, 206. */
+    get(f, "/models/bunny/cells/3/geometry", "Range: bytes= 5 - 9\r\n", 206, &r);
+    assert_int_equal(r.body_length, 5);
+    assert_memory_equal(r.body, g + 5, 5);
+    ms_test_http_free(&r);
+    get(f, "/models/bunny/cells/3/geometry", "Range: bytes=5-99999999\r\n", 206, &r);
+    assert_int_equal(r.body_length, len - 5);
+    ms_test_http_free(&r);
+    get(f, "/models/bunny/cells/3/geometry", "Range: bytes=-99999999\r\n", 206, &r);
+    assert_int_equal(r.body_length, len);
+    ms_test_http_free(&r);
+    /* Not a byte range, or several: the whole body. */
+    get(f, "/models/bunny/cells/3/geometry", "Range: items=0-5\r\n", 200, &r);
+    assert_int_equal(r.body_length, len);
+    ms_test_http_free(&r);
+    /* If-None-Match: "*", a list holding the tag, a weak form of it. */
+    get(f, "/models/bunny/cells/3/geometry", NULL, 200, &r);
+    char etag[128];
+    ms_test_http_header(&r, "ETag", etag, sizeof etag);
+    ms_test_http_free(&r);
+    const char *matching[] = {"*", "\"nope\", %s", "W/%s", " %s , \"x\""};
+    for (size_t i = 0; i < sizeof matching / sizeof *matching; ++i) {
+        char list[200];
+        snprintf(list, sizeof list, matching[i], etag);
+        snprintf(headers, sizeof headers, "If-None-Match: %s\r\n", list);
+        get(f, "/models/bunny/cells/3/geometry", headers, 304, &r);
+        assert_int_equal(r.body_length, 0);
+        ms_test_http_free(&r);
+    }
+    get(f, "/models/bunny/cells/3/geometry", "If-None-Match: \"nope\", \"other\"\r\n", 200, &r);
+    assert_int_equal(r.body_length, len);
+    ms_test_http_free(&r);
+    ms_archive_close(a);
+}
+
+static unsigned count_in_log(const server_fixture *f, const char *needle)
+{
+    size_t size;
+    unsigned char *log = ms_test_read_file(f->log, &size);
+    char *text = calloc(size + 1, 1);
+    memcpy(text, log, size);
+    unsigned n = 0;
+    for (const char *at = strstr(text, needle); at; at = strstr(at + 1, needle))
+        ++n;
+    free(text);
+    free(log);
+    return n;
+}
+
+/* Issue 19, item 10: an archive replaced by a broken copy (atomic rename, then
+ * SIGHUP) does not take the model away: the verified mapping goes on serving,
+ * with a warning; an archive truncated in place answers errors for the
+ * payloads it lost, never silence, and the server lives on. */
+static void test_replaced_and_truncated_archives(void **state)
+{
+    server_fixture *f = *state;
+    ms_archive *a = open_model(f, "bunny");
+    size_t g100_length;
+    const uint8_t *g100 = ms_archive_geometry(a, 100, &g100_length);
+    uint8_t *expect = malloc(g100_length);
+    memcpy(expect, g100, g100_length);
+    ms_archive_close(a);
+    char path[700], fresh[720];
+    snprintf(path, sizeof path, "%s/archive/bunny.msa", f->dir);
+    snprintf(fresh, sizeof fresh, "%s/archive/bunny.msa.new", f->dir);
+    size_t size;
+    unsigned char *file = ms_test_read_file(path, &size);
+    ms_test_write_file(fresh, file, size / 2);
+    free(file);
+    assert_int_equal(rename(fresh, path), 0);
+    assert_int_equal(kill(f->pid, SIGHUP), 0);
+    for (int attempt = 0; attempt < 100 && !count_in_log(f, "rescan: "); ++attempt)
+        usleep(20000);
+    assert_int_equal(count_in_log(f, "rescan: 2 models"), 1);
+    assert_int_equal(count_in_log(f, "model 'bunny': keeping the version being served"), 1);
+    ms_test_http_response r;
+    get(f, "/models/bunny/cells/100/geometry", NULL, 200, &r);
+    assert_int_equal(r.body_length, g100_length);
+    assert_memory_equal(r.body, expect, g100_length);
+    ms_test_http_free(&r);
+    free(expect);
+
+    /* dragon, truncated in place: the payloads past the cut answer 500. */
+    snprintf(path, sizeof path, "%s/archive/dragon.msa", f->dir);
+    a = open_model(f, "dragon");
+    const ms_archive_header *h = ms_archive_get_header(a);
+    uint64_t payload_start = MS_ARCHIVE_HEADER_SIZE + h->index_stored_size;
+    const ms_archive_cell *last = ms_archive_get_cell(a, 128);
+    uint64_t cut = payload_start + last->geometry_offset + last->geometry_length / 2;
+    const ms_archive_cell *first = ms_archive_get_cell(a, 0);
+    assert_true(payload_start + first->geometry_offset + first->geometry_length < cut);
+    ms_archive_close(a);
+    assert_int_equal(truncate(path, (off_t)cut), 0);
+    for (int round = 0; round < 2; ++round) {
+        get(f, "/models/dragon/cells/128/geometry", "Authorization: Bearer s3cret-token\r\n", 500, &r);
+        assert_string_equal((char *)r.body, "error: the archive's copy of this payload is damaged\n");
+        ms_test_http_free(&r);
+    }
+    get(f, "/models/dragon/cells/0/geometry", NULL, 200, &r);
+    ms_test_http_free(&r);
+    get(f, "/healthz", NULL, 200, &r);
+    ms_test_http_free(&r);
+    assert_int_equal(count_in_log(f, "model 'dragon': cell 128: the archive file shrank"), 1);
+}
+
+static int connect_loopback(uint16_t port)
+{
+    int fd = socket(AF_INET, SOCK_STREAM, 0);
+    struct sockaddr_in addr = {0};
+    addr.sin_family = AF_INET;
+    addr.sin_port = htons(port);
+    addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    assert_int_equal(connect(fd, (struct sockaddr *)&addr, sizeof addr), 0);
+    struct timeval tv = {5, 0};
+    setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+    return fd;
+}
+
+/* Issue 19, item 4: slowloris. Connections that never finish their request
+ * header hold at most http_max_connections slots, and only for
+ * http_header_timeout; meanwhile later HTTP clients wait in the backlog (they
+ * are served once slots free) and the binary door is not touched. */
+static void test_slowloris_bounded(void **state)
+{
+    server_fixture *f = *state;
+    enum { LORIS = 20 };
+    int loris[LORIS];
+    for (int i = 0; i < LORIS; ++i) {
+        loris[i] = connect_loopback(f->http_port);
+        assert_int_equal(send(loris[i], "GET /healthz HTTP/1.1\r\nX-A: ", 29, MSG_NOSIGNAL), 29);
+    }
+    /* The binary door answers at once, saturated HTTP or not. */
+    ms_test_conn c;
+    assert_int_equal(ms_test_conn_open(&c, f->port), 0);
+    ms_test_conn_hello(&c, NULL, NULL);
+    ms_test_conn_close(&c);
+    /* Every slow connection ends (EOF or reset) within a few header time-outs. */
+    double start = ms_now_seconds();
+    for (int i = 0; i < LORIS; ++i) {
+        char byte;
+        ssize_t n = recv(loris[i], &byte, 1, 0);
+        assert_true(n <= 0 || byte == 'H'); /* a 408 answer is fine too */
+        close(loris[i]);
+    }
+    assert_true(ms_now_seconds() - start < 8.0);
+    /* And the door serves again. */
+    ms_test_http_response r;
+    get(f, "/healthz", NULL, 200, &r);
+    ms_test_http_free(&r);
+    get(f, "/metrics", NULL, 200, &r);
+    /* Each slow connection was dropped once, by the door (none by evhttp). */
+    assert_non_null(strstr((char *)r.body, "\nmeshstream_http_connections_dropped_total 20\n"));
+    ms_test_http_free(&r);
 }
 
 static void test_hostile_requests(void **state)
@@ -279,6 +661,13 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_catalog_index_and_payloads, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_ranges_and_etags, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_access_control, start_server, stop_server),
+        cmocka_unit_test_setup_teardown(test_preview_bypass_refused, start_server, stop_server),
+        cmocka_unit_test_setup_teardown(test_cache_headers, start_server, stop_server),
+        cmocka_unit_test_setup_teardown(test_sighup_reloads_access_rules, start_server, stop_server),
+        cmocka_unit_test_setup_teardown(test_head_sends_headers_only, start_server, stop_server),
+        cmocka_unit_test_setup_teardown(test_strict_range_and_conditionals, start_server, stop_server),
+        cmocka_unit_test_setup_teardown(test_replaced_and_truncated_archives, start_server, stop_server),
+        cmocka_unit_test_setup_teardown(test_slowloris_bounded, start_guarded_server, stop_server),
         cmocka_unit_test_setup_teardown(test_hostile_requests, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_sighup_adds_model_and_sigterm_drains, start_server, stop_server),
     };

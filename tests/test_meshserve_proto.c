@@ -444,6 +444,51 @@ static void test_prefix_ranges(void **state)
     ms_test_conn_close(&c);
 }
 
+/* Issue 19, item 1, through the binary door: the requests that leaked over
+ * HTTP. Dragon's cell 6 spans [7, 12] bits, the preview is 8 bits. */
+static void test_preview_bypass_refused(void **state)
+{
+    server_fixture *f = *state;
+    ms_archive *archive = open_archive(f, "dragon");
+    const uint32_t full = ms_archive_get_cell(archive, 6)->geometry_length;
+    const uint32_t preview = ms_archive_geometry_prefix(archive, 6, 8);
+    ms_test_conn c;
+    connect_ready(f, &c, NULL);
+    uint32_t handle = ms_test_conn_open_model(&c, "dragon", 1, NULL, NULL, NULL);
+    ms_proto_cell_request e[6] = {
+        steps(6, MS_PROTO_STREAM_GEOMETRY, 0, 0, 17),
+        steps(6, MS_PROTO_STREAM_GEOMETRY, 0, 0, 13),
+        steps(6, MS_PROTO_STREAM_GEOMETRY, 0, 0, 63),
+        steps(6, MS_PROTO_STREAM_GEOMETRY, 0, 0, 8),
+        {6, MS_PROTO_STREAM_GEOMETRY, MS_PROTO_UNIT_BYTES, 0, 0, preview + 1},
+        {6, MS_PROTO_STREAM_GEOMETRY, MS_PROTO_UNIT_BYTES, 0, 0, preview},
+    };
+    send_batch(&c, handle, 10, e, 6);
+    answers a;
+    answers_init(&a, 10, 6);
+    answers_collect(&c, &a);
+    for (int i = 0; i < 3; ++i)
+        assert_int_equal(a.error[i], MS_PROTO_E_FORBIDDEN);
+    assert_int_equal(a.error[3], 0);
+    assert_int_equal(a.length[3], preview);
+    assert_int_equal(a.error[4], MS_PROTO_E_FORBIDDEN);
+    assert_int_equal(a.error[5], 0);
+    assert_int_equal(a.length[5], preview);
+    answers_free(&a);
+    ms_test_conn_close(&c);
+
+    connect_ready(f, &c, TOKEN);
+    handle = ms_test_conn_open_model(&c, "dragon", 1, NULL, NULL, NULL);
+    send_batch(&c, handle, 10, e, 1);
+    answers_init(&a, 10, 1);
+    answers_collect(&c, &a);
+    assert_int_equal(a.error[0], 0);
+    assert_int_equal(a.length[0], full);
+    answers_free(&a);
+    ms_test_conn_close(&c);
+    ms_archive_close(archive);
+}
+
 /* --- Priorities and cancel -------------------------------------------------- */
 
 static void test_priorities(void **state)
@@ -597,6 +642,147 @@ static void test_disconnect_mid_payload_frees_everything(void **state)
     f->pid = 0;
 }
 
+/* A server that drops readers making no progress after 1 s. */
+static int start_send_timeout_server(void **state)
+{
+    server_fixture *f = prepare();
+    launch(f, "send_timeout = 1\n");
+    *state = f;
+    return 0;
+}
+
+/* Issue 19, item 5: a client that requests far more than the socket buffers
+ * hold and never reads is dropped after send_timeout without progress (the
+ * idle timeout never fires: its queue is not empty), and everything it held
+ * is released; a reader that keeps reading is not. */
+static void test_slow_reader_dropped(void **state)
+{
+    server_fixture *f = *state;
+    ms_proto_cell_request e[BIG_CELLS];
+    for (uint32_t i = 0; i < BIG_CELLS; ++i)
+        e[i] = steps(i, MS_PROTO_STREAM_GEOMETRY, 1, 0, 63);
+    ms_test_conn stalled, reader;
+    connect_ready(f, &stalled, TOKEN);
+    uint32_t handle = ms_test_conn_open_model(&stalled, "big", 1, NULL, NULL, NULL);
+    /* 3 x 65 cells x 256 KiB: about 50 MB, far beyond the kernel's buffers. */
+    for (uint32_t round = 0; round < 3; ++round)
+        send_batch(&stalled, handle, 10 + round * 100, e, BIG_CELLS);
+    /* Meanwhile a well-behaved client streams the same model in full. */
+    connect_ready(f, &reader, TOKEN);
+    uint32_t reader_handle = ms_test_conn_open_model(&reader, "big", 1, NULL, NULL, NULL);
+    send_batch(&reader, reader_handle, 10, e, BIG_CELLS);
+    answers a;
+    answers_init(&a, 10, BIG_CELLS);
+    answers_collect(&reader, &a);
+    answers_free(&a);
+    double waited = 0;
+    while (metric(f, "meshstream_connections") != 1 && waited < 10.0) {
+        usleep(100000);
+        waited += 0.1;
+    }
+    assert_int_equal(metric(f, "meshstream_connections"), 1); /* the reader only */
+    assert_int_equal(metric(f, "meshstream_queued_requests"), 0);
+    assert_int_equal(metric(f, "meshstream_queued_bytes"), 0);
+    assert_true(waited >= 0.5); /* not before the time-out */
+    send_ping(&reader, 7);
+    expect_pong(&reader, 7);
+    ms_test_conn_close(&reader);
+    ms_test_conn_close(&stalled);
+    FILE *log = fopen(f->log, "r");
+    char text[16384];
+    size_t n = fread(text, 1, sizeof text - 1, log);
+    fclose(log);
+    text[n] = '\0';
+    assert_non_null(strstr(text, "no send progress for 1 s"));
+}
+
+/* Flips one byte in the middle of a payload of model name's file (the
+ * payload area follows the header and the index as stored, docs/ARCHIVE.md). */
+static void corrupt_payload(const server_fixture *f, const char *name, uint32_t cell, bool apo)
+{
+    char path[800];
+    snprintf(path, sizeof path, "%s/%s.msa", f->archives, name);
+    ms_archive *a = open_archive(f, name);
+    const ms_archive_cell *c = ms_archive_get_cell(a, cell);
+    uint64_t at = MS_ARCHIVE_HEADER_SIZE + ms_archive_get_header(a)->index_stored_size +
+                  (apo ? c->apo_offset + c->apo_length / 2 : c->geometry_offset + c->geometry_length / 2);
+    assert_true(apo ? c->apo_length >= 8 : c->geometry_length >= 8);
+    ms_archive_close(a);
+    size_t size;
+    uint8_t *file = ms_test_read_file(path, &size);
+    assert_true(at < size);
+    file[at] ^= 0x40;
+    ms_test_write_file(path, file, size);
+    free(file);
+}
+
+/* Issue 19, item 7: a payload that fails its CRC is never served, by either
+ * door: ERROR INTERNAL (not fatal) and HTTP 500, one log line per payload;
+ * the good payloads of the same model are served as usual. */
+static void test_corrupt_payload_refused(void **state)
+{
+    server_fixture *f = *state;
+    ms_test_add_model(f->archives, "cracked", 9, 12);
+    corrupt_payload(f, "cracked", 4, false);
+    corrupt_payload(f, "cracked", 8, true);
+    assert_int_equal(kill(f->pid, SIGHUP), 0);
+    ms_test_http_response r;
+    int status = 0;
+    for (int attempt = 0; attempt < 100 && status != 200; ++attempt) {
+        assert_int_equal(ms_test_http_get(f->http_port, "/models/cracked", NULL, &r), 0);
+        status = r.status;
+        ms_test_http_free(&r);
+        if (status != 200)
+            usleep(20000);
+    }
+    assert_int_equal(status, 200);
+    for (int round = 0; round < 2; ++round) { /* the second time from the cache */
+        assert_int_equal(ms_test_http_get(f->http_port, "/models/cracked/cells/4/geometry", NULL, &r), 0);
+        assert_int_equal(r.status, 500);
+        assert_string_equal((char *)r.body, "error: the archive's copy of this payload is damaged\n");
+        ms_test_http_free(&r);
+        assert_int_equal(ms_test_http_get(f->http_port, "/models/cracked/cells/8/apo", "Range: bytes=0-3\r\n", &r), 0);
+        assert_int_equal(r.status, 500);
+        ms_test_http_free(&r);
+        assert_int_equal(ms_test_http_get(f->http_port, "/models/cracked/cells/8/geometry", NULL, &r), 0);
+        assert_int_equal(r.status, 200);
+        ms_test_http_free(&r);
+    }
+    ms_test_conn c;
+    connect_ready(f, &c, NULL);
+    uint32_t handle = ms_test_conn_open_model(&c, "cracked", 1, NULL, NULL, NULL);
+    ms_proto_cell_request e[4] = {
+        steps(4, MS_PROTO_STREAM_GEOMETRY, 0, 0, 63), steps(8, MS_PROTO_STREAM_APO, 0, 0, 63),
+        steps(5, MS_PROTO_STREAM_GEOMETRY, 0, 0, 63),
+        {4, MS_PROTO_STREAM_GEOMETRY, MS_PROTO_UNIT_BYTES, 0, 0, 1},
+    };
+    send_batch(&c, handle, 10, e, 4);
+    answers a;
+    answers_init(&a, 10, 4);
+    answers_collect(&c, &a); /* fails on any fatal error */
+    assert_int_equal(a.error[0], MS_PROTO_E_INTERNAL);
+    assert_int_equal(a.error[1], MS_PROTO_E_INTERNAL);
+    assert_int_equal(a.error[2], 0);
+    assert_int_equal(a.length[2], ms_test_archive_geometry_length(5));
+    assert_int_equal(a.error[3], MS_PROTO_E_INTERNAL);
+    answers_free(&a);
+    send_ping(&c, 3);
+    expect_pong(&c, 3);
+    ms_test_conn_close(&c);
+    FILE *log = fopen(f->log, "r");
+    char text[16384];
+    size_t n = fread(text, 1, sizeof text - 1, log);
+    fclose(log);
+    text[n] = '\0';
+    const char *lines[] = {"model 'cracked': cell 4: geometry payload checksum mismatch",
+                           "model 'cracked': cell 8: APO chunk checksum mismatch"};
+    for (int i = 0; i < 2; ++i) {
+        const char *at = strstr(text, lines[i]);
+        assert_non_null(at);
+        assert_null(strstr(at + 1, lines[i])); /* logged once */
+    }
+}
+
 static void test_sighup_adds_model_live(void **state)
 {
     server_fixture *f = *state;
@@ -710,6 +896,40 @@ static void header(uint8_t *p, uint32_t body, uint8_t type, uint8_t flags, uint3
     p[3] = (uint8_t)(body >> 24);
     p[4] = type, p[5] = flags, p[6] = p[7] = 0;
     p[8] = (uint8_t)id, p[9] = (uint8_t)(id >> 8), p[10] = (uint8_t)(id >> 16), p[11] = (uint8_t)(id >> 24);
+}
+
+/* Issue 19, item 9: field errors in a HELLO are fatal (section 4.1: "any error
+ * found in a HELLO is fatal"): the ERROR carries FATAL, then the stream ends. */
+static void test_hello_field_errors_fatal(void **state)
+{
+    server_fixture *f = *state;
+    uint8_t frame[12 + 24 + 300] = {0};
+    struct {
+        uint16_t min_version, max_version;
+        uint32_t max_frame;
+        uint16_t token_length;
+        uint64_t detail; /* offset of the field */
+    } cases[] = {
+        {2, 1, 65536, 0, 6},          /* max_version < min_version */
+        {1, 1, 0, 0, 12},             /* max_frame 0 */
+        {1, 1, UINT32_MAX, 0, 12},    /* max_frame 2^32 - 1 */
+        {1, 1, 65536, 300, 16},       /* a 300-byte token */
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof *cases; ++i) {
+        memset(frame, 0, sizeof frame);
+        uint32_t body = 24u + cases[i].token_length;
+        header(frame, body, MS_PROTO_HELLO, 0, 0);
+        uint8_t *b = frame + 12;
+        memcpy(b, "MSTP", 4);
+        b[4] = (uint8_t)cases[i].min_version, b[5] = (uint8_t)(cases[i].min_version >> 8);
+        b[6] = (uint8_t)cases[i].max_version, b[7] = (uint8_t)(cases[i].max_version >> 8);
+        uint32_t mf = cases[i].max_frame;
+        b[12] = (uint8_t)mf, b[13] = (uint8_t)(mf >> 8), b[14] = (uint8_t)(mf >> 16),
+        b[15] = (uint8_t)(mf >> 24);
+        b[16] = (uint8_t)cases[i].token_length, b[17] = (uint8_t)(cases[i].token_length >> 8);
+        memset(b + 24, 't', cases[i].token_length);
+        expect_fatal(f, false, frame, 12 + body, MS_PROTO_E_FIELD_OUT_OF_RANGE, cases[i].detail);
+    }
 }
 
 static void test_malformed_frames(void **state)
@@ -1005,6 +1225,46 @@ static void test_limits(void **state)
     ms_test_conn_close(&c);
 }
 
+/* Two clients at most. */
+static int start_two_client_server(void **state)
+{
+    server_fixture *f = prepare();
+    launch(f, "max_clients = 2\n");
+    *state = f;
+    return 0;
+}
+
+/* Issue 19, item 10: past max_clients every excess connection is told ERROR
+ * TOO_MANY_CONNECTIONS (fatal) before the close, also past the 64 that may
+ * linger; none is closed without a word. */
+static void test_every_excess_connection_told(void **state)
+{
+    server_fixture *f = *state;
+    enum { EXCESS = 100 };
+    ms_test_conn good[2];
+    for (int i = 0; i < 2; ++i)
+        connect_ready(f, &good[i], NULL);
+    ms_test_conn *excess = calloc(EXCESS, sizeof *excess);
+    for (int i = 0; i < EXCESS; ++i)
+        assert_int_equal(ms_test_conn_open(&excess[i], f->port), 0);
+    unsigned told = 0;
+    for (int i = 0; i < EXCESS; ++i) {
+        ms_proto_message m;
+        int r = ms_test_conn_recv(&excess[i], &m, 5.0);
+        if (r == 1 && m.type == MS_PROTO_ERROR && m.body.error.fatal &&
+            m.body.error.code == MS_PROTO_E_TOO_MANY_CONNECTIONS)
+            ++told;
+        ms_test_conn_close(&excess[i]);
+    }
+    free(excess);
+    assert_int_equal(told, EXCESS);
+    for (int i = 0; i < 2; ++i) { /* the admitted ones were not disturbed */
+        send_ping(&good[i], 40 + (uint64_t)i);
+        expect_pong(&good[i], 40 + (uint64_t)i);
+        ms_test_conn_close(&good[i]);
+    }
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -1012,17 +1272,24 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_index_compressed, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_payloads_equal_archive, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_prefix_ranges, start_server, stop_server),
+        cmocka_unit_test_setup_teardown(test_preview_bypass_refused, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_priorities, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_cancel, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_disconnect_mid_payload_frees_everything, start_server,
                                         stop_server),
         cmocka_unit_test_setup_teardown(test_sighup_adds_model_live, start_server, stop_server),
+        cmocka_unit_test_setup_teardown(test_corrupt_payload_refused, start_server, stop_server),
+        cmocka_unit_test_setup_teardown(test_slow_reader_dropped, start_send_timeout_server,
+                                        stop_server),
         cmocka_unit_test_setup_teardown(test_sigterm_finishes_transfers, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_malformed_frames, start_server, stop_server),
+        cmocka_unit_test_setup_teardown(test_hello_field_errors_fatal, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_bad_requests, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_random_garbage, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_random_requests, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_limits, start_strict_server, stop_server),
+        cmocka_unit_test_setup_teardown(test_every_excess_connection_told, start_two_client_server,
+                                        stop_server),
     };
     return cmocka_run_group_tests_name("meshserve binary protocol", tests, NULL, NULL);
 }

@@ -12,6 +12,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <fcntl.h>
+#include <sys/file.h>
 #include <sys/wait.h>
 #include <time.h>
 #include <unistd.h>
@@ -24,6 +26,7 @@
 #include "ms_catalog.h"
 #include "ms_nsp_build.h"
 #include "ms_nsp_check.h"
+#include "ms_progress.h"
 #include "ms_test.h"
 #include "ms_test_archive.h"
 #include "ms_test_net.h"
@@ -228,7 +231,9 @@ static void test_usage_errors(void **state)
     const char *bad[] = {"--n 3", "--bits 30", "--root-bits 1 --n 8", "--min-tris 0",
                          "--threads -2", "--name ../x", "--mem 1", "--bits", "--info",
                          "--apo-lead 17", "--apo-max-depth 25", "--apo-tol -1", "--apo-tol x",
-                         "--apo-lead 31"};
+                         "--apo-lead 31",
+                         /* 65 characters: refused, not cut to 64 (issue 19, item 13) */
+                         "--name abcdefghijklmnopqrstuvwxyzabcdefghijklmnopqrstuvwxyzabcdefghijklm"};
     for (size_t i = 0; i < sizeof bad / sizeof *bad; ++i) {
         snprintf(cmd, sizeof cmd, "%s '%s' -o '%s' %s", bin, model, dir, bad[i]);
         assert_int_equal(ms_test_run(cmd, out, sizeof out), 2);
@@ -348,6 +353,121 @@ static void test_killed_bake_leaves_nothing(void **state)
     ms_test_rmdir(dir);
 }
 
+/* Issue 19, item 13: a bake killed while writing leaves NAME.msa.partial; any
+ * later bake into the directory removes such leftovers, but never the
+ * partial file of a bake still running (it holds a lock on it). */
+static void test_stale_partial_removed(void **state)
+{
+    (void)state;
+    char dir[512], bin[4096], model[4096], cmd[16384], out[4096], ghost[700], live[700];
+    ms_test_tmpdir(dir, sizeof dir);
+    ms_test_bin_path(bin, sizeof bin, "meshbake");
+    ms_test_model_path(model, sizeof model, "stanford_bunny_res3.ply.gz");
+    snprintf(ghost, sizeof ghost, "%s/ghost.msa.partial", dir);
+    snprintf(live, sizeof live, "%s/live.msa.partial", dir);
+    ms_test_write_file(ghost, "half an archive", 15);
+    ms_test_write_file(live, "being written", 13);
+    int fd = open(live, O_RDWR);
+    assert_true(fd >= 0);
+    assert_int_equal(flock(fd, LOCK_EX), 0); /* as a running bake holds it */
+    snprintf(cmd, sizeof cmd, "%s '%s' -o '%s' --name b --no-apo", bin, model, dir);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
+    assert_non_null(strstr(out, "meshbake: removed ghost.msa.partial, left by an interrupted bake\n"));
+    assert_null(strstr(out, "live.msa.partial"));
+    close(fd);
+    const char *expected[] = {"b.msa", "catalog.json", "catalog.lock", "live.msa.partial", NULL};
+    assert_int_equal(strays(dir, expected), 0);
+    ms_test_rmdir(dir);
+}
+
+/* Issue 19, item 13: a model whose every triangle welds away at the chosen
+ * precision is refused with a clear error (it made a 0-triangle archive with
+ * exit 0, and tripped UBSan in the encoder), and leaves nothing behind. */
+static void test_all_welded_away_refused(void **state)
+{
+    (void)state;
+    char dir[512], bin[4096], ply[700], cmd[16384], out[4096];
+    ms_test_tmpdir(dir, sizeof dir);
+    ms_test_bin_path(bin, sizeof bin, "meshbake");
+    snprintf(ply, sizeof ply, "%s/specks.ply", dir);
+    const char text[] = "ply\nformat ascii 1.0\nelement vertex 6\nproperty float x\n"
+                        "property float y\nproperty float z\nelement face 2\n"
+                        "property list uchar int vertex_indices\nend_header\n"
+                        "0 0 0\n0.0000001 0 0\n0 0.0000001 0\n"
+                        "1 1 1\n1.0000001 1 1\n1 1.0000001 1\n3 0 1 2\n3 3 4 5\n";
+    ms_test_write_file(ply, text, sizeof text - 1);
+    snprintf(cmd, sizeof cmd, "%s '%s' -o '%s' --name specks --bits 8", bin, ply, dir);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 1);
+    assert_string_equal(out, "meshbake: every triangle of the model degenerates at 8 bits "
+                             "(welded away): nothing to bake; try more --bits\n");
+    const char *expected[] = {"specks.ply", NULL};
+    assert_int_equal(strays(dir, expected), 0);
+    ms_test_rmdir(dir);
+}
+
+/* Issue 19, item 13: a model whose extent is not a normal double (1e-310)
+ * baked cells with triangles and no APO chunk (the normals underflow): it is
+ * refused; 1e-300 still bakes, with its chunk. */
+static void test_denormal_extent_refused(void **state)
+{
+    (void)state;
+    char dir[512], bin[4096], obj[700], cmd[16384], out[4096];
+    ms_test_tmpdir(dir, sizeof dir);
+    ms_test_bin_path(bin, sizeof bin, "meshbake");
+    snprintf(obj, sizeof obj, "%s/speck.obj", dir);
+    const char *extents[] = {"1e-310", "1e-300"};
+    for (int i = 0; i < 2; ++i) {
+        char text[400];
+        int n = snprintf(text, sizeof text,
+                         "v 0 0 0\nv %s 0 0\nv 0 %s 0\nv %s %s %s\nf 1 2 3\nf 1 2 4\nf 1 3 4\n"
+                         "f 2 3 4\n", extents[i], extents[i], extents[i], extents[i], extents[i]);
+        ms_test_write_file(obj, text, (size_t)n);
+        snprintf(cmd, sizeof cmd, "%s '%s' -o '%s' --name speck --json", bin, obj, dir);
+        if (i == 0) {
+            assert_int_equal(ms_test_run(cmd, out, sizeof out), 1);
+            assert_string_equal(out, "meshbake: the model's extent 1e-310 is below the smallest "
+                                     "normal double (2.22507e-308): scale it up\n");
+        } else {
+            assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
+            assert_non_null(strstr(out, "\"chunks\":1,"));
+        }
+    }
+    ms_test_rmdir(dir);
+}
+
+/* Issue 19, item 11: repeated triangles cost O(n log n) and do not split
+ * cells: a PLY of 3 vertices and 30,000 copies of one triangle bakes into one
+ * cell holding one triangle (it made 833 cells, in time growing with the
+ * square of the copies). */
+static void test_repeated_triangles_do_not_split(void **state)
+{
+    (void)state;
+    char dir[512], bin[4096], ply[700], cmd[16384], out[8192];
+    ms_test_tmpdir(dir, sizeof dir);
+    ms_test_bin_path(bin, sizeof bin, "meshbake");
+    snprintf(ply, sizeof ply, "%s/copies.ply", dir);
+    FILE *f = fopen(ply, "w");
+    assert_non_null(f);
+    fprintf(f, "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+               "property float z\nelement face 30000\nproperty list uchar int vertex_indices\n"
+               "end_header\n0 0 0\n1 0 0\n0 1 0\n");
+    for (int i = 0; i < 30000; ++i)
+        fputs(i % 2 ? "3 0 1 2\n" : "3 1 2 0\n", f);
+    fclose(f);
+    snprintf(cmd, sizeof cmd, "%s '%s' -o '%s' --name copies --json", bin, ply, dir);
+    double start = ms_now_seconds();
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
+    double seconds = ms_now_seconds() - start;
+    json_error_t jerr;
+    json_t *report = json_loads(strchr(out, '{'), JSON_DISABLE_EOF_CHECK, &jerr);
+    assert_non_null(report);
+    assert_int_equal(json_integer_value(json_object_get(report, "cells")), 1);
+    assert_int_equal(json_integer_value(json_object_get(report, "triangles")), 1);
+    json_decref(report);
+    assert_true(seconds < 20.0); /* under ASan, on a shared machine */
+    ms_test_rmdir(dir);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -358,6 +478,10 @@ int main(void)
         cmocka_unit_test(test_usage_errors),
         cmocka_unit_test(test_archive_directory),
         cmocka_unit_test(test_failure_leaves_nothing),
+        cmocka_unit_test(test_stale_partial_removed),
+        cmocka_unit_test(test_all_welded_away_refused),
+        cmocka_unit_test(test_denormal_extent_refused),
+        cmocka_unit_test(test_repeated_triangles_do_not_split),
         cmocka_unit_test(test_killed_bake_leaves_nothing),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -14,7 +14,7 @@
 #include "ms_test.h"
 
 static const char *const SCRIPTS[] = {
-    "bench",       "bench-apo",  "bench-apo-bake", "bench-bake",   "bench-client",
+    "attack",      "bench",       "bench-apo",  "bench-apo-bake", "bench-bake",   "bench-client",
     "bench-codec", "bench-codec-peer", "bench-read", "bench-serve", "bench-viewer", "demo",
     "install-deps", "run-tests", "screenshots",
 };

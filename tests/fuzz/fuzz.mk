@@ -20,13 +20,16 @@ FUZZ_ALL     := $(patsubst tests/fuzz/fuzz_%.c,%,$(FUZZ_SRCS))
 FUZZ_TARGETS ?= $(FUZZ_ALL)
 FUZZ_BINS    := $(patsubst %,$(FUZZ_DIR)/fuzz_%,$(FUZZ_TARGETS))
 
-LIB_SRCS   := $(filter-out %_main.c,$(wildcard common/*.c protocol/*.c))
+# From server/: the side door's header parsing (fuzz_http_request) and the
+# config reader (fuzz_config_catalog).
+LIB_SRCS   := $(filter-out %_main.c,$(wildcard common/*.c protocol/*.c)) \
+              server/ms_http_parse.c server/ms_server_config.c
 LIB_OBJS   := $(patsubst %.c,$(FUZZ_DIR)/obj/%.o,$(LIB_SRCS))
 SAN        := -fsanitize=address,undefined -fno-sanitize-recover=undefined
 FUZZ_CFLAGS := -std=c11 -D_DEFAULT_SOURCE -D_FILE_OFFSET_BITS=64 -O1 -g \
                -fno-omit-frame-pointer $(SAN) -fsanitize=fuzzer-no-link \
                -Wall -Wextra -Werror -Wshadow -Wstrict-prototypes -Wvla \
-               -Icommon -Iprotocol -Itests/support -pthread
+               -Icommon -Iprotocol -Iserver -Itests/support -pthread
 FUZZ_LIBS  := -ljansson -levent -lz -lm -pthread
 
 .PHONY: all build run merge clean

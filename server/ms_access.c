@@ -1,0 +1,76 @@
+/* Payload access rules: see ms_access.h. */
+#include "ms_access.h"
+
+#include <string.h>
+
+ms_access ms_access_grant(const ms_model *model, bool token_accepted)
+{
+    unsigned bits = ms_archive_get_header(model->archive)->bits;
+    ms_access grant;
+    grant.geometry_steps = (uint8_t)(bits + 1u);
+    grant.apo_steps = model->max_apo_levels;
+    /* The registry clamps public_max_bits to bits; clamp again rather than trust it. */
+    bool full = token_accepted || model->entry.public_max_bits >= bits;
+    grant.permitted_geometry_steps =
+        (uint8_t)(full ? bits + 1u : model->entry.public_max_bits + 1u);
+    /* APO is limited cell by cell (ms_access_cell_hidden), not by level. */
+    grant.permitted_apo_steps = model->max_apo_levels;
+    return grant;
+}
+
+bool ms_access_is_full(const ms_access *grant)
+{
+    return grant->permitted_geometry_steps >= grant->geometry_steps &&
+           grant->permitted_apo_steps >= grant->apo_steps;
+}
+
+bool ms_access_cell_hidden(const ms_model *model, const ms_access *grant, uint32_t cell)
+{
+    const ms_archive_cell *c = ms_archive_get_cell(model->archive, cell);
+    return c && grant->permitted_geometry_steps < grant->geometry_steps &&
+           c->bits_min >= grant->permitted_geometry_steps;
+}
+
+static ms_status access_fault(ms_proto_fault *fault, uint16_t code, uint64_t detail,
+                              ms_error *err, const char *text)
+{
+    if (fault) {
+        memset(fault, 0, sizeof *fault);
+        fault->code = code;
+        fault->detail = detail;
+    }
+    return ms_error_set(err, MS_ERR_RANGE, "%s", text);
+}
+
+ms_status ms_access_resolve(const ms_model *model, const ms_access *grant,
+                            const ms_proto_cell_request *request, ms_proto_byte_range *out,
+                            ms_proto_fault *fault, ms_error *err)
+{
+    const ms_archive *a = model->archive;
+    const ms_archive_cell *cell = ms_archive_get_cell(a, request->cell_id);
+    if (!cell)
+        return access_fault(fault, MS_PROTO_E_UNKNOWN_CELL, request->cell_id, err,
+                            "no such cell");
+    uint32_t ends[MS_PROTO_MAX_STEPS];
+    ms_proto_stream_steps steps = {0, 0, ends};
+    ms_proto_stream_access access;
+    if (request->stream == MS_PROTO_STREAM_GEOMETRY) {
+        steps.first_step = cell->bits_min;
+        steps.step_count = cell->bits_max >= cell->bits_min ? cell->bits_max - cell->bits_min + 1u : 0;
+        if (steps.step_count > MS_PROTO_MAX_STEPS)
+            steps.step_count = MS_PROTO_MAX_STEPS; /* resolve_range reports the bad window */
+        for (uint32_t i = 0; i < steps.step_count; ++i)
+            ends[i] = ms_archive_geometry_prefix(a, request->cell_id, cell->bits_min + i);
+        access = (ms_proto_stream_access){grant->geometry_steps, grant->permitted_geometry_steps};
+    } else {
+        /* APO detail follows the geometric preview cell by cell (section 8). */
+        if (ms_access_cell_hidden(model, grant, request->cell_id))
+            return access_fault(fault, MS_PROTO_E_FORBIDDEN, grant->permitted_geometry_steps, err,
+                                "the cell is beyond the public preview");
+        steps.step_count = cell->apo_levels;
+        for (uint32_t i = 0; i < steps.step_count; ++i)
+            ends[i] = ms_archive_apo_prefix(a, request->cell_id, i, NULL);
+        access = (ms_proto_stream_access){grant->apo_steps, grant->permitted_apo_steps};
+    }
+    return ms_proto_resolve_range(request, &steps, &access, out, fault, err);
+}

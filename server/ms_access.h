@@ -1,0 +1,62 @@
+/* Who may read which payload bytes of a model: the one place that decides.
+ *
+ * A model's operator sets a public preview (catalogue `public_max_bits`):
+ * everyone may read each cell's geometry up to that precision; a reader who
+ * presented the configured token may read everything. Every path to payload
+ * bytes (the binary door's REQUEST_CELLS, the HTTP side door's cell URLs and
+ * their Range requests, meshexport's static tree) asks ms_access_resolve, and
+ * nothing else, for the byte range it may send (docs/SECURITY.md). The rules
+ * are those of PROTOCOL.md sections 4.10 and 8:
+ *
+ *   - a limited grant reads geometry steps below permitted_geometry_steps
+ *     (steps 0..public_max_bits), and bytes only up to the end of the last
+ *     permitted step of the cell;
+ *   - a cell whose geometric window starts at or beyond the preview is hidden:
+ *     its APO (which would give its shape away) is forbidden too;
+ *   - a full grant reads everything; steps are only clamped.
+ *
+ * Pure functions of the model's index; no state; thread-safe.
+ */
+#ifndef MS_ACCESS_H
+#define MS_ACCESS_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "ms_error.h"
+#include "ms_proto.h"
+#include "ms_proto_range.h"
+#include "ms_registry.h"
+
+/* What one reader may read of one model (the counts of MODEL_OPENED). */
+typedef struct ms_access {
+    uint8_t geometry_steps;           /* the model's: bits + 1 */
+    uint8_t apo_steps;                /* the model's: most APO levels of any cell */
+    uint8_t permitted_geometry_steps; /* <= geometry_steps; below it: a preview */
+    uint8_t permitted_apo_steps;      /* <= apo_steps */
+} ms_access;
+
+/* The grant of a reader of model: everything with token_accepted (a token the
+ * server was configured with and the reader presented), or when the preview
+ * covers the whole model; otherwise the preview. */
+ms_access ms_access_grant(const ms_model *model, bool token_accepted);
+
+/* True when the grant reads every byte of the model. */
+bool ms_access_is_full(const ms_access *grant);
+
+/* True when the grant shows nothing of the cell (its window starts beyond the
+ * preview): both its streams are forbidden. False for a cell that does not
+ * exist (ms_access_resolve reports that). */
+bool ms_access_cell_hidden(const ms_model *model, const ms_access *grant, uint32_t cell);
+
+/* Resolves one request entry (validated as PROTOCOL.md section 4.10 requires)
+ * on model under grant to the byte range [out->begin, out->end) of the cell's
+ * stream that may be sent. Errors: MS_ERR_RANGE with fault->code
+ * UNKNOWN_CELL, RANGE_NOT_SATISFIABLE or FORBIDDEN (detail as in PROTOCOL.md);
+ * MS_ERR_CORRUPT (fault INTERNAL) for an inconsistent step table; MS_ERR_ARG
+ * for an entry that fails validation. */
+ms_status ms_access_resolve(const ms_model *model, const ms_access *grant,
+                            const ms_proto_cell_request *request, ms_proto_byte_range *out,
+                            ms_proto_fault *fault, ms_error *err);
+
+#endif

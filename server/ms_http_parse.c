@@ -1,0 +1,107 @@
+/* Range and If-None-Match parsing: see ms_http_parse.h. */
+#include "ms_http_parse.h"
+
+#include <stddef.h>
+#include <string.h>
+
+#define VALUE_MAX 0x7fffffffffffffffull /* nginx's off_t cut-off */
+
+static const char *skip_spaces(const char *p)
+{
+    while (*p == ' ')
+        ++p;
+    return p;
+}
+
+/* Reads one or more decimal digits at *p into *value; false on no digit or a
+ * value past VALUE_MAX. */
+static bool read_number(const char **p, uint64_t *value)
+{
+    const char *s = *p;
+    if (*s < '0' || *s > '9')
+        return false;
+    uint64_t v = 0;
+    for (; *s >= '0' && *s <= '9'; ++s) {
+        unsigned digit = (unsigned)(*s - '0');
+        if (v > (VALUE_MAX - digit) / 10)
+            return false;
+        v = v * 10 + digit;
+    }
+    *p = s;
+    *value = v;
+    return true;
+}
+
+ms_http_range_result ms_http_parse_range(const char *header, uint64_t length, uint64_t *first,
+                                         uint64_t *last)
+{
+    if (!header || strncmp(header, "bytes=", 6) != 0 || strchr(header, ','))
+        return MS_HTTP_RANGE_NONE;
+    const char *p = skip_spaces(header + 6);
+    uint64_t start = 0, end = 0;
+    bool suffix = *p == '-';
+    if (suffix) {
+        ++p;
+    } else {
+        if (!read_number(&p, &start))
+            return MS_HTTP_RANGE_UNSATISFIABLE;
+        p = skip_spaces(p);
+        if (*p++ != '-')
+            return MS_HTTP_RANGE_UNSATISFIABLE;
+    }
+    p = skip_spaces(p);
+    bool open_end = *p == '\0';
+    if (!open_end) {
+        if (!read_number(&p, &end))
+            return MS_HTTP_RANGE_UNSATISFIABLE;
+        p = skip_spaces(p);
+        if (*p != '\0')
+            return MS_HTTP_RANGE_UNSATISFIABLE;
+    }
+    if (suffix) {
+        /* "-N": the last N bytes; a bare "-" (as nginx reads it) all of them. */
+        uint64_t n = open_end ? length : end;
+        if (n == 0 || length == 0)
+            return MS_HTTP_RANGE_UNSATISFIABLE;
+        *first = n < length ? length - n : 0;
+        *last = length - 1;
+        return MS_HTTP_RANGE_OK;
+    }
+    if (!open_end && start > end)
+        return MS_HTTP_RANGE_UNSATISFIABLE;
+    if (start >= length)
+        return MS_HTTP_RANGE_UNSATISFIABLE;
+    *first = start;
+    *last = open_end || end >= length ? length - 1 : end;
+    return MS_HTTP_RANGE_OK;
+}
+
+bool ms_http_none_match(const char *header, const char *etag)
+{
+    if (!header)
+        return false;
+    size_t etag_length = strlen(etag);
+    const char *p = header;
+    for (;;) {
+        while (*p == ' ' || *p == '\t' || *p == ',')
+            ++p;
+        if (*p == '\0')
+            return false;
+        if (*p == '*') {
+            const char *after = p + 1;
+            while (*after == ' ' || *after == '\t')
+                ++after;
+            if (*after == '\0' || *after == ',')
+                return true;
+        }
+        if (!strncmp(p, "W/", 2))
+            p += 2;
+        size_t n = strcspn(p, ",");
+        size_t trimmed = n;
+        while (trimmed && (p[trimmed - 1] == ' ' || p[trimmed - 1] == '\t'))
+            --trimmed;
+        if (trimmed == etag_length && !strncmp(p, etag, etag_length))
+            return true;
+        p += n;
+    }
+}
