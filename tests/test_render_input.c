@@ -534,10 +534,15 @@ static void test_shading(void **state)
                       srgb(albedo[2] * (0.05 + 0.95 * lambert * lambert) + 0.18 * spec));
     }
     o.shading = MS_SHADING_NORMALS;
-    draw_plane(60.0, false, &o, c);
-    expect_colour(c, 0.5, (sin(M_PI / 3) + 1) / 2, (cos(M_PI / 3) + 1) / 2);
-    draw_plane(60.0, true, &o, c);
-    expect_colour(c, 0.5, (-sin(M_PI / 3) + 1) / 2, (-cos(M_PI / 3) + 1) / 2);
+    /* smooth (the vertex normals of a lone triangle are its own, packed) and flat */
+    for (int smooth = 1; smooth >= 0; --smooth) {
+        o.smooth = smooth;
+        draw_plane(60.0, false, &o, c);
+        expect_colour(c, 0.5, (sin(M_PI / 3) + 1) / 2, (cos(M_PI / 3) + 1) / 2);
+        draw_plane(60.0, true, &o, c);
+        expect_colour(c, 0.5, (-sin(M_PI / 3) + 1) / 2, (-cos(M_PI / 3) + 1) / 2);
+    }
+    o.smooth = true;
     o.shading = MS_SHADING_CELL_ID;
     draw_plane(0.0, false, &o, c);
     expect_colour(c, 1.0 / 255.0, 0.0, 0.0);
