@@ -36,8 +36,9 @@
  *
  * Shading (ms_render_options.shading):
  *   MS_SHADING_LIT      head light at the camera: Lambert + Blinn-Phong with the
- *                       normal N (APO, smooth or flat), times the self-shadowing
- *                       factor max(0, L . N_geometric); gamma-correct (sRGB) output.
+ *                       normal N (APO, smooth or flat), times, where N is an APO
+ *                       normal, the self-shadowing factor max(0, L . N_geometric);
+ *                       gamma-correct (sRGB) output.
  *   MS_SHADING_NORMALS  N as a colour, rgb = (N + 1) / 2, linear (no gamma), N in
  *                       world coordinates, so a test can read it back exactly.
  *   MS_SHADING_CELLS    LIT tinted by a colour hashed from the cell number.

@@ -90,14 +90,17 @@ void main()
         // An APO normal against the triangle's own was sampled on another sheet
         // of the surface (a thin part), and a vertex normal against it comes
         // from a fold: the triangle's normal stands in for it. The
-        // self-shadowing factor always uses the triangle's own normal.
+        // self-shadowing factor, which keeps a detail normal from lighting a
+        // surface the geometry turns away from the light, uses the triangle's
+        // own normal, and only where such a detail normal (APO) is used: the
+        // vertex and flat normals are the geometry's already.
         if (dot(n, ng) < 0.0)
             n = ng;
         if (dot(ng, l) < 0.0) {
             ng = -ng;
             n = -n;
         }
-        float self_shadow = max(0.0, dot(l, ng));
+        float self_shadow = apo_on ? max(0.0, dot(l, ng)) : 1.0;
         float lambert = max(0.0, dot(n, l));
         float specular = pow(max(0.0, dot(n, l)), 40.0);
         vec3 albedo = shading == 2 ? cell_tint : vec3(0.72, 0.69, 0.64);
