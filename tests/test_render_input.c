@@ -515,7 +515,8 @@ static void expect_colour(const float got[4], double r, double g, double b)
 }
 
 /* LIT: albedo (0.72, 0.69, 0.64) times (0.05 + 0.95 * Lambert * self-shadow) plus
- * 0.18 * specular^40 * self-shadow, sRGB-encoded; both sides lit alike. NORMALS:
+ * 0.18 * specular^40 * self-shadow, sRGB-encoded; both sides lit alike; without
+ * APO (this plane has no chunk) the self-shadowing factor is 1. NORMALS:
  * the stored orientation's normal. CELL_ID: cell + 1. */
 static void test_shading(void **state)
 {
@@ -528,16 +529,21 @@ static void test_shading(void **state)
         draw_plane(0.0, back, &o, c);
         expect_colour(c, srgb(albedo[0] + 0.18), srgb(albedo[1] + 0.18), srgb(albedo[2] + 0.18));
         draw_plane(60.0, back, &o, c);
-        double lambert = 0.5, spec = pow(0.5, 40.0) * 0.5;
-        expect_colour(c, srgb(albedo[0] * (0.05 + 0.95 * lambert * lambert) + 0.18 * spec),
-                      srgb(albedo[1] * (0.05 + 0.95 * lambert * lambert) + 0.18 * spec),
-                      srgb(albedo[2] * (0.05 + 0.95 * lambert * lambert) + 0.18 * spec));
+        double lambert = 0.5, spec = pow(0.5, 40.0);
+        expect_colour(c, srgb(albedo[0] * (0.05 + 0.95 * lambert) + 0.18 * spec),
+                      srgb(albedo[1] * (0.05 + 0.95 * lambert) + 0.18 * spec),
+                      srgb(albedo[2] * (0.05 + 0.95 * lambert) + 0.18 * spec));
     }
     o.shading = MS_SHADING_NORMALS;
-    draw_plane(60.0, false, &o, c);
-    expect_colour(c, 0.5, (sin(M_PI / 3) + 1) / 2, (cos(M_PI / 3) + 1) / 2);
-    draw_plane(60.0, true, &o, c);
-    expect_colour(c, 0.5, (-sin(M_PI / 3) + 1) / 2, (-cos(M_PI / 3) + 1) / 2);
+    /* smooth (the vertex normals of a lone triangle are its own, packed) and flat */
+    for (int smooth = 1; smooth >= 0; --smooth) {
+        o.smooth = smooth;
+        draw_plane(60.0, false, &o, c);
+        expect_colour(c, 0.5, (sin(M_PI / 3) + 1) / 2, (cos(M_PI / 3) + 1) / 2);
+        draw_plane(60.0, true, &o, c);
+        expect_colour(c, 0.5, (-sin(M_PI / 3) + 1) / 2, (-cos(M_PI / 3) + 1) / 2);
+    }
+    o.smooth = true;
     o.shading = MS_SHADING_CELL_ID;
     draw_plane(0.0, false, &o, c);
     expect_colour(c, 1.0 / 255.0, 0.0, 0.0);

@@ -305,6 +305,7 @@ static void run_model(ms_archive *a, const char *name, const double dirs[][3], s
             ms_render_options_default(&o);
             o.apo_nearest = cases[k].nearest;
             o.apo_depth_cap = cases[k].cap;
+            o.smooth = false; /* the oracle's fallback is the flat normal */
             figures f;
             compare(a, r, &cam, &o, &given, cases[k].levels ? &full : NULL, &f);
             char what[128];

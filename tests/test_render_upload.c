@@ -1,7 +1,8 @@
 /* The renderer's upload rule (ms_render.h, "Uploads"; docs/RENDERER.md):
  * the same frame twice queues nothing; refining one cell queues exactly the cells
- * whose drawn triangles changed (found here independently, by comparing each
- * cell's triangles as world positions); with a small budget no call sends more
+ * whose drawn triangles or vertex normals changed (found here independently, by
+ * comparing each cell's triangles as world positions with the packed
+ * area-weighted normals of their corners); with a small budget no call sends more
  * than the budget, every cell completes, and until a cell's new mesh is wholly
  * on the GPU the picture is exactly the old one; a cell leaving the frame stops
  * drawing at once; APO prefixes are queued only when their levels change. */
@@ -36,10 +37,42 @@ static ms_test_gl gl;
 static fixture fx;
 
 /* One triangle as its three world corners, rotated so the smallest corner comes
- * first (orientation kept), for comparing cells independently of numbering. */
+ * first (orientation kept), then the corners' packed vertex normals in the same
+ * order, for comparing cells independently of numbering. */
 typedef struct tri_key {
-    double p[9];
+    double p[12];
 } tri_key;
+
+/* The mesh's vertex normals as the renderer uploads them (ms_render.h, "Vertex
+ * normals"): per vertex the sum of the cross products (b - a) x (c - a) of its
+ * triangles, in triangle order, normalised, each component rounded to a signed
+ * 10-bit integer over 511 (GL_INT_2_10_10_10_REV, x low); 0 when undefined. */
+static uint32_t *packed_vertex_normals(const ms_view_mesh *m)
+{
+    double *sum = calloc(3 * m->vertex_count + 1, sizeof *sum);
+    uint32_t *packed = calloc(m->vertex_count + 1, sizeof *packed);
+    assert_true(sum && packed);
+    for (size_t t = 0; t < m->triangle_count; ++t) {
+        const uint32_t *tri = &m->triangles[3 * t];
+        const double *a = &m->positions[3 * (size_t)tri[0]], *b = &m->positions[3 * (size_t)tri[1]],
+                     *c = &m->positions[3 * (size_t)tri[2]];
+        double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, v[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+        double n[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};
+        for (int k = 0; k < 3; ++k)
+            for (int ax = 0; ax < 3; ++ax)
+                sum[3 * (size_t)tri[k] + (size_t)ax] += n[ax];
+    }
+    for (size_t i = 0; i < m->vertex_count; ++i) {
+        const double *n = &sum[3 * i];
+        double len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        if (!(len > 0.0))
+            continue;
+        for (int ax = 0; ax < 3; ++ax)
+            packed[i] |= ((uint32_t)lround(n[ax] / len * 511.0) & 0x3FFu) << (10 * ax);
+    }
+    free(sum);
+    return packed;
+}
 
 static int corner_cmp(const double *a, const double *b)
 {
@@ -52,7 +85,7 @@ static int corner_cmp(const double *a, const double *b)
 static int tri_cmp(const void *x, const void *y)
 {
     const tri_key *a = x, *b = y;
-    for (int k = 0; k < 9; ++k)
+    for (int k = 0; k < 12; ++k)
         if (a->p[k] != b->p[k])
             return a->p[k] < b->p[k] ? -1 : 1;
     return 0;
@@ -75,6 +108,7 @@ static void cell_tris_build(const ms_view_mesh *m, uint32_t cells, cell_tris *ou
     for (uint32_t c = 0; c < cells; ++c)
         out->start[c + 1] += out->start[c];
     memcpy(fill, out->start, ((size_t)cells + 1) * sizeof *fill);
+    uint32_t *normals = packed_vertex_normals(m);
     for (size_t t = 0; t < m->triangle_count; ++t) {
         const double *corner[3];
         int first = 0;
@@ -84,9 +118,12 @@ static void cell_tris_build(const ms_view_mesh *m, uint32_t cells, cell_tris *ou
             if (corner_cmp(corner[k], corner[first]) < 0)
                 first = k;
         tri_key *key = &out->keys[fill[m->triangle_cell[t]]++];
-        for (int k = 0; k < 3; ++k)
+        for (int k = 0; k < 3; ++k) {
             memcpy(&key->p[3 * k], corner[(first + k) % 3], 3 * sizeof(double));
+            key->p[9 + k] = normals[m->triangles[3 * t + (size_t)((first + k) % 3)]];
+        }
     }
+    free(normals);
     free(fill);
     for (uint32_t c = 0; c < cells; ++c)
         qsort(&out->keys[out->start[c]], out->start[c + 1] - out->start[c], sizeof *out->keys, tri_cmp);
@@ -136,6 +173,19 @@ static bool same_cell(const cell_tris *a, const cell_tris *b, uint32_t c)
     return na == nb && memcmp(&a->keys[a->start[c]], &b->keys[b->start[c]], na * sizeof(tri_key)) == 0;
 }
 
+/* The same triangles, whatever their corners' normals (keys sort by position
+ * first, and no two triangles of a cell share all three corners). */
+static bool same_cell_triangles(const cell_tris *a, const cell_tris *b, uint32_t c)
+{
+    size_t na = a->start[c + 1] - a->start[c], nb = b->start[c + 1] - b->start[c];
+    if (na != nb)
+        return false;
+    for (size_t i = 0; i < na; ++i)
+        if (memcmp(a->keys[a->start[c] + i].p, b->keys[b->start[c] + i].p, 9 * sizeof(double)) != 0)
+            return false;
+    return true;
+}
+
 static void set_frame(const ms_view_mesh *mesh, const ms_core_apo_chunk *apo, size_t count)
 {
     ms_error err;
@@ -181,7 +231,7 @@ static uint64_t mesh_bytes(const ms_view_mesh *m, uint32_t cells, const bool *wh
     uint64_t bytes = 0;
     for (uint32_t c = 0; c < cells; ++c)
         if (!which || which[c])
-            bytes += 12ull * verts[c] + 12ull * tris[c];
+            bytes += 16ull * verts[c] + 12ull * tris[c]; /* position + packed normal; indices */
     free(verts);
     free(tris);
     return bytes;
@@ -260,8 +310,8 @@ static uint32_t refinable_cell(const ms_view_mesh *mesh, uint32_t except)
     return best;
 }
 
-/* Refining one cell queues exactly the cells whose triangles changed, and until
- * each is complete the old picture stays. */
+/* Refining one cell queues exactly the cells whose triangles or vertex normals
+ * changed, and until each is complete the old picture stays. */
 static void test_refinement_queues_changed_cells(void **state)
 {
     (void)state;
@@ -283,10 +333,13 @@ static void test_refinement_queues_changed_cells(void **state)
     cell_tris_build(&before, fx.cell_count, &a);
     cell_tris_build(&after, fx.cell_count, &b);
     bool *changed = calloc(fx.cell_count, 1);
-    uint32_t changed_count = 0;
-    for (uint32_t c = 0; c < fx.cell_count; ++c)
+    uint32_t changed_count = 0, triangles_changed = 0;
+    for (uint32_t c = 0; c < fx.cell_count; ++c) {
         if (!same_cell(&a, &b, c))
             changed[c] = true, changed_count++;
+        triangles_changed += !same_cell_triangles(&a, &b, c);
+    }
+    assert_true(triangles_changed <= changed_count);
     assert_true(changed[cell]);
     assert_true(changed_count < drawing_cells(&after, fx.cell_count));
     uint64_t want = mesh_bytes(&after, fx.cell_count, changed);
@@ -308,8 +361,8 @@ static void test_refinement_queues_changed_cells(void **state)
         total += s.bytes;
         completed += s.cells_completed;
     } while (s.cells_pending > 0);
-    print_message("refining cell %u: %u cells changed (of %u drawing), %llu bytes, expected %llu\n", cell,
-                  changed_count, drawing_cells(&after, fx.cell_count), (unsigned long long)total,
+    print_message("refining cell %u: %u cells changed (%u by their triangles, of %u drawing), %llu bytes, expected %llu\n",
+                  cell, changed_count, triangles_changed, drawing_cells(&after, fx.cell_count), (unsigned long long)total,
                   (unsigned long long)want);
     assert_int_equal(completed, changed_count);
     assert_int_equal(total, want);

@@ -24,9 +24,10 @@ typedef struct gpu_mesh {
 typedef struct pending_mesh {
     bool active;
     float *vertices;        /* 3 per vertex, owned */
+    uint32_t *normals;      /* 1 per vertex (packed), owned */
     uint32_t *indices;      /* 3 per triangle, owned */
     gpu_mesh gpu;           /* buffers being filled (created with the first piece) */
-    uint64_t sent;          /* bytes of vertices then indices already sent */
+    uint64_t sent;          /* bytes of positions, normals, then indices already sent */
 } pending_mesh;
 
 typedef struct apo_range {
@@ -76,6 +77,7 @@ void ms_render_options_default(ms_render_options *o)
     o->wireframe = false;
     o->apo_depth_cap = 0;
     o->apo_nearest = true;
+    o->smooth = true;
     o->background[0] = o->background[1] = o->background[2] = 0.02f;
 }
 
@@ -95,6 +97,7 @@ static void delete_gpu_mesh(gpu_mesh *m)
 static void drop_pending_mesh(pending_mesh *p)
 {
     free(p->vertices);
+    free(p->normals);
     free(p->indices);
     delete_gpu_mesh(&p->gpu);
     memset(p, 0, sizeof *p);
@@ -232,12 +235,14 @@ static ms_status take_mesh(render_cell *c, const ms_render_cell_mesh *m, ms_erro
         return MS_OK;
     pending_mesh *p = &c->next_mesh;
     p->vertices = malloc(3 * (size_t)m->vertex_count * sizeof *p->vertices);
+    p->normals = malloc((size_t)m->vertex_count * sizeof *p->normals);
     p->indices = malloc(3 * (size_t)m->triangle_count * sizeof *p->indices);
-    if (!p->vertices || !p->indices) {
+    if (!p->vertices || !p->normals || !p->indices) {
         drop_pending_mesh(p);
         return ms_error_set(err, MS_ERR_NOMEM, "render: no memory for cell %u", m->cell);
     }
     memcpy(p->vertices, m->vertices, 3 * (size_t)m->vertex_count * sizeof *p->vertices);
+    memcpy(p->normals, m->normals, (size_t)m->vertex_count * sizeof *p->normals);
     memcpy(p->indices, m->indices, 3 * (size_t)m->triangle_count * sizeof *p->indices);
     p->gpu.vertex_count = m->vertex_count;
     p->gpu.triangle_count = m->triangle_count;
@@ -357,12 +362,15 @@ ms_status ms_render_set_frame(ms_render *r, const ms_view_mesh *mesh, const ms_c
 
 /* ---- uploads ----------------------------------------------------------------- */
 
-/* Sends up to *left bytes of a pending mesh; true once it is current. */
+/* Sends up to *left bytes of a pending mesh; true once it is current. The vertex
+ * buffer holds the positions (3 floats per vertex) followed by the packed
+ * normals (4 bytes per vertex): 16 bytes per vertex. */
 static bool upload_mesh(render_cell *c, uint64_t *left, uint64_t *bytes)
 {
     pending_mesh *p = &c->next_mesh;
     gpu_mesh *g = &p->gpu;
-    uint64_t vertex_bytes = 12ull * g->vertex_count, index_bytes = 12ull * g->triangle_count;
+    uint64_t position_bytes = 12ull * g->vertex_count;
+    uint64_t vertex_bytes = position_bytes + 4ull * g->vertex_count, index_bytes = 12ull * g->triangle_count;
     if (!g->vbo) {
         glGenBuffers(1, &g->vbo);
         glGenBuffers(1, &g->ibo);
@@ -378,9 +386,17 @@ static bool upload_mesh(render_cell *c, uint64_t *left, uint64_t *bytes)
         uint64_t part = (vertices ? vertex_bytes : index_bytes) - offset;
         if (part > *left)
             part = *left;
-        const uint8_t *src = vertices ? (const uint8_t *)p->vertices : (const uint8_t *)p->indices;
+        const uint8_t *src;
+        if (!vertices)
+            src = (const uint8_t *)p->indices + offset;
+        else if (offset < position_bytes) {
+            src = (const uint8_t *)p->vertices + offset;
+            if (part > position_bytes - offset)
+                part = position_bytes - offset;
+        } else
+            src = (const uint8_t *)p->normals + (offset - position_bytes);
         glBindBuffer(GL_ARRAY_BUFFER, vertices ? g->vbo : g->ibo);
-        glBufferSubData(GL_ARRAY_BUFFER, (GLintptr)offset, (GLsizeiptr)part, src + offset);
+        glBufferSubData(GL_ARRAY_BUFFER, (GLintptr)offset, (GLsizeiptr)part, src);
         p->sent += part;
         *left -= part;
         *bytes += part;
@@ -393,6 +409,8 @@ static bool upload_mesh(render_cell *c, uint64_t *left, uint64_t *bytes)
     glBindBuffer(GL_ARRAY_BUFFER, g->vbo);
     glEnableVertexAttribArray(0);
     glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 12, NULL);
+    glEnableVertexAttribArray(1);
+    glVertexAttribPointer(1, 4, GL_INT_2_10_10_10_REV, GL_TRUE, 4, (const void *)(uintptr_t)position_bytes);
     glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, g->ibo);
     glBindVertexArray(0);
     glBindBuffer(GL_ARRAY_BUFFER, 0);
@@ -545,6 +563,7 @@ ms_status ms_render_draw(ms_render *r, const ms_camera *camera, const ms_render_
     glUniform2f(p->viewport, (float)width, (float)height);
     glUniform1i(p->shading, (int)o->shading);
     glUniform1i(p->apo_nearest, o->apo_nearest);
+    glUniform1i(p->smooth, o->smooth);
     glActiveTexture(GL_TEXTURE0);
     glBindTexture(GL_TEXTURE_BUFFER, r->texels.texture);
     glUniform1i(p->apo_words, 0);

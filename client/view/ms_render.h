@@ -10,8 +10,8 @@
  * cell-to-eye transform is computed in doubles on the CPU each draw, so 20-bit
  * models far from the origin keep their precision.
  *
- * Uploads. ms_render_set_frame finds the cells whose drawn triangles or vertex
- * positions changed since the previous frame (per-cell content hash) and queues
+ * Uploads. ms_render_set_frame finds the cells whose drawn triangles, vertex
+ * positions or vertex normals changed since the previous frame (per-cell content hash) and queues
  * them; ms_render_upload sends queued data to the GPU within a byte budget per
  * call (a cell larger than the budget goes up in pieces over several calls). A
  * cell keeps drawing its previous mesh until its new one is wholly on the GPU;
@@ -22,12 +22,23 @@
  * shader walks the octree with texelFetch, children addressed with bitCount on
  * the child mask, and reads a level not wholly received as absent, exactly as
  * ms_apo_lookup (ms_apo_traverse.h) with depth_cap and the missing-child rule of
- * the options. A cell without a chunk falls back to its geometric normal.
+ * the options. Where APO is not used (a cell without a chunk or whose prefix did
+ * not load, or APO off), N is the smooth vertex normal (options.smooth) or the
+ * triangle's flat normal.
+ *
+ * Vertex normals. ms_render_set_frame computes them once per frame over the whole
+ * stitched mesh: per vertex, the sum of the unnormalised face normals of the
+ * triangles around it (area-weighted), so they are continuous across cell
+ * borders. They go up as a second vertex attribute (GL_INT_2_10_10_10_REV,
+ * normalised: 4 bytes per vertex, after the 12 of the position) and are part of
+ * the cell's content hash: a cell whose vertex normals changed because a
+ * neighbour refined around a shared border vertex is uploaded again.
  *
  * Shading (ms_render_options.shading):
  *   MS_SHADING_LIT      head light at the camera: Lambert + Blinn-Phong with the
- *                       normal N (APO or geometric), times the self-shadowing
- *                       factor max(0, L . N_geometric); gamma-correct (sRGB) output.
+ *                       normal N (APO, smooth or flat), times, where N is an APO
+ *                       normal, the self-shadowing factor max(0, L . N_geometric);
+ *                       gamma-correct (sRGB) output.
  *   MS_SHADING_NORMALS  N as a colour, rgb = (N + 1) / 2, linear (no gamma), N in
  *                       world coordinates, so a test can read it back exactly.
  *   MS_SHADING_CELLS    LIT tinted by a colour hashed from the cell number.
@@ -78,9 +89,12 @@ typedef struct ms_render_options {
     uint32_t apo_depth_cap;   /* 0: no cap */
     bool apo_nearest;         /* missing child: MS_APO_MISSING_NEAREST (true) or STOP */
     float background[3];      /* linear RGB the colour buffer is cleared to */
+    bool smooth;              /* where APO is not used: interpolated vertex normals
+                                 (true) or each triangle's flat normal (false) */
 } ms_render_options;
 
-/* LIT, APO on, no wireframe, no cap, nearest rule, dark grey background. */
+/* LIT, APO on, no wireframe, no cap, nearest rule, dark grey background,
+ * smooth. */
 void ms_render_options_default(ms_render_options *options);
 
 /* Compiles the shaders and sets up the buffers for a model (header and its

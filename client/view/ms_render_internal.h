@@ -45,8 +45,9 @@ typedef struct ms_render_cell_mesh {
     uint32_t cell;
     uint32_t vertex_count, triangle_count;
     const float *vertices;   /* 3 per vertex: (world - cube origin) / cube side */
+    const uint32_t *normals; /* 1 per vertex: the packed vertex normal (ms_render_pack_normal) */
     const uint32_t *indices; /* 3 per triangle, into vertices, orientation kept */
-    uint64_t hash;           /* of the counts, vertex floats and indices */
+    uint64_t hash;           /* of the counts, vertex floats, packed normals and indices */
 } ms_render_cell_mesh;
 
 typedef struct ms_render_split {
@@ -63,9 +64,13 @@ typedef struct ms_render_split {
     uint32_t *stamp;         /* per mesh vertex: the cell pass that set local */
     size_t vertex_cap;
     uint32_t pass;
+    double *normal_sum;      /* 3 per mesh vertex: area-weighted sum of face normals */
+    uint32_t *packed;        /* per mesh vertex: its packed unit normal */
+    size_t normal_cap;       /* mesh vertices normal_sum and packed hold */
     float *vertices;
+    uint32_t *normals;
     uint32_t *indices;
-    size_t cell_vertex_cap, cell_triangle_cap;
+    size_t cell_vertex_cap, cell_normal_cap, cell_triangle_cap;
 } ms_render_split;
 
 /* Zeroes the splitter for a model (header and cells are borrowed). */
@@ -73,9 +78,19 @@ void ms_render_split_init(ms_render_split *split, const ms_archive_header *heade
                           const ms_archive_cell *cells);
 void ms_render_split_free(ms_render_split *split);
 
+/* A unit vector (x, y, z) as GL_INT_2_10_10_10_REV: each component rounded to
+ * a signed 10-bit integer over 511 (x in the low bits, w 0); a zero or
+ * non-finite vector packs to 0 (the shader then uses the flat normal). The
+ * vector need not be unit: it is normalised first. */
+uint32_t ms_render_pack_normal(const double n[3]);
+
 /* Checks the mesh (indices in range, drawing cells in the model, positions
- * finite, counts below 2^32) and groups its triangles by cell; the mesh is
- * borrowed until the next call. MS_ERR_ARG for a bad mesh, MS_ERR_NOMEM. */
+ * finite, counts below 2^32), groups its triangles by cell and computes the
+ * vertex normals of the whole stitched mesh (per vertex, the sum of the
+ * unnormalised face normals of the triangles using it: area-weighted, and
+ * continuous across cell borders since a border vertex is one mesh vertex);
+ * the mesh is borrowed until the next call. MS_ERR_ARG for a bad mesh,
+ * MS_ERR_NOMEM. */
 ms_status ms_render_split_frame(ms_render_split *split, const ms_view_mesh *mesh, ms_error *err);
 
 /* The k-th present cell's mesh (k < present_count). MS_ERR_NOMEM. */
@@ -126,7 +141,7 @@ typedef struct ms_render_program {
     GLuint program;
     GLint modelview, projection, viewport;
     GLint shading, apo_on, apo_base, apo_root_internal, apo_stop_depth, apo_nearest;
-    GLint world_to_eye, cell_number, cell_tint, apo_words;
+    GLint world_to_eye, cell_number, cell_tint, apo_words, smooth;
 } ms_render_program;
 
 /* Compiles and links the embedded shaders: with wireframe, the program with the

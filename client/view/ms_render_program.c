@@ -76,6 +76,7 @@ ms_status ms_render_program_build(ms_render_program *p, bool wireframe, ms_error
             glAttachShader(p->program, gs);
         glAttachShader(p->program, fs);
         glBindAttribLocation(p->program, 0, "cell_position");
+        glBindAttribLocation(p->program, 1, "cell_normal");
         glBindFragDataLocation(p->program, 0, "colour");
         glLinkProgram(p->program);
         GLint ok = 0;
@@ -110,6 +111,7 @@ ms_status ms_render_program_build(ms_render_program *p, bool wireframe, ms_error
     p->cell_number = glGetUniformLocation(g, "cell_number");
     p->cell_tint = glGetUniformLocation(g, "cell_tint");
     p->apo_words = glGetUniformLocation(g, "apo_words");
+    p->smooth = glGetUniformLocation(g, "smooth_on");
     return MS_OK;
 }
 

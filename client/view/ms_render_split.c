@@ -3,7 +3,12 @@
  * Triangles are grouped by triangle_cell with one counting sort per frame; each
  * cell's vertices are numbered in the order its triangles first use them, so the
  * same cell content always gives the same arrays and the same hash, and a cell
- * whose drawn triangles did not change is not uploaded again. */
+ * whose drawn triangles did not change is not uploaded again.
+ *
+ * Vertex normals are computed once per frame over the whole stitched mesh, so a
+ * vertex on a cell border has the same normal in every cell that draws it; they
+ * are part of a cell's hash, so a cell whose normals moved because a neighbour
+ * refined (new triangles around a shared border vertex) is uploaded again. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -25,7 +30,10 @@ void ms_render_split_free(ms_render_split *s)
     free(s->present);
     free(s->local);
     free(s->stamp);
+    free(s->normal_sum);
+    free(s->packed);
     free(s->vertices);
+    free(s->normals);
     free(s->indices);
     memset(s, 0, sizeof *s);
 }
@@ -44,6 +52,54 @@ static bool grow(void **array, size_t *cap, size_t need, size_t size)
     *array = p;
     *cap = cap2;
     return true;
+}
+
+uint32_t ms_render_pack_normal(const double n[3])
+{
+    double len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    if (!(len > 0.0) || !isfinite(len))
+        return 0;
+    uint32_t word = 0;
+    for (int a = 0; a < 3; ++a) {
+        long q = lround(n[a] / len * 511.0);
+        q = q < -511 ? -511 : (q > 511 ? 511 : q);
+        word |= ((uint32_t)q & 0x3FFu) << (10 * a);
+    }
+    return word;
+}
+
+/* Area-weighted vertex normals of the whole mesh into s->packed. */
+static ms_status vertex_normals(ms_render_split *s, const ms_view_mesh *mesh, ms_error *err)
+{
+    size_t nv = mesh->vertex_count;
+    if (nv > s->normal_cap) {
+        double *sum = realloc(s->normal_sum, 3 * nv * sizeof *sum);
+        if (sum)
+            s->normal_sum = sum;
+        uint32_t *packed = sum ? realloc(s->packed, nv * sizeof *packed) : NULL;
+        if (!packed)
+            return ms_error_set(err, MS_ERR_NOMEM, "render: no memory for %zu vertex normals", nv);
+        s->packed = packed;
+        s->normal_cap = nv;
+    }
+    if (nv == 0)
+        return MS_OK;
+    memset(s->normal_sum, 0, 3 * nv * sizeof *s->normal_sum);
+    const double *p = mesh->positions;
+    for (size_t t = 0; t < mesh->triangle_count; ++t) {
+        const uint32_t *tri = &mesh->triangles[3 * t];
+        const double *a = &p[3 * (size_t)tri[0]], *b = &p[3 * (size_t)tri[1]], *c = &p[3 * (size_t)tri[2]];
+        double e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+        double e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+        /* twice the area times the unit normal: the weighting by area */
+        double n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
+        for (int k = 0; k < 3; ++k)
+            for (int ax = 0; ax < 3; ++ax)
+                s->normal_sum[3 * (size_t)tri[k] + (size_t)ax] += n[ax];
+    }
+    for (size_t v = 0; v < nv; ++v)
+        s->packed[v] = ms_render_pack_normal(&s->normal_sum[3 * v]);
+    return MS_OK;
 }
 
 ms_status ms_render_split_frame(ms_render_split *s, const ms_view_mesh *mesh, ms_error *err)
@@ -102,6 +158,9 @@ ms_status ms_render_split_frame(ms_render_split *s, const ms_view_mesh *mesh, ms
     for (uint32_t c = s->cell_count; c > 0; --c) /* back to first entries */
         start[c] = start[c - 1];
     start[0] = 0;
+    ms_status st = vertex_normals(s, mesh, err);
+    if (st != MS_OK)
+        return st;
     s->mesh = mesh;
     return MS_OK;
 }
@@ -156,13 +215,15 @@ ms_status ms_render_split_cell(ms_render_split *s, uint32_t k, ms_render_cell_me
             uint32_t v = tri[c];
             if (s->stamp[v] != s->pass) {
                 if (!grow((void **)&s->vertices, &s->cell_vertex_cap, 3 * ((size_t)verts + 1),
-                          sizeof *s->vertices))
+                          sizeof *s->vertices) ||
+                    !grow((void **)&s->normals, &s->cell_normal_cap, (size_t)verts + 1, sizeof *s->normals))
                     return ms_error_set(err, MS_ERR_NOMEM, "render: no memory for cell %u", cell);
                 s->stamp[v] = s->pass;
                 s->local[v] = verts;
                 for (int a = 0; a < 3; ++a)
                     s->vertices[3 * (size_t)verts + (size_t)a] =
                         (float)((m->positions[3 * (size_t)v + (size_t)a] - origin[a]) / side);
+                s->normals[verts] = s->packed[v];
                 verts++;
             }
             s->indices[3 * (size_t)(i - first) + (size_t)c] = s->local[v];
@@ -171,11 +232,13 @@ ms_status ms_render_split_cell(ms_render_split *s, uint32_t k, ms_render_cell_me
     uint32_t counts[2] = {verts, tris};
     uint64_t h = hash_bytes(0xCBF29CE484222325ull, counts, sizeof counts);
     h = hash_bytes(h, s->vertices, 3 * (size_t)verts * sizeof *s->vertices);
+    h = hash_bytes(h, s->normals, (size_t)verts * sizeof *s->normals);
     h = hash_bytes(h, s->indices, 3 * (size_t)tris * sizeof *s->indices);
     out->cell = cell;
     out->vertex_count = verts;
     out->triangle_count = tris;
     out->vertices = s->vertices;
+    out->normals = s->normals;
     out->indices = s->indices;
     out->hash = h;
     return MS_OK;

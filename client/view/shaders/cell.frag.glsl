@@ -8,15 +8,19 @@
 #ifdef MS_WIREFRAME
 in vec3 g_cell;
 in vec3 g_eye;
+in vec3 g_vertex_normal;
 flat in vec3 g_normal;
 noperspective in vec3 g_edge;
 #define FRAG_CELL g_cell
 #define FRAG_EYE g_eye
+#define FRAG_VERTEX_NORMAL g_vertex_normal
 #else
 in vec3 v_cell;
 in vec3 v_eye;
+in vec3 v_normal;
 #define FRAG_CELL v_cell
 #define FRAG_EYE v_eye
+#define FRAG_VERTEX_NORMAL v_normal
 #endif
 
 uniform int shading;          // 0 LIT, 1 NORMALS, 2 CELLS, 3 CELL_ID
@@ -28,6 +32,7 @@ uniform bool apo_nearest_rule; // missing child: nearest (true) or stop
 uniform mat3 world_to_eye;    // rotation part of the view
 uniform uint cell_number;
 uniform vec3 cell_tint;       // linear albedo for CELLS
+uniform bool smooth_on;       // without APO: interpolated vertex normals, else flat
 
 out vec4 colour;
 
@@ -61,8 +66,17 @@ void main()
         return;
     }
     vec3 g_n = geometric_normal();
-    vec3 n_world = apo_on ? apo_lookup(FRAG_CELL, apo_base, apo_root_internal, apo_stop_depth, apo_nearest_rule)
-                          : g_n;
+    vec3 n_world = g_n;
+    if (apo_on) {
+        n_world = apo_lookup(FRAG_CELL, apo_base, apo_root_internal, apo_stop_depth, apo_nearest_rule);
+    } else if (smooth_on) {
+        // The interpolated vertex normal; a vertex whose normal is undefined
+        // (only degenerate triangles around it) packs to zero: flat there.
+        vec3 v = FRAG_VERTEX_NORMAL;
+        float len = length(v);
+        if (len > 1e-3)
+            n_world = v / len;
+    }
     vec3 rgb;
     if (shading == 1) {
         rgb = (n_world + 1.0) * 0.5;
@@ -74,14 +88,19 @@ void main()
         vec3 ng = normalize(world_to_eye * g_n);
         vec3 n = normalize(world_to_eye * n_world);
         // An APO normal against the triangle's own was sampled on another sheet
-        // of the surface (a thin part): the triangle's normal stands in for it.
+        // of the surface (a thin part), and a vertex normal against it comes
+        // from a fold: the triangle's normal stands in for it. The
+        // self-shadowing factor, which keeps a detail normal from lighting a
+        // surface the geometry turns away from the light, uses the triangle's
+        // own normal, and only where such a detail normal (APO) is used: the
+        // vertex and flat normals are the geometry's already.
         if (dot(n, ng) < 0.0)
             n = ng;
         if (dot(ng, l) < 0.0) {
             ng = -ng;
             n = -n;
         }
-        float self_shadow = max(0.0, dot(l, ng));
+        float self_shadow = apo_on ? max(0.0, dot(l, ng)) : 1.0;
         float lambert = max(0.0, dot(n, l));
         float specular = pow(max(0.0, dot(n, l)), 40.0);
         vec3 albedo = shading == 2 ? cell_tint : vec3(0.72, 0.69, 0.64);

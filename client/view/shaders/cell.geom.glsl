@@ -8,11 +8,13 @@ layout(triangle_strip, max_vertices = 3) out;
 
 in vec3 v_cell[];
 in vec3 v_eye[];
+in vec3 v_normal[];
 
 uniform vec2 viewport;
 
 out vec3 g_cell;
 out vec3 g_eye;
+out vec3 g_vertex_normal;
 flat out vec3 g_normal;
 noperspective out vec3 g_edge;
 
@@ -36,6 +38,7 @@ void main()
     for (int i = 0; i < 3; ++i) {
         g_cell = v_cell[i];
         g_eye = v_eye[i];
+        g_vertex_normal = v_normal[i];
         g_normal = n;
         g_edge = vec3(0.0);
         g_edge[i] = heights[i];

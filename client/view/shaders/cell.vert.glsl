@@ -5,17 +5,22 @@
 // precision in float).
 
 layout(location = 0) in vec3 cell_position;
+// The vertex normal (world frame, unit; zero where it is undefined), from
+// GL_INT_2_10_10_10_REV normalised.
+layout(location = 1) in vec4 cell_normal;
 
 uniform mat4 modelview;
 uniform mat4 projection;
 
 out vec3 v_cell;
 out vec3 v_eye;
+out vec3 v_normal;
 
 void main()
 {
     vec4 eye = modelview * vec4(cell_position, 1.0);
     v_cell = cell_position;
     v_eye = eye.xyz;
+    v_normal = cell_normal.xyz;
     gl_Position = projection * eye;
 }
