@@ -775,15 +775,16 @@ int main(int argc, char **argv)
     if (lg.o.json)
         ms_json_print(
             stdout,
-            json_pack("{s:o, s:s, s:i, s:i, s:f, s:f, s:f, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:f, "
-                      "s:{s:f, s:f, s:f, s:f}, s:I, s:I, s:I, s:o}",
+            json_pack("{s:o, s:s, s:i, s:i, s:f, s:f, s:o, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:o, "
+                      "s:{s:o, s:o, s:o, s:o}, s:I, s:I, s:I, s:o}",
                       "label", ms_json_text(lg.o.label), "transport", lg.o.http ? "http" : "binary", "clients",
                       (int)lg.o.clients, "window", (int)lg.o.window, "fps", lg.o.fps, "rate", lg.o.rate,
-                      "seconds", elapsed, "requests", (json_int_t)lg.requests, "answered", (json_int_t)answered,
+                      "seconds", ms_json_fixed(elapsed, 3), "requests", (json_int_t)lg.requests, "answered", (json_int_t)answered,
                       "cancelled", (json_int_t)lg.cancelled, "rate_limited", (json_int_t)lg.rate_limited,
                       "errors", (json_int_t)lg.errors, "connection_failures", (json_int_t)lg.connection_failures,
-                      "payload_bytes", (json_int_t)lg.bytes, "throughput_MBps", mbps, "latency_ms", "p50",
-                      p50 * 1e3, "p99", p99 * 1e3, "max", max * 1e3, "apo_p99", apo_p99 * 1e3,
+                      "payload_bytes", (json_int_t)lg.bytes, "throughput_MBps", ms_json_fixed(mbps, 1), "latency_ms", "p50",
+                      ms_json_fixed(p50 * 1e3, 3), "p99", ms_json_fixed(p99 * 1e3, 3), "max",
+                      ms_json_fixed(max * 1e3, 3), "apo_p99", ms_json_fixed(apo_p99 * 1e3, 3),
                       "server_vmhwm_kb", (json_int_t)hwm, "server_vmrss_kb", (json_int_t)rss,
                       "server_rssanon_kb", (json_int_t)anon, "first_error", ms_json_text(lg.first_error)),
             MS_JSON_SPACED);

@@ -1,6 +1,7 @@
 /* JSON reports through jansson: see ms_json_out.h. */
 #include "ms_json_out.h"
 
+#include <assert.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -71,11 +72,24 @@ json_t *ms_json_number(double v)
     return isfinite(v) ? json_real(v) : json_null();
 }
 
-int ms_json_print(FILE *out, json_t *root, ms_json_layout layout)
+json_t *ms_json_fixed(double v, int decimals)
+{
+    static const double scale[] = {1, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9};
+    assert(decimals >= 0 && decimals <= 9);
+    if (!isfinite(v))
+        return json_null();
+    double scaled = round(v * scale[decimals]);
+    return json_real(fabs(scaled) < 9e15 ? scaled / scale[decimals] : v);
+}
+
+int ms_json_print(FILE *out, json_t *root, int layout)
 {
     if (!root)
         return -1;
-    char *text = json_dumps(root, JSON_REAL_PRECISION(17) | (layout == MS_JSON_COMPACT ? JSON_COMPACT : 0));
+    size_t flags = JSON_REAL_PRECISION(layout & MS_JSON_EXACT ? 17 : 15);
+    if (layout & MS_JSON_COMPACT)
+        flags |= JSON_COMPACT;
+    char *text = json_dumps(root, flags);
     json_decref(root);
     if (!text)
         return -1;

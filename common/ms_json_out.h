@@ -24,17 +24,26 @@ json_t *ms_json_text(const char *s);
 /* A JSON real, or null when v is NaN or infinite. */
 json_t *ms_json_number(double v);
 
-/* How a report is laid out on its line. */
+/* v rounded to the given number of decimals (0..9), as a JSON real (null when
+ * not finite): for figures read by people and by scripts/bench-* tables, which
+ * would otherwise show every digit of a timing. */
+json_t *ms_json_fixed(double v, int decimals);
+
+/* How a report is written on its line: MS_JSON_SPACED or MS_JSON_COMPACT, to
+ * which MS_JSON_EXACT may be added (a bit set). */
 typedef enum {
-    MS_JSON_SPACED,  /* "key": value, items separated by ", " */
-    MS_JSON_COMPACT, /* "key":value, items separated by ","; kept for the reports
-                        that scripts/bench-* read with sed (meshbake's bake
-                        report, the APO classic report) */
+    MS_JSON_SPACED = 0,  /* "key": value, items separated by ", " */
+    MS_JSON_COMPACT = 1, /* "key":value, items separated by ","; kept for the
+                            reports that scripts/bench-* read with sed
+                            (meshbake's bake report, the APO classic report) */
+    MS_JSON_EXACT = 2,   /* reals with 17 significant digits, so that every
+                            double reads back exactly (default: 15, so that a
+                            decimal of up to 15 digits, such as an
+                            ms_json_fixed value, reads back as written) */
 } ms_json_layout;
 
-/* Writes root as one line in the given layout, reals with 17 significant digits
- * so that they read back exactly, then a newline, to out, and releases root.
- * Returns 0, or -1 when root is NULL or the write failed. */
-int ms_json_print(FILE *out, json_t *root, ms_json_layout layout);
+/* Writes root as one line in the given layout, then a newline, to out, and
+ * releases root. Returns 0, or -1 when root is NULL or the write failed. */
+int ms_json_print(FILE *out, json_t *root, int layout);
 
 #endif

@@ -279,7 +279,7 @@ static void show_progress(void *context, uint64_t done, uint64_t total)
 static void print_json(const char *path, const ms_mesh_read_report *r, double seconds)
 {
     ms_json_print(stdout,
-                  json_pack("{s:o, s:s, s:b, s:I, s:I, s:I, s:[f, f, f], s:[f, f, f], s:I, s:I, s:I, s:f}",
+                  json_pack("{s:o, s:s, s:b, s:I, s:I, s:I, s:[f, f, f], s:[f, f, f], s:I, s:I, s:I, s:o}",
                             "file", ms_json_text(path), "format", ms_mesh_format_name(r->format), "gzip",
                             r->gzip, "vertices", (json_int_t)r->vertices, "triangles",
                             (json_int_t)r->triangles, "input_faces", (json_int_t)r->input_faces,
@@ -287,8 +287,8 @@ static void print_json(const char *path, const ms_mesh_read_report *r, double se
                             r->bbox_max[0], r->bbox_max[1], r->bbox_max[2], "dropped_faces",
                             (json_int_t)r->dropped_faces, "isolated_vertices",
                             (json_int_t)r->isolated_vertices, "bytes", (json_int_t)r->input_bytes,
-                            "seconds", seconds),
-                  MS_JSON_SPACED);
+                            "seconds", ms_json_fixed(seconds, 9)),
+                  MS_JSON_SPACED | MS_JSON_EXACT); /* the bounding box as read */
 }
 
 static void print_text(const char *path, const ms_mesh_read_report *r, double seconds)

@@ -406,8 +406,8 @@ static int cmd_roundtrip(int argc, char **argv)
     double dec = t3 - t2, enc = t1 - t0;
     if (o.json) {
         ms_json_print(stdout,
-                      json_pack("{s:o, s:i, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:f, s:f, s:f, s:f, "
-                                "s:f, s:b}",
+                      json_pack("{s:o, s:i, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:o, s:o, s:o, s:o, "
+                                "s:o, s:b}",
                                 "input", ms_json_text(o.input), "bits", o.bits, "vertices",
                                 (json_int_t)q.vertex_count, "triangles", (json_int_t)q.tri_count,
                                 "input_vertices", (json_int_t)weld.input_vertices, "input_triangles",
@@ -416,9 +416,11 @@ static int cmd_roundtrip(int argc, char **argv)
                                 (json_int_t)weld.degenerate_triangles, "duplicate_triangles",
                                 (json_int_t)weld.duplicate_triangles, "isolated_vertices",
                                 (json_int_t)weld.isolated_vertices, "bytes", (json_int_t)size,
-                                "bits_per_vertex", bpv, "bits_per_input_vertex", bpiv, "encode_seconds", enc,
-                                "decode_seconds", dec, "decode_mtriangles_per_second",
-                                dec > 0 ? (double)q.tri_count / dec / 1e6 : 0.0, "lossless", lossless),
+                                "bits_per_vertex", ms_json_fixed(bpv, 4), "bits_per_input_vertex",
+                                ms_json_fixed(bpiv, 4), "encode_seconds", ms_json_fixed(enc, 6),
+                                "decode_seconds", ms_json_fixed(dec, 6), "decode_mtriangles_per_second",
+                                ms_json_fixed(dec > 0 ? (double)q.tri_count / dec / 1e6 : 0.0, 3), "lossless",
+                                lossless),
                       MS_JSON_SPACED);
     } else {
         printf("%s at %d bits: %zu vertices, %zu triangles (welded %zu, dropped %zu degenerate + "

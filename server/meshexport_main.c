@@ -179,8 +179,8 @@ int main(int argc, char **argv)
     }
     double seconds = ms_now_seconds() - start;
     if (json)
-        ms_json_print(stdout, json_pack("{s:o, s:I, s:I, s:f}", "model", ms_json_text(name), "files",
-                                        (json_int_t)files, "bytes", (json_int_t)bytes, "seconds", seconds),
+        ms_json_print(stdout, json_pack("{s:o, s:I, s:I, s:o}", "model", ms_json_text(name), "files",
+                                        (json_int_t)files, "bytes", (json_int_t)bytes, "seconds", ms_json_fixed(seconds, 3)),
                       MS_JSON_SPACED);
     else
         printf("meshexport: %s: %llu files, %llu bytes in %.2f s\n", name,

@@ -115,9 +115,9 @@ int main(int argc, char **argv)
     }
     double seconds = ms_now_seconds() - start;
     if (json)
-        ms_json_print(stdout, json_pack("{s:o, s:i, s:I, s:I, s:I, s:f}", "output", ms_json_text(output), "grid",
+        ms_json_print(stdout, json_pack("{s:o, s:i, s:I, s:I, s:I, s:o}", "output", ms_json_text(output), "grid",
                                         (int)model.grid, "seed", (json_int_t)seed, "vertices", (json_int_t)nv,
-                                        "triangles", (json_int_t)nt, "seconds", seconds),
+                                        "triangles", (json_int_t)nt, "seconds", ms_json_fixed(seconds, 3)),
                       MS_JSON_SPACED);
     else
         printf("meshgen: wrote %s: %" PRIu64 " vertices, %" PRIu64

@@ -108,7 +108,7 @@ int main(int argc, char **argv)
     double uptime = ms_now_seconds() - server.started_at;
     if (json)
         ms_json_print(stdout,
-                      json_pack("{s:f, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:I}", "uptime_seconds", uptime, "models",
+                      json_pack("{s:o, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:I}", "uptime_seconds", ms_json_fixed(uptime, 3), "models",
                                 (json_int_t)server.registry.count, "http_requests",
                                 (json_int_t)m->http_requests, "http_errors", (json_int_t)m->http_errors,
                                 "binary_connections", (json_int_t)m->binary_connections_total,
