@@ -442,19 +442,21 @@ static void print_report(const options *o, const run *r, worker *ws)
     double med_first = median(first, nf), med_complete = nc == n ? median(complete, nc) : -1;
     if (o->json) {
         json_t *root = json_pack(
-            "{s:s, s:o, s:o, s:i, s:I, s:f, s:f, s:f, s:f, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:f, s:f, "
-            "s:f, s:I, s:I}",
+            "{s:s, s:o, s:o, s:i, s:I, s:o, s:o, s:o, s:o, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:o, s:o, "
+            "s:o, s:I, s:I}",
             "mode", o->baseline ? "draco" : "stream", "model", ms_json_text(o->model), "path",
             ms_json_text(o->path_file ? o->path_file : ""), "clients", (int)n, "bandwidth_bytes_per_s",
-            (json_int_t)llround(o->bandwidth), "tolerance_px", o->tolerance, "time_to_first_display",
-            med_first, "time_to_view_complete", med_complete, "time_to_view_complete_max",
-            nc == n ? worst_complete : -1.0, "cold_bytes", (json_int_t)(n ? cold_bytes / n : 0),
+            (json_int_t)llround(o->bandwidth), "tolerance_px", ms_json_number(o->tolerance),
+            "time_to_first_display", ms_json_fixed(med_first, 4), "time_to_view_complete",
+            ms_json_fixed(med_complete, 4), "time_to_view_complete_max",
+            ms_json_fixed(nc == n ? worst_complete : -1.0, 4), "cold_bytes", (json_int_t)(n ? cold_bytes / n : 0),
             "path_bytes", (json_int_t)(n ? bytes / n : 0), "cold_geometry_bytes",
             (json_int_t)(n ? (cold_bytes - cold_apo_bytes) / n : 0), "cold_apo_bytes",
             (json_int_t)(n ? cold_apo_bytes / n : 0), "path_geometry_bytes",
             (json_int_t)(n ? (bytes - apo_bytes) / n : 0), "path_apo_bytes",
             (json_int_t)(n ? apo_bytes / n : 0), "draco_bytes", (json_int_t)(n ? draco_bytes / n : 0),
-            "decode_seconds", n ? decode / n : 0.0, "latency_p50", p50, "latency_p99", p99,
+            "decode_seconds", ms_json_fixed(n ? decode / n : 0.0, 4), "latency_p50", ms_json_fixed(p50, 4),
+            "latency_p99", ms_json_fixed(p99, 4),
             "peak_memory", (json_int_t)peak, "failures", (json_int_t)failures);
         json_t *per_client = json_array();
         for (unsigned i = 0; i < n; ++i) {
@@ -463,17 +465,19 @@ static void print_report(const options *o, const run *r, worker *ws)
             for (size_t k = 0; k < c->key_count; ++k)
                 json_array_append_new(
                     keyframes,
-                    json_pack("{s:f, s:f, s:f, s:b, s:f, s:f}", "time",
-                              r->path.count > k ? r->path.keys[k].time : 0.0, "arrive",
-                              c->keys[k].arrive, "time_to_view_complete", c->keys[k].wait, "complete",
-                              c->keys[k].complete, "error_px",
-                              isfinite(c->keys[k].error_px) ? c->keys[k].error_px : -1.0,
-                              "tolerance_px", c->keys[k].tolerance_px));
+                    json_pack("{s:o, s:o, s:o, s:b, s:o, s:o}", "time",
+                              ms_json_number(r->path.count > k ? r->path.keys[k].time : 0.0), "arrive",
+                              ms_json_fixed(c->keys[k].arrive, 4), "time_to_view_complete",
+                              ms_json_fixed(c->keys[k].wait, 4), "complete", c->keys[k].complete,
+                              "error_px",
+                              ms_json_fixed(isfinite(c->keys[k].error_px) ? c->keys[k].error_px : -1.0, 4),
+                              "tolerance_px", ms_json_fixed(c->keys[k].tolerance_px, 4)));
             json_t *client = json_pack(
-                "{s:i, s:f, s:f, s:f, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:i, s:i, s:f, "
-                "s:f, s:f, s:I, s:f, s:f, s:o, s:o}",
-                "client", (int)i, "time_to_first_display", c->first_display, "time_to_view_complete",
-                c->cold_complete ? c->view_complete : -1.0, "last_byte", c->cold_last_byte,
+                "{s:i, s:o, s:o, s:o, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:i, s:i, s:o, "
+                "s:o, s:o, s:I, s:o, s:o, s:o, s:o}",
+                "client", (int)i, "time_to_first_display", ms_json_fixed(c->first_display, 4),
+                "time_to_view_complete", ms_json_fixed(c->cold_complete ? c->view_complete : -1.0, 4),
+                "last_byte", ms_json_fixed(c->cold_last_byte, 4),
                 "cold_bytes", (json_int_t)c->cold_bytes, "cold_geometry_bytes",
                 (json_int_t)(c->cold_bytes - c->cold_apo_bytes), "cold_apo_bytes",
                 (json_int_t)c->cold_apo_bytes, "bytes", (json_int_t)c->bytes, "geometry_bytes",
@@ -481,9 +485,10 @@ static void print_report(const options *o, const run *r, worker *ws)
                 "requests", (json_int_t)c->requests, "cancels", (json_int_t)c->cancels, "reconnects",
                 (json_int_t)c->reconnects, "evictions", (json_int_t)c->evictions, "cells",
                 (int)c->cells_shown, "failed_cells", (int)c->cells_failed, "decode_seconds",
-                c->decode_seconds, "latency_p50", c->p50, "latency_p99", c->p99, "peak_memory",
-                (json_int_t)c->peak_memory, "download_seconds", c->download_seconds,
-                "draco_decode_seconds", c->decode_draco_seconds, "error", ms_json_text(c->error),
+                ms_json_fixed(c->decode_seconds, 4), "latency_p50", ms_json_fixed(c->p50, 4), "latency_p99",
+                ms_json_fixed(c->p99, 4), "peak_memory", (json_int_t)c->peak_memory, "download_seconds",
+                ms_json_fixed(c->download_seconds, 4), "draco_decode_seconds",
+                ms_json_fixed(c->decode_draco_seconds, 4), "error", ms_json_text(c->error),
                 "keyframes", keyframes);
             json_array_append_new(per_client, client);
         }
