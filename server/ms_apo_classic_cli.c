@@ -370,7 +370,7 @@ int ms_apo_classic_cli(int argc, char **argv)
             json_array_append_new(level_texels, json_integer(r.level_texels[d]));
         json_t *root = json_pack(
             "{s:o, s:I, s:I, s:I, s:f, s:s, s:i, s:i, s:I, s:I, s:I, s:I, s:I, s:I, s:i, s:[i, i], s:o, "
-            "s:I, s:I, s:I, s:I, s:o, s:f, s:f, s:f}",
+            "s:I, s:I, s:I, s:I, s:o, s:o, s:o, s:o}",
             "input", ms_json_text(in), "input_triangles", (json_int_t)r.input_triangles,
             "simplified_triangles", (json_int_t)r.simplified_triangles, "refused_faces",
             (json_int_t)r.refused_faces, "tolerance", o.tolerance, "measure", measure, "init_depth",
@@ -380,15 +380,20 @@ int ms_apo_classic_cli(int argc, char **argv)
             "levels", (int)r.levels, "texture", (int)r.texture_width, (int)r.texture_height, "level_texels",
             level_texels, "samples", (json_int_t)r.build.samples, "ray_hits", (json_int_t)r.build.ray_hits,
             "closest_points", (json_int_t)r.build.closest_points, "unsampled", (json_int_t)r.build.unsampled,
-            "m_to_M_distance", ms_json_number(r.build.m_to_M_distance), "cpu_seconds", run_cpu, "seconds",
-            r.seconds_total, "seconds_apo", r.seconds_apo);
+            "m_to_M_distance", ms_json_number(r.build.m_to_M_distance), "cpu_seconds", ms_json_fixed(run_cpu, 3),
+            "seconds", ms_json_fixed(r.seconds_total, 3), "seconds_apo", ms_json_fixed(r.seconds_apo, 3));
         if (root) {
             json_object_set_new(root, "phases",
-                                json_pack("{s:f, s:f, s:f, s:f, s:f, s:f, s:f, s:f, s:f}", "load", load_seconds,
-                                          "simplify", r.seconds_simplify, "prepare", r.seconds_prepare,
-                                          "embree_scene", r.build.seconds_scene, "distance",
-                                          r.build.seconds_distance, "octree", r.seconds_octree, "sample",
-                                          r.seconds_sample, "encode", r.seconds_encode, "store", r.seconds_store));
+                                json_pack("{s:o, s:o, s:o, s:o, s:o, s:o, s:o, s:o, s:o}", "load",
+                                          ms_json_fixed(load_seconds, 3), "simplify",
+                                          ms_json_fixed(r.seconds_simplify, 3), "prepare",
+                                          ms_json_fixed(r.seconds_prepare, 3), "embree_scene",
+                                          ms_json_fixed(r.build.seconds_scene, 3), "distance",
+                                          ms_json_fixed(r.build.seconds_distance, 3), "octree",
+                                          ms_json_fixed(r.seconds_octree, 3), "sample",
+                                          ms_json_fixed(r.seconds_sample, 3), "encode",
+                                          ms_json_fixed(r.seconds_encode, 3), "store",
+                                          ms_json_fixed(r.seconds_store, 3)));
             if (lookups)
                 json_object_set_new(root, "lookups_per_second", json_integer((json_int_t)llround(lookup_rate)));
             if (accuracy_points) {
@@ -396,12 +401,12 @@ int ms_apo_classic_cli(int argc, char **argv)
                 for (int rule = 0; rule < 2; ++rule)
                     json_object_set_new(accuracy_report, rule ? "nearest" : "stop",
                                         json_pack("{s:I, s:o, s:o, s:o}", "off_tree", (json_int_t)acc[rule].off_tree,
-                                                  "mean_deg", ms_json_number(acc[rule].mean), "median_deg",
-                                                  ms_json_number(acc[rule].median), "p90_deg",
-                                                  ms_json_number(acc[rule].p90)));
+                                                  "mean_deg", ms_json_fixed(acc[rule].mean, 3), "median_deg",
+                                                  ms_json_fixed(acc[rule].median, 3), "p90_deg",
+                                                  ms_json_fixed(acc[rule].p90, 3)));
                 json_object_set_new(root, "accuracy", accuracy_report);
             }
-            json_object_set_new(root, "peak_rss_mb", json_real(ms_peak_rss_mb()));
+            json_object_set_new(root, "peak_rss_mb", ms_json_fixed(ms_peak_rss_mb(), 1));
         }
         ms_json_print(stdout, root, MS_JSON_COMPACT);
     } else {
