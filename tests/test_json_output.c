@@ -141,8 +141,8 @@ static void test_mesh_programs_path_not_utf8(void **state)
     check_mesh_programs(BROKEN_NAME, BROKEN_NAME_AS_JSON);
 }
 
-/* meshbake's bake report echoes the source and archive paths; meshexport's the
- * model name. */
+/* meshbake's bake and --apo-classic reports echo the source (and archive) paths;
+ * meshexport's the model name. */
 static void test_meshbake_and_meshexport(void **state)
 {
     (void)state;
@@ -172,6 +172,16 @@ static void test_meshbake_and_meshexport(void **state)
     assert_memory_equal(archive, archives_as_json, strlen(archives_as_json));
     assert_true(integer(root, "cells") >= 1);
     assert_true(json_is_object(json_object_get(root, "apo")));
+    json_decref(root);
+
+    /* the whole-model APO report, compact, echoes its input */
+    snprintf(cmd, sizeof cmd, "%s --apo-classic --simplify 500 --apo-max-depth 4 --json ", bin);
+    append_quoted(cmd, sizeof cmd, input);
+    root = run_json(cmd, 0);
+    assert_text(root, "input", input);
+    assert_int_equal(integer(root, "input_triangles"), 2028); /* 12 * 13^2 */
+    assert_true(json_is_object(json_object_get(root, "phases")));
+    assert_int_equal(json_array_size(json_object_get(root, "texture")), 2);
     json_decref(root);
 
     ms_test_bin_path(bin, sizeof bin, "meshexport");
