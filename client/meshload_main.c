@@ -32,6 +32,7 @@
 #include <unistd.h>
 
 #include "ms_camera_path.h"
+#include "ms_json_out.h"
 #include "ms_client_core.h"
 
 extern char **environ;
@@ -440,60 +441,62 @@ static void print_report(const options *o, const run *r, worker *ws)
     }
     double med_first = median(first, nf), med_complete = nc == n ? median(complete, nc) : -1;
     if (o->json) {
-        printf("{\"mode\": \"%s\", \"model\": \"%s\", \"path\": \"%s\", \"clients\": %u, "
-               "\"bandwidth_bytes_per_s\": %.0f, \"tolerance_px\": %g,\n",
-               o->baseline ? "draco" : "stream", o->model, o->path_file ? o->path_file : "", n,
-               o->bandwidth, o->tolerance);
-        printf(" \"time_to_first_display\": %.4f, \"time_to_view_complete\": %.4f, "
-               "\"time_to_view_complete_max\": %.4f, \"cold_bytes\": %llu, \"path_bytes\": %llu, "
-               "\"cold_geometry_bytes\": %llu, \"cold_apo_bytes\": %llu, "
-               "\"path_geometry_bytes\": %llu, \"path_apo_bytes\": %llu, "
-               "\"draco_bytes\": %llu, \"decode_seconds\": %.4f, \"latency_p50\": %.4f, "
-               "\"latency_p99\": %.4f, \"peak_memory\": %llu, \"failures\": %llu,\n",
-               med_first, med_complete, nc == n ? worst_complete : -1.0,
-               (unsigned long long)(n ? cold_bytes / n : 0), (unsigned long long)(n ? bytes / n : 0),
-               (unsigned long long)(n ? (cold_bytes - cold_apo_bytes) / n : 0),
-               (unsigned long long)(n ? cold_apo_bytes / n : 0),
-               (unsigned long long)(n ? (bytes - apo_bytes) / n : 0),
-               (unsigned long long)(n ? apo_bytes / n : 0),
-               (unsigned long long)(n ? draco_bytes / n : 0), n ? decode / n : 0.0, p50, p99,
-               (unsigned long long)peak, (unsigned long long)failures);
-        printf(" \"per_client\": [");
+        json_t *root = json_pack(
+            "{s:s, s:o, s:o, s:i, s:I, s:o, s:o, s:o, s:o, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:o, s:o, "
+            "s:o, s:I, s:I}",
+            "mode", o->baseline ? "draco" : "stream", "model", ms_json_text(o->model), "path",
+            ms_json_text(o->path_file ? o->path_file : ""), "clients", (int)n, "bandwidth_bytes_per_s",
+            (json_int_t)llround(o->bandwidth), "tolerance_px", ms_json_number(o->tolerance),
+            "time_to_first_display", ms_json_fixed(med_first, 4), "time_to_view_complete",
+            ms_json_fixed(med_complete, 4), "time_to_view_complete_max",
+            ms_json_fixed(nc == n ? worst_complete : -1.0, 4), "cold_bytes", (json_int_t)(n ? cold_bytes / n : 0),
+            "path_bytes", (json_int_t)(n ? bytes / n : 0), "cold_geometry_bytes",
+            (json_int_t)(n ? (cold_bytes - cold_apo_bytes) / n : 0), "cold_apo_bytes",
+            (json_int_t)(n ? cold_apo_bytes / n : 0), "path_geometry_bytes",
+            (json_int_t)(n ? (bytes - apo_bytes) / n : 0), "path_apo_bytes",
+            (json_int_t)(n ? apo_bytes / n : 0), "draco_bytes", (json_int_t)(n ? draco_bytes / n : 0),
+            "decode_seconds", ms_json_fixed(n ? decode / n : 0.0, 4), "latency_p50", ms_json_fixed(p50, 4),
+            "latency_p99", ms_json_fixed(p99, 4),
+            "peak_memory", (json_int_t)peak, "failures", (json_int_t)failures);
+        json_t *per_client = json_array();
         for (unsigned i = 0; i < n; ++i) {
             const client_result *c = &ws[i].result;
-            printf("%s\n  {\"client\": %u, \"time_to_first_display\": %.4f, "
-                   "\"time_to_view_complete\": %.4f, \"last_byte\": %.4f, \"cold_bytes\": %llu, "
-                   "\"cold_geometry_bytes\": %llu, \"cold_apo_bytes\": %llu, "
-                   "\"bytes\": %llu, \"geometry_bytes\": %llu, \"apo_bytes\": %llu, "
-                   "\"requests\": %llu, \"cancels\": %llu, \"reconnects\": %llu, "
-                   "\"evictions\": %llu, \"cells\": %u, \"failed_cells\": %u, "
-                   "\"decode_seconds\": %.4f, \"latency_p50\": %.4f, \"latency_p99\": %.4f, "
-                   "\"peak_memory\": %llu, \"download_seconds\": %.4f, "
-                   "\"draco_decode_seconds\": %.4f, \"error\": \"",
-                   i ? "," : "", i, c->first_display, c->cold_complete ? c->view_complete : -1.0,
-                   c->cold_last_byte, (unsigned long long)c->cold_bytes,
-                   (unsigned long long)(c->cold_bytes - c->cold_apo_bytes),
-                   (unsigned long long)c->cold_apo_bytes, (unsigned long long)c->bytes,
-                   (unsigned long long)(c->bytes - c->apo_bytes), (unsigned long long)c->apo_bytes,
-                   (unsigned long long)c->requests, (unsigned long long)c->cancels,
-                   (unsigned long long)c->reconnects, (unsigned long long)c->evictions,
-                   c->cells_shown, c->cells_failed, c->decode_seconds, c->p50, c->p99,
-                   (unsigned long long)c->peak_memory, c->download_seconds,
-                   c->decode_draco_seconds);
-            for (const char *p = c->error; *p; ++p)
-                if (*p != '"' && *p != '\\' && (unsigned char)*p >= 0x20)
-                    putchar(*p);
-            printf("\", \"keyframes\": [");
+            json_t *keyframes = json_array();
             for (size_t k = 0; k < c->key_count; ++k)
-                printf("%s{\"time\": %g, \"arrive\": %.4f, \"time_to_view_complete\": %.4f, "
-                       "\"complete\": %s, \"error_px\": %.4f, \"tolerance_px\": %.4f}",
-                       k ? ", " : "", r->path.count > k ? r->path.keys[k].time : 0.0,
-                       c->keys[k].arrive, c->keys[k].wait, c->keys[k].complete ? "true" : "false",
-                       isfinite(c->keys[k].error_px) ? c->keys[k].error_px : -1.0,
-                       c->keys[k].tolerance_px);
-            printf("]}");
+                json_array_append_new(
+                    keyframes,
+                    json_pack("{s:o, s:o, s:o, s:b, s:o, s:o}", "time",
+                              ms_json_number(r->path.count > k ? r->path.keys[k].time : 0.0), "arrive",
+                              ms_json_fixed(c->keys[k].arrive, 4), "time_to_view_complete",
+                              ms_json_fixed(c->keys[k].wait, 4), "complete", c->keys[k].complete,
+                              "error_px",
+                              ms_json_fixed(isfinite(c->keys[k].error_px) ? c->keys[k].error_px : -1.0, 4),
+                              "tolerance_px", ms_json_fixed(c->keys[k].tolerance_px, 4)));
+            json_t *client = json_pack(
+                "{s:i, s:o, s:o, s:o, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:i, s:i, s:o, "
+                "s:o, s:o, s:I, s:o, s:o, s:o, s:o}",
+                "client", (int)i, "time_to_first_display", ms_json_fixed(c->first_display, 4),
+                "time_to_view_complete", ms_json_fixed(c->cold_complete ? c->view_complete : -1.0, 4),
+                "last_byte", ms_json_fixed(c->cold_last_byte, 4),
+                "cold_bytes", (json_int_t)c->cold_bytes, "cold_geometry_bytes",
+                (json_int_t)(c->cold_bytes - c->cold_apo_bytes), "cold_apo_bytes",
+                (json_int_t)c->cold_apo_bytes, "bytes", (json_int_t)c->bytes, "geometry_bytes",
+                (json_int_t)(c->bytes - c->apo_bytes), "apo_bytes", (json_int_t)c->apo_bytes,
+                "requests", (json_int_t)c->requests, "cancels", (json_int_t)c->cancels, "reconnects",
+                (json_int_t)c->reconnects, "evictions", (json_int_t)c->evictions, "cells",
+                (int)c->cells_shown, "failed_cells", (int)c->cells_failed, "decode_seconds",
+                ms_json_fixed(c->decode_seconds, 4), "latency_p50", ms_json_fixed(c->p50, 4), "latency_p99",
+                ms_json_fixed(c->p99, 4), "peak_memory", (json_int_t)c->peak_memory, "download_seconds",
+                ms_json_fixed(c->download_seconds, 4), "draco_decode_seconds",
+                ms_json_fixed(c->decode_draco_seconds, 4), "error", ms_json_text(c->error),
+                "keyframes", keyframes);
+            json_array_append_new(per_client, client);
         }
-        printf("]}\n");
+        if (root)
+            json_object_set_new(root, "per_client", per_client);
+        else
+            json_decref(per_client);
+        ms_json_print(stdout, root, MS_JSON_SPACED);
     } else {
         printf("meshload %s %s, %u client(s), %.0f bytes/s:\n",
                o->baseline ? "draco baseline" : "streaming", o->model, n, o->bandwidth);

@@ -22,6 +22,7 @@
 
 #include "ms_archive.h"
 #include "ms_client.h"
+#include "ms_json_out.h"
 #include "ms_loadgen_plan.h"
 #include "ms_payload_assembly.h"
 #include "ms_progress.h"
@@ -772,20 +773,21 @@ int main(int argc, char **argv)
     uint64_t answered = lg.latency_count;
     double mbps = elapsed > 0 ? lg.bytes / elapsed / 1e6 : 0;
     if (lg.o.json)
-        printf("{\"label\": \"%s\", \"transport\": \"%s\", \"clients\": %u, \"window\": %u, \"fps\": %g, \"rate\": %g, "
-               "\"seconds\": %.3f, \"requests\": %llu, \"answered\": %llu, \"cancelled\": %llu, "
-               "\"rate_limited\": %llu, \"errors\": %llu, \"connection_failures\": %llu, "
-               "\"payload_bytes\": %llu, "
-               "\"throughput_MBps\": %.1f, \"latency_ms\": {\"p50\": %.3f, \"p99\": %.3f, "
-               "\"max\": %.3f, \"apo_p99\": %.3f}, \"server_vmhwm_kb\": %ld, \"server_vmrss_kb\": %ld, "
-               "\"server_rssanon_kb\": %ld, "
-               "\"first_error\": \"%s\"}\n",
-               lg.o.label, lg.o.http ? "http" : "binary", lg.o.clients, lg.o.window, lg.o.fps, lg.o.rate, elapsed,
-               (unsigned long long)lg.requests, (unsigned long long)answered,
-               (unsigned long long)lg.cancelled, (unsigned long long)lg.rate_limited,
-               (unsigned long long)lg.errors, (unsigned long long)lg.connection_failures,
-               (unsigned long long)lg.bytes, mbps,
-               p50 * 1e3, p99 * 1e3, max * 1e3, apo_p99 * 1e3, hwm, rss, anon, lg.first_error);
+        ms_json_print(
+            stdout,
+            json_pack("{s:o, s:s, s:i, s:i, s:f, s:f, s:o, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:o, "
+                      "s:{s:o, s:o, s:o, s:o}, s:I, s:I, s:I, s:o}",
+                      "label", ms_json_text(lg.o.label), "transport", lg.o.http ? "http" : "binary", "clients",
+                      (int)lg.o.clients, "window", (int)lg.o.window, "fps", lg.o.fps, "rate", lg.o.rate,
+                      "seconds", ms_json_fixed(elapsed, 3), "requests", (json_int_t)lg.requests, "answered", (json_int_t)answered,
+                      "cancelled", (json_int_t)lg.cancelled, "rate_limited", (json_int_t)lg.rate_limited,
+                      "errors", (json_int_t)lg.errors, "connection_failures", (json_int_t)lg.connection_failures,
+                      "payload_bytes", (json_int_t)lg.bytes, "throughput_MBps", ms_json_fixed(mbps, 1), "latency_ms", "p50",
+                      ms_json_fixed(p50 * 1e3, 3), "p99", ms_json_fixed(p99 * 1e3, 3), "max",
+                      ms_json_fixed(max * 1e3, 3), "apo_p99", ms_json_fixed(apo_p99 * 1e3, 3),
+                      "server_vmhwm_kb", (json_int_t)hwm, "server_vmrss_kb", (json_int_t)rss,
+                      "server_rssanon_kb", (json_int_t)anon, "first_error", ms_json_text(lg.first_error)),
+            MS_JSON_SPACED);
     else
         printf("meshloadgen: %u %s clients, %.2f s: %llu requests (%llu answered, %llu cancelled, "
                "%llu errors), %.1f MB/s payload, latency p50 %.2f ms p99 %.2f ms%s%s\n",

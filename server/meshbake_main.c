@@ -18,7 +18,7 @@
 #include "ms_apo_classic_cli.h"
 #include "ms_bake.h"
 #include "ms_catalog.h"
-#include "ms_json_string.h"
+#include "ms_json_out.h"
 #include "ms_mesh_reader.h"
 
 enum { EXIT_INPUT = 1, EXIT_USAGE = 2 };
@@ -278,18 +278,17 @@ static void show_progress(void *context, uint64_t done, uint64_t total)
 
 static void print_json(const char *path, const ms_mesh_read_report *r, double seconds)
 {
-    fputs("{\"file\": ", stdout);
-    ms_json_print_string(stdout, path);
-    printf(", \"format\": \"%s\", \"gzip\": %s", ms_mesh_format_name(r->format),
-           r->gzip ? "true" : "false");
-    printf(", \"vertices\": %" PRIu64 ", \"triangles\": %" PRIu64 ", \"input_faces\": %" PRIu64,
-           r->vertices, r->triangles, r->input_faces);
-    printf(", \"bbox_min\": [%.17g, %.17g, %.17g], \"bbox_max\": [%.17g, %.17g, %.17g]",
-           r->bbox_min[0], r->bbox_min[1], r->bbox_min[2], r->bbox_max[0], r->bbox_max[1],
-           r->bbox_max[2]);
-    printf(", \"dropped_faces\": %" PRIu64 ", \"isolated_vertices\": %" PRIu64, r->dropped_faces,
-           r->isolated_vertices);
-    printf(", \"bytes\": %" PRIu64 ", \"seconds\": %.9f}\n", r->input_bytes, seconds);
+    ms_json_print(stdout,
+                  json_pack("{s:o, s:s, s:b, s:I, s:I, s:I, s:[f, f, f], s:[f, f, f], s:I, s:I, s:I, s:o}",
+                            "file", ms_json_text(path), "format", ms_mesh_format_name(r->format), "gzip",
+                            r->gzip, "vertices", (json_int_t)r->vertices, "triangles",
+                            (json_int_t)r->triangles, "input_faces", (json_int_t)r->input_faces,
+                            "bbox_min", r->bbox_min[0], r->bbox_min[1], r->bbox_min[2], "bbox_max",
+                            r->bbox_max[0], r->bbox_max[1], r->bbox_max[2], "dropped_faces",
+                            (json_int_t)r->dropped_faces, "isolated_vertices",
+                            (json_int_t)r->isolated_vertices, "bytes", (json_int_t)r->input_bytes,
+                            "seconds", ms_json_fixed(seconds, 9)),
+                  MS_JSON_SPACED | MS_JSON_EXACT); /* the bounding box as read */
 }
 
 static void print_text(const char *path, const ms_mesh_read_report *r, double seconds)
@@ -367,9 +366,10 @@ static void print_bake_json(const ms_bake_options *o, const ms_bake_report *r)
                                       "mean_deg", r->apo_accuracy_mean, "median_deg",
                                       r->apo_accuracy_median, "p90_deg", r->apo_accuracy_p90));
     json_t *root = json_pack(
-        "{s:s, s:s, s:s, s:I, s:I, s:I, s:I, s:i, s:i, s:i, s:i, s:f, s:I, s:I, s:I, s:f, s:o, "
+        "{s:o, s:o, s:o, s:I, s:I, s:I, s:I, s:i, s:i, s:i, s:i, s:f, s:I, s:I, s:I, s:f, s:o, "
         "s:f, s:i, s:f, s:f, s:I, s:o, s:{s:i, s:i, s:i, s:i, s:i}}",
-        "name", r->name, "archive", r->archive_path, "source", o->input,
+        "name", ms_json_text(r->name), "archive", ms_json_text(r->archive_path), "source",
+        ms_json_text(o->input),
         "input_vertices", (json_int_t)r->input_vertices,
         "input_triangles", (json_int_t)r->input_triangles,
         "vertices", (json_int_t)r->vertices, "triangles", (json_int_t)r->triangles,
@@ -394,11 +394,7 @@ static void print_bake_json(const ms_bake_options *o, const ms_bake_report *r)
         fputs("{}\n", stdout);
         return;
     }
-    char *text = json_dumps(root, JSON_COMPACT | JSON_REAL_PRECISION(10));
-    if (text)
-        printf("%s\n", text);
-    free(text);
-    json_decref(root);
+    ms_json_print(stdout, root, MS_JSON_COMPACT);
 }
 
 static void print_bake_text(const ms_bake_report *r)

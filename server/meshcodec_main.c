@@ -16,6 +16,7 @@
 
 #include "ms_codec.h"
 #include "ms_codec_prior.h"
+#include "ms_json_out.h"
 #include "ms_mesh_io.h"
 #include "ms_quant.h"
 
@@ -404,24 +405,23 @@ static int cmd_roundtrip(int argc, char **argv)
     double bpiv = 8.0 * (double)size / (double)weld.input_vertices;
     double dec = t3 - t2, enc = t1 - t0;
     if (o.json) {
-        printf("{\"input\": \"");
-        for (const char *c = o.input; *c; ++c) {
-            if (*c == '"' || *c == '\\')
-                putchar('\\');
-            if ((unsigned char)*c >= 0x20)
-                putchar(*c);
-        }
-        printf("\", \"bits\": %d, \"vertices\": %zu, \"triangles\": %zu, "
-               "\"input_vertices\": %zu, \"input_triangles\": %zu, \"welded_vertices\": %zu, "
-               "\"degenerate_triangles\": %zu, \"duplicate_triangles\": %zu, "
-               "\"isolated_vertices\": %zu, \"bytes\": %zu, \"bits_per_vertex\": %.4f, "
-               "\"bits_per_input_vertex\": %.4f, \"encode_seconds\": %.6f, "
-               "\"decode_seconds\": %.6f, \"decode_mtriangles_per_second\": %.3f, "
-               "\"lossless\": %s}\n",
-               o.bits, q.vertex_count, q.tri_count, weld.input_vertices, weld.input_triangles,
-               weld.welded_vertices, weld.degenerate_triangles, weld.duplicate_triangles,
-               weld.isolated_vertices, size, bpv, bpiv, enc, dec,
-               dec > 0 ? (double)q.tri_count / dec / 1e6 : 0.0, lossless ? "true" : "false");
+        ms_json_print(stdout,
+                      json_pack("{s:o, s:i, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:o, s:o, s:o, s:o, "
+                                "s:o, s:b}",
+                                "input", ms_json_text(o.input), "bits", o.bits, "vertices",
+                                (json_int_t)q.vertex_count, "triangles", (json_int_t)q.tri_count,
+                                "input_vertices", (json_int_t)weld.input_vertices, "input_triangles",
+                                (json_int_t)weld.input_triangles, "welded_vertices",
+                                (json_int_t)weld.welded_vertices, "degenerate_triangles",
+                                (json_int_t)weld.degenerate_triangles, "duplicate_triangles",
+                                (json_int_t)weld.duplicate_triangles, "isolated_vertices",
+                                (json_int_t)weld.isolated_vertices, "bytes", (json_int_t)size,
+                                "bits_per_vertex", ms_json_fixed(bpv, 4), "bits_per_input_vertex",
+                                ms_json_fixed(bpiv, 4), "encode_seconds", ms_json_fixed(enc, 6),
+                                "decode_seconds", ms_json_fixed(dec, 6), "decode_mtriangles_per_second",
+                                ms_json_fixed(dec > 0 ? (double)q.tri_count / dec / 1e6 : 0.0, 3), "lossless",
+                                lossless),
+                      MS_JSON_SPACED);
     } else {
         printf("%s at %d bits: %zu vertices, %zu triangles (welded %zu, dropped %zu degenerate + "
                "%zu duplicate) -> %zu bytes, %.3f bits/vertex; encode %.3f s, decode %.3f s; "

@@ -13,6 +13,7 @@
 #include "ms_access.h"
 #include "ms_archive.h"
 #include "ms_catalog.h"
+#include "ms_json_out.h"
 #include "ms_progress.h"
 #include "ms_registry.h"
 
@@ -178,8 +179,9 @@ int main(int argc, char **argv)
     }
     double seconds = ms_now_seconds() - start;
     if (json)
-        printf("{\"model\": \"%s\", \"files\": %llu, \"bytes\": %llu, \"seconds\": %.3f}\n", name,
-               (unsigned long long)files, (unsigned long long)bytes, seconds);
+        ms_json_print(stdout, json_pack("{s:o, s:I, s:I, s:o}", "model", ms_json_text(name), "files",
+                                        (json_int_t)files, "bytes", (json_int_t)bytes, "seconds", ms_json_fixed(seconds, 3)),
+                      MS_JSON_SPACED);
     else
         printf("meshexport: %s: %llu files, %llu bytes in %.2f s\n", name,
                (unsigned long long)files, (unsigned long long)bytes, seconds);

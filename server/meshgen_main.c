@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "ms_demo_model.h"
+#include "ms_json_out.h"
 #include "ms_mesh_io.h"
 #include "ms_progress.h"
 
@@ -114,9 +115,10 @@ int main(int argc, char **argv)
     }
     double seconds = ms_now_seconds() - start;
     if (json)
-        printf("{\"output\": \"%s\", \"grid\": %u, \"seed\": %" PRIu64 ", \"vertices\": %" PRIu64
-               ", \"triangles\": %" PRIu64 ", \"seconds\": %.3f}\n",
-               output, model.grid, seed, nv, nt, seconds);
+        ms_json_print(stdout, json_pack("{s:o, s:i, s:I, s:I, s:I, s:o}", "output", ms_json_text(output), "grid",
+                                        (int)model.grid, "seed", (json_int_t)seed, "vertices", (json_int_t)nv,
+                                        "triangles", (json_int_t)nt, "seconds", ms_json_fixed(seconds, 3)),
+                      MS_JSON_SPACED);
     else
         printf("meshgen: wrote %s: %" PRIu64 " vertices, %" PRIu64
                " triangles (grid %u, seed %" PRIu64 ") in %.2f s\n",

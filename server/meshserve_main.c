@@ -5,6 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "ms_json_out.h"
 #include "ms_progress.h"
 #include "ms_server.h"
 
@@ -106,14 +107,16 @@ int main(int argc, char **argv)
     const ms_server_metrics *m = &server.metrics;
     double uptime = ms_now_seconds() - server.started_at;
     if (json)
-        printf("{\"uptime_seconds\": %.3f, \"models\": %zu, \"http_requests\": %llu, "
-               "\"http_errors\": %llu, \"binary_connections\": %llu, \"binary_requests\": %llu, "
-               "\"binary_errors\": %llu, \"bytes_sent\": %llu, \"rescans\": %llu}\n",
-               uptime, server.registry.count, (unsigned long long)m->http_requests,
-               (unsigned long long)m->http_errors, (unsigned long long)m->binary_connections_total,
-               (unsigned long long)m->binary_requests, (unsigned long long)m->binary_errors,
-               (unsigned long long)(m->http_bytes_sent + m->binary_bytes_sent),
-               (unsigned long long)m->rescans);
+        ms_json_print(stdout,
+                      json_pack("{s:o, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:I}", "uptime_seconds", ms_json_fixed(uptime, 3), "models",
+                                (json_int_t)server.registry.count, "http_requests",
+                                (json_int_t)m->http_requests, "http_errors", (json_int_t)m->http_errors,
+                                "binary_connections", (json_int_t)m->binary_connections_total,
+                                "binary_requests", (json_int_t)m->binary_requests, "binary_errors",
+                                (json_int_t)m->binary_errors, "bytes_sent",
+                                (json_int_t)(m->http_bytes_sent + m->binary_bytes_sent), "rescans",
+                                (json_int_t)m->rescans),
+                      MS_JSON_SPACED);
     else
         printf("meshserve: stopped after %.1f s: %llu HTTP requests (%llu errors), %llu binary "
                "connections, %llu binary requests (%llu errors), %llu bytes sent, %llu rescans\n",

@@ -17,7 +17,7 @@
 #include "ms_apo_traverse.h"
 #include "ms_demo_model.h"
 #include "ms_error.h"
-#include "ms_json_string.h"
+#include "ms_json_out.h"
 #include "ms_mesh.h"
 #include "ms_mesh_io.h"
 #include "ms_png.h"
@@ -365,37 +365,50 @@ int ms_apo_classic_cli(int argc, char **argv)
         ms_apo_chunk_free(&chunk);
     const char *measure = o.measure == MS_APO_MEASURE_CLASSIC ? "classic" : "spread";
     if (json) {
-        printf("{\"input\":");
-        ms_json_print_string(stdout, in);
-        printf(",\"input_triangles\":%zu,\"simplified_triangles\":%zu,\"refused_faces\":%zu,"
-               "\"tolerance\":%g,\"measure\":\"%s\",\"init_depth\":%u,\"max_depth\":%u,"
-               "\"internal_nodes\":%zu,\"leaves\":%zu,\"cells\":%zu,\"texels\":%zu,\"bytes\":%zu,"
-               "\"stored_bytes\":%zu,\"levels\":%u,\"texture\":[%u,%u],\"level_texels\":[",
-               r.input_triangles, r.simplified_triangles, r.refused_faces, o.tolerance, measure, o.init_depth,
-               o.max_depth, r.internal_nodes, r.leaves, r.internal_nodes + r.leaves, r.texels, r.bytes,
-               r.stored_bytes, r.levels, r.texture_width, r.texture_height);
+        json_t *level_texels = json_array();
         for (uint32_t d = 0; d < r.levels; ++d)
-            printf("%s%u", d ? "," : "", r.level_texels[d]);
-        printf("],\"samples\":%llu,\"ray_hits\":%llu,\"closest_points\":%llu,\"unsampled\":%llu,"
-               "\"m_to_M_distance\":%.6g,\"cpu_seconds\":%.3f,\"seconds\":%.3f,\"seconds_apo\":%.3f,",
-               (unsigned long long)r.build.samples, (unsigned long long)r.build.ray_hits,
-               (unsigned long long)r.build.closest_points, (unsigned long long)r.build.unsampled,
-               r.build.m_to_M_distance, run_cpu, r.seconds_total, r.seconds_apo);
-        printf("\"phases\":{\"load\":%.3f,\"simplify\":%.3f,\"prepare\":%.3f,\"embree_scene\":%.3f,"
-               "\"distance\":%.3f,\"octree\":%.3f,\"sample\":%.3f,\"encode\":%.3f,\"store\":%.3f},",
-               load_seconds, r.seconds_simplify, r.seconds_prepare, r.build.seconds_scene, r.build.seconds_distance,
-               r.seconds_octree, r.seconds_sample, r.seconds_encode, r.seconds_store);
-        if (lookups)
-            printf("\"lookups_per_second\":%.0f,", lookup_rate);
-        if (accuracy_points) {
-            printf("\"accuracy\":{\"points\":%zu", acc[0].points);
-            for (int rule = 0; rule < 2; ++rule)
-                printf(",\"%s\":{\"off_tree\":%zu,\"mean_deg\":%.3f,\"median_deg\":%.3f,\"p90_deg\":%.3f}",
-                       rule ? "nearest" : "stop", acc[rule].off_tree, acc[rule].mean, acc[rule].median,
-                       acc[rule].p90);
-            printf("},");
+            json_array_append_new(level_texels, json_integer(r.level_texels[d]));
+        json_t *root = json_pack(
+            "{s:o, s:I, s:I, s:I, s:f, s:s, s:i, s:i, s:I, s:I, s:I, s:I, s:I, s:I, s:i, s:[i, i], s:o, "
+            "s:I, s:I, s:I, s:I, s:o, s:o, s:o, s:o}",
+            "input", ms_json_text(in), "input_triangles", (json_int_t)r.input_triangles,
+            "simplified_triangles", (json_int_t)r.simplified_triangles, "refused_faces",
+            (json_int_t)r.refused_faces, "tolerance", o.tolerance, "measure", measure, "init_depth",
+            (int)o.init_depth, "max_depth", (int)o.max_depth, "internal_nodes", (json_int_t)r.internal_nodes,
+            "leaves", (json_int_t)r.leaves, "cells", (json_int_t)(r.internal_nodes + r.leaves), "texels",
+            (json_int_t)r.texels, "bytes", (json_int_t)r.bytes, "stored_bytes", (json_int_t)r.stored_bytes,
+            "levels", (int)r.levels, "texture", (int)r.texture_width, (int)r.texture_height, "level_texels",
+            level_texels, "samples", (json_int_t)r.build.samples, "ray_hits", (json_int_t)r.build.ray_hits,
+            "closest_points", (json_int_t)r.build.closest_points, "unsampled", (json_int_t)r.build.unsampled,
+            "m_to_M_distance", ms_json_number(r.build.m_to_M_distance), "cpu_seconds", ms_json_fixed(run_cpu, 3),
+            "seconds", ms_json_fixed(r.seconds_total, 3), "seconds_apo", ms_json_fixed(r.seconds_apo, 3));
+        if (root) {
+            json_object_set_new(root, "phases",
+                                json_pack("{s:o, s:o, s:o, s:o, s:o, s:o, s:o, s:o, s:o}", "load",
+                                          ms_json_fixed(load_seconds, 3), "simplify",
+                                          ms_json_fixed(r.seconds_simplify, 3), "prepare",
+                                          ms_json_fixed(r.seconds_prepare, 3), "embree_scene",
+                                          ms_json_fixed(r.build.seconds_scene, 3), "distance",
+                                          ms_json_fixed(r.build.seconds_distance, 3), "octree",
+                                          ms_json_fixed(r.seconds_octree, 3), "sample",
+                                          ms_json_fixed(r.seconds_sample, 3), "encode",
+                                          ms_json_fixed(r.seconds_encode, 3), "store",
+                                          ms_json_fixed(r.seconds_store, 3)));
+            if (lookups)
+                json_object_set_new(root, "lookups_per_second", json_integer((json_int_t)llround(lookup_rate)));
+            if (accuracy_points) {
+                json_t *accuracy_report = json_pack("{s:I}", "points", (json_int_t)acc[0].points);
+                for (int rule = 0; rule < 2; ++rule)
+                    json_object_set_new(accuracy_report, rule ? "nearest" : "stop",
+                                        json_pack("{s:I, s:o, s:o, s:o}", "off_tree", (json_int_t)acc[rule].off_tree,
+                                                  "mean_deg", ms_json_fixed(acc[rule].mean, 3), "median_deg",
+                                                  ms_json_fixed(acc[rule].median, 3), "p90_deg",
+                                                  ms_json_fixed(acc[rule].p90, 3)));
+                json_object_set_new(root, "accuracy", accuracy_report);
+            }
+            json_object_set_new(root, "peak_rss_mb", ms_json_fixed(ms_peak_rss_mb(), 1));
         }
-        printf("\"peak_rss_mb\":%.1f}\n", ms_peak_rss_mb());
+        ms_json_print(stdout, root, MS_JSON_COMPACT);
     } else {
         printf("input            %s: %zu triangles, simplified to %zu (%zu refused)\n", in, r.input_triangles,
                r.simplified_triangles, r.refused_faces);

@@ -12,6 +12,7 @@
 
 #include "ms_archive.h"
 #include "ms_camera_path.h"
+#include "ms_json_out.h"
 #include "ms_mesh_io.h"
 #include "ms_parse_number.h"
 #include "ms_progress.h"
@@ -263,8 +264,8 @@ int main(int argc, char **argv)
         for (size_t p = 0; p < (size_t)image.width * image.height; ++p)
             covered += ms_study_image_covered(&image, p) != 0;
         pixels_covered += covered;
-        json_t *frame = json_pack("{s:I, s:f, s:s, s:I, s:I, s:f}", "key", (json_int_t)key, "time",
-                                  path.keys[key].time, "png", file, "pixels_covered", (json_int_t)covered,
+        json_t *frame = json_pack("{s:I, s:f, s:o, s:I, s:I, s:f}", "key", (json_int_t)key, "time",
+                                  path.keys[key].time, "png", ms_json_text(file), "pixels_covered", (json_int_t)covered,
                                   "triangles", (json_int_t)triangles,
                                   "seconds", ms_now_seconds() - frame_start);
         if (frame && !src.mesh_scene)
@@ -286,14 +287,12 @@ int main(int argc, char **argv)
         json_decref(frames);
         return EXIT_INPUT;
     }
-    json_t *root = json_pack("{s:s, s:s, s:s, s:o, s:I, s:f}", "input", o.input, "path", o.path, "output",
-                             o.out_dir, "frames", frames, "pixels_covered", (json_int_t)pixels_covered, "seconds",
+    json_t *root = json_pack("{s:o, s:o, s:o, s:o, s:I, s:f}", "input", ms_json_text(o.input), "path",
+                             ms_json_text(o.path), "output", ms_json_text(o.out_dir), "frames", frames, "pixels_covered", (json_int_t)pixels_covered, "seconds",
                              ms_now_seconds() - start);
-    if (o.json) {
-        char *text = root ? json_dumps(root, JSON_COMPACT | JSON_REAL_PRECISION(10)) : NULL;
-        printf("%s\n", text ? text : "{}");
-        free(text);
-    }
-    json_decref(root);
+    if (o.json)
+        ms_json_print(stdout, root ? root : json_object(), MS_JSON_COMPACT);
+    else
+        json_decref(root);
     return fflush(stdout) == 0 ? 0 : EXIT_INPUT;
 }

@@ -14,6 +14,7 @@
 
 #include "ms_archive.h"
 #include "ms_camera_path.h"
+#include "ms_json_out.h"
 #include "ms_mesh_io.h"
 #include "ms_parse_number.h"
 #include "ms_progress.h"
@@ -349,8 +350,8 @@ int main(int argc, char **argv)
         st = study_key(&s, o.key_count ? (size_t)o.keys[k] : k, points, &err);
     json_t *root = NULL;
     if (st == MS_OK)
-        root = json_pack("{s:s, s:s, s:s, s:s, s:o, s:I, s:I, s:I, s:f, s:b, s:o, s:f}", "mesh", o.mesh, "archive",
-                         o.archive, "path", o.path, "reference", o.smooth_reference ? "smooth" : "flat", "apo_levels",
+        root = json_pack("{s:o, s:o, s:o, s:s, s:o, s:I, s:I, s:I, s:f, s:b, s:o, s:f}", "mesh", ms_json_text(o.mesh),
+                         "archive", ms_json_text(o.archive), "path", ms_json_text(o.path), "reference", o.smooth_reference ? "smooth" : "flat", "apo_levels",
                          o.apo_footprint ? json_string("footprint") : json_integer((json_int_t)o.apo_levels), "width", (json_int_t)o.width, "height", (json_int_t)o.height,
                          "mesh_triangles", (json_int_t)ms_study_scene_triangle_count(s.full), "spacing", s.spacing,
                          "apo", s.apo != NULL, "points", points, "seconds", ms_now_seconds() - start);
@@ -366,11 +367,9 @@ int main(int argc, char **argv)
         fprintf(stderr, "meshstudy: %s\n", err.text);
         return EXIT_INPUT;
     }
-    if (o.json) {
-        char *text = root ? json_dumps(root, JSON_COMPACT | JSON_REAL_PRECISION(8)) : NULL;
-        printf("%s\n", text ? text : "{}");
-        free(text);
-    }
-    json_decref(root);
+    if (o.json)
+        ms_json_print(stdout, root ? root : json_object(), MS_JSON_COMPACT);
+    else
+        json_decref(root);
     return fflush(stdout) == 0 ? 0 : EXIT_INPUT;
 }
