@@ -233,6 +233,7 @@ static void on_key(GLFWwindow *w, int key, int scancode, int action, int mods)
         v->render.shading = v->render.shading == MS_SHADING_CELLS ? MS_SHADING_LIT : MS_SHADING_CELLS;
         break;
     case GLFW_KEY_X: v->render.wireframe = !v->render.wireframe; break;
+    case GLFW_KEY_M: v->render.smooth = !v->render.smooth; break;
     case GLFW_KEY_H: v->hud = !v->hud; break;
     case GLFW_KEY_P: v->screenshot_requested = true; break;
     case GLFW_KEY_EQUAL:

@@ -43,6 +43,7 @@ void ms_viewer_options_usage(FILE *out)
           "Keys:  O  APO normals on/off        G  geometry-normal shading on/off\n"
           "       N  normals as colours        C  cell colours\n"
           "       X  wireframe overlay         H  HUD on/off\n"
+          "       M  smooth / flat shading where no APO normal is used\n"
           "       P  screenshot (into --screenshot-dir, default .)\n"
           "       + / -  tolerance down / up (finer / coarser)\n"
           "       R  reset view                U  cycle the up axis (x, y, z)\n"
