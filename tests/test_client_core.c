@@ -30,7 +30,9 @@
 #include "ms_client_core.h"
 #include "ms_nsp_check.h"
 #include "ms_proto.h"
+#include "ms_progress.h"
 #include "ms_test.h"
+#include "ms_test_core.h"
 #include "ms_test_net.h"
 #include "ms_view_decoder.h"
 
@@ -47,19 +49,6 @@ typedef struct fixture {
 } fixture;
 
 static fixture *g; /* set by the group setup: one bake and one server for all */
-
-static double now_s(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + ts.tv_nsec * 1e-9;
-}
-
-static void sleep_s(double s)
-{
-    struct timespec ts = {(time_t)s, (long)((s - floor(s)) * 1e9)};
-    nanosleep(&ts, NULL);
-}
 
 static void launch(fixture *f, uint16_t port)
 {
@@ -144,34 +133,6 @@ static ms_core_options base_options(void)
     o.answer_timeout = 3.0;
     o.give_up_seconds = 20.0;
     return o;
-}
-
-/* Waits for view complete (or an error, or the time limit); keeps the newest
- * frame in *frame when frames are exported. */
-static bool wait_complete(ms_core *core, double seconds, ms_core_stats *st, ms_core_frame **frame)
-{
-    double until = now_s() + seconds;
-    for (;;) {
-        if (frame) {
-            ms_core_frame *f = ms_core_take_frame(core);
-            if (f) {
-                ms_core_frame_free(*frame);
-                *frame = f;
-            }
-        }
-        ms_core_get_stats(core, st);
-        if (st->view_complete || st->error[0] || now_s() > until) {
-            if (frame && st->view_complete) {
-                ms_core_frame *f = ms_core_take_frame(core);
-                if (f) {
-                    ms_core_frame_free(*frame);
-                    *frame = f;
-                }
-            }
-            return st->view_complete;
-        }
-        sleep_s(0.005);
-    }
 }
 
 /* One triangle as the sorted keys of its vertices, rotated to its smallest
@@ -271,12 +232,12 @@ static void test_stream_equals_direct_decode(void **state)
     for (size_t k = 0; k < g->path.count; k += 2) {
         ms_camera cam = key_camera(k);
         ms_core_set_camera(core, &cam);
-        if (!wait_complete(core, WAIT_SECONDS, &st, &frame))
+        if (!ms_test_core_wait_complete(core, WAIT_SECONDS, &st, &frame))
             fail_msg("keyframe %zu not complete: %s", k, st.error);
     }
     ms_camera cam = key_camera(g->path.count - 1);
     ms_core_set_camera(core, &cam);
-    if (!wait_complete(core, WAIT_SECONDS, &st, &frame))
+    if (!ms_test_core_wait_complete(core, WAIT_SECONDS, &st, &frame))
         fail_msg("last keyframe not complete: %s", st.error);
     assert_non_null(frame);
     assert_true(st.first_display >= 0);
@@ -309,13 +270,13 @@ static void test_compressed_index_same_result(void **state)
         ms_core_set_camera(core, &cam);
         ms_core_frame *frame = NULL;
         ms_core_stats st;
-        if (!wait_complete(core, WAIT_SECONDS, &st, &frame))
+        if (!ms_test_core_wait_complete(core, WAIT_SECONDS, &st, &frame))
             fail_msg("%s index: view not complete: %s", raw ? "raw" : "compressed", st.error);
         assert_non_null(frame);
         assert_true(st.first_display >= 0);
         assert_int_equal(st.cells_failed, 0);
         check_equals_direct(frame, &cam);
-        sleep_s(0.2); /* a few loop ticks: every byte read is counted */
+        ms_test_sleep_s(0.2); /* a few loop ticks: every byte read is counted */
         ms_core_get_stats(core, &st);
         socket_bytes[raw] = st.socket_bytes;
         ms_core_frame_free(frame);
@@ -354,12 +315,12 @@ static double run_until_error(uint16_t port, ms_core_stats *st)
     assert_int_equal(ms_core_start(&o, &core, &err), MS_OK);
     ms_camera cam = key_camera(0);
     ms_core_set_camera(core, &cam);
-    double t0 = now_s();
+    double t0 = ms_now_seconds();
     do {
-        sleep_s(0.02);
+        ms_test_sleep_s(0.02);
         ms_core_get_stats(core, st);
-    } while (!st->error[0] && now_s() < t0 + 15.0);
-    double took = now_s() - t0;
+    } while (!st->error[0] && ms_now_seconds() < t0 + 15.0);
+    double took = ms_now_seconds() - t0;
     ms_core_stop(core);
     return took;
 }
@@ -388,8 +349,8 @@ static void hostile_conversation(int conn, const uint8_t *bomb, size_t bomb_size
     ms_proto_decoder_config dc = {MS_PROTO_ROLE_SERVER, MS_PROTO_MIN_FRAME, 64};
     ms_proto_decoder_init(&dec, &dc, NULL);
     uint8_t buf[4096];
-    double until = now_s() + 5.0;
-    for (bool opened = false; !opened && now_s() < until;) {
+    double until = ms_now_seconds() + 5.0;
+    for (bool opened = false; !opened && ms_now_seconds() < until;) {
         struct pollfd p = {conn, POLLIN, 0};
         if (poll(&p, 1, 100) <= 0)
             continue;
@@ -427,7 +388,7 @@ static void hostile_conversation(int conn, const uint8_t *bomb, size_t bomb_size
             }
         }
     }
-    for (; now_s() < until;) { /* until the client hangs up */
+    for (; ms_now_seconds() < until;) { /* until the client hangs up */
         struct pollfd p = {conn, POLLIN, 0};
         if (poll(&p, 1, 100) > 0 && read(conn, buf, sizeof buf) <= 0)
             break;
@@ -498,19 +459,19 @@ static void test_server_killed_and_restarted(void **state)
     ms_camera cam = key_camera(g->path.count - 1);
     ms_core_set_camera(core, &cam);
     ms_core_stats st;
-    double until = now_s() + WAIT_SECONDS;
+    double until = ms_now_seconds() + WAIT_SECONDS;
     do {
-        sleep_s(0.01);
+        ms_test_sleep_s(0.01);
         ms_core_get_stats(core, &st);
-    } while (st.bytes_received < 20000 && now_s() < until);
+    } while (st.bytes_received < 20000 && ms_now_seconds() < until);
     assert_true(st.bytes_received >= 20000);
     assert_false(st.view_complete);
     assert_int_equal(ms_test_stop(f.pid, SIGKILL, 5.0), -1);
-    sleep_s(0.5);
+    ms_test_sleep_s(0.5);
     launch(&f, port);
     assert_int_equal(f.port, port);
     ms_core_frame *frame = NULL;
-    if (!wait_complete(core, WAIT_SECONDS, &st, &frame))
+    if (!ms_test_core_wait_complete(core, WAIT_SECONDS, &st, &frame))
         fail_msg("not complete after the restart: %s", st.error);
     assert_true(st.reconnects >= 1);
     assert_int_equal(st.cells_failed, 0);
@@ -533,11 +494,11 @@ static void test_turning_away_cancels(void **state)
     ms_camera cam = key_camera(g->path.count - 1);
     ms_core_set_camera(core, &cam);
     ms_core_stats st;
-    double until = now_s() + WAIT_SECONDS;
+    double until = ms_now_seconds() + WAIT_SECONDS;
     do {
-        sleep_s(0.01);
+        ms_test_sleep_s(0.01);
         ms_core_get_stats(core, &st);
-    } while (!(st.bytes_received > 0 && st.bytes_in_flight > 2000) && now_s() < until);
+    } while (!(st.bytes_received > 0 && st.bytes_in_flight > 2000) && ms_now_seconds() < until);
     if (st.bytes_in_flight <= 2000)
         fail_msg("in flight %llu, received %llu, requests %llu, complete %d",
                  (unsigned long long)st.bytes_in_flight, (unsigned long long)st.bytes_received,
@@ -550,11 +511,11 @@ static void test_turning_away_cancels(void **state)
     assert_int_equal(ms_camera_look_at(cam.position, away, cam.up, 40, 640, 480, 1e-4, 1e4, &back,
                                        &err), MS_OK);
     ms_core_set_camera(core, &back);
-    until = now_s() + WAIT_SECONDS;
+    until = ms_now_seconds() + WAIT_SECONDS;
     do {
-        sleep_s(0.01);
+        ms_test_sleep_s(0.01);
         ms_core_get_stats(core, &st);
-    } while (st.cancels == 0 && now_s() < until);
+    } while (st.cancels == 0 && ms_now_seconds() < until);
     assert_true(st.cancels > 0);
     ms_core_stop(core);
 }
@@ -592,13 +553,13 @@ static void run_corruption(unsigned times, ms_core_stats *st, corruptor *c)
     assert_int_equal(ms_core_start(&o, &core, &err), MS_OK);
     ms_camera cam = key_camera(0);
     ms_core_set_camera(core, &cam);
-    double until = now_s() + WAIT_SECONDS;
+    double until = ms_now_seconds() + WAIT_SECONDS;
     do {
-        sleep_s(0.01);
+        ms_test_sleep_s(0.01);
         ms_core_get_stats(core, st);
-    } while (!st->view_complete && !st->cells_failed && now_s() < until);
+    } while (!st->view_complete && !st->cells_failed && ms_now_seconds() < until);
     /* give a spurious third fetch the time to show */
-    sleep_s(0.3);
+    ms_test_sleep_s(0.3);
     ms_core_get_stats(core, st);
     ms_core_stop(core);
 }
@@ -665,11 +626,11 @@ static void test_bad_options(void **state)
     o.model = "unknown_model";
     assert_int_equal(ms_core_start(&o, &core, &err), MS_OK);
     ms_core_stats st;
-    double until = now_s() + WAIT_SECONDS;
+    double until = ms_now_seconds() + WAIT_SECONDS;
     do {
-        sleep_s(0.01);
+        ms_test_sleep_s(0.01);
         ms_core_get_stats(core, &st);
-    } while (!st.error[0] && now_s() < until);
+    } while (!st.error[0] && ms_now_seconds() < until);
     assert_non_null(strstr(st.error, "unknown_model"));
     ms_core_stop(core);
 }
@@ -688,7 +649,7 @@ static void test_memory_budget(void **state)
     ms_camera cam = key_camera(g->path.count - 1);
     ms_core_set_camera(core, &cam);
     ms_core_stats st;
-    assert_true(wait_complete(core, WAIT_SECONDS, &st, NULL));
+    assert_true(ms_test_core_wait_complete(core, WAIT_SECONDS, &st, NULL));
     uint64_t full = st.memory;
     ms_core_stop(core);
 
@@ -705,7 +666,7 @@ static void test_memory_budget(void **state)
     for (size_t k = 0; k < g->path.count + fly.count; ++k) {
         cam = k < g->path.count ? key_camera(k) : path_camera(&fly, k - g->path.count);
         ms_core_set_camera(core, &cam);
-        if (!wait_complete(core, WAIT_SECONDS, &st, NULL))
+        if (!ms_test_core_wait_complete(core, WAIT_SECONDS, &st, NULL))
             fail_msg("keyframe %zu not complete under the budget: %s", k, st.error);
         if (st.memory > o.memory_ceiling)
             fail_msg("keyframe %zu: memory %llu above the ceiling %llu (target %llu, tolerance "

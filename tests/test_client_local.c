@@ -34,7 +34,9 @@
 #include "ms_client.h"
 #include "ms_client_core.h"
 #include "ms_nsp_check.h"
+#include "ms_progress.h"
 #include "ms_test.h"
+#include "ms_test_core.h"
 #include "ms_test_net.h"
 
 #define MODEL "demo"
@@ -52,19 +54,6 @@ typedef struct fixture {
 } fixture;
 
 static fixture *g;
-
-static double now_s(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + ts.tv_nsec * 1e-9;
-}
-
-static void sleep_s(double s)
-{
-    struct timespec ts = {(time_t)s, (long)((s - floor(s)) * 1e9)};
-    nanosleep(&ts, NULL);
-}
 
 static int group_setup(void **state)
 {
@@ -165,34 +154,6 @@ static ms_core_options local_options(const char *file)
     return o;
 }
 
-/* Waits for view complete (or an error, or the time limit); keeps the newest
- * frame in *frame when given. */
-static bool wait_complete(ms_core *core, double seconds, ms_core_stats *st, ms_core_frame **frame)
-{
-    double until = now_s() + seconds;
-    for (;;) {
-        if (frame) {
-            ms_core_frame *f = ms_core_take_frame(core);
-            if (f) {
-                ms_core_frame_free(*frame);
-                *frame = f;
-            }
-        }
-        ms_core_get_stats(core, st);
-        if (st->view_complete || st->error[0] || now_s() > until) {
-            if (frame && st->view_complete) {
-                ms_core_frame *f = ms_core_take_frame(core);
-                if (f) {
-                    ms_core_frame_free(*frame);
-                    *frame = f;
-                }
-            }
-            return st->view_complete;
-        }
-        sleep_s(0.005);
-    }
-}
-
 /* Runs a core on options for camera until view complete; returns its frame. */
 static ms_core_frame *complete_frame(const ms_core_options *o, const ms_camera *cam,
                                      ms_core_stats *st)
@@ -203,7 +164,7 @@ static ms_core_frame *complete_frame(const ms_core_options *o, const ms_camera *
         fail_msg("%s", err.text);
     ms_core_set_camera(core, cam);
     ms_core_frame *frame = NULL;
-    if (!wait_complete(core, WAIT_SECONDS, st, &frame))
+    if (!ms_test_core_wait_complete(core, WAIT_SECONDS, st, &frame))
         fail_msg("%s: view not complete: '%s' '%s'", o->archive_path ? "local" : "network",
                  st->error, st->warning);
     ms_core_stop(core);
@@ -335,16 +296,16 @@ static void test_local_path(void **state)
     for (size_t k = 0; k < g->path.count; ++k) {
         ms_camera cam = key_camera(k);
         ms_core_set_camera(core, &cam);
-        double until = now_s() + WAIT_SECONDS;
-        while (k == 0 && !first && now_s() < until) {
+        double until = ms_now_seconds() + WAIT_SECONDS;
+        while (k == 0 && !first && ms_now_seconds() < until) {
             ms_core_frame *f = ms_core_take_frame(core);
             if (f && f->mesh.triangle_count > 0)
                 first = f;
             else
                 ms_core_frame_free(f);
-            sleep_s(0.002);
+            ms_test_sleep_s(0.002);
         }
-        if (!wait_complete(core, WAIT_SECONDS, &st, &frame))
+        if (!ms_test_core_wait_complete(core, WAIT_SECONDS, &st, &frame))
             fail_msg("keyframe %zu not complete: %s", k, st.error);
         if (k == 0) {
             assert_non_null(first);
@@ -375,12 +336,12 @@ static void run_local(const char *file, ms_core_stats *st)
     assert_int_equal(ms_core_start(&o, &core, &err), MS_OK);
     ms_camera cam = key_camera(0);
     ms_core_set_camera(core, &cam);
-    double until = now_s() + WAIT_SECONDS;
+    double until = ms_now_seconds() + WAIT_SECONDS;
     do {
-        sleep_s(0.01);
+        ms_test_sleep_s(0.01);
         ms_core_get_stats(core, st);
-    } while (!st->error[0] && !st->view_complete && !st->cells_failed && now_s() < until);
-    sleep_s(0.2); /* a pass more: the failed cell stays failed, nothing else happens */
+    } while (!st->error[0] && !st->view_complete && !st->cells_failed && ms_now_seconds() < until);
+    ms_test_sleep_s(0.2); /* a pass more: the failed cell stays failed, nothing else happens */
     ms_core_get_stats(core, st);
     ms_core_stop(core);
 }
@@ -461,9 +422,9 @@ static void test_catalogues(void **state)
 
     /* nobody listening: a clear error, quickly */
     co.port = 1; /* nothing listens on port 1 of loopback: refused */
-    double t0 = now_s();
+    double t0 = ms_now_seconds();
     assert_int_equal(ms_client_fetch_catalogue(&co, 5.0, &cat, &err), MS_ERR_IO);
-    assert_true(now_s() - t0 < 5.0);
+    assert_true(ms_now_seconds() - t0 < 5.0);
     assert_non_null(strstr(err.text, "127.0.0.1:1"));
     assert_int_equal(cat.count, 0);
     co.host = NULL;

@@ -190,27 +190,11 @@ static void test_far_from_origin(void **state)
     ms_test_rmdir(dir);
 }
 
-static ms_test_gl gl;
-
-static int setup(void **state)
-{
-    (void)state;
-    ms_test_gl_start(&gl);
-    return 0;
-}
-
-static int teardown(void **state)
-{
-    (void)state;
-    ms_test_gl_stop(&gl);
-    return 0;
-}
-
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_dragon),
         cmocka_unit_test(test_far_from_origin),
     };
-    return cmocka_run_group_tests(tests, setup, teardown);
+    return cmocka_run_group_tests(tests, ms_test_gl_group_setup, ms_test_gl_group_teardown);
 }

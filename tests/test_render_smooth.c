@@ -28,7 +28,6 @@
 #define RADIUS 0.35
 #define CELLS 9       /* the root and its eight children (n = 2) */
 
-static ms_test_gl gl;
 
 static const double centre[3] = {0.5, 0.5, 0.5};
 
@@ -371,24 +370,10 @@ static void test_sphere(void **state)
     sphere_free(&s);
 }
 
-static int setup(void **state)
-{
-    (void)state;
-    ms_test_gl_start(&gl);
-    return 0;
-}
-
-static int teardown(void **state)
-{
-    (void)state;
-    ms_test_gl_stop(&gl);
-    return 0;
-}
-
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_sphere),
     };
-    return cmocka_run_group_tests(tests, setup, teardown);
+    return cmocka_run_group_tests(tests, ms_test_gl_group_setup, ms_test_gl_group_teardown);
 }

@@ -54,6 +54,23 @@ void ms_test_gl_stop(ms_test_gl *gl)
     memset(gl, 0, sizeof *gl);
 }
 
+int ms_test_gl_group_setup(void **state)
+{
+    ms_test_gl *gl = malloc(sizeof *gl);
+    if (!gl)
+        return -1;
+    ms_test_gl_start(gl);
+    *state = gl;
+    return 0;
+}
+
+int ms_test_gl_group_teardown(void **state)
+{
+    ms_test_gl_stop(*state);
+    free(*state);
+    return 0;
+}
+
 void ms_test_fbo_new(ms_test_fbo *f, int width, int height)
 {
     memset(f, 0, sizeof *f);

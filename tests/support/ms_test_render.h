@@ -29,6 +29,10 @@ typedef struct ms_test_gl {
 void ms_test_gl_start(ms_test_gl *gl);
 void ms_test_gl_stop(ms_test_gl *gl);
 
+/* cmocka group setup and teardown around the two: *state holds the ms_test_gl. */
+int ms_test_gl_group_setup(void **state);
+int ms_test_gl_group_teardown(void **state);
+
 typedef struct ms_test_fbo {
     GLuint fbo, colour, depth;
     int width, height;
