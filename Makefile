@@ -46,7 +46,7 @@ TESTSUPPORT := $(patsubst %.c,$(BUILD)/%.o,$(wildcard tests/support/*.c))
 HAVE_CXX  := $(strip $(foreach r,$(ROLES),$(wildcard $(r)/*.cpp)))
 LINK      := $(if $(HAVE_CXX),$(CXX),$(CC))
 
-.PHONY: all test bench demo fuzz clean programs tests deps screenshots
+.PHONY: all test bench demo fuzz clean programs tests deps screenshots study
 .SECONDARY:
 all: programs
 
@@ -116,6 +116,11 @@ test:
 
 bench: programs
 	@scripts/bench
+
+# What accuracy costs: sweeps over the dragon and the demo model, docs/ACCURACY.md
+# and docs/images/study-*.png (scripts/study; a few minutes; not in CI).
+study: programs
+	@scripts/study
 
 # The viewer's pictures in docs/images/ (headless meshview; Xvfb when no DISPLAY).
 screenshots: programs
