@@ -58,15 +58,20 @@ def psnr(image):
 
 
 # --- the data ------------------------------------------------------------------------------
-tols = sorted({os.path.basename(p)[len("study-dragon-"):-len(".json")]
-               for p in glob.glob(os.path.join(J, "study-dragon-*.json"))}, key=float)
-if not tols:
-    sys.exit("study-report: no study-dragon-*.json in " + J)
+runs = []  # (APO tolerance, geometry ratio K)
+for path in glob.glob(os.path.join(J, "study-dragon-*-k*.json")):
+    t, k = os.path.basename(path)[len("study-dragon-"):-len(".json")].rsplit("-k", 1)
+    runs.append((t, k))
+runs.sort(key=lambda r: (float(r[0]), float(r[1])))
+if not runs:
+    sys.exit("study-report: no study-dragon-*-k*.json in " + J)
+tols = sorted({t for t, _ in runs}, key=float)
 bakes = {t: load(f"bake-dragon-{t}.json") for t in tols}
 noapo = load("bake-dragon-noapo.json")
-studies = {t: load(f"study-dragon-{t}.json") for t in tols}
-default_tol = "0.2" if "0.2" in tols else tols[len(tols) // 2]
-keys = sorted({p["key"] for p in studies[default_tol]["points"]})
+studies = {r: load(f"study-dragon-{r[0]}-k{r[1]}.json") for r in runs}
+GEO = next(r for r in runs if r[1] == "1")  # the geometry-alone run (one cut for both renders)
+default_tol = GEO[0]
+keys = sorted({p["key"] for p in studies[GEO]["points"]})
 closeup = keys[-1]
 bits = sorted(int(os.path.basename(p)[len("codec-"):-len(".json")]) for p in glob.glob(os.path.join(J, "codec-*.json")))
 codec = {p: load(f"codec-{p}.json") for p in bits}
@@ -74,14 +79,19 @@ draco = {p: load(f"draco-{p}.json") for p in bits}
 whole_ours = {p: load(f"whole-ours-{p}.json")["points"][0] for p in bits}
 whole_draco = {p: load(f"whole-draco-{p}.json")["points"][0] for p in bits}
 demo = load("study-demo.json") if os.path.exists(os.path.join(J, "study-demo.json")) else None
+demo_k4 = load("study-demo-k4.json") if os.path.exists(os.path.join(J, "study-demo-k4.json")) else None
 demo_bake = load("bake-demo.json") if demo else None
-meta = studies[default_tol]
+meta = studies[GEO]
 
 
-def cut_rows(t, key):
-    """One row per tolerance at key, for APO tolerance t: geometry-only and with APO."""
+def run_label(r):
+    return f"APO {r[0]} rad, K {r[1]}"
+
+
+def cut_rows(run, key):
+    """One row per tolerance at key, for a run (APO tolerance, K): drawn without and with APO."""
     rows = []
-    for p in studies[t]["points"]:
+    for p in studies[run]["points"]:
         if p["key"] != key:
             continue
         b = p["bytes"]
@@ -126,13 +136,13 @@ def write_dat(name, rows):
 
 
 series = []  # (title, x-by-bandwidth rows)
-geo_rows = cut_rows(default_tol, closeup)
+geo_rows = cut_rows(GEO, closeup)
 series.append(("geometry only (cut, tolerance 0.5-32 px)",
-               [(r["bytes_geo"], r["decode"], psnr(r["img"]), r["h_px"]) for r in geo_rows], "lp pt 7"))
-for t in tols:
-    series.append((f"geometry + APO (tol {t} rad, by footprint)",
-                   [(r["bytes_apo"], r["decode"], psnr(r["img_apo"]), r["h_px"]) for r in cut_rows(t, closeup)],
-                   "lp pt 5"))
+               [(r["bytes_geo"], r["decode"], psnr(r["img"]), r["h_px"]) for r in geo_rows], "lp pt 7 lw 2"))
+for i, run in enumerate(runs):
+    series.append((f"geometry + APO ({run_label(run)})",
+                   [(r["bytes_apo"], r["decode"], psnr(r["img_apo"]), r["h_px"]) for r in cut_rows(run, closeup)],
+                   f"lp pt {4 + i}"))
 series.append(("single-stream whole download (p = 8-20)",
                [(r["bytes"], r["decode"], min(psnr(r["img"]), 99), r["h_px"]) for r in ours_whole], "lp pt 9 dt 2"))
 series.append(("Draco whole download (qp = 8-20)",
@@ -218,23 +228,32 @@ w("")
 for key in keys:
     w(f"### Dragon, key {key}: screen tolerance sweep")
     w("")
-    head = "| tol px | triangles | index + geometry B | decode s | view complete 8 / 100 Mbit/s s | h px | RMS px | PSNR | normal mean deg |"
-    sep = "|---|---|---|---|---|---|---|---|---|"
-    for t in tols:
-        head += f" APO B (tol {t}) | PSNR / normal deg with APO (tol {t}) |"
-        sep += "---|---|"
-    w(head)
-    w(sep)
-    per_tol = {t: {r["tol"]: r for r in cut_rows(t, key)} for t in tols}
-    for r in cut_rows(default_tol, key):
-        line = (f"| {r['tol']:g} | {r['tris']:,} | {r['bytes_geo']:,} | {r['decode']:.2f} | "
-                f"{seconds_at(r['bytes_geo'], r['decode'], 8e6):.2f} / {seconds_at(r['bytes_geo'], r['decode'], 100e6):.2f} | "
-                f"{r['h_px']:.2f} | {r['rms_px']:.3f} | {num(psnr(r['img']), '{:.1f}')} | {r['img']['normal_mean_deg']:.1f} |")
-        for t in tols:
-            q = per_tol[t].get(r["tol"])
-            line += (f" {q['apo']:,} | {num(psnr(q['img_apo']), '{:.1f}')} / {q['img_apo']['normal_mean_deg']:.1f} |"
-                     if q else " – | – |")
-        w(line)
+    w("Geometry alone (one cut per tolerance, drawn with its flat normals), and the same cut drawn with APO "
+      f"(APO tolerance {default_tol}, K = 1):")
+    w("")
+    w("| tol px | triangles | index + geometry B | decode s | view complete 8 / 100 Mbit/s s | h px | RMS px | PSNR | "
+      "normal mean deg | APO B | PSNR / normal deg with APO |")
+    w("|---|---|---|---|---|---|---|---|---|---|---|")
+    for r in cut_rows(GEO, key):
+        w(f"| {r['tol']:g} | {r['tris']:,} | {r['bytes_geo']:,} | {r['decode']:.2f} | "
+          f"{seconds_at(r['bytes_geo'], r['decode'], 8e6):.2f} / {seconds_at(r['bytes_geo'], r['decode'], 100e6):.2f} | "
+          f"{r['h_px']:.2f} | {r['rms_px']:.3f} | {num(psnr(r['img']), '{:.1f}')} | {r['img']['normal_mean_deg']:.1f} | "
+          f"{r['apo']:,} | {num(psnr(r['img_apo']), '{:.1f}')} / {r['img_apo']['normal_mean_deg']:.1f} |")
+    w("")
+    w("The client core's APO mode: where a cell carries a chunk, geometry only to K × the tolerance; APO by "
+      "footprint at the tolerance. Bytes = index + geometry + APO:")
+    w("")
+    w("| APO tol rad | K | tol px | triangles | geometry B | APO B | total B | decode s | view complete 8 / 100 Mbit/s s | "
+      "h px | PSNR with APO | normal mean deg with APO |")
+    w("|---|---|---|---|---|---|---|---|---|---|---|---|")
+    for run in runs:
+        if run == GEO:
+            continue
+        for r in cut_rows(run, key):
+            w(f"| {run[0]} | {run[1]} | {r['tol']:g} | {r['tris']:,} | {r['geometry']:,} | {r['apo']:,} | "
+              f"{r['bytes_apo']:,} | {r['decode']:.2f} | {seconds_at(r['bytes_apo'], r['decode'], 8e6):.2f} / "
+              f"{seconds_at(r['bytes_apo'], r['decode'], 100e6):.2f} | {r['h_px']:.2f} | "
+              f"{num(psnr(r['img_apo']), '{:.1f}')} | {r['img_apo']['normal_mean_deg']:.1f} |")
     w("")
 
 w(f"### Precision sweep: the whole dragon, single stream and Draco (measured at key {closeup})")
@@ -259,15 +278,18 @@ if demo:
     w(f"Baked with the defaults: {demo_bake['geometry_bytes']:,} B of geometry, {demo_bake['apo']['bytes']:,} B of "
       f"APO, {demo_bake['seconds']['total']:.1f} s.")
     w("")
-    w("| key | tol px | triangles | index + geometry B | APO B | decode s | h px | PSNR / normal deg | with APO |")
-    w("|---|---|---|---|---|---|---|---|---|")
-    for p in demo["points"]:
-        b = p["bytes"]
-        ia = p.get("image_apo", p["image"])
-        w(f"| {p['key']} | {p['tolerance_px']:g} | {p['triangles']:,} | {b['index'] + b['geometry']:,} | "
-          f"{b['apo']:,} | {p['seconds']['cut']:.2f} | {p['geometric']['hausdorff_px']:.2f} | "
-          f"{num(psnr(p['image']), '{:.1f}')} / {p['image']['normal_mean_deg']:.1f} | "
-          f"{num(psnr(ia), '{:.1f}')} / {ia['normal_mean_deg']:.1f} |")
+    w("| K | key | tol px | triangles | index + geometry B | APO B | decode s | h px | PSNR / normal deg | with APO |")
+    w("|---|---|---|---|---|---|---|---|---|---|")
+    for k, d in (("1", demo), ("4", demo_k4)):
+        if not d:
+            continue
+        for p in d["points"]:
+            b = p["bytes"]
+            ia = p.get("image_apo", p["image"])
+            w(f"| {k} | {p['key']} | {p['tolerance_px']:g} | {p['triangles']:,} | {b['index'] + b['geometry']:,} | "
+              f"{b['apo']:,} | {p['seconds']['cut']:.2f} | {p['geometric']['hausdorff_px']:.2f} | "
+              f"{num(psnr(p['image']), '{:.1f}')} / {p['image']['normal_mean_deg']:.1f} | "
+              f"{num(psnr(ia), '{:.1f}')} / {ia['normal_mean_deg']:.1f} |")
     w("")
 
 
@@ -287,8 +309,9 @@ def cell(best):
     return (f"{kb(b)}, {seconds_at(b, dec, 8e6):.2f} s / {seconds_at(b, dec, 100e6):.2f} s ({label})")
 
 
-geo_c = [(r["bytes_geo"], r["decode"], f"{r['tol']:g} px", r) for r in cut_rows(default_tol, closeup)]
-apo_c = [(r["bytes_apo"], r["decode"], f"{r['tol']:g} px, APO {t}", r) for t in tols for r in cut_rows(t, closeup)]
+geo_c = [(r["bytes_geo"], r["decode"], f"{r['tol']:g} px", r) for r in cut_rows(GEO, closeup)]
+apo_c = [(r["bytes_apo"], r["decode"], f"{r['tol']:g} px, {run_label(run)}", r)
+         for run in runs for r in cut_rows(run, closeup) if r["apo"] > 0]
 dra_c = [(r["bytes"], r["decode"], f"qp {r['bits']}", r) for r in draco_whole]
 ours_c = [(r["bytes"], r["decode"], f"p {r['bits']}", r) for r in ours_whole]
 headline = []
@@ -326,26 +349,28 @@ w("### What the numbers say (computed)")
 w("")
 for key in keys:
     wins, losses = [], []
-    for t in tols:
-        for r in cut_rows(t, key):
+    geo_here = [(q["bytes_geo"], q["decode"], f"{q['tol']:g} px", q) for q in cut_rows(GEO, key)]
+    for run in runs:
+        for r in cut_rows(run, key):
             if r["apo"] == 0:
                 continue
             target = psnr(r["img_apo"])
-            g = cheapest([(q["bytes_geo"], q["decode"], f"{q['tol']:g} px", q) for q in cut_rows(default_tol, key)],
-                         lambda c: psnr(c[3]["img"]) >= target)
-            if g is None or g[0] > r["bytes_apo"]:
-                wins.append((t, r, g))
-            else:
-                losses.append((t, r, g))
+            g = cheapest(geo_here, lambda c: psnr(c[3]["img"]) >= target)
+            (wins if g is None or g[0] > r["bytes_apo"] else losses).append((run, r, g))
     if wins:
-        t, r, g = max(wins, key=lambda x: (x[2] is None, (x[2][0] - x[1]["bytes_apo"]) if x[2] else 0))
+        run, r, g = max(wins, key=lambda x: (x[2] is None, (x[2][0] - x[1]["bytes_apo"]) if x[2] else 0))
         other = f"geometry alone needs {kb(g[0])} ({g[2]})" if g else "geometry alone does not reach it at any tolerance"
         w(f"- Key {key}: geometry + APO beats geometry alone in bytes at {len(wins)} of {len(wins) + len(losses)} "
           f"points that fetch APO; the largest gap: {num(psnr(r['img_apo']), '{:.1f}')} dB with "
-          f"{kb(r['bytes_apo'])} ({r['tol']:g} px, APO tolerance {t}), where {other}.")
+          f"{kb(r['bytes_apo'])} ({r['tol']:g} px, {run_label(run)}), where {other}.")
     else:
         w(f"- Key {key}: geometry + APO never beats geometry alone in bytes for the same PSNR "
           f"({len(losses)} points fetch APO).")
+    fewer = [(run, r, g) for run, r, g in wins + losses if g and r["tris"] < g[3]["tris"]]
+    if fewer:
+        run, r, g = min(fewer, key=lambda x: x[1]["tris"] / x[2][3]["tris"])
+        w(f"  Triangles drawn for the same PSNR: {r['tris']:,} with APO ({r['tol']:g} px, {run_label(run)}, "
+          f"{num(psnr(r['img_apo']), '{:.1f}')} dB) against {g[3]['tris']:,} for geometry alone ({g[2]}).")
 w(f"- Draco's whole download at qp 16 is {draco[16]['bytes']:,} B; the single stream at p 16 "
   f"{codec[16]['bytes']:,} B." if 16 in draco else "- (no p = 16 point in the precision sweep)")
 w("")

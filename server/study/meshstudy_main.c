@@ -32,7 +32,8 @@ static void usage(FILE *out)
     fputs("usage: meshstudy MESH ARCHIVE -p CAMERA_PATH [--keys 0,4,8] [--tolerances 1,4,16]\n"
           "       meshstudy MESH --whole CANDIDATE -p CAMERA_PATH [--keys ...] [options]\n"
           "                 [--width 320] [--height 240] [--spacing S] [--reference flat|smooth]\n"
-          "                 [--apo-levels L|footprint] [--apo-texel PX] [--threads N] [--json]\n"
+          "                 [--apo-levels L|footprint] [--apo-texel PX] [--apo-geometry-ratio K]\n"
+          "                 [--threads N] [--json]\n"
           "For every chosen keyframe of CAMERA_PATH and every screen tolerance (pixels),\n"
           "makes the cut of ARCHIVE (baked from MESH) a client shows for that camera and\n"
           "measures it against MESH at full resolution: bytes (index, geometry, APO),\n"
@@ -60,6 +61,11 @@ static void usage(FILE *out)
           "                        texel projects to at most --apo-texel PX pixels at the\n"
           "                        cell's nearest point (default: the point's tolerance,\n"
           "                        as the client does)\n"
+          "      --apo-geometry-ratio K  the client core's APO mode (docs/CLIENT.md): cells\n"
+          "                        that carry an APO chunk refine their geometry only to K\n"
+          "                        times the tolerance (the client's apo_geometry_tolerance_px\n"
+          "                        over tolerance_px), cells without one to the tolerance;\n"
+          "                        default 1 (one cut for both renders)\n"
           "      --whole FILE      measure the mesh FILE drawn whole instead of an archive's cuts\n"
           "      --threads N       threads (default: every core)\n"
           "      --json            print the results as one JSON object\n"
@@ -98,7 +104,7 @@ typedef struct options {
     size_t key_count, tolerance_count;
     double width, height, spacing;
     unsigned threads, apo_levels;
-    double apo_texel_px;
+    double apo_texel_px, apo_geometry_ratio;
     bool apo_footprint, smooth_reference, json;
 } options;
 
@@ -111,9 +117,10 @@ static int parse_options(int argc, char **argv, options *o)
         {"threads", required_argument, NULL, 'T'}, {"json", no_argument, NULL, 'j'},
         {"reference", required_argument, NULL, 'r'}, {"apo-levels", required_argument, NULL, 'L'},
         {"apo-texel", required_argument, NULL, 'X'},  {"whole", required_argument, NULL, 'w'},
+        {"apo-geometry-ratio", required_argument, NULL, 'G'},
         {"help", no_argument, NULL, 'h'},         {NULL, 0, NULL, 0},
     };
-    *o = (options){.width = 320, .height = 240, .tolerances = {1, 4, 16}, .tolerance_count = 3};
+    *o = (options){.width = 320, .height = 240, .tolerances = {1, 4, 16}, .tolerance_count = 3, .apo_geometry_ratio = 1};
     int c;
     double v;
     while ((c = getopt_long(argc, argv, "p:h", long_options, NULL)) != -1) {
@@ -164,6 +171,12 @@ static int parse_options(int argc, char **argv, options *o)
                 return EXIT_USAGE;
             }
             break;
+        case 'G':
+            if (!parse_positive(optarg, &o->apo_geometry_ratio) || o->apo_geometry_ratio < 1) {
+                fprintf(stderr, "meshstudy: --apo-geometry-ratio must be a number >= 1, not '%s'\n", optarg);
+                return EXIT_USAGE;
+            }
+            break;
         case 's':
             if (!parse_positive(optarg, &o->spacing)) {
                 fprintf(stderr, "meshstudy: '%s' is not a positive spacing\n", optarg);
@@ -209,6 +222,7 @@ typedef struct study {
     ms_view *view;
     ms_study_apo *apo;
     uint32_t *apo_levels; /* per cell, for the current camera */
+    float *tolerance_scale; /* per cell, --apo-geometry-ratio (NULL: none) */
     ms_camera_path path;
     double spacing;
 } study;
@@ -258,6 +272,7 @@ static ms_status study_key(study *s, size_t key, json_t *points, ms_error *err)
         params.tolerance_px = o->tolerances[t];
         params.hysteresis = 0; /* the cut depends on the camera and tolerance only */
         params.culled_bits_less = 6; /* the client core's default (docs/CLIENT.md) */
+        params.tolerance_scale = s->tolerance_scale;
         ms_study_cut_report cr = {0};
         ms_study_scene *cut_scene = NULL;
         if (s->whole) {
@@ -368,6 +383,12 @@ static ms_status open_study(const options *o, study *s, ms_error *err)
         return MS_OK;
     if (!(s->apo_levels = calloc(h->cell_count + 1, sizeof *s->apo_levels)))
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory for %u cells", h->cell_count);
+    if (o->apo_geometry_ratio > 1) { /* as the client core's dec_take_index */
+        if (!(s->tolerance_scale = malloc((h->cell_count + 1) * sizeof *s->tolerance_scale)))
+            return ms_error_set(err, MS_ERR_NOMEM, "out of memory for %u cells", h->cell_count);
+        for (uint32_t c = 0; c < h->cell_count; ++c)
+            s->tolerance_scale[c] = ms_archive_get_cell(s->archive, c)->apo_levels ? (float)o->apo_geometry_ratio : 1;
+    }
     return ms_study_apo_from_archive(s->archive, 0, UINT32_MAX, MS_APO_MISSING_NEAREST, &s->apo, err);
 }
 
@@ -387,17 +408,18 @@ int main(int argc, char **argv)
         st = study_key(&s, o.key_count ? (size_t)o.keys[k] : k, points, &err);
     json_t *root = NULL;
     if (st == MS_OK)
-        root = json_pack("{s:o, s:o, s:o, s:s, s:o, s:I, s:I, s:I, s:f, s:b, s:o, s:f}", "mesh", ms_json_text(o.mesh),
+        root = json_pack("{s:o, s:o, s:o, s:s, s:o, s:I, s:I, s:I, s:f, s:b, s:f, s:o, s:f}", "mesh", ms_json_text(o.mesh),
                          "archive", ms_json_text(o.whole ? o.whole : o.archive), "path", ms_json_text(o.path), "reference", o.smooth_reference ? "smooth" : "flat", "apo_levels",
                          o.apo_footprint ? json_string("footprint") : json_integer((json_int_t)o.apo_levels), "width", (json_int_t)o.width, "height", (json_int_t)o.height,
                          "mesh_triangles", (json_int_t)ms_study_scene_triangle_count(s.full), "spacing", s.spacing,
-                         "apo", s.apo != NULL, "points", points, "seconds", ms_now_seconds() - start);
+                         "apo", s.apo != NULL, "apo_geometry_ratio", o.apo_geometry_ratio, "points", points, "seconds", ms_now_seconds() - start);
     else
         json_decref(points);
     ms_study_scene_free(s.full);
     ms_study_scene_free(s.whole);
     ms_study_apo_free(s.apo);
     free(s.apo_levels);
+    free(s.tolerance_scale);
     ms_view_destroy(s.view);
     ms_archive_close(s.archive);
     ms_camera_path_free(&s.path);
