@@ -224,6 +224,9 @@ for t in tols:
     b = bakes[t]
     w(f"| APO tolerance {t} rad | {b['geometry_bytes']:,} | {b['apo']['bytes']:,} | "
       f"{b['apo']['bytes'] / b['geometry_bytes']:.2f} | {b['seconds']['total']:.1f} | {b['seconds']['apo']:.1f} |")
+for path in sorted(glob.glob(os.path.join(J, "failed-bake-dragon-*.json"))):
+    f = load(os.path.basename(path))
+    w(f"| APO tolerance {f['apo_tolerance']} rad | – | – | – | failed: `{f['error']}` | – |")
 w("")
 for key in keys:
     w(f"### Dragon, key {key}: screen tolerance sweep")
