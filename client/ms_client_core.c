@@ -121,6 +121,7 @@ struct ms_core {
     /* network figures */
     bool connected, model_open;
     uint64_t bytes_received, bytes_in_flight, requests, cancels, reconnects;
+    double longest_outage;
     uint64_t geometry_bytes_received, apo_bytes_received;
     uint64_t socket_bytes;      /* read from every connection, frames and index included */
     double *latencies;
@@ -496,11 +497,14 @@ static void on_model_opened(ms_client *client, uint32_t request_id,
     }
     c->handle = o->model_handle;
     c->ready = true;
+    double outage = c->down_since >= 0 ? c->last_activity - c->down_since : 0.0;
     c->down_since = -1;
     c->backoff = 0.1;
     pthread_mutex_lock(&c->lock);
     c->model_open = true;
     c->connected = true;
+    if (outage > c->longest_outage)
+        c->longest_outage = outage;
     c->republish = true;          /* the decode thread recomputes its wants */
     c->net_want_serial = c->want_serial - 1; /* and we re-read them */
     pthread_cond_broadcast(&c->wake);
@@ -2004,6 +2008,7 @@ void ms_core_get_stats(ms_core *c, ms_core_stats *out)
     out->requests = c->requests;
     out->cancels = c->cancels;
     out->reconnects = c->reconnects;
+    out->longest_outage = c->longest_outage;
     if (out->camera_serial != c->camera_serial)
         out->view_complete = false;
     n = c->latency_count;
