@@ -6,6 +6,9 @@
  * handle goes on), a replaced one opens with a new content id and its new
  * bytes (a client core that reconnects to it stops with "model changed",
  * test_client_core), a removed one answers UNKNOWN_MODEL and 404.
+ * Also the operations side (item 5): the access log (one JSON line per binary
+ * connection and per HTTP answer), its reopening on SIGHUP, and /metrics
+ * counters per model.
  * Runs from the repository root; needs meshserve and meshbake. */
 #include <stdarg.h>
 #include <stdbool.h>
@@ -301,11 +304,159 @@ static void test_add_replace_remove_while_serving(void **state)
     f->pid = 0;
 }
 
+/* The lines of a file, as JSON objects, into an array (waits up to 10 s for
+ * at least `want` lines: a connection's line is written as it is freed). */
+static json_t *log_lines(const char *path, size_t want)
+{
+    json_t *lines = NULL;
+    for (int tries = 0; tries < 400; ++tries) {
+        json_decref(lines);
+        lines = json_array();
+        FILE *f = fopen(path, "r");
+        char line[4096];
+        while (f && fgets(line, sizeof line, f)) {
+            json_error_t jerr;
+            json_t *j = json_loads(line, 0, &jerr);
+            if (!j)
+                fail_msg("%s: a line that is not JSON: %s", path, line);
+            json_array_append_new(lines, j);
+        }
+        if (f)
+            fclose(f);
+        if (json_array_size(lines) >= want)
+            return lines;
+        usleep(25000);
+    }
+    fail_msg("%s: %zu lines, not %zu", path, json_array_size(lines), want);
+    return NULL;
+}
+
+static const char *field(json_t *line, const char *key)
+{
+    json_t *v = json_object_get(line, key);
+    assert_true(json_is_string(v));
+    return json_string_value(v);
+}
+
+static json_int_t number(json_t *line, const char *key)
+{
+    json_t *v = json_object_get(line, key);
+    assert_true(json_is_integer(v));
+    return json_integer_value(v);
+}
+
+static uint64_t metric(const fixture *f, const char *line_start)
+{
+    ms_test_http_response r;
+    assert_int_equal(ms_test_http_get(f->http_port, "/metrics", NULL, &r), 0);
+    const char *at = strstr((const char *)r.body, line_start);
+    if (!at)
+        fail_msg("/metrics has no '%s'", line_start);
+    uint64_t v = strtoull(at + strlen(line_start), NULL, 10);
+    ms_test_http_free(&r);
+    return v;
+}
+
+static void test_access_log_and_model_metrics(void **state)
+{
+    fixture *f = *state;
+    char config[700], log_path[700], rotated[720], bin[512];
+    snprintf(config, sizeof config, "%s/meshserve.conf", f->dir);
+    snprintf(log_path, sizeof log_path, "%s/access.log", f->dir);
+    snprintf(rotated, sizeof rotated, "%s.1", log_path);
+    FILE *c = fopen(config, "w");
+    fprintf(c, "access_log = %s\n", log_path);
+    fclose(c);
+    ms_test_bin_path(bin, sizeof bin, "meshserve");
+    char *argv[] = {bin, f->archives, "--config", config, "--port", "0", "--http-port", "0",
+                    "--port-file", f->port_file, NULL};
+    f->pid = ms_test_spawn(argv, f->log);
+    assert_int_equal(ms_test_wait_ports(f->port_file, 15.0, &f->port, &f->http_port), 0);
+
+    /* a binary connection that opens two models (and one twice), then leaves */
+    ms_test_conn conn;
+    assert_int_equal(ms_test_conn_open(&conn, f->port), 0);
+    ms_test_conn_hello(&conn, NULL, NULL);
+    assert_true(open_model(&conn, "m01", 1).handle != 0);
+    assert_true(open_model(&conn, "m03", 2).handle != 0);
+    assert_true(open_model(&conn, "m01", 3).handle != 0);
+    ms_test_conn_close(&conn);
+    /* an HTTP answer with a body, and a 404 */
+    uint8_t *body;
+    size_t length;
+    assert_int_equal(cell_answer(f, "m02", &body, &length, NULL, 0), 200);
+    free(body);
+    assert_true(length > 0);
+    assert_int_equal(cell_answer(f, "nope", NULL, NULL, NULL, 0), 404);
+
+    json_t *lines = log_lines(log_path, 3);
+    assert_int_equal(json_array_size(lines), 3);
+    json_t *binary = NULL, *ok = NULL, *missing = NULL;
+    for (size_t i = 0; i < 3; ++i) {
+        json_t *l = json_array_get(lines, i);
+        if (!strcmp(field(l, "door"), "binary"))
+            binary = l;
+        else if (!strcmp(field(l, "status"), "200"))
+            ok = l;
+        else
+            missing = l;
+    }
+    assert_non_null(binary);
+    assert_non_null(ok);
+    assert_non_null(missing);
+    assert_string_equal(field(binary, "model"), "m01,m03");
+    assert_int_equal(number(binary, "requests"), 3);
+    assert_int_equal(number(binary, "bytes"), 0); /* an index is not payload */
+    assert_string_equal(field(binary, "status"), "ok");
+    assert_int_equal(strncmp(field(binary, "client"), "127.0.0.1:", 10), 0);
+    assert_true(json_is_real(json_object_get(binary, "seconds")));
+    assert_string_equal(field(ok, "door"), "http");
+    assert_string_equal(field(ok, "model"), "m02");
+    assert_string_equal(field(ok, "request"), "/models/m02/cells/0/geometry");
+    assert_int_equal(number(ok, "bytes"), (json_int_t)length);
+    assert_int_equal(number(ok, "requests"), 1);
+    assert_string_equal(field(missing, "status"), "404");
+    assert_string_equal(field(missing, "model"), "nope");
+    assert_int_equal(strlen(field(ok, "time")), 20); /* 2026-12-03T12:00:00Z */
+    json_decref(lines);
+
+    /* per model counters */
+    assert_int_equal(metric(f, "meshstream_model_requests_total{model=\"m01\"} "), 2);
+    assert_int_equal(metric(f, "meshstream_model_requests_total{model=\"m02\"} "), 1);
+    assert_int_equal(metric(f, "meshstream_model_bytes_sent_total{model=\"m02\"} "), length);
+    assert_int_equal(metric(f, "meshstream_model_requests_total{model=\"m04\"} "), 0);
+
+    /* rotation: the file moved away, SIGHUP, and the next line is in a new file */
+    assert_int_equal(rename(log_path, rotated), 0);
+    assert_int_equal(kill(f->pid, SIGHUP), 0);
+    json_t *fresh = NULL;
+    for (int tries = 0; tries < 200 && !fresh; ++tries) {
+        usleep(25000);
+        if (access(log_path, F_OK) == 0)
+            fresh = log_lines(log_path, 0);
+    }
+    assert_non_null(fresh);
+    json_decref(fresh);
+    assert_int_equal(cell_answer(f, "m04", NULL, NULL, NULL, 0), 200);
+    fresh = log_lines(log_path, 1);
+    assert_int_equal(json_array_size(fresh), 1);
+    assert_string_equal(field(json_array_get(fresh, 0), "model"), "m04");
+    json_decref(fresh);
+    /* the moved file: the 3 lines above and the 4 /metrics answers, nothing later */
+    json_t *old = log_lines(rotated, 7);
+    assert_int_equal(json_array_size(old), 7);
+    assert_string_equal(field(json_array_get(old, 6), "request"), "/metrics");
+    json_decref(old);
+    assert_int_equal(ms_test_stop(f->pid, SIGTERM, 15.0), 0);
+    f->pid = 0;
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test_setup_teardown(test_list_checks_every_archive, setup, teardown),
         cmocka_unit_test_setup_teardown(test_add_replace_remove_while_serving, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_access_log_and_model_metrics, setup, teardown),
     };
     return cmocka_run_group_tests_name("collection", tests, NULL, NULL);
 }
