@@ -84,7 +84,7 @@ ALL_LIBS  := $(foreach r,$(call reverse,$(ROOMS)),$(call room_lib,$(r)))
 ALL_PKGS  := $(sort $(foreach r,$(ROOMS),$(PKGS_$(r))))
 LINK      := $(CXX)
 
-.PHONY: all test bench demo fuzz clean programs tests deps screenshots
+.PHONY: all test bench demo fuzz clean programs tests deps screenshots rooms room-flags
 .SECONDARY:
 all: programs
 
@@ -161,5 +161,12 @@ deps:
 
 clean:
 	rm -rf build
+
+# The layering, for tests/test_layering.c and for reading: `make -s rooms`, and
+# `make -s room-flags ROOM=client/view` (the include paths that room compiles with).
+rooms:
+	@echo $(ROOMS)
+room-flags:
+	@echo $(addprefix -I,$(call room_closure,$(ROOM)))
 
 -include $(shell find build -name '*.d' 2>/dev/null)
