@@ -4,7 +4,7 @@
  * than 24 bytes per triangle of a large M) and per vertex (area-weighted unit
  * normal). pos has one float of padding after the last vertex (Embree reads
  * vertices 16 bytes at a time from the buffer it shares). Internal to the APO
- * builder (server/ms_apo_build.c, server/ms_apo_sample.c).
+ * builder (server/apo/ms_apo_build.c, server/apo/ms_apo_sample.c).
  *
  * Ownership: the struct owns every array except `tri`, which borrows the source
  * mesh's triangles (the source must outlive it). Read-only after make: any number

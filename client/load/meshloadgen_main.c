@@ -1,5 +1,5 @@
 /* meshloadgen: N virtual clients, each following a camera-like sequence of
- * cell requests (client/ms_loadgen_plan.h), against meshserve's binary
+ * cell requests (client/load/ms_loadgen_plan.h), against meshserve's binary
  * protocol or against any HTTP server holding the same bytes (meshserve's side
  * door, or nginx serving meshexport's tree) with Range requests. Bounded in
  * time and in requests; reports payload throughput, request latency

@@ -76,7 +76,7 @@ static const char *const train_usage =
     "usage: meshcodec train IN... -o TABLE.c [--bits P]\n"
     "\n"
     "Encodes every IN at P bits (default 16), counts the decisions of every context\n"
-    "and writes the prior they give as the C source of common/ms_codec_prior_table.c\n"
+    "and writes the prior they give as the C source of common/codec/ms_codec_prior_table.c\n"
     "(docs/CODEC.md, section 4). For developers: the table is compiled into the codec,\n"
     "and changing it changes every stream of the current version.\n"
     "\n"

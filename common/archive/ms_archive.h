@@ -122,7 +122,7 @@ ms_status ms_archive_verify_payload(const ms_archive *archive, uint32_t cell, ms
 ms_status ms_archive_check_payload(const ms_archive *archive, uint32_t cell, bool apo,
                                    const uint8_t *data, size_t length, ms_error *err);
 
-/* --- Shared with the writer (server/ms_archive_writer.c) ------------------- */
+/* --- Shared with the writer (server/bake/ms_archive_writer.c) ------------------- */
 
 /* Encodes / decodes the fixed-size parts. Decoding checks only field-local
  * ranges; cross-checks are done by ms_archive_open. The header is encoded as

@@ -1,6 +1,6 @@
 /* Quadric-error mesh simplification (OpenMesh's decimater), behind a C interface.
  *
- * This is the only C++ in the project: server/ms_simplify.cpp wraps OpenMesh.
+ * This is the only C++ in the project: server/geometry/ms_simplify.cpp wraps OpenMesh.
  * Faces OpenMesh refuses (they would make an edge non-manifold) are left out of
  * the simplification and counted; everything else is collapsed edge by edge in
  * order of quadric error until at most `target_triangles` remain (or no legal
