@@ -451,12 +451,48 @@ static void test_access_log_and_model_metrics(void **state)
     f->pid = 0;
 }
 
+/* meshserve --config FILE alone: the file names the directory (as the
+ * systemd unit starts it); without it anywhere, a usage error. */
+static void test_config_names_the_archive_dir(void **state)
+{
+    fixture *f = *state;
+    char config[700], bin[512], cmd[1600], out[1024];
+    ms_test_bin_path(bin, sizeof bin, "meshserve");
+    snprintf(config, sizeof config, "%s/bare.conf", f->dir);
+    FILE *c = fopen(config, "w");
+    fprintf(c, "port = 0\nhttp_port = off\n");
+    fclose(c);
+    snprintf(cmd, sizeof cmd, "%s --config %s", bin, config);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 2);
+    assert_non_null(strstr(out, "no archive_dir (and no ARCHIVE_DIR argument)"));
+    snprintf(cmd, sizeof cmd, "%s", bin);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 2);
+    assert_non_null(strstr(out, "expected one ARCHIVE_DIR"));
+
+    snprintf(config, sizeof config, "%s/site.conf", f->dir);
+    c = fopen(config, "w");
+    fprintf(c, "archive_dir = %s\nport = 0\nhttp_port = 0\nport_file = %s\n", f->archives,
+            f->port_file);
+    fclose(c);
+    char *argv[] = {bin, "--config", config, NULL};
+    f->pid = ms_test_spawn(argv, f->log);
+    assert_int_equal(ms_test_wait_ports(f->port_file, 15.0, &f->port, &f->http_port), 0);
+    ms_test_http_response r;
+    assert_int_equal(ms_test_http_get(f->http_port, "/catalog", NULL, &r), 0);
+    assert_int_equal(r.status, 200);
+    assert_non_null(strstr((const char *)r.body, "\"m19\""));
+    ms_test_http_free(&r);
+    assert_int_equal(ms_test_stop(f->pid, SIGTERM, 15.0), 0);
+    f->pid = 0;
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test_setup_teardown(test_list_checks_every_archive, setup, teardown),
         cmocka_unit_test_setup_teardown(test_add_replace_remove_while_serving, setup, teardown),
         cmocka_unit_test_setup_teardown(test_access_log_and_model_metrics, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_config_names_the_archive_dir, setup, teardown),
     };
     return cmocka_run_group_tests_name("collection", tests, NULL, NULL);
 }

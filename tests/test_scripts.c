@@ -159,6 +159,30 @@ static void test_cluster_short_form(void **state)
     ms_test_rmdir(dir);
 }
 
+/* deploy/fill: the one way the deploy/ templates are filled (scripts/cluster,
+ * docs/DEPLOY.md); a field left without a value is refused, by name. */
+static void test_deploy_fill(void **state)
+{
+    (void)state;
+    static char out[16384];
+    assert_int_equal(ms_test_run("deploy/fill --help", out, sizeof out), 0);
+    assert_non_null(strstr(out, "Fills a deploy/ template"));
+    assert_int_equal(ms_test_run("deploy/fill deploy/nginx.conf.in - BIND=127.0.0.1", out,
+                                 sizeof out),
+                     1);
+    assert_non_null(strstr(out, "no value for @CACHE_DIR@, @CACHE_MAX_SIZE@, @CACHE_PORT@"));
+    assert_int_equal(ms_test_run("deploy/fill deploy/nginx.conf.in - bind=x", out, sizeof out), 2);
+    assert_int_equal(ms_test_run("deploy/fill deploy/meshserve.conf.in - INSTANCE=1 "
+                                 "ARCHIVE_DIR=/srv/a BIND=127.0.0.1 PORT=7810 HTTP_PORT=7811 "
+                                 "MAX_CLIENTS=1024 HTTP_MAX_CONNECTIONS=256 TOKEN=t0k "
+                                 "ACCESS_LOG=/var/log/a.log",
+                                 out, sizeof out),
+                     0);
+    assert_non_null(strstr(out, "\narchive_dir = /srv/a\n"));
+    assert_non_null(strstr(out, "\nport = 7810\n"));
+    assert_null(strchr(out, '@'));
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -166,6 +190,7 @@ int main(void)
         cmocka_unit_test(test_help_prints_the_header),
         cmocka_unit_test(test_arguments_are_refused),
         cmocka_unit_test(test_python_generator),
+        cmocka_unit_test(test_deploy_fill),
         cmocka_unit_test(test_cluster_short_form),
     };
     return cmocka_run_group_tests_name("scripts", tests, NULL, NULL);
