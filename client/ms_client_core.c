@@ -17,6 +17,7 @@
 #include "ms_archive.h"
 #include "ms_client.h"
 #include "ms_codec.h"
+#include "ms_parallel.h"
 #include "ms_proto.h"
 
 #define MAX_SLOTS 512u
@@ -84,17 +85,10 @@ typedef struct refine_job {
     unsigned bits;
 } refine_job;
 
-typedef struct decode_pool {
-    pthread_t *threads;
-    unsigned count;
-    pthread_mutex_t lock;
-    pthread_cond_t go, done;
-    bool quit;
-    uint64_t round;          /* incremented per batch */
-    refine_job *jobs;
-    size_t job_count, next_job, finished;
+typedef struct refine_batch {
     ms_view *view;
-} decode_pool;
+    const refine_job *jobs;
+} refine_batch;
 
 struct ms_core {
     ms_core_options o;
@@ -159,7 +153,7 @@ struct ms_core {
     uint64_t generation;
     uint64_t consumed_seq;
     bool first_display_seen;
-    decode_pool pool;
+    ms_pool *pool;          /* decode helpers */
     refine_job *jobs;
     size_t job_cap;
 };
@@ -1298,63 +1292,11 @@ static bool dec_something_drawn(ms_core *c, const frame_view *fv)
     return false;
 }
 
-static void pool_run_jobs(decode_pool *p)
+/* One refine job: failures are seen again, and reported, by ms_view_apply. */
+static void refine_one(void *ctx, size_t k)
 {
-    for (;;) {
-        pthread_mutex_lock(&p->lock);
-        size_t k = p->next_job < p->job_count ? p->next_job++ : SIZE_MAX;
-        pthread_mutex_unlock(&p->lock);
-        if (k == SIZE_MAX)
-            return;
-        /* failures are seen again, and reported, by ms_view_apply */
-        (void)ms_view_set_bits(p->view, p->jobs[k].cell, p->jobs[k].bits, NULL);
-        pthread_mutex_lock(&p->lock);
-        if (++p->finished == p->job_count)
-            pthread_cond_broadcast(&p->done);
-        pthread_mutex_unlock(&p->lock);
-    }
-}
-
-static void *pool_main(void *arg)
-{
-    decode_pool *p = arg;
-    uint64_t seen = 0;
-    pthread_mutex_lock(&p->lock);
-    for (;;) {
-        while (!p->quit && p->round == seen)
-            pthread_cond_wait(&p->go, &p->lock);
-        if (p->quit)
-            break;
-        seen = p->round;
-        pthread_mutex_unlock(&p->lock);
-        pool_run_jobs(p);
-        pthread_mutex_lock(&p->lock);
-    }
-    pthread_mutex_unlock(&p->lock);
-    return NULL;
-}
-
-/* Runs the jobs on the helpers and this thread; returns when all are done. */
-static void pool_refine(decode_pool *p, ms_view *view, refine_job *jobs, size_t n)
-{
-    if (n == 0)
-        return;
-    if (p->count == 0 || n == 1) {
-        for (size_t k = 0; k < n; ++k)
-            (void)ms_view_set_bits(view, jobs[k].cell, jobs[k].bits, NULL);
-        return;
-    }
-    pthread_mutex_lock(&p->lock);
-    p->view = view, p->jobs = jobs, p->job_count = n, p->next_job = 0, p->finished = 0;
-    p->round++;
-    pthread_cond_broadcast(&p->go);
-    pthread_mutex_unlock(&p->lock);
-    pool_run_jobs(p);
-    pthread_mutex_lock(&p->lock);
-    while (p->finished < p->job_count)
-        pthread_cond_wait(&p->done, &p->lock);
-    p->job_count = 0;
-    pthread_mutex_unlock(&p->lock);
+    const refine_batch *b = ctx;
+    (void)ms_view_set_bits(b->view, b->jobs[k].cell, b->jobs[k].bits, NULL);
 }
 
 static int compare_jobs_by_work(const void *x, const void *y)
@@ -1395,7 +1337,8 @@ static size_t dec_parallel_refine(ms_core *c)
     }
     if (count > 1)
         qsort(c->jobs, count, sizeof *c->jobs, compare_jobs_by_work);
-    pool_refine(&c->pool, c->view, c->jobs, count);
+    refine_batch batch = {c->view, c->jobs};
+    ms_pool_for(c->pool, count, refine_one, &batch);
     return count;
 }
 
@@ -1857,16 +1800,11 @@ ms_status ms_core_start(const ms_core_options *o, ms_core **out, ms_error *err)
     pthread_condattr_init(&ca);
     pthread_cond_init(&c->wake, &ca);
     pthread_condattr_destroy(&ca);
-    decode_pool *p = &c->pool;
-    pthread_mutex_init(&p->lock, NULL);
-    pthread_cond_init(&p->go, NULL);
-    pthread_cond_init(&p->done, NULL);
     unsigned helpers = c->o.decode_threads ? c->o.decode_threads - 1 : 1;
-    p->threads = calloc(helpers ? helpers : 1, sizeof *p->threads);
-    for (unsigned k = 0; p->threads && k < helpers; ++k) {
-        if (pthread_create(&p->threads[k], NULL, pool_main, p) != 0)
-            break;
-        p->count++;
+    ms_status pool_status = ms_pool_new(helpers, &c->pool, err);
+    if (pool_status != MS_OK) {
+        ms_core_stop(c);
+        return pool_status;
     }
     if (pthread_create(&c->dec_thread, NULL, dec_main, c) != 0) {
         ms_core_stop(c);
@@ -1897,18 +1835,7 @@ void ms_core_stop(ms_core *c)
         pthread_join(c->net_thread, NULL);
     if (c->dec_started)
         pthread_join(c->dec_thread, NULL);
-    if (c->pool.threads) {
-        pthread_mutex_lock(&c->pool.lock);
-        c->pool.quit = true;
-        pthread_cond_broadcast(&c->pool.go);
-        pthread_mutex_unlock(&c->pool.lock);
-        for (unsigned k = 0; k < c->pool.count; ++k)
-            pthread_join(c->pool.threads[k], NULL);
-        free(c->pool.threads);
-        pthread_mutex_destroy(&c->pool.lock);
-        pthread_cond_destroy(&c->pool.go);
-        pthread_cond_destroy(&c->pool.done);
-    }
+    ms_pool_free(c->pool);
     free(c->jobs);
     if (c->client)
         ms_client_free(c->client);
