@@ -113,20 +113,19 @@ static void net_drop(ms_core *c, const char *why)
     pthread_mutex_unlock(&c->lock);
 }
 
-/* Sends what the wants call for: cancels requests no longer wanted, then
- * issues the best missing ranges while the window allows. */
-static void net_fill(ms_core *c)
+/* Copies the decode thread's wants when they changed since the last look;
+ * *fresh tells whether they did. False when out of memory for the copy.
+ * *in_flight: the bytes requested and not yet received. */
+static bool net_take_wants(ms_core *c, bool *fresh, uint64_t *in_flight)
 {
-    if (!c->client || !c->ready || c->dead)
-        return;
     pthread_mutex_lock(&c->lock);
-    bool fresh = c->want_serial != c->net_want_serial;
-    if (fresh) {
+    *fresh = c->want_serial != c->net_want_serial;
+    if (*fresh) {
         if (c->want_count > c->net_want_cap) {
             want *grown = realloc(c->net_wants, c->want_count * sizeof *grown);
             if (!grown) {
                 pthread_mutex_unlock(&c->lock);
-                return;
+                return false;
             }
             c->net_wants = grown;
             c->net_want_cap = c->want_count;
@@ -137,41 +136,92 @@ static void net_fill(ms_core *c)
         c->net_want_serial = c->want_serial;
         c->net_consumed_seq = c->want_consumed_seq;
     }
-    uint64_t in_flight = c->bytes_in_flight;
+    *in_flight = c->bytes_in_flight;
     pthread_mutex_unlock(&c->lock);
+    return true;
+}
 
+/* Cancels the requests in flight that no fresh want still covers. */
+static void net_cancel_unwanted(ms_core *c)
+{
     for (uint32_t k = 0; k < MAX_SLOTS; ++k)
-        if (c->slots[k].used && c->slots[k].done && c->slots[k].last_seq <= c->net_consumed_seq)
-            slot_unlink(c, k);
-    if (fresh) {
-        for (uint32_t k = 0; k < MAX_SLOTS; ++k)
-            c->slots[k].keep = false;
-        for (size_t i = 0; i < c->net_want_count; ++i) {
-            const want *w = &c->net_wants[i];
-            for (uint32_t k = *head_of(c, w->cell, w->apo); k != NO_SLOT; k = c->slots[k].next)
-                if (c->slots[k].start + c->slots[k].got < w->end && c->slots[k].end > w->start)
-                    c->slots[k].keep = true;
-        }
-        ms_proto_id_range ranges[64];
-        uint16_t nr = 0;
-        for (uint32_t k = 0; k < MAX_SLOTS; ++k) {
-            slot *s = &c->slots[k];
-            if (!s->used || s->keep || s->cancelled || s->done)
-                continue;
-            s->cancelled = true;
-            ranges[nr].first_id = s->id, ranges[nr].count = 1;
-            if (++nr == 64) {
-                ms_client_cancel(c->client, ranges, nr, NULL);
-                nr = 0;
-            }
-            pthread_mutex_lock(&c->lock);
-            c->cancels++;
-            pthread_mutex_unlock(&c->lock);
-        }
-        if (nr)
-            ms_client_cancel(c->client, ranges, nr, NULL);
+        c->slots[k].keep = false;
+    for (size_t i = 0; i < c->net_want_count; ++i) {
+        const want *w = &c->net_wants[i];
+        for (uint32_t k = *head_of(c, w->cell, w->apo); k != NO_SLOT; k = c->slots[k].next)
+            if (c->slots[k].start + c->slots[k].got < w->end && c->slots[k].end > w->start)
+                c->slots[k].keep = true;
     }
+    ms_proto_id_range ranges[64];
+    uint16_t nr = 0;
+    for (uint32_t k = 0; k < MAX_SLOTS; ++k) {
+        slot *s = &c->slots[k];
+        if (!s->used || s->keep || s->cancelled || s->done)
+            continue;
+        s->cancelled = true;
+        ranges[nr].first_id = s->id, ranges[nr].count = 1;
+        if (++nr == 64) {
+            ms_client_cancel(c->client, ranges, nr, NULL);
+            nr = 0;
+        }
+        pthread_mutex_lock(&c->lock);
+        c->cancels++;
+        pthread_mutex_unlock(&c->lock);
+    }
+    if (nr)
+        ms_client_cancel(c->client, ranges, nr, NULL);
+}
 
+/* A batch of requests being planned: each with the slot reserved for it. */
+typedef struct request_batch {
+    ms_proto_cell_request req[256];
+    uint32_t slot[256];
+    uint16_t n;
+} request_batch;
+
+/* The part of want w not already on its way (requests are whole ranges from
+ * the same table, so a covering request is the usual case) nor in the batch;
+ * false when nothing of it is left. */
+static bool net_missing_part(ms_core *c, const want *w, const request_batch *batch,
+                             uint32_t *start_out, uint32_t *end_out)
+{
+    uint32_t start = w->start, end = w->end;
+    for (uint32_t k = *head_of(c, w->cell, w->apo); k != NO_SLOT; k = c->slots[k].next) {
+        const slot *s = &c->slots[k];
+        if (s->cancelled)
+            continue;
+        if (s->start <= start && s->end > start)
+            start = s->end;
+        if (s->start < end && s->end >= end && s->start > start)
+            end = s->start;
+    }
+    bool dup = false;
+    for (uint16_t j = 0; j < batch->n; ++j)
+        if (batch->req[j].cell_id == w->cell && batch->req[j].stream == (w->apo ? 1 : 0) &&
+            batch->req[j].a <= start && batch->req[j].a + batch->req[j].b >= end)
+            dup = true;
+    *start_out = start, *end_out = end;
+    return start < end && !dup;
+}
+
+/* A free slot not yet reserved by the batch, or NO_SLOT. */
+static uint32_t net_free_slot(const ms_core *c, const request_batch *batch)
+{
+    uint32_t k = 0;
+    while (k < MAX_SLOTS && c->slots[k].used)
+        ++k;
+    if (k == MAX_SLOTS)
+        return NO_SLOT;
+    for (uint16_t j = 0; j < batch->n; ++j)
+        if (batch->slot[j] == k)
+            return NO_SLOT;
+    return k;
+}
+
+/* Plans the best missing ranges while the window, the server's limits and
+ * the slots allow, reserving a slot for each. */
+static void net_plan(ms_core *c, uint64_t in_flight, request_batch *batch)
+{
     const ms_proto_hello_reply *lim = ms_client_limits(c->client);
     uint32_t max_batch = lim->max_batch ? lim->max_batch : 64;
     uint32_t max_out = lim->max_outstanding ? lim->max_outstanding : 64;
@@ -179,41 +229,16 @@ static void net_fill(ms_core *c)
         max_out = MAX_SLOTS;
     if (max_batch > 256)
         max_batch = 256;
-    ms_proto_cell_request batch[256];
-    uint32_t where[256];
-    uint16_t n = 0;
-    for (size_t i = 0; i < c->net_want_count && n < max_batch; ++i) {
-        if (c->slots_active + n >= max_out || c->slots_used + n >= MAX_SLOTS ||
+    batch->n = 0;
+    for (size_t i = 0; i < c->net_want_count && batch->n < max_batch; ++i) {
+        if (c->slots_active + batch->n >= max_out || c->slots_used + batch->n >= MAX_SLOTS ||
             (in_flight > 0 && in_flight >= c->window))
             break;
         const want *w = &c->net_wants[i];
-        uint32_t start = w->start, end = w->end;
-        /* Skip what is already on its way (requests are whole ranges from
-         * the same table, so a covering request is the usual case). */
-        for (uint32_t k = *head_of(c, w->cell, w->apo); k != NO_SLOT; k = c->slots[k].next) {
-            const slot *s = &c->slots[k];
-            if (s->cancelled)
-                continue;
-            if (s->start <= start && s->end > start)
-                start = s->end;
-            if (s->start < end && s->end >= end && s->start > start)
-                end = s->start;
-        }
-        bool dup = false;
-        for (uint16_t j = 0; j < n; ++j)
-            if (batch[j].cell_id == w->cell && batch[j].stream == (w->apo ? 1 : 0) &&
-                batch[j].a <= start && batch[j].a + batch[j].b >= end)
-                dup = true;
-        if (start >= end || dup)
+        uint32_t start, end;
+        if (!net_missing_part(c, w, batch, &start, &end))
             continue;
-        uint32_t k = 0;
-        while (k < MAX_SLOTS && c->slots[k].used)
-            ++k;
-        if (k == MAX_SLOTS)
-            break;
-        for (uint16_t j = 0; j < n; ++j)
-            if (where[j] == k)
-                k = NO_SLOT;
+        uint32_t k = net_free_slot(c, batch);
         if (k == NO_SLOT)
             break;
         /* reserve the slot now so the next search skips it */
@@ -225,23 +250,27 @@ static void net_fill(ms_core *c)
         c->slots_active++;
         s->next = *head_of(c, w->cell, w->apo);
         *head_of(c, w->cell, w->apo) = k;
-        batch[n] = (ms_proto_cell_request){.cell_id = w->cell,
-                                           .stream = w->apo ? MS_PROTO_STREAM_APO
-                                                            : MS_PROTO_STREAM_GEOMETRY,
-                                           .unit = MS_PROTO_UNIT_BYTES,
-                                           .priority = w->priority,
-                                           .a = start,
-                                           .b = end - start};
-        where[n++] = k;
+        batch->req[batch->n] = (ms_proto_cell_request){
+            .cell_id = w->cell,
+            .stream = w->apo ? MS_PROTO_STREAM_APO : MS_PROTO_STREAM_GEOMETRY,
+            .unit = MS_PROTO_UNIT_BYTES,
+            .priority = w->priority,
+            .a = start,
+            .b = end - start};
+        batch->slot[batch->n++] = k;
         in_flight += end - start;
     }
-    if (!n)
-        return;
+}
+
+/* Sends the batch; a connection that fails to take it is marked dead. */
+static void net_send(ms_core *c, const request_batch *batch)
+{
+    uint16_t n = batch->n;
     uint32_t first;
     ms_error err;
-    if (ms_client_request_cells(c->client, c->handle, batch, n, &first, &err) != MS_OK) {
+    if (ms_client_request_cells(c->client, c->handle, batch->req, n, &first, &err) != MS_OK) {
         for (uint16_t j = 0; j < n; ++j)
-            slot_unlink(c, where[j]);
+            slot_unlink(c, batch->slot[j]);
         if (!c->dead) {
             c->dead = true;
             snprintf(c->dead_why, sizeof c->dead_why, "%.240s", err.text);
@@ -251,7 +280,7 @@ static void net_fill(ms_core *c)
     double t = ms_core_since_start(c);
     uint64_t bytes = 0;
     for (uint16_t j = 0; j < n; ++j) {
-        slot *s = &c->slots[where[j]];
+        slot *s = &c->slots[batch->slot[j]];
         s->id = first + j;
         s->sent_at = t;
         bytes += s->end - s->start;
@@ -260,6 +289,28 @@ static void net_fill(ms_core *c)
     c->bytes_in_flight += bytes;
     c->requests += n;
     pthread_mutex_unlock(&c->lock);
+}
+
+/* Sends what the wants call for: releases finished requests the decode thread
+ * has taken, cancels requests no longer wanted, then issues the best missing
+ * ranges while the window allows. */
+static void net_fill(ms_core *c)
+{
+    if (!c->client || !c->ready || c->dead)
+        return;
+    bool fresh;
+    uint64_t in_flight;
+    if (!net_take_wants(c, &fresh, &in_flight))
+        return;
+    for (uint32_t k = 0; k < MAX_SLOTS; ++k)
+        if (c->slots[k].used && c->slots[k].done && c->slots[k].last_seq <= c->net_consumed_seq)
+            slot_unlink(c, k);
+    if (fresh)
+        net_cancel_unwanted(c);
+    request_batch batch;
+    net_plan(c, in_flight, &batch);
+    if (batch.n)
+        net_send(c, &batch);
 }
 
 static void on_model_opened(ms_client *client, uint32_t request_id,
