@@ -61,7 +61,7 @@ static void check_drained(evutil_socket_t fd, short what, void *arg)
     (void)fd, (void)what;
     ms_server *s = arg;
     double waited = ms_now_seconds() - s->drain_started_at;
-    size_t connections = ms_proto_door_connection_count(s->binary);
+    size_t connections = ms_serve_door_connection_count(s->binary);
     if ((s->metrics.transfers_in_flight == 0 && connections == 0) || waited > DRAIN_LIMIT_SECONDS) {
         if (s->metrics.transfers_in_flight || connections)
             ms_server_log(s, "drain: giving up on %llu transfers and %zu connections after %.0f s",
@@ -78,8 +78,8 @@ void ms_server_drain(ms_server *s)
     s->drain_started_at = ms_now_seconds();
     ms_server_log(s, "draining: %llu transfers in flight, %zu binary connections",
                   (unsigned long long)s->metrics.transfers_in_flight,
-                  ms_proto_door_connection_count(s->binary));
-    ms_proto_door_drain(s->binary);
+                  ms_serve_door_connection_count(s->binary));
+    ms_serve_door_drain(s->binary);
     struct timeval tick = {0, 50000};
     s->drain_timer = event_new(s->base, -1, EV_PERSIST, check_drained, s);
     if (!s->drain_timer || event_add(s->drain_timer, &tick) != 0)
@@ -152,7 +152,7 @@ ms_status ms_server_start(ms_server *s, ms_server_config *config, ms_error *err)
         ms_server_stop(s);
         return ms_error_set(err, MS_ERR_NOMEM, "cannot create the event loop");
     }
-    st = ms_proto_door_open(s, &s->binary, &s->bound_port, err);
+    st = ms_serve_door_open(s, &s->binary, &s->bound_port, err);
     if (st != MS_OK) {
         ms_server_stop(s);
         return st;
@@ -184,7 +184,7 @@ void ms_server_run(ms_server *s) { event_base_dispatch(s->base); }
 
 void ms_server_stop(ms_server *s)
 {
-    ms_proto_door_close(s->binary);
+    ms_serve_door_close(s->binary);
     s->binary = NULL;
     ms_http_door_close(s->http);
     s->http = NULL;

@@ -39,14 +39,14 @@ typedef struct ms_server_metrics {
 } ms_server_metrics;
 
 typedef struct ms_http_door ms_http_door;
-typedef struct ms_proto_door ms_proto_door;
+typedef struct ms_serve_door ms_serve_door;
 
 typedef struct ms_server {
     struct event_base *base;
     ms_server_config config;     /* owned */
     ms_registry registry;
     ms_server_metrics metrics;
-    ms_proto_door *binary;
+    ms_serve_door *binary;
     ms_http_door *http;
     uint16_t bound_port, bound_http_port;
     struct event *signal_events[3];
