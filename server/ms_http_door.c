@@ -25,7 +25,7 @@
 #include "ms_access.h"
 #include "ms_http_parse.h"
 #include "ms_progress.h"
-#include "ms_server.h"
+#include "ms_server_internal.h"
 
 #define RATE_BUCKETS 1024
 

@@ -12,7 +12,7 @@
 #include "ms_frame_out.h"
 #include "ms_progress.h"
 #include "ms_registry.h"
-#include "ms_server.h"
+#include "ms_server_internal.h"
 
 #define CHUNK_BYTES MS_PROTO_PAYLOAD_CHUNK
 

@@ -14,7 +14,7 @@
 #include "ms_frame_out.h"
 #include "ms_progress.h"
 #include "ms_proto_conn.h"
-#include "ms_server.h"
+#include "ms_server_internal.h"
 
 #define SWEEP_INTERVAL_US 250000
 #define MAX_REJECTED_LINGERING 64u

@@ -15,7 +15,7 @@
 #include "ms_proto_conn.h"
 #include "ms_proto_range.h"
 #include "ms_registry.h"
-#include "ms_server.h"
+#include "ms_server_internal.h"
 
 #define INDEX_CHUNK_BYTES (1u << 20)
 #define CATALOGUE_FRAME_BYTES 65536u

@@ -1,5 +1,5 @@
 /* meshserve process core: see ms_server.h. */
-#include "ms_server.h"
+#include "ms_server_internal.h"
 
 #include <event2/event.h>
 #include <signal.h>
@@ -127,9 +127,10 @@ static void raise_descriptor_limit(ms_server *s)
                       (unsigned long long)rl.rlim_cur);
 }
 
-ms_status ms_server_start(ms_server *s, ms_server_config *config, ms_error *err)
+static void server_stop(ms_server *s);
+
+static ms_status server_start(ms_server *s, ms_server_config *config, ms_error *err)
 {
-    memset(s, 0, sizeof *s);
     s->config = *config;
     memset(config, 0, sizeof *config);
     s->started_at = ms_now_seconds();
@@ -149,18 +150,18 @@ ms_status ms_server_start(ms_server *s, ms_server_config *config, ms_error *err)
     if (event_settings)
         event_config_free(event_settings);
     if (!s->base) {
-        ms_server_stop(s);
+        server_stop(s);
         return ms_error_set(err, MS_ERR_NOMEM, "cannot create the event loop");
     }
     st = ms_serve_door_open(s, &s->binary, &s->bound_port, err);
     if (st != MS_OK) {
-        ms_server_stop(s);
+        server_stop(s);
         return st;
     }
     if (s->config.http_enabled) {
         st = ms_http_door_open(s, &s->http, &s->bound_http_port, err);
         if (st != MS_OK) {
-            ms_server_stop(s);
+            server_stop(s);
             return st;
         }
     }
@@ -168,13 +169,13 @@ ms_status ms_server_start(ms_server *s, ms_server_config *config, ms_error *err)
     for (int i = 0; i < 3; ++i) {
         s->signal_events[i] = evsignal_new(s->base, signals[i], on_signal, s);
         if (!s->signal_events[i] || event_add(s->signal_events[i], NULL) != 0) {
-            ms_server_stop(s);
+            server_stop(s);
             return ms_error_set(err, MS_ERR_IO, "cannot install signal handlers");
         }
     }
     signal(SIGPIPE, SIG_IGN);
     if (s->config.port_file && (st = write_port_file(s, err)) != MS_OK) {
-        ms_server_stop(s);
+        server_stop(s);
         return st;
     }
     return MS_OK;
@@ -182,7 +183,7 @@ ms_status ms_server_start(ms_server *s, ms_server_config *config, ms_error *err)
 
 void ms_server_run(ms_server *s) { event_base_dispatch(s->base); }
 
-void ms_server_stop(ms_server *s)
+static void server_stop(ms_server *s)
 {
     ms_serve_door_close(s->binary);
     s->binary = NULL;
@@ -199,3 +200,37 @@ void ms_server_stop(ms_server *s)
     ms_server_config_free(&s->config);
     memset(s, 0, sizeof *s);
 }
+
+ms_status ms_server_new(ms_server_config *config, ms_server **out, ms_error *err)
+{
+    *out = NULL;
+    ms_server *s = calloc(1, sizeof *s);
+    if (!s) {
+        ms_server_config_free(config);
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory for the server");
+    }
+    ms_status st = server_start(s, config, err);
+    if (st != MS_OK) {
+        free(s);
+        return st;
+    }
+    *out = s;
+    return MS_OK;
+}
+
+void ms_server_free(ms_server *s)
+{
+    if (!s)
+        return;
+    server_stop(s);
+    free(s);
+}
+
+size_t ms_server_model_count(const ms_server *s) { return s->registry.count; }
+const char *ms_server_archive_dir(const ms_server *s) { return s->config.archive_dir; }
+uint16_t ms_server_bound_port(const ms_server *s, bool http)
+{
+    return http ? s->bound_http_port : s->bound_port;
+}
+const ms_server_metrics *ms_server_get_metrics(const ms_server *s) { return &s->metrics; }
+double ms_server_started_at(const ms_server *s) { return s->started_at; }
