@@ -147,14 +147,15 @@ static void handle_list_catalogue(ms_serve_conn *c, uint32_t id)
     metrics_of(c)->binary_requests++;
     if (!ids_free(c, id, 1) || !rate_allows(c, id, 1))
         return;
-    const ms_registry *r = &server_of(c)->registry;
+    const ms_registry *r = server_of(c)->registry;
+    size_t model_count = ms_registry_count(r);
     ms_proto_catalogue_entry entries[CATALOGUE_FRAME_BYTES / MS_PROTO_CATALOGUE_ENTRY_FIXED];
     char titles[CATALOGUE_FRAME_BYTES / MS_PROTO_CATALOGUE_ENTRY_FIXED][64];
     uint32_t limit =
         c->client_max_frame < CATALOGUE_FRAME_BYTES ? c->client_max_frame : CATALOGUE_FRAME_BYTES;
     size_t count = 0, body = MS_PROTO_CATALOGUE_FIXED, listed = 0;
-    for (size_t i = 0; i <= r->count; ++i) {
-        const ms_model *m = i < r->count ? r->models[i] : NULL;
+    for (size_t i = 0; i <= model_count; ++i) {
+        const ms_model *m = i < model_count ? ms_registry_model(r, i) : NULL;
         if (m && !model_servable(m))
             continue;
         size_t name_length = m ? strlen(m->entry.name) : 0;
@@ -204,7 +205,7 @@ static void handle_open_model(ms_serve_conn *c, uint32_t id, const ms_proto_open
     char name[MS_PROTO_MAX_MODEL_NAME + 1];
     memcpy(name, o->name, o->name_length);
     name[o->name_length] = '\0';
-    ms_model *m = ms_registry_find(&server_of(c)->registry, name);
+    ms_model *m = ms_registry_find(server_of(c)->registry, name);
     if (!m || !model_servable(m)) {
         ms_serve_conn_send_error(c, MS_PROTO_E_UNKNOWN_MODEL, id, 1, 0, "no such model");
         return;

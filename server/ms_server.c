@@ -44,13 +44,13 @@ static void warn_model(void *arg, const char *message) { ms_server_log(arg, "%s"
 
 ms_status ms_server_rescan(ms_server *s, ms_error *err)
 {
-    ms_registry fresh;
-    ms_status st = ms_registry_scan(s->config.archive_dir, &s->registry, &fresh, warn_model, s, err);
+    ms_registry *fresh;
+    ms_status st = ms_registry_scan(s->config.archive_dir, s->registry, &fresh, warn_model, s, err);
     if (st != MS_OK) {
         s->metrics.rescan_failures++;
         return st;
     }
-    ms_registry_release(&s->registry);
+    ms_registry_free(s->registry);
     s->registry = fresh;
     s->metrics.rescans++;
     return MS_OK;
@@ -93,7 +93,7 @@ static void on_signal(evutil_socket_t signal_number, short what, void *arg)
     if (signal_number == SIGHUP) {
         ms_error err;
         if (ms_server_rescan(s, &err) == MS_OK)
-            ms_server_log(s, "rescan: %zu models", s->registry.count);
+            ms_server_log(s, "rescan: %zu models", ms_registry_count(s->registry));
         else
             ms_server_log(s, "rescan failed, keeping the previous models: %s", err.text);
         return;
@@ -196,7 +196,7 @@ static void server_stop(ms_server *s)
         event_free(s->drain_timer);
     if (s->base)
         event_base_free(s->base);
-    ms_registry_release(&s->registry);
+    ms_registry_free(s->registry);
     ms_server_config_free(&s->config);
     memset(s, 0, sizeof *s);
 }
@@ -226,7 +226,7 @@ void ms_server_free(ms_server *s)
     free(s);
 }
 
-size_t ms_server_model_count(const ms_server *s) { return s->registry.count; }
+size_t ms_server_model_count(const ms_server *s) { return ms_registry_count(s->registry); }
 const char *ms_server_archive_dir(const ms_server *s) { return s->config.archive_dir; }
 uint16_t ms_server_bound_port(const ms_server *s, bool http)
 {

@@ -9,7 +9,7 @@
 struct ms_server {
     struct event_base *base;
     ms_server_config config;     /* owned */
-    ms_registry registry;
+    ms_registry *registry;       /* owned */
     ms_server_metrics metrics;
     ms_serve_door *binary;
     ms_http_door *http;
