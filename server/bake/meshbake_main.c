@@ -20,6 +20,7 @@
 #include "ms_catalog.h"
 #include "ms_json_out.h"
 #include "ms_mesh_reader.h"
+#include "ms_parse_number.h"
 
 enum { EXIT_INPUT = 1, EXIT_USAGE = 2 };
 
@@ -100,28 +101,20 @@ static int usage_error(const char *message, const char *detail)
     return EXIT_USAGE;
 }
 
-/* A decimal integer in 1..2^31. */
-static bool parse_count(const char *text, unsigned long *value)
+/* The integer value of option c (its long name from opts) in [min, max];
+ * false after printing the one-line usage error. */
+static bool option_int(const struct option *opts, int c, const char *text, int64_t min,
+                       int64_t max, int64_t *value, int *status)
 {
-    char *end;
-    errno = 0;
-    unsigned long v = strtoul(text, &end, 10);
-    if (errno != 0 || end == text || *end != '\0' || text[0] == '-' || v == 0 || v > (1ul << 31))
-        return false;
-    *value = v;
-    return true;
-}
-
-/* A decimal integer in 0..30. */
-static bool parse_depth(const char *text, unsigned long *value)
-{
-    char *end;
-    errno = 0;
-    unsigned long v = strtoul(text, &end, 10);
-    if (errno != 0 || end == text || *end != '\0' || text[0] == '-' || v > 30)
-        return false;
-    *value = v;
-    return true;
+    char name[48] = "--?";
+    for (const struct option *o = opts; o->name; ++o)
+        if (o->val == c)
+            snprintf(name, sizeof name, "--%s", o->name);
+    ms_error e;
+    if (ms_option_int(name, text, min, max, value, &e) == MS_OK)
+        return true;
+    *status = usage_error(e.text, NULL);
+    return false;
 }
 
 /* Returns -1 to go on, or the exit status to end with. */
@@ -157,8 +150,8 @@ static int parse_options(int argc, char **argv, bake_options *options)
     memset(options, 0, sizeof *options);
     ms_bake_options_default(&options->bake);
     opterr = 0;
-    int c;
-    unsigned long value;
+    int c, status;
+    int64_t value;
     while ((c = getopt_long(argc, argv, ":ho:", long_options, NULL)) != -1) {
         switch (c) {
         case 'i': options->mode = MODE_INFO; break;
@@ -168,8 +161,8 @@ static int parse_options(int argc, char **argv, bake_options *options)
         case 'N': options->bake.name = optarg; break;
         case 'T': options->bake.tmp_dir = optarg; break;
         case 'b': case 'n': case 'r': case 'm': case 't': case 'M':
-            if (!parse_count(optarg, &value))
-                return usage_error("not a positive integer", optarg);
+            if (!option_int(long_options, c, optarg, 1, (int64_t)1 << 31, &value, &status))
+                return status;
             if (c == 'b') options->bake.bits = (unsigned)value;
             else if (c == 'n') options->bake.n = (unsigned)value;
             else if (c == 'r') options->bake.root_bits = (unsigned)value;
@@ -184,9 +177,8 @@ static int parse_options(int argc, char **argv, bake_options *options)
         case 'C': options->bake.apo.accuracy = true; break;
         case 'W': options->bake.apo.every_cell = true; break;
         case 'P': case 'U':
-            if (!parse_depth(optarg, &value) || value > 20)
-                return usage_error(c == 'P' ? "--public-bits needs 0..20"
-                                            : "--set-public-bits needs 0..20", optarg);
+            if (!option_int(long_options, c, optarg, 0, 20, &value, &status))
+                return status;
             if (c == 'P') {
                 options->bake.public_bits = (int)value;
             } else {
@@ -195,19 +187,17 @@ static int parse_options(int argc, char **argv, bake_options *options)
             }
             break;
         case 'L': case 'D': case 'I':
-            if (!parse_depth(optarg, &value))
-                return usage_error("not a depth (0..30)", optarg);
+            if (!option_int(long_options, c, optarg, 0, 30, &value, &status))
+                return status;
             if (c == 'L') options->bake.apo.lead = (uint32_t)value;
             else if (c == 'D') options->bake.apo.max_depth = (uint32_t)value;
             else options->bake.apo.init_depth = (uint32_t)value;
             break;
         case 'E': {
-            char *end;
-            errno = 0;
-            double t = strtod(optarg, &end);
-            if (errno != 0 || end == optarg || *end != '\0' || !(t >= 0.0 && t < 1e12))
-                return usage_error("--apo-tol needs a number >= 0", optarg);
-            options->bake.apo.tolerance = t;
+            ms_error e;
+            if (ms_option_double("--apo-tol", optarg, 0, 1e12, &options->bake.apo.tolerance,
+                                 &e) != MS_OK)
+                return usage_error(e.text, NULL);
             break;
         }
         case ':':

@@ -25,7 +25,7 @@
 #include "ms_access.h"
 #include "ms_http_parse.h"
 #include "ms_progress.h"
-#include "ms_server.h"
+#include "ms_server_internal.h"
 
 #define RATE_BUCKETS 1024
 
@@ -353,10 +353,10 @@ static void serve_cell(ms_http_door *door, struct evhttp_request *req, ms_model 
 
 static void serve_catalog(ms_http_door *door, struct evhttp_request *req)
 {
-    const ms_registry *r = &door->server->registry;
+    const ms_registry *r = door->server->registry;
     json_t *models = json_array();
-    for (size_t i = 0; models && i < r->count; ++i) {
-        const ms_catalog_entry *e = &r->models[i]->entry;
+    for (size_t i = 0; models && i < ms_registry_count(r); ++i) {
+        const ms_catalog_entry *e = &ms_registry_model(r, i)->entry;
         json_array_append_new(
             models, json_pack("{s:s, s:I, s:I, s:I, s:i, s:i, s:b, s:I, s:s}", "name", e->name,
                               "vertices", (json_int_t)e->vertices, "triangles",
@@ -393,7 +393,7 @@ static void serve_metrics(ms_http_door *door, struct evhttp_request *req)
         const char *name, *type, *help;
         uint64_t value;
     } rows[] = {
-        {"meshstream_models", "gauge", "Models being served", s->registry.count},
+        {"meshstream_models", "gauge", "Models being served", ms_registry_count(s->registry)},
         {"meshstream_connections", "gauge", "Open binary-protocol connections", m->binary_connections},
         {"meshstream_connections_total", "counter", "Binary-protocol connections accepted", m->binary_connections_total},
         {"meshstream_requests_total{door=\"binary\"}", "counter", "Requests received", m->binary_requests},
@@ -488,7 +488,7 @@ static void route(ms_http_door *door, struct evhttp_request *req, char *path,
         return;
     }
     if (n >= 2 && !strcmp(seg[0], "models")) {
-        ms_model *model = ms_registry_find(&door->server->registry, seg[1]);
+        ms_model *model = ms_registry_find(door->server->registry, seg[1]);
         if (!model) {
             send_text(door, req, 404, "Not Found", "error: no such model");
             return;

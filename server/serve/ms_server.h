@@ -39,26 +39,17 @@ typedef struct ms_server_metrics {
 } ms_server_metrics;
 
 typedef struct ms_http_door ms_http_door;
-typedef struct ms_proto_door ms_proto_door;
+typedef struct ms_serve_door ms_serve_door;
 
-typedef struct ms_server {
-    struct event_base *base;
-    ms_server_config config;     /* owned */
-    ms_registry registry;
-    ms_server_metrics metrics;
-    ms_proto_door *binary;
-    ms_http_door *http;
-    uint16_t bound_port, bound_http_port;
-    struct event *signal_events[3];
-    struct event *drain_timer;
-    bool draining;
-    double drain_started_at;
-    double started_at;
-} ms_server;
+/* The server: opaque; its doors see inside (ms_server_internal.h). */
+typedef struct ms_server ms_server;
 
 /* Loads the registry, binds the doors, installs the signal handlers. Takes
- * ownership of config. On failure everything is released. */
-ms_status ms_server_start(ms_server *server, ms_server_config *config, ms_error *err);
+ * ownership of config (also on failure, when everything is released). */
+ms_status ms_server_new(ms_server_config *config, ms_server **server, ms_error *err);
+
+/* Closes the doors and releases everything; NULL is a no-op. */
+void ms_server_free(ms_server *server);
 
 /* Runs the loop until a drain completes. */
 void ms_server_run(ms_server *server);
@@ -69,7 +60,14 @@ ms_status ms_server_rescan(ms_server *server, ms_error *err);
 /* Stops accepting, lets transfers in progress finish, then ends the loop. */
 void ms_server_drain(ms_server *server);
 
-void ms_server_stop(ms_server *server);
+/* What meshserve reports: the models served, their directory, the ports
+ * bound (the binary door's, or with http the HTTP door's: 0 when off), the
+ * counters and when the server started (ms_now_seconds). */
+size_t ms_server_model_count(const ms_server *server);
+const char *ms_server_archive_dir(const ms_server *server);
+uint16_t ms_server_bound_port(const ms_server *server, bool http);
+const ms_server_metrics *ms_server_get_metrics(const ms_server *server);
+double ms_server_started_at(const ms_server *server);
 
 /* True when payload (a cell's geometry, or its APO chunk when apo) is intact:
  * checked against its CRC once, on first use (ms_model_check_payload); a
