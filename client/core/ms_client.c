@@ -335,7 +335,8 @@ void ms_client_free(ms_client *c)
     free(c);
 }
 
-ms_status ms_client_list_catalogue(ms_client *c, uint32_t *request_id, ms_error *err)
+/* LIST_CATALOGUE (ms_client_fetch_catalogue's request). */
+static ms_status list_catalogue(ms_client *c, uint32_t *request_id, ms_error *err)
 {
     ms_proto_message m = {.type = MS_PROTO_LIST_CATALOGUE, .request_id = take_ids(c, 1)};
     *request_id = m.request_id;
@@ -376,26 +377,7 @@ ms_status ms_client_cancel(ms_client *c, const ms_proto_id_range *ranges, uint16
     return send_message(c, &m, err);
 }
 
-ms_status ms_client_cancel_all(ms_client *c, ms_error *err)
-{
-    ms_proto_message m = {.type = MS_PROTO_CANCEL};
-    m.body.cancel.flags = MS_PROTO_CANCEL_ALL;
-    return send_message(c, &m, err);
-}
-
-ms_status ms_client_ping(ms_client *c, uint64_t opaque, ms_error *err)
-{
-    ms_proto_message m = {.type = MS_PROTO_PING};
-    m.body.ping.opaque = opaque;
-    return send_message(c, &m, err);
-}
-
 const ms_proto_hello_reply *ms_client_limits(const ms_client *c) { return &c->limits; }
-
-size_t ms_client_pending_output(const ms_client *c)
-{
-    return evbuffer_get_length(bufferevent_get_output(c->bev));
-}
 
 ms_status ms_client_set_rate_limit(ms_client *c, double bytes_per_second, ms_error *err)
 {
@@ -531,7 +513,7 @@ ms_status ms_client_fetch_catalogue(const ms_client_options *options, double tim
     }
     if ((st = ms_client_connect(f.base, options, &handlers, &f, &client, err)) != MS_OK)
         goto done;
-    if ((st = ms_client_list_catalogue(client, &f.request, err)) != MS_OK)
+    if ((st = list_catalogue(client, &f.request, err)) != MS_OK)
         goto done;
     struct timeval limit = {(time_t)timeout_s, (suseconds_t)((timeout_s - (double)(time_t)timeout_s) * 1e6)};
     evtimer_add(timer, &limit);

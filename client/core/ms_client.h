@@ -64,7 +64,6 @@ void ms_client_free(ms_client *client);
 
 /* Each returns the request id(s) it used. MS_ERR_ARG for an invalid message
  * (bad name, count 0 or above the protocol's maximum), MS_ERR_NOMEM. */
-ms_status ms_client_list_catalogue(ms_client *client, uint32_t *request_id, ms_error *err);
 ms_status ms_client_open_model(ms_client *client, const char *name, uint32_t *request_id,
                                ms_error *err);
 ms_status ms_client_request_cells(ms_client *client, uint32_t model_handle,
@@ -72,8 +71,6 @@ ms_status ms_client_request_cells(ms_client *client, uint32_t model_handle,
                                   uint32_t *first_id, ms_error *err);
 ms_status ms_client_cancel(ms_client *client, const ms_proto_id_range *ranges, uint16_t count,
                            ms_error *err);
-ms_status ms_client_cancel_all(ms_client *client, ms_error *err);
-ms_status ms_client_ping(ms_client *client, uint64_t opaque, ms_error *err);
 
 /* One model of a server's catalogue (PROTOCOL.md 4.5), as a front end lists it. */
 typedef struct ms_client_catalogue_entry {
@@ -114,7 +111,5 @@ uint64_t ms_client_bytes_read(const ms_client *client);
 
 /* The server's HELLO_REPLY (zeros before it arrived). */
 const ms_proto_hello_reply *ms_client_limits(const ms_client *client);
-/* Bytes queued for sending and not yet written to the socket. */
-size_t ms_client_pending_output(const ms_client *client);
 
 #endif

@@ -33,6 +33,7 @@
 
 #include "ms_camera_path.h"
 #include "ms_json_out.h"
+#include "ms_parse_number.h"
 #include "ms_client_core.h"
 
 extern char **environ;
@@ -586,15 +587,11 @@ static void usage(FILE *out)
             MAX_CLIENTS);
 }
 
-static int parse_double(const char *text, double min, double max, double *out)
+/* A bad option value: its one line (ms_option_*), exit status 2. */
+static int bad_value(const ms_error *e)
 {
-    char *end;
-    errno = 0;
-    double v = strtod(text, &end);
-    if (errno || end == text || *end || !(v >= min && v <= max))
-        return -1;
-    *out = v;
-    return 0;
+    fprintf(stderr, "meshload: %s\n", e->text);
+    return 2;
 }
 
 /* "8mbit", "500kbit", "2mbyte", "1000000" (bytes per second). */
@@ -655,30 +652,30 @@ static int parse_options(int argc, char **argv, options *o)
     o->tmp_dir = tmp && *tmp ? tmp : "/tmp";
     static char host[64];
     int ch;
-    double v;
+    double v = 0;
+    int64_t i = 0;
+    ms_error e;
     while ((ch = getopt_long(argc, argv, "h", opts, NULL)) != -1) {
         switch (ch) {
         case 's': {
             const char *colon = strrchr(optarg, ':');
             if (!colon || (size_t)(colon - optarg) >= sizeof host || colon == optarg ||
-                parse_double(colon + 1, 1, 65535, &v) != 0 || v != floor(v)) {
+                ms_option_int("port", colon + 1, 1, 65535, &i, &e) != MS_OK) {
                 fprintf(stderr, "meshload: --server wants HOST:PORT, not '%s'\n", optarg);
                 return 2;
             }
             memcpy(host, optarg, (size_t)(colon - optarg));
             host[colon - optarg] = 0;
             o->host = host;
-            o->port = (uint16_t)v;
+            o->port = (uint16_t)i;
             break;
         }
         case 'm': o->model = optarg; break;
         case 'p': o->path_file = optarg; break;
         case 'c':
-            if (parse_double(optarg, 1, MAX_CLIENTS, &v) != 0 || v != floor(v)) {
-                fprintf(stderr, "meshload: --clients wants 1..%d\n", MAX_CLIENTS);
-                return 2;
-            }
-            o->clients = (unsigned)v;
+            if (ms_option_int("--clients", optarg, 1, MAX_CLIENTS, &i, &e) != MS_OK)
+                return bad_value(&e);
+            o->clients = (unsigned)i;
             break;
         case 'b':
             if (parse_bandwidth(optarg, &o->bandwidth) != 0) {
@@ -687,22 +684,16 @@ static int parse_options(int argc, char **argv, options *o)
             }
             break;
         case 't':
-            if (parse_double(optarg, 0.01, 1000, &o->tolerance) != 0) {
-                fprintf(stderr, "meshload: --tolerance wants pixels in [0.01, 1000]\n");
-                return 2;
-            }
+            if (ms_option_double("--tolerance", optarg, 0.01, 1000, &o->tolerance, &e) != MS_OK)
+                return bad_value(&e);
             break;
         case 'd':
-            if (parse_double(optarg, 0.1, 86400, &o->duration) != 0) {
-                fprintf(stderr, "meshload: --duration wants seconds in [0.1, 86400]\n");
-                return 2;
-            }
+            if (ms_option_double("--duration", optarg, 0.1, 86400, &o->duration, &e) != MS_OK)
+                return bad_value(&e);
             break;
         case 'k':
-            if (parse_double(optarg, 0.1, 86400, &o->keyframe_timeout) != 0) {
-                fprintf(stderr, "meshload: --keyframe-timeout wants seconds\n");
-                return 2;
-            }
+            if (ms_option_double("--keyframe-timeout", optarg, 0.1, 86400, &o->keyframe_timeout, &e) != MS_OK)
+                return bad_value(&e);
             break;
         case 'v':
             if (sscanf(optarg, "%lfx%lf", &o->width, &o->height) != 2 || !(o->width >= 1) ||
@@ -713,37 +704,28 @@ static int parse_options(int argc, char **argv, options *o)
             break;
         case 'M':
         case 'C':
-            if (parse_double(optarg, 0.01, 1e7, &v) != 0) {
-                fprintf(stderr, "meshload: memory budgets are in MB\n");
-                return 2;
-            }
+            if (ms_option_double(ch == 'M' ? "--memory-target" : "--memory-ceiling", optarg, 0.01,
+                                 1e7, &v, &e) != MS_OK)
+                return bad_value(&e);
             *(ch == 'M' ? &o->memory_target : &o->memory_ceiling) = v;
             break;
         case 'H':
-            if (parse_double(optarg, 0, 4, &o->hysteresis) != 0) {
-                fprintf(stderr, "meshload: --hysteresis wants bits in [0, 4]\n");
-                return 2;
-            }
+            if (ms_option_double("--hysteresis", optarg, 0, 4, &o->hysteresis, &e) != MS_OK)
+                return bad_value(&e);
             break;
         case 'L':
-            if (parse_double(optarg, 0.01, 64, &o->culled_less) != 0) {
-                fprintf(stderr, "meshload: --culled-bits-less wants bits in (0, 64]\n");
-                return 2;
-            }
+            if (ms_option_double("--culled-bits-less", optarg, 0.01, 64, &o->culled_less, &e) != MS_OK)
+                return bad_value(&e);
             break;
         case 'P':
-            if (parse_double(optarg, 1, 64, &v) != 0 || v != floor(v)) {
-                fprintf(stderr, "meshload: --decode-threads wants 1..64\n");
-                return 2;
-            }
-            o->decode_threads = (unsigned)v;
+            if (ms_option_int("--decode-threads", optarg, 1, 64, &i, &e) != MS_OK)
+                return bad_value(&e);
+            o->decode_threads = (unsigned)i;
             break;
         case 'a':
-            if (parse_double(optarg, 0, 32, &v) != 0 || v != floor(v)) {
-                fprintf(stderr, "meshload: --apo-levels wants 0..32\n");
-                return 2;
-            }
-            o->apo_levels = (unsigned)v;
+            if (ms_option_int("--apo-levels", optarg, 0, 32, &i, &e) != MS_OK)
+                return bad_value(&e);
+            o->apo_levels = (unsigned)i;
             break;
         case 'T': o->token = optarg; break;
         case 'j': o->json = true; break;

@@ -24,6 +24,7 @@
 #include "ms_client.h"
 #include "ms_json_out.h"
 #include "ms_loadgen_plan.h"
+#include "ms_parse_number.h"
 #include "ms_payload_assembly.h"
 #include "ms_progress.h"
 #include "ms_proto.h"
@@ -614,17 +615,6 @@ static void usage(FILE *out)
             "Exit status 0 when every request was answered without error, 1 otherwise.\n");
 }
 
-static int parse_number(const char *text, double min, double max, double *out)
-{
-    char *end;
-    errno = 0;
-    double v = strtod(text, &end);
-    if (errno || end == text || *end || !(v >= min && v <= max))
-        return -1;
-    *out = v;
-    return 0;
-}
-
 static int parse_options(int argc, char **argv, options *o)
 {
     static const struct option opts[] = {
@@ -641,31 +631,45 @@ static int parse_options(int argc, char **argv, options *o)
     *o = (options){.host = "127.0.0.1", .clients = 16, .window = 4, .duration = 5, .seed = 1,
                    .server_pid = -1, .label = ""};
     int c;
-    double v;
+    double v = 0;
+    int64_t i = 0;
+    ms_error e;
     while ((c = getopt_long(argc, argv, "h", opts, NULL)) != -1) {
-        int bad = 0;
+        ms_status bad = MS_OK;
         switch (c) {
         case 'H': o->host = optarg; break;
-        case 'p': bad = parse_number(optarg, 1, 65535, &v); o->port = (uint16_t)v; break;
+        case 'p': bad = ms_option_int("--port", optarg, 1, 65535, &i, &e); o->port = (uint16_t)i; break;
         case 'm': o->model = optarg; break;
         case 'w': o->http = true; break;
         case 'i': o->index_path = optarg; break;
-        case 'c': bad = parse_number(optarg, 1, 10000, &v); o->clients = (unsigned)v; break;
-        case 'W': bad = parse_number(optarg, 1, MAX_WINDOW, &v); o->window = (unsigned)v; break;
-        case 'd': bad = parse_number(optarg, 0.1, 3600, &v); o->duration = v; break;
-        case 'r': bad = parse_number(optarg, 1, 1e12, &v); o->max_requests = (uint64_t)v; break;
+        case 'c':
+            bad = ms_option_int("--clients", optarg, 1, 10000, &i, &e);
+            o->clients = (unsigned)i;
+            break;
+        case 'W':
+            bad = ms_option_int("--window", optarg, 1, MAX_WINDOW, &i, &e);
+            o->window = (unsigned)i;
+            break;
+        case 'd': bad = ms_option_double("--duration", optarg, 0.1, 3600, &v, &e); o->duration = v; break;
+        case 'r':
+            bad = ms_option_int("--requests", optarg, 1, 1000000000000, &i, &e);
+            o->max_requests = (uint64_t)i;
+            break;
         case 't': o->token = optarg; break;
-        case 's': bad = parse_number(optarg, 0, 4294967295.0, &v); o->seed = (uint32_t)v; break;
-        case 'P': bad = parse_number(optarg, 1, 4194304, &v); o->server_pid = (long)v; break;
+        case 's': bad = ms_option_int("--seed", optarg, 0, UINT32_MAX, &i, &e); o->seed = (uint32_t)i; break;
+        case 'P':
+            bad = ms_option_int("--server-pid", optarg, 1, 4194304, &i, &e);
+            o->server_pid = (long)i;
+            break;
         case 'l': o->label = optarg; break;
-        case 'f': bad = parse_number(optarg, 0, 1000, &v); o->fps = v; break;
-        case 'R': bad = parse_number(optarg, 0, 1e6, &v); o->rate = v; break;
+        case 'f': bad = ms_option_double("--fps", optarg, 0, 1000, &v, &e); o->fps = v; break;
+        case 'R': bad = ms_option_double("--rate", optarg, 0, 1e6, &v, &e); o->rate = v; break;
         case 'j': o->json = true; break;
         case 'h': usage(stdout); exit(0);
         default: return -1;
         }
-        if (bad) {
-            fprintf(stderr, "meshloadgen: bad value '%s'\n", optarg);
+        if (bad != MS_OK) {
+            fprintf(stderr, "meshloadgen: %s\n", e.text);
             return -1;
         }
     }

@@ -177,8 +177,7 @@ void ms_codec_decoder_destroy(ms_codec_decoder *d);
 ms_status ms_codec_decoder_extend(ms_codec_decoder *d, const uint8_t *data, size_t size,
                                   ms_error *err);
 
-/* Current kd-level and the window. Precision bits reached = level / 3. */
-unsigned ms_codec_decoder_level(const ms_codec_decoder *d);
+/* The window of kd-levels (precision bits = level / 3). */
 unsigned ms_codec_decoder_min_level(const ms_codec_decoder *d);
 unsigned ms_codec_decoder_max_level(const ms_codec_decoder *d);
 /* Highest kd-level the available bytes allow (complete chunks only). */

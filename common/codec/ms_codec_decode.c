@@ -79,7 +79,6 @@ static inline __attribute__((always_inline)) int dbit_coin(ms_codec_decoder *d, 
     return d->enc ? dbit_encode(d, p) : ms_rc_decode_unpredictable(&d->rc, p);
 }
 
-unsigned ms_codec_decoder_level(const ms_codec_decoder *d) { return d->level; }
 unsigned ms_codec_decoder_min_level(const ms_codec_decoder *d) { return d->Lmin; }
 unsigned ms_codec_decoder_max_level(const ms_codec_decoder *d) { return d->D; }
 unsigned ms_codec_decoder_available_level(const ms_codec_decoder *d) { return d->avail_level; }

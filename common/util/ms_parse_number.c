@@ -1,5 +1,6 @@
 #include "ms_parse_number.h"
 
+#include <math.h>
 #include <stdlib.h>
 
 /* Powers of ten that are exact doubles. */
@@ -115,4 +116,28 @@ const char *ms_parse_int64(const char *s, int64_t *out)
     else
         *out = (int64_t)v;
     return p;
+}
+
+ms_status ms_option_int(const char *name, const char *text, int64_t min, int64_t max,
+                        int64_t *out, ms_error *err)
+{
+    int64_t v;
+    const char *end = ms_parse_int64(text, &v);
+    if (!end || *end || v < min || v > max)
+        return ms_error_set(err, MS_ERR_RANGE, "%s wants an integer in [%lld, %lld], got '%.200s'",
+                            name, (long long)min, (long long)max, text);
+    *out = v;
+    return MS_OK;
+}
+
+ms_status ms_option_double(const char *name, const char *text, double min, double max,
+                           double *out, ms_error *err)
+{
+    double v;
+    const char *end = ms_parse_double(text, &v);
+    if (!end || *end || !isfinite(v) || v < min || v > max)
+        return ms_error_set(err, MS_ERR_RANGE, "%s wants a number in [%.10g, %.10g], got '%.200s'", name,
+                            min, max, text);
+    *out = v;
+    return MS_OK;
 }

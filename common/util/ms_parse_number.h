@@ -1,4 +1,4 @@
-/* Decimal number parsing for the text mesh formats.
+/* Decimal number parsing for the text mesh formats and for option values.
  *
  * The hot loop of an ascii reader is number parsing, so these avoid locale
  * look-ups and errno. Doubles are correctly rounded: the fast path is exact
@@ -11,6 +11,8 @@
 
 #include <stdbool.h>
 #include <stdint.h>
+
+#include "ms_error.h"
 
 /* True for the bytes that may end a number token in a NUL-terminated line. */
 static inline bool ms_is_token_end(char c)
@@ -30,5 +32,18 @@ const char *ms_parse_double(const char *s, double *out);
  * the digits (the caller checks what follows), or NULL if there are no digits or
  * the value does not fit in int64_t. */
 const char *ms_parse_int64(const char *s, int64_t *out);
+
+/* Option values ("--name VALUE" on a command line, "key = value" in a
+ * configuration file): the whole text must be one number in [min, max]. On
+ * failure err (MS_ERR_RANGE) holds the one wording every program uses:
+ *   "NAME wants an integer in [MIN, MAX], got 'TEXT'"
+ *   "NAME wants a number in [MIN, MAX], got 'TEXT'"
+ * (the caller prefixes its program name or file position). `name` is the
+ * option as the user wrote it ("--tolerance", "port"). */
+ms_status ms_option_int(const char *name, const char *text, int64_t min, int64_t max,
+                        int64_t *out, ms_error *err);
+/* Finite decimal numbers only (no nan, no inf). */
+ms_status ms_option_double(const char *name, const char *text, double min, double max,
+                           double *out, ms_error *err);
 
 #endif

@@ -20,6 +20,7 @@
 #include "ms_json_out.h"
 #include "ms_mesh.h"
 #include "ms_mesh_io.h"
+#include "ms_parse_number.h"
 #include "ms_png.h"
 #include "ms_progress.h"
 
@@ -57,24 +58,32 @@ static int usage_error(const char *message, const char *detail)
     return 2;
 }
 
+/* An option value (ms_option_*): 0, or -1 after printing its one line. */
 static int parse_double(const char *s, const char *what, double lo, double hi, double *out)
 {
-    char *end;
-    errno = 0;
-    double v = strtod(s, &end);
-    if (errno || end == s || *end || !(v >= lo && v <= hi)) {
-        fprintf(stderr, "meshbake: %s must be a number in [%g, %g], got '%s'\n", what, lo, hi, s);
+    ms_error e;
+    if (ms_option_double(what, s, lo, hi, out, &e) != MS_OK) {
+        fprintf(stderr, "meshbake: %s\n", e.text);
         return -1;
     }
-    *out = v;
+    return 0;
+}
+
+static int parse_int(const char *s, const char *what, int64_t lo, int64_t hi, int64_t *out)
+{
+    ms_error e;
+    if (ms_option_int(what, s, lo, hi, out, &e) != MS_OK) {
+        fprintf(stderr, "meshbake: %s\n", e.text);
+        return -1;
+    }
     return 0;
 }
 
 static int load_input(const char *in, ms_mesh *mesh, ms_error *err)
 {
     if (strncmp(in, "demo:", 5) == 0) {
-        double t;
-        if (parse_double(in + 5, "demo:T", 8, 2e8, &t) != 0)
+        int64_t t;
+        if (parse_int(in + 5, "demo:T", 8, 200000000, &t) != 0)
             return -1;
         ms_demo_model model = {.grid = ms_demo_grid_for_triangles((uint64_t)t), .seed = 0};
         return ms_demo_build(&model, mesh, err) == MS_OK ? 0 : -2;
@@ -206,14 +215,14 @@ int ms_apo_classic_cli(int argc, char **argv)
     int json = 0, c;
     uint64_t lookups = 0;
     size_t accuracy_points = 0;
-    double v;
+    int64_t v;
     opterr = 0;
     optind = 1;
     while ((c = getopt_long(argc, argv, ":ho:", longs, NULL)) != -1) {
         switch (c) {
         case OPT_CLASSIC: break;
         case OPT_SIMPLIFY:
-            if (parse_double(optarg, "--simplify", 4, 1e9, &v) != 0)
+            if (parse_int(optarg, "--simplify", 4, 1000000000, &v) != 0)
                 return 2;
             o.simplify_triangles = (size_t)v;
             break;
@@ -222,12 +231,12 @@ int ms_apo_classic_cli(int argc, char **argv)
                 return 2;
             break;
         case OPT_INIT:
-            if (parse_double(optarg, "--apo-init-depth", 0, 30, &v) != 0)
+            if (parse_int(optarg, "--apo-init-depth", 0, 30, &v) != 0)
                 return 2;
             o.init_depth = (uint32_t)v;
             break;
         case OPT_MAX:
-            if (parse_double(optarg, "--apo-max-depth", 0, 30, &v) != 0)
+            if (parse_int(optarg, "--apo-max-depth", 0, 30, &v) != 0)
                 return 2;
             o.max_depth = (uint32_t)v;
             break;
@@ -245,7 +254,7 @@ int ms_apo_classic_cli(int argc, char **argv)
                 return 2;
             break;
         case OPT_THREADS:
-            if (parse_double(optarg, "--threads", 0, 1024, &v) != 0)
+            if (parse_int(optarg, "--threads", 0, 1024, &v) != 0)
                 return 2;
             o.threads = (unsigned)v;
             break;
@@ -253,13 +262,13 @@ int ms_apo_classic_cli(int argc, char **argv)
         case OPT_SIMPLIFIED: simplified_path = optarg; break;
         case OPT_SAVE: save_path = optarg; break;
         case OPT_LOOKUPS:
-            if (parse_double(optarg, "--bench-lookups", 0, 1e9, &v) != 0)
+            if (parse_int(optarg, "--bench-lookups", 0, 1000000000, &v) != 0)
                 return 2;
             lookups = (uint64_t)v;
             break;
         case OPT_PNG: png_path = optarg; break;
         case OPT_ACCURACY:
-            if (parse_double(optarg, "--bench-accuracy", 0, 1e9, &v) != 0)
+            if (parse_int(optarg, "--bench-accuracy", 0, 1000000000, &v) != 0)
                 return 2;
             accuracy_points = (size_t)v;
             break;

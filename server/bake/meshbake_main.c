@@ -23,6 +23,7 @@
 #include "ms_catalog.h"
 #include "ms_json_out.h"
 #include "ms_mesh_reader.h"
+#include "ms_parse_number.h"
 
 enum { EXIT_INPUT = 1, EXIT_USAGE = 2 };
 
@@ -114,126 +115,26 @@ static int usage_error(const char *message, const char *detail)
     return EXIT_USAGE;
 }
 
-/* A decimal integer in 1..2^31. */
-static bool parse_count(const char *text, unsigned long *value)
+/* The integer value of option c (its long name from opts) in [min, max];
+ * false after printing the one-line usage error. */
+static bool option_int(const struct option *opts, int c, const char *text, int64_t min,
+                       int64_t max, int64_t *value, int *status)
 {
-    char *end;
-    errno = 0;
-    unsigned long v = strtoul(text, &end, 10);
-    if (errno != 0 || end == text || *end != '\0' || text[0] == '-' || v == 0 || v > (1ul << 31))
-        return false;
-    *value = v;
-    return true;
+    char name[48] = "--?";
+    for (const struct option *o = opts; o->name; ++o)
+        if (o->val == c)
+            snprintf(name, sizeof name, "--%s", o->name);
+    ms_error e;
+    if (ms_option_int(name, text, min, max, value, &e) == MS_OK)
+        return true;
+    *status = usage_error(e.text, NULL);
+    return false;
 }
 
-/* A decimal integer in 0..30. */
-static bool parse_depth(const char *text, unsigned long *value)
+/* After the options: what the mode needs, and what it refuses. Returns -1 to
+ * go on, or the exit status to end with. */
+static int check_mode(int argc, char **argv, bake_options *options)
 {
-    char *end;
-    errno = 0;
-    unsigned long v = strtoul(text, &end, 10);
-    if (errno != 0 || end == text || *end != '\0' || text[0] == '-' || v > 30)
-        return false;
-    *value = v;
-    return true;
-}
-
-/* Returns -1 to go on, or the exit status to end with. */
-static int parse_options(int argc, char **argv, bake_options *options)
-{
-    static const struct option long_options[] = {
-        {"info", no_argument, NULL, 'i'},
-        {"json", no_argument, NULL, 'j'},
-        {"help", no_argument, NULL, 'h'},
-        {"output", required_argument, NULL, 'o'},
-        {"name", required_argument, NULL, 'N'},
-        {"bits", required_argument, NULL, 'b'},
-        {"n", required_argument, NULL, 'n'},
-        {"root-bits", required_argument, NULL, 'r'},
-        {"min-tris", required_argument, NULL, 'm'},
-        {"threads", required_argument, NULL, 't'},
-        {"mem", required_argument, NULL, 'M'},
-        {"tmp", required_argument, NULL, 'T'},
-        {"apo", no_argument, NULL, 'A'},
-        {"no-apo", no_argument, NULL, 'a'},
-        {"apo-lead", required_argument, NULL, 'L'},
-        {"apo-max-depth", required_argument, NULL, 'D'},
-        {"apo-init-depth", required_argument, NULL, 'I'},
-        {"apo-tol", required_argument, NULL, 'E'},
-        {"apo-verify", no_argument, NULL, 'V'},
-        {"apo-sample-leaves", no_argument, NULL, 'S'},
-        {"apo-accuracy", no_argument, NULL, 'C'},
-        {"apo-every-cell", no_argument, NULL, 'W'},
-        {"public-bits", required_argument, NULL, 'P'},
-        {"set-public-bits", required_argument, NULL, 'U'},
-        {"list", required_argument, NULL, 'l'},
-        {"remove", required_argument, NULL, 'R'},
-        {NULL, 0, NULL, 0},
-    };
-    memset(options, 0, sizeof *options);
-    ms_bake_options_default(&options->bake);
-    opterr = 0;
-    int c;
-    unsigned long value;
-    while ((c = getopt_long(argc, argv, ":ho:", long_options, NULL)) != -1) {
-        switch (c) {
-        case 'i': options->mode = MODE_INFO; break;
-        case 'l': options->mode = MODE_LIST; options->list_dir = optarg; break;
-        case 'R': options->mode = MODE_REMOVE; options->remove_name = optarg; break;
-        case 'j': options->json = true; break;
-        case 'h': print_usage(stdout); return EXIT_SUCCESS;
-        case 'o': options->bake.archive_dir = optarg; break;
-        case 'N': options->bake.name = optarg; break;
-        case 'T': options->bake.tmp_dir = optarg; break;
-        case 'b': case 'n': case 'r': case 'm': case 't': case 'M':
-            if (!parse_count(optarg, &value))
-                return usage_error("not a positive integer", optarg);
-            if (c == 'b') options->bake.bits = (unsigned)value;
-            else if (c == 'n') options->bake.n = (unsigned)value;
-            else if (c == 'r') options->bake.root_bits = (unsigned)value;
-            else if (c == 'm') options->bake.min_triangles = (uint32_t)value;
-            else if (c == 't') options->bake.threads = (unsigned)value;
-            else options->bake.mem_mb = (size_t)value;
-            break;
-        case 'A': options->bake.apo.enabled = true; break;
-        case 'a': options->bake.apo.enabled = false; break;
-        case 'V': options->bake.apo.verify = true; break;
-        case 'S': options->bake.apo.sample_leaves = true; break;
-        case 'C': options->bake.apo.accuracy = true; break;
-        case 'W': options->bake.apo.every_cell = true; break;
-        case 'P': case 'U':
-            if (!parse_depth(optarg, &value) || value > 20)
-                return usage_error(c == 'P' ? "--public-bits needs 0..20"
-                                            : "--set-public-bits needs 0..20", optarg);
-            if (c == 'P') {
-                options->bake.public_bits = (int)value;
-            } else {
-                options->set_public_bits = (unsigned)value;
-                options->mode = MODE_SET_PUBLIC;
-            }
-            break;
-        case 'L': case 'D': case 'I':
-            if (!parse_depth(optarg, &value))
-                return usage_error("not a depth (0..30)", optarg);
-            if (c == 'L') options->bake.apo.lead = (uint32_t)value;
-            else if (c == 'D') options->bake.apo.max_depth = (uint32_t)value;
-            else options->bake.apo.init_depth = (uint32_t)value;
-            break;
-        case 'E': {
-            char *end;
-            errno = 0;
-            double t = strtod(optarg, &end);
-            if (errno != 0 || end == optarg || *end != '\0' || !(t >= 0.0 && t < 1e12))
-                return usage_error("--apo-tol needs a number >= 0", optarg);
-            options->bake.apo.tolerance = t;
-            break;
-        }
-        case ':':
-            return usage_error("option needs a value", argv[optind - 1]);
-        default:
-            return usage_error("unknown option", argv[optind - 1]);
-        }
-    }
     if (options->mode == MODE_LIST || options->mode == MODE_REMOVE) {
         if (options->mode == MODE_REMOVE && !options->bake.archive_dir)
             return usage_error("--remove needs -o ARCHIVE_DIR", NULL);
@@ -272,6 +173,102 @@ static int parse_options(int argc, char **argv, bake_options *options)
     if (!options->input)
         return usage_error("missing input file", NULL);
     return -1;
+}
+
+/* Returns -1 to go on, or the exit status to end with. */
+static int parse_options(int argc, char **argv, bake_options *options)
+{
+    static const struct option long_options[] = {
+        {"info", no_argument, NULL, 'i'},
+        {"json", no_argument, NULL, 'j'},
+        {"help", no_argument, NULL, 'h'},
+        {"output", required_argument, NULL, 'o'},
+        {"name", required_argument, NULL, 'N'},
+        {"bits", required_argument, NULL, 'b'},
+        {"n", required_argument, NULL, 'n'},
+        {"root-bits", required_argument, NULL, 'r'},
+        {"min-tris", required_argument, NULL, 'm'},
+        {"threads", required_argument, NULL, 't'},
+        {"mem", required_argument, NULL, 'M'},
+        {"tmp", required_argument, NULL, 'T'},
+        {"apo", no_argument, NULL, 'A'},
+        {"no-apo", no_argument, NULL, 'a'},
+        {"apo-lead", required_argument, NULL, 'L'},
+        {"apo-max-depth", required_argument, NULL, 'D'},
+        {"apo-init-depth", required_argument, NULL, 'I'},
+        {"apo-tol", required_argument, NULL, 'E'},
+        {"apo-verify", no_argument, NULL, 'V'},
+        {"apo-sample-leaves", no_argument, NULL, 'S'},
+        {"apo-accuracy", no_argument, NULL, 'C'},
+        {"apo-every-cell", no_argument, NULL, 'W'},
+        {"public-bits", required_argument, NULL, 'P'},
+        {"set-public-bits", required_argument, NULL, 'U'},
+        {"list", required_argument, NULL, 'l'},
+        {"remove", required_argument, NULL, 'R'},
+        {NULL, 0, NULL, 0},
+    };
+    memset(options, 0, sizeof *options);
+    ms_bake_options_default(&options->bake);
+    opterr = 0;
+    int c, status;
+    int64_t value;
+    while ((c = getopt_long(argc, argv, ":ho:", long_options, NULL)) != -1) {
+        switch (c) {
+        case 'i': options->mode = MODE_INFO; break;
+        case 'l': options->mode = MODE_LIST; options->list_dir = optarg; break;
+        case 'R': options->mode = MODE_REMOVE; options->remove_name = optarg; break;
+        case 'j': options->json = true; break;
+        case 'h': print_usage(stdout); return EXIT_SUCCESS;
+        case 'o': options->bake.archive_dir = optarg; break;
+        case 'N': options->bake.name = optarg; break;
+        case 'T': options->bake.tmp_dir = optarg; break;
+        case 'b': case 'n': case 'r': case 'm': case 't': case 'M':
+            if (!option_int(long_options, c, optarg, 1, (int64_t)1 << 31, &value, &status))
+                return status;
+            if (c == 'b') options->bake.bits = (unsigned)value;
+            else if (c == 'n') options->bake.n = (unsigned)value;
+            else if (c == 'r') options->bake.root_bits = (unsigned)value;
+            else if (c == 'm') options->bake.min_triangles = (uint32_t)value;
+            else if (c == 't') options->bake.threads = (unsigned)value;
+            else options->bake.mem_mb = (size_t)value;
+            break;
+        case 'A': options->bake.apo.enabled = true; break;
+        case 'a': options->bake.apo.enabled = false; break;
+        case 'V': options->bake.apo.verify = true; break;
+        case 'S': options->bake.apo.sample_leaves = true; break;
+        case 'C': options->bake.apo.accuracy = true; break;
+        case 'W': options->bake.apo.every_cell = true; break;
+        case 'P': case 'U':
+            if (!option_int(long_options, c, optarg, 0, 20, &value, &status))
+                return status;
+            if (c == 'P') {
+                options->bake.public_bits = (int)value;
+            } else {
+                options->set_public_bits = (unsigned)value;
+                options->mode = MODE_SET_PUBLIC;
+            }
+            break;
+        case 'L': case 'D': case 'I':
+            if (!option_int(long_options, c, optarg, 0, 30, &value, &status))
+                return status;
+            if (c == 'L') options->bake.apo.lead = (uint32_t)value;
+            else if (c == 'D') options->bake.apo.max_depth = (uint32_t)value;
+            else options->bake.apo.init_depth = (uint32_t)value;
+            break;
+        case 'E': {
+            ms_error e;
+            if (ms_option_double("--apo-tol", optarg, 0, 1e12, &options->bake.apo.tolerance,
+                                 &e) != MS_OK)
+                return usage_error(e.text, NULL);
+            break;
+        }
+        case ':':
+            return usage_error("option needs a value", argv[optind - 1]);
+        default:
+            return usage_error("unknown option", argv[optind - 1]);
+        }
+    }
+    return check_mode(argc, argv, options);
 }
 
 typedef struct progress_state {

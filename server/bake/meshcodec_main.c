@@ -17,6 +17,7 @@
 #include "ms_codec.h"
 #include "ms_codec_prior.h"
 #include "ms_json_out.h"
+#include "ms_parse_number.h"
 #include "ms_mesh_io.h"
 #include "ms_quant.h"
 
@@ -135,11 +136,10 @@ static int parse(const char *cmd, const char *help, int argc, char **argv, optio
             o->output = optarg;
             break;
         case 'b': {
-            char *end;
-            errno = 0;
-            long v = strtol(optarg, &end, 10);
-            if (errno || *end || end == optarg || v < 0 || v > 64)
-                return usage_error(cmd, "bad --bits value", optarg);
+            int64_t v;
+            ms_error e;
+            if (ms_option_int("--bits", optarg, 0, 64, &v, &e) != MS_OK)
+                return usage_error(cmd, e.text, NULL);
             o->bits = (int)v;
             break;
         }

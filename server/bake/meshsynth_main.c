@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "ms_parse_number.h"
 #include "ms_synthetic_archive.h"
 
 static void usage(FILE *out)
@@ -26,16 +27,6 @@ static void usage(FILE *out)
             "  -h, --help           show this help\n");
 }
 
-static int parse(const char *text, unsigned long max, unsigned long *out)
-{
-    char *end;
-    errno = 0;
-    unsigned long v = strtoul(text, &end, 10);
-    if (errno || !*text || *end || v > max || *text == '-')
-        return -1;
-    *out = v;
-    return 0;
-}
 
 int main(int argc, char **argv)
 {
@@ -48,22 +39,35 @@ int main(int argc, char **argv)
     };
     ms_synthetic_spec spec = {2, 12, 24576, 16384, 5, 1, 255};
     int c;
-    unsigned long v;
+    int64_t v = 0;
+    ms_error e;
     while ((c = getopt_long(argc, argv, "h", options, NULL)) != -1) {
-        int bad = 0;
+        ms_status bad = MS_OK;
         switch (c) {
-        case 'l': bad = parse(optarg, 3, &v); spec.levels = (unsigned)v; break;
-        case 'b': bad = parse(optarg, 20, &v); spec.bits = (unsigned)v; break;
-        case 'g': bad = parse(optarg, 64ul << 20, &v); spec.geometry_bytes = (uint32_t)v; break;
-        case 'a': bad = parse(optarg, 64ul << 20, &v); spec.apo_bytes = (uint32_t)v; break;
-        case 'L': bad = parse(optarg, 12, &v); spec.apo_levels = (unsigned)v; break;
-        case 'p': bad = parse(optarg, 20, &v); spec.public_max_bits = (uint8_t)v; break;
-        case 's': bad = parse(optarg, 0xFFFFFFFFul, &v); spec.seed = (uint32_t)v; break;
+        case 'l': bad = ms_option_int("--levels", optarg, 0, 3, &v, &e); spec.levels = (unsigned)v; break;
+        case 'b': bad = ms_option_int("--bits", optarg, 0, 20, &v, &e); spec.bits = (unsigned)v; break;
+        case 'g':
+            bad = ms_option_int("--geometry-bytes", optarg, 0, 64 << 20, &v, &e);
+            spec.geometry_bytes = (uint32_t)v;
+            break;
+        case 'a':
+            bad = ms_option_int("--apo-bytes", optarg, 0, 64 << 20, &v, &e);
+            spec.apo_bytes = (uint32_t)v;
+            break;
+        case 'L':
+            bad = ms_option_int("--apo-levels", optarg, 0, 12, &v, &e);
+            spec.apo_levels = (unsigned)v;
+            break;
+        case 'p':
+            bad = ms_option_int("--public-bits", optarg, 0, 20, &v, &e);
+            spec.public_max_bits = (uint8_t)v;
+            break;
+        case 's': bad = ms_option_int("--seed", optarg, 0, UINT32_MAX, &v, &e); spec.seed = (uint32_t)v; break;
         case 'h': usage(stdout); return 0;
         default: fprintf(stderr, "meshsynth: try 'meshsynth --help'\n"); return 2;
         }
-        if (bad) {
-            fprintf(stderr, "meshsynth: bad value '%s' (try 'meshsynth --help')\n", optarg);
+        if (bad != MS_OK) {
+            fprintf(stderr, "meshsynth: %s (try 'meshsynth --help')\n", e.text);
             return 2;
         }
     }

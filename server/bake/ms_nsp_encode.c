@@ -15,6 +15,7 @@
 #include "ms_codec.h"
 #include "ms_nsp.h"
 #include "ms_nsp_lone.h"
+#include "ms_parallel.h"
 #include "ms_progress.h"
 #include "ms_radix_sort.h"
 
@@ -731,8 +732,11 @@ static ms_status finish_cell(pool *p, uint32_t node, cell_out *out, ms_error *er
     return MS_OK;
 }
 
-static void *worker(void *arg)
+/* One encoding thread: takes ready cells until every cell is done (or one
+ * failed). Run as one block per thread of ms_parallel_for. */
+static void worker(void *arg, size_t block)
 {
+    (void)block;
     pool *p = arg;
     const ms_nsp_build *b = p->b;
     ms_apo_builder *builder = NULL; /* created on this thread's first APO chunk */
@@ -787,7 +791,6 @@ static void *worker(void *arg)
     }
     pthread_mutex_unlock(&p->lock);
     ms_apo_builder_destroy(builder);
-    return NULL;
 }
 
 ms_status ms_nsp_encode_all(ms_nsp_build *build, const uint32_t *cell_of_node,
@@ -854,18 +857,9 @@ ms_status ms_nsp_encode_all(ms_nsp_build *build, const uint32_t *cell_of_node,
     pthread_mutex_init(&p.lock, NULL);
     pthread_cond_init(&p.wake, NULL);
     unsigned threads = params->threads ? params->threads : 1;
-    pthread_t *tid = calloc(threads, sizeof *tid);
-    unsigned started = 0;
-    if (tid)
-        for (; started < threads; ++started)
-            if (pthread_create(&tid[started], NULL, worker, &p) != 0)
-                break;
-    if (started == 0) {
-        worker(&p); /* no thread could start: do the work here */
-    }
-    for (unsigned i = 0; i < started; ++i)
-        pthread_join(tid[i], NULL);
-    free(tid);
+    /* the work completes even where no helper thread could start */
+    ms_error no_threads;
+    (void)ms_parallel_for(threads, threads, worker, &p, &no_threads);
     ms_status s = MS_OK;
     if (p.failed) {
         *err = p.err;

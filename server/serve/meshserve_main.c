@@ -103,21 +103,21 @@ int main(int argc, char **argv)
         ms_server_config_free(&config);
         return 2;
     }
-    ms_server server;
-    if (ms_server_start(&server, &config, &err) != MS_OK) {
+    ms_server *server;
+    if (ms_server_new(&config, &server, &err) != MS_OK) {
         fprintf(stderr, "meshserve: %s\n", err.text);
         return 1;
     }
-    ms_server_log(&server, "serving %zu models from %s; binary protocol on port %u, http on port %u",
-                  server.registry.count, server.config.archive_dir, server.bound_port,
-                  server.bound_http_port);
-    ms_server_run(&server);
-    const ms_server_metrics *m = &server.metrics;
-    double uptime = ms_now_seconds() - server.started_at;
+    ms_server_log(server, "serving %zu models from %s; binary protocol on port %u, http on port %u",
+                  ms_server_model_count(server), ms_server_archive_dir(server),
+                  ms_server_bound_port(server, false), ms_server_bound_port(server, true));
+    ms_server_run(server);
+    const ms_server_metrics *m = ms_server_get_metrics(server);
+    double uptime = ms_now_seconds() - ms_server_started_at(server);
     if (json)
         ms_json_print(stdout,
                       json_pack("{s:o, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:I}", "uptime_seconds", ms_json_fixed(uptime, 3), "models",
-                                (json_int_t)server.registry.count, "http_requests",
+                                (json_int_t)ms_server_model_count(server), "http_requests",
                                 (json_int_t)m->http_requests, "http_errors", (json_int_t)m->http_errors,
                                 "binary_connections", (json_int_t)m->binary_connections_total,
                                 "binary_requests", (json_int_t)m->binary_requests, "binary_errors",
@@ -133,6 +133,6 @@ int main(int argc, char **argv)
                (unsigned long long)m->binary_requests, (unsigned long long)m->binary_errors,
                (unsigned long long)(m->http_bytes_sent + m->binary_bytes_sent),
                (unsigned long long)m->rescans);
-    ms_server_stop(&server);
+    ms_server_free(server);
     return 0;
 }

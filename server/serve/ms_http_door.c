@@ -25,7 +25,7 @@
 #include "ms_access.h"
 #include "ms_http_parse.h"
 #include "ms_progress.h"
-#include "ms_server.h"
+#include "ms_server_internal.h"
 
 #define RATE_BUCKETS 1024
 
@@ -84,7 +84,7 @@ static void model_of_path(const char *path, char *out, size_t size)
  * never its query. */
 static void log_answer(ms_http_door *door, struct evhttp_request *req, int code, uint64_t length)
 {
-    if (!door->server->access_log)
+    if (!ms_server_access_log_on(door->server))
         return;
     char client[80] = "", model[80], status[16];
     struct evhttp_connection *conn = evhttp_request_get_connection(req);
@@ -392,10 +392,10 @@ static void serve_cell(ms_http_door *door, struct evhttp_request *req, ms_model 
 
 static void serve_catalog(ms_http_door *door, struct evhttp_request *req)
 {
-    const ms_registry *r = &door->server->registry;
+    const ms_registry *r = door->server->registry;
     json_t *models = json_array();
-    for (size_t i = 0; models && i < r->count; ++i) {
-        const ms_catalog_entry *e = &r->models[i]->entry;
+    for (size_t i = 0; models && i < ms_registry_count(r); ++i) {
+        const ms_catalog_entry *e = &ms_registry_model(r, i)->entry;
         json_array_append_new(
             models, json_pack("{s:s, s:I, s:I, s:I, s:i, s:i, s:b, s:I, s:s}", "name", e->name,
                               "vertices", (json_int_t)e->vertices, "triangles",
@@ -432,7 +432,7 @@ static void serve_metrics(ms_http_door *door, struct evhttp_request *req)
         const char *name, *type, *help;
         uint64_t value;
     } rows[] = {
-        {"meshstream_models", "gauge", "Models being served", s->registry.count},
+        {"meshstream_models", "gauge", "Models being served", ms_registry_count(s->registry)},
         {"meshstream_connections", "gauge", "Open binary-protocol connections", m->binary_connections},
         {"meshstream_connections_total", "counter", "Binary-protocol connections accepted", m->binary_connections_total},
         {"meshstream_requests_total{door=\"binary\"}", "counter", "Requests received", m->binary_requests},
@@ -459,19 +459,21 @@ static void serve_metrics(ms_http_door *door, struct evhttp_request *req)
         evbuffer_add_printf(body, "%s %" PRIu64 "\n", rows[i].name, rows[i].value);
     }
     /* Per model (names are [A-Za-z0-9_-]: nothing to escape in a label). */
-    const ms_registry *r = &s->registry;
+    const ms_registry *r = s->registry;
+    size_t models = ms_registry_count(r);
     evbuffer_add_printf(body, "# HELP meshstream_model_requests_total Requests received for the "
                               "model (opens, cell requests, HTTP answers)\n"
                               "# TYPE meshstream_model_requests_total counter\n");
-    for (size_t i = 0; i < r->count; ++i)
+    for (size_t i = 0; i < models; ++i)
         evbuffer_add_printf(body, "meshstream_model_requests_total{model=\"%s\"} %" PRIu64 "\n",
-                            r->models[i]->entry.name, r->models[i]->requests);
+                            ms_registry_model(r, i)->entry.name, ms_registry_model(r, i)->requests);
     evbuffer_add_printf(body, "# HELP meshstream_model_bytes_sent_total Payload bytes of the "
                               "model sent, both doors\n"
                               "# TYPE meshstream_model_bytes_sent_total counter\n");
-    for (size_t i = 0; i < r->count; ++i)
+    for (size_t i = 0; i < models; ++i)
         evbuffer_add_printf(body, "meshstream_model_bytes_sent_total{model=\"%s\"} %" PRIu64 "\n",
-                            r->models[i]->entry.name, r->models[i]->bytes_sent);
+                            ms_registry_model(r, i)->entry.name,
+                            ms_registry_model(r, i)->bytes_sent);
     evhttp_add_header(evhttp_request_get_output_headers(req), "Content-Type",
                       "text/plain; version=0.0.4");
     reply(door, req, 200, "OK", body, evbuffer_get_length(body));
@@ -541,7 +543,7 @@ static void route(ms_http_door *door, struct evhttp_request *req, char *path,
         return;
     }
     if (n >= 2 && !strcmp(seg[0], "models")) {
-        ms_model *model = ms_registry_find(&door->server->registry, seg[1]);
+        ms_model *model = ms_registry_find(door->server->registry, seg[1]);
         if (!model) {
             send_text(door, req, 404, "Not Found", "error: no such model");
             return;

@@ -14,17 +14,17 @@
 #include "ms_frame_out.h"
 #include "ms_progress.h"
 #include "ms_registry.h"
-#include "ms_server.h"
+#include "ms_server_internal.h"
 
 #define CHUNK_BYTES MS_PROTO_PAYLOAD_CHUNK
 
-static struct evbuffer *output(const ms_proto_conn *c) { return bufferevent_get_output(c->bev); }
-static ms_server *server_of(const ms_proto_conn *c) { return c->door->server; }
-static ms_server_metrics *metrics_of(const ms_proto_conn *c) { return &c->door->server->metrics; }
+static struct evbuffer *output(const ms_serve_conn *c) { return bufferevent_get_output(c->bev); }
+static ms_server *server_of(const ms_serve_conn *c) { return c->door->server; }
+static ms_server_metrics *metrics_of(const ms_serve_conn *c) { return &c->door->server->metrics; }
 
 /* --- Closing ---------------------------------------------------------------- */
 
-void ms_proto_conn_start_closing(ms_proto_conn *c)
+void ms_serve_conn_start_closing(ms_serve_conn *c)
 {
     if (c->state == MS_CONN_CLOSING)
         return;
@@ -40,13 +40,13 @@ void ms_proto_conn_start_closing(ms_proto_conn *c)
 }
 
 /* The output buffer refused bytes: nothing coherent can follow. */
-void ms_proto_conn_broken(ms_proto_conn *c)
+void ms_serve_conn_broken(ms_serve_conn *c)
 {
-    ms_proto_conn_start_closing(c);
+    ms_serve_conn_start_closing(c);
     c->closing_since -= MS_PROTO_CONN_LINGER_SECONDS; /* freed at the next sweep */
 }
 
-void ms_proto_conn_fail(ms_proto_conn *c, uint16_t code, uint64_t detail, const char *text)
+void ms_serve_conn_fail(ms_serve_conn *c, uint16_t code, uint64_t detail, const char *text)
 {
     if (c->state == MS_CONN_CLOSING)
         return;
@@ -56,40 +56,40 @@ void ms_proto_conn_fail(ms_proto_conn *c, uint16_t code, uint64_t detail, const 
     if (ms_frame_out_error(output(c), code, true, 0, 0, detail, text, &err) != MS_OK) {
         ms_server_log(server_of(c), "binary: cannot send %s: %s", ms_proto_error_name(code),
                       err.text);
-        ms_proto_conn_broken(c);
+        ms_serve_conn_broken(c);
         return;
     }
-    ms_proto_conn_start_closing(c);
+    ms_serve_conn_start_closing(c);
 }
 
 /* --- Sending answers ---------------------------------------------------------- */
 
-void ms_proto_conn_send_error(ms_proto_conn *c, uint16_t code, uint32_t request_id, uint32_t count,
+void ms_serve_conn_send_error(ms_serve_conn *c, uint16_t code, uint32_t request_id, uint32_t count,
                               uint64_t detail, const char *text)
 {
     if (ms_proto_error_fatality(code) == MS_PROTO_FATAL_ALWAYS) {
-        ms_proto_conn_fail(c, code, detail, text);
+        ms_serve_conn_fail(c, code, detail, text);
         return;
     }
     metrics_of(c)->binary_errors += count ? count : 1;
     ms_error err;
     if (ms_frame_out_error(output(c), code, false, request_id, count, detail, text, &err) != MS_OK)
-        ms_proto_conn_broken(c);
+        ms_serve_conn_broken(c);
 }
 
-void ms_proto_conn_send_message(ms_proto_conn *c, const ms_proto_message *msg)
+void ms_serve_conn_send_message(ms_serve_conn *c, const ms_proto_message *msg)
 {
     ms_error err;
     if (ms_frame_out_message(output(c), msg, &err) != MS_OK) {
         ms_server_log(server_of(c), "binary: cannot send %s: %s", ms_proto_type_name(msg->type),
                       err.text);
-        ms_proto_conn_broken(c);
+        ms_serve_conn_broken(c);
     }
 }
 
 /* --- Input ------------------------------------------------------------------ */
 
-static void pause_reading_if_full(ms_proto_conn *c)
+static void pause_reading_if_full(ms_serve_conn *c)
 {
     if (c->state != MS_CONN_CLOSING &&
         evbuffer_get_length(output(c)) > MS_PROTO_CONN_OUTPUT_LIMIT) {
@@ -98,7 +98,7 @@ static void pause_reading_if_full(ms_proto_conn *c)
     }
 }
 
-static void process_input(ms_proto_conn *c)
+static void process_input(ms_serve_conn *c)
 {
     struct evbuffer *in = bufferevent_get_input(c->bev);
     while (evbuffer_get_length(in) && c->state != MS_CONN_CLOSING && !c->reading_paused &&
@@ -117,16 +117,16 @@ static void process_input(ms_proto_conn *c)
         if (st != MS_OK) {
             c->last_frame_at = ms_now_seconds();
             if (fault.fatal) {
-                ms_proto_conn_fail(c, fault.code, fault.detail, err.text);
+                ms_serve_conn_fail(c, fault.code, fault.detail, err.text);
             } else {
                 metrics_of(c)->binary_requests += fault.request_count;
                 c->requests += fault.request_count;
-                ms_proto_conn_send_error(c, fault.code, fault.request_id, fault.request_count,
+                ms_serve_conn_send_error(c, fault.code, fault.request_id, fault.request_count,
                                          fault.detail, err.text);
             }
         } else if (have) {
             c->last_frame_at = ms_now_seconds();
-            ms_proto_conn_handle_message(c, &msg);
+            ms_serve_conn_handle_message(c, &msg);
         }
         pause_reading_if_full(c);
     }
@@ -142,14 +142,14 @@ static void on_read(struct bufferevent *bev, void *arg)
 
 static void on_write(struct bufferevent *bev, void *arg)
 {
-    ms_proto_conn *c = arg;
+    ms_serve_conn *c = arg;
     size_t pending = evbuffer_get_length(bufferevent_get_output(bev));
     if (c->state == MS_CONN_CLOSING) {
         if (pending == 0 && !c->write_shut) {
             shutdown(bufferevent_getfd(bev), SHUT_WR);
             c->write_shut = true;
             if (c->peer_eof)
-                ms_proto_door_connection_done(c->door, c);
+                ms_serve_door_connection_done(c->door, c);
         }
         return;
     }
@@ -167,7 +167,7 @@ static void on_write(struct bufferevent *bev, void *arg)
 static void on_event(struct bufferevent *bev, short what, void *arg)
 {
     (void)bev;
-    ms_proto_conn *c = arg;
+    ms_serve_conn *c = arg;
     if ((what & BEV_EVENT_EOF) && !(what & BEV_EVENT_ERROR) && c->state != MS_CONN_CLOSING &&
         ms_proto_decoder_buffered(&c->decoder) > 0) {
         /* Truncated frame: say so, in case the peer only shut down writing. */
@@ -175,18 +175,18 @@ static void on_event(struct bufferevent *bev, short what, void *arg)
         ms_error err;
         ms_proto_decoder_finish(&c->decoder, &fault, &err);
         c->peer_eof = true;
-        ms_proto_conn_fail(c, fault.code, fault.detail, err.text);
+        ms_serve_conn_fail(c, fault.code, fault.detail, err.text);
         return;
     }
-    ms_proto_door_connection_done(c->door, c);
+    ms_serve_door_connection_done(c->door, c);
 }
 
 /* --- Output ----------------------------------------------------------------- */
 
-bool ms_proto_conn_send_chunk(ms_fair_link *link, void *arg)
+bool ms_serve_conn_send_chunk(ms_fair_link *link, void *arg)
 {
     (void)arg;
-    ms_proto_conn *c = (ms_proto_conn *)link;
+    ms_serve_conn *c = (ms_serve_conn *)link;
     if (c->state != MS_CONN_READY)
         return false;
     struct evbuffer *out = output(c);
@@ -209,7 +209,7 @@ bool ms_proto_conn_send_chunk(ms_fair_link *link, void *arg)
     ms_server_metrics *m = metrics_of(c);
     if (ms_frame_out_payload(out, r->id, r->cell, r->stream, r->next, r->end, last, base + r->next,
                              chunk, r->model, &m->transfers_in_flight, &err) != MS_OK) {
-        ms_proto_conn_broken(c);
+        ms_serve_conn_broken(c);
         return false;
     }
     ms_request_queue_sent(&c->queue, r, chunk);
@@ -224,7 +224,7 @@ bool ms_proto_conn_send_chunk(ms_fair_link *link, void *arg)
     }
     if (!c->queue.count) {
         if (c->door->draining)
-            ms_proto_conn_fail(c, MS_PROTO_E_SHUTTING_DOWN, 0, "server shutting down");
+            ms_serve_conn_fail(c, MS_PROTO_E_SHUTTING_DOWN, 0, "server shutting down");
         return false;
     }
     return evbuffer_get_length(out) < MS_PROTO_CONN_HIGH_WATER;
@@ -236,7 +236,7 @@ static void on_output_change(struct evbuffer *buffer, const struct evbuffer_cb_i
                              void *arg)
 {
     (void)buffer;
-    ms_proto_conn *c = arg;
+    ms_serve_conn *c = arg;
     if (info->n_deleted || (info->orig_size == 0 && info->n_added))
         c->last_send_progress = ms_now_seconds();
 }
@@ -261,9 +261,9 @@ static void describe_peer(evutil_socket_t fd, char *out, size_t size)
     }
 }
 
-ms_proto_conn *ms_proto_conn_new(ms_proto_door_shared *door, evutil_socket_t fd, bool rejected)
+ms_serve_conn *ms_serve_conn_new(ms_serve_door_shared *door, evutil_socket_t fd, bool rejected)
 {
-    ms_proto_conn *c = calloc(1, sizeof *c);
+    ms_serve_conn *c = calloc(1, sizeof *c);
     if (!c) {
         evutil_closesocket(fd);
         return NULL;
@@ -300,11 +300,11 @@ ms_proto_conn *ms_proto_conn_new(ms_proto_door_shared *door, evutil_socket_t fd,
     bufferevent_set_max_single_write(c->bev, 1u << 20);
     bufferevent_enable(c->bev, EV_READ | EV_WRITE);
     if (rejected)
-        ms_proto_conn_fail(c, MS_PROTO_E_TOO_MANY_CONNECTIONS, 0, "too many connections");
+        ms_serve_conn_fail(c, MS_PROTO_E_TOO_MANY_CONNECTIONS, 0, "too many connections");
     return c;
 }
 
-void ms_proto_conn_free(ms_proto_conn *c)
+void ms_serve_conn_free(ms_serve_conn *c)
 {
     if (!c)
         return;
@@ -325,7 +325,7 @@ void ms_proto_conn_free(ms_proto_conn *c)
     free(c);
 }
 
-bool ms_proto_conn_sweep(ms_proto_conn *c, double now)
+bool ms_serve_conn_sweep(ms_serve_conn *c, double now)
 {
     if (c->state == MS_CONN_CLOSING)
         return now - c->closing_since < MS_PROTO_CONN_LINGER_SECONDS;
@@ -337,7 +337,7 @@ bool ms_proto_conn_sweep(ms_proto_conn *c, double now)
         (!idle_ms || idle_ms > MS_PROTO_CONN_HANDSHAKE_SECONDS * 1000u))
         idle_ms = MS_PROTO_CONN_HANDSHAKE_SECONDS * 1000u;
     if (idle_ms && !c->queue.count && (now - c->last_frame_at) * 1000.0 > idle_ms)
-        ms_proto_conn_fail(c, MS_PROTO_E_IDLE_TIMEOUT, idle_ms, "idle time-out");
+        ms_serve_conn_fail(c, MS_PROTO_E_IDLE_TIMEOUT, idle_ms, "idle time-out");
     /* A slow reader: bytes wait for it and it has read none of them for
      * send_timeout. Its slot, queue and buffers go; the ERROR may never reach
      * it, the linger bounds the rest. */
@@ -348,22 +348,22 @@ bool ms_proto_conn_sweep(ms_proto_conn *c, double now)
         snprintf(text, sizeof text, "no send progress for %.0f s", c->door->send_timeout_s);
         ms_server_log(server_of(c), "binary: connection dropped: %s (%zu bytes waiting)", text,
                       waiting);
-        ms_proto_conn_fail(c, MS_PROTO_E_IDLE_TIMEOUT, (uint64_t)(c->door->send_timeout_s * 1000),
+        ms_serve_conn_fail(c, MS_PROTO_E_IDLE_TIMEOUT, (uint64_t)(c->door->send_timeout_s * 1000),
                            text);
     }
     return true;
 }
 
-void ms_proto_conn_drain(ms_proto_conn *c)
+void ms_serve_conn_drain(ms_serve_conn *c)
 {
     if (c->state == MS_CONN_CLOSING)
         return;
     bufferevent_disable(c->bev, EV_READ);
     if (!c->queue.count)
-        ms_proto_conn_fail(c, MS_PROTO_E_SHUTTING_DOWN, 0, "server shutting down");
+        ms_serve_conn_fail(c, MS_PROTO_E_SHUTTING_DOWN, 0, "server shutting down");
 }
 
-void ms_proto_conn_flush_now(ms_proto_conn *c)
+void ms_serve_conn_flush_now(ms_serve_conn *c)
 {
     evbuffer_write(output(c), bufferevent_getfd(c->bev));
 }

@@ -37,14 +37,14 @@ struct ms_model;
 #define MS_PROTO_CONN_HANDSHAKE_SECONDS 10u     /* most time from accept to HELLO */
 
 /* What the door shares with its connections. */
-typedef struct ms_proto_door_shared {
+typedef struct ms_serve_door_shared {
     struct ms_server *server;
     ms_fair_scheduler scheduler;
     bool draining;
     /* Limits announced in HELLO_REPLY, derived once from the config. */
     ms_proto_hello_reply limits;
     double send_timeout_s; /* config send_timeout: most time without send progress */
-} ms_proto_door_shared;
+} ms_serve_door_shared;
 
 typedef struct ms_open_model {
     uint32_t handle;        /* 0 = free slot */
@@ -58,10 +58,10 @@ typedef enum ms_conn_state {
     MS_CONN_CLOSING, /* fatal ERROR queued: flushing, then lingering for EOF */
 } ms_conn_state;
 
-typedef struct ms_proto_conn {
+typedef struct ms_serve_conn {
     ms_fair_link link;               /* first: the scheduler hands it back */
-    struct ms_proto_conn *prev, *next; /* the door's list of connections */
-    ms_proto_door_shared *door;
+    struct ms_serve_conn *prev, *next; /* the door's list of connections */
+    ms_serve_door_shared *door;
     struct bufferevent *bev;
     ms_conn_state state;
     bool rejected;                   /* over the connection limit: not counted */
@@ -87,50 +87,50 @@ typedef struct ms_proto_conn {
     uint64_t requests, bytes_sent;   /* requests received, payload bytes sent */
     uint16_t fatal_code;             /* the fatal ERROR that closed it; 0: none */
     char model_names[256];           /* every model opened, comma separated (cut at the size) */
-} ms_proto_conn;
+} ms_serve_conn;
 
 /* Takes fd; creates the bufferevent and starts reading. NULL on failure (fd
  * closed). A rejected connection gets ERROR TOO_MANY_CONNECTIONS and closes. */
-ms_proto_conn *ms_proto_conn_new(ms_proto_door_shared *door, evutil_socket_t fd, bool rejected);
+ms_serve_conn *ms_serve_conn_new(ms_serve_door_shared *door, evutil_socket_t fd, bool rejected);
 
 /* Frees everything the connection holds (queued requests, model references,
  * buffers; payload references already in the output buffer are released by
  * libevent as the buffer is freed). */
-void ms_proto_conn_free(ms_proto_conn *conn);
+void ms_serve_conn_free(ms_serve_conn *conn);
 
 /* Sends a fatal ERROR and starts the lingering close. */
-void ms_proto_conn_fail(ms_proto_conn *conn, uint16_t code, uint64_t detail, const char *text);
+void ms_serve_conn_fail(ms_serve_conn *conn, uint16_t code, uint64_t detail, const char *text);
 
 /* Sends an ERROR ending requests request_id .. request_id + count - 1 (count
- * 0: connection level); an always-fatal code goes through ms_proto_conn_fail. */
-void ms_proto_conn_send_error(ms_proto_conn *conn, uint16_t code, uint32_t request_id,
+ * 0: connection level); an always-fatal code goes through ms_serve_conn_fail. */
+void ms_serve_conn_send_error(ms_serve_conn *conn, uint16_t code, uint32_t request_id,
                               uint32_t count, uint64_t detail, const char *text);
 /* Encodes and queues a control message. */
-void ms_proto_conn_send_message(ms_proto_conn *conn, const ms_proto_message *msg);
+void ms_serve_conn_send_message(ms_serve_conn *conn, const ms_proto_message *msg);
 /* Closes without a word: stops answering, flushes what is queued, shuts down
  * writing and waits (a while) for the peer's end of stream. */
-void ms_proto_conn_start_closing(ms_proto_conn *conn);
+void ms_serve_conn_start_closing(ms_serve_conn *conn);
 /* The output buffer refused bytes: close without another word. */
-void ms_proto_conn_broken(ms_proto_conn *conn);
+void ms_serve_conn_broken(ms_serve_conn *conn);
 
 /* Answers one decoded message (ms_proto_requests.c). */
-void ms_proto_conn_handle_message(ms_proto_conn *conn, const ms_proto_message *msg);
+void ms_serve_conn_handle_message(ms_serve_conn *conn, const ms_proto_message *msg);
 
 /* The scheduler's callback: sends one payload chunk. */
-bool ms_proto_conn_send_chunk(ms_fair_link *link, void *arg);
+bool ms_serve_conn_send_chunk(ms_fair_link *link, void *arg);
 
 /* One non-blocking attempt to write what the output buffer holds (before a
  * forced close). */
-void ms_proto_conn_flush_now(ms_proto_conn *conn);
+void ms_serve_conn_flush_now(ms_serve_conn *conn);
 
 /* Periodic check (idle time-out, linger time-out). Returns false when the
  * connection must be freed now. */
-bool ms_proto_conn_sweep(ms_proto_conn *conn, double now);
+bool ms_serve_conn_sweep(ms_serve_conn *conn, double now);
 
 /* Drain: stop reading; close at once if nothing is queued. */
-void ms_proto_conn_drain(ms_proto_conn *conn);
+void ms_serve_conn_drain(ms_serve_conn *conn);
 
 /* Called by the connection when it is finished: the door unlinks and frees it. */
-void ms_proto_door_connection_done(ms_proto_door_shared *door, ms_proto_conn *conn);
+void ms_serve_door_connection_done(ms_serve_door_shared *door, ms_serve_conn *conn);
 
 #endif

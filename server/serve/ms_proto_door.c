@@ -14,19 +14,19 @@
 #include "ms_frame_out.h"
 #include "ms_progress.h"
 #include "ms_proto_conn.h"
-#include "ms_server.h"
+#include "ms_server_internal.h"
 
 #define SWEEP_INTERVAL_US 250000
 #define MAX_REJECTED_LINGERING 64u
 #define CHUNKS_PER_TURN 64u
 #define SERVER_NAME "meshserve/0.1"
 
-struct ms_proto_door {
-    ms_proto_door_shared shared; /* first: connections point at it */
+struct ms_serve_door {
+    ms_serve_door_shared shared; /* first: connections point at it */
     struct evconnlistener *listener;
     struct event *sweep;
     struct event *accept_resume;  /* after running out of descriptors */
-    ms_proto_conn *connections;  /* doubly linked */
+    ms_serve_conn *connections;  /* doubly linked */
     size_t connection_count, rejected_count;
     /* ERROR TOO_MANY_CONNECTIONS, encoded once: what a connection past the
      * lingering cap gets straight from accept, so none is closed unanswered. */
@@ -34,11 +34,11 @@ struct ms_proto_door {
     size_t reject_frame_length;
 };
 
-static ms_proto_door *door_of(ms_proto_door_shared *shared) { return (ms_proto_door *)shared; }
+static ms_serve_door *door_of(ms_serve_door_shared *shared) { return (ms_serve_door *)shared; }
 
-void ms_proto_door_connection_done(ms_proto_door_shared *shared, ms_proto_conn *c)
+void ms_serve_door_connection_done(ms_serve_door_shared *shared, ms_serve_conn *c)
 {
-    ms_proto_door *door = door_of(shared);
+    ms_serve_door *door = door_of(shared);
     if (c->prev)
         c->prev->next = c->next;
     else
@@ -50,14 +50,14 @@ void ms_proto_door_connection_done(ms_proto_door_shared *shared, ms_proto_conn *
         door->rejected_count--;
     else
         shared->server->metrics.binary_connections--;
-    ms_proto_conn_free(c);
+    ms_serve_conn_free(c);
 }
 
 static void on_accept(struct evconnlistener *listener, evutil_socket_t fd, struct sockaddr *address,
                       int length, void *arg)
 {
     (void)listener, (void)address, (void)length;
-    ms_proto_door *door = arg;
+    ms_serve_door *door = arg;
     ms_server *s = door->shared.server;
     bool rejected = s->metrics.binary_connections >= s->config.max_clients;
     if (rejected && door->rejected_count >= MAX_REJECTED_LINGERING) {
@@ -74,7 +74,7 @@ static void on_accept(struct evconnlistener *listener, evutil_socket_t fd, struc
     }
     int one = 1;
     setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
-    ms_proto_conn *c = ms_proto_conn_new(&door->shared, fd, rejected);
+    ms_serve_conn *c = ms_serve_conn_new(&door->shared, fd, rejected);
     if (!c)
         return;
     c->next = door->connections;
@@ -93,7 +93,7 @@ static void on_accept(struct evconnlistener *listener, evutil_socket_t fd, struc
 static void resume_accepting(evutil_socket_t fd, short what, void *arg)
 {
     (void)fd, (void)what;
-    ms_proto_door *door = arg;
+    ms_serve_door *door = arg;
     if (!door->shared.draining)
         evconnlistener_enable(door->listener);
 }
@@ -102,7 +102,7 @@ static void resume_accepting(evutil_socket_t fd, short what, void *arg)
  * listener stays readable: pause accepting for a moment instead of spinning. */
 static void on_accept_error(struct evconnlistener *listener, void *arg)
 {
-    ms_proto_door *door = arg;
+    ms_serve_door *door = arg;
     int error = EVUTIL_SOCKET_ERROR();
     ms_server_log(door->shared.server, "binary: accept failed: %s", strerror(error));
     if (error == EMFILE || error == ENFILE || error == ENOBUFS || error == ENOMEM) {
@@ -116,12 +116,12 @@ static void on_accept_error(struct evconnlistener *listener, void *arg)
 static void sweep(evutil_socket_t fd, short what, void *arg)
 {
     (void)fd, (void)what;
-    ms_proto_door *door = arg;
+    ms_serve_door *door = arg;
     double now = ms_now_seconds();
-    for (ms_proto_conn *c = door->connections, *next; c; c = next) {
+    for (ms_serve_conn *c = door->connections, *next; c; c = next) {
         next = c->next;
-        if (!ms_proto_conn_sweep(c, now))
-            ms_proto_door_connection_done(&door->shared, c);
+        if (!ms_serve_conn_sweep(c, now))
+            ms_serve_door_connection_done(&door->shared, c);
     }
 }
 
@@ -150,11 +150,11 @@ static void announce_limits(const ms_server_config *config, ms_proto_hello_reply
     r->server_name_length = (uint16_t)strlen(SERVER_NAME);
 }
 
-ms_status ms_proto_door_open(ms_server *server, ms_proto_door **out, uint16_t *bound_port,
+ms_status ms_serve_door_open(ms_server *server, ms_serve_door **out, uint16_t *bound_port,
                              ms_error *err)
 {
     *out = NULL;
-    ms_proto_door *door = calloc(1, sizeof *door);
+    ms_serve_door *door = calloc(1, sizeof *door);
     if (!door)
         return ms_error_set(err, MS_ERR_NOMEM, "binary: out of memory");
     door->shared.server = server;
@@ -172,7 +172,7 @@ ms_status ms_proto_door_open(ms_server *server, ms_proto_door **out, uint16_t *b
     evbuffer_free(frame);
     door->shared.send_timeout_s = server->config.send_timeout_s;
     ms_status st = ms_fair_scheduler_init(&door->shared.scheduler, server->base,
-                                          ms_proto_conn_send_chunk, door, CHUNKS_PER_TURN, err);
+                                          ms_serve_conn_send_chunk, door, CHUNKS_PER_TURN, err);
     if (st != MS_OK) {
         free(door);
         return st;
@@ -192,7 +192,7 @@ ms_status ms_proto_door_open(ms_server *server, ms_proto_door **out, uint16_t *b
         v6->sin6_port = htons((uint16_t)server->config.port);
         ss_length = sizeof *v6;
     } else {
-        ms_proto_door_close(door);
+        ms_serve_door_close(door);
         return ms_error_set(err, MS_ERR_ARG, "binary: bad bind address '%s' (a numeric IPv4 or IPv6 address)", address);
     }
     door->listener = evconnlistener_new_bind(
@@ -201,7 +201,7 @@ ms_status ms_proto_door_open(ms_server *server, ms_proto_door **out, uint16_t *b
     if (!door->listener) {
         st = ms_error_set(err, MS_ERR_IO, "binary: cannot listen on %s:%u: %s", address,
                           server->config.port, strerror(errno));
-        ms_proto_door_close(door);
+        ms_serve_door_close(door);
         return st;
     }
     evconnlistener_set_error_cb(door->listener, on_accept_error);
@@ -217,30 +217,30 @@ ms_status ms_proto_door_open(ms_server *server, ms_proto_door **out, uint16_t *b
     door->sweep = event_new(server->base, -1, EV_PERSIST, sweep, door);
     struct timeval tick = {0, SWEEP_INTERVAL_US};
     if (!door->sweep || event_add(door->sweep, &tick) != 0) {
-        ms_proto_door_close(door);
+        ms_serve_door_close(door);
         return ms_error_set(err, MS_ERR_NOMEM, "binary: cannot create the sweep timer");
     }
     *out = door;
     return MS_OK;
 }
 
-void ms_proto_door_drain(ms_proto_door *door)
+void ms_serve_door_drain(ms_serve_door *door)
 {
     if (!door || door->shared.draining)
         return;
     door->shared.draining = true;
     if (door->listener)
         evconnlistener_disable(door->listener);
-    for (ms_proto_conn *c = door->connections; c; c = c->next)
-        ms_proto_conn_drain(c);
+    for (ms_serve_conn *c = door->connections; c; c = c->next)
+        ms_serve_conn_drain(c);
 }
 
-size_t ms_proto_door_connection_count(const ms_proto_door *door)
+size_t ms_serve_door_connection_count(const ms_serve_door *door)
 {
     return door ? door->connection_count : 0;
 }
 
-void ms_proto_door_close(ms_proto_door *door)
+void ms_serve_door_close(ms_serve_door *door)
 {
     if (!door)
         return;
@@ -251,9 +251,9 @@ void ms_proto_door_close(ms_proto_door *door)
     if (door->accept_resume)
         event_free(door->accept_resume);
     while (door->connections) {
-        ms_proto_conn_fail(door->connections, MS_PROTO_E_SHUTTING_DOWN, 0, "server shutting down");
-        ms_proto_conn_flush_now(door->connections);
-        ms_proto_door_connection_done(&door->shared, door->connections);
+        ms_serve_conn_fail(door->connections, MS_PROTO_E_SHUTTING_DOWN, 0, "server shutting down");
+        ms_serve_conn_flush_now(door->connections);
+        ms_serve_door_connection_done(&door->shared, door->connections);
     }
     ms_fair_scheduler_free(&door->shared.scheduler);
     free(door);

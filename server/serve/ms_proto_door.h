@@ -15,22 +15,22 @@
 #include "ms_error.h"
 
 struct ms_server;
-typedef struct ms_proto_door ms_proto_door;
+typedef struct ms_serve_door ms_serve_door;
 
 /* Listens on the server's bind address and port (0: ephemeral); *bound_port
  * receives the port actually bound. */
-ms_status ms_proto_door_open(struct ms_server *server, ms_proto_door **door, uint16_t *bound_port,
+ms_status ms_serve_door_open(struct ms_server *server, ms_serve_door **door, uint16_t *bound_port,
                              ms_error *err);
 
 /* Stops accepting and reading; every connection finishes the requests it has
  * queued, then gets ERROR SHUTTING_DOWN and is closed. */
-void ms_proto_door_drain(ms_proto_door *door);
+void ms_serve_door_drain(ms_serve_door *door);
 
 /* Connections still open (lingering closes included). */
-size_t ms_proto_door_connection_count(const ms_proto_door *door);
+size_t ms_serve_door_connection_count(const ms_serve_door *door);
 
 /* Closes every connection at once (SHUTTING_DOWN best effort) and frees the
  * door. Accepts NULL. */
-void ms_proto_door_close(ms_proto_door *door);
+void ms_serve_door_close(ms_serve_door *door);
 
 #endif

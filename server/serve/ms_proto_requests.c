@@ -15,14 +15,14 @@
 #include "ms_proto_conn.h"
 #include "ms_proto_range.h"
 #include "ms_registry.h"
-#include "ms_server.h"
+#include "ms_server_internal.h"
 
 #define INDEX_CHUNK_BYTES (1u << 20)
 #define CATALOGUE_FRAME_BYTES 65536u
 
-static struct evbuffer *output(const ms_proto_conn *c) { return bufferevent_get_output(c->bev); }
-static ms_server *server_of(const ms_proto_conn *c) { return c->door->server; }
-static ms_server_metrics *metrics_of(const ms_proto_conn *c) { return &c->door->server->metrics; }
+static struct evbuffer *output(const ms_serve_conn *c) { return bufferevent_get_output(c->bev); }
+static ms_server *server_of(const ms_serve_conn *c) { return c->door->server; }
+static ms_server_metrics *metrics_of(const ms_serve_conn *c) { return &c->door->server->metrics; }
 
 /* Compares without an early exit, so timing does not leak the token. */
 static bool token_matches(const char *given, size_t length, const char *expected)
@@ -36,7 +36,7 @@ static bool token_matches(const char *given, size_t length, const char *expected
 
 /* Token bucket of section 7: rate max_request_rate, burst max_batch. Returns 0
  * when n requests may go now (and takes them), else the milliseconds to wait. */
-static uint64_t rate_take(ms_proto_conn *c, uint32_t n)
+static uint64_t rate_take(ms_serve_conn *c, uint32_t n)
 {
     double rate = c->door->limits.max_request_rate;
     if (rate <= 0)
@@ -54,30 +54,30 @@ static uint64_t rate_take(ms_proto_conn *c, uint32_t n)
     return wait ? wait : 1;
 }
 
-static bool rate_allows(ms_proto_conn *c, uint32_t request_id, uint32_t n)
+static bool rate_allows(ms_serve_conn *c, uint32_t request_id, uint32_t n)
 {
     uint64_t wait = rate_take(c, n);
     if (!wait)
         return true;
-    ms_proto_conn_send_error(c, MS_PROTO_E_RATE_LIMITED, request_id, n, wait, "request rate limit");
+    ms_serve_conn_send_error(c, MS_PROTO_E_RATE_LIMITED, request_id, n, wait, "request rate limit");
     return false;
 }
 
 /* The duplicate-id rule of section 5 (fatal). */
-static bool ids_free(ms_proto_conn *c, uint32_t first, uint32_t count)
+static bool ids_free(ms_serve_conn *c, uint32_t first, uint32_t count)
 {
     for (uint32_t i = 0; i < count; ++i)
         if (ms_request_queue_find(&c->queue, first + i)) {
             char text[64];
             snprintf(text, sizeof text, "request id %u is already outstanding", first + i);
-            ms_proto_conn_fail(c, MS_PROTO_E_DUPLICATE_REQUEST_ID, first + i, text);
+            ms_serve_conn_fail(c, MS_PROTO_E_DUPLICATE_REQUEST_ID, first + i, text);
             return false;
         }
     return true;
 }
 
 /* Steps of a model and those this connection may read (section 8). */
-static void model_steps(const ms_proto_conn *c, const ms_model *m, uint8_t *geometry, uint8_t *apo,
+static void model_steps(const ms_serve_conn *c, const ms_model *m, uint8_t *geometry, uint8_t *apo,
                         uint8_t *permitted_geometry, uint8_t *permitted_apo)
 {
     ms_access grant = ms_access_grant(m, c->token_accepted);
@@ -95,7 +95,7 @@ static bool model_servable(const ms_model *m)
            ms_archive_get_header(m->archive)->cell_count <= MS_PROTO_MAX_CELLS;
 }
 
-static ms_open_model *find_handle(ms_proto_conn *c, uint32_t handle)
+static ms_open_model *find_handle(ms_serve_conn *c, uint32_t handle)
 {
     for (unsigned i = 0; handle && i < MS_PROTO_CONN_MAX_OPEN_MODELS; ++i)
         if (c->models[i].handle == handle)
@@ -104,24 +104,24 @@ static ms_open_model *find_handle(ms_proto_conn *c, uint32_t handle)
 }
 
 /* Ends a queued request with ERROR CANCELLED. */
-static void cancel_request(ms_proto_conn *c, ms_cell_request *r)
+static void cancel_request(ms_serve_conn *c, ms_cell_request *r)
 {
     ms_server_metrics *m = metrics_of(c);
     m->queued_requests--;
     m->queued_bytes -= r->end - r->next;
     ms_request_queue_remove(&c->queue, r);
-    ms_proto_conn_send_error(c, MS_PROTO_E_CANCELLED, r->id, 1, 0, "cancelled");
+    ms_serve_conn_send_error(c, MS_PROTO_E_CANCELLED, r->id, 1, 0, "cancelled");
     free(r);
 }
 
 /* --- Messages --------------------------------------------------------------- */
 
-static void handle_hello(ms_proto_conn *c, const ms_proto_hello *h)
+static void handle_hello(ms_serve_conn *c, const ms_proto_hello *h)
 {
     uint16_t version;
     if (ms_proto_choose_version(h->min_version, h->max_version, MS_PROTO_MIN_VERSION,
                                 MS_PROTO_VERSION, &version) != MS_OK) {
-        ms_proto_conn_fail(c, MS_PROTO_E_UNSUPPORTED_VERSION,
+        ms_serve_conn_fail(c, MS_PROTO_E_UNSUPPORTED_VERSION,
                            MS_PROTO_MIN_VERSION | (uint64_t)MS_PROTO_VERSION << 16,
                            "no common protocol version");
         return;
@@ -137,25 +137,26 @@ static void handle_hello(ms_proto_conn *c, const ms_proto_hello *h)
     reply.body.hello_reply.version = version;
     reply.body.hello_reply.capabilities = c->capabilities;
     reply.body.hello_reply.server_flags = c->token_accepted ? MS_PROTO_SERVER_TOKEN_ACCEPTED : 0;
-    ms_proto_conn_send_message(c, &reply);
+    ms_serve_conn_send_message(c, &reply);
     if (c->state != MS_CONN_CLOSING)
         c->state = MS_CONN_READY;
 }
 
-static void handle_list_catalogue(ms_proto_conn *c, uint32_t id)
+static void handle_list_catalogue(ms_serve_conn *c, uint32_t id)
 {
     metrics_of(c)->binary_requests++;
     c->requests++;
     if (!ids_free(c, id, 1) || !rate_allows(c, id, 1))
         return;
-    const ms_registry *r = &server_of(c)->registry;
+    const ms_registry *r = server_of(c)->registry;
+    size_t model_count = ms_registry_count(r);
     ms_proto_catalogue_entry entries[CATALOGUE_FRAME_BYTES / MS_PROTO_CATALOGUE_ENTRY_FIXED];
     char titles[CATALOGUE_FRAME_BYTES / MS_PROTO_CATALOGUE_ENTRY_FIXED][64];
     uint32_t limit =
         c->client_max_frame < CATALOGUE_FRAME_BYTES ? c->client_max_frame : CATALOGUE_FRAME_BYTES;
     size_t count = 0, body = MS_PROTO_CATALOGUE_FIXED, listed = 0;
-    for (size_t i = 0; i <= r->count; ++i) {
-        const ms_model *m = i < r->count ? r->models[i] : NULL;
+    for (size_t i = 0; i <= model_count; ++i) {
+        const ms_model *m = i < model_count ? ms_registry_model(r, i) : NULL;
         if (m && !model_servable(m))
             continue;
         size_t name_length = m ? strlen(m->entry.name) : 0;
@@ -172,7 +173,7 @@ static void handle_list_catalogue(ms_proto_conn *c, uint32_t id)
             msg.flags = !m || listed == 65535 ? MS_PROTO_FLAG_LAST : 0;
             msg.body.catalogue.entries = entries;
             msg.body.catalogue.entry_count = (uint16_t)count;
-            ms_proto_conn_send_message(c, &msg);
+            ms_serve_conn_send_message(c, &msg);
             if (!m || listed == 65535)
                 return;
             /* The pending title was written at titles[count]: move it. */
@@ -198,7 +199,7 @@ static void handle_list_catalogue(ms_proto_conn *c, uint32_t id)
 }
 
 /* Adds name to the connection's list of models for the access log, once. */
-static void note_model_name(ms_proto_conn *c, const char *name)
+static void note_model_name(ms_serve_conn *c, const char *name)
 {
     size_t have = strlen(c->model_names), length = strlen(name);
     for (const char *p = c->model_names; (p = strstr(p, name)); p += length)
@@ -209,7 +210,7 @@ static void note_model_name(ms_proto_conn *c, const char *name)
     snprintf(c->model_names + have, sizeof c->model_names - have, "%s%s", have ? "," : "", name);
 }
 
-static void handle_open_model(ms_proto_conn *c, uint32_t id, const ms_proto_open_model *o)
+static void handle_open_model(ms_serve_conn *c, uint32_t id, const ms_proto_open_model *o)
 {
     metrics_of(c)->binary_requests++;
     c->requests++;
@@ -218,9 +219,9 @@ static void handle_open_model(ms_proto_conn *c, uint32_t id, const ms_proto_open
     char name[MS_PROTO_MAX_MODEL_NAME + 1];
     memcpy(name, o->name, o->name_length);
     name[o->name_length] = '\0';
-    ms_model *m = ms_registry_find(&server_of(c)->registry, name);
+    ms_model *m = ms_registry_find(server_of(c)->registry, name);
     if (!m || !model_servable(m)) {
-        ms_proto_conn_send_error(c, MS_PROTO_E_UNKNOWN_MODEL, id, 1, 0, "no such model");
+        ms_serve_conn_send_error(c, MS_PROTO_E_UNKNOWN_MODEL, id, 1, 0, "no such model");
         return;
     }
     ms_open_model *slot = find_handle(c, 0);
@@ -228,7 +229,7 @@ static void handle_open_model(ms_proto_conn *c, uint32_t id, const ms_proto_open
         if (!c->models[i].handle)
             slot = &c->models[i];
     if (!slot) {
-        ms_proto_conn_send_error(c, MS_PROTO_E_TOO_MANY_MODELS, id, 1,
+        ms_serve_conn_send_error(c, MS_PROTO_E_TOO_MANY_MODELS, id, 1,
                                  MS_PROTO_CONN_MAX_OPEN_MODELS, "too many open models");
         return;
     }
@@ -261,7 +262,7 @@ static void handle_open_model(ms_proto_conn *c, uint32_t id, const ms_proto_open
     model_steps(c, m, &mo->geometry_steps, &mo->apo_steps, &mo->permitted_geometry_steps,
                 &mo->permitted_apo_steps);
     slot->grant = ms_access_grant(m, c->token_accepted);
-    ms_proto_conn_send_message(c, &msg);
+    ms_serve_conn_send_message(c, &msg);
     uint32_t chunk = c->client_max_frame - MS_PROTO_INDEX_DATA_FIXED;
     if (chunk > INDEX_CHUNK_BYTES)
         chunk = INDEX_CHUNK_BYTES;
@@ -270,7 +271,7 @@ static void handle_open_model(ms_proto_conn *c, uint32_t id, const ms_proto_open
         ms_error err;
         if (ms_frame_out_index_data(output(c), id, offset, offset + n == wire_size, wire + offset,
                                     n, m, &metrics_of(c)->transfers_in_flight, &err) != MS_OK)
-            ms_proto_conn_broken(c);
+            ms_serve_conn_broken(c);
         offset += n;
     }
 }
@@ -288,7 +289,7 @@ static bool matches(const ms_cell_request *r, const request_match *m)
 
 /* Cancels every queued request that matches. The matches are collected
  * before any removal, because a removal reorders the heap. */
-static void cancel_matching(ms_proto_conn *c, const request_match *m)
+static void cancel_matching(ms_serve_conn *c, const request_match *m)
 {
     ms_cell_request **doomed = c->queue.count ? malloc(c->queue.count * sizeof *doomed) : NULL;
     if (!doomed) { /* empty queue, or out of memory: rescan after each removal */
@@ -311,11 +312,11 @@ static void cancel_matching(ms_proto_conn *c, const request_match *m)
     free(doomed);
 }
 
-static void handle_close_model(ms_proto_conn *c, uint32_t handle)
+static void handle_close_model(ms_serve_conn *c, uint32_t handle)
 {
     ms_open_model *slot = find_handle(c, handle);
     if (!slot) {
-        ms_proto_conn_send_error(c, MS_PROTO_E_UNKNOWN_MODEL, 0, 0, handle,
+        ms_serve_conn_send_error(c, MS_PROTO_E_UNKNOWN_MODEL, 0, 0, handle,
                                  "no open model with this handle");
         return;
     }
@@ -325,7 +326,7 @@ static void handle_close_model(ms_proto_conn *c, uint32_t handle)
     memset(slot, 0, sizeof *slot);
 }
 
-static void handle_cancel(ms_proto_conn *c, const ms_proto_cancel *k)
+static void handle_cancel(ms_serve_conn *c, const ms_proto_cancel *k)
 {
     if (k->flags & MS_PROTO_CANCEL_ALL) {
         while (c->queue.count)
@@ -355,7 +356,7 @@ typedef struct resolved {
 } resolved;
 
 /* What may be sent (ms_access_resolve), and only from an intact payload. */
-static resolved resolve_entry(const ms_proto_conn *c, const ms_open_model *slot,
+static resolved resolve_entry(const ms_serve_conn *c, const ms_open_model *slot,
                               const ms_proto_cell_request *e)
 {
     ms_proto_byte_range range;
@@ -380,7 +381,7 @@ static const char *entry_error_text(uint16_t code)
     }
 }
 
-static void handle_request_cells(ms_proto_conn *c, uint32_t first_id,
+static void handle_request_cells(ms_serve_conn *c, uint32_t first_id,
                                  const ms_proto_request_cells *b)
 {
     const ms_proto_hello_reply *limits = &c->door->limits;
@@ -391,14 +392,14 @@ static void handle_request_cells(ms_proto_conn *c, uint32_t first_id,
     if (slot)
         slot->model->requests += n;
     if (!slot) {
-        ms_proto_conn_send_error(c, MS_PROTO_E_UNKNOWN_MODEL, first_id, n, b->model_handle,
+        ms_serve_conn_send_error(c, MS_PROTO_E_UNKNOWN_MODEL, first_id, n, b->model_handle,
                                  "no open model with this handle");
         return;
     }
     if (!(c->capabilities & MS_PROTO_CAP_APO))
         for (uint32_t i = 0; i < n; ++i)
             if (b->entries[i].stream == MS_PROTO_STREAM_APO) {
-                ms_proto_conn_send_error(c, MS_PROTO_E_FIELD_OUT_OF_RANGE, first_id, n,
+                ms_serve_conn_send_error(c, MS_PROTO_E_FIELD_OUT_OF_RANGE, first_id, n,
                                          MS_PROTO_REQUEST_CELLS_FIXED +
                                              MS_PROTO_CELL_REQUEST_SIZE * i + 4,
                                          "APO requested without the APO capability");
@@ -407,13 +408,13 @@ static void handle_request_cells(ms_proto_conn *c, uint32_t first_id,
     if (!ids_free(c, first_id, n))
         return;
     if (c->queue.count + n > limits->max_outstanding) {
-        ms_proto_conn_send_error(c, MS_PROTO_E_TOO_MANY_OUTSTANDING, first_id, n,
+        ms_serve_conn_send_error(c, MS_PROTO_E_TOO_MANY_OUTSTANDING, first_id, n,
                                  limits->max_outstanding, "too many outstanding requests");
         return;
     }
     resolved *ranges = malloc(n * sizeof *ranges);
     if (!ranges) {
-        ms_proto_conn_send_error(c, MS_PROTO_E_INTERNAL, first_id, n, 0, "out of memory");
+        ms_serve_conn_send_error(c, MS_PROTO_E_INTERNAL, first_id, n, 0, "out of memory");
         return;
     }
     uint64_t bytes = 0;
@@ -424,11 +425,11 @@ static void handle_request_cells(ms_proto_conn *c, uint32_t first_id,
     }
     ms_error err;
     if (c->queue.queued_bytes + bytes > limits->max_queued_bytes) {
-        ms_proto_conn_send_error(c, MS_PROTO_E_QUEUE_FULL, first_id, n, limits->max_queued_bytes,
+        ms_serve_conn_send_error(c, MS_PROTO_E_QUEUE_FULL, first_id, n, limits->max_queued_bytes,
                                  "too many payload bytes queued");
     } else if (rate_allows(c, first_id, n)) {
         if (ms_request_queue_reserve(&c->queue, n, &err) != MS_OK) {
-            ms_proto_conn_send_error(c, MS_PROTO_E_INTERNAL, first_id, n, 0, "out of memory");
+            ms_serve_conn_send_error(c, MS_PROTO_E_INTERNAL, first_id, n, 0, "out of memory");
         } else {
             bool queued = false;
             for (uint32_t i = 0; i < n && c->state != MS_CONN_CLOSING; ++i) {
@@ -436,15 +437,15 @@ static void handle_request_cells(ms_proto_conn *c, uint32_t first_id,
                 const resolved *r = &ranges[i];
                 ms_cell_request *q = r->code || r->start == r->end ? NULL : malloc(sizeof *q);
                 if (r->code) {
-                    ms_proto_conn_send_error(c, r->code, first_id + i, 1, r->detail,
+                    ms_serve_conn_send_error(c, r->code, first_id + i, 1, r->detail,
                                              entry_error_text(r->code));
                 } else if (r->start == r->end) {
                     if (ms_frame_out_payload(output(c), first_id + i, e->cell_id, e->stream,
                                              r->start, r->end, true, NULL, 0, slot->model,
                                              &metrics_of(c)->transfers_in_flight, &err) != MS_OK)
-                        ms_proto_conn_broken(c);
+                        ms_serve_conn_broken(c);
                 } else if (!q) {
-                    ms_proto_conn_send_error(c, MS_PROTO_E_INTERNAL, first_id + i, 1, 0,
+                    ms_serve_conn_send_error(c, MS_PROTO_E_INTERNAL, first_id + i, 1, 0,
                                              "out of memory");
                 } else {
                     memset(q, 0, sizeof *q);
@@ -469,7 +470,7 @@ static void handle_request_cells(ms_proto_conn *c, uint32_t first_id,
     free(ranges);
 }
 
-void ms_proto_conn_handle_message(ms_proto_conn *c, const ms_proto_message *msg)
+void ms_serve_conn_handle_message(ms_serve_conn *c, const ms_proto_message *msg)
 {
     switch ((ms_proto_type)msg->type) {
     case MS_PROTO_HELLO: handle_hello(c, &msg->body.hello); break;
@@ -483,7 +484,7 @@ void ms_proto_conn_handle_message(ms_proto_conn *c, const ms_proto_message *msg)
     case MS_PROTO_PING: {
         ms_proto_message pong = {.type = MS_PROTO_PONG};
         pong.body.ping = msg->body.ping;
-        ms_proto_conn_send_message(c, &pong);
+        ms_serve_conn_send_message(c, &pong);
         break;
     }
     case MS_PROTO_PONG: break;
@@ -492,7 +493,7 @@ void ms_proto_conn_handle_message(ms_proto_conn *c, const ms_proto_message *msg)
             ms_server_log(server_of(c), "binary: client reported %s: %.*s",
                           ms_proto_error_name(msg->body.error.code),
                           (int)msg->body.error.text_length, msg->body.error.text);
-            ms_proto_conn_start_closing(c);
+            ms_serve_conn_start_closing(c);
         }
         break;
     default: /* the decoder lets no other type through */ break;

@@ -63,7 +63,13 @@ ms_status ms_model_check_payload(ms_model *m, uint32_t cell, bool apo, bool *fir
     return MS_OK;
 }
 
-void ms_registry_release(ms_registry *r)
+struct ms_registry {
+    char *dir;
+    ms_model **models; /* sorted by name, each holding one reference */
+    size_t count;
+};
+
+void ms_registry_free(ms_registry *r)
 {
     if (!r)
         return;
@@ -71,8 +77,12 @@ void ms_registry_release(ms_registry *r)
         ms_model_unref(r->models[i]);
     free(r->models);
     free(r->dir);
-    memset(r, 0, sizeof *r);
+    free(r);
 }
+
+size_t ms_registry_count(const ms_registry *r) { return r->count; }
+
+ms_model *ms_registry_model(const ms_registry *r, size_t i) { return r->models[i]; }
 
 ms_model *ms_registry_find(const ms_registry *r, const char *name)
 {
@@ -217,10 +227,10 @@ static ms_model *load_model(const char *dir, const ms_catalog_entry *entry,
     return m;
 }
 
-ms_status ms_registry_scan(const char *dir, const ms_registry *previous, ms_registry *out,
+ms_status ms_registry_scan(const char *dir, const ms_registry *previous, ms_registry **result,
                            ms_registry_warn_fn warn, void *warn_arg, ms_error *err)
 {
-    memset(out, 0, sizeof *out);
+    *result = NULL;
     struct stat st;
     if (stat(dir, &st) != 0 || !S_ISDIR(st.st_mode))
         return ms_error_set(err, MS_ERR_IO, "%s: not a directory", dir);
@@ -228,11 +238,14 @@ ms_status ms_registry_scan(const char *dir, const ms_registry *previous, ms_regi
     ms_status status = ms_catalog_load(dir, &catalog, err);
     if (status != MS_OK)
         return status;
-    out->dir = strdup(dir);
-    out->models = calloc(catalog.count ? catalog.count : 1, sizeof *out->models);
-    if (!out->dir || !out->models) {
+    ms_registry *out = calloc(1, sizeof *out);
+    if (out) {
+        out->dir = strdup(dir);
+        out->models = calloc(catalog.count ? catalog.count : 1, sizeof *out->models);
+    }
+    if (!out || !out->dir || !out->models) {
         ms_catalog_free(&catalog);
-        ms_registry_release(out);
+        ms_registry_free(out);
         return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory", dir);
     }
     /* The catalogue is sorted by name, so the registry is too. */
@@ -242,5 +255,6 @@ ms_status ms_registry_scan(const char *dir, const ms_registry *previous, ms_regi
             out->models[out->count++] = m;
     }
     ms_catalog_free(&catalog);
+    *result = out;
     return MS_OK;
 }

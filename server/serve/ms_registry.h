@@ -62,23 +62,27 @@ enum {
     MS_PAYLOAD_APO_GONE = 32,
 };
 
-typedef struct ms_registry {
-    char *dir;
-    ms_model **models; /* sorted by name, each holding one reference */
-    size_t count;
-} ms_registry;
+/* The models of one scan of a directory, sorted by name, each held by one
+ * reference: opaque, built by ms_registry_scan, released by ms_registry_free. */
+typedef struct ms_registry ms_registry;
 
 /* Called with a one-line message for each model skipped during a scan. */
 typedef void (*ms_registry_warn_fn)(void *arg, const char *message);
 
-/* Builds *out from DIR. previous (may be NULL) lends its open archives. A
- * catalogue that cannot be read at all is an error; models that fail are warned
- * about and skipped. */
-ms_status ms_registry_scan(const char *dir, const ms_registry *previous, ms_registry *out,
+/* Builds *out (the caller's, ms_registry_free) from DIR. previous (may be
+ * NULL) lends its open archives. A catalogue that cannot be read at all is an
+ * error (*out NULL); models that fail are warned about and skipped. */
+ms_status ms_registry_scan(const char *dir, const ms_registry *previous, ms_registry **out,
                            ms_registry_warn_fn warn, void *warn_arg, ms_error *err);
 
-/* Drops the registry's references (models still held elsewhere stay alive). */
-void ms_registry_release(ms_registry *registry);
+/* Drops the registry's references (models still held elsewhere stay alive) and
+ * frees it; NULL is a no-op. */
+void ms_registry_free(ms_registry *registry);
+
+/* The number of models, and model i (0 <= i < count, by name) without taking
+ * a reference. */
+size_t ms_registry_count(const ms_registry *registry);
+ms_model *ms_registry_model(const ms_registry *registry, size_t i);
 
 /* The model named name (validated first), or NULL. Does not take a reference. */
 ms_model *ms_registry_find(const ms_registry *registry, const char *name);

@@ -1,5 +1,5 @@
 /* meshserve process core: see ms_server.h. */
-#include "ms_server.h"
+#include "ms_server_internal.h"
 
 #include <errno.h>
 #include <event2/event.h>
@@ -61,6 +61,8 @@ void ms_server_access_log(ms_server *s, const char *door, const char *client, co
         fflush(s->access_log);
 }
 
+bool ms_server_access_log_on(const ms_server *s) { return s->access_log != NULL; }
+
 ms_status ms_server_reopen_access_log(ms_server *s, ms_error *err)
 {
     if (!s->config.access_log)
@@ -79,13 +81,13 @@ static void warn_model(void *arg, const char *message) { ms_server_log(arg, "%s"
 
 ms_status ms_server_rescan(ms_server *s, ms_error *err)
 {
-    ms_registry fresh;
-    ms_status st = ms_registry_scan(s->config.archive_dir, &s->registry, &fresh, warn_model, s, err);
+    ms_registry *fresh;
+    ms_status st = ms_registry_scan(s->config.archive_dir, s->registry, &fresh, warn_model, s, err);
     if (st != MS_OK) {
         s->metrics.rescan_failures++;
         return st;
     }
-    ms_registry_release(&s->registry);
+    ms_registry_free(s->registry);
     s->registry = fresh;
     s->metrics.rescans++;
     return MS_OK;
@@ -96,7 +98,7 @@ static void check_drained(evutil_socket_t fd, short what, void *arg)
     (void)fd, (void)what;
     ms_server *s = arg;
     double waited = ms_now_seconds() - s->drain_started_at;
-    size_t connections = ms_proto_door_connection_count(s->binary);
+    size_t connections = ms_serve_door_connection_count(s->binary);
     if ((s->metrics.transfers_in_flight == 0 && connections == 0) || waited > DRAIN_LIMIT_SECONDS) {
         if (s->metrics.transfers_in_flight || connections)
             ms_server_log(s, "drain: giving up on %llu transfers and %zu connections after %.0f s",
@@ -113,8 +115,8 @@ void ms_server_drain(ms_server *s)
     s->drain_started_at = ms_now_seconds();
     ms_server_log(s, "draining: %llu transfers in flight, %zu binary connections",
                   (unsigned long long)s->metrics.transfers_in_flight,
-                  ms_proto_door_connection_count(s->binary));
-    ms_proto_door_drain(s->binary);
+                  ms_serve_door_connection_count(s->binary));
+    ms_serve_door_drain(s->binary);
     struct timeval tick = {0, 50000};
     s->drain_timer = event_new(s->base, -1, EV_PERSIST, check_drained, s);
     if (!s->drain_timer || event_add(s->drain_timer, &tick) != 0)
@@ -130,7 +132,7 @@ static void on_signal(evutil_socket_t signal_number, short what, void *arg)
         if (ms_server_reopen_access_log(s, &err) != MS_OK)
             ms_server_log(s, "%s; still writing to the previous one", err.text);
         if (ms_server_rescan(s, &err) == MS_OK)
-            ms_server_log(s, "rescan: %zu models", s->registry.count);
+            ms_server_log(s, "rescan: %zu models", ms_registry_count(s->registry));
         else
             ms_server_log(s, "rescan failed, keeping the previous models: %s", err.text);
         return;
@@ -164,9 +166,10 @@ static void raise_descriptor_limit(ms_server *s)
                       (unsigned long long)rl.rlim_cur);
 }
 
-ms_status ms_server_start(ms_server *s, ms_server_config *config, ms_error *err)
+static void server_stop(ms_server *s);
+
+static ms_status server_start(ms_server *s, ms_server_config *config, ms_error *err)
 {
-    memset(s, 0, sizeof *s);
     s->config = *config;
     memset(config, 0, sizeof *config);
     s->started_at = ms_now_seconds();
@@ -193,18 +196,18 @@ ms_status ms_server_start(ms_server *s, ms_server_config *config, ms_error *err)
     if (event_settings)
         event_config_free(event_settings);
     if (!s->base) {
-        ms_server_stop(s);
+        server_stop(s);
         return ms_error_set(err, MS_ERR_NOMEM, "cannot create the event loop");
     }
-    st = ms_proto_door_open(s, &s->binary, &s->bound_port, err);
+    st = ms_serve_door_open(s, &s->binary, &s->bound_port, err);
     if (st != MS_OK) {
-        ms_server_stop(s);
+        server_stop(s);
         return st;
     }
     if (s->config.http_enabled) {
         st = ms_http_door_open(s, &s->http, &s->bound_http_port, err);
         if (st != MS_OK) {
-            ms_server_stop(s);
+            server_stop(s);
             return st;
         }
     }
@@ -212,13 +215,13 @@ ms_status ms_server_start(ms_server *s, ms_server_config *config, ms_error *err)
     for (int i = 0; i < 3; ++i) {
         s->signal_events[i] = evsignal_new(s->base, signals[i], on_signal, s);
         if (!s->signal_events[i] || event_add(s->signal_events[i], NULL) != 0) {
-            ms_server_stop(s);
+            server_stop(s);
             return ms_error_set(err, MS_ERR_IO, "cannot install signal handlers");
         }
     }
     signal(SIGPIPE, SIG_IGN);
     if (s->config.port_file && (st = write_port_file(s, err)) != MS_OK) {
-        ms_server_stop(s);
+        server_stop(s);
         return st;
     }
     return MS_OK;
@@ -226,9 +229,9 @@ ms_status ms_server_start(ms_server *s, ms_server_config *config, ms_error *err)
 
 void ms_server_run(ms_server *s) { event_base_dispatch(s->base); }
 
-void ms_server_stop(ms_server *s)
+static void server_stop(ms_server *s)
 {
-    ms_proto_door_close(s->binary);
+    ms_serve_door_close(s->binary);
     s->binary = NULL;
     ms_http_door_close(s->http);
     s->http = NULL;
@@ -239,9 +242,43 @@ void ms_server_stop(ms_server *s)
         event_free(s->drain_timer);
     if (s->base)
         event_base_free(s->base);
-    ms_registry_release(&s->registry);
+    ms_registry_free(s->registry);
     ms_server_config_free(&s->config);
     if (s->access_log)
         fclose(s->access_log);
     memset(s, 0, sizeof *s);
 }
+
+ms_status ms_server_new(ms_server_config *config, ms_server **out, ms_error *err)
+{
+    *out = NULL;
+    ms_server *s = calloc(1, sizeof *s);
+    if (!s) {
+        ms_server_config_free(config);
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory for the server");
+    }
+    ms_status st = server_start(s, config, err);
+    if (st != MS_OK) {
+        free(s);
+        return st;
+    }
+    *out = s;
+    return MS_OK;
+}
+
+void ms_server_free(ms_server *s)
+{
+    if (!s)
+        return;
+    server_stop(s);
+    free(s);
+}
+
+size_t ms_server_model_count(const ms_server *s) { return ms_registry_count(s->registry); }
+const char *ms_server_archive_dir(const ms_server *s) { return s->config.archive_dir; }
+uint16_t ms_server_bound_port(const ms_server *s, bool http)
+{
+    return http ? s->bound_http_port : s->bound_port;
+}
+const ms_server_metrics *ms_server_get_metrics(const ms_server *s) { return &s->metrics; }
+double ms_server_started_at(const ms_server *s) { return s->started_at; }

@@ -10,7 +10,6 @@
 
 #include <stdbool.h>
 #include <stdint.h>
-#include <stdio.h>
 
 #include "ms_error.h"
 #include "ms_registry.h"
@@ -40,27 +39,17 @@ typedef struct ms_server_metrics {
 } ms_server_metrics;
 
 typedef struct ms_http_door ms_http_door;
-typedef struct ms_proto_door ms_proto_door;
+typedef struct ms_serve_door ms_serve_door;
 
-typedef struct ms_server {
-    struct event_base *base;
-    ms_server_config config;     /* owned */
-    ms_registry registry;
-    ms_server_metrics metrics;
-    ms_proto_door *binary;
-    ms_http_door *http;
-    uint16_t bound_port, bound_http_port;
-    struct event *signal_events[3];
-    struct event *drain_timer;
-    bool draining;
-    double drain_started_at;
-    double started_at;
-    FILE *access_log;            /* config.access_log, open for appending; NULL: none */
-} ms_server;
+/* The server: opaque; its doors see inside (ms_server_internal.h). */
+typedef struct ms_server ms_server;
 
 /* Loads the registry, binds the doors, installs the signal handlers. Takes
- * ownership of config. On failure everything is released. */
-ms_status ms_server_start(ms_server *server, ms_server_config *config, ms_error *err);
+ * ownership of config (also on failure, when everything is released). */
+ms_status ms_server_new(ms_server_config *config, ms_server **server, ms_error *err);
+
+/* Closes the doors and releases everything; NULL is a no-op. */
+void ms_server_free(ms_server *server);
 
 /* Runs the loop until a drain completes. */
 void ms_server_run(ms_server *server);
@@ -71,7 +60,14 @@ ms_status ms_server_rescan(ms_server *server, ms_error *err);
 /* Stops accepting, lets transfers in progress finish, then ends the loop. */
 void ms_server_drain(ms_server *server);
 
-void ms_server_stop(ms_server *server);
+/* What meshserve reports: the models served, their directory, the ports
+ * bound (the binary door's, or with http the HTTP door's: 0 when off), the
+ * counters and when the server started (ms_now_seconds). */
+size_t ms_server_model_count(const ms_server *server);
+const char *ms_server_archive_dir(const ms_server *server);
+uint16_t ms_server_bound_port(const ms_server *server, bool http);
+const ms_server_metrics *ms_server_get_metrics(const ms_server *server);
+double ms_server_started_at(const ms_server *server);
 
 /* True when payload (a cell's geometry, or its APO chunk when apo) is intact:
  * checked against its CRC once, on first use (ms_model_check_payload); a
@@ -89,10 +85,14 @@ bool ms_server_payload_intact(const ms_server *server, ms_model *model, uint32_t
  *    time (http), "status": "ok" or the fatal ERROR's name that closed the
  *    connection (binary), the HTTP status code (http)}
  * One line per binary connection, written when it is freed; one per HTTP
- * request. Nothing when no access log is configured. */
+ * answer. Nothing when no access log is configured. */
 void ms_server_access_log(ms_server *server, const char *door, const char *client,
                           const char *model, const char *request, uint64_t requests,
                           uint64_t bytes, double seconds, const char *status);
+
+/* True when an access log is configured (callers skip building a line
+ * otherwise). */
+bool ms_server_access_log_on(const ms_server *server);
 
 /* Opens config.access_log anew (what SIGHUP does after a rotation moved the
  * file away); on failure the previous file stays in use and the error is

@@ -1,5 +1,6 @@
 /* meshserve settings: see ms_server_config.h. */
 #include "ms_server_config.h"
+#include "ms_parse_number.h"
 
 #include <errno.h>
 #include <stddef.h>
@@ -37,19 +38,6 @@ void ms_server_config_free(ms_server_config *c)
     memset(c, 0, sizeof *c);
 }
 
-static bool parse_uint(const char *text, uint64_t min, uint64_t max, uint64_t *out)
-{
-    if (!text || *text < '0' || *text > '9')
-        return false;
-    char *end;
-    errno = 0;
-    unsigned long long v = strtoull(text, &end, 10);
-    if (errno || *end || v < min || v > max)
-        return false;
-    *out = v;
-    return true;
-}
-
 static ms_status set_string(char **slot, const char *value, const char *where, ms_error *err)
 {
     char *copy = strdup(value);
@@ -79,7 +67,7 @@ ms_status ms_server_config_set(ms_server_config *c, const char *key, const char 
         const char *key;
         size_t offset;
         int width; /* 4 or 8 bytes */
-        uint64_t min, max;
+        int64_t min, max;
     } numbers[] = {
         {"port", offsetof(ms_server_config, port), 4, 0, 65535},
         {"max_clients", offsetof(ms_server_config, max_clients), 4, 1, 100000},
@@ -97,11 +85,10 @@ ms_status ms_server_config_set(ms_server_config *c, const char *key, const char 
     for (size_t i = 0; i < sizeof numbers / sizeof *numbers; ++i) {
         if (strcmp(key, numbers[i].key) != 0)
             continue;
-        uint64_t v;
-        if (!parse_uint(value, numbers[i].min, numbers[i].max, &v))
-            return ms_error_set(err, MS_ERR_RANGE, "%s: %s wants an integer in [%llu, %llu], got '%s'",
-                                where, key, (unsigned long long)numbers[i].min,
-                                (unsigned long long)numbers[i].max, value);
+        int64_t v;
+        ms_error e;
+        if (ms_option_int(key, value, numbers[i].min, numbers[i].max, &v, &e) != MS_OK)
+            return ms_error_set(err, MS_ERR_RANGE, "%s: %s", where, e.text);
         char *slot = (char *)c + numbers[i].offset;
         if (numbers[i].width == 4) {
             uint32_t v32 = (uint32_t)v;
@@ -112,12 +99,13 @@ ms_status ms_server_config_set(ms_server_config *c, const char *key, const char 
         return MS_OK;
     }
     if (!strcmp(key, "http_port")) {
-        uint64_t v;
+        int64_t v;
+        ms_error e;
         if (!strcmp(value, "off")) {
             c->http_enabled = 0;
             return MS_OK;
         }
-        if (!parse_uint(value, 0, 65535, &v))
+        if (ms_option_int(key, value, 0, 65535, &v, &e) != MS_OK)
             return ms_error_set(err, MS_ERR_RANGE, "%s: http_port wants 0..65535 or 'off', got '%s'",
                                 where, value);
         c->http_port = (uint32_t)v;
