@@ -28,7 +28,7 @@ static bool listed(const char *name)
 }
 
 /* Every shell script in the folder is in the list (the sourced helper, the
- * Python generator and the camera paths folder aside), so a new one is tested. */
+ * Python generator and the camera paths and scenes folders aside), so a new one is tested. */
 static void test_every_script_is_listed(void **state)
 {
     (void)state;
@@ -37,7 +37,7 @@ static void test_every_script_is_listed(void **state)
     size_t seen = 0;
     for (struct dirent *e; (e = readdir(dir));) {
         const char *n = e->d_name;
-        if (n[0] == '.' || strcmp(n, "paths") == 0 || strcmp(n, "script-usage.sh") == 0 ||
+        if (n[0] == '.' || strcmp(n, "paths") == 0 || strcmp(n, "scenes") == 0 || strcmp(n, "script-usage.sh") == 0 ||
             strcmp(n, "gen-camera-paths.py") == 0)
             continue;
         if (!listed(n))

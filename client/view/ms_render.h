@@ -82,6 +82,28 @@ typedef enum ms_shading {
     MS_SHADING_CELL_ID = 3
 } ms_shading;
 
+/* Effects a shader program can hold (bits). Each is compiled in only when the
+ * program is built with its bit (ms_render_program_source); the single-model
+ * viewer builds MS_EFFECTS_VIEWER, a scene the effects it calls for
+ * (ms_scene_effects, docs/SCENES.md). */
+typedef enum ms_effect {
+    MS_EFFECT_DETAIL_NORMALS = 1 << 0, /* APO normals, with the self-shadowing factor */
+    MS_EFFECT_SPECULAR = 1 << 1,       /* Blinn-Phong highlight (glossy materials) */
+    MS_EFFECT_TWO_SIDED = 1 << 2,      /* a back face lit as its other side (open scans) */
+    MS_EFFECT_HAZE = 1 << 3,           /* exponential haze with distance */
+    MS_EFFECT_IMPOSTORS = 1 << 4,      /* image stand-ins for far objects */
+    MS_EFFECT_DISPLACEMENT = 1 << 5    /* tessellated relief on declared surfaces */
+} ms_effect;
+#define MS_EFFECT_COUNT 6
+#define MS_EFFECTS_ALL ((1u << MS_EFFECT_COUNT) - 1)
+/* What meshview drew before scenes: APO, the head light's highlight, two-sided. */
+#define MS_EFFECTS_VIEWER (MS_EFFECT_DETAIL_NORMALS | MS_EFFECT_SPECULAR | MS_EFFECT_TWO_SIDED)
+
+/* The effect's name in scene files and reports ("detail_normals", "specular",
+ * "two_sided", "haze", "impostors", "displacement"); NULL for anything but one
+ * bit of MS_EFFECTS_ALL. */
+const char *ms_effect_name(unsigned effect);
+
 typedef struct ms_render_options {
     ms_shading shading;
     bool apo;                 /* APO normals where a chunk is held; false: geometric */

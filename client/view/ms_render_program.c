@@ -115,6 +115,19 @@ ms_status ms_render_program_build(ms_render_program *p, bool wireframe, ms_error
     return MS_OK;
 }
 
+const char *ms_effect_name(unsigned effect)
+{
+    switch (effect) {
+    case MS_EFFECT_DETAIL_NORMALS: return "detail_normals";
+    case MS_EFFECT_SPECULAR: return "specular";
+    case MS_EFFECT_TWO_SIDED: return "two_sided";
+    case MS_EFFECT_HAZE: return "haze";
+    case MS_EFFECT_IMPOSTORS: return "impostors";
+    case MS_EFFECT_DISPLACEMENT: return "displacement";
+    default: return NULL;
+    }
+}
+
 void ms_render_program_free(ms_render_program *p)
 {
     if (p->program)
