@@ -15,6 +15,8 @@
 
 #include "ms_render_internal.h"
 
+#define MS_RENDER_PROGRAM_CACHE 16
+
 typedef struct gpu_mesh {
     GLuint vao, vbo, ibo;
     uint32_t vertex_count, triangle_count;
@@ -59,7 +61,10 @@ struct ms_render {
     ms_archive_cell *records;
     render_cell *cells;
     ms_render_split split;
-    ms_render_program program[2]; /* without and with the wireframe overlay */
+    /* composed programs, built on first use (effect set x wireframe), replaced
+     * round robin when full */
+    ms_render_program programs[MS_RENDER_PROGRAM_CACHE];
+    uint32_t program_count, program_next;
     ms_render_texels texels;
     uint32_t *frame_cells;      /* cells with triangles in the latest frame */
     uint32_t frame_cell_count;
@@ -79,6 +84,51 @@ void ms_render_options_default(ms_render_options *o)
     o->apo_nearest = true;
     o->smooth = true;
     o->background[0] = o->background[1] = o->background[2] = 0.02f;
+    o->effects = MS_EFFECTS_VIEWER;
+    o->albedo[0] = 0.72f, o->albedo[1] = 0.69f, o->albedo[2] = 0.64f;
+    o->specular = 0.18f;
+    o->shininess = 40.0f;
+    o->two_sided = true;
+    o->haze_density = 0.0f;
+    o->light_count = 1;
+    o->lights[0].kind = MS_RENDER_LIGHT_HEAD;
+    o->lights[0].colour[0] = o->lights[0].colour[1] = o->lights[0].colour[2] = 1.0f;
+    o->placed = false;
+    for (int i = 0; i < 16; ++i)
+        o->placement[i] = i % 5 == 0 ? 1.0 : 0.0;
+    o->clear = true;
+}
+
+/* The program for an effect set and variant: from the cache, else built. */
+static ms_status find_program(ms_render *r, unsigned effects, bool wireframe, const ms_render_program **out,
+                              ms_error *err)
+{
+    for (uint32_t i = 0; i < r->program_count; ++i)
+        if (r->programs[i].effects == effects && r->programs[i].wireframe == wireframe) {
+            *out = &r->programs[i];
+            return MS_OK;
+        }
+    uint32_t slot;
+    if (r->program_count < MS_RENDER_PROGRAM_CACHE)
+        slot = r->program_count;
+    else {
+        slot = r->program_next;
+        r->program_next = (r->program_next + 1) % MS_RENDER_PROGRAM_CACHE;
+        ms_render_program_free(&r->programs[slot]);
+    }
+    ms_status st = ms_render_program_build(&r->programs[slot], effects, wireframe, err);
+    if (st != MS_OK) {
+        /* an evicted slot is empty now: the last program fills the hole */
+        if (slot < r->program_count) {
+            r->programs[slot] = r->programs[r->program_count - 1];
+            memset(&r->programs[--r->program_count], 0, sizeof r->programs[0]);
+        }
+        return st;
+    }
+    if (slot == r->program_count)
+        r->program_count++;
+    *out = &r->programs[slot];
+    return MS_OK;
 }
 
 /* ---- per-cell GPU state ---------------------------------------------------- */
@@ -184,9 +234,10 @@ ms_status ms_render_new(const ms_archive_header *header, const ms_archive_cell *
     }
     memcpy(r->records, cells, n * sizeof *r->records);
     ms_render_split_init(&r->split, &r->header, r->records);
-    st = ms_render_program_build(&r->program[0], false, err);
+    const ms_render_program *unused;
+    st = find_program(r, MS_EFFECTS_VIEWER, false, &unused, err);
     if (st == MS_OK)
-        st = ms_render_program_build(&r->program[1], true, err);
+        st = find_program(r, MS_EFFECTS_VIEWER, true, &unused, err);
     if (st == MS_OK)
         st = ms_render_texels_init(&r->texels, err);
     if (st != MS_OK) {
@@ -205,8 +256,8 @@ void ms_render_free(ms_render *r)
         for (uint32_t i = 0; i < r->header.cell_count; ++i)
             drop_cell(r, &r->cells[i]);
     ms_render_texels_free(&r->texels);
-    ms_render_program_free(&r->program[0]);
-    ms_render_program_free(&r->program[1]);
+    for (uint32_t i = 0; i < r->program_count; ++i)
+        ms_render_program_free(&r->programs[i]);
     ms_render_split_free(&r->split);
     free(r->records);
     free(r->cells);
@@ -518,6 +569,81 @@ static void cell_tint(uint32_t cell, float rgb[3])
         rgb[a] = (float)(out[i][a] * out[i][a]); /* roughly to linear */
 }
 
+/* MS_ERR_ARG unless the scene parts of the options are usable. */
+static ms_status check_scene_options(const ms_render_options *o, ms_error *err)
+{
+    if (o->effects & ~(unsigned)MS_EFFECTS_ALL)
+        return ms_error_set(err, MS_ERR_ARG, "render: effects 0x%x unknown", o->effects);
+    if (o->light_count > MS_RENDER_MAX_LIGHTS)
+        return ms_error_set(err, MS_ERR_ARG, "render: %u lights, at most %d", o->light_count, MS_RENDER_MAX_LIGHTS);
+    if (!(o->shininess >= 1.0f) || !isfinite(o->shininess) || !(o->specular >= 0.0f) || !isfinite(o->specular) ||
+        !(o->haze_density >= 0.0f) || !isfinite(o->haze_density))
+        return ms_error_set(err, MS_ERR_ARG, "render: shininess, specular or haze density out of range");
+    for (unsigned i = 0; i < o->light_count; ++i) {
+        const ms_render_light *l = &o->lights[i];
+        if ((unsigned)l->kind > MS_RENDER_LIGHT_POINT)
+            return ms_error_set(err, MS_ERR_ARG, "render: light %u of kind %d unknown", i, (int)l->kind);
+        if (l->kind == MS_RENDER_LIGHT_POINT && !(l->range > 0.0))
+            return ms_error_set(err, MS_ERR_ARG, "render: point light %u without a positive range", i);
+        double len2 = l->vector[0] * l->vector[0] + l->vector[1] * l->vector[1] + l->vector[2] * l->vector[2];
+        if (!isfinite(len2) || (l->kind == MS_RENDER_LIGHT_DIRECTIONAL && !(len2 > 0.0)))
+            return ms_error_set(err, MS_ERR_ARG, "render: light %u has no usable vector", i);
+    }
+    if (o->placed) {
+        double scale = sqrt(o->placement[0] * o->placement[0] + o->placement[1] * o->placement[1] +
+                            o->placement[2] * o->placement[2]);
+        for (int i = 0; i < 16; ++i)
+            if (!isfinite(o->placement[i]))
+                return ms_error_set(err, MS_ERR_ARG, "render: placement not finite");
+        if (!(scale > 0.0))
+            return ms_error_set(err, MS_ERR_ARG, "render: placement of scale 0");
+    }
+    return MS_OK;
+}
+
+/* column-major a * b, 4x4 */
+static void mat4_mul(const double a[16], const double b[16], double out[16])
+{
+    for (int c = 0; c < 4; ++c)
+        for (int r = 0; r < 4; ++r) {
+            double v = 0;
+            for (int k = 0; k < 4; ++k)
+                v += a[4 * k + r] * b[4 * c + k];
+            out[4 * c + r] = v;
+        }
+}
+
+/* The lights in eye space for the shader (see cell.frag.glsl). */
+static void set_lights(const ms_render_program *p, const ms_render_options *o, const double view[16])
+{
+    float eye[4 * MS_RENDER_MAX_LIGHTS] = {0}, colour[3 * MS_RENDER_MAX_LIGHTS] = {0},
+          range[MS_RENDER_MAX_LIGHTS] = {0};
+    for (unsigned i = 0; i < o->light_count; ++i) {
+        const ms_render_light *l = &o->lights[i];
+        double v[3] = {0, 0, 0};
+        if (l->kind == MS_RENDER_LIGHT_DIRECTIONAL) {
+            for (int r = 0; r < 3; ++r)
+                v[r] = view[r] * l->vector[0] + view[4 + r] * l->vector[1] + view[8 + r] * l->vector[2];
+            double len = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+            for (int r = 0; r < 3; ++r)
+                v[r] /= len;
+        } else if (l->kind == MS_RENDER_LIGHT_POINT) {
+            for (int r = 0; r < 3; ++r)
+                v[r] = view[r] * l->vector[0] + view[4 + r] * l->vector[1] + view[8 + r] * l->vector[2] + view[12 + r];
+        }
+        for (int r = 0; r < 3; ++r) {
+            eye[4 * i + r] = (float)v[r];
+            colour[3 * i + r] = l->colour[r];
+        }
+        eye[4 * i + 3] = l->kind == MS_RENDER_LIGHT_DIRECTIONAL ? 0.0f : (l->kind == MS_RENDER_LIGHT_POINT ? 1.0f : 2.0f);
+        range[i] = (float)(l->kind == MS_RENDER_LIGHT_POINT ? l->range : 1.0);
+    }
+    glUniform1i(p->light_count, (GLint)o->light_count);
+    glUniform4fv(p->light_eye, MS_RENDER_MAX_LIGHTS, eye);
+    glUniform3fv(p->light_colour, MS_RENDER_MAX_LIGHTS, colour);
+    glUniform1fv(p->light_range, MS_RENDER_MAX_LIGHTS, range);
+}
+
 ms_status ms_render_draw(ms_render *r, const ms_camera *camera, const ms_render_options *o,
                          ms_render_draw_stats *stats, ms_error *err)
 {
@@ -530,33 +656,51 @@ ms_status ms_render_draw(ms_render *r, const ms_camera *camera, const ms_render_
         return st;
     if ((unsigned)o->shading > MS_SHADING_CELL_ID)
         return ms_error_set(err, MS_ERR_ARG, "render: shading mode %d unknown", (int)o->shading);
+    st = check_scene_options(o, err);
+    if (st != MS_OK)
+        return st;
+    const ms_render_program *p;
+    st = find_program(r, o->effects, o->wireframe && o->shading != MS_SHADING_CELL_ID, &p, err);
+    if (st != MS_OK)
+        return st;
     double view[16], proj[16];
     ms_render_camera_matrices(camera, view, proj);
+    /* the model's placement goes into the view: cells are placed in doubles */
+    double model_view[16];
+    if (o->placed)
+        mat4_mul(view, o->placement, model_view);
+    else
+        memcpy(model_view, view, sizeof model_view);
+    double scale = o->placed ? sqrt(o->placement[0] * o->placement[0] + o->placement[1] * o->placement[1] +
+                                    o->placement[2] * o->placement[2])
+                             : 1.0;
     float projection[16], world_to_eye[9];
     for (int i = 0; i < 16; ++i)
         projection[i] = (float)proj[i];
     for (int col = 0; col < 3; ++col)
         for (int row = 0; row < 3; ++row)
-            world_to_eye[3 * col + row] = (float)view[4 * col + row];
+            world_to_eye[3 * col + row] = (float)(model_view[4 * col + row] / scale);
     int width = (int)lround(camera->width), height = (int)lround(camera->height);
     glViewport(0, 0, width, height);
-    float bg[3] = {0, 0, 0};
-    for (int a = 0; a < 3 && o->shading != MS_SHADING_CELL_ID; ++a) {
-        float c = isfinite(o->background[a]) ? o->background[a] : 0.0f;
-        bg[a] = o->shading == MS_SHADING_NORMALS ? c : srgb_encode(c);
+    if (o->clear) {
+        float bg[3] = {0, 0, 0};
+        for (int a = 0; a < 3 && o->shading != MS_SHADING_CELL_ID; ++a) {
+            float c = isfinite(o->background[a]) ? o->background[a] : 0.0f;
+            bg[a] = o->shading == MS_SHADING_NORMALS ? c : srgb_encode(c);
+        }
+        glClearColor(bg[0], bg[1], bg[2], o->shading == MS_SHADING_CELL_ID ? 0.0f : 1.0f);
+        glClearDepth(1.0);
+        glDepthMask(GL_TRUE);
+        glColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+        glDisable(GL_SCISSOR_TEST);
+        glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
     }
-    glClearColor(bg[0], bg[1], bg[2], o->shading == MS_SHADING_CELL_ID ? 0.0f : 1.0f);
-    glClearDepth(1.0);
     glDepthMask(GL_TRUE);
-    glColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
-    glDisable(GL_SCISSOR_TEST);
-    glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
     glEnable(GL_DEPTH_TEST);
     glDepthFunc(GL_LESS);
     glDisable(GL_CULL_FACE);
     glDisable(GL_BLEND);
     glDisable(GL_FRAMEBUFFER_SRGB); /* the shader encodes sRGB itself */
-    const ms_render_program *p = &r->program[o->wireframe && o->shading != MS_SHADING_CELL_ID];
     glUseProgram(p->program);
     glUniformMatrix4fv(p->projection, 1, GL_FALSE, projection);
     glUniformMatrix3fv(p->world_to_eye, 1, GL_FALSE, world_to_eye);
@@ -564,12 +708,22 @@ ms_status ms_render_draw(ms_render *r, const ms_camera *camera, const ms_render_
     glUniform1i(p->shading, (int)o->shading);
     glUniform1i(p->apo_nearest, o->apo_nearest);
     glUniform1i(p->smooth, o->smooth);
+    glUniform3fv(p->albedo, 1, o->albedo);
+    set_lights(p, o, view);
+    /* uniforms of effects not compiled in have location -1: GL ignores them */
+    glUniform1f(p->specular, o->specular);
+    glUniform1f(p->shininess, o->shininess);
+    glUniform1i(p->two_sided, o->two_sided);
+    glUniform1f(p->haze_density, o->haze_density);
+    glUniform3fv(p->haze_colour, 1, o->haze_colour);
     glActiveTexture(GL_TEXTURE0);
     glBindTexture(GL_TEXTURE_BUFFER, r->texels.texture);
     glUniform1i(p->apo_words, 0);
+    bool detail_program = (p->effects & MS_EFFECT_DETAIL_NORMALS) != 0;
     uint32_t cap = o->apo_depth_cap ? o->apo_depth_cap : UINT32_MAX;
     uint32_t drawn = 0;
     uint64_t triangles = 0;
+    bool any_detail = false;
     for (uint32_t k = 0; k < r->frame_cell_count; ++k) {
         uint32_t cell = r->frame_cells[k];
         const render_cell *c = &r->cells[cell];
@@ -578,12 +732,13 @@ ms_status ms_render_draw(ms_render *r, const ms_camera *camera, const ms_render_
         double origin[3], side;
         ms_render_cell_cube(&r->header, &r->records[cell], origin, &side);
         float modelview[16], tint[3];
-        ms_render_cell_modelview(view, origin, side, modelview);
+        ms_render_cell_modelview(model_view, origin, side, modelview);
         cell_tint(cell, tint);
         glUniformMatrix4fv(p->modelview, 1, GL_FALSE, modelview);
         glUniform1ui(p->cell_number, cell);
         glUniform3fv(p->cell_tint, 1, tint);
-        bool apo_on = o->apo && c->apo.count > 0;
+        bool apo_on = detail_program && o->apo && c->apo.count > 0;
+        any_detail = any_detail || apo_on;
         glUniform1i(p->apo_on, apo_on);
         if (apo_on) {
             uint32_t last = c->apo.levels - 1;
@@ -602,6 +757,18 @@ ms_status ms_render_draw(ms_render *r, const ms_camera *camera, const ms_render_
     if (stats) {
         stats->cells_drawn = drawn;
         stats->triangles_drawn = triangles;
+        stats->effects_compiled = p->effects;
+        unsigned ran = 0;
+        bool lit = o->shading == MS_SHADING_LIT || o->shading == MS_SHADING_CELLS;
+        if (drawn && any_detail && o->shading != MS_SHADING_CELL_ID)
+            ran |= MS_EFFECT_DETAIL_NORMALS;
+        if (drawn && lit && o->specular > 0.0f && o->light_count > 0)
+            ran |= MS_EFFECT_SPECULAR;
+        if (drawn && lit && o->two_sided)
+            ran |= MS_EFFECT_TWO_SIDED;
+        if (drawn && lit && o->haze_density > 0.0f)
+            ran |= MS_EFFECT_HAZE;
+        stats->effects_ran = ran & p->effects;
     }
     GLenum e = glGetError();
     if (e != GL_NO_ERROR)

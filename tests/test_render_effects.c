@@ -1,0 +1,374 @@
+/* Composed shader programs (ms_render.h, "Composed programs"; docs/SCENES.md):
+ *  - the assembled fragment source holds an effect's code exactly when the
+ *    effect is in the set, for every set and both variants, and no effect
+ *    directive is left for the driver (the markers are identifiers only the
+ *    effect's code uses);
+ *  - every set of the implemented effects compiles and links;
+ *  - for each effect, a program without it renders the same picture (RGBA32F,
+ *    every channel within 2e-6) as a program with it whose input does not call
+ *    for it (no APO, specular 0, one-sided, haze 0), and the effect called for
+ *    changes the picture (so the comparison can fail);
+ *  - the draw reports which effects were compiled and which ran;
+ *  - a placed model draws where its placement puts it. */
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <cmocka.h>
+
+#include "ms_render.h"
+#include "ms_test.h"
+#include "ms_test_render.h"
+
+#define SIZE 64
+#define SAME_TOLERANCE 2e-6 /* per channel, linear float output */
+
+/* Identifiers only an effect's code declares or calls. */
+static const struct {
+    unsigned effect;
+    const char *markers[3];
+} effect_markers[] = {
+    {MS_EFFECT_DETAIL_NORMALS, {"apo_lookup", "apo_words", "apo_on"}},
+    {MS_EFFECT_SPECULAR, {"specular_strength", "shininess", "highlight"}},
+    {MS_EFFECT_TWO_SIDED, {"two_sided", NULL, NULL}},
+    {MS_EFFECT_HAZE, {"haze_density", "haze_colour", "exp("}},
+};
+
+/* Whether a preprocessor line of src still names an MS_EFFECT_ macro. */
+static bool effect_directive_left(const char *src)
+{
+    for (const char *line = src; line && *line; line = strchr(line, '\n') ? strchr(line, '\n') + 1 : NULL) {
+        const char *p = line;
+        while (*p == ' ')
+            p++;
+        const char *end = strchr(p, '\n');
+        size_t n = end ? (size_t)(end - p) : strlen(p);
+        char buf[512];
+        snprintf(buf, sizeof buf, "%.*s", (int)(n < sizeof buf ? n : sizeof buf - 1), p);
+        if (*p == '#' && strstr(buf, "MS_EFFECT_"))
+            return true;
+    }
+    return false;
+}
+
+static void test_source_composition(void **state)
+{
+    (void)state;
+    for (unsigned effects = 0; effects <= MS_EFFECTS_ALL; ++effects)
+        for (int wire = 0; wire < 2; ++wire) {
+            char *src;
+            ms_error err;
+            if (ms_render_program_source(effects, wire, &src, &err) != MS_OK)
+                fail_msg("effects 0x%x: %s", effects, err.text);
+            assert_true(strncmp(src, "#version 410 core\n", 18) == 0);
+            assert_true((strstr(src, "#define MS_WIREFRAME 1\n") != NULL) == (wire != 0));
+            if (effect_directive_left(src)) {
+                free(src);
+                fail_msg("effects 0x%x wire %d: an MS_EFFECT_ directive is left", effects, wire);
+            }
+            for (size_t e = 0; e < sizeof effect_markers / sizeof effect_markers[0]; ++e)
+                for (int m = 0; m < 3 && effect_markers[e].markers[m]; ++m) {
+                    bool in_set = (effects & effect_markers[e].effect) != 0;
+                    bool found = strstr(src, effect_markers[e].markers[m]) != NULL;
+                    if (found != in_set) {
+                        free(src);
+                        fail_msg("effects 0x%x wire %d: '%s' %s", effects, wire, effect_markers[e].markers[m],
+                                 found ? "present" : "missing");
+                    }
+                }
+            free(src);
+        }
+    char *src = (char *)1;
+    ms_error err;
+    assert_int_equal(ms_render_program_source(MS_EFFECTS_ALL + 1, false, &src, &err), MS_ERR_ARG);
+    assert_null(src);
+    assert_string_equal(err.text, "render: effects 0x40 outside 0x3f");
+    assert_string_equal(ms_effect_name(MS_EFFECT_HAZE), "haze");
+    assert_null(ms_effect_name(3));
+    assert_null(ms_effect_name(1u << MS_EFFECT_COUNT));
+}
+
+/* ---- pictures -------------------------------------------------------------- */
+
+typedef struct fixture {
+    char dir[512];
+    ms_archive *archive;
+    ms_render *render;   /* the demo model with APO, fully held */
+    ms_camera camera;
+    ms_render *plane;    /* one back-facing triangle across the view */
+    ms_camera plane_camera;
+} fixture;
+
+static fixture fx;
+
+static void expect(ms_status st, const ms_error *err)
+{
+    if (st != MS_OK)
+        fail_msg("%s", err->text);
+}
+
+static float *draw(ms_render *r, const ms_camera *cam, const ms_render_options *o, ms_render_draw_stats *stats)
+{
+    ms_test_fbo fbo;
+    ms_test_fbo_new(&fbo, SIZE, SIZE);
+    ms_error err;
+    ms_render_draw_stats local;
+    expect(ms_render_draw(r, cam, o, stats ? stats : &local, &err), &err);
+    float *px = malloc((size_t)SIZE * SIZE * 4 * sizeof *px);
+    assert_non_null(px);
+    ms_test_fbo_read(&fbo, px, NULL);
+    ms_test_fbo_free(&fbo);
+    return px;
+}
+
+/* Largest channel difference, and how many pixels differ by more than 1e-3. */
+static double compare(const float *a, const float *b, size_t *differing)
+{
+    double worst = 0;
+    *differing = 0;
+    for (size_t i = 0; i < (size_t)SIZE * SIZE; ++i) {
+        double d = 0;
+        for (int c = 0; c < 4; ++c)
+            d = fmax(d, fabs((double)a[4 * i + c] - (double)b[4 * i + c]));
+        worst = fmax(worst, d);
+        *differing += d > 1e-3;
+    }
+    return worst;
+}
+
+/* The scene asks for nothing: diffuse, one-sided, no haze, no APO. */
+static void plain_options(ms_render_options *o)
+{
+    ms_render_options_default(o);
+    o->apo = false;
+    o->specular = 0.0f;
+    o->two_sided = false;
+    o->haze_density = 0.0f;
+    o->haze_colour[0] = 0.6f, o->haze_colour[1] = 0.3f, o->haze_colour[2] = 0.1f;
+    o->effects = 0;
+}
+
+/* Turns on the input that calls for the effect. */
+static void call_for(unsigned effect, ms_render_options *o)
+{
+    if (effect == MS_EFFECT_DETAIL_NORMALS)
+        o->apo = true;
+    if (effect == MS_EFFECT_SPECULAR)
+        o->specular = 0.5f, o->shininess = 8.0f;
+    if (effect == MS_EFFECT_TWO_SIDED)
+        o->two_sided = true;
+    if (effect == MS_EFFECT_HAZE)
+        o->haze_density = 2.0f;
+}
+
+static void test_same_picture_without_effect(void **state)
+{
+    (void)state;
+    const unsigned effects[] = {MS_EFFECT_DETAIL_NORMALS, MS_EFFECT_SPECULAR, MS_EFFECT_TWO_SIDED, MS_EFFECT_HAZE};
+    for (size_t k = 0; k < 4; ++k) {
+        unsigned e = effects[k];
+        /* two-sided needs a back face in view: the plane; the others the model */
+        ms_render *r = e == MS_EFFECT_TWO_SIDED ? fx.plane : fx.render;
+        const ms_camera *cam = e == MS_EFFECT_TWO_SIDED ? &fx.plane_camera : &fx.camera;
+        ms_render_options without, with;
+        plain_options(&without);
+        /* the program without the effect, even when asked for its input: the
+         * input changes nothing */
+        call_for(e, &without);
+        with = without;
+        plain_options(&with);
+        with.effects = e;
+        ms_render_draw_stats s_without, s_with;
+        float *a = draw(r, cam, &without, &s_without);
+        float *b = draw(r, cam, &with, &s_with);
+        size_t differing;
+        double worst = compare(a, b, &differing);
+        print_message("%s: without vs not called for: worst %.2g\n", ms_effect_name(e), worst);
+        if (worst > SAME_TOLERANCE)
+            fail_msg("%s: pictures differ by %g (%zu pixels)", ms_effect_name(e), worst, differing);
+        assert_int_equal(s_without.effects_compiled, 0);
+        assert_int_equal(s_without.effects_ran, 0);
+        assert_int_equal(s_with.effects_compiled, e);
+        assert_int_equal(s_with.effects_ran, 0);
+        /* called for, the effect changes a good part of the picture */
+        call_for(e, &with);
+        ms_render_draw_stats s_on;
+        float *c = draw(r, cam, &with, &s_on);
+        compare(a, c, &differing);
+        print_message("%s: called for: %zu of %d pixels change\n", ms_effect_name(e), differing, SIZE * SIZE);
+        assert_true(differing > (size_t)SIZE * SIZE / 20);
+        assert_int_equal(s_on.effects_ran, e);
+        free(a);
+        free(b);
+        free(c);
+    }
+}
+
+/* Every set of the implemented effects builds, with and without wireframe,
+ * and draws the model. */
+static void test_every_set_builds(void **state)
+{
+    (void)state;
+    const unsigned implemented =
+        MS_EFFECT_DETAIL_NORMALS | MS_EFFECT_SPECULAR | MS_EFFECT_TWO_SIDED | MS_EFFECT_HAZE;
+    for (unsigned effects = 0; effects <= implemented; ++effects) {
+        if (effects & ~implemented)
+            continue;
+        for (int wire = 0; wire < 2; ++wire) {
+            ms_render_options o;
+            ms_render_options_default(&o);
+            o.effects = effects;
+            o.wireframe = wire;
+            o.haze_density = 0.5f;
+            ms_render_draw_stats s;
+            free(draw(fx.render, &fx.camera, &o, &s));
+            assert_int_equal(s.effects_compiled, effects);
+            assert_true(s.cells_drawn > 0);
+            assert_int_equal(s.effects_ran, effects);
+        }
+    }
+}
+
+/* A model placed by a translation, seen by a camera translated alike, gives
+ * the same picture; seen by the unmoved camera, it has left the view. */
+static void test_placement(void **state)
+{
+    (void)state;
+    ms_render_options o;
+    ms_render_options_default(&o);
+    float *a = draw(fx.render, &fx.camera, &o, NULL);
+    const double offset[3] = {5.0, -2.0, 3.0};
+    o.placed = true;
+    for (int i = 0; i < 16; ++i)
+        o.placement[i] = i % 5 == 0 ? 1.0 : 0.0;
+    for (int r = 0; r < 3; ++r)
+        o.placement[12 + r] = offset[r];
+    ms_camera moved = fx.camera;
+    for (int r = 0; r < 3; ++r)
+        moved.position[r] += offset[r];
+    float *b = draw(fx.render, &moved, &o, NULL);
+    size_t differing;
+    double worst = compare(a, b, &differing);
+    print_message("placement: worst %.2g, %zu pixels over 1e-3\n", worst, differing);
+    assert_true(differing <= 2); /* float rounding on a silhouette pixel or two */
+    /* the model placed away from the unmoved camera: it is no longer in view */
+    float *c = draw(fx.render, &fx.camera, &o, NULL);
+    compare(a, c, &differing);
+    assert_true(differing > (size_t)SIZE * SIZE / 10);
+    free(a);
+    free(b);
+    free(c);
+}
+
+static void test_bad_options(void **state)
+{
+    (void)state;
+    ms_render_options o;
+    ms_render_options_default(&o);
+    ms_error err;
+    o.effects = 1u << 9;
+    assert_int_equal(ms_render_draw(fx.render, &fx.camera, &o, NULL, &err), MS_ERR_ARG);
+    assert_string_equal(err.text, "render: effects 0x200 unknown");
+    ms_render_options_default(&o);
+    o.light_count = 9;
+    assert_int_equal(ms_render_draw(fx.render, &fx.camera, &o, NULL, &err), MS_ERR_ARG);
+    assert_string_equal(err.text, "render: 9 lights, at most 8");
+    ms_render_options_default(&o);
+    o.lights[0].kind = MS_RENDER_LIGHT_POINT;
+    assert_int_equal(ms_render_draw(fx.render, &fx.camera, &o, NULL, &err), MS_ERR_ARG);
+    assert_string_equal(err.text, "render: point light 0 without a positive range");
+    ms_render_options_default(&o);
+    o.shininess = 0.5f;
+    assert_int_equal(ms_render_draw(fx.render, &fx.camera, &o, NULL, &err), MS_ERR_ARG);
+    assert_string_equal(err.text, "render: shininess, specular or haze density out of range");
+}
+
+/* One triangle of a one-cell unit-box model across the view, wound clockwise
+ * as seen from the camera (a back face). */
+static ms_render *make_plane(void)
+{
+    ms_archive_header h;
+    memset(&h, 0, sizeof h);
+    h.box_side = 1.0;
+    h.bits = 16;
+    h.n = 4;
+    h.root_bits = 7;
+    h.cell_count = 1;
+    ms_archive_cell cell;
+    memset(&cell, 0, sizeof cell);
+    cell.parent = cell.first_child = MS_ARCHIVE_NONE;
+    ms_render *r;
+    ms_error err;
+    expect(ms_render_new(&h, &cell, &r, &err), &err);
+    double positions[9] = {-20, -20, 0.4, 0.5, 20, 0.6, 20, -20, 0.5};
+    uint32_t tri[3] = {0, 1, 2}, tri_cell[1] = {0};
+    ms_view_mesh mesh;
+    memset(&mesh, 0, sizeof mesh);
+    mesh.vertex_count = 3;
+    mesh.triangle_count = 1;
+    mesh.positions = positions;
+    mesh.triangles = tri;
+    mesh.triangle_cell = tri_cell;
+    expect(ms_render_set_frame(r, &mesh, NULL, 0, &err), &err);
+    ms_render_upload_stats up;
+    expect(ms_render_upload(r, UINT64_MAX, &up, &err), &err);
+    const double eye[3] = {0.5, 0.5, 3.0}, centre[3] = {0.5, 0.5, 0.5}, upv[3] = {0, 1, 0};
+    assert_int_equal(ms_camera_look_at(eye, centre, upv, 40.0, SIZE, SIZE, 0.5, 10.0, &fx.plane_camera, NULL),
+                     MS_OK);
+    return r;
+}
+
+static int setup(void **state)
+{
+    assert_int_equal(ms_test_gl_group_setup(state), 0);
+    memset(&fx, 0, sizeof fx);
+    ms_test_tmpdir(fx.dir, sizeof fx.dir);
+    fx.archive = ms_test_render_bake_demo(24, fx.dir, 14, 2000, 0);
+    const ms_archive_header *h = ms_archive_get_header(fx.archive);
+    ms_error err;
+    expect(ms_render_new(h, ms_archive_get_cell(fx.archive, 0), &fx.render, &err), &err);
+    ms_view *view;
+    expect(ms_view_create_from_archive(fx.archive, &view, &err), &err);
+    const double dir[3] = {1.0, 0.5, 0.7};
+    ms_test_render_camera(h, dir, 1.1, 40.0, SIZE, SIZE, &fx.camera);
+    ms_view_mesh mesh = {0};
+    ms_test_render_view(view, &fx.camera, 1.0, &mesh);
+    ms_core_apo_chunk *apo;
+    size_t apo_count;
+    ms_test_render_apo(fx.archive, &mesh, 0, false, &apo, &apo_count);
+    expect(ms_render_set_frame(fx.render, &mesh, apo, apo_count, &err), &err);
+    ms_render_upload_stats up;
+    expect(ms_render_upload(fx.render, UINT64_MAX, &up, &err), &err);
+    assert_int_equal(up.cells_pending, 0);
+    free(apo);
+    ms_view_mesh_free(&mesh);
+    ms_view_destroy(view);
+    fx.plane = make_plane();
+    return 0;
+}
+
+static int teardown(void **state)
+{
+    ms_render_free(fx.render);
+    ms_render_free(fx.plane);
+    ms_archive_close(fx.archive);
+    ms_test_rmdir(fx.dir);
+    return ms_test_gl_group_teardown(state);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_source_composition),
+        cmocka_unit_test(test_same_picture_without_effect),
+        cmocka_unit_test(test_every_set_builds),
+        cmocka_unit_test(test_placement),
+        cmocka_unit_test(test_bad_options),
+    };
+    return cmocka_run_group_tests(tests, setup, teardown);
+}
