@@ -14,8 +14,8 @@
 #include "ms_test.h"
 
 static const char *const SCRIPTS[] = {
-    "attack",      "bench",       "bench-apo",  "bench-apo-bake", "bench-bake",   "bench-client",
-    "bench-codec", "bench-codec-peer", "bench-read", "bench-serve", "bench-viewer", "demo",
+    "attack",      "bake-gallery", "bench",       "bench-apo",  "bench-apo-bake", "bench-bake",   "bench-client",
+    "bench-codec", "bench-codec-peer", "bench-read", "bench-scenes", "bench-serve", "bench-viewer", "demo",
     "install-deps", "run-tests", "screenshots",
 };
 
