@@ -1,7 +1,7 @@
 /* meshview --scene (docs/SCENES.md), the built program under Xvfb at 160x120,
  * on a local archive holding the demo model, placed twice in a small room:
  *   - a scene calling for specular (a glossy piece), two-sided lighting (an
- *     open-scan material) and haze settles at every keyframe; the report says
+ *     open-scan material), haze and displacement (the floor's relief) settles at every keyframe; the report says
  *     which effects the scene called for, which were compiled (exactly those
  *     implemented among them) and how many frames each ran in;
  *   - --effects-off leaves effects out of the program: they never run, and
@@ -35,15 +35,16 @@ typedef struct fixture {
 
 static fixture fx;
 
-/* The room, two demo pieces, lights; MATERIAL_A and MATERIAL_B and HAZE vary. */
+/* The room, two demo pieces, lights; the materials, the haze, the floor and
+ * the second model vary. */
 static void write_scene(const char *name, const char *material_a, const char *material_b, const char *haze,
-                        const char *second_model, char *path, size_t size)
+                        const char *floor, const char *second_model, char *path, size_t size)
 {
     snprintf(path, size, "%s/%s.json", fx.dir, name);
     char text[4096];
     int n = snprintf(text, sizeof text,
                      "{\"scene\": 1, \"name\": \"%s\", \"camera_path\": \"walk.cam\",\n"
-                     " \"room\": {\"size\": [4, 3, 6], \"plinths\": [{\"position\": [-0.8, 0], \"size\": [0.5, 0.6, "
+                     " \"room\": {\"size\": [4, 3, 6]%s, \"plinths\": [{\"position\": [-0.8, 0], \"size\": [0.5, 0.6, "
                      "0.5]}]},\n"
                      " \"models\": [\n"
                      "  {\"model\": \"demo\", \"position\": [0.8, 0, 0], \"height\": 1.2, \"material\": %s},\n"
@@ -51,7 +52,7 @@ static void write_scene(const char *name, const char *material_a, const char *ma
                      "\"material\": %s}],\n"
                      " \"lights\": [{\"type\": \"head\", \"intensity\": 0.5},\n"
                      "   {\"type\": \"directional\", \"direction\": [0.3, 1, 0.5], \"intensity\": 0.6}]%s}\n",
-                     name, material_a, second_model, material_b, haze);
+                     name, floor, material_a, second_model, material_b, haze);
     assert_true(n > 0 && (size_t)n < sizeof text);
     ms_test_write_file(path, text, (size_t)n);
 }
@@ -108,23 +109,25 @@ static const char *last_png(json_t *report)
 #define GLOSSY "{\"type\": \"glossy\", \"albedo\": [0.5, 0.6, 0.7], \"shininess\": 30, \"specular\": 0.4}"
 #define OPEN "{\"two_sided\": true}"
 #define HAZE ",\n \"haze\": {\"density\": 0.15, \"colour\": [0.6, 0.62, 0.66]}"
+#define RELIEF ", \"floor\": {\"displacement\": {\"amplitude\": 0.02, \"atom_radius\": 0.06, \"density\": 60}}"
 
 static void test_effects_called_for_and_left_out(void **state)
 {
     (void)state;
     char scene[700], shots[700], shots_off[700], list[256];
-    write_scene("full", GLOSSY, OPEN, HAZE, "demo", scene, sizeof scene);
+    write_scene("full", GLOSSY, OPEN, HAZE, RELIEF, "demo", scene, sizeof scene);
     snprintf(shots, sizeof shots, "%s/full", fx.dir);
     json_t *full = run_report(scene, shots, "");
     names(json_object_get(full, "effects_called_for"), list, sizeof list);
-    assert_string_equal(list, "detail_normals specular two_sided haze");
+    assert_string_equal(list, "detail_normals specular two_sided haze displacement");
     names(json_object_get(full, "effects_compiled"), list, sizeof list);
-    assert_string_equal(list, "detail_normals specular two_sided haze");
+    assert_string_equal(list, "detail_normals specular two_sided haze displacement");
     json_int_t frames = json_integer_value(json_object_get(json_object_get(full, "frames"), "frames"));
     assert_true(frames >= 2);
     /* haze from the first frame (the room is there at once); the pieces'
      * effects once their first frames have arrived, at most two frames later */
     assert_int_equal(frames_of(full, "haze"), frames);
+    assert_int_equal(frames_of(full, "displacement"), frames); /* the floor is always in view */
     assert_true(frames_of(full, "specular") >= frames - 2);
     assert_true(frames_of(full, "two_sided") >= frames - 2);
     assert_int_equal(frames_of(full, "impostors"), 0);
@@ -135,7 +138,7 @@ static void test_effects_called_for_and_left_out(void **state)
     snprintf(shots_off, sizeof shots_off, "%s/off", fx.dir);
     json_t *off = run_report(scene, shots_off, "--effects-off haze,specular");
     names(json_object_get(off, "effects_compiled"), list, sizeof list);
-    assert_string_equal(list, "detail_normals two_sided");
+    assert_string_equal(list, "detail_normals two_sided displacement");
     assert_int_equal(frames_of(off, "haze"), 0);
     assert_int_equal(frames_of(off, "specular"), 0);
     assert_true(frames_of(off, "two_sided") > 0);
@@ -150,7 +153,7 @@ static void test_same_pictures_without_effects(void **state)
 {
     (void)state;
     char scene[700], a[700], b[700], list[256];
-    write_scene("plain", "{}", "{}", "", "demo", scene, sizeof scene);
+    write_scene("plain", "{}", "{}", "", "", "demo", scene, sizeof scene);
     snprintf(a, sizeof a, "%s/plain", fx.dir);
     snprintf(b, sizeof b, "%s/plain-all", fx.dir);
     json_t *own = run_report(scene, a, "");
@@ -158,11 +161,13 @@ static void test_same_pictures_without_effects(void **state)
     names(json_object_get(own, "effects_compiled"), list, sizeof list);
     assert_string_equal(list, "detail_normals");
     names(json_object_get(all, "effects_compiled"), list, sizeof list);
-    assert_string_equal(list, "detail_normals specular two_sided haze");
-    /* compiled in, not called for: they never ran */
+    assert_string_equal(list, "detail_normals specular two_sided haze displacement");
+    /* compiled in, not called for: they never ran (displacement is drawn
+     * only on a surface that declares it) */
     assert_int_equal(frames_of(all, "specular"), 0);
     assert_int_equal(frames_of(all, "two_sided"), 0);
     assert_int_equal(frames_of(all, "haze"), 0);
+    assert_int_equal(frames_of(all, "displacement"), 0);
     for (size_t k = 0; k < 2; ++k) {
         const char *pa = json_string_value(json_object_get(json_array_get(json_object_get(own, "keyframes"), k), "png"));
         const char *pb = json_string_value(json_object_get(json_array_get(json_object_get(all, "keyframes"), k), "png"));
@@ -178,7 +183,7 @@ static void test_bad_scenes_and_options(void **state)
 {
     (void)state;
     char scene[700], args[2048], err_text[2048], want[1400];
-    write_scene("missing", "{}", "{}", "", "nope", scene, sizeof scene);
+    write_scene("missing", "{}", "{}", "", "", "nope", scene, sizeof scene);
     snprintf(args, sizeof args, "--scene %s --screenshot-dir %s/x " RUN_ARGS, scene, fx.dir);
     assert_int_equal(run_viewer(args, NULL, err_text, sizeof err_text), 1);
     snprintf(want, sizeof want, "meshview: scene %s: models[1].model: \"nope\" is not in the catalogue\n", scene);

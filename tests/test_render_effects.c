@@ -9,7 +9,12 @@
  *    for it (no APO, specular 0, one-sided, haze 0), and the effect called for
  *    changes the picture (so the comparison can fail);
  *  - the draw reports which effects were compiled and which ran;
- *  - a placed model draws where its placement puts it. */
+ *  - a placed model draws where its placement puts it;
+ *  - displacement: tessellation levels follow projected size (the primitives
+ *    a floor of patches generates fall as the camera backs away, about with the
+ *    square of the distance; a floor wholly outside the view generates one
+ *    triangle per patch), the relief changes the picture, and without the
+ *    effect the same options draw the flat floor. */
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -265,6 +270,140 @@ static void test_placement(void **state)
     free(c);
 }
 
+/* A floor of 8 x 8 quads (128 triangle patches) over the unit square at y = 0,
+ * one cell. */
+#define FLOOR_QUADS 8
+static ms_render *make_floor(void)
+{
+    ms_archive_header h;
+    memset(&h, 0, sizeof h);
+    h.box_side = 1.0;
+    h.bits = 16;
+    h.n = 2;
+    h.root_bits = 7;
+    h.cell_count = 1;
+    ms_archive_cell cell;
+    memset(&cell, 0, sizeof cell);
+    cell.parent = cell.first_child = MS_ARCHIVE_NONE;
+    ms_render *r;
+    ms_error err;
+    expect(ms_render_new(&h, &cell, &r, &err), &err);
+    enum { N = FLOOR_QUADS + 1 };
+    double positions[3 * N * N];
+    uint32_t tris[6 * FLOOR_QUADS * FLOOR_QUADS], cells[2 * FLOOR_QUADS * FLOOR_QUADS] = {0};
+    for (int j = 0; j < N; ++j)
+        for (int i = 0; i < N; ++i) {
+            double *p = &positions[3 * (j * N + i)];
+            p[0] = (double)i / FLOOR_QUADS, p[1] = 0.0, p[2] = (double)j / FLOOR_QUADS;
+        }
+    size_t t = 0;
+    for (int j = 0; j < FLOOR_QUADS; ++j)
+        for (int i = 0; i < FLOOR_QUADS; ++i) {
+            uint32_t a = (uint32_t)(j * N + i), b = a + 1, c = a + N, d = c + 1;
+            /* counter-clockwise seen from +y */
+            uint32_t quad[6] = {a, c, d, a, d, b};
+            memcpy(&tris[6 * t++], quad, sizeof quad);
+        }
+    ms_view_mesh mesh;
+    memset(&mesh, 0, sizeof mesh);
+    mesh.vertex_count = N * N;
+    mesh.triangle_count = 2 * FLOOR_QUADS * FLOOR_QUADS;
+    mesh.positions = positions;
+    mesh.triangles = tris;
+    mesh.triangle_cell = cells;
+    expect(ms_render_set_frame(r, &mesh, NULL, 0, &err), &err);
+    ms_render_upload_stats up;
+    expect(ms_render_upload(r, UINT64_MAX, &up, &err), &err);
+    return r;
+}
+
+/* Primitives the draw generated (after tessellation), and the picture. */
+static GLuint64 draw_counted(ms_render *r, const ms_camera *cam, const ms_render_options *o, float **picture)
+{
+    GLuint query;
+    glGenQueries(1, &query);
+    glBeginQuery(GL_PRIMITIVES_GENERATED, query);
+    *picture = draw(r, cam, o, NULL);
+    glEndQuery(GL_PRIMITIVES_GENERATED);
+    GLuint64 count = 0;
+    glGetQueryObjectui64v(query, GL_QUERY_RESULT, &count);
+    glDeleteQueries(1, &query);
+    return count;
+}
+
+static void floor_camera(double distance, bool away, ms_camera *cam)
+{
+    /* looking down at the floor's centre from 45 degrees, or away from it */
+    const double centre[3] = {0.5, 0.0, 0.5}, upv[3] = {0, 1, 0};
+    double eye[3] = {0.5, distance * M_SQRT1_2, 0.5 + distance * M_SQRT1_2};
+    double target[3] = {centre[0], centre[1], centre[2]};
+    if (away)
+        target[2] = eye[2] + 1.0, target[1] = eye[1];
+    assert_int_equal(ms_camera_look_at(eye, target, upv, 40.0, SIZE, SIZE, 0.01, 20.0, cam, NULL), MS_OK);
+}
+
+static void test_displacement_levels(void **state)
+{
+    (void)state;
+    ms_render *floor = make_floor();
+    ms_render_options o;
+    ms_render_options_default(&o);
+    o.effects = MS_EFFECT_DISPLACEMENT;
+    o.displace = true;
+    o.smooth = false;
+    o.displacement_amplitude = 0.02f;
+    o.displacement_radius = 0.04f;
+    o.displacement_density = 400.0f;
+    o.tess_pixels_per_level = 2.0f;
+    const GLuint64 patches = 2 * FLOOR_QUADS * FLOOR_QUADS;
+    GLuint64 counts[3];
+    const double distances[3] = {1.0, 2.0, 4.0};
+    float *pictures[3];
+    for (int k = 0; k < 3; ++k) {
+        ms_camera cam;
+        floor_camera(distances[k], false, &cam);
+        counts[k] = draw_counted(floor, &cam, &o, &pictures[k]);
+        print_message("floor at %.0f: %llu primitives from %llu patches\n", distances[k],
+                      (unsigned long long)counts[k], (unsigned long long)patches);
+    }
+    /* levels about halve with each doubling of the distance: the primitives
+     * fall by about 4, less where fractional odd spacing rounds a level up
+     * to the next odd count or a level is clamped at 1 (measured 2.9 and
+     * 2.6): between 2.2 and 5.5 */
+    for (int k = 0; k < 2; ++k) {
+        double ratio = (double)counts[k] / (double)counts[k + 1];
+        if (ratio < 2.2 || ratio > 5.5)
+            fail_msg("distance %.0f to %.0f: primitives fell by %.2f", distances[k], distances[k + 1], ratio);
+    }
+    assert_true(counts[2] > patches);
+    /* outside the view: level 1, one triangle per patch */
+    ms_camera away;
+    floor_camera(1.0, true, &away);
+    float *empty;
+    assert_int_equal(draw_counted(floor, &away, &o, &empty), patches);
+    /* the relief shows; without the effect, the same options draw the flat floor */
+    ms_camera cam;
+    floor_camera(1.0, false, &cam);
+    ms_render_options flat = o;
+    flat.effects = 0;
+    float *plain;
+    assert_int_equal(draw_counted(floor, &cam, &flat, &plain), patches);
+    size_t differing;
+    compare(pictures[0], plain, &differing);
+    print_message("relief: %zu of %d pixels change\n", differing, SIZE * SIZE);
+    assert_true(differing > (size_t)SIZE * SIZE / 10);
+    ms_render_draw_stats s;
+    free(draw(floor, &cam, &o, &s));
+    assert_int_equal(s.effects_ran, MS_EFFECT_DISPLACEMENT);
+    free(draw(floor, &cam, &flat, &s));
+    assert_int_equal(s.effects_ran, 0);
+    for (int k = 0; k < 3; ++k)
+        free(pictures[k]);
+    free(empty);
+    free(plain);
+    ms_render_free(floor);
+}
+
 static void test_bad_options(void **state)
 {
     (void)state;
@@ -286,6 +425,11 @@ static void test_bad_options(void **state)
     o.shininess = 0.5f;
     assert_int_equal(ms_render_draw(fx.render, &fx.camera, &o, NULL, &err), MS_ERR_ARG);
     assert_string_equal(err.text, "render: shininess, specular or haze density out of range");
+    ms_render_options_default(&o);
+    o.displace = true;
+    o.displacement_radius = 0.0f;
+    assert_int_equal(ms_render_draw(fx.render, &fx.camera, &o, NULL, &err), MS_ERR_ARG);
+    assert_string_equal(err.text, "render: displacement amplitude, radius, density or level size out of range");
 }
 
 /* One triangle of a one-cell unit-box model across the view, wound clockwise
@@ -369,6 +513,7 @@ int main(void)
         cmocka_unit_test(test_every_set_builds),
         cmocka_unit_test(test_placement),
         cmocka_unit_test(test_bad_options),
+        cmocka_unit_test(test_displacement_levels),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }

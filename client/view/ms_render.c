@@ -97,14 +97,21 @@ void ms_render_options_default(ms_render_options *o)
     for (int i = 0; i < 16; ++i)
         o->placement[i] = i % 5 == 0 ? 1.0 : 0.0;
     o->clear = true;
+    o->displace = false;
+    o->displacement_amplitude = 0.01f;
+    o->displacement_radius = 0.05f;
+    o->displacement_density = 100.0f;
+    o->displacement_seed = 1;
+    o->tess_pixels_per_level = 8.0f;
 }
 
 /* The program for an effect set and variant: from the cache, else built. */
-static ms_status find_program(ms_render *r, unsigned effects, bool wireframe, const ms_render_program **out,
-                              ms_error *err)
+static ms_status find_program(ms_render *r, unsigned effects, bool wireframe, bool tessellated,
+                              const ms_render_program **out, ms_error *err)
 {
     for (uint32_t i = 0; i < r->program_count; ++i)
-        if (r->programs[i].effects == effects && r->programs[i].wireframe == wireframe) {
+        if (r->programs[i].effects == effects && r->programs[i].wireframe == wireframe &&
+            r->programs[i].tessellated == tessellated) {
             *out = &r->programs[i];
             return MS_OK;
         }
@@ -116,7 +123,7 @@ static ms_status find_program(ms_render *r, unsigned effects, bool wireframe, co
         r->program_next = (r->program_next + 1) % MS_RENDER_PROGRAM_CACHE;
         ms_render_program_free(&r->programs[slot]);
     }
-    ms_status st = ms_render_program_build(&r->programs[slot], effects, wireframe, err);
+    ms_status st = ms_render_program_build(&r->programs[slot], effects, wireframe, tessellated, err);
     if (st != MS_OK) {
         /* an evicted slot is empty now: the last program fills the hole */
         if (slot < r->program_count) {
@@ -235,9 +242,9 @@ ms_status ms_render_new(const ms_archive_header *header, const ms_archive_cell *
     memcpy(r->records, cells, n * sizeof *r->records);
     ms_render_split_init(&r->split, &r->header, r->records);
     const ms_render_program *unused;
-    st = find_program(r, MS_EFFECTS_VIEWER, false, &unused, err);
+    st = find_program(r, MS_EFFECTS_VIEWER, false, false, &unused, err);
     if (st == MS_OK)
-        st = find_program(r, MS_EFFECTS_VIEWER, true, &unused, err);
+        st = find_program(r, MS_EFFECTS_VIEWER, true, false, &unused, err);
     if (st == MS_OK)
         st = ms_render_texels_init(&r->texels, err);
     if (st != MS_OK) {
@@ -589,6 +596,12 @@ static ms_status check_scene_options(const ms_render_options *o, ms_error *err)
         if (!isfinite(len2) || (l->kind == MS_RENDER_LIGHT_DIRECTIONAL && !(len2 > 0.0)))
             return ms_error_set(err, MS_ERR_ARG, "render: light %u has no usable vector", i);
     }
+    if (o->displace &&
+        (!(o->displacement_amplitude > 0.0f) || !isfinite(o->displacement_amplitude) ||
+         !(o->displacement_radius > 0.0f) || !isfinite(o->displacement_radius) ||
+         !(o->displacement_density > 0.0f) || !isfinite(o->displacement_density) ||
+         !(o->tess_pixels_per_level >= 1.0f) || !isfinite(o->tess_pixels_per_level)))
+        return ms_error_set(err, MS_ERR_ARG, "render: displacement amplitude, radius, density or level size out of range");
     if (o->placed) {
         double scale = sqrt(o->placement[0] * o->placement[0] + o->placement[1] * o->placement[1] +
                             o->placement[2] * o->placement[2]);
@@ -660,7 +673,8 @@ ms_status ms_render_draw(ms_render *r, const ms_camera *camera, const ms_render_
     if (st != MS_OK)
         return st;
     const ms_render_program *p;
-    st = find_program(r, o->effects, o->wireframe && o->shading != MS_SHADING_CELL_ID, &p, err);
+    bool tessellated = o->displace && (o->effects & MS_EFFECT_DISPLACEMENT);
+    st = find_program(r, o->effects, o->wireframe && o->shading != MS_SHADING_CELL_ID, tessellated, &p, err);
     if (st != MS_OK)
         return st;
     double view[16], proj[16];
@@ -716,6 +730,14 @@ ms_status ms_render_draw(ms_render *r, const ms_camera *camera, const ms_render_
     glUniform1i(p->two_sided, o->two_sided);
     glUniform1f(p->haze_density, o->haze_density);
     glUniform3fv(p->haze_colour, 1, o->haze_colour);
+    if (tessellated) {
+        glUniform1f(p->tess_pixels, o->tess_pixels_per_level);
+        glUniform1f(p->disp_amplitude, o->displacement_amplitude);
+        glUniform1f(p->disp_radius, o->displacement_radius);
+        glUniform1f(p->disp_spacing, 1.0f / sqrtf(o->displacement_density));
+        glUniform1ui(p->disp_seed, o->displacement_seed);
+        glPatchParameteri(GL_PATCH_VERTICES, 3);
+    }
     glActiveTexture(GL_TEXTURE0);
     glBindTexture(GL_TEXTURE_BUFFER, r->texels.texture);
     glUniform1i(p->apo_words, 0);
@@ -735,6 +757,11 @@ ms_status ms_render_draw(ms_render *r, const ms_camera *camera, const ms_render_
         ms_render_cell_modelview(model_view, origin, side, modelview);
         cell_tint(cell, tint);
         glUniformMatrix4fv(p->modelview, 1, GL_FALSE, modelview);
+        if (tessellated) {
+            float cell_origin[3] = {(float)origin[0], (float)origin[1], (float)origin[2]};
+            glUniform3fv(p->cell_origin, 1, cell_origin);
+            glUniform1f(p->cell_side, (float)side);
+        }
         glUniform1ui(p->cell_number, cell);
         glUniform3fv(p->cell_tint, 1, tint);
         bool apo_on = detail_program && o->apo && c->apo.count > 0;
@@ -747,7 +774,8 @@ ms_status ms_render_draw(ms_render *r, const ms_camera *camera, const ms_render_
             glUniform1ui(p->apo_stop_depth, cap < last ? cap : last);
         }
         glBindVertexArray(c->mesh.vao);
-        glDrawElements(GL_TRIANGLES, (GLsizei)(3 * c->mesh.triangle_count), GL_UNSIGNED_INT, NULL);
+        glDrawElements(tessellated ? GL_PATCHES : GL_TRIANGLES, (GLsizei)(3 * c->mesh.triangle_count),
+                       GL_UNSIGNED_INT, NULL);
         drawn++;
         triangles += c->mesh.triangle_count;
     }
@@ -768,6 +796,8 @@ ms_status ms_render_draw(ms_render *r, const ms_camera *camera, const ms_render_
             ran |= MS_EFFECT_TWO_SIDED;
         if (drawn && lit && o->haze_density > 0.0f)
             ran |= MS_EFFECT_HAZE;
+        if (drawn && tessellated)
+            ran |= MS_EFFECT_DISPLACEMENT;
         stats->effects_ran = ran & p->effects;
     }
     GLenum e = glGetError();

@@ -160,6 +160,14 @@ typedef struct ms_render_options {
     double placement[16];
     bool clear;               /* clear colour and depth first (default true); false
                                  draws over what is there (several models in one frame) */
+    /* Displacement (needs MS_EFFECT_DISPLACEMENT in effects; "Displacement"
+     * above): the surface drawn as tessellated patches with relief. */
+    bool displace;            /* default false */
+    float displacement_amplitude; /* model units, > 0 (default 0.01) */
+    float displacement_radius;    /* an atom's radius, model units, > 0 (default 0.05) */
+    float displacement_density;   /* atoms per square unit, > 0 (default 100) */
+    uint32_t displacement_seed;
+    float tess_pixels_per_level;  /* projected edge pixels per tessellation level, >= 1 (default 8) */
 } ms_render_options;
 
 /* LIT, APO on, no wireframe, no cap, nearest rule, dark grey background,
@@ -189,6 +197,18 @@ typedef struct ms_render_upload_stats {
 ms_status ms_render_upload(ms_render *render, uint64_t budget_bytes, ms_render_upload_stats *stats,
                            ms_error *err);
 
+/* Displacement. With options.displace and the displacement effect, the cells
+ * are drawn as triangle patches through tessellation stages (shaders/tess.*):
+ * each edge's level is the projected size in pixels of the sphere on the
+ * edge's midpoint whose diameter is the edge (both patches of an edge agree:
+ * no cracks) over tess_pixels_per_level, in [1, 64], the inner level the
+ * largest; a patch wholly outside the frustum gets level 1; each new vertex
+ * moves along its patch's normal by the relief of height atoms scattered on a
+ * jittered grid in the patch's plane (seeded, so deterministic); the flat
+ * normal from screen derivatives shades the relief. Meant for flat surfaces
+ * (a room's floor and walls): where patches of different planes meet, their
+ * relief differs. */
+
 typedef struct ms_render_draw_stats {
     uint32_t cells_drawn;
     uint64_t triangles_drawn;
@@ -196,7 +216,8 @@ typedef struct ms_render_draw_stats {
     unsigned effects_ran;      /* those of them that changed a pixel's shading in
                                   this draw: detail normals where a drawn cell used
                                   APO, specular with a strength > 0, two-sided on,
-                                  haze with a density > 0 (LIT and CELLS shading) */
+                                  haze with a density > 0 (LIT and CELLS shading),
+                                  displacement when displaced patches were drawn */
 } ms_render_draw_stats;
 
 /* Clears the bound framebuffer (colour to options->background, depth to 1), sets

@@ -141,20 +141,25 @@ typedef struct ms_render_program {
     GLuint program;
     unsigned effects;         /* MS_EFFECT_* compiled in */
     bool wireframe;
+    bool tessellated;         /* with the displacement stages: draws GL_PATCHES */
     GLint modelview, projection, viewport;
     GLint shading, apo_on, apo_base, apo_root_internal, apo_stop_depth, apo_nearest;
     GLint world_to_eye, cell_number, cell_tint, apo_words, smooth;
     GLint albedo, light_count, light_eye, light_colour, light_range;
     GLint specular, shininess, two_sided, haze_density, haze_colour; /* -1 when not compiled in */
+    GLint tess_pixels, disp_amplitude, disp_radius, disp_spacing, disp_seed, cell_origin, cell_side;
 } ms_render_program;
 
 /* Compiles and links the embedded shaders with the effects given (the fragment
- * source of ms_render_program_source): with wireframe, the program with the
+ * source of ms_render_program_source); tessellated (only with
+ * MS_EFFECT_DISPLACEMENT) adds the displacement stages (tess.*.glsl) in place of
+ * cell.vert.glsl; with wireframe, the program with the
  * geometry shader (flat normal and edge distances per triangle, the overlay);
  * without, vertex + fragment only (the flat normal from screen derivatives),
  * several times faster on software rasterisers. MS_ERR_UNSUPPORTED with the
  * first line of the driver's log. */
-ms_status ms_render_program_build(ms_render_program *program, unsigned effects, bool wireframe, ms_error *err);
+ms_status ms_render_program_build(ms_render_program *program, unsigned effects, bool wireframe, bool tessellated,
+                                  ms_error *err);
 void ms_render_program_free(ms_render_program *program);
 
 /* ---- ms_render.c: for tests ----------------------------------------------- */

@@ -196,18 +196,27 @@ ms_status ms_render_program_source(unsigned effects, bool wireframe, char **sour
     return MS_OK;
 }
 
-ms_status ms_render_program_build(ms_render_program *p, unsigned effects, bool wireframe, ms_error *err)
+ms_status ms_render_program_build(ms_render_program *p, unsigned effects, bool wireframe, bool tessellated,
+                                  ms_error *err)
 {
     memset(p, 0, sizeof *p);
+    if (tessellated && !(effects & MS_EFFECT_DISPLACEMENT))
+        return ms_error_set(err, MS_ERR_ARG, "render: displacement stages without the displacement effect");
     char *frag = NULL;
     ms_status st0 = ms_render_program_source(effects, wireframe, &frag, err);
     if (st0 != MS_OK)
         return st0;
-    const char *vert_src[] = {ms_shader_cell_vert};
+    const char *vert_src[] = {tessellated ? ms_shader_tess_vert : ms_shader_cell_vert};
+    const char *tesc_src[] = {ms_shader_tess_tesc};
+    const char *tese_src[] = {ms_shader_tess_tese};
     const char *geom_src[] = {ms_shader_cell_geom};
     const char *frag_src[] = {frag};
-    GLuint vs = 0, gs = 0, fs = 0;
+    GLuint vs = 0, tcs = 0, tes = 0, gs = 0, fs = 0;
     ms_status st = compile(GL_VERTEX_SHADER, vert_src, 1, "vertex", &vs, err);
+    if (st == MS_OK && tessellated)
+        st = compile(GL_TESS_CONTROL_SHADER, tesc_src, 1, "tessellation control", &tcs, err);
+    if (st == MS_OK && tessellated)
+        st = compile(GL_TESS_EVALUATION_SHADER, tese_src, 1, "tessellation evaluation", &tes, err);
     if (st == MS_OK && wireframe)
         st = compile(GL_GEOMETRY_SHADER, geom_src, 1, "geometry", &gs, err);
     if (st == MS_OK)
@@ -216,6 +225,10 @@ ms_status ms_render_program_build(ms_render_program *p, unsigned effects, bool w
     if (st == MS_OK) {
         p->program = glCreateProgram();
         glAttachShader(p->program, vs);
+        if (tcs)
+            glAttachShader(p->program, tcs);
+        if (tes)
+            glAttachShader(p->program, tes);
         if (gs)
             glAttachShader(p->program, gs);
         glAttachShader(p->program, fs);
@@ -235,6 +248,10 @@ ms_status ms_render_program_build(ms_render_program *p, unsigned effects, bool w
     }
     if (vs)
         glDeleteShader(vs);
+    if (tcs)
+        glDeleteShader(tcs);
+    if (tes)
+        glDeleteShader(tes);
     if (gs)
         glDeleteShader(gs);
     if (fs)
@@ -266,8 +283,16 @@ ms_status ms_render_program_build(ms_render_program *p, unsigned effects, bool w
     p->two_sided = glGetUniformLocation(g, "two_sided");
     p->haze_density = glGetUniformLocation(g, "haze_density");
     p->haze_colour = glGetUniformLocation(g, "haze_colour");
+    p->tess_pixels = glGetUniformLocation(g, "tess_pixels_per_level");
+    p->disp_amplitude = glGetUniformLocation(g, "displacement_amplitude");
+    p->disp_radius = glGetUniformLocation(g, "displacement_radius");
+    p->disp_spacing = glGetUniformLocation(g, "displacement_spacing");
+    p->disp_seed = glGetUniformLocation(g, "displacement_seed");
+    p->cell_origin = glGetUniformLocation(g, "cell_origin");
+    p->cell_side = glGetUniformLocation(g, "cell_side");
     p->effects = effects;
     p->wireframe = wireframe;
+    p->tessellated = tessellated;
     return MS_OK;
 }
 

@@ -9,5 +9,8 @@ extern const char ms_shader_cell_vert[]; /* shaders/cell.vert.glsl */
 extern const char ms_shader_cell_geom[]; /* shaders/cell.geom.glsl */
 extern const char ms_shader_cell_frag[]; /* shaders/cell.frag.glsl (#version on its first line) */
 extern const char ms_shader_apo[];       /* shaders/apo.glsl, inserted after frag's #version */
+extern const char ms_shader_tess_vert[]; /* shaders/tess.vert.glsl: displaced surfaces' vertex stage */
+extern const char ms_shader_tess_tesc[]; /* shaders/tess.tesc.glsl: levels by screen size, culling */
+extern const char ms_shader_tess_tese[]; /* shaders/tess.tese.glsl: the height atoms */
 
 #endif

@@ -7,9 +7,13 @@
 
 #include "ms_viewer_scene.h"
 
-/* The effects drawn today; displacement and impostors compile to nothing. */
+/* The effects drawn today; impostors compile to nothing. */
 #define IMPLEMENTED_EFFECTS \
-    (MS_EFFECT_DETAIL_NORMALS | MS_EFFECT_SPECULAR | MS_EFFECT_TWO_SIDED | MS_EFFECT_HAZE)
+    (MS_EFFECT_DETAIL_NORMALS | MS_EFFECT_SPECULAR | MS_EFFECT_TWO_SIDED | MS_EFFECT_HAZE | MS_EFFECT_DISPLACEMENT)
+
+/* The room's floor and walls are cut into tiles of at most this side (metres),
+ * so that tessellation (at most 64 per edge) can resolve a relief's atoms. */
+#define ROOM_TILE 0.5
 
 typedef struct scene_model {
     ms_viewer_model model;
@@ -25,6 +29,7 @@ typedef struct scene_model {
 typedef struct room_part {
     ms_render *render;
     const ms_scene_material *material;
+    const ms_scene_displacement *displacement; /* NULL: none declared */
 } room_part;
 
 struct ms_viewer_scene {
@@ -79,9 +84,25 @@ static void add_quad(mesh_builder *m, const double a[3], const double b[3], cons
     m->triangle_count += 2;
 }
 
-/* The faces of the box [lo, hi] facing out (inward: facing in, for a room),
- * without its bottom; the top too unless skip_top. */
-static void add_box(mesh_builder *m, const double lo[3], const double hi[3], bool inward, bool skip_top)
+/* The parallelogram corner + [0, 1] u + [0, 1] v (counter-clockwise seen from
+ * the side u x v points to) as tiles of at most `tile` a side. */
+static void add_tiled(mesh_builder *m, const double corner[3], const double u[3], const double v[3], double tile)
+{
+    double lu = sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]), lv = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+    int nu = (int)fmax(1.0, ceil(lu / tile)), nv = (int)fmax(1.0, ceil(lv / tile));
+    for (int j = 0; j < nv; ++j)
+        for (int i = 0; i < nu; ++i) {
+            double q[4][3];
+            const int di[4] = {0, 1, 1, 0}, dj[4] = {0, 0, 1, 1};
+            for (int k = 0; k < 4; ++k)
+                for (int a = 0; a < 3; ++a)
+                    q[k][a] = corner[a] + u[a] * (i + di[k]) / nu + v[a] * (j + dj[k]) / nv;
+            add_quad(m, q[0], q[1], q[2], q[3]);
+        }
+}
+
+/* The faces of the box [lo, hi] facing out, but its bottom (a plinth on the floor). */
+static void add_box(mesh_builder *m, const double lo[3], const double hi[3])
 {
     double c[8][3];
     for (int k = 0; k < 8; ++k) {
@@ -89,15 +110,10 @@ static void add_box(mesh_builder *m, const double lo[3], const double hi[3], boo
         c[k][1] = (k & 2) ? hi[1] : lo[1];
         c[k][2] = (k & 4) ? hi[2] : lo[2];
     }
-    /* faces counter-clockwise seen from outside: -x, +x, -z, +z, +y */
+    /* counter-clockwise seen from outside: -x, +x, -z, +z, +y */
     static const int faces[5][4] = {{0, 4, 6, 2}, {1, 3, 7, 5}, {0, 2, 3, 1}, {4, 5, 7, 6}, {2, 6, 7, 3}};
-    for (int f = 0; f < (skip_top ? 4 : 5); ++f) {
-        const int *q = faces[f];
-        if (inward)
-            add_quad(m, c[q[3]], c[q[2]], c[q[1]], c[q[0]]);
-        else
-            add_quad(m, c[q[0]], c[q[1]], c[q[2]], c[q[3]]);
-    }
+    for (int f = 0; f < 5; ++f)
+        add_quad(m, c[faces[f][0]], c[faces[f][1]], c[faces[f][2]], c[faces[f][3]]);
 }
 
 /* A one-cell model holding the mesh, uploaded whole. */
@@ -152,18 +168,25 @@ static ms_status build_room(ms_viewer_scene *vs, ms_error *err)
     const double w = room->size[0] / 2, h = room->size[1], d = room->size[2] / 2;
     ms_status st = MS_OK;
     mesh_builder floor = {0}, walls = {0}, plinths = {0};
-    /* the floor faces up, the walls in */
-    add_quad(&floor, (double[3]){-w, 0, d}, (double[3]){w, 0, d}, (double[3]){w, 0, -d}, (double[3]){-w, 0, -d});
-    add_box(&walls, (double[3]){-w, 0, -d}, (double[3]){w, h, d}, true, true);
+    /* the floor faces up, the walls in; both tiled (for displacement) */
+    add_tiled(&floor, (double[3]){-w, 0, d}, (double[3]){2 * w, 0, 0}, (double[3]){0, 0, -2 * d}, ROOM_TILE);
+    add_tiled(&walls, (double[3]){-w, 0, -d}, (double[3]){2 * w, 0, 0}, (double[3]){0, h, 0}, ROOM_TILE);
+    add_tiled(&walls, (double[3]){w, 0, d}, (double[3]){-2 * w, 0, 0}, (double[3]){0, h, 0}, ROOM_TILE);
+    add_tiled(&walls, (double[3]){-w, 0, d}, (double[3]){0, 0, -2 * d}, (double[3]){0, h, 0}, ROOM_TILE);
+    add_tiled(&walls, (double[3]){w, 0, -d}, (double[3]){0, 0, 2 * d}, (double[3]){0, h, 0}, ROOM_TILE);
     for (size_t i = 0; i < room->plinth_count; ++i) {
         const ms_scene_plinth *p = &room->plinths[i];
         double lo[3] = {p->position[0] - p->size[0] / 2, 0, p->position[1] - p->size[2] / 2};
         double hi[3] = {p->position[0] + p->size[0] / 2, p->size[1], p->position[1] + p->size[2] / 2};
-        add_box(&plinths, lo, hi, false, false);
+        add_box(&plinths, lo, hi);
     }
     st = make_part(&floor, &room->floor.material, &vs->parts[vs->part_count++], err);
+    if (st == MS_OK && room->floor.displacement.on)
+        vs->parts[vs->part_count - 1].displacement = &room->floor.displacement;
     if (st == MS_OK)
         st = make_part(&walls, &room->walls.material, &vs->parts[vs->part_count++], err);
+    if (st == MS_OK && room->walls.displacement.on)
+        vs->parts[vs->part_count - 1].displacement = &room->walls.displacement;
     /* plinths share the first one's material (the format gives each its own;
      * one draw keeps the room cheap) */
     if (st == MS_OK && room->plinth_count)
@@ -406,6 +429,14 @@ ms_status ms_viewer_scene_draw(ms_viewer_scene *vs, const ms_camera *camera, con
         po.smooth = false;
         po.apo = false;
         po.placed = false;
+        const ms_scene_displacement *disp = vs->parts[i].displacement;
+        if (disp && (vs->effects & MS_EFFECT_DISPLACEMENT)) {
+            po.displace = true;
+            po.displacement_amplitude = disp->amplitude;
+            po.displacement_radius = disp->atom_radius;
+            po.displacement_density = disp->density;
+            po.displacement_seed = disp->seed;
+        }
         st = ms_render_draw(vs->parts[i].render, camera, &po, &one, err);
         merge_stats(&sum, &one);
         o.clear = false;
