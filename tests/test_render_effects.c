@@ -14,7 +14,11 @@
  *    a floor of patches generates fall as the camera backs away, about with the
  *    square of the distance; a floor wholly outside the view generates one
  *    triangle per patch), the relief changes the picture, and without the
- *    effect the same options draw the flat floor. */
+ *    effect the same options draw the flat floor;
+ *  - impostors: a far object drawn as its impostor agrees with its geometry
+ *    (from the capture's direction, and 4 degrees away from it), the
+ *    dissolve pattern of the geometry and the impostor's coverage are
+ *    complementary. */
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -27,11 +31,19 @@
 #include <cmocka.h>
 
 #include "ms_render.h"
+#include "ms_render_impostor.h"
 #include "ms_test.h"
 #include "ms_test_render.h"
 
 #define SIZE 64
 #define SAME_TOLERANCE 2e-6 /* per channel, linear float output */
+/* Impostor against geometry (mean over pixels of the largest channel
+ * difference, and the share of pixels differing by more than 0.1). */
+#define MEAN_AT_CAPTURE 0.05 /* measured 0.028 */
+#define SHARE_AT_CAPTURE 0.12 /* measured 0.067 */
+#define MEAN_TURNED 0.05 /* 4 degrees away: measured 0.025 */
+#define SHARE_TURNED 0.15 /* measured 0.076 */
+#define assert_near_angle(a, b) assert_true(fabs((a) - (b)) < 1e-9)
 
 /* Identifiers only an effect's code declares or calls. */
 static const struct {
@@ -404,6 +416,131 @@ static void test_displacement_levels(void **state)
     ms_render_free(floor);
 }
 
+/* The demo model's camera moved back to `distance` box sides from the box
+ * centre and turned by `degrees` about the vertical through it. */
+static void far_camera(double distance, double degrees, ms_camera *cam, double centre[3], double *radius)
+{
+    const ms_archive_header *h = ms_archive_get_header(fx.archive);
+    for (int a = 0; a < 3; ++a)
+        centre[a] = h->box_origin[a] + 0.5 * h->box_side;
+    *radius = 0.5 * sqrt(3.0) * h->box_side;
+    double t = degrees * M_PI / 180.0;
+    double dir[3] = {1.0, 0.5, 0.7};
+    double rotated[3] = {dir[0] * cos(t) + dir[2] * sin(t), dir[1], -dir[0] * sin(t) + dir[2] * cos(t)};
+    ms_test_render_camera(h, rotated, distance, 40.0, SIZE, SIZE, cam);
+}
+
+/* Over the object's pixels (those of a that differ from its corner pixel, the
+ * background, or of b likewise): the mean of the largest channel difference,
+ * and the share differing by more than 0.1; *object their count. */
+static void image_error(const float *a, const float *b, double *mean, double *share, size_t *object)
+{
+    double sum = 0;
+    size_t big = 0, n = 0;
+    for (size_t i = 0; i < (size_t)SIZE * SIZE; ++i) {
+        double d = 0, fa = 0, fb = 0;
+        for (int c = 0; c < 3; ++c) {
+            d = fmax(d, fabs((double)a[4 * i + c] - (double)b[4 * i + c]));
+            fa = fmax(fa, fabs((double)a[4 * i + c] - (double)a[c]));
+            fb = fmax(fb, fabs((double)b[4 * i + c] - (double)a[c]));
+        }
+        if (fa <= 1e-3 && fb <= 1e-3)
+            continue;
+        n++;
+        sum += d;
+        big += d > 0.1;
+    }
+    *object = n;
+    *mean = n ? sum / (double)n : 0;
+    *share = n ? (double)big / (double)n : 0;
+}
+
+/* The impostor's picture: the background as the geometry's draw clears it
+ * (the geometry wholly dissolved), then the impostor. */
+static float *draw_impostor(ms_impostor *imp, const ms_camera *cam, float coverage, float dissolve)
+{
+    ms_render_options o;
+    ms_render_options_default(&o);
+    o.effects |= MS_EFFECT_IMPOSTORS;
+    o.dissolve = dissolve;
+    ms_test_fbo fbo;
+    ms_test_fbo_new(&fbo, SIZE, SIZE);
+    ms_error err;
+    expect(ms_render_draw(fx.render, cam, &o, NULL, &err), &err);
+    expect(ms_impostor_draw(imp, cam, coverage, &err), &err);
+    float *px = malloc((size_t)SIZE * SIZE * 4 * sizeof *px);
+    assert_non_null(px);
+    ms_test_fbo_read(&fbo, px, NULL);
+    ms_test_fbo_free(&fbo);
+    return px;
+}
+
+static void test_impostor_matches_geometry(void **state)
+{
+    (void)state;
+    ms_impostor *imp;
+    ms_error err;
+    expect(ms_impostor_new(128, &imp, &err), &err);
+    ms_camera cam;
+    double centre[3], radius;
+    far_camera(2.5, 0.0, &cam, centre, &radius);
+    assert_near_angle(ms_impostor_angle(imp, &cam), 180.0);
+    ms_render_options o;
+    ms_render_options_default(&o);
+    expect(ms_impostor_capture(imp, fx.render, &o, centre, radius, &cam, &err), &err);
+    assert_true(ms_impostor_angle(imp, &cam) < 1e-3);
+    const double turns[2] = {0.0, 4.0};
+    const double mean_bound[2] = {MEAN_AT_CAPTURE, MEAN_TURNED}, share_bound[2] = {SHARE_AT_CAPTURE, SHARE_TURNED};
+    for (int k = 0; k < 2; ++k) {
+        far_camera(2.5, turns[k], &cam, centre, &radius);
+        float *geometry = draw(fx.render, &cam, &o, NULL);
+        float *stand_in = draw_impostor(imp, &cam, 1.0f, 0.0f);
+        double mean, share;
+        size_t object;
+        image_error(geometry, stand_in, &mean, &share, &object);
+        print_message("impostor %.0f degrees from its capture (%.1f): over the object's %zu pixels, mean error "
+                      "%.4f, %.1f%% over 0.1\n",
+                      turns[k], ms_impostor_angle(imp, &cam), object, mean, 100 * share);
+        assert_true(object > (size_t)SIZE * SIZE / 20);
+        if (mean > mean_bound[k] || share > share_bound[k])
+            fail_msg("impostor at %.0f degrees: mean %.4f (at most %.4f), share %.3f (at most %.3f)", turns[k], mean,
+                     mean_bound[k], share, share_bound[k]);
+        free(geometry);
+        free(stand_in);
+    }
+    /* half and half: the geometry dissolved where the impostor draws, and
+     * the other way round, gives the same picture as each alone at the
+     * capture's direction within the same bounds; nothing drawn twice or not
+     * at all shows as background inside the object */
+    far_camera(2.5, 0.0, &cam, centre, &radius);
+    float *geometry = draw(fx.render, &cam, &o, NULL);
+    ms_render_options half = o;
+    half.effects |= MS_EFFECT_IMPOSTORS;
+    half.dissolve = 0.5f;
+    ms_test_fbo fbo;
+    ms_test_fbo_new(&fbo, SIZE, SIZE);
+    expect(ms_render_draw(fx.render, &cam, &half, NULL, &err), &err);
+    expect(ms_impostor_draw(imp, &cam, 0.5f, &err), &err);
+    float *mixed = malloc((size_t)SIZE * SIZE * 4 * sizeof *mixed);
+    assert_non_null(mixed);
+    ms_test_fbo_read(&fbo, mixed, NULL);
+    ms_test_fbo_free(&fbo);
+    double mean, share;
+    size_t object;
+    image_error(geometry, mixed, &mean, &share, &object);
+    print_message("half dissolved: mean error %.4f, %.1f%% over 0.1\n", mean, 100 * share);
+    assert_true(mean <= MEAN_AT_CAPTURE && share <= SHARE_AT_CAPTURE);
+    /* the geometry alone, half dissolved, misses half its pixels */
+    float *holes = draw(fx.render, &cam, &half, NULL);
+    image_error(geometry, holes, &mean, &share, &object);
+    print_message("geometry half dissolved alone: %.1f%% of the object's pixels missing\n", 100 * share);
+    assert_true(share > 0.4 && share < 0.6);
+    free(holes);
+    free(geometry);
+    free(mixed);
+    ms_impostor_free(imp);
+}
+
 static void test_bad_options(void **state)
 {
     (void)state;
@@ -514,6 +651,7 @@ int main(void)
         cmocka_unit_test(test_placement),
         cmocka_unit_test(test_bad_options),
         cmocka_unit_test(test_displacement_levels),
+        cmocka_unit_test(test_impostor_matches_geometry),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }

@@ -730,6 +730,7 @@ ms_status ms_render_draw(ms_render *r, const ms_camera *camera, const ms_render_
     glUniform1i(p->two_sided, o->two_sided);
     glUniform1f(p->haze_density, o->haze_density);
     glUniform3fv(p->haze_colour, 1, o->haze_colour);
+    glUniform1f(p->dissolve, o->dissolve);
     if (tessellated) {
         glUniform1f(p->tess_pixels, o->tess_pixels_per_level);
         glUniform1f(p->disp_amplitude, o->displacement_amplitude);

@@ -168,6 +168,10 @@ typedef struct ms_render_options {
     float displacement_density;   /* atoms per square unit, > 0 (default 100) */
     uint32_t displacement_seed;
     float tess_pixels_per_level;  /* projected edge pixels per tessellation level, >= 1 (default 8) */
+    /* The switch to an impostor (ms_render_impostor.h; needs MS_EFFECT_IMPOSTORS):
+     * the pixels of a 4x4 Bayer pattern below dissolve are left out, for the
+     * impostor to draw. Default 0: all drawn. */
+    float dissolve;
 } ms_render_options;
 
 /* LIT, APO on, no wireframe, no cap, nearest rule, dark grey background,

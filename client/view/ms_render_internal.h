@@ -147,6 +147,7 @@ typedef struct ms_render_program {
     GLint world_to_eye, cell_number, cell_tint, apo_words, smooth;
     GLint albedo, light_count, light_eye, light_colour, light_range;
     GLint specular, shininess, two_sided, haze_density, haze_colour; /* -1 when not compiled in */
+    GLint dissolve;
     GLint tess_pixels, disp_amplitude, disp_radius, disp_spacing, disp_seed, cell_origin, cell_side;
 } ms_render_program;
 
@@ -160,6 +161,11 @@ typedef struct ms_render_program {
  * first line of the driver's log. */
 ms_status ms_render_program_build(ms_render_program *program, unsigned effects, bool wireframe, bool tessellated,
                                   ms_error *err);
+/* A program of one vertex and one fragment shader (output "colour"); name
+ * for errors. MS_ERR_UNSUPPORTED with the driver's first log line. */
+ms_status ms_render_link_simple(const char *vert, const char *frag, const char *name, GLuint *program,
+                                ms_error *err);
+
 void ms_render_program_free(ms_render_program *program);
 
 /* ---- ms_render.c: for tests ----------------------------------------------- */

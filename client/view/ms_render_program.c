@@ -283,6 +283,7 @@ ms_status ms_render_program_build(ms_render_program *p, unsigned effects, bool w
     p->two_sided = glGetUniformLocation(g, "two_sided");
     p->haze_density = glGetUniformLocation(g, "haze_density");
     p->haze_colour = glGetUniformLocation(g, "haze_colour");
+    p->dissolve = glGetUniformLocation(g, "dissolve");
     p->tess_pixels = glGetUniformLocation(g, "tess_pixels_per_level");
     p->disp_amplitude = glGetUniformLocation(g, "displacement_amplitude");
     p->disp_radius = glGetUniformLocation(g, "displacement_radius");
@@ -294,6 +295,38 @@ ms_status ms_render_program_build(ms_render_program *p, unsigned effects, bool w
     p->wireframe = wireframe;
     p->tessellated = tessellated;
     return MS_OK;
+}
+
+ms_status ms_render_link_simple(const char *vert, const char *frag, const char *name, GLuint *program,
+                                ms_error *err)
+{
+    *program = 0;
+    const char *vs_src[] = {vert}, *fs_src[] = {frag};
+    GLuint vs = 0, fs = 0;
+    ms_status st = compile(GL_VERTEX_SHADER, vs_src, 1, name, &vs, err);
+    if (st == MS_OK)
+        st = compile(GL_FRAGMENT_SHADER, fs_src, 1, name, &fs, err);
+    if (st == MS_OK) {
+        GLuint p = glCreateProgram();
+        glAttachShader(p, vs);
+        glAttachShader(p, fs);
+        glBindFragDataLocation(p, 0, "colour");
+        glLinkProgram(p);
+        GLint ok = 0;
+        glGetProgramiv(p, GL_LINK_STATUS, &ok);
+        if (!ok) {
+            char line[256];
+            first_log_line(p, true, line, sizeof line);
+            st = ms_error_set(err, MS_ERR_UNSUPPORTED, "render: %s shaders do not link: %s", name, line);
+            glDeleteProgram(p);
+        } else
+            *program = p;
+    }
+    if (vs)
+        glDeleteShader(vs);
+    if (fs)
+        glDeleteShader(fs);
+    return st;
 }
 
 const char *ms_effect_name(unsigned effect)

@@ -12,5 +12,7 @@ extern const char ms_shader_apo[];       /* shaders/apo.glsl, inserted after fra
 extern const char ms_shader_tess_vert[]; /* shaders/tess.vert.glsl: displaced surfaces' vertex stage */
 extern const char ms_shader_tess_tesc[]; /* shaders/tess.tesc.glsl: levels by screen size, culling */
 extern const char ms_shader_tess_tese[]; /* shaders/tess.tese.glsl: the height atoms */
+extern const char ms_shader_impostor_vert[]; /* shaders/impostor.vert.glsl: the impostor's quad */
+extern const char ms_shader_impostor_frag[]; /* shaders/impostor.frag.glsl: the march through the image */
 
 #endif

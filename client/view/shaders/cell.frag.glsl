@@ -59,6 +59,19 @@ uniform bool two_sided;       // a back face is lit as its other side
 uniform float haze_density;   // per unit of eye distance
 uniform vec3 haze_colour;     // linear
 #endif
+#ifdef MS_EFFECT_IMPOSTORS
+// The switch to and from an impostor: the pixels whose 4x4 Bayer threshold is
+// below dissolve are left to the impostor (impostor.frag.glsl draws exactly
+// those), so the two cross-fade without sorting or blending.
+uniform float dissolve;
+
+float bayer(vec2 p)
+{
+    ivec2 q = ivec2(p) & 3;
+    int m[16] = int[16](0, 8, 2, 10, 12, 4, 14, 6, 3, 11, 1, 9, 15, 7, 13, 5);
+    return (float(m[q.y * 4 + q.x]) + 0.5) / 16.0;
+}
+#endif
 
 out vec4 colour;
 
@@ -86,6 +99,10 @@ vec3 geometric_normal()
 
 void main()
 {
+#ifdef MS_EFFECT_IMPOSTORS
+    if (bayer(gl_FragCoord.xy) < dissolve)
+        discard;
+#endif
     if (shading == 3) {
         uint id = cell_number + 1u;
         colour = vec4(float(id & 0xFFu), float((id >> 8) & 0xFFu), float((id >> 16) & 0xFFu), 255.0) / 255.0;

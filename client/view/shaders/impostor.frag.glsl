@@ -1,0 +1,93 @@
+#version 410 core
+// meshview: an impostor's image with depth (seed 002, "images with parallax"):
+// colour and window depth captured along the capture direction F by a
+// near-orthographic view of the object's bounding sphere (radius r). Each
+// fragment follows its view ray through the box [-r, r]^3 of the capture frame
+// (R, U, F), in 48 steps and then 6 halvings, to the first point behind the
+// captured surface: exact where the view is the capture's, parallax-corrected
+// as the view turns away from it (until the renderer captures again). The hit
+// gives the colour and the fragment's depth, so the impostor meets the rest of
+// the scene as the geometry would. coverage < 1 dithers it out (the switch
+// with the geometry, which draws the complementary pixels).
+
+in vec3 w_position;
+
+uniform sampler2D impostor_colour;
+uniform sampler2D impostor_depth;
+uniform mat4 view_projection;
+uniform vec3 centre;            // world, relative to the camera
+uniform vec3 capture_right, capture_up, capture_forward; // unit
+uniform float radius;
+uniform float capture_distance; // eye to centre at capture
+uniform float capture_near, capture_far;
+uniform float coverage;
+
+out vec4 colour;
+
+float bayer(vec2 p)
+{
+    ivec2 q = ivec2(p) & 3;
+    int m[16] = int[16](0, 8, 2, 10, 12, 4, 14, 6, 3, 11, 1, 9, 15, 7, 13, 5);
+    return (float(m[q.y * 4 + q.x]) + 0.5) / 16.0;
+}
+
+// The captured surface's offset along F from the centre at image point uv
+// (in [0, 1]^2), or a large value where the capture saw nothing.
+float surface(vec2 uv)
+{
+    float z = texture(impostor_depth, uv).r;
+    if (z >= 1.0)
+        return 1e9;
+    float n = capture_near, f = capture_far;
+    float ndc = 2.0 * z - 1.0;
+    float eye = 2.0 * n * f / (f + n - ndc * (f - n));
+    return eye - capture_distance;
+}
+
+void main()
+{
+    if (bayer(gl_FragCoord.xy) >= coverage)
+        discard;
+    // the ray from the eye (0) through this fragment, in the capture frame
+    // centred on the object
+    vec3 rel = -centre;
+    vec3 o = vec3(dot(rel, capture_right), dot(rel, capture_up), dot(rel, capture_forward));
+    vec3 w = normalize(w_position);
+    vec3 d = vec3(dot(w, capture_right), dot(w, capture_up), dot(w, capture_forward));
+    // the ray's stretch inside the box [-r, r]^3
+    vec3 inv = 1.0 / d;
+    vec3 t0 = (vec3(-radius) - o) * inv, t1 = (vec3(radius) - o) * inv;
+    vec3 lo = min(t0, t1), hi = max(t0, t1);
+    float enter = max(max(lo.x, lo.y), max(lo.z, 0.0)), leave = min(hi.x, min(hi.y, hi.z));
+    if (enter >= leave)
+        discard;
+    const int STEPS = 48;
+    float step_t = (leave - enter) / float(STEPS);
+    float before = enter, hit = -1.0;
+    for (int i = 0; i <= STEPS; ++i) {
+        float t = enter + step_t * float(i);
+        vec3 p = o + t * d;
+        vec2 uv = p.xy / (2.0 * radius) + 0.5;
+        if (p.z >= surface(uv)) {
+            hit = t;
+            break;
+        }
+        before = t;
+    }
+    if (hit < 0.0)
+        discard;
+    float a = before, b = hit;
+    for (int i = 0; i < 6; ++i) {
+        float m = 0.5 * (a + b);
+        vec3 p = o + m * d;
+        if (p.z >= surface(p.xy / (2.0 * radius) + 0.5))
+            b = m;
+        else
+            a = m;
+    }
+    vec3 p = o + b * d;
+    vec2 uv = p.xy / (2.0 * radius) + 0.5;
+    colour = vec4(texture(impostor_colour, uv).rgb, 1.0);
+    vec4 clip = view_projection * vec4(b * w, 1.0);
+    gl_FragDepth = 0.5 * (clip.z / clip.w) + 0.5;
+}
