@@ -467,7 +467,7 @@ static float *draw_impostor(ms_impostor *imp, const ms_camera *cam, float covera
     ms_test_fbo_new(&fbo, SIZE, SIZE);
     ms_error err;
     expect(ms_render_draw(fx.render, cam, &o, NULL, &err), &err);
-    expect(ms_impostor_draw(imp, cam, coverage, &err), &err);
+    expect(ms_impostor_draw(imp, cam, coverage, 0.0f, NULL, &err), &err);
     float *px = malloc((size_t)SIZE * SIZE * 4 * sizeof *px);
     assert_non_null(px);
     ms_test_fbo_read(&fbo, px, NULL);
@@ -520,7 +520,7 @@ static void test_impostor_matches_geometry(void **state)
     ms_test_fbo fbo;
     ms_test_fbo_new(&fbo, SIZE, SIZE);
     expect(ms_render_draw(fx.render, &cam, &half, NULL, &err), &err);
-    expect(ms_impostor_draw(imp, &cam, 0.5f, &err), &err);
+    expect(ms_impostor_draw(imp, &cam, 0.5f, 0.0f, NULL, &err), &err);
     float *mixed = malloc((size_t)SIZE * SIZE * 4 * sizeof *mixed);
     assert_non_null(mixed);
     ms_test_fbo_read(&fbo, mixed, NULL);

@@ -16,7 +16,7 @@ struct ms_impostor {
     GLuint fbo, colour, depth;
     GLuint program, vao, vbo;
     GLint u_view_projection, u_centre, u_quad_right, u_quad_up, u_colour, u_depth, u_cap_right, u_cap_up,
-        u_cap_forward, u_radius, u_cap_distance, u_cap_near, u_cap_far, u_coverage;
+        u_cap_forward, u_radius, u_cap_distance, u_cap_near, u_cap_far, u_coverage, u_haze_density, u_haze_colour;
     bool captured;
     double centre[3], radius;
     double right[3], up[3], forward[3]; /* the capture's frame */
@@ -88,6 +88,8 @@ ms_status ms_impostor_new(int size, ms_impostor **out, ms_error *err)
     imp->u_cap_near = glGetUniformLocation(g, "capture_near");
     imp->u_cap_far = glGetUniformLocation(g, "capture_far");
     imp->u_coverage = glGetUniformLocation(g, "coverage");
+    imp->u_haze_density = glGetUniformLocation(g, "haze_density");
+    imp->u_haze_colour = glGetUniformLocation(g, "haze_colour");
     imp->colour = make_texture(GL_RGBA8, GL_RGBA, GL_UNSIGNED_BYTE, size);
     imp->depth = make_texture(GL_DEPTH_COMPONENT32F, GL_DEPTH_COMPONENT, GL_FLOAT, size);
     GLint previous = 0;
@@ -153,6 +155,7 @@ ms_status ms_impostor_capture(ms_impostor *imp, ms_render *r, const ms_render_op
     o.clear = true;
     o.wireframe = false;
     o.dissolve = 0.0f;
+    o.haze_density = 0.0f; /* added at the true distance when drawn */
     st = ms_render_draw(r, &cap, &o, NULL, err);
     glBindFramebuffer(GL_FRAMEBUFFER, (GLuint)previous);
     glViewport(viewport[0], viewport[1], viewport[2], viewport[3]);
@@ -186,7 +189,8 @@ double ms_impostor_angle(const ms_impostor *imp, const ms_camera *camera)
     return acos(c > 1.0 ? 1.0 : (c < -1.0 ? -1.0 : c)) * 180.0 / M_PI;
 }
 
-ms_status ms_impostor_draw(ms_impostor *imp, const ms_camera *camera, float coverage, ms_error *err)
+ms_status ms_impostor_draw(ms_impostor *imp, const ms_camera *camera, float coverage, float haze_density,
+                           const float haze_colour[3], ms_error *err)
 {
     if (!imp || !camera)
         return ms_error_set(err, MS_ERR_ARG, "impostor: nothing to draw");
@@ -240,6 +244,9 @@ ms_status ms_impostor_draw(ms_impostor *imp, const ms_camera *camera, float cove
     glUniform1f(imp->u_cap_near, (float)imp->near_distance);
     glUniform1f(imp->u_cap_far, (float)imp->far_distance);
     glUniform1f(imp->u_coverage, coverage);
+    glUniform1f(imp->u_haze_density, haze_density);
+    const float none[3] = {0, 0, 0};
+    glUniform3fv(imp->u_haze_colour, 1, haze_colour ? haze_colour : none);
     glActiveTexture(GL_TEXTURE1);
     glBindTexture(GL_TEXTURE_2D, imp->colour);
     glUniform1i(imp->u_colour, 1);

@@ -3,7 +3,7 @@
  * its current cut instead of its triangles.
  *
  * Capture: the renderer's model (through ms_render_draw, with the caller's
- * options: placement, material, lights) seen along the direction from the
+ * options: placement, material, lights; haze left out) seen along the direction from the
  * camera to the object's bounding sphere (centre, radius; world units) by a
  * near-orthographic camera (50 radii away, the sphere filling a size x size
  * image), colour and depth kept in textures. Draw: a camera-facing quad over
@@ -46,7 +46,10 @@ ms_status ms_impostor_capture(ms_impostor *imp, ms_render *r, const ms_render_op
 double ms_impostor_angle(const ms_impostor *imp, const ms_camera *camera);
 
 /* Draws the impostor into the bound framebuffer (viewport and depth test as
- * ms_render_draw leaves them), coverage in [0, 1]. */
-ms_status ms_impostor_draw(ms_impostor *imp, const ms_camera *camera, float coverage, ms_error *err);
+ * ms_render_draw leaves them), coverage in [0, 1]; haze as ms_render_options'
+ * (density 0: none), applied at each pixel's true distance (the capture has
+ * none). */
+ms_status ms_impostor_draw(ms_impostor *imp, const ms_camera *camera, float coverage, float haze_density,
+                           const float haze_colour[3], ms_error *err);
 
 #endif

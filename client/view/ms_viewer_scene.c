@@ -5,11 +5,16 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "ms_render_impostor.h"
 #include "ms_viewer_scene.h"
 
-/* The effects drawn today; impostors compile to nothing. */
-#define IMPLEMENTED_EFFECTS \
-    (MS_EFFECT_DETAIL_NORMALS | MS_EFFECT_SPECULAR | MS_EFFECT_TWO_SIDED | MS_EFFECT_HAZE | MS_EFFECT_DISPLACEMENT)
+/* Impostors: image size, the step of the cross-fade per drawn frame, and the
+ * hysteresis of the switch back to geometry. */
+#define IMPOSTOR_PIXELS 128
+#define IMPOSTOR_FADE_STEP 0.25f
+#define IMPOSTOR_LEAVE_FACTOR 1.15
+
+#define IMPLEMENTED_EFFECTS MS_EFFECTS_ALL
 
 /* The room's floor and walls are cut into tiles of at most this side (metres),
  * so that tessellation (at most 64 per edge) can resolve a relief's atoms. */
@@ -23,6 +28,11 @@ typedef struct scene_model {
     double scale;
     double centre[3], radius;  /* placed bounding sphere, metres */
     bool settled;
+    uint64_t generation;       /* of the frame the renderer holds */
+    ms_impostor *impostor;     /* made on first use */
+    uint64_t captured_generation;
+    bool far;                  /* below the impostor threshold (with hysteresis) */
+    float coverage;            /* of the impostor: 0 geometry only .. 1 impostor only */
 } scene_model;
 
 /* A part of the room: boxes' faces as one one-cell model. */
@@ -41,6 +51,7 @@ struct ms_viewer_scene {
     uint32_t *order;           /* model indices, nearest first (scratch) */
     double *distance;          /* per model (scratch) */
     unsigned effects;
+    bool force_all;
     double lo[3], hi[3];
     ms_render_light lights[MS_RENDER_MAX_LIGHTS];
     unsigned light_count;
@@ -247,6 +258,7 @@ ms_status ms_viewer_scene_open(const ms_viewer_source *source, const ms_scene *s
     }
     unsigned effects = settings->force_all ? MS_EFFECTS_ALL : ms_scene_effects(scene);
     vs->effects = effects & ~settings->effects_off & MS_EFFECTS_ALL;
+    vs->force_all = settings->force_all;
     ms_viewer_stream_settings each = settings->stream;
     each.memory_mb = settings->stream.memory_mb / (double)scene->model_count;
     each.bandwidth = settings->stream.bandwidth / (double)scene->model_count;
@@ -300,6 +312,7 @@ void ms_viewer_scene_close(ms_viewer_scene *vs)
     if (!vs)
         return;
     for (size_t i = 0; i < vs->model_count; ++i) {
+        ms_impostor_free(vs->models[i].impostor);
         ms_viewer_stream_close(vs->models[i].stream);
         ms_viewer_model_close(&vs->models[i].model);
     }
@@ -390,6 +403,7 @@ ms_status ms_viewer_scene_step(ms_viewer_scene *vs, const ms_camera *camera, uin
         step->frame_triangles += s.frame_triangles;
         step->settled &= s.settled;
         m->settled = s.settled;
+        m->generation = s.generation;
     }
     return MS_OK;
 }
@@ -398,8 +412,79 @@ static void merge_stats(ms_render_draw_stats *sum, const ms_render_draw_stats *o
 {
     sum->cells_drawn += one->cells_drawn;
     sum->triangles_drawn += one->triangles_drawn;
-    sum->effects_compiled = one->effects_compiled;
     sum->effects_ran |= one->effects_ran;
+}
+
+/* The effects a piece calls for: only the effects of its own material and
+ * surface (all of the scene's with force_all), within the scene's. */
+static unsigned piece_effects(const ms_viewer_scene *vs, const ms_scene_material *mat, bool model, bool relief)
+{
+    if (vs->force_all)
+        return vs->effects;
+    unsigned e = MS_EFFECT_HAZE;
+    if (model)
+        e |= MS_EFFECT_DETAIL_NORMALS | MS_EFFECT_IMPOSTORS;
+    if (mat->kind == MS_MATERIAL_GLOSSY && mat->specular > 0.0f)
+        e |= MS_EFFECT_SPECULAR;
+    if (mat->two_sided)
+        e |= MS_EFFECT_TWO_SIDED;
+    if (relief)
+        e |= MS_EFFECT_DISPLACEMENT;
+    return e & vs->effects;
+}
+
+/* The model's projected diameter in pixels for camera. */
+static double projected_pixels(const scene_model *m, const ms_camera *camera)
+{
+    double d2 = 0;
+    for (int a = 0; a < 3; ++a)
+        d2 += (m->centre[a] - camera->position[a]) * (m->centre[a] - camera->position[a]);
+    double d = fmax(sqrt(d2), 1e-9);
+    return 2.0 * m->radius * camera->height / (2.0 * tan(0.5 * camera->fovy)) / d;
+}
+
+/* Geometry, impostor or both (crossing over) for one model. */
+static ms_status draw_model(ms_viewer_scene *vs, scene_model *m, const ms_camera *camera,
+                            const ms_render_options *mo, ms_render_draw_stats *sum, ms_error *err)
+{
+    ms_render_draw_stats one;
+    bool impostors = (mo->effects & MS_EFFECT_IMPOSTORS) != 0;
+    if (impostors) {
+        double px = projected_pixels(m, camera), threshold = vs->scene->impostor_threshold_px;
+        if (px < threshold)
+            m->far = true;
+        else if (px > threshold * IMPOSTOR_LEAVE_FACTOR)
+            m->far = false;
+    } else
+        m->far = false;
+    float target = m->far ? 1.0f : 0.0f;
+    m->coverage = m->coverage < target ? fminf(target, m->coverage + IMPOSTOR_FADE_STEP)
+                                       : fmaxf(target, m->coverage - IMPOSTOR_FADE_STEP);
+    ms_status st = MS_OK;
+    if (m->coverage > 0.0f) {
+        if (!m->impostor)
+            st = ms_impostor_new(IMPOSTOR_PIXELS, &m->impostor, err);
+        /* captured again when the view turned past the angle or the cut changed */
+        if (st == MS_OK && (ms_impostor_angle(m->impostor, camera) > vs->scene->impostor_angle_degrees ||
+                            m->captured_generation != m->generation)) {
+            st = ms_impostor_capture(m->impostor, ms_viewer_stream_render(m->stream), mo, m->centre, m->radius,
+                                     camera, err);
+            m->captured_generation = m->generation;
+        }
+    }
+    /* the geometry's draw (wholly dissolved when the impostor covers all) also
+     * clears the picture when it is the first draw of the frame */
+    if (st == MS_OK && (m->coverage < 1.0f || mo->clear)) {
+        ms_render_options g = *mo;
+        g.dissolve = m->coverage;
+        st = ms_viewer_stream_draw(m->stream, camera, &g, &one, err);
+        merge_stats(sum, &one);
+    }
+    if (st == MS_OK && m->coverage > 0.0f) {
+        st = ms_impostor_draw(m->impostor, camera, m->coverage, mo->haze_density, mo->haze_colour, err);
+        sum->effects_ran |= MS_EFFECT_IMPOSTORS;
+    }
+    return st;
 }
 
 ms_status ms_viewer_scene_draw(ms_viewer_scene *vs, const ms_camera *camera, const ms_render_options *base,
@@ -409,19 +494,20 @@ ms_status ms_viewer_scene_draw(ms_viewer_scene *vs, const ms_camera *camera, con
     memset(&sum, 0, sizeof sum);
     const ms_scene *scene = vs->scene;
     ms_render_options o = *base;
-    o.effects = vs->effects & IMPLEMENTED_EFFECTS;
     o.light_count = vs->light_count;
     memcpy(o.lights, vs->lights, sizeof o.lights);
-    o.haze_density = scene->haze.density;
+    o.haze_density = (vs->effects & MS_EFFECT_HAZE) ? scene->haze.density : 0.0f;
     memcpy(o.haze_colour, scene->haze.colour, sizeof o.haze_colour);
-    if ((vs->effects & MS_EFFECT_HAZE) && scene->haze.density > 0)
+    if (o.haze_density > 0)
         memcpy(o.background, scene->haze.colour, sizeof o.background);
     o.clear = true;
     ms_status st = MS_OK;
     /* the room: flat boxes, never APO */
     for (size_t i = 0; i < vs->part_count && st == MS_OK; ++i) {
         const ms_scene_material *mat = vs->parts[i].material;
+        const ms_scene_displacement *disp = vs->parts[i].displacement;
         ms_render_options po = o;
+        po.effects = piece_effects(vs, mat, false, disp != NULL);
         memcpy(po.albedo, mat->albedo, sizeof po.albedo);
         po.specular = mat->specular;
         po.shininess = mat->shininess;
@@ -429,8 +515,7 @@ ms_status ms_viewer_scene_draw(ms_viewer_scene *vs, const ms_camera *camera, con
         po.smooth = false;
         po.apo = false;
         po.placed = false;
-        const ms_scene_displacement *disp = vs->parts[i].displacement;
-        if (disp && (vs->effects & MS_EFFECT_DISPLACEMENT)) {
+        if (disp && (po.effects & MS_EFFECT_DISPLACEMENT)) {
             po.displace = true;
             po.displacement_amplitude = disp->amplitude;
             po.displacement_radius = disp->atom_radius;
@@ -439,23 +524,24 @@ ms_status ms_viewer_scene_draw(ms_viewer_scene *vs, const ms_camera *camera, con
         }
         st = ms_render_draw(vs->parts[i].render, camera, &po, &one, err);
         merge_stats(&sum, &one);
+        sum.effects_compiled |= po.effects;
         o.clear = false;
     }
     for (size_t i = 0; i < vs->model_count && st == MS_OK; ++i) {
-        const scene_model *m = &vs->models[i];
+        scene_model *m = &vs->models[i];
         const ms_scene_material *mat = &scene->models[i].material;
         ms_render_options mo = o;
+        mo.effects = piece_effects(vs, mat, true, false);
         memcpy(mo.albedo, mat->albedo, sizeof mo.albedo);
         mo.specular = mat->specular;
         mo.shininess = mat->shininess;
         mo.two_sided = mat->two_sided;
         mo.placed = true;
         memcpy(mo.placement, m->placement, sizeof mo.placement);
-        st = ms_viewer_stream_draw(m->stream, camera, &mo, &one, err);
-        merge_stats(&sum, &one);
-        o.clear = false;
+        st = draw_model(vs, m, camera, &mo, &sum, err);
+        o.clear = false; /* without a room, the first model's draw cleared */
+        sum.effects_compiled |= mo.effects;
     }
-    sum.effects_compiled = o.effects;
     if (stats)
         *stats = sum;
     return st;

@@ -21,6 +21,8 @@ uniform float radius;
 uniform float capture_distance; // eye to centre at capture
 uniform float capture_near, capture_far;
 uniform float coverage;
+uniform float haze_density;     // the captured colour has none: added here at
+uniform vec3 haze_colour;       // the hit's true distance (linear colour)
 
 out vec4 colour;
 
@@ -87,7 +89,14 @@ void main()
     }
     vec3 p = o + b * d;
     vec2 uv = p.xy / (2.0 * radius) + 0.5;
-    colour = vec4(texture(impostor_colour, uv).rgb, 1.0);
+    vec3 rgb = texture(impostor_colour, uv).rgb;
+    if (haze_density > 0.0) {
+        vec3 linear = mix(rgb / 12.92, pow((rgb + 0.055) / 1.055, vec3(2.4)), greaterThan(rgb, vec3(0.04045)));
+        linear = mix(haze_colour, linear, exp(-haze_density * b));
+        linear = clamp(linear, 0.0, 1.0);
+        rgb = mix(12.92 * linear, 1.055 * pow(linear, vec3(1.0 / 2.4)) - 0.055, greaterThan(linear, vec3(0.0031308)));
+    }
+    colour = vec4(rgb, 1.0);
     vec4 clip = view_projection * vec4(b * w, 1.0);
     gl_FragDepth = 0.5 * (clip.z / clip.w) + 0.5;
 }
