@@ -8,6 +8,8 @@
  *     the picture changes;
  *   - a scene calling for none of them draws the same pictures with its own
  *     program as with every effect compiled in (--effects-all);
+ *   - the interactive window on a scene runs until SIGTERM and exits 0 without a
+ *     word;
  *   - bad scenes and options: one line on stderr, exit 1 or 2. */
 #include <setjmp.h>
 #include <stdarg.h>
@@ -16,7 +18,9 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <signal.h>
 #include <sys/stat.h>
+#include <time.h>
 #include <cmocka.h>
 #include <jansson.h>
 
@@ -24,6 +28,7 @@
 #include "ms_nsp_check.h"
 #include "ms_test.h"
 #include "ms_test_display.h"
+#include "ms_test_net.h"
 #include "ms_test_picture.h"
 
 #define RUN_ARGS "--size 160x120 --frames 2 --json"
@@ -182,6 +187,24 @@ static void test_same_pictures_without_effects(void **state)
     json_decref(all);
 }
 
+static void test_interactive_until_terminated(void **state)
+{
+    (void)state;
+    char scene[700], log[700];
+    write_scene("window", GLOSSY, OPEN, HAZE, RELIEF, "demo", scene, sizeof scene);
+    snprintf(log, sizeof log, "%s/interactive.txt", fx.dir);
+    char *argv[] = {fx.bin, fx.archives, "--scene", scene, "--size", "320x200", NULL};
+    pid_t viewer = ms_test_spawn(argv, log);
+    struct timespec wait = {3, 0};
+    nanosleep(&wait, NULL);
+    assert_int_equal(ms_test_stop(viewer, SIGTERM, 20.0), 0);
+    size_t length;
+    unsigned char *text = ms_test_read_file(log, &length);
+    if (length)
+        fail_msg("meshview printed: %.*s", (int)(length < 2000 ? length : 2000), (const char *)text);
+    free(text);
+}
+
 static void test_bad_scenes_and_options(void **state)
 {
     (void)state;
@@ -205,7 +228,6 @@ static void test_bad_scenes_and_options(void **state)
         const char *args, *message;
     } usage[] = {
         {"--scene s.json --model demo --screenshot-dir d", "meshview: --scene and --model exclude each other\n"},
-        {"--scene s.json", "meshview: --scene runs scripted for now: give --screenshot-dir\n"},
         {"--scene s.json --screenshot-dir d --effects-off fog",
          "meshview: --effects-off wants effect names separated by commas, not 'fog'\n"},
         {"--effects-all --screenshot-dir d", "meshview: --effects-off and --effects-all need --scene\n"},
@@ -269,6 +291,7 @@ int main(void)
         cmocka_unit_test(test_bad_scenes_and_options),
         cmocka_unit_test(test_effects_called_for_and_left_out),
         cmocka_unit_test(test_same_pictures_without_effects),
+        cmocka_unit_test(test_interactive_until_terminated),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }

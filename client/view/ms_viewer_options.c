@@ -28,7 +28,7 @@ void ms_viewer_options_usage(FILE *out)
           "  --memory MB            client cache target (default none)\n"
           "  --bandwidth B          bytes per second read (default unlimited)\n"
           "  --up x|y|z             the model's up axis (default z)\n"
-          "Scenes (docs/SCENES.md; scripted for now: with --screenshot-dir):\n"
+          "Scenes (docs/SCENES.md):\n"
           "  --scene FILE           a room of catalogue models; --path defaults to its camera path\n"
           "  --effects-off LIST     effects left out of the program (comma-separated: detail_normals,\n"
           "                         specular, two_sided, haze, impostors, displacement)\n"
@@ -289,10 +289,6 @@ int ms_viewer_options_parse(int argc, char **argv, ms_viewer_options *o, FILE *e
     }
     if (o->path_file && !o->model && !o->scene_file) {
         fprintf(err, "meshview: --path needs --model or --scene\n");
-        return 2;
-    }
-    if (o->scene_file && !o->screenshot_dir) {
-        fprintf(err, "meshview: --scene runs scripted for now: give --screenshot-dir\n");
         return 2;
     }
     if ((o->effects_off || o->effects_all) && !o->scene_file) {
