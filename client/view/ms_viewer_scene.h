@@ -1,8 +1,9 @@
 /* A scene on screen (docs/SCENES.md): every model of an ms_scene streamed by its
  * own stream (ms_viewer_stream.h: a client core and a renderer), placed in the
  * room, plus the room's generated geometry (floor, walls, plinths: boxes as
- * one-cell models, flat shaded), drawn into one picture with the shader program
- * composed for the effects the scene calls for.
+ * one-cell models, flat shaded, the floor and walls in 0.5 m tiles), drawn
+ * into one picture with shader programs composed of the effects each piece
+ * calls for.
  *
  * Streaming. One core per model, all fed the same scene camera expressed in
  * the model's own coordinates (the placement inverted: a uniformly scaled
@@ -17,8 +18,13 @@
  *
  * Effects: ms_scene_effects(scene), minus settings.effects_off, or every
  * effect with settings.force_all (what "only the effects the scene calls
- * for" saves, for make bench). Displacement and impostors are not drawn yet:
- * a scene may call for them, they compile to nothing and never run.
+ * for" saves, for make bench); each piece's program holds only its own
+ * (specular for glossy materials, two-sided for open ones, displacement for
+ * the floor and walls that declare a relief, detail normals and impostors for
+ * models, haze everywhere), or all of them with force_all. A model smaller on
+ * screen than the scene's impostor threshold is drawn as an impostor
+ * (ms_render_impostor.h), captured again past the scene's angle or when its
+ * cut changes, with a 4-frame dissolve on the switch.
  *
  * Requires the GL context current on the calling thread for every function
  * but _effects and _settled. Ownership: the scene is borrowed (it must outlive
