@@ -54,6 +54,7 @@ static const struct {
     {MS_EFFECT_SPECULAR, {"specular_strength", "shininess", "highlight"}},
     {MS_EFFECT_TWO_SIDED, {"two_sided", NULL, NULL}},
     {MS_EFFECT_HAZE, {"haze_density", "haze_colour", "exp("}},
+    {MS_EFFECT_IMPOSTORS, {"dissolve", "bayer", NULL}},
 };
 
 /* Whether a preprocessor line of src still names an MS_EFFECT_ macro. */

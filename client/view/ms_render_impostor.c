@@ -67,8 +67,8 @@ ms_status ms_impostor_new(int size, ms_impostor **out, ms_error *err)
     if (!imp)
         return ms_error_set(err, MS_ERR_NOMEM, "impostor: no memory");
     imp->size = size;
-    ms_status st = ms_render_link_simple(ms_shader_impostor_vert, ms_shader_impostor_frag, "impostor",
-                                         &imp->program, err);
+    ms_status st = ms_render_link_simple(ms_shader_impostor_vert, ms_shader_impostor_frag, ms_shader_dither,
+                                         "impostor", &imp->program, err);
     if (st != MS_OK) {
         ms_impostor_free(imp);
         return st;

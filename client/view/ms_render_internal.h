@@ -163,10 +163,11 @@ typedef struct ms_render_program {
  * first line of the driver's log. */
 ms_status ms_render_program_build(ms_render_program *program, unsigned effects, bool wireframe, bool tessellated,
                                   ms_error *err);
-/* A program of one vertex and one fragment shader (output "colour"); name
+/* A program of one vertex and one fragment shader (output "colour"), with
+ * frag_insert (NULL: none) after the fragment shader's #version line; name
  * for errors. MS_ERR_UNSUPPORTED with the driver's first log line. */
-ms_status ms_render_link_simple(const char *vert, const char *frag, const char *name, GLuint *program,
-                                ms_error *err);
+ms_status ms_render_link_simple(const char *vert, const char *frag, const char *frag_insert, const char *name,
+                                GLuint *program, ms_error *err);
 
 void ms_render_program_free(ms_render_program *program);
 

@@ -184,6 +184,8 @@ ms_status ms_render_program_source(unsigned effects, bool wireframe, char **sour
     ms_status st = MS_OK;
     if (effects & MS_EFFECT_DETAIL_NORMALS)
         st = resolve_blocks(&t, ms_shader_apo, effects, err);
+    if (st == MS_OK && (effects & MS_EFFECT_IMPOSTORS))
+        text_add(&t, ms_shader_dither, strlen(ms_shader_dither));
     if (st == MS_OK)
         st = resolve_blocks(&t, after, effects, err);
     if (st == MS_OK && t.failed)
@@ -297,15 +299,26 @@ ms_status ms_render_program_build(ms_render_program *p, unsigned effects, bool w
     return MS_OK;
 }
 
-ms_status ms_render_link_simple(const char *vert, const char *frag, const char *name, GLuint *program,
-                                ms_error *err)
+ms_status ms_render_link_simple(const char *vert, const char *frag, const char *frag_insert, const char *name,
+                                GLuint *program, ms_error *err)
 {
     *program = 0;
-    const char *vs_src[] = {vert}, *fs_src[] = {frag};
+    /* the fragment shader: its #version line, the insert, the rest */
+    const char *after = strncmp(frag, "#version", 8) == 0 ? strchr(frag, '\n') : NULL;
+    if (!after)
+        return ms_error_set(err, MS_ERR_UNSUPPORTED, "render: %s fragment shader does not start with #version", name);
+    after++;
+    size_t head_len = (size_t)(after - frag);
+    char head[64];
+    if (head_len >= sizeof head)
+        return ms_error_set(err, MS_ERR_UNSUPPORTED, "render: %s fragment shader's first line too long", name);
+    memcpy(head, frag, head_len);
+    head[head_len] = 0;
+    const char *vs_src[] = {vert}, *fs_src[] = {head, frag_insert ? frag_insert : "", after};
     GLuint vs = 0, fs = 0;
     ms_status st = compile(GL_VERTEX_SHADER, vs_src, 1, name, &vs, err);
     if (st == MS_OK)
-        st = compile(GL_FRAGMENT_SHADER, fs_src, 1, name, &fs, err);
+        st = compile(GL_FRAGMENT_SHADER, fs_src, 3, name, &fs, err);
     if (st == MS_OK) {
         GLuint p = glCreateProgram();
         glAttachShader(p, vs);

@@ -14,5 +14,6 @@ extern const char ms_shader_tess_tesc[]; /* shaders/tess.tesc.glsl: levels by sc
 extern const char ms_shader_tess_tese[]; /* shaders/tess.tese.glsl: the height atoms */
 extern const char ms_shader_impostor_vert[]; /* shaders/impostor.vert.glsl: the impostor's quad */
 extern const char ms_shader_impostor_frag[]; /* shaders/impostor.frag.glsl: the march through the image */
+extern const char ms_shader_dither[];        /* shaders/dither.glsl: bayer(), inserted after #version */
 
 #endif

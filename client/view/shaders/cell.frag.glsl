@@ -3,7 +3,8 @@
 // composed per scene (ms_render_program_source): the renderer inserts, right
 // after the first line, "#define MS_WIREFRAME" for the program with the
 // geometry shader (wireframe overlay), then the APO traversal (apo.glsl) when
-// detail normals are compiled in, and keeps each "#ifdef MS_EFFECT_<NAME>"
+// detail normals are compiled in and the dither (dither.glsl) with impostors,
+// and keeps each "#ifdef MS_EFFECT_<NAME>"
 // block only for the effects the program holds: a block of an effect not held
 // is cut from the source, never compiled. Without the geometry shader (much
 // faster on software rasterisers) the flat normal comes from the screen
@@ -60,17 +61,11 @@ uniform float haze_density;   // per unit of eye distance
 uniform vec3 haze_colour;     // linear
 #endif
 #ifdef MS_EFFECT_IMPOSTORS
-// The switch to and from an impostor: the pixels whose 4x4 Bayer threshold is
-// below dissolve are left to the impostor (impostor.frag.glsl draws exactly
-// those), so the two cross-fade without sorting or blending.
+// The switch to and from an impostor: the pixels whose 4x4 Bayer threshold
+// (dither.glsl, inserted with this effect) is below dissolve are left to the
+// impostor (impostor.frag.glsl draws exactly those), so the two cross-fade
+// without sorting or blending.
 uniform float dissolve;
-
-float bayer(vec2 p)
-{
-    ivec2 q = ivec2(p) & 3;
-    int m[16] = int[16](0, 8, 2, 10, 12, 4, 14, 6, 3, 11, 1, 9, 15, 7, 13, 5);
-    return (float(m[q.y * 4 + q.x]) + 0.5) / 16.0;
-}
 #endif
 
 out vec4 colour;

@@ -26,13 +26,6 @@ uniform vec3 haze_colour;       // the hit's true distance (linear colour)
 
 out vec4 colour;
 
-float bayer(vec2 p)
-{
-    ivec2 q = ivec2(p) & 3;
-    int m[16] = int[16](0, 8, 2, 10, 12, 4, 14, 6, 3, 11, 1, 9, 15, 7, 13, 5);
-    return (float(m[q.y * 4 + q.x]) + 0.5) / 16.0;
-}
-
 // The captured surface's offset along F from the centre at image point uv
 // (in [0, 1]^2), or a large value where the capture saw nothing.
 float surface(vec2 uv)
