@@ -29,8 +29,9 @@ typedef struct scene_model {
     double centre[3], radius;  /* placed bounding sphere, metres */
     bool settled;
     uint64_t generation;       /* of the frame the renderer holds */
+    uint64_t uploads;          /* steps that completed cells on the GPU */
     ms_impostor *impostor;     /* made on first use */
-    uint64_t captured_generation;
+    uint64_t captured_generation, captured_uploads; /* what the impostor shows */
     bool far;                  /* below the impostor threshold (with hysteresis) */
     float coverage;            /* of the impostor: 0 geometry only .. 1 impostor only */
 } scene_model;
@@ -404,6 +405,7 @@ ms_status ms_viewer_scene_step(ms_viewer_scene *vs, const ms_camera *camera, uin
         step->settled &= s.settled;
         m->settled = s.settled;
         m->generation = s.generation;
+        m->uploads += s.upload.cells_completed > 0;
     }
     return MS_OK;
 }
@@ -464,12 +466,15 @@ static ms_status draw_model(ms_viewer_scene *vs, scene_model *m, const ms_camera
     if (m->coverage > 0.0f) {
         if (!m->impostor)
             st = ms_impostor_new(IMPOSTOR_PIXELS, &m->impostor, err);
-        /* captured again when the view turned past the angle or the cut changed */
+        /* captured again when the view turned past the angle, or the cut
+         * changed or reached the GPU (a frame's cells upload over several
+         * steps) */
         if (st == MS_OK && (ms_impostor_angle(m->impostor, camera) > vs->scene->impostor_angle_degrees ||
-                            m->captured_generation != m->generation)) {
+                            m->captured_generation != m->generation || m->captured_uploads != m->uploads)) {
             st = ms_impostor_capture(m->impostor, ms_viewer_stream_render(m->stream), mo, m->centre, m->radius,
                                      camera, err);
             m->captured_generation = m->generation;
+            m->captured_uploads = m->uploads;
         }
     }
     /* the geometry's draw (wholly dissolved when the impostor covers all) also
