@@ -8,6 +8,8 @@
  *     the picture changes;
  *   - a scene calling for none of them draws the same pictures with its own
  *     program as with every effect compiled in (--effects-all);
+ *   - with every piece below the impostor threshold, the pictures agree with
+ *     the geometry's (impostors left out) but for under 4% of the pixels;
  *   - the interactive window on a scene runs until SIGTERM and exits 0 without a
  *     word;
  *   - bad scenes and options: one line on stderr, exit 1 or 2. */
@@ -187,6 +189,31 @@ static void test_same_pictures_without_effects(void **state)
     json_decref(all);
 }
 
+/* Every piece an impostor (a threshold above the view's size): the pictures
+ * agree with the geometry's (--effects-off impostors) but for a few pixels. */
+static void test_impostors_agree_with_geometry(void **state)
+{
+    (void)state;
+    char scene[700], a[700], b[700], list[256];
+    write_scene("impostors", GLOSSY, OPEN, HAZE ",\n \"effects\": {\"impostor_threshold_px\": 4000}", "", "demo",
+                scene, sizeof scene);
+    snprintf(a, sizeof a, "%s/impostors", fx.dir);
+    snprintf(b, sizeof b, "%s/geometry", fx.dir);
+    json_t *imp = run_report(scene, a, "");
+    json_t *geo = run_report(scene, b, "--effects-off impostors");
+    names(json_object_get(imp, "effects_called_for"), list, sizeof list);
+    assert_non_null(strstr(list, "impostors"));
+    json_int_t frames = json_integer_value(json_object_get(json_object_get(imp, "frames"), "frames"));
+    assert_true(frames_of(imp, "impostors") >= frames - 2);
+    assert_int_equal(frames_of(geo, "impostors"), 0);
+    size_t differing = ms_test_png_differing(last_png(imp), last_png(geo), 24);
+    print_message("impostors against geometry: %zu of %d pixels differ by more than 24 levels\n", differing,
+                  160 * 120);
+    assert_true(differing < 160 * 120 / 25); /* measured 1.6% */
+    json_decref(imp);
+    json_decref(geo);
+}
+
 static void test_interactive_until_terminated(void **state)
 {
     (void)state;
@@ -291,6 +318,7 @@ int main(void)
         cmocka_unit_test(test_bad_scenes_and_options),
         cmocka_unit_test(test_effects_called_for_and_left_out),
         cmocka_unit_test(test_same_pictures_without_effects),
+        cmocka_unit_test(test_impostors_agree_with_geometry),
         cmocka_unit_test(test_interactive_until_terminated),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
