@@ -233,6 +233,7 @@ void ms_core_get_stats(ms_core *c, ms_core_stats *out)
     out->requests = c->requests;
     out->cancels = c->cancels;
     out->reconnects = c->reconnects;
+    out->longest_outage = c->longest_outage;
     if (out->camera_serial != c->camera_serial)
         out->view_complete = false;
     n = c->latency_count;

@@ -176,6 +176,8 @@ typedef struct ms_core_stats {
                                   at each loop tick; 0 in local mode */
     uint64_t bytes_in_flight;  /* requested and not yet received */
     uint64_t requests, cancels, reconnects, refetches, evictions;
+    double longest_outage;     /* seconds, the longest span from a lost connection to the
+                                  model open again (a failover through a balancer); 0 none */
     uint32_t cells_shown, cells_split, cells_cached, cells_loading, cells_failed;
     uint64_t memory, peak_memory;
     double decode_seconds;     /* decode thread busy time (verify, decode, select) */

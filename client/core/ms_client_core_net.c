@@ -354,11 +354,14 @@ static void on_model_opened(ms_client *client, uint32_t request_id,
     }
     c->handle = o->model_handle;
     c->ready = true;
+    double outage = c->down_since >= 0 ? c->last_activity - c->down_since : 0.0;
     c->down_since = -1;
     c->backoff = 0.1;
     pthread_mutex_lock(&c->lock);
     c->model_open = true;
     c->connected = true;
+    if (outage > c->longest_outage)
+        c->longest_outage = outage;
     c->republish = true;          /* the decode thread recomputes its wants */
     c->net_want_serial = c->want_serial - 1; /* and we re-read them */
     pthread_cond_broadcast(&c->wake);

@@ -81,6 +81,12 @@ typedef struct ms_serve_conn {
      * empty: a connection with bytes waiting and no progress for
      * send_timeout_s is a slow reader, dropped by the sweep. */
     double last_send_progress;
+    /* For the access log (ms_server_access_log), written as the connection is freed. */
+    char peer[64];                   /* "ADDRESS:PORT" */
+    double opened_at;
+    uint64_t requests, bytes_sent;   /* requests received, payload bytes sent */
+    uint16_t fatal_code;             /* the fatal ERROR that closed it; 0: none */
+    char model_names[256];           /* every model opened, comma separated (cut at the size) */
 } ms_serve_conn;
 
 /* Takes fd; creates the bufferevent and starts reading. NULL on failure (fd

@@ -145,6 +145,7 @@ static void handle_hello(ms_serve_conn *c, const ms_proto_hello *h)
 static void handle_list_catalogue(ms_serve_conn *c, uint32_t id)
 {
     metrics_of(c)->binary_requests++;
+    c->requests++;
     if (!ids_free(c, id, 1) || !rate_allows(c, id, 1))
         return;
     const ms_registry *r = server_of(c)->registry;
@@ -197,9 +198,22 @@ static void handle_list_catalogue(ms_serve_conn *c, uint32_t id)
     }
 }
 
+/* Adds name to the connection's list of models for the access log, once. */
+static void note_model_name(ms_serve_conn *c, const char *name)
+{
+    size_t have = strlen(c->model_names), length = strlen(name);
+    for (const char *p = c->model_names; (p = strstr(p, name)); p += length)
+        if ((p == c->model_names || p[-1] == ',') && (p[length] == ',' || !p[length]))
+            return;
+    if (have + (have ? 1 : 0) + length + 1 > sizeof c->model_names)
+        return; /* cut: the line stays short */
+    snprintf(c->model_names + have, sizeof c->model_names - have, "%s%s", have ? "," : "", name);
+}
+
 static void handle_open_model(ms_serve_conn *c, uint32_t id, const ms_proto_open_model *o)
 {
     metrics_of(c)->binary_requests++;
+    c->requests++;
     if (!ids_free(c, id, 1) || !rate_allows(c, id, 1))
         return;
     char name[MS_PROTO_MAX_MODEL_NAME + 1];
@@ -225,6 +239,8 @@ static void handle_open_model(ms_serve_conn *c, uint32_t id, const ms_proto_open
     slot->handle = c->next_handle;
     slot->model = m;
     ms_model_ref(m);
+    m->requests++;
+    note_model_name(c, m->entry.name);
     ms_proto_message msg = {.type = MS_PROTO_MODEL_OPENED, .request_id = id};
     ms_proto_model_opened *mo = &msg.body.model_opened;
     size_t index_size;
@@ -371,7 +387,10 @@ static void handle_request_cells(ms_serve_conn *c, uint32_t first_id,
     const ms_proto_hello_reply *limits = &c->door->limits;
     uint32_t n = b->count;
     metrics_of(c)->binary_requests += n;
+    c->requests += n;
     ms_open_model *slot = find_handle(c, b->model_handle);
+    if (slot)
+        slot->model->requests += n;
     if (!slot) {
         ms_serve_conn_send_error(c, MS_PROTO_E_UNKNOWN_MODEL, first_id, n, b->model_handle,
                                  "no open model with this handle");

@@ -47,6 +47,10 @@ typedef struct ms_model {
     /* Per cell, what ms_model_check_payload found (MS_PAYLOAD_* bits), so that
      * each payload's CRC is computed once, on first use. */
     uint8_t *payload_checks;
+    /* /metrics counters of this model, both doors: requests received for it
+     * (opens, cell requests, HTTP answers) and payload bytes sent. Carried
+     * over to the new version when a rescan replaces the model. */
+    uint64_t requests, bytes_sent;
 } ms_model;
 
 enum {
