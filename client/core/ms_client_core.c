@@ -77,10 +77,15 @@ ms_status ms_core_start(const ms_core_options *o, ms_core **out, ms_error *err)
         (o->memory_ceiling && o->memory_target > o->memory_ceiling))
         return ms_error_set(err, MS_ERR_ARG, "client core: bad tolerance, bandwidth, timeout or "
                             "budget (target above ceiling?)");
+    if (o->shared_budget && (o->memory_target || o->memory_ceiling))
+        return ms_error_set(err, MS_ERR_ARG, "client core: a shared budget replaces the "
+                            "memory target and ceiling (leave them 0)");
     ms_core *c = calloc(1, sizeof *c);
     if (!c)
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory");
     c->o = *o;
+    c->shared = o->shared_budget;
+    c->member = -1;
     if (c->o.tolerance_px == 0)
         c->o.tolerance_px = 1.0;
     if (c->o.hysteresis_bits < 0)
@@ -127,6 +132,10 @@ ms_status ms_core_start(const ms_core_options *o, ms_core **out, ms_error *err)
     pthread_cond_init(&c->wake, &ca);
     pthread_condattr_destroy(&ca);
     unsigned helpers = c->o.decode_threads ? c->o.decode_threads - 1 : 1;
+    if (c->shared && ms_core_budget_join(c->shared, &c->member, err) != MS_OK) {
+        ms_core_stop(c);
+        return MS_ERR_ARG;
+    }
     ms_status pool_status = ms_pool_new(helpers, &c->pool, err);
     if (pool_status != MS_OK) {
         ms_core_stop(c);
@@ -161,6 +170,8 @@ void ms_core_stop(ms_core *c)
         pthread_join(c->net_thread, NULL);
     if (c->dec_started)
         pthread_join(c->dec_thread, NULL);
+    if (c->member >= 0)
+        ms_core_budget_leave(c->shared, c->member);
     ms_pool_free(c->pool);
     free(c->jobs);
     if (c->client)

@@ -85,6 +85,34 @@
 
 typedef struct ms_core ms_core;
 
+/* One memory budget shared by several cores (the models of a scene): the cores
+ * charge what they hold against one target and ceiling, follow one screen
+ * tolerance factor (so every model is refined by the same screen-error rule),
+ * and when the budget is exceeded the cells evicted first are the least useful
+ * (smallest projected error, culled ones least) across all the cores sharing
+ * it: near pieces refine first, far ones stay coarse. A core evicts only its
+ * own cells (decode thread only); it evicts one when it holds the least useful
+ * candidate of all the members, or when another member is refused a range at
+ * least one bit more useful (docs/CLIENT.md, "A shared budget").
+ * Ownership: the caller's; it must outlive every core started with it.
+ * Thread-safety: every function, and the cores' threads, may use it
+ * concurrently (one mutex). */
+typedef struct ms_core_budget ms_core_budget;
+
+/* Most cores one budget can serve. */
+#define MS_CORE_BUDGET_MAX_MEMBERS 64
+
+/* target, ceiling: bytes (ceiling 0 = target + target / 4; target > 0 and
+ * ceiling >= target else MS_ERR_ARG). MS_ERR_NOMEM. */
+ms_status ms_core_budget_new(uint64_t memory_target, uint64_t memory_ceiling,
+                             ms_core_budget **budget, ms_error *err);
+/* NULL is a no-op; every core using it must be stopped first. */
+void ms_core_budget_free(ms_core_budget *budget);
+/* The memory the members hold now (their last passes' measures), and the
+ * largest such sum seen, bytes. */
+uint64_t ms_core_budget_held(ms_core_budget *budget);
+uint64_t ms_core_budget_peak(ms_core_budget *budget);
+
 /* Test hook (fault injection): sees, and may alter, every received payload
  * chunk on the decode thread before it is checked. */
 typedef void (*ms_core_payload_filter)(uint32_t cell, bool apo, uint32_t offset, uint8_t *data,
@@ -115,6 +143,10 @@ typedef struct ms_core_options {
     double apo_geometry_tolerance_px; /* geometry tolerance with APO on; 0 = tolerance_px
                                          (docs/ACCURACY.md: coarser costs more than it saves) */
     uint64_t memory_target, memory_ceiling; /* bytes; 0 = no budget */
+    ms_core_budget *shared_budget; /* NULL: the core's own budget (memory_target/ceiling).
+                                  Else one shared with other cores (memory_target and
+                                  memory_ceiling must be 0; MS_ERR_ARG when it already
+                                  serves MS_CORE_BUDGET_MAX_MEMBERS cores) */
     double bandwidth;          /* bytes per second read from the server; 0 = unlimited */
     uint64_t window_bytes;     /* bytes in flight at most; 0 = 0.25 s of bandwidth,
                                   at least 64 KiB (1 MiB when unlimited) */

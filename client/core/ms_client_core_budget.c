@@ -1,10 +1,196 @@
 /* The client core's memory budget (ms_client_core.h, "Memory budget"): what
  * the decoded cells hold, the tolerance steps that keep it near the target,
- * eviction of hidden cells, and the ceiling on loading. Decode thread only. */
+ * eviction of hidden cells, and the ceiling on loading. Decode thread only,
+ * except the shared budget (ms_core_budget), which has its own mutex.
+ *
+ * A shared budget changes three things and nothing else: the memory compared
+ * with the target and ceiling is every member's (each publishes its own after
+ * each pass), the tolerance factor is one for all members, and a core evicts a
+ * hidden cell only when it is the least useful candidate of all the members
+ * (or when another member was refused a range at least one bit more useful).
+ * Without one the figures below reduce to the core's own: others 0, the
+ * others' least useful candidate +infinity, nothing refused elsewhere. */
 #include "ms_client_core_internal.h"
 
 #include <math.h>
 #include <stdlib.h>
+
+#include "ms_progress.h"
+
+typedef struct budget_member {
+    bool used;
+    uint64_t memory, in_flight;
+    double least_useful;   /* usefulness of its least useful eviction candidate; +inf none */
+    double refused_need;   /* usefulness of the want the ceiling refused it last pass */
+    uint64_t refused_bytes; /* that want's bytes; 0 none */
+} budget_member;
+
+struct ms_core_budget {
+    pthread_mutex_t lock;
+    uint64_t target, ceiling, peak;
+    double tolerance_factor;
+    double last_step, last_blocked; /* ms_now_seconds */
+    budget_member members[MS_CORE_BUDGET_MAX_MEMBERS];
+};
+
+ms_status ms_core_budget_new(uint64_t memory_target, uint64_t memory_ceiling,
+                             ms_core_budget **budget, ms_error *err)
+{
+    *budget = NULL;
+    if (!memory_ceiling)
+        memory_ceiling = memory_target + memory_target / 4;
+    if (!memory_target || memory_ceiling < memory_target)
+        return ms_error_set(err, MS_ERR_ARG, "shared budget: the target must be above 0 and "
+                            "at most the ceiling");
+    ms_core_budget *b = calloc(1, sizeof *b);
+    if (!b)
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory for a shared budget");
+    pthread_mutex_init(&b->lock, NULL);
+    b->target = memory_target;
+    b->ceiling = memory_ceiling;
+    b->tolerance_factor = 1.0;
+    b->last_step = ms_now_seconds();
+    b->last_blocked = -1e9;
+    *budget = b;
+    return MS_OK;
+}
+
+void ms_core_budget_free(ms_core_budget *b)
+{
+    if (!b)
+        return;
+    pthread_mutex_destroy(&b->lock);
+    free(b);
+}
+
+static uint64_t members_held_locked(const ms_core_budget *b)
+{
+    uint64_t m = 0;
+    for (int i = 0; i < MS_CORE_BUDGET_MAX_MEMBERS; ++i)
+        if (b->members[i].used)
+            m += b->members[i].memory;
+    return m;
+}
+
+uint64_t ms_core_budget_held(ms_core_budget *b)
+{
+    pthread_mutex_lock(&b->lock);
+    uint64_t m = members_held_locked(b);
+    pthread_mutex_unlock(&b->lock);
+    return m;
+}
+
+uint64_t ms_core_budget_peak(ms_core_budget *b)
+{
+    pthread_mutex_lock(&b->lock);
+    uint64_t m = b->peak;
+    pthread_mutex_unlock(&b->lock);
+    return m;
+}
+
+ms_status ms_core_budget_join(ms_core_budget *b, int *member, ms_error *err)
+{
+    pthread_mutex_lock(&b->lock);
+    int found = -1;
+    for (int i = 0; i < MS_CORE_BUDGET_MAX_MEMBERS && found < 0; ++i)
+        if (!b->members[i].used)
+            found = i;
+    if (found >= 0)
+        b->members[found] = (budget_member){.used = true, .least_useful = INFINITY};
+    pthread_mutex_unlock(&b->lock);
+    *member = found;
+    if (found < 0)
+        return ms_error_set(err, MS_ERR_ARG, "shared budget: already %d cores share it",
+                            MS_CORE_BUDGET_MAX_MEMBERS);
+    return MS_OK;
+}
+
+void ms_core_budget_leave(ms_core_budget *b, int member)
+{
+    pthread_mutex_lock(&b->lock);
+    b->members[member] = (budget_member){0};
+    pthread_mutex_unlock(&b->lock);
+}
+
+void ms_core_budget_sync(ms_core *c)
+{
+    if (!c->shared)
+        return;
+    pthread_mutex_lock(&c->shared->lock);
+    c->tolerance_factor = c->shared->tolerance_factor;
+    pthread_mutex_unlock(&c->shared->lock);
+}
+
+/* The budget a pass answers to. */
+typedef struct budget_terms {
+    uint64_t target, ceiling;
+    uint64_t others_memory;     /* held by the other members */
+    uint64_t others_planned;    /* held and in flight */
+    double others_least;        /* the other members' least useful candidate */
+    double refused_need;        /* the most useful want another member was refused */
+    uint64_t refused_bytes;
+} budget_terms;
+
+static budget_terms read_terms(const ms_core *c)
+{
+    budget_terms bt = {c->o.memory_target, c->o.memory_ceiling, 0, 0, INFINITY, -INFINITY, 0};
+    ms_core_budget *b = c->shared;
+    if (!b)
+        return bt;
+    pthread_mutex_lock(&b->lock);
+    bt.target = b->target, bt.ceiling = b->ceiling;
+    for (int i = 0; i < MS_CORE_BUDGET_MAX_MEMBERS; ++i) {
+        const budget_member *m = &b->members[i];
+        if (!m->used || i == c->member)
+            continue;
+        bt.others_memory += m->memory;
+        bt.others_planned += m->memory + m->in_flight;
+        bt.others_least = fmin(bt.others_least, m->least_useful);
+        if (m->refused_bytes && m->refused_need > bt.refused_need)
+            bt.refused_need = m->refused_need, bt.refused_bytes = m->refused_bytes;
+    }
+    pthread_mutex_unlock(&b->lock);
+    return bt;
+}
+
+static void publish(ms_core *c, uint64_t memory, uint64_t in_flight, double least_useful,
+                    double refused_need, uint64_t refused_bytes)
+{
+    ms_core_budget *b = c->shared;
+    if (!b)
+        return;
+    pthread_mutex_lock(&b->lock);
+    b->members[c->member] = (budget_member){true, memory, in_flight, least_useful, refused_need,
+                                            refused_bytes};
+    uint64_t held = members_held_locked(b);
+    if (held > b->peak)
+        b->peak = held;
+    pthread_mutex_unlock(&b->lock);
+}
+
+/* The tolerance factor and its step times: the shared ones are copied into the
+ * core's fields between factor_begin and factor_end (the budget locked). */
+static void factor_begin(ms_core *c)
+{
+    ms_core_budget *b = c->shared;
+    if (!b)
+        return;
+    pthread_mutex_lock(&b->lock);
+    c->tolerance_factor = b->tolerance_factor;
+    c->last_budget_step = b->last_step - c->t0;
+    c->last_blocked = b->last_blocked - c->t0;
+}
+
+static void factor_end(ms_core *c)
+{
+    ms_core_budget *b = c->shared;
+    if (!b)
+        return;
+    b->tolerance_factor = c->tolerance_factor;
+    b->last_step = c->last_budget_step + c->t0;
+    b->last_blocked = c->last_blocked + c->t0;
+    pthread_mutex_unlock(&b->lock);
+}
 
 /* What a cell holds: payload bytes and, shown, its decoded estimate. */
 static uint64_t cell_memory(const ms_core *c, uint32_t cell)
@@ -80,13 +266,13 @@ static evict_candidate *evict_candidates(ms_core *c, const frame_view *fv, size_
 }
 
 /* Evicts hidden cells the view does not target, least useful first, until
- * memory is at most limit. */
-static void evict_unneeded(ms_core *c, const frame_view *fv, uint64_t limit)
+ * memory is at most limit, none more useful than at_most. */
+static void evict_unneeded(ms_core *c, const frame_view *fv, uint64_t limit, double at_most)
 {
     size_t nc;
     evict_candidate *cand = evict_candidates(c, fv, &nc);
     uint64_t m = memory_held(c);
-    for (size_t k = 0; k < nc && m > limit; ++k) {
+    for (size_t k = 0; k < nc && m > limit && cand[k].usefulness <= at_most; ++k) {
         m -= cand[k].bytes < m ? cand[k].bytes : m;
         evict(c, cand[k].cell);
     }
@@ -113,14 +299,25 @@ bool ms_core_budget_ceiling(ms_core *c, dec_pass *pass)
 {
     /* Hard ceiling: evict what the view does not need; if that is not enough,
      * coarsen at once (double the tolerance) and evict what that frees. */
-    for (int round = 0; c->o.memory_ceiling && round < 8; ++round) {
-        if (memory_held(c) <= c->o.memory_ceiling)
+    for (int round = 0; round < 8; ++round) {
+        budget_terms bt = read_terms(c);
+        if (!bt.ceiling || memory_held(c) + bt.others_memory <= bt.ceiling)
             break;
-        evict_unneeded(c, &pass->fv, (uint64_t)(0.9 * c->o.memory_target));
-        if (memory_held(c) <= c->o.memory_ceiling || c->tolerance_factor >= MAX_TOLERANCE_FACTOR)
+        uint64_t limit = (uint64_t)(0.9 * bt.target);
+        evict_unneeded(c, &pass->fv, limit > bt.others_memory ? limit - bt.others_memory : 0,
+                       bt.others_least);
+        /* shared: another member holds less useful cells; it evicts them */
+        if (memory_held(c) + bt.others_memory <= bt.ceiling || bt.others_least < INFINITY)
             break;
-        c->tolerance_factor *= 2;
-        c->last_budget_step = ms_core_since_start(c);
+        factor_begin(c);
+        bool at_most = c->tolerance_factor >= MAX_TOLERANCE_FACTOR;
+        if (!at_most) {
+            c->tolerance_factor *= 2;
+            c->last_budget_step = ms_core_since_start(c);
+        }
+        factor_end(c);
+        if (at_most)
+            break;
         pass->fv.tolerance = pass->sp.tolerance_px = pass->base_tol * c->tolerance_factor;
         if (!reselect(c, pass))
             return false;
@@ -131,29 +328,35 @@ bool ms_core_budget_ceiling(ms_core *c, dec_pass *pass)
 
 /* Over the target: raise the tolerance half a bit (every 0.1 s at most);
  * well below it and not blocked lately: lower it back. */
-static void step_tolerance(ms_core *c, uint64_t memory, double t)
+static void step_tolerance(ms_core *c, uint64_t memory, uint64_t target, double t)
 {
-    if (memory > c->o.memory_target && c->tolerance_factor < MAX_TOLERANCE_FACTOR &&
+    factor_begin(c);
+    if (memory > target && c->tolerance_factor < MAX_TOLERANCE_FACTOR &&
         t - c->last_budget_step > 0.1) {
         c->tolerance_factor *= M_SQRT2;
         c->last_budget_step = t;
-    } else if (memory < 0.7 * c->o.memory_target && c->tolerance_factor > 1.0 &&
+    } else if (memory < 0.7 * target && c->tolerance_factor > 1.0 &&
                t - c->last_budget_step > 0.1 && t - c->last_blocked > 2.0) {
         c->tolerance_factor /= M_SQRT2;
         if (c->tolerance_factor < 1.0)
             c->tolerance_factor = 1.0;
         c->last_budget_step = t;
     }
+    factor_end(c);
 }
 
 /* Loading stays under the ceiling; to make room, evicts only cells clearly
  * (one bit) less useful than the one being loaded (candidates from *next on).
- * Returns how many of the pass's wants fit. */
+ * Returns how many of the pass's wants fit; the first refused one's
+ * usefulness and bytes in *refused_need, *refused_bytes (0: none). */
 static size_t fit_wants(ms_core *c, dec_pass *pass, const evict_candidate *cand, size_t nc,
-                        size_t *next, uint64_t *memory, uint64_t in_flight)
+                        size_t *next, uint64_t *memory, uint64_t in_flight,
+                        const budget_terms *bt, double *refused_need, uint64_t *refused_bytes)
 {
-    uint64_t ceiling = c->o.memory_ceiling ? c->o.memory_ceiling : UINT64_MAX;
-    uint64_t planned = *memory + in_flight;
+    uint64_t ceiling = bt->ceiling ? bt->ceiling : UINT64_MAX;
+    uint64_t planned = *memory + in_flight + bt->others_planned;
+    *refused_need = -INFINITY;
+    *refused_bytes = 0;
     size_t keep = 0;
     for (; keep < pass->wl.n; ++keep) {
         const want *w = &pass->wl.w[keep];
@@ -171,8 +374,11 @@ static size_t fit_wants(ms_core *c, dec_pass *pass, const evict_candidate *cand,
             *memory -= cand[*next].bytes < *memory ? cand[*next].bytes : *memory;
             evict(c, cand[(*next)++].cell);
         }
-        if (planned + need_bytes > ceiling)
+        if (planned + need_bytes > ceiling) {
+            *refused_need = u;
+            *refused_bytes = need_bytes;
             break;
+        }
         planned += need_bytes;
     }
     return keep;
@@ -184,29 +390,46 @@ void ms_core_budget_step(ms_core *c, dec_pass *pass)
     pthread_mutex_lock(&c->lock);
     uint64_t in_flight = c->bytes_in_flight;
     pthread_mutex_unlock(&c->lock);
-    if (!c->o.memory_target)
+    if (!c->o.memory_target && !c->shared)
         return;
+    budget_terms bt = read_terms(c);
     double t = ms_core_since_start(c);
-    step_tolerance(c, pass->memory, t);
+    step_tolerance(c, pass->memory + bt.others_memory, bt.target, t);
     size_t nc;
     evict_candidate *cand = evict_candidates(c, &pass->fv, &nc);
     size_t next = 0;
-    /* over the target: free down to 90 % of it, least useful first */
-    if (pass->memory > c->o.memory_target)
-        while (pass->memory > 0.9 * c->o.memory_target && next < nc) {
+    /* over the target: free down to 90 % of it, least useful first (of all
+     * the members: shared, this core evicts while it holds the least useful) */
+    if (pass->memory + bt.others_memory > bt.target)
+        while (pass->memory + bt.others_memory > 0.9 * bt.target && next < nc &&
+               cand[next].usefulness <= bt.others_least) {
             pass->memory -= cand[next].bytes;
             evict(c, cand[next++].cell);
         }
-    size_t keep = fit_wants(c, pass, cand, nc, &next, &pass->memory, in_flight);
+    /* another member was refused a range clearly (one bit) more useful than
+     * this core's candidates: make room for it */
+    while (bt.refused_bytes && next < nc && cand[next].usefulness + 1.0 < bt.refused_need &&
+           pass->memory + in_flight + bt.others_planned + bt.refused_bytes > bt.ceiling) {
+        pass->memory -= cand[next].bytes < pass->memory ? cand[next].bytes : pass->memory;
+        evict(c, cand[next++].cell);
+    }
+    double refused_need;
+    uint64_t refused_bytes;
+    size_t keep = fit_wants(c, pass, cand, nc, &next, &pass->memory, in_flight, &bt,
+                            &refused_need, &refused_bytes);
     if (keep < pass->wl.n && in_flight == 0) {
         /* blocked by the ceiling with nothing on its way: the view cannot
          * complete at this tolerance, so raise it (as over the target) */
+        factor_begin(c);
         c->last_blocked = t;
         if (t - c->last_budget_step > 0.1 && c->tolerance_factor < MAX_TOLERANCE_FACTOR) {
             c->tolerance_factor *= M_SQRT2;
             c->last_budget_step = t;
         }
+        factor_end(c);
     }
     pass->wl.n = keep;
+    publish(c, pass->memory, in_flight, next < nc ? cand[next].usefulness : INFINITY,
+            refused_need, refused_bytes);
     free(cand);
 }

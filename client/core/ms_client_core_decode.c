@@ -339,6 +339,7 @@ static void dec_pass_begin(ms_core *c, const ms_camera *cam, dec_pass *pass)
     pass->fv.cam = *cam;
     ms_camera_frustum(cam, &pass->fv.frustum);
     pass->base_tol = pass->apo_on ? c->o.apo_geometry_tolerance_px : c->o.tolerance_px;
+    ms_core_budget_sync(c);
     pass->fv.tolerance = pass->base_tol * c->tolerance_factor;
     pass->sp = (ms_view_select_params){.tolerance_px = pass->fv.tolerance,
                                        .margin = c->o.frustum_margin,

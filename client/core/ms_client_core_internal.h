@@ -95,6 +95,8 @@ typedef struct refine_job {
 
 struct ms_core {
     ms_core_options o;
+    ms_core_budget *shared;     /* o.shared_budget: NULL, or shared with other cores */
+    int member;                 /* this core's place in it; -1 none */
     char *host, *model, *token, *agent, *archive_path;
     double t0;
 
@@ -235,6 +237,12 @@ void ms_core_schedule(ms_core *c, dec_pass *pass);
 /* Hard ceiling after the pass's selection: evicts, then coarsens at once;
  * false when decoding failed (the core is then fatal). */
 bool ms_core_budget_ceiling(ms_core *c, dec_pass *pass);
+/* A shared budget's membership (ms_client_core.h): join gives a place or
+ * MS_ERR_ARG when full. */
+ms_status ms_core_budget_join(ms_core_budget *budget, int *member, ms_error *err);
+void ms_core_budget_leave(ms_core_budget *budget, int member);
+/* Takes the shared tolerance factor into the core (decode thread, pass start). */
+void ms_core_budget_sync(ms_core *c);
 /* Measures memory into pass->memory; with a budget, steps the tolerance,
  * evicts, and cuts pass->wl where loading would cross the ceiling. */
 void ms_core_budget_step(ms_core *c, dec_pass *pass);

@@ -1,0 +1,271 @@
+/* One memory budget shared by the client cores of a scene (ms_core_budget,
+ * ms_client_core.h), in local archive mode on the built-in demo model (small,
+ * geometry only). Two "models" of a scene are two cores on the same archive,
+ * one seen from near and one from eighty times farther:
+ *   - measured first without a budget (what each view holds complete), a
+ *     shared budget of half their sum is set; with it both views complete, the
+ *     near core holds more cells, triangles and memory than the far one, the
+ *     memory the two hold together never exceeds the ceiling, and the near
+ *     view is finer (more triangles, a smaller achieved error) than with the
+ *     same budget split evenly between two private budgets (the far core
+ *     cannot use its half, the near one needs more);
+ *   - bad budgets and a core given both a shared budget and its own target are
+ *     refused with one line.
+ * Every wait is bounded. */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <cmocka.h>
+
+#include "ms_archive.h"
+#include "ms_bake.h"
+#include "ms_client_core.h"
+#include "ms_nsp_check.h"
+#include "ms_progress.h"
+#include "ms_test.h"
+#include "ms_test_core.h"
+
+#define MODEL "demo"
+#define TRIANGLES 30000
+#define WAIT_SECONDS 60.0
+
+typedef struct fixture {
+    char dir[512], archives[600], file[700];
+    double centre[3], side;
+} fixture;
+
+static fixture *g;
+
+static int group_setup(void **state)
+{
+    (void)state;
+    fixture *f = calloc(1, sizeof *f);
+    ms_test_tmpdir(f->dir, sizeof f->dir);
+    snprintf(f->archives, sizeof f->archives, "%s/archive", f->dir);
+    snprintf(f->file, sizeof f->file, "%s/" MODEL ".msa", f->archives);
+    if (mkdir(f->archives, 0755) != 0)
+        return -1;
+    char ply[600];
+    snprintf(ply, sizeof ply, "%s/demo.ply", f->dir);
+    ms_nsp_test_demo_ply(ply, TRIANGLES);
+    ms_bake_options o;
+    ms_bake_options_default(&o);
+    o.input = ply;
+    o.archive_dir = f->archives;
+    o.name = MODEL;
+    o.min_triangles = 1000;
+    o.threads = 2;
+    o.mem_mb = 64;
+    ms_bake_report report;
+    ms_error err;
+    ms_archive *archive;
+    if (ms_bake(&o, &report, &err) != MS_OK || ms_archive_open(f->file, &archive, &err) != MS_OK) {
+        fprintf(stderr, "%s\n", err.text);
+        return -1;
+    }
+    const ms_archive_header *h = ms_archive_get_header(archive);
+    f->side = h->box_side;
+    for (int a = 0; a < 3; ++a)
+        f->centre[a] = h->box_origin[a] + h->box_side / 2;
+    ms_archive_close(archive);
+    g = f;
+    return 0;
+}
+
+static int group_teardown(void **state)
+{
+    (void)state;
+    if (!g)
+        return 0;
+    ms_test_rmdir(g->dir);
+    free(g);
+    g = NULL;
+    return 0;
+}
+
+/* Looking at the model's centre from `distance` box sides away. */
+static ms_camera camera_at(double distance)
+{
+    double pos[3] = {g->centre[0] + 0.3 * distance * g->side, g->centre[1] + 0.2 * distance * g->side,
+                     g->centre[2] + distance * g->side};
+    double up[3] = {0, 1, 0};
+    ms_camera cam;
+    ms_error err;
+    if (ms_camera_look_at(pos, g->centre, up, 45.0, 640, 480, 1e-3 * g->side, 1e3 * g->side, &cam,
+                          &err) != MS_OK)
+        fail_msg("%s", err.text);
+    return cam;
+}
+
+static ms_core_options options(void)
+{
+    ms_core_options o = {0};
+    o.archive_path = g->file;
+    o.tolerance_px = 1.0;
+    o.hysteresis_bits = 0.0;
+    o.apo_levels = 0; /* geometry only: the budget is the subject */
+    o.export_frames = true;
+    return o;
+}
+
+typedef struct view_result {
+    ms_core_stats stats;
+    uint64_t triangles;
+    uint32_t cells_shown;
+    uint32_t bits_shown; /* the shown cells' precisions, summed */
+} view_result;
+
+#define NEAR 0
+#define FAR 1
+
+/* Runs a near and a far core (with the given budgets) until both views are
+ * complete at once; fills res[2]; returns the largest sum of the two cores'
+ * memory seen while polling. */
+static uint64_t run_pair(ms_core_budget *shared, uint64_t each_target, view_result res[2])
+{
+    ms_core *core[2];
+    ms_camera cam[2] = {camera_at(1.0), camera_at(80.0)};
+    ms_error err;
+    for (int i = 0; i < 2; ++i) {
+        ms_core_options o = options();
+        o.shared_budget = shared;
+        o.memory_target = each_target;
+        if (ms_core_start(&o, &core[i], &err) != MS_OK)
+            fail_msg("%s", err.text);
+        ms_core_set_camera(core[i], &cam[i]);
+    }
+    uint64_t most = 0;
+    ms_core_frame *frame[2] = {NULL, NULL};
+    double until = ms_now_seconds() + WAIT_SECONDS;
+    bool complete = false;
+    while (!complete && ms_now_seconds() < until) {
+        ms_test_sleep_s(0.01);
+        complete = true;
+        uint64_t sum = 0;
+        for (int i = 0; i < 2; ++i) {
+            ms_core_get_stats(core[i], &res[i].stats);
+            if (res[i].stats.error[0])
+                fail_msg("core %d: %s", i, res[i].stats.error);
+            sum += res[i].stats.memory;
+            ms_core_frame *f = ms_core_take_frame(core[i]);
+            if (f) {
+                ms_core_frame_free(frame[i]);
+                frame[i] = f;
+            }
+            complete = complete && res[i].stats.view_complete && frame[i];
+        }
+        most = sum > most ? sum : most;
+    }
+    /* a last frame published with the completing pass */
+    for (int i = 0; i < 2; ++i) {
+        ms_core_frame *f = ms_core_take_frame(core[i]);
+        if (f) {
+            ms_core_frame_free(frame[i]);
+            frame[i] = f;
+        }
+        ms_core_stop(core[i]);
+    }
+    assert_true(complete);
+    for (int i = 0; i < 2; ++i) {
+        assert_non_null(frame[i]);
+        res[i].triangles = frame[i]->mesh.triangle_count;
+        res[i].cells_shown = res[i].bits_shown = 0;
+        for (uint32_t k = 0; k < frame[i]->cell_count; ++k)
+            if (frame[i]->cell_bits[k] < 0xFE)
+                res[i].cells_shown++, res[i].bits_shown += frame[i]->cell_bits[k];
+        ms_core_frame_free(frame[i]);
+    }
+    return most;
+}
+
+static void test_shared_budget_favours_near(void **state)
+{
+    (void)state;
+    view_result free_run[2];
+    run_pair(NULL, 0, free_run);
+    uint64_t near_all = free_run[NEAR].stats.memory, far_all = free_run[FAR].stats.memory;
+    print_message("no budget: near %llu B, %llu triangles; far %llu B, %llu triangles\n",
+                  (unsigned long long)near_all, (unsigned long long)free_run[NEAR].triangles,
+                  (unsigned long long)far_all, (unsigned long long)free_run[FAR].triangles);
+    /* the far view needs much less than the near one: the budget below binds
+     * the near view only when its share is fair */
+    assert_true(far_all * 4 < near_all);
+    uint64_t target = (near_all + far_all) / 2;
+    uint64_t ceiling = target + target / 4;
+
+    ms_core_budget *budget;
+    ms_error err;
+    assert_int_equal(ms_core_budget_new(target, 0, &budget, &err), MS_OK);
+    view_result shared[2];
+    uint64_t most = run_pair(budget, 0, shared);
+    uint64_t peak = ms_core_budget_peak(budget);
+    print_message("shared %llu B (ceiling %llu): near %llu B, %llu triangles, %u cells, %u bits, %.2f px; "
+                  "far %llu B, %llu triangles, %u cells, %u bits; most held %llu, peak %llu\n",
+                  (unsigned long long)target, (unsigned long long)ceiling,
+                  (unsigned long long)shared[NEAR].stats.memory,
+                  (unsigned long long)shared[NEAR].triangles, shared[NEAR].cells_shown,
+                  shared[NEAR].bits_shown, shared[NEAR].stats.achieved_error_px, (unsigned long long)shared[FAR].stats.memory,
+                  (unsigned long long)shared[FAR].triangles, shared[FAR].cells_shown,
+                  shared[FAR].bits_shown, (unsigned long long)most, (unsigned long long)peak);
+    assert_int_equal(ms_core_budget_held(budget), 0); /* both cores left */
+    ms_core_budget_free(budget);
+    assert_true(most <= ceiling);
+    assert_true(peak <= ceiling);
+    assert_true(peak > 0);
+    assert_true(shared[NEAR].stats.memory > shared[FAR].stats.memory);
+    assert_true(shared[NEAR].triangles > shared[FAR].triangles);
+    assert_true(shared[NEAR].cells_shown >= shared[FAR].cells_shown);
+    assert_true(shared[NEAR].bits_shown > shared[FAR].bits_shown);
+    /* one tolerance for both: the budget coarsened both views alike */
+    assert_true(fabs(shared[NEAR].stats.tolerance_px - shared[FAR].stats.tolerance_px) < 1e-9);
+    assert_true(shared[NEAR].stats.tolerance_px > 1.0);
+
+    view_result split[2];
+    run_pair(NULL, target / 2, split);
+    print_message("split %llu B each: near %llu B, %llu triangles, %.2f px; far %llu B, %llu "
+                  "triangles\n",
+                  (unsigned long long)(target / 2), (unsigned long long)split[NEAR].stats.memory,
+                  (unsigned long long)split[NEAR].triangles, split[NEAR].stats.achieved_error_px,
+                  (unsigned long long)split[FAR].stats.memory,
+                  (unsigned long long)split[FAR].triangles);
+    /* shared, the near piece gets what the far one does not use */
+    assert_true(shared[NEAR].triangles > split[NEAR].triangles);
+    assert_true(shared[NEAR].stats.memory > split[NEAR].stats.memory);
+    assert_true(shared[NEAR].stats.achieved_error_px < split[NEAR].stats.achieved_error_px);
+}
+
+static void test_bad_budgets(void **state)
+{
+    (void)state;
+    ms_core_budget *budget = (ms_core_budget *)1;
+    ms_error err;
+    assert_int_equal(ms_core_budget_new(0, 0, &budget, &err), MS_ERR_ARG);
+    assert_null(budget);
+    assert_non_null(strstr(err.text, "target"));
+    assert_int_equal(ms_core_budget_new(1000, 999, &budget, &err), MS_ERR_ARG);
+    assert_int_equal(ms_core_budget_new(1000, 0, &budget, &err), MS_OK);
+    ms_core_options o = options();
+    o.shared_budget = budget;
+    o.memory_target = 1000;
+    ms_core *core = (ms_core *)1;
+    assert_int_equal(ms_core_start(&o, &core, &err), MS_ERR_ARG);
+    assert_null(core);
+    assert_non_null(strstr(err.text, "shared budget"));
+    ms_core_budget_free(budget);
+    ms_core_budget_free(NULL);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_bad_budgets),
+        cmocka_unit_test(test_shared_budget_favours_near),
+    };
+    return cmocka_run_group_tests(tests, group_setup, group_teardown);
+}
