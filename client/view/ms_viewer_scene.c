@@ -56,6 +56,7 @@ struct ms_viewer_scene {
     double lo[3], hi[3];
     ms_render_light lights[MS_RENDER_MAX_LIGHTS];
     unsigned light_count;
+    ms_core_budget *budget;    /* the models' one memory budget; NULL: none */
 };
 
 /* ---- the room ------------------------------------------------------------ */
@@ -261,7 +262,18 @@ ms_status ms_viewer_scene_open(const ms_viewer_source *source, const ms_scene *s
     vs->effects = effects & ~settings->effects_off & MS_EFFECTS_ALL;
     vs->force_all = settings->force_all;
     ms_viewer_stream_settings each = settings->stream;
-    each.memory_mb = settings->stream.memory_mb / (double)scene->model_count;
+    /* one memory budget for all the models (ceiling 1.5x, as a stream's own):
+     * near pieces refine first, far ones stay coarse */
+    if (settings->stream.memory_mb > 0) {
+        uint64_t target = (uint64_t)(settings->stream.memory_mb * 1048576.0);
+        st = ms_core_budget_new(target, target + target / 2, &vs->budget, err);
+        if (st != MS_OK) {
+            ms_viewer_scene_close(vs);
+            return st;
+        }
+        each.memory_mb = 0;
+        each.shared_budget = vs->budget;
+    }
     each.bandwidth = settings->stream.bandwidth / (double)scene->model_count;
     for (size_t i = 0; i < scene->model_count && st == MS_OK; ++i) {
         scene_model *m = &vs->models[i];
@@ -319,6 +331,7 @@ void ms_viewer_scene_close(ms_viewer_scene *vs)
     }
     for (size_t i = 0; i < vs->part_count; ++i)
         ms_render_free(vs->parts[i].render);
+    ms_core_budget_free(vs->budget); /* after the streams' cores stopped */
     free(vs->models);
     free(vs->order);
     free(vs->distance);

@@ -9,9 +9,11 @@
  * the model's own coordinates (the placement inverted: a uniformly scaled
  * model seen from the scaled camera projects exactly as placed), so every
  * model refines by the same screen-error rule and tolerance, near pieces finer
- * than far ones. One memory budget: the scene's (settings.stream.memory_mb)
- * split evenly over the cores, since a core's budget is fixed at its start
- * (ms_client_core.h has no setter); likewise the bandwidth. Uploads: each
+ * than far ones. One memory budget: the scene's (settings.stream.memory_mb),
+ * one ms_core_budget shared by every model's core (ms_client_core.h): one
+ * tolerance factor for all, and over the budget the least useful cells of all
+ * the models go first, so near pieces refine first and far ones stay coarse.
+ * The bandwidth is split evenly over the cores. Uploads: each
  * frame's byte budget goes to the models nearest the camera first, so near
  * pieces reach the GPU first. From a server each core holds its own
  * connection (the protocol opens one model per connection).
@@ -46,7 +48,8 @@
 typedef struct ms_viewer_scene ms_viewer_scene;
 
 typedef struct ms_viewer_scene_settings {
-    ms_viewer_stream_settings stream; /* memory_mb and bandwidth: the scene's, split evenly */
+    ms_viewer_stream_settings stream; /* memory_mb: the scene's, one budget shared by the
+                                         models; bandwidth: the scene's, split evenly */
     unsigned effects_off;             /* MS_EFFECT_* not compiled in even if called for */
     bool force_all;                   /* compile every effect (then effects_off still applies) */
 } ms_viewer_scene_settings;

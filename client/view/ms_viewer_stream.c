@@ -52,6 +52,7 @@ ms_status ms_viewer_stream_open(const ms_viewer_source *source, const ms_viewer_
         co.memory_target = (uint64_t)(settings->memory_mb * 1048576.0);
         co.memory_ceiling = co.memory_target + co.memory_target / 2;
     }
+    co.shared_budget = settings->shared_budget;
     co.bandwidth = settings->bandwidth;
     co.decode_threads = settings->decode_threads;
     co.give_up_seconds = 8; /* a server gone this long ends the viewer (exit 1) */

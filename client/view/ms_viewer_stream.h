@@ -34,6 +34,8 @@ typedef struct ms_viewer_stream_settings {
                                   finer detail, 1 px without) */
     unsigned apo_levels;       /* 0: no APO fetched */
     double memory_mb;          /* core memory target; 0 = none (ceiling 1.5x) */
+    ms_core_budget *shared_budget; /* NULL, or a budget shared with other streams (the
+                                  scene's; ms_client_core.h): then memory_mb must be 0 */
     double bandwidth;          /* bytes per second; 0 = unlimited */
     unsigned decode_threads;   /* 0 = the core's default */
 } ms_viewer_stream_settings;
