@@ -9,6 +9,7 @@
  *     view is finer (more triangles, a smaller achieved error) than with the
  *     same budget split evenly between two private budgets (the far core
  *     cannot use its half, the near one needs more);
+ *   - local mode counts the bytes it hands over as geometry (APO off here);
  *   - bad budgets and a core given both a shared budget and its own target are
  *     refused with one line.
  * Every wait is bounded. */
@@ -189,6 +190,13 @@ static void test_shared_budget_favours_near(void **state)
     (void)state;
     view_result free_run[2];
     run_pair(NULL, 0, free_run);
+    /* local mode counts what it hands over by stream: geometry only here */
+    for (int i = 0; i < 2; ++i) {
+        assert_true(free_run[i].stats.geometry_bytes_received > 0);
+        assert_int_equal(free_run[i].stats.geometry_bytes_received,
+                         free_run[i].stats.bytes_received);
+        assert_int_equal(free_run[i].stats.apo_bytes_received, 0);
+    }
     uint64_t near_all = free_run[NEAR].stats.memory, far_all = free_run[FAR].stats.memory;
     print_message("no budget: near %llu B, %llu triangles; far %llu B, %llu triangles\n",
                   (unsigned long long)near_all, (unsigned long long)free_run[NEAR].triangles,
