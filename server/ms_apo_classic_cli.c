@@ -461,37 +461,34 @@ static void report_json(const cli_args *a, const cli_results *res)
 
 static void report_text(const cli_args *a, const cli_results *res)
 {
-    const ms_apo_classic_options o = a->o;
-    const ms_apo_classic_report r = res->r;
+    const ms_apo_classic_options *o = &a->o;
+    const ms_apo_classic_report *r = &res->r;
     const accuracy *acc = res->acc;
-    const char *in = a->in, *measure = o.measure == MS_APO_MEASURE_CLASSIC ? "classic" : "spread";
-    double run_cpu = res->run_cpu, load_seconds = res->load_seconds, lookup_rate = res->lookup_rate;
-    uint64_t lookups = a->lookups;
-    size_t accuracy_points = a->accuracy_points;
-        printf("input            %s: %zu triangles, simplified to %zu (%zu refused)\n", in, r.input_triangles,
-           r.simplified_triangles, r.refused_faces);
-    printf("settings         measure %s, tolerance %g, depths %u..%u\n", measure, o.tolerance, o.init_depth,
-           o.max_depth);
-    printf("octree           %zu internal nodes, %zu leaves, %zu cells, %u levels\n", r.internal_nodes,
-           r.leaves, r.internal_nodes + r.leaves, r.levels);
-    printf("texels           %zu (%zu bytes, stored %zu bytes; 2D layout %ux%u)\n", r.texels, r.bytes,
-           r.stored_bytes, r.texture_width, r.texture_height);
+    const char *measure = o->measure == MS_APO_MEASURE_CLASSIC ? "classic" : "spread";
+    printf("input            %s: %zu triangles, simplified to %zu (%zu refused)\n", a->in, r->input_triangles,
+           r->simplified_triangles, r->refused_faces);
+    printf("settings         measure %s, tolerance %g, depths %u..%u\n", measure, o->tolerance, o->init_depth,
+           o->max_depth);
+    printf("octree           %zu internal nodes, %zu leaves, %zu cells, %u levels\n", r->internal_nodes,
+           r->leaves, r->internal_nodes + r->leaves, r->levels);
+    printf("texels           %zu (%zu bytes, stored %zu bytes; 2D layout %ux%u)\n", r->texels, r->bytes,
+           r->stored_bytes, r->texture_width, r->texture_height);
     printf("samples          %llu: %llu ray hits, %llu closest points, %llu unsampled; m-to-M %.3g\n",
-           (unsigned long long)r.build.samples, (unsigned long long)r.build.ray_hits,
-           (unsigned long long)r.build.closest_points, (unsigned long long)r.build.unsampled,
-           r.build.m_to_M_distance);
+           (unsigned long long)r->build.samples, (unsigned long long)r->build.ray_hits,
+           (unsigned long long)r->build.closest_points, (unsigned long long)r->build.unsampled,
+           r->build.m_to_M_distance);
     printf("seconds          load %.2f, simplify %.2f, prepare %.2f, octree %.2f, sample %.2f, encode %.2f, "
            "store %.2f; APO %.2f, total %.2f (without load)\n",
-           load_seconds, r.seconds_simplify, r.seconds_prepare, r.seconds_octree, r.seconds_sample,
-           r.seconds_encode, r.seconds_store, r.seconds_apo, r.seconds_total);
-    printf("cpu seconds      %.2f (all threads, reading included)\n", run_cpu);
-    for (int rule = 0; rule < 2 && accuracy_points; ++rule)
+           res->load_seconds, r->seconds_simplify, r->seconds_prepare, r->seconds_octree, r->seconds_sample,
+           r->seconds_encode, r->seconds_store, r->seconds_apo, r->seconds_total);
+    printf("cpu seconds      %.2f (all threads, reading included)\n", res->run_cpu);
+    for (int rule = 0; rule < 2 && a->accuracy_points; ++rule)
         printf("accuracy %-7s  %zu centroids of M, %zu off the tree: angle to M mean %.2f, median %.2f, "
                "p90 %.2f degrees\n",
                rule ? "nearest" : "stop", acc[rule].points, acc[rule].off_tree, acc[rule].mean,
                acc[rule].median, acc[rule].p90);
-    if (lookups)
-        printf("lookups          %.3g per second (CPU reference, one thread, random points)\n", lookup_rate);
+    if (a->lookups)
+        printf("lookups          %.3g per second (CPU reference, one thread, random points)\n", res->lookup_rate);
 }
 
 int ms_apo_classic_cli(int argc, char **argv)
