@@ -252,6 +252,66 @@ static size_t boundary_pairs(const uint64_t *tris, size_t n, uint64_t **out)
     return w;
 }
 
+/* The stitched mesh m (its triangles st as vertex identities) is exactly q:
+ * vertices (isolated included, keys key) and oriented triangles. */
+static void check_exactly_q(const ms_view_mesh *m, const ms_qmesh *q, const uint64_t *key,
+                            const uint64_t *st, unsigned D)
+{
+    assert_int_equal(m->vertex_count, q->vertex_count);
+    uint64_t *kv = malloc((m->vertex_count + 1) * sizeof *kv);
+    assert_non_null(kv);
+    for (size_t i = 0; i < m->vertex_count; ++i) {
+        assert_int_equal(m->levels[i], D);
+        kv[i] = m->keys[i];
+    }
+    qsort(kv, m->vertex_count, 8, cmp_u64);
+    uint64_t *kq = malloc((q->vertex_count + 1) * sizeof *kq);
+    assert_non_null(kq);
+    memcpy(kq, key, q->vertex_count * sizeof *kq);
+    qsort(kq, q->vertex_count, 8, cmp_u64);
+    assert_memory_equal(kv, kq, q->vertex_count * 8);
+    free(kv);
+    free(kq);
+    assert_int_equal(m->triangle_count, q->tri_count);
+    uint64_t *a = malloc((3 * q->tri_count + 3) * sizeof *a);
+    uint64_t *b = malloc((3 * q->tri_count + 3) * sizeof *b);
+    assert_true(a && b);
+    for (size_t t = 0; t < q->tri_count; ++t) {
+        for (int k = 0; k < 3; ++k) {
+            a[3 * t + (size_t)k] = vid(D, D, key[q->tris[3 * t + (size_t)k]]);
+            b[3 * t + (size_t)k] = st[3 * t + (size_t)k];
+        }
+        rotate_min(&a[3 * t]);
+        rotate_min(&b[3 * t]);
+    }
+    qsort(a, q->tri_count, 24, cmp_u64x3);
+    qsort(b, q->tri_count, 24, cmp_u64x3);
+    assert_memory_equal(a, b, 24 * q->tri_count);
+    free(a);
+    free(b);
+}
+
+/* The distinct kd-levels of the shown cells with geometry (into levels, at
+ * most 64); counts the shown cells into r. */
+static unsigned shown_levels(ms_view *v, unsigned levels[64], ms_nsp_view_check *r)
+{
+    unsigned nl = 0;
+    for (uint32_t c = 0; c < ms_view_cell_count(v); ++c) {
+        if (ms_view_state(v, c) != MS_VIEW_SHOWN)
+            continue;
+        r->shown_cells++;
+        if (ms_view_cell(v, c)->geometry_length == 0)
+            continue;
+        unsigned L = 3 * ms_view_bits(v, c);
+        bool seen = false;
+        for (unsigned i = 0; i < nl; ++i)
+            seen |= levels[i] == L;
+        if (!seen)
+            levels[nl++] = L;
+    }
+    return nl;
+}
+
 void ms_nsp_test_check_view(ms_view *v, const ms_qmesh *q, bool full, ms_nsp_view_check *r)
 {
     memset(r, 0, sizeof *r);
@@ -313,58 +373,12 @@ void ms_nsp_test_check_view(ms_view *v, const ms_qmesh *q, bool full, ms_nsp_vie
             r->extra++, ++j;
     }
 
-    if (full) {
-        /* Exactly q: vertices (isolated included) and oriented triangles. */
-        assert_int_equal(m.vertex_count, q->vertex_count);
-        uint64_t *kv = malloc((m.vertex_count + 1) * sizeof *kv);
-        assert_non_null(kv);
-        for (size_t i = 0; i < m.vertex_count; ++i) {
-            assert_int_equal(m.levels[i], D);
-            kv[i] = m.keys[i];
-        }
-        qsort(kv, m.vertex_count, 8, cmp_u64);
-        uint64_t *kq = malloc((q->vertex_count + 1) * sizeof *kq);
-        assert_non_null(kq);
-        memcpy(kq, key, q->vertex_count * sizeof *kq);
-        qsort(kq, q->vertex_count, 8, cmp_u64);
-        assert_memory_equal(kv, kq, q->vertex_count * 8);
-        free(kv);
-        free(kq);
-        assert_int_equal(m.triangle_count, q->tri_count);
-        uint64_t *a = malloc((3 * q->tri_count + 3) * sizeof *a);
-        uint64_t *b = malloc((3 * q->tri_count + 3) * sizeof *b);
-        assert_true(a && b);
-        for (size_t t = 0; t < q->tri_count; ++t) {
-            for (int k = 0; k < 3; ++k) {
-                a[3 * t + (size_t)k] = vid(D, D, key[q->tris[3 * t + (size_t)k]]);
-                b[3 * t + (size_t)k] = st[3 * t + (size_t)k];
-            }
-            rotate_min(&a[3 * t]);
-            rotate_min(&b[3 * t]);
-        }
-        qsort(a, q->tri_count, 24, cmp_u64x3);
-        qsort(b, q->tri_count, 24, cmp_u64x3);
-        assert_memory_equal(a, b, 24 * q->tri_count);
-        free(a);
-        free(b);
-    }
+    if (full)
+        check_exactly_q(&m, q, key, st, D);
 
     /* Crack criterion. */
     unsigned levels[64];
-    unsigned nl = 0;
-    for (uint32_t c = 0; c < ms_view_cell_count(v); ++c) {
-        if (ms_view_state(v, c) != MS_VIEW_SHOWN)
-            continue;
-        r->shown_cells++;
-        if (ms_view_cell(v, c)->geometry_length == 0)
-            continue;
-        unsigned L = 3 * ms_view_bits(v, c);
-        bool seen = false;
-        for (unsigned i = 0; i < nl; ++i)
-            seen |= levels[i] == L;
-        if (!seen)
-            levels[nl++] = L;
-    }
+    unsigned nl = shown_levels(v, levels, r);
     r->levels = nl;
     uint64_t *be;
     uint32_t *be_tri;
