@@ -312,6 +312,72 @@ static unsigned shown_levels(ms_view *v, unsigned levels[64], ms_nsp_view_check 
     return nl;
 }
 
+/* The crack criterion: each boundary edge of the stitched triangles st (nbe
+ * of them, be / be_tri) must be a boundary edge of q coarsened to one of the
+ * shown levels, or a fold; the others count as cracks in r. */
+static void count_cracks(const ms_qmesh *q, const uint64_t *st, const uint64_t *be,
+                         const uint32_t *be_tri, size_t nbe, const unsigned *levels, unsigned nl,
+                         const uint64_t *ref, size_t nref, const uint32_t *mult, unsigned D,
+                         ms_nsp_view_check *r)
+{
+    ms_error err;
+    ms_codec_state fullst = {0};
+    assert_int_equal(ms_codec_state_from_qmesh(q, &fullst, &err), MS_OK);
+    uint8_t *ok = calloc(nbe, 1);
+    assert_non_null(ok);
+    for (unsigned li = 0; li < nl; ++li) {
+        unsigned L = levels[li];
+        ms_codec_state u;
+        ms_ref_coarsen(&fullst, L, &u);
+        uint64_t *ut = malloc((3 * u.tri_count + 3) * sizeof *ut);
+        assert_non_null(ut);
+        for (size_t t = 0; t < 3 * u.tri_count; ++t)
+            ut[t] = u.cells[u.tris[t]];
+        uint64_t *ub;
+        size_t nub = boundary_pairs(ut, u.tri_count, &ub);
+        for (size_t e = 0; e < nbe; ++e) {
+            if (ok[e])
+                continue;
+            unsigned la = vid_level(D, be[2 * e]), lb = vid_level(D, be[2 * e + 1]);
+            if (L > la || L > lb)
+                continue;
+            uint64_t pa = L == 0 ? 0 : vid_aligned(D, be[2 * e]) >> (D - L);
+            uint64_t pb = L == 0 ? 0 : vid_aligned(D, be[2 * e + 1]) >> (D - L);
+            if (pa == pb)
+                continue;
+            uint64_t pair[2] = {pa < pb ? pa : pb, pa < pb ? pb : pa};
+            ok[e] = bsearch(pair, ub, nub, 16, cmp_u64x2) != NULL;
+        }
+        free(ub);
+        free(ut);
+        ms_codec_state_free(&u);
+    }
+    for (size_t e = 0; e < nbe; ++e) {
+        if (ok[e])
+            continue;
+        /* A fold: the edge's one triangle is the image of several original
+         * triangles (two sheets pressed together and unified), so the edge is
+         * covered on both sides, by the same triangle. */
+        uint64_t tri[3];
+        memcpy(tri, &st[3 * (size_t)be_tri[e]], sizeof tri);
+        sort3(tri);
+        const uint64_t *hit = bsearch(tri, ref, nref, 24, cmp_u64x3);
+        assert_non_null(hit);
+        if (mult[(size_t)(hit - ref) / 3] >= 2) {
+            r->folds++;
+            continue;
+        }
+        r->cracks++;
+        if (getenv("MS_NSP_DEBUG"))
+            print_message("crack edge: levels %u %u keys %llx %llx\n",
+                          vid_level(D, be[2 * e]), vid_level(D, be[2 * e + 1]),
+                          (unsigned long long)vid_aligned(D, be[2 * e]),
+                          (unsigned long long)vid_aligned(D, be[2 * e + 1]));
+    }
+    free(ok);
+    ms_codec_state_free(&fullst);
+}
+
 void ms_nsp_test_check_view(ms_view *v, const ms_qmesh *q, bool full, ms_nsp_view_check *r)
 {
     memset(r, 0, sizeof *r);
@@ -384,63 +450,8 @@ void ms_nsp_test_check_view(ms_view *v, const ms_qmesh *q, bool full, ms_nsp_vie
     uint32_t *be_tri;
     size_t nbe = boundary_pairs_of(st, m.triangle_count, &be, &be_tri);
     r->boundary_edges = nbe;
-    if (nbe > 0) {
-        ms_codec_state fullst = {0};
-        assert_int_equal(ms_codec_state_from_qmesh(q, &fullst, &err), MS_OK);
-        uint8_t *ok = calloc(nbe, 1);
-        assert_non_null(ok);
-        for (unsigned li = 0; li < nl; ++li) {
-            unsigned L = levels[li];
-            ms_codec_state u;
-            ms_ref_coarsen(&fullst, L, &u);
-            uint64_t *ut = malloc((3 * u.tri_count + 3) * sizeof *ut);
-            assert_non_null(ut);
-            for (size_t t = 0; t < 3 * u.tri_count; ++t)
-                ut[t] = u.cells[u.tris[t]];
-            uint64_t *ub;
-            size_t nub = boundary_pairs(ut, u.tri_count, &ub);
-            for (size_t e = 0; e < nbe; ++e) {
-                if (ok[e])
-                    continue;
-                unsigned la = vid_level(D, be[2 * e]), lb = vid_level(D, be[2 * e + 1]);
-                if (L > la || L > lb)
-                    continue;
-                uint64_t pa = L == 0 ? 0 : vid_aligned(D, be[2 * e]) >> (D - L);
-                uint64_t pb = L == 0 ? 0 : vid_aligned(D, be[2 * e + 1]) >> (D - L);
-                if (pa == pb)
-                    continue;
-                uint64_t pair[2] = {pa < pb ? pa : pb, pa < pb ? pb : pa};
-                ok[e] = bsearch(pair, ub, nub, 16, cmp_u64x2) != NULL;
-            }
-            free(ub);
-            free(ut);
-            ms_codec_state_free(&u);
-        }
-        for (size_t e = 0; e < nbe; ++e) {
-            if (ok[e])
-                continue;
-            /* A fold: the edge's one triangle is the image of several original
-             * triangles (two sheets pressed together and unified), so the edge is
-             * covered on both sides, by the same triangle. */
-            uint64_t tri[3];
-            memcpy(tri, &st[3 * (size_t)be_tri[e]], sizeof tri);
-            sort3(tri);
-            const uint64_t *hit = bsearch(tri, ref, nref, 24, cmp_u64x3);
-            assert_non_null(hit);
-            if (mult[(size_t)(hit - ref) / 3] >= 2) {
-                r->folds++;
-                continue;
-            }
-            r->cracks++;
-            if (getenv("MS_NSP_DEBUG"))
-                print_message("crack edge: levels %u %u keys %llx %llx\n",
-                              vid_level(D, be[2 * e]), vid_level(D, be[2 * e + 1]),
-                              (unsigned long long)vid_aligned(D, be[2 * e]),
-                              (unsigned long long)vid_aligned(D, be[2 * e + 1]));
-        }
-        free(ok);
-        ms_codec_state_free(&fullst);
-    }
+    if (nbe > 0)
+        count_cracks(q, st, be, be_tri, nbe, levels, nl, ref, nref, mult, D, r);
     free(be);
     free(be_tri);
     free(mult);
