@@ -44,6 +44,49 @@ static bool bsearch_u64(const uint64_t *a, size_t n, uint64_t k)
     return lo < n && a[lo] == k;
 }
 
+/* Stamps (new marks) the vertices that share a maximal edge with c0. */
+static void mark_edge_neighbours(ms_complex *cx, uint32_t c0)
+{
+    ms_cx_new_marks(cx);
+    ms_cx_vert *v0 = &cx->v[c0];
+    const uint32_t *l0 = ms_cx_list(v0);
+    for (uint32_t i = 0; i < v0->n; ++i) {
+        if (l0[i] & 1) {
+            uint32_t e = l0[i] >> 1;
+            uint32_t o = cx->edge[e][0] == c0 ? cx->edge[e][1] : cx->edge[e][0];
+            cx->stamp[o] = cx->cur;
+        }
+    }
+}
+
+/* Stamps (stamp2, new marks) the triangle neighbours of c0 and deletes c0's
+ * maximal edges a triangle now covers. */
+static void drop_covered_edges(ms_complex *cx, uint32_t c0)
+{
+    ms_cx_new_marks2(cx); /* stamp2: triangle neighbours of c0 */
+    ms_cx_vert *v0 = &cx->v[c0];
+    uint32_t *l0 = ms_cx_list(v0);
+    for (uint32_t i = 0; i < v0->n; ++i) {
+        if (!(l0[i] & 1)) {
+            const uint32_t *t = cx->tri[l0[i] >> 1];
+            for (int m = 0; m < 3; ++m)
+                cx->stamp2[t[m]] = cx->cur2;
+        }
+    }
+    for (uint32_t i = 0; i < v0->n;) {
+        if (l0[i] & 1) {
+            uint32_t e = l0[i] >> 1;
+            uint32_t o = cx->edge[e][0] == c0 ? cx->edge[e][1] : cx->edge[e][0];
+            if (cx->stamp2[o] == cx->cur2) {
+                ms_cx_del_edge(cx, e); /* swaps the last entry into i */
+                l0 = ms_cx_list(&cx->v[c0]);
+                continue;
+            }
+        }
+        ++i;
+    }
+}
+
 ms_status ms_cx_merge(ms_complex *cx, uint32_t c0, uint32_t c1, ms_error *err)
 {
     ms_cx_vert *v1 = &cx->v[c1];
@@ -100,16 +143,7 @@ ms_status ms_cx_merge(ms_complex *cx, uint32_t c0, uint32_t c1, ms_error *err)
         }
     }
     /* c. maximal edges of c1. Mark c0's edge neighbours first. */
-    ms_cx_new_marks(cx);
-    v0 = &cx->v[c0];
-    l0 = ms_cx_list(v0);
-    for (uint32_t i = 0; i < v0->n; ++i) {
-        if (l0[i] & 1) {
-            uint32_t e = l0[i] >> 1;
-            uint32_t o = cx->edge[e][0] == c0 ? cx->edge[e][1] : cx->edge[e][0];
-            cx->stamp[o] = cx->cur;
-        }
-    }
+    mark_edge_neighbours(cx, c0);
     for (uint32_t i = 0; i < n1; ++i) {
         if (l1[i] == MS_CX_NONE || !(l1[i] & 1))
             continue;
@@ -129,38 +163,8 @@ ms_status ms_cx_merge(ms_complex *cx, uint32_t c0, uint32_t c1, ms_error *err)
     }
     /* d. c0's maximal edges covered by a triangle are no longer maximal; e. the
      * collapsed triangles leave maximal edges where nothing covers them. */
-    ms_cx_new_marks2(cx); /* stamp2: triangle neighbours of c0 */
-    v0 = &cx->v[c0];
-    l0 = ms_cx_list(v0);
-    for (uint32_t i = 0; i < v0->n; ++i) {
-        if (!(l0[i] & 1)) {
-            const uint32_t *t = cx->tri[l0[i] >> 1];
-            for (int m = 0; m < 3; ++m)
-                cx->stamp2[t[m]] = cx->cur2;
-        }
-    }
-    for (uint32_t i = 0; i < v0->n;) {
-        if (l0[i] & 1) {
-            uint32_t e = l0[i] >> 1;
-            uint32_t o = cx->edge[e][0] == c0 ? cx->edge[e][1] : cx->edge[e][0];
-            if (cx->stamp2[o] == cx->cur2) {
-                ms_cx_del_edge(cx, e); /* swaps the last entry into i */
-                l0 = ms_cx_list(&cx->v[c0]);
-                continue;
-            }
-        }
-        ++i;
-    }
-    ms_cx_new_marks(cx); /* stamp: edge neighbours of c0 now */
-    v0 = &cx->v[c0];
-    l0 = ms_cx_list(v0);
-    for (uint32_t i = 0; i < v0->n; ++i) {
-        if (l0[i] & 1) {
-            uint32_t e = l0[i] >> 1;
-            uint32_t o = cx->edge[e][0] == c0 ? cx->edge[e][1] : cx->edge[e][0];
-            cx->stamp[o] = cx->cur;
-        }
-    }
+    drop_covered_edges(cx, c0);
+    mark_edge_neighbours(cx, c0); /* now */
     ms_status st = ms_cx_reserve(cx, 0, 0, ncol, err);
     for (uint32_t i = 0; i < ncol && st == MS_OK; ++i) {
         uint32_t x = collapsed[i];
