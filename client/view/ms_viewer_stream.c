@@ -157,3 +157,8 @@ void ms_viewer_stream_stats(ms_viewer_stream *s, ms_core_stats *stats)
 bool ms_viewer_stream_settled(const ms_viewer_stream *s) { return s->settled; }
 
 const ms_viewer_model *ms_viewer_stream_model(const ms_viewer_stream *s) { return s->model; }
+
+ms_render *ms_viewer_stream_render(ms_viewer_stream *s)
+{
+    return s->render;
+}
