@@ -210,6 +210,7 @@ static void drop_moved_triangles(ms_complex *cx, uint32_t s)
         w += keep;
     }
     v->n = w;
+    ms_cx_list_reindex(v); /* positions moved */
 }
 
 /* Splits cell s (level L) in two after a "both" symbol. The per-neighbour and
