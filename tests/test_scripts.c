@@ -15,8 +15,8 @@
 
 static const char *const SCRIPTS[] = {
     "attack",      "bench",       "bench-apo",  "bench-apo-bake", "bench-bake",   "bench-client",
-    "bench-codec", "bench-codec-peer", "bench-read", "bench-serve", "bench-viewer", "demo",
-    "install-deps", "run-tests", "screenshots",
+    "bench-codec", "bench-codec-peer", "bench-read", "bench-serve", "bench-valence", "bench-viewer",
+    "demo",        "install-deps", "run-tests", "screenshots",
 };
 
 static bool listed(const char *name)
