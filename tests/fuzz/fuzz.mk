@@ -30,7 +30,7 @@ FUZZ_CFLAGS := -std=c11 -D_DEFAULT_SOURCE -D_FILE_OFFSET_BITS=64 -O1 -g \
                -fno-omit-frame-pointer $(SAN) -fsanitize=fuzzer-no-link \
                -Wall -Wextra -Werror -Wshadow -Wstrict-prototypes -Wvla \
                -Icommon -Iprotocol -Iserver -Itests/support -pthread
-FUZZ_LIBS  := -ljansson -levent -lz -lm -pthread
+FUZZ_LIBS  := -ljansson -levent -lpng16 -lz -lm -pthread
 
 .PHONY: all build run merge clean
 .SECONDARY:
