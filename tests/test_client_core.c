@@ -1,4 +1,4 @@
-/* The client core (client/ms_client_core.h) against a real meshserve on
+/* The client core (client/core/ms_client_core.h) against a real meshserve on
  * loopback, streaming the Stanford dragon at resolution 3 (stanford_dragon_
  * vrip_res3, baked here; the full dragon runs in make bench): the streamed,
  * stitched mesh at view complete equals the view-dependent decoder run on the
@@ -474,9 +474,59 @@ static void test_server_killed_and_restarted(void **state)
     if (!ms_test_core_wait_complete(core, WAIT_SECONDS, &st, &frame))
         fail_msg("not complete after the restart: %s", st.error);
     assert_true(st.reconnects >= 1);
+    /* the server was away at least the 0.5 s before the relaunch */
+    if (!(st.longest_outage >= 0.5 && st.longest_outage < WAIT_SECONDS))
+        fail_msg("longest outage %.3f s", st.longest_outage);
     assert_int_equal(st.cells_failed, 0);
     check_equals_direct(frame, &cam);
     ms_core_frame_free(frame);
+    ms_core_stop(core);
+    ms_test_stop(f.pid, SIGTERM, 10.0);
+}
+
+/* The server dies and what answers at its address (another instance behind a
+ * balancer) serves a different archive under the model's name: the client
+ * sees the content id change when it reopens the model and stops with a
+ * clean "model changed" error, never mixing the bytes of both. */
+static void test_failover_to_a_changed_model(void **state)
+{
+    (void)state;
+    fixture f = *g;
+    snprintf(f.port_file, sizeof f.port_file, "%s/ports3", g->dir);
+    snprintf(f.log, sizeof f.log, "%s/meshserve3.log", g->dir);
+    launch(&f, 0);
+    uint16_t port = f.port;
+    ms_core_options o = base_options();
+    o.port = port;
+    o.bandwidth = 40000;
+    ms_core *core;
+    ms_error err;
+    assert_int_equal(ms_core_start(&o, &core, &err), MS_OK);
+    ms_camera cam = key_camera(g->path.count - 1);
+    ms_core_set_camera(core, &cam);
+    ms_core_stats st;
+    double until = ms_now_seconds() + WAIT_SECONDS;
+    do {
+        ms_test_sleep_s(0.01);
+        ms_core_get_stats(core, &st);
+    } while (st.bytes_received < 20000 && ms_now_seconds() < until);
+    assert_true(st.bytes_received >= 20000);
+    assert_int_equal(ms_test_stop(f.pid, SIGKILL, 5.0), -1);
+    /* the same model name, baked at another precision: another content id */
+    char other[600], input[512];
+    snprintf(other, sizeof other, "%.500s/other", g->dir);
+    assert_int_equal(mkdir(other, 0755), 0);
+    ms_test_model_path(input, sizeof input, "stanford_dragon_vrip_res3.ply.gz");
+    ms_bake_report report;
+    ms_nsp_test_bake(input, other, MODEL, 14, 2000, &report);
+    snprintf(f.archives, sizeof f.archives, "%s", other);
+    launch(&f, port);
+    until = ms_now_seconds() + WAIT_SECONDS;
+    do {
+        ms_test_sleep_s(0.02);
+        ms_core_get_stats(core, &st);
+    } while (!st.error[0] && ms_now_seconds() < until);
+    assert_string_equal(st.error, "the model changed on the server while it was streamed");
     ms_core_stop(core);
     ms_test_stop(f.pid, SIGTERM, 10.0);
 }
@@ -794,6 +844,7 @@ int main(void)
         cmocka_unit_test(test_compressed_index_same_result),
         cmocka_unit_test(test_hostile_compressed_index),
         cmocka_unit_test(test_server_killed_and_restarted),
+        cmocka_unit_test(test_failover_to_a_changed_model),
         cmocka_unit_test(test_turning_away_cancels),
         cmocka_unit_test(test_corrupt_payload_refetched_once),
         cmocka_unit_test(test_corrupt_payload_reported),

@@ -1,0 +1,191 @@
+/* The client core: everything a meshstream viewer does except drawing.
+ *
+ * One ms_core streams one model from meshserve's binary door
+ * (protocol/PROTOCOL.md) for a camera the caller moves:
+ *
+ *   - a network thread (libevent) keeps the connection, reconnecting with
+ *     backoff after a drop and resuming partly received ranges with BYTES
+ *     requests (PROTOCOL.md section 10); it sends the requests the decode
+ *     thread asks for, cancels those no longer wanted, throttles its reads to
+ *     the configured bandwidth, and gives up on a server that does not answer;
+ *   - a decode thread (with decode_threads - 1 helpers that refine distinct
+ *     cells in parallel) owns the view-dependent decoder (ms_view_decoder.h): it
+ *     takes the latest camera, selects cells by frustum and projected screen
+ *     error with hysteresis, verifies received bytes (the codec header against
+ *     the index, each precision bit against its chunk CRC, a whole APO chunk
+ *     against its CRC; a corrupt range is fetched once more, then the cell is
+ *     reported failed), decodes, decides what to ask for next and in which
+ *     order, keeps memory within budget, and publishes frames;
+ *   - the caller's thread (the one that draws) only sets the camera, takes
+ *     frames and reads statistics: none of these block on decoding or I/O
+ *     (they take a mutex held for a copy or a pointer swap).
+ *
+ * Local mode (archive_path set: a kiosk, offline): the network thread is
+ * replaced by a local responder that maps the archive and hands the decode
+ * thread the byte ranges of its want list, best first, at most window_bytes
+ * before the decode thread takes them and plans again; everything else (the
+ * index, verification, selection, budget, frames, statistics) is the same code.
+ * A missing, truncated or malformed archive stops the core with stats.error
+ * (one line naming the file); a corrupt payload is handled as a corrupt range
+ * from the network (fetched again once, then the cell is reported failed).
+ *
+ * Request order. For every shown cell below its target, each missing precision
+ * bit is one request, with priority 128 - 8 * (need - bit) for cells in the
+ * frustum (need = the real-valued precision the camera asks for), 64 later for
+ * culled ones: the bit that removes the most on-screen error goes first, and
+ * every visible cell gets its first bits before any gets its last. The
+ * children of a cell about to split fetch theirs 16 later, while it finishes.
+ * At most `window_bytes` are in flight, so priorities follow the camera.
+ *
+ * Memory budget. memory = payload bytes held (decoder and reception buffers)
+ * + an estimate of decoded complexes (64 bytes per vertex). Above
+ * memory_target the screen tolerance is raised by half a bit every 100 ms (up
+ * to 4096x), and it comes back down below 0.7 x target; hidden cells (those an
+ * ancestor stands for) are evicted least useful first (usefulness = the
+ * precision the camera would want of them; culled cells least). Loading
+ * continues while memory + bytes in flight stay below memory_ceiling; a new
+ * range that would cross it may evict only cells at least one bit less
+ * useful than the cell it loads; when loading is blocked so, the tolerance
+ * rises as over the target, so loading never stalls. A pass that ends above
+ * the ceiling evicts what the view does not need, then coarsens at once.
+ * Cells in the cut (the root, every shown cell and the split cells above
+ * them) are never evicted. docs/CLIENT.md has the details.
+ *
+ * Two tolerances. tolerance_px is the geometric screen tolerance; with APO on
+ * (apo_levels > 0 on a model that has APO chunks) geometry refines only to
+ * apo_geometry_tolerance_px in the cells that carry a chunk (a cell baked
+ * without one, such as every leaf, whose geometry renders the input, still
+ * refines to tolerance_px) and tolerance_px is the detail tolerance: each
+ * visible shown cell's APO chunk is fetched by footprint, down to the level
+ * whose texel projects to tolerance_px (ms_apo_footprint_levels, ms_camera.h,
+ * at the cell's nearest point; raised with the budget's tolerance), at most
+ * apo_levels levels and no deeper; a cell about to split fetches none (its
+ * children replace it). The chunk prefixes held are handed over in frames.
+ *
+ * Ownership: the core copies its options' strings. A frame returned by
+ * ms_core_take_frame belongs to the caller (ms_core_frame_free).
+ * Errors: ms_status with one line; a core that cannot go on (server gone for
+ * longer than give_up_seconds, model changed, out of memory) keeps its last
+ * state and reports the error in ms_core_stats (error[0] != 0).
+ * Thread-safety: every function may be called from any one thread (typically
+ * the drawing thread), and ms_core_set_camera / ms_core_take_frame /
+ * ms_core_stats concurrently with each other; ms_core_stop must not race
+ * with the others.
+ */
+#ifndef MS_CLIENT_CORE_H
+#define MS_CLIENT_CORE_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "ms_camera.h"
+#include "ms_error.h"
+#include "ms_view_decoder.h"
+
+typedef struct ms_core ms_core;
+
+/* Test hook (fault injection): sees, and may alter, every received payload
+ * chunk on the decode thread before it is checked. */
+typedef void (*ms_core_payload_filter)(uint32_t cell, bool apo, uint32_t offset, uint8_t *data,
+                                       size_t length, void *arg);
+
+typedef struct ms_core_options {
+    const char *host;          /* numeric IPv4/IPv6 address */
+    uint16_t port;
+    const char *model;         /* the model's name (optional with archive_path) */
+    const char *archive_path;  /* NULL: stream from host:port. Else the path of a local
+                                  archive file (DIR/NAME.msa, ms_catalog.h): host, port,
+                                  token, raw_index and the time-outs are ignored and
+                                  no network is used; the same decode, selection,
+                                  verification, budget and frames run on the byte
+                                  ranges a local responder hands over from the mapped
+                                  file (at most window_bytes a pass, in request order,
+                                  throttled to `bandwidth` when set) */
+    const char *token;         /* NULL: none (preview access) */
+    const char *agent;         /* NULL: "meshstream-client" */
+    double tolerance_px;       /* geometric screen tolerance, pixels; 0 = 1 */
+    double hysteresis_bits;    /* ms_select_bits hysteresis; < 0 = 0.5 (0 is exact) */
+    double culled_bits_less;   /* culled cells' need is lowered by this; 0 = 6 (64x the
+                                  error outside the view) */
+    double frustum_margin;     /* world units; 0 = none */
+    unsigned apo_levels;       /* APO on when > 0: the most levels of a chunk fetched
+                                  (MS_ARCHIVE_MAX_APO_LEVELS: no cap but the chunk's);
+                                  0 = APO off */
+    double apo_geometry_tolerance_px; /* geometry tolerance with APO on; 0 = 4 */
+    uint64_t memory_target, memory_ceiling; /* bytes; 0 = no budget */
+    double bandwidth;          /* bytes per second read from the server; 0 = unlimited */
+    uint64_t window_bytes;     /* bytes in flight at most; 0 = 0.25 s of bandwidth,
+                                  at least 64 KiB (1 MiB when unlimited) */
+    double answer_timeout;     /* seconds without a byte while waiting; 0 = 5 */
+    double give_up_seconds;    /* reconnecting this long without success ends; 0 = 30 */
+    unsigned decode_threads;   /* decoding threads in all (the decode thread and its
+                                  helpers); 0 = 2 */
+    bool export_frames;        /* stitch a frame after each change (for drawing/tests) */
+    bool raw_index;            /* ask for the model index uncompressed (no CAP_INDEX_ZLIB) */
+    ms_core_payload_filter payload_filter;
+    void *payload_filter_arg;
+} ms_core_options;
+
+/* Starts the threads and connects; returns at once (the camera may be set
+ * before the model is open). MS_ERR_ARG for bad options, MS_ERR_NOMEM, or
+ * MS_ERR_IO when a thread cannot start. */
+ms_status ms_core_start(const ms_core_options *options, ms_core **core, ms_error *err);
+
+/* Stops the threads, closes the connection and frees everything. NULL is a no-op. */
+void ms_core_stop(ms_core *core);
+
+/* The camera to serve from now on (copied). */
+void ms_core_set_camera(ms_core *core, const ms_camera *camera);
+
+typedef struct ms_core_apo_chunk {
+    uint32_t cell;
+    unsigned levels;          /* complete octree levels in data */
+    uint8_t *data;            /* the chunk's prefix, as stored (compressed per ARCHIVE.md) */
+    size_t length;
+} ms_core_apo_chunk;
+
+/* What to draw: the stitched mesh of every shown cell (ms_view_stitch), the
+ * cut, and the APO chunks of the shown cells that have one. */
+typedef struct ms_core_frame {
+    uint64_t generation;      /* increases with each published frame */
+    double time;              /* seconds since ms_core_start */
+    ms_view_mesh mesh;
+    uint32_t cell_count;      /* cells of the model */
+    uint8_t *cell_bits;       /* per cell: shown precision, or 0xFF (hidden) / 0xFE (split) */
+    ms_core_apo_chunk *apo;
+    size_t apo_count;
+} ms_core_frame;
+
+/* The newest frame published since the last take, or NULL (never blocks on
+ * decoding). Needs export_frames. */
+ms_core_frame *ms_core_take_frame(ms_core *core);
+void ms_core_frame_free(ms_core_frame *frame);
+
+typedef struct ms_core_stats {
+    double time;               /* seconds since start */
+    bool connected, model_open; /* local mode: both true once the archive is open */
+    bool view_complete;        /* every cell of the cut at its target, nothing missing */
+    uint64_t camera_serial;    /* the camera set-call the figures below answer */
+    double achieved_error_px;  /* largest projected error of a visible shown cell */
+    double tolerance_px;       /* effective geometric tolerance (raised over budget) */
+    double first_display;      /* seconds to the first frame with a triangle; < 0 none yet */
+    uint64_t bytes_received;   /* payload bytes (local mode: bytes handed over) */
+    uint64_t geometry_bytes_received, apo_bytes_received; /* bytes_received by stream */
+    uint64_t socket_bytes;     /* everything read from the server (frames, index), counted
+                                  at each loop tick; 0 in local mode */
+    uint64_t bytes_in_flight;  /* requested and not yet received */
+    uint64_t requests, cancels, reconnects, refetches, evictions;
+    double longest_outage;     /* seconds, the longest span from a lost connection to the
+                                  model open again (a failover through a balancer); 0 none */
+    uint32_t cells_shown, cells_split, cells_cached, cells_loading, cells_failed;
+    uint64_t memory, peak_memory;
+    double decode_seconds;     /* decode thread busy time (verify, decode, select) */
+    double latency_p50, latency_p99; /* request send to last byte, seconds */
+    char error[256];           /* why the core stopped, or "" */
+    char warning[256];         /* last non-fatal problem (e.g. a failed cell), or "" */
+} ms_core_stats;
+
+void ms_core_get_stats(ms_core *core, ms_core_stats *stats);
+
+#endif
