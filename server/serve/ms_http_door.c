@@ -724,43 +724,17 @@ static void sweep(evutil_socket_t fd, short what, void *arg)
     update_accepting(door);
 }
 
-/* The door whose sweep event serves `listener` (see on_accept_error). */
-typedef struct door_search {
-    const struct evconnlistener *listener;
-    ms_http_door *door;
-} door_search;
-
-static int find_door(const struct event_base *base, const struct event *ev, void *arg)
-{
-    (void)base;
-    door_search *search = arg;
-    if (event_get_callback(ev) != sweep)
-        return 0;
-    ms_http_door *door = event_get_callback_arg(ev);
-    if (door->listener != search->listener)
-        return 0;
-    search->door = door;
-    return 1; /* found: stop */
-}
-
-/* Out of descriptors (or another accept failure): the listener stays
- * readable, so instead of spinning (and libevent logging each failure)
- * accepting pauses until the next sweep, at most SWEEP_INTERVAL_US. evhttp
- * owns the listener and its argument, so this callback is not told the door:
- * it finds it among the loop's events (its sweep timer, whose argument it
- * is), a walk over the loop's events at most once per pause. The failures are
- * logged at most once per MS_LOG_INTERVAL_S, with their count. */
+/* Accept failed (out of descriptors): pause until the next sweep. The door is
+ * its sweep timer's argument (evhttp owns the listener's); logs rate-limited. */
 static void on_accept_error(struct evconnlistener *listener, void *arg)
 {
     (void)arg;
     int error = EVUTIL_SOCKET_ERROR();
     evconnlistener_disable(listener);
-    door_search search = {listener, NULL};
-    event_base_foreach_event(evconnlistener_get_base(listener), find_door, &search);
-    if (search.door)
-        ms_server_log_limited(search.door->server, &search.door->accept_log,
-                              "http: accept failed: %s; accepting paused until the next sweep",
-                              strerror(error));
+    ms_http_door *door = ms_server_event_arg(evconnlistener_get_base(listener), sweep);
+    if (door)
+        ms_server_log_limited(door->server, &door->accept_log, "http: accept failed: %s; "
+                              "accepting paused until the next sweep", strerror(error));
 }
 
 ms_status ms_http_door_open(ms_server *server, ms_http_door **out, uint16_t *bound_port,

@@ -1,4 +1,4 @@
-/* libFuzzer target on the APO chunk readers (common/ms_apo_chunk.c,
+/* libFuzzer target on the APO chunk readers (common/apo/ms_apo_chunk.c,
  * ms_apo_stream.c, ms_apo_blob.c, ms_apo_traverse.c): what a client does with
  * the APO bytes of a cell and the level table of the index, and what it does
  * with the words of a partly received chunk.
