@@ -16,9 +16,10 @@
 #include "ms_test.h"
 
 static const char *const SCRIPTS[] = {
-    "attack",      "bench",       "bench-apo",  "bench-apo-bake", "bench-bake",   "bench-client",
-    "bench-codec", "bench-codec-peer", "bench-read", "bench-serve", "bench-valence", "bench-viewer",
-    "cluster",     "demo",        "install-deps", "run-tests", "screenshots",
+    "attack",       "bake-gallery", "bench",       "bench-apo",    "bench-apo-bake", "bench-bake",
+    "bench-client", "bench-codec",  "bench-codec-peer", "bench-read", "bench-scenes", "bench-serve",
+    "bench-valence", "bench-viewer", "cluster",    "demo",         "install-deps",   "run-tests",
+    "screenshots",  "study",
 };
 
 static bool listed(const char *name)
@@ -30,7 +31,8 @@ static bool listed(const char *name)
 }
 
 /* Every shell script in the folder is in the list (the sourced helper, the
- * Python generator and the camera paths folder aside), so a new one is tested. */
+ * Python generator and report writer and the camera paths and scenes folders
+ * aside), so a new one is tested. */
 static void test_every_script_is_listed(void **state)
 {
     (void)state;
@@ -39,8 +41,9 @@ static void test_every_script_is_listed(void **state)
     size_t seen = 0;
     for (struct dirent *e; (e = readdir(dir));) {
         const char *n = e->d_name;
-        if (n[0] == '.' || strcmp(n, "paths") == 0 || strcmp(n, "script-usage.sh") == 0 ||
-            strcmp(n, "gen-camera-paths.py") == 0)
+        if (n[0] == '.' || strcmp(n, "paths") == 0 || strcmp(n, "scenes") == 0 ||
+            strcmp(n, "script-usage.sh") == 0 || strcmp(n, "gen-camera-paths.py") == 0 ||
+            strcmp(n, "study-report.py") == 0)
             continue;
         if (!listed(n))
             fail_msg("scripts/%s is not in test_scripts.c's list", n);

@@ -66,6 +66,7 @@ typedef struct client_result {
     size_t key_count;
     uint64_t bytes, apo_bytes, requests, cancels, reconnects, evictions;
     double longest_outage; /* seconds from a lost connection to the model open again */
+    unsigned model_changes; /* fresh cores started because a rescan replaced the model */
     uint32_t cells_shown, cells_failed;
     double decode_seconds, p50, p99;
     uint64_t peak_memory;
@@ -147,6 +148,28 @@ static bool wait_complete(ms_core *core, double until, ms_core_stats *st, double
     }
 }
 
+/* A rescan replaced the model under a core (stats.model_changed): what it
+ * holds is of the old version, so a fresh core streams the new one from its
+ * root, with the same camera. At most MAX_MODEL_CHANGES times per phase (a
+ * model replaced again and again is an error). False, with res->error set,
+ * when the fresh core does not start. */
+#define MAX_MODEL_CHANGES 3
+
+static bool restart_core(const run *r, ms_core **core, const ms_camera *cam, client_result *res)
+{
+    ms_core_stop(*core);
+    *core = NULL;
+    res->model_changes++;
+    ms_core_options co = core_options(r->o);
+    ms_error err;
+    if (ms_core_start(&co, core, &err) != MS_OK) {
+        snprintf(res->error, sizeof res->error, "%.250s", err.text);
+        return false;
+    }
+    ms_core_set_camera(*core, cam);
+    return true;
+}
+
 static void cold_phase(worker *w)
 {
     run *r = w->r;
@@ -166,6 +189,12 @@ static void cold_phase(worker *w)
         until = r->deadline;
     ms_core_stats st;
     res->cold_complete = wait_complete(core, until, &st, &res->cold_last_byte);
+    for (int again = 0; !res->cold_complete && st.model_changed && again < MAX_MODEL_CHANGES;
+         ++again) {
+        if (!restart_core(r, &core, &cam, res))
+            return;
+        res->cold_complete = wait_complete(core, until, &st, &res->cold_last_byte);
+    }
     res->view_complete = res->cold_complete ? st.time : -1;
     res->first_display = st.first_display;
     res->cold_bytes = st.bytes_received;
@@ -207,6 +236,12 @@ static void path_phase(worker *w)
             if (until > r->deadline)
                 until = r->deadline;
             k->complete = wait_complete(core, until, &st, NULL);
+            for (int again = 0; !k->complete && st.model_changed && again < MAX_MODEL_CHANGES;
+                 ++again) {
+                if (!restart_core(r, &core, &cam, res))
+                    return;
+                k->complete = wait_complete(core, until, &st, NULL);
+            }
             k->wait = now_s() - t;
             k->error_px = st.achieved_error_px;
             k->tolerance_px = st.tolerance_px;
@@ -498,6 +533,7 @@ static void print_report(const options *o, const run *r, worker *ws)
                 ms_json_fixed(c->download_seconds, 4), "draco_decode_seconds",
                 ms_json_fixed(c->decode_draco_seconds, 4), "error", ms_json_text(c->error),
                 "failover_seconds", ms_json_fixed(c->longest_outage, 4), "keyframes", keyframes);
+            json_object_set_new(client, "model_changes", json_integer((json_int_t)c->model_changes));
             json_array_append_new(per_client, client);
         }
         if (root)

@@ -133,6 +133,9 @@ ms_status ms_server_rescan(ms_server *s, ms_error *err)
     ms_registry_free(s->registry);
     s->registry = fresh;
     s->metrics.rescans++;
+    /* Handles of replaced or removed models close now, with MODEL_CHANGED,
+     * instead of streaming the old version until the client disconnects. */
+    ms_serve_door_models_changed(s->binary, s->registry);
     return MS_OK;
 }
 
