@@ -89,7 +89,7 @@ struct ms_codec_decoder {
     ms_cx_star star;
     uint8_t *code, *side, *cov;
     uint8_t *partners;      /* per neighbour: partner_flag of its partners coded so far */
-    int32_t *vote;          /* per neighbour: orientation votes around it (orient_votes) */
+    int32_t *vote;          /* per neighbour: orientation votes (the encoder's star_votes) */
     uint32_t *pivot;        /* the neighbours with code 4, in order */
     uint8_t *tcode;
     size_t cap_code, cap_tcode;

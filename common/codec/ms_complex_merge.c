@@ -262,6 +262,7 @@ ms_status ms_cx_compact(ms_complex *cx, uint32_t *order, uint32_t n, ms_error *e
             tmap[t] = m;
             l[k] = m << 1;
         }
+        ms_cx_list_reindex(v); /* the entries were renamed */
     }
     uint32_t live_t = nt;
     for (uint32_t t = 0; t < cx->nt; ++t) {
