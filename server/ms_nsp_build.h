@@ -43,7 +43,7 @@
 
 #define MS_NSP_NONE UINT32_MAX
 #define MS_NSP_RECORD_BYTES 24         /* a leaf record: three u64 keys */
-#define MS_NSP_KEY_CACHE_MIN (1u << 20) /* bytes: the smallest key cache */
+#define MS_NSP_KEY_CACHE_MIN (256u << 10) /* bytes: the smallest key cache (4 pages) */
 
 typedef struct ms_nsp_node {
     uint32_t parent;       /* MS_NSP_NONE for the root */
