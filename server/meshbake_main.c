@@ -395,6 +395,17 @@ static void print_bake_json(const ms_bake_options *o, const ms_bake_report *r)
         json_object_set_new(io, phases[i].phase,
                             json_pack("{s:I, s:I}", "spilled_bytes", (json_int_t)phases[i].io->spilled,
                                       "read_back_bytes", (json_int_t)phases[i].io->read_back));
+    json_t *by_depth = json_array();
+    for (unsigned d = 0; by_depth && d < MS_NSP_MAX_DEPTH; ++d)
+        if (r->depth_leaves[d] > 0)
+            json_array_append_new(by_depth, json_pack("{s:i, s:I, s:I, s:I}", "depth", (int)d, "leaves",
+                                                      (json_int_t)r->depth_leaves[d], "triangles",
+                                                      (json_int_t)r->depth_triangles[d], "duplicates",
+                                                      (json_int_t)(r->depth_triangles[d] - r->depth_owned[d])));
+    if (root && by_depth)
+        json_object_set_new(root, "duplication_by_leaf_depth", by_depth);
+    else
+        json_decref(by_depth);
     if (root && io) {
         json_object_set_new(root, "temporary_io", io);
         json_object_set_new(root, "key_page_misses", json_integer((json_int_t)r->key_page_misses));

@@ -203,6 +203,9 @@ ms_status ms_bake(const ms_bake_options *o, ms_bake_report *r, ms_error *err)
         goto done;
     r->seconds_encode = es.seconds;
     r->io_encode = es.io;
+    memcpy(r->depth_leaves, es.depth_leaves, sizeof r->depth_leaves);
+    memcpy(r->depth_triangles, es.depth_triangles, sizeof r->depth_triangles);
+    memcpy(r->depth_owned, es.depth_owned, sizeof r->depth_owned);
     r->vertices = es.welded_vertices;
     r->triangles = es.welded_triangles;
     if (r->triangles == 0) {

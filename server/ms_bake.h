@@ -89,6 +89,9 @@ typedef struct ms_bake_report {
     uint64_t key_page_misses;         /* key-file pages read while distributing */
     /* temporary-file bytes per phase: spilled (written) and read back */
     ms_nsp_io io_read, io_quantise, io_distribute, io_lone, io_encode;
+    /* duplication by leaf depth (ms_nsp_encode_stats) */
+    uint64_t depth_leaves[MS_NSP_MAX_DEPTH], depth_triangles[MS_NSP_MAX_DEPTH],
+        depth_owned[MS_NSP_MAX_DEPTH];
     /* APO (all zero when off) */
     uint64_t apo_bytes, apo_raw_bytes;         /* compressed in the archive / texel bytes */
     uint64_t apo_level_texels[MS_APO_MAX_LEVELS]; /* texels per depth over all chunks */

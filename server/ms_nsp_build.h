@@ -42,6 +42,7 @@
 #include "ms_quant.h"
 
 #define MS_NSP_NONE UINT32_MAX
+#define MS_NSP_MAX_DEPTH 32              /* deeper than any shape allows (p <= 20) */
 #define MS_NSP_RECORD_BYTES 24         /* a leaf record: three u64 keys */
 #define MS_NSP_KEY_CACHE_MIN (256u << 10) /* bytes: the smallest key cache (4 pages) */
 

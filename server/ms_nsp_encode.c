@@ -235,6 +235,9 @@ static ms_status leaf_state(pool *p, uint32_t node, ms_codec_state *st, uint8_t 
     p->stats.leaf_duplicates += removed;
     p->stats.isolated_vertices += iso;
     p->stats.io.read_back += read;
+    p->stats.depth_leaves[nd->depth]++;
+    p->stats.depth_triangles[nd->depth] += nt;
+    p->stats.depth_owned[nd->depth] += own_t;
     pthread_mutex_unlock(&p->lock);
     return MS_OK;
 }

@@ -68,6 +68,10 @@ typedef struct ms_nsp_encode_stats {
     uint64_t apo_sample_triangles_max; /* the largest internal cell's M */
     ms_bake_apo_accuracy apo_accuracy; /* internal cells, with apo->accuracy */
     ms_nsp_io io;               /* read back: leaves' blocks and lone-level segments */
+    /* per leaf depth: leaves, their triangles, and the triangles they own (smallest
+     * key inside): stored - owned are the depth's duplicates */
+    uint64_t depth_leaves[MS_NSP_MAX_DEPTH], depth_triangles[MS_NSP_MAX_DEPTH],
+        depth_owned[MS_NSP_MAX_DEPTH];
     double seconds;
 } ms_nsp_encode_stats;
 

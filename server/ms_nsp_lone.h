@@ -8,7 +8,8 @@
  *
  * keys: n kd keys of key_bits bits (coincident vertices share a key). *out
  * (malloc'd, n bytes, caller frees) receives the levels, 0..key_bits (0 when the
- * model has a single distinct key). Memory: 24 bytes per vertex while it runs.
+ * model has a single distinct key). Memory: 24 bytes per vertex while it runs:
+ * the baker uses the per-leaf form below, this whole-model one is its reference.
  * MS_ERR_NOMEM on allocation failure. Thread-safety: no shared state. */
 #ifndef MS_NSP_LONE_H
 #define MS_NSP_LONE_H
