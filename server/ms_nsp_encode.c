@@ -201,11 +201,13 @@ static ms_status leaf_state(pool *p, uint32_t node, ms_codec_state *st, uint8_t 
         else
             ref[foreign++] = st->cells[v]; /* in key order */
     }
-    /* The foreign vertices' lone levels, from their own leaves' segments. */
-    s = ms_nsp_lone_lookup(b, ref, foreign, (uint8_t *)rank, &read, err);
+    /* The foreign vertices' lone levels, from their own leaves' segments (into
+     * rank's bytes, free now: foreign <= nk <= 3 n). */
+    uint8_t *foreign_lone = (uint8_t *)rank;
+    s = ms_nsp_lone_lookup(b, ref, foreign, foreign_lone, &read, err);
     for (size_t v = 0, f = 0; s == MS_OK && v < nk; ++v)
         if (!inside[v])
-            lone[v] = ((uint8_t *)rank)[f++];
+            lone[v] = foreign_lone[f++];
     free(ref);
     free(rank);
     if (s != MS_OK) {
