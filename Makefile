@@ -3,10 +3,13 @@
 # runs the benchmarks, `make demo` sets up and runs the demo, `make fuzz` builds the
 # libFuzzer targets (clang), `make clean` removes build/.
 #
-# Layout convention: every *.c in a role folder (common, protocol, server, client)
-# goes into that folder's static library, except files named *_main.c, each of which
-# is a program linked against the libraries (server/meshbake_main.c -> meshbake).
-# tests/test_*.c are cmocka test programs; tests/fuzz/fuzz_*.c are fuzz targets.
+# Layout (docs/ARCHITECTURE.md): the code lives in rooms, folders named for what
+# they hold (common/codec, server/bake, client/view, ...). Every *.c of a room goes
+# into that room's static library, except files named *_main.c, each of which is a
+# program (server/bake/meshbake_main.c -> meshbake). A room's files see only the
+# headers of the rooms it USES (and what those use, transitively): including a
+# header from any other room fails to compile. tests/test_*.c are cmocka test
+# programs and see every room; tests/fuzz/fuzz_*.c are fuzz targets.
 
 CC      ?= gcc
 CXX     ?= g++
@@ -20,33 +23,68 @@ ifeq ($(MODE),asan)
 else
   OPT   := -O2 -g -DNDEBUG
 endif
-CFLAGS   := $(CSTD) $(WARN) $(OPT) -Icommon -Iprotocol -Iserver -Iclient -Iclient/view -Iserver/study -Itests/support -pthread $(EXTRA_CFLAGS)
-CXXFLAGS := -std=c++17 -Wall -Wextra -Werror $(OPT) -Icommon -Iserver -pthread $(EXTRA_CFLAGS)
+CFLAGS   := $(CSTD) $(WARN) $(OPT) -pthread $(EXTRA_CFLAGS)
+CXXFLAGS := -std=c++17 -Wall -Wextra -Werror $(OPT) -pthread $(EXTRA_CFLAGS)
 LDFLAGS  := $(OPT) -pthread
-GL_LIBS  := $(shell pkg-config --libs glfw3 epoxy libpng 2>/dev/null || echo -lglfw -lepoxy -lpng16)
-LIBS     := -lembree3 -lOpenMeshTools -lOpenMeshCore -levent -ljansson $(GL_LIBS) -lz -lm
 
-ROLES      := common protocol server client client/view server/study
-LIB_common   := $(BUILD)/libmscommon.a
-LIB_protocol := $(BUILD)/libmsprotocol.a
-LIB_server   := $(BUILD)/libmsserver.a
-LIB_client   := $(BUILD)/libmsclient.a
-LIB_client/view := $(BUILD)/libmsview.a
-LIB_server/study := $(BUILD)/libmsstudy.a
-# Link order: higher layers first.
-ALL_LIBS   := $(LIB_server/study) $(LIB_server) $(LIB_client/view) $(LIB_client) $(LIB_protocol) $(LIB_common)
+# Rooms, lowest first (link order is the reverse). USES_room lists the rooms a
+# room may include directly; PKGS_room the Debian libraries its own code calls
+# (pkg-config names; Embree 3 ships no .pc file and is named embree3).
+ROOMS := common/util common/mesh common/codec common/apo common/camera \
+         common/archive protocol server/geometry server/apo server/bake \
+         server/serve server/study client/core client/load client/view
+USES_common/util     :=
+USES_common/mesh     := common/util
+USES_common/codec    := common/mesh
+USES_common/apo      := common/util
+USES_common/camera   := common/util
+USES_common/archive  := common/codec common/camera
+USES_protocol        := common/util
+USES_server/geometry := common/mesh
+USES_server/apo      := server/geometry common/apo common/archive
+USES_server/bake     := server/apo
+USES_server/serve    := common/archive protocol
+USES_server/study    := common/apo common/archive
+USES_client/core     := common/archive protocol
+USES_client/load     := client/core
+USES_client/view     := client/core common/apo
+PKGS_common/util     := jansson libpng zlib
+PKGS_common/codec    := zlib
+PKGS_common/apo      := zlib
+PKGS_common/archive  := jansson zlib
+PKGS_protocol        := zlib
+PKGS_server/geometry := openmesh
+PKGS_server/apo      := embree3
+PKGS_server/bake     := jansson zlib
+PKGS_server/serve    := libevent jansson zlib
+PKGS_server/study    := embree3 jansson
+PKGS_client/core     := libevent zlib
+PKGS_client/load     := libevent jansson
+PKGS_client/view     := glfw3 epoxy libevent jansson zlib
+
+# room_closure: the room and every room it uses, transitively.
+room_closure = $(sort $(1) $(foreach u,$(USES_$(1)),$(call room_closure,$(u))))
+reverse      = $(if $(1),$(call reverse,$(wordlist 2,$(words $(1)),$(1))) $(firstword $(1)))
+room_lib     = $(BUILD)/lib/libms_$(subst /,_,$(1)).a
+# The libraries a program of room $(1) links, highest room first.
+room_libs    = $(foreach r,$(call reverse,$(ROOMS)),$(if $(filter $(r),$(call room_closure,$(1))),$(call room_lib,$(r))))
+room_pkgs    = $(sort $(foreach r,$(call room_closure,$(1)),$(PKGS_$(r))))
+pkg_libs     = $(if $(filter embree3,$(1)),-lembree3) \
+               $(if $(filter-out embree3,$(1)),$(shell pkg-config --libs $(filter-out embree3,$(1))))
+pkg_cflags   = $(if $(filter-out embree3,$(1)),$(shell pkg-config --cflags $(filter-out embree3,$(1))))
 
 lib_srcs  = $(filter-out %_main.c,$(wildcard $(1)/*.c))
 lib_objs  = $(patsubst %.c,$(BUILD)/%.o,$(call lib_srcs,$(1))) $(patsubst %.cpp,$(BUILD)/%.o,$(wildcard $(1)/*.cpp))
-MAINS     := $(wildcard $(addsuffix /*_main.c,$(ROLES)))
+MAINS     := $(wildcard $(addsuffix /*_main.c,$(ROOMS)))
 PROGRAMS  := $(patsubst %_main.c,$(BUILD)/bin/%,$(notdir $(MAINS)))
 TEST_SRCS := $(wildcard tests/test_*.c)
 TESTS     := $(patsubst tests/%.c,$(BUILD)/tests/%,$(TEST_SRCS))
 TESTSUPPORT := $(patsubst %.c,$(BUILD)/%.o,$(wildcard tests/support/*.c))
-HAVE_CXX  := $(strip $(foreach r,$(ROLES),$(wildcard $(r)/*.cpp)))
-LINK      := $(if $(HAVE_CXX),$(CXX),$(CC))
+ALL_LIBS  := $(foreach r,$(call reverse,$(ROOMS)),$(call room_lib,$(r)))
+ALL_PKGS  := $(sort $(foreach r,$(ROOMS),$(PKGS_$(r))))
+LINK      := $(CXX)
 
-.PHONY: all test bench demo fuzz clean programs tests deps screenshots
+.PHONY: all test bench demo fuzz clean programs tests deps screenshots rooms room-flags
 .SECONDARY:
 all: programs
 
@@ -55,18 +93,27 @@ tests: $(TESTS) $(PROGRAMS)
 
 $(BUILD)/%.o: %.c
 	@mkdir -p $(dir $@)
-	$(CC) $(CFLAGS) -MMD -MP -c $< -o $@
+	$(CC) $(CFLAGS) $(ROOM_CFLAGS) -MMD -MP -c $< -o $@
 
 $(BUILD)/%.o: %.cpp
 	@mkdir -p $(dir $@)
-	$(CXX) $(CXXFLAGS) -MMD -MP -c $< -o $@
+	$(CXX) $(CXXFLAGS) $(ROOM_CFLAGS) -MMD -MP -c $< -o $@
 
-define role_lib
-$(LIB_$(1)): $(call lib_objs,$(1))
+# Per room: what its sources see, its library, and its programs (one link rule).
+define room_rules
+$(BUILD)/$(1)/%.o: ROOM_CFLAGS := $(addprefix -I,$(call room_closure,$(1))) $(call pkg_cflags,$(call room_pkgs,$(1)))
+$(call room_lib,$(1)): $(call lib_objs,$(1)) | $(BUILD)/empty.o
 	@mkdir -p $$(dir $$@)
 	rm -f $$@ && ar rcs $$@ $$^ $$(if $$^,,$(BUILD)/empty.o)
+$(foreach m,$(wildcard $(1)/*_main.c),$(BUILD)/bin/$(notdir $(m:_main.c=)): $(BUILD)/$(m:.c=.o) $(call room_libs,$(1))
+	@mkdir -p $$(dir $$@)
+	$$(LINK) $$(LDFLAGS) $$< $(call room_libs,$(1)) $(call pkg_libs,$(call room_pkgs,$(1))) -lm -o $$@
+)
 endef
-$(foreach r,$(ROLES),$(eval $(call role_lib,$(r))))
+$(foreach r,$(ROOMS),$(eval $(call room_rules,$(r))))
+
+# Tests see every room.
+$(BUILD)/tests/%.o: ROOM_CFLAGS := $(addprefix -I,$(ROOMS) tests/support) $(call pkg_cflags,$(ALL_PKGS))
 
 # The viewer's GLSL (client/view/shaders/*.glsl) is embedded into libmsview as C
 # strings (declared in client/view/ms_render_shaders.h) by a generated source.
@@ -76,37 +123,17 @@ $(SHADER_GEN): $(SHADER_SRCS) client/view/shaders/embed_shaders.py
 	@mkdir -p $(dir $@)
 	python3 client/view/shaders/embed_shaders.py $@ $(SHADER_SRCS)
 $(BUILD)/gen/ms_render_shaders.o: $(SHADER_GEN)
-	$(CC) $(CFLAGS) -MMD -MP -c $< -o $@
-$(LIB_client/view): $(BUILD)/gen/ms_render_shaders.o
+	$(CC) $(CFLAGS) -Iclient/view -MMD -MP -c $< -o $@
+$(call room_lib,client/view): $(BUILD)/gen/ms_render_shaders.o
 
 # An empty archive still needs one member for ar on some systems.
 $(BUILD)/empty.o:
 	@mkdir -p $(dir $@)
 	echo 'typedef int ms_empty_translation_unit;' | $(CC) $(CFLAGS) -x c -c - -o $@
-$(foreach r,$(ROLES),$(eval $(LIB_$(r)): | $(BUILD)/empty.o))
-
-$(BUILD)/bin/%: $(BUILD)/common/%_main.o $(ALL_LIBS)
-	@mkdir -p $(dir $@)
-	$(LINK) $(LDFLAGS) $< $(ALL_LIBS) $(LIBS) -o $@
-$(BUILD)/bin/%: $(BUILD)/server/%_main.o $(ALL_LIBS)
-	@mkdir -p $(dir $@)
-	$(LINK) $(LDFLAGS) $< $(ALL_LIBS) $(LIBS) -o $@
-$(BUILD)/bin/%: $(BUILD)/client/%_main.o $(ALL_LIBS)
-	@mkdir -p $(dir $@)
-	$(LINK) $(LDFLAGS) $< $(ALL_LIBS) $(LIBS) -o $@
-$(BUILD)/bin/%: $(BUILD)/client/view/%_main.o $(ALL_LIBS)
-	@mkdir -p $(dir $@)
-	$(LINK) $(LDFLAGS) $< $(ALL_LIBS) $(LIBS) -o $@
-$(BUILD)/bin/%: $(BUILD)/server/study/%_main.o $(ALL_LIBS)
-	@mkdir -p $(dir $@)
-	$(LINK) $(LDFLAGS) $< $(ALL_LIBS) $(LIBS) -o $@
-$(BUILD)/bin/%: $(BUILD)/protocol/%_main.o $(ALL_LIBS)
-	@mkdir -p $(dir $@)
-	$(LINK) $(LDFLAGS) $< $(ALL_LIBS) $(LIBS) -o $@
 
 $(BUILD)/tests/%: $(BUILD)/tests/%.o $(TESTSUPPORT) $(ALL_LIBS)
 	@mkdir -p $(dir $@)
-	$(LINK) $(LDFLAGS) $< $(TESTSUPPORT) $(ALL_LIBS) $(LIBS) -lcmocka -o $@
+	$(LINK) $(LDFLAGS) $< $(TESTSUPPORT) $(ALL_LIBS) $(call pkg_libs,$(ALL_PKGS) cmocka) -lm -o $@
 
 # The whole suite under ASan + UBSan. Tests run from the repository root and find
 # the shared models through MESHSTREAM_MODELS (default ../shared/data/models).
@@ -134,5 +161,12 @@ deps:
 
 clean:
 	rm -rf build
+
+# The layering, for tests/test_layering.c and for reading: `make -s rooms`, and
+# `make -s room-flags ROOM=client/view` (the include paths that room compiles with).
+rooms:
+	@echo $(ROOMS)
+room-flags:
+	@echo $(addprefix -I,$(call room_closure,$(ROOM)))
 
 -include $(shell find build -name '*.d' 2>/dev/null)

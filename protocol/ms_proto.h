@@ -6,7 +6,7 @@
  * thread-safe. A decoder object is used by one thread at a time; distinct
  * decoder objects are independent.
  *
- * Errors follow common/ms_error.h: functions return an ms_status and fill an
+ * Errors follow common/util/ms_error.h: functions return an ms_status and fill an
  * optional ms_error with one line of text. Decoding also fills an ms_proto_fault
  * with the wire error code (section 9) to send to the peer, whether it is fatal,
  * and which request ids it ends, so that a server can answer every bad frame

@@ -2,7 +2,7 @@
 """Writes the shipped camera paths, scripts/paths/{demo,dragon}-{overview,closeup,flythrough}.cam.
 
 Run from the repository root; the output is committed, so this only needs to run
-again when the paths change. Format: docs in common/ms_camera_path.h.
+again when the paths change. Format: docs in common/camera/ms_camera_path.h.
 """
 import argparse
 import math

@@ -39,7 +39,7 @@ static void test_help_and_usage_errors(void **state)
     assert_string_equal(out, "meshbake: option needs a value: --simplify (see meshbake --help)\n");
     snprintf(cmd, sizeof cmd, "%s demo:1000 --apo-classic --apo-max-depth 31", bin);
     assert_int_equal(ms_test_run(cmd, out, sizeof out), 2);
-    assert_string_equal(out, "meshbake: --apo-max-depth must be a number in [0, 30], got '31'\n");
+    assert_string_equal(out, "meshbake: --apo-max-depth wants an integer in [0, 30], got '31'\n");
     snprintf(cmd, sizeof cmd, "%s demo:1000 --apo-classic --apo-tol -1", bin);
     assert_int_equal(ms_test_run(cmd, out, sizeof out), 2);
     snprintf(cmd, sizeof cmd, "%s demo:1000 --apo-classic --apo-measure fancy", bin);

@@ -1,4 +1,4 @@
-/* The client core (client/ms_client_core.h) against a real meshserve on
+/* The client core (client/core/ms_client_core.h) against a real meshserve on
  * loopback, streaming the Stanford dragon at resolution 3 (stanford_dragon_
  * vrip_res3, baked here; the full dragon runs in make bench): the streamed,
  * stitched mesh at view complete equals the view-dependent decoder run on the

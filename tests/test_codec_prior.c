@@ -1,4 +1,4 @@
-/* The codec's built-in prior (common/ms_codec_prior.h): its estimate from counts,
+/* The codec's built-in prior (common/codec/ms_codec_prior.h): its estimate from counts,
  * model initialisation per stream version, the training counts of an encode, and
  * version-1 streams (flat contexts) still decoding exactly. */
 #include <stdarg.h>

@@ -1,4 +1,4 @@
-/* The side door's Range and If-None-Match parsing (server/ms_http_parse.h),
+/* The side door's Range and If-None-Match parsing (server/serve/ms_http_parse.h),
  * case by case, with nginx's answers as the reference; and the replay of the
  * fuzz corpus tests/corpus/http_request/ through the fuzz target's checks. */
 #include <stdarg.h>

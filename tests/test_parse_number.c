@@ -143,12 +143,56 @@ static void test_integers(void **state)
     }
 }
 
+/* Option values: whole-text numbers within the range, one wording for the rest. */
+static void test_option_values(void **state)
+{
+    (void)state;
+    int64_t i = -7;
+    double d = -7;
+    ms_error e;
+    assert_int_equal(ms_option_int("--clients", "12", 1, 256, &i, &e), MS_OK);
+    assert_int_equal(i, 12);
+    assert_int_equal(ms_option_int("port", "0", 0, 65535, &i, &e), MS_OK);
+    assert_int_equal(i, 0);
+    assert_int_equal(ms_option_int("--seed", "4294967295", 0, UINT32_MAX, &i, &e), MS_OK);
+    assert_true(i == UINT32_MAX);
+    static const char *const bad_ints[] = {"", "x", "4.0", "12 ", " 12", "0", "257", "-1",
+                                           "99999999999999999999", "1e2"};
+    for (size_t k = 0; k < sizeof bad_ints / sizeof *bad_ints; ++k) {
+        i = -7;
+        assert_int_equal(ms_option_int("--clients", bad_ints[k], 1, 256, &i, &e), MS_ERR_RANGE);
+        assert_int_equal(i, -7); /* untouched */
+        char want[128];
+        snprintf(want, sizeof want, "--clients wants an integer in [1, 256], got '%s'", bad_ints[k]);
+        assert_string_equal(e.text, want);
+    }
+    assert_int_equal(ms_option_double("--tolerance", "0.5", 0.01, 1000, &d, &e), MS_OK);
+    assert_true(d == 0.5);
+    assert_int_equal(ms_option_double("--tolerance", "1e3", 0.01, 1000, &d, &e), MS_OK);
+    assert_true(d == 1000);
+    static const char *const bad_doubles[] = {"", "x", "nan", "inf", "-inf", "1001", "0.001",
+                                              "0.5x", "0.5 "};
+    for (size_t k = 0; k < sizeof bad_doubles / sizeof *bad_doubles; ++k) {
+        d = -7;
+        assert_int_equal(ms_option_double("--tolerance", bad_doubles[k], 0.01, 1000, &d, &e),
+                         MS_ERR_RANGE);
+        assert_true(d == -7);
+        char want[128];
+        snprintf(want, sizeof want, "--tolerance wants a number in [0.01, 1000], got '%s'",
+                 bad_doubles[k]);
+        assert_string_equal(e.text, want);
+    }
+    assert_int_equal(ms_option_double("--memory", "-1", 0.01, 1e7, &d, &e), MS_ERR_RANGE);
+    assert_string_equal(e.text, "--memory wants a number in [0.01, 10000000], got '-1'");
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_doubles_match_strtod),
         cmocka_unit_test(test_double_token_rules),
         cmocka_unit_test(test_integers),
+        cmocka_unit_test(test_option_values),
     };
     return cmocka_run_group_tests_name("parse_number", tests, NULL, NULL);
 }

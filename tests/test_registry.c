@@ -34,21 +34,21 @@ static void test_scan_rescan_replace_remove(void **state)
     ms_test_add_model(dir, "bunny", 1, 12);
     ms_test_add_model(dir, "dragon", 2, 9);
     warnings w = {0};
-    ms_registry r1, r2, r3;
+    ms_registry *r1, *r2, *r3;
     ms_error err;
     assert_int_equal(ms_registry_scan(dir, NULL, &r1, collect, &w, &err), MS_OK);
-    assert_int_equal(r1.count, 2);
+    assert_int_equal(ms_registry_count(r1), 2);
     assert_int_equal(w.count, 0);
-    ms_model *dragon = ms_registry_find(&r1, "dragon");
+    ms_model *dragon = ms_registry_find(r1, "dragon");
     assert_non_null(dragon);
     assert_int_equal(dragon->entry.public_max_bits, 9);
-    assert_null(ms_registry_find(&r1, "../dragon"));
-    assert_null(ms_registry_find(&r1, "dragon.msa"));
-    assert_null(ms_registry_find(&r1, "zebra"));
+    assert_null(ms_registry_find(r1, "../dragon"));
+    assert_null(ms_registry_find(r1, "dragon.msa"));
+    assert_null(ms_registry_find(r1, "zebra"));
 
     /* Unchanged files are reused, not reopened. */
-    assert_int_equal(ms_registry_scan(dir, &r1, &r2, collect, &w, &err), MS_OK);
-    assert_ptr_equal(ms_registry_find(&r2, "dragon"), dragon);
+    assert_int_equal(ms_registry_scan(dir, r1, &r2, collect, &w, &err), MS_OK);
+    assert_ptr_equal(ms_registry_find(r2, "dragon"), dragon);
     assert_int_equal(dragon->refs, 2);
 
     /* Hold the dragon (a transfer in progress), then replace bunny and remove it. */
@@ -57,23 +57,23 @@ static void test_scan_rescan_replace_remove(void **state)
     assert_int_equal(ms_catalog_remove(dir, "dragon", &err), MS_OK);
     snprintf(path, sizeof path, "%s/dragon.msa", dir);
     assert_int_equal(unlink(path), 0);
-    assert_int_equal(ms_registry_scan(dir, &r2, &r3, collect, &w, &err), MS_OK);
-    assert_int_equal(r3.count, 1);
-    assert_null(ms_registry_find(&r3, "dragon"));
-    ms_model *bunny_new = ms_registry_find(&r3, "bunny");
-    assert_true(bunny_new != ms_registry_find(&r2, "bunny"));
+    assert_int_equal(ms_registry_scan(dir, r2, &r3, collect, &w, &err), MS_OK);
+    assert_int_equal(ms_registry_count(r3), 1);
+    assert_null(ms_registry_find(r3, "dragon"));
+    ms_model *bunny_new = ms_registry_find(r3, "bunny");
+    assert_true(bunny_new != ms_registry_find(r2, "bunny"));
     size_t len;
     const uint8_t *g = ms_archive_geometry(bunny_new->archive, 3, &len);
     uint8_t expect[1024];
     ms_test_archive_fill(expect, (uint32_t)len, 3 + 99);
     assert_memory_equal(g, expect, len);
-    ms_registry_release(&r1);
-    ms_registry_release(&r2);
+    ms_registry_free(r1);
+    ms_registry_free(r2);
     /* Still readable after every registry let go of it. */
     assert_int_equal(dragon->refs, 1);
     assert_int_equal(ms_archive_verify_payload(dragon->archive, 7, &err), MS_OK);
     ms_model_unref(dragon);
-    ms_registry_release(&r3);
+    ms_registry_free(r3);
     ms_test_rmdir(dir);
 }
 
@@ -94,21 +94,23 @@ static void test_broken_models_are_skipped(void **state)
     snprintf(path, sizeof path, "%s/missing.msa", dir);
     assert_int_equal(unlink(path), 0);
     warnings w = {0};
-    ms_registry r;
+    ms_registry *r;
     assert_int_equal(ms_registry_scan(dir, NULL, &r, collect, &w, NULL), MS_OK);
-    assert_int_equal(r.count, 1);
-    assert_non_null(ms_registry_find(&r, "good"));
+    assert_int_equal(ms_registry_count(r), 1);
+    assert_non_null(ms_registry_find(r, "good"));
     assert_int_equal(w.count, 2);
     assert_non_null(strstr(w.last, "model 'missing' skipped: archive file missing"));
-    ms_registry_release(&r);
+    ms_registry_free(r);
 
     ms_error err;
     assert_int_equal(ms_registry_scan("/nonexistent", NULL, &r, NULL, NULL, &err), MS_ERR_IO);
+    assert_null(r);
     snprintf(path, sizeof path, "%s/catalog.json", dir);
     f = fopen(path, "w");
     fputs("{", f);
     fclose(f);
     assert_int_equal(ms_registry_scan(dir, NULL, &r, NULL, NULL, &err), MS_ERR_FORMAT);
+    assert_null(r);
     ms_test_rmdir(dir);
 }
 

@@ -1,4 +1,4 @@
-/* Removing repeated triangles (server/ms_tri_unify.h): the earliest copy stays,
+/* Removing repeated triangles (server/geometry/ms_tri_unify.h): the earliest copy stays,
  * the order is kept, an opposite-orientation repeat is reported, and indices at
  * or above 2^21 (the packed radix key's limit) give the same result. */
 #include <setjmp.h>

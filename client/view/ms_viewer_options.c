@@ -55,24 +55,28 @@ void ms_viewer_options_usage(FILE *out)
           out);
 }
 
-static bool number(const char *text, double lo, double hi, double *out)
+/* Option values (ms_option_*): false after printing the one line to err
+ * (when err is not NULL). */
+static bool number(FILE *err, const char *name, const char *text, double lo, double hi,
+                   double *out)
 {
-    double v;
-    const char *end = ms_parse_double(text, &v);
-    if (!end || *end || !isfinite(v) || v < lo || v > hi)
-        return false;
-    *out = v;
-    return true;
+    ms_error e;
+    if (ms_option_double(name, text, lo, hi, out, &e) == MS_OK)
+        return true;
+    if (err)
+        fprintf(err, "meshview: %s\n", e.text);
+    return false;
 }
 
-static bool integer(const char *text, int64_t lo, int64_t hi, int64_t *out)
+static bool integer(FILE *err, const char *name, const char *text, int64_t lo, int64_t hi,
+                    int64_t *out)
 {
-    int64_t v;
-    const char *end = ms_parse_int64(text, &v);
-    if (!end || *end || v < lo || v > hi)
-        return false;
-    *out = v;
-    return true;
+    ms_error e;
+    if (ms_option_int(name, text, lo, hi, out, &e) == MS_OK)
+        return true;
+    if (err)
+        fprintf(err, "meshview: %s\n", e.text);
+    return false;
 }
 
 /* "1280x720" */
@@ -85,7 +89,8 @@ static bool size_pair(const char *text, int *w, int *h)
     memcpy(first, text, (size_t)(x - text));
     first[x - text] = 0;
     int64_t a, b;
-    if (!integer(first, 16, 16384, &a) || !integer(x + 1, 16, 16384, &b))
+    if (!integer(NULL, "--size", first, 16, 16384, &a) ||
+        !integer(NULL, "--size", x + 1, 16, 16384, &b))
         return false;
     *w = (int)a, *h = (int)b;
     return true;
@@ -129,7 +134,7 @@ int ms_viewer_options_parse(int argc, char **argv, ms_viewer_options *o, FILE *e
         case 's': {
             const char *colon = strrchr(optarg, ':');
             if (!colon || colon == optarg || (size_t)(colon - optarg) >= sizeof o->host ||
-                !integer(colon + 1, 1, 65535, &i)) {
+                !integer(NULL, "port", colon + 1, 1, 65535, &i)) {
                 fprintf(err, "meshview: --server wants HOST:PORT, not '%s'\n", optarg);
                 return 2;
             }
@@ -147,38 +152,28 @@ int ms_viewer_options_parse(int argc, char **argv, ms_viewer_options *o, FILE *e
             }
             break;
         case 't':
-            if (!number(optarg, 0.05, 256, &o->tolerance_px)) {
-                fprintf(err, "meshview: --tolerance wants pixels in [0.05, 256]\n");
+            if (!number(err, "--tolerance", optarg, 0.05, 256, &o->tolerance_px))
                 return 2;
-            }
             break;
         case 'a':
-            if (!integer(optarg, 0, 32, &i)) {
-                fprintf(err, "meshview: --apo-levels wants 0..32\n");
+            if (!integer(err, "--apo-levels", optarg, 0, 32, &i))
                 return 2;
-            }
             o->apo_levels = (unsigned)i;
             break;
         case 'n': no_apo = true; break;
         case 'S': shading = optarg; break;
         case 'u':
-            if (!integer(optarg, 4096, INT64_C(1) << 40, &i)) {
-                fprintf(err, "meshview: --upload-budget wants bytes, at least 4096\n");
+            if (!integer(err, "--upload-budget", optarg, 4096, INT64_C(1) << 40, &i))
                 return 2;
-            }
             o->upload_budget = (uint64_t)i;
             break;
         case 'M':
-            if (!number(optarg, 1, 1e7, &o->memory_mb)) {
-                fprintf(err, "meshview: --memory wants MB in [1, 1e7]\n");
+            if (!number(err, "--memory", optarg, 1, 1e7, &o->memory_mb))
                 return 2;
-            }
             break;
         case 'b':
-            if (!number(optarg, 1000, 1e12, &o->bandwidth)) {
-                fprintf(err, "meshview: --bandwidth wants bytes per second, at least 1000\n");
+            if (!number(err, "--bandwidth", optarg, 1000, 1e12, &o->bandwidth))
                 return 2;
-            }
             break;
         case 'U':
             if (strlen(optarg) != 1 || optarg[0] < 'x' || optarg[0] > 'z') {
@@ -190,17 +185,13 @@ int ms_viewer_options_parse(int argc, char **argv, ms_viewer_options *o, FILE *e
         case 'p': o->path_file = optarg; break;
         case 'd': o->screenshot_dir = optarg; break;
         case 'f':
-            if (!integer(optarg, 1, 100000, &i)) {
-                fprintf(err, "meshview: --frames wants 1..100000\n");
+            if (!integer(err, "--frames", optarg, 1, 100000, &i))
                 return 2;
-            }
             o->frames = (unsigned)i;
             break;
         case 'k':
-            if (!number(optarg, 0.1, 86400, &o->keyframe_timeout)) {
-                fprintf(err, "meshview: --keyframe-timeout wants seconds in [0.1, 86400]\n");
+            if (!number(err, "--keyframe-timeout", optarg, 0.1, 86400, &o->keyframe_timeout))
                 return 2;
-            }
             break;
         case 'j': o->json = true; break;
         case 'H': o->hud = true; break;

@@ -1,7 +1,7 @@
 # libFuzzer targets, called by `make fuzz` as `$(MAKE) -f tests/fuzz/fuzz.mk`.
 #
 # Generic: every tests/fuzz/fuzz_NAME.c becomes build/fuzz/fuzz_NAME, linked with
-# every library source of common/ and protocol/ (not *_main.c), all compiled by
+# every library source of the common/ rooms and protocol/ (not *_main.c), all compiled by
 # clang with -fsanitize=fuzzer-no-link,address,undefined. Each target is then
 # run for FUZZ_TIME seconds, seeded from tests/corpus/NAME/ (read only; new
 # inputs go to build/fuzz/corpus/NAME/), and the run fails on the first crash.
@@ -20,17 +20,17 @@ FUZZ_ALL     := $(patsubst tests/fuzz/fuzz_%.c,%,$(FUZZ_SRCS))
 FUZZ_TARGETS ?= $(FUZZ_ALL)
 FUZZ_BINS    := $(patsubst %,$(FUZZ_DIR)/fuzz_%,$(FUZZ_TARGETS))
 
-# From server/: the side door's header parsing (fuzz_http_request) and the
+# From server/serve/: the side door's header parsing (fuzz_http_request) and the
 # config reader (fuzz_config_catalog).
-LIB_SRCS   := $(filter-out %_main.c,$(wildcard common/*.c protocol/*.c)) \
-              server/ms_http_parse.c server/ms_server_config.c
+LIB_SRCS   := $(filter-out %_main.c,$(wildcard common/*/*.c protocol/*.c)) \
+              server/serve/ms_http_parse.c server/serve/ms_server_config.c
 LIB_OBJS   := $(patsubst %.c,$(FUZZ_DIR)/obj/%.o,$(LIB_SRCS))
 SAN        := -fsanitize=address,undefined -fno-sanitize-recover=undefined
 FUZZ_CFLAGS := -std=c11 -D_DEFAULT_SOURCE -D_FILE_OFFSET_BITS=64 -O1 -g \
                -fno-omit-frame-pointer $(SAN) -fsanitize=fuzzer-no-link \
                -Wall -Wextra -Werror -Wshadow -Wstrict-prototypes -Wvla \
-               -Icommon -Iprotocol -Iserver -Itests/support -pthread
-FUZZ_LIBS  := -ljansson -levent -lz -lm -pthread
+               $(addprefix -I,$(wildcard common/*) protocol server/serve tests/support) -pthread
+FUZZ_LIBS  := $(shell pkg-config --libs jansson libevent libpng zlib) -lm -pthread
 
 .PHONY: all build run merge clean
 .SECONDARY:

@@ -1,4 +1,4 @@
-/* libFuzzer target on the archive index reader (common/ms_archive.c,
+/* libFuzzer target on the archive index reader (common/archive/ms_archive.c,
  * ms_archive_open_index): the index blob a client receives from the server
  * (OPEN_MODEL's INDEX_DATA), or the static tree's models/NAME.index.
  *

@@ -1,4 +1,4 @@
-/* libFuzzer target on the camera-path parser (common/ms_camera_path.c,
+/* libFuzzer target on the camera-path parser (common/camera/ms_camera_path.c,
  * docs/CAMERA_PATHS.md), which meshload and the viewer read from files.
  *
  * Input: the file's text. Besides the sanitizers, the target checks the

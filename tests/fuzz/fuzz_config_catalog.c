@@ -1,6 +1,6 @@
 /* libFuzzer target on two readers of operator files: meshserve's config file
- * (server/ms_server_config.c, ms_server_config_load) and the archive
- * directory's catalog.json (common/ms_catalog.c, ms_catalog_load).
+ * (server/serve/ms_server_config.c, ms_server_config_load) and the archive
+ * directory's catalog.json (common/archive/ms_catalog.c, ms_catalog_load).
  *
  * Input: one control byte (bit 0: 0 config, 1 catalogue), then the file's
  * bytes, written to a private temporary directory and read back through the

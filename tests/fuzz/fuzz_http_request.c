@@ -1,5 +1,5 @@
 /* libFuzzer target on the HTTP side door's request-header parsing
- * (server/ms_http_parse.c: Range and If-None-Match), the functions the
+ * (server/serve/ms_http_parse.c: Range and If-None-Match), the functions the
  * server calls for every payload request.
  *
  * Input: 8 bytes of body length (little-endian; the top 24 bits are cleared,

@@ -1,5 +1,5 @@
 // The APO traversal (docs/APO.md, "Traversal"), step for step as the CPU oracle
-// ms_apo_lookup (common/ms_apo_traverse.c). Words of every cell's chunk prefix
+// ms_apo_lookup (common/apo/ms_apo_traverse.c). Words of every cell's chunk prefix
 // live in one GL_R32UI buffer texture; a cell's words start at apo_base.
 // Included into the fragment shader (no #version here).
 

@@ -1,0 +1,544 @@
+/* Binary-protocol client connection: see ms_client.h. */
+#include "ms_client.h"
+
+#include <event2/buffer.h>
+#include <event2/bufferevent.h>
+#include <event2/event.h>
+#include <netinet/in.h>
+#include <netinet/tcp.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/socket.h>
+#include <zlib.h>
+
+#define DEFAULT_MAX_FRAME (1u << 20)
+
+struct ms_client {
+    struct bufferevent *bev;
+    const ms_client_handlers *handlers;
+    void *arg;
+    ms_proto_decoder decoder;
+    ms_proto_hello_reply limits;
+    uint32_t next_id;
+    bool over;
+    /* The index blob being received (one OPEN_MODEL at a time is reassembled;
+     * others interleave only if the caller opens several at once, which the
+     * server answers in order anyway). */
+    uint32_t index_request;
+    ms_proto_model_opened opened;
+    uint8_t *index;         /* index_size bytes: the blob, received or inflated */
+    uint32_t index_have;    /* bytes of INDEX_DATA received (the wire form's) */
+    uint8_t *index_zlib;    /* the compressed form as it arrives (ZLIB encoding) */
+    bool ask_index_zlib;    /* offer CAP_INDEX_ZLIB in HELLO */
+    struct ev_token_bucket_cfg *rate;
+    uint64_t bytes_read;
+};
+
+static void finish(ms_client *c, const char *why)
+{
+    if (c->over)
+        return;
+    c->over = true;
+    bufferevent_disable(c->bev, EV_READ | EV_WRITE);
+    if (c->handlers->closed)
+        c->handlers->closed(c, why, c->arg);
+}
+
+static ms_status send_message(ms_client *c, const ms_proto_message *msg, ms_error *err)
+{
+    if (c->over)
+        return ms_error_set(err, MS_ERR_IO, "the connection is closed");
+    size_t size;
+    ms_status st = ms_proto_encoded_size(msg, &size, err);
+    if (st != MS_OK)
+        return st;
+    uint8_t small[2048];
+    uint8_t *buf = size <= sizeof small ? small : malloc(size);
+    if (!buf)
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory for a %zu-byte frame", size);
+    size_t written;
+    st = ms_proto_encode(msg, buf, size, &written, err);
+    if (st == MS_OK && bufferevent_write(c->bev, buf, written) != 0)
+        st = ms_error_set(err, MS_ERR_NOMEM, "out of memory for the output buffer");
+    if (buf != small)
+        free(buf);
+    if (st == MS_ERR_RANGE || st == MS_ERR_FORMAT)
+        st = MS_ERR_ARG;
+    return st;
+}
+
+static uint32_t take_ids(ms_client *c, uint32_t count)
+{
+    if (c->next_id == 0 || (uint64_t)c->next_id + count > 0xFFFFFFFFull)
+        c->next_id = 1;
+    uint32_t first = c->next_id;
+    c->next_id += count;
+    return first;
+}
+
+/* Checks the received wire form and leaves the decoded blob in c->index. */
+static bool index_complete(ms_client *c)
+{
+    if (c->opened.index_encoding == MS_PROTO_INDEX_ZLIB) {
+        ms_error err;
+        ms_status st = ms_proto_index_inflate(c->index_zlib, c->index_have, c->opened.index_size,
+                                              c->opened.index_crc32, c->index, &err);
+        free(c->index_zlib);
+        c->index_zlib = NULL;
+        if (st != MS_OK) {
+            char why[MS_ERROR_TEXT_MAX + 40];
+            snprintf(why, sizeof why, "bad model index from the server: %s", err.text);
+            finish(c, why);
+        }
+        return st == MS_OK;
+    }
+    if (c->index_have != c->opened.index_size ||
+        crc32_z(0L, c->index, c->index_have) != c->opened.index_crc32) {
+        finish(c, "model index blob fails its CRC-32");
+        return false;
+    }
+    return true;
+}
+
+static void handle_index(ms_client *c, const ms_proto_message *m)
+{
+    const ms_proto_index_data *d = &m->body.index_data;
+    bool zlib = c->opened.index_encoding == MS_PROTO_INDEX_ZLIB;
+    /* A compressed index is shorter than the blob (section 4.8): that bounds
+     * what a hostile server can make us buffer before inflating. */
+    uint64_t wire_limit = zlib ? (uint64_t)c->opened.index_size - 1 : c->opened.index_size;
+    if (m->request_id != c->index_request || !c->index || d->offset != c->index_have ||
+        (uint64_t)d->offset + d->data_length > wire_limit) {
+        finish(c, "server sent INDEX_DATA out of order");
+        return;
+    }
+    uint8_t *to = c->index;
+    if (zlib) {
+        to = realloc(c->index_zlib, (size_t)c->index_have + d->data_length);
+        if (!to) {
+            finish(c, "out of memory for a model index");
+            return;
+        }
+        c->index_zlib = to;
+    }
+    memcpy(to + c->index_have, d->data, d->data_length);
+    c->index_have += d->data_length;
+    if (!(m->flags & MS_PROTO_FLAG_LAST) || !index_complete(c))
+        return;
+    uint8_t *index = c->index;
+    c->index = NULL;
+    c->index_request = 0;
+    if (c->handlers->model_opened)
+        c->handlers->model_opened(c, m->request_id, &c->opened, index, c->arg);
+    free(index);
+}
+
+/* The server must pick a version and capabilities out of what HELLO offered
+ * (section 3); anything else ends the connection with a clear reason. */
+static bool reply_acceptable(ms_client *c, const ms_proto_hello_reply *r)
+{
+    char why[160];
+    uint32_t asked = MS_PROTO_CAP_APO | (c->ask_index_zlib ? MS_PROTO_CAP_INDEX_ZLIB : 0);
+    if (r->version < MS_PROTO_MIN_VERSION || r->version > MS_PROTO_VERSION)
+        snprintf(why, sizeof why, "server chose protocol version %u, outside our %u..%u",
+                 r->version, MS_PROTO_MIN_VERSION, MS_PROTO_VERSION);
+    else if (r->capabilities & ~asked)
+        snprintf(why, sizeof why, "server granted capabilities 0x%x beyond the 0x%x asked",
+                 (unsigned)r->capabilities, (unsigned)asked);
+    else if (r->version < 2 && (r->capabilities & MS_PROTO_CAP_INDEX_ZLIB))
+        snprintf(why, sizeof why, "server granted CAP_INDEX_ZLIB in protocol version 1");
+    else
+        return true;
+    finish(c, why);
+    return false;
+}
+
+/* Returns false when the connection ended. */
+static bool handle_message(ms_client *c, const ms_proto_message *m)
+{
+    switch ((ms_proto_type)m->type) {
+    case MS_PROTO_HELLO_REPLY:
+        if (!reply_acceptable(c, &m->body.hello_reply))
+            break;
+        c->limits = m->body.hello_reply;
+        if (c->handlers->ready)
+            c->handlers->ready(c, &c->limits, c->arg);
+        break;
+    case MS_PROTO_MODEL_OPENED:
+        if (m->body.model_opened.index_encoding != MS_PROTO_INDEX_RAW &&
+            !(c->limits.capabilities & MS_PROTO_CAP_INDEX_ZLIB)) {
+            finish(c, "server sent a compressed index without CAP_INDEX_ZLIB");
+            break;
+        }
+        free(c->index);
+        free(c->index_zlib);
+        c->index_zlib = NULL;
+        c->opened = m->body.model_opened;
+        c->index = malloc(c->opened.index_size);
+        c->index_have = 0;
+        c->index_request = m->request_id;
+        if (!c->index)
+            finish(c, "out of memory for a model index");
+        break;
+    case MS_PROTO_INDEX_DATA: handle_index(c, m); break;
+    case MS_PROTO_PAYLOAD:
+        if (c->handlers->payload)
+            c->handlers->payload(c, m->request_id, &m->body.payload, m->flags & MS_PROTO_FLAG_LAST,
+                                 c->arg);
+        break;
+    case MS_PROTO_ERROR:
+        if (m->body.error.fatal) {
+            char why[400];
+            snprintf(why, sizeof why, "server error %s: %.*s",
+                     ms_proto_error_name(m->body.error.code), (int)m->body.error.text_length,
+                     m->body.error.text);
+            finish(c, why);
+        } else if (c->handlers->request_error) {
+            c->handlers->request_error(c, m->request_id, m->body.error.request_count,
+                                       &m->body.error, c->arg);
+        }
+        break;
+    case MS_PROTO_PING: {
+        ms_proto_message pong = {.type = MS_PROTO_PONG};
+        pong.body.ping = m->body.ping;
+        send_message(c, &pong, NULL);
+        break;
+    }
+    case MS_PROTO_PONG:
+        if (c->handlers->pong)
+            c->handlers->pong(c, m->body.ping.opaque, c->arg);
+        break;
+    case MS_PROTO_CATALOGUE:
+        if (c->handlers->catalogue)
+            c->handlers->catalogue(c, m->request_id, &m->body.catalogue,
+                                   m->flags & MS_PROTO_FLAG_LAST, c->arg);
+        break;
+    default: break;
+    }
+    return !c->over;
+}
+
+static void on_read(struct bufferevent *bev, void *arg)
+{
+    ms_client *c = arg;
+    struct evbuffer *in = bufferevent_get_input(bev);
+    while (!c->over && evbuffer_get_length(in)) {
+        struct evbuffer_iovec v;
+        if (evbuffer_peek(in, -1, NULL, &v, 1) < 1)
+            break;
+        size_t consumed;
+        ms_proto_message m;
+        bool have;
+        ms_proto_fault fault;
+        ms_error err;
+        ms_status st = ms_proto_decoder_feed(&c->decoder, v.iov_base, v.iov_len, &consumed, &m,
+                                             &have, &fault, &err);
+        evbuffer_drain(in, consumed);
+        c->bytes_read += consumed;
+        if (st != MS_OK) {
+            char why[MS_ERROR_TEXT_MAX + 32];
+            snprintf(why, sizeof why, "bad frame from the server: %s", err.text);
+            finish(c, why);
+            return;
+        }
+        if (have && !handle_message(c, &m))
+            return;
+    }
+}
+
+static void on_event(struct bufferevent *bev, short what, void *arg)
+{
+    (void)bev;
+    ms_client *c = arg;
+    if (what & BEV_EVENT_CONNECTED) {
+        int one = 1;
+        setsockopt(bufferevent_getfd(c->bev), IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
+        return;
+    }
+    finish(c, what & BEV_EVENT_EOF ? "closed by the server" : "socket error");
+}
+
+ms_status ms_client_connect(struct event_base *base, const ms_client_options *o,
+                            const ms_client_handlers *handlers, void *arg, ms_client **out,
+                            ms_error *err)
+{
+    *out = NULL;
+    struct sockaddr_storage ss;
+    memset(&ss, 0, sizeof ss);
+    int length;
+    struct sockaddr_in *v4 = (struct sockaddr_in *)&ss;
+    struct sockaddr_in6 *v6 = (struct sockaddr_in6 *)&ss;
+    if (evutil_inet_pton(AF_INET, o->host, &v4->sin_addr) == 1) {
+        v4->sin_family = AF_INET, v4->sin_port = htons(o->port), length = sizeof *v4;
+    } else if (evutil_inet_pton(AF_INET6, o->host, &v6->sin6_addr) == 1) {
+        v6->sin6_family = AF_INET6, v6->sin6_port = htons(o->port), length = sizeof *v6;
+    } else {
+        return ms_error_set(err, MS_ERR_ARG, "'%s' is not a numeric address", o->host);
+    }
+    ms_client *c = calloc(1, sizeof *c);
+    if (!c)
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory");
+    c->handlers = handlers;
+    c->arg = arg;
+    c->next_id = 1;
+    uint32_t max_frame = o->max_frame ? o->max_frame : DEFAULT_MAX_FRAME;
+    ms_proto_decoder_config dc = {MS_PROTO_ROLE_CLIENT, max_frame, 0};
+    ms_status st = ms_proto_decoder_init(&c->decoder, &dc, err);
+    if (st != MS_OK) {
+        free(c);
+        return st;
+    }
+    c->bev = bufferevent_socket_new(base, -1, BEV_OPT_CLOSE_ON_FREE);
+    if (!c->bev) {
+        ms_client_free(c);
+        return ms_error_set(err, MS_ERR_NOMEM, "cannot create a socket buffer");
+    }
+    bufferevent_setcb(c->bev, on_read, NULL, on_event, c);
+    bufferevent_set_max_single_read(c->bev, 1u << 20);
+    bufferevent_set_max_single_write(c->bev, 1u << 20);
+    bufferevent_enable(c->bev, EV_READ | EV_WRITE);
+    if (bufferevent_socket_connect(c->bev, (struct sockaddr *)&ss, length) != 0) {
+        ms_client_free(c);
+        return ms_error_set(err, MS_ERR_IO, "cannot connect to %s:%u", o->host, o->port);
+    }
+    ms_proto_message hello = {.type = MS_PROTO_HELLO};
+    ms_proto_hello *h = &hello.body.hello;
+    h->min_version = MS_PROTO_MIN_VERSION;
+    h->max_version = MS_PROTO_VERSION;
+    c->ask_index_zlib = !o->raw_index;
+    h->capabilities = MS_PROTO_CAP_APO | (c->ask_index_zlib ? MS_PROTO_CAP_INDEX_ZLIB : 0);
+    h->max_frame = max_frame;
+    h->token = o->token;
+    h->token_length = o->token ? (uint16_t)strlen(o->token) : 0;
+    h->agent = o->agent ? o->agent : "";
+    h->agent_length = (uint16_t)strlen(h->agent);
+    if ((st = send_message(c, &hello, err)) != MS_OK) {
+        ms_client_free(c);
+        return st;
+    }
+    *out = c;
+    return MS_OK;
+}
+
+void ms_client_free(ms_client *c)
+{
+    if (!c)
+        return;
+    if (c->bev)
+        bufferevent_free(c->bev);
+    if (c->rate)
+        ev_token_bucket_cfg_free(c->rate);
+    ms_proto_decoder_free(&c->decoder);
+    free(c->index);
+    free(c->index_zlib);
+    free(c);
+}
+
+/* LIST_CATALOGUE (ms_client_fetch_catalogue's request). */
+static ms_status list_catalogue(ms_client *c, uint32_t *request_id, ms_error *err)
+{
+    ms_proto_message m = {.type = MS_PROTO_LIST_CATALOGUE, .request_id = take_ids(c, 1)};
+    *request_id = m.request_id;
+    return send_message(c, &m, err);
+}
+
+ms_status ms_client_open_model(ms_client *c, const char *name, uint32_t *request_id, ms_error *err)
+{
+    size_t n = strlen(name);
+    if (!ms_proto_model_name_valid(name, n, NULL))
+        return ms_error_set(err, MS_ERR_ARG, "'%s' is not a model name", name);
+    ms_proto_message m = {.type = MS_PROTO_OPEN_MODEL, .request_id = take_ids(c, 1)};
+    m.body.open_model.name = name;
+    m.body.open_model.name_length = (uint8_t)n;
+    *request_id = m.request_id;
+    return send_message(c, &m, err);
+}
+
+ms_status ms_client_request_cells(ms_client *c, uint32_t handle, const ms_proto_cell_request *e,
+                                  uint16_t count, uint32_t *first_id, ms_error *err)
+{
+    if (count == 0 || count > MS_PROTO_MAX_BATCH)
+        return ms_error_set(err, MS_ERR_ARG, "batch of %u requests", count);
+    ms_proto_message m = {.type = MS_PROTO_REQUEST_CELLS, .request_id = take_ids(c, count)};
+    m.body.request_cells.model_handle = handle;
+    m.body.request_cells.entries = e;
+    m.body.request_cells.count = count;
+    *first_id = m.request_id;
+    return send_message(c, &m, err);
+}
+
+ms_status ms_client_cancel(ms_client *c, const ms_proto_id_range *ranges, uint16_t count,
+                           ms_error *err)
+{
+    ms_proto_message m = {.type = MS_PROTO_CANCEL};
+    m.body.cancel.ranges = ranges;
+    m.body.cancel.range_count = count;
+    return send_message(c, &m, err);
+}
+
+const ms_proto_hello_reply *ms_client_limits(const ms_client *c) { return &c->limits; }
+
+ms_status ms_client_set_rate_limit(ms_client *c, double bytes_per_second, ms_error *err)
+{
+    struct ev_token_bucket_cfg *cfg = NULL;
+    if (bytes_per_second > 0) {
+        /* Refill every 10 ms; the burst is one refill (at least one TCP segment's worth). */
+        double per_tick = bytes_per_second / 100.0;
+        size_t rate = per_tick < 1 ? 1 : per_tick > 1e9 ? 1000000000u : (size_t)per_tick;
+        size_t burst = rate < 1460 ? 1460 : rate;
+        struct timeval tick = {0, 10000};
+        cfg = ev_token_bucket_cfg_new(rate, burst, EV_RATE_LIMIT_MAX, EV_RATE_LIMIT_MAX, &tick);
+        if (!cfg)
+            return ms_error_set(err, MS_ERR_NOMEM, "out of memory for a rate limit");
+    }
+    if (bufferevent_set_rate_limit(c->bev, cfg) != 0) {
+        if (cfg)
+            ev_token_bucket_cfg_free(cfg);
+        return ms_error_set(err, MS_ERR_NOMEM, "cannot set a rate limit");
+    }
+    if (c->rate)
+        ev_token_bucket_cfg_free(c->rate);
+    c->rate = cfg;
+    return MS_OK;
+}
+
+uint64_t ms_client_bytes_read(const ms_client *c) { return c->bytes_read; }
+
+/* --- ms_client_fetch_catalogue: one connection, one LIST_CATALOGUE ---------- */
+
+typedef struct catalogue_fetch {
+    struct event_base *base;
+    uint32_t request;
+    ms_client_catalogue *out;
+    size_t cap;
+    bool done, failed;
+    char why[MS_ERROR_TEXT_MAX];
+} catalogue_fetch;
+
+static void fetch_fail(catalogue_fetch *f, const char *why)
+{
+    if (f->done)
+        return;
+    f->done = f->failed = true;
+    snprintf(f->why, sizeof f->why, "%s", why);
+    event_base_loopbreak(f->base);
+}
+
+static void fetch_on_catalogue(ms_client *client, uint32_t request_id,
+                               const ms_proto_catalogue *cat, bool last, void *arg)
+{
+    (void)client;
+    catalogue_fetch *f = arg;
+    if (request_id != f->request || f->done)
+        return;
+    ms_client_catalogue *out = f->out;
+    if (out->count + cat->entry_count > f->cap) {
+        size_t cap = f->cap ? f->cap : 16;
+        while (cap < out->count + cat->entry_count)
+            cap *= 2;
+        ms_client_catalogue_entry *grown = realloc(out->entries, cap * sizeof *grown);
+        if (!grown) {
+            fetch_fail(f, "out of memory for the catalogue");
+            return;
+        }
+        out->entries = grown;
+        f->cap = cap;
+    }
+    for (uint16_t i = 0; i < cat->entry_count; ++i) {
+        const ms_proto_catalogue_entry *e = &cat->entries[i];
+        ms_client_catalogue_entry *d = &out->entries[out->count++];
+        memset(d, 0, sizeof *d);
+        /* lengths are bounded by the decoder (PROTOCOL.md 4.5) */
+        memcpy(d->name, e->name, e->name_length);
+        memcpy(d->title, e->title, e->title_length);
+        d->geometry_steps = e->geometry_steps, d->apo_steps = e->apo_steps;
+        d->permitted_geometry_steps = e->permitted_geometry_steps;
+        d->permitted_apo_steps = e->permitted_apo_steps;
+        d->cell_count = e->cell_count;
+        d->content_id = e->content_id;
+        d->archive_bytes = e->archive_bytes;
+    }
+    if (last) {
+        f->done = true;
+        event_base_loopbreak(f->base);
+    }
+}
+
+static void fetch_on_error(ms_client *client, uint32_t first_id, uint32_t count,
+                           const ms_proto_error_body *e, void *arg)
+{
+    (void)client;
+    catalogue_fetch *f = arg;
+    if (count != 0 && (f->request < first_id || f->request - first_id >= count))
+        return;
+    char why[MS_ERROR_TEXT_MAX];
+    snprintf(why, sizeof why, "%s %.*s", ms_proto_error_name(e->code),
+             (int)(e->text_length > 150 ? 150 : e->text_length), e->text);
+    fetch_fail(f, why);
+}
+
+static void fetch_on_closed(ms_client *client, const char *why, void *arg)
+{
+    (void)client;
+    fetch_fail(arg, why);
+}
+
+static void fetch_on_timeout(evutil_socket_t fd, short what, void *arg)
+{
+    (void)fd, (void)what;
+    fetch_fail(arg, "no complete answer in time");
+}
+
+ms_status ms_client_fetch_catalogue(const ms_client_options *options, double timeout_s,
+                                    ms_client_catalogue *catalogue, ms_error *err)
+{
+    catalogue->entries = NULL;
+    catalogue->count = 0;
+    if (!options || !options->host || !(timeout_s >= 0) || timeout_s > 86400)
+        return ms_error_set(err, MS_ERR_ARG, "catalogue: a server address and a time-out in "
+                            "[0, 86400] s are needed");
+    if (timeout_s == 0)
+        timeout_s = 5.0;
+    static const ms_client_handlers handlers = {.catalogue = fetch_on_catalogue,
+                                                .request_error = fetch_on_error,
+                                                .closed = fetch_on_closed};
+    catalogue_fetch f = {.out = catalogue};
+    struct event *timer = NULL;
+    ms_client *client = NULL;
+    ms_status st = MS_OK;
+    if (!(f.base = event_base_new()) || !(timer = evtimer_new(f.base, fetch_on_timeout, &f))) {
+        st = ms_error_set(err, MS_ERR_NOMEM, "out of memory for a catalogue request");
+        goto done;
+    }
+    if ((st = ms_client_connect(f.base, options, &handlers, &f, &client, err)) != MS_OK)
+        goto done;
+    if ((st = list_catalogue(client, &f.request, err)) != MS_OK)
+        goto done;
+    struct timeval limit = {(time_t)timeout_s, (suseconds_t)((timeout_s - (double)(time_t)timeout_s) * 1e6)};
+    evtimer_add(timer, &limit);
+    event_base_dispatch(f.base);
+    if (!f.done)
+        fetch_fail(&f, "the event loop ended early");
+    if (f.failed)
+        st = ms_error_set(err, MS_ERR_IO, "catalogue of %s:%u: %s", options->host, options->port,
+                          f.why);
+done:
+    ms_client_free(client);
+    if (timer)
+        event_free(timer);
+    if (f.base)
+        event_base_free(f.base);
+    if (st != MS_OK)
+        ms_client_catalogue_free(catalogue);
+    return st;
+}
+
+void ms_client_catalogue_free(ms_client_catalogue *catalogue)
+{
+    if (!catalogue)
+        return;
+    free(catalogue->entries);
+    catalogue->entries = NULL;
+    catalogue->count = 0;
+}

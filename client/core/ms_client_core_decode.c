@@ -1,0 +1,430 @@
+/* The client core's decode thread: reception buffers per cell and stream,
+ * verification (the codec header against the index, each precision bit
+ * against its CRC, a whole APO chunk against its CRC), the view decoder, and
+ * the pass (dec_step) whose steps the other parts provide: scheduling, the
+ * budget and publication. Everything here is the decode thread's own. */
+#include "ms_client_core_internal.h"
+
+#include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <zlib.h>
+
+#include "ms_progress.h"
+
+void ms_core_rx_free(rx *r)
+{
+    free(r->buf);
+    memset(r, 0, sizeof *r);
+}
+
+/* Forgets what was received beyond `keep` (>= base). */
+static void rx_cut(rx *r, uint32_t keep)
+{
+    if (r->end > keep)
+        r->end = keep;
+    r->niv = 0;
+}
+
+/* Adds received bytes; ignores what is already held or below base. */
+static bool rx_add(rx *r, uint32_t offset, const uint8_t *data, uint32_t length)
+{
+    uint64_t end = (uint64_t)offset + length;
+    if (end <= r->end)
+        return true;
+    if (offset < r->end) {
+        data += r->end - offset;
+        length -= r->end - offset;
+        offset = r->end;
+    }
+    if (end - r->base > r->cap) {
+        uint64_t cap = r->cap ? r->cap : 4096;
+        while (cap < end - r->base)
+            cap *= 2;
+        uint8_t *b = realloc(r->buf, cap);
+        if (!b)
+            return false;
+        r->buf = b;
+        r->cap = (uint32_t)cap;
+    }
+    memcpy(r->buf + (offset - r->base), data, length);
+    if (offset == r->end) {
+        r->end = (uint32_t)end;
+    } else if (r->niv < 8) {
+        r->iv[r->niv][0] = offset, r->iv[r->niv][1] = (uint32_t)end;
+        r->niv++;
+    }
+    /* absorb pieces that now touch the contiguous part */
+    for (bool moved = true; moved;) {
+        moved = false;
+        for (unsigned i = 0; i < r->niv; ++i) {
+            if (r->iv[i][0] <= r->end) {
+                if (r->iv[i][1] > r->end)
+                    r->end = r->iv[i][1];
+                r->iv[i][0] = r->iv[--r->niv][0];
+                r->iv[i][1] = r->iv[r->niv][1];
+                moved = true;
+                break;
+            }
+        }
+    }
+    return true;
+}
+
+/* Drops bytes below `upto` from the buffer (the consumer took them). */
+static void rx_consume(rx *r, uint32_t upto)
+{
+    if (upto <= r->base)
+        return;
+    uint32_t drop = upto - r->base;
+    uint32_t held = r->end > upto ? r->end - upto : 0;
+    uint32_t span = 0;
+    for (unsigned i = 0; i < r->niv; ++i)
+        if (r->iv[i][1] - upto > span)
+            span = r->iv[i][1] - upto;
+    if (span < held)
+        span = held;
+    if (span == 0) {
+        free(r->buf);
+        r->buf = NULL;
+        r->cap = 0;
+    } else {
+        memmove(r->buf, r->buf + drop, span);
+    }
+    r->base = upto;
+}
+
+/* A corrupt or failed range of cell: fetch it once more, then give up. */
+static void cell_trouble(ms_core *c, uint32_t cell, const char *what)
+{
+    dcell *d = &c->cells[cell];
+    rx_cut(&d->geo, d->given);
+    d->retries++;
+    pthread_mutex_lock(&c->lock);
+    c->stats.refetches += d->retries == 1;
+    pthread_mutex_unlock(&c->lock);
+    if (d->retries >= 2 && !d->failed) {
+        d->failed = true;
+        char text[256];
+        snprintf(text, sizeof text, "cell %u: %.180s (after a refetch); cell left at its "
+                 "last good precision", cell, what);
+        ms_core_warn(c, text);
+    }
+}
+
+/* Hands the newly received, verified geometry bytes of cell to the view. */
+void ms_core_hand_over(ms_core *c, uint32_t cell)
+{
+    dcell *d = &c->cells[cell];
+    const ms_archive_cell *rec = ms_archive_get_cell(c->index, cell);
+    if (d->geo.end <= d->given)
+        return;
+    if (!d->header) {
+        /* the header sits at the start: parse it once prefix(bits_min) arrived */
+        uint32_t hsize = ms_archive_geometry_prefix(c->index, cell, rec->bits_min);
+        if (d->geo.end < hsize || d->given != 0)
+            return;
+        ms_codec_header h;
+        ms_error err;
+        if (ms_codec_read_header(d->geo.buf, d->geo.end, &h, &err) != MS_OK ||
+            h.header_size != hsize || h.p_min != rec->bits_min || h.p_max != rec->bits_max) {
+            cell_trouble(c, cell, "payload header does not match the index");
+            return;
+        }
+        for (unsigned k = 0; k < h.p_max - h.p_min; ++k)
+            if (h.header_size + h.chunk_end[k] !=
+                ms_archive_geometry_prefix(c->index, cell, h.p_min + k + 1)) {
+                cell_trouble(c, cell, "payload header does not match the index");
+                return;
+            }
+        d->header = malloc(sizeof *d->header);
+        if (!d->header)
+            return;
+        *d->header = h;
+    }
+    const ms_codec_header *h = d->header;
+    uint32_t good = d->given;
+    for (unsigned k = 0; k < h->p_max - h->p_min; ++k) {
+        uint32_t a = (uint32_t)h->header_size + (k ? h->chunk_end[k - 1] : 0);
+        uint32_t b = (uint32_t)h->header_size + h->chunk_end[k];
+        if (b <= d->given)
+            continue;
+        if (b > d->geo.end)
+            break;
+        if (a < d->given)
+            break; /* cannot happen: given ends on a chunk boundary */
+        uint32_t crc = (uint32_t)crc32(0L, d->geo.buf + (a - d->geo.base), b - a);
+        if (crc != h->chunk_crc[k]) {
+            char what[96];
+            snprintf(what, sizeof what, "precision bit %u fails its CRC", h->p_min + k + 1);
+            rx_cut(&d->geo, good);
+            cell_trouble(c, cell, what);
+            return;
+        }
+        good = b;
+    }
+    if (good == d->given)
+        return;
+    /* The view's decoder restarts from the cell's first bit whenever it gets
+     * more bytes, so hand over in few steps: the first bits at once (something
+     * to show; the root bit by bit), then when the target's prefix is
+     * complete, or every 0.25 s. */
+    double t = ms_core_since_start(c);
+    if (d->given > 0 && rec->level > 0 && good < d->goal_bytes && good < rec->geometry_length &&
+        t - d->handed_at < 0.25) {
+        d->pending = true;
+        return;
+    }
+    d->pending = false;
+    d->handed_at = t;
+    ms_error err;
+    if (ms_view_append_bytes(c->view, cell, d->geo.buf + (d->given - d->geo.base),
+                             good - d->given, &err) != MS_OK) {
+        ms_core_warn(c, err.text);
+        return;
+    }
+    d->given = good;
+    rx_consume(&d->geo, good);
+}
+
+/* APO chunks have no per-level checksum: a complete chunk is checked whole. */
+static void dec_apo_received(ms_core *c, uint32_t cell)
+{
+    dcell *d = &c->cells[cell];
+    const ms_archive_cell *rec = ms_archive_get_cell(c->index, cell);
+    if (d->apo.end < rec->apo_length) {
+        d->apo_given = d->apo.end;
+        return;
+    }
+    ms_error err;
+    if (ms_archive_check_payload(c->index, cell, true, d->apo.buf, d->apo.end, &err) != MS_OK) {
+        ms_core_rx_free(&d->apo);
+        d->apo_given = 0;
+        d->retries++;
+        if (d->retries >= 2 && !d->failed) {
+            d->failed = true;
+            ms_core_warn(c, err.text);
+        }
+        return;
+    }
+    d->apo_given = d->apo.end;
+}
+
+static bool dec_take_index(ms_core *c, ms_error *err)
+{
+    const ms_archive_header *h = ms_archive_get_header(c->index);
+    ms_archive_cell *recs = malloc((size_t)h->cell_count * sizeof *recs);
+    c->cells = calloc(h->cell_count, sizeof *c->cells);
+    c->target = malloc(h->cell_count);
+    c->tolerance_scale = malloc((size_t)h->cell_count * sizeof *c->tolerance_scale);
+    if (!recs || !c->cells || !c->target || !c->tolerance_scale) {
+        free(recs);
+        ms_error_set(err, MS_ERR_NOMEM, "out of memory for %u cells", h->cell_count);
+        return false;
+    }
+    /* With APO on, geometry refines only to apo_geometry_tolerance_px where a
+     * chunk carries the shading; a cell baked without one (its geometry renders
+     * the input: every leaf, docs/APO.md) is shaded by its triangles alone, so
+     * it refines to tolerance_px as with APO off. */
+    bool apo_on = c->o.apo_levels > 0 && h->has_apo;
+    for (uint32_t i = 0; i < h->cell_count; ++i) {
+        recs[i] = *ms_archive_get_cell(c->index, i);
+        c->tolerance_scale[i] = apo_on && recs[i].apo_levels == 0
+                                    ? (float)(c->o.tolerance_px / c->o.apo_geometry_tolerance_px)
+                                    : 1.0f;
+    }
+    ms_status s = ms_view_create(h, recs, &c->view, err);
+    free(recs);
+    return s == MS_OK;
+}
+
+typedef struct refine_batch {
+    ms_view *view;
+    const refine_job *jobs;
+} refine_batch;
+
+/* One refine job: failures are seen again, and reported, by ms_view_apply. */
+static void refine_one(void *ctx, size_t k)
+{
+    const refine_batch *b = ctx;
+    (void)ms_view_set_bits(b->view, b->jobs[k].cell, b->jobs[k].bits, NULL);
+}
+
+static int compare_jobs_by_work(const void *x, const void *y)
+{
+    const refine_job *a = x, *b = y;
+    return a->bits > b->bits ? -1 : a->bits < b->bits;
+}
+
+/* The parallel part of a pass: shown cells that can go up with the bytes held. */
+static size_t dec_parallel_refine(ms_core *c)
+{
+    uint32_t n = ms_view_cell_count(c->view);
+    size_t count = 0;
+    for (uint32_t i = 0; i < n; ++i) {
+        if (ms_view_state(c->view, i) != MS_VIEW_SHOWN || c->target[i] == MS_VIEW_TARGET_HIDDEN)
+            continue;
+        const ms_archive_cell *rec = ms_archive_get_cell(c->index, i);
+        if (rec->geometry_length == 0 || ms_view_held_bytes(c->view, i) == 0)
+            continue;
+        unsigned goal = c->target[i] == MS_VIEW_TARGET_SPLIT ? rec->bits_max : c->target[i];
+        unsigned cur = ms_view_bits(c->view, i);
+        if (goal <= cur)
+            continue;
+        unsigned avail = ms_view_available_bits(c->view, i);
+        if (goal > avail)
+            goal = avail;
+        if (goal <= cur)
+            continue;
+        if (count == c->job_cap) {
+            size_t cap = c->job_cap ? 2 * c->job_cap : 64;
+            refine_job *g = realloc(c->jobs, cap * sizeof *g);
+            if (!g)
+                break;
+            c->jobs = g;
+            c->job_cap = cap;
+        }
+        c->jobs[count++] = (refine_job){i, goal};
+    }
+    if (count > 1)
+        qsort(c->jobs, count, sizeof *c->jobs, compare_jobs_by_work);
+    refine_batch batch = {c->view, c->jobs};
+    ms_pool_for(c->pool, count, refine_one, &batch);
+    return count;
+}
+
+/* Received bytes into their cells' reception buffers, verified and handed to
+ * the view; true when new APO bytes changed the frame (as new geometry does). */
+static bool dec_take_chunks(ms_core *c, chunk_msg *chunks)
+{
+    bool apo_changed = false;
+    while (chunks) {
+        chunk_msg *m = chunks;
+        chunks = m->next;
+        c->consumed_seq = m->seq;
+        if (m->cell < ms_view_cell_count(c->view)) {
+            dcell *d = &c->cells[m->cell];
+            if (m->failed) {
+                if (!m->apo)
+                    cell_trouble(c, m->cell, "the server answered a request with an error");
+            } else {
+                if (c->o.payload_filter)
+                    c->o.payload_filter(m->cell, m->apo, m->offset, m->data, m->length,
+                                        c->o.payload_filter_arg);
+                if (!rx_add(m->apo ? &d->apo : &d->geo, m->offset, m->data, m->length))
+                    ms_core_warn(c, "out of memory for received bytes");
+                else if (!m->apo)
+                    ms_core_hand_over(c, m->cell);
+                else {
+                    uint32_t before = d->apo_given;
+                    dec_apo_received(c, m->cell);
+                    apo_changed |= d->apo_given != before;
+                }
+            }
+        }
+        free(m);
+    }
+    return apo_changed;
+}
+
+/* The pass's camera, tolerance and selection parameters. */
+static void dec_pass_begin(ms_core *c, const ms_camera *cam, dec_pass *pass)
+{
+    const ms_archive_header *h = ms_archive_get_header(c->index);
+    memset(pass, 0, sizeof *pass);
+    pass->cam = cam;
+    pass->apo_on = c->o.apo_levels > 0 && h->has_apo;
+    pass->fv.cam = *cam;
+    ms_camera_frustum(cam, &pass->fv.frustum);
+    pass->base_tol = pass->apo_on ? c->o.apo_geometry_tolerance_px : c->o.tolerance_px;
+    pass->fv.tolerance = pass->base_tol * c->tolerance_factor;
+    pass->sp = (ms_view_select_params){.tolerance_px = pass->fv.tolerance,
+                                       .margin = c->o.frustum_margin,
+                                       .hysteresis = c->o.hysteresis_bits,
+                                       .culled_bits_less = c->o.culled_bits_less,
+                                       .tolerance_scale = c->tolerance_scale};
+}
+
+/* Selects the cells for the camera, refines in parallel what can go up, and
+ * applies the splits and merges; false when decoding failed (then fatal). */
+static bool dec_select(ms_core *c, dec_pass *pass)
+{
+    ms_view_select(c->view, pass->cam, &pass->sp, c->target);
+    size_t refined_in_parallel = dec_parallel_refine(c);
+    ms_view_apply_report report;
+    ms_error err;
+    if (ms_view_apply(c->view, c->target, &report, &err) != MS_OK) {
+        pthread_mutex_lock(&c->lock);
+        ms_core_fail_locked(c, "decoding failed: %.200s", err.text);
+        pthread_mutex_unlock(&c->lock);
+        return false;
+    }
+    pass->changed |= refined_in_parallel || report.splits || report.merges || report.refined ||
+                     report.coarsened;
+    return true;
+}
+
+/* One pass: take inputs, decode, select, plan, publish. */
+static void dec_step(ms_core *c, chunk_msg *chunks, const ms_camera *cam, uint64_t serial,
+                     bool have_camera)
+{
+    double t_start = ms_now_seconds();
+    bool apo_changed = dec_take_chunks(c, chunks);
+    if (!have_camera)
+        return;
+    dec_pass pass;
+    dec_pass_begin(c, cam, &pass);
+    pass.changed = apo_changed;
+    if (!dec_select(c, &pass) || !ms_core_budget_ceiling(c, &pass))
+        return;
+    ms_core_schedule(c, &pass);    /* what is missing, and in which order */
+    ms_core_budget_step(c, &pass); /* memory: the budget */
+    ms_core_publish(c, &pass, serial, t_start);
+}
+
+void *ms_core_decode_main(void *arg)
+{
+    ms_core *c = arg;
+    pthread_mutex_lock(&c->lock);
+    uint64_t done_serial = 0;
+    for (;;) {
+        while (!c->stopping && !c->fatal && !c->inbox && !c->index_new &&
+               !(c->view && c->have_camera && (c->camera_serial != done_serial || c->republish))) {
+            struct timespec until;
+            clock_gettime(CLOCK_REALTIME, &until);
+            until.tv_nsec += 20 * 1000000L;
+            if (until.tv_nsec >= 1000000000L)
+                until.tv_sec++, until.tv_nsec -= 1000000000L;
+            if (pthread_cond_timedwait(&c->wake, &c->lock, &until) == ETIMEDOUT)
+                break; /* periodic pass: budget steps, memory figures */
+        }
+        if (c->stopping || c->fatal)
+            break;
+        if (c->index_new) {
+            c->index_new = false;
+            pthread_mutex_unlock(&c->lock);
+            ms_error err;
+            bool ok = dec_take_index(c, &err);
+            pthread_mutex_lock(&c->lock);
+            if (!ok) {
+                ms_core_fail_locked(c, "%.240s", err.text);
+                break;
+            }
+        }
+        if (!c->view)
+            continue;
+        chunk_msg *chunks = c->inbox;
+        c->inbox = c->inbox_tail = NULL;
+        ms_camera cam = c->camera;
+        uint64_t serial = c->camera_serial;
+        bool have = c->have_camera;
+        pthread_mutex_unlock(&c->lock);
+        dec_step(c, chunks, &cam, serial, have);
+        done_serial = serial;
+        pthread_mutex_lock(&c->lock);
+    }
+    pthread_mutex_unlock(&c->lock);
+    return NULL;
+}

@@ -1,0 +1,166 @@
+/* The client core's publication: the frames handed to the caller (the view's
+ * stitched mesh, each shown cell's precision and APO prefix), the first
+ * display, and each pass's wants and figures. */
+#include "ms_client_core_internal.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+#include "ms_progress.h"
+
+/* The view as a frame for the caller (NULL and err when out of memory). */
+static ms_core_frame *make_frame(ms_core *c, ms_error *err)
+{
+    ms_core_frame *f = calloc(1, sizeof *f);
+    uint32_t n = ms_view_cell_count(c->view);
+    if (!f || !(f->cell_bits = malloc(n))) {
+        free(f);
+        ms_error_set(err, MS_ERR_NOMEM, "out of memory for a frame");
+        return NULL;
+    }
+    f->cell_count = n;
+    for (uint32_t i = 0; i < n; ++i) {
+        ms_view_cell_state st = ms_view_state(c->view, i);
+        f->cell_bits[i] = st == MS_VIEW_SHOWN ? (uint8_t)ms_view_bits(c->view, i)
+                          : st == MS_VIEW_SPLIT ? MS_VIEW_TARGET_SPLIT
+                                                : MS_VIEW_TARGET_HIDDEN;
+        const dcell *d = &c->cells[i];
+        if (st == MS_VIEW_SHOWN && d->apo_given > 0) {
+            ms_core_apo_chunk *g = realloc(f->apo, (f->apo_count + 1) * sizeof *g);
+            uint8_t *copy = malloc(d->apo_given);
+            if (!g || !copy) {
+                free(copy);
+                if (g)
+                    f->apo = g;
+                ms_core_frame_free(f);
+                ms_error_set(err, MS_ERR_NOMEM, "out of memory for a frame");
+                return NULL;
+            }
+            f->apo = g;
+            memcpy(copy, d->apo.buf, d->apo_given);
+            /* complete levels: ms_archive_apo_prefix(depth) ends depth's level */
+            unsigned levels = 0;
+            const ms_archive_cell *rec = ms_archive_get_cell(c->index, i);
+            for (unsigned depth = 0; depth < rec->apo_levels; ++depth)
+                if (ms_archive_apo_prefix(c->index, i, depth, NULL) <= d->apo_given)
+                    levels = depth + 1;
+            f->apo[f->apo_count++] = (ms_core_apo_chunk){i, levels, copy, d->apo_given};
+        }
+    }
+    if (ms_view_stitch(c->view, NULL, &f->mesh, err) != MS_OK) {
+        ms_core_frame_free(f);
+        return NULL;
+    }
+    return f;
+}
+
+/* Whether some shown cell in view already has a triangle to draw. */
+static bool something_drawn(ms_core *c, const frame_view *fv)
+{
+    uint32_t n = ms_view_cell_count(c->view);
+    for (uint32_t i = 0; i < n; ++i) {
+        if (ms_view_state(c->view, i) != MS_VIEW_SHOWN)
+            continue;
+        const ms_archive_cell *rec = ms_archive_get_cell(c->index, i);
+        if (rec->geometry_length == 0 || ms_view_bits(c->view, i) <= rec->bits_min)
+            continue;
+        bool visible;
+        ms_core_cell_need(c, fv, i, &visible);
+        if (!visible)
+            continue;
+        ms_codec_state s;
+        if (ms_view_cell_state_copy(c->view, i, &s, NULL) != MS_OK)
+            continue;
+        bool drawn = s.tri_count > 0;
+        ms_codec_state_free(&s);
+        if (drawn)
+            return true;
+    }
+    return false;
+}
+
+/* Under the lock: the pass's wants (when they changed, or a republish was
+ * asked for), the chunks it consumed, its frame and its figures. */
+static void publish_locked(ms_core *c, dec_pass *pass, uint64_t serial, ms_core_frame *frame,
+                           double busy)
+{
+    want_list *wl = &pass->wl;
+    bool same = wl->n == c->want_count &&
+                (wl->n == 0 || !memcmp(wl->w, c->wants, wl->n * sizeof *wl->w));
+    if (!same || c->republish) {
+        free(c->wants);
+        c->wants = wl->w;
+        c->want_count = wl->n;
+        c->want_serial++;
+        c->republish = false;
+        wl->w = NULL;
+    }
+    if (c->want_consumed_seq != c->consumed_seq) {
+        c->want_consumed_seq = c->consumed_seq;
+        c->want_serial += same; /* let the network thread release finished requests */
+    }
+    pthread_cond_broadcast(&c->wake); /* the local responder waits for a new list */
+    if (frame) {
+        if (c->frame)
+            ms_core_frame_free(c->frame);
+        c->frame = frame;
+    }
+    ms_core_stats *st = &c->stats;
+    st->view_complete = pass->complete && serial == c->camera_serial;
+    st->camera_serial = serial;
+    st->achieved_error_px = pass->worst;
+    st->tolerance_px = pass->fv.tolerance;
+    st->cells_shown = pass->shown, st->cells_split = pass->split, st->cells_cached = pass->cached;
+    st->cells_loading = pass->loading, st->cells_failed = pass->failed;
+    st->memory = pass->memory;
+    if (pass->memory > st->peak_memory)
+        st->peak_memory = pass->memory;
+    st->decode_seconds += busy;
+}
+
+void ms_core_publish(ms_core *c, dec_pass *pass, uint64_t serial, double t_start)
+{
+    double t_now = ms_core_since_start(c);
+    if (!c->first_display_seen && pass->changed && something_drawn(c, &pass->fv)) {
+        c->first_display_seen = true;
+        pthread_mutex_lock(&c->lock);
+        c->stats.first_display = t_now;
+        pthread_mutex_unlock(&c->lock);
+    }
+    ms_core_frame *frame = NULL;
+    if (c->o.export_frames && (pass->changed || c->generation == 0)) {
+        ms_error err;
+        frame = make_frame(c, &err);
+        if (frame) {
+            frame->generation = ++c->generation;
+            frame->time = t_now;
+        }
+    }
+    double busy = ms_now_seconds() - t_start;
+    pthread_mutex_lock(&c->lock);
+    publish_locked(c, pass, serial, frame, busy);
+    pthread_mutex_unlock(&c->lock);
+    free(pass->wl.w);
+    pass->wl.w = NULL;
+}
+
+ms_core_frame *ms_core_take_frame(ms_core *c)
+{
+    pthread_mutex_lock(&c->lock);
+    ms_core_frame *f = c->frame;
+    c->frame = NULL;
+    pthread_mutex_unlock(&c->lock);
+    return f;
+}
+
+void ms_core_frame_free(ms_core_frame *f)
+{
+    if (!f)
+        return;
+    ms_view_mesh_free(&f->mesh);
+    for (size_t i = 0; i < f->apo_count; ++i)
+        free(f->apo[i].data);
+    free(f->apo);
+    free(f->cell_bits);
+    free(f);
+}

@@ -1,0 +1,247 @@
+/* The client core's parts and the state they share (internal to client/; the
+ * API is ms_client_core.h). One ms_core, one mutex (`lock`), three threads:
+ *
+ *   ms_client_core.c           the caller's API: start, stop, camera, frames, figures
+ *   ms_client_core_net.c       the byte source from meshserve: the network thread
+ *                              (connection, requests in flight, cancels, reconnects)
+ *   ms_client_core_local.c     the byte source from a local archive (archive_path)
+ *   ms_client_core_decode.c    the decode thread: reception, verification, the
+ *                              view decoder, one pass of dec_step's named steps
+ *   ms_client_core_schedule.c  what to ask for next and in which order (priorities)
+ *   ms_client_core_budget.c    the memory budget: tolerance steps and eviction
+ *   ms_client_core_frames.c    frames and figures published to the caller
+ *
+ * Fields are grouped by who may touch them: "shared" under lock, the others by
+ * one thread only. */
+#ifndef MS_CLIENT_CORE_INTERNAL_H
+#define MS_CLIENT_CORE_INTERNAL_H
+
+#include <event2/event.h>
+#include <pthread.h>
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "ms_archive.h"
+#include "ms_client.h"
+#include "ms_client_core.h"
+#include "ms_codec.h"
+#include "ms_parallel.h"
+
+#define MAX_SLOTS 512u
+#define LATENCY_KEEP 65536u
+#define NO_SLOT 0xFFFFFFFFu
+#define BYTES_PER_VERTEX 64.0
+#define MAX_TOLERANCE_FACTOR 4096.0
+
+/* A received payload chunk (or a failed request: length 0, failed true),
+ * passed from the network thread to the decode thread. */
+typedef struct chunk_msg {
+    struct chunk_msg *next;
+    uint64_t seq;
+    uint32_t cell, offset, length;
+    bool apo, failed;
+    uint8_t data[];
+} chunk_msg;
+
+/* A byte range the decode thread wants, best first. */
+typedef struct want {
+    uint32_t cell, start, end;
+    bool apo;
+    uint8_t priority;
+    uint32_t decoded_growth; /* estimated decoded bytes the range adds */
+} want;
+
+/* A request in flight on the current connection. A finished request stays
+ * (done) until the decode thread has taken its last chunk (last_seq), so
+ * that wants computed before that do not ask for its bytes again. */
+typedef struct slot {
+    bool used, cancelled, keep, done;
+    uint64_t last_seq;
+    uint32_t id, cell, start, end, got;
+    bool apo;
+    double sent_at;
+    uint32_t next; /* next slot of the same cell and stream */
+} slot;
+
+/* Reception of one stream of one cell: the bytes from `base` (what the
+ * consumer already took) onwards; out-of-order pieces as intervals. */
+typedef struct rx {
+    uint8_t *buf;       /* bytes [base, base + cap) */
+    uint32_t base, cap;
+    uint32_t end;       /* [base, end) received contiguously */
+    uint32_t iv[8][2];  /* received pieces beyond end, absolute offsets */
+    unsigned niv;
+} rx;
+
+typedef struct dcell {
+    rx geo, apo;
+    ms_codec_header *header; /* parsed once the header arrived */
+    uint32_t given;          /* geometry bytes handed to the view */
+    uint32_t apo_given;      /* APO bytes complete (in apo.buf from 0: base stays 0) */
+    uint32_t goal_bytes;     /* geometry prefix the current target needs */
+    double handed_at;        /* last hand-over, seconds since start */
+    uint8_t retries;
+    bool failed, pending;    /* pending: verified bytes not yet handed over */
+} dcell;
+
+/* Decode helpers: refine distinct shown cells in parallel before the
+ * (single-threaded) apply does the splits and merges (ms_view_decoder.h
+ * allows ms_view_set_bits on distinct cells concurrently). */
+typedef struct refine_job {
+    uint32_t cell;
+    unsigned bits;
+} refine_job;
+
+
+struct ms_core {
+    ms_core_options o;
+    char *host, *model, *token, *agent, *archive_path;
+    double t0;
+
+    pthread_mutex_t lock;
+    pthread_cond_t wake;
+    /* --- shared, under lock --- */
+    bool stopping, fatal;
+    ms_camera camera;
+    bool have_camera;
+    uint64_t camera_serial;
+    chunk_msg *inbox, *inbox_tail;
+    ms_archive *index;          /* set once by the network thread */
+    bool index_new, republish;
+    want *wants;
+    size_t want_count;
+    uint64_t want_serial;
+    uint64_t push_seq;          /* chunks pushed by the network thread */
+    uint64_t want_consumed_seq; /* chunks the decode thread had taken for `wants` */
+    ms_core_frame *frame;
+    ms_core_stats stats;        /* decode thread's figures */
+    /* network figures */
+    bool connected, model_open;
+    uint64_t bytes_received, bytes_in_flight, requests, cancels, reconnects;
+    uint64_t geometry_bytes_received, apo_bytes_received;
+    uint64_t socket_bytes;      /* read from every connection, frames and index included */
+    double *latencies;
+    size_t latency_count;
+
+    pthread_t net_thread, dec_thread;
+    bool net_started, dec_started;
+
+    /* --- network thread only --- */
+    struct event_base *base;
+    struct event *tick;
+    ms_client *client;
+    uint32_t handle, open_request;
+    uint64_t content_id;
+    bool ready;                 /* model opened on this connection */
+    bool dead;                  /* the connection ended: freed on the next tick */
+    char dead_why[256];
+    double last_activity, reconnect_at, down_since, backoff;
+    uint64_t last_read;         /* ms_client_bytes_read at the last tick */
+    slot slots[MAX_SLOTS];
+    unsigned slots_used, slots_active;
+    uint64_t net_consumed_seq;
+    uint32_t *slot_head;        /* 2 per cell */
+    uint32_t cell_count;
+    want *net_wants;
+    size_t net_want_count, net_want_cap;
+    uint64_t net_want_serial;
+    uint64_t window;
+
+    /* --- decode thread only --- */
+    ms_view *view;
+    dcell *cells;
+    uint8_t *target;
+    float *tolerance_scale; /* per cell, on the geometric tolerance (APO on: see dec_take_index) */
+    double tolerance_factor, last_budget_step, last_blocked;
+    uint64_t generation;
+    uint64_t consumed_seq;
+    bool first_display_seen;
+    ms_pool *pool;          /* decode helpers */
+    refine_job *jobs;
+    size_t job_cap;
+};
+
+/* The camera of one decode pass, as selection and scheduling see it. */
+typedef struct frame_view {
+    ms_camera cam;
+    ms_frustum frustum;
+    double tolerance;
+} frame_view;
+
+typedef struct want_list {
+    want *w;
+    size_t n, cap;
+} want_list;
+
+/* One decode pass (dec_step), carried from step to step. */
+typedef struct dec_pass {
+    const ms_camera *cam;
+    frame_view fv;
+    ms_view_select_params sp;
+    double base_tol;          /* the tolerance before the budget's factor */
+    bool apo_on;
+    bool changed;             /* the view (or its APO bytes) changed in this pass */
+    want_list wl;             /* what is missing, best first */
+    double worst;             /* the largest screen error of a visible shown cell, px */
+    uint32_t shown, split, cached, loading, failed;
+    bool complete;
+    uint64_t memory;          /* the budget's measure after this pass's evictions */
+} dec_pass;
+
+/* ---- ms_client_core.c: shared helpers ---- */
+
+/* Seconds since the core started (monotonic clock). */
+double ms_core_since_start(const ms_core *c);
+/* Records a fatal error once; the _locked form with the lock held. */
+void ms_core_fail_locked(ms_core *c, const char *fmt, const char *text);
+void ms_core_fail(ms_core *c, const char *fmt, const char *text);
+/* Sets stats.warning (takes the lock). */
+void ms_core_warn(ms_core *c, const char *text);
+/* Queues a chunk for the decode thread (takes the lock); the queue owns it. */
+void ms_core_push_chunk(ms_core *c, chunk_msg *m);
+
+/* ---- byte sources (thread entry points; arg is the ms_core) ---- */
+
+void *ms_core_net_main(void *arg);
+/* The network thread's periodic event (5 ms), created with the event base. */
+void ms_core_net_tick(evutil_socket_t fd, short what, void *arg);
+void *ms_core_local_main(void *arg);
+
+/* ---- ms_client_core_decode.c ---- */
+
+void *ms_core_decode_main(void *arg);
+void ms_core_rx_free(rx *r);
+/* Hands the newly received, verified geometry bytes of cell to the view (in
+ * few steps: see the function). */
+void ms_core_hand_over(ms_core *c, uint32_t cell);
+
+/* ---- ms_client_core_schedule.c ---- */
+
+/* The side of a cell's cube (world units) and the cube itself. */
+double ms_core_cell_side(const ms_archive_header *h, const ms_archive_cell *rec);
+void ms_core_cell_box(const ms_archive_header *h, const ms_archive_cell *rec, double lo[3],
+                      double hi[3]);
+/* The precision (real bits) the camera wants of cell; *visible tells whether
+ * its cube meets the frustum. */
+double ms_core_cell_need(const ms_core *c, const frame_view *fv, uint32_t cell, bool *visible);
+/* Decoded bytes of a cell shown at `bits` (an estimate). */
+double ms_core_decoded_estimate(const ms_archive_cell *rec, unsigned bits);
+/* Fills pass->wl (sorted, best first) and the pass's cell counts. */
+void ms_core_schedule(ms_core *c, dec_pass *pass);
+
+/* ---- ms_client_core_budget.c ---- */
+
+/* Hard ceiling after the pass's selection: evicts, then coarsens at once;
+ * false when decoding failed (the core is then fatal). */
+bool ms_core_budget_ceiling(ms_core *c, dec_pass *pass);
+/* Measures memory into pass->memory; with a budget, steps the tolerance,
+ * evicts, and cuts pass->wl where loading would cross the ceiling. */
+void ms_core_budget_step(ms_core *c, dec_pass *pass);
+
+/* ---- ms_client_core_frames.c ---- */
+
+/* First display, the frame and the pass's wants and figures, published under
+ * the lock; takes pass->wl. */
+void ms_core_publish(ms_core *c, dec_pass *pass, uint64_t serial, double t_start);
+
+#endif

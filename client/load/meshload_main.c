@@ -1,0 +1,815 @@
+/* meshload: the client core (ms_client_core.h) without a window, following a
+ * scripted camera path, for N virtual clients at once; or, with --baseline
+ * draco, the same clients downloading the whole model compressed with Draco
+ * from meshserve's HTTP side door and decoding it with draco_decoder.
+ *
+ * Each streaming client runs two phases, each on a fresh core (empty cache):
+ *   cold  the camera opens directly at the path's last keyframe: time to first
+ *         display and time to view complete, from the connection's start;
+ *   path  the camera follows the path in real time, its clock held at each
+ *         keyframe until the view is complete there (or --keyframe-timeout):
+ *         the wait at each keyframe is its time to view complete.
+ * Everything is bounded by --duration. */
+#include <errno.h>
+#include <fcntl.h>
+#include <event2/buffer.h>
+#include <event2/bufferevent.h>
+#include <event2/event.h>
+#include <getopt.h>
+#include <math.h>
+#include <netinet/in.h>
+#include <pthread.h>
+#include <signal.h>
+#include <spawn.h>
+#include <stdbool.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+#include <sys/socket.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "ms_camera_path.h"
+#include "ms_json_out.h"
+#include "ms_parse_number.h"
+#include "ms_client_core.h"
+
+extern char **environ;
+
+#define MAX_CLIENTS 256
+#define MAX_KEYS 256
+
+typedef struct options {
+    const char *host, *model, *path_file, *token, *baseline, *draco_decoder, *tmp_dir;
+    const char *archive; /* local archive file instead of a server */
+    uint16_t port;
+    unsigned clients, apo_levels, decode_threads;
+    double bandwidth, tolerance, duration, keyframe_timeout, width, height;
+    double memory_target, memory_ceiling, hysteresis, culled_less;
+    bool json, skip_cold, raw_index;
+} options;
+
+typedef struct key_result {
+    double arrive, wait, error_px, tolerance_px;
+    bool complete;
+} key_result;
+
+typedef struct client_result {
+    /* cold phase */
+    double first_display, view_complete, cold_last_byte;
+    bool cold_complete;
+    uint64_t cold_bytes, cold_apo_bytes; /* payload, and of it APO */
+    /* path phase */
+    key_result keys[MAX_KEYS];
+    size_t key_count;
+    uint64_t bytes, apo_bytes, requests, cancels, reconnects, evictions;
+    uint32_t cells_shown, cells_failed;
+    double decode_seconds, p50, p99;
+    uint64_t peak_memory;
+    double path_seconds;
+    /* baseline */
+    double download_seconds, decode_draco_seconds;
+    uint64_t draco_bytes;
+    char error[256];
+} client_result;
+
+typedef struct run {
+    const options *o;
+    ms_camera_path path;
+    double deadline; /* monotonic seconds */
+} run;
+
+typedef struct worker {
+    run *r;
+    unsigned number;
+    client_result result;
+    pthread_t thread;
+} worker;
+
+static double now_s(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + ts.tv_nsec * 1e-9;
+}
+
+static void sleep_s(double s)
+{
+    struct timespec ts = {(time_t)s, (long)((s - floor(s)) * 1e9)};
+    nanosleep(&ts, NULL);
+}
+
+static ms_core_options core_options(const options *o)
+{
+    ms_core_options co = {0};
+    co.host = o->host, co.port = o->port, co.model = o->model, co.token = o->token;
+    co.archive_path = o->archive;
+    co.agent = "meshload/0.1";
+    co.tolerance_px = o->tolerance;
+    co.hysteresis_bits = o->hysteresis;
+    co.culled_bits_less = o->culled_less;
+    co.raw_index = o->raw_index;
+    co.decode_threads = o->decode_threads;
+    co.apo_levels = o->apo_levels;
+    co.memory_target = (uint64_t)(o->memory_target * 1048576.0);
+    co.memory_ceiling = (uint64_t)(o->memory_ceiling * 1048576.0);
+    co.bandwidth = o->bandwidth;
+    co.answer_timeout = 5.0;
+    co.give_up_seconds = 20.0;
+    return co;
+}
+
+static bool camera_at(const run *r, double t, ms_camera *cam)
+{
+    return ms_camera_path_sample(&r->path, t, r->o->width, r->o->height, 1e-4, 1e4, cam, NULL) ==
+           MS_OK;
+}
+
+/* Waits until the core's view is complete for its latest camera, or until
+ * `until`; returns whether it completed. */
+static bool wait_complete(ms_core *core, double until, ms_core_stats *st, double *last_byte)
+{
+    uint64_t seen = 0;
+    for (;;) {
+        ms_core_get_stats(core, st);
+        if (last_byte && st->bytes_received != seen) {
+            seen = st->bytes_received;
+            *last_byte = st->time;
+        }
+        if (st->view_complete || st->error[0])
+            return st->view_complete;
+        if (now_s() >= until)
+            return false;
+        sleep_s(0.002);
+    }
+}
+
+static void cold_phase(worker *w)
+{
+    run *r = w->r;
+    client_result *res = &w->result;
+    ms_core_options co = core_options(r->o);
+    ms_core *core;
+    ms_error err;
+    if (ms_core_start(&co, &core, &err) != MS_OK) {
+        snprintf(res->error, sizeof res->error, "%.250s", err.text);
+        return;
+    }
+    ms_camera cam;
+    camera_at(r, ms_camera_path_duration(&r->path), &cam);
+    ms_core_set_camera(core, &cam);
+    double until = now_s() + r->o->keyframe_timeout;
+    if (until > r->deadline)
+        until = r->deadline;
+    ms_core_stats st;
+    res->cold_complete = wait_complete(core, until, &st, &res->cold_last_byte);
+    res->view_complete = res->cold_complete ? st.time : -1;
+    res->first_display = st.first_display;
+    res->cold_bytes = st.bytes_received;
+    res->cold_apo_bytes = st.apo_bytes_received;
+    if (st.error[0])
+        snprintf(res->error, sizeof res->error, "%.250s", st.error);
+    ms_core_stop(core);
+}
+
+static void path_phase(worker *w)
+{
+    run *r = w->r;
+    client_result *res = &w->result;
+    ms_core_options co = core_options(r->o);
+    ms_core *core;
+    ms_error err;
+    if (ms_core_start(&co, &core, &err) != MS_OK) {
+        snprintf(res->error, sizeof res->error, "%.250s", err.text);
+        return;
+    }
+    double started = now_s();
+    double clock = 0, last = started;
+    size_t next_key = 0;
+    ms_core_stats st;
+    memset(&st, 0, sizeof st);
+    while (next_key < r->path.count && next_key < MAX_KEYS && now_s() < r->deadline) {
+        double t = now_s();
+        double key_time = r->path.keys[next_key].time;
+        clock += t - last;
+        last = t;
+        if (clock >= key_time) {
+            clock = key_time;
+            ms_camera cam;
+            camera_at(r, clock, &cam);
+            ms_core_set_camera(core, &cam);
+            key_result *k = &res->keys[next_key];
+            k->arrive = t - started;
+            double until = t + r->o->keyframe_timeout;
+            if (until > r->deadline)
+                until = r->deadline;
+            k->complete = wait_complete(core, until, &st, NULL);
+            k->wait = now_s() - t;
+            k->error_px = st.achieved_error_px;
+            k->tolerance_px = st.tolerance_px;
+            res->key_count = ++next_key;
+            last = now_s();
+            if (st.error[0])
+                break;
+            continue;
+        }
+        ms_camera cam;
+        camera_at(r, clock, &cam);
+        ms_core_set_camera(core, &cam);
+        sleep_s(0.02);
+    }
+    ms_core_get_stats(core, &st);
+    res->path_seconds = now_s() - started;
+    res->bytes = st.bytes_received;
+    res->apo_bytes = st.apo_bytes_received;
+    res->requests = st.requests, res->cancels = st.cancels, res->reconnects = st.reconnects;
+    res->evictions = st.evictions;
+    res->cells_shown = st.cells_shown, res->cells_failed = st.cells_failed;
+    res->decode_seconds = st.decode_seconds;
+    res->p50 = st.latency_p50, res->p99 = st.latency_p99;
+    res->peak_memory = st.peak_memory;
+    if (st.error[0] && !res->error[0])
+        snprintf(res->error, sizeof res->error, "%.250s", st.error);
+    else if (st.warning[0] && st.cells_failed && !res->error[0])
+        snprintf(res->error, sizeof res->error, "%.250s", st.warning);
+    ms_core_stop(core);
+}
+
+/* --- Draco baseline: a throttled HTTP download, then draco_decoder ---------- */
+
+typedef struct download {
+    struct evbuffer *body;
+    bool failed;
+} download;
+
+static void dl_read(struct bufferevent *bev, void *arg)
+{
+    download *d = arg;
+    evbuffer_add_buffer(d->body, bufferevent_get_input(bev));
+}
+
+static void dl_event(struct bufferevent *bev, short what, void *arg)
+{
+    download *d = arg;
+    if (what & BEV_EVENT_CONNECTED)
+        return;
+    evbuffer_add_buffer(d->body, bufferevent_get_input(bev));
+    if (what & BEV_EVENT_ERROR)
+        d->failed = true;
+    event_base_loopexit(bufferevent_get_base(bev), NULL);
+}
+
+static int http_download(const options *o, double deadline, struct evbuffer *body, char *error,
+                         size_t error_size)
+{
+    struct event_base *base = event_base_new();
+    struct bufferevent *bev = base ? bufferevent_socket_new(base, -1, BEV_OPT_CLOSE_ON_FREE) : NULL;
+    struct ev_token_bucket_cfg *cfg = NULL;
+    download d = {body, false};
+    int rc = -1;
+    struct sockaddr_in sin;
+    memset(&sin, 0, sizeof sin);
+    sin.sin_family = AF_INET;
+    sin.sin_port = htons(o->port);
+    if (!bev || evutil_inet_pton(AF_INET, o->host, &sin.sin_addr) != 1) {
+        snprintf(error, error_size, "cannot set up a connection to %s", o->host);
+        goto out;
+    }
+    if (o->bandwidth > 0) {
+        double per_tick = o->bandwidth / 100.0;
+        size_t rate = per_tick < 1 ? 1 : (size_t)per_tick;
+        struct timeval tick = {0, 10000};
+        cfg = ev_token_bucket_cfg_new(rate, rate < 1460 ? 1460 : rate, EV_RATE_LIMIT_MAX,
+                                      EV_RATE_LIMIT_MAX, &tick);
+        if (!cfg || bufferevent_set_rate_limit(bev, cfg) != 0) {
+            snprintf(error, error_size, "cannot set the rate limit");
+            goto out;
+        }
+    }
+    bufferevent_setcb(bev, dl_read, NULL, dl_event, &d);
+    bufferevent_enable(bev, EV_READ | EV_WRITE);
+    if (bufferevent_socket_connect(bev, (struct sockaddr *)&sin, sizeof sin) != 0) {
+        snprintf(error, error_size, "cannot connect to %s:%u", o->host, o->port);
+        goto out;
+    }
+    char request[512];
+    int n = snprintf(request, sizeof request,
+                     "GET /models/%s/draco HTTP/1.1\r\nHost: %s\r\n%s%s%sConnection: close\r\n\r\n",
+                     o->model, o->host, o->token ? "Authorization: Bearer " : "",
+                     o->token ? o->token : "", o->token ? "\r\n" : "");
+    bufferevent_write(bev, request, (size_t)n);
+    struct timeval limit = {(time_t)(deadline - now_s() > 1 ? deadline - now_s() : 1), 0};
+    event_base_loopexit(base, &limit);
+    event_base_dispatch(base);
+    if (d.failed) {
+        snprintf(error, error_size, "download from %s:%u failed", o->host, o->port);
+        goto out;
+    }
+    rc = 0;
+out:
+    if (bev)
+        bufferevent_free(bev);
+    if (cfg)
+        ev_token_bucket_cfg_free(cfg);
+    if (base)
+        event_base_free(base);
+    return rc;
+}
+
+static void baseline_client(worker *w)
+{
+    const options *o = w->r->o;
+    client_result *res = &w->result;
+    struct evbuffer *body = evbuffer_new();
+    if (!body) {
+        snprintf(res->error, sizeof res->error, "out of memory");
+        return;
+    }
+    double t0 = now_s();
+    if (http_download(o, w->r->deadline, body, res->error, sizeof res->error) != 0) {
+        evbuffer_free(body);
+        return;
+    }
+    res->download_seconds = now_s() - t0;
+    size_t total = evbuffer_get_length(body);
+    struct evbuffer_ptr sep = evbuffer_search(body, "\r\n\r\n", 4, NULL);
+    unsigned char *all = evbuffer_pullup(body, -1);
+    int status = 0;
+    if (!all || sep.pos < 0 || sscanf((char *)all, "HTTP/1.%*d %d", &status) != 1 ||
+        status != 200) {
+        snprintf(res->error, sizeof res->error, "the server answered HTTP %d for /models/%s/draco",
+                 status, o->model);
+        evbuffer_free(body);
+        return;
+    }
+    size_t head = (size_t)sep.pos + 4;
+    res->draco_bytes = total - head;
+    char drc[512], ply[512];
+    snprintf(drc, sizeof drc, "%s/meshload-%d-%u.drc", o->tmp_dir, (int)getpid(), w->number);
+    snprintf(ply, sizeof ply, "%s/meshload-%d-%u.ply", o->tmp_dir, (int)getpid(), w->number);
+    FILE *f = fopen(drc, "wb");
+    bool wrote = f && fwrite(all + head, 1, res->draco_bytes, f) == res->draco_bytes;
+    if (f && fclose(f) != 0)
+        wrote = false;
+    evbuffer_free(body);
+    if (!wrote) {
+        snprintf(res->error, sizeof res->error, "cannot write %.200s", drc);
+        unlink(drc);
+        return;
+    }
+    double t1 = now_s();
+    char *argv[] = {(char *)o->draco_decoder, "-i", drc, "-o", ply, NULL};
+    posix_spawn_file_actions_t fa;
+    posix_spawn_file_actions_init(&fa);
+    posix_spawn_file_actions_addopen(&fa, 1, "/dev/null", O_WRONLY, 0);
+    pid_t pid;
+    int rc = posix_spawnp(&pid, o->draco_decoder, &fa, NULL, argv, environ);
+    posix_spawn_file_actions_destroy(&fa);
+    int ws = 0;
+    if (rc != 0 || waitpid(pid, &ws, 0) < 0 || !WIFEXITED(ws) || WEXITSTATUS(ws) != 0)
+        snprintf(res->error, sizeof res->error, "%s failed on %.200s", o->draco_decoder, drc);
+    res->decode_draco_seconds = now_s() - t1;
+    res->view_complete = res->download_seconds + res->decode_draco_seconds;
+    res->first_display = res->view_complete; /* nothing to show before the end */
+    res->cold_complete = !res->error[0];
+    unlink(drc);
+    unlink(ply);
+}
+
+static void *worker_main(void *arg)
+{
+    worker *w = arg;
+    sigset_t pipe_only;
+    sigemptyset(&pipe_only);
+    sigaddset(&pipe_only, SIGPIPE);
+    pthread_sigmask(SIG_BLOCK, &pipe_only, NULL);
+    if (w->r->o->baseline) {
+        baseline_client(w);
+        return NULL;
+    }
+    if (!w->r->o->skip_cold)
+        cold_phase(w);
+    if (!w->result.error[0])
+        path_phase(w);
+    return NULL;
+}
+
+/* --- output ----------------------------------------------------------------- */
+
+static int compare_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return x < y ? -1 : x > y;
+}
+
+static double median(double *v, size_t n)
+{
+    if (!n)
+        return -1;
+    qsort(v, n, sizeof *v, compare_double);
+    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+static void print_report(const options *o, const run *r, worker *ws)
+{
+    unsigned n = o->clients;
+    double *first = calloc(n, sizeof *first), *complete = calloc(n, sizeof *complete);
+    double worst_complete = 0, decode = 0, p50 = 0, p99 = 0;
+    uint64_t bytes = 0, cold_bytes = 0, peak = 0, failures = 0, draco_bytes = 0;
+    uint64_t apo_bytes = 0, cold_apo_bytes = 0;
+    size_t nf = 0, nc = 0;
+    for (unsigned i = 0; i < n; ++i) {
+        const client_result *c = &ws[i].result;
+        if (c->first_display >= 0)
+            first[nf++] = c->first_display;
+        if (c->cold_complete) {
+            complete[nc++] = c->view_complete;
+            if (c->view_complete > worst_complete)
+                worst_complete = c->view_complete;
+        }
+        failures += c->error[0] != 0;
+        bytes += c->bytes, cold_bytes += c->cold_bytes, decode += c->decode_seconds;
+        apo_bytes += c->apo_bytes, cold_apo_bytes += c->cold_apo_bytes;
+        draco_bytes += c->draco_bytes;
+        if (c->peak_memory > peak)
+            peak = c->peak_memory;
+        if (c->p50 > p50)
+            p50 = c->p50;
+        if (c->p99 > p99)
+            p99 = c->p99;
+    }
+    double med_first = median(first, nf), med_complete = nc == n ? median(complete, nc) : -1;
+    if (o->json) {
+        json_t *root = json_pack(
+            "{s:s, s:o, s:o, s:i, s:I, s:o, s:o, s:o, s:o, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:o, s:o, "
+            "s:o, s:I, s:I}",
+            "mode", o->baseline ? "draco" : "stream", "model", ms_json_text(o->model), "path",
+            ms_json_text(o->path_file ? o->path_file : ""), "clients", (int)n, "bandwidth_bytes_per_s",
+            (json_int_t)llround(o->bandwidth), "tolerance_px", ms_json_number(o->tolerance),
+            "time_to_first_display", ms_json_fixed(med_first, 4), "time_to_view_complete",
+            ms_json_fixed(med_complete, 4), "time_to_view_complete_max",
+            ms_json_fixed(nc == n ? worst_complete : -1.0, 4), "cold_bytes", (json_int_t)(n ? cold_bytes / n : 0),
+            "path_bytes", (json_int_t)(n ? bytes / n : 0), "cold_geometry_bytes",
+            (json_int_t)(n ? (cold_bytes - cold_apo_bytes) / n : 0), "cold_apo_bytes",
+            (json_int_t)(n ? cold_apo_bytes / n : 0), "path_geometry_bytes",
+            (json_int_t)(n ? (bytes - apo_bytes) / n : 0), "path_apo_bytes",
+            (json_int_t)(n ? apo_bytes / n : 0), "draco_bytes", (json_int_t)(n ? draco_bytes / n : 0),
+            "decode_seconds", ms_json_fixed(n ? decode / n : 0.0, 4), "latency_p50", ms_json_fixed(p50, 4),
+            "latency_p99", ms_json_fixed(p99, 4),
+            "peak_memory", (json_int_t)peak, "failures", (json_int_t)failures);
+        json_t *per_client = json_array();
+        for (unsigned i = 0; i < n; ++i) {
+            const client_result *c = &ws[i].result;
+            json_t *keyframes = json_array();
+            for (size_t k = 0; k < c->key_count; ++k)
+                json_array_append_new(
+                    keyframes,
+                    json_pack("{s:o, s:o, s:o, s:b, s:o, s:o}", "time",
+                              ms_json_number(r->path.count > k ? r->path.keys[k].time : 0.0), "arrive",
+                              ms_json_fixed(c->keys[k].arrive, 4), "time_to_view_complete",
+                              ms_json_fixed(c->keys[k].wait, 4), "complete", c->keys[k].complete,
+                              "error_px",
+                              ms_json_fixed(isfinite(c->keys[k].error_px) ? c->keys[k].error_px : -1.0, 4),
+                              "tolerance_px", ms_json_fixed(c->keys[k].tolerance_px, 4)));
+            json_t *client = json_pack(
+                "{s:i, s:o, s:o, s:o, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:i, s:i, s:o, "
+                "s:o, s:o, s:I, s:o, s:o, s:o, s:o}",
+                "client", (int)i, "time_to_first_display", ms_json_fixed(c->first_display, 4),
+                "time_to_view_complete", ms_json_fixed(c->cold_complete ? c->view_complete : -1.0, 4),
+                "last_byte", ms_json_fixed(c->cold_last_byte, 4),
+                "cold_bytes", (json_int_t)c->cold_bytes, "cold_geometry_bytes",
+                (json_int_t)(c->cold_bytes - c->cold_apo_bytes), "cold_apo_bytes",
+                (json_int_t)c->cold_apo_bytes, "bytes", (json_int_t)c->bytes, "geometry_bytes",
+                (json_int_t)(c->bytes - c->apo_bytes), "apo_bytes", (json_int_t)c->apo_bytes,
+                "requests", (json_int_t)c->requests, "cancels", (json_int_t)c->cancels, "reconnects",
+                (json_int_t)c->reconnects, "evictions", (json_int_t)c->evictions, "cells",
+                (int)c->cells_shown, "failed_cells", (int)c->cells_failed, "decode_seconds",
+                ms_json_fixed(c->decode_seconds, 4), "latency_p50", ms_json_fixed(c->p50, 4), "latency_p99",
+                ms_json_fixed(c->p99, 4), "peak_memory", (json_int_t)c->peak_memory, "download_seconds",
+                ms_json_fixed(c->download_seconds, 4), "draco_decode_seconds",
+                ms_json_fixed(c->decode_draco_seconds, 4), "error", ms_json_text(c->error),
+                "keyframes", keyframes);
+            json_array_append_new(per_client, client);
+        }
+        if (root)
+            json_object_set_new(root, "per_client", per_client);
+        else
+            json_decref(per_client);
+        ms_json_print(stdout, root, MS_JSON_SPACED);
+    } else {
+        printf("meshload %s %s, %u client(s), %.0f bytes/s:\n",
+               o->baseline ? "draco baseline" : "streaming", o->model, n, o->bandwidth);
+        printf("  time to first display %.3f s, time to view complete %.3f s (median; worst %.3f)\n",
+               med_first, med_complete, worst_complete);
+        for (unsigned i = 0; i < n; ++i) {
+            const client_result *c = &ws[i].result;
+            if (o->baseline) {
+                printf("  client %u: downloaded %llu bytes in %.3f s, %s %.3f s%s%s\n", i,
+                       (unsigned long long)c->draco_bytes, c->download_seconds, o->draco_decoder,
+                       c->decode_draco_seconds, c->error[0] ? "; error: " : "", c->error);
+                continue;
+            }
+            printf("  client %u: first display %.3f s, view complete %.3f s, %llu bytes cold "
+                   "(%llu geometry, %llu APO), %llu bytes on the path (%llu geometry, %llu APO), "
+                   "%u cells, decode %.3f s, latency p50 %.1f ms p99 "
+                   "%.1f ms, peak memory %.1f MB%s%s\n",
+                   i, c->first_display, c->view_complete, (unsigned long long)c->cold_bytes,
+                   (unsigned long long)(c->cold_bytes - c->cold_apo_bytes),
+                   (unsigned long long)c->cold_apo_bytes, (unsigned long long)c->bytes,
+                   (unsigned long long)(c->bytes - c->apo_bytes), (unsigned long long)c->apo_bytes,
+                   c->cells_shown, c->decode_seconds, c->p50 * 1e3,
+                   c->p99 * 1e3, c->peak_memory / 1048576.0, c->error[0] ? "; error: " : "",
+                   c->error);
+            for (size_t k = 0; k < c->key_count; ++k)
+                printf("    keyframe %zu (t=%g): view complete after %.3f s%s, error %.2f px "
+                       "(tolerance %.2f)\n",
+                       k, r->path.keys[k].time, c->keys[k].wait,
+                       c->keys[k].complete ? "" : " (NOT complete)", c->keys[k].error_px,
+                       c->keys[k].tolerance_px);
+        }
+    }
+    free(first);
+    free(complete);
+}
+
+/* --- options ---------------------------------------------------------------- */
+
+static void usage(FILE *out)
+{
+    fprintf(out,
+            "usage: meshload --server HOST:PORT --model NAME --path CAMERA_FILE [--clients N]\n"
+            "                [--bandwidth 8mbit] [--tolerance PX] [--duration S] [--json]\n"
+            "       meshload --archive DIR/NAME.msa --path CAMERA_FILE [options as above]\n"
+            "       meshload --baseline draco --server HOST:HTTP_PORT --model NAME [--clients N]\n"
+            "                [--bandwidth 8mbit] [--json]\n\n"
+            "Streams a model from meshserve through the client core along a camera path\n"
+            "(docs/CAMERA_PATHS.md), without a window, for N concurrent virtual clients,\n"
+            "each throttled to the given bandwidth. Each client first opens the model cold\n"
+            "at the path's last keyframe (time to first display, time to view complete),\n"
+            "then plays the path with its clock held at every keyframe until the view is\n"
+            "complete there (time to view complete per keyframe).\n"
+            "  --server HOST:PORT     numeric address and binary port (HTTP port for --baseline)\n"
+            "  --model NAME           model name in the server's catalogue\n"
+            "  --archive FILE         read a local archive file instead (no server; the\n"
+            "                         client core's local mode, docs/CLIENT.md)\n"
+            "  --path FILE            camera path file\n"
+            "  --clients N            virtual clients, 1..%d (default 1)\n"
+            "  --bandwidth RATE       per client, e.g. 8mbit, 500kbit, 2mbyte (default unlimited)\n"
+            "  --tolerance PX         geometric screen tolerance in pixels (default 1)\n"
+            "  --duration S           bound on the whole run in seconds (default: path + 120)\n"
+            "  --keyframe-timeout S   longest wait for a view to complete (default 60)\n"
+            "  --viewport WxH         pixels (default 1280x720)\n"
+            "  --memory-target MB, --memory-ceiling MB   the cache budget (default none)\n"
+            "  --hysteresis BITS      precision hysteresis (default 0.5)\n"
+            "  --culled-bits-less B   precision given up on cells outside the view (default 6)\n"
+            "  --decode-threads N     decoding threads per client (default 2)\n"
+            "  --apo-levels L         APO on, fetching at most L levels of a chunk (default 0:\n"
+            "                         APO off); bytes are reported as geometry and APO\n"
+            "  --token TOKEN          access token\n"
+            "  --no-cold              skip the cold-open phase\n"
+            "  --raw-index            ask for the model index uncompressed (protocol v1 way)\n"
+            "  --baseline draco       download /models/NAME/draco (ARCHIVE_DIR/NAME.drc) from\n"
+            "                         the HTTP side door and decode it with draco_decoder\n"
+            "  --draco-decoder PATH   (default draco_decoder)\n"
+            "  --json                 one JSON object on stdout\n"
+            "  -h, --help             this help\n"
+            "Exit status: 0 when every client completed its views, 1 otherwise, 2 for a usage "
+            "error.\n",
+            MAX_CLIENTS);
+}
+
+/* A bad option value: its one line (ms_option_*), exit status 2. */
+static int bad_value(const ms_error *e)
+{
+    fprintf(stderr, "meshload: %s\n", e->text);
+    return 2;
+}
+
+/* "8mbit", "500kbit", "2mbyte", "1000000" (bytes per second). */
+static int parse_bandwidth(const char *text, double *out)
+{
+    char *end;
+    double v = strtod(text, &end);
+    if (end == text || !(v > 0) || !isfinite(v))
+        return -1;
+    double scale;
+    if (!*end || !strcasecmp(end, "b") || !strcasecmp(end, "byte"))
+        scale = 1;
+    else if (!strcasecmp(end, "bit"))
+        scale = 1 / 8.0;
+    else if (!strcasecmp(end, "kbit"))
+        scale = 1000 / 8.0;
+    else if (!strcasecmp(end, "mbit"))
+        scale = 1e6 / 8.0;
+    else if (!strcasecmp(end, "gbit"))
+        scale = 1e9 / 8.0;
+    else if (!strcasecmp(end, "kbyte") || !strcasecmp(end, "kb"))
+        scale = 1000;
+    else if (!strcasecmp(end, "mbyte") || !strcasecmp(end, "mb"))
+        scale = 1e6;
+    else
+        return -1;
+    *out = v * scale;
+    return 0;
+}
+
+static int parse_options(int argc, char **argv, options *o)
+{
+    static const struct option opts[] = {
+        {"server", required_argument, NULL, 's'},  {"model", required_argument, NULL, 'm'},
+        {"path", required_argument, NULL, 'p'},    {"clients", required_argument, NULL, 'c'},
+        {"bandwidth", required_argument, NULL, 'b'}, {"tolerance", required_argument, NULL, 't'},
+        {"duration", required_argument, NULL, 'd'}, {"json", no_argument, NULL, 'j'},
+        {"keyframe-timeout", required_argument, NULL, 'k'},
+        {"viewport", required_argument, NULL, 'v'},
+        {"memory-target", required_argument, NULL, 'M'},
+        {"memory-ceiling", required_argument, NULL, 'C'},
+        {"hysteresis", required_argument, NULL, 'H'},
+        {"culled-bits-less", required_argument, NULL, 'L'},
+        {"decode-threads", required_argument, NULL, 'P'},
+        {"apo-levels", required_argument, NULL, 'a'}, {"token", required_argument, NULL, 'T'},
+        {"no-cold", no_argument, NULL, 'n'},       {"baseline", required_argument, NULL, 'B'},
+        {"raw-index", no_argument, NULL, 'R'},   {"archive", required_argument, NULL, 'A'},
+        {"draco-decoder", required_argument, NULL, 'D'}, {"help", no_argument, NULL, 'h'},
+        {NULL, 0, NULL, 0}};
+    memset(o, 0, sizeof *o);
+    o->clients = 1;
+    o->tolerance = 1.0;
+    o->keyframe_timeout = 60;
+    o->width = 1280, o->height = 720;
+    o->hysteresis = 0.5;
+    o->draco_decoder = "draco_decoder";
+    const char *tmp = getenv("TMPDIR");
+    o->tmp_dir = tmp && *tmp ? tmp : "/tmp";
+    static char host[64];
+    int ch;
+    double v = 0;
+    int64_t i = 0;
+    ms_error e;
+    while ((ch = getopt_long(argc, argv, "h", opts, NULL)) != -1) {
+        switch (ch) {
+        case 's': {
+            const char *colon = strrchr(optarg, ':');
+            if (!colon || (size_t)(colon - optarg) >= sizeof host || colon == optarg ||
+                ms_option_int("port", colon + 1, 1, 65535, &i, &e) != MS_OK) {
+                fprintf(stderr, "meshload: --server wants HOST:PORT, not '%s'\n", optarg);
+                return 2;
+            }
+            memcpy(host, optarg, (size_t)(colon - optarg));
+            host[colon - optarg] = 0;
+            o->host = host;
+            o->port = (uint16_t)i;
+            break;
+        }
+        case 'm': o->model = optarg; break;
+        case 'p': o->path_file = optarg; break;
+        case 'c':
+            if (ms_option_int("--clients", optarg, 1, MAX_CLIENTS, &i, &e) != MS_OK)
+                return bad_value(&e);
+            o->clients = (unsigned)i;
+            break;
+        case 'b':
+            if (parse_bandwidth(optarg, &o->bandwidth) != 0) {
+                fprintf(stderr, "meshload: --bandwidth wants e.g. 8mbit, not '%s'\n", optarg);
+                return 2;
+            }
+            break;
+        case 't':
+            if (ms_option_double("--tolerance", optarg, 0.01, 1000, &o->tolerance, &e) != MS_OK)
+                return bad_value(&e);
+            break;
+        case 'd':
+            if (ms_option_double("--duration", optarg, 0.1, 86400, &o->duration, &e) != MS_OK)
+                return bad_value(&e);
+            break;
+        case 'k':
+            if (ms_option_double("--keyframe-timeout", optarg, 0.1, 86400, &o->keyframe_timeout, &e) != MS_OK)
+                return bad_value(&e);
+            break;
+        case 'v':
+            if (sscanf(optarg, "%lfx%lf", &o->width, &o->height) != 2 || !(o->width >= 1) ||
+                !(o->height >= 1) || o->width > 65536 || o->height > 65536) {
+                fprintf(stderr, "meshload: --viewport wants WxH\n");
+                return 2;
+            }
+            break;
+        case 'M':
+        case 'C':
+            if (ms_option_double(ch == 'M' ? "--memory-target" : "--memory-ceiling", optarg, 0.01,
+                                 1e7, &v, &e) != MS_OK)
+                return bad_value(&e);
+            *(ch == 'M' ? &o->memory_target : &o->memory_ceiling) = v;
+            break;
+        case 'H':
+            if (ms_option_double("--hysteresis", optarg, 0, 4, &o->hysteresis, &e) != MS_OK)
+                return bad_value(&e);
+            break;
+        case 'L':
+            if (ms_option_double("--culled-bits-less", optarg, 0.01, 64, &o->culled_less, &e) != MS_OK)
+                return bad_value(&e);
+            break;
+        case 'P':
+            if (ms_option_int("--decode-threads", optarg, 1, 64, &i, &e) != MS_OK)
+                return bad_value(&e);
+            o->decode_threads = (unsigned)i;
+            break;
+        case 'a':
+            if (ms_option_int("--apo-levels", optarg, 0, 32, &i, &e) != MS_OK)
+                return bad_value(&e);
+            o->apo_levels = (unsigned)i;
+            break;
+        case 'T': o->token = optarg; break;
+        case 'j': o->json = true; break;
+        case 'n': o->skip_cold = true; break;
+        case 'R': o->raw_index = true; break;
+        case 'A': o->archive = optarg; break;
+        case 'B':
+            if (strcmp(optarg, "draco") != 0) {
+                fprintf(stderr, "meshload: the only baseline is 'draco'\n");
+                return 2;
+            }
+            o->baseline = optarg;
+            break;
+        case 'D': o->draco_decoder = optarg; break;
+        case 'h': usage(stdout); exit(0);
+        default: usage(stderr); return 2;
+        }
+    }
+    if (o->archive && (o->host || o->baseline)) {
+        fprintf(stderr, "meshload: --archive reads a local file: no --server, no --baseline\n");
+        return 2;
+    }
+    if (o->archive && !o->model)
+        o->model = "local";
+    if (optind != argc || (!o->host && !o->archive) || !o->model ||
+        (!o->baseline && !o->path_file)) {
+        fprintf(stderr, "meshload: --server (or --archive), --model and (unless --baseline) "
+                        "--path are required; see --help\n");
+        return 2;
+    }
+    if (o->memory_ceiling && o->memory_target > o->memory_ceiling) {
+        fprintf(stderr, "meshload: --memory-target above --memory-ceiling\n");
+        return 2;
+    }
+    return 0;
+}
+
+int main(int argc, char **argv)
+{
+    options o;
+    int rc = parse_options(argc, argv, &o);
+    if (rc)
+        return rc;
+    run r = {.o = &o};
+    if (o.path_file) {
+        ms_error err;
+        if (ms_camera_path_load(o.path_file, &r.path, &err) != MS_OK) {
+            fprintf(stderr, "meshload: %s\n", err.text);
+            return 1;
+        }
+        if (r.path.count > MAX_KEYS) {
+            fprintf(stderr, "meshload: %s: at most %d keyframes\n", o.path_file, MAX_KEYS);
+            ms_camera_path_free(&r.path);
+            return 1;
+        }
+    }
+    double duration = o.duration > 0 ? o.duration
+                                     : (r.path.count ? ms_camera_path_duration(&r.path) : 0) + 120;
+    r.deadline = now_s() + duration;
+    worker *ws = calloc(o.clients, sizeof *ws);
+    if (!ws) {
+        fprintf(stderr, "meshload: out of memory\n");
+        return 1;
+    }
+    unsigned started = 0;
+    for (unsigned i = 0; i < o.clients; ++i) {
+        ws[i].r = &r;
+        ws[i].number = i;
+        if (pthread_create(&ws[i].thread, NULL, worker_main, &ws[i]) != 0) {
+            snprintf(ws[i].result.error, sizeof ws[i].result.error, "cannot start a thread");
+            break;
+        }
+        started++;
+    }
+    for (unsigned i = 0; i < started; ++i)
+        pthread_join(ws[i].thread, NULL);
+    print_report(&o, &r, ws);
+    int status = 0;
+    for (unsigned i = 0; i < o.clients; ++i) {
+        const client_result *c = &ws[i].result;
+        bool ok = !c->error[0] && (o.skip_cold || c->cold_complete);
+        for (size_t k = 0; k < c->key_count; ++k)
+            ok = ok && c->keys[k].complete;
+        if (!o.baseline && c->key_count < r.path.count)
+            ok = false;
+        if (c->error[0])
+            fprintf(stderr, "meshload: client %u: %s\n", i, c->error);
+        if (!ok)
+            status = 1;
+    }
+    free(ws);
+    ms_camera_path_free(&r.path);
+    return status;
+}

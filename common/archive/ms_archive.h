@@ -1,0 +1,143 @@
+/* Reading a meshstream archive file (docs/ARCHIVE.md: version 2, whose index is
+ * stored zlib-compressed, and version 1, whose index is stored raw).
+ *
+ * ms_archive_open maps the file read-only and validates the header, inflates a
+ * version-2 index into memory (into exactly the size the header declares), checks
+ * the index CRC, every cell record, the tree structure and the per-cell tables
+ * before returning; afterwards every accessor is a bounds-safe look-up. Payload CRCs are checked on
+ * demand by ms_archive_verify_payload (the server checks once, the client checks
+ * what it receives).
+ *
+ * Ownership: the ms_archive owns the mapping (and a version-2 file's inflated
+ * index); pointers it returns stay valid until ms_archive_close. Thread-safety:
+ * after open, any number of threads may read the same archive concurrently.
+ */
+#ifndef MS_ARCHIVE_H
+#define MS_ARCHIVE_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "ms_error.h"
+
+/* The version meshbake writes: the index is stored as one zlib stream. */
+#define MS_ARCHIVE_VERSION 2u
+/* The oldest version still read: the index is stored raw. */
+#define MS_ARCHIVE_VERSION_RAW_INDEX 1u
+/* The version of the index blob (ms_archive_index_bytes, what the server sends):
+ * always a version-1 header followed by the raw index, whatever the file's. */
+#define MS_ARCHIVE_BLOB_VERSION 1u
+/* Header byte 120 of a version-2 file: how the index is stored. */
+#define MS_ARCHIVE_INDEX_ZLIB 1u
+#define MS_ARCHIVE_HEADER_SIZE 128u
+#define MS_ARCHIVE_RECORD_SIZE 80u
+#define MS_ARCHIVE_MAX_CELLS (1u << 24)
+#define MS_ARCHIVE_MAX_TABLE_WORDS (1u << 28)
+#define MS_ARCHIVE_MAX_APO_LEVELS 32u
+#define MS_ARCHIVE_NONE 0xFFFFFFFFu
+
+typedef struct ms_archive_header {
+    double box_origin[3];  /* world units */
+    double box_side;       /* world units, > 0 */
+    uint8_t bits;          /* p */
+    uint8_t n;             /* nSP children per axis */
+    uint8_t root_bits;     /* p_r */
+    bool has_apo;
+    uint8_t apo_lead;
+    uint8_t apo_max_depth;
+    uint32_t cell_count;
+    uint32_t table_words;
+    uint32_t min_triangles; /* N_min used by the baker */
+    uint64_t vertex_count;
+    uint64_t triangle_count;
+    uint64_t file_size;
+    /* Set by the reader, ignored by the writer: the version read (an index blob
+     * is version 1) and the bytes the index occupies there (the zlib stream in
+     * version 2; the raw index, 80 * cell_count + 4 * table_words, in version 1). */
+    uint32_t version;
+    uint64_t index_stored_size;
+} ms_archive_header;
+
+typedef struct ms_archive_cell {
+    uint32_t parent;       /* MS_ARCHIVE_NONE for the root */
+    uint32_t first_child;  /* MS_ARCHIVE_NONE for a leaf; else n^3 consecutive cells */
+    uint8_t level;
+    uint8_t bits_min, bits_max;
+    uint32_t position[3];  /* in cells of this level, each < n^level */
+    uint32_t vertex_count, triangle_count; /* at bits_max */
+    uint64_t geometry_offset;  /* relative to the payload area */
+    uint32_t geometry_length, geometry_crc;
+    uint64_t apo_offset;
+    uint32_t apo_length, apo_crc, apo_raw_length;
+    uint32_t table_first;  /* first word of this cell's tables */
+    uint8_t apo_levels;
+} ms_archive_cell;
+
+typedef struct ms_archive ms_archive;
+
+/* Opens and validates path. On failure *archive is NULL and err says what is
+ * wrong and where (byte offset or cell number). */
+ms_status ms_archive_open(const char *path, ms_archive **archive, ms_error *err);
+void ms_archive_close(ms_archive *archive);
+
+/* Validates and copies an index blob (version-1 header + raw cell index, as
+ * ms_archive_index_bytes gives it and the server sends it); name is used in
+ * errors. The result has no payloads: ms_archive_geometry/apo return NULL (with
+ * the stored lengths) and the prefix look-ups work as usual. */
+ms_status ms_archive_open_index(const uint8_t *blob, size_t size, const char *name,
+                                ms_archive **archive, ms_error *err);
+
+const ms_archive_header *ms_archive_get_header(const ms_archive *archive);
+/* NULL when cell >= cell_count. */
+const ms_archive_cell *ms_archive_get_cell(const ms_archive *archive, uint32_t cell);
+
+/* The whole index blob, for sending: a version-1 header (docs/ARCHIVE.md, "The
+ * index blob") followed by the raw index (records + tables). For a version-1
+ * file these are its first bytes; for a version-2 file the header is the one a
+ * version-1 file of the same model would have, and the index the inflated one,
+ * so the blob does not depend on how the file stores its index. */
+const uint8_t *ms_archive_index_bytes(const ms_archive *archive, size_t *size);
+
+/* Payload bytes (not yet CRC-checked). Zero length for an absent APO chunk; NULL
+ * on an index-only archive. */
+const uint8_t *ms_archive_geometry(const ms_archive *archive, uint32_t cell, size_t *length);
+const uint8_t *ms_archive_apo(const ms_archive *archive, uint32_t cell, size_t *length);
+
+/* Byte length of the geometry prefix complete at `bits` (clamped to the cell's
+ * window), and of the APO prefix complete at `level` (clamped to the levels
+ * stored); *texels (may be NULL) receives the texel count of that APO prefix.
+ * The APO `level` is a depth, from 0: the prefix holds levels 0 .. level, that
+ * is level + 1 levels (so the first L levels end at level L - 1). */
+uint32_t ms_archive_geometry_prefix(const ms_archive *archive, uint32_t cell, unsigned bits);
+uint32_t ms_archive_apo_prefix(const ms_archive *archive, uint32_t cell, unsigned level,
+                               uint32_t *texels);
+
+/* Checks both payload CRCs of a cell: MS_ERR_CORRUPT naming the cell on mismatch;
+ * MS_ERR_ARG on an index-only archive. */
+ms_status ms_archive_verify_payload(const ms_archive *archive, uint32_t cell, ms_error *err);
+
+/* Checks a whole payload received from elsewhere against the index (length and
+ * CRC32): MS_ERR_CORRUPT on mismatch. */
+ms_status ms_archive_check_payload(const ms_archive *archive, uint32_t cell, bool apo,
+                                   const uint8_t *data, size_t length, ms_error *err);
+
+/* --- Shared with the writer (server/bake/ms_archive_writer.c) ------------------- */
+
+/* Encodes / decodes the fixed-size parts. Decoding checks only field-local
+ * ranges; cross-checks are done by ms_archive_open. The header is encoded as
+ * `version` (1 or MS_ARCHIVE_VERSION) from h's model fields (h->version,
+ * h->index_stored_size and h->file_size are not used): index_size is the raw
+ * index (80 * cells + 4 * table words), index_crc its CRC32; stored_index_size
+ * the zlib stream's length (version 2; a version-1 header stores the index raw
+ * and ignores it). */
+void ms_archive_encode_header(const ms_archive_header *h, unsigned version, uint64_t index_size,
+                              uint64_t stored_index_size, uint64_t payload_size,
+                              uint32_t index_crc, uint8_t out[MS_ARCHIVE_HEADER_SIZE]);
+void ms_archive_encode_cell(const ms_archive_cell *c, uint8_t out[MS_ARCHIVE_RECORD_SIZE]);
+
+/* Window rules of docs/ARCHIVE.md: the precision window of a cell at `level`. */
+void ms_archive_cell_window(const ms_archive_header *h, unsigned level, bool leaf,
+                            uint8_t *bits_min, uint8_t *bits_max);
+
+#endif

@@ -1,0 +1,878 @@
+/* Codec decoder: incremental and reversible refinement of the complex. */
+#include "ms_codec.h"
+#include "ms_big_alloc.h"
+#include "ms_codec_internal.h"
+#include "ms_codec_model.h"
+#include "ms_codec_prior.h"
+#include "ms_complex.h"
+#include "ms_quant.h"
+#include "ms_rangecoder.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+typedef struct birth_stack {
+    uint8_t *b;
+    uint32_t n, cap;
+} birth_stack;
+
+struct ms_codec_decoder {
+    uint8_t *data;          /* copy of the stream */
+    size_t size;
+    ms_codec_header h;
+    const uint8_t *body;
+    size_t body_avail;      /* bytes of body present */
+    unsigned D, Lmin, level, avail_level;
+    ms_complex cx;
+    uint32_t *order, *order2;
+    uint32_t norder, cap_order;
+    uint32_t nmodel;
+    ms_rc_prob *model;
+    ms_rc_prob *snap;       /* per chunk: model at the chunk's start */
+    uint8_t *snap_valid, *crc_ok;
+    ms_rc_decoder rc;
+    unsigned rc_chunk;      /* chunk the range decoder is in, or UINT_MAX */
+    birth_stack births[3 * MS_CODEC_MAX_BITS];
+    ms_cx_star star;
+    uint8_t *code, *side, *cov;
+    uint8_t *partners;      /* per neighbour: partner_flag of its partners coded so far */
+    int32_t *vote;          /* per neighbour: orientation votes around it (orient_votes) */
+    uint32_t *pivot;        /* the neighbours with code 4, in order */
+    uint8_t *tcode;
+    size_t cap_code, cap_tcode;
+    uint32_t compact_nv;    /* slots in use after the last compaction */
+    uint32_t frozen;        /* frozen foreign cells now */
+    /* Encode mode (the encoder's forward pass): decisions come from src and are
+     * range-coded into enc with the very contexts the decoder uses. */
+    ms_rc_encoder *enc;
+    const uint8_t *src;
+    size_t src_n, src_pos;
+    ms_codec_header *enc_h;
+    uint64_t *train;        /* encode mode: context counts in the prior's layout */
+    bool skip_crc;
+    bool has_box;           /* world positions known (ms_codec_decoder_mesh) */
+    bool broken;
+};
+
+/* Encode mode: the next decision taken from src, counted and coded. */
+static int dbit_encode(ms_codec_decoder *d, ms_rc_prob *p)
+{
+    int bit = 0;
+    if (d->src_pos < d->src_n)
+        bit = d->src[d->src_pos];
+    d->src_pos++;
+    if (d->train && ms_prior_has((uint32_t)(p - d->model), d->D))
+        d->train[2 * ms_prior_index((uint32_t)(p - d->model), d->D) + (unsigned)bit]++;
+    ms_rc_encode(d->enc, p, bit);
+    return bit;
+}
+
+/* One binary decision: decoded, or (encode mode) taken from src and coded. */
+static inline __attribute__((always_inline)) int dbit(ms_codec_decoder *d, ms_rc_prob *p)
+{
+    return d->enc ? dbit_encode(d, p) : ms_rc_decode(&d->rc, p);
+}
+
+/* dbit for a decision close to a coin toss (ms_rc_decode_unpredictable). */
+static inline __attribute__((always_inline)) int dbit_coin(ms_codec_decoder *d, ms_rc_prob *p)
+{
+    return d->enc ? dbit_encode(d, p) : ms_rc_decode_unpredictable(&d->rc, p);
+}
+
+unsigned ms_codec_decoder_min_level(const ms_codec_decoder *d) { return d->Lmin; }
+unsigned ms_codec_decoder_max_level(const ms_codec_decoder *d) { return d->D; }
+unsigned ms_codec_decoder_available_level(const ms_codec_decoder *d) { return d->avail_level; }
+const ms_codec_header *ms_codec_decoder_header(const ms_codec_decoder *d) { return &d->h; }
+size_t ms_codec_decoder_vertex_count(const ms_codec_decoder *d) { return d->cx.live_v; }
+size_t ms_codec_decoder_tri_count(const ms_codec_decoder *d) { return d->cx.live_t; }
+size_t ms_codec_decoder_edge_count(const ms_codec_decoder *d) { return d->cx.live_e; }
+
+void ms_codec_decoder_destroy(ms_codec_decoder *d)
+{
+    if (!d)
+        return;
+    free(d->data);
+    ms_cx_free(&d->cx);
+    free(d->order);
+    free(d->order2);
+    free(d->model);
+    free(d->snap);
+    free(d->snap_valid);
+    free(d->crc_ok);
+    for (unsigned i = 0; i < 3 * MS_CODEC_MAX_BITS; ++i)
+        free(d->births[i].b);
+    ms_cx_star_free(&d->star);
+    free(d->code);
+    free(d->side);
+    free(d->cov);
+    free(d->partners);
+    free(d->vote);
+    free(d->pivot);
+    free(d->tcode);
+    free(d);
+}
+
+static ms_status corrupt(ms_codec_decoder *d, ms_error *err, const char *what)
+{
+    d->broken = true;
+    return ms_error_set(err, MS_ERR_CORRUPT, "corrupted codec stream at kd-level %u: %s",
+                        d->level, what);
+}
+
+static int push_birth(ms_codec_decoder *d, unsigned L, uint8_t b)
+{
+    birth_stack *s = &d->births[L];
+    if (s->n == s->cap) {
+        uint32_t c = s->cap ? s->cap * 2 : 64;
+        uint8_t *n = realloc(s->b, c);
+        if (!n)
+            return 0;
+        s->b = n;
+        s->cap = c;
+    }
+    s->b[s->n++] = b;
+    return 1;
+}
+
+static int order_room(ms_codec_decoder *d, uint32_t n)
+{
+    if (n <= d->cap_order)
+        return 1;
+    uint32_t c = d->cap_order ? d->cap_order : 64;
+    while (c < n)
+        c *= 2;
+    uint32_t *a = ms_big_realloc(d->order, (size_t)c * sizeof *a);
+    if (a)
+        d->order = a;
+    uint32_t *b = ms_big_realloc(d->order2, (size_t)c * sizeof *b);
+    if (b)
+        d->order2 = b;
+    if (!a || !b)
+        return 0;
+    d->cap_order = c;
+    return 1;
+}
+
+static int code_room(ms_codec_decoder *d, size_t n, size_t np)
+{
+    if (n > d->cap_code) {
+        size_t c = d->cap_code ? d->cap_code : 256;
+        while (c < n)
+            c *= 2;
+        uint8_t *a = realloc(d->code, c);
+        if (a)
+            d->code = a;
+        uint8_t *b = realloc(d->side, c);
+        if (b)
+            d->side = b;
+        uint8_t *cv = realloc(d->cov, c);
+        if (cv)
+            d->cov = cv;
+        uint8_t *pf = realloc(d->partners, c);
+        if (pf)
+            d->partners = pf;
+        int32_t *vt = realloc(d->vote, c * sizeof *vt);
+        if (vt)
+            d->vote = vt;
+        uint32_t *pv = realloc(d->pivot, c * sizeof *pv);
+        if (pv)
+            d->pivot = pv;
+        if (!a || !b || !cv || !pf || !vt || !pv)
+            return 0;
+        d->cap_code = c;
+    }
+    if (np > d->cap_tcode) {
+        size_t c = d->cap_tcode ? d->cap_tcode : 256;
+        while (c < np)
+            c *= 2;
+        uint8_t *a = realloc(d->tcode, c);
+        if (!a)
+            return 0;
+        d->tcode = a;
+        d->cap_tcode = c;
+    }
+    return 1;
+}
+
+/* Takes off s's list the triangles that no longer hold s (order kept). */
+static void drop_moved_triangles(ms_complex *cx, uint32_t s)
+{
+    ms_cx_vert *v = &cx->v[s];
+    uint32_t *l = ms_cx_list(v), w = 0;
+    for (uint32_t i = 0; i < v->n; ++i) {
+        bool keep = l[i] & 1;
+        if (!keep) {
+            const uint32_t *t = cx->tri[l[i] >> 1];
+            keep = (t[0] == s) | (t[1] == s) | (t[2] == s); /* no short circuit */
+        }
+        l[w] = l[i]; /* kept or overwritten next: no branch on keep */
+        w += keep;
+    }
+    v->n = w;
+}
+
+/* Splits cell s (level L) in two after a "both" symbol. The per-neighbour and
+ * per-triangle arrays are read through restrict locals: they are distinct
+ * allocations, and without that every byte store would make the compiler
+ * reload every bound and base pointer. */
+static ms_status split(ms_codec_decoder *d, uint32_t s, unsigned L, uint32_t *out2, ms_error *err)
+{
+    ms_complex *cx = &d->cx;
+    ms_cx_star *st = &d->star;
+    ms_rc_prob *m = d->model + d->D * GEO_PER_LEVEL;
+    ms_status r = ms_cx_gather(cx, s, MS_CX_NONE, st, err);
+    if (r != MS_OK)
+        return r;
+    const uint32_t nn = st->nn, np = st->np;
+    if (!code_room(d, nn + 1, np + 1))
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory decoding a split");
+    const uint32_t *restrict nbr = st->nbr;
+    const ms_cx_pair *restrict pairs = st->pairs;
+    uint8_t *restrict code = d->code, *restrict side = d->side, *restrict cov = d->cov;
+    uint8_t *restrict partners = d->partners, *restrict tcode = d->tcode;
+    int32_t *restrict vote = d->vote;
+    uint32_t *restrict pivot = d->pivot;
+    int axis = (int)(L % 3);
+    int64_t wp = ms_cx_width(cx, L, axis);
+    int64_t plane2 = cx->cen[s][axis]; /* s is at level L: its centre is the plane */
+    int e12 = dbit(d, &m[e12_ctx(nn)]);
+    uint32_t n4 = 0;
+    unsigned nboth = 0;
+    /* pairs are sorted by their smaller index i: once x_i has its code, the
+     * pairs from pp on with that i tell its later partners */
+    uint32_t pp = 0;
+    memset(partners, 0, nn);
+    for (uint32_t i = 0; i < nn; ++i) {
+        unsigned sd = conn_side(cx, nbr[i], axis, plane2, wp);
+        unsigned af = partners[i];
+        uint8_t c;
+        if (dbit(d, &m[C_EA + ((sd * ADJS + af) * 2 + (unsigned)e12) * 3 +
+                         (nboth < 2 ? nboth : 2)])) {
+            c = 3;
+            nboth++;
+            if (e12 && dbit(d, &m[C_EC + sd * ADJS + af]))
+                c = 4;
+        } else {
+            c = dbit(d, &m[C_EB + sd * ADJS + af]) ? 2 : 1;
+        }
+        side[i] = (uint8_t)sd;
+        code[i] = c;
+        cov[i] = 0;
+        vote[i] = 0;
+        pivot[n4] = i; /* kept when code 4 */
+        n4 += c == 4;
+        for (; pp < np && pairs[pp].i == i; ++pp)
+            partners[pairs[pp].j] |= (uint8_t)partner_flag(c);
+    }
+    uint32_t n3 = 0;
+    for (uint32_t p = 0; p < np; ++p) {
+        uint32_t pi = pairs[p].i, pj = pairs[p].j;
+        uint8_t ci = code[pi], cj = code[pj];
+        uint8_t t;
+        if (ci < 3 || cj < 3) {
+            if (ci < 3 && cj < 3 && ci != cj)
+                return corrupt(d, err, "triangle between edges of different halves");
+            t = ci < 3 ? ci : cj;
+        } else {
+            unsigned idx = (unsigned)((ci == 4) + (cj == 4)) * 4 + (side[pi] >= SIDES / 2) * 2 +
+                           (side[pj] >= SIDES / 2);
+            if (dbit(d, &m[C_TA + idx]))
+                t = 3;
+            else
+                t = dbit(d, &m[C_TB + idx]) ? 2 : 1;
+        }
+        tcode[p] = t;
+        n3 += t == 3;
+        cov[pi] |= t;
+        cov[pj] |= t;
+    }
+    /* Maximal edges of s are rebuilt below. */
+    {
+        ms_cx_vert *v = &cx->v[s];
+        uint32_t *l = ms_cx_list(v);
+        for (uint32_t i = 0; i < v->n;) {
+            if (l[i] & 1) {
+                ms_cx_del_edge(cx, l[i] >> 1);
+                l = ms_cx_list(v);
+                continue;
+            }
+            ++i;
+        }
+    }
+    /* Room for everything this split creates (within the declared sizes). A
+     * neighbour needs a maximal edge to s when its code holds s (1, 3: bit 0)
+     * and no triangle of s covers it (cov bit 0), to s2 likewise with bit 1
+     * (2, 3; code 4 has neither bit, its triangle covers both). */
+    uint32_t ne_new = e12 && n4 == 0;
+    for (uint32_t i = 0; i < nn; ++i) {
+        unsigned bare = code[i] & ~cov[i];
+        ne_new += (bare & 1) + ((bare >> 1) & 1);
+    }
+    if ((r = ms_cx_reserve(cx, 1, n3 + n4, ne_new, err)) != MS_OK) {
+        d->broken = true;
+        return r;
+    }
+    if (!push_birth(d, L, cx->v[s].birth))
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory decoding a split");
+    uint32_t c2[3];
+    ms_cx_corner(cx, s, c2);
+    c2[axis] += (uint32_t)(wp / 2);
+    uint64_t key2 = cx->v[s].key | (1ull << (d->D - L - 1));
+    uint32_t s2 = ms_cx_add_vertex(cx, key2, L + 1, c2);
+    ms_cx_refine_cell(cx, s, L, 0);
+    cx->v[s].birth = (uint8_t)(L + 1);
+    cx->v[s2].birth = (uint8_t)(L + 1);
+    uint32_t moved = 0; /* triangles handed to s2, taken off s's list in one pass */
+    for (uint32_t p = 0; p < np; ++p) {
+        uint32_t pi = pairs[p].i, pj = pairs[p].j, t = pairs[p].t0;
+        uint8_t tc = tcode[p];
+        int same = tc == 3 ? dbit(d, &m[C_O3]) : 0;
+        uint32_t *x = cx->tri[t];
+        if (n4) {
+            /* the votes this triangle and its copy will cast, as orient_votes
+             * would count them on the lists of s and s2 after the split: kept
+             * on s +o, moved to s2 -o, duplicated with the same cyclic order 0
+             * (the copies cancel), with the opposite one +2o. Cast for every
+             * pair (only code-4 neighbours read them): cheaper than testing. */
+            int w = tc == 1 ? 1 : tc == 2 ? -1 : same ? 0 : 2;
+            int o = ms_cx_orient(cx, t, s, nbr[pi]); /* the other one: -o */
+            vote[pi] += w * o;
+            vote[pj] -= w * o;
+        }
+        /* handing a triangle to s2 (code 2) or not is a coin toss: renamed
+         * and listed by selection, not by a branch */
+        bool to_s2 = tc == 2;
+        uint32_t to = to_s2 ? s2 : s;
+        for (int k = 0; k < 3; ++k)
+            x[k] = x[k] == s ? to : x[k];
+        ms_cx_list_add_if(cx, s2, t << 1, to_s2);
+        moved += to_s2;
+        if (tc == 3) {
+            uint32_t y[3] = {x[0], x[1], x[2]};
+            for (int k = 0; k < 3; ++k)
+                if (y[k] == s)
+                    y[k] = s2;
+            if (same)
+                ms_cx_add_tri(cx, y[0], y[1], y[2]);
+            else
+                ms_cx_add_tri(cx, y[0], y[2], y[1]);
+        }
+    }
+    if (moved)
+        drop_moved_triangles(cx, s);
+    for (uint32_t k = 0; k < n4; ++k) {
+        uint32_t i = pivot[k];
+        int pred = vote[i] >= 0 ? 1 : -1;
+        int flip = dbit(d, &m[o4_ctx(vote[i])]);
+        if ((flip ? -pred : pred) > 0)
+            ms_cx_add_tri(cx, s, s2, nbr[i]);
+        else
+            ms_cx_add_tri(cx, s2, s, nbr[i]);
+    }
+    for (uint32_t i = 0; i < nn; ++i) {
+        unsigned bare = code[i] & ~cov[i];
+        if (bare & 3) { /* rare: most neighbours share a triangle with both */
+            if (bare & 1)
+                ms_cx_add_edge(cx, s, nbr[i]);
+            if (bare & 2)
+                ms_cx_add_edge(cx, s2, nbr[i]);
+        }
+    }
+    if (e12 && n4 == 0)
+        ms_cx_add_edge(cx, s, s2);
+    if (cx->nomem)
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory decoding a split");
+    *out2 = s2;
+    return MS_OK;
+}
+
+static ms_status enter_chunk(ms_codec_decoder *d, unsigned c, ms_error *err)
+{
+    if (d->enc) {
+        d->rc_chunk = c;
+        return MS_OK;
+    }
+    size_t a = c ? d->h.chunk_end[c - 1] : 0, b = d->h.chunk_end[c];
+    if (b > d->body_avail) {
+        return ms_error_set(err, MS_ERR_FORMAT, "codec stream truncated: precision bit %u "
+                            "is not complete", d->h.p_min + c + 1);
+    }
+    if (!d->skip_crc && !d->crc_ok[c]) {
+        if (ms_codec_crc(d->body + a, b - a) != d->h.chunk_crc[c])
+            return corrupt(d, err, "chunk checksum mismatch");
+        d->crc_ok[c] = 1;
+    }
+    if (!d->snap_valid[c]) {
+        memcpy(d->snap + (size_t)c * d->nmodel, d->model, (size_t)d->nmodel * sizeof *d->model);
+        d->snap_valid[c] = 1;
+    } else {
+        memcpy(d->model, d->snap + (size_t)c * d->nmodel, (size_t)d->nmodel * sizeof *d->model);
+    }
+    ms_rc_decoder_init(&d->rc, d->body + a, b - a);
+    d->rc_chunk = c;
+    return MS_OK;
+}
+
+/* Refines every cell of the current level by one kd-level. */
+static ms_status refine_level(ms_codec_decoder *d, ms_error *err)
+{
+    unsigned L = d->level;
+    unsigned c = (L - d->Lmin) / 3;
+    ms_status r;
+    if ((L - d->Lmin) % 3 == 0 || d->rc_chunk != c) {
+        if ((L - d->Lmin) % 3 != 0)
+            return ms_error_set(err, MS_ERR_ARG, "decoder state lost mid-chunk");
+        if ((r = enter_chunk(d, c, err)) != MS_OK)
+            return r;
+    }
+    ms_complex *cx = &d->cx;
+    int axis = (int)(L % 3);
+    uint64_t bit = 1ull << (d->D - L - 1);
+    int64_t width = ms_cx_width(cx, L, axis);                 /* of the cells at L */
+    int32_t child_width = (int32_t)ms_cx_width(cx, L + 1, axis);
+    if (!order_room(d, 2 * d->norder))
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory decoding a level");
+    uint32_t w = 0;
+    const ms_codec_region *region = d->h.has_region ? &d->h.region : NULL;
+    unsigned bits_in = (L - d->Lmin) / 3;
+    for (uint32_t k = 0; k < d->norder; ++k) {
+        uint32_t s = d->order[k];
+        ms_cx_vert *v = &cx->v[s];
+        if (v->frozen) {
+            d->order2[w++] = s;
+            continue;
+        }
+        unsigned run = geo_run(L, v->birth);
+        if (region && cell_outside(cx, region, s) &&
+            dbit(d, &d->model[frz_ctx(d->D, run, bits_in)])) {
+            v->frozen = 1; /* stays at kd-level L */
+            d->frozen++;
+            d->order2[w++] = s;
+            continue;
+        }
+        if (dbit(d, &d->model[GEO_BOTH(L, run, geo_deg(v))])) {
+            uint32_t s2 = 0;
+            if ((r = split(d, s, L, &s2, err)) != MS_OK) {
+                d->broken = true;
+                return r;
+            }
+            d->order2[w++] = s;
+            d->order2[w++] = s2;
+        } else {
+            int64_t n;
+            int64_t sum = geo_sum(cx, s, axis, &n);
+            unsigned b = geo_bucket(sum, n, width, cx->cen[s][axis]);
+            int second = dbit_coin(d, &d->model[GEO_HALF(L, run, b)]);
+            v->key |= bit & (0 - (uint64_t)second); /* no branch: a coin toss, nearly */
+            ms_cx_refine_cell_by(cx, s, L, axis, child_width, second);
+            d->order2[w++] = s;
+        }
+    }
+    /* Checked once per level: past the end, the decisions read as zeros and
+     * the work stays bounded by the declared counts until here. */
+    if (d->rc.overrun)
+        return corrupt(d, err, "read past the end of a chunk");
+    if (d->enc && d->src_pos > d->src_n)
+        return ms_error_set(err, MS_ERR_ARG, "encoder: decision stream too short");
+    uint32_t *t = d->order;
+    d->order = d->order2;
+    d->order2 = t;
+    d->norder = w;
+    d->level = L + 1;
+    /* Keep slots in key order (memory locality) once half as many cells are new. */
+    if (w >= 4096 && cx->nv - d->compact_nv > w / 2) {
+        if ((r = ms_cx_compact(cx, d->order, w, err)) != MS_OK) {
+            d->broken = true;
+            return r;
+        }
+        d->compact_nv = cx->nv;
+    }
+    if ((d->level - d->Lmin) % 3 == 0) {
+        if (d->enc) {
+            size_t start = c ? d->enc_h->chunk_end[c - 1] : 0;
+            ms_rc_encoder_flush(d->enc);
+            if (d->enc->failed || d->enc->size > (1u << 31))
+                return ms_error_set(err, MS_ERR_NOMEM, "coded stream too large");
+            d->enc_h->chunk_end[c] = (uint32_t)d->enc->size;
+            d->enc_h->chunk_crc[c] = ms_codec_crc(d->enc->buf + start, d->enc->size - start);
+        } else if (!ms_rc_decoder_clean_end(&d->rc))
+            return corrupt(d, err, "chunk not consumed exactly");
+        d->rc_chunk = UINT32_MAX;
+        if (d->level == d->D && (cx->live_v != d->h.end_vertices ||
+                                 cx->live_t != d->h.end_tris || cx->live_e != d->h.end_edges))
+            return corrupt(d, err, "final complex differs from the declared counts");
+    }
+    return MS_OK;
+}
+
+/* Undoes the refinement of level L = level - 1. */
+static ms_status coarsen_level(ms_codec_decoder *d, ms_error *err)
+{
+    unsigned L = d->level - 1;
+    ms_complex *cx = &d->cx;
+    unsigned shift = d->D - L;
+    uint64_t child_bit = 1ull << (shift - 1);
+    birth_stack *bs = &d->births[L];
+    uint32_t w = 0;
+    for (uint32_t k = d->norder; k > 0;) {
+        uint32_t last = d->order[--k];
+        ms_cx_vert *lv = &cx->v[last];
+        if (lv->frozen && ms_cx_level(cx, last) <= L) {
+            /* frozen at L: refining L decided it, coarsening undoes it */
+            if (ms_cx_level(cx, last) == L) {
+                lv->frozen = 0;
+                d->frozen--;
+            }
+            d->order2[w++] = last;
+            continue;
+        }
+        uint32_t first = MS_CX_NONE;
+        /* a frozen cell never shares its parent (it is alone in its kd-cell) */
+        if (k > 0 && (cx->v[d->order[k - 1]].key >> shift) == (lv->key >> shift))
+            first = d->order[--k];
+        uint32_t keep = last;
+        if (first != MS_CX_NONE) {
+            ms_status r = ms_cx_merge(cx, first, last, err);
+            if (r != MS_OK) {
+                d->broken = true;
+                return r;
+            }
+            keep = first;
+            if (bs->n == 0) {
+                d->broken = true;
+                return ms_error_set(err, MS_ERR_ARG, "coarsening without history");
+            }
+            cx->v[keep].birth = bs->b[--bs->n];
+        }
+        ms_cx_vert *v = &cx->v[keep];
+        int second = (v->key & child_bit) != 0;
+        v->key &= ~child_bit;
+        ms_cx_coarsen_cell(cx, keep, L, second);
+        d->order2[w++] = keep;
+    }
+    for (uint32_t k = 0; k < w; ++k)
+        d->order[k] = d->order2[w - 1 - k];
+    d->norder = w;
+    d->level = L;
+    d->rc_chunk = UINT32_MAX;
+    return MS_OK;
+}
+
+ms_status ms_codec_decoder_set_level(ms_codec_decoder *d, unsigned level, ms_error *err)
+{
+    if (d->broken)
+        return ms_error_set(err, MS_ERR_CORRUPT, "decoder stopped after a corrupted stream");
+    if (level < d->Lmin || level > d->D)
+        return ms_error_set(err, MS_ERR_ARG, "kd-level %u outside the stream window [%u, %u]",
+                            level, d->Lmin, d->D);
+    if (level < d->level) {
+        unsigned boundary = d->Lmin + (level - d->Lmin) / 3 * 3;
+        while (d->level > boundary) {
+            ms_status r = coarsen_level(d, err);
+            if (r != MS_OK)
+                return r;
+        }
+    }
+    while (d->level < level) {
+        if (d->level + 1 > d->avail_level)
+            return ms_error_set(err, MS_ERR_FORMAT, "codec stream truncated: kd-level %u not "
+                                "available (stream holds %u)", level, d->avail_level);
+        ms_status r = refine_level(d, err);
+        if (r != MS_OK)
+            return r;
+    }
+    return MS_OK;
+}
+
+/* Loads and checks the caller's start state into the complex. */
+static ms_status load_start(ms_codec_decoder *d, const ms_codec_state *start, ms_error *err)
+{
+    ms_complex *cx = &d->cx;
+    const ms_codec_header *h = &d->h;
+    if (!start) {
+        if (h->p_min != 0)
+            return ms_error_set(err, MS_ERR_ARG, "a stream from precision %u needs a start state",
+                                h->p_min);
+        uint32_t c[3] = {0, 0, 0};
+        ms_status r = ms_cx_reserve(cx, 1, 0, 0, err);
+        if (r != MS_OK)
+            return r;
+        d->order[0] = ms_cx_add_vertex(cx, 0, 0, c);
+        d->norder = 1;
+        return MS_OK;
+    }
+    /* Cells are kd prefixes at level 3 p_min whatever the key space of the
+     * decoder that produced them (a parent nSP cell's stream ends at p_min). */
+    if (start->level != d->Lmin)
+        return ms_error_set(err, MS_ERR_ARG, "start state at kd-level %u does not match the "
+                            "stream's first level %u", start->level, d->Lmin);
+    if (start->vertex_count != h->start_vertices || start->tri_count != h->start_tris ||
+        start->edge_count != h->start_edges)
+        return ms_error_set(err, MS_ERR_ARG, "start state counts differ from the stream's");
+    ms_codec_state canon = {0};
+    canon.bits = start->bits;
+    canon.level = start->level;
+    canon.vertex_count = start->vertex_count;
+    canon.tri_count = start->tri_count;
+    canon.edge_count = start->edge_count;
+    canon.cells = malloc((start->vertex_count ? start->vertex_count : 1) * sizeof *canon.cells);
+    canon.tris = malloc((start->tri_count ? start->tri_count : 1) * 3 * sizeof *canon.tris);
+    canon.edges = malloc((start->edge_count ? start->edge_count : 1) * 2 * sizeof *canon.edges);
+    if (!canon.cells || !canon.tris || !canon.edges) {
+        ms_codec_state_free(&canon);
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory loading a start state");
+    }
+    memcpy(canon.cells, start->cells, start->vertex_count * sizeof *canon.cells);
+    for (size_t i = 0; i < 3 * start->tri_count; ++i) {
+        if (start->tris[i] >= start->vertex_count) {
+            ms_codec_state_free(&canon);
+            return ms_error_set(err, MS_ERR_ARG, "start state triangle index out of range");
+        }
+        canon.tris[i] = start->tris[i];
+    }
+    for (size_t i = 0; i < 2 * start->edge_count; ++i) {
+        if (start->edges[i] >= start->vertex_count) {
+            ms_codec_state_free(&canon);
+            return ms_error_set(err, MS_ERR_ARG, "start state edge index out of range");
+        }
+        canon.edges[i] = start->edges[i];
+    }
+    ms_status r = ms_codec_state_canonicalise(&canon, err);
+    if (r == MS_OK && ms_codec_state_checksum(&canon) != h->start_checksum)
+        r = ms_error_set(err, MS_ERR_ARG, "start state does not match the stream (checksum)");
+    uint64_t lim = d->Lmin >= 64 ? UINT64_MAX : (1ull << d->Lmin);
+    for (size_t i = 0; r == MS_OK && i < canon.vertex_count; ++i)
+        if (canon.cells[i] >= lim || (i > 0 && canon.cells[i] == canon.cells[i - 1]))
+            r = ms_error_set(err, MS_ERR_ARG, "start state cells invalid or repeated");
+    if (r == MS_OK)
+        r = ms_cx_reserve(cx, (uint32_t)canon.vertex_count, (uint32_t)canon.tri_count,
+                          (uint32_t)canon.edge_count, err);
+    if (r != MS_OK) {
+        ms_codec_state_free(&canon);
+        return r;
+    }
+    unsigned shift = d->D - d->Lmin;
+    for (size_t i = 0; i < canon.vertex_count; ++i) {
+        uint64_t key = shift >= 64 ? 0 : canon.cells[i] << shift;
+        uint32_t c[3];
+        ms_quant_unkey(key, h->p_max, c);
+        d->order[i] = ms_cx_add_vertex(cx, key, d->Lmin, c);
+    }
+    d->norder = (uint32_t)canon.vertex_count;
+    /* Births: the level at which a cell separated from its neighbours in key order. */
+    for (size_t i = 0; i < canon.vertex_count; ++i) {
+        unsigned b = 0;
+        if (i > 0) {
+            unsigned l = ms_key_lcp(cx->v[d->order[i - 1]].key, cx->v[d->order[i]].key, d->D) + 1;
+            b = l > b ? l : b;
+        }
+        if (i + 1 < canon.vertex_count) {
+            unsigned l = ms_key_lcp(cx->v[d->order[i]].key, cx->v[d->order[i + 1]].key, d->D) + 1;
+            b = l > b ? l : b;
+        }
+        cx->v[d->order[i]].birth = (uint8_t)(b < d->Lmin ? b : d->Lmin);
+    }
+    for (size_t t = 0; t < canon.tri_count; ++t) {
+        const uint32_t *x = &canon.tris[3 * t];
+        if (x[0] == x[1] || x[1] == x[2] || x[0] == x[2]) {
+            ms_codec_state_free(&canon);
+            return ms_error_set(err, MS_ERR_ARG, "start state triangle repeats a vertex");
+        }
+        ms_cx_add_tri(cx, d->order[x[0]], d->order[x[1]], d->order[x[2]]);
+    }
+    for (size_t k = 0; k < canon.edge_count; ++k) {
+        const uint32_t *x = &canon.edges[2 * k];
+        if (x[0] == x[1]) {
+            ms_codec_state_free(&canon);
+            return ms_error_set(err, MS_ERR_ARG, "start state edge repeats a vertex");
+        }
+        ms_cx_add_edge(cx, d->order[x[0]], d->order[x[1]]);
+    }
+    ms_codec_state_free(&canon);
+    return cx->nomem ? ms_error_set(err, MS_ERR_NOMEM, "out of memory loading a start state")
+                     : MS_OK;
+}
+
+/* Highest kd-level the held body bytes allow (complete chunks only). */
+static unsigned available_level(const ms_codec_decoder *d)
+{
+    unsigned level = d->Lmin, nchunks = d->h.p_max - d->h.p_min;
+    for (unsigned c = 0; c < nchunks && (d->enc || d->h.chunk_end[c] <= d->body_avail); ++c)
+        level = d->Lmin + 3 * (c + 1);
+    return level;
+}
+
+/* Allocates the decoder around d->h (already validated) and loads the start state. */
+static ms_status decoder_init(ms_codec_decoder *d, const ms_codec_state *start, ms_error *err)
+{
+    ms_status r;
+    d->D = 3 * d->h.p_max;
+    d->Lmin = 3 * d->h.p_min;
+    d->level = d->Lmin;
+    d->rc_chunk = UINT32_MAX;
+    unsigned nchunks = d->h.p_max - d->h.p_min;
+    d->avail_level = available_level(d);
+    d->nmodel = ms_model_size(d->D);
+    d->model = malloc((size_t)d->nmodel * sizeof *d->model);
+    d->snap = malloc((size_t)(nchunks ? nchunks : 1) * d->nmodel * sizeof *d->snap);
+    d->snap_valid = calloc(nchunks + 1, 1);
+    d->crc_ok = calloc(nchunks + 1, 1);
+    uint32_t max_e = d->h.end_edges + d->h.end_tris;
+    if (!d->model || !d->snap || !d->snap_valid || !d->crc_ok ||
+        !order_room(d, d->h.start_vertices))
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory creating a decoder");
+    ms_codec_model_init(d->model, d->D, d->h.version);
+    if ((r = ms_cx_init(&d->cx, d->h.p_max, d->h.end_vertices, d->h.end_tris, max_e, err)) !=
+        MS_OK)
+        return r;
+    /* Reserve the declared final size up front (no regrowth copies), as far as
+     * the body makes it plausible: real streams hold under 4 vertices per byte. */
+    uint64_t room = 16 * (uint64_t)(d->enc ? d->h.end_vertices : d->body_avail) + 1024;
+    uint32_t rv = d->h.end_vertices < room ? d->h.end_vertices : (uint32_t)room;
+    uint32_t rt = d->h.end_tris < 2 * room ? d->h.end_tris : (uint32_t)(2 * room);
+    uint32_t re = d->h.end_edges < room ? d->h.end_edges : (uint32_t)room;
+    if ((r = ms_cx_reserve(&d->cx, rv, rt, re, err)) != MS_OK)
+        return r;
+    if (!order_room(d, rv))
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory creating a decoder");
+    return load_start(d, start, err);
+}
+
+ms_status ms_codec_decoder_create(const uint8_t *data, size_t size, const ms_codec_state *start,
+                                  const ms_codec_decoder_options *options,
+                                  ms_codec_decoder **out, ms_error *err)
+{
+    *out = NULL;
+    ms_codec_decoder *d = calloc(1, sizeof *d);
+    if (!d)
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory creating a decoder");
+    ms_status r = ms_codec_parse_header(data, size, &d->h, !(options && options->skip_crc), err);
+    if (r != MS_OK) {
+        free(d);
+        return r;
+    }
+    size_t hs = d->h.header_size;
+    size_t body_avail = size - hs < d->h.body_size ? size - hs : d->h.body_size;
+    d->data = malloc(hs + body_avail + 1);
+    if (!d->data) {
+        free(d);
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory creating a decoder");
+    }
+    memcpy(d->data, data, hs + body_avail);
+    d->size = hs + body_avail;
+    d->body = d->data + hs;
+    d->body_avail = body_avail;
+    d->skip_crc = options && options->skip_crc;
+    if (d->h.compact && options && options->box) {
+        d->h.box = *options->box;
+        d->has_box = true;
+    }
+    d->has_box |= !d->h.compact;
+    if ((r = decoder_init(d, start, err)) != MS_OK) {
+        ms_codec_decoder_destroy(d);
+        return r;
+    }
+    *out = d;
+    return MS_OK;
+}
+
+ms_status ms_codec_decoder_extend(ms_codec_decoder *d, const uint8_t *data, size_t size,
+                                  ms_error *err)
+{
+    if (d->broken)
+        return ms_error_set(err, MS_ERR_CORRUPT, "decoder stopped after a corrupted stream");
+    size_t hs = d->h.header_size;
+    if (size < d->size || memcmp(data, d->data, hs) != 0)
+        return ms_error_set(err, MS_ERR_ARG, "extending a decoder with bytes that do not "
+                            "continue its stream");
+    size_t body_avail = size - hs < d->h.body_size ? size - hs : d->h.body_size;
+    if (body_avail == d->body_avail)
+        return MS_OK;
+    uint8_t *b = realloc(d->data, hs + body_avail + 1);
+    if (!b)
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory extending a decoder");
+    memcpy(b + d->size, data + d->size, hs + body_avail - d->size);
+    /* The range decoder may sit inside a chunk: keep it on the moved bytes. */
+    if (d->rc_chunk != UINT32_MAX)
+        d->rc.data = b + hs + (d->rc.data - d->body);
+    d->data = b;
+    d->body = b + hs;
+    d->size = hs + body_avail;
+    d->body_avail = body_avail;
+    d->avail_level = available_level(d);
+    return MS_OK;
+}
+
+ms_status ms_codec_run_encoder(ms_codec_header *h, const ms_codec_state *start,
+                               const uint8_t *decisions, size_t n, ms_rc_encoder *enc,
+                               uint64_t *context_counts, ms_error *err)
+{
+    ms_codec_decoder *d = calloc(1, sizeof *d);
+    if (!d)
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory encoding");
+    d->h = *h;
+    d->enc = enc;
+    d->enc_h = h;
+    d->src = decisions;
+    d->src_n = n;
+    d->train = context_counts;
+    ms_status r = decoder_init(d, start, err);
+    if (r == MS_OK)
+        r = ms_codec_decoder_set_level(d, d->D, err);
+    if (r == MS_OK && d->src_pos != n)
+        r = ms_error_set(err, MS_ERR_ARG, "encoder: %zu of %zu decisions used", d->src_pos, n);
+    ms_codec_decoder_destroy(d);
+    return r;
+}
+
+ms_status ms_codec_decoder_state(const ms_codec_decoder *d, ms_codec_state *out, ms_error *err)
+{
+    if (d->broken) {
+        memset(out, 0, sizeof *out);
+        return ms_error_set(err, MS_ERR_CORRUPT, "decoder stopped after a corrupted stream");
+    }
+    return ms_codec_export_complex(&d->cx, d->order, d->norder, d->level, out, err);
+}
+
+size_t ms_codec_decoder_vertex_levels(const ms_codec_decoder *d, uint8_t *levels)
+{
+    for (uint32_t i = 0; i < d->norder; ++i)
+        levels[i] = (uint8_t)ms_cx_level(&d->cx, d->order[i]);
+    return d->frozen;
+}
+
+ms_status ms_codec_decoder_mesh(const ms_codec_decoder *d, ms_mesh *out, ms_error *err)
+{
+    if (d->broken)
+        return ms_error_set(err, MS_ERR_CORRUPT, "decoder stopped after a corrupted stream");
+    if (!d->has_box)
+        return ms_error_set(err, MS_ERR_ARG, "a compact codec stream needs its archive's box "
+                            "for world positions");
+    const ms_complex *cx = &d->cx;
+    ms_status r = ms_mesh_reserve(out, d->norder, cx->live_t, err);
+    if (r != MS_OK)
+        return r;
+    /* rank of each slot: reuse the triangle export order (slot -> vertex index) */
+    uint32_t *rank = malloc((size_t)(cx->nv ? cx->nv : 1) * sizeof *rank);
+    if (!rank)
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory exporting a mesh");
+    double scale = d->h.box.size / (double)(1u << cx->P);
+    for (uint32_t i = 0; i < d->norder; ++i) {
+        uint32_t s = d->order[i];
+        rank[s] = i;
+        for (int a = 0; a < 3; ++a)
+            out->positions[3 * i + a] = d->h.box.origin[a] + 0.5 * cx->cen[s][a] * scale;
+    }
+    size_t w = 0;
+    for (uint32_t t = 0; t < cx->nt; ++t) {
+        if (cx->tri[t][0] == MS_CX_NONE)
+            continue;
+        for (int k = 0; k < 3; ++k)
+            out->triangles[3 * w + k] = rank[cx->tri[t][k]];
+        w++;
+    }
+    out->vertex_count = d->norder;
+    out->triangle_count = w;
+    free(rank);
+    return MS_OK;
+}

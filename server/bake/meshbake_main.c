@@ -1,0 +1,533 @@
+/* meshbake: the baker's command line. Three modes: baking (IN -o ARCHIVE_DIR), which
+ * turns a mesh into an archive of nSP cells with their APO chunks (ms_bake.h);
+ * --info, which parses a mesh completely and reports what it holds; and
+ * --apo-classic, one whole-model APO for comparison with the published method
+ * (ms_apo_classic_cli.h). */
+#include <errno.h>
+#include <getopt.h>
+#include <inttypes.h>
+#include <stdbool.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+
+#include <jansson.h>
+
+#include "ms_apo_classic_cli.h"
+#include "ms_bake.h"
+#include "ms_catalog.h"
+#include "ms_json_out.h"
+#include "ms_mesh_reader.h"
+#include "ms_parse_number.h"
+
+enum { EXIT_INPUT = 1, EXIT_USAGE = 2 };
+
+typedef enum bake_mode { MODE_NONE, MODE_INFO, MODE_BAKE, MODE_SET_PUBLIC } bake_mode;
+
+typedef struct bake_options {
+    bake_mode mode;
+    bool json;
+    const char *input;
+    ms_bake_options bake;
+    unsigned set_public_bits; /* MODE_SET_PUBLIC */
+} bake_options;
+
+static void print_usage(FILE *out)
+{
+    fputs("usage: meshbake IN -o ARCHIVE_DIR [--name NAME] [--bits 16] [--n 4]\n"
+          "                [--root-bits 7] [--min-tris 8000] [--threads N] [--mem MB]\n"
+          "                [--tmp DIR] [--public-bits B] [--no-apo] [--apo-lead 1]\n"
+          "                [--apo-max-depth 10] [--apo-tol 0.2] [--apo-init-depth 0]\n"
+          "                [--apo-verify] [--apo-sample-leaves] [--apo-accuracy]\n"
+          "                [--apo-every-cell] [--json]\n"
+          "       meshbake --info FILE [--json]\n"
+          "       meshbake --set-public-bits B -o ARCHIVE_DIR --name NAME\n"
+          "\n"
+          "Reads a mesh (PLY ascii/binary, OBJ or OFF, optionally gzip-compressed).\n"
+          "\n"
+          "Baking: quantises IN, distributes its triangles into an nSP-tree out of core and\n"
+          "encodes every cell as an independent progressive stream into ARCHIVE_DIR/NAME.msa,\n"
+          "then adds NAME to ARCHIVE_DIR/catalog.json.\n"
+          "  -o, --output DIR  archive directory (must exist)\n"
+          "  --name NAME       model name (default: the input file name without extensions)\n"
+          "  --bits P          bits per coordinate, 8..20 (default 16)\n"
+          "  --n N             nSP children per axis: 2, 4 or 8 (default 4)\n"
+          "  --root-bits R     precision window of the root cell, log2(n)..P (default 7)\n"
+          "  --min-tris T      a cell splits when it holds T triangles (default 8000)\n"
+          "  --public-bits B   preview: precision anyone may read, 0..P; beyond it a\n"
+          "                    client needs meshserve's token (default P: all public)\n"
+          "  --threads N       encoding threads (default: the CPUs online)\n"
+          "  --mem MB          memory budget (default 512): a quarter caches vertex keys,\n"
+          "                    an eighth buffers leaf content, the rest is for encoding;\n"
+          "                    refused below 2 MB + one leaf's working set per thread\n"
+          "                    (about 512 bytes per --min-tris triangle)\n"
+          "  --tmp DIR         temporary files (default: ARCHIVE_DIR); unlinked at creation\n"
+          "  --apo, --no-apo   give every cell an APO chunk of normals (default: on)\n"
+          "  --apo-lead L      chunk depth: L levels below the cell's finest geometric\n"
+          "                    precision, 0..16 (default 1)\n"
+          "  --apo-max-depth D cap on the chunk depth, 0..24 (default 10)\n"
+          "  --apo-tol T       split while the normals of the original mesh in a node\n"
+          "                    spread more than T radians (default 0.2)\n"
+          "  --apo-init-depth D  split unconditionally above depth D (default 0)\n"
+          "  --apo-verify      decode every chunk back and check it gives the built tree\n"
+          "  --apo-sample-leaves  sample an internal cell's normals on every full-precision\n"
+          "                    triangle below it (the former rule; memory grows with the\n"
+          "                    model) instead of its children's meshes\n"
+          "  --apo-every-cell  a chunk for every cell with triangles, also where the cell's\n"
+          "                    own geometry already renders the input's normals (every\n"
+          "                    leaf cell; the former rule, for comparison)\n"
+          "  --apo-accuracy    measure the internal cells' chunks against the full-precision\n"
+          "                    triangles below them (degrees; needs that memory too)\n"
+          "\n"
+          "  --set-public-bits B  change the preview of the baked model NAME in\n"
+          "                    ARCHIVE_DIR/catalog.json (0..its P); SIGHUP a running\n"
+          "                    meshserve to apply it\n"
+          "  --info            parse FILE completely and report format, counts, bounding box,\n"
+          "                    faces dropped by the cleaning policy, isolated vertices, bytes\n"
+          "                    parsed and parse time\n"
+          "  --json            print the report as one JSON object on stdout\n"
+          "  -h, --help        print this help and exit\n"
+          "\n",
+          out);
+    ms_apo_classic_cli_usage(out);
+    fputs("\nExit status: 0 on success, 1 for an input or bake error, 2 for a usage error.\n", out);
+}
+
+static int usage_error(const char *message, const char *detail)
+{
+    fprintf(stderr, "meshbake: %s%s%s (see meshbake --help)\n", message, detail ? ": " : "",
+            detail ? detail : "");
+    return EXIT_USAGE;
+}
+
+/* The integer value of option c (its long name from opts) in [min, max];
+ * false after printing the one-line usage error. */
+static bool option_int(const struct option *opts, int c, const char *text, int64_t min,
+                       int64_t max, int64_t *value, int *status)
+{
+    char name[48] = "--?";
+    for (const struct option *o = opts; o->name; ++o)
+        if (o->val == c)
+            snprintf(name, sizeof name, "--%s", o->name);
+    ms_error e;
+    if (ms_option_int(name, text, min, max, value, &e) == MS_OK)
+        return true;
+    *status = usage_error(e.text, NULL);
+    return false;
+}
+
+/* Returns -1 to go on, or the exit status to end with. */
+static int parse_options(int argc, char **argv, bake_options *options)
+{
+    static const struct option long_options[] = {
+        {"info", no_argument, NULL, 'i'},
+        {"json", no_argument, NULL, 'j'},
+        {"help", no_argument, NULL, 'h'},
+        {"output", required_argument, NULL, 'o'},
+        {"name", required_argument, NULL, 'N'},
+        {"bits", required_argument, NULL, 'b'},
+        {"n", required_argument, NULL, 'n'},
+        {"root-bits", required_argument, NULL, 'r'},
+        {"min-tris", required_argument, NULL, 'm'},
+        {"threads", required_argument, NULL, 't'},
+        {"mem", required_argument, NULL, 'M'},
+        {"tmp", required_argument, NULL, 'T'},
+        {"apo", no_argument, NULL, 'A'},
+        {"no-apo", no_argument, NULL, 'a'},
+        {"apo-lead", required_argument, NULL, 'L'},
+        {"apo-max-depth", required_argument, NULL, 'D'},
+        {"apo-init-depth", required_argument, NULL, 'I'},
+        {"apo-tol", required_argument, NULL, 'E'},
+        {"apo-verify", no_argument, NULL, 'V'},
+        {"apo-sample-leaves", no_argument, NULL, 'S'},
+        {"apo-accuracy", no_argument, NULL, 'C'},
+        {"apo-every-cell", no_argument, NULL, 'W'},
+        {"public-bits", required_argument, NULL, 'P'},
+        {"set-public-bits", required_argument, NULL, 'U'},
+        {NULL, 0, NULL, 0},
+    };
+    memset(options, 0, sizeof *options);
+    ms_bake_options_default(&options->bake);
+    opterr = 0;
+    int c, status;
+    int64_t value;
+    while ((c = getopt_long(argc, argv, ":ho:", long_options, NULL)) != -1) {
+        switch (c) {
+        case 'i': options->mode = MODE_INFO; break;
+        case 'j': options->json = true; break;
+        case 'h': print_usage(stdout); return EXIT_SUCCESS;
+        case 'o': options->bake.archive_dir = optarg; break;
+        case 'N': options->bake.name = optarg; break;
+        case 'T': options->bake.tmp_dir = optarg; break;
+        case 'b': case 'n': case 'r': case 'm': case 't': case 'M':
+            if (!option_int(long_options, c, optarg, 1, (int64_t)1 << 31, &value, &status))
+                return status;
+            if (c == 'b') options->bake.bits = (unsigned)value;
+            else if (c == 'n') options->bake.n = (unsigned)value;
+            else if (c == 'r') options->bake.root_bits = (unsigned)value;
+            else if (c == 'm') options->bake.min_triangles = (uint32_t)value;
+            else if (c == 't') options->bake.threads = (unsigned)value;
+            else options->bake.mem_mb = (size_t)value;
+            break;
+        case 'A': options->bake.apo.enabled = true; break;
+        case 'a': options->bake.apo.enabled = false; break;
+        case 'V': options->bake.apo.verify = true; break;
+        case 'S': options->bake.apo.sample_leaves = true; break;
+        case 'C': options->bake.apo.accuracy = true; break;
+        case 'W': options->bake.apo.every_cell = true; break;
+        case 'P': case 'U':
+            if (!option_int(long_options, c, optarg, 0, 20, &value, &status))
+                return status;
+            if (c == 'P') {
+                options->bake.public_bits = (int)value;
+            } else {
+                options->set_public_bits = (unsigned)value;
+                options->mode = MODE_SET_PUBLIC;
+            }
+            break;
+        case 'L': case 'D': case 'I':
+            if (!option_int(long_options, c, optarg, 0, 30, &value, &status))
+                return status;
+            if (c == 'L') options->bake.apo.lead = (uint32_t)value;
+            else if (c == 'D') options->bake.apo.max_depth = (uint32_t)value;
+            else options->bake.apo.init_depth = (uint32_t)value;
+            break;
+        case 'E': {
+            ms_error e;
+            if (ms_option_double("--apo-tol", optarg, 0, 1e12, &options->bake.apo.tolerance,
+                                 &e) != MS_OK)
+                return usage_error(e.text, NULL);
+            break;
+        }
+        case ':':
+            return usage_error("option needs a value", argv[optind - 1]);
+        default:
+            return usage_error("unknown option", argv[optind - 1]);
+        }
+    }
+    if (options->mode == MODE_SET_PUBLIC) {
+        if (!options->bake.archive_dir || !options->bake.name)
+            return usage_error("--set-public-bits needs -o ARCHIVE_DIR and --name NAME", NULL);
+        if (optind < argc)
+            return usage_error("unexpected argument", argv[optind]);
+        return -1;
+    }
+    if (options->bake.public_bits > (int)options->bake.bits) {
+        char detail[64];
+        snprintf(detail, sizeof detail, "%d", options->bake.public_bits);
+        char message[80];
+        snprintf(message, sizeof message, "--public-bits must be at most --bits (%u)",
+                 options->bake.bits);
+        return usage_error(message, detail);
+    }
+    if (options->bake.archive_dir) {
+        if (options->mode == MODE_INFO)
+            return usage_error("--info and -o are two different modes", NULL);
+        options->mode = MODE_BAKE;
+    }
+    if (optind < argc)
+        options->input = argv[optind++];
+    if (optind < argc)
+        return usage_error("unexpected argument", argv[optind]);
+    if (options->mode == MODE_NONE)
+        return usage_error("no mode given: bake with -o ARCHIVE_DIR, or use --info", NULL);
+    if (!options->input)
+        return usage_error("missing input file", NULL);
+    return -1;
+}
+
+typedef struct progress_state {
+    const char *path;
+    struct timespec start;
+    int last_percent;
+    bool shown;
+} progress_state;
+
+static double seconds_since(const struct timespec *start)
+{
+    struct timespec now;
+    clock_gettime(CLOCK_MONOTONIC, &now);
+    return (double)(now.tv_sec - start->tv_sec) + 1e-9 * (double)(now.tv_nsec - start->tv_nsec);
+}
+
+/* A percentage on the terminal, only for reads that take a while. */
+static void show_progress(void *context, uint64_t done, uint64_t total)
+{
+    progress_state *p = context;
+    if (total == 0 || (!p->shown && seconds_since(&p->start) < 0.5))
+        return;
+    int percent = (int)(100.0 * (double)done / (double)total);
+    if (percent == p->last_percent)
+        return;
+    p->last_percent = percent;
+    p->shown = true;
+    fprintf(stderr, "\rmeshbake: reading %s: %3d%%", p->path, percent);
+    fflush(stderr);
+}
+
+static void print_json(const char *path, const ms_mesh_read_report *r, double seconds)
+{
+    ms_json_print(stdout,
+                  json_pack("{s:o, s:s, s:b, s:I, s:I, s:I, s:[f, f, f], s:[f, f, f], s:I, s:I, s:I, s:o}",
+                            "file", ms_json_text(path), "format", ms_mesh_format_name(r->format), "gzip",
+                            r->gzip, "vertices", (json_int_t)r->vertices, "triangles",
+                            (json_int_t)r->triangles, "input_faces", (json_int_t)r->input_faces,
+                            "bbox_min", r->bbox_min[0], r->bbox_min[1], r->bbox_min[2], "bbox_max",
+                            r->bbox_max[0], r->bbox_max[1], r->bbox_max[2], "dropped_faces",
+                            (json_int_t)r->dropped_faces, "isolated_vertices",
+                            (json_int_t)r->isolated_vertices, "bytes", (json_int_t)r->input_bytes,
+                            "seconds", ms_json_fixed(seconds, 9)),
+                  MS_JSON_SPACED | MS_JSON_EXACT); /* the bounding box as read */
+}
+
+static void print_text(const char *path, const ms_mesh_read_report *r, double seconds)
+{
+    printf("file:              %s\n", path);
+    printf("format:            %s%s\n", ms_mesh_format_name(r->format),
+           r->gzip ? " (gzip)" : "");
+    printf("vertices:          %" PRIu64 "\n", r->vertices);
+    printf("triangles:         %" PRIu64 " (from %" PRIu64 " faces or strips)\n", r->triangles,
+           r->input_faces);
+    printf("bounding box:      min %.9g %.9g %.9g\n", r->bbox_min[0], r->bbox_min[1],
+           r->bbox_min[2]);
+    printf("                   max %.9g %.9g %.9g\n", r->bbox_max[0], r->bbox_max[1],
+           r->bbox_max[2]);
+    printf("dropped faces:     %" PRIu64 " (repeated vertex)\n", r->dropped_faces);
+    printf("isolated vertices: %" PRIu64 "\n", r->isolated_vertices);
+    printf("bytes parsed:      %" PRIu64 "\n", r->input_bytes);
+    printf("parse time:        %.3f s (%.1f MB/s)\n", seconds,
+           seconds > 0 ? (double)r->input_bytes / seconds / 1e6 : 0.0);
+}
+
+static int run_info(const bake_options *options)
+{
+    progress_state progress = {.path = options->input, .last_percent = -1, .shown = false};
+    const ms_mesh_sink sink = {
+        .context = &progress,
+        .progress = isatty(STDERR_FILENO) ? show_progress : NULL,
+    };
+    ms_mesh_read_report report;
+    ms_error err;
+    ms_error_clear(&err);
+    clock_gettime(CLOCK_MONOTONIC, &progress.start);
+    ms_status st = ms_mesh_read(options->input, &sink, &report, &err);
+    double seconds = seconds_since(&progress.start);
+    if (progress.shown)
+        fputs("\r\033[K", stderr);
+    if (st != MS_OK) {
+        fprintf(stderr, "meshbake: %s\n", err.text);
+        return EXIT_INPUT;
+    }
+    if (options->json)
+        print_json(options->input, &report, seconds);
+    else
+        print_text(options->input, &report, seconds);
+    return fflush(stdout) == 0 ? EXIT_SUCCESS : EXIT_INPUT;
+}
+
+static void print_bake_json(const ms_bake_options *o, const ms_bake_report *r)
+{
+    json_t *seconds = json_pack("{s:f, s:f, s:f, s:f, s:f, s:f, s:f, s:f}", "read", r->seconds_read,
+                                "quantise", r->seconds_quantise, "distribute",
+                                r->seconds_distribute, "lone", r->seconds_lone,
+                                "encode", r->seconds_encode, "apo",
+                                r->seconds_apo, "write", r->seconds_write, "total",
+                                r->seconds_total);
+    json_t *per_level = json_array();
+    for (uint32_t d = 0; per_level && d < r->apo_levels; ++d)
+        json_array_append_new(per_level, json_integer((json_int_t)r->apo_level_texels[d]));
+    json_t *apo = json_pack("{s:b, s:b, s:i, s:i, s:i, s:f, s:I, s:I, s:i, s:I, s:I, s:o, s:I, s:I}",
+                            "enabled", o->apo.enabled, "every_cell", o->apo.every_cell, "lead", (int)o->apo.lead,
+                            "max_depth",
+                            (int)o->apo.max_depth, "init_depth", (int)o->apo.init_depth,
+                            "tolerance", o->apo.tolerance, "bytes", (json_int_t)r->apo_bytes,
+                            "raw_bytes", (json_int_t)r->apo_raw_bytes, "chunks",
+                            (int)r->apo_chunks, "internal_nodes",
+                            (json_int_t)r->apo_internal_nodes, "leaves",
+                            (json_int_t)r->apo_leaves, "level_texels", per_level,
+                            "sample_triangles", (json_int_t)r->apo_sample_triangles,
+                            "sample_triangles_max", (json_int_t)r->apo_sample_triangles_max);
+    if (apo)
+        json_object_set_new(apo, "sampling", json_pack("{s:I, s:I}", "rays", (json_int_t)r->apo_rays,
+                                                       "point_queries", (json_int_t)r->apo_point_queries));
+    if (apo && o->apo.accuracy)
+        json_object_set_new(apo, "accuracy",
+                            json_pack("{s:I, s:f, s:f, s:f}", "points", (json_int_t)r->apo_accuracy_points,
+                                      "mean_deg", r->apo_accuracy_mean, "median_deg",
+                                      r->apo_accuracy_median, "p90_deg", r->apo_accuracy_p90));
+    json_t *root = json_pack(
+        "{s:o, s:o, s:o, s:I, s:I, s:I, s:I, s:i, s:i, s:i, s:i, s:f, s:I, s:I, s:I, s:f, s:o, "
+        "s:f, s:i, s:f, s:f, s:I, s:o, s:{s:i, s:i, s:i, s:i, s:i}}",
+        "name", ms_json_text(r->name), "archive", ms_json_text(r->archive_path), "source",
+        ms_json_text(o->input),
+        "input_vertices", (json_int_t)r->input_vertices,
+        "input_triangles", (json_int_t)r->input_triangles,
+        "vertices", (json_int_t)r->vertices, "triangles", (json_int_t)r->triangles,
+        "cells", (int)r->cells, "leaves", (int)r->leaves, "empty_cells", (int)r->empty_cells,
+        "depth", (int)r->depth, "duplicated_triangles", r->duplicated_percent,
+        "leaf_triangles", (json_int_t)r->leaf_triangles,
+        "archive_bytes", (json_int_t)r->archive_bytes,
+        "geometry_bytes", (json_int_t)r->geometry_bytes,
+        "bits_per_vertex", r->bits_per_vertex, "seconds", seconds,
+        "triangles_per_second", r->seconds_total > 0 ? (double)r->input_triangles / r->seconds_total : 0.0,
+        "threads", (int)r->threads, "peak_rss_mb", r->peak_rss_mb,
+        "peak_rss_build_mb", r->peak_rss_build_mb,
+        "spilled_blocks", (json_int_t)r->blocks_written, "apo", apo,
+        "parameters", "bits", (int)o->bits, "n", (int)o->n, "root_bits", (int)o->root_bits,
+        "min_tris", (int)o->min_triangles, "mem_mb", (int)o->mem_mb);
+    const struct { const char *phase; const ms_nsp_io *io; } phases[] = {
+        {"read", &r->io_read}, {"quantise", &r->io_quantise}, {"distribute", &r->io_distribute},
+        {"lone", &r->io_lone}, {"encode", &r->io_encode}};
+    json_t *io = json_object();
+    for (size_t i = 0; io && i < sizeof phases / sizeof *phases; ++i)
+        json_object_set_new(io, phases[i].phase,
+                            json_pack("{s:I, s:I}", "spilled_bytes", (json_int_t)phases[i].io->spilled,
+                                      "read_back_bytes", (json_int_t)phases[i].io->read_back));
+    json_t *by_depth = json_array();
+    for (unsigned d = 0; by_depth && d < MS_NSP_MAX_DEPTH; ++d)
+        if (r->depth_leaves[d] > 0)
+            json_array_append_new(by_depth, json_pack("{s:i, s:I, s:I, s:I}", "depth", (int)d, "leaves",
+                                                      (json_int_t)r->depth_leaves[d], "triangles",
+                                                      (json_int_t)r->depth_triangles[d], "duplicates",
+                                                      (json_int_t)(r->depth_triangles[d] - r->depth_owned[d])));
+    if (root && by_depth)
+        json_object_set_new(root, "duplication_by_leaf_depth", by_depth);
+    else
+        json_decref(by_depth);
+    if (root && io) {
+        json_object_set_new(root, "temporary_io", io);
+        json_object_set_new(root, "key_page_misses", json_integer((json_int_t)r->key_page_misses));
+    } else {
+        json_decref(io);
+    }
+    if (root) {
+        json_object_set_new(root, "duplicated_at_insertion",
+                            json_real(r->duplicated_at_insertion_percent));
+        json_object_set_new(root, "insertion_copies", json_integer((json_int_t)r->insertion_copies));
+    }
+    if (!root) {
+        fputs("{}\n", stdout);
+        return;
+    }
+    ms_json_print(stdout, root, MS_JSON_COMPACT);
+}
+
+static void print_bake_text(const ms_bake_report *r)
+{
+    printf("model:                %s -> %s\n", r->name, r->archive_path);
+    printf("input:                %" PRIu64 " vertices, %" PRIu64 " triangles\n", r->input_vertices,
+           r->input_triangles);
+    printf("welded:               %" PRIu64 " vertices, %" PRIu64 " triangles\n", r->vertices,
+           r->triangles);
+    printf("cells:                %u (%u leaves, %u empty, depth %u)\n", r->cells, r->leaves,
+           r->empty_cells, r->depth);
+    printf("duplicated triangles: %.2f %% (%.2f %% counted at insertion, as the thesis)\n",
+           r->duplicated_percent, r->duplicated_at_insertion_percent);
+    printf("archive:              %" PRIu64 " bytes, %.2f bits per vertex\n", r->archive_bytes,
+           r->bits_per_vertex);
+    if (r->apo_chunks > 0) {
+        printf("APO:                  %u chunks, %" PRIu64 " bytes (%" PRIu64 " raw), %" PRIu64
+               " internal nodes, %" PRIu64 " leaves\n",
+               r->apo_chunks, r->apo_bytes, r->apo_raw_bytes, r->apo_internal_nodes, r->apo_leaves);
+        printf("APO sampling:         internal cells' M %" PRIu64 " triangles, largest %" PRIu64 "; %" PRIu64
+               " rays, %" PRIu64 " closest-point queries\n",
+               r->apo_sample_triangles, r->apo_sample_triangles_max, r->apo_rays, r->apo_point_queries);
+        if (r->apo_accuracy_points > 0)
+            printf("APO accuracy:         %" PRIu64 " full-precision centroids of internal cells: "
+                   "mean %.2f, median %.2f, p90 %.2f degrees\n",
+                   r->apo_accuracy_points, r->apo_accuracy_mean, r->apo_accuracy_median, r->apo_accuracy_p90);
+        printf("APO texels per level:");
+        for (uint32_t d = 0; d < r->apo_levels; ++d)
+            printf(" %" PRIu64, r->apo_level_texels[d]);
+        printf("\n");
+    }
+    printf("seconds:              read %.2f, quantise %.2f, distribute %.2f, lone %.2f, encode %.2f "
+           "(APO %.2f), write %.2f, total %.2f (%.0f triangles/s on %u threads)\n",
+           r->seconds_read, r->seconds_quantise, r->seconds_distribute, r->seconds_lone, r->seconds_encode,
+           r->seconds_apo, r->seconds_write, r->seconds_total,
+           r->seconds_total > 0 ? (double)r->input_triangles / r->seconds_total : 0.0, r->threads);
+    printf("temporary files (MB): spilled / read back: read %.1f / %.1f, quantise %.1f / %.1f, "
+           "distribute %.1f / %.1f, lone %.1f / %.1f, encode %.1f / %.1f\n",
+           r->io_read.spilled / 1e6, r->io_read.read_back / 1e6, r->io_quantise.spilled / 1e6,
+           r->io_quantise.read_back / 1e6, r->io_distribute.spilled / 1e6,
+           r->io_distribute.read_back / 1e6, r->io_lone.spilled / 1e6, r->io_lone.read_back / 1e6,
+           r->io_encode.spilled / 1e6, r->io_encode.read_back / 1e6);
+    printf("peak memory:          %.1f MB (the process's peak resident set, from the OS)\n",
+           r->peak_rss_mb);
+}
+
+static int run_bake(bake_options *options)
+{
+    options->bake.input = options->input;
+    options->bake.progress = isatty(STDERR_FILENO) ? stderr : NULL;
+    options->bake.notes = stderr;
+    ms_bake_report report;
+    ms_error err;
+    ms_error_clear(&err);
+    ms_status st = ms_bake(&options->bake, &report, &err);
+    if (st != MS_OK) {
+        fprintf(stderr, "meshbake: %s\n", err.text);
+        return st == MS_ERR_ARG ? EXIT_USAGE : EXIT_INPUT;
+    }
+    if (options->json)
+        print_bake_json(&options->bake, &report);
+    else
+        print_bake_text(&report);
+    return fflush(stdout) == 0 ? EXIT_SUCCESS : EXIT_INPUT;
+}
+
+/* Changes the preview of a baked model in its catalogue (under the
+ * catalogue's lock, like a bake). */
+static int run_set_public(const bake_options *o)
+{
+    const char *dir = o->bake.archive_dir, *name = o->bake.name;
+    ms_catalog catalog;
+    ms_error err;
+    if (ms_catalog_load(dir, &catalog, &err) != MS_OK) {
+        fprintf(stderr, "meshbake: %s\n", err.text);
+        return EXIT_INPUT;
+    }
+    const ms_catalog_entry *found = ms_catalog_find(&catalog, name);
+    int status = EXIT_SUCCESS;
+    if (!found) {
+        fprintf(stderr, "meshbake: no model '%s' in %s/catalog.json\n", name, dir);
+        status = EXIT_INPUT;
+    } else if (o->set_public_bits > found->bits) {
+        fprintf(stderr, "meshbake: model '%s' has %u bits; --set-public-bits %u is more\n", name,
+                found->bits, o->set_public_bits);
+        status = EXIT_INPUT;
+    } else {
+        ms_catalog_entry e = *found;
+        unsigned before = e.public_max_bits;
+        e.public_max_bits = (uint8_t)o->set_public_bits;
+        if (ms_catalog_update(dir, &e, &err) != MS_OK) {
+            fprintf(stderr, "meshbake: %s\n", err.text);
+            status = EXIT_INPUT;
+        } else {
+            printf("meshbake: model '%s': public_max_bits %u -> %u (SIGHUP a running meshserve "
+                   "to apply it)\n", name, before, o->set_public_bits);
+        }
+    }
+    ms_catalog_free(&catalog);
+    return status;
+}
+
+int main(int argc, char **argv)
+{
+    for (int i = 1; i < argc; ++i)
+        if (strcmp(argv[i], "--apo-classic") == 0)
+            return ms_apo_classic_cli(argc, argv);
+    bake_options options;
+    int status = parse_options(argc, argv, &options);
+    if (status >= 0)
+        return status;
+    switch (options.mode) {
+    case MODE_INFO: return run_info(&options);
+    case MODE_BAKE: return run_bake(&options);
+    case MODE_SET_PUBLIC: return run_set_public(&options);
+    case MODE_NONE: break;
+    }
+    return EXIT_USAGE;
+}

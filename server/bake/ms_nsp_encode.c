@@ -1,0 +1,880 @@
+/* Post-order parallel encoding of the nSP cells: see ms_nsp_encode.h. */
+#include "ms_nsp_encode.h"
+#include "ms_tri_unify.h"
+
+#include <pthread.h>
+#ifdef __GLIBC__
+#include <malloc.h>
+#endif
+#include <stdio.h>
+#include <stdbool.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "ms_apo_build.h"
+#include "ms_codec.h"
+#include "ms_nsp.h"
+#include "ms_nsp_lone.h"
+#include "ms_parallel.h"
+#include "ms_progress.h"
+#include "ms_radix_sort.h"
+
+typedef struct task {
+    uint32_t pending;         /* children not yet done */
+    uint32_t post;            /* post-order number (priority) */
+    ms_codec_state *starts;   /* n^3 children's start states, once the first is done */
+    ms_bake_apo_part *parts;  /* n^3 children's APO parts (this cell's M), likewise */
+} task;
+
+typedef struct pool {
+    const ms_nsp_build *b;
+    const uint32_t *cell_of_node;
+    ms_archive_writer *writer;
+    const ms_nsp_encode_params *params;
+    unsigned max_depth; /* of the tree's cells */
+    task *tasks;
+    uint32_t *heap; /* ready nodes, min-heap on post */
+    uint32_t heap_n;
+    uint32_t remaining, done;
+    bool failed;
+    ms_error err;
+    ms_nsp_encode_stats stats;
+    pthread_mutex_t lock;
+    pthread_cond_t wake;
+} pool;
+
+/* ---- ready heap ---------------------------------------------------------- */
+
+static void heap_push(pool *p, uint32_t node)
+{
+    uint32_t i = p->heap_n++;
+    p->heap[i] = node;
+    while (i > 0) {
+        uint32_t up = (i - 1) / 2;
+        if (p->tasks[p->heap[up]].post <= p->tasks[p->heap[i]].post)
+            break;
+        uint32_t t = p->heap[up];
+        p->heap[up] = p->heap[i];
+        p->heap[i] = t;
+        i = up;
+    }
+}
+
+static uint32_t heap_pop(pool *p)
+{
+    uint32_t top = p->heap[0];
+    p->heap[0] = p->heap[--p->heap_n];
+    uint32_t i = 0;
+    for (;;) {
+        uint32_t l = 2 * i + 1, r = l + 1, m = i;
+        if (l < p->heap_n && p->tasks[p->heap[l]].post < p->tasks[p->heap[m]].post)
+            m = l;
+        if (r < p->heap_n && p->tasks[p->heap[r]].post < p->tasks[p->heap[m]].post)
+            m = r;
+        if (m == i)
+            break;
+        uint32_t t = p->heap[m];
+        p->heap[m] = p->heap[i];
+        p->heap[i] = t;
+        i = m;
+    }
+    return top;
+}
+
+/* ---- building a cell's complex ------------------------------------------- */
+
+/* Sorts the n vertex references ref[] (keys of key_bits bits), writes the
+ * distinct keys in order to cells (*ncells of them) and each reference's rank to
+ * rank[]. ref is clobbered. */
+static ms_status index_keys(uint64_t *ref, size_t n, unsigned key_bits, uint64_t *cells,
+                            size_t *ncells, uint32_t *rank, ms_error *err)
+{
+    uint32_t *pos = malloc((n ? n : 1) * sizeof *pos);
+    if (!pos)
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory indexing a cell");
+    for (size_t i = 0; i < n; ++i)
+        pos[i] = (uint32_t)i;
+    ms_status s = ms_radix_sort_pairs(ref, pos, n, key_bits, err);
+    size_t w = 0;
+    for (size_t i = 0; s == MS_OK && i < n; ++i) {
+        if (w == 0 || ref[i] != cells[w - 1])
+            cells[w++] = ref[i];
+        rank[pos[i]] = (uint32_t)(w - 1);
+    }
+    free(pos);
+    *ncells = w;
+    return s;
+}
+
+/* Leaf: records at full precision -> complex; *lone_out (malloc'd, one per
+ * vertex of st) receives each foreign vertex's lone level, MS_CODEC_NO_FREEZE for
+ * the leaf's own vertices. */
+static ms_status leaf_state(pool *p, uint32_t node, ms_codec_state *st, uint8_t **lone_out,
+                            ms_error *err)
+{
+    *lone_out = NULL;
+    const ms_nsp_build *b = p->b;
+    uint64_t *rec;
+    size_t n;
+    uint64_t read = 0;
+    ms_status s = ms_nsp_build_read_leaf(b, node, &rec, &n, &read, err);
+    if (s != MS_OK)
+        return s;
+    memset(st, 0, sizeof *st);
+    st->bits = b->params.shape.bits;
+    st->level = 3 * st->bits;
+    st->cells = malloc((3 * n + 1) * sizeof *st->cells);
+    st->tris = malloc((3 * n + 1) * sizeof *st->tris);
+    st->edges = malloc(sizeof *st->edges);
+    if (!st->cells || !st->tris || !st->edges) {
+        free(rec);
+        ms_codec_state_free(st);
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory loading a leaf");
+    }
+    /* Vertex references: three per triangle record, one per point record. */
+    uint64_t *ref = malloc((3 * n + 1) * sizeof *ref);
+    uint32_t *rank = malloc((3 * n + 1) * sizeof *rank);
+    uint8_t *lone = malloc(3 * n + 1);
+    if (!ref || !rank || !lone) {
+        free(ref);
+        free(rank);
+        free(lone);
+        free(rec);
+        ms_codec_state_free(st);
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory loading a leaf");
+    }
+    size_t nr = 0;
+    for (size_t i = 0; i < n; ++i) {
+        const uint64_t *r = rec + 3 * i;
+        int verts = r[0] == r[1] ? 1 : 3;
+        for (int j = 0; j < verts; ++j)
+            ref[nr++] = r[j];
+    }
+    size_t nk = 0;
+    s = index_keys(ref, nr, 3 * st->bits, st->cells, &nk, rank, err);
+    st->vertex_count = nk;
+    size_t nt = 0;
+    nr = 0;
+    for (size_t i = 0; i < n; ++i) {
+        const uint64_t *r = rec + 3 * i;
+        if (r[0] == r[1]) {
+            nr++;
+            continue;
+        }
+        for (int j = 0; j < 3; ++j)
+            st->tris[3 * nt + (size_t)j] = rank[nr++];
+        nt++;
+    }
+    free(rec);
+    size_t removed = 0;
+    *lone_out = lone;
+    if (s == MS_OK)
+        s = ms_tri_unify(st->tris, &nt, NULL, &removed, err);
+    st->tri_count = nt;
+    if (s != MS_OK) {
+        free(ref);
+        free(rank);
+        ms_codec_state_free(st);
+        free(lone);
+        *lone_out = NULL;
+        return s;
+    }
+    /* Model-wide counts: each vertex counted in its own leaf, each triangle in the
+     * leaf of its smallest key. */
+    const ms_nsp_node *nd = &b->nodes[node];
+    uint8_t *inside = malloc(nk ? nk : 1);
+    if (!inside) {
+        free(ref);
+        free(rank);
+        ms_codec_state_free(st);
+        free(lone);
+        *lone_out = NULL;
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory loading a leaf");
+    }
+    uint64_t own_v = 0, own_t = 0, iso = 0;
+    size_t foreign = 0;
+    for (size_t v = 0; v < nk; ++v) {
+        inside[v] = ms_nsp_prefix_inside(&b->params.shape, st->cells[v], st->level, nd->depth,
+                                         nd->position);
+        own_v += inside[v];
+        if (inside[v])
+            lone[v] = MS_CODEC_NO_FREEZE;
+        else
+            ref[foreign++] = st->cells[v]; /* in key order */
+    }
+    /* The foreign vertices' lone levels, from their own leaves' segments (into
+     * rank's bytes, free now: foreign <= nk <= 3 n). */
+    uint8_t *foreign_lone = (uint8_t *)rank;
+    s = ms_nsp_lone_lookup(b, ref, foreign, foreign_lone, &read, err);
+    for (size_t v = 0, f = 0; s == MS_OK && v < nk; ++v)
+        if (!inside[v])
+            lone[v] = foreign_lone[f++];
+    free(ref);
+    free(rank);
+    if (s != MS_OK) {
+        free(inside);
+        ms_codec_state_free(st);
+        free(lone);
+        *lone_out = NULL;
+        return s;
+    }
+    uint8_t *has = calloc(nk ? nk : 1, 1);
+    for (size_t t = 0; t < nt; ++t) {
+        uint32_t s3[3];
+        ms_tri_sort3(&st->tris[3 * t], s3);
+        own_t += inside[s3[0]];
+        if (has)
+            has[s3[0]] = has[s3[1]] = has[s3[2]] = 1;
+    }
+    if (has)
+        for (size_t v = 0; v < nk; ++v)
+            iso += !has[v];
+    free(has);
+    free(inside);
+    pthread_mutex_lock(&p->lock);
+    p->stats.welded_vertices += own_v;
+    p->stats.welded_triangles += own_t;
+    p->stats.leaf_triangles += nt;
+    p->stats.leaf_duplicates += removed;
+    p->stats.isolated_vertices += iso;
+    p->stats.io.read_back += read;
+    p->stats.depth_leaves[nd->depth]++;
+    p->stats.depth_triangles[nd->depth] += nt;
+    p->stats.depth_owned[nd->depth] += own_t;
+    pthread_mutex_unlock(&p->lock);
+    return MS_OK;
+}
+
+static int cmp_edge(const void *x, const void *y)
+{
+    const uint32_t *a = x, *b = y;
+    if (a[0] != b[0])
+        return a[0] < b[0] ? -1 : 1;
+    return a[1] < b[1] ? -1 : (a[1] > b[1]);
+}
+
+/* Internal cell: union of the children's start states. */
+static ms_status internal_state(pool *p, uint32_t node, unsigned bits_max, ms_codec_state *st,
+                                ms_error *err)
+{
+    const ms_nsp_build *b = p->b;
+    const unsigned nc = b->params.shape.n * b->params.shape.n * b->params.shape.n;
+    const ms_codec_state *ch = p->tasks[node].starts;
+    size_t nv = 0, nt = 0, ne = 0;
+    for (unsigned k = 0; k < nc; ++k) {
+        nv += ch[k].vertex_count;
+        nt += ch[k].tri_count;
+        ne += ch[k].edge_count;
+    }
+    memset(st, 0, sizeof *st);
+    st->bits = bits_max;
+    st->level = 3 * bits_max;
+    st->cells = malloc((nv + 1) * sizeof *st->cells);
+    st->tris = malloc((3 * nt + 1) * sizeof *st->tris);
+    st->edges = malloc((2 * ne + 1) * sizeof *st->edges);
+    if (!st->cells || !st->tris || !st->edges) {
+        ms_codec_state_free(st);
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory merging children");
+    }
+    uint64_t *ref = malloc((nv + 1) * sizeof *ref);
+    uint32_t *rank = malloc((nv + 1) * sizeof *rank);
+    if (!ref || !rank) {
+        free(ref);
+        free(rank);
+        ms_codec_state_free(st);
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory merging children");
+    }
+    size_t w = 0;
+    for (unsigned k = 0; k < nc; ++k)
+        for (size_t i = 0; i < ch[k].vertex_count; ++i)
+            ref[w++] = ch[k].cells[i];
+    ms_status s = index_keys(ref, w, 3 * bits_max, st->cells, &nv, rank, err);
+    st->vertex_count = nv;
+    size_t wt = 0, we = 0, base = 0;
+    for (unsigned k = 0; k < nc; ++k) {
+        const ms_codec_state *c = &ch[k];
+        for (size_t t = 0; t < 3 * c->tri_count; ++t)
+            st->tris[wt++] = rank[base + c->tris[t]];
+        for (size_t e = 0; e < c->edge_count; ++e) {
+            uint32_t x = rank[base + c->edges[2 * e]], y = rank[base + c->edges[2 * e + 1]];
+            st->edges[we++] = x < y ? x : y;
+            st->edges[we++] = x < y ? y : x;
+        }
+        base += c->vertex_count;
+    }
+    free(ref);
+    free(rank);
+    nt = wt / 3;
+    size_t removed = 0;
+    bool conflict = false;
+    if (s == MS_OK)
+        s = ms_tri_unify(st->tris, &nt, &conflict, &removed, err);
+    st->tri_count = nt;
+    if (s == MS_OK && conflict)
+        s = ms_error_set(err, MS_ERR_CORRUPT, "cell %u: children disagree on a triangle's "
+                         "orientation", p->cell_of_node[node]);
+    ne = we / 2;
+    qsort(st->edges, ne, 8, cmp_edge);
+    size_t u = 0;
+    for (size_t e = 0; e < ne; ++e)
+        if (u == 0 || cmp_edge(&st->edges[2 * e], &st->edges[2 * (u - 1)]) != 0) {
+            st->edges[2 * u] = st->edges[2 * e];
+            st->edges[2 * u + 1] = st->edges[2 * e + 1];
+            u++;
+        }
+    st->edge_count = u;
+    /* vertices are already in key order; the codec canonicalises the rest */
+    if (s != MS_OK)
+        ms_codec_state_free(st);
+    return s;
+}
+
+/* The client's split of st must give back every child's start state. */
+static ms_status check_partition(pool *p, uint32_t node, const ms_codec_state *st, ms_error *err)
+{
+    const ms_nsp_build *b = p->b;
+    const unsigned nc = b->params.shape.n * b->params.shape.n * b->params.shape.n;
+    const ms_nsp_node *nd = &b->nodes[node];
+    ms_codec_state *parts = calloc(nc, sizeof *parts);
+    if (!parts)
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory checking a split");
+    const ms_codec_state *ch = p->tasks[node].starts;
+    ms_status s = ms_nsp_partition_state(&b->params.shape, st, nd->depth, nd->position,
+                                         st->bits, parts, err);
+    for (unsigned k = 0; k < nc && s == MS_OK; ++k) {
+        bool same = parts[k].vertex_count == ch[k].vertex_count &&
+                    (ch[k].vertex_count == 0 ||
+                     (parts[k].tri_count == ch[k].tri_count && parts[k].edge_count == ch[k].edge_count &&
+                      ms_codec_state_checksum(&parts[k]) == ms_codec_state_checksum(&ch[k])));
+        if (!same)
+            s = ms_error_set(err, MS_ERR_CORRUPT, "cell %u: the start state derived from its "
+                             "parent (%zu vertices, %zu triangles, %zu edges) differs from the "
+                             "one it was encoded from (%zu, %zu, %zu)",
+                             p->cell_of_node[nd->first_child + k], parts[k].vertex_count,
+                             parts[k].tri_count, parts[k].edge_count, ch[k].vertex_count,
+                             ch[k].tri_count, ch[k].edge_count);
+    }
+    for (unsigned k = 0; k < nc; ++k)
+        ms_codec_state_free(&parts[k]);
+    free(parts);
+    return s;
+}
+
+/* ---- one cell ------------------------------------------------------------ */
+
+typedef struct cell_out {
+    uint8_t *stream;
+    size_t size;
+    ms_codec_state start;
+    uint32_t table[MS_CODEC_MAX_BITS + 1];
+    uint32_t vertices, triangles;
+    ms_bake_apo_result apo;
+    double apo_seconds;
+    ms_bake_apo_part part;    /* the APO m, averaged, kept for the parent's M */
+    size_t sample_triangles;  /* M's triangles */
+} cell_out;
+
+/* ---- APO inputs ---------------------------------------------------------- */
+
+/* Appends the triangle records of every leaf below (or at) node to *tri (keys,
+ * 3 per triangle), leaves in node order. */
+static ms_status gather_records(const ms_nsp_build *b, uint32_t node, uint64_t **tri, size_t *count,
+                                size_t *cap, ms_error *err)
+{
+    const ms_nsp_node *nd = &b->nodes[node];
+    if (nd->first_child != MS_NSP_NONE) {
+        unsigned nc = b->params.shape.n * b->params.shape.n * b->params.shape.n;
+        for (unsigned k = 0; k < nc; ++k) {
+            ms_status s = gather_records(b, nd->first_child + k, tri, count, cap, err);
+            if (s != MS_OK)
+                return s;
+        }
+        return MS_OK;
+    }
+    uint64_t *rec;
+    size_t n;
+    ms_status s = ms_nsp_build_read_leaf(b, node, &rec, &n, NULL, err);
+    if (s != MS_OK)
+        return s;
+    if (*count + n > *cap) {
+        size_t want = (*count + n) * 2;
+        uint64_t *grown = realloc(*tri, want * 3 * sizeof *grown);
+        if (!grown) {
+            free(rec);
+            return ms_error_set(err, MS_ERR_NOMEM, "out of memory gathering a cell's triangles");
+        }
+        *tri = grown, *cap = want;
+    }
+    for (size_t i = 0; i < n; ++i)
+        if (rec[3 * i] != rec[3 * i + 1])
+            memcpy(*tri + 3 * (*count)++, rec + 3 * i, 3 * sizeof *rec);
+    free(rec);
+    return MS_OK;
+}
+
+/* M of a cell: its input triangles at full precision (see ms_nsp_encode.h). */
+static ms_status full_precision_mesh(const ms_nsp_build *b, uint32_t node, ms_mesh *M, ms_error *err)
+{
+    memset(M, 0, sizeof *M);
+    uint64_t *tri = NULL;
+    size_t nt = 0, cap = 0;
+    ms_status s = gather_records(b, node, &tri, &nt, &cap, err);
+    uint64_t *ref = s == MS_OK ? malloc((3 * nt + 1) * sizeof *ref) : NULL;
+    uint64_t *keys = s == MS_OK ? malloc((3 * nt + 1) * sizeof *keys) : NULL;
+    uint32_t *rank = s == MS_OK ? malloc((3 * nt + 1) * sizeof *rank) : NULL;
+    if (s == MS_OK && (!ref || !keys || !rank))
+        s = ms_error_set(err, MS_ERR_NOMEM, "out of memory gathering a cell's triangles");
+    const unsigned p = b->params.shape.bits;
+    size_t nk = 0;
+    if (s == MS_OK) {
+        for (size_t i = 0; i < 3 * nt; ++i)
+            ref[i] = tri[i];
+        s = index_keys(ref, 3 * nt, 3 * p, keys, &nk, rank, err);
+    }
+    /* keep the first of each group of equal vertex sets, in leaf order */
+    if (s == MS_OK)
+        s = ms_tri_unify(rank, &nt, NULL, NULL, err);
+    if (s == MS_OK)
+        s = ms_mesh_reserve(M, nk, nt, err);
+    if (s == MS_OK) {
+        if (nt) /* no triangle left: no array to copy into */
+            memcpy(M->triangles, rank, 3 * nt * sizeof *rank);
+        M->triangle_count = nt;
+    }
+    if (s == MS_OK) {
+        for (size_t v = 0; v < nk; ++v) { /* grid cell centres */
+            uint32_t q[3];
+            ms_quant_unkey(keys[v], p, q);
+            for (int a = 0; a < 3; ++a)
+                M->positions[3 * v + (size_t)a] = ms_dequantise(&b->box, p, a, q[a]);
+        }
+        M->vertex_count = nk;
+    }
+    free(tri);
+    free(ref);
+    free(keys);
+    free(rank);
+    if (s != MS_OK)
+        ms_mesh_free(M);
+    return s;
+}
+
+/* Returns freed heap memory to the kernel. An internal cell's APO work frees
+ * tens to hundreds of MB in large blocks that glibc keeps (its mmap threshold
+ * grows with them), and Embree takes its BVH memory with mmap, not from that
+ * heap: without this, the union's temporaries and the last build's arrays stay in
+ * the RSS under the next build. */
+static void give_back_memory(void)
+{
+#ifdef __GLIBC__
+    malloc_trim(0);
+#endif
+}
+
+/* Frees the children's parts of node (its M has been built from them). */
+static void free_child_parts(pool *p, uint32_t node)
+{
+    const unsigned nc = p->b->params.shape.n * p->b->params.shape.n * p->b->params.shape.n;
+    if (!p->tasks[node].parts)
+        return;
+    for (unsigned k = 0; k < nc; ++k)
+        ms_bake_apo_part_free(&p->tasks[node].parts[k]);
+    free(p->tasks[node].parts);
+    p->tasks[node].parts = NULL;
+}
+
+/* What a cell hands up for its parent's M (ms_bake_apo_part): a leaf's m as it
+ * is, each vertex standing for itself; an internal cell's m averaged over M. m is
+ * taken. */
+static ms_status hand_up(pool *p, uint32_t node, unsigned hi, ms_mesh *m, const ms_mesh *M, const uint32_t *owned,
+                         ms_bake_apo_part *out, ms_error *err)
+{
+    const ms_nsp_build *b = p->b;
+    const ms_nsp_node *nd = &b->nodes[node];
+    double origin[3], size;
+    ms_bake_apo_cube(&b->params.shape, &b->box, nd->depth, nd->position, origin, &size);
+    if (nd->first_child != MS_NSP_NONE)
+        return ms_bake_apo_smooth(m, hi, &b->box, origin, size, M, owned, out, err);
+    memset(out, 0, sizeof *out);
+    out->weight = malloc((m->vertex_count + 1) * sizeof *out->weight);
+    if (!out->weight)
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory keeping a cell's mesh");
+    for (size_t v = 0; v < m->vertex_count; ++v)
+        out->weight[v] = 1;
+    out->mesh = *m;
+    memset(m, 0, sizeof *m);
+    out->bits = hi;
+    memcpy(out->origin, origin, sizeof origin);
+    out->size = size;
+    return MS_OK;
+}
+
+/* The cell's chunk: m from its stream decoded to bits_max; M from its own records
+ * (a leaf) or from its children's parts (an internal cell, see ms_nsp_encode.h).
+ * The part for the parent goes to out->part when the parent will need it. */
+static ms_status apo_cell(pool *p, uint32_t node, unsigned hi, ms_apo_builder *builder,
+                          ms_mesh *given_m, cell_out *out, ms_error *err)
+{
+    const ms_nsp_build *b = p->b;
+    const ms_nsp_node *nd = &b->nodes[node];
+    const ms_bake_apo_params *ap = p->params->apo;
+    const unsigned nc = b->params.shape.n * b->params.shape.n * b->params.shape.n;
+    bool leaf = nd->first_child == MS_NSP_NONE;
+    double t0 = ms_now_seconds();
+    ms_codec_decoder *d = NULL;
+    ms_mesh m, M, reference;
+    uint32_t *owned = NULL;
+    memset(&m, 0, sizeof m);
+    memset(&M, 0, sizeof M);
+    memset(&reference, 0, sizeof reference);
+    ms_status s = MS_OK;
+    if (given_m) {
+        m = *given_m; /* taken */
+        memset(given_m, 0, sizeof *given_m);
+    } else {
+        ms_codec_decoder_options o = {.box = &b->box};
+        s = ms_codec_decoder_create(out->stream, out->size, &out->start, &o, &d, err);
+        if (s == MS_OK)
+            s = ms_codec_decoder_set_level(d, 3 * hi, err);
+        if (s == MS_OK)
+            s = ms_codec_decoder_mesh(d, &m, err);
+        ms_codec_decoder_destroy(d);
+    }
+    if (s == MS_OK && (leaf || ap->sample_leaves))
+        s = full_precision_mesh(b, node, &M, err);
+    else if (s == MS_OK && p->tasks[node].parts)
+        s = ms_bake_apo_union(p->tasks[node].parts, nc, &b->box, &M, &owned, err);
+    /* the children's parts are in M now: free them before the build's peak */
+    free_child_parts(p, node);
+    if (!leaf)
+        give_back_memory();
+    bool measured = ap->accuracy && !leaf;
+    if (s == MS_OK && measured && !ap->sample_leaves)
+        s = full_precision_mesh(b, node, &reference, err);
+    /* Leaves run one per thread; internal cells, few, large and last in
+     * post-order (the root ends the bake alone), use every thread. */
+    unsigned threads = leaf ? 1 : p->params->threads;
+    if (s == MS_OK)
+        s = ms_bake_apo_cell(builder, ap, &b->params.shape, &b->box, nd->depth, nd->position, hi, &m, &M,
+                             !measured ? NULL : ap->sample_leaves ? &M : &reference, threads, &out->apo,
+                             err);
+    ms_mesh_free(&reference);
+    if (s == MS_OK && nd->parent != MS_NSP_NONE && !ap->sample_leaves)
+        s = hand_up(p, node, hi, &m, &M, owned, &out->part, err);
+    if (s != MS_OK) {
+        char why[sizeof err->text];
+        snprintf(why, sizeof why, "%s", err->text);
+        s = ms_error_set(err, s, "cell %u: APO: %s", p->cell_of_node[node], why);
+    }
+    out->sample_triangles = M.triangle_count;
+    ms_mesh_free(&m);
+    ms_mesh_free(&M);
+    free(owned);
+    out->apo_seconds = ms_now_seconds() - t0;
+    return s;
+}
+
+/* A leaf's region and the levels its foreign vertices freeze at: the lone level,
+ * not before the window starts, nor before a kd-cell lies inside one cell of the
+ * deepest nSP level (a renderer finds the shown cell holding a frozen vertex
+ * from its kd-cell). False when the tree's shape gives a region too fine for the
+ * window (p_r < log2 n), where nothing freezes. */
+static bool leaf_freezing(const pool *p, const ms_nsp_node *nd, unsigned lo, uint8_t *lone,
+                          size_t n, ms_codec_region *region)
+{
+    const ms_nsp_shape *sh = &p->b->params.shape;
+    unsigned depth_bits = nd->depth * sh->log2n;
+    if (nd->depth == 0 || depth_bits > lo)
+        return false;
+    region->log2_side = sh->bits - depth_bits;
+    for (int a = 0; a < 3; ++a)
+        region->min[a] = nd->position[a] << region->log2_side;
+    unsigned Lmin = 3 * lo, D = 3 * sh->bits;
+    if (Lmin < 3 * sh->log2n * p->max_depth)
+        Lmin = 3 * sh->log2n * p->max_depth;
+    for (size_t v = 0; v < n; ++v) {
+        if (lone[v] == MS_CODEC_NO_FREEZE)
+            continue;
+        unsigned f = lone[v] < Lmin ? Lmin : lone[v];
+        lone[v] = f < D ? (uint8_t)f : MS_CODEC_NO_FREEZE;
+    }
+    return true;
+}
+
+/* A leaf's full-precision complex as the mesh its stream decodes to at bits_max
+ * (same positions as ms_codec_decoder_mesh), for its APO chunk: the decoded one
+ * has its frozen foreign vertices at coarse positions. */
+static ms_status leaf_mesh(const ms_codec_state *st, const ms_quant_box *box, ms_mesh *m,
+                           ms_error *err)
+{
+    ms_status s = ms_mesh_reserve(m, st->vertex_count, st->tri_count, err);
+    if (s != MS_OK)
+        return s;
+    double scale = box->size / (double)(1u << st->bits);
+    for (size_t i = 0; i < st->vertex_count; ++i) {
+        uint32_t c[3];
+        ms_quant_unkey(st->cells[i], st->bits, c);
+        for (int a = 0; a < 3; ++a)
+            m->positions[3 * i + (size_t)a] = box->origin[a] + 0.5 * (2.0 * c[a] + 1.0) * scale;
+    }
+    if (st->tri_count) /* an empty cell may have no triangle array at all */
+        memcpy(m->triangles, st->tris, 3 * st->tri_count * sizeof *m->triangles);
+    m->vertex_count = st->vertex_count;
+    m->triangle_count = st->tri_count;
+    return MS_OK;
+}
+
+static ms_status encode_cell(pool *p, uint32_t node, ms_apo_builder **builder, cell_out *out, ms_error *err)
+{
+    const ms_nsp_build *b = p->b;
+    const ms_nsp_node *nd = &b->nodes[node];
+    bool leaf = nd->first_child == MS_NSP_NONE;
+    unsigned lo, hi;
+    ms_nsp_window(&b->params.shape, nd->depth, leaf, &lo, &hi);
+    memset(out, 0, sizeof *out);
+    ms_codec_state st;
+    uint8_t *freeze = NULL;
+    ms_status s = leaf ? leaf_state(p, node, &st, &freeze, err)
+                       : internal_state(p, node, hi, &st, err);
+    if (s != MS_OK)
+        return s;
+    if (!leaf)
+        s = check_partition(p, node, &st, err);
+    ms_codec_region region;
+    bool freezing = leaf && leaf_freezing(p, nd, lo, freeze, st.vertex_count, &region);
+    bool apo = p->params->apo && p->params->apo->enabled;
+    ms_mesh m_leaf;
+    memset(&m_leaf, 0, sizeof m_leaf);
+    if (s == MS_OK && apo && leaf && st.vertex_count > 0)
+        s = leaf_mesh(&st, &b->box, &m_leaf, err);
+    if (s == MS_OK && st.vertex_count > 0) {
+        ms_codec_encode_params ep = {.p_min = lo, .box = b->box, .compact_header = true};
+        if (freezing) {
+            ep.region = &region;
+            ep.freeze_level = freeze;
+        }
+        s = ms_codec_encode(&st, &ep, &out->stream, &out->size, &out->start, err);
+        if (s == MS_OK && out->size > UINT32_MAX)
+            s = ms_error_set(err, MS_ERR_RANGE, "cell %u: payload over 4 GiB",
+                             p->cell_of_node[node]);
+        ms_codec_header h;
+        if (s == MS_OK)
+            s = ms_codec_read_header(out->stream, out->size, &h, err);
+        if (s == MS_OK) {
+            out->table[0] = (uint32_t)h.header_size;
+            for (unsigned k = 1; k <= hi - lo; ++k)
+                out->table[k] = (uint32_t)(h.header_size + h.chunk_end[k - 1]);
+        }
+        out->vertices = (uint32_t)st.vertex_count;
+        out->triangles = (uint32_t)st.tri_count;
+    }
+    ms_codec_state_free(&st);
+    free(freeze);
+    if (s == MS_OK && apo && out->size > 0 && !*builder)
+        s = ms_apo_builder_create(builder, err);
+    if (s == MS_OK && apo && out->size > 0)
+        s = apo_cell(p, node, hi, *builder, leaf ? &m_leaf : NULL, out, err);
+    ms_mesh_free(&m_leaf);
+    if (s != MS_OK) {
+        free(out->stream);
+        ms_codec_state_free(&out->start);
+        ms_bake_apo_result_free(&out->apo);
+        ms_bake_apo_part_free(&out->part);
+        memset(out, 0, sizeof *out);
+    }
+    return s;
+}
+
+/* Under the lock: hands the result to the writer and to the parent. */
+static ms_status finish_cell(pool *p, uint32_t node, cell_out *out, ms_error *err)
+{
+    const ms_nsp_build *b = p->b;
+    const ms_nsp_node *nd = &b->nodes[node];
+    ms_status s = ms_archive_writer_put_geometry(p->writer, p->cell_of_node[node], out->stream,
+                                                 (uint32_t)out->size, out->table, out->vertices,
+                                                 out->triangles, err);
+    p->stats.geometry_bytes += out->size;
+    p->stats.empty_cells += out->size == 0;
+    free(out->stream);
+    out->stream = NULL;
+    const ms_bake_apo_result *a = &out->apo;
+    if (s == MS_OK && a->levels > 0) {
+        s = ms_archive_writer_put_apo(p->writer, p->cell_of_node[node], a->data, (uint32_t)a->size,
+                                      (uint32_t)(4 * a->texels), a->level_table, (uint8_t)a->levels, err);
+        p->stats.apo_bytes += a->size;
+        p->stats.apo_raw_bytes += 4 * a->texels;
+        p->stats.apo_chunks++;
+        p->stats.apo_internal_nodes += a->internal_nodes;
+        p->stats.apo_leaves += a->leaves;
+        p->stats.apo_rays += a->rays;
+        p->stats.apo_point_queries += a->point_queries;
+        for (uint32_t d = 0; d < a->levels; ++d)
+            p->stats.apo_level_texels[d] += a->level_texels[d];
+        if (a->levels > p->stats.apo_levels)
+            p->stats.apo_levels = a->levels;
+        ms_bake_apo_accuracy_add(&p->stats.apo_accuracy, &a->accuracy);
+    }
+    if (nd->first_child != MS_NSP_NONE) {
+        p->stats.apo_sample_triangles += out->sample_triangles;
+        if (out->sample_triangles > p->stats.apo_sample_triangles_max)
+            p->stats.apo_sample_triangles_max = out->sample_triangles;
+    }
+    p->stats.apo_thread_seconds += out->apo_seconds;
+    ms_bake_apo_result_free(&out->apo);
+    if (s != MS_OK || nd->parent == MS_NSP_NONE) {
+        ms_codec_state_free(&out->start);
+        ms_bake_apo_part_free(&out->part);
+        return s;
+    }
+    task *parent = &p->tasks[nd->parent];
+    unsigned nc = b->params.shape.n * b->params.shape.n * b->params.shape.n;
+    if (!parent->starts)
+        parent->starts = calloc(nc, sizeof *parent->starts);
+    if (!parent->parts)
+        parent->parts = calloc(nc, sizeof *parent->parts);
+    if (!parent->starts || !parent->parts) {
+        ms_codec_state_free(&out->start);
+        ms_bake_apo_part_free(&out->part);
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory");
+    }
+    unsigned k = node - b->nodes[nd->parent].first_child;
+    parent->starts[k] = out->start;
+    parent->parts[k] = out->part;
+    memset(&out->start, 0, sizeof out->start);
+    memset(&out->part, 0, sizeof out->part);
+    if (--parent->pending == 0)
+        heap_push(p, nd->parent);
+    return MS_OK;
+}
+
+/* One encoding thread: takes ready cells until every cell is done (or one
+ * failed). Run as one block per thread of ms_parallel_for. */
+static void worker(void *arg, size_t block)
+{
+    (void)block;
+    pool *p = arg;
+    const ms_nsp_build *b = p->b;
+    ms_apo_builder *builder = NULL; /* created on this thread's first APO chunk */
+    pthread_mutex_lock(&p->lock);
+    for (;;) {
+        while (!p->failed && p->remaining > 0 && p->heap_n == 0)
+            pthread_cond_wait(&p->wake, &p->lock);
+        if (p->failed || p->remaining == 0)
+            break;
+        uint32_t node = heap_pop(p);
+        pthread_mutex_unlock(&p->lock);
+        cell_out out;
+        ms_error err;
+        ms_error_clear(&err);
+        ms_status s = encode_cell(p, node, &builder, &out, &err);
+        /* the children's states are no longer needed */
+        if (p->tasks[node].starts) {
+            unsigned nc = b->params.shape.n * b->params.shape.n * b->params.shape.n;
+            for (unsigned k = 0; k < nc; ++k)
+                ms_codec_state_free(&p->tasks[node].starts[k]);
+            free(p->tasks[node].starts);
+            p->tasks[node].starts = NULL;
+        }
+        free_child_parts(p, node);
+        if (b->nodes[node].first_child != MS_NSP_NONE && p->params->apo && p->params->apo->enabled)
+            give_back_memory();
+        pthread_mutex_lock(&p->lock);
+        if (s == MS_OK)
+            s = finish_cell(p, node, &out, &err);
+        else
+            ms_bake_apo_result_free(&out.apo);
+        if (s != MS_OK) {
+            if (!p->failed)
+                p->err = err;
+            p->failed = true;
+        } else {
+            p->remaining--;
+            p->done++;
+            if (p->params->progress)
+                p->params->progress(p->params->progress_context, "encoding",
+                                    (double)p->done / (double)b->node_count);
+        }
+        pthread_cond_broadcast(&p->wake);
+    }
+    pthread_mutex_unlock(&p->lock);
+    ms_apo_builder_destroy(builder);
+}
+
+ms_status ms_nsp_encode_all(ms_nsp_build *build, const uint32_t *cell_of_node,
+                            ms_archive_writer *writer, const ms_nsp_encode_params *params,
+                            ms_nsp_encode_stats *stats, ms_error *err)
+{
+    double t0 = ms_now_seconds();
+    memset(stats, 0, sizeof *stats);
+    const ms_nsp_build *b = build;
+    pool p;
+    memset(&p, 0, sizeof p);
+    p.b = b;
+    p.cell_of_node = cell_of_node;
+    p.writer = writer;
+    p.params = params;
+    uint32_t n = b->node_count;
+    const unsigned nc = b->params.shape.n * b->params.shape.n * b->params.shape.n;
+    for (uint32_t v = 0; v < n; ++v)
+        if (b->nodes[v].depth > p.max_depth)
+            p.max_depth = b->nodes[v].depth;
+    p.tasks = calloc(n, sizeof *p.tasks);
+    p.heap = malloc(n * sizeof *p.heap);
+    uint32_t *stack = malloc(n * sizeof *stack);
+    uint8_t *visited = calloc(n, 1);
+    if (!p.tasks || !p.heap || !stack || !visited) {
+        free(p.tasks);
+        free(p.heap);
+        free(stack);
+        free(visited);
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory scheduling cells");
+    }
+    /* Post-order numbers (children in offset order), iteratively. */
+    uint32_t sp = 0, post = 0;
+    stack[sp++] = 0;
+    while (sp > 0) {
+        uint32_t v = stack[sp - 1];
+        const ms_nsp_node *nd = &b->nodes[v];
+        if (nd->first_child != MS_NSP_NONE && !visited[v]) {
+            visited[v] = 1;
+            for (unsigned k = nc; k-- > 0;)
+                stack[sp++] = nd->first_child + k;
+            continue;
+        }
+        sp--;
+        p.tasks[v].post = post++;
+        p.tasks[v].pending = nd->first_child != MS_NSP_NONE ? nc : 0;
+    }
+    free(stack);
+    free(visited);
+    for (uint32_t v = 0; v < n; ++v)
+        if (p.tasks[v].pending == 0)
+            heap_push(&p, v);
+    p.remaining = n;
+    pthread_mutex_init(&p.lock, NULL);
+    pthread_cond_init(&p.wake, NULL);
+    unsigned threads = params->threads ? params->threads : 1;
+    /* the work completes even where no helper thread could start */
+    ms_error no_threads;
+    (void)ms_parallel_for(threads, threads, worker, &p, &no_threads);
+    ms_status s = MS_OK;
+    if (p.failed) {
+        *err = p.err;
+        s = err->code != MS_OK ? err->code : MS_ERR_IO;
+    }
+    for (uint32_t v = 0; v < n; ++v) {
+        if (p.tasks[v].starts) {
+            for (unsigned k = 0; k < nc; ++k)
+                ms_codec_state_free(&p.tasks[v].starts[k]);
+            free(p.tasks[v].starts);
+        }
+        free_child_parts(&p, v);
+    }
+    pthread_mutex_destroy(&p.lock);
+    pthread_cond_destroy(&p.wake);
+    free(p.tasks);
+    free(p.heap);
+    p.stats.seconds = ms_now_seconds() - t0;
+    *stats = p.stats;
+    return s;
+}

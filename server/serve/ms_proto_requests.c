@@ -1,0 +1,482 @@
+/* The answers of a binary-protocol connection to each message a client may
+ * send (PROTOCOL.md sections 4 to 8): handshake, catalogue, models, batches of
+ * cell requests with their limits and access rules, cancels, pings. See
+ * ms_proto_conn.h. */
+#include <event2/buffer.h>
+#include <event2/bufferevent.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "ms_access.h"
+#include "ms_frame_out.h"
+#include "ms_progress.h"
+#include "ms_proto_conn.h"
+#include "ms_proto_range.h"
+#include "ms_registry.h"
+#include "ms_server_internal.h"
+
+#define INDEX_CHUNK_BYTES (1u << 20)
+#define CATALOGUE_FRAME_BYTES 65536u
+
+static struct evbuffer *output(const ms_serve_conn *c) { return bufferevent_get_output(c->bev); }
+static ms_server *server_of(const ms_serve_conn *c) { return c->door->server; }
+static ms_server_metrics *metrics_of(const ms_serve_conn *c) { return &c->door->server->metrics; }
+
+/* Compares without an early exit, so timing does not leak the token. */
+static bool token_matches(const char *given, size_t length, const char *expected)
+{
+    size_t n = strlen(expected);
+    unsigned diff = (unsigned)(length != n);
+    for (size_t i = 0; i < n; ++i)
+        diff |= (unsigned char)(i < length ? given[i] : 0) ^ (unsigned char)expected[i];
+    return diff == 0;
+}
+
+/* Token bucket of section 7: rate max_request_rate, burst max_batch. Returns 0
+ * when n requests may go now (and takes them), else the milliseconds to wait. */
+static uint64_t rate_take(ms_serve_conn *c, uint32_t n)
+{
+    double rate = c->door->limits.max_request_rate;
+    if (rate <= 0)
+        return 0;
+    double burst = c->door->limits.max_batch, now = ms_now_seconds();
+    c->rate_tokens += (now - c->rate_updated) * rate;
+    if (c->rate_tokens > burst)
+        c->rate_tokens = burst;
+    c->rate_updated = now;
+    if (c->rate_tokens >= n) {
+        c->rate_tokens -= n;
+        return 0;
+    }
+    uint64_t wait = (uint64_t)ceil((n - c->rate_tokens) / rate * 1000.0);
+    return wait ? wait : 1;
+}
+
+static bool rate_allows(ms_serve_conn *c, uint32_t request_id, uint32_t n)
+{
+    uint64_t wait = rate_take(c, n);
+    if (!wait)
+        return true;
+    ms_serve_conn_send_error(c, MS_PROTO_E_RATE_LIMITED, request_id, n, wait, "request rate limit");
+    return false;
+}
+
+/* The duplicate-id rule of section 5 (fatal). */
+static bool ids_free(ms_serve_conn *c, uint32_t first, uint32_t count)
+{
+    for (uint32_t i = 0; i < count; ++i)
+        if (ms_request_queue_find(&c->queue, first + i)) {
+            char text[64];
+            snprintf(text, sizeof text, "request id %u is already outstanding", first + i);
+            ms_serve_conn_fail(c, MS_PROTO_E_DUPLICATE_REQUEST_ID, first + i, text);
+            return false;
+        }
+    return true;
+}
+
+/* Steps of a model and those this connection may read (section 8). */
+static void model_steps(const ms_serve_conn *c, const ms_model *m, uint8_t *geometry, uint8_t *apo,
+                        uint8_t *permitted_geometry, uint8_t *permitted_apo)
+{
+    ms_access grant = ms_access_grant(m, c->token_accepted);
+    *geometry = grant.geometry_steps;
+    *apo = grant.apo_steps;
+    *permitted_geometry = grant.permitted_geometry_steps;
+    *permitted_apo = grant.permitted_apo_steps;
+}
+
+static bool model_servable(const ms_model *m)
+{
+    size_t size;
+    ms_archive_index_bytes(m->archive, &size);
+    return size >= 1 && size <= MS_PROTO_MAX_INDEX_SIZE &&
+           ms_archive_get_header(m->archive)->cell_count <= MS_PROTO_MAX_CELLS;
+}
+
+static ms_open_model *find_handle(ms_serve_conn *c, uint32_t handle)
+{
+    for (unsigned i = 0; handle && i < MS_PROTO_CONN_MAX_OPEN_MODELS; ++i)
+        if (c->models[i].handle == handle)
+            return &c->models[i];
+    return NULL;
+}
+
+/* Ends a queued request with ERROR CANCELLED. */
+static void cancel_request(ms_serve_conn *c, ms_cell_request *r)
+{
+    ms_server_metrics *m = metrics_of(c);
+    m->queued_requests--;
+    m->queued_bytes -= r->end - r->next;
+    ms_request_queue_remove(&c->queue, r);
+    ms_serve_conn_send_error(c, MS_PROTO_E_CANCELLED, r->id, 1, 0, "cancelled");
+    free(r);
+}
+
+/* --- Messages --------------------------------------------------------------- */
+
+static void handle_hello(ms_serve_conn *c, const ms_proto_hello *h)
+{
+    uint16_t version;
+    if (ms_proto_choose_version(h->min_version, h->max_version, MS_PROTO_MIN_VERSION,
+                                MS_PROTO_VERSION, &version) != MS_OK) {
+        ms_serve_conn_fail(c, MS_PROTO_E_UNSUPPORTED_VERSION,
+                           MS_PROTO_MIN_VERSION | (uint64_t)MS_PROTO_VERSION << 16,
+                           "no common protocol version");
+        return;
+    }
+    const char *token = server_of(c)->config.token;
+    c->client_max_frame = h->max_frame;
+    /* CAP_INDEX_ZLIB is a version-2 capability: a version-1 peer never gets it. */
+    uint32_t offered = MS_PROTO_CAP_APO | (version >= 2 ? MS_PROTO_CAP_INDEX_ZLIB : 0);
+    c->capabilities = h->capabilities & offered;
+    c->token_accepted = token && h->token_length && token_matches(h->token, h->token_length, token);
+    ms_proto_message reply = {.type = MS_PROTO_HELLO_REPLY};
+    reply.body.hello_reply = c->door->limits;
+    reply.body.hello_reply.version = version;
+    reply.body.hello_reply.capabilities = c->capabilities;
+    reply.body.hello_reply.server_flags = c->token_accepted ? MS_PROTO_SERVER_TOKEN_ACCEPTED : 0;
+    ms_serve_conn_send_message(c, &reply);
+    if (c->state != MS_CONN_CLOSING)
+        c->state = MS_CONN_READY;
+}
+
+static void handle_list_catalogue(ms_serve_conn *c, uint32_t id)
+{
+    metrics_of(c)->binary_requests++;
+    if (!ids_free(c, id, 1) || !rate_allows(c, id, 1))
+        return;
+    const ms_registry *r = server_of(c)->registry;
+    size_t model_count = ms_registry_count(r);
+    ms_proto_catalogue_entry entries[CATALOGUE_FRAME_BYTES / MS_PROTO_CATALOGUE_ENTRY_FIXED];
+    char titles[CATALOGUE_FRAME_BYTES / MS_PROTO_CATALOGUE_ENTRY_FIXED][64];
+    uint32_t limit =
+        c->client_max_frame < CATALOGUE_FRAME_BYTES ? c->client_max_frame : CATALOGUE_FRAME_BYTES;
+    size_t count = 0, body = MS_PROTO_CATALOGUE_FIXED, listed = 0;
+    for (size_t i = 0; i <= model_count; ++i) {
+        const ms_model *m = i < model_count ? ms_registry_model(r, i) : NULL;
+        if (m && !model_servable(m))
+            continue;
+        size_t name_length = m ? strlen(m->entry.name) : 0;
+        size_t entry_size = 0;
+        if (m) {
+            snprintf(titles[count], sizeof titles[count], "%llu vertices, %llu triangles",
+                     (unsigned long long)m->entry.vertices, (unsigned long long)m->entry.triangles);
+            entry_size = MS_PROTO_CATALOGUE_ENTRY_FIXED + name_length + strlen(titles[count]);
+        }
+        bool flush = !m || body + entry_size > limit ||
+                     count + 1 == sizeof entries / sizeof *entries || listed == 65535;
+        if (flush && (count || !m)) {
+            ms_proto_message msg = {.type = MS_PROTO_CATALOGUE, .request_id = id};
+            msg.flags = !m || listed == 65535 ? MS_PROTO_FLAG_LAST : 0;
+            msg.body.catalogue.entries = entries;
+            msg.body.catalogue.entry_count = (uint16_t)count;
+            ms_serve_conn_send_message(c, &msg);
+            if (!m || listed == 65535)
+                return;
+            /* The pending title was written at titles[count]: move it. */
+            memcpy(titles[0], titles[count], sizeof titles[0]);
+            count = 0;
+            body = MS_PROTO_CATALOGUE_FIXED;
+        }
+        ms_proto_catalogue_entry *e = &entries[count];
+        memset(e, 0, sizeof *e);
+        e->name = m->entry.name;
+        e->name_length = (uint8_t)name_length;
+        model_steps(c, m, &e->geometry_steps, &e->apo_steps, &e->permitted_geometry_steps,
+                    &e->permitted_apo_steps);
+        e->title = titles[count];
+        e->title_length = (uint16_t)strlen(titles[count]);
+        e->cell_count = ms_archive_get_header(m->archive)->cell_count;
+        e->content_id = m->content_id;
+        e->archive_bytes = m->file_size;
+        body += entry_size;
+        ++count;
+        ++listed;
+    }
+}
+
+static void handle_open_model(ms_serve_conn *c, uint32_t id, const ms_proto_open_model *o)
+{
+    metrics_of(c)->binary_requests++;
+    if (!ids_free(c, id, 1) || !rate_allows(c, id, 1))
+        return;
+    char name[MS_PROTO_MAX_MODEL_NAME + 1];
+    memcpy(name, o->name, o->name_length);
+    name[o->name_length] = '\0';
+    ms_model *m = ms_registry_find(server_of(c)->registry, name);
+    if (!m || !model_servable(m)) {
+        ms_serve_conn_send_error(c, MS_PROTO_E_UNKNOWN_MODEL, id, 1, 0, "no such model");
+        return;
+    }
+    ms_open_model *slot = find_handle(c, 0);
+    for (unsigned i = 0; !slot && i < MS_PROTO_CONN_MAX_OPEN_MODELS; ++i)
+        if (!c->models[i].handle)
+            slot = &c->models[i];
+    if (!slot) {
+        ms_serve_conn_send_error(c, MS_PROTO_E_TOO_MANY_MODELS, id, 1,
+                                 MS_PROTO_CONN_MAX_OPEN_MODELS, "too many open models");
+        return;
+    }
+    do
+        ++c->next_handle;
+    while (!c->next_handle || find_handle(c, c->next_handle));
+    slot->handle = c->next_handle;
+    slot->model = m;
+    ms_model_ref(m);
+    ms_proto_message msg = {.type = MS_PROTO_MODEL_OPENED, .request_id = id};
+    ms_proto_model_opened *mo = &msg.body.model_opened;
+    size_t index_size;
+    const uint8_t *index = ms_archive_index_bytes(m->archive, &index_size);
+    /* What INDEX_DATA carries: the blob, or its zlib stream (a fifth of it). */
+    const uint8_t *wire = index;
+    size_t wire_size = index_size;
+    if ((c->capabilities & MS_PROTO_CAP_INDEX_ZLIB) && m->index_zlib) {
+        wire = m->index_zlib;
+        wire_size = m->index_zlib_size;
+        mo->index_encoding = MS_PROTO_INDEX_ZLIB;
+    }
+    mo->model_handle = slot->handle;
+    mo->cell_count = ms_archive_get_header(m->archive)->cell_count;
+    mo->content_id = m->content_id;
+    mo->index_size = (uint32_t)index_size;
+    mo->index_crc32 = m->index_crc32;
+    mo->archive_version = MS_ARCHIVE_BLOB_VERSION; /* the blob, not the file: always 1 */
+    model_steps(c, m, &mo->geometry_steps, &mo->apo_steps, &mo->permitted_geometry_steps,
+                &mo->permitted_apo_steps);
+    slot->grant = ms_access_grant(m, c->token_accepted);
+    ms_serve_conn_send_message(c, &msg);
+    uint32_t chunk = c->client_max_frame - MS_PROTO_INDEX_DATA_FIXED;
+    if (chunk > INDEX_CHUNK_BYTES)
+        chunk = INDEX_CHUNK_BYTES;
+    for (uint32_t offset = 0; offset < wire_size && c->state != MS_CONN_CLOSING;) {
+        uint32_t n = (uint32_t)wire_size - offset < chunk ? (uint32_t)wire_size - offset : chunk;
+        ms_error err;
+        if (ms_frame_out_index_data(output(c), id, offset, offset + n == wire_size, wire + offset,
+                                    n, m, &metrics_of(c)->transfers_in_flight, &err) != MS_OK)
+            ms_serve_conn_broken(c);
+        offset += n;
+    }
+}
+
+/* Which queued requests a CANCEL range or a CLOSE_MODEL names. */
+typedef struct request_match {
+    uint32_t handle;       /* 0: match by ids */
+    uint32_t first, count; /* ids first .. first + count - 1 */
+} request_match;
+
+static bool matches(const ms_cell_request *r, const request_match *m)
+{
+    return m->handle ? r->handle == m->handle : r->id >= m->first && r->id - m->first < m->count;
+}
+
+/* Cancels every queued request that matches. The matches are collected
+ * before any removal, because a removal reorders the heap. */
+static void cancel_matching(ms_serve_conn *c, const request_match *m)
+{
+    ms_cell_request **doomed = c->queue.count ? malloc(c->queue.count * sizeof *doomed) : NULL;
+    if (!doomed) { /* empty queue, or out of memory: rescan after each removal */
+        for (size_t i = 0; i < c->queue.count;) {
+            if (matches(c->queue.heap[i], m)) {
+                cancel_request(c, c->queue.heap[i]);
+                i = 0;
+            } else {
+                ++i;
+            }
+        }
+        return;
+    }
+    size_t n = 0;
+    for (size_t i = 0; i < c->queue.count; ++i)
+        if (matches(c->queue.heap[i], m))
+            doomed[n++] = c->queue.heap[i];
+    for (size_t i = 0; i < n; ++i)
+        cancel_request(c, doomed[i]);
+    free(doomed);
+}
+
+static void handle_close_model(ms_serve_conn *c, uint32_t handle)
+{
+    ms_open_model *slot = find_handle(c, handle);
+    if (!slot) {
+        ms_serve_conn_send_error(c, MS_PROTO_E_UNKNOWN_MODEL, 0, 0, handle,
+                                 "no open model with this handle");
+        return;
+    }
+    request_match m = {handle, 0, 0};
+    cancel_matching(c, &m);
+    ms_model_unref(slot->model);
+    memset(slot, 0, sizeof *slot);
+}
+
+static void handle_cancel(ms_serve_conn *c, const ms_proto_cancel *k)
+{
+    if (k->flags & MS_PROTO_CANCEL_ALL) {
+        while (c->queue.count)
+            cancel_request(c, c->queue.heap[c->queue.count - 1]);
+        return;
+    }
+    for (uint16_t i = 0; i < k->range_count; ++i) {
+        uint32_t first = k->ranges[i].first_id, count = k->ranges[i].count;
+        if (count > c->queue.count) { /* a wide range: scan the queue */
+            request_match m = {0, first, count};
+            cancel_matching(c, &m);
+            continue;
+        }
+        for (uint32_t j = 0; j < count; ++j) { /* a narrow one: look each id up */
+            ms_cell_request *r = ms_request_queue_find(&c->queue, first + j);
+            if (r)
+                cancel_request(c, r);
+        }
+    }
+}
+
+/* One entry of a batch resolved to a byte range, or to the error ending it. */
+typedef struct resolved {
+    uint16_t code; /* 0 = fine */
+    uint64_t detail;
+    uint32_t start, end;
+} resolved;
+
+/* What may be sent (ms_access_resolve), and only from an intact payload. */
+static resolved resolve_entry(const ms_serve_conn *c, const ms_open_model *slot,
+                              const ms_proto_cell_request *e)
+{
+    ms_proto_byte_range range;
+    ms_proto_fault fault = {.code = MS_PROTO_E_INTERNAL};
+    if (ms_access_resolve(slot->model, &slot->grant, e, &range, &fault, NULL) != MS_OK)
+        return (resolved){fault.code, fault.detail, 0, 0};
+    if (range.begin < range.end &&
+        !ms_server_payload_intact(server_of(c), slot->model, e->cell_id,
+                                  e->stream == MS_PROTO_STREAM_APO))
+        return (resolved){MS_PROTO_E_INTERNAL, 0, 0, 0};
+    return (resolved){0, 0, range.begin, range.end};
+}
+
+static const char *entry_error_text(uint16_t code)
+{
+    switch (code) {
+    case MS_PROTO_E_UNKNOWN_CELL: return "no such cell";
+    case MS_PROTO_E_RANGE_NOT_SATISFIABLE: return "byte range outside the stream";
+    case MS_PROTO_E_FORBIDDEN: return "beyond the public preview; a token is required";
+    case MS_PROTO_E_INTERNAL: return "the archive's copy of this payload is damaged";
+    default: return "request failed";
+    }
+}
+
+static void handle_request_cells(ms_serve_conn *c, uint32_t first_id,
+                                 const ms_proto_request_cells *b)
+{
+    const ms_proto_hello_reply *limits = &c->door->limits;
+    uint32_t n = b->count;
+    metrics_of(c)->binary_requests += n;
+    ms_open_model *slot = find_handle(c, b->model_handle);
+    if (!slot) {
+        ms_serve_conn_send_error(c, MS_PROTO_E_UNKNOWN_MODEL, first_id, n, b->model_handle,
+                                 "no open model with this handle");
+        return;
+    }
+    if (!(c->capabilities & MS_PROTO_CAP_APO))
+        for (uint32_t i = 0; i < n; ++i)
+            if (b->entries[i].stream == MS_PROTO_STREAM_APO) {
+                ms_serve_conn_send_error(c, MS_PROTO_E_FIELD_OUT_OF_RANGE, first_id, n,
+                                         MS_PROTO_REQUEST_CELLS_FIXED +
+                                             MS_PROTO_CELL_REQUEST_SIZE * i + 4,
+                                         "APO requested without the APO capability");
+                return;
+            }
+    if (!ids_free(c, first_id, n))
+        return;
+    if (c->queue.count + n > limits->max_outstanding) {
+        ms_serve_conn_send_error(c, MS_PROTO_E_TOO_MANY_OUTSTANDING, first_id, n,
+                                 limits->max_outstanding, "too many outstanding requests");
+        return;
+    }
+    resolved *ranges = malloc(n * sizeof *ranges);
+    if (!ranges) {
+        ms_serve_conn_send_error(c, MS_PROTO_E_INTERNAL, first_id, n, 0, "out of memory");
+        return;
+    }
+    uint64_t bytes = 0;
+    for (uint32_t i = 0; i < n; ++i) {
+        ranges[i] = resolve_entry(c, slot, &b->entries[i]);
+        if (!ranges[i].code)
+            bytes += ranges[i].end - ranges[i].start;
+    }
+    ms_error err;
+    if (c->queue.queued_bytes + bytes > limits->max_queued_bytes) {
+        ms_serve_conn_send_error(c, MS_PROTO_E_QUEUE_FULL, first_id, n, limits->max_queued_bytes,
+                                 "too many payload bytes queued");
+    } else if (rate_allows(c, first_id, n)) {
+        if (ms_request_queue_reserve(&c->queue, n, &err) != MS_OK) {
+            ms_serve_conn_send_error(c, MS_PROTO_E_INTERNAL, first_id, n, 0, "out of memory");
+        } else {
+            bool queued = false;
+            for (uint32_t i = 0; i < n && c->state != MS_CONN_CLOSING; ++i) {
+                const ms_proto_cell_request *e = &b->entries[i];
+                const resolved *r = &ranges[i];
+                ms_cell_request *q = r->code || r->start == r->end ? NULL : malloc(sizeof *q);
+                if (r->code) {
+                    ms_serve_conn_send_error(c, r->code, first_id + i, 1, r->detail,
+                                             entry_error_text(r->code));
+                } else if (r->start == r->end) {
+                    if (ms_frame_out_payload(output(c), first_id + i, e->cell_id, e->stream,
+                                             r->start, r->end, true, NULL, 0, slot->model,
+                                             &metrics_of(c)->transfers_in_flight, &err) != MS_OK)
+                        ms_serve_conn_broken(c);
+                } else if (!q) {
+                    ms_serve_conn_send_error(c, MS_PROTO_E_INTERNAL, first_id + i, 1, 0,
+                                             "out of memory");
+                } else {
+                    memset(q, 0, sizeof *q);
+                    q->id = first_id + i;
+                    q->priority = e->priority;
+                    q->stream = e->stream;
+                    q->handle = slot->handle;
+                    q->model = slot->model;
+                    q->cell = e->cell_id;
+                    q->next = r->start;
+                    q->end = r->end;
+                    ms_request_queue_push(&c->queue, q);
+                    metrics_of(c)->queued_requests++;
+                    metrics_of(c)->queued_bytes += r->end - r->start;
+                    queued = true;
+                }
+            }
+            if (queued && c->state == MS_CONN_READY)
+                ms_fair_scheduler_wake(&c->door->scheduler, &c->link);
+        }
+    }
+    free(ranges);
+}
+
+void ms_serve_conn_handle_message(ms_serve_conn *c, const ms_proto_message *msg)
+{
+    switch ((ms_proto_type)msg->type) {
+    case MS_PROTO_HELLO: handle_hello(c, &msg->body.hello); break;
+    case MS_PROTO_LIST_CATALOGUE: handle_list_catalogue(c, msg->request_id); break;
+    case MS_PROTO_OPEN_MODEL: handle_open_model(c, msg->request_id, &msg->body.open_model); break;
+    case MS_PROTO_CLOSE_MODEL: handle_close_model(c, msg->body.close_model.model_handle); break;
+    case MS_PROTO_REQUEST_CELLS:
+        handle_request_cells(c, msg->request_id, &msg->body.request_cells);
+        break;
+    case MS_PROTO_CANCEL: handle_cancel(c, &msg->body.cancel); break;
+    case MS_PROTO_PING: {
+        ms_proto_message pong = {.type = MS_PROTO_PONG};
+        pong.body.ping = msg->body.ping;
+        ms_serve_conn_send_message(c, &pong);
+        break;
+    }
+    case MS_PROTO_PONG: break;
+    case MS_PROTO_ERROR:
+        if (msg->body.error.fatal) {
+            ms_server_log(server_of(c), "binary: client reported %s: %.*s",
+                          ms_proto_error_name(msg->body.error.code),
+                          (int)msg->body.error.text_length, msg->body.error.text);
+            ms_serve_conn_start_closing(c);
+        }
+        break;
+    default: /* the decoder lets no other type through */ break;
+    }
+}

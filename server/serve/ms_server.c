@@ -1,0 +1,236 @@
+/* meshserve process core: see ms_server.h. */
+#include "ms_server_internal.h"
+
+#include <event2/event.h>
+#include <signal.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/resource.h>
+#include <time.h>
+
+#include "ms_http_door.h"
+#include "ms_progress.h"
+#include "ms_proto_door.h"
+
+#define DRAIN_LIMIT_SECONDS 10.0
+
+void ms_server_log(const ms_server *server, const char *fmt, ...)
+{
+    (void)server;
+    char stamp[32];
+    ms_catalog_now(stamp, sizeof stamp);
+    char line[1024];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(line, sizeof line, fmt, ap);
+    va_end(ap);
+    fprintf(stderr, "%s meshserve: %s\n", stamp, line);
+}
+
+bool ms_server_payload_intact(const ms_server *s, ms_model *model, uint32_t cell, bool apo)
+{
+    bool first_report;
+    ms_error err;
+    if (ms_model_check_payload(model, cell, apo, &first_report, &err) == MS_OK)
+        return true;
+    if (first_report)
+        ms_server_log(s, "model '%s': %s; not served", model->entry.name, err.text);
+    return false;
+}
+
+static void warn_model(void *arg, const char *message) { ms_server_log(arg, "%s", message); }
+
+ms_status ms_server_rescan(ms_server *s, ms_error *err)
+{
+    ms_registry *fresh;
+    ms_status st = ms_registry_scan(s->config.archive_dir, s->registry, &fresh, warn_model, s, err);
+    if (st != MS_OK) {
+        s->metrics.rescan_failures++;
+        return st;
+    }
+    ms_registry_free(s->registry);
+    s->registry = fresh;
+    s->metrics.rescans++;
+    return MS_OK;
+}
+
+static void check_drained(evutil_socket_t fd, short what, void *arg)
+{
+    (void)fd, (void)what;
+    ms_server *s = arg;
+    double waited = ms_now_seconds() - s->drain_started_at;
+    size_t connections = ms_serve_door_connection_count(s->binary);
+    if ((s->metrics.transfers_in_flight == 0 && connections == 0) || waited > DRAIN_LIMIT_SECONDS) {
+        if (s->metrics.transfers_in_flight || connections)
+            ms_server_log(s, "drain: giving up on %llu transfers and %zu connections after %.0f s",
+                          (unsigned long long)s->metrics.transfers_in_flight, connections, waited);
+        event_base_loopexit(s->base, NULL);
+    }
+}
+
+void ms_server_drain(ms_server *s)
+{
+    if (s->draining)
+        return;
+    s->draining = true;
+    s->drain_started_at = ms_now_seconds();
+    ms_server_log(s, "draining: %llu transfers in flight, %zu binary connections",
+                  (unsigned long long)s->metrics.transfers_in_flight,
+                  ms_serve_door_connection_count(s->binary));
+    ms_serve_door_drain(s->binary);
+    struct timeval tick = {0, 50000};
+    s->drain_timer = event_new(s->base, -1, EV_PERSIST, check_drained, s);
+    if (!s->drain_timer || event_add(s->drain_timer, &tick) != 0)
+        event_base_loopexit(s->base, NULL);
+}
+
+static void on_signal(evutil_socket_t signal_number, short what, void *arg)
+{
+    (void)what;
+    ms_server *s = arg;
+    if (signal_number == SIGHUP) {
+        ms_error err;
+        if (ms_server_rescan(s, &err) == MS_OK)
+            ms_server_log(s, "rescan: %zu models", ms_registry_count(s->registry));
+        else
+            ms_server_log(s, "rescan failed, keeping the previous models: %s", err.text);
+        return;
+    }
+    ms_server_drain(s);
+}
+
+static ms_status write_port_file(const ms_server *s, ms_error *err)
+{
+    const char *path = s->config.port_file;
+    char tmp[4200];
+    snprintf(tmp, sizeof tmp, "%s.partial", path);
+    FILE *f = fopen(tmp, "w");
+    if (!f || fprintf(f, "%u %u\n", s->bound_port, s->bound_http_port) < 0 || fclose(f) != 0 ||
+        rename(tmp, path) != 0)
+        return ms_error_set(err, MS_ERR_IO, "%s: cannot write the port file", path);
+    return MS_OK;
+}
+
+/* Room for max_clients connections (plus rejected ones, HTTP clients and the
+ * archives): raises the soft descriptor limit up to the hard one. */
+static void raise_descriptor_limit(ms_server *s)
+{
+    struct rlimit rl;
+    rlim_t want = (rlim_t)s->config.max_clients + s->config.http_max_connections + 256 + 2 * 64;
+    if (getrlimit(RLIMIT_NOFILE, &rl) != 0 || rl.rlim_cur >= want)
+        return;
+    rl.rlim_cur = want < rl.rlim_max ? want : rl.rlim_max;
+    if (setrlimit(RLIMIT_NOFILE, &rl) != 0 || rl.rlim_cur < want)
+        ms_server_log(s, "warning: %llu file descriptors allowed, fewer than max_clients needs",
+                      (unsigned long long)rl.rlim_cur);
+}
+
+static void server_stop(ms_server *s);
+
+static ms_status server_start(ms_server *s, ms_server_config *config, ms_error *err)
+{
+    s->config = *config;
+    memset(config, 0, sizeof *config);
+    s->started_at = ms_now_seconds();
+    raise_descriptor_limit(s);
+    ms_status st = ms_registry_scan(s->config.archive_dir, NULL, &s->registry, warn_model, s, err);
+    if (st != MS_OK) {
+        ms_server_config_free(&s->config);
+        return st;
+    }
+    /* epoll's change list folds the add/delete of a socket's write interest
+     * within one loop turn into one system call (at most), which matters with
+     * many connections that each fill and drain every turn. */
+    struct event_config *event_settings = event_config_new();
+    if (event_settings)
+        event_config_set_flag(event_settings, EVENT_BASE_FLAG_EPOLL_USE_CHANGELIST);
+    s->base = event_settings ? event_base_new_with_config(event_settings) : NULL;
+    if (event_settings)
+        event_config_free(event_settings);
+    if (!s->base) {
+        server_stop(s);
+        return ms_error_set(err, MS_ERR_NOMEM, "cannot create the event loop");
+    }
+    st = ms_serve_door_open(s, &s->binary, &s->bound_port, err);
+    if (st != MS_OK) {
+        server_stop(s);
+        return st;
+    }
+    if (s->config.http_enabled) {
+        st = ms_http_door_open(s, &s->http, &s->bound_http_port, err);
+        if (st != MS_OK) {
+            server_stop(s);
+            return st;
+        }
+    }
+    const int signals[3] = {SIGTERM, SIGINT, SIGHUP};
+    for (int i = 0; i < 3; ++i) {
+        s->signal_events[i] = evsignal_new(s->base, signals[i], on_signal, s);
+        if (!s->signal_events[i] || event_add(s->signal_events[i], NULL) != 0) {
+            server_stop(s);
+            return ms_error_set(err, MS_ERR_IO, "cannot install signal handlers");
+        }
+    }
+    signal(SIGPIPE, SIG_IGN);
+    if (s->config.port_file && (st = write_port_file(s, err)) != MS_OK) {
+        server_stop(s);
+        return st;
+    }
+    return MS_OK;
+}
+
+void ms_server_run(ms_server *s) { event_base_dispatch(s->base); }
+
+static void server_stop(ms_server *s)
+{
+    ms_serve_door_close(s->binary);
+    s->binary = NULL;
+    ms_http_door_close(s->http);
+    s->http = NULL;
+    for (int i = 0; i < 3; ++i)
+        if (s->signal_events[i])
+            event_free(s->signal_events[i]);
+    if (s->drain_timer)
+        event_free(s->drain_timer);
+    if (s->base)
+        event_base_free(s->base);
+    ms_registry_free(s->registry);
+    ms_server_config_free(&s->config);
+    memset(s, 0, sizeof *s);
+}
+
+ms_status ms_server_new(ms_server_config *config, ms_server **out, ms_error *err)
+{
+    *out = NULL;
+    ms_server *s = calloc(1, sizeof *s);
+    if (!s) {
+        ms_server_config_free(config);
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory for the server");
+    }
+    ms_status st = server_start(s, config, err);
+    if (st != MS_OK) {
+        free(s);
+        return st;
+    }
+    *out = s;
+    return MS_OK;
+}
+
+void ms_server_free(ms_server *s)
+{
+    if (!s)
+        return;
+    server_stop(s);
+    free(s);
+}
+
+size_t ms_server_model_count(const ms_server *s) { return ms_registry_count(s->registry); }
+const char *ms_server_archive_dir(const ms_server *s) { return s->config.archive_dir; }
+uint16_t ms_server_bound_port(const ms_server *s, bool http)
+{
+    return http ? s->bound_http_port : s->bound_port;
+}
+const ms_server_metrics *ms_server_get_metrics(const ms_server *s) { return &s->metrics; }
+double ms_server_started_at(const ms_server *s) { return s->started_at; }

@@ -1,0 +1,208 @@
+/* The rooms of docs/ARCHITECTURE.md and the build's enforcement of them: every
+ * quoted #include of every source file resolves inside the rooms its room may
+ * use (the Makefile's USES_ lists, read back with `make -s room-flags`), no file
+ * includes another room's *_internal.h, and a file that reaches into a room it
+ * may not use fails to compile. Runs from the repository root. */
+#include <stdarg.h>
+#include <stdbool.h>
+#include <stddef.h>
+#include <setjmp.h>
+#include <stdint.h>
+#include <dirent.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <cmocka.h>
+
+#include "ms_test.h"
+
+enum { MAX_ROOMS = 32, MAX_DIRS = 32, PATH_LEN = 512 };
+
+typedef struct {
+    char name[64];
+    char dirs[MAX_DIRS][64]; /* include directories, the room's own among them */
+    size_t dir_count;
+} room_info;
+
+typedef struct {
+    room_info rooms[MAX_ROOMS];
+    size_t count;
+} room_table;
+
+static void split_words(const char *text, void (*take)(const char *word, void *ctx), void *ctx)
+{
+    const char *p = text;
+    while (*p) {
+        while (*p == ' ' || *p == '\n' || *p == '\t')
+            ++p;
+        const char *start = p;
+        while (*p && *p != ' ' && *p != '\n' && *p != '\t')
+            ++p;
+        if (p > start) {
+            char word[128];
+            size_t n = (size_t)(p - start) < sizeof word - 1 ? (size_t)(p - start) : sizeof word - 1;
+            memcpy(word, start, n);
+            word[n] = '\0';
+            take(word, ctx);
+        }
+    }
+}
+
+static void add_room(const char *word, void *ctx)
+{
+    room_table *t = ctx;
+    assert_true(t->count < MAX_ROOMS);
+    snprintf(t->rooms[t->count++].name, sizeof t->rooms[0].name, "%s", word);
+}
+
+static void add_dir(const char *word, void *ctx)
+{
+    room_info *r = ctx;
+    assert_true(strncmp(word, "-I", 2) == 0);
+    assert_true(r->dir_count < MAX_DIRS);
+    snprintf(r->dirs[r->dir_count++], sizeof r->dirs[0], "%s", word + 2);
+}
+
+static void load_rooms(room_table *t)
+{
+    static char out[8192];
+    memset(t, 0, sizeof *t);
+    assert_int_equal(ms_test_run("make -s --no-print-directory rooms", out, sizeof out), 0);
+    split_words(out, add_room, t);
+    assert_true(t->count >= 10);
+    for (size_t i = 0; i < t->count; ++i) {
+        char cmd[PATH_LEN];
+        snprintf(cmd, sizeof cmd, "make -s --no-print-directory room-flags ROOM=%s", t->rooms[i].name);
+        assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
+        split_words(out, add_dir, &t->rooms[i]);
+    }
+}
+
+static bool file_exists(const char *dir, const char *name)
+{
+    char path[PATH_LEN];
+    struct stat st;
+    snprintf(path, sizeof path, "%s/%s", dir, name);
+    return stat(path, &st) == 0 && S_ISREG(st.st_mode);
+}
+
+static bool is_source(const char *name)
+{
+    const char *dot = strrchr(name, '.');
+    return dot && (strcmp(dot, ".c") == 0 || strcmp(dot, ".h") == 0 || strcmp(dot, ".cpp") == 0);
+}
+
+static bool ends_with(const char *s, const char *suffix)
+{
+    size_t n = strlen(s), m = strlen(suffix);
+    return n >= m && strcmp(s + n - m, suffix) == 0;
+}
+
+/* Checks one file's quoted includes; returns the number of violations, each
+ * printed as one line. */
+static size_t check_file(const room_table *t, const room_info *room, const char *path)
+{
+    FILE *f = fopen(path, "r");
+    assert_non_null(f);
+    size_t bad = 0;
+    char line[1024];
+    while (fgets(line, sizeof line, f)) {
+        char header[256];
+        if (sscanf(line, " #include \"%255[^\"]\"", header) != 1)
+            continue;
+        bool allowed = false;
+        for (size_t d = 0; d < room->dir_count && !allowed; ++d)
+            allowed = file_exists(room->dirs[d], header);
+        if (!allowed) {
+            /* A header in no room at all (generated, system) is not ours to judge. */
+            for (size_t r = 0; r < t->count; ++r)
+                if (file_exists(t->rooms[r].name, header)) {
+                    printf("layering: %s includes %s from %s, which %s may not use\n", path, header,
+                           t->rooms[r].name, room->name);
+                    ++bad;
+                    break;
+                }
+        }
+        if (ends_with(header, "_internal.h") && !file_exists(room->name, header)) {
+            printf("layering: %s includes another room's internal header %s\n", path, header);
+            ++bad;
+        }
+    }
+    fclose(f);
+    return bad;
+}
+
+static void test_every_include_stays_within_the_rooms_used(void **state)
+{
+    (void)state;
+    room_table t;
+    load_rooms(&t);
+    size_t files = 0, bad = 0;
+    for (size_t i = 0; i < t.count; ++i) {
+        const room_info *room = &t.rooms[i];
+        bool sees_itself = false;
+        for (size_t d = 0; d < room->dir_count; ++d)
+            sees_itself |= strcmp(room->dirs[d], room->name) == 0;
+        assert_true(sees_itself);
+        DIR *dir = opendir(room->name);
+        assert_non_null(dir);
+        for (struct dirent *e; (e = readdir(dir));) {
+            if (!is_source(e->d_name))
+                continue;
+            char path[PATH_LEN];
+            snprintf(path, sizeof path, "%s/%s", room->name, e->d_name);
+            bad += check_file(&t, room, path);
+            ++files;
+        }
+        closedir(dir);
+    }
+    assert_true(files > 150);
+    assert_int_equal(bad, 0);
+}
+
+/* Compiles a one-line file as if it lived in `room`, with the room's include
+ * paths; returns the compiler's exit status. */
+static int compile_in_room(const room_table *t, const char *room_name, const char *header)
+{
+    const room_info *room = NULL;
+    for (size_t i = 0; i < t->count; ++i)
+        if (strcmp(t->rooms[i].name, room_name) == 0)
+            room = &t->rooms[i];
+    assert_non_null(room);
+    char cmd[4096];
+    int n = snprintf(cmd, sizeof cmd, "printf '#include \"%s\"\\n' | cc -std=c11 -D_DEFAULT_SOURCE -fsyntax-only", header);
+    for (size_t d = 0; d < room->dir_count; ++d)
+        n += snprintf(cmd + n, sizeof cmd - (size_t)n, " -I%s", room->dirs[d]);
+    snprintf(cmd + n, sizeof cmd - (size_t)n, " -x c -");
+    static char out[8192];
+    return ms_test_run(cmd, out, sizeof out);
+}
+
+static void test_the_build_refuses_a_reach_into_a_room_not_used(void **state)
+{
+    (void)state;
+    room_table t;
+    load_rooms(&t);
+    /* Below: allowed. */
+    assert_int_equal(compile_in_room(&t, "common/codec", "ms_mesh.h"), 0);
+    assert_int_equal(compile_in_room(&t, "client/view", "ms_client_core.h"), 0);
+    assert_int_equal(compile_in_room(&t, "server/bake", "ms_tri_unify.h"), 0);
+    /* Upward or sideways: refused. */
+    assert_int_not_equal(compile_in_room(&t, "common/codec", "ms_client_core.h"), 0);
+    assert_int_not_equal(compile_in_room(&t, "common/util", "ms_mesh.h"), 0);
+    assert_int_not_equal(compile_in_room(&t, "protocol", "ms_archive.h"), 0);
+    assert_int_not_equal(compile_in_room(&t, "server/serve", "ms_bake.h"), 0);
+    assert_int_not_equal(compile_in_room(&t, "server/apo", "ms_nsp_build.h"), 0);
+    assert_int_not_equal(compile_in_room(&t, "client/core", "ms_render.h"), 0);
+    assert_int_not_equal(compile_in_room(&t, "client/view", "ms_loadgen_plan.h"), 0);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_every_include_stays_within_the_rooms_used),
+        cmocka_unit_test(test_the_build_refuses_a_reach_into_a_room_not_used),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
