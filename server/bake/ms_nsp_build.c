@@ -14,6 +14,7 @@
 #include <unistd.h>
 
 #include "ms_archive.h"
+#include "ms_nsp_key_cache.h"
 #include "ms_progress.h"
 
 #define BLOCK_BYTES 4096
@@ -21,8 +22,6 @@
 #define RECORD MS_NSP_RECORD_BYTES
 #define BLOCK_RECORDS ((BLOCK_BYTES - BLOCK_HEAD) / RECORD)
 #define SPOOL_CHUNK 65536
-#define KEY_PAGE_KEYS 8192u          /* keys per key-file page (64 KiB) */
-#define KEY_USED (UINT64_C(1) << 63) /* key-file mark: a kept triangle uses the vertex */
 
 /* ---- temporary files ---------------------------------------------------- */
 
@@ -535,170 +534,93 @@ static ms_status compute_keys(ms_nsp_build *b, FILE *vspool, int key_fd, ms_erro
     return s;
 }
 
-/* ---- the key cache: bounded, direct-mapped pages of the key file ---------- */
-
-typedef struct key_cache {
-    int fd;
-    uint64_t vertex_count;
-    size_t slots;
-    uint64_t *keys;    /* slots * KEY_PAGE_KEYS */
-    int64_t *page_of;  /* page held by each slot, -1 for none */
-    bool *dirty;       /* the slot's used marks are not on disk yet */
-    ms_nsp_build_stats *stats;
-} key_cache;
-
-static ms_status key_cache_init(key_cache *c, int fd, uint64_t vertex_count, size_t bytes,
-                                ms_nsp_build_stats *stats, ms_error *err)
+/* Point records for the input vertices no kept triangle used, in input order:
+ * the key file read in order once the cache has written its marks back. */
+static ms_status insert_unused_vertices(ms_nsp_build *b, int key_fd, ms_error *err)
 {
-    memset(c, 0, sizeof *c);
-    c->fd = fd;
-    c->vertex_count = vertex_count;
-    c->stats = stats;
-    if (bytes < MS_NSP_KEY_CACHE_MIN)
-        bytes = MS_NSP_KEY_CACHE_MIN;
-    uint64_t pages = (vertex_count + KEY_PAGE_KEYS - 1) / KEY_PAGE_KEYS;
-    c->slots = bytes / (KEY_PAGE_KEYS * sizeof *c->keys);
-    if (c->slots > pages)
-        c->slots = pages ? (size_t)pages : 1; /* a small model fits whole */
-    c->keys = malloc(c->slots * KEY_PAGE_KEYS * sizeof *c->keys);
-    c->page_of = malloc(c->slots * sizeof *c->page_of);
-    c->dirty = calloc(c->slots, sizeof *c->dirty);
-    if (!c->keys || !c->page_of || !c->dirty)
-        return ms_error_set(err, MS_ERR_NOMEM, "out of memory for the key cache");
-    for (size_t i = 0; i < c->slots; ++i)
-        c->page_of[i] = -1;
-    return MS_OK;
-}
-
-static size_t page_keys(const key_cache *c, uint64_t page)
-{
-    uint64_t left = c->vertex_count - page * KEY_PAGE_KEYS;
-    return left < KEY_PAGE_KEYS ? (size_t)left : KEY_PAGE_KEYS;
-}
-
-static ms_status key_cache_write_back(key_cache *c, size_t slot, ms_error *err)
-{
-    if (!c->dirty[slot])
-        return MS_OK;
-    uint64_t page = (uint64_t)c->page_of[slot];
-    size_t bytes = page_keys(c, page) * sizeof *c->keys;
-    if (pwrite(c->fd, c->keys + slot * KEY_PAGE_KEYS, bytes,
-               (off_t)(page * KEY_PAGE_KEYS * sizeof *c->keys)) != (ssize_t)bytes)
-        return ms_error_set(err, MS_ERR_IO, "cannot write the key file: %s", strerror(errno));
-    c->dirty[slot] = false;
-    c->stats->io_distribute.spilled += bytes;
-    return MS_OK;
-}
-
-/* The key file entry of vertex v (its key, with the used mark), valid until the
- * next call. */
-static ms_status key_cache_entry(key_cache *c, uint64_t v, uint64_t **entry, ms_error *err)
-{
-    uint64_t page = v / KEY_PAGE_KEYS;
-    size_t slot = (size_t)(page % c->slots);
-    uint64_t *keys = c->keys + slot * KEY_PAGE_KEYS;
-    if (c->page_of[slot] != (int64_t)page) {
-        ms_status s = c->page_of[slot] >= 0 ? key_cache_write_back(c, slot, err) : MS_OK;
-        if (s != MS_OK)
-            return s;
-        size_t bytes = page_keys(c, page) * sizeof *keys;
-        if (pread(c->fd, keys, bytes, (off_t)(page * KEY_PAGE_KEYS * sizeof *keys)) !=
-            (ssize_t)bytes)
-            return ms_error_set(err, MS_ERR_IO, "cannot read the key file: %s", strerror(errno));
-        c->page_of[slot] = (int64_t)page;
-        c->stats->io_distribute.read_back += bytes;
-        c->stats->key_page_misses++;
+    uint64_t *keys = malloc(MS_NSP_KEY_PAGE_KEYS * sizeof *keys);
+    if (!keys)
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory finding isolated vertices");
+    ms_status s = MS_OK;
+    for (uint64_t at = 0; s == MS_OK && at < b->vertex_count; at += MS_NSP_KEY_PAGE_KEYS) {
+        size_t nk = b->vertex_count - at < MS_NSP_KEY_PAGE_KEYS ? (size_t)(b->vertex_count - at)
+                                                                : MS_NSP_KEY_PAGE_KEYS;
+        if (pread(key_fd, keys, nk * sizeof *keys, (off_t)(at * sizeof *keys)) !=
+            (ssize_t)(nk * sizeof *keys)) {
+            s = ms_error_set(err, MS_ERR_IO, "cannot read the key file: %s", strerror(errno));
+            break;
+        }
+        b->stats.io_distribute.read_back += nk * sizeof *keys;
+        for (size_t i = 0; i < nk && s == MS_OK; ++i) {
+            if (keys[i] & MS_NSP_KEY_USED)
+                continue;
+            uint64_t rec[3] = {keys[i], keys[i], keys[i]};
+            s = insert_under(b, 0, rec, NULL, err);
+        }
     }
-    *entry = &keys[v % KEY_PAGE_KEYS];
-    return MS_OK;
+    free(keys);
+    return s;
 }
 
-static void key_cache_free(key_cache *c)
+/* One triangle of the spool: its keys through the cache, then into the tree. */
+static ms_status distribute_triangle(ms_nsp_build *b, ms_nsp_key_cache *cache, const uint32_t t[3],
+                                     uint64_t number, ms_error *err)
 {
-    free(c->keys);
-    free(c->page_of);
-    free(c->dirty);
-    memset(c, 0, sizeof *c);
+    if (t[0] >= b->vertex_count || t[1] >= b->vertex_count || t[2] >= b->vertex_count)
+        return ms_error_set(err, MS_ERR_FORMAT, "triangle %" PRIu64 " has an index out of range",
+                            number);
+    uint64_t rec[3];
+    ms_status s = MS_OK;
+    for (int j = 0; j < 3 && s == MS_OK; ++j)
+        s = ms_nsp_key_cache_key(cache, t[j], &rec[j], err);
+    if (s != MS_OK)
+        return s;
+    if (rec[0] == rec[1] || rec[1] == rec[2] || rec[0] == rec[2]) {
+        b->stats.degenerate_triangles++;
+        return MS_OK;
+    }
+    for (int j = 0; j < 3 && s == MS_OK; ++j)
+        s = ms_nsp_key_cache_mark_used(cache, t[j], err);
+    unsigned reached = 0;
+    if (s == MS_OK)
+        s = insert_under(b, 0, rec, &reached, err);
+    if (reached > 1)
+        b->stats.insertion_copies += reached - 1;
+    return s;
 }
 
 static ms_status distribute(ms_nsp_build *b, FILE *tspool, uint64_t triangles, int key_fd,
                             ms_error *err)
 {
     uint32_t *chunk = malloc(SPOOL_CHUNK * 3 * sizeof *chunk);
-    key_cache cache;
-    ms_status s = key_cache_init(&cache, key_fd, b->vertex_count, b->params.key_cache_bytes,
-                                 &b->stats, err);
+    ms_nsp_key_cache *cache = NULL;
+    ms_status s = ms_nsp_key_cache_new(key_fd, b->vertex_count, b->params.key_cache_bytes,
+                                       &b->stats.io_distribute, &b->stats.key_page_misses, &cache,
+                                       err);
     if (s == MS_OK && !chunk)
         s = ms_error_set(err, MS_ERR_NOMEM, "out of memory distributing triangles");
-    if (s != MS_OK) {
-        free(chunk);
-        key_cache_free(&cache);
-        return s;
-    }
     rewind(tspool);
     uint64_t done = 0;
-    while (done < triangles && s == MS_OK) {
+    while (s == MS_OK && done < triangles) {
         size_t want = triangles - done < SPOOL_CHUNK ? (size_t)(triangles - done) : SPOOL_CHUNK;
         if (fread(chunk, 12, want, tspool) != want) {
             s = ms_error_set(err, MS_ERR_IO, "cannot read the triangle spool");
             break;
         }
         b->stats.io_distribute.read_back += (uint64_t)want * 12;
-        for (size_t i = 0; i < want && s == MS_OK; ++i) {
-            const uint32_t *t = chunk + 3 * i;
-            if (t[0] >= b->vertex_count || t[1] >= b->vertex_count || t[2] >= b->vertex_count) {
-                s = ms_error_set(err, MS_ERR_FORMAT, "triangle %" PRIu64 " has an index out of "
-                                 "range", done + i);
-                break;
-            }
-            uint64_t rec[3], *entry;
-            for (int j = 0; j < 3 && s == MS_OK; ++j)
-                if ((s = key_cache_entry(&cache, t[j], &entry, err)) == MS_OK)
-                    rec[j] = *entry & ~KEY_USED;
-            if (s != MS_OK)
-                break;
-            if (rec[0] == rec[1] || rec[1] == rec[2] || rec[0] == rec[2]) {
-                b->stats.degenerate_triangles++;
-                continue;
-            }
-            for (int j = 0; j < 3 && s == MS_OK; ++j)
-                if ((s = key_cache_entry(&cache, t[j], &entry, err)) == MS_OK && !(*entry & KEY_USED)) {
-                    *entry |= KEY_USED;
-                    cache.dirty[(t[j] / KEY_PAGE_KEYS) % cache.slots] = true;
-                }
-            unsigned reached = 0;
-            if (s == MS_OK)
-                s = insert_under(b, 0, rec, &reached, err);
-            if (reached > 1)
-                b->stats.insertion_copies += reached - 1;
-        }
+        for (size_t i = 0; i < want && s == MS_OK; ++i)
+            s = distribute_triangle(b, cache, chunk + 3 * i, done + i, err);
         done += want;
         report(&b->params, "distributing", (double)done / (double)(triangles ? triangles : 1));
     }
     /* Isolated vertices (after welding, a key used by no kept triangle is found
-     * again in its leaf: the leaf drops points whose key a triangle uses): the
-     * marks go to the file, which is then read in order. */
-    for (size_t slot = 0; slot < cache.slots && s == MS_OK; ++slot)
-        if (cache.page_of[slot] >= 0)
-            s = key_cache_write_back(&cache, slot, err);
-    for (uint64_t page = 0; s == MS_OK && page * KEY_PAGE_KEYS < b->vertex_count; ++page) {
-        size_t nk = page_keys(&cache, page), bytes = nk * sizeof *cache.keys;
-        if (pread(key_fd, cache.keys, bytes, (off_t)(page * KEY_PAGE_KEYS * sizeof *cache.keys)) !=
-            (ssize_t)bytes) {
-            s = ms_error_set(err, MS_ERR_IO, "cannot read the key file: %s", strerror(errno));
-            break;
-        }
-        b->stats.io_distribute.read_back += bytes;
-        for (size_t i = 0; i < nk && s == MS_OK; ++i) {
-            uint64_t k = cache.keys[i];
-            if (k & KEY_USED)
-                continue;
-            uint64_t rec[3] = {k, k, k};
-            s = insert_under(b, 0, rec, NULL, err);
-        }
-    }
+     * again in its leaf: the leaf drops points whose key a triangle uses). */
+    if (s == MS_OK)
+        s = ms_nsp_key_cache_write_back(cache, err);
+    ms_nsp_key_cache_free(cache);
     free(chunk);
-    key_cache_free(&cache);
+    if (s == MS_OK)
+        s = insert_unused_vertices(b, key_fd, err);
     return s;
 }
 

@@ -106,56 +106,38 @@ static ms_status index_keys(uint64_t *ref, size_t n, unsigned key_bits, uint64_t
     return s;
 }
 
-/* Leaf: records at full precision -> complex; *lone_out (malloc'd, one per
- * vertex of st) receives each foreign vertex's lone level, MS_CODEC_NO_FREEZE for
- * the leaf's own vertices. */
-static ms_status leaf_state(pool *p, uint32_t node, ms_codec_state *st, uint8_t **lone_out,
-                            ms_error *err)
+/* A leaf's complex at full precision from its n records (keys as vertices,
+ * repeated triangles unified keeping the first in record order); *removed: the
+ * triangles unified. On failure st is freed. */
+static ms_status leaf_complex(const uint64_t *rec, size_t n, unsigned bits, ms_codec_state *st,
+                              size_t *removed, ms_error *err)
 {
-    *lone_out = NULL;
-    const ms_nsp_build *b = p->b;
-    uint64_t *rec;
-    size_t n;
-    uint64_t read = 0;
-    ms_status s = ms_nsp_build_read_leaf(b, node, &rec, &n, &read, err);
-    if (s != MS_OK)
-        return s;
     memset(st, 0, sizeof *st);
-    st->bits = b->params.shape.bits;
-    st->level = 3 * st->bits;
+    st->bits = bits;
+    st->level = 3 * bits;
     st->cells = malloc((3 * n + 1) * sizeof *st->cells);
     st->tris = malloc((3 * n + 1) * sizeof *st->tris);
     st->edges = malloc(sizeof *st->edges);
-    if (!st->cells || !st->tris || !st->edges) {
-        free(rec);
-        ms_codec_state_free(st);
-        return ms_error_set(err, MS_ERR_NOMEM, "out of memory loading a leaf");
-    }
     /* Vertex references: three per triangle record, one per point record. */
     uint64_t *ref = malloc((3 * n + 1) * sizeof *ref);
     uint32_t *rank = malloc((3 * n + 1) * sizeof *rank);
-    uint8_t *lone = malloc(3 * n + 1);
-    if (!ref || !rank || !lone) {
-        free(ref);
-        free(rank);
-        free(lone);
-        free(rec);
-        ms_codec_state_free(st);
-        return ms_error_set(err, MS_ERR_NOMEM, "out of memory loading a leaf");
-    }
+    ms_status s = MS_OK;
+    if (!st->cells || !st->tris || !st->edges || !ref || !rank)
+        s = ms_error_set(err, MS_ERR_NOMEM, "out of memory loading a leaf");
     size_t nr = 0;
-    for (size_t i = 0; i < n; ++i) {
+    for (size_t i = 0; s == MS_OK && i < n; ++i) {
         const uint64_t *r = rec + 3 * i;
         int verts = r[0] == r[1] ? 1 : 3;
         for (int j = 0; j < verts; ++j)
             ref[nr++] = r[j];
     }
     size_t nk = 0;
-    s = index_keys(ref, nr, 3 * st->bits, st->cells, &nk, rank, err);
+    if (s == MS_OK)
+        s = index_keys(ref, nr, 3 * bits, st->cells, &nk, rank, err);
     st->vertex_count = nk;
     size_t nt = 0;
     nr = 0;
-    for (size_t i = 0; i < n; ++i) {
+    for (size_t i = 0; s == MS_OK && i < n; ++i) {
         const uint64_t *r = rec + 3 * i;
         if (r[0] == r[1]) {
             nr++;
@@ -165,59 +147,85 @@ static ms_status leaf_state(pool *p, uint32_t node, ms_codec_state *st, uint8_t 
             st->tris[3 * nt + (size_t)j] = rank[nr++];
         nt++;
     }
-    free(rec);
-    size_t removed = 0;
-    *lone_out = lone;
+    free(ref);
+    free(rank);
+    *removed = 0;
     if (s == MS_OK)
-        s = ms_tri_unify(st->tris, &nt, NULL, &removed, err);
+        s = ms_tri_unify(st->tris, &nt, NULL, removed, err);
     st->tri_count = nt;
-    if (s != MS_OK) {
-        free(ref);
-        free(rank);
+    if (s != MS_OK)
         ms_codec_state_free(st);
+    return s;
+}
+
+/* The levels a leaf's vertices freeze at (lone[v]: MS_CODEC_NO_FREEZE for its
+ * own, the lone level, looked up in the owning leaf's segment, for a foreign
+ * one); inside[v] says which are its own. *read grows by the segment bytes. */
+static ms_status leaf_lone_levels(const ms_nsp_build *b, const ms_nsp_node *nd,
+                                  const ms_codec_state *st, uint8_t *inside, uint8_t *lone,
+                                  uint64_t *read, ms_error *err)
+{
+    size_t nk = st->vertex_count, foreign = 0;
+    uint64_t *keys = malloc((nk ? nk : 1) * sizeof *keys);
+    uint8_t *levels = malloc(nk ? nk : 1);
+    if (!keys || !levels) {
+        free(keys);
+        free(levels);
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory loading a leaf");
+    }
+    for (size_t v = 0; v < nk; ++v) {
+        inside[v] = ms_nsp_prefix_inside(&b->params.shape, st->cells[v], st->level, nd->depth,
+                                         nd->position);
+        if (inside[v])
+            lone[v] = MS_CODEC_NO_FREEZE;
+        else
+            keys[foreign++] = st->cells[v]; /* in key order */
+    }
+    ms_status s = ms_nsp_lone_lookup(b, keys, foreign, levels, read, err);
+    for (size_t v = 0, f = 0; s == MS_OK && v < nk; ++v)
+        if (!inside[v])
+            lone[v] = levels[f++];
+    free(keys);
+    free(levels);
+    return s;
+}
+
+/* Leaf: records at full precision -> complex; *lone_out (malloc'd, one per
+ * vertex of st) receives each foreign vertex's lone level, MS_CODEC_NO_FREEZE for
+ * the leaf's own vertices. */
+static ms_status leaf_state(pool *p, uint32_t node, ms_codec_state *st, uint8_t **lone_out,
+                            ms_error *err)
+{
+    *lone_out = NULL;
+    const ms_nsp_build *b = p->b;
+    const ms_nsp_node *nd = &b->nodes[node];
+    uint64_t *rec;
+    size_t n, removed = 0;
+    uint64_t read = 0;
+    ms_status s = ms_nsp_build_read_leaf(b, node, &rec, &n, &read, err);
+    if (s != MS_OK)
+        return s;
+    s = leaf_complex(rec, n, b->params.shape.bits, st, &removed, err);
+    free(rec);
+    if (s != MS_OK)
+        return s;
+    size_t nk = st->vertex_count, nt = st->tri_count;
+    uint8_t *lone = malloc(nk ? nk : 1), *inside = malloc(nk ? nk : 1);
+    if (!lone || !inside)
+        s = ms_error_set(err, MS_ERR_NOMEM, "out of memory loading a leaf");
+    if (s == MS_OK)
+        s = leaf_lone_levels(b, nd, st, inside, lone, &read, err);
+    if (s != MS_OK) {
         free(lone);
-        *lone_out = NULL;
+        free(inside);
+        ms_codec_state_free(st);
         return s;
     }
     /* Model-wide counts: each vertex counted in its own leaf, each triangle in the
      * leaf of its smallest key. */
-    const ms_nsp_node *nd = &b->nodes[node];
-    uint8_t *inside = malloc(nk ? nk : 1);
-    if (!inside) {
-        free(ref);
-        free(rank);
-        ms_codec_state_free(st);
-        free(lone);
-        *lone_out = NULL;
-        return ms_error_set(err, MS_ERR_NOMEM, "out of memory loading a leaf");
-    }
     uint64_t own_v = 0, own_t = 0, iso = 0;
-    size_t foreign = 0;
-    for (size_t v = 0; v < nk; ++v) {
-        inside[v] = ms_nsp_prefix_inside(&b->params.shape, st->cells[v], st->level, nd->depth,
-                                         nd->position);
+    for (size_t v = 0; v < nk; ++v)
         own_v += inside[v];
-        if (inside[v])
-            lone[v] = MS_CODEC_NO_FREEZE;
-        else
-            ref[foreign++] = st->cells[v]; /* in key order */
-    }
-    /* The foreign vertices' lone levels, from their own leaves' segments (into
-     * rank's bytes, free now: foreign <= nk <= 3 n). */
-    uint8_t *foreign_lone = (uint8_t *)rank;
-    s = ms_nsp_lone_lookup(b, ref, foreign, foreign_lone, &read, err);
-    for (size_t v = 0, f = 0; s == MS_OK && v < nk; ++v)
-        if (!inside[v])
-            lone[v] = foreign_lone[f++];
-    free(ref);
-    free(rank);
-    if (s != MS_OK) {
-        free(inside);
-        ms_codec_state_free(st);
-        free(lone);
-        *lone_out = NULL;
-        return s;
-    }
     uint8_t *has = calloc(nk ? nk : 1, 1);
     for (size_t t = 0; t < nt; ++t) {
         uint32_t s3[3];
@@ -231,6 +239,7 @@ static ms_status leaf_state(pool *p, uint32_t node, ms_codec_state *st, uint8_t 
             iso += !has[v];
     free(has);
     free(inside);
+    *lone_out = lone;
     pthread_mutex_lock(&p->lock);
     p->stats.welded_vertices += own_v;
     p->stats.welded_triangles += own_t;
