@@ -538,13 +538,12 @@ static ms_status compute_keys(ms_nsp_build *b, FILE *vspool, int key_fd, ms_erro
  * the key file read in order once the cache has written its marks back. */
 static ms_status insert_unused_vertices(ms_nsp_build *b, int key_fd, ms_error *err)
 {
-    uint64_t *keys = malloc(MS_NSP_KEY_PAGE_KEYS * sizeof *keys);
+    uint64_t *keys = malloc(SPOOL_CHUNK * sizeof *keys);
     if (!keys)
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory finding isolated vertices");
     ms_status s = MS_OK;
-    for (uint64_t at = 0; s == MS_OK && at < b->vertex_count; at += MS_NSP_KEY_PAGE_KEYS) {
-        size_t nk = b->vertex_count - at < MS_NSP_KEY_PAGE_KEYS ? (size_t)(b->vertex_count - at)
-                                                                : MS_NSP_KEY_PAGE_KEYS;
+    for (uint64_t at = 0; s == MS_OK && at < b->vertex_count; at += SPOOL_CHUNK) {
+        size_t nk = b->vertex_count - at < SPOOL_CHUNK ? (size_t)(b->vertex_count - at) : SPOOL_CHUNK;
         if (pread(key_fd, keys, nk * sizeof *keys, (off_t)(at * sizeof *keys)) !=
             (ssize_t)(nk * sizeof *keys)) {
             s = ms_error_set(err, MS_ERR_IO, "cannot read the key file: %s", strerror(errno));

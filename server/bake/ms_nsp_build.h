@@ -44,7 +44,7 @@
 #define MS_NSP_NONE UINT32_MAX
 #define MS_NSP_MAX_DEPTH 32              /* deeper than any shape allows (p <= 20) */
 #define MS_NSP_RECORD_BYTES 24         /* a leaf record: three u64 keys */
-#define MS_NSP_KEY_CACHE_MIN (256u << 10) /* bytes: the smallest key cache (4 pages) */
+#define MS_NSP_KEY_CACHE_MIN (256u << 10) /* bytes: the smallest key cache (64 pages) */
 
 typedef struct ms_nsp_node {
     uint32_t parent;       /* MS_NSP_NONE for the root */

@@ -7,13 +7,17 @@
 #include <string.h>
 #include <unistd.h>
 
+#define WAYS 8 /* pages a set holds */
+
 struct ms_nsp_key_cache {
     int fd;
     uint64_t vertex_count;
-    size_t slots;
-    uint64_t *keys;    /* slots * MS_NSP_KEY_PAGE_KEYS */
-    int64_t *page_of;  /* page held by each slot, -1 for none */
-    bool *dirty;       /* the slot's marks are not on disk yet */
+    size_t sets, slots;  /* slots = WAYS * sets */
+    uint64_t *keys;      /* slots * MS_NSP_KEY_PAGE_KEYS */
+    int64_t *page_of;    /* page held by each slot, -1 for none */
+    uint64_t *used_at;   /* tick of the slot's last use (least recent goes first) */
+    bool *dirty;         /* the slot's marks are not on disk yet */
+    uint64_t tick;
     ms_nsp_io *io;
     uint64_t *page_misses;
 };
@@ -32,13 +36,15 @@ ms_status ms_nsp_key_cache_new(int fd, uint64_t vertex_count, size_t bytes, ms_n
     if (bytes < MS_NSP_KEY_CACHE_MIN)
         bytes = MS_NSP_KEY_CACHE_MIN;
     uint64_t pages = (vertex_count + MS_NSP_KEY_PAGE_KEYS - 1) / MS_NSP_KEY_PAGE_KEYS;
-    c->slots = bytes / (MS_NSP_KEY_PAGE_KEYS * sizeof *c->keys);
-    if (c->slots > pages)
-        c->slots = pages ? (size_t)pages : 1; /* a small model fits whole */
+    c->sets = bytes / (WAYS * MS_NSP_KEY_PAGE_KEYS * sizeof *c->keys);
+    if (c->sets > pages / WAYS + 1)
+        c->sets = (size_t)(pages / WAYS + 1); /* a small model fits whole */
+    c->slots = WAYS * c->sets;
     c->keys = malloc(c->slots * MS_NSP_KEY_PAGE_KEYS * sizeof *c->keys);
     c->page_of = malloc(c->slots * sizeof *c->page_of);
+    c->used_at = calloc(c->slots, sizeof *c->used_at);
     c->dirty = calloc(c->slots, sizeof *c->dirty);
-    if (!c->keys || !c->page_of || !c->dirty) {
+    if (!c->keys || !c->page_of || !c->used_at || !c->dirty) {
         ms_nsp_key_cache_free(c);
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory for the key cache");
     }
@@ -73,12 +79,24 @@ static ms_status write_back_slot(ms_nsp_key_cache *c, size_t slot, ms_error *err
     return MS_OK;
 }
 
-/* Vertex v's entry (key and mark), valid until the next call; *slot_out its slot. */
+/* Vertex v's entry (key and mark), valid until the next call; *slot_out its slot.
+ * A page goes to the set its hashed number picks (so that strided access, as a
+ * column of a grid walks, spreads over the sets), in the way least recently
+ * used. */
 static ms_status entry(ms_nsp_key_cache *c, uint64_t v, uint64_t **out, size_t *slot_out,
                        ms_error *err)
 {
     uint64_t page = v / MS_NSP_KEY_PAGE_KEYS;
-    size_t slot = (size_t)(page % c->slots);
+    size_t first = (size_t)((page * UINT64_C(0x9E3779B97F4A7C15)) >> 17) % c->sets * WAYS;
+    size_t slot = first;
+    for (size_t w = 0; w < WAYS; ++w) {
+        if (c->page_of[first + w] == (int64_t)page) {
+            slot = first + w;
+            break;
+        }
+        if (c->used_at[first + w] < c->used_at[slot])
+            slot = first + w;
+    }
     uint64_t *keys = c->keys + slot * MS_NSP_KEY_PAGE_KEYS;
     if (c->page_of[slot] != (int64_t)page) {
         ms_status s = c->page_of[slot] >= 0 ? write_back_slot(c, slot, err) : MS_OK;
@@ -91,6 +109,7 @@ static ms_status entry(ms_nsp_key_cache *c, uint64_t v, uint64_t **out, size_t *
         c->io->read_back += bytes;
         (*c->page_misses)++;
     }
+    c->used_at[slot] = ++c->tick;
     *out = &keys[v % MS_NSP_KEY_PAGE_KEYS];
     *slot_out = slot;
     return MS_OK;
@@ -133,6 +152,7 @@ void ms_nsp_key_cache_free(ms_nsp_key_cache *c)
         return;
     free(c->keys);
     free(c->page_of);
+    free(c->used_at);
     free(c->dirty);
     free(c);
 }

@@ -2,11 +2,13 @@
  *
  * The key file holds every input vertex's 3p-bit key (p <= 20, so at most 60
  * bits), 8 bytes each in input order. While the triangles are distributed, a
- * triangle's three vertex numbers are turned into keys through a direct-mapped
- * cache of MS_NSP_KEY_PAGE_KEYS-key pages (page number modulo the slot count):
- * with a spatially coherent numbering, as scanners and meshgen write, each page
- * is read about once; a random numbering reads a page per corner, slower but in
- * the same memory. A vertex used by a kept triangle gets the MS_NSP_KEY_USED mark
+ * triangle's three vertex numbers are turned into keys through a cache of
+ * MS_NSP_KEY_PAGE_KEYS-key pages, 8-way set-associative (the set from a hash of
+ * the page number, least recently used out): with a spatially coherent
+ * numbering, as scanners and meshgen write, each page is read about once (a grid
+ * walked across its rows needs two rows of pages, walked along its columns one
+ * page per row: 4 KiB pages keep that in the cache); a random numbering reads a
+ * page per corner, slower but in the same memory. A vertex used by a kept triangle gets the MS_NSP_KEY_USED mark
  * in its entry; marked pages are written back when evicted and by
  * ms_nsp_key_cache_write_back, after which the file tells the isolated vertices.
  *
@@ -23,7 +25,7 @@
 #include "ms_error.h"
 #include "ms_nsp_build.h"
 
-#define MS_NSP_KEY_PAGE_KEYS 8192u             /* keys per page (64 KiB) */
+#define MS_NSP_KEY_PAGE_KEYS 512u              /* keys per page (4 KiB) */
 #define MS_NSP_KEY_USED (UINT64_C(1) << 63)    /* a kept triangle uses the vertex */
 
 typedef struct ms_nsp_key_cache ms_nsp_key_cache;
