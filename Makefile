@@ -84,7 +84,7 @@ ALL_LIBS  := $(foreach r,$(call reverse,$(ROOMS)),$(call room_lib,$(r)))
 ALL_PKGS  := $(sort $(foreach r,$(ROOMS),$(PKGS_$(r))))
 LINK      := $(CXX)
 
-.PHONY: all test bench demo fuzz clean programs tests deps screenshots rooms room-flags
+.PHONY: all test bench demo fuzz clean programs tests deps screenshots rooms room-flags study
 .SECONDARY:
 all: programs
 
@@ -143,6 +143,11 @@ test:
 
 bench: programs
 	@scripts/bench
+
+# What accuracy costs: sweeps over the dragon and the demo model, docs/ACCURACY.md
+# and docs/images/study-*.png (scripts/study; 10 to 15 minutes; not in CI).
+study: programs
+	@scripts/study
 
 # The viewer's pictures in docs/images/ (headless meshview; Xvfb when no DISPLAY).
 screenshots: programs

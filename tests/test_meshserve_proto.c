@@ -805,15 +805,25 @@ static void test_sighup_adds_model_live(void **state)
     }
     assert_int_equal(count, 3); /* horse added, bunny removed */
     assert_string_equal(names[2], "horse");
-    /* A removed model stays readable where it is open, and only there. */
+    /* Where the removed model was open, the rescan closed its handle and said
+     * so: MODEL_CHANGED (not fatal, request id 0, detail = the handle); the
+     * handle is gone and the connection goes on. */
+    ms_proto_message m;
+    assert_int_equal(ms_test_conn_recv(&keeper, &m, 5.0), 1);
+    assert_int_equal(m.type, MS_PROTO_ERROR);
+    assert_int_equal(m.body.error.code, MS_PROTO_E_MODEL_CHANGED);
+    assert_false(m.body.error.fatal);
+    assert_int_equal(m.request_id, 0);
+    assert_int_equal(m.body.error.detail, kept);
     ms_proto_cell_request k[1] = {steps(0, MS_PROTO_STREAM_GEOMETRY, 0, 0, 63)};
     send_batch(&keeper, kept, 2, k, 1);
     answers ka;
     answers_init(&ka, 2, 1);
     answers_collect(&keeper, &ka);
-    assert_int_equal(ka.error[0], 0);
-    assert_true(ka.length[0] > 0);
+    assert_int_equal(ka.error[0], MS_PROTO_E_UNKNOWN_MODEL);
     answers_free(&ka);
+    send_ping(&keeper, 11); /* still open */
+    expect_pong(&keeper, 11);
     ms_test_conn_close(&keeper);
     assert_int_equal(ms_test_conn_open_model(&c, "bunny", 5, NULL, NULL, &code), 0);
     assert_int_equal(code, MS_PROTO_E_UNKNOWN_MODEL);

@@ -15,7 +15,6 @@
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdint.h>
-#include <png.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -31,6 +30,7 @@
 #include "ms_test.h"
 #include "ms_test_display.h"
 #include "ms_test_net.h"
+#include "ms_test_picture.h"
 
 #define MODEL "demo"
 #define PATH_FILE "scripts/paths/demo-closeup.cam"
@@ -143,40 +143,6 @@ static size_t count_lines(const char *text)
     return n;
 }
 
-/* Decodes an RGB PNG through libpng's simplified reader (malloc'd pixels). */
-static uint8_t *read_png(const char *path, uint32_t *width, uint32_t *height)
-{
-    png_image image;
-    memset(&image, 0, sizeof image);
-    image.version = PNG_IMAGE_VERSION;
-    assert_true(png_image_begin_read_from_file(&image, path));
-    image.format = PNG_FORMAT_RGB;
-    uint8_t *pixels = malloc(PNG_IMAGE_SIZE(image));
-    assert_non_null(pixels);
-    assert_true(png_image_finish_read(&image, NULL, pixels, 0, NULL));
-    *width = image.width, *height = image.height;
-    return pixels;
-}
-
-/* Pixels whose colour differs by more than `tolerance` in a channel. */
-static size_t pixels_differing(const char *a_path, const char *b_path, int tolerance)
-{
-    uint32_t aw, ah, bw, bh;
-    uint8_t *a = read_png(a_path, &aw, &ah), *b = read_png(b_path, &bw, &bh);
-    assert_int_equal(aw, bw);
-    assert_int_equal(ah, bh);
-    size_t n = 0;
-    for (size_t i = 0; i < (size_t)aw * ah; ++i)
-        for (int c = 0; c < 3; ++c)
-            if (abs(a[3 * i + c] - b[3 * i + c]) > tolerance) {
-                ++n;
-                break;
-            }
-    free(a);
-    free(b);
-    return n;
-}
-
 static json_t *load_report(const char *path)
 {
     json_error_t jerr;
@@ -199,7 +165,7 @@ static size_t check_streaming_report(json_t *report)
         assert_true(json_is_true(json_object_get(key, "complete")));
         assert_true(json_integer_value(json_object_get(key, "triangles_drawn")) > 0);
         uint32_t w, h;
-        free(read_png(json_string_value(json_object_get(key, "png")), &w, &h));
+        free(ms_test_png_read(json_string_value(json_object_get(key, "png")), &w, &h));
         assert_int_equal(w, 160);
         assert_int_equal(h, 120);
     }
@@ -229,7 +195,7 @@ static void test_streaming_and_local_archive(void **state)
     assert_non_null(first);
     json_t *keys = json_object_get(server, "keyframes");
     const char *last = json_string_value(json_object_get(json_array_get(keys, count - 1), "png"));
-    assert_true(pixels_differing(first, last, 8) > 160 * 120 / 10);
+    assert_true(ms_test_png_differing(first, last, 8) > 160 * 120 / 10);
 
     /* The same path from the archive directory, without a server. */
     snprintf(out, sizeof out, "%s/local.json", f->dir);
@@ -254,7 +220,7 @@ static void test_streaming_and_local_archive(void **state)
         const char *b = json_string_value(json_object_get(json_array_get(local_keys, k), "png"));
         /* The same settled view, drawn the same way: at most a few pixels where
          * a rounding differs. */
-        assert_true(pixels_differing(a, b, 2) <= 160 * 120 / 500);
+        assert_true(ms_test_png_differing(a, b, 2) <= 160 * 120 / 500);
     }
     json_decref(server);
     json_decref(local);
@@ -275,7 +241,7 @@ static void test_catalogue_screen(void **state)
     assert_string_equal(json_string_value(json_object_get(m, "name")), MODEL);
     assert_true(json_integer_value(json_object_get(m, "triangles")) > 0);
     uint32_t w, h;
-    uint8_t *pixels = read_png(json_string_value(json_object_get(report, "png")), &w, &h);
+    uint8_t *pixels = ms_test_png_read(json_string_value(json_object_get(report, "png")), &w, &h);
     assert_int_equal(w, 320);
     assert_int_equal(h, 200);
     size_t bright = 0; /* text and the selection band */

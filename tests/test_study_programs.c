@@ -173,6 +173,10 @@ static void test_small_study(void **state)
         assert_true(number(p, "image", "ssim") > 0 && number(p, "image", "ssim") < 1);
         assert_true(number(p, "image_apo", "normal_mean_deg") > 0);
         assert_true(number(p, "bytes", "index") > 0);
+        assert_true(number(p, "bytes", "index") == number(json_array_get(points, 0), "bytes", "index"));
+        assert_true(number(p, "seconds", "cut") > 0); /* a fresh view's selection, decoding and stitching */
+        assert_true(number(p, "geometric", "samples_in_view") <= number(p, "geometric", "samples"));
+        assert_true(number(p, "image", "compared_px") > 0);
         prev_geometry = geometry;
         prev_tris = tris;
         prev_psnr = psnr;
@@ -201,12 +205,54 @@ static void test_small_study(void **state)
     }
 }
 
+/* The whole model against itself (meshstudy --whole): every image error
+ * exactly nothing and the distances nothing to rounding, at two keyframes; the
+ * report's fields as documented. */
+static void test_whole_against_itself(void **state)
+{
+    fixture *f = *state;
+    char cmd[4096];
+    snprintf(cmd, sizeof cmd, "%s %s --whole %s -p %s --keys 0,8 --width 64 --height 48 --spacing 0.004 --json",
+             f->study, f->mesh, f->mesh, f->path);
+    json_t *root = run_json(cmd);
+    assert_false(json_is_true(json_object_get(root, "apo")));
+    assert_string_equal(json_string_value(json_object_get(root, "archive")), f->mesh);
+    json_t *points = json_object_get(root, "points");
+    assert_int_equal(json_array_size(points), 2);
+    for (size_t i = 0; i < 2; ++i) {
+        json_t *p = json_array_get(points, i);
+        assert_true(number(p, "key", NULL) == (i ? 8 : 0));
+        assert_true(number(p, "tolerance_px", NULL) == 0);
+        assert_true(number(p, "triangles", NULL) == 11102);
+        assert_true(number(p, "bytes", "index") == 0 && number(p, "bytes", "geometry") == 0 &&
+                    number(p, "bytes", "apo") == 0);
+        /* zero to the rounding of a sample point computed in doubles (a
+         * sub-triangle centroid lies on its own plane to about 1e-17 here) */
+        assert_true(number(p, "geometric", "hausdorff") < 1e-15 && number(p, "geometric", "rms") < 1e-15);
+        assert_true(number(p, "geometric", "hausdorff_px") < 1e-9 && number(p, "geometric", "rms_px") < 1e-9);
+        assert_true(number(p, "geometric", "samples_in_view") > 0);
+        json_t *image = json_object_get(p, "image");
+        assert_true(json_is_null(json_object_get(image, "psnr_db"))); /* identical: +infinity */
+        assert_true(number(image, "ssim", NULL) == 1);
+        assert_true(number(image, "silhouette_px", NULL) == 0);
+        assert_true(number(image, "normal_max_deg", NULL) == 0);
+        assert_true(number(image, "compared_px", NULL) > 0);
+        assert_null(json_object_get(p, "image_apo"));
+    }
+    json_decref(root);
+    /* an archive and --whole together is a usage error */
+    char out[4096];
+    snprintf(cmd, sizeof cmd, "%s %s %s --whole %s -p %s", f->study, f->mesh, f->archive, f->mesh, f->path);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 2);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_exit_codes),
         cmocka_unit_test(test_meshrender),
         cmocka_unit_test(test_small_study),
+        cmocka_unit_test(test_whole_against_itself),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }

@@ -381,24 +381,10 @@ static void test_apo_normals(void **state)
     ms_study_scene_free(s);
 }
 
-/* Levels by footprint: fovy 90 degrees and 480 rows give 240 pixels per unit
- * at distance 1. */
-static void test_footprint_levels(void **state)
+/* The cube of an archive cell. */
+static void test_cell_cube(void **state)
 {
     (void)state;
-    ms_camera cam;
-    ms_error err;
-    const double eye[3] = {0, 0, 5}, target[3] = {0, 0, 0}, up[3] = {0, 1, 0};
-    assert_int_equal(ms_camera_look_at(eye, target, up, 90, 640, 480, 0.1, 100, &cam, &err), MS_OK);
-    assert_true(fabs(ms_camera_pixels_per_unit(&cam) - 240) < 1e-9);
-    /* side 1 at distance 15: 16 pixels, so depth 4 (1 pixel nodes) = 5 levels */
-    assert_int_equal(ms_study_footprint_levels(&cam, 1, 15, 1, 10), 5);
-    assert_int_equal(ms_study_footprint_levels(&cam, 1, 15, 2, 10), 4);  /* 2-pixel texels */
-    assert_int_equal(ms_study_footprint_levels(&cam, 1, 15.01, 1, 10), 4); /* just under 16 */
-    assert_int_equal(ms_study_footprint_levels(&cam, 1, 15, 1, 3), 3);   /* clamped to the chunk */
-    assert_int_equal(ms_study_footprint_levels(&cam, 1, 1000, 1, 10), 1); /* under a pixel: the root */
-    assert_int_equal(ms_study_footprint_levels(&cam, 1, 0, 1, 7), 7);    /* inside the cube */
-    assert_int_equal(ms_study_footprint_levels(&cam, 1, 15, 1, 0), 0);   /* no chunk */
     /* the cube of an archive cell: level 2 of a box of side 8 with n = 4 */
     ms_archive_header h = {.box_origin = {1, 2, 3}, .box_side = 8, .n = 4};
     ms_archive_cell c = {.level = 2, .position = {3, 0, 15}};
@@ -415,7 +401,7 @@ int main(void)
         cmocka_unit_test(test_sphere),
         cmocka_unit_test(test_deterministic_and_far_origin),
         cmocka_unit_test(test_apo_normals),
-        cmocka_unit_test(test_footprint_levels),
+        cmocka_unit_test(test_cell_cube),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -87,8 +87,11 @@ ms_status ms_core_start(const ms_core_options *o, ms_core **out, ms_error *err)
         c->o.hysteresis_bits = 0.5;
     if (c->o.culled_bits_less == 0)
         c->o.culled_bits_less = 6.0;
+    /* Geometry as fine with APO as without: coarser geometry where APO carries
+     * the shading (4 px was the default) cost more image error than the bytes
+     * it saved with the default bake (docs/ACCURACY.md). */
     if (c->o.apo_geometry_tolerance_px == 0)
-        c->o.apo_geometry_tolerance_px = 4.0;
+        c->o.apo_geometry_tolerance_px = c->o.tolerance_px;
     if (c->o.answer_timeout == 0)
         c->o.answer_timeout = 5.0;
     if (c->o.give_up_seconds == 0)
@@ -233,6 +236,7 @@ void ms_core_get_stats(ms_core *c, ms_core_stats *out)
     out->requests = c->requests;
     out->cancels = c->cancels;
     out->reconnects = c->reconnects;
+    out->longest_outage = c->longest_outage;
     if (out->camera_serial != c->camera_serial)
         out->view_complete = false;
     n = c->latency_count;

@@ -112,7 +112,8 @@ typedef struct ms_core_options {
     unsigned apo_levels;       /* APO on when > 0: the most levels of a chunk fetched
                                   (MS_ARCHIVE_MAX_APO_LEVELS: no cap but the chunk's);
                                   0 = APO off */
-    double apo_geometry_tolerance_px; /* geometry tolerance with APO on; 0 = 4 */
+    double apo_geometry_tolerance_px; /* geometry tolerance with APO on; 0 = tolerance_px
+                                         (docs/ACCURACY.md: coarser costs more than it saves) */
     uint64_t memory_target, memory_ceiling; /* bytes; 0 = no budget */
     double bandwidth;          /* bytes per second read from the server; 0 = unlimited */
     uint64_t window_bytes;     /* bytes in flight at most; 0 = 0.25 s of bandwidth,
@@ -176,11 +177,18 @@ typedef struct ms_core_stats {
                                   at each loop tick; 0 in local mode */
     uint64_t bytes_in_flight;  /* requested and not yet received */
     uint64_t requests, cancels, reconnects, refetches, evictions;
+    double longest_outage;     /* seconds, the longest span from a lost connection to the
+                                  model open again (a failover through a balancer); 0 none */
     uint32_t cells_shown, cells_split, cells_cached, cells_loading, cells_failed;
     uint64_t memory, peak_memory;
     double decode_seconds;     /* decode thread busy time (verify, decode, select) */
     double latency_p50, latency_p99; /* request send to last byte, seconds */
     char error[256];           /* why the core stopped, or "" */
+    bool model_changed;        /* error says "the model changed on the server": a rescan
+                                  replaced the model while it streamed (MODEL_CHANGED, or a
+                                  reconnect found another content_id). What the core holds
+                                  is of the old version; start a fresh core to stream the
+                                  new one. A removed model stops with UNKNOWN_MODEL instead. */
     char warning[256];         /* last non-fatal problem (e.g. a failed cell), or "" */
 } ms_core_stats;
 

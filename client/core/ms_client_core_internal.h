@@ -118,6 +118,7 @@ struct ms_core {
     /* network figures */
     bool connected, model_open;
     uint64_t bytes_received, bytes_in_flight, requests, cancels, reconnects;
+    double longest_outage; /* seconds, lost connection to model open again (under lock) */
     uint64_t geometry_bytes_received, apo_bytes_received;
     uint64_t socket_bytes;      /* read from every connection, frames and index included */
     double *latencies;

@@ -65,6 +65,8 @@ typedef struct client_result {
     key_result keys[MAX_KEYS];
     size_t key_count;
     uint64_t bytes, apo_bytes, requests, cancels, reconnects, evictions;
+    double longest_outage; /* seconds from a lost connection to the model open again */
+    unsigned model_changes; /* fresh cores started because a rescan replaced the model */
     uint32_t cells_shown, cells_failed;
     double decode_seconds, p50, p99;
     uint64_t peak_memory;
@@ -146,6 +148,28 @@ static bool wait_complete(ms_core *core, double until, ms_core_stats *st, double
     }
 }
 
+/* A rescan replaced the model under a core (stats.model_changed): what it
+ * holds is of the old version, so a fresh core streams the new one from its
+ * root, with the same camera. At most MAX_MODEL_CHANGES times per phase (a
+ * model replaced again and again is an error). False, with res->error set,
+ * when the fresh core does not start. */
+#define MAX_MODEL_CHANGES 3
+
+static bool restart_core(const run *r, ms_core **core, const ms_camera *cam, client_result *res)
+{
+    ms_core_stop(*core);
+    *core = NULL;
+    res->model_changes++;
+    ms_core_options co = core_options(r->o);
+    ms_error err;
+    if (ms_core_start(&co, core, &err) != MS_OK) {
+        snprintf(res->error, sizeof res->error, "%.250s", err.text);
+        return false;
+    }
+    ms_core_set_camera(*core, cam);
+    return true;
+}
+
 static void cold_phase(worker *w)
 {
     run *r = w->r;
@@ -165,6 +189,12 @@ static void cold_phase(worker *w)
         until = r->deadline;
     ms_core_stats st;
     res->cold_complete = wait_complete(core, until, &st, &res->cold_last_byte);
+    for (int again = 0; !res->cold_complete && st.model_changed && again < MAX_MODEL_CHANGES;
+         ++again) {
+        if (!restart_core(r, &core, &cam, res))
+            return;
+        res->cold_complete = wait_complete(core, until, &st, &res->cold_last_byte);
+    }
     res->view_complete = res->cold_complete ? st.time : -1;
     res->first_display = st.first_display;
     res->cold_bytes = st.bytes_received;
@@ -206,6 +236,12 @@ static void path_phase(worker *w)
             if (until > r->deadline)
                 until = r->deadline;
             k->complete = wait_complete(core, until, &st, NULL);
+            for (int again = 0; !k->complete && st.model_changed && again < MAX_MODEL_CHANGES;
+                 ++again) {
+                if (!restart_core(r, &core, &cam, res))
+                    return;
+                k->complete = wait_complete(core, until, &st, NULL);
+            }
             k->wait = now_s() - t;
             k->error_px = st.achieved_error_px;
             k->tolerance_px = st.tolerance_px;
@@ -225,6 +261,7 @@ static void path_phase(worker *w)
     res->bytes = st.bytes_received;
     res->apo_bytes = st.apo_bytes_received;
     res->requests = st.requests, res->cancels = st.cancels, res->reconnects = st.reconnects;
+    res->longest_outage = st.longest_outage;
     res->evictions = st.evictions;
     res->cells_shown = st.cells_shown, res->cells_failed = st.cells_failed;
     res->decode_seconds = st.decode_seconds;
@@ -418,7 +455,8 @@ static void print_report(const options *o, const run *r, worker *ws)
     double *first = calloc(n, sizeof *first), *complete = calloc(n, sizeof *complete);
     double worst_complete = 0, decode = 0, p50 = 0, p99 = 0;
     uint64_t bytes = 0, cold_bytes = 0, peak = 0, failures = 0, draco_bytes = 0;
-    uint64_t apo_bytes = 0, cold_apo_bytes = 0;
+    uint64_t apo_bytes = 0, cold_apo_bytes = 0, reconnects = 0;
+    double longest_outage = 0;
     size_t nf = 0, nc = 0;
     for (unsigned i = 0; i < n; ++i) {
         const client_result *c = &ws[i].result;
@@ -433,6 +471,9 @@ static void print_report(const options *o, const run *r, worker *ws)
         bytes += c->bytes, cold_bytes += c->cold_bytes, decode += c->decode_seconds;
         apo_bytes += c->apo_bytes, cold_apo_bytes += c->cold_apo_bytes;
         draco_bytes += c->draco_bytes;
+        reconnects += c->reconnects;
+        if (c->longest_outage > longest_outage)
+            longest_outage = c->longest_outage;
         if (c->peak_memory > peak)
             peak = c->peak_memory;
         if (c->p50 > p50)
@@ -444,7 +485,7 @@ static void print_report(const options *o, const run *r, worker *ws)
     if (o->json) {
         json_t *root = json_pack(
             "{s:s, s:o, s:o, s:i, s:I, s:o, s:o, s:o, s:o, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:o, s:o, "
-            "s:o, s:I, s:I}",
+            "s:o, s:I, s:I, s:I, s:o}",
             "mode", o->baseline ? "draco" : "stream", "model", ms_json_text(o->model), "path",
             ms_json_text(o->path_file ? o->path_file : ""), "clients", (int)n, "bandwidth_bytes_per_s",
             (json_int_t)llround(o->bandwidth), "tolerance_px", ms_json_number(o->tolerance),
@@ -458,7 +499,8 @@ static void print_report(const options *o, const run *r, worker *ws)
             (json_int_t)(n ? apo_bytes / n : 0), "draco_bytes", (json_int_t)(n ? draco_bytes / n : 0),
             "decode_seconds", ms_json_fixed(n ? decode / n : 0.0, 4), "latency_p50", ms_json_fixed(p50, 4),
             "latency_p99", ms_json_fixed(p99, 4),
-            "peak_memory", (json_int_t)peak, "failures", (json_int_t)failures);
+            "peak_memory", (json_int_t)peak, "failures", (json_int_t)failures,
+            "reconnects", (json_int_t)reconnects, "failover_seconds_max", ms_json_fixed(longest_outage, 4));
         json_t *per_client = json_array();
         for (unsigned i = 0; i < n; ++i) {
             const client_result *c = &ws[i].result;
@@ -475,7 +517,7 @@ static void print_report(const options *o, const run *r, worker *ws)
                               "tolerance_px", ms_json_fixed(c->keys[k].tolerance_px, 4)));
             json_t *client = json_pack(
                 "{s:i, s:o, s:o, s:o, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:i, s:i, s:o, "
-                "s:o, s:o, s:I, s:o, s:o, s:o, s:o}",
+                "s:o, s:o, s:I, s:o, s:o, s:o, s:o, s:o}",
                 "client", (int)i, "time_to_first_display", ms_json_fixed(c->first_display, 4),
                 "time_to_view_complete", ms_json_fixed(c->cold_complete ? c->view_complete : -1.0, 4),
                 "last_byte", ms_json_fixed(c->cold_last_byte, 4),
@@ -490,7 +532,8 @@ static void print_report(const options *o, const run *r, worker *ws)
                 ms_json_fixed(c->p99, 4), "peak_memory", (json_int_t)c->peak_memory, "download_seconds",
                 ms_json_fixed(c->download_seconds, 4), "draco_decode_seconds",
                 ms_json_fixed(c->decode_draco_seconds, 4), "error", ms_json_text(c->error),
-                "keyframes", keyframes);
+                "failover_seconds", ms_json_fixed(c->longest_outage, 4), "keyframes", keyframes);
+            json_object_set_new(client, "model_changes", json_integer((json_int_t)c->model_changes));
             json_array_append_new(per_client, client);
         }
         if (root)

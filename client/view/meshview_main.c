@@ -28,6 +28,7 @@
 #include "ms_viewer_model.h"
 #include "ms_viewer_options.h"
 #include "ms_viewer_readback.h"
+#include "ms_viewer_scene.h"
 #include "ms_viewer_script.h"
 #include "ms_viewer_signals.h"
 #include "ms_viewer_stream.h"
@@ -49,6 +50,9 @@ typedef struct viewer {
     /* the open model */
     ms_viewer_model model;
     ms_viewer_stream *stream;
+    /* or the open scene (--scene) */
+    ms_scene scene;
+    ms_viewer_scene *vscene;
     ms_viewer_controls controls;
     ms_render_options render;
     bool apo, geometry_normals, hud;
@@ -113,7 +117,7 @@ static int text_scale(const viewer *v)
 {
     int fw, fh;
     glfwGetFramebufferSize(v->window, &fw, &fh);
-    return ms_viewer_text_auto_scale(fh, pixel_ratio(v->window), v->on_catalogue || !v->stream);
+    return ms_viewer_text_auto_scale(fh, pixel_ratio(v->window), v->on_catalogue || (!v->stream && !v->vscene));
 }
 
 static void update_shading(viewer *v)
@@ -238,11 +242,13 @@ static void on_key(GLFWwindow *w, int key, int scancode, int action, int mods)
     case GLFW_KEY_P: v->screenshot_requested = true; break;
     case GLFW_KEY_EQUAL:
     case GLFW_KEY_KP_ADD:
-        ms_viewer_stream_set_tolerance(v->stream, ms_viewer_stream_tolerance(v->stream) / 1.5);
+        if (v->stream)
+            ms_viewer_stream_set_tolerance(v->stream, ms_viewer_stream_tolerance(v->stream) / 1.5);
         break;
     case GLFW_KEY_MINUS:
     case GLFW_KEY_KP_SUBTRACT:
-        ms_viewer_stream_set_tolerance(v->stream, ms_viewer_stream_tolerance(v->stream) * 1.5);
+        if (v->stream)
+            ms_viewer_stream_set_tolerance(v->stream, ms_viewer_stream_tolerance(v->stream) * 1.5);
         break;
     case GLFW_KEY_R: ms_viewer_controls_reset(c); break;
     case GLFW_KEY_U: ms_viewer_controls_set_up(c, (c->up_axis + 1) % 3); break;
@@ -374,8 +380,12 @@ static int view_frame(viewer *v, int fw, int fh, double seconds)
         ms_viewer_controls_reset(&v->controls);
     else {
         ms_viewer_step step;
-        if (ms_viewer_stream_step(v->stream, &camera, v->o->upload_budget, &step, &err) != MS_OK ||
-            ms_viewer_stream_draw(v->stream, &camera, &v->render, &v->drawn, &err) != MS_OK) {
+        ms_status st = v->vscene ? ms_viewer_scene_step(v->vscene, &camera, v->o->upload_budget, &step, &err)
+                                 : ms_viewer_stream_step(v->stream, &camera, v->o->upload_budget, &step, &err);
+        if (st == MS_OK)
+            st = v->vscene ? ms_viewer_scene_draw(v->vscene, &camera, &v->render, &v->drawn, &err)
+                           : ms_viewer_stream_draw(v->stream, &camera, &v->render, &v->drawn, &err);
+        if (st != MS_OK) {
             fprintf(stderr, "meshview: %s\n", err.text);
             return 1;
         }
@@ -394,8 +404,13 @@ static int view_frame(viewer *v, int fw, int fh, double seconds)
         }
     }
     ms_core_stats cs;
-    ms_viewer_stream_stats(v->stream, &cs);
-    ms_viewer_hud_info info = {.model = v->model.name,
+    if (v->vscene)
+        ms_viewer_scene_stats(v->vscene, &cs);
+    else
+        ms_viewer_stream_stats(v->stream, &cs);
+    ms_viewer_hud_info info = {.model = v->vscene ? (v->scene.name[0] ? v->scene.name : "scene") : v->model.name,
+                               .show_effects = v->vscene != NULL,
+                               .effects_ran = v->drawn.effects_ran,
                                .mode = mode_name(v),
                                .frame_ms = v->frame_ms,
                                .fps = v->fps,
@@ -435,10 +450,84 @@ static int catalogue_frame(viewer *v, int fw, int fh)
     return 0;
 }
 
+/* --scene in a window: the scene's models and room, the controls around the
+ * middle of the room (from inside it), fly with F. */
+static int interactive_scene(viewer *v)
+{
+    const ms_viewer_options *o = v->o;
+    ms_error err;
+    if (ms_scene_load(o->scene_file, &v->scene, &err) != MS_OK) {
+        fprintf(stderr, "meshview: %s\n", err.text);
+        return 1;
+    }
+    int rc = 0;
+    if (ms_gl_window_new(o->width, o->height, "meshview", true, &v->window, &err) != MS_OK) {
+        fprintf(stderr, "meshview: %s\n", err.text);
+        ms_scene_free(&v->scene);
+        return 1;
+    }
+    keep_gl_driver_loaded();
+    ms_viewer_scene_settings settings = {.stream = {.tolerance_px = o->tolerance_px,
+                                                    .apo_levels = o->apo_levels,
+                                                    .memory_mb = o->memory_mb,
+                                                    .bandwidth = o->bandwidth},
+                                         .effects_off = o->effects_off,
+                                         .force_all = o->effects_all};
+    if (ms_viewer_text_new(&v->text, &err) != MS_OK ||
+        ms_viewer_scene_open(&v->source, &v->scene, o->scene_file, &settings, &v->vscene, &err) != MS_OK) {
+        fprintf(stderr, "meshview: %s\n", err.text);
+        rc = 1;
+        goto done;
+    }
+    /* the controls' home: a box a sixth of the room around its middle, so
+     * that the home view is inside the room */
+    double lo[3], hi[3];
+    ms_viewer_scene_bounds(v->vscene, lo, hi);
+    for (int a = 0; a < 3; ++a) {
+        double mid = 0.5 * (lo[a] + hi[a]), half = (hi[a] - lo[a]) / 12.0;
+        lo[a] = mid - half, hi[a] = mid + half;
+    }
+    ms_viewer_controls_init(&v->controls, lo, hi, 1);
+    glfwSetWindowUserPointer(v->window, v);
+    glfwSetKeyCallback(v->window, on_key);
+    glfwSetMouseButtonCallback(v->window, on_mouse_button);
+    glfwSetCursorPosCallback(v->window, on_cursor);
+    glfwSetScrollCallback(v->window, on_scroll);
+    v->last_frame = now_s();
+    while (!glfwWindowShouldClose(v->window) && !ms_viewer_signals_pending()) {
+        glfwPollEvents();
+        double t = now_s(), seconds = t - v->last_frame;
+        v->last_frame = t;
+        double a = seconds > 0.5 ? 1 : seconds / 0.5;
+        v->frame_ms += (seconds * 1e3 - v->frame_ms) * (v->frame_ms ? a : 1);
+        v->fps = v->frame_ms > 0 ? 1e3 / v->frame_ms : 0;
+        int fw, fh;
+        glfwGetFramebufferSize(v->window, &fw, &fh);
+        if (fw < 1 || fh < 1) {
+            glfwWaitEventsTimeout(0.05);
+            continue;
+        }
+        if (view_frame(v, fw, fh, seconds)) {
+            rc = 1;
+            break;
+        }
+        glfwSwapBuffers(v->window);
+    }
+done:
+    ms_viewer_scene_close(v->vscene);
+    v->vscene = NULL;
+    ms_viewer_text_free(v->text);
+    ms_gl_window_free(v->window);
+    ms_scene_free(&v->scene);
+    return rc;
+}
+
 static int interactive(viewer *v)
 {
     const ms_viewer_options *o = v->o;
     ms_error err;
+    if (o->scene_file)
+        return interactive_scene(v);
     if (o->model) {
         /* An unknown model or a missing server is an error before any window. */
         if (ms_viewer_model_open(&v->source, o->model, &v->model, &err) != MS_OK) {

@@ -7,67 +7,13 @@
  * and replaces the current one only once complete; the same for a pending APO
  * prefix and its texel range (sent after the cell's mesh). Cells wait in a queue
  * in the order they changed; an upload serves first the queued cells that draw
- * nothing yet (holes), then the others. */
+ * nothing yet (holes), then the others. The drawing is ms_render_draw.c's. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "ms_render_internal.h"
-
-typedef struct gpu_mesh {
-    GLuint vao, vbo, ibo;
-    uint32_t vertex_count, triangle_count;
-    uint64_t hash;
-} gpu_mesh;
-
-typedef struct pending_mesh {
-    bool active;
-    float *vertices;        /* 3 per vertex, owned */
-    uint32_t *normals;      /* 1 per vertex (packed), owned */
-    uint32_t *indices;      /* 3 per triangle, owned */
-    gpu_mesh gpu;           /* buffers being filled (created with the first piece) */
-    uint64_t sent;          /* bytes of positions, normals, then indices already sent */
-} pending_mesh;
-
-typedef struct apo_range {
-    uint32_t levels;        /* complete levels held; 0: no APO */
-    uint32_t start, count;  /* words in the texel buffer */
-    bool root_internal;
-} apo_range;
-
-typedef struct pending_apo {
-    bool active;
-    uint32_t *words;        /* owned */
-    apo_range range;        /* start valid once allocated */
-    bool allocated;
-    uint64_t sent;          /* bytes */
-} pending_apo;
-
-typedef struct render_cell {
-    gpu_mesh mesh;          /* current; vao 0 when nothing is drawn */
-    apo_range apo;          /* current */
-    pending_mesh next_mesh;
-    pending_apo next_apo;
-    uint32_t failed_apo_levels; /* a prefix that did not load: not retried until it changes */
-    bool queued;
-    bool in_frame;
-} render_cell;
-
-struct ms_render {
-    ms_archive_header header;
-    ms_archive_cell *records;
-    render_cell *cells;
-    ms_render_split split;
-    ms_render_program program[2]; /* without and with the wireframe overlay */
-    ms_render_texels texels;
-    uint32_t *frame_cells;      /* cells with triangles in the latest frame */
-    uint32_t frame_cell_count;
-    uint32_t *queue;            /* cells with something pending, oldest first */
-    uint32_t queue_count;
-    uint32_t *apo_levels;       /* per cell, scratch for set_frame */
-    uint32_t *apo_entry;        /* per cell: index into the frame's apo array + 1 */
-};
 
 void ms_render_options_default(ms_render_options *o)
 {
@@ -79,6 +25,57 @@ void ms_render_options_default(ms_render_options *o)
     o->apo_nearest = true;
     o->smooth = true;
     o->background[0] = o->background[1] = o->background[2] = 0.02f;
+    o->effects = MS_EFFECTS_VIEWER;
+    o->albedo[0] = 0.72f, o->albedo[1] = 0.69f, o->albedo[2] = 0.64f;
+    o->specular = 0.18f;
+    o->shininess = 40.0f;
+    o->two_sided = true;
+    o->haze_density = 0.0f;
+    o->light_count = 1;
+    o->lights[0].kind = MS_RENDER_LIGHT_HEAD;
+    o->lights[0].colour[0] = o->lights[0].colour[1] = o->lights[0].colour[2] = 1.0f;
+    o->placed = false;
+    for (int i = 0; i < 16; ++i)
+        o->placement[i] = i % 5 == 0 ? 1.0 : 0.0;
+    o->clear = true;
+    o->displace = false;
+    o->displacement_amplitude = 0.01f;
+    o->displacement_radius = 0.05f;
+    o->displacement_density = 100.0f;
+    o->displacement_seed = 1;
+    o->tess_pixels_per_level = 8.0f;
+}
+
+ms_status ms_render_find_program(ms_render *r, unsigned effects, bool wireframe, bool tessellated,
+                                 const ms_render_program **out, ms_error *err)
+{
+    for (uint32_t i = 0; i < r->program_count; ++i)
+        if (r->programs[i].effects == effects && r->programs[i].wireframe == wireframe &&
+            r->programs[i].tessellated == tessellated) {
+            *out = &r->programs[i];
+            return MS_OK;
+        }
+    uint32_t slot;
+    if (r->program_count < MS_RENDER_PROGRAM_CACHE)
+        slot = r->program_count;
+    else {
+        slot = r->program_next;
+        r->program_next = (r->program_next + 1) % MS_RENDER_PROGRAM_CACHE;
+        ms_render_program_free(&r->programs[slot]);
+    }
+    ms_status st = ms_render_program_build(&r->programs[slot], effects, wireframe, tessellated, err);
+    if (st != MS_OK) {
+        /* an evicted slot is empty now: the last program fills the hole */
+        if (slot < r->program_count) {
+            r->programs[slot] = r->programs[r->program_count - 1];
+            memset(&r->programs[--r->program_count], 0, sizeof r->programs[0]);
+        }
+        return st;
+    }
+    if (slot == r->program_count)
+        r->program_count++;
+    *out = &r->programs[slot];
+    return MS_OK;
 }
 
 /* ---- per-cell GPU state ---------------------------------------------------- */
@@ -184,9 +181,10 @@ ms_status ms_render_new(const ms_archive_header *header, const ms_archive_cell *
     }
     memcpy(r->records, cells, n * sizeof *r->records);
     ms_render_split_init(&r->split, &r->header, r->records);
-    st = ms_render_program_build(&r->program[0], false, err);
+    const ms_render_program *unused;
+    st = ms_render_find_program(r, MS_EFFECTS_VIEWER, false, false, &unused, err);
     if (st == MS_OK)
-        st = ms_render_program_build(&r->program[1], true, err);
+        st = ms_render_find_program(r, MS_EFFECTS_VIEWER, true, false, &unused, err);
     if (st == MS_OK)
         st = ms_render_texels_init(&r->texels, err);
     if (st != MS_OK) {
@@ -205,8 +203,8 @@ void ms_render_free(ms_render *r)
         for (uint32_t i = 0; i < r->header.cell_count; ++i)
             drop_cell(r, &r->cells[i]);
     ms_render_texels_free(&r->texels);
-    ms_render_program_free(&r->program[0]);
-    ms_render_program_free(&r->program[1]);
+    for (uint32_t i = 0; i < r->program_count; ++i)
+        ms_render_program_free(&r->programs[i]);
     ms_render_split_free(&r->split);
     free(r->records);
     free(r->cells);
@@ -495,118 +493,6 @@ ms_status ms_render_upload(ms_render *r, uint64_t budget_bytes, ms_render_upload
         return ms_error_set(err, MS_ERR_NOMEM, "render: the GPU is out of memory");
     if (e != GL_NO_ERROR)
         return ms_error_set(err, MS_ERR_UNSUPPORTED, "render: GL error 0x%x while uploading", e);
-    return MS_OK;
-}
-
-/* ---- drawing ------------------------------------------------------------------ */
-
-static float srgb_encode(float c)
-{
-    c = c < 0.0f ? 0.0f : (c > 1.0f ? 1.0f : c);
-    return c <= 0.0031308f ? 12.92f * c : 1.055f * powf(c, 1.0f / 2.4f) - 0.055f;
-}
-
-/* A light, distinct linear colour per cell number (golden-ratio hue steps). */
-static void cell_tint(uint32_t cell, float rgb[3])
-{
-    double hue = fmod((double)cell * 0.6180339887498949, 1.0) * 6.0;
-    double s = 0.55, v = 0.85, f = hue - floor(hue);
-    double p = v * (1 - s), q = v * (1 - s * f), t = v * (1 - s * (1 - f));
-    double out[6][3] = {{v, t, p}, {q, v, p}, {p, v, t}, {p, q, v}, {t, p, v}, {v, p, q}};
-    int i = (int)floor(hue) % 6;
-    for (int a = 0; a < 3; ++a)
-        rgb[a] = (float)(out[i][a] * out[i][a]); /* roughly to linear */
-}
-
-ms_status ms_render_draw(ms_render *r, const ms_camera *camera, const ms_render_options *o,
-                         ms_render_draw_stats *stats, ms_error *err)
-{
-    if (stats)
-        memset(stats, 0, sizeof *stats);
-    if (!r || !o)
-        return ms_error_set(err, MS_ERR_ARG, "render: no renderer or options");
-    ms_status st = ms_render_camera_check(camera, err);
-    if (st != MS_OK)
-        return st;
-    if ((unsigned)o->shading > MS_SHADING_CELL_ID)
-        return ms_error_set(err, MS_ERR_ARG, "render: shading mode %d unknown", (int)o->shading);
-    double view[16], proj[16];
-    ms_render_camera_matrices(camera, view, proj);
-    float projection[16], world_to_eye[9];
-    for (int i = 0; i < 16; ++i)
-        projection[i] = (float)proj[i];
-    for (int col = 0; col < 3; ++col)
-        for (int row = 0; row < 3; ++row)
-            world_to_eye[3 * col + row] = (float)view[4 * col + row];
-    int width = (int)lround(camera->width), height = (int)lround(camera->height);
-    glViewport(0, 0, width, height);
-    float bg[3] = {0, 0, 0};
-    for (int a = 0; a < 3 && o->shading != MS_SHADING_CELL_ID; ++a) {
-        float c = isfinite(o->background[a]) ? o->background[a] : 0.0f;
-        bg[a] = o->shading == MS_SHADING_NORMALS ? c : srgb_encode(c);
-    }
-    glClearColor(bg[0], bg[1], bg[2], o->shading == MS_SHADING_CELL_ID ? 0.0f : 1.0f);
-    glClearDepth(1.0);
-    glDepthMask(GL_TRUE);
-    glColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
-    glDisable(GL_SCISSOR_TEST);
-    glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
-    glEnable(GL_DEPTH_TEST);
-    glDepthFunc(GL_LESS);
-    glDisable(GL_CULL_FACE);
-    glDisable(GL_BLEND);
-    glDisable(GL_FRAMEBUFFER_SRGB); /* the shader encodes sRGB itself */
-    const ms_render_program *p = &r->program[o->wireframe && o->shading != MS_SHADING_CELL_ID];
-    glUseProgram(p->program);
-    glUniformMatrix4fv(p->projection, 1, GL_FALSE, projection);
-    glUniformMatrix3fv(p->world_to_eye, 1, GL_FALSE, world_to_eye);
-    glUniform2f(p->viewport, (float)width, (float)height);
-    glUniform1i(p->shading, (int)o->shading);
-    glUniform1i(p->apo_nearest, o->apo_nearest);
-    glUniform1i(p->smooth, o->smooth);
-    glActiveTexture(GL_TEXTURE0);
-    glBindTexture(GL_TEXTURE_BUFFER, r->texels.texture);
-    glUniform1i(p->apo_words, 0);
-    uint32_t cap = o->apo_depth_cap ? o->apo_depth_cap : UINT32_MAX;
-    uint32_t drawn = 0;
-    uint64_t triangles = 0;
-    for (uint32_t k = 0; k < r->frame_cell_count; ++k) {
-        uint32_t cell = r->frame_cells[k];
-        const render_cell *c = &r->cells[cell];
-        if (!c->mesh.vao)
-            continue;
-        double origin[3], side;
-        ms_render_cell_cube(&r->header, &r->records[cell], origin, &side);
-        float modelview[16], tint[3];
-        ms_render_cell_modelview(view, origin, side, modelview);
-        cell_tint(cell, tint);
-        glUniformMatrix4fv(p->modelview, 1, GL_FALSE, modelview);
-        glUniform1ui(p->cell_number, cell);
-        glUniform3fv(p->cell_tint, 1, tint);
-        bool apo_on = o->apo && c->apo.count > 0;
-        glUniform1i(p->apo_on, apo_on);
-        if (apo_on) {
-            uint32_t last = c->apo.levels - 1;
-            glUniform1i(p->apo_base, (GLint)c->apo.start);
-            glUniform1i(p->apo_root_internal, c->apo.root_internal);
-            glUniform1ui(p->apo_stop_depth, cap < last ? cap : last);
-        }
-        glBindVertexArray(c->mesh.vao);
-        glDrawElements(GL_TRIANGLES, (GLsizei)(3 * c->mesh.triangle_count), GL_UNSIGNED_INT, NULL);
-        drawn++;
-        triangles += c->mesh.triangle_count;
-    }
-    glBindVertexArray(0);
-    glBindTexture(GL_TEXTURE_BUFFER, 0);
-    glUseProgram(0);
-    if (stats) {
-        stats->cells_drawn = drawn;
-        stats->triangles_drawn = triangles;
-    }
-    GLenum e = glGetError();
-    if (e != GL_NO_ERROR)
-        return ms_error_set(err, e == GL_OUT_OF_MEMORY ? MS_ERR_NOMEM : MS_ERR_UNSUPPORTED,
-                            "render: GL error 0x%x while drawing", e);
     return MS_OK;
 }
 

@@ -35,9 +35,13 @@
  * neighbour refined around a shared border vertex is uploaded again.
  *
  * Shading (ms_render_options.shading):
- *   MS_SHADING_LIT      head light at the camera: Lambert + Blinn-Phong with the
- *                       normal N (APO, smooth or flat), times, where N is an APO
- *                       normal, the self-shadowing factor max(0, L . N_geometric);
+ *   MS_SHADING_LIT      the options' lights (default: a head light at the
+ *                       camera): albedo times (0.05 + 0.95 * sum of Lambert),
+ *                       plus the Blinn-Phong highlight (specular effect) with the
+ *                       normal N (APO, smooth or flat), each light's terms times,
+ *                       where N is an APO normal, the self-shadowing factor
+ *                       max(0, L . N_geometric); then haze (haze effect):
+ *                       mix(haze colour, colour, exp(-density * eye distance));
  *                       gamma-correct (sRGB) output.
  *   MS_SHADING_NORMALS  N as a colour, rgb = (N + 1) / 2, linear (no gamma), N in
  *                       world coordinates, so a test can read it back exactly.
@@ -45,7 +49,16 @@
  *   MS_SHADING_CELL_ID  rgb = the drawing cell's number + 1 as 24 bits (r low
  *                       byte), a = 1; 0 is background. For picking and tests.
  * N_geometric is the flat normal of the triangle (oriented as stored, facing the
- * camera side of front faces). wireframe overlays the triangle edges.
+ * camera side of front faces; with the two-sided effect and options.two_sided, a
+ * back face's is turned towards the camera). wireframe overlays the triangle
+ * edges.
+ *
+ * Composed programs. The fragment shader holds only the effects of
+ * options.effects (ms_render_program_source): one program per effect set and
+ * wireframe variant, built the first time it is drawn with and kept; a scene
+ * draws with the effects it calls for (ms_scene_effects), so an effect it does
+ * not use is not compiled in. ms_render_draw_stats says which effects the
+ * program held and which of them changed the picture.
  *
  * Camera. The projection is OpenGL's perspective from ms_camera (fovy, width /
  * height aspect, near and far distance), clip depth in [-1, 1], window depth in
@@ -82,6 +95,44 @@ typedef enum ms_shading {
     MS_SHADING_CELL_ID = 3
 } ms_shading;
 
+/* Effects a shader program can hold (bits). Each is compiled in only when the
+ * program is built with its bit (ms_render_program_source); the single-model
+ * viewer builds MS_EFFECTS_VIEWER, a scene the effects it calls for
+ * (ms_scene_effects, docs/SCENES.md). */
+typedef enum ms_effect {
+    MS_EFFECT_DETAIL_NORMALS = 1 << 0, /* APO normals, with the self-shadowing factor */
+    MS_EFFECT_SPECULAR = 1 << 1,       /* Blinn-Phong highlight (glossy materials) */
+    MS_EFFECT_TWO_SIDED = 1 << 2,      /* a back face lit as its other side (open scans) */
+    MS_EFFECT_HAZE = 1 << 3,           /* exponential haze with distance */
+    MS_EFFECT_IMPOSTORS = 1 << 4,      /* image stand-ins for far objects */
+    MS_EFFECT_DISPLACEMENT = 1 << 5    /* tessellated relief on declared surfaces */
+} ms_effect;
+#define MS_EFFECT_COUNT 6
+#define MS_EFFECTS_ALL ((1u << MS_EFFECT_COUNT) - 1)
+/* What meshview drew before scenes: APO, the head light's highlight, two-sided. */
+#define MS_EFFECTS_VIEWER (MS_EFFECT_DETAIL_NORMALS | MS_EFFECT_SPECULAR | MS_EFFECT_TWO_SIDED)
+
+/* The effect's name in scene files and reports ("detail_normals", "specular",
+ * "two_sided", "haze", "impostors", "displacement"); NULL for anything but one
+ * bit of MS_EFFECTS_ALL. */
+const char *ms_effect_name(unsigned effect);
+
+/* A light in world coordinates (the scene's; the model's own for a lone model). */
+typedef enum ms_render_light_kind {
+    MS_RENDER_LIGHT_HEAD = 0,        /* at the eye, shining where it looks, no falloff */
+    MS_RENDER_LIGHT_DIRECTIONAL = 1, /* vector: direction towards the light (need not be unit) */
+    MS_RENDER_LIGHT_POINT = 2        /* vector: position; falloff 1 / (1 + (d / range)^2) */
+} ms_render_light_kind;
+
+#define MS_RENDER_MAX_LIGHTS 8
+
+typedef struct ms_render_light {
+    ms_render_light_kind kind;
+    float colour[3];          /* linear RGB times intensity */
+    double vector[3];
+    double range;             /* point lights: > 0 */
+} ms_render_light;
+
 typedef struct ms_render_options {
     ms_shading shading;
     bool apo;                 /* APO normals where a chunk is held; false: geometric */
@@ -91,10 +142,41 @@ typedef struct ms_render_options {
     float background[3];      /* linear RGB the colour buffer is cleared to */
     bool smooth;              /* where APO is not used: interpolated vertex normals
                                  (true) or each triangle's flat normal (false) */
+    /* Scenes (docs/SCENES.md). The defaults draw a lone model as before scenes. */
+    unsigned effects;         /* MS_EFFECT_* compiled into the program drawn with
+                                 (built on first use, kept); default MS_EFFECTS_VIEWER */
+    float albedo[3];          /* linear; default 0.72 0.69 0.64 */
+    float specular;           /* highlight strength, [0, 1]; default 0.18 (needs MS_EFFECT_SPECULAR) */
+    float shininess;          /* Blinn-Phong exponent, >= 1; default 40 */
+    bool two_sided;           /* back faces lit as their other side; default true
+                                 (needs MS_EFFECT_TWO_SIDED) */
+    float haze_density;       /* per world unit of eye distance, >= 0; default 0 (needs MS_EFFECT_HAZE) */
+    float haze_colour[3];     /* linear */
+    ms_render_light lights[MS_RENDER_MAX_LIGHTS];
+    unsigned light_count;     /* default 1: a white head light */
+    bool placed;              /* draw the model through placement (model to world,
+                                 column-major, rotation times uniform scale plus a
+                                 translation); default false: identity */
+    double placement[16];
+    bool clear;               /* clear colour and depth first (default true); false
+                                 draws over what is there (several models in one frame) */
+    /* Displacement (needs MS_EFFECT_DISPLACEMENT in effects; "Displacement"
+     * above): the surface drawn as tessellated patches with relief. */
+    bool displace;            /* default false */
+    float displacement_amplitude; /* model units, > 0 (default 0.01) */
+    float displacement_radius;    /* an atom's radius, model units, > 0 (default 0.05) */
+    float displacement_density;   /* atoms per square unit, > 0 (default 100) */
+    uint32_t displacement_seed;
+    float tess_pixels_per_level;  /* projected edge pixels per tessellation level, >= 1 (default 8) */
+    /* The switch to an impostor (ms_render_impostor.h; needs MS_EFFECT_IMPOSTORS):
+     * the pixels of a 4x4 Bayer pattern below dissolve are left out, for the
+     * impostor to draw. Default 0: all drawn. */
+    float dissolve;
 } ms_render_options;
 
 /* LIT, APO on, no wireframe, no cap, nearest rule, dark grey background,
- * smooth. */
+ * smooth; effects MS_EFFECTS_VIEWER with the plaster albedo, a 0.18 highlight of
+ * exponent 40, two-sided, no haze, one head light, no placement, clear. */
 void ms_render_options_default(ms_render_options *options);
 
 /* Compiles the shaders and sets up the buffers for a model (header and its
@@ -119,9 +201,27 @@ typedef struct ms_render_upload_stats {
 ms_status ms_render_upload(ms_render *render, uint64_t budget_bytes, ms_render_upload_stats *stats,
                            ms_error *err);
 
+/* Displacement. With options.displace and the displacement effect, the cells
+ * are drawn as triangle patches through tessellation stages (shaders/tess.*):
+ * each edge's level is the projected size in pixels of the sphere on the
+ * edge's midpoint whose diameter is the edge (both patches of an edge agree:
+ * no cracks) over tess_pixels_per_level, in [1, 64], the inner level the
+ * largest; a patch wholly outside the frustum gets level 1; each new vertex
+ * moves along its patch's normal by the relief of height atoms scattered on a
+ * jittered grid in the patch's plane (seeded, so deterministic); the flat
+ * normal from screen derivatives shades the relief. Meant for flat surfaces
+ * (a room's floor and walls): where patches of different planes meet, their
+ * relief differs. */
+
 typedef struct ms_render_draw_stats {
     uint32_t cells_drawn;
     uint64_t triangles_drawn;
+    unsigned effects_compiled; /* MS_EFFECT_* of the program drawn with */
+    unsigned effects_ran;      /* those of them that changed a pixel's shading in
+                                  this draw: detail normals where a drawn cell used
+                                  APO, specular with a strength > 0, two-sided on,
+                                  haze with a density > 0 (LIT and CELLS shading),
+                                  displacement when displaced patches were drawn */
 } ms_render_draw_stats;
 
 /* Clears the bound framebuffer (colour to options->background, depth to 1), sets
@@ -130,6 +230,16 @@ typedef struct ms_render_draw_stats {
 ms_status ms_render_draw(ms_render *render, const ms_camera *camera,
                          const ms_render_options *options, ms_render_draw_stats *stats,
                          ms_error *err);
+
+/* The fragment shader's source composed for a set of effects (MS_EFFECT_* bits
+ * within MS_EFFECTS_ALL) and the wireframe variant: the embedded
+ * shaders/cell.frag.glsl with, after its #version line, the wireframe define,
+ * the APO traversal only with MS_EFFECT_DETAIL_NORMALS, and each
+ * "#ifdef MS_EFFECT_<NAME>" ... "#else" ... "#endif" block resolved: an effect
+ * not in the set leaves no line of its own in the result. *source is malloc'd
+ * (caller frees). Pure (no GL). MS_ERR_ARG for bits outside MS_EFFECTS_ALL,
+ * MS_ERR_FORMAT for unbalanced blocks, MS_ERR_NOMEM. */
+ms_status ms_render_program_source(unsigned effects, bool wireframe, char **source, ms_error *err);
 
 /* Column-major view (world to eye) and projection matrices the renderer draws
  * with, in doubles. */

@@ -7,7 +7,9 @@
  *   ms_render_apo.c     a stored chunk prefix to validated texel words (CPU), and
  *                       the shared GL_R32UI texel buffer with its range allocator
  *   ms_render_program.c shader compilation and uniform locations
- *   ms_render.c         the renderer: frames, the upload queue, drawing
+ *   ms_render.c         the renderer: frames, the upload queue, the program cache
+ *   ms_render_draw.c    drawing a frame: uniforms, lights, placement, effects
+ *   ms_render_impostor.c impostors (ms_render_impostor.h)
  *
  * Thread-safety: as ms_render.h (the CPU-only parts are pure or per object).
  */
@@ -139,18 +141,100 @@ void ms_render_texels_release(ms_render_texels *texels, uint32_t start, uint32_t
 
 typedef struct ms_render_program {
     GLuint program;
+    unsigned effects;         /* MS_EFFECT_* compiled in */
+    bool wireframe;
+    bool tessellated;         /* with the displacement stages: draws GL_PATCHES */
     GLint modelview, projection, viewport;
     GLint shading, apo_on, apo_base, apo_root_internal, apo_stop_depth, apo_nearest;
     GLint world_to_eye, cell_number, cell_tint, apo_words, smooth;
+    GLint albedo, light_count, light_eye, light_colour, light_range;
+    GLint specular, shininess, two_sided, haze_density, haze_colour; /* -1 when not compiled in */
+    GLint dissolve;
+    GLint tess_pixels, disp_amplitude, disp_radius, disp_spacing, disp_seed, cell_origin, cell_side;
 } ms_render_program;
 
-/* Compiles and links the embedded shaders: with wireframe, the program with the
+/* Compiles and links the embedded shaders with the effects given (the fragment
+ * source of ms_render_program_source); tessellated (only with
+ * MS_EFFECT_DISPLACEMENT) adds the displacement stages (tess.*.glsl) in place of
+ * cell.vert.glsl; with wireframe, the program with the
  * geometry shader (flat normal and edge distances per triangle, the overlay);
  * without, vertex + fragment only (the flat normal from screen derivatives),
  * several times faster on software rasterisers. MS_ERR_UNSUPPORTED with the
  * first line of the driver's log. */
-ms_status ms_render_program_build(ms_render_program *program, bool wireframe, ms_error *err);
+ms_status ms_render_program_build(ms_render_program *program, unsigned effects, bool wireframe, bool tessellated,
+                                  ms_error *err);
+/* A program of one vertex and one fragment shader (output "colour"), with
+ * frag_insert (NULL: none) after the fragment shader's #version line; name
+ * for errors. MS_ERR_UNSUPPORTED with the driver's first log line. */
+ms_status ms_render_link_simple(const char *vert, const char *frag, const char *frag_insert, const char *name,
+                                GLuint *program, ms_error *err);
+
 void ms_render_program_free(ms_render_program *program);
+
+/* ---- the renderer's state (ms_render.c, ms_render_draw.c) ----------------- */
+
+#define MS_RENDER_PROGRAM_CACHE 16 /* composed programs kept, replaced round robin */
+
+typedef struct gpu_mesh {
+    GLuint vao, vbo, ibo;
+    uint32_t vertex_count, triangle_count;
+    uint64_t hash;
+} gpu_mesh;
+
+typedef struct pending_mesh {
+    bool active;
+    float *vertices;        /* 3 per vertex, owned */
+    uint32_t *normals;      /* 1 per vertex (packed), owned */
+    uint32_t *indices;      /* 3 per triangle, owned */
+    gpu_mesh gpu;           /* buffers being filled (created with the first piece) */
+    uint64_t sent;          /* bytes of positions, normals, then indices already sent */
+} pending_mesh;
+
+typedef struct apo_range {
+    uint32_t levels;        /* complete levels held; 0: no APO */
+    uint32_t start, count;  /* words in the texel buffer */
+    bool root_internal;
+} apo_range;
+
+typedef struct pending_apo {
+    bool active;
+    uint32_t *words;        /* owned */
+    apo_range range;        /* start valid once allocated */
+    bool allocated;
+    uint64_t sent;          /* bytes */
+} pending_apo;
+
+typedef struct render_cell {
+    gpu_mesh mesh;          /* current; vao 0 when nothing is drawn */
+    apo_range apo;          /* current */
+    pending_mesh next_mesh;
+    pending_apo next_apo;
+    uint32_t failed_apo_levels; /* a prefix that did not load: not retried until it changes */
+    bool queued;
+    bool in_frame;
+} render_cell;
+
+struct ms_render {
+    ms_archive_header header;
+    ms_archive_cell *records;
+    render_cell *cells;
+    ms_render_split split;
+    /* composed programs, built on first use (effect set x wireframe), replaced
+     * round robin when full */
+    ms_render_program programs[MS_RENDER_PROGRAM_CACHE];
+    uint32_t program_count, program_next;
+    ms_render_texels texels;
+    uint32_t *frame_cells;      /* cells with triangles in the latest frame */
+    uint32_t frame_cell_count;
+    uint32_t *queue;            /* cells with something pending, oldest first */
+    uint32_t queue_count;
+    uint32_t *apo_levels;       /* per cell, scratch for set_frame */
+    uint32_t *apo_entry;        /* per cell: index into the frame's apo array + 1 */
+};
+
+/* The program for an effect set and variant: from the cache, else built. */
+ms_status ms_render_find_program(ms_render *r, unsigned effects, bool wireframe, bool tessellated,
+                                 const ms_render_program **out, ms_error *err);
 
 /* ---- ms_render.c: for tests ----------------------------------------------- */
 

@@ -4,6 +4,7 @@
 #include <stdio.h>
 #include <string.h>
 
+#include "ms_render.h"
 #include "ms_viewer_font.h"
 
 static double mb(uint64_t bytes) { return (double)bytes / 1e6; }
@@ -16,6 +17,15 @@ size_t ms_viewer_hud_lines(const ms_viewer_hud_info *info,
     snprintf(lines[n++], MS_HUD_LINE_MAX, "%s  %s%s", info->model, info->mode,
              info->fly ? "  (fly)" : "");
     snprintf(lines[n++], MS_HUD_LINE_MAX, "frame %.1f ms  %.0f fps", info->frame_ms, info->fps);
+    if (info->show_effects) {
+        char *line = lines[n++];
+        size_t used = (size_t)snprintf(line, MS_HUD_LINE_MAX, "effects:");
+        for (unsigned bit = 1; bit <= MS_EFFECTS_ALL; bit <<= 1)
+            if ((info->effects_ran & bit) && used < MS_HUD_LINE_MAX)
+                used += (size_t)snprintf(line + used, MS_HUD_LINE_MAX - used, " %s", ms_effect_name(bit));
+        if (!info->effects_ran)
+            snprintf(line + used, MS_HUD_LINE_MAX - used, " none");
+    }
     snprintf(lines[n++], MS_HUD_LINE_MAX, "triangles %llu in %u cells",
              (unsigned long long)info->triangles_drawn, info->cells_drawn);
     snprintf(lines[n++], MS_HUD_LINE_MAX, "cells %u shown  %u loading  %u cached", c->cells_shown,

@@ -28,6 +28,8 @@ typedef struct ms_viewer_hud_info {
     const ms_core_stats *core;   /* errors and tolerance in screen pixels */
     bool settled;                /* view complete and uploaded */
     bool fly;
+    bool show_effects;           /* a scene: list the effects that ran this frame */
+    unsigned effects_ran;        /* MS_EFFECT_* (ms_render.h) */
 } ms_viewer_hud_info;
 
 /* Writes the HUD's lines; returns how many (at most MS_HUD_MAX_LINES). */

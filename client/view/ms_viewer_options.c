@@ -10,7 +10,8 @@
 void ms_viewer_options_usage(FILE *out)
 {
     fputs("usage: meshview --server HOST:PORT [--model NAME] [--token T] [options]\n"
-          "       meshview ARCHIVE_DIR [--model NAME] [options]\n\n"
+          "       meshview ARCHIVE_DIR [--model NAME] [options]\n"
+          "       meshview ARCHIVE_DIR|--server HOST:PORT --scene FILE [options]\n\n"
           "Shows a model streamed from meshserve, or read from a local archive directory\n"
           "(the same client core, without a network), shaded with its APO normals. Without\n"
           "--model it opens on the catalogue (name, triangles, size) to pick from.\n"
@@ -27,6 +28,11 @@ void ms_viewer_options_usage(FILE *out)
           "  --memory MB            client cache target (default none)\n"
           "  --bandwidth B          bytes per second read (default unlimited)\n"
           "  --up x|y|z             the model's up axis (default z)\n"
+          "Scenes (docs/SCENES.md):\n"
+          "  --scene FILE           a room of catalogue models; --path defaults to its camera path\n"
+          "  --effects-off LIST     effects left out of the program (comma-separated: detail_normals,\n"
+          "                         specular, two_sided, haze, impostors, displacement)\n"
+          "  --effects-all          compile every effect in, whether the scene calls for it or not\n"
           "Scripted, headless (on with --path or --screenshot-dir):\n"
           "  --path FILE            camera path (docs/CAMERA_PATHS.md); without it the home view\n"
           "  --screenshot-dir DIR   one PNG per keyframe (keyframe-NN.png; catalogue.png\n"
@@ -96,6 +102,26 @@ static bool size_pair(const char *text, int *w, int *h)
     return true;
 }
 
+/* "haze,specular" to MS_EFFECT_* bits; false for an unknown or empty name. */
+static bool effect_list(const char *text, unsigned *bits)
+{
+    *bits = 0;
+    for (const char *p = text;;) {
+        size_t n = strcspn(p, ",");
+        bool known = false;
+        for (unsigned bit = 1; bit <= MS_EFFECTS_ALL && !known; bit <<= 1)
+            if (strlen(ms_effect_name(bit)) == n && strncmp(ms_effect_name(bit), p, n) == 0) {
+                *bits |= bit;
+                known = true;
+            }
+        if (!known)
+            return false;
+        if (!p[n])
+            return true;
+        p += n + 1;
+    }
+}
+
 int ms_viewer_options_parse(int argc, char **argv, ms_viewer_options *o, FILE *err)
 {
     static const struct option opts[] = {
@@ -112,6 +138,9 @@ int ms_viewer_options_parse(int argc, char **argv, ms_viewer_options *o, FILE *e
         {"json", no_argument, NULL, 'j'},             {"help", no_argument, NULL, 'h'},
         {"hud", no_argument, NULL, 'H'},
         {"compare-apo", no_argument, NULL, 'A'},
+        {"scene", required_argument, NULL, 'c'},
+        {"effects-off", required_argument, NULL, 'e'},
+        {"effects-all", no_argument, NULL, 'E'},
         {NULL, 0, NULL, 0}};
     memset(o, 0, sizeof *o);
     o->width = 1280, o->height = 720;
@@ -196,6 +225,15 @@ int ms_viewer_options_parse(int argc, char **argv, ms_viewer_options *o, FILE *e
         case 'j': o->json = true; break;
         case 'H': o->hud = true; break;
         case 'A': o->compare_apo = true; break;
+        case 'c': o->scene_file = optarg; break;
+        case 'E': o->effects_all = true; break;
+        case 'e':
+            if (!effect_list(optarg, &o->effects_off)) {
+                fprintf(err, "meshview: --effects-off wants effect names separated by commas, not '%s'\n",
+                        optarg);
+                return 2;
+            }
+            break;
         case 'h': o->help = true; return 0;
         case ':':
             fprintf(err, "meshview: %s wants a value\n", argv[optind - 1]);
@@ -236,8 +274,16 @@ int ms_viewer_options_parse(int argc, char **argv, ms_viewer_options *o, FILE *e
     if (no_apo)
         o->apo_levels = 0, o->apo_shading = false;
     o->scripted = o->path_file || o->screenshot_dir;
-    if (o->path_file && !o->model) {
-        fprintf(err, "meshview: --path needs --model\n");
+    if (o->scene_file && o->model) {
+        fprintf(err, "meshview: --scene and --model exclude each other\n");
+        return 2;
+    }
+    if (o->path_file && !o->model && !o->scene_file) {
+        fprintf(err, "meshview: --path needs --model or --scene\n");
+        return 2;
+    }
+    if ((o->effects_off || o->effects_all) && !o->scene_file) {
+        fprintf(err, "meshview: --effects-off and --effects-all need --scene\n");
         return 2;
     }
     if (o->json && !o->scripted) {

@@ -3,6 +3,7 @@
  *
  *   meshview --server HOST:PORT [--model NAME] [--token T] [options]
  *   meshview ARCHIVE_DIR [--model NAME] [options]
+ *   meshview ARCHIVE_DIR|--server HOST:PORT --scene FILE [options]
  *
  * Scripted (headless) mode is on when --path or --screenshot-dir is given:
  * no visible window, the camera follows the path (or stays at the home view),
@@ -39,6 +40,9 @@ typedef struct ms_viewer_options {
     bool json, scripted, help;
     bool hud;                  /* scripted: draw the HUD into the pictures */
     bool compare_apo;          /* scripted: time APO and plain shading of every frame */
+    const char *scene_file;    /* --scene: a scene (docs/SCENES.md) instead of one model */
+    unsigned effects_off;      /* --effects-off: MS_EFFECT_* bits left out of the scene's program */
+    bool effects_all;          /* --effects-all: every effect compiled in, called for or not */
 } ms_viewer_options;
 
 /* 0: parsed (o->help for --help); 2: a usage error, one line written to err. */

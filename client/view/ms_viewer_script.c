@@ -11,10 +11,12 @@
 #include <time.h>
 
 #include "ms_camera_path.h"
+#include "ms_json_out.h"
 #include "ms_viewer_catalogue.h"
 #include "ms_viewer_controls.h"
 #include "ms_viewer_hud.h"
 #include "ms_viewer_readback.h"
+#include "ms_viewer_scene.h"
 #include "ms_viewer_signals.h"
 #include "ms_viewer_stream.h"
 #include "ms_viewer_text.h"
@@ -151,7 +153,12 @@ done:
 /* The run's state while it plays the path. */
 typedef struct script {
     const ms_viewer_options *o;
-    ms_viewer_stream *stream;
+    ms_viewer_stream *stream;   /* one model, or */
+    ms_viewer_scene *scene;     /* a scene (--scene) */
+    const char *name;           /* the model's or the scene's, for the HUD */
+    const char *scene_path;     /* the scene's camera path, or NULL */
+    unsigned effects_ran;       /* of the last frame */
+    uint64_t effect_frames[MS_EFFECT_COUNT]; /* frames (with a triangle) each effect ran in */
     ms_viewer_target target;
     ms_render_options render;
     GLFWwindow *window;
@@ -164,6 +171,38 @@ typedef struct script {
     uint64_t last_triangles;
 } script;
 
+/* The stream's or the scene's step, draw and figures. */
+static ms_status run_step(script *s, const ms_camera *camera, ms_viewer_step *step, ms_error *err)
+{
+    return s->scene ? ms_viewer_scene_step(s->scene, camera, s->o->upload_budget, step, err)
+                    : ms_viewer_stream_step(s->stream, camera, s->o->upload_budget, step, err);
+}
+
+static ms_status run_draw(script *s, const ms_camera *camera, const ms_render_options *ro,
+                          ms_render_draw_stats *drawn, ms_error *err)
+{
+    return s->scene ? ms_viewer_scene_draw(s->scene, camera, ro, drawn, err)
+                    : ms_viewer_stream_draw(s->stream, camera, ro, drawn, err);
+}
+
+static void run_stats(script *s, ms_core_stats *cs)
+{
+    if (s->scene)
+        ms_viewer_scene_stats(s->scene, cs);
+    else
+        ms_viewer_stream_stats(s->stream, cs);
+}
+
+/* The effects' names as a JSON array. */
+static json_t *effect_names(unsigned effects)
+{
+    json_t *list = json_array();
+    for (unsigned bit = 1; bit <= MS_EFFECTS_ALL; bit <<= 1)
+        if (effects & bit)
+            json_array_append_new(list, json_string(ms_effect_name(bit)));
+    return list;
+}
+
 /* One frame at camera: step, draw, finish; logs its figures. */
 static ms_status frame(script *s, const ms_camera *camera, ms_viewer_step *step, ms_error *err)
 {
@@ -173,7 +212,7 @@ static ms_status frame(script *s, const ms_camera *camera, ms_viewer_step *step,
     if (ms_viewer_signals_pending())
         return ms_error_set(err, MS_ERR_IO, "interrupted while the model streamed");
     double t0 = now_s();
-    ms_status st = ms_viewer_stream_step(s->stream, camera, s->o->upload_budget, step, err);
+    ms_status st = run_step(s, camera, step, err);
     if (st != MS_OK)
         return st;
     glFinish(); /* the upload's share of the GPU's work counts to the step */
@@ -191,7 +230,7 @@ static ms_status frame(script *s, const ms_camera *camera, ms_viewer_step *step,
             bool primary = (pass == 1) == other_first;
             const ms_render_options *ro = primary ? &s->render : &other;
             double d0 = now_s();
-            if ((st = ms_viewer_stream_draw(s->stream, camera, ro, &drawn, err)) != MS_OK)
+            if ((st = run_draw(s, camera, ro, &drawn, err)) != MS_OK)
                 return st;
             glFinish();
             double ms = (now_s() - d0) * 1e3;
@@ -200,14 +239,17 @@ static ms_status frame(script *s, const ms_camera *camera, ms_viewer_step *step,
                 return ms_error_set(err, MS_ERR_NOMEM, "out of memory for frame figures");
         }
         if (!other_first) /* the picture must show the run's own shading */
-            if ((st = ms_viewer_stream_draw(s->stream, camera, &s->render, &drawn, err)) != MS_OK)
+            if ((st = run_draw(s, camera, &s->render, &drawn, err)) != MS_OK)
                 return st;
-    } else if ((st = ms_viewer_stream_draw(s->stream, camera, &s->render, &drawn, err)) != MS_OK)
+    } else if ((st = run_draw(s, camera, &s->render, &drawn, err)) != MS_OK)
         return st;
+    s->effects_ran = drawn.effects_ran;
     if (s->text) {
         ms_core_stats cs;
-        ms_viewer_stream_stats(s->stream, &cs);
-        ms_viewer_hud_info info = {.model = ms_viewer_stream_model(s->stream)->name,
+        run_stats(s, &cs);
+        ms_viewer_hud_info info = {.model = s->name,
+                                   .show_effects = s->scene != NULL,
+                                   .effects_ran = drawn.effects_ran,
                                    .mode = s->render.shading == MS_SHADING_NORMALS ? "normals"
                                            : s->render.apo                        ? "APO lit"
                                                                                   : "geometry lit",
@@ -231,6 +273,8 @@ static ms_status frame(script *s, const ms_camera *camera, ms_viewer_step *step,
     if (drawn.triangles_drawn > 0 &&
         (st = log_frame(&s->log, s->last_ms, step_ms, step->upload.bytes, err)) != MS_OK)
         return st;
+    for (unsigned e = 0; e < MS_EFFECT_COUNT && drawn.triangles_drawn > 0; ++e)
+        s->effect_frames[e] += (drawn.effects_ran >> e) & 1u;
     if (!s->first_written && drawn.triangles_drawn > 0) {
         s->first_written = true;
         snprintf(s->first_png, sizeof s->first_png, "%s/first-frame.png", s->o->screenshot_dir);
@@ -291,13 +335,30 @@ static ms_status play(script *s, const ms_viewer_model *model, json_t *keys, boo
     const ms_viewer_options *o = s->o;
     ms_camera_path path = {0};
     ms_status st;
-    if (o->path_file) {
-        if ((st = ms_camera_path_load(o->path_file, &path, err)) != MS_OK)
+    const char *path_file = o->path_file;
+    if (!path_file && s->scene)
+        path_file = s->scene_path;
+    double lo[3], hi[3];
+    if (s->scene)
+        ms_viewer_scene_bounds(s->scene, lo, hi);
+    else
+        ms_viewer_model_bounds(model, lo, hi);
+    if (path_file) {
+        if ((st = ms_camera_path_load(path_file, &path, err)) != MS_OK)
             return st;
+    } else if (s->scene) { /* from the room's +z end towards its middle, at eye height */
+        path.keys = calloc(1, sizeof *path.keys);
+        if (!path.keys)
+            return ms_error_set(err, MS_ERR_NOMEM, "out of memory for a path");
+        path.count = 1;
+        double eye[3] = {0.5 * (lo[0] + hi[0]), lo[1] + 0.4 * (hi[1] - lo[1]), hi[2] - 0.05 * (hi[2] - lo[2])};
+        double target[3] = {0.5 * (lo[0] + hi[0]), lo[1] + 0.3 * (hi[1] - lo[1]), 0.5 * (lo[2] + hi[2])};
+        memcpy(path.keys[0].position, eye, sizeof eye);
+        memcpy(path.keys[0].target, target, sizeof target);
+        path.keys[0].up[1] = 1;
+        path.keys[0].fovy_degrees = 50;
     } else { /* the home view as a path of one keyframe */
         ms_viewer_controls c;
-        double lo[3], hi[3];
-        ms_viewer_model_bounds(model, lo, hi);
         ms_viewer_controls_init(&c, lo, hi, o->up_axis);
         path.keys = calloc(1, sizeof *path.keys);
         if (!path.keys)
@@ -308,8 +369,13 @@ static ms_status play(script *s, const ms_viewer_model *model, json_t *keys, boo
         path.keys[0].up[o->up_axis] = 1;
         path.keys[0].fovy_degrees = c.fovy_degrees;
     }
-    /* Near and far from the model's size, as the interactive view has them. */
-    double side = model->header.box_side;
+    /* Near and far from the model's size (the scene's diagonal), as the
+     * interactive view has them. */
+    double side = model ? model->header.box_side
+                        : sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
+                               (hi[2] - lo[2]) * (hi[2] - lo[2])) * 0.25;
+    /* a room seen from inside: near 2 cm, far twice across */
+    double near_d = model ? side * 1e-4 : 0.02, far_d = side * 8;
     *all_complete = true;
     for (size_t k = 0; k < path.count; ++k) {
         ms_camera camera;
@@ -317,15 +383,15 @@ static ms_status play(script *s, const ms_viewer_model *model, json_t *keys, boo
             for (unsigned f = 1; f < o->frames; ++f) {
                 double t = path.keys[k - 1].time +
                            (path.keys[k].time - path.keys[k - 1].time) * f / (double)o->frames;
-                if ((st = ms_camera_path_sample(&path, t, o->width, o->height, side * 1e-4,
-                                                side * 8, &camera, err)) != MS_OK)
+                if ((st = ms_camera_path_sample(&path, t, o->width, o->height, near_d,
+                                                far_d, &camera, err)) != MS_OK)
                     goto done;
                 ms_viewer_step step;
                 if ((st = frame(s, &camera, &step, err)) != MS_OK)
                     goto done;
             }
-        if ((st = ms_camera_path_sample(&path, path.keys[k].time, o->width, o->height, side * 1e-4,
-                                        side * 8, &camera, err)) != MS_OK)
+        if ((st = ms_camera_path_sample(&path, path.keys[k].time, o->width, o->height, near_d,
+                                        far_d, &camera, err)) != MS_OK)
             goto done;
         bool settled;
         double waited;
@@ -336,20 +402,84 @@ static ms_status play(script *s, const ms_viewer_model *model, json_t *keys, boo
         if ((st = ms_viewer_screenshot(png, o->width, o->height, err)) != MS_OK)
             goto done;
         ms_core_stats cs;
-        ms_viewer_stream_stats(s->stream, &cs);
+        run_stats(s, &cs);
         *all_complete &= settled;
         json_array_append_new(
-            keys, json_pack("{s:I, s:f, s:s, s:b, s:f, s:I, s:I, s:I, s:I, s:f, s:f}", "keyframe",
+            keys, json_pack("{s:I, s:f, s:s, s:b, s:f, s:I, s:I, s:I, s:I, s:f, s:f, s:o*}", "keyframe",
                             (json_int_t)k, "time", path.keys[k].time, "png", png, "complete",
                             settled, "seconds_to_complete", waited, "triangles_drawn",
                             (json_int_t)s->last_triangles, "bytes", (json_int_t)cs.bytes_received,
                             "geometry_bytes", (json_int_t)cs.geometry_bytes_received, "apo_bytes",
                             (json_int_t)cs.apo_bytes_received, "achieved_error_px",
-                            cs.achieved_error_px, "tolerance_px", cs.tolerance_px));
+                            cs.achieved_error_px, "tolerance_px", cs.tolerance_px, "effects_ran",
+                            s->scene ? effect_names(s->effects_ran) : NULL));
     }
     st = MS_OK;
 done:
     ms_camera_path_free(&path);
+    return st;
+}
+
+/* The figures every report ends with, and its release. */
+static void script_free(script *s)
+{
+    ms_viewer_stream_close(s->stream);
+    ms_viewer_scene_close(s->scene);
+    ms_viewer_target_free(&s->target);
+    ms_viewer_text_free(s->text);
+    free(s->log.ms);
+    free(s->log.step_ms);
+    free(s->apo_draw_ms.v);
+    free(s->plain_draw_ms.v);
+    free(s->log.upload);
+}
+
+/* --scene: the scene's models streamed and drawn together along its path. */
+static ms_status scene_run(const ms_viewer_options *o, const ms_viewer_source *source, GLFWwindow *window,
+                           json_t **report, bool *complete, ms_error *err)
+{
+    ms_scene scene;
+    ms_status st = ms_scene_load(o->scene_file, &scene, err);
+    if (st != MS_OK)
+        return st;
+    script s = {.o = o, .window = window, .name = scene.name[0] ? scene.name : "scene",
+                .scene_path = scene.camera_path};
+    ms_render_options_default(&s.render);
+    s.render.shading = o->shading;
+    s.render.apo = o->apo_shading;
+    ms_viewer_scene_settings settings = {.stream = {.tolerance_px = o->tolerance_px,
+                                                    .apo_levels = o->apo_levels,
+                                                    .memory_mb = o->memory_mb,
+                                                    .bandwidth = o->bandwidth},
+                                         .effects_off = o->effects_off,
+                                         .force_all = o->effects_all};
+    json_t *keys = json_array();
+    double started = now_s();
+    if ((o->hud && (st = ms_viewer_text_new(&s.text, err)) != MS_OK) ||
+        (st = ms_viewer_target_init(&s.target, o->width, o->height, err)) != MS_OK ||
+        (st = ms_viewer_scene_open(source, &scene, o->scene_file, &settings, &s.scene, err)) != MS_OK)
+        goto done;
+    if ((st = play(&s, NULL, keys, complete, err)) != MS_OK)
+        goto done;
+    ms_core_stats cs;
+    ms_viewer_scene_stats(s.scene, &cs);
+    json_t *ran = json_object();
+    for (unsigned e = 0; e < MS_EFFECT_COUNT; ++e)
+        json_object_set_new(ran, ms_effect_name(1u << e), json_integer((json_int_t)s.effect_frames[e]));
+    *report = json_pack("{s:o, s:s, s:i, s:i, s:b, s:O, s:o, s:s?, s:I, s:I, s:f, s:o, s:o, s:o}", "scene",
+                        ms_json_text(o->scene_file), "source", source->archive_dir ? "archive" : "server", "width",
+                        o->width, "height", o->height, "complete", *complete, "keyframes", keys, "frames",
+                        frame_summary(&s.log, o->upload_budget), "first_frame_png",
+                        s.first_written ? s.first_png : NULL, "geometry_bytes",
+                        (json_int_t)cs.geometry_bytes_received, "apo_bytes", (json_int_t)cs.apo_bytes_received,
+                        "seconds", now_s() - started, "effects_called_for", effect_names(ms_scene_effects(&scene)),
+                        "effects_compiled", effect_names(ms_viewer_scene_effects(s.scene)), "effect_frames", ran);
+    if (!*report)
+        st = ms_error_set(err, MS_ERR_NOMEM, "out of memory for the report");
+done:
+    json_decref(keys);
+    script_free(&s);
+    ms_scene_free(&scene);
     return st;
 }
 
@@ -361,6 +491,8 @@ ms_status ms_viewer_script_run(const ms_viewer_options *o, const ms_viewer_sourc
     ms_status st = make_dir(o->screenshot_dir, err);
     if (st != MS_OK)
         return st;
+    if (o->scene_file)
+        return scene_run(o, source, window, report, complete, err);
     if (!o->model) {
         *complete = true;
         return catalogue_shot(o, source, report, err);
@@ -368,7 +500,7 @@ ms_status ms_viewer_script_run(const ms_viewer_options *o, const ms_viewer_sourc
     ms_viewer_model model;
     if ((st = ms_viewer_model_open(source, o->model, &model, err)) != MS_OK)
         return st;
-    script s = {.o = o, .window = window};
+    script s = {.o = o, .window = window, .name = o->model};
     ms_render_options_default(&s.render);
     s.render.shading = o->shading;
     s.render.apo = o->apo_shading;
@@ -417,14 +549,7 @@ ms_status ms_viewer_script_run(const ms_viewer_options *o, const ms_viewer_sourc
         st = ms_error_set(err, MS_ERR_NOMEM, "out of memory for the report");
 done:
     json_decref(keys);
-    ms_viewer_stream_close(s.stream);
-    ms_viewer_target_free(&s.target);
-    ms_viewer_text_free(s.text);
-    free(s.log.ms);
-    free(s.log.step_ms);
-    free(s.apo_draw_ms.v);
-    free(s.plain_draw_ms.v);
-    free(s.log.upload);
+    script_free(&s);
     ms_viewer_model_close(&model);
     return st;
 }

@@ -28,8 +28,9 @@ ms_status ms_viewer_stream_open(const ms_viewer_source *source, const ms_viewer_
      * normals carry the finer detail), else to tolerance_px: the viewer's
      * tolerance is whichever of the two is in effect. */
     bool apo = settings->apo_levels > 0 && model->header.has_apo;
-    double fallback = apo ? 4.0 : 1.0;
-    s->start_tolerance = s->tolerance = settings->tolerance_px > 0 ? settings->tolerance_px : fallback;
+    /* 1 px with APO too: coarser geometry under APO costs more image error than
+     * the bytes it saves (docs/ACCURACY.md) */
+    s->start_tolerance = s->tolerance = settings->tolerance_px > 0 ? settings->tolerance_px : 1.0;
     ms_status st = ms_render_new(&model->header, model->cells, &s->render, err);
     if (st != MS_OK) {
         free(s);
@@ -156,3 +157,8 @@ void ms_viewer_stream_stats(ms_viewer_stream *s, ms_core_stats *stats)
 bool ms_viewer_stream_settled(const ms_viewer_stream *s) { return s->settled; }
 
 const ms_viewer_model *ms_viewer_stream_model(const ms_viewer_stream *s) { return s->model; }
+
+ms_render *ms_viewer_stream_render(ms_viewer_stream *s)
+{
+    return s->render;
+}

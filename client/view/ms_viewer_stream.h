@@ -75,4 +75,7 @@ bool ms_viewer_stream_settled(const ms_viewer_stream *stream);
 
 const ms_viewer_model *ms_viewer_stream_model(const ms_viewer_stream *stream);
 
+/* The stream's renderer (owned by the stream), e.g. to capture an impostor. */
+ms_render *ms_viewer_stream_render(ms_viewer_stream *stream);
+
 #endif

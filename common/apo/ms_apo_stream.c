@@ -27,8 +27,13 @@ ms_status ms_apo_stream_compress(const ms_apo_chunk *chunk, int zlib_level, uint
         return ms_error_set(err, MS_ERR_NOMEM, "apo stream: no memory for %zu bytes", raw_size);
     }
     ms_apo_words_to_bytes(chunk->texels, chunk->texel_count, raw);
-    /* A sync flush per level costs a few bytes each and at most 5 more than the bound. */
-    size_t cap = deflateBound(&z, (uLong)raw_size) + 6u * chunk->level_count + 16;
+    /* deflateBound covers one stream of raw_size bytes. A sync flush per level
+     * can end a block early (worst case: one more stored-block header, 5 bytes,
+     * as a level's few incompressible bytes start a stored block of their own),
+     * then appends an empty stored block (5 bytes) after up to 7 bits of
+     * padding: 11 bytes a level beyond the bound; 16 kept. (6 was too few: the
+     * dragon baked with --apo-tol 0.4 ran out at a chunk's level 8.) */
+    size_t cap = deflateBound(&z, (uLong)raw_size) + 16u * chunk->level_count + 16;
     uint8_t *buf = malloc(cap);
     ms_status st = buf ? MS_OK : ms_error_set(err, MS_ERR_NOMEM, "apo stream: no memory for %zu bytes", cap);
     size_t start = 0;

@@ -1,6 +1,8 @@
-/* meshbake: the baker's command line. Three modes: baking (IN -o ARCHIVE_DIR), which
+/* meshbake: the baker's command line. Modes: baking (IN -o ARCHIVE_DIR), which
  * turns a mesh into an archive of nSP cells with their APO chunks (ms_bake.h);
- * --info, which parses a mesh completely and reports what it holds; and
+ * --info, which parses a mesh completely and reports what it holds; --list
+ * and --remove, the archive directory as a collection (its catalogue, every
+ * archive's checksums; taking a model out); and
  * --apo-classic, one whole-model APO for comparison with the published method
  * (ms_apo_classic_cli.h). */
 #include <errno.h>
@@ -16,6 +18,7 @@
 #include <jansson.h>
 
 #include "ms_apo_classic_cli.h"
+#include "ms_archive.h"
 #include "ms_bake.h"
 #include "ms_catalog.h"
 #include "ms_json_out.h"
@@ -24,7 +27,7 @@
 
 enum { EXIT_INPUT = 1, EXIT_USAGE = 2 };
 
-typedef enum bake_mode { MODE_NONE, MODE_INFO, MODE_BAKE, MODE_SET_PUBLIC } bake_mode;
+typedef enum bake_mode { MODE_NONE, MODE_INFO, MODE_BAKE, MODE_SET_PUBLIC, MODE_LIST, MODE_REMOVE } bake_mode;
 
 typedef struct bake_options {
     bake_mode mode;
@@ -32,6 +35,8 @@ typedef struct bake_options {
     const char *input;
     ms_bake_options bake;
     unsigned set_public_bits; /* MODE_SET_PUBLIC */
+    const char *list_dir;     /* MODE_LIST */
+    const char *remove_name;  /* MODE_REMOVE */
 } bake_options;
 
 static void print_usage(FILE *out)
@@ -44,6 +49,8 @@ static void print_usage(FILE *out)
           "                [--apo-every-cell] [--json]\n"
           "       meshbake --info FILE [--json]\n"
           "       meshbake --set-public-bits B -o ARCHIVE_DIR --name NAME\n"
+          "       meshbake --list ARCHIVE_DIR [--json]\n"
+          "       meshbake --remove NAME -o ARCHIVE_DIR\n"
           "\n"
           "Reads a mesh (PLY ascii/binary, OBJ or OFF, optionally gzip-compressed).\n"
           "\n"
@@ -84,6 +91,13 @@ static void print_usage(FILE *out)
           "  --set-public-bits B  change the preview of the baked model NAME in\n"
           "                    ARCHIVE_DIR/catalog.json (0..its P); SIGHUP a running\n"
           "                    meshserve to apply it\n"
+          "  --list DIR        the collection: every model of DIR/catalog.json (name,\n"
+          "                    triangles, cells, file size, preview precision) with each\n"
+          "                    archive opened and every payload checked against its CRC;\n"
+          "                    exit status 1 when one fails\n"
+          "  --remove NAME     take model NAME out of ARCHIVE_DIR: its catalogue entry\n"
+          "                    first (a rescan no longer offers it), then its file; SIGHUP\n"
+          "                    a running meshserve to apply it (UNKNOWN_MODEL from then)\n"
           "  --info            parse FILE completely and report format, counts, bounding box,\n"
           "                    faces dropped by the cleaning policy, isolated vertices, bytes\n"
           "                    parsed and parse time\n"
@@ -118,6 +132,50 @@ static bool option_int(const struct option *opts, int c, const char *text, int64
     return false;
 }
 
+/* After the options: what the mode needs, and what it refuses. Returns -1 to
+ * go on, or the exit status to end with. */
+static int check_mode(int argc, char **argv, bake_options *options)
+{
+    if (options->mode == MODE_LIST || options->mode == MODE_REMOVE) {
+        if (options->mode == MODE_REMOVE && !options->bake.archive_dir)
+            return usage_error("--remove needs -o ARCHIVE_DIR", NULL);
+        if (options->mode == MODE_LIST && options->bake.archive_dir)
+            return usage_error("--list and -o are two different modes", NULL);
+        if (optind < argc)
+            return usage_error("unexpected argument", argv[optind]);
+        return -1;
+    }
+    if (options->mode == MODE_SET_PUBLIC) {
+        if (!options->bake.archive_dir || !options->bake.name)
+            return usage_error("--set-public-bits needs -o ARCHIVE_DIR and --name NAME", NULL);
+        if (optind < argc)
+            return usage_error("unexpected argument", argv[optind]);
+        return -1;
+    }
+    if (options->bake.public_bits > (int)options->bake.bits) {
+        char detail[64];
+        snprintf(detail, sizeof detail, "%d", options->bake.public_bits);
+        char message[80];
+        snprintf(message, sizeof message, "--public-bits must be at most --bits (%u)",
+                 options->bake.bits);
+        return usage_error(message, detail);
+    }
+    if (options->bake.archive_dir) {
+        if (options->mode == MODE_INFO)
+            return usage_error("--info and -o are two different modes", NULL);
+        options->mode = MODE_BAKE;
+    }
+    if (optind < argc)
+        options->input = argv[optind++];
+    if (optind < argc)
+        return usage_error("unexpected argument", argv[optind]);
+    if (options->mode == MODE_NONE)
+        return usage_error("no mode given: bake with -o ARCHIVE_DIR, or use --info", NULL);
+    if (!options->input)
+        return usage_error("missing input file", NULL);
+    return -1;
+}
+
 /* Returns -1 to go on, or the exit status to end with. */
 static int parse_options(int argc, char **argv, bake_options *options)
 {
@@ -146,6 +204,8 @@ static int parse_options(int argc, char **argv, bake_options *options)
         {"apo-every-cell", no_argument, NULL, 'W'},
         {"public-bits", required_argument, NULL, 'P'},
         {"set-public-bits", required_argument, NULL, 'U'},
+        {"list", required_argument, NULL, 'l'},
+        {"remove", required_argument, NULL, 'R'},
         {NULL, 0, NULL, 0},
     };
     memset(options, 0, sizeof *options);
@@ -156,6 +216,8 @@ static int parse_options(int argc, char **argv, bake_options *options)
     while ((c = getopt_long(argc, argv, ":ho:", long_options, NULL)) != -1) {
         switch (c) {
         case 'i': options->mode = MODE_INFO; break;
+        case 'l': options->mode = MODE_LIST; options->list_dir = optarg; break;
+        case 'R': options->mode = MODE_REMOVE; options->remove_name = optarg; break;
         case 'j': options->json = true; break;
         case 'h': print_usage(stdout); return EXIT_SUCCESS;
         case 'o': options->bake.archive_dir = optarg; break;
@@ -207,35 +269,7 @@ static int parse_options(int argc, char **argv, bake_options *options)
             return usage_error("unknown option", argv[optind - 1]);
         }
     }
-    if (options->mode == MODE_SET_PUBLIC) {
-        if (!options->bake.archive_dir || !options->bake.name)
-            return usage_error("--set-public-bits needs -o ARCHIVE_DIR and --name NAME", NULL);
-        if (optind < argc)
-            return usage_error("unexpected argument", argv[optind]);
-        return -1;
-    }
-    if (options->bake.public_bits > (int)options->bake.bits) {
-        char detail[64];
-        snprintf(detail, sizeof detail, "%d", options->bake.public_bits);
-        char message[80];
-        snprintf(message, sizeof message, "--public-bits must be at most --bits (%u)",
-                 options->bake.bits);
-        return usage_error(message, detail);
-    }
-    if (options->bake.archive_dir) {
-        if (options->mode == MODE_INFO)
-            return usage_error("--info and -o are two different modes", NULL);
-        options->mode = MODE_BAKE;
-    }
-    if (optind < argc)
-        options->input = argv[optind++];
-    if (optind < argc)
-        return usage_error("unexpected argument", argv[optind]);
-    if (options->mode == MODE_NONE)
-        return usage_error("no mode given: bake with -o ARCHIVE_DIR, or use --info", NULL);
-    if (!options->input)
-        return usage_error("missing input file", NULL);
-    return -1;
+    return check_mode(argc, argv, options);
 }
 
 typedef struct progress_state {
@@ -514,6 +548,110 @@ static int run_set_public(const bake_options *o)
     return status;
 }
 
+/* The catalogue of a directory, each archive opened (which validates its
+ * header and index) and every payload checked against its CRC. */
+static int run_list(const bake_options *o)
+{
+    const char *dir = o->list_dir;
+    ms_catalog catalog;
+    ms_error err;
+    if (ms_catalog_load(dir, &catalog, &err) != MS_OK) {
+        fprintf(stderr, "meshbake: %s\n", err.text);
+        return EXIT_INPUT;
+    }
+    json_t *models = json_array();
+    size_t failed = 0;
+    if (!o->json)
+        printf("%-24s %12s %7s %12s %8s  %s\n", "model", "triangles", "cells", "bytes",
+               "preview", "checksums");
+    for (size_t i = 0; i < catalog.count; ++i) {
+        const ms_catalog_entry *e = &catalog.entries[i];
+        char path[4200], problem[MS_ERROR_TEXT_MAX + 80] = "";
+        snprintf(path, sizeof path, "%s/%s.msa", dir, e->name);
+        ms_archive *a = NULL;
+        uint64_t file_bytes = 0;
+        if (ms_archive_open(path, &a, &err) != MS_OK) {
+            snprintf(problem, sizeof problem, "%s", err.text);
+        } else {
+            const ms_archive_header *h = ms_archive_get_header(a);
+            file_bytes = h->file_size;
+            for (uint32_t cell = 0; cell < h->cell_count && !problem[0]; ++cell)
+                if (ms_archive_verify_payload(a, cell, &err) != MS_OK)
+                    snprintf(problem, sizeof problem, "%s.msa: %s", e->name, err.text);
+            ms_archive_close(a);
+        }
+        failed += problem[0] != 0;
+        unsigned preview = e->public_max_bits < e->bits ? e->public_max_bits : e->bits;
+        if (o->json) {
+            json_array_append_new(
+                models, json_pack("{s:o, s:I, s:I, s:i, s:I, s:i, s:i, s:b, s:s, s:b, s:o}",
+                                  "name", ms_json_text(e->name), "triangles",
+                                  (json_int_t)e->triangles, "vertices", (json_int_t)e->vertices,
+                                  "cells", (int)e->cells, "bytes", (json_int_t)file_bytes,
+                                  "bits", (int)e->bits, "public_bits", (int)preview, "apo",
+                                  e->apo, "baked_at", e->baked_at, "ok", !problem[0], "error",
+                                  ms_json_text(problem)));
+        } else {
+            char preview_text[16];
+            if (preview >= e->bits)
+                snprintf(preview_text, sizeof preview_text, "all");
+            else
+                snprintf(preview_text, sizeof preview_text, "%u/%u", preview, e->bits);
+            printf("%-24s %12" PRIu64 " %7u %12" PRIu64 " %8s  %s\n", e->name, e->triangles,
+                   e->cells, file_bytes, preview_text, problem[0] ? "FAILED" : "ok");
+            if (problem[0])
+                fprintf(stderr, "meshbake: %s\n", problem);
+        }
+    }
+    if (o->json)
+        ms_json_print(stdout,
+                      json_pack("{s:o, s:I, s:I, s:o}", "directory", ms_json_text(dir), "count",
+                                (json_int_t)catalog.count, "failed", (json_int_t)failed, "models",
+                                models),
+                      MS_JSON_SPACED);
+    else
+        json_decref(models);
+    ms_catalog_free(&catalog);
+    return failed ? EXIT_INPUT : EXIT_SUCCESS;
+}
+
+/* Takes a model out of a directory: the catalogue entry first (renamed into
+ * place under the lock, so a rescan that follows no longer offers it), then
+ * the file (a running server's mapping keeps the old inode alive). */
+static int run_remove(const bake_options *o)
+{
+    const char *dir = o->bake.archive_dir, *name = o->remove_name;
+    if (!ms_model_name_valid(name)) {
+        fprintf(stderr, "meshbake: '%s' is not a model name\n", name);
+        return EXIT_USAGE;
+    }
+    ms_catalog catalog;
+    ms_error err;
+    if (ms_catalog_load(dir, &catalog, &err) != MS_OK) {
+        fprintf(stderr, "meshbake: %s\n", err.text);
+        return EXIT_INPUT;
+    }
+    bool known = ms_catalog_find(&catalog, name) != NULL;
+    ms_catalog_free(&catalog);
+    if (!known) {
+        fprintf(stderr, "meshbake: no model '%s' in %s/catalog.json\n", name, dir);
+        return EXIT_INPUT;
+    }
+    if (ms_catalog_remove(dir, name, &err) != MS_OK) {
+        fprintf(stderr, "meshbake: %s\n", err.text);
+        return EXIT_INPUT;
+    }
+    char path[4200];
+    snprintf(path, sizeof path, "%s/%s.msa", dir, name);
+    if (unlink(path) != 0 && errno != ENOENT) {
+        fprintf(stderr, "meshbake: %s: cannot remove: %s\n", path, strerror(errno));
+        return EXIT_INPUT;
+    }
+    printf("meshbake: model '%s' removed from %s (SIGHUP a running meshserve to apply it)\n",
+           name, dir);
+    return EXIT_SUCCESS;
+}
+
 int main(int argc, char **argv)
 {
     for (int i = 1; i < argc; ++i)
@@ -527,6 +665,8 @@ int main(int argc, char **argv)
     case MODE_INFO: return run_info(&options);
     case MODE_BAKE: return run_bake(&options);
     case MODE_SET_PUBLIC: return run_set_public(&options);
+    case MODE_LIST: return run_list(&options);
+    case MODE_REMOVE: return run_remove(&options);
     case MODE_NONE: break;
     }
     return EXIT_USAGE;

@@ -13,9 +13,12 @@ static void usage(FILE *out)
 {
     fprintf(out,
             "Usage: meshserve ARCHIVE_DIR [options]\n"
+            "       meshserve --config FILE [options]   (FILE sets archive_dir)\n"
             "Serves the models baked into ARCHIVE_DIR (see meshbake) to meshstream clients.\n"
             "SIGTERM or Ctrl-C: finish the transfers in progress, then exit with a summary.\n"
-            "SIGHUP: rescan ARCHIVE_DIR for new, changed or removed models, keeping connections.\n\n"
+            "SIGHUP: rescan ARCHIVE_DIR for new, changed or removed models, keeping connections\n"
+            "(handles on a changed or removed model get ERROR MODEL_CHANGED), and reopen the\n"
+            "access log.\n\n"
             "  --port PORT          binary protocol (protocol/PROTOCOL.md), 0 = any free port\n"
             "                       (default 7800)\n"
             "  --http-port PORT     HTTP side door (catalogue, indexes, cells, /metrics), 0 = any\n"
@@ -24,14 +27,15 @@ static void usage(FILE *out)
             "                       127.0.0.1)\n"
             "  --max-clients N      simultaneous binary connections; more are answered with\n"
             "                       ERROR TOO_MANY_CONNECTIONS (default 1024)\n"
-            "  --config FILE        settings file, one 'key = value' a line; keys: port,\n"
-            "                       http_port, bind, token, idle_timeout (s), send_timeout (s\n"
+            "  --config FILE        settings file, one 'key = value' a line; keys: archive_dir,\n"
+            "                       port, http_port, bind, token, idle_timeout (s), send_timeout (s\n"
             "                       without a byte read by a client that has bytes waiting;\n"
             "                       default 60), http_rate, http_max_connections (256),\n"
             "                       http_header_timeout (s to deliver a request header, 30),\n"
             "                       max_clients, max_frame (bytes), max_batch, max_outstanding,\n"
             "                       max_queued_bytes (per connection), request_rate (per s and\n"
-            "                       connection)\n"
+            "                       connection), access_log (file: one JSON line per binary\n"
+            "                       connection and per HTTP answer, docs/DEPLOY.md)\n"
             "  --port-file FILE     write \"PORT HTTP_PORT\" there once listening (for scripts)\n"
             "  --json               print the exit summary as one JSON object\n"
             "  -h, --help           show this help\n"
@@ -78,16 +82,21 @@ int main(int argc, char **argv)
             return 2;
         }
     }
-    if (optind != argc - 1) {
+    /* ARCHIVE_DIR may come from the config file instead (archive_dir = ...),
+     * as in deploy/meshserve.conf.in. */
+    if (optind < argc - 1 || (optind == argc && !config_path)) {
         fprintf(stderr, "meshserve: expected one ARCHIVE_DIR (try 'meshserve --help')\n");
         return 2;
     }
     ms_server_config config;
     ms_server_config_defaults(&config);
     ms_error err;
-    ms_status st = ms_server_config_set(&config, "archive_dir", argv[optind], "ARCHIVE_DIR", &err);
-    if (st == MS_OK && config_path)
-        st = ms_server_config_load(&config, config_path, &err);
+    ms_status st = config_path ? ms_server_config_load(&config, config_path, &err) : MS_OK;
+    if (st == MS_OK && optind < argc) /* the command line wins */
+        st = ms_server_config_set(&config, "archive_dir", argv[optind], "ARCHIVE_DIR", &err);
+    if (st == MS_OK && !config.archive_dir)
+        st = ms_error_set(&err, MS_ERR_ARG, "%s: no archive_dir (and no ARCHIVE_DIR argument)",
+                          config_path);
     for (int i = 0; st == MS_OK && i < override_count; ++i)
         st = ms_server_config_set(&config, overrides[i].key, overrides[i].value, overrides[i].where, &err);
     if (st != MS_OK) {

@@ -56,6 +56,7 @@ struct ms_http_door {
     size_t connection_count, connection_capacity;
     bool accept_paused_full;    /* at http_max_connections */
     rate_bucket buckets[RATE_BUCKETS];
+    double request_started;     /* when the request being handled arrived, for the access log */
 };
 
 /* --- Small helpers ---------------------------------------------------------- */
@@ -68,9 +69,45 @@ static bool is_head(struct evhttp_request *req)
 /* Sends an answer whose body is `length` bytes. A HEAD gets the GET's headers,
  * Content-Length included, and no body: evhttp neither adds the length for HEAD
  * nor leaves the body out, which would desynchronise a keep-alive connection. */
-static void reply(struct evhttp_request *req, int code, const char *reason,
+/* The model named in a /models/NAME... path, into out ("" for other paths). */
+static void model_of_path(const char *path, char *out, size_t size)
+{
+    out[0] = '\0';
+    if (!path || strncmp(path, "/models/", 8) != 0)
+        return;
+    size_t length = strcspn(path + 8, "/");
+    if (length && length < size)
+        snprintf(out, size, "%.*s", (int)length, path + 8);
+}
+
+/* One access log line per answer (ms_server_access_log): the URL's path only,
+ * never its query. */
+static void log_answer(ms_http_door *door, struct evhttp_request *req, int code, uint64_t length)
+{
+    if (!ms_server_access_log_on(door->server))
+        return;
+    char client[80] = "", model[80], status[16];
+    struct evhttp_connection *conn = evhttp_request_get_connection(req);
+    char *address = NULL;
+    ev_uint16_t port = 0;
+    if (conn)
+        evhttp_connection_get_peer(conn, &address, &port);
+    if (address)
+        snprintf(client, sizeof client, strchr(address, ':') ? "[%s]:%u" : "%s:%u", address,
+                 (unsigned)port);
+    const struct evhttp_uri *uri = evhttp_request_get_evhttp_uri(req);
+    const char *path = uri ? evhttp_uri_get_path(uri) : NULL;
+    model_of_path(path, model, sizeof model);
+    snprintf(status, sizeof status, "%d", code);
+    ms_server_access_log(door->server, "http", client, model, path, 1,
+                         is_head(req) ? 0 : length, ms_now_seconds() - door->request_started,
+                         status);
+}
+
+static void reply(ms_http_door *door, struct evhttp_request *req, int code, const char *reason,
                   struct evbuffer *body, uint64_t length)
 {
+    log_answer(door, req, code, length);
     if (is_head(req)) {
         if (code != 304) {
             char text[32];
@@ -95,7 +132,7 @@ static void send_text(ms_http_door *door, struct evhttp_request *req, int code,
                       "text/plain; charset=utf-8");
     if (code >= 400)
         door->server->metrics.http_errors++;
-    reply(req, code, reason, body, body ? evbuffer_get_length(body) : 0);
+    reply(door, req, code, reason, body, body ? evbuffer_get_length(body) : 0);
     if (body)
         evbuffer_free(body);
 }
@@ -208,6 +245,7 @@ static void send_bytes(ms_http_door *door, struct evhttp_request *req, ms_model 
 {
     struct evkeyvalq *out = evhttp_request_get_output_headers(req);
     struct evkeyvalq *in = evhttp_request_get_input_headers(req);
+    model->requests++;
     evhttp_add_header(out, "Content-Type", "application/octet-stream");
     evhttp_add_header(out, "Accept-Ranges", "bytes");
     evhttp_add_header(out, "ETag", etag);
@@ -215,7 +253,7 @@ static void send_bytes(ms_http_door *door, struct evhttp_request *req, ms_model 
                       private_answer ? "private, max-age=3600" : "public, max-age=3600");
     evhttp_add_header(out, "Vary", "Authorization");
     if (ms_http_none_match(evhttp_find_header(in, "If-None-Match"), etag)) {
-        reply(req, 304, "Not Modified", NULL, 0);
+        reply(door, req, 304, "Not Modified", NULL, 0);
         return;
     }
     uint64_t first = 0, last = length ? length - 1 : 0;
@@ -239,7 +277,7 @@ static void send_bytes(ms_http_door *door, struct evhttp_request *req, ms_model 
     }
     uint64_t count = length ? last - first + 1 : 0;
     if (is_head(req)) {
-        reply(req, code, code == 206 ? "Partial Content" : "OK", NULL, count);
+        reply(door, req, code, code == 206 ? "Partial Content" : "OK", NULL, count);
         return;
     }
     struct evbuffer *body = evbuffer_new();
@@ -263,7 +301,8 @@ static void send_bytes(ms_http_door *door, struct evhttp_request *req, ms_model 
         }
     }
     door->server->metrics.http_bytes_sent += count;
-    evhttp_send_reply(req, code, code == 206 ? "Partial Content" : "OK", body);
+    model->bytes_sent += count;
+    reply(door, req, code, code == 206 ? "Partial Content" : "OK", body, count);
     evbuffer_free(body);
 }
 
@@ -376,7 +415,7 @@ static void serve_catalog(ms_http_door *door, struct evhttp_request *req)
     if (body) {
         evbuffer_add_printf(body, "%s\n", text);
         evhttp_add_header(evhttp_request_get_output_headers(req), "Content-Type", "application/json");
-        reply(req, 200, "OK", body, evbuffer_get_length(body));
+        reply(door, req, 200, "OK", body, evbuffer_get_length(body));
         evbuffer_free(body);
     }
     free(text);
@@ -419,9 +458,25 @@ static void serve_metrics(ms_http_door *door, struct evhttp_request *req)
         }
         evbuffer_add_printf(body, "%s %" PRIu64 "\n", rows[i].name, rows[i].value);
     }
+    /* Per model (names are [A-Za-z0-9_-]: nothing to escape in a label). */
+    const ms_registry *r = s->registry;
+    size_t models = ms_registry_count(r);
+    evbuffer_add_printf(body, "# HELP meshstream_model_requests_total Requests received for the "
+                              "model (opens, cell requests, HTTP answers)\n"
+                              "# TYPE meshstream_model_requests_total counter\n");
+    for (size_t i = 0; i < models; ++i)
+        evbuffer_add_printf(body, "meshstream_model_requests_total{model=\"%s\"} %" PRIu64 "\n",
+                            ms_registry_model(r, i)->entry.name, ms_registry_model(r, i)->requests);
+    evbuffer_add_printf(body, "# HELP meshstream_model_bytes_sent_total Payload bytes of the "
+                              "model sent, both doors\n"
+                              "# TYPE meshstream_model_bytes_sent_total counter\n");
+    for (size_t i = 0; i < models; ++i)
+        evbuffer_add_printf(body, "meshstream_model_bytes_sent_total{model=\"%s\"} %" PRIu64 "\n",
+                            ms_registry_model(r, i)->entry.name,
+                            ms_registry_model(r, i)->bytes_sent);
     evhttp_add_header(evhttp_request_get_output_headers(req), "Content-Type",
                       "text/plain; version=0.0.4");
-    reply(req, 200, "OK", body, evbuffer_get_length(body));
+    reply(door, req, 200, "OK", body, evbuffer_get_length(body));
     evbuffer_free(body);
 }
 
@@ -466,7 +521,7 @@ static void serve_draco(ms_http_door *door, struct evhttp_request *req, ms_model
     evhttp_add_header(out, "Vary", "Authorization");
     if (!is_head(req))
         door->server->metrics.http_bytes_sent += (uint64_t)st.st_size;
-    reply(req, 200, "OK", body, (uint64_t)st.st_size); /* a HEAD: freeing body closes fd */
+    reply(door, req, 200, "OK", body, (uint64_t)st.st_size); /* a HEAD: freeing body closes fd */
     evbuffer_free(body);
 }
 
@@ -536,6 +591,7 @@ static tracked_connection *find_tracked(ms_http_door *door, struct evhttp_reques
 static void handle_request(struct evhttp_request *req, void *arg)
 {
     ms_http_door *door = arg;
+    door->request_started = ms_now_seconds();
     disable_nagle(req);
     tracked_connection *t = find_tracked(door, req);
     if (t)

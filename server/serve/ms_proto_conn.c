@@ -1,12 +1,14 @@
 /* One binary-protocol connection: see ms_proto_conn.h. */
 #include "ms_proto_conn.h"
 
+#include <arpa/inet.h>
 #include <event2/buffer.h>
 #include <event2/bufferevent.h>
 #include <event2/event.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <netinet/in.h>
 #include <sys/socket.h>
 
 #include "ms_frame_out.h"
@@ -49,6 +51,7 @@ void ms_serve_conn_fail(ms_serve_conn *c, uint16_t code, uint64_t detail, const 
     if (c->state == MS_CONN_CLOSING)
         return;
     metrics_of(c)->binary_errors++;
+    c->fatal_code = code;
     ms_error err;
     if (ms_frame_out_error(output(c), code, true, 0, 0, detail, text, &err) != MS_OK) {
         ms_server_log(server_of(c), "binary: cannot send %s: %s", ms_proto_error_name(code),
@@ -116,7 +119,8 @@ static void process_input(ms_serve_conn *c)
             if (fault.fatal) {
                 ms_serve_conn_fail(c, fault.code, fault.detail, err.text);
             } else {
-                metrics_of(c)->binary_requests += fault.request_count ? fault.request_count : 0;
+                metrics_of(c)->binary_requests += fault.request_count;
+                c->requests += fault.request_count;
                 ms_serve_conn_send_error(c, fault.code, fault.request_id, fault.request_count,
                                          fault.detail, err.text);
             }
@@ -210,6 +214,8 @@ bool ms_serve_conn_send_chunk(ms_fair_link *link, void *arg)
     }
     ms_request_queue_sent(&c->queue, r, chunk);
     m->binary_bytes_sent += chunk;
+    c->bytes_sent += chunk;
+    r->model->bytes_sent += chunk;
     m->queued_bytes -= chunk;
     if (last) {
         ms_request_queue_remove(&c->queue, r);
@@ -235,6 +241,26 @@ static void on_output_change(struct evbuffer *buffer, const struct evbuffer_cb_i
         c->last_send_progress = ms_now_seconds();
 }
 
+/* "ADDRESS:PORT" of the socket's peer ("[ADDRESS]:PORT" for IPv6), or "". */
+static void describe_peer(evutil_socket_t fd, char *out, size_t size)
+{
+    struct sockaddr_storage address;
+    socklen_t length = sizeof address;
+    char host[INET6_ADDRSTRLEN] = "";
+    out[0] = '\0';
+    if (getpeername(fd, (struct sockaddr *)&address, &length) != 0)
+        return;
+    if (address.ss_family == AF_INET) {
+        const struct sockaddr_in *v4 = (const struct sockaddr_in *)&address;
+        inet_ntop(AF_INET, &v4->sin_addr, host, sizeof host);
+        snprintf(out, size, "%s:%u", host, (unsigned)ntohs(v4->sin_port));
+    } else if (address.ss_family == AF_INET6) {
+        const struct sockaddr_in6 *v6 = (const struct sockaddr_in6 *)&address;
+        inet_ntop(AF_INET6, &v6->sin6_addr, host, sizeof host);
+        snprintf(out, size, "[%s]:%u", host, (unsigned)ntohs(v6->sin6_port));
+    }
+}
+
 ms_serve_conn *ms_serve_conn_new(ms_serve_door_shared *door, evutil_socket_t fd, bool rejected)
 {
     ms_serve_conn *c = calloc(1, sizeof *c);
@@ -246,7 +272,8 @@ ms_serve_conn *ms_serve_conn_new(ms_serve_door_shared *door, evutil_socket_t fd,
     c->rejected = rejected;
     c->state = MS_CONN_AWAIT_HELLO;
     c->client_max_frame = MS_PROTO_MIN_FRAME;
-    c->last_frame_at = c->rate_updated = c->last_send_progress = ms_now_seconds();
+    c->last_frame_at = c->rate_updated = c->last_send_progress = c->opened_at = ms_now_seconds();
+    describe_peer(fd, c->peer, sizeof c->peer);
     c->rate_tokens = door->limits.max_batch;
     ms_request_queue_init(&c->queue);
     ms_proto_decoder_config dc = {MS_PROTO_ROLE_SERVER, door->limits.max_frame,
@@ -282,6 +309,9 @@ void ms_serve_conn_free(ms_serve_conn *c)
     if (!c)
         return;
     ms_fair_scheduler_forget(&c->door->scheduler, &c->link);
+    ms_server_access_log(server_of(c), "binary", c->peer, c->model_names, NULL, c->requests,
+                         c->bytes_sent, ms_now_seconds() - c->opened_at,
+                         c->fatal_code ? ms_proto_error_name(c->fatal_code) : "ok");
     ms_server_metrics *m = metrics_of(c);
     m->queued_requests -= c->queue.count;
     m->queued_bytes -= c->queue.queued_bytes;

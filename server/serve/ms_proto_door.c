@@ -235,6 +235,14 @@ void ms_serve_door_drain(ms_serve_door *door)
         ms_serve_conn_drain(c);
 }
 
+void ms_serve_door_models_changed(ms_serve_door *door, const ms_registry *registry)
+{
+    if (!door)
+        return;
+    for (ms_serve_conn *c = door->connections; c; c = c->next)
+        ms_serve_conn_models_changed(c, registry);
+}
+
 size_t ms_serve_door_connection_count(const ms_serve_door *door)
 {
     return door ? door->connection_count : 0;

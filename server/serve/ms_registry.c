@@ -220,6 +220,10 @@ static ms_model *load_model(const char *dir, const ms_catalog_entry *entry,
         warn_model(warn, warn_arg, "model '%s' skipped: %s", entry->name, err.text);
         return NULL;
     }
+    if (old) { /* the model's counters go on across versions */
+        m->requests = old->requests;
+        m->bytes_sent = old->bytes_sent;
+    }
     return m;
 }
 

@@ -1,6 +1,7 @@
 /* meshserve process core: see ms_server.h. */
 #include "ms_server_internal.h"
 
+#include <errno.h>
 #include <event2/event.h>
 #include <signal.h>
 #include <stdarg.h>
@@ -11,6 +12,7 @@
 #include <time.h>
 
 #include "ms_http_door.h"
+#include "ms_json_out.h"
 #include "ms_progress.h"
 #include "ms_proto_door.h"
 
@@ -40,6 +42,41 @@ bool ms_server_payload_intact(const ms_server *s, ms_model *model, uint32_t cell
     return false;
 }
 
+void ms_server_access_log(ms_server *s, const char *door, const char *client, const char *model,
+                          const char *request, uint64_t requests, uint64_t bytes, double seconds,
+                          const char *status)
+{
+    if (!s->access_log)
+        return;
+    char stamp[32];
+    ms_catalog_now(stamp, sizeof stamp);
+    json_t *line = json_pack("{s:s, s:s, s:o, s:o, s:o, s:I, s:I, s:o, s:o}", "time", stamp,
+                             "door", door, "client", ms_json_text(client ? client : ""), "model",
+                             ms_json_text(model ? model : ""), "request",
+                             ms_json_text(request ? request : ""), "requests",
+                             (json_int_t)requests, "bytes", (json_int_t)bytes, "seconds",
+                             ms_json_fixed(seconds, 6), "status", ms_json_text(status));
+    /* a full disk loses lines, never the service */
+    if (ms_json_print(s->access_log, line, MS_JSON_COMPACT) == 0)
+        fflush(s->access_log);
+}
+
+bool ms_server_access_log_on(const ms_server *s) { return s->access_log != NULL; }
+
+ms_status ms_server_reopen_access_log(ms_server *s, ms_error *err)
+{
+    if (!s->config.access_log)
+        return MS_OK;
+    FILE *f = fopen(s->config.access_log, "a");
+    if (!f)
+        return ms_error_set(err, MS_ERR_IO, "%s: cannot open the access log: %s",
+                            s->config.access_log, strerror(errno));
+    if (s->access_log)
+        fclose(s->access_log);
+    s->access_log = f;
+    return MS_OK;
+}
+
 static void warn_model(void *arg, const char *message) { ms_server_log(arg, "%s", message); }
 
 ms_status ms_server_rescan(ms_server *s, ms_error *err)
@@ -53,6 +90,9 @@ ms_status ms_server_rescan(ms_server *s, ms_error *err)
     ms_registry_free(s->registry);
     s->registry = fresh;
     s->metrics.rescans++;
+    /* Handles of replaced or removed models close now, with MODEL_CHANGED,
+     * instead of streaming the old version until the client disconnects. */
+    ms_serve_door_models_changed(s->binary, s->registry);
     return MS_OK;
 }
 
@@ -92,6 +132,8 @@ static void on_signal(evutil_socket_t signal_number, short what, void *arg)
     ms_server *s = arg;
     if (signal_number == SIGHUP) {
         ms_error err;
+        if (ms_server_reopen_access_log(s, &err) != MS_OK)
+            ms_server_log(s, "%s; still writing to the previous one", err.text);
         if (ms_server_rescan(s, &err) == MS_OK)
             ms_server_log(s, "rescan: %zu models", ms_registry_count(s->registry));
         else
@@ -135,8 +177,15 @@ static ms_status server_start(ms_server *s, ms_server_config *config, ms_error *
     memset(config, 0, sizeof *config);
     s->started_at = ms_now_seconds();
     raise_descriptor_limit(s);
-    ms_status st = ms_registry_scan(s->config.archive_dir, NULL, &s->registry, warn_model, s, err);
+    ms_status st = ms_server_reopen_access_log(s, err);
     if (st != MS_OK) {
+        ms_server_config_free(&s->config);
+        return st;
+    }
+    st = ms_registry_scan(s->config.archive_dir, NULL, &s->registry, warn_model, s, err);
+    if (st != MS_OK) {
+        if (s->access_log)
+            fclose(s->access_log);
         ms_server_config_free(&s->config);
         return st;
     }
@@ -198,6 +247,8 @@ static void server_stop(ms_server *s)
         event_base_free(s->base);
     ms_registry_free(s->registry);
     ms_server_config_free(&s->config);
+    if (s->access_log)
+        fclose(s->access_log);
     memset(s, 0, sizeof *s);
 }
 

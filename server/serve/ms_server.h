@@ -75,6 +75,30 @@ double ms_server_started_at(const ms_server *server);
  * 500). */
 bool ms_server_payload_intact(const ms_server *server, ms_model *model, uint32_t cell, bool apo);
 
+/* The access log (config access_log): one JSON object a line, appended and
+ * flushed as each entry ends (docs/DEPLOY.md, "Access log"):
+ *   {"time": ISO 8601 UTC, "door": "binary"|"http", "client": "ADDRESS:PORT",
+ *    "model": the model(s) (binary: every model the connection opened, comma
+ *    separated; http: the model of the URL, or ""), "request": the URL path
+ *    (http) or "", "requests": count, "bytes": payload (binary) or body (http)
+ *    bytes sent, "seconds": the connection's life (binary) or the handling
+ *    time (http), "status": "ok" or the fatal ERROR's name that closed the
+ *    connection (binary), the HTTP status code (http)}
+ * One line per binary connection, written when it is freed; one per HTTP
+ * answer. Nothing when no access log is configured. */
+void ms_server_access_log(ms_server *server, const char *door, const char *client,
+                          const char *model, const char *request, uint64_t requests,
+                          uint64_t bytes, double seconds, const char *status);
+
+/* True when an access log is configured (callers skip building a line
+ * otherwise). */
+bool ms_server_access_log_on(const ms_server *server);
+
+/* Opens config.access_log anew (what SIGHUP does after a rotation moved the
+ * file away); on failure the previous file stays in use and the error is
+ * returned. */
+ms_status ms_server_reopen_access_log(ms_server *server, ms_error *err);
+
 /* Logs one line to stderr with a timestamp. */
 void ms_server_log(const ms_server *server, const char *fmt, ...)
     __attribute__((format(printf, 2, 3)));

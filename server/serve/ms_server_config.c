@@ -34,6 +34,7 @@ void ms_server_config_free(ms_server_config *c)
     free(c->bind_address);
     free(c->token);
     free(c->port_file);
+    free(c->access_log);
     memset(c, 0, sizeof *c);
 }
 
@@ -127,6 +128,11 @@ ms_status ms_server_config_set(ms_server_config *c, const char *key, const char 
         return set_string(&c->archive_dir, value, where, err);
     if (!strcmp(key, "port_file"))
         return set_string(&c->port_file, value, where, err);
+    if (!strcmp(key, "access_log")) {
+        if (!*value)
+            return ms_error_set(err, MS_ERR_RANGE, "%s: access_log wants a file path", where);
+        return set_string(&c->access_log, value, where, err);
+    }
     return ms_error_set(err, MS_ERR_ARG, "%s: unknown setting '%s'", where, key);
 }
 

@@ -36,6 +36,8 @@ typedef struct ms_server_config {
                                        the accept or the previous request); default 30 */
     char *token;              /* full-precision access token; NULL = none configured */
     char *port_file;          /* if set, "PORT HTTP_PORT\n" is written there once listening */
+    char *access_log;         /* if set, one JSON line per binary connection and per HTTP
+                                 request is appended there (ms_server.h); reopened on SIGHUP */
 } ms_server_config;
 
 void ms_server_config_defaults(ms_server_config *config);

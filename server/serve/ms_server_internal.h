@@ -4,6 +4,8 @@
 #ifndef MS_SERVER_INTERNAL_H
 #define MS_SERVER_INTERNAL_H
 
+#include <stdio.h>
+
 #include "ms_server.h"
 
 struct ms_server {
@@ -19,6 +21,7 @@ struct ms_server {
     bool draining;
     double drain_started_at;
     double started_at;
+    FILE *access_log;            /* config.access_log, open for appending; NULL: none */
 };
 
 #endif

@@ -30,15 +30,21 @@ enum { EXIT_INPUT = 1, EXIT_USAGE = 2 };
 static void usage(FILE *out)
 {
     fputs("usage: meshstudy MESH ARCHIVE -p CAMERA_PATH [--keys 0,4,8] [--tolerances 1,4,16]\n"
+          "       meshstudy MESH --whole CANDIDATE -p CAMERA_PATH [--keys ...] [options]\n"
           "                 [--width 320] [--height 240] [--spacing S] [--reference flat|smooth]\n"
-          "                 [--apo-levels L|footprint] [--apo-texel PX] [--threads N] [--json]\n"
+          "                 [--apo-levels L|footprint] [--apo-texel PX] [--apo-geometry-ratio K]\n"
+          "                 [--threads N] [--json]\n"
           "For every chosen keyframe of CAMERA_PATH and every screen tolerance (pixels),\n"
           "makes the cut of ARCHIVE (baked from MESH) a client shows for that camera and\n"
           "measures it against MESH at full resolution: bytes (index, geometry, APO),\n"
           "triangles, symmetric Hausdorff and RMS distance (model units and projected\n"
           "pixels), and the image error of its CPU render against MESH's reference render\n"
           "(normal angle, PSNR, SSIM, silhouette), with geometric normals and, when the\n"
-          "archive has APO, with APO normals. Definitions: docs/ACCURACY.md.\n\n"
+          "archive has APO, with APO normals. Each cut is made from a fresh view, so its\n"
+          "seconds.cut are a client's whole selection, decoding and stitching for it.\n"
+          "With --whole, CANDIDATE is a mesh file (a decoded Draco or meshcodec stream,\n"
+          "say) measured whole, one point per keyframe (tolerance_px 0, bytes 0).\n"
+          "Definitions: docs/ACCURACY.md.\n\n"
           "  -p, --path FILE       camera path (docs/CAMERA_PATHS.md)\n"
           "      --keys LIST       keyframe numbers, comma-separated (default: every one)\n"
           "      --tolerances LIST screen tolerances in pixels (default 1,4,16)\n"
@@ -50,9 +56,17 @@ static void usage(FILE *out)
           "                        vertex normals: the surface APO samples)\n"
           "      --apo-levels L    APO as a client that fetches the first L levels of each\n"
           "                        visible cell's chunk (default 0: whole chunks), or\n"
-          "                        'footprint': per cell, the levels whose finest texel\n"
-          "                        still looks --apo-texel PX pixels wide (default 1) at\n"
-          "                        the cell's distance\n"
+          "                        'footprint': per cell, the client core's rule\n"
+          "                        (ms_apo_footprint_levels): down to the level whose\n"
+          "                        texel projects to at most --apo-texel PX pixels at the\n"
+          "                        cell's nearest point (default: the point's tolerance,\n"
+          "                        as the client does)\n"
+          "      --apo-geometry-ratio K  the client core's APO mode (docs/CLIENT.md): cells\n"
+          "                        that carry an APO chunk refine their geometry only to K\n"
+          "                        times the tolerance (the client's apo_geometry_tolerance_px\n"
+          "                        over tolerance_px), cells without one to the tolerance;\n"
+          "                        default 1 (one cut for both renders)\n"
+          "      --whole FILE      measure the mesh FILE drawn whole instead of an archive's cuts\n"
           "      --threads N       threads (default: every core)\n"
           "      --json            print the results as one JSON object\n"
           "  -h, --help            show this help\n\n"
@@ -85,12 +99,12 @@ static bool parse_list(const char *text, bool whole, double *values, size_t *cou
 }
 
 typedef struct options {
-    const char *mesh, *archive, *path;
+    const char *mesh, *archive, *path, *whole;
     double keys[MAX_LIST], tolerances[MAX_LIST];
     size_t key_count, tolerance_count;
     double width, height, spacing;
     unsigned threads, apo_levels;
-    double apo_texel_px;
+    double apo_texel_px, apo_geometry_ratio;
     bool apo_footprint, smooth_reference, json;
 } options;
 
@@ -102,15 +116,17 @@ static int parse_options(int argc, char **argv, options *o)
         {"height", required_argument, NULL, 'H'}, {"spacing", required_argument, NULL, 's'},
         {"threads", required_argument, NULL, 'T'}, {"json", no_argument, NULL, 'j'},
         {"reference", required_argument, NULL, 'r'}, {"apo-levels", required_argument, NULL, 'L'},
-        {"apo-texel", required_argument, NULL, 'X'},
+        {"apo-texel", required_argument, NULL, 'X'},  {"whole", required_argument, NULL, 'w'},
+        {"apo-geometry-ratio", required_argument, NULL, 'G'},
         {"help", no_argument, NULL, 'h'},         {NULL, 0, NULL, 0},
     };
-    *o = (options){.width = 320, .height = 240, .tolerances = {1, 4, 16}, .tolerance_count = 3, .apo_texel_px = 1};
+    *o = (options){.width = 320, .height = 240, .tolerances = {1, 4, 16}, .tolerance_count = 3, .apo_geometry_ratio = 1};
     int c;
     double v;
     while ((c = getopt_long(argc, argv, "p:h", long_options, NULL)) != -1) {
         switch (c) {
         case 'p': o->path = optarg; break;
+        case 'w': o->whole = optarg; break;
         case 'j': o->json = true; break;
         case 'r':
             if (strcmp(optarg, "flat") && strcmp(optarg, "smooth")) {
@@ -155,6 +171,12 @@ static int parse_options(int argc, char **argv, options *o)
                 return EXIT_USAGE;
             }
             break;
+        case 'G':
+            if (!parse_positive(optarg, &o->apo_geometry_ratio) || o->apo_geometry_ratio < 1) {
+                fprintf(stderr, "meshstudy: --apo-geometry-ratio must be a number >= 1, not '%s'\n", optarg);
+                return EXIT_USAGE;
+            }
+            break;
         case 's':
             if (!parse_positive(optarg, &o->spacing)) {
                 fprintf(stderr, "meshstudy: '%s' is not a positive spacing\n", optarg);
@@ -164,12 +186,17 @@ static int parse_options(int argc, char **argv, options *o)
         default: fprintf(stderr, "meshstudy: try 'meshstudy --help'\n"); return EXIT_USAGE;
         }
     }
-    if (optind != argc - 2 || !o->path) {
-        fprintf(stderr, "meshstudy: expected MESH ARCHIVE -p CAMERA_PATH (try 'meshstudy --help')\n");
+    if (optind != argc - (o->whole ? 1 : 2) || !o->path) {
+        fprintf(stderr, "meshstudy: expected MESH ARCHIVE -p CAMERA_PATH or MESH --whole CANDIDATE -p CAMERA_PATH "
+                        "(try 'meshstudy --help')\n");
         return EXIT_USAGE;
     }
     o->mesh = argv[optind];
-    o->archive = argv[optind + 1];
+    o->archive = o->whole ? NULL : argv[optind + 1];
+    if (o->whole) {
+        o->tolerances[0] = 0;
+        o->tolerance_count = 1;
+    }
     return -1;
 }
 
@@ -190,29 +217,30 @@ static json_t *image_json(const ms_study_image_error *e)
 typedef struct study {
     const options *o;
     ms_study_scene *full;
+    ms_study_scene *whole; /* --whole: the candidate mesh, measured instead of cuts */
     ms_archive *archive;
     ms_view *view;
     ms_study_apo *apo;
     uint32_t *apo_levels; /* per cell, for the current camera */
+    float *tolerance_scale; /* per cell, --apo-geometry-ratio (NULL: none) */
     ms_camera_path path;
     double spacing;
 } study;
 
 /* The APO levels every cell is read to for this camera (uniform, or by
  * footprint), set on the APO set and kept for the cut's bytes. */
-static ms_status choose_apo_levels(study *s, const ms_camera *camera, ms_error *err)
+static ms_status choose_apo_levels(study *s, const ms_camera *camera, double tolerance_px, ms_error *err)
 {
     const ms_archive_header *h = ms_archive_get_header(s->archive);
     for (uint32_t c = 0; c < h->cell_count; ++c) {
         const ms_archive_cell *rec = ms_archive_get_cell(s->archive, c);
         uint32_t levels = s->o->apo_levels;
         if (s->o->apo_footprint) {
-            double lo[3], hi[3], side;
+            double lo[3], side;
             ms_study_cell_cube(h, rec, lo, &side);
-            for (int k = 0; k < 3; ++k)
-                hi[k] = lo[k] + side;
-            levels = ms_study_footprint_levels(camera, side, ms_camera_box_distance(camera, lo, hi),
-                                               s->o->apo_texel_px, rec->apo_levels);
+            levels = ms_apo_footprint_levels(camera, lo, side, s->o->apo_texel_px > 0 ? s->o->apo_texel_px
+                                                                                      : tolerance_px,
+                                             rec->apo_levels);
         }
         s->apo_levels[c] = levels;
         ms_status st = ms_study_apo_set_levels(s->apo, c, levels, err);
@@ -244,19 +272,31 @@ static ms_status study_key(study *s, size_t key, json_t *points, ms_error *err)
         params.tolerance_px = o->tolerances[t];
         params.hysteresis = 0; /* the cut depends on the camera and tolerance only */
         params.culled_bits_less = 6; /* the client core's default (docs/CLIENT.md) */
-        ms_study_cut_report cr;
+        params.tolerance_scale = s->tolerance_scale;
+        ms_study_cut_report cr = {0};
         ms_study_scene *cut_scene = NULL;
-        if (s->apo && (st = choose_apo_levels(s, &camera, err)) != MS_OK)
-            break;
-        if ((st = ms_study_cut(s->archive, s->view, &camera, &params, s->apo_levels, &cut, &cr, err)) != MS_OK)
-            break;
-        if (!cut.triangle_count) {
-            st = ms_error_set(err, MS_ERR_EMPTY, "key %zu, %g px: the cut has no triangle", key, o->tolerances[t]);
-            break;
+        if (s->whole) {
+            cut_scene = s->whole;
+            cr.triangles = ms_study_scene_triangle_count(s->whole);
+        } else {
+            if (s->apo && (st = choose_apo_levels(s, &camera, o->tolerances[t], err)) != MS_OK)
+                break;
+            /* A fresh view for every point: the cut's seconds are then what a
+             * client spends selecting, decoding and stitching it from nothing. */
+            ms_view_destroy(s->view);
+            s->view = NULL;
+            if ((st = ms_view_create_from_archive(s->archive, &s->view, err)) != MS_OK ||
+                (st = ms_study_cut(s->archive, s->view, &camera, &params, s->apo_levels, &cut, &cr, err)) != MS_OK)
+                break;
+            if (!cut.triangle_count) {
+                st = ms_error_set(err, MS_ERR_EMPTY, "key %zu, %g px: the cut has no triangle", key,
+                                  o->tolerances[t]);
+                break;
+            }
+            if ((st = ms_study_scene_new(cut.positions, cut.vertex_count, cut.triangles, cut.triangle_count,
+                                         &cut_scene, err)) != MS_OK)
+                break;
         }
-        if ((st = ms_study_scene_new(cut.positions, cut.vertex_count, cut.triangles, cut.triangle_count, &cut_scene,
-                                     err)) != MS_OK)
-            break;
         double t0 = ms_now_seconds();
         ms_study_distance dist;
         ms_study_distance_params dp = {.spacing = s->spacing, .threads = o->threads, .camera = &camera};
@@ -271,7 +311,8 @@ static ms_status study_key(study *s, size_t key, json_t *points, ms_error *err)
                 st = ms_study_image_compare(&image, &reference, &apo_error, err);
         }
         double t2 = ms_now_seconds();
-        ms_study_scene_free(cut_scene);
+        if (cut_scene != s->whole)
+            ms_study_scene_free(cut_scene);
         if (st != MS_OK)
             break;
         json_t *point = json_pack(
@@ -323,6 +364,17 @@ static ms_status open_study(const options *o, study *s, ms_error *err)
      * sample and its vertices besides). */
     double area = ms_study_scene_area(s->full);
     s->spacing = o->spacing > 0 ? o->spacing : area > 0 ? sqrt(area / 1e5) : 1;
+    if (o->whole) {
+        ms_mesh candidate = {0};
+        if ((st = ms_mesh_load(o->whole, &candidate, NULL, err)) != MS_OK)
+            return st;
+        st = ms_study_scene_new(candidate.positions, candidate.vertex_count, candidate.triangles,
+                                candidate.triangle_count, &s->whole, err);
+        ms_mesh_free(&candidate);
+        if (st == MS_OK && !ms_study_scene_triangle_count(s->whole))
+            st = ms_error_set(err, MS_ERR_EMPTY, "%s: no triangle", o->whole);
+        return st;
+    }
     if ((st = ms_archive_open(o->archive, &s->archive, err)) != MS_OK ||
         (st = ms_view_create_from_archive(s->archive, &s->view, err)) != MS_OK)
         return st;
@@ -331,6 +383,12 @@ static ms_status open_study(const options *o, study *s, ms_error *err)
         return MS_OK;
     if (!(s->apo_levels = calloc(h->cell_count + 1, sizeof *s->apo_levels)))
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory for %u cells", h->cell_count);
+    if (o->apo_geometry_ratio > 1) { /* as the client core's dec_take_index */
+        if (!(s->tolerance_scale = malloc((h->cell_count + 1) * sizeof *s->tolerance_scale)))
+            return ms_error_set(err, MS_ERR_NOMEM, "out of memory for %u cells", h->cell_count);
+        for (uint32_t c = 0; c < h->cell_count; ++c)
+            s->tolerance_scale[c] = ms_archive_get_cell(s->archive, c)->apo_levels ? (float)o->apo_geometry_ratio : 1;
+    }
     return ms_study_apo_from_archive(s->archive, 0, UINT32_MAX, MS_APO_MISSING_NEAREST, &s->apo, err);
 }
 
@@ -350,16 +408,18 @@ int main(int argc, char **argv)
         st = study_key(&s, o.key_count ? (size_t)o.keys[k] : k, points, &err);
     json_t *root = NULL;
     if (st == MS_OK)
-        root = json_pack("{s:o, s:o, s:o, s:s, s:o, s:I, s:I, s:I, s:f, s:b, s:o, s:f}", "mesh", ms_json_text(o.mesh),
-                         "archive", ms_json_text(o.archive), "path", ms_json_text(o.path), "reference", o.smooth_reference ? "smooth" : "flat", "apo_levels",
+        root = json_pack("{s:o, s:o, s:o, s:s, s:o, s:I, s:I, s:I, s:f, s:b, s:f, s:o, s:f}", "mesh", ms_json_text(o.mesh),
+                         "archive", ms_json_text(o.whole ? o.whole : o.archive), "path", ms_json_text(o.path), "reference", o.smooth_reference ? "smooth" : "flat", "apo_levels",
                          o.apo_footprint ? json_string("footprint") : json_integer((json_int_t)o.apo_levels), "width", (json_int_t)o.width, "height", (json_int_t)o.height,
                          "mesh_triangles", (json_int_t)ms_study_scene_triangle_count(s.full), "spacing", s.spacing,
-                         "apo", s.apo != NULL, "points", points, "seconds", ms_now_seconds() - start);
+                         "apo", s.apo != NULL, "apo_geometry_ratio", o.apo_geometry_ratio, "points", points, "seconds", ms_now_seconds() - start);
     else
         json_decref(points);
     ms_study_scene_free(s.full);
+    ms_study_scene_free(s.whole);
     ms_study_apo_free(s.apo);
     free(s.apo_levels);
+    free(s.tolerance_scale);
     ms_view_destroy(s.view);
     ms_archive_close(s.archive);
     ms_camera_path_free(&s.path);

@@ -54,20 +54,6 @@ void ms_study_cell_cube(const ms_archive_header *h, const ms_archive_cell *c, do
         origin[k] = h->box_origin[k] + *side * c->position[k];
 }
 
-uint32_t ms_study_footprint_levels(const ms_camera *camera, double cube_side, double distance, double texel_px,
-                                   uint32_t level_count)
-{
-    if (!level_count)
-        return 0;
-    if (!(distance > 0))
-        return level_count;
-    double ratio = cube_side * ms_camera_pixels_per_unit(camera) / (distance * texel_px);
-    if (!(ratio >= 1))
-        return 1;
-    double deepest = floor(log2(ratio));
-    return deepest + 1 >= level_count ? level_count : (uint32_t)deepest + 1;
-}
-
 ms_status ms_study_apo_new(uint32_t cell_count, uint32_t levels, uint32_t depth_cap, ms_apo_missing_rule rule,
                            ms_study_apo **out, ms_error *err)
 {

@@ -58,14 +58,6 @@ ms_status ms_study_apo_set_levels(ms_study_apo *set, uint32_t cell, uint32_t lev
 void ms_study_cell_cube(const ms_archive_header *header, const ms_archive_cell *cell, double origin[3],
                         double *side);
 
-/* APO levels by footprint: the number of levels (1 to level_count) whose finest
- * nodes, of side cube_side / 2^(levels - 1), still look at least texel_px pixels
- * wide face-on at `distance` (ms_camera_pixels_per_unit): levels = floor(log2(
- * cube_side * pixels_per_unit / (distance * texel_px))) + 1, clamped; all of
- * them at distance 0. 0 for a cell without levels. */
-uint32_t ms_study_footprint_levels(const ms_camera *camera, double cube_side, double distance, double texel_px,
-                                   uint32_t level_count);
-
 /* The APO normal (unit, in world axes) at world point x of cell; false when the
  * cell has no chunk or the lookup finds nothing. */
 bool ms_study_apo_normal(const ms_study_apo *set, uint32_t cell, const double x[3], double normal[3]);

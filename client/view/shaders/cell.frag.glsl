@@ -1,9 +1,14 @@
 #version 410 core
-// meshview: shading of one drawing cell (modes of ms_render.h). The renderer
-// inserts, right after the first line, "#define MS_WIREFRAME" for the program
-// with the geometry shader (wireframe overlay), then the APO traversal (apo.glsl).
-// Without the geometry shader (much faster on software rasterisers) the flat
-// normal comes from the screen derivatives of the cell-local position.
+// meshview: shading of one drawing cell (modes of ms_render.h). The program is
+// composed per scene (ms_render_program_source): the renderer inserts, right
+// after the first line, "#define MS_WIREFRAME" for the program with the
+// geometry shader (wireframe overlay), then the APO traversal (apo.glsl) when
+// detail normals are compiled in and the dither (dither.glsl) with impostors,
+// and keeps each "#ifdef MS_EFFECT_<NAME>"
+// block only for the effects the program holds: a block of an effect not held
+// is cut from the source, never compiled. Without the geometry shader (much
+// faster on software rasterisers) the flat normal comes from the screen
+// derivatives of the cell-local position.
 
 #ifdef MS_WIREFRAME
 in vec3 g_cell;
@@ -24,15 +29,44 @@ in vec3 v_normal;
 #endif
 
 uniform int shading;          // 0 LIT, 1 NORMALS, 2 CELLS, 3 CELL_ID
+#ifdef MS_EFFECT_DETAIL_NORMALS
 uniform bool apo_on;          // this cell has a chunk prefix and APO is wanted
 uniform int apo_base;         // first word of the cell's chunk in apo_words
 uniform bool apo_root_internal;
 uniform uint apo_stop_depth;  // min(depth cap, complete levels - 1)
 uniform bool apo_nearest_rule; // missing child: nearest (true) or stop
-uniform mat3 world_to_eye;    // rotation part of the view
+#endif
+uniform mat3 world_to_eye;    // rotation part of the view (times the model's placement)
 uniform uint cell_number;
 uniform vec3 cell_tint;       // linear albedo for CELLS
 uniform bool smooth_on;       // without APO: interpolated vertex normals, else flat
+uniform vec3 albedo;          // the material's linear albedo
+// Lights in eye space: w 0 directional (xyz towards the light), 1 point (xyz
+// its position, falling off with range), 2 the head light (at the eye, no
+// falloff); colour times intensity, linear.
+#define MAX_LIGHTS 8
+uniform int light_count;
+uniform vec4 light_eye[MAX_LIGHTS];
+uniform vec3 light_colour[MAX_LIGHTS];
+uniform float light_range[MAX_LIGHTS];
+#ifdef MS_EFFECT_SPECULAR
+uniform float specular_strength; // 0 for a diffuse material
+uniform float shininess;
+#endif
+#ifdef MS_EFFECT_TWO_SIDED
+uniform bool two_sided;       // a back face is lit as its other side
+#endif
+#ifdef MS_EFFECT_HAZE
+uniform float haze_density;   // per unit of eye distance
+uniform vec3 haze_colour;     // linear
+#endif
+#ifdef MS_EFFECT_IMPOSTORS
+// The switch to and from an impostor: the pixels whose 4x4 Bayer threshold
+// (dither.glsl, inserted with this effect) is below dissolve are left to the
+// impostor (impostor.frag.glsl draws exactly those), so the two cross-fade
+// without sorting or blending.
+uniform float dissolve;
+#endif
 
 out vec4 colour;
 
@@ -60,6 +94,10 @@ vec3 geometric_normal()
 
 void main()
 {
+#ifdef MS_EFFECT_IMPOSTORS
+    if (bayer(gl_FragCoord.xy) < dissolve)
+        discard;
+#endif
     if (shading == 3) {
         uint id = cell_number + 1u;
         colour = vec4(float(id & 0xFFu), float((id >> 8) & 0xFFu), float((id >> 16) & 0xFFu), 255.0) / 255.0;
@@ -67,9 +105,14 @@ void main()
     }
     vec3 g_n = geometric_normal();
     vec3 n_world = g_n;
+    bool detail = false;
+#ifdef MS_EFFECT_DETAIL_NORMALS
     if (apo_on) {
         n_world = apo_lookup(FRAG_CELL, apo_base, apo_root_internal, apo_stop_depth, apo_nearest_rule);
-    } else if (smooth_on) {
+        detail = true;
+    }
+#endif
+    if (!detail && smooth_on) {
         // The interpolated vertex normal; a vertex whose normal is undefined
         // (only degenerate triangles around it) packs to zero: flat there.
         vec3 v = FRAG_VERTEX_NORMAL;
@@ -81,30 +124,57 @@ void main()
     if (shading == 1) {
         rgb = (n_world + 1.0) * 0.5;
     } else {
-        // Head light: light and view directions are both towards the eye, so the
-        // Blinn-Phong half vector is L itself. Two-sided: a surface seen from
-        // behind is lit as its other side.
-        vec3 l = normalize(-FRAG_EYE);
+        vec3 view_dir = normalize(-FRAG_EYE);
         vec3 ng = normalize(world_to_eye * g_n);
         vec3 n = normalize(world_to_eye * n_world);
         // An APO normal against the triangle's own was sampled on another sheet
         // of the surface (a thin part), and a vertex normal against it comes
-        // from a fold: the triangle's normal stands in for it. The
-        // self-shadowing factor, which keeps a detail normal from lighting a
-        // surface the geometry turns away from the light, uses the triangle's
-        // own normal, and only where such a detail normal (APO) is used: the
-        // vertex and flat normals are the geometry's already.
+        // from a fold: the triangle's normal stands in for it.
         if (dot(n, ng) < 0.0)
             n = ng;
-        if (dot(ng, l) < 0.0) {
+#ifdef MS_EFFECT_TWO_SIDED
+        // Two-sided: a surface seen from behind is lit as its other side.
+        if (two_sided && dot(ng, view_dir) < 0.0) {
             ng = -ng;
             n = -n;
         }
-        float self_shadow = apo_on ? max(0.0, dot(l, ng)) : 1.0;
-        float lambert = max(0.0, dot(n, l));
-        float specular = pow(max(0.0, dot(n, l)), 40.0);
-        vec3 albedo = shading == 2 ? cell_tint : vec3(0.72, 0.69, 0.64);
-        vec3 linear = albedo * (0.05 + 0.95 * lambert * self_shadow) + vec3(0.18) * specular * self_shadow;
+#endif
+        vec3 diffuse = vec3(0.0);
+#ifdef MS_EFFECT_SPECULAR
+        vec3 highlight = vec3(0.0);
+#endif
+        for (int i = 0; i < light_count && i < MAX_LIGHTS; ++i) {
+            vec3 l;
+            float falloff = 1.0;
+            if (light_eye[i].w == 0.0) {
+                l = light_eye[i].xyz;
+            } else if (light_eye[i].w == 2.0) {
+                l = view_dir;
+            } else {
+                vec3 to_light = light_eye[i].xyz - FRAG_EYE;
+                float d = length(to_light) / light_range[i];
+                l = normalize(to_light);
+                falloff = 1.0 / (1.0 + d * d);
+            }
+            // The self-shadowing factor keeps a detail normal from lighting a
+            // surface the geometry turns away from the light: the triangle's
+            // own normal, and only where a detail normal (APO) is used (the
+            // vertex and flat normals are the geometry's already).
+            float self_shadow = detail ? max(0.0, dot(l, ng)) : 1.0;
+            vec3 c = light_colour[i] * (falloff * self_shadow);
+            diffuse += c * max(0.0, dot(n, l));
+#ifdef MS_EFFECT_SPECULAR
+            highlight += c * pow(max(0.0, dot(n, normalize(l + view_dir))), shininess);
+#endif
+        }
+        vec3 base = shading == 2 ? cell_tint : albedo;
+        vec3 linear = base * (0.05 + 0.95 * diffuse);
+#ifdef MS_EFFECT_SPECULAR
+        linear += specular_strength * highlight;
+#endif
+#ifdef MS_EFFECT_HAZE
+        linear = mix(haze_colour, linear, exp(-haze_density * length(FRAG_EYE)));
+#endif
         rgb = srgb_encode(linear);
     }
 #ifdef MS_WIREFRAME

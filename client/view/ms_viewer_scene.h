@@ -1,0 +1,88 @@
+/* A scene on screen (docs/SCENES.md): every model of an ms_scene streamed by its
+ * own stream (ms_viewer_stream.h: a client core and a renderer), placed in the
+ * room, plus the room's generated geometry (floor, walls, plinths: boxes as
+ * one-cell models, flat shaded, the floor and walls in 0.5 m tiles), drawn
+ * into one picture with shader programs composed of the effects each piece
+ * calls for.
+ *
+ * Streaming. One core per model, all fed the same scene camera expressed in
+ * the model's own coordinates (the placement inverted: a uniformly scaled
+ * model seen from the scaled camera projects exactly as placed), so every
+ * model refines by the same screen-error rule and tolerance, near pieces finer
+ * than far ones. One memory budget: the scene's (settings.stream.memory_mb)
+ * split evenly over the cores, since a core's budget is fixed at its start
+ * (ms_client_core.h has no setter); likewise the bandwidth. Uploads: each
+ * frame's byte budget goes to the models nearest the camera first, so near
+ * pieces reach the GPU first. From a server each core holds its own
+ * connection (the protocol opens one model per connection).
+ *
+ * Effects: ms_scene_effects(scene), minus settings.effects_off, or every
+ * effect with settings.force_all (what "only the effects the scene calls
+ * for" saves, for make bench); each piece's program holds only its own
+ * (specular for glossy materials, two-sided for open ones, displacement for
+ * the floor and walls that declare a relief, detail normals and impostors for
+ * models, haze everywhere), or all of them with force_all. A model smaller on
+ * screen than the scene's impostor threshold is drawn as an impostor
+ * (ms_render_impostor.h), captured again past the scene's angle or when its
+ * cut changes, with a 4-frame dissolve on the switch.
+ *
+ * Requires the GL context current on the calling thread for every function
+ * but _effects and _settled. Ownership: the scene is borrowed (it must outlive
+ * the object); everything else is owned. Errors: ms_status with one line (a
+ * model not in the catalogue names the scene element; a stream's errors as
+ * ms_viewer_stream.h). Thread-safety: the drawing thread only.
+ */
+#ifndef MS_VIEWER_SCENE_H
+#define MS_VIEWER_SCENE_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "ms_render.h"
+#include "ms_scene.h"
+#include "ms_viewer_model.h"
+#include "ms_viewer_stream.h"
+
+typedef struct ms_viewer_scene ms_viewer_scene;
+
+typedef struct ms_viewer_scene_settings {
+    ms_viewer_stream_settings stream; /* memory_mb and bandwidth: the scene's, split evenly */
+    unsigned effects_off;             /* MS_EFFECT_* not compiled in even if called for */
+    bool force_all;                   /* compile every effect (then effects_off still applies) */
+} ms_viewer_scene_settings;
+
+/* Checks the scene's models against the source's catalogue (label names the
+ * scene in errors), opens each model's index and stream, and builds the room. */
+ms_status ms_viewer_scene_open(const ms_viewer_source *source, const ms_scene *scene, const char *label,
+                               const ms_viewer_scene_settings *settings, ms_viewer_scene **out, ms_error *err);
+void ms_viewer_scene_close(ms_viewer_scene *vs);
+
+/* Steps every stream with the scene camera (in metres): new frames to the
+ * renderers, budget_bytes of upload shared nearest model first. step sums the
+ * streams': new_frame if any, generation the largest, upload bytes and cells
+ * summed, triangles summed, settled when all are. */
+ms_status ms_viewer_scene_step(ms_viewer_scene *vs, const ms_camera *camera, uint64_t budget_bytes,
+                               ms_viewer_step *step, ms_error *err);
+
+/* Clears to the background (the haze's colour when the scene has haze) and
+ * draws the room and the models. base gives the shading mode, APO, wireframe
+ * and smooth; the scene gives the effects, materials, lights, haze and
+ * placements. stats: cells and triangles summed, effects compiled, and the
+ * effects that ran in any of the draws. */
+ms_status ms_viewer_scene_draw(ms_viewer_scene *vs, const ms_camera *camera, const ms_render_options *base,
+                               ms_render_draw_stats *stats, ms_error *err);
+
+/* The streams' figures: bytes, requests, cells and memory summed, achieved
+ * error and tolerance the largest, view_complete when all are, the first error. */
+void ms_viewer_scene_stats(ms_viewer_scene *vs, ms_core_stats *stats);
+
+bool ms_viewer_scene_settled(const ms_viewer_scene *vs);
+
+/* The effects compiled into the scene's programs. */
+unsigned ms_viewer_scene_effects(const ms_viewer_scene *vs);
+
+/* The room's box (or the models' when the scene has no room), metres: for
+ * the camera's near and far distances. */
+void ms_viewer_scene_bounds(const ms_viewer_scene *vs, double lo[3], double hi[3]);
+
+#endif

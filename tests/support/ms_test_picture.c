@@ -1,0 +1,43 @@
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <png.h>
+#include <stdlib.h>
+#include <string.h>
+#include <cmocka.h>
+
+#include "ms_test_picture.h"
+
+uint8_t *ms_test_png_read(const char *path, uint32_t *width, uint32_t *height)
+{
+    png_image image;
+    memset(&image, 0, sizeof image);
+    image.version = PNG_IMAGE_VERSION;
+    if (!png_image_begin_read_from_file(&image, path))
+        fail_msg("%s: %s", path, image.message);
+    image.format = PNG_FORMAT_RGB;
+    uint8_t *pixels = malloc(PNG_IMAGE_SIZE(image));
+    assert_non_null(pixels);
+    assert_true(png_image_finish_read(&image, NULL, pixels, 0, NULL));
+    *width = image.width, *height = image.height;
+    return pixels;
+}
+
+size_t ms_test_png_differing(const char *a_path, const char *b_path, int tolerance)
+{
+    uint32_t aw, ah, bw, bh;
+    uint8_t *a = ms_test_png_read(a_path, &aw, &ah), *b = ms_test_png_read(b_path, &bw, &bh);
+    assert_int_equal(aw, bw);
+    assert_int_equal(ah, bh);
+    size_t n = 0;
+    for (size_t i = 0; i < (size_t)aw * ah; ++i)
+        for (int c = 0; c < 3; ++c)
+            if (abs(a[3 * i + c] - b[3 * i + c]) > tolerance) {
+                ++n;
+                break;
+            }
+    free(a);
+    free(b);
+    return n;
+}

@@ -1,0 +1,17 @@
+/* Pictures in tests: PNG files decoded and compared (libpng's simplified
+ * reader). Every helper fails the test on error. Include after cmocka.h. */
+#ifndef MS_TEST_PICTURE_H
+#define MS_TEST_PICTURE_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+/* Decodes a PNG as RGB, 3 bytes per pixel, rows top-down (malloc'd; the
+ * caller frees it). */
+uint8_t *ms_test_png_read(const char *path, uint32_t *width, uint32_t *height);
+
+/* Pixels of two PNGs of the same size whose colour differs by more than
+ * tolerance in a channel. */
+size_t ms_test_png_differing(const char *a_path, const char *b_path, int tolerance);
+
+#endif
