@@ -18,8 +18,8 @@
 static const char *const SCRIPTS[] = {
     "attack",       "bake-gallery", "bench",       "bench-apo",    "bench-apo-bake", "bench-bake",
     "bench-client", "bench-codec",  "bench-codec-peer", "bench-read", "bench-scenes", "bench-serve",
-    "bench-viewer", "cluster",      "demo",        "install-deps", "run-tests",      "screenshots",
-    "study",
+    "bench-valence", "bench-viewer", "cluster",    "demo",         "install-deps",   "run-tests",
+    "screenshots",  "study",
 };
 
 static bool listed(const char *name)

@@ -36,7 +36,7 @@ struct ms_codec_decoder {
     ms_cx_star star;
     uint8_t *code, *side, *cov;
     uint8_t *partners;      /* per neighbour: partner_flag of its partners coded so far */
-    int32_t *vote;          /* per neighbour: orientation votes around it (orient_votes) */
+    int32_t *vote;          /* per neighbour: orientation votes (the encoder's star_votes) */
     uint32_t *pivot;        /* the neighbours with code 4, in order */
     uint8_t *tcode;
     size_t cap_code, cap_tcode;
@@ -209,6 +209,7 @@ static void drop_moved_triangles(ms_complex *cx, uint32_t s)
         w += keep;
     }
     v->n = w;
+    ms_cx_list_reindex(v); /* positions moved */
 }
 
 /* Splits cell s (level L) in two after a "both" symbol. The per-neighbour and
@@ -329,7 +330,7 @@ static ms_status split(ms_codec_decoder *d, uint32_t s, unsigned L, uint32_t *ou
         int same = tc == 3 ? dbit(d, &m[C_O3]) : 0;
         uint32_t *x = cx->tri[t];
         if (n4) {
-            /* the votes this triangle and its copy will cast, as orient_votes
+            /* the votes this triangle and its copy will cast, as star_votes
              * would count them on the lists of s and s2 after the split: kept
              * on s +o, moved to s2 -o, duplicated with the same cyclic order 0
              * (the copies cancel), with the opposite one +2o. Cast for every
