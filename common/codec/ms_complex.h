@@ -218,6 +218,10 @@ ms_status ms_cx_gather(ms_complex *cx, uint32_t c0, uint32_t c1, ms_cx_star *st,
 ms_status ms_cx_gather_general(ms_complex *cx, uint32_t c0, uint32_t c1, ms_cx_star *st,
                                ms_error *err);
 
+/* Sorts n keys ascending (insertion sort when short); shared by the
+ * complex's own files. */
+void ms_cx_sort_keys(uint64_t *a, size_t n);
+
 /* Merges c1 into c0: every simplex incident to c1 gets c0 instead, duplicates are
  * dropped (c0's copy wins), triangles containing both collapse to edges kept only
  * when maximal, the edge c0-c1 disappears. Frees slot c1. Key and level of c0 are
