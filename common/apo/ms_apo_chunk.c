@@ -114,7 +114,7 @@ ms_status ms_apo_view_init(ms_apo_view *view, const uint32_t *level_texels, uint
                            const uint32_t *texels, size_t received, ms_error *err)
 {
     memset(view, 0, sizeof *view);
-    uint64_t total;
+    uint64_t total = 0; /* set by check_level_table; gcc -O2 cannot tell */
     ms_status table = check_level_table(level_texels, level_count, texels, received, &total, err);
     if (table != MS_OK)
         return table;
