@@ -16,6 +16,13 @@ CXX     ?= g++
 MODE    ?= release
 BUILD   := build/$(MODE)
 
+# A build folder made before the rooms (or by an older layout) holds objects and
+# dependency files under old paths that make would trust: start it afresh.
+LAYOUT  := rooms-1
+ifneq ($(shell cat $(BUILD)/.layout 2>/dev/null),$(LAYOUT))
+  $(shell rm -rf $(BUILD) && mkdir -p $(BUILD) && echo $(LAYOUT) > $(BUILD)/.layout)
+endif
+
 WARN    := -Wall -Wextra -Werror -Wshadow -Wstrict-prototypes -Wvla
 CSTD    := -std=c11 -D_DEFAULT_SOURCE -D_FILE_OFFSET_BITS=64
 ifeq ($(MODE),asan)

@@ -119,10 +119,14 @@ typedef enum ms_proto_error_code {
     MS_PROTO_E_IDLE_TIMEOUT = 19,
     MS_PROTO_E_TOO_MANY_CONNECTIONS = 20,
     MS_PROTO_E_SHUTTING_DOWN = 21,
-    MS_PROTO_E_INTERNAL = 22
+    MS_PROTO_E_INTERNAL = 22,
+    /* Server only, never fatal, request_id 0, detail = a model handle: a
+     * rescan replaced or removed that handle's model; the handle is closed and
+     * every request outstanding on it ended (section 9). */
+    MS_PROTO_E_MODEL_CHANGED = 23
 } ms_proto_error_code;
 #define MS_PROTO_E_FIRST 1
-#define MS_PROTO_E_LAST 22
+#define MS_PROTO_E_LAST 23
 
 /* Whether an error code is fatal (the FATAL column of section 9). */
 typedef enum ms_proto_fatality {

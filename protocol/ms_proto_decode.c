@@ -153,6 +153,261 @@ static ms_status check_header(ms_proto_decoder *dec, ms_proto_fault *fault, ms_e
     return MS_OK;
 }
 
+/* A malformed body: the text to why, MALFORMED_FRAME as the code (each
+ * parse_* below has dec, msg, why and why_size). */
+#define MALFORMED(...) (snprintf(why, why_size, __VA_ARGS__), MS_PROTO_E_MALFORMED_FRAME)
+
+static uint16_t parse_hello(ms_proto_decoder *dec, ms_proto_message *msg, char *why,
+                            size_t why_size)
+{
+    const uint8_t *b = dec->body;
+    const uint32_t n = dec->body_length;
+    ms_proto_hello *h = &msg->body.hello;
+    if (memcmp(b, MS_PROTO_MAGIC, 4) != 0)
+        return MALFORMED("HELLO: bad magic (not a meshstream client?)");
+    if (ms_wire_get32(b + 20) != 0)
+        return MALFORMED("HELLO: reserved field is not 0");
+    h->min_version = ms_wire_get16(b + 4);
+    h->max_version = ms_wire_get16(b + 6);
+    h->capabilities = ms_wire_get32(b + 8);
+    h->max_frame = ms_wire_get32(b + 12);
+    h->token_length = ms_wire_get16(b + 16);
+    h->agent_length = ms_wire_get16(b + 18);
+    if ((size_t)MS_PROTO_HELLO_FIXED + h->token_length + h->agent_length != n)
+        return MALFORMED("HELLO: body length %u, layout says %zu", (unsigned)n,
+                         (size_t)MS_PROTO_HELLO_FIXED + h->token_length + h->agent_length);
+    h->token = (const char *)b + MS_PROTO_HELLO_FIXED;
+    h->agent = h->token + h->token_length;
+    return 0;
+}
+
+static uint16_t parse_hello_reply(ms_proto_decoder *dec, ms_proto_message *msg, char *why,
+                                  size_t why_size)
+{
+    const uint8_t *b = dec->body;
+    const uint32_t n = dec->body_length;
+    ms_proto_hello_reply *r = &msg->body.hello_reply;
+    if (memcmp(b, MS_PROTO_MAGIC, 4) != 0)
+        return MALFORMED("HELLO_REPLY: bad magic (not a meshstream server?)");
+    if (ms_wire_get32(b + 44) != 0)
+        return MALFORMED("HELLO_REPLY: reserved field is not 0");
+    r->version = ms_wire_get16(b + 4);
+    r->server_flags = ms_wire_get16(b + 6);
+    r->capabilities = ms_wire_get32(b + 8);
+    r->max_frame = ms_wire_get32(b + 12);
+    r->max_batch = ms_wire_get32(b + 16);
+    r->max_outstanding = ms_wire_get32(b + 20);
+    r->max_queued_bytes = ms_wire_get64(b + 24);
+    r->idle_timeout_ms = ms_wire_get32(b + 32);
+    r->max_request_rate = ms_wire_get32(b + 36);
+    r->max_open_models = ms_wire_get16(b + 40);
+    r->server_name_length = ms_wire_get16(b + 42);
+    if ((size_t)MS_PROTO_HELLO_REPLY_FIXED + r->server_name_length != n)
+        return MALFORMED("HELLO_REPLY: body length %u, layout says %zu", (unsigned)n,
+                         (size_t)MS_PROTO_HELLO_REPLY_FIXED + r->server_name_length);
+    r->server_name = (const char *)b + MS_PROTO_HELLO_REPLY_FIXED;
+    return 0;
+}
+
+static uint16_t parse_catalogue(ms_proto_decoder *dec, ms_proto_message *msg, char *why,
+                                size_t why_size)
+{
+    const uint8_t *b = dec->body;
+    const uint32_t n = dec->body_length;
+    ms_proto_catalogue *cat = &msg->body.catalogue;
+    cat->entry_count = ms_wire_get16(b);
+    if (ms_wire_get16(b + 2) != 0)
+        return MALFORMED("CATALOGUE: reserved field is not 0");
+    /* Bound the count by the body before allocating for it. */
+    if ((size_t)cat->entry_count * MS_PROTO_CATALOGUE_ENTRY_FIXED > n - MS_PROTO_CATALOGUE_FIXED)
+        return MALFORMED("CATALOGUE: %u entries cannot fit in %u bytes", cat->entry_count,
+                         (unsigned)n);
+    if (grow(&dec->scratch, &dec->scratch_capacity,
+             (size_t)(cat->entry_count ? cat->entry_count : 1) *
+                 sizeof(ms_proto_catalogue_entry)) != MS_OK) {
+        snprintf(why, why_size, "CATALOGUE: cannot allocate %u entries", cat->entry_count);
+        return MS_PROTO_E_INTERNAL;
+    }
+    ms_proto_catalogue_entry *entries = dec->scratch;
+    size_t at = MS_PROTO_CATALOGUE_FIXED;
+    for (uint32_t i = 0; i < cat->entry_count; ++i) {
+        if (n - at < MS_PROTO_CATALOGUE_ENTRY_FIXED)
+            return MALFORMED("CATALOGUE: entry %u truncated", (unsigned)i);
+        const uint8_t *p = b + at;
+        ms_proto_catalogue_entry *e = &entries[i];
+        if (p[5] != 0 || ms_wire_get32(p + 12) != 0)
+            return MALFORMED("CATALOGUE: entry %u: reserved field is not 0", (unsigned)i);
+        e->name_length = p[0];
+        e->geometry_steps = p[1];
+        e->apo_steps = p[2];
+        e->permitted_geometry_steps = p[3];
+        e->permitted_apo_steps = p[4];
+        e->title_length = ms_wire_get16(p + 6);
+        e->cell_count = ms_wire_get32(p + 8);
+        e->content_id = ms_wire_get64(p + 16);
+        e->archive_bytes = ms_wire_get64(p + 24);
+        size_t strings = (size_t)e->name_length + e->title_length;
+        if (n - at - MS_PROTO_CATALOGUE_ENTRY_FIXED < strings)
+            return MALFORMED("CATALOGUE: entry %u: strings run past the body", (unsigned)i);
+        e->name = (const char *)p + MS_PROTO_CATALOGUE_ENTRY_FIXED;
+        e->title = e->name + e->name_length;
+        at += MS_PROTO_CATALOGUE_ENTRY_FIXED + strings;
+    }
+    if (at != n)
+        return MALFORMED("CATALOGUE: %zu bytes after the last entry", n - at);
+    cat->entries = entries;
+    return 0;
+}
+
+static uint16_t parse_open_model(ms_proto_decoder *dec, ms_proto_message *msg, char *why,
+                                 size_t why_size)
+{
+    const uint8_t *b = dec->body;
+    const uint32_t n = dec->body_length;
+    ms_proto_open_model *o = &msg->body.open_model;
+    o->name_length = b[0];
+    if (b[1] || b[2] || b[3])
+        return MALFORMED("OPEN_MODEL: reserved field is not 0");
+    if ((size_t)MS_PROTO_OPEN_MODEL_FIXED + o->name_length != n)
+        return MALFORMED("OPEN_MODEL: body length %u, layout says %zu", (unsigned)n,
+                         (size_t)MS_PROTO_OPEN_MODEL_FIXED + o->name_length);
+    o->name = (const char *)b + MS_PROTO_OPEN_MODEL_FIXED;
+    return 0;
+}
+
+static uint16_t parse_model_opened(ms_proto_decoder *dec, ms_proto_message *msg, char *why,
+                                   size_t why_size)
+{
+    const uint8_t *b = dec->body;
+    ms_proto_model_opened *m = &msg->body.model_opened;
+    if (b[31] != 0)
+        return MALFORMED("MODEL_OPENED: reserved field is not 0");
+    m->model_handle = ms_wire_get32(b);
+    m->cell_count = ms_wire_get32(b + 4);
+    m->content_id = ms_wire_get64(b + 8);
+    m->index_size = ms_wire_get32(b + 16);
+    m->index_crc32 = ms_wire_get32(b + 20);
+    m->archive_version = ms_wire_get16(b + 24);
+    m->geometry_steps = b[26];
+    m->apo_steps = b[27];
+    m->permitted_geometry_steps = b[28];
+    m->permitted_apo_steps = b[29];
+    m->index_encoding = b[30];
+    return 0;
+}
+
+static uint16_t parse_request_cells(ms_proto_decoder *dec, ms_proto_message *msg, char *why,
+                                    size_t why_size)
+{
+    const uint8_t *b = dec->body;
+    const uint32_t n = dec->body_length;
+    ms_proto_request_cells *r = &msg->body.request_cells;
+    r->model_handle = ms_wire_get32(b);
+    r->count = ms_wire_get16(b + 4);
+    r->entries = NULL;
+    if (ms_wire_get16(b + 6) != 0)
+        return MALFORMED("REQUEST_CELLS: reserved field is not 0");
+    if ((size_t)MS_PROTO_REQUEST_CELLS_FIXED + (size_t)r->count * MS_PROTO_CELL_REQUEST_SIZE != n)
+        return MALFORMED("REQUEST_CELLS: body length %u, layout says %zu for %u entries",
+                         (unsigned)n,
+                         (size_t)MS_PROTO_REQUEST_CELLS_FIXED +
+                             (size_t)r->count * MS_PROTO_CELL_REQUEST_SIZE,
+                         r->count);
+    /* An oversized batch is refused by the range check (BATCH_TOO_LARGE)
+     * without allocating anything for its entries. */
+    if (r->count == 0 || r->count > dec->config.max_batch)
+        return 0;
+    if (grow(&dec->scratch, &dec->scratch_capacity,
+             (size_t)r->count * sizeof(ms_proto_cell_request)) != MS_OK) {
+        snprintf(why, why_size, "REQUEST_CELLS: cannot allocate %u entries", r->count);
+        return MS_PROTO_E_INTERNAL;
+    }
+    ms_proto_cell_request *entries = dec->scratch;
+    for (uint32_t i = 0; i < r->count; ++i) {
+        const uint8_t *p = b + MS_PROTO_REQUEST_CELLS_FIXED + (size_t)i * MS_PROTO_CELL_REQUEST_SIZE;
+        if (p[7] != 0)
+            return MALFORMED("REQUEST_CELLS: entry %u: reserved field is not 0", (unsigned)i);
+        entries[i].cell_id = ms_wire_get32(p);
+        entries[i].stream = p[4];
+        entries[i].unit = p[5];
+        entries[i].priority = p[6];
+        entries[i].a = ms_wire_get32(p + 8);
+        entries[i].b = ms_wire_get32(p + 12);
+    }
+    r->entries = entries;
+    return 0;
+}
+
+static uint16_t parse_cancel(ms_proto_decoder *dec, ms_proto_message *msg, char *why,
+                             size_t why_size)
+{
+    const uint8_t *b = dec->body;
+    const uint32_t n = dec->body_length;
+    ms_proto_cancel *k = &msg->body.cancel;
+    k->range_count = ms_wire_get16(b);
+    k->flags = ms_wire_get16(b + 2);
+    k->ranges = NULL;
+    if ((size_t)MS_PROTO_CANCEL_FIXED + (size_t)k->range_count * MS_PROTO_CANCEL_RANGE_SIZE != n)
+        return MALFORMED("CANCEL: body length %u, layout says %zu for %u ranges", (unsigned)n,
+                         (size_t)MS_PROTO_CANCEL_FIXED +
+                             (size_t)k->range_count * MS_PROTO_CANCEL_RANGE_SIZE,
+                         k->range_count);
+    if (k->range_count == 0)
+        return 0;
+    if (grow(&dec->scratch, &dec->scratch_capacity,
+             (size_t)k->range_count * sizeof(ms_proto_id_range)) != MS_OK) {
+        snprintf(why, why_size, "CANCEL: cannot allocate %u ranges", k->range_count);
+        return MS_PROTO_E_INTERNAL;
+    }
+    ms_proto_id_range *ranges = dec->scratch;
+    for (uint32_t i = 0; i < k->range_count; ++i) {
+        const uint8_t *p = b + MS_PROTO_CANCEL_FIXED + (size_t)i * MS_PROTO_CANCEL_RANGE_SIZE;
+        ranges[i].first_id = ms_wire_get32(p);
+        ranges[i].count = ms_wire_get32(p + 4);
+    }
+    k->ranges = ranges;
+    return 0;
+}
+
+static uint16_t parse_payload(ms_proto_decoder *dec, ms_proto_message *msg, char *why,
+                              size_t why_size)
+{
+    const uint8_t *b = dec->body;
+    const uint32_t n = dec->body_length;
+    ms_proto_payload *p = &msg->body.payload;
+    if (b[5] || b[6] || b[7])
+        return MALFORMED("PAYLOAD: reserved field is not 0");
+    p->cell_id = ms_wire_get32(b);
+    p->stream = b[4];
+    p->offset = ms_wire_get32(b + 8);
+    p->end = ms_wire_get32(b + 12);
+    p->data = b + MS_PROTO_PAYLOAD_FIXED;
+    p->data_length = n - MS_PROTO_PAYLOAD_FIXED;
+    return 0;
+}
+
+static uint16_t parse_error_body(ms_proto_decoder *dec, ms_proto_message *msg, char *why,
+                                 size_t why_size)
+{
+    const uint8_t *b = dec->body;
+    const uint32_t n = dec->body_length;
+    ms_proto_error_body *e = &msg->body.error;
+    if ((b[2] & ~MS_PROTO_ERROR_FATAL) || b[3])
+        return MALFORMED("ERROR: undefined flag bits or reserved field set");
+    e->code = ms_wire_get16(b);
+    e->fatal = (b[2] & MS_PROTO_ERROR_FATAL) != 0;
+    e->request_count = ms_wire_get32(b + 4);
+    e->detail = ms_wire_get64(b + 8);
+    e->text_length = ms_wire_get16(b + 16);
+    if ((size_t)MS_PROTO_ERROR_FIXED + e->text_length != n)
+        return MALFORMED("ERROR: body length %u, layout says %zu", (unsigned)n,
+                         (size_t)MS_PROTO_ERROR_FIXED + e->text_length);
+    e->text = (const char *)b + MS_PROTO_ERROR_FIXED;
+    return 0;
+}
+
+#undef MALFORMED
+
 /* Structure of a complete body: exact length, magic, reserved fields. Fills
  * msg; arrays go to the decoder's scratch. On failure returns the error code
  * (MALFORMED_FRAME or INTERNAL) and writes a text to why. */
@@ -160,195 +415,30 @@ static uint16_t parse_body(ms_proto_decoder *dec, ms_proto_message *msg, char *w
 {
     const uint8_t *b = dec->body;
     const uint32_t n = dec->body_length;
-#define MALFORMED(...) (snprintf(why, why_size, __VA_ARGS__), MS_PROTO_E_MALFORMED_FRAME)
     switch ((ms_proto_type)msg->type) {
-    case MS_PROTO_HELLO: {
-        ms_proto_hello *h = &msg->body.hello;
-        if (memcmp(b, MS_PROTO_MAGIC, 4) != 0)
-            return MALFORMED("HELLO: bad magic (not a meshstream client?)");
-        if (ms_wire_get32(b + 20) != 0)
-            return MALFORMED("HELLO: reserved field is not 0");
-        h->min_version = ms_wire_get16(b + 4);
-        h->max_version = ms_wire_get16(b + 6);
-        h->capabilities = ms_wire_get32(b + 8);
-        h->max_frame = ms_wire_get32(b + 12);
-        h->token_length = ms_wire_get16(b + 16);
-        h->agent_length = ms_wire_get16(b + 18);
-        if ((size_t)MS_PROTO_HELLO_FIXED + h->token_length + h->agent_length != n)
-            return MALFORMED("HELLO: body length %u, layout says %zu", (unsigned)n,
-                             (size_t)MS_PROTO_HELLO_FIXED + h->token_length + h->agent_length);
-        h->token = (const char *)b + MS_PROTO_HELLO_FIXED;
-        h->agent = h->token + h->token_length;
-        return 0;
-    }
-    case MS_PROTO_HELLO_REPLY: {
-        ms_proto_hello_reply *r = &msg->body.hello_reply;
-        if (memcmp(b, MS_PROTO_MAGIC, 4) != 0)
-            return MALFORMED("HELLO_REPLY: bad magic (not a meshstream server?)");
-        if (ms_wire_get32(b + 44) != 0)
-            return MALFORMED("HELLO_REPLY: reserved field is not 0");
-        r->version = ms_wire_get16(b + 4);
-        r->server_flags = ms_wire_get16(b + 6);
-        r->capabilities = ms_wire_get32(b + 8);
-        r->max_frame = ms_wire_get32(b + 12);
-        r->max_batch = ms_wire_get32(b + 16);
-        r->max_outstanding = ms_wire_get32(b + 20);
-        r->max_queued_bytes = ms_wire_get64(b + 24);
-        r->idle_timeout_ms = ms_wire_get32(b + 32);
-        r->max_request_rate = ms_wire_get32(b + 36);
-        r->max_open_models = ms_wire_get16(b + 40);
-        r->server_name_length = ms_wire_get16(b + 42);
-        if ((size_t)MS_PROTO_HELLO_REPLY_FIXED + r->server_name_length != n)
-            return MALFORMED("HELLO_REPLY: body length %u, layout says %zu", (unsigned)n,
-                             (size_t)MS_PROTO_HELLO_REPLY_FIXED + r->server_name_length);
-        r->server_name = (const char *)b + MS_PROTO_HELLO_REPLY_FIXED;
-        return 0;
-    }
+    case MS_PROTO_HELLO:
+        return parse_hello(dec, msg, why, why_size);
+    case MS_PROTO_HELLO_REPLY:
+        return parse_hello_reply(dec, msg, why, why_size);
     case MS_PROTO_PING:
     case MS_PROTO_PONG:
         msg->body.ping.opaque = ms_wire_get64(b);
         return 0;
     case MS_PROTO_LIST_CATALOGUE:
         return 0;
-    case MS_PROTO_CATALOGUE: {
-        ms_proto_catalogue *cat = &msg->body.catalogue;
-        cat->entry_count = ms_wire_get16(b);
-        if (ms_wire_get16(b + 2) != 0)
-            return MALFORMED("CATALOGUE: reserved field is not 0");
-        /* Bound the count by the body before allocating for it. */
-        if ((size_t)cat->entry_count * MS_PROTO_CATALOGUE_ENTRY_FIXED > n - MS_PROTO_CATALOGUE_FIXED)
-            return MALFORMED("CATALOGUE: %u entries cannot fit in %u bytes", cat->entry_count,
-                             (unsigned)n);
-        if (grow(&dec->scratch, &dec->scratch_capacity,
-                 (size_t)(cat->entry_count ? cat->entry_count : 1) *
-                     sizeof(ms_proto_catalogue_entry)) != MS_OK) {
-            snprintf(why, why_size, "CATALOGUE: cannot allocate %u entries", cat->entry_count);
-            return MS_PROTO_E_INTERNAL;
-        }
-        ms_proto_catalogue_entry *entries = dec->scratch;
-        size_t at = MS_PROTO_CATALOGUE_FIXED;
-        for (uint32_t i = 0; i < cat->entry_count; ++i) {
-            if (n - at < MS_PROTO_CATALOGUE_ENTRY_FIXED)
-                return MALFORMED("CATALOGUE: entry %u truncated", (unsigned)i);
-            const uint8_t *p = b + at;
-            ms_proto_catalogue_entry *e = &entries[i];
-            if (p[5] != 0 || ms_wire_get32(p + 12) != 0)
-                return MALFORMED("CATALOGUE: entry %u: reserved field is not 0", (unsigned)i);
-            e->name_length = p[0];
-            e->geometry_steps = p[1];
-            e->apo_steps = p[2];
-            e->permitted_geometry_steps = p[3];
-            e->permitted_apo_steps = p[4];
-            e->title_length = ms_wire_get16(p + 6);
-            e->cell_count = ms_wire_get32(p + 8);
-            e->content_id = ms_wire_get64(p + 16);
-            e->archive_bytes = ms_wire_get64(p + 24);
-            size_t strings = (size_t)e->name_length + e->title_length;
-            if (n - at - MS_PROTO_CATALOGUE_ENTRY_FIXED < strings)
-                return MALFORMED("CATALOGUE: entry %u: strings run past the body", (unsigned)i);
-            e->name = (const char *)p + MS_PROTO_CATALOGUE_ENTRY_FIXED;
-            e->title = e->name + e->name_length;
-            at += MS_PROTO_CATALOGUE_ENTRY_FIXED + strings;
-        }
-        if (at != n)
-            return MALFORMED("CATALOGUE: %zu bytes after the last entry", n - at);
-        cat->entries = entries;
-        return 0;
-    }
-    case MS_PROTO_OPEN_MODEL: {
-        ms_proto_open_model *o = &msg->body.open_model;
-        o->name_length = b[0];
-        if (b[1] || b[2] || b[3])
-            return MALFORMED("OPEN_MODEL: reserved field is not 0");
-        if ((size_t)MS_PROTO_OPEN_MODEL_FIXED + o->name_length != n)
-            return MALFORMED("OPEN_MODEL: body length %u, layout says %zu", (unsigned)n,
-                             (size_t)MS_PROTO_OPEN_MODEL_FIXED + o->name_length);
-        o->name = (const char *)b + MS_PROTO_OPEN_MODEL_FIXED;
-        return 0;
-    }
-    case MS_PROTO_MODEL_OPENED: {
-        ms_proto_model_opened *m = &msg->body.model_opened;
-        if (b[31] != 0)
-            return MALFORMED("MODEL_OPENED: reserved field is not 0");
-        m->model_handle = ms_wire_get32(b);
-        m->cell_count = ms_wire_get32(b + 4);
-        m->content_id = ms_wire_get64(b + 8);
-        m->index_size = ms_wire_get32(b + 16);
-        m->index_crc32 = ms_wire_get32(b + 20);
-        m->archive_version = ms_wire_get16(b + 24);
-        m->geometry_steps = b[26];
-        m->apo_steps = b[27];
-        m->permitted_geometry_steps = b[28];
-        m->permitted_apo_steps = b[29];
-        m->index_encoding = b[30];
-        return 0;
-    }
+    case MS_PROTO_CATALOGUE:
+        return parse_catalogue(dec, msg, why, why_size);
+    case MS_PROTO_OPEN_MODEL:
+        return parse_open_model(dec, msg, why, why_size);
+    case MS_PROTO_MODEL_OPENED:
+        return parse_model_opened(dec, msg, why, why_size);
     case MS_PROTO_CLOSE_MODEL:
         msg->body.close_model.model_handle = ms_wire_get32(b);
         return 0;
-    case MS_PROTO_REQUEST_CELLS: {
-        ms_proto_request_cells *r = &msg->body.request_cells;
-        r->model_handle = ms_wire_get32(b);
-        r->count = ms_wire_get16(b + 4);
-        r->entries = NULL;
-        if (ms_wire_get16(b + 6) != 0)
-            return MALFORMED("REQUEST_CELLS: reserved field is not 0");
-        if ((size_t)MS_PROTO_REQUEST_CELLS_FIXED + (size_t)r->count * MS_PROTO_CELL_REQUEST_SIZE != n)
-            return MALFORMED("REQUEST_CELLS: body length %u, layout says %zu for %u entries",
-                             (unsigned)n,
-                             (size_t)MS_PROTO_REQUEST_CELLS_FIXED +
-                                 (size_t)r->count * MS_PROTO_CELL_REQUEST_SIZE,
-                             r->count);
-        /* An oversized batch is refused by the range check (BATCH_TOO_LARGE)
-         * without allocating anything for its entries. */
-        if (r->count == 0 || r->count > dec->config.max_batch)
-            return 0;
-        if (grow(&dec->scratch, &dec->scratch_capacity,
-                 (size_t)r->count * sizeof(ms_proto_cell_request)) != MS_OK) {
-            snprintf(why, why_size, "REQUEST_CELLS: cannot allocate %u entries", r->count);
-            return MS_PROTO_E_INTERNAL;
-        }
-        ms_proto_cell_request *entries = dec->scratch;
-        for (uint32_t i = 0; i < r->count; ++i) {
-            const uint8_t *p = b + MS_PROTO_REQUEST_CELLS_FIXED + (size_t)i * MS_PROTO_CELL_REQUEST_SIZE;
-            if (p[7] != 0)
-                return MALFORMED("REQUEST_CELLS: entry %u: reserved field is not 0", (unsigned)i);
-            entries[i].cell_id = ms_wire_get32(p);
-            entries[i].stream = p[4];
-            entries[i].unit = p[5];
-            entries[i].priority = p[6];
-            entries[i].a = ms_wire_get32(p + 8);
-            entries[i].b = ms_wire_get32(p + 12);
-        }
-        r->entries = entries;
-        return 0;
-    }
-    case MS_PROTO_CANCEL: {
-        ms_proto_cancel *k = &msg->body.cancel;
-        k->range_count = ms_wire_get16(b);
-        k->flags = ms_wire_get16(b + 2);
-        k->ranges = NULL;
-        if ((size_t)MS_PROTO_CANCEL_FIXED + (size_t)k->range_count * MS_PROTO_CANCEL_RANGE_SIZE != n)
-            return MALFORMED("CANCEL: body length %u, layout says %zu for %u ranges", (unsigned)n,
-                             (size_t)MS_PROTO_CANCEL_FIXED +
-                                 (size_t)k->range_count * MS_PROTO_CANCEL_RANGE_SIZE,
-                             k->range_count);
-        if (k->range_count == 0)
-            return 0;
-        if (grow(&dec->scratch, &dec->scratch_capacity,
-                 (size_t)k->range_count * sizeof(ms_proto_id_range)) != MS_OK) {
-            snprintf(why, why_size, "CANCEL: cannot allocate %u ranges", k->range_count);
-            return MS_PROTO_E_INTERNAL;
-        }
-        ms_proto_id_range *ranges = dec->scratch;
-        for (uint32_t i = 0; i < k->range_count; ++i) {
-            const uint8_t *p = b + MS_PROTO_CANCEL_FIXED + (size_t)i * MS_PROTO_CANCEL_RANGE_SIZE;
-            ranges[i].first_id = ms_wire_get32(p);
-            ranges[i].count = ms_wire_get32(p + 4);
-        }
-        k->ranges = ranges;
-        return 0;
-    }
+    case MS_PROTO_REQUEST_CELLS:
+        return parse_request_cells(dec, msg, why, why_size);
+    case MS_PROTO_CANCEL:
+        return parse_cancel(dec, msg, why, why_size);
     case MS_PROTO_INDEX_DATA: {
         ms_proto_index_data *d = &msg->body.index_data;
         d->offset = ms_wire_get32(b);
@@ -356,37 +446,13 @@ static uint16_t parse_body(ms_proto_decoder *dec, ms_proto_message *msg, char *w
         d->data_length = n - MS_PROTO_INDEX_DATA_FIXED;
         return 0;
     }
-    case MS_PROTO_PAYLOAD: {
-        ms_proto_payload *p = &msg->body.payload;
-        if (b[5] || b[6] || b[7])
-            return MALFORMED("PAYLOAD: reserved field is not 0");
-        p->cell_id = ms_wire_get32(b);
-        p->stream = b[4];
-        p->offset = ms_wire_get32(b + 8);
-        p->end = ms_wire_get32(b + 12);
-        p->data = b + MS_PROTO_PAYLOAD_FIXED;
-        p->data_length = n - MS_PROTO_PAYLOAD_FIXED;
-        return 0;
-    }
-    case MS_PROTO_ERROR: {
-        ms_proto_error_body *e = &msg->body.error;
-        if ((b[2] & ~MS_PROTO_ERROR_FATAL) || b[3])
-            return MALFORMED("ERROR: undefined flag bits or reserved field set");
-        e->code = ms_wire_get16(b);
-        e->fatal = (b[2] & MS_PROTO_ERROR_FATAL) != 0;
-        e->request_count = ms_wire_get32(b + 4);
-        e->detail = ms_wire_get64(b + 8);
-        e->text_length = ms_wire_get16(b + 16);
-        if ((size_t)MS_PROTO_ERROR_FIXED + e->text_length != n)
-            return MALFORMED("ERROR: body length %u, layout says %zu", (unsigned)n,
-                             (size_t)MS_PROTO_ERROR_FIXED + e->text_length);
-        e->text = (const char *)b + MS_PROTO_ERROR_FIXED;
-        return 0;
-    }
+    case MS_PROTO_PAYLOAD:
+        return parse_payload(dec, msg, why, why_size);
+    case MS_PROTO_ERROR:
+        return parse_error_body(dec, msg, why, why_size);
     case MS_PROTO_NONE:
         break;
     }
-#undef MALFORMED
     snprintf(why, why_size, "no parser for type 0x%02x", msg->type);
     return MS_PROTO_E_INTERNAL;
 }

@@ -322,6 +322,36 @@ static void test_index_blob_and_payload_checks(void **state)
     ms_archive_close(full);
 }
 
+/* An index saved in a file opens like the blob; errors name the file. */
+static void test_index_file(void **state)
+{
+    fixture *f = *state;
+    ms_archive *full, *idx;
+    ms_error err;
+    assert_int_equal(ms_archive_open(f->path, &full, &err), MS_OK);
+    size_t size;
+    const uint8_t *blob = ms_archive_index_bytes(full, &size);
+    char path[700];
+    snprintf(path, sizeof path, "%s/model.index", f->dir);
+    ms_test_write_file(path, blob, size);
+    assert_int_equal(ms_archive_open_index_file(path, "model", &idx, &err), MS_OK);
+    assert_int_equal(ms_archive_get_header(idx)->cell_count, CELLS);
+    assert_memory_equal(ms_archive_get_cell(idx, 3), ms_archive_get_cell(full, 3),
+                        sizeof(ms_archive_cell));
+    ms_archive_close(idx);
+    ms_test_write_file(path, blob, size - 1);
+    assert_int_equal(ms_archive_open_index_file(path, "model", &idx, &err), MS_ERR_FORMAT);
+    assert_null(idx);
+    assert_true(strncmp(err.text, path, strlen(path)) == 0);
+    snprintf(path, sizeof path, "%s/missing.index", f->dir);
+    assert_int_equal(ms_archive_open_index_file(path, "model", &idx, &err), MS_ERR_IO);
+    assert_null(idx);
+    char want[800];
+    snprintf(want, sizeof want, "%s: No such file or directory", path);
+    assert_string_equal(err.text, want);
+    ms_archive_close(full);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -332,6 +362,7 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_structural_lies_rejected, setup, teardown),
         cmocka_unit_test_setup_teardown(test_writer_refuses_bad_use, setup, teardown),
         cmocka_unit_test_setup_teardown(test_index_blob_and_payload_checks, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_index_file, setup, teardown),
     };
     return cmocka_run_group_tests_name("archive", tests, NULL, NULL);
 }

@@ -3,7 +3,8 @@
  * vrip_res3, baked here; the full dragon runs in make bench): the streamed,
  * stitched mesh at view complete equals the view-dependent decoder run on the
  * archive directly for the same camera; the server killed and restarted
- * mid-stream; a corrupted payload refetched once, then reported; a server that
+ * mid-stream; a model replaced under a streaming core (SIGHUP: MODEL_CHANGED)
+ * while another model's core goes on untouched; a corrupted payload refetched once, then reported; a server that
  * never answers; a memory budget below what the path needs; meshload's JSON and
  * its Draco baseline. Every wait is bounded. */
 #include <stdarg.h>
@@ -27,6 +28,7 @@
 
 #include "ms_archive.h"
 #include "ms_camera_path.h"
+#include "ms_catalog.h"
 #include "ms_client_core.h"
 #include "ms_nsp_check.h"
 #include "ms_proto.h"
@@ -167,11 +169,13 @@ static tri_key *mesh_keys(const ms_view_mesh *m)
 }
 
 /* The client's frame equals the direct decode of the archive for camera. */
-static void check_equals_direct(const ms_core_frame *frame, const ms_camera *camera)
+/* The same check against another archive (a replacement of the model). */
+static void check_equals_archive(const ms_core_frame *frame, const ms_camera *camera,
+                                 const ms_archive *archive)
 {
     ms_view *v;
     ms_error err;
-    if (ms_view_create_from_archive(g->archive, &v, &err) != MS_OK)
+    if (ms_view_create_from_archive(archive, &v, &err) != MS_OK)
         fail_msg("%s", err.text);
     uint32_t n = ms_view_cell_count(v);
     uint8_t *target = malloc(n);
@@ -214,6 +218,11 @@ static void check_equals_direct(const ms_core_frame *frame, const ms_camera *cam
     ms_view_mesh_free(&direct);
     free(target);
     ms_view_destroy(v);
+}
+
+static void check_equals_direct(const ms_core_frame *frame, const ms_camera *camera)
+{
+    check_equals_archive(frame, camera, g->archive);
 }
 
 /* Plays the path's keyframes at 8 Mbit/s; at the last, the client's mesh
@@ -531,6 +540,123 @@ static void test_failover_to_a_changed_model(void **state)
     ms_test_stop(f.pid, SIGTERM, 10.0);
 }
 
+/* Waits until the core has received at least `bytes` payload bytes. */
+static void wait_received(ms_core *core, uint64_t bytes, ms_core_stats *st)
+{
+    double until = ms_now_seconds() + WAIT_SECONDS;
+    do {
+        ms_test_sleep_s(0.01);
+        ms_core_get_stats(core, st);
+    } while (st->bytes_received < bytes && !st->error[0] && ms_now_seconds() < until);
+    if (st->bytes_received < bytes)
+        fail_msg("%llu bytes received, not %llu: %s", (unsigned long long)st->bytes_received,
+                 (unsigned long long)bytes, st->error);
+}
+
+/* One server, two models streamed (the dragon, and "twin": the same archive
+ * under another name); the dragon is replaced in place (baked aside, renamed
+ * over) and SIGHUP applied while both stream. The dragon's core hears
+ * MODEL_CHANGED, reopens on the same connection, sees the new content id and
+ * stops with stats.model_changed (no reconnect); a fresh core (what meshload
+ * does) then streams the new version to a view equal to its direct decode.
+ * The twin's core sees nothing: no error, no reconnect, and completes. */
+static void test_sighup_replaces_a_streamed_model(void **state)
+{
+    (void)state;
+    fixture f = *g;
+    char cmd[4000], out[512];
+    snprintf(f.archives, sizeof f.archives, "%.500s/live", g->dir);
+    snprintf(f.port_file, sizeof f.port_file, "%.500s/ports4", g->dir);
+    snprintf(f.log, sizeof f.log, "%.500s/meshserve4.log", g->dir);
+    snprintf(cmd, sizeof cmd, "mkdir -p '%s' && cp '%s/" MODEL ".msa' '%s/catalog.json' '%s/' && "
+             "cp '%s/" MODEL ".msa' '%s/twin.msa'", f.archives, g->archives, g->archives,
+             f.archives, g->archives, f.archives);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
+    ms_catalog catalog;
+    ms_error err;
+    assert_int_equal(ms_catalog_load(f.archives, &catalog, &err), MS_OK);
+    ms_catalog_entry twin = *ms_catalog_find(&catalog, MODEL);
+    snprintf(twin.name, sizeof twin.name, "twin");
+    assert_int_equal(ms_catalog_update(f.archives, &twin, &err), MS_OK);
+    ms_catalog_free(&catalog);
+    /* the same model name, baked aside at another precision */
+    char staging[600], from[700], to[700];
+    snprintf(staging, sizeof staging, "%.500s/staging", g->dir);
+    assert_int_equal(mkdir(staging, 0755), 0);
+    char input[512];
+    ms_test_model_path(input, sizeof input, "stanford_dragon_vrip_res3.ply.gz");
+    ms_bake_report report;
+    ms_nsp_test_bake(input, staging, MODEL, 14, 2000, &report);
+    snprintf(from, sizeof from, "%s/" MODEL ".msa", staging);
+    snprintf(to, sizeof to, "%s/" MODEL ".msa", f.archives);
+    launch(&f, 0);
+
+    ms_camera cam = key_camera(g->path.count - 1);
+    ms_core_options o = base_options();
+    o.port = f.port;
+    o.bandwidth = 40000; /* slow: both still streaming at the rescan */
+    o.export_frames = true;
+    ms_core *replaced, *untouched;
+    assert_int_equal(ms_core_start(&o, &replaced, &err), MS_OK);
+    o.model = "twin";
+    assert_int_equal(ms_core_start(&o, &untouched, &err), MS_OK);
+    ms_core_set_camera(replaced, &cam);
+    ms_core_set_camera(untouched, &cam);
+    ms_core_stats st, st_twin;
+    wait_received(replaced, 20000, &st);
+    wait_received(untouched, 20000, &st_twin);
+    assert_false(st_twin.view_complete);
+
+    /* the replacement, renamed over while both stream */
+    assert_int_equal(rename(from, to), 0);
+    ms_core_get_stats(untouched, &st_twin);
+    assert_false(st_twin.view_complete); /* still streaming at the rescan */
+    assert_int_equal(kill(f.pid, SIGHUP), 0);
+
+    double until = ms_now_seconds() + WAIT_SECONDS;
+    do {
+        ms_test_sleep_s(0.02);
+        ms_core_get_stats(replaced, &st);
+    } while (!st.error[0] && ms_now_seconds() < until);
+    assert_string_equal(st.error, "the model changed on the server while it was streamed");
+    assert_true(st.model_changed);
+    assert_int_equal(st.reconnects, 0); /* told on the same connection, not by a reconnect */
+    ms_core_stop(replaced);
+
+    /* a fresh core streams the new version from its root */
+    o.model = MODEL;
+    o.bandwidth = 1e6;
+    ms_core *fresh;
+    assert_int_equal(ms_core_start(&o, &fresh, &err), MS_OK);
+    ms_core_set_camera(fresh, &cam);
+    ms_core_frame *frame = NULL;
+    if (!ms_test_core_wait_complete(fresh, WAIT_SECONDS, &st, &frame))
+        fail_msg("the new version not complete: %s", st.error);
+    assert_int_equal(st.cells_failed, 0);
+    assert_false(st.model_changed);
+    ms_archive *now;
+    assert_int_equal(ms_archive_open(to, &now, &err), MS_OK);
+    assert_true(ms_archive_get_header(now)->cell_count != ms_archive_get_header(g->archive)->cell_count ||
+                ms_archive_get_header(now)->bits != ms_archive_get_header(g->archive)->bits);
+    check_equals_archive(frame, &cam, now);
+    ms_archive_close(now);
+    ms_core_frame_free(frame);
+    ms_core_stop(fresh);
+
+    /* the other model's client saw nothing of it */
+    frame = NULL;
+    if (!ms_test_core_wait_complete(untouched, WAIT_SECONDS, &st_twin, &frame))
+        fail_msg("the unchanged model not complete: %s", st_twin.error);
+    assert_string_equal(st_twin.error, "");
+    assert_false(st_twin.model_changed);
+    assert_int_equal(st_twin.reconnects, 0);
+    assert_int_equal(st_twin.cells_failed, 0);
+    check_equals_direct(frame, &cam);
+    ms_core_frame_free(frame);
+    ms_core_stop(untouched);
+    ms_test_stop(f.pid, SIGTERM, 10.0);
+}
+
 /* Turning away from the model cancels what is in flight for it. */
 static void test_turning_away_cancels(void **state)
 {
@@ -845,6 +971,7 @@ int main(void)
         cmocka_unit_test(test_hostile_compressed_index),
         cmocka_unit_test(test_server_killed_and_restarted),
         cmocka_unit_test(test_failover_to_a_changed_model),
+        cmocka_unit_test(test_sighup_replaces_a_streamed_model),
         cmocka_unit_test(test_turning_away_cancels),
         cmocka_unit_test(test_corrupt_payload_refetched_once),
         cmocka_unit_test(test_corrupt_payload_reported),

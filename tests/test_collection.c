@@ -3,9 +3,11 @@
  * models added, replaced (written aside, renamed over) and removed
  * (`meshbake --remove`) while meshserve serves the directory, each applied by
  * SIGHUP: an unchanged model is untouched (same content id, same ETag, its open
- * handle goes on), a replaced one opens with a new content id and its new
- * bytes (a client core that reconnects to it stops with "model changed",
- * test_client_core), a removed one answers UNKNOWN_MODEL and 404.
+ * handle goes on and hears nothing), a replaced one opens with a new content
+ * id and its new bytes, a removed one answers UNKNOWN_MODEL and 404; a
+ * connection holding a replaced or removed model gets ERROR MODEL_CHANGED for
+ * that handle (test_client_core: a core streaming it stops with
+ * stats.model_changed; meshload then streams the new version).
  * Also the operations side (item 5): the access log (one JSON line per binary
  * connection and per HTTP answer), its reopening on SIGHUP, and /metrics
  * counters per model.
@@ -240,6 +242,30 @@ static void test_add_replace_remove_while_serving(void **state)
     assert_int_equal(access(cmd, F_OK), -1);
     rescan(f, "m20", true);
 
+    /* The connection that held them: MODEL_CHANGED (never fatal, request id
+     * 0, detail = the handle) for the replaced and the removed model, in
+     * handle-table order, and nothing for the unchanged one. */
+    uint32_t changed_handles[2] = {replaced.handle, removed.handle};
+    for (int i = 0; i < 2; ++i) {
+        ms_proto_message m;
+        assert_int_equal(ms_test_conn_recv(&c, &m, 5.0), 1);
+        assert_int_equal(m.type, MS_PROTO_ERROR);
+        assert_int_equal(m.body.error.code, MS_PROTO_E_MODEL_CHANGED);
+        assert_false(m.body.error.fatal);
+        assert_int_equal(m.request_id, 0);
+        assert_int_equal(m.body.error.request_count, 0);
+        assert_int_equal(m.body.error.detail, changed_handles[i]);
+    }
+    ms_proto_message nothing;
+    assert_int_equal(ms_test_conn_recv(&c, &nothing, 0.3), -1); /* time-out: nothing */
+    /* reopened by name on the same connection: the new version, or UNKNOWN_MODEL */
+    model_view reopened = open_model(&c, "m05", 5);
+    assert_true(reopened.handle != 0 && reopened.handle != replaced.handle);
+    assert_true(reopened.content_id != replaced.content_id);
+    model_view reopened_gone = open_model(&c, "m09", 6);
+    assert_int_equal(reopened_gone.handle, 0);
+    assert_int_equal(reopened_gone.error, MS_PROTO_E_UNKNOWN_MODEL);
+
     /* the catalogue: 20 - 1 + 1 */
     ms_test_http_response r;
     assert_int_equal(ms_test_http_get(f->http_port, "/catalog", NULL, &r), 0);
@@ -269,6 +295,7 @@ static void test_add_replace_remove_while_serving(void **state)
     model_view fresh = open_model(&d, "m05", 2);
     assert_true(fresh.handle != 0);
     assert_true(fresh.content_id != replaced.content_id);
+    assert_true(fresh.content_id == reopened.content_id);
     ms_archive *a;
     assert_int_equal(ms_archive_open(target, &a, NULL), MS_OK);
     size_t length;

@@ -1,6 +1,7 @@
-/* Replays the regression corpora of three libFuzzer targets through their
+/* Replays the regression corpora of four libFuzzer targets through their
  * contract checks: tests/corpus/archive_index/ (the archive index reader,
- * tests/fuzz/fuzz_archive_index.c), tests/corpus/camera_path/ (the
+ * tests/fuzz/fuzz_archive_index.c), tests/corpus/apo_chunk/ (the APO chunk
+ * readers and traversal, tests/fuzz/fuzz_apo_chunk.c), tests/corpus/camera_path/ (the
  * camera-path parser, tests/fuzz/fuzz_camera_path.c) and
  * tests/corpus/config_catalog/ (meshserve's config file and catalog.json,
  * tests/fuzz/fuzz_config_catalog.c). Seeds named
@@ -18,6 +19,7 @@
 #include "ms_test.h"
 
 #define MS_FUZZ_NO_ENTRY_POINT
+#include "fuzz/fuzz_apo_chunk.c"
 #include "fuzz/fuzz_archive_index.c"
 #include "fuzz/fuzz_camera_path.c"
 #include "fuzz/fuzz_config_catalog.c"
@@ -66,6 +68,12 @@ static void test_archive_index_corpus(void **state)
     assert_true(replay("tests/corpus/archive_index", ms_fuzz_archive_index_one) >= 6);
 }
 
+static void test_apo_chunk_corpus(void **state)
+{
+    (void)state;
+    assert_true(replay("tests/corpus/apo_chunk", ms_fuzz_apo_chunk_one) >= 15);
+}
+
 static void test_camera_path_corpus(void **state)
 {
     (void)state;
@@ -84,6 +92,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_archive_index_corpus),
+        cmocka_unit_test(test_apo_chunk_corpus),
         cmocka_unit_test(test_camera_path_corpus),
         cmocka_unit_test(test_config_catalog_corpus),
     };

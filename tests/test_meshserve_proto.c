@@ -43,7 +43,9 @@ static void write_big_model(const char *archives)
         fail_msg("%s", err.text);
 }
 
-static void launch(server_fixture *f, const char *settings)
+/* Starts meshserve; with descriptor_limit > 0, through a shell that sets the
+ * soft and hard descriptor limits to it first. */
+static void launch_limited(server_fixture *f, const char *settings, unsigned descriptor_limit)
 {
     char config[700], port_file[700], bin[512];
     snprintf(config, sizeof config, "%s/meshserve.conf", f->dir);
@@ -55,12 +57,21 @@ static void launch(server_fixture *f, const char *settings)
     ms_test_bin_path(bin, sizeof bin, "meshserve");
     char *argv[] = {bin, f->archives, "--config", config, "--port", "0", "--http-port", "0",
                     "--port-file", port_file, NULL};
-    f->pid = ms_test_spawn(argv, f->log);
+    char script[64];
+    snprintf(script, sizeof script, "ulimit -n %u && exec \"$0\" \"$@\"", descriptor_limit);
+    char *limited[] = {"/bin/sh", "-c", script, bin, f->archives, "--config", config, "--port", "0",
+                       "--http-port", "0", "--port-file", port_file, NULL};
+    f->pid = ms_test_spawn(descriptor_limit ? limited : argv, f->log);
     if (ms_test_wait_ports(port_file, 10.0, &f->port, &f->http_port) != 0) {
         ms_test_stop(f->pid, SIGKILL, 5.0);
         f->pid = 0;
         fail_msg("meshserve did not start (see %s)", f->log);
     }
+}
+
+static void launch(server_fixture *f, const char *settings)
+{
+    launch_limited(f, settings, 0);
 }
 
 static server_fixture *prepare(void)
@@ -805,15 +816,25 @@ static void test_sighup_adds_model_live(void **state)
     }
     assert_int_equal(count, 3); /* horse added, bunny removed */
     assert_string_equal(names[2], "horse");
-    /* A removed model stays readable where it is open, and only there. */
+    /* Where the removed model was open, the rescan closed its handle and said
+     * so: MODEL_CHANGED (not fatal, request id 0, detail = the handle); the
+     * handle is gone and the connection goes on. */
+    ms_proto_message m;
+    assert_int_equal(ms_test_conn_recv(&keeper, &m, 5.0), 1);
+    assert_int_equal(m.type, MS_PROTO_ERROR);
+    assert_int_equal(m.body.error.code, MS_PROTO_E_MODEL_CHANGED);
+    assert_false(m.body.error.fatal);
+    assert_int_equal(m.request_id, 0);
+    assert_int_equal(m.body.error.detail, kept);
     ms_proto_cell_request k[1] = {steps(0, MS_PROTO_STREAM_GEOMETRY, 0, 0, 63)};
     send_batch(&keeper, kept, 2, k, 1);
     answers ka;
     answers_init(&ka, 2, 1);
     answers_collect(&keeper, &ka);
-    assert_int_equal(ka.error[0], 0);
-    assert_true(ka.length[0] > 0);
+    assert_int_equal(ka.error[0], MS_PROTO_E_UNKNOWN_MODEL);
     answers_free(&ka);
+    send_ping(&keeper, 11); /* still open */
+    expect_pong(&keeper, 11);
     ms_test_conn_close(&keeper);
     assert_int_equal(ms_test_conn_open_model(&c, "bunny", 5, NULL, NULL, &code), 0);
     assert_int_equal(code, MS_PROTO_E_UNKNOWN_MODEL);
@@ -1265,6 +1286,74 @@ static void test_every_excess_connection_told(void **state)
     }
 }
 
+/* Out of descriptors: at most 64, far fewer than max_clients needs. */
+static int start_descriptor_limited_server(void **state)
+{
+    server_fixture *f = prepare();
+    launch_limited(f, "", 64);
+    *state = f;
+    return 0;
+}
+
+static unsigned count_lines_with(const char *text, const char *what)
+{
+    unsigned n = 0;
+    for (const char *p = text; (p = strstr(p, what)) != NULL; p += strlen(what))
+        ++n;
+    return n;
+}
+
+/* Issue 19, item 4: when accept fails for want of descriptors, neither door
+ * spins nor floods its log: the binary door pauses accepting (25 ms, doubling
+ * up to 800 ms while the failures go on), the side door until its next sweep,
+ * and each door's failures make at most one line per 2 s, the next line
+ * counting those held back. Once descriptors are free the binary door accepts
+ * again within a pause. */
+static void test_accept_failure_backs_off(void **state)
+{
+    server_fixture *f = *state;
+    enum { HOLD = 100 };
+    ms_test_conn *held = calloc(HOLD, sizeof *held);
+    assert_non_null(held);
+    for (int i = 0; i < HOLD; ++i) /* the ones not accepted wait in the backlog */
+        assert_int_equal(ms_test_conn_open(&held[i], f->port), 0);
+    ms_test_conn web[4]; /* the side door runs out too */
+    for (int i = 0; i < 4; ++i)
+        assert_int_equal(ms_test_conn_open(&web[i], f->http_port), 0);
+    struct timespec hold = {4, 500000000};
+    nanosleep(&hold, NULL);
+    size_t size;
+    unsigned char *bytes = ms_test_read_file(f->log, &size);
+    char *log = malloc(size + 1);
+    assert_non_null(log);
+    memcpy(log, bytes, size);
+    log[size] = '\0';
+    free(bytes);
+    unsigned lines = count_lines_with(log, "binary: accept failed: Too many open files");
+    /* a line at the first failure, one some 2 s later, perhaps one at 4 s;
+     * spinning would have made thousands, a line per failure some tens */
+    if (lines < 2 || lines > 3)
+        fail_msg("%u accept-failure lines in 4.5 s:\n%s", lines, log);
+    assert_non_null(strstr(log, "accepting paused 25 ms\n"));
+    assert_non_null(strstr(log, "accepting paused 800 ms ("));
+    assert_non_null(strstr(log, "more since the last line)"));
+    /* the side door pauses until its next sweep (250 ms): a line at 0, 2, 4 s */
+    lines = count_lines_with(log, "http: accept failed: Too many open files");
+    if (lines < 2 || lines > 3)
+        fail_msg("%u side-door accept-failure lines in 4.5 s:\n%s", lines, log);
+    free(log);
+    for (int i = 0; i < 4; ++i)
+        ms_test_conn_close(&web[i]);
+    for (int i = 0; i < HOLD; ++i)
+        ms_test_conn_close(&held[i]);
+    free(held);
+    ms_test_conn c;
+    connect_ready(f, &c, NULL);
+    send_ping(&c, 7);
+    expect_pong(&c, 7);
+    ms_test_conn_close(&c);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -1288,6 +1377,8 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_random_garbage, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_random_requests, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_limits, start_strict_server, stop_server),
+        cmocka_unit_test_setup_teardown(test_accept_failure_backs_off,
+                                        start_descriptor_limited_server, stop_server),
         cmocka_unit_test_setup_teardown(test_every_excess_connection_told, start_two_client_server,
                                         stop_server),
     };

@@ -525,6 +525,11 @@ static bool sample_message(unsigned i, ms_proto_message *m)
                                               .request_count = UINT32_MAX, .text = "cancelled",
                                               .text_length = 9};
         return true;
+    case 26: /* section 9.1: connection level, the handle in detail */
+        m->type = MS_PROTO_ERROR;
+        m->body.error = (ms_proto_error_body){.code = MS_PROTO_E_MODEL_CHANGED, .detail = 7,
+                                              .text = "model changed", .text_length = 13};
+        return true;
     default:
         return false;
     }
@@ -689,6 +694,8 @@ static void test_encoder_refuses_out_of_range(void **state)
            MS_PROTO_E_FIELD_OUT_OF_RANGE);
     REFUSE((sample_message(24, &m), m.body.error.code = MS_PROTO_E_LAST + 1),
            MS_PROTO_E_FIELD_OUT_OF_RANGE);
+    /* MODEL_CHANGED is never fatal */
+    REFUSE((sample_message(26, &m), m.body.error.fatal = true), MS_PROTO_E_FIELD_OUT_OF_RANGE);
 #undef REFUSE
     /* Too small a buffer: nothing written, size needed reported. */
     sample_message(4, &m);
@@ -1244,6 +1251,10 @@ static void test_error_from_fault(void **state)
     assert_string_equal(ms_proto_type_name(MS_PROTO_PAYLOAD), "PAYLOAD");
     for (uint16_t c = MS_PROTO_E_FIRST; c <= MS_PROTO_E_LAST; ++c)
         assert_string_not_equal(ms_proto_error_name(c), "?");
+    assert_int_equal(MS_PROTO_E_MODEL_CHANGED, 23);
+    assert_int_equal(MS_PROTO_E_LAST, MS_PROTO_E_MODEL_CHANGED);
+    assert_string_equal(ms_proto_error_name(MS_PROTO_E_MODEL_CHANGED), "MODEL_CHANGED");
+    assert_int_equal(ms_proto_error_fatality(MS_PROTO_E_MODEL_CHANGED), MS_PROTO_FATAL_NEVER);
 }
 
 static void test_version_choice_and_text(void **state)
@@ -1323,7 +1334,7 @@ static void test_random_mutations(void **state)
         unsigned frames = 1 + (unsigned)(rng_next() % 4);
         for (unsigned k = 0; k < frames; ++k) {
             ms_proto_message m;
-            unsigned pick = (unsigned)(rng_next() % 26);
+            unsigned pick = (unsigned)(rng_next() % 27);
             if (!sample_message(pick, &m) || m.type == MS_PROTO_HELLO ||
                 m.type == MS_PROTO_HELLO_REPLY ||
                 client_sends(m.type) == client_role)

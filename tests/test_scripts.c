@@ -17,9 +17,9 @@
 
 static const char *const SCRIPTS[] = {
     "attack",       "bake-gallery", "bench",       "bench-apo",    "bench-apo-bake", "bench-bake",
-    "bench-client", "bench-codec",  "bench-codec-peer", "bench-read", "bench-scenes", "bench-serve",
-    "bench-viewer", "cluster",      "demo",        "install-deps", "run-tests",      "screenshots",
-    "study",
+    "bench-bake-scale", "bench-client", "bench-codec",  "bench-codec-peer", "bench-read", "bench-scenes", "bench-serve",
+    "bench-valence", "bench-viewer", "cluster",    "demo",         "install-deps",   "run-tests",
+    "screenshots",  "study",
 };
 
 static bool listed(const char *name)

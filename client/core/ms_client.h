@@ -34,7 +34,9 @@ typedef struct ms_client_handlers {
     void (*payload)(ms_client *client, uint32_t request_id, const ms_proto_payload *payload,
                     bool last, void *arg);
     /* A non-fatal ERROR ending requests first_id .. first_id + count - 1
-     * (count 0: a connection-level error such as UNKNOWN_MODEL for a handle). */
+     * (count 0: a connection-level error such as UNKNOWN_MODEL for a handle,
+     * or MODEL_CHANGED: error->detail's handle is closed and every request
+     * outstanding on it ended). */
     void (*request_error)(ms_client *client, uint32_t first_id, uint32_t count,
                           const ms_proto_error_body *error, void *arg);
     void (*pong)(ms_client *client, uint64_t opaque, void *arg);

@@ -216,6 +216,11 @@ typedef struct ms_core_stats {
     double decode_seconds;     /* decode thread busy time (verify, decode, select) */
     double latency_p50, latency_p99; /* request send to last byte, seconds */
     char error[256];           /* why the core stopped, or "" */
+    bool model_changed;        /* error says "the model changed on the server": a rescan
+                                  replaced the model while it streamed (MODEL_CHANGED, or a
+                                  reconnect found another content_id). What the core holds
+                                  is of the old version; start a fresh core to stream the
+                                  new one. A removed model stops with UNKNOWN_MODEL instead. */
     char warning[256];         /* last non-fatal problem (e.g. a failed cell), or "" */
 } ms_core_stats;
 

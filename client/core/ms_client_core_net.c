@@ -323,7 +323,11 @@ static void on_model_opened(ms_client *client, uint32_t request_id,
     c->last_activity = ms_core_since_start(c);
     if (c->index) {
         if (o->content_id != c->content_id) {
-            ms_core_fail(c, "%.240s", "the model changed on the server while it was streamed");
+            pthread_mutex_lock(&c->lock);
+            c->stats.model_changed = true;
+            ms_core_fail_locked(c, "%.240s",
+                                "the model changed on the server while it was streamed");
+            pthread_mutex_unlock(&c->lock);
             event_base_loopbreak(c->base);
             return;
         }
@@ -407,6 +411,29 @@ static void on_payload(ms_client *client, uint32_t id, const ms_proto_payload *p
     }
 }
 
+/* ERROR MODEL_CHANGED named our handle: the server closed it and ended every
+ * request on it. Forget them (the decode thread knows what arrived and asks
+ * for the rest again) and reopen the model by name on the same connection:
+ * on_model_opened then goes on if the content_id is the same, and stops the
+ * core with stats.model_changed if not; a removed model answers
+ * UNKNOWN_MODEL (on_request_error). */
+static void net_reopen(ms_core *c)
+{
+    for (uint32_t k = 0; k < MAX_SLOTS; ++k)
+        if (c->slots[k].used)
+            end_slot(c, k);
+    c->ready = false;
+    c->handle = 0;
+    pthread_mutex_lock(&c->lock);
+    c->model_open = false;
+    pthread_mutex_unlock(&c->lock);
+    ms_error err;
+    if (ms_client_open_model(c->client, c->model, &c->open_request, &err) != MS_OK && !c->dead) {
+        c->dead = true;
+        snprintf(c->dead_why, sizeof c->dead_why, "%.240s", err.text);
+    }
+}
+
 static void on_request_error(ms_client *client, uint32_t first, uint32_t count,
                              const ms_proto_error_body *e, void *arg)
 {
@@ -414,6 +441,11 @@ static void on_request_error(ms_client *client, uint32_t first, uint32_t count,
     ms_core *c = arg;
     c->last_activity = ms_core_since_start(c);
     if (count == 0) {
+        if (e->code == MS_PROTO_E_MODEL_CHANGED) {
+            if (c->ready && e->detail == c->handle)
+                net_reopen(c);
+            return;
+        }
         if (e->code == MS_PROTO_E_UNKNOWN_MODEL || e->code == MS_PROTO_E_BAD_MODEL_NAME) {
             char text[300];
             snprintf(text, sizeof text, "model '%.64s': %s", c->model,

@@ -34,7 +34,9 @@
 #include "ms_camera_path.h"
 #include "ms_json_out.h"
 #include "ms_parse_number.h"
+#include "ms_progress.h"
 #include "ms_client_core.h"
+#include "ms_http_get.h"
 
 extern char **environ;
 
@@ -66,6 +68,7 @@ typedef struct client_result {
     size_t key_count;
     uint64_t bytes, apo_bytes, requests, cancels, reconnects, evictions;
     double longest_outage; /* seconds from a lost connection to the model open again */
+    unsigned model_changes; /* fresh cores started because a rescan replaced the model */
     uint32_t cells_shown, cells_failed;
     double decode_seconds, p50, p99;
     uint64_t peak_memory;
@@ -88,13 +91,6 @@ typedef struct worker {
     client_result result;
     pthread_t thread;
 } worker;
-
-static double now_s(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + ts.tv_nsec * 1e-9;
-}
 
 static void sleep_s(double s)
 {
@@ -141,10 +137,32 @@ static bool wait_complete(ms_core *core, double until, ms_core_stats *st, double
         }
         if (st->view_complete || st->error[0])
             return st->view_complete;
-        if (now_s() >= until)
+        if (ms_now_seconds() >= until)
             return false;
         sleep_s(0.002);
     }
+}
+
+/* A rescan replaced the model under a core (stats.model_changed): what it
+ * holds is of the old version, so a fresh core streams the new one from its
+ * root, with the same camera. At most MAX_MODEL_CHANGES times per phase (a
+ * model replaced again and again is an error). False, with res->error set,
+ * when the fresh core does not start. */
+#define MAX_MODEL_CHANGES 3
+
+static bool restart_core(const run *r, ms_core **core, const ms_camera *cam, client_result *res)
+{
+    ms_core_stop(*core);
+    *core = NULL;
+    res->model_changes++;
+    ms_core_options co = core_options(r->o);
+    ms_error err;
+    if (ms_core_start(&co, core, &err) != MS_OK) {
+        snprintf(res->error, sizeof res->error, "%.250s", err.text);
+        return false;
+    }
+    ms_core_set_camera(*core, cam);
+    return true;
 }
 
 static void cold_phase(worker *w)
@@ -161,11 +179,17 @@ static void cold_phase(worker *w)
     ms_camera cam;
     camera_at(r, ms_camera_path_duration(&r->path), &cam);
     ms_core_set_camera(core, &cam);
-    double until = now_s() + r->o->keyframe_timeout;
+    double until = ms_now_seconds() + r->o->keyframe_timeout;
     if (until > r->deadline)
         until = r->deadline;
     ms_core_stats st;
     res->cold_complete = wait_complete(core, until, &st, &res->cold_last_byte);
+    for (int again = 0; !res->cold_complete && st.model_changed && again < MAX_MODEL_CHANGES;
+         ++again) {
+        if (!restart_core(r, &core, &cam, res))
+            return;
+        res->cold_complete = wait_complete(core, until, &st, &res->cold_last_byte);
+    }
     res->view_complete = res->cold_complete ? st.time : -1;
     res->first_display = st.first_display;
     res->cold_bytes = st.bytes_received;
@@ -186,13 +210,13 @@ static void path_phase(worker *w)
         snprintf(res->error, sizeof res->error, "%.250s", err.text);
         return;
     }
-    double started = now_s();
+    double started = ms_now_seconds();
     double clock = 0, last = started;
     size_t next_key = 0;
     ms_core_stats st;
     memset(&st, 0, sizeof st);
-    while (next_key < r->path.count && next_key < MAX_KEYS && now_s() < r->deadline) {
-        double t = now_s();
+    while (next_key < r->path.count && next_key < MAX_KEYS && ms_now_seconds() < r->deadline) {
+        double t = ms_now_seconds();
         double key_time = r->path.keys[next_key].time;
         clock += t - last;
         last = t;
@@ -207,11 +231,17 @@ static void path_phase(worker *w)
             if (until > r->deadline)
                 until = r->deadline;
             k->complete = wait_complete(core, until, &st, NULL);
-            k->wait = now_s() - t;
+            for (int again = 0; !k->complete && st.model_changed && again < MAX_MODEL_CHANGES;
+                 ++again) {
+                if (!restart_core(r, &core, &cam, res))
+                    return;
+                k->complete = wait_complete(core, until, &st, NULL);
+            }
+            k->wait = ms_now_seconds() - t;
             k->error_px = st.achieved_error_px;
             k->tolerance_px = st.tolerance_px;
             res->key_count = ++next_key;
-            last = now_s();
+            last = ms_now_seconds();
             if (st.error[0])
                 break;
             continue;
@@ -222,7 +252,7 @@ static void path_phase(worker *w)
         sleep_s(0.02);
     }
     ms_core_get_stats(core, &st);
-    res->path_seconds = now_s() - started;
+    res->path_seconds = ms_now_seconds() - started;
     res->bytes = st.bytes_received;
     res->apo_bytes = st.apo_bytes_received;
     res->requests = st.requests, res->cancels = st.cancels, res->reconnects = st.reconnects;
@@ -241,85 +271,6 @@ static void path_phase(worker *w)
 
 /* --- Draco baseline: a throttled HTTP download, then draco_decoder ---------- */
 
-typedef struct download {
-    struct evbuffer *body;
-    bool failed;
-} download;
-
-static void dl_read(struct bufferevent *bev, void *arg)
-{
-    download *d = arg;
-    evbuffer_add_buffer(d->body, bufferevent_get_input(bev));
-}
-
-static void dl_event(struct bufferevent *bev, short what, void *arg)
-{
-    download *d = arg;
-    if (what & BEV_EVENT_CONNECTED)
-        return;
-    evbuffer_add_buffer(d->body, bufferevent_get_input(bev));
-    if (what & BEV_EVENT_ERROR)
-        d->failed = true;
-    event_base_loopexit(bufferevent_get_base(bev), NULL);
-}
-
-static int http_download(const options *o, double deadline, struct evbuffer *body, char *error,
-                         size_t error_size)
-{
-    struct event_base *base = event_base_new();
-    struct bufferevent *bev = base ? bufferevent_socket_new(base, -1, BEV_OPT_CLOSE_ON_FREE) : NULL;
-    struct ev_token_bucket_cfg *cfg = NULL;
-    download d = {body, false};
-    int rc = -1;
-    struct sockaddr_in sin;
-    memset(&sin, 0, sizeof sin);
-    sin.sin_family = AF_INET;
-    sin.sin_port = htons(o->port);
-    if (!bev || evutil_inet_pton(AF_INET, o->host, &sin.sin_addr) != 1) {
-        snprintf(error, error_size, "cannot set up a connection to %s", o->host);
-        goto out;
-    }
-    if (o->bandwidth > 0) {
-        double per_tick = o->bandwidth / 100.0;
-        size_t rate = per_tick < 1 ? 1 : (size_t)per_tick;
-        struct timeval tick = {0, 10000};
-        cfg = ev_token_bucket_cfg_new(rate, rate < 1460 ? 1460 : rate, EV_RATE_LIMIT_MAX,
-                                      EV_RATE_LIMIT_MAX, &tick);
-        if (!cfg || bufferevent_set_rate_limit(bev, cfg) != 0) {
-            snprintf(error, error_size, "cannot set the rate limit");
-            goto out;
-        }
-    }
-    bufferevent_setcb(bev, dl_read, NULL, dl_event, &d);
-    bufferevent_enable(bev, EV_READ | EV_WRITE);
-    if (bufferevent_socket_connect(bev, (struct sockaddr *)&sin, sizeof sin) != 0) {
-        snprintf(error, error_size, "cannot connect to %s:%u", o->host, o->port);
-        goto out;
-    }
-    char request[512];
-    int n = snprintf(request, sizeof request,
-                     "GET /models/%s/draco HTTP/1.1\r\nHost: %s\r\n%s%s%sConnection: close\r\n\r\n",
-                     o->model, o->host, o->token ? "Authorization: Bearer " : "",
-                     o->token ? o->token : "", o->token ? "\r\n" : "");
-    bufferevent_write(bev, request, (size_t)n);
-    struct timeval limit = {(time_t)(deadline - now_s() > 1 ? deadline - now_s() : 1), 0};
-    event_base_loopexit(base, &limit);
-    event_base_dispatch(base);
-    if (d.failed) {
-        snprintf(error, error_size, "download from %s:%u failed", o->host, o->port);
-        goto out;
-    }
-    rc = 0;
-out:
-    if (bev)
-        bufferevent_free(bev);
-    if (cfg)
-        ev_token_bucket_cfg_free(cfg);
-    if (base)
-        event_base_free(base);
-    return rc;
-}
-
 static void baseline_client(worker *w)
 {
     const options *o = w->r->o;
@@ -329,30 +280,31 @@ static void baseline_client(worker *w)
         snprintf(res->error, sizeof res->error, "out of memory");
         return;
     }
-    double t0 = now_s();
-    if (http_download(o, w->r->deadline, body, res->error, sizeof res->error) != 0) {
+    double t0 = ms_now_seconds(), left = w->r->deadline - t0;
+    char path[300];
+    snprintf(path, sizeof path, "/models/%s/draco", o->model);
+    ms_http_get_options get = {.host = o->host, .port = o->port, .path = path, .token = o->token,
+                               .bandwidth = o->bandwidth, .timeout_s = left > 1 ? left : 1};
+    ms_error err;
+    int status;
+    if (ms_http_get(&get, body, &status, &err) != MS_OK || status != 200) {
+        if (status)
+            snprintf(res->error, sizeof res->error, "the server answered HTTP %d for %.200s", status,
+                     path);
+        else
+            snprintf(res->error, sizeof res->error, "%.250s", err.text);
         evbuffer_free(body);
         return;
     }
-    res->download_seconds = now_s() - t0;
-    size_t total = evbuffer_get_length(body);
-    struct evbuffer_ptr sep = evbuffer_search(body, "\r\n\r\n", 4, NULL);
+    res->download_seconds = ms_now_seconds() - t0;
+    res->draco_bytes = evbuffer_get_length(body);
     unsigned char *all = evbuffer_pullup(body, -1);
-    int status = 0;
-    if (!all || sep.pos < 0 || sscanf((char *)all, "HTTP/1.%*d %d", &status) != 1 ||
-        status != 200) {
-        snprintf(res->error, sizeof res->error, "the server answered HTTP %d for /models/%s/draco",
-                 status, o->model);
-        evbuffer_free(body);
-        return;
-    }
-    size_t head = (size_t)sep.pos + 4;
-    res->draco_bytes = total - head;
     char drc[512], ply[512];
     snprintf(drc, sizeof drc, "%s/meshload-%d-%u.drc", o->tmp_dir, (int)getpid(), w->number);
     snprintf(ply, sizeof ply, "%s/meshload-%d-%u.ply", o->tmp_dir, (int)getpid(), w->number);
     FILE *f = fopen(drc, "wb");
-    bool wrote = f && fwrite(all + head, 1, res->draco_bytes, f) == res->draco_bytes;
+    bool wrote = f && (res->draco_bytes == 0 ||
+                       (all && fwrite(all, 1, res->draco_bytes, f) == res->draco_bytes));
     if (f && fclose(f) != 0)
         wrote = false;
     evbuffer_free(body);
@@ -361,7 +313,7 @@ static void baseline_client(worker *w)
         unlink(drc);
         return;
     }
-    double t1 = now_s();
+    double t1 = ms_now_seconds();
     char *argv[] = {(char *)o->draco_decoder, "-i", drc, "-o", ply, NULL};
     posix_spawn_file_actions_t fa;
     posix_spawn_file_actions_init(&fa);
@@ -372,7 +324,7 @@ static void baseline_client(worker *w)
     int ws = 0;
     if (rc != 0 || waitpid(pid, &ws, 0) < 0 || !WIFEXITED(ws) || WEXITSTATUS(ws) != 0)
         snprintf(res->error, sizeof res->error, "%s failed on %.200s", o->draco_decoder, drc);
-    res->decode_draco_seconds = now_s() - t1;
+    res->decode_draco_seconds = ms_now_seconds() - t1;
     res->view_complete = res->download_seconds + res->decode_draco_seconds;
     res->first_display = res->view_complete; /* nothing to show before the end */
     res->cold_complete = !res->error[0];
@@ -414,131 +366,169 @@ static double median(double *v, size_t n)
     return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
-static void print_report(const options *o, const run *r, worker *ws)
+/* The figures over every client: medians, worst, totals, peaks. */
+typedef struct summary {
+    double med_first, med_complete, worst_complete, decode, p50, p99, longest_outage;
+    uint64_t bytes, cold_bytes, peak, failures, draco_bytes, apo_bytes, cold_apo_bytes;
+    uint64_t reconnects;
+    size_t nc;
+} summary;
+
+static summary summarize(unsigned n, const worker *ws)
 {
-    unsigned n = o->clients;
+    summary m = {0};
     double *first = calloc(n, sizeof *first), *complete = calloc(n, sizeof *complete);
-    double worst_complete = 0, decode = 0, p50 = 0, p99 = 0;
-    uint64_t bytes = 0, cold_bytes = 0, peak = 0, failures = 0, draco_bytes = 0;
-    uint64_t apo_bytes = 0, cold_apo_bytes = 0, reconnects = 0;
-    double longest_outage = 0;
-    size_t nf = 0, nc = 0;
+    size_t nf = 0;
     for (unsigned i = 0; i < n; ++i) {
         const client_result *c = &ws[i].result;
-        if (c->first_display >= 0)
+        if (c->first_display >= 0 && first)
             first[nf++] = c->first_display;
         if (c->cold_complete) {
-            complete[nc++] = c->view_complete;
-            if (c->view_complete > worst_complete)
-                worst_complete = c->view_complete;
+            if (complete)
+                complete[m.nc] = c->view_complete;
+            m.nc++;
+            if (c->view_complete > m.worst_complete)
+                m.worst_complete = c->view_complete;
         }
-        failures += c->error[0] != 0;
-        bytes += c->bytes, cold_bytes += c->cold_bytes, decode += c->decode_seconds;
-        apo_bytes += c->apo_bytes, cold_apo_bytes += c->cold_apo_bytes;
-        draco_bytes += c->draco_bytes;
-        reconnects += c->reconnects;
-        if (c->longest_outage > longest_outage)
-            longest_outage = c->longest_outage;
-        if (c->peak_memory > peak)
-            peak = c->peak_memory;
-        if (c->p50 > p50)
-            p50 = c->p50;
-        if (c->p99 > p99)
-            p99 = c->p99;
+        m.failures += c->error[0] != 0;
+        m.bytes += c->bytes, m.cold_bytes += c->cold_bytes, m.decode += c->decode_seconds;
+        m.apo_bytes += c->apo_bytes, m.cold_apo_bytes += c->cold_apo_bytes;
+        m.draco_bytes += c->draco_bytes;
+        m.reconnects += c->reconnects;
+        if (c->longest_outage > m.longest_outage)
+            m.longest_outage = c->longest_outage;
+        if (c->peak_memory > m.peak)
+            m.peak = c->peak_memory;
+        if (c->p50 > m.p50)
+            m.p50 = c->p50;
+        if (c->p99 > m.p99)
+            m.p99 = c->p99;
     }
-    double med_first = median(first, nf), med_complete = nc == n ? median(complete, nc) : -1;
-    if (o->json) {
-        json_t *root = json_pack(
-            "{s:s, s:o, s:o, s:i, s:I, s:o, s:o, s:o, s:o, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:o, s:o, "
-            "s:o, s:I, s:I, s:I, s:o}",
-            "mode", o->baseline ? "draco" : "stream", "model", ms_json_text(o->model), "path",
-            ms_json_text(o->path_file ? o->path_file : ""), "clients", (int)n, "bandwidth_bytes_per_s",
-            (json_int_t)llround(o->bandwidth), "tolerance_px", ms_json_number(o->tolerance),
-            "time_to_first_display", ms_json_fixed(med_first, 4), "time_to_view_complete",
-            ms_json_fixed(med_complete, 4), "time_to_view_complete_max",
-            ms_json_fixed(nc == n ? worst_complete : -1.0, 4), "cold_bytes", (json_int_t)(n ? cold_bytes / n : 0),
-            "path_bytes", (json_int_t)(n ? bytes / n : 0), "cold_geometry_bytes",
-            (json_int_t)(n ? (cold_bytes - cold_apo_bytes) / n : 0), "cold_apo_bytes",
-            (json_int_t)(n ? cold_apo_bytes / n : 0), "path_geometry_bytes",
-            (json_int_t)(n ? (bytes - apo_bytes) / n : 0), "path_apo_bytes",
-            (json_int_t)(n ? apo_bytes / n : 0), "draco_bytes", (json_int_t)(n ? draco_bytes / n : 0),
-            "decode_seconds", ms_json_fixed(n ? decode / n : 0.0, 4), "latency_p50", ms_json_fixed(p50, 4),
-            "latency_p99", ms_json_fixed(p99, 4),
-            "peak_memory", (json_int_t)peak, "failures", (json_int_t)failures,
-            "reconnects", (json_int_t)reconnects, "failover_seconds_max", ms_json_fixed(longest_outage, 4));
-        json_t *per_client = json_array();
-        for (unsigned i = 0; i < n; ++i) {
-            const client_result *c = &ws[i].result;
-            json_t *keyframes = json_array();
-            for (size_t k = 0; k < c->key_count; ++k)
-                json_array_append_new(
-                    keyframes,
-                    json_pack("{s:o, s:o, s:o, s:b, s:o, s:o}", "time",
-                              ms_json_number(r->path.count > k ? r->path.keys[k].time : 0.0), "arrive",
-                              ms_json_fixed(c->keys[k].arrive, 4), "time_to_view_complete",
-                              ms_json_fixed(c->keys[k].wait, 4), "complete", c->keys[k].complete,
-                              "error_px",
-                              ms_json_fixed(isfinite(c->keys[k].error_px) ? c->keys[k].error_px : -1.0, 4),
-                              "tolerance_px", ms_json_fixed(c->keys[k].tolerance_px, 4)));
-            json_t *client = json_pack(
-                "{s:i, s:o, s:o, s:o, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:i, s:i, s:o, "
-                "s:o, s:o, s:I, s:o, s:o, s:o, s:o, s:o}",
-                "client", (int)i, "time_to_first_display", ms_json_fixed(c->first_display, 4),
-                "time_to_view_complete", ms_json_fixed(c->cold_complete ? c->view_complete : -1.0, 4),
-                "last_byte", ms_json_fixed(c->cold_last_byte, 4),
-                "cold_bytes", (json_int_t)c->cold_bytes, "cold_geometry_bytes",
-                (json_int_t)(c->cold_bytes - c->cold_apo_bytes), "cold_apo_bytes",
-                (json_int_t)c->cold_apo_bytes, "bytes", (json_int_t)c->bytes, "geometry_bytes",
-                (json_int_t)(c->bytes - c->apo_bytes), "apo_bytes", (json_int_t)c->apo_bytes,
-                "requests", (json_int_t)c->requests, "cancels", (json_int_t)c->cancels, "reconnects",
-                (json_int_t)c->reconnects, "evictions", (json_int_t)c->evictions, "cells",
-                (int)c->cells_shown, "failed_cells", (int)c->cells_failed, "decode_seconds",
-                ms_json_fixed(c->decode_seconds, 4), "latency_p50", ms_json_fixed(c->p50, 4), "latency_p99",
-                ms_json_fixed(c->p99, 4), "peak_memory", (json_int_t)c->peak_memory, "download_seconds",
-                ms_json_fixed(c->download_seconds, 4), "draco_decode_seconds",
-                ms_json_fixed(c->decode_draco_seconds, 4), "error", ms_json_text(c->error),
-                "failover_seconds", ms_json_fixed(c->longest_outage, 4), "keyframes", keyframes);
-            json_array_append_new(per_client, client);
-        }
-        if (root)
-            json_object_set_new(root, "per_client", per_client);
-        else
-            json_decref(per_client);
-        ms_json_print(stdout, root, MS_JSON_SPACED);
-    } else {
-        printf("meshload %s %s, %u client(s), %.0f bytes/s:\n",
-               o->baseline ? "draco baseline" : "streaming", o->model, n, o->bandwidth);
-        printf("  time to first display %.3f s, time to view complete %.3f s (median; worst %.3f)\n",
-               med_first, med_complete, worst_complete);
-        for (unsigned i = 0; i < n; ++i) {
-            const client_result *c = &ws[i].result;
-            if (o->baseline) {
-                printf("  client %u: downloaded %llu bytes in %.3f s, %s %.3f s%s%s\n", i,
-                       (unsigned long long)c->draco_bytes, c->download_seconds, o->draco_decoder,
-                       c->decode_draco_seconds, c->error[0] ? "; error: " : "", c->error);
-                continue;
-            }
-            printf("  client %u: first display %.3f s, view complete %.3f s, %llu bytes cold "
-                   "(%llu geometry, %llu APO), %llu bytes on the path (%llu geometry, %llu APO), "
-                   "%u cells, decode %.3f s, latency p50 %.1f ms p99 "
-                   "%.1f ms, peak memory %.1f MB%s%s\n",
-                   i, c->first_display, c->view_complete, (unsigned long long)c->cold_bytes,
-                   (unsigned long long)(c->cold_bytes - c->cold_apo_bytes),
-                   (unsigned long long)c->cold_apo_bytes, (unsigned long long)c->bytes,
-                   (unsigned long long)(c->bytes - c->apo_bytes), (unsigned long long)c->apo_bytes,
-                   c->cells_shown, c->decode_seconds, c->p50 * 1e3,
-                   c->p99 * 1e3, c->peak_memory / 1048576.0, c->error[0] ? "; error: " : "",
-                   c->error);
-            for (size_t k = 0; k < c->key_count; ++k)
-                printf("    keyframe %zu (t=%g): view complete after %.3f s%s, error %.2f px "
-                       "(tolerance %.2f)\n",
-                       k, r->path.keys[k].time, c->keys[k].wait,
-                       c->keys[k].complete ? "" : " (NOT complete)", c->keys[k].error_px,
-                       c->keys[k].tolerance_px);
-        }
-    }
+    m.med_first = median(first, nf);
+    m.med_complete = m.nc == n && complete ? median(complete, m.nc) : -1;
     free(first);
     free(complete);
+    return m;
+}
+
+/* One client's figures and keyframes as a JSON object. */
+static json_t *client_json(unsigned i, const client_result *c, const run *r)
+{
+    json_t *keyframes = json_array();
+    for (size_t k = 0; k < c->key_count; ++k)
+        json_array_append_new(
+            keyframes,
+            json_pack("{s:o, s:o, s:o, s:b, s:o, s:o}", "time",
+                      ms_json_number(r->path.count > k ? r->path.keys[k].time : 0.0), "arrive",
+                      ms_json_fixed(c->keys[k].arrive, 4), "time_to_view_complete",
+                      ms_json_fixed(c->keys[k].wait, 4), "complete", c->keys[k].complete,
+                      "error_px",
+                      ms_json_fixed(isfinite(c->keys[k].error_px) ? c->keys[k].error_px : -1.0, 4),
+                      "tolerance_px", ms_json_fixed(c->keys[k].tolerance_px, 4)));
+    json_t *client = json_pack(
+        "{s:i, s:o, s:o, s:o, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:i, s:i, s:o, "
+        "s:o, s:o, s:I, s:o, s:o, s:o, s:o, s:o}",
+        "client", (int)i, "time_to_first_display", ms_json_fixed(c->first_display, 4),
+        "time_to_view_complete", ms_json_fixed(c->cold_complete ? c->view_complete : -1.0, 4),
+        "last_byte", ms_json_fixed(c->cold_last_byte, 4),
+        "cold_bytes", (json_int_t)c->cold_bytes, "cold_geometry_bytes",
+        (json_int_t)(c->cold_bytes - c->cold_apo_bytes), "cold_apo_bytes",
+        (json_int_t)c->cold_apo_bytes, "bytes", (json_int_t)c->bytes, "geometry_bytes",
+        (json_int_t)(c->bytes - c->apo_bytes), "apo_bytes", (json_int_t)c->apo_bytes,
+        "requests", (json_int_t)c->requests, "cancels", (json_int_t)c->cancels, "reconnects",
+        (json_int_t)c->reconnects, "evictions", (json_int_t)c->evictions, "cells",
+        (int)c->cells_shown, "failed_cells", (int)c->cells_failed, "decode_seconds",
+        ms_json_fixed(c->decode_seconds, 4), "latency_p50", ms_json_fixed(c->p50, 4), "latency_p99",
+        ms_json_fixed(c->p99, 4), "peak_memory", (json_int_t)c->peak_memory, "download_seconds",
+        ms_json_fixed(c->download_seconds, 4), "draco_decode_seconds",
+        ms_json_fixed(c->decode_draco_seconds, 4), "error", ms_json_text(c->error),
+        "failover_seconds", ms_json_fixed(c->longest_outage, 4), "keyframes", keyframes);
+    json_object_set_new(client, "model_changes", json_integer((json_int_t)c->model_changes));
+    return client;
+}
+
+static void report_json(const options *o, const run *r, const worker *ws, const summary *m)
+{
+    unsigned n = o->clients;
+    double med_first = m->med_first, med_complete = m->med_complete;
+    double worst_complete = m->worst_complete, decode = m->decode, p50 = m->p50, p99 = m->p99;
+    uint64_t bytes = m->bytes, cold_bytes = m->cold_bytes, peak = m->peak;
+    uint64_t failures = m->failures, draco_bytes = m->draco_bytes;
+    uint64_t apo_bytes = m->apo_bytes, cold_apo_bytes = m->cold_apo_bytes;
+    size_t nc = m->nc;
+    json_t *root = json_pack(
+        "{s:s, s:o, s:o, s:i, s:I, s:o, s:o, s:o, s:o, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:o, s:o, "
+        "s:o, s:I, s:I, s:I, s:o}",
+        "mode", o->baseline ? "draco" : "stream", "model", ms_json_text(o->model), "path",
+        ms_json_text(o->path_file ? o->path_file : ""), "clients", (int)n, "bandwidth_bytes_per_s",
+        (json_int_t)llround(o->bandwidth), "tolerance_px", ms_json_number(o->tolerance),
+        "time_to_first_display", ms_json_fixed(med_first, 4), "time_to_view_complete",
+        ms_json_fixed(med_complete, 4), "time_to_view_complete_max",
+        ms_json_fixed(nc == n ? worst_complete : -1.0, 4), "cold_bytes", (json_int_t)(n ? cold_bytes / n : 0),
+        "path_bytes", (json_int_t)(n ? bytes / n : 0), "cold_geometry_bytes",
+        (json_int_t)(n ? (cold_bytes - cold_apo_bytes) / n : 0), "cold_apo_bytes",
+        (json_int_t)(n ? cold_apo_bytes / n : 0), "path_geometry_bytes",
+        (json_int_t)(n ? (bytes - apo_bytes) / n : 0), "path_apo_bytes",
+        (json_int_t)(n ? apo_bytes / n : 0), "draco_bytes", (json_int_t)(n ? draco_bytes / n : 0),
+        "decode_seconds", ms_json_fixed(n ? decode / n : 0.0, 4), "latency_p50", ms_json_fixed(p50, 4),
+        "latency_p99", ms_json_fixed(p99, 4),
+        "peak_memory", (json_int_t)peak, "failures", (json_int_t)failures,
+        "reconnects", (json_int_t)m->reconnects, "failover_seconds_max",
+        ms_json_fixed(m->longest_outage, 4));
+    json_t *per_client = json_array();
+    for (unsigned i = 0; i < n; ++i)
+        json_array_append_new(per_client, client_json(i, &ws[i].result, r));
+    if (root)
+        json_object_set_new(root, "per_client", per_client);
+    else
+        json_decref(per_client);
+    ms_json_print(stdout, root, MS_JSON_SPACED);
+}
+
+static void report_text(const options *o, const run *r, const worker *ws, const summary *m)
+{
+    unsigned n = o->clients;
+    double med_first = m->med_first, med_complete = m->med_complete;
+    double worst_complete = m->worst_complete;
+    printf("meshload %s %s, %u client(s), %.0f bytes/s:\n",
+           o->baseline ? "draco baseline" : "streaming", o->model, n, o->bandwidth);
+    printf("  time to first display %.3f s, time to view complete %.3f s (median; worst %.3f)\n",
+           med_first, med_complete, worst_complete);
+    for (unsigned i = 0; i < n; ++i) {
+        const client_result *c = &ws[i].result;
+        if (o->baseline) {
+            printf("  client %u: downloaded %llu bytes in %.3f s, %s %.3f s%s%s\n", i,
+                   (unsigned long long)c->draco_bytes, c->download_seconds, o->draco_decoder,
+                   c->decode_draco_seconds, c->error[0] ? "; error: " : "", c->error);
+            continue;
+        }
+        printf("  client %u: first display %.3f s, view complete %.3f s, %llu bytes cold "
+               "(%llu geometry, %llu APO), %llu bytes on the path (%llu geometry, %llu APO), "
+               "%u cells, decode %.3f s, latency p50 %.1f ms p99 "
+               "%.1f ms, peak memory %.1f MB%s%s\n",
+               i, c->first_display, c->view_complete, (unsigned long long)c->cold_bytes,
+               (unsigned long long)(c->cold_bytes - c->cold_apo_bytes),
+               (unsigned long long)c->cold_apo_bytes, (unsigned long long)c->bytes,
+               (unsigned long long)(c->bytes - c->apo_bytes), (unsigned long long)c->apo_bytes,
+               c->cells_shown, c->decode_seconds, c->p50 * 1e3,
+               c->p99 * 1e3, c->peak_memory / 1048576.0, c->error[0] ? "; error: " : "",
+               c->error);
+        for (size_t k = 0; k < c->key_count; ++k)
+            printf("    keyframe %zu (t=%g): view complete after %.3f s%s, error %.2f px "
+                   "(tolerance %.2f)\n",
+                   k, r->path.keys[k].time, c->keys[k].wait,
+                   c->keys[k].complete ? "" : " (NOT complete)", c->keys[k].error_px,
+                   c->keys[k].tolerance_px);
+    }
+}
+
+static void print_report(const options *o, const run *r, worker *ws)
+{
+    summary m = summarize(o->clients, ws);
+    if (o->json)
+        report_json(o, r, ws, &m);
+    else
+        report_text(o, r, ws, &m);
 }
 
 /* --- options ---------------------------------------------------------------- */
@@ -622,6 +612,61 @@ static int parse_bandwidth(const char *text, double *out)
     return 0;
 }
 
+/* The numeric options: 0 when set, 2 after a bad value, -1 when ch is not
+ * one of them. */
+static int numeric_option(int ch, const char *value, options *o)
+{
+    double v = 0;
+    int64_t i = 0;
+    ms_error e;
+    switch (ch) {
+    case 'c':
+        if (ms_option_int("--clients", value, 1, MAX_CLIENTS, &i, &e) != MS_OK)
+            return bad_value(&e);
+        o->clients = (unsigned)i;
+        break;
+    case 't':
+        if (ms_option_double("--tolerance", value, 0.01, 1000, &o->tolerance, &e) != MS_OK)
+            return bad_value(&e);
+        break;
+    case 'd':
+        if (ms_option_double("--duration", value, 0.1, 86400, &o->duration, &e) != MS_OK)
+            return bad_value(&e);
+        break;
+    case 'k':
+        if (ms_option_double("--keyframe-timeout", value, 0.1, 86400, &o->keyframe_timeout, &e) != MS_OK)
+            return bad_value(&e);
+        break;
+    case 'M':
+    case 'C':
+        if (ms_option_double(ch == 'M' ? "--memory-target" : "--memory-ceiling", value, 0.01,
+                             1e7, &v, &e) != MS_OK)
+            return bad_value(&e);
+        *(ch == 'M' ? &o->memory_target : &o->memory_ceiling) = v;
+        break;
+    case 'H':
+        if (ms_option_double("--hysteresis", value, 0, 4, &o->hysteresis, &e) != MS_OK)
+            return bad_value(&e);
+        break;
+    case 'L':
+        if (ms_option_double("--culled-bits-less", value, 0.01, 64, &o->culled_less, &e) != MS_OK)
+            return bad_value(&e);
+        break;
+    case 'P':
+        if (ms_option_int("--decode-threads", value, 1, 64, &i, &e) != MS_OK)
+            return bad_value(&e);
+        o->decode_threads = (unsigned)i;
+        break;
+    case 'a':
+        if (ms_option_int("--apo-levels", value, 0, 32, &i, &e) != MS_OK)
+            return bad_value(&e);
+        o->apo_levels = (unsigned)i;
+        break;
+    default: return -1;
+    }
+    return 0;
+}
+
 static int parse_options(int argc, char **argv, options *o)
 {
     static const struct option opts[] = {
@@ -651,8 +696,7 @@ static int parse_options(int argc, char **argv, options *o)
     const char *tmp = getenv("TMPDIR");
     o->tmp_dir = tmp && *tmp ? tmp : "/tmp";
     static char host[64];
-    int ch;
-    double v = 0;
+    int ch, status;
     int64_t i = 0;
     ms_error e;
     while ((ch = getopt_long(argc, argv, "h", opts, NULL)) != -1) {
@@ -672,28 +716,11 @@ static int parse_options(int argc, char **argv, options *o)
         }
         case 'm': o->model = optarg; break;
         case 'p': o->path_file = optarg; break;
-        case 'c':
-            if (ms_option_int("--clients", optarg, 1, MAX_CLIENTS, &i, &e) != MS_OK)
-                return bad_value(&e);
-            o->clients = (unsigned)i;
-            break;
         case 'b':
             if (parse_bandwidth(optarg, &o->bandwidth) != 0) {
                 fprintf(stderr, "meshload: --bandwidth wants e.g. 8mbit, not '%s'\n", optarg);
                 return 2;
             }
-            break;
-        case 't':
-            if (ms_option_double("--tolerance", optarg, 0.01, 1000, &o->tolerance, &e) != MS_OK)
-                return bad_value(&e);
-            break;
-        case 'd':
-            if (ms_option_double("--duration", optarg, 0.1, 86400, &o->duration, &e) != MS_OK)
-                return bad_value(&e);
-            break;
-        case 'k':
-            if (ms_option_double("--keyframe-timeout", optarg, 0.1, 86400, &o->keyframe_timeout, &e) != MS_OK)
-                return bad_value(&e);
             break;
         case 'v':
             if (sscanf(optarg, "%lfx%lf", &o->width, &o->height) != 2 || !(o->width >= 1) ||
@@ -701,31 +728,6 @@ static int parse_options(int argc, char **argv, options *o)
                 fprintf(stderr, "meshload: --viewport wants WxH\n");
                 return 2;
             }
-            break;
-        case 'M':
-        case 'C':
-            if (ms_option_double(ch == 'M' ? "--memory-target" : "--memory-ceiling", optarg, 0.01,
-                                 1e7, &v, &e) != MS_OK)
-                return bad_value(&e);
-            *(ch == 'M' ? &o->memory_target : &o->memory_ceiling) = v;
-            break;
-        case 'H':
-            if (ms_option_double("--hysteresis", optarg, 0, 4, &o->hysteresis, &e) != MS_OK)
-                return bad_value(&e);
-            break;
-        case 'L':
-            if (ms_option_double("--culled-bits-less", optarg, 0.01, 64, &o->culled_less, &e) != MS_OK)
-                return bad_value(&e);
-            break;
-        case 'P':
-            if (ms_option_int("--decode-threads", optarg, 1, 64, &i, &e) != MS_OK)
-                return bad_value(&e);
-            o->decode_threads = (unsigned)i;
-            break;
-        case 'a':
-            if (ms_option_int("--apo-levels", optarg, 0, 32, &i, &e) != MS_OK)
-                return bad_value(&e);
-            o->apo_levels = (unsigned)i;
             break;
         case 'T': o->token = optarg; break;
         case 'j': o->json = true; break;
@@ -741,7 +743,14 @@ static int parse_options(int argc, char **argv, options *o)
             break;
         case 'D': o->draco_decoder = optarg; break;
         case 'h': usage(stdout); exit(0);
-        default: usage(stderr); return 2;
+        default:
+            if ((status = numeric_option(ch, optarg, o)) >= 0) {
+                if (status)
+                    return status;
+                break;
+            }
+            usage(stderr);
+            return 2;
         }
     }
     if (o->archive && (o->host || o->baseline)) {
@@ -784,7 +793,7 @@ int main(int argc, char **argv)
     }
     double duration = o.duration > 0 ? o.duration
                                      : (r.path.count ? ms_camera_path_duration(&r.path) : 0) + 120;
-    r.deadline = now_s() + duration;
+    r.deadline = ms_now_seconds() + duration;
     worker *ws = calloc(o.clients, sizeof *ws);
     if (!ws) {
         fprintf(stderr, "meshload: out of memory\n");

@@ -682,33 +682,10 @@ static int parse_options(int argc, char **argv, options *o)
 
 static ms_archive *load_index(const char *path, const char *name)
 {
-    FILE *f = fopen(path, "rb");
-    if (!f) {
-        fprintf(stderr, "meshloadgen: %s: %s\n", path, strerror(errno));
-        return NULL;
-    }
-    size_t capacity = 1 << 20, size = 0;
-    uint8_t *blob = malloc(capacity);
-    size_t n;
-    while (blob && (n = fread(blob + size, 1, capacity - size, f)) > 0) {
-        size += n;
-        if (size == capacity) {
-            uint8_t *grown = capacity < (256u << 20) ? realloc(blob, capacity * 2) : NULL;
-            if (!grown) {
-                free(blob);
-                blob = NULL;
-                break;
-            }
-            blob = grown;
-            capacity *= 2;
-        }
-    }
-    fclose(f);
     ms_archive *a = NULL;
     ms_error err;
-    if (!blob || ms_archive_open_index(blob, size, name, &a, &err) != MS_OK)
-        fprintf(stderr, "meshloadgen: %s: %s\n", path, blob ? err.text : "out of memory");
-    free(blob);
+    if (ms_archive_open_index_file(path, name, &a, &err) != MS_OK)
+        fprintf(stderr, "meshloadgen: %s\n", err.text);
     return a;
 }
 

@@ -47,6 +47,7 @@ typedef struct viewer {
     bool have_list;
     ms_viewer_catalogue catalogue;
     bool on_catalogue;
+    unsigned model_reopens;        /* new versions opened after a rescan replaced the model */
     /* the open model */
     ms_viewer_model model;
     ms_viewer_stream *stream;
@@ -370,6 +371,31 @@ static void take_screenshot(viewer *v, int fw, int fh)
         fprintf(stderr, "meshview: wrote %s\n", path);
 }
 
+/* A rescan replaced the model being viewed (the core stopped with
+ * stats.model_changed): open the new version by name, keeping the user's view,
+ * at most MAX_MODEL_REOPENS times in a session. True when it was reopened. */
+enum { MAX_MODEL_REOPENS = 8 };
+static bool reopen_changed_model(viewer *v, const char *why)
+{
+    if (v->vscene || !v->stream || v->model_reopens >= MAX_MODEL_REOPENS)
+        return false;
+    ms_core_stats cs;
+    ms_viewer_stream_stats(v->stream, &cs);
+    if (!cs.model_changed)
+        return false;
+    v->model_reopens++;
+    fprintf(stderr, "meshview: %s; opening the new version\n", why);
+    char name[sizeof v->model.name];
+    snprintf(name, sizeof name, "%s", v->model.name);
+    ms_viewer_controls kept = v->controls;
+    if (!open_model(v, name)) {
+        v->on_catalogue = true;
+        return true;
+    }
+    v->controls = kept;
+    return true;
+}
+
 /* One frame of the model view. 1 on a fatal error (printed). */
 static int view_frame(viewer *v, int fw, int fh, double seconds)
 {
@@ -385,6 +411,8 @@ static int view_frame(viewer *v, int fw, int fh, double seconds)
         if (st == MS_OK)
             st = v->vscene ? ms_viewer_scene_draw(v->vscene, &camera, &v->render, &v->drawn, &err)
                            : ms_viewer_stream_draw(v->stream, &camera, &v->render, &v->drawn, &err);
+        if (st != MS_OK && reopen_changed_model(v, err.text))
+            return 0;
         if (st != MS_OK) {
             fprintf(stderr, "meshview: %s\n", err.text);
             return 1;

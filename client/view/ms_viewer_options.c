@@ -122,6 +122,54 @@ static bool effect_list(const char *text, unsigned *bits)
     }
 }
 
+/* The checks across options and the settings derived from them, after the
+ * command line was read; 0, or 2 after printing the one line. */
+static int finish_options(ms_viewer_options *o, const char *shading, bool no_apo, FILE *err)
+{
+    if (!o->archive_dir == !o->port) {
+        fprintf(err, "meshview: give either --server HOST:PORT or an ARCHIVE_DIR (see --help)\n");
+        return 2;
+    }
+    if (o->model && !ms_model_name_valid(o->model)) {
+        fprintf(err, "meshview: '%s' is not a model name\n", o->model);
+        return 2;
+    }
+    if (shading) {
+        if (!strcmp(shading, "apo"))
+            o->shading = MS_SHADING_LIT;
+        else if (!strcmp(shading, "geometry"))
+            o->shading = MS_SHADING_LIT, o->apo_shading = false;
+        else if (!strcmp(shading, "normals"))
+            o->shading = MS_SHADING_NORMALS;
+        else if (!strcmp(shading, "cells"))
+            o->shading = MS_SHADING_CELLS;
+        else {
+            fprintf(err, "meshview: --shading wants apo, geometry, normals or cells\n");
+            return 2;
+        }
+    }
+    if (no_apo)
+        o->apo_levels = 0, o->apo_shading = false;
+    o->scripted = o->path_file || o->screenshot_dir;
+    if (o->scene_file && o->model) {
+        fprintf(err, "meshview: --scene and --model exclude each other\n");
+        return 2;
+    }
+    if (o->path_file && !o->model && !o->scene_file) {
+        fprintf(err, "meshview: --path needs --model or --scene\n");
+        return 2;
+    }
+    if ((o->effects_off || o->effects_all) && !o->scene_file) {
+        fprintf(err, "meshview: --effects-off and --effects-all need --scene\n");
+        return 2;
+    }
+    if (o->json && !o->scripted) {
+        fprintf(err, "meshview: --json reports a scripted run (--path or --screenshot-dir)\n");
+        return 2;
+    }
+    return 0;
+}
+
 int ms_viewer_options_parse(int argc, char **argv, ms_viewer_options *o, FILE *err)
 {
     static const struct option opts[] = {
@@ -249,46 +297,5 @@ int ms_viewer_options_parse(int argc, char **argv, ms_viewer_options *o, FILE *e
         fprintf(err, "meshview: one archive directory at most, not also '%s'\n", argv[optind]);
         return 2;
     }
-    if (!o->archive_dir == !o->port) {
-        fprintf(err, "meshview: give either --server HOST:PORT or an ARCHIVE_DIR (see --help)\n");
-        return 2;
-    }
-    if (o->model && !ms_model_name_valid(o->model)) {
-        fprintf(err, "meshview: '%s' is not a model name\n", o->model);
-        return 2;
-    }
-    if (shading) {
-        if (!strcmp(shading, "apo"))
-            o->shading = MS_SHADING_LIT;
-        else if (!strcmp(shading, "geometry"))
-            o->shading = MS_SHADING_LIT, o->apo_shading = false;
-        else if (!strcmp(shading, "normals"))
-            o->shading = MS_SHADING_NORMALS;
-        else if (!strcmp(shading, "cells"))
-            o->shading = MS_SHADING_CELLS;
-        else {
-            fprintf(err, "meshview: --shading wants apo, geometry, normals or cells\n");
-            return 2;
-        }
-    }
-    if (no_apo)
-        o->apo_levels = 0, o->apo_shading = false;
-    o->scripted = o->path_file || o->screenshot_dir;
-    if (o->scene_file && o->model) {
-        fprintf(err, "meshview: --scene and --model exclude each other\n");
-        return 2;
-    }
-    if (o->path_file && !o->model && !o->scene_file) {
-        fprintf(err, "meshview: --path needs --model or --scene\n");
-        return 2;
-    }
-    if ((o->effects_off || o->effects_all) && !o->scene_file) {
-        fprintf(err, "meshview: --effects-off and --effects-all need --scene\n");
-        return 2;
-    }
-    if (o->json && !o->scripted) {
-        fprintf(err, "meshview: --json reports a scripted run (--path or --screenshot-dir)\n");
-        return 2;
-    }
-    return 0;
+    return finish_options(o, shading, no_apo, err);
 }

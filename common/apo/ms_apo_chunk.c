@@ -82,10 +82,12 @@ ms_status ms_apo_chunk_encode(const ms_apo_tree *tree, ms_apo_chunk *chunk, ms_e
     return MS_OK;
 }
 
-ms_status ms_apo_view_init(ms_apo_view *view, const uint32_t *level_texels, uint32_t level_count,
-                           const uint32_t *texels, size_t received, ms_error *err)
+/* The level table's own rules (and the words received against it); *total:
+ * the words the table holds. */
+static ms_status check_level_table(const uint32_t *level_texels, uint32_t level_count,
+                                   const uint32_t *texels, size_t received, uint64_t *total_out,
+                                   ms_error *err)
 {
-    memset(view, 0, sizeof *view);
     if (level_count > MS_APO_MAX_LEVELS)
         return ms_error_set(err, MS_ERR_FORMAT, "apo chunk: %u levels (max %u)", level_count, MS_APO_MAX_LEVELS);
     uint64_t total = 0;
@@ -104,6 +106,18 @@ ms_status ms_apo_view_init(ms_apo_view *view, const uint32_t *level_texels, uint
                             (unsigned long long)total);
     if (received > 0 && !texels)
         return ms_error_set(err, MS_ERR_ARG, "apo chunk: no word array");
+    *total_out = total;
+    return MS_OK;
+}
+
+ms_status ms_apo_view_init(ms_apo_view *view, const uint32_t *level_texels, uint32_t level_count,
+                           const uint32_t *texels, size_t received, ms_error *err)
+{
+    memset(view, 0, sizeof *view);
+    uint64_t total = 0; /* set on MS_OK; gcc -O2 cannot see it through the early returns */
+    ms_status table = check_level_table(level_texels, level_count, texels, received, &total, err);
+    if (table != MS_OK)
+        return table;
     ms_apo_view v;
     memset(&v, 0, sizeof v);
     v.texels = texels;

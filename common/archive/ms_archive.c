@@ -5,6 +5,7 @@
 #include <errno.h>
 #include <fcntl.h>
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/mman.h>
@@ -698,4 +699,38 @@ ms_status ms_archive_check_payload(const ms_archive *a, uint32_t cell, bool apo,
     if (crc32_z(0L, data, length) != expect_crc)
         return ms_error_set(err, MS_ERR_CORRUPT, "cell %u: %s checksum mismatch", cell, kind);
     return MS_OK;
+}
+
+ms_status ms_archive_open_index_file(const char *path, const char *name, ms_archive **archive,
+                                     ms_error *err)
+{
+    *archive = NULL;
+    FILE *f = fopen(path, "rb");
+    if (!f)
+        return ms_error_set(err, MS_ERR_IO, "%s: %s", path, strerror(errno));
+    size_t capacity = 1 << 20, size = 0, n;
+    uint8_t *blob = malloc(capacity);
+    while (blob && (n = fread(blob + size, 1, capacity - size, f)) > 0) {
+        size += n;
+        if (size == capacity) {
+            uint8_t *grown = capacity < (256u << 20) ? realloc(blob, capacity * 2) : NULL;
+            if (!grown) {
+                free(blob);
+                blob = NULL;
+                break;
+            }
+            blob = grown;
+            capacity *= 2;
+        }
+    }
+    fclose(f);
+    if (!blob)
+        return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory", path);
+    ms_status st = ms_archive_open_index(blob, size, name, archive, err);
+    free(blob);
+    if (st != MS_OK && err) {
+        ms_error inner = *err;
+        ms_error_set(err, st, "%s: %s", path, inner.text);
+    }
+    return st;
 }

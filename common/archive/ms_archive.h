@@ -88,6 +88,12 @@ void ms_archive_close(ms_archive *archive);
 ms_status ms_archive_open_index(const uint8_t *blob, size_t size, const char *name,
                                 ms_archive **archive, ms_error *err);
 
+/* The same from an index saved in a file (meshexport's NAME.index, or a
+ * /models/NAME answer of the HTTP door); at most 256 MiB. Every error names
+ * path (MS_ERR_IO when it cannot be read). */
+ms_status ms_archive_open_index_file(const char *path, const char *name, ms_archive **archive,
+                                     ms_error *err);
+
 const ms_archive_header *ms_archive_get_header(const ms_archive *archive);
 /* NULL when cell >= cell_count. */
 const ms_archive_cell *ms_archive_get_cell(const ms_archive *archive, uint32_t cell);

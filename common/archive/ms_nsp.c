@@ -91,39 +91,14 @@ static void rows_free(rows *r)
     free(r->items);
 }
 
-ms_status ms_nsp_partition_state(const ms_nsp_shape *shape, const ms_codec_state *parent,
-                                 unsigned depth, const uint32_t position[3], unsigned child_bits,
-                                 ms_codec_state *children, ms_error *err)
+/* Counts, then fills, each simplex into the rows of the distinct children of
+ * its vertices (owner: child offset or FOREIGN); a vertex of no simplex goes
+ * to its own child's isolated row. used marks the vertices of a simplex. */
+static void bucket_simplices(const ms_codec_state *parent, const uint16_t *owner, uint8_t *used,
+                             unsigned nc, rows *tr_io, rows *ed_io, rows *iso_io)
 {
-    const unsigned nc = shape->n * shape->n * shape->n;
-    for (unsigned k = 0; k < nc; ++k)
-        memset(&children[k], 0, sizeof children[k]);
     const size_t nv = parent->vertex_count, nt = parent->tri_count, ne = parent->edge_count;
-    uint16_t *owner = malloc((nv ? nv : 1) * sizeof *owner); /* child offset, or FOREIGN */
-    uint8_t *used = calloc(nv ? nv : 1, 1);  /* vertex has a simplex */
-    uint32_t *local = malloc((nv ? nv : 1) * sizeof *local);
-    uint32_t *stamp = malloc((nv ? nv : 1) * sizeof *stamp);
-    rows tr = {calloc(nc + 1, sizeof(uint32_t)), malloc((3 * nt + 1) * sizeof(uint32_t))};
-    rows ed = {calloc(nc + 1, sizeof(uint32_t)), malloc((2 * ne + 1) * sizeof(uint32_t))};
-    rows iso = {calloc(nc + 1, sizeof(uint32_t)), malloc((nv + 1) * sizeof(uint32_t))};
-    ms_status s = MS_OK;
-    if (!owner || !used || !local || !stamp || !tr.start || !tr.items || !ed.start || !ed.items ||
-        !iso.start || !iso.items) {
-        s = ms_error_set(err, MS_ERR_NOMEM, "out of memory splitting a cell's complex");
-        goto done;
-    }
-    const unsigned child_depth = depth + 1;
-    for (size_t v = 0; v < nv; ++v) {
-        owner[v] = FOREIGN;
-        stamp[v] = UINT32_MAX;
-        if (ms_nsp_prefix_inside(shape, parent->cells[v], parent->level, depth, position)) {
-            uint32_t xyz[3];
-            ms_nsp_prefix_corner(shape, parent->cells[v], parent->level, xyz);
-            if (parent->level >= 3 * child_depth * shape->log2n)
-                owner[v] = (uint16_t)ms_nsp_child_offset(shape, depth, xyz);
-        }
-    }
-    /* Count, then fill, each simplex into the distinct children of its vertices. */
+    rows tr = *tr_io, ed = *ed_io, iso = *iso_io;
     for (int pass = 0; pass < 2; ++pass) {
         if (pass == 1) {
             for (unsigned k = 0; k < nc; ++k) {
@@ -178,6 +153,41 @@ ms_status ms_nsp_partition_state(const ms_nsp_shape *shape, const ms_codec_state
                 iso.items[iso.start[owner[v] + 1]++] = (uint32_t)v;
         }
     }
+}
+
+ms_status ms_nsp_partition_state(const ms_nsp_shape *shape, const ms_codec_state *parent,
+                                 unsigned depth, const uint32_t position[3], unsigned child_bits,
+                                 ms_codec_state *children, ms_error *err)
+{
+    const unsigned nc = shape->n * shape->n * shape->n;
+    for (unsigned k = 0; k < nc; ++k)
+        memset(&children[k], 0, sizeof children[k]);
+    const size_t nv = parent->vertex_count, nt = parent->tri_count, ne = parent->edge_count;
+    uint16_t *owner = malloc((nv ? nv : 1) * sizeof *owner); /* child offset, or FOREIGN */
+    uint8_t *used = calloc(nv ? nv : 1, 1);  /* vertex has a simplex */
+    uint32_t *local = malloc((nv ? nv : 1) * sizeof *local);
+    uint32_t *stamp = malloc((nv ? nv : 1) * sizeof *stamp);
+    rows tr = {calloc(nc + 1, sizeof(uint32_t)), malloc((3 * nt + 1) * sizeof(uint32_t))};
+    rows ed = {calloc(nc + 1, sizeof(uint32_t)), malloc((2 * ne + 1) * sizeof(uint32_t))};
+    rows iso = {calloc(nc + 1, sizeof(uint32_t)), malloc((nv + 1) * sizeof(uint32_t))};
+    ms_status s = MS_OK;
+    if (!owner || !used || !local || !stamp || !tr.start || !tr.items || !ed.start || !ed.items ||
+        !iso.start || !iso.items) {
+        s = ms_error_set(err, MS_ERR_NOMEM, "out of memory splitting a cell's complex");
+        goto done;
+    }
+    const unsigned child_depth = depth + 1;
+    for (size_t v = 0; v < nv; ++v) {
+        owner[v] = FOREIGN;
+        stamp[v] = UINT32_MAX;
+        if (ms_nsp_prefix_inside(shape, parent->cells[v], parent->level, depth, position)) {
+            uint32_t xyz[3];
+            ms_nsp_prefix_corner(shape, parent->cells[v], parent->level, xyz);
+            if (parent->level >= 3 * child_depth * shape->log2n)
+                owner[v] = (uint16_t)ms_nsp_child_offset(shape, depth, xyz);
+        }
+    }
+    bucket_simplices(parent, owner, used, nc, &tr, &ed, &iso);
     for (unsigned k = 0; k < nc; ++k) {
         ms_codec_state *c = &children[k];
         c->bits = child_bits;

@@ -11,49 +11,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-typedef struct birth_stack {
-    uint8_t *b;
-    uint32_t n, cap;
-} birth_stack;
-
-struct ms_codec_decoder {
-    uint8_t *data;          /* copy of the stream */
-    size_t size;
-    ms_codec_header h;
-    const uint8_t *body;
-    size_t body_avail;      /* bytes of body present */
-    unsigned D, Lmin, level, avail_level;
-    ms_complex cx;
-    uint32_t *order, *order2;
-    uint32_t norder, cap_order;
-    uint32_t nmodel;
-    ms_rc_prob *model;
-    ms_rc_prob *snap;       /* per chunk: model at the chunk's start */
-    uint8_t *snap_valid, *crc_ok;
-    ms_rc_decoder rc;
-    unsigned rc_chunk;      /* chunk the range decoder is in, or UINT_MAX */
-    birth_stack births[3 * MS_CODEC_MAX_BITS];
-    ms_cx_star star;
-    uint8_t *code, *side, *cov;
-    uint8_t *partners;      /* per neighbour: partner_flag of its partners coded so far */
-    int32_t *vote;          /* per neighbour: orientation votes around it (orient_votes) */
-    uint32_t *pivot;        /* the neighbours with code 4, in order */
-    uint8_t *tcode;
-    size_t cap_code, cap_tcode;
-    uint32_t compact_nv;    /* slots in use after the last compaction */
-    uint32_t frozen;        /* frozen foreign cells now */
-    /* Encode mode (the encoder's forward pass): decisions come from src and are
-     * range-coded into enc with the very contexts the decoder uses. */
-    ms_rc_encoder *enc;
-    const uint8_t *src;
-    size_t src_n, src_pos;
-    ms_codec_header *enc_h;
-    uint64_t *train;        /* encode mode: context counts in the prior's layout */
-    bool skip_crc;
-    bool has_box;           /* world positions known (ms_codec_decoder_mesh) */
-    bool broken;
-};
-
 /* Encode mode: the next decision taken from src, counted and coded. */
 static int dbit_encode(ms_codec_decoder *d, ms_rc_prob *p)
 {
@@ -77,39 +34,6 @@ static inline __attribute__((always_inline)) int dbit(ms_codec_decoder *d, ms_rc
 static inline __attribute__((always_inline)) int dbit_coin(ms_codec_decoder *d, ms_rc_prob *p)
 {
     return d->enc ? dbit_encode(d, p) : ms_rc_decode_unpredictable(&d->rc, p);
-}
-
-unsigned ms_codec_decoder_min_level(const ms_codec_decoder *d) { return d->Lmin; }
-unsigned ms_codec_decoder_max_level(const ms_codec_decoder *d) { return d->D; }
-unsigned ms_codec_decoder_available_level(const ms_codec_decoder *d) { return d->avail_level; }
-const ms_codec_header *ms_codec_decoder_header(const ms_codec_decoder *d) { return &d->h; }
-size_t ms_codec_decoder_vertex_count(const ms_codec_decoder *d) { return d->cx.live_v; }
-size_t ms_codec_decoder_tri_count(const ms_codec_decoder *d) { return d->cx.live_t; }
-size_t ms_codec_decoder_edge_count(const ms_codec_decoder *d) { return d->cx.live_e; }
-
-void ms_codec_decoder_destroy(ms_codec_decoder *d)
-{
-    if (!d)
-        return;
-    free(d->data);
-    ms_cx_free(&d->cx);
-    free(d->order);
-    free(d->order2);
-    free(d->model);
-    free(d->snap);
-    free(d->snap_valid);
-    free(d->crc_ok);
-    for (unsigned i = 0; i < 3 * MS_CODEC_MAX_BITS; ++i)
-        free(d->births[i].b);
-    ms_cx_star_free(&d->star);
-    free(d->code);
-    free(d->side);
-    free(d->cov);
-    free(d->partners);
-    free(d->vote);
-    free(d->pivot);
-    free(d->tcode);
-    free(d);
 }
 
 static ms_status corrupt(ms_codec_decoder *d, ms_error *err, const char *what)
@@ -209,6 +133,7 @@ static void drop_moved_triangles(ms_complex *cx, uint32_t s)
         w += keep;
     }
     v->n = w;
+    ms_cx_list_reindex(v); /* positions moved */
 }
 
 /* Splits cell s (level L) in two after a "both" symbol. The per-neighbour and
@@ -329,7 +254,7 @@ static ms_status split(ms_codec_decoder *d, uint32_t s, unsigned L, uint32_t *ou
         int same = tc == 3 ? dbit(d, &m[C_O3]) : 0;
         uint32_t *x = cx->tri[t];
         if (n4) {
-            /* the votes this triangle and its copy will cast, as orient_votes
+            /* the votes this triangle and its copy will cast, as star_votes
              * would count them on the lists of s and s2 after the split: kept
              * on s +o, moved to s2 -o, duplicated with the same cyclic order 0
              * (the copies cancel), with the opposite one +2o. Cast for every
@@ -823,56 +748,4 @@ ms_status ms_codec_run_encoder(ms_codec_header *h, const ms_codec_state *start,
         r = ms_error_set(err, MS_ERR_ARG, "encoder: %zu of %zu decisions used", d->src_pos, n);
     ms_codec_decoder_destroy(d);
     return r;
-}
-
-ms_status ms_codec_decoder_state(const ms_codec_decoder *d, ms_codec_state *out, ms_error *err)
-{
-    if (d->broken) {
-        memset(out, 0, sizeof *out);
-        return ms_error_set(err, MS_ERR_CORRUPT, "decoder stopped after a corrupted stream");
-    }
-    return ms_codec_export_complex(&d->cx, d->order, d->norder, d->level, out, err);
-}
-
-size_t ms_codec_decoder_vertex_levels(const ms_codec_decoder *d, uint8_t *levels)
-{
-    for (uint32_t i = 0; i < d->norder; ++i)
-        levels[i] = (uint8_t)ms_cx_level(&d->cx, d->order[i]);
-    return d->frozen;
-}
-
-ms_status ms_codec_decoder_mesh(const ms_codec_decoder *d, ms_mesh *out, ms_error *err)
-{
-    if (d->broken)
-        return ms_error_set(err, MS_ERR_CORRUPT, "decoder stopped after a corrupted stream");
-    if (!d->has_box)
-        return ms_error_set(err, MS_ERR_ARG, "a compact codec stream needs its archive's box "
-                            "for world positions");
-    const ms_complex *cx = &d->cx;
-    ms_status r = ms_mesh_reserve(out, d->norder, cx->live_t, err);
-    if (r != MS_OK)
-        return r;
-    /* rank of each slot: reuse the triangle export order (slot -> vertex index) */
-    uint32_t *rank = malloc((size_t)(cx->nv ? cx->nv : 1) * sizeof *rank);
-    if (!rank)
-        return ms_error_set(err, MS_ERR_NOMEM, "out of memory exporting a mesh");
-    double scale = d->h.box.size / (double)(1u << cx->P);
-    for (uint32_t i = 0; i < d->norder; ++i) {
-        uint32_t s = d->order[i];
-        rank[s] = i;
-        for (int a = 0; a < 3; ++a)
-            out->positions[3 * i + a] = d->h.box.origin[a] + 0.5 * cx->cen[s][a] * scale;
-    }
-    size_t w = 0;
-    for (uint32_t t = 0; t < cx->nt; ++t) {
-        if (cx->tri[t][0] == MS_CX_NONE)
-            continue;
-        for (int k = 0; k < 3; ++k)
-            out->triangles[3 * w + k] = rank[cx->tri[t][k]];
-        w++;
-    }
-    out->vertex_count = d->norder;
-    out->triangle_count = w;
-    free(rank);
-    return MS_OK;
 }

@@ -29,7 +29,8 @@ typedef struct enc {
     size_t level_first[3 * MS_CODEC_MAX_BITS + 1];
     size_t level_end[3 * MS_CODEC_MAX_BITS + 1];
     ms_cx_star star;
-    uint8_t *code;
+    uint8_t *code;   /* per neighbour of the star being recorded: its code */
+    int32_t *vote;   /* per neighbour: orientation votes (star_votes) */
     size_t cap_code;
     int nomem;
 } enc;
@@ -69,8 +70,47 @@ static int code_room(enc *e, size_t n)
     if (!a)
         return 0;
     e->code = a;
+    int32_t *v = realloc(e->vote, c * sizeof *v);
+    if (!v)
+        return 0;
+    e->vote = v;
     e->cap_code = c;
     return 1;
+}
+
+/* Orientation votes around every neighbour x of the star of (c0, c1), as the
+ * decoder counts them for a new triangle (c0, c1, x): each triangle of c0
+ * holding x adds ms_cx_orient(t, c0, x), each of c1 subtracts
+ * ms_cx_orient(t, c1, x), the triangles holding both centres left out; positive
+ * predicts the cyclic order (c0, c1, x). One pass over both lists: counting
+ * neighbour by neighbour would cost O(k^2) where k triangles share the edge
+ * c0-c1. Reads the local indices that ms_cx_gather_general (two centres) left
+ * in cx->mark. */
+static void star_votes(const ms_complex *cx, const ms_cx_star *st, uint32_t c0, uint32_t c1,
+                       int32_t *vote)
+{
+    memset(vote, 0, (size_t)st->nn * sizeof *vote);
+    const uint32_t cs[2] = {c0, c1};
+    for (int k = 0; k < 2; ++k) {
+        const ms_cx_vert *v = &cx->v[cs[k]];
+        const uint32_t *l = v->cap ? v->ext : v->inl;
+        for (uint32_t i = 0; i < v->n; ++i) {
+            if (l[i] & 1)
+                continue;
+            uint32_t t = l[i] >> 1;
+            const uint32_t *tr = cx->tri[t];
+            if (tr[0] == cs[1 - k] || tr[1] == cs[1 - k] || tr[2] == cs[1 - k])
+                continue;
+            for (int m = 0; m < 3; ++m) {
+                uint32_t x = tr[m];
+                if (x == cs[k])
+                    continue;
+                /* a neighbour with c0 -> x wants x -> c0 in the new one: (c0,c1,x) */
+                int o = ms_cx_orient(cx, t, cs[k], x);
+                vote[cx->mark[x]] += k == 0 ? o : -o;
+            }
+        }
+    }
 }
 
 /* Records the connectivity decisions of the split that separates c0 and c1
@@ -81,7 +121,8 @@ static ms_status record_split(enc *e, uint32_t c0, uint32_t c1, ms_error *err)
 {
     ms_complex *cx = &e->cx;
     ms_cx_star *st = &e->star;
-    ms_status s = ms_cx_gather(cx, c0, c1, st, err);
+    /* general (two centres anyway): star_votes reads the marks it leaves */
+    ms_status s = ms_cx_gather_general(cx, c0, c1, st, err);
     if (s != MS_OK)
         return s;
     if (!code_room(e, st->nn + 1))
@@ -114,12 +155,16 @@ static ms_status record_split(enc *e, uint32_t c0, uint32_t c1, ms_error *err)
         int s0 = ms_cx_orient(cx, pr->t0, xi, xj), s1 = ms_cx_orient(cx, pr->t1, xi, xj);
         put(e, s0 == s1);
     }
+    uint32_t n4 = 0;
+    for (uint32_t i = 0; i < st->nn; ++i)
+        n4 += e->code[i] == 4;
+    if (n4)
+        star_votes(cx, st, c0, c1, e->vote);
     for (uint32_t i = 0; i < st->nn; ++i) {
         if (e->code[i] != 4)
             continue;
         uint32_t t = st->both[i];
-        int vote = orient_votes(cx, c0, c1, st->nbr[i], t);
-        int pred = vote >= 0 ? 1 : -1;
+        int pred = e->vote[i] >= 0 ? 1 : -1;
         put(e, ms_cx_orient(cx, t, c0, c1) != pred);
     }
     return e->nomem ? ms_error_set(err, MS_ERR_NOMEM, "out of memory recording symbols") : MS_OK;
@@ -592,6 +637,7 @@ done:
     ms_cx_star_free(&e.star);
     free(e.sym.s);
     free(e.code);
+    free(e.vote);
     free(order);
     free(order2);
     free(frozen_at);

@@ -62,4 +62,49 @@ ms_status ms_codec_export_complex(const ms_complex *cx, const uint32_t *order, u
 ms_status ms_sort_index_tuples(uint32_t *x, size_t n, unsigned arity, size_t index_limit,
                                ms_error *err);
 
+/* The decoder's state (ms_codec_decode.c decodes, ms_codec_decoder_out.c
+ * reads it out). */
+typedef struct birth_stack {
+    uint8_t *b;
+    uint32_t n, cap;
+} birth_stack;
+
+struct ms_codec_decoder {
+    uint8_t *data;          /* copy of the stream */
+    size_t size;
+    ms_codec_header h;
+    const uint8_t *body;
+    size_t body_avail;      /* bytes of body present */
+    unsigned D, Lmin, level, avail_level;
+    ms_complex cx;
+    uint32_t *order, *order2;
+    uint32_t norder, cap_order;
+    uint32_t nmodel;
+    ms_rc_prob *model;
+    ms_rc_prob *snap;       /* per chunk: model at the chunk's start */
+    uint8_t *snap_valid, *crc_ok;
+    ms_rc_decoder rc;
+    unsigned rc_chunk;      /* chunk the range decoder is in, or UINT_MAX */
+    birth_stack births[3 * MS_CODEC_MAX_BITS];
+    ms_cx_star star;
+    uint8_t *code, *side, *cov;
+    uint8_t *partners;      /* per neighbour: partner_flag of its partners coded so far */
+    int32_t *vote;          /* per neighbour: orientation votes (the encoder's star_votes) */
+    uint32_t *pivot;        /* the neighbours with code 4, in order */
+    uint8_t *tcode;
+    size_t cap_code, cap_tcode;
+    uint32_t compact_nv;    /* slots in use after the last compaction */
+    uint32_t frozen;        /* frozen foreign cells now */
+    /* Encode mode (the encoder's forward pass): decisions come from src and are
+     * range-coded into enc with the very contexts the decoder uses. */
+    ms_rc_encoder *enc;
+    const uint8_t *src;
+    size_t src_n, src_pos;
+    ms_codec_header *enc_h;
+    uint64_t *train;        /* encode mode: context counts in the prior's layout */
+    bool skip_crc;
+    bool has_box;           /* world positions known (ms_codec_decoder_mesh) */
+    bool broken;
+};
+
 #endif

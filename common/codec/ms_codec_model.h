@@ -167,33 +167,6 @@ static inline unsigned partner_flag(uint8_t code)
     return code == 1 ? 1u : code == 2 ? 2u : 4u;
 }
 
-/* Votes of the triangles around edges (c1,x) and (c2,x) for the orientation of a
- * new triangle (c1,c2,x): positive predicts the cyclic order (c1,c2,x). */
-static inline int orient_votes(const ms_complex *cx, uint32_t c1, uint32_t c2, uint32_t x,
-                               uint32_t skip)
-{
-    int vote = 0;
-    const uint32_t cs[2] = {c1, c2};
-    for (int k = 0; k < 2; ++k) {
-        const ms_cx_vert *v = &cx->v[cs[k]];
-        const uint32_t *l = v->cap ? v->ext : v->inl;
-        for (uint32_t i = 0; i < v->n; ++i) {
-            if (l[i] & 1)
-                continue;
-            uint32_t t = l[i] >> 1;
-            if (t == skip)
-                continue;
-            const uint32_t *tr = cx->tri[t];
-            if (tr[0] != x && tr[1] != x && tr[2] != x)
-                continue;
-            int o = ms_cx_orient(cx, t, cs[k], x);
-            /* a neighbour with c1 -> x wants x -> c1 in the new one: (c1,c2,x) */
-            vote += k == 0 ? o : -o;
-        }
-    }
-    return vote;
-}
-
 static inline unsigned o4_ctx(int vote)
 {
     int a = vote < 0 ? -vote : vote;

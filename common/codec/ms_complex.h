@@ -5,7 +5,12 @@
  * space order and a cell's first child keeps its key). The complex stores only
  * maximal simplices: oriented triangles and maximal edges; a vertex with neither
  * is isolated. Each vertex keeps one list of incident simplices (tagged ids:
- * triangle id << 1, edge id << 1 | 1), small lists inline.
+ * triangle id << 1, edge id << 1 | 1), small lists inline. A long list (room for
+ * MS_CX_INDEXED entries or more: a high-valence vertex, such as the centre of a
+ * fan) also keeps a hash index from entry to position, so that taking one entry
+ * off costs O(1), not a scan: without it, coarsening a vertex of valence k costs
+ * O(k^2). The index never changes the list's order: removal is the same swap
+ * with the last entry either way.
  *
  * Slot numbers and list orders depend on history; everything the codec codes is
  * enumerated canonically (ms_cx_star sorts by key), so encoder and decoder agree
@@ -28,6 +33,8 @@
  * is 64 bytes, one cache line. */
 #define MS_CX_INLINE 10
 #define MS_CX_NONE UINT32_MAX
+/* Lists with room for at least this many entries keep a position index. */
+#define MS_CX_INDEXED 64
 
 /* The cell's geometry (level, corner and centre) lives in ms_complex.cen,
  * derived from key and level; the record holds what the codec touches on every
@@ -39,7 +46,12 @@ typedef struct ms_cx_vert {
     uint8_t frozen;   /* codec: a foreign cell no longer refined (ms_codec.h, regions) */
     uint32_t n, cap;  /* list size; cap 0 = inline storage */
     union {
-        uint32_t *ext;               /* cap > 0 */
+        struct {                     /* cap > 0 */
+            uint32_t *ext;           /* the list */
+            /* cap >= MS_CX_INDEXED: 2 cap (entry, position) pairs, open
+             * addressing with linear probing, MS_CX_NONE = empty; else NULL */
+            uint32_t *where;
+        };
         uint32_t inl[MS_CX_INLINE];  /* cap == 0 */
     };
 } ms_cx_vert;
@@ -82,9 +94,16 @@ static inline uint32_t *ms_cx_list(ms_cx_vert *v)
     return v->cap ? v->ext : v->inl;
 }
 
-/* Doubles v's list room (moving it off the inline entries); false, with
- * cx->nomem set, when that fails. */
+/* Doubles v's list room (moving it off the inline entries, building the
+ * position index once the room reaches MS_CX_INDEXED); false, with cx->nomem
+ * set, when that fails. */
 bool ms_cx_list_grow(ms_complex *cx, ms_cx_vert *v);
+/* Records in v's position index (v->cap >= MS_CX_INDEXED) that `tagged` is at
+ * position pos of the list. */
+void ms_cx_index_put(ms_cx_vert *v, uint32_t tagged, uint32_t pos);
+/* Rebuilds v's position index (when it has one) from the list: call after
+ * rewriting a list in place other than through the ms_cx_list_* functions. */
+void ms_cx_list_reindex(ms_cx_vert *v);
 /* Appends a tagged entry to s's list when `keep`, without a branch on it (the
  * entry is written past the end either way); on growth failure, cx->nomem. */
 static inline void ms_cx_list_add_if(ms_complex *cx, uint32_t s, uint32_t tagged, bool keep)
@@ -93,6 +112,8 @@ static inline void ms_cx_list_add_if(ms_complex *cx, uint32_t s, uint32_t tagged
     if (v->n == (v->cap ? v->cap : MS_CX_INLINE) && !ms_cx_list_grow(cx, v))
         return;
     ms_cx_list(v)[v->n] = tagged;
+    if (v->cap >= MS_CX_INDEXED && keep) /* rare: a long list */
+        ms_cx_index_put(v, tagged, v->n);
     v->n += keep;
 }
 /* Appends a tagged entry to s's list; on growth failure, cx->nomem. */
@@ -196,6 +217,10 @@ void ms_cx_star_free(ms_cx_star *st);
 ms_status ms_cx_gather(ms_complex *cx, uint32_t c0, uint32_t c1, ms_cx_star *st, ms_error *err);
 ms_status ms_cx_gather_general(ms_complex *cx, uint32_t c0, uint32_t c1, ms_cx_star *st,
                                ms_error *err);
+
+/* Sorts n keys ascending (insertion sort when short); shared by the
+ * complex's own files. */
+void ms_cx_sort_keys(uint64_t *a, size_t n);
 
 /* Merges c1 into c0: every simplex incident to c1 gets c0 instead, duplicates are
  * dropped (c0's copy wins), triangles containing both collapse to edges kept only

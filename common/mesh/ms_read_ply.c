@@ -96,6 +96,102 @@ static ms_status finish_element(ms_reader *r, ply_element *e)
     return MS_OK;
 }
 
+/* "format KIND VERSION". */
+static ms_status header_format(ms_reader *r, ply_header *h, char *cursor)
+{
+    char *kind = next_word(&cursor);
+    char *version = next_word(&cursor);
+    if (!kind || !version || next_word(&cursor))
+        return ms_reader_fail_line(r, MS_ERR_FORMAT, "bad format line");
+    if (strcmp(version, "1.0") != 0 && strcmp(version, "1") != 0)
+        return ms_reader_fail_line(r, MS_ERR_UNSUPPORTED, "PLY version %s", version);
+    if (strcmp(kind, "ascii") == 0) {
+        r->format = MS_MESH_FORMAT_PLY_ASCII;
+    } else if (strcmp(kind, "binary_little_endian") == 0) {
+        r->format = MS_MESH_FORMAT_PLY_BINARY_LE;
+        h->binary = true;
+        h->swap = !host_is_little_endian();
+    } else if (strcmp(kind, "binary_big_endian") == 0) {
+        r->format = MS_MESH_FORMAT_PLY_BINARY_BE;
+        h->binary = true;
+        h->swap = host_is_little_endian();
+    } else {
+        return ms_reader_fail_line(r, MS_ERR_UNSUPPORTED, "unknown PLY format '%s'", kind);
+    }
+    return MS_OK;
+}
+
+/* "element NAME COUNT": closes the element before it, opens *current. */
+static ms_status header_element(ms_reader *r, ply_header *h, char *cursor, ply_element **current_io)
+{
+    ply_element *current = *current_io;
+    ms_status st;
+    char *name = next_word(&cursor);
+    char *count = next_word(&cursor);
+    int64_t n = 0;
+    const char *after = count ? ms_parse_int64(count, &n) : NULL;
+    if (!name || !after || *after || n < 0 || next_word(&cursor))
+        return ms_reader_fail_line(r, MS_ERR_FORMAT, "bad element line");
+    if (strlen(name) >= PLY_MAX_NAME)
+        return ms_reader_fail_line(r, MS_ERR_FORMAT, "element name too long");
+    if (strcmp(name, "vertex") == 0 && n > (int64_t)UINT32_MAX)
+        return ms_reader_fail_line(r, MS_ERR_RANGE,
+                                   "%lld vertices declared; at most %u are supported",
+                                   (long long)n, (unsigned)UINT32_MAX);
+    if (current && (st = finish_element(r, current)) != MS_OK)
+        return st;
+    if (h->element_count == PLY_MAX_ELEMENTS)
+        return ms_reader_fail_line(r, MS_ERR_UNSUPPORTED, "more than %d elements",
+                                   PLY_MAX_ELEMENTS);
+    current = &h->elements[h->element_count++];
+    strcpy(current->name, name);
+    current->count = (uint64_t)n;
+    current->role = strcmp(name, "vertex") == 0  ? PLY_ROLE_VERTEX
+                    : strcmp(name, "face") == 0  ? PLY_ROLE_FACE
+                    : strcmp(name, "tristrips") == 0 ? PLY_ROLE_STRIPS
+                                                   : PLY_ROLE_OTHER;
+    for (size_t i = 0; i + 1 < h->element_count; ++i)
+        if (current->role != PLY_ROLE_OTHER && h->elements[i].role == current->role)
+            return ms_reader_fail_line(r, MS_ERR_FORMAT, "second element %s", name);
+    *current_io = current;
+    return MS_OK;
+}
+
+/* "property TYPE NAME" or "property list COUNT_TYPE ITEM_TYPE NAME" of
+ * element current (NULL before any element). */
+static ms_status header_property(ms_reader *r, ply_element *current, char *cursor)
+{
+    if (!current)
+        return ms_reader_fail_line(r, MS_ERR_FORMAT, "property before any element");
+    if (current->prop_count == PLY_MAX_PROPERTIES)
+        return ms_reader_fail_line(r, MS_ERR_UNSUPPORTED, "more than %d properties",
+                                   PLY_MAX_PROPERTIES);
+    ply_property *p = &current->props[current->prop_count];
+    char *type = next_word(&cursor);
+    if (type && strcmp(type, "list") == 0) {
+        char *count_type = next_word(&cursor);
+        char *item_type = next_word(&cursor);
+        if (!count_type || !item_type || !parse_type(count_type, &p->count_type) ||
+            !parse_type(item_type, &p->type))
+            return ms_reader_fail_line(r, MS_ERR_FORMAT, "bad list property types");
+        if (!is_integer_type(p->count_type))
+            return ms_reader_fail_line(r, MS_ERR_FORMAT, "list count type must be an integer");
+        p->is_list = true;
+    } else if (!type || !parse_type(type, &p->type)) {
+        return ms_reader_fail_line(r, MS_ERR_FORMAT, "unknown property type '%s'",
+                                   type ? type : "");
+    }
+    char *name = next_word(&cursor);
+    if (!name || next_word(&cursor) || strlen(name) >= PLY_MAX_NAME)
+        return ms_reader_fail_line(r, MS_ERR_FORMAT, "bad property line");
+    strcpy(p->name, name);
+    for (size_t i = 0; i < current->prop_count; ++i)
+        if (strcmp(current->props[i].name, name) == 0)
+            return ms_reader_fail_line(r, MS_ERR_FORMAT, "duplicate property %s", name);
+    ++current->prop_count;
+    return MS_OK;
+}
+
 static ms_status parse_header(ms_reader *r, ply_header *h)
 {
     char *line;
@@ -123,89 +219,23 @@ static ms_status parse_header(ms_reader *r, ply_header *h)
         if (strcmp(keyword, "end_header") == 0)
             break;
         if (strcmp(keyword, "format") == 0) {
-            char *kind = next_word(&cursor);
-            char *version = next_word(&cursor);
-            if (have_format || !kind || !version || next_word(&cursor))
+            if (have_format)
                 return ms_reader_fail_line(r, MS_ERR_FORMAT, "bad format line");
-            if (strcmp(version, "1.0") != 0 && strcmp(version, "1") != 0)
-                return ms_reader_fail_line(r, MS_ERR_UNSUPPORTED, "PLY version %s", version);
-            if (strcmp(kind, "ascii") == 0) {
-                r->format = MS_MESH_FORMAT_PLY_ASCII;
-            } else if (strcmp(kind, "binary_little_endian") == 0) {
-                r->format = MS_MESH_FORMAT_PLY_BINARY_LE;
-                h->binary = true;
-                h->swap = !host_is_little_endian();
-            } else if (strcmp(kind, "binary_big_endian") == 0) {
-                r->format = MS_MESH_FORMAT_PLY_BINARY_BE;
-                h->binary = true;
-                h->swap = host_is_little_endian();
-            } else {
-                return ms_reader_fail_line(r, MS_ERR_UNSUPPORTED, "unknown PLY format '%s'", kind);
-            }
+            if ((st = header_format(r, h, cursor)) != MS_OK)
+                return st;
             have_format = true;
             continue;
         }
         if (!have_format)
             return ms_reader_fail_line(r, MS_ERR_FORMAT, "'%s' before the format line", keyword);
         if (strcmp(keyword, "element") == 0) {
-            char *name = next_word(&cursor);
-            char *count = next_word(&cursor);
-            int64_t n = 0;
-            const char *after = count ? ms_parse_int64(count, &n) : NULL;
-            if (!name || !after || *after || n < 0 || next_word(&cursor))
-                return ms_reader_fail_line(r, MS_ERR_FORMAT, "bad element line");
-            if (strlen(name) >= PLY_MAX_NAME)
-                return ms_reader_fail_line(r, MS_ERR_FORMAT, "element name too long");
-            if (strcmp(name, "vertex") == 0 && n > (int64_t)UINT32_MAX)
-                return ms_reader_fail_line(r, MS_ERR_RANGE,
-                                           "%lld vertices declared; at most %u are supported",
-                                           (long long)n, (unsigned)UINT32_MAX);
-            if (current && (st = finish_element(r, current)) != MS_OK)
+            if ((st = header_element(r, h, cursor, &current)) != MS_OK)
                 return st;
-            if (h->element_count == PLY_MAX_ELEMENTS)
-                return ms_reader_fail_line(r, MS_ERR_UNSUPPORTED, "more than %d elements",
-                                           PLY_MAX_ELEMENTS);
-            current = &h->elements[h->element_count++];
-            strcpy(current->name, name);
-            current->count = (uint64_t)n;
-            current->role = strcmp(name, "vertex") == 0  ? PLY_ROLE_VERTEX
-                            : strcmp(name, "face") == 0  ? PLY_ROLE_FACE
-                            : strcmp(name, "tristrips") == 0 ? PLY_ROLE_STRIPS
-                                                           : PLY_ROLE_OTHER;
-            for (size_t i = 0; i + 1 < h->element_count; ++i)
-                if (current->role != PLY_ROLE_OTHER && h->elements[i].role == current->role)
-                    return ms_reader_fail_line(r, MS_ERR_FORMAT, "second element %s", name);
             continue;
         }
         if (strcmp(keyword, "property") == 0) {
-            if (!current)
-                return ms_reader_fail_line(r, MS_ERR_FORMAT, "property before any element");
-            if (current->prop_count == PLY_MAX_PROPERTIES)
-                return ms_reader_fail_line(r, MS_ERR_UNSUPPORTED, "more than %d properties",
-                                           PLY_MAX_PROPERTIES);
-            ply_property *p = &current->props[current->prop_count];
-            char *type = next_word(&cursor);
-            if (type && strcmp(type, "list") == 0) {
-                char *count_type = next_word(&cursor);
-                char *item_type = next_word(&cursor);
-                if (!count_type || !item_type || !parse_type(count_type, &p->count_type) ||
-                    !parse_type(item_type, &p->type))
-                    return ms_reader_fail_line(r, MS_ERR_FORMAT, "bad list property types");
-                if (!is_integer_type(p->count_type))
-                    return ms_reader_fail_line(r, MS_ERR_FORMAT, "list count type must be an integer");
-                p->is_list = true;
-            } else if (!type || !parse_type(type, &p->type)) {
-                return ms_reader_fail_line(r, MS_ERR_FORMAT, "unknown property type '%s'",
-                                           type ? type : "");
-            }
-            char *name = next_word(&cursor);
-            if (!name || next_word(&cursor) || strlen(name) >= PLY_MAX_NAME)
-                return ms_reader_fail_line(r, MS_ERR_FORMAT, "bad property line");
-            strcpy(p->name, name);
-            for (size_t i = 0; i < current->prop_count; ++i)
-                if (strcmp(current->props[i].name, name) == 0)
-                    return ms_reader_fail_line(r, MS_ERR_FORMAT, "duplicate property %s", name);
-            ++current->prop_count;
+            if ((st = header_property(r, current, cursor)) != MS_OK)
+                return st;
             continue;
         }
         return ms_reader_fail_line(r, MS_ERR_FORMAT, "unknown header keyword '%s'", keyword);

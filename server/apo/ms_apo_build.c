@@ -397,6 +397,107 @@ static ms_status split_level(const ms_apo_build_options *o, unsigned threads, co
     return st;
 }
 
+/* The root level: every m- and M-triangle that touches the cube (none when
+ * no m-triangle does: *level_count stays 0). */
+static ms_status root_level(const ms_apo_local_mesh *m, const ms_apo_local_mesh *big,
+                            build_level *root, uint32_t *level_count, ms_error *err)
+{
+    u32vec mi = {0}, bi = {0};
+    const float c[3] = {0.5f, 0.5f, 0.5f};
+    bool ok = true;
+    for (uint32_t t = 0; t < m->triangle_count && ok; ++t) {
+        const uint32_t *v = &m->tri[3 * t];
+        if (ms_tri_cube_overlap(c, 0.5f, &m->pos[3 * v[0]], &m->pos[3 * v[1]], &m->pos[3 * v[2]]))
+            ok = u32vec_push(&mi, t);
+    }
+    for (uint32_t t = 0; t < big->triangle_count && ok && mi.n; ++t) {
+        const uint32_t *v = &big->tri[3 * t];
+        if (ms_tri_cube_overlap(c, 0.5f, &big->pos[3 * v[0]], &big->pos[3 * v[1]], &big->pos[3 * v[2]]))
+            ok = u32vec_push(&bi, t);
+    }
+    if (ok && mi.n) {
+        root->count = 1;
+        root->cell = calloc(3, sizeof *root->cell);
+        root->m_off = malloc(2 * sizeof *root->m_off);
+        root->big_off = malloc(2 * sizeof *root->big_off);
+        ok = root->cell && root->m_off && root->big_off;
+        if (ok) {
+            root->m_off[0] = root->big_off[0] = 0;
+            root->m_off[1] = mi.n;
+            root->big_off[1] = bi.n;
+            root->m_idx = mi.v;
+            root->big_idx = bi.v ? bi.v : malloc(sizeof(uint32_t));
+            mi.v = NULL;
+            bi.v = NULL;
+            ok = root->big_idx != NULL;
+        }
+        *level_count = 1;
+    }
+    u32vec_free(&mi);
+    u32vec_free(&bi);
+    if (!ok)
+        return ms_error_set(err, MS_ERR_NOMEM, "apo build: no memory for the root");
+    return MS_OK;
+}
+
+/* The levels as the tree's node array, breadth-first. */
+static ms_status flatten_levels(const build_level *levels, uint32_t level_count, ms_apo_tree *tree,
+                                ms_error *err)
+{
+    size_t total = 0;
+    for (uint32_t d = 0; d < level_count; ++d)
+        total += levels[d].count;
+    tree->nodes = calloc(total, sizeof *tree->nodes);
+    if (!tree->nodes)
+        return ms_error_set(err, MS_ERR_NOMEM, "apo build: no memory for %zu nodes", total);
+    size_t idx = 0;
+    for (uint32_t d = 0; d < level_count; ++d) {
+        tree->level_start[d] = idx;
+        size_t child = idx + levels[d].count;
+        for (size_t i = 0; i < levels[d].count; ++i, ++idx) {
+            ms_apo_node *n = &tree->nodes[idx];
+            memcpy(n->cell, &levels[d].cell[3 * i], sizeof n->cell);
+            n->depth = (uint8_t)d;
+            n->child_mask = levels[d].child_mask ? levels[d].child_mask[i] : 0;
+            if (n->child_mask) {
+                n->first_child = (uint32_t)child;
+                child += (size_t)ms_apo_popcount8(n->child_mask);
+            }
+        }
+    }
+    tree->node_count = total;
+    tree->level_count = level_count;
+    tree->level_start[level_count] = total;
+    return MS_OK;
+}
+
+/* Leaf normals sampled on M, then the means up the tree. */
+static ms_status sample_normals(const ms_apo_build_options *o, unsigned threads,
+                                const ms_apo_local_mesh *m, ms_apo_sampler *sampler,
+                                ms_apo_tree *tree, build_level *levels, ms_apo_build_stats *stats,
+                                ms_error *err)
+{
+    size_t bs = block_size_for(tree->node_count, 1024, 256);
+    size_t blocks = (tree->node_count + bs - 1) / bs;
+    ms_apo_sample_counts *counts = calloc(blocks, sizeof *counts);
+    if (!counts)
+        return ms_error_set(err, MS_ERR_NOMEM, "apo build: no memory");
+    sample_job sj = {.o = o, .m = m, .sampler = sampler, .tree = tree, .levels = levels,
+                     .h = stats->m_to_M_distance, .block_size = bs, .counts = counts};
+    ms_status st = ms_parallel_for(threads, blocks, sample_block, &sj, err);
+    for (size_t b = 0; b < blocks; ++b) {
+        stats->samples += counts[b].samples;
+        stats->ray_hits += counts[b].ray_hits;
+        stats->rays += counts[b].rays;
+        stats->point_queries += counts[b].point_queries;
+        stats->closest_points += counts[b].closest_points;
+        stats->unsampled += counts[b].unsampled;
+    }
+    free(counts);
+    ms_apo_tree_average_normals(tree);
+    return st;
+}
+
 ms_status ms_apo_builder_build_tree(ms_apo_builder *builder, const ms_mesh *m_mesh, const ms_mesh *big_mesh,
                                     const ms_apo_build_options *o, ms_apo_tree *tree, ms_apo_build_stats *stats,
                                     ms_error *err)
@@ -429,45 +530,7 @@ ms_status ms_apo_builder_build_tree(ms_apo_builder *builder, const ms_mesh *m_me
     memset(levels, 0, sizeof levels);
     uint32_t level_count = 0;
 
-    /* Root: every m- and M-triangle that touches the cube. */
-    {
-        build_level *root = &levels[0];
-        u32vec mi = {0}, bi = {0};
-        const float c[3] = {0.5f, 0.5f, 0.5f};
-        bool ok = true;
-        for (uint32_t t = 0; t < m.triangle_count && ok; ++t) {
-            const uint32_t *v = &m.tri[3 * t];
-            if (ms_tri_cube_overlap(c, 0.5f, &m.pos[3 * v[0]], &m.pos[3 * v[1]], &m.pos[3 * v[2]]))
-                ok = u32vec_push(&mi, t);
-        }
-        for (uint32_t t = 0; t < big.triangle_count && ok && mi.n; ++t) {
-            const uint32_t *v = &big.tri[3 * t];
-            if (ms_tri_cube_overlap(c, 0.5f, &big.pos[3 * v[0]], &big.pos[3 * v[1]], &big.pos[3 * v[2]]))
-                ok = u32vec_push(&bi, t);
-        }
-        if (ok && mi.n) {
-            root->count = 1;
-            root->cell = calloc(3, sizeof *root->cell);
-            root->m_off = malloc(2 * sizeof *root->m_off);
-            root->big_off = malloc(2 * sizeof *root->big_off);
-            ok = root->cell && root->m_off && root->big_off;
-            if (ok) {
-                root->m_off[0] = root->big_off[0] = 0;
-                root->m_off[1] = mi.n;
-                root->big_off[1] = bi.n;
-                root->m_idx = mi.v;
-                root->big_idx = bi.v ? bi.v : malloc(sizeof(uint32_t));
-                mi.v = NULL;
-                bi.v = NULL;
-                ok = root->big_idx != NULL;
-            }
-            level_count = 1;
-        }
-        u32vec_free(&mi);
-        u32vec_free(&bi);
-        if (!ok)
-            st = ms_error_set(err, MS_ERR_NOMEM, "apo build: no memory for the root");
-    }
+    st = root_level(&m, &big, &levels[0], &level_count, err);
     /* Embree scene for M, and h. */
     double ts = ms_now_seconds();
     if (st == MS_OK && level_count)
@@ -492,60 +555,14 @@ ms_status ms_apo_builder_build_tree(ms_apo_builder *builder, const ms_mesh *m_me
             level_count = d + 2;
         }
     }
-    if (st == MS_OK && level_count) {
-        size_t total = 0;
-        for (uint32_t d = 0; d < level_count; ++d)
-            total += levels[d].count;
-        tree->nodes = calloc(total, sizeof *tree->nodes);
-        if (!tree->nodes) {
-            st = ms_error_set(err, MS_ERR_NOMEM, "apo build: no memory for %zu nodes", total);
-        } else {
-            size_t idx = 0;
-            for (uint32_t d = 0; d < level_count; ++d) {
-                tree->level_start[d] = idx;
-                size_t child = idx + levels[d].count;
-                for (size_t i = 0; i < levels[d].count; ++i, ++idx) {
-                    ms_apo_node *n = &tree->nodes[idx];
-                    memcpy(n->cell, &levels[d].cell[3 * i], sizeof n->cell);
-                    n->depth = (uint8_t)d;
-                    n->child_mask = levels[d].child_mask ? levels[d].child_mask[i] : 0;
-                    if (n->child_mask) {
-                        n->first_child = (uint32_t)child;
-                        child += (size_t)ms_apo_popcount8(n->child_mask);
-                    }
-                }
-            }
-            tree->node_count = total;
-            tree->level_count = level_count;
-            tree->level_start[level_count] = total;
-        }
-    }
+    if (st == MS_OK && level_count)
+        st = flatten_levels(levels, level_count, tree, err);
     double t2 = ms_now_seconds();
     stats->seconds_octree = t2 - t1;
 
     /* Leaf normals, then the means. */
-    if (st == MS_OK && tree->node_count) {
-        size_t bs = block_size_for(tree->node_count, 1024, 256);
-        size_t blocks = (tree->node_count + bs - 1) / bs;
-        ms_apo_sample_counts *counts = calloc(blocks, sizeof *counts);
-        if (!counts) {
-            st = ms_error_set(err, MS_ERR_NOMEM, "apo build: no memory");
-        } else {
-            sample_job sj = {.o = o, .m = &m, .sampler = &sampler, .tree = tree, .levels = levels,
-                             .h = stats->m_to_M_distance, .block_size = bs, .counts = counts};
-            st = ms_parallel_for(threads, blocks, sample_block, &sj, err);
-            for (size_t b = 0; b < blocks; ++b) {
-                stats->samples += counts[b].samples;
-                stats->ray_hits += counts[b].ray_hits;
-                stats->rays += counts[b].rays;
-                stats->point_queries += counts[b].point_queries;
-                stats->closest_points += counts[b].closest_points;
-                stats->unsampled += counts[b].unsampled;
-            }
-            free(counts);
-            ms_apo_tree_average_normals(tree);
-        }
-    }
+    if (st == MS_OK && tree->node_count)
+        st = sample_normals(o, threads, &m, &sampler, tree, levels, stats, err);
     stats->seconds_sample = ms_now_seconds() - t2;
     if (st == MS_OK) {
         ms_apo_tree_counts(tree, &stats->internal_nodes, &stats->leaves);

@@ -194,7 +194,24 @@ static double time_lookups(const ms_apo_view *view, uint64_t count)
     return sink == 1 ? 0.0 : (double)count / (dt > 0 ? dt : 1e-9);
 }
 
-int ms_apo_classic_cli(int argc, char **argv)
+/* What the command line asks for. */
+typedef struct cli_args {
+    ms_apo_classic_options o;
+    const char *in, *out_path, *simplified_path, *save_path, *png_path;
+    int json;
+    uint64_t lookups;
+    size_t accuracy_points;
+} cli_args;
+
+/* What a run measured, for the report. */
+typedef struct cli_results {
+    ms_apo_classic_report r;
+    accuracy acc[2];
+    double load_seconds, run_cpu, lookup_rate;
+} cli_results;
+
+/* Returns -1 to go on, or the exit status to end with. */
+static int parse_cli(int argc, char **argv, cli_args *a)
 {
     enum { OPT_CLASSIC = 256, OPT_SIMPLIFY, OPT_TOL, OPT_INIT, OPT_MAX, OPT_MEASURE, OPT_SEARCH, OPT_THREADS, OPT_JSON, OPT_HELP, OPT_SIMPLIFIED, OPT_SAVE, OPT_LOOKUPS, OPT_ACCURACY, OPT_PNG };
     static const struct option longs[] = {
@@ -209,12 +226,10 @@ int ms_apo_classic_cli(int argc, char **argv)
         {"bench-accuracy", required_argument, NULL, OPT_ACCURACY},
         {"png", required_argument, NULL, OPT_PNG},
         {NULL, 0, NULL, 0}};
-    ms_apo_classic_options o;
-    ms_apo_classic_options_default(&o);
-    const char *out_path = NULL, *simplified_path = NULL, *save_path = NULL, *png_path = NULL;
-    int json = 0, c;
-    uint64_t lookups = 0;
-    size_t accuracy_points = 0;
+    memset(a, 0, sizeof *a);
+    ms_apo_classic_options_default(&a->o);
+    ms_apo_classic_options *o = &a->o;
+    int c;
     int64_t v;
     opterr = 0;
     optind = 1;
@@ -224,55 +239,55 @@ int ms_apo_classic_cli(int argc, char **argv)
         case OPT_SIMPLIFY:
             if (parse_int(optarg, "--simplify", 4, 1000000000, &v) != 0)
                 return 2;
-            o.simplify_triangles = (size_t)v;
+            o->simplify_triangles = (size_t)v;
             break;
         case OPT_TOL:
-            if (parse_double(optarg, "--apo-tol", 0, 1e12, &o.tolerance) != 0)
+            if (parse_double(optarg, "--apo-tol", 0, 1e12, &o->tolerance) != 0)
                 return 2;
             break;
         case OPT_INIT:
             if (parse_int(optarg, "--apo-init-depth", 0, 30, &v) != 0)
                 return 2;
-            o.init_depth = (uint32_t)v;
+            o->init_depth = (uint32_t)v;
             break;
         case OPT_MAX:
             if (parse_int(optarg, "--apo-max-depth", 0, 30, &v) != 0)
                 return 2;
-            o.max_depth = (uint32_t)v;
+            o->max_depth = (uint32_t)v;
             break;
         case OPT_MEASURE:
             if (strcmp(optarg, "classic") == 0)
-                o.measure = MS_APO_MEASURE_CLASSIC;
+                o->measure = MS_APO_MEASURE_CLASSIC;
             else if (strcmp(optarg, "spread") == 0)
-                o.measure = MS_APO_MEASURE_SPREAD;
+                o->measure = MS_APO_MEASURE_SPREAD;
             else {
                 return usage_error("--apo-measure is classic or spread", optarg);
             }
             break;
         case OPT_SEARCH:
-            if (parse_double(optarg, "--apo-search", 0, 1, &o.search_distance) != 0)
+            if (parse_double(optarg, "--apo-search", 0, 1, &o->search_distance) != 0)
                 return 2;
             break;
         case OPT_THREADS:
             if (parse_int(optarg, "--threads", 0, 1024, &v) != 0)
                 return 2;
-            o.threads = (unsigned)v;
+            o->threads = (unsigned)v;
             break;
-        case 'o': out_path = optarg; break;
-        case OPT_SIMPLIFIED: simplified_path = optarg; break;
-        case OPT_SAVE: save_path = optarg; break;
+        case 'o': a->out_path = optarg; break;
+        case OPT_SIMPLIFIED: a->simplified_path = optarg; break;
+        case OPT_SAVE: a->save_path = optarg; break;
         case OPT_LOOKUPS:
             if (parse_int(optarg, "--bench-lookups", 0, 1000000000, &v) != 0)
                 return 2;
-            lookups = (uint64_t)v;
+            a->lookups = (uint64_t)v;
             break;
-        case OPT_PNG: png_path = optarg; break;
+        case OPT_PNG: a->png_path = optarg; break;
         case OPT_ACCURACY:
             if (parse_int(optarg, "--bench-accuracy", 0, 1000000000, &v) != 0)
                 return 2;
-            accuracy_points = (size_t)v;
+            a->accuracy_points = (size_t)v;
             break;
-        case OPT_JSON: json = 1; break;
+        case OPT_JSON: a->json = 1; break;
         case 'h':
         case OPT_HELP: ms_apo_classic_cli_usage(stdout); return 0;
         case ':': return usage_error("option needs a value", argv[optind - 1]);
@@ -281,13 +296,37 @@ int ms_apo_classic_cli(int argc, char **argv)
     }
     if (optind != argc - 1)
         return usage_error(optind < argc ? "expected one input, got more" : "missing input file", NULL);
-    const char *in = argv[optind];
+    a->in = argv[optind];
+    return -1;
+}
+
+/* The top view of the chunk's tree as a 1024 x 1024 grey PNG. */
+static ms_status write_top_view(const ms_apo_chunk *chunk, const char *path, ms_error *err)
+{
+    enum { PNG_SIZE = 1024 };
+    ms_apo_view view;
+    uint8_t *grey = malloc((size_t)PNG_SIZE * PNG_SIZE);
+    ms_status st = grey ? ms_apo_view_of_chunk(&view, chunk, err)
+                        : ms_error_set(err, MS_ERR_NOMEM, "no memory for the picture");
+    if (st == MS_OK) {
+        ms_apo_render_top_view(&view, MS_APO_MAX_DEPTH, PNG_SIZE, PNG_SIZE, grey);
+        st = ms_png_write(path, grey, PNG_SIZE, PNG_SIZE, 1, err);
+    }
+    free(grey);
+    return st;
+}
+
+/* Loads the input (and a given simplified mesh), builds the chunk (kept in
+ * *chunk when *keep_chunk), measures its accuracy and saves the simplified
+ * mesh as asked. Returns 0, or the exit status after printing the error. */
+static int build_chunk(cli_args *a, cli_results *res, ms_apo_chunk *chunk, bool *keep_chunk)
+{
     ms_error err;
     ms_error_clear(&err);
     ms_mesh mesh;
     memset(&mesh, 0, sizeof mesh);
     double t0 = ms_now_seconds();
-    int lr = load_input(in, &mesh, &err);
+    int lr = load_input(a->in, &mesh, &err);
     if (lr == -1)
         return 2;
     if (lr != 0) {
@@ -297,152 +336,181 @@ int ms_apo_classic_cli(int argc, char **argv)
     ms_mesh given, kept;
     memset(&given, 0, sizeof given);
     memset(&kept, 0, sizeof kept);
-    if (simplified_path) {
-        if (ms_mesh_load(simplified_path, &given, NULL, &err) != MS_OK) {
+    if (a->simplified_path) {
+        if (ms_mesh_load(a->simplified_path, &given, NULL, &err) != MS_OK) {
             fprintf(stderr, "meshbake: %s\n", err.text);
             ms_mesh_free(&mesh);
             return 1;
         }
-        o.simplified = &given;
+        a->o.simplified = &given;
     }
-    if (save_path)
-        o.keep_simplified = &kept;
-    double load_seconds = ms_now_seconds() - t0;
-    ms_apo_classic_report r;
-    ms_apo_chunk chunk;
-    bool keep_chunk = out_path || lookups || accuracy_points || png_path;
-    ms_status st = ms_apo_classic_run(&mesh, &o, keep_chunk ? &chunk : NULL, &r, &err);
-    double run_cpu = cpu_seconds(); /* reading + the whole run, before any extra measurement */
-    accuracy acc[2];
-    memset(acc, 0, sizeof acc);
-    if (st == MS_OK && accuracy_points) {
+    if (a->save_path)
+        a->o.keep_simplified = &kept;
+    res->load_seconds = ms_now_seconds() - t0;
+    *keep_chunk = a->out_path || a->lookups || a->accuracy_points || a->png_path;
+    ms_status st = ms_apo_classic_run(&mesh, &a->o, *keep_chunk ? chunk : NULL, &res->r, &err);
+    res->run_cpu = cpu_seconds(); /* reading + the whole run, before any extra measurement */
+    if (st == MS_OK && a->accuracy_points) {
         ms_apo_view view;
-        st = ms_apo_view_of_chunk(&view, &chunk, &err);
+        st = ms_apo_view_of_chunk(&view, chunk, &err);
         if (st == MS_OK)
-            st = measure_accuracy(&view, &mesh, &r, accuracy_points, acc, &err);
+            st = measure_accuracy(&view, &mesh, &res->r, a->accuracy_points, res->acc, &err);
     }
     ms_mesh_free(&mesh);
     ms_mesh_free(&given);
-    if (st == MS_OK && save_path && kept.triangle_count)
-        st = ms_ply_write(save_path, &kept, true, true, &err);
+    a->o.simplified = NULL;
+    a->o.keep_simplified = NULL;
+    if (st == MS_OK && a->save_path && kept.triangle_count)
+        st = ms_ply_write(a->save_path, &kept, true, true, &err);
     ms_mesh_free(&kept);
     if (st != MS_OK) {
-        if (keep_chunk)
-            ms_apo_chunk_free(&chunk);
+        if (*keep_chunk)
+            ms_apo_chunk_free(chunk);
         fprintf(stderr, "meshbake: %s\n", err.text);
         return 1;
     }
-    if (png_path) {
-        enum { PNG_SIZE = 1024 };
+    return 0;
+}
+
+/* The picture, the lookup rate and the blob file the command line asks for;
+ * 0, or 1 after printing the error. The chunk stays the caller's. */
+static int use_chunk(const cli_args *a, cli_results *res, const ms_apo_chunk *chunk)
+{
+    ms_error err;
+    if (a->png_path && write_top_view(chunk, a->png_path, &err) != MS_OK) {
+        fprintf(stderr, "meshbake: %s\n", err.text);
+        return 1;
+    }
+    res->lookup_rate = 0.0;
+    if (a->lookups) {
         ms_apo_view view;
-        uint8_t *grey = malloc((size_t)PNG_SIZE * PNG_SIZE);
-        st = grey ? ms_apo_view_of_chunk(&view, &chunk, &err)
-                  : ms_error_set(&err, MS_ERR_NOMEM, "no memory for the picture");
-        if (st == MS_OK) {
-            ms_apo_render_top_view(&view, MS_APO_MAX_DEPTH, PNG_SIZE, PNG_SIZE, grey);
-            st = ms_png_write(png_path, grey, PNG_SIZE, PNG_SIZE, 1, &err);
-        }
-        free(grey);
-        if (st != MS_OK) {
+        if (ms_apo_view_of_chunk(&view, chunk, &err) != MS_OK) {
             fprintf(stderr, "meshbake: %s\n", err.text);
-            ms_apo_chunk_free(&chunk);
             return 1;
         }
+        res->lookup_rate = time_lookups(&view, a->lookups);
     }
-    double lookup_rate = 0.0;
-    if (lookups) {
-        ms_apo_view view;
-        if (ms_apo_view_of_chunk(&view, &chunk, &err) != MS_OK) {
-            fprintf(stderr, "meshbake: %s\n", err.text);
-            ms_apo_chunk_free(&chunk);
-            return 1;
-        }
-        lookup_rate = time_lookups(&view, lookups);
-    }
-    if (out_path) {
+    if (a->out_path) {
         uint8_t *blob = NULL;
         size_t size = 0;
-        st = ms_apo_blob_write(&chunk, o.zlib_level, &blob, &size, &err);
-        int wr = st == MS_OK ? write_file(out_path, blob, size) : -1;
+        ms_status st = ms_apo_blob_write(chunk, a->o.zlib_level, &blob, &size, &err);
+        int wr = st == MS_OK ? write_file(a->out_path, blob, size) : -1;
         free(blob);
         if (st != MS_OK)
             fprintf(stderr, "meshbake: %s\n", err.text);
         if (st != MS_OK || wr != 0)
             return 1;
     }
+    return 0;
+}
+
+static void report_json(const cli_args *a, const cli_results *res)
+{
+    const ms_apo_classic_options o = a->o;
+    const ms_apo_classic_report r = res->r;
+    const accuracy *acc = res->acc;
+    const char *in = a->in, *measure = o.measure == MS_APO_MEASURE_CLASSIC ? "classic" : "spread";
+    double run_cpu = res->run_cpu, load_seconds = res->load_seconds, lookup_rate = res->lookup_rate;
+    uint64_t lookups = a->lookups;
+    size_t accuracy_points = a->accuracy_points;
+        json_t *level_texels = json_array();
+    for (uint32_t d = 0; d < r.levels; ++d)
+        json_array_append_new(level_texels, json_integer(r.level_texels[d]));
+    json_t *root = json_pack(
+        "{s:o, s:I, s:I, s:I, s:f, s:s, s:i, s:i, s:I, s:I, s:I, s:I, s:I, s:I, s:i, s:[i, i], s:o, "
+        "s:I, s:I, s:I, s:I, s:o, s:o, s:o, s:o}",
+        "input", ms_json_text(in), "input_triangles", (json_int_t)r.input_triangles,
+        "simplified_triangles", (json_int_t)r.simplified_triangles, "refused_faces",
+        (json_int_t)r.refused_faces, "tolerance", o.tolerance, "measure", measure, "init_depth",
+        (int)o.init_depth, "max_depth", (int)o.max_depth, "internal_nodes", (json_int_t)r.internal_nodes,
+        "leaves", (json_int_t)r.leaves, "cells", (json_int_t)(r.internal_nodes + r.leaves), "texels",
+        (json_int_t)r.texels, "bytes", (json_int_t)r.bytes, "stored_bytes", (json_int_t)r.stored_bytes,
+        "levels", (int)r.levels, "texture", (int)r.texture_width, (int)r.texture_height, "level_texels",
+        level_texels, "samples", (json_int_t)r.build.samples, "ray_hits", (json_int_t)r.build.ray_hits,
+        "closest_points", (json_int_t)r.build.closest_points, "unsampled", (json_int_t)r.build.unsampled,
+        "m_to_M_distance", ms_json_number(r.build.m_to_M_distance), "cpu_seconds", ms_json_fixed(run_cpu, 3),
+        "seconds", ms_json_fixed(r.seconds_total, 3), "seconds_apo", ms_json_fixed(r.seconds_apo, 3));
+    if (root) {
+        json_object_set_new(root, "phases",
+                            json_pack("{s:o, s:o, s:o, s:o, s:o, s:o, s:o, s:o, s:o}", "load",
+                                      ms_json_fixed(load_seconds, 3), "simplify",
+                                      ms_json_fixed(r.seconds_simplify, 3), "prepare",
+                                      ms_json_fixed(r.seconds_prepare, 3), "embree_scene",
+                                      ms_json_fixed(r.build.seconds_scene, 3), "distance",
+                                      ms_json_fixed(r.build.seconds_distance, 3), "octree",
+                                      ms_json_fixed(r.seconds_octree, 3), "sample",
+                                      ms_json_fixed(r.seconds_sample, 3), "encode",
+                                      ms_json_fixed(r.seconds_encode, 3), "store",
+                                      ms_json_fixed(r.seconds_store, 3)));
+        if (lookups)
+            json_object_set_new(root, "lookups_per_second", json_integer((json_int_t)llround(lookup_rate)));
+        if (accuracy_points) {
+            json_t *accuracy_report = json_pack("{s:I}", "points", (json_int_t)acc[0].points);
+            for (int rule = 0; rule < 2; ++rule)
+                json_object_set_new(accuracy_report, rule ? "nearest" : "stop",
+                                    json_pack("{s:I, s:o, s:o, s:o}", "off_tree", (json_int_t)acc[rule].off_tree,
+                                              "mean_deg", ms_json_fixed(acc[rule].mean, 3), "median_deg",
+                                              ms_json_fixed(acc[rule].median, 3), "p90_deg",
+                                              ms_json_fixed(acc[rule].p90, 3)));
+            json_object_set_new(root, "accuracy", accuracy_report);
+        }
+        json_object_set_new(root, "peak_rss_mb", ms_json_fixed(ms_peak_rss_mb(), 1));
+    }
+    ms_json_print(stdout, root, MS_JSON_COMPACT);
+}
+
+static void report_text(const cli_args *a, const cli_results *res)
+{
+    const ms_apo_classic_options *o = &a->o;
+    const ms_apo_classic_report *r = &res->r;
+    const accuracy *acc = res->acc;
+    const char *measure = o->measure == MS_APO_MEASURE_CLASSIC ? "classic" : "spread";
+    printf("input            %s: %zu triangles, simplified to %zu (%zu refused)\n", a->in, r->input_triangles,
+           r->simplified_triangles, r->refused_faces);
+    printf("settings         measure %s, tolerance %g, depths %u..%u\n", measure, o->tolerance, o->init_depth,
+           o->max_depth);
+    printf("octree           %zu internal nodes, %zu leaves, %zu cells, %u levels\n", r->internal_nodes,
+           r->leaves, r->internal_nodes + r->leaves, r->levels);
+    printf("texels           %zu (%zu bytes, stored %zu bytes; 2D layout %ux%u)\n", r->texels, r->bytes,
+           r->stored_bytes, r->texture_width, r->texture_height);
+    printf("samples          %llu: %llu ray hits, %llu closest points, %llu unsampled; m-to-M %.3g\n",
+           (unsigned long long)r->build.samples, (unsigned long long)r->build.ray_hits,
+           (unsigned long long)r->build.closest_points, (unsigned long long)r->build.unsampled,
+           r->build.m_to_M_distance);
+    printf("seconds          load %.2f, simplify %.2f, prepare %.2f, octree %.2f, sample %.2f, encode %.2f, "
+           "store %.2f; APO %.2f, total %.2f (without load)\n",
+           res->load_seconds, r->seconds_simplify, r->seconds_prepare, r->seconds_octree, r->seconds_sample,
+           r->seconds_encode, r->seconds_store, r->seconds_apo, r->seconds_total);
+    printf("cpu seconds      %.2f (all threads, reading included)\n", res->run_cpu);
+    for (int rule = 0; rule < 2 && a->accuracy_points; ++rule)
+        printf("accuracy %-7s  %zu centroids of M, %zu off the tree: angle to M mean %.2f, median %.2f, "
+               "p90 %.2f degrees\n",
+               rule ? "nearest" : "stop", acc[rule].points, acc[rule].off_tree, acc[rule].mean,
+               acc[rule].median, acc[rule].p90);
+    if (a->lookups)
+        printf("lookups          %.3g per second (CPU reference, one thread, random points)\n", res->lookup_rate);
+}
+
+int ms_apo_classic_cli(int argc, char **argv)
+{
+    cli_args a;
+    int status = parse_cli(argc, argv, &a);
+    if (status >= 0)
+        return status;
+    cli_results res;
+    memset(&res, 0, sizeof res);
+    ms_apo_chunk chunk;
+    bool keep_chunk = false;
+    if ((status = build_chunk(&a, &res, &chunk, &keep_chunk)) != 0)
+        return status;
+    status = use_chunk(&a, &res, &chunk);
     if (keep_chunk)
         ms_apo_chunk_free(&chunk);
-    const char *measure = o.measure == MS_APO_MEASURE_CLASSIC ? "classic" : "spread";
-    if (json) {
-        json_t *level_texels = json_array();
-        for (uint32_t d = 0; d < r.levels; ++d)
-            json_array_append_new(level_texels, json_integer(r.level_texels[d]));
-        json_t *root = json_pack(
-            "{s:o, s:I, s:I, s:I, s:f, s:s, s:i, s:i, s:I, s:I, s:I, s:I, s:I, s:I, s:i, s:[i, i], s:o, "
-            "s:I, s:I, s:I, s:I, s:o, s:o, s:o, s:o}",
-            "input", ms_json_text(in), "input_triangles", (json_int_t)r.input_triangles,
-            "simplified_triangles", (json_int_t)r.simplified_triangles, "refused_faces",
-            (json_int_t)r.refused_faces, "tolerance", o.tolerance, "measure", measure, "init_depth",
-            (int)o.init_depth, "max_depth", (int)o.max_depth, "internal_nodes", (json_int_t)r.internal_nodes,
-            "leaves", (json_int_t)r.leaves, "cells", (json_int_t)(r.internal_nodes + r.leaves), "texels",
-            (json_int_t)r.texels, "bytes", (json_int_t)r.bytes, "stored_bytes", (json_int_t)r.stored_bytes,
-            "levels", (int)r.levels, "texture", (int)r.texture_width, (int)r.texture_height, "level_texels",
-            level_texels, "samples", (json_int_t)r.build.samples, "ray_hits", (json_int_t)r.build.ray_hits,
-            "closest_points", (json_int_t)r.build.closest_points, "unsampled", (json_int_t)r.build.unsampled,
-            "m_to_M_distance", ms_json_number(r.build.m_to_M_distance), "cpu_seconds", ms_json_fixed(run_cpu, 3),
-            "seconds", ms_json_fixed(r.seconds_total, 3), "seconds_apo", ms_json_fixed(r.seconds_apo, 3));
-        if (root) {
-            json_object_set_new(root, "phases",
-                                json_pack("{s:o, s:o, s:o, s:o, s:o, s:o, s:o, s:o, s:o}", "load",
-                                          ms_json_fixed(load_seconds, 3), "simplify",
-                                          ms_json_fixed(r.seconds_simplify, 3), "prepare",
-                                          ms_json_fixed(r.seconds_prepare, 3), "embree_scene",
-                                          ms_json_fixed(r.build.seconds_scene, 3), "distance",
-                                          ms_json_fixed(r.build.seconds_distance, 3), "octree",
-                                          ms_json_fixed(r.seconds_octree, 3), "sample",
-                                          ms_json_fixed(r.seconds_sample, 3), "encode",
-                                          ms_json_fixed(r.seconds_encode, 3), "store",
-                                          ms_json_fixed(r.seconds_store, 3)));
-            if (lookups)
-                json_object_set_new(root, "lookups_per_second", json_integer((json_int_t)llround(lookup_rate)));
-            if (accuracy_points) {
-                json_t *accuracy_report = json_pack("{s:I}", "points", (json_int_t)acc[0].points);
-                for (int rule = 0; rule < 2; ++rule)
-                    json_object_set_new(accuracy_report, rule ? "nearest" : "stop",
-                                        json_pack("{s:I, s:o, s:o, s:o}", "off_tree", (json_int_t)acc[rule].off_tree,
-                                                  "mean_deg", ms_json_fixed(acc[rule].mean, 3), "median_deg",
-                                                  ms_json_fixed(acc[rule].median, 3), "p90_deg",
-                                                  ms_json_fixed(acc[rule].p90, 3)));
-                json_object_set_new(root, "accuracy", accuracy_report);
-            }
-            json_object_set_new(root, "peak_rss_mb", ms_json_fixed(ms_peak_rss_mb(), 1));
-        }
-        ms_json_print(stdout, root, MS_JSON_COMPACT);
-    } else {
-        printf("input            %s: %zu triangles, simplified to %zu (%zu refused)\n", in, r.input_triangles,
-               r.simplified_triangles, r.refused_faces);
-        printf("settings         measure %s, tolerance %g, depths %u..%u\n", measure, o.tolerance, o.init_depth,
-               o.max_depth);
-        printf("octree           %zu internal nodes, %zu leaves, %zu cells, %u levels\n", r.internal_nodes,
-               r.leaves, r.internal_nodes + r.leaves, r.levels);
-        printf("texels           %zu (%zu bytes, stored %zu bytes; 2D layout %ux%u)\n", r.texels, r.bytes,
-               r.stored_bytes, r.texture_width, r.texture_height);
-        printf("samples          %llu: %llu ray hits, %llu closest points, %llu unsampled; m-to-M %.3g\n",
-               (unsigned long long)r.build.samples, (unsigned long long)r.build.ray_hits,
-               (unsigned long long)r.build.closest_points, (unsigned long long)r.build.unsampled,
-               r.build.m_to_M_distance);
-        printf("seconds          load %.2f, simplify %.2f, prepare %.2f, octree %.2f, sample %.2f, encode %.2f, "
-               "store %.2f; APO %.2f, total %.2f (without load)\n",
-               load_seconds, r.seconds_simplify, r.seconds_prepare, r.seconds_octree, r.seconds_sample,
-               r.seconds_encode, r.seconds_store, r.seconds_apo, r.seconds_total);
-        printf("cpu seconds      %.2f (all threads, reading included)\n", run_cpu);
-        for (int rule = 0; rule < 2 && accuracy_points; ++rule)
-            printf("accuracy %-7s  %zu centroids of M, %zu off the tree: angle to M mean %.2f, median %.2f, "
-                   "p90 %.2f degrees\n",
-                   rule ? "nearest" : "stop", acc[rule].points, acc[rule].off_tree, acc[rule].mean,
-                   acc[rule].median, acc[rule].p90);
-        if (lookups)
-            printf("lookups          %.3g per second (CPU reference, one thread, random points)\n", lookup_rate);
-    }
+    if (status != 0)
+        return status;
+    if (a.json)
+        report_json(&a, &res);
+    else
+        report_text(&a, &res);
     return 0;
 }

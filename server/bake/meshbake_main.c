@@ -66,9 +66,10 @@ static void print_usage(FILE *out)
           "  --public-bits B   preview: precision anyone may read, 0..P; beyond it a\n"
           "                    client needs meshserve's token (default P: all public)\n"
           "  --threads N       encoding threads (default: the CPUs online)\n"
-          "  --mem MB          memory budget (default 512): an eighth buffers leaf content,\n"
-          "                    the rest is for encoding; plus 8 bytes per input vertex\n"
-          "                    for the vertex keys\n"
+          "  --mem MB          memory budget (default 512): a quarter caches vertex keys,\n"
+          "                    an eighth buffers leaf content, the rest is for encoding;\n"
+          "                    refused below 2 MB + one leaf's working set per thread\n"
+          "                    (about 512 bytes per --min-tris triangle)\n"
           "  --tmp DIR         temporary files (default: ARCHIVE_DIR); unlinked at creation\n"
           "  --apo, --no-apo   give every cell an APO chunk of normals (default: on)\n"
           "  --apo-lead L      chunk depth: L levels below the cell's finest geometric\n"
@@ -362,9 +363,10 @@ static int run_info(const bake_options *options)
 
 static void print_bake_json(const ms_bake_options *o, const ms_bake_report *r)
 {
-    json_t *seconds = json_pack("{s:f, s:f, s:f, s:f, s:f, s:f, s:f}", "read", r->seconds_read,
+    json_t *seconds = json_pack("{s:f, s:f, s:f, s:f, s:f, s:f, s:f, s:f}", "read", r->seconds_read,
                                 "quantise", r->seconds_quantise, "distribute",
-                                r->seconds_distribute, "encode", r->seconds_encode, "apo",
+                                r->seconds_distribute, "lone", r->seconds_lone,
+                                "encode", r->seconds_encode, "apo",
                                 r->seconds_apo, "write", r->seconds_write, "total",
                                 r->seconds_total);
     json_t *per_level = json_array();
@@ -409,6 +411,31 @@ static void print_bake_json(const ms_bake_options *o, const ms_bake_report *r)
         "spilled_blocks", (json_int_t)r->blocks_written, "apo", apo,
         "parameters", "bits", (int)o->bits, "n", (int)o->n, "root_bits", (int)o->root_bits,
         "min_tris", (int)o->min_triangles, "mem_mb", (int)o->mem_mb);
+    const struct { const char *phase; const ms_nsp_io *io; } phases[] = {
+        {"read", &r->io_read}, {"quantise", &r->io_quantise}, {"distribute", &r->io_distribute},
+        {"lone", &r->io_lone}, {"encode", &r->io_encode}};
+    json_t *io = json_object();
+    for (size_t i = 0; io && i < sizeof phases / sizeof *phases; ++i)
+        json_object_set_new(io, phases[i].phase,
+                            json_pack("{s:I, s:I}", "spilled_bytes", (json_int_t)phases[i].io->spilled,
+                                      "read_back_bytes", (json_int_t)phases[i].io->read_back));
+    json_t *by_depth = json_array();
+    for (unsigned d = 0; by_depth && d < MS_NSP_MAX_DEPTH; ++d)
+        if (r->depth_leaves[d] > 0)
+            json_array_append_new(by_depth, json_pack("{s:i, s:I, s:I, s:I}", "depth", (int)d, "leaves",
+                                                      (json_int_t)r->depth_leaves[d], "triangles",
+                                                      (json_int_t)r->depth_triangles[d], "duplicates",
+                                                      (json_int_t)(r->depth_triangles[d] - r->depth_owned[d])));
+    if (root && by_depth)
+        json_object_set_new(root, "duplication_by_leaf_depth", by_depth);
+    else
+        json_decref(by_depth);
+    if (root && io) {
+        json_object_set_new(root, "temporary_io", io);
+        json_object_set_new(root, "key_page_misses", json_integer((json_int_t)r->key_page_misses));
+    } else {
+        json_decref(io);
+    }
     if (root) {
         json_object_set_new(root, "duplicated_at_insertion",
                             json_real(r->duplicated_at_insertion_percent));
@@ -450,12 +477,19 @@ static void print_bake_text(const ms_bake_report *r)
             printf(" %" PRIu64, r->apo_level_texels[d]);
         printf("\n");
     }
-    printf("seconds:              read %.2f, quantise %.2f, distribute %.2f, encode %.2f "
+    printf("seconds:              read %.2f, quantise %.2f, distribute %.2f, lone %.2f, encode %.2f "
            "(APO %.2f), write %.2f, total %.2f (%.0f triangles/s on %u threads)\n",
-           r->seconds_read, r->seconds_quantise, r->seconds_distribute, r->seconds_encode,
+           r->seconds_read, r->seconds_quantise, r->seconds_distribute, r->seconds_lone, r->seconds_encode,
            r->seconds_apo, r->seconds_write, r->seconds_total,
            r->seconds_total > 0 ? (double)r->input_triangles / r->seconds_total : 0.0, r->threads);
-    printf("peak memory:          %.1f MB\n", r->peak_rss_mb);
+    printf("temporary files (MB): spilled / read back: read %.1f / %.1f, quantise %.1f / %.1f, "
+           "distribute %.1f / %.1f, lone %.1f / %.1f, encode %.1f / %.1f\n",
+           r->io_read.spilled / 1e6, r->io_read.read_back / 1e6, r->io_quantise.spilled / 1e6,
+           r->io_quantise.read_back / 1e6, r->io_distribute.spilled / 1e6,
+           r->io_distribute.read_back / 1e6, r->io_lone.spilled / 1e6, r->io_lone.read_back / 1e6,
+           r->io_encode.spilled / 1e6, r->io_encode.read_back / 1e6);
+    printf("peak memory:          %.1f MB (the process's peak resident set, from the OS)\n",
+           r->peak_rss_mb);
 }
 
 static int run_bake(bake_options *options)

@@ -14,6 +14,7 @@
 #include "ms_catalog.h"
 #include "ms_nsp_build.h"
 #include "ms_nsp_encode.h"
+#include "ms_nsp_lone.h"
 #include "ms_progress.h"
 
 void ms_bake_options_default(ms_bake_options *o)
@@ -28,6 +29,12 @@ void ms_bake_options_default(ms_bake_options *o)
     long cpus = sysconf(_SC_NPROCESSORS_ONLN);
     o->threads = cpus > 0 ? (unsigned)cpus : 1;
     ms_bake_apo_params_default(&o->apo);
+}
+
+size_t ms_bake_min_mem_mb(unsigned threads, uint32_t min_triangles)
+{
+    uint64_t per_thread = ((uint64_t)min_triangles * MS_BAKE_BYTES_PER_LEAF_TRIANGLE + (1u << 20) - 1) >> 20;
+    return MS_BAKE_MEM_BASE_MB + (size_t)((threads ? threads : 1) * per_thread);
 }
 
 void ms_bake_default_name(const char *path, char *out, size_t size)
@@ -86,8 +93,12 @@ ms_status ms_bake(const ms_bake_options *o, ms_bake_report *r, ms_error *err)
                             o->public_bits, o->bits);
     if (o->min_triangles < 1)
         return ms_error_set(err, MS_ERR_ARG, "--min-tris must be at least 1");
-    if (o->mem_mb < 16)
-        return ms_error_set(err, MS_ERR_ARG, "--mem must be at least 16 MB");
+    size_t min_mem = ms_bake_min_mem_mb(o->threads, o->min_triangles);
+    if (o->mem_mb < min_mem)
+        return ms_error_set(err, MS_ERR_ARG,
+                            "--mem %zu MB is below the %zu MB a bake with %u threads and "
+                            "--min-tris %u works in", o->mem_mb, min_mem, o->threads ? o->threads : 1,
+                            o->min_triangles);
     if (o->apo.enabled && (s = ms_bake_apo_params_check(&o->apo, err)) != MS_OK)
         return s;
     if (o->name && strlen(o->name) > MS_MODEL_NAME_MAX)
@@ -119,6 +130,7 @@ ms_status ms_bake(const ms_bake_options *o, ms_bake_report *r, ms_error *err)
         .shape = shape,
         .min_triangles = o->min_triangles,
         .buffer_budget = o->buffer_bytes ? o->buffer_bytes : o->mem_mb * (1u << 20) / 8,
+        .key_cache_bytes = o->key_cache_bytes ? o->key_cache_bytes : o->mem_mb * (1u << 20) / 4,
         .tmp_dir = o->tmp_dir ? o->tmp_dir : o->archive_dir,
         .progress = on_progress,
         .progress_context = &progress,
@@ -138,6 +150,10 @@ ms_status ms_bake(const ms_bake_options *o, ms_bake_report *r, ms_error *err)
     r->blocks_written = b.stats.blocks_written;
     r->peak_rss_build_mb = ms_peak_rss_mb();
     r->flushes = b.stats.flushes;
+    r->key_page_misses = b.stats.key_page_misses;
+    r->io_read = b.stats.io_read;
+    r->io_quantise = b.stats.io_quantise;
+    r->io_distribute = b.stats.io_distribute;
     for (uint32_t i = 0; i < b.node_count; ++i) {
         r->leaves += b.nodes[i].first_child == MS_NSP_NONE;
         if (b.nodes[i].depth > r->depth)
@@ -146,6 +162,10 @@ ms_status ms_bake(const ms_bake_options *o, ms_bake_report *r, ms_error *err)
 
     uint32_t *order = NULL, *first_child = NULL, *cell_of_node = NULL;
     ms_archive_writer *w = NULL;
+    double t_lone = ms_now_seconds();
+    if ((s = ms_nsp_lone_segments(&b, o->threads ? o->threads : 1, &r->io_lone, err)) != MS_OK)
+        goto done;
+    r->seconds_lone = ms_now_seconds() - t_lone;
     if ((s = ms_nsp_build_bfs(&b, &order, &first_child, err)) != MS_OK)
         goto done;
     cell_of_node = malloc(b.node_count * sizeof *cell_of_node);
@@ -182,6 +202,10 @@ ms_status ms_bake(const ms_bake_options *o, ms_bake_report *r, ms_error *err)
     if (s != MS_OK)
         goto done;
     r->seconds_encode = es.seconds;
+    r->io_encode = es.io;
+    memcpy(r->depth_leaves, es.depth_leaves, sizeof r->depth_leaves);
+    memcpy(r->depth_triangles, es.depth_triangles, sizeof r->depth_triangles);
+    memcpy(r->depth_owned, es.depth_owned, sizeof r->depth_owned);
     r->vertices = es.welded_vertices;
     r->triangles = es.welded_triangles;
     if (r->triangles == 0) {

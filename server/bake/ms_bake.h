@@ -10,10 +10,14 @@
  * nor a catalogue entry. A stale NAME.msa.partial from an earlier killed bake is
  * removed first.
  *
- * Memory: 8 bytes per input vertex (the key array) plus an eighth of mem_mb for
- * the leaf buffers while the tree is built; then the key array plus, per encoding
- * thread, the working set of one cell (its complex and the codec's state, tens of
- * MB for the largest internal cells of a 14 M-triangle model); with APO, also the
+ * Phases and memory (docs/ARCHIVE.md, "Memory"): no array per input vertex or
+ * triangle is held. read spools the input to disk; quantise writes the keys to a
+ * key file; distribute holds a quarter of mem_mb of key-file pages, an eighth of
+ * mem_mb of leaf buffers and the tree; lone (ms_nsp_lone.h) and encode hold, per
+ * thread, the working set of one cell (its records, its complex and the codec's
+ * state: proportional to min_triangles for a leaf; for an internal cell its
+ * children's start states, bounded by the precision window), plus the tree and
+ * the post-order's pending start states; with APO, also the
  * cell's M (a leaf's own triangles; an internal cell's children's meshes at their
  * bits_max, bounded by the precision window, not by the model: ms_nsp_encode.h)
  * with an Embree scene over it, and the finished cells' meshes waiting for their
@@ -32,6 +36,15 @@
 #include "ms_apo_format.h"
 #include "ms_bake_apo.h"
 #include "ms_error.h"
+#include "ms_nsp_build.h"
+
+/* The smallest mem_mb a bake works in: MS_BAKE_MEM_BASE_MB for the fixed buffers
+ * (the key cache's floor, spool chunks, the leaf buffers' floor) plus, per
+ * thread, one leaf's working set (about MS_BAKE_BYTES_PER_LEAF_TRIANGLE per
+ * triangle of min_triangles, rounded up to whole MB). */
+#define MS_BAKE_MEM_BASE_MB 2
+#define MS_BAKE_BYTES_PER_LEAF_TRIANGLE 512
+size_t ms_bake_min_mem_mb(unsigned threads, uint32_t min_triangles);
 
 typedef struct ms_bake_options {
     const char *input;
@@ -43,6 +56,7 @@ typedef struct ms_bake_options {
     uint32_t min_triangles;
     size_t mem_mb;
     size_t buffer_bytes;   /* leaf buffer budget; 0: an eighth of mem_mb (tests force flushes) */
+    size_t key_cache_bytes;/* key-file pages while distributing; 0: a quarter of mem_mb */
     FILE *progress;        /* progress bar target (drawn only on a terminal), or NULL */
     FILE *notes;           /* one-line notices (stale files removed), or NULL */
     ms_bake_apo_params apo; /* per-cell APO chunks (ms_bake_apo.h) */
@@ -66,12 +80,18 @@ typedef struct ms_bake_report {
     uint32_t cells, leaves, empty_cells, depth;
     uint64_t archive_bytes, geometry_bytes;
     double bits_per_vertex;                    /* 8 archive_bytes / vertices */
-    double seconds_read, seconds_quantise, seconds_distribute, seconds_encode, seconds_write,
-        seconds_total;
+    double seconds_read, seconds_quantise, seconds_distribute, seconds_lone, seconds_encode,
+        seconds_write, seconds_total;
     double peak_rss_mb;
     double peak_rss_build_mb;              /* peak when the tree was built (before encoding) */
     unsigned threads;
     uint64_t blocks_written, flushes; /* leaf content spilled to the block file */
+    uint64_t key_page_misses;         /* key-file pages read while distributing */
+    /* temporary-file bytes per phase: spilled (written) and read back */
+    ms_nsp_io io_read, io_quantise, io_distribute, io_lone, io_encode;
+    /* duplication by leaf depth (ms_nsp_encode_stats) */
+    uint64_t depth_leaves[MS_NSP_MAX_DEPTH], depth_triangles[MS_NSP_MAX_DEPTH],
+        depth_owned[MS_NSP_MAX_DEPTH];
     /* APO (all zero when off) */
     uint64_t apo_bytes, apo_raw_bytes;         /* compressed in the archive / texel bytes */
     uint64_t apo_level_texels[MS_APO_MAX_LEVELS]; /* texels per depth over all chunks */

@@ -14,17 +14,18 @@
 #include <unistd.h>
 
 #include "ms_archive.h"
+#include "ms_nsp_key_cache.h"
 #include "ms_progress.h"
 
 #define BLOCK_BYTES 4096
 #define BLOCK_HEAD 16 /* int64 next, u32 count, u32 reserved */
-#define BLOCK_RECORDS ((BLOCK_BYTES - BLOCK_HEAD) / 12)
+#define RECORD MS_NSP_RECORD_BYTES
+#define BLOCK_RECORDS ((BLOCK_BYTES - BLOCK_HEAD) / RECORD)
 #define SPOOL_CHUNK 65536
 
 /* ---- temporary files ---------------------------------------------------- */
 
-/* Creates a file in dir and unlinks it at once; returns the descriptor or -1. */
-static int unlinked_temp(const char *dir, ms_error *err)
+int ms_nsp_temp_file(const char *dir, ms_error *err)
 {
     char path[4096];
     int n = snprintf(path, sizeof path, "%s/.meshbake-tmp-XXXXXX", dir);
@@ -44,7 +45,7 @@ static int unlinked_temp(const char *dir, ms_error *err)
 
 static FILE *unlinked_temp_file(const char *dir, ms_error *err)
 {
-    int fd = unlinked_temp(dir, err);
+    int fd = ms_nsp_temp_file(dir, err);
     if (fd < 0)
         return NULL;
     FILE *f = fdopen(fd, "w+b");
@@ -60,6 +61,7 @@ static FILE *unlinked_temp_file(const char *dir, ms_error *err)
 typedef struct spool_sink {
     FILE *vertices, *triangles;
     uint64_t vertex_count, triangle_count;
+    uint64_t spilled; /* bytes written to the spools */
     double lo[3], hi[3];
     const ms_nsp_build_params *params;
 } spool_sink;
@@ -85,6 +87,7 @@ static ms_status spool_vertices(void *context, const double *p, size_t count, ms
     if (fwrite(p, 3 * sizeof *p, count, s->vertices) != count)
         return ms_error_set(err, MS_ERR_IO, "cannot write the vertex spool: %s", strerror(errno));
     s->vertex_count += count;
+    s->spilled += count * 3 * sizeof *p;
     return MS_OK;
 }
 
@@ -95,6 +98,7 @@ static ms_status spool_triangles(void *context, const uint32_t *t, size_t count,
         return ms_error_set(err, MS_ERR_IO, "cannot write the triangle spool: %s",
                             strerror(errno));
     s->triangle_count += count;
+    s->spilled += count * 3 * sizeof *t;
     return MS_OK;
 }
 
@@ -141,7 +145,7 @@ static uint32_t leaf_below(const ms_nsp_build *b, uint32_t node, uint64_t key)
     return node;
 }
 
-static ms_status write_block(ms_nsp_build *b, ms_nsp_node *node, const uint32_t *records,
+static ms_status write_block(ms_nsp_build *b, ms_nsp_node *node, const uint64_t *records,
                              uint32_t count, ms_error *err)
 {
     int64_t at;
@@ -155,10 +159,11 @@ static ms_status write_block(ms_nsp_build *b, ms_nsp_node *node, const uint32_t 
     memset(p, 0, BLOCK_HEAD);
     memcpy(p, &node->head_block, 8);
     memcpy(p + 8, &count, 4);
-    memcpy(p + BLOCK_HEAD, records, (size_t)count * 12);
-    size_t bytes = BLOCK_HEAD + (size_t)count * 12;
+    memcpy(p + BLOCK_HEAD, records, (size_t)count * RECORD);
+    size_t bytes = BLOCK_HEAD + (size_t)count * RECORD;
     if (pwrite(b->block_fd, p, bytes, at) != (ssize_t)bytes)
         return ms_error_set(err, MS_ERR_IO, "cannot write the block file: %s", strerror(errno));
+    b->stats.io_distribute.spilled += bytes;
     node->head_block = at;
     node->blocks++;
     b->stats.blocks_written++;
@@ -173,7 +178,7 @@ static ms_status flush_node(ms_nsp_build *b, ms_nsp_node *node, ms_error *err)
         if (s != MS_OK)
             return s;
     }
-    b->buffered_bytes -= (size_t)node->buffered * 12;
+    b->buffered_bytes -= (size_t)node->buffered * RECORD;
     free(node->buf);
     node->buf = NULL;
     node->buffered = node->buffer_cap = 0;
@@ -214,13 +219,13 @@ static ms_status flush_largest(ms_nsp_build *b, ms_error *err)
     return s;
 }
 
-static ms_status read_records(const ms_nsp_build *b, const ms_nsp_node *node, uint32_t **out,
-                              size_t *count, ms_error *err)
+static ms_status read_records(const ms_nsp_build *b, const ms_nsp_node *node, uint64_t **out,
+                              size_t *count, uint64_t *bytes_read, ms_error *err)
 {
     *out = NULL;
     *count = 0;
     size_t cap = (size_t)node->blocks * BLOCK_RECORDS + node->buffered;
-    uint32_t *rec = malloc((cap ? cap : 1) * 12);
+    uint64_t *rec = malloc((cap ? cap : 1) * RECORD);
     uint8_t *blocks = malloc(((size_t)node->blocks ? node->blocks : 1) * BLOCK_BYTES);
     if (!rec || !blocks) {
         free(rec);
@@ -238,6 +243,8 @@ static ms_status read_records(const ms_nsp_build *b, const ms_nsp_node *node, ui
         }
         memcpy(&at, p, 8);
     }
+    if (bytes_read)
+        *bytes_read += (uint64_t)node->blocks * BLOCK_BYTES;
     size_t n = 0;
     for (uint32_t k = node->blocks; k-- > 0;) {
         const uint8_t *p = blocks + (size_t)k * BLOCK_BYTES;
@@ -248,11 +255,11 @@ static ms_status read_records(const ms_nsp_build *b, const ms_nsp_node *node, ui
             free(blocks);
             return ms_error_set(err, MS_ERR_CORRUPT, "block file damaged");
         }
-        memcpy(rec + 3 * n, p + BLOCK_HEAD, (size_t)c * 12);
+        memcpy(rec + 3 * n, p + BLOCK_HEAD, (size_t)c * RECORD);
         n += c;
     }
     if (node->buffered)
-        memcpy(rec + 3 * n, node->buf, (size_t)node->buffered * 12);
+        memcpy(rec + 3 * n, node->buf, (size_t)node->buffered * RECORD);
     n += node->buffered;
     free(blocks);
     *out = rec;
@@ -260,9 +267,9 @@ static ms_status read_records(const ms_nsp_build *b, const ms_nsp_node *node, ui
     return MS_OK;
 }
 
-static ms_status insert_under(ms_nsp_build *b, uint32_t top, const uint32_t rec[3],
+static ms_status insert_under(ms_nsp_build *b, uint32_t top, const uint64_t rec[3],
                               unsigned *reached, ms_error *err);
-static ms_status append(ms_nsp_build *b, uint32_t index, const uint32_t rec[3], ms_error *err);
+static ms_status append(ms_nsp_build *b, uint32_t index, const uint64_t rec[3], ms_error *err);
 
 /* A triangle record by its welded vertices (sorted keys), for finding repeats. */
 typedef struct keyed_record {
@@ -283,8 +290,8 @@ static int cmp_keyed_record(const void *x, const void *y)
  * an earlier record already has (the first stays, in order, as the encoder's
  * ms_tri_unify would keep it); point records stay. *distinct: the triangle
  * records left. */
-static ms_status drop_repeated_triangles(const ms_nsp_build *b, uint32_t *rec, size_t *count,
-                                         size_t *distinct, ms_error *err)
+static ms_status drop_repeated_triangles(uint64_t *rec, size_t *count, size_t *distinct,
+                                         ms_error *err)
 {
     size_t n = *count, triangles = 0;
     keyed_record *k = malloc((n ? n : 1) * sizeof *k);
@@ -295,10 +302,10 @@ static ms_status drop_repeated_triangles(const ms_nsp_build *b, uint32_t *rec, s
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory finding repeated triangles");
     }
     for (size_t i = 0; i < n; ++i) {
-        const uint32_t *r = rec + 3 * i;
+        const uint64_t *r = rec + 3 * i;
         if (r[0] == r[1])
             continue; /* a point record */
-        uint64_t a = b->keys[r[0]], c = b->keys[r[1]], d = b->keys[r[2]], x;
+        uint64_t a = r[0], c = r[1], d = r[2], x;
         if (a > c)
             x = a, a = c, c = x;
         if (c > d)
@@ -318,7 +325,7 @@ static ms_status drop_repeated_triangles(const ms_nsp_build *b, uint32_t *rec, s
     size_t out = 0;
     for (size_t i = 0; i < n; ++i)
         if (!drop[i])
-            memmove(rec + 3 * out++, rec + 3 * i, 12);
+            memmove(rec + 3 * out++, rec + 3 * i, RECORD);
     free(k);
     free(drop);
     *count = out;
@@ -341,9 +348,10 @@ static ms_status split_node(ms_nsp_build *b, uint32_t index, ms_error *err)
         b->nodes = n;
         b->node_cap = cap;
     }
-    uint32_t *rec;
+    uint64_t *rec;
     size_t count;
-    ms_status s = read_records(b, &b->nodes[index], &rec, &count, err);
+    ms_status s = read_records(b, &b->nodes[index], &rec, &count, &b->stats.io_distribute.read_back,
+                               err);
     if (s != MS_OK)
         return s;
     ms_nsp_node *node = &b->nodes[index];
@@ -364,13 +372,13 @@ static ms_status split_node(ms_nsp_build *b, uint32_t index, ms_error *err)
     for (uint32_t k = 0; k < node->blocks; ++k) {
         b->free_blocks[b->free_count++] = at;
         int64_t next;
-        if (pread(b->block_fd, &next, 8, at) != 8) {
+        if (pread(b->block_fd, &next, 8, at) != 8) { /* cached: just read above */
             free(rec);
             return ms_error_set(err, MS_ERR_IO, "cannot read the block file: %s", strerror(errno));
         }
         at = next;
     }
-    b->buffered_bytes -= (size_t)node->buffered * 12;
+    b->buffered_bytes -= (size_t)node->buffered * RECORD;
     free(node->buf);
     node->buf = NULL;
     node->buffered = node->buffer_cap = node->blocks = 0;
@@ -380,7 +388,7 @@ static ms_status split_node(ms_nsp_build *b, uint32_t index, ms_error *err)
      * leaf. Each such check costs O(m log m) for the m records of a node that
      * just reached the threshold, so copies cost O(n log n) in all. */
     size_t distinct = 0;
-    s = drop_repeated_triangles(b, rec, &count, &distinct, err);
+    s = drop_repeated_triangles(rec, &count, &distinct, err);
     if (s != MS_OK) {
         free(rec);
         return s;
@@ -406,6 +414,7 @@ static ms_status split_node(ms_nsp_build *b, uint32_t index, ms_error *err)
         for (int a = 0; a < 3; ++a)
             c->position[a] = node->position[a] * n + off[a];
         c->head_block = -1;
+        c->lone_at = -1;
     }
     b->node_count += nc;
     b->stats.leaf_triangle_records -= node->triangles;
@@ -417,21 +426,21 @@ static ms_status split_node(ms_nsp_build *b, uint32_t index, ms_error *err)
     return s;
 }
 
-static ms_status append(ms_nsp_build *b, uint32_t index, const uint32_t rec[3], ms_error *err)
+static ms_status append(ms_nsp_build *b, uint32_t index, const uint64_t rec[3], ms_error *err)
 {
     ms_nsp_node *node = &b->nodes[index];
     if (node->buffered == node->buffer_cap) {
         uint32_t cap = node->buffer_cap ? node->buffer_cap * 2 : 64;
-        uint32_t *p = realloc(node->buf, (size_t)cap * 12);
+        uint64_t *p = realloc(node->buf, (size_t)cap * RECORD);
         if (!p)
             return ms_error_set(err, MS_ERR_NOMEM, "out of memory buffering a leaf");
         node->buf = p;
         node->buffer_cap = cap;
     }
-    memcpy(node->buf + 3 * (size_t)node->buffered, rec, 12);
+    memcpy(node->buf + 3 * (size_t)node->buffered, rec, RECORD);
     node->buffered++;
     node->records++;
-    b->buffered_bytes += 12;
+    b->buffered_bytes += RECORD;
     bool point = rec[0] == rec[1];
     if (point) {
         b->stats.point_records++;
@@ -447,14 +456,14 @@ static ms_status append(ms_nsp_build *b, uint32_t index, const uint32_t rec[3], 
 
 /* Appends rec to every leaf below `top` holding one of its vertices; *reached (if
  * not NULL) receives the number of those leaves. */
-static ms_status insert_under(ms_nsp_build *b, uint32_t top, const uint32_t rec[3],
+static ms_status insert_under(ms_nsp_build *b, uint32_t top, const uint64_t rec[3],
                               unsigned *reached, ms_error *err)
 {
     uint32_t leaves[3];
     unsigned nl = 0;
     int verts = rec[0] == rec[1] ? 1 : 3;
     for (int i = 0; i < verts; ++i) {
-        uint64_t key = b->keys[rec[i]];
+        uint64_t key = rec[i];
         if (top != 0 && !key_inside(b, key, &b->nodes[top]))
             continue;
         uint32_t leaf = leaf_below(b, top, key);
@@ -486,83 +495,131 @@ static void report(const ms_nsp_build_params *p, const char *phase, double fract
         p->progress(p->progress_context, phase, fraction);
 }
 
-static ms_status compute_keys(ms_nsp_build *b, FILE *vspool, ms_error *err)
+/* Writes every input vertex's key, in input order, to the key file. */
+static ms_status compute_keys(ms_nsp_build *b, FILE *vspool, int key_fd, ms_error *err)
 {
     const unsigned bits = b->params.shape.bits;
     double *chunk = malloc(SPOOL_CHUNK * 3 * sizeof *chunk);
-    if (!chunk)
+    uint64_t *keys = malloc(SPOOL_CHUNK * sizeof *keys);
+    if (!chunk || !keys) {
+        free(chunk);
+        free(keys);
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory quantising");
+    }
     rewind(vspool);
+    ms_status s = MS_OK;
     size_t done = 0;
-    while (done < b->vertex_count) {
+    while (done < b->vertex_count && s == MS_OK) {
         size_t want = b->vertex_count - done < SPOOL_CHUNK ? b->vertex_count - done : SPOOL_CHUNK;
         if (fread(chunk, 3 * sizeof *chunk, want, vspool) != want) {
-            free(chunk);
-            return ms_error_set(err, MS_ERR_IO, "cannot read the vertex spool");
+            s = ms_error_set(err, MS_ERR_IO, "cannot read the vertex spool");
+            break;
         }
+        b->stats.io_quantise.read_back += want * 3 * sizeof *chunk;
         for (size_t i = 0; i < want; ++i) {
             uint32_t q[3];
             for (int a = 0; a < 3; ++a)
                 q[a] = quantise_coordinate(chunk[3 * i + a], b->box.origin[a], b->box.size, bits);
-            b->keys[done + i] = ms_quant_key(q[0], q[1], q[2], bits);
+            keys[i] = ms_quant_key(q[0], q[1], q[2], bits);
         }
+        size_t bytes = want * sizeof *keys;
+        if (pwrite(key_fd, keys, bytes, (off_t)(done * sizeof *keys)) != (ssize_t)bytes)
+            s = ms_error_set(err, MS_ERR_IO, "cannot write the key file: %s", strerror(errno));
+        b->stats.io_quantise.spilled += bytes;
         done += want;
         report(&b->params, "quantising", (double)done / (double)b->vertex_count);
     }
     free(chunk);
-    return MS_OK;
+    free(keys);
+    return s;
 }
 
-static ms_status distribute(ms_nsp_build *b, FILE *tspool, uint64_t triangles, ms_error *err)
+/* Point records for the input vertices no kept triangle used, in input order:
+ * the key file read in order once the cache has written its marks back. */
+static ms_status insert_unused_vertices(ms_nsp_build *b, int key_fd, ms_error *err)
+{
+    uint64_t *keys = malloc(SPOOL_CHUNK * sizeof *keys);
+    if (!keys)
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory finding isolated vertices");
+    ms_status s = MS_OK;
+    for (uint64_t at = 0; s == MS_OK && at < b->vertex_count; at += SPOOL_CHUNK) {
+        size_t nk = b->vertex_count - at < SPOOL_CHUNK ? (size_t)(b->vertex_count - at) : SPOOL_CHUNK;
+        if (pread(key_fd, keys, nk * sizeof *keys, (off_t)(at * sizeof *keys)) !=
+            (ssize_t)(nk * sizeof *keys)) {
+            s = ms_error_set(err, MS_ERR_IO, "cannot read the key file: %s", strerror(errno));
+            break;
+        }
+        b->stats.io_distribute.read_back += nk * sizeof *keys;
+        for (size_t i = 0; i < nk && s == MS_OK; ++i) {
+            if (keys[i] & MS_NSP_KEY_USED)
+                continue;
+            uint64_t rec[3] = {keys[i], keys[i], keys[i]};
+            s = insert_under(b, 0, rec, NULL, err);
+        }
+    }
+    free(keys);
+    return s;
+}
+
+/* One triangle of the spool: its keys through the cache, then into the tree. */
+static ms_status distribute_triangle(ms_nsp_build *b, ms_nsp_key_cache *cache, const uint32_t t[3],
+                                     uint64_t number, ms_error *err)
+{
+    if (t[0] >= b->vertex_count || t[1] >= b->vertex_count || t[2] >= b->vertex_count)
+        return ms_error_set(err, MS_ERR_FORMAT, "triangle %" PRIu64 " has an index out of range",
+                            number);
+    uint64_t rec[3];
+    ms_status s = MS_OK;
+    for (int j = 0; j < 3 && s == MS_OK; ++j)
+        s = ms_nsp_key_cache_key(cache, t[j], &rec[j], err);
+    if (s != MS_OK)
+        return s;
+    if (rec[0] == rec[1] || rec[1] == rec[2] || rec[0] == rec[2]) {
+        b->stats.degenerate_triangles++;
+        return MS_OK;
+    }
+    for (int j = 0; j < 3 && s == MS_OK; ++j)
+        s = ms_nsp_key_cache_mark_used(cache, t[j], err);
+    unsigned reached = 0;
+    if (s == MS_OK)
+        s = insert_under(b, 0, rec, &reached, err);
+    if (reached > 1)
+        b->stats.insertion_copies += reached - 1;
+    return s;
+}
+
+static ms_status distribute(ms_nsp_build *b, FILE *tspool, uint64_t triangles, int key_fd,
+                            ms_error *err)
 {
     uint32_t *chunk = malloc(SPOOL_CHUNK * 3 * sizeof *chunk);
-    uint8_t *used = calloc(b->vertex_count / 8 + 1, 1);
-    if (!chunk || !used) {
-        free(chunk);
-        free(used);
-        return ms_error_set(err, MS_ERR_NOMEM, "out of memory distributing triangles");
-    }
+    ms_nsp_key_cache *cache = NULL;
+    ms_status s = ms_nsp_key_cache_new(key_fd, b->vertex_count, b->params.key_cache_bytes,
+                                       &b->stats.io_distribute, &b->stats.key_page_misses, &cache,
+                                       err);
+    if (s == MS_OK && !chunk)
+        s = ms_error_set(err, MS_ERR_NOMEM, "out of memory distributing triangles");
     rewind(tspool);
-    ms_status s = MS_OK;
     uint64_t done = 0;
-    while (done < triangles && s == MS_OK) {
+    while (s == MS_OK && done < triangles) {
         size_t want = triangles - done < SPOOL_CHUNK ? (size_t)(triangles - done) : SPOOL_CHUNK;
         if (fread(chunk, 12, want, tspool) != want) {
             s = ms_error_set(err, MS_ERR_IO, "cannot read the triangle spool");
             break;
         }
-        for (size_t i = 0; i < want && s == MS_OK; ++i) {
-            const uint32_t *t = chunk + 3 * i;
-            if (t[0] >= b->vertex_count || t[1] >= b->vertex_count || t[2] >= b->vertex_count) {
-                s = ms_error_set(err, MS_ERR_FORMAT, "triangle %" PRIu64 " has an index out of "
-                                 "range", done + i);
-                break;
-            }
-            uint64_t k0 = b->keys[t[0]], k1 = b->keys[t[1]], k2 = b->keys[t[2]];
-            if (k0 == k1 || k1 == k2 || k0 == k2) {
-                b->stats.degenerate_triangles++;
-                continue;
-            }
-            for (int j = 0; j < 3; ++j)
-                used[t[j] >> 3] |= (uint8_t)(1u << (t[j] & 7));
-            unsigned reached = 0;
-            s = insert_under(b, 0, t, &reached, err);
-            if (reached > 1)
-                b->stats.insertion_copies += reached - 1;
-        }
+        b->stats.io_distribute.read_back += (uint64_t)want * 12;
+        for (size_t i = 0; i < want && s == MS_OK; ++i)
+            s = distribute_triangle(b, cache, chunk + 3 * i, done + i, err);
         done += want;
         report(&b->params, "distributing", (double)done / (double)(triangles ? triangles : 1));
     }
     /* Isolated vertices (after welding, a key used by no kept triangle is found
      * again in its leaf: the leaf drops points whose key a triangle uses). */
-    for (size_t v = 0; v < b->vertex_count && s == MS_OK; ++v) {
-        if (used[v >> 3] & (1u << (v & 7)))
-            continue;
-        uint32_t rec[3] = {(uint32_t)v, (uint32_t)v, (uint32_t)v};
-        s = insert_under(b, 0, rec, NULL, err);
-    }
+    if (s == MS_OK)
+        s = ms_nsp_key_cache_write_back(cache, err);
+    ms_nsp_key_cache_free(cache);
     free(chunk);
-    free(used);
+    if (s == MS_OK)
+        s = insert_unused_vertices(b, key_fd, err);
     return s;
 }
 
@@ -572,6 +629,8 @@ ms_status ms_nsp_build_run(const char *path, const ms_nsp_build_params *params,
     memset(b, 0, sizeof *b);
     b->params = *params;
     b->block_fd = -1;
+    b->lone_fd = -1;
+    int key_fd = -1;
     if (params->min_triangles < 1)
         return ms_error_set(err, MS_ERR_ARG, "the split threshold must be at least 1 triangle");
     spool_sink sink = {.params = params};
@@ -596,6 +655,7 @@ ms_status ms_nsp_build_run(const char *path, const ms_nsp_build_params *params,
         goto done;
     }
     b->stats.input_vertices = sink.vertex_count;
+    b->stats.io_read.spilled = sink.spilled;
     b->stats.input_triangles = sink.triangle_count;
     double t1 = ms_now_seconds();
     b->stats.seconds_read = t1 - t0;
@@ -614,13 +674,11 @@ ms_status ms_nsp_build_run(const char *path, const ms_nsp_build_params *params,
         goto done;
     }
     b->vertex_count = (size_t)sink.vertex_count;
-    b->keys = malloc((b->vertex_count ? b->vertex_count : 1) * sizeof *b->keys);
-    if (!b->keys) {
-        s = ms_error_set(err, MS_ERR_NOMEM, "out of memory for %zu vertex keys (8 bytes each)",
-                         b->vertex_count);
+    if ((key_fd = ms_nsp_temp_file(params->tmp_dir, err)) < 0) {
+        s = err->code;
         goto done;
     }
-    if ((s = compute_keys(b, sink.vertices, err)) != MS_OK)
+    if ((s = compute_keys(b, sink.vertices, key_fd, err)) != MS_OK)
         goto done;
     fclose(sink.vertices);
     sink.vertices = NULL;
@@ -637,12 +695,13 @@ ms_status ms_nsp_build_run(const char *path, const ms_nsp_build_params *params,
     memset(&b->nodes[0], 0, sizeof b->nodes[0]);
     b->nodes[0].parent = b->nodes[0].first_child = MS_NSP_NONE;
     b->nodes[0].head_block = -1;
+    b->nodes[0].lone_at = -1;
     b->node_count = 1;
-    if ((b->block_fd = unlinked_temp(params->tmp_dir, err)) < 0) {
+    if ((b->block_fd = ms_nsp_temp_file(params->tmp_dir, err)) < 0) {
         s = err->code;
         goto done;
     }
-    if ((s = distribute(b, sink.triangles, sink.triangle_count, err)) != MS_OK)
+    if ((s = distribute(b, sink.triangles, sink.triangle_count, key_fd, err)) != MS_OK)
         goto done;
     /* Every leaf to disk: the encoding phase then needs no buffer memory. */
     for (uint32_t i = 0; i < b->node_count && s == MS_OK; ++i)
@@ -655,6 +714,8 @@ ms_status ms_nsp_build_run(const char *path, const ms_nsp_build_params *params,
 #endif
     b->stats.seconds_distribute = ms_now_seconds() - t2;
 done:
+    if (key_fd >= 0)
+        close(key_fd);
     if (sink.vertices)
         fclose(sink.vertices);
     if (sink.triangles)
@@ -664,10 +725,15 @@ done:
     return s;
 }
 
-ms_status ms_nsp_build_read_leaf(const ms_nsp_build *b, uint32_t node, uint32_t **records,
-                                 size_t *count, ms_error *err)
+ms_status ms_nsp_build_read_leaf(const ms_nsp_build *b, uint32_t node, uint64_t **records,
+                                 size_t *count, uint64_t *bytes_read, ms_error *err)
 {
-    return read_records(b, &b->nodes[node], records, count, err);
+    return read_records(b, &b->nodes[node], records, count, bytes_read, err);
+}
+
+uint32_t ms_nsp_build_leaf_of(const ms_nsp_build *b, uint64_t key)
+{
+    return leaf_below(b, 0, key);
 }
 
 ms_status ms_nsp_build_bfs(const ms_nsp_build *b, uint32_t **order_out, uint32_t **first_out,
@@ -703,11 +769,13 @@ void ms_nsp_build_free(ms_nsp_build *b)
         for (uint32_t i = 0; i < b->node_count; ++i)
             free(b->nodes[i].buf);
     free(b->nodes);
-    free(b->keys);
     free(b->free_blocks);
     free(b->block_scratch);
     if (b->block_fd >= 0)
         close(b->block_fd);
+    if (b->lone_fd >= 0)
+        close(b->lone_fd);
     memset(b, 0, sizeof *b);
     b->block_fd = -1;
+    b->lone_fd = -1;
 }

@@ -3,28 +3,31 @@
  *
  * ms_nsp_build_run streams the input mesh once (ms_mesh_read), spooling vertices
  * (3 doubles) and triangles (3 u32) to unlinked temporary files while it finds the
- * bounding box; fits the cubic quantisation box (as ms_quant_fit_box); turns every
- * input vertex into its interleaved key at p bits (the one array kept in memory:
- * 8 bytes per input vertex); then streams the triangles again and inserts each
- * non-degenerate one (three distinct keys: welding is implicit, vertices are their
- * keys) into every leaf holding one of its vertices. A leaf that reaches N_min
- * triangles splits into n^3 children and redistributes its content. Input vertices
- * used by no kept triangle are inserted as point records (isolated vertices).
+ * bounding box; fits the cubic quantisation box (as ms_quant_fit_box); writes every
+ * input vertex's interleaved key at p bits to a key file (8 bytes per input
+ * vertex, on disk); then streams the triangles again, looks their vertices' keys
+ * up through a bounded cache of key-file pages (key_cache_bytes), and inserts each
+ * non-degenerate triangle (three distinct keys: welding is implicit, vertices are
+ * their keys) into every leaf holding one of its vertices. A leaf that reaches
+ * N_min triangles splits into n^3 children and redistributes its content. Input
+ * vertices used by no kept triangle (the key file marks the used ones) are then
+ * inserted as point records (isolated vertices), in input order.
  *
- * Leaf content is a list of 12-byte records (three input vertex indices, input
- * order kept) held in a per-leaf memory buffer and a chain of 4 KiB blocks in an
- * unlinked temporary file; when the buffers together exceed the budget they are
- * flushed largest first down to half of it, and the blocks of a split leaf are
- * reused; at the end every buffer is flushed, so that the encoding phase starts
- * with only the keys and the tree in memory. RAM is therefore 8 bytes per input
- * vertex + the buffer budget + the tree (about 100 bytes per cell), whatever the
- * number of triangles (the key array is the one part that grows with the model:
- * 56 MB for the 7 M vertices of a 14 M-triangle mesh).
+ * Leaf content is a list of 24-byte records (the three vertices' keys, input
+ * order kept; a point record repeats one key) held in a per-leaf memory buffer
+ * and a chain of 4 KiB blocks in an unlinked temporary file; when the buffers
+ * together exceed the budget they are flushed largest first down to half of it,
+ * and the blocks of a split leaf are reused; at the end every buffer is flushed,
+ * so that the encoding phase starts with only the tree in memory. RAM is
+ * therefore the key cache + the buffer budget + the tree (about 100 bytes per
+ * cell) + one splitting leaf's records, whatever the number of vertices: no
+ * per-vertex array is held. The records carry their keys, so that nothing after
+ * this phase needs the input vertex numbering.
  *
- * After the run, ms_nsp_build_read_leaf may be called from several threads at
- * once (it only reads the block file with pread). Everything else is not
- * thread-safe. Temporary files are unlinked at creation: a killed process leaves
- * nothing behind.
+ * After the run, ms_nsp_build_read_leaf and ms_nsp_build_leaf_of may be called
+ * from several threads at once (they only read the block file with pread and the
+ * tree). Everything else is not thread-safe. Temporary files are unlinked at
+ * creation: a killed process leaves nothing behind.
  */
 #ifndef MS_NSP_BUILD_H
 #define MS_NSP_BUILD_H
@@ -39,6 +42,9 @@
 #include "ms_quant.h"
 
 #define MS_NSP_NONE UINT32_MAX
+#define MS_NSP_MAX_DEPTH 32              /* deeper than any shape allows (p <= 20) */
+#define MS_NSP_RECORD_BYTES 24         /* a leaf record: three u64 keys */
+#define MS_NSP_KEY_CACHE_MIN (256u << 10) /* bytes: the smallest key cache (64 pages) */
 
 typedef struct ms_nsp_node {
     uint32_t parent;       /* MS_NSP_NONE for the root */
@@ -51,13 +57,22 @@ typedef struct ms_nsp_node {
     uint32_t blocks;
     uint32_t buffered;     /* records in buf */
     uint32_t buffer_cap;
-    uint32_t *buf;         /* 3 * buffer_cap */
+    uint64_t *buf;         /* 3 * buffer_cap keys */
+    int64_t lone_at;       /* leaves: its lone-level segment (ms_nsp_lone.h), -1 before */
+    uint32_t lone_count;   /* distinct keys of its own vertices in that segment */
 } ms_nsp_node;
+
+/* Bytes a phase wrote to temporary files (spilled) and read back from them. */
+typedef struct ms_nsp_io {
+    uint64_t spilled, read_back;
+} ms_nsp_io;
 
 typedef struct ms_nsp_build_params {
     ms_nsp_shape shape;
     uint32_t min_triangles;  /* N_min */
     size_t buffer_budget;    /* bytes of record buffers before flushing */
+    size_t key_cache_bytes;  /* key-file pages held while distributing (at least
+                              * MS_NSP_KEY_CACHE_MIN; less is raised to it) */
     const char *tmp_dir;     /* where temporary files go */
     /* optional progress: phase name and a fraction in [0, 1] */
     void (*progress)(void *context, const char *phase, double fraction);
@@ -79,13 +94,14 @@ typedef struct ms_nsp_build_stats {
                                     * triangles. */
     uint64_t point_records;
     uint64_t blocks_written, flushes;
+    uint64_t key_page_misses;      /* key-file pages read while distributing */
+    ms_nsp_io io_read, io_quantise, io_distribute; /* temporary-file traffic per phase */
     double seconds_read, seconds_quantise, seconds_distribute;
 } ms_nsp_build_stats;
 
 typedef struct ms_nsp_build {
     ms_nsp_build_params params;
     ms_quant_box box;
-    uint64_t *keys;         /* input vertex -> 3p-bit key */
     size_t vertex_count;
     ms_nsp_node *nodes;     /* node 0 is the root; children of a node are consecutive */
     uint32_t node_count, node_cap;
@@ -95,6 +111,7 @@ typedef struct ms_nsp_build {
     size_t free_count, free_cap;
     size_t buffered_bytes;
     uint8_t *block_scratch;
+    int lone_fd;            /* lone-level segments (ms_nsp_lone.h), -1 before */
     ms_nsp_build_stats stats;
 } ms_nsp_build;
 
@@ -103,10 +120,19 @@ typedef struct ms_nsp_build {
 ms_status ms_nsp_build_run(const char *path, const ms_nsp_build_params *params,
                            ms_nsp_build *build, ms_error *err);
 
-/* Reads a leaf's records in input order into *records (3 u32 each, malloc'd, caller
- * frees); *count receives the number of records. Thread-safe after the run. */
-ms_status ms_nsp_build_read_leaf(const ms_nsp_build *build, uint32_t node, uint32_t **records,
-                                 size_t *count, ms_error *err);
+/* Reads a leaf's records in input order into *records (3 keys each, malloc'd,
+ * caller frees; a point record has three equal keys); *count receives the number
+ * of records, *bytes_read (if not NULL) is increased by the bytes read from the
+ * block file. Thread-safe after the run. */
+ms_status ms_nsp_build_read_leaf(const ms_nsp_build *build, uint32_t node, uint64_t **records,
+                                 size_t *count, uint64_t *bytes_read, ms_error *err);
+
+/* The leaf whose cube holds the full-precision key. Thread-safe after the run. */
+uint32_t ms_nsp_build_leaf_of(const ms_nsp_build *build, uint64_t key);
+
+/* Creates an unlinked temporary file in dir (a killed process leaves nothing);
+ * returns its descriptor, or -1 with err set. */
+int ms_nsp_temp_file(const char *dir, ms_error *err);
 
 /* Breadth-first numbering: order[i] is the node of cell i; first_child[i] the cell
  * number of cell i's first child or MS_NSP_NONE (both arrays of node_count, caller

@@ -31,10 +31,6 @@ typedef struct pool {
     const uint32_t *cell_of_node;
     ms_archive_writer *writer;
     const ms_nsp_encode_params *params;
-    uint8_t *lone;  /* per input vertex: its lone level (ms_nsp_lone.h), until the last
-                     * leaf is encoded (internal cells, last, are the memory peak) */
-    uint32_t leaves_left;
-    ms_nsp_build *release_keys; /* its keys go with the lone levels, or NULL */
     unsigned max_depth; /* of the tree's cells */
     task *tasks;
     uint32_t *heap; /* ready nodes, min-heap on post */
@@ -110,63 +106,39 @@ static ms_status index_keys(uint64_t *ref, size_t n, unsigned key_bits, uint64_t
     return s;
 }
 
-/* Leaf: records at full precision -> complex; *lone_out (malloc'd, one per
- * vertex of st) receives each foreign vertex's lone level, MS_CODEC_NO_FREEZE for
- * the leaf's own vertices. */
-static ms_status leaf_state(pool *p, uint32_t node, ms_codec_state *st, uint8_t **lone_out,
-                            ms_error *err)
+/* A leaf's complex at full precision from its n records (keys as vertices,
+ * repeated triangles unified keeping the first in record order); *removed: the
+ * triangles unified. On failure st is freed. */
+static ms_status leaf_complex(const uint64_t *rec, size_t n, unsigned bits, ms_codec_state *st,
+                              size_t *removed, ms_error *err)
 {
-    *lone_out = NULL;
-    const ms_nsp_build *b = p->b;
-    uint32_t *rec;
-    size_t n;
-    ms_status s = ms_nsp_build_read_leaf(b, node, &rec, &n, err);
-    if (s != MS_OK)
-        return s;
     memset(st, 0, sizeof *st);
-    st->bits = b->params.shape.bits;
-    st->level = 3 * st->bits;
+    st->bits = bits;
+    st->level = 3 * bits;
     st->cells = malloc((3 * n + 1) * sizeof *st->cells);
     st->tris = malloc((3 * n + 1) * sizeof *st->tris);
     st->edges = malloc(sizeof *st->edges);
-    if (!st->cells || !st->tris || !st->edges) {
-        free(rec);
-        ms_codec_state_free(st);
-        return ms_error_set(err, MS_ERR_NOMEM, "out of memory loading a leaf");
-    }
     /* Vertex references: three per triangle record, one per point record. */
     uint64_t *ref = malloc((3 * n + 1) * sizeof *ref);
     uint32_t *rank = malloc((3 * n + 1) * sizeof *rank);
-    uint8_t *ref_lone = malloc(3 * n + 1);
-    uint8_t *lone = malloc(3 * n + 1);
-    if (!ref || !rank || !ref_lone || !lone) {
-        free(ref);
-        free(rank);
-        free(ref_lone);
-        free(lone);
-        free(rec);
-        ms_codec_state_free(st);
-        return ms_error_set(err, MS_ERR_NOMEM, "out of memory loading a leaf");
-    }
+    ms_status s = MS_OK;
+    if (!st->cells || !st->tris || !st->edges || !ref || !rank)
+        s = ms_error_set(err, MS_ERR_NOMEM, "out of memory loading a leaf");
     size_t nr = 0;
-    for (size_t i = 0; i < n; ++i) {
-        const uint32_t *r = rec + 3 * i;
+    for (size_t i = 0; s == MS_OK && i < n; ++i) {
+        const uint64_t *r = rec + 3 * i;
         int verts = r[0] == r[1] ? 1 : 3;
-        for (int j = 0; j < verts; ++j) {
-            ref_lone[nr] = p->lone[r[j]];
-            ref[nr++] = b->keys[r[j]];
-        }
+        for (int j = 0; j < verts; ++j)
+            ref[nr++] = r[j];
     }
     size_t nk = 0;
-    s = index_keys(ref, nr, 3 * st->bits, st->cells, &nk, rank, err);
+    if (s == MS_OK)
+        s = index_keys(ref, nr, 3 * bits, st->cells, &nk, rank, err);
     st->vertex_count = nk;
-    for (size_t i = 0; s == MS_OK && i < nr; ++i)
-        lone[rank[i]] = ref_lone[i];
-    free(ref_lone);
     size_t nt = 0;
     nr = 0;
-    for (size_t i = 0; i < n; ++i) {
-        const uint32_t *r = rec + 3 * i;
+    for (size_t i = 0; s == MS_OK && i < n; ++i) {
+        const uint64_t *r = rec + 3 * i;
         if (r[0] == r[1]) {
             nr++;
             continue;
@@ -177,36 +149,83 @@ static ms_status leaf_state(pool *p, uint32_t node, ms_codec_state *st, uint8_t 
     }
     free(ref);
     free(rank);
-    free(rec);
-    size_t removed = 0;
-    *lone_out = lone;
+    *removed = 0;
     if (s == MS_OK)
-        s = ms_tri_unify(st->tris, &nt, NULL, &removed, err);
+        s = ms_tri_unify(st->tris, &nt, NULL, removed, err);
     st->tri_count = nt;
-    if (s != MS_OK) {
+    if (s != MS_OK)
         ms_codec_state_free(st);
+    return s;
+}
+
+/* The levels a leaf's vertices freeze at (lone[v]: MS_CODEC_NO_FREEZE for its
+ * own, the lone level, looked up in the owning leaf's segment, for a foreign
+ * one); inside[v] says which are its own. *read grows by the segment bytes. */
+static ms_status leaf_lone_levels(const ms_nsp_build *b, const ms_nsp_node *nd,
+                                  const ms_codec_state *st, uint8_t *inside, uint8_t *lone,
+                                  uint64_t *read, ms_error *err)
+{
+    size_t nk = st->vertex_count, foreign = 0;
+    uint64_t *keys = malloc((nk ? nk : 1) * sizeof *keys);
+    uint8_t *levels = malloc(nk ? nk : 1);
+    if (!keys || !levels) {
+        free(keys);
+        free(levels);
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory loading a leaf");
+    }
+    for (size_t v = 0; v < nk; ++v) {
+        inside[v] = ms_nsp_prefix_inside(&b->params.shape, st->cells[v], st->level, nd->depth,
+                                         nd->position);
+        if (inside[v])
+            lone[v] = MS_CODEC_NO_FREEZE;
+        else
+            keys[foreign++] = st->cells[v]; /* in key order */
+    }
+    ms_status s = ms_nsp_lone_lookup(b, keys, foreign, levels, read, err);
+    for (size_t v = 0, f = 0; s == MS_OK && v < nk; ++v)
+        if (!inside[v])
+            lone[v] = levels[f++];
+    free(keys);
+    free(levels);
+    return s;
+}
+
+/* Leaf: records at full precision -> complex; *lone_out (malloc'd, one per
+ * vertex of st) receives each foreign vertex's lone level, MS_CODEC_NO_FREEZE for
+ * the leaf's own vertices. */
+static ms_status leaf_state(pool *p, uint32_t node, ms_codec_state *st, uint8_t **lone_out,
+                            ms_error *err)
+{
+    *lone_out = NULL;
+    const ms_nsp_build *b = p->b;
+    const ms_nsp_node *nd = &b->nodes[node];
+    uint64_t *rec;
+    size_t n, removed = 0;
+    uint64_t read = 0;
+    ms_status s = ms_nsp_build_read_leaf(b, node, &rec, &n, &read, err);
+    if (s != MS_OK)
+        return s;
+    s = leaf_complex(rec, n, b->params.shape.bits, st, &removed, err);
+    free(rec);
+    if (s != MS_OK)
+        return s;
+    size_t nk = st->vertex_count, nt = st->tri_count;
+    uint8_t *lone = malloc(nk ? nk : 1), *inside = malloc(nk ? nk : 1);
+    if (!lone || !inside)
+        s = ms_error_set(err, MS_ERR_NOMEM, "out of memory loading a leaf");
+    if (s == MS_OK)
+        s = leaf_lone_levels(b, nd, st, inside, lone, &read, err);
+    if (s != MS_OK) {
         free(lone);
-        *lone_out = NULL;
+        free(inside);
+        ms_codec_state_free(st);
         return s;
     }
     /* Model-wide counts: each vertex counted in its own leaf, each triangle in the
      * leaf of its smallest key. */
-    const ms_nsp_node *nd = &b->nodes[node];
-    uint8_t *inside = malloc(nk ? nk : 1);
-    if (!inside) {
-        ms_codec_state_free(st);
-        free(lone);
-        *lone_out = NULL;
-        return ms_error_set(err, MS_ERR_NOMEM, "out of memory loading a leaf");
-    }
     uint64_t own_v = 0, own_t = 0, iso = 0;
-    for (size_t v = 0; v < nk; ++v) {
-        inside[v] = ms_nsp_prefix_inside(&b->params.shape, st->cells[v], st->level, nd->depth,
-                                         nd->position);
+    for (size_t v = 0; v < nk; ++v)
         own_v += inside[v];
-        if (inside[v])
-            lone[v] = MS_CODEC_NO_FREEZE;
-    }
     uint8_t *has = calloc(nk ? nk : 1, 1);
     for (size_t t = 0; t < nt; ++t) {
         uint32_t s3[3];
@@ -220,12 +239,17 @@ static ms_status leaf_state(pool *p, uint32_t node, ms_codec_state *st, uint8_t 
             iso += !has[v];
     free(has);
     free(inside);
+    *lone_out = lone;
     pthread_mutex_lock(&p->lock);
     p->stats.welded_vertices += own_v;
     p->stats.welded_triangles += own_t;
     p->stats.leaf_triangles += nt;
     p->stats.leaf_duplicates += removed;
     p->stats.isolated_vertices += iso;
+    p->stats.io.read_back += read;
+    p->stats.depth_leaves[nd->depth]++;
+    p->stats.depth_triangles[nd->depth] += nt;
+    p->stats.depth_owned[nd->depth] += own_t;
     pthread_mutex_unlock(&p->lock);
     return MS_OK;
 }
@@ -361,9 +385,9 @@ typedef struct cell_out {
 
 /* ---- APO inputs ---------------------------------------------------------- */
 
-/* Appends the triangle records of every leaf below (or at) node to *tri (input
- * vertex indices, 3 per triangle), leaves in node order. */
-static ms_status gather_records(const ms_nsp_build *b, uint32_t node, uint32_t **tri, size_t *count,
+/* Appends the triangle records of every leaf below (or at) node to *tri (keys,
+ * 3 per triangle), leaves in node order. */
+static ms_status gather_records(const ms_nsp_build *b, uint32_t node, uint64_t **tri, size_t *count,
                                 size_t *cap, ms_error *err)
 {
     const ms_nsp_node *nd = &b->nodes[node];
@@ -376,14 +400,14 @@ static ms_status gather_records(const ms_nsp_build *b, uint32_t node, uint32_t *
         }
         return MS_OK;
     }
-    uint32_t *rec;
+    uint64_t *rec;
     size_t n;
-    ms_status s = ms_nsp_build_read_leaf(b, node, &rec, &n, err);
+    ms_status s = ms_nsp_build_read_leaf(b, node, &rec, &n, NULL, err);
     if (s != MS_OK)
         return s;
     if (*count + n > *cap) {
         size_t want = (*count + n) * 2;
-        uint32_t *grown = realloc(*tri, want * 3 * sizeof *grown);
+        uint64_t *grown = realloc(*tri, want * 3 * sizeof *grown);
         if (!grown) {
             free(rec);
             return ms_error_set(err, MS_ERR_NOMEM, "out of memory gathering a cell's triangles");
@@ -392,7 +416,7 @@ static ms_status gather_records(const ms_nsp_build *b, uint32_t node, uint32_t *
     }
     for (size_t i = 0; i < n; ++i)
         if (rec[3 * i] != rec[3 * i + 1])
-            memcpy(*tri + 3 * (*count)++, rec + 3 * i, 12);
+            memcpy(*tri + 3 * (*count)++, rec + 3 * i, 3 * sizeof *rec);
     free(rec);
     return MS_OK;
 }
@@ -401,7 +425,7 @@ static ms_status gather_records(const ms_nsp_build *b, uint32_t node, uint32_t *
 static ms_status full_precision_mesh(const ms_nsp_build *b, uint32_t node, ms_mesh *M, ms_error *err)
 {
     memset(M, 0, sizeof *M);
-    uint32_t *tri = NULL;
+    uint64_t *tri = NULL;
     size_t nt = 0, cap = 0;
     ms_status s = gather_records(b, node, &tri, &nt, &cap, err);
     uint64_t *ref = s == MS_OK ? malloc((3 * nt + 1) * sizeof *ref) : NULL;
@@ -413,7 +437,7 @@ static ms_status full_precision_mesh(const ms_nsp_build *b, uint32_t node, ms_me
     size_t nk = 0;
     if (s == MS_OK) {
         for (size_t i = 0; i < 3 * nt; ++i)
-            ref[i] = b->keys[tri[i]];
+            ref[i] = tri[i];
         s = index_keys(ref, 3 * nt, 3 * p, keys, &nk, rank, err);
     }
     /* keep the first of each group of equal vertex sets, in leaf order */
@@ -764,14 +788,6 @@ static void worker(void *arg, size_t block)
         if (b->nodes[node].first_child != MS_NSP_NONE && p->params->apo && p->params->apo->enabled)
             give_back_memory();
         pthread_mutex_lock(&p->lock);
-        if (b->nodes[node].first_child == MS_NSP_NONE && --p->leaves_left == 0) {
-            free(p->lone);
-            p->lone = NULL;
-            if (p->release_keys) {
-                free(p->release_keys->keys);
-                p->release_keys->keys = NULL;
-            }
-        }
         if (s == MS_OK)
             s = finish_cell(p, node, &out, &err);
         else
@@ -803,29 +819,19 @@ ms_status ms_nsp_encode_all(ms_nsp_build *build, const uint32_t *cell_of_node,
     pool p;
     memset(&p, 0, sizeof p);
     p.b = b;
-    const ms_bake_apo_params *ap = params->apo;
-    if (!(ap && ap->enabled && (ap->accuracy || ap->sample_leaves)))
-        p.release_keys = build;
     p.cell_of_node = cell_of_node;
     p.writer = writer;
     p.params = params;
     uint32_t n = b->node_count;
     const unsigned nc = b->params.shape.n * b->params.shape.n * b->params.shape.n;
-    ms_status ls = ms_nsp_lone_levels(b->keys, b->vertex_count, 3 * b->params.shape.bits, &p.lone,
-                                      err);
-    if (ls != MS_OK)
-        return ls;
-    for (uint32_t v = 0; v < n; ++v) {
+    for (uint32_t v = 0; v < n; ++v)
         if (b->nodes[v].depth > p.max_depth)
             p.max_depth = b->nodes[v].depth;
-        p.leaves_left += b->nodes[v].first_child == MS_NSP_NONE;
-    }
     p.tasks = calloc(n, sizeof *p.tasks);
     p.heap = malloc(n * sizeof *p.heap);
     uint32_t *stack = malloc(n * sizeof *stack);
     uint8_t *visited = calloc(n, 1);
     if (!p.tasks || !p.heap || !stack || !visited) {
-        free(p.lone);
         free(p.tasks);
         free(p.heap);
         free(stack);
@@ -877,7 +883,6 @@ ms_status ms_nsp_encode_all(ms_nsp_build *build, const uint32_t *cell_of_node,
     pthread_cond_destroy(&p.wake);
     free(p.tasks);
     free(p.heap);
-    free(p.lone);
     p.stats.seconds = ms_now_seconds() - t0;
     *stats = p.stats;
     return s;

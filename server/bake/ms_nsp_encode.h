@@ -67,13 +67,17 @@ typedef struct ms_nsp_encode_stats {
     uint64_t apo_sample_triangles;     /* M's triangles, summed over the internal cells */
     uint64_t apo_sample_triangles_max; /* the largest internal cell's M */
     ms_bake_apo_accuracy apo_accuracy; /* internal cells, with apo->accuracy */
+    ms_nsp_io io;               /* read back: leaves' blocks and lone-level segments */
+    /* per leaf depth: leaves, their triangles, and the triangles they own (smallest
+     * key inside): stored - owned are the depth's duplicates */
+    uint64_t depth_leaves[MS_NSP_MAX_DEPTH], depth_triangles[MS_NSP_MAX_DEPTH],
+        depth_owned[MS_NSP_MAX_DEPTH];
     double seconds;
 } ms_nsp_encode_stats;
 
-/* cell_of_node[i] is the archive cell number of build node i. Once the last
- * leaf is encoded, and when no internal cell reads the input again (APO
- * accuracy and leaf sampling off), build->keys is freed and set to NULL: the
- * internal cells that follow are a bake's memory peak. */
+/* cell_of_node[i] is the archive cell number of build node i. The leaves' lone
+ * levels must have been written (ms_nsp_lone_segments): a leaf looks its foreign
+ * vertices' levels up in their own leaves' segments. */
 ms_status ms_nsp_encode_all(ms_nsp_build *build, const uint32_t *cell_of_node,
                             ms_archive_writer *writer, const ms_nsp_encode_params *params,
                             ms_nsp_encode_stats *stats, ms_error *err);

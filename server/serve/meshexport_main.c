@@ -56,6 +56,57 @@ static int write_file(const char *path, const uint8_t *data, size_t size)
     return 0;
 }
 
+/* Writes the files of cell (or, for a cell the grant hides, removes those an
+ * earlier --full export left). 0, -1 when a file could not be written, or 1
+ * after printing an error of the archive. */
+static int export_cell(ms_model *model, const ms_access *grant, const char *archive_dir,
+                       const char *out_dir, const char *name, uint32_t cell, uint64_t *bytes,
+                       uint64_t *files)
+{
+    const ms_archive *a = model->archive;
+    char path[4096];
+    size_t size;
+    ms_error err;
+    int failed = 0;
+    if (ms_archive_verify_payload(a, cell, &err) != MS_OK) {
+        fprintf(stderr, "meshexport: %s: %s\n", archive_dir, err.text);
+        return 1;
+    }
+    if (ms_access_cell_hidden(model, grant, cell)) {
+        /* An earlier --full export into OUT_DIR must not stay behind. */
+        for (int apo = 0; apo < 2; ++apo) {
+            snprintf(path, sizeof path, "%s/models/%s/cells/%u/%s", out_dir, name, cell,
+                     apo ? "apo" : "geometry");
+            remove(path);
+        }
+        snprintf(path, sizeof path, "%s/models/%s/cells/%u", out_dir, name, cell);
+        rmdir(path);
+        return 0;
+    }
+    snprintf(path, sizeof path, "%s/models/%s/cells/%u", out_dir, name, cell);
+    failed |= make_dir(path);
+    for (int apo = 0; apo < 2 && !failed; ++apo) {
+        uint8_t permitted = apo ? grant->permitted_apo_steps : grant->permitted_geometry_steps;
+        const uint8_t *data = apo ? ms_archive_apo(a, cell, &size) : ms_archive_geometry(a, cell, &size);
+        if (apo && (!size || !permitted))
+            continue; /* no APO chunk */
+        ms_proto_cell_request all = {cell, apo ? MS_PROTO_STREAM_APO : MS_PROTO_STREAM_GEOMETRY,
+                                     MS_PROTO_UNIT_STEPS, 0, 0, permitted - 1u};
+        if (all.b > MS_PROTO_MAX_STEP)
+            all.b = MS_PROTO_MAX_STEP;
+        ms_proto_byte_range range;
+        if (ms_access_resolve(model, grant, &all, &range, NULL, &err) != MS_OK) {
+            fprintf(stderr, "meshexport: %s: cell %u: %s\n", archive_dir, cell, err.text);
+            return 1;
+        }
+        snprintf(path, sizeof path, "%s/models/%s/cells/%u/%s", out_dir, name, cell,
+                 apo ? "apo" : "geometry");
+        failed |= write_file(path, data, range.end);
+        *bytes += range.end, (*files)++;
+    }
+    return failed;
+}
+
 int main(int argc, char **argv)
 {
     static const struct option options[] = {
@@ -130,45 +181,12 @@ int main(int argc, char **argv)
     ms_progress progress;
     ms_progress_init(&progress, stderr, "meshexport", h->cell_count);
     for (uint32_t cell = 0; !failed && cell < h->cell_count; ++cell) {
-        if (ms_archive_verify_payload(a, cell, &err) != MS_OK) {
-            fprintf(stderr, "meshexport: %s: %s\n", archive_dir, err.text);
+        int r = export_cell(model, &grant, archive_dir, out_dir, name, cell, &bytes, &files);
+        if (r > 0) {
             ms_model_unref(model);
             return 1;
         }
-        if (ms_access_cell_hidden(model, &grant, cell)) {
-            /* An earlier --full export into OUT_DIR must not stay behind. */
-            for (int apo = 0; apo < 2; ++apo) {
-                snprintf(path, sizeof path, "%s/models/%s/cells/%u/%s", out_dir, name, cell,
-                         apo ? "apo" : "geometry");
-                remove(path);
-            }
-            snprintf(path, sizeof path, "%s/models/%s/cells/%u", out_dir, name, cell);
-            rmdir(path);
-            ms_progress_update(&progress, cell);
-            continue;
-        }
-        snprintf(path, sizeof path, "%s/models/%s/cells/%u", out_dir, name, cell);
-        failed |= make_dir(path);
-        for (int apo = 0; apo < 2 && !failed; ++apo) {
-            uint8_t permitted = apo ? grant.permitted_apo_steps : grant.permitted_geometry_steps;
-            const uint8_t *data = apo ? ms_archive_apo(a, cell, &size) : ms_archive_geometry(a, cell, &size);
-            if (apo && (!size || !permitted))
-                continue; /* no APO chunk */
-            ms_proto_cell_request all = {cell, apo ? MS_PROTO_STREAM_APO : MS_PROTO_STREAM_GEOMETRY,
-                                         MS_PROTO_UNIT_STEPS, 0, 0, permitted - 1u};
-            if (all.b > MS_PROTO_MAX_STEP)
-                all.b = MS_PROTO_MAX_STEP;
-            ms_proto_byte_range range;
-            if (ms_access_resolve(model, &grant, &all, &range, NULL, &err) != MS_OK) {
-                fprintf(stderr, "meshexport: %s: cell %u: %s\n", archive_dir, cell, err.text);
-                ms_model_unref(model);
-                return 1;
-            }
-            snprintf(path, sizeof path, "%s/models/%s/cells/%u/%s", out_dir, name, cell,
-                     apo ? "apo" : "geometry");
-            failed |= write_file(path, data, range.end);
-            bytes += range.end, files++;
-        }
+        failed |= r;
         ms_progress_update(&progress, cell);
     }
     ms_progress_finish(&progress);

@@ -55,6 +55,7 @@ struct ms_http_door {
     tracked_connection *connections;
     size_t connection_count, connection_capacity;
     bool accept_paused_full;    /* at http_max_connections */
+    ms_log_limit accept_log;    /* accept failures */
     rate_bucket buckets[RATE_BUCKETS];
     double request_started;     /* when the request being handled arrived, for the access log */
 };
@@ -723,15 +724,17 @@ static void sweep(evutil_socket_t fd, short what, void *arg)
     update_accepting(door);
 }
 
-/* Out of descriptors (or another accept failure): the listener stays
- * readable, so instead of spinning (and libevent logging each failure)
- * accepting pauses until the next sweep, at most SWEEP_INTERVAL_US. evhttp
- * owns the listener and its argument, so this callback knows nothing of the
- * door: it only pauses; the sweep resumes. */
+/* Accept failed (out of descriptors): pause until the next sweep. The door is
+ * its sweep timer's argument (evhttp owns the listener's); logs rate-limited. */
 static void on_accept_error(struct evconnlistener *listener, void *arg)
 {
     (void)arg;
+    int error = EVUTIL_SOCKET_ERROR();
     evconnlistener_disable(listener);
+    ms_http_door *door = ms_server_event_arg(evconnlistener_get_base(listener), sweep);
+    if (door)
+        ms_server_log_limited(door->server, &door->accept_log, "http: accept failed: %s; "
+                              "accepting paused until the next sweep", strerror(error));
 }
 
 ms_status ms_http_door_open(ms_server *server, ms_http_door **out, uint16_t *bound_port,

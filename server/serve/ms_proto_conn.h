@@ -28,6 +28,7 @@
 struct bufferevent;
 struct ms_server;
 struct ms_model;
+struct ms_registry;
 
 #define MS_PROTO_CONN_HIGH_WATER (256u << 10)   /* stop adding payload chunks */
 #define MS_PROTO_CONN_LOW_WATER (128u << 10)    /* resume (write callback) */
@@ -115,6 +116,14 @@ void ms_serve_conn_broken(ms_serve_conn *conn);
 
 /* Answers one decoded message (ms_proto_requests.c). */
 void ms_serve_conn_handle_message(ms_serve_conn *conn, const ms_proto_message *msg);
+
+/* After a rescan (ms_proto_requests.c): every open handle whose model is no
+ * longer registry's model of that name with the same content_id (replaced or
+ * removed) loses its queued requests (no CANCELLED each) and is closed, and
+ * the client gets ERROR MODEL_CHANGED (request_id 0, detail = the handle).
+ * Payload frames already in the output buffer stay whole. Handles of
+ * unchanged models see nothing. */
+void ms_serve_conn_models_changed(ms_serve_conn *conn, const struct ms_registry *registry);
 
 /* The scheduler's callback: sends one payload chunk. */
 bool ms_serve_conn_send_chunk(ms_fair_link *link, void *arg);

@@ -26,6 +26,8 @@ struct ms_serve_door {
     struct evconnlistener *listener;
     struct event *sweep;
     struct event *accept_resume;  /* after running out of descriptors */
+    uint32_t accept_pause_us;     /* the next pause after a failed accept; 0 = the first */
+    ms_log_limit accept_log;
     ms_serve_conn *connections;  /* doubly linked */
     size_t connection_count, rejected_count;
     /* ERROR TOO_MANY_CONNECTIONS, encoded once: what a connection past the
@@ -59,6 +61,7 @@ static void on_accept(struct evconnlistener *listener, evutil_socket_t fd, struc
     (void)listener, (void)address, (void)length;
     ms_serve_door *door = arg;
     ms_server *s = door->shared.server;
+    door->accept_pause_us = 0; /* accepting works again: the back-off starts over */
     bool rejected = s->metrics.binary_connections >= s->config.max_clients;
     if (rejected && door->rejected_count >= MAX_REJECTED_LINGERING) {
         /* No room to linger: the answer goes in one send (a fresh socket's
@@ -99,18 +102,31 @@ static void resume_accepting(evutil_socket_t fd, short what, void *arg)
 }
 
 /* Out of descriptors, the pending connection stays in the backlog and the
- * listener stays readable: pause accepting for a moment instead of spinning. */
+ * listener stays readable: instead of spinning, accepting pauses, 25 ms after
+ * the first failure, twice as long after each further one in a row, at most
+ * ACCEPT_PAUSE_MAX_US; a successful accept starts over. The failures are
+ * logged at most once per MS_LOG_INTERVAL_S, with their count. */
+#define ACCEPT_PAUSE_FIRST_US 25000u
+#define ACCEPT_PAUSE_MAX_US 800000u
 static void on_accept_error(struct evconnlistener *listener, void *arg)
 {
-    ms_serve_door *door = arg;
     int error = EVUTIL_SOCKET_ERROR();
-    ms_server_log(door->shared.server, "binary: accept failed: %s", strerror(error));
-    if (error == EMFILE || error == ENFILE || error == ENOBUFS || error == ENOMEM) {
-        struct timeval pause = {0, 100000};
-        evconnlistener_disable(listener);
-        if (door->accept_resume)
-            event_add(door->accept_resume, &pause);
+    ms_serve_door *door = arg;
+    bool out_of_room = error == EMFILE || error == ENFILE || error == ENOBUFS || error == ENOMEM;
+    uint32_t pause_us = door->accept_pause_us ? door->accept_pause_us : ACCEPT_PAUSE_FIRST_US;
+    if (!out_of_room) {
+        ms_server_log_limited(door->shared.server, &door->accept_log, "binary: accept failed: %s",
+                              strerror(error));
+        return;
     }
+    ms_server_log_limited(door->shared.server, &door->accept_log,
+                          "binary: accept failed: %s; accepting paused %u ms", strerror(error),
+                          pause_us / 1000);
+    struct timeval pause = {0, (suseconds_t)pause_us};
+    door->accept_pause_us = pause_us * 2 < ACCEPT_PAUSE_MAX_US ? pause_us * 2 : ACCEPT_PAUSE_MAX_US;
+    evconnlistener_disable(listener);
+    if (door->accept_resume)
+        event_add(door->accept_resume, &pause);
 }
 
 static void sweep(evutil_socket_t fd, short what, void *arg)
@@ -233,6 +249,14 @@ void ms_serve_door_drain(ms_serve_door *door)
         evconnlistener_disable(door->listener);
     for (ms_serve_conn *c = door->connections; c; c = c->next)
         ms_serve_conn_drain(c);
+}
+
+void ms_serve_door_models_changed(ms_serve_door *door, const ms_registry *registry)
+{
+    if (!door)
+        return;
+    for (ms_serve_conn *c = door->connections; c; c = c->next)
+        ms_serve_conn_models_changed(c, registry);
 }
 
 size_t ms_serve_door_connection_count(const ms_serve_door *door)

@@ -15,6 +15,7 @@
 #include "ms_error.h"
 
 struct ms_server;
+struct ms_registry;
 typedef struct ms_serve_door ms_serve_door;
 
 /* Listens on the server's bind address and port (0: ephemeral); *bound_port
@@ -25,6 +26,10 @@ ms_status ms_serve_door_open(struct ms_server *server, ms_serve_door **door, uin
 /* Stops accepting and reading; every connection finishes the requests it has
  * queued, then gets ERROR SHUTTING_DOWN and is closed. */
 void ms_serve_door_drain(ms_serve_door *door);
+
+/* After a rescan installed registry: tells every connection holding a model
+ * that was replaced or removed (ms_serve_conn_models_changed). */
+void ms_serve_door_models_changed(ms_serve_door *door, const struct ms_registry *registry);
 
 /* Connections still open (lingering closes included). */
 size_t ms_serve_door_connection_count(const ms_serve_door *door);

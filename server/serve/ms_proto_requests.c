@@ -103,16 +103,20 @@ static ms_open_model *find_handle(ms_serve_conn *c, uint32_t handle)
     return NULL;
 }
 
-/* Ends a queued request with ERROR CANCELLED. */
-static void cancel_request(ms_serve_conn *c, ms_cell_request *r)
+/* Takes a queued request out (the frames already in the output buffer stay
+ * whole) and, when announce, ends it with ERROR CANCELLED. */
+static void drop_request(ms_serve_conn *c, ms_cell_request *r, bool announce)
 {
     ms_server_metrics *m = metrics_of(c);
     m->queued_requests--;
     m->queued_bytes -= r->end - r->next;
     ms_request_queue_remove(&c->queue, r);
-    ms_serve_conn_send_error(c, MS_PROTO_E_CANCELLED, r->id, 1, 0, "cancelled");
+    if (announce)
+        ms_serve_conn_send_error(c, MS_PROTO_E_CANCELLED, r->id, 1, 0, "cancelled");
     free(r);
 }
+
+static void cancel_request(ms_serve_conn *c, ms_cell_request *r) { drop_request(c, r, true); }
 
 /* --- Messages --------------------------------------------------------------- */
 
@@ -287,15 +291,16 @@ static bool matches(const ms_cell_request *r, const request_match *m)
     return m->handle ? r->handle == m->handle : r->id >= m->first && r->id - m->first < m->count;
 }
 
-/* Cancels every queued request that matches. The matches are collected
- * before any removal, because a removal reorders the heap. */
-static void cancel_matching(ms_serve_conn *c, const request_match *m)
+/* Drops every queued request that matches, each ended with ERROR CANCELLED
+ * when announce. The matches are collected before any removal, because a
+ * removal reorders the heap. */
+static void drop_matching(ms_serve_conn *c, const request_match *m, bool announce)
 {
     ms_cell_request **doomed = c->queue.count ? malloc(c->queue.count * sizeof *doomed) : NULL;
     if (!doomed) { /* empty queue, or out of memory: rescan after each removal */
         for (size_t i = 0; i < c->queue.count;) {
             if (matches(c->queue.heap[i], m)) {
-                cancel_request(c, c->queue.heap[i]);
+                drop_request(c, c->queue.heap[i], announce);
                 i = 0;
             } else {
                 ++i;
@@ -308,8 +313,35 @@ static void cancel_matching(ms_serve_conn *c, const request_match *m)
         if (matches(c->queue.heap[i], m))
             doomed[n++] = c->queue.heap[i];
     for (size_t i = 0; i < n; ++i)
-        cancel_request(c, doomed[i]);
+        drop_request(c, doomed[i], announce);
     free(doomed);
+}
+
+static void cancel_matching(ms_serve_conn *c, const request_match *m) { drop_matching(c, m, true); }
+
+void ms_serve_conn_models_changed(ms_serve_conn *c, const ms_registry *registry)
+{
+    if (c->state != MS_CONN_READY)
+        return;
+    for (unsigned i = 0; i < MS_PROTO_CONN_MAX_OPEN_MODELS && c->state == MS_CONN_READY; ++i) {
+        ms_open_model *slot = &c->models[i];
+        if (!slot->handle)
+            continue;
+        const ms_model *current = ms_registry_find(registry, slot->model->entry.name);
+        if (current && current->content_id == slot->model->content_id)
+            continue; /* unchanged, even if its file was rewritten */
+        char text[128];
+        snprintf(text, sizeof text, "model '%s' %s on the server; reopen it",
+                 slot->model->entry.name, current ? "changed" : "was removed");
+        uint32_t handle = slot->handle;
+        request_match m = {handle, 0, 0};
+        drop_matching(c, &m, false);
+        ms_model_unref(slot->model);
+        memset(slot, 0, sizeof *slot);
+        ms_serve_conn_send_error(c, MS_PROTO_E_MODEL_CHANGED, 0, 0, handle, text);
+    }
+    if (c->door->draining && !c->queue.count)
+        ms_serve_conn_fail(c, MS_PROTO_E_SHUTTING_DOWN, 0, "server shutting down");
 }
 
 static void handle_close_model(ms_serve_conn *c, uint32_t handle)

@@ -6,9 +6,10 @@
  * change (same inode, size and modification time) and whose catalogue entry
  * did not change either (a new public_max_bits takes effect at the rescan; an
  * open binary-protocol handle keeps the grant it was given), so a rescan (SIGHUP) costs
- * little and never disturbs transfers in progress: each model is reference-
- * counted, and a connection that holds a model keeps its mapping alive after the
- * model has been removed or replaced.
+ * little. Each model is reference-counted: after a rescan the server closes
+ * every handle on a model that was removed or replaced (ERROR MODEL_CHANGED,
+ * ms_serve_conn_models_changed), and the frames already queued keep their
+ * mapping alive until they are sent.
  *
  * Only names that ms_model_name_valid accepts ever reach the file system, and
  * only as DIR/NAME.msa. A model whose file changed but no longer opens (a

@@ -31,6 +31,49 @@ void ms_server_log(const ms_server *server, const char *fmt, ...)
     fprintf(stderr, "%s meshserve: %s\n", stamp, line);
 }
 
+typedef struct event_search {
+    void (*cb)(int, short, void *);
+    void *arg;
+} event_search;
+
+static int match_event(const struct event_base *base, const struct event *ev, void *arg)
+{
+    (void)base;
+    event_search *search = arg;
+    if (event_get_callback(ev) != search->cb)
+        return 0;
+    search->arg = event_get_callback_arg(ev);
+    return 1; /* found: stop */
+}
+
+void *ms_server_event_arg(struct event_base *base, void (*cb)(int, short, void *))
+{
+    event_search search = {cb, NULL};
+    event_base_foreach_event(base, match_event, &search);
+    return search.arg;
+}
+
+void ms_server_log_limited(const ms_server *server, ms_log_limit *limit, const char *fmt, ...)
+{
+    double now = ms_now_seconds();
+    if (limit->last_line_at > 0 && now - limit->last_line_at < MS_LOG_INTERVAL_S) {
+        limit->held++;
+        return;
+    }
+    char line[1024];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(line, sizeof line, fmt, ap);
+    va_end(ap);
+    if (limit->held)
+        ms_server_log(server, "%s (%llu more since the last line)", line,
+                      (unsigned long long)limit->held);
+    else
+        ms_server_log(server, "%s", line);
+    limit->last_line_at = now;
+    limit->held = 0;
+}
+
 bool ms_server_payload_intact(const ms_server *s, ms_model *model, uint32_t cell, bool apo)
 {
     bool first_report;
@@ -90,6 +133,9 @@ ms_status ms_server_rescan(ms_server *s, ms_error *err)
     ms_registry_free(s->registry);
     s->registry = fresh;
     s->metrics.rescans++;
+    /* Handles of replaced or removed models close now, with MODEL_CHANGED,
+     * instead of streaming the old version until the client disconnects. */
+    ms_serve_door_models_changed(s->binary, s->registry);
     return MS_OK;
 }
 

@@ -252,6 +252,132 @@ static size_t boundary_pairs(const uint64_t *tris, size_t n, uint64_t **out)
     return w;
 }
 
+/* The stitched mesh m (its triangles st as vertex identities) is exactly q:
+ * vertices (isolated included, keys key) and oriented triangles. */
+static void check_exactly_q(const ms_view_mesh *m, const ms_qmesh *q, const uint64_t *key,
+                            const uint64_t *st, unsigned D)
+{
+    assert_int_equal(m->vertex_count, q->vertex_count);
+    uint64_t *kv = malloc((m->vertex_count + 1) * sizeof *kv);
+    assert_non_null(kv);
+    for (size_t i = 0; i < m->vertex_count; ++i) {
+        assert_int_equal(m->levels[i], D);
+        kv[i] = m->keys[i];
+    }
+    qsort(kv, m->vertex_count, 8, cmp_u64);
+    uint64_t *kq = malloc((q->vertex_count + 1) * sizeof *kq);
+    assert_non_null(kq);
+    memcpy(kq, key, q->vertex_count * sizeof *kq);
+    qsort(kq, q->vertex_count, 8, cmp_u64);
+    assert_memory_equal(kv, kq, q->vertex_count * 8);
+    free(kv);
+    free(kq);
+    assert_int_equal(m->triangle_count, q->tri_count);
+    uint64_t *a = malloc((3 * q->tri_count + 3) * sizeof *a);
+    uint64_t *b = malloc((3 * q->tri_count + 3) * sizeof *b);
+    assert_true(a && b);
+    for (size_t t = 0; t < q->tri_count; ++t) {
+        for (int k = 0; k < 3; ++k) {
+            a[3 * t + (size_t)k] = vid(D, D, key[q->tris[3 * t + (size_t)k]]);
+            b[3 * t + (size_t)k] = st[3 * t + (size_t)k];
+        }
+        rotate_min(&a[3 * t]);
+        rotate_min(&b[3 * t]);
+    }
+    qsort(a, q->tri_count, 24, cmp_u64x3);
+    qsort(b, q->tri_count, 24, cmp_u64x3);
+    assert_memory_equal(a, b, 24 * q->tri_count);
+    free(a);
+    free(b);
+}
+
+/* The distinct kd-levels of the shown cells with geometry (into levels, at
+ * most 64); counts the shown cells into r. */
+static unsigned shown_levels(ms_view *v, unsigned levels[64], ms_nsp_view_check *r)
+{
+    unsigned nl = 0;
+    for (uint32_t c = 0; c < ms_view_cell_count(v); ++c) {
+        if (ms_view_state(v, c) != MS_VIEW_SHOWN)
+            continue;
+        r->shown_cells++;
+        if (ms_view_cell(v, c)->geometry_length == 0)
+            continue;
+        unsigned L = 3 * ms_view_bits(v, c);
+        bool seen = false;
+        for (unsigned i = 0; i < nl; ++i)
+            seen |= levels[i] == L;
+        if (!seen)
+            levels[nl++] = L;
+    }
+    return nl;
+}
+
+/* The crack criterion: each boundary edge of the stitched triangles st (nbe
+ * of them, be / be_tri) must be a boundary edge of q coarsened to one of the
+ * shown levels, or a fold; the others count as cracks in r. */
+static void count_cracks(const ms_qmesh *q, const uint64_t *st, const uint64_t *be,
+                         const uint32_t *be_tri, size_t nbe, const unsigned *levels, unsigned nl,
+                         const uint64_t *ref, size_t nref, const uint32_t *mult, unsigned D,
+                         ms_nsp_view_check *r)
+{
+    ms_error err;
+    ms_codec_state fullst = {0};
+    assert_int_equal(ms_codec_state_from_qmesh(q, &fullst, &err), MS_OK);
+    uint8_t *ok = calloc(nbe, 1);
+    assert_non_null(ok);
+    for (unsigned li = 0; li < nl; ++li) {
+        unsigned L = levels[li];
+        ms_codec_state u;
+        ms_ref_coarsen(&fullst, L, &u);
+        uint64_t *ut = malloc((3 * u.tri_count + 3) * sizeof *ut);
+        assert_non_null(ut);
+        for (size_t t = 0; t < 3 * u.tri_count; ++t)
+            ut[t] = u.cells[u.tris[t]];
+        uint64_t *ub;
+        size_t nub = boundary_pairs(ut, u.tri_count, &ub);
+        for (size_t e = 0; e < nbe; ++e) {
+            if (ok[e])
+                continue;
+            unsigned la = vid_level(D, be[2 * e]), lb = vid_level(D, be[2 * e + 1]);
+            if (L > la || L > lb)
+                continue;
+            uint64_t pa = L == 0 ? 0 : vid_aligned(D, be[2 * e]) >> (D - L);
+            uint64_t pb = L == 0 ? 0 : vid_aligned(D, be[2 * e + 1]) >> (D - L);
+            if (pa == pb)
+                continue;
+            uint64_t pair[2] = {pa < pb ? pa : pb, pa < pb ? pb : pa};
+            ok[e] = bsearch(pair, ub, nub, 16, cmp_u64x2) != NULL;
+        }
+        free(ub);
+        free(ut);
+        ms_codec_state_free(&u);
+    }
+    for (size_t e = 0; e < nbe; ++e) {
+        if (ok[e])
+            continue;
+        /* A fold: the edge's one triangle is the image of several original
+         * triangles (two sheets pressed together and unified), so the edge is
+         * covered on both sides, by the same triangle. */
+        uint64_t tri[3];
+        memcpy(tri, &st[3 * (size_t)be_tri[e]], sizeof tri);
+        sort3(tri);
+        const uint64_t *hit = bsearch(tri, ref, nref, 24, cmp_u64x3);
+        assert_non_null(hit);
+        if (mult[(size_t)(hit - ref) / 3] >= 2) {
+            r->folds++;
+            continue;
+        }
+        r->cracks++;
+        if (getenv("MS_NSP_DEBUG"))
+            print_message("crack edge: levels %u %u keys %llx %llx\n",
+                          vid_level(D, be[2 * e]), vid_level(D, be[2 * e + 1]),
+                          (unsigned long long)vid_aligned(D, be[2 * e]),
+                          (unsigned long long)vid_aligned(D, be[2 * e + 1]));
+    }
+    free(ok);
+    ms_codec_state_free(&fullst);
+}
+
 void ms_nsp_test_check_view(ms_view *v, const ms_qmesh *q, bool full, ms_nsp_view_check *r)
 {
     memset(r, 0, sizeof *r);
@@ -313,120 +439,19 @@ void ms_nsp_test_check_view(ms_view *v, const ms_qmesh *q, bool full, ms_nsp_vie
             r->extra++, ++j;
     }
 
-    if (full) {
-        /* Exactly q: vertices (isolated included) and oriented triangles. */
-        assert_int_equal(m.vertex_count, q->vertex_count);
-        uint64_t *kv = malloc((m.vertex_count + 1) * sizeof *kv);
-        assert_non_null(kv);
-        for (size_t i = 0; i < m.vertex_count; ++i) {
-            assert_int_equal(m.levels[i], D);
-            kv[i] = m.keys[i];
-        }
-        qsort(kv, m.vertex_count, 8, cmp_u64);
-        uint64_t *kq = malloc((q->vertex_count + 1) * sizeof *kq);
-        assert_non_null(kq);
-        memcpy(kq, key, q->vertex_count * sizeof *kq);
-        qsort(kq, q->vertex_count, 8, cmp_u64);
-        assert_memory_equal(kv, kq, q->vertex_count * 8);
-        free(kv);
-        free(kq);
-        assert_int_equal(m.triangle_count, q->tri_count);
-        uint64_t *a = malloc((3 * q->tri_count + 3) * sizeof *a);
-        uint64_t *b = malloc((3 * q->tri_count + 3) * sizeof *b);
-        assert_true(a && b);
-        for (size_t t = 0; t < q->tri_count; ++t) {
-            for (int k = 0; k < 3; ++k) {
-                a[3 * t + (size_t)k] = vid(D, D, key[q->tris[3 * t + (size_t)k]]);
-                b[3 * t + (size_t)k] = st[3 * t + (size_t)k];
-            }
-            rotate_min(&a[3 * t]);
-            rotate_min(&b[3 * t]);
-        }
-        qsort(a, q->tri_count, 24, cmp_u64x3);
-        qsort(b, q->tri_count, 24, cmp_u64x3);
-        assert_memory_equal(a, b, 24 * q->tri_count);
-        free(a);
-        free(b);
-    }
+    if (full)
+        check_exactly_q(&m, q, key, st, D);
 
     /* Crack criterion. */
     unsigned levels[64];
-    unsigned nl = 0;
-    for (uint32_t c = 0; c < ms_view_cell_count(v); ++c) {
-        if (ms_view_state(v, c) != MS_VIEW_SHOWN)
-            continue;
-        r->shown_cells++;
-        if (ms_view_cell(v, c)->geometry_length == 0)
-            continue;
-        unsigned L = 3 * ms_view_bits(v, c);
-        bool seen = false;
-        for (unsigned i = 0; i < nl; ++i)
-            seen |= levels[i] == L;
-        if (!seen)
-            levels[nl++] = L;
-    }
+    unsigned nl = shown_levels(v, levels, r);
     r->levels = nl;
     uint64_t *be;
     uint32_t *be_tri;
     size_t nbe = boundary_pairs_of(st, m.triangle_count, &be, &be_tri);
     r->boundary_edges = nbe;
-    if (nbe > 0) {
-        ms_codec_state fullst = {0};
-        assert_int_equal(ms_codec_state_from_qmesh(q, &fullst, &err), MS_OK);
-        uint8_t *ok = calloc(nbe, 1);
-        assert_non_null(ok);
-        for (unsigned li = 0; li < nl; ++li) {
-            unsigned L = levels[li];
-            ms_codec_state u;
-            ms_ref_coarsen(&fullst, L, &u);
-            uint64_t *ut = malloc((3 * u.tri_count + 3) * sizeof *ut);
-            assert_non_null(ut);
-            for (size_t t = 0; t < 3 * u.tri_count; ++t)
-                ut[t] = u.cells[u.tris[t]];
-            uint64_t *ub;
-            size_t nub = boundary_pairs(ut, u.tri_count, &ub);
-            for (size_t e = 0; e < nbe; ++e) {
-                if (ok[e])
-                    continue;
-                unsigned la = vid_level(D, be[2 * e]), lb = vid_level(D, be[2 * e + 1]);
-                if (L > la || L > lb)
-                    continue;
-                uint64_t pa = L == 0 ? 0 : vid_aligned(D, be[2 * e]) >> (D - L);
-                uint64_t pb = L == 0 ? 0 : vid_aligned(D, be[2 * e + 1]) >> (D - L);
-                if (pa == pb)
-                    continue;
-                uint64_t pair[2] = {pa < pb ? pa : pb, pa < pb ? pb : pa};
-                ok[e] = bsearch(pair, ub, nub, 16, cmp_u64x2) != NULL;
-            }
-            free(ub);
-            free(ut);
-            ms_codec_state_free(&u);
-        }
-        for (size_t e = 0; e < nbe; ++e) {
-            if (ok[e])
-                continue;
-            /* A fold: the edge's one triangle is the image of several original
-             * triangles (two sheets pressed together and unified), so the edge is
-             * covered on both sides, by the same triangle. */
-            uint64_t tri[3];
-            memcpy(tri, &st[3 * (size_t)be_tri[e]], sizeof tri);
-            sort3(tri);
-            const uint64_t *hit = bsearch(tri, ref, nref, 24, cmp_u64x3);
-            assert_non_null(hit);
-            if (mult[(size_t)(hit - ref) / 3] >= 2) {
-                r->folds++;
-                continue;
-            }
-            r->cracks++;
-            if (getenv("MS_NSP_DEBUG"))
-                print_message("crack edge: levels %u %u keys %llx %llx\n",
-                              vid_level(D, be[2 * e]), vid_level(D, be[2 * e + 1]),
-                              (unsigned long long)vid_aligned(D, be[2 * e]),
-                              (unsigned long long)vid_aligned(D, be[2 * e + 1]));
-        }
-        free(ok);
-        ms_codec_state_free(&fullst);
-    }
+    if (nbe > 0)
+        count_cracks(q, st, be, be_tri, nbe, levels, nl, ref, nref, mult, D, r);
     free(be);
     free(be_tri);
     free(mult);

@@ -1,0 +1,326 @@
+/* The view decoder's stitching: the shown cells' complexes as one mesh
+ * (ms_view_stitch, ms_view_decoder.h). */
+#include <stdlib.h>
+#include <string.h>
+
+#include "ms_view_decoder_internal.h"
+
+/* ---- stitching ------------------------------------------------------------ */
+
+void ms_view_mesh_free(ms_view_mesh *m)
+{
+    if (!m)
+        return;
+    free(m->positions);
+    free(m->keys);
+    free(m->levels);
+    free(m->triangles);
+    free(m->triangle_cell);
+    memset(m, 0, sizeof *m);
+}
+
+static ms_status refresh_cache(ms_view *v, uint32_t cell, ms_error *err)
+{
+    vcell *c = &v->cells[cell];
+    if (c->cache_valid && c->cache_bits == c->bits)
+        return MS_OK;
+    ms_view_cache_drop(c);
+    ms_status s = ms_view_cell_state_copy(v, cell, &c->cache, err);
+    if (s != MS_OK)
+        return s;
+    size_t n = c->cache.vertex_count;
+    c->out_index = malloc((n ? n : 1) * sizeof *c->out_index);
+    c->owner = malloc((n ? n : 1) * sizeof *c->owner);
+    if (!c->out_index || !c->owner) {
+        ms_view_cache_drop(c);
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory stitching");
+    }
+    if (c->dec) {
+        if (ms_codec_decoder_vertex_count(c->dec) != n) {
+            ms_view_cache_drop(c);
+            return ms_error_set(err, MS_ERR_CORRUPT, "cell %u: state and decoder disagree", cell);
+        }
+        c->levels = malloc(n ? n : 1);
+        if (!c->levels) {
+            ms_view_cache_drop(c);
+            return ms_error_set(err, MS_ERR_NOMEM, "out of memory stitching");
+        }
+        if (ms_codec_decoder_vertex_levels(c->dec, c->levels) == 0) {
+            free(c->levels);
+            c->levels = NULL;
+        }
+    }
+    c->cache_valid = true;
+    c->cache_bits = c->bits;
+    return MS_OK;
+}
+
+/* The shown cell holding kd-cell (prefix, level), or OWNER_FINER when the kd-cell
+ * spans several shown cells (all finer than `level`). */
+static uint32_t owner_of(const ms_view *v, uint64_t prefix, unsigned level)
+{
+    uint32_t xyz[3];
+    ms_nsp_prefix_corner(&v->shape, prefix, level, xyz);
+    uint32_t cell = 0;
+    while (v->cells[cell].state == MS_VIEW_SPLIT) {
+        const ms_archive_cell *r = &v->cells[cell].rec;
+        if (level < 3u * (r->level + 1u) * v->shape.log2n)
+            return OWNER_FINER;
+        cell = r->first_child + ms_nsp_child_offset(&v->shape, r->level, xyz);
+    }
+    return cell;
+}
+
+/* The vertex of s lying inside kd-cell `prefix` of level s->level - coarser (the
+ * first, and for a frozen foreign cell's lone kd-cell the only, one), or NONE;
+ * coarser = 0: the vertex that is that kd-cell. */
+static uint32_t find_inside(const ms_codec_state *s, uint64_t prefix, unsigned coarser)
+{
+    uint64_t first = prefix << coarser;
+    size_t lo = 0, hi = s->vertex_count;
+    while (lo < hi) {
+        size_t mid = lo + (hi - lo) / 2;
+        if (s->cells[mid] < first)
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    return lo < s->vertex_count && s->cells[lo] >> coarser == prefix ? (uint32_t)lo : NONE;
+}
+
+static size_t grown(size_t cap, size_t need)
+{
+    size_t c = cap ? cap : 1024;
+    while (c < need)
+        c *= 2;
+    return c;
+}
+
+static ms_status mesh_room(ms_view_mesh *m, size_t vertices, size_t triangles, ms_error *err)
+{
+    if (vertices > m->vertex_cap) {
+        size_t c = grown(m->vertex_cap, vertices);
+        double *p = realloc(m->positions, 3 * c * sizeof *p);
+        if (p)
+            m->positions = p;
+        uint64_t *k = realloc(m->keys, c * sizeof *k);
+        if (k)
+            m->keys = k;
+        uint8_t *l = realloc(m->levels, c);
+        if (l)
+            m->levels = l;
+        if (!p || !k || !l)
+            return ms_error_set(err, MS_ERR_NOMEM, "out of memory stitching");
+        m->vertex_cap = c;
+    }
+    if (triangles > m->triangle_cap) {
+        size_t c = grown(m->triangle_cap, triangles);
+        uint32_t *t = realloc(m->triangles, 3 * c * sizeof *t);
+        if (t)
+            m->triangles = t;
+        uint32_t *tc = realloc(m->triangle_cell, c * sizeof *tc);
+        if (tc)
+            m->triangle_cell = tc;
+        if (!t || !tc)
+            return ms_error_set(err, MS_ERR_NOMEM, "out of memory stitching");
+        m->triangle_cap = c;
+    }
+    return MS_OK;
+}
+
+/* Output index of vertex i of cell `cell`'s cache, adding it on first use. */
+static ms_status out_vertex(ms_view *v, ms_view_mesh *m, uint32_t cell, uint32_t i, uint32_t *out,
+                            ms_error *err)
+{
+    vcell *c = &v->cells[cell];
+    if (c->out_index[i] != NONE) {
+        *out = c->out_index[i];
+        return MS_OK;
+    }
+    ms_status s = mesh_room(m, m->vertex_count + 1, 0, err);
+    if (s != MS_OK)
+        return s;
+    size_t k = m->vertex_count++;
+    unsigned level = c->cache.level;
+    uint64_t prefix = c->cache.cells[i];
+    uint32_t xyz[3];
+    ms_nsp_prefix_corner(&v->shape, prefix, level, xyz);
+    const unsigned p = v->shape.bits;
+    double unit = v->header.box_side / (double)(1u << p);
+    for (int a = 0; a < 3; ++a) {
+        unsigned axis_bits = (level + 2u - (unsigned)a) / 3u;
+        double width = (double)(1u << (p - axis_bits));
+        m->positions[3 * k + (size_t)a] =
+            v->header.box_origin[a] + ((double)xyz[a] + 0.5 * width) * unit;
+    }
+    unsigned shift = 3 * p - level;
+    m->keys[k] = shift >= 64 ? 0 : prefix << shift;
+    m->levels[k] = (uint8_t)level;
+    c->out_index[i] = (uint32_t)k;
+    *out = (uint32_t)k;
+    return MS_OK;
+}
+
+typedef struct snapped_tri {
+    uint32_t s[3]; /* sorted output vertex indices */
+    uint32_t at;   /* position in the output */
+} snapped_tri;
+
+static int cmp_snapped(const void *x, const void *y)
+{
+    const snapped_tri *a = x, *b = y;
+    for (int i = 0; i < 3; ++i)
+        if (a->s[i] != b->s[i])
+            return a->s[i] < b->s[i] ? -1 : 1;
+    return a->at < b->at ? -1 : (a->at > b->at);
+}
+
+/* Two triangles of one cell, distinct at its precision, may become the same
+ * triangle once their vertices in coarser neighbours snap (triangles of different
+ * cells never can: each keeps a vertex of its own cell, and the precision rule
+ * lets only one of two cells draw). Keeps the first of each such group. */
+static ms_status drop_snapped_repeats(ms_view_mesh *m, size_t first, const uint8_t *snapped,
+                                      ms_error *err)
+{
+    size_t n = 0;
+    for (size_t t = first; t < m->triangle_count; ++t)
+        n += snapped[t - first];
+    if (n < 2)
+        return MS_OK;
+    snapped_tri *a = malloc(n * sizeof *a);
+    uint8_t *drop = calloc(m->triangle_count - first, 1);
+    if (!a || !drop) {
+        free(a);
+        free(drop);
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory stitching");
+    }
+    n = 0;
+    for (size_t t = first; t < m->triangle_count; ++t) {
+        if (!snapped[t - first])
+            continue;
+        uint32_t x = m->triangles[3 * t], y = m->triangles[3 * t + 1], z = m->triangles[3 * t + 2], w;
+        if (x > y)
+            w = x, x = y, y = w;
+        if (y > z)
+            w = y, y = z, z = w;
+        if (x > y)
+            w = x, x = y, y = w;
+        a[n++] = (snapped_tri){{x, y, z}, (uint32_t)(t - first)};
+    }
+    qsort(a, n, sizeof *a, cmp_snapped);
+    for (size_t i = 1; i < n; ++i)
+        if (memcmp(a[i].s, a[i - 1].s, sizeof a[i].s) == 0)
+            drop[a[i].at] = 1;
+    size_t w = first;
+    for (size_t t = first; t < m->triangle_count; ++t) {
+        if (drop[t - first]) {
+            m->dropped_snapped++;
+            continue;
+        }
+        if (w != t) {
+            memcpy(&m->triangles[3 * w], &m->triangles[3 * t], 12);
+            m->triangle_cell[w] = m->triangle_cell[t];
+        }
+        w++;
+    }
+    m->triangle_count = w;
+    free(a);
+    free(drop);
+    return MS_OK;
+}
+
+ms_status ms_view_stitch(ms_view *v, const bool *visible, ms_view_mesh *m, ms_error *err)
+{
+    uint8_t *snapped = NULL;
+    size_t snapped_cap = 0;
+    m->vertex_count = m->triangle_count = 0;
+    m->dropped_finer = m->dropped_snapped = m->unresolved = m->snapped_frozen = 0;
+    ms_status s = MS_OK;
+    /* Caches and owners of every shown cell. */
+    for (uint32_t id = 0; id < v->count && s == MS_OK; ++id) {
+        vcell *c = &v->cells[id];
+        if (c->state != MS_VIEW_SHOWN)
+            continue;
+        if ((s = refresh_cache(v, id, err)) != MS_OK)
+            break;
+        for (size_t i = 0; i < c->cache.vertex_count; ++i) {
+            c->out_index[i] = NONE;
+            c->owner[i] = owner_of(v, c->cache.cells[i], c->cache.level);
+        }
+    }
+    for (uint32_t id = 0; id < v->count && s == MS_OK; ++id) {
+        vcell *c = &v->cells[id];
+        if (c->state != MS_VIEW_SHOWN || (visible && !visible[id]))
+            continue;
+        const unsigned Lc = c->cache.level;
+        const size_t first = m->triangle_count;
+        if (c->cache.tri_count > snapped_cap) {
+            uint8_t *p = realloc(snapped, c->cache.tri_count);
+            if (!p) {
+                s = ms_error_set(err, MS_ERR_NOMEM, "out of memory stitching");
+                break;
+            }
+            snapped = p;
+            snapped_cap = c->cache.tri_count;
+        }
+        for (size_t i = 0; i < c->cache.vertex_count && s == MS_OK; ++i)
+            if (c->owner[i] == id) {
+                uint32_t dummy;
+                s = out_vertex(v, m, id, (uint32_t)i, &dummy, err);
+            }
+        for (size_t t = 0; t < c->cache.tri_count && s == MS_OK; ++t) {
+            const uint32_t *x = &c->cache.tris[3 * t];
+            uint32_t idx[3];
+            bool keep = true, moved = false;
+            for (int j = 0; j < 3 && keep; ++j) {
+                uint32_t o = c->owner[x[j]];
+                if (o == OWNER_FINER) {
+                    keep = false;
+                    m->dropped_finer++;
+                    break;
+                }
+                if (o == id) {
+                    if ((s = out_vertex(v, m, id, x[j], &idx[j], err)) != MS_OK)
+                        break;
+                    continue;
+                }
+                vcell *oc = &v->cells[o];
+                unsigned Lo = oc->cache.level;
+                if (Lo > Lc || (Lo == Lc && o > id)) {
+                    keep = false;
+                    m->dropped_finer++;
+                    break;
+                }
+                /* a frozen foreign vertex is known only to its lone kd-cell (level
+                 * lx): the holder's vertex inside it is the one it stands for */
+                unsigned lx = c->levels ? c->levels[x[j]] : Lc, at = lx < Lo ? lx : Lo;
+                uint32_t k = find_inside(&oc->cache, c->cache.cells[x[j]] >> (Lc - at), Lo - at);
+                if (k == NONE) {
+                    keep = false;
+                    m->unresolved++;
+                    break;
+                }
+                m->snapped_frozen += lx < Lo;
+                if ((s = out_vertex(v, m, o, k, &idx[j], err)) != MS_OK)
+                    break;
+                moved = true;
+            }
+            if (s != MS_OK || !keep)
+                continue;
+            if (idx[0] == idx[1] || idx[1] == idx[2] || idx[0] == idx[2]) {
+                m->dropped_snapped++;
+                continue;
+            }
+            if ((s = mesh_room(m, 0, m->triangle_count + 1, err)) != MS_OK)
+                break;
+            memcpy(&m->triangles[3 * m->triangle_count], idx, sizeof idx);
+            m->triangle_cell[m->triangle_count] = id;
+            snapped[m->triangle_count - first] = moved;
+            m->triangle_count++;
+        }
+        if (s == MS_OK)
+            s = drop_snapped_repeats(m, first, snapped, err);
+    }
+    free(snapped);
+    return s;
+}
