@@ -10,6 +10,8 @@
  *     program as with every effect compiled in (--effects-all);
  *   - with every piece below the impostor threshold, the pictures agree with
  *     the geometry's (impostors left out) but for under 4% of the pixels;
+ *   - with --memory the pieces share one budget and the walk still completes,
+ *     geometry bytes counted;
  *   - the interactive window on a scene runs until SIGTERM and exits 0 without a
  *     word;
  *   - bad scenes and options: one line on stderr, exit 1 or 2. */
@@ -189,6 +191,21 @@ static void test_same_pictures_without_effects(void **state)
     json_decref(all);
 }
 
+/* --memory: the scene's pieces share one budget (ms_core_budget); the walk
+ * still completes at every keyframe, and the geometry bytes are counted. */
+static void test_shared_memory_budget(void **state)
+{
+    (void)state;
+    char scene[700], shots[700];
+    write_scene("budget", "{}", "{}", "", "", "demo", scene, sizeof scene);
+    snprintf(shots, sizeof shots, "%s/budget", fx.dir);
+    json_t *report = run_report(scene, shots, "--memory 1");
+    assert_true(json_integer_value(json_object_get(report, "geometry_bytes")) > 0);
+    json_t *k0 = json_array_get(json_object_get(report, "keyframes"), 0);
+    assert_true(json_integer_value(json_object_get(k0, "geometry_bytes")) > 0);
+    json_decref(report);
+}
+
 /* Every piece an impostor (a threshold above the view's size): the pictures
  * agree with the geometry's (--effects-off impostors) but for a few pixels. */
 static void test_impostors_agree_with_geometry(void **state)
@@ -319,6 +336,7 @@ int main(void)
         cmocka_unit_test(test_effects_called_for_and_left_out),
         cmocka_unit_test(test_same_pictures_without_effects),
         cmocka_unit_test(test_impostors_agree_with_geometry),
+        cmocka_unit_test(test_shared_memory_budget),
         cmocka_unit_test(test_interactive_until_terminated),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
