@@ -170,6 +170,124 @@ static int finish_options(ms_viewer_options *o, const char *shading, bool no_apo
     return 0;
 }
 
+/* The defaults a command line starts from. */
+static void default_options(ms_viewer_options *o)
+{
+    memset(o, 0, sizeof *o);
+    o->width = 1280, o->height = 720;
+    o->frames = 8;
+    o->shading = MS_SHADING_LIT;
+    o->apo_shading = true;
+    o->tolerance_px = 0; /* the stream's default */
+    o->apo_levels = 16;
+    o->upload_budget = 4000000;
+    o->keyframe_timeout = 30;
+    o->up_axis = 2;
+}
+
+/* "HOST:PORT" into o->host and o->port; false when it is not one. */
+static bool server_address(const char *text, ms_viewer_options *o)
+{
+    int64_t i;
+    const char *colon = strrchr(text, ':');
+    if (!colon || colon == text || (size_t)(colon - text) >= sizeof o->host ||
+        !integer(NULL, "port", colon + 1, 1, 65535, &i))
+        return false;
+    memcpy(o->host, text, (size_t)(colon - text));
+    o->host[colon - text] = 0;
+    o->port = (uint16_t)i;
+    return true;
+}
+
+/* What an option leaves for finish_options. */
+typedef struct {
+    bool no_apo;
+    const char *shading;
+} option_leftovers;
+
+enum { OPTION_UNKNOWN = -1 };
+
+/* Applies the option getopt_long returned as ch with its value arg: 0, 2
+ * after printing the one line to err, or OPTION_UNKNOWN for a ch it does not
+ * know. */
+static int apply_option(int ch, const char *arg, ms_viewer_options *o, option_leftovers *left,
+                        FILE *err)
+{
+    int64_t i;
+    switch (ch) {
+    case 's':
+        if (!server_address(arg, o)) {
+            fprintf(err, "meshview: --server wants HOST:PORT, not '%s'\n", arg);
+            return 2;
+        }
+        break;
+    case 'm': o->model = arg; break;
+    case 'T': o->token = arg; break;
+    case 'z':
+        if (!size_pair(arg, &o->width, &o->height)) {
+            fprintf(err, "meshview: --size wants WxH, each in [16, 16384], not '%s'\n", arg);
+            return 2;
+        }
+        break;
+    case 't':
+        if (!number(err, "--tolerance", arg, 0.05, 256, &o->tolerance_px))
+            return 2;
+        break;
+    case 'a':
+        if (!integer(err, "--apo-levels", arg, 0, 32, &i))
+            return 2;
+        o->apo_levels = (unsigned)i;
+        break;
+    case 'n': left->no_apo = true; break;
+    case 'S': left->shading = arg; break;
+    case 'u':
+        if (!integer(err, "--upload-budget", arg, 4096, INT64_C(1) << 40, &i))
+            return 2;
+        o->upload_budget = (uint64_t)i;
+        break;
+    case 'M':
+        if (!number(err, "--memory", arg, 1, 1e7, &o->memory_mb))
+            return 2;
+        break;
+    case 'b':
+        if (!number(err, "--bandwidth", arg, 1000, 1e12, &o->bandwidth))
+            return 2;
+        break;
+    case 'U':
+        if (strlen(arg) != 1 || arg[0] < 'x' || arg[0] > 'z') {
+            fprintf(err, "meshview: --up wants x, y or z\n");
+            return 2;
+        }
+        o->up_axis = arg[0] - 'x';
+        break;
+    case 'p': o->path_file = arg; break;
+    case 'd': o->screenshot_dir = arg; break;
+    case 'f':
+        if (!integer(err, "--frames", arg, 1, 100000, &i))
+            return 2;
+        o->frames = (unsigned)i;
+        break;
+    case 'k':
+        if (!number(err, "--keyframe-timeout", arg, 0.1, 86400, &o->keyframe_timeout))
+            return 2;
+        break;
+    case 'j': o->json = true; break;
+    case 'H': o->hud = true; break;
+    case 'A': o->compare_apo = true; break;
+    case 'c': o->scene_file = arg; break;
+    case 'E': o->effects_all = true; break;
+    case 'e':
+        if (!effect_list(arg, &o->effects_off)) {
+            fprintf(err, "meshview: --effects-off wants effect names separated by commas, not '%s'\n",
+                    arg);
+            return 2;
+        }
+        break;
+    default: return OPTION_UNKNOWN;
+    }
+    return 0;
+}
+
 int ms_viewer_options_parse(int argc, char **argv, ms_viewer_options *o, FILE *err)
 {
     static const struct option opts[] = {
@@ -190,106 +308,27 @@ int ms_viewer_options_parse(int argc, char **argv, ms_viewer_options *o, FILE *e
         {"effects-off", required_argument, NULL, 'e'},
         {"effects-all", no_argument, NULL, 'E'},
         {NULL, 0, NULL, 0}};
-    memset(o, 0, sizeof *o);
-    o->width = 1280, o->height = 720;
-    o->frames = 8;
-    o->shading = MS_SHADING_LIT;
-    o->apo_shading = true;
-    o->tolerance_px = 0; /* the stream's default */
-    o->apo_levels = 16;
-    o->upload_budget = 4000000;
-    o->keyframe_timeout = 30;
-    o->up_axis = 2;
-    bool no_apo = false;
-    const char *shading = NULL;
+    default_options(o);
+    option_leftovers left = {false, NULL};
     int ch;
-    int64_t i;
     opterr = 0;
     optind = 1;
     while ((ch = getopt_long(argc, argv, ":h", opts, NULL)) != -1) {
-        switch (ch) {
-        case 's': {
-            const char *colon = strrchr(optarg, ':');
-            if (!colon || colon == optarg || (size_t)(colon - optarg) >= sizeof o->host ||
-                !integer(NULL, "port", colon + 1, 1, 65535, &i)) {
-                fprintf(err, "meshview: --server wants HOST:PORT, not '%s'\n", optarg);
-                return 2;
-            }
-            memcpy(o->host, optarg, (size_t)(colon - optarg));
-            o->host[colon - optarg] = 0;
-            o->port = (uint16_t)i;
-            break;
+        if (ch == 'h') {
+            o->help = true;
+            return 0;
         }
-        case 'm': o->model = optarg; break;
-        case 'T': o->token = optarg; break;
-        case 'z':
-            if (!size_pair(optarg, &o->width, &o->height)) {
-                fprintf(err, "meshview: --size wants WxH, each in [16, 16384], not '%s'\n", optarg);
-                return 2;
-            }
-            break;
-        case 't':
-            if (!number(err, "--tolerance", optarg, 0.05, 256, &o->tolerance_px))
-                return 2;
-            break;
-        case 'a':
-            if (!integer(err, "--apo-levels", optarg, 0, 32, &i))
-                return 2;
-            o->apo_levels = (unsigned)i;
-            break;
-        case 'n': no_apo = true; break;
-        case 'S': shading = optarg; break;
-        case 'u':
-            if (!integer(err, "--upload-budget", optarg, 4096, INT64_C(1) << 40, &i))
-                return 2;
-            o->upload_budget = (uint64_t)i;
-            break;
-        case 'M':
-            if (!number(err, "--memory", optarg, 1, 1e7, &o->memory_mb))
-                return 2;
-            break;
-        case 'b':
-            if (!number(err, "--bandwidth", optarg, 1000, 1e12, &o->bandwidth))
-                return 2;
-            break;
-        case 'U':
-            if (strlen(optarg) != 1 || optarg[0] < 'x' || optarg[0] > 'z') {
-                fprintf(err, "meshview: --up wants x, y or z\n");
-                return 2;
-            }
-            o->up_axis = optarg[0] - 'x';
-            break;
-        case 'p': o->path_file = optarg; break;
-        case 'd': o->screenshot_dir = optarg; break;
-        case 'f':
-            if (!integer(err, "--frames", optarg, 1, 100000, &i))
-                return 2;
-            o->frames = (unsigned)i;
-            break;
-        case 'k':
-            if (!number(err, "--keyframe-timeout", optarg, 0.1, 86400, &o->keyframe_timeout))
-                return 2;
-            break;
-        case 'j': o->json = true; break;
-        case 'H': o->hud = true; break;
-        case 'A': o->compare_apo = true; break;
-        case 'c': o->scene_file = optarg; break;
-        case 'E': o->effects_all = true; break;
-        case 'e':
-            if (!effect_list(optarg, &o->effects_off)) {
-                fprintf(err, "meshview: --effects-off wants effect names separated by commas, not '%s'\n",
-                        optarg);
-                return 2;
-            }
-            break;
-        case 'h': o->help = true; return 0;
-        case ':':
+        if (ch == ':') {
             fprintf(err, "meshview: %s wants a value\n", argv[optind - 1]);
             return 2;
-        default:
+        }
+        int status = apply_option(ch, optarg, o, &left, err);
+        if (status == OPTION_UNKNOWN) {
             fprintf(err, "meshview: unknown option '%s' (see --help)\n", argv[optind - 1]);
             return 2;
         }
+        if (status != 0)
+            return status;
     }
     if (optind < argc)
         o->archive_dir = argv[optind++];
@@ -297,5 +336,5 @@ int ms_viewer_options_parse(int argc, char **argv, ms_viewer_options *o, FILE *e
         fprintf(err, "meshview: one archive directory at most, not also '%s'\n", argv[optind]);
         return 2;
     }
-    return finish_options(o, shading, no_apo, err);
+    return finish_options(o, left.shading, left.no_apo, err);
 }
