@@ -80,12 +80,10 @@ static void note_stale(void *arg, const char *file_name)
         fprintf(arg, "meshbake: removed %s, left by an interrupted bake\n", file_name);
 }
 
-ms_status ms_bake(const ms_bake_options *o, ms_bake_report *r, ms_error *err)
+/* The checks of the options that need no file, and the tree's shape. */
+static ms_status check_options(const ms_bake_options *o, ms_nsp_shape *shape, ms_error *err)
 {
-    memset(r, 0, sizeof *r);
-    double t_start = ms_now_seconds();
-    ms_nsp_shape shape;
-    ms_status s = ms_nsp_shape_init(&shape, o->bits, o->n, o->root_bits, err);
+    ms_status s = ms_nsp_shape_init(shape, o->bits, o->n, o->root_bits, err);
     if (s != MS_OK)
         return s;
     if (o->public_bits > (int)o->bits)
@@ -101,6 +99,12 @@ ms_status ms_bake(const ms_bake_options *o, ms_bake_report *r, ms_error *err)
                             o->min_triangles);
     if (o->apo.enabled && (s = ms_bake_apo_params_check(&o->apo, err)) != MS_OK)
         return s;
+    return MS_OK;
+}
+
+/* r->name: --name, or one made from the input file's name. */
+static ms_status choose_name(const ms_bake_options *o, ms_bake_report *r, ms_error *err)
+{
     if (o->name && strlen(o->name) > MS_MODEL_NAME_MAX)
         return ms_error_set(err, MS_ERR_ARG, "model name of %zu characters; at most %d",
                             strlen(o->name), MS_MODEL_NAME_MAX);
@@ -111,8 +115,15 @@ ms_status ms_bake(const ms_bake_options *o, ms_bake_report *r, ms_error *err)
     if (!ms_model_name_valid(r->name))
         return ms_error_set(err, MS_ERR_ARG, "invalid model name '%s' (1-64 of A-Z a-z 0-9 _ -)",
                             r->name);
-    /* A missing archive directory is created (its parent must exist); an existing
-     * path that is not a directory is an error. */
+    return MS_OK;
+}
+
+/* The archive directory and r->archive_path in it. A missing directory is
+ * created (its parent must exist); an existing path that is not a directory
+ * is an error. The leftovers of killed bakes into it (not of bakes at work)
+ * are removed. */
+static ms_status prepare_directory(const ms_bake_options *o, ms_bake_report *r, ms_error *err)
+{
     struct stat sb;
     if (stat(o->archive_dir, &sb) != 0 && mkdir(o->archive_dir, 0777) != 0 && errno != EEXIST)
         return ms_error_set(err, MS_ERR_IO, "%s: cannot create directory: %s", o->archive_dir,
@@ -122,85 +133,140 @@ ms_status ms_bake(const ms_bake_options *o, ms_bake_report *r, ms_error *err)
     int n = snprintf(r->archive_path, sizeof r->archive_path, "%s/%s.msa", o->archive_dir, r->name);
     if (n < 0 || (size_t)n + 16 >= sizeof r->archive_path)
         return ms_error_set(err, MS_ERR_ARG, "archive path too long");
-    /* Leftovers of killed bakes into this directory (not of bakes at work). */
     ms_archive_writer_remove_stale(o->archive_dir, note_stale, o->notes);
+    return MS_OK;
+}
 
-    bake_progress progress = {.out = o->progress};
+/* The figures of the tree's build into r. */
+static void report_build(const ms_nsp_build *b, ms_bake_report *r)
+{
+    r->input_vertices = b->stats.input_vertices;
+    r->input_triangles = b->stats.input_triangles;
+    r->seconds_read = b->stats.seconds_read;
+    r->seconds_quantise = b->stats.seconds_quantise;
+    r->seconds_distribute = b->stats.seconds_distribute;
+    r->cells = b->node_count;
+    r->blocks_written = b->stats.blocks_written;
+    r->peak_rss_build_mb = ms_peak_rss_mb();
+    r->flushes = b->stats.flushes;
+    r->key_page_misses = b->stats.key_page_misses;
+    r->io_read = b->stats.io_read;
+    r->io_quantise = b->stats.io_quantise;
+    r->io_distribute = b->stats.io_distribute;
+    for (uint32_t i = 0; i < b->node_count; ++i) {
+        r->leaves += b->nodes[i].first_child == MS_NSP_NONE;
+        if (b->nodes[i].depth > r->depth)
+            r->depth = b->nodes[i].depth;
+    }
+}
+
+/* Reads the input and distributes its triangles into the nSP-tree b, out of
+ * core; its figures into r. */
+static ms_status build_tree(const ms_bake_options *o, const ms_nsp_shape *shape,
+                            bake_progress *progress, ms_nsp_build *b, ms_bake_report *r,
+                            ms_error *err)
+{
     ms_nsp_build_params bp = {
-        .shape = shape,
+        .shape = *shape,
         .min_triangles = o->min_triangles,
         .buffer_budget = o->buffer_bytes ? o->buffer_bytes : o->mem_mb * (1u << 20) / 8,
         .key_cache_bytes = o->key_cache_bytes ? o->key_cache_bytes : o->mem_mb * (1u << 20) / 4,
         .tmp_dir = o->tmp_dir ? o->tmp_dir : o->archive_dir,
         .progress = on_progress,
-        .progress_context = &progress,
+        .progress_context = progress,
     };
-    ms_nsp_build b;
-    s = ms_nsp_build_run(o->input, &bp, &b, err);
-    if (s != MS_OK) {
-        ms_progress_finish(&progress.bar);
+    ms_status s = ms_nsp_build_run(o->input, &bp, b, err);
+    if (s != MS_OK)
         return s;
-    }
-    r->input_vertices = b.stats.input_vertices;
-    r->input_triangles = b.stats.input_triangles;
-    r->seconds_read = b.stats.seconds_read;
-    r->seconds_quantise = b.stats.seconds_quantise;
-    r->seconds_distribute = b.stats.seconds_distribute;
-    r->cells = b.node_count;
-    r->blocks_written = b.stats.blocks_written;
-    r->peak_rss_build_mb = ms_peak_rss_mb();
-    r->flushes = b.stats.flushes;
-    r->key_page_misses = b.stats.key_page_misses;
-    r->io_read = b.stats.io_read;
-    r->io_quantise = b.stats.io_quantise;
-    r->io_distribute = b.stats.io_distribute;
-    for (uint32_t i = 0; i < b.node_count; ++i) {
-        r->leaves += b.nodes[i].first_child == MS_NSP_NONE;
-        if (b.nodes[i].depth > r->depth)
-            r->depth = b.nodes[i].depth;
-    }
+    report_build(b, r);
+    return MS_OK;
+}
 
-    uint32_t *order = NULL, *first_child = NULL, *cell_of_node = NULL;
-    ms_archive_writer *w = NULL;
-    double t_lone = ms_now_seconds();
-    if ((s = ms_nsp_lone_segments(&b, o->threads ? o->threads : 1, &r->io_lone, err)) != MS_OK)
-        goto done;
-    r->seconds_lone = ms_now_seconds() - t_lone;
-    if ((s = ms_nsp_build_bfs(&b, &order, &first_child, err)) != MS_OK)
-        goto done;
-    cell_of_node = malloc(b.node_count * sizeof *cell_of_node);
-    if (!cell_of_node) {
-        s = ms_error_set(err, MS_ERR_NOMEM, "out of memory");
-        goto done;
-    }
-    for (uint32_t i = 0; i < b.node_count; ++i)
-        cell_of_node[order[i]] = i;
+/* The archive's cells in breadth-first order: *order (the node of each
+ * cell), *first_child, and *cell_of_node (the cell of each node). The
+ * caller frees the three, also after an error. */
+static ms_status order_cells(ms_nsp_build *b, uint32_t **order, uint32_t **first_child,
+                             uint32_t **cell_of_node, ms_error *err)
+{
+    ms_status s = ms_nsp_build_bfs(b, order, first_child, err);
+    if (s != MS_OK)
+        return s;
+    *cell_of_node = malloc(b->node_count * sizeof **cell_of_node);
+    if (!*cell_of_node)
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory");
+    for (uint32_t i = 0; i < b->node_count; ++i)
+        (*cell_of_node)[(*order)[i]] = i;
+    return MS_OK;
+}
+
+static ms_archive_header archive_header(const ms_bake_options *o, const ms_nsp_build *b)
+{
     ms_archive_header h;
     memset(&h, 0, sizeof h);
     for (int a = 0; a < 3; ++a)
-        h.box_origin[a] = b.box.origin[a];
-    h.box_side = b.box.size;
+        h.box_origin[a] = b->box.origin[a];
+    h.box_side = b->box.size;
     h.bits = (uint8_t)o->bits;
     h.n = (uint8_t)o->n;
     h.root_bits = (uint8_t)o->root_bits;
-    h.cell_count = b.node_count;
+    h.cell_count = b->node_count;
     h.min_triangles = o->min_triangles;
     h.has_apo = o->apo.enabled;
     h.apo_lead = o->apo.enabled ? (uint8_t)o->apo.lead : 0;
     h.apo_max_depth = o->apo.enabled ? (uint8_t)o->apo.max_depth : 0;
-    if ((s = ms_archive_writer_open(r->archive_path, &h, first_child, &w, err)) != MS_OK)
-        goto done;
+    return h;
+}
+
+/* The APO and duplication figures of the encoding into r (after the model
+ * was found to keep triangles). */
+static void report_apo_and_duplicates(const ms_nsp_encode_stats *es, unsigned threads,
+                                      const ms_nsp_build *b, ms_bake_report *r)
+{
+    r->leaf_triangles = es->leaf_triangles;
+    r->empty_cells = es->empty_cells;
+    r->geometry_bytes = es->geometry_bytes;
+    r->apo_bytes = es->apo_bytes;
+    r->apo_raw_bytes = es->apo_raw_bytes;
+    r->apo_levels = es->apo_levels;
+    memcpy(r->apo_level_texels, es->apo_level_texels, sizeof r->apo_level_texels);
+    r->apo_chunks = es->apo_chunks;
+    r->apo_internal_nodes = es->apo_internal_nodes;
+    r->apo_leaves = es->apo_leaves;
+    r->apo_rays = es->apo_rays;
+    r->apo_point_queries = es->apo_point_queries;
+    r->seconds_apo = es->apo_thread_seconds / threads;
+    r->apo_sample_triangles = es->apo_sample_triangles;
+    r->apo_sample_triangles_max = es->apo_sample_triangles_max;
+    r->apo_accuracy_points = es->apo_accuracy.points;
+    r->apo_accuracy_mean = es->apo_accuracy.points ? es->apo_accuracy.sum_degrees / (double)es->apo_accuracy.points
+                                                   : 0.0;
+    r->apo_accuracy_median = ms_bake_apo_accuracy_quantile(&es->apo_accuracy, 0.5);
+    r->apo_accuracy_p90 = ms_bake_apo_accuracy_quantile(&es->apo_accuracy, 0.9);
+    r->duplicated_percent = r->triangles ? 100.0 * (double)(r->leaf_triangles - r->triangles) /
+                                               (double)r->triangles
+                                         : 0.0;
+    r->insertion_copies = b->stats.insertion_copies;
+    r->duplicated_at_insertion_percent =
+        r->triangles ? 100.0 * (double)r->insertion_copies / (double)r->triangles : 0.0;
+}
+
+/* Encodes every cell (geometry, and APO when on) into w; the figures into r.
+ * A model whose every triangle welds away is an error. */
+static ms_status encode_cells(const ms_bake_options *o, ms_nsp_build *b,
+                              const uint32_t *cell_of_node, ms_archive_writer *w,
+                              bake_progress *progress, ms_bake_report *r, ms_error *err)
+{
     ms_nsp_encode_params ep = {
         .threads = o->threads ? o->threads : 1,
         .apo = &o->apo,
         .progress = on_progress,
-        .progress_context = &progress,
+        .progress_context = progress,
     };
     r->threads = ep.threads;
     ms_nsp_encode_stats es;
-    s = ms_nsp_encode_all(&b, cell_of_node, w, &ep, &es, err);
+    ms_status s = ms_nsp_encode_all(b, cell_of_node, w, &ep, &es, err);
     if (s != MS_OK)
-        goto done;
+        return s;
     r->seconds_encode = es.seconds;
     r->io_encode = es.io;
     memcpy(r->depth_leaves, es.depth_leaves, sizeof r->depth_leaves);
@@ -208,48 +274,19 @@ ms_status ms_bake(const ms_bake_options *o, ms_bake_report *r, ms_error *err)
     memcpy(r->depth_owned, es.depth_owned, sizeof r->depth_owned);
     r->vertices = es.welded_vertices;
     r->triangles = es.welded_triangles;
-    if (r->triangles == 0) {
-        s = ms_error_set(err, MS_ERR_FORMAT,
-                         "every triangle of the model degenerates at %u bits (welded away): "
-                         "nothing to bake; try more --bits", o->bits);
-        goto done;
-    }
-    r->leaf_triangles = es.leaf_triangles;
-    r->empty_cells = es.empty_cells;
-    r->geometry_bytes = es.geometry_bytes;
-    r->apo_bytes = es.apo_bytes;
-    r->apo_raw_bytes = es.apo_raw_bytes;
-    r->apo_levels = es.apo_levels;
-    memcpy(r->apo_level_texels, es.apo_level_texels, sizeof r->apo_level_texels);
-    r->apo_chunks = es.apo_chunks;
-    r->apo_internal_nodes = es.apo_internal_nodes;
-    r->apo_leaves = es.apo_leaves;
-    r->apo_rays = es.apo_rays;
-    r->apo_point_queries = es.apo_point_queries;
-    r->seconds_apo = es.apo_thread_seconds / ep.threads;
-    r->apo_sample_triangles = es.apo_sample_triangles;
-    r->apo_sample_triangles_max = es.apo_sample_triangles_max;
-    r->apo_accuracy_points = es.apo_accuracy.points;
-    r->apo_accuracy_mean = es.apo_accuracy.points ? es.apo_accuracy.sum_degrees / (double)es.apo_accuracy.points
-                                                  : 0.0;
-    r->apo_accuracy_median = ms_bake_apo_accuracy_quantile(&es.apo_accuracy, 0.5);
-    r->apo_accuracy_p90 = ms_bake_apo_accuracy_quantile(&es.apo_accuracy, 0.9);
-    r->duplicated_percent = r->triangles ? 100.0 * (double)(r->leaf_triangles - r->triangles) /
-                                               (double)r->triangles
-                                         : 0.0;
-    r->insertion_copies = b.stats.insertion_copies;
-    r->duplicated_at_insertion_percent =
-        r->triangles ? 100.0 * (double)r->insertion_copies / (double)r->triangles : 0.0;
-    double t_write = ms_now_seconds();
-    ms_archive_writer_set_counts(w, r->vertices, r->triangles);
-    ms_nsp_build_free(&b); /* the temporary files go now */
-    s = ms_archive_writer_finish(w, err);
-    w = NULL;
-    if (s != MS_OK)
-        goto done;
-    if (stat(r->archive_path, &sb) == 0)
-        r->archive_bytes = (uint64_t)sb.st_size;
-    r->bits_per_vertex = r->vertices ? 8.0 * (double)r->archive_bytes / (double)r->vertices : 0;
+    if (r->triangles == 0)
+        return ms_error_set(err, MS_ERR_FORMAT,
+                            "every triangle of the model degenerates at %u bits (welded away): "
+                            "nothing to bake; try more --bits", o->bits);
+    report_apo_and_duplicates(&es, ep.threads, b, r);
+    return MS_OK;
+}
+
+/* Adds the baked model to the directory's catalogue; without its entry the
+ * archive is removed. */
+static ms_status record_in_catalog(const ms_bake_options *o, const ms_bake_report *r,
+                                   const ms_archive_header *h, ms_error *err)
+{
     ms_catalog_entry e;
     memset(&e, 0, sizeof e);
     snprintf(e.name, sizeof e.name, "%s", r->name);
@@ -265,13 +302,66 @@ ms_status ms_bake(const ms_bake_options *o, ms_bake_report *r, ms_error *err)
     e.min_triangles = o->min_triangles;
     e.public_max_bits = (uint8_t)(o->public_bits < 0 ? (int)o->bits : o->public_bits);
     e.apo = o->apo.enabled;
-    e.apo_lead = h.apo_lead;
-    e.apo_max_depth = h.apo_max_depth;
+    e.apo_lead = h->apo_lead;
+    e.apo_max_depth = h->apo_max_depth;
     e.apo_tolerance = o->apo.enabled ? o->apo.tolerance : 0.0;
-    if ((s = ms_catalog_update(o->archive_dir, &e, err)) != MS_OK) {
-        unlink(r->archive_path); /* no archive without its catalogue entry */
-        goto done;
+    ms_status s = ms_catalog_update(o->archive_dir, &e, err);
+    if (s != MS_OK)
+        unlink(r->archive_path);
+    return s;
+}
+
+/* Completes the archive (after the build's temporary files went) and adds it
+ * to the catalogue; takes w (freed whatever happens). */
+static ms_status finish_archive(const ms_bake_options *o, ms_nsp_build *b, ms_archive_writer *w,
+                                const ms_archive_header *h, ms_bake_report *r, ms_error *err)
+{
+    ms_archive_writer_set_counts(w, r->vertices, r->triangles);
+    ms_nsp_build_free(b); /* the temporary files go now */
+    ms_status s = ms_archive_writer_finish(w, err);
+    if (s != MS_OK)
+        return s;
+    struct stat sb;
+    if (stat(r->archive_path, &sb) == 0)
+        r->archive_bytes = (uint64_t)sb.st_size;
+    r->bits_per_vertex = r->vertices ? 8.0 * (double)r->archive_bytes / (double)r->vertices : 0;
+    return record_in_catalog(o, r, h, err);
+}
+
+ms_status ms_bake(const ms_bake_options *o, ms_bake_report *r, ms_error *err)
+{
+    memset(r, 0, sizeof *r);
+    double t_start = ms_now_seconds();
+    ms_nsp_shape shape;
+    ms_status s;
+    if ((s = check_options(o, &shape, err)) != MS_OK || (s = choose_name(o, r, err)) != MS_OK ||
+        (s = prepare_directory(o, r, err)) != MS_OK)
+        return s;
+
+    bake_progress progress = {.out = o->progress};
+    ms_nsp_build b;
+    if ((s = build_tree(o, &shape, &progress, &b, r, err)) != MS_OK) {
+        ms_progress_finish(&progress.bar);
+        return s;
     }
+    uint32_t *order = NULL, *first_child = NULL, *cell_of_node = NULL;
+    ms_archive_writer *w = NULL;
+    double t_lone = ms_now_seconds();
+    if ((s = ms_nsp_lone_segments(&b, o->threads ? o->threads : 1, &r->io_lone, err)) != MS_OK)
+        goto done;
+    r->seconds_lone = ms_now_seconds() - t_lone;
+    if ((s = order_cells(&b, &order, &first_child, &cell_of_node, err)) != MS_OK)
+        goto done;
+    ms_archive_header h = archive_header(o, &b);
+    if ((s = ms_archive_writer_open(r->archive_path, &h, first_child, &w, err)) != MS_OK)
+        goto done;
+    if ((s = encode_cells(o, &b, cell_of_node, w, &progress, r, err)) != MS_OK)
+        goto done;
+    double t_write = ms_now_seconds();
+    s = finish_archive(o, &b, w, &h, r, err);
+    w = NULL;
+    if (s != MS_OK)
+        goto done;
     r->seconds_write = ms_now_seconds() - t_write;
 done:
     ms_progress_finish(&progress.bar);
