@@ -14,10 +14,10 @@
 #include "ms_apo_build.h"
 #include "ms_codec.h"
 #include "ms_nsp.h"
+#include "ms_nsp_cell_state.h"
 #include "ms_nsp_lone.h"
 #include "ms_parallel.h"
 #include "ms_progress.h"
-#include "ms_radix_sort.h"
 
 typedef struct task {
     uint32_t pending;         /* children not yet done */
@@ -83,81 +83,6 @@ static uint32_t heap_pop(pool *p)
 
 /* ---- building a cell's complex ------------------------------------------- */
 
-/* Sorts the n vertex references ref[] (keys of key_bits bits), writes the
- * distinct keys in order to cells (*ncells of them) and each reference's rank to
- * rank[]. ref is clobbered. */
-static ms_status index_keys(uint64_t *ref, size_t n, unsigned key_bits, uint64_t *cells,
-                            size_t *ncells, uint32_t *rank, ms_error *err)
-{
-    uint32_t *pos = malloc((n ? n : 1) * sizeof *pos);
-    if (!pos)
-        return ms_error_set(err, MS_ERR_NOMEM, "out of memory indexing a cell");
-    for (size_t i = 0; i < n; ++i)
-        pos[i] = (uint32_t)i;
-    ms_status s = ms_radix_sort_pairs(ref, pos, n, key_bits, err);
-    size_t w = 0;
-    for (size_t i = 0; s == MS_OK && i < n; ++i) {
-        if (w == 0 || ref[i] != cells[w - 1])
-            cells[w++] = ref[i];
-        rank[pos[i]] = (uint32_t)(w - 1);
-    }
-    free(pos);
-    *ncells = w;
-    return s;
-}
-
-/* A leaf's complex at full precision from its n records (keys as vertices,
- * repeated triangles unified keeping the first in record order); *removed: the
- * triangles unified. On failure st is freed. */
-static ms_status leaf_complex(const uint64_t *rec, size_t n, unsigned bits, ms_codec_state *st,
-                              size_t *removed, ms_error *err)
-{
-    memset(st, 0, sizeof *st);
-    st->bits = bits;
-    st->level = 3 * bits;
-    st->cells = malloc((3 * n + 1) * sizeof *st->cells);
-    st->tris = malloc((3 * n + 1) * sizeof *st->tris);
-    st->edges = malloc(sizeof *st->edges);
-    /* Vertex references: three per triangle record, one per point record. */
-    uint64_t *ref = malloc((3 * n + 1) * sizeof *ref);
-    uint32_t *rank = malloc((3 * n + 1) * sizeof *rank);
-    ms_status s = MS_OK;
-    if (!st->cells || !st->tris || !st->edges || !ref || !rank)
-        s = ms_error_set(err, MS_ERR_NOMEM, "out of memory loading a leaf");
-    size_t nr = 0;
-    for (size_t i = 0; s == MS_OK && i < n; ++i) {
-        const uint64_t *r = rec + 3 * i;
-        int verts = r[0] == r[1] ? 1 : 3;
-        for (int j = 0; j < verts; ++j)
-            ref[nr++] = r[j];
-    }
-    size_t nk = 0;
-    if (s == MS_OK)
-        s = index_keys(ref, nr, 3 * bits, st->cells, &nk, rank, err);
-    st->vertex_count = nk;
-    size_t nt = 0;
-    nr = 0;
-    for (size_t i = 0; s == MS_OK && i < n; ++i) {
-        const uint64_t *r = rec + 3 * i;
-        if (r[0] == r[1]) {
-            nr++;
-            continue;
-        }
-        for (int j = 0; j < 3; ++j)
-            st->tris[3 * nt + (size_t)j] = rank[nr++];
-        nt++;
-    }
-    free(ref);
-    free(rank);
-    *removed = 0;
-    if (s == MS_OK)
-        s = ms_tri_unify(st->tris, &nt, NULL, removed, err);
-    st->tri_count = nt;
-    if (s != MS_OK)
-        ms_codec_state_free(st);
-    return s;
-}
-
 /* The levels a leaf's vertices freeze at (lone[v]: MS_CODEC_NO_FREEZE for its
  * own, the lone level, looked up in the owning leaf's segment, for a foreign
  * one); inside[v] says which are its own. *read grows by the segment bytes. */
@@ -205,7 +130,7 @@ static ms_status leaf_state(pool *p, uint32_t node, ms_codec_state *st, uint8_t 
     ms_status s = ms_nsp_build_read_leaf(b, node, &rec, &n, &read, err);
     if (s != MS_OK)
         return s;
-    s = leaf_complex(rec, n, b->params.shape.bits, st, &removed, err);
+    s = ms_nsp_leaf_complex(rec, n, b->params.shape.bits, st, &removed, err);
     free(rec);
     if (s != MS_OK)
         return s;
@@ -252,90 +177,6 @@ static ms_status leaf_state(pool *p, uint32_t node, ms_codec_state *st, uint8_t 
     p->stats.depth_owned[nd->depth] += own_t;
     pthread_mutex_unlock(&p->lock);
     return MS_OK;
-}
-
-static int cmp_edge(const void *x, const void *y)
-{
-    const uint32_t *a = x, *b = y;
-    if (a[0] != b[0])
-        return a[0] < b[0] ? -1 : 1;
-    return a[1] < b[1] ? -1 : (a[1] > b[1]);
-}
-
-/* Internal cell: union of the children's start states. */
-static ms_status internal_state(pool *p, uint32_t node, unsigned bits_max, ms_codec_state *st,
-                                ms_error *err)
-{
-    const ms_nsp_build *b = p->b;
-    const unsigned nc = b->params.shape.n * b->params.shape.n * b->params.shape.n;
-    const ms_codec_state *ch = p->tasks[node].starts;
-    size_t nv = 0, nt = 0, ne = 0;
-    for (unsigned k = 0; k < nc; ++k) {
-        nv += ch[k].vertex_count;
-        nt += ch[k].tri_count;
-        ne += ch[k].edge_count;
-    }
-    memset(st, 0, sizeof *st);
-    st->bits = bits_max;
-    st->level = 3 * bits_max;
-    st->cells = malloc((nv + 1) * sizeof *st->cells);
-    st->tris = malloc((3 * nt + 1) * sizeof *st->tris);
-    st->edges = malloc((2 * ne + 1) * sizeof *st->edges);
-    if (!st->cells || !st->tris || !st->edges) {
-        ms_codec_state_free(st);
-        return ms_error_set(err, MS_ERR_NOMEM, "out of memory merging children");
-    }
-    uint64_t *ref = malloc((nv + 1) * sizeof *ref);
-    uint32_t *rank = malloc((nv + 1) * sizeof *rank);
-    if (!ref || !rank) {
-        free(ref);
-        free(rank);
-        ms_codec_state_free(st);
-        return ms_error_set(err, MS_ERR_NOMEM, "out of memory merging children");
-    }
-    size_t w = 0;
-    for (unsigned k = 0; k < nc; ++k)
-        for (size_t i = 0; i < ch[k].vertex_count; ++i)
-            ref[w++] = ch[k].cells[i];
-    ms_status s = index_keys(ref, w, 3 * bits_max, st->cells, &nv, rank, err);
-    st->vertex_count = nv;
-    size_t wt = 0, we = 0, base = 0;
-    for (unsigned k = 0; k < nc; ++k) {
-        const ms_codec_state *c = &ch[k];
-        for (size_t t = 0; t < 3 * c->tri_count; ++t)
-            st->tris[wt++] = rank[base + c->tris[t]];
-        for (size_t e = 0; e < c->edge_count; ++e) {
-            uint32_t x = rank[base + c->edges[2 * e]], y = rank[base + c->edges[2 * e + 1]];
-            st->edges[we++] = x < y ? x : y;
-            st->edges[we++] = x < y ? y : x;
-        }
-        base += c->vertex_count;
-    }
-    free(ref);
-    free(rank);
-    nt = wt / 3;
-    size_t removed = 0;
-    bool conflict = false;
-    if (s == MS_OK)
-        s = ms_tri_unify(st->tris, &nt, &conflict, &removed, err);
-    st->tri_count = nt;
-    if (s == MS_OK && conflict)
-        s = ms_error_set(err, MS_ERR_CORRUPT, "cell %u: children disagree on a triangle's "
-                         "orientation", p->cell_of_node[node]);
-    ne = we / 2;
-    qsort(st->edges, ne, 8, cmp_edge);
-    size_t u = 0;
-    for (size_t e = 0; e < ne; ++e)
-        if (u == 0 || cmp_edge(&st->edges[2 * e], &st->edges[2 * (u - 1)]) != 0) {
-            st->edges[2 * u] = st->edges[2 * e];
-            st->edges[2 * u + 1] = st->edges[2 * e + 1];
-            u++;
-        }
-    st->edge_count = u;
-    /* vertices are already in key order; the codec canonicalises the rest */
-    if (s != MS_OK)
-        ms_codec_state_free(st);
-    return s;
 }
 
 /* The client's split of st must give back every child's start state. */
@@ -438,7 +279,7 @@ static ms_status full_precision_mesh(const ms_nsp_build *b, uint32_t node, ms_me
     if (s == MS_OK) {
         for (size_t i = 0; i < 3 * nt; ++i)
             ref[i] = tri[i];
-        s = index_keys(ref, 3 * nt, 3 * p, keys, &nk, rank, err);
+        s = ms_nsp_index_keys(ref, 3 * nt, 3 * p, keys, &nk, rank, err);
     }
     /* keep the first of each group of equal vertex sets, in leaf order */
     if (s == MS_OK)
@@ -644,7 +485,9 @@ static ms_status encode_cell(pool *p, uint32_t node, ms_apo_builder **builder, c
     ms_codec_state st;
     uint8_t *freeze = NULL;
     ms_status s = leaf ? leaf_state(p, node, &st, &freeze, err)
-                       : internal_state(p, node, hi, &st, err);
+                       : ms_nsp_merge_states(p->tasks[node].starts,
+                                              b->params.shape.n * b->params.shape.n * b->params.shape.n,
+                                              hi, p->cell_of_node[node], &st, err);
     if (s != MS_OK)
         return s;
     if (!leaf)
