@@ -472,20 +472,11 @@ ms_status ms_cx_gather(ms_complex *cx, uint32_t c0, uint32_t c1, ms_cx_star *st,
     return ms_cx_gather_general(cx, c0, c1, st, err);
 }
 
-ms_status ms_cx_gather_general(ms_complex *cx, uint32_t c0, uint32_t c1, ms_cx_star *st,
-                               ms_error *err)
+/* Pass 1 of a star: the neighbours of the centres into st->nbr, st->adj
+ * (which centres each is adjacent to) and st->both, and whether the two
+ * centres are adjacent (st->adj01, st->edge01). */
+static void star_neighbours(ms_complex *cx, const uint32_t *centres, int nc, ms_cx_star *st)
 {
-    uint32_t centres[2] = {c0, c1};
-    int nc = c1 == MS_CX_NONE ? 1 : 2;
-    size_t total = cx->v[c0].n + (nc == 2 ? cx->v[c1].n : 0);
-    if (!star_room(st, 2 * total + 2, total + 1))
-        return ms_error_set(err, MS_ERR_NOMEM, "out of memory gathering a star");
-    st->nn = 0;
-    st->np = 0;
-    st->adj01 = false;
-    st->edge01 = MS_CX_NONE;
-    ms_cx_new_marks(cx);
-    /* Pass 1: neighbours. */
     for (int k = 0; k < nc; ++k) {
         ms_cx_vert *v = &cx->v[centres[k]];
         uint32_t *l = ms_cx_list(v);
@@ -517,75 +508,90 @@ ms_status ms_cx_gather_general(ms_complex *cx, uint32_t c0, uint32_t c1, ms_cx_s
             }
         }
     }
-    /* Sort neighbours by key (keys are unique among live cells): insertion sort
-     * of (key, old index) for the usual small stars, qsort beyond. */
-    if (st->nn > 1) {
-        uint32_t n = st->nn;
-        uint64_t *keys = st->sortbuf;         /* n keys */
-        uint32_t *perm = st->perm;            /* n old indices */
+}
+
+/* The order of the star's n neighbours by key (keys are unique among live
+ * cells): perm[i] is the old index of the i-th; insertion sort of (key, old
+ * index) for the usual small stars, qsort beyond. */
+static void neighbour_order(const ms_complex *cx, const ms_cx_star *st, uint32_t n)
+{
+    uint64_t *keys = st->sortbuf;         /* n keys */
+    uint32_t *perm = st->perm;            /* n old indices */
+    for (uint32_t i = 0; i < n; ++i) {
+        keys[i] = cx->v[st->nbr[i]].key;
+        perm[i] = i;
+    }
+    if (n <= 48) {
+        for (uint32_t i = 1; i < n; ++i) {
+            uint64_t k = keys[i];
+            uint32_t p = perm[i], j = i;
+            while (j > 0 && keys[j - 1] > k) {
+                keys[j] = keys[j - 1];
+                perm[j] = perm[j - 1];
+                --j;
+            }
+            keys[j] = k;
+            perm[j] = p;
+        }
+    } else {
+        ms_cx_sort_keys(keys, n);
         for (uint32_t i = 0; i < n; ++i) {
-            keys[i] = cx->v[st->nbr[i]].key;
-            perm[i] = i;
-        }
-        if (n <= 48) {
-            for (uint32_t i = 1; i < n; ++i) {
-                uint64_t k = keys[i];
-                uint32_t p = perm[i], j = i;
-                while (j > 0 && keys[j - 1] > k) {
-                    keys[j] = keys[j - 1];
-                    perm[j] = perm[j - 1];
-                    --j;
-                }
-                keys[j] = k;
-                perm[j] = p;
+            uint64_t k = cx->v[st->nbr[i]].key;
+            uint32_t lo = 0, hi = n;
+            while (lo < hi) {
+                uint32_t mid = (lo + hi) / 2;
+                if (keys[mid] < k)
+                    lo = mid + 1;
+                else
+                    hi = mid;
             }
-        } else {
-            ms_cx_sort_keys(keys, n);
-            for (uint32_t i = 0; i < n; ++i) {
-                uint64_t k = cx->v[st->nbr[i]].key;
-                uint32_t lo = 0, hi = n;
-                while (lo < hi) {
-                    uint32_t mid = (lo + hi) / 2;
-                    if (keys[mid] < k)
-                        lo = mid + 1;
-                    else
-                        hi = mid;
-                }
-                perm[lo] = i;
-            }
+            perm[lo] = i;
         }
-        uint8_t adj_stack[64];
-        uint32_t both_stack[64], nbr_stack[64];
-        uint8_t *adj_tmp = adj_stack;
-        uint32_t *both_tmp = both_stack, *nbr_tmp = nbr_stack;
-        if (n > 64) {
-            adj_tmp = malloc(n);
-            both_tmp = malloc((size_t)n * sizeof *both_tmp);
-            nbr_tmp = malloc((size_t)n * sizeof *nbr_tmp);
-            if (!adj_tmp || !both_tmp || !nbr_tmp) {
-                free(adj_tmp);
-                free(both_tmp);
-                free(nbr_tmp);
-                return ms_error_set(err, MS_ERR_NOMEM, "out of memory sorting a star");
-            }
-        }
-        memcpy(adj_tmp, st->adj, n);
-        memcpy(both_tmp, st->both, (size_t)n * sizeof *both_tmp);
-        memcpy(nbr_tmp, st->nbr, (size_t)n * sizeof *nbr_tmp);
-        for (uint32_t i = 0; i < n; ++i) {
-            uint32_t o = perm[i];
-            st->nbr[i] = nbr_tmp[o];
-            st->adj[i] = adj_tmp[o];
-            st->both[i] = both_tmp[o];
-            cx->mark[nbr_tmp[o]] = i;
-        }
-        if (n > 64) {
+    }
+}
+
+/* Puts the star's n neighbours in the order of st->perm, and cx->mark of
+ * each at its new index. */
+static ms_status permute_neighbours(ms_complex *cx, ms_cx_star *st, uint32_t n, ms_error *err)
+{
+    const uint32_t *perm = st->perm;
+    uint8_t adj_stack[64];
+    uint32_t both_stack[64], nbr_stack[64];
+    uint8_t *adj_tmp = adj_stack;
+    uint32_t *both_tmp = both_stack, *nbr_tmp = nbr_stack;
+    if (n > 64) {
+        adj_tmp = malloc(n);
+        both_tmp = malloc((size_t)n * sizeof *both_tmp);
+        nbr_tmp = malloc((size_t)n * sizeof *nbr_tmp);
+        if (!adj_tmp || !both_tmp || !nbr_tmp) {
             free(adj_tmp);
             free(both_tmp);
             free(nbr_tmp);
+            return ms_error_set(err, MS_ERR_NOMEM, "out of memory sorting a star");
         }
     }
-    /* Pass 2: pairs (triangles with exactly one centre). */
+    memcpy(adj_tmp, st->adj, n);
+    memcpy(both_tmp, st->both, (size_t)n * sizeof *both_tmp);
+    memcpy(nbr_tmp, st->nbr, (size_t)n * sizeof *nbr_tmp);
+    for (uint32_t i = 0; i < n; ++i) {
+        uint32_t o = perm[i];
+        st->nbr[i] = nbr_tmp[o];
+        st->adj[i] = adj_tmp[o];
+        st->both[i] = both_tmp[o];
+        cx->mark[nbr_tmp[o]] = i;
+    }
+    if (n > 64) {
+        free(adj_tmp);
+        free(both_tmp);
+        free(nbr_tmp);
+    }
+    return MS_OK;
+}
+
+/* Pass 2 of a star: the pairs (triangles with exactly one centre) into
+ * st->pairs, in list order; returns their count. */
+static uint32_t star_pairs(ms_complex *cx, const uint32_t *centres, int nc, ms_cx_star *st)
+{
     uint32_t np = 0;
     for (int k = 0; k < nc; ++k) {
         ms_cx_vert *v = &cx->v[centres[k]];
@@ -619,31 +625,66 @@ ms_status ms_cx_gather_general(ms_complex *cx, uint32_t c0, uint32_t c1, ms_cx_s
             np++;
         }
     }
+    return np;
+}
+
+static void sort_pairs(ms_cx_pair *pairs, uint32_t np)
+{
     if (np > 32) {
-        qsort(st->pairs, np, sizeof *st->pairs, cmp_pair);
+        qsort(pairs, np, sizeof *pairs, cmp_pair);
     } else {
         for (uint32_t a = 1; a < np; ++a) {
-            ms_cx_pair x = st->pairs[a];
+            ms_cx_pair x = pairs[a];
             uint32_t b = a;
-            while (b > 0 && cmp_pair(&st->pairs[b - 1], &x) > 0) {
-                st->pairs[b] = st->pairs[b - 1];
+            while (b > 0 && cmp_pair(&pairs[b - 1], &x) > 0) {
+                pairs[b] = pairs[b - 1];
                 --b;
             }
-            st->pairs[b] = x;
+            pairs[b] = x;
         }
     }
-    /* Combine (c0,x,y) and (c1,x,y) entries. */
+}
+
+/* Combines the (c0,x,y) and (c1,x,y) entries of the sorted pairs; returns
+ * how many are left. */
+static uint32_t combine_pairs(ms_cx_pair *pairs, uint32_t np)
+{
     uint32_t w = 0;
     for (uint32_t r = 0; r < np; ++r) {
-        if (w > 0 && st->pairs[w - 1].i == st->pairs[r].i && st->pairs[w - 1].j == st->pairs[r].j) {
-            if (st->pairs[r].t0 != MS_CX_NONE)
-                st->pairs[w - 1].t0 = st->pairs[r].t0;
-            if (st->pairs[r].t1 != MS_CX_NONE)
-                st->pairs[w - 1].t1 = st->pairs[r].t1;
+        if (w > 0 && pairs[w - 1].i == pairs[r].i && pairs[w - 1].j == pairs[r].j) {
+            if (pairs[r].t0 != MS_CX_NONE)
+                pairs[w - 1].t0 = pairs[r].t0;
+            if (pairs[r].t1 != MS_CX_NONE)
+                pairs[w - 1].t1 = pairs[r].t1;
             continue;
         }
-        st->pairs[w++] = st->pairs[r];
+        pairs[w++] = pairs[r];
     }
-    st->np = w;
+    return w;
+}
+
+ms_status ms_cx_gather_general(ms_complex *cx, uint32_t c0, uint32_t c1, ms_cx_star *st,
+                               ms_error *err)
+{
+    uint32_t centres[2] = {c0, c1};
+    int nc = c1 == MS_CX_NONE ? 1 : 2;
+    size_t total = cx->v[c0].n + (nc == 2 ? cx->v[c1].n : 0);
+    if (!star_room(st, 2 * total + 2, total + 1))
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory gathering a star");
+    st->nn = 0;
+    st->np = 0;
+    st->adj01 = false;
+    st->edge01 = MS_CX_NONE;
+    ms_cx_new_marks(cx);
+    star_neighbours(cx, centres, nc, st);
+    if (st->nn > 1) {
+        neighbour_order(cx, st, st->nn);
+        ms_status s = permute_neighbours(cx, st, st->nn, err);
+        if (s != MS_OK)
+            return s;
+    }
+    uint32_t np = star_pairs(cx, centres, nc, st);
+    sort_pairs(st->pairs, np);
+    st->np = combine_pairs(st->pairs, np);
     return MS_OK;
 }
