@@ -136,31 +136,22 @@ static void drop_moved_triangles(ms_complex *cx, uint32_t s)
     ms_cx_list_reindex(v); /* positions moved */
 }
 
-/* Splits cell s (level L) in two after a "both" symbol. The per-neighbour and
- * per-triangle arrays are read through restrict locals: they are distinct
- * allocations, and without that every byte store would make the compiler
- * reload every bound and base pointer. */
-static ms_status split(ms_codec_decoder *d, uint32_t s, unsigned L, uint32_t *out2, ms_error *err)
+/* The code of each of the star's neighbours, in key order (1: joined to s
+ * only, 2: to s2 only, 3: to both, 4: to both through a triangle s s2 x), with
+ * its side of the splitting plane and the codes of its partners decoded before
+ * it as context; side, cov and vote start afresh, pivot lists the code-4
+ * ones. Returns their count. */
+static inline __attribute__((always_inline)) uint32_t
+neighbour_codes(ms_codec_decoder *d, ms_rc_prob *m, int axis, int64_t plane2, int64_t wp, int e12)
 {
-    ms_complex *cx = &d->cx;
-    ms_cx_star *st = &d->star;
-    ms_rc_prob *m = d->model + d->D * GEO_PER_LEVEL;
-    ms_status r = ms_cx_gather(cx, s, MS_CX_NONE, st, err);
-    if (r != MS_OK)
-        return r;
-    const uint32_t nn = st->nn, np = st->np;
-    if (!code_room(d, nn + 1, np + 1))
-        return ms_error_set(err, MS_ERR_NOMEM, "out of memory decoding a split");
-    const uint32_t *restrict nbr = st->nbr;
-    const ms_cx_pair *restrict pairs = st->pairs;
+    const ms_complex *cx = &d->cx;
+    const uint32_t nn = d->star.nn, np = d->star.np;
+    const uint32_t *restrict nbr = d->star.nbr;
+    const ms_cx_pair *restrict pairs = d->star.pairs;
     uint8_t *restrict code = d->code, *restrict side = d->side, *restrict cov = d->cov;
-    uint8_t *restrict partners = d->partners, *restrict tcode = d->tcode;
+    uint8_t *restrict partners = d->partners;
     int32_t *restrict vote = d->vote;
     uint32_t *restrict pivot = d->pivot;
-    int axis = (int)(L % 3);
-    int64_t wp = ms_cx_width(cx, L, axis);
-    int64_t plane2 = cx->cen[s][axis]; /* s is at level L: its centre is the plane */
-    int e12 = dbit(d, &m[e12_ctx(nn)]);
     uint32_t n4 = 0;
     unsigned nboth = 0;
     /* pairs are sorted by their smaller index i: once x_i has its code, the
@@ -189,6 +180,20 @@ static ms_status split(ms_codec_decoder *d, uint32_t s, unsigned L, uint32_t *ou
         for (; pp < np && pairs[pp].i == i; ++pp)
             partners[pairs[pp].j] |= (uint8_t)partner_flag(c);
     }
+    return n4;
+}
+
+/* The code of the triangle of each of the star's pairs (1: stays with s, 2:
+ * goes to s2, 3: copied to both), from its neighbours' codes, and cov of each
+ * neighbour (its triangles' codes or-ed); *n3_out: the copies. A triangle
+ * between edges of different halves is a corrupt stream. */
+static inline __attribute__((always_inline)) ms_status
+triangle_codes(ms_codec_decoder *d, ms_rc_prob *m, uint32_t *n3_out, ms_error *err)
+{
+    const uint32_t np = d->star.np;
+    const ms_cx_pair *restrict pairs = d->star.pairs;
+    const uint8_t *restrict code = d->code, *restrict side = d->side;
+    uint8_t *restrict cov = d->cov, *restrict tcode = d->tcode;
     uint32_t n3 = 0;
     for (uint32_t p = 0; p < np; ++p) {
         uint32_t pi = pairs[p].i, pj = pairs[p].j;
@@ -211,34 +216,71 @@ static ms_status split(ms_codec_decoder *d, uint32_t s, unsigned L, uint32_t *ou
         cov[pi] |= t;
         cov[pj] |= t;
     }
-    /* Maximal edges of s are rebuilt below. */
-    {
-        ms_cx_vert *v = &cx->v[s];
-        uint32_t *l = ms_cx_list(v);
-        for (uint32_t i = 0; i < v->n;) {
-            if (l[i] & 1) {
-                ms_cx_del_edge(cx, l[i] >> 1);
-                l = ms_cx_list(v);
-                continue;
-            }
-            ++i;
+    *n3_out = n3;
+    return MS_OK;
+}
+
+/* Takes the maximal edges off s (a split rebuilds them). */
+static inline __attribute__((always_inline)) void drop_maximal_edges(ms_complex *cx, uint32_t s)
+{
+    ms_cx_vert *v = &cx->v[s];
+    uint32_t *l = ms_cx_list(v);
+    for (uint32_t i = 0; i < v->n;) {
+        if (l[i] & 1) {
+            ms_cx_del_edge(cx, l[i] >> 1);
+            l = ms_cx_list(v);
+            continue;
+        }
+        ++i;
+    }
+}
+
+/* The maximal edges a split leaves: from s and s2 to each neighbour its code
+ * joins to one that no triangle covers, and s-s2 when the two are joined
+ * without a triangle. */
+static inline __attribute__((always_inline)) void
+add_split_edges(ms_codec_decoder *d, uint32_t s, uint32_t s2, int e12, uint32_t n4)
+{
+    ms_complex *cx = &d->cx;
+    const uint32_t nn = d->star.nn;
+    const uint32_t *restrict nbr = d->star.nbr;
+    const uint8_t *restrict code = d->code, *restrict cov = d->cov;
+    for (uint32_t i = 0; i < nn; ++i) {
+        unsigned bare = code[i] & ~cov[i];
+        if (bare & 3) { /* rare: most neighbours share a triangle with both */
+            if (bare & 1)
+                ms_cx_add_edge(cx, s, nbr[i]);
+            if (bare & 2)
+                ms_cx_add_edge(cx, s2, nbr[i]);
         }
     }
-    /* Room for everything this split creates (within the declared sizes). A
-     * neighbour needs a maximal edge to s when its code holds s (1, 3: bit 0)
-     * and no triangle of s covers it (cov bit 0), to s2 likewise with bit 1
-     * (2, 3; code 4 has neither bit, its triangle covers both). */
+    if (e12 && n4 == 0)
+        ms_cx_add_edge(cx, s, s2);
+}
+
+/* Room for the edges a split creates (within the declared sizes). A
+ * neighbour needs a maximal edge to s when its code holds s (1, 3: bit 0)
+ * and no triangle of s covers it (cov bit 0), to s2 likewise with bit 1 (2,
+ * 3; code 4 has neither bit, its triangle covers both). */
+static inline __attribute__((always_inline)) uint32_t split_edge_count(const ms_codec_decoder *d,
+                                                                       int e12, uint32_t n4)
+{
+    const uint32_t nn = d->star.nn;
+    const uint8_t *restrict code = d->code, *restrict cov = d->cov;
     uint32_t ne_new = e12 && n4 == 0;
     for (uint32_t i = 0; i < nn; ++i) {
         unsigned bare = code[i] & ~cov[i];
         ne_new += (bare & 1) + ((bare >> 1) & 1);
     }
-    if ((r = ms_cx_reserve(cx, 1, n3 + n4, ne_new, err)) != MS_OK) {
-        d->broken = true;
-        return r;
-    }
-    if (!push_birth(d, L, cx->v[s].birth))
-        return ms_error_set(err, MS_ERR_NOMEM, "out of memory decoding a split");
+    return ne_new;
+}
+
+/* The new cell s2, the upper half of s (level L) along axis, with s refined
+ * to the lower half; both born at L + 1. */
+static inline __attribute__((always_inline)) uint32_t add_half(ms_codec_decoder *d, uint32_t s,
+                                                               unsigned L, int axis, int64_t wp)
+{
+    ms_complex *cx = &d->cx;
     uint32_t c2[3];
     ms_cx_corner(cx, s, c2);
     c2[axis] += (uint32_t)(wp / 2);
@@ -247,6 +289,21 @@ static ms_status split(ms_codec_decoder *d, uint32_t s, unsigned L, uint32_t *ou
     ms_cx_refine_cell(cx, s, L, 0);
     cx->v[s].birth = (uint8_t)(L + 1);
     cx->v[s2].birth = (uint8_t)(L + 1);
+    return s2;
+}
+
+/* Each pair's triangle after its code: kept by s, handed to s2, or copied
+ * to both (its orientation decoded); with code-4 neighbours (n4), the votes
+ * that predict their triangles' orientation. */
+static inline __attribute__((always_inline)) void
+hand_triangles(ms_codec_decoder *d, ms_rc_prob *m, uint32_t s, uint32_t s2, uint32_t n4)
+{
+    ms_complex *cx = &d->cx;
+    const uint32_t np = d->star.np;
+    const uint32_t *restrict nbr = d->star.nbr;
+    const ms_cx_pair *restrict pairs = d->star.pairs;
+    const uint8_t *restrict tcode = d->tcode;
+    int32_t *restrict vote = d->vote;
     uint32_t moved = 0; /* triangles handed to s2, taken off s's list in one pass */
     for (uint32_t p = 0; p < np; ++p) {
         uint32_t pi = pairs[p].i, pj = pairs[p].j, t = pairs[p].t0;
@@ -285,6 +342,17 @@ static ms_status split(ms_codec_decoder *d, uint32_t s, unsigned L, uint32_t *ou
     }
     if (moved)
         drop_moved_triangles(cx, s);
+}
+
+/* The triangle s s2 x of each code-4 neighbour x, its orientation decoded
+ * against the votes' prediction. */
+static inline __attribute__((always_inline)) void
+add_code4_triangles(ms_codec_decoder *d, ms_rc_prob *m, uint32_t s, uint32_t s2, uint32_t n4)
+{
+    ms_complex *cx = &d->cx;
+    const uint32_t *restrict nbr = d->star.nbr;
+    const int32_t *restrict vote = d->vote;
+    const uint32_t *restrict pivot = d->pivot;
     for (uint32_t k = 0; k < n4; ++k) {
         uint32_t i = pivot[k];
         int pred = vote[i] >= 0 ? 1 : -1;
@@ -294,17 +362,41 @@ static ms_status split(ms_codec_decoder *d, uint32_t s, unsigned L, uint32_t *ou
         else
             ms_cx_add_tri(cx, s2, s, nbr[i]);
     }
-    for (uint32_t i = 0; i < nn; ++i) {
-        unsigned bare = code[i] & ~cov[i];
-        if (bare & 3) { /* rare: most neighbours share a triangle with both */
-            if (bare & 1)
-                ms_cx_add_edge(cx, s, nbr[i]);
-            if (bare & 2)
-                ms_cx_add_edge(cx, s2, nbr[i]);
-        }
+}
+
+/* Splits cell s (level L) in two after a "both" symbol. The steps read the
+ * per-neighbour and per-triangle arrays through restrict locals: they are
+ * distinct allocations, and without that every byte store would make the
+ * compiler reload every bound and base pointer. */
+static ms_status split(ms_codec_decoder *d, uint32_t s, unsigned L, uint32_t *out2, ms_error *err)
+{
+    ms_complex *cx = &d->cx;
+    ms_cx_star *st = &d->star;
+    ms_rc_prob *m = d->model + d->D * GEO_PER_LEVEL;
+    ms_status r = ms_cx_gather(cx, s, MS_CX_NONE, st, err);
+    if (r != MS_OK)
+        return r;
+    if (!code_room(d, st->nn + 1, st->np + 1))
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory decoding a split");
+    int axis = (int)(L % 3);
+    int64_t wp = ms_cx_width(cx, L, axis);
+    int64_t plane2 = cx->cen[s][axis]; /* s is at level L: its centre is the plane */
+    int e12 = dbit(d, &m[e12_ctx(st->nn)]);
+    uint32_t n4 = neighbour_codes(d, m, axis, plane2, wp, e12);
+    uint32_t n3 = 0;
+    if ((r = triangle_codes(d, m, &n3, err)) != MS_OK)
+        return r;
+    drop_maximal_edges(cx, s); /* rebuilt below */
+    if ((r = ms_cx_reserve(cx, 1, n3 + n4, split_edge_count(d, e12, n4), err)) != MS_OK) {
+        d->broken = true;
+        return r;
     }
-    if (e12 && n4 == 0)
-        ms_cx_add_edge(cx, s, s2);
+    if (!push_birth(d, L, cx->v[s].birth))
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory decoding a split");
+    uint32_t s2 = add_half(d, s, L, axis, wp);
+    hand_triangles(d, m, s, s2, n4);
+    add_code4_triangles(d, m, s, s2, n4);
+    add_split_edges(d, s, s2, e12, n4);
     if (cx->nomem)
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory decoding a split");
     *out2 = s2;
@@ -509,115 +601,6 @@ ms_status ms_codec_decoder_set_level(ms_codec_decoder *d, unsigned level, ms_err
     return MS_OK;
 }
 
-/* Loads and checks the caller's start state into the complex. */
-static ms_status load_start(ms_codec_decoder *d, const ms_codec_state *start, ms_error *err)
-{
-    ms_complex *cx = &d->cx;
-    const ms_codec_header *h = &d->h;
-    if (!start) {
-        if (h->p_min != 0)
-            return ms_error_set(err, MS_ERR_ARG, "a stream from precision %u needs a start state",
-                                h->p_min);
-        uint32_t c[3] = {0, 0, 0};
-        ms_status r = ms_cx_reserve(cx, 1, 0, 0, err);
-        if (r != MS_OK)
-            return r;
-        d->order[0] = ms_cx_add_vertex(cx, 0, 0, c);
-        d->norder = 1;
-        return MS_OK;
-    }
-    /* Cells are kd prefixes at level 3 p_min whatever the key space of the
-     * decoder that produced them (a parent nSP cell's stream ends at p_min). */
-    if (start->level != d->Lmin)
-        return ms_error_set(err, MS_ERR_ARG, "start state at kd-level %u does not match the "
-                            "stream's first level %u", start->level, d->Lmin);
-    if (start->vertex_count != h->start_vertices || start->tri_count != h->start_tris ||
-        start->edge_count != h->start_edges)
-        return ms_error_set(err, MS_ERR_ARG, "start state counts differ from the stream's");
-    ms_codec_state canon = {0};
-    canon.bits = start->bits;
-    canon.level = start->level;
-    canon.vertex_count = start->vertex_count;
-    canon.tri_count = start->tri_count;
-    canon.edge_count = start->edge_count;
-    canon.cells = malloc((start->vertex_count ? start->vertex_count : 1) * sizeof *canon.cells);
-    canon.tris = malloc((start->tri_count ? start->tri_count : 1) * 3 * sizeof *canon.tris);
-    canon.edges = malloc((start->edge_count ? start->edge_count : 1) * 2 * sizeof *canon.edges);
-    if (!canon.cells || !canon.tris || !canon.edges) {
-        ms_codec_state_free(&canon);
-        return ms_error_set(err, MS_ERR_NOMEM, "out of memory loading a start state");
-    }
-    memcpy(canon.cells, start->cells, start->vertex_count * sizeof *canon.cells);
-    for (size_t i = 0; i < 3 * start->tri_count; ++i) {
-        if (start->tris[i] >= start->vertex_count) {
-            ms_codec_state_free(&canon);
-            return ms_error_set(err, MS_ERR_ARG, "start state triangle index out of range");
-        }
-        canon.tris[i] = start->tris[i];
-    }
-    for (size_t i = 0; i < 2 * start->edge_count; ++i) {
-        if (start->edges[i] >= start->vertex_count) {
-            ms_codec_state_free(&canon);
-            return ms_error_set(err, MS_ERR_ARG, "start state edge index out of range");
-        }
-        canon.edges[i] = start->edges[i];
-    }
-    ms_status r = ms_codec_state_canonicalise(&canon, err);
-    if (r == MS_OK && ms_codec_state_checksum(&canon) != h->start_checksum)
-        r = ms_error_set(err, MS_ERR_ARG, "start state does not match the stream (checksum)");
-    uint64_t lim = d->Lmin >= 64 ? UINT64_MAX : (1ull << d->Lmin);
-    for (size_t i = 0; r == MS_OK && i < canon.vertex_count; ++i)
-        if (canon.cells[i] >= lim || (i > 0 && canon.cells[i] == canon.cells[i - 1]))
-            r = ms_error_set(err, MS_ERR_ARG, "start state cells invalid or repeated");
-    if (r == MS_OK)
-        r = ms_cx_reserve(cx, (uint32_t)canon.vertex_count, (uint32_t)canon.tri_count,
-                          (uint32_t)canon.edge_count, err);
-    if (r != MS_OK) {
-        ms_codec_state_free(&canon);
-        return r;
-    }
-    unsigned shift = d->D - d->Lmin;
-    for (size_t i = 0; i < canon.vertex_count; ++i) {
-        uint64_t key = shift >= 64 ? 0 : canon.cells[i] << shift;
-        uint32_t c[3];
-        ms_quant_unkey(key, h->p_max, c);
-        d->order[i] = ms_cx_add_vertex(cx, key, d->Lmin, c);
-    }
-    d->norder = (uint32_t)canon.vertex_count;
-    /* Births: the level at which a cell separated from its neighbours in key order. */
-    for (size_t i = 0; i < canon.vertex_count; ++i) {
-        unsigned b = 0;
-        if (i > 0) {
-            unsigned l = ms_key_lcp(cx->v[d->order[i - 1]].key, cx->v[d->order[i]].key, d->D) + 1;
-            b = l > b ? l : b;
-        }
-        if (i + 1 < canon.vertex_count) {
-            unsigned l = ms_key_lcp(cx->v[d->order[i]].key, cx->v[d->order[i + 1]].key, d->D) + 1;
-            b = l > b ? l : b;
-        }
-        cx->v[d->order[i]].birth = (uint8_t)(b < d->Lmin ? b : d->Lmin);
-    }
-    for (size_t t = 0; t < canon.tri_count; ++t) {
-        const uint32_t *x = &canon.tris[3 * t];
-        if (x[0] == x[1] || x[1] == x[2] || x[0] == x[2]) {
-            ms_codec_state_free(&canon);
-            return ms_error_set(err, MS_ERR_ARG, "start state triangle repeats a vertex");
-        }
-        ms_cx_add_tri(cx, d->order[x[0]], d->order[x[1]], d->order[x[2]]);
-    }
-    for (size_t k = 0; k < canon.edge_count; ++k) {
-        const uint32_t *x = &canon.edges[2 * k];
-        if (x[0] == x[1]) {
-            ms_codec_state_free(&canon);
-            return ms_error_set(err, MS_ERR_ARG, "start state edge repeats a vertex");
-        }
-        ms_cx_add_edge(cx, d->order[x[0]], d->order[x[1]]);
-    }
-    ms_codec_state_free(&canon);
-    return cx->nomem ? ms_error_set(err, MS_ERR_NOMEM, "out of memory loading a start state")
-                     : MS_OK;
-}
-
 /* Highest kd-level the held body bytes allow (complete chunks only). */
 static unsigned available_level(const ms_codec_decoder *d)
 {
@@ -660,7 +643,7 @@ static ms_status decoder_init(ms_codec_decoder *d, const ms_codec_state *start, 
         return r;
     if (!order_room(d, rv))
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory creating a decoder");
-    return load_start(d, start, err);
+    return ms_codec_decoder_load_start(d, start, err);
 }
 
 ms_status ms_codec_decoder_create(const uint8_t *data, size_t size, const ms_codec_state *start,

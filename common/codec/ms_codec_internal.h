@@ -62,8 +62,8 @@ ms_status ms_codec_export_complex(const ms_complex *cx, const uint32_t *order, u
 ms_status ms_sort_index_tuples(uint32_t *x, size_t n, unsigned arity, size_t index_limit,
                                ms_error *err);
 
-/* The decoder's state (ms_codec_decode.c decodes, ms_codec_decoder_out.c
- * reads it out). */
+/* The decoder's state (ms_codec_decode.c decodes, ms_codec_decoder_start.c
+ * loads its start state, ms_codec_decoder_out.c reads it out). */
 typedef struct birth_stack {
     uint8_t *b;
     uint32_t n, cap;
@@ -106,5 +106,12 @@ struct ms_codec_decoder {
     bool has_box;           /* world positions known (ms_codec_decoder_mesh) */
     bool broken;
 };
+
+/* Loads the caller's start state (NULL: the single root cell, for a stream
+ * from precision 0) into d->cx and d->order, after checking it against the
+ * stream's header: MS_ERR_ARG when it does not match (level, counts,
+ * checksum, indices), MS_ERR_NOMEM. ms_codec_decoder_start.c. */
+ms_status ms_codec_decoder_load_start(ms_codec_decoder *d, const ms_codec_state *start,
+                                      ms_error *err);
 
 #endif
