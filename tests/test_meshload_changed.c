@@ -44,49 +44,76 @@ static uint64_t model_requests(uint16_t http_port)
     return n;
 }
 
+/* A served archive directory with the dragon at 16 bits, a staged 14-bit bake
+ * of it beside, and meshserve on ephemeral ports. */
+typedef struct {
+    char dir[512], live[600], stage[600];
+    pid_t server;
+    uint16_t port, http_port;
+    char address[64];
+} replacement;
+
+static void replacement_start(replacement *r)
+{
+    char input[512];
+    ms_test_tmpdir(r->dir, sizeof r->dir);
+    snprintf(r->live, sizeof r->live, "%s/live", r->dir);
+    snprintf(r->stage, sizeof r->stage, "%s/stage", r->dir);
+    assert_int_equal(mkdir(r->live, 0755), 0);
+    assert_int_equal(mkdir(r->stage, 0755), 0);
+    ms_test_model_path(input, sizeof input, "stanford_dragon_vrip_res3.ply.gz");
+    ms_bake_report report;
+    ms_nsp_test_bake(input, r->live, MODEL, 16, 2000, &report);
+    ms_nsp_test_bake(input, r->stage, MODEL, 14, 2000, &report);
+
+    char serve[512], ports[700], serve_log[700];
+    ms_test_bin_path(serve, sizeof serve, "meshserve");
+    snprintf(ports, sizeof ports, "%s/ports", r->dir);
+    snprintf(serve_log, sizeof serve_log, "%s/meshserve.log", r->dir);
+    char *serve_argv[] = {serve, r->live, "--port", "0", "--http-port", "0", "--port-file", ports,
+                          NULL};
+    r->server = ms_test_spawn(serve_argv, serve_log);
+    assert_int_equal(ms_test_wait_ports(ports, 15.0, &r->port, &r->http_port), 0);
+    snprintf(r->address, sizeof r->address, "127.0.0.1:%u", r->port);
+}
+
+/* Publishes the staged bake over the served one and applies it (SIGHUP). */
+static void replacement_publish(const replacement *r)
+{
+    char from[700], to[700];
+    snprintf(from, sizeof from, "%s/" MODEL ".msa", r->stage);
+    snprintf(to, sizeof to, "%s/" MODEL ".msa", r->live);
+    assert_int_equal(rename(from, to), 0);
+    assert_int_equal(kill(r->server, SIGHUP), 0);
+}
+
+static void replacement_stop(const replacement *r)
+{
+    assert_int_equal(ms_test_stop(r->server, SIGTERM, 15.0), 0);
+    ms_test_rmdir(r->dir);
+}
+
 static void test_meshload_streams_the_new_version(void **state)
 {
     (void)state;
-    char dir[512], live[600], stage[600], input[512];
-    ms_test_tmpdir(dir, sizeof dir);
-    snprintf(live, sizeof live, "%s/live", dir);
-    snprintf(stage, sizeof stage, "%s/stage", dir);
-    assert_int_equal(mkdir(live, 0755), 0);
-    assert_int_equal(mkdir(stage, 0755), 0);
-    ms_test_model_path(input, sizeof input, "stanford_dragon_vrip_res3.ply.gz");
-    ms_bake_report report;
-    ms_nsp_test_bake(input, live, MODEL, 16, 2000, &report);
-    ms_nsp_test_bake(input, stage, MODEL, 14, 2000, &report);
-
-    char serve[512], load[512], ports[700], serve_log[700], load_log[700];
-    ms_test_bin_path(serve, sizeof serve, "meshserve");
+    replacement r;
+    replacement_start(&r);
+    char load[512], load_log[700];
     ms_test_bin_path(load, sizeof load, "meshload");
-    snprintf(ports, sizeof ports, "%s/ports", dir);
-    snprintf(serve_log, sizeof serve_log, "%s/meshserve.log", dir);
-    snprintf(load_log, sizeof load_log, "%s/meshload.json", dir);
-    char *serve_argv[] = {serve, live, "--port", "0", "--http-port", "0", "--port-file", ports,
-                          NULL};
-    pid_t server = ms_test_spawn(serve_argv, serve_log);
-    uint16_t port, http_port;
-    assert_int_equal(ms_test_wait_ports(ports, 15.0, &port, &http_port), 0);
-    uint64_t before = model_requests(http_port);
+    snprintf(load_log, sizeof load_log, "%s/meshload.json", r.dir);
+    uint64_t before = model_requests(r.http_port);
 
-    char address[64], clients[8];
-    snprintf(address, sizeof address, "127.0.0.1:%u", port);
+    char clients[8];
     snprintf(clients, sizeof clients, "%d", CLIENTS);
-    char *load_argv[] = {load, "--server", address, "--model", MODEL, "--path", PATH_FILE,
+    char *load_argv[] = {load, "--server", r.address, "--model", MODEL, "--path", PATH_FILE,
                          "--clients", clients, "--bandwidth", "320kbit", "--duration", "90",
                          "--json", NULL};
     pid_t loader = ms_test_spawn(load_argv, load_log);
     /* both clients streaming: their opens and at least one cell request each */
-    for (int tries = 0; tries < 600 && model_requests(http_port) < before + 2 * CLIENTS; ++tries)
+    for (int tries = 0; tries < 600 && model_requests(r.http_port) < before + 2 * CLIENTS; ++tries)
         usleep(10000);
-    assert_true(model_requests(http_port) >= before + 2 * CLIENTS);
-    char from[700], to[700];
-    snprintf(from, sizeof from, "%s/" MODEL ".msa", stage);
-    snprintf(to, sizeof to, "%s/" MODEL ".msa", live);
-    assert_int_equal(rename(from, to), 0);
-    assert_int_equal(kill(server, SIGHUP), 0);
+    assert_true(model_requests(r.http_port) >= before + 2 * CLIENTS);
+    replacement_publish(&r);
 
     assert_int_equal(ms_test_stop(loader, 0, 120.0), 0);
     size_t size;
@@ -112,8 +139,7 @@ static void test_meshload_streams_the_new_version(void **state)
             assert_true(json_is_true(json_object_get(json_array_get(keys, k), "complete")));
     }
     json_decref(j);
-    assert_int_equal(ms_test_stop(server, SIGTERM, 15.0), 0);
-    ms_test_rmdir(dir);
+    replacement_stop(&r);
 }
 
 /* Whether file `path` contains `needle` (a log being written by a child). */
@@ -133,46 +159,22 @@ static bool log_contains(const char *path, const char *needle)
 static void test_meshview_opens_the_new_version(void **state)
 {
     (void)state;
-    char dir[512], live[600], stage[600], input[512];
-    ms_test_tmpdir(dir, sizeof dir);
-    snprintf(live, sizeof live, "%s/live", dir);
-    snprintf(stage, sizeof stage, "%s/stage", dir);
-    assert_int_equal(mkdir(live, 0755), 0);
-    assert_int_equal(mkdir(stage, 0755), 0);
-    ms_test_model_path(input, sizeof input, "stanford_dragon_vrip_res3.ply.gz");
-    ms_bake_report report;
-    ms_nsp_test_bake(input, live, MODEL, 16, 2000, &report);
-    ms_nsp_test_bake(input, stage, MODEL, 14, 2000, &report);
-
-    char serve[512], view[512], ports[700], serve_log[700], view_log[700];
-    ms_test_bin_path(serve, sizeof serve, "meshserve");
+    replacement r;
+    replacement_start(&r);
+    char view[512], view_log[700];
     ms_test_bin_path(view, sizeof view, "meshview");
-    snprintf(ports, sizeof ports, "%s/ports", dir);
-    snprintf(serve_log, sizeof serve_log, "%s/meshserve.log", dir);
-    snprintf(view_log, sizeof view_log, "%s/meshview.log", dir);
-    char *serve_argv[] = {serve, live, "--port", "0", "--http-port", "0", "--port-file", ports,
-                          NULL};
-    pid_t server = ms_test_spawn(serve_argv, serve_log);
-    uint16_t port, http_port;
-    assert_int_equal(ms_test_wait_ports(ports, 15.0, &port, &http_port), 0);
-    uint64_t before = model_requests(http_port);
-
-    char address[64];
-    snprintf(address, sizeof address, "127.0.0.1:%u", port);
-    char *view_argv[] = {view, "--server", address, "--model", MODEL, "--bandwidth", "40000",
+    snprintf(view_log, sizeof view_log, "%s/meshview.log", r.dir);
+    uint64_t before = model_requests(r.http_port);
+    char *view_argv[] = {view, "--server", r.address, "--model", MODEL, "--bandwidth", "40000",
                          "--size", "160x120", NULL};
     pid_t viewer = ms_test_spawn(view_argv, view_log);
     /* streaming: the index fetch of the window's model source, the core's open
      * and at least one cell request */
-    for (int tries = 0; tries < 3000 && model_requests(http_port) < before + 3; ++tries)
+    for (int tries = 0; tries < 3000 && model_requests(r.http_port) < before + 3; ++tries)
         usleep(10000);
-    assert_true(model_requests(http_port) >= before + 3);
-    char from[700], to[700];
-    snprintf(from, sizeof from, "%s/" MODEL ".msa", stage);
-    snprintf(to, sizeof to, "%s/" MODEL ".msa", live);
-    assert_int_equal(rename(from, to), 0);
-    uint64_t at_replace = model_requests(http_port);
-    assert_int_equal(kill(server, SIGHUP), 0);
+    assert_true(model_requests(r.http_port) >= before + 3);
+    uint64_t at_replace = model_requests(r.http_port);
+    replacement_publish(&r);
 
     /* The window says it opens the new version, and then streams it. */
     for (int tries = 0; tries < 3000 && !log_contains(view_log, "opening the new version"); ++tries)
@@ -185,12 +187,11 @@ static void test_meshview_opens_the_new_version(void **state)
         free(text);
         fail_msg("meshview did not reopen; it printed: %s", printed);
     }
-    for (int tries = 0; tries < 3000 && model_requests(http_port) < at_replace + 2; ++tries)
+    for (int tries = 0; tries < 3000 && model_requests(r.http_port) < at_replace + 2; ++tries)
         usleep(10000);
-    assert_true(model_requests(http_port) >= at_replace + 2);
+    assert_true(model_requests(r.http_port) >= at_replace + 2);
     assert_int_equal(ms_test_stop(viewer, SIGTERM, 20.0), 0);
-    assert_int_equal(ms_test_stop(server, SIGTERM, 15.0), 0);
-    ms_test_rmdir(dir);
+    replacement_stop(&r);
 }
 
 int main(void)
