@@ -188,17 +188,10 @@ void ms_core_stop(ms_core *c)
         c->inbox = m->next;
         free(m);
     }
-    if (c->cells) {
-        for (uint32_t i = 0; i < ms_view_cell_count(c->view); ++i) {
-            ms_core_rx_free(&c->cells[i].geo);
-            ms_core_rx_free(&c->cells[i].apo);
-            free(c->cells[i].header);
-        }
-    }
-    free(c->cells);
+    ms_core_dcells_free(c);
+    ms_core_subtrees_free(c);
     ms_view_destroy(c->view);
     free(c->target);
-    free(c->tolerance_scale);
     ms_archive_close(c->index);
     free(c->slot_head);
     free(c->wants);

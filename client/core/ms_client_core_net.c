@@ -14,15 +14,15 @@
 
 static void net_connect(ms_core *c);
 
-static uint32_t *head_of(ms_core *c, uint32_t cell, bool apo)
+static uint32_t *head_of(ms_core *c, uint32_t cell, uint8_t stream)
 {
-    return &c->slot_head[2 * (size_t)cell + apo];
+    return &c->slot_head[STREAM_COUNT * (size_t)cell + stream];
 }
 
 static void slot_unlink(ms_core *c, uint32_t k)
 {
     slot *s = &c->slots[k];
-    uint32_t *p = head_of(c, s->cell, s->apo);
+    uint32_t *p = head_of(c, s->cell, s->stream);
     while (*p != NO_SLOT && *p != k)
         p = &c->slots[*p].next;
     if (*p == k)
@@ -148,7 +148,7 @@ static void net_cancel_unwanted(ms_core *c)
         c->slots[k].keep = false;
     for (size_t i = 0; i < c->net_want_count; ++i) {
         const want *w = &c->net_wants[i];
-        for (uint32_t k = *head_of(c, w->cell, w->apo); k != NO_SLOT; k = c->slots[k].next)
+        for (uint32_t k = *head_of(c, w->cell, w->stream); k != NO_SLOT; k = c->slots[k].next)
             if (c->slots[k].start + c->slots[k].got < w->end && c->slots[k].end > w->start)
                 c->slots[k].keep = true;
     }
@@ -186,7 +186,7 @@ static bool net_missing_part(ms_core *c, const want *w, const request_batch *bat
                              uint32_t *start_out, uint32_t *end_out)
 {
     uint32_t start = w->start, end = w->end;
-    for (uint32_t k = *head_of(c, w->cell, w->apo); k != NO_SLOT; k = c->slots[k].next) {
+    for (uint32_t k = *head_of(c, w->cell, w->stream); k != NO_SLOT; k = c->slots[k].next) {
         const slot *s = &c->slots[k];
         if (s->cancelled)
             continue;
@@ -197,7 +197,7 @@ static bool net_missing_part(ms_core *c, const want *w, const request_batch *bat
     }
     bool dup = false;
     for (uint16_t j = 0; j < batch->n; ++j)
-        if (batch->req[j].cell_id == w->cell && batch->req[j].stream == (w->apo ? 1 : 0) &&
+        if (batch->req[j].cell_id == w->cell && batch->req[j].stream == w->stream &&
             batch->req[j].a <= start && batch->req[j].a + batch->req[j].b >= end)
             dup = true;
     *start_out = start, *end_out = end;
@@ -245,14 +245,14 @@ static void net_plan(ms_core *c, uint64_t in_flight, request_batch *batch)
         slot *s = &c->slots[k];
         memset(s, 0, sizeof *s);
         s->used = true;
-        s->cell = w->cell, s->apo = w->apo, s->start = start, s->end = end;
+        s->cell = w->cell, s->stream = w->stream, s->start = start, s->end = end;
         c->slots_used++;
         c->slots_active++;
-        s->next = *head_of(c, w->cell, w->apo);
-        *head_of(c, w->cell, w->apo) = k;
+        s->next = *head_of(c, w->cell, w->stream);
+        *head_of(c, w->cell, w->stream) = k;
         batch->req[batch->n] = (ms_proto_cell_request){
             .cell_id = w->cell,
-            .stream = w->apo ? MS_PROTO_STREAM_APO : MS_PROTO_STREAM_GEOMETRY,
+            .stream = w->stream,
             .unit = MS_PROTO_UNIT_BYTES,
             .priority = w->priority,
             .a = start,
@@ -340,14 +340,14 @@ static void on_model_opened(ms_client *client, uint32_t request_id,
             return;
         }
         c->cell_count = ms_archive_get_header(a)->cell_count;
-        c->slot_head = malloc(2 * (size_t)c->cell_count * sizeof *c->slot_head);
+        c->slot_head = malloc(STREAM_COUNT * (size_t)c->cell_count * sizeof *c->slot_head);
         if (!c->slot_head) {
             ms_archive_close(a);
             ms_core_fail(c, "%.240s", "out of memory");
             event_base_loopbreak(c->base);
             return;
         }
-        for (size_t i = 0; i < 2 * (size_t)c->cell_count; ++i)
+        for (size_t i = 0; i < STREAM_COUNT * (size_t)c->cell_count; ++i)
             c->slot_head[i] = NO_SLOT;
         c->content_id = o->content_id;
         pthread_mutex_lock(&c->lock);
@@ -387,7 +387,7 @@ static void on_payload(ms_client *client, uint32_t id, const ms_proto_payload *p
         chunk_msg *m = malloc(sizeof *m + p->data_length);
         if (m) {
             m->next = NULL;
-            m->cell = s->cell, m->apo = s->apo, m->offset = p->offset, m->length = p->data_length;
+            m->cell = s->cell, m->stream = s->stream, m->total = 0, m->offset = p->offset, m->length = p->data_length;
             m->failed = false;
             memcpy(m->data, p->data, p->data_length);
             ms_core_push_chunk(c, m);
@@ -397,7 +397,7 @@ static void on_payload(ms_client *client, uint32_t id, const ms_proto_payload *p
             got = s->end - s->start;
         pthread_mutex_lock(&c->lock);
         c->bytes_received += p->data_length;
-        *(s->apo ? &c->apo_bytes_received : &c->geometry_bytes_received) += p->data_length;
+        *(s->stream == STREAM_APO ? &c->apo_bytes_received : &c->geometry_bytes_received) += p->data_length;
         if (got > s->got)
             c->bytes_in_flight -= got - s->got;
         pthread_mutex_unlock(&c->lock);
@@ -475,7 +475,7 @@ static void on_request_error(ms_client *client, uint32_t first, uint32_t count,
             chunk_msg *m = malloc(sizeof *m);
             if (m) {
                 memset(m, 0, sizeof *m);
-                m->cell = c->slots[k].cell, m->apo = c->slots[k].apo, m->failed = true;
+                m->cell = c->slots[k].cell, m->stream = c->slots[k].stream, m->failed = true;
                 ms_core_push_chunk(c, m);
             }
         }

@@ -655,10 +655,9 @@ static void select_cell(const ms_view *v, const ms_camera *cam, const ms_frustum
         return;
     }
     target[cell] = (uint8_t)(want > c->rec.bits_max ? c->rec.bits_max : want);
-    if (!report || !inner || children)
+    if (!report || !inner)
         return;
-    /* a partial view: the cell stays until its children's records arrive */
-    if (want > c->rec.bits_max)
+    if (want > c->rec.bits_max) /* a partial view: it stays until its children are known */
         list_push(&report->blocked, &report->blocked_count, &report->blocked_cap,
                   &report->out_of_memory, cell);
     else if (need > (double)c->rec.bits_max - 1.0)

@@ -204,11 +204,12 @@ double ms_view_cell_select_need(const ms_view *view, const ms_camera *camera, ui
 void ms_view_select(const ms_view *view, const ms_camera *camera,
                     const ms_view_select_params *params, uint8_t *target);
 
-/* What a partly known view could not select: cells of the cut whose children's
- * records are not known. `blocked`: cells whose target would be SPLIT (they get
- * bits_max instead); `near`: the others whose selection need is within one
- * bit of splitting (need > bits_max - 1: worth fetching the children's records
- * ahead). The lists grow by realloc and are reused from call to call;
+/* Where the records of a partly known view fall short, or soon may: `blocked`:
+ * cells whose target would be SPLIT but whose children's records are not known
+ * (they get bits_max instead); `near`: inner cells of the cut, not split, whose
+ * selection need is within one bit of splitting (need > bits_max - 1: their
+ * children's records are worth holding, or fetching, ahead), children known
+ * or not. The lists grow by realloc and are reused from call to call;
  * out_of_memory says a cell could not be listed. Free with
  * ms_view_select_report_free. Zero-initialise before the first use. */
 typedef struct ms_view_select_report {
