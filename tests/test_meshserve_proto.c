@@ -346,9 +346,12 @@ static void test_index_compressed(void **state)
          MS_PROTO_CAP_APO | MS_PROTO_CAP_INDEX_ZLIB, MS_PROTO_INDEX_ZLIB},
         {2, MS_PROTO_CAP_APO, 2, MS_PROTO_CAP_APO, MS_PROTO_INDEX_RAW},
         {1, MS_PROTO_CAP_APO | MS_PROTO_CAP_INDEX_ZLIB, 1, MS_PROTO_CAP_APO, MS_PROTO_INDEX_RAW},
-        /* A later client: the server picks 2 and ignores the bits it does not know. */
-        {9, 0x80000000u | MS_PROTO_CAP_INDEX_ZLIB, 2, MS_PROTO_CAP_INDEX_ZLIB,
+        /* A later client: the server picks 3 and ignores the bits it does not know. */
+        {9, 0x80000000u | MS_PROTO_CAP_INDEX_ZLIB, 3, MS_PROTO_CAP_INDEX_ZLIB,
          MS_PROTO_INDEX_ZLIB},
+        /* Version 3 without CAP_INDEX_SUBTREES: the whole index, as before. */
+        {3, MS_PROTO_CAP_APO | MS_PROTO_CAP_INDEX_ZLIB, 3,
+         MS_PROTO_CAP_APO | MS_PROTO_CAP_INDEX_ZLIB, MS_PROTO_INDEX_ZLIB},
     };
     ms_archive *a = open_archive(f, "dragon");
     size_t size;
@@ -981,8 +984,8 @@ static void test_malformed_frames(void **state)
     header(frame, 24, MS_PROTO_HELLO, 0, 0);
     memcpy(frame + 12, "XSTP\1\0\1\0\0\0\0\0\0\100\0\0", 16);
     expect_fatal(f, false, frame, 36, MS_PROTO_E_MALFORMED_FRAME, UINT64_MAX);
-    memcpy(frame + 12, "MSTP\3\0\4\0\0\0\0\0\0\100\0\0", 16);
-    expect_fatal(f, false, frame, 36, MS_PROTO_E_UNSUPPORTED_VERSION, 1u | 2u << 16);
+    memcpy(frame + 12, "MSTP\4\0\5\0\0\0\0\0\0\100\0\0", 16);
+    expect_fatal(f, false, frame, 36, MS_PROTO_E_UNSUPPORTED_VERSION, 1u | 3u << 16);
     memcpy(frame + 12, "MSTP\1\0\1\0\0\0\0\0\0\100\0\0", 16);
     expect_fatal(f, true, frame, 36, MS_PROTO_E_UNEXPECTED_MESSAGE, MS_PROTO_HELLO);
     /* A request id that breaks the rule of its type. */

@@ -132,8 +132,10 @@ static void handle_hello(ms_serve_conn *c, const ms_proto_hello *h)
     }
     const char *token = server_of(c)->config.token;
     c->client_max_frame = h->max_frame;
-    /* CAP_INDEX_ZLIB is a version-2 capability: a version-1 peer never gets it. */
-    uint32_t offered = MS_PROTO_CAP_APO | (version >= 2 ? MS_PROTO_CAP_INDEX_ZLIB : 0);
+    /* Only the capabilities the chosen version defines: a version-1 peer never
+     * gets CAP_INDEX_ZLIB, a version-2 peer never CAP_INDEX_SUBTREES. */
+    uint32_t offered = (MS_PROTO_CAP_APO | MS_PROTO_CAP_INDEX_ZLIB) &
+                       ms_proto_version_capabilities(version);
     c->capabilities = h->capabilities & offered;
     c->token_accepted = token && h->token_length && token_matches(h->token, h->token_length, token);
     ms_proto_message reply = {.type = MS_PROTO_HELLO_REPLY};
