@@ -33,22 +33,19 @@ void ms_test_archive_fill(uint8_t *buf, uint32_t length, uint32_t seed)
 uint32_t ms_test_archive_geometry_length(uint32_t cell) { return 20 + (cell * 37) % 300; }
 uint32_t ms_test_archive_apo_levels(uint32_t cell) { return cell % 3 == 0 ? 0 : 1 + cell % 5; }
 
-void ms_test_write_archive(const char *path, uint32_t salt)
+/* Writes a tree of h.cell_count cells with the synthetic payloads. */
+static void write_tree(const char *path, const ms_archive_header *hp, const uint32_t *first_child,
+                       uint32_t salt)
 {
-    ms_archive_header h = ms_test_archive_header();
-    uint32_t first_child[MS_TEST_ARCHIVE_CELLS];
-    for (uint32_t i = 0; i < MS_TEST_ARCHIVE_CELLS; ++i)
-        first_child[i] = MS_ARCHIVE_NONE;
-    first_child[0] = 1;
-    first_child[5] = 65;
+    ms_archive_header h = *hp;
     ms_archive_writer *w;
     ms_error err;
     if (ms_archive_writer_open(path, &h, first_child, &w, &err) != MS_OK)
         fail_msg("%s", err.text);
     uint8_t buf[1024];
     /* Reverse order, APO before geometry on odd cells: the writer must not care. */
-    for (uint32_t k = 0; k < MS_TEST_ARCHIVE_CELLS; ++k) {
-        uint32_t cell = MS_TEST_ARCHIVE_CELLS - 1 - k;
+    for (uint32_t k = 0; k < h.cell_count; ++k) {
+        uint32_t cell = h.cell_count - 1 - k;
         uint8_t lo, hi;
         ms_archive_writer_window(w, cell, &lo, &hi);
         uint32_t levels = ms_test_archive_apo_levels(cell), apo_table[64];
@@ -77,6 +74,39 @@ void ms_test_write_archive(const char *path, uint32_t salt)
     }
     if (ms_archive_writer_finish(w, &err) != MS_OK)
         fail_msg("%s", err.text);
+}
+
+void ms_test_write_archive(const char *path, uint32_t salt)
+{
+    ms_archive_header h = ms_test_archive_header();
+    uint32_t first_child[MS_TEST_ARCHIVE_CELLS];
+    for (uint32_t i = 0; i < MS_TEST_ARCHIVE_CELLS; ++i)
+        first_child[i] = MS_ARCHIVE_NONE;
+    first_child[0] = 1;
+    first_child[5] = 65;
+    write_tree(path, &h, first_child, salt);
+}
+
+void ms_test_write_deep_archive(const char *path, uint32_t salt)
+{
+    ms_archive_header h = ms_test_archive_header();
+    h.n = 2, h.root_bits = 4;
+    h.cell_count = MS_TEST_DEEP_ARCHIVE_CELLS;
+    uint32_t first_child[MS_TEST_DEEP_ARCHIVE_CELLS], level[MS_TEST_DEEP_ARCHIVE_CELLS];
+    uint32_t next = 1;
+    level[0] = 0;
+    /* Breadth-first: the root and the first and last child of every group
+     * above level 5 split. */
+    for (uint32_t id = 0; id < MS_TEST_DEEP_ARCHIVE_CELLS; ++id) {
+        uint32_t place = id == 0 ? 0 : (id - 1) % 8;
+        bool split = level[id] < 5 && (id == 0 || place == 0 || place == 7);
+        first_child[id] = split ? next : MS_ARCHIVE_NONE;
+        for (uint32_t k = 0; split && k < 8; ++k)
+            level[next++] = level[id] + 1;
+    }
+    if (next != MS_TEST_DEEP_ARCHIVE_CELLS)
+        fail_msg("deep synthetic archive: %u cells, expected %u", next, MS_TEST_DEEP_ARCHIVE_CELLS);
+    write_tree(path, &h, first_child, salt);
 }
 
 static uint64_t le_get(const uint8_t *p, int bytes)

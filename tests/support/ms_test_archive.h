@@ -21,6 +21,13 @@ uint32_t ms_test_archive_apo_levels(uint32_t cell);      /* 0 = no chunk; 40 byt
  * payload byte, to tell two versions of a model apart. */
 void ms_test_write_archive(const char *path, uint32_t salt);
 
+/* A deeper one for the subtree tests: n = 2, p = 12, p_r = 4, six levels
+ * (the root splits; below it the first and the last cell of every group of 8
+ * split, down to level 5): 1 + 8 + 16 + 32 + 64 + 128 cells, the same payload
+ * rules. */
+#define MS_TEST_DEEP_ARCHIVE_CELLS 249u
+void ms_test_write_deep_archive(const char *path, uint32_t salt);
+
 /* --- File images of version 2 (docs/ARCHIVE.md), for tests that take them
  * apart. These read the header fields themselves (not through the reader), and
  * fail the test on any error; every buffer they return is malloc'd. */
