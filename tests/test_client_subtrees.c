@@ -6,16 +6,20 @@
  *     a cell whose children are not known does not split and is reported;
  *   - streamed locally (the subtrees read from the file through
  *     ms_archive_subtree, as a server sends them) along the demo close-up, at
- *     every keyframe the client's cut equals the view decoder's on the whole
+ *     every other keyframe (the last included) the client's cut equals the view decoder's on the whole
  *     archive, and the subtrees it holds are exactly those that cut needs
  *     (computed here from the reference cut: the root's, the children's of
  *     every split cell, and those of shown cells within a bit of splitting),
  *     holding fewer index bytes than the whole index at the close-up;
  *   - the whole index (as from a server without subtrees) gives the same cut;
+ *   - against meshserve (protocol version 3) the same cut and subtrees, and
+ *     not offering CAP_INDEX_SUBTREES (what a version-2 server answers: the
+ *     whole index at open) the same cut;
  *   - a corrupt subtree is fetched once more, then given up with one warning:
  *     its cell stays unsplit, the core goes on, nothing crashes or leaks.
  * Every wait is bounded. */
 #include <setjmp.h>
+#include <signal.h>
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdint.h>
@@ -33,6 +37,7 @@
 #include "ms_test.h"
 #include "ms_test_archive.h"
 #include "ms_test_core.h"
+#include "ms_test_net.h"
 #include "ms_view_decoder.h"
 
 #define MODEL "demo"
@@ -42,7 +47,9 @@
 #define WAIT_SECONDS 50.0
 
 typedef struct fixture {
-    char dir[512], archives[600], file[700];
+    char dir[512], archives[600], file[700], log[600], port_file[600];
+    pid_t pid;
+    uint16_t port, http_port;
     ms_archive *archive;
     ms_camera_path path;
 } fixture;
@@ -56,6 +63,8 @@ static int group_setup(void **state)
     ms_test_tmpdir(f->dir, sizeof f->dir);
     snprintf(f->archives, sizeof f->archives, "%s/archive", f->dir);
     snprintf(f->file, sizeof f->file, "%s/" MODEL ".msa", f->archives);
+    snprintf(f->log, sizeof f->log, "%s/meshserve.log", f->dir);
+    snprintf(f->port_file, sizeof f->port_file, "%s/ports", f->dir);
     if (mkdir(f->archives, 0755) != 0)
         return -1;
     char ply[600];
@@ -69,6 +78,16 @@ static int group_setup(void **state)
         fprintf(stderr, "%s\n", err.text);
         return -1;
     }
+    char bin[512];
+    ms_test_bin_path(bin, sizeof bin, "meshserve");
+    char *argv[] = {bin, f->archives, "--port", "0", "--http-port", "0", "--port-file",
+                    f->port_file, NULL};
+    f->pid = ms_test_spawn(argv, f->log);
+    if (ms_test_wait_ports(f->port_file, 15.0, &f->port, &f->http_port) != 0) {
+        fprintf(stderr, "meshserve did not start (see %s)\n", f->log);
+        ms_test_stop(f->pid, SIGKILL, 5.0);
+        return -1;
+    }
     g = f;
     return 0;
 }
@@ -78,6 +97,8 @@ static int group_teardown(void **state)
     (void)state;
     if (!g)
         return 0;
+    if (g->pid)
+        ms_test_stop(g->pid, SIGTERM, 10.0);
     ms_archive_close(g->archive);
     ms_camera_path_free(&g->path);
     ms_test_rmdir(g->dir);
@@ -286,7 +307,7 @@ static void test_path_cut_and_subtrees(void **state)
     ms_core_frame *frame = NULL;
     ms_core_stats st;
     unsigned deepest = 0;
-    for (size_t k = 0; k < g->path.count; ++k) {
+    for (size_t k = 0; k < g->path.count; k += 2) { /* 0, 2, .., 8: the last included */
         ms_camera cam = key_camera(k);
         ms_core_set_camera(core, &cam);
         if (!ms_test_core_wait_complete(core, WAIT_SECONDS, &st, &frame))
@@ -355,6 +376,58 @@ static void test_whole_index_same_cut(void **state)
     ms_view_destroy(v);
     ms_core_frame_free(frame);
     ms_core_stop(core);
+}
+
+/* Against meshserve (protocol version 3): the index head, then subtrees as
+ * stream INDEX; the same cut and the same subtrees as the local mode. Then as
+ * a client of a server without subtrees sees it (not offering
+ * CAP_INDEX_SUBTREES: the whole index at open): the same cut. */
+static void test_network(void **state)
+{
+    (void)state;
+    ms_camera cam = key_camera(g->path.count - 1);
+    ms_view *v = reference_view(&cam);
+    size_t need_count;
+    uint32_t *need = needed_subtrees(v, &cam, ms_archive_subtree_levels(g->archive), &need_count);
+    for (int whole = 0; whole < 2; ++whole) {
+        ms_core_options o = local_options();
+        o.archive_path = NULL;
+        o.host = "127.0.0.1";
+        o.port = g->port;
+        o.bandwidth = 4e6;
+        o.whole_index = whole;
+        ms_core *core;
+        ms_error err;
+        assert_int_equal(ms_core_start(&o, &core, &err), MS_OK);
+        ms_core_set_camera(core, &cam);
+        ms_core_frame *frame = NULL;
+        ms_core_stats st;
+        if (!ms_test_core_wait_complete(core, WAIT_SECONDS, &st, &frame))
+            fail_msg("%s index: not complete: %s", whole ? "whole" : "subtree", st.error);
+        assert_true(check_cut(frame, v) > 1);
+        assert_int_equal(st.index_by_subtree, !whole);
+        assert_true(st.index_bytes_received > 0);
+        if (whole) {
+            assert_int_equal(frame->subtree_count, 0);
+            assert_int_equal(st.subtrees_received, 0);
+        } else {
+            assert_int_equal(frame->subtree_count, need_count);
+            assert_memory_equal(frame->subtrees, need, need_count * sizeof *need);
+            assert_true(st.subtrees_received >= need_count - 1);
+            /* subtree bytes are counted as index, not payload */
+            assert_int_equal(st.bytes_received, st.geometry_bytes_received);
+        }
+        assert_int_equal(st.bytes_in_flight, 0);
+        assert_int_equal(st.cells_failed, 0);
+        print_message("%s index: %llu index bytes received, %llu payload bytes, first display "
+                      "%.3f s\n", whole ? "whole" : "subtree",
+                      (unsigned long long)st.index_bytes_received,
+                      (unsigned long long)st.bytes_received, st.first_display);
+        ms_core_frame_free(frame);
+        ms_core_stop(core);
+    }
+    free(need);
+    ms_view_destroy(v);
 }
 
 typedef struct corruption {
@@ -430,6 +503,7 @@ int main(void)
         cmocka_unit_test(test_view_partial),
         cmocka_unit_test(test_path_cut_and_subtrees),
         cmocka_unit_test(test_whole_index_same_cut),
+        cmocka_unit_test(test_network),
         cmocka_unit_test(test_corrupt_subtree),
     };
     return cmocka_run_group_tests(tests, group_setup, group_teardown);

@@ -91,6 +91,7 @@ typedef struct dcell {
     double handed_at;        /* last hand-over, seconds since start */
     uint8_t retries;
     bool failed, pending;    /* pending: verified bytes not yet handed over */
+    bool blocked;            /* this pass: would split, its children's records missing */
 } dcell;
 
 /* A subtree of the index (an index that comes by subtree): being received,
@@ -158,6 +159,7 @@ struct ms_core {
     ms_client *client;
     uint32_t handle, open_request;
     uint64_t content_id;
+    bool net_by_subtree;        /* the model opened with its index head */
     bool ready;                 /* model opened on this connection */
     bool dead;                  /* the connection ended: freed on the next tick */
     char dead_why[256];

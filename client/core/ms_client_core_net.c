@@ -11,6 +11,7 @@
 #include <string.h>
 
 #include "ms_proto.h"
+#include "ms_subtree.h"
 
 static void net_connect(ms_core *c);
 
@@ -149,7 +150,8 @@ static void net_cancel_unwanted(ms_core *c)
     for (size_t i = 0; i < c->net_want_count; ++i) {
         const want *w = &c->net_wants[i];
         for (uint32_t k = *head_of(c, w->cell, w->stream); k != NO_SLOT; k = c->slots[k].next)
-            if (c->slots[k].start + c->slots[k].got < w->end && c->slots[k].end > w->start)
+            if (w->stream == STREAM_INDEX || /* a subtree still wanted: its request stays */
+                (c->slots[k].start + c->slots[k].got < w->end && c->slots[k].end > w->start))
                 c->slots[k].keep = true;
     }
     ms_proto_id_range ranges[64];
@@ -186,6 +188,17 @@ static bool net_missing_part(ms_core *c, const want *w, const request_batch *bat
                              uint32_t *start_out, uint32_t *end_out)
 {
     uint32_t start = w->start, end = w->end;
+    if (w->stream == STREAM_INDEX) {
+        /* a subtree is asked for whole (or from where its bytes stopped), once */
+        for (uint32_t k = *head_of(c, w->cell, w->stream); k != NO_SLOT; k = c->slots[k].next)
+            if (!c->slots[k].cancelled)
+                return false;
+        for (uint16_t j = 0; j < batch->n; ++j)
+            if (batch->req[j].cell_id == w->cell && batch->req[j].stream == STREAM_INDEX)
+                return false;
+        *start_out = start, *end_out = end;
+        return start < end;
+    }
     for (uint32_t k = *head_of(c, w->cell, w->stream); k != NO_SLOT; k = c->slots[k].next) {
         const slot *s = &c->slots[k];
         if (s->cancelled)
@@ -245,6 +258,11 @@ static void net_plan(ms_core *c, uint64_t in_flight, request_batch *batch)
         slot *s = &c->slots[k];
         memset(s, 0, sizeof *s);
         s->used = true;
+        /* a whole subtree of unknown size: one step (PROTOCOL.md), counted in
+         * flight as nothing (subtrees are small; the PAYLOAD says its size) */
+        bool whole = w->stream == STREAM_INDEX && end == UINT32_MAX;
+        if (whole)
+            end = start;
         s->cell = w->cell, s->stream = w->stream, s->start = start, s->end = end;
         c->slots_used++;
         c->slots_active++;
@@ -253,10 +271,10 @@ static void net_plan(ms_core *c, uint64_t in_flight, request_batch *batch)
         batch->req[batch->n] = (ms_proto_cell_request){
             .cell_id = w->cell,
             .stream = w->stream,
-            .unit = MS_PROTO_UNIT_BYTES,
+            .unit = whole ? MS_PROTO_UNIT_STEPS : MS_PROTO_UNIT_BYTES,
             .priority = w->priority,
-            .a = start,
-            .b = end - start};
+            .a = whole ? 0 : start,
+            .b = whole ? 0 : end - start};
         batch->slot[batch->n++] = k;
         in_flight += end - start;
     }
@@ -321,7 +339,15 @@ static void on_model_opened(ms_client *client, uint32_t request_id,
     if (request_id != c->open_request)
         return;
     c->last_activity = ms_core_since_start(c);
+    bool head = o->index_encoding == MS_PROTO_INDEX_SUBTREES;
     if (c->index) {
+        if (head != c->net_by_subtree) {
+            /* what the decode thread holds is of the other kind */
+            ms_core_fail(c, "%.240s", head ? "the server now sends the index by subtree"
+                                           : "the server no longer sends the index by subtree");
+            event_base_loopbreak(c->base);
+            return;
+        }
         if (o->content_id != c->content_id) {
             pthread_mutex_lock(&c->lock);
             c->stats.model_changed = true;
@@ -334,8 +360,11 @@ static void on_model_opened(ms_client *client, uint32_t request_id,
     } else {
         ms_archive *a;
         ms_error err;
-        if (ms_archive_open_index(index, o->index_size, c->model, &a, &err) != MS_OK) {
-            ms_core_fail(c, "bad model index: %.200s", err.text);
+        ms_status st = head ? ms_archive_open_head(index, o->index_size, c->model, &a, &err)
+                            : ms_archive_open_index(index, o->index_size, c->model, &a, &err);
+        if (st != MS_OK) {
+            ms_core_fail(c, head ? "bad model index head: %.200s" : "bad model index: %.200s",
+                         err.text);
             event_base_loopbreak(c->base);
             return;
         }
@@ -350,7 +379,9 @@ static void on_model_opened(ms_client *client, uint32_t request_id,
         for (size_t i = 0; i < STREAM_COUNT * (size_t)c->cell_count; ++i)
             c->slot_head[i] = NO_SLOT;
         c->content_id = o->content_id;
+        c->net_by_subtree = head;
         pthread_mutex_lock(&c->lock);
+        c->stats.index_bytes_received += ms_client_index_wire_bytes(c->client);
         c->index = a;
         c->index_new = true;
         pthread_cond_broadcast(&c->wake);
@@ -387,8 +418,9 @@ static void on_payload(ms_client *client, uint32_t id, const ms_proto_payload *p
         chunk_msg *m = malloc(sizeof *m + p->data_length);
         if (m) {
             m->next = NULL;
-            m->cell = s->cell, m->stream = s->stream, m->total = 0, m->offset = p->offset, m->length = p->data_length;
+            m->cell = s->cell, m->stream = s->stream, m->offset = p->offset, m->length = p->data_length;
             m->failed = false;
+            m->total = s->stream == STREAM_INDEX ? p->end : 0; /* a subtree's stored size */
             memcpy(m->data, p->data, p->data_length);
             ms_core_push_chunk(c, m);
         }
@@ -396,8 +428,11 @@ static void on_payload(ms_client *client, uint32_t id, const ms_proto_payload *p
         if (got > s->end - s->start)
             got = s->end - s->start;
         pthread_mutex_lock(&c->lock);
-        c->bytes_received += p->data_length;
-        *(s->stream == STREAM_APO ? &c->apo_bytes_received : &c->geometry_bytes_received) += p->data_length;
+        if (s->stream != STREAM_INDEX) { /* subtrees: stats.index_bytes_received */
+            c->bytes_received += p->data_length;
+            *(s->stream == STREAM_APO ? &c->apo_bytes_received
+                                      : &c->geometry_bytes_received) += p->data_length;
+        }
         if (got > s->got)
             c->bytes_in_flight -= got - s->got;
         pthread_mutex_unlock(&c->lock);
@@ -512,7 +547,8 @@ static void net_connect(ms_core *c)
 {
     ms_client_options co = {.host = c->host, .port = c->o.port, .token = c->token,
                             .agent = c->agent, .max_frame = 1u << 20,
-                            .raw_index = c->o.raw_index};
+                            .raw_index = c->o.raw_index,
+                            .index_subtrees = !c->o.whole_index};
     ms_error err;
     c->last_activity = ms_core_since_start(c);
     c->last_read = 0;

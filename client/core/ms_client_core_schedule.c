@@ -163,7 +163,7 @@ static bool schedule_apo(ms_core *c, dec_pass *pass, uint32_t i, bool visible, d
     const ms_archive_cell *rec = ms_archive_get_cell(c->index, i);
     const dcell *d = ms_core_dcell(c, i);
     if (!(pass->apo_on && visible && rec->apo_length > 0 && !d->failed &&
-          c->target[i] != MS_VIEW_TARGET_SPLIT))
+          c->target[i] != MS_VIEW_TARGET_SPLIT && !d->blocked))
         return false;
     unsigned cap = c->o.apo_levels < rec->apo_levels ? c->o.apo_levels : rec->apo_levels;
     double lo[3], hi[3];
@@ -221,6 +221,9 @@ void ms_core_schedule(ms_core *c, dec_pass *pass)
     pass->worst = 0;
     pass->shown = pass->split = pass->cached = pass->loading = pass->failed = 0;
     pass->complete = true;
+    /* a cell held back only by its children's records is about to split too */
+    for (size_t k = 0; k < c->report.blocked_count; ++k)
+        ms_core_dcell(c, c->report.blocked[k])->blocked = true;
     for (uint32_t i = 0; i != MS_ARCHIVE_NONE; i = ms_view_next_known(c->view, i)) {
         ms_view_cell_state st = ms_view_state(c->view, i);
         pass->failed += ms_core_dcell(c, i)->failed;
@@ -233,6 +236,8 @@ void ms_core_schedule(ms_core *c, dec_pass *pass)
             schedule_shown(c, pass, i);
         }
     }
+    for (size_t k = 0; k < c->report.blocked_count; ++k)
+        ms_core_dcell(c, c->report.blocked[k])->blocked = false;
     if (pass->failed)
         pass->complete = false;
     ms_core_schedule_subtrees(c, pass); /* the index's subtrees, with an index by subtree */
