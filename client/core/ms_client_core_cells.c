@@ -24,7 +24,7 @@ dcell *ms_core_dcell(const ms_core *c, uint32_t cell)
     return block ? &block[cell == 0 ? 0 : (cell - 1) % c->group_size] : NULL;
 }
 
-bool ms_core_dcells_grow(ms_core *c)
+bool ms_core_dcells_grow(ms_core *c, const uint32_t *cells, size_t count)
 {
     if (!c->cell_groups) {
         const ms_archive_header *h = ms_view_header(c->view);
@@ -34,8 +34,8 @@ bool ms_core_dcells_grow(ms_core *c)
         if (!c->cell_groups)
             return false;
     }
-    for (uint32_t id = 0; id != MS_ARCHIVE_NONE; id = ms_view_next_known(c->view, id)) {
-        uint32_t g = group_of(c, id);
+    for (size_t k = 0; k < count; ++k) {
+        uint32_t g = group_of(c, cells[k]);
         if (!c->cell_groups[g] &&
             !(c->cell_groups[g] = calloc(group_cells(c, g), sizeof *c->cell_groups[g])))
             return false;
@@ -61,13 +61,14 @@ static bool group_known(const ms_core *c, uint32_t g)
     return false;
 }
 
-void ms_core_dcells_shrink(ms_core *c)
+void ms_core_dcells_release(ms_core *c, const uint32_t *cells, size_t count)
 {
-    for (uint32_t g = 0; c->cell_groups && g < c->group_count; ++g) {
+    for (size_t k = 0; c->cell_groups && k < count; ++k) {
+        uint32_t g = group_of(c, cells[k]);
         if (!c->cell_groups[g] || group_known(c, g))
             continue;
-        for (uint32_t k = 0; k < group_cells(c, g); ++k)
-            ms_core_dcell_clear(&c->cell_groups[g][k]);
+        for (uint32_t m = 0; m < group_cells(c, g); ++m)
+            ms_core_dcell_clear(&c->cell_groups[g][m]);
         free(c->cell_groups[g]);
         c->cell_groups[g] = NULL;
     }

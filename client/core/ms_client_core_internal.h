@@ -32,6 +32,9 @@
 #define NO_SLOT 0xFFFFFFFFu
 #define BYTES_PER_VERTEX 64.0
 #define MAX_TOLERANCE_FACTOR 4096.0
+/* A stored subtree's size before its first frame tells it (a window's guess:
+ * the dragon's average is 1.5 KB, a 30,000-triangle demo's 0.9 KB) */
+#define SUBTREE_BYTES_GUESS 2048u
 
 /* What a range belongs to: a cell's geometry or APO payload, or (with an
  * index that comes by subtree) a subtree's stored bytes, by subtree id
@@ -228,13 +231,14 @@ typedef struct dec_pass {
 
 /* A known cell's reception state, or NULL when the view does not know it. */
 dcell *ms_core_dcell(const ms_core *c, uint32_t cell);
-/* Makes room for the cells the view knows now (after it learned records):
- * false when out of memory. */
-bool ms_core_dcells_grow(ms_core *c);
+/* Makes room for `count` cells the view just learned: false when out of
+ * memory. */
+bool ms_core_dcells_grow(ms_core *c, const uint32_t *cells, size_t count);
 /* Frees a cell's reception state (eviction, or its record forgotten). */
 void ms_core_dcell_clear(dcell *d);
-/* Frees every group block none of whose cells the view knows. */
-void ms_core_dcells_shrink(ms_core *c);
+/* Frees the group blocks of `count` cells the view just forgot, where it
+ * knows none of the group's cells any more. */
+void ms_core_dcells_release(ms_core *c, const uint32_t *cells, size_t count);
 void ms_core_dcells_free(ms_core *c);
 
 /* ---- ms_client_core_subtrees.c: an index that comes by subtree ---- */

@@ -243,6 +243,12 @@ static void net_plan(ms_core *c, uint64_t in_flight, request_batch *batch)
     if (max_batch > 256)
         max_batch = 256;
     batch->n = 0;
+    /* whole subtrees on their way: their size comes with their first frame,
+     * so the window counts each as a typical stored subtree */
+    for (uint32_t k = 0; k < MAX_SLOTS; ++k)
+        if (c->slots[k].used && !c->slots[k].done && !c->slots[k].cancelled &&
+            c->slots[k].stream == STREAM_INDEX && c->slots[k].start == c->slots[k].end)
+            in_flight += SUBTREE_BYTES_GUESS;
     for (size_t i = 0; i < c->net_want_count && batch->n < max_batch; ++i) {
         if (c->slots_active + batch->n >= max_out || c->slots_used + batch->n >= MAX_SLOTS ||
             (in_flight > 0 && in_flight >= c->window))
@@ -258,8 +264,8 @@ static void net_plan(ms_core *c, uint64_t in_flight, request_batch *batch)
         slot *s = &c->slots[k];
         memset(s, 0, sizeof *s);
         s->used = true;
-        /* a whole subtree of unknown size: one step (PROTOCOL.md), counted in
-         * flight as nothing (subtrees are small; the PAYLOAD says its size) */
+        /* a whole subtree of unknown size: one step (PROTOCOL.md); in the
+         * figures it counts as nothing in flight, in the window as a guess */
         bool whole = w->stream == STREAM_INDEX && end == UINT32_MAX;
         if (whole)
             end = start;
@@ -276,7 +282,7 @@ static void net_plan(ms_core *c, uint64_t in_flight, request_batch *batch)
             .a = whole ? 0 : start,
             .b = whole ? 0 : end - start};
         batch->slot[batch->n++] = k;
-        in_flight += end - start;
+        in_flight += whole ? SUBTREE_BYTES_GUESS : end - start;
     }
 }
 

@@ -138,9 +138,9 @@ static ms_status learn_subtree(ms_core *c, uint32_t id, ms_error *err)
     ms_status s = subtree_members(c, id, &l, err);
     if (s == MS_OK)
         s = ms_view_learn(c->view, l.ids, l.recs, l.n, err);
-    member_free(&l);
-    if (s == MS_OK && !ms_core_dcells_grow(c))
+    if (s == MS_OK && !ms_core_dcells_grow(c, l.ids, l.n))
         s = ms_error_set(err, MS_ERR_NOMEM, "out of memory for subtree %u's cells", id);
+    member_free(&l);
     return s;
 }
 
@@ -198,10 +198,10 @@ bool ms_core_take_index(ms_core *c, ms_error *err)
     }
     if (s == MS_OK)
         s = ms_view_learn(c->view, ids, recs, h->cell_count, err);
+    if (s == MS_OK && !ms_core_dcells_grow(c, ids, h->cell_count))
+        s = ms_error_set(err, MS_ERR_NOMEM, "out of memory for %u cells", h->cell_count);
     free(ids);
     free(recs);
-    if (s == MS_OK && !ms_core_dcells_grow(c))
-        s = ms_error_set(err, MS_ERR_NOMEM, "out of memory for %u cells", h->cell_count);
     /* held whatever the view: outside the budget, in the figures */
     pthread_mutex_lock(&c->lock);
     c->stats.index_bytes_held = c->stats.peak_index_bytes_held =
@@ -329,6 +329,8 @@ static bool drop_subtree(ms_core *c, size_t k)
         ms_status s = subtree_members(c, e->id, &l, &err);
         if (s == MS_OK)
             s = ms_view_unlearn(c->view, l.ids, l.n, &err);
+        if (s == MS_OK)
+            ms_core_dcells_release(c, l.ids, l.n);
         member_free(&l);
         if (s != MS_OK)
             return false;
@@ -378,7 +380,6 @@ void ms_core_schedule_subtrees(ms_core *c, dec_pass *pass)
         if (!c->subtrees[k].needed)
             dropped |= drop_subtree(c, k);
     if (dropped) {
-        ms_core_dcells_shrink(c);
         note_index_held(c);
         c->subtrees_changed = true;
     }
