@@ -18,6 +18,7 @@
 
 #include "ms_archive.h"
 #include "ms_nsp_check.h"
+#include "ms_registry.h"
 #include "ms_subtree.h"
 #include "ms_test.h"
 #include "ms_test_archive.h"
@@ -37,6 +38,12 @@ static void put32(uint8_t *p, uint32_t v)
 {
     for (int i = 0; i < 4; ++i)
         p[i] = (uint8_t)(v >> (8 * i));
+}
+
+static void le_put64(uint8_t *p, uint64_t v)
+{
+    put32(p, (uint32_t)v);
+    put32(p + 4, (uint32_t)(v >> 32));
 }
 
 static ms_archive *open_or_fail(const char *path)
@@ -660,6 +667,237 @@ static void test_hostile_head(void **state)
     free(bad);
 }
 
+/* Version 3 and version 2 files of one model: the same records, payloads,
+ * index blob (so content id), subtrees and head; only the stored index differs. */
+static void test_version_2_and_3_agree(void **state)
+{
+    fixture *f = *state;
+    char v2[700];
+    snprintf(v2, sizeof v2, "%s/v2.msa", f->dir);
+    ms_test_write_archive_version(v2, 0, MS_ARCHIVE_VERSION_ZLIB_INDEX);
+    ms_archive *b = open_or_fail(v2);
+    const ms_archive_header *h3 = ms_archive_get_header(f->a), *h2 = ms_archive_get_header(b);
+    assert_int_equal(h3->version, 3);
+    assert_int_equal(h2->version, 2);
+    size_t s3, s2;
+    const uint8_t *blob3 = ms_archive_index_bytes(f->a, &s3), *blob2 = ms_archive_index_bytes(b, &s2);
+    assert_int_equal(s3, s2);
+    assert_memory_equal(blob3, blob2, s3);
+    for (uint32_t c = 0; c < MS_TEST_ARCHIVE_CELLS; ++c) {
+        const uint8_t *p3 = ms_archive_geometry(f->a, c, &s3), *p2 = ms_archive_geometry(b, c, &s2);
+        assert_int_equal(s3, s2);
+        assert_memory_equal(p3, p2, s3);
+        p3 = ms_archive_apo(f->a, c, &s3);
+        p2 = ms_archive_apo(b, c, &s2);
+        assert_int_equal(s3, s2);
+        if (s3)
+            assert_memory_equal(p3, p2, s3);
+        assert_int_equal(ms_archive_verify_payload(f->a, c, NULL), MS_OK);
+    }
+    static const uint32_t ids[3] = {0, 1, 65};
+    for (int i = 0; i < 3; ++i) {
+        const uint8_t *p3 = ms_archive_subtree(f->a, ids[i], &s3);
+        const uint8_t *p2 = ms_archive_subtree(b, ids[i], &s2);
+        assert_int_equal(s3, s2);
+        assert_memory_equal(p3, p2, s3);
+    }
+    const uint8_t *head3 = ms_archive_index_head(f->a, &s3), *head2 = ms_archive_index_head(b, &s2);
+    assert_int_equal(s3, s2);
+    assert_memory_equal(head3, head2, s3);
+    /* The file: header, directory (3 entries of 12 bytes and a CRC), the
+     * subtrees in ascending id, payloads. */
+    size_t size;
+    uint8_t *file = ms_test_read_file(f->path, &size);
+    assert_int_equal(get32(file + 8), 3);
+    assert_int_equal(file[120], MS_ARCHIVE_INDEX_SUBTREES);
+    assert_int_equal(file[121], 1);
+    assert_int_equal(get32(file + 116), 3);
+    uint32_t stored = get32(file + 112);
+    assert_int_equal(h3->index_stored_size, stored);
+    assert_int_equal(size, 128 + (size_t)stored + get32(file + 88));
+    const uint8_t *dir = file + 128;
+    assert_int_equal(get32(dir + 36), (uint32_t)crc32(0, dir, 36));
+    uint32_t offset = 0;
+    for (int i = 0; i < 3; ++i) {
+        assert_int_equal(get32(dir + 12 * i), ids[i]);
+        assert_int_equal(get32(dir + 12 * i + 4), offset);
+        const uint8_t *p3 = ms_archive_subtree(f->a, ids[i], &s3);
+        assert_int_equal(get32(dir + 12 * i + 8), s3);
+        assert_memory_equal(file + 128 + 40 + offset, p3, s3);
+        offset += (uint32_t)s3;
+    }
+    assert_int_equal(40 + offset, stored);
+    free(file);
+    ms_archive_close(b);
+}
+
+/* Writes the image and expects ms_archive_open to fail naming it and saying text. */
+static void expect_file_fails(const fixture *f, const uint8_t *image, size_t size, ms_status code,
+                              const char *text)
+{
+    char bad[700];
+    snprintf(bad, sizeof bad, "%s/bad.msa", f->dir);
+    ms_test_write_file(bad, image, size);
+    ms_archive *a = (ms_archive *)1;
+    ms_error err;
+    ms_status st = ms_archive_open(bad, &a, &err);
+    if (st == MS_OK)
+        fail_msg("archive accepted; expected '%s'", text);
+    assert_null(a);
+    if (st != code)
+        fail_msg("status %d, expected %d ('%s')", (int)st, (int)code, err.text);
+    if (!strstr(err.text, text) || !strstr(err.text, bad))
+        fail_msg("error '%s' does not say '%s' and name the file", err.text, text);
+    assert_null(strchr(err.text, '\n'));
+}
+
+/* A version-3 file whose directory or subtrees lie. */
+static void test_version_3_lies(void **state)
+{
+    fixture *f = *state;
+    size_t size;
+    uint8_t *file = ms_test_read_file(f->path, &size), *bad = malloc(size + 64);
+    uint8_t *dir = bad + 128;
+#define FRESH() memcpy(bad, file, size)
+#define SEAL_DIR() put32(dir + 36, (uint32_t)crc32(0, dir, 36))
+    FRESH();
+    dir[5] ^= 1;
+    expect_file_fails(f, bad, size, MS_ERR_CORRUPT, "subtree directory checksum mismatch");
+    FRESH();
+    put32(dir + 12, 2); /* second id */
+    SEAL_DIR();
+    expect_file_fails(f, bad, size, MS_ERR_FORMAT, "subtree 2: the blob is subtree 1");
+    FRESH();
+    put32(dir + 24, 1); /* third id below the second */
+    SEAL_DIR();
+    expect_file_fails(f, bad, size, MS_ERR_FORMAT, "id 1 out of order");
+    FRESH();
+    put32(dir + 16, get32(dir + 16) + 1); /* second offset */
+    SEAL_DIR();
+    expect_file_fails(f, bad, size, MS_ERR_FORMAT, "outside the index");
+    FRESH();
+    put32(dir + 32, get32(dir + 32) - 1); /* last length short */
+    SEAL_DIR();
+    expect_file_fails(f, bad, size, MS_ERR_FORMAT, "the subtrees fill");
+    FRESH();
+    put32(bad + 116, 2); /* two subtrees said: the directory shifts */
+    ms_test_archive_seal(bad);
+    expect_file_fails(f, bad, size, MS_ERR_CORRUPT, "subtree directory checksum mismatch");
+    FRESH();
+    put32(bad + 116, 1u << 23);
+    ms_test_archive_seal(bad);
+    expect_file_fails(f, bad, size, MS_ERR_RANGE, "subtrees outside 1..129");
+    FRESH();
+    bad[121] = 2; /* S = 2: the root subtree blob says 1 */
+    ms_test_archive_seal(bad);
+    expect_file_fails(f, bad, size, MS_ERR_FORMAT, "subtree 0: subtree of depth 1");
+    FRESH();
+    bad[122] = 1;
+    ms_test_archive_seal(bad);
+    expect_file_fails(f, bad, size, MS_ERR_FORMAT, "reserved bytes");
+    FRESH();
+    bad[128 + 40 + 5] ^= 0x40; /* inside the root subtree's stream */
+    ms_status st;
+    {
+        char path[700];
+        snprintf(path, sizeof path, "%s/bad.msa", f->dir);
+        ms_test_write_file(path, bad, size);
+        ms_archive *a = (ms_archive *)1;
+        ms_error err;
+        st = ms_archive_open(path, &a, &err);
+        assert_true(st == MS_ERR_CORRUPT || st == MS_ERR_FORMAT);
+        assert_non_null(strstr(err.text, "subtree 0"));
+    }
+    /* Subtree 65 left out of the directory and the file: its cells are in no
+     * subtree. */
+    {
+        uint32_t stored = get32(file + 112), len65 = get32(file + 128 + 32);
+        size_t payload = size - 128 - stored, kept = stored - 40 - len65;
+        uint8_t *cut = malloc(size);
+        memcpy(cut, file, 128);
+        memcpy(cut + 128, file + 128, 24);
+        put32(cut + 128 + 24, (uint32_t)crc32(0, cut + 128, 24));
+        memcpy(cut + 128 + 28, file + 128 + 40, kept);
+        memcpy(cut + 128 + 28 + kept, file + 128 + stored, payload);
+        size_t cut_size = 128 + 28 + kept + payload;
+        put32(cut + 112, (uint32_t)(28 + kept));
+        put32(cut + 116, 2);
+        le_put64(cut + 96, cut_size);
+        ms_test_archive_seal(cut);
+        expect_file_fails(f, cut, cut_size, MS_ERR_FORMAT, "cell 65 is in no subtree");
+        free(cut);
+    }
+#undef FRESH
+#undef SEAL_DIR
+    free(bad);
+    free(file);
+}
+
+/* meshbake writes version 3 by default and version 2 on request: the bunny
+ * both ways has the same records, payloads, index blob, content id (as the
+ * server's registry computes it), subtrees and head. */
+static void test_meshbake_versions_agree(void **state)
+{
+    fixture *f = *state;
+    char input[512], bin[512], cmd[8192], out[4096];
+    ms_test_model_path(input, sizeof input, "stanford_bunny.obj.gz");
+    ms_test_bin_path(bin, sizeof bin, "meshbake");
+    snprintf(cmd, sizeof cmd, "%s %s -o %s --name b3 --threads 2 >/dev/null && "
+             "%s %s -o %s --name b2 --archive-version 2 --threads 2 >/dev/null && "
+             "%s %s -o %s --name b3s2 --subtree-levels 2 --threads 2 >/dev/null",
+             bin, input, f->dir, bin, input, f->dir, bin, input, f->dir);
+    if (ms_test_run(cmd, out, sizeof out) != 0)
+        fail_msg("%s", out);
+    snprintf(cmd, sizeof cmd, "%s %s -o %s --subtree-levels 9", bin, input, f->dir);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 2);
+    assert_non_null(strstr(out, "--subtree-levels wants an integer in [1, 8]"));
+    snprintf(cmd, sizeof cmd, "%s %s -o %s --archive-version 2 --subtree-levels 2", bin, input,
+             f->dir);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 2);
+    assert_non_null(strstr(out, "--subtree-levels needs archive version 3"));
+
+    ms_registry *r;
+    ms_error err;
+    if (ms_registry_scan(f->dir, NULL, &r, NULL, NULL, &err) != MS_OK)
+        fail_msg("%s", err.text);
+    ms_model *m3 = ms_registry_find(r, "b3"), *m2 = ms_registry_find(r, "b2");
+    ms_model *m3s2 = ms_registry_find(r, "b3s2");
+    assert_non_null(m3);
+    assert_non_null(m2);
+    assert_non_null(m3s2);
+    assert_int_equal(ms_archive_get_header(m3->archive)->version, 3);
+    assert_int_equal(ms_archive_get_header(m2->archive)->version, 2);
+    assert_int_equal(ms_archive_subtree_levels(m3s2->archive), 2);
+    assert_true(m3->content_id == m2->content_id);
+    assert_true(m3s2->content_id == m2->content_id);
+    assert_int_equal(m3->index_crc32, m2->index_crc32);
+    size_t s3, s2;
+    const uint8_t *b3 = ms_archive_index_bytes(m3->archive, &s3);
+    const uint8_t *b2 = ms_archive_index_bytes(m2->archive, &s2);
+    assert_int_equal(s3, s2);
+    assert_memory_equal(b3, b2, s3);
+    uint32_t cells = ms_archive_get_header(m3->archive)->cell_count;
+    for (uint32_t c = 0; c < cells; ++c) {
+        const uint8_t *p3 = ms_archive_geometry(m3->archive, c, &s3);
+        const uint8_t *p2 = ms_archive_geometry(m2->archive, c, &s2);
+        assert_int_equal(s3, s2);
+        if (s3)
+            assert_memory_equal(p3, p2, s3);
+        p3 = ms_archive_apo(m3->archive, c, &s3);
+        p2 = ms_archive_apo(m2->archive, c, &s2);
+        assert_int_equal(s3, s2);
+        if (s3)
+            assert_memory_equal(p3, p2, s3);
+    }
+    const uint8_t *h3 = ms_archive_index_head(m3->archive, &s3);
+    const uint8_t *h2 = ms_archive_index_head(m2->archive, &s2);
+    assert_int_equal(s3, s2);
+    assert_memory_equal(h3, h2, s3);
+    check_round_trip(m3->archive, 1, ms_archive_subtree_count(m3->archive));
+    check_round_trip(m3s2->archive, 2, ms_archive_subtree_count(m3s2->archive));
+    ms_registry_free(r);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -670,7 +908,10 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_drop, setup_synthetic, teardown),
         cmocka_unit_test_setup_teardown(test_hostile, setup_synthetic, teardown),
         cmocka_unit_test_setup_teardown(test_hostile_head, setup_synthetic, teardown),
+        cmocka_unit_test_setup_teardown(test_version_2_and_3_agree, setup_synthetic, teardown),
+        cmocka_unit_test_setup_teardown(test_version_3_lies, setup_synthetic, teardown),
         cmocka_unit_test_setup_teardown(test_dragon_round_trip, setup_dragon, teardown),
+        cmocka_unit_test_setup_teardown(test_meshbake_versions_agree, setup_synthetic, teardown),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -23,8 +23,8 @@
 
 #include "ms_error.h"
 
-/* The version meshbake writes: the index is stored as one zlib stream. */
-#define MS_ARCHIVE_VERSION 2u
+/* The version meshbake writes: the index is stored as subtrees. */
+#define MS_ARCHIVE_VERSION 3u
 /* The versions read: 1 stores the index raw, 2 as one zlib stream, 3 as
  * subtrees (ms_subtree.h). */
 #define MS_ARCHIVE_VERSION_ZLIB_INDEX 2u
@@ -142,7 +142,7 @@ ms_status ms_archive_check_payload(const ms_archive *archive, uint32_t cell, boo
 
 /* Encodes / decodes the fixed-size parts. Decoding checks only field-local
  * ranges; cross-checks are done by ms_archive_open. The header is encoded as
- * `version` (1 or MS_ARCHIVE_VERSION) from h's model fields (h->version,
+ * `version` (1 or 2; ms_archive_encode_header_v3 for 3) from h's model fields (h->version,
  * h->index_stored_size and h->file_size are not used): index_size is the raw
  * index (80 * cells + 4 * table words), index_crc its CRC32; stored_index_size
  * the zlib stream's length (version 2; a version-1 header stores the index raw

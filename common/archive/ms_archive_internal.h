@@ -45,6 +45,8 @@ struct ms_archive {
     uint32_t *subtree_ids;
     const uint8_t **file_subtree;
     uint32_t *file_subtree_size;
+    uint32_t *file_subtree_ids; /* version 3: the directory's ids */
+    uint32_t file_subtree_count;
     _Atomic(ms_stored_subtree *) *stored_cache;
     _Atomic(ms_stored_subtree *) head_cache; /* the index head, built on first request */
 

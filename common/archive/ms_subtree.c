@@ -226,6 +226,7 @@ void ms_archive_subtrees_free(ms_archive *a)
     free(a->subtree_ids);
     free(a->file_subtree);
     free(a->file_subtree_size);
+    free(a->file_subtree_ids);
 }
 
 /* Index of id in subtree_ids, or -1. */
@@ -327,19 +328,4 @@ const uint8_t *ms_archive_index_head(const ms_archive *a, size_t *size)
     }
     *size = s->size;
     return s->bytes;
-}
-
-/* --- Version 3 ------------------------------------------------------------- */
-
-ms_status ms_archive_v3_assemble(const char *path, ms_archive *a, const ms_archive_sections *sec,
-                                 uint8_t *raw, ms_error *err)
-{
-    (void)a, (void)sec, (void)raw;
-    return ms_error_set(err, MS_ERR_UNSUPPORTED, "%s: archive version 3 is not read yet", path);
-}
-
-ms_status ms_archive_v3_check_directory(const char *path, ms_archive *a, ms_error *err)
-{
-    (void)a;
-    return ms_error_set(err, MS_ERR_UNSUPPORTED, "%s: archive version 3 is not read yet", path);
 }
