@@ -783,6 +783,8 @@ static void test_http_head_and_subtrees(void **state)
         ms_test_http_free(&r);
         snprintf(headers, sizeof headers, "If-None-Match: %s\r\n", etag);
         expect_status(f, path, headers, 304);
+        snprintf(headers, sizeof headers, "Range: bytes=%zu-\r\n", size);
+        expect_status(f, path, headers, 416);
     }
     /* Not subtrees. */
     expect_status(f, "/models/deep/subtrees/1", NULL, 404);
