@@ -7,9 +7,10 @@
  * cannot ask for subtrees; a preview (no token) reads every subtree and still
  * no full-precision geometry; the HTTP side door serves the same bytes with
  * ETag, 304, Range, 404 and 416 (protocol/PROTOCOL.md sections 3, 4.7, 4.10,
- * 11). Models: the synthetic "dragon" (n = 4, S = 1: three subtrees), "deep"
- * (n = 2, S = 2, six levels: subtrees on three levels) and "big" (65 cells of
- * 256 KiB, to keep the queue busy). */
+ * 11). Models: the synthetic "dragon" (n = 4, S = 1: three subtrees; archive
+ * file version 3) and the same as file version 2 ("dragon_v2"), "deep" (n = 2,
+ * S = 2, six levels: subtrees on three levels) and "big" (65 cells of 256 KiB,
+ * to keep the queue busy). */
 #include <stdarg.h>
 #include <stddef.h>
 #include <setjmp.h>
@@ -42,24 +43,41 @@ typedef struct fixture {
     uint16_t port, http_port;
 } fixture;
 
-/* The deep synthetic archive as model `name`, with a catalogue entry. */
-static void add_deep_model(const char *dir, const char *name, uint32_t salt)
+/* A catalogue entry for an archive written by the test helpers. */
+static void add_entry(const char *dir, const char *name, uint32_t cells, unsigned n,
+                      uint8_t public_max_bits)
 {
-    char path[4096];
-    snprintf(path, sizeof path, "%s/%s.msa", dir, name);
-    ms_test_write_deep_archive(path, salt);
     ms_catalog_entry e;
     memset(&e, 0, sizeof e);
     snprintf(e.name, sizeof e.name, "%s", name);
     e.source = (char *)"synthetic";
     ms_catalog_now(e.baked_at, sizeof e.baked_at);
-    e.vertices = 1234, e.triangles = 2468, e.cells = MS_TEST_DEEP_ARCHIVE_CELLS;
-    e.bits = 12, e.n = 2, e.root_bits = 4, e.min_triangles = 8000;
+    e.vertices = 1234, e.triangles = 2468, e.cells = cells;
+    e.bits = 12, e.n = n, e.root_bits = n == 2 ? 4 : 7, e.min_triangles = 8000;
     e.apo = true, e.apo_lead = 3, e.apo_max_depth = 13, e.apo_tolerance = 0.1;
-    e.public_max_bits = DEEP_PUBLIC_BITS;
+    e.public_max_bits = public_max_bits;
     ms_error err;
     if (ms_catalog_update(dir, &e, &err) != MS_OK)
         fail_msg("%s", err.text);
+}
+
+/* The deep synthetic archive as model `name`. */
+static void add_deep_model(const char *dir, const char *name, uint32_t salt)
+{
+    char path[4096];
+    snprintf(path, sizeof path, "%s/%s.msa", dir, name);
+    ms_test_write_deep_archive(path, salt);
+    add_entry(dir, name, MS_TEST_DEEP_ARCHIVE_CELLS, 2, DEEP_PUBLIC_BITS);
+}
+
+/* The "dragon" model (salt 2) as an archive file of version 2: its subtrees
+ * are computed by the server when it opens it. */
+static void add_version2_model(const char *dir, const char *name)
+{
+    char path[4096];
+    snprintf(path, sizeof path, "%s/%s.msa", dir, name);
+    ms_test_write_archive_version(path, 2, MS_ARCHIVE_VERSION_ZLIB_INDEX);
+    add_entry(dir, name, MS_TEST_ARCHIVE_CELLS, 4, 8);
 }
 
 static int start_server(void **state)
@@ -70,6 +88,7 @@ static int start_server(void **state)
     assert_int_equal(mkdir(f->archives, 0755), 0);
     ms_test_add_model(f->archives, "dragon", 2, 8);
     add_deep_model(f->archives, "deep", 3);
+    add_version2_model(f->archives, "dragon_v2");
     ms_synthetic_spec big = {1, 12, 256u << 10, 0, 1, 5, 12};
     ms_error err;
     if (ms_synthetic_archive_write(f->archives, "big", &big, &err) != MS_OK)
@@ -238,6 +257,60 @@ static void test_head_is_root_subtree(void **state)
     assert_int_equal(last->level, 4);
     free(ids);
     ms_archive_close(a);
+}
+
+/* An archive file of version 2 and one of version 3 of the same model are
+ * served alike: the same content id, head and subtrees (the version-2 file's
+ * computed when the server opened it). */
+static void test_file_versions_served_alike(void **state)
+{
+    fixture *f = *state;
+    ms_archive *v3 = open_archive(f, "dragon"), *v2 = open_archive(f, "dragon_v2");
+    assert_int_equal(ms_archive_get_header(v3)->version, MS_ARCHIVE_VERSION_SUBTREES);
+    assert_int_equal(ms_archive_get_header(v2)->version, MS_ARCHIVE_VERSION_ZLIB_INDEX);
+    uint32_t *ids;
+    size_t count;
+    subtree_ids(v3, &ids, &count);
+    ms_test_conn c;
+    connect_v3(f, &c, TOKEN);
+    ms_proto_model_opened o3, o2;
+    uint8_t *head3, *head2;
+    uint32_t h3 = ms_test_conn_open_model(&c, "dragon", 1, &o3, &head3, NULL);
+    uint32_t h2 = ms_test_conn_open_model(&c, "dragon_v2", 2, &o2, &head2, NULL);
+    assert_true(o3.content_id == o2.content_id);
+    assert_int_equal(o2.index_encoding, MS_PROTO_INDEX_SUBTREES);
+    assert_int_equal(o3.index_size, o2.index_size);
+    assert_int_equal(o3.index_crc32, o2.index_crc32);
+    assert_memory_equal(head3, head2, o3.index_size);
+    ms_proto_cell_request *e = calloc(count, sizeof *e);
+    for (size_t i = 0; i < count; ++i)
+        e[i] = subtree_entry(ids[i], MS_PROTO_UNIT_STEPS, 0, 0, 0);
+    ms_test_answers a3, a2;
+    ms_test_conn_send_batch(&c, h3, 100, e, (uint16_t)count);
+    ms_test_answers_init(&a3, 100, (uint32_t)count);
+    ms_test_answers_collect(&c, &a3);
+    ms_test_conn_send_batch(&c, h2, 200, e, (uint16_t)count);
+    ms_test_answers_init(&a2, 200, (uint32_t)count);
+    ms_test_answers_collect(&c, &a2);
+    for (size_t i = 0; i < count; ++i) {
+        size_t size;
+        const uint8_t *stored = ms_archive_subtree(v3, ids[i], &size);
+        assert_int_equal(a3.error[i], 0);
+        assert_int_equal(a2.error[i], 0);
+        assert_int_equal(a3.length[i], size);
+        assert_int_equal(a2.length[i], size);
+        assert_memory_equal(a3.data[i], stored, size);
+        assert_memory_equal(a2.data[i], stored, size);
+    }
+    ms_test_answers_free(&a3);
+    ms_test_answers_free(&a2);
+    free(e);
+    free(head3);
+    free(head2);
+    free(ids);
+    ms_test_conn_close(&c);
+    ms_archive_close(v2);
+    ms_archive_close(v3);
 }
 
 /* Versions 1 and 2 keep working: the whole index (RAW, ZLIB), never the head,
@@ -710,6 +783,8 @@ static void test_http_head_and_subtrees(void **state)
         ms_test_http_free(&r);
         snprintf(headers, sizeof headers, "If-None-Match: %s\r\n", etag);
         expect_status(f, path, headers, 304);
+        snprintf(headers, sizeof headers, "Range: bytes=%zu-\r\n", size);
+        expect_status(f, path, headers, 416);
     }
     /* Not subtrees. */
     expect_status(f, "/models/deep/subtrees/1", NULL, 404);
@@ -731,6 +806,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_head_is_root_subtree),
+        cmocka_unit_test(test_file_versions_served_alike),
         cmocka_unit_test(test_older_clients_get_whole_index),
         cmocka_unit_test(test_every_subtree_by_steps_and_bytes),
         cmocka_unit_test(test_unknown_subtree_ids),

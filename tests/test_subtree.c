@@ -252,8 +252,23 @@ static void check_round_trip(const ms_archive *a, unsigned levels, size_t expect
             free(stored);
         }
         assert_true(ms_archive_subtree_held(p, ids[i]));
-        for (size_t k = 0; k < m; ++k)
+        for (size_t k = 0; k < m; ++k) {
             assert_same_cell(a, p, members[k]);
+            if (levels == ms_archive_subtree_levels(a)) {
+                assert_int_equal(ms_archive_subtree_of(a, members[k]), ids[i]);
+                assert_int_equal(ms_archive_children_subtree(a, members[k]),
+                                 ms_archive_children_subtree(p, members[k]));
+            }
+            assert_int_equal(ms_archive_subtree_of(p, members[k]), ids[i]);
+            const ms_archive_cell *c = ms_archive_get_cell(p, members[k]);
+            uint32_t below = ms_archive_children_subtree(p, members[k]);
+            if (c->first_child == MS_ARCHIVE_NONE)
+                assert_int_equal(below, MS_ARCHIVE_NONE);
+            else if ((c->level + 1u) % levels == 0)
+                assert_int_equal(below, c->first_child);
+            else
+                assert_int_equal(below, ids[i]);
+        }
         index_bytes += 24 + 84 * m;
         free(members);
         assert_int_equal(ms_archive_subtrees_held(p), i + 1);
@@ -261,6 +276,7 @@ static void check_round_trip(const ms_archive *a, unsigned levels, size_t expect
     assert_int_equal(ms_archive_index_bytes_held(p), index_bytes + 4ull * h->table_words);
     assert_int_equal(index_bytes + 4ull * h->table_words, raw_total);
     assert_null(ms_archive_get_cell(p, h->cell_count));
+    assert_int_equal(ms_archive_subtree_of(p, h->cell_count), MS_ARCHIVE_NONE);
     size_t none;
     assert_null(ms_archive_index_bytes(p, &none));
     assert_int_equal(none, 0);
@@ -435,6 +451,9 @@ static void test_drop(void **state)
     assert_non_null(ms_archive_get_cell(p, 64));
     assert_null(ms_archive_get_cell(p, 65));
     assert_null(ms_archive_get_cell(p, 128));
+    assert_int_equal(ms_archive_subtree_of(p, 65), MS_ARCHIVE_NONE);
+    assert_int_equal(ms_archive_children_subtree(p, 5), 65); /* known, though not held */
+    assert_int_equal(ms_archive_children_subtree(p, 6), MS_ARCHIVE_NONE); /* a leaf */
     assert_false(ms_archive_subtree_held(p, 65));
     /* Dropping 1 takes 65 with it once re-added. */
     size_t size;

@@ -271,6 +271,32 @@ ms_status ms_archive_open_head(const uint8_t *head, size_t size, const char *nam
     return MS_OK;
 }
 
+uint32_t ms_archive_subtree_of(const ms_archive *a, uint32_t cell)
+{
+    const ms_archive_cell *c = ms_archive_get_cell(a, cell);
+    if (!c)
+        return MS_ARCHIVE_NONE;
+    if (a->partial)
+        return map_find(&a->partial->cells, cell)->subtree->id;
+    /* Up to the first level of its band; its group starts the subtree. */
+    unsigned band = c->level / a->subtree_levels * a->subtree_levels;
+    if (band == 0)
+        return 0;
+    while (c->level > band)
+        cell = c->parent, c = ms_archive_get_cell(a, cell);
+    return ms_archive_get_cell(a, c->parent)->first_child;
+}
+
+uint32_t ms_archive_children_subtree(const ms_archive *a, uint32_t cell)
+{
+    const ms_archive_cell *c = ms_archive_get_cell(a, cell);
+    if (!c || c->first_child == MS_ARCHIVE_NONE)
+        return MS_ARCHIVE_NONE;
+    if ((c->level + 1u) % a->subtree_levels == 0)
+        return c->first_child;
+    return ms_archive_subtree_of(a, cell);
+}
+
 bool ms_archive_is_partial(const ms_archive *a) { return a->partial != NULL; }
 
 bool ms_archive_subtree_held(const ms_archive *a, uint32_t id)

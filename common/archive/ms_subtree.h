@@ -116,6 +116,14 @@ ms_status ms_archive_add_subtree(ms_archive *a, uint32_t id, const uint8_t *stor
  * an id not held or a whole archive. */
 void ms_archive_drop_subtree(ms_archive *a, uint32_t id);
 
+/* The id of the subtree that holds cell's record (MS_ARCHIVE_NONE when the
+ * record is not held or cell >= cell_count), and the id of the subtree that
+ * holds its children's records (MS_ARCHIVE_NONE for a leaf or a cell not
+ * held): cell's own subtree, or cell.first_child when cell ends a band of S
+ * levels. Whole or partial archive. */
+uint32_t ms_archive_subtree_of(const ms_archive *a, uint32_t cell);
+uint32_t ms_archive_children_subtree(const ms_archive *a, uint32_t cell);
+
 bool ms_archive_is_partial(const ms_archive *a);
 /* Whether subtree id is held (always true for a subtree of a whole archive). */
 bool ms_archive_subtree_held(const ms_archive *a, uint32_t id);
