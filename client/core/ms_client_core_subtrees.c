@@ -303,11 +303,10 @@ static bool want_index(dec_pass *pass, const subtree_entry *e, uint8_t priority)
  * for at `priority`. */
 static void need_children(ms_core *c, dec_pass *pass, uint32_t cell, double priority)
 {
-    const ms_archive_cell *rec = ms_view_cell(c->view, cell);
-    if (!rec || rec->first_child == MS_ARCHIVE_NONE ||
-        (rec->level + 1u) % c->subtree_levels != 0)
-        return; /* its children are in its own subtree */
-    subtree_entry *e = subtree_add(c, rec->first_child, cell);
+    uint32_t children = ms_archive_children_subtree(c->index, cell);
+    if (children == MS_ARCHIVE_NONE || children == ms_archive_subtree_of(c->index, cell))
+        return; /* a leaf, or its children are in its own subtree */
+    subtree_entry *e = subtree_add(c, children, cell);
     if (!e)
         return;
     e->needed = true;
