@@ -30,6 +30,7 @@
 #define MAX_SLOTS 512u
 #define LATENCY_KEEP 65536u
 #define NO_SLOT 0xFFFFFFFFu
+#define SLOT_BUCKET_BITS 10u /* 1,024 chains for at most MAX_SLOTS slots */
 #define BYTES_PER_VERTEX 64.0
 #define MAX_TOLERANCE_FACTOR 4096.0
 /* A stored subtree's size before its first frame tells it (a window's guess:
@@ -72,7 +73,7 @@ typedef struct slot {
     uint32_t id, cell, start, end, got;
     uint8_t stream;
     double sent_at;
-    uint32_t next; /* next slot of the same cell and stream */
+    uint32_t next; /* next slot of the same chain (slot_buckets) */
 } slot;
 
 /* Reception of one stream of one cell: the bytes from `base` (what the
@@ -171,8 +172,7 @@ struct ms_core {
     slot slots[MAX_SLOTS];
     unsigned slots_used, slots_active;
     uint64_t net_consumed_seq;
-    uint32_t *slot_head;        /* STREAM_COUNT per cell */
-    uint32_t cell_count;
+    uint32_t slot_buckets[1u << SLOT_BUCKET_BITS]; /* slot chains by (cell, stream) hash */
     want *net_wants;
     size_t net_want_count, net_want_cap;
     uint64_t net_want_serial;

@@ -15,9 +15,17 @@
 
 static void net_connect(ms_core *c);
 
+/* The chain of slots whose (cell, stream) falls in one bucket: a fixed table,
+ * whatever the model's size (iterations skip the other cells' slots). */
 static uint32_t *head_of(ms_core *c, uint32_t cell, uint8_t stream)
 {
-    return &c->slot_head[STREAM_COUNT * (size_t)cell + stream];
+    uint32_t h = (cell * (uint32_t)STREAM_COUNT + stream) * 2654435761u;
+    return &c->slot_buckets[h >> (32 - SLOT_BUCKET_BITS)];
+}
+
+static bool slot_is(const slot *s, uint32_t cell, uint8_t stream)
+{
+    return s->cell == cell && s->stream == stream;
 }
 
 static void slot_unlink(ms_core *c, uint32_t k)
@@ -150,8 +158,9 @@ static void net_cancel_unwanted(ms_core *c)
     for (size_t i = 0; i < c->net_want_count; ++i) {
         const want *w = &c->net_wants[i];
         for (uint32_t k = *head_of(c, w->cell, w->stream); k != NO_SLOT; k = c->slots[k].next)
-            if (w->stream == STREAM_INDEX || /* a subtree still wanted: its request stays */
-                (c->slots[k].start + c->slots[k].got < w->end && c->slots[k].end > w->start))
+            if (slot_is(&c->slots[k], w->cell, w->stream) &&
+                (w->stream == STREAM_INDEX || /* a subtree still wanted: its request stays */
+                 (c->slots[k].start + c->slots[k].got < w->end && c->slots[k].end > w->start)))
                 c->slots[k].keep = true;
     }
     ms_proto_id_range ranges[64];
@@ -191,7 +200,7 @@ static bool net_missing_part(ms_core *c, const want *w, const request_batch *bat
     if (w->stream == STREAM_INDEX) {
         /* a subtree is asked for whole (or from where its bytes stopped), once */
         for (uint32_t k = *head_of(c, w->cell, w->stream); k != NO_SLOT; k = c->slots[k].next)
-            if (!c->slots[k].cancelled)
+            if (slot_is(&c->slots[k], w->cell, w->stream) && !c->slots[k].cancelled)
                 return false;
         for (uint16_t j = 0; j < batch->n; ++j)
             if (batch->req[j].cell_id == w->cell && batch->req[j].stream == STREAM_INDEX)
@@ -201,7 +210,7 @@ static bool net_missing_part(ms_core *c, const want *w, const request_batch *bat
     }
     for (uint32_t k = *head_of(c, w->cell, w->stream); k != NO_SLOT; k = c->slots[k].next) {
         const slot *s = &c->slots[k];
-        if (s->cancelled)
+        if (s->cancelled || !slot_is(s, w->cell, w->stream))
             continue;
         if (s->start <= start && s->end > start)
             start = s->end;
@@ -374,16 +383,6 @@ static void on_model_opened(ms_client *client, uint32_t request_id,
             event_base_loopbreak(c->base);
             return;
         }
-        c->cell_count = ms_archive_get_header(a)->cell_count;
-        c->slot_head = malloc(STREAM_COUNT * (size_t)c->cell_count * sizeof *c->slot_head);
-        if (!c->slot_head) {
-            ms_archive_close(a);
-            ms_core_fail(c, "%.240s", "out of memory");
-            event_base_loopbreak(c->base);
-            return;
-        }
-        for (size_t i = 0; i < STREAM_COUNT * (size_t)c->cell_count; ++i)
-            c->slot_head[i] = NO_SLOT;
         c->content_id = o->content_id;
         c->net_by_subtree = head;
         pthread_mutex_lock(&c->lock);
