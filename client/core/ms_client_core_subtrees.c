@@ -244,6 +244,14 @@ void ms_core_subtree_chunk(ms_core *c, const chunk_msg *m)
     }
     if (m->total && (e->total == 0 || e->buf.end == 0))
         e->total = m->total;
+    /* no subtree stores more than its raw blob's bound (every record and table
+     * word of the model) and zlib's few bytes: a larger size is a lie */
+    const ms_archive_header *h = ms_archive_get_header(c->index);
+    uint64_t bound = 24 + 84 * (uint64_t)h->cell_count + 4 * (uint64_t)h->table_words + 4096;
+    if (e->total > bound) {
+        subtree_trouble(c, e, "its stored size exceeds any subtree of the model");
+        return;
+    }
     if (!e->total || (m->total && m->total != e->total) ||
         (uint64_t)m->offset + m->length > e->total) {
         subtree_trouble(c, e, "its pieces disagree on its size");
