@@ -13,11 +13,17 @@
  *     holding fewer index bytes than the whole index at the close-up;
  *   - the whole index (as from a server without subtrees) gives the same cut;
  *   - against meshserve (protocol version 3) the same cut and subtrees, and
- *     not offering CAP_INDEX_SUBTREES (what a version-2 server answers: the
- *     whole index at open) the same cut;
+ *     not offering CAP_INDEX_SUBTREES (the whole index at open) the same cut;
+ *   - through a proxy that makes meshserve a version-2 server (it rewrites the
+ *     client's HELLO to versions 1..2 without CAP_INDEX_SUBTREES), a client
+ *     that asks for subtrees takes the whole index and gives the same cut;
  *   - a corrupt subtree is fetched once more, then given up with one warning:
  *     its cell stays unsplit, the core goes on, nothing crashes or leaks.
  * Every wait is bounded. */
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <pthread.h>
 #include <setjmp.h>
 #include <signal.h>
 #include <stdarg.h>
@@ -26,13 +32,16 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/socket.h>
 #include <sys/stat.h>
+#include <unistd.h>
 #include <cmocka.h>
 
 #include "ms_archive.h"
 #include "ms_camera_path.h"
 #include "ms_client_core.h"
 #include "ms_nsp_check.h"
+#include "ms_proto.h"
 #include "ms_subtree.h"
 #include "ms_test.h"
 #include "ms_test_archive.h"
@@ -430,6 +439,161 @@ static void test_network(void **state)
     ms_view_destroy(v);
 }
 
+/* ---- a version-2 server: meshserve behind a proxy that takes version 3 and
+ * CAP_INDEX_SUBTREES out of the client's HELLO (so the server answers as a
+ * version-2 server does: version 2, the whole index) and passes the rest ---- */
+
+typedef struct v2_proxy {
+    int listen_fd;
+    uint16_t port, server_port;
+    pthread_t thread;
+    volatile int stop;
+    unsigned hellos; /* HELLOs rewritten */
+} v2_proxy;
+
+static bool write_all(int fd, const uint8_t *data, size_t size)
+{
+    while (size) {
+        ssize_t n = write(fd, data, size);
+        if (n <= 0)
+            return false;
+        data += n, size -= (size_t)n;
+    }
+    return true;
+}
+
+/* Reads the client's HELLO, sends the server a version-2 one, then forwards
+ * what followed it; false when the client sent no HELLO. */
+static bool proxy_hello(v2_proxy *p, int cfd, int sfd)
+{
+    ms_proto_decoder dec;
+    ms_proto_decoder_config cfg = {MS_PROTO_ROLE_SERVER, 1u << 20, MS_PROTO_MAX_BATCH};
+    if (ms_proto_decoder_init(&dec, &cfg, NULL) != MS_OK)
+        return false;
+    uint8_t buf[65536];
+    size_t have = 0, at = 0;
+    bool ok = false;
+    while (!p->stop && have < sizeof buf) {
+        struct pollfd pf = {cfd, POLLIN, 0};
+        if (poll(&pf, 1, 50) <= 0)
+            continue;
+        ssize_t n = read(cfd, buf + have, sizeof buf - have);
+        if (n <= 0)
+            break;
+        have += (size_t)n;
+        ms_proto_message m;
+        bool got = false;
+        size_t used = 0;
+        if (ms_proto_decoder_feed(&dec, buf + at, have - at, &used, &m, &got, NULL, NULL) != MS_OK)
+            break;
+        at += used;
+        if (!got)
+            continue;
+        if (m.type != MS_PROTO_HELLO)
+            break;
+        m.body.hello.max_version = 2;
+        m.body.hello.capabilities &= ~MS_PROTO_CAP_INDEX_SUBTREES;
+        uint8_t out[4096];
+        size_t written;
+        ok = ms_proto_encode(&m, out, sizeof out, &written, NULL) == MS_OK &&
+             write_all(sfd, out, written) && write_all(sfd, buf + at, have - at);
+        p->hellos += ok;
+        break;
+    }
+    ms_proto_decoder_free(&dec);
+    return ok;
+}
+
+static void *proxy_main(void *arg)
+{
+    v2_proxy *p = arg;
+    while (!p->stop) {
+        struct pollfd lf = {p->listen_fd, POLLIN, 0};
+        if (poll(&lf, 1, 50) <= 0)
+            continue;
+        int cfd = accept(p->listen_fd, NULL, NULL);
+        if (cfd < 0)
+            continue;
+        int sfd = socket(AF_INET, SOCK_STREAM, 0);
+        struct sockaddr_in sin = {.sin_family = AF_INET, .sin_port = htons(p->server_port),
+                                  .sin_addr.s_addr = htonl(INADDR_LOOPBACK)};
+        if (sfd >= 0 && connect(sfd, (struct sockaddr *)&sin, sizeof sin) == 0 &&
+            proxy_hello(p, cfd, sfd)) {
+            struct pollfd pf[2] = {{cfd, POLLIN, 0}, {sfd, POLLIN, 0}};
+            for (bool open = true; open && !p->stop;) {
+                if (poll(pf, 2, 50) <= 0)
+                    continue;
+                for (int k = 0; k < 2 && open; ++k) {
+                    if (!(pf[k].revents & (POLLIN | POLLHUP | POLLERR)))
+                        continue;
+                    uint8_t buf[65536];
+                    ssize_t n = read(pf[k].fd, buf, sizeof buf);
+                    open = n > 0 && write_all(pf[1 - k].fd, buf, (size_t)n);
+                }
+            }
+        }
+        if (sfd >= 0)
+            close(sfd);
+        close(cfd);
+    }
+    return NULL;
+}
+
+static void v2_proxy_start(v2_proxy *p, uint16_t server_port)
+{
+    memset(p, 0, sizeof *p);
+    p->server_port = server_port;
+    p->listen_fd = socket(AF_INET, SOCK_STREAM, 0);
+    assert_true(p->listen_fd >= 0);
+    struct sockaddr_in sin = {.sin_family = AF_INET, .sin_addr.s_addr = htonl(INADDR_LOOPBACK)};
+    socklen_t len = sizeof sin;
+    assert_int_equal(bind(p->listen_fd, (struct sockaddr *)&sin, sizeof sin), 0);
+    assert_int_equal(listen(p->listen_fd, 4), 0);
+    assert_int_equal(getsockname(p->listen_fd, (struct sockaddr *)&sin, &len), 0);
+    p->port = ntohs(sin.sin_port);
+    assert_int_equal(pthread_create(&p->thread, NULL, proxy_main, p), 0);
+}
+
+static void v2_proxy_stop(v2_proxy *p)
+{
+    p->stop = 1;
+    pthread_join(p->thread, NULL);
+    close(p->listen_fd);
+}
+
+/* A client that asks for subtrees, served by a version-2 server: it takes the
+ * whole index at open and gives the same cut. */
+static void test_version2_server(void **state)
+{
+    (void)state;
+    v2_proxy proxy;
+    v2_proxy_start(&proxy, g->port);
+    ms_camera cam = key_camera(g->path.count - 1);
+    ms_core_options o = local_options();
+    o.archive_path = NULL;
+    o.host = "127.0.0.1";
+    o.port = proxy.port;
+    ms_core *core;
+    ms_error err;
+    assert_int_equal(ms_core_start(&o, &core, &err), MS_OK);
+    ms_core_set_camera(core, &cam);
+    ms_core_frame *frame = NULL;
+    ms_core_stats st;
+    bool complete = ms_test_core_wait_complete(core, WAIT_SECONDS, &st, &frame);
+    ms_core_stop(core);
+    v2_proxy_stop(&proxy);
+    if (!complete)
+        fail_msg("not complete through a version-2 server: %s", st.error);
+    assert_true(proxy.hellos >= 1);
+    assert_false(st.index_by_subtree);
+    assert_int_equal(st.subtrees_received, 0);
+    assert_int_equal(frame->subtree_count, 0);
+    ms_view *v = reference_view(&cam);
+    assert_true(check_cut(frame, v) > 1);
+    ms_view_destroy(v);
+    ms_core_frame_free(frame);
+}
+
 typedef struct corruption {
     uint32_t subtree; /* the subtree whose bytes are damaged, every time */
     unsigned seen;
@@ -504,6 +668,7 @@ int main(void)
         cmocka_unit_test(test_path_cut_and_subtrees),
         cmocka_unit_test(test_whole_index_same_cut),
         cmocka_unit_test(test_network),
+        cmocka_unit_test(test_version2_server),
         cmocka_unit_test(test_corrupt_subtree),
     };
     return cmocka_run_group_tests(tests, group_setup, group_teardown);
