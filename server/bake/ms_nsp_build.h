@@ -79,7 +79,8 @@ typedef struct ms_nsp_io {
  * with 8000; docs/PERFORMANCE.md, issue 23). The fourth root keeps the leaves
  * large enough for at most 8 % there while the number of cells still grows
  * nearly as the model (T^(3/4)); models up to 4 M triangles (every shared model)
- * keep 8000, and their archives are unchanged. */
+ * keep 8000, and their archives are unchanged. scale_from replaces
+ * MS_NSP_DEFAULT_SCALE_FROM when not 0. Pure function: thread-safe. */
 #define MS_NSP_DEFAULT_MIN_TRIANGLES 8000u
 #define MS_NSP_DEFAULT_MIN_TRIANGLES_MAX 24000u
 #define MS_NSP_DEFAULT_SCALE_FROM 4000000u
@@ -139,8 +140,8 @@ typedef struct ms_nsp_build {
 } ms_nsp_build;
 
 /* Builds the tree for the mesh at path; build->params.min_triangles is the
- * threshold used (params->min_triangles, or its default). On failure everything is released and the
- * temporary files are gone. */
+ * threshold used (params->min_triangles, or its default). On failure everything
+ * is released and the temporary files are gone. */
 ms_status ms_nsp_build_run(const char *path, const ms_nsp_build_params *params,
                            ms_nsp_build *build, ms_error *err);
 
