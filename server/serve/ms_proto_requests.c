@@ -88,12 +88,19 @@ static void model_steps(const ms_serve_conn *c, const ms_model *m, uint8_t *geom
     *permitted_apo = grant.permitted_apo_steps;
 }
 
-static bool model_servable(const ms_model *m)
+/* Whether this connection can open m: its cell count fits the protocol, and
+ * the index it would receive does (the head with CAP_INDEX_SUBTREES, so that a
+ * model whose whole index is above the 64 MiB limit is still served in
+ * subtrees; the whole index otherwise). */
+static bool model_servable(const ms_serve_conn *c, const ms_model *m)
 {
+    if (ms_archive_get_header(m->archive)->cell_count > MS_PROTO_MAX_CELLS)
+        return false;
+    if ((c->capabilities & MS_PROTO_CAP_INDEX_SUBTREES) && m->index_head)
+        return true;
     size_t size;
     ms_archive_index_bytes(m->archive, &size);
-    return size >= 1 && size <= MS_PROTO_MAX_INDEX_SIZE &&
-           ms_archive_get_header(m->archive)->cell_count <= MS_PROTO_MAX_CELLS;
+    return size >= 1 && size <= MS_PROTO_MAX_INDEX_SIZE;
 }
 
 static ms_open_model *find_handle(ms_serve_conn *c, uint32_t handle)
@@ -166,7 +173,7 @@ static void handle_list_catalogue(ms_serve_conn *c, uint32_t id)
     size_t count = 0, body = MS_PROTO_CATALOGUE_FIXED, listed = 0;
     for (size_t i = 0; i <= model_count; ++i) {
         const ms_model *m = i < model_count ? ms_registry_model(r, i) : NULL;
-        if (m && !model_servable(m))
+        if (m && !model_servable(c, m))
             continue;
         size_t name_length = m ? strlen(m->entry.name) : 0;
         size_t entry_size = 0;
@@ -229,7 +236,7 @@ static void handle_open_model(ms_serve_conn *c, uint32_t id, const ms_proto_open
     memcpy(name, o->name, o->name_length);
     name[o->name_length] = '\0';
     ms_model *m = ms_registry_find(server_of(c)->registry, name);
-    if (!m || !model_servable(m)) {
+    if (!m || !model_servable(c, m)) {
         ms_serve_conn_send_error(c, MS_PROTO_E_UNKNOWN_MODEL, id, 1, 0, "no such model");
         return;
     }

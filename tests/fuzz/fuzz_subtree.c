@@ -4,9 +4,11 @@
  * static tree's models/NAME.head and models/NAME/subtrees/ID) sends it.
  *
  * Input: u32 head length L (little-endian, clamped to what follows), the head
- * (L bytes), then any number of steps: u32 id, and unless the id's top bit is
- * set (a drop of id & 0x7FFFFFFF), u32 length N (clamped) and N stored bytes
- * added as subtree id.
+ * (L bytes), then any number of steps: u32 word W; bit 31 set: drop subtree
+ * W & 0x3FFFFFFF; else u32 length N (clamped) and N bytes added as subtree
+ * W & 0x3FFFFFFF: the stored bytes as they are, or with bit 30 set, a raw blob
+ * that the target deflates first (ms_subtree_deflate), so that mutations reach
+ * the blob's own checks behind zlib.
  *
  * Besides the sanitizers, the target checks the partial index's contract and
  * aborts when it is broken: a refused head leaves no archive and a one-line
@@ -97,10 +99,9 @@ static bool ms_fuzz_subtree_one(const uint8_t *data, size_t size)
     bool all = true;
     ms_fuzz_subtree_check_cells(a);
     while (size >= 4) {
-        uint32_t id = ms_fuzz_subtree_u32(data);
+        uint32_t word = ms_fuzz_subtree_u32(data), id = word & 0x3FFFFFFFu;
         data += 4, size -= 4;
-        if (id & 0x80000000u) {
-            id &= 0x7FFFFFFFu;
+        if (word & 0x80000000u) {
             bool was = ms_archive_subtree_held(a, id);
             ms_archive_drop_subtree(a, id);
             MS_FUZZ_SUBTREE_CHECK(ms_archive_subtree_held(a, id) == (was && id == 0));
@@ -112,7 +113,15 @@ static bool ms_fuzz_subtree_one(const uint8_t *data, size_t size)
             size_t held = ms_archive_subtrees_held(a), bytes = ms_archive_index_bytes_held(a);
             bool was = ms_archive_subtree_held(a, id);
             ms_error_clear(&err);
-            if (ms_archive_add_subtree(a, id, data, n, &err) == MS_OK) {
+            const uint8_t *stored = data;
+            uint8_t *deflated = NULL;
+            size_t stored_size = n;
+            if ((word & 0x40000000u) &&
+                ms_subtree_deflate(data, n, &deflated, &stored_size, &err) == MS_OK)
+                stored = deflated;
+            ms_status st = ms_archive_add_subtree(a, id, stored, stored_size, &err);
+            free(deflated);
+            if (st == MS_OK) {
                 MS_FUZZ_SUBTREE_CHECK(ms_archive_subtree_held(a, id));
                 MS_FUZZ_SUBTREE_CHECK(ms_archive_subtrees_held(a) == held + !was);
                 MS_FUZZ_SUBTREE_CHECK(was == (ms_archive_index_bytes_held(a) == bytes));
