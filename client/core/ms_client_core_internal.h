@@ -298,6 +298,10 @@ double ms_core_cell_need(const ms_core *c, const frame_view *fv, uint32_t cell, 
 double ms_core_decoded_estimate(const ms_archive_cell *rec, unsigned bits);
 /* Fills pass->wl (sorted, best first) and the pass's cell counts. */
 void ms_core_schedule(ms_core *c, dec_pass *pass);
+/* A request priority (lower is sooner) clamped to the wire's 0..255. */
+uint8_t ms_core_clamp_priority(double p);
+/* Appends w to the pass's want list (false when out of memory). */
+bool ms_core_want_push(want_list *l, want w);
 
 /* ---- ms_client_core_budget.c ---- */
 
