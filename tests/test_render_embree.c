@@ -95,11 +95,7 @@ static void compare_with_embree(ms_archive *a, const char *name, const double di
     ms_test_render_camera(h, dir, 1.1, 40.0, WIDTH, HEIGHT, &cam);
     ms_view_mesh mesh = {0};
     ms_test_render_view(view, &cam, tolerance_px, &mesh);
-    if (ms_render_set_frame(r, &mesh, NULL, 0, &err) != MS_OK)
-        fail_msg("%s", err.text);
-    ms_render_upload_stats up;
-    if (ms_render_upload(r, UINT64_MAX, &up, &err) != MS_OK)
-        fail_msg("%s", err.text);
+    ms_test_render_show(r, &mesh, NULL, 0, NULL);
     ms_test_fbo fbo;
     ms_test_fbo_new(&fbo, WIDTH, HEIGHT);
     ms_render_options o;

@@ -291,11 +291,8 @@ static void run_model(ms_archive *a, const char *name, const double dirs[][3], s
             size_t count, count_full;
             ms_test_render_apo(a, &mesh, cases[k].levels, cases[k].mid, &apo, &count);
             ms_test_render_apo(a, &mesh, 0, false, &apo_full, &count_full);
-            if (ms_render_set_frame(r, &mesh, apo, count, &err) != MS_OK)
-                fail_msg("%s", err.text);
             ms_render_upload_stats up;
-            if (ms_render_upload(r, UINT64_MAX, &up, &err) != MS_OK)
-                fail_msg("%s", err.text);
+            ms_test_render_show(r, &mesh, apo, count, &up);
             assert_int_equal(up.cells_pending, 0);
             oracle given = {0}, full = {0};
             oracle_build(&given, a, apo, count);

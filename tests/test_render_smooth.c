@@ -242,12 +242,7 @@ static void test_sphere(void **state)
     sphere s;
     sphere_build(&s);
     ms_archive_header h;
-    memset(&h, 0, sizeof h);
-    h.box_side = 1.0;
-    h.bits = 16;
-    h.n = 2;
-    h.root_bits = 7;
-    h.cell_count = CELLS;
+    ms_test_render_unit_header(2, CELLS, &h);
     ms_archive_cell cells[CELLS];
     memset(cells, 0, sizeof cells);
     cells[0].parent = MS_ARCHIVE_NONE;
@@ -270,11 +265,8 @@ static void test_sphere(void **state)
     mesh.positions = s.positions;
     mesh.triangles = s.triangles;
     mesh.triangle_cell = s.triangle_cell;
-    if (ms_render_set_frame(r, &mesh, NULL, 0, &err) != MS_OK)
-        fail_msg("%s", err.text);
     ms_render_upload_stats up;
-    if (ms_render_upload(r, UINT64_MAX, &up, &err) != MS_OK)
-        fail_msg("%s", err.text);
+    ms_test_render_show(r, &mesh, NULL, 0, &up);
     assert_int_equal(up.cells_pending, 0);
     ms_camera cam;
     /* off-axis, so that the cell borders x = 0.5 and y = 0.5 cross the picture */
