@@ -200,12 +200,8 @@ static void test_flushing_changes_nothing(void **state)
     ms_test_tmpdir(dir, sizeof dir);
     ms_test_model_path(model, sizeof model, "stanford_bunny.obj.gz");
     ms_bake_options o;
-    ms_bake_options_default(&o);
-    o.apo.enabled = false; /* geometry only: APO has its own tests */
-    o.input = model;
-    o.archive_dir = dir;
+    ms_nsp_test_bake_options(model, dir, NULL, &o);
     o.min_triangles = 1000;
-    o.threads = 2;
     ms_bake_report r1, r2;
     ms_error err;
     o.name = "roomy";

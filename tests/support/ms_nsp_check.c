@@ -17,18 +17,23 @@
 #include "ms_nsp.h"
 #include "ms_ref_coarsen.h"
 
+void ms_nsp_test_bake_options(const char *input, const char *dir, const char *name, ms_bake_options *o)
+{
+    ms_bake_options_default(o);
+    o->apo.enabled = false; /* geometry only: APO has its own tests */
+    o->input = input;
+    o->archive_dir = dir;
+    o->name = name;
+    o->threads = 2;
+}
+
 void ms_nsp_test_bake(const char *input, const char *dir, const char *name, unsigned bits,
                       uint32_t min_triangles, ms_bake_report *report)
 {
     ms_bake_options o;
-    ms_bake_options_default(&o);
-    o.apo.enabled = false; /* geometry only: APO has its own tests */
-    o.input = input;
-    o.archive_dir = dir;
-    o.name = name;
+    ms_nsp_test_bake_options(input, dir, name, &o);
     o.bits = bits;
     o.min_triangles = min_triangles;
-    o.threads = 2;
     o.mem_mb = 64;
     ms_error err;
     ms_error_clear(&err);

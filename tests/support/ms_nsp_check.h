@@ -10,6 +10,10 @@
 #include "ms_quant.h"
 #include "ms_view_decoder.h"
 
+/* Options of a geometry-only test bake (APO off) of input into dir/name.msa (name
+ * may be set later) with 2 threads; the rest at the defaults. */
+void ms_nsp_test_bake_options(const char *input, const char *dir, const char *name, ms_bake_options *o);
+
 /* Bakes input into dir/name.msa with the given parameters (threads 2, --mem 64)
  * and fills report. */
 void ms_nsp_test_bake(const char *input, const char *dir, const char *name, unsigned bits,
