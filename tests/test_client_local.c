@@ -53,28 +53,11 @@ static int group_setup(void **state)
     ms_test_served *f = ms_test_served_new(MODEL);
     if (!f)
         return -1;
-    char ply[600];
-    snprintf(ply, sizeof ply, "%s/demo.ply", f->dir);
-    ms_nsp_test_demo_ply(ply, TRIANGLES);
-    ms_bake_options o;
-    ms_bake_options_default(&o); /* APO on */
-    /* chunks on the leaf cells too (by default their geometry renders the
+    /* APO chunks on the leaf cells too (by default their geometry renders the
      * input and they have none): the close-up shows leaf cells, and this test
      * is about how the client fetches and hands over chunks */
-    o.apo.every_cell = true;
-    o.input = ply;
-    o.archive_dir = f->archives;
-    o.name = MODEL;
-    o.min_triangles = 2000;
-    o.threads = 2;
-    o.mem_mb = 64;
-    ms_bake_report report;
-    ms_error err;
-    if (ms_bake(&o, &report, &err) != MS_OK) {
-        fprintf(stderr, "bake: %s\n", err.text);
-        return -1;
-    }
-    if (ms_test_served_open(f, PATH_FILE) != 0)
+    if (ms_nsp_test_bake_demo(f->dir, TRIANGLES, f->archives, MODEL, 2000, true) != 0 ||
+        ms_test_served_open(f, PATH_FILE) != 0)
         return -1;
     ms_test_served_launch(f, 0);
     g = f;

@@ -79,6 +79,30 @@ static void decode_below(ms_view *v, uint32_t cell)
         decode_below(v, c->first_child + k);
 }
 
+int ms_nsp_test_bake_demo(const char *work_dir, uint64_t triangles, const char *archive_dir, const char *name,
+                          uint32_t min_triangles, bool every_cell)
+{
+    char ply[700];
+    snprintf(ply, sizeof ply, "%s/demo.ply", work_dir);
+    ms_nsp_test_demo_ply(ply, triangles);
+    ms_bake_options o;
+    ms_bake_options_default(&o); /* APO on */
+    o.apo.every_cell = every_cell;
+    o.input = ply;
+    o.archive_dir = archive_dir;
+    o.name = name;
+    o.min_triangles = min_triangles;
+    o.threads = 2;
+    o.mem_mb = 64;
+    ms_bake_report report;
+    ms_error err;
+    if (ms_bake(&o, &report, &err) != MS_OK) {
+        fprintf(stderr, "bake: %s\n", err.text);
+        return -1;
+    }
+    return 0;
+}
+
 void ms_nsp_test_decode_all(ms_view *v)
 {
     decode_below(v, 0);
