@@ -332,11 +332,7 @@ static void test_cli_reports_apo(void **state)
     ms_test_model_path(model, sizeof model, "stanford_bunny_res3.ply.gz");
     snprintf(cmd, sizeof cmd, "%s '%s' -o '%s' --name b --apo-max-depth 6 --apo-verify --apo-every-cell --json",
              bin, model, dir);
-    assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
-    json_error_t je;
-    json_t *j = json_loads(out, 0, &je);
-    if (!j)
-        fail_msg("not JSON: %s", out);
+    json_t *j = ms_test_run_json(cmd, 0);
     json_t *apo = json_object_get(j, "apo");
     assert_true(json_is_true(json_object_get(apo, "enabled")));
     assert_true(json_is_true(json_object_get(apo, "every_cell")));

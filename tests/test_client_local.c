@@ -401,11 +401,7 @@ static void test_meshload_local(void **state)
         snprintf(cmd, sizeof cmd, "%s --archive %s --path " PATH_FILE " --viewport 640x480 "
                  "--apo-levels %d --duration 60 --json 2>/dev/null", bin, g->file,
                  apo ? APO_LEVELS : 0);
-        assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
-        json_error_t je;
-        json_t *r = json_loads(out, 0, &je);
-        if (!r)
-            fail_msg("meshload output is not JSON (%s): %.300s", je.text, out);
+        json_t *r = ms_test_run_json(cmd, 0);
         uint64_t cold = json_u64(r, "cold_bytes"), path = json_u64(r, "path_bytes");
         uint64_t cold_apo = json_u64(r, "cold_apo_bytes"), path_apo = json_u64(r, "path_apo_bytes");
         assert_int_equal(json_u64(r, "cold_geometry_bytes") + cold_apo, cold);
