@@ -566,15 +566,11 @@ static int setup(void **state)
     memset(&fx, 0, sizeof fx);
     ms_test_tmpdir(fx.dir, sizeof fx.dir);
     fx.archive = ms_test_render_bake_demo(24, fx.dir, 14, 2000, 0);
-    const ms_archive_header *h = ms_archive_get_header(fx.archive);
-    ms_error err;
-    expect(ms_render_new(h, ms_archive_get_cell(fx.archive, 0), &fx.render, &err), &err);
     ms_view *view;
-    expect(ms_view_create_from_archive(fx.archive, &view, &err), &err);
+    ms_test_render_open(fx.archive, &fx.render, &view);
     const double dir[3] = {1.0, 0.5, 0.7};
-    ms_test_render_camera(h, dir, 1.1, 40.0, SIZE, SIZE, &fx.camera);
     ms_view_mesh mesh = {0};
-    ms_test_render_view(view, &fx.camera, 1.0, &mesh);
+    ms_test_render_look(fx.archive, view, dir, SIZE, SIZE, 1.0, &fx.camera, &mesh);
     ms_core_apo_chunk *apo;
     size_t apo_count;
     ms_test_render_apo(fx.archive, &mesh, 0, false, &apo, &apo_count);

@@ -92,17 +92,15 @@ static void test_bad_model(void **state)
 static void test_bad_calls(void **state)
 {
     (void)state;
-    const ms_archive_header *h = ms_archive_get_header(archive);
     ms_render *r;
-    ms_error err;
-    expect(ms_render_new(h, ms_archive_get_cell(archive, 0), &r, &err), MS_OK, &err);
     ms_view *view;
-    expect(ms_view_create_from_archive(archive, &view, &err), MS_OK, &err);
+    ms_test_render_open(archive, &r, &view);
     ms_camera cam;
     const double d[3] = {0.2, 0.3, 1.0};
-    ms_test_render_camera(h, d, 1.1, 40.0, WIDTH, HEIGHT, &cam);
     ms_view_mesh mesh = {0};
-    ms_test_render_view(view, &cam, 2.0, &mesh);
+    ms_test_render_look(archive, view, d, WIDTH, HEIGHT, 2.0, &cam, &mesh);
+    ms_error err;
+    const ms_archive_header *h = ms_archive_get_header(archive);
     assert_true(mesh.triangle_count > 100);
 
     expect(ms_render_set_frame(NULL, &mesh, NULL, 0, &err), MS_ERR_ARG, &err);
@@ -193,17 +191,14 @@ static void test_bad_calls(void **state)
 static void test_corrupt_apo(void **state)
 {
     (void)state;
-    const ms_archive_header *h = ms_archive_get_header(archive);
     ms_render *r;
-    ms_error err;
-    expect(ms_render_new(h, ms_archive_get_cell(archive, 0), &r, &err), MS_OK, &err);
     ms_view *view;
-    expect(ms_view_create_from_archive(archive, &view, &err), MS_OK, &err);
+    ms_test_render_open(archive, &r, &view);
     ms_camera cam;
     const double d[3] = {0.2, 0.3, 1.0};
-    ms_test_render_camera(h, d, 1.1, 40.0, WIDTH, HEIGHT, &cam);
     ms_view_mesh mesh = {0};
-    ms_test_render_view(view, &cam, 2.0, &mesh);
+    ms_test_render_look(archive, view, d, WIDTH, HEIGHT, 2.0, &cam, &mesh);
+    ms_error err;
     ms_core_apo_chunk *apo;
     size_t count;
     ms_test_render_apo(archive, &mesh, 0, false, &apo, &count);

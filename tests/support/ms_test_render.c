@@ -265,3 +265,19 @@ ms_render *ms_test_render_one_cell(unsigned n, const double *positions, size_t v
     free(root_cell);
     return r;
 }
+
+void ms_test_render_open(const ms_archive *archive, ms_render **render, ms_view **view)
+{
+    ms_error err;
+    if (ms_render_new(ms_archive_get_header(archive), ms_archive_get_cell(archive, 0), render, &err) != MS_OK)
+        fail_msg("%s", err.text);
+    if (ms_view_create_from_archive(archive, view, &err) != MS_OK)
+        fail_msg("%s", err.text);
+}
+
+void ms_test_render_look(const ms_archive *archive, ms_view *view, const double dir[3], int width, int height,
+                         double tolerance_px, ms_camera *camera, ms_view_mesh *mesh)
+{
+    ms_test_render_camera(ms_archive_get_header(archive), dir, 1.1, 40.0, width, height, camera);
+    ms_test_render_view(view, camera, tolerance_px, mesh);
+}

@@ -60,6 +60,14 @@ ms_archive *ms_test_render_bake_demo(uint32_t grid, const char *dir, unsigned bi
 void ms_test_render_camera(const ms_archive_header *h, const double dir[3], double distance, double fovy_degrees,
                            int width, int height, ms_camera *camera);
 
+/* A renderer for the archive and a view decoder of it. */
+void ms_test_render_open(const ms_archive *archive, ms_render **render, ms_view **view);
+
+/* The camera ms_test_render_camera places in direction dir at distance 1.1 with a
+ * 40 degree field, and the view's mesh for it (ms_test_render_view). */
+void ms_test_render_look(const ms_archive *archive, ms_view *view, const double dir[3], int width, int height,
+                         double tolerance_px, ms_camera *camera, ms_view_mesh *mesh);
+
 /* Selects and applies cells for the camera (tolerance_px) until the view stops
  * changing, then stitches every shown cell into *mesh (zeroed or reused). */
 void ms_test_render_view(ms_view *view, const ms_camera *camera, double tolerance_px, ms_view_mesh *mesh);
