@@ -158,10 +158,7 @@ static bool open_model(viewer *v, const char *name)
         if (fw > 0 && fh > 0 && catalogue_frame(v, fw, fh) == 0)
             glfwSwapBuffers(v->window);
     }
-    ms_viewer_stream_settings settings = {.tolerance_px = v->o->tolerance_px,
-                                          .apo_levels = v->o->apo_levels,
-                                          .memory_mb = v->o->memory_mb,
-                                          .bandwidth = v->o->bandwidth};
+    ms_viewer_stream_settings settings = ms_viewer_options_stream_settings(v->o);
     if (ms_viewer_model_open(&v->source, name, &v->model, &err) != MS_OK ||
         ms_viewer_stream_open(&v->source, &v->model, &settings, &v->stream, &err) != MS_OK) {
         snprintf(v->message, sizeof v->message, "%.250s", err.text);
@@ -495,12 +492,7 @@ static int interactive_scene(viewer *v)
         return 1;
     }
     keep_gl_driver_loaded();
-    ms_viewer_scene_settings settings = {.stream = {.tolerance_px = o->tolerance_px,
-                                                    .apo_levels = o->apo_levels,
-                                                    .memory_mb = o->memory_mb,
-                                                    .bandwidth = o->bandwidth},
-                                         .effects_off = o->effects_off,
-                                         .force_all = o->effects_all};
+    ms_viewer_scene_settings settings = ms_viewer_options_scene_settings(o);
     if (ms_viewer_text_new(&v->text, &err) != MS_OK ||
         ms_viewer_scene_open(&v->source, &v->scene, o->scene_file, &settings, &v->vscene, &err) != MS_OK) {
         fprintf(stderr, "meshview: %s\n", err.text);
