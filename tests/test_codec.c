@@ -264,15 +264,22 @@ static void test_rangecoder_roundtrip(void **state)
 
 /* ---- hard cases ---- */
 
+/* Round trip of m at `bits` (ms_codec_check_roundtrip, level step 1), which must
+ * keep want_v vertices and want_t triangles; *r gets the figures. */
+static void check_counts(const ms_mesh *m, unsigned bits, size_t want_v, size_t want_t, ms_codec_check_result *r)
+{
+    ms_codec_check_roundtrip(m, bits, 1, r);
+    assert_int_equal(r->vertices, want_v);
+    assert_int_equal(r->triangles, want_t);
+}
+
 static void check_case(const double *pos, size_t nv, const uint32_t *tris, size_t nt,
                        unsigned bits, size_t want_v, size_t want_t)
 {
     ms_mesh m;
     make_mesh(&m, pos, nv, tris, nt);
     ms_codec_check_result r;
-    ms_codec_check_roundtrip(&m, bits, 1, &r);
-    assert_int_equal(r.vertices, want_v);
-    assert_int_equal(r.triangles, want_t);
+    check_counts(&m, bits, want_v, want_t, &r);
     ms_mesh_free(&m);
 }
 
@@ -320,16 +327,12 @@ static void test_isolated_vertices(void **state)
     ms_mesh m;
     make_mesh(&m, pos, 6, t, 1);
     ms_codec_check_result r;
-    ms_codec_check_roundtrip(&m, 12, 1, &r);
-    assert_int_equal(r.vertices, 6);
-    assert_int_equal(r.triangles, 1);
+    check_counts(&m, 12, 6, 1, &r);
     assert_int_equal(r.weld.isolated_vertices, 3);
     ms_mesh_free(&m);
     /* only isolated vertices: a point cloud */
     make_mesh(&m, pos, 6, NULL, 0);
-    ms_codec_check_roundtrip(&m, 12, 1, &r);
-    assert_int_equal(r.vertices, 6);
-    assert_int_equal(r.triangles, 0);
+    check_counts(&m, 12, 6, 0, &r);
     ms_mesh_free(&m);
 }
 
@@ -341,9 +344,7 @@ static void test_all_coincident(void **state)
     ms_mesh m;
     make_mesh(&m, pos, 4, t, 2);
     ms_codec_check_result r;
-    ms_codec_check_roundtrip(&m, 12, 1, &r);
-    assert_int_equal(r.vertices, 1);
-    assert_int_equal(r.triangles, 0);
+    check_counts(&m, 12, 1, 0, &r);
     assert_int_equal(r.weld.welded_vertices, 3);
     assert_int_equal(r.weld.degenerate_triangles, 2);
     assert_int_equal(r.weld.isolated_vertices, 1);
@@ -382,9 +383,7 @@ static void test_flat_model(void **state)
     ms_mesh m;
     grid(&m, 10, 0, 0, 0, 1, 1);
     ms_codec_check_result r;
-    ms_codec_check_roundtrip(&m, 12, 1, &r);
-    assert_int_equal(r.vertices, 100);
-    assert_int_equal(r.triangles, 162);
+    check_counts(&m, 12, 100, 162, &r);
     ms_mesh_free(&m);
 }
 
@@ -395,9 +394,7 @@ static void test_needle(void **state)
     ms_mesh m;
     grid(&m, 6, 0, 0, 0, 1, 2);
     ms_codec_check_result r;
-    ms_codec_check_roundtrip(&m, 12, 1, &r);
-    assert_int_equal(r.vertices, 36);
-    assert_int_equal(r.triangles, 50);
+    check_counts(&m, 12, 36, 50, &r);
     ms_mesh_free(&m);
 }
 
@@ -407,9 +404,7 @@ static void test_large_offset_small_extent(void **state)
     ms_mesh m;
     grid(&m, 8, 1e7, -1e7, 1e7, 1e-3 / 7, 0);
     ms_codec_check_result r;
-    ms_codec_check_roundtrip(&m, 16, 1, &r);
-    assert_int_equal(r.vertices, 64);
-    assert_int_equal(r.triangles, 98);
+    check_counts(&m, 16, 64, 98, &r);
     /* dequantised points lie within half a cell of the input */
     ms_qmesh q;
     ms_error err;
@@ -425,12 +420,8 @@ static void test_precision_8_and_20(void **state)
     ms_mesh m;
     ms_test_torus(&m, 24, 16, 1.0, 0.3);
     ms_codec_check_result r;
-    ms_codec_check_roundtrip(&m, 20, 1, &r);
-    assert_int_equal(r.vertices, 384);
-    assert_int_equal(r.triangles, 768);
-    ms_codec_check_roundtrip(&m, 8, 1, &r);
-    assert_int_equal(r.vertices, 384);
-    assert_int_equal(r.triangles, 768);
+    check_counts(&m, 20, 384, 768, &r);
+    check_counts(&m, 8, 384, 768, &r);
     ms_mesh_free(&m);
     /* a dense torus at 8 bits welds vertices and drops collapsed triangles */
     ms_test_torus(&m, 400, 100, 1.0, 0.3);
@@ -773,9 +764,7 @@ static void test_torus_levels_and_size(void **state)
     ms_mesh m;
     ms_test_torus(&m, 60, 30, 1.0, 0.35);
     ms_codec_check_result r;
-    ms_codec_check_roundtrip(&m, 16, 1, &r);
-    assert_int_equal(r.vertices, 1800);
-    assert_int_equal(r.triangles, 3600);
+    check_counts(&m, 16, 1800, 3600, &r);
     /* a smooth closed surface must code well below raw 16-bit coordinates */
     print_message("torus 1800 vertices at 16 bits: %zu bytes, %.2f bits/vertex\n", r.bytes,
                   8.0 * r.bytes / r.vertices);
