@@ -88,17 +88,24 @@ static void test_bad_model(void **state)
     assert_null(r);
 }
 
+/* The archive's renderer and view, and the view's mesh seen from (0.2, 0.3, 1)
+ * at 2 px. */
+static void open_view(ms_render **r, ms_view **view, ms_camera *cam, ms_view_mesh *mesh)
+{
+    ms_test_render_open(archive, r, view);
+    const double d[3] = {0.2, 0.3, 1.0};
+    ms_test_render_look(archive, *view, d, WIDTH, HEIGHT, 2.0, cam, mesh);
+}
+
 /* Bad frames, uploads and draws: errors, then a good frame still draws. */
 static void test_bad_calls(void **state)
 {
     (void)state;
     ms_render *r;
     ms_view *view;
-    ms_test_render_open(archive, &r, &view);
     ms_camera cam;
-    const double d[3] = {0.2, 0.3, 1.0};
     ms_view_mesh mesh = {0};
-    ms_test_render_look(archive, view, d, WIDTH, HEIGHT, 2.0, &cam, &mesh);
+    open_view(&r, &view, &cam, &mesh);
     ms_error err;
     const ms_archive_header *h = ms_archive_get_header(archive);
     assert_true(mesh.triangle_count > 100);
@@ -193,11 +200,9 @@ static void test_corrupt_apo(void **state)
     (void)state;
     ms_render *r;
     ms_view *view;
-    ms_test_render_open(archive, &r, &view);
     ms_camera cam;
-    const double d[3] = {0.2, 0.3, 1.0};
     ms_view_mesh mesh = {0};
-    ms_test_render_look(archive, view, d, WIDTH, HEIGHT, 2.0, &cam, &mesh);
+    open_view(&r, &view, &cam, &mesh);
     ms_error err;
     ms_core_apo_chunk *apo;
     size_t count;
