@@ -377,25 +377,27 @@ static void grid(ms_mesh *m, unsigned n, double ox, double oy, double oz, double
     m->triangle_count = t;
 }
 
+/* An n x n unit grid at the origin with flat_axes axes flattened, at 12 bits. */
+static void check_flat_grid(unsigned n, int flat_axes, size_t want_v, size_t want_t)
+{
+    ms_mesh m;
+    grid(&m, n, 0, 0, 0, 1, flat_axes);
+    ms_codec_check_result r;
+    check_counts(&m, 12, want_v, want_t, &r);
+    ms_mesh_free(&m);
+}
+
 static void test_flat_model(void **state)
 {
     (void)state;
-    ms_mesh m;
-    grid(&m, 10, 0, 0, 0, 1, 1);
-    ms_codec_check_result r;
-    check_counts(&m, 12, 100, 162, &r);
-    ms_mesh_free(&m);
+    check_flat_grid(10, 1, 100, 162);
 }
 
 static void test_needle(void **state)
 {
     (void)state;
     /* every point on the x axis: triangles are zero-area but have distinct vertices */
-    ms_mesh m;
-    grid(&m, 6, 0, 0, 0, 1, 2);
-    ms_codec_check_result r;
-    check_counts(&m, 12, 36, 50, &r);
-    ms_mesh_free(&m);
+    check_flat_grid(6, 2, 36, 50);
 }
 
 static void test_large_offset_small_extent(void **state)
