@@ -73,15 +73,7 @@ static ms_camera key_camera(size_t k) { return ms_test_core_key_camera(&g->path,
 
 static ms_core_options base_options(void)
 {
-    ms_core_options o = {0};
-    o.host = "127.0.0.1";
-    o.port = g->port;
-    o.model = MODEL;
-    o.tolerance_px = 1.0;
-    o.hysteresis_bits = 0.0; /* memoryless selection: equal to a fresh decode */
-    o.answer_timeout = 3.0;
-    o.give_up_seconds = 20.0;
-    return o;
+    return ms_test_served_core_options(g, MODEL);
 }
 
 /* A core started with o (MS_OK asserted), looking from the path's key k (*cam). */

@@ -114,3 +114,16 @@ void ms_test_served_free(ms_test_served *s)
     ms_test_rmdir(s->dir);
     free(s);
 }
+
+ms_core_options ms_test_served_core_options(const ms_test_served *s, const char *model)
+{
+    ms_core_options o = {0};
+    o.host = "127.0.0.1";
+    o.port = s->port;
+    o.model = model;
+    o.tolerance_px = 1.0;
+    o.hysteresis_bits = 0.0;
+    o.answer_timeout = 3.0;
+    o.give_up_seconds = 20.0;
+    return o;
+}

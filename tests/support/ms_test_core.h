@@ -44,6 +44,10 @@ int ms_test_served_open(ms_test_served *s, const char *path_file);
 /* Starts meshserve on archives at port (0: any free one) and reads its ports
  * into s; fails the test when it does not start within 15 s. */
 void ms_test_served_launch(ms_test_served *s, uint16_t port);
+/* Core options for the model on s's server at 127.0.0.1: tolerance 1 px, no
+ * hysteresis (memoryless selection: equal to a fresh decode), answers within 3 s,
+ * giving up after 20 s; the rest zero. */
+ms_core_options ms_test_served_core_options(const ms_test_served *s, const char *model);
 /* Stops the server (SIGTERM) when running, closes the archive, frees the path,
  * removes dir and frees s. NULL is a no-op. */
 void ms_test_served_free(ms_test_served *s);
