@@ -553,6 +553,17 @@ static void free_coded(coded *c)
     free(c->buf);
 }
 
+/* d decoded to `level` holds exactly want (canonical state, orientation included). */
+static void expect_decoded(ms_codec_decoder *d, unsigned level, const ms_codec_state *want)
+{
+    ms_error err;
+    assert_int_equal(ms_codec_decoder_set_level(d, level, &err), MS_OK);
+    ms_codec_state got;
+    assert_int_equal(ms_codec_decoder_state(d, &got, &err), MS_OK);
+    assert_true(ms_codec_state_equal(&got, want, true));
+    ms_codec_state_free(&got);
+}
+
 static void test_subrange_from_start_state(void **state)
 {
     (void)state;
@@ -573,13 +584,9 @@ static void test_subrange_from_start_state(void **state)
     /* the sub-range stream continues from it to the full mesh */
     assert_int_equal(ms_codec_decoder_create(part.buf, part.size, &at5, NULL, &d, &err), MS_OK);
     assert_int_equal(ms_codec_decoder_min_level(d), 15);
-    assert_int_equal(ms_codec_decoder_set_level(d, 36, &err), MS_OK);
-    ms_codec_state got;
-    assert_int_equal(ms_codec_decoder_state(d, &got, &err), MS_OK);
-    assert_true(ms_codec_state_equal(&got, &part.canon, true));
+    expect_decoded(d, 36, &part.canon);
     /* cannot coarsen below the window */
     assert_int_equal(ms_codec_decoder_set_level(d, 14, &err), MS_ERR_ARG);
-    ms_codec_state_free(&got);
     ms_codec_decoder_destroy(d);
     /* a different start state is refused */
     at5.cells[0] ^= 1;
@@ -620,11 +627,7 @@ static void test_parent_child_chain(void **state)
     assert_true(ms_codec_state_equal(&handoff, &start, true));
     assert_int_equal(ms_codec_decoder_create(child.buf, child.size, &handoff, NULL, &cd, &err),
                      MS_OK);
-    assert_int_equal(ms_codec_decoder_set_level(cd, 36, &err), MS_OK);
-    ms_codec_state got;
-    assert_int_equal(ms_codec_decoder_state(cd, &got, &err), MS_OK);
-    assert_true(ms_codec_state_equal(&got, &child.canon, true));
-    ms_codec_state_free(&got);
+    expect_decoded(cd, 36, &child.canon);
     ms_codec_state_free(&handoff);
     ms_codec_decoder_destroy(pd);
     ms_codec_decoder_destroy(cd);
@@ -749,11 +752,7 @@ static void test_extend_with_longer_prefixes(void **state)
         ms_codec_state_free(&b);
         ms_codec_decoder_destroy(fresh);
     }
-    assert_int_equal(ms_codec_decoder_set_level(d, 36, &err), MS_OK);
-    ms_codec_state got;
-    assert_int_equal(ms_codec_decoder_state(d, &got, &err), MS_OK);
-    assert_true(ms_codec_state_equal(&got, &c.canon, true));
-    ms_codec_state_free(&got);
+    expect_decoded(d, 36, &c.canon);
     /* the same bytes again: nothing to do */
     assert_int_equal(ms_codec_decoder_extend(d, c.buf, c.size, &err), MS_OK);
     ms_codec_decoder_destroy(d);
