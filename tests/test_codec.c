@@ -636,14 +636,21 @@ static void test_parent_child_chain(void **state)
     free_coded(&child);
 }
 
+/* The torus coded at 12 bits from the start, and its stream's header. */
+static void code_torus_with_header(coded *c, ms_codec_header *h)
+{
+    code_torus(c, 12, 0, NULL);
+    ms_error err;
+    assert_int_equal(ms_codec_read_header(c->buf, c->size, h, &err), MS_OK);
+}
+
 static void test_prefix_and_truncation(void **state)
 {
     (void)state;
     ms_error err;
     coded c;
-    code_torus(&c, 12, 0, NULL);
     ms_codec_header h;
-    assert_int_equal(ms_codec_read_header(c.buf, c.size, &h, &err), MS_OK);
+    code_torus_with_header(&c, &h);
     assert_int_equal(h.p_max, 12);
     assert_int_equal(h.header_size + h.body_size, c.size);
     /* a prefix ending inside bit 8 decodes exactly up to 7 bits */
@@ -671,9 +678,8 @@ static void test_corruption_detected(void **state)
     (void)state;
     ms_error err;
     coded c;
-    code_torus(&c, 12, 0, NULL);
     ms_codec_header h;
-    assert_int_equal(ms_codec_read_header(c.buf, c.size, &h, &err), MS_OK);
+    code_torus_with_header(&c, &h);
     ms_codec_decoder *d;
     /* bad magic */
     c.buf[0] = 'X';
@@ -723,9 +729,8 @@ static void test_extend_with_longer_prefixes(void **state)
     (void)state;
     ms_error err;
     coded c;
-    code_torus(&c, 12, 0, NULL);
     ms_codec_header h;
-    assert_int_equal(ms_codec_read_header(c.buf, c.size, &h, &err), MS_OK);
+    code_torus_with_header(&c, &h);
     ms_codec_decoder *d;
     assert_int_equal(ms_codec_decoder_create(c.buf, h.header_size, NULL, NULL, &d, &err), MS_OK);
     assert_int_equal(ms_codec_decoder_available_level(d), 0);
