@@ -23,7 +23,7 @@ void ms_bake_options_default(ms_bake_options *o)
     o->bits = 16;
     o->n = 4;
     o->root_bits = 7;
-    o->min_triangles = 8000;
+    o->min_triangles = 0; /* by model size: ms_nsp_default_min_triangles */
     o->mem_mb = 512;
     o->public_bits = -1;
     long cpus = sysconf(_SC_NPROCESSORS_ONLN);
@@ -89,14 +89,21 @@ static ms_status check_options(const ms_bake_options *o, ms_nsp_shape *shape, ms
     if (o->public_bits > (int)o->bits)
         return ms_error_set(err, MS_ERR_ARG, "--public-bits %d is more than --bits %u",
                             o->public_bits, o->bits);
-    if (o->min_triangles < 1)
-        return ms_error_set(err, MS_ERR_ARG, "--min-tris must be at least 1");
-    size_t min_mem = ms_bake_min_mem_mb(o->threads, o->min_triangles);
-    if (o->mem_mb < min_mem)
+    /* The default threshold is known only once the input is read: check the
+     * largest it can be, so that the refusal comes before reading. */
+    uint32_t leaf_triangles = o->min_triangles ? o->min_triangles : MS_NSP_DEFAULT_MIN_TRIANGLES_MAX;
+    size_t min_mem = ms_bake_min_mem_mb(o->threads, leaf_triangles);
+    if (o->mem_mb < min_mem && o->min_triangles)
         return ms_error_set(err, MS_ERR_ARG,
                             "--mem %zu MB is below the %zu MB a bake with %u threads and "
                             "--min-tris %u works in", o->mem_mb, min_mem, o->threads ? o->threads : 1,
                             o->min_triangles);
+    if (o->mem_mb < min_mem)
+        return ms_error_set(err, MS_ERR_ARG,
+                            "--mem %zu MB is below the %zu MB a bake with %u threads and the "
+                            "default --min-tris (by model size, up to %u) works in; give "
+                            "--min-tris", o->mem_mb, min_mem, o->threads ? o->threads : 1,
+                            MS_NSP_DEFAULT_MIN_TRIANGLES_MAX);
     if (o->apo.enabled && (s = ms_bake_apo_params_check(&o->apo, err)) != MS_OK)
         return s;
     return MS_OK;
@@ -146,6 +153,7 @@ static void report_build(const ms_nsp_build *b, ms_bake_report *r)
     r->seconds_quantise = b->stats.seconds_quantise;
     r->seconds_distribute = b->stats.seconds_distribute;
     r->cells = b->node_count;
+    r->min_triangles = b->params.min_triangles;
     r->blocks_written = b->stats.blocks_written;
     r->peak_rss_build_mb = ms_peak_rss_mb();
     r->flushes = b->stats.flushes;
@@ -210,7 +218,7 @@ static ms_archive_header archive_header(const ms_bake_options *o, const ms_nsp_b
     h.n = (uint8_t)o->n;
     h.root_bits = (uint8_t)o->root_bits;
     h.cell_count = b->node_count;
-    h.min_triangles = o->min_triangles;
+    h.min_triangles = b->params.min_triangles; /* the one used: options' or the default */
     h.has_apo = o->apo.enabled;
     h.apo_lead = o->apo.enabled ? (uint8_t)o->apo.lead : 0;
     h.apo_max_depth = o->apo.enabled ? (uint8_t)o->apo.max_depth : 0;
@@ -299,7 +307,7 @@ static ms_status record_in_catalog(const ms_bake_options *o, const ms_bake_repor
     e.bits = (uint8_t)o->bits;
     e.n = (uint8_t)o->n;
     e.root_bits = (uint8_t)o->root_bits;
-    e.min_triangles = o->min_triangles;
+    e.min_triangles = h->min_triangles;
     e.public_max_bits = (uint8_t)(o->public_bits < 0 ? (int)o->bits : o->public_bits);
     e.apo = o->apo.enabled;
     e.apo_lead = h->apo_lead;

@@ -53,7 +53,7 @@ typedef struct ms_bake_options {
     const char *tmp_dir;   /* NULL: archive_dir */
     unsigned bits, n, root_bits, threads;
     int public_bits;       /* catalogue public_max_bits (preview), 0..bits; < 0: bits (all public) */
-    uint32_t min_triangles;
+    uint32_t min_triangles; /* N_min; 0: by model size (ms_nsp_default_min_triangles) */
     size_t mem_mb;
     size_t buffer_bytes;   /* leaf buffer budget; 0: an eighth of mem_mb (tests force flushes) */
     size_t key_cache_bytes;/* key-file pages while distributing; 0: a quarter of mem_mb */
@@ -62,7 +62,8 @@ typedef struct ms_bake_options {
     ms_bake_apo_params apo; /* per-cell APO chunks (ms_bake_apo.h) */
 } ms_bake_options;
 
-/* Defaults: 16 bits, n = 4, p_r = 7, N_min = 8000, threads = online CPUs, 512 MB,
+/* Defaults: 16 bits, n = 4, p_r = 7, N_min by model size (8000 up to 4 M input
+ * triangles: ms_nsp_default_min_triangles), threads = online CPUs, 512 MB,
  * APO on with ms_bake_apo_params_default. */
 void ms_bake_options_default(ms_bake_options *options);
 
@@ -78,6 +79,7 @@ typedef struct ms_bake_report {
                                                 * table 4.1 figure, lower than the stored
                                                 * overhead (docs/ARCHIVE.md, "Duplication") */
     uint32_t cells, leaves, empty_cells, depth;
+    uint32_t min_triangles;                    /* N_min used (options' or the default) */
     uint64_t archive_bytes, geometry_bytes;
     double bits_per_vertex;                    /* 8 archive_bytes / vertices */
     double seconds_read, seconds_quantise, seconds_distribute, seconds_lone, seconds_encode,

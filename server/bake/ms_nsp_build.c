@@ -123,6 +123,19 @@ static uint32_t quantise_coordinate(double x, double origin, double size, unsign
 
 /* ---- the tree ------------------------------------------------------------ */
 
+uint32_t ms_nsp_default_min_triangles(uint64_t input_triangles, uint64_t scale_from)
+{
+    if (scale_from == 0)
+        scale_from = MS_NSP_DEFAULT_SCALE_FROM;
+    if (input_triangles <= scale_from)
+        return MS_NSP_DEFAULT_MIN_TRIANGLES;
+    /* sqrt is correctly rounded (IEEE 754), so the value is the same everywhere */
+    double hundreds = floor(MS_NSP_DEFAULT_MIN_TRIANGLES / 100.0 *
+                            sqrt(sqrt((double)input_triangles / (double)scale_from)));
+    double n = 100.0 * hundreds;
+    return n >= MS_NSP_DEFAULT_MIN_TRIANGLES_MAX ? MS_NSP_DEFAULT_MIN_TRIANGLES_MAX : (uint32_t)n;
+}
+
 static unsigned child_count(const ms_nsp_build *b)
 {
     unsigned n = b->params.shape.n;
@@ -631,8 +644,6 @@ ms_status ms_nsp_build_run(const char *path, const ms_nsp_build_params *params,
     b->block_fd = -1;
     b->lone_fd = -1;
     int key_fd = -1;
-    if (params->min_triangles < 1)
-        return ms_error_set(err, MS_ERR_ARG, "the split threshold must be at least 1 triangle");
     spool_sink sink = {.params = params};
     ms_status s = MS_OK;
     double t0 = ms_now_seconds();
@@ -657,6 +668,9 @@ ms_status ms_nsp_build_run(const char *path, const ms_nsp_build_params *params,
     b->stats.input_vertices = sink.vertex_count;
     b->stats.io_read.spilled = sink.spilled;
     b->stats.input_triangles = sink.triangle_count;
+    if (params->min_triangles == 0)
+        b->params.min_triangles =
+            ms_nsp_default_min_triangles(sink.triangle_count, params->default_scale_from);
     double t1 = ms_now_seconds();
     b->stats.seconds_read = t1 - t0;
 

@@ -67,9 +67,33 @@ typedef struct ms_nsp_io {
     uint64_t spilled, read_back;
 } ms_nsp_io;
 
+/* The default split threshold N_min by model size (issue 23): 8000 (the thesis's
+ * value) up to MS_NSP_DEFAULT_SCALE_FROM input triangles; above, 8000 times the
+ * fourth root of (triangles / MS_NSP_DEFAULT_SCALE_FROM), rounded down to a multiple
+ * of 100, at most MS_NSP_DEFAULT_MIN_TRIANGLES_MAX: 10,000 at 10 M triangles,
+ * 17,800 at 100 M, the maximum from 324 M on. A split into n^3 children leaves
+ * about C / n^2 triangles in each child a surface crosses (C: the cell's), so the
+ * leaves range from about N_min / n^2 to N_min, and the copies a leaf stores for
+ * its border go as 1 / sqrt(its triangles): with a fixed N_min the deeper trees
+ * of large models end in many small leaves (10.2 % stored duplication at 100 M
+ * with 8000; docs/PERFORMANCE.md, issue 23). The fourth root keeps the leaves
+ * large enough for at most 8 % there while the number of cells still grows
+ * nearly as the model (T^(3/4)); models up to 4 M triangles (every shared model)
+ * keep 8000, and their archives are unchanged. scale_from replaces
+ * MS_NSP_DEFAULT_SCALE_FROM when not 0. Pure function: thread-safe. */
+#define MS_NSP_DEFAULT_MIN_TRIANGLES 8000u
+#define MS_NSP_DEFAULT_MIN_TRIANGLES_MAX 24000u
+#define MS_NSP_DEFAULT_SCALE_FROM 4000000u
+uint32_t ms_nsp_default_min_triangles(uint64_t input_triangles, uint64_t scale_from);
+
 typedef struct ms_nsp_build_params {
     ms_nsp_shape shape;
-    uint32_t min_triangles;  /* N_min */
+    uint32_t min_triangles;  /* N_min; 0: ms_nsp_default_min_triangles of the input's
+                              * triangle count (known once the input is read; the run
+                              * stores the value used in its params.min_triangles) */
+    uint64_t default_scale_from; /* with min_triangles 0: the size from which the default
+                                  * grows; 0: MS_NSP_DEFAULT_SCALE_FROM (tests lower it to
+                                  * see the rule on a small model) */
     size_t buffer_budget;    /* bytes of record buffers before flushing */
     size_t key_cache_bytes;  /* key-file pages held while distributing (at least
                               * MS_NSP_KEY_CACHE_MIN; less is raised to it) */
@@ -115,8 +139,9 @@ typedef struct ms_nsp_build {
     ms_nsp_build_stats stats;
 } ms_nsp_build;
 
-/* Builds the tree for the mesh at path. On failure everything is released and the
- * temporary files are gone. */
+/* Builds the tree for the mesh at path; build->params.min_triangles is the
+ * threshold used (params->min_triangles, or its default). On failure everything
+ * is released and the temporary files are gone. */
 ms_status ms_nsp_build_run(const char *path, const ms_nsp_build_params *params,
                            ms_nsp_build *build, ms_error *err);
 
