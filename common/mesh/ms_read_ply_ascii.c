@@ -131,7 +131,8 @@ static ms_status ascii_face_list(ply_state *s, char **p)
     for (int64_t j = 0; j < n; ++j) {
         int64_t index;
         if ((st = ascii_integer(r, p, &index, "vertex_indices")) != MS_OK ||
-            (st = ascii_check_index(s, index)) != MS_OK || (st = ms_fan_add(r, &fan, (uint32_t)index)) != MS_OK)
+            (st = ascii_check_index(s, index)) != MS_OK ||
+            (st = ms_fan_add(r, &fan, (uint32_t)index)) != MS_OK)
             return st;
     }
     ++r->input_faces;
@@ -157,7 +158,8 @@ static ms_status ascii_strip_list(ply_state *s, char **p)
             strip.length = 0;
             continue;
         }
-        if ((st = ascii_check_index(s, index)) != MS_OK || (st = ms_strip_add(r, &strip, (uint32_t)index)) != MS_OK)
+        if ((st = ascii_check_index(s, index)) != MS_OK ||
+            (st = ms_strip_add(r, &strip, (uint32_t)index)) != MS_OK)
             return st;
     }
     return MS_OK;
