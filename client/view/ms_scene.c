@@ -75,8 +75,6 @@ static ms_status check_object(const json_t *obj, const cursor *at, const char *c
     return MS_OK;
 }
 
-/* A number in [lo, hi] (open ends where lo_open / hi_open); absent: *out unchanged
- * unless required. */
 /* The value at key (NULL when absent) and its cursor; the "missing" error when it
  * is absent but required. */
 static ms_status lookup(const json_t *obj, const char *key, const cursor *at, bool required, json_t **value,
@@ -100,6 +98,8 @@ static ms_status number_in_range(const json_t *v, const cursor *c, double lo, bo
     return MS_OK;
 }
 
+/* A number in [lo, hi] (open ends where lo_open / hi_open); absent: *out unchanged
+ * unless required. */
 static ms_status get_number(const json_t *obj, const char *key, const cursor *at, bool required, double lo,
                             bool lo_open, double hi, double *out, ms_error *err)
 {
