@@ -241,10 +241,10 @@ static void test_stream_equals_direct_decode(void **state)
     ms_core_stop(core);
 }
 
-/* The same view opened cold with the index compressed (the default,
- * protocol version 2) and raw (raw_index, as a version-1 exchange sends it):
- * both give exactly the direct decode, and the compressed open reads fewer
- * bytes from the socket. */
+/* The same view opened cold with the whole index (whole_index: as a
+ * version-2 server sends it, not by subtree) compressed, and raw (raw_index,
+ * as a version-1 exchange sends it): both give exactly the direct decode, and
+ * the compressed open reads fewer bytes from the socket. */
 static void test_compressed_index_same_result(void **state)
 {
     (void)state;
@@ -254,6 +254,7 @@ static void test_compressed_index_same_result(void **state)
         ms_core_options o = base_options();
         o.export_frames = true;
         o.raw_index = raw;
+        o.whole_index = true;
         ms_core *core;
         ms_error err;
         assert_int_equal(ms_core_start(&o, &core, &err), MS_OK);
@@ -424,10 +425,15 @@ static void test_hostile_compressed_index(void **state)
 }
 
 /* The server dies mid-stream and comes back on the same port: the client
- * reconnects, resumes and completes, with the same mesh. */
-static void test_server_killed_and_restarted(void **state)
+ * reconnects, resumes and completes, with the same mesh. whole: the whole
+ * index at open; else by subtree. With the whole index the
+ * client keeps sending requests as bytes arrive and sees the drop at once, so
+ * the outage measured is the real one. By subtree (the window counts whole
+ * subtrees by a guess) the drop was seen as late as the relaunch: the killed
+ * server's last bytes drain from the socket at the throttled rate first. That
+ * run checks the reconnect and the result, not the outage figure. */
+static void server_killed_and_restarted(bool whole)
 {
-    (void)state;
     ms_test_served f = *g; /* a second server of the same archive directory */
     snprintf(f.port_file, sizeof f.port_file, "%s/ports2", g->dir);
     snprintf(f.log, sizeof f.log, "%s/meshserve2.log", g->dir);
@@ -437,12 +443,14 @@ static void test_server_killed_and_restarted(void **state)
     o.port = port;
     o.bandwidth = 40000; /* slow enough to be cut mid-stream */
     o.export_frames = true;
+    o.whole_index = whole;
     ms_camera cam;
     ms_core *core = start_at_key(&o, g->path.count - 1, &cam);
     ms_core_stats st;
     poll_stats(core, WAIT_SECONDS, 0.01, received, 20000, &st);
     assert_true(st.bytes_received >= 20000);
     assert_false(st.view_complete);
+    assert_int_equal(st.index_by_subtree, !whole);
     assert_int_equal(ms_test_stop(f.pid, SIGKILL, 5.0), -1);
     ms_test_sleep_s(0.5);
     ms_test_served_launch(&f, port);
@@ -452,13 +460,20 @@ static void test_server_killed_and_restarted(void **state)
         fail_msg("not complete after the restart: %s", st.error);
     assert_true(st.reconnects >= 1);
     /* the server was away at least the 0.5 s before the relaunch */
-    if (!(st.longest_outage >= 0.5 && st.longest_outage < WAIT_SECONDS))
+    if (whole && !(st.longest_outage >= 0.5 && st.longest_outage < WAIT_SECONDS))
         fail_msg("longest outage %.3f s", st.longest_outage);
     assert_int_equal(st.cells_failed, 0);
     check_equals_direct(frame, &cam);
     ms_core_frame_free(frame);
     ms_core_stop(core);
     ms_test_stop(f.pid, SIGTERM, 10.0);
+}
+
+static void test_server_killed_and_restarted(void **state)
+{
+    (void)state;
+    server_killed_and_restarted(true);
+    server_killed_and_restarted(false);
 }
 
 /* The server dies and what answers at its address (another instance behind a

@@ -117,6 +117,9 @@ uint64_t ms_core_budget_peak(ms_core_budget *budget);
  * chunk on the decode thread before it is checked. */
 typedef void (*ms_core_payload_filter)(uint32_t cell, bool apo, uint32_t offset, uint8_t *data,
                                        size_t length, void *arg);
+/* The same for the stored bytes of a subtree of the index (by subtree id). */
+typedef void (*ms_core_index_filter)(uint32_t subtree, uint32_t offset, uint8_t *data,
+                                     size_t length, void *arg);
 
 typedef struct ms_core_options {
     const char *host;          /* numeric IPv4/IPv6 address */
@@ -156,7 +159,11 @@ typedef struct ms_core_options {
                                   helpers); 0 = 2 */
     bool export_frames;        /* stitch a frame after each change (for drawing/tests) */
     bool raw_index;            /* ask for the model index uncompressed (no CAP_INDEX_ZLIB) */
+    bool whole_index;          /* take the whole index at open, as before subtrees: do not
+                                  offer CAP_INDEX_SUBTREES (local mode: do not read the
+                                  archive's index by subtree) */
     ms_core_payload_filter payload_filter;
+    ms_core_index_filter index_filter; /* takes payload_filter_arg too */
     void *payload_filter_arg;
 } ms_core_options;
 
@@ -188,6 +195,10 @@ typedef struct ms_core_frame {
     uint8_t *cell_bits;       /* per cell: shown precision, or 0xFF (hidden) / 0xFE (split) */
     ms_core_apo_chunk *apo;
     size_t apo_count;
+    /* with an index by subtree (stats.index_by_subtree): the ids of the subtrees
+     * held, ascending (docs/CLIENT.md: exactly those the cut needs); else NULL, 0 */
+    uint32_t *subtrees;
+    size_t subtree_count;
 } ms_core_frame;
 
 /* The newest frame published since the last take, or NULL (never blocks on
@@ -203,6 +214,13 @@ typedef struct ms_core_stats {
     double achieved_error_px;  /* largest projected error of a visible shown cell */
     double tolerance_px;       /* effective geometric tolerance (raised over budget) */
     double first_display;      /* seconds to the first frame with a triangle; < 0 none yet */
+    /* the index (docs/CLIENT.md, "An index by subtree") */
+    bool index_by_subtree;     /* the model opened with its index head only */
+    uint64_t subtrees_received; /* subtrees received and taken (not the root's, in the head) */
+    uint64_t index_bytes_received; /* index bytes received as stored: the whole index, or
+                                  the head and every subtree piece */
+    uint64_t index_bytes_held, peak_index_bytes_held; /* raw index bytes held now, at most */
+    uint64_t subtrees_held;    /* subtrees held now (the root's included) */
     uint64_t bytes_received;   /* payload bytes (local mode: bytes handed over) */
     uint64_t geometry_bytes_received, apo_bytes_received; /* bytes_received by stream */
     uint64_t socket_bytes;     /* everything read from the server (frames, index), counted

@@ -19,12 +19,13 @@ static ms_core_frame *make_frame(ms_core *c, ms_error *err)
         return NULL;
     }
     f->cell_count = n;
-    for (uint32_t i = 0; i < n; ++i) {
+    memset(f->cell_bits, MS_VIEW_TARGET_HIDDEN, n);
+    for (uint32_t i = 0; i != MS_ARCHIVE_NONE; i = ms_view_next_known(c->view, i)) {
         ms_view_cell_state st = ms_view_state(c->view, i);
         f->cell_bits[i] = st == MS_VIEW_SHOWN ? (uint8_t)ms_view_bits(c->view, i)
                           : st == MS_VIEW_SPLIT ? MS_VIEW_TARGET_SPLIT
                                                 : MS_VIEW_TARGET_HIDDEN;
-        const dcell *d = &c->cells[i];
+        const dcell *d = ms_core_dcell(c, i);
         if (st == MS_VIEW_SHOWN && d->apo_given > 0) {
             ms_core_apo_chunk *g = realloc(f->apo, (f->apo_count + 1) * sizeof *g);
             uint8_t *copy = malloc(d->apo_given);
@@ -47,6 +48,17 @@ static ms_core_frame *make_frame(ms_core *c, ms_error *err)
             f->apo[f->apo_count++] = (ms_core_apo_chunk){i, levels, copy, d->apo_given};
         }
     }
+    size_t held = 0;
+    for (size_t k = 0; k < c->subtree_count; ++k)
+        held += c->subtrees[k].state == SUBTREE_HELD;
+    if (held && !(f->subtrees = malloc(held * sizeof *f->subtrees))) {
+        ms_core_frame_free(f);
+        ms_error_set(err, MS_ERR_NOMEM, "out of memory for a frame");
+        return NULL;
+    }
+    for (size_t k = 0; k < c->subtree_count; ++k)
+        if (c->subtrees[k].state == SUBTREE_HELD)
+            f->subtrees[f->subtree_count++] = c->subtrees[k].id;
     if (ms_view_stitch(c->view, NULL, &f->mesh, err) != MS_OK) {
         ms_core_frame_free(f);
         return NULL;
@@ -57,8 +69,7 @@ static ms_core_frame *make_frame(ms_core *c, ms_error *err)
 /* Whether some shown cell in view already has a triangle to draw. */
 static bool something_drawn(ms_core *c, const frame_view *fv)
 {
-    uint32_t n = ms_view_cell_count(c->view);
-    for (uint32_t i = 0; i < n; ++i) {
+    for (uint32_t i = 0; i != MS_ARCHIVE_NONE; i = ms_view_next_known(c->view, i)) {
         if (ms_view_state(c->view, i) != MS_VIEW_SHOWN)
             continue;
         const ms_archive_cell *rec = ms_archive_get_cell(c->index, i);
@@ -162,5 +173,6 @@ void ms_core_frame_free(ms_core_frame *f)
         free(f->apo[i].data);
     free(f->apo);
     free(f->cell_bits);
+    free(f->subtrees);
     free(f);
 }

@@ -372,7 +372,8 @@ static const ms_client_handlers binary_handlers = {
 static int binary_start(vclient *v)
 {
     const options *o = &v->lg->o;
-    ms_client_options co = {o->host, o->port, o->token, "meshloadgen/0.1", 0, false};
+    ms_client_options co = {.host = o->host, .port = o->port, .token = o->token,
+                            .agent = "meshloadgen/0.1"};
     ms_error err;
     uint32_t id;
     if (ms_payload_assembly_new(false, 0, &v->assembly, &err) != MS_OK ||

@@ -594,6 +594,12 @@ void ms_viewer_scene_stats(ms_viewer_scene *vs, ms_core_stats *sum)
         sum->cells_failed += s.cells_failed;
         sum->memory += s.memory, sum->peak_memory += s.peak_memory;
         sum->decode_seconds += s.decode_seconds;
+        sum->index_by_subtree |= s.index_by_subtree;
+        sum->subtrees_received += s.subtrees_received;
+        sum->index_bytes_received += s.index_bytes_received;
+        sum->index_bytes_held += s.index_bytes_held;
+        sum->peak_index_bytes_held += s.peak_index_bytes_held;
+        sum->subtrees_held += s.subtrees_held;
         sum->latency_p50 = fmax(sum->latency_p50, s.latency_p50);
         sum->latency_p99 = fmax(sum->latency_p99, s.latency_p99);
         if (!sum->error[0] && s.error[0])

@@ -308,6 +308,22 @@ static ms_status hold(script *s, const ms_camera *camera, bool *settled, double 
     }
 }
 
+/* The core's index figures (docs/CLIENT.md, "An index by subtree"), and its
+ * time to first display, added to a report. */
+static void add_index_figures(json_t *report, const ms_core_stats *cs)
+{
+    if (!report)
+        return;
+    json_object_set_new(report, "time_to_first_display", json_real(cs->first_display));
+    json_object_set_new(report, "index",
+                        json_pack("{s:b, s:I, s:I, s:I, s:I}", "by_subtree", cs->index_by_subtree,
+                                  "subtrees_received", (json_int_t)cs->subtrees_received,
+                                  "index_bytes_received", (json_int_t)cs->index_bytes_received,
+                                  "index_bytes_held", (json_int_t)cs->index_bytes_held,
+                                  "peak_index_bytes_held",
+                                  (json_int_t)cs->peak_index_bytes_held));
+}
+
 static json_t *frame_summary(frame_log *log, uint64_t budget)
 {
     uint64_t upload_max = 0, upload_sum = 0;
@@ -469,6 +485,7 @@ static ms_status scene_run(const ms_viewer_options *o, const ms_viewer_source *s
                         (json_int_t)cs.geometry_bytes_received, "apo_bytes", (json_int_t)cs.apo_bytes_received,
                         "seconds", now_s() - started, "effects_called_for", effect_names(ms_scene_effects(&scene)),
                         "effects_compiled", effect_names(ms_viewer_scene_effects(s.scene)), "effect_frames", ran);
+    add_index_figures(*report, &cs);
     if (!*report)
         st = ms_error_set(err, MS_ERR_NOMEM, "out of memory for the report");
 done:
@@ -537,6 +554,7 @@ ms_status ms_viewer_script_run(const ms_viewer_options *o, const ms_viewer_sourc
                         (json_int_t)cs.geometry_bytes_received, "apo_bytes",
                         (json_int_t)cs.apo_bytes_received, "seconds", now_s() - started,
                         "compare_apo", compare);
+    add_index_figures(*report, &cs);
     if (!*report)
         st = ms_error_set(err, MS_ERR_NOMEM, "out of memory for the report");
 done:
