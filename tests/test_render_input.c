@@ -88,21 +88,26 @@ static void test_bad_model(void **state)
     assert_null(r);
 }
 
+/* The archive's renderer and view, and the view's mesh seen from (0.2, 0.3, 1)
+ * at 2 px. */
+static void open_view(ms_render **r, ms_view **view, ms_camera *cam, ms_view_mesh *mesh)
+{
+    ms_test_render_open(archive, r, view);
+    const double d[3] = {0.2, 0.3, 1.0};
+    ms_test_render_look(archive, *view, d, WIDTH, HEIGHT, 2.0, cam, mesh);
+}
+
 /* Bad frames, uploads and draws: errors, then a good frame still draws. */
 static void test_bad_calls(void **state)
 {
     (void)state;
-    const ms_archive_header *h = ms_archive_get_header(archive);
     ms_render *r;
-    ms_error err;
-    expect(ms_render_new(h, ms_archive_get_cell(archive, 0), &r, &err), MS_OK, &err);
     ms_view *view;
-    expect(ms_view_create_from_archive(archive, &view, &err), MS_OK, &err);
     ms_camera cam;
-    const double d[3] = {0.2, 0.3, 1.0};
-    ms_test_render_camera(h, d, 1.1, 40.0, WIDTH, HEIGHT, &cam);
     ms_view_mesh mesh = {0};
-    ms_test_render_view(view, &cam, 2.0, &mesh);
+    open_view(&r, &view, &cam, &mesh);
+    ms_error err;
+    const ms_archive_header *h = ms_archive_get_header(archive);
     assert_true(mesh.triangle_count > 100);
 
     expect(ms_render_set_frame(NULL, &mesh, NULL, 0, &err), MS_ERR_ARG, &err);
@@ -164,8 +169,7 @@ static void test_bad_calls(void **state)
     expect(ms_render_draw(r, &cam, &o2, &ds, &err), MS_ERR_ARG, &err);
 
     /* still usable: the good frame, every mode, wireframe */
-    expect(ms_render_set_frame(r, &mesh, NULL, 0, &err), MS_OK, &err);
-    expect(ms_render_upload(r, UINT64_MAX, &up, &err), MS_OK, &err);
+    ms_test_render_show(r, &mesh, NULL, 0, &up);
     assert_int_equal(up.cells_pending, 0);
     ms_test_fbo fbo;
     ms_test_fbo_new(&fbo, WIDTH, HEIGHT);
@@ -194,17 +198,12 @@ static void test_bad_calls(void **state)
 static void test_corrupt_apo(void **state)
 {
     (void)state;
-    const ms_archive_header *h = ms_archive_get_header(archive);
     ms_render *r;
-    ms_error err;
-    expect(ms_render_new(h, ms_archive_get_cell(archive, 0), &r, &err), MS_OK, &err);
     ms_view *view;
-    expect(ms_view_create_from_archive(archive, &view, &err), MS_OK, &err);
     ms_camera cam;
-    const double d[3] = {0.2, 0.3, 1.0};
-    ms_test_render_camera(h, d, 1.1, 40.0, WIDTH, HEIGHT, &cam);
     ms_view_mesh mesh = {0};
-    ms_test_render_view(view, &cam, 2.0, &mesh);
+    open_view(&r, &view, &cam, &mesh);
+    ms_error err;
     ms_core_apo_chunk *apo;
     size_t count;
     ms_test_render_apo(archive, &mesh, 0, false, &apo, &count);
@@ -236,9 +235,7 @@ static void test_corrupt_apo(void **state)
             break;
         }
     }
-    expect(ms_render_set_frame(r, &mesh, apo, count, &err), MS_OK, &err);
-    ms_render_upload_stats up;
-    expect(ms_render_upload(r, UINT64_MAX, &up, &err), MS_OK, &err);
+    ms_test_render_show(r, &mesh, apo, count, NULL);
     size_t np = (size_t)WIDTH * HEIGHT;
     float *with = malloc(np * 4 * sizeof(float)), *without = malloc(np * 4 * sizeof(float)),
           *ids = malloc(np * 4 * sizeof(float));
@@ -454,19 +451,6 @@ static float srgb(double c)
  * winding (a back face). */
 static void draw_plane_pixel(double tilt_deg, bool reversed, const ms_render_options *o, bool corner, float rgba[4])
 {
-    ms_archive_header h;
-    memset(&h, 0, sizeof h);
-    h.box_side = 1.0;
-    h.bits = 16;
-    h.n = 4;
-    h.root_bits = 7;
-    h.cell_count = 1;
-    ms_archive_cell cell;
-    memset(&cell, 0, sizeof cell);
-    cell.parent = cell.first_child = MS_ARCHIVE_NONE;
-    ms_render *r;
-    ms_error err;
-    expect(ms_render_new(&h, &cell, &r, &err), MS_OK, &err);
     double t = tilt_deg * M_PI / 180.0;
     /* in-plane axes: x, and (0, cos t, -sin t) */
     double corners[3][2] = {{-20, -20}, {20, -20}, {0, 20}};
@@ -476,17 +460,9 @@ static void draw_plane_pixel(double tilt_deg, bool reversed, const ms_render_opt
         positions[3 * k + 1] = 0.5 + corners[k][1] * cos(t);
         positions[3 * k + 2] = 0.5 - corners[k][1] * sin(t);
     }
-    uint32_t tri[3] = {0, reversed ? 2u : 1u, reversed ? 1u : 2u}, tri_cell[1] = {0};
-    ms_view_mesh mesh;
-    memset(&mesh, 0, sizeof mesh);
-    mesh.vertex_count = 3;
-    mesh.triangle_count = 1;
-    mesh.positions = positions;
-    mesh.triangles = tri;
-    mesh.triangle_cell = tri_cell;
-    expect(ms_render_set_frame(r, &mesh, NULL, 0, &err), MS_OK, &err);
-    ms_render_upload_stats up;
-    expect(ms_render_upload(r, UINT64_MAX, &up, &err), MS_OK, &err);
+    const uint32_t tri[3] = {0, reversed ? 2u : 1u, reversed ? 1u : 2u};
+    ms_render *r = ms_test_render_one_cell(4, positions, 3, tri, 1);
+    ms_error err;
     ms_camera cam;
     const double eye[3] = {0.5, 0.5, 3.0}, centre[3] = {0.5, 0.5, 0.5}, upv[3] = {0, 1, 0};
     assert_int_equal(ms_camera_look_at(eye, centre, upv, 40.0, WIDTH + 1, HEIGHT + 1, 0.5, 10.0, &cam, NULL), MS_OK);

@@ -338,3 +338,20 @@ int ms_viewer_options_parse(int argc, char **argv, ms_viewer_options *o, FILE *e
     }
     return finish_options(o, left.shading, left.no_apo, err);
 }
+
+ms_viewer_stream_settings ms_viewer_options_stream_settings(const ms_viewer_options *o)
+{
+    ms_viewer_stream_settings s = {.tolerance_px = o->tolerance_px,
+                                   .apo_levels = o->apo_levels,
+                                   .memory_mb = o->memory_mb,
+                                   .bandwidth = o->bandwidth};
+    return s;
+}
+
+ms_viewer_scene_settings ms_viewer_options_scene_settings(const ms_viewer_options *o)
+{
+    ms_viewer_scene_settings s = {.stream = ms_viewer_options_stream_settings(o),
+                                  .effects_off = o->effects_off,
+                                  .force_all = o->effects_all};
+    return s;
+}

@@ -463,12 +463,7 @@ static ms_status scene_run(const ms_viewer_options *o, const ms_viewer_source *s
     ms_render_options_default(&s.render);
     s.render.shading = o->shading;
     s.render.apo = o->apo_shading;
-    ms_viewer_scene_settings settings = {.stream = {.tolerance_px = o->tolerance_px,
-                                                    .apo_levels = o->apo_levels,
-                                                    .memory_mb = o->memory_mb,
-                                                    .bandwidth = o->bandwidth},
-                                         .effects_off = o->effects_off,
-                                         .force_all = o->effects_all};
+    ms_viewer_scene_settings settings = ms_viewer_options_scene_settings(o);
     json_t *keys = json_array();
     double started = now_s();
     if ((o->hud && (st = ms_viewer_text_new(&s.text, err)) != MS_OK) ||
@@ -521,10 +516,7 @@ ms_status ms_viewer_script_run(const ms_viewer_options *o, const ms_viewer_sourc
     ms_render_options_default(&s.render);
     s.render.shading = o->shading;
     s.render.apo = o->apo_shading;
-    ms_viewer_stream_settings settings = {.tolerance_px = o->tolerance_px,
-                                          .apo_levels = o->apo_levels,
-                                          .memory_mb = o->memory_mb,
-                                          .bandwidth = o->bandwidth};
+    ms_viewer_stream_settings settings = ms_viewer_options_stream_settings(o);
     json_t *keys = json_array();
     double started = now_s();
     if ((o->hud && (st = ms_viewer_text_new(&s.text, err)) != MS_OK) ||
