@@ -161,7 +161,8 @@ static bool open_model(viewer *v, const char *name)
     ms_viewer_stream_settings settings = {.tolerance_px = v->o->tolerance_px,
                                           .apo_levels = v->o->apo_levels,
                                           .memory_mb = v->o->memory_mb,
-                                          .bandwidth = v->o->bandwidth};
+                                          .bandwidth = v->o->bandwidth,
+                                          .whole_index = v->o->whole_index};
     if (ms_viewer_model_open(&v->source, name, &v->model, &err) != MS_OK ||
         ms_viewer_stream_open(&v->source, &v->model, &settings, &v->stream, &err) != MS_OK) {
         snprintf(v->message, sizeof v->message, "%.250s", err.text);
@@ -498,7 +499,8 @@ static int interactive_scene(viewer *v)
     ms_viewer_scene_settings settings = {.stream = {.tolerance_px = o->tolerance_px,
                                                     .apo_levels = o->apo_levels,
                                                     .memory_mb = o->memory_mb,
-                                                    .bandwidth = o->bandwidth},
+                                                    .bandwidth = o->bandwidth,
+                                                    .whole_index = o->whole_index},
                                          .effects_off = o->effects_off,
                                          .force_all = o->effects_all};
     if (ms_viewer_text_new(&v->text, &err) != MS_OK ||

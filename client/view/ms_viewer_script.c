@@ -466,7 +466,8 @@ static ms_status scene_run(const ms_viewer_options *o, const ms_viewer_source *s
     ms_viewer_scene_settings settings = {.stream = {.tolerance_px = o->tolerance_px,
                                                     .apo_levels = o->apo_levels,
                                                     .memory_mb = o->memory_mb,
-                                                    .bandwidth = o->bandwidth},
+                                                    .bandwidth = o->bandwidth,
+                                                    .whole_index = o->whole_index},
                                          .effects_off = o->effects_off,
                                          .force_all = o->effects_all};
     json_t *keys = json_array();
@@ -524,7 +525,8 @@ ms_status ms_viewer_script_run(const ms_viewer_options *o, const ms_viewer_sourc
     ms_viewer_stream_settings settings = {.tolerance_px = o->tolerance_px,
                                           .apo_levels = o->apo_levels,
                                           .memory_mb = o->memory_mb,
-                                          .bandwidth = o->bandwidth};
+                                          .bandwidth = o->bandwidth,
+                                          .whole_index = o->whole_index};
     json_t *keys = json_array();
     double started = now_s();
     if ((o->hud && (st = ms_viewer_text_new(&s.text, err)) != MS_OK) ||
