@@ -458,7 +458,8 @@ ms_status ms_render_set_frame(ms_render *r, const ms_view_mesh *mesh, const ms_c
         if (c)
             c->frame_apo_levels = c->frame_apo_entry = 0;
     }
-    memcpy(r->frame_cells, r->split.present, present * sizeof *r->frame_cells);
+    if (present)
+        memcpy(r->frame_cells, r->split.present, present * sizeof *r->frame_cells);
     r->frame_cell_count = present;
     /* the queue: cells still waiting keep their turn, newly changed ones follow */
     uint32_t kept = 0;
