@@ -57,10 +57,10 @@ typedef struct ms_render_split {
     uint32_t cell_count;
     const ms_view_mesh *mesh;
     /* Sized by the frame, not the model: the triangles sorted by drawing cell
-     * (a stable radix sort on the cell id, 8 bits a pass), and the cells that
-     * draw, each with the first entry of its run in order. */
+     * (a stable radix sort on the cell id), and the cells that draw, each with
+     * the first entry of its run in order. */
     uint32_t *order;         /* triangles sorted by drawing cell */
-    uint32_t *sort_scratch;  /* the other half of each radix pass */
+    uint64_t *sort_keys;     /* per triangle: its drawing cell, the sort's keys */
     size_t order_cap;
     uint32_t *present;       /* cells with triangles in this frame, ascending */
     uint32_t *present_start; /* present_count + 1: each present cell's first entry of order */

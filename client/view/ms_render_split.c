@@ -1,7 +1,7 @@
 /* A frame's stitched mesh split by drawing cell (ms_render_internal.h).
  *
  * Triangles are grouped by triangle_cell with one stable radix sort per frame
- * (arrays sized by the frame's triangles and drawing cells, never by the
+ * (ms_radix_sort_pairs; arrays sized by the frame's triangles and drawing cells, never by the
  * model's cell count, which may be millions); each
  * cell's vertices are numbered in the order its triangles first use them, so the
  * same cell content always gives the same arrays and the same hash, and a cell
@@ -15,6 +15,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "ms_radix_sort.h"
 #include "ms_render_internal.h"
 
 void ms_render_split_init(ms_render_split *s, const ms_archive_header *header)
@@ -27,7 +28,7 @@ void ms_render_split_init(ms_render_split *s, const ms_archive_header *header)
 void ms_render_split_free(ms_render_split *s)
 {
     free(s->order);
-    free(s->sort_scratch);
+    free(s->sort_keys);
     free(s->present);
     free(s->present_start);
     free(s->local);
@@ -130,7 +131,7 @@ ms_status ms_render_split_frame(ms_render_split *s, const ms_view_mesh *mesh, ms
     size_t local_cap = s->vertex_cap, order_cap = s->order_cap;
     if (!grow((void **)&s->order, &order_cap, nt ? nt : 1, sizeof *s->order) ||
         (order_cap != s->order_cap &&
-         !grow((void **)&s->sort_scratch, &s->order_cap, order_cap, sizeof *s->sort_scratch)) ||
+         !grow((void **)&s->sort_keys, &s->order_cap, order_cap, sizeof *s->sort_keys)) ||
         !grow((void **)&s->local, &local_cap, nv ? nv : 1, sizeof *s->local))
         return ms_error_set(err, MS_ERR_NOMEM, "render: no memory to split %zu triangles", nt);
     if (local_cap != s->vertex_cap) {
@@ -141,25 +142,19 @@ ms_status ms_render_split_frame(ms_render_split *s, const ms_view_mesh *mesh, ms
         s->stamp = stamp;
         s->vertex_cap = local_cap;
     }
-    /* stable LSD radix sort of the triangles by cell, 8 bits a pass, as many
-     * passes as the largest cell id of the model needs */
-    uint32_t *order = s->order, *other = s->sort_scratch;
-    for (size_t t = 0; t < nt; ++t)
+    /* the triangles by cell, in their order within a cell (a stable radix sort on
+     * as many bits as the model's largest cell id needs) */
+    uint32_t *order = s->order;
+    for (size_t t = 0; t < nt; ++t) {
         order[t] = (uint32_t)t;
-    for (unsigned shift = 0; nt > 0 && shift < 32 && (s->cell_count - 1) >> shift; shift += 8) {
-        size_t count[257] = {0};
-        for (size_t t = 0; t < nt; ++t)
-            count[((mesh->triangle_cell[t] >> shift) & 0xFFu) + 1]++;
-        if (count[((mesh->triangle_cell[0] >> shift) & 0xFFu) + 1] == nt)
-            continue; /* one bucket: the pass would change nothing */
-        for (int b = 0; b < 256; ++b)
-            count[b + 1] += count[b];
-        for (size_t i = 0; i < nt; ++i)
-            other[count[(mesh->triangle_cell[order[i]] >> shift) & 0xFFu]++] = order[i];
-        uint32_t *swap = order;
-        order = other, other = swap;
+        s->sort_keys[t] = mesh->triangle_cell[t];
     }
-    s->order = order, s->sort_scratch = other;
+    unsigned key_bits = 1;
+    while (key_bits < 32 && (s->cell_count - 1) >> key_bits)
+        key_bits++;
+    ms_status sorted = ms_radix_sort_pairs(s->sort_keys, order, nt, key_bits, err);
+    if (sorted != MS_OK)
+        return sorted;
     /* the runs of equal cells */
     for (size_t i = 0; i < nt; ++i) {
         uint32_t cell = mesh->triangle_cell[order[i]];
