@@ -355,9 +355,9 @@ static void hostile_send(int fd, const ms_proto_message *m)
 /* Answers HELLO, then OPEN_MODEL with the bomb; then waits for the close. */
 static void hostile_conversation(int conn, const uint8_t *bomb, size_t bomb_size)
 {
-    ms_proto_decoder dec;
+    ms_proto_decoder *dec = NULL;
     ms_proto_decoder_config dc = {MS_PROTO_ROLE_SERVER, MS_PROTO_MIN_FRAME, 64};
-    ms_proto_decoder_init(&dec, &dc, NULL);
+    ms_proto_decoder_new(&dc, &dec, NULL);
     uint8_t buf[4096];
     double until = ms_now_seconds() + 5.0;
     for (bool opened = false; !opened && ms_now_seconds() < until;) {
@@ -372,7 +372,7 @@ static void hostile_conversation(int conn, const uint8_t *bomb, size_t bomb_size
             ms_proto_message m;
             bool have;
             ms_proto_fault fault;
-            if (ms_proto_decoder_feed(&dec, buf + at, (size_t)got - at, &used, &m, &have, &fault,
+            if (ms_proto_decoder_feed(dec, buf + at, (size_t)got - at, &used, &m, &have, &fault,
                                       NULL) != MS_OK)
                 break;
             at += used;
@@ -403,7 +403,7 @@ static void hostile_conversation(int conn, const uint8_t *bomb, size_t bomb_size
         if (poll(&p, 1, 100) > 0 && read(conn, buf, sizeof buf) <= 0)
             break;
     }
-    ms_proto_decoder_free(&dec);
+    ms_proto_decoder_free(dec);
 }
 
 static void *hostile_serve(void *arg)

@@ -466,9 +466,9 @@ static bool write_all(int fd, const uint8_t *data, size_t size)
  * what followed it; false when the client sent no HELLO. */
 static bool proxy_hello(v2_proxy *p, int cfd, int sfd)
 {
-    ms_proto_decoder dec;
+    ms_proto_decoder *dec = NULL;
     ms_proto_decoder_config cfg = {MS_PROTO_ROLE_SERVER, 1u << 20, MS_PROTO_MAX_BATCH};
-    if (ms_proto_decoder_init(&dec, &cfg, NULL) != MS_OK)
+    if (ms_proto_decoder_new(&cfg, &dec, NULL) != MS_OK)
         return false;
     uint8_t buf[65536];
     size_t have = 0, at = 0;
@@ -484,7 +484,7 @@ static bool proxy_hello(v2_proxy *p, int cfd, int sfd)
         ms_proto_message m;
         bool got = false;
         size_t used = 0;
-        if (ms_proto_decoder_feed(&dec, buf + at, have - at, &used, &m, &got, NULL, NULL) != MS_OK)
+        if (ms_proto_decoder_feed(dec, buf + at, have - at, &used, &m, &got, NULL, NULL) != MS_OK)
             break;
         at += used;
         if (!got)
@@ -500,7 +500,7 @@ static bool proxy_hello(v2_proxy *p, int cfd, int sfd)
         p->hellos += ok;
         break;
     }
-    ms_proto_decoder_free(&dec);
+    ms_proto_decoder_free(dec);
     return ok;
 }
 
