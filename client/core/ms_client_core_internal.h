@@ -137,6 +137,8 @@ struct ms_core {
     uint64_t camera_serial;
     chunk_msg *inbox, *inbox_tail;
     ms_archive *index;          /* set once by the network thread */
+    ms_core_opening opening;    /* with export_frames: the index at the first open */
+    bool have_opening;
     bool index_new, republish;
     want *wants;
     size_t want_count;
@@ -240,6 +242,13 @@ void ms_core_dcell_clear(dcell *d);
  * knows none of the group's cells any more. */
 void ms_core_dcells_release(ms_core *c, const uint32_t *cells, size_t count);
 void ms_core_dcells_free(ms_core *c);
+
+/* ---- ms_client_core_frames.c ---- */
+
+/* With export_frames, before publishing a freshly opened index (not yet shared
+ * with the decode thread): keeps its header and records for ms_core_wait_open.
+ * Out of memory leaves the opening empty (ms_core_wait_open then says so). */
+void ms_core_keep_opening(ms_core *c, const ms_archive *index, bool by_subtree);
 
 /* ---- ms_client_core_subtrees.c: an index that comes by subtree ---- */
 

@@ -37,6 +37,7 @@ typedef struct ms_viewer_options {
     unsigned apo_levels;       /* fetched; 0: none */
     uint64_t upload_budget;    /* bytes per frame */
     double memory_mb, bandwidth, keyframe_timeout;
+    bool whole_index;          /* the whole index at open (ms_core_options.whole_index) */
     int up_axis;               /* 0..2 */
     bool json, scripted, help;
     bool hud;                  /* scripted: draw the HUD into the pictures */
