@@ -55,48 +55,22 @@
 #define MIN_TRIANGLES 48
 #define WAIT_SECONDS 50.0
 
-typedef struct fixture {
-    char dir[512], archives[600], file[700], log[600], port_file[600];
-    pid_t pid;
-    uint16_t port, http_port;
-    ms_archive *archive;
-    ms_camera_path path;
-} fixture;
-
-static fixture *g;
+static ms_test_served *g;
 
 static int group_setup(void **state)
 {
     (void)state;
-    fixture *f = calloc(1, sizeof *f);
-    ms_test_tmpdir(f->dir, sizeof f->dir);
-    snprintf(f->archives, sizeof f->archives, "%s/archive", f->dir);
-    snprintf(f->file, sizeof f->file, "%s/" MODEL ".msa", f->archives);
-    snprintf(f->log, sizeof f->log, "%s/meshserve.log", f->dir);
-    snprintf(f->port_file, sizeof f->port_file, "%s/ports", f->dir);
-    if (mkdir(f->archives, 0755) != 0)
+    ms_test_served *f = ms_test_served_new(MODEL);
+    if (!f)
         return -1;
     char ply[600];
     snprintf(ply, sizeof ply, "%s/demo.ply", f->dir);
     ms_nsp_test_demo_ply(ply, TRIANGLES);
     ms_bake_report report;
     ms_nsp_test_bake(ply, f->archives, MODEL, 16, MIN_TRIANGLES, &report);
-    ms_error err;
-    if (ms_archive_open(f->file, &f->archive, &err) != MS_OK ||
-        ms_camera_path_load(PATH_FILE, &f->path, &err) != MS_OK) {
-        fprintf(stderr, "%s\n", err.text);
+    if (ms_test_served_open(f, PATH_FILE) != 0)
         return -1;
-    }
-    char bin[512];
-    ms_test_bin_path(bin, sizeof bin, "meshserve");
-    char *argv[] = {bin, f->archives, "--port", "0", "--http-port", "0", "--port-file",
-                    f->port_file, NULL};
-    f->pid = ms_test_spawn(argv, f->log);
-    if (ms_test_wait_ports(f->port_file, 15.0, &f->port, &f->http_port) != 0) {
-        fprintf(stderr, "meshserve did not start (see %s)\n", f->log);
-        ms_test_stop(f->pid, SIGKILL, 5.0);
-        return -1;
-    }
+    ms_test_served_launch(f, 0);
     g = f;
     return 0;
 }
@@ -104,27 +78,12 @@ static int group_setup(void **state)
 static int group_teardown(void **state)
 {
     (void)state;
-    if (!g)
-        return 0;
-    if (g->pid)
-        ms_test_stop(g->pid, SIGTERM, 10.0);
-    ms_archive_close(g->archive);
-    ms_camera_path_free(&g->path);
-    ms_test_rmdir(g->dir);
-    free(g);
+    ms_test_served_free(g);
     g = NULL;
     return 0;
 }
 
-static ms_camera key_camera(size_t k)
-{
-    ms_camera cam;
-    ms_error err;
-    double t = g->path.keys[k < g->path.count ? k : g->path.count - 1].time;
-    if (ms_camera_path_sample(&g->path, t, 640, 480, 1e-4, 1e4, &cam, &err) != MS_OK)
-        fail_msg("%s", err.text);
-    return cam;
-}
+static ms_camera key_camera(size_t k) { return ms_test_core_key_camera(&g->path, k); }
 
 static ms_core_options local_options(void)
 {
@@ -466,9 +425,9 @@ static bool write_all(int fd, const uint8_t *data, size_t size)
  * what followed it; false when the client sent no HELLO. */
 static bool proxy_hello(v2_proxy *p, int cfd, int sfd)
 {
-    ms_proto_decoder dec;
+    ms_proto_decoder *dec = NULL;
     ms_proto_decoder_config cfg = {MS_PROTO_ROLE_SERVER, 1u << 20, MS_PROTO_MAX_BATCH};
-    if (ms_proto_decoder_init(&dec, &cfg, NULL) != MS_OK)
+    if (ms_proto_decoder_new(&cfg, &dec, NULL) != MS_OK)
         return false;
     uint8_t buf[65536];
     size_t have = 0, at = 0;
@@ -484,7 +443,7 @@ static bool proxy_hello(v2_proxy *p, int cfd, int sfd)
         ms_proto_message m;
         bool got = false;
         size_t used = 0;
-        if (ms_proto_decoder_feed(&dec, buf + at, have - at, &used, &m, &got, NULL, NULL) != MS_OK)
+        if (ms_proto_decoder_feed(dec, buf + at, have - at, &used, &m, &got, NULL, NULL) != MS_OK)
             break;
         at += used;
         if (!got)
@@ -500,7 +459,7 @@ static bool proxy_hello(v2_proxy *p, int cfd, int sfd)
         p->hellos += ok;
         break;
     }
-    ms_proto_decoder_free(&dec);
+    ms_proto_decoder_free(dec);
     return ok;
 }
 

@@ -18,7 +18,7 @@ struct ms_client {
     struct bufferevent *bev;
     const ms_client_handlers *handlers;
     void *arg;
-    ms_proto_decoder decoder;
+    ms_proto_decoder *decoder; /* owned */
     ms_proto_hello_reply limits;
     uint32_t next_id;
     bool over;
@@ -239,7 +239,7 @@ static void on_read(struct bufferevent *bev, void *arg)
         bool have;
         ms_proto_fault fault;
         ms_error err;
-        ms_status st = ms_proto_decoder_feed(&c->decoder, v.iov_base, v.iov_len, &consumed, &m,
+        ms_status st = ms_proto_decoder_feed(c->decoder, v.iov_base, v.iov_len, &consumed, &m,
                                              &have, &fault, &err);
         evbuffer_drain(in, consumed);
         c->bytes_read += consumed;
@@ -291,7 +291,7 @@ ms_status ms_client_connect(struct event_base *base, const ms_client_options *o,
     c->next_id = 1;
     uint32_t max_frame = o->max_frame ? o->max_frame : DEFAULT_MAX_FRAME;
     ms_proto_decoder_config dc = {MS_PROTO_ROLE_CLIENT, max_frame, 0};
-    ms_status st = ms_proto_decoder_init(&c->decoder, &dc, err);
+    ms_status st = ms_proto_decoder_new(&dc, &c->decoder, err);
     if (st != MS_OK) {
         free(c);
         return st;
@@ -338,7 +338,7 @@ void ms_client_free(ms_client *c)
         bufferevent_free(c->bev);
     if (c->rate)
         ev_token_bucket_cfg_free(c->rate);
-    ms_proto_decoder_free(&c->decoder);
+    ms_proto_decoder_free(c->decoder);
     free(c->index);
     free(c->index_zlib);
     free(c);

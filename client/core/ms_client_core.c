@@ -195,6 +195,7 @@ void ms_core_stop(ms_core *c)
     ms_view_destroy(c->view);
     free(c->target);
     ms_archive_close(c->index);
+    ms_core_opening_free(&c->opening);
     free(c->wants);
     free(c->net_wants);
     if (c->frame)

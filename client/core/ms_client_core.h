@@ -172,6 +172,28 @@ typedef struct ms_core_options {
  * MS_ERR_IO when a thread cannot start. */
 ms_status ms_core_start(const ms_core_options *options, ms_core **core, ms_error *err);
 
+/* What the model's index said when it opened: its header and the records the
+ * index held then, ids ascending (records[i] is cell ids[i]'s). With an index
+ * by subtree that is the head (the root subtree: the top levels of the tree,
+ * whatever the model's size); with a whole index (a version-2 server,
+ * whole_index) every cell. A viewer places its first camera from it. */
+typedef struct ms_core_opening {
+    ms_archive_header header;
+    uint32_t *ids;
+    ms_archive_cell *records;
+    size_t count;
+    bool by_subtree;           /* the records are the head's */
+} ms_core_opening;
+
+/* Waits at most timeout_s seconds (> 0) for the model to open and copies what
+ * its index said (needs export_frames; the core keeps it from the first open).
+ * MS_ERR_IO with the core's error when it stopped first, or "no answer in
+ * time"; MS_ERR_ARG without export_frames; MS_ERR_NOMEM. Free with
+ * ms_core_opening_free (safe on a zeroed value). Call from the caller's
+ * thread; it does not disturb the others. */
+ms_status ms_core_wait_open(ms_core *core, double timeout_s, ms_core_opening *opening, ms_error *err);
+void ms_core_opening_free(ms_core_opening *opening);
+
 /* Stops the threads, closes the connection and frees everything. NULL is a no-op. */
 void ms_core_stop(ms_core *core);
 
@@ -199,6 +221,12 @@ typedef struct ms_core_frame {
      * held, ascending (docs/CLIENT.md: exactly those the cut needs); else NULL, 0 */
     uint32_t *subtrees;
     size_t subtree_count;
+    /* the records of the shown cells (every cell that draws a triangle of mesh),
+     * ids ascending: record_ids[i]'s record is records[i]. A renderer learns
+     * them (ms_render_learn), so it never needs the whole index. */
+    uint32_t *record_ids;
+    ms_archive_cell *records;
+    size_t record_count;
 } ms_core_frame;
 
 /* The newest frame published since the last take, or NULL (never blocks on

@@ -137,6 +137,8 @@ struct ms_core {
     uint64_t camera_serial;
     chunk_msg *inbox, *inbox_tail;
     ms_archive *index;          /* set once by the network thread */
+    ms_core_opening opening;    /* with export_frames: the index at the first open */
+    bool have_opening;
     bool index_new, republish;
     want *wants;
     size_t want_count;
@@ -241,6 +243,13 @@ void ms_core_dcell_clear(dcell *d);
 void ms_core_dcells_release(ms_core *c, const uint32_t *cells, size_t count);
 void ms_core_dcells_free(ms_core *c);
 
+/* ---- ms_client_core_frames.c ---- */
+
+/* With export_frames, before publishing a freshly opened index (not yet shared
+ * with the decode thread): keeps its header and records for ms_core_wait_open.
+ * Out of memory leaves the opening empty (ms_core_wait_open then says so). */
+void ms_core_keep_opening(ms_core *c, const ms_archive *index, bool by_subtree);
+
 /* ---- ms_client_core_subtrees.c: an index that comes by subtree ---- */
 
 /* The view over the index just opened (a whole one, or a head whose root
@@ -298,6 +307,10 @@ double ms_core_cell_need(const ms_core *c, const frame_view *fv, uint32_t cell, 
 double ms_core_decoded_estimate(const ms_archive_cell *rec, unsigned bits);
 /* Fills pass->wl (sorted, best first) and the pass's cell counts. */
 void ms_core_schedule(ms_core *c, dec_pass *pass);
+/* A request priority (lower is sooner) clamped to the wire's 0..255. */
+uint8_t ms_core_clamp_priority(double p);
+/* Appends w to the pass's want list (false when out of memory). */
+bool ms_core_want_push(want_list *l, want w);
 
 /* ---- ms_client_core_budget.c ---- */
 

@@ -89,6 +89,7 @@ void *ms_core_local_main(void *arg)
     want *list = NULL;
     size_t cap = 0;
     uint64_t served_serial = 0, handed_seq = 0;
+    ms_core_keep_opening(c, index, !c->o.whole_index);
     pthread_mutex_lock(&c->lock);
     c->index = index;
     c->index_new = true;

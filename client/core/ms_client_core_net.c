@@ -385,6 +385,7 @@ static void on_model_opened(ms_client *client, uint32_t request_id,
         }
         c->content_id = o->content_id;
         c->net_by_subtree = head;
+        ms_core_keep_opening(c, a, head);
         pthread_mutex_lock(&c->lock);
         c->stats.index_bytes_received += ms_client_index_wire_bytes(c->client);
         c->index = a;

@@ -52,7 +52,7 @@ static double cell_error_px(const ms_core *c, const frame_view *fv, uint32_t cel
     return px / d;
 }
 
-static uint8_t clamp_priority(double p)
+uint8_t ms_core_clamp_priority(double p)
 {
     return p < 0 ? 0 : p > 255 ? 255 : (uint8_t)p;
 }
@@ -67,7 +67,7 @@ static int compare_wants(const void *x, const void *y)
     return a->start < b->start ? -1 : a->start > b->start;
 }
 
-static bool want_push(want_list *l, want w)
+bool ms_core_want_push(want_list *l, want w)
 {
     if (l->n == l->cap) {
         size_t cap = l->cap ? l->cap * 2 : 256;
@@ -118,8 +118,8 @@ static void schedule_prefetch(ms_core *c, dec_pass *pass, uint32_t i)
             continue;
         double p = (visible ? 144.0 : 208.0) - 8.0 * (need - s2);
         double grow = ms_core_decoded_estimate(rec, s2) - ms_core_decoded_estimate(rec, s2 - 1);
-        want_push(&pass->wl, (want){i, a, b, STREAM_GEOMETRY, clamp_priority(p),
-                                    (uint32_t)(grow > 4e9 ? 4e9 : grow)});
+        ms_core_want_push(&pass->wl, (want){i, a, b, STREAM_GEOMETRY, ms_core_clamp_priority(p),
+                                            (uint32_t)(grow > 4e9 ? 4e9 : grow)});
     }
 }
 
@@ -146,8 +146,8 @@ static bool schedule_geometry(ms_core *c, dec_pass *pass, uint32_t i, unsigned g
         double grow = ms_core_decoded_estimate(rec, s) - ms_core_decoded_estimate(rec, s - 1);
         if (s == rec->bits_max && c->target[i] == MS_VIEW_TARGET_SPLIT)
             grow += rec->vertex_count * BYTES_PER_VERTEX; /* the children */
-        want_push(&pass->wl, (want){i, a, b, STREAM_GEOMETRY, clamp_priority(p),
-                                    (uint32_t)(grow > 4e9 ? 4e9 : grow)});
+        ms_core_want_push(&pass->wl, (want){i, a, b, STREAM_GEOMETRY, ms_core_clamp_priority(p),
+                                            (uint32_t)(grow > 4e9 ? 4e9 : grow)});
     }
     return true;
 }
@@ -182,8 +182,8 @@ static bool schedule_apo(ms_core *c, dec_pass *pass, uint32_t i, bool visible, d
             la = d->apo.end;
         if (la >= lb)
             continue;
-        want_push(&pass->wl, (want){i, la, lb, STREAM_APO,
-                                    clamp_priority(136.0 + 8.0 * l - 8.0 * (need - bits)), 0});
+        uint8_t priority = ms_core_clamp_priority(136.0 + 8.0 * l - 8.0 * (need - bits));
+        ms_core_want_push(&pass->wl, (want){i, la, lb, STREAM_APO, priority, 0});
     }
     return true;
 }

@@ -286,25 +286,10 @@ void ms_core_subtree_chunk(ms_core *c, const chunk_msg *m)
 
 /* ---- each pass ---------------------------------------------------------------- */
 
-static uint8_t clamp_priority(double p)
-{
-    return p < 0 ? 0 : p > 255 ? 255 : (uint8_t)p;
-}
-
 static bool want_index(dec_pass *pass, const subtree_entry *e, uint8_t priority)
 {
-    want_list *l = &pass->wl;
-    if (l->n == l->cap) {
-        size_t cap = l->cap ? l->cap * 2 : 256;
-        want *g = realloc(l->w, cap * sizeof *g);
-        if (!g)
-            return false;
-        l->w = g;
-        l->cap = cap;
-    }
-    l->w[l->n++] = (want){e->id, e->buf.end, e->total ? e->total : UINT32_MAX, STREAM_INDEX,
-                          priority, 0};
-    return true;
+    return ms_core_want_push(&pass->wl, (want){e->id, e->buf.end, e->total ? e->total : UINT32_MAX,
+                                               STREAM_INDEX, priority, 0});
 }
 
 /* Cell's children's subtree is needed: held ones stay, missing ones are asked
@@ -322,7 +307,7 @@ static void need_children(ms_core *c, dec_pass *pass, uint32_t cell, double prio
         return;
     pass->complete = false;
     if (e->state == SUBTREE_RECEIVING)
-        want_index(pass, e, clamp_priority(priority));
+        want_index(pass, e, ms_core_clamp_priority(priority));
 }
 
 /* Forgets subtree k's records and its cells' bytes; false when the view still

@@ -142,17 +142,25 @@ static bool wait_complete(ms_core *core, double until, ms_core_stats *st, double
  * when the fresh core does not start. */
 #define MAX_MODEL_CHANGES 3
 
+/* A core started with the run's options; NULL with the error in res->error. */
+static ms_core *start_core(const run *r, client_result *res)
+{
+    ms_core_options co = core_options(r->o);
+    ms_core *core;
+    ms_error err;
+    if (ms_core_start(&co, &core, &err) != MS_OK) {
+        snprintf(res->error, sizeof res->error, "%.250s", err.text);
+        return NULL;
+    }
+    return core;
+}
+
 static bool restart_core(const run *r, ms_core **core, const ms_camera *cam, client_result *res)
 {
     ms_core_stop(*core);
-    *core = NULL;
     res->model_changes++;
-    ms_core_options co = core_options(r->o);
-    ms_error err;
-    if (ms_core_start(&co, core, &err) != MS_OK) {
-        snprintf(res->error, sizeof res->error, "%.250s", err.text);
+    if (!(*core = start_core(r, res)))
         return false;
-    }
     ms_core_set_camera(*core, cam);
     return true;
 }
@@ -161,13 +169,9 @@ static void cold_phase(worker *w)
 {
     run *r = w->r;
     client_result *res = &w->result;
-    ms_core_options co = core_options(r->o);
-    ms_core *core;
-    ms_error err;
-    if (ms_core_start(&co, &core, &err) != MS_OK) {
-        snprintf(res->error, sizeof res->error, "%.250s", err.text);
+    ms_core *core = start_core(r, res);
+    if (!core)
         return;
-    }
     ms_camera cam;
     camera_at(r, ms_camera_path_duration(&r->path), &cam);
     ms_core_set_camera(core, &cam);
@@ -199,13 +203,9 @@ static void path_phase(worker *w)
 {
     run *r = w->r;
     client_result *res = &w->result;
-    ms_core_options co = core_options(r->o);
-    ms_core *core;
-    ms_error err;
-    if (ms_core_start(&co, &core, &err) != MS_OK) {
-        snprintf(res->error, sizeof res->error, "%.250s", err.text);
+    ms_core *core = start_core(r, res);
+    if (!core)
         return;
-    }
     double started = ms_now_seconds();
     double clock = 0, last = started;
     size_t next_key = 0;

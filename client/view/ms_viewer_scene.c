@@ -280,9 +280,10 @@ ms_status ms_viewer_scene_open(const ms_viewer_source *source, const ms_scene *s
         st = ms_viewer_model_open(source, scene->models[i].model, &m->model, err);
         if (st == MS_OK) {
             vs->model_count = i + 1;
-            place_model(&scene->models[i], m);
             st = ms_viewer_stream_open(source, &m->model, &each, &m->stream, err);
         }
+        if (st == MS_OK) /* the bounds come with the index the stream's core opened */
+            place_model(&scene->models[i], m);
     }
     if (st == MS_OK)
         st = build_room(vs, err);
