@@ -1,4 +1,4 @@
-/* The meshstream wire protocol, versions 1 and 2: message structs, encoders, and an
+/* The meshstream wire protocol, versions 1, 2 and 3: message structs, encoders, and an
  * incremental frame decoder with strict validation. protocol/PROTOCOL.md is the
  * normative specification; the numbers of sections quoted here are its sections.
  *
@@ -23,7 +23,7 @@
 
 /* ---- Constants (section numbers refer to PROTOCOL.md) ---- */
 
-#define MS_PROTO_VERSION 2u                 /* the highest version this code speaks */
+#define MS_PROTO_VERSION 3u                 /* the highest version this code speaks */
 #define MS_PROTO_MIN_VERSION 1u             /* the lowest version this code speaks */
 #define MS_PROTO_HEADER_SIZE 12u            /* frame header bytes (section 2) */
 #define MS_PROTO_MIN_FRAME 16384u           /* least max_frame; pre-handshake limit */
@@ -71,6 +71,9 @@
 #define MS_PROTO_CAP_APO 0x00000001u
 /* Version 2: the index blob may be sent zlib-compressed (section 4.7). */
 #define MS_PROTO_CAP_INDEX_ZLIB 0x00000002u
+/* Version 3: the index may be sent as its head (archive header + root subtree)
+ * and the rest of it requested by subtree, as stream INDEX (sections 4.7, 4.10). */
+#define MS_PROTO_CAP_INDEX_SUBTREES 0x00000004u
 /* HELLO_REPLY server_flags bits. */
 #define MS_PROTO_SERVER_TOKEN_ACCEPTED 0x0001u
 /* CANCEL flags bits. */
@@ -137,13 +140,20 @@ typedef enum ms_proto_fatality {
 
 typedef enum ms_proto_stream {
     MS_PROTO_STREAM_GEOMETRY = 0,
-    MS_PROTO_STREAM_APO = 1
+    MS_PROTO_STREAM_APO = 1,
+    /* Version 3, with CAP_INDEX_SUBTREES: the stored (zlib) bytes of one index
+     * subtree; cell_id is the subtree id, the stream has exactly one step. */
+    MS_PROTO_STREAM_INDEX = 2
 } ms_proto_stream;
 
 /* How INDEX_DATA carries the index blob (MODEL_OPENED index_encoding). */
 typedef enum ms_proto_index_encoding {
     MS_PROTO_INDEX_RAW = 0, /* the blob itself */
-    MS_PROTO_INDEX_ZLIB = 1 /* one zlib (RFC 1950) stream, shorter than the blob */
+    MS_PROTO_INDEX_ZLIB = 1, /* one zlib (RFC 1950) stream, shorter than the blob */
+    /* Version 3, with CAP_INDEX_SUBTREES: the index head (a version-3 archive
+     * header and the root subtree's stored bytes), sent as is; the other
+     * subtrees are requested with stream INDEX. */
+    MS_PROTO_INDEX_SUBTREES = 2
 } ms_proto_index_encoding;
 
 typedef enum ms_proto_unit {
@@ -213,10 +223,12 @@ typedef struct ms_proto_model_opened {
     uint32_t model_handle;   /* >= 1 */
     uint32_t cell_count;     /* [1, MS_PROTO_MAX_CELLS] */
     uint64_t content_id;
-    uint32_t index_size;     /* [1, MS_PROTO_MAX_INDEX_SIZE] bytes of the blob (decoded) */
-    uint32_t index_crc32;    /* zlib crc32 of the whole blob (decoded) */
-    uint8_t index_encoding;  /* ms_proto_index_encoding; ZLIB only with CAP_INDEX_ZLIB */
-    uint16_t archive_version; /* >= 1 */
+    uint32_t index_size;     /* [1, MS_PROTO_MAX_INDEX_SIZE] bytes of the blob (decoded), or
+                              * with SUBTREES of the head */
+    uint32_t index_crc32;    /* zlib crc32 of the whole blob (decoded), or of the head */
+    uint8_t index_encoding;  /* ms_proto_index_encoding; ZLIB only with CAP_INDEX_ZLIB,
+                              * SUBTREES only with CAP_INDEX_SUBTREES */
+    uint16_t archive_version; /* >= 1: of the blob (1), or with SUBTREES of the head's header */
     uint8_t geometry_steps, apo_steps;                     /* as in the catalogue */
     uint8_t permitted_geometry_steps, permitted_apo_steps; /* as in the catalogue */
 } ms_proto_model_opened;
@@ -227,11 +239,12 @@ typedef struct ms_proto_close_model {
 
 /* One entry of a REQUEST_CELLS batch (section 4.10). */
 typedef struct ms_proto_cell_request {
-    uint32_t cell_id;
+    uint32_t cell_id; /* stream INDEX: the subtree id */
     uint8_t stream;   /* ms_proto_stream */
     uint8_t unit;     /* ms_proto_unit */
     uint8_t priority; /* lower is sooner; ties FIFO */
-    /* unit STEPS: a = first step, b = last step, a <= b <= MS_PROTO_MAX_STEP.
+    /* unit STEPS: a = first step, b = last step, a <= b <= MS_PROTO_MAX_STEP;
+     * stream INDEX: a = b = 0 (a subtree is one step).
      * unit BYTES: a = byte offset, b = byte length >= 1, a + b <= UINT32_MAX. */
     uint32_t a, b;
 } ms_proto_cell_request;
@@ -261,7 +274,7 @@ typedef struct ms_proto_index_data {
 } ms_proto_index_data;
 
 typedef struct ms_proto_payload {
-    uint32_t cell_id;
+    uint32_t cell_id;        /* stream INDEX: the subtree id */
     uint8_t stream;          /* ms_proto_stream */
     uint32_t offset;         /* byte offset in the cell stream of data[0] */
     uint32_t end;            /* end of the request's range: offset + data_length <= end */
@@ -329,6 +342,28 @@ bool ms_proto_text_valid(const uint8_t *text, size_t length);
  * MS_ERR_UNSUPPORTED when the ranges do not intersect (or one is empty). */
 ms_status ms_proto_choose_version(uint16_t client_min, uint16_t client_max, uint16_t server_min,
                                   uint16_t server_max, uint16_t *chosen);
+
+/* The capability bits a protocol version defines (section 3): CAP_APO from
+ * version 1, CAP_INDEX_ZLIB from 2, CAP_INDEX_SUBTREES from 3; 0 for version
+ * 0. A server grants (client's bits & its own & this), never more. */
+uint32_t ms_proto_version_capabilities(uint16_t version);
+
+/* The rules of a message that depend on what the connection negotiated
+ * (section 3), to apply after ms_proto_check_message (the decoder) by the side
+ * that knows the negotiated version and the granted capabilities:
+ *   HELLO_REPLY    capabilities only among those version defines;
+ *   MODEL_OPENED   index_encoding ZLIB needs CAP_INDEX_ZLIB, SUBTREES needs
+ *                  CAP_INDEX_SUBTREES;
+ *   REQUEST_CELLS  an entry of stream APO needs CAP_APO, of stream INDEX
+ *                  CAP_INDEX_SUBTREES (the fault names the whole batch);
+ *   PAYLOAD        stream APO needs CAP_APO, stream INDEX CAP_INDEX_SUBTREES.
+ * For HELLO_REPLY, version and capabilities are the reply's own. Returns MS_OK
+ * or MS_ERR_RANGE with fault (if non-NULL) FIELD_OUT_OF_RANGE, detail = the
+ * offset of the field in the body, the request ids it ends, fatal left false
+ * (a client treats every fault in a server frame as fatal, section 9). Other
+ * types: MS_OK. Pure; thread-safe. */
+ms_status ms_proto_check_negotiated(const ms_proto_message *msg, uint16_t version,
+                                    uint32_t capabilities, ms_proto_fault *fault, ms_error *err);
 
 /* Checks every field range and cross-field rule of msg, header fields
  * included, exactly as a receiver would (max_batch: the batch limit to apply,

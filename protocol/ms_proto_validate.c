@@ -378,7 +378,7 @@ static ms_status check_model_opened(check_ctx *c, const ms_proto_model_opened *m
                             MS_PROTO_MAX_INDEX_SIZE);
     if (m->archive_version < 1)
         return OUT_OF_RANGE(c, 24, "archive_version 0");
-    if (m->index_encoding > MS_PROTO_INDEX_ZLIB)
+    if (m->index_encoding > MS_PROTO_INDEX_SUBTREES)
         return OUT_OF_RANGE(c, 30, "index_encoding %u undefined", m->index_encoding);
     return check_steps(c, 26, m->geometry_steps, m->apo_steps, m->permitted_geometry_steps,
                        m->permitted_apo_steps, "");
@@ -402,8 +402,8 @@ static ms_status check_request_cells(check_ctx *c, const ms_proto_request_cells 
     for (uint32_t i = 0; i < r->count; ++i) {
         const ms_proto_cell_request *e = &r->entries[i];
         size_t base = MS_PROTO_REQUEST_CELLS_FIXED + (size_t)i * MS_PROTO_CELL_REQUEST_SIZE;
-        if (e->stream > MS_PROTO_STREAM_APO)
-            return OUT_OF_RANGE(c, base + 4, "entry %u: stream %u (0 geometry, 1 APO)",
+        if (e->stream > MS_PROTO_STREAM_INDEX)
+            return OUT_OF_RANGE(c, base + 4, "entry %u: stream %u (0 geometry, 1 APO, 2 index)",
                                 (unsigned)i, e->stream);
         if (e->unit > MS_PROTO_UNIT_BYTES)
             return OUT_OF_RANGE(c, base + 5, "entry %u: unit %u (0 steps, 1 bytes)", (unsigned)i,
@@ -415,6 +415,11 @@ static ms_status check_request_cells(check_ctx *c, const ms_proto_request_cells 
             if (e->b < e->a || e->b > MS_PROTO_MAX_STEP)
                 return OUT_OF_RANGE(c, base + 12, "entry %u: last step %u outside [%u, %u]",
                                     (unsigned)i, (unsigned)e->b, (unsigned)e->a, MS_PROTO_MAX_STEP);
+            /* A subtree is one step: STEPS on the index stream asks for all of it. */
+            if (e->stream == MS_PROTO_STREAM_INDEX && e->b != 0)
+                return OUT_OF_RANGE(c, base + (e->a ? 8 : 12),
+                                    "entry %u: steps [%u, %u] of a subtree (it has step 0 only)",
+                                    (unsigned)i, (unsigned)e->a, (unsigned)e->b);
         } else {
             if (e->b == 0)
                 return OUT_OF_RANGE(c, base + 12, "entry %u: byte length 0", (unsigned)i);
@@ -464,8 +469,8 @@ static ms_status check_index_data(check_ctx *c, const ms_proto_index_data *d)
 static ms_status check_payload(check_ctx *c, const ms_proto_payload *p)
 {
     bool last = (c->msg->flags & MS_PROTO_FLAG_LAST) != 0;
-    if (p->stream > MS_PROTO_STREAM_APO)
-        return OUT_OF_RANGE(c, 4, "stream %u (0 geometry, 1 APO)", p->stream);
+    if (p->stream > MS_PROTO_STREAM_INDEX)
+        return OUT_OF_RANGE(c, 4, "stream %u (0 geometry, 1 APO, 2 index)", p->stream);
     if (p->data_length && !p->data)
         return OUT_OF_RANGE(c, 16, "data missing");
     uint64_t stop = (uint64_t)p->offset + p->data_length;
@@ -549,6 +554,93 @@ ms_status ms_proto_check_message(const ms_proto_message *msg, uint32_t max_batch
         break;
     }
     return MS_OK;
+}
+
+uint32_t ms_proto_version_capabilities(uint16_t version)
+{
+    uint32_t caps = 0;
+    if (version >= 1)
+        caps |= MS_PROTO_CAP_APO;
+    if (version >= 2)
+        caps |= MS_PROTO_CAP_INDEX_ZLIB;
+    if (version >= 3)
+        caps |= MS_PROTO_CAP_INDEX_SUBTREES;
+    return caps;
+}
+
+/* The capability a stream needs (0: none). */
+static uint32_t stream_capability(uint8_t stream)
+{
+    switch (stream) {
+    case MS_PROTO_STREAM_APO: return MS_PROTO_CAP_APO;
+    case MS_PROTO_STREAM_INDEX: return MS_PROTO_CAP_INDEX_SUBTREES;
+    default: return 0;
+    }
+}
+
+static const char *capability_name(uint32_t capability)
+{
+    switch (capability) {
+    case MS_PROTO_CAP_APO: return "CAP_APO";
+    case MS_PROTO_CAP_INDEX_ZLIB: return "CAP_INDEX_ZLIB";
+    case MS_PROTO_CAP_INDEX_SUBTREES: return "CAP_INDEX_SUBTREES";
+    default: return "an undefined capability";
+    }
+}
+
+ms_status ms_proto_check_negotiated(const ms_proto_message *msg, uint16_t version,
+                                    uint32_t capabilities, ms_proto_fault *fault, ms_error *err)
+{
+    if (!msg)
+        return ms_error_set(err, MS_ERR_ARG, "no message");
+    const ms_wire_type_info *info = ms_wire_type_lookup(msg->type);
+    check_ctx c = {msg, info ? info->name : "?", 0, 0, fault, err};
+    switch (msg->type) {
+    case MS_PROTO_HELLO_REPLY: {
+        uint32_t undefined = msg->body.hello_reply.capabilities &
+                             ~ms_proto_version_capabilities(msg->body.hello_reply.version);
+        if (undefined)
+            return OUT_OF_RANGE(&c, 8, "capabilities 0x%08x not defined in version %u",
+                                (unsigned)undefined, msg->body.hello_reply.version);
+        return MS_OK;
+    }
+    case MS_PROTO_MODEL_OPENED: {
+        uint8_t encoding = msg->body.model_opened.index_encoding;
+        uint32_t needed = encoding == MS_PROTO_INDEX_ZLIB       ? MS_PROTO_CAP_INDEX_ZLIB
+                          : encoding == MS_PROTO_INDEX_SUBTREES ? MS_PROTO_CAP_INDEX_SUBTREES
+                                                                : 0;
+        if (needed & ~capabilities)
+            return OUT_OF_RANGE(&c, 30, "index_encoding %u without %s (version %u)", encoding,
+                                capability_name(needed), version);
+        return MS_OK;
+    }
+    case MS_PROTO_REQUEST_CELLS: {
+        const ms_proto_request_cells *r = &msg->body.request_cells;
+        if (msg->request_id && r->count &&
+            (uint64_t)msg->request_id + r->count - 1 <= UINT32_MAX) {
+            c.ids_first = msg->request_id;
+            c.ids_count = r->count;
+        }
+        for (uint32_t i = 0; r->entries && i < r->count; ++i) {
+            uint32_t needed = stream_capability(r->entries[i].stream);
+            if (needed & ~capabilities)
+                return OUT_OF_RANGE(&c,
+                                    MS_PROTO_REQUEST_CELLS_FIXED +
+                                        (size_t)i * MS_PROTO_CELL_REQUEST_SIZE + 4,
+                                    "entry %u: stream %u without %s (version %u)", (unsigned)i,
+                                    r->entries[i].stream, capability_name(needed), version);
+        }
+        return MS_OK;
+    }
+    case MS_PROTO_PAYLOAD: {
+        uint32_t needed = stream_capability(msg->body.payload.stream);
+        if (needed & ~capabilities)
+            return OUT_OF_RANGE(&c, 4, "stream %u without %s (version %u)",
+                                msg->body.payload.stream, capability_name(needed), version);
+        return MS_OK;
+    }
+    default: return MS_OK;
+    }
 }
 
 void ms_proto_error_from_fault(const ms_proto_fault *fault, const char *text,

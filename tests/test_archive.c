@@ -176,10 +176,10 @@ static void test_index_damage_and_truncation(void **state)
     ms_test_write_file(bad, (const uint8_t *)"hello", 5);
     expect_open_fails(bad, MS_ERR_FORMAT, "too short");
     /* Version from the future. */
-    data[8] = 3;
+    data[8] = 4;
     ms_test_archive_seal(data);
     ms_test_write_file(bad, data, size);
-    expect_open_fails(bad, MS_ERR_UNSUPPORTED, "version 3");
+    expect_open_fails(bad, MS_ERR_UNSUPPORTED, "version 4");
     free(data);
     expect_open_fails("/nonexistent/x.msa", MS_ERR_IO, "cannot open");
 }

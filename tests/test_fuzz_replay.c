@@ -1,6 +1,7 @@
-/* Replays the regression corpora of four libFuzzer targets through their
+/* Replays the regression corpora of five libFuzzer targets through their
  * contract checks: tests/corpus/archive_index/ (the archive index reader,
- * tests/fuzz/fuzz_archive_index.c), tests/corpus/apo_chunk/ (the APO chunk
+ * tests/fuzz/fuzz_archive_index.c), tests/corpus/subtree/ (the index head and
+ * subtree reader of a client's partial index, tests/fuzz/fuzz_subtree.c), tests/corpus/apo_chunk/ (the APO chunk
  * readers and traversal, tests/fuzz/fuzz_apo_chunk.c), tests/corpus/camera_path/ (the
  * camera-path parser, tests/fuzz/fuzz_camera_path.c) and
  * tests/corpus/config_catalog/ (meshserve's config file and catalog.json,
@@ -23,6 +24,7 @@
 #include "fuzz/fuzz_archive_index.c"
 #include "fuzz/fuzz_camera_path.c"
 #include "fuzz/fuzz_config_catalog.c"
+#include "fuzz/fuzz_subtree.c"
 
 typedef bool (*fuzz_one_fn)(const uint8_t *data, size_t size);
 
@@ -68,6 +70,12 @@ static void test_archive_index_corpus(void **state)
     assert_true(replay("tests/corpus/archive_index", ms_fuzz_archive_index_one) >= 6);
 }
 
+static void test_subtree_corpus(void **state)
+{
+    (void)state;
+    assert_true(replay("tests/corpus/subtree", ms_fuzz_subtree_one) >= 6);
+}
+
 static void test_apo_chunk_corpus(void **state)
 {
     (void)state;
@@ -92,6 +100,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_archive_index_corpus),
+        cmocka_unit_test(test_subtree_corpus),
         cmocka_unit_test(test_apo_chunk_corpus),
         cmocka_unit_test(test_camera_path_corpus),
         cmocka_unit_test(test_config_catalog_corpus),

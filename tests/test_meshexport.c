@@ -11,6 +11,7 @@
 #include <cmocka.h>
 
 #include "ms_archive.h"
+#include "ms_subtree.h"
 #include "ms_test.h"
 #include "ms_test_archive.h"
 
@@ -37,8 +38,9 @@ static void test_export_tree_matches_archive(void **state)
     ms_test_bin_path(bin, sizeof bin, "meshexport");
     snprintf(cmd, sizeof cmd, "%s %s bust -o %s --json", bin, archives, out);
     assert_int_equal(ms_test_run(cmd, text, sizeof text), 0);
-    /* 129 geometry files, 86 APO chunks (cells not divisible by 3), one index. */
-    assert_non_null(strstr(text, "\"files\": 216"));
+    /* 129 geometry files, 86 APO chunks (cells not divisible by 3), one index,
+     * one head, three subtrees (0, 1, 65). */
+    assert_non_null(strstr(text, "\"files\": 220"));
     snprintf(path, sizeof path, "%s/bust.msa", archives);
     ms_archive *a;
     assert_int_equal(ms_archive_open(path, &a, NULL), MS_OK);
@@ -49,6 +51,24 @@ static void test_export_tree_matches_archive(void **state)
     assert_int_equal(size, expect_size);
     assert_memory_equal(data, expect, size);
     free(data);
+    /* The index head and the stored subtrees, the server's bytes. */
+    snprintf(path, sizeof path, "%s/models/bust.head", out);
+    data = slurp(path, &size);
+    expect = ms_archive_index_head(a, &expect_size);
+    assert_int_equal(size, expect_size);
+    assert_memory_equal(data, expect, size);
+    free(data);
+    static const uint32_t subtrees[3] = {0, 1, 65};
+    for (int i = 0; i < 3; ++i) {
+        snprintf(path, sizeof path, "%s/models/bust/subtrees/%u", out, subtrees[i]);
+        data = slurp(path, &size);
+        expect = ms_archive_subtree(a, subtrees[i], &expect_size);
+        assert_int_equal(size, expect_size);
+        assert_memory_equal(data, expect, size);
+        free(data);
+    }
+    snprintf(path, sizeof path, "%s/models/bust/subtrees/2", out);
+    assert_int_equal(access(path, F_OK), -1);
     for (uint32_t cell = 0; cell < MS_TEST_ARCHIVE_CELLS; ++cell) {
         snprintf(path, sizeof path, "%s/models/bust/cells/%u/geometry", out, cell);
         data = slurp(path, &size);

@@ -141,16 +141,6 @@ static ms_proto_cell_request steps(uint32_t cell, uint8_t stream, uint8_t priori
     return e;
 }
 
-static void send_batch(ms_test_conn *c, uint32_t handle, uint32_t first_id,
-                       const ms_proto_cell_request *entries, uint16_t count)
-{
-    ms_proto_message m = {.type = MS_PROTO_REQUEST_CELLS, .request_id = first_id};
-    m.body.request_cells.model_handle = handle;
-    m.body.request_cells.entries = entries;
-    m.body.request_cells.count = count;
-    ms_test_conn_send(c, &m);
-}
-
 static void send_ping(ms_test_conn *c, uint64_t opaque)
 {
     ms_proto_message m = {.type = MS_PROTO_PING};
@@ -165,91 +155,6 @@ static void expect_pong(ms_test_conn *c, uint64_t opaque)
         assert_int_equal(ms_test_conn_recv(c, &m, 5.0), 1);
     while (m.type != MS_PROTO_PONG);
     assert_true(m.body.ping.opaque == opaque);
-}
-
-/* Reassembles the answers to requests first..first+count-1: data per id,
- * terminal frames counted, the error code of requests ended by an ERROR. */
-typedef struct answers {
-    uint32_t first, count;
-    uint8_t **data;
-    uint32_t *length, *start, *end;
-    uint16_t *error;
-    unsigned *terminals;
-    uint32_t *order; /* ids in the order their terminal frame came */
-    uint32_t done;
-} answers;
-
-static void answers_init(answers *a, uint32_t first, uint32_t count)
-{
-    memset(a, 0, sizeof *a);
-    a->first = first, a->count = count;
-    a->data = calloc(count, sizeof *a->data);
-    a->length = calloc(count, sizeof *a->length);
-    a->start = calloc(count, sizeof *a->start);
-    a->end = calloc(count, sizeof *a->end);
-    a->error = calloc(count, sizeof *a->error);
-    a->terminals = calloc(count, sizeof *a->terminals);
-    a->order = calloc(count, sizeof *a->order);
-}
-
-static void answers_free(answers *a)
-{
-    for (uint32_t i = 0; i < a->count; ++i)
-        free(a->data[i]);
-    free(a->data), free(a->length), free(a->start), free(a->end), free(a->error);
-    free(a->terminals), free(a->order);
-}
-
-/* Takes one frame into a; returns false when it is not about these requests. */
-static bool answers_take(answers *a, const ms_proto_message *m)
-{
-    if (m->request_id < a->first || m->request_id - a->first >= a->count)
-        return false;
-    uint32_t k = m->request_id - a->first;
-    if (m->type == MS_PROTO_ERROR) {
-        uint32_t n = m->body.error.request_count;
-        for (uint32_t j = 0; j < n && k + j < a->count; ++j) {
-            if (a->terminals[k + j]++ == 0)
-                a->order[a->done++] = m->request_id + j;
-            a->error[k + j] = m->body.error.code;
-        }
-        return true;
-    }
-    assert_int_equal(m->type, MS_PROTO_PAYLOAD);
-    if (a->terminals[k])
-        fail_msg("frame for request %u after its terminal frame", m->request_id);
-    const ms_proto_payload *p = &m->body.payload;
-    if (!a->data[k]) {
-        a->data[k] = malloc(p->end + 1);
-        a->start[k] = p->offset;
-        a->end[k] = p->end;
-    }
-    assert_int_equal(p->end, a->end[k]);
-    assert_int_equal(p->offset, a->start[k] + a->length[k]); /* contiguous, in order */
-    memcpy(a->data[k] + a->length[k], p->data, p->data_length);
-    a->length[k] += p->data_length;
-    if (m->flags & MS_PROTO_FLAG_LAST) {
-        a->terminals[k]++;
-        a->order[a->done++] = m->request_id;
-    }
-    return true;
-}
-
-static void answers_collect(ms_test_conn *c, answers *a)
-{
-    ms_proto_message m;
-    while (a->done < a->count) {
-        int r = ms_test_conn_recv(c, &m, 10.0);
-        if (r != 1)
-            fail_msg("%u of %u requests answered, then %s", a->done, a->count,
-                     r == 0 ? "end of stream" : "time-out");
-        if (m.type == MS_PROTO_ERROR && m.body.error.fatal)
-            fail_msg("fatal error %s: %.*s", ms_proto_error_name(m.body.error.code),
-                     (int)m.body.error.text_length, m.body.error.text);
-        answers_take(a, &m);
-    }
-    for (uint32_t i = 0; i < a->count; ++i)
-        assert_int_equal(a->terminals[i], 1);
 }
 
 /* --- Catalogue, open, payloads ------------------------------------------------ */
@@ -346,9 +251,12 @@ static void test_index_compressed(void **state)
          MS_PROTO_CAP_APO | MS_PROTO_CAP_INDEX_ZLIB, MS_PROTO_INDEX_ZLIB},
         {2, MS_PROTO_CAP_APO, 2, MS_PROTO_CAP_APO, MS_PROTO_INDEX_RAW},
         {1, MS_PROTO_CAP_APO | MS_PROTO_CAP_INDEX_ZLIB, 1, MS_PROTO_CAP_APO, MS_PROTO_INDEX_RAW},
-        /* A later client: the server picks 2 and ignores the bits it does not know. */
-        {9, 0x80000000u | MS_PROTO_CAP_INDEX_ZLIB, 2, MS_PROTO_CAP_INDEX_ZLIB,
+        /* A later client: the server picks 3 and ignores the bits it does not know. */
+        {9, 0x80000000u | MS_PROTO_CAP_INDEX_ZLIB, 3, MS_PROTO_CAP_INDEX_ZLIB,
          MS_PROTO_INDEX_ZLIB},
+        /* Version 3 without CAP_INDEX_SUBTREES: the whole index, as before. */
+        {3, MS_PROTO_CAP_APO | MS_PROTO_CAP_INDEX_ZLIB, 3,
+         MS_PROTO_CAP_APO | MS_PROTO_CAP_INDEX_ZLIB, MS_PROTO_INDEX_ZLIB},
     };
     ms_archive *a = open_archive(f, "dragon");
     size_t size;
@@ -383,10 +291,10 @@ static void check_payloads_equal(const server_fixture *f, const char *name, uint
         e[2 * i] = steps(i, MS_PROTO_STREAM_GEOMETRY, (uint8_t)(i % 7), 0, 63);
         e[2 * i + 1] = steps(i, MS_PROTO_STREAM_APO, (uint8_t)(i % 5), 0, 63);
     }
-    send_batch(&c, handle, 100, e, (uint16_t)(2 * cells));
-    answers a;
-    answers_init(&a, 100, 2 * cells);
-    answers_collect(&c, &a);
+    ms_test_conn_send_batch(&c, handle, 100, e, (uint16_t)(2 * cells));
+    ms_test_answers a;
+    ms_test_answers_init(&a, 100, 2 * cells);
+    ms_test_answers_collect(&c, &a);
     ms_archive *archive = open_archive(f, name);
     for (uint32_t i = 0; i < 2 * cells; ++i) {
         size_t length;
@@ -401,7 +309,7 @@ static void check_payloads_equal(const server_fixture *f, const char *name, uint
                                                   : (const uint8_t *)"", length, NULL), MS_OK);
     }
     ms_archive_close(archive);
-    answers_free(&a);
+    ms_test_answers_free(&a);
     free(e);
     ms_test_conn_close(&c);
 }
@@ -427,10 +335,10 @@ static void test_prefix_ranges(void **state)
         {1, MS_PROTO_STREAM_GEOMETRY, MS_PROTO_UNIT_BYTES, 0, 5, 7},
         {1, MS_PROTO_STREAM_GEOMETRY, MS_PROTO_UNIT_BYTES, 0, 5, 100000},
     };
-    send_batch(&c, handle, 10, e, 6);
-    answers a;
-    answers_init(&a, 10, 6);
-    answers_collect(&c, &a);
+    ms_test_conn_send_batch(&c, handle, 10, e, 6);
+    ms_test_answers a;
+    ms_test_answers_init(&a, 10, 6);
+    ms_test_answers_collect(&c, &a);
     size_t length;
     const uint8_t *g5 = ms_archive_geometry(archive, 5, &length);
     const uint8_t *g = ms_archive_geometry(archive, 1, &length);
@@ -450,7 +358,7 @@ static void test_prefix_ranges(void **state)
     assert_int_equal(a.start[4], 5);
     assert_memory_equal(a.data[4], g + 5, 7);
     assert_int_equal(a.error[5], MS_PROTO_E_RANGE_NOT_SATISFIABLE);
-    answers_free(&a);
+    ms_test_answers_free(&a);
     ms_archive_close(archive);
     ms_test_conn_close(&c);
 }
@@ -474,10 +382,10 @@ static void test_preview_bypass_refused(void **state)
         {6, MS_PROTO_STREAM_GEOMETRY, MS_PROTO_UNIT_BYTES, 0, 0, preview + 1},
         {6, MS_PROTO_STREAM_GEOMETRY, MS_PROTO_UNIT_BYTES, 0, 0, preview},
     };
-    send_batch(&c, handle, 10, e, 6);
-    answers a;
-    answers_init(&a, 10, 6);
-    answers_collect(&c, &a);
+    ms_test_conn_send_batch(&c, handle, 10, e, 6);
+    ms_test_answers a;
+    ms_test_answers_init(&a, 10, 6);
+    ms_test_answers_collect(&c, &a);
     for (int i = 0; i < 3; ++i)
         assert_int_equal(a.error[i], MS_PROTO_E_FORBIDDEN);
     assert_int_equal(a.error[3], 0);
@@ -485,17 +393,17 @@ static void test_preview_bypass_refused(void **state)
     assert_int_equal(a.error[4], MS_PROTO_E_FORBIDDEN);
     assert_int_equal(a.error[5], 0);
     assert_int_equal(a.length[5], preview);
-    answers_free(&a);
+    ms_test_answers_free(&a);
     ms_test_conn_close(&c);
 
     connect_ready(f, &c, TOKEN);
     handle = ms_test_conn_open_model(&c, "dragon", 1, NULL, NULL, NULL);
-    send_batch(&c, handle, 10, e, 1);
-    answers_init(&a, 10, 1);
-    answers_collect(&c, &a);
+    ms_test_conn_send_batch(&c, handle, 10, e, 1);
+    ms_test_answers_init(&a, 10, 1);
+    ms_test_answers_collect(&c, &a);
     assert_int_equal(a.error[0], 0);
     assert_int_equal(a.length[0], full);
-    answers_free(&a);
+    ms_test_answers_free(&a);
     ms_test_conn_close(&c);
     ms_archive_close(archive);
 }
@@ -513,26 +421,26 @@ static void test_priorities(void **state)
     ms_proto_cell_request e[12];
     for (int i = 0; i < 12; ++i)
         e[i] = steps((uint32_t)i + 1, MS_PROTO_STREAM_GEOMETRY, priority[i], 0, 63);
-    send_batch(&c, handle, 50, e, 12);
-    answers a;
-    answers_init(&a, 50, 12);
-    answers_collect(&c, &a);
+    ms_test_conn_send_batch(&c, handle, 50, e, 12);
+    ms_test_answers a;
+    ms_test_answers_init(&a, 50, 12);
+    ms_test_answers_collect(&c, &a);
     const uint32_t expected[12] = {59, 58, 57, 56, 55, 54, 60, 61, 53, 52, 51, 50};
     for (int i = 0; i < 12; ++i)
         assert_int_equal(a.order[i], expected[i]);
-    answers_free(&a);
+    ms_test_answers_free(&a);
 
     /* A later, more urgent batch overtakes a long one at a chunk boundary. */
     ms_proto_cell_request slow[40], urgent[1] = {steps(64, MS_PROTO_STREAM_GEOMETRY, 0, 0, 63)};
     for (int i = 0; i < 40; ++i)
         slow[i] = steps((uint32_t)i + 1, MS_PROTO_STREAM_GEOMETRY, 200, 0, 63);
-    send_batch(&c, handle, 1000, slow, 40);
+    ms_test_conn_send_batch(&c, handle, 1000, slow, 40);
     ms_proto_message m;
     assert_int_equal(ms_test_conn_recv(&c, &m, 5.0), 1);
-    send_batch(&c, handle, 2000, urgent, 1);
-    answers all;
-    answers_init(&all, 1000, 1001);
-    answers_take(&all, &m);
+    ms_test_conn_send_batch(&c, handle, 2000, urgent, 1);
+    ms_test_answers all;
+    ms_test_answers_init(&all, 1000, 1001);
+    ms_test_answers_take(&all, &m);
     bool urgent_done = false;
     uint32_t slow_done_before_urgent = 0;
     while (!urgent_done || all.done < 40) {
@@ -541,12 +449,12 @@ static void test_priorities(void **state)
             urgent_done = true;
             slow_done_before_urgent = all.done;
         } else if (m.request_id != 2000) {
-            answers_take(&all, &m);
+            ms_test_answers_take(&all, &m);
         }
     }
     assert_true(urgent_done);
     assert_true(slow_done_before_urgent < 20);
-    answers_free(&all);
+    ms_test_answers_free(&all);
     ms_test_conn_close(&c);
 }
 
@@ -570,39 +478,39 @@ static void test_cancel(void **state)
     for (uint32_t i = 0; i < BIG_CELLS; ++i)
         e[i] = steps(i, MS_PROTO_STREAM_GEOMETRY, (uint8_t)i, 0, 63);
     /* Cancel a range after the first frame: every id ends exactly once. */
-    send_batch(&c, handle, 1, e, BIG_CELLS);
+    ms_test_conn_send_batch(&c, handle, 1, e, BIG_CELLS);
     ms_proto_message m;
     assert_int_equal(ms_test_conn_recv(&c, &m, 5.0), 1);
     send_cancel(&c, 1, BIG_CELLS, false);
-    answers a;
-    answers_init(&a, 1, BIG_CELLS);
-    answers_take(&a, &m);
-    answers_collect(&c, &a);
+    ms_test_answers a;
+    ms_test_answers_init(&a, 1, BIG_CELLS);
+    ms_test_answers_take(&a, &m);
+    ms_test_answers_collect(&c, &a);
     unsigned cancelled = 0;
     for (uint32_t i = 0; i < BIG_CELLS; ++i)
         cancelled += a.error[i] == MS_PROTO_E_CANCELLED;
     assert_true(cancelled >= BIG_CELLS / 2);
-    answers_free(&a);
+    ms_test_answers_free(&a);
 
     /* Cancel everything at once, then the connection still works. */
-    send_batch(&c, handle, 500, e, BIG_CELLS);
+    ms_test_conn_send_batch(&c, handle, 500, e, BIG_CELLS);
     send_cancel(&c, 0, 0, true);
-    answers_init(&a, 500, BIG_CELLS);
-    answers_collect(&c, &a);
-    answers_free(&a);
+    ms_test_answers_init(&a, 500, BIG_CELLS);
+    ms_test_answers_collect(&c, &a);
+    ms_test_answers_free(&a);
     send_ping(&c, 77);
     expect_pong(&c, 77);
 
     /* CLOSE_MODEL cancels what is outstanding on that handle. */
-    send_batch(&c, handle, 900, e, BIG_CELLS);
+    ms_test_conn_send_batch(&c, handle, 900, e, BIG_CELLS);
     ms_proto_message close_msg = {.type = MS_PROTO_CLOSE_MODEL};
     close_msg.body.close_model.model_handle = handle;
     ms_test_conn_send(&c, &close_msg);
-    answers_init(&a, 900, BIG_CELLS);
-    answers_collect(&c, &a);
+    ms_test_answers_init(&a, 900, BIG_CELLS);
+    ms_test_answers_collect(&c, &a);
     assert_int_equal(a.error[BIG_CELLS - 1], MS_PROTO_E_CANCELLED);
-    answers_free(&a);
-    send_batch(&c, handle, 2000, e, 1);
+    ms_test_answers_free(&a);
+    ms_test_conn_send_batch(&c, handle, 2000, e, 1);
     uint32_t id;
     assert_int_equal(ms_test_conn_expect_error(&c, &id, NULL), MS_PROTO_E_UNKNOWN_MODEL);
     ms_test_conn_close(&c);
@@ -632,7 +540,7 @@ static void test_disconnect_mid_payload_frees_everything(void **state)
         ms_test_conn c;
         connect_ready(f, &c, TOKEN);
         uint32_t handle = ms_test_conn_open_model(&c, "big", 1, NULL, NULL, NULL);
-        send_batch(&c, handle, 1, e, BIG_CELLS);
+        ms_test_conn_send_batch(&c, handle, 1, e, BIG_CELLS);
         ms_proto_message m;
         assert_int_equal(ms_test_conn_recv(&c, &m, 5.0), 1);
         assert_int_equal(m.type, MS_PROTO_PAYLOAD);
@@ -677,15 +585,15 @@ static void test_slow_reader_dropped(void **state)
     uint32_t handle = ms_test_conn_open_model(&stalled, "big", 1, NULL, NULL, NULL);
     /* 3 x 65 cells x 256 KiB: about 50 MB, far beyond the kernel's buffers. */
     for (uint32_t round = 0; round < 3; ++round)
-        send_batch(&stalled, handle, 10 + round * 100, e, BIG_CELLS);
+        ms_test_conn_send_batch(&stalled, handle, 10 + round * 100, e, BIG_CELLS);
     /* Meanwhile a well-behaved client streams the same model in full. */
     connect_ready(f, &reader, TOKEN);
     uint32_t reader_handle = ms_test_conn_open_model(&reader, "big", 1, NULL, NULL, NULL);
-    send_batch(&reader, reader_handle, 10, e, BIG_CELLS);
-    answers a;
-    answers_init(&a, 10, BIG_CELLS);
-    answers_collect(&reader, &a);
-    answers_free(&a);
+    ms_test_conn_send_batch(&reader, reader_handle, 10, e, BIG_CELLS);
+    ms_test_answers a;
+    ms_test_answers_init(&a, 10, BIG_CELLS);
+    ms_test_answers_collect(&reader, &a);
+    ms_test_answers_free(&a);
     double waited = 0;
     while (metric(f, "meshstream_connections") != 1 && waited < 10.0) {
         usleep(100000);
@@ -767,16 +675,16 @@ static void test_corrupt_payload_refused(void **state)
         steps(5, MS_PROTO_STREAM_GEOMETRY, 0, 0, 63),
         {4, MS_PROTO_STREAM_GEOMETRY, MS_PROTO_UNIT_BYTES, 0, 0, 1},
     };
-    send_batch(&c, handle, 10, e, 4);
-    answers a;
-    answers_init(&a, 10, 4);
-    answers_collect(&c, &a); /* fails on any fatal error */
+    ms_test_conn_send_batch(&c, handle, 10, e, 4);
+    ms_test_answers a;
+    ms_test_answers_init(&a, 10, 4);
+    ms_test_answers_collect(&c, &a); /* fails on any fatal error */
     assert_int_equal(a.error[0], MS_PROTO_E_INTERNAL);
     assert_int_equal(a.error[1], MS_PROTO_E_INTERNAL);
     assert_int_equal(a.error[2], 0);
     assert_int_equal(a.length[2], ms_test_archive_geometry_length(5));
     assert_int_equal(a.error[3], MS_PROTO_E_INTERNAL);
-    answers_free(&a);
+    ms_test_answers_free(&a);
     send_ping(&c, 3);
     expect_pong(&c, 3);
     ms_test_conn_close(&c);
@@ -827,12 +735,12 @@ static void test_sighup_adds_model_live(void **state)
     assert_int_equal(m.request_id, 0);
     assert_int_equal(m.body.error.detail, kept);
     ms_proto_cell_request k[1] = {steps(0, MS_PROTO_STREAM_GEOMETRY, 0, 0, 63)};
-    send_batch(&keeper, kept, 2, k, 1);
-    answers ka;
-    answers_init(&ka, 2, 1);
-    answers_collect(&keeper, &ka);
+    ms_test_conn_send_batch(&keeper, kept, 2, k, 1);
+    ms_test_answers ka;
+    ms_test_answers_init(&ka, 2, 1);
+    ms_test_answers_collect(&keeper, &ka);
     assert_int_equal(ka.error[0], MS_PROTO_E_UNKNOWN_MODEL);
-    answers_free(&ka);
+    ms_test_answers_free(&ka);
     send_ping(&keeper, 11); /* still open */
     expect_pong(&keeper, 11);
     ms_test_conn_close(&keeper);
@@ -841,17 +749,17 @@ static void test_sighup_adds_model_live(void **state)
     uint32_t handle = ms_test_conn_open_model(&c, "horse", 3, NULL, NULL, NULL);
     assert_true(handle >= 1);
     ms_proto_cell_request e[1] = {steps(0, MS_PROTO_STREAM_GEOMETRY, 0, 0, 63)};
-    send_batch(&c, handle, 4, e, 1);
-    answers a;
-    answers_init(&a, 4, 1);
-    answers_collect(&c, &a);
+    ms_test_conn_send_batch(&c, handle, 4, e, 1);
+    ms_test_answers a;
+    ms_test_answers_init(&a, 4, 1);
+    ms_test_answers_collect(&c, &a);
     ms_archive *archive = open_archive(f, "horse");
     size_t length;
     const uint8_t *g = ms_archive_geometry(archive, 0, &length);
     assert_int_equal(a.length[0], length);
     assert_memory_equal(a.data[0], g, length);
     ms_archive_close(archive);
-    answers_free(&a);
+    ms_test_answers_free(&a);
     ms_test_conn_close(&c);
 }
 
@@ -864,17 +772,17 @@ static void test_sigterm_finishes_transfers(void **state)
     ms_proto_cell_request e[20];
     for (uint32_t i = 0; i < 20; ++i)
         e[i] = steps(i, MS_PROTO_STREAM_GEOMETRY, 1, 0, 63);
-    send_batch(&c, handle, 1, e, 20);
+    ms_test_conn_send_batch(&c, handle, 1, e, 20);
     ms_proto_message m;
     assert_int_equal(ms_test_conn_recv(&c, &m, 5.0), 1);
     kill(f->pid, SIGTERM);
-    answers a;
-    answers_init(&a, 1, 20);
-    answers_take(&a, &m);
-    answers_collect(&c, &a);
+    ms_test_answers a;
+    ms_test_answers_init(&a, 1, 20);
+    ms_test_answers_take(&a, &m);
+    ms_test_answers_collect(&c, &a);
     for (uint32_t i = 0; i < 20; ++i)
         assert_int_equal(a.error[i], 0);
-    answers_free(&a);
+    ms_test_answers_free(&a);
     ms_proto_error_body body;
     assert_int_equal(ms_test_conn_expect_error(&c, NULL, &body), MS_PROTO_E_SHUTTING_DOWN);
     assert_true(body.fatal);
@@ -981,8 +889,8 @@ static void test_malformed_frames(void **state)
     header(frame, 24, MS_PROTO_HELLO, 0, 0);
     memcpy(frame + 12, "XSTP\1\0\1\0\0\0\0\0\0\100\0\0", 16);
     expect_fatal(f, false, frame, 36, MS_PROTO_E_MALFORMED_FRAME, UINT64_MAX);
-    memcpy(frame + 12, "MSTP\3\0\4\0\0\0\0\0\0\100\0\0", 16);
-    expect_fatal(f, false, frame, 36, MS_PROTO_E_UNSUPPORTED_VERSION, 1u | 2u << 16);
+    memcpy(frame + 12, "MSTP\4\0\5\0\0\0\0\0\0\100\0\0", 16);
+    expect_fatal(f, false, frame, 36, MS_PROTO_E_UNSUPPORTED_VERSION, 1u | 3u << 16);
     memcpy(frame + 12, "MSTP\1\0\1\0\0\0\0\0\0\100\0\0", 16);
     expect_fatal(f, true, frame, 36, MS_PROTO_E_UNEXPECTED_MESSAGE, MS_PROTO_HELLO);
     /* A request id that breaks the rule of its type. */
@@ -1052,7 +960,7 @@ static void test_bad_requests(void **state)
     assert_false(body.fatal);
     /* Oversized batch: max_batch is 1024. */
     ms_proto_cell_request *many = calloc(1025, sizeof *many);
-    send_batch(&c, handle, 100, many, 1025);
+    ms_test_conn_send_batch(&c, handle, 100, many, 1025);
     assert_int_equal(ms_test_conn_expect_error(&c, &id, &body), MS_PROTO_E_BATCH_TOO_LARGE);
     assert_int_equal(body.request_count, 1025);
     assert_int_equal(body.detail, 1024);
@@ -1066,19 +974,19 @@ static void test_bad_requests(void **state)
         steps(70, MS_PROTO_STREAM_APO, 0, 0, 3), /* cell 70 starts at 9 bits */
         steps(1, MS_PROTO_STREAM_APO, 0, 0, 3),
     };
-    send_batch(&c, handle, 200, e, 6);
-    answers a;
-    answers_init(&a, 200, 6);
-    answers_collect(&c, &a);
+    ms_test_conn_send_batch(&c, handle, 200, e, 6);
+    ms_test_answers a;
+    ms_test_answers_init(&a, 200, 6);
+    ms_test_answers_collect(&c, &a);
     assert_int_equal(a.error[0], MS_PROTO_E_UNKNOWN_CELL);
     assert_int_equal(a.error[1], MS_PROTO_E_RANGE_NOT_SATISFIABLE);
     assert_int_equal(a.error[2], MS_PROTO_E_FORBIDDEN);
     assert_int_equal(a.error[3], 0);
     assert_int_equal(a.error[4], MS_PROTO_E_FORBIDDEN);
     assert_int_equal(a.error[5], 0);
-    answers_free(&a);
+    ms_test_answers_free(&a);
     /* Unknown handles. */
-    send_batch(&c, 99, 300, e + 3, 1);
+    ms_test_conn_send_batch(&c, 99, 300, e + 3, 1);
     assert_int_equal(ms_test_conn_expect_error(&c, &id, &body), MS_PROTO_E_UNKNOWN_MODEL);
     assert_int_equal(id, 300);
     ms_proto_message close_msg = {.type = MS_PROTO_CLOSE_MODEL};
@@ -1098,8 +1006,8 @@ static void test_bad_requests(void **state)
     ms_proto_cell_request big[BIG_CELLS];
     for (uint32_t i = 0; i < BIG_CELLS; ++i)
         big[i] = steps(i, MS_PROTO_STREAM_GEOMETRY, 0, 0, 63);
-    send_batch(&c, handle, 100, big, BIG_CELLS);
-    send_batch(&c, handle, 164, big, 1);
+    ms_test_conn_send_batch(&c, handle, 100, big, BIG_CELLS);
+    ms_test_conn_send_batch(&c, handle, 164, big, 1);
     assert_int_equal(ms_test_conn_expect_error(&c, &id, &body), MS_PROTO_E_DUPLICATE_REQUEST_ID);
     assert_true(body.fatal);
     assert_true(body.detail == 164);
@@ -1166,10 +1074,10 @@ static void test_random_requests(void **state)
                 e[i].b = 1 + y % 400;
             }
         }
-        send_batch(&c, handle, next, e, 50);
-        answers a;
-        answers_init(&a, next, 50);
-        answers_collect(&c, &a);
+        ms_test_conn_send_batch(&c, handle, next, e, 50);
+        ms_test_answers a;
+        ms_test_answers_init(&a, next, 50);
+        ms_test_answers_collect(&c, &a);
         for (int i = 0; i < 50; ++i) {
             uint16_t code = a.error[i];
             assert_true(code == 0 || code == MS_PROTO_E_UNKNOWN_CELL ||
@@ -1177,7 +1085,7 @@ static void test_random_requests(void **state)
             if (code == 0 && e[i].unit == MS_PROTO_UNIT_BYTES)
                 assert_int_equal(a.length[i], e[i].b);
         }
-        answers_free(&a);
+        ms_test_answers_free(&a);
         next += 50;
     }
     ms_test_conn_close(&c);
@@ -1203,27 +1111,27 @@ static void test_limits(void **state)
     for (uint32_t i = 0; i < 16; ++i)
         r[i] = steps(i + 1, MS_PROTO_STREAM_GEOMETRY, 0, 7, 7); /* ~5 KiB headers */
     /* More outstanding than allowed. */
-    send_batch(&c, handle, 10, r, 9);
+    ms_test_conn_send_batch(&c, handle, 10, r, 9);
     assert_int_equal(ms_test_conn_expect_error(&c, &id, &body), MS_PROTO_E_TOO_MANY_OUTSTANDING);
     assert_int_equal(id, 10);
     assert_int_equal(body.request_count, 9);
     /* More bytes than max_queued_bytes (a whole 192+ KiB cell). */
     r[15] = steps(3, MS_PROTO_STREAM_GEOMETRY, 0, 0, 63);
-    send_batch(&c, handle, 30, r + 15, 1);
+    ms_test_conn_send_batch(&c, handle, 30, r + 15, 1);
     assert_int_equal(ms_test_conn_expect_error(&c, &id, &body), MS_PROTO_E_QUEUE_FULL);
     assert_true(body.detail == 65536);
     /* Rate: burst of max_batch (16) then 5 per second. */
     uint32_t next = 100;
     uint16_t code = 0;
     for (int round = 0; round < 10 && code != MS_PROTO_E_RATE_LIMITED; ++round) {
-        send_batch(&c, handle, next, r, 8);
-        answers a;
-        answers_init(&a, next, 8);
-        answers_collect(&c, &a);
+        ms_test_conn_send_batch(&c, handle, next, r, 8);
+        ms_test_answers a;
+        ms_test_answers_init(&a, next, 8);
+        ms_test_answers_collect(&c, &a);
         code = a.error[0];
         if (code == MS_PROTO_E_RATE_LIMITED)
             assert_int_equal(a.error[7], MS_PROTO_E_RATE_LIMITED);
-        answers_free(&a);
+        ms_test_answers_free(&a);
         next += 8;
     }
     assert_int_equal(code, MS_PROTO_E_RATE_LIMITED);

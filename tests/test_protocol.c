@@ -325,6 +325,11 @@ static uint8_t blob[70000];
 static ms_proto_cell_request big_batch[MS_PROTO_MAX_BATCH];
 static ms_proto_id_range many_ranges[MS_PROTO_MAX_CANCEL_RANGES];
 static ms_proto_catalogue_entry catalogue_entries[3];
+static const ms_proto_cell_request subtree_requests[2] = {
+    {.cell_id = 65, .stream = MS_PROTO_STREAM_INDEX, .unit = MS_PROTO_UNIT_STEPS, .priority = 1,
+     .a = 0, .b = 0},
+    {.cell_id = UINT32_MAX, .stream = MS_PROTO_STREAM_INDEX, .unit = MS_PROTO_UNIT_BYTES,
+     .priority = 255, .a = 1000, .b = 24}};
 
 static void fill_fixtures(void)
 {
@@ -530,6 +535,28 @@ static bool sample_message(unsigned i, ms_proto_message *m)
         m->body.error = (ms_proto_error_body){.code = MS_PROTO_E_MODEL_CHANGED, .detail = 7,
                                               .text = "model changed", .text_length = 13};
         return true;
+    case 27: /* version 3: the index head (section 4.7) */
+        m->type = MS_PROTO_MODEL_OPENED;
+        m->request_id = 4;
+        m->body.model_opened = (ms_proto_model_opened){
+            .model_handle = 2, .cell_count = 1281, .content_id = 77, .index_size = 2000,
+            .index_crc32 = 0xDEADBEEF, .archive_version = 3, .geometry_steps = 16,
+            .apo_steps = 6, .permitted_geometry_steps = 10, .permitted_apo_steps = 6,
+            .index_encoding = MS_PROTO_INDEX_SUBTREES};
+        return true;
+    case 28: /* version 3: subtrees by STEPS (the whole) and by BYTES (resuming) */
+        m->type = MS_PROTO_REQUEST_CELLS;
+        m->request_id = 40;
+        m->body.request_cells = (ms_proto_request_cells){2, subtree_requests, 2};
+        return true;
+    case 29: /* version 3: a subtree's last chunk */
+        m->type = MS_PROTO_PAYLOAD;
+        m->flags = MS_PROTO_FLAG_LAST;
+        m->request_id = 40;
+        m->body.payload = (ms_proto_payload){.cell_id = 65, .stream = MS_PROTO_STREAM_INDEX,
+                                             .offset = 0, .end = 300, .data = blob,
+                                             .data_length = 300};
+        return true;
     default:
         return false;
     }
@@ -678,7 +705,7 @@ static void test_encoder_refuses_out_of_range(void **state)
            MS_PROTO_E_FIELD_OUT_OF_RANGE);
     REFUSE((sample_message(11, &m), m.body.model_opened.permitted_geometry_steps = 2),
            MS_PROTO_E_FIELD_OUT_OF_RANGE);
-    REFUSE((sample_message(12, &m), m.body.model_opened.index_encoding = MS_PROTO_INDEX_ZLIB + 1),
+    REFUSE((sample_message(12, &m), m.body.model_opened.index_encoding = MS_PROTO_INDEX_SUBTREES + 1),
            MS_PROTO_E_FIELD_OUT_OF_RANGE);
     REFUSE((sample_message(14, &m), m.request_id = 0), MS_PROTO_E_MALFORMED_FRAME);
     REFUSE((sample_message(6, &m), m.flags = MS_PROTO_FLAG_LAST), MS_PROTO_E_MALFORMED_FRAME);
@@ -992,7 +1019,7 @@ static void test_out_of_range_fields(void **state)
     ms_proto_cell_request e;
     size_t n;
     /* Not fatal in a client's frame: the ERROR names the whole batch. */
-    e = good, e.stream = 2;
+    e = good, e.stream = MS_PROTO_STREAM_INDEX + 1;
     n = raw_batch(f, 100, 1, 3, e);
     expect_fault(MS_PROTO_ROLE_SERVER, 8, f, n, MS_PROTO_E_FIELD_OUT_OF_RANGE, false, 100, 3, 8 + 4);
     e = good, e.unit = 9;
@@ -1056,9 +1083,10 @@ static void test_out_of_range_fields(void **state)
     f[12 + 26] = 65; /* geometry_steps above 64 */
     f[12 + 28] = 1;
     expect_fault(MS_PROTO_ROLE_CLIENT, 0, f, 44, MS_PROTO_E_FIELD_OUT_OF_RANGE, true, 0, 0, 26);
-    /* Version 2's index_encoding: 0 and 1 only; the byte after it is reserved. */
+    /* index_encoding: 0, 1 (version 2) and 2 (version 3) only; the byte after
+     * it is reserved. */
     f[12 + 26] = 1;
-    f[12 + 30] = 2;
+    f[12 + 30] = MS_PROTO_INDEX_SUBTREES + 1;
     expect_fault(MS_PROTO_ROLE_CLIENT, 0, f, 44, MS_PROTO_E_FIELD_OUT_OF_RANGE, true, 0, 0, 30);
     f[12 + 30] = MS_PROTO_INDEX_ZLIB;
     f[12 + 31] = 1;
@@ -1503,7 +1531,8 @@ static void write_index_seeds(const char *dir)
         {"client-ok-index-zlib-declared-long.bin", 1, 0, 0, 0, false, MS_PROTO_INDEX_ZLIB},
         {"client-ok-index-zlib-trailing.bin", 0, 0, 0, 3, false, MS_PROTO_INDEX_ZLIB},
         {"client-ok-index-zlib-bomb.bin", -15000, 0, 0, 0, false, MS_PROTO_INDEX_ZLIB},
-        {"client-FIELD_OUT_OF_RANGE-index-encoding.bin", 0, 0, 0, 0, false, 2},
+        {"client-FIELD_OUT_OF_RANGE-index-encoding.bin", 0, 0, 0, 0, false,
+         MS_PROTO_INDEX_SUBTREES + 1},
     };
     for (size_t i = 0; i < sizeof seeds / sizeof *seeds; ++i)
         write_index_seed(dir, &seeds[i], index_blob, sizeof index_blob, z, z_size);
@@ -1555,9 +1584,12 @@ static void write_corpus(const char *dir)
     f[6] = 0;
     n = raw_batch(f, 10, 1, 20, good);
     write_seed(dir, "server-BATCH_TOO_LARGE.bin", 2, f, n, NULL, 0);
-    e = good, e.stream = 2;
+    e = good, e.stream = MS_PROTO_STREAM_INDEX + 1;
     n = raw_batch(f, 10, 1, 2, e);
     write_seed(dir, "server-FIELD_OUT_OF_RANGE-stream.bin", 2, f, n, NULL, 0);
+    e = good, e.stream = MS_PROTO_STREAM_INDEX, e.a = 0, e.b = 1; /* a subtree has step 0 only */
+    n = raw_batch(f, 10, 1, 1, e);
+    write_seed(dir, "server-FIELD_OUT_OF_RANGE-subtree-steps.bin", 2, f, n, NULL, 0);
     e = good, e.unit = MS_PROTO_UNIT_BYTES, e.a = 5, e.b = UINT32_MAX;
     n = raw_batch(f, 10, 1, 1, e);
     write_seed(dir, "server-FIELD_OUT_OF_RANGE-bytes.bin", 2, f, n, NULL, 0);

@@ -1,6 +1,8 @@
-/* Archive reader (versions 1 and 2) and the record codec shared with the
+/* Archive reader (versions 1, 2 and 3) and the record codec shared with the
  * writer. See ms_archive.h and docs/ARCHIVE.md. */
 #include "ms_archive.h"
+#include "ms_archive_internal.h"
+#include "ms_subtree.h"
 
 #include <errno.h>
 #include <fcntl.h>
@@ -15,30 +17,6 @@
 
 static const uint8_t archive_magic[8] = {'M', 'S', 'A', 'R', 'C', 'H', '\r', '\n'};
 
-struct ms_archive {
-    const uint8_t *map;
-    size_t map_size;
-    bool index_only; /* a malloc'd copy of header + index, no payloads */
-    ms_archive_header header;
-    ms_archive_cell *cells;
-    /* The index blob (version-1 header + raw index): the start of map for a
-     * version-1 file or an index blob, else inflated_blob. */
-    const uint8_t *blob;
-    uint8_t *inflated_blob; /* version 2: malloc'd, MS_ARCHIVE_HEADER_SIZE + index_size */
-    const uint8_t *tables;  /* table words, little-endian */
-    const uint8_t *payload;
-    uint64_t payload_size;
-    uint64_t index_size; /* raw */
-};
-
-/* The header's sections, as parse_header reads them. */
-typedef struct archive_sections {
-    uint64_t index_size;  /* raw: 80 * cells + 4 * table words */
-    uint64_t stored_size; /* bytes of the index in the file */
-    uint64_t payload_size;
-    uint32_t index_crc;   /* of the raw index */
-} archive_sections;
-
 /* Deflate's densest code is a 258-byte match in 2 bits, so a zlib stream of s
  * bytes never inflates to more than 1032 * s: a header that claims more is
  * rejected before anything is allocated. */
@@ -51,38 +29,19 @@ _Static_assert((uint64_t)MS_ARCHIVE_MAX_CELLS * MS_ARCHIVE_RECORD_SIZE +
 
 /* --- Little-endian field access ------------------------------------------- */
 
-static uint32_t get_u32(const uint8_t *p)
-{
-    return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
-}
-
-static uint64_t get_u64(const uint8_t *p) { return get_u32(p) | (uint64_t)get_u32(p + 4) << 32; }
-
 static double get_f64(const uint8_t *p)
 {
-    uint64_t bits = get_u64(p);
+    uint64_t bits = ms_get_u64(p);
     double d;
     memcpy(&d, &bits, sizeof d);
     return d;
-}
-
-static void put_u32(uint8_t *p, uint32_t v)
-{
-    for (int i = 0; i < 4; ++i)
-        p[i] = (uint8_t)(v >> (8 * i));
-}
-
-static void put_u64(uint8_t *p, uint64_t v)
-{
-    put_u32(p, (uint32_t)v);
-    put_u32(p + 4, (uint32_t)(v >> 32));
 }
 
 static void put_f64(uint8_t *p, double d)
 {
     uint64_t bits;
     memcpy(&bits, &d, sizeof bits);
-    put_u64(p, bits);
+    ms_put_u64(p, bits);
 }
 
 static bool all_zero(const uint8_t *p, size_t n)
@@ -111,8 +70,8 @@ void ms_archive_encode_header(const ms_archive_header *h, unsigned version, uint
     uint64_t stored = zlib_index ? stored_index_size : index_size;
     memset(out, 0, MS_ARCHIVE_HEADER_SIZE);
     memcpy(out, archive_magic, 8);
-    put_u32(out + 8, version);
-    put_u32(out + 12, MS_ARCHIVE_HEADER_SIZE);
+    ms_put_u32(out + 8, version);
+    ms_put_u32(out + 12, MS_ARCHIVE_HEADER_SIZE);
     for (int a = 0; a < 3; ++a)
         put_f64(out + 16 + 8 * a, h->box_origin[a]);
     put_f64(out + 40, h->box_side);
@@ -120,44 +79,60 @@ void ms_archive_encode_header(const ms_archive_header *h, unsigned version, uint
     out[49] = h->n;
     out[50] = h->root_bits;
     out[51] = h->has_apo ? 1 : 0;
-    put_u32(out + 52, h->cell_count);
-    put_u64(out + 56, h->vertex_count);
-    put_u64(out + 64, h->triangle_count);
-    put_u32(out + 72, h->table_words);
-    put_u32(out + 76, h->min_triangles);
-    put_u64(out + 80, index_size);
-    put_u64(out + 88, payload_size);
-    put_u64(out + 96, MS_ARCHIVE_HEADER_SIZE + stored + payload_size);
+    ms_put_u32(out + 52, h->cell_count);
+    ms_put_u64(out + 56, h->vertex_count);
+    ms_put_u64(out + 64, h->triangle_count);
+    ms_put_u32(out + 72, h->table_words);
+    ms_put_u32(out + 76, h->min_triangles);
+    ms_put_u64(out + 80, index_size);
+    ms_put_u64(out + 88, payload_size);
+    ms_put_u64(out + 96, MS_ARCHIVE_HEADER_SIZE + stored + payload_size);
     out[104] = h->apo_lead;
     out[105] = h->apo_max_depth;
-    put_u32(out + 108, index_crc);
+    ms_put_u32(out + 108, index_crc);
     if (zlib_index) {
-        put_u64(out + 112, stored_index_size);
+        ms_put_u64(out + 112, stored_index_size);
         out[120] = MS_ARCHIVE_INDEX_ZLIB;
     }
-    put_u32(out + 124, (uint32_t)crc32(0L, out, 124));
+    ms_put_u32(out + 124, (uint32_t)crc32(0L, out, 124));
+}
+
+void ms_archive_encode_header_v3(const ms_archive_header *h, uint64_t index_size,
+                                 uint32_t stored_size, uint64_t payload_size, uint64_t file_size,
+                                 uint32_t index_crc, unsigned subtree_levels,
+                                 uint32_t subtree_count, uint8_t out[MS_ARCHIVE_HEADER_SIZE])
+{
+    ms_archive_encode_header(h, MS_ARCHIVE_VERSION_RAW_INDEX, index_size, index_size,
+                             payload_size, index_crc, out);
+    ms_put_u32(out + 8, MS_ARCHIVE_VERSION_SUBTREES);
+    ms_put_u64(out + 96, file_size);
+    ms_put_u32(out + 112, stored_size);
+    ms_put_u32(out + 116, subtree_count);
+    out[120] = MS_ARCHIVE_INDEX_SUBTREES;
+    out[121] = (uint8_t)subtree_levels;
+    ms_put_u32(out + 124, (uint32_t)crc32(0L, out, 124));
 }
 
 void ms_archive_encode_cell(const ms_archive_cell *c, uint8_t out[MS_ARCHIVE_RECORD_SIZE])
 {
     memset(out, 0, MS_ARCHIVE_RECORD_SIZE);
-    put_u32(out, c->parent);
-    put_u32(out + 4, c->first_child);
+    ms_put_u32(out, c->parent);
+    ms_put_u32(out + 4, c->first_child);
     out[8] = c->level;
     out[9] = c->bits_min;
     out[10] = c->bits_max;
     for (int a = 0; a < 3; ++a)
-        put_u32(out + 12 + 4 * a, c->position[a]);
-    put_u32(out + 24, c->vertex_count);
-    put_u32(out + 28, c->triangle_count);
-    put_u64(out + 32, c->geometry_offset);
-    put_u32(out + 40, c->geometry_length);
-    put_u32(out + 44, c->geometry_crc);
-    put_u64(out + 48, c->apo_offset);
-    put_u32(out + 56, c->apo_length);
-    put_u32(out + 60, c->apo_crc);
-    put_u32(out + 64, c->apo_raw_length);
-    put_u32(out + 68, c->table_first);
+        ms_put_u32(out + 12 + 4 * a, c->position[a]);
+    ms_put_u32(out + 24, c->vertex_count);
+    ms_put_u32(out + 28, c->triangle_count);
+    ms_put_u64(out + 32, c->geometry_offset);
+    ms_put_u32(out + 40, c->geometry_length);
+    ms_put_u32(out + 44, c->geometry_crc);
+    ms_put_u64(out + 48, c->apo_offset);
+    ms_put_u32(out + 56, c->apo_length);
+    ms_put_u32(out + 60, c->apo_crc);
+    ms_put_u32(out + 64, c->apo_raw_length);
+    ms_put_u32(out + 68, c->table_first);
     out[72] = c->apo_levels;
 }
 
@@ -177,36 +152,95 @@ void ms_archive_cell_window(const ms_archive_header *h, unsigned level, bool lea
 
 /* --- Validation ----------------------------------------------------------- */
 
-static ms_status parse_header(const char *path, const uint8_t *p, size_t size, bool index_only,
-                              ms_archive_header *h, archive_sections *sec, ms_error *err)
+/* The sections a header declares against the bytes it heads. */
+static ms_status check_sections(const char *path, size_t size, ms_header_kind kind,
+                                const ms_archive_header *h, const ms_archive_sections *sec,
+                                ms_error *err)
+{
+    if (kind != MS_HEADER_FILE) {
+        /* A blob or a head: the file size is the one of a version-1 file of the
+         * model, whatever follows the header here. */
+        uint64_t follows = kind == MS_HEADER_BLOB ? sec->index_size : sec->stored_size;
+        if (size != MS_ARCHIVE_HEADER_SIZE + follows)
+            return ms_error_set(err, MS_ERR_FORMAT, "%s: index %s is %zu bytes, expected %llu",
+                                path, kind == MS_HEADER_BLOB ? "blob" : "head", size,
+                                (unsigned long long)(MS_ARCHIVE_HEADER_SIZE + follows));
+        if (sec->payload_size > UINT64_MAX / 2 ||
+            h->file_size != MS_ARCHIVE_HEADER_SIZE + sec->index_size + sec->payload_size)
+            return ms_error_set(err, MS_ERR_FORMAT, "%s: section sizes do not add up", path);
+        return MS_OK;
+    }
+    if (h->file_size != size)
+        return ms_error_set(err, MS_ERR_FORMAT,
+                            "%s: file is %zu bytes but its header says %llu (truncated?)", path,
+                            size, (unsigned long long)h->file_size);
+    if (h->version == MS_ARCHIVE_VERSION_ZLIB_INDEX) {
+        if (sec->stored_size > size - MS_ARCHIVE_HEADER_SIZE)
+            return ms_error_set(err, MS_ERR_FORMAT,
+                                "%s: compressed index of %llu bytes runs past the end of the "
+                                "%zu-byte file", path, (unsigned long long)sec->stored_size, size);
+        /* index_size is capped by now, so the sum cannot wrap. */
+        if (sec->stored_size < (sec->index_size + ZLIB_MAX_RATIO - 1) / ZLIB_MAX_RATIO ||
+            sec->stored_size == 0)
+            return ms_error_set(err, MS_ERR_FORMAT,
+                                "%s: a compressed index of %llu bytes cannot inflate to %llu",
+                                path, (unsigned long long)sec->stored_size,
+                                (unsigned long long)sec->index_size);
+    }
+    if (sec->payload_size > size ||
+        MS_ARCHIVE_HEADER_SIZE + sec->stored_size > size - sec->payload_size ||
+        MS_ARCHIVE_HEADER_SIZE + sec->stored_size + sec->payload_size != size)
+        return ms_error_set(err, MS_ERR_FORMAT, "%s: section sizes do not add up to the file size",
+                            path);
+    return MS_OK;
+}
+
+ms_status ms_archive_parse_header(const char *path, const uint8_t *p, size_t size,
+                                 ms_header_kind kind, ms_archive_header *h,
+                                 ms_archive_sections *sec, ms_error *err)
 {
     if (size < MS_ARCHIVE_HEADER_SIZE)
         return ms_error_set(err, MS_ERR_FORMAT, "%s: %zu bytes is too short for an archive header",
                             path, size);
     if (memcmp(p, archive_magic, 8) != 0)
         return ms_error_set(err, MS_ERR_FORMAT, "%s: not a meshstream archive (bad magic)", path);
-    uint32_t version = get_u32(p + 8);
-    if (index_only && version != MS_ARCHIVE_BLOB_VERSION)
+    uint32_t version = ms_get_u32(p + 8);
+    if (kind == MS_HEADER_BLOB && version != MS_ARCHIVE_BLOB_VERSION)
         return ms_error_set(err, MS_ERR_UNSUPPORTED,
                             "%s: index blob version %u, this build reads version %u", path,
                             version, MS_ARCHIVE_BLOB_VERSION);
-    if (version != MS_ARCHIVE_VERSION_RAW_INDEX && version != MS_ARCHIVE_VERSION)
+    if (kind == MS_HEADER_HEAD && version != MS_ARCHIVE_VERSION_SUBTREES)
         return ms_error_set(err, MS_ERR_UNSUPPORTED,
-                            "%s: archive version %u, this build reads %u and %u", path, version,
-                            MS_ARCHIVE_VERSION_RAW_INDEX, MS_ARCHIVE_VERSION);
-    bool zlib_index = version == MS_ARCHIVE_VERSION;
-    if ((uint32_t)crc32(0L, p, 124) != get_u32(p + 124))
+                            "%s: index head version %u, this build reads version %u", path,
+                            version, MS_ARCHIVE_VERSION_SUBTREES);
+    if (version != MS_ARCHIVE_VERSION_RAW_INDEX && version != MS_ARCHIVE_VERSION_ZLIB_INDEX &&
+        version != MS_ARCHIVE_VERSION_SUBTREES)
+        return ms_error_set(err, MS_ERR_UNSUPPORTED,
+                            "%s: archive version %u, this build reads %u, %u and %u", path,
+                            version, MS_ARCHIVE_VERSION_RAW_INDEX, MS_ARCHIVE_VERSION_ZLIB_INDEX,
+                            MS_ARCHIVE_VERSION_SUBTREES);
+    bool zlib_index = version == MS_ARCHIVE_VERSION_ZLIB_INDEX;
+    bool subtrees = version == MS_ARCHIVE_VERSION_SUBTREES;
+    if ((uint32_t)crc32(0L, p, 124) != ms_get_u32(p + 124))
         return ms_error_set(err, MS_ERR_CORRUPT, "%s: header checksum mismatch", path);
     /* Version 1 reserves bytes 112..123; version 2 stores the index's size
-     * (112..119) and encoding (120) there. */
-    if (get_u32(p + 12) != MS_ARCHIVE_HEADER_SIZE || !all_zero(p + 106, 2) ||
-        !all_zero(p + (zlib_index ? 121 : 112), zlib_index ? 3 : 12) || (p[51] & ~1u))
+     * (112..119) and encoding (120) there; version 3 its stored size (112..115),
+     * the subtree count (116..119), the encoding (120) and S (121). */
+    const uint8_t *reserved_tail = p + (zlib_index ? 121 : subtrees ? 122 : 112);
+    size_t reserved_tail_size = zlib_index ? 3 : subtrees ? 2 : 12;
+    if (ms_get_u32(p + 12) != MS_ARCHIVE_HEADER_SIZE || !all_zero(p + 106, 2) ||
+        !all_zero(reserved_tail, reserved_tail_size) || (p[51] & ~1u))
         return ms_error_set(err, MS_ERR_FORMAT, "%s: bad header size or reserved bytes", path);
     if (zlib_index && p[120] != MS_ARCHIVE_INDEX_ZLIB)
         return ms_error_set(err, MS_ERR_FORMAT,
                             "%s: index encoding %u, version %u stores zlib (%u)", path, p[120],
                             version, MS_ARCHIVE_INDEX_ZLIB);
+    if (subtrees && p[120] != MS_ARCHIVE_INDEX_SUBTREES)
+        return ms_error_set(err, MS_ERR_FORMAT,
+                            "%s: index encoding %u, version %u stores subtrees (%u)", path,
+                            p[120], version, MS_ARCHIVE_INDEX_SUBTREES);
     memset(h, 0, sizeof *h);
+    memset(sec, 0, sizeof *sec);
     for (int a = 0; a < 3; ++a)
         h->box_origin[a] = get_f64(p + 16 + 8 * a);
     h->box_side = get_f64(p + 40);
@@ -214,18 +248,24 @@ static ms_status parse_header(const char *path, const uint8_t *p, size_t size, b
     h->n = p[49];
     h->root_bits = p[50];
     h->has_apo = p[51] & 1;
-    h->cell_count = get_u32(p + 52);
-    h->vertex_count = get_u64(p + 56);
-    h->triangle_count = get_u64(p + 64);
-    h->table_words = get_u32(p + 72);
-    h->min_triangles = get_u32(p + 76);
-    sec->index_size = get_u64(p + 80);
-    sec->payload_size = get_u64(p + 88);
-    h->file_size = get_u64(p + 96);
+    h->cell_count = ms_get_u32(p + 52);
+    h->vertex_count = ms_get_u64(p + 56);
+    h->triangle_count = ms_get_u64(p + 64);
+    h->table_words = ms_get_u32(p + 72);
+    h->min_triangles = ms_get_u32(p + 76);
+    sec->index_size = ms_get_u64(p + 80);
+    sec->payload_size = ms_get_u64(p + 88);
+    h->file_size = ms_get_u64(p + 96);
     h->apo_lead = p[104];
     h->apo_max_depth = p[105];
-    sec->index_crc = get_u32(p + 108);
-    sec->stored_size = zlib_index ? get_u64(p + 112) : sec->index_size;
+    sec->index_crc = ms_get_u32(p + 108);
+    sec->stored_size = zlib_index ? ms_get_u64(p + 112)
+                       : subtrees ? ms_get_u32(p + 112)
+                                  : sec->index_size;
+    if (subtrees) {
+        sec->subtree_count = ms_get_u32(p + 116);
+        sec->subtree_levels = p[121];
+    }
     h->version = version;
     h->index_stored_size = sec->stored_size;
     for (int a = 0; a < 3; ++a)
@@ -248,6 +288,13 @@ static ms_status parse_header(const char *path, const uint8_t *p, size_t size, b
     if (h->table_words > MS_ARCHIVE_MAX_TABLE_WORDS || h->vertex_count > (1ull << 32) ||
         h->triangle_count > (1ull << 34) || h->apo_lead > 16 || h->apo_max_depth > 24)
         return ms_error_set(err, MS_ERR_RANGE, "%s: header count out of range", path);
+    if (subtrees && (sec->subtree_levels < MS_SUBTREE_MIN_LEVELS ||
+                     sec->subtree_levels > MS_SUBTREE_MAX_LEVELS))
+        return ms_error_set(err, MS_ERR_RANGE, "%s: subtree depth %u outside %u..%u", path,
+                            sec->subtree_levels, MS_SUBTREE_MIN_LEVELS, MS_SUBTREE_MAX_LEVELS);
+    if (subtrees && (sec->subtree_count < 1 || sec->subtree_count > h->cell_count))
+        return ms_error_set(err, MS_ERR_RANGE, "%s: %u subtrees outside 1..%u", path,
+                            sec->subtree_count, h->cell_count);
     /* The raw size follows from two counts capped above: never trust it alone. */
     uint64_t expect_index = (uint64_t)h->cell_count * MS_ARCHIVE_RECORD_SIZE +
                             4ull * h->table_words;
@@ -256,39 +303,7 @@ static ms_status parse_header(const char *path, const uint8_t *p, size_t size, b
                             "%s: index size %llu, expected %llu (%u cells, %u table words)", path,
                             (unsigned long long)sec->index_size, (unsigned long long)expect_index,
                             h->cell_count, h->table_words);
-    if (index_only) {
-        if (size != MS_ARCHIVE_HEADER_SIZE + sec->index_size)
-            return ms_error_set(err, MS_ERR_FORMAT, "%s: index blob is %zu bytes, expected %llu",
-                                path, size,
-                                (unsigned long long)(MS_ARCHIVE_HEADER_SIZE + sec->index_size));
-        if (sec->payload_size > UINT64_MAX / 2 ||
-            h->file_size != MS_ARCHIVE_HEADER_SIZE + sec->index_size + sec->payload_size)
-            return ms_error_set(err, MS_ERR_FORMAT, "%s: section sizes do not add up", path);
-        return MS_OK;
-    }
-    if (h->file_size != size)
-        return ms_error_set(err, MS_ERR_FORMAT,
-                            "%s: file is %zu bytes but its header says %llu (truncated?)", path,
-                            size, (unsigned long long)h->file_size);
-    if (zlib_index) {
-        if (sec->stored_size > size - MS_ARCHIVE_HEADER_SIZE)
-            return ms_error_set(err, MS_ERR_FORMAT,
-                                "%s: compressed index of %llu bytes runs past the end of the "
-                                "%zu-byte file", path, (unsigned long long)sec->stored_size, size);
-        /* index_size is capped by now, so the sum cannot wrap. */
-        if (sec->stored_size < (sec->index_size + ZLIB_MAX_RATIO - 1) / ZLIB_MAX_RATIO ||
-            sec->stored_size == 0)
-            return ms_error_set(err, MS_ERR_FORMAT,
-                                "%s: a compressed index of %llu bytes cannot inflate to %llu",
-                                path, (unsigned long long)sec->stored_size,
-                                (unsigned long long)sec->index_size);
-    }
-    if (sec->payload_size > size ||
-        MS_ARCHIVE_HEADER_SIZE + sec->stored_size > size - sec->payload_size ||
-        MS_ARCHIVE_HEADER_SIZE + sec->stored_size + sec->payload_size != size)
-        return ms_error_set(err, MS_ERR_FORMAT, "%s: section sizes do not add up to the file size",
-                            path);
-    return MS_OK;
+    return check_sections(path, size, kind, h, sec, err);
 }
 
 /* Inflates a version-2 index (the `stored` bytes at in) into exactly `raw`
@@ -345,39 +360,39 @@ static ms_status inflate_index(const char *path, const uint8_t *in, uint64_t sto
     return st;
 }
 
-static void decode_cell(const uint8_t *p, ms_archive_cell *c)
+void ms_archive_decode_cell(const uint8_t *p, ms_archive_cell *c)
 {
-    c->parent = get_u32(p);
-    c->first_child = get_u32(p + 4);
+    c->parent = ms_get_u32(p);
+    c->first_child = ms_get_u32(p + 4);
     c->level = p[8];
     c->bits_min = p[9];
     c->bits_max = p[10];
     for (int a = 0; a < 3; ++a)
-        c->position[a] = get_u32(p + 12 + 4 * a);
-    c->vertex_count = get_u32(p + 24);
-    c->triangle_count = get_u32(p + 28);
-    c->geometry_offset = get_u64(p + 32);
-    c->geometry_length = get_u32(p + 40);
-    c->geometry_crc = get_u32(p + 44);
-    c->apo_offset = get_u64(p + 48);
-    c->apo_length = get_u32(p + 56);
-    c->apo_crc = get_u32(p + 60);
-    c->apo_raw_length = get_u32(p + 64);
-    c->table_first = get_u32(p + 68);
+        c->position[a] = ms_get_u32(p + 12 + 4 * a);
+    c->vertex_count = ms_get_u32(p + 24);
+    c->triangle_count = ms_get_u32(p + 28);
+    c->geometry_offset = ms_get_u64(p + 32);
+    c->geometry_length = ms_get_u32(p + 40);
+    c->geometry_crc = ms_get_u32(p + 44);
+    c->apo_offset = ms_get_u64(p + 48);
+    c->apo_length = ms_get_u32(p + 56);
+    c->apo_crc = ms_get_u32(p + 60);
+    c->apo_raw_length = ms_get_u32(p + 64);
+    c->table_first = ms_get_u32(p + 68);
     c->apo_levels = p[72];
 }
 
-static uint32_t table_word(const ms_archive *a, uint64_t index)
+static uint32_t table_word(const uint8_t *tables, uint64_t index)
 {
-    return get_u32(a->tables + 4 * index);
+    return ms_get_u32(tables + 4 * index);
 }
 
-/* Checks one record on its own and against its parent. */
-static ms_status check_cell(const char *path, const ms_archive *a, uint32_t id,
-                            const uint8_t *raw, uint64_t *next_table, ms_error *err)
+ms_status ms_archive_check_record(const char *path, const ms_archive_header *h,
+                                  uint64_t payload_size, uint32_t id, const uint8_t *raw,
+                                  const ms_archive_cell *c, const ms_archive_cell *parent,
+                                  const uint8_t *tables, uint64_t table_words,
+                                  uint64_t *next_table, ms_error *err)
 {
-    const ms_archive_header *h = &a->header;
-    const ms_archive_cell *c = &a->cells[id];
     uint32_t children = (uint32_t)h->n * h->n * h->n;
 #define CELL_FAIL(...) ms_error_set(err, MS_ERR_FORMAT, __VA_ARGS__)
     if (raw[11] != 0 || !all_zero(raw + 73, 7))
@@ -390,7 +405,8 @@ static ms_status check_cell(const char *path, const ms_archive *a, uint32_t id,
     } else {
         if (c->parent >= id)
             return CELL_FAIL("%s: cell %u: parent %u does not precede it", path, id, c->parent);
-        const ms_archive_cell *parent = &a->cells[c->parent];
+        if (!parent)
+            return CELL_FAIL("%s: cell %u: its parent %u is not held", path, id, c->parent);
         if (parent->first_child == MS_ARCHIVE_NONE || id < parent->first_child ||
             id - parent->first_child >= children)
             return CELL_FAIL("%s: cell %u: not among the children of its parent %u", path, id,
@@ -415,9 +431,9 @@ static ms_status check_cell(const char *path, const ms_archive *a, uint32_t id,
             h->cell_count - c->first_child < children)
             return CELL_FAIL("%s: cell %u: children out of range", path, id);
     }
-    if (c->geometry_offset > a->payload_size ||
-        c->geometry_length > a->payload_size - c->geometry_offset || c->apo_offset > a->payload_size ||
-        c->apo_length > a->payload_size - c->apo_offset)
+    if (c->geometry_offset > payload_size ||
+        c->geometry_length > payload_size - c->geometry_offset || c->apo_offset > payload_size ||
+        c->apo_length > payload_size - c->apo_offset)
         return CELL_FAIL("%s: cell %u: payload outside the payload area", path, id);
     if (c->apo_levels > MS_ARCHIVE_MAX_APO_LEVELS || (c->apo_raw_length & 3) ||
         ((c->apo_levels == 0) != (c->apo_length == 0)) || (!h->has_apo && c->apo_levels))
@@ -429,11 +445,11 @@ static ms_status check_cell(const char *path, const ms_archive *a, uint32_t id,
     if (c->table_first != *next_table)
         return CELL_FAIL("%s: cell %u: tables out of order", path, id);
     *next_table += words;
-    if (c->table_first > h->table_words || words > h->table_words - c->table_first)
+    if (c->table_first > table_words || words > table_words - c->table_first)
         return CELL_FAIL("%s: cell %u: tables outside the table area", path, id);
     uint32_t previous = 0;
     for (uint64_t k = 0; k < geometry_words; ++k) {
-        uint32_t v = table_word(a, c->table_first + k);
+        uint32_t v = table_word(tables, c->table_first + k);
         if (v < previous || v > c->geometry_length)
             return CELL_FAIL("%s: cell %u: geometry prefix table is not monotone", path, id);
         previous = v;
@@ -443,8 +459,8 @@ static ms_status check_cell(const char *path, const ms_archive *a, uint32_t id,
                          path, id);
     uint32_t prev_bytes = 0, prev_texels = 0;
     for (uint32_t l = 0; l < c->apo_levels; ++l) {
-        uint32_t bytes = table_word(a, c->table_first + geometry_words + 2 * l);
-        uint32_t texels = table_word(a, c->table_first + geometry_words + 2 * l + 1);
+        uint32_t bytes = table_word(tables, c->table_first + geometry_words + 2 * l);
+        uint32_t texels = table_word(tables, c->table_first + geometry_words + 2 * l + 1);
         if (bytes < prev_bytes || texels < prev_texels || bytes > c->apo_length)
             return CELL_FAIL("%s: cell %u: APO level table is not monotone", path, id);
         prev_bytes = bytes, prev_texels = texels;
@@ -484,20 +500,24 @@ static ms_status check_tree_cover(const char *path, const ms_archive *a, ms_erro
 /* Validates header and index of a->map (a whole file, or header + index only). */
 static ms_status archive_validate(const char *path, ms_archive *a, ms_error *err)
 {
-    archive_sections sec = {0};
-    ms_status status = parse_header(path, a->map, a->map_size, a->index_only, &a->header, &sec,
-                                    err);
+    ms_archive_sections sec = {0};
+    ms_status status = ms_archive_parse_header(path, a->map, a->map_size,
+                                               a->index_only ? MS_HEADER_BLOB : MS_HEADER_FILE,
+                                               &a->header, &sec, err);
     if (status == MS_OK) {
         a->index_size = sec.index_size;
         a->payload_size = sec.payload_size;
         a->blob = a->map;
     }
     if (status == MS_OK && a->header.version != MS_ARCHIVE_VERSION_RAW_INDEX) {
-        /* Version 2: the blob is a version-1 header and the inflated index. */
+        /* Versions 2 and 3: the blob is a version-1 header and the inflated index. */
         a->inflated_blob = malloc(MS_ARCHIVE_HEADER_SIZE + (size_t)sec.index_size);
         if (!a->inflated_blob)
             status = ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory for a %llu-byte index",
                                   path, (unsigned long long)sec.index_size);
+        else if (a->header.version == MS_ARCHIVE_VERSION_SUBTREES)
+            status = ms_archive_v3_assemble(path, a, &sec,
+                                            a->inflated_blob + MS_ARCHIVE_HEADER_SIZE, err);
         else
             status = inflate_index(path, a->map + MS_ARCHIVE_HEADER_SIZE, sec.stored_size,
                                    a->inflated_blob + MS_ARCHIVE_HEADER_SIZE, sec.index_size, err);
@@ -525,13 +545,25 @@ static ms_status archive_validate(const char *path, ms_archive *a, ms_error *err
         /* Payload offsets count from the end of the index as stored. */
         a->payload = a->index_only ? NULL : a->map + MS_ARCHIVE_HEADER_SIZE + sec.stored_size;
         for (uint32_t id = 0; id < a->header.cell_count; ++id)
-            decode_cell(records + (size_t)id * MS_ARCHIVE_RECORD_SIZE, &a->cells[id]);
+            ms_archive_decode_cell(records + (size_t)id * MS_ARCHIVE_RECORD_SIZE, &a->cells[id]);
         uint64_t next_table = 0;
-        for (uint32_t id = 0; status == MS_OK && id < a->header.cell_count; ++id)
-            status = check_cell(path, a, id, records + (size_t)id * MS_ARCHIVE_RECORD_SIZE,
-                                &next_table, err);
+        for (uint32_t id = 0; status == MS_OK && id < a->header.cell_count; ++id) {
+            const ms_archive_cell *c = &a->cells[id];
+            const ms_archive_cell *parent = id && c->parent < id ? &a->cells[c->parent] : NULL;
+            status = ms_archive_check_record(path, &a->header, a->payload_size, id,
+                                             records + (size_t)id * MS_ARCHIVE_RECORD_SIZE, c,
+                                             parent, a->tables, a->header.table_words,
+                                             &next_table, err);
+        }
         if (status == MS_OK)
             status = check_tree_cover(path, a, err);
+    }
+    if (status == MS_OK) {
+        bool v3 = a->header.version == MS_ARCHIVE_VERSION_SUBTREES;
+        status = ms_archive_subtrees_init(
+            a, v3 ? sec.subtree_levels : ms_subtree_default_levels(a->header.n), err);
+        if (status == MS_OK && v3)
+            status = ms_archive_v3_check_directory(path, a, err);
     }
     return status;
 }
@@ -610,6 +642,8 @@ void ms_archive_close(ms_archive *a)
         munmap((void *)a->map, a->map_size);
     free(a->inflated_blob);
     free(a->cells);
+    ms_archive_subtrees_free(a);
+    ms_partial_free(a->partial);
     free(a);
 }
 
@@ -617,12 +651,30 @@ const ms_archive_header *ms_archive_get_header(const ms_archive *a) { return &a-
 
 const ms_archive_cell *ms_archive_get_cell(const ms_archive *a, uint32_t cell)
 {
-    return cell < a->header.cell_count ? &a->cells[cell] : NULL;
+    if (cell >= a->header.cell_count)
+        return NULL;
+    if (a->partial)
+        return ms_partial_get_cell(a, cell, NULL);
+    return &a->cells[cell];
+}
+
+bool ms_archive_cell_tables(const ms_archive *a, uint32_t cell, const ms_archive_cell **c,
+                            const uint8_t **tables)
+{
+    *c = NULL;
+    *tables = NULL;
+    if (cell >= a->header.cell_count)
+        return false;
+    if (a->partial)
+        *c = ms_partial_get_cell(a, cell, tables);
+    else
+        *c = &a->cells[cell], *tables = a->tables;
+    return *c != NULL;
 }
 
 const uint8_t *ms_archive_index_bytes(const ms_archive *a, size_t *size)
 {
-    *size = MS_ARCHIVE_HEADER_SIZE + (size_t)a->index_size;
+    *size = a->blob ? MS_ARCHIVE_HEADER_SIZE + (size_t)a->index_size : 0;
     return a->blob;
 }
 
@@ -642,30 +694,32 @@ const uint8_t *ms_archive_apo(const ms_archive *a, uint32_t cell, size_t *length
 
 uint32_t ms_archive_geometry_prefix(const ms_archive *a, uint32_t cell, unsigned bits)
 {
-    const ms_archive_cell *c = ms_archive_get_cell(a, cell);
-    if (!c)
+    const ms_archive_cell *c;
+    const uint8_t *tables;
+    if (!ms_archive_cell_tables(a, cell, &c, &tables))
         return 0;
     if (bits < c->bits_min)
         bits = c->bits_min;
     if (bits > c->bits_max)
         bits = c->bits_max;
-    return table_word(a, (uint64_t)c->table_first + (bits - c->bits_min));
+    return table_word(tables, (uint64_t)c->table_first + (bits - c->bits_min));
 }
 
 uint32_t ms_archive_apo_prefix(const ms_archive *a, uint32_t cell, unsigned level,
                                uint32_t *texels)
 {
-    const ms_archive_cell *c = ms_archive_get_cell(a, cell);
+    const ms_archive_cell *c;
+    const uint8_t *tables;
     if (texels)
         *texels = 0;
-    if (!c || c->apo_levels == 0)
+    if (!ms_archive_cell_tables(a, cell, &c, &tables) || c->apo_levels == 0)
         return 0;
     if (level >= c->apo_levels)
         level = c->apo_levels - 1u;
     uint64_t base = (uint64_t)c->table_first + (c->bits_max - c->bits_min + 1u) + 2u * level;
     if (texels)
-        *texels = table_word(a, base + 1);
-    return table_word(a, base);
+        *texels = table_word(tables, base + 1);
+    return table_word(tables, base);
 }
 
 ms_status ms_archive_verify_payload(const ms_archive *a, uint32_t cell, ms_error *err)

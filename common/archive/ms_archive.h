@@ -1,5 +1,6 @@
-/* Reading a meshstream archive file (docs/ARCHIVE.md: version 2, whose index is
- * stored zlib-compressed, and version 1, whose index is stored raw).
+/* Reading a meshstream archive file (docs/ARCHIVE.md: version 3, whose index is
+ * stored as compressed subtrees (ms_subtree.h), version 2, whose index is stored
+ * as one zlib stream, and version 1, whose index is stored raw).
  *
  * ms_archive_open maps the file read-only and validates the header, inflates a
  * version-2 index into memory (into exactly the size the header declares), checks
@@ -8,9 +9,10 @@
  * demand by ms_archive_verify_payload (the server checks once, the client checks
  * what it receives).
  *
- * Ownership: the ms_archive owns the mapping (and a version-2 file's inflated
+ * Ownership: the ms_archive owns the mapping (and a version-2/3 file's inflated
  * index); pointers it returns stay valid until ms_archive_close. Thread-safety:
- * after open, any number of threads may read the same archive concurrently.
+ * after open, any number of threads may read the same archive concurrently
+ * (a partial archive of ms_subtree.h only while no subtree is added or dropped).
  */
 #ifndef MS_ARCHIVE_H
 #define MS_ARCHIVE_H
@@ -21,8 +23,12 @@
 
 #include "ms_error.h"
 
-/* The version meshbake writes: the index is stored as one zlib stream. */
-#define MS_ARCHIVE_VERSION 2u
+/* The version meshbake writes: the index is stored as subtrees. */
+#define MS_ARCHIVE_VERSION 3u
+/* The versions read: 1 stores the index raw, 2 as one zlib stream, 3 as
+ * subtrees (ms_subtree.h). */
+#define MS_ARCHIVE_VERSION_ZLIB_INDEX 2u
+#define MS_ARCHIVE_VERSION_SUBTREES 3u
 /* The oldest version still read: the index is stored raw. */
 #define MS_ARCHIVE_VERSION_RAW_INDEX 1u
 /* The version of the index blob (ms_archive_index_bytes, what the server sends):
@@ -30,6 +36,8 @@
 #define MS_ARCHIVE_BLOB_VERSION 1u
 /* Header byte 120 of a version-2 file: how the index is stored. */
 #define MS_ARCHIVE_INDEX_ZLIB 1u
+/* Header byte 120 of a version-3 file or index head: the index in subtrees. */
+#define MS_ARCHIVE_INDEX_SUBTREES 2u
 #define MS_ARCHIVE_HEADER_SIZE 128u
 #define MS_ARCHIVE_RECORD_SIZE 80u
 #define MS_ARCHIVE_MAX_CELLS (1u << 24)
@@ -95,14 +103,16 @@ ms_status ms_archive_open_index_file(const char *path, const char *name, ms_arch
                                      ms_error *err);
 
 const ms_archive_header *ms_archive_get_header(const ms_archive *archive);
-/* NULL when cell >= cell_count. */
+/* NULL when cell >= cell_count, and on a partial archive (ms_subtree.h) when
+ * the cell's subtree is not held. */
 const ms_archive_cell *ms_archive_get_cell(const ms_archive *archive, uint32_t cell);
 
 /* The whole index blob, for sending: a version-1 header (docs/ARCHIVE.md, "The
  * index blob") followed by the raw index (records + tables). For a version-1
  * file these are its first bytes; for a version-2 file the header is the one a
  * version-1 file of the same model would have, and the index the inflated one,
- * so the blob does not depend on how the file stores its index. */
+ * so the blob does not depend on how the file stores its index. NULL (size 0)
+ * on a partial archive. */
 const uint8_t *ms_archive_index_bytes(const ms_archive *archive, size_t *size);
 
 /* Payload bytes (not yet CRC-checked). Zero length for an absent APO chunk; NULL
@@ -132,7 +142,7 @@ ms_status ms_archive_check_payload(const ms_archive *archive, uint32_t cell, boo
 
 /* Encodes / decodes the fixed-size parts. Decoding checks only field-local
  * ranges; cross-checks are done by ms_archive_open. The header is encoded as
- * `version` (1 or MS_ARCHIVE_VERSION) from h's model fields (h->version,
+ * `version` (1 or 2; ms_archive_encode_header_v3 for 3) from h's model fields (h->version,
  * h->index_stored_size and h->file_size are not used): index_size is the raw
  * index (80 * cells + 4 * table words), index_crc its CRC32; stored_index_size
  * the zlib stream's length (version 2; a version-1 header stores the index raw
@@ -140,6 +150,13 @@ ms_status ms_archive_check_payload(const ms_archive *archive, uint32_t cell, boo
 void ms_archive_encode_header(const ms_archive_header *h, unsigned version, uint64_t index_size,
                               uint64_t stored_index_size, uint64_t payload_size,
                               uint32_t index_crc, uint8_t out[MS_ARCHIVE_HEADER_SIZE]);
+/* A version-3 header (docs/ARCHIVE.md): stored_size is what follows the
+ * header before the payloads (the directory and the stored subtrees of a file;
+ * the root subtree in an index head), file_size is written as given. */
+void ms_archive_encode_header_v3(const ms_archive_header *h, uint64_t index_size,
+                                 uint32_t stored_size, uint64_t payload_size, uint64_t file_size,
+                                 uint32_t index_crc, unsigned subtree_levels,
+                                 uint32_t subtree_count, uint8_t out[MS_ARCHIVE_HEADER_SIZE]);
 void ms_archive_encode_cell(const ms_archive_cell *c, uint8_t out[MS_ARCHIVE_RECORD_SIZE]);
 
 /* Window rules of docs/ARCHIVE.md: the precision window of a cell at `level`. */

@@ -46,7 +46,8 @@ static void print_usage(FILE *out)
           "                [--tmp DIR] [--public-bits B] [--no-apo] [--apo-lead 1]\n"
           "                [--apo-max-depth 10] [--apo-tol 0.2] [--apo-init-depth 0]\n"
           "                [--apo-verify] [--apo-sample-leaves] [--apo-accuracy]\n"
-          "                [--apo-every-cell] [--json]\n"
+          "                [--apo-every-cell] [--subtree-levels S] [--archive-version 3]\n"
+          "                [--json]\n"
           "       meshbake --info FILE [--json]\n"
           "       meshbake --set-public-bits B -o ARCHIVE_DIR --name NAME\n"
           "       meshbake --list ARCHIVE_DIR [--json]\n"
@@ -74,6 +75,12 @@ static void print_usage(FILE *out)
           "                    (about 512 bytes per --min-tris triangle; 24000 for the\n"
           "                    default)\n"
           "  --tmp DIR         temporary files (default: ARCHIVE_DIR); unlinked at creation\n"
+          "  --subtree-levels S  levels of the nSP tree per index subtree, the pieces a\n"
+          "                    client fetches the index in, 1..8 (default 1 for --n 4 or\n"
+          "                    8, 2 for --n 2)\n"
+          "  --archive-version V  file version to write: 3 (default: the index as\n"
+          "                    subtrees) or 2 (one zlib stream, no --subtree-levels);\n"
+          "                    the same records, payloads and content id either way\n"
           "  --apo, --no-apo   give every cell an APO chunk of normals (default: on)\n"
           "  --apo-lead L      chunk depth: L levels below the cell's finest geometric\n"
           "                    precision, 0..16 (default 1)\n"
@@ -209,6 +216,8 @@ static int parse_options(int argc, char **argv, bake_options *options)
         {"set-public-bits", required_argument, NULL, 'U'},
         {"list", required_argument, NULL, 'l'},
         {"remove", required_argument, NULL, 'R'},
+        {"subtree-levels", required_argument, NULL, 'Y'},
+        {"archive-version", required_argument, NULL, 'Z'},
         {NULL, 0, NULL, 0},
     };
     memset(options, 0, sizeof *options);
@@ -235,6 +244,16 @@ static int parse_options(int argc, char **argv, bake_options *options)
             else if (c == 'm') options->bake.min_triangles = (uint32_t)value;
             else if (c == 't') options->bake.threads = (unsigned)value;
             else options->bake.mem_mb = (size_t)value;
+            break;
+        case 'Y':
+            if (!option_int(long_options, c, optarg, 1, 8, &value, &status))
+                return status;
+            options->bake.subtree_levels = (unsigned)value;
+            break;
+        case 'Z':
+            if (!option_int(long_options, c, optarg, 2, 3, &value, &status))
+                return status;
+            options->bake.archive_version = (unsigned)value;
             break;
         case 'A': options->bake.apo.enabled = true; break;
         case 'a': options->bake.apo.enabled = false; break;
@@ -272,6 +291,8 @@ static int parse_options(int argc, char **argv, bake_options *options)
             return usage_error("unknown option", argv[optind - 1]);
         }
     }
+    if (options->bake.subtree_levels && options->bake.archive_version != MS_ARCHIVE_VERSION)
+        return usage_error("--subtree-levels needs archive version 3", NULL);
     return check_mode(argc, argv, options);
 }
 

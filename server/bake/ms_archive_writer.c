@@ -13,6 +13,8 @@
 #include <unistd.h>
 #include <zlib.h>
 
+#include "ms_subtree.h"
+
 typedef struct cell_state {
     ms_archive_cell cell;
     uint64_t geometry_spool, apo_spool; /* offsets in the spool file */
@@ -28,6 +30,8 @@ struct ms_archive_writer {
     uint64_t spool_size;
     ms_archive_header header;
     cell_state *cells;
+    unsigned version;        /* MS_ARCHIVE_VERSION or MS_ARCHIVE_VERSION_ZLIB_INDEX */
+    unsigned subtree_levels; /* version 3: S */
 };
 
 static void writer_free(ms_archive_writer *w)
@@ -110,6 +114,8 @@ ms_status ms_archive_writer_open(const char *path, const ms_archive_header *head
     if (!w)
         return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory", path);
     w->header = *header;
+    w->version = MS_ARCHIVE_VERSION;
+    w->subtree_levels = ms_subtree_default_levels(header->n);
     size_t len = strlen(path);
     w->path = strdup(path);
     w->partial_path = malloc(len + 16);
@@ -293,6 +299,97 @@ static int copy_from_spool(ms_archive_writer *w, FILE *out, uint64_t offset, uin
     return 0;
 }
 
+ms_status ms_archive_writer_set_format(ms_archive_writer *w, unsigned version,
+                                       unsigned subtree_levels, ms_error *err)
+{
+    if (version != MS_ARCHIVE_VERSION_SUBTREES && version != MS_ARCHIVE_VERSION_ZLIB_INDEX)
+        return ms_error_set(err, MS_ERR_ARG, "archive writer: version %u, it writes %u and %u",
+                            version, MS_ARCHIVE_VERSION_ZLIB_INDEX, MS_ARCHIVE_VERSION_SUBTREES);
+    if (subtree_levels != 0 &&
+        (subtree_levels < MS_SUBTREE_MIN_LEVELS || subtree_levels > MS_SUBTREE_MAX_LEVELS))
+        return ms_error_set(err, MS_ERR_ARG, "archive writer: subtree depth %u outside %u..%u",
+                            subtree_levels, MS_SUBTREE_MIN_LEVELS, MS_SUBTREE_MAX_LEVELS);
+    w->version = version;
+    w->subtree_levels = subtree_levels ? subtree_levels : ms_subtree_default_levels(w->header.n);
+    return MS_OK;
+}
+
+/* Version 3's index section: the subtree directory (per subtree, in ascending
+ * id: id, offset from the end of the directory, stored length; then the CRC32
+ * of those entries) followed by the stored subtrees in the same order. The
+ * subtrees come from the reader's own encoder over the index as a version-1
+ * blob, so what a server computes from an older file is the same bytes. */
+static ms_status encode_subtrees(const ms_archive_writer *w, const uint8_t *index,
+                                 uint64_t index_size, uint64_t payload, uint32_t index_crc,
+                                 uint8_t **out, uint64_t *out_size, uint32_t *out_count,
+                                 ms_error *err)
+{
+    *out = NULL;
+    *out_size = 0;
+    size_t blob_size = MS_ARCHIVE_HEADER_SIZE + (size_t)index_size;
+    uint8_t *blob = malloc(blob_size);
+    if (!blob)
+        return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory for the index", w->path);
+    ms_archive_encode_header(&w->header, MS_ARCHIVE_VERSION_RAW_INDEX, index_size, index_size,
+                             payload, index_crc, blob);
+    memcpy(blob + MS_ARCHIVE_HEADER_SIZE, index, (size_t)index_size);
+    ms_archive *a;
+    ms_status st = ms_archive_open_index(blob, blob_size, w->path, &a, err);
+    free(blob);
+    if (st != MS_OK)
+        return st;
+    uint32_t *ids = NULL;
+    size_t count = 0;
+    st = ms_subtree_list(a, w->subtree_levels, &ids, &count, err);
+    size_t directory = 12 * count + 4, capacity = directory + (size_t)index_size / 4 + 4096;
+    uint8_t *buf = st == MS_OK ? malloc(capacity) : NULL;
+    if (st == MS_OK && !buf)
+        st = ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory for the subtrees", w->path);
+    size_t used = directory;
+    for (size_t i = 0; st == MS_OK && i < count; ++i) {
+        uint8_t *raw = NULL, *stored = NULL;
+        size_t raw_size, stored_size;
+        st = ms_subtree_encode(a, w->subtree_levels, ids[i], &raw, &raw_size, err);
+        if (st == MS_OK)
+            st = ms_subtree_deflate(raw, raw_size, &stored, &stored_size, err);
+        free(raw);
+        if (st == MS_OK && used - directory + stored_size > UINT32_MAX)
+            st = ms_error_set(err, MS_ERR_RANGE, "%s: stored subtrees pass 4 GiB", w->path);
+        if (st == MS_OK && used + stored_size > capacity) {
+            size_t grown = 2 * capacity + stored_size;
+            uint8_t *bigger = realloc(buf, grown);
+            if (!bigger)
+                st = ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory for the subtrees",
+                                  w->path);
+            else
+                buf = bigger, capacity = grown;
+        }
+        if (st == MS_OK) {
+            uint8_t *e = buf + 12 * i;
+            uint32_t fields[3] = {ids[i], (uint32_t)(used - directory), (uint32_t)stored_size};
+            for (int f = 0; f < 3; ++f)
+                for (int b = 0; b < 4; ++b)
+                    e[4 * f + b] = (uint8_t)(fields[f] >> (8 * b));
+            memcpy(buf + used, stored, stored_size);
+            used += stored_size;
+        }
+        free(stored);
+    }
+    if (st == MS_OK) {
+        uint32_t crc = (uint32_t)crc32_z(0L, buf, 12 * count);
+        for (int b = 0; b < 4; ++b)
+            buf[12 * count + b] = (uint8_t)(crc >> (8 * b));
+        *out = buf;
+        *out_size = used;
+        *out_count = (uint32_t)count;
+    } else {
+        free(buf);
+    }
+    free(ids);
+    ms_archive_close(a);
+    return st;
+}
+
 ms_status ms_archive_writer_finish(ms_archive_writer *w, ms_error *err)
 {
     ms_archive_header *h = &w->header;
@@ -335,19 +432,29 @@ ms_status ms_archive_writer_finish(ms_archive_writer *w, ms_error *err)
             p[0] = (uint8_t)v, p[1] = (uint8_t)(v >> 8), p[2] = (uint8_t)(v >> 16), p[3] = (uint8_t)(v >> 24);
         }
     }
-    /* Version 2: the CRC covers the raw index, the file holds its zlib stream. */
+    /* The CRC covers the raw index; version 2 holds its zlib stream, version 3
+     * its subtrees. */
     uint32_t index_crc = (uint32_t)crc32_z(0L, index, index_size);
     uint8_t *stored = NULL;
     uint64_t stored_size = 0;
-    ms_status zst = compress_index(w, index, index_size, &stored, &stored_size, err);
+    uint32_t subtree_count = 0;
+    ms_status zst = w->version == MS_ARCHIVE_VERSION_SUBTREES
+                        ? encode_subtrees(w, index, index_size, payload, index_crc, &stored,
+                                          &stored_size, &subtree_count, err)
+                        : compress_index(w, index, index_size, &stored, &stored_size, err);
     free(index);
     if (zst != MS_OK) {
         ms_archive_writer_abort(w);
         return zst;
     }
     uint8_t head[MS_ARCHIVE_HEADER_SIZE];
-    ms_archive_encode_header(h, MS_ARCHIVE_VERSION, index_size, stored_size, payload, index_crc,
-                             head);
+    if (w->version == MS_ARCHIVE_VERSION_SUBTREES)
+        ms_archive_encode_header_v3(h, index_size, (uint32_t)stored_size, payload,
+                                    MS_ARCHIVE_HEADER_SIZE + stored_size + payload, index_crc,
+                                    w->subtree_levels, subtree_count, head);
+    else
+        ms_archive_encode_header(h, w->version, index_size, stored_size, payload, index_crc,
+                                 head);
 
     FILE *out = fopen(w->partial_path, "wb");
     int failed = !out;

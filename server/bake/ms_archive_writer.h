@@ -1,5 +1,6 @@
-/* Writing a meshstream archive file (docs/ARCHIVE.md, version 2: the index is
- * stored as one zlib stream, level 9, fixed parameters).
+/* Writing a meshstream archive file (docs/ARCHIVE.md, version 3 by default: the
+ * index stored as a directory and its subtrees, each one zlib stream with fixed
+ * parameters; or version 2: one zlib stream, level 9, fixed parameters).
  *
  * Usage: open with the header fields and the tree topology (for each cell in
  * breadth-first order, the index of its first child or MS_ARCHIVE_NONE), put each
@@ -54,6 +55,13 @@ void ms_archive_writer_window(const ms_archive_writer *writer, uint32_t cell, ui
  * encoding). */
 void ms_archive_writer_set_counts(ms_archive_writer *writer, uint64_t vertex_count,
                                   uint64_t triangle_count);
+
+/* Chooses the file version (MS_ARCHIVE_VERSION, the default, or
+ * MS_ARCHIVE_VERSION_ZLIB_INDEX) and, for version 3, the subtree depth (1..8;
+ * 0: ms_subtree_default_levels of the header's n, the default). MS_ERR_ARG
+ * otherwise. The records, payloads and content id do not depend on either. */
+ms_status ms_archive_writer_set_format(ms_archive_writer *writer, unsigned version,
+                                       unsigned subtree_levels, ms_error *err);
 
 /* Writes the file. Every cell must have its geometry. Frees the writer, whatever
  * the outcome. */

@@ -16,13 +16,16 @@
 #include "ms_json_out.h"
 #include "ms_progress.h"
 #include "ms_registry.h"
+#include "ms_subtree.h"
 
 static void usage(FILE *out)
 {
     fprintf(out,
             "Usage: meshexport ARCHIVE_DIR NAME -o OUT_DIR [--full] [--json]\n"
             "Writes model NAME of ARCHIVE_DIR as static files laid out like meshserve's HTTP\n"
-            "side door: OUT_DIR/models/NAME (header and cell index),\n"
+            "side door: OUT_DIR/models/NAME.index (header and cell index, served at\n"
+            "/models/NAME), OUT_DIR/models/NAME.head (the index head, served at\n"
+            "/models/NAME/head), OUT_DIR/models/NAME/subtrees/ID (the index in subtrees),\n"
             "OUT_DIR/models/NAME/cells/ID/geometry and .../apo (prefixes are byte ranges of\n"
             "these files, served with Range by any static web server).\n"
             "Only what an anonymous reader may read is written: a model with a public\n"
@@ -107,6 +110,39 @@ static int export_cell(ms_model *model, const ms_access *grant, const char *arch
     return failed;
 }
 
+/* The index head at models/NAME.head (served at /models/NAME/head, which a
+ * static server maps like NAME.index) and every stored subtree at
+ * models/NAME/subtrees/ID: the index, which anyone who may open the model
+ * reads whole. 0, or -1 when a file could not be written. */
+static int export_subtrees(const ms_archive *a, const char *out_dir, const char *name,
+                           uint64_t *bytes, uint64_t *files)
+{
+    char path[4096];
+    size_t size;
+    const uint8_t *head = ms_archive_index_head(a, &size);
+    snprintf(path, sizeof path, "%s/models/%s.head", out_dir, name);
+    if (!head || write_file(path, head, size) != 0)
+        return -1;
+    *bytes += size, (*files)++;
+    snprintf(path, sizeof path, "%s/models/%s/subtrees", out_dir, name);
+    if (make_dir(path) != 0)
+        return -1;
+    uint32_t *ids;
+    size_t count;
+    ms_error err;
+    if (ms_subtree_list(a, ms_archive_subtree_levels(a), &ids, &count, &err) != MS_OK)
+        return -1;
+    int failed = 0;
+    for (size_t i = 0; !failed && i < count; ++i) {
+        const uint8_t *stored = ms_archive_subtree(a, ids[i], &size);
+        snprintf(path, sizeof path, "%s/models/%s/subtrees/%u", out_dir, name, ids[i]);
+        failed = !stored || write_file(path, stored, size) != 0;
+        *bytes += size, (*files)++;
+    }
+    free(ids);
+    return failed ? -1 : 0;
+}
+
 int main(int argc, char **argv)
 {
     static const struct option options[] = {
@@ -178,6 +214,7 @@ int main(int argc, char **argv)
     snprintf(path, sizeof path, "%s/models/%s.index", out_dir, name);
     failed |= write_file(path, index, size);
     bytes += size, files++;
+    failed |= export_subtrees(a, out_dir, name, &bytes, &files);
     ms_progress progress;
     ms_progress_init(&progress, stderr, "meshexport", h->cell_count);
     for (uint32_t cell = 0; !failed && cell < h->cell_count; ++cell) {

@@ -3,6 +3,8 @@
 
 #include <string.h>
 
+#include "ms_subtree.h"
+
 ms_access ms_access_grant(const ms_model *model, bool token_accepted)
 {
     unsigned bits = ms_archive_get_header(model->archive)->bits;
@@ -42,10 +44,32 @@ static ms_status access_fault(ms_proto_fault *fault, uint16_t code, uint64_t det
     return ms_error_set(err, MS_ERR_RANGE, "%s", text);
 }
 
+/* A subtree of the index (stream INDEX, PROTOCOL.md section 4.10): one step,
+ * the whole stored subtree. Every reader of the model may read its index, so
+ * the grant widens nothing and limits nothing here; the range rules (BYTES
+ * inside the stream) are the payloads'. */
+static ms_status resolve_subtree(const ms_model *model, const ms_proto_cell_request *request,
+                                 ms_proto_byte_range *out, ms_proto_fault *fault, ms_error *err)
+{
+    size_t stored_size = 0;
+    const uint8_t *stored = ms_archive_subtree(model->archive, request->cell_id, &stored_size);
+    if (!stored)
+        return access_fault(fault, MS_PROTO_E_UNKNOWN_CELL, request->cell_id, err,
+                            "no such subtree");
+    if (stored_size > UINT32_MAX)
+        return access_fault(fault, MS_PROTO_E_INTERNAL, 0, err, "subtree too large");
+    const uint32_t end = (uint32_t)stored_size;
+    const ms_proto_stream_steps steps = {0, 1, &end};
+    const ms_proto_stream_access whole = {1, 1};
+    return ms_proto_resolve_range(request, &steps, &whole, out, fault, err);
+}
+
 ms_status ms_access_resolve(const ms_model *model, const ms_access *grant,
                             const ms_proto_cell_request *request, ms_proto_byte_range *out,
                             ms_proto_fault *fault, ms_error *err)
 {
+    if (request->stream == MS_PROTO_STREAM_INDEX)
+        return resolve_subtree(model, request, out, fault, err);
     const ms_archive *a = model->archive;
     const ms_archive_cell *cell = ms_archive_get_cell(a, request->cell_id);
     if (!cell)

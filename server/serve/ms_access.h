@@ -13,7 +13,10 @@
  *     permitted step of the cell;
  *   - a cell whose geometric window starts at or beyond the preview is hidden:
  *     its APO (which would give its shape away) is forbidden too;
- *   - a full grant reads everything; steps are only clamped.
+ *   - a full grant reads everything; steps are only clamped;
+ *   - the index's subtrees (stream INDEX) are read by every reader of the
+ *     model, preview or not: they hold sizes and CRCs, no geometry. They are
+ *     still resolved here, so that no door reaches bytes around this file.
  *
  * Pure functions of the model's index; no state; thread-safe.
  */
@@ -51,7 +54,9 @@ bool ms_access_cell_hidden(const ms_model *model, const ms_access *grant, uint32
 
 /* Resolves one request entry (validated as PROTOCOL.md section 4.10 requires)
  * on model under grant to the byte range [out->begin, out->end) of the cell's
- * stream that may be sent. Errors: MS_ERR_RANGE with fault->code
+ * stream that may be sent; for stream INDEX, of the stored bytes of the
+ * subtree whose id is the entry's cell_id (ms_archive_subtree; UNKNOWN_CELL
+ * when it is not a subtree id). Errors: MS_ERR_RANGE with fault->code
  * UNKNOWN_CELL, RANGE_NOT_SATISFIABLE or FORBIDDEN (detail as in PROTOCOL.md);
  * MS_ERR_CORRUPT (fault INTERNAL) for an inconsistent step table; MS_ERR_ARG
  * for an entry that fails validation. */

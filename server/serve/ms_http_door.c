@@ -23,6 +23,7 @@
 #include <unistd.h>
 
 #include "ms_access.h"
+#include "ms_http_internal.h"
 #include "ms_http_parse.h"
 #include "ms_progress.h"
 #include "ms_server_internal.h"
@@ -62,7 +63,9 @@ struct ms_http_door {
 
 /* --- Small helpers ---------------------------------------------------------- */
 
-static bool is_head(struct evhttp_request *req)
+ms_server *ms_http_door_server(const ms_http_door *door) { return door->server; }
+
+bool ms_http_is_head(struct evhttp_request *req)
 {
     return evhttp_request_get_command(req) == EVHTTP_REQ_HEAD;
 }
@@ -101,15 +104,15 @@ static void log_answer(ms_http_door *door, struct evhttp_request *req, int code,
     model_of_path(path, model, sizeof model);
     snprintf(status, sizeof status, "%d", code);
     ms_server_access_log(door->server, "http", client, model, path, 1,
-                         is_head(req) ? 0 : length, ms_now_seconds() - door->request_started,
+                         ms_http_is_head(req) ? 0 : length, ms_now_seconds() - door->request_started,
                          status);
 }
 
-static void reply(ms_http_door *door, struct evhttp_request *req, int code, const char *reason,
+void ms_http_reply(ms_http_door *door, struct evhttp_request *req, int code, const char *reason,
                   struct evbuffer *body, uint64_t length)
 {
     log_answer(door, req, code, length);
-    if (is_head(req)) {
+    if (ms_http_is_head(req)) {
         if (code != 304) {
             char text[32];
             snprintf(text, sizeof text, "%" PRIu64, length);
@@ -122,7 +125,7 @@ static void reply(ms_http_door *door, struct evhttp_request *req, int code, cons
     evhttp_send_reply(req, code, reason, body);
 }
 
-static void send_text(ms_http_door *door, struct evhttp_request *req, int code,
+void ms_http_send_text(ms_http_door *door, struct evhttp_request *req, int code,
                       const char *reason, const char *text)
 {
     struct evbuffer *body = evbuffer_new();
@@ -133,12 +136,12 @@ static void send_text(ms_http_door *door, struct evhttp_request *req, int code,
                       "text/plain; charset=utf-8");
     if (code >= 400)
         door->server->metrics.http_errors++;
-    reply(door, req, code, reason, body, body ? evbuffer_get_length(body) : 0);
+    ms_http_reply(door, req, code, reason, body, body ? evbuffer_get_length(body) : 0);
     if (body)
         evbuffer_free(body);
 }
 
-static bool parse_u32(const char *text, uint32_t max, uint32_t *out)
+bool ms_http_parse_u32(const char *text, uint32_t max, uint32_t *out)
 {
     if (!text || *text < '0' || *text > '9' || strlen(text) > 10)
         return false;
@@ -174,7 +177,7 @@ static bool authorized(const ms_http_door *door, struct evhttp_request *req)
 
 /* The reader's grant of model; *token_used says whether the token widened it
  * (the answer then depends on the token and must not reach a shared cache). */
-static ms_access reader_grant(const ms_http_door *door, struct evhttp_request *req,
+ms_access ms_http_reader_grant(const ms_http_door *door, struct evhttp_request *req,
                               const ms_model *model, bool *token_used)
 {
     ms_access anonymous = ms_access_grant(model, false);
@@ -221,174 +224,6 @@ static int split_path(char *path, char **segments, int max)
     return n;
 }
 
-/* --- Payload responses ------------------------------------------------------ */
-
-/* A payload reference handed to libevent: keeps the model mapped until sent. */
-typedef struct transfer {
-    ms_model *model;
-    ms_server *server;
-} transfer;
-
-static void release_transfer(const void *data, size_t length, void *extra)
-{
-    (void)data, (void)length;
-    transfer *t = extra;
-    t->server->metrics.transfers_in_flight--;
-    ms_model_unref(t->model);
-    free(t);
-}
-
-/* Sends bytes [0, length) of data (inside model's mapping) honouring Range.
- * private_answer: the body depends on the reader's token, so only the reader's
- * own cache may keep it; every answer varies with Authorization. */
-static void send_bytes(ms_http_door *door, struct evhttp_request *req, ms_model *model,
-                       const uint8_t *data, uint64_t length, const char *etag, bool private_answer)
-{
-    struct evkeyvalq *out = evhttp_request_get_output_headers(req);
-    struct evkeyvalq *in = evhttp_request_get_input_headers(req);
-    model->requests++;
-    evhttp_add_header(out, "Content-Type", "application/octet-stream");
-    evhttp_add_header(out, "Accept-Ranges", "bytes");
-    evhttp_add_header(out, "ETag", etag);
-    evhttp_add_header(out, "Cache-Control",
-                      private_answer ? "private, max-age=3600" : "public, max-age=3600");
-    evhttp_add_header(out, "Vary", "Authorization");
-    if (ms_http_none_match(evhttp_find_header(in, "If-None-Match"), etag)) {
-        reply(door, req, 304, "Not Modified", NULL, 0);
-        return;
-    }
-    uint64_t first = 0, last = length ? length - 1 : 0;
-    int code = 200;
-    switch (ms_http_parse_range(evhttp_find_header(in, "Range"), length, &first, &last)) {
-    case MS_HTTP_RANGE_NONE: break;
-    case MS_HTTP_RANGE_UNSATISFIABLE: {
-        char cr[64];
-        snprintf(cr, sizeof cr, "bytes */%" PRIu64, length);
-        evhttp_add_header(out, "Content-Range", cr);
-        send_text(door, req, 416, "Range Not Satisfiable", "error: range not satisfiable");
-        return;
-    }
-    case MS_HTTP_RANGE_OK: {
-        char cr[96];
-        snprintf(cr, sizeof cr, "bytes %" PRIu64 "-%" PRIu64 "/%" PRIu64, first, last, length);
-        evhttp_add_header(out, "Content-Range", cr);
-        code = 206;
-        break;
-    }
-    }
-    uint64_t count = length ? last - first + 1 : 0;
-    if (is_head(req)) {
-        reply(door, req, code, code == 206 ? "Partial Content" : "OK", NULL, count);
-        return;
-    }
-    struct evbuffer *body = evbuffer_new();
-    if (!body) {
-        send_text(door, req, 500, "Internal Server Error", "error: out of memory");
-        return;
-    }
-    if (count) {
-        transfer *t = malloc(sizeof *t);
-        if (t) {
-            t->model = model, t->server = door->server;
-            ms_model_ref(model);
-            door->server->metrics.transfers_in_flight++;
-        }
-        if (!t || evbuffer_add_reference(body, data + first, (size_t)count, release_transfer, t) != 0) {
-            if (t)
-                release_transfer(NULL, 0, t);
-            evbuffer_free(body);
-            send_text(door, req, 500, "Internal Server Error", "error: out of memory");
-            return;
-        }
-    }
-    door->server->metrics.http_bytes_sent += count;
-    model->bytes_sent += count;
-    reply(door, req, code, code == 206 ? "Partial Content" : "OK", body, count);
-    evbuffer_free(body);
-}
-
-static void serve_index(ms_http_door *door, struct evhttp_request *req, ms_model *model)
-{
-    size_t size;
-    const uint8_t *index = ms_archive_index_bytes(model->archive, &size);
-    char etag[128];
-    snprintf(etag, sizeof etag, "\"%" PRIx64 "-%" PRIx64 "-index\"", model->file_inode,
-             (uint64_t)model->file_mtime_ns);
-    send_bytes(door, req, model, index, size, etag, false);
-}
-
-/* A cell's geometry (?bits=B: the prefix complete at B bits; bits above the
- * cell's own top mean all of it) or APO (?levels=L: the first L levels). The
- * URL is turned into a request entry and ms_access_resolve decides, as for the
- * binary door: the preview check runs on the clamped precision. */
-static void serve_cell(ms_http_door *door, struct evhttp_request *req, ms_model *model,
-                       const char *cell_text, const char *kind, const struct evkeyvalq *query)
-{
-    uint32_t cell;
-    const ms_archive_cell *c = NULL;
-    if (parse_u32(cell_text, UINT32_MAX, &cell))
-        c = ms_archive_get_cell(model->archive, cell);
-    if (!c) {
-        send_text(door, req, 404, "Not Found", "error: no such cell");
-        return;
-    }
-    bool token_used;
-    ms_access grant = reader_grant(door, req, model, &token_used);
-    if (ms_access_cell_hidden(model, &grant, cell)) {
-        send_text(door, req, 403, "Forbidden", "error: this cell is beyond the public preview; a token is required");
-        return;
-    }
-    bool geometry = !strcmp(kind, "geometry");
-    ms_proto_cell_request entry = {cell, geometry ? MS_PROTO_STREAM_GEOMETRY : MS_PROTO_STREAM_APO,
-                                   MS_PROTO_UNIT_STEPS, 0, 0, 0};
-    bool empty = false;
-    if (geometry) {
-        uint32_t bits = c->bits_max;
-        if (grant.permitted_geometry_steps - 1u < bits)
-            bits = grant.permitted_geometry_steps - 1u; /* by default, all the grant allows */
-        const char *bits_text = evhttp_find_header(query, "bits");
-        if (bits_text && !parse_u32(bits_text, 64, &bits)) {
-            send_text(door, req, 400, "Bad Request", "error: bits must be an integer in 0..64");
-            return;
-        }
-        entry.b = bits < c->bits_max ? bits : c->bits_max;
-    } else {
-        uint32_t levels = c->apo_levels;
-        const char *levels_text = evhttp_find_header(query, "levels");
-        if (levels_text && (!parse_u32(levels_text, 64, &levels) || levels == 0)) {
-            send_text(door, req, 400, "Bad Request", "error: levels must be an integer in 1..64");
-            return;
-        }
-        empty = levels == 0; /* a cell without APO */
-        entry.b = levels ? levels - 1 : 0;
-    }
-    if (entry.b > MS_PROTO_MAX_STEP)
-        entry.b = MS_PROTO_MAX_STEP;
-    ms_proto_byte_range range = {0, 0};
-    ms_proto_fault fault = {.code = MS_PROTO_E_INTERNAL};
-    if (!empty && ms_access_resolve(model, &grant, &entry, &range, &fault, NULL) != MS_OK) {
-        if (fault.code == MS_PROTO_E_FORBIDDEN)
-            send_text(door, req, 403, "Forbidden", "error: precision beyond the public preview needs a token");
-        else
-            send_text(door, req, 500, "Internal Server Error", "error: the cell's index is inconsistent");
-        return;
-    }
-    if (range.end > 0 && !ms_server_payload_intact(door->server, model, cell, !geometry)) {
-        send_text(door, req, 500, "Internal Server Error",
-                  "error: the archive's copy of this payload is damaged");
-        return;
-    }
-    size_t total;
-    const uint8_t *data = geometry ? ms_archive_geometry(model->archive, cell, &total)
-                                   : ms_archive_apo(model->archive, cell, &total);
-    char etag[160];
-    snprintf(etag, sizeof etag, "\"%" PRIx64 "-%" PRIx64 "-%u-%c%u\"", model->file_inode,
-             (uint64_t)model->file_mtime_ns, cell, geometry ? 'g' : 'a',
-             geometry ? entry.b : (empty ? 0 : entry.b + 1));
-    /* Resolved ranges of a STEPS request from step 0 start at byte 0. */
-    send_bytes(door, req, model, data, range.end, etag, token_used);
-}
-
 /* --- JSON and metrics -------------------------------------------------------- */
 
 static void serve_catalog(ms_http_door *door, struct evhttp_request *req)
@@ -409,14 +244,14 @@ static void serve_catalog(ms_http_door *door, struct evhttp_request *req)
     char *text = root ? json_dumps(root, JSON_INDENT(2) | JSON_SORT_KEYS) : NULL;
     json_decref(root);
     if (!text) {
-        send_text(door, req, 500, "Internal Server Error", "error: out of memory");
+        ms_http_send_text(door, req, 500, "Internal Server Error", "error: out of memory");
         return;
     }
     struct evbuffer *body = evbuffer_new();
     if (body) {
         evbuffer_add_printf(body, "%s\n", text);
         evhttp_add_header(evhttp_request_get_output_headers(req), "Content-Type", "application/json");
-        reply(door, req, 200, "OK", body, evbuffer_get_length(body));
+        ms_http_reply(door, req, 200, "OK", body, evbuffer_get_length(body));
         evbuffer_free(body);
     }
     free(text);
@@ -477,54 +312,11 @@ static void serve_metrics(ms_http_door *door, struct evhttp_request *req)
                             ms_registry_model(r, i)->bytes_sent);
     evhttp_add_header(evhttp_request_get_output_headers(req), "Content-Type",
                       "text/plain; version=0.0.4");
-    reply(door, req, 200, "OK", body, evbuffer_get_length(body));
+    ms_http_reply(door, req, 200, "OK", body, evbuffer_get_length(body));
     evbuffer_free(body);
 }
 
 /* --- Routing ----------------------------------------------------------------- */
-
-/* The model compressed whole with Draco (ARCHIVE_DIR/NAME.drc, written by the
- * benchmark), for meshload's baseline: the same bytes a non-streaming viewer
- * would download. Public models only; 404 when there is no such file. */
-static void serve_draco(ms_http_door *door, struct evhttp_request *req, ms_model *model,
-                        const char *name)
-{
-    bool token_used;
-    ms_access grant = reader_grant(door, req, model, &token_used);
-    if (!ms_access_is_full(&grant)) {
-        send_text(door, req, 403, "Forbidden", "error: the whole model needs a token");
-        return;
-    }
-    char path[4096];
-    snprintf(path, sizeof path, "%s/%s.drc", door->server->config.archive_dir, name);
-    int fd = open(path, O_RDONLY | O_CLOEXEC);
-    struct stat st;
-    if (fd < 0 || fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
-        if (fd >= 0)
-            close(fd);
-        send_text(door, req, 404, "Not Found", "error: no Draco file for this model");
-        return;
-    }
-    struct evbuffer *body = evbuffer_new();
-    if (!body || (st.st_size > 0 && evbuffer_add_file(body, fd, 0, st.st_size) != 0)) {
-        if (body)
-            evbuffer_free(body);
-        else
-            close(fd);
-        send_text(door, req, 500, "Internal Server Error", "error: cannot send the file");
-        return;
-    }
-    if (st.st_size == 0)
-        close(fd);
-    struct evkeyvalq *out = evhttp_request_get_output_headers(req);
-    evhttp_add_header(out, "Content-Type", "application/octet-stream");
-    evhttp_add_header(out, "Cache-Control", token_used ? "private, max-age=3600" : "public, max-age=3600");
-    evhttp_add_header(out, "Vary", "Authorization");
-    if (!is_head(req))
-        door->server->metrics.http_bytes_sent += (uint64_t)st.st_size;
-    reply(door, req, 200, "OK", body, (uint64_t)st.st_size); /* a HEAD: freeing body closes fd */
-    evbuffer_free(body);
-}
 
 static void route(ms_http_door *door, struct evhttp_request *req, char *path,
                   const struct evkeyvalq *query)
@@ -532,7 +324,7 @@ static void route(ms_http_door *door, struct evhttp_request *req, char *path,
     char *seg[6];
     int n = split_path(path, seg, 6);
     if (n == 1 && !strcmp(seg[0], "healthz")) {
-        send_text(door, req, 200, "OK", door->server->draining ? "draining" : "ok");
+        ms_http_send_text(door, req, 200, "OK", door->server->draining ? "draining" : "ok");
         return;
     }
     if (n == 1 && !strcmp(seg[0], "catalog")) {
@@ -546,24 +338,13 @@ static void route(ms_http_door *door, struct evhttp_request *req, char *path,
     if (n >= 2 && !strcmp(seg[0], "models")) {
         ms_model *model = ms_registry_find(door->server->registry, seg[1]);
         if (!model) {
-            send_text(door, req, 404, "Not Found", "error: no such model");
+            ms_http_send_text(door, req, 404, "Not Found", "error: no such model");
             return;
         }
-        if (n == 2) {
-            serve_index(door, req, model);
+        if (ms_http_route_model(door, req, model, seg + 1, n - 1, query))
             return;
-        }
-        if (n == 3 && !strcmp(seg[2], "draco")) {
-            serve_draco(door, req, model, seg[1]);
-            return;
-        }
-        if (n == 5 && !strcmp(seg[2], "cells") &&
-            (!strcmp(seg[4], "geometry") || !strcmp(seg[4], "apo"))) {
-            serve_cell(door, req, model, seg[3], seg[4], query);
-            return;
-        }
     }
-    send_text(door, req, 404, "Not Found", "error: no such resource");
+    ms_http_send_text(door, req, 404, "Not Found", "error: no such resource");
 }
 
 /* Pipelined answers must not wait for the client's delayed ACK (Nagle's
@@ -601,18 +382,18 @@ static void handle_request(struct evhttp_request *req, void *arg)
     enum evhttp_cmd_type cmd = evhttp_request_get_command(req);
     if (cmd != EVHTTP_REQ_GET && cmd != EVHTTP_REQ_HEAD) {
         evhttp_add_header(evhttp_request_get_output_headers(req), "Allow", "GET, HEAD");
-        send_text(door, req, 405, "Method Not Allowed", "error: only GET and HEAD");
+        ms_http_send_text(door, req, 405, "Method Not Allowed", "error: only GET and HEAD");
         return;
     }
     if (!rate_allowed(door, req)) {
         evhttp_add_header(evhttp_request_get_output_headers(req), "Retry-After", "1");
-        send_text(door, req, 429, "Too Many Requests", "error: request rate limit");
+        ms_http_send_text(door, req, 429, "Too Many Requests", "error: request rate limit");
         return;
     }
     const struct evhttp_uri *uri = evhttp_request_get_evhttp_uri(req);
     const char *raw_path = uri ? evhttp_uri_get_path(uri) : NULL;
     if (!raw_path || strlen(raw_path) > 512) {
-        send_text(door, req, 400, "Bad Request", "error: bad path");
+        ms_http_send_text(door, req, 400, "Bad Request", "error: bad path");
         return;
     }
     char path[513];
@@ -622,11 +403,11 @@ static void handle_request(struct evhttp_request *req, void *arg)
     const char *query_text = evhttp_uri_get_query(uri);
     if (query_text && evhttp_parse_query_str(query_text, &query) != 0) {
         evhttp_clear_headers(&query);
-        send_text(door, req, 400, "Bad Request", "error: bad query string");
+        ms_http_send_text(door, req, 400, "Bad Request", "error: bad query string");
         return;
     }
     if (evhttp_find_header(&query, "token")) {
-        send_text(door, req, 400, "Bad Request",
+        ms_http_send_text(door, req, 400, "Bad Request",
                   "error: the token is not accepted in the URL (URLs end up in logs); send "
                   "Authorization: Bearer TOKEN");
         evhttp_clear_headers(&query);

@@ -5,11 +5,14 @@
  *   /healthz                              "ok"
  *   /catalog                              JSON list of the models
  *   /models/NAME                          the model's header and cell index (binary)
+ *   /models/NAME/head                     the index head: version-3 header + root subtree
+ *   /models/NAME/subtrees/ID              subtree ID of the index, its stored zlib bytes
  *   /models/NAME/cells/ID/geometry[?bits=B]   geometry prefix complete at B bits
  *   /models/NAME/cells/ID/apo[?levels=L]      APO chunk prefix of L levels
  *   /metrics                              Prometheus text format
  *
- * Payloads honour a single `Range: bytes=...` (206 / 416), carry an ETag and are
+ * Payloads, the head and subtrees honour a single `Range: bytes=...` (206 /
+ * 416), carry an ETag (the head's and subtrees' from the model's content id) and are
  * sent from the archive mapping without copying. Access (ms_access.h decides):
  * above a model's public precision a client must present the operator's token
  * in `Authorization: Bearer TOKEN`, else 403; a `token` query parameter is

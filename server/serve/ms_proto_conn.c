@@ -15,6 +15,7 @@
 #include "ms_progress.h"
 #include "ms_registry.h"
 #include "ms_server_internal.h"
+#include "ms_subtree.h"
 
 #define CHUNK_BYTES MS_PROTO_PAYLOAD_CHUNK
 
@@ -203,10 +204,21 @@ bool ms_serve_conn_send_chunk(ms_fair_link *link, void *arg)
     size_t length;
     const uint8_t *base = r->stream == MS_PROTO_STREAM_GEOMETRY
                               ? ms_archive_geometry(r->model->archive, r->cell, &length)
-                              : ms_archive_apo(r->model->archive, r->cell, &length);
+                          : r->stream == MS_PROTO_STREAM_APO
+                              ? ms_archive_apo(r->model->archive, r->cell, &length)
+                              : ms_archive_subtree(r->model->archive, r->cell, &length);
     bool last = r->next + chunk == r->end;
     ms_error err;
     ms_server_metrics *m = metrics_of(c);
+    if (!base || length < r->end) { /* resolved against the same bytes: never expected */
+        ms_serve_conn_send_error(c, MS_PROTO_E_INTERNAL, r->id, 1, 0,
+                                 "the archive's bytes for this request are gone");
+        m->queued_requests--;
+        m->queued_bytes -= r->end - r->next;
+        ms_request_queue_remove(&c->queue, r);
+        free(r);
+        return c->queue.count && c->state == MS_CONN_READY;
+    }
     if (ms_frame_out_payload(out, r->id, r->cell, r->stream, r->next, r->end, last, base + r->next,
                              chunk, r->model, &m->transfers_in_flight, &err) != MS_OK) {
         ms_serve_conn_broken(c);

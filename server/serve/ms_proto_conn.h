@@ -71,7 +71,8 @@ typedef struct ms_serve_conn {
     bool reading_paused;             /* output over MS_PROTO_CONN_OUTPUT_LIMIT */
     ms_proto_decoder decoder;
     uint32_t client_max_frame;
-    uint32_t capabilities;
+    uint16_t version;                /* negotiated (HELLO_REPLY) */
+    uint32_t capabilities;           /* granted */
     bool token_accepted;
     ms_open_model models[MS_PROTO_CONN_MAX_OPEN_MODELS];
     uint32_t next_handle;

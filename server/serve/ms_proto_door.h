@@ -1,4 +1,4 @@
-/* The binary-protocol door of meshserve (protocol/PROTOCOL.md, versions 1 and 2): a
+/* The binary-protocol door of meshserve (protocol/PROTOCOL.md, versions 1 to 3): a
  * TCP listener on the server's loop, the connections it accepts (each with its
  * decoder, open models, request queue and limits: ms_proto_conn.h), the fair
  * output scheduler shared by all of them (ms_fair_scheduler.h), and a periodic

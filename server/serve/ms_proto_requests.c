@@ -16,6 +16,7 @@
 #include "ms_proto_range.h"
 #include "ms_registry.h"
 #include "ms_server_internal.h"
+#include "ms_subtree.h"
 
 #define INDEX_CHUNK_BYTES (1u << 20)
 #define CATALOGUE_FRAME_BYTES 65536u
@@ -87,12 +88,19 @@ static void model_steps(const ms_serve_conn *c, const ms_model *m, uint8_t *geom
     *permitted_apo = grant.permitted_apo_steps;
 }
 
-static bool model_servable(const ms_model *m)
+/* Whether this connection can open m: its cell count fits the protocol, and
+ * the index it would receive does (the head with CAP_INDEX_SUBTREES, so that a
+ * model whose whole index is above the 64 MiB limit is still served in
+ * subtrees; the whole index otherwise). */
+static bool model_servable(const ms_serve_conn *c, const ms_model *m)
 {
+    if (ms_archive_get_header(m->archive)->cell_count > MS_PROTO_MAX_CELLS)
+        return false;
+    if ((c->capabilities & MS_PROTO_CAP_INDEX_SUBTREES) && m->index_head)
+        return true;
     size_t size;
     ms_archive_index_bytes(m->archive, &size);
-    return size >= 1 && size <= MS_PROTO_MAX_INDEX_SIZE &&
-           ms_archive_get_header(m->archive)->cell_count <= MS_PROTO_MAX_CELLS;
+    return size >= 1 && size <= MS_PROTO_MAX_INDEX_SIZE;
 }
 
 static ms_open_model *find_handle(ms_serve_conn *c, uint32_t handle)
@@ -132,8 +140,12 @@ static void handle_hello(ms_serve_conn *c, const ms_proto_hello *h)
     }
     const char *token = server_of(c)->config.token;
     c->client_max_frame = h->max_frame;
-    /* CAP_INDEX_ZLIB is a version-2 capability: a version-1 peer never gets it. */
-    uint32_t offered = MS_PROTO_CAP_APO | (version >= 2 ? MS_PROTO_CAP_INDEX_ZLIB : 0);
+    /* Only the capabilities the chosen version defines: a version-1 peer never
+     * gets CAP_INDEX_ZLIB, a version-2 peer never CAP_INDEX_SUBTREES. */
+    uint32_t offered =
+        (MS_PROTO_CAP_APO | MS_PROTO_CAP_INDEX_ZLIB | MS_PROTO_CAP_INDEX_SUBTREES) &
+        ms_proto_version_capabilities(version);
+    c->version = version;
     c->capabilities = h->capabilities & offered;
     c->token_accepted = token && h->token_length && token_matches(h->token, h->token_length, token);
     ms_proto_message reply = {.type = MS_PROTO_HELLO_REPLY};
@@ -161,7 +173,7 @@ static void handle_list_catalogue(ms_serve_conn *c, uint32_t id)
     size_t count = 0, body = MS_PROTO_CATALOGUE_FIXED, listed = 0;
     for (size_t i = 0; i <= model_count; ++i) {
         const ms_model *m = i < model_count ? ms_registry_model(r, i) : NULL;
-        if (m && !model_servable(m))
+        if (m && !model_servable(c, m))
             continue;
         size_t name_length = m ? strlen(m->entry.name) : 0;
         size_t entry_size = 0;
@@ -224,7 +236,7 @@ static void handle_open_model(ms_serve_conn *c, uint32_t id, const ms_proto_open
     memcpy(name, o->name, o->name_length);
     name[o->name_length] = '\0';
     ms_model *m = ms_registry_find(server_of(c)->registry, name);
-    if (!m || !model_servable(m)) {
+    if (!m || !model_servable(c, m)) {
         ms_serve_conn_send_error(c, MS_PROTO_E_UNKNOWN_MODEL, id, 1, 0, "no such model");
         return;
     }
@@ -249,10 +261,21 @@ static void handle_open_model(ms_serve_conn *c, uint32_t id, const ms_proto_open
     ms_proto_model_opened *mo = &msg.body.model_opened;
     size_t index_size;
     const uint8_t *index = ms_archive_index_bytes(m->archive, &index_size);
-    /* What INDEX_DATA carries: the blob, or its zlib stream (a fifth of it). */
+    /* What INDEX_DATA carries: the blob, or its zlib stream (a fifth of it), or
+     * (version 3) the head only, whose size does not grow with the model. */
     const uint8_t *wire = index;
     size_t wire_size = index_size;
-    if ((c->capabilities & MS_PROTO_CAP_INDEX_ZLIB) && m->index_zlib) {
+    mo->index_size = (uint32_t)index_size;
+    mo->index_crc32 = m->index_crc32;
+    mo->archive_version = MS_ARCHIVE_BLOB_VERSION; /* the blob, not the file: always 1 */
+    if ((c->capabilities & MS_PROTO_CAP_INDEX_SUBTREES) && m->index_head) {
+        wire = m->index_head;
+        wire_size = m->index_head_size;
+        mo->index_size = (uint32_t)m->index_head_size;
+        mo->index_crc32 = m->index_head_crc32;
+        mo->archive_version = MS_ARCHIVE_VERSION_SUBTREES; /* the head's header */
+        mo->index_encoding = MS_PROTO_INDEX_SUBTREES;
+    } else if ((c->capabilities & MS_PROTO_CAP_INDEX_ZLIB) && m->index_zlib) {
         wire = m->index_zlib;
         wire_size = m->index_zlib_size;
         mo->index_encoding = MS_PROTO_INDEX_ZLIB;
@@ -260,9 +283,6 @@ static void handle_open_model(ms_serve_conn *c, uint32_t id, const ms_proto_open
     mo->model_handle = slot->handle;
     mo->cell_count = ms_archive_get_header(m->archive)->cell_count;
     mo->content_id = m->content_id;
-    mo->index_size = (uint32_t)index_size;
-    mo->index_crc32 = m->index_crc32;
-    mo->archive_version = MS_ARCHIVE_BLOB_VERSION; /* the blob, not the file: always 1 */
     model_steps(c, m, &mo->geometry_steps, &mo->apo_steps, &mo->permitted_geometry_steps,
                 &mo->permitted_apo_steps);
     slot->grant = ms_access_grant(m, c->token_accepted);
@@ -395,7 +415,8 @@ static resolved resolve_entry(const ms_serve_conn *c, const ms_open_model *slot,
     ms_proto_fault fault = {.code = MS_PROTO_E_INTERNAL};
     if (ms_access_resolve(slot->model, &slot->grant, e, &range, &fault, NULL) != MS_OK)
         return (resolved){fault.code, fault.detail, 0, 0};
-    if (range.begin < range.end &&
+    /* Subtrees were validated (CRC, structure) when the archive was opened. */
+    if (range.begin < range.end && e->stream != MS_PROTO_STREAM_INDEX &&
         !ms_server_payload_intact(server_of(c), slot->model, e->cell_id,
                                   e->stream == MS_PROTO_STREAM_APO))
         return (resolved){MS_PROTO_E_INTERNAL, 0, 0, 0};
@@ -405,7 +426,7 @@ static resolved resolve_entry(const ms_serve_conn *c, const ms_open_model *slot,
 static const char *entry_error_text(uint16_t code)
 {
     switch (code) {
-    case MS_PROTO_E_UNKNOWN_CELL: return "no such cell";
+    case MS_PROTO_E_UNKNOWN_CELL: return "no such cell (or, on the index stream, subtree)";
     case MS_PROTO_E_RANGE_NOT_SATISFIABLE: return "byte range outside the stream";
     case MS_PROTO_E_FORBIDDEN: return "beyond the public preview; a token is required";
     case MS_PROTO_E_INTERNAL: return "the archive's copy of this payload is damaged";
@@ -413,9 +434,10 @@ static const char *entry_error_text(uint16_t code)
     }
 }
 
-static void handle_request_cells(ms_serve_conn *c, uint32_t first_id,
-                                 const ms_proto_request_cells *b)
+static void handle_request_cells(ms_serve_conn *c, const ms_proto_message *msg)
 {
+    const uint32_t first_id = msg->request_id;
+    const ms_proto_request_cells *b = &msg->body.request_cells;
     const ms_proto_hello_reply *limits = &c->door->limits;
     uint32_t n = b->count;
     metrics_of(c)->binary_requests += n;
@@ -428,15 +450,13 @@ static void handle_request_cells(ms_serve_conn *c, uint32_t first_id,
                                  "no open model with this handle");
         return;
     }
-    if (!(c->capabilities & MS_PROTO_CAP_APO))
-        for (uint32_t i = 0; i < n; ++i)
-            if (b->entries[i].stream == MS_PROTO_STREAM_APO) {
-                ms_serve_conn_send_error(c, MS_PROTO_E_FIELD_OUT_OF_RANGE, first_id, n,
-                                         MS_PROTO_REQUEST_CELLS_FIXED +
-                                             MS_PROTO_CELL_REQUEST_SIZE * i + 4,
-                                         "APO requested without the APO capability");
-                return;
-            }
+    /* APO without CAP_APO, subtrees without CAP_INDEX_SUBTREES: the whole batch. */
+    ms_proto_fault fault;
+    ms_error err;
+    if (ms_proto_check_negotiated(msg, c->version, c->capabilities, &fault, &err) != MS_OK) {
+        ms_serve_conn_send_error(c, fault.code, first_id, n, fault.detail, err.text);
+        return;
+    }
     if (!ids_free(c, first_id, n))
         return;
     if (c->queue.count + n > limits->max_outstanding) {
@@ -455,7 +475,6 @@ static void handle_request_cells(ms_serve_conn *c, uint32_t first_id,
         if (!ranges[i].code)
             bytes += ranges[i].end - ranges[i].start;
     }
-    ms_error err;
     if (c->queue.queued_bytes + bytes > limits->max_queued_bytes) {
         ms_serve_conn_send_error(c, MS_PROTO_E_QUEUE_FULL, first_id, n, limits->max_queued_bytes,
                                  "too many payload bytes queued");
@@ -510,7 +529,7 @@ void ms_serve_conn_handle_message(ms_serve_conn *c, const ms_proto_message *msg)
     case MS_PROTO_OPEN_MODEL: handle_open_model(c, msg->request_id, &msg->body.open_model); break;
     case MS_PROTO_CLOSE_MODEL: handle_close_model(c, msg->body.close_model.model_handle); break;
     case MS_PROTO_REQUEST_CELLS:
-        handle_request_cells(c, msg->request_id, &msg->body.request_cells);
+        handle_request_cells(c, msg);
         break;
     case MS_PROTO_CANCEL: handle_cancel(c, &msg->body.cancel); break;
     case MS_PROTO_PING: {

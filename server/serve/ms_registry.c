@@ -9,6 +9,7 @@
 #include <zlib.h>
 
 #include "ms_proto.h"
+#include "ms_subtree.h"
 
 void ms_model_ref(ms_model *m) { m->refs++; }
 
@@ -162,6 +163,11 @@ ms_status ms_model_open(const char *dir, const ms_catalog_entry *entry, ms_model
     if (ms_proto_index_deflate(index, index_size, &m->index_zlib, &m->index_zlib_size, NULL) !=
         MS_OK)
         m->index_zlib = NULL, m->index_zlib_size = 0;
+    m->index_head = ms_archive_index_head(m->archive, &m->index_head_size);
+    if (m->index_head && m->index_head_size >= 1 && m->index_head_size <= MS_PROTO_MAX_INDEX_SIZE)
+        m->index_head_crc32 = (uint32_t)crc32_z(0L, m->index_head, m->index_head_size);
+    else
+        m->index_head = NULL, m->index_head_size = 0;
     uint64_t hash = 1469598103934665603ull;
     for (size_t i = 0; i < index_size; ++i)
         hash = (hash ^ index[i]) * 1099511628211ull;

@@ -41,6 +41,14 @@ typedef struct ms_model {
      * CAP_INDEX_ZLIB (compressed once, at load); NULL when it does not shrink. */
     uint8_t *index_zlib;
     size_t index_zlib_size;
+    /* The index head (ms_archive_index_head: a version-3 header and the root
+     * subtree), sent to clients that negotiated CAP_INDEX_SUBTREES, and its
+     * CRC-32; owned by the archive. NULL when it could not be built (out of
+     * memory, or above the protocol's index limit): such clients then get the
+     * whole index like the others. */
+    const uint8_t *index_head;
+    size_t index_head_size;
+    uint32_t index_head_crc32;
     uint64_t content_id;    /* FNV-1a 64 of the index blob, which holds every payload CRC */
     char *file_path;        /* DIR/NAME.msa, owned */
     uint64_t file_inode, file_size;

@@ -12,7 +12,12 @@
  * stops it; every message passes ms_proto_check_message and re-encodes to
  * exactly the bytes it was decoded from; non-fatal faults leave the decoder
  * usable and fatal ones make it refuse everything after; every fault can be
- * answered with an encodable ERROR frame; error texts are one line.
+ * answered with an encodable ERROR frame; error texts are one line. Every
+ * message also goes through ms_proto_check_negotiated as on a version-1
+ * connection without capabilities and on a version-3 one with them all: it
+ * must pass the latter, and refuse only with FIELD_OUT_OF_RANGE and an
+ * encodable ERROR. Cell requests of stream INDEX resolve against a one-step
+ * stream as the server's subtrees do.
  *
  * A ZLIB-encoded index (MODEL_OPENED then INDEX_DATA frames, client role) is
  * reassembled as the client does and inflated with ms_proto_index_inflate:
@@ -48,14 +53,18 @@ static size_t ms_fuzz_handshake_frame(bool client_role, uint8_t *out)
     if (client_role) {
         m.type = MS_PROTO_HELLO_REPLY;
         m.body.hello_reply = (ms_proto_hello_reply){
-            .version = 1, .capabilities = MS_PROTO_CAP_APO, .max_frame = MS_PROTO_MIN_FRAME,
+            .version = 3, .capabilities = MS_PROTO_CAP_APO | MS_PROTO_CAP_INDEX_ZLIB |
+                                          MS_PROTO_CAP_INDEX_SUBTREES,
+            .max_frame = MS_PROTO_MIN_FRAME,
             .max_batch = 64, .max_outstanding = 1024, .max_queued_bytes = 1u << 26,
             .idle_timeout_ms = 30000, .max_request_rate = 0, .max_open_models = 4,
             .server_name = "fuzz", .server_name_length = 4};
     } else {
         m.type = MS_PROTO_HELLO;
-        m.body.hello = (ms_proto_hello){.min_version = 1, .max_version = 1,
-                                        .capabilities = MS_PROTO_CAP_APO,
+        m.body.hello = (ms_proto_hello){.min_version = 1, .max_version = 3,
+                                        .capabilities = MS_PROTO_CAP_APO |
+                                                        MS_PROTO_CAP_INDEX_ZLIB |
+                                                        MS_PROTO_CAP_INDEX_SUBTREES,
                                         .max_frame = MS_PROTO_MIN_FRAME};
     }
     size_t written = 0;
@@ -68,24 +77,29 @@ static size_t ms_fuzz_handshake_frame(bool client_role, uint8_t *out)
  * and with a preview of 9 steps out of 16. */
 static void ms_fuzz_resolve(const ms_proto_request_cells *batch)
 {
-    static const uint32_t ends[] = {100, 250, 400};
-    const ms_proto_stream_steps steps = {7, 3, ends};
-    const ms_proto_stream_access accesses[2] = {{16, 16}, {16, 9}};
+    static const uint32_t ends[] = {100, 250, 400}, subtree_end[] = {300};
+    const ms_proto_stream_steps steps = {7, 3, ends}, subtree = {0, 1, subtree_end};
+    const ms_proto_stream_access accesses[2] = {{16, 16}, {16, 9}}, whole = {1, 1};
     for (uint32_t i = 0; i < batch->count; ++i) {
         const ms_proto_cell_request *r = &batch->entries[i];
+        const bool index = r->stream == MS_PROTO_STREAM_INDEX;
         ms_proto_fault fault;
         ms_status s = ms_proto_check_cell_id(r->cell_id, 1000, &fault, NULL);
         MS_FUZZ_CHECK(s == (r->cell_id < 1000 ? MS_OK : MS_ERR_RANGE));
         for (int k = 0; k < 2; ++k) {
             ms_proto_byte_range out = {0, 0};
             memset(&fault, 0, sizeof fault);
-            s = ms_proto_resolve_range(r, &steps, &accesses[k], &out, &fault, NULL);
+            s = ms_proto_resolve_range(r, index ? &subtree : &steps, index ? &whole : &accesses[k],
+                                       &out, &fault, NULL);
             if (s == MS_OK) {
-                MS_FUZZ_CHECK(out.begin <= out.end && out.end <= 400);
+                MS_FUZZ_CHECK(out.begin <= out.end && out.end <= (index ? 300u : 400u));
+                /* A subtree by STEPS is the whole of it (validation allows 0..0 only). */
+                MS_FUZZ_CHECK(!index || r->unit != MS_PROTO_UNIT_STEPS ||
+                              (out.begin == 0 && out.end == 300));
             } else {
                 MS_FUZZ_CHECK(s == MS_ERR_RANGE);
                 MS_FUZZ_CHECK(fault.code == MS_PROTO_E_RANGE_NOT_SATISFIABLE ||
-                              (fault.code == MS_PROTO_E_FORBIDDEN && k == 1));
+                              (fault.code == MS_PROTO_E_FORBIDDEN && k == 1 && !index));
             }
         }
     }
@@ -94,6 +108,32 @@ static void ms_fuzz_resolve(const ms_proto_request_cells *batch)
 static bool ms_fuzz_one_line(const char *text)
 {
     return text[0] != '\0' && strchr(text, '\n') == NULL && strchr(text, '\r') == NULL;
+}
+
+/* The negotiated rules (ms_proto_check_negotiated) on a decoded message: all
+ * pass on version 3 with every capability (except a HELLO_REPLY's own version
+ * and bits, checked against themselves); on version 1 without any, a refusal
+ * is FIELD_OUT_OF_RANGE with a one-line text and an encodable ERROR. */
+static void ms_fuzz_negotiated(const ms_proto_message *msg, uint8_t *scratch)
+{
+    const uint32_t all = ms_proto_version_capabilities(MS_PROTO_VERSION);
+    if (msg->type != MS_PROTO_HELLO_REPLY)
+        MS_FUZZ_CHECK(ms_proto_check_negotiated(msg, MS_PROTO_VERSION, all, NULL, NULL) == MS_OK);
+    ms_proto_fault fault;
+    memset(&fault, 0, sizeof fault);
+    ms_error err;
+    ms_error_clear(&err);
+    ms_status s = ms_proto_check_negotiated(msg, 1, 0, &fault, &err);
+    if (s == MS_OK)
+        return;
+    MS_FUZZ_CHECK(s == MS_ERR_RANGE && fault.code == MS_PROTO_E_FIELD_OUT_OF_RANGE);
+    MS_FUZZ_CHECK(ms_fuzz_one_line(err.text));
+    MS_FUZZ_CHECK((fault.request_id == 0) == (fault.request_count == 0));
+    ms_proto_message answer;
+    ms_proto_error_from_fault(&fault, err.text, &answer);
+    size_t written = 0;
+    MS_FUZZ_CHECK(ms_proto_encode(&answer, scratch, MS_PROTO_HEADER_SIZE + MS_PROTO_MIN_FRAME,
+                                  &written, NULL) == MS_OK);
 }
 
 /* A compressed index being reassembled (at most one at a time). */
@@ -218,6 +258,7 @@ static size_t ms_fuzz_protocol_one(const uint8_t *data, size_t size, uint16_t *f
                 MS_FUZZ_CHECK(memcmp(reencoded, stream + frame_start, written) == 0);
                 if (msg.type == MS_PROTO_REQUEST_CELLS)
                     ms_fuzz_resolve(&msg.body.request_cells);
+                ms_fuzz_negotiated(&msg, reencoded);
                 if (client_role)
                     ms_fuzz_index_message(&index, &msg);
                 frame_start = pos;

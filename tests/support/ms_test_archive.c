@@ -10,6 +10,7 @@
 #include <cmocka.h>
 
 #include "ms_archive_writer.h"
+#include "ms_test.h"
 
 ms_archive_header ms_test_archive_header(void)
 {
@@ -33,22 +34,22 @@ void ms_test_archive_fill(uint8_t *buf, uint32_t length, uint32_t seed)
 uint32_t ms_test_archive_geometry_length(uint32_t cell) { return 20 + (cell * 37) % 300; }
 uint32_t ms_test_archive_apo_levels(uint32_t cell) { return cell % 3 == 0 ? 0 : 1 + cell % 5; }
 
-void ms_test_write_archive(const char *path, uint32_t salt)
+/* Writes a tree of h.cell_count cells with the synthetic payloads, as file
+ * `version` (3 or 2). */
+static void write_tree(const char *path, const ms_archive_header *hp, const uint32_t *first_child,
+                       uint32_t salt, unsigned version)
 {
-    ms_archive_header h = ms_test_archive_header();
-    uint32_t first_child[MS_TEST_ARCHIVE_CELLS];
-    for (uint32_t i = 0; i < MS_TEST_ARCHIVE_CELLS; ++i)
-        first_child[i] = MS_ARCHIVE_NONE;
-    first_child[0] = 1;
-    first_child[5] = 65;
+    ms_archive_header h = *hp;
     ms_archive_writer *w;
     ms_error err;
     if (ms_archive_writer_open(path, &h, first_child, &w, &err) != MS_OK)
         fail_msg("%s", err.text);
+    if (ms_archive_writer_set_format(w, version, 0, &err) != MS_OK)
+        fail_msg("%s", err.text);
     uint8_t buf[1024];
     /* Reverse order, APO before geometry on odd cells: the writer must not care. */
-    for (uint32_t k = 0; k < MS_TEST_ARCHIVE_CELLS; ++k) {
-        uint32_t cell = MS_TEST_ARCHIVE_CELLS - 1 - k;
+    for (uint32_t k = 0; k < h.cell_count; ++k) {
+        uint32_t cell = h.cell_count - 1 - k;
         uint8_t lo, hi;
         ms_archive_writer_window(w, cell, &lo, &hi);
         uint32_t levels = ms_test_archive_apo_levels(cell), apo_table[64];
@@ -79,6 +80,44 @@ void ms_test_write_archive(const char *path, uint32_t salt)
         fail_msg("%s", err.text);
 }
 
+void ms_test_write_archive(const char *path, uint32_t salt)
+{
+    ms_test_write_archive_version(path, salt, MS_ARCHIVE_VERSION);
+}
+
+void ms_test_write_archive_version(const char *path, uint32_t salt, unsigned version)
+{
+    ms_archive_header h = ms_test_archive_header();
+    uint32_t first_child[MS_TEST_ARCHIVE_CELLS];
+    for (uint32_t i = 0; i < MS_TEST_ARCHIVE_CELLS; ++i)
+        first_child[i] = MS_ARCHIVE_NONE;
+    first_child[0] = 1;
+    first_child[5] = 65;
+    write_tree(path, &h, first_child, salt, version);
+}
+
+void ms_test_write_deep_archive(const char *path, uint32_t salt)
+{
+    ms_archive_header h = ms_test_archive_header();
+    h.n = 2, h.root_bits = 4;
+    h.cell_count = MS_TEST_DEEP_ARCHIVE_CELLS;
+    uint32_t first_child[MS_TEST_DEEP_ARCHIVE_CELLS], level[MS_TEST_DEEP_ARCHIVE_CELLS];
+    uint32_t next = 1;
+    level[0] = 0;
+    /* Breadth-first: the root and the first and last child of every group
+     * above level 5 split. */
+    for (uint32_t id = 0; id < MS_TEST_DEEP_ARCHIVE_CELLS; ++id) {
+        uint32_t place = id == 0 ? 0 : (id - 1) % 8;
+        bool split = level[id] < 5 && (id == 0 || place == 0 || place == 7);
+        first_child[id] = split ? next : MS_ARCHIVE_NONE;
+        for (uint32_t k = 0; split && k < 8; ++k)
+            level[next++] = level[id] + 1;
+    }
+    if (next != MS_TEST_DEEP_ARCHIVE_CELLS)
+        fail_msg("deep synthetic archive: %u cells, expected %u", next, MS_TEST_DEEP_ARCHIVE_CELLS);
+    write_tree(path, &h, first_child, salt, MS_ARCHIVE_VERSION);
+}
+
 static uint64_t le_get(const uint8_t *p, int bytes)
 {
     uint64_t v = 0;
@@ -100,18 +139,48 @@ static void le_put(uint8_t *p, uint64_t v, int bytes)
 #define AT_INDEX_CRC 108
 #define AT_STORED_SIZE 112
 
-static void check_v2(const uint8_t *file, size_t size)
+/* The stored index size of a version-2 or version-3 image (fails the test on
+ * anything else). */
+static uint64_t check_v2(const uint8_t *file, size_t size)
 {
-    if (size < 128 || le_get(file + 8, 4) != 2)
-        fail_msg("not a version-2 archive image (%zu bytes)", size);
-    uint64_t stored = le_get(file + AT_STORED_SIZE, 8), payload = le_get(file + AT_PAYLOAD_SIZE, 8);
+    uint64_t version = size < 128 ? 0 : le_get(file + 8, 4);
+    if (version != 2 && version != 3)
+        fail_msg("not a version-2 or 3 archive image (%zu bytes)", size);
+    uint64_t stored = le_get(file + AT_STORED_SIZE, version == 2 ? 8 : 4);
+    uint64_t payload = le_get(file + AT_PAYLOAD_SIZE, 8);
     if (stored > size - 128 || payload != size - 128 - stored)
-        fail_msg("version-2 image with inconsistent sizes");
+        fail_msg("version-%u image with inconsistent sizes", (unsigned)version);
+    return stored;
+}
+
+/* A version-3 image's raw index, through the reader (its subtrees are many
+ * streams): written to a scratch file, opened, and the index blob copied. */
+static uint8_t *raw_index_v3(const uint8_t *file, size_t size, size_t *raw_size)
+{
+    char dir[512], path[600];
+    ms_test_tmpdir(dir, sizeof dir);
+    snprintf(path, sizeof path, "%s/image.msa", dir);
+    ms_test_write_file(path, file, size);
+    ms_archive *a;
+    ms_error err;
+    if (ms_archive_open(path, &a, &err) != MS_OK)
+        fail_msg("%s", err.text);
+    size_t blob_size;
+    const uint8_t *blob = ms_archive_index_bytes(a, &blob_size);
+    *raw_size = blob_size - 128;
+    uint8_t *out = malloc(*raw_size ? *raw_size : 1);
+    assert_non_null(out);
+    memcpy(out, blob + 128, *raw_size);
+    ms_archive_close(a);
+    ms_test_rmdir(dir);
+    return out;
 }
 
 uint8_t *ms_test_archive_raw_index(const uint8_t *file, size_t size, size_t *raw_size)
 {
     check_v2(file, size);
+    if (le_get(file + 8, 4) == 3)
+        return raw_index_v3(file, size, raw_size);
     uLongf raw = (uLongf)le_get(file + AT_RAW_SIZE, 8);
     uint8_t *out = malloc(raw ? raw : 1);
     assert_non_null(out);
@@ -143,8 +212,7 @@ uint8_t *ms_test_archive_compose(const uint8_t *file, size_t size, const uint8_t
                                  size_t stored_size, uint64_t raw_size, uint32_t index_crc,
                                  size_t *out_size)
 {
-    check_v2(file, size);
-    uint64_t old_stored = le_get(file + AT_STORED_SIZE, 8);
+    uint64_t old_stored = check_v2(file, size);
     size_t payload = size - 128 - (size_t)old_stored;
     size_t n = 128 + stored_size + payload;
     uint8_t *out = malloc(n);
@@ -152,6 +220,11 @@ uint8_t *ms_test_archive_compose(const uint8_t *file, size_t size, const uint8_t
     memcpy(out, file, 128);
     memcpy(out + 128, stored, stored_size);
     memcpy(out + 128 + stored_size, file + 128 + old_stored, payload);
+    /* Always a version-2 header: version 3's subtree fields become version
+     * 2's stored size and encoding. */
+    le_put(out + 8, 2, 4);
+    memset(out + 112, 0, 12);
+    out[120] = MS_ARCHIVE_INDEX_ZLIB;
     le_put(out + AT_RAW_SIZE, raw_size, 8);
     le_put(out + AT_FILE_SIZE, n, 8);
     le_put(out + AT_INDEX_CRC, index_crc, 4);

@@ -20,18 +20,28 @@ uint32_t ms_test_archive_apo_levels(uint32_t cell);      /* 0 = no chunk; 40 byt
 /* Writes the archive at path (fails the test on error). `salt` changes every
  * payload byte, to tell two versions of a model apart. */
 void ms_test_write_archive(const char *path, uint32_t salt);
+/* The same model as file version 2 or 3 (ms_archive_writer_set_format). */
+void ms_test_write_archive_version(const char *path, uint32_t salt, unsigned version);
 
-/* --- File images of version 2 (docs/ARCHIVE.md), for tests that take them
- * apart. These read the header fields themselves (not through the reader), and
- * fail the test on any error; every buffer they return is malloc'd. */
+/* A deeper one for the subtree tests: n = 2, p = 12, p_r = 4, six levels
+ * (the root splits; below it the first and the last cell of every group of 8
+ * split, down to level 5): 1 + 8 + 16 + 32 + 64 + 128 cells, the same payload
+ * rules. */
+#define MS_TEST_DEEP_ARCHIVE_CELLS 249u
+void ms_test_write_deep_archive(const char *path, uint32_t salt);
 
-/* The stored index of a version-2 image, inflated (*raw_size bytes). */
+/* --- File images of version 2 or 3 (docs/ARCHIVE.md), for tests that take
+ * them apart. These read the header fields themselves (but a version-3 image's
+ * raw index comes through the reader), and fail the test on any error; every
+ * buffer they return is malloc'd. The images they compose are version 2. */
+
+/* The raw index of an image (*raw_size bytes). */
 uint8_t *ms_test_archive_raw_index(const uint8_t *file, size_t size, size_t *raw_size);
 /* One zlib stream (level 9) of data. */
 uint8_t *ms_test_zlib(const uint8_t *data, size_t size, size_t *out_size);
 /* Recomputes the header CRC (bytes 124..127) of an image. */
 void ms_test_archive_seal(uint8_t *file);
-/* A new image from a version-2 image: its header and payload area, with `stored`
+/* A new version-2 image from a version-2 or 3 image: its header and payload area, with `stored`
  * as the stored index and the header saying raw size raw_size and index CRC
  * index_crc; the file and stored sizes follow, and the header CRC is redone. */
 uint8_t *ms_test_archive_compose(const uint8_t *file, size_t size, const uint8_t *stored,

@@ -13,6 +13,7 @@
 #include <sys/socket.h>
 #include <time.h>
 #include <unistd.h>
+#include <zlib.h>
 #include <cmocka.h>
 
 static double now_seconds(void)
@@ -205,9 +206,97 @@ uint32_t ms_test_conn_open_model(ms_test_conn *c, const char *name, uint32_t id,
         have = o.index_size;
     }
     assert_int_equal(have, o.index_size);
+    if (o.index_encoding == MS_PROTO_INDEX_SUBTREES &&
+        (uint32_t)crc32_z(0L, blob, have) != o.index_crc32)
+        fail_msg("index head: CRC-32 mismatch");
     if (index)
         *index = blob;
     else
         free(blob);
     return o.model_handle;
+}
+
+void ms_test_conn_send_batch(ms_test_conn *c, uint32_t handle, uint32_t first_id,
+                       const ms_proto_cell_request *entries, uint16_t count)
+{
+    ms_proto_message m = {.type = MS_PROTO_REQUEST_CELLS, .request_id = first_id};
+    m.body.request_cells.model_handle = handle;
+    m.body.request_cells.entries = entries;
+    m.body.request_cells.count = count;
+    ms_test_conn_send(c, &m);
+}
+
+
+
+void ms_test_answers_init(ms_test_answers *a, uint32_t first, uint32_t count)
+{
+    memset(a, 0, sizeof *a);
+    a->first = first, a->count = count;
+    a->data = calloc(count, sizeof *a->data);
+    a->length = calloc(count, sizeof *a->length);
+    a->start = calloc(count, sizeof *a->start);
+    a->end = calloc(count, sizeof *a->end);
+    a->error = calloc(count, sizeof *a->error);
+    a->terminals = calloc(count, sizeof *a->terminals);
+    a->order = calloc(count, sizeof *a->order);
+}
+
+void ms_test_answers_free(ms_test_answers *a)
+{
+    for (uint32_t i = 0; i < a->count; ++i)
+        free(a->data[i]);
+    free(a->data), free(a->length), free(a->start), free(a->end), free(a->error);
+    free(a->terminals), free(a->order);
+}
+
+/* Takes one frame into a; returns false when it is not about these requests. */
+bool ms_test_answers_take(ms_test_answers *a, const ms_proto_message *m)
+{
+    if (m->request_id < a->first || m->request_id - a->first >= a->count)
+        return false;
+    uint32_t k = m->request_id - a->first;
+    if (m->type == MS_PROTO_ERROR) {
+        uint32_t n = m->body.error.request_count;
+        for (uint32_t j = 0; j < n && k + j < a->count; ++j) {
+            if (a->terminals[k + j]++ == 0)
+                a->order[a->done++] = m->request_id + j;
+            a->error[k + j] = m->body.error.code;
+        }
+        return true;
+    }
+    assert_int_equal(m->type, MS_PROTO_PAYLOAD);
+    if (a->terminals[k])
+        fail_msg("frame for request %u after its terminal frame", m->request_id);
+    const ms_proto_payload *p = &m->body.payload;
+    if (!a->data[k]) {
+        a->data[k] = malloc(p->end + 1);
+        a->start[k] = p->offset;
+        a->end[k] = p->end;
+    }
+    assert_int_equal(p->end, a->end[k]);
+    assert_int_equal(p->offset, a->start[k] + a->length[k]); /* contiguous, in order */
+    memcpy(a->data[k] + a->length[k], p->data, p->data_length);
+    a->length[k] += p->data_length;
+    if (m->flags & MS_PROTO_FLAG_LAST) {
+        a->terminals[k]++;
+        a->order[a->done++] = m->request_id;
+    }
+    return true;
+}
+
+void ms_test_answers_collect(ms_test_conn *c, ms_test_answers *a)
+{
+    ms_proto_message m;
+    while (a->done < a->count) {
+        int r = ms_test_conn_recv(c, &m, 10.0);
+        if (r != 1)
+            fail_msg("%u of %u requests answered, then %s", a->done, a->count,
+                     r == 0 ? "end of stream" : "time-out");
+        if (m.type == MS_PROTO_ERROR && m.body.error.fatal)
+            fail_msg("fatal error %s: %.*s", ms_proto_error_name(m.body.error.code),
+                     (int)m.body.error.text_length, m.body.error.text);
+        ms_test_answers_take(a, &m);
+    }
+    for (uint32_t i = 0; i < a->count; ++i)
+        assert_int_equal(a->terminals[i], 1);
 }

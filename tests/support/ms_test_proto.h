@@ -45,11 +45,38 @@ uint16_t ms_test_conn_expect_error(ms_test_conn *conn, uint32_t *request_id,
                                    ms_proto_error_body *body);
 
 /* OPEN_MODEL name with id; receives MODEL_OPENED and the index blob (malloc'd
- * into *index; inflated and CRC-checked when it came ZLIB-encoded, else as
- * received). Returns the handle, 0 when the server answered with an ERROR
+ * into *index; inflated and CRC-checked when it came ZLIB-encoded, the head as
+ * received and CRC-checked when SUBTREES, else as received). Returns the handle, 0 when the server answered with an ERROR
  * (whose code goes to *error_code). */
 uint32_t ms_test_conn_open_model(ms_test_conn *conn, const char *name, uint32_t id,
                                  ms_proto_model_opened *opened, uint8_t **index,
                                  uint16_t *error_code);
+
+/* REQUEST_CELLS of count entries on handle, ids first_id.. */
+void ms_test_conn_send_batch(ms_test_conn *conn, uint32_t handle, uint32_t first_id,
+                             const ms_proto_cell_request *entries, uint16_t count);
+
+/* Reassembles the answers to requests first..first+count-1: data per id,
+ * terminal frames counted, the error code of requests ended by an ERROR. */
+typedef struct ms_test_answers {
+    uint32_t first, count;
+    uint8_t **data;
+    uint32_t *length, *start, *end;
+    uint16_t *error;
+    unsigned *terminals;
+    uint32_t *order; /* ids in the order their terminal frame came */
+    uint32_t done;
+} ms_test_answers;
+
+/* Allocates the bookkeeping of requests first..first+count-1; _free releases it. */
+void ms_test_answers_init(ms_test_answers *a, uint32_t first, uint32_t count);
+void ms_test_answers_free(ms_test_answers *a);
+/* Takes one frame (PAYLOAD or ERROR) into a; false when it is not about these
+ * requests. Fails the test on a frame after a request's terminal frame, or
+ * payload frames out of order. */
+bool ms_test_answers_take(ms_test_answers *a, const ms_proto_message *m);
+/* Receives until every request has its terminal frame (fails the test on a
+ * time-out, end of stream or a fatal ERROR); each exactly one. */
+void ms_test_answers_collect(ms_test_conn *conn, ms_test_answers *a);
 
 #endif

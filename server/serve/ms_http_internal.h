@@ -1,0 +1,52 @@
+/* Inside the HTTP side door (ms_http_door.h): the answers its routes share
+ * (ms_http_door.c: connections, routing, catalogue, metrics;
+ * ms_http_models.c: a model's index, head, subtrees, cell streams and Draco
+ * file). Private to server/serve/; every function runs on the server loop.
+ */
+#ifndef MS_HTTP_INTERNAL_H
+#define MS_HTTP_INTERNAL_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "ms_access.h"
+#include "ms_http_door.h"
+#include "ms_registry.h"
+
+struct evbuffer;
+struct evhttp_request;
+struct evkeyvalq;
+struct ms_server;
+
+/* The server the door belongs to. */
+struct ms_server *ms_http_door_server(const ms_http_door *door);
+
+/* True for a HEAD request. */
+bool ms_http_is_head(struct evhttp_request *req);
+
+/* Sends an answer whose body is `length` bytes (body may be NULL for a HEAD or
+ * an empty answer), and writes its access log line. A HEAD gets the GET's
+ * headers, Content-Length included, and no body. */
+void ms_http_reply(ms_http_door *door, struct evhttp_request *req, int code, const char *reason,
+                   struct evbuffer *body, uint64_t length);
+
+/* A text/plain answer of one line (errors count in the metrics from 400 on). */
+void ms_http_send_text(ms_http_door *door, struct evhttp_request *req, int code,
+                       const char *reason, const char *text);
+
+/* Decimal digits only (at most 10), at most max; false otherwise. */
+bool ms_http_parse_u32(const char *text, uint32_t max, uint32_t *out);
+
+/* The reader's grant of model (ms_access_grant with the token of its
+ * Authorization header); *token_used says whether the token widened it, so
+ * that the answer stays out of shared caches. */
+ms_access ms_http_reader_grant(const ms_http_door *door, struct evhttp_request *req,
+                               const ms_model *model, bool *token_used);
+
+/* Answers a path under /models/NAME/ for model: seg[0] is NAME, seg[1..n) the
+ * rest (n >= 1). Returns false, having sent nothing, for a path it does not
+ * know (the caller answers 404). */
+bool ms_http_route_model(ms_http_door *door, struct evhttp_request *req, ms_model *model,
+                         char **seg, int n, const struct evkeyvalq *query);
+
+#endif

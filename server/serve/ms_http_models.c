@@ -1,0 +1,310 @@
+/* The side door's answers under /models/NAME (ms_http_internal.h): the index
+ * blob, the index head and its subtrees (protocol version 3's index in
+ * subtrees, PROTOCOL.md section 11), a cell's geometry or APO stream, and the
+ * Draco file. Every byte range is decided by ms_access_resolve (or, for the
+ * whole Draco model, ms_access_is_full): docs/SECURITY.md, section 2. Bodies
+ * are sent from the archive's memory without copying. */
+#include <errno.h>
+#include <event2/buffer.h>
+#include <event2/http.h>
+#include <event2/keyvalq_struct.h>
+#include <fcntl.h>
+#include <inttypes.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "ms_access.h"
+#include "ms_http_internal.h"
+#include "ms_http_parse.h"
+#include "ms_server_internal.h"
+#include "ms_subtree.h"
+
+/* A payload reference handed to libevent: keeps the model mapped until sent. */
+typedef struct transfer {
+    ms_model *model;
+    ms_server *server;
+} transfer;
+
+static void release_transfer(const void *data, size_t length, void *extra)
+{
+    (void)data, (void)length;
+    transfer *t = extra;
+    t->server->metrics.transfers_in_flight--;
+    ms_model_unref(t->model);
+    free(t);
+}
+
+/* Sends bytes [0, length) of data (inside model's mapping) honouring Range.
+ * private_answer: the body depends on the reader's token, so only the reader's
+ * own cache may keep it; every answer varies with Authorization. */
+static void send_bytes(ms_http_door *door, struct evhttp_request *req, ms_model *model,
+                       const uint8_t *data, uint64_t length, const char *etag, bool private_answer)
+{
+    struct evkeyvalq *out = evhttp_request_get_output_headers(req);
+    struct evkeyvalq *in = evhttp_request_get_input_headers(req);
+    model->requests++;
+    evhttp_add_header(out, "Content-Type", "application/octet-stream");
+    evhttp_add_header(out, "Accept-Ranges", "bytes");
+    evhttp_add_header(out, "ETag", etag);
+    evhttp_add_header(out, "Cache-Control",
+                      private_answer ? "private, max-age=3600" : "public, max-age=3600");
+    evhttp_add_header(out, "Vary", "Authorization");
+    if (ms_http_none_match(evhttp_find_header(in, "If-None-Match"), etag)) {
+        ms_http_reply(door, req, 304, "Not Modified", NULL, 0);
+        return;
+    }
+    uint64_t first = 0, last = length ? length - 1 : 0;
+    int code = 200;
+    switch (ms_http_parse_range(evhttp_find_header(in, "Range"), length, &first, &last)) {
+    case MS_HTTP_RANGE_NONE: break;
+    case MS_HTTP_RANGE_UNSATISFIABLE: {
+        char cr[64];
+        snprintf(cr, sizeof cr, "bytes */%" PRIu64, length);
+        evhttp_add_header(out, "Content-Range", cr);
+        ms_http_send_text(door, req, 416, "Range Not Satisfiable", "error: range not satisfiable");
+        return;
+    }
+    case MS_HTTP_RANGE_OK: {
+        char cr[96];
+        snprintf(cr, sizeof cr, "bytes %" PRIu64 "-%" PRIu64 "/%" PRIu64, first, last, length);
+        evhttp_add_header(out, "Content-Range", cr);
+        code = 206;
+        break;
+    }
+    }
+    uint64_t count = length ? last - first + 1 : 0;
+    if (ms_http_is_head(req)) {
+        ms_http_reply(door, req, code, code == 206 ? "Partial Content" : "OK", NULL, count);
+        return;
+    }
+    struct evbuffer *body = evbuffer_new();
+    if (!body) {
+        ms_http_send_text(door, req, 500, "Internal Server Error", "error: out of memory");
+        return;
+    }
+    if (count) {
+        transfer *t = malloc(sizeof *t);
+        if (t) {
+            t->model = model, t->server = ms_http_door_server(door);
+            ms_model_ref(model);
+            ms_http_door_server(door)->metrics.transfers_in_flight++;
+        }
+        if (!t || evbuffer_add_reference(body, data + first, (size_t)count, release_transfer, t) != 0) {
+            if (t)
+                release_transfer(NULL, 0, t);
+            evbuffer_free(body);
+            ms_http_send_text(door, req, 500, "Internal Server Error", "error: out of memory");
+            return;
+        }
+    }
+    ms_http_door_server(door)->metrics.http_bytes_sent += count;
+    model->bytes_sent += count;
+    ms_http_reply(door, req, code, code == 206 ? "Partial Content" : "OK", body, count);
+    evbuffer_free(body);
+}
+
+static void serve_index(ms_http_door *door, struct evhttp_request *req, ms_model *model)
+{
+    size_t size;
+    const uint8_t *index = ms_archive_index_bytes(model->archive, &size);
+    char etag[128];
+    snprintf(etag, sizeof etag, "\"%" PRIx64 "-%" PRIx64 "-index\"", model->file_inode,
+             (uint64_t)model->file_mtime_ns);
+    send_bytes(door, req, model, index, size, etag, false);
+}
+
+/* A cell's geometry (?bits=B: the prefix complete at B bits; bits above the
+ * cell's own top mean all of it) or APO (?levels=L: the first L levels). The
+ * URL is turned into a request entry and ms_access_resolve decides, as for the
+ * binary door: the preview check runs on the clamped precision. */
+static void serve_cell(ms_http_door *door, struct evhttp_request *req, ms_model *model,
+                       const char *cell_text, const char *kind, const struct evkeyvalq *query)
+{
+    uint32_t cell;
+    const ms_archive_cell *c = NULL;
+    if (ms_http_parse_u32(cell_text, UINT32_MAX, &cell))
+        c = ms_archive_get_cell(model->archive, cell);
+    if (!c) {
+        ms_http_send_text(door, req, 404, "Not Found", "error: no such cell");
+        return;
+    }
+    bool token_used;
+    ms_access grant = ms_http_reader_grant(door, req, model, &token_used);
+    if (ms_access_cell_hidden(model, &grant, cell)) {
+        ms_http_send_text(door, req, 403, "Forbidden", "error: this cell is beyond the public preview; a token is required");
+        return;
+    }
+    bool geometry = !strcmp(kind, "geometry");
+    ms_proto_cell_request entry = {cell, geometry ? MS_PROTO_STREAM_GEOMETRY : MS_PROTO_STREAM_APO,
+                                   MS_PROTO_UNIT_STEPS, 0, 0, 0};
+    bool empty = false;
+    if (geometry) {
+        uint32_t bits = c->bits_max;
+        if (grant.permitted_geometry_steps - 1u < bits)
+            bits = grant.permitted_geometry_steps - 1u; /* by default, all the grant allows */
+        const char *bits_text = evhttp_find_header(query, "bits");
+        if (bits_text && !ms_http_parse_u32(bits_text, 64, &bits)) {
+            ms_http_send_text(door, req, 400, "Bad Request", "error: bits must be an integer in 0..64");
+            return;
+        }
+        entry.b = bits < c->bits_max ? bits : c->bits_max;
+    } else {
+        uint32_t levels = c->apo_levels;
+        const char *levels_text = evhttp_find_header(query, "levels");
+        if (levels_text && (!ms_http_parse_u32(levels_text, 64, &levels) || levels == 0)) {
+            ms_http_send_text(door, req, 400, "Bad Request", "error: levels must be an integer in 1..64");
+            return;
+        }
+        empty = levels == 0; /* a cell without APO */
+        entry.b = levels ? levels - 1 : 0;
+    }
+    if (entry.b > MS_PROTO_MAX_STEP)
+        entry.b = MS_PROTO_MAX_STEP;
+    ms_proto_byte_range range = {0, 0};
+    ms_proto_fault fault = {.code = MS_PROTO_E_INTERNAL};
+    if (!empty && ms_access_resolve(model, &grant, &entry, &range, &fault, NULL) != MS_OK) {
+        if (fault.code == MS_PROTO_E_FORBIDDEN)
+            ms_http_send_text(door, req, 403, "Forbidden", "error: precision beyond the public preview needs a token");
+        else
+            ms_http_send_text(door, req, 500, "Internal Server Error", "error: the cell's index is inconsistent");
+        return;
+    }
+    if (range.end > 0 && !ms_server_payload_intact(ms_http_door_server(door), model, cell, !geometry)) {
+        ms_http_send_text(door, req, 500, "Internal Server Error",
+                  "error: the archive's copy of this payload is damaged");
+        return;
+    }
+    size_t total;
+    const uint8_t *data = geometry ? ms_archive_geometry(model->archive, cell, &total)
+                                   : ms_archive_apo(model->archive, cell, &total);
+    char etag[160];
+    snprintf(etag, sizeof etag, "\"%" PRIx64 "-%" PRIx64 "-%u-%c%u\"", model->file_inode,
+             (uint64_t)model->file_mtime_ns, cell, geometry ? 'g' : 'a',
+             geometry ? entry.b : (empty ? 0 : entry.b + 1));
+    /* Resolved ranges of a STEPS request from step 0 start at byte 0. */
+    send_bytes(door, req, model, data, range.end, etag, token_used);
+}
+
+/* The index head (what MODEL_OPENED's INDEX_DATA carries with encoding
+ * SUBTREES). Its root subtree is resolved through ms_access like every other
+ * subtree, so the head is readable exactly when the subtrees are. */
+static void serve_head(ms_http_door *door, struct evhttp_request *req, ms_model *model)
+{
+    bool token_used;
+    ms_access grant = ms_http_reader_grant(door, req, model, &token_used);
+    const ms_proto_cell_request root = {0, MS_PROTO_STREAM_INDEX, MS_PROTO_UNIT_STEPS, 0, 0, 0};
+    ms_proto_byte_range range;
+    if (ms_access_resolve(model, &grant, &root, &range, NULL, NULL) != MS_OK || !model->index_head) {
+        ms_http_send_text(door, req, 500, "Internal Server Error",
+                          "error: the model's index head is not available");
+        return;
+    }
+    char etag[64];
+    snprintf(etag, sizeof etag, "\"%016" PRIx64 "-head\"", model->content_id);
+    send_bytes(door, req, model, model->index_head, model->index_head_size, etag, false);
+}
+
+/* One subtree of the index by id (its stored zlib bytes, what stream INDEX
+ * carries): 404 for an id that is not a subtree id of the model. The bytes do
+ * not depend on the reader's token: always a public answer. */
+static void serve_subtree(ms_http_door *door, struct evhttp_request *req, ms_model *model,
+                          const char *id_text)
+{
+    uint32_t id;
+    if (!ms_http_parse_u32(id_text, UINT32_MAX, &id)) {
+        ms_http_send_text(door, req, 404, "Not Found", "error: no such subtree");
+        return;
+    }
+    bool token_used;
+    ms_access grant = ms_http_reader_grant(door, req, model, &token_used);
+    const ms_proto_cell_request whole = {id, MS_PROTO_STREAM_INDEX, MS_PROTO_UNIT_STEPS, 0, 0, 0};
+    ms_proto_byte_range range;
+    ms_proto_fault fault = {.code = MS_PROTO_E_INTERNAL};
+    if (ms_access_resolve(model, &grant, &whole, &range, &fault, NULL) != MS_OK) {
+        if (fault.code == MS_PROTO_E_UNKNOWN_CELL)
+            ms_http_send_text(door, req, 404, "Not Found", "error: no such subtree");
+        else
+            ms_http_send_text(door, req, 500, "Internal Server Error",
+                              "error: the subtree cannot be read");
+        return;
+    }
+    size_t size;
+    const uint8_t *stored = ms_archive_subtree(model->archive, id, &size);
+    char etag[80];
+    snprintf(etag, sizeof etag, "\"%016" PRIx64 "-subtree-%" PRIu32 "\"", model->content_id, id);
+    /* A STEPS request of the whole subtree resolves to [0, stored size). */
+    send_bytes(door, req, model, stored, range.end, etag, false);
+}
+
+/* The model compressed whole with Draco (ARCHIVE_DIR/NAME.drc, written by the
+ * benchmark), for meshload's baseline: the same bytes a non-streaming viewer
+ * would download. Public models only; 404 when there is no such file. */
+static void serve_draco(ms_http_door *door, struct evhttp_request *req, ms_model *model,
+                        const char *name)
+{
+    bool token_used;
+    ms_access grant = ms_http_reader_grant(door, req, model, &token_used);
+    if (!ms_access_is_full(&grant)) {
+        ms_http_send_text(door, req, 403, "Forbidden", "error: the whole model needs a token");
+        return;
+    }
+    char path[4096];
+    snprintf(path, sizeof path, "%s/%s.drc", ms_http_door_server(door)->config.archive_dir, name);
+    int fd = open(path, O_RDONLY | O_CLOEXEC);
+    struct stat st;
+    if (fd < 0 || fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
+        if (fd >= 0)
+            close(fd);
+        ms_http_send_text(door, req, 404, "Not Found", "error: no Draco file for this model");
+        return;
+    }
+    struct evbuffer *body = evbuffer_new();
+    if (!body || (st.st_size > 0 && evbuffer_add_file(body, fd, 0, st.st_size) != 0)) {
+        if (body)
+            evbuffer_free(body);
+        else
+            close(fd);
+        ms_http_send_text(door, req, 500, "Internal Server Error", "error: cannot send the file");
+        return;
+    }
+    if (st.st_size == 0)
+        close(fd);
+    struct evkeyvalq *out = evhttp_request_get_output_headers(req);
+    evhttp_add_header(out, "Content-Type", "application/octet-stream");
+    evhttp_add_header(out, "Cache-Control", token_used ? "private, max-age=3600" : "public, max-age=3600");
+    evhttp_add_header(out, "Vary", "Authorization");
+    if (!ms_http_is_head(req))
+        ms_http_door_server(door)->metrics.http_bytes_sent += (uint64_t)st.st_size;
+    ms_http_reply(door, req, 200, "OK", body, (uint64_t)st.st_size); /* a HEAD: freeing body closes fd */
+    evbuffer_free(body);
+}
+
+bool ms_http_route_model(ms_http_door *door, struct evhttp_request *req, ms_model *model,
+                         char **seg, int n, const struct evkeyvalq *query)
+{
+    if (n == 1) {
+        serve_index(door, req, model);
+        return true;
+    }
+    if (n == 2 && !strcmp(seg[1], "draco")) {
+        serve_draco(door, req, model, seg[0]);
+        return true;
+    }
+    if (n == 2 && !strcmp(seg[1], "head")) {
+        serve_head(door, req, model);
+        return true;
+    }
+    if (n == 3 && !strcmp(seg[1], "subtrees")) {
+        serve_subtree(door, req, model, seg[2]);
+        return true;
+    }
+    if (n == 4 && !strcmp(seg[1], "cells") &&
+        (!strcmp(seg[3], "geometry") || !strcmp(seg[3], "apo"))) {
+        serve_cell(door, req, model, seg[2], seg[3], query);
+        return true;
+    }
+    return false;
+}
