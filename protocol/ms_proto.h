@@ -432,33 +432,27 @@ typedef struct ms_proto_decoder_config {
     uint32_t max_batch; /* server: largest batch accepted; client: ignored (use 0) */
 } ms_proto_decoder_config;
 
-/* Incremental decoder state. Treat every field as private. */
-typedef struct ms_proto_decoder {
-    ms_proto_decoder_config config;
-    bool handshake_done;    /* first frame (HELLO / HELLO_REPLY) seen */
-    bool peer_closed;       /* a fatal ERROR was received: nothing may follow */
-    bool failed;            /* a fatal fault happened; failure/failure_text repeat it */
-    ms_proto_fault failure;
-    char failure_text[MS_ERROR_TEXT_MAX];
-    uint8_t header[MS_PROTO_HEADER_SIZE];
-    size_t header_have;     /* bytes of header buffered */
-    uint32_t body_length;   /* of the current frame, once the header is complete */
-    uint8_t *body;          /* owned; grown up to body_length only */
-    size_t body_capacity;
-    size_t body_have;
-    void *scratch;          /* owned; decoded arrays (batch entries, ...) */
-    size_t scratch_capacity;
-    uint64_t stream_offset; /* bytes consumed since init, for error texts */
-    uint64_t frame_start;   /* stream offset of the current frame */
-} ms_proto_decoder;
+/* Incremental decoder: opaque. One per byte stream (connection); it buffers
+ * at most one incomplete frame and the decoded arrays of the last message.
+ *
+ * Ownership: ms_proto_decoder_new gives the caller the decoder, which owns all
+ * its buffers; ms_proto_decoder_free releases them. A decoded message borrows
+ * the decoder's memory until the next call on that decoder.
+ *
+ * Thread-safety: a decoder is used by one thread at a time; distinct decoders
+ * are independent (no shared state). */
+typedef struct ms_proto_decoder ms_proto_decoder;
 
-/* Prepares a decoder; allocates nothing. config->max_frame must be in
+/* Creates a decoder for config (copied) in *out; allocates only the handle,
+ * buffers grow with the frames fed. config->max_frame must be in
  * [MS_PROTO_MIN_FRAME, MS_PROTO_MAX_FRAME] and, for a server, max_batch in
- * [1, MS_PROTO_MAX_BATCH]; else MS_ERR_ARG. */
-ms_status ms_proto_decoder_init(ms_proto_decoder *dec, const ms_proto_decoder_config *config,
-                                ms_error *err);
+ * [1, MS_PROTO_MAX_BATCH]; a role that is neither server nor client, or a
+ * NULL argument, is MS_ERR_ARG too; MS_ERR_NOMEM when the handle cannot be
+ * allocated. *out is NULL after any error. */
+ms_status ms_proto_decoder_new(const ms_proto_decoder_config *config, ms_proto_decoder **out,
+                               ms_error *err);
 
-/* Releases the decoder's buffers; the decoder may be init'ed again. Accepts NULL. */
+/* Releases the decoder and its buffers; NULL is a no-op. */
 void ms_proto_decoder_free(ms_proto_decoder *dec);
 
 /* Feeds bytes as they arrive, in any split. Consumes input until one frame is
@@ -488,7 +482,8 @@ ms_status ms_proto_decoder_feed(ms_proto_decoder *dec, const uint8_t *data, size
  * fatal MALFORMED_FRAME fault (truncated frame). */
 ms_status ms_proto_decoder_finish(ms_proto_decoder *dec, ms_proto_fault *fault, ms_error *err);
 
-/* Bytes of an incomplete frame currently buffered (header and body). */
+/* Bytes of an incomplete frame currently buffered (header and body); 0 for
+ * NULL. */
 size_t ms_proto_decoder_buffered(const ms_proto_decoder *dec);
 
 #endif

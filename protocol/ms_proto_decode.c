@@ -9,31 +9,37 @@
 #include <string.h>
 
 #include "ms_proto.h"
+#include "ms_proto_decode_internal.h"
 #include "ms_proto_wire.h"
 
 /* Buffers larger than this are released between frames. */
 #define MS_PROTO_DECODER_KEEP (1u << 20)
 
-ms_status ms_proto_decoder_init(ms_proto_decoder *dec, const ms_proto_decoder_config *config,
-                                ms_error *err)
+ms_status ms_proto_decoder_new(const ms_proto_decoder_config *config, ms_proto_decoder **out,
+                               ms_error *err)
 {
-    if (!dec || !config)
-        return ms_error_set(err, MS_ERR_ARG, "decoder_init: NULL argument");
-    memset(dec, 0, sizeof *dec);
+    if (out)
+        *out = NULL;
+    if (!config || !out)
+        return ms_error_set(err, MS_ERR_ARG, "decoder_new: NULL argument");
     if (config->role != MS_PROTO_ROLE_SERVER && config->role != MS_PROTO_ROLE_CLIENT)
-        return ms_error_set(err, MS_ERR_ARG, "decoder_init: role %d is neither server nor client",
+        return ms_error_set(err, MS_ERR_ARG, "decoder_new: role %d is neither server nor client",
                             (int)config->role);
     if (config->max_frame < MS_PROTO_MIN_FRAME || config->max_frame > MS_PROTO_MAX_FRAME)
-        return ms_error_set(err, MS_ERR_ARG, "decoder_init: max_frame %u outside [%u, %u]",
+        return ms_error_set(err, MS_ERR_ARG, "decoder_new: max_frame %u outside [%u, %u]",
                             (unsigned)config->max_frame, MS_PROTO_MIN_FRAME, MS_PROTO_MAX_FRAME);
+    if (config->role == MS_PROTO_ROLE_SERVER &&
+        (config->max_batch < 1 || config->max_batch > MS_PROTO_MAX_BATCH))
+        return ms_error_set(err, MS_ERR_ARG, "decoder_new: max_batch %u outside [1, %u]",
+                            (unsigned)config->max_batch, MS_PROTO_MAX_BATCH);
+    ms_proto_decoder *dec = calloc(1, sizeof *dec);
+    if (!dec)
+        return ms_error_set(err, MS_ERR_NOMEM, "decoder_new: out of memory");
     dec->config = *config;
-    if (config->role == MS_PROTO_ROLE_SERVER) {
-        if (config->max_batch < 1 || config->max_batch > MS_PROTO_MAX_BATCH)
-            return ms_error_set(err, MS_ERR_ARG, "decoder_init: max_batch %u outside [1, %u]",
-                                (unsigned)config->max_batch, MS_PROTO_MAX_BATCH);
-    } else {
+    /* A client accepts every batch the protocol allows. */
+    if (config->role == MS_PROTO_ROLE_CLIENT)
         dec->config.max_batch = MS_PROTO_MAX_BATCH;
-    }
+    *out = dec;
     return MS_OK;
 }
 
@@ -43,7 +49,7 @@ void ms_proto_decoder_free(ms_proto_decoder *dec)
         return;
     free(dec->body);
     free(dec->scratch);
-    memset(dec, 0, sizeof *dec);
+    free(dec);
 }
 
 size_t ms_proto_decoder_buffered(const ms_proto_decoder *dec)

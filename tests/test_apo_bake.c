@@ -158,12 +158,26 @@ static archive_check check_archive(const char *path, bool every_cell)
     return k;
 }
 
+/* A fresh dir and the path of the small bunny (stanford_bunny_res3). */
+static void bunny_case(char dir[512], char model[4096])
+{
+    ms_test_tmpdir(dir, 512);
+    ms_test_model_path(model, 4096, "stanford_bunny_res3.ply.gz");
+}
+
+/* check_archive on dir/name.msa. */
+static archive_check check_baked(const char *dir, const char *name, bool every_cell)
+{
+    char path[700];
+    snprintf(path, sizeof path, "%s/%s.msa", dir, name);
+    return check_archive(path, every_cell);
+}
+
 static void test_chunks_round_trip_and_threads_agree(void **state)
 {
     (void)state;
-    char dir[512], model[4096], cmd[2048], out[256], path[700];
-    ms_test_tmpdir(dir, sizeof dir);
-    ms_test_model_path(model, sizeof model, "stanford_bunny_res3.ply.gz");
+    char dir[512], model[4096], cmd[2048], out[256];
+    bunny_case(dir, model);
     ms_bake_apo_params apo;
     ms_bake_apo_params_default(&apo);
     apo.max_depth = 8;
@@ -174,8 +188,7 @@ static void test_chunks_round_trip_and_threads_agree(void **state)
     bake(model, dir, "t2", 2, &apo, 16, 4, 7, 200);
     snprintf(cmd, sizeof cmd, "cmp '%s/t1.msa' '%s/t2.msa'", dir, dir);
     assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
-    snprintf(path, sizeof path, "%s/t2.msa", dir);
-    archive_check k = check_archive(path, true);
+    archive_check k = check_baked(dir, "t2", true);
     assert_true(k.chunks > 10);
     assert_true(k.multi_level >= 10);
     assert_true(k.internal_with_chunk >= 2); /* the root and a level-1 cell that split */
@@ -190,8 +203,7 @@ static void test_depth_rule_exact(void **state)
 {
     (void)state;
     char dir[512], model[4096], path[700];
-    ms_test_tmpdir(dir, sizeof dir);
-    ms_test_model_path(model, sizeof model, "stanford_bunny_res3.ply.gz");
+    bunny_case(dir, model);
     ms_bake_apo_params apo;
     ms_bake_apo_params_default(&apo);
     apo.init_depth = 30;
@@ -199,8 +211,7 @@ static void test_depth_rule_exact(void **state)
     apo.verify = true;
     apo.every_cell = true;
     bake(model, dir, "cap", 2, &apo, 16, 4, 7, 800);
-    snprintf(path, sizeof path, "%s/cap.msa", dir);
-    archive_check k = check_archive(path, true);
+    archive_check k = check_baked(dir, "cap", true);
     assert_true(k.chunks > 10);
     assert_int_equal(k.at_rule_depth, k.chunks);
 
@@ -232,8 +243,7 @@ static void test_damaged_chunks_are_rejected(void **state)
 {
     (void)state;
     char dir[512], model[4096], path[700], bad[700];
-    ms_test_tmpdir(dir, sizeof dir);
-    ms_test_model_path(model, sizeof model, "stanford_bunny_res3.ply.gz");
+    bunny_case(dir, model);
     ms_bake_apo_params apo;
     ms_bake_apo_params_default(&apo);
     apo.max_depth = 7;
@@ -332,11 +342,7 @@ static void test_cli_reports_apo(void **state)
     ms_test_model_path(model, sizeof model, "stanford_bunny_res3.ply.gz");
     snprintf(cmd, sizeof cmd, "%s '%s' -o '%s' --name b --apo-max-depth 6 --apo-verify --apo-every-cell --json",
              bin, model, dir);
-    assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
-    json_error_t je;
-    json_t *j = json_loads(out, 0, &je);
-    if (!j)
-        fail_msg("not JSON: %s", out);
+    json_t *j = ms_test_run_json(cmd, 0);
     json_t *apo = json_object_get(j, "apo");
     assert_true(json_is_true(json_object_get(apo, "enabled")));
     assert_true(json_is_true(json_object_get(apo, "every_cell")));
@@ -543,8 +549,7 @@ static void test_internal_sampling_surface_is_children_union(void **state)
 {
     (void)state;
     char dir[512], model[4096], path[700];
-    ms_test_tmpdir(dir, sizeof dir);
-    ms_test_model_path(model, sizeof model, "stanford_bunny_res3.ply.gz");
+    bunny_case(dir, model);
     ms_bake_apo_params apo;
     ms_bake_apo_params_default(&apo);
     apo.max_depth = 5;
@@ -742,8 +747,7 @@ static void test_flat_fan_bakes(void **state)
      * fan's triangles it touches (the root's m alone has thousands) */
     assert_true(r.apo_rays > 0 && r.apo_rays <= 2 * MS_APO_SAMPLES_PER_LEAF * r.apo_leaves);
     assert_true(r.apo_point_queries <= r.apo_leaves);
-    snprintf(path, sizeof path, "%s/fan.msa", dir);
-    archive_check k = check_archive(path, false);
+    archive_check k = check_baked(dir, "fan", false);
     assert_int_equal(k.chunks, r.apo_chunks);
     assert_int_equal(k.multi_level, 0);
     ms_test_rmdir(dir);
@@ -757,7 +761,7 @@ static void test_big_dragon(void **state)
     const char *big = getenv("MESHSTREAM_BIG");
     if (!big || strcmp(big, "1") != 0)
         skip();
-    char dir[512], model[4096], path[700];
+    char dir[512], model[4096];
     ms_test_tmpdir(dir, sizeof dir);
     ms_test_model_path(model, sizeof model, "stanford_dragon_vrip.ply.gz");
     ms_bake_apo_params apo;
@@ -765,8 +769,7 @@ static void test_big_dragon(void **state)
     apo.verify = true;
     ms_bake_report r;
     bake_report(model, dir, "dragon", 2, &apo, 16, 4, 7, 8000, &r);
-    snprintf(path, sizeof path, "%s/dragon.msa", dir);
-    archive_check k = check_archive(path, false);
+    archive_check k = check_baked(dir, "dragon", false);
     print_message("dragon: %u chunks, %u at the rule's depth, APO %llu bytes, geometry %llu\n", k.chunks,
                   k.at_rule_depth, (unsigned long long)r.apo_bytes, (unsigned long long)r.geometry_bytes);
     assert_true(k.chunks >= 10);

@@ -25,21 +25,26 @@ static void test_help_and_usage_errors(void **state)
     snprintf(cmd, sizeof cmd, "%s --apo-classic --help", bin);
     assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
     assert_non_null(strstr(out, "--apo-init-depth D"));
-    snprintf(cmd, sizeof cmd, "%s --apo-classic", bin);
-    assert_int_equal(ms_test_run(cmd, out, sizeof out), 2);
-    assert_string_equal(out, "meshbake: missing input file (see meshbake --help)\n");
-    snprintf(cmd, sizeof cmd, "%s demo:1000 demo:2000 --apo-classic", bin);
-    assert_int_equal(ms_test_run(cmd, out, sizeof out), 2);
-    assert_string_equal(out, "meshbake: expected one input, got more (see meshbake --help)\n");
-    snprintf(cmd, sizeof cmd, "%s demo:1000 --apo-classic --frobnicate", bin);
-    assert_int_equal(ms_test_run(cmd, out, sizeof out), 2);
-    assert_string_equal(out, "meshbake: unknown option: --frobnicate (see meshbake --help)\n");
-    snprintf(cmd, sizeof cmd, "%s demo:1000 --apo-classic --simplify", bin);
-    assert_int_equal(ms_test_run(cmd, out, sizeof out), 2);
-    assert_string_equal(out, "meshbake: option needs a value: --simplify (see meshbake --help)\n");
-    snprintf(cmd, sizeof cmd, "%s demo:1000 --apo-classic --apo-max-depth 31", bin);
-    assert_int_equal(ms_test_run(cmd, out, sizeof out), 2);
-    assert_string_equal(out, "meshbake: --apo-max-depth wants an integer in [0, 30], got '31'\n");
+    /* usage errors: exit status 2 and exactly this line */
+    static const struct {
+        const char *args, *message;
+    } usage[] = {
+        {"--apo-classic",
+         "meshbake: missing input file (see meshbake --help)\n"},
+        {"demo:1000 demo:2000 --apo-classic",
+         "meshbake: expected one input, got more (see meshbake --help)\n"},
+        {"demo:1000 --apo-classic --frobnicate",
+         "meshbake: unknown option: --frobnicate (see meshbake --help)\n"},
+        {"demo:1000 --apo-classic --simplify",
+         "meshbake: option needs a value: --simplify (see meshbake --help)\n"},
+        {"demo:1000 --apo-classic --apo-max-depth 31",
+         "meshbake: --apo-max-depth wants an integer in [0, 30], got '31'\n"},
+    };
+    for (size_t i = 0; i < sizeof usage / sizeof *usage; ++i) {
+        snprintf(cmd, sizeof cmd, "%s %s", bin, usage[i].args);
+        assert_int_equal(ms_test_run(cmd, out, sizeof out), 2);
+        assert_string_equal(out, usage[i].message);
+    }
     snprintf(cmd, sizeof cmd, "%s demo:1000 --apo-classic --apo-tol -1", bin);
     assert_int_equal(ms_test_run(cmd, out, sizeof out), 2);
     snprintf(cmd, sizeof cmd, "%s demo:1000 --apo-classic --apo-measure fancy", bin);

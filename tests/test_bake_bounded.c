@@ -25,17 +25,10 @@
 static json_t *bake(const char *bin, const char *model, const char *dir, const char *name,
                     const char *options)
 {
-    char cmd[16384], out[16384];
+    char cmd[16384];
     snprintf(cmd, sizeof cmd, "%s '%s' -o '%s' --name %s --no-apo --min-tris 1000 --json %s", bin,
              model, dir, name, options);
-    int rc = ms_test_run(cmd, out, sizeof out);
-    if (rc != 0)
-        fail_msg("meshbake exited %d: %s", rc, out);
-    json_error_t je;
-    json_t *j = json_loads(out, 0, &je);
-    if (!j)
-        fail_msg("not JSON: %s", out);
-    return j;
+    return ms_test_run_json(cmd, 0);
 }
 
 static uint64_t io_bytes(json_t *report, const char *phase, const char *which)

@@ -60,26 +60,28 @@ static void test_bad_files(void **state)
     expect_error("meshstream-camera-path 2\n0 0 0 1 0 0 0 0 1 0 60\n", MS_ERR_FORMAT,
                  "bad.cam:1: not a camera path");
     expect_error(magic, MS_ERR_EMPTY, "no keyframe");
-    snprintf(text, sizeof text, "%s0 0 0 1 0 0 0 0 1 0\n", magic);
-    expect_error(text, MS_ERR_FORMAT, "bad.cam:2: expected 11 finite numbers");
-    snprintf(text, sizeof text, "%s0 0 0 1 0 0 0 0 1 0 60 7\n", magic);
-    expect_error(text, MS_ERR_FORMAT, "bad.cam:2:");
-    snprintf(text, sizeof text, "%s0 0 0 1 0 0 0 0 1 0 60x\n", magic);
-    expect_error(text, MS_ERR_FORMAT, "expected 11");
-    snprintf(text, sizeof text, "%s0 nan 0 1 0 0 0 0 1 0 60\n", magic);
-    expect_error(text, MS_ERR_FORMAT, "finite");
-    snprintf(text, sizeof text, "%s0 1e999 0 1 0 0 0 0 1 0 60\n", magic);
-    expect_error(text, MS_ERR_FORMAT, "finite");
-    snprintf(text, sizeof text, "%s1 0 0 1 0 0 0 0 1 0 60\n1 0 0 2 0 0 0 0 1 0 60\n", magic);
-    expect_error(text, MS_ERR_RANGE, "bad.cam:3: times must start at >= 0 and increase");
-    snprintf(text, sizeof text, "%s-1 0 0 1 0 0 0 0 1 0 60\n", magic);
-    expect_error(text, MS_ERR_RANGE, "times must");
-    snprintf(text, sizeof text, "%s0 1 1 1 1 1 1 0 1 0 60\n", magic);
-    expect_error(text, MS_ERR_RANGE, "bad.cam:2: camera: position and target coincide");
-    snprintf(text, sizeof text, "%s0 0 0 1 0 0 0 0 0 1 60\n", magic);
-    expect_error(text, MS_ERR_RANGE, "up is parallel");
-    snprintf(text, sizeof text, "%s0 0 0 1 0 0 0 0 1 0 180\n", magic);
-    expect_error(text, MS_ERR_RANGE, "field of view");
+    /* a keyframe line after the magic line, and the error it gives */
+    static const struct {
+        const char *keyframes;
+        ms_status code;
+        const char *where;
+    } cases[] = {
+        {"0 0 0 1 0 0 0 0 1 0\n", MS_ERR_FORMAT, "bad.cam:2: expected 11 finite numbers"},
+        {"0 0 0 1 0 0 0 0 1 0 60 7\n", MS_ERR_FORMAT, "bad.cam:2:"},
+        {"0 0 0 1 0 0 0 0 1 0 60x\n", MS_ERR_FORMAT, "expected 11"},
+        {"0 nan 0 1 0 0 0 0 1 0 60\n", MS_ERR_FORMAT, "finite"},
+        {"0 1e999 0 1 0 0 0 0 1 0 60\n", MS_ERR_FORMAT, "finite"},
+        {"1 0 0 1 0 0 0 0 1 0 60\n1 0 0 2 0 0 0 0 1 0 60\n", MS_ERR_RANGE,
+         "bad.cam:3: times must start at >= 0 and increase"},
+        {"-1 0 0 1 0 0 0 0 1 0 60\n", MS_ERR_RANGE, "times must"},
+        {"0 1 1 1 1 1 1 0 1 0 60\n", MS_ERR_RANGE, "bad.cam:2: camera: position and target coincide"},
+        {"0 0 0 1 0 0 0 0 0 1 60\n", MS_ERR_RANGE, "up is parallel"},
+        {"0 0 0 1 0 0 0 0 1 0 180\n", MS_ERR_RANGE, "field of view"},
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof *cases; ++i) {
+        snprintf(text, sizeof text, "%s%s", magic, cases[i].keyframes);
+        expect_error(text, cases[i].code, cases[i].where);
+    }
     char *longline = malloc(3000);
     memset(longline, ' ', 2999);
     longline[2999] = '\0';

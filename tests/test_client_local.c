@@ -45,63 +45,21 @@
 #define WAIT_SECONDS 60.0
 #define APO_LEVELS 11
 
-typedef struct fixture {
-    char dir[512], archives[600], file[700], log[600], port_file[600];
-    pid_t pid;
-    uint16_t port, http_port;
-    ms_archive *archive;
-    ms_camera_path path;
-} fixture;
-
-static fixture *g;
+static ms_test_served *g;
 
 static int group_setup(void **state)
 {
     (void)state;
-    fixture *f = calloc(1, sizeof *f);
-    ms_test_tmpdir(f->dir, sizeof f->dir);
-    snprintf(f->archives, sizeof f->archives, "%s/archive", f->dir);
-    snprintf(f->file, sizeof f->file, "%s/" MODEL ".msa", f->archives);
-    snprintf(f->log, sizeof f->log, "%s/meshserve.log", f->dir);
-    snprintf(f->port_file, sizeof f->port_file, "%s/ports", f->dir);
-    if (mkdir(f->archives, 0755) != 0)
+    ms_test_served *f = ms_test_served_new(MODEL);
+    if (!f)
         return -1;
-    char ply[600];
-    snprintf(ply, sizeof ply, "%s/demo.ply", f->dir);
-    ms_nsp_test_demo_ply(ply, TRIANGLES);
-    ms_bake_options o;
-    ms_bake_options_default(&o); /* APO on */
-    /* chunks on the leaf cells too (by default their geometry renders the
+    /* APO chunks on the leaf cells too (by default their geometry renders the
      * input and they have none): the close-up shows leaf cells, and this test
      * is about how the client fetches and hands over chunks */
-    o.apo.every_cell = true;
-    o.input = ply;
-    o.archive_dir = f->archives;
-    o.name = MODEL;
-    o.min_triangles = 2000;
-    o.threads = 2;
-    o.mem_mb = 64;
-    ms_bake_report report;
-    ms_error err;
-    if (ms_bake(&o, &report, &err) != MS_OK) {
-        fprintf(stderr, "bake: %s\n", err.text);
+    if (ms_nsp_test_bake_demo(f->dir, TRIANGLES, f->archives, MODEL, 2000, true) != 0 ||
+        ms_test_served_open(f, PATH_FILE) != 0)
         return -1;
-    }
-    if (ms_archive_open(f->file, &f->archive, &err) != MS_OK ||
-        ms_camera_path_load(PATH_FILE, &f->path, &err) != MS_OK) {
-        fprintf(stderr, "%s\n", err.text);
-        return -1;
-    }
-    char bin[512];
-    ms_test_bin_path(bin, sizeof bin, "meshserve");
-    char *argv[] = {bin, f->archives, "--port", "0", "--http-port", "0", "--port-file",
-                    f->port_file, NULL};
-    f->pid = ms_test_spawn(argv, f->log);
-    if (ms_test_wait_ports(f->port_file, 15.0, &f->port, &f->http_port) != 0) {
-        fprintf(stderr, "meshserve did not start (see %s)\n", f->log);
-        ms_test_stop(f->pid, SIGKILL, 5.0);
-        return -1;
-    }
+    ms_test_served_launch(f, 0);
     g = f;
     return 0;
 }
@@ -109,39 +67,17 @@ static int group_setup(void **state)
 static int group_teardown(void **state)
 {
     (void)state;
-    if (!g)
-        return 0;
-    if (g->pid)
-        ms_test_stop(g->pid, SIGTERM, 10.0);
-    ms_archive_close(g->archive);
-    ms_camera_path_free(&g->path);
-    ms_test_rmdir(g->dir);
-    free(g);
+    ms_test_served_free(g);
     g = NULL;
     return 0;
 }
 
-static ms_camera key_camera(size_t k)
-{
-    ms_camera cam;
-    ms_error err;
-    double t = g->path.keys[k < g->path.count ? k : g->path.count - 1].time;
-    if (ms_camera_path_sample(&g->path, t, 640, 480, 1e-4, 1e4, &cam, &err) != MS_OK)
-        fail_msg("%s", err.text);
-    return cam;
-}
+static ms_camera key_camera(size_t k) { return ms_test_core_key_camera(&g->path, k); }
 
 static ms_core_options network_options(void)
 {
-    ms_core_options o = {0};
-    o.host = "127.0.0.1";
-    o.port = g->port;
-    o.model = MODEL;
-    o.tolerance_px = 1.0;
-    o.hysteresis_bits = 0.0;
+    ms_core_options o = ms_test_served_core_options(g, MODEL);
     o.apo_levels = APO_LEVELS;
-    o.answer_timeout = 3.0;
-    o.give_up_seconds = 20.0;
     o.export_frames = true;
     return o;
 }
@@ -458,11 +394,7 @@ static void test_meshload_local(void **state)
         snprintf(cmd, sizeof cmd, "%s --archive %s --path " PATH_FILE " --viewport 640x480 "
                  "--apo-levels %d --duration 60 --json 2>/dev/null", bin, g->file,
                  apo ? APO_LEVELS : 0);
-        assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
-        json_error_t je;
-        json_t *r = json_loads(out, 0, &je);
-        if (!r)
-            fail_msg("meshload output is not JSON (%s): %.300s", je.text, out);
+        json_t *r = ms_test_run_json(cmd, 0);
         uint64_t cold = json_u64(r, "cold_bytes"), path = json_u64(r, "path_bytes");
         uint64_t cold_apo = json_u64(r, "cold_apo_bytes"), path_apo = json_u64(r, "path_apo_bytes");
         assert_int_equal(json_u64(r, "cold_geometry_bytes") + cold_apo, cold);

@@ -52,21 +52,11 @@ static int group_setup(void **state)
     snprintf(f->file, sizeof f->file, "%s/" MODEL ".msa", f->archives);
     if (mkdir(f->archives, 0755) != 0)
         return -1;
-    char ply[600];
-    snprintf(ply, sizeof ply, "%s/demo.ply", f->dir);
-    ms_nsp_test_demo_ply(ply, TRIANGLES);
-    ms_bake_options o;
-    ms_bake_options_default(&o);
-    o.input = ply;
-    o.archive_dir = f->archives;
-    o.name = MODEL;
-    o.min_triangles = 1000;
-    o.threads = 2;
-    o.mem_mb = 64;
-    ms_bake_report report;
+    if (ms_nsp_test_bake_demo(f->dir, TRIANGLES, f->archives, MODEL, 1000, false) != 0)
+        return -1;
     ms_error err;
     ms_archive *archive;
-    if (ms_bake(&o, &report, &err) != MS_OK || ms_archive_open(f->file, &archive, &err) != MS_OK) {
+    if (ms_archive_open(f->file, &archive, &err) != MS_OK) {
         fprintf(stderr, "%s\n", err.text);
         return -1;
     }

@@ -264,15 +264,22 @@ static void test_rangecoder_roundtrip(void **state)
 
 /* ---- hard cases ---- */
 
+/* Round trip of m at `bits` (ms_codec_check_roundtrip, level step 1), which must
+ * keep want_v vertices and want_t triangles; *r gets the figures. */
+static void check_counts(const ms_mesh *m, unsigned bits, size_t want_v, size_t want_t, ms_codec_check_result *r)
+{
+    ms_codec_check_roundtrip(m, bits, 1, r);
+    assert_int_equal(r->vertices, want_v);
+    assert_int_equal(r->triangles, want_t);
+}
+
 static void check_case(const double *pos, size_t nv, const uint32_t *tris, size_t nt,
                        unsigned bits, size_t want_v, size_t want_t)
 {
     ms_mesh m;
     make_mesh(&m, pos, nv, tris, nt);
     ms_codec_check_result r;
-    ms_codec_check_roundtrip(&m, bits, 1, &r);
-    assert_int_equal(r.vertices, want_v);
-    assert_int_equal(r.triangles, want_t);
+    check_counts(&m, bits, want_v, want_t, &r);
     ms_mesh_free(&m);
 }
 
@@ -320,16 +327,12 @@ static void test_isolated_vertices(void **state)
     ms_mesh m;
     make_mesh(&m, pos, 6, t, 1);
     ms_codec_check_result r;
-    ms_codec_check_roundtrip(&m, 12, 1, &r);
-    assert_int_equal(r.vertices, 6);
-    assert_int_equal(r.triangles, 1);
+    check_counts(&m, 12, 6, 1, &r);
     assert_int_equal(r.weld.isolated_vertices, 3);
     ms_mesh_free(&m);
     /* only isolated vertices: a point cloud */
     make_mesh(&m, pos, 6, NULL, 0);
-    ms_codec_check_roundtrip(&m, 12, 1, &r);
-    assert_int_equal(r.vertices, 6);
-    assert_int_equal(r.triangles, 0);
+    check_counts(&m, 12, 6, 0, &r);
     ms_mesh_free(&m);
 }
 
@@ -341,9 +344,7 @@ static void test_all_coincident(void **state)
     ms_mesh m;
     make_mesh(&m, pos, 4, t, 2);
     ms_codec_check_result r;
-    ms_codec_check_roundtrip(&m, 12, 1, &r);
-    assert_int_equal(r.vertices, 1);
-    assert_int_equal(r.triangles, 0);
+    check_counts(&m, 12, 1, 0, &r);
     assert_int_equal(r.weld.welded_vertices, 3);
     assert_int_equal(r.weld.degenerate_triangles, 2);
     assert_int_equal(r.weld.isolated_vertices, 1);
@@ -376,29 +377,27 @@ static void grid(ms_mesh *m, unsigned n, double ox, double oy, double oz, double
     m->triangle_count = t;
 }
 
+/* An n x n unit grid at the origin with flat_axes axes flattened, at 12 bits. */
+static void check_flat_grid(unsigned n, int flat_axes, size_t want_v, size_t want_t)
+{
+    ms_mesh m;
+    grid(&m, n, 0, 0, 0, 1, flat_axes);
+    ms_codec_check_result r;
+    check_counts(&m, 12, want_v, want_t, &r);
+    ms_mesh_free(&m);
+}
+
 static void test_flat_model(void **state)
 {
     (void)state;
-    ms_mesh m;
-    grid(&m, 10, 0, 0, 0, 1, 1);
-    ms_codec_check_result r;
-    ms_codec_check_roundtrip(&m, 12, 1, &r);
-    assert_int_equal(r.vertices, 100);
-    assert_int_equal(r.triangles, 162);
-    ms_mesh_free(&m);
+    check_flat_grid(10, 1, 100, 162);
 }
 
 static void test_needle(void **state)
 {
     (void)state;
     /* every point on the x axis: triangles are zero-area but have distinct vertices */
-    ms_mesh m;
-    grid(&m, 6, 0, 0, 0, 1, 2);
-    ms_codec_check_result r;
-    ms_codec_check_roundtrip(&m, 12, 1, &r);
-    assert_int_equal(r.vertices, 36);
-    assert_int_equal(r.triangles, 50);
-    ms_mesh_free(&m);
+    check_flat_grid(6, 2, 36, 50);
 }
 
 static void test_large_offset_small_extent(void **state)
@@ -407,9 +406,7 @@ static void test_large_offset_small_extent(void **state)
     ms_mesh m;
     grid(&m, 8, 1e7, -1e7, 1e7, 1e-3 / 7, 0);
     ms_codec_check_result r;
-    ms_codec_check_roundtrip(&m, 16, 1, &r);
-    assert_int_equal(r.vertices, 64);
-    assert_int_equal(r.triangles, 98);
+    check_counts(&m, 16, 64, 98, &r);
     /* dequantised points lie within half a cell of the input */
     ms_qmesh q;
     ms_error err;
@@ -425,12 +422,8 @@ static void test_precision_8_and_20(void **state)
     ms_mesh m;
     ms_test_torus(&m, 24, 16, 1.0, 0.3);
     ms_codec_check_result r;
-    ms_codec_check_roundtrip(&m, 20, 1, &r);
-    assert_int_equal(r.vertices, 384);
-    assert_int_equal(r.triangles, 768);
-    ms_codec_check_roundtrip(&m, 8, 1, &r);
-    assert_int_equal(r.vertices, 384);
-    assert_int_equal(r.triangles, 768);
+    check_counts(&m, 20, 384, 768, &r);
+    check_counts(&m, 8, 384, 768, &r);
     ms_mesh_free(&m);
     /* a dense torus at 8 bits welds vertices and drops collapsed triangles */
     ms_test_torus(&m, 400, 100, 1.0, 0.3);
@@ -610,6 +603,17 @@ static void free_coded(coded *c)
     free(c->buf);
 }
 
+/* d decoded to `level` holds exactly want (canonical state, orientation included). */
+static void expect_decoded(ms_codec_decoder *d, unsigned level, const ms_codec_state *want)
+{
+    ms_error err;
+    assert_int_equal(ms_codec_decoder_set_level(d, level, &err), MS_OK);
+    ms_codec_state got;
+    assert_int_equal(ms_codec_decoder_state(d, &got, &err), MS_OK);
+    assert_true(ms_codec_state_equal(&got, want, true));
+    ms_codec_state_free(&got);
+}
+
 static void test_subrange_from_start_state(void **state)
 {
     (void)state;
@@ -630,13 +634,9 @@ static void test_subrange_from_start_state(void **state)
     /* the sub-range stream continues from it to the full mesh */
     assert_int_equal(ms_codec_decoder_create(part.buf, part.size, &at5, NULL, &d, &err), MS_OK);
     assert_int_equal(ms_codec_decoder_min_level(d), 15);
-    assert_int_equal(ms_codec_decoder_set_level(d, 36, &err), MS_OK);
-    ms_codec_state got;
-    assert_int_equal(ms_codec_decoder_state(d, &got, &err), MS_OK);
-    assert_true(ms_codec_state_equal(&got, &part.canon, true));
+    expect_decoded(d, 36, &part.canon);
     /* cannot coarsen below the window */
     assert_int_equal(ms_codec_decoder_set_level(d, 14, &err), MS_ERR_ARG);
-    ms_codec_state_free(&got);
     ms_codec_decoder_destroy(d);
     /* a different start state is refused */
     at5.cells[0] ^= 1;
@@ -677,11 +677,7 @@ static void test_parent_child_chain(void **state)
     assert_true(ms_codec_state_equal(&handoff, &start, true));
     assert_int_equal(ms_codec_decoder_create(child.buf, child.size, &handoff, NULL, &cd, &err),
                      MS_OK);
-    assert_int_equal(ms_codec_decoder_set_level(cd, 36, &err), MS_OK);
-    ms_codec_state got;
-    assert_int_equal(ms_codec_decoder_state(cd, &got, &err), MS_OK);
-    assert_true(ms_codec_state_equal(&got, &child.canon, true));
-    ms_codec_state_free(&got);
+    expect_decoded(cd, 36, &child.canon);
     ms_codec_state_free(&handoff);
     ms_codec_decoder_destroy(pd);
     ms_codec_decoder_destroy(cd);
@@ -690,14 +686,21 @@ static void test_parent_child_chain(void **state)
     free_coded(&child);
 }
 
+/* The torus coded at 12 bits from the start, and its stream's header. */
+static void code_torus_with_header(coded *c, ms_codec_header *h)
+{
+    code_torus(c, 12, 0, NULL);
+    ms_error err;
+    assert_int_equal(ms_codec_read_header(c->buf, c->size, h, &err), MS_OK);
+}
+
 static void test_prefix_and_truncation(void **state)
 {
     (void)state;
     ms_error err;
     coded c;
-    code_torus(&c, 12, 0, NULL);
     ms_codec_header h;
-    assert_int_equal(ms_codec_read_header(c.buf, c.size, &h, &err), MS_OK);
+    code_torus_with_header(&c, &h);
     assert_int_equal(h.p_max, 12);
     assert_int_equal(h.header_size + h.body_size, c.size);
     /* a prefix ending inside bit 8 decodes exactly up to 7 bits */
@@ -725,9 +728,8 @@ static void test_corruption_detected(void **state)
     (void)state;
     ms_error err;
     coded c;
-    code_torus(&c, 12, 0, NULL);
     ms_codec_header h;
-    assert_int_equal(ms_codec_read_header(c.buf, c.size, &h, &err), MS_OK);
+    code_torus_with_header(&c, &h);
     ms_codec_decoder *d;
     /* bad magic */
     c.buf[0] = 'X';
@@ -777,9 +779,8 @@ static void test_extend_with_longer_prefixes(void **state)
     (void)state;
     ms_error err;
     coded c;
-    code_torus(&c, 12, 0, NULL);
     ms_codec_header h;
-    assert_int_equal(ms_codec_read_header(c.buf, c.size, &h, &err), MS_OK);
+    code_torus_with_header(&c, &h);
     ms_codec_decoder *d;
     assert_int_equal(ms_codec_decoder_create(c.buf, h.header_size, NULL, NULL, &d, &err), MS_OK);
     assert_int_equal(ms_codec_decoder_available_level(d), 0);
@@ -806,11 +807,7 @@ static void test_extend_with_longer_prefixes(void **state)
         ms_codec_state_free(&b);
         ms_codec_decoder_destroy(fresh);
     }
-    assert_int_equal(ms_codec_decoder_set_level(d, 36, &err), MS_OK);
-    ms_codec_state got;
-    assert_int_equal(ms_codec_decoder_state(d, &got, &err), MS_OK);
-    assert_true(ms_codec_state_equal(&got, &c.canon, true));
-    ms_codec_state_free(&got);
+    expect_decoded(d, 36, &c.canon);
     /* the same bytes again: nothing to do */
     assert_int_equal(ms_codec_decoder_extend(d, c.buf, c.size, &err), MS_OK);
     ms_codec_decoder_destroy(d);
@@ -823,9 +820,7 @@ static void test_torus_levels_and_size(void **state)
     ms_mesh m;
     ms_test_torus(&m, 60, 30, 1.0, 0.35);
     ms_codec_check_result r;
-    ms_codec_check_roundtrip(&m, 16, 1, &r);
-    assert_int_equal(r.vertices, 1800);
-    assert_int_equal(r.triangles, 3600);
+    check_counts(&m, 16, 1800, 3600, &r);
     /* a smooth closed surface must code well below raw 16-bit coordinates */
     print_message("torus 1800 vertices at 16 bits: %zu bytes, %.2f bits/vertex\n", r.bytes,
                   8.0 * r.bytes / r.vertices);

@@ -71,19 +71,6 @@ static int teardown(void **state)
     return 0;
 }
 
-static json_t *run_json(const char *command, int want_status)
-{
-    static char out[1 << 16];
-    int status = ms_test_run(command, out, sizeof out);
-    if (status != want_status)
-        fail_msg("'%s' exited %d, not %d: %s", command, status, want_status, out);
-    json_error_t jerr;
-    json_t *j = json_loads(out, 0, &jerr);
-    if (!j)
-        fail_msg("'%s': not JSON (%s): %s", command, jerr.text, out);
-    return j;
-}
-
 /* --list: every model, its figures and checksums; one damaged byte fails it. */
 static void test_list_checks_every_archive(void **state)
 {
@@ -91,7 +78,7 @@ static void test_list_checks_every_archive(void **state)
     char bin[512], cmd[1400];
     ms_test_bin_path(bin, sizeof bin, "meshbake");
     snprintf(cmd, sizeof cmd, "%s --list %s --json", bin, f->archives);
-    json_t *j = run_json(cmd, 0);
+    json_t *j = ms_test_run_json(cmd, 0);
     assert_int_equal(json_integer_value(json_object_get(j, "count")), MODELS);
     assert_int_equal(json_integer_value(json_object_get(j, "failed")), 0);
     json_t *models = json_object_get(j, "models");
@@ -131,7 +118,7 @@ static void test_list_checks_every_archive(void **state)
     ms_test_write_file(victim, bytes, size);
     free(bytes);
     snprintf(cmd, sizeof cmd, "%s --list %s --json", bin, copy);
-    j = run_json(cmd, 1);
+    j = ms_test_run_json(cmd, 1);
     assert_int_equal(json_integer_value(json_object_get(j, "failed")), 1);
     json_t *m07 = json_array_get(json_object_get(j, "models"), 7);
     assert_false(json_is_true(json_object_get(m07, "ok")));
@@ -323,7 +310,7 @@ static void test_add_replace_remove_while_serving(void **state)
 
     /* the directory as --list sees it now */
     snprintf(cmd, sizeof cmd, "%s --list %s --json", baker, f->archives);
-    json_t *j = run_json(cmd, 0);
+    json_t *j = ms_test_run_json(cmd, 0);
     assert_int_equal(json_integer_value(json_object_get(j, "count")), MODELS);
     assert_int_equal(json_integer_value(json_object_get(j, "failed")), 0);
     json_decref(j);

@@ -55,21 +55,10 @@ static void append(char *buf, size_t size, const char *s)
  * object on stdout; returns it (the caller releases it). */
 static json_t *run_json(const char *command, int want_status)
 {
-    static const size_t size = 1 << 16;
     char full[8192];
-    snprintf(full, sizeof full, "%s 2>/dev/null", command);
-    char *out = test_malloc(size);
-    int status = ms_test_run(full, out, size);
-    if (status != want_status)
-        fprintf(stderr, "exit %d from: %s\n%s\n", status, command, out);
-    assert_int_equal(status, want_status);
-    json_error_t error;
-    json_t *root = json_loads(out, 0, &error);
-    if (!root)
-        fprintf(stderr, "unparseable (%s at %d): %s\n", error.text, error.position, out);
-    assert_non_null(root);
+    snprintf(full, sizeof full, "%s 2>/dev/null", command); /* the JSON is stdout alone */
+    json_t *root = ms_test_run_json(full, want_status);
     assert_true(json_is_object(root));
-    test_free(out);
     return root;
 }
 

@@ -26,16 +26,25 @@ static uint8_t *slurp(const char *path, size_t *size)
     return data;
 }
 
+/* A fresh dir holding the archive folder dir/a with one test model
+ * (ms_test_add_model: salt, public_max_bits), out = dir/www (not made), and
+ * meshexport's path in bin. */
+static void export_setup(char dir[512], char archives[600], char out[600], char bin[512], const char *model,
+                         uint32_t salt, uint8_t public_max_bits)
+{
+    ms_test_tmpdir(dir, 512);
+    snprintf(archives, 600, "%s/a", dir);
+    snprintf(out, 600, "%s/www", dir);
+    assert_int_equal(mkdir(archives, 0755), 0);
+    ms_test_add_model(archives, model, salt, public_max_bits);
+    ms_test_bin_path(bin, 512, "meshexport");
+}
+
 static void test_export_tree_matches_archive(void **state)
 {
     (void)state;
     char dir[512], archives[600], out[600], bin[512], cmd[4096], text[4096], path[900];
-    ms_test_tmpdir(dir, sizeof dir);
-    snprintf(archives, sizeof archives, "%s/a", dir);
-    snprintf(out, sizeof out, "%s/www", dir);
-    assert_int_equal(mkdir(archives, 0755), 0);
-    ms_test_add_model(archives, "bust", 4, 12);
-    ms_test_bin_path(bin, sizeof bin, "meshexport");
+    export_setup(dir, archives, out, bin, "bust", 4, 12);
     snprintf(cmd, sizeof cmd, "%s %s bust -o %s --json", bin, archives, out);
     assert_int_equal(ms_test_run(cmd, text, sizeof text), 0);
     /* 129 geometry files, 86 APO chunks (cells not divisible by 3), one index,
@@ -103,12 +112,7 @@ static void test_export_respects_preview(void **state)
 {
     (void)state;
     char dir[512], archives[600], out[600], bin[512], cmd[4096], text[4096], path[900];
-    ms_test_tmpdir(dir, sizeof dir);
-    snprintf(archives, sizeof archives, "%s/a", dir);
-    snprintf(out, sizeof out, "%s/www", dir);
-    assert_int_equal(mkdir(archives, 0755), 0);
-    ms_test_add_model(archives, "vault", 2, 8); /* preview: 8 of 12 bits */
-    ms_test_bin_path(bin, sizeof bin, "meshexport");
+    export_setup(dir, archives, out, bin, "vault", 2, 8); /* preview: 8 of 12 bits */
     snprintf(cmd, sizeof cmd, "%s %s vault -o %s", bin, archives, out);
     assert_int_equal(ms_test_run(cmd, text, sizeof text), 0);
     snprintf(path, sizeof path, "%s/vault.msa", archives);

@@ -61,23 +61,8 @@ static int group_setup(void **state)
     ms_test_bin_path(f->bin, 512, "meshview");
     if (mkdir(f->archives, 0755) != 0)
         return -1;
-    char ply[700];
-    snprintf(ply, sizeof ply, "%s/demo.ply", f->dir);
-    ms_nsp_test_demo_ply(ply, TRIANGLES);
-    ms_bake_options o;
-    ms_bake_options_default(&o); /* APO on */
-    o.input = ply;
-    o.archive_dir = f->archives;
-    o.name = MODEL;
-    o.min_triangles = 1500;
-    o.threads = 2;
-    o.mem_mb = 64;
-    ms_bake_report report;
-    ms_error err;
-    if (ms_bake(&o, &report, &err) != MS_OK) {
-        fprintf(stderr, "bake: %s\n", err.text);
+    if (ms_nsp_test_bake_demo(f->dir, TRIANGLES, f->archives, MODEL, 1500, false) != 0)
         return -1;
-    }
     char serve[512];
     ms_test_bin_path(serve, sizeof serve, "meshserve");
     char *argv[] = {serve, f->archives, "--bind", "127.0.0.1", "--port", "0", "--http-port", "0",

@@ -295,23 +295,8 @@ static int setup(void **state)
     ms_test_bin_path(fx.bin, 512, "meshview");
     if (mkdir(fx.archives, 0755) != 0)
         return -1;
-    char ply[700];
-    snprintf(ply, sizeof ply, "%s/demo.ply", fx.dir);
-    ms_nsp_test_demo_ply(ply, 8000);
-    ms_bake_options o;
-    ms_bake_options_default(&o); /* APO on */
-    o.input = ply;
-    o.archive_dir = fx.archives;
-    o.name = "demo";
-    o.min_triangles = 1500;
-    o.threads = 2;
-    o.mem_mb = 64;
-    ms_bake_report report;
-    ms_error err;
-    if (ms_bake(&o, &report, &err) != MS_OK) {
-        fprintf(stderr, "bake: %s\n", err.text);
+    if (ms_nsp_test_bake_demo(fx.dir, 8000, fx.archives, "demo", 1500, false) != 0)
         return -1;
-    }
     /* the walk: from the door, then close to the glossy piece */
     snprintf(fx.path_file, sizeof fx.path_file, "%s/walk.cam", fx.dir);
     const char *walk = "meshstream-camera-path 1\n"

@@ -62,11 +62,7 @@ static void test_json_report_and_catalog(void **state)
     ms_test_model_path(model, sizeof model, "stanford_dragon_vrip_res3.ply.gz");
     snprintf(cmd, sizeof cmd, "%s '%s' -o '%s' --name dragon3 --min-tris 3000 --threads 2 --no-apo --json",
              bin, model, dir);
-    assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
-    json_error_t je;
-    json_t *j = json_loads(out, 0, &je);
-    if (!j)
-        fail_msg("not JSON: %s", out);
+    json_t *j = ms_test_run_json(cmd, 0);
     const char *keys[] = {"input_triangles", "cells", "duplicated_triangles", "archive_bytes",
                           "bits_per_vertex", "peak_rss_mb"};
     for (size_t i = 0; i < sizeof keys / sizeof *keys; ++i)
@@ -130,7 +126,7 @@ static void test_json_report_and_catalog(void **state)
 static void test_duplication_figures(void **state)
 {
     (void)state;
-    char dir[512], bin[4096], obj[700], cmd[16384], out[16384];
+    char dir[512], bin[4096], obj[700], cmd[16384];
     ms_test_tmpdir(dir, sizeof dir);
     ms_test_bin_path(bin, sizeof bin, "meshbake");
     snprintf(obj, sizeof obj, "%s/four.obj", dir);
@@ -145,11 +141,7 @@ static void test_duplication_figures(void **state)
              "%s '%s' -o '%s' --name four --bits 8 --n 4 --root-bits 2 --min-tris 3 "
              "--threads 1 --no-apo --json",
              bin, obj, dir);
-    assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
-    json_error_t je;
-    json_t *j = json_loads(out, 0, &je);
-    if (!j)
-        fail_msg("not JSON: %s", out);
+    json_t *j = ms_test_run_json(cmd, 0);
     assert_int_equal(json_integer_value(json_object_get(j, "cells")), 65);
     assert_int_equal(json_integer_value(json_object_get(j, "triangles")), 4);
     assert_int_equal(json_integer_value(json_object_get(j, "leaf_triangles")), 6);
@@ -200,12 +192,8 @@ static void test_flushing_changes_nothing(void **state)
     ms_test_tmpdir(dir, sizeof dir);
     ms_test_model_path(model, sizeof model, "stanford_bunny.obj.gz");
     ms_bake_options o;
-    ms_bake_options_default(&o);
-    o.apo.enabled = false; /* geometry only: APO has its own tests */
-    o.input = model;
-    o.archive_dir = dir;
+    ms_nsp_test_bake_options(model, dir, NULL, &o);
     o.min_triangles = 1000;
-    o.threads = 2;
     ms_bake_report r1, r2;
     ms_error err;
     o.name = "roomy";

@@ -36,16 +36,11 @@ static void check_full_with(const char *model, const char *dir, const char *name
 {
     ms_bake_report rep;
     ms_bake_options o;
-    ms_bake_options_default(&o);
-    o.apo.enabled = false; /* geometry only: APO has its own tests */
-    o.input = model;
-    o.archive_dir = dir;
-    o.name = name;
+    ms_nsp_test_bake_options(model, dir, name, &o);
     o.bits = bits;
     o.n = n;
     o.root_bits = root_bits;
     o.min_triangles = min_tris;
-    o.threads = 2;
     ms_error err;
     if (ms_bake(&o, &rep, &err) != MS_OK)
         fail_msg("bake: %s", err.text);
@@ -425,10 +420,7 @@ static void test_threads_identical(void **state)
     ms_test_tmpdir(dir, sizeof dir);
     ms_test_model_path(model, sizeof model, "stanford_dragon_vrip_res3.ply.gz");
     ms_bake_options o;
-    ms_bake_options_default(&o);
-    o.apo.enabled = false; /* geometry only: APO has its own tests */
-    o.input = model;
-    o.archive_dir = dir;
+    ms_nsp_test_bake_options(model, dir, NULL, &o);
     o.min_triangles = 1000;
     ms_bake_report r;
     ms_error err;

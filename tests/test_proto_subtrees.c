@@ -27,10 +27,10 @@ static size_t encode(const ms_proto_message *m, uint8_t *out, size_t capacity)
 /* Decodes one whole frame after a handshake; returns the status, the message
  * and the fault. */
 static ms_status decode(ms_proto_role role, const uint8_t *frame, size_t size, ms_proto_message *msg,
-                        ms_proto_fault *fault, ms_proto_decoder *dec)
+                        ms_proto_fault *fault, ms_proto_decoder **dec)
 {
     ms_proto_decoder_config config = {role, MS_PROTO_MIN_FRAME, role == MS_PROTO_ROLE_SERVER ? 16 : 0};
-    assert_int_equal(ms_proto_decoder_init(dec, &config, NULL), MS_OK);
+    assert_int_equal(ms_proto_decoder_new(&config, dec, NULL), MS_OK);
     /* Handshake: a peer's first frame. */
     uint8_t hello[512];
     ms_proto_message h = {0};
@@ -46,10 +46,10 @@ static ms_status decode(ms_proto_role role, const uint8_t *frame, size_t size, m
     }
     size_t n = encode(&h, hello, sizeof hello), consumed = 0;
     bool have = false;
-    assert_int_equal(ms_proto_decoder_feed(dec, hello, n, &consumed, msg, &have, fault, NULL), MS_OK);
+    assert_int_equal(ms_proto_decoder_feed(*dec, hello, n, &consumed, msg, &have, fault, NULL), MS_OK);
     assert_true(have);
     memset(fault, 0, sizeof *fault);
-    ms_status s = ms_proto_decoder_feed(dec, frame, size, &consumed, msg, &have, fault, NULL);
+    ms_status s = ms_proto_decoder_feed(*dec, frame, size, &consumed, msg, &have, fault, NULL);
     if (s == MS_OK) {
         assert_true(have);
         assert_int_equal(consumed, size);
@@ -102,13 +102,13 @@ static void test_spec_example(void **state)
         .permitted_apo_steps = 6, .index_encoding = MS_PROTO_INDEX_SUBTREES};
     assert_int_equal(encode(&m, out, sizeof out), sizeof opened);
     assert_memory_equal(out, opened, sizeof opened);
-    ms_proto_decoder dec;
+    ms_proto_decoder *dec = NULL;
     ms_proto_message got;
     ms_proto_fault fault;
     assert_int_equal(decode(MS_PROTO_ROLE_CLIENT, opened, sizeof opened, &got, &fault, &dec), MS_OK);
     assert_int_equal(got.body.model_opened.index_encoding, MS_PROTO_INDEX_SUBTREES);
     assert_int_equal(got.body.model_opened.index_size, 2468);
-    ms_proto_decoder_free(&dec);
+    ms_proto_decoder_free(dec);
 
     /* Two subtrees: 0x41 whole (STEPS 0..0), and 0x1041 resumed at byte 1024. */
     static const uint8_t request[] = {
@@ -130,7 +130,7 @@ static void test_spec_example(void **state)
     assert_int_equal(got.body.request_cells.count, 2);
     assert_int_equal(got.body.request_cells.entries[0].stream, MS_PROTO_STREAM_INDEX);
     assert_int_equal(got.body.request_cells.entries[1].a, 1024);
-    ms_proto_decoder_free(&dec);
+    ms_proto_decoder_free(dec);
 
     /* The answer to the first: one PAYLOAD of stream 2 with LAST (723 bytes). */
     static const uint8_t payload_head[] = {
@@ -155,17 +155,17 @@ static void test_stream_index_validation(void **state)
 {
     (void)state;
     uint8_t f[64];
-    ms_proto_decoder dec;
+    ms_proto_decoder *dec = NULL;
     ms_proto_message got;
     ms_proto_fault fault;
     /* STEPS 0..0 and any BYTES range: valid. */
     size_t n = raw_request(f, 9, 65, MS_PROTO_STREAM_INDEX, MS_PROTO_UNIT_STEPS, 0, 0);
     assert_int_equal(decode(MS_PROTO_ROLE_SERVER, f, n, &got, &fault, &dec), MS_OK);
     assert_int_equal(got.body.request_cells.entries[0].cell_id, 65);
-    ms_proto_decoder_free(&dec);
+    ms_proto_decoder_free(dec);
     n = raw_request(f, 9, 65, MS_PROTO_STREAM_INDEX, MS_PROTO_UNIT_BYTES, 7, 100);
     assert_int_equal(decode(MS_PROTO_ROLE_SERVER, f, n, &got, &fault, &dec), MS_OK);
-    ms_proto_decoder_free(&dec);
+    ms_proto_decoder_free(dec);
     /* A subtree has one step: STEPS beyond step 0 is out of range, naming the
      * first field that is not 0; not fatal, the request ends. */
     const struct {
@@ -181,13 +181,13 @@ static void test_stream_index_validation(void **state)
         assert_int_equal(fault.request_id, 9);
         assert_int_equal(fault.request_count, 1);
         assert_int_equal(fault.detail, bad_steps[i].detail);
-        ms_proto_decoder_free(&dec);
+        ms_proto_decoder_free(dec);
     }
     /* Stream 3 is undefined. */
     n = raw_request(f, 9, 65, MS_PROTO_STREAM_INDEX + 1, MS_PROTO_UNIT_STEPS, 0, 0);
     assert_int_equal(decode(MS_PROTO_ROLE_SERVER, f, n, &got, &fault, &dec), MS_ERR_RANGE);
     assert_int_equal(fault.detail, 8 + 4);
-    ms_proto_decoder_free(&dec);
+    ms_proto_decoder_free(dec);
 
     /* PAYLOAD of stream 2: valid; stream 3: fatal to the client. */
     ms_proto_message m = {.type = MS_PROTO_PAYLOAD, .flags = MS_PROTO_FLAG_LAST, .request_id = 5};
@@ -196,12 +196,12 @@ static void test_stream_index_validation(void **state)
     n = encode(&m, f, sizeof f);
     assert_int_equal(decode(MS_PROTO_ROLE_CLIENT, f, n, &got, &fault, &dec), MS_OK);
     assert_int_equal(got.body.payload.stream, MS_PROTO_STREAM_INDEX);
-    ms_proto_decoder_free(&dec);
+    ms_proto_decoder_free(dec);
     f[12 + 4] = MS_PROTO_STREAM_INDEX + 1;
     assert_int_equal(decode(MS_PROTO_ROLE_CLIENT, f, n, &got, &fault, &dec), MS_ERR_RANGE);
     assert_true(fault.fatal);
     assert_int_equal(fault.detail, 4);
-    ms_proto_decoder_free(&dec);
+    ms_proto_decoder_free(dec);
 
     /* The encoder refuses what the decoder refuses. */
     const ms_proto_cell_request two_steps = {.cell_id = 65, .stream = MS_PROTO_STREAM_INDEX,
@@ -223,17 +223,17 @@ static void test_index_encoding_validation(void **state)
         .index_encoding = MS_PROTO_INDEX_SUBTREES};
     size_t n = encode(&m, f, sizeof f);
     assert_int_equal(f[12 + 30], 2);
-    ms_proto_decoder dec;
+    ms_proto_decoder *dec = NULL;
     ms_proto_message got;
     ms_proto_fault fault;
     assert_int_equal(decode(MS_PROTO_ROLE_CLIENT, f, n, &got, &fault, &dec), MS_OK);
-    ms_proto_decoder_free(&dec);
+    ms_proto_decoder_free(dec);
     f[12 + 30] = MS_PROTO_INDEX_SUBTREES + 1;
     assert_int_equal(decode(MS_PROTO_ROLE_CLIENT, f, n, &got, &fault, &dec), MS_ERR_RANGE);
     assert_int_equal(fault.code, MS_PROTO_E_FIELD_OUT_OF_RANGE);
     assert_int_equal(fault.detail, 30);
     assert_true(fault.fatal);
-    ms_proto_decoder_free(&dec);
+    ms_proto_decoder_free(dec);
 }
 
 /* ---- Versions and capabilities ---- */

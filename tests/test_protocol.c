@@ -15,6 +15,7 @@
 #include <cmocka.h>
 
 #include "ms_proto.h"
+#include "ms_proto_decode_internal.h"
 #include "ms_test.h"
 
 #define MS_FUZZ_NO_ENTRY_POINT
@@ -86,11 +87,11 @@ static ms_proto_hello_reply default_reply(void)
 }
 
 /* A decoder of the given role, already past the handshake. */
-static void ready_decoder(ms_proto_decoder *dec, ms_proto_role role, uint32_t max_frame,
+static void ready_decoder(ms_proto_decoder **dec, ms_proto_role role, uint32_t max_frame,
                           uint32_t max_batch)
 {
     ms_proto_decoder_config config = {role, max_frame, max_batch};
-    assert_int_equal(ms_proto_decoder_init(dec, &config, NULL), MS_OK);
+    assert_int_equal(ms_proto_decoder_new(&config, dec, NULL), MS_OK);
     ms_proto_message m;
     memset(&m, 0, sizeof m);
     if (role == MS_PROTO_ROLE_SERVER) {
@@ -105,7 +106,7 @@ static void ready_decoder(ms_proto_decoder *dec, ms_proto_role role, uint32_t ma
     size_t consumed;
     bool have;
     ms_proto_message out;
-    assert_int_equal(ms_proto_decoder_feed(dec, frame, size, &consumed, &out, &have, NULL, NULL),
+    assert_int_equal(ms_proto_decoder_feed(*dec, frame, size, &consumed, &out, &have, NULL, NULL),
                      MS_OK);
     assert_true(have);
     assert_int_equal(consumed, size);
@@ -135,12 +136,12 @@ static void expect_fault(ms_proto_role role, uint32_t max_batch, const uint8_t *
                          size_t size, uint16_t code, bool fatal, uint32_t request_id,
                          uint32_t request_count, uint64_t detail)
 {
-    ms_proto_decoder dec;
+    ms_proto_decoder *dec = NULL;
     ready_decoder(&dec, role, MS_PROTO_MIN_FRAME, max_batch);
     ms_proto_message msg;
     ms_proto_fault fault;
     bool have = true;
-    ms_status s = feed_all(&dec, frame, size, &msg, &have, &fault, NULL);
+    ms_status s = feed_all(dec, frame, size, &msg, &have, &fault, NULL);
     assert_int_not_equal(s, MS_OK);
     assert_false(have);
     if (fault.code != code)
@@ -154,7 +155,7 @@ static void expect_fault(ms_proto_role role, uint32_t max_batch, const uint8_t *
         uint8_t ping[20];
         ms_proto_message p = {.type = MS_PROTO_PING, .body.ping.opaque = 7};
         size_t n = encode(&p, ping, sizeof ping);
-        assert_int_equal(feed_all(&dec, ping, n, &msg, &have, &fault, NULL), MS_OK);
+        assert_int_equal(feed_all(dec, ping, n, &msg, &have, &fault, NULL), MS_OK);
         assert_true(have);
         assert_int_equal(msg.type, MS_PROTO_PING);
         assert_int_equal(msg.body.ping.opaque, 7);
@@ -163,11 +164,11 @@ static void expect_fault(ms_proto_role role, uint32_t max_batch, const uint8_t *
         uint8_t more[4] = {0};
         size_t consumed = 1;
         ms_proto_fault again;
-        assert_int_equal(feed_all(&dec, more, sizeof more, &msg, &have, &again, &consumed), s);
+        assert_int_equal(feed_all(dec, more, sizeof more, &msg, &have, &again, &consumed), s);
         assert_int_equal(consumed, 0);
         assert_int_equal(again.code, code);
     }
-    ms_proto_decoder_free(&dec);
+    ms_proto_decoder_free(dec);
 }
 
 /* ---- Field-by-field comparison of two messages ---- */
@@ -606,22 +607,22 @@ static void test_spec_examples(void **state)
     assert_memory_equal(out, error, sizeof error);
 
     /* And they decode back to the same messages. */
-    ms_proto_decoder dec;
+    ms_proto_decoder *dec = NULL;
     ready_decoder(&dec, MS_PROTO_ROLE_SERVER, MS_PROTO_MIN_FRAME, 16);
     ms_proto_message got;
     ms_proto_fault fault;
     bool have;
-    assert_int_equal(feed_all(&dec, request, sizeof request, &got, &have, &fault, NULL), MS_OK);
+    assert_int_equal(feed_all(dec, request, sizeof request, &got, &have, &fault, NULL), MS_OK);
     assert_true(have);
     ms_proto_message want = {.type = MS_PROTO_REQUEST_CELLS, .request_id = 0x10,
                              .body.request_cells = {1, entries, 2}};
     assert_same(&want, &got);
-    ms_proto_decoder_free(&dec);
+    ms_proto_decoder_free(dec);
     ready_decoder(&dec, MS_PROTO_ROLE_CLIENT, MS_PROTO_MIN_FRAME, 0);
-    assert_int_equal(feed_all(&dec, error, sizeof error, &got, &have, &fault, NULL), MS_OK);
+    assert_int_equal(feed_all(dec, error, sizeof error, &got, &have, &fault, NULL), MS_OK);
     assert_true(have);
     assert_same(&m, &got);
-    ms_proto_decoder_free(&dec);
+    ms_proto_decoder_free(dec);
 }
 
 static void test_roundtrip_every_type(void **state)
@@ -635,10 +636,10 @@ static void test_roundtrip_every_type(void **state)
         seen[m.type] = true;
         size_t size = encode(&m, frame, sizeof frame);
         ms_proto_role role = client_sends(m.type) ? MS_PROTO_ROLE_SERVER : MS_PROTO_ROLE_CLIENT;
-        ms_proto_decoder dec;
+        ms_proto_decoder *dec = NULL;
         if (m.type == MS_PROTO_HELLO || m.type == MS_PROTO_HELLO_REPLY) {
             ms_proto_decoder_config config = {role, MS_PROTO_MAX_FRAME, MS_PROTO_MAX_BATCH};
-            assert_int_equal(ms_proto_decoder_init(&dec, &config, NULL), MS_OK);
+            assert_int_equal(ms_proto_decoder_new(&config, &dec, NULL), MS_OK);
         } else {
             ready_decoder(&dec, role, MS_PROTO_MAX_FRAME, MS_PROTO_MAX_BATCH);
         }
@@ -646,16 +647,16 @@ static void test_roundtrip_every_type(void **state)
         ms_proto_fault fault;
         bool have = false;
         size_t consumed = 0;
-        ms_status s = feed_all(&dec, frame, size, &got, &have, &fault, &consumed);
+        ms_status s = feed_all(dec, frame, size, &got, &have, &fault, &consumed);
         if (s != MS_OK)
             fail_msg("sample %u (%s) rejected: %s", i, ms_proto_type_name(m.type),
                      ms_proto_error_name(fault.code));
         assert_true(have);
         assert_int_equal(consumed, size);
         assert_same(&m, &got);
-        assert_int_equal(ms_proto_decoder_buffered(&dec), 0);
-        assert_int_equal(ms_proto_decoder_finish(&dec, NULL, NULL), MS_OK);
-        ms_proto_decoder_free(&dec);
+        assert_int_equal(ms_proto_decoder_buffered(dec), 0);
+        assert_int_equal(ms_proto_decoder_finish(dec, NULL, NULL), MS_OK);
+        ms_proto_decoder_free(dec);
     }
     static const uint8_t all_types[] = {
         MS_PROTO_HELLO, MS_PROTO_LIST_CATALOGUE, MS_PROTO_OPEN_MODEL, MS_PROTO_CLOSE_MODEL,
@@ -763,9 +764,9 @@ static void check_stream_splits(ms_proto_role role, size_t max_chunk, unsigned r
             total += encode(&m, stream + total, sizeof stream - total);
         }
     for (unsigned round = 0; round < rounds; ++round) {
-        ms_proto_decoder dec;
+        ms_proto_decoder *dec = NULL;
         ms_proto_decoder_config config = {role, MS_PROTO_MAX_FRAME, MS_PROTO_MAX_BATCH};
-        assert_int_equal(ms_proto_decoder_init(&dec, &config, NULL), MS_OK);
+        assert_int_equal(ms_proto_decoder_new(&config, &dec, NULL), MS_OK);
         size_t pos = 0;
         unsigned got = 0;
         while (pos < total) {
@@ -778,7 +779,7 @@ static void check_stream_splits(ms_proto_role role, size_t max_chunk, unsigned r
                 ms_proto_fault fault;
                 bool have;
                 size_t consumed;
-                ms_status s = feed_all(&dec, stream + pos, end - pos, &msg, &have, &fault,
+                ms_status s = feed_all(dec, stream + pos, end - pos, &msg, &have, &fault,
                                        &consumed);
                 if (s != MS_OK)
                     fail_msg("split round %u: fault %s at %zu", round,
@@ -793,8 +794,8 @@ static void check_stream_splits(ms_proto_role role, size_t max_chunk, unsigned r
             }
         }
         assert_int_equal(got, count);
-        assert_int_equal(ms_proto_decoder_finish(&dec, NULL, NULL), MS_OK);
-        ms_proto_decoder_free(&dec);
+        assert_int_equal(ms_proto_decoder_finish(dec, NULL, NULL), MS_OK);
+        ms_proto_decoder_free(dec);
     }
 }
 
@@ -876,59 +877,59 @@ static void test_unexpected_message(void **state)
     expect_fault(MS_PROTO_ROLE_SERVER, 8, f, n, MS_PROTO_E_UNEXPECTED_MESSAGE, true, 0, 0,
                  MS_PROTO_HELLO);
     /* Anything but HELLO first (server), anything but HELLO_REPLY or ERROR first (client). */
-    ms_proto_decoder dec;
+    ms_proto_decoder *dec = NULL;
     ms_proto_decoder_config config = {MS_PROTO_ROLE_SERVER, MS_PROTO_MIN_FRAME, 8};
-    assert_int_equal(ms_proto_decoder_init(&dec, &config, NULL), MS_OK);
+    assert_int_equal(ms_proto_decoder_new(&config, &dec, NULL), MS_OK);
     ms_proto_message msg;
     ms_proto_fault fault;
     bool have;
     raw_header(f, 8, MS_PROTO_PING, 0, 0);
-    assert_int_equal(feed_all(&dec, f, 20, &msg, &have, &fault, NULL), MS_ERR_FORMAT);
+    assert_int_equal(feed_all(dec, f, 20, &msg, &have, &fault, NULL), MS_ERR_FORMAT);
     assert_int_equal(fault.code, MS_PROTO_E_UNEXPECTED_MESSAGE);
     assert_true(fault.fatal);
-    ms_proto_decoder_free(&dec);
+    ms_proto_decoder_free(dec);
 
     config = (ms_proto_decoder_config){MS_PROTO_ROLE_CLIENT, MS_PROTO_MIN_FRAME, 0};
-    assert_int_equal(ms_proto_decoder_init(&dec, &config, NULL), MS_OK);
+    assert_int_equal(ms_proto_decoder_new(&config, &dec, NULL), MS_OK);
     m = (ms_proto_message){.type = MS_PROTO_ERROR,
                            .body.error = {.code = MS_PROTO_E_TOO_MANY_CONNECTIONS, .fatal = true}};
     n = encode(&m, f, sizeof f);
-    assert_int_equal(feed_all(&dec, f, n, &msg, &have, &fault, NULL), MS_OK);
+    assert_int_equal(feed_all(dec, f, n, &msg, &have, &fault, NULL), MS_OK);
     assert_true(have);
     assert_int_equal(msg.body.error.code, MS_PROTO_E_TOO_MANY_CONNECTIONS);
     /* Nothing may follow a fatal ERROR. */
     n = encode(&(ms_proto_message){.type = MS_PROTO_HELLO_REPLY, .body.hello_reply = default_reply()},
                f, sizeof f);
-    assert_int_equal(feed_all(&dec, f, n, &msg, &have, &fault, NULL), MS_ERR_FORMAT);
+    assert_int_equal(feed_all(dec, f, n, &msg, &have, &fault, NULL), MS_ERR_FORMAT);
     assert_int_equal(fault.code, MS_PROTO_E_UNEXPECTED_MESSAGE);
     assert_true(fault.fatal);
-    ms_proto_decoder_free(&dec);
+    ms_proto_decoder_free(dec);
     /* A non-fatal ERROR cannot come first. */
-    assert_int_equal(ms_proto_decoder_init(&dec, &config, NULL), MS_OK);
+    assert_int_equal(ms_proto_decoder_new(&config, &dec, NULL), MS_OK);
     m = (ms_proto_message){.type = MS_PROTO_ERROR,
                            .body.error = {.code = MS_PROTO_E_RATE_LIMITED, .detail = 100}};
     n = encode(&m, f, sizeof f);
-    assert_int_equal(feed_all(&dec, f, n, &msg, &have, &fault, NULL), MS_ERR_FORMAT);
+    assert_int_equal(feed_all(dec, f, n, &msg, &have, &fault, NULL), MS_ERR_FORMAT);
     assert_int_equal(fault.code, MS_PROTO_E_UNEXPECTED_MESSAGE);
     assert_int_equal(fault.detail, MS_PROTO_ERROR);
-    ms_proto_decoder_free(&dec);
+    ms_proto_decoder_free(dec);
     /* A PONG before HELLO_REPLY. */
-    assert_int_equal(ms_proto_decoder_init(&dec, &config, NULL), MS_OK);
+    assert_int_equal(ms_proto_decoder_new(&config, &dec, NULL), MS_OK);
     raw_header(f, 8, MS_PROTO_PONG, 0, 0);
-    assert_int_equal(feed_all(&dec, f, 20, &msg, &have, &fault, NULL), MS_ERR_FORMAT);
+    assert_int_equal(feed_all(dec, f, 20, &msg, &have, &fault, NULL), MS_ERR_FORMAT);
     assert_int_equal(fault.code, MS_PROTO_E_UNEXPECTED_MESSAGE);
-    ms_proto_decoder_free(&dec);
+    ms_proto_decoder_free(dec);
     /* After a fatal ERROR from the client, the server decoder accepts nothing. */
     ready_decoder(&dec, MS_PROTO_ROLE_SERVER, MS_PROTO_MIN_FRAME, 8);
     m = (ms_proto_message){.type = MS_PROTO_ERROR,
                            .body.error = {.code = MS_PROTO_E_MALFORMED_FRAME, .fatal = true}};
     n = encode(&m, f, sizeof f);
-    assert_int_equal(feed_all(&dec, f, n, &msg, &have, &fault, NULL), MS_OK);
+    assert_int_equal(feed_all(dec, f, n, &msg, &have, &fault, NULL), MS_OK);
     assert_true(have);
     raw_header(f, 8, MS_PROTO_PING, 0, 0);
-    assert_int_equal(feed_all(&dec, f, 20, &msg, &have, &fault, NULL), MS_ERR_FORMAT);
+    assert_int_equal(feed_all(dec, f, 20, &msg, &have, &fault, NULL), MS_ERR_FORMAT);
     assert_int_equal(fault.code, MS_PROTO_E_UNEXPECTED_MESSAGE);
-    ms_proto_decoder_free(&dec);
+    ms_proto_decoder_free(dec);
 }
 
 static void test_header_rules(void **state)
@@ -975,18 +976,18 @@ static void test_hello_errors_are_fatal(void **state)
         g[cases[i].at] = cases[i].value;
         if (cases[i].at == 12 + 13)
             g[12 + 12] = 0, g[12 + 14] = 0, g[12 + 15] = 0;
-        ms_proto_decoder dec;
-        assert_int_equal(ms_proto_decoder_init(&dec, &config, NULL), MS_OK);
+        ms_proto_decoder *dec = NULL;
+        assert_int_equal(ms_proto_decoder_new(&config, &dec, NULL), MS_OK);
         ms_proto_message msg;
         ms_proto_fault fault;
         bool have;
-        assert_int_not_equal(feed_all(&dec, g, n, &msg, &have, &fault, NULL), MS_OK);
+        assert_int_not_equal(feed_all(dec, g, n, &msg, &have, &fault, NULL), MS_OK);
         if (fault.code != cases[i].code)
             fail_msg("case %zu: expected %s, got %s", i, ms_proto_error_name(cases[i].code),
                      ms_proto_error_name(fault.code));
         assert_true(fault.fatal);
         assert_int_equal(fault.detail, cases[i].detail);
-        ms_proto_decoder_free(&dec);
+        ms_proto_decoder_free(dec);
     }
 }
 
@@ -1106,28 +1107,28 @@ static void test_oversized_batch(void **state)
     size_t n = raw_batch(f, 1000, 1, 9, good);
     expect_fault(MS_PROTO_ROLE_SERVER, 8, f, n, MS_PROTO_E_BATCH_TOO_LARGE, false, 1000, 9, 8);
     n = raw_batch(f, 1, 1, 8, good); /* exactly max_batch is fine */
-    ms_proto_decoder dec;
+    ms_proto_decoder *dec = NULL;
     ready_decoder(&dec, MS_PROTO_ROLE_SERVER, MS_PROTO_MIN_FRAME, 8);
     ms_proto_message msg;
     ms_proto_fault fault;
     bool have;
-    assert_int_equal(feed_all(&dec, f, n, &msg, &have, &fault, NULL), MS_OK);
+    assert_int_equal(feed_all(dec, f, n, &msg, &have, &fault, NULL), MS_OK);
     assert_true(have);
     assert_int_equal(msg.body.request_cells.count, 8);
-    ms_proto_decoder_free(&dec);
+    ms_proto_decoder_free(dec);
     /* Above the protocol's 4096 but within max_frame: still BATCH_TOO_LARGE,
      * and nothing is allocated for the entries. */
     static uint8_t huge[12 + 8 + 16 * 5000];
     n = raw_batch(huge, 1, 1, 5000, good);
     ready_decoder(&dec, MS_PROTO_ROLE_SERVER, 1u << 20, MS_PROTO_MAX_BATCH);
-    assert_int_equal(feed_all(&dec, huge, n, &msg, &have, &fault, NULL), MS_ERR_RANGE);
+    assert_int_equal(feed_all(dec, huge, n, &msg, &have, &fault, NULL), MS_ERR_RANGE);
     assert_int_equal(fault.code, MS_PROTO_E_BATCH_TOO_LARGE);
     assert_false(fault.fatal);
     assert_int_equal(fault.request_id, 1);
     assert_int_equal(fault.request_count, 5000);
     assert_int_equal(fault.detail, MS_PROTO_MAX_BATCH);
-    assert_int_equal(dec.scratch_capacity, 0);
-    ms_proto_decoder_free(&dec);
+    assert_int_equal(dec->scratch_capacity, 0);
+    ms_proto_decoder_free(dec);
 }
 
 static void test_unknown_cell_decodes(void **state)
@@ -1139,27 +1140,27 @@ static void test_unknown_cell_decodes(void **state)
     uint8_t f[64];
     const ms_proto_cell_request far = {.cell_id = UINT32_MAX, .stream = 0, .unit = 0, .a = 0, .b = 0};
     size_t n = raw_batch(f, 1, 1, 1, far);
-    ms_proto_decoder dec;
+    ms_proto_decoder *dec = NULL;
     ready_decoder(&dec, MS_PROTO_ROLE_SERVER, MS_PROTO_MIN_FRAME, 8);
     ms_proto_message msg;
     ms_proto_fault fault;
     bool have;
-    assert_int_equal(feed_all(&dec, f, n, &msg, &have, &fault, NULL), MS_OK);
+    assert_int_equal(feed_all(dec, f, n, &msg, &have, &fault, NULL), MS_OK);
     assert_int_equal(msg.body.request_cells.entries[0].cell_id, UINT32_MAX);
-    ms_proto_decoder_free(&dec);
+    ms_proto_decoder_free(dec);
     ms_proto_fault unknown = {.code = MS_PROTO_E_UNKNOWN_CELL, .request_id = 1,
                               .request_count = 1, .detail = UINT32_MAX};
     ms_proto_message answer;
     ms_proto_error_from_fault(&unknown, "no cell 4294967295 in model", &answer);
     n = encode(&answer, f, sizeof f);
     ready_decoder(&dec, MS_PROTO_ROLE_CLIENT, MS_PROTO_MIN_FRAME, 0);
-    assert_int_equal(feed_all(&dec, f, n, &msg, &have, &fault, NULL), MS_OK);
+    assert_int_equal(feed_all(dec, f, n, &msg, &have, &fault, NULL), MS_OK);
     assert_true(have);
     assert_int_equal(msg.body.error.code, MS_PROTO_E_UNKNOWN_CELL);
     assert_false(msg.body.error.fatal);
     assert_int_equal(msg.request_id, 1);
     assert_int_equal(msg.body.error.detail, UINT32_MAX);
-    ms_proto_decoder_free(&dec);
+    ms_proto_decoder_free(dec);
 }
 
 static void test_path_like_model_names(void **state)
@@ -1207,48 +1208,48 @@ static void test_garbage_after_valid_frame(void **state)
     size_t n = encode(&m, f, sizeof f);
     /* Twelve 0xFF bytes: the reserved header field is not zero. */
     memset(f + n, 0xFF, 12);
-    ms_proto_decoder dec;
+    ms_proto_decoder *dec = NULL;
     ready_decoder(&dec, MS_PROTO_ROLE_SERVER, MS_PROTO_MIN_FRAME, 8);
     ms_proto_message msg;
     ms_proto_fault fault;
     bool have;
     size_t consumed;
-    assert_int_equal(feed_all(&dec, f, n + 12, &msg, &have, &fault, &consumed), MS_OK);
+    assert_int_equal(feed_all(dec, f, n + 12, &msg, &have, &fault, &consumed), MS_OK);
     assert_true(have);
     assert_int_equal(consumed, n);
-    assert_int_equal(feed_all(&dec, f + n, 12, &msg, &have, &fault, &consumed), MS_ERR_FORMAT);
+    assert_int_equal(feed_all(dec, f + n, 12, &msg, &have, &fault, &consumed), MS_ERR_FORMAT);
     assert_int_equal(fault.code, MS_PROTO_E_MALFORMED_FRAME);
     assert_true(fault.fatal);
-    ms_proto_decoder_free(&dec);
+    ms_proto_decoder_free(dec);
 
     /* An HTTP request where a frame should be. */
     ready_decoder(&dec, MS_PROTO_ROLE_SERVER, MS_PROTO_MIN_FRAME, 8);
     const char *http = "GET /catalogue HTTP/1.1\r\n\r\n";
-    assert_int_not_equal(feed_all(&dec, (const uint8_t *)http, strlen(http), &msg, &have, &fault,
+    assert_int_not_equal(feed_all(dec, (const uint8_t *)http, strlen(http), &msg, &have, &fault,
                                   NULL), MS_OK);
     assert_true(fault.fatal);
-    ms_proto_decoder_free(&dec);
+    ms_proto_decoder_free(dec);
 
     /* A few stray bytes, then end of stream: truncated frame. */
     ready_decoder(&dec, MS_PROTO_ROLE_SERVER, MS_PROTO_MIN_FRAME, 8);
     memcpy(f + n, "\x01\x02\x03", 3);
-    assert_int_equal(feed_all(&dec, f, n + 3, &msg, &have, &fault, &consumed), MS_OK);
+    assert_int_equal(feed_all(dec, f, n + 3, &msg, &have, &fault, &consumed), MS_OK);
     assert_int_equal(consumed, n);
-    assert_int_equal(feed_all(&dec, f + n, 3, &msg, &have, &fault, &consumed), MS_OK);
+    assert_int_equal(feed_all(dec, f + n, 3, &msg, &have, &fault, &consumed), MS_OK);
     assert_false(have);
     assert_int_equal(consumed, 3);
-    assert_int_equal(ms_proto_decoder_buffered(&dec), 3);
-    assert_int_equal(ms_proto_decoder_finish(&dec, &fault, NULL), MS_ERR_FORMAT);
+    assert_int_equal(ms_proto_decoder_buffered(dec), 3);
+    assert_int_equal(ms_proto_decoder_finish(dec, &fault, NULL), MS_ERR_FORMAT);
     assert_int_equal(fault.code, MS_PROTO_E_MALFORMED_FRAME);
     assert_true(fault.fatal);
-    ms_proto_decoder_free(&dec);
+    ms_proto_decoder_free(dec);
 
     /* A frame cut in its body. */
     ready_decoder(&dec, MS_PROTO_ROLE_SERVER, MS_PROTO_MIN_FRAME, 8);
-    assert_int_equal(feed_all(&dec, f, n - 1, &msg, &have, &fault, &consumed), MS_OK);
+    assert_int_equal(feed_all(dec, f, n - 1, &msg, &have, &fault, &consumed), MS_OK);
     assert_false(have);
-    assert_int_equal(ms_proto_decoder_finish(&dec, &fault, NULL), MS_ERR_FORMAT);
-    ms_proto_decoder_free(&dec);
+    assert_int_equal(ms_proto_decoder_finish(dec, &fault, NULL), MS_ERR_FORMAT);
+    ms_proto_decoder_free(dec);
 }
 
 static void test_error_from_fault(void **state)
@@ -1317,33 +1318,37 @@ static void test_large_buffer_released(void **state)
                           .body.payload = {.cell_id = 1, .offset = 0, .end = sizeof big,
                                            .data = big, .data_length = sizeof big}};
     size_t n = encode(&m, frame, sizeof frame);
-    ms_proto_decoder dec;
+    ms_proto_decoder *dec = NULL;
     ready_decoder(&dec, MS_PROTO_ROLE_CLIENT, MS_PROTO_MAX_FRAME, 0);
     ms_proto_message msg;
     ms_proto_fault fault;
     bool have;
-    assert_int_equal(feed_all(&dec, frame, n, &msg, &have, &fault, NULL), MS_OK);
+    assert_int_equal(feed_all(dec, frame, n, &msg, &have, &fault, NULL), MS_OK);
     assert_true(have);
     assert_int_equal(msg.body.payload.data_length, sizeof big);
-    assert_true(dec.body_capacity >= sizeof big);
+    assert_true(dec->body_capacity >= sizeof big);
     ms_proto_message ping = {.type = MS_PROTO_PING, .body.ping.opaque = 2};
     n = encode(&ping, frame, sizeof frame);
-    assert_int_equal(feed_all(&dec, frame, n, &msg, &have, &fault, NULL), MS_OK);
+    assert_int_equal(feed_all(dec, frame, n, &msg, &have, &fault, NULL), MS_OK);
     assert_true(have);
-    assert_true(dec.body_capacity <= 1u << 20);
-    ms_proto_decoder_free(&dec);
+    assert_true(dec->body_capacity <= 1u << 20);
+    ms_proto_decoder_free(dec);
 }
 
 static void test_decoder_init_arguments(void **state)
 {
     (void)state;
-    ms_proto_decoder dec;
+    ms_proto_decoder *dec = NULL;
     ms_proto_decoder_config config = {MS_PROTO_ROLE_SERVER, MS_PROTO_MIN_FRAME - 1, 8};
-    assert_int_equal(ms_proto_decoder_init(&dec, &config, NULL), MS_ERR_ARG);
+    assert_int_equal(ms_proto_decoder_new(&config, &dec, NULL), MS_ERR_ARG);
     config = (ms_proto_decoder_config){MS_PROTO_ROLE_SERVER, MS_PROTO_MIN_FRAME, 0};
-    assert_int_equal(ms_proto_decoder_init(&dec, &config, NULL), MS_ERR_ARG);
+    assert_int_equal(ms_proto_decoder_new(&config, &dec, NULL), MS_ERR_ARG);
     config = (ms_proto_decoder_config){(ms_proto_role)7, MS_PROTO_MIN_FRAME, 8};
-    assert_int_equal(ms_proto_decoder_init(&dec, &config, NULL), MS_ERR_ARG);
+    assert_int_equal(ms_proto_decoder_new(&config, &dec, NULL), MS_ERR_ARG);
+    assert_null(dec);
+    assert_int_equal(ms_proto_decoder_new(NULL, &dec, NULL), MS_ERR_ARG);
+    config.role = MS_PROTO_ROLE_CLIENT;
+    assert_int_equal(ms_proto_decoder_new(&config, NULL, NULL), MS_ERR_ARG);
     ms_proto_decoder_free(NULL);
 }
 

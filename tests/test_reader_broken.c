@@ -128,6 +128,37 @@ static size_t line_start(const blob *b, int n)
     return at;
 }
 
+/* Lines in b (each ends with a newline). */
+static int line_count(const blob *b)
+{
+    int n = 0;
+    for (size_t i = 0; i < b->size; ++i)
+        n += b->data[i] == '\n';
+    return n;
+}
+
+/* A line of a base file replaced by text (a line past the last one: text
+ * appended), and how loading must fail. */
+typedef struct line_case {
+    int line;
+    const char *text;
+    ms_status code;
+    const char *where;
+} line_case;
+
+/* Writes each case from base as a .ext file and expects it to fail as it says. */
+static void expect_line_cases(corpus *c, const char *ext, const blob *base, const line_case *cases, size_t count)
+{
+    char path[4200];
+    int lines = line_count(base);
+    for (size_t i = 0; i < count; ++i) {
+        size_t from = cases[i].line <= lines ? line_start(base, cases[i].line) : base->size;
+        size_t to = cases[i].line <= lines ? line_start(base, cases[i].line + 1) : base->size;
+        expect_failure(write_case(c, path, sizeof path, ext, base, from, cases[i].text, strlen(cases[i].text), to),
+                       cases[i].code, cases[i].where);
+    }
+}
+
 static void test_ascii_ply_truncated(void **state)
 {
     corpus *c = *state;
@@ -165,30 +196,21 @@ static void test_ascii_ply_counts_lie(void **state)
     corpus *c = *state;
     char path[4200];
     const blob *a = &c->ascii;
-    size_t vline = line_start(a, 4), fline = line_start(a, 8), props = line_start(a, 5);
-    size_t flist = line_start(a, 9);
-    static const struct { const char *text; ms_status code; const char *where; } vertex_cases[] = {
-        {"element vertex 5206\n", MS_ERR_FORMAT, "line 5216: extra values"},
-        {"element vertex 5204\n", MS_ERR_FORMAT, "line 5215: bad integer"},
-        {"element vertex 4000000000\n", MS_ERR_FORMAT, "line 5216: extra values"},
-        {"element vertex 99999999999\n", MS_ERR_RANGE, "line 4: 99999999999 vertices declared"},
-        {"element vertex 1e3\n", MS_ERR_FORMAT, "line 4: bad element line"},
-        {"element vertex -5\n", MS_ERR_FORMAT, "line 4: bad element line"},
+    /* line 4: the vertex count; line 8: the face count */
+    static const line_case cases[] = {
+        {4, "element vertex 5206\n", MS_ERR_FORMAT, "line 5216: extra values"},
+        {4, "element vertex 5204\n", MS_ERR_FORMAT, "line 5215: bad integer"},
+        {4, "element vertex 4000000000\n", MS_ERR_FORMAT, "line 5216: extra values"},
+        {4, "element vertex 99999999999\n", MS_ERR_RANGE, "line 4: 99999999999 vertices declared"},
+        {4, "element vertex 1e3\n", MS_ERR_FORMAT, "line 4: bad element line"},
+        {4, "element vertex -5\n", MS_ERR_FORMAT, "line 4: bad element line"},
+        {8, "element face 11103\n", MS_ERR_FORMAT, "line 16317: file ends inside element face"},
+        {8, "element face 11101\n", MS_ERR_FORMAT, "line 16317: data after the last element"},
+        {8, "element face 999999999999999\n", MS_ERR_FORMAT, "file ends inside element face"},
+        {8, "element face 0\n", MS_ERR_FORMAT, "line 5216: data after the last element"},
     };
-    for (size_t i = 0; i < sizeof vertex_cases / sizeof vertex_cases[0]; ++i)
-        expect_failure(write_case(c, path, sizeof path, "ply", a, vline, vertex_cases[i].text,
-                                  strlen(vertex_cases[i].text), props),
-                       vertex_cases[i].code, vertex_cases[i].where);
-    static const struct { const char *text; ms_status code; const char *where; } face_cases[] = {
-        {"element face 11103\n", MS_ERR_FORMAT, "line 16317: file ends inside element face"},
-        {"element face 11101\n", MS_ERR_FORMAT, "line 16317: data after the last element"},
-        {"element face 999999999999999\n", MS_ERR_FORMAT, "file ends inside element face"},
-        {"element face 0\n", MS_ERR_FORMAT, "line 5216: data after the last element"},
-    };
-    for (size_t i = 0; i < sizeof face_cases / sizeof face_cases[0]; ++i)
-        expect_failure(write_case(c, path, sizeof path, "ply", a, fline, face_cases[i].text,
-                                  strlen(face_cases[i].text), flist),
-                       face_cases[i].code, face_cases[i].where);
+    expect_line_cases(c, "ply", a, cases, sizeof cases / sizeof cases[0]);
+    size_t fline = line_start(a, 8);
     /* No face element at all, vertices only: an empty mesh. */
     const char *no_faces = "end_header\n";
     size_t body_end = line_start(a, 5216);
@@ -212,12 +234,7 @@ static void test_ascii_ply_bad_values(void **state)
     corpus *c = *state;
     char path[4200];
     const blob *a = &c->ascii;
-    static const struct {
-        int line;
-        const char *text;
-        ms_status code;
-        const char *where;
-    } cases[] = {
+    static const line_case cases[] = {
         {3000, "nan 0.1 0.1 \n", MS_ERR_RANGE, "line 3000: vertex 2989 has a non-finite"},
         {3000, "0.1 inf 0.1 \n", MS_ERR_RANGE, "line 3000: vertex 2989 has a non-finite"},
         {3000, "0.1 0.1 1e999 \n", MS_ERR_RANGE, "line 3000: vertex 2989 has a non-finite"},
@@ -233,13 +250,7 @@ static void test_ascii_ply_bad_values(void **state)
         {8000, "3 1 2 3 4 \n", MS_ERR_FORMAT, "line 8000: extra values"},
         {16318, "garbage after the end\n", MS_ERR_FORMAT, "line 16318: data after the last"},
     };
-    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; ++i) {
-        size_t from = cases[i].line <= 16317 ? line_start(a, cases[i].line) : a->size;
-        size_t to = cases[i].line <= 16317 ? line_start(a, cases[i].line + 1) : a->size;
-        expect_failure(write_case(c, path, sizeof path, "ply", a, from, cases[i].text,
-                                  strlen(cases[i].text), to),
-                       cases[i].code, cases[i].where);
-    }
+    expect_line_cases(c, "ply", a, cases, sizeof cases / sizeof cases[0]);
     /* An overlong line (2 MiB of digits) is refused, not buffered. */
     size_t n = 2u << 20;
     char *longline = malloc(n + 1);
@@ -362,33 +373,18 @@ static void test_obj(void **state)
     char path[4200];
     const blob *o = &c->obj;
     /* The bunny: 11 comment lines, v lines 12..35958, a comment, f from 35961. */
-    size_t f = line_start(o, 35963);
-    expect_failure(write_case(c, path, sizeof path, "obj", o, f, "f 1 2\n", 6, line_start(o, 35964)),
-                   MS_ERR_FORMAT, "line 35963: face with 2 vertices");
-    expect_failure(write_case(c, path, sizeof path, "obj", o, f, "f 1 2 35948\n", 12,
-                              line_start(o, 35964)),
-                   MS_ERR_RANGE, "line 35963: vertex index 35948 out of range");
-    expect_failure(write_case(c, path, sizeof path, "obj", o, f, "f 1 0 3\n", 8,
-                              line_start(o, 35964)),
-                   MS_ERR_RANGE, "line 35963: vertex index 0");
-    expect_failure(write_case(c, path, sizeof path, "obj", o, f, "f 1 2 -35948\n", 13,
-                              line_start(o, 35964)),
-                   MS_ERR_RANGE, "line 35963: vertex index -35948 out of range");
-    expect_failure(write_case(c, path, sizeof path, "obj", o, f, "f 1 2/x 3\n", 10,
-                              line_start(o, 35964)),
-                   MS_ERR_FORMAT, "line 35963: bad face corner");
-    size_t v = line_start(o, 500);
-    expect_failure(write_case(c, path, sizeof path, "obj", o, v, "v 0 nan 0\n", 10,
-                              line_start(o, 501)),
-                   MS_ERR_RANGE, "line 500: vertex 489 has a non-finite");
-    expect_failure(write_case(c, path, sizeof path, "obj", o, v, "v 0 0\n", 6, line_start(o, 501)),
-                   MS_ERR_FORMAT, "line 500: v statement with 2 values");
-    expect_failure(write_case(c, path, sizeof path, "obj", o, v, "v 0 0 zero\n", 11,
-                              line_start(o, 501)),
-                   MS_ERR_FORMAT, "line 500: non-numeric value");
-    expect_failure(write_case(c, path, sizeof path, "obj", o, v, "\x01\x02\x03\n", 4,
-                              line_start(o, 501)),
-                   MS_ERR_FORMAT, "line 500: not an OBJ statement");
+    static const line_case cases[] = {
+        {35963, "f 1 2\n", MS_ERR_FORMAT, "line 35963: face with 2 vertices"},
+        {35963, "f 1 2 35948\n", MS_ERR_RANGE, "line 35963: vertex index 35948 out of range"},
+        {35963, "f 1 0 3\n", MS_ERR_RANGE, "line 35963: vertex index 0"},
+        {35963, "f 1 2 -35948\n", MS_ERR_RANGE, "line 35963: vertex index -35948 out of range"},
+        {35963, "f 1 2/x 3\n", MS_ERR_FORMAT, "line 35963: bad face corner"},
+        {500, "v 0 nan 0\n", MS_ERR_RANGE, "line 500: vertex 489 has a non-finite"},
+        {500, "v 0 0\n", MS_ERR_FORMAT, "line 500: v statement with 2 values"},
+        {500, "v 0 0 zero\n", MS_ERR_FORMAT, "line 500: non-numeric value"},
+        {500, "\x01\x02\x03\n", MS_ERR_FORMAT, "line 500: not an OBJ statement"},
+    };
+    expect_line_cases(c, "obj", o, cases, sizeof cases / sizeof cases[0]);
     /* Truncated in the middle of a face line. */
     size_t mid = line_start(o, 50000) + 3;
     write_case(c, path, sizeof path, "obj", o, mid, NULL, 0, o->size);

@@ -288,22 +288,9 @@ static void test_placement(void **state)
 #define FLOOR_QUADS 8
 static ms_render *make_floor(void)
 {
-    ms_archive_header h;
-    memset(&h, 0, sizeof h);
-    h.box_side = 1.0;
-    h.bits = 16;
-    h.n = 2;
-    h.root_bits = 7;
-    h.cell_count = 1;
-    ms_archive_cell cell;
-    memset(&cell, 0, sizeof cell);
-    cell.parent = cell.first_child = MS_ARCHIVE_NONE;
-    ms_render *r;
-    ms_error err;
-    expect(ms_render_new(&h, &cell, &r, &err), &err);
     enum { N = FLOOR_QUADS + 1 };
     double positions[3 * N * N];
-    uint32_t tris[6 * FLOOR_QUADS * FLOOR_QUADS], cells[2 * FLOOR_QUADS * FLOOR_QUADS] = {0};
+    uint32_t tris[6 * FLOOR_QUADS * FLOOR_QUADS];
     for (int j = 0; j < N; ++j)
         for (int i = 0; i < N; ++i) {
             double *p = &positions[3 * (j * N + i)];
@@ -317,17 +304,7 @@ static ms_render *make_floor(void)
             uint32_t quad[6] = {a, c, d, a, d, b};
             memcpy(&tris[6 * t++], quad, sizeof quad);
         }
-    ms_view_mesh mesh;
-    memset(&mesh, 0, sizeof mesh);
-    mesh.vertex_count = N * N;
-    mesh.triangle_count = 2 * FLOOR_QUADS * FLOOR_QUADS;
-    mesh.positions = positions;
-    mesh.triangles = tris;
-    mesh.triangle_cell = cells;
-    expect(ms_render_set_frame(r, &mesh, NULL, 0, &err), &err);
-    ms_render_upload_stats up;
-    expect(ms_render_upload(r, UINT64_MAX, &up, &err), &err);
-    return r;
+    return ms_test_render_one_cell(2, positions, N * N, tris, 2 * FLOOR_QUADS * FLOOR_QUADS);
 }
 
 /* Primitives the draw generated (after tessellation), and the picture. */
@@ -574,31 +551,9 @@ static void test_bad_options(void **state)
  * as seen from the camera (a back face). */
 static ms_render *make_plane(void)
 {
-    ms_archive_header h;
-    memset(&h, 0, sizeof h);
-    h.box_side = 1.0;
-    h.bits = 16;
-    h.n = 4;
-    h.root_bits = 7;
-    h.cell_count = 1;
-    ms_archive_cell cell;
-    memset(&cell, 0, sizeof cell);
-    cell.parent = cell.first_child = MS_ARCHIVE_NONE;
-    ms_render *r;
-    ms_error err;
-    expect(ms_render_new(&h, &cell, &r, &err), &err);
-    double positions[9] = {-20, -20, 0.4, 0.5, 20, 0.6, 20, -20, 0.5};
-    uint32_t tri[3] = {0, 1, 2}, tri_cell[1] = {0};
-    ms_view_mesh mesh;
-    memset(&mesh, 0, sizeof mesh);
-    mesh.vertex_count = 3;
-    mesh.triangle_count = 1;
-    mesh.positions = positions;
-    mesh.triangles = tri;
-    mesh.triangle_cell = tri_cell;
-    expect(ms_render_set_frame(r, &mesh, NULL, 0, &err), &err);
-    ms_render_upload_stats up;
-    expect(ms_render_upload(r, UINT64_MAX, &up, &err), &err);
+    const double positions[9] = {-20, -20, 0.4, 0.5, 20, 0.6, 20, -20, 0.5};
+    const uint32_t tri[3] = {0, 1, 2};
+    ms_render *r = ms_test_render_one_cell(4, positions, 3, tri, 1);
     const double eye[3] = {0.5, 0.5, 3.0}, centre[3] = {0.5, 0.5, 0.5}, upv[3] = {0, 1, 0};
     assert_int_equal(ms_camera_look_at(eye, centre, upv, 40.0, SIZE, SIZE, 0.5, 10.0, &fx.plane_camera, NULL),
                      MS_OK);
@@ -611,21 +566,16 @@ static int setup(void **state)
     memset(&fx, 0, sizeof fx);
     ms_test_tmpdir(fx.dir, sizeof fx.dir);
     fx.archive = ms_test_render_bake_demo(24, fx.dir, 14, 2000, 0);
-    const ms_archive_header *h = ms_archive_get_header(fx.archive);
-    ms_error err;
-    expect(ms_render_new(h, ms_archive_get_cell(fx.archive, 0), &fx.render, &err), &err);
     ms_view *view;
-    expect(ms_view_create_from_archive(fx.archive, &view, &err), &err);
+    ms_test_render_open(fx.archive, &fx.render, &view);
     const double dir[3] = {1.0, 0.5, 0.7};
-    ms_test_render_camera(h, dir, 1.1, 40.0, SIZE, SIZE, &fx.camera);
     ms_view_mesh mesh = {0};
-    ms_test_render_view(view, &fx.camera, 1.0, &mesh);
+    ms_test_render_look(fx.archive, view, dir, SIZE, SIZE, 1.0, &fx.camera, &mesh);
     ms_core_apo_chunk *apo;
     size_t apo_count;
     ms_test_render_apo(fx.archive, &mesh, 0, false, &apo, &apo_count);
-    expect(ms_render_set_frame(fx.render, &mesh, apo, apo_count, &err), &err);
     ms_render_upload_stats up;
-    expect(ms_render_upload(fx.render, UINT64_MAX, &up, &err), &err);
+    ms_test_render_show(fx.render, &mesh, apo, apo_count, &up);
     assert_int_equal(up.cells_pending, 0);
     free(apo);
     ms_view_mesh_free(&mesh);

@@ -85,26 +85,18 @@ static void compare_with_embree(ms_archive *a, const char *name, const double di
 {
     const ms_archive_header *h = ms_archive_get_header(a);
     ms_view *view;
-    ms_error err;
-    if (ms_view_create_from_archive(a, &view, &err) != MS_OK)
-        fail_msg("%s", err.text);
     ms_render *r;
-    if (ms_render_new(h, ms_archive_get_cell(a, 0), &r, &err) != MS_OK)
-        fail_msg("%s", err.text);
+    ms_test_render_open(a, &r, &view);
     ms_camera cam;
-    ms_test_render_camera(h, dir, 1.1, 40.0, WIDTH, HEIGHT, &cam);
     ms_view_mesh mesh = {0};
-    ms_test_render_view(view, &cam, tolerance_px, &mesh);
-    if (ms_render_set_frame(r, &mesh, NULL, 0, &err) != MS_OK)
-        fail_msg("%s", err.text);
-    ms_render_upload_stats up;
-    if (ms_render_upload(r, UINT64_MAX, &up, &err) != MS_OK)
-        fail_msg("%s", err.text);
+    ms_test_render_look(a, view, dir, WIDTH, HEIGHT, tolerance_px, &cam, &mesh);
+    ms_test_render_show(r, &mesh, NULL, 0, NULL);
     ms_test_fbo fbo;
     ms_test_fbo_new(&fbo, WIDTH, HEIGHT);
     ms_render_options o;
     ms_render_options_default(&o);
     ms_render_draw_stats ds;
+    ms_error err;
     if (ms_render_draw(r, &cam, &o, &ds, &err) != MS_OK)
         fail_msg("%s", err.text);
     assert_int_equal(ds.triangles_drawn, mesh.triangle_count);

@@ -50,7 +50,6 @@ static void test_bad_model(void **state)
     ms_error err;
     expect(ms_render_new(NULL, cells, &r, &err), MS_ERR_ARG, &err);
     assert_null(r);
-    expect(ms_render_new(h, NULL, &r, &err), MS_ERR_ARG, &err);
     expect(ms_render_new(h, cells, NULL, &err), MS_ERR_ARG, &err);
     ms_archive_header bad = *h;
     bad.cell_count = 0;
@@ -88,21 +87,26 @@ static void test_bad_model(void **state)
     assert_null(r);
 }
 
+/* The archive's renderer and view, and the view's mesh seen from (0.2, 0.3, 1)
+ * at 2 px. */
+static void open_view(ms_render **r, ms_view **view, ms_camera *cam, ms_view_mesh *mesh)
+{
+    ms_test_render_open(archive, r, view);
+    const double d[3] = {0.2, 0.3, 1.0};
+    ms_test_render_look(archive, *view, d, WIDTH, HEIGHT, 2.0, cam, mesh);
+}
+
 /* Bad frames, uploads and draws: errors, then a good frame still draws. */
 static void test_bad_calls(void **state)
 {
     (void)state;
-    const ms_archive_header *h = ms_archive_get_header(archive);
     ms_render *r;
-    ms_error err;
-    expect(ms_render_new(h, ms_archive_get_cell(archive, 0), &r, &err), MS_OK, &err);
     ms_view *view;
-    expect(ms_view_create_from_archive(archive, &view, &err), MS_OK, &err);
     ms_camera cam;
-    const double d[3] = {0.2, 0.3, 1.0};
-    ms_test_render_camera(h, d, 1.1, 40.0, WIDTH, HEIGHT, &cam);
     ms_view_mesh mesh = {0};
-    ms_test_render_view(view, &cam, 2.0, &mesh);
+    open_view(&r, &view, &cam, &mesh);
+    ms_error err;
+    const ms_archive_header *h = ms_archive_get_header(archive);
     assert_true(mesh.triangle_count > 100);
 
     expect(ms_render_set_frame(NULL, &mesh, NULL, 0, &err), MS_ERR_ARG, &err);
@@ -164,8 +168,7 @@ static void test_bad_calls(void **state)
     expect(ms_render_draw(r, &cam, &o2, &ds, &err), MS_ERR_ARG, &err);
 
     /* still usable: the good frame, every mode, wireframe */
-    expect(ms_render_set_frame(r, &mesh, NULL, 0, &err), MS_OK, &err);
-    expect(ms_render_upload(r, UINT64_MAX, &up, &err), MS_OK, &err);
+    ms_test_render_show(r, &mesh, NULL, 0, &up);
     assert_int_equal(up.cells_pending, 0);
     ms_test_fbo fbo;
     ms_test_fbo_new(&fbo, WIDTH, HEIGHT);
@@ -189,15 +192,30 @@ static void test_bad_calls(void **state)
     ms_render_free(r);
 }
 
-/* Corrupt, short and over-claiming APO prefixes: the frame is taken, those cells
- * shade with their geometric normals (the picture equals the APO-off one). */
-static void test_corrupt_apo(void **state)
+/* Records learned as frames bring them (an index by subtree): a cell drawn
+ * without its record is refused, a bad record is refused, and with the records
+ * of the drawing cells the picture equals the one drawn from the whole index. */
+static void draw_read(ms_render *r, const ms_view_mesh *mesh, const ms_camera *cam, const ms_test_fbo *fbo,
+                      float *rgba)
+{
+    ms_error err;
+    ms_render_options o;
+    ms_render_options_default(&o);
+    ms_render_upload_stats up;
+    expect(ms_render_set_frame(r, mesh, NULL, 0, &err), MS_OK, &err);
+    expect(ms_render_upload(r, UINT64_MAX, &up, &err), MS_OK, &err);
+    assert_int_equal(up.cells_pending, 0);
+    ms_render_draw_stats ds;
+    expect(ms_render_draw(r, cam, &o, &ds, &err), MS_OK, &err);
+    assert_int_equal(ds.triangles_drawn, mesh->triangle_count);
+    ms_test_fbo_read(fbo, rgba, NULL);
+}
+
+static void test_learned_records(void **state)
 {
     (void)state;
     const ms_archive_header *h = ms_archive_get_header(archive);
-    ms_render *r;
     ms_error err;
-    expect(ms_render_new(h, ms_archive_get_cell(archive, 0), &r, &err), MS_OK, &err);
     ms_view *view;
     expect(ms_view_create_from_archive(archive, &view, &err), MS_OK, &err);
     ms_camera cam;
@@ -205,6 +223,75 @@ static void test_corrupt_apo(void **state)
     ms_test_render_camera(h, d, 1.1, 40.0, WIDTH, HEIGHT, &cam);
     ms_view_mesh mesh = {0};
     ms_test_render_view(view, &cam, 2.0, &mesh);
+    assert_true(mesh.triangle_count > 100);
+    /* the drawing cells, ascending, and their records */
+    uint32_t *ids = malloc(h->cell_count * sizeof *ids);
+    ms_archive_cell *recs = malloc(h->cell_count * sizeof *recs);
+    assert_non_null(ids);
+    assert_non_null(recs);
+    size_t count = 0;
+    for (uint32_t c = 0; c < h->cell_count; ++c) {
+        bool draws = false;
+        for (size_t t = 0; t < mesh.triangle_count && !draws; ++t)
+            draws = mesh.triangle_cell[t] == c;
+        if (draws) {
+            ids[count] = c;
+            recs[count++] = *ms_archive_get_cell(archive, c);
+        }
+    }
+    assert_true(count > 1);
+    ms_test_fbo fbo;
+    ms_test_fbo_new(&fbo, WIDTH, HEIGHT);
+    float *whole = malloc(4 * sizeof(float) * WIDTH * HEIGHT), *learned = malloc(4 * sizeof(float) * WIDTH * HEIGHT);
+    assert_non_null(whole);
+    assert_non_null(learned);
+    ms_render *r;
+    expect(ms_render_new(h, ms_archive_get_cell(archive, 0), &r, &err), MS_OK, &err);
+    draw_read(r, &mesh, &cam, &fbo, whole);
+    ms_render_free(r);
+
+    expect(ms_render_new(h, NULL, &r, &err), MS_OK, &err);
+    expect(ms_render_set_frame(r, &mesh, NULL, 0, &err), MS_ERR_ARG, &err);  /* no records yet */
+    expect(ms_render_learn(r, ids, recs, count - 1, &err), MS_OK, &err);
+    expect(ms_render_set_frame(r, &mesh, NULL, 0, &err), MS_ERR_ARG, &err);  /* one missing */
+    uint32_t beyond = h->cell_count;
+    expect(ms_render_learn(r, &beyond, recs, 1, &err), MS_ERR_ARG, &err);
+    ms_archive_cell bad = recs[0];
+    bad.position[0] = 1u << 30;
+    expect(ms_render_learn(r, ids, &bad, 1, &err), MS_ERR_ARG, &err);
+    expect(ms_render_learn(r, NULL, recs, 1, &err), MS_ERR_ARG, &err);
+    expect(ms_render_learn(r, ids, recs, count, &err), MS_OK, &err);
+    draw_read(r, &mesh, &cam, &fbo, learned);
+    assert_memory_equal(whole, learned, 4 * sizeof(float) * WIDTH * HEIGHT);
+    /* the state of groups no longer drawn is gone with their records: the same
+     * frame again needs them learned again */
+    ms_view_mesh empty = {0};
+    expect(ms_render_set_frame(r, &empty, NULL, 0, &err), MS_OK, &err);
+    expect(ms_render_set_frame(r, &mesh, NULL, 0, &err), MS_ERR_ARG, &err);
+    expect(ms_render_learn(r, ids, recs, count, &err), MS_OK, &err);
+    draw_read(r, &mesh, &cam, &fbo, learned);
+    assert_memory_equal(whole, learned, 4 * sizeof(float) * WIDTH * HEIGHT);
+    ms_render_free(r);
+    free(whole);
+    free(learned);
+    free(ids);
+    free(recs);
+    ms_test_fbo_free(&fbo);
+    ms_view_mesh_free(&mesh);
+    ms_view_destroy(view);
+}
+
+/* Corrupt, short and over-claiming APO prefixes: the frame is taken, those cells
+ * shade with their geometric normals (the picture equals the APO-off one). */
+static void test_corrupt_apo(void **state)
+{
+    (void)state;
+    ms_render *r;
+    ms_view *view;
+    ms_camera cam;
+    ms_view_mesh mesh = {0};
+    open_view(&r, &view, &cam, &mesh);
+    ms_error err;
     ms_core_apo_chunk *apo;
     size_t count;
     ms_test_render_apo(archive, &mesh, 0, false, &apo, &count);
@@ -236,9 +323,7 @@ static void test_corrupt_apo(void **state)
             break;
         }
     }
-    expect(ms_render_set_frame(r, &mesh, apo, count, &err), MS_OK, &err);
-    ms_render_upload_stats up;
-    expect(ms_render_upload(r, UINT64_MAX, &up, &err), MS_OK, &err);
+    ms_test_render_show(r, &mesh, apo, count, NULL);
     size_t np = (size_t)WIDTH * HEIGHT;
     float *with = malloc(np * 4 * sizeof(float)), *without = malloc(np * 4 * sizeof(float)),
           *ids = malloc(np * 4 * sizeof(float));
@@ -454,19 +539,6 @@ static float srgb(double c)
  * winding (a back face). */
 static void draw_plane_pixel(double tilt_deg, bool reversed, const ms_render_options *o, bool corner, float rgba[4])
 {
-    ms_archive_header h;
-    memset(&h, 0, sizeof h);
-    h.box_side = 1.0;
-    h.bits = 16;
-    h.n = 4;
-    h.root_bits = 7;
-    h.cell_count = 1;
-    ms_archive_cell cell;
-    memset(&cell, 0, sizeof cell);
-    cell.parent = cell.first_child = MS_ARCHIVE_NONE;
-    ms_render *r;
-    ms_error err;
-    expect(ms_render_new(&h, &cell, &r, &err), MS_OK, &err);
     double t = tilt_deg * M_PI / 180.0;
     /* in-plane axes: x, and (0, cos t, -sin t) */
     double corners[3][2] = {{-20, -20}, {20, -20}, {0, 20}};
@@ -476,17 +548,9 @@ static void draw_plane_pixel(double tilt_deg, bool reversed, const ms_render_opt
         positions[3 * k + 1] = 0.5 + corners[k][1] * cos(t);
         positions[3 * k + 2] = 0.5 - corners[k][1] * sin(t);
     }
-    uint32_t tri[3] = {0, reversed ? 2u : 1u, reversed ? 1u : 2u}, tri_cell[1] = {0};
-    ms_view_mesh mesh;
-    memset(&mesh, 0, sizeof mesh);
-    mesh.vertex_count = 3;
-    mesh.triangle_count = 1;
-    mesh.positions = positions;
-    mesh.triangles = tri;
-    mesh.triangle_cell = tri_cell;
-    expect(ms_render_set_frame(r, &mesh, NULL, 0, &err), MS_OK, &err);
-    ms_render_upload_stats up;
-    expect(ms_render_upload(r, UINT64_MAX, &up, &err), MS_OK, &err);
+    const uint32_t tri[3] = {0, reversed ? 2u : 1u, reversed ? 1u : 2u};
+    ms_render *r = ms_test_render_one_cell(4, positions, 3, tri, 1);
+    ms_error err;
     ms_camera cam;
     const double eye[3] = {0.5, 0.5, 3.0}, centre[3] = {0.5, 0.5, 0.5}, upv[3] = {0, 1, 0};
     assert_int_equal(ms_camera_look_at(eye, centre, upv, 40.0, WIDTH + 1, HEIGHT + 1, 0.5, 10.0, &cam, NULL), MS_OK);
@@ -591,6 +655,7 @@ int main(void)
         cmocka_unit_test(test_corrupt_apo), cmocka_unit_test(test_prefix_words),
         cmocka_unit_test(test_texel_ranges), cmocka_unit_test(test_camera),
         cmocka_unit_test(test_shading),
+        cmocka_unit_test(test_learned_records),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }

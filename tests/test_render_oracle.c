@@ -259,18 +259,13 @@ static void check_figures(const figures *f)
 static void run_model(ms_archive *a, const char *name, const double dirs[][3], size_t dir_count)
 {
     ms_view *view;
-    ms_error err;
-    if (ms_view_create_from_archive(a, &view, &err) != MS_OK)
-        fail_msg("%s", err.text);
-    const ms_archive_header *h = ms_archive_get_header(a);
     ms_render *r;
-    if (ms_render_new(h, ms_archive_get_cell(a, 0), &r, &err) != MS_OK)
-        fail_msg("%s", err.text);
+    ms_test_render_open(a, &r, &view);
+    const ms_archive_header *h = ms_archive_get_header(a);
     ms_view_mesh mesh = {0};
     for (size_t d = 0; d < dir_count; ++d) {
         ms_camera cam;
-        ms_test_render_camera(h, dirs[d], 1.1, 40.0, WIDTH, HEIGHT, &cam);
-        ms_test_render_view(view, &cam, 1.0, &mesh);
+        ms_test_render_look(a, view, dirs[d], WIDTH, HEIGHT, 1.0, &cam, &mesh);
         uint32_t cells_drawing = 0;
         {
             bool *seen = calloc(h->cell_count, 1);
@@ -291,11 +286,8 @@ static void run_model(ms_archive *a, const char *name, const double dirs[][3], s
             size_t count, count_full;
             ms_test_render_apo(a, &mesh, cases[k].levels, cases[k].mid, &apo, &count);
             ms_test_render_apo(a, &mesh, 0, false, &apo_full, &count_full);
-            if (ms_render_set_frame(r, &mesh, apo, count, &err) != MS_OK)
-                fail_msg("%s", err.text);
             ms_render_upload_stats up;
-            if (ms_render_upload(r, UINT64_MAX, &up, &err) != MS_OK)
-                fail_msg("%s", err.text);
+            ms_test_render_show(r, &mesh, apo, count, &up);
             assert_int_equal(up.cells_pending, 0);
             oracle given = {0}, full = {0};
             oracle_build(&given, a, apo, count);

@@ -21,6 +21,7 @@
 #include "ms_render.h"
 #include "ms_test.h"
 #include "ms_test_render.h"
+#include "ms_vec3.h"
 
 #define SIZE 128
 #define RINGS 24      /* latitude bands: 7.5 degrees each */
@@ -39,28 +40,9 @@ typedef struct sphere {
     double *face_normal;   /* 3 per triangle: unit */
 } sphere;
 
-static double dot3(const double a[3], const double b[3])
-{
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-}
-
-static void cross3(const double a[3], const double b[3], double out[3])
-{
-    out[0] = a[1] * b[2] - a[2] * b[1];
-    out[1] = a[2] * b[0] - a[0] * b[2];
-    out[2] = a[0] * b[1] - a[1] * b[0];
-}
-
-static void normalise3(double v[3])
-{
-    double len = sqrt(dot3(v, v));
-    for (int a = 0; a < 3; ++a)
-        v[a] /= len;
-}
-
 static double angle_deg(const double a[3], const double b[3])
 {
-    double c = dot3(a, b) / sqrt(dot3(a, a) * dot3(b, b));
+    double c = ms_vec3_dot(a, b) / sqrt(ms_vec3_dot(a, a) * ms_vec3_dot(b, b));
     return acos(c > 1.0 ? 1.0 : (c < -1.0 ? -1.0 : c)) * 180.0 / M_PI;
 }
 
@@ -113,13 +95,13 @@ static void sphere_build(sphere *s)
         double u[3], v[3], n[3];
         for (int ax = 0; ax < 3; ++ax)
             u[ax] = b[ax] - a[ax], v[ax] = c[ax] - a[ax];
-        cross3(u, v, n);
+        ms_vec3_cross(u, v, n);
         for (int k = 0; k < 3; ++k)
             for (int ax = 0; ax < 3; ++ax)
                 s->vertex_normal[3 * (size_t)tri[k] + (size_t)ax] += n[ax];
-        normalise3(n);
+        ms_vec3_normalise(n);
         double out[3] = {a[0] - centre[0], a[1] - centre[1], a[2] - centre[2]};
-        assert_true(dot3(n, out) > 0.0); /* wound outwards */
+        assert_true(ms_vec3_dot(n, out) > 0.0); /* wound outwards */
         memcpy(&s->face_normal[3 * t], n, sizeof n);
         uint32_t octant = 0;
         for (int ax = 0; ax < 3; ++ax)
@@ -127,7 +109,7 @@ static void sphere_build(sphere *s)
         s->triangle_cell[t] = 1 + octant;
     }
     for (size_t v = 0; v < s->vertex_count; ++v)
-        normalise3(&s->vertex_normal[3 * v]);
+        ms_vec3_normalise(&s->vertex_normal[3 * v]);
 }
 
 static void sphere_free(sphere *s)
@@ -152,17 +134,17 @@ static int locate(const sphere *s, const double x[3], size_t found[8], double we
         const double *a = &s->positions[3 * (size_t)tri[0]], *b = &s->positions[3 * (size_t)tri[1]],
                      *c = &s->positions[3 * (size_t)tri[2]];
         double ax[3] = {x[0] - a[0], x[1] - a[1], x[2] - a[2]};
-        if (fabs(dot3(ax, n)) > 1e-5)
+        if (fabs(ms_vec3_dot(ax, n)) > 1e-5)
             continue;
         double ab[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, ac[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
         double m[3], area2;
-        cross3(ab, ac, m);
-        area2 = dot3(m, n);
+        ms_vec3_cross(ab, ac, m);
+        area2 = ms_vec3_dot(m, n);
         double q[3];
-        cross3(ab, ax, q);
-        double wc = dot3(q, n) / area2;
-        cross3(ax, ac, q);
-        double wb = dot3(q, n) / area2, wa = 1.0 - wb - wc;
+        ms_vec3_cross(ab, ax, q);
+        double wc = ms_vec3_dot(q, n) / area2;
+        ms_vec3_cross(ax, ac, q);
+        double wb = ms_vec3_dot(q, n) / area2, wa = 1.0 - wb - wc;
         if (wa < -2e-2 || wb < -2e-2 || wc < -2e-2)
             continue;
         found[count] = t;
@@ -242,12 +224,7 @@ static void test_sphere(void **state)
     sphere s;
     sphere_build(&s);
     ms_archive_header h;
-    memset(&h, 0, sizeof h);
-    h.box_side = 1.0;
-    h.bits = 16;
-    h.n = 2;
-    h.root_bits = 7;
-    h.cell_count = CELLS;
+    ms_test_render_unit_header(2, CELLS, &h);
     ms_archive_cell cells[CELLS];
     memset(cells, 0, sizeof cells);
     cells[0].parent = MS_ARCHIVE_NONE;
@@ -270,11 +247,8 @@ static void test_sphere(void **state)
     mesh.positions = s.positions;
     mesh.triangles = s.triangles;
     mesh.triangle_cell = s.triangle_cell;
-    if (ms_render_set_frame(r, &mesh, NULL, 0, &err) != MS_OK)
-        fail_msg("%s", err.text);
     ms_render_upload_stats up;
-    if (ms_render_upload(r, UINT64_MAX, &up, &err) != MS_OK)
-        fail_msg("%s", err.text);
+    ms_test_render_show(r, &mesh, NULL, 0, &up);
     assert_int_equal(up.cells_pending, 0);
     ms_camera cam;
     /* off-axis, so that the cell borders x = 0.5 and y = 0.5 cross the picture */

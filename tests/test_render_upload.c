@@ -512,12 +512,7 @@ static int teardown(void **state)
 static int per_test_setup(void **state)
 {
     (void)state;
-    ms_error err;
-    if (ms_view_create_from_archive(fx.archive, &fx.view, &err) != MS_OK)
-        fail_msg("%s", err.text);
-    if (ms_render_new(ms_archive_get_header(fx.archive), ms_archive_get_cell(fx.archive, 0), &fx.render, &err) !=
-        MS_OK)
-        fail_msg("%s", err.text);
+    ms_test_render_open(fx.archive, &fx.render, &fx.view);
     return 0;
 }
 

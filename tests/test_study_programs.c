@@ -54,22 +54,6 @@ static int teardown(void **state)
     return 0;
 }
 
-static json_t *run_json(const char *cmd)
-{
-    const size_t size = 1 << 20;
-    char *out = malloc(size);
-    assert_non_null(out);
-    int rc = ms_test_run(cmd, out, size);
-    if (rc != 0)
-        fail_msg("%s: exit %d: %.300s", cmd, rc, out);
-    json_error_t je;
-    json_t *root = json_loads(out, 0, &je);
-    if (!root)
-        fail_msg("%s: not JSON (%s): %.300s", cmd, je.text, out);
-    free(out);
-    return root;
-}
-
 static void test_exit_codes(void **state)
 {
     fixture *f = *state;
@@ -104,7 +88,7 @@ static void test_meshrender(void **state)
     char cmd[4096], file[900];
     snprintf(cmd, sizeof cmd, "%s %s -p %s -o %s/mesh --width 64 --height 48 --normals --json", f->render, f->mesh,
              f->path, f->dir);
-    json_t *root = run_json(cmd);
+    json_t *root = ms_test_run_json(cmd, 0);
     json_t *frames = json_object_get(root, "frames");
     assert_int_equal(json_array_size(frames), 9);
     for (size_t k = 0; k < 9; ++k) {
@@ -124,7 +108,7 @@ static void test_meshrender(void **state)
     /* the archive's cut, with APO: the same silhouette region, a cut's bytes */
     snprintf(cmd, sizeof cmd, "%s %s -p %s -o %s/cut --width 64 --height 48 --tolerance 4 --apo --json", f->render,
              f->archive, f->path, f->dir);
-    root = run_json(cmd);
+    root = ms_test_run_json(cmd, 0);
     frames = json_object_get(root, "frames");
     assert_int_equal(json_array_size(frames), 9);
     json_t *cut = json_object_get(json_array_get(frames, 0), "cut");
@@ -149,7 +133,7 @@ static void test_small_study(void **state)
     char cmd[4096];
     snprintf(cmd, sizeof cmd, "%s %s %s -p %s --keys 0 --tolerances 1,4,16 --width 80 --height 60 --spacing 0.004 --json",
              f->study, f->mesh, f->archive, f->path);
-    json_t *root = run_json(cmd);
+    json_t *root = ms_test_run_json(cmd, 0);
     assert_true(json_is_true(json_object_get(root, "apo")));
     assert_int_equal(json_integer_value(json_object_get(root, "mesh_triangles")), 11102);
     json_t *points = json_object_get(root, "points");
@@ -194,7 +178,7 @@ static void test_small_study(void **state)
         snprintf(cmd, sizeof cmd,
                  "%s %s %s -p %s --keys 0 --tolerances 4 --width 80 --height 60 --spacing 0.004 --apo-levels %s --json",
                  f->study, f->mesh, f->archive, f->path, levels[i]);
-        root = run_json(cmd);
+        root = ms_test_run_json(cmd, 0);
         json_t *p = json_array_get(json_object_get(root, "points"), 0);
         assert_true(number(p, "bytes", "geometry") == whole_geometry);
         if (i == 0)
@@ -214,7 +198,7 @@ static void test_whole_against_itself(void **state)
     char cmd[4096];
     snprintf(cmd, sizeof cmd, "%s %s --whole %s -p %s --keys 0,8 --width 64 --height 48 --spacing 0.004 --json",
              f->study, f->mesh, f->mesh, f->path);
-    json_t *root = run_json(cmd);
+    json_t *root = ms_test_run_json(cmd, 0);
     assert_false(json_is_true(json_object_get(root, "apo")));
     assert_string_equal(json_string_value(json_object_get(root, "archive")), f->mesh);
     json_t *points = json_object_get(root, "points");

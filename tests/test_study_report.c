@@ -73,17 +73,27 @@ static char *read_text(const char *path)
     return text;
 }
 
+/* The fixture's study reports into dir/json (made here); meshview's frame-time
+ * reports (frame-*) only with frame_times. */
+static void write_study_json(const char *dir, bool frame_times)
+{
+    char path[512];
+    snprintf(path, sizeof path, "%s/json", dir);
+    assert_int_equal(mkdir(path, 0755), 0);
+    for (size_t i = 0; i < sizeof FIXTURE / sizeof *FIXTURE; ++i) {
+        if (!frame_times && strncmp(FIXTURE[i][0], "frame-", 6) == 0)
+            continue;
+        snprintf(path, sizeof path, "%s/json/%s", dir, FIXTURE[i][0]);
+        ms_test_write_file(path, FIXTURE[i][1], strlen(FIXTURE[i][1]));
+    }
+}
+
 static void test_frame_time_table(void **state)
 {
     (void)state;
     char dir[256], path[512], cmd[1400], out[4096];
     ms_test_tmpdir(dir, sizeof dir);
-    snprintf(path, sizeof path, "%s/json", dir);
-    assert_int_equal(mkdir(path, 0755), 0);
-    for (size_t i = 0; i < sizeof FIXTURE / sizeof *FIXTURE; ++i) {
-        snprintf(path, sizeof path, "%s/json/%s", dir, FIXTURE[i][0]);
-        ms_test_write_file(path, FIXTURE[i][1], strlen(FIXTURE[i][1]));
-    }
+    write_study_json(dir, true);
     snprintf(path, sizeof path, "%s/ACCURACY.md", dir);
     const char *kept = "# Accuracy\n\nWritten by hand.\n";
     ms_test_write_file(path, kept, strlen(kept));
@@ -130,14 +140,7 @@ static void test_no_frame_time_without_meshview(void **state)
     (void)state;
     char dir[256], path[512], cmd[1400], out[4096];
     ms_test_tmpdir(dir, sizeof dir);
-    snprintf(path, sizeof path, "%s/json", dir);
-    assert_int_equal(mkdir(path, 0755), 0);
-    for (size_t i = 0; i < sizeof FIXTURE / sizeof *FIXTURE; ++i) {
-        if (strncmp(FIXTURE[i][0], "frame-", 6) == 0)
-            continue;
-        snprintf(path, sizeof path, "%s/json/%s", dir, FIXTURE[i][0]);
-        ms_test_write_file(path, FIXTURE[i][1], strlen(FIXTURE[i][1]));
-    }
+    write_study_json(dir, false);
     snprintf(cmd, sizeof cmd, "python3 scripts/study-report.py %s/json %s/ACCURACY.md %s/images", dir, dir,
              dir);
     assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);

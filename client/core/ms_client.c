@@ -18,7 +18,7 @@ struct ms_client {
     struct bufferevent *bev;
     const ms_client_handlers *handlers;
     void *arg;
-    ms_proto_decoder decoder;
+    ms_proto_decoder *decoder; /* owned */
     ms_proto_hello_reply limits;
     uint32_t next_id;
     bool over;
@@ -29,8 +29,10 @@ struct ms_client {
     ms_proto_model_opened opened;
     uint8_t *index;         /* index_size bytes: the blob, received or inflated */
     uint32_t index_have;    /* bytes of INDEX_DATA received (the wire form's) */
+    uint32_t index_wire;    /* the wire size of the last index handed over */
     uint8_t *index_zlib;    /* the compressed form as it arrives (ZLIB encoding) */
     bool ask_index_zlib;    /* offer CAP_INDEX_ZLIB in HELLO */
+    bool ask_index_subtrees; /* offer CAP_INDEX_SUBTREES in HELLO */
     struct ev_token_bucket_cfg *rate;
     uint64_t bytes_read;
 };
@@ -129,6 +131,7 @@ static void handle_index(ms_client *c, const ms_proto_message *m)
     uint8_t *index = c->index;
     c->index = NULL;
     c->index_request = 0;
+    c->index_wire = c->index_have;
     if (c->handlers->model_opened)
         c->handlers->model_opened(c, m->request_id, &c->opened, index, c->arg);
     free(index);
@@ -139,15 +142,17 @@ static void handle_index(ms_client *c, const ms_proto_message *m)
 static bool reply_acceptable(ms_client *c, const ms_proto_hello_reply *r)
 {
     char why[160];
-    uint32_t asked = MS_PROTO_CAP_APO | (c->ask_index_zlib ? MS_PROTO_CAP_INDEX_ZLIB : 0);
+    uint32_t asked = MS_PROTO_CAP_APO | (c->ask_index_zlib ? MS_PROTO_CAP_INDEX_ZLIB : 0) |
+                     (c->ask_index_subtrees ? MS_PROTO_CAP_INDEX_SUBTREES : 0);
     if (r->version < MS_PROTO_MIN_VERSION || r->version > MS_PROTO_VERSION)
         snprintf(why, sizeof why, "server chose protocol version %u, outside our %u..%u",
                  r->version, MS_PROTO_MIN_VERSION, MS_PROTO_VERSION);
     else if (r->capabilities & ~asked)
         snprintf(why, sizeof why, "server granted capabilities 0x%x beyond the 0x%x asked",
                  (unsigned)r->capabilities, (unsigned)asked);
-    else if (r->version < 2 && (r->capabilities & MS_PROTO_CAP_INDEX_ZLIB))
-        snprintf(why, sizeof why, "server granted CAP_INDEX_ZLIB in protocol version 1");
+    else if (r->capabilities & ~ms_proto_version_capabilities(r->version))
+        snprintf(why, sizeof why, "server granted capabilities 0x%x that protocol version %u "
+                 "does not define", (unsigned)r->capabilities, r->version);
     else
         return true;
     finish(c, why);
@@ -166,9 +171,11 @@ static bool handle_message(ms_client *c, const ms_proto_message *m)
             c->handlers->ready(c, &c->limits, c->arg);
         break;
     case MS_PROTO_MODEL_OPENED:
-        if (m->body.model_opened.index_encoding != MS_PROTO_INDEX_RAW &&
-            !(c->limits.capabilities & MS_PROTO_CAP_INDEX_ZLIB)) {
-            finish(c, "server sent a compressed index without CAP_INDEX_ZLIB");
+        if (ms_proto_check_negotiated(m, c->limits.version, c->limits.capabilities, NULL,
+                                      NULL) != MS_OK) {
+            finish(c, m->body.model_opened.index_encoding == MS_PROTO_INDEX_SUBTREES
+                          ? "server sent an index head without CAP_INDEX_SUBTREES"
+                          : "server sent a compressed index without CAP_INDEX_ZLIB");
             break;
         }
         free(c->index);
@@ -232,7 +239,7 @@ static void on_read(struct bufferevent *bev, void *arg)
         bool have;
         ms_proto_fault fault;
         ms_error err;
-        ms_status st = ms_proto_decoder_feed(&c->decoder, v.iov_base, v.iov_len, &consumed, &m,
+        ms_status st = ms_proto_decoder_feed(c->decoder, v.iov_base, v.iov_len, &consumed, &m,
                                              &have, &fault, &err);
         evbuffer_drain(in, consumed);
         c->bytes_read += consumed;
@@ -284,7 +291,7 @@ ms_status ms_client_connect(struct event_base *base, const ms_client_options *o,
     c->next_id = 1;
     uint32_t max_frame = o->max_frame ? o->max_frame : DEFAULT_MAX_FRAME;
     ms_proto_decoder_config dc = {MS_PROTO_ROLE_CLIENT, max_frame, 0};
-    ms_status st = ms_proto_decoder_init(&c->decoder, &dc, err);
+    ms_status st = ms_proto_decoder_new(&dc, &c->decoder, err);
     if (st != MS_OK) {
         free(c);
         return st;
@@ -307,7 +314,9 @@ ms_status ms_client_connect(struct event_base *base, const ms_client_options *o,
     h->min_version = MS_PROTO_MIN_VERSION;
     h->max_version = MS_PROTO_VERSION;
     c->ask_index_zlib = !o->raw_index;
-    h->capabilities = MS_PROTO_CAP_APO | (c->ask_index_zlib ? MS_PROTO_CAP_INDEX_ZLIB : 0);
+    c->ask_index_subtrees = o->index_subtrees;
+    h->capabilities = MS_PROTO_CAP_APO | (c->ask_index_zlib ? MS_PROTO_CAP_INDEX_ZLIB : 0) |
+                      (c->ask_index_subtrees ? MS_PROTO_CAP_INDEX_SUBTREES : 0);
     h->max_frame = max_frame;
     h->token = o->token;
     h->token_length = o->token ? (uint16_t)strlen(o->token) : 0;
@@ -329,7 +338,7 @@ void ms_client_free(ms_client *c)
         bufferevent_free(c->bev);
     if (c->rate)
         ev_token_bucket_cfg_free(c->rate);
-    ms_proto_decoder_free(&c->decoder);
+    ms_proto_decoder_free(c->decoder);
     free(c->index);
     free(c->index_zlib);
     free(c);
@@ -542,3 +551,5 @@ void ms_client_catalogue_free(ms_client_catalogue *catalogue)
     catalogue->entries = NULL;
     catalogue->count = 0;
 }
+
+uint32_t ms_client_index_wire_bytes(const ms_client *c) { return c->index_wire; }

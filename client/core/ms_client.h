@@ -1,5 +1,6 @@
 /* A binary-protocol client connection on a libevent loop (protocol/PROTOCOL.md):
- * connect, HELLO (versions 1..2, offering CAP_APO and CAP_INDEX_ZLIB), OPEN_MODEL
+ * connect, HELLO (versions 1..3, offering CAP_APO, CAP_INDEX_ZLIB and on request
+ * CAP_INDEX_SUBTREES), OPEN_MODEL
  * (the index blob reassembled, inflated if compressed, and CRC-checked),
  * REQUEST_CELLS batches with consecutive request ids, CANCEL, PING; incoming
  * frames are strictly validated (any bad server frame closes the connection)
@@ -27,7 +28,8 @@ typedef struct ms_client_handlers {
     /* HELLO_REPLY received: requests may be sent (they may also be sent before). */
     void (*ready)(ms_client *client, const ms_proto_hello_reply *reply, void *arg);
     /* OPEN_MODEL answered: the whole index blob, CRC-checked (and inflated
-     * first when it came compressed). */
+     * first when it came compressed), or with opened->index_encoding
+     * SUBTREES the index head (index_size bytes, CRC-checked). */
     void (*model_opened)(ms_client *client, uint32_t request_id, const ms_proto_model_opened *opened,
                          const uint8_t *index, void *arg);
     /* One PAYLOAD frame (frames of one request come in order, contiguous). */
@@ -55,6 +57,10 @@ typedef struct ms_client_options {
     const char *agent;    /* e.g. "meshloadgen/0.1" */
     uint32_t max_frame;   /* largest body accepted; 0 = 1 MiB */
     bool raw_index;       /* do not offer CAP_INDEX_ZLIB: the index comes uncompressed */
+    bool index_subtrees;  /* offer CAP_INDEX_SUBTREES (version 3): when granted, OPEN_MODEL
+                             may answer with the index head (index_encoding SUBTREES),
+                             handed to model_opened as is, CRC-checked; the subtrees are
+                             then requested as stream INDEX */
 } ms_client_options;
 
 /* Starts connecting; HELLO is queued at once. MS_ERR_ARG for a bad address,
@@ -68,6 +74,9 @@ void ms_client_free(ms_client *client);
  * (bad name, count 0 or above the protocol's maximum), MS_ERR_NOMEM. */
 ms_status ms_client_open_model(ms_client *client, const char *name, uint32_t *request_id,
                                ms_error *err);
+/* Bytes the last index handed to model_opened took on the wire (compressed,
+ * raw, or the head); 0 before the first. */
+uint32_t ms_client_index_wire_bytes(const ms_client *client);
 ms_status ms_client_request_cells(ms_client *client, uint32_t model_handle,
                                   const ms_proto_cell_request *entries, uint16_t count,
                                   uint32_t *first_id, ms_error *err);

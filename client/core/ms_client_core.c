@@ -115,6 +115,8 @@ ms_status ms_core_start(const ms_core_options *o, ms_core **out, ms_error *err)
     c->archive_path = dup_or_null(o->archive_path, &fail);
     c->latencies = malloc(LATENCY_KEEP * sizeof *c->latencies);
     c->t0 = ms_now_seconds();
+    for (size_t k = 0; k < sizeof c->slot_buckets / sizeof *c->slot_buckets; ++k)
+        c->slot_buckets[k] = NO_SLOT;
     c->tolerance_factor = 1.0;
     c->last_blocked = -1e9;
     c->down_since = -1;
@@ -188,19 +190,12 @@ void ms_core_stop(ms_core *c)
         c->inbox = m->next;
         free(m);
     }
-    if (c->cells) {
-        for (uint32_t i = 0; i < ms_view_cell_count(c->view); ++i) {
-            ms_core_rx_free(&c->cells[i].geo);
-            ms_core_rx_free(&c->cells[i].apo);
-            free(c->cells[i].header);
-        }
-    }
-    free(c->cells);
+    ms_core_dcells_free(c);
+    ms_core_subtrees_free(c);
     ms_view_destroy(c->view);
     free(c->target);
-    free(c->tolerance_scale);
     ms_archive_close(c->index);
-    free(c->slot_head);
+    ms_core_opening_free(&c->opening);
     free(c->wants);
     free(c->net_wants);
     if (c->frame)

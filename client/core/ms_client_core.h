@@ -117,6 +117,9 @@ uint64_t ms_core_budget_peak(ms_core_budget *budget);
  * chunk on the decode thread before it is checked. */
 typedef void (*ms_core_payload_filter)(uint32_t cell, bool apo, uint32_t offset, uint8_t *data,
                                        size_t length, void *arg);
+/* The same for the stored bytes of a subtree of the index (by subtree id). */
+typedef void (*ms_core_index_filter)(uint32_t subtree, uint32_t offset, uint8_t *data,
+                                     size_t length, void *arg);
 
 typedef struct ms_core_options {
     const char *host;          /* numeric IPv4/IPv6 address */
@@ -156,7 +159,11 @@ typedef struct ms_core_options {
                                   helpers); 0 = 2 */
     bool export_frames;        /* stitch a frame after each change (for drawing/tests) */
     bool raw_index;            /* ask for the model index uncompressed (no CAP_INDEX_ZLIB) */
+    bool whole_index;          /* take the whole index at open, as before subtrees: do not
+                                  offer CAP_INDEX_SUBTREES (local mode: do not read the
+                                  archive's index by subtree) */
     ms_core_payload_filter payload_filter;
+    ms_core_index_filter index_filter; /* takes payload_filter_arg too */
     void *payload_filter_arg;
 } ms_core_options;
 
@@ -164,6 +171,28 @@ typedef struct ms_core_options {
  * before the model is open). MS_ERR_ARG for bad options, MS_ERR_NOMEM, or
  * MS_ERR_IO when a thread cannot start. */
 ms_status ms_core_start(const ms_core_options *options, ms_core **core, ms_error *err);
+
+/* What the model's index said when it opened: its header and the records the
+ * index held then, ids ascending (records[i] is cell ids[i]'s). With an index
+ * by subtree that is the head (the root subtree: the top levels of the tree,
+ * whatever the model's size); with a whole index (a version-2 server,
+ * whole_index) every cell. A viewer places its first camera from it. */
+typedef struct ms_core_opening {
+    ms_archive_header header;
+    uint32_t *ids;
+    ms_archive_cell *records;
+    size_t count;
+    bool by_subtree;           /* the records are the head's */
+} ms_core_opening;
+
+/* Waits at most timeout_s seconds (> 0) for the model to open and copies what
+ * its index said (needs export_frames; the core keeps it from the first open).
+ * MS_ERR_IO with the core's error when it stopped first, or "no answer in
+ * time"; MS_ERR_ARG without export_frames; MS_ERR_NOMEM. Free with
+ * ms_core_opening_free (safe on a zeroed value). Call from the caller's
+ * thread; it does not disturb the others. */
+ms_status ms_core_wait_open(ms_core *core, double timeout_s, ms_core_opening *opening, ms_error *err);
+void ms_core_opening_free(ms_core_opening *opening);
 
 /* Stops the threads, closes the connection and frees everything. NULL is a no-op. */
 void ms_core_stop(ms_core *core);
@@ -188,6 +217,16 @@ typedef struct ms_core_frame {
     uint8_t *cell_bits;       /* per cell: shown precision, or 0xFF (hidden) / 0xFE (split) */
     ms_core_apo_chunk *apo;
     size_t apo_count;
+    /* with an index by subtree (stats.index_by_subtree): the ids of the subtrees
+     * held, ascending (docs/CLIENT.md: exactly those the cut needs); else NULL, 0 */
+    uint32_t *subtrees;
+    size_t subtree_count;
+    /* the records of the shown cells (every cell that draws a triangle of mesh),
+     * ids ascending: record_ids[i]'s record is records[i]. A renderer learns
+     * them (ms_render_learn), so it never needs the whole index. */
+    uint32_t *record_ids;
+    ms_archive_cell *records;
+    size_t record_count;
 } ms_core_frame;
 
 /* The newest frame published since the last take, or NULL (never blocks on
@@ -203,6 +242,13 @@ typedef struct ms_core_stats {
     double achieved_error_px;  /* largest projected error of a visible shown cell */
     double tolerance_px;       /* effective geometric tolerance (raised over budget) */
     double first_display;      /* seconds to the first frame with a triangle; < 0 none yet */
+    /* the index (docs/CLIENT.md, "An index by subtree") */
+    bool index_by_subtree;     /* the model opened with its index head only */
+    uint64_t subtrees_received; /* subtrees received and taken (not the root's, in the head) */
+    uint64_t index_bytes_received; /* index bytes received as stored: the whole index, or
+                                  the head and every subtree piece */
+    uint64_t index_bytes_held, peak_index_bytes_held; /* raw index bytes held now, at most */
+    uint64_t subtrees_held;    /* subtrees held now (the root's included) */
     uint64_t bytes_received;   /* payload bytes (local mode: bytes handed over) */
     uint64_t geometry_bytes_received, apo_bytes_received; /* bytes_received by stream */
     uint64_t socket_bytes;     /* everything read from the server (frames, index), counted

@@ -195,7 +195,7 @@ static void factor_end(ms_core *c)
 /* What a cell holds: payload bytes and, shown, its decoded estimate. */
 static uint64_t cell_memory(const ms_core *c, uint32_t cell)
 {
-    const dcell *d = &c->cells[cell];
+    const dcell *d = ms_core_dcell(c, cell);
     uint64_t m = ms_view_held_bytes(c->view, cell) + d->geo.cap + d->apo.cap;
     if (ms_view_state(c->view, cell) != MS_VIEW_HIDDEN)
         m += (uint64_t)ms_core_decoded_estimate(ms_archive_get_cell(c->index, cell),
@@ -205,7 +205,7 @@ static uint64_t cell_memory(const ms_core *c, uint32_t cell)
 
 static void evict(ms_core *c, uint32_t cell)
 {
-    dcell *d = &c->cells[cell];
+    dcell *d = ms_core_dcell(c, cell);
     ms_view_forget(c->view, cell, NULL);
     ms_core_rx_free(&d->geo);
     ms_core_rx_free(&d->apo);
@@ -229,11 +229,12 @@ static int compare_candidates(const void *x, const void *y)
     return a->usefulness < b->usefulness ? -1 : a->usefulness > b->usefulness;
 }
 
-/* What every cell holds, the budget's measure. */
+/* What every cell holds, and the index's subtrees (with an index by
+ * subtree: a whole index is held whatever the view), the budget's measure. */
 static uint64_t memory_held(const ms_core *c)
 {
-    uint64_t m = 0;
-    for (uint32_t i = 0; i < ms_view_cell_count(c->view); ++i)
+    uint64_t m = c->by_subtree ? c->index_bytes_held : 0;
+    for (uint32_t i = 0; i != MS_ARCHIVE_NONE; i = ms_view_next_known(c->view, i))
         m += cell_memory(c, i);
     return m;
 }
@@ -243,13 +244,14 @@ static uint64_t memory_held(const ms_core *c)
  * memory for the list. */
 static evict_candidate *evict_candidates(ms_core *c, const frame_view *fv, size_t *count)
 {
-    uint32_t n = ms_view_cell_count(c->view);
+    uint32_t n = ms_view_known_count(c->view);
     *count = 0;
-    evict_candidate *cand = malloc(n * sizeof *cand);
+    evict_candidate *cand = malloc((n ? n : 1) * sizeof *cand);
     if (!cand)
         return NULL;
     size_t nc = 0;
-    for (uint32_t i = 1; i < n; ++i) {
+    for (uint32_t i = ms_view_next_known(c->view, 0); i != MS_ARCHIVE_NONE;
+         i = ms_view_next_known(c->view, i)) {
         if (ms_view_state(c->view, i) != MS_VIEW_HIDDEN || c->target[i] != MS_VIEW_TARGET_HIDDEN)
             continue;
         uint64_t b = cell_memory(c, i);
@@ -285,7 +287,7 @@ static bool reselect(ms_core *c, dec_pass *pass)
 {
     ms_view_apply_report report;
     ms_error err;
-    ms_view_select(c->view, pass->cam, &pass->sp, c->target);
+    ms_view_select_partial(c->view, pass->cam, &pass->sp, c->target, &c->report);
     if (ms_view_apply(c->view, c->target, &report, &err) != MS_OK) {
         pthread_mutex_lock(&c->lock);
         ms_core_fail_locked(c, "decoding failed: %.200s", err.text);
@@ -360,6 +362,8 @@ static size_t fit_wants(ms_core *c, dec_pass *pass, const evict_candidate *cand,
     size_t keep = 0;
     for (; keep < pass->wl.n; ++keep) {
         const want *w = &pass->wl.w[keep];
+        if (w->stream == STREAM_INDEX)
+            continue; /* a subtree is small, and the cut cannot refine without it */
         uint64_t need_bytes = (uint64_t)(w->end - w->start) + w->decoded_growth;
         if (planned + need_bytes <= ceiling) {
             planned += need_bytes;

@@ -29,7 +29,7 @@ static void rx_cut(rx *r, uint32_t keep)
 }
 
 /* Adds received bytes; ignores what is already held or below base. */
-static bool rx_add(rx *r, uint32_t offset, const uint8_t *data, uint32_t length)
+bool ms_core_rx_add(rx *r, uint32_t offset, const uint8_t *data, uint32_t length)
 {
     uint64_t end = (uint64_t)offset + length;
     if (end <= r->end)
@@ -99,7 +99,7 @@ static void rx_consume(rx *r, uint32_t upto)
 /* A corrupt or failed range of cell: fetch it once more, then give up. */
 static void cell_trouble(ms_core *c, uint32_t cell, const char *what)
 {
-    dcell *d = &c->cells[cell];
+    dcell *d = ms_core_dcell(c, cell);
     rx_cut(&d->geo, d->given);
     d->retries++;
     pthread_mutex_lock(&c->lock);
@@ -117,7 +117,7 @@ static void cell_trouble(ms_core *c, uint32_t cell, const char *what)
 /* Hands the newly received, verified geometry bytes of cell to the view. */
 void ms_core_hand_over(ms_core *c, uint32_t cell)
 {
-    dcell *d = &c->cells[cell];
+    dcell *d = ms_core_dcell(c, cell);
     const ms_archive_cell *rec = ms_archive_get_cell(c->index, cell);
     if (d->geo.end <= d->given)
         return;
@@ -192,7 +192,7 @@ void ms_core_hand_over(ms_core *c, uint32_t cell)
 /* APO chunks have no per-level checksum: a complete chunk is checked whole. */
 static void dec_apo_received(ms_core *c, uint32_t cell)
 {
-    dcell *d = &c->cells[cell];
+    dcell *d = ms_core_dcell(c, cell);
     const ms_archive_cell *rec = ms_archive_get_cell(c->index, cell);
     if (d->apo.end < rec->apo_length) {
         d->apo_given = d->apo.end;
@@ -210,34 +210,6 @@ static void dec_apo_received(ms_core *c, uint32_t cell)
         return;
     }
     d->apo_given = d->apo.end;
-}
-
-static bool dec_take_index(ms_core *c, ms_error *err)
-{
-    const ms_archive_header *h = ms_archive_get_header(c->index);
-    ms_archive_cell *recs = malloc((size_t)h->cell_count * sizeof *recs);
-    c->cells = calloc(h->cell_count, sizeof *c->cells);
-    c->target = malloc(h->cell_count);
-    c->tolerance_scale = malloc((size_t)h->cell_count * sizeof *c->tolerance_scale);
-    if (!recs || !c->cells || !c->target || !c->tolerance_scale) {
-        free(recs);
-        ms_error_set(err, MS_ERR_NOMEM, "out of memory for %u cells", h->cell_count);
-        return false;
-    }
-    /* With APO on, geometry refines only to apo_geometry_tolerance_px where a
-     * chunk carries the shading; a cell baked without one (its geometry renders
-     * the input: every leaf, docs/APO.md) is shaded by its triangles alone, so
-     * it refines to tolerance_px as with APO off. */
-    bool apo_on = c->o.apo_levels > 0 && h->has_apo;
-    for (uint32_t i = 0; i < h->cell_count; ++i) {
-        recs[i] = *ms_archive_get_cell(c->index, i);
-        c->tolerance_scale[i] = apo_on && recs[i].apo_levels == 0
-                                    ? (float)(c->o.tolerance_px / c->o.apo_geometry_tolerance_px)
-                                    : 1.0f;
-    }
-    ms_status s = ms_view_create(h, recs, &c->view, err);
-    free(recs);
-    return s == MS_OK;
 }
 
 typedef struct refine_batch {
@@ -261,9 +233,8 @@ static int compare_jobs_by_work(const void *x, const void *y)
 /* The parallel part of a pass: shown cells that can go up with the bytes held. */
 static size_t dec_parallel_refine(ms_core *c)
 {
-    uint32_t n = ms_view_cell_count(c->view);
     size_t count = 0;
-    for (uint32_t i = 0; i < n; ++i) {
+    for (uint32_t i = 0; i != MS_ARCHIVE_NONE; i = ms_view_next_known(c->view, i)) {
         if (ms_view_state(c->view, i) != MS_VIEW_SHOWN || c->target[i] == MS_VIEW_TARGET_HIDDEN)
             continue;
         const ms_archive_cell *rec = ms_archive_get_cell(c->index, i);
@@ -304,18 +275,24 @@ static bool dec_take_chunks(ms_core *c, chunk_msg *chunks)
         chunk_msg *m = chunks;
         chunks = m->next;
         c->consumed_seq = m->seq;
-        if (m->cell < ms_view_cell_count(c->view)) {
-            dcell *d = &c->cells[m->cell];
+        dcell *d = m->stream == STREAM_INDEX ? NULL : ms_core_dcell(c, m->cell);
+        bool apo = m->stream == STREAM_APO;
+        if (m->stream == STREAM_INDEX) {
+            if (c->o.index_filter && !m->failed)
+                c->o.index_filter(m->cell, m->offset, m->data, m->length,
+                                  c->o.payload_filter_arg);
+            ms_core_subtree_chunk(c, m);
+        } else if (d) { /* else its record was forgotten since it was asked for */
             if (m->failed) {
-                if (!m->apo)
+                if (!apo)
                     cell_trouble(c, m->cell, "the server answered a request with an error");
             } else {
                 if (c->o.payload_filter)
-                    c->o.payload_filter(m->cell, m->apo, m->offset, m->data, m->length,
+                    c->o.payload_filter(m->cell, apo, m->offset, m->data, m->length,
                                         c->o.payload_filter_arg);
-                if (!rx_add(m->apo ? &d->apo : &d->geo, m->offset, m->data, m->length))
+                if (!ms_core_rx_add(apo ? &d->apo : &d->geo, m->offset, m->data, m->length))
                     ms_core_warn(c, "out of memory for received bytes");
-                else if (!m->apo)
+                else if (!apo)
                     ms_core_hand_over(c, m->cell);
                 else {
                     uint32_t before = d->apo_given;
@@ -341,18 +318,23 @@ static void dec_pass_begin(ms_core *c, const ms_camera *cam, dec_pass *pass)
     pass->base_tol = pass->apo_on ? c->o.apo_geometry_tolerance_px : c->o.tolerance_px;
     ms_core_budget_sync(c);
     pass->fv.tolerance = pass->base_tol * c->tolerance_factor;
+    /* With APO on, geometry refines only to apo_geometry_tolerance_px where a
+     * chunk carries the shading; a cell baked without one (its geometry renders
+     * the input: every leaf, docs/APO.md) is shaded by its triangles alone, so
+     * it refines to tolerance_px as with APO off. */
+    double chunkless = pass->apo_on ? c->o.tolerance_px / c->o.apo_geometry_tolerance_px : 0.0;
     pass->sp = (ms_view_select_params){.tolerance_px = pass->fv.tolerance,
                                        .margin = c->o.frustum_margin,
                                        .hysteresis = c->o.hysteresis_bits,
                                        .culled_bits_less = c->o.culled_bits_less,
-                                       .tolerance_scale = c->tolerance_scale};
+                                       .chunkless_tolerance_scale = chunkless};
 }
 
 /* Selects the cells for the camera, refines in parallel what can go up, and
  * applies the splits and merges; false when decoding failed (then fatal). */
 static bool dec_select(ms_core *c, dec_pass *pass)
 {
-    ms_view_select(c->view, pass->cam, &pass->sp, c->target);
+    ms_view_select_partial(c->view, pass->cam, &pass->sp, c->target, &c->report);
     size_t refined_in_parallel = dec_parallel_refine(c);
     ms_view_apply_report report;
     ms_error err;
@@ -407,7 +389,7 @@ void *ms_core_decode_main(void *arg)
             c->index_new = false;
             pthread_mutex_unlock(&c->lock);
             ms_error err;
-            bool ok = dec_take_index(c, &err);
+            bool ok = ms_core_take_index(c, &err);
             pthread_mutex_lock(&c->lock);
             if (!ok) {
                 ms_core_fail_locked(c, "%.240s", err.text);

@@ -5,6 +5,7 @@
 
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "ms_progress.h"
 
@@ -19,12 +20,29 @@ static ms_core_frame *make_frame(ms_core *c, ms_error *err)
         return NULL;
     }
     f->cell_count = n;
-    for (uint32_t i = 0; i < n; ++i) {
+    memset(f->cell_bits, MS_VIEW_TARGET_HIDDEN, n);
+    for (uint32_t i = 0; i != MS_ARCHIVE_NONE; i = ms_view_next_known(c->view, i)) {
         ms_view_cell_state st = ms_view_state(c->view, i);
         f->cell_bits[i] = st == MS_VIEW_SHOWN ? (uint8_t)ms_view_bits(c->view, i)
                           : st == MS_VIEW_SPLIT ? MS_VIEW_TARGET_SPLIT
                                                 : MS_VIEW_TARGET_HIDDEN;
-        const dcell *d = &c->cells[i];
+        if (st == MS_VIEW_SHOWN) {
+            size_t k = f->record_count;
+            uint32_t *ids = realloc(f->record_ids, (k + 1) * sizeof *ids);
+            if (ids)
+                f->record_ids = ids;
+            ms_archive_cell *recs = ids ? realloc(f->records, (k + 1) * sizeof *recs) : NULL;
+            if (!recs) {
+                ms_core_frame_free(f);
+                ms_error_set(err, MS_ERR_NOMEM, "out of memory for a frame");
+                return NULL;
+            }
+            f->records = recs;
+            f->record_ids[k] = i;
+            f->records[k] = *ms_archive_get_cell(c->index, i);
+            f->record_count = k + 1;
+        }
+        const dcell *d = ms_core_dcell(c, i);
         if (st == MS_VIEW_SHOWN && d->apo_given > 0) {
             ms_core_apo_chunk *g = realloc(f->apo, (f->apo_count + 1) * sizeof *g);
             uint8_t *copy = malloc(d->apo_given);
@@ -47,6 +65,17 @@ static ms_core_frame *make_frame(ms_core *c, ms_error *err)
             f->apo[f->apo_count++] = (ms_core_apo_chunk){i, levels, copy, d->apo_given};
         }
     }
+    size_t held = 0;
+    for (size_t k = 0; k < c->subtree_count; ++k)
+        held += c->subtrees[k].state == SUBTREE_HELD;
+    if (held && !(f->subtrees = malloc(held * sizeof *f->subtrees))) {
+        ms_core_frame_free(f);
+        ms_error_set(err, MS_ERR_NOMEM, "out of memory for a frame");
+        return NULL;
+    }
+    for (size_t k = 0; k < c->subtree_count; ++k)
+        if (c->subtrees[k].state == SUBTREE_HELD)
+            f->subtrees[f->subtree_count++] = c->subtrees[k].id;
     if (ms_view_stitch(c->view, NULL, &f->mesh, err) != MS_OK) {
         ms_core_frame_free(f);
         return NULL;
@@ -57,8 +86,7 @@ static ms_core_frame *make_frame(ms_core *c, ms_error *err)
 /* Whether some shown cell in view already has a triangle to draw. */
 static bool something_drawn(ms_core *c, const frame_view *fv)
 {
-    uint32_t n = ms_view_cell_count(c->view);
-    for (uint32_t i = 0; i < n; ++i) {
+    for (uint32_t i = 0; i != MS_ARCHIVE_NONE; i = ms_view_next_known(c->view, i)) {
         if (ms_view_state(c->view, i) != MS_VIEW_SHOWN)
             continue;
         const ms_archive_cell *rec = ms_archive_get_cell(c->index, i);
@@ -162,5 +190,82 @@ void ms_core_frame_free(ms_core_frame *f)
         free(f->apo[i].data);
     free(f->apo);
     free(f->cell_bits);
+    free(f->subtrees);
+    free(f->record_ids);
+    free(f->records);
     free(f);
+}
+
+void ms_core_keep_opening(ms_core *c, const ms_archive *index, bool by_subtree)
+{
+    if (!c->o.export_frames || c->have_opening)
+        return;
+    ms_core_opening *o = &c->opening;
+    o->header = *ms_archive_get_header(index);
+    o->by_subtree = by_subtree;
+    size_t known = 0;
+    for (uint32_t i = 0; i < o->header.cell_count; ++i)
+        known += ms_archive_get_cell(index, i) != NULL;
+    o->ids = malloc((known ? known : 1) * sizeof *o->ids);
+    o->records = malloc((known ? known : 1) * sizeof *o->records);
+    if (!o->ids || !o->records) {
+        ms_core_opening_free(o);
+        return;
+    }
+    for (uint32_t i = 0; i < o->header.cell_count; ++i) {
+        const ms_archive_cell *rec = ms_archive_get_cell(index, i);
+        if (rec) {
+            o->ids[o->count] = i;
+            o->records[o->count++] = *rec;
+        }
+    }
+    pthread_mutex_lock(&c->lock);
+    c->have_opening = true;
+    pthread_mutex_unlock(&c->lock);
+}
+
+void ms_core_opening_free(ms_core_opening *o)
+{
+    if (!o)
+        return;
+    free(o->ids);
+    free(o->records);
+    memset(o, 0, sizeof *o);
+}
+
+ms_status ms_core_wait_open(ms_core *c, double timeout_s, ms_core_opening *out, ms_error *err)
+{
+    memset(out, 0, sizeof *out);
+    if (!c || !c->o.export_frames || !(timeout_s > 0))
+        return ms_error_set(err, MS_ERR_ARG, "waiting for a model needs export_frames and a time-out");
+    double until = ms_now_seconds() + timeout_s;
+    char why[256] = "";
+    bool have = false;
+    for (;;) {
+        pthread_mutex_lock(&c->lock);
+        have = c->have_opening;
+        if (c->stats.error[0])
+            snprintf(why, sizeof why, "%s", c->stats.error);
+        pthread_mutex_unlock(&c->lock);
+        if (have || why[0] || ms_now_seconds() >= until)
+            break;
+        struct timespec pause = {0, 2000000}; /* 2 ms: a one-off wait at open */
+        nanosleep(&pause, NULL);
+    }
+    if (!have)
+        return ms_error_set(err, MS_ERR_IO, "%s", why[0] ? why : "no model index in time");
+    /* set once before have_opening, never changed after: read without the lock */
+    const ms_core_opening *o = &c->opening;
+    if (!o->ids)
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory for the model's index");
+    *out = *o;
+    out->ids = malloc((o->count ? o->count : 1) * sizeof *out->ids);
+    out->records = malloc((o->count ? o->count : 1) * sizeof *out->records);
+    if (!out->ids || !out->records) {
+        ms_core_opening_free(out);
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory for the model's index");
+    }
+    memcpy(out->ids, o->ids, o->count * sizeof *out->ids);
+    memcpy(out->records, o->records, o->count * sizeof *out->records);
+    return MS_OK;
 }

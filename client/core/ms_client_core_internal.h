@@ -30,23 +30,36 @@
 #define MAX_SLOTS 512u
 #define LATENCY_KEEP 65536u
 #define NO_SLOT 0xFFFFFFFFu
+#define SLOT_BUCKET_BITS 10u /* 1,024 chains for at most MAX_SLOTS slots */
 #define BYTES_PER_VERTEX 64.0
 #define MAX_TOLERANCE_FACTOR 4096.0
+/* A stored subtree's size before its first frame tells it (a window's guess:
+ * the dragon's average is 1.5 KB, a 30,000-triangle demo's 0.9 KB) */
+#define SUBTREE_BYTES_GUESS 2048u
+
+/* What a range belongs to: a cell's geometry or APO payload, or (with an
+ * index that comes by subtree) a subtree's stored bytes, by subtree id
+ * (PROTOCOL.md: the same numbers on the wire). */
+enum { STREAM_GEOMETRY = 0, STREAM_APO = 1, STREAM_INDEX = 2, STREAM_COUNT = 3 };
 
 /* A received payload chunk (or a failed request: length 0, failed true),
- * passed from the network thread to the decode thread. */
+ * passed from the network thread to the decode thread. `total`: the stored
+ * size of the whole (a subtree's; 0 when not known). */
 typedef struct chunk_msg {
     struct chunk_msg *next;
     uint64_t seq;
-    uint32_t cell, offset, length;
-    bool apo, failed;
+    uint32_t cell, offset, length, total;
+    uint8_t stream;
+    bool failed;
     uint8_t data[];
 } chunk_msg;
 
-/* A byte range the decode thread wants, best first. */
+/* A byte range the decode thread wants, best first. An INDEX want asks for
+ * subtree `cell` from `start`; its end is the stored size when known, else
+ * UINT32_MAX (the whole). */
 typedef struct want {
     uint32_t cell, start, end;
-    bool apo;
+    uint8_t stream;
     uint8_t priority;
     uint32_t decoded_growth; /* estimated decoded bytes the range adds */
 } want;
@@ -58,9 +71,9 @@ typedef struct slot {
     bool used, cancelled, keep, done;
     uint64_t last_seq;
     uint32_t id, cell, start, end, got;
-    bool apo;
+    uint8_t stream;
     double sent_at;
-    uint32_t next; /* next slot of the same cell and stream */
+    uint32_t next; /* next slot of the same chain (slot_buckets) */
 } slot;
 
 /* Reception of one stream of one cell: the bytes from `base` (what the
@@ -82,7 +95,22 @@ typedef struct dcell {
     double handed_at;        /* last hand-over, seconds since start */
     uint8_t retries;
     bool failed, pending;    /* pending: verified bytes not yet handed over */
+    bool blocked;            /* this pass: would split, its children's records missing */
 } dcell;
+
+/* A subtree of the index (an index that comes by subtree): being received,
+ * held (its records known to the view), or failed twice. */
+typedef struct subtree_entry {
+    uint32_t id;
+    uint32_t parent;        /* the cell whose children it holds (NONE: the root's) */
+    uint8_t state;          /* SUBTREE_RECEIVING, _HELD, _FAILED */
+    uint8_t retries;
+    bool needed;            /* needed by this pass (scratch) */
+    uint32_t total;         /* stored size once known, else 0 */
+    rx buf;                 /* stored bytes while receiving */
+} subtree_entry;
+
+enum { SUBTREE_RECEIVING = 0, SUBTREE_HELD = 1, SUBTREE_FAILED = 2 };
 
 /* Decode helpers: refine distinct shown cells in parallel before the
  * (single-threaded) apply does the splits and merges (ms_view_decoder.h
@@ -109,6 +137,8 @@ struct ms_core {
     uint64_t camera_serial;
     chunk_msg *inbox, *inbox_tail;
     ms_archive *index;          /* set once by the network thread */
+    ms_core_opening opening;    /* with export_frames: the index at the first open */
+    bool have_opening;
     bool index_new, republish;
     want *wants;
     size_t want_count;
@@ -135,6 +165,7 @@ struct ms_core {
     ms_client *client;
     uint32_t handle, open_request;
     uint64_t content_id;
+    bool net_by_subtree;        /* the model opened with its index head */
     bool ready;                 /* model opened on this connection */
     bool dead;                  /* the connection ended: freed on the next tick */
     char dead_why[256];
@@ -143,8 +174,7 @@ struct ms_core {
     slot slots[MAX_SLOTS];
     unsigned slots_used, slots_active;
     uint64_t net_consumed_seq;
-    uint32_t *slot_head;        /* 2 per cell */
-    uint32_t cell_count;
+    uint32_t slot_buckets[1u << SLOT_BUCKET_BITS]; /* slot chains by (cell, stream) hash */
     want *net_wants;
     size_t net_want_count, net_want_cap;
     uint64_t net_want_serial;
@@ -152,9 +182,17 @@ struct ms_core {
 
     /* --- decode thread only --- */
     ms_view *view;
-    dcell *cells;
+    dcell **cell_groups;    /* per sibling group (as the view keeps them), NULL where
+                               the view knows no record of the group */
+    uint32_t group_size, group_count;
     uint8_t *target;
-    float *tolerance_scale; /* per cell, on the geometric tolerance (APO on: see dec_take_index) */
+    bool by_subtree;        /* the index comes by subtree (c->index is partial) */
+    unsigned subtree_levels;
+    subtree_entry *subtrees; /* sorted by id */
+    size_t subtree_count, subtree_cap;
+    ms_view_select_report report; /* the pass's cells short of their children's records */
+    uint64_t index_bytes_held;  /* raw index bytes of the subtrees held */
+    bool subtrees_changed;      /* a subtree came or went since the last pass's frame */
     double tolerance_factor, last_budget_step, last_blocked;
     uint64_t generation;
     uint64_t consumed_seq;
@@ -191,6 +229,41 @@ typedef struct dec_pass {
     uint64_t memory;          /* the budget's measure after this pass's evictions */
 } dec_pass;
 
+/* ---- ms_client_core_cells.c: the decode thread's per-cell state ---- */
+
+/* A known cell's reception state, or NULL when the view does not know it. */
+dcell *ms_core_dcell(const ms_core *c, uint32_t cell);
+/* Makes room for `count` cells the view just learned: false when out of
+ * memory. */
+bool ms_core_dcells_grow(ms_core *c, const uint32_t *cells, size_t count);
+/* Frees a cell's reception state (eviction, or its record forgotten). */
+void ms_core_dcell_clear(dcell *d);
+/* Frees the group blocks of `count` cells the view just forgot, where it
+ * knows none of the group's cells any more. */
+void ms_core_dcells_release(ms_core *c, const uint32_t *cells, size_t count);
+void ms_core_dcells_free(ms_core *c);
+
+/* ---- ms_client_core_frames.c ---- */
+
+/* With export_frames, before publishing a freshly opened index (not yet shared
+ * with the decode thread): keeps its header and records for ms_core_wait_open.
+ * Out of memory leaves the opening empty (ms_core_wait_open then says so). */
+void ms_core_keep_opening(ms_core *c, const ms_archive *index, bool by_subtree);
+
+/* ---- ms_client_core_subtrees.c: an index that comes by subtree ---- */
+
+/* The view over the index just opened (a whole one, or a head whose root
+ * subtree it learns); false and err when that fails. */
+bool ms_core_take_index(ms_core *c, ms_error *err);
+/* A received chunk of a subtree's stored bytes (or a failed request). */
+void ms_core_subtree_chunk(ms_core *c, const chunk_msg *m);
+/* After selection: the subtrees the cut needs (held ones stay, missing ones
+ * are wanted ahead of the cells they unblock, prefetch for near ones), the
+ * others dropped with their cells' bytes. Sets pass->complete false while
+ * something is missing. */
+void ms_core_schedule_subtrees(ms_core *c, dec_pass *pass);
+void ms_core_subtrees_free(ms_core *c);
+
 /* ---- ms_client_core.c: shared helpers ---- */
 
 /* Seconds since the core started (monotonic clock). */
@@ -214,6 +287,9 @@ void *ms_core_local_main(void *arg);
 
 void *ms_core_decode_main(void *arg);
 void ms_core_rx_free(rx *r);
+/* Adds received bytes at offset; ignores what is already held or below base.
+ * False when out of memory. */
+bool ms_core_rx_add(rx *r, uint32_t offset, const uint8_t *data, uint32_t length);
 /* Hands the newly received, verified geometry bytes of cell to the view (in
  * few steps: see the function). */
 void ms_core_hand_over(ms_core *c, uint32_t cell);
@@ -231,6 +307,10 @@ double ms_core_cell_need(const ms_core *c, const frame_view *fv, uint32_t cell, 
 double ms_core_decoded_estimate(const ms_archive_cell *rec, unsigned bits);
 /* Fills pass->wl (sorted, best first) and the pass's cell counts. */
 void ms_core_schedule(ms_core *c, dec_pass *pass);
+/* A request priority (lower is sooner) clamped to the wire's 0..255. */
+uint8_t ms_core_clamp_priority(double p);
+/* Appends w to the pass's want list (false when out of memory). */
+bool ms_core_want_push(want_list *l, want w);
 
 /* ---- ms_client_core_budget.c ---- */
 

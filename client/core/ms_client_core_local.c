@@ -9,6 +9,8 @@
 #include <string.h>
 #include <time.h>
 
+#include "ms_subtree.h"
+
 /* With archive_path, this thread stands where the network thread stands: it
  * opens the archive (the whole file, so the decode thread's index is the
  * archive itself), then answers the decode thread's want lists from the
@@ -38,16 +40,21 @@ static void local_pause_locked(ms_core *c, double seconds)
  * does not hold the range, which its validated index rules out). */
 static chunk_msg *local_chunk(const ms_archive *a, const want *w)
 {
-    size_t length;
-    const uint8_t *src = w->apo ? ms_archive_apo(a, w->cell, &length)
-                                : ms_archive_geometry(a, w->cell, &length);
-    bool held = src && w->start < w->end && w->end <= length;
-    uint32_t n = held ? w->end - w->start : 0;
+    size_t length = 0;
+    const uint8_t *src = w->stream == STREAM_INDEX ? ms_archive_subtree(a, w->cell, &length)
+                         : w->stream == STREAM_APO ? ms_archive_apo(a, w->cell, &length)
+                                                   : ms_archive_geometry(a, w->cell, &length);
+    uint32_t end = w->end;
+    if (w->stream == STREAM_INDEX && end > length)
+        end = (uint32_t)length; /* the whole subtree, as the server sends it */
+    bool held = src && w->start < end && end <= length;
+    uint32_t n = held ? end - w->start : 0;
     chunk_msg *m = malloc(sizeof *m + n);
     if (!m)
         return NULL;
     memset(m, 0, sizeof *m);
-    m->cell = w->cell, m->apo = w->apo, m->offset = w->start, m->length = n;
+    m->cell = w->cell, m->stream = w->stream, m->offset = w->start, m->length = n;
+    m->total = w->stream == STREAM_INDEX ? (uint32_t)length : 0;
     m->failed = !held;
     if (held)
         memcpy(m->data, src + w->start, n);
@@ -57,18 +64,36 @@ static chunk_msg *local_chunk(const ms_archive *a, const want *w)
 void *ms_core_local_main(void *arg)
 {
     ms_core *c = arg;
-    ms_archive *a;
+    ms_archive *a, *index;
     ms_error err;
     if (ms_archive_open(c->archive_path, &a, &err) != MS_OK) {
         ms_core_fail(c, "%.240s", err.text);
         return NULL;
     }
+    /* The decode thread gets the index as a client of a server that offers
+     * subtrees gets it: the head alone (then subtrees as it asks for them),
+     * or with whole_index the archive's whole index. */
+    size_t index_size;
+    if (c->o.whole_index) {
+        index = a;
+        ms_archive_index_bytes(a, &index_size);
+    } else {
+        const uint8_t *head = ms_archive_index_head(a, &index_size);
+        if (!head || ms_archive_open_head(head, index_size, c->model ? c->model : "local",
+                                          &index, &err) != MS_OK) {
+            ms_core_fail(c, "%.240s", head ? err.text : "the archive has no index head");
+            ms_archive_close(a);
+            return NULL;
+        }
+    }
     want *list = NULL;
     size_t cap = 0;
     uint64_t served_serial = 0, handed_seq = 0;
+    ms_core_keep_opening(c, index, !c->o.whole_index);
     pthread_mutex_lock(&c->lock);
-    c->index = a;
+    c->index = index;
     c->index_new = true;
+    c->stats.index_bytes_received = index_size;
     c->connected = c->model_open = true;
     pthread_cond_broadcast(&c->wake);
     for (;;) {
@@ -101,12 +126,13 @@ void *ms_core_local_main(void *arg)
                 break;
             }
             handed += m->length;
-            *(m->apo ? &apo : &geometry) += m->length;
+            if (m->stream != STREAM_INDEX)
+                *(m->stream == STREAM_APO ? &apo : &geometry) += m->length;
             ranges++;
             ms_core_push_chunk(c, m);
         }
         pthread_mutex_lock(&c->lock);
-        c->bytes_received += handed;
+        c->bytes_received += geometry + apo; /* payload; subtrees: index_bytes_received */
         c->geometry_bytes_received += geometry;
         c->apo_bytes_received += apo;
         c->requests += ranges;
@@ -117,5 +143,7 @@ void *ms_core_local_main(void *arg)
     c->connected = false;
     pthread_mutex_unlock(&c->lock);
     free(list);
+    if (index != a)
+        ms_archive_close(a); /* the decode thread's index is its own (ms_core_stop closes it) */
     return NULL;
 }

@@ -11,18 +11,27 @@
 #include <string.h>
 
 #include "ms_proto.h"
+#include "ms_subtree.h"
 
 static void net_connect(ms_core *c);
 
-static uint32_t *head_of(ms_core *c, uint32_t cell, bool apo)
+/* The chain of slots whose (cell, stream) falls in one bucket: a fixed table,
+ * whatever the model's size (iterations skip the other cells' slots). */
+static uint32_t *head_of(ms_core *c, uint32_t cell, uint8_t stream)
 {
-    return &c->slot_head[2 * (size_t)cell + apo];
+    uint32_t h = (cell * (uint32_t)STREAM_COUNT + stream) * 2654435761u;
+    return &c->slot_buckets[h >> (32 - SLOT_BUCKET_BITS)];
+}
+
+static bool slot_is(const slot *s, uint32_t cell, uint8_t stream)
+{
+    return s->cell == cell && s->stream == stream;
 }
 
 static void slot_unlink(ms_core *c, uint32_t k)
 {
     slot *s = &c->slots[k];
-    uint32_t *p = head_of(c, s->cell, s->apo);
+    uint32_t *p = head_of(c, s->cell, s->stream);
     while (*p != NO_SLOT && *p != k)
         p = &c->slots[*p].next;
     if (*p == k)
@@ -148,8 +157,10 @@ static void net_cancel_unwanted(ms_core *c)
         c->slots[k].keep = false;
     for (size_t i = 0; i < c->net_want_count; ++i) {
         const want *w = &c->net_wants[i];
-        for (uint32_t k = *head_of(c, w->cell, w->apo); k != NO_SLOT; k = c->slots[k].next)
-            if (c->slots[k].start + c->slots[k].got < w->end && c->slots[k].end > w->start)
+        for (uint32_t k = *head_of(c, w->cell, w->stream); k != NO_SLOT; k = c->slots[k].next)
+            if (slot_is(&c->slots[k], w->cell, w->stream) &&
+                (w->stream == STREAM_INDEX || /* a subtree still wanted: its request stays */
+                 (c->slots[k].start + c->slots[k].got < w->end && c->slots[k].end > w->start)))
                 c->slots[k].keep = true;
     }
     ms_proto_id_range ranges[64];
@@ -186,9 +197,20 @@ static bool net_missing_part(ms_core *c, const want *w, const request_batch *bat
                              uint32_t *start_out, uint32_t *end_out)
 {
     uint32_t start = w->start, end = w->end;
-    for (uint32_t k = *head_of(c, w->cell, w->apo); k != NO_SLOT; k = c->slots[k].next) {
+    if (w->stream == STREAM_INDEX) {
+        /* a subtree is asked for whole (or from where its bytes stopped), once */
+        for (uint32_t k = *head_of(c, w->cell, w->stream); k != NO_SLOT; k = c->slots[k].next)
+            if (slot_is(&c->slots[k], w->cell, w->stream) && !c->slots[k].cancelled)
+                return false;
+        for (uint16_t j = 0; j < batch->n; ++j)
+            if (batch->req[j].cell_id == w->cell && batch->req[j].stream == STREAM_INDEX)
+                return false;
+        *start_out = start, *end_out = end;
+        return start < end;
+    }
+    for (uint32_t k = *head_of(c, w->cell, w->stream); k != NO_SLOT; k = c->slots[k].next) {
         const slot *s = &c->slots[k];
-        if (s->cancelled)
+        if (s->cancelled || !slot_is(s, w->cell, w->stream))
             continue;
         if (s->start <= start && s->end > start)
             start = s->end;
@@ -197,7 +219,7 @@ static bool net_missing_part(ms_core *c, const want *w, const request_batch *bat
     }
     bool dup = false;
     for (uint16_t j = 0; j < batch->n; ++j)
-        if (batch->req[j].cell_id == w->cell && batch->req[j].stream == (w->apo ? 1 : 0) &&
+        if (batch->req[j].cell_id == w->cell && batch->req[j].stream == w->stream &&
             batch->req[j].a <= start && batch->req[j].a + batch->req[j].b >= end)
             dup = true;
     *start_out = start, *end_out = end;
@@ -230,6 +252,12 @@ static void net_plan(ms_core *c, uint64_t in_flight, request_batch *batch)
     if (max_batch > 256)
         max_batch = 256;
     batch->n = 0;
+    /* whole subtrees on their way: their size comes with their first frame,
+     * so the window counts each as a typical stored subtree */
+    for (uint32_t k = 0; k < MAX_SLOTS; ++k)
+        if (c->slots[k].used && !c->slots[k].done && !c->slots[k].cancelled &&
+            c->slots[k].stream == STREAM_INDEX && c->slots[k].start == c->slots[k].end)
+            in_flight += SUBTREE_BYTES_GUESS;
     for (size_t i = 0; i < c->net_want_count && batch->n < max_batch; ++i) {
         if (c->slots_active + batch->n >= max_out || c->slots_used + batch->n >= MAX_SLOTS ||
             (in_flight > 0 && in_flight >= c->window))
@@ -245,20 +273,25 @@ static void net_plan(ms_core *c, uint64_t in_flight, request_batch *batch)
         slot *s = &c->slots[k];
         memset(s, 0, sizeof *s);
         s->used = true;
-        s->cell = w->cell, s->apo = w->apo, s->start = start, s->end = end;
+        /* a whole subtree of unknown size: one step (PROTOCOL.md); in the
+         * figures it counts as nothing in flight, in the window as a guess */
+        bool whole = w->stream == STREAM_INDEX && end == UINT32_MAX;
+        if (whole)
+            end = start;
+        s->cell = w->cell, s->stream = w->stream, s->start = start, s->end = end;
         c->slots_used++;
         c->slots_active++;
-        s->next = *head_of(c, w->cell, w->apo);
-        *head_of(c, w->cell, w->apo) = k;
+        s->next = *head_of(c, w->cell, w->stream);
+        *head_of(c, w->cell, w->stream) = k;
         batch->req[batch->n] = (ms_proto_cell_request){
             .cell_id = w->cell,
-            .stream = w->apo ? MS_PROTO_STREAM_APO : MS_PROTO_STREAM_GEOMETRY,
-            .unit = MS_PROTO_UNIT_BYTES,
+            .stream = w->stream,
+            .unit = whole ? MS_PROTO_UNIT_STEPS : MS_PROTO_UNIT_BYTES,
             .priority = w->priority,
-            .a = start,
-            .b = end - start};
+            .a = whole ? 0 : start,
+            .b = whole ? 0 : end - start};
         batch->slot[batch->n++] = k;
-        in_flight += end - start;
+        in_flight += whole ? SUBTREE_BYTES_GUESS : end - start;
     }
 }
 
@@ -321,7 +354,15 @@ static void on_model_opened(ms_client *client, uint32_t request_id,
     if (request_id != c->open_request)
         return;
     c->last_activity = ms_core_since_start(c);
+    bool head = o->index_encoding == MS_PROTO_INDEX_SUBTREES;
     if (c->index) {
+        if (head != c->net_by_subtree) {
+            /* what the decode thread holds is of the other kind */
+            ms_core_fail(c, "%.240s", head ? "the server now sends the index by subtree"
+                                           : "the server no longer sends the index by subtree");
+            event_base_loopbreak(c->base);
+            return;
+        }
         if (o->content_id != c->content_id) {
             pthread_mutex_lock(&c->lock);
             c->stats.model_changed = true;
@@ -334,23 +375,19 @@ static void on_model_opened(ms_client *client, uint32_t request_id,
     } else {
         ms_archive *a;
         ms_error err;
-        if (ms_archive_open_index(index, o->index_size, c->model, &a, &err) != MS_OK) {
-            ms_core_fail(c, "bad model index: %.200s", err.text);
+        ms_status st = head ? ms_archive_open_head(index, o->index_size, c->model, &a, &err)
+                            : ms_archive_open_index(index, o->index_size, c->model, &a, &err);
+        if (st != MS_OK) {
+            ms_core_fail(c, head ? "bad model index head: %.200s" : "bad model index: %.200s",
+                         err.text);
             event_base_loopbreak(c->base);
             return;
         }
-        c->cell_count = ms_archive_get_header(a)->cell_count;
-        c->slot_head = malloc(2 * (size_t)c->cell_count * sizeof *c->slot_head);
-        if (!c->slot_head) {
-            ms_archive_close(a);
-            ms_core_fail(c, "%.240s", "out of memory");
-            event_base_loopbreak(c->base);
-            return;
-        }
-        for (size_t i = 0; i < 2 * (size_t)c->cell_count; ++i)
-            c->slot_head[i] = NO_SLOT;
         c->content_id = o->content_id;
+        c->net_by_subtree = head;
+        ms_core_keep_opening(c, a, head);
         pthread_mutex_lock(&c->lock);
+        c->stats.index_bytes_received += ms_client_index_wire_bytes(c->client);
         c->index = a;
         c->index_new = true;
         pthread_cond_broadcast(&c->wake);
@@ -387,8 +424,9 @@ static void on_payload(ms_client *client, uint32_t id, const ms_proto_payload *p
         chunk_msg *m = malloc(sizeof *m + p->data_length);
         if (m) {
             m->next = NULL;
-            m->cell = s->cell, m->apo = s->apo, m->offset = p->offset, m->length = p->data_length;
+            m->cell = s->cell, m->stream = s->stream, m->offset = p->offset, m->length = p->data_length;
             m->failed = false;
+            m->total = s->stream == STREAM_INDEX ? p->end : 0; /* a subtree's stored size */
             memcpy(m->data, p->data, p->data_length);
             ms_core_push_chunk(c, m);
         }
@@ -396,8 +434,11 @@ static void on_payload(ms_client *client, uint32_t id, const ms_proto_payload *p
         if (got > s->end - s->start)
             got = s->end - s->start;
         pthread_mutex_lock(&c->lock);
-        c->bytes_received += p->data_length;
-        *(s->apo ? &c->apo_bytes_received : &c->geometry_bytes_received) += p->data_length;
+        if (s->stream != STREAM_INDEX) { /* subtrees: stats.index_bytes_received */
+            c->bytes_received += p->data_length;
+            *(s->stream == STREAM_APO ? &c->apo_bytes_received
+                                      : &c->geometry_bytes_received) += p->data_length;
+        }
         if (got > s->got)
             c->bytes_in_flight -= got - s->got;
         pthread_mutex_unlock(&c->lock);
@@ -475,7 +516,7 @@ static void on_request_error(ms_client *client, uint32_t first, uint32_t count,
             chunk_msg *m = malloc(sizeof *m);
             if (m) {
                 memset(m, 0, sizeof *m);
-                m->cell = c->slots[k].cell, m->apo = c->slots[k].apo, m->failed = true;
+                m->cell = c->slots[k].cell, m->stream = c->slots[k].stream, m->failed = true;
                 ms_core_push_chunk(c, m);
             }
         }
@@ -512,7 +553,8 @@ static void net_connect(ms_core *c)
 {
     ms_client_options co = {.host = c->host, .port = c->o.port, .token = c->token,
                             .agent = c->agent, .max_frame = 1u << 20,
-                            .raw_index = c->o.raw_index};
+                            .raw_index = c->o.raw_index,
+                            .index_subtrees = !c->o.whole_index};
     ms_error err;
     c->last_activity = ms_core_since_start(c);
     c->last_read = 0;

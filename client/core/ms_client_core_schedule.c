@@ -52,7 +52,7 @@ static double cell_error_px(const ms_core *c, const frame_view *fv, uint32_t cel
     return px / d;
 }
 
-static uint8_t clamp_priority(double p)
+uint8_t ms_core_clamp_priority(double p)
 {
     return p < 0 ? 0 : p > 255 ? 255 : (uint8_t)p;
 }
@@ -67,7 +67,7 @@ static int compare_wants(const void *x, const void *y)
     return a->start < b->start ? -1 : a->start > b->start;
 }
 
-static bool want_push(want_list *l, want w)
+bool ms_core_want_push(want_list *l, want w)
 {
     if (l->n == l->cap) {
         size_t cap = l->cap ? l->cap * 2 : 256;
@@ -97,7 +97,7 @@ double ms_core_decoded_estimate(const ms_archive_cell *rec, unsigned bits)
 static void schedule_prefetch(ms_core *c, dec_pass *pass, uint32_t i)
 {
     const ms_archive_cell *rec = ms_archive_get_cell(c->index, i);
-    const dcell *d = &c->cells[i];
+    const dcell *d = ms_core_dcell(c, i);
     uint8_t t = c->target[i];
     if (t == MS_VIEW_TARGET_HIDDEN || rec->parent == MS_ARCHIVE_NONE ||
         ms_view_state(c->view, rec->parent) != MS_VIEW_SHOWN || rec->geometry_length == 0 ||
@@ -118,8 +118,8 @@ static void schedule_prefetch(ms_core *c, dec_pass *pass, uint32_t i)
             continue;
         double p = (visible ? 144.0 : 208.0) - 8.0 * (need - s2);
         double grow = ms_core_decoded_estimate(rec, s2) - ms_core_decoded_estimate(rec, s2 - 1);
-        want_push(&pass->wl, (want){i, a, b, false, clamp_priority(p),
-                                    (uint32_t)(grow > 4e9 ? 4e9 : grow)});
+        ms_core_want_push(&pass->wl, (want){i, a, b, STREAM_GEOMETRY, ms_core_clamp_priority(p),
+                                            (uint32_t)(grow > 4e9 ? 4e9 : grow)});
     }
 }
 
@@ -129,7 +129,7 @@ static bool schedule_geometry(ms_core *c, dec_pass *pass, uint32_t i, unsigned g
                               unsigned avail, bool visible, double need)
 {
     const ms_archive_cell *rec = ms_archive_get_cell(c->index, i);
-    const dcell *d = &c->cells[i];
+    const dcell *d = ms_core_dcell(c, i);
     if (goal <= avail || rec->geometry_length == 0)
         return false;
     pass->complete = false;
@@ -146,8 +146,8 @@ static bool schedule_geometry(ms_core *c, dec_pass *pass, uint32_t i, unsigned g
         double grow = ms_core_decoded_estimate(rec, s) - ms_core_decoded_estimate(rec, s - 1);
         if (s == rec->bits_max && c->target[i] == MS_VIEW_TARGET_SPLIT)
             grow += rec->vertex_count * BYTES_PER_VERTEX; /* the children */
-        want_push(&pass->wl, (want){i, a, b, false, clamp_priority(p),
-                                    (uint32_t)(grow > 4e9 ? 4e9 : grow)});
+        ms_core_want_push(&pass->wl, (want){i, a, b, STREAM_GEOMETRY, ms_core_clamp_priority(p),
+                                            (uint32_t)(grow > 4e9 ? 4e9 : grow)});
     }
     return true;
 }
@@ -161,9 +161,9 @@ static bool schedule_apo(ms_core *c, dec_pass *pass, uint32_t i, bool visible, d
 {
     const ms_archive_header *h = ms_archive_get_header(c->index);
     const ms_archive_cell *rec = ms_archive_get_cell(c->index, i);
-    const dcell *d = &c->cells[i];
+    const dcell *d = ms_core_dcell(c, i);
     if (!(pass->apo_on && visible && rec->apo_length > 0 && !d->failed &&
-          c->target[i] != MS_VIEW_TARGET_SPLIT))
+          c->target[i] != MS_VIEW_TARGET_SPLIT && !d->blocked))
         return false;
     unsigned cap = c->o.apo_levels < rec->apo_levels ? c->o.apo_levels : rec->apo_levels;
     double lo[3], hi[3];
@@ -182,8 +182,8 @@ static bool schedule_apo(ms_core *c, dec_pass *pass, uint32_t i, bool visible, d
             la = d->apo.end;
         if (la >= lb)
             continue;
-        want_push(&pass->wl, (want){i, la, lb, true,
-                                    clamp_priority(136.0 + 8.0 * l - 8.0 * (need - bits)), 0});
+        uint8_t priority = ms_core_clamp_priority(136.0 + 8.0 * l - 8.0 * (need - bits));
+        ms_core_want_push(&pass->wl, (want){i, la, lb, STREAM_APO, priority, 0});
     }
     return true;
 }
@@ -192,7 +192,7 @@ static bool schedule_apo(ms_core *c, dec_pass *pass, uint32_t i, bool visible, d
 static void schedule_shown(ms_core *c, dec_pass *pass, uint32_t i)
 {
     const ms_archive_cell *rec = ms_archive_get_cell(c->index, i);
-    dcell *d = &c->cells[i];
+    dcell *d = ms_core_dcell(c, i);
     pass->shown++;
     bool visible;
     double need = ms_core_cell_need(c, &pass->fv, i, &visible);
@@ -217,14 +217,16 @@ static void schedule_shown(ms_core *c, dec_pass *pass, uint32_t i)
 
 void ms_core_schedule(ms_core *c, dec_pass *pass)
 {
-    uint32_t n = ms_view_cell_count(c->view);
     pass->wl = (want_list){0};
     pass->worst = 0;
     pass->shown = pass->split = pass->cached = pass->loading = pass->failed = 0;
     pass->complete = true;
-    for (uint32_t i = 0; i < n; ++i) {
+    /* a cell held back only by its children's records is about to split too */
+    for (size_t k = 0; k < c->report.blocked_count; ++k)
+        ms_core_dcell(c, c->report.blocked[k])->blocked = true;
+    for (uint32_t i = 0; i != MS_ARCHIVE_NONE; i = ms_view_next_known(c->view, i)) {
         ms_view_cell_state st = ms_view_state(c->view, i);
-        pass->failed += c->cells[i].failed;
+        pass->failed += ms_core_dcell(c, i)->failed;
         if (st == MS_VIEW_SPLIT) {
             pass->split++;
         } else if (st == MS_VIEW_HIDDEN) {
@@ -234,8 +236,11 @@ void ms_core_schedule(ms_core *c, dec_pass *pass)
             schedule_shown(c, pass, i);
         }
     }
+    for (size_t k = 0; k < c->report.blocked_count; ++k)
+        ms_core_dcell(c, c->report.blocked[k])->blocked = false;
     if (pass->failed)
         pass->complete = false;
+    ms_core_schedule_subtrees(c, pass); /* the index's subtrees, with an index by subtree */
     if (pass->wl.n)
         qsort(pass->wl.w, pass->wl.n, sizeof *pass->wl.w, compare_wants);
 }

@@ -51,6 +51,9 @@ typedef struct client_result {
     double first_display, view_complete, cold_last_byte;
     bool cold_complete;
     uint64_t cold_bytes, cold_apo_bytes; /* payload, and of it APO */
+    /* the cold phase's index: by subtree or whole (ms_core_stats) */
+    bool index_by_subtree;
+    uint64_t subtrees_received, index_bytes_received, peak_index_bytes_held;
     /* path phase */
     key_result keys[MAX_KEYS];
     size_t key_count;
@@ -96,6 +99,7 @@ static ms_core_options core_options(const ms_load_options *o)
     co.hysteresis_bits = o->hysteresis;
     co.culled_bits_less = o->culled_less;
     co.raw_index = o->raw_index;
+    co.whole_index = o->whole_index;
     co.decode_threads = o->decode_threads;
     co.apo_levels = o->apo_levels;
     co.memory_target = (uint64_t)(o->memory_target * 1048576.0);
@@ -138,17 +142,25 @@ static bool wait_complete(ms_core *core, double until, ms_core_stats *st, double
  * when the fresh core does not start. */
 #define MAX_MODEL_CHANGES 3
 
+/* A core started with the run's options; NULL with the error in res->error. */
+static ms_core *start_core(const run *r, client_result *res)
+{
+    ms_core_options co = core_options(r->o);
+    ms_core *core;
+    ms_error err;
+    if (ms_core_start(&co, &core, &err) != MS_OK) {
+        snprintf(res->error, sizeof res->error, "%.250s", err.text);
+        return NULL;
+    }
+    return core;
+}
+
 static bool restart_core(const run *r, ms_core **core, const ms_camera *cam, client_result *res)
 {
     ms_core_stop(*core);
-    *core = NULL;
     res->model_changes++;
-    ms_core_options co = core_options(r->o);
-    ms_error err;
-    if (ms_core_start(&co, core, &err) != MS_OK) {
-        snprintf(res->error, sizeof res->error, "%.250s", err.text);
+    if (!(*core = start_core(r, res)))
         return false;
-    }
     ms_core_set_camera(*core, cam);
     return true;
 }
@@ -157,13 +169,9 @@ static void cold_phase(worker *w)
 {
     run *r = w->r;
     client_result *res = &w->result;
-    ms_core_options co = core_options(r->o);
-    ms_core *core;
-    ms_error err;
-    if (ms_core_start(&co, &core, &err) != MS_OK) {
-        snprintf(res->error, sizeof res->error, "%.250s", err.text);
+    ms_core *core = start_core(r, res);
+    if (!core)
         return;
-    }
     ms_camera cam;
     camera_at(r, ms_camera_path_duration(&r->path), &cam);
     ms_core_set_camera(core, &cam);
@@ -182,6 +190,10 @@ static void cold_phase(worker *w)
     res->first_display = st.first_display;
     res->cold_bytes = st.bytes_received;
     res->cold_apo_bytes = st.apo_bytes_received;
+    res->index_by_subtree = st.index_by_subtree;
+    res->subtrees_received = st.subtrees_received;
+    res->index_bytes_received = st.index_bytes_received;
+    res->peak_index_bytes_held = st.peak_index_bytes_held;
     if (st.error[0])
         snprintf(res->error, sizeof res->error, "%.250s", st.error);
     ms_core_stop(core);
@@ -191,13 +203,9 @@ static void path_phase(worker *w)
 {
     run *r = w->r;
     client_result *res = &w->result;
-    ms_core_options co = core_options(r->o);
-    ms_core *core;
-    ms_error err;
-    if (ms_core_start(&co, &core, &err) != MS_OK) {
-        snprintf(res->error, sizeof res->error, "%.250s", err.text);
+    ms_core *core = start_core(r, res);
+    if (!core)
         return;
-    }
     double started = ms_now_seconds();
     double clock = 0, last = started;
     size_t next_key = 0;
@@ -432,6 +440,14 @@ static json_t *client_json(unsigned i, const client_result *c, const run *r)
         ms_json_fixed(c->decode_draco_seconds, 4), "error", ms_json_text(c->error),
         "failover_seconds", ms_json_fixed(c->longest_outage, 4), "keyframes", keyframes);
     json_object_set_new(client, "model_changes", json_integer((json_int_t)c->model_changes));
+    json_t *index = json_pack("{s:b, s:I, s:I, s:I}", "by_subtree", c->index_by_subtree,
+                              "subtrees_received", (json_int_t)c->subtrees_received,
+                              "index_bytes_received", (json_int_t)c->index_bytes_received,
+                              "peak_index_bytes_held", (json_int_t)c->peak_index_bytes_held);
+    if (client && index)
+        json_object_set_new(client, "cold_index", index);
+    else
+        json_decref(index);
     return client;
 }
 
@@ -466,6 +482,22 @@ static void report_json(const ms_load_options *o, const run *r, const worker *ws
     json_t *per_client = json_array();
     for (unsigned i = 0; i < n; ++i)
         json_array_append_new(per_client, client_json(i, &ws[i].result, r));
+    /* the cold open's index, worst client */
+    uint64_t index_received = 0, index_held = 0, subtrees = 0;
+    for (unsigned i = 0; i < n; ++i) {
+        const client_result *c = &ws[i].result;
+        if (c->index_bytes_received > index_received)
+            index_received = c->index_bytes_received;
+        if (c->peak_index_bytes_held > index_held)
+            index_held = c->peak_index_bytes_held;
+        if (c->subtrees_received > subtrees)
+            subtrees = c->subtrees_received;
+    }
+    if (root) {
+        json_object_set_new(root, "cold_index_bytes_received", json_integer((json_int_t)index_received));
+        json_object_set_new(root, "cold_peak_index_bytes_held", json_integer((json_int_t)index_held));
+        json_object_set_new(root, "cold_subtrees_received", json_integer((json_int_t)subtrees));
+    }
     if (root)
         json_object_set_new(root, "per_client", per_client);
     else
@@ -501,6 +533,11 @@ static void report_text(const ms_load_options *o, const run *r, const worker *ws
                c->cells_shown, c->decode_seconds, c->p50 * 1e3,
                c->p99 * 1e3, c->peak_memory / 1048576.0, c->error[0] ? "; error: " : "",
                c->error);
+        printf("    cold index: %s, %llu bytes received (%llu subtrees), at most %llu bytes "
+               "held\n", c->index_by_subtree ? "by subtree" : "whole",
+               (unsigned long long)c->index_bytes_received,
+               (unsigned long long)c->subtrees_received,
+               (unsigned long long)c->peak_index_bytes_held);
         for (size_t k = 0; k < c->key_count; ++k)
             printf("    keyframe %zu (t=%g): view complete after %.3f s%s, error %.2f px "
                    "(tolerance %.2f)\n",

@@ -6,19 +6,16 @@
  * percentiles, errors and, optionally, the server's peak RSS. */
 #include <errno.h>
 #include <event2/buffer.h>
-#include <event2/bufferevent.h>
 #include <event2/event.h>
+#include <event2/http.h>
 #include <getopt.h>
 #include <math.h>
 #include <netinet/in.h>
-#include <netinet/tcp.h>
 #include <stdbool.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <strings.h>
 #include <sys/resource.h>
-#include <sys/socket.h>
 
 #include "ms_archive.h"
 #include "ms_client.h"
@@ -44,35 +41,36 @@ typedef struct options {
     long server_pid;
 } options;
 
+typedef struct vclient vclient;
+typedef struct loadgen loadgen;
+
 typedef struct slot {
     bool used, cancel_sent;
     uint32_t id;
     ms_loadgen_item item;
     uint32_t start, end, received;
     double sent_at;
+    vclient *owner;        /* http: the request callback's way back */
+    int http_error;        /* http: the evhttp_request_error of a failed request, -1 none */
 } slot;
 
-typedef struct loadgen loadgen;
-
-typedef struct vclient {
+struct vclient {
     loadgen *lg;
     unsigned number;
-    ms_loadgen_plan plan;
+    ms_loadgen_plan *plan;
     bool planning, done;
     ms_archive *own_index;      /* binary: from MODEL_OPENED */
     ms_client *client;          /* binary */
     ms_payload_assembly *assembly; /* binary: checks every PAYLOAD frame */
     uint32_t handle;
-    struct bufferevent *bev;    /* http */
+    /* http: libevent's client sends one request at a time per connection and
+     * does not pipeline, so slot i has its own keep-alive connection, made on
+     * first use: up to --window connections per client. */
+    struct evhttp_connection *http_connections[MAX_WINDOW];
     slot slots[MAX_WINDOW];
     unsigned in_flight;
     uint64_t issued;
-    /* http: responses come in request order */
-    unsigned ring[MAX_WINDOW], ring_head, ring_count;
-    bool in_body;
-    int status;
-    uint64_t body_left;
-} vclient;
+};
 
 struct loadgen {
     options o;
@@ -203,9 +201,10 @@ static unsigned moves_allowed(const vclient *v)
     if (lg->o.fps <= 0)
         return 4;
     double allowed = (ms_now_seconds() - lg->first_request) * lg->o.fps;
-    if (allowed <= (double)v->plan.step)
+    double taken = (double)ms_loadgen_plan_steps(v->plan);
+    if (allowed <= taken)
         return 0;
-    double moves = allowed - (double)v->plan.step;
+    double moves = allowed - taken;
     return moves > 4 ? 4 : (unsigned)moves;
 }
 
@@ -221,7 +220,7 @@ static void binary_fill(vclient *v)
     uint16_t range_count = 0;
     for (unsigned i = 0; i < MAX_WINDOW; ++i) {
         slot *s = &v->slots[i];
-        if (s->used && !s->cancel_sent && !ms_loadgen_plan_wanted(&v->plan, s->item.cell)) {
+        if (s->used && !s->cancel_sent && !ms_loadgen_plan_wanted(v->plan, s->item.cell)) {
             s->cancel_sent = true;
             ranges[range_count++] = (ms_proto_id_range){s->id, 1};
         }
@@ -234,7 +233,7 @@ static void binary_fill(vclient *v)
     uint16_t count = 0;
     while (may_issue(v) && v->in_flight + count < lg->o.window) {
         ms_loadgen_item item;
-        if (!ms_loadgen_plan_next(&v->plan, &item, moves_allowed(v)))
+        if (!ms_loadgen_plan_next(v->plan, &item, moves_allowed(v)))
             break;
         slot *s = NULL;
         for (unsigned i = 0; i < lg->o.window && !s; ++i)
@@ -282,8 +281,8 @@ static void on_model_opened(ms_client *client, uint32_t request_id, const ms_pro
     vclient *v = arg;
     ms_error err;
     if (ms_archive_open_index(index, o->index_size, v->lg->o.model, &v->own_index, &err) != MS_OK ||
-        ms_loadgen_plan_init(&v->plan, v->own_index, v->lg->o.seed + v->number,
-                             o->permitted_geometry_steps, o->apo_steps > 0, &err) != MS_OK) {
+        ms_loadgen_plan_new(v->own_index, v->lg->o.seed + v->number, o->permitted_geometry_steps,
+                            o->apo_steps > 0, &v->plan, &err) != MS_OK) {
         note_error(v->lg, err.text);
         finish_client(v);
         return;
@@ -338,7 +337,7 @@ static void on_request_error(ms_client *client, uint32_t first, uint32_t count,
             snprintf(what, sizeof what, "request error %s", ms_proto_error_name(e->code));
             note_error(v->lg, what);
         }
-        ms_loadgen_plan_forget(&v->plan, &s->item);
+        ms_loadgen_plan_forget(v->plan, &s->item);
         ms_payload_assembly_forget(v->assembly, s->id);
         release(v, s);
     }
@@ -372,7 +371,8 @@ static const ms_client_handlers binary_handlers = {
 static int binary_start(vclient *v)
 {
     const options *o = &v->lg->o;
-    ms_client_options co = {o->host, o->port, o->token, "meshloadgen/0.1", 0, false};
+    ms_client_options co = {.host = o->host, .port = o->port, .token = o->token,
+                            .agent = "meshloadgen/0.1"};
     ms_error err;
     uint32_t id;
     if (ms_payload_assembly_new(false, 0, &v->assembly, &err) != MS_OK ||
@@ -386,15 +386,101 @@ static int binary_start(vclient *v)
 
 /* --- HTTP transport --------------------------------------------------------------- */
 
+static void http_fail(vclient *v, const char *why)
+{
+    if (!v->lg->stopping || v->in_flight) {
+        v->lg->connection_failures++;
+        note_error(v->lg, why);
+    }
+    v->in_flight = 0;
+    finish_client(v);
+}
+
+/* Why evhttp gave up on a request, in the words of a failed exchange. */
+static const char *http_failure_text(int error)
+{
+    switch (error) {
+    case EVREQ_HTTP_EOF: return "HTTP server closed the connection";
+    case EVREQ_HTTP_INVALID_HEADER: return "bad HTTP response header";
+    case EVREQ_HTTP_DATA_TOO_LONG: return "HTTP response too long";
+    case EVREQ_HTTP_TIMEOUT: return "HTTP request timed out";
+    default: return "HTTP socket error";
+    }
+}
+
+static void http_fill(vclient *v);
+
+static void http_error(enum evhttp_request_error error, void *arg)
+{
+    slot *s = arg;
+    s->http_error = (int)error;
+}
+
+/* The answer to slot's request, or its failure (req NULL, or no status). */
+static void http_done(struct evhttp_request *req, void *arg)
+{
+    slot *s = arg;
+    vclient *v = s->owner;
+    if (v->done || !s->used)
+        return;
+    int status = req ? evhttp_request_get_response_code(req) : 0;
+    if (status <= 0) {
+        http_fail(v, http_failure_text(s->http_error));
+        return;
+    }
+    /* Copied out, as a client keeping the bytes would (the binary client's
+     * decoder copies each frame too): both transports do the same work. */
+    struct evbuffer *in = evhttp_request_get_input_buffer(req);
+    uint8_t sink[65536];
+    while (evbuffer_remove(in, sink, sizeof sink) > 0) {
+    }
+    if (status == 206 || status == 200) {
+        v->lg->bytes += s->end - s->start;
+        record_latency(v->lg, ms_now_seconds() - s->sent_at, s->item.stream);
+    } else {
+        char what[64];
+        snprintf(what, sizeof what, "HTTP status %d", status);
+        note_error(v->lg, what);
+    }
+    release(v, s);
+    http_fill(v);
+}
+
+/* Sends slot's Range GET on the slot's own connection; false when libevent
+ * cannot (out of memory: the request is not in flight). */
+static bool http_send(vclient *v, slot *s)
+{
+    const options *o = &v->lg->o;
+    struct evhttp_connection **conn = &v->http_connections[s - v->slots];
+    if (!*conn && !(*conn = evhttp_connection_base_new(v->lg->base, NULL, o->host, o->port)))
+        return false;
+    struct evhttp_request *req = evhttp_request_new(http_done, s);
+    if (!req)
+        return false;
+    evhttp_request_set_error_cb(req, http_error);
+    struct evkeyvalq *headers = evhttp_request_get_output_headers(req);
+    char path[256], range[64], auth[600];
+    snprintf(path, sizeof path, "/models/%s/cells/%u/%s", o->model, s->item.cell,
+             s->item.stream == MS_PROTO_STREAM_GEOMETRY ? "geometry" : "apo");
+    snprintf(range, sizeof range, "bytes=%u-%u", s->start, s->end - 1);
+    evhttp_add_header(headers, "Host", o->host);
+    evhttp_add_header(headers, "Range", range);
+    if (o->token) {
+        snprintf(auth, sizeof auth, "Bearer %.500s", o->token);
+        evhttp_add_header(headers, "Authorization", auth);
+    }
+    /* On failure libevent has freed the request. */
+    return evhttp_make_request(*conn, req, EVHTTP_REQ_GET, path) == 0;
+}
+
 static void http_fill(vclient *v)
 {
     loadgen *lg = v->lg;
-    if (!v->bev || v->done)
+    if (v->done)
         return;
-    struct evbuffer *out = bufferevent_get_output(v->bev);
     while (may_issue(v)) {
         ms_loadgen_item item;
-        if (!ms_loadgen_plan_next(&v->plan, &item, moves_allowed(v)))
+        if (!ms_loadgen_plan_next(v->plan, &item, moves_allowed(v)))
             break;
         uint32_t start, end;
         ms_loadgen_item_range(lg->shared_index, &item, &start, &end);
@@ -404,137 +490,38 @@ static void http_fill(vclient *v)
         if (!s)
             break;
         memset(s, 0, sizeof *s);
-        s->used = true;
+        s->owner = v;
+        s->http_error = -1;
         s->item = item;
         s->start = start, s->end = end;
         s->sent_at = ms_now_seconds();
+        if (!http_send(v, s)) {
+            http_fail(v, "cannot send an HTTP request");
+            return;
+        }
+        s->used = true;
         v->in_flight++;
         v->issued++;
         lg->requests++;
-        v->ring[(v->ring_head + v->ring_count++) % MAX_WINDOW] = (unsigned)(s - v->slots);
-        evbuffer_add_printf(out,
-                            "GET /models/%s/cells/%u/%s HTTP/1.1\r\nHost: %s\r\n"
-                            "Range: bytes=%u-%u\r\n%s%s%s\r\n",
-                            lg->o.model, item.cell,
-                            item.stream == MS_PROTO_STREAM_GEOMETRY ? "geometry" : "apo",
-                            lg->o.host, start, end - 1, lg->o.token ? "Authorization: Bearer " : "",
-                            lg->o.token ? lg->o.token : "", lg->o.token ? "\r\n" : "");
     }
-}
-
-static void http_fail(vclient *v, const char *why)
-{
-    if (!v->lg->stopping || v->in_flight) {
-        v->lg->connection_failures++;
-        note_error(v->lg, why);
-    }
-    v->in_flight = 0;
-    finish_client(v);
-    bufferevent_disable(v->bev, EV_READ | EV_WRITE);
-}
-
-static void http_read(struct bufferevent *bev, void *arg)
-{
-    vclient *v = arg;
-    struct evbuffer *in = bufferevent_get_input(bev);
-    while (!v->done) {
-        if (!v->in_body) {
-            struct evbuffer_ptr end = evbuffer_search(in, "\r\n\r\n", 4, NULL);
-            if (end.pos < 0) {
-                if (evbuffer_get_length(in) > 16384)
-                    http_fail(v, "HTTP response header too long");
-                return;
-            }
-            size_t n = (size_t)end.pos + 4;
-            char head[16385];
-            if (n > sizeof head - 1) {
-                http_fail(v, "HTTP response header too long");
-                return;
-            }
-            evbuffer_remove(in, head, n);
-            head[n] = '\0';
-            if (sscanf(head, "HTTP/1.%*d %d", &v->status) != 1) {
-                http_fail(v, "bad HTTP status line");
-                return;
-            }
-            v->body_left = 0;
-            for (char *line = strstr(head, "\r\n"); line; line = strstr(line + 2, "\r\n"))
-                if (!strncasecmp(line + 2, "Content-Length:", 15))
-                    v->body_left = strtoull(line + 17, NULL, 10);
-            v->in_body = true;
-        }
-        size_t have = evbuffer_get_length(in);
-        size_t take = have < v->body_left ? have : (size_t)v->body_left;
-        /* Copied out, as a client keeping the bytes would (the binary client's
-         * decoder copies each frame too): both transports do the same work. */
-        while (take) {
-            uint8_t sink[65536];
-            int n = evbuffer_remove(in, sink, take < sizeof sink ? take : sizeof sink);
-            if (n <= 0)
-                break;
-            take -= (size_t)n;
-            v->body_left -= (uint64_t)n;
-        }
-        if (v->body_left)
-            return;
-        v->in_body = false;
-        if (!v->ring_count) {
-            http_fail(v, "HTTP response without a request");
-            return;
-        }
-        slot *s = &v->slots[v->ring[v->ring_head]];
-        v->ring_head = (v->ring_head + 1) % MAX_WINDOW;
-        v->ring_count--;
-        if (v->status == 206 || v->status == 200) {
-            v->lg->bytes += s->end - s->start;
-            record_latency(v->lg, ms_now_seconds() - s->sent_at, s->item.stream);
-        } else {
-            char what[64];
-            snprintf(what, sizeof what, "HTTP status %d", v->status);
-            note_error(v->lg, what);
-        }
-        release(v, s);
-        http_fill(v);
-    }
-}
-
-static void http_event(struct bufferevent *bev, short what, void *arg)
-{
-    vclient *v = arg;
-    if (what & BEV_EVENT_CONNECTED) {
-        int one = 1;
-        setsockopt(bufferevent_getfd(bev), IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
-        return;
-    }
-    http_fail(v, what & BEV_EVENT_EOF ? "HTTP server closed the connection" : "HTTP socket error");
 }
 
 static int http_start(vclient *v)
 {
     loadgen *lg = v->lg;
-    struct sockaddr_in addr = {0};
-    addr.sin_family = AF_INET;
-    addr.sin_port = htons(lg->o.port);
-    if (evutil_inet_pton(AF_INET, lg->o.host, &addr.sin_addr) != 1) {
+    struct in_addr probe;
+    if (evutil_inet_pton(AF_INET, lg->o.host, &probe) != 1) {
         fprintf(stderr, "meshloadgen: '%s' is not a numeric IPv4 address\n", lg->o.host);
         return -1;
     }
     ms_error err;
-    if (ms_loadgen_plan_init(&v->plan, lg->shared_index, lg->o.seed + v->number, 64, true, &err) !=
+    if (ms_loadgen_plan_new(lg->shared_index, lg->o.seed + v->number, 64, true, &v->plan, &err) !=
         MS_OK) {
         fprintf(stderr, "meshloadgen: %s\n", err.text);
         return -1;
     }
     v->planning = true;
     lg->ready++;
-    v->bev = bufferevent_socket_new(lg->base, -1, BEV_OPT_CLOSE_ON_FREE);
-    if (!v->bev)
-        return -1;
-    bufferevent_setcb(v->bev, http_read, NULL, http_event, v);
-    bufferevent_set_max_single_read(v->bev, 1u << 20);
-    bufferevent_enable(v->bev, EV_READ | EV_WRITE);
-    if (bufferevent_socket_connect(v->bev, (struct sockaddr *)&addr, sizeof addr) != 0)
-        return -1;
     http_fill(v);
     return 0;
 }
@@ -594,9 +581,10 @@ static void usage(FILE *out)
             "  --http               speak HTTP/1.1 with Range requests (meshserve's side door,\n"
             "                       or a static server holding meshexport's tree); needs --index\n"
             "  --index FILE         the model's index blob (meshexport's models/NAME.index)\n"
-            "  --clients N          virtual clients, one connection each (default 16)\n"
+            "  --clients N          virtual clients (default 16), one connection each (with\n"
+            "                       --http, one per request in flight)\n"
             "  --window N           requests in flight per client, 1..64 (default 4); with\n"
-            "                       --http they are pipelined\n"
+            "                       --http each on its own keep-alive connection\n"
             "  --duration S         stream for S seconds (default 5) from the moment every\n"
             "                       client holds the model index, then wait up to 3 s for\n"
             "                       answers\n"
@@ -698,8 +686,10 @@ int main(int argc, char **argv)
         return 2;
     }
     struct rlimit rl;
-    if (getrlimit(RLIMIT_NOFILE, &rl) == 0 && rl.rlim_cur < 2 * (rlim_t)lg.o.clients + 64) {
-        rl.rlim_cur = 2 * (rlim_t)lg.o.clients + 64;
+    /* A socket per connection (with --http, one per request in flight). */
+    rlim_t files = (rlim_t)lg.o.clients * (lg.o.http ? lg.o.window + 1 : 2) + 64;
+    if (getrlimit(RLIMIT_NOFILE, &rl) == 0 && rl.rlim_cur < files) {
+        rl.rlim_cur = files;
         if (rl.rlim_cur > rl.rlim_max)
             rl.rlim_cur = rl.rlim_max;
         setrlimit(RLIMIT_NOFILE, &rl);
@@ -780,9 +770,10 @@ int main(int argc, char **argv)
         vclient *v = &lg.clients[i];
         ms_client_free(v->client);
         ms_payload_assembly_free(v->assembly);
-        if (v->bev)
-            bufferevent_free(v->bev);
-        ms_loadgen_plan_free(&v->plan);
+        for (unsigned k = 0; k < MAX_WINDOW; ++k)
+            if (v->http_connections[k])
+                evhttp_connection_free(v->http_connections[k]); /* and a request pending */
+        ms_loadgen_plan_free(v->plan);
         ms_archive_close(v->own_index);
     }
     free(lg.clients);

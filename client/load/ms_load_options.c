@@ -45,6 +45,8 @@ void ms_load_usage(FILE *out)
             "  --token TOKEN          access token\n"
             "  --no-cold              skip the cold-open phase\n"
             "  --raw-index            ask for the model index uncompressed (protocol v1 way)\n"
+            "  --whole-index          take the whole index at open, not by subtree (as from a\n"
+            "                         server without subtrees)\n"
             "  --baseline draco       download /models/NAME/draco (ARCHIVE_DIR/NAME.drc) from\n"
             "                         the HTTP side door and decode it with draco_decoder\n"
             "  --draco-decoder PATH   (default draco_decoder)\n"
@@ -161,7 +163,7 @@ int ms_load_options_parse(int argc, char **argv, ms_load_options *o)
         {"decode-threads", required_argument, NULL, 'P'},
         {"apo-levels", required_argument, NULL, 'a'}, {"token", required_argument, NULL, 'T'},
         {"no-cold", no_argument, NULL, 'n'},       {"baseline", required_argument, NULL, 'B'},
-        {"raw-index", no_argument, NULL, 'R'},   {"archive", required_argument, NULL, 'A'},
+        {"raw-index", no_argument, NULL, 'R'},   {"whole-index", no_argument, NULL, 'W'},   {"archive", required_argument, NULL, 'A'},
         {"draco-decoder", required_argument, NULL, 'D'}, {"help", no_argument, NULL, 'h'},
         {NULL, 0, NULL, 0}};
     memset(o, 0, sizeof *o);
@@ -210,6 +212,7 @@ int ms_load_options_parse(int argc, char **argv, ms_load_options *o)
         case 'j': o->json = true; break;
         case 'n': o->skip_cold = true; break;
         case 'R': o->raw_index = true; break;
+        case 'W': o->whole_index = true; break;
         case 'A': o->archive = optarg; break;
         case 'B':
             if (strcmp(optarg, "draco") != 0) {

@@ -26,6 +26,7 @@ typedef struct ms_load_options {
     double memory_target, memory_ceiling; /* MB; 0 = none */
     double hysteresis, culled_less;       /* bits */
     bool json, skip_cold, raw_index;
+    bool whole_index;   /* take the whole index at open (no subtrees) */
     bool help;          /* -h/--help was given */
     char host_text[64]; /* what host points to */
 } ms_load_options;

@@ -158,10 +158,7 @@ static bool open_model(viewer *v, const char *name)
         if (fw > 0 && fh > 0 && catalogue_frame(v, fw, fh) == 0)
             glfwSwapBuffers(v->window);
     }
-    ms_viewer_stream_settings settings = {.tolerance_px = v->o->tolerance_px,
-                                          .apo_levels = v->o->apo_levels,
-                                          .memory_mb = v->o->memory_mb,
-                                          .bandwidth = v->o->bandwidth};
+    ms_viewer_stream_settings settings = ms_viewer_options_stream_settings(v->o);
     if (ms_viewer_model_open(&v->source, name, &v->model, &err) != MS_OK ||
         ms_viewer_stream_open(&v->source, &v->model, &settings, &v->stream, &err) != MS_OK) {
         snprintf(v->message, sizeof v->message, "%.250s", err.text);
@@ -397,6 +394,30 @@ static bool reopen_changed_model(viewer *v, const char *why)
 }
 
 /* One frame of the model view. 1 on a fatal error (printed). */
+/* Seconds since the last frame; updates the frame time (smoothed over about
+ * half a second of frames) and the frame rate. */
+static double frame_tick(viewer *v)
+{
+    double t = now_s(), seconds = t - v->last_frame;
+    v->last_frame = t;
+    double a = seconds > 0.5 ? 1 : seconds / 0.5;
+    v->frame_ms += (seconds * 1e3 - v->frame_ms) * (v->frame_ms ? a : 1);
+    v->fps = v->frame_ms > 0 ? 1e3 / v->frame_ms : 0;
+    return seconds;
+}
+
+/* The window's framebuffer size; false (after waiting up to 50 ms for events)
+ * while it is minimised. */
+static bool framebuffer_size(viewer *v, int *fw, int *fh)
+{
+    glfwGetFramebufferSize(v->window, fw, fh);
+    if (*fw < 1 || *fh < 1) {
+        glfwWaitEventsTimeout(0.05);
+        return false;
+    }
+    return true;
+}
+
 static int view_frame(viewer *v, int fw, int fh, double seconds)
 {
     ms_error err;
@@ -495,12 +516,7 @@ static int interactive_scene(viewer *v)
         return 1;
     }
     keep_gl_driver_loaded();
-    ms_viewer_scene_settings settings = {.stream = {.tolerance_px = o->tolerance_px,
-                                                    .apo_levels = o->apo_levels,
-                                                    .memory_mb = o->memory_mb,
-                                                    .bandwidth = o->bandwidth},
-                                         .effects_off = o->effects_off,
-                                         .force_all = o->effects_all};
+    ms_viewer_scene_settings settings = ms_viewer_options_scene_settings(o);
     if (ms_viewer_text_new(&v->text, &err) != MS_OK ||
         ms_viewer_scene_open(&v->source, &v->scene, o->scene_file, &settings, &v->vscene, &err) != MS_OK) {
         fprintf(stderr, "meshview: %s\n", err.text);
@@ -524,17 +540,10 @@ static int interactive_scene(viewer *v)
     v->last_frame = now_s();
     while (!glfwWindowShouldClose(v->window) && !ms_viewer_signals_pending()) {
         glfwPollEvents();
-        double t = now_s(), seconds = t - v->last_frame;
-        v->last_frame = t;
-        double a = seconds > 0.5 ? 1 : seconds / 0.5;
-        v->frame_ms += (seconds * 1e3 - v->frame_ms) * (v->frame_ms ? a : 1);
-        v->fps = v->frame_ms > 0 ? 1e3 / v->frame_ms : 0;
+        double seconds = frame_tick(v);
         int fw, fh;
-        glfwGetFramebufferSize(v->window, &fw, &fh);
-        if (fw < 1 || fh < 1) {
-            glfwWaitEventsTimeout(0.05);
+        if (!framebuffer_size(v, &fw, &fh))
             continue;
-        }
         if (view_frame(v, fw, fh, seconds)) {
             rc = 1;
             break;
@@ -600,12 +609,7 @@ static int interactive(viewer *v)
     v->last_frame = now_s();
     while (!glfwWindowShouldClose(v->window) && !ms_viewer_signals_pending()) {
         glfwPollEvents();
-        double t = now_s(), seconds = t - v->last_frame;
-        v->last_frame = t;
-        /* Smoothed over about half a second of frames. */
-        double a = seconds > 0.5 ? 1 : seconds / 0.5;
-        v->frame_ms += (seconds * 1e3 - v->frame_ms) * (v->frame_ms ? a : 1);
-        v->fps = v->frame_ms > 0 ? 1e3 / v->frame_ms : 0;
+        double seconds = frame_tick(v);
         if (v->open_requested) {
             v->open_requested = false;
             if (v->list.count)
@@ -616,11 +620,8 @@ static int interactive(viewer *v)
             v->open_delta = 0;
         }
         int fw, fh;
-        glfwGetFramebufferSize(v->window, &fw, &fh);
-        if (fw < 1 || fh < 1) { /* minimised */
-            glfwWaitEventsTimeout(0.05);
+        if (!framebuffer_size(v, &fw, &fh))
             continue;
-        }
         if ((v->on_catalogue || !v->stream) ? catalogue_frame(v, fw, fh)
                                             : view_frame(v, fw, fh, seconds)) {
             rc = 1;

@@ -125,27 +125,74 @@ static void drop_cell(ms_render *r, render_cell *c)
     c->in_frame = false;
 }
 
+/* ---- cells by sibling group ------------------------------------------------- */
+
+static uint32_t group_of(const ms_render *r, uint32_t id)
+{
+    return id == 0 ? 0 : 1 + (id - 1) / r->group_size;
+}
+
+static uint32_t place_in_group(const ms_render *r, uint32_t id)
+{
+    return id == 0 ? 0 : (id - 1) % r->group_size;
+}
+
+render_cell *ms_render_cell_at(const ms_render *r, uint32_t id)
+{
+    if (id >= r->header.cell_count)
+        return NULL;
+    render_cell *block = r->groups[group_of(r, id)];
+    return block ? &block[place_in_group(r, id)] : NULL;
+}
+
+const ms_archive_cell *ms_render_record(const ms_render *r, uint32_t id)
+{
+    if (id >= r->header.cell_count)
+        return NULL;
+    if (r->records)
+        return &r->records[id];
+    const render_cell *c = ms_render_cell_at(r, id);
+    return c && c->known ? &c->record : NULL;
+}
+
+/* The state of cell id, its group's block made when absent; NULL when out of
+ * memory. */
+static render_cell *cell_made(ms_render *r, uint32_t id)
+{
+    uint32_t g = group_of(r, id);
+    if (!r->groups[g] && !(r->groups[g] = calloc(r->group_size, sizeof *r->groups[g])))
+        return NULL;
+    return &r->groups[g][place_in_group(r, id)];
+}
+
 /* ---- life cycle ------------------------------------------------------------ */
+
+static ms_status check_record(const ms_archive_header *h, uint32_t id, const ms_archive_cell *c, ms_error *err)
+{
+    double cells_per_side = pow((double)h->n, (double)c->level);
+    if (c->level > 32 || c->position[0] >= cells_per_side || c->position[1] >= cells_per_side ||
+        c->position[2] >= cells_per_side)
+        return ms_error_set(err, MS_ERR_ARG, "render: cell %u position outside its level %u", id, c->level);
+    if (c->apo_levels > MS_APO_MAX_LEVELS)
+        return ms_error_set(err, MS_ERR_ARG, "render: cell %u has %u APO levels", id, c->apo_levels);
+    return MS_OK;
+}
 
 static ms_status check_model(const ms_archive_header *h, const ms_archive_cell *cells, ms_error *err)
 {
-    if (!h || !cells)
-        return ms_error_set(err, MS_ERR_ARG, "render: no model header or cells");
+    if (!h)
+        return ms_error_set(err, MS_ERR_ARG, "render: no model header");
     if (h->cell_count == 0 || h->cell_count > MS_ARCHIVE_MAX_CELLS)
         return ms_error_set(err, MS_ERR_ARG, "render: %u cells", h->cell_count);
     if (!(h->box_side > 0.0) || !isfinite(h->box_side) || !isfinite(h->box_origin[0]) ||
         !isfinite(h->box_origin[1]) || !isfinite(h->box_origin[2]))
         return ms_error_set(err, MS_ERR_ARG, "render: model box not finite and positive");
-    if (h->n < 2)
+    if (h->n < 2 || h->n > 64)
         return ms_error_set(err, MS_ERR_ARG, "render: %u children per axis", h->n);
-    for (uint32_t i = 0; i < h->cell_count; ++i) {
-        const ms_archive_cell *c = &cells[i];
-        double cells_per_side = pow((double)h->n, (double)c->level);
-        if (c->level > 32 || c->position[0] >= cells_per_side || c->position[1] >= cells_per_side ||
-            c->position[2] >= cells_per_side)
-            return ms_error_set(err, MS_ERR_ARG, "render: cell %u position outside its level %u", i, c->level);
-        if (c->apo_levels > MS_APO_MAX_LEVELS)
-            return ms_error_set(err, MS_ERR_ARG, "render: cell %u has %u APO levels", i, c->apo_levels);
+    for (uint32_t i = 0; cells && i < h->cell_count; ++i) {
+        ms_status st = check_record(h, i, &cells[i], err);
+        if (st != MS_OK)
+            return st;
     }
     return MS_OK;
 }
@@ -169,18 +216,16 @@ ms_status ms_render_new(const ms_archive_header *header, const ms_archive_cell *
         return ms_error_set(err, MS_ERR_NOMEM, "render: no memory");
     r->header = *header;
     size_t n = header->cell_count;
-    r->records = malloc(n * sizeof *r->records);
-    r->cells = calloc(n, sizeof *r->cells);
-    r->frame_cells = malloc(n * sizeof *r->frame_cells);
-    r->queue = malloc(n * sizeof *r->queue);
-    r->apo_levels = calloc(n, sizeof *r->apo_levels);
-    r->apo_entry = calloc(n, sizeof *r->apo_entry);
-    if (!r->records || !r->cells || !r->frame_cells || !r->queue || !r->apo_levels || !r->apo_entry) {
+    r->group_size = header->n * header->n * header->n;
+    r->group_count = 1 + (uint32_t)((n - 1 + r->group_size - 1) / r->group_size);
+    r->groups = calloc(r->group_count, sizeof *r->groups);
+    if (cells && (r->records = malloc(n * sizeof *r->records)))
+        memcpy(r->records, cells, n * sizeof *r->records);
+    if (!r->groups || (cells && !r->records)) {
         ms_render_free(r);
         return ms_error_set(err, MS_ERR_NOMEM, "render: no memory for %zu cells", n);
     }
-    memcpy(r->records, cells, n * sizeof *r->records);
-    ms_render_split_init(&r->split, &r->header, r->records);
+    ms_render_split_init(&r->split, &r->header);
     const ms_render_program *unused;
     st = ms_render_find_program(r, MS_EFFECTS_VIEWER, false, false, &unused, err);
     if (st == MS_OK)
@@ -195,23 +240,47 @@ ms_status ms_render_new(const ms_archive_header *header, const ms_archive_cell *
     return MS_OK;
 }
 
+ms_status ms_render_learn(ms_render *r, const uint32_t *ids, const ms_archive_cell *records, size_t count,
+                          ms_error *err)
+{
+    if (!r || (count && (!ids || !records)))
+        return ms_error_set(err, MS_ERR_ARG, "render: nothing to learn from");
+    for (size_t i = 0; i < count; ++i) {
+        if (ids[i] >= r->header.cell_count)
+            return ms_error_set(err, MS_ERR_ARG, "render: record of cell %u of %u", ids[i], r->header.cell_count);
+        ms_status st = check_record(&r->header, ids[i], &records[i], err);
+        if (st != MS_OK)
+            return st;
+    }
+    for (size_t i = 0; i < count; ++i) {
+        render_cell *c = cell_made(r, ids[i]);
+        if (!c)
+            return ms_error_set(err, MS_ERR_NOMEM, "render: no memory for cell %u", ids[i]);
+        c->record = records[i];
+        c->known = true;
+    }
+    return MS_OK;
+}
+
 void ms_render_free(ms_render *r)
 {
     if (!r)
         return;
-    if (r->cells)
-        for (uint32_t i = 0; i < r->header.cell_count; ++i)
-            drop_cell(r, &r->cells[i]);
+    for (uint32_t g = 0; r->groups && g < r->group_count; ++g) {
+        if (!r->groups[g])
+            continue;
+        for (uint32_t k = 0; k < r->group_size; ++k)
+            drop_cell(r, &r->groups[g][k]);
+        free(r->groups[g]);
+    }
     ms_render_texels_free(&r->texels);
     for (uint32_t i = 0; i < r->program_count; ++i)
         ms_render_program_free(&r->programs[i]);
     ms_render_split_free(&r->split);
     free(r->records);
-    free(r->cells);
+    free(r->groups);
     free(r->frame_cells);
     free(r->queue);
-    free(r->apo_levels);
-    free(r->apo_entry);
     free(r);
 }
 
@@ -254,7 +323,7 @@ static ms_status take_mesh(render_cell *c, const ms_render_cell_mesh *m, ms_erro
 static ms_status take_apo(ms_render *r, uint32_t cell, const ms_core_apo_chunk *chunk, unsigned levels,
                           ms_error *err)
 {
-    render_cell *c = &r->cells[cell];
+    render_cell *c = ms_render_cell_at(r, cell);
     if (levels == 0) {
         drop_pending_apo(r, &c->next_apo);
         drop_current_apo(r, c);
@@ -273,7 +342,7 @@ static ms_status take_apo(ms_render *r, uint32_t cell, const ms_core_apo_chunk *
     bool root_internal;
     ms_error why;
     ms_status st =
-        ms_render_apo_words(&r->records[cell], chunk->data, chunk->length, levels, &words, &count, &root_internal, &why);
+        ms_render_apo_words(ms_render_record(r, cell), chunk->data, chunk->length, levels, &words, &count, &root_internal, &why);
     if (st == MS_ERR_NOMEM)
         return ms_error_set(err, st, "%s", why.text);
     if (st != MS_OK || count > UINT32_MAX) {
@@ -288,6 +357,26 @@ static ms_status take_apo(ms_render *r, uint32_t cell, const ms_core_apo_chunk *
     p->range = (apo_range){levels, 0, (uint32_t)count, root_internal};
     p->active = true;
     return MS_OK;
+}
+
+/* Frees the blocks of groups none of whose cells is in the frame (their cells
+ * were dropped when they left it), records learned there included. */
+static void free_idle_groups(ms_render *r)
+{
+    for (uint32_t g = 0; g < r->group_count; ++g) {
+        render_cell *block = r->groups[g];
+        if (!block)
+            continue;
+        bool used = false;
+        for (uint32_t k = 0; k < r->group_size && !used; ++k)
+            used = block[k].in_frame || block[k].queued;
+        if (used)
+            continue;
+        for (uint32_t k = 0; k < r->group_size; ++k)
+            drop_cell(r, &block[k]);
+        free(block);
+        r->groups[g] = NULL;
+    }
 }
 
 ms_status ms_render_set_frame(ms_render *r, const ms_view_mesh *mesh, const ms_core_apo_chunk *apo, size_t apo_count,
@@ -307,41 +396,76 @@ ms_status ms_render_set_frame(ms_render *r, const ms_view_mesh *mesh, const ms_c
     ms_status st = ms_render_split_frame(&r->split, mesh, err);
     if (st != MS_OK)
         return st;
+    uint32_t present = r->split.present_count;
+    for (uint32_t k = 0; k < present; ++k)
+        if (!ms_render_record(r, r->split.present[k]))
+            return ms_error_set(err, MS_ERR_ARG, "render: cell %u draws without its record", r->split.present[k]);
+    if (present > r->frame_cap) {
+        size_t cap = r->frame_cap ? r->frame_cap : 64;
+        while (cap < present)
+            cap *= 2;
+        uint32_t *frame_cells = realloc(r->frame_cells, cap * sizeof *frame_cells);
+        if (frame_cells)
+            r->frame_cells = frame_cells;
+        uint32_t *queue = frame_cells ? realloc(r->queue, cap * sizeof *queue) : NULL;
+        if (!queue)
+            return ms_error_set(err, MS_ERR_NOMEM, "render: no memory for %u cells", present);
+        r->queue = queue;
+        r->frame_cap = cap;
+    }
+    /* every drawing cell gets its state (the whole index's record copied in) */
+    for (uint32_t k = 0; k < present; ++k) {
+        uint32_t id = r->split.present[k];
+        render_cell *c = cell_made(r, id);
+        if (!c)
+            return ms_error_set(err, MS_ERR_NOMEM, "render: no memory for cell %u", id);
+        if (!c->known) {
+            c->record = r->records[id]; /* known above: the whole index has it */
+            c->known = true;
+        }
+    }
     for (size_t i = 0; i < apo_count; ++i) {
-        const ms_archive_cell *rec = &r->records[apo[i].cell];
-        unsigned levels = apo[i].levels < rec->apo_levels ? apo[i].levels : rec->apo_levels;
-        r->apo_levels[apo[i].cell] = apo[i].length ? levels : 0;
-        r->apo_entry[apo[i].cell] = (uint32_t)i + 1;
+        render_cell *c = ms_render_cell_at(r, apo[i].cell);
+        if (!c || !c->known)
+            continue; /* a cell that draws nothing: no APO to show */
+        unsigned levels = apo[i].levels < c->record.apo_levels ? apo[i].levels : c->record.apo_levels;
+        c->frame_apo_levels = apo[i].length ? levels : 0;
+        c->frame_apo_entry = (uint32_t)i + 1;
     }
     /* cells leaving the frame stop drawing at once */
     for (uint32_t k = 0; k < r->frame_cell_count; ++k)
-        r->cells[r->frame_cells[k]].in_frame = false;
-    for (uint32_t k = 0; k < r->split.present_count && st == MS_OK; ++k)
-        r->cells[r->split.present[k]].in_frame = true;
+        ms_render_cell_at(r, r->frame_cells[k])->in_frame = false;
+    for (uint32_t k = 0; k < present; ++k)
+        ms_render_cell_at(r, r->split.present[k])->in_frame = true;
     for (uint32_t k = 0; k < r->frame_cell_count; ++k) {
-        render_cell *c = &r->cells[r->frame_cells[k]];
+        render_cell *c = ms_render_cell_at(r, r->frame_cells[k]);
         if (!c->in_frame)
             drop_cell(r, c);
     }
-    for (uint32_t k = 0; k < r->split.present_count && st == MS_OK; ++k) {
+    for (uint32_t k = 0; k < present && st == MS_OK; ++k) {
         ms_render_cell_mesh m;
-        st = ms_render_split_cell(&r->split, k, &m, err);
+        render_cell *c = ms_render_cell_at(r, r->split.present[k]);
+        st = ms_render_split_cell(&r->split, k, &c->record, &m, err);
         if (st == MS_OK)
-            st = take_mesh(&r->cells[m.cell], &m, err);
+            st = take_mesh(c, &m, err);
         if (st == MS_OK) {
-            uint32_t e = r->apo_entry[m.cell];
-            st = take_apo(r, m.cell, e ? &apo[e - 1] : NULL, e ? r->apo_levels[m.cell] : 0, err);
+            uint32_t e = c->frame_apo_entry;
+            st = take_apo(r, m.cell, e ? &apo[e - 1] : NULL, e ? c->frame_apo_levels : 0, err);
         }
     }
-    for (size_t i = 0; i < apo_count; ++i)
-        r->apo_levels[apo[i].cell] = r->apo_entry[apo[i].cell] = 0;
-    memcpy(r->frame_cells, r->split.present, r->split.present_count * sizeof *r->frame_cells);
-    r->frame_cell_count = r->split.present_count;
+    for (size_t i = 0; i < apo_count; ++i) {
+        render_cell *c = ms_render_cell_at(r, apo[i].cell);
+        if (c)
+            c->frame_apo_levels = c->frame_apo_entry = 0;
+    }
+    if (present)
+        memcpy(r->frame_cells, r->split.present, present * sizeof *r->frame_cells);
+    r->frame_cell_count = present;
     /* the queue: cells still waiting keep their turn, newly changed ones follow */
     uint32_t kept = 0;
     for (uint32_t k = 0; k < r->queue_count; ++k) {
-        render_cell *c = &r->cells[r->queue[k]];
-        if (c->next_mesh.active || c->next_apo.active)
+        render_cell *c = ms_render_cell_at(r, r->queue[k]);
+        if (c->in_frame && (c->next_mesh.active || c->next_apo.active))
             r->queue[kept++] = r->queue[k];
         else
             c->queued = false;
@@ -349,12 +473,13 @@ ms_status ms_render_set_frame(ms_render *r, const ms_view_mesh *mesh, const ms_c
     r->queue_count = kept;
     for (uint32_t k = 0; k < r->frame_cell_count; ++k) {
         uint32_t cell = r->frame_cells[k];
-        render_cell *c = &r->cells[cell];
+        render_cell *c = ms_render_cell_at(r, cell);
         if ((c->next_mesh.active || c->next_apo.active) && !c->queued) {
             c->queued = true;
             r->queue[r->queue_count++] = cell;
         }
     }
+    free_idle_groups(r);
     return st;
 }
 
@@ -466,7 +591,7 @@ ms_status ms_render_upload(ms_render *r, uint64_t budget_bytes, ms_render_upload
      * in the picture), then the ones that will replace what they draw. */
     for (int pass = 0; pass < 2 && left > 0; ++pass)
         for (uint32_t k = 0; k < r->queue_count && left > 0; ++k) {
-            render_cell *c = &r->cells[r->queue[k]];
+            render_cell *c = ms_render_cell_at(r, r->queue[k]);
             if (!c->queued || (pass == 0 && c->mesh.vao))
                 continue;
             if (c->next_mesh.active && upload_mesh(c, &left, &bytes))
@@ -480,7 +605,7 @@ ms_status ms_render_upload(ms_render *r, uint64_t budget_bytes, ms_render_upload
         }
     uint32_t kept = 0;
     for (uint32_t k = 0; k < r->queue_count; ++k)
-        if (r->cells[r->queue[k]].queued)
+        if (ms_render_cell_at(r, r->queue[k])->queued)
             r->queue[kept++] = r->queue[k];
     r->queue_count = kept;
     if (stats) {
@@ -498,11 +623,12 @@ ms_status ms_render_upload(ms_render *r, uint64_t budget_bytes, ms_render_upload
 
 bool ms_render_cell_texels(const ms_render *r, uint32_t cell, uint32_t *start, uint32_t *count, uint32_t *levels)
 {
-    if (!r || cell >= r->header.cell_count || r->cells[cell].apo.count == 0)
+    const render_cell *c = r ? ms_render_cell_at(r, cell) : NULL;
+    if (!c || c->apo.count == 0)
         return false;
-    *start = r->cells[cell].apo.start;
-    *count = r->cells[cell].apo.count;
-    *levels = r->cells[cell].apo.levels;
+    *start = c->apo.start;
+    *count = c->apo.count;
+    *levels = c->apo.levels;
     return true;
 }
 

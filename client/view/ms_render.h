@@ -179,15 +179,29 @@ typedef struct ms_render_options {
  * exponent 40, two-sided, no haze, one head light, no placement, clear. */
 void ms_render_options_default(ms_render_options *options);
 
-/* Compiles the shaders and sets up the buffers for a model (header and its
- * cell_count cell records, copied). */
+/* Compiles the shaders and sets up the buffers for a model: its header and
+ * either its whole index (cells: header.cell_count records, copied) or NULL,
+ * the records then learned as frames bring them (ms_render_learn, an index by
+ * subtree: docs/CLIENT.md). Per-cell state is held per sibling group for the
+ * groups of the cells the latest frame draws, never for the whole model. */
 ms_status ms_render_new(const ms_archive_header *header, const ms_archive_cell *cells,
                         ms_render **render, ms_error *err);
+
+/* Learns the records of cells ids[0..count) (copied), for the next
+ * ms_render_set_frame: every cell a frame draws must have its record, learned
+ * since the previous frame or from the whole index (a frame's shown cells:
+ * ms_core_frame.records). Learned records are forgotten with their group's
+ * state once no cell of the group is in a frame. MS_ERR_ARG for an id beyond
+ * the model or a record outside its level (nothing learned then),
+ * MS_ERR_NOMEM. */
+ms_status ms_render_learn(ms_render *render, const uint32_t *ids, const ms_archive_cell *records,
+                          size_t count, ms_error *err);
 /* Frees every GL object and the renderer. NULL is a no-op. */
 void ms_render_free(ms_render *render);
 
 /* A new frame to draw: the stitched mesh and the APO chunk prefixes of the core's
- * frame (apo may be NULL when apo_count is 0). Queues the changed cells. */
+ * frame (apo may be NULL when apo_count is 0). Queues the changed cells.
+ * MS_ERR_ARG for a bad mesh or a drawing cell whose record is unknown. */
 ms_status ms_render_set_frame(ms_render *render, const ms_view_mesh *mesh,
                               const ms_core_apo_chunk *apo, size_t apo_count, ms_error *err);
 

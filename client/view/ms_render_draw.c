@@ -230,11 +230,11 @@ ms_status ms_render_draw(ms_render *r, const ms_camera *camera, const ms_render_
     bool any_detail = false;
     for (uint32_t k = 0; k < r->frame_cell_count; ++k) {
         uint32_t cell = r->frame_cells[k];
-        const render_cell *c = &r->cells[cell];
+        const render_cell *c = ms_render_cell_at(r, cell);
         if (!c->mesh.vao)
             continue;
         double origin[3], side;
-        ms_render_cell_cube(&r->header, &r->records[cell], origin, &side);
+        ms_render_cell_cube(&r->header, &c->record, origin, &side);
         float modelview[16], tint[3];
         ms_render_cell_modelview(model_view, origin, side, modelview);
         cell_tint(cell, tint);

@@ -6,6 +6,7 @@
 #include "ms_render_impostor.h"
 #include "ms_render_internal.h"
 #include "ms_render_shaders.h"
+#include "ms_vec3.h"
 
 /* The capture camera stands this many radii from the centre: close enough to
  * orthographic for the fragment stage's parallel-ray model. */
@@ -118,11 +119,6 @@ ms_status ms_impostor_new(int size, ms_impostor **out, ms_error *err)
     return MS_OK;
 }
 
-static double dot3(const double a[3], const double b[3])
-{
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-}
-
 ms_status ms_impostor_capture(ms_impostor *imp, ms_render *r, const ms_render_options *options,
                               const double centre[3], double radius, const ms_camera *camera, ms_error *err)
 {
@@ -140,7 +136,7 @@ ms_status ms_impostor_capture(ms_impostor *imp, ms_render *r, const ms_render_op
     for (int a = 0; a < 3; ++a)
         eye[a] = centre[a] - dir[a] / len * d;
     /* the view's up, unless it runs along the capture direction */
-    const double *up = fabs(dot3(camera->up, dir) / len) < 0.99 ? camera->up : camera->right;
+    const double *up = fabs(ms_vec3_dot(camera->up, dir) / len) < 0.99 ? camera->up : camera->right;
     double fovy = 2.0 * atan(radius / d) * 180.0 / M_PI;
     ms_camera cap;
     ms_status st = ms_camera_look_at(eye, centre, up, fovy, imp->size, imp->size, d - 1.05 * radius,
@@ -185,7 +181,7 @@ double ms_impostor_angle(const ms_impostor *imp, const ms_camera *camera)
     len = sqrt(len);
     if (!(len > 0.0))
         return 180.0;
-    double c = dot3(dir, imp->forward) / len;
+    double c = ms_vec3_dot(dir, imp->forward) / len;
     return acos(c > 1.0 ? 1.0 : (c < -1.0 ? -1.0 : c)) * 180.0 / M_PI;
 }
 

@@ -54,13 +54,17 @@ typedef struct ms_render_cell_mesh {
 
 typedef struct ms_render_split {
     const ms_archive_header *header;
-    const ms_archive_cell *cells;
     uint32_t cell_count;
     const ms_view_mesh *mesh;
-    uint32_t *cell_start;    /* cell_count + 1: first entry of each cell in order */
+    /* Sized by the frame, not the model: the triangles sorted by drawing cell
+     * (a stable radix sort on the cell id), and the cells that draw, each with
+     * the first entry of its run in order. */
     uint32_t *order;         /* triangles sorted by drawing cell */
+    uint64_t *sort_keys;     /* per triangle: its drawing cell, the sort's keys */
     size_t order_cap;
     uint32_t *present;       /* cells with triangles in this frame, ascending */
+    uint32_t *present_start; /* present_count + 1: each present cell's first entry of order */
+    size_t present_cap;
     uint32_t present_count;
     uint32_t *local;         /* per mesh vertex: its index in the current cell */
     uint32_t *stamp;         /* per mesh vertex: the cell pass that set local */
@@ -75,9 +79,8 @@ typedef struct ms_render_split {
     size_t cell_vertex_cap, cell_normal_cap, cell_triangle_cap;
 } ms_render_split;
 
-/* Zeroes the splitter for a model (header and cells are borrowed). */
-void ms_render_split_init(ms_render_split *split, const ms_archive_header *header,
-                          const ms_archive_cell *cells);
+/* Zeroes the splitter for a model (the header is borrowed). */
+void ms_render_split_init(ms_render_split *split, const ms_archive_header *header);
 void ms_render_split_free(ms_render_split *split);
 
 /* A unit vector (x, y, z) as GL_INT_2_10_10_10_REV: each component rounded to
@@ -95,9 +98,10 @@ uint32_t ms_render_pack_normal(const double n[3]);
  * MS_ERR_NOMEM. */
 ms_status ms_render_split_frame(ms_render_split *split, const ms_view_mesh *mesh, ms_error *err);
 
-/* The k-th present cell's mesh (k < present_count). MS_ERR_NOMEM. */
-ms_status ms_render_split_cell(ms_render_split *split, uint32_t k, ms_render_cell_mesh *out,
-                               ms_error *err);
+/* The k-th present cell's mesh (k < present_count), in the cube of record (that
+ * cell's). MS_ERR_NOMEM. */
+ms_status ms_render_split_cell(ms_render_split *split, uint32_t k, const ms_archive_cell *record,
+                               ms_render_cell_mesh *out, ms_error *err);
 
 /* ---- ms_render_apo.c --------------------------------------------------- */
 
@@ -205,6 +209,8 @@ typedef struct pending_apo {
 } pending_apo;
 
 typedef struct render_cell {
+    ms_archive_cell record; /* valid when known (learned; or from the whole index) */
+    bool known;
     gpu_mesh mesh;          /* current; vao 0 when nothing is drawn */
     apo_range apo;          /* current */
     pending_mesh next_mesh;
@@ -212,12 +218,23 @@ typedef struct render_cell {
     uint32_t failed_apo_levels; /* a prefix that did not load: not retried until it changes */
     bool queued;
     bool in_frame;
+    uint32_t frame_apo_entry;  /* set_frame scratch: index into the frame's apo array + 1 */
+    uint32_t frame_apo_levels; /* set_frame scratch */
 } render_cell;
 
+/* Per-cell state is kept per sibling group, as the view decoder keeps its
+ * cells (ms_view_decoder_internal.h): ids are breadth-first, so each group of
+ * n^3 siblings is a block of consecutive ids from 1 + k n^3 (group 0 is the
+ * root). A group's block exists while one of its cells is learned or drawn:
+ * at the end of each ms_render_set_frame, blocks with no cell in the frame are
+ * freed, so the renderer holds state for the frame's groups only (plus one
+ * pointer per group of the model). */
 struct ms_render {
     ms_archive_header header;
-    ms_archive_cell *records;
-    render_cell *cells;
+    ms_archive_cell *records;   /* the whole index when ms_render_new was given it; else NULL
+                                   and the records come from ms_render_learn */
+    render_cell **groups;       /* group_count blocks of group_size, NULL where none */
+    uint32_t group_size, group_count;
     ms_render_split split;
     /* composed programs, built on first use (effect set x wireframe), replaced
      * round robin when full */
@@ -226,11 +243,16 @@ struct ms_render {
     ms_render_texels texels;
     uint32_t *frame_cells;      /* cells with triangles in the latest frame */
     uint32_t frame_cell_count;
-    uint32_t *queue;            /* cells with something pending, oldest first */
+    uint32_t *queue;            /* cells with something pending, oldest first (frame cells) */
     uint32_t queue_count;
-    uint32_t *apo_levels;       /* per cell, scratch for set_frame */
-    uint32_t *apo_entry;        /* per cell: index into the frame's apo array + 1 */
+    size_t frame_cap;           /* entries frame_cells and queue hold */
 };
+
+/* The state of cell id, NULL when its group holds none. */
+render_cell *ms_render_cell_at(const ms_render *r, uint32_t id);
+/* The record of cell id: the whole index's, else the learned one; NULL when
+ * unknown. */
+const ms_archive_cell *ms_render_record(const ms_render *r, uint32_t id);
 
 /* The program for an effect set and variant: from the cache, else built. */
 ms_status ms_render_find_program(ms_render *r, unsigned effects, bool wireframe, bool tessellated,

@@ -1,6 +1,8 @@
 /* A frame's stitched mesh split by drawing cell (ms_render_internal.h).
  *
- * Triangles are grouped by triangle_cell with one counting sort per frame; each
+ * Triangles are grouped by triangle_cell with one stable radix sort per frame
+ * (ms_radix_sort_pairs; arrays sized by the frame's triangles and drawing cells, never by the
+ * model's cell count, which may be millions); each
  * cell's vertices are numbered in the order its triangles first use them, so the
  * same cell content always gives the same arrays and the same hash, and a cell
  * whose drawn triangles did not change is not uploaded again.
@@ -13,21 +15,22 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "ms_radix_sort.h"
 #include "ms_render_internal.h"
 
-void ms_render_split_init(ms_render_split *s, const ms_archive_header *header, const ms_archive_cell *cells)
+void ms_render_split_init(ms_render_split *s, const ms_archive_header *header)
 {
     memset(s, 0, sizeof *s);
     s->header = header;
-    s->cells = cells;
     s->cell_count = header->cell_count;
 }
 
 void ms_render_split_free(ms_render_split *s)
 {
-    free(s->cell_start);
     free(s->order);
+    free(s->sort_keys);
     free(s->present);
+    free(s->present_start);
     free(s->local);
     free(s->stamp);
     free(s->normal_sum);
@@ -125,14 +128,10 @@ ms_status ms_render_split_frame(ms_render_split *s, const ms_view_mesh *mesh, ms
                 return ms_error_set(err, MS_ERR_ARG, "render: triangle %zu uses vertex %u of %zu", t,
                                     mesh->triangles[3 * t + (size_t)k], nv);
     }
-    if (!s->cell_start) {
-        s->cell_start = calloc((size_t)s->cell_count + 1, sizeof *s->cell_start);
-        s->present = malloc(((size_t)s->cell_count + 1) * sizeof *s->present);
-        if (!s->cell_start || !s->present)
-            return ms_error_set(err, MS_ERR_NOMEM, "render: no memory for %u cells", s->cell_count);
-    }
-    size_t local_cap = s->vertex_cap;
-    if (!grow((void **)&s->order, &s->order_cap, nt ? nt : 1, sizeof *s->order) ||
+    size_t local_cap = s->vertex_cap, order_cap = s->order_cap;
+    if (!grow((void **)&s->order, &order_cap, nt ? nt : 1, sizeof *s->order) ||
+        (order_cap != s->order_cap &&
+         !grow((void **)&s->sort_keys, &s->order_cap, order_cap, sizeof *s->sort_keys)) ||
         !grow((void **)&s->local, &local_cap, nv ? nv : 1, sizeof *s->local))
         return ms_error_set(err, MS_ERR_NOMEM, "render: no memory to split %zu triangles", nt);
     if (local_cap != s->vertex_cap) {
@@ -143,21 +142,34 @@ ms_status ms_render_split_frame(ms_render_split *s, const ms_view_mesh *mesh, ms
         s->stamp = stamp;
         s->vertex_cap = local_cap;
     }
-    /* counting sort of the triangles by cell */
-    uint32_t *start = s->cell_start;
-    memset(start, 0, ((size_t)s->cell_count + 1) * sizeof *start);
-    for (size_t t = 0; t < nt; ++t)
-        start[mesh->triangle_cell[t] + 1]++;
-    for (uint32_t c = 0; c < s->cell_count; ++c) {
-        if (start[c + 1])
-            s->present[s->present_count++] = c;
-        start[c + 1] += start[c];
+    /* the triangles by cell, in their order within a cell (a stable radix sort on
+     * as many bits as the model's largest cell id needs) */
+    uint32_t *order = s->order;
+    for (size_t t = 0; t < nt; ++t) {
+        order[t] = (uint32_t)t;
+        s->sort_keys[t] = mesh->triangle_cell[t];
     }
-    for (size_t t = 0; t < nt; ++t)
-        s->order[start[mesh->triangle_cell[t]]++] = (uint32_t)t;
-    for (uint32_t c = s->cell_count; c > 0; --c) /* back to first entries */
-        start[c] = start[c - 1];
-    start[0] = 0;
+    unsigned key_bits = 1;
+    while (key_bits < 32 && (s->cell_count - 1) >> key_bits)
+        key_bits++;
+    ms_status sorted = ms_radix_sort_pairs(s->sort_keys, order, nt, key_bits, err);
+    if (sorted != MS_OK)
+        return sorted;
+    /* the runs of equal cells */
+    for (size_t i = 0; i < nt; ++i) {
+        uint32_t cell = mesh->triangle_cell[order[i]];
+        if (i > 0 && cell == s->present[s->present_count - 1])
+            continue;
+        size_t cap = s->present_cap;
+        if (!grow((void **)&s->present, &cap, (size_t)s->present_count + 2, sizeof *s->present) ||
+            (cap != s->present_cap &&
+             !grow((void **)&s->present_start, &s->present_cap, cap, sizeof *s->present_start)))
+            return ms_error_set(err, MS_ERR_NOMEM, "render: no memory for the frame's cells");
+        s->present_start[s->present_count] = (uint32_t)i;
+        s->present[s->present_count++] = cell;
+    }
+    if (s->present_count)
+        s->present_start[s->present_count] = (uint32_t)nt;
     ms_status st = vertex_normals(s, mesh, err);
     if (st != MS_OK)
         return st;
@@ -194,11 +206,12 @@ static uint64_t hash_bytes(uint64_t h, const void *data, size_t size)
     return a ^ a >> 32;
 }
 
-ms_status ms_render_split_cell(ms_render_split *s, uint32_t k, ms_render_cell_mesh *out, ms_error *err)
+ms_status ms_render_split_cell(ms_render_split *s, uint32_t k, const ms_archive_cell *record,
+                               ms_render_cell_mesh *out, ms_error *err)
 {
     const ms_view_mesh *m = s->mesh;
     uint32_t cell = s->present[k];
-    uint32_t first = s->cell_start[cell], end = s->cell_start[cell + 1];
+    uint32_t first = s->present_start[k], end = s->present_start[k + 1];
     uint32_t tris = end - first;
     if (!grow((void **)&s->indices, &s->cell_triangle_cap, 3 * (size_t)tris, sizeof *s->indices))
         return ms_error_set(err, MS_ERR_NOMEM, "render: no memory for cell %u", cell);
@@ -207,7 +220,7 @@ ms_status ms_render_split_cell(ms_render_split *s, uint32_t k, ms_render_cell_me
         s->pass = 1;
     }
     double origin[3], side;
-    ms_render_cell_cube(s->header, &s->cells[cell], origin, &side);
+    ms_render_cell_cube(s->header, record, origin, &side);
     uint32_t verts = 0;
     for (uint32_t i = first; i < end; ++i) {
         const uint32_t *tri = &m->triangles[3 * (size_t)s->order[i]];

@@ -75,23 +75,42 @@ static ms_status check_object(const json_t *obj, const cursor *at, const char *c
     return MS_OK;
 }
 
+/* The value at key (NULL when absent) and its cursor; the "missing" error when it
+ * is absent but required. */
+static ms_status lookup(const json_t *obj, const char *key, const cursor *at, bool required, json_t **value,
+                        cursor *c, ms_error *err)
+{
+    cursor_child(at, key, c);
+    *value = json_object_get(obj, key);
+    if (!*value && required)
+        return fail(err, MS_ERR_FORMAT, at, "missing \"%s\"", key);
+    return MS_OK;
+}
+
+/* The number v (a JSON number) if it lies in [lo, hi] (open at lo where lo_open). */
+static ms_status number_in_range(const json_t *v, const cursor *c, double lo, bool lo_open, double hi, double *out,
+                                 ms_error *err)
+{
+    double x = json_number_value(v);
+    if (!isfinite(x) || (lo_open ? x <= lo : x < lo) || x > hi)
+        return fail(err, MS_ERR_RANGE, c, "%g out of range %c%g, %g]", x, lo_open ? '(' : '[', lo, hi);
+    *out = x;
+    return MS_OK;
+}
+
 /* A number in [lo, hi] (open ends where lo_open / hi_open); absent: *out unchanged
  * unless required. */
 static ms_status get_number(const json_t *obj, const char *key, const cursor *at, bool required, double lo,
                             bool lo_open, double hi, double *out, ms_error *err)
 {
     cursor c;
-    cursor_child(at, key, &c);
-    json_t *v = json_object_get(obj, key);
-    if (!v)
-        return required ? fail(err, MS_ERR_FORMAT, at, "missing \"%s\"", key) : MS_OK;
+    json_t *v;
+    ms_status st = lookup(obj, key, at, required, &v, &c, err);
+    if (st != MS_OK || !v)
+        return st;
     if (!json_is_number(v))
         return fail(err, MS_ERR_FORMAT, &c, "expected a number");
-    double x = json_number_value(v);
-    if (!isfinite(x) || (lo_open ? x <= lo : x < lo) || x > hi)
-        return fail(err, MS_ERR_RANGE, &c, "%g out of range %c%g, %g]", x, lo_open ? '(' : '[', lo, hi);
-    *out = x;
-    return MS_OK;
+    return number_in_range(v, &c, lo, lo_open, hi, out, err);
 }
 
 static ms_status get_float(const json_t *obj, const char *key, const cursor *at, double lo, bool lo_open,
@@ -108,22 +127,19 @@ static ms_status get_vector(const json_t *obj, const char *key, const cursor *at
                             double lo, double hi, double *out, ms_error *err)
 {
     cursor c;
-    cursor_child(at, key, &c);
-    json_t *v = json_object_get(obj, key);
-    if (!v)
-        return required ? fail(err, MS_ERR_FORMAT, at, "missing \"%s\"", key) : MS_OK;
+    json_t *v;
+    ms_status st = lookup(obj, key, at, required, &v, &c, err);
+    if (st != MS_OK || !v)
+        return st;
     if (!json_is_array(v) || json_array_size(v) != n)
         return fail(err, MS_ERR_FORMAT, &c, "expected an array of %zu numbers", n);
-    for (size_t i = 0; i < n; ++i) {
+    for (size_t i = 0; i < n && st == MS_OK; ++i) {
         json_t *e = json_array_get(v, i);
         if (!json_is_number(e))
             return fail(err, MS_ERR_FORMAT, &c, "expected an array of %zu numbers", n);
-        double x = json_number_value(e);
-        if (!isfinite(x) || x < lo || x > hi)
-            return fail(err, MS_ERR_RANGE, &c, "%g out of range [%g, %g]", x, lo, hi);
-        out[i] = x;
+        st = number_in_range(e, &c, lo, false, hi, &out[i], err);
     }
-    return MS_OK;
+    return st;
 }
 
 static ms_status get_colour(const json_t *obj, const char *key, const cursor *at, float out[3], ms_error *err)
@@ -137,14 +153,13 @@ static ms_status get_colour(const json_t *obj, const char *key, const cursor *at
 
 static ms_status get_bool(const json_t *obj, const char *key, const cursor *at, bool *out, ms_error *err)
 {
-    json_t *v = json_object_get(obj, key);
-    if (!v)
-        return MS_OK;
-    if (!json_is_boolean(v)) {
-        cursor c;
-        cursor_child(at, key, &c);
+    cursor c;
+    json_t *v;
+    ms_status st = lookup(obj, key, at, false, &v, &c, err);
+    if (st != MS_OK || !v)
+        return st;
+    if (!json_is_boolean(v))
         return fail(err, MS_ERR_FORMAT, &c, "expected true or false");
-    }
     *out = json_is_true(v);
     return MS_OK;
 }
@@ -154,10 +169,10 @@ static ms_status get_choice(const json_t *obj, const char *key, const cursor *at
                             const char *const *names, const char *expected, int *out, ms_error *err)
 {
     cursor c;
-    cursor_child(at, key, &c);
-    json_t *v = json_object_get(obj, key);
-    if (!v)
-        return required ? fail(err, MS_ERR_FORMAT, at, "missing \"%s\"", key) : MS_OK;
+    json_t *v;
+    ms_status st = lookup(obj, key, at, required, &v, &c, err);
+    if (st != MS_OK || !v)
+        return st;
     if (json_is_string(v))
         for (int i = 0; names[i]; ++i)
             if (strcmp(names[i], json_string_value(v)) == 0) {
@@ -165,6 +180,15 @@ static ms_status get_choice(const json_t *obj, const char *key, const cursor *at
                 return MS_OK;
             }
     return fail(err, MS_ERR_FORMAT, &c, "expected %s", expected);
+}
+
+/* The optional object at key (NULL when absent) and its cursor, checked for keys
+ * outside allowed (NULL-ended). */
+static ms_status open_object(const json_t *parent, const char *key, const cursor *at, const char *const *allowed,
+                             json_t **obj, cursor *c, ms_error *err)
+{
+    ms_status st = lookup(parent, key, at, false, obj, c, err);
+    return st == MS_OK && *obj ? check_object(*obj, c, allowed, err) : st;
 }
 
 static void material_default(ms_scene_material *m)
@@ -178,14 +202,13 @@ static void material_default(ms_scene_material *m)
 static ms_status parse_material(const json_t *parent, const char *key, const cursor *at, ms_scene_material *m,
                                 ms_error *err)
 {
-    json_t *obj = json_object_get(parent, key);
-    if (!obj)
-        return MS_OK;
-    cursor c;
-    cursor_child(at, key, &c);
     static const char *const keys[] = {"type", "albedo", "specular", "shininess", "two_sided", NULL};
     static const char *const kinds[] = {"diffuse", "glossy", NULL};
-    ms_status st = check_object(obj, &c, keys, err);
+    json_t *obj;
+    cursor c;
+    ms_status st = open_object(parent, key, at, keys, &obj, &c, err);
+    if (!obj)
+        return st;
     int kind = MS_MATERIAL_DIFFUSE;
     if (st == MS_OK)
         st = get_choice(obj, "type", &c, false, kinds, "\"diffuse\" or \"glossy\"", &kind, err);
@@ -208,13 +231,12 @@ static ms_status parse_material(const json_t *parent, const char *key, const cur
 static ms_status parse_displacement(const json_t *parent, const cursor *at, ms_scene_displacement *d,
                                     ms_error *err)
 {
-    json_t *obj = json_object_get(parent, "displacement");
-    if (!obj)
-        return MS_OK;
-    cursor c;
-    cursor_child(at, "displacement", &c);
     static const char *const keys[] = {"amplitude", "atom_radius", "density", "seed", NULL};
-    ms_status st = check_object(obj, &c, keys, err);
+    json_t *obj;
+    cursor c;
+    ms_status st = open_object(parent, "displacement", at, keys, &obj, &c, err);
+    if (!obj)
+        return st;
     d->on = true;
     d->amplitude = 0.01f, d->atom_radius = 0.05f, d->density = 100.0f;
     if (st == MS_OK)
@@ -238,13 +260,12 @@ static ms_status parse_displacement(const json_t *parent, const cursor *at, ms_s
 static ms_status parse_surface(const json_t *parent, const char *key, const cursor *at, ms_scene_surface *s,
                                ms_error *err)
 {
-    json_t *obj = json_object_get(parent, key);
-    if (!obj)
-        return MS_OK;
-    cursor c;
-    cursor_child(at, key, &c);
     static const char *const keys[] = {"material", "displacement", NULL};
-    ms_status st = check_object(obj, &c, keys, err);
+    json_t *obj;
+    cursor c;
+    ms_status st = open_object(parent, key, at, keys, &obj, &c, err);
+    if (!obj)
+        return st;
     if (st == MS_OK)
         st = parse_material(obj, "material", &c, &s->material, err);
     if (st == MS_OK)
@@ -259,11 +280,11 @@ static ms_status parse_model(const json_t *obj, const cursor *at, ms_scene_model
     ms_status st = check_object(obj, at, keys, err);
     if (st != MS_OK)
         return st;
-    json_t *name = json_object_get(obj, "model");
+    json_t *name;
     cursor c;
-    cursor_child(at, "model", &c);
-    if (!name)
-        return fail(err, MS_ERR_FORMAT, at, "missing \"model\"");
+    st = lookup(obj, "model", at, true, &name, &c, err);
+    if (st != MS_OK)
+        return st;
     if (!json_is_string(name) || !ms_model_name_valid(json_string_value(name)))
         return fail(err, MS_ERR_FORMAT, &c, "expected a model name (1 to 64 of A-Z a-z 0-9 _ -)");
     snprintf(m->model, sizeof m->model, "%s", json_string_value(name));
@@ -341,14 +362,11 @@ static ms_status parse_light(const json_t *obj, const cursor *at, ms_scene_light
 
 static ms_status parse_room(const json_t *root, const cursor *top, ms_scene_room *room, ms_error *err)
 {
-    json_t *obj = json_object_get(root, "room");
-    if (!obj)
-        return MS_OK;
-    cursor at;
-    cursor_child(top, "room", &at);
     static const char *const keys[] = {"size", "floor", "walls", "plinths", NULL};
-    ms_status st = check_object(obj, &at, keys, err);
-    if (st != MS_OK)
+    json_t *obj;
+    cursor at;
+    ms_status st = open_object(root, "room", top, keys, &obj, &at, err);
+    if (st != MS_OK || !obj)
         return st;
     room->on = true;
     material_default(&room->floor.material);
@@ -407,14 +425,13 @@ static ms_status parse_effects(const json_t *root, const cursor *top, ms_scene *
     s->effects_allowed = MS_EFFECTS_ALL;
     s->impostor_threshold_px = 100.0;
     s->impostor_angle_degrees = 5.0;
-    json_t *obj = json_object_get(root, "effects");
-    if (!obj)
-        return MS_OK;
-    cursor at;
-    cursor_child(top, "effects", &at);
     static const char *const keys[] = {"detail_normals", "specular", "two_sided", "haze", "impostors",
                                        "displacement", "impostor_threshold_px", "impostor_angle_degrees", NULL};
-    ms_status st = check_object(obj, &at, keys, err);
+    json_t *obj;
+    cursor at;
+    ms_status st = open_object(root, "effects", top, keys, &obj, &at, err);
+    if (!obj)
+        return st;
     for (unsigned bit = 1; bit <= MS_EFFECTS_ALL && st == MS_OK; bit <<= 1) {
         bool on = true;
         st = get_bool(obj, ms_effect_name(bit), &at, &on, err);
@@ -462,11 +479,11 @@ static ms_status parse_root(const json_t *root, const cursor *top, const char *b
     if (st != MS_OK)
         return st;
 
-    json_t *models = json_object_get(root, "models");
+    json_t *models;
     cursor mc;
-    cursor_child(top, "models", &mc);
-    if (!models)
-        return fail(err, MS_ERR_FORMAT, top, "missing \"models\"");
+    st = lookup(root, "models", top, true, &models, &mc, err);
+    if (st != MS_OK)
+        return st;
     if (!json_is_array(models))
         return fail(err, MS_ERR_FORMAT, &mc, "expected an array");
     size_t n = json_array_size(models);

@@ -1,6 +1,5 @@
 #include "ms_viewer_model.h"
 
-#include <event2/event.h>
 #include <inttypes.h>
 #include <math.h>
 #include <stdio.h>
@@ -94,126 +93,6 @@ void ms_viewer_model_list_free(ms_viewer_model_list *list)
     list->count = 0;
 }
 
-/* Copies an opened archive's header and records into the model. */
-static ms_status take_index(const ms_archive *archive, ms_viewer_model *model, ms_error *err)
-{
-    model->header = *ms_archive_get_header(archive);
-    model->cells = calloc(model->header.cell_count, sizeof *model->cells);
-    if (!model->cells)
-        return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory for the index", model->name);
-    for (uint32_t i = 0; i < model->header.cell_count; ++i)
-        model->cells[i] = *ms_archive_get_cell(archive, i);
-    return MS_OK;
-}
-
-/* --- the index from a server: one connection, one OPEN_MODEL -------------- */
-
-typedef struct index_fetch {
-    struct event_base *base;
-    uint32_t request;
-    ms_archive *archive;
-    const char *name;
-    bool done, unknown;
-    ms_status status;
-    char why[MS_ERROR_TEXT_MAX];
-} index_fetch;
-
-static void index_fail(index_fetch *f, const char *why)
-{
-    if (f->done)
-        return;
-    f->done = true;
-    f->status = MS_ERR_IO;
-    snprintf(f->why, sizeof f->why, "%s", why);
-    event_base_loopbreak(f->base);
-}
-
-static void index_on_opened(ms_client *client, uint32_t request_id,
-                            const ms_proto_model_opened *opened, const uint8_t *index, void *arg)
-{
-    (void)client;
-    index_fetch *f = arg;
-    if (request_id != f->request || f->done)
-        return;
-    ms_error e;
-    f->done = true;
-    if (ms_archive_open_index(index, opened->index_size, f->name, &f->archive, &e) != MS_OK) {
-        f->status = MS_ERR_FORMAT;
-        snprintf(f->why, sizeof f->why, "%s", e.text);
-    }
-    event_base_loopbreak(f->base);
-}
-
-static void index_on_error(ms_client *client, uint32_t first_id, uint32_t count,
-                           const ms_proto_error_body *e, void *arg)
-{
-    (void)client;
-    index_fetch *f = arg;
-    if (count != 0 && (f->request < first_id || f->request - first_id >= count))
-        return;
-    char why[MS_ERROR_TEXT_MAX];
-    snprintf(why, sizeof why, "%s %.*s", ms_proto_error_name(e->code),
-             (int)(e->text_length > 150 ? 150 : e->text_length), e->text);
-    f->unknown = e->code == MS_PROTO_E_UNKNOWN_MODEL;
-    index_fail(f, why);
-}
-
-static void index_on_closed(ms_client *client, const char *why, void *arg)
-{
-    (void)client;
-    index_fail(arg, why);
-}
-
-static void index_on_timeout(evutil_socket_t fd, short what, void *arg)
-{
-    (void)fd, (void)what;
-    index_fail(arg, "no answer in time");
-}
-
-static ms_status open_server(const ms_viewer_source *source, ms_viewer_model *model,
-                             ms_error *err)
-{
-    ms_client_options co = {.host = source->host, .port = source->port, .token = source->token,
-                            .agent = "meshview/0.1", .max_frame = 0};
-    static const ms_client_handlers handlers = {.model_opened = index_on_opened,
-                                                .request_error = index_on_error,
-                                                .closed = index_on_closed};
-    index_fetch f = {.name = model->name};
-    struct event *timer = NULL;
-    ms_client *client = NULL;
-    ms_status st = MS_OK;
-    double timeout = source->timeout_s > 0 ? source->timeout_s : 5.0;
-    if (!(f.base = event_base_new()) || !(timer = evtimer_new(f.base, index_on_timeout, &f))) {
-        st = ms_error_set(err, MS_ERR_NOMEM, "out of memory for a model request");
-        goto done;
-    }
-    if ((st = ms_client_connect(f.base, &co, &handlers, &f, &client, err)) != MS_OK)
-        goto done;
-    if ((st = ms_client_open_model(client, model->name, &f.request, err)) != MS_OK)
-        goto done;
-    struct timeval limit = {(time_t)timeout,
-                            (suseconds_t)((timeout - (double)(time_t)timeout) * 1e6)};
-    evtimer_add(timer, &limit);
-    event_base_dispatch(f.base);
-    if (!f.done)
-        index_fail(&f, "the event loop ended early");
-    if (f.unknown)
-        st = ms_error_set(err, MS_ERR_RANGE, "model '%s' does not exist on %s:%u", model->name,
-                          source->host, source->port);
-    else if (f.status != MS_OK)
-        st = ms_error_set(err, f.status, "server %s:%u: %s", source->host, source->port, f.why);
-    else
-        st = take_index(f.archive, model, err);
-done:
-    ms_archive_close(f.archive);
-    ms_client_free(client);
-    if (timer)
-        event_free(timer);
-    if (f.base)
-        event_base_free(f.base);
-    return st;
-}
-
 static ms_status open_local(const ms_viewer_source *source, ms_viewer_model *model,
                             ms_error *err)
 {
@@ -221,7 +100,9 @@ static ms_status open_local(const ms_viewer_source *source, ms_viewer_model *mod
     ms_status st = ms_catalog_load(source->archive_dir, &catalog, err);
     if (st != MS_OK)
         return st;
-    bool known = ms_catalog_find(&catalog, model->name) != NULL;
+    const ms_catalog_entry *entry = ms_catalog_find(&catalog, model->name);
+    bool known = entry != NULL;
+    model->apo = entry && entry->apo;
     ms_catalog_free(&catalog);
     if (!known)
         return ms_error_set(err, MS_ERR_RANGE, "model '%s' does not exist in %s", model->name,
@@ -231,12 +112,28 @@ static ms_status open_local(const ms_viewer_source *source, ms_viewer_model *mod
     if (n < 0 || (size_t)n >= sizeof model->archive_path)
         return ms_error_set(err, MS_ERR_ARG, "%s: archive directory path too long",
                             source->archive_dir);
-    ms_archive *archive;
-    if ((st = ms_archive_open(model->archive_path, &archive, err)) != MS_OK)
+    return MS_OK;
+}
+
+/* The server's catalogue lists the model: no index crosses the network here. */
+static ms_status open_server(const ms_viewer_source *source, ms_viewer_model *model,
+                             ms_error *err)
+{
+    ms_viewer_model_list list;
+    ms_status st = list_server(source, &list, err);
+    if (st != MS_OK)
         return st;
-    st = take_index(archive, model, err);
-    ms_archive_close(archive);
-    return st;
+    bool known = false;
+    for (size_t i = 0; i < list.count && !known; ++i)
+        if (!strcmp(list.entries[i].name, model->name)) {
+            known = true;
+            model->apo = list.entries[i].apo;
+        }
+    ms_viewer_model_list_free(&list);
+    if (!known)
+        return ms_error_set(err, MS_ERR_RANGE, "model '%s' does not exist on %s:%u", model->name,
+                            source->host, source->port);
+    return MS_OK;
 }
 
 ms_status ms_viewer_model_open(const ms_viewer_source *source, const char *name,
@@ -253,14 +150,24 @@ ms_status ms_viewer_model_open(const ms_viewer_source *source, const char *name,
     return st;
 }
 
+static int compare_id(const void *a, const void *b)
+{
+    uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
+    return x < y ? -1 : x > y;
+}
+
 void ms_viewer_model_bounds(const ms_viewer_model *model, double lo[3], double hi[3])
 {
     const ms_archive_header *h = &model->header;
+    const ms_core_opening *index = &model->index;
     bool any = false;
-    for (uint32_t i = 0; i < h->cell_count; ++i) {
-        const ms_archive_cell *c = &model->cells[i];
-        if (c->first_child != MS_ARCHIVE_NONE || c->triangle_count == 0)
+    for (size_t i = 0; i < index->count; ++i) {
+        const ms_archive_cell *c = &index->records[i];
+        if (c->triangle_count == 0)
             continue;
+        if (c->first_child != MS_ARCHIVE_NONE &&
+            bsearch(&c->first_child, index->ids, index->count, sizeof *index->ids, compare_id))
+            continue; /* its children are held: they bound it more tightly */
         double side = h->box_side / pow((double)h->n, (double)c->level);
         for (int k = 0; k < 3; ++k) {
             double a = h->box_origin[k] + c->position[k] * side, b = a + side;
@@ -280,6 +187,5 @@ void ms_viewer_model_close(ms_viewer_model *model)
 {
     if (!model)
         return;
-    free(model->cells);
-    model->cells = NULL;
+    ms_core_opening_free(&model->index);
 }

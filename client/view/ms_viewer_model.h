@@ -1,14 +1,15 @@
 /* Where meshview's models come from: a meshserve server or a local archive
  * directory (DIR/catalog.json and DIR/NAME.msa, ms_catalog.h). Lists the models
- * for the catalogue screen and opens one model's index (header and cell
- * records), which the renderer needs (ms_render_new) and which tells the
- * viewer where the model is (its cube) before the first frame arrives.
+ * for the catalogue screen and opens one model: checks that the source lists
+ * it (so an unknown model or a server that is not there is one clear error
+ * before any window opens) and says whether it has APO. The model's index is
+ * not fetched here: its header and head (the records the index holds at open,
+ * ms_core_opening) come from the stream's core once it opened the model
+ * (ms_viewer_stream_open fills them in), so the index crosses the network
+ * once, and by subtree where the server offers it (docs/CLIENT.md).
  *
- * Server: the list comes from ms_client_fetch_catalogue; the index from one
- * short connection of its own (HELLO, OPEN_MODEL, the index blob, close),
- * bounded by a time-out, so an unknown model or a server that is not there is
- * one clear error before any window opens. Local: ms_catalog_load and
- * ms_archive_open.
+ * Server: the list comes from ms_client_fetch_catalogue (LIST_CATALOGUE,
+ * bounded by the time-out). Local: ms_catalog_load.
  *
  * Ownership: lists and models own their memory (_free / _close, both safe on
  * zeroed values). Errors: ms_status with one line naming the server or file:
@@ -25,6 +26,7 @@
 
 #include "ms_archive.h"
 #include "ms_catalog.h"
+#include "ms_client_core.h"
 #include "ms_error.h"
 
 typedef struct ms_viewer_source {
@@ -54,16 +56,22 @@ void ms_viewer_model_list_free(ms_viewer_model_list *list);
 typedef struct ms_viewer_model {
     char name[MS_MODEL_NAME_MAX + 1];
     char archive_path[4096];  /* local: DIR/NAME.msa; "" for a server */
+    bool apo;                 /* the source lists the model with APO */
+    /* filled by ms_viewer_stream_open once the core opened the model: */
     ms_archive_header header;
-    ms_archive_cell *cells;   /* header.cell_count records */
+    ms_core_opening index;    /* the head (by subtree) or the whole index */
 } ms_viewer_model;
 
-/* The box the model's surface occupies, as far as the index tells: the union of
- * the cubes of its leaf cells that hold triangles (the whole cube when none
- * does). The model's cube is usually much larger on two axes. */
+/* The box the model's surface occupies, as far as the index held at open
+ * tells: the union of the cubes of the cells that hold triangles and whose
+ * children it does not hold (leaves; with an index by subtree, also the head's
+ * deepest cells, so the box can be a little larger than with the whole index);
+ * the whole cube when none does. The model's cube is usually much larger on
+ * two axes. */
 void ms_viewer_model_bounds(const ms_viewer_model *model, double lo[3], double hi[3]);
 
-/* Opens the index of model `name` (a valid model name, else MS_ERR_ARG). */
+/* Opens model `name` (a valid model name, else MS_ERR_ARG): MS_ERR_RANGE when
+ * the source does not list it. */
 ms_status ms_viewer_model_open(const ms_viewer_source *source, const char *name,
                                ms_viewer_model *model, ms_error *err);
 void ms_viewer_model_close(ms_viewer_model *model);

@@ -27,6 +27,9 @@ void ms_viewer_options_usage(FILE *out)
           "  --upload-budget BYTES  GPU upload per frame at most (default 4000000)\n"
           "  --memory MB            client cache target (default none)\n"
           "  --bandwidth B          bytes per second read (default unlimited)\n"
+          "  --whole-index          take the model's whole index at open, as from a server\n"
+          "                         without subtrees (default: the index head, then subtrees\n"
+          "                         as the view needs them)\n"
           "  --up x|y|z             the model's up axis (default z)\n"
           "Scenes (docs/SCENES.md):\n"
           "  --scene FILE           a room of catalogue models; --path defaults to its camera path\n"
@@ -253,6 +256,7 @@ static int apply_option(int ch, const char *arg, ms_viewer_options *o, option_le
         if (!number(err, "--bandwidth", arg, 1000, 1e12, &o->bandwidth))
             return 2;
         break;
+    case 'W': o->whole_index = true; break;
     case 'U':
         if (strlen(arg) != 1 || arg[0] < 'x' || arg[0] > 'z') {
             fprintf(err, "meshview: --up wants x, y or z\n");
@@ -307,6 +311,7 @@ int ms_viewer_options_parse(int argc, char **argv, ms_viewer_options *o, FILE *e
         {"scene", required_argument, NULL, 'c'},
         {"effects-off", required_argument, NULL, 'e'},
         {"effects-all", no_argument, NULL, 'E'},
+        {"whole-index", no_argument, NULL, 'W'},
         {NULL, 0, NULL, 0}};
     default_options(o);
     option_leftovers left = {false, NULL};
@@ -337,4 +342,22 @@ int ms_viewer_options_parse(int argc, char **argv, ms_viewer_options *o, FILE *e
         return 2;
     }
     return finish_options(o, left.shading, left.no_apo, err);
+}
+
+ms_viewer_stream_settings ms_viewer_options_stream_settings(const ms_viewer_options *o)
+{
+    ms_viewer_stream_settings s = {.tolerance_px = o->tolerance_px,
+                                   .apo_levels = o->apo_levels,
+                                   .memory_mb = o->memory_mb,
+                                   .bandwidth = o->bandwidth,
+                                   .whole_index = o->whole_index};
+    return s;
+}
+
+ms_viewer_scene_settings ms_viewer_options_scene_settings(const ms_viewer_options *o)
+{
+    ms_viewer_scene_settings s = {.stream = ms_viewer_options_stream_settings(o),
+                                  .effects_off = o->effects_off,
+                                  .force_all = o->effects_all};
+    return s;
 }

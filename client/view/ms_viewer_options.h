@@ -21,6 +21,7 @@
 #include <stdio.h>
 
 #include "ms_render.h"
+#include "ms_viewer_scene.h"
 
 typedef struct ms_viewer_options {
     const char *archive_dir;   /* positional: a local archive directory */
@@ -36,6 +37,7 @@ typedef struct ms_viewer_options {
     unsigned apo_levels;       /* fetched; 0: none */
     uint64_t upload_budget;    /* bytes per frame */
     double memory_mb, bandwidth, keyframe_timeout;
+    bool whole_index;          /* the whole index at open (ms_core_options.whole_index) */
     int up_axis;               /* 0..2 */
     bool json, scripted, help;
     bool hud;                  /* scripted: draw the HUD into the pictures */
@@ -50,5 +52,10 @@ int ms_viewer_options_parse(int argc, char **argv, ms_viewer_options *o, FILE *e
 
 /* The usage text with the key list. */
 void ms_viewer_options_usage(FILE *out);
+
+/* What the options ask of one model's stream (tolerance, APO levels, memory,
+ * bandwidth), and of a scene's (the same, and which effects to compile). */
+ms_viewer_stream_settings ms_viewer_options_stream_settings(const ms_viewer_options *o);
+ms_viewer_scene_settings ms_viewer_options_scene_settings(const ms_viewer_options *o);
 
 #endif

@@ -280,9 +280,10 @@ ms_status ms_viewer_scene_open(const ms_viewer_source *source, const ms_scene *s
         st = ms_viewer_model_open(source, scene->models[i].model, &m->model, err);
         if (st == MS_OK) {
             vs->model_count = i + 1;
-            place_model(&scene->models[i], m);
             st = ms_viewer_stream_open(source, &m->model, &each, &m->stream, err);
         }
+        if (st == MS_OK) /* the bounds come with the index the stream's core opened */
+            place_model(&scene->models[i], m);
     }
     if (st == MS_OK)
         st = build_room(vs, err);
@@ -594,6 +595,12 @@ void ms_viewer_scene_stats(ms_viewer_scene *vs, ms_core_stats *sum)
         sum->cells_failed += s.cells_failed;
         sum->memory += s.memory, sum->peak_memory += s.peak_memory;
         sum->decode_seconds += s.decode_seconds;
+        sum->index_by_subtree |= s.index_by_subtree;
+        sum->subtrees_received += s.subtrees_received;
+        sum->index_bytes_received += s.index_bytes_received;
+        sum->index_bytes_held += s.index_bytes_held;
+        sum->peak_index_bytes_held += s.peak_index_bytes_held;
+        sum->subtrees_held += s.subtrees_held;
         sum->latency_p50 = fmax(sum->latency_p50, s.latency_p50);
         sum->latency_p99 = fmax(sum->latency_p99, s.latency_p99);
         if (!sum->error[0] && s.error[0])

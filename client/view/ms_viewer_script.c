@@ -168,6 +168,9 @@ typedef struct script {
     samples apo_draw_ms, plain_draw_ms; /* --compare-apo */
     bool first_written;
     char first_png[4200];
+    double opened_at;           /* now_s() when the model (or scene) began to open */
+    double first_display;       /* seconds from opened_at to the first frame drawn with a
+                                   triangle; < 0 none yet */
     uint64_t last_triangles;
 } script;
 
@@ -277,6 +280,7 @@ static ms_status frame(script *s, const ms_camera *camera, ms_viewer_step *step,
         s->effect_frames[e] += (drawn.effects_ran >> e) & 1u;
     if (!s->first_written && drawn.triangles_drawn > 0) {
         s->first_written = true;
+        s->first_display = now_s() - s->opened_at;
         snprintf(s->first_png, sizeof s->first_png, "%s/first-frame.png", s->o->screenshot_dir);
         if ((st = ms_viewer_screenshot(s->first_png, s->o->width, s->o->height, err)) != MS_OK)
             return st;
@@ -306,6 +310,26 @@ static ms_status hold(script *s, const ms_camera *camera, bool *settled, double 
         if (!step.new_frame && !step.upload.bytes)
             nap(0.004);
     }
+}
+
+/* The core's index figures (docs/CLIENT.md, "An index by subtree"), and its
+ * time to first display, added to a report. */
+static void add_index_figures(json_t *report, const script *s, const ms_core_stats *cs)
+{
+    if (!report)
+        return;
+    /* meshview's own: from the start of opening (catalogue check, the core's
+     * index head or whole index, the first bytes) to the first picture with a
+     * triangle; the core's counts from its own start only */
+    json_object_set_new(report, "time_to_first_display", json_real(s->first_display));
+    json_object_set_new(report, "core_first_display", json_real(cs->first_display));
+    json_object_set_new(report, "index",
+                        json_pack("{s:b, s:I, s:I, s:I, s:I}", "by_subtree", cs->index_by_subtree,
+                                  "subtrees_received", (json_int_t)cs->subtrees_received,
+                                  "index_bytes_received", (json_int_t)cs->index_bytes_received,
+                                  "index_bytes_held", (json_int_t)cs->index_bytes_held,
+                                  "peak_index_bytes_held",
+                                  (json_int_t)cs->peak_index_bytes_held));
 }
 
 static json_t *frame_summary(frame_log *log, uint64_t budget)
@@ -443,16 +467,11 @@ static ms_status scene_run(const ms_viewer_options *o, const ms_viewer_source *s
     if (st != MS_OK)
         return st;
     script s = {.o = o, .window = window, .name = scene.name[0] ? scene.name : "scene",
-                .scene_path = scene.camera_path};
+                .scene_path = scene.camera_path, .opened_at = now_s(), .first_display = -1};
     ms_render_options_default(&s.render);
     s.render.shading = o->shading;
     s.render.apo = o->apo_shading;
-    ms_viewer_scene_settings settings = {.stream = {.tolerance_px = o->tolerance_px,
-                                                    .apo_levels = o->apo_levels,
-                                                    .memory_mb = o->memory_mb,
-                                                    .bandwidth = o->bandwidth},
-                                         .effects_off = o->effects_off,
-                                         .force_all = o->effects_all};
+    ms_viewer_scene_settings settings = ms_viewer_options_scene_settings(o);
     json_t *keys = json_array();
     double started = now_s();
     if ((o->hud && (st = ms_viewer_text_new(&s.text, err)) != MS_OK) ||
@@ -474,6 +493,7 @@ static ms_status scene_run(const ms_viewer_options *o, const ms_viewer_source *s
                         (json_int_t)cs.geometry_bytes_received, "apo_bytes", (json_int_t)cs.apo_bytes_received,
                         "seconds", now_s() - started, "effects_called_for", effect_names(ms_scene_effects(&scene)),
                         "effects_compiled", effect_names(ms_viewer_scene_effects(s.scene)), "effect_frames", ran);
+    add_index_figures(*report, &s, &cs);
     if (!*report)
         st = ms_error_set(err, MS_ERR_NOMEM, "out of memory for the report");
 done:
@@ -497,17 +517,15 @@ ms_status ms_viewer_script_run(const ms_viewer_options *o, const ms_viewer_sourc
         *complete = true;
         return catalogue_shot(o, source, report, err);
     }
+    double opened_at = now_s();
     ms_viewer_model model;
     if ((st = ms_viewer_model_open(source, o->model, &model, err)) != MS_OK)
         return st;
-    script s = {.o = o, .window = window, .name = o->model};
+    script s = {.o = o, .window = window, .name = o->model, .opened_at = opened_at, .first_display = -1};
     ms_render_options_default(&s.render);
     s.render.shading = o->shading;
     s.render.apo = o->apo_shading;
-    ms_viewer_stream_settings settings = {.tolerance_px = o->tolerance_px,
-                                          .apo_levels = o->apo_levels,
-                                          .memory_mb = o->memory_mb,
-                                          .bandwidth = o->bandwidth};
+    ms_viewer_stream_settings settings = ms_viewer_options_stream_settings(o);
     json_t *keys = json_array();
     double started = now_s();
     if ((o->hud && (st = ms_viewer_text_new(&s.text, err)) != MS_OK) ||
@@ -545,6 +563,7 @@ ms_status ms_viewer_script_run(const ms_viewer_options *o, const ms_viewer_sourc
                         (json_int_t)cs.geometry_bytes_received, "apo_bytes",
                         (json_int_t)cs.apo_bytes_received, "seconds", now_s() - started,
                         "compare_apo", compare);
+    add_index_figures(*report, &s, &cs);
     if (!*report)
         st = ms_error_set(err, MS_ERR_NOMEM, "out of memory for the report");
 done:

@@ -15,7 +15,7 @@ struct ms_viewer_stream {
     bool settled;               /* as of the last step */
 };
 
-ms_status ms_viewer_stream_open(const ms_viewer_source *source, const ms_viewer_model *model,
+ms_status ms_viewer_stream_open(const ms_viewer_source *source, ms_viewer_model *model,
                                 const ms_viewer_stream_settings *settings,
                                 ms_viewer_stream **out, ms_error *err)
 {
@@ -27,15 +27,10 @@ ms_status ms_viewer_stream_open(const ms_viewer_source *source, const ms_viewer_
     /* With APO the core refines geometry to apo_geometry_tolerance_px (the
      * normals carry the finer detail), else to tolerance_px: the viewer's
      * tolerance is whichever of the two is in effect. */
-    bool apo = settings->apo_levels > 0 && model->header.has_apo;
+    bool apo = settings->apo_levels > 0 && model->apo;
     /* 1 px with APO too: coarser geometry under APO costs more image error than
      * the bytes it saves (docs/ACCURACY.md) */
     s->start_tolerance = s->tolerance = settings->tolerance_px > 0 ? settings->tolerance_px : 1.0;
-    ms_status st = ms_render_new(&model->header, model->cells, &s->render, err);
-    if (st != MS_OK) {
-        free(s);
-        return st;
-    }
     ms_core_options co = {0};
     if (source->archive_dir)
         co.archive_path = model->archive_path;
@@ -57,9 +52,18 @@ ms_status ms_viewer_stream_open(const ms_viewer_source *source, const ms_viewer_
     co.decode_threads = settings->decode_threads;
     co.give_up_seconds = 8; /* a server gone this long ends the viewer (exit 1) */
     co.export_frames = true;
-    if ((st = ms_core_start(&co, &s->core, err)) != MS_OK) {
-        ms_render_free(s->render);
-        free(s);
+    co.whole_index = settings->whole_index;
+    ms_status st = ms_core_start(&co, &s->core, err);
+    if (st == MS_OK) {
+        ms_core_opening_free(&model->index);
+        st = ms_core_wait_open(s->core, source->timeout_s > 0 ? source->timeout_s : 5.0, &model->index, err);
+    }
+    if (st == MS_OK) {
+        model->header = model->index.header;
+        st = ms_render_new(&model->header, NULL, &s->render, err);
+    }
+    if (st != MS_OK) {
+        ms_viewer_stream_close(s);
         return st;
     }
     *out = s;
@@ -118,8 +122,10 @@ ms_status ms_viewer_stream_step(ms_viewer_stream *s, const ms_camera *camera,
         return ms_error_set(err, MS_ERR_IO, "%s", stats.error);
     ms_core_frame *frame = ms_core_take_frame(s->core);
     if (frame) {
-        ms_status st = ms_render_set_frame(s->render, &frame->mesh, frame->apo, frame->apo_count,
-                                           err);
+        ms_status st = ms_render_learn(s->render, frame->record_ids, frame->records,
+                                       frame->record_count, err);
+        if (st == MS_OK)
+            st = ms_render_set_frame(s->render, &frame->mesh, frame->apo, frame->apo_count, err);
         if (st != MS_OK) {
             ms_core_frame_free(frame);
             return st;

@@ -38,9 +38,16 @@ typedef struct ms_viewer_stream_settings {
                                   scene's; ms_client_core.h): then memory_mb must be 0 */
     double bandwidth;          /* bytes per second; 0 = unlimited */
     unsigned decode_threads;   /* 0 = the core's default */
+    bool whole_index;          /* take the whole index at open (ms_core_options.whole_index),
+                                  as from a server without subtrees */
 } ms_viewer_stream_settings;
 
-ms_status ms_viewer_stream_open(const ms_viewer_source *source, const ms_viewer_model *model,
+/* Starts the core for a model opened with ms_viewer_model_open and waits (at
+ * most the source's time-out) until it opened the model, then fills in
+ * model->header and model->index from what the core received (the index
+ * crosses the network once). The renderer learns the records of the cells it
+ * draws from the core's frames. The model must outlive the stream. */
+ms_status ms_viewer_stream_open(const ms_viewer_source *source, ms_viewer_model *model,
                                 const ms_viewer_stream_settings *settings,
                                 ms_viewer_stream **stream, ms_error *err);
 void ms_viewer_stream_close(ms_viewer_stream *stream);

@@ -33,8 +33,7 @@ static void cell_reset(vcell *c)
     c->bits = 0;
 }
 
-ms_status ms_view_create(const ms_archive_header *h, const ms_archive_cell *cells, ms_view **out,
-                         ms_error *err)
+ms_status ms_view_create_partial(const ms_archive_header *h, ms_view **out, ms_error *err)
 {
     *out = NULL;
     ms_view *v = calloc(1, sizeof *v);
@@ -46,34 +45,173 @@ ms_status ms_view_create(const ms_archive_header *h, const ms_archive_cell *cell
         free(v);
         return s;
     }
-    if (h->cell_count < 1 || h->cell_count > MS_ARCHIVE_MAX_CELLS) {
+    v->group_size = (uint32_t)h->n * h->n * h->n;
+    if (h->cell_count < 1 || h->cell_count > MS_ARCHIVE_MAX_CELLS ||
+        (h->cell_count - 1) % v->group_size != 0) {
         free(v);
         return ms_error_set(err, MS_ERR_ARG, "bad cell count %u", h->cell_count);
     }
     v->count = h->cell_count;
-    v->cells = calloc(v->count, sizeof *v->cells);
-    if (!v->cells) {
+    v->group_count = 1 + (v->count - 1) / v->group_size;
+    v->groups = calloc(v->group_count, sizeof *v->groups);
+    if (!v->groups) {
         free(v);
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory creating a view");
     }
-    const uint32_t nc = h->n * h->n * h->n;
-    for (uint32_t i = 0; i < v->count; ++i) {
-        const ms_archive_cell *c = &cells[i];
-        v->cells[i].rec = *c;
-        bool ok = c->bits_min <= c->bits_max && c->bits_max <= h->bits;
-        if (c->first_child != MS_ARCHIVE_NONE)
-            ok = ok && c->first_child > i && c->first_child <= v->count - nc;
-        if (i > 0)
-            ok = ok && c->parent < i;
-        if (!ok) {
-            ms_view_destroy(v);
-            return ms_error_set(err, MS_ERR_ARG, "cell %u: record breaks the tree rules", i);
-        }
-    }
-    v->cells[0].state = MS_VIEW_SHOWN;
-    v->cells[0].bits = v->cells[0].rec.bits_min;
     *out = v;
     return MS_OK;
+}
+
+/* The tree rules one record must keep, alone and against its known parent. */
+static bool record_fits(const ms_view *v, uint32_t id, const ms_archive_cell *c)
+{
+    const uint32_t nc = v->group_size;
+    bool ok = id < v->count && c->bits_min <= c->bits_max && c->bits_max <= v->header.bits;
+    if (ok && c->first_child != MS_ARCHIVE_NONE)
+        ok = c->first_child > id && c->first_child <= v->count - nc &&
+             (c->first_child - 1) % nc == 0;
+    if (ok && id > 0) {
+        ok = c->parent < id;
+        const vcell *p = ok ? ms_view_vcell(v, c->parent) : NULL;
+        if (p)
+            ok = p->rec.first_child != MS_ARCHIVE_NONE && p->rec.first_child <= id &&
+                 id - p->rec.first_child < nc && c->level == p->rec.level + 1u;
+    }
+    return ok;
+}
+
+ms_status ms_view_learn(ms_view *v, const uint32_t *ids, const ms_archive_cell *recs,
+                        size_t count, ms_error *err)
+{
+    for (size_t k = 0; k < count; ++k)
+        if (!record_fits(v, ids[k], &recs[k]))
+            return ms_error_set(err, MS_ERR_ARG, "cell %u: record breaks the tree rules",
+                                ids[k]);
+    for (size_t k = 0; k < count; ++k) {
+        uint32_t g = ms_view_group_of(v, ids[k]);
+        if (v->groups[g])
+            continue;
+        v->groups[g] = calloc(g == 0 ? 1 : v->group_size, sizeof *v->groups[g]);
+        if (!v->groups[g]) {
+            /* give back the blocks this call made, none of which is used yet */
+            for (size_t j = 0; j < k; ++j) {
+                uint32_t gj = ms_view_group_of(v, ids[j]);
+                vcell *b = v->groups[gj];
+                bool used = false;
+                for (uint32_t m = 0; b && m < (gj == 0 ? 1 : v->group_size); ++m)
+                    used |= b[m].known;
+                if (b && !used) {
+                    free(b);
+                    v->groups[gj] = NULL;
+                }
+            }
+            return ms_error_set(err, MS_ERR_NOMEM, "out of memory for %zu cell records", count);
+        }
+    }
+    for (size_t k = 0; k < count; ++k) {
+        uint32_t id = ids[k];
+        vcell *block = v->groups[ms_view_group_of(v, id)];
+        vcell *c = &block[id == 0 ? 0 : (id - 1) % v->group_size];
+        if (c->known)
+            continue; /* the same subtree again */
+        memset(c, 0, sizeof *c);
+        c->rec = recs[k];
+        c->known = true;
+        v->known++;
+        if (id == 0) {
+            c->state = MS_VIEW_SHOWN;
+            c->bits = c->rec.bits_min;
+        }
+    }
+    return MS_OK;
+}
+
+ms_status ms_view_unlearn(ms_view *v, const uint32_t *ids, size_t count, ms_error *err)
+{
+    for (size_t k = 0; k < count; ++k) {
+        const vcell *c = ms_view_vcell(v, ids[k]);
+        if (c && (ids[k] == 0 || c->state != MS_VIEW_HIDDEN))
+            return ms_error_set(err, MS_ERR_RANGE, "cell %u is %s: its record stays", ids[k],
+                                ids[k] == 0 ? "the root" : "in the cut");
+    }
+    for (size_t k = 0; k < count; ++k) {
+        vcell *c = ms_view_vcell(v, ids[k]);
+        if (!c)
+            continue;
+        cell_reset(c);
+        free(c->bytes);
+        memset(c, 0, sizeof *c);
+        v->known--;
+        uint32_t g = ms_view_group_of(v, ids[k]);
+        bool used = false;
+        for (uint32_t m = 0; m < v->group_size && !used; ++m)
+            used = v->groups[g][m].known;
+        if (!used) {
+            free(v->groups[g]);
+            v->groups[g] = NULL;
+        }
+    }
+    return MS_OK;
+}
+
+bool ms_view_known(const ms_view *v, uint32_t cell) { return ms_view_vcell(v, cell) != NULL; }
+
+uint32_t ms_view_known_count(const ms_view *v) { return v->known; }
+
+uint32_t ms_view_next_known(const ms_view *v, uint32_t after)
+{
+    uint32_t id = after == MS_ARCHIVE_NONE ? 0 : after + 1;
+    while (id < v->count) {
+        uint32_t g = ms_view_group_of(v, id);
+        const vcell *block = v->groups[g];
+        if (!block) {
+            id = ms_view_group_first(v, g + 1); /* the next group */
+            continue;
+        }
+        if (block[id == 0 ? 0 : (id - 1) % v->group_size].known)
+            return id;
+        id++;
+    }
+    return MS_ARCHIVE_NONE;
+}
+
+bool ms_view_children_known(const ms_view *v, uint32_t cell)
+{
+    const vcell *c = ms_view_vcell(v, cell);
+    if (!c || c->rec.first_child == MS_ARCHIVE_NONE)
+        return false;
+    const vcell *block = v->groups[ms_view_group_of(v, c->rec.first_child)];
+    if (!block)
+        return false;
+    for (uint32_t k = 0; k < v->group_size; ++k)
+        if (!block[k].known)
+            return false;
+    return true;
+}
+
+ms_status ms_view_create(const ms_archive_header *h, const ms_archive_cell *cells, ms_view **out,
+                         ms_error *err)
+{
+    ms_status s = ms_view_create_partial(h, out, err);
+    if (s != MS_OK)
+        return s;
+    uint32_t *ids = malloc((size_t)h->cell_count * sizeof *ids);
+    if (!ids) {
+        ms_view_destroy(*out);
+        *out = NULL;
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory creating a view");
+    }
+    for (uint32_t i = 0; i < h->cell_count; ++i)
+        ids[i] = i;
+    /* in id order, each parent is known before its children are checked */
+    for (uint32_t i = 0; i < h->cell_count && s == MS_OK; ++i)
+        s = ms_view_learn(*out, &ids[i], &cells[i], 1, err);
+    free(ids);
+    if (s != MS_OK) {
+        ms_view_destroy(*out);
+        *out = NULL;
+    }
+    return s;
 }
 
 ms_status ms_view_create_from_archive(const ms_archive *a, ms_view **out, ms_error *err)
@@ -105,11 +243,17 @@ void ms_view_destroy(ms_view *v)
 {
     if (!v)
         return;
-    for (uint32_t i = 0; i < v->count; ++i) {
-        cell_reset(&v->cells[i]);
-        free(v->cells[i].bytes);
+    for (uint32_t g = 0; g < v->group_count; ++g) {
+        vcell *block = v->groups[g];
+        for (uint32_t k = 0; block && k < (g == 0 ? 1 : v->group_size); ++k) {
+            if (!block[k].known)
+                continue;
+            cell_reset(&block[k]);
+            free(block[k].bytes);
+        }
+        free(block);
     }
-    free(v->cells);
+    free(v->groups);
     free(v);
 }
 
@@ -119,25 +263,28 @@ uint32_t ms_view_cell_count(const ms_view *v) { return v->count; }
 
 const ms_archive_cell *ms_view_cell(const ms_view *v, uint32_t cell)
 {
-    return cell < v->count ? &v->cells[cell].rec : NULL;
+    const vcell *c = ms_view_vcell(v, cell);
+    return c ? &c->rec : NULL;
 }
 
 ms_view_cell_state ms_view_state(const ms_view *v, uint32_t cell)
 {
-    return cell < v->count ? (ms_view_cell_state)v->cells[cell].state : MS_VIEW_HIDDEN;
+    const vcell *c = ms_view_vcell(v, cell);
+    return c ? (ms_view_cell_state)c->state : MS_VIEW_HIDDEN;
 }
 
 unsigned ms_view_bits(const ms_view *v, uint32_t cell)
 {
-    return cell < v->count ? v->cells[cell].bits : 0;
+    const vcell *c = ms_view_vcell(v, cell);
+    return c ? c->bits : 0;
 }
 
 ms_status ms_view_set_bytes(ms_view *v, uint32_t cell, const uint8_t *data, size_t length,
                             ms_error *err)
 {
-    if (cell >= v->count)
-        return ms_error_set(err, MS_ERR_RANGE, "no cell %u", cell);
-    vcell *c = &v->cells[cell];
+    vcell *c = ms_view_vcell(v, cell);
+    if (!c)
+        return ms_error_set(err, MS_ERR_RANGE, "no cell %u known", cell);
     if (length > c->rec.geometry_length)
         return ms_error_set(err, MS_ERR_RANGE, "cell %u: %zu bytes for a %u-byte payload", cell,
                             length, c->rec.geometry_length);
@@ -155,9 +302,9 @@ ms_status ms_view_set_bytes(ms_view *v, uint32_t cell, const uint8_t *data, size
 ms_status ms_view_append_bytes(ms_view *v, uint32_t cell, const uint8_t *data, size_t length,
                                ms_error *err)
 {
-    if (cell >= v->count)
-        return ms_error_set(err, MS_ERR_RANGE, "no cell %u", cell);
-    vcell *c = &v->cells[cell];
+    vcell *c = ms_view_vcell(v, cell);
+    if (!c)
+        return ms_error_set(err, MS_ERR_RANGE, "no cell %u known", cell);
     if (length > c->rec.geometry_length - c->nbytes)
         return ms_error_set(err, MS_ERR_RANGE, "cell %u: %zu more bytes for a %u-byte payload "
                             "of which %zu are held", cell, length, c->rec.geometry_length,
@@ -175,9 +322,9 @@ ms_status ms_view_append_bytes(ms_view *v, uint32_t cell, const uint8_t *data, s
 
 ms_status ms_view_forget(ms_view *v, uint32_t cell, ms_error *err)
 {
-    if (cell >= v->count || v->cells[cell].state != MS_VIEW_HIDDEN)
+    vcell *c = ms_view_vcell(v, cell);
+    if (!c || c->state != MS_VIEW_HIDDEN)
         return ms_error_set(err, MS_ERR_RANGE, "cell %u is not hidden", cell);
-    vcell *c = &v->cells[cell];
     cell_reset(c);
     free(c->bytes);
     c->bytes = NULL;
@@ -187,7 +334,8 @@ ms_status ms_view_forget(ms_view *v, uint32_t cell, ms_error *err)
 
 size_t ms_view_held_bytes(const ms_view *v, uint32_t cell)
 {
-    return cell < v->count ? v->cells[cell].nbytes : 0;
+    const vcell *c = ms_view_vcell(v, cell);
+    return c ? c->nbytes : 0;
 }
 
 /* Highest bit whose prefix the held bytes cover, from the codec header. */
@@ -207,14 +355,15 @@ static unsigned held_bits(const vcell *c)
 
 unsigned ms_view_available_bits(const ms_view *v, uint32_t cell)
 {
-    return cell < v->count ? held_bits(&v->cells[cell]) : 0;
+    const vcell *c = ms_view_vcell(v, cell);
+    return c ? held_bits(c) : 0;
 }
 
 /* Makes sure the cell's decoder exists and can reach `bits` (extending it with
  * the bytes that came since, so decoding goes on from its current level). */
 static ms_status ensure_decoder(ms_view *v, uint32_t cell, unsigned bits, ms_error *err)
 {
-    vcell *c = &v->cells[cell];
+    vcell *c = ms_view_vcell(v, cell);
     if (c->dec && ms_codec_decoder_available_level(c->dec) >= 3 * bits)
         return MS_OK;
     if (c->dec && c->nbytes == c->dec_bytes)
@@ -257,9 +406,9 @@ static ms_status ensure_decoder(ms_view *v, uint32_t cell, unsigned bits, ms_err
 
 ms_status ms_view_set_bits(ms_view *v, uint32_t cell, unsigned bits, ms_error *err)
 {
-    if (cell >= v->count || v->cells[cell].state != MS_VIEW_SHOWN)
+    vcell *c = ms_view_vcell(v, cell);
+    if (!c || c->state != MS_VIEW_SHOWN)
         return ms_error_set(err, MS_ERR_RANGE, "cell %u is not shown", cell);
-    vcell *c = &v->cells[cell];
     if (bits < c->rec.bits_min || bits > c->rec.bits_max)
         return ms_error_set(err, MS_ERR_RANGE, "cell %u: %u bits outside its window [%u, %u]",
                             cell, bits, c->rec.bits_min, c->rec.bits_max);
@@ -282,9 +431,9 @@ ms_status ms_view_cell_state_copy(const ms_view *v, uint32_t cell, ms_codec_stat
                                   ms_error *err)
 {
     memset(out, 0, sizeof *out);
-    if (cell >= v->count || v->cells[cell].state == MS_VIEW_HIDDEN)
+    const vcell *c = ms_view_vcell(v, cell);
+    if (!c || c->state == MS_VIEW_HIDDEN)
         return ms_error_set(err, MS_ERR_RANGE, "cell %u is not decoded", cell);
-    const vcell *c = &v->cells[cell];
     if (c->dec) {
         ms_status s = ms_codec_decoder_state(c->dec, out, err);
         if (s == MS_OK)
@@ -325,11 +474,14 @@ ms_status ms_view_cell_state_copy(const ms_view *v, uint32_t cell, ms_codec_stat
 
 ms_status ms_view_split(ms_view *v, uint32_t cell, ms_error *err)
 {
-    if (cell >= v->count || v->cells[cell].state != MS_VIEW_SHOWN)
+    vcell *c = ms_view_vcell(v, cell);
+    if (!c || c->state != MS_VIEW_SHOWN)
         return ms_error_set(err, MS_ERR_RANGE, "cell %u is not shown", cell);
-    vcell *c = &v->cells[cell];
     if (c->rec.first_child == MS_ARCHIVE_NONE)
         return ms_error_set(err, MS_ERR_RANGE, "cell %u is a leaf", cell);
+    if (!ms_view_children_known(v, cell))
+        return ms_error_set(err, MS_ERR_RANGE, "cell %u: its children's records are not known",
+                            cell);
     if (c->bits != c->rec.bits_max)
         return ms_error_set(err, MS_ERR_RANGE, "cell %u is at %u bits, below its window's end %u",
                             cell, c->bits, c->rec.bits_max);
@@ -355,7 +507,7 @@ ms_status ms_view_split(ms_view *v, uint32_t cell, ms_error *err)
     }
     for (unsigned k = 0; k < nc; ++k) {
         uint32_t id = c->rec.first_child + k;
-        vcell *ch = &v->cells[id];
+        vcell *ch = ms_view_vcell(v, id);
         cell_reset(ch);
         ch->state = MS_VIEW_SHOWN;
         ch->bits = ch->rec.bits_min;
@@ -379,15 +531,16 @@ ms_status ms_view_split(ms_view *v, uint32_t cell, ms_error *err)
 
 ms_status ms_view_merge(ms_view *v, uint32_t cell, ms_error *err)
 {
-    if (cell >= v->count || v->cells[cell].state != MS_VIEW_SPLIT)
+    vcell *c = ms_view_vcell(v, cell);
+    if (!c || c->state != MS_VIEW_SPLIT)
         return ms_error_set(err, MS_ERR_RANGE, "cell %u is not split", cell);
-    vcell *c = &v->cells[cell];
     const unsigned nc = v->shape.n * v->shape.n * v->shape.n;
     for (unsigned k = 0; k < nc; ++k) {
         uint32_t id = c->rec.first_child + k;
-        if (v->cells[id].state == MS_VIEW_SPLIT)
+        vcell *ch = ms_view_vcell(v, id); /* known: a split cell's children stay known */
+        if (ch->state == MS_VIEW_SPLIT)
             (void)ms_view_merge(v, id, NULL);
-        cell_reset(&v->cells[id]);
+        cell_reset(ch);
     }
     c->state = MS_VIEW_SHOWN;
     c->bits = c->rec.bits_max;
@@ -412,69 +565,142 @@ void ms_view_select_params_default(ms_view_select_params *p)
     p->hysteresis = 0.5;
     p->culled_bits_less = 2.0;
     p->tolerance_scale = NULL;
+    p->chunkless_tolerance_scale = 0.0;
 }
 
-static double cell_tolerance(const ms_view_select_params *p, uint32_t cell)
+static double cell_tolerance(const ms_view_select_params *p, uint32_t cell,
+                             const ms_archive_cell *rec)
 {
-    return p->tolerance_scale ? p->tolerance_px * p->tolerance_scale[cell] : p->tolerance_px;
+    if (p->tolerance_scale)
+        return p->tolerance_px * p->tolerance_scale[cell];
+    if (p->chunkless_tolerance_scale > 0 && rec->apo_levels == 0)
+        return p->tolerance_px * p->chunkless_tolerance_scale;
+    return p->tolerance_px;
 }
 
 double ms_view_cell_need(const ms_view *v, const ms_camera *cam, uint32_t cell,
                          const ms_view_select_params *p)
 {
+    const vcell *c = ms_view_vcell(v, cell);
+    if (!c)
+        return -1.0;
     double lo[3], hi[3];
-    cell_box(v, &v->cells[cell].rec, lo, hi);
+    cell_box(v, &c->rec, lo, hi);
     ms_frustum f;
     ms_camera_frustum(cam, &f);
     if (!ms_frustum_keeps_box(&f, lo, hi, p->margin))
         return -1.0;
     double d = ms_camera_box_distance(cam, lo, hi);
-    return ms_screen_bits_needed(cam, v->header.box_side, d, cell_tolerance(p, cell));
+    return ms_screen_bits_needed(cam, v->header.box_side, d, cell_tolerance(p, cell, &c->rec));
 }
 
-static void select_cell(const ms_view *v, const ms_camera *cam, const ms_frustum *f,
-                        const ms_view_select_params *p, uint32_t cell, uint8_t *target)
+/* The need selection uses: culled cells get theirs less culled_bits_less. */
+static double select_need(const ms_view *v, const ms_camera *cam, const ms_frustum *f,
+                          const ms_view_select_params *p, uint32_t cell, const vcell *c)
 {
-    const vcell *c = &v->cells[cell];
     double lo[3], hi[3];
     cell_box(v, &c->rec, lo, hi);
     double need = ms_screen_bits_needed(cam, v->header.box_side,
                                         ms_camera_box_distance(cam, lo, hi),
-                                        cell_tolerance(p, cell));
+                                        cell_tolerance(p, cell, &c->rec));
     if (!ms_frustum_keeps_box(f, lo, hi, p->margin))
         need -= p->culled_bits_less;
+    return need;
+}
+
+double ms_view_cell_select_need(const ms_view *v, const ms_camera *cam, uint32_t cell,
+                                const ms_view_select_params *p)
+{
+    const vcell *c = ms_view_vcell(v, cell);
+    if (!c)
+        return -INFINITY;
+    ms_frustum f;
+    ms_camera_frustum(cam, &f);
+    return select_need(v, cam, &f, p, cell, c);
+}
+
+static void list_push(uint32_t **list, size_t *count, size_t *cap, bool *failed, uint32_t cell)
+{
+    if (*count == *cap) {
+        size_t grown = *cap ? 2 * *cap : 64;
+        uint32_t *g = realloc(*list, grown * sizeof *g);
+        if (!g) {
+            *failed = true;
+            return;
+        }
+        *list = g;
+        *cap = grown;
+    }
+    (*list)[(*count)++] = cell;
+}
+
+static void select_cell(const ms_view *v, const ms_camera *cam, const ms_frustum *f,
+                        const ms_view_select_params *p, uint32_t cell, uint8_t *target,
+                        ms_view_select_report *report)
+{
+    const vcell *c = ms_view_vcell(v, cell);
+    double need = select_need(v, cam, f, p, cell, c);
     unsigned current = c->state == MS_VIEW_SHOWN ? c->bits
                        : c->state == MS_VIEW_SPLIT ? c->rec.bits_max + 1u
                                                    : c->rec.bits_min;
     if (current > v->header.bits)
         current = v->header.bits;
     unsigned want = ms_select_bits(need, current, c->rec.bits_min, v->header.bits, p->hysteresis);
-    if (want > c->rec.bits_max && c->rec.first_child != MS_ARCHIVE_NONE) {
+    bool inner = c->rec.first_child != MS_ARCHIVE_NONE;
+    bool children = inner && ms_view_children_known(v, cell);
+    if (want > c->rec.bits_max && children) {
         target[cell] = MS_VIEW_TARGET_SPLIT;
-        const unsigned nc = v->shape.n * v->shape.n * v->shape.n;
-        for (unsigned k = 0; k < nc; ++k)
-            select_cell(v, cam, f, p, c->rec.first_child + k, target);
+        for (uint32_t k = 0; k < v->group_size; ++k)
+            select_cell(v, cam, f, p, c->rec.first_child + k, target, report);
         return;
     }
     target[cell] = (uint8_t)(want > c->rec.bits_max ? c->rec.bits_max : want);
+    if (!report || !inner)
+        return;
+    if (want > c->rec.bits_max) /* a partial view: it stays until its children are known */
+        list_push(&report->blocked, &report->blocked_count, &report->blocked_cap,
+                  &report->out_of_memory, cell);
+    else if (need > (double)c->rec.bits_max - 1.0)
+        list_push(&report->near, &report->near_count, &report->near_cap,
+                  &report->out_of_memory, cell);
+}
+
+void ms_view_select_partial(const ms_view *v, const ms_camera *cam,
+                            const ms_view_select_params *p, uint8_t *target,
+                            ms_view_select_report *report)
+{
+    memset(target, MS_VIEW_TARGET_HIDDEN, v->count);
+    if (report)
+        report->blocked_count = report->near_count = 0, report->out_of_memory = false;
+    if (!ms_view_vcell(v, 0))
+        return; /* nothing known yet */
+    ms_frustum f;
+    ms_camera_frustum(cam, &f);
+    select_cell(v, cam, &f, p, 0, target, report);
 }
 
 void ms_view_select(const ms_view *v, const ms_camera *cam, const ms_view_select_params *p,
                     uint8_t *target)
 {
-    memset(target, MS_VIEW_TARGET_HIDDEN, v->count);
-    ms_frustum f;
-    ms_camera_frustum(cam, &f);
-    select_cell(v, cam, &f, p, 0, target);
+    ms_view_select_partial(v, cam, p, target, NULL);
+}
+
+void ms_view_select_report_free(ms_view_select_report *report)
+{
+    if (!report)
+        return;
+    free(report->blocked);
+    free(report->near);
+    memset(report, 0, sizeof *report);
 }
 
 static ms_status apply_cell(ms_view *v, uint32_t cell, const uint8_t *target,
                             ms_view_apply_report *r, ms_error *err)
 {
-    vcell *c = &v->cells[cell];
+    vcell *c = ms_view_vcell(v, cell);
     uint8_t t = target[cell];
     ms_status s;
-    if (t == MS_VIEW_TARGET_SPLIT && c->rec.first_child != MS_ARCHIVE_NONE) {
+    if (t == MS_VIEW_TARGET_SPLIT && ms_view_children_known(v, cell)) {
         if (c->state == MS_VIEW_SHOWN) {
             unsigned avail = held_bits(c);
             unsigned goal = avail < c->rec.bits_max ? avail : c->rec.bits_max;
@@ -492,8 +718,7 @@ static ms_status apply_cell(ms_view *v, uint32_t cell, const uint8_t *target,
                 return s;
             r->splits++;
         }
-        const unsigned nc = v->shape.n * v->shape.n * v->shape.n;
-        for (unsigned k = 0; k < nc; ++k)
+        for (uint32_t k = 0; k < v->group_size; ++k)
             if ((s = apply_cell(v, c->rec.first_child + k, target, r, err)) != MS_OK)
                 return s;
         return MS_OK;
@@ -525,7 +750,7 @@ ms_status ms_view_apply(ms_view *v, const uint8_t *target, ms_view_apply_report 
 {
     ms_view_apply_report r;
     memset(&r, 0, sizeof r);
-    ms_status s = apply_cell(v, 0, target, &r, err);
+    ms_status s = ms_view_vcell(v, 0) ? apply_cell(v, 0, target, &r, err) : MS_OK;
     if (report)
         *report = r;
     return s;

@@ -65,6 +65,45 @@ typedef enum ms_view_cell_state {
 ms_status ms_view_create(const ms_archive_header *header, const ms_archive_cell *cells,
                          ms_view **view, ms_error *err);
 
+/* ---- a partly known index (records that arrive by subtree) ------------------
+ *
+ * A view may know only some cells' records: the client learns them subtree by
+ * subtree (docs/CLIENT.md) and forgets those the view no longer needs. Memory
+ * follows the records known: cells are kept per sibling group (n^3 consecutive
+ * ids), a block per group that has a known record, plus one pointer per group
+ * for the model. A cell whose children's records are not known cannot split:
+ * selection shows it at most at bits_max and reports it (ms_view_select_partial).
+ * Functions given a cell whose record is not known behave as for a cell out of
+ * range (NULL, HIDDEN, 0, MS_ERR_RANGE). */
+
+/* A view with no record known yet (header copied): learn the root's before
+ * selecting. MS_ERR_ARG for a bad header, MS_ERR_NOMEM. */
+ms_status ms_view_create_partial(const ms_archive_header *header, ms_view **view,
+                                 ms_error *err);
+
+/* Makes the records of `count` cells known (copied; ids[k] is recs[k]'s cell).
+ * Records already known stay as they are. Each must keep the tree rules, alone
+ * and against its parent when that is known (MS_ERR_ARG, nothing learned).
+ * Learning the root makes it SHOWN at bits_min. MS_ERR_NOMEM. */
+ms_status ms_view_learn(ms_view *view, const uint32_t *ids, const ms_archive_cell *recs,
+                        size_t count, ms_error *err);
+
+/* Forgets the records of `count` cells (unknown ones are skipped), with their
+ * bytes and decoders. Each must be HIDDEN and not the root, else MS_ERR_RANGE
+ * and nothing is forgotten. */
+ms_status ms_view_unlearn(ms_view *view, const uint32_t *ids, size_t count, ms_error *err);
+
+bool ms_view_known(const ms_view *view, uint32_t cell);
+/* Cells whose records are known now. */
+uint32_t ms_view_known_count(const ms_view *view);
+/* The smallest known cell id after `after` (MS_ARCHIVE_NONE: from the start),
+ * or MS_ARCHIVE_NONE: `for (id = 0; id != MS_ARCHIVE_NONE; id = next(v, id))`
+ * visits every known cell (the root is known once learned). Skips a group
+ * without a known record in one step. */
+uint32_t ms_view_next_known(const ms_view *view, uint32_t after);
+/* Whether cell is known, inner, and all its children's records are known. */
+bool ms_view_children_known(const ms_view *view, uint32_t cell);
+
 /* A view over every record of an open archive: with every cell's full geometry
  * payload handed over (CRC-checked) for an archive file, with none for an index
  * received alone (ms_archive_open_index), whose bytes come by ms_view_set_bytes. */
@@ -135,6 +174,10 @@ typedef struct ms_view_select_params {
      * the cells without one (their geometry is all the shading they get) to the
      * full one. Borrowed; cell_count entries. */
     const float *tolerance_scale;
+    /* When tolerance_scale is NULL and this is > 0: the factor for cells whose
+     * record has no APO chunk (apo_levels 0), 1 for the others; the same rule
+     * without a per-cell array (a partly known index). */
+    double chunkless_tolerance_scale;
 } ms_view_select_params;
 
 /* 1 pixel, no margin, 0.5 bit of hysteresis, culled cells 2 bits coarser (keeps
@@ -147,6 +190,11 @@ void ms_view_select_params_default(ms_view_select_params *params);
 double ms_view_cell_need(const ms_view *view, const ms_camera *camera, uint32_t cell,
                          const ms_view_select_params *params);
 
+/* The need ms_view_select uses for a known cell: its real-valued precision,
+ * less culled_bits_less outside the frustum (-INFINITY for an unknown cell). */
+double ms_view_cell_select_need(const ms_view *view, const ms_camera *camera, uint32_t cell,
+                                const ms_view_select_params *params);
+
 /* For every cell, the target: bits to show it at, MS_VIEW_TARGET_SPLIT or
  * MS_VIEW_TARGET_HIDDEN (target has cell_count entries). Visible cells get the
  * precision their nearest point needs (with hysteresis against the current
@@ -155,6 +203,29 @@ double ms_view_cell_need(const ms_view *view, const ms_camera *camera, uint32_t 
  * border small). */
 void ms_view_select(const ms_view *view, const ms_camera *camera,
                     const ms_view_select_params *params, uint8_t *target);
+
+/* Where the records of a partly known view fall short, or soon may: `blocked`:
+ * cells whose target would be SPLIT but whose children's records are not known
+ * (they get bits_max instead); `near`: inner cells of the cut, not split, whose
+ * selection need is within one bit of splitting (need > bits_max - 1: their
+ * children's records are worth holding, or fetching, ahead), children known
+ * or not. The lists grow by realloc and are reused from call to call;
+ * out_of_memory says a cell could not be listed. Free with
+ * ms_view_select_report_free. Zero-initialise before the first use. */
+typedef struct ms_view_select_report {
+    uint32_t *blocked, *near;
+    size_t blocked_count, near_count;
+    size_t blocked_cap, near_cap;
+    bool out_of_memory;
+} ms_view_select_report;
+
+/* ms_view_select on a partly known view (the same targets on a fully known
+ * one), filling *report (may be NULL). With the root not known yet every
+ * target is HIDDEN. */
+void ms_view_select_partial(const ms_view *view, const ms_camera *camera,
+                            const ms_view_select_params *params, uint8_t *target,
+                            ms_view_select_report *report);
+void ms_view_select_report_free(ms_view_select_report *report);
 
 typedef struct ms_view_apply_report {
     uint32_t splits, merges, refined, coarsened;

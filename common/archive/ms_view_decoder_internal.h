@@ -14,6 +14,7 @@
 
 typedef struct vcell {
     ms_archive_cell rec;
+    bool known;             /* rec holds the cell's record (ms_view_learn) */
     uint8_t state;
     uint8_t bits;           /* current precision (SHOWN), bits_max (SPLIT) */
     bool has_start;         /* start state held (non-root cells once their parent split) */
@@ -32,13 +33,45 @@ typedef struct vcell {
                              * frozen coarser than the cell (else NULL: all at its level) */
 } vcell;
 
+/* Cells are kept per sibling group: ids are breadth-first, so every group of
+ * n^3 siblings is a block of consecutive ids starting at 1 + k n^3 (group 0 is
+ * the root alone). A group's block exists while one of its records is known,
+ * so what a view holds follows the records it learned (ms_view_learn), plus one
+ * pointer per n^3 cells for the whole model. */
 struct ms_view {
     ms_archive_header header;
     ms_nsp_shape shape;
     uint32_t count;
-    vcell *cells;
+    uint32_t group_size;    /* n^3 */
+    uint32_t group_count;   /* 1 + (count - 1) / n^3 */
+    vcell **groups;         /* group_count blocks, NULL where no record is known */
+    uint32_t known;         /* cells whose records are known */
     uint32_t stamp_epoch;
 };
+
+/* The group of cell id and its place in it. */
+static inline uint32_t ms_view_group_of(const ms_view *v, uint32_t id)
+{
+    return id == 0 ? 0 : 1 + (id - 1) / v->group_size;
+}
+
+static inline uint32_t ms_view_group_first(const ms_view *v, uint32_t group)
+{
+    return group == 0 ? 0 : 1 + (group - 1) * v->group_size;
+}
+
+/* The state of a known cell, or NULL when its record is not known (or id is
+ * out of range). */
+static inline vcell *ms_view_vcell(const ms_view *v, uint32_t id)
+{
+    if (id >= v->count)
+        return NULL;
+    vcell *block = v->groups[ms_view_group_of(v, id)];
+    if (!block)
+        return NULL;
+    vcell *c = &block[id == 0 ? 0 : (id - 1) % v->group_size];
+    return c->known ? c : NULL;
+}
 
 #define NONE 0xFFFFFFFFu
 #define OWNER_FINER 0xFFFFFFFEu

@@ -21,7 +21,7 @@ void ms_view_mesh_free(ms_view_mesh *m)
 
 static ms_status refresh_cache(ms_view *v, uint32_t cell, ms_error *err)
 {
-    vcell *c = &v->cells[cell];
+    vcell *c = ms_view_vcell(v, cell);
     if (c->cache_valid && c->cache_bits == c->bits)
         return MS_OK;
     ms_view_cache_drop(c);
@@ -62,8 +62,9 @@ static uint32_t owner_of(const ms_view *v, uint64_t prefix, unsigned level)
     uint32_t xyz[3];
     ms_nsp_prefix_corner(&v->shape, prefix, level, xyz);
     uint32_t cell = 0;
-    while (v->cells[cell].state == MS_VIEW_SPLIT) {
-        const ms_archive_cell *r = &v->cells[cell].rec;
+    const vcell *at;
+    while ((at = ms_view_vcell(v, cell)) != NULL && at->state == MS_VIEW_SPLIT) {
+        const ms_archive_cell *r = &at->rec;
         if (level < 3u * (r->level + 1u) * v->shape.log2n)
             return OWNER_FINER;
         cell = r->first_child + ms_nsp_child_offset(&v->shape, r->level, xyz);
@@ -132,7 +133,7 @@ static ms_status mesh_room(ms_view_mesh *m, size_t vertices, size_t triangles, m
 static ms_status out_vertex(ms_view *v, ms_view_mesh *m, uint32_t cell, uint32_t i, uint32_t *out,
                             ms_error *err)
 {
-    vcell *c = &v->cells[cell];
+    vcell *c = ms_view_vcell(v, cell);
     if (c->out_index[i] != NONE) {
         *out = c->out_index[i];
         return MS_OK;
@@ -237,9 +238,9 @@ ms_status ms_view_stitch(ms_view *v, const bool *visible, ms_view_mesh *m, ms_er
     m->dropped_finer = m->dropped_snapped = m->unresolved = m->snapped_frozen = 0;
     ms_status s = MS_OK;
     /* Caches and owners of every shown cell. */
-    for (uint32_t id = 0; id < v->count && s == MS_OK; ++id) {
-        vcell *c = &v->cells[id];
-        if (c->state != MS_VIEW_SHOWN)
+    for (uint32_t id = 0; id != MS_ARCHIVE_NONE && s == MS_OK; id = ms_view_next_known(v, id)) {
+        vcell *c = ms_view_vcell(v, id);
+        if (!c || c->state != MS_VIEW_SHOWN)
             continue;
         if ((s = refresh_cache(v, id, err)) != MS_OK)
             break;
@@ -248,9 +249,9 @@ ms_status ms_view_stitch(ms_view *v, const bool *visible, ms_view_mesh *m, ms_er
             c->owner[i] = owner_of(v, c->cache.cells[i], c->cache.level);
         }
     }
-    for (uint32_t id = 0; id < v->count && s == MS_OK; ++id) {
-        vcell *c = &v->cells[id];
-        if (c->state != MS_VIEW_SHOWN || (visible && !visible[id]))
+    for (uint32_t id = 0; id != MS_ARCHIVE_NONE && s == MS_OK; id = ms_view_next_known(v, id)) {
+        vcell *c = ms_view_vcell(v, id);
+        if (!c || c->state != MS_VIEW_SHOWN || (visible && !visible[id]))
             continue;
         const unsigned Lc = c->cache.level;
         const size_t first = m->triangle_count;
@@ -284,7 +285,7 @@ ms_status ms_view_stitch(ms_view *v, const bool *visible, ms_view_mesh *m, ms_er
                         break;
                     continue;
                 }
-                vcell *oc = &v->cells[o];
+                vcell *oc = ms_view_vcell(v, o);
                 unsigned Lo = oc->cache.level;
                 if (Lo > Lc || (Lo == Lc && o > id)) {
                     keep = false;

@@ -1,30 +1,8 @@
 /* Camera maths: see ms_camera.h. */
 #include "ms_camera.h"
+#include "ms_vec3.h"
 
 #include <math.h>
-
-static double dot3(const double a[3], const double b[3])
-{
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-}
-
-static void cross3(const double a[3], const double b[3], double out[3])
-{
-    out[0] = a[1] * b[2] - a[2] * b[1];
-    out[1] = a[2] * b[0] - a[0] * b[2];
-    out[2] = a[0] * b[1] - a[1] * b[0];
-}
-
-/* Normalises v in place; false when it is (nearly) zero. */
-static bool normalise3(double v[3])
-{
-    double len = sqrt(dot3(v, v));
-    if (!(len > 1e-300) || !isfinite(len))
-        return false;
-    for (int i = 0; i < 3; ++i)
-        v[i] /= len;
-    return true;
-}
 
 static bool finite3(const double v[3])
 {
@@ -47,16 +25,16 @@ ms_status ms_camera_look_at(const double position[3], const double target[3],
     if (!(near_distance > 0.0 && far_distance > near_distance && isfinite(far_distance)))
         return ms_error_set(err, MS_ERR_ARG, "camera: need 0 < near < far, finite");
     double f[3] = {target[0] - position[0], target[1] - position[1], target[2] - position[2]};
-    if (!normalise3(f))
+    if (!ms_vec3_normalise(f))
         return ms_error_set(err, MS_ERR_ARG, "camera: position and target coincide");
     double r[3];
-    cross3(f, up, r);
-    double up_len = sqrt(dot3(up, up));
-    if (!(sqrt(dot3(r, r)) > 1e-9 * up_len) || !normalise3(r))
+    ms_vec3_cross(f, up, r);
+    double up_len = sqrt(ms_vec3_dot(up, up));
+    if (!(sqrt(ms_vec3_dot(r, r)) > 1e-9 * up_len) || !ms_vec3_normalise(r))
         return ms_error_set(err, MS_ERR_ARG, "camera: up is parallel to the view direction");
     double u[3];
-    cross3(r, f, u);
-    normalise3(u);
+    ms_vec3_cross(r, f, u);
+    ms_vec3_normalise(u);
     for (int i = 0; i < 3; ++i) {
         c->position[i] = position[i];
         c->forward[i] = f[i];
@@ -80,10 +58,10 @@ double ms_camera_pixels_per_unit(const ms_camera *c)
 static void set_plane(ms_frustum *fr, int k, const double n[3], const double p[3])
 {
     double m[3] = {n[0], n[1], n[2]};
-    normalise3(m);
+    ms_vec3_normalise(m);
     for (int i = 0; i < 3; ++i)
         fr->normal[k][i] = m[i];
-    fr->offset[k] = -dot3(m, p);
+    fr->offset[k] = -ms_vec3_dot(m, p);
 }
 
 void ms_camera_frustum(const ms_camera *c, ms_frustum *fr)
@@ -122,7 +100,7 @@ bool ms_frustum_keeps_box(const ms_frustum *fr, const double lo[3], const double
         double best[3];
         for (int i = 0; i < 3; ++i)
             best[i] = fr->normal[k][i] >= 0.0 ? hi[i] : lo[i];
-        if (dot3(fr->normal[k], best) + fr->offset[k] < -margin)
+        if (ms_vec3_dot(fr->normal[k], best) + fr->offset[k] < -margin)
             return false;
     }
     return true;

@@ -116,6 +116,48 @@ static inline ms_status ms_reader_add_triangle(ms_reader *r, uint32_t a, uint32_
     return MS_OK;
 }
 
+/* A polygon read corner by corner, triangulated as a fan from its first corner. */
+typedef struct ms_fan {
+    uint32_t first, previous;
+    uint64_t corners;
+} ms_fan;
+
+/* Adds corner v (checked) to the fan: from the third corner on, the triangle
+ * (first, previous, v). */
+static inline ms_status ms_fan_add(ms_reader *r, ms_fan *fan, uint32_t v)
+{
+    ms_status st = MS_OK;
+    if (fan->corners == 0)
+        fan->first = v;
+    else if (fan->corners >= 2)
+        st = ms_reader_add_triangle(r, fan->first, fan->previous, v);
+    fan->previous = v;
+    ++fan->corners;
+    return st;
+}
+
+/* A triangle strip read vertex by vertex; a restart index sets length to 0. */
+typedef struct ms_strip {
+    uint32_t a, b; /* the last two vertices */
+    uint64_t length;
+} ms_strip;
+
+/* Adds vertex v (checked) to the strip: a new strip counts as one input face;
+ * from the third vertex on, a triangle, odd ones flipped to keep orientation. */
+static inline ms_status ms_strip_add(ms_reader *r, ms_strip *strip, uint32_t v)
+{
+    ms_status st = MS_OK;
+    if (strip->length == 0)
+        ++r->input_faces;
+    if (strip->length >= 2)
+        st = (strip->length & 1) ? ms_reader_add_triangle(r, strip->b, strip->a, v)
+                                 : ms_reader_add_triangle(r, strip->a, strip->b, v);
+    strip->a = strip->b;
+    strip->b = v;
+    ++strip->length;
+    return st;
+}
+
 /* Format parsers: the input is positioned at the start of the file. */
 ms_status ms_read_ply(ms_reader *r);
 ms_status ms_read_obj(ms_reader *r);

@@ -76,26 +76,19 @@ static ms_status obj_corner(ms_reader *r, char **cursor, uint32_t *vertex)
 
 static ms_status obj_face(ms_reader *r, char *p)
 {
-    uint32_t first = 0, previous = 0;
-    uint64_t corners = 0;
+    ms_fan fan = {0};
     for (;;) {
         p = ms_skip_blanks(p);
         if (*p == '\0' || *p == '#')
             break;
         uint32_t v = 0;
         ms_status st = obj_corner(r, &p, &v);
-        if (st != MS_OK)
+        if (st != MS_OK || (st = ms_fan_add(r, &fan, v)) != MS_OK)
             return st;
-        if (corners == 0)
-            first = v;
-        else if (corners >= 2 && (st = ms_reader_add_triangle(r, first, previous, v)) != MS_OK)
-            return st;
-        previous = v;
-        ++corners;
     }
-    if (corners < 3)
+    if (fan.corners < 3)
         return ms_reader_fail_line(r, MS_ERR_FORMAT, "face with %llu vertices",
-                                   (unsigned long long)corners);
+                                   (unsigned long long)fan.corners);
     ++r->input_faces;
     return MS_OK;
 }

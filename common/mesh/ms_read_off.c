@@ -121,7 +121,7 @@ ms_status ms_read_off(ms_reader *r)
             return st;
         if (n < 3)
             return ms_reader_fail_line(r, MS_ERR_FORMAT, "face with %lld vertices", (long long)n);
-        uint32_t first = 0, previous = 0;
+        ms_fan fan = {0};
         for (int64_t j = 0; j < n; ++j) {
             int64_t index;
             p = ms_skip_blanks(p);
@@ -134,12 +134,8 @@ ms_status ms_read_off(ms_reader *r)
                                            "vertex index %lld out of range (%lld vertices)",
                                            (long long)index, (long long)vertices);
             p = (char *)end;
-            uint32_t v = (uint32_t)index;
-            if (j == 0)
-                first = v;
-            else if (j >= 2 && (st = ms_reader_add_triangle(r, first, previous, v)) != MS_OK)
+            if ((st = ms_fan_add(r, &fan, (uint32_t)index)) != MS_OK)
                 return st;
-            previous = v;
         }
         for (p = ms_skip_blanks(p); *p; p = ms_skip_blanks(p)) {
             double ignored; /* per-face colour */

@@ -107,122 +107,79 @@ static ms_status ascii_vertices(ply_state *s, const ply_element *e)
     return MS_OK;
 }
 
-static ms_status ascii_index(ply_state *s, char **p, uint32_t *out)
+/* index as a vertex of the model: MS_ERR_RANGE unless it is one. */
+static ms_status ascii_check_index(ply_state *s, int64_t index)
 {
-    int64_t index;
-    ms_status st = ascii_integer(s->r, p, &index, "vertex_indices");
-    if (st != MS_OK)
-        return st;
     if (index < 0 || (uint64_t)index >= s->vertex_count)
         return ms_reader_fail_line(s->r, MS_ERR_RANGE,
                                    "vertex index %lld out of range (%llu vertices)",
                                    (long long)index, (unsigned long long)s->vertex_count);
-    *out = (uint32_t)index;
     return MS_OK;
 }
 
-static ms_status ascii_faces(ply_state *s, const ply_element *e)
+/* A face's index list: the count, then a polygon of at least 3 vertices. */
+static ms_status ascii_face_list(ply_state *s, char **p)
 {
     ms_reader *r = s->r;
-    for (uint64_t i = 0; i < e->count; ++i) {
-        char *p;
-        ms_status st = ascii_record(r, e, &p);
-        if (st != MS_OK)
+    int64_t n;
+    ms_status st = ascii_integer(r, p, &n, "the face vertex count");
+    if (st != MS_OK)
+        return st;
+    if (n < 3)
+        return ms_reader_fail_line(r, MS_ERR_FORMAT, "face with %lld vertices", (long long)n);
+    ms_fan fan = {0};
+    for (int64_t j = 0; j < n; ++j) {
+        int64_t index;
+        if ((st = ascii_integer(r, p, &index, "vertex_indices")) != MS_OK ||
+            (st = ascii_check_index(s, index)) != MS_OK ||
+            (st = ms_fan_add(r, &fan, (uint32_t)index)) != MS_OK)
             return st;
-        for (size_t k = 0; k < e->prop_count; ++k) {
-            if ((int)k != e->index_list) {
-                if ((st = ascii_skip_property(r, &p, &e->props[k])) != MS_OK)
-                    return st;
-                continue;
-            }
-            int64_t n;
-            if ((st = ascii_integer(r, &p, &n, "the face vertex count")) != MS_OK)
-                return st;
-            if (n < 3)
-                return ms_reader_fail_line(r, MS_ERR_FORMAT, "face with %lld vertices",
-                                           (long long)n);
-            uint32_t first = 0, previous = 0, v = 0;
-            if ((st = ascii_index(s, &p, &first)) != MS_OK ||
-                (st = ascii_index(s, &p, &previous)) != MS_OK)
-                return st;
-            for (int64_t j = 2; j < n; ++j) {
-                if ((st = ascii_index(s, &p, &v)) != MS_OK ||
-                    (st = ms_reader_add_triangle(r, first, previous, v)) != MS_OK)
-                    return st;
-                previous = v;
-            }
-            ++r->input_faces;
+    }
+    ++r->input_faces;
+    return MS_OK;
+}
+
+/* A strip's index list: the length, then vertices, -1 restarting the strip. */
+static ms_status ascii_strip_list(ply_state *s, char **p)
+{
+    ms_reader *r = s->r;
+    int64_t n;
+    ms_status st = ascii_integer(r, p, &n, "the strip length");
+    if (st != MS_OK)
+        return st;
+    if (n < 0)
+        return ms_reader_fail_line(r, MS_ERR_FORMAT, "negative strip length");
+    ms_strip strip = {0};
+    for (int64_t j = 0; j < n; ++j) {
+        int64_t index;
+        if ((st = ascii_integer(r, p, &index, "vertex_indices")) != MS_OK)
+            return st;
+        if (index == -1) {
+            strip.length = 0;
+            continue;
         }
-        if ((st = ascii_end_of_record(r, p, e)) != MS_OK)
+        if ((st = ascii_check_index(s, index)) != MS_OK ||
+            (st = ms_strip_add(r, &strip, (uint32_t)index)) != MS_OK)
             return st;
     }
     return MS_OK;
 }
 
-static ms_status ascii_strips(ply_state *s, const ply_element *e)
-{
-    ms_reader *r = s->r;
-    for (uint64_t i = 0; i < e->count; ++i) {
-        char *p;
-        ms_status st = ascii_record(r, e, &p);
-        if (st != MS_OK)
-            return st;
-        for (size_t k = 0; k < e->prop_count; ++k) {
-            if ((int)k != e->index_list) {
-                if ((st = ascii_skip_property(r, &p, &e->props[k])) != MS_OK)
-                    return st;
-                continue;
-            }
-            int64_t n;
-            if ((st = ascii_integer(r, &p, &n, "the strip length")) != MS_OK)
-                return st;
-            if (n < 0)
-                return ms_reader_fail_line(r, MS_ERR_FORMAT, "negative strip length");
-            uint32_t a = 0, b = 0;
-            uint64_t in_strip = 0;
-            for (int64_t j = 0; j < n; ++j) {
-                int64_t index;
-                if ((st = ascii_integer(r, &p, &index, "vertex_indices")) != MS_OK)
-                    return st;
-                if (index == -1) {
-                    in_strip = 0;
-                    continue;
-                }
-                if (index < 0 || (uint64_t)index >= s->vertex_count)
-                    return ms_reader_fail_line(r, MS_ERR_RANGE,
-                                               "vertex index %lld out of range (%llu vertices)",
-                                               (long long)index,
-                                               (unsigned long long)s->vertex_count);
-                uint32_t c = (uint32_t)index;
-                if (in_strip == 0)
-                    ++r->input_faces;
-                if (in_strip >= 2) {
-                    st = (in_strip & 1) ? ms_reader_add_triangle(r, b, a, c)
-                                        : ms_reader_add_triangle(r, a, b, c);
-                    if (st != MS_OK)
-                        return st;
-                }
-                a = b;
-                b = c;
-                ++in_strip;
-            }
-        }
-        if ((st = ascii_end_of_record(r, p, e)) != MS_OK)
-            return st;
-    }
-    return MS_OK;
-}
-
-static ms_status ascii_skip_element(ply_state *s, const ply_element *e)
+/* Reads the records of e: read_list reads the index list (when e has one and
+ * read_list is not NULL), every other property is skipped. */
+static ms_status ascii_records(ply_state *s, const ply_element *e, ms_status (*read_list)(ply_state *, char **))
 {
     for (uint64_t i = 0; i < e->count; ++i) {
         char *p;
         ms_status st = ascii_record(s->r, e, &p);
         if (st != MS_OK)
             return st;
-        for (size_t k = 0; k < e->prop_count; ++k)
-            if ((st = ascii_skip_property(s->r, &p, &e->props[k])) != MS_OK)
+        for (size_t k = 0; k < e->prop_count; ++k) {
+            st = read_list && (int)k == e->index_list ? read_list(s, &p)
+                                                       : ascii_skip_property(s->r, &p, &e->props[k]);
+            if (st != MS_OK)
                 return st;
+        }
         if ((st = ascii_end_of_record(s->r, p, e)) != MS_OK)
             return st;
     }
@@ -233,11 +190,11 @@ ms_status ms_ply_ascii_element(ply_state *s, const ply_element *e)
 {
     switch (e->role) {
     case PLY_ROLE_VERTEX: return ascii_vertices(s, e);
-    case PLY_ROLE_FACE: return ascii_faces(s, e);
-    case PLY_ROLE_STRIPS: return ascii_strips(s, e);
+    case PLY_ROLE_FACE: return ascii_records(s, e, ascii_face_list);
+    case PLY_ROLE_STRIPS: return ascii_records(s, e, ascii_strip_list);
     case PLY_ROLE_OTHER: break;
     }
-    return ascii_skip_element(s, e);
+    return ascii_records(s, e, NULL);
 }
 
 /* Only blank lines may follow the last element. */

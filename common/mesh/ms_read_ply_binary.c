@@ -207,7 +207,7 @@ static ms_status binary_face_list(ply_state *s, const ply_property *p)
         return ms_reader_fail_offset(r, MS_ERR_FORMAT, start, "face with %llu vertices",
                                      (unsigned long long)n);
     const size_t size = ply_type_size(p->type);
-    uint32_t first = 0, previous = 0;
+    ms_fan fan = {0};
     for (uint64_t k = 0; k < n; ++k) {
         if ((st = ms_reader_need(r, size, "the face list")) != MS_OK)
             return st;
@@ -215,12 +215,8 @@ static ms_status binary_face_list(ply_state *s, const ply_property *p)
         if ((st = check_index(s, index, ms_byte_source_offset(&r->src))) != MS_OK)
             return st;
         r->src.pos += size;
-        uint32_t v = (uint32_t)index;
-        if (k == 0)
-            first = v;
-        else if (k >= 2 && (st = ms_reader_add_triangle(r, first, previous, v)) != MS_OK)
+        if ((st = ms_fan_add(r, &fan, (uint32_t)index)) != MS_OK)
             return st;
-        previous = v;
     }
     ++r->input_faces;
     return MS_OK;
@@ -317,8 +313,7 @@ static ms_status binary_strips(ply_state *s, const ply_element *e)
             uint64_t n;
             if ((st = binary_list_count(r, list, swap, &n, "the strip list")) != MS_OK)
                 return st;
-            uint32_t a = 0, b = 0;
-            uint64_t in_strip = 0;
+            ms_strip strip = {0};
             while (n > 0) {
                 if ((st = ms_reader_need(r, size, "the strip list")) != MS_OK)
                     return st;
@@ -328,25 +323,13 @@ static ms_status binary_strips(ply_state *s, const ply_element *e)
                 for (size_t k = 0; k < take; ++k, p += size) {
                     int64_t index = read_binary_int(p, list->type, swap);
                     if (index == -1) {
-                        in_strip = 0;
+                        strip.length = 0;
                         continue;
                     }
                     uint64_t at = r->src.base + (uint64_t)(p - r->src.buf);
-                    if ((st = check_index(s, index, at)) != MS_OK)
+                    if ((st = check_index(s, index, at)) != MS_OK ||
+                        (st = ms_strip_add(r, &strip, (uint32_t)index)) != MS_OK)
                         return st;
-                    uint32_t c = (uint32_t)index;
-                    if (in_strip == 0)
-                        ++r->input_faces;
-                    if (in_strip >= 2) {
-                        /* Odd triangles of a strip are flipped to keep orientation. */
-                        st = (in_strip & 1) ? ms_reader_add_triangle(r, b, a, c)
-                                            : ms_reader_add_triangle(r, a, b, c);
-                        if (st != MS_OK)
-                            return st;
-                    }
-                    a = b;
-                    b = c;
-                    ++in_strip;
                 }
                 r->src.pos += take * size;
                 n -= take;

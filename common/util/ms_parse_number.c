@@ -9,6 +9,29 @@ static const double exact_powers_of_ten[23] = {
     1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18, 1e19, 1e20, 1e21, 1e22,
 };
 
+/* Steps over an optional sign; true when it was a minus. */
+static inline bool skip_sign(const char **p)
+{
+    if (**p == '-') {
+        ++*p;
+        return true;
+    }
+    if (**p == '+')
+        ++*p;
+    return false;
+}
+
+/* Appends the decimal digits at p to *value (wrapping past 19 of them: the
+ * callers count the digits); returns the first non-digit. */
+static inline const char *accumulate_digits(const char *p, uint64_t *value)
+{
+    uint64_t v = *value;
+    while ((unsigned)(*p - '0') < 10)
+        v = v * 10 + (unsigned)(*p++ - '0');
+    *value = v;
+    return p;
+}
+
 static const char *parse_double_slow(const char *s, double *out)
 {
     char *end = NULL;
@@ -22,25 +45,17 @@ static const char *parse_double_slow(const char *s, double *out)
 const char *ms_parse_double(const char *s, double *out)
 {
     const char *p = s;
-    bool negative = false;
-    if (*p == '-') {
-        negative = true;
-        ++p;
-    } else if (*p == '+') {
-        ++p;
-    }
+    bool negative = skip_sign(&p);
     /* Accumulate every digit; with at most 19 of them the mantissa cannot wrap
      * (more go to strtod). Leading zeros cost nothing numerically. */
     uint64_t mantissa = 0;
     const char *digits = p;
-    while ((unsigned)(*p - '0') < 10)
-        mantissa = mantissa * 10 + (unsigned)(*p++ - '0');
+    p = accumulate_digits(p, &mantissa);
     long digit_count = p - digits;
     int exponent = 0;
     if (*p == '.') {
         const char *fraction = ++p;
-        while ((unsigned)(*p - '0') < 10)
-            mantissa = mantissa * 10 + (unsigned)(*p++ - '0');
+        p = accumulate_digits(p, &mantissa);
         digit_count += p - fraction;
         exponent = -(int)(p - fraction > 100000 ? 100000 : p - fraction);
     }
@@ -48,13 +63,7 @@ const char *ms_parse_double(const char *s, double *out)
         return parse_double_slow(s, out);
     if (*p == 'e' || *p == 'E') {
         const char *q = p + 1;
-        bool exp_negative = false;
-        if (*q == '-') {
-            exp_negative = true;
-            ++q;
-        } else if (*q == '+') {
-            ++q;
-        }
+        bool exp_negative = skip_sign(&q);
         if ((unsigned)(*q - '0') >= 10)
             return parse_double_slow(s, out);
         int e = 0;
@@ -83,17 +92,10 @@ const char *ms_parse_double(const char *s, double *out)
 const char *ms_parse_int64(const char *s, int64_t *out)
 {
     const char *p = s;
-    bool negative = false;
-    if (*p == '-') {
-        negative = true;
-        ++p;
-    } else if (*p == '+') {
-        ++p;
-    }
+    bool negative = skip_sign(&p);
     const char *digits = p;
     uint64_t v = 0;
-    while ((unsigned)(*p - '0') < 10)
-        v = v * 10 + (unsigned)(*p++ - '0');
+    p = accumulate_digits(p, &v);
     long count = p - digits;
     if (count == 0)
         return NULL;

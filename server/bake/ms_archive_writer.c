@@ -241,46 +241,20 @@ ms_status ms_archive_writer_put_apo(ms_archive_writer *w, uint32_t cell, const u
     return MS_OK;
 }
 
-/* The index as one zlib stream (RFC 1950). The parameters are fixed, so the
- * stream depends only on the index bytes (and the zlib build), never on the
- * baker's threads. Z_FILTERED suits the records' small numbers: on the dragon it
- * is 4 % shorter than the default strategy. */
-#define INDEX_ZLIB_LEVEL 9
-#define INDEX_ZLIB_WINDOW_BITS 15
-#define INDEX_ZLIB_MEM_LEVEL 8
-#define INDEX_ZLIB_STRATEGY Z_FILTERED
-
+/* The index as one zlib stream (RFC 1950), with the subtrees' fixed parameters
+ * (ms_subtree_deflate), so the stream depends only on the index bytes (and the
+ * zlib build), never on the baker's threads. Z_FILTERED suits the records' small
+ * numbers: on the dragon it is 4 % shorter than the default strategy. */
 static ms_status compress_index(const ms_archive_writer *w, const uint8_t *index, uint64_t size,
                                 uint8_t **out, uint64_t *out_size, ms_error *err)
 {
-    *out = NULL;
-    *out_size = 0;
-    z_stream z;
-    memset(&z, 0, sizeof z);
-    if (deflateInit2(&z, INDEX_ZLIB_LEVEL, Z_DEFLATED, INDEX_ZLIB_WINDOW_BITS, INDEX_ZLIB_MEM_LEVEL,
-                     INDEX_ZLIB_STRATEGY) != Z_OK)
-        return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory compressing the index", w->path);
-    /* The index is capped far below 4 GiB (MS_ARCHIVE_MAX_*), so one call. */
-    uLong bound = deflateBound(&z, (uLong)size);
-    uint8_t *z_out = malloc(bound);
-    if (!z_out) {
-        deflateEnd(&z);
-        return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory compressing the index", w->path);
-    }
-    z.next_in = (Bytef *)(uintptr_t)index; /* zlib's API is not const-correct */
-    z.avail_in = (uInt)size;
-    z.next_out = z_out;
-    z.avail_out = (uInt)bound;
-    int r = deflate(&z, Z_FINISH);
-    uint64_t produced = z.total_out;
-    deflateEnd(&z);
-    if (r != Z_STREAM_END) {
-        free(z_out);
-        return ms_error_set(err, r == Z_MEM_ERROR ? MS_ERR_NOMEM : MS_ERR_ARG,
-                            "%s: zlib could not compress the index (%d)", w->path, r);
-    }
-    *out = z_out;
+    size_t produced = 0;
+    ms_error why;
+    ms_status st = ms_subtree_deflate(index, (size_t)size, out, &produced, &why);
     *out_size = produced;
+    if (st != MS_OK)
+        return ms_error_set(err, st, "%s: zlib could not compress the index (%s)", w->path,
+                            ms_status_name(st));
     return MS_OK;
 }
 

@@ -112,7 +112,7 @@ static void process_input(ms_serve_conn *c)
         bool have = false;
         ms_proto_fault fault;
         ms_error err;
-        ms_status st = ms_proto_decoder_feed(&c->decoder, v.iov_base, v.iov_len, &consumed, &msg,
+        ms_status st = ms_proto_decoder_feed(c->decoder, v.iov_base, v.iov_len, &consumed, &msg,
                                              &have, &fault, &err);
         evbuffer_drain(in, consumed);
         if (st != MS_OK) {
@@ -170,11 +170,11 @@ static void on_event(struct bufferevent *bev, short what, void *arg)
     (void)bev;
     ms_serve_conn *c = arg;
     if ((what & BEV_EVENT_EOF) && !(what & BEV_EVENT_ERROR) && c->state != MS_CONN_CLOSING &&
-        ms_proto_decoder_buffered(&c->decoder) > 0) {
+        ms_proto_decoder_buffered(c->decoder) > 0) {
         /* Truncated frame: say so, in case the peer only shut down writing. */
         ms_proto_fault fault;
         ms_error err;
-        ms_proto_decoder_finish(&c->decoder, &fault, &err);
+        ms_proto_decoder_finish(c->decoder, &fault, &err);
         c->peer_eof = true;
         ms_serve_conn_fail(c, fault.code, fault.detail, err.text);
         return;
@@ -291,7 +291,7 @@ ms_serve_conn *ms_serve_conn_new(ms_serve_door_shared *door, evutil_socket_t fd,
     ms_proto_decoder_config dc = {MS_PROTO_ROLE_SERVER, door->limits.max_frame,
                                   door->limits.max_batch};
     c->bev = bufferevent_socket_new(door->server->base, fd, BEV_OPT_CLOSE_ON_FREE);
-    if (!c->bev || ms_proto_decoder_init(&c->decoder, &dc, NULL) != MS_OK) {
+    if (!c->bev || ms_proto_decoder_new(&dc, &c->decoder, NULL) != MS_OK) {
         if (c->bev)
             bufferevent_free(c->bev);
         else
@@ -301,7 +301,7 @@ ms_serve_conn *ms_serve_conn_new(ms_serve_door_shared *door, evutil_socket_t fd,
     }
     bufferevent_setcb(c->bev, on_read, on_write, on_event, c);
     if (!evbuffer_add_cb(bufferevent_get_output(c->bev), on_output_change, c)) {
-        ms_proto_decoder_free(&c->decoder);
+        ms_proto_decoder_free(c->decoder);
         bufferevent_free(c->bev);
         free(c);
         return NULL;
@@ -331,7 +331,7 @@ void ms_serve_conn_free(ms_serve_conn *c)
     for (unsigned i = 0; i < MS_PROTO_CONN_MAX_OPEN_MODELS; ++i)
         if (c->models[i].handle)
             ms_model_unref(c->models[i].model);
-    ms_proto_decoder_free(&c->decoder);
+    ms_proto_decoder_free(c->decoder);
     if (c->bev)
         bufferevent_free(c->bev);
     free(c);

@@ -69,7 +69,7 @@ typedef struct ms_serve_conn {
     bool write_shut;                 /* shutdown(SHUT_WR) done */
     bool peer_eof;                   /* the peer shut down its side */
     bool reading_paused;             /* output over MS_PROTO_CONN_OUTPUT_LIMIT */
-    ms_proto_decoder decoder;
+    ms_proto_decoder *decoder;       /* owned */
     uint32_t client_max_frame;
     uint16_t version;                /* negotiated (HELLO_REPLY) */
     uint32_t capabilities;           /* granted */

@@ -8,6 +8,7 @@
 #include "ms_parallel.h"
 #include "ms_png.h"
 #include "ms_study_scene_internal.h"
+#include "ms_vec3.h"
 
 /* Rows per parallel block: fixed, so the split never depends on the threads. */
 #define ROWS_PER_BLOCK 4u
@@ -74,21 +75,16 @@ typedef struct render_job {
     float origin[3]; /* camera position in the scene's local frame */
 } render_job;
 
-static double dot3(const double a[3], const double b[3])
-{
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-}
-
 static void shade_pixel(const render_job *job, size_t p, uint32_t t, double depth, double u, double v,
                         const double dir[3])
 {
     const ms_study_scene *s = job->scene;
     ms_study_image *im = job->image;
     /* L: from the hit to the camera, i.e. -dir normalised. */
-    double len = sqrt(dot3(dir, dir)), l[3] = {-dir[0] / len, -dir[1] / len, -dir[2] / len};
+    double len = sqrt(ms_vec3_dot(dir, dir)), l[3] = {-dir[0] / len, -dir[1] / len, -dir[2] / len};
     double ng[3];
     memcpy(ng, &s->face_normal[3 * t], sizeof ng);
-    if (dot3(ng, l) < 0)
+    if (ms_vec3_dot(ng, l) < 0)
         for (int k = 0; k < 3; ++k)
             ng[k] = -ng[k];
     double n[3];
@@ -104,7 +100,7 @@ static void shade_pixel(const render_job *job, size_t p, uint32_t t, double dept
             len2 += sm[k] * sm[k];
         }
         if (len2 > 0) {
-            double scale = (dot3(sm, ng) < 0 ? -1 : 1) / sqrt(len2);
+            double scale = (ms_vec3_dot(sm, ng) < 0 ? -1 : 1) / sqrt(len2);
             for (int k = 0; k < 3; ++k)
                 n[k] = scale * sm[k];
         }
@@ -118,12 +114,12 @@ static void shade_pixel(const render_job *job, size_t p, uint32_t t, double dept
         for (int k = 0; k < 3; ++k)
             x[k] = s->origin[k] + a[k] + u * (b[k] - a[k]) + v * (cc[k] - a[k]);
         if (ms_study_apo_normal(job->options->apo, job->options->triangle_cell[t], x, apo)) {
-            double side = dot3(apo, ng) < 0 ? -1 : 1;
+            double side = ms_vec3_dot(apo, ng) < 0 ? -1 : 1;
             for (int k = 0; k < 3; ++k)
                 n[k] = side * apo[k];
         }
     }
-    double shadow = fmax(0, dot3(l, ng)), nl = fmax(0, dot3(n, l));
+    double shadow = fmax(0, ms_vec3_dot(l, ng)), nl = fmax(0, ms_vec3_dot(n, l));
     double c = MS_STUDY_AMBIENT + shadow * (MS_STUDY_DIFFUSE * nl + MS_STUDY_SPECULAR * pow(nl, MS_STUDY_SHININESS));
     uint8_t value = ms_study_srgb8(c);
     im->depth[p] = (float)depth;

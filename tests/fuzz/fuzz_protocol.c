@@ -205,10 +205,10 @@ static size_t ms_fuzz_protocol_one(const uint8_t *data, size_t size, uint16_t *f
         memcpy(stream + prefix_size, data, size);
     const size_t total = prefix_size + size;
 
-    ms_proto_decoder dec;
+    ms_proto_decoder *dec = NULL;
     ms_proto_decoder_config config = {client_role ? MS_PROTO_ROLE_CLIENT : MS_PROTO_ROLE_SERVER,
                                       MS_PROTO_MIN_FRAME, client_role ? 0 : 16};
-    MS_FUZZ_CHECK(ms_proto_decoder_init(&dec, &config, NULL) == MS_OK);
+    MS_FUZZ_CHECK(ms_proto_decoder_new(&config, &dec, NULL) == MS_OK);
 
     uint64_t rng = (uint64_t)(control >> 2) * 0x9E3779B97F4A7C15ull + 1;
     size_t pos = 0, frame_start = 0, messages = 0;
@@ -236,14 +236,14 @@ static size_t ms_fuzz_protocol_one(const uint8_t *data, size_t size, uint16_t *f
             ms_error err;
             ms_error_clear(&err);
             memset(&fault, 0, sizeof fault);
-            ms_status s = ms_proto_decoder_feed(&dec, stream + pos, chunk - chunk_pos, &consumed,
+            ms_status s = ms_proto_decoder_feed(dec, stream + pos, chunk - chunk_pos, &consumed,
                                                 &msg, &have, &fault, &err);
             MS_FUZZ_CHECK(consumed <= chunk - chunk_pos);
             pos += consumed;
             chunk_pos += consumed;
             if (s == MS_OK && !have) {
                 MS_FUZZ_CHECK(chunk_pos == chunk); /* no message: all input taken */
-                MS_FUZZ_CHECK(ms_proto_decoder_buffered(&dec) > 0);
+                MS_FUZZ_CHECK(ms_proto_decoder_buffered(dec) > 0);
                 continue;
             }
             if (s == MS_OK) {
@@ -280,7 +280,7 @@ static size_t ms_fuzz_protocol_one(const uint8_t *data, size_t size, uint16_t *f
                 MS_FUZZ_CHECK(ms_proto_error_fatality(fault.code) != MS_PROTO_FATAL_NEVER);
                 ms_proto_fault again;
                 size_t consumed_again = 1;
-                MS_FUZZ_CHECK(ms_proto_decoder_feed(&dec, stream + pos, total - pos,
+                MS_FUZZ_CHECK(ms_proto_decoder_feed(dec, stream + pos, total - pos,
                                                     &consumed_again, &msg, &have, &again,
                                                     NULL) == s);
                 MS_FUZZ_CHECK(consumed_again == 0 && !have && again.code == fault.code);
@@ -289,14 +289,14 @@ static size_t ms_fuzz_protocol_one(const uint8_t *data, size_t size, uint16_t *f
             }
             MS_FUZZ_CHECK(!client_role); /* a client treats every bad frame as fatal */
             MS_FUZZ_CHECK(ms_proto_error_fatality(fault.code) != MS_PROTO_FATAL_ALWAYS);
-            MS_FUZZ_CHECK(ms_proto_decoder_buffered(&dec) == 0);
+            MS_FUZZ_CHECK(ms_proto_decoder_buffered(dec) == 0);
             frame_start = pos;
         }
     }
     if (!dead) {
         ms_proto_fault fault;
-        ms_status s = ms_proto_decoder_finish(&dec, &fault, NULL);
-        if (ms_proto_decoder_buffered(&dec) == 0 && frame_start == pos) {
+        ms_status s = ms_proto_decoder_finish(dec, &fault, NULL);
+        if (ms_proto_decoder_buffered(dec) == 0 && frame_start == pos) {
             MS_FUZZ_CHECK(s == MS_OK);
         } else {
             MS_FUZZ_CHECK(s == MS_ERR_FORMAT && fault.code == MS_PROTO_E_MALFORMED_FRAME &&
@@ -305,7 +305,7 @@ static size_t ms_fuzz_protocol_one(const uint8_t *data, size_t size, uint16_t *f
                 *first_fault = fault.code;
         }
     }
-    ms_proto_decoder_free(&dec);
+    ms_proto_decoder_free(dec);
     free(index.wire);
     free(reencoded);
     free(stream);

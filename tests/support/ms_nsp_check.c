@@ -17,18 +17,23 @@
 #include "ms_nsp.h"
 #include "ms_ref_coarsen.h"
 
+void ms_nsp_test_bake_options(const char *input, const char *dir, const char *name, ms_bake_options *o)
+{
+    ms_bake_options_default(o);
+    o->apo.enabled = false; /* geometry only: APO has its own tests */
+    o->input = input;
+    o->archive_dir = dir;
+    o->name = name;
+    o->threads = 2;
+}
+
 void ms_nsp_test_bake(const char *input, const char *dir, const char *name, unsigned bits,
                       uint32_t min_triangles, ms_bake_report *report)
 {
     ms_bake_options o;
-    ms_bake_options_default(&o);
-    o.apo.enabled = false; /* geometry only: APO has its own tests */
-    o.input = input;
-    o.archive_dir = dir;
-    o.name = name;
+    ms_nsp_test_bake_options(input, dir, name, &o);
     o.bits = bits;
     o.min_triangles = min_triangles;
-    o.threads = 2;
     o.mem_mb = 64;
     ms_error err;
     ms_error_clear(&err);
@@ -72,6 +77,30 @@ static void decode_below(ms_view *v, uint32_t cell)
     const ms_archive_header *h = ms_view_header(v);
     for (unsigned k = 0; k < (unsigned)h->n * h->n * h->n; ++k)
         decode_below(v, c->first_child + k);
+}
+
+int ms_nsp_test_bake_demo(const char *work_dir, uint64_t triangles, const char *archive_dir, const char *name,
+                          uint32_t min_triangles, bool every_cell)
+{
+    char ply[700];
+    snprintf(ply, sizeof ply, "%s/demo.ply", work_dir);
+    ms_nsp_test_demo_ply(ply, triangles);
+    ms_bake_options o;
+    ms_bake_options_default(&o); /* APO on */
+    o.apo.every_cell = every_cell;
+    o.input = ply;
+    o.archive_dir = archive_dir;
+    o.name = name;
+    o.min_triangles = min_triangles;
+    o.threads = 2;
+    o.mem_mb = 64;
+    ms_bake_report report;
+    ms_error err;
+    if (ms_bake(&o, &report, &err) != MS_OK) {
+        fprintf(stderr, "bake: %s\n", err.text);
+        return -1;
+    }
+    return 0;
 }
 
 void ms_nsp_test_decode_all(ms_view *v)

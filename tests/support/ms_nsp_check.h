@@ -10,6 +10,10 @@
 #include "ms_quant.h"
 #include "ms_view_decoder.h"
 
+/* Options of a geometry-only test bake (APO off) of input into dir/name.msa (name
+ * may be set later) with 2 threads; the rest at the defaults. */
+void ms_nsp_test_bake_options(const char *input, const char *dir, const char *name, ms_bake_options *o);
+
 /* Bakes input into dir/name.msa with the given parameters (threads 2, --mem 64)
  * and fills report. */
 void ms_nsp_test_bake(const char *input, const char *dir, const char *name, unsigned bits,
@@ -20,6 +24,13 @@ void ms_nsp_test_reference(const char *input, unsigned bits, ms_qmesh *q);
 
 /* Writes a demo model of about `triangles` triangles as binary PLY (doubles) to path. */
 void ms_nsp_test_demo_ply(const char *path, uint64_t triangles);
+
+/* Writes a demo model of about `triangles` triangles to work_dir/demo.ply and
+ * bakes it with APO on (on every cell, leaves included, where every_cell) into
+ * archive_dir/name.msa with N_min = min_triangles, 2 threads and --mem 64.
+ * 0, or -1 with the error on stderr (for group setups). */
+int ms_nsp_test_bake_demo(const char *work_dir, uint64_t triangles, const char *archive_dir, const char *name,
+                          uint32_t min_triangles, bool every_cell);
 
 /* Splits every cell down to the leaves and refines each to full precision. */
 void ms_nsp_test_decode_all(ms_view *view);

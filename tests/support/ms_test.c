@@ -81,3 +81,19 @@ void ms_test_write_file(const char *path, const void *data, size_t size)
     assert_int_equal(fwrite(data, 1, size, fp), size);
     fclose(fp);
 }
+
+json_t *ms_test_run_json(const char *command, int want_status)
+{
+    const size_t size = 1 << 20;
+    char *out = malloc(size);
+    assert_non_null(out);
+    int status = ms_test_run(command, out, size);
+    if (status != want_status)
+        fail_msg("'%s' exited %d, not %d: %.300s", command, status, want_status, out);
+    json_error_t je;
+    json_t *root = json_loads(out, 0, &je);
+    if (!root)
+        fail_msg("'%s': not JSON (%s): %.300s", command, je.text, out);
+    free(out);
+    return root;
+}

@@ -2,6 +2,7 @@
 #ifndef MS_TEST_H
 #define MS_TEST_H
 
+#include <jansson.h>
 #include <stddef.h>
 #include <stdint.h>
 
@@ -20,6 +21,11 @@ void ms_test_rmdir(const char *dir);
 /* Runs a shell command line, capturing stdout+stderr into out (NUL-terminated,
  * truncated to size). Returns the exit status, or -1 if it did not exit normally. */
 int ms_test_run(const char *command, char *out, size_t size);
+
+/* Runs a command line (ms_test_run, up to 1 MiB of output) that must exit with
+ * want_status and print one JSON document; returns it (json_decref it). Fails the
+ * test otherwise, quoting the command and its output. */
+json_t *ms_test_run_json(const char *command, int want_status);
 
 /* A whole file into a malloc'd buffer (the caller frees it), and a buffer into
  * a file; both fail the test on any error. */

@@ -2,9 +2,21 @@
 #include "ms_test_core.h"
 
 #include <math.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <sys/stat.h>
+#include <unistd.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
 #include <time.h>
+#include <cmocka.h>
 
 #include "ms_progress.h"
+#include "ms_test.h"
+#include "ms_test_net.h"
 
 void ms_test_sleep_s(double seconds)
 {
@@ -37,4 +49,81 @@ bool ms_test_core_wait_complete(ms_core *core, double seconds, ms_core_stats *st
         }
         ms_test_sleep_s(0.005);
     }
+}
+
+ms_camera ms_test_core_key_camera(const ms_camera_path *path, size_t k)
+{
+    ms_camera cam;
+    ms_error err;
+    double t = path->keys[k < path->count ? k : path->count - 1].time;
+    if (ms_camera_path_sample(path, t, 640, 480, 1e-4, 1e4, &cam, &err) != MS_OK)
+        fail_msg("%s", err.text);
+    return cam;
+}
+
+ms_test_served *ms_test_served_new(const char *model)
+{
+    ms_test_served *s = calloc(1, sizeof *s);
+    assert_non_null(s);
+    ms_test_tmpdir(s->dir, sizeof s->dir);
+    snprintf(s->archives, sizeof s->archives, "%s/archive", s->dir);
+    snprintf(s->file, sizeof s->file, "%s/%s.msa", s->archives, model);
+    snprintf(s->log, sizeof s->log, "%s/meshserve.log", s->dir);
+    snprintf(s->port_file, sizeof s->port_file, "%s/ports", s->dir);
+    if (mkdir(s->archives, 0755) != 0) {
+        free(s);
+        return NULL;
+    }
+    return s;
+}
+
+int ms_test_served_open(ms_test_served *s, const char *path_file)
+{
+    ms_error err;
+    if (ms_archive_open(s->file, &s->archive, &err) != MS_OK ||
+        ms_camera_path_load(path_file, &s->path, &err) != MS_OK) {
+        fprintf(stderr, "%s\n", err.text);
+        return -1;
+    }
+    return 0;
+}
+
+void ms_test_served_launch(ms_test_served *s, uint16_t port)
+{
+    char bin[512], port_arg[16];
+    ms_test_bin_path(bin, sizeof bin, "meshserve");
+    snprintf(port_arg, sizeof port_arg, "%u", port);
+    unlink(s->port_file);
+    char *argv[] = {bin, s->archives, "--port", port_arg, "--http-port", "0", "--port-file", s->port_file, NULL};
+    s->pid = ms_test_spawn(argv, s->log);
+    if (ms_test_wait_ports(s->port_file, 15.0, &s->port, &s->http_port) != 0) {
+        ms_test_stop(s->pid, SIGKILL, 5.0);
+        s->pid = 0;
+        fail_msg("meshserve did not start (see %s)", s->log);
+    }
+}
+
+void ms_test_served_free(ms_test_served *s)
+{
+    if (!s)
+        return;
+    if (s->pid)
+        ms_test_stop(s->pid, SIGTERM, 10.0);
+    ms_archive_close(s->archive);
+    ms_camera_path_free(&s->path);
+    ms_test_rmdir(s->dir);
+    free(s);
+}
+
+ms_core_options ms_test_served_core_options(const ms_test_served *s, const char *model)
+{
+    ms_core_options o = {0};
+    o.host = "127.0.0.1";
+    o.port = s->port;
+    o.model = model;
+    o.tolerance_px = 1.0;
+    o.hysteresis_bits = 0.0;
+    o.answer_timeout = 3.0;
+    o.give_up_seconds = 20.0;
+    return o;
 }

@@ -41,7 +41,7 @@ int ms_test_conn_open(ms_test_conn *c, uint16_t port)
         return -1;
     }
     ms_proto_decoder_config config = {MS_PROTO_ROLE_CLIENT, MS_PROTO_MAX_FRAME, 0};
-    if (ms_proto_decoder_init(&c->decoder, &config, NULL) != MS_OK)
+    if (ms_proto_decoder_new(&config, &c->decoder, NULL) != MS_OK)
         return -1;
     return 0;
 }
@@ -51,7 +51,8 @@ void ms_test_conn_close(ms_test_conn *c)
     if (c->fd >= 0)
         close(c->fd);
     c->fd = -1;
-    ms_proto_decoder_free(&c->decoder);
+    ms_proto_decoder_free(c->decoder);
+    c->decoder = NULL;
 }
 
 int ms_test_conn_send_raw(ms_test_conn *c, const void *data, size_t size)
@@ -91,7 +92,7 @@ int ms_test_conn_recv(ms_test_conn *c, ms_proto_message *msg, double timeout)
             bool have;
             ms_proto_fault fault;
             ms_error err;
-            ms_status st = ms_proto_decoder_feed(&c->decoder, c->buffer + c->used,
+            ms_status st = ms_proto_decoder_feed(c->decoder, c->buffer + c->used,
                                                  c->have - c->used, &consumed, msg, &have,
                                                  &fault, &err);
             c->used += consumed;

@@ -12,7 +12,7 @@
 
 typedef struct ms_test_conn {
     int fd;
-    ms_proto_decoder decoder;
+    ms_proto_decoder *decoder; /* owned */
     uint8_t buffer[65536];
     size_t have, used;
     bool eof;

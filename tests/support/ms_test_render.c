@@ -218,3 +218,66 @@ void ms_test_render_apo(const ms_archive *a, const ms_view_mesh *mesh, unsigned 
     }
     free(drawing);
 }
+
+void ms_test_render_show(ms_render *render, const ms_view_mesh *mesh, const ms_core_apo_chunk *apo, size_t apo_count,
+                         ms_render_upload_stats *up)
+{
+    ms_error err;
+    if (ms_render_set_frame(render, mesh, apo, apo_count, &err) != MS_OK)
+        fail_msg("%s", err.text);
+    ms_render_upload_stats local;
+    if (ms_render_upload(render, UINT64_MAX, up ? up : &local, &err) != MS_OK)
+        fail_msg("%s", err.text);
+}
+
+void ms_test_render_unit_header(unsigned n, uint32_t cell_count, ms_archive_header *h)
+{
+    memset(h, 0, sizeof *h);
+    h->box_side = 1.0;
+    h->bits = 16;
+    h->n = (uint8_t)n;
+    h->root_bits = 7;
+    h->cell_count = cell_count;
+}
+
+ms_render *ms_test_render_one_cell(unsigned n, const double *positions, size_t vertex_count, const uint32_t *triangles,
+                                   size_t triangle_count)
+{
+    ms_archive_header h;
+    ms_test_render_unit_header(n, 1, &h);
+    ms_archive_cell cell;
+    memset(&cell, 0, sizeof cell);
+    cell.parent = cell.first_child = MS_ARCHIVE_NONE;
+    ms_render *r;
+    ms_error err;
+    if (ms_render_new(&h, &cell, &r, &err) != MS_OK)
+        fail_msg("%s", err.text);
+    uint32_t *root_cell = calloc(triangle_count ? triangle_count : 1, sizeof *root_cell);
+    assert_non_null(root_cell);
+    ms_view_mesh mesh;
+    memset(&mesh, 0, sizeof mesh);
+    mesh.vertex_count = vertex_count;
+    mesh.triangle_count = triangle_count;
+    mesh.positions = (double *)positions;
+    mesh.triangles = (uint32_t *)triangles;
+    mesh.triangle_cell = root_cell;
+    ms_test_render_show(r, &mesh, NULL, 0, NULL);
+    free(root_cell);
+    return r;
+}
+
+void ms_test_render_open(const ms_archive *archive, ms_render **render, ms_view **view)
+{
+    ms_error err;
+    if (ms_render_new(ms_archive_get_header(archive), ms_archive_get_cell(archive, 0), render, &err) != MS_OK)
+        fail_msg("%s", err.text);
+    if (ms_view_create_from_archive(archive, view, &err) != MS_OK)
+        fail_msg("%s", err.text);
+}
+
+void ms_test_render_look(const ms_archive *archive, ms_view *view, const double dir[3], int width, int height,
+                         double tolerance_px, ms_camera *camera, ms_view_mesh *mesh)
+{
+    ms_test_render_camera(ms_archive_get_header(archive), dir, 1.1, 40.0, width, height, camera);
+    ms_test_render_view(view, camera, tolerance_px, mesh);
+}

@@ -15,6 +15,7 @@
 #include "ms_archive.h"
 #include "ms_camera.h"
 #include "ms_client_core.h"
+#include "ms_render.h"
 #include "ms_test_display.h"
 #include "ms_view_decoder.h"
 
@@ -59,6 +60,14 @@ ms_archive *ms_test_render_bake_demo(uint32_t grid, const char *dir, unsigned bi
 void ms_test_render_camera(const ms_archive_header *h, const double dir[3], double distance, double fovy_degrees,
                            int width, int height, ms_camera *camera);
 
+/* A renderer for the archive and a view decoder of it. */
+void ms_test_render_open(const ms_archive *archive, ms_render **render, ms_view **view);
+
+/* The camera ms_test_render_camera places in direction dir at distance 1.1 with a
+ * 40 degree field, and the view's mesh for it (ms_test_render_view). */
+void ms_test_render_look(const ms_archive *archive, ms_view *view, const double dir[3], int width, int height,
+                         double tolerance_px, ms_camera *camera, ms_view_mesh *mesh);
+
 /* Selects and applies cells for the camera (tolerance_px) until the view stops
  * changing, then stitches every shown cell into *mesh (zeroed or reused). */
 void ms_test_render_view(ms_view *view, const ms_camera *camera, double tolerance_px, ms_view_mesh *mesh);
@@ -69,5 +78,20 @@ void ms_test_render_view(ms_view *view, const ms_camera *camera, double toleranc
  * *chunks is malloc'd (free it; the data is the archive's). */
 void ms_test_render_apo(const ms_archive *archive, const ms_view_mesh *mesh, unsigned max_levels, bool mid_level,
                         ms_core_apo_chunk **chunks, size_t *count);
+
+/* Sets the renderer's frame (mesh and APO chunks; apo may be NULL when apo_count
+ * is 0) and uploads it all in one call; *up (may be NULL) gets the upload's stats. */
+void ms_test_render_show(ms_render *render, const ms_view_mesh *mesh, const ms_core_apo_chunk *apo, size_t apo_count,
+                         ms_render_upload_stats *up);
+
+/* A zeroed header of a hand-made model: the unit box at the origin, 16 bits,
+ * subdivision n, root bits 7, cell_count cells. */
+void ms_test_render_unit_header(unsigned n, uint32_t cell_count, ms_archive_header *h);
+
+/* A renderer over a hand-made one-cell model (ms_test_render_unit_header) showing
+ * the triangles given (3 vertex indices each, all drawn by the root cell),
+ * uploaded. Free it with ms_render_free. */
+ms_render *ms_test_render_one_cell(unsigned n, const double *positions, size_t vertex_count, const uint32_t *triangles,
+                                   size_t triangle_count);
 
 #endif

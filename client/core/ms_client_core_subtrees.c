@@ -1,0 +1,394 @@
+/* The client core's index: the view over a whole index, or over one that comes
+ * by subtree (docs/CLIENT.md, "An index by subtree"). With a partial index
+ * (ms_archive_open_head) the view learns the root subtree at once and each
+ * further subtree as it arrives; every pass keeps exactly the subtrees the cut
+ * needs (those holding a cell of the cut, and those holding the children of a
+ * cell that would split or is within a bit of splitting), asks for the missing
+ * ones ahead of the cells they unblock, and forgets the others with their
+ * cells' bytes. Decode thread only (the figures under the lock). */
+#include "ms_client_core_internal.h"
+
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "ms_subtree.h"
+
+/* ---- the table of subtrees (sorted by id) --------------------------------- */
+
+static size_t subtree_find(const ms_core *c, uint32_t id, bool *found)
+{
+    size_t lo = 0, hi = c->subtree_count;
+    while (lo < hi) {
+        size_t mid = lo + (hi - lo) / 2;
+        if (c->subtrees[mid].id < id)
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    *found = lo < c->subtree_count && c->subtrees[lo].id == id;
+    return lo;
+}
+
+static subtree_entry *subtree_get(ms_core *c, uint32_t id)
+{
+    bool found;
+    size_t k = subtree_find(c, id, &found);
+    return found ? &c->subtrees[k] : NULL;
+}
+
+/* The entry of subtree id, made (RECEIVING) when absent; NULL out of memory. */
+static subtree_entry *subtree_add(ms_core *c, uint32_t id, uint32_t parent)
+{
+    bool found;
+    size_t k = subtree_find(c, id, &found);
+    if (found)
+        return &c->subtrees[k];
+    if (c->subtree_count == c->subtree_cap) {
+        size_t cap = c->subtree_cap ? 2 * c->subtree_cap : 64;
+        subtree_entry *g = realloc(c->subtrees, cap * sizeof *g);
+        if (!g)
+            return NULL;
+        c->subtrees = g;
+        c->subtree_cap = cap;
+    }
+    memmove(&c->subtrees[k + 1], &c->subtrees[k], (c->subtree_count - k) * sizeof *c->subtrees);
+    c->subtree_count++;
+    c->subtrees[k] = (subtree_entry){.id = id, .parent = parent, .state = SUBTREE_RECEIVING};
+    return &c->subtrees[k];
+}
+
+static void subtree_remove(ms_core *c, size_t k)
+{
+    ms_core_rx_free(&c->subtrees[k].buf);
+    memmove(&c->subtrees[k], &c->subtrees[k + 1],
+            (c->subtree_count - k - 1) * sizeof *c->subtrees);
+    c->subtree_count--;
+}
+
+/* ---- members: section 1 of the design, from the records held -------------- */
+
+typedef struct member_list {
+    uint32_t *ids;
+    ms_archive_cell *recs;
+    size_t n, cap;
+} member_list;
+
+static bool member_push(member_list *l, uint32_t id, const ms_archive_cell *rec)
+{
+    if (l->n == l->cap) {
+        size_t cap = l->cap ? 2 * l->cap : 128;
+        uint32_t *i = realloc(l->ids, cap * sizeof *i);
+        if (i)
+            l->ids = i;
+        ms_archive_cell *r = realloc(l->recs, cap * sizeof *r);
+        if (r)
+            l->recs = r;
+        if (!i || !r)
+            return false;
+        l->cap = cap;
+    }
+    l->ids[l->n] = id;
+    l->recs[l->n++] = *rec;
+    return true;
+}
+
+static void member_free(member_list *l)
+{
+    free(l->ids);
+    free(l->recs);
+    *l = (member_list){0};
+}
+
+/* The cells of subtree id (its sibling group, or the root, and their
+ * descendants down to the subtree's last level), from the index's records. */
+static ms_status subtree_members(const ms_core *c, uint32_t id, member_list *out, ms_error *err)
+{
+    const ms_archive_header *h = ms_archive_get_header(c->index);
+    const uint32_t nc = (uint32_t)h->n * h->n * h->n;
+    out->n = 0;
+    for (uint32_t k = 0; k < (id == 0 ? 1 : nc); ++k) {
+        const ms_archive_cell *rec = ms_archive_get_cell(c->index, id + k);
+        if (!rec)
+            return ms_error_set(err, MS_ERR_CORRUPT, "subtree %u: cell %u is not held", id,
+                                id + k);
+        if (!member_push(out, id + k, rec))
+            return ms_error_set(err, MS_ERR_NOMEM, "out of memory for subtree %u", id);
+    }
+    for (size_t m = 0; m < out->n; ++m) {
+        ms_archive_cell rec = out->recs[m];
+        if (rec.first_child == MS_ARCHIVE_NONE || (rec.level + 1u) % c->subtree_levels == 0)
+            continue;
+        for (uint32_t k = 0; k < nc; ++k) {
+            const ms_archive_cell *child = ms_archive_get_cell(c->index, rec.first_child + k);
+            if (!child)
+                return ms_error_set(err, MS_ERR_CORRUPT, "subtree %u: cell %u is not held", id,
+                                    rec.first_child + k);
+            if (!member_push(out, rec.first_child + k, child))
+                return ms_error_set(err, MS_ERR_NOMEM, "out of memory for subtree %u", id);
+        }
+    }
+    return MS_OK;
+}
+
+/* The view learns the records of subtree id (held by the index). */
+static ms_status learn_subtree(ms_core *c, uint32_t id, ms_error *err)
+{
+    member_list l = {0};
+    ms_status s = subtree_members(c, id, &l, err);
+    if (s == MS_OK)
+        s = ms_view_learn(c->view, l.ids, l.recs, l.n, err);
+    if (s == MS_OK && !ms_core_dcells_grow(c, l.ids, l.n))
+        s = ms_error_set(err, MS_ERR_NOMEM, "out of memory for subtree %u's cells", id);
+    member_free(&l);
+    return s;
+}
+
+static void note_index_held(ms_core *c)
+{
+    c->index_bytes_held = ms_archive_index_bytes_held(c->index);
+    pthread_mutex_lock(&c->lock);
+    c->stats.index_bytes_held = c->index_bytes_held;
+    if (c->index_bytes_held > c->stats.peak_index_bytes_held)
+        c->stats.peak_index_bytes_held = c->index_bytes_held;
+    c->stats.subtrees_held = ms_archive_subtrees_held(c->index);
+    pthread_mutex_unlock(&c->lock);
+}
+
+bool ms_core_take_index(ms_core *c, ms_error *err)
+{
+    const ms_archive_header *h = ms_archive_get_header(c->index);
+    c->target = malloc(h->cell_count);
+    if (!c->target) {
+        ms_error_set(err, MS_ERR_NOMEM, "out of memory for %u cells", h->cell_count);
+        return false;
+    }
+    if (ms_view_create_partial(h, &c->view, err) != MS_OK)
+        return false;
+    c->by_subtree = ms_archive_is_partial(c->index);
+    if (c->by_subtree) {
+        c->subtree_levels = ms_archive_subtree_levels(c->index);
+        if (c->subtree_levels < 1) {
+            ms_error_set(err, MS_ERR_CORRUPT, "index head: no subtree depth");
+            return false;
+        }
+        subtree_entry *root = subtree_add(c, 0, MS_ARCHIVE_NONE);
+        if (!root) {
+            ms_error_set(err, MS_ERR_NOMEM, "out of memory for the subtrees");
+            return false;
+        }
+        root->state = SUBTREE_HELD;
+        if (learn_subtree(c, 0, err) != MS_OK)
+            return false;
+        note_index_held(c);
+        pthread_mutex_lock(&c->lock);
+        c->stats.index_by_subtree = true;
+        pthread_mutex_unlock(&c->lock);
+        return true;
+    }
+    /* a whole index: every record at once */
+    uint32_t *ids = malloc((size_t)h->cell_count * sizeof *ids);
+    ms_archive_cell *recs = malloc((size_t)h->cell_count * sizeof *recs);
+    ms_status s = MS_OK;
+    if (!ids || !recs)
+        s = ms_error_set(err, MS_ERR_NOMEM, "out of memory for %u cells", h->cell_count);
+    for (uint32_t i = 0; s == MS_OK && i < h->cell_count; ++i) {
+        ids[i] = i;
+        recs[i] = *ms_archive_get_cell(c->index, i);
+    }
+    if (s == MS_OK)
+        s = ms_view_learn(c->view, ids, recs, h->cell_count, err);
+    if (s == MS_OK && !ms_core_dcells_grow(c, ids, h->cell_count))
+        s = ms_error_set(err, MS_ERR_NOMEM, "out of memory for %u cells", h->cell_count);
+    free(ids);
+    free(recs);
+    /* held whatever the view: outside the budget, in the figures */
+    pthread_mutex_lock(&c->lock);
+    c->stats.index_bytes_held = c->stats.peak_index_bytes_held =
+        ms_archive_index_bytes_held(c->index);
+    pthread_mutex_unlock(&c->lock);
+    return s == MS_OK;
+}
+
+/* ---- reception -------------------------------------------------------------- */
+
+/* A subtree that failed: fetched once more, then given up (its cell stays). */
+static void subtree_trouble(ms_core *c, subtree_entry *e, const char *what)
+{
+    ms_core_rx_free(&e->buf);
+    e->total = 0;
+    e->retries++;
+    pthread_mutex_lock(&c->lock);
+    c->stats.refetches += e->retries == 1;
+    pthread_mutex_unlock(&c->lock);
+    if (e->retries >= 2 && e->state != SUBTREE_FAILED) {
+        e->state = SUBTREE_FAILED;
+        char text[256];
+        snprintf(text, sizeof text, "subtree %u: %.150s (after a refetch); cell %u stays "
+                 "unsplit", e->id, what, e->parent);
+        ms_core_warn(c, text);
+    }
+}
+
+void ms_core_subtree_chunk(ms_core *c, const chunk_msg *m)
+{
+    pthread_mutex_lock(&c->lock);
+    c->stats.index_bytes_received += m->length;
+    pthread_mutex_unlock(&c->lock);
+    subtree_entry *e = subtree_get(c, m->cell);
+    if (!e || e->state != SUBTREE_RECEIVING)
+        return; /* no longer wanted, or already held */
+    if (m->failed) {
+        subtree_trouble(c, e, "the server answered its request with an error");
+        return;
+    }
+    if (m->total && (e->total == 0 || e->buf.end == 0))
+        e->total = m->total;
+    /* no subtree stores more than its raw blob's bound (every record and table
+     * word of the model) and zlib's few bytes: a larger size is a lie */
+    const ms_archive_header *h = ms_archive_get_header(c->index);
+    uint64_t bound = 24 + 84 * (uint64_t)h->cell_count + 4 * (uint64_t)h->table_words + 4096;
+    if (e->total > bound) {
+        subtree_trouble(c, e, "its stored size exceeds any subtree of the model");
+        return;
+    }
+    if (!e->total || (m->total && m->total != e->total) ||
+        (uint64_t)m->offset + m->length > e->total) {
+        subtree_trouble(c, e, "its pieces disagree on its size");
+        return;
+    }
+    if (!ms_core_rx_add(&e->buf, m->offset, m->data, m->length)) {
+        ms_core_warn(c, "out of memory for a subtree");
+        return;
+    }
+    if (e->buf.end < e->total)
+        return;
+    ms_error err;
+    if (ms_archive_add_subtree(c->index, e->id, e->buf.buf, e->total, &err) != MS_OK) {
+        subtree_trouble(c, e, err.text);
+        return;
+    }
+    ms_core_rx_free(&e->buf);
+    e->state = SUBTREE_HELD;
+    if (learn_subtree(c, e->id, &err) != MS_OK) {
+        /* the archive took it, the view did not: forget it on both sides */
+        ms_archive_drop_subtree(c->index, e->id);
+        e->state = SUBTREE_RECEIVING;
+        subtree_trouble(c, e, err.text);
+        return;
+    }
+    pthread_mutex_lock(&c->lock);
+    c->stats.subtrees_received++;
+    pthread_mutex_unlock(&c->lock);
+    c->subtrees_changed = true;
+    note_index_held(c);
+}
+
+/* ---- each pass ---------------------------------------------------------------- */
+
+static bool want_index(dec_pass *pass, const subtree_entry *e, uint8_t priority)
+{
+    return ms_core_want_push(&pass->wl, (want){e->id, e->buf.end, e->total ? e->total : UINT32_MAX,
+                                               STREAM_INDEX, priority, 0});
+}
+
+/* Cell's children's subtree is needed: held ones stay, missing ones are asked
+ * for at `priority`. */
+static void need_children(ms_core *c, dec_pass *pass, uint32_t cell, double priority)
+{
+    uint32_t children = ms_archive_children_subtree(c->index, cell);
+    if (children == MS_ARCHIVE_NONE || children == ms_archive_subtree_of(c->index, cell))
+        return; /* a leaf, or its children are in its own subtree */
+    subtree_entry *e = subtree_add(c, children, cell);
+    if (!e)
+        return;
+    e->needed = true;
+    if (e->state == SUBTREE_HELD)
+        return;
+    pass->complete = false;
+    if (e->state == SUBTREE_RECEIVING)
+        want_index(pass, e, ms_core_clamp_priority(priority));
+}
+
+/* Forgets subtree k's records and its cells' bytes; false when the view still
+ * shows one of them (then it stays). */
+static bool drop_subtree(ms_core *c, size_t k)
+{
+    subtree_entry *e = &c->subtrees[k];
+    if (e->state == SUBTREE_HELD) {
+        member_list l = {0};
+        ms_error err;
+        ms_status s = subtree_members(c, e->id, &l, &err);
+        if (s == MS_OK)
+            s = ms_view_unlearn(c->view, l.ids, l.n, &err);
+        if (s == MS_OK)
+            ms_core_dcells_release(c, l.ids, l.n);
+        member_free(&l);
+        if (s != MS_OK)
+            return false;
+        ms_archive_drop_subtree(c->index, e->id);
+    }
+    subtree_remove(c, k);
+    return true;
+}
+
+void ms_core_schedule_subtrees(ms_core *c, dec_pass *pass)
+{
+    if (!c->by_subtree)
+        return;
+    for (size_t k = 0; k < c->subtree_count; ++k)
+        c->subtrees[k].needed = c->subtrees[k].id == 0;
+    /* the subtrees of the cut: a cell split, or about to split, at a
+     * subtree's last level holds its children in the next one */
+    for (uint32_t i = 0; i != MS_ARCHIVE_NONE; i = ms_view_next_known(c->view, i))
+        if (ms_view_state(c->view, i) == MS_VIEW_SPLIT || c->target[i] == MS_VIEW_TARGET_SPLIT)
+            need_children(c, pass, i, 0);
+    /* cells that would split: their children's records first, ahead of the
+     * cell's own next bit (priority 128 - 8 (need - bit), 64 later culled) */
+    const ms_view_select_report *r = &c->report;
+    for (size_t k = 0; k < r->blocked_count; ++k) {
+        uint32_t cell = r->blocked[k];
+        const ms_archive_cell *rec = ms_view_cell(c->view, cell);
+        bool visible;
+        double need = ms_core_cell_need(c, &pass->fv, cell, &visible);
+        unsigned next = ms_view_available_bits(c->view, cell);
+        next = (next < rec->bits_max ? next : rec->bits_max) + 1;
+        need_children(c, pass, cell, (visible ? 128.0 : 192.0) - 8.0 * (need - next) - 1.0);
+    }
+    /* prefetch one level beyond the cut: cells within a bit of splitting,
+     * after the bits of the cells shown (as the children's bits of a cell
+     * about to split: 16 later) */
+    for (size_t k = 0; k < r->near_count; ++k) {
+        uint32_t cell = r->near[k];
+        const ms_archive_cell *rec = ms_view_cell(c->view, cell);
+        bool visible;
+        double need = ms_core_cell_need(c, &pass->fv, cell, &visible);
+        need_children(c, pass, cell,
+                      (visible ? 144.0 : 208.0) - 8.0 * (need - (rec->bits_max + 1.0)));
+    }
+    /* the others go, deepest first (a subtree's id exceeds its parent's) */
+    bool dropped = false;
+    for (size_t k = c->subtree_count; k-- > 0;)
+        if (!c->subtrees[k].needed)
+            dropped |= drop_subtree(c, k);
+    if (dropped) {
+        note_index_held(c);
+        c->subtrees_changed = true;
+    }
+    /* a frame lists the subtrees held: a new list is a new frame */
+    pass->changed |= c->subtrees_changed;
+    c->subtrees_changed = false;
+    for (size_t k = 0; k < c->subtree_count; ++k)
+        if (c->subtrees[k].state == SUBTREE_FAILED)
+            pass->complete = false;
+}
+
+void ms_core_subtrees_free(ms_core *c)
+{
+    for (size_t k = 0; k < c->subtree_count; ++k)
+        ms_core_rx_free(&c->subtrees[k].buf);
+    free(c->subtrees);
+    c->subtrees = NULL;
+    c->subtree_count = c->subtree_cap = 0;
+    ms_view_select_report_free(&c->report);
+}
