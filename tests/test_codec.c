@@ -517,6 +517,56 @@ static void test_edges_in_input_complex(void **state)
     assert_int_equal(ms_codec_encode(&full, &par, &buf, &size, NULL, &err), MS_ERR_ARG);
 }
 
+/* The encoder's duplicate check looks at the triangles grouped by their
+ * smallest vertex: an open fan of 23 triangles round vertex 0, the smallest key
+ * (every other vertex lies above it on each axis), a group past the short one's
+ * pairwise comparison, encodes; the same fan with one triangle repeated in the
+ * same or the opposite orientation is refused, and so is a repeat in a short
+ * group. */
+static void test_duplicate_in_wide_group(void **state)
+{
+    (void)state;
+    enum { RIM = 24, FAN = RIM - 1 };
+    uint64_t cells[RIM + 1];
+    cells[0] = ms_quant_key(5, 5, 5, 10);
+    for (unsigned i = 0; i < RIM; ++i) { /* a quarter circle above the centre */
+        double a = 1.5707963267949 * i / (RIM - 1);
+        cells[i + 1] = ms_quant_key((uint32_t)(5 + 400 * cos(a)), (uint32_t)(5 + 400 * sin(a)),
+                                    5 + i, 10);
+    }
+    uint32_t tris[3 * (FAN + 1)];
+    for (unsigned i = 0; i < FAN; ++i) {
+        tris[3 * i] = 0;
+        tris[3 * i + 1] = 1 + i;
+        tris[3 * i + 2] = 2 + i;
+    }
+    ms_codec_state full = {.bits = 10, .level = 30, .vertex_count = RIM + 1, .tri_count = FAN,
+                           .cells = cells, .tris = tris};
+    ms_codec_encode_params par;
+    memset(&par, 0, sizeof par);
+    par.box.size = 1;
+    uint8_t *buf;
+    size_t size;
+    ms_error err;
+    assert_int_equal(ms_codec_encode(&full, &par, &buf, &size, NULL, &err), MS_OK);
+    free(buf);
+    const uint32_t repeats[3][3] = {{0, 9, 8},   /* triangle 7, opposite orientation */
+                                    {11, 12, 0}, /* triangle 10, rotated */
+                                    {4, 3, 0}};  /* triangle 2, reversed */
+    full.tri_count = FAN + 1;
+    for (int r = 0; r < 3; ++r) {
+        memcpy(&tris[3 * FAN], repeats[r], sizeof repeats[r]);
+        assert_int_equal(ms_codec_encode(&full, &par, &buf, &size, NULL, &err), MS_ERR_ARG);
+        assert_non_null(strstr(err.text, "duplicate triangle"));
+    }
+    /* a repeat in a short group: one triangle of the fan, another twice */
+    uint32_t three[9] = {1, 2, 3, 3, 2, 1, 0, 1, 2};
+    full.tris = three;
+    full.tri_count = 3;
+    assert_int_equal(ms_codec_encode(&full, &par, &buf, &size, NULL, &err), MS_ERR_ARG);
+    assert_non_null(strstr(err.text, "duplicate triangle"));
+}
+
 /* ---- streams ---- */
 
 typedef struct coded {
@@ -800,6 +850,7 @@ int main(void)
         cmocka_unit_test(test_precision_8_and_20),
         cmocka_unit_test(test_empty_mesh_errors),
         cmocka_unit_test(test_edges_in_input_complex),
+        cmocka_unit_test(test_duplicate_in_wide_group),
         cmocka_unit_test(test_subrange_from_start_state),
         cmocka_unit_test(test_parent_child_chain),
         cmocka_unit_test(test_prefix_and_truncation),

@@ -16,6 +16,7 @@
 #include "ms_big_alloc.h"
 #include "ms_codec.h"
 #include "ms_codec_internal.h"
+#include "ms_radix_sort.h"
 #include "ms_test.h"
 
 static uint64_t rng_state = 88172645463325252ull;
@@ -94,6 +95,66 @@ static void test_canonicalise_wide_cells(void **state)
     assert_memory_equal(edges, want_edges, sizeof edges);
 }
 
+typedef struct keyed {
+    uint64_t key;
+    uint32_t value;
+} keyed;
+
+static int cmp_keyed(const void *a, const void *b)
+{
+    const keyed *x = a, *y = b;
+    if (x->key != y->key)
+        return x->key < y->key ? -1 : 1;
+    return x->value < y->value ? -1 : x->value > y->value; /* value = input position */
+}
+
+/* ms_radix_sort_pairs against a stable reference (qsort on key, then input
+ * position), keys of key_bits bits drawn from `distinct` values so that many
+ * repeat; `presorted` gives input already in order. */
+static void check_pairs(size_t n, unsigned key_bits, uint64_t distinct, bool presorted)
+{
+    uint64_t *keys = malloc(n * sizeof *keys);
+    uint32_t *values = malloc(n * sizeof *values);
+    keyed *ref = malloc(n * sizeof *ref);
+    assert_non_null(keys);
+    assert_non_null(values);
+    assert_non_null(ref);
+    uint64_t top = key_bits >= 64 ? UINT64_MAX : ((uint64_t)1 << key_bits) - 1;
+    uint64_t stride = top / distinct;
+    for (size_t i = 0; i < n; ++i) {
+        uint64_t pick = ms_test_random(&rng_state) % distinct;
+        keys[i] = presorted ? (uint64_t)(i * distinct / n) * stride : pick * stride;
+        values[i] = (uint32_t)i;
+        ref[i].key = keys[i];
+        ref[i].value = (uint32_t)i;
+    }
+    qsort(ref, n, sizeof *ref, cmp_keyed);
+    ms_error err;
+    assert_int_equal(ms_radix_sort_pairs(keys, values, n, key_bits, &err), MS_OK);
+    for (size_t i = 0; i < n; ++i) {
+        assert_true(keys[i] == ref[i].key);
+        assert_int_equal(values[i], ref[i].value);
+    }
+    free(keys);
+    free(values);
+    free(ref);
+}
+
+/* Both digit widths (counts below and from 4,096), key widths that are and are
+ * not whole digits, repeated keys (stability), and input already in order. */
+static void test_radix_pairs_stable(void **state)
+{
+    (void)state;
+    const size_t counts[] = {2, 3, 100, 4095, 4096, 20000};
+    const unsigned widths[] = {5, 21, 33, 60, 64};
+    for (size_t c = 0; c < sizeof counts / sizeof *counts; ++c)
+        for (size_t w = 0; w < sizeof widths / sizeof *widths; ++w) {
+            check_pairs(counts[c], widths[w], 1 + counts[c] / 4, false);
+            check_pairs(counts[c], widths[w], 1 + counts[c] / 4, true);
+        }
+    check_pairs(5000, 64, 1, false); /* one key everywhere: every pass skipped */
+}
+
 static void test_big_alloc_keeps_contents(void **state)
 {
     (void)state;
@@ -120,6 +181,7 @@ int main(void)
         cmocka_unit_test(test_tuples_one_key),
         cmocka_unit_test(test_tuples_two_pass),
         cmocka_unit_test(test_canonicalise_wide_cells),
+        cmocka_unit_test(test_radix_pairs_stable),
         cmocka_unit_test(test_big_alloc_keeps_contents),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

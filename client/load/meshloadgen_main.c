@@ -57,7 +57,7 @@ typedef struct slot {
 struct vclient {
     loadgen *lg;
     unsigned number;
-    ms_loadgen_plan plan;
+    ms_loadgen_plan *plan;
     bool planning, done;
     ms_archive *own_index;      /* binary: from MODEL_OPENED */
     ms_client *client;          /* binary */
@@ -201,9 +201,10 @@ static unsigned moves_allowed(const vclient *v)
     if (lg->o.fps <= 0)
         return 4;
     double allowed = (ms_now_seconds() - lg->first_request) * lg->o.fps;
-    if (allowed <= (double)v->plan.step)
+    double taken = (double)ms_loadgen_plan_steps(v->plan);
+    if (allowed <= taken)
         return 0;
-    double moves = allowed - (double)v->plan.step;
+    double moves = allowed - taken;
     return moves > 4 ? 4 : (unsigned)moves;
 }
 
@@ -219,7 +220,7 @@ static void binary_fill(vclient *v)
     uint16_t range_count = 0;
     for (unsigned i = 0; i < MAX_WINDOW; ++i) {
         slot *s = &v->slots[i];
-        if (s->used && !s->cancel_sent && !ms_loadgen_plan_wanted(&v->plan, s->item.cell)) {
+        if (s->used && !s->cancel_sent && !ms_loadgen_plan_wanted(v->plan, s->item.cell)) {
             s->cancel_sent = true;
             ranges[range_count++] = (ms_proto_id_range){s->id, 1};
         }
@@ -232,7 +233,7 @@ static void binary_fill(vclient *v)
     uint16_t count = 0;
     while (may_issue(v) && v->in_flight + count < lg->o.window) {
         ms_loadgen_item item;
-        if (!ms_loadgen_plan_next(&v->plan, &item, moves_allowed(v)))
+        if (!ms_loadgen_plan_next(v->plan, &item, moves_allowed(v)))
             break;
         slot *s = NULL;
         for (unsigned i = 0; i < lg->o.window && !s; ++i)
@@ -280,8 +281,8 @@ static void on_model_opened(ms_client *client, uint32_t request_id, const ms_pro
     vclient *v = arg;
     ms_error err;
     if (ms_archive_open_index(index, o->index_size, v->lg->o.model, &v->own_index, &err) != MS_OK ||
-        ms_loadgen_plan_init(&v->plan, v->own_index, v->lg->o.seed + v->number,
-                             o->permitted_geometry_steps, o->apo_steps > 0, &err) != MS_OK) {
+        ms_loadgen_plan_new(v->own_index, v->lg->o.seed + v->number, o->permitted_geometry_steps,
+                            o->apo_steps > 0, &v->plan, &err) != MS_OK) {
         note_error(v->lg, err.text);
         finish_client(v);
         return;
@@ -336,7 +337,7 @@ static void on_request_error(ms_client *client, uint32_t first, uint32_t count,
             snprintf(what, sizeof what, "request error %s", ms_proto_error_name(e->code));
             note_error(v->lg, what);
         }
-        ms_loadgen_plan_forget(&v->plan, &s->item);
+        ms_loadgen_plan_forget(v->plan, &s->item);
         ms_payload_assembly_forget(v->assembly, s->id);
         release(v, s);
     }
@@ -479,7 +480,7 @@ static void http_fill(vclient *v)
         return;
     while (may_issue(v)) {
         ms_loadgen_item item;
-        if (!ms_loadgen_plan_next(&v->plan, &item, moves_allowed(v)))
+        if (!ms_loadgen_plan_next(v->plan, &item, moves_allowed(v)))
             break;
         uint32_t start, end;
         ms_loadgen_item_range(lg->shared_index, &item, &start, &end);
@@ -514,7 +515,7 @@ static int http_start(vclient *v)
         return -1;
     }
     ms_error err;
-    if (ms_loadgen_plan_init(&v->plan, lg->shared_index, lg->o.seed + v->number, 64, true, &err) !=
+    if (ms_loadgen_plan_new(lg->shared_index, lg->o.seed + v->number, 64, true, &v->plan, &err) !=
         MS_OK) {
         fprintf(stderr, "meshloadgen: %s\n", err.text);
         return -1;
@@ -772,7 +773,7 @@ int main(int argc, char **argv)
         for (unsigned k = 0; k < MAX_WINDOW; ++k)
             if (v->http_connections[k])
                 evhttp_connection_free(v->http_connections[k]); /* and a request pending */
-        ms_loadgen_plan_free(&v->plan);
+        ms_loadgen_plan_free(v->plan);
         ms_archive_close(v->own_index);
     }
     free(lg.clients);

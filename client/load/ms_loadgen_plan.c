@@ -8,16 +8,34 @@
 #include "ms_camera.h"
 #include "ms_proto.h"
 
+struct ms_loadgen_plan {
+    const ms_archive *index;
+    double phase, zoom_phase;
+    uint64_t step;             /* camera steps taken */
+    uint8_t max_geometry_step; /* permitted geometry steps - 1 */
+    bool apo;                  /* request APO chunks */
+    uint8_t *next_geometry;    /* per cell: first geometry step not yet requested */
+    uint8_t *apo_requested;    /* per cell */
+    uint8_t *selected;         /* per cell: in the current view */
+    ms_view_cell *view, *spare; /* current and previous selection */
+    size_t view_count, view_capacity, view_cursor;
+    bool pass_produced;        /* the current pass over the view yielded a request */
+};
+
 #define TOLERANCE_PX 1.0
 
 static void move_camera(ms_loadgen_plan *p);
 #define APO_PRIORITY 200
 
-ms_status ms_loadgen_plan_init(ms_loadgen_plan *p, const ms_archive *index, uint32_t seed,
-                               uint8_t permitted_geometry_steps, bool apo, ms_error *err)
+ms_status ms_loadgen_plan_new(const ms_archive *index, uint32_t seed,
+                              uint8_t permitted_geometry_steps, bool apo, ms_loadgen_plan **plan,
+                              ms_error *err)
 {
-    memset(p, 0, sizeof *p);
+    *plan = NULL;
+    ms_loadgen_plan *p = calloc(1, sizeof *p);
     uint32_t cells = ms_archive_get_header(index)->cell_count;
+    if (!p)
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory for a load plan of %u cells", cells);
     p->index = index;
     p->phase = (seed * 2654435761u % 6283u) / 1000.0;
     p->zoom_phase = (seed * 40503u % 6283u) / 1000.0;
@@ -34,17 +52,20 @@ ms_status ms_loadgen_plan_init(ms_loadgen_plan *p, const ms_archive *index, uint
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory for a load plan of %u cells", cells);
     }
     move_camera(p); /* the first view, now rather than on the first request */
+    *plan = p;
     return MS_OK;
 }
 
 void ms_loadgen_plan_free(ms_loadgen_plan *p)
 {
+    if (!p)
+        return;
     free(p->next_geometry);
     free(p->apo_requested);
     free(p->selected);
     free(p->view);
     free(p->spare);
-    memset(p, 0, sizeof *p);
+    free(p);
 }
 
 /* The camera at step t: an orbit around the model, zooming in and out. */
@@ -142,6 +163,8 @@ bool ms_loadgen_plan_next(ms_loadgen_plan *p, ms_loadgen_item *item, unsigned ma
 }
 
 bool ms_loadgen_plan_wanted(const ms_loadgen_plan *p, uint32_t cell) { return p->selected[cell]; }
+
+uint64_t ms_loadgen_plan_steps(const ms_loadgen_plan *p) { return p->step; }
 
 void ms_loadgen_plan_forget(ms_loadgen_plan *p, const ms_loadgen_item *item)
 {

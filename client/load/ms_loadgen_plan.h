@@ -5,7 +5,8 @@
  * evicted (as a client's cache would) and their requests should be cancelled,
  * so the demand never dries up and cancels happen as in real browsing.
  *
- * Ownership: the plan borrows the index (must outlive it) and owns its arrays.
+ * Ownership: the plan borrows the index (must outlive it) and owns its arrays;
+ * ms_loadgen_plan_new / ms_loadgen_plan_free.
  * Thread-safety: one plan per thread.
  */
 #ifndef MS_LOADGEN_PLAN_H
@@ -26,23 +27,14 @@ typedef struct ms_loadgen_item {
     uint8_t priority;  /* lower is sooner */
 } ms_loadgen_item;
 
-typedef struct ms_loadgen_plan {
-    const ms_archive *index;
-    double phase, zoom_phase;
-    uint64_t step;             /* camera steps taken */
-    uint8_t max_geometry_step; /* permitted geometry steps - 1 */
-    bool apo;                  /* request APO chunks */
-    uint8_t *next_geometry;    /* per cell: first geometry step not yet requested */
-    uint8_t *apo_requested;    /* per cell */
-    uint8_t *selected;         /* per cell: in the current view */
-    ms_view_cell *view, *spare; /* current and previous selection */
-    size_t view_count, view_capacity, view_cursor;
-    bool pass_produced;        /* the current pass over the view yielded a request */
-} ms_loadgen_plan;
+typedef struct ms_loadgen_plan ms_loadgen_plan;
 
-/* Also selects the first view (the costly part of a step). */
-ms_status ms_loadgen_plan_init(ms_loadgen_plan *plan, const ms_archive *index, uint32_t seed,
-                               uint8_t permitted_geometry_steps, bool apo, ms_error *err);
+/* A new plan over index; also selects the first view (the costly part of a
+ * step). On failure (MS_ERR_NOMEM) *plan is NULL. */
+ms_status ms_loadgen_plan_new(const ms_archive *index, uint32_t seed,
+                              uint8_t permitted_geometry_steps, bool apo, ms_loadgen_plan **plan,
+                              ms_error *err);
+/* Accepts NULL. */
 void ms_loadgen_plan_free(ms_loadgen_plan *plan);
 
 /* The next request to make; moves the camera (at most max_moves steps) when
@@ -51,6 +43,9 @@ bool ms_loadgen_plan_next(ms_loadgen_plan *plan, ms_loadgen_item *item, unsigned
 
 /* Whether cell is still in view (false: cancel its requests). */
 bool ms_loadgen_plan_wanted(const ms_loadgen_plan *plan, uint32_t cell);
+
+/* Camera steps taken so far (for pacing). */
+uint64_t ms_loadgen_plan_steps(const ms_loadgen_plan *plan);
 
 /* A request ended without its bytes (error or cancel): ask again if in view. */
 void ms_loadgen_plan_forget(ms_loadgen_plan *plan, const ms_loadgen_item *item);

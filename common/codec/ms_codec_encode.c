@@ -306,29 +306,58 @@ static ms_status out_of_memory(ms_error *err)
     return ms_error_set(err, MS_ERR_NOMEM, "out of memory while encoding");
 }
 
-/* No two triangles on the same vertex set, no two equal edges (canon is
- * canonical: each triangle starts with its smallest vertex, edges sorted). */
-static ms_status check_duplicates(const ms_codec_state *canon, uint32_t n, ms_error *err)
+static int cmp_u64(const void *a, const void *b)
 {
-    size_t nt = canon->tri_count;
-    uint32_t *sorted = ms_big_malloc((nt ? nt : 1) * 3 * sizeof *sorted);
-    if (!sorted)
+    uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
+    return x < y ? -1 : x > y;
+}
+
+/* Whether two triangles of one group (same smallest vertex) share their other
+ * two vertices, in either orientation. keys has room for the group. */
+static bool group_repeats(const uint32_t *tris, size_t first, size_t end, uint64_t *keys)
+{
+    size_t k = end - first;
+    for (size_t t = first; t < end; ++t) {
+        uint32_t b = tris[3 * t + 1], c = tris[3 * t + 2];
+        keys[t - first] = b < c ? (uint64_t)b << 32 | c : (uint64_t)c << 32 | b;
+    }
+    if (k <= 16) { /* the usual group: a vertex's few triangles */
+        for (size_t i = 1; i < k; ++i)
+            for (size_t j = 0; j < i; ++j)
+                if (keys[i] == keys[j])
+                    return true;
+        return false;
+    }
+    qsort(keys, k, sizeof *keys, cmp_u64);
+    for (size_t i = 1; i < k; ++i)
+        if (keys[i] == keys[i - 1])
+            return true;
+    return false;
+}
+
+/* No two triangles on the same vertex set, no two equal edges (canon is
+ * canonical: each triangle starts with its smallest vertex, triangles and edges
+ * sorted, so triangles on one vertex set lie in the group of their smallest
+ * vertex and only the groups need looking at). */
+static ms_status check_duplicates(const ms_codec_state *canon, ms_error *err)
+{
+    size_t nt = canon->tri_count, widest = 0;
+    for (size_t t = 0, first = 0; t < nt; ++t)
+        if (t + 1 == nt || canon->tris[3 * (t + 1)] != canon->tris[3 * t]) {
+            if (t + 1 - first > widest)
+                widest = t + 1 - first;
+            first = t + 1;
+        }
+    uint64_t *keys = malloc((widest ? widest : 1) * sizeof *keys);
+    if (!keys)
         return out_of_memory(err);
-    for (size_t t = 0; t < nt; ++t) {
-        uint32_t a = canon->tris[3 * t], b = canon->tris[3 * t + 1], c = canon->tris[3 * t + 2];
-        sorted[3 * t] = a; /* smallest after canonicalisation */
-        sorted[3 * t + 1] = b < c ? b : c;
-        sorted[3 * t + 2] = b < c ? c : b;
-    }
-    ms_status s = ms_sort_index_tuples(sorted, nt, 3, n, err);
-    if (s != MS_OK) {
-        free(sorted);
-        return s;
-    }
-    int dup = 0;
-    for (size_t t = 1; t < nt && !dup; ++t)
-        dup = memcmp(&sorted[3 * t], &sorted[3 * t - 3], 3 * sizeof *sorted) == 0;
-    free(sorted);
+    bool dup = false;
+    for (size_t t = 0, first = 0; t < nt && !dup; ++t)
+        if (t + 1 == nt || canon->tris[3 * (t + 1)] != canon->tris[3 * t]) {
+            dup = t > first && group_repeats(canon->tris, first, t + 1, keys);
+            first = t + 1;
+        }
+    free(keys);
     if (dup)
         return ms_error_set(err, MS_ERR_ARG, "duplicate triangle (same vertex set)");
     for (size_t k = 1; k < canon->edge_count; ++k)
@@ -365,7 +394,7 @@ static ms_status canonical_copy(const ms_codec_state *full, ms_codec_state *cano
     for (uint32_t i = 1; i < n; ++i)
         if (canon->cells[i] == canon->cells[i - 1])
             return ms_error_set(err, MS_ERR_ARG, "two vertices share a grid cell (weld first)");
-    return check_duplicates(canon, n, err);
+    return check_duplicates(canon, err);
 }
 
 /* The complex of the full state: every vertex (a frozen one at the level it

@@ -53,10 +53,25 @@ static unsigned index_bits(size_t n)
     return w;
 }
 
+/* Whether the tuples are already in lexicographic order (then sorting is the
+ * identity: the common case of a state canonicalised twice). */
+static bool tuples_sorted(const uint32_t *x, size_t n, unsigned arity)
+{
+    for (size_t i = 1; i < n; ++i) {
+        const uint32_t *a = x + (i - 1) * arity, *b = x + i * arity;
+        unsigned c = 0;
+        while (c < arity && a[c] == b[c])
+            ++c;
+        if (c < arity && a[c] > b[c])
+            return false;
+    }
+    return true;
+}
+
 ms_status ms_sort_index_tuples(uint32_t *x, size_t n, unsigned arity, size_t index_limit,
                                ms_error *err)
 {
-    if (n < 2)
+    if (n < 2 || tuples_sorted(x, n, arity))
         return MS_OK;
     unsigned w = index_bits(index_limit);
     uint64_t *key = ms_big_malloc(n * sizeof *key);

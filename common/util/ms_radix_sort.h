@@ -3,8 +3,11 @@
  * ordering of complexes: linear in the count, where qsort's comparisons
  * dominated.
  *
- * Only the low key_bits bits of the keys are looked at (1..64). Equal keys keep
- * their input order. Memory: two scratch arrays of n entries, allocated per call.
+ * Only the low key_bits bits of the keys are looked at (1..64; rounded up to a
+ * multiple of 11, the sort's former digit width, so that the order never depends
+ * on the digit width chosen). Equal keys keep their input order. Input already
+ * in order returns at once. Memory: two scratch arrays of n entries, allocated
+ * per call when the input is not in order.
  * Thread-safety: no shared state. */
 #ifndef MS_RADIX_SORT_H
 #define MS_RADIX_SORT_H

@@ -19,9 +19,10 @@
 #include "ms_codec.h"
 #include "ms_error.h"
 
-/* Sorts the n vertex references ref[] (keys of key_bits bits), writes the
+/* Indexes the n vertex references ref[] (keys of key_bits bits): writes the
  * distinct keys in order to cells (*ncells of them, room for n) and each
- * reference's rank to rank[]. ref is clobbered. */
+ * reference's rank to rank[]. ref may be clobbered. Scratch: about 12 bytes
+ * per reference. */
 ms_status ms_nsp_index_keys(uint64_t *ref, size_t n, unsigned key_bits, uint64_t *cells,
                             size_t *ncells, uint32_t *rank, ms_error *err);
 
