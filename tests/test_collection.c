@@ -193,12 +193,9 @@ static void rescan(const fixture *f, const char *name_expected, bool present)
 static void test_add_replace_remove_while_serving(void **state)
 {
     fixture *f = *state;
-    char bin[512];
-    ms_test_bin_path(bin, sizeof bin, "meshserve");
-    char *argv[] = {bin, f->archives, "--port", "0", "--http-port", "0", "--port-file",
-                    f->port_file, NULL};
-    f->pid = ms_test_spawn(argv, f->log);
-    assert_int_equal(ms_test_wait_ports(f->port_file, 15.0, &f->port, &f->http_port), 0);
+    f->pid = ms_test_meshserve_start(f->archives, NULL, 0, f->port_file, f->log, &f->port,
+                                     &f->http_port);
+    assert_true(f->pid != 0);
 
     ms_test_conn c;
     assert_int_equal(ms_test_conn_open(&c, f->port), 0);
@@ -374,18 +371,17 @@ static uint64_t metric(const fixture *f, const char *line_start)
 static void test_access_log_and_model_metrics(void **state)
 {
     fixture *f = *state;
-    char config[700], log_path[700], rotated[720], bin[512];
+    char config[700], log_path[700], rotated[720];
     snprintf(config, sizeof config, "%s/meshserve.conf", f->dir);
     snprintf(log_path, sizeof log_path, "%s/access.log", f->dir);
     snprintf(rotated, sizeof rotated, "%s.1", log_path);
     FILE *c = fopen(config, "w");
     fprintf(c, "access_log = %s\n", log_path);
     fclose(c);
-    ms_test_bin_path(bin, sizeof bin, "meshserve");
-    char *argv[] = {bin, f->archives, "--config", config, "--port", "0", "--http-port", "0",
-                    "--port-file", f->port_file, NULL};
-    f->pid = ms_test_spawn(argv, f->log);
-    assert_int_equal(ms_test_wait_ports(f->port_file, 15.0, &f->port, &f->http_port), 0);
+    const char *extra[] = {"--config", config, NULL};
+    f->pid = ms_test_meshserve_start(f->archives, extra, 0, f->port_file, f->log, &f->port,
+                                     &f->http_port);
+    assert_true(f->pid != 0);
 
     /* a binary connection that opens two models (and one twice), then leaves */
     ms_test_conn conn;

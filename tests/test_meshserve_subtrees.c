@@ -93,21 +93,17 @@ static int start_server(void **state)
     ms_error err;
     if (ms_synthetic_archive_write(f->archives, "big", &big, &err) != MS_OK)
         fail_msg("%s", err.text);
-    char config[700], port_file[700], log[700], bin[512];
+    char config[700], port_file[700], log[700];
     snprintf(config, sizeof config, "%s/meshserve.conf", f->dir);
     FILE *c = fopen(config, "w");
     fprintf(c, "token = " TOKEN "\nhttp_rate = 100000\n");
     fclose(c);
     snprintf(port_file, sizeof port_file, "%s/ports", f->dir);
     snprintf(log, sizeof log, "%s/meshserve.log", f->dir);
-    ms_test_bin_path(bin, sizeof bin, "meshserve");
-    char *argv[] = {bin, f->archives, "--config", config, "--port", "0", "--http-port", "0",
-                    "--port-file", port_file, NULL};
-    f->pid = ms_test_spawn(argv, log);
-    if (ms_test_wait_ports(port_file, 10.0, &f->port, &f->http_port) != 0) {
-        ms_test_stop(f->pid, SIGKILL, 5.0);
+    const char *extra[] = {"--config", config, NULL};
+    f->pid = ms_test_meshserve_start(f->archives, extra, 0, port_file, log, &f->port, &f->http_port);
+    if (!f->pid)
         fail_msg("meshserve did not start (see %s)", log);
-    }
     *state = f;
     return 0;
 }

@@ -90,15 +90,10 @@ static int group_setup(void **state)
         fprintf(stderr, "bake: %s\n", err.text);
         return -1;
     }
-    char serve[512];
-    ms_test_bin_path(serve, sizeof serve, "meshserve");
-    char *argv[] = {serve, f->archives, "--bind", "127.0.0.1", "--port", "0", "--http-port", "0",
-                    "--port-file", f->port_file, NULL};
-    f->server = ms_test_spawn(argv, f->log);
-    if (ms_test_wait_ports(f->port_file, 15.0, &f->port, &f->http_port) != 0) {
-        fprintf(stderr, "meshserve did not start (see %s)\n", f->log);
+    f->server = ms_test_meshserve_start(f->archives, NULL, 0, f->port_file, f->log, &f->port,
+                                        &f->http_port);
+    if (!f->server)
         return -1;
-    }
     return 0;
 }
 

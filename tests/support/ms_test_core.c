@@ -90,17 +90,10 @@ int ms_test_served_open(ms_test_served *s, const char *path_file)
 
 void ms_test_served_launch(ms_test_served *s, uint16_t port)
 {
-    char bin[512], port_arg[16];
-    ms_test_bin_path(bin, sizeof bin, "meshserve");
-    snprintf(port_arg, sizeof port_arg, "%u", port);
-    unlink(s->port_file);
-    char *argv[] = {bin, s->archives, "--port", port_arg, "--http-port", "0", "--port-file", s->port_file, NULL};
-    s->pid = ms_test_spawn(argv, s->log);
-    if (ms_test_wait_ports(s->port_file, 15.0, &s->port, &s->http_port) != 0) {
-        ms_test_stop(s->pid, SIGKILL, 5.0);
-        s->pid = 0;
+    s->pid = ms_test_meshserve_start(s->archives, NULL, port, s->port_file, s->log, &s->port,
+                                     &s->http_port);
+    if (!s->pid)
         fail_msg("meshserve did not start (see %s)", s->log);
-    }
 }
 
 void ms_test_served_free(ms_test_served *s)

@@ -1,5 +1,7 @@
 #include "ms_test_net.h"
 
+#include "ms_test.h"
+
 #include <arpa/inet.h>
 #include <errno.h>
 #include <fcntl.h>
@@ -144,6 +146,34 @@ int ms_test_wait_ports(const char *port_file, double seconds, uint16_t *port, ui
         usleep(20000);
     }
     return -1;
+}
+
+pid_t ms_test_meshserve_start(const char *archives, const char *const *extra,
+                              uint16_t listen_port, const char *port_file, const char *log_path, uint16_t *port,
+                              uint16_t *http_port)
+{
+    char bin[512], port_arg[16];
+    ms_test_bin_path(bin, sizeof bin, "meshserve");
+    snprintf(port_arg, sizeof port_arg, "%u", (unsigned)listen_port);
+    char *argv[24];
+    int n = 0;
+    argv[n++] = bin;
+    argv[n++] = (char *)archives;
+    for (int k = 0; extra && extra[k] && k < 8; ++k)
+        argv[n++] = (char *)extra[k];
+    const char *tail[] = {"--bind", "127.0.0.1",   "--port",      port_arg,
+                          "--http-port", "0", "--port-file", port_file};
+    for (size_t k = 0; k < sizeof tail / sizeof *tail; ++k)
+        argv[n++] = (char *)tail[k];
+    argv[n] = NULL;
+    unlink(port_file);
+    pid_t pid = ms_test_spawn(argv, log_path);
+    if (ms_test_wait_ports(port_file, 15.0, port, http_port) != 0) {
+        fprintf(stderr, "meshserve did not start (see %s)\n", log_path);
+        ms_test_stop(pid, SIGKILL, 5.0);
+        return 0;
+    }
+    return pid;
 }
 
 int ms_test_stop(pid_t pid, int sig, double seconds)

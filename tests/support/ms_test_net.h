@@ -37,6 +37,16 @@ pid_t ms_test_spawn(char *const argv[], const char *log_path);
 /* Waits up to `seconds` for port_file to hold "PORT HTTP_PORT". 0 on success. */
 int ms_test_wait_ports(const char *port_file, double seconds, uint16_t *port, uint16_t *http_port);
 
+/* Starts meshserve on the archive folder on loopback, on listen_port (0: one
+ * the system chooses) and an HTTP port the system chooses, both written to
+ * port_file, stdout and stderr to log_path, with `extra`
+ * arguments (NULL-terminated, may be NULL; at most 8) before the port options;
+ * waits up to 15 s for the ports. Returns the pid, or 0 (the process killed, a
+ * line on stderr) when it did not start. */
+pid_t ms_test_meshserve_start(const char *archives, const char *const *extra,
+                              uint16_t listen_port, const char *port_file, const char *log_path, uint16_t *port,
+                              uint16_t *http_port);
+
 /* Sends sig and waits up to `seconds` for the process to exit; returns its exit
  * status, or -1 if it had to be killed or died from a signal. */
 int ms_test_stop(pid_t pid, int sig, double seconds);
