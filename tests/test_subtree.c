@@ -252,6 +252,18 @@ static void check_round_trip(const ms_archive *a, unsigned levels, size_t expect
             free(stored);
         }
         assert_true(ms_archive_subtree_held(p, ids[i]));
+        /* The held members and records, as the client's view learns them. */
+        const uint32_t *held_ids;
+        const ms_archive_cell *held_recs;
+        size_t held;
+        assert_true(ms_archive_held_subtree(p, ids[i], &held_ids, &held_recs, &held));
+        assert_int_equal(held, m);
+        assert_memory_equal(held_ids, members, m * sizeof *members);
+        for (size_t k = 0; k < m; ++k)
+            assert_memory_equal(&held_recs[k], ms_archive_get_cell(p, members[k]),
+                                sizeof *held_recs);
+        assert_false(ms_archive_held_subtree(a, ids[i], &held_ids, &held_recs, &held));
+        assert_int_equal(held, 0);
         for (size_t k = 0; k < m; ++k) {
             assert_same_cell(a, p, members[k]);
             if (levels == ms_archive_subtree_levels(a)) {
@@ -455,6 +467,12 @@ static void test_drop(void **state)
     assert_int_equal(ms_archive_children_subtree(p, 5), 65); /* known, though not held */
     assert_int_equal(ms_archive_children_subtree(p, 6), MS_ARCHIVE_NONE); /* a leaf */
     assert_false(ms_archive_subtree_held(p, 65));
+    const uint32_t *held_ids = NULL;
+    const ms_archive_cell *held_recs = NULL;
+    size_t held = 1;
+    assert_false(ms_archive_held_subtree(p, 65, &held_ids, &held_recs, &held));
+    assert_null(held_ids);
+    assert_int_equal(held, 0);
     /* Dropping 1 takes 65 with it once re-added. */
     size_t size;
     const uint8_t *s = ms_archive_subtree(f->a, 65, &size);

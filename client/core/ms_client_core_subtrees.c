@@ -66,81 +66,17 @@ static void subtree_remove(ms_core *c, size_t k)
     c->subtree_count--;
 }
 
-/* ---- members: section 1 of the design, from the records held -------------- */
-
-typedef struct member_list {
-    uint32_t *ids;
-    ms_archive_cell *recs;
-    size_t n, cap;
-} member_list;
-
-static bool member_push(member_list *l, uint32_t id, const ms_archive_cell *rec)
-{
-    if (l->n == l->cap) {
-        size_t cap = l->cap ? 2 * l->cap : 128;
-        uint32_t *i = realloc(l->ids, cap * sizeof *i);
-        if (i)
-            l->ids = i;
-        ms_archive_cell *r = realloc(l->recs, cap * sizeof *r);
-        if (r)
-            l->recs = r;
-        if (!i || !r)
-            return false;
-        l->cap = cap;
-    }
-    l->ids[l->n] = id;
-    l->recs[l->n++] = *rec;
-    return true;
-}
-
-static void member_free(member_list *l)
-{
-    free(l->ids);
-    free(l->recs);
-    *l = (member_list){0};
-}
-
-/* The cells of subtree id (its sibling group, or the root, and their
- * descendants down to the subtree's last level), from the index's records. */
-static ms_status subtree_members(const ms_core *c, uint32_t id, member_list *out, ms_error *err)
-{
-    const ms_archive_header *h = ms_archive_get_header(c->index);
-    const uint32_t nc = (uint32_t)h->n * h->n * h->n;
-    out->n = 0;
-    for (uint32_t k = 0; k < (id == 0 ? 1 : nc); ++k) {
-        const ms_archive_cell *rec = ms_archive_get_cell(c->index, id + k);
-        if (!rec)
-            return ms_error_set(err, MS_ERR_CORRUPT, "subtree %u: cell %u is not held", id,
-                                id + k);
-        if (!member_push(out, id + k, rec))
-            return ms_error_set(err, MS_ERR_NOMEM, "out of memory for subtree %u", id);
-    }
-    for (size_t m = 0; m < out->n; ++m) {
-        ms_archive_cell rec = out->recs[m];
-        if (rec.first_child == MS_ARCHIVE_NONE || (rec.level + 1u) % c->subtree_levels == 0)
-            continue;
-        for (uint32_t k = 0; k < nc; ++k) {
-            const ms_archive_cell *child = ms_archive_get_cell(c->index, rec.first_child + k);
-            if (!child)
-                return ms_error_set(err, MS_ERR_CORRUPT, "subtree %u: cell %u is not held", id,
-                                    rec.first_child + k);
-            if (!member_push(out, rec.first_child + k, child))
-                return ms_error_set(err, MS_ERR_NOMEM, "out of memory for subtree %u", id);
-        }
-    }
-    return MS_OK;
-}
-
 /* The view learns the records of subtree id (held by the index). */
 static ms_status learn_subtree(ms_core *c, uint32_t id, ms_error *err)
 {
-    member_list l = {0};
-    ms_status s = subtree_members(c, id, &l, err);
-    if (s == MS_OK)
-        s = ms_view_learn(c->view, l.ids, l.recs, l.n, err);
-    if (s == MS_OK && !ms_core_dcells_grow(c, l.ids, l.n))
+    const uint32_t *ids;
+    const ms_archive_cell *recs;
+    size_t n;
+    if (!ms_archive_held_subtree(c->index, id, &ids, &recs, &n))
+        return ms_error_set(err, MS_ERR_CORRUPT, "subtree %u is not held", id);
+    ms_status s = ms_view_learn(c->view, ids, recs, n, err);
+    if (s == MS_OK && !ms_core_dcells_grow(c, ids, n))
         s = ms_error_set(err, MS_ERR_NOMEM, "out of memory for subtree %u's cells", id);
-    member_free(&l);
     return s;
 }
 
@@ -316,16 +252,14 @@ static bool drop_subtree(ms_core *c, size_t k)
 {
     subtree_entry *e = &c->subtrees[k];
     if (e->state == SUBTREE_HELD) {
-        member_list l = {0};
+        const uint32_t *ids;
+        const ms_archive_cell *recs;
+        size_t n;
         ms_error err;
-        ms_status s = subtree_members(c, e->id, &l, &err);
-        if (s == MS_OK)
-            s = ms_view_unlearn(c->view, l.ids, l.n, &err);
-        if (s == MS_OK)
-            ms_core_dcells_release(c, l.ids, l.n);
-        member_free(&l);
-        if (s != MS_OK)
+        if (!ms_archive_held_subtree(c->index, e->id, &ids, &recs, &n) ||
+            ms_view_unlearn(c->view, ids, n, &err) != MS_OK)
             return false;
+        ms_core_dcells_release(c, ids, n);
         ms_archive_drop_subtree(c->index, e->id);
     }
     subtree_remove(c, k);

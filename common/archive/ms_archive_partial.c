@@ -306,6 +306,16 @@ bool ms_archive_subtree_held(const ms_archive *a, uint32_t id)
     return map_find(&a->partial->subtrees, id) != NULL;
 }
 
+bool ms_archive_held_subtree(const ms_archive *a, uint32_t id, const uint32_t **ids,
+                             const ms_archive_cell **records, size_t *count)
+{
+    const map_slot *slot = a->partial ? map_find(&a->partial->subtrees, id) : NULL;
+    *ids = slot ? slot->subtree->ids : NULL;
+    *records = slot ? slot->subtree->cells : NULL;
+    *count = slot ? slot->subtree->count : 0;
+    return slot != NULL;
+}
+
 size_t ms_archive_subtrees_held(const ms_archive *a)
 {
     return a->partial ? a->partial->subtrees.count : a->subtree_count;

@@ -127,6 +127,13 @@ uint32_t ms_archive_children_subtree(const ms_archive *a, uint32_t cell);
 bool ms_archive_is_partial(const ms_archive *a);
 /* Whether subtree id is held (always true for a subtree of a whole archive). */
 bool ms_archive_subtree_held(const ms_archive *a, uint32_t id);
+/* On a partial archive: the members of held subtree id, ascending, and their
+ * records in the same order (table_first relative to the subtree's own table
+ * words, as ms_archive_get_cell gives them). Owned by the archive, valid until
+ * the subtree is dropped. False (and *count 0) when the archive is whole or the
+ * subtree is not held. */
+bool ms_archive_held_subtree(const ms_archive *a, uint32_t id, const uint32_t **ids,
+                             const ms_archive_cell **records, size_t *count);
 /* Subtrees held and their raw bytes (24 + 84 per record + 4 per table word,
  * summed), for the memory budget and the statistics. On a whole archive: every
  * subtree and the raw index size. */
