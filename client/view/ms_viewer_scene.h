@@ -29,7 +29,8 @@
  * cut changes, with a 4-frame dissolve on the switch.
  *
  * Requires the GL context current on the calling thread for every function
- * but _effects and _settled. Ownership: the scene is borrowed (it must outlive
+ * but _effects, _settled and the pieces' (_piece_count, _piece_info), which
+ * only read what the last step and draw left. Ownership: the scene is borrowed (it must outlive
  * the object); everything else is owned. Errors: ms_status with one line (a
  * model not in the catalogue names the scene element; a stream's errors as
  * ms_viewer_stream.h). Thread-safety: the drawing thread only.
