@@ -5,7 +5,12 @@
  * picked piece is the one the camera looks at, through the scene's placement
  * transforms; looking at the floor picks nothing (the room is not a piece).
  * The piece's figures (name, material, geometry, triangles, cells, bytes,
- * error) and framing it are checked on the open scene. */
+ * error) and framing it are checked on the open scene. The scene opens with
+ * the index by subtree: each piece is placed (and picked) by the bounds its
+ * core took from the root (ms_core_opening.content_lo / _hi), which stand it
+ * on the floor at its declared height and leave the floor beside it to the
+ * room. */
+#include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -16,6 +21,8 @@
 #include <time.h>
 #include <cmocka.h>
 
+#include "ms_archive.h"
+#include "ms_mesh_io.h"
 #include "ms_nsp_check.h"
 #include "ms_test.h"
 #include "ms_test_render.h"
@@ -41,6 +48,7 @@ typedef struct fixture {
     char dir[512], archives[600];
     ms_scene scene;
     ms_viewer_scene *vs;
+    ms_archive_header headers[2]; /* the pieces' models' */
     ms_viewer_target target;
 } fixture;
 
@@ -151,6 +159,65 @@ static void test_room_picks_nothing(void **state)
     assert_false(ms_viewer_pick_surface(&camera, -1, 0, world));
 }
 
+/* The source's vertices through piece k's placement: their box in the scene
+ * (*lo_out, *hi_out) and the placement's scale. */
+static void placed_source_box(long k, double lo[3], double hi[3], double *scale)
+{
+    ms_viewer_pick_box box;
+    assert_true(ms_viewer_pick_scene_box(fx.vs, k, &box));
+    const double *t = box.placement;
+    *scale = sqrt(t[0] * t[0] + t[1] * t[1] + t[2] * t[2]);
+    char source[700];
+    snprintf(source, sizeof source, "%s/demo.ply", fx.dir);
+    ms_mesh mesh = {0};
+    ms_error err;
+    expect(ms_mesh_load(source, &mesh, NULL, &err), &err);
+    for (size_t v = 0; v < mesh.vertex_count; ++v) {
+        const double *p = &mesh.positions[3 * v];
+        for (int r = 0; r < 3; ++r) {
+            double w = t[r] * p[0] + t[4 + r] * p[1] + t[8 + r] * p[2] + t[12 + r];
+            lo[r] = v && lo[r] < w ? lo[r] : w;
+            hi[r] = v && hi[r] > w ? hi[r] : w;
+        }
+    }
+    ms_mesh_free(&mesh);
+}
+
+/* Opened by subtree, each piece is placed by the bounds its core took from
+ * the root: the source's lowest point stands at the position's height and
+ * its height is the declared one, within one root quantum (placed); by the
+ * head's cell boxes the demo stood at half its height. */
+static void test_pieces_stand_at_their_height(void **state)
+{
+    (void)state;
+    for (long k = 0; k < 2; ++k) {
+        const ms_archive_header *h = &fx.headers[k];
+        double quantum = h->box_side / (double)(1u << h->root_bits);
+        double lo[3], hi[3], scale;
+        placed_source_box(k, lo, hi, &scale);
+        const ms_scene_model *m = &fx.scene.models[k];
+        assert_true(fabs(lo[1] - m->position[1]) <= quantum * scale);
+        assert_true(fabs((hi[1] - lo[1]) - m->height) <= quantum * scale);
+    }
+}
+
+/* The floor 5 cm to the right of the first piece's surface picks nothing
+ * (the head's cell boxes reached 0.4 m past it). */
+static void test_floor_beside_a_piece_picks_nothing(void **state)
+{
+    (void)state;
+    double lo[3], hi[3], scale;
+    placed_source_box(0, lo, hi, &scale);
+    double beside[3] = {hi[0] + 0.05, 0, 0.5 * (lo[2] + hi[2])};
+    ms_camera camera;
+    camera_at(beside, 1.2, 1.6, &camera);
+    draw_settled(&camera);
+    double world[3];
+    assert_true(ms_viewer_pick_surface(&camera, WIDTH / 2, HEIGHT / 2, world));
+    assert_true(fabs(world[1]) < 0.01); /* the floor */
+    assert_int_equal(ms_viewer_pick_scene_piece(fx.vs, world), -1);
+}
+
 static int setup(void **state)
 {
     (void)state;
@@ -166,16 +233,21 @@ static int setup(void **state)
     }
     ms_viewer_source source = {.archive_dir = fx.archives, .timeout_s = 10};
     ms_viewer_scene_settings settings = {.effects_off = MS_EFFECTS_ALL};
-    settings.stream.apo_levels = 0;
-    /* the whole index: the bounds (its leaves) hold the surface closely, so
-     * a ray through their centre meets it (the head's bounds of a small
-     * model can be its whole cube, the surface in a corner of it) */
-    settings.stream.whole_index = true;
+    settings.stream.apo_levels = 0; /* the index by subtree, the default */
     if (ms_viewer_scene_open(&source, &fx.scene, "pick.json", &settings, &fx.vs, &err) != MS_OK ||
         ms_viewer_target_init(&fx.target, WIDTH, HEIGHT, &err) != MS_OK) {
         fprintf(stderr, "%s\n", err.text);
         return -1;
     }
+    char path[700];
+    snprintf(path, sizeof path, "%s/demo.msa", fx.archives);
+    ms_archive *archive;
+    if (ms_archive_open(path, &archive, &err) != MS_OK) {
+        fprintf(stderr, "%s\n", err.text);
+        return -1;
+    }
+    fx.headers[0] = fx.headers[1] = *ms_archive_get_header(archive);
+    ms_archive_close(archive);
     return 0;
 }
 
@@ -195,6 +267,8 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_centre_pixel_picks_the_piece_looked_at),
         cmocka_unit_test(test_room_picks_nothing),
+        cmocka_unit_test(test_pieces_stand_at_their_height),
+        cmocka_unit_test(test_floor_beside_a_piece_picks_nothing),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }

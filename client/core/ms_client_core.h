@@ -176,20 +176,35 @@ ms_status ms_core_start(const ms_core_options *options, ms_core **core, ms_error
  * index held then, ids ascending (records[i] is cell ids[i]'s). With an index
  * by subtree that is the head (the root subtree: the top levels of the tree,
  * whatever the model's size); with a whole index (a version-2 server,
- * whole_index) every cell. A viewer places its first camera from it. */
+ * whole_index) every cell.
+ *
+ * And the box the model's geometry occupies (content_lo / _hi, world units),
+ * from its first decoded cell: the grid cells that the root's vertices at
+ * root precision stand for (ms_view_cell_bounds). Every vertex of the model
+ * lies in it, and it is within one root quantum (box_side / 2^root_bits) of
+ * their box on every side, whatever the index held: a viewer places, frames
+ * and picks the model by it. The core fetches and decodes the root that far
+ * as soon as the model opens, before the caller's first camera (a few
+ * kilobytes it draws first anyway). content_known is false for an empty
+ * model, a root that failed below root precision, or one that did not
+ * decode within the wait. */
 typedef struct ms_core_opening {
     ms_archive_header header;
     uint32_t *ids;
     ms_archive_cell *records;
     size_t count;
     bool by_subtree;           /* the records are the head's */
+    bool content_known;
+    double content_lo[3], content_hi[3];
 } ms_core_opening;
 
-/* Waits at most timeout_s seconds (> 0) for the model to open and copies what
- * its index said (needs export_frames; the core keeps it from the first open).
- * MS_ERR_IO with the core's error when it stopped first, or "no answer in
- * time"; MS_ERR_ARG without export_frames; MS_ERR_NOMEM. Free with
- * ms_core_opening_free (safe on a zeroed value). Call from the caller's
+/* Waits at most timeout_s seconds (> 0) for the model to open and its content
+ * bounds to be known, and copies what its index said and the bounds (needs
+ * export_frames; the core keeps them from the first open). MS_ERR_IO with the
+ * core's error when it stopped first, or "no answer in time" when the index
+ * did not come; the index without the bounds in time is MS_OK with
+ * content_known false. MS_ERR_ARG without export_frames; MS_ERR_NOMEM. Free
+ * with ms_core_opening_free (safe on a zeroed value). Call from the caller's
  * thread; it does not disturb the others. */
 ms_status ms_core_wait_open(ms_core *core, double timeout_s, ms_core_opening *opening, ms_error *err);
 void ms_core_opening_free(ms_core_opening *opening);

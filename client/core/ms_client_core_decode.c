@@ -335,6 +335,7 @@ static void dec_pass_begin(ms_core *c, const ms_camera *cam, dec_pass *pass)
 static bool dec_select(ms_core *c, dec_pass *pass)
 {
     ms_view_select_partial(c->view, pass->cam, &pass->sp, c->target, &c->report);
+    ms_core_content_floor(c);
     size_t refined_in_parallel = dec_parallel_refine(c);
     ms_view_apply_report report;
     ms_error err;
@@ -346,24 +347,30 @@ static bool dec_select(ms_core *c, dec_pass *pass)
     }
     pass->changed |= refined_in_parallel || report.splits || report.merges || report.refined ||
                      report.coarsened;
+    ms_core_content_note(c);
     return true;
 }
 
-/* One pass: take inputs, decode, select, plan, publish. */
+/* One pass: take inputs, decode, select, plan, publish. Before the caller's
+ * first camera, passes serve the content bounds' camera while they are
+ * pending (ms_client_core_content.c). */
 static void dec_step(ms_core *c, chunk_msg *chunks, const ms_camera *cam, uint64_t serial,
                      bool have_camera)
 {
     double t_start = ms_now_seconds();
     bool apo_changed = dec_take_chunks(c, chunks);
-    if (!have_camera)
+    ms_camera content_camera;
+    bool for_content = !have_camera && ms_core_content_camera(c, &content_camera);
+    if (!have_camera && !for_content)
         return;
     dec_pass pass;
-    dec_pass_begin(c, cam, &pass);
+    dec_pass_begin(c, for_content ? &content_camera : cam, &pass);
     pass.changed = apo_changed;
     if (!dec_select(c, &pass) || !ms_core_budget_ceiling(c, &pass))
         return;
     ms_core_schedule(c, &pass);    /* what is missing, and in which order */
     ms_core_budget_step(c, &pass); /* memory: the budget */
+    pass.complete &= !for_content; /* no caller's view to be complete */
     ms_core_publish(c, &pass, serial, t_start);
 }
 

@@ -241,13 +241,18 @@ ms_status ms_core_wait_open(ms_core *c, double timeout_s, ms_core_opening *out, 
     double until = ms_now_seconds() + timeout_s;
     char why[256] = "";
     bool have = false;
+    int content = CONTENT_PENDING;
+    double lo[3], hi[3];
     for (;;) {
         pthread_mutex_lock(&c->lock);
         have = c->have_opening;
+        content = c->content;
+        memcpy(lo, c->content_lo, sizeof lo);
+        memcpy(hi, c->content_hi, sizeof hi);
         if (c->stats.error[0])
             snprintf(why, sizeof why, "%s", c->stats.error);
         pthread_mutex_unlock(&c->lock);
-        if (have || why[0] || ms_now_seconds() >= until)
+        if ((have && content != CONTENT_PENDING) || why[0] || ms_now_seconds() >= until)
             break;
         struct timespec pause = {0, 2000000}; /* 2 ms: a one-off wait at open */
         nanosleep(&pause, NULL);
@@ -267,5 +272,10 @@ ms_status ms_core_wait_open(ms_core *c, double timeout_s, ms_core_opening *out, 
     }
     memcpy(out->ids, o->ids, o->count * sizeof *out->ids);
     memcpy(out->records, o->records, o->count * sizeof *out->records);
+    out->content_known = content == CONTENT_KNOWN;
+    if (out->content_known) {
+        memcpy(out->content_lo, lo, sizeof lo);
+        memcpy(out->content_hi, hi, sizeof hi);
+    }
     return MS_OK;
 }

@@ -112,6 +112,10 @@ typedef struct subtree_entry {
 
 enum { SUBTREE_RECEIVING = 0, SUBTREE_HELD = 1, SUBTREE_FAILED = 2 };
 
+/* The content bounds (ms_client_core_content.c): being worked out, known, or
+ * not to be had (an empty model, a root that failed below root precision). */
+enum { CONTENT_PENDING = 0, CONTENT_KNOWN = 1, CONTENT_NONE = 2 };
+
 /* Decode helpers: refine distinct shown cells in parallel before the
  * (single-threaded) apply does the splits and merges (ms_view_decoder.h
  * allows ms_view_set_bits on distinct cells concurrently). */
@@ -147,6 +151,8 @@ struct ms_core {
     uint64_t want_consumed_seq; /* chunks the decode thread had taken for `wants` */
     ms_core_frame *frame;
     ms_core_stats stats;        /* decode thread's figures */
+    int content;                /* CONTENT_*: written by the decode thread (under lock) */
+    double content_lo[3], content_hi[3]; /* with CONTENT_KNOWN */
     /* network figures */
     bool connected, model_open;
     uint64_t bytes_received, bytes_in_flight, requests, cancels, reconnects;
@@ -326,6 +332,19 @@ void ms_core_budget_sync(ms_core *c);
 /* Measures memory into pass->memory; with a budget, steps the tolerance,
  * evicts, and cuts pass->wl where loading would cross the ceiling. */
 void ms_core_budget_step(ms_core *c, dec_pass *pass);
+
+/* ---- ms_client_core_content.c: the content bounds (decode thread) ---- */
+
+/* While the bounds are pending and the root is known: the camera of a pass
+ * before the caller's first (one pixel seeing the model's cube; it asks for
+ * the root's bytes and nothing more); else false. */
+bool ms_core_content_camera(const ms_core *c, ms_camera *camera);
+/* After selection, while the bounds are pending: the root's target at least
+ * root precision. */
+void ms_core_content_floor(ms_core *c);
+/* After the view moved: takes the bounds from the root once it stands at
+ * root precision (or gives up on them), and publishes them. */
+void ms_core_content_note(ms_core *c);
 
 /* ---- ms_client_core_frames.c ---- */
 

@@ -160,6 +160,11 @@ void ms_viewer_model_bounds(const ms_viewer_model *model, double lo[3], double h
 {
     const ms_archive_header *h = &model->header;
     const ms_core_opening *index = &model->index;
+    if (index->content_known) {
+        memcpy(lo, index->content_lo, sizeof index->content_lo);
+        memcpy(hi, index->content_hi, sizeof index->content_hi);
+        return;
+    }
     bool any = false;
     for (size_t i = 0; i < index->count; ++i) {
         const ms_archive_cell *c = &index->records[i];

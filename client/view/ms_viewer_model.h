@@ -59,15 +59,19 @@ typedef struct ms_viewer_model {
     bool apo;                 /* the source lists the model with APO */
     /* filled by ms_viewer_stream_open once the core opened the model: */
     ms_archive_header header;
-    ms_core_opening index;    /* the head (by subtree) or the whole index */
+    ms_core_opening index;    /* the head (by subtree) or the whole index, and the
+                                 content bounds */
 } ms_viewer_model;
 
-/* The box the model's surface occupies, as far as the index held at open
- * tells: the union of the cubes of the cells that hold triangles and whose
- * children it does not hold (leaves; with an index by subtree, also the head's
- * deepest cells, so the box can be a little larger than with the whole index);
- * the whole cube when none does. The model's cube is usually much larger on
- * two axes. */
+/* The box the model's surface occupies: the content bounds its stream's
+ * core worked out from the root before the model was first drawn
+ * (ms_core_opening.content_lo / _hi: every vertex inside, within one root
+ * quantum of their box on every side), by which a viewer places, frames and
+ * picks it. Without them (an empty model, a root that did not decode in
+ * time), the index held at open: the union of the cubes of the cells that
+ * hold triangles and whose children it does not hold (with an index by
+ * subtree, the head's deepest cells: up to a quarter of the model's cube
+ * loose on a side), the whole cube when none does. */
 void ms_viewer_model_bounds(const ms_viewer_model *model, double lo[3], double hi[3]);
 
 /* Opens model `name` (a valid model name, else MS_ERR_ARG): MS_ERR_RANGE when

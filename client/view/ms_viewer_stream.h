@@ -1,6 +1,6 @@
 /* One model on screen: the client core streaming it (ms_client_core.h) and the
  * renderer drawing it (ms_render.h), driven once per drawn frame from the
- * viewer's loop. Nothing here waits for the network or for decoding:
+ * viewer's loop. Nothing but _open waits for the network or for decoding:
  * ms_viewer_stream_step sets the camera, takes the newest frame if there is one,
  * hands it to the renderer and uploads at most the per-frame byte budget.
  *
@@ -43,9 +43,10 @@ typedef struct ms_viewer_stream_settings {
 } ms_viewer_stream_settings;
 
 /* Starts the core for a model opened with ms_viewer_model_open and waits (at
- * most the source's time-out) until it opened the model, then fills in
- * model->header and model->index from what the core received (the index
- * crosses the network once). The renderer learns the records of the cells it
+ * most the source's time-out) until it opened the model and decoded its root
+ * to root precision, then fills in model->header and model->index from what
+ * the core received (the index crosses the network once) and the content
+ * bounds it took from the root (ms_core_wait_open; ms_viewer_model_bounds). The renderer learns the records of the cells it
  * draws from the core's frames. The model must outlive the stream. */
 ms_status ms_viewer_stream_open(const ms_viewer_source *source, ms_viewer_model *model,
                                 const ms_viewer_stream_settings *settings,

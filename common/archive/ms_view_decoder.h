@@ -159,6 +159,17 @@ ms_status ms_view_merge(ms_view *view, uint32_t cell, ms_error *err);
 ms_status ms_view_cell_state_copy(const ms_view *view, uint32_t cell, ms_codec_state *out,
                                   ms_error *err);
 
+/* The box (world units) of the kd-cells of a SHOWN or SPLIT cell's current
+ * complex: the union of the grid cells its vertices stand for (each vertex
+ * decodes to its kd-cell's centre, docs/CODEC.md), so every vertex of the
+ * model that the complex represents lies in it, and at b bits it is within
+ * box_side / 2^b of their box on every side. For the root at b bits that is
+ * every vertex of the model. MS_ERR_EMPTY for a complex without a vertex,
+ * MS_ERR_RANGE for a HIDDEN or unknown cell, MS_ERR_NOMEM. Keeps the cell's
+ * stitching cache (as ms_view_stitch would). */
+ms_status ms_view_cell_bounds(ms_view *view, uint32_t cell, double lo[3], double hi[3],
+                              ms_error *err);
+
 /* ---- selection: what the client calls every frame ---------------------- */
 
 #define MS_VIEW_TARGET_HIDDEN 0xFFu /* an ancestor is shown */

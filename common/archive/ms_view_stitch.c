@@ -129,6 +129,48 @@ static ms_status mesh_room(ms_view_mesh *m, size_t vertices, size_t triangles, m
     return MS_OK;
 }
 
+/* Kd-cell (prefix, level) on the model's grid: its corner and its width on
+ * each axis, in grid units of box_side / 2^p. Kd-level l halves axis l mod 3,
+ * so after `level` levels axis a is cut (level + 2 - a) / 3 times. */
+static void kd_cell_grid(const ms_view *v, uint64_t prefix, unsigned level, uint32_t xyz[3],
+                         uint32_t width[3])
+{
+    ms_nsp_prefix_corner(&v->shape, prefix, level, xyz);
+    for (int a = 0; a < 3; ++a)
+        width[a] = 1u << (v->shape.bits - (level + 2u - (unsigned)a) / 3u);
+}
+
+ms_status ms_view_cell_bounds(ms_view *v, uint32_t cell, double lo[3], double hi[3],
+                              ms_error *err)
+{
+    vcell *c = ms_view_vcell(v, cell);
+    if (!c || c->state == MS_VIEW_HIDDEN)
+        return ms_error_set(err, MS_ERR_RANGE, "cell %u is not decoded", cell);
+    ms_status s = refresh_cache(v, cell, err);
+    if (s != MS_OK)
+        return s;
+    if (c->cache.vertex_count == 0)
+        return ms_error_set(err, MS_ERR_EMPTY, "cell %u holds no vertex", cell);
+    /* the cache is sorted by prefix: its first and last vertices are not the
+     * extremes on every axis, so every vertex is looked at */
+    uint64_t q_lo[3], q_hi[3]; /* grid units: exact */
+    for (size_t i = 0; i < c->cache.vertex_count; ++i) {
+        uint32_t xyz[3], width[3];
+        kd_cell_grid(v, c->cache.cells[i], c->cache.level, xyz, width);
+        for (int a = 0; a < 3; ++a) {
+            uint64_t b = (uint64_t)xyz[a] + width[a];
+            q_lo[a] = i && q_lo[a] < xyz[a] ? q_lo[a] : xyz[a];
+            q_hi[a] = i && q_hi[a] > b ? q_hi[a] : b;
+        }
+    }
+    double unit = v->header.box_side / (double)(1u << v->shape.bits);
+    for (int a = 0; a < 3; ++a) {
+        lo[a] = v->header.box_origin[a] + (double)q_lo[a] * unit;
+        hi[a] = v->header.box_origin[a] + (double)q_hi[a] * unit;
+    }
+    return MS_OK;
+}
+
 /* Output index of vertex i of cell `cell`'s cache, adding it on first use. */
 static ms_status out_vertex(ms_view *v, ms_view_mesh *m, uint32_t cell, uint32_t i, uint32_t *out,
                             ms_error *err)
@@ -144,17 +186,13 @@ static ms_status out_vertex(ms_view *v, ms_view_mesh *m, uint32_t cell, uint32_t
     size_t k = m->vertex_count++;
     unsigned level = c->cache.level;
     uint64_t prefix = c->cache.cells[i];
-    uint32_t xyz[3];
-    ms_nsp_prefix_corner(&v->shape, prefix, level, xyz);
-    const unsigned p = v->shape.bits;
-    double unit = v->header.box_side / (double)(1u << p);
-    for (int a = 0; a < 3; ++a) {
-        unsigned axis_bits = (level + 2u - (unsigned)a) / 3u;
-        double width = (double)(1u << (p - axis_bits));
+    uint32_t xyz[3], width[3];
+    kd_cell_grid(v, prefix, level, xyz, width);
+    double unit = v->header.box_side / (double)(1u << v->shape.bits);
+    for (int a = 0; a < 3; ++a)
         m->positions[3 * k + (size_t)a] =
-            v->header.box_origin[a] + ((double)xyz[a] + 0.5 * width) * unit;
-    }
-    unsigned shift = 3 * p - level;
+            v->header.box_origin[a] + ((double)xyz[a] + 0.5 * width[a]) * unit;
+    unsigned shift = 3 * v->shape.bits - level;
     m->keys[k] = shift >= 64 ? 0 : prefix << shift;
     m->levels[k] = (uint8_t)level;
     c->out_index[i] = (uint32_t)k;

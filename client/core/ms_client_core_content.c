@@ -1,0 +1,79 @@
+/* The client core's content bounds (ms_core_opening.content_lo / _hi): the box
+ * of the model's geometry, from the root's complex at root precision. The
+ * root is the first cell decoded and drawn of every model and its complex is
+ * the image of the whole model on the grid of 2^root_bits cells a side, so the
+ * box of the grid cells its vertices stand for holds every vertex of the model
+ * and is within one root quantum (box_side / 2^root_bits) of their box on
+ * every side (ms_view_cell_bounds). The index's records say much less: with
+ * an index by subtree only the head's cells are known at open, whose cubes
+ * can be a quarter of the model's cube loose on a side, or the whole cube for
+ * a model of one cell.
+ *
+ * Until the bounds are known the root is selected at least at root precision
+ * (a few kilobytes), and before the caller's first camera the decode thread
+ * serves a camera of its own that needs nothing more, so ms_core_wait_open can
+ * hand the bounds over with the index, before anything is drawn. */
+#include "ms_client_core_internal.h"
+
+/* The precision the bounds are taken at: root_bits (a one-cell model's root
+ * is a leaf, whose window goes on to p). */
+static unsigned content_bits(const ms_core *c)
+{
+    const ms_archive_cell *root = ms_archive_get_cell(c->index, 0);
+    unsigned root_bits = ms_archive_get_header(c->index)->root_bits;
+    return root->bits_max < root_bits ? root->bits_max : root_bits;
+}
+
+bool ms_core_content_camera(const ms_core *c, ms_camera *camera)
+{
+    if (c->content != CONTENT_PENDING || !ms_archive_get_cell(c->index, 0))
+        return false;
+    /* one pixel looking at the model's cube from outside: every cell needs a
+     * few bits at most, so the root's floor is all it asks for */
+    const ms_archive_header *h = ms_archive_get_header(c->index);
+    double centre[3], eye[3], up[3] = {0, 1, 0};
+    for (int a = 0; a < 3; ++a)
+        centre[a] = eye[a] = h->box_origin[a] + 0.5 * h->box_side;
+    eye[2] += 2.0 * h->box_side;
+    ms_error err;
+    return ms_camera_look_at(eye, centre, up, 60.0, 1.0, 1.0, 0.01 * h->box_side,
+                             10.0 * h->box_side, camera, &err) == MS_OK;
+}
+
+void ms_core_content_floor(ms_core *c)
+{
+    uint8_t *t = &c->target[0];
+    if (c->content != CONTENT_PENDING || *t == MS_VIEW_TARGET_HIDDEN || *t == MS_VIEW_TARGET_SPLIT)
+        return;
+    unsigned bits = content_bits(c);
+    if (*t < bits)
+        *t = (uint8_t)bits;
+}
+
+void ms_core_content_note(ms_core *c)
+{
+    const ms_archive_cell *root = ms_archive_get_cell(c->index, 0);
+    if (c->content != CONTENT_PENDING || !root || ms_view_state(c->view, 0) == MS_VIEW_HIDDEN)
+        return;
+    int content = CONTENT_PENDING;
+    double lo[3], hi[3];
+    if (root->geometry_length == 0) {
+        content = CONTENT_NONE; /* an empty model */
+    } else if (ms_view_bits(c->view, 0) >= content_bits(c)) {
+        ms_error err;
+        ms_status st = ms_view_cell_bounds(c->view, 0, lo, hi, &err);
+        content = st == MS_OK ? CONTENT_KNOWN : CONTENT_NONE;
+        if (st != MS_OK && st != MS_ERR_EMPTY)
+            ms_core_warn(c, err.text);
+    } else if (ms_core_dcell(c, 0)->failed) {
+        content = CONTENT_NONE; /* left below root precision for good */
+    }
+    if (content == CONTENT_PENDING)
+        return;
+    pthread_mutex_lock(&c->lock);
+    c->content = content;
+    if (content == CONTENT_KNOWN)
+        for (int a = 0; a < 3; ++a)
+            c->content_lo[a] = lo[a], c->content_hi[a] = hi[a];
+    pthread_mutex_unlock(&c->lock);
+}
