@@ -5,8 +5,8 @@
  * quantum (box_side / 2^root_bits) of the source's box on every side, for a
  * model of many cells (the demo) and of one (the bunny, whose root is a leaf),
  * the same with the index by subtree (the default) and whole. Before the
- * caller's first camera the core fetches the root's bytes up to root
- * precision and nothing else. Local archives, no network. */
+ * caller's first camera the core fetches the root's geometry bytes up to root
+ * precision and nothing else (no APO). Local archives, no network. */
 #include <float.h>
 #include <math.h>
 #include <setjmp.h>
@@ -45,7 +45,9 @@ static void open_model(const char *name, bool whole_index, ms_core_opening *op, 
 {
     char path[700];
     snprintf(path, sizeof path, "%s/%s.msa", fx.archives, name);
-    ms_core_options o = {.archive_path = path, .export_frames = true, .whole_index = whole_index};
+    /* APO on (the demo has chunks): the root's geometry is still all it fetches */
+    ms_core_options o = {.archive_path = path, .export_frames = true, .whole_index = whole_index,
+                         .apo_levels = MS_ARCHIVE_MAX_APO_LEVELS};
     ms_core *core;
     ms_error err;
     expect(ms_core_start(&o, &core, &err), &err);

@@ -11,8 +11,9 @@
  *
  * Until the bounds are known the root is selected at least at root precision
  * (a few kilobytes), and before the caller's first camera the decode thread
- * serves a camera of its own that needs nothing more, so ms_core_wait_open can
- * hand the bounds over with the index, before anything is drawn. */
+ * serves a camera of its own that needs nothing more (and no APO), so
+ * ms_core_wait_open can hand the bounds over with the index, before anything
+ * is drawn. */
 #include "ms_client_core_internal.h"
 
 /* The precision the bounds are taken at: root_bits (a one-cell model's root

@@ -277,7 +277,7 @@ ms_status ms_viewer_scene_open(const ms_viewer_source *source, const ms_scene *s
             vs->model_count = i + 1;
             st = ms_viewer_stream_open(source, &m->model, &each, &m->stream, err);
         }
-        if (st == MS_OK) /* the bounds come with the index the stream's core opened */
+        if (st == MS_OK) /* the bounds came with the opening: the root's, before any draw */
             place_model(&scene->models[i], m);
     }
     if (st == MS_OK)
