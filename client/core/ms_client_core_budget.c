@@ -362,8 +362,9 @@ static size_t fit_wants(ms_core *c, dec_pass *pass, const evict_candidate *cand,
     size_t keep = 0;
     for (; keep < pass->wl.n; ++keep) {
         const want *w = &pass->wl.w[keep];
-        if (w->stream == STREAM_INDEX)
-            continue; /* a subtree is small, and the cut cannot refine without it */
+        if (w->stream == STREAM_INDEX || ms_core_content_want(c, w))
+            continue; /* a subtree (the root's first bits) is small, and the cut cannot
+                         refine (the model cannot be placed) without it */
         uint64_t need_bytes = (uint64_t)(w->end - w->start) + w->decoded_growth;
         if (planned + need_bytes <= ceiling) {
             planned += need_bytes;

@@ -9,11 +9,15 @@
  * can be a quarter of the model's cube loose on a side, or the whole cube for
  * a model of one cell.
  *
- * Until the bounds are known the root is selected at least at root precision
- * (a few kilobytes), and before the caller's first camera the decode thread
- * serves a camera of its own that needs nothing more (and no APO), so
- * ms_core_wait_open can hand the bounds over with the index, before anything
- * is drawn. */
+ * Until the bounds are known the root's bytes are wanted up to root
+ * precision (a few kilobytes, which the memory budget lets through as it does
+ * the index's subtrees: a far model's root would otherwise wait behind the
+ * near models' cells, and its viewer with it); the root is decoded there for
+ * the bounds and back to the precision the selection shows it at, so the
+ * view, its memory and its frames are the selection's. Before the caller's
+ * first camera the decode thread serves a camera of its own that needs
+ * nothing more (and no APO), so ms_core_wait_open can hand the bounds over
+ * with the index, before anything is drawn. */
 #include "ms_client_core_internal.h"
 
 /* The precision the bounds are taken at: root_bits (a one-cell model's root
@@ -41,14 +45,36 @@ bool ms_core_content_camera(const ms_core *c, ms_camera *camera)
                              10.0 * h->box_side, camera, &err) == MS_OK;
 }
 
-void ms_core_content_floor(ms_core *c)
+unsigned ms_core_content_goal(const ms_core *c, uint32_t cell, unsigned goal)
 {
-    uint8_t *t = &c->target[0];
-    if (c->content != CONTENT_PENDING || *t == MS_VIEW_TARGET_HIDDEN || *t == MS_VIEW_TARGET_SPLIT)
-        return;
+    if (c->content != CONTENT_PENDING || cell != 0)
+        return goal;
     unsigned bits = content_bits(c);
-    if (*t < bits)
-        *t = (uint8_t)bits;
+    return goal > bits ? goal : bits;
+}
+
+bool ms_core_content_want(const ms_core *c, const want *w)
+{
+    return c->content == CONTENT_PENDING && w->cell == 0 && w->stream == STREAM_GEOMETRY;
+}
+
+/* The root's bounds at root precision, decoded there and back when it is
+ * shown coarser (ms_view_set_bits is exactly reversible: the view, its
+ * memory and its frames stay as the selection left them). */
+static ms_status root_bounds(ms_core *c, unsigned bits, double lo[3], double hi[3], ms_error *err)
+{
+    unsigned shown = ms_view_bits(c->view, 0);
+    if (shown >= bits)
+        return ms_view_cell_bounds(c->view, 0, lo, hi, err);
+    ms_status st = ms_view_set_bits(c->view, 0, bits, err);
+    if (st == MS_OK)
+        st = ms_view_cell_bounds(c->view, 0, lo, hi, err);
+    ms_error back_err;
+    if (ms_view_set_bits(c->view, 0, shown, &back_err) != MS_OK && st == MS_OK) {
+        *err = back_err;
+        st = back_err.code;
+    }
+    return st;
 }
 
 void ms_core_content_note(ms_core *c)
@@ -58,11 +84,12 @@ void ms_core_content_note(ms_core *c)
         return;
     int content = CONTENT_PENDING;
     double lo[3], hi[3];
+    unsigned bits = content_bits(c);
     if (root->geometry_length == 0) {
         content = CONTENT_NONE; /* an empty model */
-    } else if (ms_view_bits(c->view, 0) >= content_bits(c)) {
+    } else if (ms_view_bits(c->view, 0) >= bits || ms_view_available_bits(c->view, 0) >= bits) {
         ms_error err;
-        ms_status st = ms_view_cell_bounds(c->view, 0, lo, hi, &err);
+        ms_status st = root_bounds(c, bits, lo, hi, &err);
         content = st == MS_OK ? CONTENT_KNOWN : CONTENT_NONE;
         if (st != MS_OK && st != MS_ERR_EMPTY)
             ms_core_warn(c, err.text);

@@ -335,7 +335,6 @@ static void dec_pass_begin(ms_core *c, const ms_camera *cam, dec_pass *pass)
 static bool dec_select(ms_core *c, dec_pass *pass)
 {
     ms_view_select_partial(c->view, pass->cam, &pass->sp, c->target, &c->report);
-    ms_core_content_floor(c);
     size_t refined_in_parallel = dec_parallel_refine(c);
     ms_view_apply_report report;
     ms_error err;

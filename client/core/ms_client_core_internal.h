@@ -339,10 +339,13 @@ void ms_core_budget_step(ms_core *c, dec_pass *pass);
  * before the caller's first (one pixel seeing the model's cube; it asks for
  * the root's bytes and nothing more); else false. */
 bool ms_core_content_camera(const ms_core *c, ms_camera *camera);
-/* After selection, while the bounds are pending: the root's target at least
- * root precision. */
-void ms_core_content_floor(ms_core *c);
-/* After the view moved: takes the bounds from the root once it stands at
+/* The precision whose bytes shown cell `cell` wants, given the selection's
+ * goal: for the root while the bounds are pending, at least root precision. */
+unsigned ms_core_content_goal(const ms_core *c, uint32_t cell, unsigned goal);
+/* Whether w is one the bounds wait for (the root's geometry while they are
+ * pending): the budget lets it through. */
+bool ms_core_content_want(const ms_core *c, const want *w);
+/* After the view moved: takes the bounds from the root once its bytes reach
  * root precision (or gives up on them), and publishes them. */
 void ms_core_content_note(ms_core *c);
 

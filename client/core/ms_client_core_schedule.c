@@ -206,6 +206,7 @@ static void schedule_shown(ms_core *c, dec_pass *pass, uint32_t i)
     unsigned goal = t == MS_VIEW_TARGET_SPLIT || t == MS_VIEW_TARGET_HIDDEN ? rec->bits_max : t;
     if (goal > rec->bits_max)
         goal = rec->bits_max;
+    goal = ms_core_content_goal(c, i, goal); /* the root's bytes the bounds need */
     unsigned avail = ms_view_available_bits(c->view, i);
     d->goal_bytes = ms_archive_geometry_prefix(c->index, i, goal);
     if (d->pending)
