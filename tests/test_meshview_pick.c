@@ -233,7 +233,7 @@ static int setup(void **state)
     }
     ms_viewer_source source = {.archive_dir = fx.archives, .timeout_s = 10};
     ms_viewer_scene_settings settings = {.effects_off = MS_EFFECTS_ALL};
-    settings.stream.apo_levels = 0; /* the index by subtree, the default */
+    settings.stream.apo_levels = 0; /* and the index by subtree (the default) */
     if (ms_viewer_scene_open(&source, &fx.scene, "pick.json", &settings, &fx.vs, &err) != MS_OK ||
         ms_viewer_target_init(&fx.target, WIDTH, HEIGHT, &err) != MS_OK) {
         fprintf(stderr, "%s\n", err.text);
