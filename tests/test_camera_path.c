@@ -121,10 +121,48 @@ static void test_shipped_paths(void **state)
     }
 }
 
+/* The interpolated keyframe (the one interpolation every path user goes
+ * through) and the path time nearest a point. */
+static void test_key_at_and_nearest_time(void **state)
+{
+    (void)state;
+    ms_camera_path p;
+    ms_error err;
+    assert_int_equal(ms_camera_path_parse(good, strlen(good), "orbit.cam", &p, &err), MS_OK);
+    ms_camera_key k;
+    ms_camera_path_key_at(&p, 0.5, &k); /* a quarter of the way to the second keyframe */
+    assert_true(k.time == 0.5);
+    assert_true(k.position[0] == 2.5 && k.position[1] == 0 && k.position[2] == 7.5);
+    assert_true(k.target[0] == 0 && k.up[1] == 1 && k.fovy_degrees == 52.5);
+    ms_camera from_key, sampled;
+    assert_int_equal(ms_camera_look_at(k.position, k.target, k.up, k.fovy_degrees, 640, 480, 0.1, 100,
+                                       &from_key, &err), MS_OK);
+    assert_int_equal(ms_camera_path_sample(&p, 0.5, 640, 480, 0.1, 100, &sampled, &err), MS_OK);
+    assert_memory_equal(&from_key, &sampled, sizeof sampled);
+    ms_camera_path_key_at(&p, 9, &k); /* held at the end */
+    assert_true(k.time == 4.5 && k.position[0] == 10 && k.fovy_degrees == 30);
+    ms_camera_path_key_at(&p, -1, &k); /* and before the start */
+    assert_true(k.time == 0 && k.position[2] == 10);
+    /* nearest: the segment (0 0 10) - (10 0 0) at its middle, t = 1 */
+    double above_middle[3] = {5, 3, 5};
+    assert_true(ms_camera_path_nearest_time(&p, above_middle) == 1.0);
+    /* the still end (keyframes 2 and 3 at the same place): the earliest, 2 */
+    double beyond_end[3] = {20, 0, -1};
+    assert_true(ms_camera_path_nearest_time(&p, beyond_end) == 2.0);
+    double before_start[3] = {-3, 0, 12};
+    assert_true(ms_camera_path_nearest_time(&p, before_start) == 0.0);
+    ms_camera_path_free(&p);
+    ms_camera_path empty = {0};
+    assert_true(ms_camera_path_nearest_time(&empty, above_middle) == 0.0);
+    ms_camera_path_key_at(&empty, 1, &k);
+    assert_true(k.time == 0 && k.fovy_degrees == 0);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_parse_and_sample),
+        cmocka_unit_test(test_key_at_and_nearest_time),
         cmocka_unit_test(test_bad_files),
         cmocka_unit_test(test_shipped_paths),
     };

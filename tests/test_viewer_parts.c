@@ -1,7 +1,8 @@
 /* meshview's parts that need no window: the bitmap font (every printable
  * character has its own non-empty glyph), the camera controller (orbit keeps
  * the distance, pan keeps the direction, re-centring looks at the point, the
- * camera it gives is valid), the HUD's lines, the catalogue's row layout and
+ * camera it gives is valid), the HUD's lines (with the camera path's and a
+ * selected piece's), the catalogue's row layout and
  * the nearest-rank quantile of the scripted report. */
 #include <setjmp.h>
 #include <stdarg.h>
@@ -188,6 +189,56 @@ static void test_hud_lines(void **state)
     assert_string_equal(lines[7], "server gone");
 }
 
+/* The camera path's line while the path drives the camera, and a scene's
+ * selected piece in three lines. */
+static void test_hud_path_and_piece(void **state)
+{
+    (void)state;
+    ms_core_stats cs;
+    memset(&cs, 0, sizeof cs);
+    cs.model_open = true;
+    ms_viewer_playback pb;
+    ms_viewer_playback_init(&pb, NULL);
+    ms_camera_key keys[2] = {{.time = 0}, {.time = 26}};
+    pb.path = (ms_camera_path){.keys = keys, .count = 2};
+    ms_scene_material glossy = {.kind = MS_MATERIAL_GLOSSY, .albedo = {0.3f, 0.55f, 0.38f},
+                                .specular = 0.35f, .shininess = 80};
+    ms_viewer_scene_piece piece = {.model = "dragon", .material = &glossy, .triangles = 48210,
+                                   .cells = 17, .bytes = 1234567, .achieved_error_px = 0.84};
+    ms_viewer_hud_info info = {.model = "gallery", .mode = "APO lit", .core = &cs, .show_effects = true,
+                               .effects_ran = 0, .playback = &pb, .piece = &piece, .piece_index = 1,
+                               .piece_count = 9};
+    char lines[MS_HUD_MAX_LINES][MS_HUD_LINE_MAX];
+    /* off: no path line */
+    size_t n = ms_viewer_hud_lines(&info, lines);
+    assert_int_equal(n, 8 + 3);
+    assert_string_equal(lines[8], "piece 2 of 9: dragon  geometry");
+    assert_string_equal(lines[9], "glossy  albedo 0.30 0.55 0.38  specular 0.35  shininess 80");
+    assert_string_equal(lines[10], "48210 triangles in 17 cells  1.23 MB  error 0.84 px");
+    pb.state = MS_PLAYBACK_PLAYING, pb.time = 12.34;
+    n = ms_viewer_hud_lines(&info, lines);
+    assert_int_equal(n, 12);
+    assert_string_equal(lines[8], "path 12.3 of 26.0 s  playing");
+    pb.state = MS_PLAYBACK_PAUSED;
+    piece.impostor = 1;
+    ms_scene_material open = {.kind = MS_MATERIAL_DIFFUSE, .albedo = {0.7f, 0.6f, 0.48f}, .two_sided = true};
+    piece.material = &open;
+    snprintf(cs.error, sizeof cs.error, "dragon: server gone");
+    n = ms_viewer_hud_lines(&info, lines);
+    assert_int_equal(n, MS_HUD_MAX_LINES); /* every line there can be */
+    assert_string_equal(lines[8], "dragon: server gone");
+    assert_string_equal(lines[9], "path 12.3 of 26.0 s  paused");
+    assert_string_equal(lines[10], "piece 2 of 9: dragon  impostor");
+    assert_string_equal(lines[11], "diffuse  albedo 0.70 0.60 0.48  two-sided");
+    piece.impostor = 0.5f;
+    info.piece = NULL;
+    n = ms_viewer_hud_lines(&info, lines);
+    assert_int_equal(n, 10);
+    info.piece = &piece;
+    n = ms_viewer_hud_lines(&info, lines);
+    assert_string_equal(lines[10], "piece 2 of 9: dragon  geometry to impostor");
+}
+
 static void test_catalogue_rows(void **state)
 {
     (void)state;
@@ -232,7 +283,8 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_font_glyphs_distinct), cmocka_unit_test(test_controls),
-        cmocka_unit_test(test_hud_lines),            cmocka_unit_test(test_catalogue_rows),
+        cmocka_unit_test(test_hud_lines),            cmocka_unit_test(test_hud_path_and_piece),
+        cmocka_unit_test(test_catalogue_rows),
         cmocka_unit_test(test_quantile),
     };
     return cmocka_run_group_tests_name("viewer_parts", tests, NULL, NULL);

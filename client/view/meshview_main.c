@@ -27,6 +27,8 @@
 #include "ms_viewer_hud.h"
 #include "ms_viewer_model.h"
 #include "ms_viewer_options.h"
+#include "ms_viewer_pick.h"
+#include "ms_viewer_playback.h"
 #include "ms_viewer_readback.h"
 #include "ms_viewer_scene.h"
 #include "ms_viewer_script.h"
@@ -55,6 +57,8 @@ typedef struct viewer {
     ms_scene scene;
     ms_viewer_scene *vscene;
     ms_viewer_controls controls;
+    ms_viewer_playback playback;   /* the path Space plays (--path, or the scene's) */
+    long selected;                 /* the selected piece of a scene; -1: none */
     ms_render_options render;
     bool apo, geometry_normals, hud;
     char message[256];             /* shown on the catalogue screen (last failure) */
@@ -63,7 +67,7 @@ typedef struct viewer {
     bool rotating, panning;
     double cursor_x, cursor_y;     /* window coordinates */
     double last_click_time, last_click_x, last_click_y;
-    bool recentre_requested;
+    bool recentre_requested, pick_requested; /* a double click; a click in a scene */
     double recentre_x, recentre_y; /* framebuffer pixels, top-left origin */
     bool screenshot_requested;
     long open_delta;               /* next/previous model requested */
@@ -168,6 +172,7 @@ static bool open_model(viewer *v, const char *name)
     double lo[3], hi[3];
     ms_viewer_model_bounds(&v->model, lo, hi);
     ms_viewer_controls_init(&v->controls, lo, hi, v->o->up_axis);
+    ms_viewer_playback_stop(&v->playback);
     v->on_catalogue = false;
     v->message[0] = 0;
     char title[128];
@@ -191,6 +196,24 @@ static void open_neighbour(viewer *v, long delta)
 }
 
 /* --- GLFW callbacks: they only record what the loop acts on ---------------- */
+
+/* ] / [ (PgDn / PgUp): the next or previous model, or in a scene piece. */
+static void next_key(viewer *v, int delta)
+{
+    if (v->vscene)
+        v->selected = ms_viewer_pick_cycle(v->selected, ms_viewer_scene_piece_count(v->vscene), delta);
+    else
+        v->open_delta = delta;
+}
+
+/* Z: the selected piece of a scene fills the view. */
+static void frame_selected(viewer *v)
+{
+    int fw, fh;
+    glfwGetFramebufferSize(v->window, &fw, &fh);
+    if (v->vscene && fh > 0)
+        ms_viewer_pick_frame_piece(v->vscene, v->selected, &v->controls, (double)fw / fh);
+}
 
 static void on_key(GLFWwindow *w, int key, int scancode, int action, int mods)
 {
@@ -251,10 +274,14 @@ static void on_key(GLFWwindow *w, int key, int scancode, int action, int mods)
     case GLFW_KEY_R: ms_viewer_controls_reset(c); break;
     case GLFW_KEY_U: ms_viewer_controls_set_up(c, (c->up_axis + 1) % 3); break;
     case GLFW_KEY_F: c->fly = !c->fly; break;
+    case GLFW_KEY_SPACE: ms_viewer_playback_toggle(&v->playback, c); break;
+    case GLFW_KEY_PERIOD: ms_viewer_playback_step(&v->playback, 1, c); break;
+    case GLFW_KEY_COMMA: ms_viewer_playback_step(&v->playback, -1, c); break;
+    case GLFW_KEY_Z: frame_selected(v); break;
     case GLFW_KEY_RIGHT_BRACKET:
-    case GLFW_KEY_PAGE_DOWN: v->open_delta = 1; break;
+    case GLFW_KEY_PAGE_DOWN: next_key(v, 1); break;
     case GLFW_KEY_LEFT_BRACKET:
-    case GLFW_KEY_PAGE_UP: v->open_delta = -1; break;
+    case GLFW_KEY_PAGE_UP: next_key(v, -1); break;
     case GLFW_KEY_TAB:
         if (v->have_list)
             v->on_catalogue = true;
@@ -273,6 +300,12 @@ static void on_mouse_button(GLFWwindow *w, int button, int action, int mods)
     double ratio = pixel_ratio(w);
     if (action == GLFW_RELEASE) {
         v->rotating = v->panning = false;
+        /* a click (no drag) in a scene picks the piece under it */
+        if (button == GLFW_MOUSE_BUTTON_LEFT && v->vscene && fabs(x - v->last_click_x) < DOUBLE_CLICK_PX &&
+            fabs(y - v->last_click_y) < DOUBLE_CLICK_PX) {
+            v->pick_requested = true;
+            v->recentre_x = x * ratio, v->recentre_y = y * ratio;
+        }
         return;
     }
     bool pan = button == GLFW_MOUSE_BUTTON_RIGHT || button == GLFW_MOUSE_BUTTON_MIDDLE ||
@@ -353,6 +386,12 @@ static void fly_keys(viewer *v, double seconds)
         ms_viewer_controls_fly(&v->controls, f, r, u, seconds);
 }
 
+/* What the window shows: the scene's name or the model's. */
+static const char *shown_name(const viewer *v)
+{
+    return v->vscene ? (v->scene.name[0] ? v->scene.name : "scene") : v->model.name;
+}
+
 static void take_screenshot(viewer *v, int fw, int fh)
 {
     const char *dir = v->o->screenshot_dir ? v->o->screenshot_dir : ".";
@@ -360,7 +399,7 @@ static void take_screenshot(viewer *v, int fw, int fh)
     ms_error err;
     struct stat sb;
     do
-        snprintf(path, sizeof path, "%s/meshview-%s-%03d.png", dir, v->model.name, v->screenshots++);
+        snprintf(path, sizeof path, "%s/meshview-%s-%03d.png", dir, shown_name(v), v->screenshots++);
     while (stat(path, &sb) == 0 && v->screenshots < 1000);
     if (ms_viewer_screenshot(path, fw, fh, &err) != MS_OK)
         snprintf(v->message, sizeof v->message, "%.250s", err.text);
@@ -423,7 +462,7 @@ static int view_frame(viewer *v, int fw, int fh, double seconds)
     ms_error err;
     fly_keys(v, seconds);
     ms_camera camera;
-    if (ms_viewer_controls_camera(&v->controls, fw, fh, &camera, &err) != MS_OK)
+    if (ms_viewer_playback_frame_camera(&v->playback, &v->controls, fw, fh, seconds, &camera, &err) != MS_OK)
         ms_viewer_controls_reset(&v->controls);
     else {
         ms_viewer_step step;
@@ -439,14 +478,14 @@ static int view_frame(viewer *v, int fw, int fh, double seconds)
             return 1;
         }
         v->settled = step.settled;
-        if (v->recentre_requested) {
-            v->recentre_requested = false;
-            double depth, world[3];
-            int px = (int)v->recentre_x, py = fh - 1 - (int)v->recentre_y;
-            if (ms_viewer_read_depth(px, py, fw, fh, &depth) &&
-                ms_render_unproject(&camera, px + 0.5, py + 0.5, depth, world))
-                ms_viewer_controls_recentre(&v->controls, world);
-        }
+        double world[3]; /* a click selects the piece under it, a double click re-centres */
+        bool hit = (v->recentre_requested || v->pick_requested) &&
+                   ms_viewer_pick_surface(&camera, v->recentre_x, v->recentre_y, world);
+        if (hit && v->recentre_requested)
+            ms_viewer_controls_recentre(&v->controls, world);
+        if (v->pick_requested && v->vscene)
+            v->selected = hit ? ms_viewer_pick_scene_piece(v->vscene, world) : -1;
+        v->recentre_requested = v->pick_requested = false;
         if (v->screenshot_requested) {
             v->screenshot_requested = false;
             take_screenshot(v, fw, fh);
@@ -457,7 +496,7 @@ static int view_frame(viewer *v, int fw, int fh, double seconds)
         ms_viewer_scene_stats(v->vscene, &cs);
     else
         ms_viewer_stream_stats(v->stream, &cs);
-    ms_viewer_hud_info info = {.model = v->vscene ? (v->scene.name[0] ? v->scene.name : "scene") : v->model.name,
+    ms_viewer_hud_info info = {.model = shown_name(v),
                                .show_effects = v->vscene != NULL,
                                .effects_ran = v->drawn.effects_ran,
                                .mode = mode_name(v),
@@ -467,7 +506,15 @@ static int view_frame(viewer *v, int fw, int fh, double seconds)
                                .cells_drawn = v->drawn.cells_drawn,
                                .core = &cs,
                                .settled = v->settled,
-                               .fly = v->controls.fly};
+                               .fly = v->controls.fly,
+                               .playback = &v->playback};
+    ms_viewer_scene_piece piece;
+    if (v->vscene && v->selected >= 0) {
+        ms_viewer_scene_piece_info(v->vscene, (size_t)v->selected, &piece);
+        info.piece = &piece;
+        info.piece_index = (size_t)v->selected;
+        info.piece_count = ms_viewer_scene_piece_count(v->vscene);
+    }
     ms_viewer_text_begin(v->text, fw, fh, text_scale(v));
     ms_viewer_hud_draw(v->text, &info, fw, fh, v->hud);
     if (ms_viewer_text_draw(v->text, &err) != MS_OK) {
@@ -505,8 +552,11 @@ static int interactive_scene(viewer *v)
 {
     const ms_viewer_options *o = v->o;
     ms_error err;
-    if (ms_scene_load(o->scene_file, &v->scene, &err) != MS_OK) {
+    v->selected = -1;
+    if (ms_scene_load(o->scene_file, &v->scene, &err) != MS_OK ||
+        ms_viewer_playback_load(&v->playback, v->scene.camera_path, &err) != MS_OK) {
         fprintf(stderr, "meshview: %s\n", err.text);
+        ms_scene_free(&v->scene);
         return 1;
     }
     int rc = 0;
@@ -563,6 +613,10 @@ static int interactive(viewer *v)
 {
     const ms_viewer_options *o = v->o;
     ms_error err;
+    if (ms_viewer_playback_load(&v->playback, o->path_file, &err) != MS_OK) {
+        fprintf(stderr, "meshview: %s\n", err.text);
+        return 1;
+    }
     if (o->scene_file)
         return interactive_scene(v);
     if (o->model) {
@@ -707,5 +761,7 @@ int main(int argc, char **argv)
     ms_render_options_default(&v.render);
     v.render.shading = o.shading;
     update_shading(&v);
-    return o.scripted ? scripted(&v) : interactive(&v);
+    rc = o.scripted ? scripted(&v) : interactive(&v);
+    ms_viewer_playback_free(&v.playback);
+    return rc;
 }

@@ -723,3 +723,16 @@ void ms_scene_model_transform(const ms_scene_model *m, const double lo[3], const
     }
     out[15] = 1.0;
 }
+
+void ms_scene_placed_sphere(const double t[16], const double lo[3], const double hi[3], double centre[3],
+                            double *radius)
+{
+    double mid[3], r2 = 0;
+    for (int a = 0; a < 3; ++a) {
+        mid[a] = 0.5 * (lo[a] + hi[a]);
+        r2 += 0.25 * (hi[a] - lo[a]) * (hi[a] - lo[a]);
+    }
+    for (int r = 0; r < 3; ++r)
+        centre[r] = t[r] * mid[0] + t[4 + r] * mid[1] + t[8 + r] * mid[2] + t[12 + r];
+    *radius = sqrt(r2) * sqrt(t[0] * t[0] + t[1] * t[1] + t[2] * t[2]);
+}

@@ -155,4 +155,9 @@ unsigned ms_scene_effects(const ms_scene *scene);
 void ms_scene_model_transform(const ms_scene_model *model, const double lo[3], const double hi[3],
                               double out[16]);
 
+/* The sphere about placed bounds: centre = placement of the bounds' centre,
+ * radius = half their diagonal times the placement's (uniform) scale. */
+void ms_scene_placed_sphere(const double placement[16], const double lo[3], const double hi[3],
+                            double centre[3], double *radius);
+
 #endif

@@ -161,15 +161,16 @@ void ms_viewer_controls_zoom(ms_viewer_controls *c, double steps)
     c->distance = d < lo ? lo : d > hi ? hi : d;
 }
 
-void ms_viewer_controls_recentre(ms_viewer_controls *c, const double point[3])
+/* Puts the eye at eye looking at point (the orbit centre); false, changing
+ * nothing, when the two (nearly) coincide. */
+static bool aim(ms_viewer_controls *c, const double eye[3], const double point[3])
 {
-    double eye[3], d[3];
-    ms_viewer_controls_eye(c, eye);
+    double d[3];
     for (int k = 0; k < 3; ++k)
         d[k] = point[k] - eye[k];
     double n = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
     if (!(n > c->model_size * 1e-9) || !isfinite(n))
-        return;
+        return false;
     look_along(c, d);
     c->distance = n;
     /* The clamped pitch may not point exactly at the point: keep the eye. */
@@ -177,6 +178,34 @@ void ms_viewer_controls_recentre(ms_viewer_controls *c, const double point[3])
     ms_viewer_controls_forward(c, f);
     for (int k = 0; k < 3; ++k)
         c->target[k] = eye[k] + n * f[k];
+    return true;
+}
+
+void ms_viewer_controls_recentre(ms_viewer_controls *c, const double point[3])
+{
+    double eye[3];
+    ms_viewer_controls_eye(c, eye);
+    aim(c, eye, point);
+}
+
+void ms_viewer_controls_look(ms_viewer_controls *c, const double eye[3], const double target[3],
+                             double fovy_degrees)
+{
+    if (aim(c, eye, target) && fovy_degrees > 0 && fovy_degrees < 180)
+        c->fovy_degrees = fovy_degrees;
+}
+
+void ms_viewer_controls_frame(ms_viewer_controls *c, const double centre[3], double radius,
+                              double aspect)
+{
+    if (!(radius > 0) || !isfinite(radius) || !(aspect > 0) || !isfinite(aspect) ||
+        !isfinite(centre[0] + centre[1] + centre[2]))
+        return;
+    double half = c->fovy_degrees * M_PI / 360;
+    if (aspect < 1) /* the narrower, horizontal field must hold it */
+        half = atan(tan(half) * aspect);
+    memcpy(c->target, centre, sizeof c->target);
+    c->distance = radius / sin(half);
 }
 
 void ms_viewer_controls_fly(ms_viewer_controls *c, double forward, double right, double up,
@@ -192,13 +221,20 @@ void ms_viewer_controls_fly(ms_viewer_controls *c, double forward, double right,
         c->target[k] += (forward * f[k] + right * r[k] + up * u[k]) * speed * seconds;
 }
 
+void ms_viewer_controls_depth_range(const ms_viewer_controls *c, double *near_distance,
+                                    double *far_distance)
+{
+    *near_distance = c->distance / 500;
+    *far_distance = c->distance + 4 * c->model_size;
+}
+
 ms_status ms_viewer_controls_camera(const ms_viewer_controls *c, double width, double height,
                                     ms_camera *camera, ms_error *err)
 {
-    double eye[3], up[3], h0[3], h1[3];
+    double eye[3], up[3], h0[3], h1[3], near_d, far_d;
     ms_viewer_controls_eye(c, eye);
     world_frame(c->up_axis, up, h0, h1);
-    double near_d = c->distance / 500, far_d = c->distance + 4 * c->model_size;
+    ms_viewer_controls_depth_range(c, &near_d, &far_d);
     return ms_camera_look_at(eye, c->target, up, c->fovy_degrees, width, height, near_d, far_d,
                              camera, err);
 }

@@ -60,14 +60,32 @@ void ms_viewer_controls_zoom(ms_viewer_controls *c, double steps);
 /* Makes point the orbit centre, keeping the eye where it is (the view turns to
  * it). A point at the eye is ignored. */
 void ms_viewer_controls_recentre(ms_viewer_controls *c, const double point[3]);
+/* Puts the eye at eye, the orbit centre at target and the field of view at
+ * fovy_degrees (in (0, 180), else kept): a path's camera handed to the
+ * controls (ms_viewer_playback.h), so that a drag goes on from it. Roll is not
+ * kept (the view's up is the world up); a pitch past the limit is clamped with
+ * the eye kept. Eye and target (nearly) equal: nothing changes. */
+void ms_viewer_controls_look(ms_viewer_controls *c, const double eye[3], const double target[3],
+                             double fovy_degrees);
+/* Frames a sphere: the orbit centre goes to centre and the eye, along the
+ * present view direction, to radius / sin(h) from it, h being half the
+ * vertical field of view, or half the horizontal one when the framebuffer is
+ * narrower than tall (aspect = width / height < 1): the sphere just fits. A
+ * radius or aspect not > 0, or a non-finite value, changes nothing. */
+void ms_viewer_controls_frame(ms_viewer_controls *c, const double centre[3], double radius,
+                              double aspect);
 /* Fly mode: moves eye and target by (forward, right, up) times the speed for
  * `seconds` (speed: a quarter of the distance to the target per second, at
  * least model_size / 1000). */
 void ms_viewer_controls_fly(ms_viewer_controls *c, double forward, double right, double up,
                             double seconds);
 
-/* The camera for a framebuffer of width x height pixels; near and far follow
- * the distance (near = distance / 500, far = distance + 4 model sizes).
+/* Near and far for the present distance: near = distance / 500, far =
+ * distance + 4 model sizes. */
+void ms_viewer_controls_depth_range(const ms_viewer_controls *c, double *near_distance,
+                                    double *far_distance);
+/* The camera for a framebuffer of width x height pixels; near and far from
+ * ms_viewer_controls_depth_range.
  * MS_ERR_ARG only for an empty framebuffer or a degenerate state. */
 ms_status ms_viewer_controls_camera(const ms_viewer_controls *c, double width, double height,
                                     ms_camera *camera, ms_error *err);

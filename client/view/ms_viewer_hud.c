@@ -9,6 +9,31 @@
 
 static double mb(uint64_t bytes) { return (double)bytes / 1e6; }
 
+static const char *drawn_as(float impostor)
+{
+    return impostor <= 0.0f ? "geometry" : impostor >= 1.0f ? "impostor" : "geometry to impostor";
+}
+
+/* The selected piece: what it is, its material, what it costs. */
+static size_t piece_lines(const ms_viewer_hud_info *info, char (*lines)[MS_HUD_LINE_MAX])
+{
+    const ms_viewer_scene_piece *p = info->piece;
+    const ms_scene_material *m = p->material;
+    snprintf(lines[0], MS_HUD_LINE_MAX, "piece %zu of %zu: %s  %s", info->piece_index + 1,
+             info->piece_count, p->model, drawn_as(p->impostor));
+    int used = snprintf(lines[1], MS_HUD_LINE_MAX, "%s  albedo %.2f %.2f %.2f",
+                        m->kind == MS_MATERIAL_GLOSSY ? "glossy" : "diffuse", m->albedo[0],
+                        m->albedo[1], m->albedo[2]);
+    if (m->kind == MS_MATERIAL_GLOSSY)
+        used += snprintf(lines[1] + used, MS_HUD_LINE_MAX - (size_t)used,
+                         "  specular %.2f  shininess %.0f", m->specular, m->shininess);
+    if (m->two_sided)
+        snprintf(lines[1] + used, MS_HUD_LINE_MAX - (size_t)used, "  two-sided");
+    snprintf(lines[2], MS_HUD_LINE_MAX, "%llu triangles in %u cells  %.2f MB  error %.2f px",
+             (unsigned long long)p->triangles, p->cells, mb(p->bytes), p->achieved_error_px);
+    return 3;
+}
+
 size_t ms_viewer_hud_lines(const ms_viewer_hud_info *info,
                            char lines[MS_HUD_MAX_LINES][MS_HUD_LINE_MAX])
 {
@@ -44,6 +69,13 @@ size_t ms_viewer_hud_lines(const ms_viewer_hud_info *info,
         snprintf(lines[n++], MS_HUD_LINE_MAX, "%.90s", c->error);
     else if (c->warning[0])
         snprintf(lines[n++], MS_HUD_LINE_MAX, "%.90s", c->warning);
+    const ms_viewer_playback *pb = info->playback;
+    if (pb && ms_viewer_playback_on(pb))
+        snprintf(lines[n++], MS_HUD_LINE_MAX, "path %.1f of %.1f s  %s", pb->time,
+                 ms_camera_path_duration(&pb->path),
+                 pb->state == MS_PLAYBACK_PLAYING ? "playing" : "paused");
+    if (info->piece && info->piece->material)
+        n += piece_lines(info, lines + n);
     return n;
 }
 
@@ -85,5 +117,6 @@ void ms_viewer_hud_draw(ms_viewer_text *text, const ms_viewer_hud_info *info, in
                         n * line + 2 * pad - 2.0 * s, panel);
     for (size_t i = 0; i < n; ++i)
         ms_viewer_text_print(text, 2 * pad, 4 * pad + i * line,
-                             i == 7 && info->core->error[0] ? alert : ink, lines[i]);
+                             i == 7u + info->show_effects && info->core->error[0] ? alert : ink,
+                             lines[i]);
 }

@@ -3,7 +3,11 @@
  * thin progress bar along the top edge while the view refines.
  *
  * The lines are composed by ms_viewer_hud_lines (pure, so tests check the
- * words) and drawn by ms_viewer_hud_draw. Units: milliseconds, pixels, MB
+ * words) and drawn by ms_viewer_hud_draw. Below the view's figures: the
+ * camera path's clock while it drives the camera (ms_viewer_playback.h), and
+ * the selected piece of a scene (ms_viewer_pick.h): its name, whether it is
+ * drawn as geometry or impostor, its material, its triangles, cells, bytes
+ * and achieved error. Units: milliseconds, pixels, MB
  * (10^6 bytes). Thread-safety: none shared.
  */
 #ifndef MS_VIEWER_HUD_H
@@ -14,9 +18,11 @@
 #include <stdint.h>
 
 #include "ms_client_core.h"
+#include "ms_viewer_playback.h"
+#include "ms_viewer_scene.h"
 #include "ms_viewer_text.h"
 
-#define MS_HUD_MAX_LINES 10
+#define MS_HUD_MAX_LINES 13
 #define MS_HUD_LINE_MAX 96
 
 typedef struct ms_viewer_hud_info {
@@ -30,6 +36,9 @@ typedef struct ms_viewer_hud_info {
     bool fly;
     bool show_effects;           /* a scene: list the effects that ran this frame */
     unsigned effects_ran;        /* MS_EFFECT_* (ms_render.h) */
+    const ms_viewer_playback *playback; /* a line while the path drives the camera; may be NULL */
+    const ms_viewer_scene_piece *piece; /* the selected piece: three lines; NULL: none */
+    size_t piece_index, piece_count;    /* its index (from 0) and the scene's pieces */
 } ms_viewer_hud_info;
 
 /* Writes the HUD's lines; returns how many (at most MS_HUD_MAX_LINES). */

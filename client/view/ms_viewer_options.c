@@ -36,8 +36,10 @@ void ms_viewer_options_usage(FILE *out)
           "  --effects-off LIST     effects left out of the program (comma-separated: detail_normals,\n"
           "                         specular, two_sided, haze, impostors, displacement)\n"
           "  --effects-all          compile every effect in, whether the scene calls for it or not\n"
-          "Scripted, headless (on with --path or --screenshot-dir):\n"
-          "  --path FILE            camera path (docs/CAMERA_PATHS.md); without it the home view\n"
+          "Camera path:\n"
+          "  --path FILE            a camera path (docs/CAMERA_PATHS.md): Space plays it in the\n"
+          "                         window; scripted, the camera follows it (else the home view)\n"
+          "Scripted, headless (on with --screenshot-dir):\n"
           "  --screenshot-dir DIR   one PNG per keyframe (keyframe-NN.png; catalogue.png\n"
           "                         without --model); also where the P key writes\n"
           "  --frames N             frames drawn between two keyframes (default 8)\n"
@@ -48,7 +50,8 @@ void ms_viewer_options_usage(FILE *out)
           "  --json                 one JSON report on stdout\n"
           "  -h, --help             this help\n"
           "Mouse: left drag orbits (fly mode: looks around), right or shift drag pans,\n"
-          "scroll zooms, double-click re-centres on the surface under the cursor.\n"
+          "scroll zooms, double-click re-centres on the surface under the cursor; in a\n"
+          "scene a click selects the piece under the cursor.\n"
           "Keys:  O  APO normals on/off        G  geometry-normal shading on/off\n"
           "       N  normals as colours        C  cell colours\n"
           "       X  wireframe overlay         H  HUD on/off\n"
@@ -59,6 +62,10 @@ void ms_viewer_options_usage(FILE *out)
           "       ] / [  (or PgDn / PgUp)  next / previous model\n"
           "       F  fly mode: W A S D move, Q / E down / up, mouse looks around\n"
           "       Tab  back to the catalogue   Esc  quit\n"
+          "       Space  play / pause the camera path (--path, or the scene's) from\n"
+          "              where the camera is; a drag, the wheel or a move stops it\n"
+          "       . / ,  next / previous keyframe of the path\n"
+          "Scene: ] / [  select the next / previous piece   Z  frame the selected piece\n"
           "Exit status: 0 on success, 1 on an error (no OpenGL 4.1, server gone, unknown\n"
           "model, window closed while a scripted run streams), 2 for a usage error.\n",
           out);
@@ -153,7 +160,7 @@ static int finish_options(ms_viewer_options *o, const char *shading, bool no_apo
     }
     if (no_apo)
         o->apo_levels = 0, o->apo_shading = false;
-    o->scripted = o->path_file || o->screenshot_dir;
+    o->scripted = o->screenshot_dir != NULL;
     if (o->scene_file && o->model) {
         fprintf(err, "meshview: --scene and --model exclude each other\n");
         return 2;
@@ -167,7 +174,7 @@ static int finish_options(ms_viewer_options *o, const char *shading, bool no_apo
         return 2;
     }
     if (o->json && !o->scripted) {
-        fprintf(err, "meshview: --json reports a scripted run (--path or --screenshot-dir)\n");
+        fprintf(err, "meshview: --json reports a scripted run (--screenshot-dir)\n");
         return 2;
     }
     return 0;

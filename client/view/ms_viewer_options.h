@@ -5,10 +5,11 @@
  *   meshview ARCHIVE_DIR [--model NAME] [options]
  *   meshview ARCHIVE_DIR|--server HOST:PORT --scene FILE [options]
  *
- * Scripted (headless) mode is on when --path or --screenshot-dir is given:
+ * Scripted (headless) mode is on when --screenshot-dir is given:
  * no visible window, the camera follows the path (or stays at the home view),
  * one PNG per keyframe, a JSON report with --json. Without --model a scripted
- * run pictures the catalogue screen.
+ * run pictures the catalogue screen. In the window, --path (or a scene's
+ * camera_path) is the path that Space plays (ms_viewer_playback.h).
  *
  * Ownership: string fields point into argv. Thread-safety: getopt's (main
  * thread, once).

@@ -23,6 +23,7 @@
 typedef struct scene_model {
     ms_viewer_model model;
     ms_viewer_stream *stream;
+    double lo[3], hi[3];       /* the model's bounds the placement was made from */
     double placement[16];      /* model to scene */
     double inverse_linear[9];  /* column-major 3x3 inverse of the linear part */
     double scale;
@@ -34,6 +35,7 @@ typedef struct scene_model {
     uint64_t captured_generation, captured_uploads; /* what the impostor shows */
     bool far;                  /* below the impostor threshold (with hysteresis) */
     float coverage;            /* of the impostor: 0 geometry only .. 1 impostor only */
+    ms_render_draw_stats drawn; /* its geometry's, at the last draw */
 } scene_model;
 
 /* A part of the room: boxes' faces as one one-cell model. */
@@ -214,7 +216,7 @@ static ms_status build_room(ms_viewer_scene *vs, ms_error *err)
 
 static void place_model(const ms_scene_model *sm, scene_model *m)
 {
-    double lo[3], hi[3];
+    double *lo = m->lo, *hi = m->hi;
     ms_viewer_model_bounds(&m->model, lo, hi);
     ms_scene_model_transform(sm, lo, hi, m->placement);
     const double *t = m->placement;
@@ -223,14 +225,7 @@ static void place_model(const ms_scene_model *sm, scene_model *m)
     for (int c = 0; c < 3; ++c)
         for (int r = 0; r < 3; ++r)
             m->inverse_linear[3 * c + r] = t[4 * r + c] / (m->scale * m->scale);
-    double mid[3], r2 = 0;
-    for (int a = 0; a < 3; ++a) {
-        mid[a] = 0.5 * (lo[a] + hi[a]);
-        r2 += 0.25 * (hi[a] - lo[a]) * (hi[a] - lo[a]);
-    }
-    for (int r = 0; r < 3; ++r)
-        m->centre[r] = t[r] * mid[0] + t[4 + r] * mid[1] + t[8 + r] * mid[2] + t[12 + r];
-    m->radius = sqrt(r2) * m->scale;
+    ms_scene_placed_sphere(m->placement, lo, hi, m->centre, &m->radius);
 }
 
 ms_status ms_viewer_scene_open(const ms_viewer_source *source, const ms_scene *scene, const char *label,
@@ -464,6 +459,7 @@ static ms_status draw_model(ms_viewer_scene *vs, scene_model *m, const ms_camera
                             const ms_render_options *mo, ms_render_draw_stats *sum, ms_error *err)
 {
     ms_render_draw_stats one;
+    memset(&m->drawn, 0, sizeof m->drawn);
     bool impostors = (mo->effects & MS_EFFECT_IMPOSTORS) != 0;
     if (impostors) {
         double px = projected_pixels(m, camera), threshold = vs->scene->impostor_threshold_px;
@@ -498,6 +494,7 @@ static ms_status draw_model(ms_viewer_scene *vs, scene_model *m, const ms_camera
         g.dissolve = m->coverage;
         st = ms_viewer_stream_draw(m->stream, camera, &g, &one, err);
         merge_stats(sum, &one);
+        m->drawn = one;
     }
     if (st == MS_OK && m->coverage > 0.0f) {
         st = ms_impostor_draw(m->impostor, camera, m->coverage, mo->haze_density, mo->haze_colour, err);
@@ -627,4 +624,29 @@ void ms_viewer_scene_bounds(const ms_viewer_scene *vs, double lo[3], double hi[3
 {
     memcpy(lo, vs->lo, 3 * sizeof *lo);
     memcpy(hi, vs->hi, 3 * sizeof *hi);
+}
+
+size_t ms_viewer_scene_piece_count(const ms_viewer_scene *vs)
+{
+    return vs->model_count;
+}
+
+void ms_viewer_scene_piece_info(ms_viewer_scene *vs, size_t i, ms_viewer_scene_piece *piece)
+{
+    memset(piece, 0, sizeof *piece);
+    if (i >= vs->model_count)
+        return;
+    const scene_model *m = &vs->models[i];
+    piece->model = vs->scene->models[i].model;
+    piece->material = &vs->scene->models[i].material;
+    memcpy(piece->placement, m->placement, sizeof piece->placement);
+    memcpy(piece->lo, m->lo, sizeof piece->lo);
+    memcpy(piece->hi, m->hi, sizeof piece->hi);
+    piece->impostor = m->coverage;
+    piece->triangles = m->drawn.triangles_drawn;
+    piece->cells = m->drawn.cells_drawn;
+    ms_core_stats cs;
+    ms_viewer_stream_stats(m->stream, &cs);
+    piece->bytes = cs.bytes_received;
+    piece->achieved_error_px = cs.achieved_error_px;
 }

@@ -29,7 +29,8 @@
  * cut changes, with a 4-frame dissolve on the switch.
  *
  * Requires the GL context current on the calling thread for every function
- * but _effects and _settled. Ownership: the scene is borrowed (it must outlive
+ * but _effects, _settled and the pieces' (_piece_count, _piece_info), which
+ * only read what the last step and draw left. Ownership: the scene is borrowed (it must outlive
  * the object); everything else is owned. Errors: ms_status with one line (a
  * model not in the catalogue names the scene element; a stream's errors as
  * ms_viewer_stream.h). Thread-safety: the drawing thread only.
@@ -38,6 +39,7 @@
 #define MS_VIEWER_SCENE_H
 
 #include <stdbool.h>
+#include <stddef.h>
 #include <stdint.h>
 
 #include "ms_render.h"
@@ -87,5 +89,24 @@ unsigned ms_viewer_scene_effects(const ms_viewer_scene *vs);
 /* The room's box (or the models' when the scene has no room), metres: for
  * the camera's near and far distances. */
 void ms_viewer_scene_bounds(const ms_viewer_scene *vs, double lo[3], double hi[3]);
+
+/* A piece of the scene: one of its models (the room's floor, walls and
+ * plinths are not pieces), for picking and the HUD. */
+typedef struct ms_viewer_scene_piece {
+    const char *model;                 /* catalogue name (the scene's string) */
+    const ms_scene_material *material; /* the scene's */
+    double placement[16];              /* model to scene, column-major (ms_scene_model_transform) */
+    double lo[3], hi[3];               /* the model's bounds it was placed by, its own units */
+    float impostor;                    /* at the last draw: 0 geometry .. 1 impostor (dissolving between) */
+    uint64_t triangles;                /* drawn as geometry at the last draw */
+    uint32_t cells;
+    uint64_t bytes;                    /* received, geometry and APO */
+    double achieved_error_px;          /* its core's, screen pixels */
+} ms_viewer_scene_piece;
+
+/* The number of pieces (the scene's models, in the scene's order). */
+size_t ms_viewer_scene_piece_count(const ms_viewer_scene *vs);
+/* Piece i (zeroed for i >= count). */
+void ms_viewer_scene_piece_info(ms_viewer_scene *vs, size_t i, ms_viewer_scene_piece *piece);
 
 #endif

@@ -163,12 +163,11 @@ double ms_camera_path_duration(const ms_camera_path *p)
     return p->count ? p->keys[p->count - 1].time : 0.0;
 }
 
-ms_status ms_camera_path_sample(const ms_camera_path *p, double t, double width, double height,
-                                double near_distance, double far_distance, ms_camera *camera,
-                                ms_error *err)
+void ms_camera_path_key_at(const ms_camera_path *p, double t, ms_camera_key *key)
 {
+    memset(key, 0, sizeof *key);
     if (p->count == 0)
-        return ms_error_set(err, MS_ERR_EMPTY, "camera path has no keyframe");
+        return;
     size_t i = 0;
     while (i + 1 < p->count && p->keys[i + 1].time <= t)
         ++i;
@@ -177,13 +176,53 @@ ms_status ms_camera_path_sample(const ms_camera_path *p, double t, double width,
     double w = (b == a || t <= a->time) ? 0.0 : (t - a->time) / (b->time - a->time);
     if (w > 1.0)
         w = 1.0;
-    double pos[3], target[3], up[3];
     for (int k = 0; k < 3; ++k) {
-        pos[k] = a->position[k] + w * (b->position[k] - a->position[k]);
-        target[k] = a->target[k] + w * (b->target[k] - a->target[k]);
-        up[k] = a->up[k] + w * (b->up[k] - a->up[k]);
+        key->position[k] = a->position[k] + w * (b->position[k] - a->position[k]);
+        key->target[k] = a->target[k] + w * (b->target[k] - a->target[k]);
+        key->up[k] = a->up[k] + w * (b->up[k] - a->up[k]);
     }
-    double fovy = a->fovy_degrees + w * (b->fovy_degrees - a->fovy_degrees);
-    return ms_camera_look_at(pos, target, up, fovy, width, height, near_distance, far_distance,
-                             camera, err);
+    key->fovy_degrees = a->fovy_degrees + w * (b->fovy_degrees - a->fovy_degrees);
+    key->time = a->time + w * (b->time - a->time);
+}
+
+double ms_camera_path_nearest_time(const ms_camera_path *p, const double point[3])
+{
+    if (p->count == 0)
+        return 0.0;
+    double best_time = p->keys[0].time, best = INFINITY;
+    for (size_t i = 0; i < p->count; ++i) {
+        const ms_camera_key *a = &p->keys[i];
+        const ms_camera_key *b = i + 1 < p->count ? &p->keys[i + 1] : a;
+        /* positions move linearly between two keyframes: the segment's
+         * nearest point is the projection clamped to it */
+        double ab[3], ap[3], len2 = 0, along = 0;
+        for (int k = 0; k < 3; ++k) {
+            ab[k] = b->position[k] - a->position[k];
+            ap[k] = point[k] - a->position[k];
+            len2 += ab[k] * ab[k];
+            along += ab[k] * ap[k];
+        }
+        double w = len2 > 0 ? along / len2 : 0.0;
+        w = w < 0 ? 0 : w > 1 ? 1 : w;
+        double d2 = 0;
+        for (int k = 0; k < 3; ++k)
+            d2 += (ap[k] - w * ab[k]) * (ap[k] - w * ab[k]);
+        if (d2 < best) {
+            best = d2;
+            best_time = a->time + w * (b->time - a->time);
+        }
+    }
+    return best_time;
+}
+
+ms_status ms_camera_path_sample(const ms_camera_path *p, double t, double width, double height,
+                                double near_distance, double far_distance, ms_camera *camera,
+                                ms_error *err)
+{
+    if (p->count == 0)
+        return ms_error_set(err, MS_ERR_EMPTY, "camera path has no keyframe");
+    ms_camera_key key;
+    ms_camera_path_key_at(p, t, &key);
+    return ms_camera_look_at(key.position, key.target, key.up, key.fovy_degrees, width, height,
+                             near_distance, far_distance, camera, err);
 }

@@ -47,7 +47,19 @@ void ms_camera_path_free(ms_camera_path *path);
 /* Time of the last keyframe. */
 double ms_camera_path_duration(const ms_camera_path *path);
 
-/* The camera at time t for a viewport (interpolated; clamped to the path). */
+/* The keyframe at time t: position, target, up and fovy interpolated as
+ * described above (up not yet renormalised: ms_camera_look_at does that), time
+ * t clamped to the path. Every caller that moves a camera along a path goes
+ * through this one interpolation. A path without keyframes gives zeros. */
+void ms_camera_path_key_at(const ms_camera_path *path, double t, ms_camera_key *key);
+
+/* The time at which the path's position comes nearest to point (positions move
+ * linearly between keyframes, so this is exact); the earliest such time on a
+ * tie, 0 for a path without keyframes. */
+double ms_camera_path_nearest_time(const ms_camera_path *path, const double point[3]);
+
+/* The camera at time t for a viewport: ms_camera_path_key_at, then
+ * ms_camera_look_at (MS_ERR_EMPTY for a path without keyframes). */
 ms_status ms_camera_path_sample(const ms_camera_path *path, double t, double width,
                                 double height, double near_distance, double far_distance,
                                 ms_camera *camera, ms_error *err);
