@@ -37,7 +37,7 @@
  * received, MS_ERR_CORRUPT for a damaged payload.
  * Thread-safety: one object per client, used from one thread, except that
  * ms_view_set_bits and ms_view_set_bytes on *distinct* cells may run concurrently
- * when no split, merge, apply or stitch runs at the same time.
+ * when no split, merge, select, apply or stitch runs at the same time.
  */
 #ifndef MS_VIEW_DECODER_H
 #define MS_VIEW_DECODER_H
