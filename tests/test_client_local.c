@@ -111,7 +111,9 @@ static ms_core_frame *complete_frame(const ms_core_options *o, const ms_camera *
 static void assert_frames_equal(const ms_core_frame *a, const ms_core_frame *b)
 {
     assert_int_equal(a->cell_count, b->cell_count);
-    assert_memory_equal(a->cell_bits, b->cell_bits, a->cell_count);
+    assert_int_equal(a->cut_count, b->cut_count);
+    assert_memory_equal(a->cut_cells, b->cut_cells, a->cut_count * sizeof *a->cut_cells);
+    assert_memory_equal(a->cut_bits, b->cut_bits, a->cut_count);
     const ms_view_mesh *x = &a->mesh, *y = &b->mesh;
     assert_int_equal(x->vertex_count, y->vertex_count);
     assert_int_equal(x->triangle_count, y->triangle_count);
@@ -149,7 +151,7 @@ static uint64_t check_apo_footprint(const ms_core_frame *f, const ms_camera *cam
             lo[a] = h->box_origin[a] + side * rec->position[a];
             hi[a] = lo[a] + side;
         }
-        bool wanted = f->cell_bits[i] < MS_VIEW_TARGET_SPLIT && rec->apo_length > 0 &&
+        bool wanted = ms_core_frame_cell_bits(f, i) < MS_VIEW_TARGET_SPLIT && rec->apo_length > 0 &&
                       ms_frustum_keeps_box(&fr, lo, hi, 0);
         if (!wanted) {
             assert_true(k == f->apo_count || f->apo[k].cell != i);
@@ -188,8 +190,8 @@ static void test_local_equals_network(void **state)
     ms_core_frame *fl = complete_frame(&ol, &cam, &sl);
     assert_true(fn->mesh.triangle_count > 1000);
     uint32_t shown = 0;
-    for (uint32_t i = 0; i < fn->cell_count; ++i)
-        shown += fn->cell_bits[i] < MS_VIEW_TARGET_SPLIT;
+    for (size_t i = 0; i < fn->cut_count; ++i)
+        shown += fn->cut_bits[i] < MS_VIEW_TARGET_SPLIT;
     assert_true(shown > 1);    /* a real cut, not the root alone */
     assert_true(fn->apo_count > 0);
     assert_frames_equal(fl, fn);
@@ -247,7 +249,10 @@ static void test_local_path(void **state)
             assert_non_null(first);
             assert_non_null(frame);
             assert_true(frame->mesh.triangle_count != first->mesh.triangle_count ||
-                        memcmp(frame->cell_bits, first->cell_bits, frame->cell_count) != 0);
+                        frame->cut_count != first->cut_count ||
+                        memcmp(frame->cut_bits, first->cut_bits, frame->cut_count) != 0 ||
+                        memcmp(frame->cut_cells, first->cut_cells,
+                               frame->cut_count * sizeof *frame->cut_cells) != 0);
             fprintf(stderr, "local path: first drawn frame %zu triangles, complete %zu\n",
                     first->mesh.triangle_count, frame->mesh.triangle_count);
         }

@@ -193,7 +193,6 @@ void ms_core_stop(ms_core *c)
     ms_core_dcells_free(c);
     ms_core_subtrees_free(c);
     ms_view_destroy(c->view);
-    free(c->target);
     ms_archive_close(c->index);
     ms_core_opening_free(&c->opening);
     free(c->wants);

@@ -214,7 +214,13 @@ typedef struct ms_core_frame {
     double time;              /* seconds since ms_core_start */
     ms_view_mesh mesh;
     uint32_t cell_count;      /* cells of the model */
-    uint8_t *cell_bits;       /* per cell: shown precision, or 0xFF (hidden) / 0xFE (split) */
+    /* the cut: the cells shown or split, ids ascending; cut_bits[i] is cell
+     * cut_cells[i]'s shown precision, or 0xFE (MS_VIEW_TARGET_SPLIT). Every
+     * other cell is hidden (0xFF). Sized by the cut, not by the model:
+     * ms_core_frame_cell_bits looks a cell up. */
+    uint32_t *cut_cells;
+    uint8_t *cut_bits;
+    size_t cut_count;
     ms_core_apo_chunk *apo;
     size_t apo_count;
     /* with an index by subtree (stats.index_by_subtree): the ids of the subtrees
@@ -233,6 +239,9 @@ typedef struct ms_core_frame {
  * decoding). Needs export_frames. */
 ms_core_frame *ms_core_take_frame(ms_core *core);
 void ms_core_frame_free(ms_core_frame *frame);
+/* Cell's entry in the frame's cut: its shown precision, 0xFE (split) or 0xFF
+ * (hidden: not in the cut, or beyond the model). O(log cut_count). */
+uint8_t ms_core_frame_cell_bits(const ms_core_frame *frame, uint32_t cell);
 
 typedef struct ms_core_stats {
     double time;               /* seconds since start */
@@ -242,6 +251,8 @@ typedef struct ms_core_stats {
     double achieved_error_px;  /* largest projected error of a visible shown cell */
     double tolerance_px;       /* effective geometric tolerance (raised over budget) */
     double first_display;      /* seconds to the first frame with a triangle; < 0 none yet */
+    uint64_t first_display_generation; /* with export_frames: the generation of that frame
+                                  (ms_core_frame.generation); 0 none yet */
     /* the index (docs/CLIENT.md, "An index by subtree") */
     bool index_by_subtree;     /* the model opened with its index head only */
     uint64_t subtrees_received; /* subtrees received and taken (not the root's, in the head) */
@@ -249,6 +260,12 @@ typedef struct ms_core_stats {
                                   the head and every subtree piece */
     uint64_t index_bytes_held, peak_index_bytes_held; /* raw index bytes held now, at most */
     uint64_t subtrees_held;    /* subtrees held now (the root's included) */
+    /* per-cell bookkeeping (docs/CLIENT.md, "What a cell costs"): the view's
+     * and the core's state of every cell of each sibling group the index
+     * holds a record of, whatever the cell holds besides */
+    uint32_t state_cells;      /* cells with state now (the whole model with a whole index) */
+    uint64_t state_bytes_held; /* state_cells x ms_core_state_bytes_per_cell(); with an
+                                  index by subtree counted in `memory` (the budget) */
     uint64_t bytes_received;   /* payload bytes (local mode: bytes handed over) */
     uint64_t geometry_bytes_received, apo_bytes_received; /* bytes_received by stream */
     uint64_t socket_bytes;     /* everything read from the server (frames, index), counted
@@ -258,7 +275,9 @@ typedef struct ms_core_stats {
     double longest_outage;     /* seconds, the longest span from a lost connection to the
                                   model open again (a failover through a balancer); 0 none */
     uint32_t cells_shown, cells_split, cells_cached, cells_loading, cells_failed;
-    uint64_t memory, peak_memory;
+    uint64_t memory, peak_memory; /* the budget's measure: payload bytes held, decoded
+                                  estimate, and with an index by subtree index_bytes_held
+                                  and state_bytes_held */
     double decode_seconds;     /* decode thread busy time (verify, decode, select) */
     double latency_p50, latency_p99; /* request send to last byte, seconds */
     char error[256];           /* why the core stopped, or "" */
@@ -271,5 +290,11 @@ typedef struct ms_core_stats {
 } ms_core_stats;
 
 void ms_core_get_stats(ms_core *core, ms_core_stats *stats);
+
+/* Bytes of bookkeeping a cell with state costs the core (stats.state_cells):
+ * sizeof the view decoder's cell state (ms_view_cell_state_size, the record
+ * included) plus sizeof the core's reception state; 480 on x86-64. The
+ * payload bytes, decoders and caches the cell points to are counted apart. */
+size_t ms_core_state_bytes_per_cell(void);
 
 #endif

@@ -185,7 +185,6 @@ struct ms_core {
     dcell **cell_groups;    /* per sibling group (as the view keeps them), NULL where
                                the view knows no record of the group */
     uint32_t group_size, group_count;
-    uint8_t *target;
     bool by_subtree;        /* the index comes by subtree (c->index is partial) */
     unsigned subtree_levels;
     subtree_entry *subtrees; /* sorted by id */
@@ -242,6 +241,9 @@ void ms_core_dcell_clear(dcell *d);
  * knows none of the group's cells any more. */
 void ms_core_dcells_release(ms_core *c, const uint32_t *cells, size_t count);
 void ms_core_dcells_free(ms_core *c);
+/* The per-cell bookkeeping held: the view's blocks of cell state and the
+ * core's dcell blocks, which cover the same sibling groups. */
+uint64_t ms_core_state_bytes_held(const ms_core *c);
 
 /* ---- ms_client_core_frames.c ---- */
 

@@ -53,14 +53,19 @@ ms_status ms_viewer_stream_open(const ms_viewer_source *source, ms_viewer_model 
     co.give_up_seconds = 8; /* a server gone this long ends the viewer (exit 1) */
     co.export_frames = true;
     co.whole_index = settings->whole_index;
+    /* The core first: while it connects and its index head is on the way,
+     * this thread compiles the renderer's programs, so the first frame that
+     * holds the root finds the renderer ready. */
     ms_status st = ms_core_start(&co, &s->core, err);
+    if (st == MS_OK)
+        st = ms_render_new(NULL, NULL, &s->render, err);
     if (st == MS_OK) {
         ms_core_opening_free(&model->index);
         st = ms_core_wait_open(s->core, source->timeout_s > 0 ? source->timeout_s : 5.0, &model->index, err);
     }
     if (st == MS_OK) {
         model->header = model->index.header;
-        st = ms_render_new(&model->header, NULL, &s->render, err);
+        st = ms_render_set_model(s->render, &model->header, err);
     }
     if (st != MS_OK) {
         ms_viewer_stream_close(s);

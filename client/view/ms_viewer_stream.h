@@ -42,11 +42,14 @@ typedef struct ms_viewer_stream_settings {
                                   as from a server without subtrees */
 } ms_viewer_stream_settings;
 
-/* Starts the core for a model opened with ms_viewer_model_open and waits (at
- * most the source's time-out) until it opened the model, then fills in
- * model->header and model->index from what the core received (the index
- * crosses the network once). The renderer learns the records of the cells it
- * draws from the core's frames. The model must outlive the stream. */
+/* Starts the core for a model opened with ms_viewer_model_open, compiles the
+ * renderer's programs while the core connects and its index head is on the
+ * way, then waits (at most the source's time-out) until the core opened the
+ * model and fills in model->header and model->index from what it received (the
+ * index crosses the network once); the renderer takes the header. So the core's
+ * first frame that holds the root finds the renderer ready. The renderer
+ * learns the records of the cells it draws from the core's frames. The model
+ * must outlive the stream. */
 ms_status ms_viewer_stream_open(const ms_viewer_source *source, ms_viewer_model *model,
                                 const ms_viewer_stream_settings *settings,
                                 ms_viewer_stream **stream, ms_error *err);
