@@ -3,7 +3,9 @@
  * One ms_core streams one model from meshserve's binary door
  * (protocol/PROTOCOL.md) for a camera the caller moves:
  *
- *   - a network thread (libevent) keeps the connection, reconnecting with
+ *   - a network thread (libevent; the thread of the core's link: a private
+ *     one, or ms_core_link shared with the other models of a scene) keeps the
+ *     connection, reconnecting with
  *     backoff after a drop and resuming partly received ranges with BYTES
  *     requests (PROTOCOL.md section 10); it sends the requests the decode
  *     thread asks for, cancels those no longer wanted, throttles its reads to

@@ -113,9 +113,9 @@ static bool note_socket_bytes(ms_core_link *l)
     l->socket_bytes += delta;
     pthread_mutex_unlock(&l->lock);
     for (unsigned i = 0; i < MS_CORE_LINK_MAX_MEMBERS; ++i) {
-        ms_core *c = l->members[i].core;
         if (!l->members[i].seen)
             continue;
+        ms_core *c = l->members[i].core;
         pthread_mutex_lock(&c->lock);
         c->socket_bytes += delta;
         pthread_mutex_unlock(&c->lock);
@@ -360,8 +360,9 @@ static void net_plan(ms_core_link *l, request_batch *batch)
     size_t counts[MS_CORE_LINK_MAX_MEMBERS], cursors[MS_CORE_LINK_MAX_MEMBERS] = {0};
     for (unsigned i = 0; i < MS_CORE_LINK_MAX_MEMBERS; ++i) {
         const link_member *m = &l->members[i];
-        lists[i] = live(m) && m->ready ? m->wants : NULL;
-        counts[i] = m->want_count;
+        bool planned = live(m) && m->ready;
+        lists[i] = planned ? m->wants : NULL;
+        counts[i] = planned ? m->want_count : 0;
     }
     while (batch->n < max_batch) {
         if (l->slots_active + batch->n >= max_out || l->slots_used + batch->n >= MAX_SLOTS ||
@@ -748,7 +749,8 @@ static void on_request_error(ms_client *client, uint32_t first, uint32_t count,
     if (e->code == MS_PROTO_E_RATE_LIMITED || e->code == MS_PROTO_E_QUEUE_FULL) {
         /* ask again after a pause (the next tick), with the wants read anew */
         for (unsigned i = 0; i < MS_CORE_LINK_MAX_MEMBERS; ++i)
-            l->members[i].want_serial = UINT64_MAX;
+            if (l->members[i].seen)
+                l->members[i].want_serial = UINT64_MAX;
         return;
     }
     net_fill(l);
@@ -780,9 +782,9 @@ static void net_connect(ms_core_link *l)
     l->last_activity = ms_core_link_since_start(l);
     l->last_read = 0;
     for (unsigned i = 0; i < MS_CORE_LINK_MAX_MEMBERS; ++i) {
-        ms_core *c = l->members[i].core;
         if (!live(&l->members[i]) || !l->members[i].opened_once)
             continue;
+        ms_core *c = l->members[i].core;
         pthread_mutex_lock(&c->lock);
         c->reconnects++;
         pthread_mutex_unlock(&c->lock);
