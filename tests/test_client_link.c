@@ -15,6 +15,8 @@
  *     ceiling, the near one holding more;
  *   - a member stopped mid-stream leaves the other complete and equal to
  *     its cut alone, on the same connection;
+ *   - a member that joins after a quiet spell longer than the answer
+ *     time-out is answered on the same connection;
  *   - the server killed and restarted mid-stream: the link reconnects once,
  *     reopens both models and both complete, equal to their cuts alone;
  *   - bad options are refused with one line.
@@ -503,6 +505,37 @@ static void test_server_restart_midstream(void **state)
     }
 }
 
+/* A member that joins after the link sat quiet for longer than the answer
+ * time-out (a scene opening its pieces one after another): its OPEN_MODEL
+ * starts the clock, the connection is kept. */
+static void test_member_joins_after_a_quiet_spell(void **state)
+{
+    (void)state;
+    ms_core_link_options lo = {.host = "127.0.0.1", .port = g->port, .answer_timeout = 0.5};
+    ms_core_link *link;
+    ms_error err;
+    assert_int_equal(ms_core_link_new(&lo, &link, &err), MS_OK);
+    ms_camera cam = far_camera();
+    ms_core_options o0 = member_options(link, MODEL), o1 = member_options(link, TWIN);
+    ms_core *first = start(&o0, &cam);
+    ms_core_frame *frame[2] = {NULL, NULL};
+    ms_core_stats st[2];
+    wait_all(&first, 1, &frame[0], &st[0], false);
+    ms_test_sleep_s(1.0); /* quiet: nothing awaited */
+    ms_core *second = start(&o1, &cam);
+    ms_core *both[2] = {first, second};
+    wait_all(both, 2, frame, st, false);
+    ms_core_link_stats ls;
+    ms_core_link_get_stats(link, &ls);
+    assert_int_equal(ls.connections, 1);
+    assert_int_equal(st[0].reconnects + st[1].reconnects, 0);
+    ms_core_stop(first);
+    ms_core_stop(second);
+    ms_core_link_free(link);
+    ms_core_frame_free(frame[0]);
+    ms_core_frame_free(frame[1]);
+}
+
 static void test_bad_link_options(void **state)
 {
     (void)state;
@@ -540,6 +573,7 @@ int main(void)
         cmocka_unit_test(test_bad_link_options),
         cmocka_unit_test(test_one_connection_equal_cuts),
         cmocka_unit_test(test_shared_budget_on_a_link),
+        cmocka_unit_test(test_member_joins_after_a_quiet_spell),
         cmocka_unit_test(test_member_stops_midstream),
         cmocka_unit_test(test_server_restart_midstream),
     };

@@ -172,6 +172,7 @@ struct ms_core_link {
     bool dead;                  /* the connection ended: freed on the next tick */
     char dead_why[256];
     double last_activity, reconnect_at, down_since, backoff;
+    bool was_waiting;           /* at the last tick something was awaited */
     uint64_t last_read;         /* ms_client_bytes_read at the last tick */
     uint64_t in_flight;         /* bytes requested, not yet received, all members */
     uint64_t plans;             /* planning rounds that sent something */

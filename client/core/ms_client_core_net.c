@@ -911,7 +911,13 @@ void ms_core_net_tick(evutil_socket_t fd, short what, void *arg)
     }
     if (note_socket_bytes(l)) /* any frame counts, index data included */
         l->last_activity = t;
+    /* the answer time-out runs from the later of the last frame and the
+     * moment something began to be awaited: a member that joins, or a first
+     * request, after a quiet spell must not find the clock already run out */
     bool waiting = opening(l) || l->slots_active > 0;
+    if (waiting && !l->was_waiting)
+        l->last_activity = t;
+    l->was_waiting = waiting;
     if (waiting && t - l->last_activity > l->o.answer_timeout) {
         char why[128];
         snprintf(why, sizeof why, "the server sent nothing for %.1f s", t - l->last_activity);
