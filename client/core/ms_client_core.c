@@ -14,6 +14,12 @@
 
 double ms_core_since_start(const ms_core *c) { return ms_now_seconds() - c->t0; }
 
+uint64_t ms_core_window(uint64_t window_bytes, double bandwidth)
+{
+    uint64_t w = window_bytes ? window_bytes : bandwidth > 0 ? (uint64_t)(bandwidth / 4) : (1u << 20);
+    return w < 65536 ? 65536 : w;
+}
+
 /* Records a fatal error once (caller holds the lock). */
 void ms_core_fail_locked(ms_core *c, const char *fmt, const char *text)
 {
@@ -51,7 +57,7 @@ void ms_core_push_chunk(ms_core *c, chunk_msg *m)
     pthread_mutex_unlock(&c->lock);
 }
 
-static char *dup_or_null(const char *s, bool *fail)
+char *ms_core_copy_text(const char *s, bool *fail)
 {
     if (!s)
         return NULL;
@@ -144,13 +150,10 @@ ms_status ms_core_start(const ms_core_options *o, ms_core **out, ms_error *err)
         c->o.apo_geometry_tolerance_px = c->o.tolerance_px;
     if (c->o.memory_target && !c->o.memory_ceiling)
         c->o.memory_ceiling = c->o.memory_target + c->o.memory_target / 4;
-    c->window = c->o.window_bytes ? c->o.window_bytes
-                : c->o.bandwidth > 0 ? (uint64_t)(c->o.bandwidth / 4) : (1u << 20);
-    if (c->window < 65536)
-        c->window = 65536;
+    c->window = ms_core_window(c->o.window_bytes, c->o.bandwidth);
     bool fail = false;
-    c->model = dup_or_null(o->model, &fail);
-    c->archive_path = dup_or_null(o->archive_path, &fail);
+    c->model = ms_core_copy_text(o->model, &fail);
+    c->archive_path = ms_core_copy_text(o->archive_path, &fail);
     c->latencies = malloc(LATENCY_KEEP * sizeof *c->latencies);
     c->t0 = ms_now_seconds();
     c->tolerance_factor = 1.0;

@@ -315,6 +315,12 @@ void ms_core_subtrees_free(ms_core *c);
 
 /* ---- ms_client_core.c: shared helpers ---- */
 
+/* A copy of s (NULL stays NULL); sets *fail when out of memory. */
+char *ms_core_copy_text(const char *s, bool *fail);
+/* Bytes in flight at most (a link's window, a local responder's hand-over):
+ * window_bytes, or 0.25 s of the bandwidth, at least 64 KiB (1 MiB when
+ * the bandwidth is unlimited). */
+uint64_t ms_core_window(uint64_t window_bytes, double bandwidth);
 /* Seconds since the core started (monotonic clock). */
 double ms_core_since_start(const ms_core *c);
 /* Records a fatal error once; the _locked form with the lock held. */

@@ -12,16 +12,6 @@
 
 double ms_core_link_since_start(const ms_core_link *l) { return ms_now_seconds() - l->t0; }
 
-static char *copy_or_null(const char *s, bool *fail)
-{
-    if (!s)
-        return NULL;
-    char *d = strdup(s);
-    if (!d)
-        *fail = true;
-    return d;
-}
-
 static bool figure_ok(double x) { return isfinite(x) && x >= 0; }
 
 ms_status ms_core_link_new(const ms_core_link_options *o, ms_core_link **out, ms_error *err)
@@ -40,14 +30,11 @@ ms_status ms_core_link_new(const ms_core_link_options *o, ms_core_link **out, ms
         l->o.answer_timeout = 5.0;
     if (l->o.give_up_seconds == 0)
         l->o.give_up_seconds = 30.0;
-    l->window = o->window_bytes ? o->window_bytes
-                : o->bandwidth > 0 ? (uint64_t)(o->bandwidth / 4) : (1u << 20);
-    if (l->window < 65536)
-        l->window = 65536;
+    l->window = ms_core_window(o->window_bytes, o->bandwidth);
     bool fail = false;
-    l->host = copy_or_null(o->host, &fail);
-    l->token = copy_or_null(o->token, &fail);
-    l->agent = copy_or_null(o->agent ? o->agent : "meshstream-client", &fail);
+    l->host = ms_core_copy_text(o->host, &fail);
+    l->token = ms_core_copy_text(o->token, &fail);
+    l->agent = ms_core_copy_text(o->agent ? o->agent : "meshstream-client", &fail);
     l->o.host = l->host, l->o.token = l->token, l->o.agent = l->agent;
     l->t0 = ms_now_seconds();
     l->down_since = -1;
