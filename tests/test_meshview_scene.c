@@ -69,21 +69,29 @@ static void write_scene(const char *name, const char *material_a, const char *ma
     ms_test_write_file(path, text, (size_t)n);
 }
 
-/* Runs meshview on the archive with args; the JSON report into out (when
- * given); stderr into err_text. Returns the exit status. */
-static int run_viewer(const char *args, const char *out, char *err_text, size_t size)
+/* Runs meshview on source (the archive directory, or "--server HOST:PORT")
+ * with args; the JSON report into out (when given); stderr into err_text.
+ * Returns the exit status. */
+static int run_viewer_on(const char *source, const char *args, const char *out, char *err_text,
+                         size_t size)
 {
     char command[4096];
-    snprintf(command, sizeof command, "%s %s %s 2>&1 > %s", fx.bin, fx.archives, args, out ? out : "/dev/null");
+    snprintf(command, sizeof command, "%s %s %s 2>&1 > %s", fx.bin, source, args, out ? out : "/dev/null");
     return ms_test_run(command, err_text, size);
 }
 
-static json_t *run_report(const char *scene, const char *shots, const char *extra)
+static int run_viewer(const char *args, const char *out, char *err_text, size_t size)
+{
+    return run_viewer_on(fx.archives, args, out, err_text, size);
+}
+
+/* The scene's scripted run from source, which must complete both keyframes. */
+static json_t *run_report_on(const char *source, const char *scene, const char *shots, const char *extra)
 {
     char args[2048], out[700], err_text[2048];
     snprintf(out, sizeof out, "%s/report.json", fx.dir);
     snprintf(args, sizeof args, "--scene %s --screenshot-dir %s " RUN_ARGS " %s", scene, shots, extra);
-    int status = run_viewer(args, out, err_text, sizeof err_text);
+    int status = run_viewer_on(source, args, out, err_text, sizeof err_text);
     if (status != 0)
         fail_msg("meshview %s: exit %d: %s", args, status, err_text);
     json_error_t jerr;
@@ -93,6 +101,11 @@ static json_t *run_report(const char *scene, const char *shots, const char *extr
     assert_true(json_is_true(json_object_get(report, "complete")));
     assert_int_equal(json_array_size(json_object_get(report, "keyframes")), 2);
     return report;
+}
+
+static json_t *run_report(const char *scene, const char *shots, const char *extra)
+{
+    return run_report_on(fx.archives, scene, shots, extra);
 }
 
 /* The names of a JSON array of strings, joined by spaces. */
@@ -248,21 +261,12 @@ static uint64_t server_connections(uint16_t http_port)
 static json_t *server_report(const char *scene, uint16_t port, uint16_t http_port, const char *extra,
                              uint64_t *accepted)
 {
-    char command[4096], out[700], shots[700], err_text[2048];
-    snprintf(out, sizeof out, "%s/server-report.json", fx.dir);
+    char source[64], shots[700];
+    snprintf(source, sizeof source, "--server 127.0.0.1:%u", port);
     snprintf(shots, sizeof shots, "%s/server%s", fx.dir, extra[0] ? "-each" : "");
     uint64_t before = server_connections(http_port);
-    snprintf(command, sizeof command, "%s --server 127.0.0.1:%u --scene %s --screenshot-dir %s " RUN_ARGS " %s 2>&1 > %s",
-             fx.bin, port, scene, shots, extra, out);
-    int status = ms_test_run(command, err_text, sizeof err_text);
-    if (status != 0)
-        fail_msg("meshview from the server %s: exit %d: %s", extra, status, err_text);
+    json_t *report = run_report_on(source, scene, shots, extra);
     *accepted = server_connections(http_port) - before;
-    json_error_t jerr;
-    json_t *report = json_load_file(out, 0, &jerr);
-    if (!report)
-        fail_msg("%s: %s", out, jerr.text);
-    assert_true(json_is_true(json_object_get(report, "complete")));
     assert_string_equal(json_string_value(json_object_get(report, "source")), "server");
     return report;
 }
