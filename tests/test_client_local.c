@@ -108,29 +108,6 @@ static ms_core_frame *complete_frame(const ms_core_options *o, const ms_camera *
     return frame;
 }
 
-static void assert_frames_equal(const ms_core_frame *a, const ms_core_frame *b)
-{
-    assert_int_equal(a->cell_count, b->cell_count);
-    assert_int_equal(a->cut_count, b->cut_count);
-    assert_memory_equal(a->cut_cells, b->cut_cells, a->cut_count * sizeof *a->cut_cells);
-    assert_memory_equal(a->cut_bits, b->cut_bits, a->cut_count);
-    const ms_view_mesh *x = &a->mesh, *y = &b->mesh;
-    assert_int_equal(x->vertex_count, y->vertex_count);
-    assert_int_equal(x->triangle_count, y->triangle_count);
-    assert_memory_equal(x->positions, y->positions, 3 * x->vertex_count * sizeof *x->positions);
-    assert_memory_equal(x->keys, y->keys, x->vertex_count * sizeof *x->keys);
-    assert_memory_equal(x->levels, y->levels, x->vertex_count);
-    assert_memory_equal(x->triangles, y->triangles, 3 * x->triangle_count * sizeof *x->triangles);
-    assert_memory_equal(x->triangle_cell, y->triangle_cell,
-                        x->triangle_count * sizeof *x->triangle_cell);
-    assert_int_equal(a->apo_count, b->apo_count);
-    for (size_t i = 0; i < a->apo_count; ++i) {
-        assert_int_equal(a->apo[i].cell, b->apo[i].cell);
-        assert_int_equal(a->apo[i].levels, b->apo[i].levels);
-        assert_int_equal(a->apo[i].length, b->apo[i].length);
-        assert_memory_equal(a->apo[i].data, b->apo[i].data, a->apo[i].length);
-    }
-}
 
 /* APO by footprint: the frame holds, for every visible shown cell with a
  * chunk, exactly the levels ms_apo_footprint_levels gives (tolerance 1 px,
@@ -194,7 +171,7 @@ static void test_local_equals_network(void **state)
         shown += fn->cut_bits[i] < MS_VIEW_TARGET_SPLIT;
     assert_true(shown > 1);    /* a real cut, not the root alone */
     assert_true(fn->apo_count > 0);
-    assert_frames_equal(fl, fn);
+    ms_test_core_assert_frames_equal(fl, fn);
     uint64_t apo_held = check_apo_footprint(fl, &cam);
     /* from cold at a fixed camera, nothing but those prefixes is fetched (a
      * cell about to split fetches no APO) */

@@ -3,7 +3,9 @@
  * One ms_core streams one model from meshserve's binary door
  * (protocol/PROTOCOL.md) for a camera the caller moves:
  *
- *   - a network thread (libevent) keeps the connection, reconnecting with
+ *   - a network thread (libevent; the thread of the core's link: a private
+ *     one, or ms_core_link shared with the other models of a scene) keeps the
+ *     connection, reconnecting with
  *     backoff after a drop and resuming partly received ranges with BYTES
  *     requests (PROTOCOL.md section 10); it sends the requests the decode
  *     thread asks for, cancels those no longer wanted, throttles its reads to
@@ -113,6 +115,77 @@ void ms_core_budget_free(ms_core_budget *budget);
 uint64_t ms_core_budget_held(ms_core_budget *budget);
 uint64_t ms_core_budget_peak(ms_core_budget *budget);
 
+/* One connection to meshserve shared by several cores (the models of a
+ * scene): the link owns the one network thread, its event loop and the one
+ * ms_client connection, with everything that belongs to a connection: the
+ * requests in flight (at most window_bytes for all the members together), the
+ * bandwidth throttle, reconnecting with backoff and resuming with BYTES
+ * requests (PROTOCOL.md section 10), the answer time-out and giving up. Each
+ * member core opens its model on it (one OPEN_MODEL handle each, PROTOCOL.md
+ * 4.6) and keeps its own decode thread, index, want list and inbox; chunks
+ * and OPEN answers go to the member by model handle. The members' want lists
+ * are merged by priority (lower first; equal priorities in the order the
+ * members joined) under the one window, so the bytes that remove the most
+ * screen error go first whichever model they belong to (priorities are
+ * comparable: every member follows the same screen-error rule, the more so
+ * with a shared budget). A reconnect reopens every member's model and
+ * resumes. A member that stops (ms_core_stop) or fails has its model closed
+ * on the server (CLOSE_MODEL: its requests are cancelled there) while the
+ * others go on. A core started without a link makes a private one: a single
+ * core is a link of one. docs/CLIENT.md, "One connection for many models".
+ * Ownership: the caller's; it must outlive every core started with it.
+ * Thread-safety: ms_core_start / ms_core_stop of its members and
+ * ms_core_link_get_stats may be called from any threads concurrently;
+ * ms_core_link_free must not race with them. */
+typedef struct ms_core_link ms_core_link;
+
+/* Most cores one link serves (meshserve opens at most 64 models a connection). */
+#define MS_CORE_LINK_MAX_MEMBERS 64
+
+/* Test hook: called on the link's thread for every range it requests, in the
+ * order sent (`plan` counts the link's planning rounds: one round's requests
+ * are sent together, after the previous round's). */
+typedef void (*ms_core_link_request_hook)(const ms_core *member, uint32_t cell, unsigned stream,
+                                          uint8_t priority, uint64_t plan, void *arg);
+
+typedef struct ms_core_link_options {
+    const char *host;          /* numeric IPv4/IPv6 address */
+    uint16_t port;
+    const char *token;         /* NULL: none (preview access) */
+    const char *agent;         /* NULL: "meshstream-client" */
+    double bandwidth;          /* bytes per second read from the server, for all the
+                                  members together; 0 = unlimited */
+    uint64_t window_bytes;     /* bytes in flight at most, all members together; 0 = 0.25 s
+                                  of bandwidth, at least 64 KiB (1 MiB when unlimited) */
+    double answer_timeout;     /* seconds without a byte while waiting; 0 = 5 */
+    double give_up_seconds;    /* reconnecting this long without success fails every
+                                  member; 0 = 30 */
+    bool raw_index;            /* ask for model indexes uncompressed (no CAP_INDEX_ZLIB) */
+    bool whole_index;          /* do not offer CAP_INDEX_SUBTREES (ms_core_options) */
+    ms_core_link_request_hook request_hook;
+    void *request_hook_arg;
+} ms_core_link_options;
+
+/* Starts the link's thread; it connects once a member joins. The options'
+ * strings are copied. MS_ERR_ARG for a bad host, port or figure (no host,
+ * port 0, a negative or non-finite bandwidth or time-out), MS_ERR_NOMEM,
+ * MS_ERR_IO when the thread cannot start. */
+ms_status ms_core_link_new(const ms_core_link_options *options, ms_core_link **link,
+                           ms_error *err);
+/* Stops the thread and closes the connection. NULL is a no-op; every core
+ * using it must be stopped first. */
+void ms_core_link_free(ms_core_link *link);
+
+typedef struct ms_core_link_stats {
+    bool connected;            /* a connection is up (its HELLO may still be on its way) */
+    unsigned members;          /* cores using the link now */
+    uint64_t connections;      /* TCP connections made so far (1 + reconnections) */
+    uint64_t socket_bytes;     /* read from every connection, frames and indexes included */
+    uint64_t requests;         /* ranges requested, all members */
+} ms_core_link_stats;
+
+void ms_core_link_get_stats(ms_core_link *link, ms_core_link_stats *stats);
+
 /* Test hook (fault injection): sees, and may alter, every received payload
  * chunk on the decode thread before it is checked. */
 typedef void (*ms_core_payload_filter)(uint32_t cell, bool apo, uint32_t offset, uint8_t *data,
@@ -146,6 +219,13 @@ typedef struct ms_core_options {
     double apo_geometry_tolerance_px; /* geometry tolerance with APO on; 0 = tolerance_px
                                          (docs/ACCURACY.md: coarser costs more than it saves) */
     uint64_t memory_target, memory_ceiling; /* bytes; 0 = no budget */
+    ms_core_link *shared_link; /* NULL: the core's own connection (host, port, token,
+                                  agent, bandwidth, window_bytes, the time-outs, raw_index,
+                                  whole_index). Else its model is streamed over this link
+                                  shared with other cores (those fields must then be
+                                  0/NULL/false: the link's options hold them; no
+                                  archive_path; MS_ERR_ARG when it already serves
+                                  MS_CORE_LINK_MAX_MEMBERS cores) */
     ms_core_budget *shared_budget; /* NULL: the core's own budget (memory_target/ceiling).
                                   Else one shared with other cores (memory_target and
                                   memory_ceiling must be 0; MS_ERR_ARG when it already
@@ -269,7 +349,10 @@ typedef struct ms_core_stats {
     uint64_t bytes_received;   /* payload bytes (local mode: bytes handed over) */
     uint64_t geometry_bytes_received, apo_bytes_received; /* bytes_received by stream */
     uint64_t socket_bytes;     /* everything read from the server (frames, index), counted
-                                  at each loop tick; 0 in local mode */
+                                  at each loop tick; 0 in local mode. On a shared link: what
+                                  its connections read since this core joined, every
+                                  member's frames included (ms_core_link_get_stats has the
+                                  link's total) */
     uint64_t bytes_in_flight;  /* requested and not yet received */
     uint64_t requests, cancels, reconnects, refetches, evictions;
     double longest_outage;     /* seconds, the longest span from a lost connection to the

@@ -507,6 +507,11 @@ static ms_status scene_run(const ms_viewer_options *o, const ms_viewer_source *s
                         "seconds", now_s() - started, "effects_called_for", effect_names(ms_scene_effects(&scene)),
                         "effects_compiled", effect_names(ms_viewer_scene_effects(s.scene)), "effect_frames", ran);
     add_index_figures(*report, &s, &cs);
+    if (*report) {
+        json_object_set_new(*report, "connections",
+                            json_integer((json_int_t)ms_viewer_scene_connections(s.scene)));
+        json_object_set_new(*report, "socket_bytes", json_integer((json_int_t)cs.socket_bytes));
+    }
     if (!*report)
         st = ms_error_set(err, MS_ERR_NOMEM, "out of memory for the report");
 done:

@@ -28,6 +28,11 @@
 
 typedef struct ms_viewer_stream ms_viewer_stream;
 
+/* How meshview introduces itself to a server, and how long a server may be gone
+ * before the viewer ends (exit 1). */
+#define MS_VIEWER_AGENT "meshview/0.1"
+#define MS_VIEWER_GIVE_UP_S 8.0
+
 typedef struct ms_viewer_stream_settings {
     double tolerance_px;       /* geometric screen tolerance at start; 0: the core's
                                   default (4 px with APO, whose normals carry the
@@ -40,6 +45,10 @@ typedef struct ms_viewer_stream_settings {
     unsigned decode_threads;   /* 0 = the core's default */
     bool whole_index;          /* take the whole index at open (ms_core_options.whole_index),
                                   as from a server without subtrees */
+    ms_core_link *shared_link; /* from a server: NULL, the stream's own connection; else a
+                                  link shared with other streams (the scene's), which holds
+                                  the server, bandwidth and whole_index (those here are then
+                                  not used) */
 } ms_viewer_stream_settings;
 
 /* Starts the core for a model opened with ms_viewer_model_open, compiles the
