@@ -108,27 +108,6 @@ static ms_core_frame *complete_frame(const ms_core_options *o, const ms_camera *
     return frame;
 }
 
-static void assert_frames_equal(const ms_core_frame *a, const ms_core_frame *b)
-{
-    assert_int_equal(a->cell_count, b->cell_count);
-    assert_memory_equal(a->cell_bits, b->cell_bits, a->cell_count);
-    const ms_view_mesh *x = &a->mesh, *y = &b->mesh;
-    assert_int_equal(x->vertex_count, y->vertex_count);
-    assert_int_equal(x->triangle_count, y->triangle_count);
-    assert_memory_equal(x->positions, y->positions, 3 * x->vertex_count * sizeof *x->positions);
-    assert_memory_equal(x->keys, y->keys, x->vertex_count * sizeof *x->keys);
-    assert_memory_equal(x->levels, y->levels, x->vertex_count);
-    assert_memory_equal(x->triangles, y->triangles, 3 * x->triangle_count * sizeof *x->triangles);
-    assert_memory_equal(x->triangle_cell, y->triangle_cell,
-                        x->triangle_count * sizeof *x->triangle_cell);
-    assert_int_equal(a->apo_count, b->apo_count);
-    for (size_t i = 0; i < a->apo_count; ++i) {
-        assert_int_equal(a->apo[i].cell, b->apo[i].cell);
-        assert_int_equal(a->apo[i].levels, b->apo[i].levels);
-        assert_int_equal(a->apo[i].length, b->apo[i].length);
-        assert_memory_equal(a->apo[i].data, b->apo[i].data, a->apo[i].length);
-    }
-}
 
 /* APO by footprint: the frame holds, for every visible shown cell with a
  * chunk, exactly the levels ms_apo_footprint_levels gives (tolerance 1 px,
@@ -149,7 +128,7 @@ static uint64_t check_apo_footprint(const ms_core_frame *f, const ms_camera *cam
             lo[a] = h->box_origin[a] + side * rec->position[a];
             hi[a] = lo[a] + side;
         }
-        bool wanted = f->cell_bits[i] < MS_VIEW_TARGET_SPLIT && rec->apo_length > 0 &&
+        bool wanted = ms_core_frame_cell_bits(f, i) < MS_VIEW_TARGET_SPLIT && rec->apo_length > 0 &&
                       ms_frustum_keeps_box(&fr, lo, hi, 0);
         if (!wanted) {
             assert_true(k == f->apo_count || f->apo[k].cell != i);
@@ -188,11 +167,11 @@ static void test_local_equals_network(void **state)
     ms_core_frame *fl = complete_frame(&ol, &cam, &sl);
     assert_true(fn->mesh.triangle_count > 1000);
     uint32_t shown = 0;
-    for (uint32_t i = 0; i < fn->cell_count; ++i)
-        shown += fn->cell_bits[i] < MS_VIEW_TARGET_SPLIT;
+    for (size_t i = 0; i < fn->cut_count; ++i)
+        shown += fn->cut_bits[i] < MS_VIEW_TARGET_SPLIT;
     assert_true(shown > 1);    /* a real cut, not the root alone */
     assert_true(fn->apo_count > 0);
-    assert_frames_equal(fl, fn);
+    ms_test_core_assert_frames_equal(fl, fn);
     uint64_t apo_held = check_apo_footprint(fl, &cam);
     /* from cold at a fixed camera, nothing but those prefixes is fetched (a
      * cell about to split fetches no APO) */
@@ -247,7 +226,10 @@ static void test_local_path(void **state)
             assert_non_null(first);
             assert_non_null(frame);
             assert_true(frame->mesh.triangle_count != first->mesh.triangle_count ||
-                        memcmp(frame->cell_bits, first->cell_bits, frame->cell_count) != 0);
+                        frame->cut_count != first->cut_count ||
+                        memcmp(frame->cut_bits, first->cut_bits, frame->cut_count) != 0 ||
+                        memcmp(frame->cut_cells, first->cut_cells,
+                               frame->cut_count * sizeof *frame->cut_cells) != 0);
             fprintf(stderr, "local path: first drawn frame %zu triangles, complete %zu\n",
                     first->mesh.triangle_count, frame->mesh.triangle_count);
         }

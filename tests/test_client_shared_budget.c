@@ -171,9 +171,9 @@ static uint64_t run_pair(ms_core_budget *shared, uint64_t each_target, view_resu
         assert_non_null(frame[i]);
         res[i].triangles = frame[i]->mesh.triangle_count;
         res[i].cells_shown = res[i].bits_shown = 0;
-        for (uint32_t k = 0; k < frame[i]->cell_count; ++k)
-            if (frame[i]->cell_bits[k] < 0xFE)
-                res[i].cells_shown++, res[i].bits_shown += frame[i]->cell_bits[k];
+        for (size_t k = 0; k < frame[i]->cut_count; ++k)
+            if (frame[i]->cut_bits[k] < 0xFE)
+                res[i].cells_shown++, res[i].bits_shown += frame[i]->cut_bits[k];
         ms_core_frame_free(frame[i]);
     }
     return most;

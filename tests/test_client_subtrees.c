@@ -107,16 +107,14 @@ static ms_view *reference_view(const ms_camera *camera)
     ms_error err;
     if (ms_view_create_from_archive(g->archive, &v, &err) != MS_OK)
         fail_msg("%s", err.text);
-    uint8_t *target = malloc(ms_view_cell_count(v));
     for (int pass = 0; pass < 12; ++pass) {
-        ms_view_select(v, camera, &reference_params, target);
+        ms_view_select(v, camera, &reference_params, NULL);
         ms_view_apply_report r;
-        if (ms_view_apply(v, target, &r, &err) != MS_OK)
+        if (ms_view_apply(v, &r, &err) != MS_OK)
             fail_msg("%s", err.text);
         if (!r.splits && !r.merges && !r.refined && !r.coarsened)
             break;
     }
-    free(target);
     return v;
 }
 
@@ -131,8 +129,8 @@ static uint32_t check_cut(const ms_core_frame *frame, const ms_view *v)
         uint8_t expect = st == MS_VIEW_SHOWN ? (uint8_t)ms_view_bits(v, i)
                          : st == MS_VIEW_SPLIT ? MS_VIEW_TARGET_SPLIT
                                                : MS_VIEW_TARGET_HIDDEN;
-        if (frame->cell_bits[i] != expect)
-            fail_msg("cell %u: client %u, direct %u", i, frame->cell_bits[i], expect);
+        if (ms_core_frame_cell_bits(frame, i) != expect)
+            fail_msg("cell %u: client %u, direct %u", i, ms_core_frame_cell_bits(frame, i), expect);
         shown += st == MS_VIEW_SHOWN;
     }
     return shown;
@@ -171,6 +169,45 @@ static uint32_t *needed_subtrees(const ms_view *v, const ms_camera *camera, unsi
     return ids;
 }
 
+/* The cells the client keeps per-cell state for when it holds `subtrees`:
+ * every cell of each sibling group one of their members belongs to (the
+ * root's group is the root alone), from the whole archive's membership. */
+static uint32_t state_cells_of(const uint32_t *subtrees, size_t count, unsigned levels)
+{
+    const ms_archive_header *h = ms_archive_get_header(g->archive);
+    uint32_t group_size = (uint32_t)h->n * h->n * h->n;
+    uint32_t groups = 1 + (h->cell_count - 1) / group_size;
+    bool *held = calloc(groups, sizeof *held);
+    assert_non_null(held);
+    uint32_t cells = 0;
+    for (size_t k = 0; k < count; ++k) {
+        uint32_t *members;
+        size_t n;
+        ms_error err;
+        if (ms_subtree_members(g->archive, levels, subtrees[k], &members, &n, &err) != MS_OK)
+            fail_msg("%s", err.text);
+        for (size_t m = 0; m < n; ++m) {
+            uint32_t group = members[m] == 0 ? 0 : 1 + (members[m] - 1) / group_size;
+            if (!held[group])
+                cells += group == 0 ? 1 : group_size;
+            held[group] = true;
+        }
+        free(members);
+    }
+    free(held);
+    return cells;
+}
+
+/* The client's per-cell bookkeeping (docs/CLIENT.md, "What a cell costs"):
+ * the formula over the subtrees it holds, counted in the budget's memory. */
+static void check_state(const ms_core_stats *st, const ms_core_frame *frame, unsigned levels)
+{
+    assert_int_equal(st->state_cells, state_cells_of(frame->subtrees, frame->subtree_count, levels));
+    assert_int_equal(st->state_bytes_held, (uint64_t)st->state_cells * ms_core_state_bytes_per_cell());
+    assert_true(ms_core_state_bytes_per_cell() > ms_view_cell_state_size());
+    assert_true(st->memory >= st->index_bytes_held + st->state_bytes_held);
+}
+
 /* ---- the view decoder on a partly known index ----------------------------- */
 
 /* The synthetic archive (ms_test_archive.h): root, its 64 children, and the 64
@@ -196,8 +233,10 @@ static void test_view_partial(void **state)
     uint32_t ids[64];
     ms_archive_cell recs[64];
     ids[0] = 0, recs[0] = *ms_archive_get_cell(a, 0);
+    assert_int_equal(ms_view_state_cells(v), 0);
     assert_int_equal(ms_view_learn(v, ids, recs, 1, &err), MS_OK);
     assert_int_equal(ms_view_state(v, 0), MS_VIEW_SHOWN);
+    assert_int_equal(ms_view_state_cells(v), 1); /* the root's group is the root alone */
     assert_false(ms_view_children_known(v, 0));
     assert_int_equal(ms_view_split(v, 0, &err), MS_ERR_RANGE);
 
@@ -209,23 +248,23 @@ static void test_view_partial(void **state)
     double up[3] = {0, 0, 1};
     assert_int_equal(ms_camera_look_at(eye, c, up, 60.0, 640, 480, 1e-4 * h->box_side,
                                        10 * h->box_side, &cam, &err), MS_OK);
-    uint8_t *target = malloc(h->cell_count);
     ms_view_select_params sp;
     ms_view_select_params_default(&sp);
     sp.tolerance_px = 0.01;
     ms_view_select_report rep = {0};
-    ms_view_select_partial(v, &cam, &sp, target, &rep);
+    ms_view_select(v, &cam, &sp, &rep);
     assert_int_equal(rep.blocked_count, 1);
     assert_int_equal(rep.blocked[0], 0);
     assert_int_equal(rep.near_count, 0);
-    assert_int_equal(target[0], ms_archive_get_cell(a, 0)->bits_max);
-    assert_int_equal(target[1], MS_VIEW_TARGET_HIDDEN);
+    assert_int_equal(ms_view_target(v, 0), ms_archive_get_cell(a, 0)->bits_max);
+    assert_int_equal(ms_view_target(v, 1), MS_VIEW_TARGET_HIDDEN);
 
     /* cell 65's record against an unknown parent is taken alone... */
     for (uint32_t k = 0; k < 64; ++k)
         ids[k] = 65 + k, recs[k] = *ms_archive_get_cell(a, 65 + k);
     assert_int_equal(ms_view_learn(v, ids, recs, 64, &err), MS_OK);
     assert_int_equal(ms_view_known_count(v), 65);
+    assert_int_equal(ms_view_state_cells(v), 65);
     assert_int_equal(ms_view_next_known(v, 0), 65);
     assert_int_equal(ms_view_next_known(v, 128), MS_ARCHIVE_NONE);
     /* ...and a record that breaks the rules is refused, nothing learned */
@@ -239,8 +278,10 @@ static void test_view_partial(void **state)
         ids[k] = 1 + k, recs[k] = *ms_archive_get_cell(a, 1 + k);
     assert_int_equal(ms_view_learn(v, ids, recs, 64, &err), MS_OK);
     assert_true(ms_view_children_known(v, 0));
-    ms_view_select_partial(v, &cam, &sp, target, &rep);
-    assert_int_equal(target[0], MS_VIEW_TARGET_SPLIT);
+    assert_int_equal(ms_view_state_cells(v), 129);
+    ms_view_select(v, &cam, &sp, &rep);
+    assert_int_equal(ms_view_target(v, 0), MS_VIEW_TARGET_SPLIT);
+    assert_true(ms_view_target(v, 1) != MS_VIEW_TARGET_HIDDEN); /* the walk reaches the children */
     assert_int_equal(rep.blocked_count, 0);
 
     /* the root stays; hidden cells may go, a shown one may not */
@@ -250,11 +291,11 @@ static void test_view_partial(void **state)
         ids[k] = 65 + k;
     assert_int_equal(ms_view_unlearn(v, ids, 64, &err), MS_OK);
     assert_int_equal(ms_view_known_count(v), 65);
+    assert_int_equal(ms_view_state_cells(v), 65);
     assert_null(ms_view_cell(v, 70));
     assert_int_equal(ms_view_next_known(v, 64), MS_ARCHIVE_NONE);
 
     ms_view_select_report_free(&rep);
-    free(target);
     ms_view_destroy(v);
     ms_archive_close(a);
     ms_test_rmdir(dir);
@@ -292,9 +333,12 @@ static void test_path_cut_and_subtrees(void **state)
                      frame->subtree_count, need_count);
         assert_memory_equal(frame->subtrees, need, need_count * sizeof *need);
         assert_int_equal(st.subtrees_held, need_count);
+        check_state(&st, frame, levels);
         print_message("keyframe %zu: %u cells shown, %zu subtrees held of %u, %llu index bytes "
-                      "held\n", k, shown, need_count, ms_archive_subtree_count(g->archive),
-                      (unsigned long long)st.index_bytes_held);
+                      "held, cell state %llu bytes (%u of %u cells)\n", k, shown, need_count,
+                      ms_archive_subtree_count(g->archive), (unsigned long long)st.index_bytes_held,
+                      (unsigned long long)st.state_bytes_held, st.state_cells,
+                      ms_archive_get_header(g->archive)->cell_count);
         for (uint32_t i = 0; i < ms_view_cell_count(v); ++i)
             if (ms_view_state(v, i) == MS_VIEW_SHOWN && ms_view_cell(v, i)->level > deepest)
                 deepest = ms_view_cell(v, i)->level;
@@ -339,6 +383,22 @@ static void test_whole_index_same_cut(void **state)
     assert_false(st.index_by_subtree);
     assert_int_equal(st.subtrees_received, 0);
     assert_int_equal(frame->subtree_count, 0);
+    /* a whole index: state for every cell of the model, left out of the budget
+     * like the index itself; by subtree at the same camera (the last keyframe
+     * of test_path_cut_and_subtrees) only for the groups the cut needs */
+    uint32_t cells = ms_archive_get_header(g->archive)->cell_count;
+    assert_int_equal(st.state_cells, cells);
+    assert_int_equal(st.state_bytes_held, (uint64_t)cells * ms_core_state_bytes_per_cell());
+    size_t need_count;
+    ms_view *reference = reference_view(&cam);
+    unsigned levels = ms_archive_subtree_levels(g->archive);
+    uint32_t *need = needed_subtrees(reference, &cam, levels, &need_count);
+    uint32_t by_subtree = state_cells_of(need, need_count, levels);
+    print_message("cell state: whole index %u cells, by subtree %u cells (%zu subtrees)\n", cells,
+                  by_subtree, need_count);
+    assert_true(by_subtree < cells / 2);
+    free(need);
+    ms_view_destroy(reference);
     ms_view *v = reference_view(&cam);
     assert_true(check_cut(frame, v) > 1);
     ms_view_destroy(v);
@@ -382,6 +442,7 @@ static void test_network(void **state)
             assert_int_equal(frame->subtree_count, need_count);
             assert_memory_equal(frame->subtrees, need, need_count * sizeof *need);
             assert_true(st.subtrees_received >= need_count - 1);
+            check_state(&st, frame, ms_archive_subtree_levels(g->archive));
             /* subtree bytes are counted as index, not payload */
             assert_int_equal(st.bytes_received, st.geometry_bytes_received);
         }
@@ -547,6 +608,7 @@ static void test_version2_server(void **state)
     assert_false(st.index_by_subtree);
     assert_int_equal(st.subtrees_received, 0);
     assert_int_equal(frame->subtree_count, 0);
+    assert_int_equal(st.state_cells, ms_archive_get_header(g->archive)->cell_count);
     ms_view *v = reference_view(&cam);
     assert_true(check_cut(frame, v) > 1);
     ms_view_destroy(v);
@@ -613,8 +675,8 @@ static void test_corrupt_subtree(void **state)
     assert_false(ms_test_core_wait_complete(core, 1.0, &st, &frame));
     assert_string_equal(st.error, "");
     assert_non_null(frame);
-    assert_true(frame->cell_bits[parent] != MS_VIEW_TARGET_SPLIT &&
-                frame->cell_bits[parent] != MS_VIEW_TARGET_HIDDEN);
+    assert_true(ms_core_frame_cell_bits(frame, parent) != MS_VIEW_TARGET_SPLIT &&
+                ms_core_frame_cell_bits(frame, parent) != MS_VIEW_TARGET_HIDDEN);
     assert_true(st.cells_shown > 1); /* the rest of the view refined */
     ms_core_frame_free(frame);
     ms_core_stop(core);

@@ -12,6 +12,9 @@
  *     the geometry's (impostors left out) but for under 4% of the pixels;
  *   - with --memory the pieces share one budget and the walk still completes,
  *     geometry bytes counted;
+ *   - from meshserve the pieces share one connection (the report's
+ *     connections, and the server's count: one fewer than with
+ *     --connection-per-model) and the walk completes;
  *   - the interactive window on a scene runs until SIGTERM and exits 0 without a
  *     word;
  *   - bad scenes and options: one line on stderr, exit 1 or 2. */
@@ -66,21 +69,29 @@ static void write_scene(const char *name, const char *material_a, const char *ma
     ms_test_write_file(path, text, (size_t)n);
 }
 
-/* Runs meshview on the archive with args; the JSON report into out (when
- * given); stderr into err_text. Returns the exit status. */
-static int run_viewer(const char *args, const char *out, char *err_text, size_t size)
+/* Runs meshview on source (the archive directory, or "--server HOST:PORT")
+ * with args; the JSON report into out (when given); stderr into err_text.
+ * Returns the exit status. */
+static int run_viewer_on(const char *source, const char *args, const char *out, char *err_text,
+                         size_t size)
 {
     char command[4096];
-    snprintf(command, sizeof command, "%s %s %s 2>&1 > %s", fx.bin, fx.archives, args, out ? out : "/dev/null");
+    snprintf(command, sizeof command, "%s %s %s 2>&1 > %s", fx.bin, source, args, out ? out : "/dev/null");
     return ms_test_run(command, err_text, size);
 }
 
-static json_t *run_report(const char *scene, const char *shots, const char *extra)
+static int run_viewer(const char *args, const char *out, char *err_text, size_t size)
+{
+    return run_viewer_on(fx.archives, args, out, err_text, size);
+}
+
+/* The scene's scripted run from source, which must complete both keyframes. */
+static json_t *run_report_on(const char *source, const char *scene, const char *shots, const char *extra)
 {
     char args[2048], out[700], err_text[2048];
     snprintf(out, sizeof out, "%s/report.json", fx.dir);
     snprintf(args, sizeof args, "--scene %s --screenshot-dir %s " RUN_ARGS " %s", scene, shots, extra);
-    int status = run_viewer(args, out, err_text, sizeof err_text);
+    int status = run_viewer_on(source, args, out, err_text, sizeof err_text);
     if (status != 0)
         fail_msg("meshview %s: exit %d: %s", args, status, err_text);
     json_error_t jerr;
@@ -90,6 +101,11 @@ static json_t *run_report(const char *scene, const char *shots, const char *extr
     assert_true(json_is_true(json_object_get(report, "complete")));
     assert_int_equal(json_array_size(json_object_get(report, "keyframes")), 2);
     return report;
+}
+
+static json_t *run_report(const char *scene, const char *shots, const char *extra)
+{
+    return run_report_on(fx.archives, scene, shots, extra);
 }
 
 /* The names of a JSON array of strings, joined by spaces. */
@@ -231,6 +247,60 @@ static void test_impostors_agree_with_geometry(void **state)
     json_decref(geo);
 }
 
+/* The binary connections meshserve accepted since it started (/metrics). */
+static uint64_t server_connections(uint16_t http_port)
+{
+    uint64_t n;
+    if (ms_test_metric(http_port, "meshstream_connections_total", &n) != 0)
+        fail_msg("no meshstream_connections_total in /metrics");
+    return n;
+}
+
+/* The scene from meshserve: its report, and the connections the server
+ * accepted for the run (listing the catalogue included). */
+static json_t *server_report(const char *scene, uint16_t port, uint16_t http_port, const char *extra,
+                             uint64_t *accepted)
+{
+    char source[64], shots[700];
+    snprintf(source, sizeof source, "--server 127.0.0.1:%u", port);
+    snprintf(shots, sizeof shots, "%s/server%s", fx.dir, extra[0] ? "-each" : "");
+    uint64_t before = server_connections(http_port);
+    json_t *report = run_report_on(source, scene, shots, extra);
+    *accepted = server_connections(http_port) - before;
+    assert_string_equal(json_string_value(json_object_get(report, "source")), "server");
+    return report;
+}
+
+/* From a server the scene's two pieces stream over one connection (one
+ * fewer than with --connection-per-model, the catalogue listings being the
+ * same), and the walk completes either way. */
+static void test_one_connection_from_a_server(void **state)
+{
+    (void)state;
+    char scene[700], port_file[700], log[700];
+    write_scene("served", GLOSSY, "{}", "", "", "demo", scene, sizeof scene);
+    snprintf(port_file, sizeof port_file, "%s/meshserve.port", fx.dir);
+    snprintf(log, sizeof log, "%s/meshserve.log", fx.dir);
+    uint16_t port, http_port;
+    pid_t server = ms_test_meshserve_start(fx.archives, NULL, 0, port_file, log, &port, &http_port);
+    if (!server)
+        fail_msg("meshserve did not start (see %s)", log);
+    uint64_t one_link, each;
+    json_t *linked = server_report(scene, port, http_port, "", &one_link);
+    json_t *separate = server_report(scene, port, http_port, "--connection-per-model", &each);
+    assert_int_equal(ms_test_stop(server, SIGTERM, 10.0), 0);
+    print_message("connections accepted: %llu with one link, %llu with one per model\n",
+                  (unsigned long long)one_link, (unsigned long long)each);
+    assert_int_equal(json_integer_value(json_object_get(linked, "connections")), 1);
+    assert_int_equal(json_integer_value(json_object_get(separate, "connections")), 2);
+    assert_int_equal(each - one_link, 1);
+    assert_true(json_integer_value(json_object_get(linked, "geometry_bytes")) > 0);
+    assert_true(json_integer_value(json_object_get(linked, "socket_bytes")) >
+                json_integer_value(json_object_get(linked, "geometry_bytes")));
+    json_decref(linked);
+    json_decref(separate);
+}
+
 static void test_interactive_until_terminated(void **state)
 {
     (void)state;
@@ -274,7 +344,10 @@ static void test_bad_scenes_and_options(void **state)
         {"--scene s.json --model demo --screenshot-dir d", "meshview: --scene and --model exclude each other\n"},
         {"--scene s.json --screenshot-dir d --effects-off fog",
          "meshview: --effects-off wants effect names separated by commas, not 'fog'\n"},
-        {"--effects-all --screenshot-dir d", "meshview: --effects-off and --effects-all need --scene\n"},
+        {"--effects-all --screenshot-dir d",
+         "meshview: --effects-off, --effects-all and --connection-per-model need --scene\n"},
+        {"--connection-per-model --screenshot-dir d",
+         "meshview: --effects-off, --effects-all and --connection-per-model need --scene\n"},
     };
     for (size_t i = 0; i < sizeof usage / sizeof usage[0]; ++i) {
         assert_int_equal(run_viewer(usage[i].args, NULL, err_text, sizeof err_text), 2);
@@ -322,6 +395,7 @@ int main(void)
         cmocka_unit_test(test_same_pictures_without_effects),
         cmocka_unit_test(test_impostors_agree_with_geometry),
         cmocka_unit_test(test_shared_memory_budget),
+        cmocka_unit_test(test_one_connection_from_a_server),
         cmocka_unit_test(test_interactive_until_terminated),
     };
     return cmocka_run_group_tests(tests, setup, teardown);

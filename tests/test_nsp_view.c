@@ -156,8 +156,6 @@ static void check_cameras(const char *model, const char *dir, const char *name, 
     ms_archive *a;
     ms_view *v = open_view(rep.archive_path, &a);
     const ms_archive_header *h = ms_view_header(v);
-    uint8_t *target = malloc(h->cell_count);
-    assert_non_null(target);
     uint64_t rng = 12345;
     if (getenv("MS_NSP_CAMERAS"))
         cameras = (unsigned)atoi(getenv("MS_NSP_CAMERAS"));
@@ -167,10 +165,10 @@ static void check_cameras(const char *model, const char *dir, const char *name, 
         random_camera(h, &rng, &cam);
         ms_view_select_params sp = {.tolerance_px = tolerance, .margin = 0.01 * h->box_side,
                                     .hysteresis = 0.5, .culled_bits_less = culled_less};
-        ms_view_select(v, &cam, &sp, target);
+        ms_view_select(v, &cam, &sp, NULL);
         ms_view_apply_report ar;
         ms_error err;
-        if (ms_view_apply(v, target, &ar, &err) != MS_OK)
+        if (ms_view_apply(v, &ar, &err) != MS_OK)
             fail_msg("apply: %s", err.text);
         assert_int_equal(ar.waiting, 0);
         ms_nsp_view_check r;
@@ -188,7 +186,6 @@ static void check_cameras(const char *model, const char *dir, const char *name, 
     print_message("%s: %u cameras, %zu with mixed precisions (up to %zu), no crack (%zu fold "
                   "edges)\n", name, cameras, mixed, max_levels, folds);
     assert_true(mixed > cameras / 2);
-    free(target);
     ms_view_destroy(v);
     ms_archive_close(a);
     ms_qmesh_free(&q);
@@ -233,6 +230,15 @@ static bool states_equal(ms_view *v, uint32_t cell, const ms_codec_state *s)
  * internal cells, taken at their own tolerance, stay those of the unscaled
  * selection). This is how a client with APO on refines the cells baked without
  * a chunk to the full tolerance. */
+/* Selects for cam and copies every cell's target into target (cell_count). */
+static void select_targets(ms_view *v, const ms_camera *cam, const ms_view_select_params *sp,
+                           uint8_t *target)
+{
+    ms_view_select(v, cam, sp, NULL);
+    for (uint32_t i = 0; i < ms_view_cell_count(v); ++i)
+        target[i] = ms_view_target(v, i);
+}
+
 static void test_tolerance_scale(void **state)
 {
     (void)state;
@@ -261,15 +267,15 @@ static void test_tolerance_scale(void **state)
         ms_view_select_params sp;
         ms_view_select_params_default(&sp);
         sp.tolerance_px = 4.0;
-        ms_view_select(v, &cam, &sp, coarse);
+        select_targets(v, &cam, &sp, coarse);
         sp.tolerance_px = 1.0;
-        ms_view_select(v, &cam, &sp, fine);
+        select_targets(v, &cam, &sp, fine);
         sp.tolerance_px = 4.0;
         sp.tolerance_scale = uniform;
-        ms_view_select(v, &cam, &sp, scaled);
+        select_targets(v, &cam, &sp, scaled);
         assert_memory_equal(scaled, fine, n);
         sp.tolerance_scale = leaves;
-        ms_view_select(v, &cam, &sp, mixed);
+        select_targets(v, &cam, &sp, mixed);
         for (uint32_t i = 0; i < n; ++i) {
             bool leaf = ms_view_cell(v, i)->first_child == MS_ARCHIVE_NONE;
             if (!leaf)

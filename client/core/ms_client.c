@@ -364,6 +364,13 @@ ms_status ms_client_open_model(ms_client *c, const char *name, uint32_t *request
     return send_message(c, &m, err);
 }
 
+ms_status ms_client_close_model(ms_client *c, uint32_t handle, ms_error *err)
+{
+    ms_proto_message m = {.type = MS_PROTO_CLOSE_MODEL};
+    m.body.close_model.model_handle = handle;
+    return send_message(c, &m, err);
+}
+
 ms_status ms_client_request_cells(ms_client *c, uint32_t handle, const ms_proto_cell_request *e,
                                   uint16_t count, uint32_t *first_id, ms_error *err)
 {

@@ -77,6 +77,9 @@ ms_status ms_client_open_model(ms_client *client, const char *name, uint32_t *re
 /* Bytes the last index handed to model_opened took on the wire (compressed,
  * raw, or the head); 0 before the first. */
 uint32_t ms_client_index_wire_bytes(const ms_client *client);
+/* CLOSE_MODEL (PROTOCOL.md 4.9): the server ends every request outstanding on
+ * the handle with ERROR CANCELLED; no other answer. */
+ms_status ms_client_close_model(ms_client *client, uint32_t model_handle, ms_error *err);
 ms_status ms_client_request_cells(ms_client *client, uint32_t model_handle,
                                   const ms_proto_cell_request *entries, uint16_t count,
                                   uint32_t *first_id, ms_error *err);

@@ -14,6 +14,12 @@
 
 double ms_core_since_start(const ms_core *c) { return ms_now_seconds() - c->t0; }
 
+uint64_t ms_core_window(uint64_t window_bytes, double bandwidth)
+{
+    uint64_t w = window_bytes ? window_bytes : bandwidth > 0 ? (uint64_t)(bandwidth / 4) : (1u << 20);
+    return w < 65536 ? 65536 : w;
+}
+
 /* Records a fatal error once (caller holds the lock). */
 void ms_core_fail_locked(ms_core *c, const char *fmt, const char *text)
 {
@@ -51,7 +57,7 @@ void ms_core_push_chunk(ms_core *c, chunk_msg *m)
     pthread_mutex_unlock(&c->lock);
 }
 
-static char *dup_or_null(const char *s, bool *fail)
+char *ms_core_copy_text(const char *s, bool *fail)
 {
     if (!s)
         return NULL;
@@ -61,13 +67,25 @@ static char *dup_or_null(const char *s, bool *fail)
     return d;
 }
 
-ms_status ms_core_start(const ms_core_options *o, ms_core **out, ms_error *err)
+/* A core given a shared link leaves the connection's settings to it. */
+static bool connection_fields_unset(const ms_core_options *o)
 {
-    *out = NULL;
+    return !o->host && !o->port && !o->token && !o->agent && o->bandwidth == 0 &&
+           o->window_bytes == 0 && o->answer_timeout == 0 && o->give_up_seconds == 0 &&
+           !o->raw_index && !o->whole_index;
+}
+
+static ms_status check_options(const ms_core_options *o, ms_error *err)
+{
     bool local = o && o->archive_path;
     if (local && !o->archive_path[0])
         return ms_error_set(err, MS_ERR_ARG, "client core: empty archive path");
-    if (!o || (!local && (!o->host || !o->model || o->port == 0)))
+    if (o && o->shared_link && (local || !connection_fields_unset(o) || !o->model))
+        return ms_error_set(err, MS_ERR_ARG, "client core: a shared link holds the connection's "
+                            "settings (leave host, port, token, agent, bandwidth, window, "
+                            "time-outs and index options unset; no archive path) and needs "
+                            "a model");
+    if (!o || (!local && !o->shared_link && (!o->host || !o->model || o->port == 0)))
         return ms_error_set(err, MS_ERR_ARG, "client core: host, port and model (or an archive "
                             "path) are required");
     if (o->model && !ms_proto_model_name_valid(o->model, strlen(o->model), NULL))
@@ -80,6 +98,39 @@ ms_status ms_core_start(const ms_core_options *o, ms_core **out, ms_error *err)
     if (o->shared_budget && (o->memory_target || o->memory_ceiling))
         return ms_error_set(err, MS_ERR_ARG, "client core: a shared budget replaces the "
                             "memory target and ceiling (leave them 0)");
+    return MS_OK;
+}
+
+/* The byte source from a server: the shared link, or a private link of one
+ * made from the core's own connection settings; c joins it. */
+static ms_status join_link(ms_core *c, ms_error *err)
+{
+    if (c->o.shared_link) {
+        c->link = c->o.shared_link;
+    } else {
+        ms_core_link_options lo = {.host = c->o.host, .port = c->o.port, .token = c->o.token,
+                                   .agent = c->o.agent, .bandwidth = c->o.bandwidth,
+                                   .window_bytes = c->o.window_bytes,
+                                   .answer_timeout = c->o.answer_timeout,
+                                   .give_up_seconds = c->o.give_up_seconds,
+                                   .raw_index = c->o.raw_index, .whole_index = c->o.whole_index};
+        ms_status st = ms_core_link_new(&lo, &c->link, err);
+        if (st != MS_OK)
+            return st;
+        c->own_link = true;
+    }
+    ms_status st = ms_core_link_join(c->link, c, err);
+    c->joined = st == MS_OK;
+    return st;
+}
+
+ms_status ms_core_start(const ms_core_options *o, ms_core **out, ms_error *err)
+{
+    *out = NULL;
+    ms_status st = check_options(o, err);
+    if (st != MS_OK)
+        return st;
+    bool local = o->archive_path != NULL;
     ms_core *c = calloc(1, sizeof *c);
     if (!c)
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory");
@@ -97,42 +148,24 @@ ms_status ms_core_start(const ms_core_options *o, ms_core **out, ms_error *err)
      * it saved with the default bake (docs/ACCURACY.md). */
     if (c->o.apo_geometry_tolerance_px == 0)
         c->o.apo_geometry_tolerance_px = c->o.tolerance_px;
-    if (c->o.answer_timeout == 0)
-        c->o.answer_timeout = 5.0;
-    if (c->o.give_up_seconds == 0)
-        c->o.give_up_seconds = 30.0;
     if (c->o.memory_target && !c->o.memory_ceiling)
         c->o.memory_ceiling = c->o.memory_target + c->o.memory_target / 4;
-    c->window = c->o.window_bytes ? c->o.window_bytes
-                : c->o.bandwidth > 0 ? (uint64_t)(c->o.bandwidth / 4) : (1u << 20);
-    if (c->window < 65536)
-        c->window = 65536;
+    c->window = ms_core_window(c->o.window_bytes, c->o.bandwidth);
     bool fail = false;
-    c->host = dup_or_null(o->host, &fail);
-    c->model = dup_or_null(o->model, &fail);
-    c->token = dup_or_null(o->token, &fail);
-    c->agent = dup_or_null(o->agent ? o->agent : "meshstream-client", &fail);
-    c->archive_path = dup_or_null(o->archive_path, &fail);
+    c->model = ms_core_copy_text(o->model, &fail);
+    c->archive_path = ms_core_copy_text(o->archive_path, &fail);
     c->latencies = malloc(LATENCY_KEEP * sizeof *c->latencies);
     c->t0 = ms_now_seconds();
-    for (size_t k = 0; k < sizeof c->slot_buckets / sizeof *c->slot_buckets; ++k)
-        c->slot_buckets[k] = NO_SLOT;
     c->tolerance_factor = 1.0;
     c->last_blocked = -1e9;
-    c->down_since = -1;
-    c->backoff = 0.1;
     c->stats.first_display = -1;
-    c->base = event_base_new();
-    if (fail || !c->latencies || !c->base ||
-        !(c->tick = event_new(c->base, -1, EV_PERSIST, ms_core_net_tick, c))) {
+    pthread_mutex_init(&c->lock, NULL);
+    pthread_cond_init(&c->wake, NULL);
+    c->locked = true;
+    if (fail || !c->latencies) {
         ms_core_stop(c);
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory starting the client core");
     }
-    pthread_mutex_init(&c->lock, NULL);
-    pthread_condattr_t ca;
-    pthread_condattr_init(&ca);
-    pthread_cond_init(&c->wake, &ca);
-    pthread_condattr_destroy(&ca);
     unsigned helpers = c->o.decode_threads ? c->o.decode_threads - 1 : 1;
     if (c->shared && ms_core_budget_join(c->shared, &c->member, err) != MS_OK) {
         ms_core_stop(c);
@@ -148,12 +181,17 @@ ms_status ms_core_start(const ms_core_options *o, ms_core **out, ms_error *err)
         return ms_error_set(err, MS_ERR_IO, "cannot start the decode thread");
     }
     c->dec_started = true;
-    if (pthread_create(&c->net_thread, NULL, local ? ms_core_local_main : ms_core_net_main, c) != 0) {
+    if (local) {
+        if (pthread_create(&c->local_thread, NULL, ms_core_local_main, c) != 0) {
+            ms_core_stop(c);
+            return ms_error_set(err, MS_ERR_IO, "cannot start the local responder thread");
+        }
+        c->local_started = true;
+    } else if ((st = join_link(c, err)) != MS_OK) {
         ms_core_stop(c);
-        return ms_error_set(err, MS_ERR_IO, "cannot start the %s thread",
-                            local ? "local responder" : "network");
+        return st;
     }
-    c->net_started = true;
+    c->o.host = c->o.token = c->o.agent = NULL; /* the caller's: the link keeps copies */
     *out = c;
     return MS_OK;
 }
@@ -162,26 +200,25 @@ void ms_core_stop(ms_core *c)
 {
     if (!c)
         return;
-    if (c->base) {
+    if (c->locked) {
         pthread_mutex_lock(&c->lock);
         c->stopping = true;
         pthread_cond_broadcast(&c->wake);
         pthread_mutex_unlock(&c->lock);
     }
-    if (c->net_started)
-        pthread_join(c->net_thread, NULL);
+    if (c->joined)
+        ms_core_link_leave(c->link, c); /* the link touches c no more */
+    if (c->own_link)
+        ms_core_link_free(c->link);
+    if (c->local_started)
+        pthread_join(c->local_thread, NULL);
     if (c->dec_started)
         pthread_join(c->dec_thread, NULL);
     if (c->member >= 0)
         ms_core_budget_leave(c->shared, c->member);
     ms_pool_free(c->pool);
     free(c->jobs);
-    if (c->client)
-        ms_client_free(c->client);
-    if (c->tick)
-        event_free(c->tick);
-    if (c->base) {
-        event_base_free(c->base);
+    if (c->locked) {
         pthread_mutex_destroy(&c->lock);
         pthread_cond_destroy(&c->wake);
     }
@@ -193,18 +230,13 @@ void ms_core_stop(ms_core *c)
     ms_core_dcells_free(c);
     ms_core_subtrees_free(c);
     ms_view_destroy(c->view);
-    free(c->target);
     ms_archive_close(c->index);
     ms_core_opening_free(&c->opening);
     free(c->wants);
-    free(c->net_wants);
     if (c->frame)
         ms_core_frame_free(c->frame);
     free(c->latencies);
-    free(c->host);
     free(c->model);
-    free(c->token);
-    free(c->agent);
     free(c->archive_path);
     free(c);
 }

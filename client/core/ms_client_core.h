@@ -3,7 +3,9 @@
  * One ms_core streams one model from meshserve's binary door
  * (protocol/PROTOCOL.md) for a camera the caller moves:
  *
- *   - a network thread (libevent) keeps the connection, reconnecting with
+ *   - a network thread (libevent; the thread of the core's link: a private
+ *     one, or ms_core_link shared with the other models of a scene) keeps the
+ *     connection, reconnecting with
  *     backoff after a drop and resuming partly received ranges with BYTES
  *     requests (PROTOCOL.md section 10); it sends the requests the decode
  *     thread asks for, cancels those no longer wanted, throttles its reads to
@@ -113,6 +115,77 @@ void ms_core_budget_free(ms_core_budget *budget);
 uint64_t ms_core_budget_held(ms_core_budget *budget);
 uint64_t ms_core_budget_peak(ms_core_budget *budget);
 
+/* One connection to meshserve shared by several cores (the models of a
+ * scene): the link owns the one network thread, its event loop and the one
+ * ms_client connection, with everything that belongs to a connection: the
+ * requests in flight (at most window_bytes for all the members together), the
+ * bandwidth throttle, reconnecting with backoff and resuming with BYTES
+ * requests (PROTOCOL.md section 10), the answer time-out and giving up. Each
+ * member core opens its model on it (one OPEN_MODEL handle each, PROTOCOL.md
+ * 4.6) and keeps its own decode thread, index, want list and inbox; chunks
+ * and OPEN answers go to the member by model handle. The members' want lists
+ * are merged by priority (lower first; equal priorities in the order the
+ * members joined) under the one window, so the bytes that remove the most
+ * screen error go first whichever model they belong to (priorities are
+ * comparable: every member follows the same screen-error rule, the more so
+ * with a shared budget). A reconnect reopens every member's model and
+ * resumes. A member that stops (ms_core_stop) or fails has its model closed
+ * on the server (CLOSE_MODEL: its requests are cancelled there) while the
+ * others go on. A core started without a link makes a private one: a single
+ * core is a link of one. docs/CLIENT.md, "One connection for many models".
+ * Ownership: the caller's; it must outlive every core started with it.
+ * Thread-safety: ms_core_start / ms_core_stop of its members and
+ * ms_core_link_get_stats may be called from any threads concurrently;
+ * ms_core_link_free must not race with them. */
+typedef struct ms_core_link ms_core_link;
+
+/* Most cores one link serves (meshserve opens at most 64 models a connection). */
+#define MS_CORE_LINK_MAX_MEMBERS 64
+
+/* Test hook: called on the link's thread for every range it requests, in the
+ * order sent (`plan` counts the link's planning rounds: one round's requests
+ * are sent together, after the previous round's). */
+typedef void (*ms_core_link_request_hook)(const ms_core *member, uint32_t cell, unsigned stream,
+                                          uint8_t priority, uint64_t plan, void *arg);
+
+typedef struct ms_core_link_options {
+    const char *host;          /* numeric IPv4/IPv6 address */
+    uint16_t port;
+    const char *token;         /* NULL: none (preview access) */
+    const char *agent;         /* NULL: "meshstream-client" */
+    double bandwidth;          /* bytes per second read from the server, for all the
+                                  members together; 0 = unlimited */
+    uint64_t window_bytes;     /* bytes in flight at most, all members together; 0 = 0.25 s
+                                  of bandwidth, at least 64 KiB (1 MiB when unlimited) */
+    double answer_timeout;     /* seconds without a byte while waiting; 0 = 5 */
+    double give_up_seconds;    /* reconnecting this long without success fails every
+                                  member; 0 = 30 */
+    bool raw_index;            /* ask for model indexes uncompressed (no CAP_INDEX_ZLIB) */
+    bool whole_index;          /* do not offer CAP_INDEX_SUBTREES (ms_core_options) */
+    ms_core_link_request_hook request_hook;
+    void *request_hook_arg;
+} ms_core_link_options;
+
+/* Starts the link's thread; it connects once a member joins. The options'
+ * strings are copied. MS_ERR_ARG for a bad host, port or figure (no host,
+ * port 0, a negative or non-finite bandwidth or time-out), MS_ERR_NOMEM,
+ * MS_ERR_IO when the thread cannot start. */
+ms_status ms_core_link_new(const ms_core_link_options *options, ms_core_link **link,
+                           ms_error *err);
+/* Stops the thread and closes the connection. NULL is a no-op; every core
+ * using it must be stopped first. */
+void ms_core_link_free(ms_core_link *link);
+
+typedef struct ms_core_link_stats {
+    bool connected;            /* a connection is up (its HELLO may still be on its way) */
+    unsigned members;          /* cores using the link now */
+    uint64_t connections;      /* TCP connections made so far (1 + reconnections) */
+    uint64_t socket_bytes;     /* read from every connection, frames and indexes included */
+    uint64_t requests;         /* ranges requested, all members */
+} ms_core_link_stats;
+
+void ms_core_link_get_stats(ms_core_link *link, ms_core_link_stats *stats);
+
 /* Test hook (fault injection): sees, and may alter, every received payload
  * chunk on the decode thread before it is checked. */
 typedef void (*ms_core_payload_filter)(uint32_t cell, bool apo, uint32_t offset, uint8_t *data,
@@ -146,6 +219,13 @@ typedef struct ms_core_options {
     double apo_geometry_tolerance_px; /* geometry tolerance with APO on; 0 = tolerance_px
                                          (docs/ACCURACY.md: coarser costs more than it saves) */
     uint64_t memory_target, memory_ceiling; /* bytes; 0 = no budget */
+    ms_core_link *shared_link; /* NULL: the core's own connection (host, port, token,
+                                  agent, bandwidth, window_bytes, the time-outs, raw_index,
+                                  whole_index). Else its model is streamed over this link
+                                  shared with other cores (those fields must then be
+                                  0/NULL/false: the link's options hold them; no
+                                  archive_path; MS_ERR_ARG when it already serves
+                                  MS_CORE_LINK_MAX_MEMBERS cores) */
     ms_core_budget *shared_budget; /* NULL: the core's own budget (memory_target/ceiling).
                                   Else one shared with other cores (memory_target and
                                   memory_ceiling must be 0; MS_ERR_ARG when it already
@@ -229,7 +309,13 @@ typedef struct ms_core_frame {
     double time;              /* seconds since ms_core_start */
     ms_view_mesh mesh;
     uint32_t cell_count;      /* cells of the model */
-    uint8_t *cell_bits;       /* per cell: shown precision, or 0xFF (hidden) / 0xFE (split) */
+    /* the cut: the cells shown or split, ids ascending; cut_bits[i] is cell
+     * cut_cells[i]'s shown precision, or 0xFE (MS_VIEW_TARGET_SPLIT). Every
+     * other cell is hidden (0xFF). Sized by the cut, not by the model:
+     * ms_core_frame_cell_bits looks a cell up. */
+    uint32_t *cut_cells;
+    uint8_t *cut_bits;
+    size_t cut_count;
     ms_core_apo_chunk *apo;
     size_t apo_count;
     /* with an index by subtree (stats.index_by_subtree): the ids of the subtrees
@@ -248,6 +334,9 @@ typedef struct ms_core_frame {
  * decoding). Needs export_frames. */
 ms_core_frame *ms_core_take_frame(ms_core *core);
 void ms_core_frame_free(ms_core_frame *frame);
+/* Cell's entry in the frame's cut: its shown precision, 0xFE (split) or 0xFF
+ * (hidden: not in the cut, or beyond the model). O(log cut_count). */
+uint8_t ms_core_frame_cell_bits(const ms_core_frame *frame, uint32_t cell);
 
 typedef struct ms_core_stats {
     double time;               /* seconds since start */
@@ -257,6 +346,8 @@ typedef struct ms_core_stats {
     double achieved_error_px;  /* largest projected error of a visible shown cell */
     double tolerance_px;       /* effective geometric tolerance (raised over budget) */
     double first_display;      /* seconds to the first frame with a triangle; < 0 none yet */
+    uint64_t first_display_generation; /* with export_frames: the generation of that frame
+                                  (ms_core_frame.generation); 0 none yet */
     /* the index (docs/CLIENT.md, "An index by subtree") */
     bool index_by_subtree;     /* the model opened with its index head only */
     uint64_t subtrees_received; /* subtrees received and taken (not the root's, in the head) */
@@ -264,16 +355,27 @@ typedef struct ms_core_stats {
                                   the head and every subtree piece */
     uint64_t index_bytes_held, peak_index_bytes_held; /* raw index bytes held now, at most */
     uint64_t subtrees_held;    /* subtrees held now (the root's included) */
+    /* per-cell bookkeeping (docs/CLIENT.md, "What a cell costs"): the view's
+     * and the core's state of every cell of each sibling group the index
+     * holds a record of, whatever the cell holds besides */
+    uint32_t state_cells;      /* cells with state now (the whole model with a whole index) */
+    uint64_t state_bytes_held; /* state_cells x ms_core_state_bytes_per_cell(); with an
+                                  index by subtree counted in `memory` (the budget) */
     uint64_t bytes_received;   /* payload bytes (local mode: bytes handed over) */
     uint64_t geometry_bytes_received, apo_bytes_received; /* bytes_received by stream */
     uint64_t socket_bytes;     /* everything read from the server (frames, index), counted
-                                  at each loop tick; 0 in local mode */
+                                  at each loop tick; 0 in local mode. On a shared link: what
+                                  its connections read since this core joined, every
+                                  member's frames included (ms_core_link_get_stats has the
+                                  link's total) */
     uint64_t bytes_in_flight;  /* requested and not yet received */
     uint64_t requests, cancels, reconnects, refetches, evictions;
     double longest_outage;     /* seconds, the longest span from a lost connection to the
                                   model open again (a failover through a balancer); 0 none */
     uint32_t cells_shown, cells_split, cells_cached, cells_loading, cells_failed;
-    uint64_t memory, peak_memory;
+    uint64_t memory, peak_memory; /* the budget's measure: payload bytes held, decoded
+                                  estimate, and with an index by subtree index_bytes_held
+                                  and state_bytes_held */
     double decode_seconds;     /* decode thread busy time (verify, decode, select) */
     double latency_p50, latency_p99; /* request send to last byte, seconds */
     char error[256];           /* why the core stopped, or "" */
@@ -286,5 +388,11 @@ typedef struct ms_core_stats {
 } ms_core_stats;
 
 void ms_core_get_stats(ms_core *core, ms_core_stats *stats);
+
+/* Bytes of bookkeeping a cell with state costs the core (stats.state_cells):
+ * sizeof the view decoder's cell state (ms_view_cell_state_size, the record
+ * included) plus sizeof the core's reception state; 480 on x86-64. The
+ * payload bytes, decoders and caches the cell points to are counted apart. */
+size_t ms_core_state_bytes_per_cell(void);
 
 #endif

@@ -229,11 +229,12 @@ static int compare_candidates(const void *x, const void *y)
     return a->usefulness < b->usefulness ? -1 : a->usefulness > b->usefulness;
 }
 
-/* What every cell holds, and the index's subtrees (with an index by
- * subtree: a whole index is held whatever the view), the budget's measure. */
+/* What every cell holds, and with an index by subtree the index's subtrees
+ * and the per-cell state of their cells (a whole index and its state are held
+ * whatever the view), the budget's measure. */
 static uint64_t memory_held(const ms_core *c)
 {
-    uint64_t m = c->by_subtree ? c->index_bytes_held : 0;
+    uint64_t m = c->by_subtree ? c->index_bytes_held + ms_core_state_bytes_held(c) : 0;
     for (uint32_t i = 0; i != MS_ARCHIVE_NONE; i = ms_view_next_known(c->view, i))
         m += cell_memory(c, i);
     return m;
@@ -252,7 +253,8 @@ static evict_candidate *evict_candidates(ms_core *c, const frame_view *fv, size_
     size_t nc = 0;
     for (uint32_t i = ms_view_next_known(c->view, 0); i != MS_ARCHIVE_NONE;
          i = ms_view_next_known(c->view, i)) {
-        if (ms_view_state(c->view, i) != MS_VIEW_HIDDEN || c->target[i] != MS_VIEW_TARGET_HIDDEN)
+        if (ms_view_state(c->view, i) != MS_VIEW_HIDDEN ||
+            ms_view_target(c->view, i) != MS_VIEW_TARGET_HIDDEN)
             continue;
         uint64_t b = cell_memory(c, i);
         if (!b)
@@ -287,8 +289,8 @@ static bool reselect(ms_core *c, dec_pass *pass)
 {
     ms_view_apply_report report;
     ms_error err;
-    ms_view_select_partial(c->view, pass->cam, &pass->sp, c->target, &c->report);
-    if (ms_view_apply(c->view, c->target, &report, &err) != MS_OK) {
+    ms_view_select(c->view, pass->cam, &pass->sp, &c->report);
+    if (ms_view_apply(c->view, &report, &err) != MS_OK) {
         pthread_mutex_lock(&c->lock);
         ms_core_fail_locked(c, "decoding failed: %.200s", err.text);
         pthread_mutex_unlock(&c->lock);

@@ -84,3 +84,10 @@ void ms_core_dcells_free(ms_core *c)
     free(c->cell_groups);
     c->cell_groups = NULL;
 }
+
+size_t ms_core_state_bytes_per_cell(void) { return ms_view_cell_state_size() + sizeof(dcell); }
+
+uint64_t ms_core_state_bytes_held(const ms_core *c)
+{
+    return c->view ? (uint64_t)ms_view_state_cells(c->view) * ms_core_state_bytes_per_cell() : 0;
+}

@@ -235,12 +235,13 @@ static size_t dec_parallel_refine(ms_core *c)
 {
     size_t count = 0;
     for (uint32_t i = 0; i != MS_ARCHIVE_NONE; i = ms_view_next_known(c->view, i)) {
-        if (ms_view_state(c->view, i) != MS_VIEW_SHOWN || c->target[i] == MS_VIEW_TARGET_HIDDEN)
+        uint8_t target = ms_view_target(c->view, i);
+        if (ms_view_state(c->view, i) != MS_VIEW_SHOWN || target == MS_VIEW_TARGET_HIDDEN)
             continue;
         const ms_archive_cell *rec = ms_archive_get_cell(c->index, i);
         if (rec->geometry_length == 0 || ms_view_held_bytes(c->view, i) == 0)
             continue;
-        unsigned goal = c->target[i] == MS_VIEW_TARGET_SPLIT ? rec->bits_max : c->target[i];
+        unsigned goal = target == MS_VIEW_TARGET_SPLIT ? rec->bits_max : target;
         unsigned cur = ms_view_bits(c->view, i);
         if (goal <= cur)
             continue;
@@ -334,11 +335,11 @@ static void dec_pass_begin(ms_core *c, const ms_camera *cam, dec_pass *pass)
  * applies the splits and merges; false when decoding failed (then fatal). */
 static bool dec_select(ms_core *c, dec_pass *pass)
 {
-    ms_view_select_partial(c->view, pass->cam, &pass->sp, c->target, &c->report);
+    ms_view_select(c->view, pass->cam, &pass->sp, &c->report);
     size_t refined_in_parallel = dec_parallel_refine(c);
     ms_view_apply_report report;
     ms_error err;
-    if (ms_view_apply(c->view, c->target, &report, &err) != MS_OK) {
+    if (ms_view_apply(c->view, &report, &err) != MS_OK) {
         pthread_mutex_lock(&c->lock);
         ms_core_fail_locked(c, "decoding failed: %.200s", err.text);
         pthread_mutex_unlock(&c->lock);

@@ -9,61 +9,59 @@
 
 #include "ms_progress.h"
 
-/* The view as a frame for the caller (NULL and err when out of memory). */
+/* The view as a frame for the caller (NULL and err when out of memory). Its
+ * arrays are sized by the cut (cells shown or split), never by the model. */
 static ms_core_frame *make_frame(ms_core *c, ms_error *err)
 {
+    size_t shown = 0, cut = 0, apo = 0;
+    for (uint32_t i = 0; i != MS_ARCHIVE_NONE; i = ms_view_next_known(c->view, i)) {
+        ms_view_cell_state st = ms_view_state(c->view, i);
+        cut += st != MS_VIEW_HIDDEN;
+        shown += st == MS_VIEW_SHOWN;
+        apo += st == MS_VIEW_SHOWN && ms_core_dcell(c, i)->apo_given > 0;
+    }
     ms_core_frame *f = calloc(1, sizeof *f);
-    uint32_t n = ms_view_cell_count(c->view);
-    if (!f || !(f->cell_bits = malloc(n))) {
-        free(f);
+    if (f) {
+        f->cell_count = ms_view_cell_count(c->view);
+        f->cut_cells = malloc((cut ? cut : 1) * sizeof *f->cut_cells);
+        f->cut_bits = malloc(cut ? cut : 1);
+        f->record_ids = malloc((shown ? shown : 1) * sizeof *f->record_ids);
+        f->records = malloc((shown ? shown : 1) * sizeof *f->records);
+        f->apo = calloc(apo ? apo : 1, sizeof *f->apo);
+    }
+    if (!f || !f->cut_cells || !f->cut_bits || !f->record_ids || !f->records || !f->apo) {
+        ms_core_frame_free(f);
         ms_error_set(err, MS_ERR_NOMEM, "out of memory for a frame");
         return NULL;
     }
-    f->cell_count = n;
-    memset(f->cell_bits, MS_VIEW_TARGET_HIDDEN, n);
     for (uint32_t i = 0; i != MS_ARCHIVE_NONE; i = ms_view_next_known(c->view, i)) {
         ms_view_cell_state st = ms_view_state(c->view, i);
-        f->cell_bits[i] = st == MS_VIEW_SHOWN ? (uint8_t)ms_view_bits(c->view, i)
-                          : st == MS_VIEW_SPLIT ? MS_VIEW_TARGET_SPLIT
-                                                : MS_VIEW_TARGET_HIDDEN;
-        if (st == MS_VIEW_SHOWN) {
-            size_t k = f->record_count;
-            uint32_t *ids = realloc(f->record_ids, (k + 1) * sizeof *ids);
-            if (ids)
-                f->record_ids = ids;
-            ms_archive_cell *recs = ids ? realloc(f->records, (k + 1) * sizeof *recs) : NULL;
-            if (!recs) {
-                ms_core_frame_free(f);
-                ms_error_set(err, MS_ERR_NOMEM, "out of memory for a frame");
-                return NULL;
-            }
-            f->records = recs;
-            f->record_ids[k] = i;
-            f->records[k] = *ms_archive_get_cell(c->index, i);
-            f->record_count = k + 1;
-        }
+        if (st == MS_VIEW_HIDDEN)
+            continue;
+        f->cut_cells[f->cut_count] = i;
+        f->cut_bits[f->cut_count++] = st == MS_VIEW_SHOWN ? (uint8_t)ms_view_bits(c->view, i)
+                                                          : MS_VIEW_TARGET_SPLIT;
+        if (st != MS_VIEW_SHOWN)
+            continue;
+        const ms_archive_cell *rec = ms_archive_get_cell(c->index, i);
+        f->record_ids[f->record_count] = i;
+        f->records[f->record_count++] = *rec;
         const dcell *d = ms_core_dcell(c, i);
-        if (st == MS_VIEW_SHOWN && d->apo_given > 0) {
-            ms_core_apo_chunk *g = realloc(f->apo, (f->apo_count + 1) * sizeof *g);
-            uint8_t *copy = malloc(d->apo_given);
-            if (!g || !copy) {
-                free(copy);
-                if (g)
-                    f->apo = g;
-                ms_core_frame_free(f);
-                ms_error_set(err, MS_ERR_NOMEM, "out of memory for a frame");
-                return NULL;
-            }
-            f->apo = g;
-            memcpy(copy, d->apo.buf, d->apo_given);
-            /* complete levels: ms_archive_apo_prefix(depth) ends depth's level */
-            unsigned levels = 0;
-            const ms_archive_cell *rec = ms_archive_get_cell(c->index, i);
-            for (unsigned depth = 0; depth < rec->apo_levels; ++depth)
-                if (ms_archive_apo_prefix(c->index, i, depth, NULL) <= d->apo_given)
-                    levels = depth + 1;
-            f->apo[f->apo_count++] = (ms_core_apo_chunk){i, levels, copy, d->apo_given};
+        if (d->apo_given == 0)
+            continue;
+        uint8_t *copy = malloc(d->apo_given);
+        if (!copy) {
+            ms_core_frame_free(f);
+            ms_error_set(err, MS_ERR_NOMEM, "out of memory for a frame");
+            return NULL;
         }
+        memcpy(copy, d->apo.buf, d->apo_given);
+        /* complete levels: ms_archive_apo_prefix(depth) ends depth's level */
+        unsigned levels = 0;
+        for (unsigned depth = 0; depth < rec->apo_levels; ++depth)
+            if (ms_archive_apo_prefix(c->index, i, depth, NULL) <= d->apo_given)
+                levels = depth + 1;
+        f->apo[f->apo_count++] = (ms_core_apo_chunk){i, levels, copy, d->apo_given};
     }
     size_t held = 0;
     for (size_t k = 0; k < c->subtree_count; ++k)
@@ -83,14 +81,16 @@ static ms_core_frame *make_frame(ms_core *c, ms_error *err)
     return f;
 }
 
-/* Whether some shown cell in view already has a triangle to draw. */
+/* Whether some shown cell in view already has a triangle to draw (a child
+ * shown at bits_min right after its parent split has its share of the
+ * parent's triangles: the frame that shows it is a display). */
 static bool something_drawn(ms_core *c, const frame_view *fv)
 {
     for (uint32_t i = 0; i != MS_ARCHIVE_NONE; i = ms_view_next_known(c->view, i)) {
         if (ms_view_state(c->view, i) != MS_VIEW_SHOWN)
             continue;
         const ms_archive_cell *rec = ms_archive_get_cell(c->index, i);
-        if (rec->geometry_length == 0 || ms_view_bits(c->view, i) <= rec->bits_min)
+        if (rec->geometry_length == 0)
             continue;
         bool visible;
         ms_core_cell_need(c, fv, i, &visible);
@@ -140,6 +140,8 @@ static void publish_locked(ms_core *c, dec_pass *pass, uint64_t serial, ms_core_
     st->tolerance_px = pass->fv.tolerance;
     st->cells_shown = pass->shown, st->cells_split = pass->split, st->cells_cached = pass->cached;
     st->cells_loading = pass->loading, st->cells_failed = pass->failed;
+    st->state_cells = c->view ? ms_view_state_cells(c->view) : 0;
+    st->state_bytes_held = ms_core_state_bytes_held(c);
     st->memory = pass->memory;
     if (pass->memory > st->peak_memory)
         st->peak_memory = pass->memory;
@@ -149,12 +151,7 @@ static void publish_locked(ms_core *c, dec_pass *pass, uint64_t serial, ms_core_
 void ms_core_publish(ms_core *c, dec_pass *pass, uint64_t serial, double t_start)
 {
     double t_now = ms_core_since_start(c);
-    if (!c->first_display_seen && pass->changed && something_drawn(c, &pass->fv)) {
-        c->first_display_seen = true;
-        pthread_mutex_lock(&c->lock);
-        c->stats.first_display = t_now;
-        pthread_mutex_unlock(&c->lock);
-    }
+    bool first_display = !c->first_display_seen && pass->changed && something_drawn(c, &pass->fv);
     ms_core_frame *frame = NULL;
     if (c->o.export_frames && (pass->changed || c->generation == 0)) {
         ms_error err;
@@ -166,10 +163,29 @@ void ms_core_publish(ms_core *c, dec_pass *pass, uint64_t serial, double t_start
     }
     double busy = ms_now_seconds() - t_start;
     pthread_mutex_lock(&c->lock);
+    if (first_display) {
+        c->first_display_seen = true;
+        c->stats.first_display = t_now;
+        c->stats.first_display_generation = frame ? frame->generation : 0;
+    }
     publish_locked(c, pass, serial, frame, busy);
     pthread_mutex_unlock(&c->lock);
     free(pass->wl.w);
     pass->wl.w = NULL;
+}
+
+static int compare_cell(const void *key, const void *entry)
+{
+    uint32_t a = *(const uint32_t *)key, b = *(const uint32_t *)entry;
+    return a < b ? -1 : a > b;
+}
+
+uint8_t ms_core_frame_cell_bits(const ms_core_frame *f, uint32_t cell)
+{
+    const uint32_t *at = f->cut_count ? bsearch(&cell, f->cut_cells, f->cut_count,
+                                                sizeof *f->cut_cells, compare_cell)
+                                      : NULL;
+    return at ? f->cut_bits[at - f->cut_cells] : MS_VIEW_TARGET_HIDDEN;
 }
 
 ms_core_frame *ms_core_take_frame(ms_core *c)
@@ -189,7 +205,8 @@ void ms_core_frame_free(ms_core_frame *f)
     for (size_t i = 0; i < f->apo_count; ++i)
         free(f->apo[i].data);
     free(f->apo);
-    free(f->cell_bits);
+    free(f->cut_cells);
+    free(f->cut_bits);
     free(f->subtrees);
     free(f->record_ids);
     free(f->records);

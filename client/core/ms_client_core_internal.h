@@ -2,8 +2,11 @@
  * API is ms_client_core.h). One ms_core, one mutex (`lock`), three threads:
  *
  *   ms_client_core.c           the caller's API: start, stop, camera, frames, figures
- *   ms_client_core_net.c       the byte source from meshserve: the network thread
- *                              (connection, requests in flight, cancels, reconnects)
+ *   ms_core_link.c             a connection shared by cores (ms_core_link): members
+ *                              joining and leaving, the link's thread, its figures
+ *   ms_client_core_net.c       the byte source from meshserve: the link's network
+ *                              thread (connection, requests in flight for every
+ *                              member, merged by priority, cancels, reconnects)
  *   ms_client_core_local.c     the byte source from a local archive (archive_path)
  *   ms_client_core_decode.c    the decode thread: reception, verification, the
  *                              view decoder, one pass of dec_step's named steps
@@ -64,14 +67,15 @@ typedef struct want {
     uint32_t decoded_growth; /* estimated decoded bytes the range adds */
 } want;
 
-/* A request in flight on the current connection. A finished request stays
- * (done) until the decode thread has taken its last chunk (last_seq), so
- * that wants computed before that do not ask for its bytes again. */
+/* A request in flight on the current connection, for member `member` of the
+ * link. A finished request stays (done) until the member's decode thread has
+ * taken its last chunk (last_seq), so that wants computed before that do not
+ * ask for its bytes again. */
 typedef struct slot {
     bool used, cancelled, keep, done;
     uint64_t last_seq;
     uint32_t id, cell, start, end, got;
-    uint8_t stream;
+    uint8_t stream, member;
     double sent_at;
     uint32_t next; /* next slot of the same chain (slot_buckets) */
 } slot;
@@ -125,11 +129,71 @@ typedef struct refine_job {
 } refine_job;
 
 
+/* A core's place in a link: what the connection knows of it. The entry is
+ * filled by ms_core_link_join (under the link's lock, state JOINING) and
+ * otherwise the link thread's own. */
+enum { MEMBER_FREE = 0, MEMBER_JOINING, MEMBER_ACTIVE, MEMBER_LEAVING };
+
+typedef struct link_member {
+    uint8_t state;              /* MEMBER_*: under the link's lock */
+    bool seen;                  /* the link's thread took it in (and has not let go) */
+    bool retired;               /* failed or stopping: its model closed, nothing sent */
+    ms_core *core;              /* NULL once retired and left */
+    uint32_t handle;            /* its model's handle on this connection (ready) */
+    uint32_t open_request;      /* the OPEN_MODEL in flight, 0 none */
+    bool ready;                 /* its model is open on this connection */
+    bool opened_once;           /* its model opened once: content_id, by_subtree hold */
+    uint64_t content_id;
+    bool by_subtree;            /* it opened with its index head */
+    double down_since;          /* its model not open since (link time), < 0 open */
+    want *wants;                /* a copy of its decode thread's wants */
+    size_t want_count, want_cap;
+    uint64_t want_serial;
+    uint64_t consumed_seq;      /* chunks its decode thread had taken for `wants` */
+} link_member;
+
+struct ms_core_link {
+    ms_core_link_options o;
+    char *host, *token, *agent;
+    double t0;
+    uint64_t window;
+
+    pthread_mutex_t lock;
+    pthread_cond_t left;        /* a leaving member was retired */
+    /* --- shared, under lock --- */
+    bool stopping;
+    link_member members[MS_CORE_LINK_MAX_MEMBERS];
+    bool connected;
+    uint64_t connections, socket_bytes, requests;
+
+    pthread_t thread;
+    bool started;
+
+    /* --- the link's thread only --- */
+    struct event_base *base;
+    struct event *tick;
+    ms_client *client;
+    bool dead;                  /* the connection ended: freed on the next tick */
+    char dead_why[256];
+    double last_activity, reconnect_at, down_since, backoff;
+    bool was_waiting;           /* at the last tick something was awaited */
+    uint64_t last_read;         /* ms_client_bytes_read at the last tick */
+    uint64_t in_flight;         /* bytes requested, not yet received, all members */
+    uint64_t plans;             /* planning rounds that sent something */
+    /* OPEN_MODELs of members that left before the answer: the handle it
+     * brings is closed at once */
+    uint32_t orphan_opens[MS_CORE_LINK_MAX_MEMBERS];
+    unsigned orphan_count;
+    slot slots[MAX_SLOTS];
+    unsigned slots_used, slots_active;
+    uint32_t slot_buckets[1u << SLOT_BUCKET_BITS]; /* chains by (member, cell, stream) */
+};
+
 struct ms_core {
     ms_core_options o;
     ms_core_budget *shared;     /* o.shared_budget: NULL, or shared with other cores */
     int member;                 /* this core's place in it; -1 none */
-    char *host, *model, *token, *agent, *archive_path;
+    char *model, *archive_path;
     double t0;
 
     pthread_mutex_t lock;
@@ -162,36 +226,20 @@ struct ms_core {
     double *latencies;
     size_t latency_count;
 
-    pthread_t net_thread, dec_thread;
-    bool net_started, dec_started;
-
-    /* --- network thread only --- */
-    struct event_base *base;
-    struct event *tick;
-    ms_client *client;
-    uint32_t handle, open_request;
-    uint64_t content_id;
-    bool net_by_subtree;        /* the model opened with its index head */
-    bool ready;                 /* model opened on this connection */
-    bool dead;                  /* the connection ended: freed on the next tick */
-    char dead_why[256];
-    double last_activity, reconnect_at, down_since, backoff;
-    uint64_t last_read;         /* ms_client_bytes_read at the last tick */
-    slot slots[MAX_SLOTS];
-    unsigned slots_used, slots_active;
-    uint64_t net_consumed_seq;
-    uint32_t slot_buckets[1u << SLOT_BUCKET_BITS]; /* slot chains by (cell, stream) hash */
-    want *net_wants;
-    size_t net_want_count, net_want_cap;
-    uint64_t net_want_serial;
-    uint64_t window;
+    pthread_t local_thread, dec_thread;
+    bool local_started, dec_started, locked; /* locked: lock and wake initialised */
+    /* the byte source from a server: a link (o.shared_link, or a private one);
+     * NULL in local mode */
+    ms_core_link *link;
+    bool own_link;              /* the private link of a core started without one */
+    bool joined;                /* a member of link */
+    uint64_t window;            /* local mode: bytes handed over a round */
 
     /* --- decode thread only --- */
     ms_view *view;
     dcell **cell_groups;    /* per sibling group (as the view keeps them), NULL where
                                the view knows no record of the group */
     uint32_t group_size, group_count;
-    uint8_t *target;
     bool by_subtree;        /* the index comes by subtree (c->index is partial) */
     unsigned subtree_levels;
     subtree_entry *subtrees; /* sorted by id */
@@ -248,6 +296,9 @@ void ms_core_dcell_clear(dcell *d);
  * knows none of the group's cells any more. */
 void ms_core_dcells_release(ms_core *c, const uint32_t *cells, size_t count);
 void ms_core_dcells_free(ms_core *c);
+/* The per-cell bookkeeping held: the view's blocks of cell state and the
+ * core's dcell blocks, which cover the same sibling groups. */
+uint64_t ms_core_state_bytes_held(const ms_core *c);
 
 /* ---- ms_client_core_frames.c ---- */
 
@@ -272,6 +323,12 @@ void ms_core_subtrees_free(ms_core *c);
 
 /* ---- ms_client_core.c: shared helpers ---- */
 
+/* A copy of s (NULL stays NULL); sets *fail when out of memory. */
+char *ms_core_copy_text(const char *s, bool *fail);
+/* Bytes in flight at most (a link's window, a local responder's hand-over):
+ * window_bytes, or 0.25 s of the bandwidth, at least 64 KiB (1 MiB when
+ * the bandwidth is unlimited). */
+uint64_t ms_core_window(uint64_t window_bytes, double bandwidth);
 /* Seconds since the core started (monotonic clock). */
 double ms_core_since_start(const ms_core *c);
 /* Records a fatal error once; the _locked form with the lock held. */
@@ -282,11 +339,27 @@ void ms_core_warn(ms_core *c, const char *text);
 /* Queues a chunk for the decode thread (takes the lock); the queue owns it. */
 void ms_core_push_chunk(ms_core *c, chunk_msg *m);
 
-/* ---- byte sources (thread entry points; arg is the ms_core) ---- */
+/* ---- byte sources ---- */
 
+/* The link's thread (arg: the ms_core_link) and its periodic event (5 ms),
+ * created with the event base. */
 void *ms_core_net_main(void *arg);
-/* The network thread's periodic event (5 ms), created with the event base. */
 void ms_core_net_tick(evutil_socket_t fd, short what, void *arg);
+/* The merge of several want lists, each best first (a link's members'):
+ * the list whose next want, lists[i][cursors[i]], is the most urgent (lowest
+ * priority; of equals, the lowest i), or -1 when every list is exhausted.
+ * NULL lists are skipped. */
+int ms_core_merge_next(const want *const *lists, const size_t *counts, const size_t *cursors,
+                       unsigned n);
+/* Seconds since the link started. */
+double ms_core_link_since_start(const ms_core_link *link);
+/* Makes c a member (state JOINING: the link's thread opens its model);
+ * MS_ERR_ARG when the link is full. */
+ms_status ms_core_link_join(ms_core_link *link, ms_core *c, ms_error *err);
+/* Waits until the link's thread has retired c (its model closed, its
+ * requests forgotten); the link no longer touches c after. */
+void ms_core_link_leave(ms_core_link *link, ms_core *c);
+/* The local responder's thread (arg: the ms_core). */
 void *ms_core_local_main(void *arg);
 
 /* ---- ms_client_core_decode.c ---- */

@@ -1,8 +1,11 @@
-/* The client core's network thread: one connection to meshserve at a time
- * (reconnecting with backoff), the requests in flight as slots, cancels of
- * what the decode thread no longer wants, and the chunks received passed on
- * to it (ms_core_push_chunk). Everything here but the figures under the lock
- * is the network thread's own. */
+/* A link's network thread (ms_core_link, ms_client_core.h): one connection to
+ * meshserve at a time (reconnecting with backoff), every member's model open
+ * on it by handle, the requests in flight as slots, the members' wants merged
+ * by priority under one window, cancels of what a member no longer wants, and
+ * the chunks received passed on to their member's decode thread
+ * (ms_core_push_chunk). Everything here but the figures under the locks is
+ * the link thread's own; a member's core is used only while it is a member
+ * (ms_core_link_leave waits until it is retired). */
 #include "ms_client_core_internal.h"
 
 #include <signal.h>
@@ -13,204 +16,283 @@
 #include "ms_proto.h"
 #include "ms_subtree.h"
 
-static void net_connect(ms_core *c);
-
-/* The chain of slots whose (cell, stream) falls in one bucket: a fixed table,
- * whatever the model's size (iterations skip the other cells' slots). */
-static uint32_t *head_of(ms_core *c, uint32_t cell, uint8_t stream)
+/* The chain of slots whose (member, cell, stream) falls in one bucket: a fixed
+ * table, whatever the models' sizes (iterations skip the other cells' slots). */
+static uint32_t *head_of(ms_core_link *l, uint8_t member, uint32_t cell, uint8_t stream)
 {
-    uint32_t h = (cell * (uint32_t)STREAM_COUNT + stream) * 2654435761u;
-    return &c->slot_buckets[h >> (32 - SLOT_BUCKET_BITS)];
+    uint32_t key = (cell * (uint32_t)STREAM_COUNT + stream) * MS_CORE_LINK_MAX_MEMBERS + member;
+    return &l->slot_buckets[(key * 2654435761u) >> (32 - SLOT_BUCKET_BITS)];
 }
 
-static bool slot_is(const slot *s, uint32_t cell, uint8_t stream)
+static bool slot_is(const slot *s, uint8_t member, uint32_t cell, uint8_t stream)
 {
-    return s->cell == cell && s->stream == stream;
+    return s->member == member && s->cell == cell && s->stream == stream;
 }
 
-static void slot_unlink(ms_core *c, uint32_t k)
+static ms_core *core_of(ms_core_link *l, const slot *s) { return l->members[s->member].core; }
+
+/* A member the link streams for now: taken in, not failed or stopping. */
+static bool live(const link_member *m) { return m->seen && !m->retired; }
+
+static void slot_unlink(ms_core_link *l, uint32_t k)
 {
-    slot *s = &c->slots[k];
-    uint32_t *p = head_of(c, s->cell, s->stream);
+    slot *s = &l->slots[k];
+    uint32_t *p = head_of(l, s->member, s->cell, s->stream);
     while (*p != NO_SLOT && *p != k)
-        p = &c->slots[*p].next;
+        p = &l->slots[*p].next;
     if (*p == k)
         *p = s->next;
     s->used = false;
-    c->slots_used--;
+    l->slots_used--;
     if (!s->done)
-        c->slots_active--;
+        l->slots_active--;
 }
 
-static uint32_t slot_find(ms_core *c, uint32_t id)
+static uint32_t slot_find(ms_core_link *l, uint32_t id)
 {
     for (uint32_t k = 0; k < MAX_SLOTS; ++k)
-        if (c->slots[k].used && !c->slots[k].done && c->slots[k].id == id)
+        if (l->slots[k].used && !l->slots[k].done && l->slots[k].id == id)
             return k;
     return NO_SLOT;
 }
 
-static void record_latency(ms_core *c, double seconds)
+/* Bytes of slot s no longer in flight: off the link's window and its
+ * member's figure. */
+static void in_flight_less(ms_core_link *l, const slot *s, uint64_t bytes)
 {
+    ms_core *c = core_of(l, s);
+    l->in_flight -= bytes;
     pthread_mutex_lock(&c->lock);
-    if (c->latency_count < LATENCY_KEEP)
-        c->latencies[c->latency_count++] = seconds;
+    c->bytes_in_flight -= bytes;
     pthread_mutex_unlock(&c->lock);
 }
 
-static void end_slot(ms_core *c, uint32_t k)
+static void end_slot(ms_core_link *l, uint32_t k)
 {
-    slot *s = &c->slots[k];
-    if (!s->done) {
-        pthread_mutex_lock(&c->lock);
-        c->bytes_in_flight -= s->end - s->start - s->got;
-        pthread_mutex_unlock(&c->lock);
-    }
-    slot_unlink(c, k);
+    slot *s = &l->slots[k];
+    if (!s->done)
+        in_flight_less(l, s, s->end - s->start - s->got);
+    slot_unlink(l, k);
 }
 
-/* The request's last byte arrived: keep covering its range until the decode
- * thread has taken it. */
-static void finish_slot(ms_core *c, uint32_t k)
+/* Ends every slot of member i (all members: i < 0). */
+static void end_slots(ms_core_link *l, int i)
 {
-    slot *s = &c->slots[k];
+    for (uint32_t k = 0; k < MAX_SLOTS; ++k)
+        if (l->slots[k].used && (i < 0 || l->slots[k].member == i))
+            end_slot(l, k);
+}
+
+/* The request's last byte arrived: keep covering its range until the
+ * member's decode thread has taken it. */
+static void finish_slot(ms_core_link *l, uint32_t k)
+{
+    slot *s = &l->slots[k];
+    ms_core *c = core_of(l, s);
+    uint64_t left = s->end - s->start - s->got;
+    l->in_flight -= left;
     pthread_mutex_lock(&c->lock);
-    c->bytes_in_flight -= s->end - s->start - s->got;
+    c->bytes_in_flight -= left;
     s->last_seq = c->push_seq;
     pthread_mutex_unlock(&c->lock);
     s->got = s->end - s->start;
     s->done = true;
-    c->slots_active--;
+    l->slots_active--;
 }
 
-/* Adds what the connection read since the last look to the socket total;
- * true when it read anything. */
-static bool note_socket_bytes(ms_core *c)
+/* Adds what the connection read since the last look to the link's total and
+ * every member's; true when it read anything. */
+static bool note_socket_bytes(ms_core_link *l)
 {
-    uint64_t read = ms_client_bytes_read(c->client);
-    if (read == c->last_read)
+    uint64_t read = ms_client_bytes_read(l->client);
+    if (read == l->last_read)
         return false;
-    pthread_mutex_lock(&c->lock);
-    c->socket_bytes += read - c->last_read;
-    pthread_mutex_unlock(&c->lock);
-    c->last_read = read;
+    uint64_t delta = read - l->last_read;
+    l->last_read = read;
+    pthread_mutex_lock(&l->lock);
+    l->socket_bytes += delta;
+    pthread_mutex_unlock(&l->lock);
+    for (unsigned i = 0; i < MS_CORE_LINK_MAX_MEMBERS; ++i) {
+        if (!l->members[i].seen)
+            continue;
+        ms_core *c = l->members[i].core;
+        pthread_mutex_lock(&c->lock);
+        c->socket_bytes += delta;
+        pthread_mutex_unlock(&c->lock);
+    }
     return true;
 }
 
-/* Drops the connection; everything in flight is forgotten (the decode thread
- * knows exactly what arrived and asks for the rest again, as BYTES ranges). */
-static void net_drop(ms_core *c, const char *why)
+static void mark_dead(ms_core_link *l, const char *why)
 {
-    if (c->client) {
-        note_socket_bytes(c);
-        ms_client_free(c->client);
-        c->client = NULL;
+    if (!l->dead) {
+        l->dead = true;
+        snprintf(l->dead_why, sizeof l->dead_why, "%.240s", why);
     }
-    for (uint32_t k = 0; k < MAX_SLOTS; ++k)
-        if (c->slots[k].used)
-            end_slot(c, k);
-    double t = ms_core_since_start(c);
-    if (c->down_since < 0)
-        c->down_since = t;
-    c->reconnect_at = t + c->backoff;
-    c->backoff = c->backoff * 2 > 2.0 ? 2.0 : c->backoff * 2;
-    c->ready = false;
-    pthread_mutex_lock(&c->lock);
-    c->connected = false;
-    if (!c->stats.warning[0] || strncmp(c->stats.warning, "connection", 10) == 0)
-        snprintf(c->stats.warning, sizeof c->stats.warning, "connection lost: %.200s", why);
-    pthread_mutex_unlock(&c->lock);
 }
 
-/* Copies the decode thread's wants when they changed since the last look;
- * *fresh tells whether they did. False when out of memory for the copy.
- * *in_flight: the bytes requested and not yet received. */
-static bool net_take_wants(ms_core *c, bool *fresh, uint64_t *in_flight)
+/* Member i stops being streamed (its core failed or stops): its model is
+ * closed on the server, which cancels its requests there; its slots are
+ * forgotten here, so late frames for them are dropped. */
+static void retire(ms_core_link *l, unsigned i)
 {
+    link_member *m = &l->members[i];
+    if (m->retired)
+        return;
+    m->retired = true;
+    end_slots(l, (int)i);
+    ms_error err;
+    if (l->client && !l->dead && m->ready &&
+        ms_client_close_model(l->client, m->handle, &err) != MS_OK)
+        mark_dead(l, err.text);
+    if (m->open_request && l->orphan_count < MS_CORE_LINK_MAX_MEMBERS)
+        l->orphan_opens[l->orphan_count++] = m->open_request;
+    m->ready = false;
+    m->handle = m->open_request = 0;
+}
+
+/* A member's fatal error (the core keeps it in its figures); the link goes on
+ * with the others. */
+static void member_fail(ms_core_link *l, unsigned i, const char *fmt, const char *text)
+{
+    ms_core_fail(l->members[i].core, fmt, text);
+    retire(l, i);
+}
+
+/* Drops the connection; everything in flight is forgotten (each member's
+ * decode thread knows exactly what arrived and asks for the rest again, as
+ * BYTES ranges). */
+static void net_drop(ms_core_link *l, const char *why)
+{
+    if (l->client) {
+        note_socket_bytes(l);
+        ms_client_free(l->client);
+        l->client = NULL;
+    }
+    end_slots(l, -1);
+    l->orphan_count = 0;
+    double t = ms_core_link_since_start(l);
+    if (l->down_since < 0)
+        l->down_since = t;
+    l->reconnect_at = t + l->backoff;
+    l->backoff = l->backoff * 2 > 2.0 ? 2.0 : l->backoff * 2;
+    pthread_mutex_lock(&l->lock);
+    l->connected = false;
+    pthread_mutex_unlock(&l->lock);
+    for (unsigned i = 0; i < MS_CORE_LINK_MAX_MEMBERS; ++i) {
+        link_member *m = &l->members[i];
+        if (!m->seen)
+            continue;
+        m->ready = false;
+        m->handle = m->open_request = 0;
+        if (m->retired)
+            continue;
+        if (m->down_since < 0)
+            m->down_since = t;
+        ms_core *c = m->core;
+        pthread_mutex_lock(&c->lock);
+        c->connected = false;
+        if (!c->stats.warning[0] || strncmp(c->stats.warning, "connection", 10) == 0)
+            snprintf(c->stats.warning, sizeof c->stats.warning, "connection lost: %.200s", why);
+        pthread_mutex_unlock(&c->lock);
+    }
+}
+
+/* Copies member m's wants when they changed since the last look; *fresh
+ * tells whether they did. False when out of memory for the copy. */
+static bool take_wants(link_member *m, bool *fresh)
+{
+    ms_core *c = m->core;
     pthread_mutex_lock(&c->lock);
-    *fresh = c->want_serial != c->net_want_serial;
+    *fresh = c->want_serial != m->want_serial;
     if (*fresh) {
-        if (c->want_count > c->net_want_cap) {
-            want *grown = realloc(c->net_wants, c->want_count * sizeof *grown);
+        if (c->want_count > m->want_cap) {
+            want *grown = realloc(m->wants, c->want_count * sizeof *grown);
             if (!grown) {
                 pthread_mutex_unlock(&c->lock);
                 return false;
             }
-            c->net_wants = grown;
-            c->net_want_cap = c->want_count;
+            m->wants = grown;
+            m->want_cap = c->want_count;
         }
         if (c->want_count)
-            memcpy(c->net_wants, c->wants, c->want_count * sizeof *c->wants);
-        c->net_want_count = c->want_count;
-        c->net_want_serial = c->want_serial;
-        c->net_consumed_seq = c->want_consumed_seq;
+            memcpy(m->wants, c->wants, c->want_count * sizeof *c->wants);
+        m->want_count = c->want_count;
+        m->want_serial = c->want_serial;
+        m->consumed_seq = c->want_consumed_seq;
     }
-    *in_flight = c->bytes_in_flight;
     pthread_mutex_unlock(&c->lock);
     return true;
 }
 
-/* Cancels the requests in flight that no fresh want still covers. */
-static void net_cancel_unwanted(ms_core *c)
+/* Cancels member i's requests in flight that none of its fresh wants still
+ * covers. */
+static void cancel_unwanted(ms_core_link *l, uint8_t i)
 {
+    const link_member *m = &l->members[i];
     for (uint32_t k = 0; k < MAX_SLOTS; ++k)
-        c->slots[k].keep = false;
-    for (size_t i = 0; i < c->net_want_count; ++i) {
-        const want *w = &c->net_wants[i];
-        for (uint32_t k = *head_of(c, w->cell, w->stream); k != NO_SLOT; k = c->slots[k].next)
-            if (slot_is(&c->slots[k], w->cell, w->stream) &&
+        l->slots[k].keep = false;
+    for (size_t j = 0; j < m->want_count; ++j) {
+        const want *w = &m->wants[j];
+        for (uint32_t k = *head_of(l, i, w->cell, w->stream); k != NO_SLOT; k = l->slots[k].next)
+            if (slot_is(&l->slots[k], i, w->cell, w->stream) &&
                 (w->stream == STREAM_INDEX || /* a subtree still wanted: its request stays */
-                 (c->slots[k].start + c->slots[k].got < w->end && c->slots[k].end > w->start)))
-                c->slots[k].keep = true;
+                 (l->slots[k].start + l->slots[k].got < w->end && l->slots[k].end > w->start)))
+                l->slots[k].keep = true;
     }
     ms_proto_id_range ranges[64];
     uint16_t nr = 0;
+    uint64_t cancels = 0;
     for (uint32_t k = 0; k < MAX_SLOTS; ++k) {
-        slot *s = &c->slots[k];
-        if (!s->used || s->keep || s->cancelled || s->done)
+        slot *s = &l->slots[k];
+        if (!s->used || s->member != i || s->keep || s->cancelled || s->done)
             continue;
         s->cancelled = true;
         ranges[nr].first_id = s->id, ranges[nr].count = 1;
         if (++nr == 64) {
-            ms_client_cancel(c->client, ranges, nr, NULL);
+            ms_client_cancel(l->client, ranges, nr, NULL);
             nr = 0;
         }
-        pthread_mutex_lock(&c->lock);
-        c->cancels++;
-        pthread_mutex_unlock(&c->lock);
+        cancels++;
     }
     if (nr)
-        ms_client_cancel(c->client, ranges, nr, NULL);
+        ms_client_cancel(l->client, ranges, nr, NULL);
+    if (cancels) {
+        pthread_mutex_lock(&m->core->lock);
+        m->core->cancels += cancels;
+        pthread_mutex_unlock(&m->core->lock);
+    }
 }
 
-/* A batch of requests being planned: each with the slot reserved for it. */
+/* A round of requests being planned: each with the slot reserved for it. */
 typedef struct request_batch {
     ms_proto_cell_request req[256];
     uint32_t slot[256];
     uint16_t n;
 } request_batch;
 
-/* The part of want w not already on its way (requests are whole ranges from
- * the same table, so a covering request is the usual case) nor in the batch;
- * false when nothing of it is left. */
-static bool net_missing_part(ms_core *c, const want *w, const request_batch *batch,
-                             uint32_t *start_out, uint32_t *end_out)
+/* The part of member i's want w not already on its way (requests are whole
+ * ranges from the same table, so a covering request is the usual case) nor
+ * in the batch; false when nothing of it is left. */
+static bool missing_part(ms_core_link *l, uint8_t i, const want *w, const request_batch *batch,
+                         uint32_t *start_out, uint32_t *end_out)
 {
     uint32_t start = w->start, end = w->end;
     if (w->stream == STREAM_INDEX) {
         /* a subtree is asked for whole (or from where its bytes stopped), once */
-        for (uint32_t k = *head_of(c, w->cell, w->stream); k != NO_SLOT; k = c->slots[k].next)
-            if (slot_is(&c->slots[k], w->cell, w->stream) && !c->slots[k].cancelled)
+        for (uint32_t k = *head_of(l, i, w->cell, w->stream); k != NO_SLOT; k = l->slots[k].next)
+            if (slot_is(&l->slots[k], i, w->cell, w->stream) && !l->slots[k].cancelled)
                 return false;
         for (uint16_t j = 0; j < batch->n; ++j)
-            if (batch->req[j].cell_id == w->cell && batch->req[j].stream == STREAM_INDEX)
+            if (l->slots[batch->slot[j]].member == i && batch->req[j].cell_id == w->cell &&
+                batch->req[j].stream == STREAM_INDEX)
                 return false;
         *start_out = start, *end_out = end;
         return start < end;
     }
-    for (uint32_t k = *head_of(c, w->cell, w->stream); k != NO_SLOT; k = c->slots[k].next) {
-        const slot *s = &c->slots[k];
-        if (s->cancelled || !slot_is(s, w->cell, w->stream))
+    for (uint32_t k = *head_of(l, i, w->cell, w->stream); k != NO_SLOT; k = l->slots[k].next) {
+        const slot *s = &l->slots[k];
+        if (s->cancelled || !slot_is(s, i, w->cell, w->stream))
             continue;
         if (s->start <= start && s->end > start)
             start = s->end;
@@ -219,18 +301,19 @@ static bool net_missing_part(ms_core *c, const want *w, const request_batch *bat
     }
     bool dup = false;
     for (uint16_t j = 0; j < batch->n; ++j)
-        if (batch->req[j].cell_id == w->cell && batch->req[j].stream == w->stream &&
-            batch->req[j].a <= start && batch->req[j].a + batch->req[j].b >= end)
+        if (l->slots[batch->slot[j]].member == i && batch->req[j].cell_id == w->cell &&
+            batch->req[j].stream == w->stream && batch->req[j].a <= start &&
+            batch->req[j].a + batch->req[j].b >= end)
             dup = true;
     *start_out = start, *end_out = end;
     return start < end && !dup;
 }
 
 /* A free slot not yet reserved by the batch, or NO_SLOT. */
-static uint32_t net_free_slot(const ms_core *c, const request_batch *batch)
+static uint32_t free_slot(const ms_core_link *l, const request_batch *batch)
 {
     uint32_t k = 0;
-    while (k < MAX_SLOTS && c->slots[k].used)
+    while (k < MAX_SLOTS && l->slots[k].used)
         ++k;
     if (k == MAX_SLOTS)
         return NO_SLOT;
@@ -240,11 +323,24 @@ static uint32_t net_free_slot(const ms_core *c, const request_batch *batch)
     return k;
 }
 
-/* Plans the best missing ranges while the window, the server's limits and
- * the slots allow, reserving a slot for each. */
-static void net_plan(ms_core *c, uint64_t in_flight, request_batch *batch)
+int ms_core_merge_next(const want *const *lists, const size_t *counts, const size_t *cursors,
+                       unsigned n)
 {
-    const ms_proto_hello_reply *lim = ms_client_limits(c->client);
+    int best = -1;
+    for (unsigned i = 0; i < n; ++i) {
+        if (!lists[i] || cursors[i] >= counts[i])
+            continue;
+        if (best < 0 || lists[i][cursors[i]].priority < lists[best][cursors[best]].priority)
+            best = (int)i;
+    }
+    return best;
+}
+
+/* Plans the best missing ranges of all the members while the window, the
+ * server's limits and the slots allow, reserving a slot for each. */
+static void net_plan(ms_core_link *l, request_batch *batch)
+{
+    const ms_proto_hello_reply *lim = ms_client_limits(l->client);
     uint32_t max_batch = lim->max_batch ? lim->max_batch : 64;
     uint32_t max_out = lim->max_outstanding ? lim->max_outstanding : 64;
     if (max_out > MAX_SLOTS)
@@ -252,25 +348,38 @@ static void net_plan(ms_core *c, uint64_t in_flight, request_batch *batch)
     if (max_batch > 256)
         max_batch = 256;
     batch->n = 0;
+    uint64_t in_flight = l->in_flight;
     /* whole subtrees on their way: their size comes with their first frame,
      * so the window counts each as a typical stored subtree */
     for (uint32_t k = 0; k < MAX_SLOTS; ++k)
-        if (c->slots[k].used && !c->slots[k].done && !c->slots[k].cancelled &&
-            c->slots[k].stream == STREAM_INDEX && c->slots[k].start == c->slots[k].end)
+        if (l->slots[k].used && !l->slots[k].done && !l->slots[k].cancelled &&
+            l->slots[k].stream == STREAM_INDEX && l->slots[k].start == l->slots[k].end)
             in_flight += SUBTREE_BYTES_GUESS;
-    for (size_t i = 0; i < c->net_want_count && batch->n < max_batch; ++i) {
-        if (c->slots_active + batch->n >= max_out || c->slots_used + batch->n >= MAX_SLOTS ||
-            (in_flight > 0 && in_flight >= c->window))
+    /* the members' lists, merged by priority as the round goes */
+    const want *lists[MS_CORE_LINK_MAX_MEMBERS];
+    size_t counts[MS_CORE_LINK_MAX_MEMBERS], cursors[MS_CORE_LINK_MAX_MEMBERS] = {0};
+    for (unsigned i = 0; i < MS_CORE_LINK_MAX_MEMBERS; ++i) {
+        const link_member *m = &l->members[i];
+        bool planned = live(m) && m->ready;
+        lists[i] = planned ? m->wants : NULL;
+        counts[i] = planned ? m->want_count : 0;
+    }
+    while (batch->n < max_batch) {
+        if (l->slots_active + batch->n >= max_out || l->slots_used + batch->n >= MAX_SLOTS ||
+            (in_flight > 0 && in_flight >= l->window))
             break;
-        const want *w = &c->net_wants[i];
+        int i = ms_core_merge_next(lists, counts, cursors, MS_CORE_LINK_MAX_MEMBERS);
+        if (i < 0)
+            break;
+        const want *w = &lists[i][cursors[i]++];
         uint32_t start, end;
-        if (!net_missing_part(c, w, batch, &start, &end))
+        if (!missing_part(l, (uint8_t)i, w, batch, &start, &end))
             continue;
-        uint32_t k = net_free_slot(c, batch);
+        uint32_t k = free_slot(l, batch);
         if (k == NO_SLOT)
             break;
         /* reserve the slot now so the next search skips it */
-        slot *s = &c->slots[k];
+        slot *s = &l->slots[k];
         memset(s, 0, sizeof *s);
         s->used = true;
         /* a whole subtree of unknown size: one step (PROTOCOL.md); in the
@@ -278,11 +387,12 @@ static void net_plan(ms_core *c, uint64_t in_flight, request_batch *batch)
         bool whole = w->stream == STREAM_INDEX && end == UINT32_MAX;
         if (whole)
             end = start;
-        s->cell = w->cell, s->stream = w->stream, s->start = start, s->end = end;
-        c->slots_used++;
-        c->slots_active++;
-        s->next = *head_of(c, w->cell, w->stream);
-        *head_of(c, w->cell, w->stream) = k;
+        s->member = (uint8_t)i, s->cell = w->cell, s->stream = w->stream;
+        s->start = start, s->end = end;
+        l->slots_used++;
+        l->slots_active++;
+        s->next = *head_of(l, s->member, w->cell, w->stream);
+        *head_of(l, s->member, w->cell, w->stream) = k;
         batch->req[batch->n] = (ms_proto_cell_request){
             .cell_id = w->cell,
             .stream = w->stream,
@@ -295,131 +405,239 @@ static void net_plan(ms_core *c, uint64_t in_flight, request_batch *batch)
     }
 }
 
-/* Sends the batch; a connection that fails to take it is marked dead. */
-static void net_send(ms_core *c, const request_batch *batch)
+/* Sends entries [a, b) of the batch, all of one member, as one REQUEST_CELLS
+ * on its handle; false (the connection marked dead) when it fails. */
+static bool send_run(ms_core_link *l, const request_batch *batch, uint16_t a, uint16_t b)
 {
-    uint16_t n = batch->n;
+    uint8_t i = l->slots[batch->slot[a]].member;
+    link_member *m = &l->members[i];
     uint32_t first;
     ms_error err;
-    if (ms_client_request_cells(c->client, c->handle, batch->req, n, &first, &err) != MS_OK) {
-        for (uint16_t j = 0; j < n; ++j)
-            slot_unlink(c, batch->slot[j]);
-        if (!c->dead) {
-            c->dead = true;
-            snprintf(c->dead_why, sizeof c->dead_why, "%.240s", err.text);
-        }
-        return;
+    if (ms_client_request_cells(l->client, m->handle, &batch->req[a], (uint16_t)(b - a), &first,
+                                &err) != MS_OK) {
+        mark_dead(l, err.text);
+        return false;
     }
-    double t = ms_core_since_start(c);
+    double t = ms_core_link_since_start(l);
     uint64_t bytes = 0;
-    for (uint16_t j = 0; j < n; ++j) {
-        slot *s = &c->slots[batch->slot[j]];
-        s->id = first + j;
+    for (uint16_t j = a; j < b; ++j) {
+        slot *s = &l->slots[batch->slot[j]];
+        s->id = first + (j - a);
         s->sent_at = t;
         bytes += s->end - s->start;
+        if (l->o.request_hook)
+            l->o.request_hook(m->core, s->cell, s->stream, batch->req[j].priority, l->plans,
+                              l->o.request_hook_arg);
     }
-    pthread_mutex_lock(&c->lock);
-    c->bytes_in_flight += bytes;
-    c->requests += n;
-    pthread_mutex_unlock(&c->lock);
+    l->in_flight += bytes;
+    pthread_mutex_lock(&m->core->lock);
+    m->core->bytes_in_flight += bytes;
+    m->core->requests += b - a;
+    pthread_mutex_unlock(&m->core->lock);
+    pthread_mutex_lock(&l->lock);
+    l->requests += b - a;
+    pthread_mutex_unlock(&l->lock);
+    return true;
 }
 
-/* Sends what the wants call for: releases finished requests the decode thread
- * has taken, cancels requests no longer wanted, then issues the best missing
- * ranges while the window allows. */
-static void net_fill(ms_core *c)
+/* Sends the round in its order, one REQUEST_CELLS per run of one member's
+ * entries (request ids are consecutive across them); what a dead connection
+ * did not take is released. */
+static void net_send(ms_core_link *l, const request_batch *batch)
 {
-    if (!c->client || !c->ready || c->dead)
+    uint16_t a = 0;
+    while (a < batch->n) {
+        uint16_t b = a + 1;
+        while (b < batch->n && l->slots[batch->slot[b]].member == l->slots[batch->slot[a]].member)
+            ++b;
+        if (!send_run(l, batch, a, b)) {
+            for (uint16_t j = a; j < batch->n; ++j)
+                slot_unlink(l, batch->slot[j]);
+            break;
+        }
+        a = b;
+    }
+    l->plans++;
+}
+
+/* True while a live member's model is being opened on this connection. */
+static bool opening(const ms_core_link *l)
+{
+    for (unsigned i = 0; i < MS_CORE_LINK_MAX_MEMBERS; ++i)
+        if (live(&l->members[i]) && l->members[i].open_request)
+            return true;
+    return false;
+}
+
+/* Sends what the wants call for: releases finished requests the decode
+ * threads have taken, cancels requests no longer wanted, then issues the best
+ * missing ranges of all the members while the window allows. Nothing new is
+ * asked while a model is being opened: the server answers every OPEN_MODEL
+ * before any payload, so waiting costs nothing on the wire, and the first
+ * window then goes by priority across all the models. */
+static void net_fill(ms_core_link *l)
+{
+    if (!l->client || l->dead)
         return;
-    bool fresh;
-    uint64_t in_flight;
-    if (!net_take_wants(c, &fresh, &in_flight))
+    for (unsigned i = 0; i < MS_CORE_LINK_MAX_MEMBERS; ++i) {
+        link_member *m = &l->members[i];
+        bool fresh;
+        if (!live(m) || !m->ready || !take_wants(m, &fresh))
+            continue;
+        for (uint32_t k = 0; k < MAX_SLOTS; ++k)
+            if (l->slots[k].used && l->slots[k].member == i && l->slots[k].done &&
+                l->slots[k].last_seq <= m->consumed_seq)
+                slot_unlink(l, k);
+        if (fresh)
+            cancel_unwanted(l, (uint8_t)i);
+    }
+    if (opening(l))
         return;
-    for (uint32_t k = 0; k < MAX_SLOTS; ++k)
-        if (c->slots[k].used && c->slots[k].done && c->slots[k].last_seq <= c->net_consumed_seq)
-            slot_unlink(c, k);
-    if (fresh)
-        net_cancel_unwanted(c);
     request_batch batch;
-    net_plan(c, in_flight, &batch);
+    net_plan(l, &batch);
     if (batch.n)
-        net_send(c, &batch);
+        net_send(l, &batch);
+}
+
+/* Sends OPEN_MODEL for member i on the current connection. */
+static void open_member(ms_core_link *l, unsigned i)
+{
+    link_member *m = &l->members[i];
+    ms_error err;
+    m->ready = false;
+    m->handle = 0;
+    if (ms_client_open_model(l->client, m->core->model, &m->open_request, &err) != MS_OK) {
+        m->open_request = 0;
+        mark_dead(l, err.text);
+    }
+}
+
+static int member_by_open(const ms_core_link *l, uint32_t request_id)
+{
+    for (unsigned i = 0; i < MS_CORE_LINK_MAX_MEMBERS; ++i)
+        if (live(&l->members[i]) && l->members[i].open_request == request_id)
+            return (int)i;
+    return -1;
+}
+
+static int member_by_handle(const ms_core_link *l, uint32_t handle)
+{
+    for (unsigned i = 0; i < MS_CORE_LINK_MAX_MEMBERS; ++i)
+        if (live(&l->members[i]) && l->members[i].ready && l->members[i].handle == handle)
+            return (int)i;
+    return -1;
+}
+
+/* An OPEN_MODEL of a member that left: true (and forgotten) when it was one. */
+static bool take_orphan(ms_core_link *l, uint32_t request_id)
+{
+    for (unsigned k = 0; k < l->orphan_count; ++k)
+        if (l->orphan_opens[k] == request_id) {
+            l->orphan_opens[k] = l->orphan_opens[--l->orphan_count];
+            return true;
+        }
+    return false;
+}
+
+/* The first open of member i's model: its index to the decode thread. */
+static bool first_open(ms_core_link *l, unsigned i, const ms_proto_model_opened *o,
+                       const uint8_t *index)
+{
+    link_member *m = &l->members[i];
+    ms_core *c = m->core;
+    bool head = o->index_encoding == MS_PROTO_INDEX_SUBTREES;
+    ms_archive *a;
+    ms_error err;
+    ms_status st = head ? ms_archive_open_head(index, o->index_size, c->model, &a, &err)
+                        : ms_archive_open_index(index, o->index_size, c->model, &a, &err);
+    if (st != MS_OK) {
+        member_fail(l, i, head ? "bad model index head: %.200s" : "bad model index: %.200s",
+                    err.text);
+        return false;
+    }
+    m->opened_once = true;
+    m->content_id = o->content_id;
+    m->by_subtree = head;
+    ms_core_keep_opening(c, a, head);
+    pthread_mutex_lock(&c->lock);
+    c->stats.index_bytes_received += ms_client_index_wire_bytes(l->client);
+    c->index = a;
+    c->index_new = true;
+    pthread_cond_broadcast(&c->wake);
+    pthread_mutex_unlock(&c->lock);
+    return true;
+}
+
+/* A reopen (after a reconnect or MODEL_CHANGED): the same model, or the
+ * member fails. */
+static bool same_model(ms_core_link *l, unsigned i, const ms_proto_model_opened *o)
+{
+    link_member *m = &l->members[i];
+    bool head = o->index_encoding == MS_PROTO_INDEX_SUBTREES;
+    if (head != m->by_subtree) {
+        /* what the decode thread holds is of the other kind */
+        member_fail(l, i, "%.240s", head ? "the server now sends the index by subtree"
+                                         : "the server no longer sends the index by subtree");
+        return false;
+    }
+    if (o->content_id != m->content_id) {
+        ms_core *c = m->core;
+        pthread_mutex_lock(&c->lock);
+        c->stats.model_changed = true;
+        pthread_mutex_unlock(&c->lock);
+        member_fail(l, i, "%.240s", "the model changed on the server while it was streamed");
+        return false;
+    }
+    return true;
 }
 
 static void on_model_opened(ms_client *client, uint32_t request_id,
                             const ms_proto_model_opened *o, const uint8_t *index, void *arg)
 {
-    (void)client;
-    ms_core *c = arg;
-    if (request_id != c->open_request)
-        return;
-    c->last_activity = ms_core_since_start(c);
-    bool head = o->index_encoding == MS_PROTO_INDEX_SUBTREES;
-    if (c->index) {
-        if (head != c->net_by_subtree) {
-            /* what the decode thread holds is of the other kind */
-            ms_core_fail(c, "%.240s", head ? "the server now sends the index by subtree"
-                                           : "the server no longer sends the index by subtree");
-            event_base_loopbreak(c->base);
-            return;
-        }
-        if (o->content_id != c->content_id) {
-            pthread_mutex_lock(&c->lock);
-            c->stats.model_changed = true;
-            ms_core_fail_locked(c, "%.240s",
-                                "the model changed on the server while it was streamed");
-            pthread_mutex_unlock(&c->lock);
-            event_base_loopbreak(c->base);
-            return;
-        }
-    } else {
-        ms_archive *a;
+    ms_core_link *l = arg;
+    l->last_activity = ms_core_link_since_start(l);
+    int i = member_by_open(l, request_id);
+    if (i < 0) {
         ms_error err;
-        ms_status st = head ? ms_archive_open_head(index, o->index_size, c->model, &a, &err)
-                            : ms_archive_open_index(index, o->index_size, c->model, &a, &err);
-        if (st != MS_OK) {
-            ms_core_fail(c, head ? "bad model index head: %.200s" : "bad model index: %.200s",
-                         err.text);
-            event_base_loopbreak(c->base);
-            return;
-        }
-        c->content_id = o->content_id;
-        c->net_by_subtree = head;
-        ms_core_keep_opening(c, a, head);
-        pthread_mutex_lock(&c->lock);
-        c->stats.index_bytes_received += ms_client_index_wire_bytes(c->client);
-        c->index = a;
-        c->index_new = true;
-        pthread_cond_broadcast(&c->wake);
-        pthread_mutex_unlock(&c->lock);
+        if (take_orphan(l, request_id) &&
+            ms_client_close_model(client, o->model_handle, &err) != MS_OK)
+            mark_dead(l, err.text);
+        return;
     }
-    c->handle = o->model_handle;
-    c->ready = true;
-    double outage = c->down_since >= 0 ? c->last_activity - c->down_since : 0.0;
-    c->down_since = -1;
-    c->backoff = 0.1;
+    link_member *m = &l->members[i];
+    m->open_request = 0;
+    m->handle = o->model_handle;
+    m->ready = true; /* so that a failure below closes the handle */
+    if (!(m->opened_once ? same_model(l, (unsigned)i, o) : first_open(l, (unsigned)i, o, index)))
+        return;
+    double outage = m->down_since >= 0 ? l->last_activity - m->down_since : 0.0;
+    m->down_since = -1;
+    l->down_since = -1;
+    l->backoff = 0.1;
+    ms_core *c = m->core;
     pthread_mutex_lock(&c->lock);
     c->model_open = true;
     c->connected = true;
     if (outage > c->longest_outage)
         c->longest_outage = outage;
-    c->republish = true;          /* the decode thread recomputes its wants */
-    c->net_want_serial = c->want_serial - 1; /* and we re-read them */
+    c->republish = true;                  /* the decode thread recomputes its wants */
+    m->want_serial = c->want_serial - 1;  /* and we re-read them */
     pthread_cond_broadcast(&c->wake);
     pthread_mutex_unlock(&c->lock);
-    net_fill(c);
+    net_fill(l);
 }
 
 static void on_payload(ms_client *client, uint32_t id, const ms_proto_payload *p, bool last,
                        void *arg)
 {
     (void)client;
-    ms_core *c = arg;
-    c->last_activity = ms_core_since_start(c);
-    uint32_t k = slot_find(c, id);
+    ms_core_link *l = arg;
+    l->last_activity = ms_core_link_since_start(l);
+    uint32_t k = slot_find(l, id);
     if (k == NO_SLOT)
         return;
-    slot *s = &c->slots[k];
+    slot *s = &l->slots[k];
+    ms_core *c = core_of(l, s);
     if (p->data_length) {
         chunk_msg *m = malloc(sizeof *m + p->data_length);
         if (m) {
@@ -442,36 +660,50 @@ static void on_payload(ms_client *client, uint32_t id, const ms_proto_payload *p
         if (got > s->got)
             c->bytes_in_flight -= got - s->got;
         pthread_mutex_unlock(&c->lock);
-        if (got > s->got)
+        if (got > s->got) {
+            l->in_flight -= got - s->got;
             s->got = got;
+        }
     }
     if (last) {
-        record_latency(c, c->last_activity - s->sent_at);
-        finish_slot(c, k);
-        net_fill(c);
+        pthread_mutex_lock(&c->lock);
+        if (c->latency_count < LATENCY_KEEP)
+            c->latencies[c->latency_count++] = l->last_activity - s->sent_at;
+        pthread_mutex_unlock(&c->lock);
+        finish_slot(l, k);
+        net_fill(l);
     }
 }
 
-/* ERROR MODEL_CHANGED named our handle: the server closed it and ended every
- * request on it. Forget them (the decode thread knows what arrived and asks
- * for the rest again) and reopen the model by name on the same connection:
- * on_model_opened then goes on if the content_id is the same, and stops the
- * core with stats.model_changed if not; a removed model answers
- * UNKNOWN_MODEL (on_request_error). */
-static void net_reopen(ms_core *c)
+/* ERROR MODEL_CHANGED named member i's handle: the server closed it and ended
+ * every request on it. Forget them (the decode thread knows what arrived and
+ * asks for the rest again) and reopen the model by name on the same
+ * connection: on_model_opened then goes on if the content_id is the same,
+ * and fails the member with stats.model_changed if not; a removed model
+ * answers UNKNOWN_MODEL (on_request_error). */
+static void reopen(ms_core_link *l, unsigned i)
 {
-    for (uint32_t k = 0; k < MAX_SLOTS; ++k)
-        if (c->slots[k].used)
-            end_slot(c, k);
-    c->ready = false;
-    c->handle = 0;
+    end_slots(l, (int)i);
+    ms_core *c = l->members[i].core;
     pthread_mutex_lock(&c->lock);
     c->model_open = false;
     pthread_mutex_unlock(&c->lock);
-    ms_error err;
-    if (ms_client_open_model(c->client, c->model, &c->open_request, &err) != MS_OK && !c->dead) {
-        c->dead = true;
-        snprintf(c->dead_why, sizeof c->dead_why, "%.240s", err.text);
+    open_member(l, i);
+}
+
+/* A connection-level ERROR (request_count 0) naming a handle. */
+static void handle_error(ms_core_link *l, const ms_proto_error_body *e)
+{
+    int i = member_by_handle(l, e->detail);
+    if (i < 0)
+        return; /* a handle closed since, or none of ours */
+    if (e->code == MS_PROTO_E_MODEL_CHANGED) {
+        reopen(l, (unsigned)i);
+    } else if (e->code == MS_PROTO_E_UNKNOWN_MODEL || e->code == MS_PROTO_E_BAD_MODEL_NAME) {
+        char text[300];
+        snprintf(text, sizeof text, "model '%.64s': %s", l->members[i].core->model,
+                 ms_proto_error_name(e->code));
+        member_fail(l, (unsigned)i, "%.240s", text);
     }
 }
 
@@ -479,169 +711,240 @@ static void on_request_error(ms_client *client, uint32_t first, uint32_t count,
                              const ms_proto_error_body *e, void *arg)
 {
     (void)client;
-    ms_core *c = arg;
-    c->last_activity = ms_core_since_start(c);
+    ms_core_link *l = arg;
+    l->last_activity = ms_core_link_since_start(l);
     if (count == 0) {
-        if (e->code == MS_PROTO_E_MODEL_CHANGED) {
-            if (c->ready && e->detail == c->handle)
-                net_reopen(c);
-            return;
-        }
-        if (e->code == MS_PROTO_E_UNKNOWN_MODEL || e->code == MS_PROTO_E_BAD_MODEL_NAME) {
-            char text[300];
-            snprintf(text, sizeof text, "model '%.64s': %s", c->model,
-                     ms_proto_error_name(e->code));
-            ms_core_fail(c, "%.240s", text);
-            event_base_loopbreak(c->base);
-        }
+        handle_error(l, e);
         return;
     }
-    if (first == c->open_request) {
+    int opener = member_by_open(l, first);
+    if (opener >= 0) {
         char text[300];
-        snprintf(text, sizeof text, "cannot open model '%.64s': %s %.*s", c->model,
-                 ms_proto_error_name(e->code), (int)(e->text_length > 150 ? 150 : e->text_length),
-                 e->text);
-        ms_core_fail(c, "%.240s", text);
-        event_base_loopbreak(c->base);
+        snprintf(text, sizeof text, "cannot open model '%.64s': %s %.*s",
+                 l->members[opener].core->model, ms_proto_error_name(e->code),
+                 (int)(e->text_length > 150 ? 150 : e->text_length), e->text);
+        l->members[opener].open_request = 0;
+        member_fail(l, (unsigned)opener, "%.240s", text);
         return;
     }
+    if (take_orphan(l, first))
+        return;
     bool transient = e->code == MS_PROTO_E_CANCELLED || e->code == MS_PROTO_E_RATE_LIMITED ||
                      e->code == MS_PROTO_E_QUEUE_FULL ||
                      e->code == MS_PROTO_E_TOO_MANY_OUTSTANDING;
     for (uint64_t id = first; id < (uint64_t)first + count; ++id) {
-        uint32_t k = slot_find(c, (uint32_t)id);
+        uint32_t k = slot_find(l, (uint32_t)id);
         if (k == NO_SLOT)
             continue;
         if (!transient) {
             chunk_msg *m = malloc(sizeof *m);
             if (m) {
                 memset(m, 0, sizeof *m);
-                m->cell = c->slots[k].cell, m->stream = c->slots[k].stream, m->failed = true;
-                ms_core_push_chunk(c, m);
+                m->cell = l->slots[k].cell, m->stream = l->slots[k].stream, m->failed = true;
+                ms_core_push_chunk(core_of(l, &l->slots[k]), m);
             }
         }
-        end_slot(c, k);
+        end_slot(l, k);
     }
     if (e->code == MS_PROTO_E_RATE_LIMITED || e->code == MS_PROTO_E_QUEUE_FULL) {
-        /* ask again after a pause: the decode thread republishes */
-        pthread_mutex_lock(&c->lock);
-        c->net_want_serial = c->want_serial - 1;
-        pthread_mutex_unlock(&c->lock);
+        /* ask again after a pause (the next tick), with the wants read anew */
+        for (unsigned i = 0; i < MS_CORE_LINK_MAX_MEMBERS; ++i)
+            if (l->members[i].seen)
+                l->members[i].want_serial = UINT64_MAX;
         return;
     }
-    net_fill(c);
+    net_fill(l);
 }
 
 static void on_closed(ms_client *client, const char *why, void *arg)
 {
     (void)client;
-    ms_core *c = arg;
+    ms_core_link *l = arg;
     /* ms_client is still on the stack: free it from the next tick */
-    c->dead = true;
-    c->ready = false;
-    snprintf(c->dead_why, sizeof c->dead_why, "%.240s", why);
+    mark_dead(l, why);
 }
 
-static const ms_client_handlers core_handlers = {
+static const ms_client_handlers link_handlers = {
     .model_opened = on_model_opened,
     .payload = on_payload,
     .request_error = on_request_error,
     .closed = on_closed,
 };
 
-static void net_connect(ms_core *c)
+/* Connects and opens every live member's model. */
+static void net_connect(ms_core_link *l)
 {
-    ms_client_options co = {.host = c->host, .port = c->o.port, .token = c->token,
-                            .agent = c->agent, .max_frame = 1u << 20,
-                            .raw_index = c->o.raw_index,
-                            .index_subtrees = !c->o.whole_index};
+    ms_client_options co = {.host = l->host, .port = l->o.port, .token = l->token,
+                            .agent = l->agent, .max_frame = 1u << 20,
+                            .raw_index = l->o.raw_index,
+                            .index_subtrees = !l->o.whole_index};
     ms_error err;
-    c->last_activity = ms_core_since_start(c);
-    c->last_read = 0;
-    if (ms_client_connect(c->base, &co, &core_handlers, c, &c->client, &err) != MS_OK) {
-        c->client = NULL;
-        net_drop(c, err.text);
+    l->last_activity = ms_core_link_since_start(l);
+    l->last_read = 0;
+    for (unsigned i = 0; i < MS_CORE_LINK_MAX_MEMBERS; ++i) {
+        if (!live(&l->members[i]) || !l->members[i].opened_once)
+            continue;
+        ms_core *c = l->members[i].core;
+        pthread_mutex_lock(&c->lock);
+        c->reconnects++;
+        pthread_mutex_unlock(&c->lock);
+    }
+    if (ms_client_connect(l->base, &co, &link_handlers, l, &l->client, &err) != MS_OK) {
+        l->client = NULL;
+        net_drop(l, err.text);
         return;
     }
-    if (c->o.bandwidth > 0 && ms_client_set_rate_limit(c->client, c->o.bandwidth, &err) != MS_OK) {
-        net_drop(c, err.text);
+    pthread_mutex_lock(&l->lock);
+    l->connections++;
+    l->connected = true;
+    pthread_mutex_unlock(&l->lock);
+    if (l->o.bandwidth > 0 && ms_client_set_rate_limit(l->client, l->o.bandwidth, &err) != MS_OK) {
+        net_drop(l, err.text);
         return;
     }
-    if (ms_client_open_model(c->client, c->model, &c->open_request, &err) != MS_OK) {
-        net_drop(c, err.text);
-        return;
+    for (unsigned i = 0; i < MS_CORE_LINK_MAX_MEMBERS && !l->dead; ++i) {
+        if (!live(&l->members[i]))
+            continue;
+        ms_core *c = l->members[i].core;
+        pthread_mutex_lock(&c->lock);
+        c->connected = true;
+        pthread_mutex_unlock(&c->lock);
+        open_member(l, i);
     }
-    pthread_mutex_lock(&c->lock);
-    c->connected = true;
-    pthread_mutex_unlock(&c->lock);
+}
+
+/* Takes in the members that joined and retires those that leave or failed
+ * (ms_core_link_join/_leave change states under the lock; the link's thread
+ * acts on them here). */
+static void sync_members(ms_core_link *l)
+{
+    bool joining[MS_CORE_LINK_MAX_MEMBERS], leaving[MS_CORE_LINK_MAX_MEMBERS];
+    pthread_mutex_lock(&l->lock);
+    for (unsigned i = 0; i < MS_CORE_LINK_MAX_MEMBERS; ++i) {
+        link_member *m = &l->members[i];
+        joining[i] = m->state == MEMBER_JOINING;
+        leaving[i] = m->state == MEMBER_LEAVING;
+        if (joining[i])
+            m->state = MEMBER_ACTIVE;
+    }
+    pthread_mutex_unlock(&l->lock);
+    bool left = false;
+    for (unsigned i = 0; i < MS_CORE_LINK_MAX_MEMBERS; ++i) {
+        link_member *m = &l->members[i];
+        if (joining[i]) {
+            m->seen = true;
+            if (l->client && !l->dead) {
+                pthread_mutex_lock(&m->core->lock);
+                m->core->connected = true;
+                pthread_mutex_unlock(&m->core->lock);
+                open_member(l, i);
+            }
+        }
+        if (!m->seen)
+            continue;
+        if (leaving[i]) {
+            retire(l, i);
+            m->seen = false;
+            left = true;
+            continue;
+        }
+        pthread_mutex_lock(&m->core->lock);
+        bool over = m->core->stopping || m->core->fatal;
+        pthread_mutex_unlock(&m->core->lock);
+        if (over)
+            retire(l, i);
+    }
+    if (!left)
+        return;
+    pthread_mutex_lock(&l->lock);
+    for (unsigned i = 0; i < MS_CORE_LINK_MAX_MEMBERS; ++i)
+        if (leaving[i]) {
+            l->members[i].state = MEMBER_FREE;
+            l->members[i].core = NULL;
+        }
+    pthread_cond_broadcast(&l->left);
+    pthread_mutex_unlock(&l->lock);
+}
+
+/* Fails every live member: no usable connection for give_up_seconds. */
+static void give_up(ms_core_link *l, double t)
+{
+    char text[200];
+    snprintf(text, sizeof text, "%s:%u: no usable connection for %.1f s", l->host, l->o.port,
+             t - l->down_since);
+    for (unsigned i = 0; i < MS_CORE_LINK_MAX_MEMBERS; ++i)
+        if (live(&l->members[i]))
+            member_fail(l, i, "%.240s", text);
+    l->down_since = -1;
 }
 
 void ms_core_net_tick(evutil_socket_t fd, short what, void *arg)
 {
     (void)fd, (void)what;
-    ms_core *c = arg;
-    pthread_mutex_lock(&c->lock);
-    bool stop = c->stopping || c->fatal;
-    pthread_mutex_unlock(&c->lock);
+    ms_core_link *l = arg;
+    pthread_mutex_lock(&l->lock);
+    bool stop = l->stopping;
+    pthread_mutex_unlock(&l->lock);
     if (stop) {
-        event_base_loopbreak(c->base);
+        event_base_loopbreak(l->base);
         return;
     }
-    double t = ms_core_since_start(c);
-    if (c->dead) {
-        c->dead = false;
-        net_drop(c, c->dead_why);
+    sync_members(l);
+    double t = ms_core_link_since_start(l);
+    if (l->dead) {
+        l->dead = false;
+        net_drop(l, l->dead_why);
     }
-    if (!c->client) {
-        if (c->down_since >= 0 && t - c->down_since > c->o.give_up_seconds) {
-            char text[200];
-            snprintf(text, sizeof text, "%s:%u: no usable connection for %.1f s", c->host,
-                     c->o.port, t - c->down_since);
-            ms_core_fail(c, "%.240s", text);
-            event_base_loopbreak(c->base);
+    bool anyone = false;
+    for (unsigned i = 0; i < MS_CORE_LINK_MAX_MEMBERS; ++i)
+        anyone |= live(&l->members[i]);
+    if (!l->client) {
+        if (!anyone) { /* nobody to stream for: no reconnecting, no giving up */
+            l->down_since = -1;
             return;
         }
-        if (t >= c->reconnect_at) {
-            if (c->index) {
-                pthread_mutex_lock(&c->lock);
-                c->reconnects++;
-                pthread_mutex_unlock(&c->lock);
-            }
-            net_connect(c);
-        }
+        if (l->down_since >= 0 && t - l->down_since > l->o.give_up_seconds)
+            give_up(l, t);
+        else if (t >= l->reconnect_at)
+            net_connect(l);
         return;
     }
-    if (note_socket_bytes(c)) /* any frame counts, index data included */
-        c->last_activity = t;
-    bool waiting = !c->ready || c->slots_active > 0;
-    if (waiting && t - c->last_activity > c->o.answer_timeout) {
+    if (note_socket_bytes(l)) /* any frame counts, index data included */
+        l->last_activity = t;
+    /* the answer time-out runs from the later of the last frame and the
+     * moment something began to be awaited: a member that joins, or a first
+     * request, after a quiet spell must not find the clock already run out */
+    bool waiting = opening(l) || l->slots_active > 0;
+    if (waiting && !l->was_waiting)
+        l->last_activity = t;
+    l->was_waiting = waiting;
+    if (waiting && t - l->last_activity > l->o.answer_timeout) {
         char why[128];
-        snprintf(why, sizeof why, "the server sent nothing for %.1f s", t - c->last_activity);
-        net_drop(c, why);
+        snprintf(why, sizeof why, "the server sent nothing for %.1f s", t - l->last_activity);
+        net_drop(l, why);
         return;
     }
-    net_fill(c);
+    net_fill(l);
 }
 
 void *ms_core_net_main(void *arg)
 {
-    ms_core *c = arg;
+    ms_core_link *l = arg;
     /* A write to a connection the server has closed raises SIGPIPE in the
      * writing thread: block it here (only here) and see the error instead. */
     sigset_t pipe_only;
     sigemptyset(&pipe_only);
     sigaddset(&pipe_only, SIGPIPE);
     pthread_sigmask(SIG_BLOCK, &pipe_only, NULL);
-    net_connect(c);
     struct timeval every = {0, 5000};
-    event_add(c->tick, &every);
-    event_base_dispatch(c->base);
-    if (c->client) {
-        ms_client_free(c->client);
-        c->client = NULL;
+    event_add(l->tick, &every);
+    event_base_dispatch(l->base);
+    if (l->client) {
+        ms_client_free(l->client);
+        l->client = NULL;
     }
-    pthread_mutex_lock(&c->lock);
-    c->connected = false;
-    pthread_mutex_unlock(&c->lock);
+    pthread_mutex_lock(&l->lock);
+    l->connected = false;
+    pthread_mutex_unlock(&l->lock);
     return NULL;
 }

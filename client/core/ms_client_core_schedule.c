@@ -98,7 +98,7 @@ static void schedule_prefetch(ms_core *c, dec_pass *pass, uint32_t i)
 {
     const ms_archive_cell *rec = ms_archive_get_cell(c->index, i);
     const dcell *d = ms_core_dcell(c, i);
-    uint8_t t = c->target[i];
+    uint8_t t = ms_view_target(c->view, i);
     if (t == MS_VIEW_TARGET_HIDDEN || rec->parent == MS_ARCHIVE_NONE ||
         ms_view_state(c->view, rec->parent) != MS_VIEW_SHOWN || rec->geometry_length == 0 ||
         d->failed)
@@ -144,7 +144,7 @@ static bool schedule_geometry(ms_core *c, dec_pass *pass, uint32_t i, unsigned g
             continue;
         double p = (visible ? 128.0 : 192.0) - 8.0 * (need - s);
         double grow = ms_core_decoded_estimate(rec, s) - ms_core_decoded_estimate(rec, s - 1);
-        if (s == rec->bits_max && c->target[i] == MS_VIEW_TARGET_SPLIT)
+        if (s == rec->bits_max && ms_view_target(c->view, i) == MS_VIEW_TARGET_SPLIT)
             grow += rec->vertex_count * BYTES_PER_VERTEX; /* the children */
         ms_core_want_push(&pass->wl, (want){i, a, b, STREAM_GEOMETRY, ms_core_clamp_priority(p),
                                             (uint32_t)(grow > 4e9 ? 4e9 : grow)});
@@ -163,7 +163,7 @@ static bool schedule_apo(ms_core *c, dec_pass *pass, uint32_t i, bool visible, d
     const ms_archive_cell *rec = ms_archive_get_cell(c->index, i);
     const dcell *d = ms_core_dcell(c, i);
     if (!(pass->apo_on && visible && rec->apo_length > 0 && !d->failed &&
-          c->target[i] != MS_VIEW_TARGET_SPLIT && !d->blocked))
+          ms_view_target(c->view, i) != MS_VIEW_TARGET_SPLIT && !d->blocked))
         return false;
     unsigned cap = c->o.apo_levels < rec->apo_levels ? c->o.apo_levels : rec->apo_levels;
     double lo[3], hi[3];
@@ -202,7 +202,7 @@ static void schedule_shown(ms_core *c, dec_pass *pass, uint32_t i)
         if (e > pass->worst)
             pass->worst = e;
     }
-    uint8_t t = c->target[i];
+    uint8_t t = ms_view_target(c->view, i);
     unsigned goal = t == MS_VIEW_TARGET_SPLIT || t == MS_VIEW_TARGET_HIDDEN ? rec->bits_max : t;
     if (goal > rec->bits_max)
         goal = rec->bits_max;

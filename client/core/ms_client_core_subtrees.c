@@ -94,11 +94,6 @@ static void note_index_held(ms_core *c)
 bool ms_core_take_index(ms_core *c, ms_error *err)
 {
     const ms_archive_header *h = ms_archive_get_header(c->index);
-    c->target = malloc(h->cell_count);
-    if (!c->target) {
-        ms_error_set(err, MS_ERR_NOMEM, "out of memory for %u cells", h->cell_count);
-        return false;
-    }
     if (ms_view_create_partial(h, &c->view, err) != MS_OK)
         return false;
     c->by_subtree = ms_archive_is_partial(c->index);
@@ -275,7 +270,8 @@ void ms_core_schedule_subtrees(ms_core *c, dec_pass *pass)
     /* the subtrees of the cut: a cell split, or about to split, at a
      * subtree's last level holds its children in the next one */
     for (uint32_t i = 0; i != MS_ARCHIVE_NONE; i = ms_view_next_known(c->view, i))
-        if (ms_view_state(c->view, i) == MS_VIEW_SPLIT || c->target[i] == MS_VIEW_TARGET_SPLIT)
+        if (ms_view_state(c->view, i) == MS_VIEW_SPLIT ||
+            ms_view_target(c->view, i) == MS_VIEW_TARGET_SPLIT)
             need_children(c, pass, i, 0);
     /* cells that would split: their children's records first, ahead of the
      * cell's own next bit (priority 128 - 8 (need - bit), 64 later culled) */

@@ -54,6 +54,8 @@ typedef struct client_result {
     /* the cold phase's index: by subtree or whole (ms_core_stats) */
     bool index_by_subtree;
     uint64_t subtrees_received, index_bytes_received, peak_index_bytes_held;
+    uint64_t state_bytes_held; /* per-cell bookkeeping at the cold phase's end */
+    uint32_t state_cells;
     /* path phase */
     key_result keys[MAX_KEYS];
     size_t key_count;
@@ -194,6 +196,8 @@ static void cold_phase(worker *w)
     res->subtrees_received = st.subtrees_received;
     res->index_bytes_received = st.index_bytes_received;
     res->peak_index_bytes_held = st.peak_index_bytes_held;
+    res->state_bytes_held = st.state_bytes_held;
+    res->state_cells = st.state_cells;
     if (st.error[0])
         snprintf(res->error, sizeof res->error, "%.250s", st.error);
     ms_core_stop(core);
@@ -440,10 +444,12 @@ static json_t *client_json(unsigned i, const client_result *c, const run *r)
         ms_json_fixed(c->decode_draco_seconds, 4), "error", ms_json_text(c->error),
         "failover_seconds", ms_json_fixed(c->longest_outage, 4), "keyframes", keyframes);
     json_object_set_new(client, "model_changes", json_integer((json_int_t)c->model_changes));
-    json_t *index = json_pack("{s:b, s:I, s:I, s:I}", "by_subtree", c->index_by_subtree,
+    json_t *index = json_pack("{s:b, s:I, s:I, s:I, s:I, s:I}", "by_subtree", c->index_by_subtree,
                               "subtrees_received", (json_int_t)c->subtrees_received,
                               "index_bytes_received", (json_int_t)c->index_bytes_received,
-                              "peak_index_bytes_held", (json_int_t)c->peak_index_bytes_held);
+                              "peak_index_bytes_held", (json_int_t)c->peak_index_bytes_held,
+                              "state_cells", (json_int_t)c->state_cells,
+                              "state_bytes_held", (json_int_t)c->state_bytes_held);
     if (client && index)
         json_object_set_new(client, "cold_index", index);
     else
@@ -483,7 +489,7 @@ static void report_json(const ms_load_options *o, const run *r, const worker *ws
     for (unsigned i = 0; i < n; ++i)
         json_array_append_new(per_client, client_json(i, &ws[i].result, r));
     /* the cold open's index, worst client */
-    uint64_t index_received = 0, index_held = 0, subtrees = 0;
+    uint64_t index_received = 0, index_held = 0, subtrees = 0, state_held = 0;
     for (unsigned i = 0; i < n; ++i) {
         const client_result *c = &ws[i].result;
         if (c->index_bytes_received > index_received)
@@ -492,11 +498,14 @@ static void report_json(const ms_load_options *o, const run *r, const worker *ws
             index_held = c->peak_index_bytes_held;
         if (c->subtrees_received > subtrees)
             subtrees = c->subtrees_received;
+        if (c->state_bytes_held > state_held)
+            state_held = c->state_bytes_held;
     }
     if (root) {
         json_object_set_new(root, "cold_index_bytes_received", json_integer((json_int_t)index_received));
         json_object_set_new(root, "cold_peak_index_bytes_held", json_integer((json_int_t)index_held));
         json_object_set_new(root, "cold_subtrees_received", json_integer((json_int_t)subtrees));
+        json_object_set_new(root, "cold_state_bytes_held", json_integer((json_int_t)state_held));
     }
     if (root)
         json_object_set_new(root, "per_client", per_client);
@@ -534,10 +543,12 @@ static void report_text(const ms_load_options *o, const run *r, const worker *ws
                c->p99 * 1e3, c->peak_memory / 1048576.0, c->error[0] ? "; error: " : "",
                c->error);
         printf("    cold index: %s, %llu bytes received (%llu subtrees), at most %llu bytes "
-               "held\n", c->index_by_subtree ? "by subtree" : "whole",
+               "held; cell state %llu bytes (%u cells)\n",
+               c->index_by_subtree ? "by subtree" : "whole",
                (unsigned long long)c->index_bytes_received,
                (unsigned long long)c->subtrees_received,
-               (unsigned long long)c->peak_index_bytes_held);
+               (unsigned long long)c->peak_index_bytes_held,
+               (unsigned long long)c->state_bytes_held, c->state_cells);
         for (size_t k = 0; k < c->key_count; ++k)
             printf("    keyframe %zu (t=%g): view complete after %.3f s%s, error %.2f px "
                    "(tolerance %.2f)\n",

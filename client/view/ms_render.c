@@ -197,15 +197,46 @@ static ms_status check_model(const ms_archive_header *h, const ms_archive_cell *
     return MS_OK;
 }
 
+/* The model's part of a renderer: per-group state and, with a whole index,
+ * its records. */
+static ms_status take_model(ms_render *r, const ms_archive_header *header, const ms_archive_cell *cells,
+                            ms_error *err)
+{
+    ms_status st = check_model(header, cells, err);
+    if (st != MS_OK)
+        return st;
+    size_t n = header->cell_count;
+    uint32_t group_size = header->n * header->n * header->n;
+    uint32_t group_count = 1 + (uint32_t)((n - 1 + group_size - 1) / group_size);
+    render_cell **groups = calloc(group_count, sizeof *groups);
+    ms_archive_cell *records = cells ? malloc(n * sizeof *records) : NULL;
+    if (!groups || (cells && !records)) {
+        free(groups);
+        free(records);
+        return ms_error_set(err, MS_ERR_NOMEM, "render: no memory for %zu cells", n);
+    }
+    if (cells)
+        memcpy(records, cells, n * sizeof *records);
+    r->header = *header;
+    r->group_size = group_size;
+    r->group_count = group_count;
+    r->groups = groups;
+    r->records = records;
+    r->has_model = true;
+    return MS_OK;
+}
+
 ms_status ms_render_new(const ms_archive_header *header, const ms_archive_cell *cells, ms_render **out,
                         ms_error *err)
 {
     if (!out)
         return ms_error_set(err, MS_ERR_ARG, "render: no result pointer");
     *out = NULL;
-    ms_status st = check_model(header, cells, err);
-    if (st != MS_OK)
-        return st;
+    if (header || cells) {
+        ms_status st = check_model(header, cells, err);
+        if (st != MS_OK)
+            return st;
+    }
     if (!glGetString(GL_VERSION))
         return ms_error_set(err, MS_ERR_UNSUPPORTED, "render: no current OpenGL context");
     if (epoxy_gl_version() < 41)
@@ -214,24 +245,19 @@ ms_status ms_render_new(const ms_archive_header *header, const ms_archive_cell *
     ms_render *r = calloc(1, sizeof *r);
     if (!r)
         return ms_error_set(err, MS_ERR_NOMEM, "render: no memory");
-    r->header = *header;
-    size_t n = header->cell_count;
-    r->group_size = header->n * header->n * header->n;
-    r->group_count = 1 + (uint32_t)((n - 1 + r->group_size - 1) / r->group_size);
-    r->groups = calloc(r->group_count, sizeof *r->groups);
-    if (cells && (r->records = malloc(n * sizeof *r->records)))
-        memcpy(r->records, cells, n * sizeof *r->records);
-    if (!r->groups || (cells && !r->records)) {
-        ms_render_free(r);
-        return ms_error_set(err, MS_ERR_NOMEM, "render: no memory for %zu cells", n);
-    }
+    ms_status st = header ? take_model(r, header, cells, err) : MS_OK;
     ms_render_split_init(&r->split, &r->header);
-    const ms_render_program *unused;
-    st = ms_render_find_program(r, MS_EFFECTS_VIEWER, false, false, &unused, err);
+    const ms_render_program *viewer = NULL, *unused;
+    if (st == MS_OK)
+        st = ms_render_find_program(r, MS_EFFECTS_VIEWER, false, false, &viewer, err);
     if (st == MS_OK)
         st = ms_render_find_program(r, MS_EFFECTS_VIEWER, true, false, &unused, err);
     if (st == MS_OK)
         st = ms_render_texels_init(&r->texels, err);
+    /* the viewer's first draw compiles nothing more: the model's first frame
+     * is drawn as soon as it comes (docs/VIEWER.md, "Opening a model") */
+    if (st == MS_OK)
+        ms_render_warm_up(r, viewer);
     if (st != MS_OK) {
         ms_render_free(r);
         return st;
@@ -240,11 +266,27 @@ ms_status ms_render_new(const ms_archive_header *header, const ms_archive_cell *
     return MS_OK;
 }
 
+ms_status ms_render_set_model(ms_render *r, const ms_archive_header *header, ms_error *err)
+{
+    if (!r)
+        return ms_error_set(err, MS_ERR_ARG, "render: no renderer");
+    if (r->has_model)
+        return ms_error_set(err, MS_ERR_ARG, "render: the renderer already has a model");
+    if (!header)
+        return ms_error_set(err, MS_ERR_ARG, "render: no model header");
+    ms_status st = take_model(r, header, NULL, err);
+    if (st == MS_OK)
+        ms_render_split_init(&r->split, &r->header);
+    return st;
+}
+
 ms_status ms_render_learn(ms_render *r, const uint32_t *ids, const ms_archive_cell *records, size_t count,
                           ms_error *err)
 {
     if (!r || (count && (!ids || !records)))
         return ms_error_set(err, MS_ERR_ARG, "render: nothing to learn from");
+    if (!r->has_model)
+        return ms_error_set(err, MS_ERR_ARG, "render: no model yet (ms_render_set_model)");
     for (size_t i = 0; i < count; ++i) {
         if (ids[i] >= r->header.cell_count)
             return ms_error_set(err, MS_ERR_ARG, "render: record of cell %u of %u", ids[i], r->header.cell_count);
@@ -384,6 +426,8 @@ ms_status ms_render_set_frame(ms_render *r, const ms_view_mesh *mesh, const ms_c
 {
     if (!r)
         return ms_error_set(err, MS_ERR_ARG, "render: no renderer");
+    if (!r->has_model)
+        return ms_error_set(err, MS_ERR_ARG, "render: no model yet (ms_render_set_model)");
     if (apo_count && !apo)
         return ms_error_set(err, MS_ERR_ARG, "render: %zu APO chunks but no array", apo_count);
     uint32_t n = r->header.cell_count;

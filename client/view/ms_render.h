@@ -183,9 +183,18 @@ void ms_render_options_default(ms_render_options *options);
  * either its whole index (cells: header.cell_count records, copied) or NULL,
  * the records then learned as frames bring them (ms_render_learn, an index by
  * subtree: docs/CLIENT.md). Per-cell state is held per sibling group for the
- * groups of the cells the latest frame draws, never for the whole model. */
+ * groups of the cells the latest frame draws, never for the whole model.
+ * header and cells both NULL: the programs and buffers only, the model given
+ * later by ms_render_set_model (a viewer compiles while the model's index head
+ * is on its way); until then ms_render_learn and ms_render_set_frame are
+ * MS_ERR_ARG and nothing is drawn. */
 ms_status ms_render_new(const ms_archive_header *header, const ms_archive_cell *cells,
                         ms_render **render, ms_error *err);
+
+/* The model of a renderer made without one (its header, copied; the records
+ * come by ms_render_learn). MS_ERR_ARG for a bad header or a renderer that
+ * already has a model; MS_ERR_NOMEM. */
+ms_status ms_render_set_model(ms_render *render, const ms_archive_header *header, ms_error *err);
 
 /* Learns the records of cells ids[0..count) (copied), for the next
  * ms_render_set_frame: every cell a frame draws must have its record, learned

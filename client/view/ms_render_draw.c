@@ -181,6 +181,49 @@ static unsigned effects_ran(const ms_render_program *p, const ms_render_options 
     return ran & p->effects;
 }
 
+/* The fixed state every draw of a model's cells runs with. */
+static void draw_state(void)
+{
+    glDepthMask(GL_TRUE);
+    glEnable(GL_DEPTH_TEST);
+    glDepthFunc(GL_LESS);
+    glDisable(GL_CULL_FACE);
+    glDisable(GL_BLEND);
+    glDisable(GL_FRAMEBUFFER_SRGB); /* the shader encodes sRGB itself */
+}
+
+void ms_render_warm_up(ms_render *r, const ms_render_program *p)
+{
+    static const uint8_t vertices[3 * 16] = {0};
+    static const uint32_t indices[3] = {0, 1, 2};
+    GLuint vao, buffers[2];
+    glGenVertexArrays(1, &vao);
+    glGenBuffers(2, buffers);
+    glBindVertexArray(vao);
+    glBindBuffer(GL_ARRAY_BUFFER, buffers[0]);
+    glBufferData(GL_ARRAY_BUFFER, sizeof vertices, vertices, GL_STATIC_DRAW);
+    glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, buffers[1]);
+    glBufferData(GL_ELEMENT_ARRAY_BUFFER, sizeof indices, indices, GL_STATIC_DRAW);
+    glEnableVertexAttribArray(0);
+    glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 12, NULL);
+    glEnableVertexAttribArray(1);
+    glVertexAttribPointer(1, 4, GL_INT_2_10_10_10_REV, GL_TRUE, 4, (const void *)(uintptr_t)36);
+    glBindBuffer(GL_ARRAY_BUFFER, 0);
+    draw_state();
+    glColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+    glUseProgram(p->program);
+    glActiveTexture(GL_TEXTURE0);
+    glBindTexture(GL_TEXTURE_BUFFER, r->texels.texture);
+    glUniform1i(p->apo_words, 0);
+    glDrawElements(GL_TRIANGLES, 3, GL_UNSIGNED_INT, NULL);
+    glFinish();
+    glBindVertexArray(0);
+    glDeleteVertexArrays(1, &vao);
+    glDeleteBuffers(2, buffers);
+    glBindTexture(GL_TEXTURE_BUFFER, 0);
+    glUseProgram(0);
+}
+
 ms_status ms_render_draw(ms_render *r, const ms_camera *camera, const ms_render_options *o,
                          ms_render_draw_stats *stats, ms_error *err)
 {
@@ -216,12 +259,7 @@ ms_status ms_render_draw(ms_render *r, const ms_camera *camera, const ms_render_
     glViewport(0, 0, (int)lround(camera->width), (int)lround(camera->height));
     if (o->clear)
         clear_frame(o);
-    glDepthMask(GL_TRUE);
-    glEnable(GL_DEPTH_TEST);
-    glDepthFunc(GL_LESS);
-    glDisable(GL_CULL_FACE);
-    glDisable(GL_BLEND);
-    glDisable(GL_FRAMEBUFFER_SRGB); /* the shader encodes sRGB itself */
+    draw_state();
     set_frame_uniforms(r, p, o, camera, view, proj, model_view, scale, tessellated);
     bool detail_program = (p->effects & MS_EFFECT_DETAIL_NORMALS) != 0;
     uint32_t cap = o->apo_depth_cap ? o->apo_depth_cap : UINT32_MAX;

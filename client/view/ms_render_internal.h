@@ -230,6 +230,7 @@ typedef struct render_cell {
  * freed, so the renderer holds state for the frame's groups only (plus one
  * pointer per group of the model). */
 struct ms_render {
+    bool has_model;             /* header (and groups) set: at ms_render_new or ms_render_set_model */
     ms_archive_header header;
     ms_archive_cell *records;   /* the whole index when ms_render_new was given it; else NULL
                                    and the records come from ms_render_learn */
@@ -253,6 +254,14 @@ render_cell *ms_render_cell_at(const ms_render *r, uint32_t id);
 /* The record of cell id: the whole index's, else the learned one; NULL when
  * unknown. */
 const ms_archive_cell *ms_render_record(const ms_render *r, uint32_t id);
+
+/* Draws one zero-area triangle laid out as a cell's mesh (positions, then
+ * packed normals) with program p (not a tessellated one: displacement could
+ * give it an area) and the state of a draw into the bound framebuffer, and
+ * waits for it: nothing reaches the picture, but a driver that compiles its
+ * pipeline on the first draw with a state (Mesa's llvmpipe: a few hundred
+ * milliseconds) does it now. */
+void ms_render_warm_up(ms_render *r, const ms_render_program *p);
 
 /* The program for an effect set and variant: from the cache, else built. */
 ms_status ms_render_find_program(ms_render *r, unsigned effects, bool wireframe, bool tessellated,

@@ -36,6 +36,9 @@ void ms_viewer_options_usage(FILE *out)
           "  --effects-off LIST     effects left out of the program (comma-separated: detail_normals,\n"
           "                         specular, two_sided, haze, impostors, displacement)\n"
           "  --effects-all          compile every effect in, whether the scene calls for it or not\n"
+          "  --connection-per-model from a server, one connection per model (default: one\n"
+          "                         connection for all the models, their requests merged by\n"
+          "                         priority); for comparisons\n"
           "Camera path:\n"
           "  --path FILE            a camera path (docs/CAMERA_PATHS.md): Space plays it in the\n"
           "                         window; scripted, the camera follows it (else the home view)\n"
@@ -169,8 +172,9 @@ static int finish_options(ms_viewer_options *o, const char *shading, bool no_apo
         fprintf(err, "meshview: --path needs --model or --scene\n");
         return 2;
     }
-    if ((o->effects_off || o->effects_all) && !o->scene_file) {
-        fprintf(err, "meshview: --effects-off and --effects-all need --scene\n");
+    if ((o->effects_off || o->effects_all || o->connection_per_model) && !o->scene_file) {
+        fprintf(err, "meshview: --effects-off, --effects-all and --connection-per-model need "
+                "--scene\n");
         return 2;
     }
     if (o->json && !o->scripted) {
@@ -287,6 +291,7 @@ static int apply_option(int ch, const char *arg, ms_viewer_options *o, option_le
     case 'A': o->compare_apo = true; break;
     case 'c': o->scene_file = arg; break;
     case 'E': o->effects_all = true; break;
+    case 'C': o->connection_per_model = true; break;
     case 'e':
         if (!effect_list(arg, &o->effects_off)) {
             fprintf(err, "meshview: --effects-off wants effect names separated by commas, not '%s'\n",
@@ -318,6 +323,7 @@ int ms_viewer_options_parse(int argc, char **argv, ms_viewer_options *o, FILE *e
         {"scene", required_argument, NULL, 'c'},
         {"effects-off", required_argument, NULL, 'e'},
         {"effects-all", no_argument, NULL, 'E'},
+        {"connection-per-model", no_argument, NULL, 'C'},
         {"whole-index", no_argument, NULL, 'W'},
         {NULL, 0, NULL, 0}};
     default_options(o);
@@ -365,6 +371,7 @@ ms_viewer_scene_settings ms_viewer_options_scene_settings(const ms_viewer_option
 {
     ms_viewer_scene_settings s = {.stream = ms_viewer_options_stream_settings(o),
                                   .effects_off = o->effects_off,
-                                  .force_all = o->effects_all};
+                                  .force_all = o->effects_all,
+                                  .connection_per_model = o->connection_per_model};
     return s;
 }

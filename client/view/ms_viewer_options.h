@@ -46,6 +46,8 @@ typedef struct ms_viewer_options {
     const char *scene_file;    /* --scene: a scene (docs/SCENES.md) instead of one model */
     unsigned effects_off;      /* --effects-off: MS_EFFECT_* bits left out of the scene's program */
     bool effects_all;          /* --effects-all: every effect compiled in, called for or not */
+    bool connection_per_model; /* --connection-per-model: a scene from a server opens one
+                                  connection per model instead of one for all */
 } ms_viewer_options;
 
 /* 0: parsed (o->help for --help); 2: a usage error, one line written to err. */

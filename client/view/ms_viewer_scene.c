@@ -59,6 +59,9 @@ struct ms_viewer_scene {
     ms_render_light lights[MS_RENDER_MAX_LIGHTS];
     unsigned light_count;
     ms_core_budget *budget;    /* the models' one memory budget; NULL: none */
+    ms_core_link *link;        /* from a server: the models' one connection; NULL: a
+                                  local directory, or one connection per model */
+    bool from_server;
 };
 
 /* ---- the room ------------------------------------------------------------ */
@@ -269,7 +272,24 @@ ms_status ms_viewer_scene_open(const ms_viewer_source *source, const ms_scene *s
         each.memory_mb = 0;
         each.shared_budget = vs->budget;
     }
-    each.bandwidth = settings->stream.bandwidth / (double)scene->model_count;
+    vs->from_server = !source->archive_dir;
+    if (vs->from_server && !settings->connection_per_model) {
+        /* one connection for all the models, with the scene's whole bandwidth:
+         * their requests merged by priority, near pieces' bytes first */
+        ms_core_link_options lo = {.host = source->host, .port = source->port,
+                                   .token = source->token, .agent = MS_VIEWER_AGENT,
+                                   .bandwidth = settings->stream.bandwidth,
+                                   .give_up_seconds = MS_VIEWER_GIVE_UP_S,
+                                   .whole_index = settings->stream.whole_index};
+        st = ms_core_link_new(&lo, &vs->link, err);
+        if (st != MS_OK) {
+            ms_viewer_scene_close(vs);
+            return st;
+        }
+        each.shared_link = vs->link;
+    } else {
+        each.bandwidth = settings->stream.bandwidth / (double)scene->model_count;
+    }
     for (size_t i = 0; i < scene->model_count && st == MS_OK; ++i) {
         scene_model *m = &vs->models[i];
         st = ms_viewer_model_open(source, scene->models[i].model, &m->model, err);
@@ -328,6 +348,7 @@ void ms_viewer_scene_close(ms_viewer_scene *vs)
     for (size_t i = 0; i < vs->part_count; ++i)
         ms_render_free(vs->parts[i].render);
     ms_core_budget_free(vs->budget); /* after the streams' cores stopped */
+    ms_core_link_free(vs->link);
     free(vs->models);
     free(vs->order);
     free(vs->distance);
@@ -563,6 +584,22 @@ ms_status ms_viewer_scene_draw(ms_viewer_scene *vs, const ms_camera *camera, con
     return st;
 }
 
+uint64_t ms_viewer_scene_connections(ms_viewer_scene *vs)
+{
+    if (vs->link) {
+        ms_core_link_stats ls;
+        ms_core_link_get_stats(vs->link, &ls);
+        return ls.connections;
+    }
+    uint64_t n = 0;
+    for (size_t i = 0; vs->from_server && i < vs->model_count; ++i) {
+        ms_core_stats s;
+        ms_viewer_stream_stats(vs->models[i].stream, &s);
+        n += 1 + s.reconnects;
+    }
+    return n;
+}
+
 void ms_viewer_scene_stats(ms_viewer_scene *vs, ms_core_stats *sum)
 {
     memset(sum, 0, sizeof *sum);
@@ -604,6 +641,11 @@ void ms_viewer_scene_stats(ms_viewer_scene *vs, ms_core_stats *sum)
             snprintf(sum->error, sizeof sum->error, "%.64s: %.180s", vs->models[i].model.name, s.error);
         if (!sum->warning[0] && s.warning[0])
             snprintf(sum->warning, sizeof sum->warning, "%.64s: %.180s", vs->models[i].model.name, s.warning);
+    }
+    if (vs->link) { /* one connection: its bytes once, not once per member */
+        ms_core_link_stats ls;
+        ms_core_link_get_stats(vs->link, &ls);
+        sum->socket_bytes = ls.socket_bytes;
     }
 }
 

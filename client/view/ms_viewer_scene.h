@@ -13,10 +13,13 @@
  * one ms_core_budget shared by every model's core (ms_client_core.h): one
  * tolerance factor for all, and over the budget the least useful cells of all
  * the models go first, so near pieces refine first and far ones stay coarse.
- * The bandwidth is split evenly over the cores. Uploads: each
- * frame's byte budget goes to the models nearest the camera first, so near
- * pieces reach the GPU first. From a server each core holds its own
- * connection (the protocol opens one model per connection).
+ * Uploads: each frame's byte budget goes to the models nearest the camera
+ * first, so near pieces reach the GPU first. From a server the cores share
+ * one connection (ms_core_link, ms_client_core.h: one OPEN_MODEL handle per
+ * model, their requests merged by priority under one window and the scene's
+ * bandwidth, so near pieces' bytes go first); with
+ * settings.connection_per_model each core holds its own, the bandwidth split
+ * evenly over them (for comparisons).
  *
  * Effects: ms_scene_effects(scene), minus settings.effects_off, or every
  * effect with settings.force_all (what "only the effects the scene calls
@@ -51,9 +54,12 @@ typedef struct ms_viewer_scene ms_viewer_scene;
 
 typedef struct ms_viewer_scene_settings {
     ms_viewer_stream_settings stream; /* memory_mb: the scene's, one budget shared by the
-                                         models; bandwidth: the scene's, split evenly */
+                                         models; bandwidth: the scene's (the link's, or
+                                         split evenly over connections per model) */
     unsigned effects_off;             /* MS_EFFECT_* not compiled in even if called for */
     bool force_all;                   /* compile every effect (then effects_off still applies) */
+    bool connection_per_model;        /* from a server: one connection per model, each with
+                                         bandwidth / models (default: one link for all) */
 } ms_viewer_scene_settings;
 
 /* Checks the scene's models against the source's catalogue (label names the
@@ -80,6 +86,11 @@ ms_status ms_viewer_scene_draw(ms_viewer_scene *vs, const ms_camera *camera, con
 /* The streams' figures: bytes, requests, cells and memory summed, achieved
  * error and tolerance the largest, view_complete when all are, the first error. */
 void ms_viewer_scene_stats(ms_viewer_scene *vs, ms_core_stats *stats);
+
+/* TCP connections the scene's models opened to the server so far: the link's
+ * (1 plus its reconnections), or with connection_per_model one per model plus
+ * each one's reconnection attempts; 0 from a local directory. */
+uint64_t ms_viewer_scene_connections(ms_viewer_scene *vs);
 
 bool ms_viewer_scene_settled(const ms_viewer_scene *vs);
 

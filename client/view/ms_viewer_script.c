@@ -171,6 +171,8 @@ typedef struct script {
     double opened_at;           /* now_s() when the model (or scene) began to open */
     double first_display;       /* seconds from opened_at to the first frame drawn with a
                                    triangle; < 0 none yet */
+    uint64_t first_generation;  /* the core frame that first picture drew (one model) */
+    double first_frame_ms;      /* that frame's step, draw and glFinish */
     uint64_t last_triangles;
 } script;
 
@@ -281,6 +283,8 @@ static ms_status frame(script *s, const ms_camera *camera, ms_viewer_step *step,
     if (!s->first_written && drawn.triangles_drawn > 0) {
         s->first_written = true;
         s->first_display = now_s() - s->opened_at;
+        s->first_generation = step->generation;
+        s->first_frame_ms = s->last_ms;
         snprintf(s->first_png, sizeof s->first_png, "%s/first-frame.png", s->o->screenshot_dir);
         if ((st = ms_viewer_screenshot(s->first_png, s->o->width, s->o->height, err)) != MS_OK)
             return st;
@@ -323,6 +327,15 @@ static void add_index_figures(json_t *report, const script *s, const ms_core_sta
      * triangle; the core's counts from its own start only */
     json_object_set_new(report, "time_to_first_display", json_real(s->first_display));
     json_object_set_new(report, "core_first_display", json_real(cs->first_display));
+    if (!s->scene) {
+        /* which core frame the first picture drew: the core's first frame with
+         * a triangle when the renderer was ready for it (docs/VIEWER.md) */
+        json_object_set_new(report, "first_frame_generation",
+                            json_integer((json_int_t)s->first_generation));
+        json_object_set_new(report, "core_first_display_generation",
+                            json_integer((json_int_t)cs->first_display_generation));
+        json_object_set_new(report, "first_frame_ms", json_real(s->first_frame_ms));
+    }
     json_object_set_new(report, "index",
                         json_pack("{s:b, s:I, s:I, s:I, s:I}", "by_subtree", cs->index_by_subtree,
                                   "subtrees_received", (json_int_t)cs->subtrees_received,
@@ -494,6 +507,11 @@ static ms_status scene_run(const ms_viewer_options *o, const ms_viewer_source *s
                         "seconds", now_s() - started, "effects_called_for", effect_names(ms_scene_effects(&scene)),
                         "effects_compiled", effect_names(ms_viewer_scene_effects(s.scene)), "effect_frames", ran);
     add_index_figures(*report, &s, &cs);
+    if (*report) {
+        json_object_set_new(*report, "connections",
+                            json_integer((json_int_t)ms_viewer_scene_connections(s.scene)));
+        json_object_set_new(*report, "socket_bytes", json_integer((json_int_t)cs.socket_bytes));
+    }
     if (!*report)
         st = ms_error_set(err, MS_ERR_NOMEM, "out of memory for the report");
 done:
@@ -529,8 +547,10 @@ ms_status ms_viewer_script_run(const ms_viewer_options *o, const ms_viewer_sourc
     json_t *keys = json_array();
     double started = now_s();
     if ((o->hud && (st = ms_viewer_text_new(&s.text, err)) != MS_OK) ||
-        (st = ms_viewer_target_init(&s.target, o->width, o->height, err)) != MS_OK ||
-        (st = ms_viewer_stream_open(source, &model, &settings, &s.stream, err)) != MS_OK)
+        (st = ms_viewer_target_init(&s.target, o->width, o->height, err)) != MS_OK)
+        goto done;
+    ms_viewer_target_bind(&s.target); /* the renderer warms up drawing into it */
+    if ((st = ms_viewer_stream_open(source, &model, &settings, &s.stream, err)) != MS_OK)
         goto done;
     if ((st = play(&s, &model, keys, complete, err)) != MS_OK)
         goto done;

@@ -32,12 +32,19 @@ ms_status ms_viewer_stream_open(const ms_viewer_source *source, ms_viewer_model 
      * the bytes it saves (docs/ACCURACY.md) */
     s->start_tolerance = s->tolerance = settings->tolerance_px > 0 ? settings->tolerance_px : 1.0;
     ms_core_options co = {0};
-    if (source->archive_dir)
+    if (source->archive_dir) {
         co.archive_path = model->archive_path;
-    else
+        co.whole_index = settings->whole_index;
+    } else if (settings->shared_link) {
+        co.shared_link = settings->shared_link;
+    } else {
         co.host = source->host, co.port = source->port, co.token = source->token;
+        co.agent = MS_VIEWER_AGENT;
+        co.bandwidth = settings->bandwidth;
+        co.give_up_seconds = MS_VIEWER_GIVE_UP_S;
+        co.whole_index = settings->whole_index;
+    }
     co.model = model->name;
-    co.agent = "meshview/0.1";
     if (apo)
         co.apo_geometry_tolerance_px = s->start_tolerance;
     else
@@ -48,19 +55,21 @@ ms_status ms_viewer_stream_open(const ms_viewer_source *source, ms_viewer_model 
         co.memory_ceiling = co.memory_target + co.memory_target / 2;
     }
     co.shared_budget = settings->shared_budget;
-    co.bandwidth = settings->bandwidth;
     co.decode_threads = settings->decode_threads;
-    co.give_up_seconds = 8; /* a server gone this long ends the viewer (exit 1) */
     co.export_frames = true;
-    co.whole_index = settings->whole_index;
+    /* The core first: while it connects and its index head is on the way,
+     * this thread compiles the renderer's programs, so the first frame that
+     * holds the root finds the renderer ready. */
     ms_status st = ms_core_start(&co, &s->core, err);
+    if (st == MS_OK)
+        st = ms_render_new(NULL, NULL, &s->render, err);
     if (st == MS_OK) {
         ms_core_opening_free(&model->index);
         st = ms_core_wait_open(s->core, source->timeout_s > 0 ? source->timeout_s : 5.0, &model->index, err);
     }
     if (st == MS_OK) {
         model->header = model->index.header;
-        st = ms_render_new(&model->header, NULL, &s->render, err);
+        st = ms_render_set_model(s->render, &model->header, err);
     }
     if (st != MS_OK) {
         ms_viewer_stream_close(s);

@@ -28,6 +28,11 @@
 
 typedef struct ms_viewer_stream ms_viewer_stream;
 
+/* How meshview introduces itself to a server, and how long a server may be gone
+ * before the viewer ends (exit 1). */
+#define MS_VIEWER_AGENT "meshview/0.1"
+#define MS_VIEWER_GIVE_UP_S 8.0
+
 typedef struct ms_viewer_stream_settings {
     double tolerance_px;       /* geometric screen tolerance at start; 0: the core's
                                   default (4 px with APO, whose normals carry the
@@ -40,14 +45,22 @@ typedef struct ms_viewer_stream_settings {
     unsigned decode_threads;   /* 0 = the core's default */
     bool whole_index;          /* take the whole index at open (ms_core_options.whole_index),
                                   as from a server without subtrees */
+    ms_core_link *shared_link; /* from a server: NULL, the stream's own connection; else a
+                                  link shared with other streams (the scene's), which holds
+                                  the server, bandwidth and whole_index (those here are then
+                                  not used) */
 } ms_viewer_stream_settings;
 
-/* Starts the core for a model opened with ms_viewer_model_open and waits (at
- * most the source's time-out) until it opened the model and decoded its root
- * to root precision, then fills in model->header and model->index from what
- * the core received (the index crosses the network once) and the content
- * bounds it took from the root (ms_core_wait_open; ms_viewer_model_bounds). The renderer learns the records of the cells it
- * draws from the core's frames. The model must outlive the stream. */
+/* Starts the core for a model opened with ms_viewer_model_open, compiles the
+ * renderer's programs while the core connects and its index head is on the
+ * way, then waits (at most the source's time-out) until the core opened the
+ * model and decoded its root to root precision, and fills in model->header and
+ * model->index from what it received (the index crosses the network once)
+ * with the content bounds it took from the root (ms_core_wait_open;
+ * ms_viewer_model_bounds); the renderer takes the header. So the core's first
+ * frame that holds the root finds the renderer ready. The renderer learns the
+ * records of the cells it draws from the core's frames. The model must
+ * outlive the stream. */
 ms_status ms_viewer_stream_open(const ms_viewer_source *source, ms_viewer_model *model,
                                 const ms_viewer_stream_settings *settings,
                                 ms_viewer_stream **stream, ms_error *err);

@@ -92,6 +92,8 @@ ms_status ms_view_learn(ms_view *v, const uint32_t *ids, const ms_archive_cell *
         if (v->groups[g])
             continue;
         v->groups[g] = calloc(g == 0 ? 1 : v->group_size, sizeof *v->groups[g]);
+        if (v->groups[g])
+            v->block_cells += g == 0 ? 1 : v->group_size;
         if (!v->groups[g]) {
             /* give back the blocks this call made, none of which is used yet */
             for (size_t j = 0; j < k; ++j) {
@@ -103,6 +105,7 @@ ms_status ms_view_learn(ms_view *v, const uint32_t *ids, const ms_archive_cell *
                 if (b && !used) {
                     free(b);
                     v->groups[gj] = NULL;
+                    v->block_cells -= gj == 0 ? 1 : v->group_size;
                 }
             }
             return ms_error_set(err, MS_ERR_NOMEM, "out of memory for %zu cell records", count);
@@ -117,6 +120,7 @@ ms_status ms_view_learn(ms_view *v, const uint32_t *ids, const ms_archive_cell *
         memset(c, 0, sizeof *c);
         c->rec = recs[k];
         c->known = true;
+        c->target = MS_VIEW_TARGET_HIDDEN;
         v->known++;
         if (id == 0) {
             c->state = MS_VIEW_SHOWN;
@@ -149,10 +153,15 @@ ms_status ms_view_unlearn(ms_view *v, const uint32_t *ids, size_t count, ms_erro
         if (!used) {
             free(v->groups[g]);
             v->groups[g] = NULL;
+            v->block_cells -= v->group_size; /* never the root's: it stays */
         }
     }
     return MS_OK;
 }
+
+uint32_t ms_view_state_cells(const ms_view *v) { return v->block_cells; }
+
+size_t ms_view_cell_state_size(void) { return sizeof(vcell); }
 
 bool ms_view_known(const ms_view *v, uint32_t cell) { return ms_view_vcell(v, cell) != NULL; }
 
@@ -634,11 +643,11 @@ static void list_push(uint32_t **list, size_t *count, size_t *cap, bool *failed,
     (*list)[(*count)++] = cell;
 }
 
-static void select_cell(const ms_view *v, const ms_camera *cam, const ms_frustum *f,
-                        const ms_view_select_params *p, uint32_t cell, uint8_t *target,
+static void select_cell(ms_view *v, const ms_camera *cam, const ms_frustum *f,
+                        const ms_view_select_params *p, uint32_t cell,
                         ms_view_select_report *report)
 {
-    const vcell *c = ms_view_vcell(v, cell);
+    vcell *c = ms_view_vcell(v, cell);
     double need = select_need(v, cam, f, p, cell, c);
     unsigned current = c->state == MS_VIEW_SHOWN ? c->bits
                        : c->state == MS_VIEW_SPLIT ? c->rec.bits_max + 1u
@@ -649,12 +658,12 @@ static void select_cell(const ms_view *v, const ms_camera *cam, const ms_frustum
     bool inner = c->rec.first_child != MS_ARCHIVE_NONE;
     bool children = inner && ms_view_children_known(v, cell);
     if (want > c->rec.bits_max && children) {
-        target[cell] = MS_VIEW_TARGET_SPLIT;
+        c->target = MS_VIEW_TARGET_SPLIT;
         for (uint32_t k = 0; k < v->group_size; ++k)
-            select_cell(v, cam, f, p, c->rec.first_child + k, target, report);
+            select_cell(v, cam, f, p, c->rec.first_child + k, report);
         return;
     }
-    target[cell] = (uint8_t)(want > c->rec.bits_max ? c->rec.bits_max : want);
+    c->target = (uint8_t)(want > c->rec.bits_max ? c->rec.bits_max : want);
     if (!report || !inner)
         return;
     if (want > c->rec.bits_max) /* a partial view: it stays until its children are known */
@@ -665,24 +674,28 @@ static void select_cell(const ms_view *v, const ms_camera *cam, const ms_frustum
                   &report->out_of_memory, cell);
 }
 
-void ms_view_select_partial(const ms_view *v, const ms_camera *cam,
-                            const ms_view_select_params *p, uint8_t *target,
-                            ms_view_select_report *report)
+void ms_view_select(ms_view *v, const ms_camera *cam, const ms_view_select_params *p,
+                    ms_view_select_report *report)
 {
-    memset(target, MS_VIEW_TARGET_HIDDEN, v->count);
+    /* every known cell's target is HIDDEN but those the walk from the root reaches */
+    for (uint32_t g = 0; g < v->group_count; ++g) {
+        vcell *block = v->groups[g];
+        for (uint32_t k = 0; block && k < (g == 0 ? 1 : v->group_size); ++k)
+            block[k].target = MS_VIEW_TARGET_HIDDEN;
+    }
     if (report)
         report->blocked_count = report->near_count = 0, report->out_of_memory = false;
     if (!ms_view_vcell(v, 0))
         return; /* nothing known yet */
     ms_frustum f;
     ms_camera_frustum(cam, &f);
-    select_cell(v, cam, &f, p, 0, target, report);
+    select_cell(v, cam, &f, p, 0, report);
 }
 
-void ms_view_select(const ms_view *v, const ms_camera *cam, const ms_view_select_params *p,
-                    uint8_t *target)
+uint8_t ms_view_target(const ms_view *v, uint32_t cell)
 {
-    ms_view_select_partial(v, cam, p, target, NULL);
+    const vcell *c = ms_view_vcell(v, cell);
+    return c ? c->target : MS_VIEW_TARGET_HIDDEN;
 }
 
 void ms_view_select_report_free(ms_view_select_report *report)
@@ -694,11 +707,10 @@ void ms_view_select_report_free(ms_view_select_report *report)
     memset(report, 0, sizeof *report);
 }
 
-static ms_status apply_cell(ms_view *v, uint32_t cell, const uint8_t *target,
-                            ms_view_apply_report *r, ms_error *err)
+static ms_status apply_cell(ms_view *v, uint32_t cell, ms_view_apply_report *r, ms_error *err)
 {
     vcell *c = ms_view_vcell(v, cell);
-    uint8_t t = target[cell];
+    uint8_t t = c->target;
     ms_status s;
     if (t == MS_VIEW_TARGET_SPLIT && ms_view_children_known(v, cell)) {
         if (c->state == MS_VIEW_SHOWN) {
@@ -719,7 +731,7 @@ static ms_status apply_cell(ms_view *v, uint32_t cell, const uint8_t *target,
             r->splits++;
         }
         for (uint32_t k = 0; k < v->group_size; ++k)
-            if ((s = apply_cell(v, c->rec.first_child + k, target, r, err)) != MS_OK)
+            if ((s = apply_cell(v, c->rec.first_child + k, r, err)) != MS_OK)
                 return s;
         return MS_OK;
     }
@@ -745,12 +757,11 @@ static ms_status apply_cell(ms_view *v, uint32_t cell, const uint8_t *target,
     return MS_OK;
 }
 
-ms_status ms_view_apply(ms_view *v, const uint8_t *target, ms_view_apply_report *report,
-                        ms_error *err)
+ms_status ms_view_apply(ms_view *v, ms_view_apply_report *report, ms_error *err)
 {
     ms_view_apply_report r;
     memset(&r, 0, sizeof r);
-    ms_status s = ms_view_vcell(v, 0) ? apply_cell(v, 0, target, &r, err) : MS_OK;
+    ms_status s = ms_view_vcell(v, 0) ? apply_cell(v, 0, &r, err) : MS_OK;
     if (report)
         *report = r;
     return s;

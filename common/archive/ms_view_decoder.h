@@ -37,7 +37,7 @@
  * received, MS_ERR_CORRUPT for a damaged payload.
  * Thread-safety: one object per client, used from one thread, except that
  * ms_view_set_bits and ms_view_set_bytes on *distinct* cells may run concurrently
- * when no split, merge, apply or stitch runs at the same time.
+ * when no split, merge, select, apply or stitch runs at the same time.
  */
 #ifndef MS_VIEW_DECODER_H
 #define MS_VIEW_DECODER_H
@@ -72,7 +72,7 @@ ms_status ms_view_create(const ms_archive_header *header, const ms_archive_cell 
  * follows the records known: cells are kept per sibling group (n^3 consecutive
  * ids), a block per group that has a known record, plus one pointer per group
  * for the model. A cell whose children's records are not known cannot split:
- * selection shows it at most at bits_max and reports it (ms_view_select_partial).
+ * selection shows it at most at bits_max and reports it (ms_view_select).
  * Functions given a cell whose record is not known behave as for a cell out of
  * range (NULL, HIDDEN, 0, MS_ERR_RANGE). */
 
@@ -92,6 +92,14 @@ ms_status ms_view_learn(ms_view *view, const uint32_t *ids, const ms_archive_cel
  * bytes and decoders. Each must be HIDDEN and not the root, else MS_ERR_RANGE
  * and nothing is forgotten. */
 ms_status ms_view_unlearn(ms_view *view, const uint32_t *ids, size_t count, ms_error *err);
+
+/* The cells the view holds per-cell state for: every cell of each sibling
+ * group with a known record (the root's group is the root alone), known or
+ * not; each costs ms_view_cell_state_size() bytes (sizeof the view's cell
+ * state, its record included; the bytes, decoders and caches a cell points to
+ * are not counted here). With the whole index, every cell of the model. */
+uint32_t ms_view_state_cells(const ms_view *view);
+size_t ms_view_cell_state_size(void);
 
 bool ms_view_known(const ms_view *view, uint32_t cell);
 /* Cells whose records are known now. */
@@ -206,15 +214,6 @@ double ms_view_cell_need(const ms_view *view, const ms_camera *camera, uint32_t 
 double ms_view_cell_select_need(const ms_view *view, const ms_camera *camera, uint32_t cell,
                                 const ms_view_select_params *params);
 
-/* For every cell, the target: bits to show it at, MS_VIEW_TARGET_SPLIT or
- * MS_VIEW_TARGET_HIDDEN (target has cell_count entries). Visible cells get the
- * precision their nearest point needs (with hysteresis against the current
- * state); culled cells get that need less culled_bits_less bits (a large value
- * keeps them at their bits_min; a small one keeps precision jumps at the frustum
- * border small). */
-void ms_view_select(const ms_view *view, const ms_camera *camera,
-                    const ms_view_select_params *params, uint8_t *target);
-
 /* Where the records of a partly known view fall short, or soon may: `blocked`:
  * cells whose target would be SPLIT but whose children's records are not known
  * (they get bits_max instead); `near`: inner cells of the cut, not split, whose
@@ -230,23 +229,34 @@ typedef struct ms_view_select_report {
     bool out_of_memory;
 } ms_view_select_report;
 
-/* ms_view_select on a partly known view (the same targets on a fully known
- * one), filling *report (may be NULL). With the root not known yet every
- * target is HIDDEN. */
-void ms_view_select_partial(const ms_view *view, const ms_camera *camera,
-                            const ms_view_select_params *params, uint8_t *target,
-                            ms_view_select_report *report);
+/* Gives every known cell its target, kept in the view with the cell (so a
+ * partly known view holds targets for its known cells only, nothing by the
+ * model's size) and read with ms_view_target: bits to show it at,
+ * MS_VIEW_TARGET_SPLIT or MS_VIEW_TARGET_HIDDEN. Visible cells get the
+ * precision their nearest point needs (with hysteresis against the current
+ * state); culled cells get that need less culled_bits_less bits (a large value
+ * keeps them at their bits_min; a small one keeps precision jumps at the
+ * frustum border small). On a partly known view a cell whose children's
+ * records are not known gets bits_max instead of SPLIT; report (NULL: none)
+ * lists such cells and those near splitting. With the root not known yet
+ * every target is HIDDEN. */
+void ms_view_select(ms_view *view, const ms_camera *camera, const ms_view_select_params *params,
+                    ms_view_select_report *report);
 void ms_view_select_report_free(ms_view_select_report *report);
+
+/* The target the last ms_view_select gave cell (MS_VIEW_TARGET_HIDDEN for a
+ * cell it did not reach, learned since, or unknown). */
+uint8_t ms_view_target(const ms_view *view, uint32_t cell);
 
 typedef struct ms_view_apply_report {
     uint32_t splits, merges, refined, coarsened;
     uint32_t waiting; /* cells held below their target for lack of bytes */
 } ms_view_apply_report;
 
-/* Moves the view towards target (from ms_view_select): merges, refines, splits
- * and coarsens, as far as the bytes held allow. report may be NULL. */
-ms_status ms_view_apply(ms_view *view, const uint8_t *target, ms_view_apply_report *report,
-                        ms_error *err);
+/* Moves the view towards the targets of the last ms_view_select: merges,
+ * refines, splits and coarsens, as far as the bytes held allow. report may be
+ * NULL. */
+ms_status ms_view_apply(ms_view *view, ms_view_apply_report *report, ms_error *err);
 
 /* ---- the stitched mesh --------------------------------------------------- */
 

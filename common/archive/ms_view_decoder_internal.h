@@ -17,6 +17,7 @@ typedef struct vcell {
     bool known;             /* rec holds the cell's record (ms_view_learn) */
     uint8_t state;
     uint8_t bits;           /* current precision (SHOWN), bits_max (SPLIT) */
+    uint8_t target;         /* the last selection's (ms_view_select), MS_VIEW_TARGET_* or bits */
     bool has_start;         /* start state held (non-root cells once their parent split) */
     ms_codec_state start;
     ms_codec_decoder *dec;
@@ -46,6 +47,7 @@ struct ms_view {
     uint32_t group_count;   /* 1 + (count - 1) / n^3 */
     vcell **groups;         /* group_count blocks, NULL where no record is known */
     uint32_t known;         /* cells whose records are known */
+    uint32_t block_cells;   /* cells of the blocks in `groups` (known or not) */
     uint32_t stamp_epoch;
 };
 

@@ -15,9 +15,6 @@ ms_status ms_study_cut(const ms_archive *archive, ms_view *view, const ms_camera
     memset(report, 0, sizeof *report);
     double start = ms_now_seconds();
     uint32_t n = ms_view_cell_count(view);
-    uint8_t *target = malloc(n ? n : 1);
-    if (!target)
-        return ms_error_set(err, MS_ERR_NOMEM, "study cut: out of memory for %u cells", n);
     ms_status st = MS_OK;
     bool settled = false;
     while (!settled && st == MS_OK) {
@@ -27,12 +24,11 @@ ms_status ms_study_cut(const ms_archive *archive, ms_view *view, const ms_camera
             break;
         }
         report->passes++;
-        ms_view_select(view, camera, params, target);
+        ms_view_select(view, camera, params, NULL);
         ms_view_apply_report r;
-        st = ms_view_apply(view, target, &r, err);
+        st = ms_view_apply(view, &r, err);
         settled = !r.splits && !r.merges && !r.refined && !r.coarsened;
     }
-    free(target);
     if (st == MS_OK)
         st = ms_view_stitch(view, NULL, mesh, err);
     if (st != MS_OK)

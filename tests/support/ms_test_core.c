@@ -24,6 +24,30 @@ void ms_test_sleep_s(double seconds)
     nanosleep(&ts, NULL);
 }
 
+void ms_test_core_assert_frames_equal(const ms_core_frame *a, const ms_core_frame *b)
+{
+    assert_int_equal(a->cell_count, b->cell_count);
+    assert_int_equal(a->cut_count, b->cut_count);
+    assert_memory_equal(a->cut_cells, b->cut_cells, a->cut_count * sizeof *a->cut_cells);
+    assert_memory_equal(a->cut_bits, b->cut_bits, a->cut_count);
+    const ms_view_mesh *x = &a->mesh, *y = &b->mesh;
+    assert_int_equal(x->vertex_count, y->vertex_count);
+    assert_int_equal(x->triangle_count, y->triangle_count);
+    assert_memory_equal(x->positions, y->positions, 3 * x->vertex_count * sizeof *x->positions);
+    assert_memory_equal(x->keys, y->keys, x->vertex_count * sizeof *x->keys);
+    assert_memory_equal(x->levels, y->levels, x->vertex_count);
+    assert_memory_equal(x->triangles, y->triangles, 3 * x->triangle_count * sizeof *x->triangles);
+    assert_memory_equal(x->triangle_cell, y->triangle_cell,
+                        x->triangle_count * sizeof *x->triangle_cell);
+    assert_int_equal(a->apo_count, b->apo_count);
+    for (size_t i = 0; i < a->apo_count; ++i) {
+        assert_int_equal(a->apo[i].cell, b->apo[i].cell);
+        assert_int_equal(a->apo[i].levels, b->apo[i].levels);
+        assert_int_equal(a->apo[i].length, b->apo[i].length);
+        assert_memory_equal(a->apo[i].data, b->apo[i].data, a->apo[i].length);
+    }
+}
+
 /* Replaces *frame by the core's newest frame, if one was published. */
 static void keep_newest_frame(ms_core *core, ms_core_frame **frame)
 {

@@ -20,6 +20,11 @@ void ms_test_sleep_s(double seconds);
 bool ms_test_core_wait_complete(ms_core *core, double seconds, ms_core_stats *stats,
                                 ms_core_frame **frame);
 
+/* Fails the test unless the two frames hold the same cut, the same stitched
+ * mesh (positions, keys, levels, triangles and their cells) and the same APO
+ * chunk prefixes, byte for byte. */
+void ms_test_core_assert_frames_equal(const ms_core_frame *a, const ms_core_frame *b);
+
 /* The camera of a path's key k (the last key when k is past it), 640 x 480, near
  * 1e-4, far 1e4; fails the test on error. */
 ms_camera ms_test_core_key_camera(const ms_camera_path *path, size_t k);

@@ -87,6 +87,23 @@ int ms_test_http_get(uint16_t port, const char *path, const char *extra_headers,
     return ms_test_http_raw(port, request, (size_t)n, response);
 }
 
+int ms_test_metric(uint16_t http_port, const char *series, uint64_t *value)
+{
+    ms_test_http_response r;
+    if (ms_test_http_get(http_port, "/metrics", NULL, &r) != 0)
+        return -1;
+    size_t n = strlen(series);
+    const char *at = NULL;
+    for (const char *p = r.status == 200 && r.body ? (const char *)r.body : NULL; p && !at;
+         p = strchr(p, '\n'), p = p ? p + 1 : NULL)
+        if (strncmp(p, series, n) == 0 && p[n] == ' ')
+            at = p + n + 1;
+    if (at)
+        *value = strtoull(at, NULL, 10);
+    ms_test_http_free(&r);
+    return at ? 0 : -1;
+}
+
 void ms_test_http_free(ms_test_http_response *r)
 {
     free(r->body);

@@ -27,6 +27,11 @@ int ms_test_http_get(uint16_t port, const char *path, const char *extra_headers,
 
 void ms_test_http_free(ms_test_http_response *response);
 
+/* The value of one series of a server's GET /metrics (Prometheus text, e.g.
+ * "meshstream_connections_total" or a name with its labels) into *value: 0,
+ * or -1 when the server did not answer 200 or has no such line. */
+int ms_test_metric(uint16_t http_port, const char *series, uint64_t *value);
+
 /* The value of a response header (case-insensitive name), copied into out. */
 const char *ms_test_http_header(const ms_test_http_response *response, const char *name,
                                 char *out, size_t size);

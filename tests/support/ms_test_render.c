@@ -175,19 +175,15 @@ void ms_test_render_view(ms_view *view, const ms_camera *camera, double toleranc
     ms_view_select_params params;
     ms_view_select_params_default(&params);
     params.tolerance_px = tolerance_px;
-    uint32_t n = ms_view_cell_count(view);
-    uint8_t *target = malloc(n);
-    assert_non_null(target);
     ms_error err;
     for (int round = 0; round < 64; ++round) {
-        ms_view_select(view, camera, &params, target);
+        ms_view_select(view, camera, &params, NULL);
         ms_view_apply_report rep;
-        if (ms_view_apply(view, target, &rep, &err) != MS_OK)
+        if (ms_view_apply(view, &rep, &err) != MS_OK)
             fail_msg("%s", err.text);
         if (rep.splits + rep.merges + rep.refined + rep.coarsened == 0)
             break;
     }
-    free(target);
     if (ms_view_stitch(view, NULL, mesh, &err) != MS_OK)
         fail_msg("%s", err.text);
 }
