@@ -103,6 +103,14 @@ static void check_model(const char *name, const char *source)
             true_hi[a] = x > true_hi[a] ? x : true_hi[a];
         }
     ms_mesh_free(&mesh);
+    double widest = 0;
+    for (int a = 0; a < 3; ++a) {
+        widest = true_lo[a] - lo[a] > widest ? true_lo[a] - lo[a] : widest;
+        widest = hi[a] - true_hi[a] > widest ? hi[a] - true_hi[a] : widest;
+    }
+    print_message("%s: %u cells, root to %u bits: %u bytes before a camera; bounds at most "
+                  "%.3f root quanta off the source's box\n",
+                  name, h.cell_count, root_precision, root_bytes, widest / quantum);
     /* the archive's cube itself ends at origin + side rounded, which can be
      * an ulp short of the source's largest coordinate (ms_quant_fit_box) */
     for (int a = 0; a < 3; ++a) {
