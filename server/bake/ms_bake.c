@@ -181,6 +181,7 @@ static ms_status build_tree(const ms_bake_options *o, const ms_nsp_shape *shape,
         .buffer_budget = o->buffer_bytes ? o->buffer_bytes : o->mem_mb * (1u << 20) / 8,
         .key_cache_bytes = o->key_cache_bytes ? o->key_cache_bytes : o->mem_mb * (1u << 20) / 4,
         .tmp_dir = o->tmp_dir ? o->tmp_dir : o->archive_dir,
+        .threads = o->threads ? o->threads : 1,
         .progress = on_progress,
         .progress_context = progress,
     };

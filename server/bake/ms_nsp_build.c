@@ -15,6 +15,7 @@
 
 #include "ms_archive.h"
 #include "ms_nsp_key_cache.h"
+#include "ms_parallel.h"
 #include "ms_progress.h"
 
 #define BLOCK_BYTES 4096
@@ -574,63 +575,156 @@ static ms_status insert_unused_vertices(ms_nsp_build *b, int key_fd, ms_error *e
     return s;
 }
 
-/* One triangle of the spool: its keys through the cache, then into the tree. */
-static ms_status distribute_triangle(ms_nsp_build *b, ms_nsp_key_cache *cache, const uint32_t t[3],
-                                     uint64_t number, ms_error *err)
+/* The distribution is a two-stage pipeline over chunks of the triangle spool.
+ * The key stage reads chunk k and turns it into records through the key cache
+ * (dropping degenerate triangles, marking the vertices of the others used);
+ * meanwhile the insert stage puts chunk k - 1's records into the tree. Only the
+ * insert stage touches the tree, and it takes the chunks in spool order, so the
+ * tree (and the archive) is the same whether the two stages share a thread or
+ * not; only the key stage touches the key cache and the spool, and its counters
+ * are its own until the pipeline ends. A chunk whose keys fail keeps the
+ * records before the failing triangle: they are inserted before the error is
+ * reported, as a triangle-by-triangle loop would have. */
+typedef struct keyed_chunk {
+    uint64_t first;     /* spool number of its first triangle */
+    size_t records;     /* records (3 keys each) of its kept triangles */
+    uint64_t *keys;     /* SPOOL_CHUNK * 3 */
+    ms_status status;   /* of the key stage; MS_OK or the error at the triangle after its records */
+    ms_error err;
+} keyed_chunk;
+
+typedef struct distribution {
+    ms_nsp_build *b;
+    FILE *tspool;
+    uint64_t triangles, read; /* in the spool, and read so far by the key stage */
+    uint32_t *spool_chunk;    /* SPOOL_CHUNK * 3 vertex numbers */
+    ms_nsp_key_cache *cache;
+    ms_nsp_io key_io;         /* the key stage's own counters */
+    uint64_t key_page_misses, degenerate;
+    keyed_chunk chunk[2];     /* chunk k is chunk[k % 2] */
+    uint64_t step;            /* the key stage takes chunk step, the insert stage chunk step - 1 */
+    ms_status insert_status;
+    ms_error insert_err;
+} distribution;
+
+/* One triangle's keys through the cache into out; *kept is false for a degenerate one. */
+static ms_status key_triangle(distribution *d, const uint32_t t[3], uint64_t number,
+                              uint64_t out[3], bool *kept, ms_error *err)
 {
-    if (t[0] >= b->vertex_count || t[1] >= b->vertex_count || t[2] >= b->vertex_count)
+    *kept = false;
+    uint64_t vertices = d->b->vertex_count;
+    if (t[0] >= vertices || t[1] >= vertices || t[2] >= vertices)
         return ms_error_set(err, MS_ERR_FORMAT, "triangle %" PRIu64 " has an index out of range",
                             number);
-    uint64_t rec[3];
     ms_status s = MS_OK;
     for (int j = 0; j < 3 && s == MS_OK; ++j)
-        s = ms_nsp_key_cache_key(cache, t[j], &rec[j], err);
+        s = ms_nsp_key_cache_key(d->cache, t[j], &out[j], err);
     if (s != MS_OK)
         return s;
-    if (rec[0] == rec[1] || rec[1] == rec[2] || rec[0] == rec[2]) {
-        b->stats.degenerate_triangles++;
+    if (out[0] == out[1] || out[1] == out[2] || out[0] == out[2]) {
+        d->degenerate++;
         return MS_OK;
     }
     for (int j = 0; j < 3 && s == MS_OK; ++j)
-        s = ms_nsp_key_cache_mark_used(cache, t[j], err);
-    unsigned reached = 0;
-    if (s == MS_OK)
-        s = insert_under(b, 0, rec, &reached, err);
-    if (reached > 1)
-        b->stats.insertion_copies += reached - 1;
+        s = ms_nsp_key_cache_mark_used(d->cache, t[j], err);
+    *kept = s == MS_OK;
     return s;
+}
+
+/* The key stage: the next chunk of the spool into chunk[step % 2]. */
+static void key_stage(distribution *d)
+{
+    keyed_chunk *c = &d->chunk[d->step % 2];
+    c->first = d->read;
+    c->records = 0;
+    c->status = MS_OK;
+    size_t want = d->triangles - d->read < SPOOL_CHUNK ? (size_t)(d->triangles - d->read)
+                                                       : SPOOL_CHUNK;
+    if (fread(d->spool_chunk, 12, want, d->tspool) != want) {
+        c->status = ms_error_set(&c->err, MS_ERR_IO, "cannot read the triangle spool");
+        return;
+    }
+    d->key_io.read_back += (uint64_t)want * 12;
+    for (size_t i = 0; i < want && c->status == MS_OK; ++i) {
+        bool kept;
+        c->status = key_triangle(d, d->spool_chunk + 3 * i, c->first + i, c->keys + 3 * c->records,
+                                 &kept, &c->err);
+        c->records += kept;
+    }
+    d->read += want;
+}
+
+/* The insert stage: chunk[(step - 1) % 2]'s records into the tree. */
+static void insert_stage(distribution *d)
+{
+    ms_nsp_build *b = d->b;
+    const keyed_chunk *c = &d->chunk[(d->step - 1) % 2];
+    for (size_t i = 0; i < c->records && d->insert_status == MS_OK; ++i) {
+        unsigned reached = 0;
+        d->insert_status = insert_under(b, 0, c->keys + 3 * i, &reached, &d->insert_err);
+        if (reached > 1)
+            b->stats.insertion_copies += reached - 1;
+    }
+}
+
+/* Block 0 runs the key stage (while chunks are left), block 1 the insert stage
+ * (from the second step on). */
+static void distribution_block(void *context, size_t block)
+{
+    distribution *d = context;
+    if (block == 0 && d->read < d->triangles)
+        key_stage(d);
+    else if (block == 1 && d->step > 0)
+        insert_stage(d);
 }
 
 static ms_status distribute(ms_nsp_build *b, FILE *tspool, uint64_t triangles, int key_fd,
                             ms_error *err)
 {
-    uint32_t *chunk = malloc(SPOOL_CHUNK * 3 * sizeof *chunk);
-    ms_nsp_key_cache *cache = NULL;
+    distribution d = {.b = b, .tspool = tspool, .triangles = triangles};
+    ms_pool *pool = NULL;
+    d.spool_chunk = malloc(SPOOL_CHUNK * 3 * sizeof *d.spool_chunk);
+    d.chunk[0].keys = malloc(SPOOL_CHUNK * 3 * sizeof *d.chunk[0].keys);
+    d.chunk[1].keys = malloc(SPOOL_CHUNK * 3 * sizeof *d.chunk[1].keys);
     ms_status s = ms_nsp_key_cache_new(key_fd, b->vertex_count, b->params.key_cache_bytes,
-                                       &b->stats.io_distribute, &b->stats.key_page_misses, &cache,
-                                       err);
-    if (s == MS_OK && !chunk)
+                                       &d.key_io, &d.key_page_misses, &d.cache, err);
+    if (s == MS_OK && (!d.spool_chunk || !d.chunk[0].keys || !d.chunk[1].keys))
         s = ms_error_set(err, MS_ERR_NOMEM, "out of memory distributing triangles");
+    if (s == MS_OK)
+        s = ms_pool_new(b->params.threads > 1 ? 1 : 0, &pool, err);
     rewind(tspool);
-    uint64_t done = 0;
-    while (s == MS_OK && done < triangles) {
-        size_t want = triangles - done < SPOOL_CHUNK ? (size_t)(triangles - done) : SPOOL_CHUNK;
-        if (fread(chunk, 12, want, tspool) != want) {
-            s = ms_error_set(err, MS_ERR_IO, "cannot read the triangle spool");
+    /* Step k keys chunk k and inserts chunk k - 1; the last step only inserts. */
+    for (d.step = 0; s == MS_OK; ++d.step) {
+        bool keying = d.read < triangles;
+        if (!keying && d.step == 0)
+            break; /* no triangle */
+        ms_pool_for(pool, 2, distribution_block, &d);
+        if (d.insert_status != MS_OK) {
+            s = ms_error_set(err, d.insert_err.code, "%s", d.insert_err.text);
             break;
         }
-        b->stats.io_distribute.read_back += (uint64_t)want * 12;
-        for (size_t i = 0; i < want && s == MS_OK; ++i)
-            s = distribute_triangle(b, cache, chunk + 3 * i, done + i, err);
-        done += want;
-        report(&b->params, "distributing", (double)done / (double)(triangles ? triangles : 1));
+        if (d.step > 0 && d.chunk[(d.step - 1) % 2].status != MS_OK) {
+            s = ms_error_set(err, d.chunk[(d.step - 1) % 2].status, "%s",
+                             d.chunk[(d.step - 1) % 2].err.text);
+            break;
+        }
+        if (!keying)
+            break; /* that was the last chunk's insertion */
+        report(&b->params, "distributing", (double)d.read / (double)triangles);
     }
+    ms_pool_free(pool);
+    b->stats.degenerate_triangles += d.degenerate;
     /* Isolated vertices (after welding, a key used by no kept triangle is found
      * again in its leaf: the leaf drops points whose key a triangle uses). */
     if (s == MS_OK)
-        s = ms_nsp_key_cache_write_back(cache, err);
-    ms_nsp_key_cache_free(cache);
-    free(chunk);
+        s = ms_nsp_key_cache_write_back(d.cache, err);
+    ms_nsp_key_cache_free(d.cache);
+    b->stats.io_distribute.spilled += d.key_io.spilled;
+    b->stats.io_distribute.read_back += d.key_io.read_back;
+    b->stats.key_page_misses += d.key_page_misses;
+    free(d.spool_chunk);
+    free(d.chunk[0].keys);
+    free(d.chunk[1].keys);
     if (s == MS_OK)
         s = insert_unused_vertices(b, key_fd, err);
     return s;

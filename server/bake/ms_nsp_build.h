@@ -97,6 +97,9 @@ typedef struct ms_nsp_build_params {
     size_t buffer_budget;    /* bytes of record buffers before flushing */
     size_t key_cache_bytes;  /* key-file pages held while distributing (at least
                               * MS_NSP_KEY_CACHE_MIN; less is raised to it) */
+    unsigned threads;        /* 2 or more: the distribution looks keys up on a second
+                              * thread while the first inserts (the tree is the same
+                              * for any value); 0 or 1: one thread */
     const char *tmp_dir;     /* where temporary files go */
     /* optional progress: phase name and a fraction in [0, 1] */
     void (*progress)(void *context, const char *phase, double fraction);
