@@ -285,63 +285,61 @@ static ms_status insert_under(ms_nsp_build *b, uint32_t top, const uint64_t rec[
                               unsigned *reached, ms_error *err);
 static ms_status append(ms_nsp_build *b, uint32_t index, const uint64_t rec[3], ms_error *err);
 
-/* A triangle record by its welded vertices (sorted keys), for finding repeats. */
-typedef struct keyed_record {
-    uint64_t key[3];
-    size_t at; /* record index */
-} keyed_record;
-
-static int cmp_keyed_record(const void *x, const void *y)
-{
-    const keyed_record *a = x, *b = y;
-    for (int i = 0; i < 3; ++i)
-        if (a->key[i] != b->key[i])
-            return a->key[i] < b->key[i] ? -1 : 1;
-    return a->at < b->at ? -1 : (a->at > b->at);
-}
+#define NO_SLOT UINT32_MAX
 
 /* Removes from rec[0..*count) every triangle record whose welded vertex set
  * an earlier record already has (the first stays, in order, as the encoder's
  * ms_tri_unify would keep it); point records stay. *distinct: the triangle
- * records left. */
+ * records left. The sets seen are found by hashing, in one pass over the
+ * records (a full leaf's check runs on the distribution's critical path). */
 static ms_status drop_repeated_triangles(uint64_t *rec, size_t *count, size_t *distinct,
                                          ms_error *err)
 {
-    size_t n = *count, triangles = 0;
-    keyed_record *k = malloc((n ? n : 1) * sizeof *k);
-    bool *drop = calloc(n ? n : 1, sizeof *drop);
-    if (!k || !drop) {
-        free(k);
-        free(drop);
+    size_t n = *count;
+    if (n >= UINT32_MAX / 2)
+        return ms_error_set(err, MS_ERR_RANGE, "a leaf of %zu records is too large to split", n);
+    unsigned log2_slots = 4;
+    while (((size_t)1 << log2_slots) < 2 * n)
+        ++log2_slots;
+    size_t slots = (size_t)1 << log2_slots;
+    uint32_t *slot = malloc(slots * sizeof *slot);
+    uint64_t *seen = malloc((3 * n + 1) * sizeof *seen); /* the kept sets, sorted keys */
+    if (!slot || !seen) {
+        free(slot);
+        free(seen);
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory finding repeated triangles");
     }
+    memset(slot, 0xFF, slots * sizeof *slot); /* NO_SLOT everywhere */
+    size_t out = 0, kept = 0;
     for (size_t i = 0; i < n; ++i) {
         const uint64_t *r = rec + 3 * i;
-        if (r[0] == r[1])
-            continue; /* a point record */
-        uint64_t a = r[0], c = r[1], d = r[2], x;
-        if (a > c)
-            x = a, a = c, c = x;
-        if (c > d)
-            x = c, c = d, d = x;
-        if (a > c)
-            x = a, a = c, c = x;
-        k[triangles++] = (keyed_record){{a, c, d}, i};
-    }
-    qsort(k, triangles, sizeof *k, cmp_keyed_record);
-    size_t kept = 0;
-    for (size_t i = 0; i < triangles; ++i) {
-        if (i > 0 && !memcmp(k[i].key, k[i - 1].key, sizeof k[i].key))
-            drop[k[i].at] = true;
-        else
+        if (r[0] != r[1]) { /* not a point record */
+            uint64_t a = r[0], c = r[1], d = r[2], x;
+            if (a > c)
+                x = a, a = c, c = x;
+            if (c > d)
+                x = c, c = d, d = x;
+            if (a > c)
+                x = a, a = c, c = x;
+            uint64_t mixed = (a ^ (c * 0xC2B2AE3D27D4EB4Full) ^ (d * 0x165667B19E3779F9ull)) *
+                             0x9E3779B97F4A7C15ull;
+            size_t h = (size_t)(mixed >> (64 - log2_slots));
+            const uint64_t *k;
+            while (slot[h] != NO_SLOT &&
+                   ((k = seen + 3 * (size_t)slot[h])[0] != a || k[1] != c || k[2] != d))
+                h = (h + 1) & (slots - 1);
+            if (slot[h] != NO_SLOT)
+                continue; /* a repeat: dropped */
+            slot[h] = (uint32_t)kept;
+            seen[3 * kept] = a, seen[3 * kept + 1] = c, seen[3 * kept + 2] = d;
             ++kept;
+        }
+        if (out != i)
+            memcpy(rec + 3 * out, r, RECORD);
+        ++out;
     }
-    size_t out = 0;
-    for (size_t i = 0; i < n; ++i)
-        if (!drop[i])
-            memmove(rec + 3 * out++, rec + 3 * i, RECORD);
-    free(k);
-    free(drop);
+    free(slot);
+    free(seen);
     *count = out;
     *distinct = kept;
     return MS_OK;
@@ -509,42 +507,93 @@ static void report(const ms_nsp_build_params *p, const char *phase, double fract
         p->progress(p->progress_context, phase, fraction);
 }
 
-/* Writes every input vertex's key, in input order, to the key file. */
+/* The quantisation runs in rounds of QUANTISE_ROUND chunks of the vertex spool,
+ * one block each on the pool: a chunk's keys depend on its vertices alone and go
+ * to their own place in the key file, so the file is the same for any thread
+ * count. Each block has its own buffers and counters. */
+#define QUANTISE_ROUND 2
+
+typedef struct quantise_block {
+    double *positions; /* SPOOL_CHUNK * 3 */
+    uint64_t *keys;    /* SPOOL_CHUNK */
+    ms_nsp_io io;
+    ms_status status;
+    ms_error err;
+} quantise_block;
+
+typedef struct quantisation {
+    const ms_nsp_build *b;
+    int vspool_fd, key_fd;
+    uint64_t first_chunk; /* of the round */
+    quantise_block block[QUANTISE_ROUND];
+} quantisation;
+
+static void quantise_chunk(void *context, size_t block)
+{
+    quantisation *q = context;
+    quantise_block *qb = &q->block[block];
+    const ms_nsp_build *b = q->b;
+    const unsigned bits = b->params.shape.bits;
+    uint64_t first = (q->first_chunk + block) * SPOOL_CHUNK;
+    if (first >= b->vertex_count)
+        return;
+    size_t want = b->vertex_count - first < SPOOL_CHUNK ? (size_t)(b->vertex_count - first)
+                                                        : SPOOL_CHUNK;
+    size_t bytes = want * 3 * sizeof *qb->positions;
+    if (pread(q->vspool_fd, qb->positions, bytes, (off_t)(first * 3 * sizeof *qb->positions)) !=
+        (ssize_t)bytes) {
+        qb->status = ms_error_set(&qb->err, MS_ERR_IO, "cannot read the vertex spool");
+        return;
+    }
+    qb->io.read_back += bytes;
+    for (size_t i = 0; i < want; ++i) {
+        uint32_t xyz[3];
+        for (int a = 0; a < 3; ++a)
+            xyz[a] = quantise_coordinate(qb->positions[3 * i + a], b->box.origin[a], b->box.size,
+                                         bits);
+        qb->keys[i] = ms_quant_key(xyz[0], xyz[1], xyz[2], bits);
+    }
+    bytes = want * sizeof *qb->keys;
+    if (pwrite(q->key_fd, qb->keys, bytes, (off_t)(first * sizeof *qb->keys)) != (ssize_t)bytes) {
+        qb->status = ms_error_set(&qb->err, MS_ERR_IO, "cannot write the key file: %s",
+                                  strerror(errno));
+        return;
+    }
+    qb->io.spilled += bytes;
+}
+
+/* Writes every input vertex's key, in input order, to the key file (the spool
+ * flushed). */
 static ms_status compute_keys(ms_nsp_build *b, FILE *vspool, int key_fd, ms_error *err)
 {
-    const unsigned bits = b->params.shape.bits;
-    double *chunk = malloc(SPOOL_CHUNK * 3 * sizeof *chunk);
-    uint64_t *keys = malloc(SPOOL_CHUNK * sizeof *keys);
-    if (!chunk || !keys) {
-        free(chunk);
-        free(keys);
-        return ms_error_set(err, MS_ERR_NOMEM, "out of memory quantising");
-    }
-    rewind(vspool);
+    quantisation q = {.b = b, .vspool_fd = fileno(vspool), .key_fd = key_fd};
     ms_status s = MS_OK;
-    size_t done = 0;
-    while (done < b->vertex_count && s == MS_OK) {
-        size_t want = b->vertex_count - done < SPOOL_CHUNK ? b->vertex_count - done : SPOOL_CHUNK;
-        if (fread(chunk, 3 * sizeof *chunk, want, vspool) != want) {
-            s = ms_error_set(err, MS_ERR_IO, "cannot read the vertex spool");
-            break;
-        }
-        b->stats.io_quantise.read_back += want * 3 * sizeof *chunk;
-        for (size_t i = 0; i < want; ++i) {
-            uint32_t q[3];
-            for (int a = 0; a < 3; ++a)
-                q[a] = quantise_coordinate(chunk[3 * i + a], b->box.origin[a], b->box.size, bits);
-            keys[i] = ms_quant_key(q[0], q[1], q[2], bits);
-        }
-        size_t bytes = want * sizeof *keys;
-        if (pwrite(key_fd, keys, bytes, (off_t)(done * sizeof *keys)) != (ssize_t)bytes)
-            s = ms_error_set(err, MS_ERR_IO, "cannot write the key file: %s", strerror(errno));
-        b->stats.io_quantise.spilled += bytes;
-        done += want;
-        report(&b->params, "quantising", (double)done / (double)b->vertex_count);
+    for (int k = 0; k < QUANTISE_ROUND && s == MS_OK; ++k) {
+        q.block[k].positions = malloc(SPOOL_CHUNK * 3 * sizeof *q.block[k].positions);
+        q.block[k].keys = malloc(SPOOL_CHUNK * sizeof *q.block[k].keys);
+        if (!q.block[k].positions || !q.block[k].keys)
+            s = ms_error_set(err, MS_ERR_NOMEM, "out of memory quantising");
     }
-    free(chunk);
-    free(keys);
+    ms_pool *pool = NULL;
+    if (s == MS_OK)
+        s = ms_pool_new(b->params.threads > 1 ? QUANTISE_ROUND - 1 : 0, &pool, err);
+    uint64_t chunks = (b->vertex_count + SPOOL_CHUNK - 1) / SPOOL_CHUNK;
+    for (q.first_chunk = 0; s == MS_OK && q.first_chunk < chunks; q.first_chunk += QUANTISE_ROUND) {
+        ms_pool_for(pool, QUANTISE_ROUND, quantise_chunk, &q);
+        for (int k = 0; k < QUANTISE_ROUND && s == MS_OK; ++k)
+            if (q.block[k].status != MS_OK)
+                s = ms_error_set(err, q.block[k].status, "%s", q.block[k].err.text);
+        uint64_t done = q.first_chunk + QUANTISE_ROUND < chunks ? q.first_chunk + QUANTISE_ROUND
+                                                                : chunks;
+        report(&b->params, "quantising", (double)done / (double)chunks);
+    }
+    ms_pool_free(pool);
+    for (int k = 0; k < QUANTISE_ROUND; ++k) {
+        b->stats.io_quantise.read_back += q.block[k].io.read_back;
+        b->stats.io_quantise.spilled += q.block[k].io.spilled;
+        free(q.block[k].positions);
+        free(q.block[k].keys);
+    }
     return s;
 }
 
