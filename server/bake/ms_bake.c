@@ -368,6 +368,7 @@ ms_status ms_bake(const ms_bake_options *o, ms_bake_report *r, ms_error *err)
     if ((s = ms_archive_writer_set_format(w, o->archive_version, o->subtree_levels, err)) !=
         MS_OK)
         goto done;
+    ms_archive_writer_set_threads(w, o->threads ? o->threads : 1);
     if ((s = encode_cells(o, &b, cell_of_node, w, &progress, r, err)) != MS_OK)
         goto done;
     double t_write = ms_now_seconds();
