@@ -18,6 +18,7 @@ struct ms_nsp_key_cache {
     uint64_t *used_at;   /* tick of the slot's last use (least recent goes first) */
     bool *dirty;         /* the slot's marks are not on disk yet */
     uint64_t tick;
+    size_t last_slot;    /* the slot of the last lookup (a triangle's corners share pages) */
     ms_nsp_io *io;
     uint64_t *page_misses;
 };
@@ -87,15 +88,20 @@ static ms_status entry(ms_nsp_key_cache *c, uint64_t v, uint64_t **out, size_t *
                        ms_error *err)
 {
     uint64_t page = v / MS_NSP_KEY_PAGE_KEYS;
-    size_t first = (size_t)((page * UINT64_C(0x9E3779B97F4A7C15)) >> 17) % c->sets * WAYS;
-    size_t slot = first;
-    for (size_t w = 0; w < WAYS; ++w) {
-        if (c->page_of[first + w] == (int64_t)page) {
-            slot = first + w;
-            break;
+    /* A page lives in one slot only: finding it where the last lookup was is
+     * what the search of its set would find. */
+    size_t slot = c->last_slot;
+    if (c->page_of[slot] != (int64_t)page) {
+        size_t first = (size_t)((page * UINT64_C(0x9E3779B97F4A7C15)) >> 17) % c->sets * WAYS;
+        slot = first;
+        for (size_t w = 0; w < WAYS; ++w) {
+            if (c->page_of[first + w] == (int64_t)page) {
+                slot = first + w;
+                break;
+            }
+            if (c->used_at[first + w] < c->used_at[slot])
+                slot = first + w;
         }
-        if (c->used_at[first + w] < c->used_at[slot])
-            slot = first + w;
     }
     uint64_t *keys = c->keys + slot * MS_NSP_KEY_PAGE_KEYS;
     if (c->page_of[slot] != (int64_t)page) {
@@ -110,6 +116,7 @@ static ms_status entry(ms_nsp_key_cache *c, uint64_t v, uint64_t **out, size_t *
         (*c->page_misses)++;
     }
     c->used_at[slot] = ++c->tick;
+    c->last_slot = slot;
     *out = &keys[v % MS_NSP_KEY_PAGE_KEYS];
     *slot_out = slot;
     return MS_OK;
