@@ -19,8 +19,8 @@
 
 #include "ms_test.h"
 
-/* The model: meshgen's 300k triangles (150k vertices, 1.2 MB of keys: five
- * chunks of the distribution's pipeline, three of the quantisation). With --mem 4
+/* The model: meshgen's 300k triangles (150k vertices, 1.2 MB of keys: 19 steps
+ * of the distribution's pipeline, five chunks of the quantisation). With --mem 4
  * the key cache holds 1 MiB (256 pages of 512 keys) and the leaf buffers 512
  * KiB, against 7 MB of leaf records. */
 #define MODEL_TRIANGLES 300000

@@ -22,7 +22,10 @@
 #define BLOCK_HEAD 16 /* int64 next, u32 count, u32 reserved */
 #define RECORD MS_NSP_RECORD_BYTES
 #define BLOCK_RECORDS ((BLOCK_BYTES - BLOCK_HEAD) / RECORD)
-#define SPOOL_CHUNK 65536
+#define SPOOL_CHUNK 65536    /* keys read at a time when the isolated vertices are found */
+#define QUANTISE_CHUNK 32768 /* vertices a quantisation block reads (two at a time: 2 MB) */
+#define PIPELINE_CHUNK 16384 /* triangles a step of the distribution keys and inserts
+                              * (the spool chunk and two chunks of records: 960 KB) */
 
 /* ---- temporary files ---------------------------------------------------- */
 
@@ -514,8 +517,8 @@ static void report(const ms_nsp_build_params *p, const char *phase, double fract
 #define QUANTISE_ROUND 2
 
 typedef struct quantise_block {
-    double *positions; /* SPOOL_CHUNK * 3 */
-    uint64_t *keys;    /* SPOOL_CHUNK */
+    double *positions; /* QUANTISE_CHUNK * 3 */
+    uint64_t *keys;    /* QUANTISE_CHUNK */
     ms_nsp_io io;
     ms_status status;
     ms_error err;
@@ -534,11 +537,11 @@ static void quantise_chunk(void *context, size_t block)
     quantise_block *qb = &q->block[block];
     const ms_nsp_build *b = q->b;
     const unsigned bits = b->params.shape.bits;
-    uint64_t first = (q->first_chunk + block) * SPOOL_CHUNK;
+    uint64_t first = (q->first_chunk + block) * QUANTISE_CHUNK;
     if (first >= b->vertex_count)
         return;
-    size_t want = b->vertex_count - first < SPOOL_CHUNK ? (size_t)(b->vertex_count - first)
-                                                        : SPOOL_CHUNK;
+    size_t want = b->vertex_count - first < QUANTISE_CHUNK ? (size_t)(b->vertex_count - first)
+                                                           : QUANTISE_CHUNK;
     size_t bytes = want * 3 * sizeof *qb->positions;
     if (pread(q->vspool_fd, qb->positions, bytes, (off_t)(first * 3 * sizeof *qb->positions)) !=
         (ssize_t)bytes) {
@@ -569,15 +572,15 @@ static ms_status compute_keys(ms_nsp_build *b, FILE *vspool, int key_fd, ms_erro
     quantisation q = {.b = b, .vspool_fd = fileno(vspool), .key_fd = key_fd};
     ms_status s = MS_OK;
     for (int k = 0; k < QUANTISE_ROUND && s == MS_OK; ++k) {
-        q.block[k].positions = malloc(SPOOL_CHUNK * 3 * sizeof *q.block[k].positions);
-        q.block[k].keys = malloc(SPOOL_CHUNK * sizeof *q.block[k].keys);
+        q.block[k].positions = malloc(QUANTISE_CHUNK * 3 * sizeof *q.block[k].positions);
+        q.block[k].keys = malloc(QUANTISE_CHUNK * sizeof *q.block[k].keys);
         if (!q.block[k].positions || !q.block[k].keys)
             s = ms_error_set(err, MS_ERR_NOMEM, "out of memory quantising");
     }
     ms_pool *pool = NULL;
     if (s == MS_OK)
         s = ms_pool_new(b->params.threads > 1 ? QUANTISE_ROUND - 1 : 0, &pool, err);
-    uint64_t chunks = (b->vertex_count + SPOOL_CHUNK - 1) / SPOOL_CHUNK;
+    uint64_t chunks = (b->vertex_count + QUANTISE_CHUNK - 1) / QUANTISE_CHUNK;
     for (q.first_chunk = 0; s == MS_OK && q.first_chunk < chunks; q.first_chunk += QUANTISE_ROUND) {
         ms_pool_for(pool, QUANTISE_ROUND, quantise_chunk, &q);
         for (int k = 0; k < QUANTISE_ROUND && s == MS_OK; ++k)
@@ -637,7 +640,7 @@ static ms_status insert_unused_vertices(ms_nsp_build *b, int key_fd, ms_error *e
 typedef struct keyed_chunk {
     uint64_t first;     /* spool number of its first triangle */
     size_t records;     /* records (3 keys each) of its kept triangles */
-    uint64_t *keys;     /* SPOOL_CHUNK * 3 */
+    uint64_t *keys;     /* PIPELINE_CHUNK * 3 */
     ms_status status;   /* of the key stage; MS_OK or the error at the triangle after its records */
     ms_error err;
 } keyed_chunk;
@@ -646,7 +649,7 @@ typedef struct distribution {
     ms_nsp_build *b;
     FILE *tspool;
     uint64_t triangles, read; /* in the spool, and read so far by the key stage */
-    uint32_t *spool_chunk;    /* SPOOL_CHUNK * 3 vertex numbers */
+    uint32_t *spool_chunk;    /* PIPELINE_CHUNK * 3 vertex numbers */
     ms_nsp_key_cache *cache;
     ms_nsp_io key_io;         /* the key stage's own counters */
     uint64_t key_page_misses, degenerate;
@@ -687,8 +690,8 @@ static void key_stage(distribution *d)
     c->first = d->read;
     c->records = 0;
     c->status = MS_OK;
-    size_t want = d->triangles - d->read < SPOOL_CHUNK ? (size_t)(d->triangles - d->read)
-                                                       : SPOOL_CHUNK;
+    size_t want = d->triangles - d->read < PIPELINE_CHUNK ? (size_t)(d->triangles - d->read)
+                                                          : PIPELINE_CHUNK;
     if (fread(d->spool_chunk, 12, want, d->tspool) != want) {
         c->status = ms_error_set(&c->err, MS_ERR_IO, "cannot read the triangle spool");
         return;
@@ -732,9 +735,9 @@ static ms_status distribute(ms_nsp_build *b, FILE *tspool, uint64_t triangles, i
 {
     distribution d = {.b = b, .tspool = tspool, .triangles = triangles};
     ms_pool *pool = NULL;
-    d.spool_chunk = malloc(SPOOL_CHUNK * 3 * sizeof *d.spool_chunk);
-    d.chunk[0].keys = malloc(SPOOL_CHUNK * 3 * sizeof *d.chunk[0].keys);
-    d.chunk[1].keys = malloc(SPOOL_CHUNK * 3 * sizeof *d.chunk[1].keys);
+    d.spool_chunk = malloc(PIPELINE_CHUNK * 3 * sizeof *d.spool_chunk);
+    d.chunk[0].keys = malloc(PIPELINE_CHUNK * 3 * sizeof *d.chunk[0].keys);
+    d.chunk[1].keys = malloc(PIPELINE_CHUNK * 3 * sizeof *d.chunk[1].keys);
     ms_status s = ms_nsp_key_cache_new(key_fd, b->vertex_count, b->params.key_cache_bytes,
                                        &d.key_io, &d.key_page_misses, &d.cache, err);
     if (s == MS_OK && (!d.spool_chunk || !d.chunk[0].keys || !d.chunk[1].keys))
