@@ -5,11 +5,15 @@
  * (3 doubles) and triangles (3 u32) to unlinked temporary files while it finds the
  * bounding box; fits the cubic quantisation box (as ms_quant_fit_box); writes every
  * input vertex's interleaved key at p bits to a key file (8 bytes per input
- * vertex, on disk); then streams the triangles again, looks their vertices' keys
- * up through a bounded cache of key-file pages (key_cache_bytes), and inserts each
- * non-degenerate triangle (three distinct keys: welding is implicit, vertices are
- * their keys) into every leaf holding one of its vertices. A leaf that reaches
- * N_min triangles splits into n^3 children and redistributes its content. Input
+ * vertex, on disk; two blocks of the spool at a time, on params.threads); then
+ * streams the triangles again, looks their vertices' keys up through a bounded
+ * cache of key-file pages (key_cache_bytes), and inserts each non-degenerate
+ * triangle (three distinct keys: welding is implicit, vertices are their keys)
+ * into every leaf holding one of its vertices. A leaf that reaches
+ * N_min triangles splits into n^3 children and redistributes its content. With
+ * two threads or more the look-ups and the insertions run as a two-stage
+ * pipeline (the next chunk's keys on one thread while the other inserts the
+ * last chunk's records, in input order): the tree is that of one thread. Input
  * vertices used by no kept triangle (the key file marks the used ones) are then
  * inserted as point records (isolated vertices), in input order.
  *
