@@ -290,6 +290,23 @@ static ms_status append(ms_nsp_build *b, uint32_t index, const uint64_t rec[3], 
 
 #define NO_SLOT UINT32_MAX
 
+/* A key's share of its triangle's hash: summed over the three, so that the
+ * hash does not depend on their order. */
+static uint64_t key_hash(uint64_t key)
+{
+    uint64_t z = key * 0x9E3779B97F4A7C15ull;
+    return (z ^ (z >> 31)) * 0xC2B2AE3D27D4EB4Full;
+}
+
+/* Whether two triangle records (three distinct keys each) have the same vertices. */
+static bool same_vertices(const uint64_t *r, const uint64_t *k)
+{
+    for (int i = 0; i < 3; ++i)
+        if (r[i] != k[0] && r[i] != k[1] && r[i] != k[2])
+            return false;
+    return true;
+}
+
 /* Removes from rec[0..*count) every triangle record whose welded vertex set
  * an earlier record already has (the first stays, in order, as the encoder's
  * ms_tri_unify would keep it); point records stay. *distinct: the triangle
@@ -305,36 +322,21 @@ static ms_status drop_repeated_triangles(uint64_t *rec, size_t *count, size_t *d
     while (((size_t)1 << log2_slots) < 2 * n)
         ++log2_slots;
     size_t slots = (size_t)1 << log2_slots;
-    uint32_t *slot = malloc(slots * sizeof *slot);
-    uint64_t *seen = malloc((3 * n + 1) * sizeof *seen); /* the kept sets, sorted keys */
-    if (!slot || !seen) {
-        free(slot);
-        free(seen);
+    uint32_t *slot = malloc(slots * sizeof *slot); /* a kept record's place in the output */
+    if (!slot)
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory finding repeated triangles");
-    }
     memset(slot, 0xFF, slots * sizeof *slot); /* NO_SLOT everywhere */
     size_t out = 0, kept = 0;
     for (size_t i = 0; i < n; ++i) {
         const uint64_t *r = rec + 3 * i;
         if (r[0] != r[1]) { /* not a point record */
-            uint64_t a = r[0], c = r[1], d = r[2], x;
-            if (a > c)
-                x = a, a = c, c = x;
-            if (c > d)
-                x = c, c = d, d = x;
-            if (a > c)
-                x = a, a = c, c = x;
-            uint64_t mixed = (a ^ (c * 0xC2B2AE3D27D4EB4Full) ^ (d * 0x165667B19E3779F9ull)) *
-                             0x9E3779B97F4A7C15ull;
+            uint64_t mixed = key_hash(r[0]) + key_hash(r[1]) + key_hash(r[2]);
             size_t h = (size_t)(mixed >> (64 - log2_slots));
-            const uint64_t *k;
-            while (slot[h] != NO_SLOT &&
-                   ((k = seen + 3 * (size_t)slot[h])[0] != a || k[1] != c || k[2] != d))
+            while (slot[h] != NO_SLOT && !same_vertices(r, rec + 3 * (size_t)slot[h]))
                 h = (h + 1) & (slots - 1);
             if (slot[h] != NO_SLOT)
                 continue; /* a repeat: dropped */
-            slot[h] = (uint32_t)kept;
-            seen[3 * kept] = a, seen[3 * kept + 1] = c, seen[3 * kept + 2] = d;
+            slot[h] = (uint32_t)out; /* output places below i are never written again */
             ++kept;
         }
         if (out != i)
@@ -342,7 +344,6 @@ static ms_status drop_repeated_triangles(uint64_t *rec, size_t *count, size_t *d
         ++out;
     }
     free(slot);
-    free(seen);
     *count = out;
     *distinct = kept;
     return MS_OK;
@@ -400,8 +401,8 @@ static ms_status split_node(ms_nsp_build *b, uint32_t index, ms_error *err)
     node->head_block = -1;
     /* Split on distinct triangles: repeated ones (the same welded vertices)
      * go now, and a node they alone filled takes the rest back and stays a
-     * leaf. Each such check costs O(m log m) for the m records of a node that
-     * just reached the threshold, so copies cost O(n log n) in all. */
+     * leaf. Each such check costs O(m) (hashing) for the m records of a node
+     * that just reached the threshold, so copies cost O(n log n) in all. */
     size_t distinct = 0;
     s = drop_repeated_triangles(rec, &count, &distinct, err);
     if (s != MS_OK) {
