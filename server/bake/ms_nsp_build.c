@@ -146,19 +146,41 @@ static unsigned child_count(const ms_nsp_build *b)
     return n * n * n;
 }
 
-static bool key_inside(const ms_nsp_build *b, uint64_t key, const ms_nsp_node *node)
+/* The bits of a key above a depth-`depth` cell's cube: its cell's Morton number
+ * at that depth (what ms_nsp_prefix_inside compares, without unkeying). */
+static uint64_t key_cell(const ms_nsp_build *b, uint64_t key, unsigned depth)
 {
-    return ms_nsp_prefix_inside(&b->params.shape, key, 3 * b->params.shape.bits, node->depth,
-                                node->position);
+    return key >> (3 * (b->params.shape.bits - depth * b->params.shape.log2n));
 }
 
+/* A node's Morton number among the cells of its depth. */
+static uint64_t node_cell(const ms_nsp_node *node)
+{
+    return ms_quant_key(node->position[0], node->position[1], node->position[2], 0);
+}
+
+/* child_of_group[g]: the child offset (ms_nsp_child_offset) of the cell whose
+ * 3 log2(n) key bits below its parent's are g. */
+static void fill_child_of_group(ms_nsp_build *b)
+{
+    const ms_nsp_shape *shape = &b->params.shape;
+    for (uint32_t g = 0; g < child_count(b); ++g) {
+        uint32_t xyz[3];
+        ms_quant_unkey(g, shape->log2n, xyz);
+        for (int a = 0; a < 3; ++a)
+            xyz[a] <<= shape->bits - shape->log2n; /* a depth-1 cell's corner */
+        b->child_of_group[g] = (uint16_t)ms_nsp_child_offset(shape, 0, xyz);
+    }
+}
+
+/* The leaf below `node` holding the key: one group of key bits per level (the
+ * descent runs three times per inserted record). */
 static uint32_t leaf_below(const ms_nsp_build *b, uint32_t node, uint64_t key)
 {
-    uint32_t xyz[3];
-    ms_quant_unkey(key, b->params.shape.bits, xyz);
+    uint64_t mask = child_count(b) - 1;
     while (b->nodes[node].first_child != MS_NSP_NONE)
         node = b->nodes[node].first_child +
-               ms_nsp_child_offset(&b->params.shape, b->nodes[node].depth, xyz);
+               b->child_of_group[key_cell(b, key, b->nodes[node].depth + 1u) & mask];
     return node;
 }
 
@@ -478,10 +500,12 @@ static ms_status insert_under(ms_nsp_build *b, uint32_t top, const uint64_t rec[
     uint32_t leaves[3];
     unsigned nl = 0;
     int verts = rec[0] == rec[1] ? 1 : 3;
+    unsigned top_depth = b->nodes[top].depth;
+    uint64_t top_cell = node_cell(&b->nodes[top]);
     for (int i = 0; i < verts; ++i) {
         uint64_t key = rec[i];
-        if (top != 0 && !key_inside(b, key, &b->nodes[top]))
-            continue;
+        if (key_cell(b, key, top_depth) != top_cell)
+            continue; /* outside top's cube */
         uint32_t leaf = leaf_below(b, top, key);
         if ((nl > 0 && leaves[0] == leaf) || (nl > 1 && leaves[1] == leaf))
             continue;
@@ -848,6 +872,7 @@ ms_status ms_nsp_build_run(const char *path, const ms_nsp_build_params *params,
     double t2 = ms_now_seconds();
     b->stats.seconds_quantise = t2 - t1;
 
+    fill_child_of_group(b);
     b->node_cap = 1024;
     b->nodes = malloc(b->node_cap * sizeof *b->nodes);
     b->block_scratch = malloc(BLOCK_BYTES);

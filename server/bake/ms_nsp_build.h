@@ -143,6 +143,7 @@ typedef struct ms_nsp_build {
     size_t buffered_bytes;
     uint8_t *block_scratch;
     int lone_fd;            /* lone-level segments (ms_nsp_lone.h), -1 before */
+    uint16_t child_of_group[512]; /* child offset by the n^3 values of a level's key bits */
     ms_nsp_build_stats stats;
 } ms_nsp_build;
 
