@@ -693,19 +693,14 @@ static ms_status key_triangle(distribution *d, const uint32_t t[3], uint64_t num
     if (t[0] >= vertices || t[1] >= vertices || t[2] >= vertices)
         return ms_error_set(err, MS_ERR_FORMAT, "triangle %" PRIu64 " has an index out of range",
                             number);
-    ms_status s = MS_OK;
-    for (int j = 0; j < 3 && s == MS_OK; ++j)
-        s = ms_nsp_key_cache_key(d->cache, t[j], &out[j], err);
+    ms_status s = ms_nsp_key_cache_triangle(d->cache, t, out, err);
     if (s != MS_OK)
         return s;
-    if (out[0] == out[1] || out[1] == out[2] || out[0] == out[2]) {
+    if (out[0] == out[1] || out[1] == out[2] || out[0] == out[2])
         d->degenerate++;
-        return MS_OK;
-    }
-    for (int j = 0; j < 3 && s == MS_OK; ++j)
-        s = ms_nsp_key_cache_mark_used(d->cache, t[j], err);
-    *kept = s == MS_OK;
-    return s;
+    else
+        *kept = true;
+    return MS_OK;
 }
 
 /* The key stage: the next chunk of the spool into chunk[step % 2]. */
