@@ -2,8 +2,10 @@
  * phase works through its temporary files (the key file read back through a
  * cache smaller than it, leaf buffers flushed while distributing, lone levels
  * and leaf records read back) gives the archive a large --mem gives, byte for
- * byte; the report counts each phase's temporary-file traffic; and a --mem below
- * what a bake works in is refused before the input is read. */
+ * byte, on one thread and on two (the distribution's pipeline, the quantisation
+ * and the subtrees on the pool); the report counts each phase's temporary-file
+ * traffic, the same on one thread and two; and a --mem below what a bake works in
+ * is refused before the input is read. */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -17,9 +19,10 @@
 
 #include "ms_test.h"
 
-/* The model: meshgen's 300k triangles (150k vertices, 1.2 MB of keys). With
- * --mem 3 the key cache holds 768 KiB (192 pages of 512 keys) and the leaf
- * buffers 384 KiB, against 7 MB of leaf records. */
+/* The model: meshgen's 300k triangles (150k vertices, 1.2 MB of keys: 19 steps
+ * of the distribution's pipeline, five chunks of the quantisation). With --mem 4
+ * the key cache holds 1 MiB (256 pages of 512 keys) and the leaf buffers 512
+ * KiB, against 7 MB of leaf records. */
 #define MODEL_TRIANGLES 300000
 
 static json_t *bake(const char *bin, const char *model, const char *dir, const char *name,
@@ -52,9 +55,10 @@ static void test_small_mem_gives_the_same_archive(void **state)
     assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
 
     json_t *big = bake(bin, model, dir, "big", "--mem 256 --threads 2");
-    json_t *small = bake(bin, model, dir, "small", "--mem 3 --threads 1");
+    json_t *small = bake(bin, model, dir, "small", "--mem 4 --threads 1");
+    json_t *small2 = bake(bin, model, dir, "small2", "--mem 4 --threads 2");
     uint64_t vertices = (uint64_t)json_integer_value(json_object_get(small, "input_vertices"));
-    assert_true(vertices * 8 > (768u << 10)); /* the keys do not fit in the cache */
+    assert_true(vertices * 8 > (1u << 20)); /* the keys do not fit in the cache */
     /* every phase spills, or reads back what an earlier one spilled */
     assert_true(io_bytes(small, "read", "spilled_bytes") >= vertices * 24);
     assert_int_equal(io_bytes(small, "quantise", "spilled_bytes"), vertices * 8);
@@ -71,14 +75,31 @@ static void test_small_mem_gives_the_same_archive(void **state)
                 io_bytes(small, "lone", "read_back_bytes")); /* the records and the segments */
     assert_true(json_integer_value(json_object_get(small, "depth")) >= 2);
     assert_true(json_real_value(json_object_get(small, "peak_rss_mb")) > 0);
+    /* two threads move the same bytes through the same cache */
+    const char *phases[] = {"read", "quantise", "distribute", "lone", "encode"};
+    for (size_t i = 0; i < sizeof phases / sizeof *phases; ++i) {
+        assert_int_equal(io_bytes(small2, phases[i], "spilled_bytes"),
+                         io_bytes(small, phases[i], "spilled_bytes"));
+        assert_int_equal(io_bytes(small2, phases[i], "read_back_bytes"),
+                         io_bytes(small, phases[i], "read_back_bytes"));
+    }
+    assert_int_equal(json_integer_value(json_object_get(small2, "key_page_misses")),
+                     json_integer_value(json_object_get(small, "key_page_misses")));
+    assert_int_equal(json_integer_value(json_object_get(small2, "threads")), 2);
     json_decref(big);
     json_decref(small);
+    json_decref(small2);
 
     size_t big_size, small_size;
     snprintf(path, sizeof path, "%s/big.msa", dir);
     unsigned char *a = ms_test_read_file(path, &big_size);
     snprintf(path, sizeof path, "%s/small.msa", dir);
     unsigned char *b = ms_test_read_file(path, &small_size);
+    assert_int_equal(big_size, small_size);
+    assert_memory_equal(a, b, big_size);
+    free(b);
+    snprintf(path, sizeof path, "%s/small2.msa", dir);
+    b = ms_test_read_file(path, &small_size);
     assert_int_equal(big_size, small_size);
     assert_memory_equal(a, b, big_size);
     free(a);

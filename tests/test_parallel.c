@@ -1,5 +1,6 @@
 /* The common thread pool and parallel-for: every block runs exactly once per
- * loop, on the helpers and the caller, across many loops of one pool. */
+ * loop, on the helpers and the caller, across many loops of one pool; a pair
+ * runs its block 0 on the caller. */
 #include <stdarg.h>
 #include <stddef.h>
 #include <setjmp.h>
@@ -8,6 +9,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <cmocka.h>
+#include <pthread.h>
 
 #include "ms_parallel.h"
 
@@ -105,12 +107,56 @@ static void test_parallel_for_any_thread_count(void **state)
     assert_true(ms_parallel_cores() >= 1);
 }
 
+typedef struct pair_run {
+    pthread_t caller, ran_on[2];
+    atomic_uint runs[2];
+} pair_run;
+
+static void pair_block(void *ctx, size_t block)
+{
+    pair_run *r = ctx;
+    r->ran_on[block] = pthread_self();
+    atomic_fetch_add(&r->runs[block], 1);
+}
+
+static void test_pool_pair_runs_block_0_on_the_caller(void **state)
+{
+    (void)state;
+    for (unsigned helpers = 0; helpers <= 2; ++helpers) {
+        ms_pool *pool;
+        ms_error err;
+        assert_int_equal(ms_pool_new(helpers, &pool, &err), MS_OK);
+        for (unsigned loop = 0; loop < 500; ++loop) {
+            pair_run r;
+            r.caller = pthread_self();
+            atomic_init(&r.runs[0], 0);
+            atomic_init(&r.runs[1], 0);
+            ms_pool_pair(pool, pair_block, &r);
+            assert_int_equal(atomic_load(&r.runs[0]), 1);
+            assert_int_equal(atomic_load(&r.runs[1]), 1);
+            assert_true(pthread_equal(r.ran_on[0], r.caller));
+            if (helpers == 0)
+                assert_true(pthread_equal(r.ran_on[1], r.caller));
+        }
+        /* ms_pool_for still hands out every block after pairs */
+        atomic_uint runs[40];
+        uint64_t out[40];
+        for (size_t b = 0; b < 40; ++b)
+            atomic_init(&runs[b], 0);
+        counts c = {runs, out, 3};
+        ms_pool_for(pool, 40, count_block, &c);
+        expect_each_once(&c, 40, 1);
+        ms_pool_free(pool);
+    }
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_pool_runs_every_block_once_per_loop),
         cmocka_unit_test(test_pool_without_helpers_runs_on_the_caller),
         cmocka_unit_test(test_parallel_for_any_thread_count),
+        cmocka_unit_test(test_pool_pair_runs_block_0_on_the_caller),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

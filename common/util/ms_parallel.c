@@ -117,6 +117,29 @@ void ms_pool_for(ms_pool *p, size_t block_count, ms_parallel_fn fn, void *ctx)
     pthread_mutex_unlock(&p->lock);
 }
 
+void ms_pool_pair(ms_pool *p, ms_parallel_fn fn, void *ctx)
+{
+    if (p->count == 0) {
+        fn(ctx, 0);
+        fn(ctx, 1);
+        return;
+    }
+    pthread_mutex_lock(&p->lock);
+    p->fn = fn, p->ctx = ctx;
+    /* Only block 1 is handed out; block 0 is counted finished by the caller. */
+    p->block_count = 2, p->next_block = 1, p->finished = 1;
+    p->round++;
+    pthread_cond_broadcast(&p->go);
+    pthread_mutex_unlock(&p->lock);
+    fn(ctx, 0);
+    run_blocks(p); /* block 1, if no helper has taken it */
+    pthread_mutex_lock(&p->lock);
+    while (p->finished < p->block_count)
+        pthread_cond_wait(&p->done, &p->lock);
+    p->block_count = 0;
+    pthread_mutex_unlock(&p->lock);
+}
+
 void ms_pool_free(ms_pool *p)
 {
     if (!p)

@@ -44,6 +44,13 @@ unsigned ms_pool_helpers(const ms_pool *pool);
  * done. One loop at a time: a pool is used by one calling thread. */
 void ms_pool_for(ms_pool *pool, size_t block_count, ms_parallel_fn fn, void *ctx);
 
+/* Two blocks at once, for a two-stage pipeline: fn(ctx, 0) on the calling
+ * thread and fn(ctx, 1) on a helper (or on the caller after block 0 when no
+ * helper has taken it yet, or the pool has none); returns when both are done.
+ * Block 0's thread is always the caller's, so what it allocates stays in one
+ * malloc arena. One loop at a time, like ms_pool_for. */
+void ms_pool_pair(ms_pool *pool, ms_parallel_fn fn, void *ctx);
+
 /* Stops and joins the helpers (none may be inside ms_pool_for); NULL is a no-op. */
 void ms_pool_free(ms_pool *pool);
 

@@ -13,6 +13,7 @@
 #include <unistd.h>
 #include <zlib.h>
 
+#include "ms_parallel.h"
 #include "ms_subtree.h"
 
 typedef struct cell_state {
@@ -32,6 +33,7 @@ struct ms_archive_writer {
     cell_state *cells;
     unsigned version;        /* MS_ARCHIVE_VERSION or MS_ARCHIVE_VERSION_ZLIB_INDEX */
     unsigned subtree_levels; /* version 3: S */
+    unsigned threads;        /* for the subtrees at finish, >= 1 */
 };
 
 static void writer_free(ms_archive_writer *w)
@@ -115,6 +117,7 @@ ms_status ms_archive_writer_open(const char *path, const ms_archive_header *head
         return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory", path);
     w->header = *header;
     w->version = MS_ARCHIVE_VERSION;
+    w->threads = 1;
     w->subtree_levels = ms_subtree_default_levels(header->n);
     size_t len = strlen(path);
     w->path = strdup(path);
@@ -273,6 +276,11 @@ static int copy_from_spool(ms_archive_writer *w, FILE *out, uint64_t offset, uin
     return 0;
 }
 
+void ms_archive_writer_set_threads(ms_archive_writer *w, unsigned threads)
+{
+    w->threads = threads ? threads : 1;
+}
+
 ms_status ms_archive_writer_set_format(ms_archive_writer *w, unsigned version,
                                        unsigned subtree_levels, ms_error *err)
 {
@@ -286,6 +294,75 @@ ms_status ms_archive_writer_set_format(ms_archive_writer *w, unsigned version,
     w->version = version;
     w->subtree_levels = subtree_levels ? subtree_levels : ms_subtree_default_levels(w->header.n);
     return MS_OK;
+}
+
+/* The subtrees are encoded and deflated in blocks of SUBTREES_PER_BLOCK on the
+ * pool, each into its own buffer; the section is then laid out in id order, so
+ * its bytes do not depend on the thread count. A failing block stops at its
+ * first failing subtree, and the lowest failing block's error is reported: the
+ * first failure in id order, as one thread would find it. */
+#define SUBTREES_PER_BLOCK 8
+
+typedef struct subtree_job {
+    const ms_archive *a;
+    unsigned levels;
+    const uint32_t *ids;
+    size_t count;
+    uint8_t **stored;    /* per subtree, malloc'd */
+    size_t *stored_size; /* per subtree */
+    ms_status *status;   /* per block */
+    ms_error *errs;      /* per block */
+} subtree_job;
+
+static void deflate_subtree_block(void *context, size_t block)
+{
+    subtree_job *j = context;
+    size_t end = (block + 1) * SUBTREES_PER_BLOCK < j->count ? (block + 1) * SUBTREES_PER_BLOCK
+                                                             : j->count;
+    for (size_t i = block * SUBTREES_PER_BLOCK; i < end && j->status[block] == MS_OK; ++i) {
+        uint8_t *raw = NULL;
+        size_t raw_size;
+        ms_status st = ms_subtree_encode(j->a, j->levels, j->ids[i], &raw, &raw_size,
+                                         &j->errs[block]);
+        if (st == MS_OK)
+            st = ms_subtree_deflate(raw, raw_size, &j->stored[i], &j->stored_size[i],
+                                    &j->errs[block]);
+        free(raw);
+        j->status[block] = st;
+    }
+}
+
+/* Every subtree of a's stored bytes into j (allocated here; the caller frees
+ * them with free_subtree_job, also after an error). */
+static ms_status deflate_subtrees(const ms_archive_writer *w, const ms_archive *a,
+                                  const uint32_t *ids, size_t count, subtree_job *j,
+                                  ms_error *err)
+{
+    size_t blocks = (count + SUBTREES_PER_BLOCK - 1) / SUBTREES_PER_BLOCK;
+    *j = (subtree_job){.a = a, .levels = w->subtree_levels, .ids = ids, .count = count};
+    j->stored = calloc(count ? count : 1, sizeof *j->stored);
+    j->stored_size = calloc(count ? count : 1, sizeof *j->stored_size);
+    j->status = calloc(blocks ? blocks : 1, sizeof *j->status);
+    j->errs = calloc(blocks ? blocks : 1, sizeof *j->errs);
+    if (!j->stored || !j->stored_size || !j->status || !j->errs)
+        return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory for the subtrees", w->path);
+    ms_error no_threads; /* too few threads only slows the loop down */
+    (void)ms_parallel_for(w->threads, blocks, deflate_subtree_block, j, &no_threads);
+    for (size_t b = 0; b < blocks; ++b)
+        if (j->status[b] != MS_OK)
+            return ms_error_set(err, j->status[b], "%s", j->errs[b].text);
+    return MS_OK;
+}
+
+static void free_subtree_job(subtree_job *j)
+{
+    if (j->stored)
+        for (size_t i = 0; i < j->count; ++i)
+            free(j->stored[i]);
+    free(j->stored);
+    free(j->stored_size);
+    free(j->status);
+    free(j->errs);
 }
 
 /* Version 3's index section: the subtree directory (per subtree, in ascending
@@ -314,40 +391,28 @@ static ms_status encode_subtrees(const ms_archive_writer *w, const uint8_t *inde
         return st;
     uint32_t *ids = NULL;
     size_t count = 0;
+    subtree_job j = {0};
     st = ms_subtree_list(a, w->subtree_levels, &ids, &count, err);
-    size_t directory = 12 * count + 4, capacity = directory + (size_t)index_size / 4 + 4096;
-    uint8_t *buf = st == MS_OK ? malloc(capacity) : NULL;
+    if (st == MS_OK)
+        st = deflate_subtrees(w, a, ids, count, &j, err);
+    size_t directory = 12 * count + 4, used = directory;
+    for (size_t i = 0; st == MS_OK && i < count; ++i) {
+        used += j.stored_size[i];
+        if (used - directory > UINT32_MAX)
+            st = ms_error_set(err, MS_ERR_RANGE, "%s: stored subtrees pass 4 GiB", w->path);
+    }
+    uint8_t *buf = st == MS_OK ? malloc(used) : NULL;
     if (st == MS_OK && !buf)
         st = ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory for the subtrees", w->path);
-    size_t used = directory;
+    used = directory;
     for (size_t i = 0; st == MS_OK && i < count; ++i) {
-        uint8_t *raw = NULL, *stored = NULL;
-        size_t raw_size, stored_size;
-        st = ms_subtree_encode(a, w->subtree_levels, ids[i], &raw, &raw_size, err);
-        if (st == MS_OK)
-            st = ms_subtree_deflate(raw, raw_size, &stored, &stored_size, err);
-        free(raw);
-        if (st == MS_OK && used - directory + stored_size > UINT32_MAX)
-            st = ms_error_set(err, MS_ERR_RANGE, "%s: stored subtrees pass 4 GiB", w->path);
-        if (st == MS_OK && used + stored_size > capacity) {
-            size_t grown = 2 * capacity + stored_size;
-            uint8_t *bigger = realloc(buf, grown);
-            if (!bigger)
-                st = ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory for the subtrees",
-                                  w->path);
-            else
-                buf = bigger, capacity = grown;
-        }
-        if (st == MS_OK) {
-            uint8_t *e = buf + 12 * i;
-            uint32_t fields[3] = {ids[i], (uint32_t)(used - directory), (uint32_t)stored_size};
-            for (int f = 0; f < 3; ++f)
-                for (int b = 0; b < 4; ++b)
-                    e[4 * f + b] = (uint8_t)(fields[f] >> (8 * b));
-            memcpy(buf + used, stored, stored_size);
-            used += stored_size;
-        }
-        free(stored);
+        uint8_t *e = buf + 12 * i;
+        uint32_t fields[3] = {ids[i], (uint32_t)(used - directory), (uint32_t)j.stored_size[i]};
+        for (int f = 0; f < 3; ++f)
+            for (int b = 0; b < 4; ++b)
+                e[4 * f + b] = (uint8_t)(fields[f] >> (8 * b));
+        memcpy(buf + used, j.stored[i], j.stored_size[i]);
+        used += j.stored_size[i];
     }
     if (st == MS_OK) {
         uint32_t crc = (uint32_t)crc32_z(0L, buf, 12 * count);
@@ -359,6 +424,7 @@ static ms_status encode_subtrees(const ms_archive_writer *w, const uint8_t *inde
     } else {
         free(buf);
     }
+    free_subtree_job(&j);
     free(ids);
     ms_archive_close(a);
     return st;

@@ -63,6 +63,11 @@ void ms_archive_writer_set_counts(ms_archive_writer *writer, uint64_t vertex_cou
 ms_status ms_archive_writer_set_format(ms_archive_writer *writer, unsigned version,
                                        unsigned subtree_levels, ms_error *err);
 
+/* The threads finish may encode and deflate version 3's subtrees on (0 or 1, the
+ * default: the calling thread alone); the file's bytes are the same for any
+ * value. */
+void ms_archive_writer_set_threads(ms_archive_writer *writer, unsigned threads);
+
 /* Writes the file. Every cell must have its geometry. Frees the writer, whatever
  * the outcome. */
 ms_status ms_archive_writer_finish(ms_archive_writer *writer, ms_error *err);

@@ -181,6 +181,7 @@ static ms_status build_tree(const ms_bake_options *o, const ms_nsp_shape *shape,
         .buffer_budget = o->buffer_bytes ? o->buffer_bytes : o->mem_mb * (1u << 20) / 8,
         .key_cache_bytes = o->key_cache_bytes ? o->key_cache_bytes : o->mem_mb * (1u << 20) / 4,
         .tmp_dir = o->tmp_dir ? o->tmp_dir : o->archive_dir,
+        .threads = o->threads ? o->threads : 1,
         .progress = on_progress,
         .progress_context = progress,
     };
@@ -367,6 +368,7 @@ ms_status ms_bake(const ms_bake_options *o, ms_bake_report *r, ms_error *err)
     if ((s = ms_archive_writer_set_format(w, o->archive_version, o->subtree_levels, err)) !=
         MS_OK)
         goto done;
+    ms_archive_writer_set_threads(w, o->threads ? o->threads : 1);
     if ((s = encode_cells(o, &b, cell_of_node, w, &progress, r, err)) != MS_OK)
         goto done;
     double t_write = ms_now_seconds();

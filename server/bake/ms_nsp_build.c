@@ -15,13 +15,17 @@
 
 #include "ms_archive.h"
 #include "ms_nsp_key_cache.h"
+#include "ms_parallel.h"
 #include "ms_progress.h"
 
 #define BLOCK_BYTES 4096
 #define BLOCK_HEAD 16 /* int64 next, u32 count, u32 reserved */
 #define RECORD MS_NSP_RECORD_BYTES
 #define BLOCK_RECORDS ((BLOCK_BYTES - BLOCK_HEAD) / RECORD)
-#define SPOOL_CHUNK 65536
+#define SPOOL_CHUNK 65536    /* keys read at a time when the isolated vertices are found */
+#define QUANTISE_CHUNK 32768 /* vertices a quantisation block reads (two at a time: 2 MB) */
+#define PIPELINE_CHUNK 16384 /* triangles a step of the distribution keys and inserts
+                              * (the spool chunk and two chunks of records: 960 KB) */
 
 /* ---- temporary files ---------------------------------------------------- */
 
@@ -142,19 +146,41 @@ static unsigned child_count(const ms_nsp_build *b)
     return n * n * n;
 }
 
-static bool key_inside(const ms_nsp_build *b, uint64_t key, const ms_nsp_node *node)
+/* The bits of a key above a depth-`depth` cell's cube: its cell's Morton number
+ * at that depth (what ms_nsp_prefix_inside compares, without unkeying). */
+static uint64_t key_cell(const ms_nsp_build *b, uint64_t key, unsigned depth)
 {
-    return ms_nsp_prefix_inside(&b->params.shape, key, 3 * b->params.shape.bits, node->depth,
-                                node->position);
+    return key >> (3 * (b->params.shape.bits - depth * b->params.shape.log2n));
 }
 
+/* A node's Morton number among the cells of its depth. */
+static uint64_t node_cell(const ms_nsp_node *node)
+{
+    return ms_quant_key(node->position[0], node->position[1], node->position[2], 0);
+}
+
+/* child_of_group[g]: the child offset (ms_nsp_child_offset) of the cell whose
+ * 3 log2(n) key bits below its parent's are g. */
+static void fill_child_of_group(ms_nsp_build *b)
+{
+    const ms_nsp_shape *shape = &b->params.shape;
+    for (uint32_t g = 0; g < child_count(b); ++g) {
+        uint32_t xyz[3];
+        ms_quant_unkey(g, shape->log2n, xyz);
+        for (int a = 0; a < 3; ++a)
+            xyz[a] <<= shape->bits - shape->log2n; /* a depth-1 cell's corner */
+        b->child_of_group[g] = (uint16_t)ms_nsp_child_offset(shape, 0, xyz);
+    }
+}
+
+/* The leaf below `node` holding the key: one group of key bits per level (the
+ * descent runs three times per inserted record). */
 static uint32_t leaf_below(const ms_nsp_build *b, uint32_t node, uint64_t key)
 {
-    uint32_t xyz[3];
-    ms_quant_unkey(key, b->params.shape.bits, xyz);
+    uint64_t mask = child_count(b) - 1;
     while (b->nodes[node].first_child != MS_NSP_NONE)
         node = b->nodes[node].first_child +
-               ms_nsp_child_offset(&b->params.shape, b->nodes[node].depth, xyz);
+               b->child_of_group[key_cell(b, key, b->nodes[node].depth + 1u) & mask];
     return node;
 }
 
@@ -284,63 +310,62 @@ static ms_status insert_under(ms_nsp_build *b, uint32_t top, const uint64_t rec[
                               unsigned *reached, ms_error *err);
 static ms_status append(ms_nsp_build *b, uint32_t index, const uint64_t rec[3], ms_error *err);
 
-/* A triangle record by its welded vertices (sorted keys), for finding repeats. */
-typedef struct keyed_record {
-    uint64_t key[3];
-    size_t at; /* record index */
-} keyed_record;
+#define NO_SLOT UINT32_MAX
 
-static int cmp_keyed_record(const void *x, const void *y)
+/* A key's share of its triangle's hash: summed over the three, so that the
+ * hash does not depend on their order. */
+static uint64_t key_hash(uint64_t key)
 {
-    const keyed_record *a = x, *b = y;
+    uint64_t z = key * 0x9E3779B97F4A7C15ull;
+    return (z ^ (z >> 31)) * 0xC2B2AE3D27D4EB4Full;
+}
+
+/* Whether two triangle records (three distinct keys each) have the same vertices. */
+static bool same_vertices(const uint64_t *r, const uint64_t *k)
+{
     for (int i = 0; i < 3; ++i)
-        if (a->key[i] != b->key[i])
-            return a->key[i] < b->key[i] ? -1 : 1;
-    return a->at < b->at ? -1 : (a->at > b->at);
+        if (r[i] != k[0] && r[i] != k[1] && r[i] != k[2])
+            return false;
+    return true;
 }
 
 /* Removes from rec[0..*count) every triangle record whose welded vertex set
  * an earlier record already has (the first stays, in order, as the encoder's
  * ms_tri_unify would keep it); point records stay. *distinct: the triangle
- * records left. */
+ * records left. The sets seen are found by hashing, in one pass over the
+ * records (a full leaf's check runs on the distribution's critical path). */
 static ms_status drop_repeated_triangles(uint64_t *rec, size_t *count, size_t *distinct,
                                          ms_error *err)
 {
-    size_t n = *count, triangles = 0;
-    keyed_record *k = malloc((n ? n : 1) * sizeof *k);
-    bool *drop = calloc(n ? n : 1, sizeof *drop);
-    if (!k || !drop) {
-        free(k);
-        free(drop);
+    size_t n = *count;
+    if (n >= UINT32_MAX / 2)
+        return ms_error_set(err, MS_ERR_RANGE, "a leaf of %zu records is too large to split", n);
+    unsigned log2_slots = 4;
+    while (((size_t)1 << log2_slots) < 2 * n)
+        ++log2_slots;
+    size_t slots = (size_t)1 << log2_slots;
+    uint32_t *slot = malloc(slots * sizeof *slot); /* a kept record's place in the output */
+    if (!slot)
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory finding repeated triangles");
-    }
+    memset(slot, 0xFF, slots * sizeof *slot); /* NO_SLOT everywhere */
+    size_t out = 0, kept = 0;
     for (size_t i = 0; i < n; ++i) {
         const uint64_t *r = rec + 3 * i;
-        if (r[0] == r[1])
-            continue; /* a point record */
-        uint64_t a = r[0], c = r[1], d = r[2], x;
-        if (a > c)
-            x = a, a = c, c = x;
-        if (c > d)
-            x = c, c = d, d = x;
-        if (a > c)
-            x = a, a = c, c = x;
-        k[triangles++] = (keyed_record){{a, c, d}, i};
-    }
-    qsort(k, triangles, sizeof *k, cmp_keyed_record);
-    size_t kept = 0;
-    for (size_t i = 0; i < triangles; ++i) {
-        if (i > 0 && !memcmp(k[i].key, k[i - 1].key, sizeof k[i].key))
-            drop[k[i].at] = true;
-        else
+        if (r[0] != r[1]) { /* not a point record */
+            uint64_t mixed = key_hash(r[0]) + key_hash(r[1]) + key_hash(r[2]);
+            size_t h = (size_t)(mixed >> (64 - log2_slots));
+            while (slot[h] != NO_SLOT && !same_vertices(r, rec + 3 * (size_t)slot[h]))
+                h = (h + 1) & (slots - 1);
+            if (slot[h] != NO_SLOT)
+                continue; /* a repeat: dropped */
+            slot[h] = (uint32_t)out; /* output places below i are never written again */
             ++kept;
+        }
+        if (out != i)
+            memcpy(rec + 3 * out, r, RECORD);
+        ++out;
     }
-    size_t out = 0;
-    for (size_t i = 0; i < n; ++i)
-        if (!drop[i])
-            memmove(rec + 3 * out++, rec + 3 * i, RECORD);
-    free(k);
-    free(drop);
+    free(slot);
     *count = out;
     *distinct = kept;
     return MS_OK;
@@ -398,8 +423,8 @@ static ms_status split_node(ms_nsp_build *b, uint32_t index, ms_error *err)
     node->head_block = -1;
     /* Split on distinct triangles: repeated ones (the same welded vertices)
      * go now, and a node they alone filled takes the rest back and stays a
-     * leaf. Each such check costs O(m log m) for the m records of a node that
-     * just reached the threshold, so copies cost O(n log n) in all. */
+     * leaf. Each such check costs O(m) (hashing) for the m records of a node
+     * that just reached the threshold, so copies cost O(n log n) in all. */
     size_t distinct = 0;
     s = drop_repeated_triangles(rec, &count, &distinct, err);
     if (s != MS_OK) {
@@ -475,10 +500,12 @@ static ms_status insert_under(ms_nsp_build *b, uint32_t top, const uint64_t rec[
     uint32_t leaves[3];
     unsigned nl = 0;
     int verts = rec[0] == rec[1] ? 1 : 3;
+    unsigned top_depth = b->nodes[top].depth;
+    uint64_t top_cell = node_cell(&b->nodes[top]);
     for (int i = 0; i < verts; ++i) {
         uint64_t key = rec[i];
-        if (top != 0 && !key_inside(b, key, &b->nodes[top]))
-            continue;
+        if (key_cell(b, key, top_depth) != top_cell)
+            continue; /* outside top's cube */
         uint32_t leaf = leaf_below(b, top, key);
         if ((nl > 0 && leaves[0] == leaf) || (nl > 1 && leaves[1] == leaf))
             continue;
@@ -508,42 +535,93 @@ static void report(const ms_nsp_build_params *p, const char *phase, double fract
         p->progress(p->progress_context, phase, fraction);
 }
 
-/* Writes every input vertex's key, in input order, to the key file. */
+/* The quantisation runs in rounds of QUANTISE_ROUND chunks of the vertex spool,
+ * one block each on the pool: a chunk's keys depend on its vertices alone and go
+ * to their own place in the key file, so the file is the same for any thread
+ * count. Each block has its own buffers and counters. */
+#define QUANTISE_ROUND 2
+
+typedef struct quantise_block {
+    double *positions; /* QUANTISE_CHUNK * 3 */
+    uint64_t *keys;    /* QUANTISE_CHUNK */
+    ms_nsp_io io;
+    ms_status status;
+    ms_error err;
+} quantise_block;
+
+typedef struct quantisation {
+    const ms_nsp_build *b;
+    int vspool_fd, key_fd;
+    uint64_t first_chunk; /* of the round */
+    quantise_block block[QUANTISE_ROUND];
+} quantisation;
+
+static void quantise_chunk(void *context, size_t block)
+{
+    quantisation *q = context;
+    quantise_block *qb = &q->block[block];
+    const ms_nsp_build *b = q->b;
+    const unsigned bits = b->params.shape.bits;
+    uint64_t first = (q->first_chunk + block) * QUANTISE_CHUNK;
+    if (first >= b->vertex_count)
+        return;
+    size_t want = b->vertex_count - first < QUANTISE_CHUNK ? (size_t)(b->vertex_count - first)
+                                                           : QUANTISE_CHUNK;
+    size_t bytes = want * 3 * sizeof *qb->positions;
+    if (pread(q->vspool_fd, qb->positions, bytes, (off_t)(first * 3 * sizeof *qb->positions)) !=
+        (ssize_t)bytes) {
+        qb->status = ms_error_set(&qb->err, MS_ERR_IO, "cannot read the vertex spool");
+        return;
+    }
+    qb->io.read_back += bytes;
+    for (size_t i = 0; i < want; ++i) {
+        uint32_t xyz[3];
+        for (int a = 0; a < 3; ++a)
+            xyz[a] = quantise_coordinate(qb->positions[3 * i + a], b->box.origin[a], b->box.size,
+                                         bits);
+        qb->keys[i] = ms_quant_key(xyz[0], xyz[1], xyz[2], bits);
+    }
+    bytes = want * sizeof *qb->keys;
+    if (pwrite(q->key_fd, qb->keys, bytes, (off_t)(first * sizeof *qb->keys)) != (ssize_t)bytes) {
+        qb->status = ms_error_set(&qb->err, MS_ERR_IO, "cannot write the key file: %s",
+                                  strerror(errno));
+        return;
+    }
+    qb->io.spilled += bytes;
+}
+
+/* Writes every input vertex's key, in input order, to the key file (the spool
+ * flushed). */
 static ms_status compute_keys(ms_nsp_build *b, FILE *vspool, int key_fd, ms_error *err)
 {
-    const unsigned bits = b->params.shape.bits;
-    double *chunk = malloc(SPOOL_CHUNK * 3 * sizeof *chunk);
-    uint64_t *keys = malloc(SPOOL_CHUNK * sizeof *keys);
-    if (!chunk || !keys) {
-        free(chunk);
-        free(keys);
-        return ms_error_set(err, MS_ERR_NOMEM, "out of memory quantising");
-    }
-    rewind(vspool);
+    quantisation q = {.b = b, .vspool_fd = fileno(vspool), .key_fd = key_fd};
     ms_status s = MS_OK;
-    size_t done = 0;
-    while (done < b->vertex_count && s == MS_OK) {
-        size_t want = b->vertex_count - done < SPOOL_CHUNK ? b->vertex_count - done : SPOOL_CHUNK;
-        if (fread(chunk, 3 * sizeof *chunk, want, vspool) != want) {
-            s = ms_error_set(err, MS_ERR_IO, "cannot read the vertex spool");
-            break;
-        }
-        b->stats.io_quantise.read_back += want * 3 * sizeof *chunk;
-        for (size_t i = 0; i < want; ++i) {
-            uint32_t q[3];
-            for (int a = 0; a < 3; ++a)
-                q[a] = quantise_coordinate(chunk[3 * i + a], b->box.origin[a], b->box.size, bits);
-            keys[i] = ms_quant_key(q[0], q[1], q[2], bits);
-        }
-        size_t bytes = want * sizeof *keys;
-        if (pwrite(key_fd, keys, bytes, (off_t)(done * sizeof *keys)) != (ssize_t)bytes)
-            s = ms_error_set(err, MS_ERR_IO, "cannot write the key file: %s", strerror(errno));
-        b->stats.io_quantise.spilled += bytes;
-        done += want;
-        report(&b->params, "quantising", (double)done / (double)b->vertex_count);
+    for (int k = 0; k < QUANTISE_ROUND && s == MS_OK; ++k) {
+        q.block[k].positions = malloc(QUANTISE_CHUNK * 3 * sizeof *q.block[k].positions);
+        q.block[k].keys = malloc(QUANTISE_CHUNK * sizeof *q.block[k].keys);
+        if (!q.block[k].positions || !q.block[k].keys)
+            s = ms_error_set(err, MS_ERR_NOMEM, "out of memory quantising");
     }
-    free(chunk);
-    free(keys);
+    ms_pool *pool = NULL;
+    if (s == MS_OK)
+        s = ms_pool_new(b->params.threads > 1 ? QUANTISE_ROUND - 1 : 0, &pool, err);
+    uint64_t chunks = (b->vertex_count + QUANTISE_CHUNK - 1) / QUANTISE_CHUNK;
+    for (q.first_chunk = 0; s == MS_OK && q.first_chunk < chunks; q.first_chunk += QUANTISE_ROUND) {
+        ms_pool_for(pool, QUANTISE_ROUND, quantise_chunk, &q);
+        for (int k = 0; k < QUANTISE_ROUND && s == MS_OK; ++k)
+            if (q.block[k].status != MS_OK)
+                s = ms_error_set(err, q.block[k].status, "%s", q.block[k].err.text);
+        uint64_t done = q.first_chunk + QUANTISE_ROUND < chunks ? q.first_chunk + QUANTISE_ROUND
+                                                                : chunks;
+        report(&b->params, "quantising", (double)done / (double)chunks);
+    }
+    ms_pool_free(pool);
+    for (int k = 0; k < QUANTISE_ROUND; ++k) {
+        b->stats.io_quantise.read_back += q.block[k].io.read_back;
+        b->stats.io_quantise.spilled += q.block[k].io.spilled;
+        free(q.block[k].positions);
+        free(q.block[k].keys);
+    }
     return s;
 }
 
@@ -574,63 +652,153 @@ static ms_status insert_unused_vertices(ms_nsp_build *b, int key_fd, ms_error *e
     return s;
 }
 
-/* One triangle of the spool: its keys through the cache, then into the tree. */
-static ms_status distribute_triangle(ms_nsp_build *b, ms_nsp_key_cache *cache, const uint32_t t[3],
-                                     uint64_t number, ms_error *err)
+/* The distribution is a two-stage pipeline over chunks of the triangle spool.
+ * The key stage reads chunk k and turns it into records through the key cache
+ * (dropping degenerate triangles, marking the vertices of the others used);
+ * meanwhile the insert stage puts chunk k - 1's records into the tree. Only the
+ * insert stage touches the tree, and it takes the chunks in spool order, so the
+ * tree (and the archive) is the same whether the two stages share a thread or
+ * not; only the key stage touches the key cache and the spool, and its counters
+ * are its own until the pipeline ends. A chunk whose keys fail keeps the
+ * records before the failing triangle: they are inserted before the error is
+ * reported, as a triangle-by-triangle loop would have. */
+typedef struct keyed_chunk {
+    uint64_t first;     /* spool number of its first triangle */
+    size_t records;     /* records (3 keys each) of its kept triangles */
+    uint64_t *keys;     /* PIPELINE_CHUNK * 3 */
+    ms_status status;   /* of the key stage; MS_OK or the error at the triangle after its records */
+    ms_error err;
+} keyed_chunk;
+
+typedef struct distribution {
+    ms_nsp_build *b;
+    FILE *tspool;
+    uint64_t triangles, read; /* in the spool, and read so far by the key stage */
+    uint32_t *spool_chunk;    /* PIPELINE_CHUNK * 3 vertex numbers */
+    ms_nsp_key_cache *cache;
+    ms_nsp_io key_io;         /* the key stage's own counters */
+    uint64_t key_page_misses, degenerate;
+    keyed_chunk chunk[2];     /* chunk k is chunk[k % 2] */
+    uint64_t step;            /* the key stage takes chunk step, the insert stage chunk step - 1 */
+    ms_status insert_status;
+    ms_error insert_err;
+} distribution;
+
+/* One triangle's keys through the cache into out; *kept is false for a degenerate one. */
+static ms_status key_triangle(distribution *d, const uint32_t t[3], uint64_t number,
+                              uint64_t out[3], bool *kept, ms_error *err)
 {
-    if (t[0] >= b->vertex_count || t[1] >= b->vertex_count || t[2] >= b->vertex_count)
+    *kept = false;
+    uint64_t vertices = d->b->vertex_count;
+    if (t[0] >= vertices || t[1] >= vertices || t[2] >= vertices)
         return ms_error_set(err, MS_ERR_FORMAT, "triangle %" PRIu64 " has an index out of range",
                             number);
-    uint64_t rec[3];
-    ms_status s = MS_OK;
-    for (int j = 0; j < 3 && s == MS_OK; ++j)
-        s = ms_nsp_key_cache_key(cache, t[j], &rec[j], err);
+    ms_status s = ms_nsp_key_cache_triangle(d->cache, t, out, err);
     if (s != MS_OK)
         return s;
-    if (rec[0] == rec[1] || rec[1] == rec[2] || rec[0] == rec[2]) {
-        b->stats.degenerate_triangles++;
-        return MS_OK;
+    if (out[0] == out[1] || out[1] == out[2] || out[0] == out[2])
+        d->degenerate++;
+    else
+        *kept = true;
+    return MS_OK;
+}
+
+/* The key stage: the next chunk of the spool into chunk[step % 2]. */
+static void key_stage(distribution *d)
+{
+    keyed_chunk *c = &d->chunk[d->step % 2];
+    c->first = d->read;
+    c->records = 0;
+    c->status = MS_OK;
+    size_t want = d->triangles - d->read < PIPELINE_CHUNK ? (size_t)(d->triangles - d->read)
+                                                          : PIPELINE_CHUNK;
+    if (fread(d->spool_chunk, 12, want, d->tspool) != want) {
+        c->status = ms_error_set(&c->err, MS_ERR_IO, "cannot read the triangle spool");
+        return;
     }
-    for (int j = 0; j < 3 && s == MS_OK; ++j)
-        s = ms_nsp_key_cache_mark_used(cache, t[j], err);
-    unsigned reached = 0;
-    if (s == MS_OK)
-        s = insert_under(b, 0, rec, &reached, err);
-    if (reached > 1)
-        b->stats.insertion_copies += reached - 1;
-    return s;
+    d->key_io.read_back += (uint64_t)want * 12;
+    for (size_t i = 0; i < want && c->status == MS_OK; ++i) {
+        bool kept;
+        c->status = key_triangle(d, d->spool_chunk + 3 * i, c->first + i, c->keys + 3 * c->records,
+                                 &kept, &c->err);
+        c->records += kept;
+    }
+    d->read += want;
+}
+
+/* The insert stage: chunk[(step - 1) % 2]'s records into the tree. */
+static void insert_stage(distribution *d)
+{
+    ms_nsp_build *b = d->b;
+    const keyed_chunk *c = &d->chunk[(d->step - 1) % 2];
+    for (size_t i = 0; i < c->records && d->insert_status == MS_OK; ++i) {
+        unsigned reached = 0;
+        d->insert_status = insert_under(b, 0, c->keys + 3 * i, &reached, &d->insert_err);
+        if (reached > 1)
+            b->stats.insertion_copies += reached - 1;
+    }
+}
+
+/* Block 0 runs the insert stage (from the second step on) on the calling
+ * thread, so that the tree's allocations stay in one malloc arena (spread over
+ * two threads' arenas, the leaf buffers took 4 to 8 MB more at 10 M
+ * triangles); block 1 the key stage (while chunks are left). */
+static void distribution_block(void *context, size_t block)
+{
+    distribution *d = context;
+    if (block == 0 && d->step > 0)
+        insert_stage(d);
+    else if (block == 1 && d->read < d->triangles)
+        key_stage(d);
 }
 
 static ms_status distribute(ms_nsp_build *b, FILE *tspool, uint64_t triangles, int key_fd,
                             ms_error *err)
 {
-    uint32_t *chunk = malloc(SPOOL_CHUNK * 3 * sizeof *chunk);
-    ms_nsp_key_cache *cache = NULL;
+    distribution d = {.b = b, .tspool = tspool, .triangles = triangles};
+    ms_pool *pool = NULL;
+    d.spool_chunk = malloc(PIPELINE_CHUNK * 3 * sizeof *d.spool_chunk);
+    d.chunk[0].keys = malloc(PIPELINE_CHUNK * 3 * sizeof *d.chunk[0].keys);
+    d.chunk[1].keys = malloc(PIPELINE_CHUNK * 3 * sizeof *d.chunk[1].keys);
     ms_status s = ms_nsp_key_cache_new(key_fd, b->vertex_count, b->params.key_cache_bytes,
-                                       &b->stats.io_distribute, &b->stats.key_page_misses, &cache,
-                                       err);
-    if (s == MS_OK && !chunk)
+                                       &d.key_io, &d.key_page_misses, &d.cache, err);
+    if (s == MS_OK && (!d.spool_chunk || !d.chunk[0].keys || !d.chunk[1].keys))
         s = ms_error_set(err, MS_ERR_NOMEM, "out of memory distributing triangles");
+    if (s == MS_OK)
+        s = ms_pool_new(b->params.threads > 1 ? 1 : 0, &pool, err);
     rewind(tspool);
-    uint64_t done = 0;
-    while (s == MS_OK && done < triangles) {
-        size_t want = triangles - done < SPOOL_CHUNK ? (size_t)(triangles - done) : SPOOL_CHUNK;
-        if (fread(chunk, 12, want, tspool) != want) {
-            s = ms_error_set(err, MS_ERR_IO, "cannot read the triangle spool");
+    /* Step k keys chunk k and inserts chunk k - 1; the last step only inserts. */
+    for (d.step = 0; s == MS_OK; ++d.step) {
+        bool keying = d.read < triangles;
+        if (!keying && d.step == 0)
+            break; /* no triangle */
+        ms_pool_pair(pool, distribution_block, &d);
+        if (d.insert_status != MS_OK) {
+            s = ms_error_set(err, d.insert_err.code, "%s", d.insert_err.text);
             break;
         }
-        b->stats.io_distribute.read_back += (uint64_t)want * 12;
-        for (size_t i = 0; i < want && s == MS_OK; ++i)
-            s = distribute_triangle(b, cache, chunk + 3 * i, done + i, err);
-        done += want;
-        report(&b->params, "distributing", (double)done / (double)(triangles ? triangles : 1));
+        if (d.step > 0 && d.chunk[(d.step - 1) % 2].status != MS_OK) {
+            s = ms_error_set(err, d.chunk[(d.step - 1) % 2].status, "%s",
+                             d.chunk[(d.step - 1) % 2].err.text);
+            break;
+        }
+        if (!keying)
+            break; /* that was the last chunk's insertion */
+        report(&b->params, "distributing", (double)d.read / (double)triangles);
     }
+    ms_pool_free(pool);
+    b->stats.degenerate_triangles += d.degenerate;
     /* Isolated vertices (after welding, a key used by no kept triangle is found
      * again in its leaf: the leaf drops points whose key a triangle uses). */
     if (s == MS_OK)
-        s = ms_nsp_key_cache_write_back(cache, err);
-    ms_nsp_key_cache_free(cache);
-    free(chunk);
+        s = ms_nsp_key_cache_write_back(d.cache, err);
+    ms_nsp_key_cache_free(d.cache);
+    b->stats.io_distribute.spilled += d.key_io.spilled;
+    b->stats.io_distribute.read_back += d.key_io.read_back;
+    b->stats.key_page_misses += d.key_page_misses;
+    free(d.spool_chunk);
+    free(d.chunk[0].keys);
+    free(d.chunk[1].keys);
     if (s == MS_OK)
         s = insert_unused_vertices(b, key_fd, err);
     return s;
@@ -699,6 +867,7 @@ ms_status ms_nsp_build_run(const char *path, const ms_nsp_build_params *params,
     double t2 = ms_now_seconds();
     b->stats.seconds_quantise = t2 - t1;
 
+    fill_child_of_group(b);
     b->node_cap = 1024;
     b->nodes = malloc(b->node_cap * sizeof *b->nodes);
     b->block_scratch = malloc(BLOCK_BYTES);

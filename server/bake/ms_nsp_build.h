@@ -5,11 +5,15 @@
  * (3 doubles) and triangles (3 u32) to unlinked temporary files while it finds the
  * bounding box; fits the cubic quantisation box (as ms_quant_fit_box); writes every
  * input vertex's interleaved key at p bits to a key file (8 bytes per input
- * vertex, on disk); then streams the triangles again, looks their vertices' keys
- * up through a bounded cache of key-file pages (key_cache_bytes), and inserts each
- * non-degenerate triangle (three distinct keys: welding is implicit, vertices are
- * their keys) into every leaf holding one of its vertices. A leaf that reaches
- * N_min triangles splits into n^3 children and redistributes its content. Input
+ * vertex, on disk; two blocks of the spool at a time, on params.threads); then
+ * streams the triangles again, looks their vertices' keys up through a bounded
+ * cache of key-file pages (key_cache_bytes), and inserts each non-degenerate
+ * triangle (three distinct keys: welding is implicit, vertices are their keys)
+ * into every leaf holding one of its vertices. A leaf that reaches
+ * N_min triangles splits into n^3 children and redistributes its content. With
+ * two threads or more the look-ups and the insertions run as a two-stage
+ * pipeline (the next chunk's keys on one thread while the other inserts the
+ * last chunk's records, in input order): the tree is that of one thread. Input
  * vertices used by no kept triangle (the key file marks the used ones) are then
  * inserted as point records (isolated vertices), in input order.
  *
@@ -97,6 +101,9 @@ typedef struct ms_nsp_build_params {
     size_t buffer_budget;    /* bytes of record buffers before flushing */
     size_t key_cache_bytes;  /* key-file pages held while distributing (at least
                               * MS_NSP_KEY_CACHE_MIN; less is raised to it) */
+    unsigned threads;        /* 2 or more: the distribution looks keys up on a second
+                              * thread while the first inserts (the tree is the same
+                              * for any value); 0 or 1: one thread */
     const char *tmp_dir;     /* where temporary files go */
     /* optional progress: phase name and a fraction in [0, 1] */
     void (*progress)(void *context, const char *phase, double fraction);
@@ -136,6 +143,7 @@ typedef struct ms_nsp_build {
     size_t buffered_bytes;
     uint8_t *block_scratch;
     int lone_fd;            /* lone-level segments (ms_nsp_lone.h), -1 before */
+    uint16_t child_of_group[512]; /* child offset by the n^3 values of a level's key bits */
     ms_nsp_build_stats stats;
 } ms_nsp_build;
 

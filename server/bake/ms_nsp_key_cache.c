@@ -7,7 +7,8 @@
 #include <string.h>
 #include <unistd.h>
 
-#define WAYS 8 /* pages a set holds */
+#define WAYS 8 /* pages a set holds (at least 3: ms_nsp_key_cache_triangle) */
+_Static_assert(WAYS >= 3, "a triangle's three pages must fit in a set");
 
 struct ms_nsp_key_cache {
     int fd;
@@ -18,6 +19,7 @@ struct ms_nsp_key_cache {
     uint64_t *used_at;   /* tick of the slot's last use (least recent goes first) */
     bool *dirty;         /* the slot's marks are not on disk yet */
     uint64_t tick;
+    size_t last_slot;    /* the slot of the last lookup (a triangle's corners share pages) */
     ms_nsp_io *io;
     uint64_t *page_misses;
 };
@@ -87,15 +89,20 @@ static ms_status entry(ms_nsp_key_cache *c, uint64_t v, uint64_t **out, size_t *
                        ms_error *err)
 {
     uint64_t page = v / MS_NSP_KEY_PAGE_KEYS;
-    size_t first = (size_t)((page * UINT64_C(0x9E3779B97F4A7C15)) >> 17) % c->sets * WAYS;
-    size_t slot = first;
-    for (size_t w = 0; w < WAYS; ++w) {
-        if (c->page_of[first + w] == (int64_t)page) {
-            slot = first + w;
-            break;
+    /* A page lives in one slot only: finding it where the last lookup was is
+     * what the search of its set would find. */
+    size_t slot = c->last_slot;
+    if (c->page_of[slot] != (int64_t)page) {
+        size_t first = (size_t)((page * UINT64_C(0x9E3779B97F4A7C15)) >> 17) % c->sets * WAYS;
+        slot = first;
+        for (size_t w = 0; w < WAYS; ++w) {
+            if (c->page_of[first + w] == (int64_t)page) {
+                slot = first + w;
+                break;
+            }
+            if (c->used_at[first + w] < c->used_at[slot])
+                slot = first + w;
         }
-        if (c->used_at[first + w] < c->used_at[slot])
-            slot = first + w;
     }
     uint64_t *keys = c->keys + slot * MS_NSP_KEY_PAGE_KEYS;
     if (c->page_of[slot] != (int64_t)page) {
@@ -110,31 +117,38 @@ static ms_status entry(ms_nsp_key_cache *c, uint64_t v, uint64_t **out, size_t *
         (*c->page_misses)++;
     }
     c->used_at[slot] = ++c->tick;
+    c->last_slot = slot;
     *out = &keys[v % MS_NSP_KEY_PAGE_KEYS];
     *slot_out = slot;
     return MS_OK;
 }
 
-ms_status ms_nsp_key_cache_key(ms_nsp_key_cache *c, uint64_t v, uint64_t *key, ms_error *err)
+ms_status ms_nsp_key_cache_triangle(ms_nsp_key_cache *c, const uint32_t v[3], uint64_t keys[3],
+                                    ms_error *err)
 {
-    uint64_t *e;
-    size_t slot;
-    ms_status s = entry(c, v, &e, &slot, err);
-    if (s == MS_OK)
-        *key = *e & ~MS_NSP_KEY_USED;
-    return s;
-}
-
-ms_status ms_nsp_key_cache_mark_used(ms_nsp_key_cache *c, uint64_t v, ms_error *err)
-{
-    uint64_t *e;
-    size_t slot;
-    ms_status s = entry(c, v, &e, &slot, err);
-    if (s == MS_OK && !(*e & MS_NSP_KEY_USED)) {
-        *e |= MS_NSP_KEY_USED;
-        c->dirty[slot] = true;
+    uint64_t *e[3];
+    size_t slot[3];
+    for (int j = 0; j < 3; ++j) {
+        ms_status s = entry(c, v[j], &e[j], &slot[j], err);
+        if (s != MS_OK)
+            return s;
+        keys[j] = *e[j] & ~MS_NSP_KEY_USED;
     }
-    return s;
+    if (keys[0] == keys[1] || keys[1] == keys[2] || keys[0] == keys[2])
+        return MS_OK;
+    /* The three entries are still in place: a lookup takes its set's least
+     * recently used slot, never one of the two just used (WAYS >= 3). Each mark
+     * counts as a use, in order, as three more lookups would: the cache evicts
+     * what it evicted when the marks were looked up again. */
+    for (int j = 0; j < 3; ++j) {
+        c->used_at[slot[j]] = ++c->tick;
+        c->last_slot = slot[j];
+        if (!(*e[j] & MS_NSP_KEY_USED)) {
+            *e[j] |= MS_NSP_KEY_USED;
+            c->dirty[slot[j]] = true;
+        }
+    }
+    return MS_OK;
 }
 
 ms_status ms_nsp_key_cache_write_back(ms_nsp_key_cache *c, ms_error *err)

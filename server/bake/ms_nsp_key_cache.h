@@ -35,11 +35,11 @@ typedef struct ms_nsp_key_cache ms_nsp_key_cache;
 ms_status ms_nsp_key_cache_new(int fd, uint64_t vertex_count, size_t bytes, ms_nsp_io *io,
                                uint64_t *page_misses, ms_nsp_key_cache **cache, ms_error *err);
 
-/* Vertex v's key (v < vertex_count), without the mark. */
-ms_status ms_nsp_key_cache_key(ms_nsp_key_cache *cache, uint64_t v, uint64_t *key, ms_error *err);
-
-/* Marks vertex v used. */
-ms_status ms_nsp_key_cache_mark_used(ms_nsp_key_cache *cache, uint64_t v, ms_error *err);
+/* A triangle's three vertices' keys (each v[j] < vertex_count) into keys[],
+ * without the mark; when the three keys are distinct, the vertices are marked
+ * used (a degenerate triangle marks nothing). */
+ms_status ms_nsp_key_cache_triangle(ms_nsp_key_cache *cache, const uint32_t v[3], uint64_t keys[3],
+                                    ms_error *err);
 
 /* Writes every marked page not yet on disk back to the file. */
 ms_status ms_nsp_key_cache_write_back(ms_nsp_key_cache *cache, ms_error *err);
