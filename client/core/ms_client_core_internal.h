@@ -353,6 +353,25 @@ int ms_core_merge_next(const want *const *lists, const size_t *counts, const siz
                        unsigned n);
 /* Seconds since the link started. */
 double ms_core_link_since_start(const ms_core_link *link);
+/* The link's requests (ms_core_link_requests.c), all on the link's thread:
+ * the core of slot s's member; whether member m is live (taken in, not failed
+ * or stopping); the slot of request id (UINT32_MAX: none); ending slot k
+ * (forgotten, its bytes out of the window), every slot of member i (i < 0:
+ * of all), or slot k on its last chunk; whether a member's model is being
+ * opened (no requests go out meanwhile); and one round of requests: the
+ * members' wants merged by priority under the window, cancels of the
+ * unwanted, REQUEST_CELLS sent. */
+ms_core *ms_core_link_core_of(ms_core_link *l, const slot *s);
+bool ms_core_link_live(const link_member *m);
+uint32_t ms_core_link_slot_find(ms_core_link *l, uint32_t id);
+void ms_core_link_end_slot(ms_core_link *l, uint32_t k);
+void ms_core_link_end_slots(ms_core_link *l, int i);
+void ms_core_link_finish_slot(ms_core_link *l, uint32_t k);
+bool ms_core_link_opening(const ms_core_link *l);
+void ms_core_link_fill(ms_core_link *l);
+/* Drops the connection at the end of this turn, with why as the reason
+ * (ms_client_core_net.c). */
+void ms_core_link_mark_dead(ms_core_link *l, const char *why);
 /* Makes c a member (state JOINING: the link's thread opens its model);
  * MS_ERR_ARG when the link is full. */
 ms_status ms_core_link_join(ms_core_link *link, ms_core *c, ms_error *err);
