@@ -245,6 +245,34 @@ static void test_local_path(void **state)
     ms_core_stop(core);
 }
 
+/* A budget below what the root alone needs at the close-up (the camera in
+ * the model's box: the root must split whatever the tolerance): the tolerance
+ * climbs to its 4096x limit, the view never completes, and the core says so
+ * once, in one line, instead of leaving the user to wait. */
+static void test_local_budget_below_the_root(void **state)
+{
+    (void)state;
+    ms_core_options o = local_options(g->file);
+    o.memory_target = 10000; /* ceiling 12,500 bytes */
+    ms_core *core;
+    ms_error err;
+    assert_int_equal(ms_core_start(&o, &core, &err), MS_OK);
+    ms_camera cam = key_camera(g->path.count - 1);
+    ms_core_set_camera(core, &cam);
+    ms_core_stats st;
+    double until = ms_now_seconds() + WAIT_SECONDS;
+    do {
+        ms_test_sleep_s(0.05);
+        ms_core_get_stats(core, &st);
+    } while (!st.warning[0] && !st.view_complete && ms_now_seconds() < until);
+    assert_false(st.view_complete);
+    assert_string_equal(st.warning, "memory budget too small: 0.01 MB cannot hold this view even "
+                                    "at its coarsest (the tolerance is 4096x)");
+    assert_string_equal(st.error, "");
+    assert_true(st.tolerance_px >= 4096.0 * 0.999);
+    ms_core_stop(core);
+}
+
 /* Starts a local core on file and waits for an error or view complete. */
 static void run_local(const char *file, ms_core_stats *st)
 {
@@ -409,6 +437,7 @@ int main(void)
         cmocka_unit_test(test_local_equals_network),
         cmocka_unit_test(test_local_path),
         cmocka_unit_test(test_local_bad_archives),
+        cmocka_unit_test(test_local_budget_below_the_root),
         cmocka_unit_test(test_catalogues),
         cmocka_unit_test(test_meshload_local),
     };

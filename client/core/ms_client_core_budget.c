@@ -13,6 +13,7 @@
 #include "ms_client_core_internal.h"
 
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 
 #include "ms_progress.h"
@@ -434,6 +435,17 @@ void ms_core_budget_step(ms_core *c, dec_pass *pass)
             c->last_budget_step = t;
         }
         factor_end(c);
+        if (c->tolerance_factor >= MAX_TOLERANCE_FACTOR && !c->budget_floor_warned) {
+            /* nothing more can be given up: the view cannot complete in this
+             * budget, which the user must hear once rather than wait */
+            char text[160];
+            snprintf(text, sizeof text,
+                     "memory budget too small: %.2f MB cannot hold this view even at its "
+                     "coarsest (the tolerance is %.0fx)",
+                     (double)bt.ceiling / 1048576.0, MAX_TOLERANCE_FACTOR);
+            ms_core_warn(c, text);
+            c->budget_floor_warned = true;
+        }
     }
     pass->wl.n = keep;
     publish(c, pass->memory, in_flight, next < nc ? cand[next].usefulness : INFINITY,

@@ -248,6 +248,7 @@ struct ms_core {
     uint64_t index_bytes_held;  /* raw index bytes of the subtrees held */
     bool subtrees_changed;      /* a subtree came or went since the last pass's frame */
     double tolerance_factor, last_budget_step, last_blocked;
+    bool budget_floor_warned; /* the "budget too small" warning was given */
     uint64_t generation;
     uint64_t consumed_seq;
     bool first_display_seen;

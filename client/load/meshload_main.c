@@ -264,8 +264,9 @@ static void path_phase(worker *w)
     res->peak_memory = st.peak_memory;
     if (st.error[0] && !res->error[0])
         snprintf(res->error, sizeof res->error, "%.250s", st.error);
-    else if (st.warning[0] && st.cells_failed && !res->error[0])
-        snprintf(res->error, sizeof res->error, "%.250s", st.warning);
+    else if (st.warning[0] && !res->error[0] &&
+             (st.cells_failed || (!st.view_complete && strncmp(st.warning, "memory budget", 13) == 0)))
+        snprintf(res->error, sizeof res->error, "%.250s", st.warning); /* why it did not complete */
     ms_core_stop(core);
 }
 
