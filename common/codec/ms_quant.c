@@ -71,8 +71,9 @@ double ms_dequantise(const ms_quant_box *box, unsigned bits, int axis, uint32_t 
     return box->origin[axis] + ((double)q + 0.5) * (box->size / (double)(1u << bits));
 }
 
-static uint32_t quantise1(double x, double origin, double size, unsigned bits)
+uint32_t ms_quantise(const ms_quant_box *box, unsigned bits, int axis, double x)
 {
+    const double origin = box->origin[axis], size = box->size;
     double cells = (double)(1u << bits);
     double t = floor((x - origin) / size * cells);
     if (!(t >= 0))
@@ -140,7 +141,7 @@ ms_status ms_quantise_mesh(const ms_mesh *mesh, unsigned bits, ms_qmesh *out,
     for (size_t i = 0; i < nv; ++i) {
         uint32_t q[3];
         for (int a = 0; a < 3; ++a)
-            q[a] = quantise1(mesh->positions[3 * i + a], box.origin[a], box.size, bits);
+            q[a] = ms_quantise(&box, bits, a, mesh->positions[3 * i + a]);
         ki[i].key = ms_quant_key(q[0], q[1], q[2], bits);
         ki[i].index = (uint32_t)i;
     }

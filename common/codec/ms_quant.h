@@ -62,6 +62,10 @@ ms_status ms_quant_fit_box(const ms_mesh *mesh, ms_quant_box *box, ms_error *err
 ms_status ms_quantise_mesh(const ms_mesh *mesh, unsigned bits, ms_qmesh *out,
                            ms_weld_report *report, ms_error *err);
 
+/* Integer grid coordinate of world coordinate x on one axis: floor of its
+ * place in 2^bits cells, clamped to [0, 2^bits - 1] (NaN gives 0). */
+uint32_t ms_quantise(const ms_quant_box *box, unsigned bits, int axis, double x);
+
 /* World coordinate of integer grid coordinate q on one axis. */
 double ms_dequantise(const ms_quant_box *box, unsigned bits, int axis, uint32_t q);
 

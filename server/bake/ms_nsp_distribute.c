@@ -6,7 +6,6 @@
 
 #include <errno.h>
 #include <inttypes.h>
-#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -14,23 +13,12 @@
 
 #include "ms_nsp_key_cache.h"
 #include "ms_parallel.h"
+#include "ms_quant.h"
 
 #define SPOOL_CHUNK 65536    /* keys read at a time when the isolated vertices are found */
 #define QUANTISE_CHUNK 32768 /* vertices a quantisation block reads (two at a time: 2 MB) */
 #define PIPELINE_CHUNK 16384 /* triangles a step of the distribution keys and inserts
                               * (the spool chunk and two chunks of records: 960 KB) */
-
-/* Same formula as ms_quantise_mesh (ms_quant.h). */
-static uint32_t quantise_coordinate(double x, double origin, double size, unsigned bits)
-{
-    double cells = (double)(1u << bits);
-    double t = floor((x - origin) / size * cells);
-    if (!(t >= 0))
-        t = 0;
-    if (t > cells - 1)
-        t = cells - 1;
-    return (uint32_t)t;
-}
 
 static void report(const ms_nsp_build_params *p, const char *phase, double fraction)
 {
@@ -80,8 +68,7 @@ static void quantise_chunk(void *context, size_t block)
     for (size_t i = 0; i < want; ++i) {
         uint32_t xyz[3];
         for (int a = 0; a < 3; ++a)
-            xyz[a] = quantise_coordinate(qb->positions[3 * i + a], b->box.origin[a], b->box.size,
-                                         bits);
+            xyz[a] = ms_quantise(&b->box, bits, a, qb->positions[3 * i + a]);
         qb->keys[i] = ms_quant_key(xyz[0], xyz[1], xyz[2], bits);
     }
     bytes = want * sizeof *qb->keys;
