@@ -93,46 +93,35 @@ void ms_viewer_model_list_free(ms_viewer_model_list *list)
     list->count = 0;
 }
 
-static ms_status open_local(const ms_viewer_source *source, ms_viewer_model *model,
-                            ms_error *err)
+ms_status ms_viewer_model_open_listed(const ms_viewer_source *source,
+                                      const ms_viewer_model_list *list, const char *name,
+                                      ms_viewer_model *model, ms_error *err)
 {
-    ms_catalog catalog;
-    ms_status st = ms_catalog_load(source->archive_dir, &catalog, err);
-    if (st != MS_OK)
-        return st;
-    const ms_catalog_entry *entry = ms_catalog_find(&catalog, model->name);
-    bool known = entry != NULL;
-    model->apo = entry && entry->apo;
-    ms_catalog_free(&catalog);
-    if (!known)
-        return ms_error_set(err, MS_ERR_RANGE, "model '%s' does not exist in %s", model->name,
-                            source->archive_dir);
-    int n = snprintf(model->archive_path, sizeof model->archive_path, "%s/%s.msa",
-                     source->archive_dir, model->name);
-    if (n < 0 || (size_t)n >= sizeof model->archive_path)
-        return ms_error_set(err, MS_ERR_ARG, "%s: archive directory path too long",
-                            source->archive_dir);
-    return MS_OK;
-}
-
-/* The server's catalogue lists the model: no index crosses the network here. */
-static ms_status open_server(const ms_viewer_source *source, ms_viewer_model *model,
-                             ms_error *err)
-{
-    ms_viewer_model_list list;
-    ms_status st = list_server(source, &list, err);
-    if (st != MS_OK)
-        return st;
-    bool known = false;
-    for (size_t i = 0; i < list.count && !known; ++i)
-        if (!strcmp(list.entries[i].name, model->name)) {
-            known = true;
-            model->apo = list.entries[i].apo;
-        }
-    ms_viewer_model_list_free(&list);
-    if (!known)
-        return ms_error_set(err, MS_ERR_RANGE, "model '%s' does not exist on %s:%u", model->name,
+    memset(model, 0, sizeof *model);
+    if (!name || !ms_model_name_valid(name))
+        return ms_error_set(err, MS_ERR_ARG, "'%s' is not a model name", name ? name : "");
+    snprintf(model->name, sizeof model->name, "%s", name);
+    ms_viewer_model_entry key;
+    snprintf(key.name, sizeof key.name, "%s", name);
+    const ms_viewer_model_entry *entry =
+        list->count ? bsearch(&key, list->entries, list->count, sizeof *list->entries, by_name)
+                    : NULL;
+    if (!entry) {
+        if (source->archive_dir)
+            return ms_error_set(err, MS_ERR_RANGE, "model '%s' does not exist in %s", name,
+                                source->archive_dir);
+        return ms_error_set(err, MS_ERR_RANGE, "model '%s' does not exist on %s:%u", name,
                             source->host, source->port);
+    }
+    model->apo = entry->apo;
+    if (source->archive_dir) {
+        int n = snprintf(model->archive_path, sizeof model->archive_path, "%s/%s.msa",
+                         source->archive_dir, model->name);
+        if (n < 0 || (size_t)n >= sizeof model->archive_path)
+            return ms_error_set(err, MS_ERR_ARG, "%s: archive directory path too long",
+                                source->archive_dir);
+    }
+    /* from a server the catalogue lists it: no index crosses the network here */
     return MS_OK;
 }
 
@@ -140,11 +129,11 @@ ms_status ms_viewer_model_open(const ms_viewer_source *source, const char *name,
                                ms_viewer_model *model, ms_error *err)
 {
     memset(model, 0, sizeof *model);
-    if (!name || !ms_model_name_valid(name))
-        return ms_error_set(err, MS_ERR_ARG, "'%s' is not a model name", name ? name : "");
-    snprintf(model->name, sizeof model->name, "%s", name);
-    ms_status st = source->archive_dir ? open_local(source, model, err)
-                                       : open_server(source, model, err);
+    ms_viewer_model_list list;
+    ms_status st = ms_viewer_list_models(source, &list, err);
+    if (st == MS_OK)
+        st = ms_viewer_model_open_listed(source, &list, name, model, err);
+    ms_viewer_model_list_free(&list);
     if (st != MS_OK)
         ms_viewer_model_close(model);
     return st;

@@ -75,9 +75,16 @@ typedef struct ms_viewer_model {
 void ms_viewer_model_bounds(const ms_viewer_model *model, double lo[3], double hi[3]);
 
 /* Opens model `name` (a valid model name, else MS_ERR_ARG): MS_ERR_RANGE when
- * the source does not list it. */
+ * the source does not list it. Lists the source's models first (from a
+ * server: one connection and a round trip). */
 ms_status ms_viewer_model_open(const ms_viewer_source *source, const char *name,
                                ms_viewer_model *model, ms_error *err);
+/* The same with the source's list in hand (ms_viewer_list_models, not
+ * freed here): no input or output, so a scene opens all its pieces from one
+ * listing. */
+ms_status ms_viewer_model_open_listed(const ms_viewer_source *source,
+                                      const ms_viewer_model_list *list, const char *name,
+                                      ms_viewer_model *model, ms_error *err);
 void ms_viewer_model_close(ms_viewer_model *model);
 
 #endif

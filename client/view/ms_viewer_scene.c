@@ -62,6 +62,7 @@ struct ms_viewer_scene {
     ms_core_link *link;        /* from a server: the models' one connection; NULL: a
                                   local directory, or one connection per model */
     bool from_server;
+    ms_viewer_model_list listed; /* the source's models, while the pieces open */
 };
 
 /* ---- the room ------------------------------------------------------------ */
@@ -231,6 +232,31 @@ static void place_model(const ms_scene_model *sm, scene_model *m)
     ms_scene_placed_sphere(m->placement, lo, hi, m->centre, &m->radius);
 }
 
+/* The pieces' streams, all started before any is waited for: their models
+ * are asked for together (over a shared link, in one round trip for the lot)
+ * instead of one after another. */
+static ms_status open_pieces(ms_viewer_scene *vs, const ms_viewer_source *source,
+                             const ms_viewer_stream_settings *each, ms_error *err)
+{
+    const ms_scene *scene = vs->scene;
+    ms_status st = MS_OK;
+    for (size_t i = 0; i < scene->model_count && st == MS_OK; ++i) {
+        scene_model *m = &vs->models[i];
+        st = ms_viewer_model_open_listed(source, &vs->listed, scene->models[i].model, &m->model, err);
+        if (st == MS_OK) {
+            vs->model_count = i + 1;
+            st = ms_viewer_stream_start(source, &m->model, each, &m->stream, err);
+        }
+    }
+    ms_viewer_model_list_free(&vs->listed);
+    for (size_t i = 0; i < vs->model_count && st == MS_OK; ++i) {
+        st = ms_viewer_stream_wait_open(vs->models[i].stream, err);
+        if (st == MS_OK) /* the bounds came with the opening: the root's, before any draw */
+            place_model(&scene->models[i], &vs->models[i]);
+    }
+    return st;
+}
+
 ms_status ms_viewer_scene_open(const ms_viewer_source *source, const ms_scene *scene, const char *label,
                                const ms_viewer_scene_settings *settings, ms_viewer_scene **out, ms_error *err)
 {
@@ -239,15 +265,14 @@ ms_status ms_viewer_scene_open(const ms_viewer_source *source, const ms_scene *s
         return ms_error_set(err, MS_ERR_ARG, "scene: nothing to open");
     ms_viewer_model_list list = {0};
     ms_status st = ms_viewer_list_models(source, &list, err);
-    if (st != MS_OK)
-        return st;
-    st = ms_scene_check_models(scene, label, &list, err);
-    ms_viewer_model_list_free(&list);
-    if (st != MS_OK)
-        return st;
-    ms_viewer_scene *vs = calloc(1, sizeof *vs);
-    if (!vs)
-        return ms_error_set(err, MS_ERR_NOMEM, "scene: no memory");
+    if (st == MS_OK)
+        st = ms_scene_check_models(scene, label, &list, err);
+    ms_viewer_scene *vs = st == MS_OK ? calloc(1, sizeof *vs) : NULL;
+    if (!vs) {
+        ms_viewer_model_list_free(&list);
+        return st != MS_OK ? st : ms_error_set(err, MS_ERR_NOMEM, "scene: no memory");
+    }
+    vs->listed = list; /* the pieces open from this listing: no round trip each */
     vs->scene = scene;
     vs->models = calloc(scene->model_count, sizeof *vs->models);
     vs->order = calloc(scene->model_count, sizeof *vs->order);
@@ -290,16 +315,7 @@ ms_status ms_viewer_scene_open(const ms_viewer_source *source, const ms_scene *s
     } else {
         each.bandwidth = settings->stream.bandwidth / (double)scene->model_count;
     }
-    for (size_t i = 0; i < scene->model_count && st == MS_OK; ++i) {
-        scene_model *m = &vs->models[i];
-        st = ms_viewer_model_open(source, scene->models[i].model, &m->model, err);
-        if (st == MS_OK) {
-            vs->model_count = i + 1;
-            st = ms_viewer_stream_open(source, &m->model, &each, &m->stream, err);
-        }
-        if (st == MS_OK) /* the bounds came with the opening: the root's, before any draw */
-            place_model(&scene->models[i], m);
-    }
+    st = open_pieces(vs, source, &each, err);
     if (st == MS_OK)
         st = build_room(vs, err);
     if (st != MS_OK) {
@@ -349,6 +365,7 @@ void ms_viewer_scene_close(ms_viewer_scene *vs)
         ms_render_free(vs->parts[i].render);
     ms_core_budget_free(vs->budget); /* after the streams' cores stopped */
     ms_core_link_free(vs->link);
+    ms_viewer_model_list_free(&vs->listed);
     free(vs->models);
     free(vs->order);
     free(vs->distance);

@@ -5,25 +5,27 @@
 #include <string.h>
 
 struct ms_viewer_stream {
-    const ms_viewer_model *model;
+    ms_viewer_model *model;     /* filled in at open (the caller's) */
     ms_core *core;
     ms_render *render;
     ms_core_frame *frame;       /* the frame the renderer was last given */
     double start_tolerance, tolerance;
+    double open_timeout_s;      /* the source's, for ms_viewer_stream_wait_open */
     ms_camera last_camera;      /* as last handed to the core */
     bool have_camera;
     bool settled;               /* as of the last step */
 };
 
-ms_status ms_viewer_stream_open(const ms_viewer_source *source, ms_viewer_model *model,
-                                const ms_viewer_stream_settings *settings,
-                                ms_viewer_stream **out, ms_error *err)
+ms_status ms_viewer_stream_start(const ms_viewer_source *source, ms_viewer_model *model,
+                                 const ms_viewer_stream_settings *settings,
+                                 ms_viewer_stream **out, ms_error *err)
 {
     *out = NULL;
     ms_viewer_stream *s = calloc(1, sizeof *s);
     if (!s)
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory for a stream");
     s->model = model;
+    s->open_timeout_s = source->timeout_s > 0 ? source->timeout_s : 5.0;
     /* With APO the core refines geometry to apo_geometry_tolerance_px (the
      * normals carry the finer detail), else to tolerance_px: the viewer's
      * tolerance is whichever of the two is in effect. */
@@ -63,20 +65,36 @@ ms_status ms_viewer_stream_open(const ms_viewer_source *source, ms_viewer_model 
     ms_status st = ms_core_start(&co, &s->core, err);
     if (st == MS_OK)
         st = ms_render_new(NULL, NULL, &s->render, err);
-    if (st == MS_OK) {
-        ms_core_opening_free(&model->index);
-        st = ms_core_wait_open(s->core, source->timeout_s > 0 ? source->timeout_s : 5.0, &model->index, err);
-    }
-    if (st == MS_OK) {
-        model->header = model->index.header;
-        st = ms_render_set_model(s->render, &model->header, err);
-    }
     if (st != MS_OK) {
         ms_viewer_stream_close(s);
         return st;
     }
     *out = s;
     return MS_OK;
+}
+
+ms_status ms_viewer_stream_wait_open(ms_viewer_stream *s, ms_error *err)
+{
+    ms_viewer_model *model = s->model;
+    ms_core_opening_free(&model->index);
+    ms_status st = ms_core_wait_open(s->core, s->open_timeout_s, &model->index, err);
+    if (st == MS_OK) {
+        model->header = model->index.header;
+        st = ms_render_set_model(s->render, &model->header, err);
+    }
+    return st;
+}
+
+ms_status ms_viewer_stream_open(const ms_viewer_source *source, ms_viewer_model *model,
+                                const ms_viewer_stream_settings *settings,
+                                ms_viewer_stream **out, ms_error *err)
+{
+    ms_status st = ms_viewer_stream_start(source, model, settings, out, err);
+    if (st == MS_OK && (st = ms_viewer_stream_wait_open(*out, err)) != MS_OK) {
+        ms_viewer_stream_close(*out);
+        *out = NULL;
+    }
+    return st;
 }
 
 void ms_viewer_stream_close(ms_viewer_stream *s)

@@ -64,6 +64,16 @@ typedef struct ms_viewer_stream_settings {
 ms_status ms_viewer_stream_open(const ms_viewer_source *source, ms_viewer_model *model,
                                 const ms_viewer_stream_settings *settings,
                                 ms_viewer_stream **stream, ms_error *err);
+/* ms_viewer_stream_open in two halves, so that several streams (a scene's
+ * pieces) ask for their models at once and wait for them together: start
+ * starts the core and compiles the renderer (the core connects and asks for
+ * the model meanwhile); wait_open waits for that opening as described above
+ * and fills in the model. After a failed wait_open the stream can only be
+ * closed. */
+ms_status ms_viewer_stream_start(const ms_viewer_source *source, ms_viewer_model *model,
+                                 const ms_viewer_stream_settings *settings,
+                                 ms_viewer_stream **stream, ms_error *err);
+ms_status ms_viewer_stream_wait_open(ms_viewer_stream *stream, ms_error *err);
 void ms_viewer_stream_close(ms_viewer_stream *stream);
 
 /* The tolerance asked of the core from now on (screen pixels, clamped to
