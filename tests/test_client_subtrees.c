@@ -53,7 +53,7 @@
 #define PATH_FILE "scripts/paths/demo-closeup.cam"
 #define TRIANGLES 30000
 #define MIN_TRIANGLES 48
-#define WAIT_SECONDS 50.0
+#define WAIT_SECONDS 100.0 /* a bound, not a measurement: once missed at 50 s under load 16 */
 
 static ms_test_served *g;
 
