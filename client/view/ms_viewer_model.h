@@ -79,9 +79,9 @@ void ms_viewer_model_bounds(const ms_viewer_model *model, double lo[3], double h
  * server: one connection and a round trip). */
 ms_status ms_viewer_model_open(const ms_viewer_source *source, const char *name,
                                ms_viewer_model *model, ms_error *err);
-/* The same with the source's list in hand (ms_viewer_list_models, not
- * freed here): no input or output, so a scene opens all its pieces from one
- * listing. */
+/* The same with the source's list in hand (ms_viewer_list_models; the
+ * caller's, not freed here): reads no file and asks no server, so a scene
+ * opens all its pieces from one listing. */
 ms_status ms_viewer_model_open_listed(const ms_viewer_source *source,
                                       const ms_viewer_model_list *list, const char *name,
                                       ms_viewer_model *model, ms_error *err);
