@@ -356,6 +356,41 @@ static void test_interactive_until_terminated(void **state)
     }
 }
 
+/* The interactive viewer on a model from meshserve lists the catalogue once
+ * and opens the model from that list: two connections in all (the listing
+ * and the core's), where it made four (a listing to check the model, one for
+ * the catalogue screen, one more to open it); at a distance each was a
+ * connection and a round trip more before the first picture. It draws until
+ * its core asks for cells, and ends cleanly on SIGTERM. */
+static void test_interactive_from_a_server_lists_once(void **state)
+{
+    fixture *f = *state;
+    char series[128], server[64], log[700];
+    snprintf(series, sizeof series, "meshstream_model_requests_total{model=\"%s\"}", MODEL);
+    snprintf(server, sizeof server, "127.0.0.1:%u", f->port);
+    snprintf(log, sizeof log, "%s/interactive-server.txt", f->dir);
+    uint64_t connections, requests = 0, n;
+    assert_int_equal(ms_test_metric(f->http_port, "meshstream_connections_total", &connections), 0);
+    ms_test_metric(f->http_port, series, &requests); /* absent before any request */
+    char *argv[] = {f->bin, "--server", server, "--model", MODEL, "--size", "160x120", NULL};
+    pid_t viewer = ms_test_spawn(argv, log);
+    bool asked = false;
+    for (int i = 0; i < 400 && !asked; ++i) { /* 40 s at most */
+        asked = ms_test_metric(f->http_port, series, &n) == 0 && n > requests;
+        struct timespec pause = {0, 100000000};
+        if (!asked)
+            nanosleep(&pause, NULL);
+    }
+    assert_int_equal(ms_test_stop(viewer, SIGTERM, 20.0), 0);
+    assert_true(asked);
+    assert_int_equal(ms_test_metric(f->http_port, "meshstream_connections_total", &n), 0);
+    assert_int_equal(n - connections, 2);
+    char *text = read_text(log);
+    if (text[0])
+        fail_msg("meshview printed: %.2000s", text);
+    free(text);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -363,6 +398,7 @@ int main(void)
         cmocka_unit_test(test_streaming_and_local_archive),
         cmocka_unit_test(test_catalogue_screen),
         cmocka_unit_test(test_interactive_until_terminated),
+        cmocka_unit_test(test_interactive_from_a_server_lists_once),
         cmocka_unit_test(test_server_gone_mid_stream),
         cmocka_unit_test(test_runtime_errors), /* stops the server: last */
     };

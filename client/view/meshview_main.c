@@ -163,7 +163,9 @@ static bool open_model(viewer *v, const char *name)
             glfwSwapBuffers(v->window);
     }
     ms_viewer_stream_settings settings = ms_viewer_options_stream_settings(v->o);
-    if (ms_viewer_model_open(&v->source, name, &v->model, &err) != MS_OK ||
+    /* from the catalogue already listed: opening costs no listing (at a
+     * distance, a connection and a round trip) */
+    if (ms_viewer_model_open_listed(&v->source, &v->list, name, &v->model, &err) != MS_OK ||
         ms_viewer_stream_open(&v->source, &v->model, &settings, &v->stream, &err) != MS_OK) {
         snprintf(v->message, sizeof v->message, "%.250s", err.text);
         close_model(v);
@@ -619,17 +621,16 @@ static int interactive(viewer *v)
     }
     if (o->scene_file)
         return interactive_scene(v);
-    if (o->model) {
-        /* An unknown model or a missing server is an error before any window. */
-        if (ms_viewer_model_open(&v->source, o->model, &v->model, &err) != MS_OK) {
-            fprintf(stderr, "meshview: %s\n", err.text);
-            return 1;
-        }
-        ms_viewer_model_close(&v->model);
-    }
+    /* The catalogue is listed once: a missing server, or an unknown model,
+     * is an error before any window; every model opens from this list. */
     v->have_list = ms_viewer_list_models(&v->source, &v->list, &err) == MS_OK;
-    if (!v->have_list && !o->model) {
+    if (v->have_list && o->model &&
+        ms_viewer_model_open_listed(&v->source, &v->list, o->model, &v->model, &err) != MS_OK)
+        v->have_list = false;
+    ms_viewer_model_close(&v->model);
+    if (!v->have_list) {
         fprintf(stderr, "meshview: %s\n", err.text);
+        ms_viewer_model_list_free(&v->list);
         return 1;
     }
     if (ms_gl_window_new(o->width, o->height, "meshview", true, &v->window, &err) != MS_OK) {
