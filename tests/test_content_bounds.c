@@ -15,7 +15,6 @@
 #include <stdint.h>
 #include <stdio.h>
 #include <string.h>
-#include <sys/stat.h>
 #include <cmocka.h>
 
 #include "ms_archive.h"
@@ -160,12 +159,10 @@ static void test_bunny_tree_bounds(void **state)
 static int setup(void **state)
 {
     (void)state;
-    ms_test_tmpdir(fx.dir, sizeof fx.dir);
-    snprintf(fx.archives, sizeof fx.archives, "%s/archive", fx.dir);
+    if (ms_nsp_test_demo_archive(fx.dir, sizeof fx.dir, fx.archives, sizeof fx.archives) != 0)
+        return -1;
     snprintf(fx.demo_source, sizeof fx.demo_source, "%s/demo.ply", fx.dir);
     ms_test_model_path(fx.bunny_source, sizeof fx.bunny_source, "stanford_bunny_res3.ply.gz");
-    if (mkdir(fx.archives, 0755) != 0 || ms_nsp_test_bake_demo(fx.dir, 4000, fx.archives, "demo", 1500, false) != 0)
-        return -1;
     ms_bake_report report;
     ms_nsp_test_bake(fx.bunny_source, fx.archives, "bunny", 16, 0, &report);
     if (report.cells != 1) {

@@ -17,7 +17,6 @@
 #include <stdint.h>
 #include <stdio.h>
 #include <string.h>
-#include <sys/stat.h>
 #include <time.h>
 #include <cmocka.h>
 
@@ -222,9 +221,7 @@ static int setup(void **state)
 {
     (void)state;
     ms_test_gl_start(&fx.gl);
-    ms_test_tmpdir(fx.dir, sizeof fx.dir);
-    snprintf(fx.archives, sizeof fx.archives, "%s/archive", fx.dir);
-    if (mkdir(fx.archives, 0755) != 0 || ms_nsp_test_bake_demo(fx.dir, 4000, fx.archives, "demo", 1500, false) != 0)
+    if (ms_nsp_test_demo_archive(fx.dir, sizeof fx.dir, fx.archives, sizeof fx.archives) != 0)
         return -1;
     ms_error err;
     if (ms_scene_parse(scene_text, strlen(scene_text), "pick.json", NULL, &fx.scene, &err) != MS_OK) {

@@ -7,6 +7,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <cmocka.h>
 
 #include "ms_nsp_check.h"
@@ -16,6 +17,7 @@
 #include "ms_mesh_io.h"
 #include "ms_nsp.h"
 #include "ms_ref_coarsen.h"
+#include "ms_test.h"
 
 void ms_nsp_test_bake_options(const char *input, const char *dir, const char *name, ms_bake_options *o)
 {
@@ -101,6 +103,17 @@ int ms_nsp_test_bake_demo(const char *work_dir, uint64_t triangles, const char *
         return -1;
     }
     return 0;
+}
+
+int ms_nsp_test_demo_archive(char *dir, size_t dir_size, char *archives, size_t archives_size)
+{
+    ms_test_tmpdir(dir, dir_size);
+    int n = snprintf(archives, archives_size, "%s/archive", dir);
+    if (n < 0 || (size_t)n >= archives_size || mkdir(archives, 0755) != 0) {
+        fprintf(stderr, "%s/archive: cannot be made\n", dir);
+        return -1;
+    }
+    return ms_nsp_test_bake_demo(dir, 4000, archives, "demo", 1500, false);
 }
 
 void ms_nsp_test_decode_all(ms_view *v)

@@ -32,6 +32,11 @@ void ms_nsp_test_demo_ply(const char *path, uint64_t triangles);
 int ms_nsp_test_bake_demo(const char *work_dir, uint64_t triangles, const char *archive_dir, const char *name,
                           uint32_t min_triangles, bool every_cell);
 
+/* The scenes' tests' archive: a fresh temporary directory into dir, and in
+ * it archives/ holding "demo" (4,000 triangles, N_min 1,500, APO on internal
+ * cells), whose source is dir/demo.ply. 0, or -1 with the error on stderr. */
+int ms_nsp_test_demo_archive(char *dir, size_t dir_size, char *archives, size_t archives_size);
+
 /* Splits every cell down to the leaves and refines each to full precision. */
 void ms_nsp_test_decode_all(ms_view *view);
 
