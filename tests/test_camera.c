@@ -86,6 +86,32 @@ static void test_distance_and_precision(void **state)
     assert_int_equal(ms_select_bits(ms_screen_bits_needed(&c, 1.0, 1e12, 1.0), 9, 7, 16, 0.5), 7);
 }
 
+/* Clipping planes that frame a box from any eye: outside it, near is half the
+ * way to its nearest point and far 1 % past its farthest corner; inside it,
+ * near is far * 5e-5; a bad box gives the fixed fallback. */
+static void test_depth_range_frames_the_box(void **state)
+{
+    (void)state;
+    const double lo[3] = {-1, -1, -1}, hi[3] = {1, 1, 1};
+    double near_d, far_d;
+    for (double d = 3; d < 1e7; d *= 10) {
+        const double eye[3] = {0, 0, d};
+        ms_camera_depth_range(eye, lo, hi, &near_d, &far_d);
+        assert_float_equal(near_d, 0.5 * (d - 1), 1e-9 * d);
+        assert_float_equal(far_d, 1.01 * sqrt(2.0 + (d + 1) * (d + 1)), 1e-9 * d);
+    }
+    const double inside[3] = {0.5, 0, 0};
+    ms_camera_depth_range(inside, lo, hi, &near_d, &far_d);
+    assert_float_equal(far_d, 1.01 * sqrt(1.5 * 1.5 + 2.0), 1e-12);
+    assert_float_equal(near_d, far_d * 5e-5, 1e-15);
+    const double bad_lo[3] = {1, 0, NAN}, eye[3] = {0, 0, 5};
+    ms_camera_depth_range(eye, bad_lo, hi, &near_d, &far_d);
+    assert_true(near_d == 1e-4 && far_d == 1e4);
+    const double point[3] = {0, 0, 0};
+    ms_camera_depth_range(point, point, point, &near_d, &far_d);
+    assert_true(near_d > 0 && far_d > near_d);
+}
+
 static void test_hysteresis(void **state)
 {
     (void)state;
@@ -157,6 +183,7 @@ int main(void)
         cmocka_unit_test(test_look_at_basis_and_errors),
         cmocka_unit_test(test_frustum_culling),
         cmocka_unit_test(test_distance_and_precision),
+        cmocka_unit_test(test_depth_range_frames_the_box),
         cmocka_unit_test(test_hysteresis),
         cmocka_unit_test(test_apo_footprint_levels),
     };

@@ -55,6 +55,15 @@ bool ms_frustum_keeps_box(const ms_frustum *frustum, const double lo[3], const d
 /* Distance from the camera position to the nearest point of the box (0 inside). */
 double ms_camera_box_distance(const ms_camera *camera, const double lo[3], const double hi[3]);
 
+/* Clipping distances for an eye at position that keep the whole box [lo, hi]
+ * (world units) between the planes, whatever the eye's distance: far a little
+ * past the box's farthest corner, near half the way to its nearest point but
+ * never under far * 5e-5 (the eye inside or at the box). A fixed range loses
+ * a model that is small on screen behind the far plane. A box with a NaN or
+ * infinite coordinate, or lo above hi, gives near 1e-4 and far 1e4. */
+void ms_camera_depth_range(const double position[3], const double lo[3], const double hi[3],
+                           double *near_distance, double *far_distance);
+
 /* The precision, as a real number of bits, at which kd-cells of a cube of side
  * `cube_side` project to `tolerance_px` pixels at `distance`:
  * log2(√3 · cube_side · pixels_per_unit / (distance · tolerance_px)).

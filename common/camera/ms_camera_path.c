@@ -226,3 +226,17 @@ ms_status ms_camera_path_sample(const ms_camera_path *p, double t, double width,
     return ms_camera_look_at(key.position, key.target, key.up, key.fovy_degrees, width, height,
                              near_distance, far_distance, camera, err);
 }
+
+ms_status ms_camera_path_sample_framing(const ms_camera_path *p, double t, double width,
+                                        double height, const double lo[3], const double hi[3],
+                                        ms_camera *camera, ms_error *err)
+{
+    if (p->count == 0)
+        return ms_error_set(err, MS_ERR_EMPTY, "camera path has no keyframe");
+    ms_camera_key key;
+    ms_camera_path_key_at(p, t, &key);
+    double near_d, far_d;
+    ms_camera_depth_range(key.position, lo, hi, &near_d, &far_d);
+    return ms_camera_look_at(key.position, key.target, key.up, key.fovy_degrees, width, height,
+                             near_d, far_d, camera, err);
+}
