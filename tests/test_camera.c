@@ -74,10 +74,15 @@ static void test_distance_and_precision(void **state)
     assert_true(ms_camera_box_distance(&c, around_lo, around_hi) == 0.0);
     const double corner_lo[3] = {3, 4, 10}, corner_hi[3] = {5, 5, 11};
     assert_float_equal(ms_camera_box_distance(&c, corner_lo, corner_hi), 5.0, 1e-12);
-    /* Side 1 at distance 10 with 500 px per unit: sqrt(3)*50 px at 0 bits. */
+    /* Side 1 at distance 10 with 500 px per unit: the half-diagonal, sqrt(3)*25
+     * px, at 0 bits; 43.3 px needs 6 bits for 1 px (0.68 px). */
     double need = ms_screen_bits_needed(&c, 1.0, 10.0, 1.0);
-    assert_float_equal(need, log2(sqrt(3.0) * 50.0), 1e-12);
-    assert_int_equal(ms_select_bits(need, 0, 0, 16, 0.5), 7);
+    assert_float_equal(need, log2(sqrt(3.0) * 25.0), 1e-12);
+    assert_int_equal(ms_select_bits(need, 0, 0, 16, 0.5), 6);
+    assert_float_equal(ms_screen_error_px(&c, 1.0, 0, 10.0), sqrt(3.0) * 25.0, 1e-12);
+    assert_float_equal(ms_screen_error_px(&c, 1.0, 6, 10.0), sqrt(3.0) * 25.0 / 64.0, 1e-12);
+    assert_float_equal(ms_screen_error_px(&c, 1.0, 0, 10.0), 1.0 * exp2(need), 1e-9);
+    assert_true(isinf(ms_screen_error_px(&c, 1.0, 3, 0.0)));
     /* Coarser tolerance, fewer bits: 4 px is 2 bits less. */
     assert_float_equal(ms_screen_bits_needed(&c, 1.0, 10.0, 4.0), need - 2.0, 1e-12);
     /* Camera very near: everything; very far: nothing beyond the minimum. */

@@ -150,7 +150,15 @@ double ms_screen_bits_needed(const ms_camera *c, double cube_side, double distan
 {
     if (!(distance > 0.0))
         return INFINITY;
-    return log2(sqrt(3.0) * cube_side * ms_camera_pixels_per_unit(c) / (distance * tolerance_px));
+    return log2(0.5 * sqrt(3.0) * cube_side * ms_camera_pixels_per_unit(c) /
+                (distance * tolerance_px));
+}
+
+double ms_screen_error_px(const ms_camera *c, double cube_side, unsigned bits, double distance)
+{
+    if (!(distance > 0.0))
+        return INFINITY;
+    return 0.5 * sqrt(3.0) * ldexp(cube_side, -(int)bits) * ms_camera_pixels_per_unit(c) / distance;
 }
 
 unsigned ms_apo_footprint_levels(const ms_camera *c, const double cube_lo[3], double cube_side,
