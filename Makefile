@@ -168,15 +168,18 @@ models:
 	@scripts/fetch-models
 
 bench: programs
+	@scripts/fetch-models
 	@scripts/bench
 
 # What accuracy costs: sweeps over the dragon and the demo model, docs/ACCURACY.md
 # and docs/images/study-*.png (scripts/study; 10 to 15 minutes; not in CI).
 study: programs
+	@scripts/fetch-models
 	@scripts/study
 
 # The viewer's pictures in docs/images/ (headless meshview; Xvfb when no DISPLAY).
 screenshots: programs
+	@scripts/fetch-models
 	@scripts/screenshots
 
 demo:
