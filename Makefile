@@ -76,9 +76,12 @@ room_lib     = $(BUILD)/lib/libms_$(subst /,_,$(1)).a
 # The libraries a program of room $(1) links, highest room first.
 room_libs    = $(foreach r,$(call reverse,$(ROOMS)),$(if $(filter $(r),$(call room_closure,$(1))),$(call room_lib,$(r))))
 room_pkgs    = $(sort $(foreach r,$(call room_closure,$(1)),$(PKGS_$(r))))
+# pkg-config runs while the Makefile is read, also for `make demo` and `make deps`
+# on a machine that lacks the libraries: it stays silent there, and check-deps
+# stops a real build with one line instead.
 pkg_libs     = $(if $(filter embree3,$(1)),-lembree3) \
-               $(if $(filter-out embree3,$(1)),$(shell pkg-config --libs $(filter-out embree3,$(1))))
-pkg_cflags   = $(if $(filter-out embree3,$(1)),$(shell pkg-config --cflags $(filter-out embree3,$(1))))
+               $(if $(filter-out embree3,$(1)),$(shell pkg-config --libs $(filter-out embree3,$(1)) 2>/dev/null))
+pkg_cflags   = $(if $(filter-out embree3,$(1)),$(shell pkg-config --cflags $(filter-out embree3,$(1)) 2>/dev/null))
 
 lib_srcs  = $(filter-out %_main.c,$(wildcard $(1)/*.c))
 lib_objs  = $(patsubst %.c,$(BUILD)/%.o,$(call lib_srcs,$(1))) $(patsubst %.cpp,$(BUILD)/%.o,$(wildcard $(1)/*.cpp))
@@ -91,18 +94,28 @@ ALL_LIBS  := $(foreach r,$(call reverse,$(ROOMS)),$(call room_lib,$(r)))
 ALL_PKGS  := $(sort $(foreach r,$(ROOMS),$(PKGS_$(r))))
 LINK      := $(CXX)
 
-.PHONY: all test bench demo fuzz clean programs tests deps screenshots rooms room-flags study
+.PHONY: all test bench demo fuzz clean programs tests deps screenshots rooms room-flags study \
+        check-deps models
 .SECONDARY:
 all: programs
 
 programs: $(PROGRAMS)
 tests: $(TESTS) $(PROGRAMS)
 
-$(BUILD)/%.o: %.c
+# Every library pkg-config should know (cmocka too when tests are built), and
+# Embree 3's header: one line naming what is missing, before any compiler error.
+CHECK_PKGS := $(filter-out embree3,$(ALL_PKGS)) $(if $(filter test tests,$(MAKECMDGOALS)),cmocka)
+check-deps:
+	@missing=""; \
+	for p in $(CHECK_PKGS); do pkg-config --exists $$p 2>/dev/null || missing="$$missing $$p"; done; \
+	echo '#include <embree3/rtcore.h>' | $(CC) -E -x c - >/dev/null 2>&1 || missing="$$missing embree3"; \
+	[ -z "$$missing" ] || { echo "meshstream: missing libraries:$$missing (install them with scripts/install-deps)" >&2; exit 1; }
+
+$(BUILD)/%.o: %.c | check-deps
 	@mkdir -p $(dir $@)
 	$(CC) $(CFLAGS) $(ROOM_CFLAGS) -MMD -MP -c $< -o $@
 
-$(BUILD)/%.o: %.cpp
+$(BUILD)/%.o: %.cpp | check-deps
 	@mkdir -p $(dir $@)
 	$(CXX) $(CXXFLAGS) $(ROOM_CFLAGS) -MMD -MP -c $< -o $@
 
@@ -143,21 +156,30 @@ $(BUILD)/tests/%: $(BUILD)/tests/%.o $(TESTSUPPORT) $(ALL_LIBS)
 	$(LINK) $(LDFLAGS) $< $(TESTSUPPORT) $(ALL_LIBS) $(call pkg_libs,$(ALL_PKGS) cmocka) -lm -o $@
 
 # The whole suite under ASan + UBSan. Tests run from the repository root and find
-# the shared models through MESHSTREAM_MODELS (default ../shared/data/models).
+# their models in tests/data and in the cache scripts/fetch-models fills
+# (tests/data/README.md; MESHSTREAM_MODELS overrides both).
 test:
+	@scripts/fetch-models
 	@$(MAKE) --no-print-directory MODE=asan tests
 	@MODE=asan scripts/run-tests
 
+# The real scanned test models, fetched once into the cache (scripts/fetch-models).
+models:
+	@scripts/fetch-models
+
 bench: programs
+	@scripts/fetch-models
 	@scripts/bench
 
 # What accuracy costs: sweeps over the dragon and the demo model, docs/ACCURACY.md
 # and docs/images/study-*.png (scripts/study; 10 to 15 minutes; not in CI).
 study: programs
+	@scripts/fetch-models
 	@scripts/study
 
 # The viewer's pictures in docs/images/ (headless meshview; Xvfb when no DISPLAY).
 screenshots: programs
+	@scripts/fetch-models
 	@scripts/screenshots
 
 demo:
