@@ -235,7 +235,8 @@ typedef struct msc_cell {
     uint32_t triangle_count;    /* the cell's triangles at full precision */
 } msc_cell;
 
-/* The cells whose triangles the frame's mesh holds, ids ascending. */
+/* The cells the frame shows (those the mesh's triangles come from, and shown
+ * cells that hold no triangle), ids ascending. */
 MSC_API size_t msc_frame_cell_count(const msc_frame *frame);
 /* The i-th of them (i < msc_frame_cell_count). MSC_ERR_ARG otherwise. */
 MSC_API msc_status msc_frame_cell(const msc_frame *frame, size_t i, msc_cell *cell);
