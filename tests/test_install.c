@@ -169,7 +169,7 @@ static void test_install_example_uninstall(void **state)
 
     /* MODE and the caller's make flags (make test's jobserver) stay outside */
     snprintf(cmd, sizeof cmd,
-             "env -u MAKEFLAGS -u MFLAGS -u MAKELEVEL make -s MODE=release install PREFIX=/usr "
+             "env -u MAKEFLAGS -u MFLAGS -u MAKELEVEL make -s -j2 MODE=release install PREFIX=/usr "
              "DESTDIR='%s' 2>&1",
              root);
     run_ok(cmd, out, sizeof out);
