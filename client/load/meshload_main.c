@@ -35,6 +35,7 @@
 #include "ms_client_core.h"
 #include "ms_http_get.h"
 #include "ms_load_options.h"
+#include "ms_version.h"
 
 extern char **environ;
 
@@ -570,6 +571,8 @@ static void print_report(const ms_load_options *o, const run *r, worker *ws)
 
 int main(int argc, char **argv)
 {
+    if (ms_version_asked(argc, argv))
+        return ms_version_print("meshload");
     ms_load_options o;
     int rc = ms_load_options_parse(argc, argv, &o);
     if (rc)

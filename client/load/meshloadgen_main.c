@@ -25,6 +25,7 @@
 #include "ms_payload_assembly.h"
 #include "ms_progress.h"
 #include "ms_proto.h"
+#include "ms_version.h"
 
 #define MAX_WINDOW 64
 #define GRACE_SECONDS 3.0
@@ -600,6 +601,7 @@ static void usage(FILE *out)
             "  --label TEXT         copied into the JSON output\n"
             "  --json               print one JSON object\n"
             "  -h, --help           show this help\n"
+            "      --version        show the version\n"
             "Exit status 0 when every request was answered without error, 1 otherwise.\n");
 }
 
@@ -679,6 +681,8 @@ static ms_archive *load_index(const char *path, const char *name)
 
 int main(int argc, char **argv)
 {
+    if (ms_version_asked(argc, argv))
+        return ms_version_print("meshloadgen");
     loadgen lg;
     memset(&lg, 0, sizeof lg);
     if (parse_options(argc, argv, &lg.o) != 0) {

@@ -35,6 +35,7 @@
 #include "ms_viewer_signals.h"
 #include "ms_viewer_stream.h"
 #include "ms_viewer_text.h"
+#include "ms_version.h"
 
 #define DOUBLE_CLICK_S 0.35
 #define DOUBLE_CLICK_PX 4.0
@@ -740,6 +741,8 @@ static int scripted(viewer *v)
 
 int main(int argc, char **argv)
 {
+    if (ms_version_asked(argc, argv))
+        return ms_version_print("meshview");
     ms_viewer_signals_block(); /* before the core's threads exist */
     ms_viewer_options o;
     int rc = ms_viewer_options_parse(argc, argv, &o, stderr);
