@@ -396,7 +396,7 @@ static ms_status play(script *s, const ms_viewer_model *model, json_t *keys, boo
         path.keys[0].fovy_degrees = 50;
     } else { /* the home view as a path of one keyframe */
         ms_viewer_controls c;
-        ms_viewer_controls_init(&c, lo, hi, o->up_axis);
+        ms_viewer_controls_init(&c, lo, hi, o->up_axis, (double)o->width / o->height);
         path.keys = calloc(1, sizeof *path.keys);
         if (!path.keys)
             return ms_error_set(err, MS_ERR_NOMEM, "out of memory for a path");
