@@ -224,8 +224,7 @@ void ms_viewer_controls_fly(ms_viewer_controls *c, double forward, double right,
 void ms_viewer_controls_depth_range(const ms_viewer_controls *c, double *near_distance,
                                     double *far_distance)
 {
-    *near_distance = c->distance / 500;
-    *far_distance = c->distance + 4 * c->model_size;
+    ms_camera_depth_range(c->distance, c->model_size, near_distance, far_distance);
 }
 
 ms_status ms_viewer_controls_camera(const ms_viewer_controls *c, double width, double height,

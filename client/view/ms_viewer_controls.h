@@ -80,8 +80,8 @@ void ms_viewer_controls_frame(ms_viewer_controls *c, const double centre[3], dou
 void ms_viewer_controls_fly(ms_viewer_controls *c, double forward, double right, double up,
                             double seconds);
 
-/* Near and far for the present distance: near = distance / 500, far =
- * distance + 4 model sizes. */
+/* Near and far for the present distance (ms_camera_depth_range): near =
+ * distance / 500, far = distance + 4 model sizes. */
 void ms_viewer_controls_depth_range(const ms_viewer_controls *c, double *near_distance,
                                     double *far_distance);
 /* The camera for a framebuffer of width x height pixels; near and far from

@@ -9,6 +9,17 @@ static bool finite3(const double v[3])
     return isfinite(v[0]) && isfinite(v[1]) && isfinite(v[2]);
 }
 
+void ms_camera_depth_range(double distance, double model_size, double *near_distance,
+                           double *far_distance)
+{
+    if (!(distance > 0) || !isfinite(distance))
+        distance = 1;
+    if (!(model_size > 0) || !isfinite(model_size))
+        model_size = 1;
+    *near_distance = distance / 500;
+    *far_distance = distance + 4 * model_size;
+}
+
 ms_status ms_camera_look_at(const double position[3], const double target[3],
                             const double up[3], double fovy_degrees, double width,
                             double height, double near_distance, double far_distance,

@@ -35,6 +35,15 @@ ms_status ms_camera_look_at(const double position[3], const double target[3],
                             double height, double near_distance, double far_distance,
                             ms_camera *camera, ms_error *err);
 
+/* The near and far distances of a camera whose eye is `distance` from what it
+ * looks at, for a model whose largest side is `model_size` (its bounds): near
+ * = distance / 500, far = distance + 4 model sizes. The planes follow the model
+ * whatever its units (a model in micrometres or in kilometres is framed the
+ * same), as meshview's controls and meshload's path both take them. A distance
+ * or size not > 0 and finite counts as 1. */
+void ms_camera_depth_range(double distance, double model_size, double *near_distance,
+                           double *far_distance);
+
 /* Pixels covered by one world unit seen face-on at distance 1: H / (2 tan(fovy/2)). */
 double ms_camera_pixels_per_unit(const ms_camera *camera);
 
