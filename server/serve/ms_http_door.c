@@ -53,9 +53,11 @@ struct ms_http_door {
     struct evhttp *http;
     struct evconnlistener *listener;
     struct event *sweep;
+    struct event *next_turn;    /* zero-delay timer: the loop's next turn */
+    size_t accepts_this_turn;   /* connections accepted since next_turn was armed */
     tracked_connection *connections;
     size_t connection_count, connection_capacity;
-    bool accept_paused_full;    /* at http_max_connections */
+    bool accept_held;           /* at http_max_connections, or this turn's accepts made */
     ms_log_limit accept_log;    /* accept failures */
     rate_bucket buckets[RATE_BUCKETS];
     double request_started;     /* when the request being handled arrived, for the access log */
@@ -486,25 +488,45 @@ static tracked_connection *shed_candidate(ms_http_door *door)
     return oldest;
 }
 
+/* Accepts per turn of the loop: well under the cap, so that a connection
+ * accepted in a burst has its request read (the next turn) before the rest of
+ * the burst could push it out as the oldest idle one. */
+static size_t accepts_per_turn(const ms_http_door *door)
+{
+    size_t per_turn = door->server->config.http_max_connections / 4;
+    return per_turn ? per_turn : 1;
+}
+
 static void update_accepting(ms_http_door *door)
 {
     size_t live = live_connections(door);
     door->server->metrics.http_connections = live;
     bool full = live >= door->server->config.http_max_connections && !shed_candidate(door);
-    if (!door->listener || (full && door->accept_paused_full))
+    bool hold = full || door->accepts_this_turn >= accepts_per_turn(door);
+    if (!door->listener || (hold && door->accept_held))
         return;
-    door->accept_paused_full = full;
+    door->accept_held = hold;
     /* At the cap with every connection sending an answer, further clients
      * wait in the kernel's backlog: they hold no descriptor of ours, and the
      * binary door's stay free. At the cap with an idle connection, a newcomer
      * takes its slot (new_connection): waiting in the backlog behind slowloris
      * connections that each hold a slot for http_header_timeout made
      * legitimate requests wait 11.5-19 s (issue 32, item 8). Below the cap,
-     * enabling also ends a pause after an accept failure (on_accept_error). */
-    if (full)
+     * enabling also ends a pause after an accept failure (on_accept_error).
+     * Disabling inside evhttp's accept callback also ends libevent's accept
+     * loop for this turn. */
+    if (hold)
         evconnlistener_disable(door->listener);
     else
         evconnlistener_enable(door->listener);
+}
+
+static void on_next_turn(evutil_socket_t fd, short what, void *arg)
+{
+    (void)fd, (void)what;
+    ms_http_door *door = arg;
+    door->accepts_this_turn = 0;
+    update_accepting(door);
 }
 
 /* Ends a connection evhttp still owns: shutting the socket down makes evhttp
@@ -550,6 +572,11 @@ static struct bufferevent *new_connection(struct event_base *base, void *arg)
     bufferevent_incref(bev);
     double now = ms_now_seconds();
     door->connections[door->connection_count++] = (tracked_connection){bev, now, 0, now, false};
+    /* A zero-delay timer runs after the next poll's reads: the count starts
+     * over once the connections accepted now have had their turn. */
+    static const struct timeval next_poll = {0, 0};
+    if (door->accepts_this_turn++ == 0 && evtimer_add(door->next_turn, &next_poll) != 0)
+        door->accepts_this_turn = 0; /* no timer: no per-turn bound rather than no accepts */
     update_accepting(door);
     return bev;
 }
@@ -620,8 +647,9 @@ ms_status ms_http_door_open(ms_server *server, ms_http_door **out, uint16_t *bou
     }
     door->listener = evhttp_bound_socket_get_listener(socket);
     door->sweep = event_new(server->base, -1, EV_PERSIST, sweep, door);
+    door->next_turn = evtimer_new(server->base, on_next_turn, door);
     struct timeval tick = {0, SWEEP_INTERVAL_US};
-    if (!door->listener || !door->sweep ||
+    if (!door->listener || !door->sweep || !door->next_turn ||
         event_add(door->sweep, &tick) != 0) {
         ms_http_door_close(door);
         return ms_error_set(err, MS_ERR_NOMEM, "http: cannot set up connection tracking");
@@ -648,5 +676,7 @@ void ms_http_door_close(ms_http_door *door)
     free(door->connections);
     if (door->sweep)
         event_free(door->sweep);
+    if (door->next_turn)
+        event_free(door->next_turn);
     free(door);
 }
