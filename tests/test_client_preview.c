@@ -33,6 +33,7 @@
 #include "ms_camera_path.h"
 #include "ms_client_core.h"
 #include "ms_nsp_check.h"
+#include "ms_preview.h"
 #include "ms_test.h"
 #include "ms_test_core.h"
 #include "ms_test_net.h"

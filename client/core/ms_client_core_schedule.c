@@ -6,6 +6,8 @@
 #include <math.h>
 #include <stdlib.h>
 
+#include "ms_preview.h"
+
 /* The side of a cell's cube, world units. */
 double ms_core_cell_side(const ms_archive_header *h, const ms_archive_cell *rec)
 {

@@ -150,17 +150,6 @@ void ms_archive_cell_window(const ms_archive_header *h, unsigned level, bool lea
     *bits_max = (uint8_t)hi;
 }
 
-unsigned ms_archive_preview_apo_levels(const ms_archive_header *h, const ms_archive_cell *c,
-                                       unsigned permitted_geometry_steps)
-{
-    if (permitted_geometry_steps > h->bits)
-        return MS_ARCHIVE_MAX_APO_LEVELS;
-    if (c->bits_min >= permitted_geometry_steps)
-        return 0; /* a hidden cell */
-    unsigned coarse = log2_exact(h->n) * c->level; /* bits above the cell's cube */
-    return permitted_geometry_steps > coarse ? permitted_geometry_steps - coarse : 0;
-}
-
 /* --- Validation ----------------------------------------------------------- */
 
 /* The sections a header declares against the bytes it heads. */

@@ -163,20 +163,4 @@ void ms_archive_encode_cell(const ms_archive_cell *c, uint8_t out[MS_ARCHIVE_REC
 void ms_archive_cell_window(const ms_archive_header *h, unsigned level, bool leaf,
                             uint8_t *bits_min, uint8_t *bits_max);
 
-/* The preview's rule for APO (docs/SECURITY.md, "APO under a preview"): how
- * many levels of cell c's chunk (depths 0 .. result - 1) a reader limited to
- * geometry steps 0 .. permitted_geometry_steps - 1 (a preview of
- * P = permitted_geometry_steps - 1 bits) may read. A texel at depth d of a
- * cell at `level` is a cube of side box_side / 2^(log2(n) * level + d): the
- * grid step of the geometry at log2(n) * level + d bits. So the preview reads
- * the depths whose texels are no finer than its own grid step,
- * d <= P - log2(n) * level: P - log2(n) * level + 1 levels, 0 when negative,
- * and 0 for a cell whose window starts at or beyond the preview (bits_min >=
- * permitted_geometry_steps: its geometry is not shown at all). Not clamped to
- * the cell's own apo_levels. permitted_geometry_steps > h->bits (full
- * precision) limits nothing: MS_ARCHIVE_MAX_APO_LEVELS. Pure; the server
- * (ms_access.h) and the client core use this one function. */
-unsigned ms_archive_preview_apo_levels(const ms_archive_header *h, const ms_archive_cell *c,
-                                       unsigned permitted_geometry_steps);
-
 #endif

@@ -3,6 +3,7 @@
 
 #include <string.h>
 
+#include "ms_preview.h"
 #include "ms_subtree.h"
 
 ms_access ms_access_grant(const ms_model *model, bool token_accepted)
