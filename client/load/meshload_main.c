@@ -609,7 +609,8 @@ static void report_text(const ms_load_options *o, const run *r, const worker *ws
         for (size_t k = 0; k < c->key_count; ++k)
             printf("    keyframe %zu (t=%g): view complete%s after %.3f s%s, error %.2f px "
                    "(tolerance %.2f)\n",
-                   k, r->path.keys[k].time, c->keys[k].preview_limited ? " at the preview" : "",
+                   k, r->path.keys[k].time,
+                   c->keys[k].complete && c->keys[k].preview_limited ? " at the preview" : "",
                    c->keys[k].wait, c->keys[k].complete ? "" : " (NOT complete)",
                    c->keys[k].error_px, c->keys[k].tolerance_px);
     }
