@@ -443,6 +443,9 @@ static void server_killed_and_restarted(bool whole)
     ms_core_options o = base_options();
     o.port = port;
     o.bandwidth = 40000; /* slow enough to be cut mid-stream */
+    /* little in flight: the default 64 KiB window could hold the whole rest of
+     * the view, already in the socket when the server dies */
+    o.window_bytes = 8192;
     o.export_frames = true;
     o.whole_index = whole;
     ms_camera cam;

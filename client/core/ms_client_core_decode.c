@@ -324,11 +324,17 @@ static void dec_pass_begin(ms_core *c, const ms_camera *cam, dec_pass *pass)
      * the input: every leaf, docs/APO.md) is shaded by its triangles alone, so
      * it refines to tolerance_px as with APO off. */
     double chunkless = pass->apo_on ? c->o.tolerance_px / c->o.apo_geometry_tolerance_px : 0.0;
+    /* A public preview: no cell is wanted beyond what this reader may read
+     * (PROTOCOL.md sections 4.10 and 8: a client need never trip FORBIDDEN). */
+    pthread_mutex_lock(&c->lock);
+    c->preview_steps = c->permitted_geometry_steps;
+    pthread_mutex_unlock(&c->lock);
     pass->sp = (ms_view_select_params){.tolerance_px = pass->fv.tolerance,
                                        .margin = c->o.frustum_margin,
                                        .hysteresis = c->o.hysteresis_bits,
                                        .culled_bits_less = c->o.culled_bits_less,
-                                       .chunkless_tolerance_scale = chunkless};
+                                       .chunkless_tolerance_scale = chunkless,
+                                       .permitted_steps = c->preview_steps};
 }
 
 /* Selects the cells for the camera, refines in parallel what can go up, and

@@ -209,6 +209,10 @@ struct ms_core {
     ms_core_opening opening;    /* with export_frames: the index at the first open */
     bool have_opening;
     bool index_new, republish;
+    /* the grant of the latest MODEL_OPENED (PROTOCOL.md section 8): geometry
+     * steps this reader may read; 0 until known, and in local mode (the file
+     * holds everything) */
+    uint8_t permitted_geometry_steps;
     want *wants;
     size_t want_count;
     uint64_t want_serial;
@@ -246,6 +250,8 @@ struct ms_core {
     subtree_entry *subtrees; /* sorted by id */
     size_t subtree_count, subtree_cap;
     ms_view_select_report report; /* the pass's cells short of their children's records */
+    unsigned preview_steps;   /* the pass's: permitted geometry steps under a public
+                                 preview, 0 with full access (ms_view_select_params) */
     uint64_t index_bytes_held;  /* raw index bytes of the subtrees held */
     bool subtrees_changed;      /* a subtree came or went since the last pass's frame */
     double tolerance_factor, last_budget_step, last_blocked;

@@ -443,6 +443,11 @@ static ms_status play(script *s, const ms_viewer_model *model, json_t *keys, boo
                             (json_int_t)cs.apo_bytes_received, "achieved_error_px",
                             cs.achieved_error_px, "tolerance_px", cs.tolerance_px, "effects_ran",
                             s->scene ? effect_names(s->effects_ran) : NULL));
+        if (cs.preview) { /* complete at a public preview: a token gives more */
+            json_t *key = json_array_get(keys, json_array_size(keys) - 1);
+            json_object_set_new(key, "preview_bits", json_integer((json_int_t)cs.preview_bits));
+            json_object_set_new(key, "preview_limited", json_boolean(cs.preview_limited));
+        }
     }
     st = MS_OK;
 done:

@@ -138,6 +138,8 @@ void ms_http_send_text(ms_http_door *door, struct evhttp_request *req, int code,
                       "text/plain; charset=utf-8");
     if (code >= 400)
         door->server->metrics.http_errors++;
+    if (code == 403)
+        door->server->metrics.http_forbidden++;
     ms_http_reply(door, req, code, reason, body, body ? evbuffer_get_length(body) : 0);
     if (body)
         evbuffer_free(body);
@@ -281,6 +283,9 @@ static void serve_metrics(ms_http_door *door, struct evhttp_request *req)
         {"meshstream_requests_total{door=\"http\"}", NULL, NULL, m->http_requests},
         {"meshstream_errors_total{door=\"binary\"}", "counter", "Requests answered with an error", m->binary_errors},
         {"meshstream_errors_total{door=\"http\"}", NULL, NULL, m->http_errors},
+        {"meshstream_forbidden_total{door=\"binary\"}", "counter",
+         "Requests refused as past the public preview (FORBIDDEN, 403)", m->binary_forbidden},
+        {"meshstream_forbidden_total{door=\"http\"}", NULL, NULL, m->http_forbidden},
         {"meshstream_bytes_sent_total{door=\"binary\"}", "counter", "Payload bytes sent", m->binary_bytes_sent},
         {"meshstream_bytes_sent_total{door=\"http\"}", NULL, NULL, m->http_bytes_sent},
         {"meshstream_queued_requests", "gauge", "Requests queued over all connections", m->queued_requests},

@@ -73,6 +73,8 @@ void ms_serve_conn_send_error(ms_serve_conn *c, uint16_t code, uint32_t request_
         return;
     }
     metrics_of(c)->binary_errors += count ? count : 1;
+    if (code == MS_PROTO_E_FORBIDDEN)
+        metrics_of(c)->binary_forbidden += count ? count : 1;
     ms_error err;
     if (ms_frame_out_error(output(c), code, false, request_id, count, detail, text, &err) != MS_OK)
         ms_serve_conn_broken(c);

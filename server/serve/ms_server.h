@@ -23,11 +23,13 @@ struct evhttp;
 typedef struct ms_server_metrics {
     uint64_t http_requests;
     uint64_t http_errors;
+    uint64_t http_forbidden;           /* of them 403: past the public preview */
     uint64_t http_bytes_sent;
     uint64_t binary_connections;       /* open now */
     uint64_t binary_connections_total;
     uint64_t binary_requests;
     uint64_t binary_errors;
+    uint64_t binary_forbidden;         /* of them FORBIDDEN: past the public preview */
     uint64_t binary_bytes_sent;
     uint64_t queued_requests;          /* over all connections, now */
     uint64_t queued_bytes;             /* over all connections, now */
