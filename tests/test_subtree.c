@@ -902,6 +902,7 @@ static void test_meshbake_subtree_levels(void **state)
     const uint8_t *b2 = ms_archive_index_bytes(m2->archive, &s2);
     assert_int_equal(s3, s2);
     assert_memory_equal(b3, b2, s3);
+    size_t blob_size = s3;
     uint32_t cells = ms_archive_get_header(m3->archive)->cell_count;
     for (uint32_t c = 0; c < cells; ++c) {
         const uint8_t *p3 = ms_archive_geometry(m3->archive, c, &s3);
@@ -916,7 +917,7 @@ static void test_meshbake_subtree_levels(void **state)
             assert_memory_equal(p3, p2, s3);
     }
     ms_archive *from_blob;
-    if (ms_archive_open_index(b3, s3, "b3", &from_blob, &err) != MS_OK)
+    if (ms_archive_open_index(b3, blob_size, "b3", &from_blob, &err) != MS_OK)
         fail_msg("%s", err.text);
     const uint8_t *h3 = ms_archive_index_head(m3->archive, &s3);
     const uint8_t *h2 = ms_archive_index_head(from_blob, &s2);
