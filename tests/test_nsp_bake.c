@@ -220,6 +220,8 @@ static void test_usage_errors(void **state)
                          "--threads -2", "--name ../x", "--mem 1", "--bits", "--info",
                          "--apo-lead 17", "--apo-max-depth 25", "--apo-tol -1", "--apo-tol x",
                          "--apo-lead 31",
+                         /* options of experiments, removed: unknown */
+                         "--archive-version 2", "--apo-every-cell", "--apo-sample-leaves",
                          /* 65 characters: refused, not cut to 64 (issue 19, item 13) */
                          "--name abcdefghijklmnopqrstuvwxyzabcdefghijklmnopqrstuvwxyzabcdefghijklm"};
     for (size_t i = 0; i < sizeof bad / sizeof *bad; ++i) {
