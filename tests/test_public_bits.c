@@ -15,6 +15,7 @@
 #include <cmocka.h>
 
 #include "ms_archive.h"
+#include "ms_bake.h"
 #include "ms_catalog.h"
 #include "ms_test.h"
 #include "ms_test_net.h"
@@ -280,9 +281,22 @@ static void test_preview_caps_apo_through_every_door(void **state)
     /* A chunk in every cell (leaves included), at most 9 levels: a level-1
      * leaf's finest texels (depth 8, 10-bit cubes) are finer than a 9-bit
      * preview, the root's (8-bit cubes) are not. */
-    snprintf(cmd, sizeof cmd, "%s '%s' -o '%s' --name bun --bits 12 --min-tris 500 "
-             "--apo-every-cell --apo-max-depth 8 --public-bits 9", bin, model, s.archives);
-    assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
+    ms_bake_options bo;
+    ms_bake_options_default(&bo);
+    bo.input = model;
+    bo.archive_dir = s.archives;
+    bo.name = "bun";
+    bo.bits = 12;
+    bo.min_triangles = 500;
+    bo.apo.every_cell = true; /* no longer a meshbake option: through the library */
+    bo.apo.max_depth = 8;
+    bo.public_bits = 9;
+    bo.threads = 2;
+    ms_bake_report br;
+    ms_error berr;
+    ms_error_clear(&berr);
+    if (ms_bake(&bo, &br, &berr) != MS_OK)
+        fail_msg("bake: %s", berr.text);
     char path[900];
     snprintf(path, sizeof path, "%s/bun.msa", s.archives);
     assert_int_equal(ms_archive_open(path, &s.archive, NULL), MS_OK);

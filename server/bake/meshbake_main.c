@@ -46,9 +46,7 @@ static void print_usage(FILE *out)
           "                [--root-bits 7] [--min-tris T] [--threads N] [--mem MB]\n"
           "                [--tmp DIR] [--public-bits B] [--no-apo] [--apo-lead 1]\n"
           "                [--apo-max-depth 10] [--apo-tol 0.2] [--apo-init-depth 0]\n"
-          "                [--apo-verify] [--apo-sample-leaves] [--apo-accuracy]\n"
-          "                [--apo-every-cell] [--subtree-levels S] [--archive-version 3]\n"
-          "                [--json]\n"
+          "                [--apo-verify] [--apo-accuracy] [--subtree-levels S] [--json]\n"
           "       meshbake --info FILE [--json]\n"
           "       meshbake --set-public-bits B -o ARCHIVE_DIR --name NAME\n"
           "       meshbake --list ARCHIVE_DIR [--json]\n"
@@ -79,9 +77,6 @@ static void print_usage(FILE *out)
           "  --subtree-levels S  levels of the nSP tree per index subtree, the pieces a\n"
           "                    client fetches the index in, 1..8 (default 1 for --n 4 or\n"
           "                    8, 2 for --n 2)\n"
-          "  --archive-version V  file version to write: 3 (default: the index as\n"
-          "                    subtrees) or 2 (one zlib stream, no --subtree-levels);\n"
-          "                    the same records, payloads and content id either way\n"
           "  --apo, --no-apo   give every cell an APO chunk of normals (default: on)\n"
           "  --apo-lead L      chunk depth: L levels below the cell's finest geometric\n"
           "                    precision, 0..16 (default 1)\n"
@@ -90,14 +85,9 @@ static void print_usage(FILE *out)
           "                    spread more than T radians (default 0.2)\n"
           "  --apo-init-depth D  split unconditionally above depth D (default 0)\n"
           "  --apo-verify      decode every chunk back and check it gives the built tree\n"
-          "  --apo-sample-leaves  sample an internal cell's normals on every full-precision\n"
-          "                    triangle below it (the former rule; memory grows with the\n"
-          "                    model) instead of its children's meshes\n"
-          "  --apo-every-cell  a chunk for every cell with triangles, also where the cell's\n"
-          "                    own geometry already renders the input's normals (every\n"
-          "                    leaf cell; the former rule, for comparison)\n"
           "  --apo-accuracy    measure the internal cells' chunks against the full-precision\n"
-          "                    triangles below them (degrees; needs that memory too)\n"
+          "                    triangles below them (degrees; a diagnostic: it holds\n"
+          "                    those triangles, so its memory grows with the model)\n"
           "\n"
           "  --set-public-bits B  change the preview of the baked model NAME in\n"
           "                    ARCHIVE_DIR/catalog.json (0..its P); SIGHUP a running\n"
@@ -211,15 +201,12 @@ static int parse_options(int argc, char **argv, bake_options *options)
         {"apo-init-depth", required_argument, NULL, 'I'},
         {"apo-tol", required_argument, NULL, 'E'},
         {"apo-verify", no_argument, NULL, 'V'},
-        {"apo-sample-leaves", no_argument, NULL, 'S'},
         {"apo-accuracy", no_argument, NULL, 'C'},
-        {"apo-every-cell", no_argument, NULL, 'W'},
         {"public-bits", required_argument, NULL, 'P'},
         {"set-public-bits", required_argument, NULL, 'U'},
         {"list", required_argument, NULL, 'l'},
         {"remove", required_argument, NULL, 'R'},
         {"subtree-levels", required_argument, NULL, 'Y'},
-        {"archive-version", required_argument, NULL, 'Z'},
         {NULL, 0, NULL, 0},
     };
     memset(options, 0, sizeof *options);
@@ -252,17 +239,10 @@ static int parse_options(int argc, char **argv, bake_options *options)
                 return status;
             options->bake.subtree_levels = (unsigned)value;
             break;
-        case 'Z':
-            if (!option_int(long_options, c, optarg, 2, 3, &value, &status))
-                return status;
-            options->bake.archive_version = (unsigned)value;
-            break;
         case 'A': options->bake.apo.enabled = true; break;
         case 'a': options->bake.apo.enabled = false; break;
         case 'V': options->bake.apo.verify = true; break;
-        case 'S': options->bake.apo.sample_leaves = true; break;
         case 'C': options->bake.apo.accuracy = true; break;
-        case 'W': options->bake.apo.every_cell = true; break;
         case 'P': case 'U':
             if (!option_int(long_options, c, optarg, 0, 20, &value, &status))
                 return status;
@@ -293,8 +273,6 @@ static int parse_options(int argc, char **argv, bake_options *options)
             return usage_error("unknown option", argv[optind - 1]);
         }
     }
-    if (options->bake.subtree_levels && options->bake.archive_version != MS_ARCHIVE_VERSION)
-        return usage_error("--subtree-levels needs archive version 3", NULL);
     return check_mode(argc, argv, options);
 }
 
@@ -398,8 +376,8 @@ static void print_bake_json(const ms_bake_options *o, const ms_bake_report *r)
     json_t *per_level = json_array();
     for (uint32_t d = 0; per_level && d < r->apo_levels; ++d)
         json_array_append_new(per_level, json_integer((json_int_t)r->apo_level_texels[d]));
-    json_t *apo = json_pack("{s:b, s:b, s:i, s:i, s:i, s:f, s:I, s:I, s:i, s:I, s:I, s:o, s:I, s:I}",
-                            "enabled", o->apo.enabled, "every_cell", o->apo.every_cell, "lead", (int)o->apo.lead,
+    json_t *apo = json_pack("{s:b, s:i, s:i, s:i, s:f, s:I, s:I, s:i, s:I, s:I, s:o, s:I, s:I}",
+                            "enabled", o->apo.enabled, "lead", (int)o->apo.lead,
                             "max_depth",
                             (int)o->apo.max_depth, "init_depth", (int)o->apo.init_depth,
                             "tolerance", o->apo.tolerance, "bytes", (json_int_t)r->apo_bytes,

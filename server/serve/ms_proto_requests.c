@@ -273,7 +273,7 @@ static void handle_open_model(ms_serve_conn *c, uint32_t id, const ms_proto_open
         wire_size = m->index_head_size;
         mo->index_size = (uint32_t)m->index_head_size;
         mo->index_crc32 = m->index_head_crc32;
-        mo->archive_version = MS_ARCHIVE_VERSION_SUBTREES; /* the head's header */
+        mo->archive_version = MS_ARCHIVE_VERSION; /* the head's header */
         mo->index_encoding = MS_PROTO_INDEX_SUBTREES;
     } else if ((c->capabilities & MS_PROTO_CAP_INDEX_ZLIB) && m->index_zlib) {
         wire = m->index_zlib;
