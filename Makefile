@@ -1,5 +1,6 @@
 # meshstream build. `make` builds everything (release), `make test` builds with
-# AddressSanitizer + UndefinedBehaviorSanitizer and runs every test, `make bench`
+# AddressSanitizer + UndefinedBehaviorSanitizer and runs every test, `make check`
+# only the unit tests (in parallel, a few minutes), `make bench`
 # runs the benchmarks, `make demo` sets up and runs the demo, `make fuzz` builds the
 # libFuzzer targets (clang), `make clean` removes build/.
 #
@@ -91,7 +92,7 @@ ALL_LIBS  := $(foreach r,$(call reverse,$(ROOMS)),$(call room_lib,$(r)))
 ALL_PKGS  := $(sort $(foreach r,$(ROOMS),$(PKGS_$(r))))
 LINK      := $(CXX)
 
-.PHONY: all test bench demo fuzz clean programs tests deps screenshots rooms room-flags study
+.PHONY: all test check bench demo fuzz clean programs tests deps screenshots rooms room-flags study
 .SECONDARY:
 all: programs
 
@@ -142,11 +143,18 @@ $(BUILD)/tests/%: $(BUILD)/tests/%.o $(TESTSUPPORT) $(ALL_LIBS)
 	@mkdir -p $(dir $@)
 	$(LINK) $(LDFLAGS) $< $(TESTSUPPORT) $(ALL_LIBS) $(call pkg_libs,$(ALL_PKGS) cmocka) -lm -o $@
 
-# The whole suite under ASan + UBSan. Tests run from the repository root and find
-# the shared models through MESHSTREAM_MODELS (default ../shared/data/models).
+# The whole suite under ASan + UBSan, tier by tier (tests/tiers.txt), each tier
+# timed. Tests run from the repository root and find the shared models through
+# MESHSTREAM_MODELS (default ../shared/data/models).
 test:
 	@$(MAKE) --no-print-directory MODE=asan tests
 	@MODE=asan scripts/run-tests
+
+# The unit tier alone, every core at once: no servers, no display, no shared models.
+UNIT_TESTS := $(patsubst %,build/asan/tests/%,$(shell awk '$$1 ~ /^test_/ && $$2 == "unit" {print $$1}' tests/tiers.txt))
+check:
+	@$(MAKE) --no-print-directory MODE=asan $(UNIT_TESTS)
+	@MODE=asan TIERS=unit scripts/run-tests
 
 bench: programs
 	@scripts/bench
