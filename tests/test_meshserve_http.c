@@ -6,6 +6,7 @@
 #include <stddef.h>
 #include <setjmp.h>
 #include <stdint.h>
+#include <errno.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -572,7 +573,7 @@ static int connect_loopback(uint16_t port)
     addr.sin_port = htons(port);
     addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
     assert_int_equal(connect(fd, (struct sockaddr *)&addr, sizeof addr), 0);
-    struct timeval tv = {5, 0};
+    struct timeval tv = {30, 0}; /* a bound on a broken server, not a measurement */
     setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
     return fd;
 }
@@ -595,15 +596,16 @@ static void test_slowloris_bounded(void **state)
     assert_int_equal(ms_test_conn_open(&c, f->port), 0);
     ms_test_conn_hello(&c, NULL, NULL);
     ms_test_conn_close(&c);
-    /* Every slow connection ends (EOF or reset) within a few header time-outs. */
-    double start = ms_now_seconds();
+    /* Every slow connection is ended by the server (EOF or reset), not left
+     * until the receive time-out (how soon: scripts/bench-limits). */
     for (int i = 0; i < LORIS; ++i) {
         char byte;
         ssize_t n = recv(loris[i], &byte, 1, 0);
+        if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK))
+            fail_msg("slow connection %d still open after 30 s", i);
         assert_true(n <= 0 || byte == 'H'); /* a 408 answer is fine too */
         close(loris[i]);
     }
-    assert_true(ms_now_seconds() - start < 8.0);
     /* And the door serves again. */
     ms_test_http_response r;
     get(f, "/healthz", NULL, 200, &r);

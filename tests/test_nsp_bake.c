@@ -458,16 +458,13 @@ static void test_repeated_triangles_do_not_split(void **state)
         fputs(i % 2 ? "3 0 1 2\n" : "3 1 2 0\n", f);
     fclose(f);
     snprintf(cmd, sizeof cmd, "%s '%s' -o '%s' --name copies --json", bin, ply, dir);
-    double start = ms_now_seconds();
-    assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
-    double seconds = ms_now_seconds() - start;
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 0); /* its time: scripts/bench-limits */
     json_error_t jerr;
     json_t *report = json_loads(strchr(out, '{'), JSON_DISABLE_EOF_CHECK, &jerr);
     assert_non_null(report);
     assert_int_equal(json_integer_value(json_object_get(report, "cells")), 1);
     assert_int_equal(json_integer_value(json_object_get(report, "triangles")), 1);
     json_decref(report);
-    assert_true(seconds < 20.0); /* under ASan, on a shared machine */
     ms_test_rmdir(dir);
 }
 

@@ -396,7 +396,9 @@ typedef struct ms_core_stats {
                                   reconnect found another content_id). What the core holds
                                   is of the old version; start a fresh core to stream the
                                   new one. A removed model stops with UNKNOWN_MODEL instead. */
-    char warning[256];         /* last non-fatal problem (e.g. a failed cell), or "" */
+    char warning[256];         /* last non-fatal problem (e.g. a failed cell), or "". A
+                                  warning about the budget ("memory budget too small")
+                                  comes in the same snapshot as the tolerance it names */
 } ms_core_stats;
 
 void ms_core_get_stats(ms_core *core, ms_core_stats *stats);

@@ -318,7 +318,8 @@ static void dec_pass_begin(ms_core *c, const ms_camera *cam, dec_pass *pass)
     ms_camera_frustum(cam, &pass->fv.frustum);
     pass->base_tol = pass->apo_on ? c->o.apo_geometry_tolerance_px : c->o.tolerance_px;
     ms_core_budget_sync(c);
-    pass->fv.tolerance = pass->base_tol * c->tolerance_factor;
+    pass->factor = c->tolerance_factor;
+    pass->fv.tolerance = pass->base_tol * pass->factor;
     /* With APO on, geometry refines only to apo_geometry_tolerance_px where a
      * chunk carries the shading; a cell baked without one (its geometry renders
      * the input: every leaf, docs/APO.md) is shaded by its triangles alone, so

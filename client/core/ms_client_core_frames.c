@@ -147,6 +147,8 @@ static void publish_locked(ms_core *c, dec_pass *pass, uint64_t serial, ms_core_
     if (pass->memory > st->peak_memory)
         st->peak_memory = pass->memory;
     st->decode_seconds += busy;
+    if (pass->warning[0])
+        snprintf(st->warning, sizeof st->warning, "%s", pass->warning);
 }
 
 void ms_core_publish(ms_core *c, dec_pass *pass, uint64_t serial, double t_start)

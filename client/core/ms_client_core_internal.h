@@ -286,6 +286,8 @@ typedef struct dec_pass {
     frame_view fv;
     ms_view_select_params sp;
     double base_tol;          /* the tolerance before the budget's factor */
+    double factor;            /* the budget's factor this pass selects at (fv.tolerance =
+                                 base_tol x factor) */
     bool apo_on;
     bool changed;             /* the view (or its APO bytes) changed in this pass */
     want_list wl;             /* what is missing, best first */
@@ -294,6 +296,9 @@ typedef struct dec_pass {
     bool complete;
     bool for_content;         /* served the content bounds' camera, not the caller's */
     uint64_t memory;          /* the budget's measure after this pass's evictions */
+    char warning[160];        /* a warning about this pass's figures ("" none): published
+                                 with them, under one lock, so that no reader sees the
+                                 warning beside figures it does not describe */
 } dec_pass;
 
 /* ---- ms_client_core_cells.c: the decode thread's per-cell state ---- */
