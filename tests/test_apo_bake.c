@@ -740,9 +740,10 @@ static void test_flat_fan_bakes(void **state)
     assert_int_equal(r.apo_internal_nodes, 0);
     assert_int_equal(r.apo_leaves, r.apo_chunks); /* one texel per chunk */
     assert_int_equal(r.apo_levels, 1);
-    /* each one-texel chunk: at most 8 samples, 2 rays each, however many of the
-     * fan's triangles it touches (the root's m alone has thousands) */
-    assert_true(r.apo_rays > 0 && r.apo_rays <= 2 * MS_APO_SAMPLES_PER_LEAF * r.apo_leaves);
+    /* each one-texel chunk: at most 8 samples, 2 Embree rays each, however many
+     * of the fan's triangles it touches (the root's m alone has thousands); a
+     * fan's M is crowded, so most are answered from the leaf's own list */
+    assert_true(r.apo_rays <= 2 * MS_APO_SAMPLES_PER_LEAF * r.apo_leaves);
     assert_true(r.apo_point_queries <= r.apo_leaves);
     archive_check k = check_baked(dir, "fan", false);
     assert_int_equal(k.chunks, r.apo_chunks);

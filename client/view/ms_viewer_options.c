@@ -19,11 +19,12 @@ void ms_viewer_options_usage(FILE *out)
           "  --model NAME           open this model directly\n"
           "  --token T              access token\n"
           "  --size WxH             window size in pixels (default 1280x720)\n"
-          "  --tolerance PX         geometric screen tolerance (default 4 with APO, 1 without)\n"
+          "  --tolerance PX         geometric screen tolerance (default 1, with APO or without)\n"
           "  --apo-levels L         most APO octree levels fetched; the core fetches down to\n"
           "                         the level whose texel covers about a pixel (default 16)\n"
           "  --no-apo               fetch no APO; shade with geometry normals\n"
-          "  --shading MODE         apo | geometry | normals | cells (default apo)\n"
+          "  --shading MODE         apo | geometry | normals | cells (default apo); geometry\n"
+          "                         fetches no APO\n"
           "  --upload-budget BYTES  GPU upload per frame at most (default 4000000)\n"
           "  --memory MB            client cache target (default none)\n"
           "  --bandwidth B          bytes per second read (default unlimited)\n"
@@ -162,7 +163,9 @@ static int finish_options(ms_viewer_options *o, const char *shading, bool no_apo
             return 2;
         }
     }
-    if (no_apo)
+    /* Geometry shading draws no APO normal: fetching the chunks would only
+     * cost bytes (--compare-apo draws both, so it still fetches them). */
+    if (no_apo || (!o->apo_shading && !o->compare_apo))
         o->apo_levels = 0, o->apo_shading = false;
     o->scripted = o->screenshot_dir != NULL;
     if (o->scene_file && o->model) {
