@@ -1,4 +1,5 @@
 #include "ms_viewer_options.h"
+#include "ms_cli.h"
 
 #include <getopt.h>
 #include <math.h>
@@ -333,21 +334,17 @@ int ms_viewer_options_parse(int argc, char **argv, ms_viewer_options *o, FILE *e
     default_options(o);
     option_leftovers left = {false, NULL};
     int ch;
-    opterr = 0;
     optind = 1;
-    while ((ch = getopt_long(argc, argv, ":h", opts, NULL)) != -1) {
+    while ((ch = ms_cli_next("meshview", argc, argv, "h", opts)) != -1) {
         if (ch == 'h') {
             o->help = true;
             return 0;
         }
-        if (ch == ':') {
-            fprintf(err, "meshview: %s wants a value\n", argv[optind - 1]);
-            return 2;
-        }
+        if (ch == MS_CLI_ERROR)
+            return MS_CLI_USAGE; /* reported by ms_cli_next */
         int status = apply_option(ch, optarg, o, &left, err);
         if (status == OPTION_UNKNOWN) {
-            fprintf(err, "meshview: unknown option '%s' (see --help)\n", argv[optind - 1]);
-            return 2;
+            return ms_cli_usage_error("meshview", "unknown option", argv[optind - 1]);
         }
         if (status != 0)
             return status;

@@ -18,6 +18,7 @@
 #include <jansson.h>
 
 #include "ms_apo_classic_cli.h"
+#include "ms_cli.h"
 #include "ms_archive.h"
 #include "ms_bake.h"
 #include "ms_catalog.h"
@@ -113,9 +114,7 @@ static void print_usage(FILE *out)
 
 static int usage_error(const char *message, const char *detail)
 {
-    fprintf(stderr, "meshbake: %s%s%s (see meshbake --help)\n", message, detail ? ": " : "",
-            detail ? detail : "");
-    return EXIT_USAGE;
+    return ms_cli_usage_error("meshbake", message, detail);
 }
 
 /* The integer value of option c (its long name from opts) in [min, max];
@@ -211,10 +210,9 @@ static int parse_options(int argc, char **argv, bake_options *options)
     };
     memset(options, 0, sizeof *options);
     ms_bake_options_default(&options->bake);
-    opterr = 0;
     int c, status;
     int64_t value;
-    while ((c = getopt_long(argc, argv, ":ho:", long_options, NULL)) != -1) {
+    while ((c = ms_cli_next("meshbake", argc, argv, "ho:", long_options)) != -1) {
         switch (c) {
         case 'i': options->mode = MODE_INFO; break;
         case 'l': options->mode = MODE_LIST; options->list_dir = optarg; break;
@@ -267,10 +265,8 @@ static int parse_options(int argc, char **argv, bake_options *options)
                 return usage_error(e.text, NULL);
             break;
         }
-        case ':':
-            return usage_error("option needs a value", argv[optind - 1]);
         default:
-            return usage_error("unknown option", argv[optind - 1]);
+            return EXIT_USAGE; /* reported by ms_cli_next */
         }
     }
     return check_mode(argc, argv, options);

@@ -11,6 +11,7 @@
 #include <unistd.h>
 
 #include "ms_access.h"
+#include "ms_cli.h"
 #include "ms_archive.h"
 #include "ms_catalog.h"
 #include "ms_json_out.h"
@@ -166,13 +167,13 @@ int main(int argc, char **argv)
     const char *out_dir = NULL;
     bool json = false, full = false;
     int c;
-    while ((c = getopt_long(argc, argv, "o:h", options, NULL)) != -1) {
+    while ((c = ms_cli_next("meshexport", argc, argv, "o:h", options)) != -1) {
         switch (c) {
         case 'o': out_dir = optarg; break;
         case 'j': json = true; break;
         case 'f': full = true; break;
         case 'h': usage(stdout); return 0;
-        default: fprintf(stderr, "meshexport: try 'meshexport --help'\n"); return 2;
+        default: return MS_CLI_USAGE; /* reported by ms_cli_next */
         }
     }
     if (optind != argc - 2 || !out_dir) {
