@@ -455,6 +455,9 @@ static bool http_send(vclient *v, slot *s)
     struct evhttp_connection **conn = &v->http_connections[s - v->slots];
     if (!*conn && !(*conn = evhttp_connection_base_new(v->lg->base, NULL, o->host, o->port)))
         return false;
+    /* the body is bounded by the range asked for: a server announcing more
+     * fails the request (EVREQ_HTTP_DATA_TOO_LONG) before it is read */
+    evhttp_connection_set_max_body_size(*conn, (ev_ssize_t)(s->end - s->start));
     struct evhttp_request *req = evhttp_request_new(http_done, s);
     if (!req)
         return false;

@@ -1,5 +1,6 @@
 /* Camera path files: see ms_camera_path.h. */
 #include "ms_camera_path.h"
+#include "ms_input_file.h"
 
 #include <errno.h>
 #include <math.h>
@@ -138,9 +139,10 @@ ms_status ms_camera_path_parse(const char *text, size_t size, const char *name,
 ms_status ms_camera_path_load(const char *file, ms_camera_path *p, ms_error *err)
 {
     memset(p, 0, sizeof *p);
-    FILE *f = fopen(file, "rb");
-    if (!f)
-        return ms_error_set(err, MS_ERR_IO, "%s: cannot open: %s", file, strerror(errno));
+    FILE *f;
+    ms_status opened = ms_input_fopen(file, &f, err);
+    if (opened != MS_OK)
+        return opened;
     char *text = malloc(MAX_FILE + 1);
     size_t size = text ? fread(text, 1, MAX_FILE + 1, f) : 0;
     int failed = ferror(f);

@@ -15,6 +15,7 @@
 #include <unistd.h>
 
 #include "ms_codec.h"
+#include "ms_input_file.h"
 #include "ms_codec_prior.h"
 #include "ms_json_out.h"
 #include "ms_parse_number.h"
@@ -236,9 +237,10 @@ static ms_status write_file(const char *path, const uint8_t *buf, size_t size, m
 
 static ms_status read_file(const char *path, uint8_t **buf, size_t *size, ms_error *err)
 {
-    FILE *f = fopen(path, "rb");
-    if (!f)
-        return ms_error_set(err, MS_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    FILE *f;
+    ms_status opened = ms_input_fopen(path, &f, err);
+    if (opened != MS_OK)
+        return opened;
     size_t cap = 1 << 16, n = 0;
     uint8_t *b = malloc(cap);
     while (b) {

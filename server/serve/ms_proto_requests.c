@@ -541,9 +541,9 @@ void ms_serve_conn_handle_message(ms_serve_conn *c, const ms_proto_message *msg)
     case MS_PROTO_PONG: break;
     case MS_PROTO_ERROR:
         if (msg->body.error.fatal) {
-            ms_server_log(server_of(c), "binary: client reported %s: %.*s",
-                          ms_proto_error_name(msg->body.error.code),
-                          (int)msg->body.error.text_length, msg->body.error.text);
+            ms_server_log_client(server_of(c), "binary: client reported %s: %.*s",
+                                 ms_proto_error_name(msg->body.error.code),
+                                 (int)msg->body.error.text_length, msg->body.error.text);
             ms_serve_conn_start_closing(c);
         }
         break;

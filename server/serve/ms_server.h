@@ -36,6 +36,9 @@ typedef struct ms_server_metrics {
     uint64_t transfers_in_flight;      /* payload buffers not yet sent, both doors */
     uint64_t http_connections;         /* open now */
     uint64_t http_connections_dropped; /* closed for a late header or no send progress */
+    uint64_t http_connections_shed;    /* idle ones closed at the cap for a newcomer */
+    uint64_t binary_connections_dropped; /* slow readers closed for no send progress */
+    uint64_t log_lines_held_back;      /* client log lines not written (ms_server_log_client) */
 } ms_server_metrics;
 
 typedef struct ms_http_door ms_http_door;
