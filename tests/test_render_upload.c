@@ -86,8 +86,9 @@ static uint32_t pack_normal(const double n[3])
 /* The mesh's corner normals as the renderer uploads them (docs/RENDERER.md,
  * "Vertex normals"), found here another way: the whole mesh's edges sorted
  * once; an edge used by exactly two triangles with area whose normals (the
- * second turned over if they walk it the same way) are at most CREASE_DEG apart
- * is smooth; around each vertex, a breadth-first walk over the smooth edges
+ * second turned over if they walk it the same way) are at most CREASE_DEG apart,
+ * plus each triangle's slack (how far its normal may be off because its
+ * corners are not at full precision), is smooth; around each vertex, a breadth-first walk over the smooth edges
  * at that vertex groups its triangles, each with its sign against the group's
  * first; a group's normal is the signed sum of its triangles' (b - a) x (c - a)
  * in triangle order, and a corner gets it times its own sign, packed to 10-bit
@@ -96,8 +97,10 @@ static uint32_t pack_normal(const double n[3])
  * (a fan whose flips do not close), where the rule depends on the join order. */
 static uint32_t *corner_normals(const ms_view_mesh *m, size_t *contradictions)
 {
+    const ms_archive_header *h = ms_archive_get_header(fx.archive);
     size_t nt = m->triangle_count, nv = m->vertex_count;
-    double *fn = malloc((3 * nt + 1) * sizeof *fn);
+    double *fn = malloc((3 * nt + 1) * sizeof *fn), *slack = malloc((nt + 1) * sizeof *slack);
+    assert_true(fn && slack && m->levels);
     edge_use *uses = malloc((3 * nt + 1) * sizeof *uses);
     join *joins = malloc((3 * nt + 1) * sizeof *joins);
     uint32_t *packed = calloc(3 * nt + 1, sizeof *packed);
@@ -112,6 +115,29 @@ static uint32_t *corner_normals(const ms_view_mesh *m, size_t *contradictions)
         n[0] = u[1] * v[2] - u[2] * v[1];
         n[1] = u[2] * v[0] - u[0] * v[2];
         n[2] = u[0] * v[1] - u[1] * v[0];
+        /* the slack: the largest distance of a corner from where it lies at
+         * full precision (a vertex of kd-level l is its kd-cell's centre, the
+         * cell 2^(bits - splits) grid units wide on each axis, splits =
+         * (l + 2 - axis) / 3, the full-precision vertex a grid cell's centre
+         * inside it), times the longest side, over twice the area: the
+         * arctangent is how far the normal may be off */
+        double worst = 0.0;
+        for (int k = 0; k < 3; ++k) {
+            unsigned level = m->levels[tri[k]];
+            double d2 = 0.0;
+            for (unsigned ax = 0; ax < 3; ++ax) {
+                unsigned splits = (level + 2u - ax) / 3u;
+                double spare = ldexp(1.0, (int)h->bits - (int)splits) - 1.0;
+                d2 += spare * spare;
+            }
+            double off = 0.5 * (h->box_side / ldexp(1.0, h->bits)) * sqrt(d2);
+            worst = off > worst ? off : worst;
+        }
+        double sides[3] = {u[0] * u[0] + u[1] * u[1] + u[2] * u[2], v[0] * v[0] + v[1] * v[1] + v[2] * v[2],
+                           (c[0] - b[0]) * (c[0] - b[0]) + (c[1] - b[1]) * (c[1] - b[1]) + (c[2] - b[2]) * (c[2] - b[2])};
+        double longest = sqrt(fmax(sides[0], fmax(sides[1], sides[2])));
+        double twice_area = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        slack[t] = worst > 0.0 ? (twice_area > 0.0 ? atan2(worst * longest, twice_area) : M_PI / 2) : 0.0;
         if (n[0] == 0.0 && n[1] == 0.0 && n[2] == 0.0)
             continue; /* no area: on no smooth edge */
         for (int k = 0; k < 3; ++k) {
@@ -132,7 +158,10 @@ static uint32_t *corner_normals(const ms_view_mesh *m, size_t *contradictions)
             double dot = na[0] * nb[0] + na[1] * nb[1] + na[2] * nb[2];
             double cosine = (flipped ? -dot : dot) / (sqrt(na[0] * na[0] + na[1] * na[1] + na[2] * na[2]) *
                                                      sqrt(nb[0] * nb[0] + nb[1] * nb[1] + nb[2] * nb[2]));
-            if (cosine >= floor_cos)
+            /* the crease angle widened by both normals' slack */
+            double widened = CREASE_DEG * M_PI / 180.0 + slack[x->triangle] + slack[y->triangle];
+            bool smooth = cosine >= floor_cos || widened >= M_PI || cosine >= cos(widened);
+            if (smooth)
                 joins[join_count++] = (join){x->lo, x->hi, x->triangle, y->triangle, flipped};
         }
         i = j;
@@ -203,6 +232,7 @@ static uint32_t *corner_normals(const ms_view_mesh *m, size_t *contradictions)
         }
     }
     free(fn);
+    free(slack);
     free(uses);
     free(joins);
     free(fan_start);

@@ -28,9 +28,12 @@
  *
  * Vertex normals. ms_render_set_frame computes them once per frame over the whole
  * stitched mesh, so they are continuous across cell borders: around each
- * vertex, the triangles joined across edges sharper than the crease angle
- * (ms_render_set_crease_angle, default MS_RENDER_CREASE_ANGLE_DEFAULT) or
- * shared by more than two triangles fall in different groups, each with its own
+ * vertex, the triangles across edges sharper than the crease angle
+ * (ms_render_set_crease_angle, default MS_RENDER_CREASE_ANGLE_DEFAULT) widened
+ * by how far each of the two triangles' normals may be off (its corners' decode
+ * error, 0 at full precision, over its smallest height: the arctangent), or
+ * across edges of one or of more than two triangles, fall in different groups,
+ * each with its own
  * normal (the sum of its unnormalised face normals: area-weighted); a triangle
  * wound against its neighbour (the edge used twice in the same direction) is
  * turned over for the sum, and its corners get the group's normal turned to
@@ -45,9 +48,11 @@
  *   MS_SHADING_LIT      the options' lights (default: a head light at the
  *                       camera): albedo times (0.05 + 0.95 * sum of Lambert),
  *                       plus the Blinn-Phong highlight (specular effect) with the
- *                       normal N (APO, smooth or flat), each light's terms times,
- *                       where N is an APO normal, the self-shadowing factor
- *                       max(0, L . N_geometric); then haze (haze effect):
+ *                       normal N (APO, smooth or flat), each light's terms times
+ *                       the self-shadowing factor: max(0, L . N_geometric) where
+ *                       N is an APO normal, else max(0, L . N) (meshrender's
+ *                       lighting model: a flat face under the head light goes
+ *                       as (N . L)^2); then haze (haze effect):
  *                       mix(haze colour, colour, exp(-density * eye distance));
  *                       gamma-correct (sRGB) output.
  *   MS_SHADING_NORMALS  N as a colour, rgb = (N + 1) / 2, linear (no gamma), N in

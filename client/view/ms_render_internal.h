@@ -87,7 +87,10 @@ typedef struct ms_render_split {
     uint8_t *fan_parity;     /* per fan corner: 1 when its face is flipped against its parent */
     double *fan_sum;         /* 3 per fan corner: the group sums, at the group's root */
     size_t fan_cap;
+    double *face_slack;      /* per triangle: how far its normal may be off, radians
+                                (its vertices' decode error over its smallest height) */
     double crease_cos;       /* cosine of the crease angle of the last split */
+    double crease_rad;       /* the crease angle of the last split, radians */
     float *vertices;
     uint32_t *normals;
     uint32_t *same_next;     /* per cell vertex: the next cell vertex of the same mesh vertex */

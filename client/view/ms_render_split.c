@@ -41,6 +41,7 @@ void ms_render_split_free(ms_render_split *s)
     free(s->local);
     free(s->stamp);
     free(s->face_normal);
+    free(s->face_slack);
     free(s->corner_packed);
     free(s->fan);
     free(s->fan_start);
@@ -165,7 +166,13 @@ static void fan_normals(ms_render_split *s, const ms_view_mesh *mesh, const uint
             double li = sqrt(ni[0] * ni[0] + ni[1] * ni[1] + ni[2] * ni[2]);
             double lj = sqrt(nj[0] * nj[0] + nj[1] * nj[1] + nj[2] * nj[2]);
             double cosine = (flipped ? -dot : dot) / (li * lj);
-            if (i != j && cosine >= s->crease_cos) {
+            /* the crease angle widened by how far each normal may be off (a
+             * coarse level's vertices sit at their kd-cells' centres) */
+            double slack = s->face_slack[corners[i] / 3] + s->face_slack[corners[j] / 3];
+            bool smooth = cosine >= s->crease_cos;
+            if (!smooth && slack > 0.0)
+                smooth = s->crease_rad + slack >= M_PI || cosine >= cos(s->crease_rad + slack);
+            if (i != j && smooth) {
                 uint8_t fi, fj;
                 uint32_t ri = fan_find(s, i, &fi), rj = fan_find(s, j, &fj);
                 /* already joined: a loop of flips that does not close (a
@@ -208,7 +215,10 @@ static ms_status corner_normals(ms_render_split *s, const ms_view_mesh *mesh, ms
         uint32_t *cp = fn ? realloc(s->corner_packed, 3 * nt * sizeof *cp) : NULL;
         if (cp)
             s->corner_packed = cp;
-        uint32_t *fan = cp ? realloc(s->fan, 3 * nt * sizeof *fan) : NULL;
+        double *slack = cp ? realloc(s->face_slack, nt * sizeof *slack) : NULL;
+        if (slack)
+            s->face_slack = slack;
+        uint32_t *fan = slack ? realloc(s->fan, 3 * nt * sizeof *fan) : NULL;
         if (!fan)
             return ms_error_set(err, MS_ERR_NOMEM, "render: no memory for %zu triangles' normals", nt);
         s->fan = fan;
@@ -224,6 +234,21 @@ static ms_status corner_normals(ms_render_split *s, const ms_view_mesh *mesh, ms
     if (nt == 0)
         return MS_OK;
     const double *p = mesh->positions;
+    /* A vertex decoded at kd-level l sits at its kd-cell's centre, and the
+     * vertex at full precision at the centre of one of the cell's grid cells:
+     * at most half the diagonal of (width - 1) grid units away on each axis
+     * (0 at full precision). */
+    double level_error[64] = {0};
+    unsigned bits = s->header->bits, full = 3 * bits;
+    double unit = s->header->box_side / (double)(1u << bits);
+    for (unsigned level = 0; level < full && level < 64; ++level) {
+        double d2 = 0.0;
+        for (unsigned a = 0; a < 3; ++a) {
+            double w = (double)(1u << (bits - (level + 2u - a) / 3u)) - 1.0;
+            d2 += w * w;
+        }
+        level_error[level] = 0.5 * unit * sqrt(d2);
+    }
     memset(s->fan_start, 0, (nv + 1) * sizeof *s->fan_start);
     for (size_t t = 0; t < nt; ++t) {
         const uint32_t *tri = &mesh->triangles[3 * t];
@@ -235,6 +260,27 @@ static ms_status corner_normals(ms_render_split *s, const ms_view_mesh *mesh, ms
         n[0] = e1[1] * e2[2] - e1[2] * e2[1];
         n[1] = e1[2] * e2[0] - e1[0] * e2[2];
         n[2] = e1[0] * e2[1] - e1[1] * e2[0];
+        /* How far the normal may be off: a corner moved by e tilts the plane
+         * by up to about atan(e / h), h the smallest height (twice the area
+         * over the longest side). */
+        double e = 0.0;
+        if (mesh->levels)
+            for (int k = 0; k < 3; ++k) {
+                unsigned level = mesh->levels[tri[k]];
+                double ek = level < 64 ? level_error[level] : 0.0;
+                e = ek > e ? ek : e;
+            }
+        double slack = 0.0;
+        if (e > 0.0) {
+            double e3[3] = {c[0] - b[0], c[1] - b[1], c[2] - b[2]};
+            double l1 = e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2];
+            double l2 = e2[0] * e2[0] + e2[1] * e2[1] + e2[2] * e2[2];
+            double l3 = e3[0] * e3[0] + e3[1] * e3[1] + e3[2] * e3[2];
+            double longest = sqrt(l1 > l2 ? (l1 > l3 ? l1 : l3) : (l2 > l3 ? l2 : l3));
+            double twice_area = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+            slack = twice_area > 0.0 ? atan2(e * longest, twice_area) : M_PI / 2;
+        }
+        s->face_slack[t] = slack;
         for (int k = 0; k < 3; ++k)
             s->fan_start[tri[k] + 1]++;
     }
@@ -285,6 +331,7 @@ ms_status ms_render_split_frame(ms_render_split *s, const ms_view_mesh *mesh, do
         return ms_error_set(err, MS_ERR_ARG, "render: crease angle %g degrees (0 to 180)", crease_angle_deg);
     /* 180 joins every manifold edge: the cosine's floor, whatever the rounding */
     s->crease_cos = crease_angle_deg >= 180.0 ? -2.0 : cos(crease_angle_deg * M_PI / 180.0);
+    s->crease_rad = crease_angle_deg * M_PI / 180.0;
     size_t nv = mesh->vertex_count, nt = mesh->triangle_count;
     if (nv >= UINT32_MAX || nt >= UINT32_MAX / 3)
         return ms_error_set(err, MS_ERR_ARG, "render: mesh of %zu vertices, %zu triangles too large", nv, nt);
