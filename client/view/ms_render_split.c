@@ -13,7 +13,10 @@
  * refined (new triangles around a shared border vertex) is uploaded again.
  * Around each vertex the triangles fall into groups joined across smooth
  * manifold edges (a crease, an edge of three or more triangles or a boundary
- * separates them), with each face turned to its group's orientation where the
+ * separates them; an edge is a crease when its angle exceeds the crease angle
+ * plus both triangles' slack, how far their normals may be off because their
+ * corners sit at kd-cell centres, so a coarse level's roughness is not taken
+ * for edges), with each face turned to its group's orientation where the
  * stored orientation flips across an edge (a scan's inconsistently wound
  * faces): a cube keeps its edges, and a flipped face neither cancels its
  * neighbours' normals nor darkens. A mesh vertex with several normals is
