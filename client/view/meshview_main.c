@@ -214,21 +214,14 @@ static void open_neighbour(viewer *v, long delta)
 
 /* --- GLFW callbacks: they only record what the loop acts on ---------------- */
 
-/* K: the next crease angle of 30, 45, 60, 90 and 180 degrees after the one in
- * effect (after 180, 30 again); the frame in hand is set again with it. */
+/* K: the next crease angle (ms_viewer_next_crease_angle); the frame in hand
+ * is set again with it. */
 static void next_crease_angle(viewer *v)
 {
-    static const double steps[] = {30, 45, 60, 90, 180};
-    if (!v->stream)
-        return;
-    double now = ms_viewer_stream_crease_angle(v->stream), next = steps[0];
-    for (size_t i = 0; i < sizeof steps / sizeof *steps; ++i)
-        if (steps[i] > now + 1e-9) {
-            next = steps[i];
-            break;
-        }
     ms_error err;
-    if (ms_viewer_stream_set_crease_angle(v->stream, next, &err) != MS_OK)
+    if (v->stream && ms_viewer_stream_set_crease_angle(
+                         v->stream, ms_viewer_next_crease_angle(ms_viewer_stream_crease_angle(v->stream)),
+                         &err) != MS_OK)
         fprintf(stderr, "meshview: %s\n", err.text);
 }
 
