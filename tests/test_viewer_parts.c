@@ -325,13 +325,26 @@ static void test_quantile(void **state)
     assert_near(ms_viewer_quantile(v, 0, 0.5), 0, 0);
 }
 
+/* K's cycle of crease angles. */
+static void test_crease_angle_cycle(void **state)
+{
+    (void)state;
+    assert_true(ms_viewer_next_crease_angle(60) == 90);
+    assert_true(ms_viewer_next_crease_angle(90) == 180);
+    assert_true(ms_viewer_next_crease_angle(180) == 30);
+    assert_true(ms_viewer_next_crease_angle(30) == 45);
+    assert_true(ms_viewer_next_crease_angle(0) == 30);
+    assert_true(ms_viewer_next_crease_angle(50) == 60); /* a catalogue's angle between two steps */
+    assert_true(ms_viewer_next_crease_angle(120) == 180);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_font_glyphs_distinct), cmocka_unit_test(test_controls),
         cmocka_unit_test(test_hud_lines),            cmocka_unit_test(test_hud_path_and_piece),
         cmocka_unit_test(test_catalogue_rows),       cmocka_unit_test(test_home_view_frames_the_box),
-        cmocka_unit_test(test_quantile),
+        cmocka_unit_test(test_quantile),             cmocka_unit_test(test_crease_angle_cycle),
     };
     return cmocka_run_group_tests_name("viewer_parts", tests, NULL, NULL);
 }

@@ -33,6 +33,10 @@ void ms_viewer_options_usage(FILE *out)
           "                         without subtrees (default: the index head, then subtrees\n"
           "                         as the view needs them)\n"
           "  --up x|y|z             the model's up axis (default z)\n"
+          "  --flat                 flat shading (each triangle's normal) where no APO normal\n"
+          "                         is used (the M key toggles it)\n"
+          "  --crease-angle DEG     edges sharper than DEG degrees stay hard, 0 to 180 (default:\n"
+          "                         the model's catalogue crease_angle, else 60; K cycles it)\n"
           "Scenes (docs/SCENES.md):\n"
           "  --scene FILE           a room of catalogue models; --path defaults to its camera path\n"
           "  --effects-off LIST     effects left out of the program (comma-separated: detail_normals,\n"
@@ -62,6 +66,7 @@ void ms_viewer_options_usage(FILE *out)
           "       N  normals as colours        C  cell colours\n"
           "       X  wireframe overlay         H  HUD on/off\n"
           "       M  smooth / flat shading where no APO normal is used\n"
+          "       K  crease angle: 30, 45, 60, 90, 180 degrees (hard edges)\n"
           "       P  screenshot (into --screenshot-dir, default .)\n"
           "       + / -  tolerance down / up (finer / coarser)\n"
           "       R  reset view                U  cycle the up axis (x, y, z)\n"
@@ -202,6 +207,7 @@ static void default_options(ms_viewer_options *o)
     o->upload_budget = 4000000;
     o->keyframe_timeout = 30;
     o->up_axis = 2;
+    o->crease_angle_deg = -1; /* the catalogue's, else the renderer's default */
 }
 
 /* "HOST:PORT" into o->host and o->port; false when it is not one. */
@@ -292,6 +298,11 @@ static int apply_option(int ch, const char *arg, ms_viewer_options *o, option_le
             return 2;
         break;
     case 'j': o->json = true; break;
+    case 'l': o->flat = true; break;
+    case 'K':
+        if (!number(err, "--crease-angle", arg, 0, 180, &o->crease_angle_deg))
+            return 2;
+        break;
     case 'H': o->hud = true; break;
     case 'A': o->compare_apo = true; break;
     case 'c': o->scene_file = arg; break;
@@ -330,6 +341,8 @@ int ms_viewer_options_parse(int argc, char **argv, ms_viewer_options *o, FILE *e
         {"effects-all", no_argument, NULL, 'E'},
         {"connection-per-model", no_argument, NULL, 'C'},
         {"whole-index", no_argument, NULL, 'W'},
+        {"flat", no_argument, NULL, 'l'},
+        {"crease-angle", required_argument, NULL, 'K'},
         {NULL, 0, NULL, 0}};
     default_options(o);
     option_leftovers left = {false, NULL};
@@ -364,7 +377,8 @@ ms_viewer_stream_settings ms_viewer_options_stream_settings(const ms_viewer_opti
                                    .apo_levels = o->apo_levels,
                                    .memory_mb = o->memory_mb,
                                    .bandwidth = o->bandwidth,
-                                   .whole_index = o->whole_index};
+                                   .whole_index = o->whole_index,
+                                   .crease_angle_deg = o->crease_angle_deg};
     return s;
 }
 

@@ -482,6 +482,7 @@ static ms_status scene_run(const ms_viewer_options *o, const ms_viewer_source *s
     ms_render_options_default(&s.render);
     s.render.shading = o->shading;
     s.render.apo = o->apo_shading;
+    s.render.smooth = !o->flat;
     ms_viewer_scene_settings settings = ms_viewer_options_scene_settings(o);
     json_t *keys = json_array();
     double started = now_s();
@@ -541,6 +542,7 @@ ms_status ms_viewer_script_run(const ms_viewer_options *o, const ms_viewer_sourc
     ms_render_options_default(&s.render);
     s.render.shading = o->shading;
     s.render.apo = o->apo_shading;
+    s.render.smooth = !o->flat;
     ms_viewer_stream_settings settings = ms_viewer_options_stream_settings(o);
     json_t *keys = json_array();
     double started = now_s();
@@ -582,6 +584,10 @@ ms_status ms_viewer_script_run(const ms_viewer_options *o, const ms_viewer_sourc
                         (json_int_t)cs.apo_bytes_received, "seconds", now_s() - started,
                         "compare_apo", compare);
     add_index_figures(*report, &s, &cs);
+    if (*report) {
+        json_object_set_new(*report, "flat", json_boolean(o->flat));
+        json_object_set_new(*report, "crease_angle_deg", json_real(ms_viewer_stream_crease_angle(s.stream)));
+    }
     if (!*report)
         st = ms_error_set(err, MS_ERR_NOMEM, "out of memory for the report");
 done:

@@ -23,6 +23,7 @@
 #include "ms_bake.h"
 #include "ms_catalog.h"
 #include "ms_json_out.h"
+#include "ms_mesh_edges.h"
 #include "ms_mesh_reader.h"
 #include "ms_parse_number.h"
 #include "ms_version.h"
@@ -101,7 +102,9 @@ static void print_usage(FILE *out)
           "                    first (a rescan no longer offers it), then its file; SIGHUP\n"
           "                    a running meshserve to apply it (UNKNOWN_MODEL from then)\n"
           "  --info            parse FILE completely and report format, counts, bounding box,\n"
-          "                    faces dropped by the cleaning policy, isolated vertices, bytes\n"
+          "                    faces dropped by the cleaning policy, isolated vertices, the\n"
+          "                    edges (boundary, inconsistently oriented: used twice in the\n"
+          "                    same direction, non-manifold: three or more faces), bytes\n"
           "                    parsed and parse time\n"
           "  --json            print the report as one JSON object on stdout\n"
           "  -h, --help        print this help and exit\n"
@@ -277,7 +280,29 @@ typedef struct progress_state {
     struct timespec start;
     int last_percent;
     bool shown;
+    /* --info: every triangle's vertex indices, for the edge counts */
+    uint32_t *triangles;
+    size_t triangle_count, triangle_cap;
 } progress_state;
+
+static ms_status keep_triangles(void *context, const uint32_t *indices, size_t count, ms_error *err)
+{
+    progress_state *p = context;
+    if (p->triangle_count + count > p->triangle_cap) {
+        size_t cap = p->triangle_cap ? p->triangle_cap : 4096;
+        while (cap < p->triangle_count + count)
+            cap *= 2;
+        uint32_t *grown = cap <= SIZE_MAX / 12 ? realloc(p->triangles, 3 * cap * sizeof *grown) : NULL;
+        if (!grown)
+            return ms_error_set(err, MS_ERR_NOMEM, "%s: no memory to count the edges of %zu triangles", p->path,
+                                p->triangle_count + count);
+        p->triangles = grown;
+        p->triangle_cap = cap;
+    }
+    memcpy(&p->triangles[3 * p->triangle_count], indices, 3 * count * sizeof *indices);
+    p->triangle_count += count;
+    return MS_OK;
+}
 
 static double seconds_since(const struct timespec *start)
 {
@@ -301,10 +326,12 @@ static void show_progress(void *context, uint64_t done, uint64_t total)
     fflush(stderr);
 }
 
-static void print_json(const char *path, const ms_mesh_read_report *r, double seconds)
+static void print_json(const char *path, const ms_mesh_read_report *r, const ms_mesh_edge_counts *e,
+                       double seconds)
 {
     ms_json_print(stdout,
-                  json_pack("{s:o, s:s, s:b, s:I, s:I, s:I, s:[f, f, f], s:[f, f, f], s:I, s:I, s:I, s:o}",
+                  json_pack("{s:o, s:s, s:b, s:I, s:I, s:I, s:[f, f, f], s:[f, f, f], s:I, s:I, s:I, s:o, "
+                            "s:{s:I, s:I, s:I, s:I, s:I}}",
                             "file", ms_json_text(path), "format", ms_mesh_format_name(r->format), "gzip",
                             r->gzip, "vertices", (json_int_t)r->vertices, "triangles",
                             (json_int_t)r->triangles, "input_faces", (json_int_t)r->input_faces,
@@ -312,11 +339,15 @@ static void print_json(const char *path, const ms_mesh_read_report *r, double se
                             r->bbox_max[0], r->bbox_max[1], r->bbox_max[2], "dropped_faces",
                             (json_int_t)r->dropped_faces, "isolated_vertices",
                             (json_int_t)r->isolated_vertices, "bytes", (json_int_t)r->input_bytes,
-                            "seconds", ms_json_fixed(seconds, 9)),
+                            "seconds", ms_json_fixed(seconds, 9), "edges", "total", (json_int_t)e->edges,
+                            "boundary", (json_int_t)e->boundary, "manifold", (json_int_t)e->manifold,
+                            "inconsistently_oriented", (json_int_t)e->flipped, "non_manifold",
+                            (json_int_t)e->non_manifold),
                   MS_JSON_SPACED | MS_JSON_EXACT); /* the bounding box as read */
 }
 
-static void print_text(const char *path, const ms_mesh_read_report *r, double seconds)
+static void print_text(const char *path, const ms_mesh_read_report *r, const ms_mesh_edge_counts *e,
+                       double seconds)
 {
     printf("file:              %s\n", path);
     printf("format:            %s%s\n", ms_mesh_format_name(r->format),
@@ -330,6 +361,11 @@ static void print_text(const char *path, const ms_mesh_read_report *r, double se
            r->bbox_max[2]);
     printf("dropped faces:     %" PRIu64 " (repeated vertex)\n", r->dropped_faces);
     printf("isolated vertices: %" PRIu64 "\n", r->isolated_vertices);
+    printf("edges:             %" PRIu64 " (%" PRIu64 " boundary, %" PRIu64 " manifold)\n", e->edges,
+           e->boundary, e->manifold);
+    printf("flipped edges:     %" PRIu64 " (used twice in the same direction: faces inconsistently oriented)\n",
+           e->flipped);
+    printf("non-manifold:      %" PRIu64 " edges (used by three or more faces)\n", e->non_manifold);
     printf("bytes parsed:      %" PRIu64 "\n", r->input_bytes);
     printf("parse time:        %.3f s (%.1f MB/s)\n", seconds,
            seconds > 0 ? (double)r->input_bytes / seconds / 1e6 : 0.0);
@@ -340,6 +376,7 @@ static int run_info(const bake_options *options)
     progress_state progress = {.path = options->input, .last_percent = -1, .shown = false};
     const ms_mesh_sink sink = {
         .context = &progress,
+        .triangles = keep_triangles,
         .progress = isatty(STDERR_FILENO) ? show_progress : NULL,
     };
     ms_mesh_read_report report;
@@ -350,14 +387,18 @@ static int run_info(const bake_options *options)
     double seconds = seconds_since(&progress.start);
     if (progress.shown)
         fputs("\r\033[K", stderr);
+    ms_mesh_edge_counts edges;
+    if (st == MS_OK)
+        st = ms_mesh_count_edges(progress.triangles, progress.triangle_count, &edges, &err);
+    free(progress.triangles);
     if (st != MS_OK) {
         fprintf(stderr, "meshbake: %s\n", err.text);
         return EXIT_INPUT;
     }
     if (options->json)
-        print_json(options->input, &report, seconds);
+        print_json(options->input, &report, &edges, seconds);
     else
-        print_text(options->input, &report, seconds);
+        print_text(options->input, &report, &edges, seconds);
     return fflush(stdout) == 0 ? EXIT_SUCCESS : EXIT_INPUT;
 }
 
