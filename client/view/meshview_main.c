@@ -21,6 +21,7 @@
 #include <time.h>
 
 #include "ms_gl_window.h"
+#include "ms_process_memory.h"
 #include "ms_viewer_catalogue.h"
 #include "ms_viewer_controls.h"
 #include "ms_viewer_font.h"
@@ -463,6 +464,19 @@ static bool framebuffer_size(viewer *v, int *fw, int *fh)
     return true;
 }
 
+/* The GL storage the viewer holds (ms_render.h, "GL memory"): the renderers'
+ * (a scene's impostors too) and the overlay's; the window's own framebuffer
+ * is the driver's. */
+static uint64_t gl_bytes(viewer *v)
+{
+    uint64_t bytes = 0, peak;
+    ms_render_memory_stats m;
+    if (v->vscene)
+        ms_viewer_scene_gl_memory(v->vscene, &bytes, &peak);
+    ms_render_memory(v->stream ? ms_viewer_stream_render(v->stream) : NULL, &m);
+    return bytes + m.gl_bytes + ms_viewer_text_gl_bytes(v->text);
+}
+
 static int view_frame(viewer *v, int fw, int fh, double seconds)
 {
     ms_error err;
@@ -504,6 +518,7 @@ static int view_frame(viewer *v, int fw, int fh, double seconds)
     else
         ms_viewer_stream_stats(v->stream, &cs);
     ms_viewer_hud_info info = {.model = shown_name(v),
+                               .gl_bytes = gl_bytes(v),
                                .show_effects = v->vscene != NULL,
                                .effects_ran = v->drawn.effects_ran,
                                .mode = mode_name(v),
@@ -702,14 +717,20 @@ static int scripted(viewer *v)
     const ms_viewer_options *o = v->o;
     ms_error err;
     GLFWwindow *window;
+    ms_process_memory before, after;
+    ms_viewer_rss rss = {0};
+    if (ms_process_memory_read(&before, &err) == MS_OK)
+        rss.start = before.rss;
     if (ms_gl_window_new(o->width, o->height, "meshview", false, &window, &err) != MS_OK) {
         fprintf(stderr, "meshview: %s\n", err.text);
         return 1;
     }
     keep_gl_driver_loaded();
+    if (ms_process_memory_read(&after, &err) == MS_OK) /* the driver loaded, the context made */
+        rss.context = after.rss;
     json_t *report = NULL;
     bool complete = false;
-    ms_status st = ms_viewer_script_run(o, &v->source, window, &report, &complete, &err);
+    ms_status st = ms_viewer_script_run(o, &v->source, window, &rss, &report, &complete, &err);
     ms_gl_window_free(window);
     if (st != MS_OK) {
         fprintf(stderr, "meshview: %s\n", err.text);
