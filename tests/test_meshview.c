@@ -157,6 +157,25 @@ static size_t check_streaming_report(json_t *report)
     assert_true(json_integer_value(json_object_get(frames, "upload_bytes_max")) > 0);
     assert_true(json_integer_value(json_object_get(frames, "upload_bytes_max")) <= BUDGET);
     assert_true(json_integer_value(json_object_get(report, "geometry_bytes")) > 0);
+    /* memory (issue 32 item 5): the GL storage holds at least the offscreen
+     * framebuffer (8 bytes a pixel) and the texel buffer's first 64 Ki words;
+     * the process's RSS grew from its start through the GL context */
+    json_int_t gl = json_integer_value(json_object_get(report, "gl_bytes"));
+    assert_true(gl > 160 * 120 * 8 + 4 * 65536);
+    assert_true(json_integer_value(json_object_get(report, "gl_bytes_peak")) >= gl);
+    json_int_t core = json_integer_value(json_object_get(report, "core_memory"));
+    assert_true(core > 0);
+    assert_true(json_integer_value(json_object_get(report, "core_peak_memory")) >= core);
+    json_int_t rss = json_integer_value(json_object_get(report, "rss_bytes"));
+    assert_true(rss > 0);
+    assert_true(json_integer_value(json_object_get(report, "rss_peak_bytes")) >= rss);
+    json_t *stages = json_object_get(report, "rss_stages");
+    json_int_t start = json_integer_value(json_object_get(stages, "start"));
+    assert_true(start > 0);
+    assert_true(json_integer_value(json_object_get(stages, "context")) > start);
+    assert_true(json_integer_value(json_object_get(stages, "shaders")) > 0);
+    assert_true(json_integer_value(json_object_get(stages, "first_frame")) > 0);
+    assert_int_equal(json_integer_value(json_object_get(stages, "end")) > 0, 1);
     return count;
 }
 

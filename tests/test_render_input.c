@@ -439,8 +439,17 @@ static void test_texel_ranges(void **state)
 {
     (void)state;
     ms_render_texels t;
+    ms_render_gl_count held = {0};
     ms_error err;
-    expect(ms_render_texels_init(&t, &err), MS_OK, &err);
+    expect(ms_render_texels_init(&t, &held, &err), MS_OK, &err);
+    /* the count is the buffer's size as GL has it */
+    GLint64 size = 0;
+    glBindBuffer(GL_TEXTURE_BUFFER, t.buffer);
+    glGetBufferParameteri64v(GL_TEXTURE_BUFFER, GL_BUFFER_SIZE, &size);
+    glBindBuffer(GL_TEXTURE_BUFFER, 0);
+    assert_int_equal(held.bytes, (uint64_t)size);
+    assert_int_equal(held.bytes, 4ull * t.capacity);
+    assert_int_equal(held.peak, held.bytes);
     print_message("texel buffer: %u words to start, at most %u (GL_MAX_TEXTURE_BUFFER_SIZE)\n", t.capacity,
                   t.max_words);
     uint32_t a, b, c;
@@ -466,6 +475,13 @@ static void test_texel_ranges(void **state)
     uint32_t capacity = t.capacity, big;
     assert_true(ms_render_texels_alloc(&t, capacity, &big)); /* grows */
     assert_true(t.capacity > capacity);
+    /* the old buffer is gone; while the words were copied both were held */
+    glBindBuffer(GL_TEXTURE_BUFFER, t.buffer);
+    glGetBufferParameteri64v(GL_TEXTURE_BUFFER, GL_BUFFER_SIZE, &size);
+    glBindBuffer(GL_TEXTURE_BUFFER, 0);
+    assert_int_equal(held.bytes, (uint64_t)size);
+    assert_int_equal(held.bytes, 4ull * t.capacity);
+    assert_int_equal(held.peak, 4ull * capacity + 4ull * t.capacity);
     uint32_t back[500];
     glBindBuffer(GL_TEXTURE_BUFFER, t.buffer);
     glGetBufferSubData(GL_TEXTURE_BUFFER, 4 * (GLintptr)c, sizeof back, back);
@@ -481,6 +497,7 @@ static void test_texel_ranges(void **state)
     assert_int_equal(t.free_count, 1);
     assert_int_equal(t.free_ranges[0].count, t.capacity);
     ms_render_texels_free(&t);
+    assert_int_equal(held.bytes, 0);
 }
 
 /* Projection and unprojection agree; the background and bad depths are refused. */

@@ -202,8 +202,10 @@ static void test_hud_lines(void **state)
     cs.geometry_bytes_received = 2500000, cs.apo_bytes_received = 1250000;
     cs.achieved_error_px = 2.5, cs.tolerance_px = 1;
     cs.memory = 7300000;
+    /* the GL storage beside the core's memory (issue 32 item 5) */
     ms_viewer_hud_info info = {.model = "dragon", .mode = "APO lit", .frame_ms = 16.7, .fps = 60,
-                               .triangles_drawn = 123456, .cells_drawn = 9, .core = &cs};
+                               .triangles_drawn = 123456, .cells_drawn = 9, .core = &cs,
+                               .gl_bytes = 41950000};
     char lines[MS_HUD_MAX_LINES][MS_HUD_LINE_MAX];
     size_t n = ms_viewer_hud_lines(&info, lines);
     assert_int_equal(n, 7);
@@ -213,11 +215,11 @@ static void test_hud_lines(void **state)
     assert_string_equal(lines[3], "cells 12 shown  3 loading  40 cached");
     assert_string_equal(lines[4], "received 2.50 MB geometry  1.25 MB APO");
     assert_string_equal(lines[5], "error 2.50 px  tolerance 1.00 px");
-    assert_string_equal(lines[6], "refining  memory 7.3 MB");
+    assert_string_equal(lines[6], "refining  core 7.3 MB + GL 42.0 MB");
     assert_near(ms_viewer_hud_progress(&info), 0.4, 1e-12);
     info.settled = true;
     n = ms_viewer_hud_lines(&info, lines);
-    assert_string_equal(lines[6], "view complete  memory 7.3 MB");
+    assert_string_equal(lines[6], "view complete  core 7.3 MB + GL 42.0 MB");
     assert_near(ms_viewer_hud_progress(&info), 1, 0);
     snprintf(cs.error, sizeof cs.error, "server gone");
     n = ms_viewer_hud_lines(&info, lines);
@@ -228,7 +230,7 @@ static void test_hud_lines(void **state)
     cs.preview = true, cs.preview_bits = 12;
     n = ms_viewer_hud_lines(&info, lines);
     assert_int_equal(n, 8);
-    assert_string_equal(lines[6], "view complete  memory 7.3 MB");
+    assert_string_equal(lines[6], "view complete  core 7.3 MB + GL 42.0 MB");
     assert_string_equal(lines[7], "preview: 12 bits, a token gives more");
 }
 

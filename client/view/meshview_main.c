@@ -10,7 +10,6 @@
  *
  * Scripted runs (--path / --screenshot-dir) go to ms_viewer_script.h.
  */
-#include <dlfcn.h>
 #include <epoxy/gl.h>
 #include <GLFW/glfw3.h>
 #include <math.h>
@@ -21,6 +20,7 @@
 #include <time.h>
 
 #include "ms_gl_window.h"
+#include "ms_process_memory.h"
 #include "ms_viewer_catalogue.h"
 #include "ms_viewer_controls.h"
 #include "ms_viewer_font.h"
@@ -82,26 +82,13 @@ typedef struct viewer {
 
 /* Mesa's software driver leaks a few bytes of its own when it is unloaded, where
  * LeakSanitizer can no longer name it: meshview keeps it loaded to the end
- * (RTLD_NODELETE) so that a leak report names it, and suppresses exactly that
+ * (ms_gl_window_keep_driver_loaded) so that a leak report names it, and suppresses exactly that
  * module (the same rule as tests/support/ms_test_render.c). Used only by
  * sanitizer builds. */
 const char *__lsan_default_suppressions(void);
 const char *__lsan_default_suppressions(void)
 {
     return "leak:swrast_dri.so\nleak:libgallium\nleak:libLLVM\n";
-}
-
-static void keep_gl_driver_loaded(void)
-{
-    static const char *const drivers[] = {"swrast_dri.so",
-                                          "/usr/lib/x86_64-linux-gnu/dri/swrast_dri.so"};
-    for (size_t i = 0; i < sizeof drivers / sizeof *drivers; ++i) {
-        void *h = dlopen(drivers[i], RTLD_NOW | RTLD_NOLOAD | RTLD_NODELETE);
-        if (h) {
-            dlclose(h);
-            return;
-        }
-    }
 }
 
 static double now_s(void)
@@ -486,6 +473,19 @@ static bool framebuffer_size(viewer *v, int *fw, int *fh)
     return true;
 }
 
+/* The GL storage the viewer holds (ms_render.h, "GL memory"): the renderers'
+ * (a scene's impostors too) and the overlay's; the window's own framebuffer
+ * is the driver's. */
+static uint64_t gl_bytes(viewer *v)
+{
+    uint64_t bytes = 0, peak;
+    ms_render_memory_stats m;
+    if (v->vscene)
+        ms_viewer_scene_gl_memory(v->vscene, &bytes, &peak);
+    ms_render_memory(v->stream ? ms_viewer_stream_render(v->stream) : NULL, &m);
+    return bytes + m.gl_bytes + ms_viewer_text_gl_bytes(v->text);
+}
+
 static int view_frame(viewer *v, int fw, int fh, double seconds)
 {
     ms_error err;
@@ -527,6 +527,7 @@ static int view_frame(viewer *v, int fw, int fh, double seconds)
     else
         ms_viewer_stream_stats(v->stream, &cs);
     ms_viewer_hud_info info = {.model = shown_name(v),
+                               .gl_bytes = gl_bytes(v),
                                .show_effects = v->vscene != NULL,
                                .effects_ran = v->drawn.effects_ran,
                                .mode = mode_name(v),
@@ -595,7 +596,7 @@ static int interactive_scene(viewer *v)
         ms_scene_free(&v->scene);
         return 1;
     }
-    keep_gl_driver_loaded();
+    ms_gl_window_keep_driver_loaded();
     ms_viewer_scene_settings settings = ms_viewer_options_scene_settings(o);
     if (ms_viewer_text_new(&v->text, &err) != MS_OK ||
         ms_viewer_scene_open(&v->source, &v->scene, o->scene_file, &settings, &v->vscene, &err) != MS_OK) {
@@ -665,7 +666,7 @@ static int interactive(viewer *v)
         fprintf(stderr, "meshview: %s\n", err.text);
         return 1;
     }
-    keep_gl_driver_loaded();
+    ms_gl_window_keep_driver_loaded();
     int rc = 0;
     if (ms_viewer_text_new(&v->text, &err) != MS_OK) {
         fprintf(stderr, "meshview: %s\n", err.text);
@@ -725,38 +726,26 @@ static int scripted(viewer *v)
     const ms_viewer_options *o = v->o;
     ms_error err;
     GLFWwindow *window;
+    ms_process_memory before, after;
+    ms_viewer_rss rss = {0};
+    if (ms_process_memory_read(&before, &err) == MS_OK)
+        rss.start = before.rss;
     if (ms_gl_window_new(o->width, o->height, "meshview", false, &window, &err) != MS_OK) {
         fprintf(stderr, "meshview: %s\n", err.text);
         return 1;
     }
-    keep_gl_driver_loaded();
+    ms_gl_window_keep_driver_loaded();
+    if (ms_process_memory_read(&after, &err) == MS_OK) /* the driver loaded, the context made */
+        rss.context = after.rss;
     json_t *report = NULL;
     bool complete = false;
-    ms_status st = ms_viewer_script_run(o, &v->source, window, &report, &complete, &err);
+    ms_status st = ms_viewer_script_run(o, &v->source, window, &rss, &report, &complete, &err);
     ms_gl_window_free(window);
     if (st != MS_OK) {
         fprintf(stderr, "meshview: %s\n", err.text);
         return 1;
     }
-    if (o->json) {
-        char *text = json_dumps(report, JSON_INDENT(2) | JSON_PRESERVE_ORDER | JSON_REAL_PRECISION(6));
-        if (text)
-            printf("%s\n", text);
-        free(text);
-    } else {
-        json_t *keys = json_object_get(report, "keyframes");
-        size_t i;
-        json_t *k;
-        json_array_foreach(keys, i, k)
-            printf("keyframe %zu: %s, %s in %.2f s, %lld triangles, error %.2f px\n", i,
-                   json_string_value(json_object_get(k, "png")),
-                   json_is_true(json_object_get(k, "complete")) ? "complete" : "NOT complete",
-                   json_real_value(json_object_get(k, "seconds_to_complete")),
-                   (long long)json_integer_value(json_object_get(k, "triangles_drawn")),
-                   json_real_value(json_object_get(k, "achieved_error_px")));
-        if (!json_array_size(keys))
-            printf("wrote %s\n", json_string_value(json_object_get(report, "png")));
-    }
+    ms_viewer_script_print(report, o->json);
     json_decref(report);
     if (!complete) {
         fprintf(stderr, "meshview: the view did not complete at every keyframe within %.1f s\n",

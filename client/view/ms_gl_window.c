@@ -1,6 +1,7 @@
 /* GLFW window with an OpenGL 4.1 core context (ms_gl_window.h). */
 #include "ms_gl_window.h"
 
+#include <dlfcn.h>
 #include <epoxy/gl.h>
 #include <GLFW/glfw3.h>
 #include <stdio.h>
@@ -53,4 +54,17 @@ void ms_gl_window_free(GLFWwindow *window)
         return;
     glfwDestroyWindow(window);
     glfwTerminate();
+}
+
+void ms_gl_window_keep_driver_loaded(void)
+{
+    static const char *const drivers[] = {"swrast_dri.so",
+                                          "/usr/lib/x86_64-linux-gnu/dri/swrast_dri.so"};
+    for (size_t i = 0; i < sizeof drivers / sizeof *drivers; ++i) {
+        void *h = dlopen(drivers[i], RTLD_NOW | RTLD_NOLOAD | RTLD_NODELETE);
+        if (h) {
+            dlclose(h);
+            return;
+        }
+    }
 }

@@ -28,4 +28,9 @@ ms_status ms_gl_window_new(int width, int height, const char *title, bool visibl
 /* Destroys the window and terminates GLFW. NULL is a no-op. */
 void ms_gl_window_free(GLFWwindow *window);
 
+/* Keeps Mesa's software driver mapped until the process ends (RTLD_NODELETE),
+ * so that LeakSanitizer can still name it in a report at exit; a no-op where
+ * it is not loaded. */
+void ms_gl_window_keep_driver_loaded(void);
+
 #endif

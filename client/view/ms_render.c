@@ -80,7 +80,7 @@ ms_status ms_render_find_program(ms_render *r, unsigned effects, bool wireframe,
 
 /* ---- per-cell GPU state ---------------------------------------------------- */
 
-static void delete_gpu_mesh(gpu_mesh *m)
+static void delete_gpu_mesh(ms_render *r, gpu_mesh *m)
 {
     if (m->vao)
         glDeleteVertexArrays(1, &m->vao);
@@ -88,15 +88,17 @@ static void delete_gpu_mesh(gpu_mesh *m)
         glDeleteBuffers(1, &m->vbo);
     if (m->ibo)
         glDeleteBuffers(1, &m->ibo);
+    ms_render_gl_sub(&r->gl, m->gl_bytes);
+    r->mesh_bytes -= m->gl_bytes;
     memset(m, 0, sizeof *m);
 }
 
-static void drop_pending_mesh(pending_mesh *p)
+static void drop_pending_mesh(ms_render *r, pending_mesh *p)
 {
     free(p->vertices);
     free(p->normals);
     free(p->indices);
-    delete_gpu_mesh(&p->gpu);
+    delete_gpu_mesh(r, &p->gpu);
     memset(p, 0, sizeof *p);
 }
 
@@ -117,8 +119,8 @@ static void drop_current_apo(ms_render *r, render_cell *c)
 
 static void drop_cell(ms_render *r, render_cell *c)
 {
-    delete_gpu_mesh(&c->mesh);
-    drop_pending_mesh(&c->next_mesh);
+    delete_gpu_mesh(r, &c->mesh);
+    drop_pending_mesh(r, &c->next_mesh);
     drop_pending_apo(r, &c->next_apo);
     drop_current_apo(r, c);
     c->failed_apo_levels = 0;
@@ -254,7 +256,7 @@ ms_status ms_render_new(const ms_archive_header *header, const ms_archive_cell *
     if (st == MS_OK)
         st = ms_render_find_program(r, MS_EFFECTS_VIEWER, true, false, &unused, err);
     if (st == MS_OK)
-        st = ms_render_texels_init(&r->texels, err);
+        st = ms_render_texels_init(&r->texels, &r->gl, err);
     /* the viewer's first draw compiles nothing more: the model's first frame
      * is drawn as soon as it comes (docs/VIEWER.md, "Opening a model") */
     if (st == MS_OK)
@@ -343,7 +345,7 @@ void ms_render_free(ms_render *r)
 
 /* The cell's mesh in the new frame: nothing to do when it is what the cell draws
  * or already waits for; otherwise it becomes the pending mesh. */
-static ms_status take_mesh(render_cell *c, const ms_render_cell_mesh *m, ms_error *err)
+static ms_status take_mesh(ms_render *r, render_cell *c, const ms_render_cell_mesh *m, ms_error *err)
 {
     bool same_as_current = c->mesh.vao && c->mesh.hash == m->hash && c->mesh.vertex_count == m->vertex_count &&
                            c->mesh.triangle_count == m->triangle_count;
@@ -351,7 +353,7 @@ static ms_status take_mesh(render_cell *c, const ms_render_cell_mesh *m, ms_erro
         const gpu_mesh *g = &c->next_mesh.gpu;
         if (g->hash == m->hash && g->vertex_count == m->vertex_count && g->triangle_count == m->triangle_count)
             return MS_OK;
-        drop_pending_mesh(&c->next_mesh);
+        drop_pending_mesh(r, &c->next_mesh);
     }
     if (same_as_current)
         return MS_OK;
@@ -360,7 +362,7 @@ static ms_status take_mesh(render_cell *c, const ms_render_cell_mesh *m, ms_erro
     p->normals = malloc((size_t)m->vertex_count * sizeof *p->normals);
     p->indices = malloc(3 * (size_t)m->triangle_count * sizeof *p->indices);
     if (!p->vertices || !p->normals || !p->indices) {
-        drop_pending_mesh(p);
+        drop_pending_mesh(r, p);
         return ms_error_set(err, MS_ERR_NOMEM, "render: no memory for cell %u", m->cell);
     }
     memcpy(p->vertices, m->vertices, 3 * (size_t)m->vertex_count * sizeof *p->vertices);
@@ -504,7 +506,7 @@ ms_status ms_render_set_frame(ms_render *r, const ms_view_mesh *mesh, const ms_c
         render_cell *c = ms_render_cell_at(r, r->split.present[k]);
         st = ms_render_split_cell(&r->split, k, &c->record, &m, err);
         if (st == MS_OK)
-            st = take_mesh(c, &m, err);
+            st = take_mesh(r, c, &m, err);
         if (st == MS_OK) {
             uint32_t e = c->frame_apo_entry;
             st = take_apo(r, m.cell, e ? &apo[e - 1] : NULL, e ? c->frame_apo_levels : 0, err);
@@ -545,7 +547,7 @@ ms_status ms_render_set_frame(ms_render *r, const ms_view_mesh *mesh, const ms_c
 /* Sends up to *left bytes of a pending mesh; true once it is current. The vertex
  * buffer holds the positions (3 floats per vertex) followed by the packed
  * normals (4 bytes per vertex): 16 bytes per vertex. */
-static bool upload_mesh(render_cell *c, uint64_t *left, uint64_t *bytes)
+static bool upload_mesh(ms_render *r, render_cell *c, uint64_t *left, uint64_t *bytes)
 {
     pending_mesh *p = &c->next_mesh;
     gpu_mesh *g = &p->gpu;
@@ -559,6 +561,10 @@ static bool upload_mesh(render_cell *c, uint64_t *left, uint64_t *bytes)
         glBindBuffer(GL_ARRAY_BUFFER, g->ibo); /* bound as an array buffer to fill: no VAO needed */
         glBufferData(GL_ARRAY_BUFFER, (GLsizeiptr)index_bytes, NULL, GL_STATIC_DRAW);
         glBindBuffer(GL_ARRAY_BUFFER, 0);
+        /* the storage is held from here, while the pieces go up */
+        g->gl_bytes = vertex_bytes + index_bytes;
+        ms_render_gl_add(&r->gl, g->gl_bytes);
+        r->mesh_bytes += g->gl_bytes;
     }
     while (p->sent < vertex_bytes + index_bytes && *left > 0) {
         bool vertices = p->sent < vertex_bytes;
@@ -594,10 +600,10 @@ static bool upload_mesh(render_cell *c, uint64_t *left, uint64_t *bytes)
     glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, g->ibo);
     glBindVertexArray(0);
     glBindBuffer(GL_ARRAY_BUFFER, 0);
-    delete_gpu_mesh(&c->mesh);
+    delete_gpu_mesh(r, &c->mesh);
     c->mesh = *g;
     memset(g, 0, sizeof *g);
-    drop_pending_mesh(p);
+    drop_pending_mesh(r, p);
     return true;
 }
 
@@ -651,7 +657,7 @@ ms_status ms_render_upload(ms_render *r, uint64_t budget_bytes, ms_render_upload
             render_cell *c = ms_render_cell_at(r, r->queue[k]);
             if (!c->queued || (pass == 0 && c->mesh.vao))
                 continue;
-            if (c->next_mesh.active && upload_mesh(c, &left, &bytes))
+            if (c->next_mesh.active && upload_mesh(r, c, &left, &bytes))
                 c->next_mesh.active = false;
             if (!c->next_mesh.active && c->next_apo.active && left > 0 && upload_apo(r, c, &left, &bytes))
                 c->next_apo.active = false;
@@ -676,6 +682,18 @@ ms_status ms_render_upload(ms_render *r, uint64_t budget_bytes, ms_render_upload
     if (e != GL_NO_ERROR)
         return ms_error_set(err, MS_ERR_UNSUPPORTED, "render: GL error 0x%x while uploading", e);
     return MS_OK;
+}
+
+void ms_render_memory(const ms_render *r, ms_render_memory_stats *stats)
+{
+    memset(stats, 0, sizeof *stats);
+    if (!r)
+        return;
+    stats->gl_bytes = r->gl.bytes;
+    stats->gl_bytes_peak = r->gl.peak;
+    stats->mesh_bytes = r->mesh_bytes;
+    stats->texel_bytes = 4ull * r->texels.capacity;
+    stats->texel_used_bytes = 4ull * r->texels.used;
 }
 
 bool ms_render_cell_texels(const ms_render *r, uint32_t cell, uint32_t *start, uint32_t *count, uint32_t *levels)

@@ -72,14 +72,26 @@
  * not use is not compiled in. ms_render_draw_stats says which effects the
  * program held and which of them changed the picture.
  *
+ * GL memory. The renderer counts the bytes of storage it asks of GL: every
+ * buffer's size as given to glBufferData (a cell's vertex buffer, 16 bytes per
+ * vertex, and index buffer, 12 bytes per triangle, counted from the first piece
+ * of their upload until they are deleted, so a cell refining holds its old and
+ * new buffers at once; the APO texel buffer, 4 bytes per word of its capacity,
+ * which grows by doubling and never shrinks, both buffers counted while a growth
+ * copies; the warm-up's 60 bytes while it draws). The buffer texture over the
+ * texel buffer adds no storage. Compiled programs, vertex arrays and whatever
+ * the driver keeps of its own (shadow copies, compiled shader variants, the
+ * window's framebuffers) are not counted: the driver does not say.
+ * ms_render_memory gives the figures (docs/VIEWER.md, "Memory").
+ *
  * Camera. The projection is OpenGL's perspective from ms_camera (fovy, width /
  * height aspect, near and far distance), clip depth in [-1, 1], window depth in
  * [0, 1]; ms_render_camera_matrices and ms_render_unproject give it to callers in
  * doubles (double-click re-centring, tests).
  *
  * Requires: a current OpenGL 4.1 core context (ms_gl_window.h) on the calling
- * thread, for every function except ms_render_camera_matrices and
- * ms_render_unproject, which are pure.
+ * thread, for every function except ms_render_camera_matrices,
+ * ms_render_unproject (pure) and ms_render_memory.
  * Ownership: the renderer copies what it keeps of a frame; the caller keeps the
  * frame. Errors: ms_status with one line (MS_ERR_UNSUPPORTED when a shader does
  * not compile or link, with the driver's log's first line; MS_ERR_NOMEM).
@@ -248,6 +260,19 @@ typedef struct ms_render_upload_stats {
 /* Uploads queued data, at most budget_bytes (> 0) in this call. */
 ms_status ms_render_upload(ms_render *render, uint64_t budget_bytes, ms_render_upload_stats *stats,
                            ms_error *err);
+
+/* The renderer's GL memory ("GL memory" above), bytes. */
+typedef struct ms_render_memory_stats {
+    uint64_t gl_bytes;         /* every buffer and texture held now */
+    uint64_t gl_bytes_peak;    /* the most gl_bytes has been since ms_render_new */
+    uint64_t mesh_bytes;       /* of gl_bytes: the cells' vertex and index buffers
+                                  (current and being uploaded) */
+    uint64_t texel_bytes;      /* of gl_bytes: the APO texel buffer's capacity */
+    uint64_t texel_used_bytes; /* of texel_bytes: words handed to cells, 4 bytes each */
+} ms_render_memory_stats;
+
+/* The figures now; all 0 for a NULL renderer. Needs no GL context. */
+void ms_render_memory(const ms_render *render, ms_render_memory_stats *stats);
 
 /* Displacement. With options.displace and the displacement effect, the cells
  * are drawn as triangle patches through tessellation stages (shaders/tess.*):

@@ -182,9 +182,10 @@ ms_status ms_render_apo_words(const ms_archive_cell *record, const uint8_t *data
 
 #define TEXELS_INITIAL_WORDS (1u << 16)
 
-ms_status ms_render_texels_init(ms_render_texels *t, ms_error *err)
+ms_status ms_render_texels_init(ms_render_texels *t, ms_render_gl_count *gl, ms_error *err)
 {
     memset(t, 0, sizeof *t);
+    t->gl = gl;
     GLint max_words = 0;
     glGetIntegerv(GL_MAX_TEXTURE_BUFFER_SIZE, &max_words);
     t->max_words = max_words > 0 ? (uint32_t)max_words : 65536u;
@@ -192,6 +193,7 @@ ms_status ms_render_texels_init(ms_render_texels *t, ms_error *err)
     glGenBuffers(1, &t->buffer);
     glBindBuffer(GL_TEXTURE_BUFFER, t->buffer);
     glBufferData(GL_TEXTURE_BUFFER, (GLsizeiptr)t->capacity * 4, NULL, GL_DYNAMIC_DRAW);
+    ms_render_gl_add(t->gl, 4ull * t->capacity); /* the buffer texture is a view of it: no storage */
     glGenTextures(1, &t->texture);
     glBindTexture(GL_TEXTURE_BUFFER, t->texture);
     glTexBuffer(GL_TEXTURE_BUFFER, GL_R32UI, t->buffer);
@@ -212,8 +214,10 @@ void ms_render_texels_free(ms_render_texels *t)
 {
     if (t->texture)
         glDeleteTextures(1, &t->texture);
-    if (t->buffer)
+    if (t->buffer) {
         glDeleteBuffers(1, &t->buffer);
+        ms_render_gl_sub(t->gl, 4ull * t->capacity);
+    }
     free(t->free_ranges);
     memset(t, 0, sizeof *t);
 }
@@ -274,11 +278,13 @@ static bool grow_texels(ms_render_texels *t, uint32_t need)
         glDeleteBuffers(1, &bigger);
         return false;
     }
+    ms_render_gl_add(t->gl, 4 * cap); /* both buffers are held while the words are copied */
     glBindBuffer(GL_COPY_READ_BUFFER, t->buffer);
     glCopyBufferSubData(GL_COPY_READ_BUFFER, GL_COPY_WRITE_BUFFER, 0, 0, (GLsizeiptr)t->capacity * 4);
     glBindBuffer(GL_COPY_READ_BUFFER, 0);
     glBindBuffer(GL_COPY_WRITE_BUFFER, 0);
     glDeleteBuffers(1, &t->buffer);
+    ms_render_gl_sub(t->gl, 4ull * t->capacity);
     t->buffer = bigger;
     glBindTexture(GL_TEXTURE_BUFFER, t->texture);
     glTexBuffer(GL_TEXTURE_BUFFER, GL_R32UI, t->buffer);

@@ -204,6 +204,7 @@ void ms_render_warm_up(ms_render *r, const ms_render_program *p)
     glBufferData(GL_ARRAY_BUFFER, sizeof vertices, vertices, GL_STATIC_DRAW);
     glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, buffers[1]);
     glBufferData(GL_ELEMENT_ARRAY_BUFFER, sizeof indices, indices, GL_STATIC_DRAW);
+    ms_render_gl_add(&r->gl, sizeof vertices + sizeof indices);
     glEnableVertexAttribArray(0);
     glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 12, NULL);
     glEnableVertexAttribArray(1);
@@ -220,6 +221,7 @@ void ms_render_warm_up(ms_render *r, const ms_render_program *p)
     glBindVertexArray(0);
     glDeleteVertexArrays(1, &vao);
     glDeleteBuffers(2, buffers);
+    ms_render_gl_sub(&r->gl, sizeof vertices + sizeof indices);
     glBindTexture(GL_TEXTURE_BUFFER, 0);
     glUseProgram(0);
 }

@@ -43,6 +43,14 @@ void ms_impostor_free(ms_impostor *imp)
     free(imp);
 }
 
+uint64_t ms_impostor_gl_bytes(const ms_impostor *imp)
+{
+    if (!imp)
+        return 0;
+    uint64_t pixels = (uint64_t)imp->size * (uint64_t)imp->size;
+    return (imp->colour ? 4 * pixels : 0) + (imp->depth ? 4 * pixels : 0) + (imp->vbo ? 8 * sizeof(float) : 0);
+}
+
 static GLuint make_texture(GLenum internal, GLenum format, GLenum type, int size)
 {
     GLuint t;

@@ -25,6 +25,7 @@
 #define MS_RENDER_IMPOSTOR_H
 
 #include <stdbool.h>
+#include <stdint.h>
 
 #include "ms_render.h"
 
@@ -33,6 +34,11 @@ typedef struct ms_impostor ms_impostor;
 /* An impostor of size x size pixels (16..2048). */
 ms_status ms_impostor_new(int size, ms_impostor **out, ms_error *err);
 void ms_impostor_free(ms_impostor *imp);
+
+/* Bytes of GL storage the impostor holds (ms_render.h, "GL memory"): its colour
+ * texture (RGBA8, 4 bytes a pixel), depth texture (32-bit float, 4 bytes a
+ * pixel) and quad (32 bytes): 8 size^2 + 32. 0 for NULL. No GL needed. */
+uint64_t ms_impostor_gl_bytes(const ms_impostor *imp);
 
 /* Captures the model of r, drawn with options (clear, the camera and the
  * viewport are the capture's own; wireframe and dissolve are ignored), as seen

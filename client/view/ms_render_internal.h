@@ -24,6 +24,27 @@
 #include "ms_apo_chunk.h"
 #include "ms_render.h"
 
+/* ---- GL memory ---------------------------------------------------------- */
+
+/* Bytes of GL buffer and texture storage a renderer asked for (the sizes given
+ * to glBufferData, what it holds now and the most it held at once), counted
+ * where the storage is made and deleted (ms_render.h, "GL memory"). */
+typedef struct ms_render_gl_count {
+    uint64_t bytes, peak;
+} ms_render_gl_count;
+
+static inline void ms_render_gl_add(ms_render_gl_count *c, uint64_t bytes)
+{
+    c->bytes += bytes;
+    if (c->bytes > c->peak)
+        c->peak = c->bytes;
+}
+
+static inline void ms_render_gl_sub(ms_render_gl_count *c, uint64_t bytes)
+{
+    c->bytes = bytes < c->bytes ? c->bytes - bytes : 0;
+}
+
 /* ---- ms_render_camera.c ------------------------------------------------ */
 
 /* MS_ERR_ARG unless the camera is finite, its viewport in [1, 16384] pixels per
@@ -152,6 +173,8 @@ typedef struct ms_render_texel_range {
 
 typedef struct ms_render_texels {
     GLuint buffer, texture;
+    ms_render_gl_count *gl; /* the renderer's count: the buffer's bytes, and both
+                               buffers while a growth copies */
     uint32_t capacity;     /* words */
     uint32_t max_words;    /* GL_MAX_TEXTURE_BUFFER_SIZE */
     ms_render_texel_range *free_ranges;
@@ -159,7 +182,8 @@ typedef struct ms_render_texels {
     uint64_t used;         /* words handed out */
 } ms_render_texels;
 
-ms_status ms_render_texels_init(ms_render_texels *texels, ms_error *err);
+/* gl (the renderer's count) gets the buffer's bytes; it must outlive texels. */
+ms_status ms_render_texels_init(ms_render_texels *texels, ms_render_gl_count *gl, ms_error *err);
 void ms_render_texels_free(ms_render_texels *texels);
 /* A range of count words; false when the buffer cannot hold it (too big for the
  * driver, or out of memory): the cell then goes without APO. */
@@ -206,6 +230,7 @@ void ms_render_program_free(ms_render_program *program);
 
 typedef struct gpu_mesh {
     GLuint vao, vbo, ibo;
+    uint64_t gl_bytes;      /* the vbo's and ibo's storage, counted in ms_render.gl */
     uint32_t vertex_count, triangle_count;
     uint64_t hash;
 } gpu_mesh;
@@ -268,6 +293,8 @@ struct ms_render {
     ms_render_program programs[MS_RENDER_PROGRAM_CACHE];
     uint32_t program_count, program_next;
     ms_render_texels texels;
+    ms_render_gl_count gl;      /* every GL buffer's and texture's bytes (ms_render_memory) */
+    uint64_t mesh_bytes;        /* of them, the cells' vertex and index buffers */
     uint32_t *frame_cells;      /* cells with triangles in the latest frame */
     uint32_t frame_cell_count;
     uint32_t *queue;            /* cells with something pending, oldest first (frame cells) */

@@ -59,12 +59,12 @@ size_t ms_viewer_hud_lines(const ms_viewer_hud_info *info,
              mb(c->geometry_bytes_received), mb(c->apo_bytes_received));
     snprintf(lines[n++], MS_HUD_LINE_MAX, "error %.2f px  tolerance %.2f px",
              c->achieved_error_px, c->tolerance_px);
-    snprintf(lines[n++], MS_HUD_LINE_MAX, "%s  memory %.1f MB",
+    snprintf(lines[n++], MS_HUD_LINE_MAX, "%s  core %.1f MB + GL %.1f MB",
              c->error[0]     ? "stopped"
              : info->settled ? "view complete"
              : c->model_open ? "refining"
                              : "connecting",
-             mb(c->memory));
+             mb(c->memory), mb(info->gl_bytes));
     if (c->preview) /* the server let this reader have a public preview only */
         snprintf(lines[n++], MS_HUD_LINE_MAX, "preview: %u bits, a token gives more",
                  c->preview_bits);

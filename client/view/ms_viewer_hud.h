@@ -7,8 +7,10 @@
  * camera path's clock while it drives the camera (ms_viewer_playback.h), and
  * the selected piece of a scene (ms_viewer_pick.h): its name, whether it is
  * drawn as geometry or impostor, its material, its triangles, cells, bytes
- * and achieved error. Units: milliseconds, pixels, MB
- * (10^6 bytes). Thread-safety: none shared.
+ * and achieved error. Memory shows as "core X MB + GL Y MB": the
+ * client core's measure (ms_core_stats.memory) and the GL storage the viewer
+ * asked for; the driver's own share is in neither (docs/VIEWER.md, "Memory").
+ * Units: milliseconds, pixels, MB (10^6 bytes). Thread-safety: none shared.
  */
 #ifndef MS_VIEWER_HUD_H
 #define MS_VIEWER_HUD_H
@@ -28,6 +30,7 @@
 typedef struct ms_viewer_hud_info {
     const char *model;           /* model name */
     const char *mode;            /* e.g. "APO lit", "geometry normals" */
+    uint64_t gl_bytes;           /* GL storage the viewer holds (ms_render.h, "GL memory") */
     double frame_ms, fps;        /* smoothed */
     uint64_t triangles_drawn;
     uint32_t cells_drawn;

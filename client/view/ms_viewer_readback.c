@@ -84,6 +84,11 @@ void ms_viewer_target_bind(const ms_viewer_target *t)
     glReadBuffer(GL_COLOR_ATTACHMENT0);
 }
 
+uint64_t ms_viewer_target_gl_bytes(const ms_viewer_target *t)
+{
+    return t->fbo ? 8ull * (uint64_t)t->width * (uint64_t)t->height : 0;
+}
+
 void ms_viewer_target_free(ms_viewer_target *t)
 {
     if (t->fbo)

@@ -38,5 +38,8 @@ ms_status ms_viewer_target_init(ms_viewer_target *target, int width, int height,
 /* Binds it for drawing and reading. */
 void ms_viewer_target_bind(const ms_viewer_target *target);
 void ms_viewer_target_free(ms_viewer_target *target);
+/* Bytes of GL storage it holds: 4 a pixel of colour and 4 of depth (24 bits
+ * are stored in 32 by the drivers we know): 8 width x height; 0 when freed. */
+uint64_t ms_viewer_target_gl_bytes(const ms_viewer_target *target);
 
 #endif

@@ -670,6 +670,23 @@ void ms_viewer_scene_stats(ms_viewer_scene *vs, ms_core_stats *sum)
     }
 }
 
+void ms_viewer_scene_gl_memory(ms_viewer_scene *vs, uint64_t *bytes, uint64_t *peak)
+{
+    *bytes = *peak = 0;
+    ms_render_memory_stats m;
+    for (size_t i = 0; i < vs->model_count; ++i) {
+        ms_render_memory(ms_viewer_stream_render(vs->models[i].stream), &m);
+        uint64_t impostor = ms_impostor_gl_bytes(vs->models[i].impostor);
+        *bytes += m.gl_bytes + impostor;
+        *peak += m.gl_bytes_peak + impostor;
+    }
+    for (size_t i = 0; i < vs->part_count; ++i) {
+        ms_render_memory(vs->parts[i].render, &m);
+        *bytes += m.gl_bytes;
+        *peak += m.gl_bytes_peak;
+    }
+}
+
 bool ms_viewer_scene_settled(const ms_viewer_scene *vs)
 {
     for (size_t i = 0; i < vs->model_count; ++i)

@@ -87,6 +87,12 @@ ms_status ms_viewer_scene_draw(ms_viewer_scene *vs, const ms_camera *camera, con
  * error and tolerance the largest, view_complete when all are, the first error. */
 void ms_viewer_scene_stats(ms_viewer_scene *vs, ms_core_stats *stats);
 
+/* The GL storage of the scene's renderers (each model's and the room's parts')
+ * and impostors, bytes (ms_render.h, "GL memory"): *bytes held now; *peak the
+ * sum of each renderer's own peak and the impostors' bytes (an upper bound of
+ * the scene's peak: the pieces need not peak together). */
+void ms_viewer_scene_gl_memory(ms_viewer_scene *vs, uint64_t *bytes, uint64_t *peak);
+
 /* TCP connections the scene's models opened to the server so far: the link's
  * (1 plus its reconnections), or with connection_per_model one per model plus
  * each one's reconnection attempts; 0 from a local directory. */

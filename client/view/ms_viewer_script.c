@@ -12,6 +12,7 @@
 
 #include "ms_camera_path.h"
 #include "ms_json_out.h"
+#include "ms_process_memory.h"
 #include "ms_viewer_catalogue.h"
 #include "ms_viewer_controls.h"
 #include "ms_viewer_hud.h"
@@ -174,7 +175,37 @@ typedef struct script {
     uint64_t first_generation;  /* the core frame that first picture drew (one model) */
     double first_frame_ms;      /* that frame's step, draw and glFinish */
     uint64_t last_triangles;
+    ms_viewer_rss rss;          /* the caller's two stages, then the run's */
+    uint64_t rss_shaders, rss_first_frame; /* VmRSS at those stages; 0: not read */
 } script;
+
+/* VmRSS now, 0 when it cannot be read (the report then says 0). */
+static uint64_t rss_now(void)
+{
+    ms_process_memory m;
+    ms_error ignored;
+    return ms_process_memory_read(&m, &ignored) == MS_OK ? m.rss : 0;
+}
+
+/* GL storage the run holds (ms_render.h, "GL memory"): the renderers' (and a
+ * scene's impostors'), the offscreen framebuffer's and the HUD's. peak: the
+ * renderers' peaks plus the rest as now (the framebuffer and the HUD's atlas
+ * are made once, before any renderer). */
+static void gl_memory(script *s, uint64_t *bytes, uint64_t *peak)
+{
+    *bytes = *peak = 0;
+    if (s->scene)
+        ms_viewer_scene_gl_memory(s->scene, bytes, peak);
+    else if (s->stream) {
+        ms_render_memory_stats m;
+        ms_render_memory(ms_viewer_stream_render(s->stream), &m);
+        *bytes = m.gl_bytes;
+        *peak = m.gl_bytes_peak;
+    }
+    uint64_t own = ms_viewer_target_gl_bytes(&s->target) + ms_viewer_text_gl_bytes(s->text);
+    *bytes += own;
+    *peak += own;
+}
 
 /* The stream's or the scene's step, draw and figures. */
 static ms_status run_step(script *s, const ms_camera *camera, ms_viewer_step *step, ms_error *err)
@@ -252,7 +283,10 @@ static ms_status frame(script *s, const ms_camera *camera, ms_viewer_step *step,
     if (s->text) {
         ms_core_stats cs;
         run_stats(s, &cs);
+        uint64_t gl_bytes, gl_peak;
+        gl_memory(s, &gl_bytes, &gl_peak);
         ms_viewer_hud_info info = {.model = s->name,
+                                   .gl_bytes = gl_bytes,
                                    .show_effects = s->scene != NULL,
                                    .effects_ran = drawn.effects_ran,
                                    .mode = s->render.shading == MS_SHADING_NORMALS ? "normals"
@@ -285,6 +319,7 @@ static ms_status frame(script *s, const ms_camera *camera, ms_viewer_step *step,
         s->first_display = now_s() - s->opened_at;
         s->first_generation = step->generation;
         s->first_frame_ms = s->last_ms;
+        s->rss_first_frame = rss_now();
         snprintf(s->first_png, sizeof s->first_png, "%s/first-frame.png", s->o->screenshot_dir);
         if ((st = ms_viewer_screenshot(s->first_png, s->o->width, s->o->height, err)) != MS_OK)
             return st;
@@ -314,6 +349,33 @@ static ms_status hold(script *s, const ms_camera *camera, bool *settled, double 
         if (!step.new_frame && !step.upload.bytes)
             nap(0.004);
     }
+}
+
+/* The memory figures (docs/VIEWER.md, "Memory"): the core's, the GL storage
+ * the viewer asked for, and the process's resident memory now, at its peak
+ * and at the run's stages. */
+static void add_memory_figures(json_t *report, script *s, const ms_core_stats *cs)
+{
+    if (!report)
+        return;
+    uint64_t gl_bytes, gl_peak;
+    gl_memory(s, &gl_bytes, &gl_peak);
+    ms_process_memory m;
+    ms_error ignored;
+    if (ms_process_memory_read(&m, &ignored) != MS_OK)
+        memset(&m, 0, sizeof m);
+    json_object_set_new(report, "core_memory", json_integer((json_int_t)cs->memory));
+    json_object_set_new(report, "core_peak_memory", json_integer((json_int_t)cs->peak_memory));
+    json_object_set_new(report, "gl_bytes", json_integer((json_int_t)gl_bytes));
+    json_object_set_new(report, "gl_bytes_peak", json_integer((json_int_t)gl_peak));
+    json_object_set_new(report, "rss_bytes", json_integer((json_int_t)m.rss));
+    json_object_set_new(report, "rss_peak_bytes", json_integer((json_int_t)m.rss_peak));
+    json_object_set_new(report, "rss_anon_bytes", json_integer((json_int_t)m.rss_anon));
+    json_object_set_new(report, "rss_file_bytes", json_integer((json_int_t)m.rss_file));
+    json_object_set_new(report, "rss_stages",
+                        json_pack("{s:I, s:I, s:I, s:I, s:I}", "start", (json_int_t)s->rss.start, "context",
+                                  (json_int_t)s->rss.context, "shaders", (json_int_t)s->rss_shaders,
+                                  "first_frame", (json_int_t)s->rss_first_frame, "end", (json_int_t)m.rss));
 }
 
 /* The core's index figures (docs/CLIENT.md, "An index by subtree"), and its
@@ -471,14 +533,14 @@ static void script_free(script *s)
 
 /* --scene: the scene's models streamed and drawn together along its path. */
 static ms_status scene_run(const ms_viewer_options *o, const ms_viewer_source *source, GLFWwindow *window,
-                           json_t **report, bool *complete, ms_error *err)
+                           const ms_viewer_rss *rss, json_t **report, bool *complete, ms_error *err)
 {
     ms_scene scene;
     ms_status st = ms_scene_load(o->scene_file, &scene, err);
     if (st != MS_OK)
         return st;
     script s = {.o = o, .window = window, .name = scene.name[0] ? scene.name : "scene",
-                .scene_path = scene.camera_path, .opened_at = now_s(), .first_display = -1};
+                .scene_path = scene.camera_path, .opened_at = now_s(), .first_display = -1, .rss = *rss};
     ms_render_options_default(&s.render);
     s.render.shading = o->shading;
     s.render.apo = o->apo_shading;
@@ -490,6 +552,7 @@ static ms_status scene_run(const ms_viewer_options *o, const ms_viewer_source *s
         (st = ms_viewer_target_init(&s.target, o->width, o->height, err)) != MS_OK ||
         (st = ms_viewer_scene_open(source, &scene, o->scene_file, &settings, &s.scene, err)) != MS_OK)
         goto done;
+    s.rss_shaders = rss_now(); /* the pieces' renderers built, their models opened */
     if ((st = play(&s, NULL, keys, complete, err)) != MS_OK)
         goto done;
     ms_core_stats cs;
@@ -506,6 +569,7 @@ static ms_status scene_run(const ms_viewer_options *o, const ms_viewer_source *s
                         "seconds", now_s() - started, "effects_called_for", effect_names(ms_scene_effects(&scene)),
                         "effects_compiled", effect_names(ms_viewer_scene_effects(s.scene)), "effect_frames", ran);
     add_index_figures(*report, &s, &cs);
+    add_memory_figures(*report, &s, &cs);
     if (*report) {
         json_object_set_new(*report, "connections",
                             json_integer((json_int_t)ms_viewer_scene_connections(s.scene)));
@@ -521,7 +585,8 @@ done:
 }
 
 ms_status ms_viewer_script_run(const ms_viewer_options *o, const ms_viewer_source *source,
-                               GLFWwindow *window, json_t **report, bool *complete, ms_error *err)
+                               GLFWwindow *window, const ms_viewer_rss *rss, json_t **report, bool *complete,
+                               ms_error *err)
 {
     *report = NULL;
     *complete = false;
@@ -529,7 +594,7 @@ ms_status ms_viewer_script_run(const ms_viewer_options *o, const ms_viewer_sourc
     if (st != MS_OK)
         return st;
     if (o->scene_file)
-        return scene_run(o, source, window, report, complete, err);
+        return scene_run(o, source, window, rss, report, complete, err);
     if (!o->model) {
         *complete = true;
         return catalogue_shot(o, source, report, err);
@@ -538,7 +603,8 @@ ms_status ms_viewer_script_run(const ms_viewer_options *o, const ms_viewer_sourc
     ms_viewer_model model;
     if ((st = ms_viewer_model_open(source, o->model, &model, err)) != MS_OK)
         return st;
-    script s = {.o = o, .window = window, .name = o->model, .opened_at = opened_at, .first_display = -1};
+    script s = {.o = o, .window = window, .name = o->model, .opened_at = opened_at, .first_display = -1,
+                .rss = *rss};
     ms_render_options_default(&s.render);
     s.render.shading = o->shading;
     s.render.apo = o->apo_shading;
@@ -550,7 +616,10 @@ ms_status ms_viewer_script_run(const ms_viewer_options *o, const ms_viewer_sourc
         (st = ms_viewer_target_init(&s.target, o->width, o->height, err)) != MS_OK)
         goto done;
     ms_viewer_target_bind(&s.target); /* the renderer warms up drawing into it */
-    if ((st = ms_viewer_stream_open(source, &model, &settings, &s.stream, err)) != MS_OK)
+    if ((st = ms_viewer_stream_start(source, &model, &settings, &s.stream, err)) != MS_OK)
+        goto done;
+    s.rss_shaders = rss_now(); /* the renderer built (its programs compiled), the core started */
+    if ((st = ms_viewer_stream_wait_open(s.stream, err)) != MS_OK)
         goto done;
     if ((st = play(&s, &model, keys, complete, err)) != MS_OK)
         goto done;
@@ -584,6 +653,7 @@ ms_status ms_viewer_script_run(const ms_viewer_options *o, const ms_viewer_sourc
                         (json_int_t)cs.apo_bytes_received, "seconds", now_s() - started,
                         "compare_apo", compare);
     add_index_figures(*report, &s, &cs);
+    add_memory_figures(*report, &s, &cs);
     if (*report) {
         json_object_set_new(*report, "flat", json_boolean(o->flat));
         json_object_set_new(*report, "crease_angle_deg", json_real(ms_viewer_stream_crease_angle(s.stream)));
@@ -595,4 +665,27 @@ done:
     script_free(&s);
     ms_viewer_model_close(&model);
     return st;
+}
+
+void ms_viewer_script_print(const json_t *report, bool json)
+{
+    if (json) {
+        char *text = json_dumps(report, JSON_INDENT(2) | JSON_PRESERVE_ORDER | JSON_REAL_PRECISION(6));
+        if (text)
+            printf("%s\n", text);
+        free(text);
+    } else {
+        json_t *keys = json_object_get(report, "keyframes");
+        size_t i;
+        json_t *k;
+        json_array_foreach(keys, i, k)
+            printf("keyframe %zu: %s, %s in %.2f s, %lld triangles, error %.2f px\n", i,
+                   json_string_value(json_object_get(k, "png")),
+                   json_is_true(json_object_get(k, "complete")) ? "complete" : "NOT complete",
+                   json_real_value(json_object_get(k, "seconds_to_complete")),
+                   (long long)json_integer_value(json_object_get(k, "triangles_drawn")),
+                   json_real_value(json_object_get(k, "achieved_error_px")));
+        if (!json_array_size(keys))
+            printf("wrote %s\n", json_string_value(json_object_get(report, "png")));
+    }
 }

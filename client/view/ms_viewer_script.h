@@ -9,8 +9,11 @@
  * view complete, triangles drawn, bytes received (geometry, APO), achieved
  * error and tolerance; overall the frame time p50/p95/max (milliseconds: the
  * step, the draw and glFinish, not the idle waits between frames) and the
- * upload bytes per frame (max, mean) against the budget; and the first frame
- * that drew a triangle (first-frame.png), to show the coarse start.
+ * upload bytes per frame (max, mean) against the budget; the first frame
+ * that drew a triangle (first-frame.png), to show the coarse start; and the
+ * memory: the core's, the GL storage the viewer holds (ms_render.h, "GL
+ * memory") and the process's resident memory at the run's stages
+ * (docs/VIEWER.md, "Memory").
  *
  * Requires the hidden window's GL context current. Errors: ms_status with one
  * line (the stream's: server gone, unknown model; MS_ERR_IO "window closed").
@@ -22,6 +25,7 @@
 
 #include <jansson.h>
 #include <stdbool.h>
+#include <stdint.h>
 
 #include "ms_error.h"
 #include "ms_viewer_model.h"
@@ -29,12 +33,22 @@
 
 typedef struct GLFWwindow GLFWwindow;
 
+/* The process's resident memory (VmRSS, bytes; 0: unknown) the caller read
+ * before it made the GL context and after, for the report's rss_stages. */
+typedef struct ms_viewer_rss {
+    uint64_t start, context;
+} ms_viewer_rss;
+
 /* Runs the script; *report (owned by the caller, json_decref) is set on MS_OK,
  * and *complete says whether every keyframe settled. Without options->model it
  * pictures the catalogue screen (catalogue.png). */
 ms_status ms_viewer_script_run(const ms_viewer_options *options, const ms_viewer_source *source,
-                               GLFWwindow *window, json_t **report, bool *complete,
+                               GLFWwindow *window, const ms_viewer_rss *rss, json_t **report, bool *complete,
                                ms_error *err);
+
+/* Prints a run's report on stdout: the JSON document with json, else a line
+ * per keyframe (or the catalogue picture's name). */
+void ms_viewer_script_print(const json_t *report, bool json);
 
 /* The q-quantile (0..1) of n values by the nearest-rank rule (sorts them);
  * 0 for n = 0. */

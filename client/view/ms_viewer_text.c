@@ -17,6 +17,7 @@
 struct ms_viewer_text {
     GLuint program, vao, vbo, atlas;
     GLint viewport_uniform;
+    uint64_t atlas_bytes, vbo_bytes; /* GL storage (ms_viewer_text_gl_bytes) */
     float *vertices;
     size_t count, cap; /* vertices */
     bool out_of_memory;
@@ -111,6 +112,7 @@ static void build_atlas(ms_viewer_text *t)
     glBindTexture(GL_TEXTURE_2D, t->atlas);
     glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
     glTexImage2D(GL_TEXTURE_2D, 0, GL_R8, w, h, 0, GL_RED, GL_UNSIGNED_BYTE, bits);
+    t->atlas_bytes = (uint64_t)w * (uint64_t)h;
     glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
     glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
     glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
@@ -176,6 +178,11 @@ void ms_viewer_text_begin(ms_viewer_text *t, int width, int height, int scale)
 }
 
 int ms_viewer_text_scale(const ms_viewer_text *t) { return t->scale; }
+
+uint64_t ms_viewer_text_gl_bytes(const ms_viewer_text *t)
+{
+    return t ? t->atlas_bytes + t->vbo_bytes : 0;
+}
 
 int ms_viewer_text_auto_scale(int height, double pixel_ratio, bool large)
 {
@@ -256,6 +263,7 @@ ms_status ms_viewer_text_draw(ms_viewer_text *t, ms_error *err)
     glBindBuffer(GL_ARRAY_BUFFER, t->vbo);
     glBufferData(GL_ARRAY_BUFFER, (GLsizeiptr)(t->count * FLOATS_PER_VERTEX * sizeof(float)),
                  t->vertices, GL_STREAM_DRAW);
+    t->vbo_bytes = t->count * FLOATS_PER_VERTEX * sizeof(float);
     glDrawArrays(GL_TRIANGLES, 0, (GLsizei)t->count);
     glBindVertexArray(0);
     glBindBuffer(GL_ARRAY_BUFFER, 0);

@@ -16,6 +16,7 @@
 #define MS_VIEWER_TEXT_H
 
 #include <stdbool.h>
+#include <stdint.h>
 
 #include "ms_error.h"
 
@@ -40,6 +41,10 @@ void ms_viewer_text_rect(ms_viewer_text *text, double x, double y, double w, dou
  * pixels. Characters outside 32..126 draw as '?'. */
 double ms_viewer_text_print(ms_viewer_text *text, double x, double y, const float rgba[4],
                             const char *line);
+
+/* Bytes of GL storage the overlay holds: its font atlas (1 byte a texel) and
+ * its vertex buffer as sized by the latest draw. 0 for NULL. No GL needed. */
+uint64_t ms_viewer_text_gl_bytes(const ms_viewer_text *text);
 
 /* Draws the batch over the bound framebuffer (no depth test, blending on; the
  * state it changes is put back) and empties it. */
