@@ -39,7 +39,7 @@ LDFLAGS  := $(OPT) -pthread
 # (pkg-config names; Embree 3 ships no .pc file and is named embree3).
 ROOMS := common/util common/mesh common/codec common/apo common/camera \
          common/archive protocol server/geometry server/apo server/bake \
-         server/serve server/study client/core client/load client/view
+         server/serve server/study client/core client/lib client/load client/view
 USES_common/util     :=
 USES_common/mesh     := common/util
 USES_common/codec    := common/mesh
@@ -53,6 +53,7 @@ USES_server/bake     := server/apo
 USES_server/serve    := common/archive protocol
 USES_server/study    := common/apo common/archive
 USES_client/core     := common/archive protocol
+USES_client/lib      := client/core
 USES_client/load     := client/core
 USES_client/view     := client/core common/apo
 PKGS_common/util     := jansson libpng zlib
@@ -76,9 +77,12 @@ room_lib     = $(BUILD)/lib/libms_$(subst /,_,$(1)).a
 # The libraries a program of room $(1) links, highest room first.
 room_libs    = $(foreach r,$(call reverse,$(ROOMS)),$(if $(filter $(r),$(call room_closure,$(1))),$(call room_lib,$(r))))
 room_pkgs    = $(sort $(foreach r,$(call room_closure,$(1)),$(PKGS_$(r))))
+# pkg-config runs while the Makefile is read, also for `make demo` and `make deps`
+# on a machine that lacks the libraries: it stays silent there, and check-deps
+# stops a real build with one line instead.
 pkg_libs     = $(if $(filter embree3,$(1)),-lembree3) \
-               $(if $(filter-out embree3,$(1)),$(shell pkg-config --libs $(filter-out embree3,$(1))))
-pkg_cflags   = $(if $(filter-out embree3,$(1)),$(shell pkg-config --cflags $(filter-out embree3,$(1))))
+               $(if $(filter-out embree3,$(1)),$(shell pkg-config --libs $(filter-out embree3,$(1)) 2>/dev/null))
+pkg_cflags   = $(if $(filter-out embree3,$(1)),$(shell pkg-config --cflags $(filter-out embree3,$(1)) 2>/dev/null))
 
 lib_srcs  = $(filter-out %_main.c,$(wildcard $(1)/*.c))
 lib_objs  = $(patsubst %.c,$(BUILD)/%.o,$(call lib_srcs,$(1))) $(patsubst %.cpp,$(BUILD)/%.o,$(wildcard $(1)/*.cpp))
@@ -91,18 +95,29 @@ ALL_LIBS  := $(foreach r,$(call reverse,$(ROOMS)),$(call room_lib,$(r)))
 ALL_PKGS  := $(sort $(foreach r,$(ROOMS),$(PKGS_$(r))))
 LINK      := $(CXX)
 
-.PHONY: all test bench demo fuzz clean programs tests deps screenshots rooms room-flags study
+.PHONY: all test bench demo fuzz clean programs tests deps screenshots rooms room-flags study \
+        check-deps models
+.PHONY: client-lib man install uninstall
 .SECONDARY:
 all: programs
 
 programs: $(PROGRAMS)
 tests: $(TESTS) $(PROGRAMS)
 
-$(BUILD)/%.o: %.c
+# Every library pkg-config should know (cmocka too when tests are built), and
+# Embree 3's header: one line naming what is missing, before any compiler error.
+CHECK_PKGS := $(filter-out embree3,$(ALL_PKGS)) $(if $(filter test tests,$(MAKECMDGOALS)),cmocka)
+check-deps:
+	@missing=""; \
+	for p in $(CHECK_PKGS); do pkg-config --exists $$p 2>/dev/null || missing="$$missing $$p"; done; \
+	echo '#include <embree3/rtcore.h>' | $(CC) -E -x c - >/dev/null 2>&1 || missing="$$missing embree3"; \
+	[ -z "$$missing" ] || { echo "meshstream: missing libraries:$$missing (install them with scripts/install-deps)" >&2; exit 1; }
+
+$(BUILD)/%.o: %.c | check-deps
 	@mkdir -p $(dir $@)
 	$(CC) $(CFLAGS) $(ROOM_CFLAGS) -MMD -MP -c $< -o $@
 
-$(BUILD)/%.o: %.cpp
+$(BUILD)/%.o: %.cpp | check-deps
 	@mkdir -p $(dir $@)
 	$(CXX) $(CXXFLAGS) $(ROOM_CFLAGS) -MMD -MP -c $< -o $@
 
@@ -143,21 +158,30 @@ $(BUILD)/tests/%: $(BUILD)/tests/%.o $(TESTSUPPORT) $(ALL_LIBS)
 	$(LINK) $(LDFLAGS) $< $(TESTSUPPORT) $(ALL_LIBS) $(call pkg_libs,$(ALL_PKGS) cmocka) -lm -o $@
 
 # The whole suite under ASan + UBSan. Tests run from the repository root and find
-# the shared models through MESHSTREAM_MODELS (default ../shared/data/models).
+# their models in tests/data and in the cache scripts/fetch-models fills
+# (tests/data/README.md; MESHSTREAM_MODELS overrides both).
 test:
+	@scripts/fetch-models
 	@$(MAKE) --no-print-directory MODE=asan tests
 	@MODE=asan scripts/run-tests
 
+# The real scanned test models, fetched once into the cache (scripts/fetch-models).
+models:
+	@scripts/fetch-models
+
 bench: programs
+	@scripts/fetch-models
 	@scripts/bench
 
 # What accuracy costs: sweeps over the dragon and the demo model, docs/ACCURACY.md
 # and docs/images/study-*.png (scripts/study; 10 to 15 minutes; not in CI).
 study: programs
+	@scripts/fetch-models
 	@scripts/study
 
 # The viewer's pictures in docs/images/ (headless meshview; Xvfb when no DISPLAY).
 screenshots: programs
+	@scripts/fetch-models
 	@scripts/screenshots
 
 demo:
@@ -173,6 +197,82 @@ deps:
 
 clean:
 	rm -rf build
+
+# ---- Version, client library, man pages, install (docs/INSTALL.md) ----------
+# One version: the VERSION file, compiled into ms_version.o alone (every
+# program's --version and msc_version). The client library is the client/lib
+# facade and the rooms it uses, compiled again as position-independent code
+# with every symbol hidden but the facade's msc_* (meshstream-client.h), as a
+# shared object (soname libmeshstream-client.so.CLIENT_ABI) and a static archive.
+VERSION      := $(shell cat VERSION)
+CLIENT_ABI   := 0
+PREFIX       ?= /usr/local
+BINDIR       ?= $(PREFIX)/bin
+LIBDIR       ?= $(PREFIX)/lib
+INCLUDEDIR   ?= $(PREFIX)/include
+MANDIR       ?= $(PREFIX)/share/man
+DATADIR      ?= $(PREFIX)/share/meshstream
+DOCDIR       ?= $(PREFIX)/share/doc/meshstream
+UNITDIR      ?= $(PREFIX)/lib/systemd/system
+PKGCONFIGDIR ?= $(LIBDIR)/pkgconfig
+PIC          := $(BUILD)/pic
+CLIENT_ROOMS := $(call reverse,$(filter $(call room_closure,client/lib),$(ROOMS)))
+CLIENT_PKGS  := $(call room_pkgs,client/lib)
+CLIENT_SO    := libmeshstream-client.so.$(CLIENT_ABI)
+CLIENT_LIBS  := $(BUILD)/lib/libmeshstream-client.so.$(VERSION) $(BUILD)/lib/libmeshstream-client.a
+pic_lib       = $(PIC)/lib/libms_$(subst /,_,$(1)).a
+MAN_PAGES    := $(patsubst $(BUILD)/bin/%,$(BUILD)/man/%.1,$(PROGRAMS))
+$(BUILD)/common/util/ms_version.o $(PIC)/common/util/ms_version.o: CFLAGS += -DMS_VERSION='"$(VERSION)"'
+$(BUILD)/common/util/ms_version.o $(PIC)/common/util/ms_version.o: VERSION
+define pic_rules
+$(PIC)/$(1)/%.o: $(1)/%.c
+	@mkdir -p $$(dir $$@)
+	$$(CC) $$(CFLAGS) -fPIC -fvisibility=hidden $(addprefix -I,$(call room_closure,$(1))) $(call pkg_cflags,$(call room_pkgs,$(1))) -MMD -MP -c $$< -o $$@
+$(call pic_lib,$(1)): $(patsubst %.c,$(PIC)/%.o,$(call lib_srcs,$(1)))
+	@mkdir -p $$(dir $$@)
+	rm -f $$@ && ar rcs $$@ $$^
+endef
+$(foreach r,$(CLIENT_ROOMS),$(eval $(call pic_rules,$(r))))
+client-lib: $(CLIENT_LIBS)
+# Linking the archives (not every object) keeps only what the facade reaches.
+$(BUILD)/lib/libmeshstream-client.so.$(VERSION): $(foreach r,$(CLIENT_ROOMS),$(call pic_lib,$(r)))
+	$(CC) -shared $(LDFLAGS) -Wl,-soname,$(CLIENT_SO) -Wl,--no-undefined -Wl,--whole-archive $< \
+	  -Wl,--no-whole-archive $(wordlist 2,99,$^) $(call pkg_libs,$(CLIENT_PKGS)) -lm -o $@
+$(BUILD)/lib/libmeshstream-client.a: $(foreach r,$(CLIENT_ROOMS),$(patsubst %.c,$(PIC)/%.o,$(call lib_srcs,$(r))))
+	rm -f $@ && ar rcs $@ $^
+# Man pages from each program's --help and --version; the NAME line is the
+# program's README heading ("### meshgen — the built-in demo model"; one may
+# name several programs).
+man: $(MAN_PAGES)
+$(BUILD)/man/%.1: $(BUILD)/bin/% README.md VERSION
+	@mkdir -p $(dir $@)
+	@command -v help2man >/dev/null || { echo "man: help2man is missing (scripts/install-deps)" >&2; exit 1; }
+	help2man --no-info --no-discard-stderr --name="$$(awk -F ' — ' '/^### /{sub(/^### /,"",$$1); gsub(/,/,"",$$1); n=split($$1,w," "); for(i=1;i<=n;i++) if(w[i]=="$*") print $$2}' README.md)" --output=$@ $<
+INSTALLED = $(addprefix $(BINDIR)/,$(notdir $(PROGRAMS))) $(addprefix $(MANDIR)/man1/,$(notdir $(MAN_PAGES))) \
+  $(LIBDIR)/libmeshstream-client.so.$(VERSION) $(LIBDIR)/$(CLIENT_SO) $(LIBDIR)/libmeshstream-client.so \
+  $(LIBDIR)/libmeshstream-client.a $(INCLUDEDIR)/meshstream-client.h $(PKGCONFIGDIR)/meshstream-client.pc \
+  $(UNITDIR)/meshserve@.service $(addprefix $(DATADIR)/deploy/,$(filter-out meshserve@.service,$(notdir $(wildcard deploy/*)))) \
+  $(addprefix $(DOCDIR)/,README.md LICENSE $(notdir $(wildcard docs/*.md))) $(DOCDIR)/examples/client_example.c
+install: programs client-lib man
+	install -d $(addprefix $(DESTDIR),$(BINDIR) $(MANDIR)/man1 $(LIBDIR) $(INCLUDEDIR) $(PKGCONFIGDIR) $(UNITDIR) $(DATADIR)/deploy $(DOCDIR)/examples)
+	install -m 755 $(PROGRAMS) $(DESTDIR)$(BINDIR)/
+	install -m 644 $(MAN_PAGES) $(DESTDIR)$(MANDIR)/man1/
+	install -m 755 $(BUILD)/lib/libmeshstream-client.so.$(VERSION) $(DESTDIR)$(LIBDIR)/
+	ln -sf libmeshstream-client.so.$(VERSION) $(DESTDIR)$(LIBDIR)/$(CLIENT_SO)
+	ln -sf $(CLIENT_SO) $(DESTDIR)$(LIBDIR)/libmeshstream-client.so
+	install -m 644 $(BUILD)/lib/libmeshstream-client.a $(DESTDIR)$(LIBDIR)/
+	install -m 644 client/lib/meshstream-client.h $(DESTDIR)$(INCLUDEDIR)/
+	sed -e 's|@PREFIX@|$(PREFIX)|; s|@LIBDIR@|$(LIBDIR)|; s|@INCLUDEDIR@|$(INCLUDEDIR)|' \
+	  -e 's|@VERSION@|$(VERSION)|; s|@REQUIRES@|$(CLIENT_PKGS)|' client/lib/meshstream-client.pc.in \
+	  > $(DESTDIR)$(PKGCONFIGDIR)/meshstream-client.pc
+	sed 's|/usr/local|$(PREFIX)|g' deploy/meshserve@.service > $(DESTDIR)$(UNITDIR)/meshserve@.service
+	install -m 644 $(filter-out deploy/meshserve@.service deploy/fill,$(wildcard deploy/*)) $(DESTDIR)$(DATADIR)/deploy/
+	install -m 755 deploy/fill $(DESTDIR)$(DATADIR)/deploy/
+	install -m 644 README.md $(wildcard LICENSE) docs/*.md $(DESTDIR)$(DOCDIR)/
+	install -m 644 examples/client_example.c $(DESTDIR)$(DOCDIR)/examples/
+uninstall:
+	rm -f $(addprefix $(DESTDIR),$(INSTALLED))
+	-rmdir $(addprefix $(DESTDIR),$(DOCDIR)/examples $(DOCDIR) $(DATADIR)/deploy $(DATADIR)) 2>/dev/null
 
 # The layering, for tests/test_layering.c and for reading: `make -s rooms`, and
 # `make -s room-flags ROOM=client/view` (the include paths that room compiles with).

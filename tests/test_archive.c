@@ -347,7 +347,7 @@ static void test_index_file(void **state)
     assert_int_equal(ms_archive_open_index_file(path, "model", &idx, &err), MS_ERR_IO);
     assert_null(idx);
     char want[800];
-    snprintf(want, sizeof want, "%s: No such file or directory", path);
+    snprintf(want, sizeof want, "%s: cannot open: No such file or directory", path);
     assert_string_equal(err.text, want);
     ms_archive_close(full);
 }

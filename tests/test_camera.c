@@ -74,16 +74,47 @@ static void test_distance_and_precision(void **state)
     assert_true(ms_camera_box_distance(&c, around_lo, around_hi) == 0.0);
     const double corner_lo[3] = {3, 4, 10}, corner_hi[3] = {5, 5, 11};
     assert_float_equal(ms_camera_box_distance(&c, corner_lo, corner_hi), 5.0, 1e-12);
-    /* Side 1 at distance 10 with 500 px per unit: sqrt(3)*50 px at 0 bits. */
+    /* Side 1 at distance 10 with 500 px per unit: the half-diagonal, sqrt(3)*25
+     * px, at 0 bits; 43.3 px needs 6 bits for 1 px (0.68 px). */
     double need = ms_screen_bits_needed(&c, 1.0, 10.0, 1.0);
-    assert_float_equal(need, log2(sqrt(3.0) * 50.0), 1e-12);
-    assert_int_equal(ms_select_bits(need, 0, 0, 16, 0.5), 7);
+    assert_float_equal(need, log2(sqrt(3.0) * 25.0), 1e-12);
+    assert_int_equal(ms_select_bits(need, 0, 0, 16, 0.5), 6);
+    assert_float_equal(ms_screen_error_px(&c, 1.0, 0, 10.0), sqrt(3.0) * 25.0, 1e-12);
+    assert_float_equal(ms_screen_error_px(&c, 1.0, 6, 10.0), sqrt(3.0) * 25.0 / 64.0, 1e-12);
+    assert_float_equal(ms_screen_error_px(&c, 1.0, 0, 10.0), 1.0 * exp2(need), 1e-9);
+    assert_true(isinf(ms_screen_error_px(&c, 1.0, 3, 0.0)));
     /* Coarser tolerance, fewer bits: 4 px is 2 bits less. */
     assert_float_equal(ms_screen_bits_needed(&c, 1.0, 10.0, 4.0), need - 2.0, 1e-12);
     /* Camera very near: everything; very far: nothing beyond the minimum. */
     assert_true(isinf(ms_screen_bits_needed(&c, 1.0, 0.0, 1.0)));
     assert_int_equal(ms_select_bits(ms_screen_bits_needed(&c, 1.0, 0.0, 1.0), 3, 0, 16, 0.5), 16);
     assert_int_equal(ms_select_bits(ms_screen_bits_needed(&c, 1.0, 1e12, 1.0), 9, 7, 16, 0.5), 7);
+}
+
+/* Clipping planes that frame a box from any eye: outside it, near is half the
+ * way to its nearest point and far 1 % past its farthest corner; inside it,
+ * near is far * 5e-5; a bad box gives the fixed fallback. */
+static void test_depth_range_frames_the_box(void **state)
+{
+    (void)state;
+    const double lo[3] = {-1, -1, -1}, hi[3] = {1, 1, 1};
+    double near_d, far_d;
+    for (double d = 3; d < 1e7; d *= 10) {
+        const double eye[3] = {0, 0, d};
+        ms_camera_depth_range(eye, lo, hi, &near_d, &far_d);
+        assert_float_equal(near_d, 0.5 * (d - 1), 1e-9 * d);
+        assert_float_equal(far_d, 1.01 * sqrt(2.0 + (d + 1) * (d + 1)), 1e-9 * d);
+    }
+    const double inside[3] = {0.5, 0, 0};
+    ms_camera_depth_range(inside, lo, hi, &near_d, &far_d);
+    assert_float_equal(far_d, 1.01 * sqrt(1.5 * 1.5 + 2.0), 1e-12);
+    assert_float_equal(near_d, far_d * 5e-5, 1e-15);
+    const double bad_lo[3] = {1, 0, NAN}, eye[3] = {0, 0, 5};
+    ms_camera_depth_range(eye, bad_lo, hi, &near_d, &far_d);
+    assert_true(near_d == 1e-4 && far_d == 1e4);
+    const double point[3] = {0, 0, 0};
+    ms_camera_depth_range(point, point, point, &near_d, &far_d);
+    assert_true(near_d > 0 && far_d > near_d);
 }
 
 static void test_hysteresis(void **state)
@@ -157,6 +188,7 @@ int main(void)
         cmocka_unit_test(test_look_at_basis_and_errors),
         cmocka_unit_test(test_frustum_culling),
         cmocka_unit_test(test_distance_and_precision),
+        cmocka_unit_test(test_depth_range_frames_the_box),
         cmocka_unit_test(test_hysteresis),
         cmocka_unit_test(test_apo_footprint_levels),
     };

@@ -22,9 +22,8 @@
 static const char *const models[] = {
     "stanford_bunny_res3.ply.gz",  "stanford_dragon_vrip_res4.ply.gz",
     "stanford_dragon_vrip_res3.ply.gz", "stanford_dragon_vrip_res2.ply.gz",
-    "stanford_bunny.obj.gz",       "stanford_armadillo_43k.obj.gz",
-    "nefertiti.obj.gz",            "igea_tristrips.ply.gz",
-    "laurana_bust_color.ply.gz",   "gargoyle_color.ply.gz",
+    "glmark2_bunny.obj.gz",        "cgal_armadillo.off.gz",
+    "torus_tristrips.ply.gz",      "trefoil_color.ply.gz",
     "snowden_bust_hi.ply.gz",      "stanford_dragon_vrip.ply.gz",
 };
 

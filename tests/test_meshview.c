@@ -7,9 +7,12 @@
  *   - the local-archive mode draws the same pictures (with --compare-apo, which
  *     times both shadings of each frame and still pictures the run's own);
  *   - the catalogue screen lists the model;
+ *   - a model small on screen (400 down to 15 px tall) is drawn at every size,
+ *     its silhouette that of meshrender's picture of the full mesh;
  *   - bad input: --help (0), bad options (2), no display (1), unknown model (1),
  *     no server (1), server gone mid-stream (1): one line on stderr each, and
  *     nothing leaked (the program runs under LeakSanitizer). */
+#include <math.h>
 #include <setjmp.h>
 #include <signal.h>
 #include <stdarg.h>
@@ -25,6 +28,7 @@
 #include <cmocka.h>
 #include <jansson.h>
 
+#include "ms_archive.h"
 #include "ms_bake.h"
 #include "ms_nsp_check.h"
 #include "ms_test.h"
@@ -203,6 +207,100 @@ static void test_streaming_and_local_archive(void **state)
     }
     json_decref(server);
     json_decref(local);
+}
+
+/* Pixels that differ from the picture's top-left pixel (the background) by
+ * more than 8 in a channel: the model's silhouette. */
+static uint8_t *silhouette(const char *png, uint32_t *width, uint32_t *height, size_t *covered)
+{
+    uint8_t *rgb = ms_test_png_read(png, width, height);
+    size_t n = (size_t)*width * *height;
+    uint8_t *mask = calloc(n, 1);
+    assert_non_null(mask);
+    *covered = 0;
+    for (size_t i = 0; i < n; ++i) {
+        for (int c = 0; c < 3; ++c)
+            if (abs((int)rgb[3 * i + c] - (int)rgb[c]) > 8)
+                mask[i] = 1;
+        *covered += mask[i];
+    }
+    free(rgb);
+    return mask;
+}
+
+/* A model seen from ever farther, 400 down to 15 px tall: meshview draws it
+ * at every distance (the clipping planes frame the model, not a fixed range
+ * of its size: it vanished behind the far plane at 8 box sides), and down to
+ * 30 px its silhouette overlaps meshrender's picture of the full mesh with an
+ * intersection over union of at least 0.9. */
+static void test_small_on_screen_never_vanishes(void **state)
+{
+    fixture *f = *state;
+    static const double heights_px[] = {400, 120, 60, 30, 15};
+    enum { SIDE = 480, KEYS = sizeof heights_px / sizeof *heights_px };
+    char archive_path[700], path_file[700], text[4096], args[2048], out[700], err_text[4096];
+    snprintf(archive_path, sizeof archive_path, "%s/" MODEL ".msa", f->archives);
+    ms_archive *archive;
+    ms_error err;
+    assert_int_equal(ms_archive_open(archive_path, &archive, &err), MS_OK);
+    const ms_archive_header *h = ms_archive_get_header(archive);
+    double side = h->box_side, centre[3];
+    for (int a = 0; a < 3; ++a)
+        centre[a] = h->box_origin[a] + 0.5 * side;
+    ms_archive_close(archive);
+    /* distance at which the box's side spans height px of SIDE at fovy 40 */
+    size_t used = (size_t)snprintf(text, sizeof text, "meshstream-camera-path 1\n");
+    for (int k = 0; k < KEYS; ++k) {
+        double d = side * SIDE / (heights_px[k] * 2.0 * tan(20.0 * M_PI / 180.0));
+        used += (size_t)snprintf(text + used, sizeof text - used, "%d %.9g %.9g %.9g %.9g %.9g %.9g 0 1 0 40\n",
+                                 k, centre[0], centre[1], centre[2] + d, centre[0], centre[1], centre[2]);
+    }
+    snprintf(path_file, sizeof path_file, "%s/far.cam", f->dir);
+    FILE *pf = fopen(path_file, "w");
+    assert_non_null(pf);
+    fputs(text, pf);
+    fclose(pf);
+
+    snprintf(out, sizeof out, "%s/far.json", f->dir);
+    snprintf(args, sizeof args,
+             "%s --model " MODEL " --path %s --size %dx%d --no-apo --frames 1 "
+             "--screenshot-dir %s/far --json", f->archives, path_file, SIDE, SIDE, f->dir);
+    assert_int_equal(run_viewer(f, args, out, err_text, sizeof err_text), 0);
+    json_t *report = load_report(out);
+    char meshrender[600], command[4096];
+    ms_test_bin_path(meshrender, sizeof meshrender, "meshrender");
+    snprintf(command, sizeof command, "%s %s/demo.ply -p %s -o %s/far-ref --width %d --height %d --json",
+             meshrender, f->dir, path_file, f->dir, SIDE, SIDE);
+    json_decref(ms_test_run_json(command, 0));
+    json_t *keys = json_object_get(report, "keyframes");
+    assert_int_equal(json_array_size(keys), KEYS);
+    for (int k = 0; k < KEYS; ++k) {
+        json_t *key = json_array_get(keys, k);
+        assert_true(json_is_true(json_object_get(key, "complete")));
+        json_int_t triangles = json_integer_value(json_object_get(key, "triangles_drawn"));
+        char ref[800];
+        snprintf(ref, sizeof ref, "%s/far-ref/frame_%03d.png", f->dir, k);
+        uint32_t w, h2, rw, rh;
+        size_t covered, ref_covered, both = 0, either = 0;
+        uint8_t *mask = silhouette(json_string_value(json_object_get(key, "png")), &w, &h2, &covered);
+        uint8_t *ref_mask = silhouette(ref, &rw, &rh, &ref_covered);
+        assert_int_equal(w, rw);
+        assert_int_equal(h2, rh);
+        for (size_t i = 0; i < (size_t)w * h2; ++i) {
+            both += mask[i] & ref_mask[i];
+            either += mask[i] | ref_mask[i];
+        }
+        double iou = either ? (double)both / (double)either : 0.0;
+        printf("%g px tall: %lld triangles, %zu px covered (meshrender %zu), IoU %.3f\n",
+               heights_px[k], (long long)triangles, covered, ref_covered, iou);
+        assert_true(triangles > 0);
+        assert_true(covered > 0);
+        if (heights_px[k] >= 30)
+            assert_true(iou >= 0.9);
+        free(mask);
+        free(ref_mask);
+    }
+    json_decref(report);
 }
 
 static void test_catalogue_screen(void **state)
@@ -397,6 +495,7 @@ int main(void)
         cmocka_unit_test(test_help_and_usage_errors),
         cmocka_unit_test(test_streaming_and_local_archive),
         cmocka_unit_test(test_catalogue_screen),
+        cmocka_unit_test(test_small_on_screen_never_vanishes),
         cmocka_unit_test(test_interactive_until_terminated),
         cmocka_unit_test(test_interactive_from_a_server_lists_once),
         cmocka_unit_test(test_server_gone_mid_stream),

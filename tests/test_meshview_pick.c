@@ -130,14 +130,14 @@ static void test_centre_pixel_picks_the_piece_looked_at(void **state)
         /* framing it: the orbit centre at its bounds' centre */
         ms_viewer_controls c;
         double lo[3] = {-2, 0, -3}, hi[3] = {2, 3, 3};
-        ms_viewer_controls_init(&c, lo, hi, 1);
+        ms_viewer_controls_init(&c, lo, hi, 1, 1.0);
         assert_true(ms_viewer_pick_frame_piece(fx.vs, k, &c, (double)WIDTH / HEIGHT));
         assert_memory_equal(c.target, centre, sizeof centre);
         assert_true(c.distance > radius);
     }
     ms_viewer_controls c;
     double lo[3] = {-2, 0, -3}, hi[3] = {2, 3, 3};
-    ms_viewer_controls_init(&c, lo, hi, 1);
+    ms_viewer_controls_init(&c, lo, hi, 1, 1.0);
     ms_viewer_controls before = c;
     assert_false(ms_viewer_pick_frame_piece(fx.vs, 2, &c, 1));
     assert_false(ms_viewer_pick_frame_piece(fx.vs, -1, &c, 1));

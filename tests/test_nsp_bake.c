@@ -190,7 +190,7 @@ static void test_flushing_changes_nothing(void **state)
     (void)state;
     char dir[512], model[4096], cmd[4096], out[256];
     ms_test_tmpdir(dir, sizeof dir);
-    ms_test_model_path(model, sizeof model, "stanford_bunny.obj.gz");
+    ms_test_model_path(model, sizeof model, "glmark2_bunny.obj.gz");
     ms_bake_options o;
     ms_nsp_test_bake_options(model, dir, NULL, &o);
     o.min_triangles = 1000;

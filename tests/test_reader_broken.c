@@ -22,9 +22,9 @@ typedef struct blob {
 typedef struct corpus {
     char dir[4096];
     blob ascii;  /* stanford_dragon_vrip_res4.ply: 10 header lines, 5205 V, 11102 F */
-    blob binary; /* gargoyle_color.ply: LE, 28-byte vertices, 13-byte faces */
+    blob binary; /* trefoil_color.ply: LE, 28-byte vertices, 13-byte faces */
     size_t binary_header;
-    blob obj;    /* stanford_bunny.obj */
+    blob obj;    /* glmark2_bunny.obj */
     int cases;
 } corpus;
 
@@ -57,8 +57,8 @@ static int setup(void **state)
     corpus *c = calloc(1, sizeof *c);
     ms_test_tmpdir(c->dir, sizeof c->dir);
     c->ascii = read_model("stanford_dragon_vrip_res4.ply.gz");
-    c->binary = read_model("gargoyle_color.ply.gz");
-    c->obj = read_model("stanford_bunny.obj.gz");
+    c->binary = read_model("trefoil_color.ply.gz");
+    c->obj = read_model("glmark2_bunny.obj.gz");
     const char *end = strstr(c->binary.data, "end_header\n");
     c->binary_header = (size_t)(end - c->binary.data) + strlen("end_header\n");
     *state = c;
@@ -279,7 +279,7 @@ static void test_binary_ply(void **state)
     corpus *c = *state;
     char path[4200], where[96];
     const blob *b = &c->binary;
-    const size_t h = c->binary_header, vertices = 25002, faces = 50000, stride = 28;
+    const size_t h = c->binary_header, vertices = 5120, faces = 10240, stride = 28;
     const size_t face0 = h + vertices * stride;
     assert_int_equal(face0 + faces * 13, b->size);
     /* Truncation at many offsets: header, vertex records, face records. */
@@ -310,7 +310,7 @@ static void test_binary_ply(void **state)
     /* An index out of range and a negative index, exactly located. */
     size_t at = face0 + 13 * 4321 + 1 + 4 * 2;
     int32_t bad = (int32_t)vertices;
-    snprintf(where, sizeof where, "byte offset %zu: vertex index 25002 out of range", at);
+    snprintf(where, sizeof where, "byte offset %zu: vertex index 5120 out of range", at);
     expect_failure(write_case(c, path, sizeof path, "ply", b, at, &bad, 4, at + 4), MS_ERR_RANGE,
                    where);
     bad = -7;
@@ -342,21 +342,21 @@ static void test_binary_ply(void **state)
     assert_non_null(strstr(err.text, "byte offset"));
     assert_non_null(strstr(err.text, path));
     /* Counts that lie. */
-    const char *vline = strstr(b->data, "element vertex 25002\n");
+    const char *vline = strstr(b->data, "element vertex 5120\n");
     size_t vl = (size_t)(vline - b->data);
-    const char *more = "element vertex 25003\n";
+    const char *more = "element vertex 5121\n";
     expect_failure(write_case(c, path, sizeof path, "ply", b, vl, more, strlen(more),
                               vl + strlen(more)),
                    MS_ERR_FORMAT, "byte offset");
-    const char *fline = strstr(b->data, "element face 50000\n");
+    const char *fline = strstr(b->data, "element face 10240\n");
     size_t fl = (size_t)(fline - b->data);
-    const char *fewer = "element face 49999\n";
+    const char *fewer = "element face 10239\n";
     snprintf(where, sizeof where, "byte offset %zu: 13 bytes after the last element",
              b->size - 13);
     expect_failure(write_case(c, path, sizeof path, "ply", b, fl, fewer, strlen(fewer),
                               fl + strlen(fewer)),
                    MS_ERR_FORMAT, where);
-    const char *lots = "element face 50001\n";
+    const char *lots = "element face 10241\n";
     snprintf(where, sizeof where, "byte offset %zu: file ends inside the face list", b->size);
     expect_failure(write_case(c, path, sizeof path, "ply", b, fl, lots, strlen(lots),
                               fl + strlen(lots)),
@@ -372,14 +372,14 @@ static void test_obj(void **state)
     corpus *c = *state;
     char path[4200];
     const blob *o = &c->obj;
-    /* The bunny: 11 comment lines, v lines 12..35958, a comment, f from 35961. */
+    /* The bunny: v lines 1..34835, f lines 34836..104501, nothing else. */
     static const line_case cases[] = {
         {35963, "f 1 2\n", MS_ERR_FORMAT, "line 35963: face with 2 vertices"},
-        {35963, "f 1 2 35948\n", MS_ERR_RANGE, "line 35963: vertex index 35948 out of range"},
+        {35963, "f 1 2 34836\n", MS_ERR_RANGE, "line 35963: vertex index 34836 out of range"},
         {35963, "f 1 0 3\n", MS_ERR_RANGE, "line 35963: vertex index 0"},
-        {35963, "f 1 2 -35948\n", MS_ERR_RANGE, "line 35963: vertex index -35948 out of range"},
+        {35963, "f 1 2 -34836\n", MS_ERR_RANGE, "line 35963: vertex index -34836 out of range"},
         {35963, "f 1 2/x 3\n", MS_ERR_FORMAT, "line 35963: bad face corner"},
-        {500, "v 0 nan 0\n", MS_ERR_RANGE, "line 500: vertex 489 has a non-finite"},
+        {500, "v 0 nan 0\n", MS_ERR_RANGE, "line 500: vertex 500 has a non-finite"},
         {500, "v 0 0\n", MS_ERR_FORMAT, "line 500: v statement with 2 values"},
         {500, "v 0 0 zero\n", MS_ERR_FORMAT, "line 500: non-numeric value"},
         {500, "\x01\x02\x03\n", MS_ERR_FORMAT, "line 500: not an OBJ statement"},
@@ -393,10 +393,12 @@ static void test_obj(void **state)
     ms_status st = ms_mesh_load(path, &mesh, NULL, &err);
     assert_int_equal(st, MS_ERR_FORMAT);
     assert_non_null(strstr(err.text, "line 50000: face with"));
-    /* Comments only: no triangles. */
-    expect_failure(write_case(c, path, sizeof path, "obj", o, line_start(o, 12), NULL, 0, o->size + 1),
+    /* A comment only, then vertices only: no triangles. */
+    const char *comment = "# only a comment\n";
+    expect_failure(write_case(c, path, sizeof path, "obj", o, 0, comment, strlen(comment),
+                              o->size + 1),
                    MS_ERR_EMPTY, "no triangles");
-    expect_failure(write_case(c, path, sizeof path, "obj", o, line_start(o, 35960), NULL, 0,
+    expect_failure(write_case(c, path, sizeof path, "obj", o, line_start(o, 34836), NULL, 0,
                               o->size + 1),
                    MS_ERR_EMPTY, "no triangles");
 }

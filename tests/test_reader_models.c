@@ -1,4 +1,4 @@
-/* Every shared model loads with exactly the counts in its README, through
+/* Every test model loads with exactly the counts in tests/data/README.md, through
  * ms_mesh_load, through the streaming reader (chunk and order guarantees), and
  * through `meshbake --info --json`. */
 #include <stdarg.h>
@@ -21,19 +21,17 @@ typedef struct model_case {
     size_t triangles;
 } model_case;
 
-/* From /work/shared/data/models/README.md. */
+/* From tests/data/README.md. */
 static const model_case models[] = {
     {"stanford_bunny_res3.ply.gz", "ply-ascii", 1889, 3851},
     {"stanford_dragon_vrip_res4.ply.gz", "ply-ascii", 5205, 11102},
     {"stanford_dragon_vrip_res3.ply.gz", "ply-ascii", 22998, 47794},
     {"stanford_dragon_vrip_res2.ply.gz", "ply-ascii", 100250, 202520},
     {"stanford_dragon_vrip.ply.gz", "ply-ascii", 437645, 871414},
-    {"stanford_bunny.obj.gz", "obj", 35947, 69451},
-    {"stanford_armadillo_43k.obj.gz", "obj", 43243, 86482},
-    {"nefertiti.obj.gz", "obj", 49971, 99938},
-    {"igea_tristrips.ply.gz", "ply-binary-le", 134345, 268686},
-    {"laurana_bust_color.ply.gz", "ply-binary-le", 25160, 50000},
-    {"gargoyle_color.ply.gz", "ply-binary-le", 25002, 50000},
+    {"glmark2_bunny.obj.gz", "obj", 34835, 69666},
+    {"cgal_armadillo.off.gz", "off", 26002, 52000},
+    {"torus_tristrips.ply.gz", "ply-binary-le", 10240, 20480},
+    {"trefoil_color.ply.gz", "ply-binary-le", 5120, 10240},
     {"snowden_bust_hi.ply.gz", "ply-binary-le", 54559, 109259},
 };
 
@@ -66,13 +64,14 @@ static int compare_u64(const void *a, const void *b)
     return x < y ? -1 : x > y;
 }
 
-/* Igea is a closed surface stored as strips: if the strip unrolling flips every
- * other triangle correctly, each directed edge occurs once and its reverse once. */
-static void test_igea_strips_are_consistently_oriented(void **state)
+/* The torus is a closed surface stored as strips: if the strip unrolling flips
+ * every other triangle correctly, each directed edge occurs once and its reverse
+ * once. */
+static void test_tristrips_are_consistently_oriented(void **state)
 {
     (void)state;
     char path[4096];
-    ms_test_model_path(path, sizeof path, "igea_tristrips.ply.gz");
+    ms_test_model_path(path, sizeof path, "torus_tristrips.ply.gz");
     ms_mesh mesh = {0};
     ms_error err;
     assert_int_equal(ms_mesh_load(path, &mesh, NULL, &err), MS_OK);
@@ -133,8 +132,9 @@ static void test_streaming_chunks_are_bounded_and_ordered(void **state)
 {
     (void)state;
     static const char *const files[] = {"stanford_dragon_vrip_res2.ply.gz",
-                                        "igea_tristrips.ply.gz", "nefertiti.obj.gz"};
-    for (size_t i = 0; i < 3; ++i) {
+                                        "torus_tristrips.ply.gz", "glmark2_bunny.obj.gz",
+                                        "cgal_armadillo.off.gz"};
+    for (size_t i = 0; i < sizeof files / sizeof files[0]; ++i) {
         char path[4096];
         ms_test_model_path(path, sizeof path, files[i]);
         stream_check check = {0, 0, 0};
@@ -243,7 +243,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_every_model_loads_with_readme_counts),
-        cmocka_unit_test(test_igea_strips_are_consistently_oriented),
+        cmocka_unit_test(test_tristrips_are_consistently_oriented),
         cmocka_unit_test(test_streaming_chunks_are_bounded_and_ordered),
         cmocka_unit_test(test_meshbake_info_json),
         cmocka_unit_test(test_meshbake_usage),

@@ -93,7 +93,7 @@ static void open_view(ms_render **r, ms_view **view, ms_camera *cam, ms_view_mes
 {
     ms_test_render_open(archive, r, view);
     const double d[3] = {0.2, 0.3, 1.0};
-    ms_test_render_look(archive, *view, d, WIDTH, HEIGHT, 2.0, cam, mesh);
+    ms_test_render_look(archive, *view, d, WIDTH, HEIGHT, 1.0, cam, mesh);
 }
 
 /* Bad frames, uploads and draws: errors, then a good frame still draws. */
@@ -222,7 +222,7 @@ static void test_learned_records(void **state)
     const double d[3] = {0.2, 0.3, 1.0};
     ms_test_render_camera(h, d, 1.1, 40.0, WIDTH, HEIGHT, &cam);
     ms_view_mesh mesh = {0};
-    ms_test_render_view(view, &cam, 2.0, &mesh);
+    ms_test_render_view(view, &cam, 1.0, &mesh);
     assert_true(mesh.triangle_count > 100);
     /* the drawing cells, ascending, and their records */
     uint32_t *ids = malloc(h->cell_count * sizeof *ids);

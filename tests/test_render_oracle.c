@@ -265,7 +265,10 @@ static void run_model(ms_archive *a, const char *name, const double dirs[][3], s
     ms_view_mesh mesh = {0};
     for (size_t d = 0; d < dir_count; ++d) {
         ms_camera cam;
-        ms_test_render_look(a, view, dirs[d], WIDTH, HEIGHT, 1.0, &cam, &mesh);
+        /* 0.5 px: a kd-cell's whole diagonal within a pixel, the cut these
+         * bounds were measured on (coarser geometry puts more pixels on node
+         * faces, where the shader and the oracle may pick different texels) */
+        ms_test_render_look(a, view, dirs[d], WIDTH, HEIGHT, 0.5, &cam, &mesh);
         uint32_t cells_drawing = 0;
         {
             bool *seen = calloc(h->cell_count, 1);

@@ -254,7 +254,7 @@ static void test_budget_and_same_frame(void **state)
 {
     (void)state;
     ms_view_mesh mesh = {0};
-    ms_test_render_view(fx.view, &fx.camera, 4.0, &mesh);
+    ms_test_render_view(fx.view, &fx.camera, 2.0, &mesh);
     uint32_t cells = drawing_cells(&mesh, fx.cell_count);
     set_frame(&mesh, NULL, 0);
     uint64_t total = 0, calls = 0, completed = 0;
@@ -316,7 +316,7 @@ static void test_refinement_queues_changed_cells(void **state)
 {
     (void)state;
     ms_view_mesh before = {0}, after = {0};
-    ms_test_render_view(fx.view, &fx.camera, 4.0, &before);
+    ms_test_render_view(fx.view, &fx.camera, 2.0, &before);
     set_frame(&before, NULL, 0);
     upload(UINT64_MAX);
     size_t np = (size_t)WIDTH * HEIGHT;
@@ -384,7 +384,7 @@ static void test_leaving_cell_stops_at_once(void **state)
 {
     (void)state;
     ms_view_mesh before = {0}, after = {0};
-    ms_test_render_view(fx.view, &fx.camera, 4.0, &before);
+    ms_test_render_view(fx.view, &fx.camera, 2.0, &before);
     set_frame(&before, NULL, 0);
     upload(UINT64_MAX);
     uint32_t parent = UINT32_MAX;
@@ -436,7 +436,7 @@ static void test_apo_changes(void **state)
 {
     (void)state;
     ms_view_mesh mesh = {0};
-    ms_test_render_view(fx.view, &fx.camera, 4.0, &mesh);
+    ms_test_render_view(fx.view, &fx.camera, 2.0, &mesh);
     set_frame(&mesh, NULL, 0);
     upload(UINT64_MAX);
     ms_core_apo_chunk *two, *all;

@@ -72,6 +72,19 @@ static const bad_case bad_cases[] = {
     {GOOD_MODEL, ", \"room\": {\"size\": [4, 3, 4], \"floor\": {\"displacement\": {\"seed\": 1.5}}}",
      MS_ERR_FORMAT, "scene t.json: room.floor.displacement.seed: expected an integer"},
     {GOOD_MODEL, ", \"camera_path\": 3", MS_ERR_FORMAT, "scene t.json: camera_path: expected a file name"},
+    /* a scene reaches only files inside its folder (issue 32, item 7) */
+    {GOOD_MODEL, ", \"camera_path\": \"/etc/passwd\"", MS_ERR_FORMAT,
+     "scene t.json: camera_path: must name a file inside the scene's folder (no absolute path, "
+     "no '..'; give another path with --path)"},
+    {GOOD_MODEL, ", \"camera_path\": \"../other/walk.cam\"", MS_ERR_FORMAT,
+     "scene t.json: camera_path: must name a file inside the scene's folder (no absolute path, "
+     "no '..'; give another path with --path)"},
+    {GOOD_MODEL, ", \"camera_path\": \"paths/../../walk.cam\"", MS_ERR_FORMAT,
+     "scene t.json: camera_path: must name a file inside the scene's folder (no absolute path, "
+     "no '..'; give another path with --path)"},
+    {GOOD_MODEL, ", \"camera_path\": \"..\"", MS_ERR_FORMAT,
+     "scene t.json: camera_path: must name a file inside the scene's folder (no absolute path, "
+     "no '..'; give another path with --path)"},
     /* ranges */
     {"{\"model\": \"bunny\", \"position\": [0, 1, 0], \"material\": {\"type\": \"glossy\", \"shininess\": 0}}",
      "", MS_ERR_RANGE, "scene t.json: models[0].material.shininess: 0 out of range [1, 1000]"},
@@ -170,6 +183,13 @@ static void test_defaults(void **state)
     assert_int_equal(parse_with(GOOD_MODEL, ", \"camera_path\": \"walk.cam\"", &s, &err), MS_OK);
     assert_string_equal(s.name, "");
     assert_string_equal(s.camera_path, "/scenes/walk.cam");
+    ms_scene_free(&s);
+    /* a sub-folder, and a name that merely starts with dots, stay inside */
+    assert_int_equal(parse_with(GOOD_MODEL, ", \"camera_path\": \"paths/..walk.cam\"", &s, &err),
+                     MS_OK);
+    assert_string_equal(s.camera_path, "/scenes/paths/..walk.cam");
+    ms_scene_free(&s);
+    assert_int_equal(parse_with(GOOD_MODEL, ", \"camera_path\": \"walk.cam\"", &s, &err), MS_OK);
     assert_int_equal(s.model_count, 1);
     assert_int_equal(s.models[0].up_axis, 1);
     assert_near(s.models[0].height, 1.0, 0);

@@ -877,7 +877,7 @@ static void test_meshbake_versions_agree(void **state)
 {
     fixture *f = *state;
     char input[512], bin[512], cmd[8192], out[4096];
-    ms_test_model_path(input, sizeof input, "stanford_bunny.obj.gz");
+    ms_test_model_path(input, sizeof input, "glmark2_bunny.obj.gz");
     ms_test_bin_path(bin, sizeof bin, "meshbake");
     snprintf(cmd, sizeof cmd, "%s %s -o %s --name b3 --threads 2 >/dev/null && "
              "%s %s -o %s --name b2 --archive-version 2 --threads 2 >/dev/null && "

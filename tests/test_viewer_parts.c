@@ -53,12 +53,48 @@ static double dist3(const double a[3], const double b[3])
                 (a[2] - b[2]) * (a[2] - b[2]));
 }
 
+/* The home view frames the whole box: all eight corners project inside the
+ * viewport, in front of the near plane, for a cube, a tall bust, a flat CAD-like
+ * part and a long needle, every up axis and window shapes from portrait to
+ * panoramic (the earlier 1.6 largest sides cropped a cube at 800x600). */
+static void test_home_view_frames_the_box(void **state)
+{
+    (void)state;
+    static const double sizes[][3] = {{1, 1, 1}, {1, 2, 1}, {4, 0.3, 2}, {10, 0.2, 0.2}};
+    static const double aspects[] = {0.5, 1.0, 800.0 / 600.0, 16.0 / 9.0, 2.5};
+    for (size_t s = 0; s < sizeof sizes / sizeof *sizes; ++s)
+        for (int up = 0; up < 3; ++up)
+            for (size_t a = 0; a < sizeof aspects / sizeof *aspects; ++a) {
+                const double lo[3] = {-3, 7, 1};
+                const double hi[3] = {lo[0] + sizes[s][0], lo[1] + sizes[s][1], lo[2] + sizes[s][2]};
+                ms_viewer_controls c;
+                ms_viewer_controls_init(&c, lo, hi, up, aspects[a]);
+                ms_camera cam;
+                ms_error err;
+                double height = 600, width = height * aspects[a];
+                assert_int_equal(ms_viewer_controls_camera(&c, width, height, &cam, &err), MS_OK);
+                double t = tan(cam.fovy / 2), worst = 0;
+                for (int corner = 0; corner < 8; ++corner) {
+                    double p[3], x = 0, y = 0, z = 0;
+                    for (int k = 0; k < 3; ++k) {
+                        p[k] = ((corner >> k) & 1 ? hi[k] : lo[k]) - cam.position[k];
+                        x += p[k] * cam.right[k], y += p[k] * cam.up[k], z += p[k] * cam.forward[k];
+                    }
+                    assert_true(z > cam.near_distance && z < cam.far_distance);
+                    double ndc_x = fabs(x / (z * t * width / height)), ndc_y = fabs(y / (z * t));
+                    worst = fmax(worst, fmax(ndc_x, ndc_y));
+                }
+                assert_true(worst <= 1.0);
+                assert_true(worst > 0.3); /* framed, not a speck */
+            }
+}
+
 static void test_controls(void **state)
 {
     (void)state;
     const double lo[3] = {10, -4, 2}, hi[3] = {12, -2.5, 4};
     ms_viewer_controls c;
-    ms_viewer_controls_init(&c, lo, hi, 1);
+    ms_viewer_controls_init(&c, lo, hi, 1, 1.0);
     assert_near(c.model_size, 2, 1e-12);
     assert_near(c.target[0], 11, 1e-12);
     assert_near(c.target[1], -3.25, 1e-12);
@@ -284,7 +320,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_font_glyphs_distinct), cmocka_unit_test(test_controls),
         cmocka_unit_test(test_hud_lines),            cmocka_unit_test(test_hud_path_and_piece),
-        cmocka_unit_test(test_catalogue_rows),
+        cmocka_unit_test(test_catalogue_rows),       cmocka_unit_test(test_home_view_frames_the_box),
         cmocka_unit_test(test_quantile),
     };
     return cmocka_run_group_tests_name("viewer_parts", tests, NULL, NULL);

@@ -167,7 +167,7 @@ static void test_framing(void **state)
     load_gallery(&g);
     ms_viewer_controls c;
     double lo[3] = {-2, 0, -2}, hi[3] = {2, 4, 2};
-    ms_viewer_controls_init(&c, lo, hi, 1);
+    ms_viewer_controls_init(&c, lo, hi, 1, 1.0);
     double yaw = c.yaw, pitch = c.pitch;
     /* the gargoyle, z-up: 0.35 m tall on its plinth at (2.5, 1.2, -11) */
     assert_string_equal(g.scene.models[8].model, "gargoyle");

@@ -34,7 +34,7 @@ static void new_playback(ms_viewer_playback *p, ms_viewer_controls *c)
     ms_viewer_playback_init(p, &path);
     assert_null(path.keys);
     double lo[3] = {-1, -1, -1}, hi[3] = {1, 1, 1};
-    ms_viewer_controls_init(c, lo, hi, 1);
+    ms_viewer_controls_init(c, lo, hi, 1, 1.0);
 }
 
 /* Puts the controls' eye at eye, looking at target. */
@@ -241,7 +241,7 @@ static void test_without_a_path(void **state)
     ms_camera cam, want;
     ms_error err;
     double lo[3] = {0, 0, 0}, hi[3] = {1, 2, 3};
-    ms_viewer_controls_init(&c, lo, hi, 2);
+    ms_viewer_controls_init(&c, lo, hi, 2, 1.0);
     ms_viewer_playback_init(&p, NULL);
     assert_int_equal(ms_viewer_playback_load(&p, NULL, &err), MS_OK);
     ms_viewer_playback_toggle(&p, &c);

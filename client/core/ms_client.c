@@ -6,6 +6,7 @@
 #include <event2/event.h>
 #include <netinet/in.h>
 #include <netinet/tcp.h>
+#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -13,6 +14,19 @@
 #include <zlib.h>
 
 #define DEFAULT_MAX_FRAME (1u << 20)
+
+/* A request sent and not yet ended by its terminal frame (PROTOCOL.md 5):
+ * what the server may answer. Kept in id order (ids come from one counter). */
+typedef enum { PENDING_CELLS, PENDING_OPEN, PENDING_LIST } pending_kind;
+typedef struct pending {
+    uint32_t id;
+    uint32_t handle, cell;     /* CELLS: the handle, cell (subtree) id asked for */
+    uint32_t start, end;       /* CELLS, BYTES: the range; STEPS: end from the first frame */
+    uint32_t next;             /* the offset the next PAYLOAD must start at, once started */
+    uint8_t kind, stream, unit;
+    bool started;              /* a first PAYLOAD, or OPEN: MODEL_OPENED, came */
+    bool done;                 /* its terminal frame came */
+} pending;
 
 struct ms_client {
     struct bufferevent *bev;
@@ -35,6 +49,8 @@ struct ms_client {
     bool ask_index_subtrees; /* offer CAP_INDEX_SUBTREES in HELLO */
     struct ev_token_bucket_cfg *rate;
     uint64_t bytes_read;
+    pending *pending;          /* outstanding requests, ids ascending (done ones until compacted) */
+    size_t pending_count, pending_cap, pending_done;
 };
 
 static void finish(ms_client *c, const char *why)
@@ -45,6 +61,139 @@ static void finish(ms_client *c, const char *why)
     bufferevent_disable(c->bev, EV_READ | EV_WRITE);
     if (c->handlers->closed)
         c->handlers->closed(c, why, c->arg);
+}
+
+static ms_status send_message(ms_client *c, const ms_proto_message *msg, ms_error *err);
+
+/* A frame from the server broke the protocol: the client can no longer trust
+ * the connection (PROTOCOL.md 9, last paragraph). It says so to the server
+ * (a fatal ERROR, 4.13) and ends the connection with
+ * "protocol violation: WHY"; its owner reconnects. */
+static void violation(ms_client *c, uint16_t code, uint64_t detail, const char *fmt, ...)
+    __attribute__((format(printf, 4, 5)));
+static void violation(ms_client *c, uint16_t code, uint64_t detail, const char *fmt, ...)
+{
+    if (c->over)
+        return;
+    char what[200], why[240];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(what, sizeof what, fmt, ap);
+    va_end(ap);
+    ms_proto_message e = {.type = MS_PROTO_ERROR};
+    e.body.error.code = code;
+    e.body.error.fatal = true;
+    e.body.error.detail = detail;
+    e.body.error.text = what;
+    e.body.error.text_length = (uint16_t)strlen(what);
+    /* best effort, now: the connection is dropped right after, with its
+     * output buffer (which a socket bufferevent lets only its own callbacks
+     * drain). When nothing else is queued, the frame goes to the socket
+     * directly (non-blocking: a full socket loses it); else it is queued. */
+    uint8_t frame[MS_PROTO_HEADER_SIZE + 18 + sizeof what];
+    size_t n;
+    int fd = bufferevent_getfd(c->bev);
+    if (fd >= 0 && evbuffer_get_length(bufferevent_get_output(c->bev)) == 0 &&
+        ms_proto_encode(&e, frame, sizeof frame, &n, NULL) == MS_OK)
+        (void)!send(fd, frame, n, MSG_NOSIGNAL | MSG_DONTWAIT);
+    else
+        send_message(c, &e, NULL);
+    snprintf(why, sizeof why, "protocol violation: %s", what);
+    finish(c, why);
+}
+
+void ms_client_violation(ms_client *c, uint16_t code, uint64_t detail, const char *why)
+{
+    violation(c, code, detail, "%s", why);
+}
+
+static int compare_pending(const void *key, const void *entry)
+{
+    uint32_t a = *(const uint32_t *)key, b = ((const pending *)entry)->id;
+    return a < b ? -1 : a > b;
+}
+
+/* The outstanding request id, or NULL (never sent, or ended). */
+static pending *pending_find(ms_client *c, uint32_t id)
+{
+    pending *p = c->pending_count ? bsearch(&id, c->pending, c->pending_count, sizeof *p,
+                                            compare_pending)
+                                  : NULL;
+    return p && !p->done ? p : NULL;
+}
+
+static pending *pending_add(ms_client *c, uint32_t id)
+{
+    if (c->pending_count == c->pending_cap) {
+        size_t cap = c->pending_cap ? 2 * c->pending_cap : 64;
+        pending *grown = realloc(c->pending, cap * sizeof *grown);
+        if (!grown)
+            return NULL;
+        c->pending = grown, c->pending_cap = cap;
+    }
+    size_t at = c->pending_count; /* ids ascend but for a wrap of the counter */
+    while (at > 0 && c->pending[at - 1].id > id)
+        --at;
+    memmove(c->pending + at + 1, c->pending + at, (c->pending_count - at) * sizeof *c->pending);
+    c->pending_count++;
+    pending *p = &c->pending[at];
+    memset(p, 0, sizeof *p);
+    p->id = id;
+    return p;
+}
+
+static void pending_end(ms_client *c, pending *p)
+{
+    p->done = true;
+    c->pending_done++;
+}
+
+/* Drops the ended requests once they are most of the table (after each
+ * frame, never while a loop walks the table). */
+static void pending_compact(ms_client *c)
+{
+    if (c->pending_done < 64 || c->pending_done * 2 < c->pending_count)
+        return;
+    size_t kept = 0;
+    for (size_t i = 0; i < c->pending_count; ++i)
+        if (!c->pending[i].done)
+            c->pending[kept++] = c->pending[i];
+    c->pending_count = kept;
+    c->pending_done = 0;
+}
+
+/* A PAYLOAD must answer an outstanding cell request, for its cell and stream,
+ * contiguous from its range's start, with the same end (PROTOCOL.md 4.11). */
+static bool payload_acceptable(ms_client *c, uint32_t id, const ms_proto_payload *p, bool last)
+{
+    pending *q = pending_find(c, id);
+    if (!q || q->kind != PENDING_CELLS) {
+        violation(c, MS_PROTO_E_UNEXPECTED_MESSAGE, MS_PROTO_PAYLOAD,
+                  "PAYLOAD for request %u, which is not an outstanding cell request", id);
+        return false;
+    }
+    if (p->cell_id != q->cell || p->stream != q->stream) {
+        violation(c, MS_PROTO_E_FIELD_OUT_OF_RANGE, 0,
+                  "PAYLOAD for request %u names cell %u stream %u; it asked for cell %u stream %u",
+                  id, p->cell_id, p->stream, q->cell, q->stream);
+        return false;
+    }
+    uint32_t want_offset = q->started ? q->next : q->start;
+    bool free_start = !q->started && q->unit == MS_PROTO_UNIT_STEPS &&
+                      q->stream != MS_PROTO_STREAM_INDEX; /* STEPS: the server maps them */
+    bool steps_end = !q->started && q->unit == MS_PROTO_UNIT_STEPS;
+    if ((!free_start && p->offset != want_offset) || (!steps_end && p->end != q->end)) {
+        violation(c, MS_PROTO_E_FIELD_OUT_OF_RANGE, 8,
+                  "PAYLOAD for request %u covers [%u, %u) of %u; expected from %u to %u", id,
+                  p->offset, p->offset + p->data_length, p->end, want_offset, q->end);
+        return false;
+    }
+    q->started = true;
+    q->end = p->end;
+    q->next = p->offset + p->data_length;
+    if (last)
+        pending_end(c, q);
+    return true;
 }
 
 static ms_status send_message(ms_client *c, const ms_proto_message *msg, ms_error *err)
@@ -112,7 +261,8 @@ static void handle_index(ms_client *c, const ms_proto_message *m)
     uint64_t wire_limit = zlib ? (uint64_t)c->opened.index_size - 1 : c->opened.index_size;
     if (m->request_id != c->index_request || !c->index || d->offset != c->index_have ||
         (uint64_t)d->offset + d->data_length > wire_limit) {
-        finish(c, "server sent INDEX_DATA out of order");
+        violation(c, MS_PROTO_E_UNEXPECTED_MESSAGE, MS_PROTO_INDEX_DATA,
+                  "INDEX_DATA for request %u out of order", m->request_id);
         return;
     }
     uint8_t *to = c->index;
@@ -128,6 +278,9 @@ static void handle_index(ms_client *c, const ms_proto_message *m)
     c->index_have += d->data_length;
     if (!(m->flags & MS_PROTO_FLAG_LAST) || !index_complete(c))
         return;
+    pending *q = pending_find(c, m->request_id);
+    if (q)
+        pending_end(c, q);
     uint8_t *index = c->index;
     c->index = NULL;
     c->index_request = 0;
@@ -142,6 +295,7 @@ static void handle_index(ms_client *c, const ms_proto_message *m)
 static bool reply_acceptable(ms_client *c, const ms_proto_hello_reply *r)
 {
     char why[160];
+    uint16_t code = MS_PROTO_E_FIELD_OUT_OF_RANGE;
     uint32_t asked = MS_PROTO_CAP_APO | (c->ask_index_zlib ? MS_PROTO_CAP_INDEX_ZLIB : 0) |
                      (c->ask_index_subtrees ? MS_PROTO_CAP_INDEX_SUBTREES : 0);
     if (r->version < MS_PROTO_MIN_VERSION || r->version > MS_PROTO_VERSION)
@@ -155,7 +309,7 @@ static bool reply_acceptable(ms_client *c, const ms_proto_hello_reply *r)
                  "does not define", (unsigned)r->capabilities, r->version);
     else
         return true;
-    finish(c, why);
+    violation(c, code, 0, "%s", why);
     return false;
 }
 
@@ -173,12 +327,22 @@ static bool handle_message(ms_client *c, const ms_proto_message *m)
     case MS_PROTO_MODEL_OPENED:
         if (ms_proto_check_negotiated(m, c->limits.version, c->limits.capabilities, NULL,
                                       NULL) != MS_OK) {
-            finish(c, m->body.model_opened.index_encoding == MS_PROTO_INDEX_SUBTREES
+            violation(c, MS_PROTO_E_FIELD_OUT_OF_RANGE, 30, "%s",
+                      m->body.model_opened.index_encoding == MS_PROTO_INDEX_SUBTREES
                           ? "server sent an index head without CAP_INDEX_SUBTREES"
                           : "server sent a compressed index without CAP_INDEX_ZLIB");
             break;
         }
-        free(c->index);
+        {
+            pending *q = pending_find(c, m->request_id);
+            if (!q || q->kind != PENDING_OPEN || q->started || c->index) {
+                violation(c, MS_PROTO_E_UNEXPECTED_MESSAGE, MS_PROTO_MODEL_OPENED,
+                          "MODEL_OPENED for request %u, which is no open request awaiting it",
+                          m->request_id);
+                break;
+            }
+            q->started = true;
+        }
         free(c->index_zlib);
         c->index_zlib = NULL;
         c->opened = m->body.model_opened;
@@ -190,6 +354,8 @@ static bool handle_message(ms_client *c, const ms_proto_message *m)
         break;
     case MS_PROTO_INDEX_DATA: handle_index(c, m); break;
     case MS_PROTO_PAYLOAD:
+        if (!payload_acceptable(c, m->request_id, &m->body.payload, m->flags & MS_PROTO_FLAG_LAST))
+            break;
         if (c->handlers->payload)
             c->handlers->payload(c, m->request_id, &m->body.payload, m->flags & MS_PROTO_FLAG_LAST,
                                  c->arg);
@@ -201,7 +367,20 @@ static bool handle_message(ms_client *c, const ms_proto_message *m)
                      ms_proto_error_name(m->body.error.code), (int)m->body.error.text_length,
                      m->body.error.text);
             finish(c, why);
-        } else if (c->handlers->request_error) {
+        } else {
+            const ms_proto_error_body *e = &m->body.error;
+            for (uint64_t id = m->request_id; id < (uint64_t)m->request_id + e->request_count; ++id) {
+                pending *q = pending_find(c, (uint32_t)id);
+                if (q)
+                    pending_end(c, q);
+            }
+            if (e->request_count == 0 && e->code == MS_PROTO_E_MODEL_CHANGED)
+                for (size_t i = 0; i < c->pending_count; ++i) /* the handle's requests ended */
+                    if (!c->pending[i].done && c->pending[i].kind == PENDING_CELLS &&
+                        c->pending[i].handle == e->detail)
+                        pending_end(c, &c->pending[i]);
+        }
+        if (!m->body.error.fatal && c->handlers->request_error) {
             c->handlers->request_error(c, m->request_id, m->body.error.request_count,
                                        &m->body.error, c->arg);
         }
@@ -216,13 +395,23 @@ static bool handle_message(ms_client *c, const ms_proto_message *m)
         if (c->handlers->pong)
             c->handlers->pong(c, m->body.ping.opaque, c->arg);
         break;
-    case MS_PROTO_CATALOGUE:
+    case MS_PROTO_CATALOGUE: {
+        pending *q = pending_find(c, m->request_id);
+        if (!q || q->kind != PENDING_LIST) {
+            violation(c, MS_PROTO_E_UNEXPECTED_MESSAGE, MS_PROTO_CATALOGUE,
+                      "CATALOGUE for request %u, which is no catalogue request", m->request_id);
+            break;
+        }
+        if (m->flags & MS_PROTO_FLAG_LAST)
+            pending_end(c, q);
         if (c->handlers->catalogue)
             c->handlers->catalogue(c, m->request_id, &m->body.catalogue,
                                    m->flags & MS_PROTO_FLAG_LAST, c->arg);
         break;
+    }
     default: break;
     }
+    pending_compact(c);
     return !c->over;
 }
 
@@ -341,6 +530,7 @@ void ms_client_free(ms_client *c)
     ms_proto_decoder_free(c->decoder);
     free(c->index);
     free(c->index_zlib);
+    free(c->pending);
     free(c);
 }
 
@@ -349,7 +539,13 @@ static ms_status list_catalogue(ms_client *c, uint32_t *request_id, ms_error *er
 {
     ms_proto_message m = {.type = MS_PROTO_LIST_CATALOGUE, .request_id = take_ids(c, 1)};
     *request_id = m.request_id;
-    return send_message(c, &m, err);
+    ms_status st = send_message(c, &m, err);
+    pending *p = st == MS_OK ? pending_add(c, m.request_id) : NULL;
+    if (st == MS_OK && !p)
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory for a request");
+    if (p)
+        p->kind = PENDING_LIST;
+    return st;
 }
 
 ms_status ms_client_open_model(ms_client *c, const char *name, uint32_t *request_id, ms_error *err)
@@ -361,7 +557,13 @@ ms_status ms_client_open_model(ms_client *c, const char *name, uint32_t *request
     m.body.open_model.name = name;
     m.body.open_model.name_length = (uint8_t)n;
     *request_id = m.request_id;
-    return send_message(c, &m, err);
+    ms_status st = send_message(c, &m, err);
+    pending *p = st == MS_OK ? pending_add(c, m.request_id) : NULL;
+    if (st == MS_OK && !p)
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory for a request");
+    if (p)
+        p->kind = PENDING_OPEN;
+    return st;
 }
 
 ms_status ms_client_close_model(ms_client *c, uint32_t handle, ms_error *err)
@@ -381,7 +583,17 @@ ms_status ms_client_request_cells(ms_client *c, uint32_t handle, const ms_proto_
     m.body.request_cells.entries = e;
     m.body.request_cells.count = count;
     *first_id = m.request_id;
-    return send_message(c, &m, err);
+    ms_status st = send_message(c, &m, err);
+    for (uint16_t i = 0; st == MS_OK && i < count; ++i) {
+        pending *p = pending_add(c, m.request_id + i);
+        if (!p)
+            return ms_error_set(err, MS_ERR_NOMEM, "out of memory for a request");
+        p->kind = PENDING_CELLS;
+        p->handle = handle, p->cell = e[i].cell_id, p->stream = e[i].stream, p->unit = e[i].unit;
+        if (e[i].unit == MS_PROTO_UNIT_BYTES)
+            p->start = e[i].a, p->end = e[i].a + e[i].b;
+    }
+    return st;
 }
 
 ms_status ms_client_cancel(ms_client *c, const ms_proto_id_range *ranges, uint16_t count,

@@ -79,6 +79,15 @@ ms_status ms_client_open_model(ms_client *client, const char *name, uint32_t *re
 uint32_t ms_client_index_wire_bytes(const ms_client *client);
 /* CLOSE_MODEL (PROTOCOL.md 4.9): the server ends every request outstanding on
  * the handle with ERROR CANCELLED; no other answer. */
+/* The caller found a frame that breaks the protocol (a MODEL_OPENED whose
+ * index contradicts it, say): sends the server a fatal ERROR code (detail)
+ * with why, and ends the connection; `closed` then says
+ * "protocol violation: WHY". The client itself ends a connection so on a
+ * PAYLOAD, MODEL_OPENED, INDEX_DATA or CATALOGUE for a request that is not
+ * outstanding (never sent, or ended: after LAST), or a PAYLOAD for another
+ * cell or stream than its request's, or not contiguous from the request's
+ * range. */
+void ms_client_violation(ms_client *client, uint16_t code, uint64_t detail, const char *why);
 ms_status ms_client_close_model(ms_client *client, uint32_t model_handle, ms_error *err);
 ms_status ms_client_request_cells(ms_client *client, uint32_t model_handle,
                                   const ms_proto_cell_request *entries, uint16_t count,

@@ -290,11 +290,13 @@ typedef struct ms_core_opening {
 } ms_core_opening;
 
 /* Waits at most timeout_s seconds (> 0) for the model to open and its content
- * bounds to be known, and copies what its index said and the bounds (needs
- * export_frames; the core keeps them from the first open). MS_ERR_IO with the
+ * bounds to be known, and copies what its index said and the bounds (the
+ * core keeps them from the first open). Without export_frames (meshload) only
+ * the header, by_subtree and the bounds: count 0, no records (a whole index
+ * would be copied for nothing). MS_ERR_IO with the
  * core's error when it stopped first, or "no answer in time" when the index
  * did not come; the index without the bounds in time is MS_OK with
- * content_known false. MS_ERR_ARG without export_frames; MS_ERR_NOMEM. Free
+ * content_known false. MS_ERR_ARG without a time-out; MS_ERR_NOMEM. Free
  * with ms_core_opening_free (safe on a zeroed value). Call from the caller's
  * thread; it does not disturb the others. */
 ms_status ms_core_wait_open(ms_core *core, double timeout_s, ms_core_opening *opening, ms_error *err);

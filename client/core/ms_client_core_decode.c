@@ -366,6 +366,7 @@ static void dec_step(ms_core *c, chunk_msg *chunks, const ms_camera *cam, uint64
     dec_pass pass;
     dec_pass_begin(c, for_content ? &content_camera : cam, &pass);
     pass.apo_on &= !for_content; /* the root's geometry alone */
+    pass.for_content = for_content;
     pass.changed = apo_changed;
     if (!dec_select(c, &pass) || !ms_core_budget_ceiling(c, &pass))
         return;

@@ -151,7 +151,16 @@ static void publish_locked(ms_core *c, dec_pass *pass, uint64_t serial, ms_core_
 void ms_core_publish(ms_core *c, dec_pass *pass, uint64_t serial, double t_start)
 {
     double t_now = ms_core_since_start(c);
-    bool first_display = !c->first_display_seen && pass->changed && something_drawn(c, &pass->fv);
+    /* only the caller's camera displays: the content bounds' camera of the
+     * passes before it sees the whole model (a path that never looks at the
+     * model must not count as displayed) */
+    bool look = !c->first_display_seen && !pass->for_content &&
+                (pass->changed || !c->display_checked || c->display_checked_serial != serial);
+    if (look) {
+        c->display_checked = true;
+        c->display_checked_serial = serial;
+    }
+    bool first_display = look && something_drawn(c, &pass->fv);
     ms_core_frame *frame = NULL;
     if (c->o.export_frames && (pass->changed || c->generation == 0)) {
         ms_error err;
@@ -215,11 +224,17 @@ void ms_core_frame_free(ms_core_frame *f)
 
 void ms_core_keep_opening(ms_core *c, const ms_archive *index, bool by_subtree)
 {
-    if (!c->o.export_frames || c->have_opening)
+    if (c->have_opening)
         return;
     ms_core_opening *o = &c->opening;
     o->header = *ms_archive_get_header(index);
     o->by_subtree = by_subtree;
+    if (!c->o.export_frames) { /* the header and the bounds only (meshload): no copy of records */
+        pthread_mutex_lock(&c->lock);
+        c->have_opening = true;
+        pthread_mutex_unlock(&c->lock);
+        return;
+    }
     size_t known = 0;
     for (uint32_t i = 0; i < o->header.cell_count; ++i)
         known += ms_archive_get_cell(index, i) != NULL;
@@ -253,8 +268,8 @@ void ms_core_opening_free(ms_core_opening *o)
 ms_status ms_core_wait_open(ms_core *c, double timeout_s, ms_core_opening *out, ms_error *err)
 {
     memset(out, 0, sizeof *out);
-    if (!c || !c->o.export_frames || !(timeout_s > 0))
-        return ms_error_set(err, MS_ERR_ARG, "waiting for a model needs export_frames and a time-out");
+    if (!c || !(timeout_s > 0))
+        return ms_error_set(err, MS_ERR_ARG, "waiting for a model needs a time-out");
     double until = ms_now_seconds() + timeout_s;
     char why[256] = "";
     bool have = false;
@@ -278,17 +293,22 @@ ms_status ms_core_wait_open(ms_core *c, double timeout_s, ms_core_opening *out, 
         return ms_error_set(err, MS_ERR_IO, "%s", why[0] ? why : "no model index in time");
     /* set once before have_opening, never changed after: read without the lock */
     const ms_core_opening *o = &c->opening;
-    if (!o->ids)
+    if (!c->o.export_frames) {
+        out->header = o->header;
+        out->by_subtree = o->by_subtree;
+    } else if (!o->ids) {
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory for the model's index");
-    *out = *o;
-    out->ids = malloc((o->count ? o->count : 1) * sizeof *out->ids);
-    out->records = malloc((o->count ? o->count : 1) * sizeof *out->records);
-    if (!out->ids || !out->records) {
-        ms_core_opening_free(out);
-        return ms_error_set(err, MS_ERR_NOMEM, "out of memory for the model's index");
+    } else {
+        *out = *o;
+        out->ids = malloc((o->count ? o->count : 1) * sizeof *out->ids);
+        out->records = malloc((o->count ? o->count : 1) * sizeof *out->records);
+        if (!out->ids || !out->records) {
+            ms_core_opening_free(out);
+            return ms_error_set(err, MS_ERR_NOMEM, "out of memory for the model's index");
+        }
+        memcpy(out->ids, o->ids, o->count * sizeof *out->ids);
+        memcpy(out->records, o->records, o->count * sizeof *out->records);
     }
-    memcpy(out->ids, o->ids, o->count * sizeof *out->ids);
-    memcpy(out->records, o->records, o->count * sizeof *out->records);
     out->content_known = content == CONTENT_KNOWN;
     if (out->content_known) {
         memcpy(out->content_lo, lo, sizeof lo);

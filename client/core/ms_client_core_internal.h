@@ -150,6 +150,7 @@ typedef struct link_member {
     bool ready;                 /* its model is open on this connection */
     bool opened_once;           /* its model opened once: content_id, by_subtree hold */
     uint64_t content_id;
+    uint32_t cell_count;        /* the model's, from its index */
     bool by_subtree;            /* it opened with its index head */
     double down_since;          /* its model not open since (link time), < 0 open */
     want *wants;                /* a copy of its decode thread's wants */
@@ -261,6 +262,10 @@ struct ms_core {
     uint64_t generation;
     uint64_t consumed_seq;
     bool first_display_seen;
+    /* the caller's camera serial last looked at for a first display (a pass
+     * that changes nothing still counts once for a new camera) */
+    uint64_t display_checked_serial;
+    bool display_checked;
     ms_pool *pool;          /* decode helpers */
     refine_job *jobs;
     size_t job_cap;
@@ -290,6 +295,7 @@ typedef struct dec_pass {
     double worst;             /* the largest screen error of a visible shown cell, px */
     uint32_t shown, split, cached, loading, failed;
     bool complete;
+    bool for_content;         /* served the content bounds' camera, not the caller's */
     uint64_t memory;          /* the budget's measure after this pass's evictions */
 } dec_pass;
 

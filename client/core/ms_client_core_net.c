@@ -169,8 +169,18 @@ static bool first_open(ms_core_link *l, unsigned i, const ms_proto_model_opened 
                     err.text);
         return false;
     }
+    uint32_t cells = ms_archive_get_header(a)->cell_count;
+    if (o->cell_count != cells) { /* the server contradicts itself: reconnect */
+        ms_archive_close(a);
+        char why[160];
+        snprintf(why, sizeof why, "MODEL_OPENED says %u cells, its index %u", o->cell_count,
+                 cells);
+        ms_client_violation(l->client, MS_PROTO_E_FIELD_OUT_OF_RANGE, 4, why);
+        return false;
+    }
     m->opened_once = true;
     m->content_id = o->content_id;
+    m->cell_count = cells;
     m->by_subtree = head;
     ms_core_keep_opening(c, a, head);
     pthread_mutex_lock(&c->lock);
@@ -192,6 +202,13 @@ static bool same_model(ms_core_link *l, unsigned i, const ms_proto_model_opened 
         /* what the decode thread holds is of the other kind */
         member_fail(l, i, "%.240s", head ? "the server now sends the index by subtree"
                                          : "the server no longer sends the index by subtree");
+        return false;
+    }
+    if (o->content_id == m->content_id && o->cell_count != m->cell_count) {
+        char why[160];
+        snprintf(why, sizeof why, "MODEL_OPENED says %u cells, the model's index %u",
+                 o->cell_count, m->cell_count);
+        ms_client_violation(l->client, MS_PROTO_E_FIELD_OUT_OF_RANGE, 4, why);
         return false;
     }
     if (o->content_id != m->content_id) {

@@ -47,9 +47,7 @@ static double cell_error_px(const ms_core *c, const frame_view *fv, uint32_t cel
     /* nothing nearer than the near plane is drawn */
     if (d < fv->cam.near_distance)
         d = fv->cam.near_distance;
-    double side = h->box_side / ldexp(1.0, (int)bits);
-    double px = sqrt(3.0) * side * ms_camera_pixels_per_unit(&fv->cam);
-    return px / d;
+    return ms_screen_error_px(&fv->cam, h->box_side, bits, d);
 }
 
 uint8_t ms_core_clamp_priority(double p)

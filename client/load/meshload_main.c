@@ -35,6 +35,7 @@
 #include "ms_client_core.h"
 #include "ms_http_get.h"
 #include "ms_load_options.h"
+#include "ms_version.h"
 
 extern char **environ;
 
@@ -70,6 +71,7 @@ typedef struct client_result {
     double download_seconds, decode_draco_seconds;
     uint64_t draco_bytes;
     char error[256];
+    char warning[256]; /* the core's last warning: why a phase did not complete */
 } client_result;
 
 typedef struct run {
@@ -112,10 +114,45 @@ static ms_core_options core_options(const ms_load_options *o)
     return co;
 }
 
-static bool camera_at(const run *r, double t, ms_camera *cam)
+/* The model's box: the content bounds the core works out at open
+ * (ms_core_wait_open), else the index's cube. */
+typedef struct model_box {
+    double lo[3], hi[3];
+} model_box;
+
+/* The path's camera at t, its near and far planes framing the model's box
+ * from the eye (ms_camera_path_sample_framing, as meshview's), so that a
+ * model in micrometres or kilometres is in view as one in metres. */
+static bool camera_at(const run *r, double t, const model_box *box, ms_camera *cam)
 {
-    return ms_camera_path_sample(&r->path, t, r->o->width, r->o->height, 1e-4, 1e4, cam, NULL) ==
-           MS_OK;
+    return ms_camera_path_sample_framing(&r->path, t, r->o->width, r->o->height, box->lo, box->hi,
+                                         cam, NULL) == MS_OK;
+}
+
+/* Waits until `until` at most for the model to open and fills *box; false
+ * with res->error set when the model did not open. */
+static bool model_box_of(ms_core *core, double until, model_box *box, client_result *res)
+{
+    double left = until - ms_now_seconds();
+    ms_core_opening opening;
+    ms_error err;
+    if (ms_core_wait_open(core, left > 0.01 ? left : 0.01, &opening, &err) != MS_OK) {
+        ms_core_stats st;
+        ms_core_get_stats(core, &st); /* why it did not open: the last warning */
+        if (st.error[0] || !st.warning[0])
+            snprintf(res->error, sizeof res->error, "%.250s", err.text);
+        else
+            snprintf(res->error, sizeof res->error, "the model did not open in time (%.200s)",
+                     st.warning);
+        return false;
+    }
+    for (int a = 0; a < 3; ++a) {
+        box->lo[a] = opening.content_known ? opening.content_lo[a] : opening.header.box_origin[a];
+        box->hi[a] = opening.content_known ? opening.content_hi[a]
+                                           : opening.header.box_origin[a] + opening.header.box_side;
+    }
+    ms_core_opening_free(&opening);
+    return true;
 }
 
 /* Waits until the core's view is complete for its latest camera, or until
@@ -174,12 +211,17 @@ static void cold_phase(worker *w)
     ms_core *core = start_core(r, res);
     if (!core)
         return;
-    ms_camera cam;
-    camera_at(r, ms_camera_path_duration(&r->path), &cam);
-    ms_core_set_camera(core, &cam);
     double until = ms_now_seconds() + r->o->keyframe_timeout;
     if (until > r->deadline)
         until = r->deadline;
+    model_box box;
+    if (!model_box_of(core, until, &box, res)) {
+        ms_core_stop(core);
+        return;
+    }
+    ms_camera cam;
+    camera_at(r, ms_camera_path_duration(&r->path), &box, &cam);
+    ms_core_set_camera(core, &cam);
     ms_core_stats st;
     res->cold_complete = wait_complete(core, until, &st, &res->cold_last_byte);
     for (int again = 0; !res->cold_complete && st.model_changed && again < MAX_MODEL_CHANGES;
@@ -198,8 +240,13 @@ static void cold_phase(worker *w)
     res->peak_index_bytes_held = st.peak_index_bytes_held;
     res->state_bytes_held = st.state_bytes_held;
     res->state_cells = st.state_cells;
+    snprintf(res->warning, sizeof res->warning, "%.250s", st.warning);
     if (st.error[0])
         snprintf(res->error, sizeof res->error, "%.250s", st.error);
+    else if (res->cold_complete && st.first_display < 0)
+        snprintf(res->error, sizeof res->error,
+                 "nothing of the model is in view at the path's last keyframe (t=%g s)",
+                 ms_camera_path_duration(&r->path));
     ms_core_stop(core);
 }
 
@@ -210,6 +257,12 @@ static void path_phase(worker *w)
     ms_core *core = start_core(r, res);
     if (!core)
         return;
+    double open_until = ms_now_seconds() + r->o->keyframe_timeout;
+    model_box box;
+    if (!model_box_of(core, open_until < r->deadline ? open_until : r->deadline, &box, res)) {
+        ms_core_stop(core);
+        return;
+    }
     double started = ms_now_seconds();
     double clock = 0, last = started;
     size_t next_key = 0;
@@ -223,7 +276,7 @@ static void path_phase(worker *w)
         if (clock >= key_time) {
             clock = key_time;
             ms_camera cam;
-            camera_at(r, clock, &cam);
+            camera_at(r, clock, &box, &cam);
             ms_core_set_camera(core, &cam);
             key_result *k = &res->keys[next_key];
             k->arrive = t - started;
@@ -247,7 +300,7 @@ static void path_phase(worker *w)
             continue;
         }
         ms_camera cam;
-        camera_at(r, clock, &cam);
+        camera_at(r, clock, &box, &cam);
         ms_core_set_camera(core, &cam);
         sleep_s(0.02);
     }
@@ -262,11 +315,18 @@ static void path_phase(worker *w)
     res->decode_seconds = st.decode_seconds;
     res->p50 = st.latency_p50, res->p99 = st.latency_p99;
     res->peak_memory = st.peak_memory;
+    snprintf(res->warning, sizeof res->warning, "%.250s", st.warning);
+    bool all_complete = res->key_count == r->path.count;
+    for (size_t k = 0; k < res->key_count; ++k)
+        all_complete = all_complete && res->keys[k].complete;
     if (st.error[0] && !res->error[0])
         snprintf(res->error, sizeof res->error, "%.250s", st.error);
     else if (st.warning[0] && !res->error[0] &&
              (st.cells_failed || (!st.view_complete && strncmp(st.warning, "memory budget", 13) == 0)))
         snprintf(res->error, sizeof res->error, "%.250s", st.warning); /* why it did not complete */
+    else if (!res->error[0] && all_complete && st.first_display < 0)
+        snprintf(res->error, sizeof res->error,
+                 "nothing of the model was in view at any keyframe of the path");
     ms_core_stop(core);
 }
 
@@ -333,6 +393,32 @@ static void baseline_client(worker *w)
     unlink(ply);
 }
 
+/* Every failed client says why in one line: the phase that did not complete
+ * and the core's last warning (a lost connection, a protocol violation, a
+ * subtree given up), when the core itself reported no error. */
+static void explain_failure(const run *r, client_result *res)
+{
+    if (res->error[0] || r->o->baseline)
+        return;
+    const char *why = res->warning[0] ? res->warning : "no warning from the client";
+    if (!r->o->skip_cold && !res->cold_complete) {
+        snprintf(res->error, sizeof res->error,
+                 "the view at the path's last keyframe did not complete in time (%.150s)", why);
+        return;
+    }
+    for (size_t k = 0; k < res->key_count; ++k)
+        if (!res->keys[k].complete) {
+            snprintf(res->error, sizeof res->error,
+                     "keyframe %zu did not complete within %g s (%.150s)", k,
+                     r->o->keyframe_timeout, why);
+            return;
+        }
+    if (res->key_count < r->path.count)
+        snprintf(res->error, sizeof res->error,
+                 "the run ended (--duration) at keyframe %zu of %zu (%.150s)", res->key_count,
+                 r->path.count, why);
+}
+
 static void *worker_main(void *arg)
 {
     worker *w = arg;
@@ -348,6 +434,7 @@ static void *worker_main(void *arg)
         cold_phase(w);
     if (!w->result.error[0])
         path_phase(w);
+    explain_failure(w->r, &w->result);
     return NULL;
 }
 
@@ -570,6 +657,8 @@ static void print_report(const ms_load_options *o, const run *r, worker *ws)
 
 int main(int argc, char **argv)
 {
+    if (ms_version_asked(argc, argv))
+        return ms_version_print("meshload");
     ms_load_options o;
     int rc = ms_load_options_parse(argc, argv, &o);
     if (rc)

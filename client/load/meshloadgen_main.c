@@ -25,6 +25,7 @@
 #include "ms_payload_assembly.h"
 #include "ms_progress.h"
 #include "ms_proto.h"
+#include "ms_version.h"
 
 #define MAX_WINDOW 64
 #define GRACE_SECONDS 3.0
@@ -454,6 +455,9 @@ static bool http_send(vclient *v, slot *s)
     struct evhttp_connection **conn = &v->http_connections[s - v->slots];
     if (!*conn && !(*conn = evhttp_connection_base_new(v->lg->base, NULL, o->host, o->port)))
         return false;
+    /* the body is bounded by the range asked for: a server announcing more
+     * fails the request (EVREQ_HTTP_DATA_TOO_LONG) before it is read */
+    evhttp_connection_set_max_body_size(*conn, (ev_ssize_t)(s->end - s->start));
     struct evhttp_request *req = evhttp_request_new(http_done, s);
     if (!req)
         return false;
@@ -600,6 +604,7 @@ static void usage(FILE *out)
             "  --label TEXT         copied into the JSON output\n"
             "  --json               print one JSON object\n"
             "  -h, --help           show this help\n"
+            "      --version        show the version\n"
             "Exit status 0 when every request was answered without error, 1 otherwise.\n");
 }
 
@@ -679,6 +684,8 @@ static ms_archive *load_index(const char *path, const char *name)
 
 int main(int argc, char **argv)
 {
+    if (ms_version_asked(argc, argv))
+        return ms_version_print("meshloadgen");
     loadgen lg;
     memset(&lg, 0, sizeof lg);
     if (parse_options(argc, argv, &lg.o) != 0) {

@@ -15,7 +15,14 @@ typedef struct get_state {
     struct evbuffer *body;
     int status;
     bool answered;
+    int failure; /* the evhttp_request_error of a failed exchange, -1 none */
 } get_state;
+
+static void on_error(enum evhttp_request_error error, void *arg)
+{
+    get_state *g = arg;
+    g->failure = (int)error;
+}
 
 static void on_done(struct evhttp_request *req, void *arg)
 {
@@ -46,7 +53,8 @@ ms_status ms_http_get(const ms_http_get_options *o, struct evbuffer *body, int *
     struct in_addr probe;
     if (evutil_inet_pton(AF_INET, o->host, &probe) != 1)
         return ms_error_set(err, MS_ERR_ARG, "'%s' is not a numeric IPv4 address", o->host);
-    get_state g = {NULL, body, 0, false};
+    get_state g = {NULL, body, 0, false, -1};
+    uint64_t max_body = o->max_body ? o->max_body : MS_HTTP_GET_MAX_BODY;
     struct ev_token_bucket_cfg *cfg = NULL;
     struct evhttp_connection *conn = NULL;
     struct evhttp_request *req = NULL;
@@ -61,10 +69,15 @@ ms_status ms_http_get(const ms_http_get_options *o, struct evbuffer *body, int *
                           o->port);
         goto out;
     }
+    /* libevent refuses a Content-Length above it before reading the body,
+     * and a chunked body as it grows past it (EVREQ_HTTP_DATA_TOO_LONG) */
+    evhttp_connection_set_max_body_size(
+        conn, max_body > (uint64_t)EV_SSIZE_MAX ? EV_SSIZE_MAX : (ev_ssize_t)max_body);
     if (!(req = evhttp_request_new(on_done, &g))) {
         st = ms_error_set(err, MS_ERR_NOMEM, "out of memory for an HTTP request");
         goto out;
     }
+    evhttp_request_set_error_cb(req, on_error);
     struct evkeyvalq *headers = evhttp_request_get_output_headers(req);
     evhttp_add_header(headers, "Host", o->host);
     evhttp_add_header(headers, "Connection", "close");
@@ -81,7 +94,11 @@ ms_status ms_http_get(const ms_http_get_options *o, struct evbuffer *body, int *
                             (suseconds_t)((o->timeout_s - (double)(time_t)o->timeout_s) * 1e6)};
     event_base_loopexit(base, &limit);
     event_base_dispatch(base);
-    if (!g.answered)
+    if (!g.answered && g.failure == EVREQ_HTTP_DATA_TOO_LONG)
+        st = ms_error_set(err, MS_ERR_RANGE,
+                          "%s:%u: the answer's body is larger than the %llu-byte maximum", o->host,
+                          o->port, (unsigned long long)max_body);
+    else if (!g.answered)
         st = ms_error_set(err, MS_ERR_IO, "download from %s:%u failed", o->host, o->port);
     *status = g.status;
 out:

@@ -52,6 +52,7 @@ void ms_load_usage(FILE *out)
             "  --draco-decoder PATH   (default draco_decoder)\n"
             "  --json                 one JSON object on stdout\n"
             "  -h, --help             this help\n"
+            "      --version          the version\n"
             "Exit status: 0 when every client completed its views, 1 otherwise, 2 for a usage "
             "error.\n",
             MAX_CLIENTS);

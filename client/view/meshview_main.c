@@ -35,6 +35,7 @@
 #include "ms_viewer_signals.h"
 #include "ms_viewer_stream.h"
 #include "ms_viewer_text.h"
+#include "ms_version.h"
 
 #define DOUBLE_CLICK_S 0.35
 #define DOUBLE_CLICK_PX 4.0
@@ -173,7 +174,10 @@ static bool open_model(viewer *v, const char *name)
     }
     double lo[3], hi[3];
     ms_viewer_model_bounds(&v->model, lo, hi);
-    ms_viewer_controls_init(&v->controls, lo, hi, v->o->up_axis);
+    int fw, fh;
+    glfwGetFramebufferSize(v->window, &fw, &fh);
+    ms_viewer_controls_init(&v->controls, lo, hi, v->o->up_axis,
+                            fw > 0 && fh > 0 ? (double)fw / fh : (double)v->o->width / v->o->height);
     ms_viewer_playback_stop(&v->playback);
     v->on_catalogue = false;
     v->message[0] = 0;
@@ -462,6 +466,7 @@ static bool framebuffer_size(viewer *v, int *fw, int *fh)
 static int view_frame(viewer *v, int fw, int fh, double seconds)
 {
     ms_error err;
+    v->controls.aspect = (double)fw / fh; /* the home view (R) frames this shape */
     fly_keys(v, seconds);
     ms_camera camera;
     if (ms_viewer_playback_frame_camera(&v->playback, &v->controls, fw, fh, seconds, &camera, &err) != MS_OK)
@@ -583,7 +588,7 @@ static int interactive_scene(viewer *v)
         double mid = 0.5 * (lo[a] + hi[a]), half = (hi[a] - lo[a]) / 12.0;
         lo[a] = mid - half, hi[a] = mid + half;
     }
-    ms_viewer_controls_init(&v->controls, lo, hi, 1);
+    ms_viewer_controls_init(&v->controls, lo, hi, 1, (double)v->o->width / v->o->height);
     glfwSetWindowUserPointer(v->window, v);
     glfwSetKeyCallback(v->window, on_key);
     glfwSetMouseButtonCallback(v->window, on_mouse_button);
@@ -740,6 +745,8 @@ static int scripted(viewer *v)
 
 int main(int argc, char **argv)
 {
+    if (ms_version_asked(argc, argv))
+        return ms_version_print("meshview");
     ms_viewer_signals_block(); /* before the core's threads exist */
     ms_viewer_options o;
     int rc = ms_viewer_options_parse(argc, argv, &o, stderr);

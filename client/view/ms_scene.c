@@ -10,6 +10,7 @@
 #include <string.h>
 
 #include "ms_scene.h"
+#include "ms_input_file.h"
 
 /* Where the parser is: the label for errors and the element's path. */
 typedef struct cursor {
@@ -453,6 +454,24 @@ static ms_status copy_string(char **out, const char *s, const cursor *top, ms_er
     return *out ? MS_OK : ms_error_set(err, MS_ERR_NOMEM, "scene %s: no memory", top->label);
 }
 
+/* Whether a scene-relative file name stays inside the scene's folder: not
+ * absolute and no ".." component (a scene is a document that may come from
+ * anywhere; what it names beside it is all it may reach, so a shared scene
+ * cannot make meshview read /etc/... or a neighbour's files). */
+static bool inside_folder(const char *p)
+{
+    if (p[0] == '/')
+        return false;
+    for (const char *part = p; *part;) {
+        size_t n = strcspn(part, "/");
+        if (n == 2 && part[0] == '.' && part[1] == '.')
+            return false;
+        part += n;
+        part += *part == '/';
+    }
+    return true;
+}
+
 static ms_status parse_root(const json_t *root, const cursor *top, const char *base_dir, ms_scene *s,
                             ms_error *err)
 {
@@ -548,7 +567,11 @@ static ms_status parse_root(const json_t *root, const cursor *top, const char *b
         if (!json_is_string(path) || !json_string_value(path)[0])
             return fail(err, MS_ERR_FORMAT, &c, "expected a file name");
         const char *p = json_string_value(path);
-        if (p[0] == '/' || !base_dir || !base_dir[0])
+        if (!inside_folder(p))
+            return fail(err, MS_ERR_FORMAT, &c,
+                        "must name a file inside the scene's folder (no absolute path, no "
+                        "'..'; give another path with --path)");
+        if (!base_dir || !base_dir[0])
             return copy_string(&s->camera_path, p, top, err);
         size_t len = strlen(base_dir) + 1 + strlen(p) + 1;
         s->camera_path = malloc(len);
@@ -587,9 +610,10 @@ ms_status ms_scene_load(const char *path, ms_scene *scene, ms_error *err)
     if (!scene || !path)
         return ms_error_set(err, MS_ERR_ARG, "scene: no file or result");
     memset(scene, 0, sizeof *scene);
-    FILE *f = fopen(path, "rb");
-    if (!f)
-        return ms_error_set(err, MS_ERR_IO, "scene %s: cannot open: %s", path, strerror(errno));
+    FILE *f;
+    ms_error why;
+    if (ms_input_fopen(path, &f, &why) != MS_OK)
+        return ms_error_set(err, why.code, "scene %s", why.text);
     char *text = malloc(MS_SCENE_MAX_BYTES + 1);
     size_t size = text ? fread(text, 1, MS_SCENE_MAX_BYTES + 1, f) : 0;
     int read_error = ferror(f);

@@ -58,16 +58,23 @@ static void look_along(ms_viewer_controls *c, const double direction[3])
 void ms_viewer_controls_reset(ms_viewer_controls *c)
 {
     memcpy(c->target, c->home_target, sizeof c->target);
-    c->distance = 1.6 * c->model_size;
     c->yaw = c->home_yaw;
     c->pitch = -0.3;
     c->fovy_degrees = 40;
+    double diagonal = 0;
+    for (int k = 0; k < 3; ++k)
+        diagonal += (c->home_hi[k] - c->home_lo[k]) * (c->home_hi[k] - c->home_lo[k]);
+    double radius = 0.5 * sqrt(diagonal);
+    c->distance = 1.6 * c->model_size; /* kept by a degenerate box */
+    ms_viewer_controls_frame(c, c->home_target, 1.05 * (radius > 0 ? radius : 0.5 * c->model_size),
+                             c->aspect > 0 ? c->aspect : 1.0);
 }
 
 void ms_viewer_controls_init(ms_viewer_controls *c, const double lo[3], const double hi[3],
-                             int up_axis)
+                             int up_axis, double aspect)
 {
     memset(c, 0, sizeof *c);
+    c->aspect = aspect > 0 && isfinite(aspect) ? aspect : 1.0;
     double side = 0;
     for (int k = 0; k < 3; ++k) {
         c->home_target[k] = (lo[k] + hi[k]) / 2;
@@ -224,8 +231,9 @@ void ms_viewer_controls_fly(ms_viewer_controls *c, double forward, double right,
 void ms_viewer_controls_depth_range(const ms_viewer_controls *c, double *near_distance,
                                     double *far_distance)
 {
-    *near_distance = c->distance / 500;
-    *far_distance = c->distance + 4 * c->model_size;
+    double eye[3];
+    ms_viewer_controls_eye(c, eye);
+    ms_camera_depth_range(eye, c->home_lo, c->home_hi, near_distance, far_distance);
 }
 
 ms_status ms_viewer_controls_camera(const ms_viewer_controls *c, double width, double height,

@@ -28,19 +28,24 @@ typedef struct ms_viewer_controls {
     double model_size;      /* the model's largest side: sets the home distance and speeds */
     int up_axis;            /* 0 = x, 1 = y, 2 = z: world up */
     double fovy_degrees;
+    double aspect;          /* the framebuffer's width / height, for the home view */
     double target[3];
     double distance;        /* > 0 */
     double yaw, pitch;      /* radians */
     bool fly;
 } ms_viewer_controls;
 
-/* A home view of the box [lo, hi] (the model's bounds): looking at its centre
- * from 1.6 times its largest side away, a little from above and to the side,
- * across the box's longer horizontal side (a model is seen along its length,
- * not end-on), fovy 40 degrees. */
+/* A home view of the box [lo, hi] (the model's bounds) on a framebuffer of
+ * width / height = aspect (1 when not > 0): looking at its centre a little
+ * from above and to the side, across the box's longer horizontal side (a
+ * model is seen along its length, not end-on), fovy 40 degrees, from as far
+ * as frames the box's circumscribed sphere with 5 % to spare in the narrower
+ * field (ms_viewer_controls_frame): the whole model in view whatever its
+ * shape, orientation or the window's. */
 void ms_viewer_controls_init(ms_viewer_controls *c, const double lo[3], const double hi[3],
-                             int up_axis);
-/* Back to the home view (keeps up_axis and fly). */
+                             int up_axis, double aspect);
+/* Back to the home view (keeps up_axis, fly and aspect; set c->aspect when the
+ * framebuffer changes shape). */
 void ms_viewer_controls_reset(ms_viewer_controls *c);
 /* Changes the up axis (0..2) and goes home. */
 void ms_viewer_controls_set_up(ms_viewer_controls *c, int up_axis);
@@ -80,8 +85,9 @@ void ms_viewer_controls_frame(ms_viewer_controls *c, const double centre[3], dou
 void ms_viewer_controls_fly(ms_viewer_controls *c, double forward, double right, double up,
                             double seconds);
 
-/* Near and far for the present distance: near = distance / 500, far =
- * distance + 4 model sizes. */
+/* Near and far that frame the model's bounds (home_lo, home_hi) from the
+ * present eye (ms_camera_depth_range): the model stays between the planes at
+ * any distance, and the depth buffer's precision follows it. */
 void ms_viewer_controls_depth_range(const ms_viewer_controls *c, double *near_distance,
                                     double *far_distance);
 /* The camera for a framebuffer of width x height pixels; near and far from

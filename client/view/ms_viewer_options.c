@@ -52,6 +52,7 @@ void ms_viewer_options_usage(FILE *out)
           "                         timed (the report's compare_apo)\n"
           "  --json                 one JSON report on stdout\n"
           "  -h, --help             this help\n"
+          "      --version          the version\n"
           "Mouse: left drag orbits (fly mode: looks around), right or shift drag pans,\n"
           "scroll zooms, double-click re-centres on the surface under the cursor; in a\n"
           "scene a click selects the piece under the cursor.\n"

@@ -104,9 +104,8 @@ ms_status ms_viewer_playback_camera(ms_viewer_playback *p, ms_viewer_controls *c
     ms_viewer_controls_look(c, key.position, key.target, key.fovy_degrees);
     p->view = *c;
     p->handed = true;
-    double near_d, far_d;
-    ms_viewer_controls_depth_range(c, &near_d, &far_d);
-    return ms_camera_path_sample(&p->path, p->time, width, height, near_d, far_d, camera, err);
+    return ms_camera_path_sample_framing(&p->path, p->time, width, height, c->home_lo,
+                                         c->home_hi, camera, err);
 }
 
 /* Whether the controls were moved since the path handed them its view (fly

@@ -396,7 +396,7 @@ static ms_status play(script *s, const ms_viewer_model *model, json_t *keys, boo
         path.keys[0].fovy_degrees = 50;
     } else { /* the home view as a path of one keyframe */
         ms_viewer_controls c;
-        ms_viewer_controls_init(&c, lo, hi, o->up_axis);
+        ms_viewer_controls_init(&c, lo, hi, o->up_axis, (double)o->width / o->height);
         path.keys = calloc(1, sizeof *path.keys);
         if (!path.keys)
             return ms_error_set(err, MS_ERR_NOMEM, "out of memory for a path");
@@ -406,13 +406,6 @@ static ms_status play(script *s, const ms_viewer_model *model, json_t *keys, boo
         path.keys[0].up[o->up_axis] = 1;
         path.keys[0].fovy_degrees = c.fovy_degrees;
     }
-    /* Near and far from the model's size (the scene's diagonal), as the
-     * interactive view has them. */
-    double side = model ? model->header.box_side
-                        : sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
-                               (hi[2] - lo[2]) * (hi[2] - lo[2])) * 0.25;
-    /* a room seen from inside: near 2 cm, far twice across */
-    double near_d = model ? side * 1e-4 : 0.02, far_d = side * 8;
     *all_complete = true;
     for (size_t k = 0; k < path.count; ++k) {
         ms_camera camera;
@@ -420,15 +413,15 @@ static ms_status play(script *s, const ms_viewer_model *model, json_t *keys, boo
             for (unsigned f = 1; f < o->frames; ++f) {
                 double t = path.keys[k - 1].time +
                            (path.keys[k].time - path.keys[k - 1].time) * f / (double)o->frames;
-                if ((st = ms_camera_path_sample(&path, t, o->width, o->height, near_d,
-                                                far_d, &camera, err)) != MS_OK)
+                if ((st = ms_camera_path_sample_framing(&path, t, o->width, o->height, lo,
+                                                        hi, &camera, err)) != MS_OK)
                     goto done;
                 ms_viewer_step step;
                 if ((st = frame(s, &camera, &step, err)) != MS_OK)
                     goto done;
             }
-        if ((st = ms_camera_path_sample(&path, path.keys[k].time, o->width, o->height, near_d,
-                                        far_d, &camera, err)) != MS_OK)
+        if ((st = ms_camera_path_sample_framing(&path, path.keys[k].time, o->width, o->height,
+                                                lo, hi, &camera, err)) != MS_OK)
             goto done;
         bool settled;
         double waited;

@@ -1,6 +1,7 @@
 /* Archive reader (versions 1, 2 and 3) and the record codec shared with the
  * writer. See ms_archive.h and docs/ARCHIVE.md. */
 #include "ms_archive.h"
+#include "ms_input_file.h"
 #include "ms_archive_internal.h"
 #include "ms_subtree.h"
 
@@ -571,13 +572,14 @@ static ms_status archive_validate(const char *path, ms_archive *a, ms_error *err
 ms_status ms_archive_open(const char *path, ms_archive **out, ms_error *err)
 {
     *out = NULL;
-    int fd = open(path, O_RDONLY | O_CLOEXEC);
-    if (fd < 0)
-        return ms_error_set(err, MS_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    int fd;
+    ms_status opened = ms_input_open(path, &fd, err);
+    if (opened != MS_OK)
+        return opened;
     struct stat st;
-    if (fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
+    if (fstat(fd, &st) != 0) {
         close(fd);
-        return ms_error_set(err, MS_ERR_IO, "%s: not a regular file", path);
+        return ms_error_set(err, MS_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
     }
     size_t size = (size_t)st.st_size;
     if (size < MS_ARCHIVE_HEADER_SIZE) {
@@ -759,9 +761,10 @@ ms_status ms_archive_open_index_file(const char *path, const char *name, ms_arch
                                      ms_error *err)
 {
     *archive = NULL;
-    FILE *f = fopen(path, "rb");
-    if (!f)
-        return ms_error_set(err, MS_ERR_IO, "%s: %s", path, strerror(errno));
+    FILE *f;
+    ms_status opened = ms_input_fopen(path, &f, err);
+    if (opened != MS_OK)
+        return opened;
     size_t capacity = 1 << 20, size = 0, n;
     uint8_t *blob = malloc(capacity);
     while (blob && (n = fread(blob + size, 1, capacity - size, f)) > 0) {

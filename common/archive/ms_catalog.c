@@ -1,5 +1,6 @@
 /* catalog.json reading and locked updating. See ms_catalog.h. */
 #include "ms_catalog.h"
+#include "ms_input_file.h"
 
 #include <errno.h>
 #include <fcntl.h>
@@ -148,11 +149,12 @@ ms_status ms_catalog_load(const char *dir, ms_catalog *c, ms_error *err)
     memset(c, 0, sizeof *c);
     char path[4096];
     catalog_path(dir, "catalog.json", path, sizeof path);
-    FILE *f = fopen(path, "rb");
-    if (!f)
-        return errno == ENOENT ? MS_OK
-                               : ms_error_set(err, MS_ERR_IO, "%s: cannot open: %s", path,
-                                              strerror(errno));
+    if (access(path, F_OK) != 0 && errno == ENOENT)
+        return MS_OK; /* no catalogue yet: an empty collection */
+    FILE *f;
+    ms_status opened = ms_input_fopen(path, &f, err);
+    if (opened != MS_OK)
+        return opened;
     char *text = malloc(MS_CATALOG_MAX_BYTES + 1);
     size_t size = text ? fread(text, 1, MS_CATALOG_MAX_BYTES + 1, f) : 0;
     int read_error = ferror(f);

@@ -120,12 +120,45 @@ double ms_camera_box_distance(const ms_camera *c, const double lo[3], const doub
     return sqrt(sum);
 }
 
+void ms_camera_depth_range(const double position[3], const double lo[3], const double hi[3],
+                           double *near_distance, double *far_distance)
+{
+    double nearest = 0.0, farthest = 0.0;
+    for (int i = 0; i < 3; ++i) {
+        if (!isfinite(lo[i]) || !isfinite(hi[i]) || !isfinite(position[i]) || lo[i] > hi[i]) {
+            *near_distance = 1e-4, *far_distance = 1e4;
+            return;
+        }
+        double below = lo[i] - position[i], above = position[i] - hi[i];
+        double out = below > 0 ? below : above > 0 ? above : 0.0;
+        double across = fmax(fabs(position[i] - lo[i]), fabs(position[i] - hi[i]));
+        nearest += out * out;
+        farthest += across * across;
+    }
+    /* 1 % past the farthest corner, so the depth test's rounding never clips it */
+    double far_d = 1.01 * sqrt(farthest), near_d = 0.5 * sqrt(nearest);
+    if (!(far_d > 0)) /* an empty box at the eye */
+        far_d = 1.0;
+    if (near_d < far_d * 5e-5)
+        near_d = far_d * 5e-5;
+    *near_distance = near_d;
+    *far_distance = far_d;
+}
+
 double ms_screen_bits_needed(const ms_camera *c, double cube_side, double distance,
                              double tolerance_px)
 {
     if (!(distance > 0.0))
         return INFINITY;
-    return log2(sqrt(3.0) * cube_side * ms_camera_pixels_per_unit(c) / (distance * tolerance_px));
+    return log2(0.5 * sqrt(3.0) * cube_side * ms_camera_pixels_per_unit(c) /
+                (distance * tolerance_px));
+}
+
+double ms_screen_error_px(const ms_camera *c, double cube_side, unsigned bits, double distance)
+{
+    if (!(distance > 0.0))
+        return INFINITY;
+    return 0.5 * sqrt(3.0) * ldexp(cube_side, -(int)bits) * ms_camera_pixels_per_unit(c) / distance;
 }
 
 unsigned ms_apo_footprint_levels(const ms_camera *c, const double cube_lo[3], double cube_side,

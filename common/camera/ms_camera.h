@@ -55,10 +55,28 @@ bool ms_frustum_keeps_box(const ms_frustum *frustum, const double lo[3], const d
 /* Distance from the camera position to the nearest point of the box (0 inside). */
 double ms_camera_box_distance(const ms_camera *camera, const double lo[3], const double hi[3]);
 
-/* The precision, as a real number of bits, at which kd-cells of a cube of side
- * `cube_side` project to `tolerance_px` pixels at `distance`:
- * log2(√3 · cube_side · pixels_per_unit / (distance · tolerance_px)).
+/* Clipping distances for an eye at position that keep the whole box [lo, hi]
+ * (world units) between the planes, whatever the eye's distance: far a little
+ * past the box's farthest corner, near half the way to its nearest point but
+ * never under far * 5e-5 (the eye inside or at the box). A fixed range loses
+ * a model that is small on screen behind the far plane. A box with a NaN or
+ * infinite coordinate, or lo above hi, gives near 1e-4 and far 1e4. */
+void ms_camera_depth_range(const double position[3], const double lo[3], const double hi[3],
+                           double *near_distance, double *far_distance);
+
+/* The geometric error on screen, in pixels, of a cut at `bits` of a model whose
+ * cube has side `cube_side`, seen at `distance`: the half-diagonal of a
+ * kd-cell, (√3 / 2) · cube_side / 2^bits, projected. A decoded vertex sits at
+ * its cell's centre and the true vertex inside the cell, and a coarse
+ * triangle is the image of fine ones under that vertex map, so no point of
+ * the surface moves further (docs/CLIENT.md, "The error of a cut").
  * +infinity at distance 0. */
+double ms_screen_error_px(const ms_camera *camera, double cube_side, unsigned bits,
+                          double distance);
+
+/* The precision, as a real number of bits, at which ms_screen_error_px is
+ * `tolerance_px`: log2((√3 / 2) · cube_side · pixels_per_unit / (distance ·
+ * tolerance_px)). +infinity at distance 0. */
 double ms_screen_bits_needed(const ms_camera *camera, double cube_side, double distance,
                              double tolerance_px);
 

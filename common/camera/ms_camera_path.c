@@ -1,5 +1,6 @@
 /* Camera path files: see ms_camera_path.h. */
 #include "ms_camera_path.h"
+#include "ms_input_file.h"
 
 #include <errno.h>
 #include <math.h>
@@ -138,9 +139,10 @@ ms_status ms_camera_path_parse(const char *text, size_t size, const char *name,
 ms_status ms_camera_path_load(const char *file, ms_camera_path *p, ms_error *err)
 {
     memset(p, 0, sizeof *p);
-    FILE *f = fopen(file, "rb");
-    if (!f)
-        return ms_error_set(err, MS_ERR_IO, "%s: cannot open: %s", file, strerror(errno));
+    FILE *f;
+    ms_status opened = ms_input_fopen(file, &f, err);
+    if (opened != MS_OK)
+        return opened;
     char *text = malloc(MAX_FILE + 1);
     size_t size = text ? fread(text, 1, MAX_FILE + 1, f) : 0;
     int failed = ferror(f);
@@ -225,4 +227,18 @@ ms_status ms_camera_path_sample(const ms_camera_path *p, double t, double width,
     ms_camera_path_key_at(p, t, &key);
     return ms_camera_look_at(key.position, key.target, key.up, key.fovy_degrees, width, height,
                              near_distance, far_distance, camera, err);
+}
+
+ms_status ms_camera_path_sample_framing(const ms_camera_path *p, double t, double width,
+                                        double height, const double lo[3], const double hi[3],
+                                        ms_camera *camera, ms_error *err)
+{
+    if (p->count == 0)
+        return ms_error_set(err, MS_ERR_EMPTY, "camera path has no keyframe");
+    ms_camera_key key;
+    ms_camera_path_key_at(p, t, &key);
+    double near_d, far_d;
+    ms_camera_depth_range(key.position, lo, hi, &near_d, &far_d);
+    return ms_camera_look_at(key.position, key.target, key.up, key.fovy_degrees, width, height,
+                             near_d, far_d, camera, err);
 }

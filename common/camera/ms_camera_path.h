@@ -64,4 +64,11 @@ ms_status ms_camera_path_sample(const ms_camera_path *path, double t, double wid
                                 double height, double near_distance, double far_distance,
                                 ms_camera *camera, ms_error *err);
 
+/* ms_camera_path_sample with the clipping distances framing the box [lo, hi]
+ * (the model's or the scene's bounds) from the sampled eye
+ * (ms_camera_depth_range). */
+ms_status ms_camera_path_sample_framing(const ms_camera_path *path, double t, double width,
+                                        double height, const double lo[3], const double hi[3],
+                                        ms_camera *camera, ms_error *err);
+
 #endif

@@ -1,4 +1,5 @@
 #include "ms_byte_source.h"
+#include "ms_input_file.h"
 
 #include <errno.h>
 #include <stdlib.h>
@@ -14,19 +15,27 @@ ms_status ms_byte_source_open(ms_byte_source *src, const char *path, size_t capa
 {
     memset(src, 0, sizeof *src);
     src->path = path;
+    int fd;
+    ms_status opened = ms_input_open(path, &fd, err); /* a FIFO or a directory: refused */
+    if (opened != MS_OK)
+        return opened;
     struct stat st;
-    if (stat(path, &st) != 0)
-        return ms_error_set(err, MS_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
-    if (S_ISDIR(st.st_mode))
-        return ms_error_set(err, MS_ERR_IO, "%s: cannot open: is a directory", path);
+    if (fstat(fd, &st) != 0) {
+        int saved = errno;
+        close(fd);
+        return ms_error_set(err, MS_ERR_IO, "%s: cannot open: %s", path, strerror(saved));
+    }
     src->file_size = (uint64_t)st.st_size;
     src->buf = malloc(capacity + 1);
-    if (!src->buf)
+    if (!src->buf) {
+        close(fd);
         return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory for input buffer", path);
+    }
     src->capacity = capacity;
-    gzFile gz = gzopen(path, "rb");
+    gzFile gz = gzdopen(fd, "rb");
     if (!gz) {
         int saved = errno;
+        close(fd);
         free(src->buf);
         src->buf = NULL;
         return ms_error_set(err, MS_ERR_IO, "%s: cannot open: %s", path,
@@ -92,8 +101,9 @@ ms_status ms_byte_source_map_rest(ms_byte_source *src, ms_error *err)
     if (src->gzip || src->mapped || src->file_size == 0 || src->file_size > SIZE_MAX)
         return MS_OK;
     uint64_t offset = ms_byte_source_offset(src);
-    int fd = open(src->path, O_RDONLY);
-    if (fd < 0)
+    int fd;
+    ms_error ignored;
+    if (ms_input_open(src->path, &fd, &ignored) != MS_OK)
         return MS_OK; /* keep reading through the buffer */
     struct stat st;
     void *map = MAP_FAILED;

@@ -24,6 +24,7 @@
 #include "ms_json_out.h"
 #include "ms_mesh_reader.h"
 #include "ms_parse_number.h"
+#include "ms_version.h"
 
 enum { EXIT_INPUT = 1, EXIT_USAGE = 2 };
 
@@ -113,6 +114,7 @@ static void print_usage(FILE *out)
           "                    parsed and parse time\n"
           "  --json            print the report as one JSON object on stdout\n"
           "  -h, --help        print this help and exit\n"
+          "      --version     print the version and exit\n"
           "\n",
           out);
     ms_apo_classic_cli_usage(out);
@@ -678,6 +680,8 @@ static int run_remove(const bake_options *o)
 
 int main(int argc, char **argv)
 {
+    if (ms_version_asked(argc, argv))
+        return ms_version_print("meshbake");
     for (int i = 1; i < argc; ++i)
         if (strcmp(argv[i], "--apo-classic") == 0)
             return ms_apo_classic_cli(argc, argv);

@@ -15,11 +15,13 @@
 #include <unistd.h>
 
 #include "ms_codec.h"
+#include "ms_input_file.h"
 #include "ms_codec_prior.h"
 #include "ms_json_out.h"
 #include "ms_parse_number.h"
 #include "ms_mesh_io.h"
 #include "ms_quant.h"
+#include "ms_version.h"
 
 enum { EXIT_INPUT = 1, EXIT_USAGE = 2 };
 
@@ -34,7 +36,8 @@ static const char *const top_usage =
     "  roundtrip IN --bits P [--json] encode, decode, check losslessness, report sizes/times\n"
     "  train IN... -o TABLE.c         estimate the built-in prior from meshes (developers)\n"
     "\n"
-    "`meshcodec COMMAND --help` describes each command.\n"
+    "`meshcodec COMMAND --help` describes each command; `meshcodec --version` prints\n"
+    "the version.\n"
     "Exit status: 0 on success, 1 for an input or processing error, 2 for a usage error.\n";
 
 static const char *const encode_usage =
@@ -46,7 +49,8 @@ static const char *const encode_usage =
     "\n"
     "  -o, --output OUT   output stream\n"
     "  -b, --bits P       precision in bits per coordinate (default 16)\n"
-    "  -h, --help         print this help and exit\n";
+    "  -h, --help         print this help and exit\n"
+    "      --version      print the version and exit\n";
 
 static const char *const decode_usage =
     "usage: meshcodec decode IN -o OUT.ply [--bits Q] [--ascii]\n"
@@ -59,7 +63,8 @@ static const char *const decode_usage =
     "  -o, --output OUT   output PLY file\n"
     "  -b, --bits Q       precision to decode to (default: the stream's)\n"
     "      --ascii        write ascii PLY\n"
-    "  -h, --help         print this help and exit\n";
+    "  -h, --help         print this help and exit\n"
+    "      --version      print the version and exit\n";
 
 static const char *const roundtrip_usage =
     "usage: meshcodec roundtrip IN [--bits P] [--json]\n"
@@ -71,7 +76,8 @@ static const char *const roundtrip_usage =
     "\n"
     "  -b, --bits P       precision (default 16)\n"
     "      --json         print one JSON object on stdout\n"
-    "  -h, --help         print this help and exit\n";
+    "  -h, --help         print this help and exit\n"
+    "      --version      print the version and exit\n";
 
 static const char *const train_usage =
     "usage: meshcodec train IN... -o TABLE.c [--bits P]\n"
@@ -83,7 +89,8 @@ static const char *const train_usage =
     "\n"
     "  -o, --output OUT   output C file\n"
     "  -b, --bits P       precision in bits per coordinate (default 16)\n"
-    "  -h, --help         print this help and exit\n";
+    "  -h, --help         print this help and exit\n"
+    "      --version      print the version and exit\n";
 
 static int usage_error(const char *cmd, const char *message, const char *detail)
 {
@@ -230,9 +237,10 @@ static ms_status write_file(const char *path, const uint8_t *buf, size_t size, m
 
 static ms_status read_file(const char *path, uint8_t **buf, size_t *size, ms_error *err)
 {
-    FILE *f = fopen(path, "rb");
-    if (!f)
-        return ms_error_set(err, MS_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    FILE *f;
+    ms_status opened = ms_input_fopen(path, &f, err);
+    if (opened != MS_OK)
+        return opened;
     size_t cap = 1 << 16, n = 0;
     uint8_t *b = malloc(cap);
     while (b) {
@@ -527,6 +535,8 @@ static int cmd_train(int argc, char **argv)
 
 int main(int argc, char **argv)
 {
+    if (ms_version_asked(argc, argv))
+        return ms_version_print("meshcodec");
     if (argc < 2)
         return usage_error(NULL, "missing command", NULL);
     const char *cmd = argv[1];

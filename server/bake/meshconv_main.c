@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "ms_mesh_io.h"
+#include "ms_version.h"
 
 enum { EXIT_INPUT = 1, EXIT_USAGE = 2 };
 
@@ -23,7 +24,8 @@ static void print_usage(FILE *out)
           "  --ascii            ascii PLY\n"
           "  --double           double-precision coordinates (default float; a coordinate\n"
           "                     a float cannot hold is refused without it)\n"
-          "  -h, --help         print this help and exit\n",
+          "  -h, --help         print this help and exit\n"
+          "      --version      print the version and exit\n",
           out);
 }
 
@@ -48,6 +50,8 @@ static ms_status check_fits_float(const ms_mesh *mesh, ms_error *err)
 
 int main(int argc, char **argv)
 {
+    if (ms_version_asked(argc, argv))
+        return ms_version_print("meshconv");
     static const struct option long_options[] = {
         {"output", required_argument, NULL, 'o'}, {"binary", no_argument, NULL, 'b'},
         {"ascii", no_argument, NULL, 'a'},        {"double", no_argument, NULL, 'd'},

@@ -11,6 +11,7 @@
 #include "ms_json_out.h"
 #include "ms_mesh_io.h"
 #include "ms_progress.h"
+#include "ms_version.h"
 
 static void usage(FILE *out)
 {
@@ -24,7 +25,8 @@ static void usage(FILE *out)
             "  -s, --seed S         relief variant, an unsigned integer (default 0)\n"
             "      --ascii          write ascii PLY\n"
             "      --json           print the summary as one JSON object\n"
-            "  -h, --help           show this help\n");
+            "  -h, --help           show this help\n"
+            "      --version        show the version\n");
 }
 
 /* Parses an unsigned decimal integer within [min, max]; false on anything else. */
@@ -43,6 +45,8 @@ static bool parse_u64(const char *text, uint64_t min, uint64_t max, uint64_t *ou
 
 int main(int argc, char **argv)
 {
+    if (ms_version_asked(argc, argv))
+        return ms_version_print("meshgen");
     const char *output = NULL;
     uint64_t triangles = 200000, seed = 0;
     bool ascii = false, json = false;

@@ -8,6 +8,7 @@
 
 #include "ms_parse_number.h"
 #include "ms_synthetic_archive.h"
+#include "ms_version.h"
 
 static void usage(FILE *out)
 {
@@ -24,12 +25,15 @@ static void usage(FILE *out)
             "  --apo-levels N       APO levels per cell, 1..12 (default 5)\n"
             "  --public-bits B      precision open without a token (default: all)\n"
             "  --seed S             changes every payload byte (default 1)\n"
-            "  -h, --help           show this help\n");
+            "  -h, --help           show this help\n"
+            "      --version        show the version\n");
 }
 
 
 int main(int argc, char **argv)
 {
+    if (ms_version_asked(argc, argv))
+        return ms_version_print("meshsynth");
     static const struct option options[] = {
         {"levels", required_argument, NULL, 'l'},     {"bits", required_argument, NULL, 'b'},
         {"geometry-bytes", required_argument, NULL, 'g'},

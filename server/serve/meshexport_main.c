@@ -17,6 +17,7 @@
 #include "ms_progress.h"
 #include "ms_registry.h"
 #include "ms_subtree.h"
+#include "ms_version.h"
 
 static void usage(FILE *out)
 {
@@ -35,7 +36,8 @@ static void usage(FILE *out)
             "      --full         write every byte, as a token holder reads them (for a\n"
             "                     server that is itself access-controlled)\n"
             "      --json         print the summary as one JSON object\n"
-            "  -h, --help         show this help\n");
+            "  -h, --help         show this help\n"
+            "      --version      show the version\n");
 }
 
 static int make_dir(const char *path)
@@ -145,6 +147,8 @@ static int export_subtrees(const ms_archive *a, const char *out_dir, const char 
 
 int main(int argc, char **argv)
 {
+    if (ms_version_asked(argc, argv))
+        return ms_version_print("meshexport");
     static const struct option options[] = {
         {"output", required_argument, NULL, 'o'},
         {"json", no_argument, NULL, 'j'},

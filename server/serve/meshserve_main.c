@@ -8,6 +8,7 @@
 #include "ms_json_out.h"
 #include "ms_progress.h"
 #include "ms_server.h"
+#include "ms_version.h"
 
 static void usage(FILE *out)
 {
@@ -39,12 +40,15 @@ static void usage(FILE *out)
             "  --port-file FILE     write \"PORT HTTP_PORT\" there once listening (for scripts)\n"
             "  --json               print the exit summary as one JSON object\n"
             "  -h, --help           show this help\n"
+            "      --version        show the version\n"
             "Command-line options override the config file. The access token for models\n"
             "with a public preview is only read from the config file ('token = ...').\n");
 }
 
 int main(int argc, char **argv)
 {
+    if (ms_version_asked(argc, argv))
+        return ms_version_print("meshserve");
     enum { OPT_PORT = 256, OPT_MAX_CLIENTS, OPT_HTTP_PORT, OPT_BIND, OPT_CONFIG, OPT_PORT_FILE, OPT_JSON };
     static const struct option options[] = {
         {"port", required_argument, NULL, OPT_PORT},

@@ -1,5 +1,6 @@
 /* meshserve settings: see ms_server_config.h. */
 #include "ms_server_config.h"
+#include "ms_input_file.h"
 #include "ms_parse_number.h"
 
 #include <errno.h>
@@ -149,9 +150,10 @@ static char *trim(char *s)
 
 ms_status ms_server_config_load(ms_server_config *c, const char *path, ms_error *err)
 {
-    FILE *f = fopen(path, "r");
-    if (!f)
-        return ms_error_set(err, MS_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    FILE *f;
+    ms_status opened = ms_input_fopen(path, &f, err);
+    if (opened != MS_OK)
+        return opened;
     char line[1024], where[4200], seen[64][32];
     size_t seen_count = 0;
     unsigned number = 0;

@@ -20,6 +20,7 @@
 #include "ms_study_cut.h"
 #include "ms_study_render.h"
 #include "ms_view_decoder.h"
+#include "ms_version.h"
 
 enum { EXIT_INPUT = 1, EXIT_USAGE = 2 };
 
@@ -47,7 +48,8 @@ static void usage(FILE *out)
           "      --normals       also write OUT_DIR/normals_K.png, rgb = (N + 1) / 2\n"
           "      --threads N     render threads (default: every core)\n"
           "      --json          print the summary as one JSON object\n"
-          "  -h, --help          show this help\n\n"
+          "  -h, --help          show this help\n"
+          "      --version       show the version\n\n"
           "Exit status: 0 on success, 1 for an input or render error, 2 for a usage error.\n",
           out);
 }
@@ -205,6 +207,8 @@ static void close_source(source *s)
 
 int main(int argc, char **argv)
 {
+    if (ms_version_asked(argc, argv))
+        return ms_version_print("meshrender");
     options o;
     int rc = parse_options(argc, argv, &o);
     if (rc >= 0)

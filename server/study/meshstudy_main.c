@@ -23,6 +23,7 @@
 #include "ms_study_measure.h"
 #include "ms_study_render.h"
 #include "ms_view_decoder.h"
+#include "ms_version.h"
 
 enum { EXIT_INPUT = 1, EXIT_USAGE = 2 };
 #define MAX_LIST 64
@@ -69,7 +70,8 @@ static void usage(FILE *out)
           "      --whole FILE      measure the mesh FILE drawn whole instead of an archive's cuts\n"
           "      --threads N       threads (default: every core)\n"
           "      --json            print the results as one JSON object\n"
-          "  -h, --help            show this help\n\n"
+          "  -h, --help            show this help\n"
+          "      --version         show the version\n\n"
           "Exit status: 0 on success, 1 for an input or measuring error, 2 for a usage error.\n",
           out);
 }
@@ -394,6 +396,8 @@ static ms_status open_study(const options *o, study *s, ms_error *err)
 
 int main(int argc, char **argv)
 {
+    if (ms_version_asked(argc, argv))
+        return ms_version_print("meshstudy");
     options o;
     int rc = parse_options(argc, argv, &o);
     if (rc >= 0)

@@ -8,12 +8,37 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/wait.h>
+#include <unistd.h>
 #include <cmocka.h>
+
+/* The folder scripts/fetch-models fills (scripts/models.sh computes the same). */
+static void model_cache_dir(char *buf, size_t size)
+{
+    const char *cache = getenv("MESHSTREAM_MODEL_CACHE");
+    const char *xdg = getenv("XDG_CACHE_HOME");
+    const char *home = getenv("HOME");
+    if (cache && *cache)
+        snprintf(buf, size, "%s", cache);
+    else if (xdg && *xdg)
+        snprintf(buf, size, "%s/meshstream/models", xdg);
+    else
+        snprintf(buf, size, "%s/.cache/meshstream/models", home ? home : "");
+}
 
 const char *ms_test_model_path(char *buf, size_t size, const char *file)
 {
-    const char *dir = getenv("MESHSTREAM_MODELS");
-    snprintf(buf, size, "%s/%s", dir ? dir : "../shared/data/models", file);
+    char cache[4096];
+    model_cache_dir(cache, sizeof cache);
+    const char *override = getenv("MESHSTREAM_MODELS");
+    const char *const dirs[] = {override && *override ? override : NULL, "tests/data", cache};
+    for (size_t i = 0; i < sizeof dirs / sizeof dirs[0]; ++i) {
+        if (!dirs[i])
+            continue;
+        snprintf(buf, size, "%s/%s", dirs[i], file);
+        if (access(buf, R_OK) == 0)
+            return buf;
+    }
+    fail_msg("model %s not found: run scripts/fetch-models", file);
     return buf;
 }
 

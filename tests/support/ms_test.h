@@ -6,8 +6,11 @@
 #include <stddef.h>
 #include <stdint.h>
 
-/* Full path of a model in the shared data set (MESHSTREAM_MODELS, default
- * ../shared/data/models relative to the repository root), written into buf. */
+/* Full path of a test model, written into buf: the first of $MESHSTREAM_MODELS
+ * (when set), tests/data (the generated fixtures; tests run from the repository
+ * root) and the cache scripts/fetch-models fills ($MESHSTREAM_MODEL_CACHE, default
+ * ${XDG_CACHE_HOME:-$HOME/.cache}/meshstream/models) that holds the file. A model
+ * found nowhere fails the test with one line naming scripts/fetch-models. */
 const char *ms_test_model_path(char *buf, size_t size, const char *file);
 
 /* Full path of a built program (MESHSTREAM_BIN, default build/asan/bin). */
