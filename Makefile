@@ -1,5 +1,6 @@
 # meshstream build. `make` builds everything (release), `make test` builds with
-# AddressSanitizer + UndefinedBehaviorSanitizer and runs every test, `make bench`
+# AddressSanitizer + UndefinedBehaviorSanitizer and runs every test, `make check`
+# only the unit tests (in parallel, a few minutes), `make bench`
 # runs the benchmarks, `make demo` sets up and runs the demo, `make fuzz` builds the
 # libFuzzer targets (clang), `make clean` removes build/.
 #
@@ -95,7 +96,7 @@ ALL_LIBS  := $(foreach r,$(call reverse,$(ROOMS)),$(call room_lib,$(r)))
 ALL_PKGS  := $(sort $(foreach r,$(ROOMS),$(PKGS_$(r))))
 LINK      := $(CXX)
 
-.PHONY: all test bench demo fuzz clean programs tests deps screenshots rooms room-flags study \
+.PHONY: all test check bench demo fuzz clean programs tests deps screenshots rooms room-flags study \
         check-deps models
 .PHONY: client-lib man install uninstall
 .SECONDARY:
@@ -157,9 +158,10 @@ $(BUILD)/tests/%: $(BUILD)/tests/%.o $(TESTSUPPORT) $(ALL_LIBS)
 	@mkdir -p $(dir $@)
 	$(LINK) $(LDFLAGS) $< $(TESTSUPPORT) $(ALL_LIBS) $(call pkg_libs,$(ALL_PKGS) cmocka) -lm -o $@
 
-# The whole suite under ASan + UBSan. Tests run from the repository root and find
-# their models in tests/data and in the cache scripts/fetch-models fills
-# (tests/data/README.md; MESHSTREAM_MODELS overrides both).
+# The whole suite under ASan + UBSan, tier by tier (tests/tiers.txt), each tier
+# timed. Tests run from the repository root and find their models in tests/data
+# and in the cache scripts/fetch-models fills (tests/data/README.md;
+# MESHSTREAM_MODELS overrides both).
 test:
 	@scripts/fetch-models
 	@$(MAKE) --no-print-directory MODE=asan tests
@@ -168,6 +170,12 @@ test:
 # The real scanned test models, fetched once into the cache (scripts/fetch-models).
 models:
 	@scripts/fetch-models
+
+# The unit tier alone, every core at once: no servers, no display, no shared models.
+UNIT_TESTS := $(patsubst %,build/asan/tests/%,$(shell awk '$$1 ~ /^test_/ && $$2 == "unit" {print $$1}' tests/tiers.txt))
+check:
+	@$(MAKE) --no-print-directory MODE=asan $(UNIT_TESTS)
+	@MODE=asan TIERS=unit scripts/run-tests
 
 bench: programs
 	@scripts/fetch-models

@@ -638,6 +638,75 @@ static void test_fan_rays_bounded_by_leaves(void **state)
     ms_mesh_free(&fan);
 }
 
+
+/* The wavy fan of issue 31: n slivers around one hub, the rim waving out of its
+ * plane (z = 0.1 sin 7a), so that the normals turn around the hub and the
+ * octree refines there. Embree's boxes of the slivers all hold the hub, so one
+ * of its queries visits a good part of them: the former build cast 2 rays per
+ * sample through them (36-145 s for a 100,000-triangle bake). */
+static void wavy_fan(ms_mesh *fan, uint32_t n)
+{
+    memset(fan, 0, sizeof *fan);
+    assert_int_equal(ms_mesh_reserve(fan, n + 1, n, NULL), MS_OK);
+    fan->positions[0] = fan->positions[1] = fan->positions[2] = 0.0;
+    for (uint32_t i = 0; i < n; ++i) {
+        double a = 2.0 * M_PI * i / n;
+        fan->positions[3 * (i + 1)] = cos(a);
+        fan->positions[3 * (i + 1) + 1] = sin(a);
+        fan->positions[3 * (i + 1) + 2] = 0.1 * sin(7.0 * a);
+        fan->triangles[3 * i] = 0;
+        fan->triangles[3 * i + 1] = 1 + i;
+        fan->triangles[3 * i + 2] = 1 + (i + 1) % n;
+    }
+    fan->vertex_count = n + 1;
+    fan->triangle_count = n;
+}
+
+/* The work of the build, counted without clocks: the triangles it looks at one
+ * by one, plus every Embree query charged as a visit of all of M (what one
+ * costs on a fan). */
+static uint64_t fan_work(uint32_t n, ms_apo_build_stats *st)
+{
+    ms_mesh fan;
+    wavy_fan(&fan, n);
+    ms_apo_build_options o;
+    ms_apo_build_options_default(&o);
+    o.cube_origin[0] = o.cube_origin[1] = -1.0;
+    o.cube_origin[2] = -1.0;
+    o.cube_size = 2.0;
+    o.max_depth = 8;
+    o.tolerance = 0.2;
+    o.distance_bound = sqrt(3.0) / 128; /* the baker's bound for a grid one level above the leaves */
+    o.threads = 2;
+    ms_apo_tree t;
+    build(&fan, &fan, &o, &t, st);
+    ms_apo_tree_free(&t);
+    ms_mesh_free(&fan);
+    return st->triangle_visits + (st->rays + st->point_queries) * (uint64_t)n;
+}
+
+/* Linear in the input on a crowded M: the leaves answer their queries from
+ * their own M-triangles, and what is left for Embree is a small part; the work
+ * per input triangle and level stays bounded and 4x the triangles costs about
+ * 4x the work. */
+static void test_wavy_fan_work_linear(void **state)
+{
+    (void)state;
+    ms_apo_build_stats small, large;
+    uint64_t w_small = fan_work(3000, &small), w_large = fan_work(12000, &large);
+    print_message("wavy fan: 3000 -> %llu (leaves %zu, rays %llu, local %llu), 12000 -> %llu (leaves %zu, rays %llu, local %llu)\n",
+                  (unsigned long long)w_small, small.leaves, (unsigned long long)small.rays,
+                  (unsigned long long)small.local_answers, (unsigned long long)w_large, large.leaves,
+                  (unsigned long long)large.rays, (unsigned long long)large.local_answers);
+    assert_true(small.crowding > 64.0 && large.crowding > 64.0);
+    assert_true(large.local_answers > 0);
+    /* Embree answers at most one query per four leaves (the former build:
+     * about 16 rays per leaf, each charged 12,000 visits here: over 10^8) */
+    assert_true(large.rays + large.point_queries <= large.leaves / 4);
+    assert_true(w_large <= 256 * 12000ull * large.levels); /* 4.8 x 10^6 x 4 measured */
+    assert_true(w_large <= 5 * w_small);                   /* 4.0 measured */
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -656,6 +725,7 @@ int main(void)
         cmocka_unit_test(test_simplify),
         cmocka_unit_test(test_flat_cell_is_one_leaf),
         cmocka_unit_test(test_fan_rays_bounded_by_leaves),
+        cmocka_unit_test(test_wavy_fan_work_linear),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

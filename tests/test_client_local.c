@@ -249,7 +249,12 @@ static void test_local_path(void **state)
 /* A budget below what the root alone needs at the close-up (the camera in
  * the model's box: the root must split whatever the tolerance): the tolerance
  * climbs to its 4096x limit, the view never completes, and the core says so
- * once, in one line, instead of leaving the user to wait. */
+ * once, in one line, instead of leaving the user to wait.
+ * The warning and the tolerance it names are one snapshot: every snapshot
+ * read here that carries the warning carries the 4096x tolerance too. (The
+ * warning was once published mid-pass, and the tolerance at the pass's end,
+ * one step short of 4096x until the next pass, 20 ms or more later: read
+ * every half millisecond, that snapshot was seen nearly every run.) */
 static void test_local_budget_below_the_root(void **state)
 {
     (void)state;
@@ -263,8 +268,11 @@ static void test_local_budget_below_the_root(void **state)
     ms_core_stats st;
     double until = ms_now_seconds() + WAIT_SECONDS;
     do {
-        ms_test_sleep_s(0.05);
+        ms_test_sleep_s(0.0005);
         ms_core_get_stats(core, &st);
+        if (st.warning[0] && st.tolerance_px < 4096.0 * 0.999)
+            fail_msg("a snapshot with the warning '%s' and the tolerance %.1f px", st.warning,
+                     st.tolerance_px);
     } while (!st.warning[0] && !st.view_complete && ms_now_seconds() < until);
     assert_false(st.view_complete);
     assert_string_equal(st.warning, "memory budget too small: 0.01 MB cannot hold this view even "
@@ -496,12 +504,13 @@ static void test_catalogues(void **state)
     assert_null(cat.entries);
     ms_client_catalogue_free(&cat); /* twice is harmless */
 
-    /* nobody listening: a clear error, quickly */
+    /* nobody listening: a clear error, from the refusal, not from the time-out
+     * (how quickly: scripts/bench-limits) */
     co.port = 1; /* nothing listens on port 1 of loopback: refused */
-    double t0 = ms_now_seconds();
-    assert_int_equal(ms_client_fetch_catalogue(&co, 5.0, &cat, &err), MS_ERR_IO);
-    assert_true(ms_now_seconds() - t0 < 5.0);
+    assert_int_equal(ms_client_fetch_catalogue(&co, 60.0, &cat, &err), MS_ERR_IO);
     assert_non_null(strstr(err.text, "127.0.0.1:1"));
+    if (strstr(err.text, "in time"))
+        fail_msg("waited for the time-out: %s", err.text);
     assert_int_equal(cat.count, 0);
     co.host = NULL;
     assert_int_equal(ms_client_fetch_catalogue(&co, 5.0, &cat, &err), MS_ERR_ARG);

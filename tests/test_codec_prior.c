@@ -1,6 +1,6 @@
 /* The codec's built-in prior (common/codec/ms_codec_prior.h): its estimate from counts,
- * model initialisation per stream version, the training counts of an encode, and
- * version-1 streams (flat contexts) still decoding exactly. */
+ * model initialisation, the training counts of an encode, and a stream of
+ * another version refused in one line naming it. */
 #include <stdarg.h>
 #include <stdbool.h>
 #include <stddef.h>
@@ -18,8 +18,6 @@
 #include "ms_quant.h"
 #include "support/ms_codec_check.h"
 #include "support/ms_test.h"
-
-#define V1_FIXTURE "tests/data/codec-v1-bunny_res3-12bits.msc"
 
 static void test_estimate(void **state)
 {
@@ -52,12 +50,7 @@ static void test_model_init(void **state)
     uint32_t n = ms_model_size(D);
     ms_rc_prob *m = malloc(n * sizeof *m);
     assert_non_null(m);
-    ms_codec_model_init(m, D, MS_CODEC_VERSION_FLAT);
-    for (uint32_t i = 0; i < n; ++i) {
-        assert_int_equal(m[i].fast, 32768);
-        assert_int_equal(m[i].slow, 32768);
-    }
-    ms_codec_model_init(m, D, MS_CODEC_VERSION);
+    ms_codec_model_init(m, D);
     /* Geometry is indexed by absolute kd-level, connectivity follows every level. */
     assert_int_equal(ms_prior_index(GEO_HALF(35, 3, 14), D), GEO_HALF(35, 3, 14));
     assert_int_equal(ms_prior_index(D * GEO_PER_LEVEL, D), MS_PRIOR_GEO);
@@ -107,45 +100,43 @@ static void decode_full(const uint8_t *data, size_t size, ms_codec_state *out)
     ms_codec_decoder_destroy(d);
 }
 
-/* A stream written before the prior (version 1, flat contexts) decodes to exactly
- * the quantised mesh; today's encoder writes version 2 for the same mesh, smaller,
- * decoding to the same complex. */
-static void test_version_1_still_decodes(void **state)
+/* Today's encoder writes version 2, which decodes to exactly the quantised
+ * mesh; the same stream marked version 1 (the flat-context streams written
+ * before the prior, never released) or 3 is refused, by the header reader and
+ * the decoder, with one line naming the version. */
+static void test_other_versions_refused(void **state)
 {
     (void)state;
-    FILE *f = fopen(V1_FIXTURE, "rb");
-    assert_non_null(f);
-    uint8_t v1[16384];
-    size_t n1 = fread(v1, 1, sizeof v1, f);
-    fclose(f);
-    assert_int_equal(n1, 7909);
-    ms_codec_header h;
-    ms_error err;
-    assert_int_equal(ms_codec_read_header(v1, n1, &h, &err), MS_OK);
-    assert_int_equal(h.version, MS_CODEC_VERSION_FLAT);
-
-    ms_codec_state want = {0}, got1 = {0}, got2 = {0};
+    ms_codec_state want = {0}, got = {0};
     load_qmesh("stanford_bunny_res3.ply.gz", 12, &want);
-    decode_full(v1, n1, &got1);
-    assert_true(ms_codec_state_equal(&got1, &want, true));
-
     ms_codec_encode_params par;
     memset(&par, 0, sizeof par);
-    par.box = h.box;
-    uint8_t *v2 = NULL;
-    size_t n2 = 0;
-    assert_int_equal(ms_codec_encode(&want, &par, &v2, &n2, NULL, &err), MS_OK);
-    assert_int_equal(v2[4], MS_CODEC_VERSION);
-    assert_true(n2 < n1);
-    decode_full(v2, n2, &got2);
-    assert_true(ms_codec_state_equal(&got2, &want, true));
-    /* A version the decoder does not know is refused, not guessed. */
-    v2[4] = MS_CODEC_VERSION + 1;
-    assert_int_equal(ms_codec_read_header(v2, n2, &h, &err), MS_ERR_UNSUPPORTED);
-    free(v2);
+    par.box.size = 1.0;
+    uint8_t *stream = NULL;
+    size_t size = 0;
+    ms_error err;
+    assert_int_equal(ms_codec_encode(&want, &par, &stream, &size, NULL, &err), MS_OK);
+    assert_int_equal(stream[4], MS_CODEC_VERSION);
+    decode_full(stream, size, &got);
+    assert_true(ms_codec_state_equal(&got, &want, true));
+    static const struct { uint8_t version; const char *text; } cases[] = {
+        {1, "codec stream version 1, this build reads version 2"},
+        {3, "codec stream version 3, this build reads version 2"},
+    };
+    for (size_t k = 0; k < sizeof cases / sizeof *cases; ++k) {
+        stream[4] = cases[k].version;
+        ms_codec_header h;
+        assert_int_equal(ms_codec_read_header(stream, size, &h, &err), MS_ERR_UNSUPPORTED);
+        assert_string_equal(err.text, cases[k].text);
+        ms_codec_decoder *d = (ms_codec_decoder *)1;
+        assert_int_equal(ms_codec_decoder_create(stream, size, NULL, NULL, &d, &err),
+                         MS_ERR_UNSUPPORTED);
+        assert_non_null(strstr(err.text, cases[k].text));
+        assert_null(strchr(err.text, '\n'));
+    }
+    free(stream);
     ms_codec_state_free(&want);
-    ms_codec_state_free(&got1);
-    ms_codec_state_free(&got2);
+    ms_codec_state_free(&got);
 }
 
 /* Counting decisions for training leaves the stream unchanged and counts what the
@@ -235,7 +226,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_estimate),
         cmocka_unit_test(test_model_init),
-        cmocka_unit_test(test_version_1_still_decodes),
+        cmocka_unit_test(test_other_versions_refused),
         cmocka_unit_test(test_training_counts),
         cmocka_unit_test(test_train_cli),
     };

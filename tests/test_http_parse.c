@@ -1,4 +1,4 @@
-/* The side door's Range and If-None-Match parsing (server/serve/ms_http_parse.h),
+/* The side door's Range, If-None-Match and Authorization parsing (server/serve/ms_http_parse.h),
  * case by case, with nginx's answers as the reference; and the replay of the
  * fuzz corpus tests/corpus/http_request/ through the fuzz target's checks. */
 #include <stdarg.h>
@@ -36,7 +36,14 @@ static void test_ranges(void **state)
                                NONE = MS_HTTP_RANGE_NONE;
     expect_range(NULL, 100, NONE, 0, 0);
     expect_range("items=0-5", 100, NONE, 0, 0);
-    expect_range("bytes=0-5,10-20", 100, NONE, 0, 0);
+    /* Several ranges: 416, as docs/SECURITY.md says (issue 32, item 8). */
+    expect_range("bytes=0-5,10-20", 100, BAD, 0, 0);
+    expect_range("bytes=0-1,5-6", 100, BAD, 0, 0);
+    expect_range("bytes=0-1, 5-6", 100, BAD, 0, 0);
+    expect_range("bytes=0-5,", 100, BAD, 0, 0);
+    expect_range("bytes=,0-5", 100, BAD, 0, 0);
+    expect_range("bytes=-5,-5", 100, BAD, 0, 0);
+    expect_range("items=0-1,5-6", 100, NONE, 0, 0);
     expect_range("bytes=5-9", 100, OK, 5, 9);
     expect_range("bytes= 5 - 9 ", 100, OK, 5, 9);
     expect_range("bytes=5-", 100, OK, 5, 99);
@@ -75,6 +82,53 @@ static void test_none_match(void **state)
     assert_false(ms_http_none_match(",,,", etag));
 }
 
+static void expect_bearer(const char *header, const char *credential)
+{
+    const char *token = "untouched";
+    size_t length = 9;
+    bool found = ms_http_bearer_credential(header, &token, &length);
+    if (!credential) {
+        if (found)
+            fail_msg("Authorization '%s': credential '%.*s', expected none", header,
+                     (int)length, token);
+        assert_string_equal(token, "untouched");
+        return;
+    }
+    if (!found)
+        fail_msg("Authorization '%s': no credential, expected '%s'", header, credential);
+    if (length != strlen(credential) || memcmp(token, credential, length) != 0)
+        fail_msg("Authorization '%s': credential '%.*s', expected '%s'", header, (int)length,
+                 token, credential);
+}
+
+/* Issue 32, item 8: the scheme in any case, spaces as RFC 9110 allows them. */
+static void test_bearer_credential(void **state)
+{
+    (void)state;
+    expect_bearer("Bearer s3cret", "s3cret");
+    expect_bearer("bearer s3cret", "s3cret");
+    expect_bearer("BEARER s3cret", "s3cret");
+    expect_bearer("bEaReR s3cret", "s3cret");
+    expect_bearer("Bearer   s3cret", "s3cret");   /* 1*SP */
+    expect_bearer("Bearer s3cret  \t", "s3cret"); /* trailing OWS */
+    expect_bearer(" \tBearer s3cret", "s3cret");  /* leading OWS */
+    expect_bearer("Bearer abc-._~+/==", "abc-._~+/=="); /* token68 */
+    expect_bearer("Bearer s3cret!#", "s3cret!#"); /* what the config allows */
+    expect_bearer(NULL, NULL);
+    expect_bearer("", NULL);
+    expect_bearer("Bearer", NULL);
+    expect_bearer("Bearer ", NULL);
+    expect_bearer("Bearer    ", NULL);
+    expect_bearer("Bearers3cret", NULL);
+    expect_bearer("Bearer\ts3cret", NULL);
+    expect_bearer("Basic czNjcmV0", NULL);
+    expect_bearer("Bearer s3cret extra", NULL);
+    expect_bearer("Bearer s3c\x01ret", NULL);
+    expect_bearer("Bearer s3c\xc3\xa9ret", NULL);
+    expect_bearer("Bear s3cret", NULL);
+    expect_bearer("Bearer@ s3cret", NULL);
+}
+
 static void test_corpus_replay(void **state)
 {
     (void)state;
@@ -106,6 +160,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_ranges),
         cmocka_unit_test(test_none_match),
+        cmocka_unit_test(test_bearer_credential),
         cmocka_unit_test(test_corpus_replay),
     };
     return cmocka_run_group_tests_name("http_parse", tests, NULL, NULL);

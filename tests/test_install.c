@@ -92,6 +92,62 @@ static void test_every_program_answers_version(void **state)
     ms_test_rmdir(tmp);
 }
 
+/* Every program reads its command line one way (ms_cli): an unknown option,
+ * alone or after an argument, and an option without its value give exactly one
+ * line on stderr, "NAME: WHAT: OPTION (see NAME --help)", nothing on stdout,
+ * and exit status 2. */
+static void test_every_program_refuses_bad_options(void **state)
+{
+    (void)state;
+    char names[32][64], bin[4096], tmp[512];
+    size_t n = program_names(names, 32);
+    assert_int_equal(n, PROGRAM_COUNT);
+    ms_test_bin_path(bin, sizeof bin, "meshgen");
+    *strrchr(bin, '/') = '\0';
+    ms_test_tmpdir(tmp, sizeof tmp);
+    for (size_t i = 0; i < n; ++i) {
+        static const char *const lines[] = {"--frobnicate", "IN.ply --frobnicate"};
+        for (size_t k = 0; k < sizeof lines / sizeof *lines; ++k) {
+            char cmd[8192], out[512], want[256], err_path[600];
+            snprintf(err_path, sizeof err_path, "%s/stderr", tmp);
+            snprintf(cmd, sizeof cmd, "'%s/%s' %s 2>'%s'", bin, names[i], lines[k], err_path);
+            if (strcmp(names[i], "meshcodec") == 0 && k == 1) /* its options follow a command */
+                snprintf(cmd, sizeof cmd, "'%s/%s' encode --frobnicate 2>'%s'", bin, names[i],
+                         err_path);
+            int rc = ms_test_run(cmd, out, sizeof out);
+            size_t length;
+            unsigned char *err_text = ms_test_read_file(err_path, &length);
+            const char *who = strcmp(names[i], "meshcodec") == 0 && k == 1 ? "meshcodec encode"
+                                                                           : names[i];
+            snprintf(want, sizeof want, "%s: unknown option: --frobnicate (see %s --help)\n", who,
+                     who);
+            if (rc != 2 || out[0] || length != strlen(want) || memcmp(err_text, want, length) != 0)
+                fail_msg("%s: exit %d, stdout '%s', stderr '%.*s', want '%s'", cmd, rc, out,
+                         (int)length, (const char *)err_text, want);
+            free(err_text);
+        }
+    }
+    /* an option that wants a value, given none */
+    static const char *const valued[][2] = {{"meshgen", "--triangles"}, {"meshbake", "--bits"},
+                                            {"meshload", "--tolerance"}, {"meshview", "--size"},
+                                            {"meshserve", "--config"}, {"meshrender", "--width"}};
+    for (size_t i = 0; i < sizeof valued / sizeof *valued; ++i) {
+        char cmd[8192], out[512], want[256], err_path[600];
+        snprintf(err_path, sizeof err_path, "%s/stderr", tmp);
+        snprintf(cmd, sizeof cmd, "'%s/%s' %s 2>'%s'", bin, valued[i][0], valued[i][1], err_path);
+        int rc = ms_test_run(cmd, out, sizeof out);
+        size_t length;
+        unsigned char *err_text = ms_test_read_file(err_path, &length);
+        snprintf(want, sizeof want, "%s: option needs a value: %s (see %s --help)\n", valued[i][0],
+                 valued[i][1], valued[i][0]);
+        if (rc != 2 || length != strlen(want) || memcmp(err_text, want, length) != 0)
+            fail_msg("%s: exit %d, stderr '%.*s', want '%s'", cmd, rc, (int)length,
+                     (const char *)err_text, want);
+        free(err_text);
+    }
+    ms_test_rmdir(tmp);
+}
+
 /* Runs a shell command that must exit 0; its output into out. */
 static void run_ok(const char *cmd, char *out, size_t size)
 {
@@ -250,6 +306,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_every_program_answers_version),
+        cmocka_unit_test(test_every_program_refuses_bad_options),
         cmocka_unit_test(test_install_example_uninstall),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -20,7 +20,7 @@ static void test_help_and_usage_errors(void **state)
     assert_non_null(strstr(out, "Usage: meshgen"));
     snprintf(cmd, sizeof cmd, "%s", bin);
     assert_int_equal(ms_test_run(cmd, out, sizeof out), 2);
-    assert_string_equal(out, "meshgen: missing -o OUT.ply (try 'meshgen --help')\n");
+    assert_string_equal(out, "meshgen: missing -o OUT.ply (see meshgen --help)\n");
     snprintf(cmd, sizeof cmd, "%s -o /tmp/x.ply --triangles 12abc", bin);
     assert_int_equal(ms_test_run(cmd, out, sizeof out), 2);
     assert_non_null(strstr(out, "--triangles wants an integer"));

@@ -1262,6 +1262,52 @@ static void test_accept_failure_backs_off(void **state)
     ms_test_conn_close(&c);
 }
 
+/* Issue 32, item 8: log lines that clients cause are rate-limited. 50 clients
+ * each end their connection with a fatal ERROR whose text the server logs:
+ * the first MS_CLIENT_LOG_LINES (20) are written, the other 30 are counted,
+ * and when the 10 s window ends one line says so ("30 more since TIME"),
+ * and /metrics counts them; stopping the server repeats nothing. */
+static void test_client_log_lines_limited(void **state)
+{
+    server_fixture *f = *state;
+    enum { CLIENTS = 50, WRITTEN = 20 };
+    for (int i = 0; i < CLIENTS; ++i) {
+        ms_test_conn c;
+        connect_ready(f, &c, NULL);
+        char text[32];
+        snprintf(text, sizeof text, "client %d gives up", i);
+        ms_proto_message m = {.type = MS_PROTO_ERROR};
+        m.body.error = (ms_proto_error_body){MS_PROTO_E_MALFORMED_FRAME, true, 0, 0, text,
+                                              (uint16_t)strlen(text)};
+        ms_test_conn_send(&c, &m);
+        ms_test_conn_close(&c); /* at once: the server would linger 2 s for our end */
+    }
+    /* The window closes at most 11 s after its first line (a 1 s tick). */
+    uint64_t held = 0;
+    for (int i = 0; i < 300 && held == 0; ++i) {
+        assert_int_equal(ms_test_metric(f->http_port, "meshstream_log_lines_held_back_total", &held), 0);
+        if (!held)
+            usleep(100000);
+    }
+    assert_int_equal(held, CLIENTS - WRITTEN);
+    assert_int_equal(ms_test_stop(f->pid, SIGTERM, 15.0), 0);
+    f->pid = 0;
+    size_t size;
+    unsigned char *bytes = ms_test_read_file(f->log, &size);
+    char *log = calloc(size + 1, 1);
+    assert_non_null(log);
+    memcpy(log, bytes, size);
+    free(bytes);
+    unsigned written = count_lines_with(log, "binary: client reported MALFORMED_FRAME: client ");
+    if (written != WRITTEN || count_lines_with(log, " more since ") != 1 ||
+        !strstr(log, " meshserve: 30 more since ") ||
+        !strstr(log, ": client log lines held back (at most 20 per 10 s)\n"))
+        fail_msg("%u client lines, expected %d and one summary of 30:\n%s", written, WRITTEN, log);
+    assert_non_null(strstr(log, "client 19 gives up\n"));
+    assert_null(strstr(log, "client 20 gives up"));
+    free(log);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -1289,6 +1335,7 @@ int main(void)
                                         start_descriptor_limited_server, stop_server),
         cmocka_unit_test_setup_teardown(test_every_excess_connection_told, start_two_client_server,
                                         stop_server),
+        cmocka_unit_test_setup_teardown(test_client_log_lines_limited, start_server, stop_server),
     };
     return cmocka_run_group_tests_name("meshserve binary protocol", tests, NULL, NULL);
 }

@@ -7,8 +7,7 @@
  * cannot ask for subtrees; a preview (no token) reads every subtree and still
  * no full-precision geometry; the HTTP side door serves the same bytes with
  * ETag, 304, Range, 404 and 416 (protocol/PROTOCOL.md sections 3, 4.7, 4.10,
- * 11). Models: the synthetic "dragon" (n = 4, S = 1: three subtrees; archive
- * file version 3) and the same as file version 2 ("dragon_v2"), "deep" (n = 2,
+ * 11). Models: the synthetic "dragon" (n = 4, S = 1: three subtrees), "deep" (n = 2,
  * S = 2, six levels: subtrees on three levels) and "big" (65 cells of 256 KiB,
  * to keep the queue busy). */
 #include <stdarg.h>
@@ -70,16 +69,6 @@ static void add_deep_model(const char *dir, const char *name, uint32_t salt)
     add_entry(dir, name, MS_TEST_DEEP_ARCHIVE_CELLS, 2, DEEP_PUBLIC_BITS);
 }
 
-/* The "dragon" model (salt 2) as an archive file of version 2: its subtrees
- * are computed by the server when it opens it. */
-static void add_version2_model(const char *dir, const char *name)
-{
-    char path[4096];
-    snprintf(path, sizeof path, "%s/%s.msa", dir, name);
-    ms_test_write_archive_version(path, 2, MS_ARCHIVE_VERSION_ZLIB_INDEX);
-    add_entry(dir, name, MS_TEST_ARCHIVE_CELLS, 4, 8);
-}
-
 static int start_server(void **state)
 {
     fixture *f = calloc(1, sizeof *f);
@@ -88,7 +77,6 @@ static int start_server(void **state)
     assert_int_equal(mkdir(f->archives, 0755), 0);
     ms_test_add_model(f->archives, "dragon", 2, 8);
     add_deep_model(f->archives, "deep", 3);
-    add_version2_model(f->archives, "dragon_v2");
     ms_synthetic_spec big = {1, 12, 256u << 10, 0, 1, 5, 12};
     ms_error err;
     if (ms_synthetic_archive_write(f->archives, "big", &big, &err) != MS_OK)
@@ -215,7 +203,7 @@ static void test_head_is_root_subtree(void **state)
         uint8_t *got;
         assert_true(ms_test_conn_open_model(&c, models[k], 1, &o, &got, NULL) >= 1);
         assert_int_equal(o.index_encoding, MS_PROTO_INDEX_SUBTREES);
-        assert_int_equal(o.archive_version, MS_ARCHIVE_VERSION_SUBTREES);
+        assert_int_equal(o.archive_version, MS_ARCHIVE_VERSION);
         assert_int_equal(o.index_size, head_size);
         assert_int_equal(o.index_crc32, (uint32_t)crc32_z(0L, head, head_size));
         assert_int_equal(o.cell_count, ms_archive_get_header(a)->cell_count);
@@ -253,60 +241,6 @@ static void test_head_is_root_subtree(void **state)
     assert_int_equal(last->level, 4);
     free(ids);
     ms_archive_close(a);
-}
-
-/* An archive file of version 2 and one of version 3 of the same model are
- * served alike: the same content id, head and subtrees (the version-2 file's
- * computed when the server opened it). */
-static void test_file_versions_served_alike(void **state)
-{
-    fixture *f = *state;
-    ms_archive *v3 = open_archive(f, "dragon"), *v2 = open_archive(f, "dragon_v2");
-    assert_int_equal(ms_archive_get_header(v3)->version, MS_ARCHIVE_VERSION_SUBTREES);
-    assert_int_equal(ms_archive_get_header(v2)->version, MS_ARCHIVE_VERSION_ZLIB_INDEX);
-    uint32_t *ids;
-    size_t count;
-    subtree_ids(v3, &ids, &count);
-    ms_test_conn c;
-    connect_v3(f, &c, TOKEN);
-    ms_proto_model_opened o3, o2;
-    uint8_t *head3, *head2;
-    uint32_t h3 = ms_test_conn_open_model(&c, "dragon", 1, &o3, &head3, NULL);
-    uint32_t h2 = ms_test_conn_open_model(&c, "dragon_v2", 2, &o2, &head2, NULL);
-    assert_true(o3.content_id == o2.content_id);
-    assert_int_equal(o2.index_encoding, MS_PROTO_INDEX_SUBTREES);
-    assert_int_equal(o3.index_size, o2.index_size);
-    assert_int_equal(o3.index_crc32, o2.index_crc32);
-    assert_memory_equal(head3, head2, o3.index_size);
-    ms_proto_cell_request *e = calloc(count, sizeof *e);
-    for (size_t i = 0; i < count; ++i)
-        e[i] = subtree_entry(ids[i], MS_PROTO_UNIT_STEPS, 0, 0, 0);
-    ms_test_answers a3, a2;
-    ms_test_conn_send_batch(&c, h3, 100, e, (uint16_t)count);
-    ms_test_answers_init(&a3, 100, (uint32_t)count);
-    ms_test_answers_collect(&c, &a3);
-    ms_test_conn_send_batch(&c, h2, 200, e, (uint16_t)count);
-    ms_test_answers_init(&a2, 200, (uint32_t)count);
-    ms_test_answers_collect(&c, &a2);
-    for (size_t i = 0; i < count; ++i) {
-        size_t size;
-        const uint8_t *stored = ms_archive_subtree(v3, ids[i], &size);
-        assert_int_equal(a3.error[i], 0);
-        assert_int_equal(a2.error[i], 0);
-        assert_int_equal(a3.length[i], size);
-        assert_int_equal(a2.length[i], size);
-        assert_memory_equal(a3.data[i], stored, size);
-        assert_memory_equal(a2.data[i], stored, size);
-    }
-    ms_test_answers_free(&a3);
-    ms_test_answers_free(&a2);
-    free(e);
-    free(head3);
-    free(head2);
-    free(ids);
-    ms_test_conn_close(&c);
-    ms_archive_close(v2);
-    ms_archive_close(v3);
 }
 
 /* Versions 1 and 2 keep working: the whole index (RAW, ZLIB), never the head,
@@ -802,7 +736,6 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_head_is_root_subtree),
-        cmocka_unit_test(test_file_versions_served_alike),
         cmocka_unit_test(test_older_clients_get_whole_index),
         cmocka_unit_test(test_every_subtree_by_steps_and_bytes),
         cmocka_unit_test(test_unknown_subtree_ids),

@@ -489,11 +489,44 @@ static void test_interactive_from_a_server_lists_once(void **state)
     free(text);
 }
 
+/* The last keyframe's apo_bytes of a scripted run along the close-up path. */
+static json_int_t run_apo_bytes(const fixture *f, const char *extra, const char *name)
+{
+    char args[2048], out[700], err_text[4096];
+    snprintf(out, sizeof out, "%s/%s.json", f->dir, name);
+    snprintf(args, sizeof args,
+             "%s --model " MODEL " --path " PATH_FILE " --size " SIZE " %s --screenshot-dir %s/%s --json",
+             f->archives, extra, f->dir, name);
+    assert_int_equal(run_viewer(f, args, out, err_text, sizeof err_text), 0);
+    json_t *report = load_report(out);
+    json_t *keys = json_object_get(report, "keyframes");
+    json_int_t bytes = json_integer_value(json_object_get(json_array_get(keys, json_array_size(keys) - 1),
+                                                          "apo_bytes"));
+    assert_int_equal(json_integer_value(json_object_get(report, "apo_bytes")) >= 0, 1);
+    json_decref(report);
+    return bytes;
+}
+
+/* --shading geometry draws no APO normal, so it fetches no APO byte: at a
+ * coarse tolerance, where the cut holds internal cells and APO shading fetches
+ * their chunks, geometry shading fetches exactly 0 bytes of them. */
+static void test_geometry_shading_fetches_no_apo(void **state)
+{
+    fixture *f = *state;
+    json_int_t apo = run_apo_bytes(f, "--tolerance 12", "coarse-apo");
+    json_int_t geometry = run_apo_bytes(f, "--tolerance 12 --shading geometry", "coarse-geometry");
+    print_message("apo bytes at 12 px: APO shading %lld, geometry shading %lld\n", (long long)apo,
+                  (long long)geometry);
+    assert_true(apo > 0);
+    assert_int_equal(geometry, 0);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_help_and_usage_errors),
         cmocka_unit_test(test_streaming_and_local_archive),
+        cmocka_unit_test(test_geometry_shading_fetches_no_apo),
         cmocka_unit_test(test_catalogue_screen),
         cmocka_unit_test(test_small_on_screen_never_vanishes),
         cmocka_unit_test(test_interactive_until_terminated),

@@ -242,7 +242,10 @@ static void test_impostors_agree_with_geometry(void **state)
     size_t differing = ms_test_png_differing(last_png(imp), last_png(geo), 24);
     print_message("impostors against geometry: %zu of %d pixels differ by more than 24 levels\n", differing,
                   160 * 120);
-    assert_true(differing < 160 * 120 / 25); /* measured 1.6% */
+    /* measured 6.9 % (3.1 % before the self-shadowing factor applied to
+     * every normal: lighting as (N.L)^2 has steeper gradients, so the
+     * capture's resampling moves more pixels past 24 levels) */
+    assert_true(differing < 160 * 120 / 10);
     json_decref(imp);
     json_decref(geo);
 }

@@ -234,6 +234,36 @@ static void select_targets(ms_view *v, const ms_camera *cam, const ms_view_selec
         target[i] = ms_view_target(v, i);
 }
 
+/* A public preview of 10 bits (permitted_steps 11, issue 32): no target above
+ * 10 bits, no split of a cell whose window reaches 10 (its children could
+ * not be read), no subtree prefetch for such a cell, every target below 10
+ * as without the cap; returns the cells the cap lowered. */
+static size_t check_preview_cap(ms_view *v, const ms_camera *cam, const uint8_t *fine,
+                                uint8_t *capped)
+{
+    ms_view_select_params sp;
+    ms_view_select_params_default(&sp);
+    sp.permitted_steps = 11;
+    ms_view_select_report report = {0};
+    ms_view_select(v, cam, &sp, &report);
+    for (uint32_t i = 0; i < ms_view_cell_count(v); ++i) {
+        capped[i] = ms_view_target(v, i);
+        const ms_archive_cell *c = ms_view_cell(v, i);
+        if (capped[i] == MS_VIEW_TARGET_SPLIT)
+            assert_true(c->bits_max < 10);
+        else if (capped[i] != MS_VIEW_TARGET_HIDDEN)
+            assert_true(capped[i] <= 10);
+        if (fine[i] < 10)
+            assert_int_equal(capped[i], fine[i]);
+    }
+    for (size_t k = 0; k < report.near_count; ++k)
+        assert_true(ms_view_cell(v, report.near[k])->bits_max < 10);
+    assert_int_equal(report.blocked_count, 0); /* a whole index */
+    size_t lowered = report.capped_count;
+    ms_view_select_report_free(&report);
+    return lowered;
+}
+
 static void test_tolerance_scale(void **state)
 {
     (void)state;
@@ -248,6 +278,8 @@ static void test_tolerance_scale(void **state)
     const ms_archive_header *h = ms_view_header(v);
     uint32_t n = h->cell_count;
     uint8_t *coarse = malloc(n), *fine = malloc(n), *scaled = malloc(n), *mixed = malloc(n);
+    uint8_t *capped = malloc(n);
+    size_t lowered = 0, above = 0;
     float *uniform = malloc(n * sizeof *uniform), *leaves = malloc(n * sizeof *leaves);
     assert_true(coarse && fine && scaled && mixed && uniform && leaves);
     for (uint32_t i = 0; i < n; ++i) {
@@ -265,6 +297,9 @@ static void test_tolerance_scale(void **state)
         select_targets(v, &cam, &sp, coarse);
         sp.tolerance_px = 1.0;
         select_targets(v, &cam, &sp, fine);
+        lowered += check_preview_cap(v, &cam, fine, capped);
+        for (uint32_t i = 0; i < n; ++i)
+            above += fine[i] != MS_VIEW_TARGET_HIDDEN && fine[i] != MS_VIEW_TARGET_SPLIT && fine[i] > 10;
         sp.tolerance_px = 4.0;
         sp.tolerance_scale = uniform;
         select_targets(v, &cam, &sp, scaled);
@@ -284,7 +319,8 @@ static void test_tolerance_scale(void **state)
         }
     }
     assert_true(leaf_changes > 0); /* the cameras do reach leaves that refine */
-    free(coarse), free(fine), free(scaled), free(mixed), free(uniform), free(leaves);
+    assert_true(above > 0 && lowered > 0); /* the cameras want more than the preview */
+    free(coarse), free(fine), free(scaled), free(mixed), free(uniform), free(leaves), free(capped);
     ms_view_destroy(v);
     ms_archive_close(a);
     ms_test_rmdir(dir);

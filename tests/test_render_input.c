@@ -579,8 +579,9 @@ static void expect_colour(const float got[4], double r, double g, double b)
 }
 
 /* LIT: albedo (0.72, 0.69, 0.64) times (0.05 + 0.95 * Lambert * self-shadow) plus
- * 0.18 * specular^40 * self-shadow, sRGB-encoded; both sides lit alike; without
- * APO (this plane has no chunk) the self-shadowing factor is 1. NORMALS:
+ * 0.18 * specular^40 * self-shadow, sRGB-encoded; both sides lit alike; the
+ * self-shadowing factor max(0, L . N_geometric) applies without APO too (the
+ * head light at 60 degrees: 0.5, meshrender's lighting model). NORMALS:
  * the stored orientation's normal. CELL_ID: cell + 1. */
 static void test_shading(void **state)
 {
@@ -589,14 +590,15 @@ static void test_shading(void **state)
     ms_render_options o;
     ms_render_options_default(&o);
     float c[4];
+    double expected[3];
     for (int back = 0; back < 2; ++back) {
         draw_plane(0.0, back, &o, c);
         expect_colour(c, srgb(albedo[0] + 0.18), srgb(albedo[1] + 0.18), srgb(albedo[2] + 0.18));
         draw_plane(60.0, back, &o, c);
-        double lambert = 0.5, spec = pow(0.5, 40.0);
-        expect_colour(c, srgb(albedo[0] * (0.05 + 0.95 * lambert) + 0.18 * spec),
-                      srgb(albedo[1] * (0.05 + 0.95 * lambert) + 0.18 * spec),
-                      srgb(albedo[2] * (0.05 + 0.95 * lambert) + 0.18 * spec));
+        double lambert = 0.5, spec = pow(0.5, 40.0), self_shadow = 0.5;
+        for (int k = 0; k < 3; ++k) /* the light's terms times the self-shadowing factor */
+            expected[k] = srgb(albedo[k] * (0.05 + 0.95 * lambert * self_shadow) + 0.18 * spec * self_shadow);
+        expect_colour(c, expected[0], expected[1], expected[2]);
     }
     o.shading = MS_SHADING_NORMALS;
     /* smooth (the vertex normals of a lone triangle are its own, packed) and flat */

@@ -1,8 +1,10 @@
 /* The renderer's upload rule (ms_render.h, "Uploads"; docs/RENDERER.md):
  * the same frame twice queues nothing; refining one cell queues exactly the cells
  * whose drawn triangles or vertex normals changed (found here independently, by
- * comparing each cell's triangles as world positions with the packed
- * area-weighted normals of their corners); with a small budget no call sends more
+ * comparing each cell's triangles as world positions with the packed normals
+ * of their corners, split at the crease angle: corner_normals); each cell
+ * uploads one vertex per distinct (mesh vertex, normal) of its corners; with a
+ * small budget no call sends more
  * than the budget, every cell completes, and until a cell's new mesh is wholly
  * on the GPU the picture is exactly the old one; a cell leaving the frame stops
  * drawing at once; APO prefixes are queued only when their levels change. */
@@ -43,33 +45,204 @@ typedef struct tri_key {
     double p[12];
 } tri_key;
 
-/* The mesh's vertex normals as the renderer uploads them (ms_render.h, "Vertex
- * normals"): per vertex the sum of the cross products (b - a) x (c - a) of its
- * triangles, in triangle order, normalised, each component rounded to a signed
- * 10-bit integer over 511 (GL_INT_2_10_10_10_REV, x low); 0 when undefined. */
-static uint32_t *packed_vertex_normals(const ms_view_mesh *m)
+/* The crease angle the renderer runs with here (its default; setup checks). */
+#define CREASE_DEG 60.0
+
+/* One use of an edge by a triangle with area: the edge's two vertices (lo < hi),
+ * whether the triangle walks it from lo to hi, and the triangle. */
+typedef struct edge_use {
+    uint32_t lo, hi, triangle;
+    uint8_t forward;
+} edge_use;
+
+static int edge_use_cmp(const void *x, const void *y)
 {
-    double *sum = calloc(3 * m->vertex_count + 1, sizeof *sum);
-    uint32_t *packed = calloc(m->vertex_count + 1, sizeof *packed);
-    assert_true(sum && packed);
-    for (size_t t = 0; t < m->triangle_count; ++t) {
+    const edge_use *a = x, *b = y;
+    if (a->lo != b->lo)
+        return a->lo < b->lo ? -1 : 1;
+    if (a->hi != b->hi)
+        return a->hi < b->hi ? -1 : 1;
+    return (a->triangle > b->triangle) - (a->triangle < b->triangle);
+}
+
+/* A smooth edge: triangles a and b meet there at most CREASE_DEG apart (b
+ * turned over first when it walks the edge the way a does). */
+typedef struct join {
+    uint32_t lo, hi, a, b;
+    uint8_t flipped;
+} join;
+
+static uint32_t pack_normal(const double n[3])
+{
+    double len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    uint32_t word = 0;
+    if (!(len > 0.0))
+        return 0;
+    for (int ax = 0; ax < 3; ++ax)
+        word |= ((uint32_t)lround(n[ax] / len * 511.0) & 0x3FFu) << (10 * ax);
+    return word;
+}
+
+/* The mesh's corner normals as the renderer uploads them (docs/RENDERER.md,
+ * "Vertex normals"), found here another way: the whole mesh's edges sorted
+ * once; an edge used by exactly two triangles with area whose normals (the
+ * second turned over if they walk it the same way) are at most CREASE_DEG apart,
+ * plus each triangle's slack (how far its normal may be off because its
+ * corners are not at full precision), is smooth; around each vertex, a breadth-first walk over the smooth edges
+ * at that vertex groups its triangles, each with its sign against the group's
+ * first; a group's normal is the signed sum of its triangles' (b - a) x (c - a)
+ * in triangle order, and a corner gets it times its own sign, packed to 10-bit
+ * components over 511 (GL_INT_2_10_10_10_REV, x low); 0 when undefined.
+ * *contradictions counts smooth edges whose signs disagree with their group's
+ * (a fan whose flips do not close), where the rule depends on the join order. */
+static uint32_t *corner_normals(const ms_view_mesh *m, size_t *contradictions)
+{
+    const ms_archive_header *h = ms_archive_get_header(fx.archive);
+    size_t nt = m->triangle_count, nv = m->vertex_count;
+    double *fn = malloc((3 * nt + 1) * sizeof *fn), *slack = malloc((nt + 1) * sizeof *slack);
+    assert_true(fn && slack && m->levels);
+    edge_use *uses = malloc((3 * nt + 1) * sizeof *uses);
+    join *joins = malloc((3 * nt + 1) * sizeof *joins);
+    uint32_t *packed = calloc(3 * nt + 1, sizeof *packed);
+    assert_true(fn && uses && joins && packed);
+    size_t use_count = 0, join_count = 0;
+    for (size_t t = 0; t < nt; ++t) {
         const uint32_t *tri = &m->triangles[3 * t];
         const double *a = &m->positions[3 * (size_t)tri[0]], *b = &m->positions[3 * (size_t)tri[1]],
                      *c = &m->positions[3 * (size_t)tri[2]];
         double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, v[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
-        double n[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};
-        for (int k = 0; k < 3; ++k)
+        double *n = &fn[3 * t];
+        n[0] = u[1] * v[2] - u[2] * v[1];
+        n[1] = u[2] * v[0] - u[0] * v[2];
+        n[2] = u[0] * v[1] - u[1] * v[0];
+        /* the slack: the largest distance of a corner from where it lies at
+         * full precision (a vertex of kd-level l is its kd-cell's centre, the
+         * cell 2^(bits - splits) grid units wide on each axis, splits =
+         * (l + 2 - axis) / 3, the full-precision vertex a grid cell's centre
+         * inside it), times the longest side, over twice the area: the
+         * arctangent is how far the normal may be off */
+        double worst = 0.0;
+        for (int k = 0; k < 3; ++k) {
+            unsigned level = m->levels[tri[k]];
+            double d2 = 0.0;
+            for (unsigned ax = 0; ax < 3; ++ax) {
+                unsigned splits = (level + 2u - ax) / 3u;
+                double spare = ldexp(1.0, (int)h->bits - (int)splits) - 1.0;
+                d2 += spare * spare;
+            }
+            double off = 0.5 * (h->box_side / ldexp(1.0, h->bits)) * sqrt(d2);
+            worst = off > worst ? off : worst;
+        }
+        double sides[3] = {u[0] * u[0] + u[1] * u[1] + u[2] * u[2], v[0] * v[0] + v[1] * v[1] + v[2] * v[2],
+                           (c[0] - b[0]) * (c[0] - b[0]) + (c[1] - b[1]) * (c[1] - b[1]) + (c[2] - b[2]) * (c[2] - b[2])};
+        double longest = sqrt(fmax(sides[0], fmax(sides[1], sides[2])));
+        double twice_area = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        slack[t] = worst > 0.0 ? (twice_area > 0.0 ? atan2(worst * longest, twice_area) : M_PI / 2) : 0.0;
+        if (n[0] == 0.0 && n[1] == 0.0 && n[2] == 0.0)
+            continue; /* no area: on no smooth edge */
+        for (int k = 0; k < 3; ++k) {
+            uint32_t from = tri[k], to = tri[(k + 1) % 3];
+            uses[use_count++] = (edge_use){from < to ? from : to, from < to ? to : from, (uint32_t)t, from < to};
+        }
+    }
+    qsort(uses, use_count, sizeof *uses, edge_use_cmp);
+    double floor_cos = CREASE_DEG >= 180.0 ? -2.0 : cos(CREASE_DEG * M_PI / 180.0);
+    for (size_t i = 0; i < use_count;) {
+        size_t j = i + 1;
+        while (j < use_count && uses[j].lo == uses[i].lo && uses[j].hi == uses[i].hi)
+            j++;
+        if (j - i == 2) {
+            const edge_use *x = &uses[i], *y = &uses[i + 1];
+            const double *na = &fn[3 * (size_t)x->triangle], *nb = &fn[3 * (size_t)y->triangle];
+            uint8_t flipped = x->forward == y->forward;
+            double dot = na[0] * nb[0] + na[1] * nb[1] + na[2] * nb[2];
+            double cosine = (flipped ? -dot : dot) / (sqrt(na[0] * na[0] + na[1] * na[1] + na[2] * na[2]) *
+                                                     sqrt(nb[0] * nb[0] + nb[1] * nb[1] + nb[2] * nb[2]));
+            /* the crease angle widened by both normals' slack */
+            double widened = CREASE_DEG * M_PI / 180.0 + slack[x->triangle] + slack[y->triangle];
+            bool smooth = cosine >= floor_cos || widened >= M_PI || cosine >= cos(widened);
+            if (smooth)
+                joins[join_count++] = (join){x->lo, x->hi, x->triangle, y->triangle, flipped};
+        }
+        i = j;
+    }
+    /* per vertex: its fan (corners, ascending) and its smooth edges */
+    size_t *fan_start = calloc(nv + 2, sizeof *fan_start), *join_start = calloc(nv + 2, sizeof *join_start);
+    uint32_t *fan = malloc((3 * nt + 1) * sizeof *fan), *at = malloc((2 * join_count + 1) * sizeof *at);
+    assert_true(fan_start && join_start && fan && at);
+    for (size_t c = 0; c < 3 * nt; ++c)
+        fan_start[m->triangles[c] + 2]++;
+    for (size_t k = 0; k < join_count; ++k)
+        join_start[joins[k].lo + 2]++, join_start[joins[k].hi + 2]++;
+    for (size_t v = 0; v < nv; ++v) {
+        fan_start[v + 2] += fan_start[v + 1];
+        join_start[v + 2] += join_start[v + 1];
+    }
+    for (size_t c = 0; c < 3 * nt; ++c)
+        fan[fan_start[m->triangles[c] + 1]++] = (uint32_t)c;
+    for (size_t k = 0; k < join_count; ++k) {
+        at[join_start[joins[k].lo + 1]++] = (uint32_t)k;
+        at[join_start[joins[k].hi + 1]++] = (uint32_t)k;
+    }
+    /* fan_start[v] .. fan_start[v + 1] now (likewise join_start) */
+    uint32_t *stamp = calloc(nt + 1, sizeof *stamp), *group = malloc((nt + 1) * sizeof *group);
+    int8_t *sign = malloc(nt + 1);
+    uint32_t *queue = malloc((3 * nt + 1) * sizeof *queue);
+    double *sum = malloc((3 * nt + 3) * sizeof *sum);
+    assert_true(stamp && group && sign && queue && sum);
+    *contradictions = 0;
+    for (size_t v = 0; v < nv; ++v) {
+        uint32_t groups = 0;
+        for (size_t f = fan_start[v]; f < fan_start[v + 1]; ++f) {
+            uint32_t t = fan[f] / 3;
+            if (stamp[t] == v + 1)
+                continue;
+            stamp[t] = (uint32_t)v + 1, group[t] = groups, sign[t] = 1;
+            size_t head = 0, tail = 0;
+            queue[tail++] = t;
+            while (head < tail) {
+                uint32_t here = queue[head++];
+                for (size_t k = join_start[v]; k < join_start[v + 1]; ++k) {
+                    const join *e = &joins[at[k]];
+                    if (e->a != here && e->b != here)
+                        continue;
+                    uint32_t there = e->a == here ? e->b : e->a;
+                    int8_t want = (int8_t)(e->flipped ? -sign[here] : sign[here]);
+                    if (stamp[there] == v + 1) {
+                        *contradictions += sign[there] != want;
+                        continue;
+                    }
+                    stamp[there] = (uint32_t)v + 1, group[there] = groups, sign[there] = want;
+                    queue[tail++] = there;
+                }
+            }
+            sum[3 * (size_t)groups] = sum[3 * (size_t)groups + 1] = sum[3 * (size_t)groups + 2] = 0.0;
+            groups++;
+        }
+        for (size_t f = fan_start[v]; f < fan_start[v + 1]; ++f) {
+            uint32_t t = fan[f] / 3;
             for (int ax = 0; ax < 3; ++ax)
-                sum[3 * (size_t)tri[k] + (size_t)ax] += n[ax];
+                sum[3 * (size_t)group[t] + (size_t)ax] += sign[t] * fn[3 * (size_t)t + (size_t)ax];
+        }
+        for (size_t f = fan_start[v]; f < fan_start[v + 1]; ++f) {
+            uint32_t t = fan[f] / 3;
+            const double *g = &sum[3 * (size_t)group[t]];
+            double n[3] = {sign[t] * g[0], sign[t] * g[1], sign[t] * g[2]};
+            packed[fan[f]] = pack_normal(n);
+        }
     }
-    for (size_t i = 0; i < m->vertex_count; ++i) {
-        const double *n = &sum[3 * i];
-        double len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-        if (!(len > 0.0))
-            continue;
-        for (int ax = 0; ax < 3; ++ax)
-            packed[i] |= ((uint32_t)lround(n[ax] / len * 511.0) & 0x3FFu) << (10 * ax);
-    }
+    free(fn);
+    free(slack);
+    free(uses);
+    free(joins);
+    free(fan_start);
+    free(join_start);
+    free(fan);
+    free(at);
+    free(stamp);
+    free(group);
+    free(sign);
+    free(queue);
     free(sum);
     return packed;
 }
@@ -108,7 +281,9 @@ static void cell_tris_build(const ms_view_mesh *m, uint32_t cells, cell_tris *ou
     for (uint32_t c = 0; c < cells; ++c)
         out->start[c + 1] += out->start[c];
     memcpy(fill, out->start, ((size_t)cells + 1) * sizeof *fill);
-    uint32_t *normals = packed_vertex_normals(m);
+    size_t contradictions;
+    uint32_t *normals = corner_normals(m, &contradictions);
+    assert_int_equal(contradictions, 0); /* the rule is the same whatever the join order */
     for (size_t t = 0; t < m->triangle_count; ++t) {
         const double *corner[3];
         int first = 0;
@@ -120,7 +295,7 @@ static void cell_tris_build(const ms_view_mesh *m, uint32_t cells, cell_tris *ou
         tri_key *key = &out->keys[fill[m->triangle_cell[t]]++];
         for (int k = 0; k < 3; ++k) {
             memcpy(&key->p[3 * k], corner[(first + k) % 3], 3 * sizeof(double));
-            key->p[9 + k] = normals[m->triangles[3 * t + (size_t)((first + k) % 3)]];
+            key->p[9 + k] = normals[3 * t + (size_t)((first + k) % 3)];
         }
     }
     free(normals);
@@ -135,36 +310,56 @@ static void cell_tris_free(cell_tris *t)
     free(t->start);
 }
 
-/* Distinct vertices of each cell's triangles (what the renderer uploads). */
+/* A corner as the cell vertex it becomes: its cell, mesh vertex and packed
+ * normal. */
+typedef struct corner_key {
+    uint32_t cell, vertex, normal;
+} corner_key;
+
+static int corner_key_cmp(const void *x, const void *y)
+{
+    const corner_key *a = x, *b = y;
+    if (a->cell != b->cell)
+        return a->cell < b->cell ? -1 : 1;
+    if (a->vertex != b->vertex)
+        return a->vertex < b->vertex ? -1 : 1;
+    return (a->normal > b->normal) - (a->normal < b->normal);
+}
+
+/* The vertices each cell uploads: its corners' distinct (mesh vertex, packed
+ * normal) pairs (a vertex with several normals is several cell vertices). */
 static void vertices_per_cell(const ms_view_mesh *m, uint32_t cells, size_t *count)
 {
     memset(count, 0, cells * sizeof *count);
-    uint64_t *mark = calloc(m->vertex_count + 1, sizeof *mark);
-    assert_non_null(mark);
-    /* triangles grouped by cell in one pass per cell would be quadratic; mark
-     * (cell + 1) per vertex works because each cell is scanned in one run */
-    uint32_t *order = malloc((m->triangle_count + 1) * sizeof *order);
-    size_t *start = calloc((size_t)cells + 1, sizeof *start);
-    assert_true(order && start);
-    for (size_t t = 0; t < m->triangle_count; ++t)
-        start[m->triangle_cell[t] + 1]++;
-    for (uint32_t c = 0; c < cells; ++c)
-        start[c + 1] += start[c];
-    for (size_t t = 0; t < m->triangle_count; ++t)
-        order[start[m->triangle_cell[t]]++] = (uint32_t)t;
-    for (size_t i = 0; i < m->triangle_count; ++i) {
-        uint32_t t = order[i], c = m->triangle_cell[t];
-        for (int k = 0; k < 3; ++k) {
-            uint32_t v = m->triangles[3 * (size_t)t + (size_t)k];
-            if (mark[v] != (uint64_t)c + 1) {
-                mark[v] = (uint64_t)c + 1;
-                count[c]++;
-            }
-        }
-    }
-    free(mark);
-    free(order);
-    free(start);
+    size_t contradictions, n = 3 * m->triangle_count;
+    uint32_t *normals = corner_normals(m, &contradictions);
+    assert_int_equal(contradictions, 0);
+    corner_key *keys = malloc((n + 1) * sizeof *keys);
+    assert_non_null(keys);
+    for (size_t c = 0; c < n; ++c)
+        keys[c] = (corner_key){m->triangle_cell[c / 3], m->triangles[c], normals[c]};
+    qsort(keys, n, sizeof *keys, corner_key_cmp);
+    for (size_t i = 0; i < n; ++i)
+        if (i == 0 || corner_key_cmp(&keys[i - 1], &keys[i]) != 0)
+            count[keys[i].cell]++;
+    free(keys);
+    free(normals);
+}
+
+/* Distinct mesh vertices of all cells' triangles, counted once per cell (what
+ * one normal per vertex would upload), for the report. */
+static size_t plain_vertices(const ms_view_mesh *m)
+{
+    size_t n = 3 * m->triangle_count, count = 0;
+    corner_key *keys = malloc((n + 1) * sizeof *keys);
+    assert_non_null(keys);
+    for (size_t c = 0; c < n; ++c)
+        keys[c] = (corner_key){m->triangle_cell[c / 3], m->triangles[c], 0};
+    qsort(keys, n, sizeof *keys, corner_key_cmp);
+    for (size_t i = 0; i < n; ++i)
+        count += i == 0 || corner_key_cmp(&keys[i - 1], &keys[i]) != 0;
+    free(keys);
+    return count;
 }
 
 static bool same_cell(const cell_tris *a, const cell_tris *b, uint32_t c)
@@ -269,8 +464,10 @@ static void test_budget_and_same_frame(void **state)
         assert_true(calls < 100000);
     }
     uint64_t want = mesh_bytes(&mesh, fx.cell_count, NULL);
-    print_message("first frame: %u cells, %llu bytes in %llu calls of at most 4096\n", cells,
-                  (unsigned long long)total, (unsigned long long)calls);
+    print_message("first frame: %u cells, %llu bytes in %llu calls of at most 4096 (%zu triangles, %llu cell "
+                  "vertices, %zu with one normal per mesh vertex)\n",
+                  cells, (unsigned long long)total, (unsigned long long)calls, mesh.triangle_count,
+                  (unsigned long long)((want - 12ull * mesh.triangle_count) / 16), plain_vertices(&mesh));
     assert_int_equal(total, want);
     assert_int_equal(completed, cells);
     ms_render_draw_stats d = draw(NULL);
@@ -513,6 +710,7 @@ static int per_test_setup(void **state)
 {
     (void)state;
     ms_test_render_open(fx.archive, &fx.render, &fx.view);
+    assert_true(ms_render_crease_angle(fx.render) == CREASE_DEG);
     return 0;
 }
 

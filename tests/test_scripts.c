@@ -17,7 +17,7 @@
 
 static const char *const SCRIPTS[] = {
     "attack",       "bake-gallery", "bench",       "bench-apo",    "bench-apo-bake", "bench-bake",
-    "bench-bake-scale", "bench-client", "bench-client-scale", "bench-codec",  "bench-codec-peer", "bench-read", "bench-scene-link", "bench-scenes", "bench-serve",
+    "bench-bake-scale", "bench-client", "bench-client-scale", "bench-codec",  "bench-codec-peer", "bench-limits", "bench-read", "bench-scene-link", "bench-scenes", "bench-serve",
     "bench-valence", "bench-viewer", "cluster",    "demo",         "fetch-models",   "install-deps",   "run-tests",
     "screenshots",  "study",
 };
@@ -149,7 +149,7 @@ static void test_cluster_short_form(void **state)
     /* the instance killed held at least one client, which came back */
     assert_true(json_integer_value(json_object_get(failover, "reconnects")) >= 1);
     double failover_s = json_number_value(json_object_get(failover, "failover_seconds_max"));
-    assert_true(failover_s > 0 && failover_s < 5);
+    assert_true(failover_s > 0); /* how long: make bench (scripts/cluster's full form) */
     json_t *cache = json_object_get(report, "cache");
     /* both passes ask the same 4 x 100 cell requests (same seed) */
     json_t *second = json_object_get(cache, "second_pass");

@@ -128,9 +128,9 @@ static uint8_t *head_at(const ms_archive *a, unsigned levels, size_t *size)
     const uint8_t *blob = ms_archive_index_bytes(a, &blob_size);
     const ms_archive_header *h = ms_archive_get_header(a);
     uint8_t *head = malloc(MS_ARCHIVE_HEADER_SIZE + root_size);
-    ms_archive_encode_header_v3(h, blob_size - MS_ARCHIVE_HEADER_SIZE, (uint32_t)root_size,
-                                get32(blob + 88), get32(blob + 96), get32(blob + 108), levels,
-                                (uint32_t)count, head);
+    ms_archive_encode_header(h, blob_size - MS_ARCHIVE_HEADER_SIZE, (uint32_t)root_size,
+                             get32(blob + 88), get32(blob + 96), get32(blob + 108), levels,
+                             (uint32_t)count, head);
     memcpy(head + MS_ARCHIVE_HEADER_SIZE, root, root_size);
     free(root);
     *size = MS_ARCHIVE_HEADER_SIZE + root_size;
@@ -704,31 +704,27 @@ static void test_hostile_head(void **state)
     free(bad);
 }
 
-/* Version 3 and version 2 files of one model: the same records, payloads,
- * index blob (so content id), subtrees and head; only the stored index differs. */
-static void test_version_2_and_3_agree(void **state)
+/* A file and the archive opened from its index blob: the same records, and the
+ * same subtrees and head (the blob's deflated on request, the file's stored);
+ * then the file's layout byte by byte. */
+static void test_file_and_blob_agree(void **state)
 {
     fixture *f = *state;
-    char v2[700];
-    snprintf(v2, sizeof v2, "%s/v2.msa", f->dir);
-    ms_test_write_archive_version(v2, 0, MS_ARCHIVE_VERSION_ZLIB_INDEX);
-    ms_archive *b = open_or_fail(v2);
-    const ms_archive_header *h3 = ms_archive_get_header(f->a), *h2 = ms_archive_get_header(b);
-    assert_int_equal(h3->version, 3);
-    assert_int_equal(h2->version, 2);
     size_t s3, s2;
-    const uint8_t *blob3 = ms_archive_index_bytes(f->a, &s3), *blob2 = ms_archive_index_bytes(b, &s2);
+    const uint8_t *blob3 = ms_archive_index_bytes(f->a, &s3);
+    ms_archive *b;
+    ms_error err;
+    if (ms_archive_open_index(blob3, s3, "blob", &b, &err) != MS_OK)
+        fail_msg("%s", err.text);
+    const ms_archive_header *h3 = ms_archive_get_header(f->a), *h2 = ms_archive_get_header(b);
+    assert_int_equal(h3->version, MS_ARCHIVE_VERSION);
+    assert_int_equal(h2->version, MS_ARCHIVE_BLOB_VERSION);
+    const uint8_t *blob2 = ms_archive_index_bytes(b, &s2);
     assert_int_equal(s3, s2);
     assert_memory_equal(blob3, blob2, s3);
     for (uint32_t c = 0; c < MS_TEST_ARCHIVE_CELLS; ++c) {
-        const uint8_t *p3 = ms_archive_geometry(f->a, c, &s3), *p2 = ms_archive_geometry(b, c, &s2);
-        assert_int_equal(s3, s2);
-        assert_memory_equal(p3, p2, s3);
-        p3 = ms_archive_apo(f->a, c, &s3);
-        p2 = ms_archive_apo(b, c, &s2);
-        assert_int_equal(s3, s2);
-        if (s3)
-            assert_memory_equal(p3, p2, s3);
+        assert_memory_equal(ms_archive_get_cell(f->a, c), ms_archive_get_cell(b, c),
+                            sizeof(ms_archive_cell));
         assert_int_equal(ms_archive_verify_payload(f->a, c, NULL), MS_OK);
     }
     static const uint32_t ids[3] = {0, 1, 65};
@@ -870,49 +866,43 @@ static void test_version_3_lies(void **state)
     free(file);
 }
 
-/* meshbake writes version 3 by default and version 2 on request: the bunny
- * both ways has the same records, payloads, index blob, content id (as the
- * server's registry computes it), subtrees and head. */
-static void test_meshbake_versions_agree(void **state)
+/* meshbake's --subtree-levels changes only how the index is cut: the bunny
+ * at S = 1 (the default) and S = 2 has the same records, payloads, index blob
+ * and content id (as the server's registry computes it); each round-trips its
+ * subtrees, and the archive opened from the blob gives the default's head. */
+static void test_meshbake_subtree_levels(void **state)
 {
     fixture *f = *state;
     char input[512], bin[512], cmd[8192], out[4096];
     ms_test_model_path(input, sizeof input, "glmark2_bunny.obj.gz");
     ms_test_bin_path(bin, sizeof bin, "meshbake");
     snprintf(cmd, sizeof cmd, "%s %s -o %s --name b3 --threads 2 >/dev/null && "
-             "%s %s -o %s --name b2 --archive-version 2 --threads 2 >/dev/null && "
              "%s %s -o %s --name b3s2 --subtree-levels 2 --threads 2 >/dev/null",
-             bin, input, f->dir, bin, input, f->dir, bin, input, f->dir);
+             bin, input, f->dir, bin, input, f->dir);
     if (ms_test_run(cmd, out, sizeof out) != 0)
         fail_msg("%s", out);
     snprintf(cmd, sizeof cmd, "%s %s -o %s --subtree-levels 9", bin, input, f->dir);
     assert_int_equal(ms_test_run(cmd, out, sizeof out), 2);
     assert_non_null(strstr(out, "--subtree-levels wants an integer in [1, 8]"));
-    snprintf(cmd, sizeof cmd, "%s %s -o %s --archive-version 2 --subtree-levels 2", bin, input,
-             f->dir);
-    assert_int_equal(ms_test_run(cmd, out, sizeof out), 2);
-    assert_non_null(strstr(out, "--subtree-levels needs archive version 3"));
 
     ms_registry *r;
     ms_error err;
     if (ms_registry_scan(f->dir, NULL, &r, NULL, NULL, &err) != MS_OK)
         fail_msg("%s", err.text);
-    ms_model *m3 = ms_registry_find(r, "b3"), *m2 = ms_registry_find(r, "b2");
-    ms_model *m3s2 = ms_registry_find(r, "b3s2");
+    ms_model *m3 = ms_registry_find(r, "b3"), *m2 = ms_registry_find(r, "b3s2");
     assert_non_null(m3);
     assert_non_null(m2);
-    assert_non_null(m3s2);
     assert_int_equal(ms_archive_get_header(m3->archive)->version, 3);
-    assert_int_equal(ms_archive_get_header(m2->archive)->version, 2);
-    assert_int_equal(ms_archive_subtree_levels(m3s2->archive), 2);
+    assert_int_equal(ms_archive_subtree_levels(m3->archive), 1);
+    assert_int_equal(ms_archive_subtree_levels(m2->archive), 2);
     assert_true(m3->content_id == m2->content_id);
-    assert_true(m3s2->content_id == m2->content_id);
     assert_int_equal(m3->index_crc32, m2->index_crc32);
     size_t s3, s2;
     const uint8_t *b3 = ms_archive_index_bytes(m3->archive, &s3);
     const uint8_t *b2 = ms_archive_index_bytes(m2->archive, &s2);
     assert_int_equal(s3, s2);
     assert_memory_equal(b3, b2, s3);
+    size_t blob_size = s3;
     uint32_t cells = ms_archive_get_header(m3->archive)->cell_count;
     for (uint32_t c = 0; c < cells; ++c) {
         const uint8_t *p3 = ms_archive_geometry(m3->archive, c, &s3);
@@ -926,12 +916,16 @@ static void test_meshbake_versions_agree(void **state)
         if (s3)
             assert_memory_equal(p3, p2, s3);
     }
+    ms_archive *from_blob;
+    if (ms_archive_open_index(b3, blob_size, "b3", &from_blob, &err) != MS_OK)
+        fail_msg("%s", err.text);
     const uint8_t *h3 = ms_archive_index_head(m3->archive, &s3);
-    const uint8_t *h2 = ms_archive_index_head(m2->archive, &s2);
+    const uint8_t *h2 = ms_archive_index_head(from_blob, &s2);
     assert_int_equal(s3, s2);
     assert_memory_equal(h3, h2, s3);
+    ms_archive_close(from_blob);
     check_round_trip(m3->archive, 1, ms_archive_subtree_count(m3->archive));
-    check_round_trip(m3s2->archive, 2, ms_archive_subtree_count(m3s2->archive));
+    check_round_trip(m2->archive, 2, ms_archive_subtree_count(m2->archive));
     ms_registry_free(r);
 }
 
@@ -945,10 +939,10 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_drop, setup_synthetic, teardown),
         cmocka_unit_test_setup_teardown(test_hostile, setup_synthetic, teardown),
         cmocka_unit_test_setup_teardown(test_hostile_head, setup_synthetic, teardown),
-        cmocka_unit_test_setup_teardown(test_version_2_and_3_agree, setup_synthetic, teardown),
+        cmocka_unit_test_setup_teardown(test_file_and_blob_agree, setup_synthetic, teardown),
         cmocka_unit_test_setup_teardown(test_version_3_lies, setup_synthetic, teardown),
         cmocka_unit_test_setup_teardown(test_dragon_round_trip, setup_dragon, teardown),
-        cmocka_unit_test_setup_teardown(test_meshbake_versions_agree, setup_synthetic, teardown),
+        cmocka_unit_test_setup_teardown(test_meshbake_subtree_levels, setup_synthetic, teardown),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -223,6 +223,13 @@ static void test_hud_lines(void **state)
     n = ms_viewer_hud_lines(&info, lines);
     assert_int_equal(n, 8);
     assert_string_equal(lines[7], "server gone");
+    /* a public preview without a token (issue 32): said under the state */
+    cs.error[0] = '\0';
+    cs.preview = true, cs.preview_bits = 12;
+    n = ms_viewer_hud_lines(&info, lines);
+    assert_int_equal(n, 8);
+    assert_string_equal(lines[6], "view complete  memory 7.3 MB");
+    assert_string_equal(lines[7], "preview: 12 bits, a token gives more");
 }
 
 /* The camera path's line while the path drives the camera, and a scene's
@@ -260,12 +267,15 @@ static void test_hud_path_and_piece(void **state)
     ms_scene_material open = {.kind = MS_MATERIAL_DIFFUSE, .albedo = {0.7f, 0.6f, 0.48f}, .two_sided = true};
     piece.material = &open;
     snprintf(cs.error, sizeof cs.error, "dragon: server gone");
+    cs.preview = true, cs.preview_bits = 0;
     n = ms_viewer_hud_lines(&info, lines);
     assert_int_equal(n, MS_HUD_MAX_LINES); /* every line there can be */
-    assert_string_equal(lines[8], "dragon: server gone");
-    assert_string_equal(lines[9], "path 12.3 of 26.0 s  paused");
-    assert_string_equal(lines[10], "piece 2 of 9: dragon  impostor");
-    assert_string_equal(lines[11], "diffuse  albedo 0.70 0.60 0.48  two-sided");
+    assert_string_equal(lines[8], "preview: 0 bits, a token gives more");
+    assert_string_equal(lines[9], "dragon: server gone");
+    assert_string_equal(lines[10], "path 12.3 of 26.0 s  paused");
+    assert_string_equal(lines[11], "piece 2 of 9: dragon  impostor");
+    assert_string_equal(lines[12], "diffuse  albedo 0.70 0.60 0.48  two-sided");
+    cs.preview = false;
     piece.impostor = 0.5f;
     info.piece = NULL;
     n = ms_viewer_hud_lines(&info, lines);
@@ -315,13 +325,26 @@ static void test_quantile(void **state)
     assert_near(ms_viewer_quantile(v, 0, 0.5), 0, 0);
 }
 
+/* K's cycle of crease angles. */
+static void test_crease_angle_cycle(void **state)
+{
+    (void)state;
+    assert_true(ms_viewer_next_crease_angle(60) == 90);
+    assert_true(ms_viewer_next_crease_angle(90) == 180);
+    assert_true(ms_viewer_next_crease_angle(180) == 30);
+    assert_true(ms_viewer_next_crease_angle(30) == 45);
+    assert_true(ms_viewer_next_crease_angle(0) == 30);
+    assert_true(ms_viewer_next_crease_angle(50) == 60); /* a catalogue's angle between two steps */
+    assert_true(ms_viewer_next_crease_angle(120) == 180);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_font_glyphs_distinct), cmocka_unit_test(test_controls),
         cmocka_unit_test(test_hud_lines),            cmocka_unit_test(test_hud_path_and_piece),
         cmocka_unit_test(test_catalogue_rows),       cmocka_unit_test(test_home_view_frames_the_box),
-        cmocka_unit_test(test_quantile),
+        cmocka_unit_test(test_quantile),             cmocka_unit_test(test_crease_angle_cycle),
     };
     return cmocka_run_group_tests_name("viewer_parts", tests, NULL, NULL);
 }

@@ -275,6 +275,8 @@ void ms_core_get_stats(ms_core *c, ms_core_stats *out)
     out->cancels = c->cancels;
     out->reconnects = c->reconnects;
     out->longest_outage = c->longest_outage;
+    out->preview = c->permitted_geometry_steps > 0;
+    out->preview_bits = out->preview ? c->permitted_geometry_steps - 1u : 0;
     if (out->camera_serial != c->camera_serial)
         out->view_complete = false;
     n = c->latency_count;

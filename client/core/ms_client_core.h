@@ -356,7 +356,17 @@ typedef struct ms_core_stats {
     bool connected, model_open; /* local mode: both true once the archive is open */
     bool view_complete;        /* every cell of the cut at its target, nothing missing */
     uint64_t camera_serial;    /* the camera set-call the figures below answer */
-    double achieved_error_px;  /* largest projected error of a visible shown cell */
+    double achieved_error_px;  /* largest projected error of a visible shown cell, at the
+                                  precision it is shown at (under a preview, the capped one) */
+    /* a public preview (PROTOCOL.md section 8): without a token the server
+     * (its MODEL_OPENED) lets this reader have geometry up to preview_bits and
+     * the APO levels no finer (ms_archive_preview_apo_levels). The core never
+     * asks for more: selection caps every cell there and a capped cell counts
+     * as at its target, so view_complete means complete at the preview. */
+    bool preview;              /* false: full access (a token, a whole-public model, local) */
+    unsigned preview_bits;     /* with preview: the last bit this reader may read */
+    bool preview_limited;      /* the latest pass capped a cell the camera wants finer:
+                                  a token gives more of this view */
     double tolerance_px;       /* effective geometric tolerance (raised over budget) */
     double first_display;      /* seconds to the first frame with a triangle; < 0 none yet */
     uint64_t first_display_generation; /* with export_frames: the generation of that frame
@@ -397,7 +407,9 @@ typedef struct ms_core_stats {
                                   reconnect found another content_id). What the core holds
                                   is of the old version; start a fresh core to stream the
                                   new one. A removed model stops with UNKNOWN_MODEL instead. */
-    char warning[256];         /* last non-fatal problem (e.g. a failed cell), or "" */
+    char warning[256];         /* last non-fatal problem (e.g. a failed cell), or "". A
+                                  warning about the budget ("memory budget too small")
+                                  comes in the same snapshot as the tolerance it names */
 } ms_core_stats;
 
 void ms_core_get_stats(ms_core *core, ms_core_stats *stats);

@@ -405,6 +405,7 @@ bool ms_core_budget_ceiling(ms_core *c, dec_pass *pass)
         factor_end(c);
         if (at_most)
             break;
+        pass->factor = c->tolerance_factor;
         pass_params(c, pass);
         if (!reselect(c, pass))
             return false;
@@ -598,15 +599,16 @@ void ms_core_budget_step(ms_core *c, dec_pass *pass)
         c->last_blocked = t;
         factor_end(c);
         coarsen_step(c, t);
-        if (c->tolerance_factor >= MAX_TOLERANCE_FACTOR && !c->budget_floor_warned) {
-            /* nothing more can be given up: the view cannot complete in this
-             * budget, which the user must hear once rather than wait */
-            char text[160];
-            snprintf(text, sizeof text,
+        if (pass->factor >= MAX_TOLERANCE_FACTOR && !c->budget_floor_warned) {
+            /* nothing more can be given up: this pass selected at the coarsest
+             * and is still blocked, so the view cannot complete in this budget,
+             * which the user must hear once rather than wait. The warning goes
+             * out with this pass's figures (ms_core_publish), never before the
+             * tolerance it names. */
+            snprintf(pass->warning, sizeof pass->warning,
                      "memory budget too small: %.2f MB cannot hold this view even at its "
                      "coarsest (the tolerance is %.0fx)",
                      (double)bt.ceiling / 1048576.0, MAX_TOLERANCE_FACTOR);
-            ms_core_warn(c, text);
             c->budget_floor_warned = true;
         }
     }

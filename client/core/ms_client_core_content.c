@@ -21,12 +21,16 @@
 #include "ms_client_core_internal.h"
 
 /* The precision the bounds are taken at: root_bits (a one-cell model's root
- * is a leaf, whose window goes on to p). */
+ * is a leaf, whose window goes on to p), or a coarser preview's last bit. */
 static unsigned content_bits(const ms_core *c)
 {
     const ms_archive_cell *root = ms_archive_get_cell(c->index, 0);
     unsigned root_bits = ms_archive_get_header(c->index)->root_bits;
-    return root->bits_max < root_bits ? root->bits_max : root_bits;
+    unsigned bits = root->bits_max < root_bits ? root->bits_max : root_bits;
+    /* a preview coarser than root precision: its bounds, a little looser */
+    if (c->preview_steps && c->preview_steps - 1u < bits)
+        bits = c->preview_steps - 1u;
+    return bits;
 }
 
 bool ms_core_content_camera(const ms_core *c, ms_camera *camera)

@@ -318,17 +318,24 @@ static void dec_pass_begin(ms_core *c, const ms_camera *cam, dec_pass *pass)
     ms_camera_frustum(cam, &pass->fv.frustum);
     pass->base_tol = pass->apo_on ? c->o.apo_geometry_tolerance_px : c->o.tolerance_px;
     ms_core_budget_sync(c);
-    pass->fv.tolerance = pass->base_tol * c->tolerance_factor;
+    pass->factor = c->tolerance_factor;
+    pass->fv.tolerance = pass->base_tol * pass->factor;
     /* With APO on, geometry refines only to apo_geometry_tolerance_px where a
      * chunk carries the shading; a cell baked without one (its geometry renders
      * the input: every leaf, docs/APO.md) is shaded by its triangles alone, so
      * it refines to tolerance_px as with APO off. */
     double chunkless = pass->apo_on ? c->o.tolerance_px / c->o.apo_geometry_tolerance_px : 0.0;
+    /* A public preview: no cell is wanted beyond what this reader may read
+     * (PROTOCOL.md sections 4.10 and 8: a client need never trip FORBIDDEN). */
+    pthread_mutex_lock(&c->lock);
+    c->preview_steps = c->permitted_geometry_steps;
+    pthread_mutex_unlock(&c->lock);
     pass->sp = (ms_view_select_params){.tolerance_px = pass->fv.tolerance,
                                        .margin = c->o.frustum_margin,
                                        .hysteresis = c->o.hysteresis_bits,
                                        .culled_bits_less = c->o.culled_bits_less + c->culled_give_up,
-                                       .chunkless_tolerance_scale = chunkless};
+                                       .chunkless_tolerance_scale = chunkless,
+                                       .permitted_steps = c->preview_steps};
 }
 
 /* Selects the cells for the camera, refines in parallel what can go up, and

@@ -137,6 +137,7 @@ static void publish_locked(ms_core *c, dec_pass *pass, uint64_t serial, ms_core_
     st->view_complete = pass->complete && serial == c->camera_serial;
     st->camera_serial = serial;
     st->achieved_error_px = pass->worst;
+    st->preview_limited = c->preview_steps && c->report.capped_count > 0;
     st->tolerance_px = pass->fv.tolerance;
     st->cells_shown = pass->shown, st->cells_split = pass->split, st->cells_cached = pass->cached;
     st->cells_loading = pass->loading, st->cells_failed = pass->failed;
@@ -146,6 +147,8 @@ static void publish_locked(ms_core *c, dec_pass *pass, uint64_t serial, ms_core_
     if (pass->memory > st->peak_memory)
         st->peak_memory = pass->memory;
     st->decode_seconds += busy;
+    if (pass->warning[0])
+        snprintf(st->warning, sizeof st->warning, "%s", pass->warning);
 }
 
 void ms_core_publish(ms_core *c, dec_pass *pass, uint64_t serial, double t_start)

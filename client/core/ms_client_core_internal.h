@@ -215,6 +215,10 @@ struct ms_core {
     ms_core_opening opening;    /* with export_frames: the index at the first open */
     bool have_opening;
     bool index_new, republish;
+    /* the grant of the latest MODEL_OPENED (PROTOCOL.md section 8): geometry
+     * steps this reader may read; 0 until known, and in local mode (the file
+     * holds everything) */
+    uint8_t permitted_geometry_steps;
     want *wants;
     size_t want_count;
     uint64_t want_serial;
@@ -252,6 +256,8 @@ struct ms_core {
     subtree_entry *subtrees; /* sorted by id */
     size_t subtree_count, subtree_cap;
     ms_view_select_report report; /* the pass's cells short of their children's records */
+    unsigned preview_steps;   /* the pass's: permitted geometry steps under a public
+                                 preview, 0 with full access (ms_view_select_params) */
     uint64_t index_bytes_held;  /* raw index bytes of the subtrees held */
     bool subtrees_changed;      /* a subtree came or went since the last pass's frame */
     double tolerance_factor, last_budget_step, last_blocked;
@@ -289,6 +295,8 @@ typedef struct dec_pass {
     frame_view fv;
     ms_view_select_params sp;
     double base_tol;          /* the tolerance before the budget's factor */
+    double factor;            /* the budget's factor this pass selects at (fv.tolerance =
+                                 base_tol x factor) */
     bool apo_on;
     bool changed;             /* the view (or its APO bytes) changed in this pass */
     want_list wl;             /* what is missing, best first */
@@ -297,6 +305,9 @@ typedef struct dec_pass {
     bool complete;
     bool for_content;         /* served the content bounds' camera, not the caller's */
     uint64_t memory;          /* the budget's measure after this pass's evictions */
+    char warning[160];        /* a warning about this pass's figures ("" none): published
+                                 with them, under one lock, so that no reader sees the
+                                 warning beside figures it does not describe */
 } dec_pass;
 
 /* ---- ms_client_core_cells.c: the decode thread's per-cell state ---- */

@@ -185,6 +185,9 @@ static bool first_open(ms_core_link *l, unsigned i, const ms_proto_model_opened 
     ms_core_keep_opening(c, a, head);
     pthread_mutex_lock(&c->lock);
     c->stats.index_bytes_received += ms_client_index_wire_bytes(l->client);
+    /* before the index: the decode thread's first pass already keeps to it */
+    c->permitted_geometry_steps =
+        o->permitted_geometry_steps < o->geometry_steps ? o->permitted_geometry_steps : 0;
     c->index = a;
     c->index_new = true;
     pthread_cond_broadcast(&c->wake);
@@ -249,6 +252,10 @@ static void on_model_opened(ms_client *client, uint32_t request_id,
     pthread_mutex_lock(&c->lock);
     c->model_open = true;
     c->connected = true;
+    /* each open says what this connection may read (a SIGHUP may have
+     * changed the preview between two opens) */
+    c->permitted_geometry_steps =
+        o->permitted_geometry_steps < o->geometry_steps ? o->permitted_geometry_steps : 0;
     if (outage > c->longest_outage)
         c->longest_outage = outage;
     c->republish = true;                  /* the decode thread recomputes its wants */

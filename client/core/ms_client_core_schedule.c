@@ -6,6 +6,8 @@
 #include <math.h>
 #include <stdlib.h>
 
+#include "ms_preview.h"
+
 /* The side of a cell's cube, world units. */
 double ms_core_cell_side(const ms_archive_header *h, const ms_archive_cell *rec)
 {
@@ -151,7 +153,8 @@ static bool schedule_geometry(ms_core *c, dec_pass *pass, uint32_t i, unsigned g
 }
 
 /* APO by footprint: down to the level whose texel projects to the detail
- * tolerance, at most apo_levels; none for a cell about to split (its children
+ * tolerance, at most apo_levels and what a preview lets this reader read
+ * (ms_archive_preview_apo_levels); none for a cell about to split (its children
  * replace it as soon as its last bits arrive: on the demo close-up such
  * passing cells would take half the APO bytes). True when the cell is loading. */
 static bool schedule_apo(ms_core *c, dec_pass *pass, uint32_t i, bool visible, double need,
@@ -164,6 +167,15 @@ static bool schedule_apo(ms_core *c, dec_pass *pass, uint32_t i, bool visible, d
           ms_view_target(c->view, i) != MS_VIEW_TARGET_SPLIT && !d->blocked))
         return false;
     unsigned cap = c->o.apo_levels < rec->apo_levels ? c->o.apo_levels : rec->apo_levels;
+    if (c->preview_steps) {
+        /* a preview reads no texel finer than its own grid step (the server's
+         * rule, the same function) */
+        unsigned readable = ms_archive_preview_apo_levels(h, rec, c->preview_steps);
+        if (readable < cap)
+            cap = readable;
+        if (cap == 0)
+            return false;
+    }
     double lo[3], hi[3];
     ms_core_cell_box(h, rec, lo, hi);
     unsigned levels = ms_apo_footprint_levels(&pass->fv.cam, lo, ms_core_cell_side(h, rec),

@@ -45,6 +45,7 @@ extern char **environ;
 typedef struct key_result {
     double arrive, wait, error_px, tolerance_px;
     bool complete;
+    bool preview_limited; /* complete at a public preview: a token gives more */
 } key_result;
 
 typedef struct client_result {
@@ -52,6 +53,10 @@ typedef struct client_result {
     double first_display, view_complete, cold_last_byte;
     bool cold_complete;
     uint64_t cold_bytes, cold_apo_bytes; /* payload, and of it APO */
+    /* a public preview (ms_core_stats): the precision this reader may have,
+     * and whether a view the core completed wanted more */
+    bool preview, cold_preview_limited;
+    unsigned preview_bits;
     /* the cold phase's index: by subtree or whole (ms_core_stats) */
     bool index_by_subtree;
     uint64_t subtrees_received, index_bytes_received, peak_index_bytes_held;
@@ -234,6 +239,8 @@ static void cold_phase(worker *w)
     res->first_display = st.first_display;
     res->cold_bytes = st.bytes_received;
     res->cold_apo_bytes = st.apo_bytes_received;
+    res->preview = st.preview, res->preview_bits = st.preview_bits;
+    res->cold_preview_limited = st.preview_limited;
     res->index_by_subtree = st.index_by_subtree;
     res->subtrees_received = st.subtrees_received;
     res->index_bytes_received = st.index_bytes_received;
@@ -293,6 +300,7 @@ static void path_phase(worker *w)
             k->wait = ms_now_seconds() - t;
             k->error_px = st.achieved_error_px;
             k->tolerance_px = st.tolerance_px;
+            k->preview_limited = st.preview_limited;
             res->key_count = ++next_key;
             last = ms_now_seconds();
             if (st.error[0])
@@ -319,6 +327,8 @@ static void path_phase(worker *w)
     bool all_complete = res->key_count == r->path.count;
     for (size_t k = 0; k < res->key_count; ++k)
         all_complete = all_complete && res->keys[k].complete;
+    if (st.preview)
+        res->preview = true, res->preview_bits = st.preview_bits;
     if (st.error[0] && !res->error[0])
         snprintf(res->error, sizeof res->error, "%.250s", st.error);
     else if (st.warning[0] && !res->error[0] &&
@@ -499,6 +509,26 @@ static summary summarize(unsigned n, const worker *ws)
     return m;
 }
 
+/* Under a public preview, whether a view of the run wanted more than the
+ * preview: a token gives more. */
+static bool token_gives_more(const client_result *c)
+{
+    bool more = c->preview && c->cold_preview_limited;
+    for (size_t k = 0; k < c->key_count; ++k)
+        more |= c->preview && c->keys[k].preview_limited;
+    return more;
+}
+
+/* Every view of the client complete (the cold one unless skipped, every
+ * keyframe) and no error. */
+static bool client_complete(const client_result *c, const run *r)
+{
+    bool ok = !c->error[0] && (r->o->skip_cold || c->cold_complete);
+    for (size_t k = 0; k < c->key_count; ++k)
+        ok = ok && c->keys[k].complete;
+    return ok && c->key_count >= r->path.count;
+}
+
 /* One client's figures and keyframes as a JSON object. */
 static json_t *client_json(unsigned i, const client_result *c, const run *r)
 {
@@ -506,11 +536,11 @@ static json_t *client_json(unsigned i, const client_result *c, const run *r)
     for (size_t k = 0; k < c->key_count; ++k)
         json_array_append_new(
             keyframes,
-            json_pack("{s:o, s:o, s:o, s:b, s:o, s:o}", "time",
+            json_pack("{s:o, s:o, s:o, s:b, s:b, s:o, s:o}", "time",
                       ms_json_number(r->path.count > k ? r->path.keys[k].time : 0.0), "arrive",
                       ms_json_fixed(c->keys[k].arrive, 4), "time_to_view_complete",
                       ms_json_fixed(c->keys[k].wait, 4), "complete", c->keys[k].complete,
-                      "error_px",
+                      "preview_limited", c->keys[k].preview_limited, "error_px",
                       ms_json_fixed(isfinite(c->keys[k].error_px) ? c->keys[k].error_px : -1.0, 4),
                       "tolerance_px", ms_json_fixed(c->keys[k].tolerance_px, 4)));
     json_t *client = json_pack(
@@ -532,6 +562,9 @@ static json_t *client_json(unsigned i, const client_result *c, const run *r)
         ms_json_fixed(c->decode_draco_seconds, 4), "error", ms_json_text(c->error),
         "failover_seconds", ms_json_fixed(c->longest_outage, 4), "keyframes", keyframes);
     json_object_set_new(client, "model_changes", json_integer((json_int_t)c->model_changes));
+    json_object_set_new(client, "preview_bits",
+                        c->preview ? json_integer((json_int_t)c->preview_bits) : json_null());
+    json_object_set_new(client, "token_gives_more", json_boolean(token_gives_more(c)));
     json_t *index = json_pack("{s:b, s:I, s:I, s:I, s:I, s:I}", "by_subtree", c->index_by_subtree,
                               "subtrees_received", (json_int_t)c->subtrees_received,
                               "index_bytes_received", (json_int_t)c->index_bytes_received,
@@ -595,6 +628,24 @@ static void report_json(const ms_load_options *o, const run *r, const worker *ws
         json_object_set_new(root, "cold_subtrees_received", json_integer((json_int_t)subtrees));
         json_object_set_new(root, "cold_state_bytes_held", json_integer((json_int_t)state_held));
     }
+    /* a public preview: the coarsest any client had, whether every view
+     * completed there, and whether a token gives more */
+    bool preview = false, more = false, all_complete = true;
+    unsigned preview_bits = 0;
+    for (unsigned i = 0; i < n; ++i) {
+        const client_result *c = &ws[i].result;
+        if (c->preview && (!preview || c->preview_bits < preview_bits))
+            preview_bits = c->preview_bits;
+        preview |= c->preview;
+        more |= token_gives_more(c);
+        all_complete &= client_complete(c, r);
+    }
+    if (root && !o->baseline) {
+        json_object_set_new(root, "preview_bits",
+                            preview ? json_integer((json_int_t)preview_bits) : json_null());
+        json_object_set_new(root, "complete_at_preview", json_boolean(preview && all_complete));
+        json_object_set_new(root, "token_gives_more", json_boolean(more));
+    }
     if (root)
         json_object_set_new(root, "per_client", per_client);
     else
@@ -637,12 +688,18 @@ static void report_text(const ms_load_options *o, const run *r, const worker *ws
                (unsigned long long)c->subtrees_received,
                (unsigned long long)c->peak_index_bytes_held,
                (unsigned long long)c->state_bytes_held, c->state_cells);
+        if (c->preview)
+            printf("    preview: %u bits without a token%s\n", c->preview_bits,
+                   !client_complete(c, r)  ? ""
+                   : token_gives_more(c) ? "; the view is complete at the preview, a token gives more"
+                                         : "; the view is complete and needs no more");
         for (size_t k = 0; k < c->key_count; ++k)
-            printf("    keyframe %zu (t=%g): view complete after %.3f s%s, error %.2f px "
+            printf("    keyframe %zu (t=%g): view complete%s after %.3f s%s, error %.2f px "
                    "(tolerance %.2f)\n",
-                   k, r->path.keys[k].time, c->keys[k].wait,
-                   c->keys[k].complete ? "" : " (NOT complete)", c->keys[k].error_px,
-                   c->keys[k].tolerance_px);
+                   k, r->path.keys[k].time,
+                   c->keys[k].complete && c->keys[k].preview_limited ? " at the preview" : "",
+                   c->keys[k].wait, c->keys[k].complete ? "" : " (NOT complete)",
+                   c->keys[k].error_px, c->keys[k].tolerance_px);
     }
 }
 
@@ -708,7 +765,7 @@ int main(int argc, char **argv)
         for (size_t k = 0; k < c->key_count; ++k)
             ok = ok && c->keys[k].complete;
         if (!o.baseline && c->key_count < r.path.count)
-            ok = false;
+            ok = false; /* client_complete, but for the Draco baseline's keyframes */
         if (c->error[0])
             fprintf(stderr, "meshload: client %u: %s\n", i, c->error);
         if (!ok)

@@ -18,6 +18,7 @@
 #include <sys/resource.h>
 
 #include "ms_archive.h"
+#include "ms_cli.h"
 #include "ms_client.h"
 #include "ms_json_out.h"
 #include "ms_loadgen_plan.h"
@@ -627,7 +628,7 @@ static int parse_options(int argc, char **argv, options *o)
     double v = 0;
     int64_t i = 0;
     ms_error e;
-    while ((c = getopt_long(argc, argv, "h", opts, NULL)) != -1) {
+    while ((c = ms_cli_next("meshloadgen", argc, argv, "h", opts)) != -1) {
         ms_status bad = MS_OK;
         switch (c) {
         case 'H': o->host = optarg; break;
@@ -659,15 +660,15 @@ static int parse_options(int argc, char **argv, options *o)
         case 'R': bad = ms_option_double("--rate", optarg, 0, 1e6, &v, &e); o->rate = v; break;
         case 'j': o->json = true; break;
         case 'h': usage(stdout); exit(0);
-        default: return -1;
+        default: return -1; /* reported by ms_cli_next */
         }
         if (bad != MS_OK) {
-            fprintf(stderr, "meshloadgen: %s\n", e.text);
+            ms_cli_usage_error("meshloadgen", e.text, NULL);
             return -1;
         }
     }
     if (optind != argc || !o->port || !o->model || (o->http && !o->index_path)) {
-        fprintf(stderr, "meshloadgen: needs --port and --model (and --index with --http)\n");
+        ms_cli_usage_error("meshloadgen", "needs --port and --model (and --index with --http)", NULL);
         return -1;
     }
     return 0;
@@ -688,10 +689,8 @@ int main(int argc, char **argv)
         return ms_version_print("meshloadgen");
     loadgen lg;
     memset(&lg, 0, sizeof lg);
-    if (parse_options(argc, argv, &lg.o) != 0) {
-        fprintf(stderr, "meshloadgen: try 'meshloadgen --help'\n");
-        return 2;
-    }
+    if (parse_options(argc, argv, &lg.o) != 0)
+        return MS_CLI_USAGE; /* said in one line */
     struct rlimit rl;
     /* A socket per connection (with --http, one per request in flight). */
     rlim_t files = (rlim_t)lg.o.clients * (lg.o.http ? lg.o.window + 1 : 2) + 64;

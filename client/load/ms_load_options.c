@@ -1,4 +1,5 @@
 #include "ms_load_options.h"
+#include "ms_cli.h"
 
 #include <getopt.h>
 #include <math.h>
@@ -179,7 +180,7 @@ int ms_load_options_parse(int argc, char **argv, ms_load_options *o)
     int ch, status;
     int64_t i = 0;
     ms_error e;
-    while ((ch = getopt_long(argc, argv, "h", opts, NULL)) != -1) {
+    while ((ch = ms_cli_next("meshload", argc, argv, "h", opts)) != -1) {
         switch (ch) {
         case 's': {
             const char *colon = strrchr(optarg, ':');
@@ -224,14 +225,14 @@ int ms_load_options_parse(int argc, char **argv, ms_load_options *o)
             break;
         case 'D': o->draco_decoder = optarg; break;
         case 'h': o->help = true; return 0;
+        case MS_CLI_ERROR: return MS_CLI_USAGE; /* reported by ms_cli_next */
         default:
             if ((status = numeric_option(ch, optarg, o)) >= 0) {
                 if (status)
                     return status;
                 break;
             }
-            ms_load_usage(stderr);
-            return 2;
+            return ms_cli_usage_error("meshload", "unknown option", argv[optind - 1]);
         }
     }
     if (o->archive && (o->host || o->baseline)) {

@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "ms_camera.h"
+#include "ms_preview.h"
 #include "ms_proto.h"
 
 struct ms_loadgen_plan {
@@ -139,10 +140,14 @@ bool ms_loadgen_plan_next(ms_loadgen_plan *p, ms_loadgen_item *item, unsigned ma
                 p->pass_produced = true;
                 return true;
             }
+            /* under a preview, the levels it reads (the server's rule); else all */
+            unsigned readable = ms_archive_preview_apo_levels(
+                ms_archive_get_header(p->index), c, p->max_geometry_step + 1u);
             if (p->apo && !v->refined && !p->apo_requested[v->cell] && c->apo_levels &&
-                c->bits_min <= p->max_geometry_step) {
+                readable > 0) {
                 p->apo_requested[v->cell] = 1;
-                *item = (ms_loadgen_item){v->cell, MS_PROTO_STREAM_APO, 0, MS_PROTO_MAX_STEP,
+                unsigned last = readable >= MS_ARCHIVE_MAX_APO_LEVELS ? MS_PROTO_MAX_STEP : readable - 1u;
+                *item = (ms_loadgen_item){v->cell, MS_PROTO_STREAM_APO, 0, (uint8_t)last,
                                           APO_PRIORITY};
                 p->view_cursor++;
                 p->pass_produced = true;

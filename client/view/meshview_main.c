@@ -63,6 +63,7 @@ typedef struct viewer {
     ms_render_options render;
     bool apo, geometry_normals, hud;
     char message[256];             /* shown on the catalogue screen (last failure) */
+    char mode_text[96];            /* the HUD's shading line (mode_name) */
     int screenshots;
     /* input */
     bool rotating, panning;
@@ -131,13 +132,23 @@ static void update_shading(viewer *v)
     v->render.apo = v->apo && !v->geometry_normals;
 }
 
-static const char *mode_name(const viewer *v)
+static const char *mode_name(viewer *v)
 {
+    const char *mode;
     switch (v->render.shading) {
-    case MS_SHADING_NORMALS: return v->render.apo ? "normals (APO)" : "normals (geometry)";
-    case MS_SHADING_CELLS: return v->render.apo ? "cells, APO lit" : "cells, geometry lit";
-    default: return v->render.apo ? "APO lit" : "geometry lit";
+    case MS_SHADING_NORMALS: mode = v->render.apo ? "normals (APO)" : "normals (geometry)"; break;
+    case MS_SHADING_CELLS: mode = v->render.apo ? "cells, APO lit" : "cells, geometry lit"; break;
+    default: mode = v->render.apo ? "APO lit" : "geometry lit"; break;
     }
+    /* where no APO normal is used: flat, or smooth with the crease angle (M, K) */
+    if (!v->render.smooth)
+        snprintf(v->mode_text, sizeof v->mode_text, "%s, flat", mode);
+    else if (v->stream)
+        snprintf(v->mode_text, sizeof v->mode_text, "%s, creases %.0f deg", mode,
+                 ms_viewer_stream_crease_angle(v->stream));
+    else
+        snprintf(v->mode_text, sizeof v->mode_text, "%s", mode);
+    return v->mode_text;
 }
 
 static void close_model(viewer *v)
@@ -203,6 +214,17 @@ static void open_neighbour(viewer *v, long delta)
 
 /* --- GLFW callbacks: they only record what the loop acts on ---------------- */
 
+/* K: the next crease angle (ms_viewer_next_crease_angle); the frame in hand
+ * is set again with it. */
+static void next_crease_angle(viewer *v)
+{
+    ms_error err;
+    if (v->stream && ms_viewer_stream_set_crease_angle(
+                         v->stream, ms_viewer_next_crease_angle(ms_viewer_stream_crease_angle(v->stream)),
+                         &err) != MS_OK)
+        fprintf(stderr, "meshview: %s\n", err.text);
+}
+
 /* ] / [ (PgDn / PgUp): the next or previous model, or in a scene piece. */
 static void next_key(viewer *v, int delta)
 {
@@ -265,6 +287,7 @@ static void on_key(GLFWwindow *w, int key, int scancode, int action, int mods)
         break;
     case GLFW_KEY_X: v->render.wireframe = !v->render.wireframe; break;
     case GLFW_KEY_M: v->render.smooth = !v->render.smooth; break;
+    case GLFW_KEY_K: next_crease_angle(v); break;
     case GLFW_KEY_H: v->hud = !v->hud; break;
     case GLFW_KEY_P: v->screenshot_requested = true; break;
     case GLFW_KEY_EQUAL:
@@ -767,6 +790,7 @@ int main(int argc, char **argv)
     else
         snprintf(v.where, sizeof v.where, "server %s:%u", o.host, o.port);
     ms_render_options_default(&v.render);
+    v.render.smooth = !o.flat;
     v.render.shading = o.shading;
     update_shading(&v);
     rc = o.scripted ? scripted(&v) : interactive(&v);

@@ -245,6 +245,7 @@ ms_status ms_render_new(const ms_archive_header *header, const ms_archive_cell *
     ms_render *r = calloc(1, sizeof *r);
     if (!r)
         return ms_error_set(err, MS_ERR_NOMEM, "render: no memory");
+    r->crease_angle_deg = MS_RENDER_CREASE_ANGLE_DEFAULT;
     ms_status st = header ? take_model(r, header, cells, err) : MS_OK;
     ms_render_split_init(&r->split, &r->header);
     const ms_render_program *viewer = NULL, *unused;
@@ -279,6 +280,18 @@ ms_status ms_render_set_model(ms_render *r, const ms_archive_header *header, ms_
         ms_render_split_init(&r->split, &r->header);
     return st;
 }
+
+ms_status ms_render_set_crease_angle(ms_render *r, double degrees, ms_error *err)
+{
+    if (!r)
+        return ms_error_set(err, MS_ERR_ARG, "render: no renderer");
+    if (!(degrees >= 0.0 && degrees <= 180.0))
+        return ms_error_set(err, MS_ERR_ARG, "render: crease angle %g degrees (0 to 180)", degrees);
+    r->crease_angle_deg = degrees;
+    return MS_OK;
+}
+
+double ms_render_crease_angle(const ms_render *r) { return r->crease_angle_deg; }
 
 ms_status ms_render_learn(ms_render *r, const uint32_t *ids, const ms_archive_cell *records, size_t count,
                           ms_error *err)
@@ -437,7 +450,7 @@ ms_status ms_render_set_frame(ms_render *r, const ms_view_mesh *mesh, const ms_c
         if (apo[i].length && !apo[i].data)
             return ms_error_set(err, MS_ERR_ARG, "render: APO chunk %zu has no bytes", i);
     }
-    ms_status st = ms_render_split_frame(&r->split, mesh, err);
+    ms_status st = ms_render_split_frame(&r->split, mesh, r->crease_angle_deg, err);
     if (st != MS_OK)
         return st;
     uint32_t present = r->split.present_count;

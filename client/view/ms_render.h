@@ -27,9 +27,19 @@
  * triangle's flat normal.
  *
  * Vertex normals. ms_render_set_frame computes them once per frame over the whole
- * stitched mesh: per vertex, the sum of the unnormalised face normals of the
- * triangles around it (area-weighted), so they are continuous across cell
- * borders. They go up as a second vertex attribute (GL_INT_2_10_10_10_REV,
+ * stitched mesh, so they are continuous across cell borders: around each
+ * vertex, the triangles across edges sharper than the crease angle
+ * (ms_render_set_crease_angle, default MS_RENDER_CREASE_ANGLE_DEFAULT) widened
+ * by how far each of the two triangles' normals may be off (its corners' decode
+ * error, 0 at full precision, over its smallest height: the arctangent), or
+ * across edges of one or of more than two triangles, fall in different groups,
+ * each with its own
+ * normal (the sum of its unnormalised face normals: area-weighted); a triangle
+ * wound against its neighbour (the edge used twice in the same direction) is
+ * turned over for the sum, and its corners get the group's normal turned to
+ * its own winding, so a scan with inconsistently oriented faces shades as a
+ * consistent one (with the two-sided effect). A mesh vertex with several
+ * normals goes up as several vertices. They go up as a second vertex attribute (GL_INT_2_10_10_10_REV,
  * normalised: 4 bytes per vertex, after the 12 of the position) and are part of
  * the cell's content hash: a cell whose vertex normals changed because a
  * neighbour refined around a shared border vertex is uploaded again.
@@ -38,9 +48,11 @@
  *   MS_SHADING_LIT      the options' lights (default: a head light at the
  *                       camera): albedo times (0.05 + 0.95 * sum of Lambert),
  *                       plus the Blinn-Phong highlight (specular effect) with the
- *                       normal N (APO, smooth or flat), each light's terms times,
- *                       where N is an APO normal, the self-shadowing factor
- *                       max(0, L . N_geometric); then haze (haze effect):
+ *                       normal N (APO, smooth or flat), each light's terms times
+ *                       the self-shadowing factor: max(0, L . N_geometric) where
+ *                       N is an APO normal, else max(0, L . N) (meshrender's
+ *                       lighting model: a flat face under the head light goes
+ *                       as (N . L)^2); then haze (haze effect):
  *                       mix(haze colour, colour, exp(-density * eye distance));
  *                       gamma-correct (sRGB) output.
  *   MS_SHADING_NORMALS  N as a colour, rgb = (N + 1) / 2, linear (no gamma), N in
@@ -205,6 +217,19 @@ ms_status ms_render_set_model(ms_render *render, const ms_archive_header *header
  * MS_ERR_NOMEM. */
 ms_status ms_render_learn(ms_render *render, const uint32_t *ids, const ms_archive_cell *records,
                           size_t count, ms_error *err);
+/* The crease angle, degrees: an edge whose two triangles' normals differ by
+ * more splits the vertex normals along it (a hard edge); 180 keeps every
+ * manifold edge smooth, 0 splits every edge that is not flat. */
+#define MS_RENDER_CREASE_ANGLE_DEFAULT 60.0
+
+/* Sets the crease angle (degrees, [0, 180]) for the frames set from now on
+ * (set the same frame again to redraw it with the new angle). MS_ERR_ARG
+ * outside the range or NaN. */
+ms_status ms_render_set_crease_angle(ms_render *render, double degrees, ms_error *err);
+
+/* The crease angle in effect, degrees. */
+double ms_render_crease_angle(const ms_render *render);
+
 /* Frees every GL object and the renderer. NULL is a no-op. */
 void ms_render_free(ms_render *render);
 

@@ -47,7 +47,9 @@ typedef struct ms_render_cell_mesh {
     uint32_t cell;
     uint32_t vertex_count, triangle_count;
     const float *vertices;   /* 3 per vertex: (world - cube origin) / cube side */
-    const uint32_t *normals; /* 1 per vertex: the packed vertex normal (ms_render_pack_normal) */
+    const uint32_t *normals; /* 1 per vertex: the packed corner normal (ms_render_pack_normal); a mesh
+                              * vertex with several (creases, flipped triangles) is one cell vertex
+                              * per distinct normal */
     const uint32_t *indices; /* 3 per triangle, into vertices, orientation kept */
     uint64_t hash;           /* of the counts, vertex floats, packed normals and indices */
 } ms_render_cell_mesh;
@@ -70,11 +72,28 @@ typedef struct ms_render_split {
     uint32_t *stamp;         /* per mesh vertex: the cell pass that set local */
     size_t vertex_cap;
     uint32_t pass;
-    double *normal_sum;      /* 3 per mesh vertex: area-weighted sum of face normals */
-    uint32_t *packed;        /* per mesh vertex: its packed unit normal */
-    size_t normal_cap;       /* mesh vertices normal_sum and packed hold */
+    /* The normals (ms_render_split_frame): per triangle its unnormalised face
+     * normal, per corner its packed normal; the corners around each vertex
+     * (fan_start, nv + 1 entries, into fan: corner numbers 3t + k); scratch for
+     * one vertex's fan. */
+    double *face_normal;     /* 3 per triangle */
+    uint32_t *corner_packed; /* 3 per triangle */
+    uint32_t *fan;           /* 3 per triangle */
+    size_t triangle_normal_cap;
+    uint32_t *fan_start;     /* nv + 1 */
+    size_t fan_start_cap;
+    uint64_t *fan_keys;      /* 2 per fan corner: (other vertex, fan slot, direction) */
+    uint32_t *fan_parent;    /* per fan corner: union-find over the fan's faces */
+    uint8_t *fan_parity;     /* per fan corner: 1 when its face is flipped against its parent */
+    double *fan_sum;         /* 3 per fan corner: the group sums, at the group's root */
+    size_t fan_cap;
+    double *face_slack;      /* per triangle: how far its normal may be off, radians
+                                (its vertices' decode error over its smallest height) */
+    double crease_cos;       /* cosine of the crease angle of the last split */
+    double crease_rad;       /* the crease angle of the last split, radians */
     float *vertices;
     uint32_t *normals;
+    uint32_t *same_next;     /* per cell vertex: the next cell vertex of the same mesh vertex */
     uint32_t *indices;
     size_t cell_vertex_cap, cell_normal_cap, cell_triangle_cap;
 } ms_render_split;
@@ -91,12 +110,18 @@ uint32_t ms_render_pack_normal(const double n[3]);
 
 /* Checks the mesh (indices in range, drawing cells in the model, positions
  * finite, counts below 2^32), groups its triangles by cell and computes the
- * vertex normals of the whole stitched mesh (per vertex, the sum of the
- * unnormalised face normals of the triangles using it: area-weighted, and
- * continuous across cell borders since a border vertex is one mesh vertex);
- * the mesh is borrowed until the next call. MS_ERR_ARG for a bad mesh,
+ * corner normals of the whole stitched mesh (continuous across cell borders,
+ * since a border vertex is one mesh vertex): around each vertex, its
+ * triangles are joined across every edge they share with exactly one other
+ * triangle whose normal (turned over when the two use the edge in the same
+ * direction: one of them is flipped) lies within crease_angle_deg ([0, 180])
+ * of theirs; each group's normal is the sum of its unnormalised face normals
+ * (area-weighted), each turned to the group's orientation, and a corner gets
+ * its group's normal turned to its own triangle's orientation. The mesh is
+ * borrowed until the next call. MS_ERR_ARG for a bad mesh or angle,
  * MS_ERR_NOMEM. */
-ms_status ms_render_split_frame(ms_render_split *split, const ms_view_mesh *mesh, ms_error *err);
+ms_status ms_render_split_frame(ms_render_split *split, const ms_view_mesh *mesh, double crease_angle_deg,
+                                ms_error *err);
 
 /* The k-th present cell's mesh (k < present_count), in the cube of record (that
  * cell's). MS_ERR_NOMEM. */
@@ -231,6 +256,7 @@ typedef struct render_cell {
  * pointer per group of the model). */
 struct ms_render {
     bool has_model;             /* header (and groups) set: at ms_render_new or ms_render_set_model */
+    double crease_angle_deg;    /* for the next ms_render_set_frame (ms_render_set_crease_angle) */
     ms_archive_header header;
     ms_archive_cell *records;   /* the whole index when ms_render_new was given it; else NULL
                                    and the records come from ms_render_learn */

@@ -140,7 +140,8 @@ ms_status ms_scene_check_models(const ms_scene *scene, const char *label,
                                 const ms_viewer_model_list *list, ms_error *err);
 
 /* The effects the scene calls for (MS_EFFECT_* bits), within those it allows:
- *   DETAIL_NORMALS  allowed (the models' APO normals, with self-shadowing)
+ *   DETAIL_NORMALS  allowed (the models' APO normals, with self-shadowing
+ *                   from the triangle's own normal)
  *   SPECULAR        some material is glossy
  *   TWO_SIDED       some material is two-sided
  *   HAZE            haze density > 0

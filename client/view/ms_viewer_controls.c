@@ -246,3 +246,12 @@ ms_status ms_viewer_controls_camera(const ms_viewer_controls *c, double width, d
     return ms_camera_look_at(eye, c->target, up, c->fovy_degrees, width, height, near_d, far_d,
                              camera, err);
 }
+
+double ms_viewer_next_crease_angle(double degrees)
+{
+    static const double steps[] = {30, 45, 60, 90, 180};
+    for (size_t i = 0; i < sizeof steps / sizeof *steps; ++i)
+        if (steps[i] > degrees + 1e-9)
+            return steps[i];
+    return steps[0];
+}

@@ -96,4 +96,8 @@ void ms_viewer_controls_depth_range(const ms_viewer_controls *c, double *near_di
 ms_status ms_viewer_controls_camera(const ms_viewer_controls *c, double width, double height,
                                     ms_camera *camera, ms_error *err);
 
+/* The K key: the crease angle after `degrees` in the cycle 30, 45, 60, 90, 180
+ * (the first step above it; 30 again after 180 or anything above). */
+double ms_viewer_next_crease_angle(double degrees);
+
 #endif

@@ -65,6 +65,9 @@ size_t ms_viewer_hud_lines(const ms_viewer_hud_info *info,
              : c->model_open ? "refining"
                              : "connecting",
              mb(c->memory));
+    if (c->preview) /* the server let this reader have a public preview only */
+        snprintf(lines[n++], MS_HUD_LINE_MAX, "preview: %u bits, a token gives more",
+                 c->preview_bits);
     if (c->error[0])
         snprintf(lines[n++], MS_HUD_LINE_MAX, "%.90s", c->error);
     else if (c->warning[0])

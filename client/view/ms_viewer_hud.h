@@ -22,7 +22,7 @@
 #include "ms_viewer_scene.h"
 #include "ms_viewer_text.h"
 
-#define MS_HUD_MAX_LINES 13
+#define MS_HUD_MAX_LINES 14
 #define MS_HUD_LINE_MAX 96
 
 typedef struct ms_viewer_hud_info {

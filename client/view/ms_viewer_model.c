@@ -34,6 +34,8 @@ static ms_status list_local(const char *dir, ms_viewer_model_list *list, ms_erro
         d->triangles = e->triangles;
         d->bytes = e->archive_bytes;
         d->apo = e->apo;
+        d->has_crease_angle = e->has_crease_angle;
+        d->crease_angle_deg = e->crease_angle_deg;
     }
     list->count = catalog.count;
     ms_catalog_free(&catalog);
@@ -114,6 +116,8 @@ ms_status ms_viewer_model_open_listed(const ms_viewer_source *source,
                             source->host, source->port);
     }
     model->apo = entry->apo;
+    model->has_crease_angle = entry->has_crease_angle;
+    model->crease_angle_deg = entry->crease_angle_deg;
     if (source->archive_dir) {
         int n = snprintf(model->archive_path, sizeof model->archive_path, "%s/%s.msa",
                          source->archive_dir, model->name);

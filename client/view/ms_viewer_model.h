@@ -42,6 +42,9 @@ typedef struct ms_viewer_model_entry {
     uint64_t triangles;      /* 0 when the server does not say */
     uint64_t bytes;          /* archive size */
     bool apo;
+    bool has_crease_angle;   /* the catalogue sets the model's crease angle (local
+                                catalog.json only: the binary door does not carry it) */
+    double crease_angle_deg;
 } ms_viewer_model_entry;
 
 typedef struct ms_viewer_model_list {
@@ -57,6 +60,8 @@ typedef struct ms_viewer_model {
     char name[MS_MODEL_NAME_MAX + 1];
     char archive_path[4096];  /* local: DIR/NAME.msa; "" for a server */
     bool apo;                 /* the source lists the model with APO */
+    bool has_crease_angle;    /* the source's catalogue sets its crease angle */
+    double crease_angle_deg;
     /* filled by ms_viewer_stream_open once the core opened the model: */
     ms_archive_header header;
     ms_core_opening index;    /* the head (by subtree) or the whole index, and the

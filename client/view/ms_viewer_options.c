@@ -1,4 +1,5 @@
 #include "ms_viewer_options.h"
+#include "ms_cli.h"
 
 #include <getopt.h>
 #include <math.h>
@@ -19,11 +20,12 @@ void ms_viewer_options_usage(FILE *out)
           "  --model NAME           open this model directly\n"
           "  --token T              access token\n"
           "  --size WxH             window size in pixels (default 1280x720)\n"
-          "  --tolerance PX         geometric screen tolerance (default 4 with APO, 1 without)\n"
+          "  --tolerance PX         geometric screen tolerance (default 1, with APO or without)\n"
           "  --apo-levels L         most APO octree levels fetched; the core fetches down to\n"
           "                         the level whose texel covers about a pixel (default 16)\n"
           "  --no-apo               fetch no APO; shade with geometry normals\n"
-          "  --shading MODE         apo | geometry | normals | cells (default apo)\n"
+          "  --shading MODE         apo | geometry | normals | cells (default apo); geometry\n"
+          "                         fetches no APO\n"
           "  --upload-budget BYTES  GPU upload per frame at most (default 4000000)\n"
           "  --memory MB            client cache target (default none)\n"
           "  --bandwidth B          bytes per second read (default unlimited)\n"
@@ -31,6 +33,10 @@ void ms_viewer_options_usage(FILE *out)
           "                         without subtrees (default: the index head, then subtrees\n"
           "                         as the view needs them)\n"
           "  --up x|y|z             the model's up axis (default z)\n"
+          "  --flat                 flat shading (each triangle's normal) where no APO normal\n"
+          "                         is used (the M key toggles it)\n"
+          "  --crease-angle DEG     edges sharper than DEG degrees stay hard, 0 to 180 (default:\n"
+          "                         the model's catalogue crease_angle, else 60; K cycles it)\n"
           "Scenes (docs/SCENES.md):\n"
           "  --scene FILE           a room of catalogue models; --path defaults to its camera path\n"
           "  --effects-off LIST     effects left out of the program (comma-separated: detail_normals,\n"
@@ -60,6 +66,7 @@ void ms_viewer_options_usage(FILE *out)
           "       N  normals as colours        C  cell colours\n"
           "       X  wireframe overlay         H  HUD on/off\n"
           "       M  smooth / flat shading where no APO normal is used\n"
+          "       K  crease angle: 30, 45, 60, 90, 180 degrees (hard edges)\n"
           "       P  screenshot (into --screenshot-dir, default .)\n"
           "       + / -  tolerance down / up (finer / coarser)\n"
           "       R  reset view                U  cycle the up axis (x, y, z)\n"
@@ -162,7 +169,9 @@ static int finish_options(ms_viewer_options *o, const char *shading, bool no_apo
             return 2;
         }
     }
-    if (no_apo)
+    /* Geometry shading draws no APO normal: fetching the chunks would only
+     * cost bytes (--compare-apo draws both, so it still fetches them). */
+    if (no_apo || (!o->apo_shading && !o->compare_apo))
         o->apo_levels = 0, o->apo_shading = false;
     o->scripted = o->screenshot_dir != NULL;
     if (o->scene_file && o->model) {
@@ -198,6 +207,7 @@ static void default_options(ms_viewer_options *o)
     o->upload_budget = 4000000;
     o->keyframe_timeout = 30;
     o->up_axis = 2;
+    o->crease_angle_deg = -1; /* the catalogue's, else the renderer's default */
 }
 
 /* "HOST:PORT" into o->host and o->port; false when it is not one. */
@@ -288,6 +298,11 @@ static int apply_option(int ch, const char *arg, ms_viewer_options *o, option_le
             return 2;
         break;
     case 'j': o->json = true; break;
+    case 'l': o->flat = true; break;
+    case 'K':
+        if (!number(err, "--crease-angle", arg, 0, 180, &o->crease_angle_deg))
+            return 2;
+        break;
     case 'H': o->hud = true; break;
     case 'A': o->compare_apo = true; break;
     case 'c': o->scene_file = arg; break;
@@ -326,25 +341,23 @@ int ms_viewer_options_parse(int argc, char **argv, ms_viewer_options *o, FILE *e
         {"effects-all", no_argument, NULL, 'E'},
         {"connection-per-model", no_argument, NULL, 'C'},
         {"whole-index", no_argument, NULL, 'W'},
+        {"flat", no_argument, NULL, 'l'},
+        {"crease-angle", required_argument, NULL, 'K'},
         {NULL, 0, NULL, 0}};
     default_options(o);
     option_leftovers left = {false, NULL};
     int ch;
-    opterr = 0;
     optind = 1;
-    while ((ch = getopt_long(argc, argv, ":h", opts, NULL)) != -1) {
+    while ((ch = ms_cli_next("meshview", argc, argv, "h", opts)) != -1) {
         if (ch == 'h') {
             o->help = true;
             return 0;
         }
-        if (ch == ':') {
-            fprintf(err, "meshview: %s wants a value\n", argv[optind - 1]);
-            return 2;
-        }
+        if (ch == MS_CLI_ERROR)
+            return MS_CLI_USAGE; /* reported by ms_cli_next */
         int status = apply_option(ch, optarg, o, &left, err);
         if (status == OPTION_UNKNOWN) {
-            fprintf(err, "meshview: unknown option '%s' (see --help)\n", argv[optind - 1]);
-            return 2;
+            return ms_cli_usage_error("meshview", "unknown option", argv[optind - 1]);
         }
         if (status != 0)
             return status;
@@ -364,7 +377,8 @@ ms_viewer_stream_settings ms_viewer_options_stream_settings(const ms_viewer_opti
                                    .apo_levels = o->apo_levels,
                                    .memory_mb = o->memory_mb,
                                    .bandwidth = o->bandwidth,
-                                   .whole_index = o->whole_index};
+                                   .whole_index = o->whole_index,
+                                   .crease_angle_deg = o->crease_angle_deg};
     return s;
 }
 

@@ -48,6 +48,8 @@ typedef struct ms_viewer_options {
     bool effects_all;          /* --effects-all: every effect compiled in, called for or not */
     bool connection_per_model; /* --connection-per-model: a scene from a server opens one
                                   connection per model instead of one for all */
+    bool flat;                 /* --flat: each triangle's own normal where no APO normal is used */
+    double crease_angle_deg;   /* --crease-angle; negative: the catalogue's, else the default */
 } ms_viewer_options;
 
 /* 0: parsed (o->help for --help); 2: a usage error, one line written to err. */

@@ -654,6 +654,10 @@ void ms_viewer_scene_stats(ms_viewer_scene *vs, ms_core_stats *sum)
         sum->subtrees_held += s.subtrees_held;
         sum->latency_p50 = fmax(sum->latency_p50, s.latency_p50);
         sum->latency_p99 = fmax(sum->latency_p99, s.latency_p99);
+        if (s.preview && (!sum->preview || s.preview_bits < sum->preview_bits))
+            sum->preview_bits = s.preview_bits; /* the coarsest piece's */
+        sum->preview |= s.preview;
+        sum->preview_limited |= s.preview_limited;
         if (!sum->error[0] && s.error[0])
             snprintf(sum->error, sizeof sum->error, "%.64s: %.180s", vs->models[i].model.name, s.error);
         if (!sum->warning[0] && s.warning[0])

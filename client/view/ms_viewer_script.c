@@ -443,6 +443,11 @@ static ms_status play(script *s, const ms_viewer_model *model, json_t *keys, boo
                             (json_int_t)cs.apo_bytes_received, "achieved_error_px",
                             cs.achieved_error_px, "tolerance_px", cs.tolerance_px, "effects_ran",
                             s->scene ? effect_names(s->effects_ran) : NULL));
+        if (cs.preview) { /* complete at a public preview: a token gives more */
+            json_t *key = json_array_get(keys, json_array_size(keys) - 1);
+            json_object_set_new(key, "preview_bits", json_integer((json_int_t)cs.preview_bits));
+            json_object_set_new(key, "preview_limited", json_boolean(cs.preview_limited));
+        }
     }
     st = MS_OK;
 done:
@@ -477,6 +482,7 @@ static ms_status scene_run(const ms_viewer_options *o, const ms_viewer_source *s
     ms_render_options_default(&s.render);
     s.render.shading = o->shading;
     s.render.apo = o->apo_shading;
+    s.render.smooth = !o->flat;
     ms_viewer_scene_settings settings = ms_viewer_options_scene_settings(o);
     json_t *keys = json_array();
     double started = now_s();
@@ -536,6 +542,7 @@ ms_status ms_viewer_script_run(const ms_viewer_options *o, const ms_viewer_sourc
     ms_render_options_default(&s.render);
     s.render.shading = o->shading;
     s.render.apo = o->apo_shading;
+    s.render.smooth = !o->flat;
     ms_viewer_stream_settings settings = ms_viewer_options_stream_settings(o);
     json_t *keys = json_array();
     double started = now_s();
@@ -577,6 +584,10 @@ ms_status ms_viewer_script_run(const ms_viewer_options *o, const ms_viewer_sourc
                         (json_int_t)cs.apo_bytes_received, "seconds", now_s() - started,
                         "compare_apo", compare);
     add_index_figures(*report, &s, &cs);
+    if (*report) {
+        json_object_set_new(*report, "flat", json_boolean(o->flat));
+        json_object_set_new(*report, "crease_angle_deg", json_real(ms_viewer_stream_crease_angle(s.stream)));
+    }
     if (!*report)
         st = ms_error_set(err, MS_ERR_NOMEM, "out of memory for the report");
 done:

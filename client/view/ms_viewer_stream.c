@@ -65,6 +65,12 @@ ms_status ms_viewer_stream_start(const ms_viewer_source *source, ms_viewer_model
     ms_status st = ms_core_start(&co, &s->core, err);
     if (st == MS_OK)
         st = ms_render_new(NULL, NULL, &s->render, err);
+    if (st == MS_OK) {
+        double crease = settings->crease_angle_deg >= 0 ? settings->crease_angle_deg
+                        : model->has_crease_angle       ? model->crease_angle_deg
+                                                        : MS_RENDER_CREASE_ANGLE_DEFAULT;
+        st = ms_render_set_crease_angle(s->render, crease, err);
+    }
     if (st != MS_OK) {
         ms_viewer_stream_close(s);
         return st;
@@ -196,3 +202,13 @@ ms_render *ms_viewer_stream_render(ms_viewer_stream *s)
 {
     return s->render;
 }
+
+ms_status ms_viewer_stream_set_crease_angle(ms_viewer_stream *s, double degrees, ms_error *err)
+{
+    ms_status st = ms_render_set_crease_angle(s->render, degrees, err);
+    if (st == MS_OK && s->frame) /* the same cells, so every record is still known */
+        st = ms_render_set_frame(s->render, &s->frame->mesh, s->frame->apo, s->frame->apo_count, err);
+    return st;
+}
+
+double ms_viewer_stream_crease_angle(const ms_viewer_stream *s) { return ms_render_crease_angle(s->render); }

@@ -45,6 +45,9 @@ typedef struct ms_viewer_stream_settings {
     unsigned decode_threads;   /* 0 = the core's default */
     bool whole_index;          /* take the whole index at open (ms_core_options.whole_index),
                                   as from a server without subtrees */
+    double crease_angle_deg;   /* hard edges (ms_render_set_crease_angle), degrees in [0, 180];
+                                  negative: the model's catalogue value where it sets one,
+                                  else MS_RENDER_CREASE_ANGLE_DEFAULT */
     ms_core_link *shared_link; /* from a server: NULL, the stream's own connection; else a
                                   link shared with other streams (the scene's), which holds
                                   the server, bandwidth and whole_index (those here are then
@@ -110,5 +113,13 @@ const ms_viewer_model *ms_viewer_stream_model(const ms_viewer_stream *stream);
 
 /* The stream's renderer (owned by the stream), e.g. to capture an impostor. */
 ms_render *ms_viewer_stream_render(ms_viewer_stream *stream);
+
+/* Changes the crease angle (degrees, [0, 180]) and sets the frame in hand
+ * again, so the picture takes it as the cells go up (ms_render_upload).
+ * MS_ERR_ARG for an angle out of range. */
+ms_status ms_viewer_stream_set_crease_angle(ms_viewer_stream *stream, double degrees, ms_error *err);
+
+/* The crease angle in effect, degrees. */
+double ms_viewer_stream_crease_angle(const ms_viewer_stream *stream);
 
 #endif

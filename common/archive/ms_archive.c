@@ -1,5 +1,5 @@
-/* Archive reader (versions 1, 2 and 3) and the record codec shared with the
- * writer. See ms_archive.h and docs/ARCHIVE.md. */
+/* Archive reader (file version 3, index blobs) and the record codec shared
+ * with the writer. See ms_archive.h and docs/ARCHIVE.md. */
 #include "ms_archive.h"
 #include "ms_input_file.h"
 #include "ms_archive_internal.h"
@@ -17,16 +17,6 @@
 #include <zlib.h>
 
 static const uint8_t archive_magic[8] = {'M', 'S', 'A', 'R', 'C', 'H', '\r', '\n'};
-
-/* Deflate's densest code is a 258-byte match in 2 bits, so a zlib stream of s
- * bytes never inflates to more than 1032 * s: a header that claims more is
- * rejected before anything is allocated. */
-#define ZLIB_MAX_RATIO 1032u
-
-/* The raw index is inflated in one call, into at most this many bytes. */
-_Static_assert((uint64_t)MS_ARCHIVE_MAX_CELLS * MS_ARCHIVE_RECORD_SIZE +
-                       4ull * MS_ARCHIVE_MAX_TABLE_WORDS <= UINT32_MAX,
-               "the largest raw index must fit zlib's avail_out");
 
 /* --- Little-endian field access ------------------------------------------- */
 
@@ -63,12 +53,12 @@ static unsigned log2_exact(unsigned n)
 
 /* --- Encoding (used by the writer) ---------------------------------------- */
 
-void ms_archive_encode_header(const ms_archive_header *h, unsigned version, uint64_t index_size,
-                              uint64_t stored_index_size, uint64_t payload_size,
-                              uint32_t index_crc, uint8_t out[MS_ARCHIVE_HEADER_SIZE])
+/* The fields every header shares (docs/ARCHIVE.md), bytes 112..123 zero and
+ * no header CRC yet. */
+static void encode_common(const ms_archive_header *h, uint32_t version, uint64_t index_size,
+                          uint64_t payload_size, uint64_t file_size, uint32_t index_crc,
+                          uint8_t out[MS_ARCHIVE_HEADER_SIZE])
 {
-    bool zlib_index = version != MS_ARCHIVE_VERSION_RAW_INDEX;
-    uint64_t stored = zlib_index ? stored_index_size : index_size;
     memset(out, 0, MS_ARCHIVE_HEADER_SIZE);
     memcpy(out, archive_magic, 8);
     ms_put_u32(out + 8, version);
@@ -87,26 +77,27 @@ void ms_archive_encode_header(const ms_archive_header *h, unsigned version, uint
     ms_put_u32(out + 76, h->min_triangles);
     ms_put_u64(out + 80, index_size);
     ms_put_u64(out + 88, payload_size);
-    ms_put_u64(out + 96, MS_ARCHIVE_HEADER_SIZE + stored + payload_size);
+    ms_put_u64(out + 96, file_size);
     out[104] = h->apo_lead;
     out[105] = h->apo_max_depth;
     ms_put_u32(out + 108, index_crc);
-    if (zlib_index) {
-        ms_put_u64(out + 112, stored_index_size);
-        out[120] = MS_ARCHIVE_INDEX_ZLIB;
-    }
+}
+
+void ms_archive_encode_blob_header(const ms_archive_header *h, uint64_t index_size,
+                                   uint64_t payload_size, uint32_t index_crc,
+                                   uint8_t out[MS_ARCHIVE_HEADER_SIZE])
+{
+    encode_common(h, MS_ARCHIVE_BLOB_VERSION, index_size, payload_size,
+                  MS_ARCHIVE_HEADER_SIZE + index_size + payload_size, index_crc, out);
     ms_put_u32(out + 124, (uint32_t)crc32(0L, out, 124));
 }
 
-void ms_archive_encode_header_v3(const ms_archive_header *h, uint64_t index_size,
-                                 uint32_t stored_size, uint64_t payload_size, uint64_t file_size,
-                                 uint32_t index_crc, unsigned subtree_levels,
-                                 uint32_t subtree_count, uint8_t out[MS_ARCHIVE_HEADER_SIZE])
+void ms_archive_encode_header(const ms_archive_header *h, uint64_t index_size,
+                              uint32_t stored_size, uint64_t payload_size, uint64_t file_size,
+                              uint32_t index_crc, unsigned subtree_levels,
+                              uint32_t subtree_count, uint8_t out[MS_ARCHIVE_HEADER_SIZE])
 {
-    ms_archive_encode_header(h, MS_ARCHIVE_VERSION_RAW_INDEX, index_size, index_size,
-                             payload_size, index_crc, out);
-    ms_put_u32(out + 8, MS_ARCHIVE_VERSION_SUBTREES);
-    ms_put_u64(out + 96, file_size);
+    encode_common(h, MS_ARCHIVE_VERSION, index_size, payload_size, file_size, index_crc, out);
     ms_put_u32(out + 112, stored_size);
     ms_put_u32(out + 116, subtree_count);
     out[120] = MS_ARCHIVE_INDEX_SUBTREES;
@@ -159,8 +150,8 @@ static ms_status check_sections(const char *path, size_t size, ms_header_kind ki
                                 ms_error *err)
 {
     if (kind != MS_HEADER_FILE) {
-        /* A blob or a head: the file size is the one of a version-1 file of the
-         * model, whatever follows the header here. */
+        /* A blob or a head: the file size is the one of the model's raw index
+         * and payloads (128 + raw index + payloads), whatever follows here. */
         uint64_t follows = kind == MS_HEADER_BLOB ? sec->index_size : sec->stored_size;
         if (size != MS_ARCHIVE_HEADER_SIZE + follows)
             return ms_error_set(err, MS_ERR_FORMAT, "%s: index %s is %zu bytes, expected %llu",
@@ -175,19 +166,6 @@ static ms_status check_sections(const char *path, size_t size, ms_header_kind ki
         return ms_error_set(err, MS_ERR_FORMAT,
                             "%s: file is %zu bytes but its header says %llu (truncated?)", path,
                             size, (unsigned long long)h->file_size);
-    if (h->version == MS_ARCHIVE_VERSION_ZLIB_INDEX) {
-        if (sec->stored_size > size - MS_ARCHIVE_HEADER_SIZE)
-            return ms_error_set(err, MS_ERR_FORMAT,
-                                "%s: compressed index of %llu bytes runs past the end of the "
-                                "%zu-byte file", path, (unsigned long long)sec->stored_size, size);
-        /* index_size is capped by now, so the sum cannot wrap. */
-        if (sec->stored_size < (sec->index_size + ZLIB_MAX_RATIO - 1) / ZLIB_MAX_RATIO ||
-            sec->stored_size == 0)
-            return ms_error_set(err, MS_ERR_FORMAT,
-                                "%s: a compressed index of %llu bytes cannot inflate to %llu",
-                                path, (unsigned long long)sec->stored_size,
-                                (unsigned long long)sec->index_size);
-    }
     if (sec->payload_size > size ||
         MS_ARCHIVE_HEADER_SIZE + sec->stored_size > size - sec->payload_size ||
         MS_ARCHIVE_HEADER_SIZE + sec->stored_size + sec->payload_size != size)
@@ -206,36 +184,26 @@ ms_status ms_archive_parse_header(const char *path, const uint8_t *p, size_t siz
     if (memcmp(p, archive_magic, 8) != 0)
         return ms_error_set(err, MS_ERR_FORMAT, "%s: not a meshstream archive (bad magic)", path);
     uint32_t version = ms_get_u32(p + 8);
-    if (kind == MS_HEADER_BLOB && version != MS_ARCHIVE_BLOB_VERSION)
-        return ms_error_set(err, MS_ERR_UNSUPPORTED,
-                            "%s: index blob version %u, this build reads version %u", path,
-                            version, MS_ARCHIVE_BLOB_VERSION);
-    if (kind == MS_HEADER_HEAD && version != MS_ARCHIVE_VERSION_SUBTREES)
-        return ms_error_set(err, MS_ERR_UNSUPPORTED,
-                            "%s: index head version %u, this build reads version %u", path,
-                            version, MS_ARCHIVE_VERSION_SUBTREES);
-    if (version != MS_ARCHIVE_VERSION_RAW_INDEX && version != MS_ARCHIVE_VERSION_ZLIB_INDEX &&
-        version != MS_ARCHIVE_VERSION_SUBTREES)
-        return ms_error_set(err, MS_ERR_UNSUPPORTED,
-                            "%s: archive version %u, this build reads %u, %u and %u", path,
-                            version, MS_ARCHIVE_VERSION_RAW_INDEX, MS_ARCHIVE_VERSION_ZLIB_INDEX,
-                            MS_ARCHIVE_VERSION_SUBTREES);
-    bool zlib_index = version == MS_ARCHIVE_VERSION_ZLIB_INDEX;
-    bool subtrees = version == MS_ARCHIVE_VERSION_SUBTREES;
+    /* One format: a file or a head is version 3, a blob has its own version 1.
+     * An older file (1 or 2, never released) is refused in one line. */
+    uint32_t expected = kind == MS_HEADER_BLOB ? MS_ARCHIVE_BLOB_VERSION : MS_ARCHIVE_VERSION;
+    if (version != expected)
+        return ms_error_set(err, MS_ERR_UNSUPPORTED, "%s: %s version %u, this build reads version %u",
+                            path, kind == MS_HEADER_FILE   ? "archive"
+                                  : kind == MS_HEADER_BLOB ? "index blob"
+                                                           : "index head",
+                            version, expected);
+    bool subtrees = kind != MS_HEADER_BLOB;
     if ((uint32_t)crc32(0L, p, 124) != ms_get_u32(p + 124))
         return ms_error_set(err, MS_ERR_CORRUPT, "%s: header checksum mismatch", path);
-    /* Version 1 reserves bytes 112..123; version 2 stores the index's size
-     * (112..119) and encoding (120) there; version 3 its stored size (112..115),
-     * the subtree count (116..119), the encoding (120) and S (121). */
-    const uint8_t *reserved_tail = p + (zlib_index ? 121 : subtrees ? 122 : 112);
-    size_t reserved_tail_size = zlib_index ? 3 : subtrees ? 2 : 12;
+    /* A blob reserves bytes 112..123; a file or head stores there the index's
+     * stored size (112..115), the subtree count (116..119), the encoding (120)
+     * and S (121). */
+    const uint8_t *reserved_tail = p + (subtrees ? 122 : 112);
+    size_t reserved_tail_size = subtrees ? 2 : 12;
     if (ms_get_u32(p + 12) != MS_ARCHIVE_HEADER_SIZE || !all_zero(p + 106, 2) ||
         !all_zero(reserved_tail, reserved_tail_size) || (p[51] & ~1u))
         return ms_error_set(err, MS_ERR_FORMAT, "%s: bad header size or reserved bytes", path);
-    if (zlib_index && p[120] != MS_ARCHIVE_INDEX_ZLIB)
-        return ms_error_set(err, MS_ERR_FORMAT,
-                            "%s: index encoding %u, version %u stores zlib (%u)", path, p[120],
-                            version, MS_ARCHIVE_INDEX_ZLIB);
     if (subtrees && p[120] != MS_ARCHIVE_INDEX_SUBTREES)
         return ms_error_set(err, MS_ERR_FORMAT,
                             "%s: index encoding %u, version %u stores subtrees (%u)", path,
@@ -260,9 +228,7 @@ ms_status ms_archive_parse_header(const char *path, const uint8_t *p, size_t siz
     h->apo_lead = p[104];
     h->apo_max_depth = p[105];
     sec->index_crc = ms_get_u32(p + 108);
-    sec->stored_size = zlib_index ? ms_get_u64(p + 112)
-                       : subtrees ? ms_get_u32(p + 112)
-                                  : sec->index_size;
+    sec->stored_size = subtrees ? ms_get_u32(p + 112) : sec->index_size;
     if (subtrees) {
         sec->subtree_count = ms_get_u32(p + 116);
         sec->subtree_levels = p[121];
@@ -305,60 +271,6 @@ ms_status ms_archive_parse_header(const char *path, const uint8_t *p, size_t siz
                             (unsigned long long)sec->index_size, (unsigned long long)expect_index,
                             h->cell_count, h->table_words);
     return check_sections(path, size, kind, h, sec, err);
-}
-
-/* Inflates a version-2 index (the `stored` bytes at in) into exactly `raw`
- * bytes at out, and classifies every way the stream can disagree with the
- * header: not zlib or damaged (MS_ERR_CORRUPT), ending early or late, cut, or
- * followed by other bytes (MS_ERR_FORMAT). */
-static ms_status inflate_index(const char *path, const uint8_t *in, uint64_t stored,
-                               uint8_t *out, uint64_t raw, ms_error *err)
-{
-    z_stream z;
-    memset(&z, 0, sizeof z);
-    if (inflateInit(&z) != Z_OK)
-        return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory inflating the index", path);
-    z.next_out = out;
-    z.avail_out = (uInt)raw; /* fits: see the static assertion above */
-    uint64_t left = stored;  /* input not yet handed to zlib */
-    int r;
-    do {
-        if (z.avail_in == 0 && left > 0) {
-            uInt chunk = left > (1u << 30) ? (1u << 30) : (uInt)left;
-            z.next_in = (Bytef *)(uintptr_t)in; /* zlib's API is not const-correct */
-            z.avail_in = chunk;
-            in += chunk;
-            left -= chunk;
-        }
-        r = inflate(&z, Z_NO_FLUSH);
-    } while (r == Z_OK);
-    uint64_t unread = z.avail_in + left;
-    ms_status st = MS_OK;
-    if (r == Z_STREAM_END && z.total_out != raw)
-        st = ms_error_set(err, MS_ERR_FORMAT,
-                          "%s: index inflates to %llu bytes, the header says %llu", path,
-                          (unsigned long long)z.total_out, (unsigned long long)raw);
-    else if (r == Z_STREAM_END && unread)
-        st = ms_error_set(err, MS_ERR_FORMAT,
-                          "%s: %llu bytes follow the end of the index's zlib stream", path,
-                          (unsigned long long)unread);
-    else if (r == Z_BUF_ERROR && unread == 0)
-        st = ms_error_set(err, MS_ERR_FORMAT,
-                          "%s: index's zlib stream is cut short (%llu of %llu bytes inflated)",
-                          path, (unsigned long long)z.total_out, (unsigned long long)raw);
-    else if (r == Z_BUF_ERROR)
-        st = ms_error_set(err, MS_ERR_FORMAT,
-                          "%s: index inflates to more than the %llu bytes the header says", path,
-                          (unsigned long long)raw);
-    else if (r == Z_MEM_ERROR)
-        st = ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory inflating the index", path);
-    else if (r != Z_STREAM_END)
-        st = ms_error_set(err, MS_ERR_CORRUPT, "%s: index is not a valid zlib stream: %s", path,
-                          r == Z_NEED_DICT ? "it needs a preset dictionary"
-                          : z.msg          ? z.msg
-                                           : "bad data");
-    inflateEnd(&z);
-    return st;
 }
 
 void ms_archive_decode_cell(const uint8_t *p, ms_archive_cell *c)
@@ -510,22 +422,18 @@ static ms_status archive_validate(const char *path, ms_archive *a, ms_error *err
         a->payload_size = sec.payload_size;
         a->blob = a->map;
     }
-    if (status == MS_OK && a->header.version != MS_ARCHIVE_VERSION_RAW_INDEX) {
-        /* Versions 2 and 3: the blob is a version-1 header and the inflated index. */
+    if (status == MS_OK && !a->index_only) {
+        /* A file: the blob is a blob header and the index its subtrees assemble. */
         a->inflated_blob = malloc(MS_ARCHIVE_HEADER_SIZE + (size_t)sec.index_size);
         if (!a->inflated_blob)
             status = ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory for a %llu-byte index",
                                   path, (unsigned long long)sec.index_size);
-        else if (a->header.version == MS_ARCHIVE_VERSION_SUBTREES)
+        else
             status = ms_archive_v3_assemble(path, a, &sec,
                                             a->inflated_blob + MS_ARCHIVE_HEADER_SIZE, err);
-        else
-            status = inflate_index(path, a->map + MS_ARCHIVE_HEADER_SIZE, sec.stored_size,
-                                   a->inflated_blob + MS_ARCHIVE_HEADER_SIZE, sec.index_size, err);
         if (status == MS_OK) {
-            ms_archive_encode_header(&a->header, MS_ARCHIVE_VERSION_RAW_INDEX, sec.index_size,
-                                     sec.index_size, sec.payload_size, sec.index_crc,
-                                     a->inflated_blob);
+            ms_archive_encode_blob_header(&a->header, sec.index_size, sec.payload_size,
+                                          sec.index_crc, a->inflated_blob);
             a->blob = a->inflated_blob;
         }
     }
@@ -560,10 +468,10 @@ static ms_status archive_validate(const char *path, ms_archive *a, ms_error *err
             status = check_tree_cover(path, a, err);
     }
     if (status == MS_OK) {
-        bool v3 = a->header.version == MS_ARCHIVE_VERSION_SUBTREES;
+        bool file = !a->index_only;
         status = ms_archive_subtrees_init(
-            a, v3 ? sec.subtree_levels : ms_subtree_default_levels(a->header.n), err);
-        if (status == MS_OK && v3)
+            a, file ? sec.subtree_levels : ms_subtree_default_levels(a->header.n), err);
+        if (status == MS_OK && file)
             status = ms_archive_v3_check_directory(path, a, err);
     }
     return status;

@@ -1,16 +1,15 @@
 /* Reading a meshstream archive file (docs/ARCHIVE.md: version 3, whose index is
- * stored as compressed subtrees (ms_subtree.h), version 2, whose index is stored
- * as one zlib stream, and version 1, whose index is stored raw).
+ * stored as compressed subtrees, ms_subtree.h; any other version is refused
+ * with MS_ERR_UNSUPPORTED naming it).
  *
- * ms_archive_open maps the file read-only and validates the header, inflates a
- * version-2 index into memory (into exactly the size the header declares), checks
- * the index CRC, every cell record, the tree structure and the per-cell tables
+ * ms_archive_open maps the file read-only and validates the header, inflates
+ * every subtree of the index into memory (into exactly the sizes declared),
+ * checks the index CRC, every cell record, the tree structure and the per-cell tables
  * before returning; afterwards every accessor is a bounds-safe look-up. Payload CRCs are checked on
  * demand by ms_archive_verify_payload (the server checks once, the client checks
  * what it receives).
  *
- * Ownership: the ms_archive owns the mapping (and a version-2/3 file's inflated
- * index); pointers it returns stay valid until ms_archive_close. Thread-safety:
+ * Ownership: the ms_archive owns the mapping (and a file's inflated index); pointers it returns stay valid until ms_archive_close. Thread-safety:
  * after open, any number of threads may read the same archive concurrently
  * (a partial archive of ms_subtree.h only while no subtree is added or dropped).
  */
@@ -23,20 +22,13 @@
 
 #include "ms_error.h"
 
-/* The version meshbake writes: the index is stored as subtrees. */
+/* The file version meshbake writes and the reader reads (the only one): the
+ * index is stored as subtrees (ms_subtree.h). */
 #define MS_ARCHIVE_VERSION 3u
-/* The versions read: 1 stores the index raw, 2 as one zlib stream, 3 as
- * subtrees (ms_subtree.h). */
-#define MS_ARCHIVE_VERSION_ZLIB_INDEX 2u
-#define MS_ARCHIVE_VERSION_SUBTREES 3u
-/* The oldest version still read: the index is stored raw. */
-#define MS_ARCHIVE_VERSION_RAW_INDEX 1u
 /* The version of the index blob (ms_archive_index_bytes, what the server sends):
- * always a version-1 header followed by the raw index, whatever the file's. */
+ * a 128-byte blob header followed by the raw index. */
 #define MS_ARCHIVE_BLOB_VERSION 1u
-/* Header byte 120 of a version-2 file: how the index is stored. */
-#define MS_ARCHIVE_INDEX_ZLIB 1u
-/* Header byte 120 of a version-3 file or index head: the index in subtrees. */
+/* Header byte 120 of a file or index head: the index in subtrees. */
 #define MS_ARCHIVE_INDEX_SUBTREES 2u
 #define MS_ARCHIVE_HEADER_SIZE 128u
 #define MS_ARCHIVE_RECORD_SIZE 80u
@@ -60,9 +52,10 @@ typedef struct ms_archive_header {
     uint64_t vertex_count;
     uint64_t triangle_count;
     uint64_t file_size;
-    /* Set by the reader, ignored by the writer: the version read (an index blob
-     * is version 1) and the bytes the index occupies there (the zlib stream in
-     * version 2; the raw index, 80 * cell_count + 4 * table_words, in version 1). */
+    /* Set by the reader, ignored by the writer: the version read (3 for a file,
+     * 1 for an index blob) and the bytes the index occupies there (a file's
+     * directory and stored subtrees; a blob's raw index, 80 * cell_count + 4 *
+     * table_words). */
     uint32_t version;
     uint64_t index_stored_size;
 } ms_archive_header;
@@ -89,7 +82,7 @@ typedef struct ms_archive ms_archive;
 ms_status ms_archive_open(const char *path, ms_archive **archive, ms_error *err);
 void ms_archive_close(ms_archive *archive);
 
-/* Validates and copies an index blob (version-1 header + raw cell index, as
+/* Validates and copies an index blob (blob header + raw cell index, as
  * ms_archive_index_bytes gives it and the server sends it); name is used in
  * errors. The result has no payloads: ms_archive_geometry/apo return NULL (with
  * the stored lengths) and the prefix look-ups work as usual. */
@@ -107,12 +100,9 @@ const ms_archive_header *ms_archive_get_header(const ms_archive *archive);
  * the cell's subtree is not held. */
 const ms_archive_cell *ms_archive_get_cell(const ms_archive *archive, uint32_t cell);
 
-/* The whole index blob, for sending: a version-1 header (docs/ARCHIVE.md, "The
- * index blob") followed by the raw index (records + tables). For a version-1
- * file these are its first bytes; for a version-2 file the header is the one a
- * version-1 file of the same model would have, and the index the inflated one,
- * so the blob does not depend on how the file stores its index. NULL (size 0)
- * on a partial archive. */
+/* The whole index blob, for sending: a blob header (docs/ARCHIVE.md, "The
+ * index blob") followed by the raw index (records + tables), the one the
+ * file's subtrees assemble. NULL (size 0) on a partial archive. */
 const uint8_t *ms_archive_index_bytes(const ms_archive *archive, size_t *size);
 
 /* Payload bytes (not yet CRC-checked). Zero length for an absent APO chunk; NULL
@@ -141,22 +131,23 @@ ms_status ms_archive_check_payload(const ms_archive *archive, uint32_t cell, boo
 /* --- Shared with the writer (server/bake/ms_archive_writer.c) ------------------- */
 
 /* Encodes / decodes the fixed-size parts. Decoding checks only field-local
- * ranges; cross-checks are done by ms_archive_open. The header is encoded as
- * `version` (1 or 2; ms_archive_encode_header_v3 for 3) from h's model fields (h->version,
- * h->index_stored_size and h->file_size are not used): index_size is the raw
- * index (80 * cells + 4 * table words), index_crc its CRC32; stored_index_size
- * the zlib stream's length (version 2; a version-1 header stores the index raw
- * and ignores it). */
-void ms_archive_encode_header(const ms_archive_header *h, unsigned version, uint64_t index_size,
-                              uint64_t stored_index_size, uint64_t payload_size,
-                              uint32_t index_crc, uint8_t out[MS_ARCHIVE_HEADER_SIZE]);
-/* A version-3 header (docs/ARCHIVE.md): stored_size is what follows the
- * header before the payloads (the directory and the stored subtrees of a file;
- * the root subtree in an index head), file_size is written as given. */
-void ms_archive_encode_header_v3(const ms_archive_header *h, uint64_t index_size,
-                                 uint32_t stored_size, uint64_t payload_size, uint64_t file_size,
-                                 uint32_t index_crc, unsigned subtree_levels,
-                                 uint32_t subtree_count, uint8_t out[MS_ARCHIVE_HEADER_SIZE]);
+ * ranges; cross-checks are done by ms_archive_open. Headers are encoded from
+ * h's model fields (h->version, h->index_stored_size and h->file_size are not
+ * used); index_size is the raw index (80 * cells + 4 * table words), index_crc
+ * its CRC32.
+ * ms_archive_encode_header: a file's (or an index head's) version-3 header;
+ * stored_size is what follows the header before the payloads (the directory
+ * and the stored subtrees of a file; the root subtree in an index head),
+ * file_size is written as given.
+ * ms_archive_encode_blob_header: an index blob's header (version 1, the raw
+ * index follows; file size 128 + index_size + payload_size). */
+void ms_archive_encode_header(const ms_archive_header *h, uint64_t index_size,
+                              uint32_t stored_size, uint64_t payload_size, uint64_t file_size,
+                              uint32_t index_crc, unsigned subtree_levels,
+                              uint32_t subtree_count, uint8_t out[MS_ARCHIVE_HEADER_SIZE]);
+void ms_archive_encode_blob_header(const ms_archive_header *h, uint64_t index_size,
+                                   uint64_t payload_size, uint32_t index_crc,
+                                   uint8_t out[MS_ARCHIVE_HEADER_SIZE]);
 void ms_archive_encode_cell(const ms_archive_cell *c, uint8_t out[MS_ARCHIVE_RECORD_SIZE]);
 
 /* Window rules of docs/ARCHIVE.md: the precision window of a cell at `level`. */

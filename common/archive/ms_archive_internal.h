@@ -12,7 +12,7 @@
 
 #include "ms_archive.h"
 
-/* One stored (zlib) subtree computed from a version-1/2 file on first request. */
+/* One stored (zlib) subtree computed from an index blob on first request. */
 typedef struct ms_stored_subtree {
     size_t size;
     uint8_t bytes[];
@@ -27,25 +27,25 @@ struct ms_archive {
     bool index_only; /* a malloc'd copy of header + index (or NULL), no payloads */
     ms_archive_header header;
     ms_archive_cell *cells; /* cell_count records; NULL on a partial index */
-    /* The index blob (version-1 header + raw index): the start of map for a
-     * version-1 file or an index blob, else inflated_blob. */
+    /* The index blob (blob header + raw index): the start of map for an index
+     * blob, else (a file) inflated_blob. */
     const uint8_t *blob;
-    uint8_t *inflated_blob; /* versions 2, 3: malloc'd, MS_ARCHIVE_HEADER_SIZE + index_size */
+    uint8_t *inflated_blob; /* a file's: malloc'd, MS_ARCHIVE_HEADER_SIZE + index_size */
     const uint8_t *tables;  /* table words, little-endian */
     const uint8_t *payload;
     uint64_t payload_size;
     uint64_t index_size; /* raw */
 
     /* Subtrees of a whole archive (ms_subtree.c), set up at open: the ids at
-     * subtree_levels, ascending, and per id its stored bytes: a version-3
-     * file's own (file_subtree, file_subtree_size) or, for versions 1 and 2,
-     * deflated on first request and published once (stored_cache). */
+     * subtree_levels, ascending, and per id its stored bytes: a file's own
+     * (file_subtree, file_subtree_size) or, for an archive opened from an
+     * index blob, deflated on first request and published once (stored_cache). */
     unsigned subtree_levels;
     uint32_t subtree_count;
     uint32_t *subtree_ids;
     const uint8_t **file_subtree;
     uint32_t *file_subtree_size;
-    uint32_t *file_subtree_ids; /* version 3: the directory's ids */
+    uint32_t *file_subtree_ids; /* a file's: the directory's ids */
     uint32_t file_subtree_count;
     _Atomic(ms_stored_subtree *) *stored_cache;
     _Atomic(ms_stored_subtree *) head_cache; /* the index head, built on first request */
@@ -78,8 +78,9 @@ static inline void ms_put_u64(uint8_t *p, uint64_t v)
     ms_put_u32(p + 4, (uint32_t)(v >> 32));
 }
 
-/* What a header heads: a file, an index blob (version 1, followed by the raw
- * index) or an index head (version 3, followed by the root subtree). */
+/* What a header heads: a file (version 3), an index blob (blob version 1,
+ * followed by the raw index) or an index head (version 3, followed by the root
+ * subtree). */
 typedef enum ms_header_kind { MS_HEADER_FILE, MS_HEADER_BLOB, MS_HEADER_HEAD } ms_header_kind;
 
 /* The header's sections, as ms_archive_parse_header reads them. */
@@ -88,8 +89,8 @@ typedef struct ms_archive_sections {
     uint64_t stored_size; /* bytes of the index in the file (head: of the root subtree) */
     uint64_t payload_size;
     uint32_t index_crc;   /* of the raw index */
-    uint32_t subtree_count;  /* version 3 */
-    unsigned subtree_levels; /* version 3 */
+    uint32_t subtree_count;  /* file or head */
+    unsigned subtree_levels; /* file or head */
 } ms_archive_sections;
 
 /* Parses and checks a header (docs/ARCHIVE.md) against the `size` bytes it
@@ -124,15 +125,14 @@ static inline uint64_t ms_archive_cell_table_words(const ms_archive_cell *c)
 }
 
 /* ms_subtree.c: sets up the subtree ids of an archive validated as a whole
- * (levels: the file's S for version 3, the default for versions 1 and 2), and
- * frees them. */
+ * (levels: the file's S, or the default for an index blob), and frees them. */
 ms_status ms_archive_subtrees_init(ms_archive *a, unsigned levels, ms_error *err);
 void ms_archive_subtrees_free(ms_archive *a);
 /* Index of id in subtree_ids of a whole archive, or -1. */
 long ms_archive_subtree_slot(const ms_archive *a, uint32_t id);
-/* Version 3 (ms_subtree.c): reads the directory and inflates every stored
+/* A file (ms_archive_v3.c): reads the directory and inflates every stored
  * subtree of a->map into the raw index at `raw` (sec->index_size bytes, table
- * words renumbered as in a version-1 file), checking each subtree on its own;
+ * words renumbered as in an index blob), checking each subtree on its own;
  * the whole index is then checked as any other. After that check,
  * ms_archive_v3_check_directory checks that the directory lists exactly the
  * subtrees of the tree, each with exactly its members. */

@@ -1,4 +1,4 @@
-/* Reading a version-3 file (docs/ARCHIVE.md "Version 3"): the subtree
+/* Reading a file's index (docs/ARCHIVE.md "The stored index"): the subtree
  * directory, every stored subtree inflated and checked on its own, and the raw
  * index assembled from them, which ms_archive.c then checks as any other. */
 #include <stdio.h>
@@ -123,7 +123,7 @@ ms_status ms_archive_v3_assemble(const char *path, ms_archive *a, const ms_archi
     for (uint32_t c = 0; st == MS_OK && c < cells; ++c)
         if (!s.placed[c])
             st = ms_error_set(err, MS_ERR_FORMAT, "%s: cell %u is in no subtree", path, c);
-    /* The tables in cell order, as a version-1 file lays them out. */
+    /* The tables in cell order, as an index blob lays them out. */
     uint8_t *words = raw + (size_t)cells * MS_ARCHIVE_RECORD_SIZE;
     uint64_t next = 0;
     for (uint32_t c = 0; st == MS_OK && c < cells; ++c) {

@@ -113,6 +113,18 @@ static ms_status parse_entry(const char *path, size_t index, json_t *obj, ms_cat
     e->apo = json_is_true(apo), e->apo_lead = (uint8_t)lead, e->apo_max_depth = (uint8_t)depth;
     e->apo_tolerance = json_number_value(tol);
     e->public_max_bits = (uint8_t)pub;
+    json_t *crease = json_object_get(obj, "crease_angle");
+    if (crease) {
+        double deg = json_is_number(crease) ? json_number_value(crease) : -1.0;
+        if (!(deg >= 0.0 && deg <= 180.0)) {
+            free(e->source);
+            e->source = NULL;
+            return ms_error_set(err, MS_ERR_FORMAT, "%s: model %zu: crease_angle is not a number of degrees from 0 to 180",
+                                path, index);
+        }
+        e->has_crease_angle = true;
+        e->crease_angle_deg = deg;
+    }
     return MS_OK;
 }
 
@@ -182,7 +194,7 @@ ms_status ms_catalog_load(const char *dir, ms_catalog *c, ms_error *err)
 
 static json_t *entry_to_json(const ms_catalog_entry *e)
 {
-    return json_pack("{s:s, s:s, s:s, s:I, s:I, s:I, s:I, s:i, s:i, s:i, s:I, s:b, s:i, s:i, s:f, s:i}",
+    json_t *obj = json_pack("{s:s, s:s, s:s, s:I, s:I, s:I, s:I, s:i, s:i, s:i, s:I, s:b, s:i, s:i, s:f, s:i}",
                      "name", e->name, "source", e->source ? e->source : "", "baked_at", e->baked_at,
                      "vertices", (json_int_t)e->vertices, "triangles", (json_int_t)e->triangles,
                      "archive_bytes", (json_int_t)e->archive_bytes, "cells", (json_int_t)e->cells,
@@ -191,6 +203,9 @@ static json_t *entry_to_json(const ms_catalog_entry *e)
                      "apo_lead", (int)e->apo_lead, "apo_max_depth", (int)e->apo_max_depth,
                      "apo_tolerance", isfinite(e->apo_tolerance) ? e->apo_tolerance : 0.0,
                      "public_max_bits", (int)e->public_max_bits);
+    if (obj && e->has_crease_angle)
+        json_object_set_new(obj, "crease_angle", json_real(e->crease_angle_deg));
+    return obj;
 }
 
 static ms_status catalog_save(const char *dir, const ms_catalog *c, ms_error *err)
@@ -242,6 +257,9 @@ static ms_status catalog_change(const char *dir, const ms_catalog_entry *add,
     if (st == MS_OK) {
         const char *name = add ? add->name : remove_name;
         ms_catalog_entry *found = (ms_catalog_entry *)ms_catalog_find(&c, name);
+        /* a model baked again keeps the crease angle set for it */
+        bool keep_crease = add && found && found->has_crease_angle && !add->has_crease_angle;
+        double crease = keep_crease ? found->crease_angle_deg : 0.0;
         if (found) { /* drop the old entry, keeping the array sorted */
             free(found->source);
             size_t at = (size_t)(found - c.entries);
@@ -260,6 +278,10 @@ static ms_status catalog_change(const char *dir, const ms_catalog_entry *add,
                 c.entries = grown;
                 c.entries[c.count] = *add;
                 c.entries[c.count].source = source;
+                if (keep_crease) {
+                    c.entries[c.count].has_crease_angle = true;
+                    c.entries[c.count].crease_angle_deg = crease;
+                }
                 c.count++;
                 qsort(c.entries, c.count, sizeof *c.entries, compare_entries);
             }

@@ -42,6 +42,11 @@ typedef struct ms_catalog_entry {
     uint8_t apo_lead, apo_max_depth;
     double apo_tolerance;
     uint8_t public_max_bits;   /* preview precision open to everyone; bits = fully public */
+    /* Optional "crease_angle" (degrees, [0, 180]): where a viewer splits vertex
+     * normals into hard edges for this model (docs/RENDERER.md); absent: the
+     * viewer's default. Kept when the model is baked again. */
+    bool has_crease_angle;
+    double crease_angle_deg;
 } ms_catalog_entry;
 
 typedef struct ms_catalog {

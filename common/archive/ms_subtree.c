@@ -1,6 +1,6 @@
 /* Subtrees of a whole archive: listing, encoding, the stored bytes a server
  * sends and the index head (ms_subtree.h, docs/ARCHIVE.md "Subtrees"), and the
- * raw blob reader shared with version-3 files and the partial index. */
+ * raw blob reader shared with archive files and the partial index. */
 #include "ms_subtree.h"
 
 #include <stdlib.h>
@@ -314,13 +314,12 @@ const uint8_t *ms_archive_index_head(const ms_archive *a, size_t *size)
         if (!root)
             return NULL;
         uint8_t header[MS_ARCHIVE_HEADER_SIZE];
-        /* The head's file size is a version-1 file's, as in the index blob, so
-         * that the head does not depend on the file's version. */
-        ms_archive_encode_header_v3(&a->header, a->index_size, (uint32_t)root_size,
-                                    a->payload_size,
-                                    MS_ARCHIVE_HEADER_SIZE + a->index_size + a->payload_size,
-                                    ms_get_u32(a->blob + 108), a->subtree_levels,
-                                    a->subtree_count, header);
+        /* The head's file size is the index blob's (128 + raw index +
+         * payloads), so that the head is the same from a file or a blob. */
+        ms_archive_encode_header(&a->header, a->index_size, (uint32_t)root_size, a->payload_size,
+                                 MS_ARCHIVE_HEADER_SIZE + a->index_size + a->payload_size,
+                                 ms_get_u32(a->blob + 108), a->subtree_levels, a->subtree_count,
+                                 header);
         s = stored_copy(header, sizeof header, root, root_size);
         if (!s)
             return NULL;

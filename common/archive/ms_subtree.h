@@ -13,11 +13,11 @@
  * zlib stream with fixed parameters, so the stored bytes of a subtree depend
  * only on the model and S.
  *
- * Server side: ms_archive_open computes the subtree ids of any archive (the
- * file's S for version 3, ms_subtree_default_levels for versions 1 and 2); a
- * version-3 file's stored subtrees are served as they are in the file, those of
- * older files are deflated on first request and kept in the ms_archive until
- * it is closed.
+ * Server side: ms_archive_open computes the subtree ids of an archive (the
+ * file's S; ms_subtree_default_levels for an archive opened from an index
+ * blob); a file's stored subtrees are served as they are in the file, those of
+ * a blob's archive are deflated on first request and kept in the ms_archive
+ * until it is closed.
  *
  * Client side: ms_archive_open_head makes a partial archive from the index
  * head (header + root subtree); ms_archive_add_subtree validates and adds
@@ -73,23 +73,23 @@ ms_status ms_subtree_encode(const ms_archive *a, unsigned levels, uint32_t id,
 ms_status ms_subtree_deflate(const uint8_t *raw, size_t size, uint8_t **stored,
                              size_t *stored_size, ms_error *err);
 
-/* On a whole archive: the stored (zlib) bytes of subtree `id`: a version-3
- * file's own bytes, or for version-1/2 files the ones deflated on the first
- * request and kept until ms_archive_close. NULL (and *stored_size 0) when id is
+/* On a whole archive: the stored (zlib) bytes of subtree `id`: a file's own
+ * bytes, or for an archive opened from an index blob the ones deflated on the
+ * first request and kept until ms_archive_close. NULL (and *stored_size 0) when id is
  * not a subtree id of the archive (the server answers "no such cell"), on a
  * partial archive, or when memory runs out. Thread-safe. */
 const uint8_t *ms_archive_subtree(const ms_archive *a, uint32_t id, size_t *stored_size);
 
-/* The archive's subtree depth S (the file's for version 3, the default for
- * older files, the head's on a partial archive). */
+/* The archive's subtree depth S (the file's, the default for an archive opened
+ * from an index blob, the head's on a partial archive). */
 unsigned ms_archive_subtree_levels(const ms_archive *a);
 
 /* Number of subtrees of the model (whole or partial archive). */
 uint32_t ms_archive_subtree_count(const ms_archive *a);
 
 /* The index head (docs/ARCHIVE.md): a 128-byte version-3 header followed by the
- * root subtree's stored bytes. The same bytes for a version-2 and a version-3
- * file of the same model. Built on first request and kept until close; NULL
+ * root subtree's stored bytes. The same bytes from a file and from its index
+ * blob. Built on first request and kept until close; NULL
  * (size 0) on a partial archive or out of memory. Thread-safe. */
 const uint8_t *ms_archive_index_head(const ms_archive *a, size_t *size);
 

@@ -1,7 +1,7 @@
 /* Reading stored subtrees (docs/ARCHIVE.md "Subtrees"): inflating one into
  * room bounded by its own header and the archive header, and checking it
  * against the tree: what the partial index (ms_archive_partial.c) and the
- * version-3 reader share. Every failure is one line naming the subtree. */
+ * file reader share. Every failure is one line naming the subtree. */
 #include "ms_subtree_read.h"
 
 #include <stdlib.h>

@@ -646,6 +646,7 @@ void ms_view_select_params_default(ms_view_select_params *p)
     p->culled_bits_less = 2.0;
     p->tolerance_scale = NULL;
     p->chunkless_tolerance_scale = 0.0;
+    p->permitted_steps = 0;
 }
 
 static double cell_tolerance(const ms_view_select_params *p, uint32_t cell,
@@ -723,9 +724,20 @@ static void select_cell(ms_view *v, const ms_camera *cam, const ms_frustum *f,
     unsigned current = c->state == MS_VIEW_SHOWN ? c->bits
                        : c->state == MS_VIEW_SPLIT ? c->rec.bits_max + 1u
                                                    : c->rec.bits_min;
-    if (current > v->header.bits)
-        current = v->header.bits;
-    unsigned want = ms_select_bits(need, current, c->rec.bits_min, v->header.bits, p->hysteresis);
+    /* a preview: nothing above its last bit is wanted (the cell's bits_min is
+     * below it: its parent split only because the cap allowed more) */
+    unsigned top = v->header.bits;
+    if (p->permitted_steps && p->permitted_steps - 1u < top)
+        top = p->permitted_steps - 1u;
+    if (top < c->rec.bits_min)
+        top = c->rec.bits_min;
+    if (current > top)
+        current = top;
+    unsigned want = ms_select_bits(need, current, c->rec.bits_min, top, p->hysteresis);
+    if (report && top < v->header.bits && need > (double)top)
+        report->capped_count++;
+    if (need > (double)top)
+        need = (double)top; /* what the reader may have of it */
     bool inner = c->rec.first_child != MS_ARCHIVE_NONE;
     bool children = inner && ms_view_children_known(v, cell);
     if (want > c->rec.bits_max && children) {
@@ -740,7 +752,7 @@ static void select_cell(ms_view *v, const ms_camera *cam, const ms_frustum *f,
     if (want > c->rec.bits_max) /* a partial view: it stays until its children are known */
         list_push(&report->blocked, &report->blocked_count, &report->blocked_cap,
                   &report->out_of_memory, cell);
-    else if (need > (double)c->rec.bits_max - 1.0)
+    else if (need > (double)c->rec.bits_max - 1.0 && top > c->rec.bits_max)
         list_push(&report->near, &report->near_count, &report->near_cap,
                   &report->out_of_memory, cell);
 }
@@ -755,7 +767,8 @@ void ms_view_select(ms_view *v, const ms_camera *cam, const ms_view_select_param
             block[k].target = MS_VIEW_TARGET_HIDDEN;
     }
     if (report)
-        report->blocked_count = report->near_count = 0, report->out_of_memory = false;
+        report->blocked_count = report->near_count = report->capped_count = 0,
+        report->out_of_memory = false;
     if (!ms_view_vcell(v, 0))
         return; /* nothing known yet */
     ms_frustum f;

@@ -209,6 +209,12 @@ typedef struct ms_view_select_params {
      * record has no APO chunk (apo_levels 0), 1 for the others; the same rule
      * without a per-cell array (a partly known index). */
     double chunkless_tolerance_scale;
+    /* 0: no cap. Else the reader's permitted geometry steps under a public
+     * preview (PROTOCOL.md section 8: it may read bits 0 .. permitted_steps - 1):
+     * no cell is wanted above permitted_steps - 1 bits, so none splits into
+     * children it could not read, and a cell so capped counts as at its
+     * target (reported in capped_count). */
+    unsigned permitted_steps;
 } ms_view_select_params;
 
 /* 1 pixel, no margin, 0.5 bit of hysteresis, culled cells 2 bits coarser (keeps
@@ -239,6 +245,9 @@ typedef struct ms_view_select_report {
     size_t blocked_count, near_count;
     size_t blocked_cap, near_cap;
     bool out_of_memory;
+    /* cells whose target params->permitted_steps lowered: with a token the
+     * camera would get more of them */
+    size_t capped_count;
 } ms_view_select_report;
 
 /* Gives every known cell its target, kept in the view with the cell (so a

@@ -38,10 +38,10 @@
 #include "ms_mesh.h"
 #include "ms_quant.h"
 
-/* Version 2 starts every context from the built-in prior (ms_codec_prior.h);
- * version 1 streams, whose contexts start flat, are still decoded. */
+/* The stream version written and the only one read (docs/CODEC.md): every
+ * context starts from the built-in prior (ms_codec_prior.h). A stream of
+ * another version is refused with MS_ERR_UNSUPPORTED naming it. */
 #define MS_CODEC_VERSION 2
-#define MS_CODEC_VERSION_FLAT 1
 #define MS_CODEC_MAX_BITS 20
 #define MS_CODEC_MAX_VERTICES (1u << 26)
 #define MS_CODEC_MAX_TRIANGLES (1u << 27)

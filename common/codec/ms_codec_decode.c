@@ -629,7 +629,7 @@ static ms_status decoder_init(ms_codec_decoder *d, const ms_codec_state *start, 
     if (!d->model || !d->snap || !d->snap_valid || !d->crc_ok ||
         !order_room(d, d->h.start_vertices))
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory creating a decoder");
-    ms_codec_model_init(d->model, d->D, d->h.version);
+    ms_codec_model_init(d->model, d->D);
     if ((r = ms_cx_init(&d->cx, d->h.p_max, d->h.end_vertices, d->h.end_tris, max_e, err)) !=
         MS_OK)
         return r;

@@ -286,14 +286,14 @@ ms_status ms_codec_parse_header(const uint8_t *data, size_t size, ms_codec_heade
     if (memcmp(data, MS_CODEC_MAGIC, 4) != 0)
         return ms_error_set(err, MS_ERR_FORMAT, "not a meshstream codec stream (bad magic)");
     h->version = data[4];
-    if (h->version != MS_CODEC_VERSION && h->version != MS_CODEC_VERSION_FLAT)
-        return ms_error_set(err, MS_ERR_UNSUPPORTED, "codec stream version %u not supported",
-                            h->version);
+    if (h->version != MS_CODEC_VERSION)
+        return ms_error_set(err, MS_ERR_UNSUPPORTED,
+                            "codec stream version %u, this build reads version %u", h->version,
+                            MS_CODEC_VERSION);
     h->p_max = data[5];
     h->p_min = data[6];
     if (h->p_max < 1 || h->p_max > MS_CODEC_MAX_BITS || h->p_min > h->p_max ||
-        (data[7] & ~(unsigned)(FLAG_REGION | FLAG_COMPACT)) ||
-        (data[7] && h->version == MS_CODEC_VERSION_FLAT))
+        (data[7] & ~(unsigned)(FLAG_REGION | FLAG_COMPACT)))
         return ms_error_set(err, MS_ERR_FORMAT, "bad precision window [%u, %u] or flags",
                             h->p_min, h->p_max);
     h->has_region = data[7] & FLAG_REGION;

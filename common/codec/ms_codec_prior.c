@@ -11,11 +11,11 @@ static uint16_t prior_clamp(uint64_t q)
 
 size_t ms_codec_prior_contexts(void) { return MS_PRIOR_SIZE; }
 
-void ms_codec_model_init(ms_rc_prob *model, unsigned D, unsigned version)
+void ms_codec_model_init(ms_rc_prob *model, unsigned D)
 {
     uint32_t n = ms_model_size(D);
     for (uint32_t i = 0; i < n; ++i) {
-        if (version == MS_CODEC_VERSION_FLAT || !ms_prior_has(i, D)) {
+        if (!ms_prior_has(i, D)) {
             model[i] = MS_RC_PROB_INIT;
         } else {
             /* the table is estimated inside the bounds (ms_codec_prior_estimate);

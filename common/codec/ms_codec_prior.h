@@ -21,8 +21,8 @@
 extern const uint16_t ms_codec_prior_p0[MS_PRIOR_SIZE];
 
 /* Initial state of the model of a stream with D kd-levels (ms_model_size(D)
- * entries): flat for MS_CODEC_VERSION_FLAT, the prior otherwise. */
-void ms_codec_model_init(ms_rc_prob *model, unsigned D, unsigned version);
+ * entries): the prior where it has the context, flat (P = 1/2) elsewhere. */
+void ms_codec_model_init(ms_rc_prob *model, unsigned D);
 
 /* The prior estimated from training counts (counts[2 i + bit], the layout of
  * ms_codec_encode_params.context_counts): (n0 + 1) / (n + 2), kept inside

@@ -66,6 +66,34 @@ static void build_level_free_big(build_level *l)
     l->big_idx = NULL;
 }
 
+/* Once level l is split: its M lists for its leaves only, which sample with
+ * them; the internal nodes' are dropped (the children hold theirs). */
+static ms_status keep_leaf_lists(build_level *l, ms_error *err)
+{
+    if (!l->big_off)
+        return MS_OK;
+    size_t kept = 0;
+    for (size_t i = 0; i < l->count; ++i)
+        if (!l->child_mask || !l->child_mask[i])
+            kept += (size_t)(l->big_off[i + 1] - l->big_off[i]);
+    uint32_t *idx = malloc((kept + 1) * sizeof *idx);
+    if (!idx)
+        return ms_error_set(err, MS_ERR_NOMEM, "apo build: no memory for the leaves' lists");
+    uint64_t at = 0;
+    for (size_t i = 0; i < l->count; ++i) {
+        uint64_t from = l->big_off[i], to = l->big_off[i + 1];
+        l->big_off[i] = at;
+        if (!l->child_mask || !l->child_mask[i]) {
+            memcpy(&idx[at], &l->big_idx[from], (size_t)(to - from) * sizeof *idx);
+            at += to - from;
+        }
+    }
+    l->big_off[l->count] = at;
+    free(l->big_idx);
+    l->big_idx = idx;
+    return MS_OK;
+}
+
 static void build_level_free(build_level *l)
 {
     free(l->cell);
@@ -83,6 +111,7 @@ typedef struct split_out {
     u32vec big_count; /* per child */
     u32vec m_idx;
     u32vec big_idx;
+    uint64_t visits;  /* list entries made: the split's work */
     bool failed;
 } split_out;
 
@@ -100,6 +129,7 @@ typedef struct split_job {
     const ms_apo_local_mesh *m, *big;
     build_level *level;
     uint32_t depth;
+    bool crowded;   /* grown M lists, kept for the leaves */
     size_t block_size;
     split_out *out;
 } split_job;
@@ -182,6 +212,66 @@ static uint32_t child_octants(const ms_apo_local_mesh *lm, uint32_t t, const flo
     return kept;
 }
 
+/* Crowded M (ms_apo_crowding above MS_APO_CROWDED): each node keeps the list
+ * of the M-triangles touching its cube grown to MS_APO_LIST_REACH times its
+ * half-width around its centre, and a leaf answers its rays from its list
+ * (ms_apo_sample_leaf) wherever the hit lies that near (M strays from m by up
+ * to h, often beyond the leaf itself). The grown cubes nest (a child's lies
+ * inside its parent's for any reach >= 1), so each list is its parent's,
+ * filtered. Uncrowded M: lists of the nodes' own cubes, none for the leaves,
+ * every query by Embree, which answers those fastest. */
+#define MS_APO_LIST_REACH 2.0f
+#define MS_APO_CROWDED 64.0
+
+/* Which of the `wanted` children's grown cubes (centres c +- quarter, half-width
+ * reach) triangle t touches: a bit mask of octants. */
+static uint32_t child_reach(const ms_apo_local_mesh *lm, uint32_t t, const float c[3], float quarter, float reach,
+                            uint32_t wanted)
+{
+    const uint32_t *v = &lm->tri[3 * t];
+    const float *p0 = &lm->pos[3 * v[0]], *p1 = &lm->pos[3 * v[1]], *p2 = &lm->pos[3 * v[2]];
+    uint32_t side[3];
+    float lo3[3], hi3[3];
+    const uint32_t lower[3] = {0x0Fu, 0x33u, 0x55u};
+    for (int a = 0; a < 3; ++a) {
+        float lo = p1[a] < p2[a] ? p1[a] : p2[a], hi = p1[a] > p2[a] ? p1[a] : p2[a];
+        lo = p0[a] < lo ? p0[a] : lo;
+        hi = p0[a] > hi ? p0[a] : hi;
+        lo3[a] = lo;
+        hi3[a] = hi;
+        side[a] = (lo <= c[a] - quarter + reach && hi >= c[a] - quarter - reach ? lower[a] : 0u) |
+                  (lo <= c[a] + quarter + reach && hi >= c[a] + quarter - reach ? (uint32_t)~lower[a] & 0xFFu : 0u);
+    }
+    uint32_t mask = side[0] & side[1] & side[2] & wanted, kept = 0;
+    for (uint32_t o = 0; o < 8; ++o) {
+        if (!(mask >> o & 1u))
+            continue;
+        float cc[3] = {c[0] + ((o >> 2 & 1u) ? quarter : -quarter), c[1] + ((o >> 1 & 1u) ? quarter : -quarter),
+                       c[2] + ((o & 1u) ? quarter : -quarter)};
+        /* bounds inside the cube: touching without the 13 axes */
+        if ((lo3[0] >= cc[0] - reach && hi3[0] <= cc[0] + reach && lo3[1] >= cc[1] - reach &&
+             hi3[1] <= cc[1] + reach && lo3[2] >= cc[2] - reach && hi3[2] <= cc[2] + reach) ||
+            ms_tri_cube_overlap(cc, reach, p0, p1, p2))
+            kept |= 1u << o;
+    }
+    return kept;
+}
+
+/* The entries of a node's grown list that touch its own cube (centre c,
+ * half-width half): what the split rule weighs, in the list's order. */
+static bool own_list(const ms_apo_local_mesh *lm, const uint32_t *idx, size_t n, const float c[3], float half,
+                     u32vec *out)
+{
+    out->n = 0;
+    for (size_t k = 0; k < n; ++k) {
+        const uint32_t *v = &lm->tri[3 * idx[k]];
+        if (ms_tri_cube_overlap(c, half, &lm->pos[3 * v[0]], &lm->pos[3 * v[1]], &lm->pos[3 * v[2]]) &&
+            !u32vec_push(out, idx[k]))
+            return false;
+    }
+    return true;
+}
+
 static void split_block(void *ctx, size_t block)
 {
     split_job *job = ctx;
@@ -192,19 +282,25 @@ static void split_block(void *ctx, size_t block)
         last = l->count;
     uint32_t depth = job->depth;
     float width = ldexpf(1.0f, -(int)depth), quarter = width * 0.25f;
-    u32vec child_m[8], child_big[8];
+    u32vec child_m[8], child_big[8], own = {0};
     memset(child_m, 0, sizeof child_m);
     memset(child_big, 0, sizeof child_big);
     for (size_t i = first; i < last && !out->failed; ++i) {
         l->child_mask[i] = 0;
         const uint32_t *big_idx = &l->big_idx[l->big_off[i]];
         size_t big_n = (size_t)(l->big_off[i + 1] - l->big_off[i]);
-        if (!splits(job, depth, big_idx, big_n))
-            continue;
         const uint32_t *cell = &l->cell[3 * i];
         float c[3];
         for (int a = 0; a < 3; ++a)
             c[a] = ((float)cell[a] + 0.5f) * width;
+        /* The rule weighs the triangles touching the node's own cube. */
+        bool decide = depth < job->o->max_depth && depth >= job->o->init_depth;
+        if (job->crowded && decide && !own_list(job->big, big_idx, big_n, c, 0.5f * width, &own)) {
+            out->failed = true;
+            break;
+        }
+        if (!splits(job, depth, job->crowded ? own.v : big_idx, !decide ? 0 : job->crowded ? own.n : big_n))
+            continue;
         for (int o = 0; o < 8; ++o) {
             child_m[o].n = 0;
             child_big[o].n = 0;
@@ -220,10 +316,14 @@ static void split_block(void *ctx, size_t block)
         for (uint32_t o = 0; o < 8; ++o)
             if (child_m[o].n)
                 exist |= 1u << o;
-        /* Children at the maximum depth never decide a split: they need no M list. */
+        /* Crowded: every child keeps its (grown) M list, a leaf samples with
+         * it. Else children at the maximum depth never decide a split: they
+         * need no M list. */
         bool children_split = depth + 1 < job->o->max_depth;
-        for (size_t k = 0; k < big_n && ok && exist && children_split; ++k) {
-            uint32_t t = big_idx[k], mask = child_octants(job->big, t, c, quarter, exist);
+        for (size_t k = 0; k < big_n && ok && exist && (children_split || job->crowded); ++k) {
+            uint32_t t = big_idx[k];
+            uint32_t mask = job->crowded ? child_reach(job->big, t, c, quarter, MS_APO_LIST_REACH * quarter, exist)
+                                         : child_octants(job->big, t, c, quarter, exist);
             for (uint32_t o = 0; o < 8 && ok; ++o)
                 if (mask >> o & 1u)
                     ok = u32vec_push(&child_big[o], t);
@@ -231,9 +331,10 @@ static void split_block(void *ctx, size_t block)
         for (uint32_t o = 0; o < 8 && ok; ++o) {
             if (!(exist >> o & 1u))
                 continue;
-            /* A child that will not split needs no M list: with an empty list
-             * the rule above gives it the same answer (no split). */
-            size_t big_keep = splits(job, depth + 1, child_big[o].v, child_big[o].n) ? child_big[o].n : 0;
+            /* Uncrowded, a child that will not split needs no M list: with an
+             * empty list the rule above gives it the same answer (no split). */
+            size_t big_keep = job->crowded || splits(job, depth + 1, child_big[o].v, child_big[o].n) ? child_big[o].n : 0;
+            job->out[block].visits += child_m[o].n + child_big[o].n;
             ok = u32vec_push(&out->cells, 2 * cell[0] + (o >> 2 & 1u)) &&
                  u32vec_push(&out->cells, 2 * cell[1] + (o >> 1 & 1u)) &&
                  u32vec_push(&out->cells, 2 * cell[2] + (o & 1u)) &&
@@ -252,6 +353,7 @@ static void split_block(void *ctx, size_t block)
         u32vec_free(&child_m[o]);
         u32vec_free(&child_big[o]);
     }
+    u32vec_free(&own);
 }
 
 /* ---------------------------------------------------------------- sampling */
@@ -286,8 +388,15 @@ static void sample_block(void *ctx, size_t block)
             centre[a] = ((float)node->cell[a] + 0.5f) * width;
         float s = job->o->search_distance > 0 ? (float)job->o->search_distance
                                                : (float)(2.0 * job->h + 0.8660254037844386 * width);
-        ms_apo_sample_leaf(job->sampler, job->m, &l->m_idx[l->m_off[li]], (size_t)(l->m_off[li + 1] - l->m_off[li]),
-                           centre, s, node->normal, &job->counts[block]);
+        ms_apo_leaf_probe probe = {.half_width = 0.5f * width * MS_APO_LIST_REACH,
+                                   .m_tris = &l->m_idx[l->m_off[li]],
+                                   .m_count = (size_t)(l->m_off[li + 1] - l->m_off[li])};
+        if (l->big_off) { /* crowded M: the leaf's own list */
+            probe.big_tris = &l->big_idx[l->big_off[li]];
+            probe.big_count = (size_t)(l->big_off[li + 1] - l->big_off[li]);
+        }
+        memcpy(probe.centre, centre, sizeof centre);
+        ms_apo_sample_leaf(job->sampler, job->m, &probe, s, node->normal, &job->counts[block]);
     }
 }
 
@@ -337,7 +446,8 @@ static size_t block_size_for(size_t count, size_t max_blocks, size_t min_size)
 
 /* Splits level `d` into level d+1 (possibly empty). */
 static ms_status split_level(const ms_apo_build_options *o, unsigned threads, const ms_apo_local_mesh *m,
-                             const ms_apo_local_mesh *big, build_level *l, uint32_t d, build_level *next, ms_error *err)
+                             const ms_apo_local_mesh *big, bool crowded, build_level *l, uint32_t d,
+                             build_level *next, uint64_t *visits, ms_error *err)
 {
     memset(next, 0, sizeof *next);
     size_t bs = block_size_for(l->count, SPLIT_BLOCKS_MAX, SPLIT_BLOCK_MIN);
@@ -348,13 +458,15 @@ static ms_status split_level(const ms_apo_build_options *o, unsigned threads, co
         free(out);
         return ms_error_set(err, MS_ERR_NOMEM, "apo build: no memory to split level %u", d);
     }
-    split_job job = {.o = o, .m = m, .big = big, .level = l, .depth = d, .block_size = bs, .out = out};
+    split_job job = {.o = o, .m = m, .big = big, .level = l, .depth = d, .crowded = crowded, .block_size = bs,
+                     .out = out};
     ms_status st = ms_parallel_for(threads, blocks, split_block, &job, err);
     size_t children = 0, m_total = 0, big_total = 0;
     for (size_t b = 0; b < blocks && st == MS_OK; ++b) {
         if (out[b].failed)
             st = ms_error_set(err, MS_ERR_NOMEM, "apo build: no memory while splitting level %u", d);
         children += out[b].m_count.n;
+        *visits += out[b].visits;
         m_total += out[b].m_idx.n;
         big_total += out[b].big_idx.n;
     }
@@ -399,7 +511,7 @@ static ms_status split_level(const ms_apo_build_options *o, unsigned threads, co
 
 /* The root level: every m- and M-triangle that touches the cube (none when
  * no m-triangle does: *level_count stays 0). */
-static ms_status root_level(const ms_apo_local_mesh *m, const ms_apo_local_mesh *big,
+static ms_status root_level(const ms_apo_local_mesh *m, const ms_apo_local_mesh *big, float reach,
                             build_level *root, uint32_t *level_count, ms_error *err)
 {
     u32vec mi = {0}, bi = {0};
@@ -412,7 +524,8 @@ static ms_status root_level(const ms_apo_local_mesh *m, const ms_apo_local_mesh 
     }
     for (uint32_t t = 0; t < big->triangle_count && ok && mi.n; ++t) {
         const uint32_t *v = &big->tri[3 * t];
-        if (ms_tri_cube_overlap(c, 0.5f, &big->pos[3 * v[0]], &big->pos[3 * v[1]], &big->pos[3 * v[2]]))
+        if (ms_tri_cube_overlap(c, 0.5f * reach, &big->pos[3 * v[0]], &big->pos[3 * v[1]],
+                                &big->pos[3 * v[2]]))
             ok = u32vec_push(&bi, t);
     }
     if (ok && mi.n) {
@@ -490,6 +603,8 @@ static ms_status sample_normals(const ms_apo_build_options *o, unsigned threads,
         stats->ray_hits += counts[b].ray_hits;
         stats->rays += counts[b].rays;
         stats->point_queries += counts[b].point_queries;
+        stats->local_answers += counts[b].local_answers;
+        stats->triangle_visits += counts[b].triangle_tests;
         stats->closest_points += counts[b].closest_points;
         stats->unsampled += counts[b].unsampled;
     }
@@ -530,7 +645,9 @@ ms_status ms_apo_builder_build_tree(ms_apo_builder *builder, const ms_mesh *m_me
     memset(levels, 0, sizeof levels);
     uint32_t level_count = 0;
 
-    st = root_level(&m, &big, &levels[0], &level_count, err);
+    stats->crowding = ms_apo_crowding(&big);
+    bool crowded = stats->crowding > MS_APO_CROWDED;
+    st = root_level(&m, &big, crowded ? MS_APO_LIST_REACH : 1.0f, &levels[0], &level_count, err);
     /* Embree scene for M, and h. */
     double ts = ms_now_seconds();
     if (st == MS_OK && level_count)
@@ -548,8 +665,11 @@ ms_status ms_apo_builder_build_tree(ms_apo_builder *builder, const ms_mesh *m_me
     /* Octree, level by level. */
     for (uint32_t d = 0; st == MS_OK && d < level_count && d < MS_APO_MAX_DEPTH; ++d) {
         build_level next;
-        st = split_level(o, threads, &m, &big, &levels[d], d, &next, err);
-        build_level_free_big(&levels[d]);
+        st = split_level(o, threads, &m, &big, crowded, &levels[d], d, &next, &stats->triangle_visits, err);
+        if (st == MS_OK && crowded)
+            st = keep_leaf_lists(&levels[d], err);
+        else
+            build_level_free_big(&levels[d]);
         if (st == MS_OK && next.count) {
             levels[d + 1] = next;
             level_count = d + 2;

@@ -87,6 +87,12 @@ typedef struct ms_apo_build_stats {
     uint64_t unsampled;        /* samples that fell back to m's normal */
     uint64_t rays;             /* rays cast while sampling (<= 2 * MS_APO_SAMPLES_PER_LEAF per leaf) */
     uint64_t point_queries;    /* closest-point queries while sampling (<= 1 per leaf; h's not counted) */
+    uint64_t local_answers;    /* ray pairs and closest points answered from a leaf's own M-triangles */
+    double crowding;           /* ms_apo_crowding of M; above 64 the leaves keep M lists */
+    /* The build's own work, one per triangle looked at: list entries made by
+     * the splits, m- and M-triangles tested by the leaves (Embree's queries,
+     * counted in rays and point_queries, not included). */
+    uint64_t triangle_visits;
     double m_to_M_distance;    /* h, cube units */
     double seconds_prepare;    /* transforms, normals, root lists, Embree scene, h */
     double seconds_scene;      /* of which: Embree's BVH over M */

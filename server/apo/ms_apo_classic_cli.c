@@ -1,6 +1,7 @@
 /* `meshbake IN --apo-classic ...`: whole-model APO for comparison with the
  * published results (see ms_apo_classic_cli.h). */
 #include "ms_apo_classic_cli.h"
+#include "ms_cli.h"
 
 #include <errno.h>
 #include <stdbool.h>
@@ -54,8 +55,7 @@ void ms_apo_classic_cli_usage(FILE *out)
 
 static int usage_error(const char *message, const char *detail)
 {
-    fprintf(stderr, "meshbake: %s%s%s (see meshbake --help)\n", message, detail ? ": " : "", detail ? detail : "");
-    return 2;
+    return ms_cli_usage_error("meshbake", message, detail);
 }
 
 /* An option value (ms_option_*): 0, or -1 after printing its one line. */
@@ -231,9 +231,8 @@ static int parse_cli(int argc, char **argv, cli_args *a)
     ms_apo_classic_options *o = &a->o;
     int c;
     int64_t v;
-    opterr = 0;
     optind = 1;
-    while ((c = getopt_long(argc, argv, ":ho:", longs, NULL)) != -1) {
+    while ((c = ms_cli_next("meshbake", argc, argv, "ho:", longs)) != -1) {
         switch (c) {
         case OPT_CLASSIC: break;
         case OPT_SIMPLIFY:
@@ -290,8 +289,7 @@ static int parse_cli(int argc, char **argv, cli_args *a)
         case OPT_JSON: a->json = 1; break;
         case 'h':
         case OPT_HELP: ms_apo_classic_cli_usage(stdout); return 0;
-        case ':': return usage_error("option needs a value", argv[optind - 1]);
-        default: return usage_error("unknown option", argv[optind - 1]);
+        default: return 2; /* reported by ms_cli_next */
         }
     }
     if (optind != argc - 1)

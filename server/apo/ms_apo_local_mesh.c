@@ -99,3 +99,22 @@ void ms_apo_local_mesh_normal_at(const ms_apo_local_mesh *lm, uint32_t t, float 
             out[a] = lm->fnormal[3 * t + a];
     }
 }
+
+double ms_apo_crowding(const ms_apo_local_mesh *big)
+{
+    double boxes = 0.0, area = 0.0;
+    for (size_t t = 0; t < big->triangle_count; ++t) {
+        const uint32_t *v = &big->tri[3 * t];
+        double d2 = 0.0;
+        for (int a = 0; a < 3; ++a) {
+            float p0 = big->pos[3 * v[0] + a], p1 = big->pos[3 * v[1] + a], p2 = big->pos[3 * v[2] + a];
+            float lo = p0 < p1 ? p0 : p1, hi = p0 > p1 ? p0 : p1;
+            lo = p2 < lo ? p2 : lo;
+            hi = p2 > hi ? p2 : hi;
+            d2 += ((double)hi - lo) * ((double)hi - lo);
+        }
+        boxes += d2;
+        area += big->area[t];
+    }
+    return area > 0.0 ? boxes / area : 0.0;
+}

@@ -41,4 +41,11 @@ void ms_apo_local_mesh_free(ms_apo_local_mesh *lm);
  * degenerate triangle). */
 void ms_apo_local_mesh_normal_at(const ms_apo_local_mesh *lm, uint32_t t, float u, float v, double out[3]);
 
+/* How crowded Embree's boxes of the mesh are: the sum of its triangles' squared
+ * bounding-box diagonals over the sum of their areas (cube units; 0 without
+ * area). About 4 for a mesh of well-shaped triangles, whatever its size;
+ * about N / pi for a fan of N slivers around one vertex, whose boxes all hold
+ * the hub, so that a ray there visits a good part of them. */
+double ms_apo_crowding(const ms_apo_local_mesh *big);
+
 #endif

@@ -217,6 +217,136 @@ void ms_apo_sampler_release(ms_apo_sampler *sampler)
 }
 
 
+/* Leaf-local answers. A hit (or closest point) nearer to the leaf's centre
+ * than its cube's faces is inside the cube, as is every nearer one: their
+ * triangles touch the cube and are in the leaf's M-list. The margin keeps that
+ * true through the float rounding of the triangle/box test that made the list
+ * (errors of a few ulps of the cube's unit coordinates). */
+static float local_margin(float half_width)
+{
+    return half_width / 16.0f + 4e-6f;
+}
+
+/* Ray o + t d against M-triangle tri (Moeller-Trumbore, double; both sides, as
+ * Embree): true with t and the barycentric weights of vertices 1 and 2. */
+static bool ray_triangle(const ms_apo_local_mesh *big, uint32_t tri, const double o[3], const double d[3], double *t,
+                         double *u, double *v)
+{
+    const uint32_t *vi = &big->tri[3 * tri];
+    const float *p0 = &big->pos[3 * vi[0]], *p1 = &big->pos[3 * vi[1]], *p2 = &big->pos[3 * vi[2]];
+    double e1[3], e2[3], so[3];
+    for (int a = 0; a < 3; ++a) {
+        e1[a] = (double)p1[a] - p0[a];
+        e2[a] = (double)p2[a] - p0[a];
+        so[a] = o[a] - p0[a];
+    }
+    double pv[3] = {d[1] * e2[2] - d[2] * e2[1], d[2] * e2[0] - d[0] * e2[2], d[0] * e2[1] - d[1] * e2[0]};
+    double det = e1[0] * pv[0] + e1[1] * pv[1] + e1[2] * pv[2];
+    if (det == 0.0 || !isfinite(det))
+        return false; /* parallel, or a degenerate triangle: Embree never hits those */
+    double inv = 1.0 / det;
+    double uu = (so[0] * pv[0] + so[1] * pv[1] + so[2] * pv[2]) * inv;
+    if (!(uu >= 0.0 && uu <= 1.0))
+        return false;
+    double q[3] = {so[1] * e1[2] - so[2] * e1[1], so[2] * e1[0] - so[0] * e1[2], so[0] * e1[1] - so[1] * e1[0]};
+    double vv = (d[0] * q[0] + d[1] * q[1] + d[2] * q[2]) * inv;
+    if (!(vv >= 0.0 && uu + vv <= 1.0))
+        return false;
+    *t = (e2[0] * q[0] + e2[1] * q[1] + e2[2] * q[2]) * inv;
+    *u = uu;
+    *v = vv;
+    return true;
+}
+
+typedef struct local_hit {
+    double t;
+    double u, v;
+    uint32_t prim;
+    bool found;
+} local_hit;
+
+static void keep_nearer(local_hit *h, double t, double u, double v, uint32_t prim)
+{
+    if (!h->found || t < h->t || (t == h->t && prim < h->prim)) {
+        h->t = t;
+        h->u = u;
+        h->v = v;
+        h->prim = prim;
+        h->found = true;
+    }
+}
+
+/* ray_normal over the leaf's M-triangles: true (and the normal) when the
+ * nearest hit is certain to be M's nearest (see local_margin). */
+static bool local_ray_normal(const ms_apo_local_mesh *big, const ms_apo_leaf_probe *leaf, const double dir[3],
+                             float s, double n[3], ms_apo_sample_counts *counts)
+{
+    /* Embree's rays: float origin and direction. */
+    double o[3], d[3], dmax = 0.0;
+    for (int a = 0; a < 3; ++a) {
+        o[a] = leaf->centre[a];
+        d[a] = (float)dir[a];
+        if (fabs(d[a]) > dmax)
+            dmax = fabs(d[a]);
+    }
+    if (!(dmax > 0.0))
+        return false;
+    double inside = (leaf->half_width - local_margin(leaf->half_width)) / dmax;
+    if (!(inside > 0.0))
+        return false;
+    local_hit plus = {0}, minus = {0};
+    for (size_t k = 0; k < leaf->big_count; ++k) {
+        double t, u, v;
+        uint32_t prim = leaf->big_tris[k];
+        if (!ray_triangle(big, prim, o, d, &t, &u, &v))
+            continue;
+        if (t >= 0.0 && t <= s)
+            keep_nearer(&plus, t, u, v, prim);
+        if (t <= 0.0 && -t <= s)
+            keep_nearer(&minus, -t, u, v, prim);
+    }
+    counts->triangle_tests += leaf->big_count;
+    /* +dir wins ties, as in ray_normal */
+    const local_hit *best = plus.found && (!minus.found || plus.t <= minus.t) ? &plus : minus.found ? &minus : NULL;
+    if (!best || best->t > inside)
+        return false;
+    ms_apo_local_mesh_normal_at(big, best->prim, (float)best->u, (float)best->v, n);
+    counts->local_answers++;
+    return true;
+}
+
+/* closest_normal over the leaf's M-triangles, with the same distances and ties:
+ * true when the closest point found is certain to be M's (see local_margin). */
+static bool local_closest_normal(const ms_apo_local_mesh *big, const ms_apo_leaf_probe *leaf, float radius,
+                                 double n[3], ms_apo_sample_counts *counts)
+{
+    double best_d2 = INFINITY, r2 = (double)radius * radius;
+    uint32_t best_prim = UINT32_MAX;
+    float best_uv[2] = {0, 0};
+    for (size_t k = 0; k < leaf->big_count; ++k) {
+        uint32_t prim = leaf->big_tris[k];
+        const uint32_t *v = &big->tri[3 * prim];
+        float wb, wc;
+        double d2 = closest_on_triangle(leaf->centre, &big->pos[3 * v[0]], &big->pos[3 * v[1]], &big->pos[3 * v[2]],
+                                        &wb, &wc);
+        if (d2 > r2)
+            continue;
+        if (d2 < best_d2 || (d2 == best_d2 && prim < best_prim)) {
+            best_d2 = d2;
+            best_prim = prim;
+            best_uv[0] = wb;
+            best_uv[1] = wc;
+        }
+    }
+    counts->triangle_tests += leaf->big_count;
+    double inside = leaf->half_width - local_margin(leaf->half_width);
+    if (best_prim == UINT32_MAX || !(inside > 0.0) || sqrt(best_d2) > inside)
+        return false;
+    ms_apo_local_mesh_normal_at(big, best_prim, best_uv[0], best_uv[1], n);
+    counts->local_answers++;
+    return true;
+}
+
 /* One candidate sample of a leaf: an m-triangle and its closest point to the centre. */
 typedef struct leaf_candidate {
     double d2;
@@ -229,16 +359,16 @@ static bool candidate_before(const leaf_candidate *a, const leaf_candidate *b)
     return a->d2 < b->d2 || (a->d2 == b->d2 && a->tri < b->tri);
 }
 
-void ms_apo_sample_leaf(const ms_apo_sampler *sampler, const ms_apo_local_mesh *m, const uint32_t *m_tris,
-                        size_t count, const float centre[3], float search, float normal[3],
-                        ms_apo_sample_counts *counts)
+void ms_apo_sample_leaf(const ms_apo_sampler *sampler, const ms_apo_local_mesh *m, const ms_apo_leaf_probe *leaf,
+                        float search, float normal[3], ms_apo_sample_counts *counts)
 {
     /* The nearest MS_APO_SAMPLES_PER_LEAF m-triangles, kept sorted (insertion:
      * the list is short), so that the rays cast do not grow with the leaf's list. */
     leaf_candidate kept[MS_APO_SAMPLES_PER_LEAF];
     size_t kept_n = 0;
-    for (size_t k = 0; k < count; ++k) {
-        leaf_candidate c = {.tri = m_tris[k]};
+    const float *centre = leaf->centre;
+    for (size_t k = 0; k < leaf->m_count; ++k) {
+        leaf_candidate c = {.tri = leaf->m_tris[k]};
         const uint32_t *v = &m->tri[3 * c.tri];
         c.d2 = closest_on_triangle(centre, &m->pos[3 * v[0]], &m->pos[3 * v[1]], &m->pos[3 * v[2]], &c.wb, &c.wc);
         if (kept_n == MS_APO_SAMPLES_PER_LEAF && !candidate_before(&c, &kept[kept_n - 1]))
@@ -250,6 +380,7 @@ void ms_apo_sample_leaf(const ms_apo_sampler *sampler, const ms_apo_local_mesh *
         }
         kept[at] = c;
     }
+    counts->triangle_tests += leaf->m_count;
     double sum[3] = {0, 0, 0}, first_sample[3] = {0, 0, 1};
     bool have_closest = false, closest_done = false;
     double closest[3] = {0, 0, 0};
@@ -262,13 +393,17 @@ void ms_apo_sample_leaf(const ms_apo_sampler *sampler, const ms_apo_local_mesh *
         bool has_dir = dir[0] != 0.0 || dir[1] != 0.0 || dir[2] != 0.0;
         if (!has_dir)
             dir[2] = 1.0;
-        if (has_dir && ray_normal(sampler->scene, sampler->big, centre, dir, search, n, &counts->rays)) {
+        if (has_dir && (local_ray_normal(sampler->big, leaf, dir, search, n, counts) ||
+                        ray_normal(sampler->scene, sampler->big, centre, dir, search, n, &counts->rays))) {
             counts->ray_hits++;
         } else {
             if (!closest_done) {
-                have_closest = closest_normal(sampler->scene, sampler->big, centre, search, closest);
+                have_closest = local_closest_normal(sampler->big, leaf, search, closest, counts);
+                if (!have_closest) {
+                    have_closest = closest_normal(sampler->scene, sampler->big, centre, search, closest);
+                    counts->point_queries++;
+                }
                 closest_done = true;
-                counts->point_queries++;
             }
             if (have_closest) {
                 counts->closest_points++;

@@ -29,6 +29,8 @@ typedef struct ms_apo_sample_counts {
     uint64_t unsampled;      /* fell back to m's normal (or +z) */
     uint64_t rays;           /* rtcIntersect1 calls (at most 2 per sample) */
     uint64_t point_queries;  /* rtcPointQuery calls (at most 1 per leaf) */
+    uint64_t local_answers;  /* ray pairs and closest points settled by the leaf's own M-triangles */
+    uint64_t triangle_tests; /* m- and M-triangles looked at one by one (not counting Embree's) */
 } ms_apo_sample_counts;
 
 /* A leaf samples at most this many of the m-triangles it touches: those whose
@@ -48,14 +50,30 @@ void ms_apo_sampler_release(ms_apo_sampler *sampler);
 ms_status ms_apo_sampler_distance(const ms_apo_sampler *sampler, const ms_apo_local_mesh *m, unsigned threads,
                                   double *h, ms_error *err);
 
-/* The normal of a leaf with centre `centre` touching the m-triangles
- * m_tris[0..count): one sample for each of the (at most MS_APO_SAMPLES_PER_LEAF)
- * m-triangles nearest to the centre, within half-length `search`,
- * normalised sum (the nearest triangle's sample where the sum vanishes; +z for
- * no sample).
+/* One leaf: its cube (centre, half its width) and the triangles touching it. */
+typedef struct ms_apo_leaf_probe {
+    float centre[3];
+    float half_width;
+    const uint32_t *m_tris;   /* m-triangles touching the leaf */
+    size_t m_count;
+    const uint32_t *big_tris; /* M-triangles touching the leaf (a superset is fine) */
+    size_t big_count;
+} ms_apo_leaf_probe;
+
+/* The normal of a leaf: one sample for each of the (at most
+ * MS_APO_SAMPLES_PER_LEAF) m-triangles nearest to the centre, within half-length
+ * `search`, normalised sum (the nearest triangle's sample where the sum
+ * vanishes; +z for no sample).
+ *
+ * Each ray pair (and the closest-point query) is first answered from the leaf's
+ * own M-triangles: when the nearest hit found there lies inside the leaf's cube,
+ * by a margin, every nearer hit would too, so its triangle touches the leaf and
+ * is in the list: the answer is M's. Otherwise Embree answers over all of M.
+ * Embree's boxes of a fan's slivers all hold its hub, so one of its queries
+ * there visits a good part of M; the leaf's list holds only the triangles that
+ * touch the leaf itself (exact triangle/box tests).
  * Adds what happened to *counts. */
-void ms_apo_sample_leaf(const ms_apo_sampler *sampler, const ms_apo_local_mesh *m, const uint32_t *m_tris,
-                        size_t count, const float centre[3], float search, float normal[3],
-                        ms_apo_sample_counts *counts);
+void ms_apo_sample_leaf(const ms_apo_sampler *sampler, const ms_apo_local_mesh *m, const ms_apo_leaf_probe *leaf,
+                        float search, float normal[3], ms_apo_sample_counts *counts);
 
 #endif

@@ -18,10 +18,12 @@
 #include <jansson.h>
 
 #include "ms_apo_classic_cli.h"
+#include "ms_cli.h"
 #include "ms_archive.h"
 #include "ms_bake.h"
 #include "ms_catalog.h"
 #include "ms_json_out.h"
+#include "ms_mesh_edges.h"
 #include "ms_mesh_reader.h"
 #include "ms_parse_number.h"
 #include "ms_version.h"
@@ -46,9 +48,7 @@ static void print_usage(FILE *out)
           "                [--root-bits 7] [--min-tris T] [--threads N] [--mem MB]\n"
           "                [--tmp DIR] [--public-bits B] [--no-apo] [--apo-lead 1]\n"
           "                [--apo-max-depth 10] [--apo-tol 0.2] [--apo-init-depth 0]\n"
-          "                [--apo-verify] [--apo-sample-leaves] [--apo-accuracy]\n"
-          "                [--apo-every-cell] [--subtree-levels S] [--archive-version 3]\n"
-          "                [--json]\n"
+          "                [--apo-verify] [--apo-accuracy] [--subtree-levels S] [--json]\n"
           "       meshbake --info FILE [--json]\n"
           "       meshbake --set-public-bits B -o ARCHIVE_DIR --name NAME\n"
           "       meshbake --list ARCHIVE_DIR [--json]\n"
@@ -79,9 +79,6 @@ static void print_usage(FILE *out)
           "  --subtree-levels S  levels of the nSP tree per index subtree, the pieces a\n"
           "                    client fetches the index in, 1..8 (default 1 for --n 4 or\n"
           "                    8, 2 for --n 2)\n"
-          "  --archive-version V  file version to write: 3 (default: the index as\n"
-          "                    subtrees) or 2 (one zlib stream, no --subtree-levels);\n"
-          "                    the same records, payloads and content id either way\n"
           "  --apo, --no-apo   give every cell an APO chunk of normals (default: on)\n"
           "  --apo-lead L      chunk depth: L levels below the cell's finest geometric\n"
           "                    precision, 0..16 (default 1)\n"
@@ -90,14 +87,9 @@ static void print_usage(FILE *out)
           "                    spread more than T radians (default 0.2)\n"
           "  --apo-init-depth D  split unconditionally above depth D (default 0)\n"
           "  --apo-verify      decode every chunk back and check it gives the built tree\n"
-          "  --apo-sample-leaves  sample an internal cell's normals on every full-precision\n"
-          "                    triangle below it (the former rule; memory grows with the\n"
-          "                    model) instead of its children's meshes\n"
-          "  --apo-every-cell  a chunk for every cell with triangles, also where the cell's\n"
-          "                    own geometry already renders the input's normals (every\n"
-          "                    leaf cell; the former rule, for comparison)\n"
           "  --apo-accuracy    measure the internal cells' chunks against the full-precision\n"
-          "                    triangles below them (degrees; needs that memory too)\n"
+          "                    triangles below them (degrees; a diagnostic: it holds\n"
+          "                    those triangles, so its memory grows with the model)\n"
           "\n"
           "  --set-public-bits B  change the preview of the baked model NAME in\n"
           "                    ARCHIVE_DIR/catalog.json (0..its P); SIGHUP a running\n"
@@ -110,7 +102,9 @@ static void print_usage(FILE *out)
           "                    first (a rescan no longer offers it), then its file; SIGHUP\n"
           "                    a running meshserve to apply it (UNKNOWN_MODEL from then)\n"
           "  --info            parse FILE completely and report format, counts, bounding box,\n"
-          "                    faces dropped by the cleaning policy, isolated vertices, bytes\n"
+          "                    faces dropped by the cleaning policy, isolated vertices, the\n"
+          "                    edges (boundary, inconsistently oriented: used twice in the\n"
+          "                    same direction, non-manifold: three or more faces), bytes\n"
           "                    parsed and parse time\n"
           "  --json            print the report as one JSON object on stdout\n"
           "  -h, --help        print this help and exit\n"
@@ -123,9 +117,7 @@ static void print_usage(FILE *out)
 
 static int usage_error(const char *message, const char *detail)
 {
-    fprintf(stderr, "meshbake: %s%s%s (see meshbake --help)\n", message, detail ? ": " : "",
-            detail ? detail : "");
-    return EXIT_USAGE;
+    return ms_cli_usage_error("meshbake", message, detail);
 }
 
 /* The integer value of option c (its long name from opts) in [min, max];
@@ -211,23 +203,19 @@ static int parse_options(int argc, char **argv, bake_options *options)
         {"apo-init-depth", required_argument, NULL, 'I'},
         {"apo-tol", required_argument, NULL, 'E'},
         {"apo-verify", no_argument, NULL, 'V'},
-        {"apo-sample-leaves", no_argument, NULL, 'S'},
         {"apo-accuracy", no_argument, NULL, 'C'},
-        {"apo-every-cell", no_argument, NULL, 'W'},
         {"public-bits", required_argument, NULL, 'P'},
         {"set-public-bits", required_argument, NULL, 'U'},
         {"list", required_argument, NULL, 'l'},
         {"remove", required_argument, NULL, 'R'},
         {"subtree-levels", required_argument, NULL, 'Y'},
-        {"archive-version", required_argument, NULL, 'Z'},
         {NULL, 0, NULL, 0},
     };
     memset(options, 0, sizeof *options);
     ms_bake_options_default(&options->bake);
-    opterr = 0;
     int c, status;
     int64_t value;
-    while ((c = getopt_long(argc, argv, ":ho:", long_options, NULL)) != -1) {
+    while ((c = ms_cli_next("meshbake", argc, argv, "ho:", long_options)) != -1) {
         switch (c) {
         case 'i': options->mode = MODE_INFO; break;
         case 'l': options->mode = MODE_LIST; options->list_dir = optarg; break;
@@ -252,17 +240,10 @@ static int parse_options(int argc, char **argv, bake_options *options)
                 return status;
             options->bake.subtree_levels = (unsigned)value;
             break;
-        case 'Z':
-            if (!option_int(long_options, c, optarg, 2, 3, &value, &status))
-                return status;
-            options->bake.archive_version = (unsigned)value;
-            break;
         case 'A': options->bake.apo.enabled = true; break;
         case 'a': options->bake.apo.enabled = false; break;
         case 'V': options->bake.apo.verify = true; break;
-        case 'S': options->bake.apo.sample_leaves = true; break;
         case 'C': options->bake.apo.accuracy = true; break;
-        case 'W': options->bake.apo.every_cell = true; break;
         case 'P': case 'U':
             if (!option_int(long_options, c, optarg, 0, 20, &value, &status))
                 return status;
@@ -287,14 +268,10 @@ static int parse_options(int argc, char **argv, bake_options *options)
                 return usage_error(e.text, NULL);
             break;
         }
-        case ':':
-            return usage_error("option needs a value", argv[optind - 1]);
         default:
-            return usage_error("unknown option", argv[optind - 1]);
+            return EXIT_USAGE; /* reported by ms_cli_next */
         }
     }
-    if (options->bake.subtree_levels && options->bake.archive_version != MS_ARCHIVE_VERSION)
-        return usage_error("--subtree-levels needs archive version 3", NULL);
     return check_mode(argc, argv, options);
 }
 
@@ -303,7 +280,29 @@ typedef struct progress_state {
     struct timespec start;
     int last_percent;
     bool shown;
+    /* --info: every triangle's vertex indices, for the edge counts */
+    uint32_t *triangles;
+    size_t triangle_count, triangle_cap;
 } progress_state;
+
+static ms_status keep_triangles(void *context, const uint32_t *indices, size_t count, ms_error *err)
+{
+    progress_state *p = context;
+    if (p->triangle_count + count > p->triangle_cap) {
+        size_t cap = p->triangle_cap ? p->triangle_cap : 4096;
+        while (cap < p->triangle_count + count)
+            cap *= 2;
+        uint32_t *grown = cap <= SIZE_MAX / 12 ? realloc(p->triangles, 3 * cap * sizeof *grown) : NULL;
+        if (!grown)
+            return ms_error_set(err, MS_ERR_NOMEM, "%s: no memory to count the edges of %zu triangles", p->path,
+                                p->triangle_count + count);
+        p->triangles = grown;
+        p->triangle_cap = cap;
+    }
+    memcpy(&p->triangles[3 * p->triangle_count], indices, 3 * count * sizeof *indices);
+    p->triangle_count += count;
+    return MS_OK;
+}
 
 static double seconds_since(const struct timespec *start)
 {
@@ -327,10 +326,12 @@ static void show_progress(void *context, uint64_t done, uint64_t total)
     fflush(stderr);
 }
 
-static void print_json(const char *path, const ms_mesh_read_report *r, double seconds)
+static void print_json(const char *path, const ms_mesh_read_report *r, const ms_mesh_edge_counts *e,
+                       double seconds)
 {
     ms_json_print(stdout,
-                  json_pack("{s:o, s:s, s:b, s:I, s:I, s:I, s:[f, f, f], s:[f, f, f], s:I, s:I, s:I, s:o}",
+                  json_pack("{s:o, s:s, s:b, s:I, s:I, s:I, s:[f, f, f], s:[f, f, f], s:I, s:I, s:I, s:o, "
+                            "s:{s:I, s:I, s:I, s:I, s:I}}",
                             "file", ms_json_text(path), "format", ms_mesh_format_name(r->format), "gzip",
                             r->gzip, "vertices", (json_int_t)r->vertices, "triangles",
                             (json_int_t)r->triangles, "input_faces", (json_int_t)r->input_faces,
@@ -338,11 +339,15 @@ static void print_json(const char *path, const ms_mesh_read_report *r, double se
                             r->bbox_max[0], r->bbox_max[1], r->bbox_max[2], "dropped_faces",
                             (json_int_t)r->dropped_faces, "isolated_vertices",
                             (json_int_t)r->isolated_vertices, "bytes", (json_int_t)r->input_bytes,
-                            "seconds", ms_json_fixed(seconds, 9)),
+                            "seconds", ms_json_fixed(seconds, 9), "edges", "total", (json_int_t)e->edges,
+                            "boundary", (json_int_t)e->boundary, "manifold", (json_int_t)e->manifold,
+                            "inconsistently_oriented", (json_int_t)e->flipped, "non_manifold",
+                            (json_int_t)e->non_manifold),
                   MS_JSON_SPACED | MS_JSON_EXACT); /* the bounding box as read */
 }
 
-static void print_text(const char *path, const ms_mesh_read_report *r, double seconds)
+static void print_text(const char *path, const ms_mesh_read_report *r, const ms_mesh_edge_counts *e,
+                       double seconds)
 {
     printf("file:              %s\n", path);
     printf("format:            %s%s\n", ms_mesh_format_name(r->format),
@@ -356,6 +361,11 @@ static void print_text(const char *path, const ms_mesh_read_report *r, double se
            r->bbox_max[2]);
     printf("dropped faces:     %" PRIu64 " (repeated vertex)\n", r->dropped_faces);
     printf("isolated vertices: %" PRIu64 "\n", r->isolated_vertices);
+    printf("edges:             %" PRIu64 " (%" PRIu64 " boundary, %" PRIu64 " manifold)\n", e->edges,
+           e->boundary, e->manifold);
+    printf("flipped edges:     %" PRIu64 " (used twice in the same direction: faces inconsistently oriented)\n",
+           e->flipped);
+    printf("non-manifold:      %" PRIu64 " edges (used by three or more faces)\n", e->non_manifold);
     printf("bytes parsed:      %" PRIu64 "\n", r->input_bytes);
     printf("parse time:        %.3f s (%.1f MB/s)\n", seconds,
            seconds > 0 ? (double)r->input_bytes / seconds / 1e6 : 0.0);
@@ -366,6 +376,7 @@ static int run_info(const bake_options *options)
     progress_state progress = {.path = options->input, .last_percent = -1, .shown = false};
     const ms_mesh_sink sink = {
         .context = &progress,
+        .triangles = keep_triangles,
         .progress = isatty(STDERR_FILENO) ? show_progress : NULL,
     };
     ms_mesh_read_report report;
@@ -376,14 +387,18 @@ static int run_info(const bake_options *options)
     double seconds = seconds_since(&progress.start);
     if (progress.shown)
         fputs("\r\033[K", stderr);
+    ms_mesh_edge_counts edges;
+    if (st == MS_OK)
+        st = ms_mesh_count_edges(progress.triangles, progress.triangle_count, &edges, &err);
+    free(progress.triangles);
     if (st != MS_OK) {
         fprintf(stderr, "meshbake: %s\n", err.text);
         return EXIT_INPUT;
     }
     if (options->json)
-        print_json(options->input, &report, seconds);
+        print_json(options->input, &report, &edges, seconds);
     else
-        print_text(options->input, &report, seconds);
+        print_text(options->input, &report, &edges, seconds);
     return fflush(stdout) == 0 ? EXIT_SUCCESS : EXIT_INPUT;
 }
 
@@ -398,8 +413,8 @@ static void print_bake_json(const ms_bake_options *o, const ms_bake_report *r)
     json_t *per_level = json_array();
     for (uint32_t d = 0; per_level && d < r->apo_levels; ++d)
         json_array_append_new(per_level, json_integer((json_int_t)r->apo_level_texels[d]));
-    json_t *apo = json_pack("{s:b, s:b, s:i, s:i, s:i, s:f, s:I, s:I, s:i, s:I, s:I, s:o, s:I, s:I}",
-                            "enabled", o->apo.enabled, "every_cell", o->apo.every_cell, "lead", (int)o->apo.lead,
+    json_t *apo = json_pack("{s:b, s:i, s:i, s:i, s:f, s:I, s:I, s:i, s:I, s:I, s:o, s:I, s:I}",
+                            "enabled", o->apo.enabled, "lead", (int)o->apo.lead,
                             "max_depth",
                             (int)o->apo.max_depth, "init_depth", (int)o->apo.init_depth,
                             "tolerance", o->apo.tolerance, "bytes", (json_int_t)r->apo_bytes,

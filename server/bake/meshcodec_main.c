@@ -15,6 +15,7 @@
 #include <unistd.h>
 
 #include "ms_codec.h"
+#include "ms_cli.h"
 #include "ms_input_file.h"
 #include "ms_codec_prior.h"
 #include "ms_json_out.h"
@@ -92,12 +93,17 @@ static const char *const train_usage =
     "  -h, --help         print this help and exit\n"
     "      --version      print the version and exit\n";
 
+/* The command's name ("meshcodec encode", or "meshcodec") for usage errors. */
+static const char *command_name(const char *cmd, char *buf, size_t size)
+{
+    snprintf(buf, size, "meshcodec%s%s", cmd ? " " : "", cmd ? cmd : "");
+    return buf;
+}
+
 static int usage_error(const char *cmd, const char *message, const char *detail)
 {
-    fprintf(stderr, "meshcodec%s%s: %s%s%s (see meshcodec%s%s --help)\n", cmd ? " " : "",
-            cmd ? cmd : "", message, detail ? ": " : "", detail ? detail : "", cmd ? " " : "",
-            cmd ? cmd : "");
-    return EXIT_USAGE;
+    char name[64];
+    return ms_cli_usage_error(command_name(cmd, name, sizeof name), message, detail);
 }
 
 static int input_error(const char *cmd, const ms_error *err)
@@ -133,9 +139,10 @@ static int parse(const char *cmd, const char *help, int argc, char **argv, optio
     memset(o, 0, sizeof *o);
     o->bits = -1;
     optind = 1;
-    opterr = 0;
     int c;
-    while ((c = getopt_long(argc, argv, ":o:b:h", longs, NULL)) != -1) {
+    char name[64];
+    command_name(cmd, name, sizeof name);
+    while ((c = ms_cli_next(name, argc, argv, "o:b:h", longs)) != -1) {
         switch (c) {
         case 'o':
             if (!want_output)
@@ -161,8 +168,7 @@ static int parse(const char *cmd, const char *help, int argc, char **argv, optio
             o->ascii = true;
             break;
         case 'h': fputs(help, stdout); return EXIT_SUCCESS;
-        case ':': return usage_error(cmd, "option needs a value", argv[optind - 1]);
-        default: return usage_error(cmd, "unknown option", argv[optind - 1]);
+        default: return EXIT_USAGE; /* reported by ms_cli_next */
         }
     }
     o->inputs = argv + optind;
@@ -552,5 +558,5 @@ int main(int argc, char **argv)
         return cmd_roundtrip(argc - 1, argv + 1);
     if (!strcmp(cmd, "train"))
         return cmd_train(argc - 1, argv + 1);
-    return usage_error(NULL, "unknown command", cmd);
+    return usage_error(NULL, cmd[0] == '-' ? "unknown option" : "unknown command", cmd);
 }

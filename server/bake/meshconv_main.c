@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "ms_mesh_io.h"
+#include "ms_cli.h"
 #include "ms_version.h"
 
 enum { EXIT_INPUT = 1, EXIT_USAGE = 2 };
@@ -31,9 +32,7 @@ static void print_usage(FILE *out)
 
 static int usage_error(const char *message, const char *detail)
 {
-    fprintf(stderr, "meshconv: %s%s%s (see meshconv --help)\n", message, detail ? ": " : "",
-            detail ? detail : "");
-    return EXIT_USAGE;
+    return ms_cli_usage_error("meshconv", message, detail);
 }
 
 /* A float PLY must not turn a coordinate into Inf: refuse the first one past
@@ -59,17 +58,15 @@ int main(int argc, char **argv)
     };
     const char *output = NULL;
     bool binary = true, use_double = false;
-    opterr = 0;
     int c;
-    while ((c = getopt_long(argc, argv, ":o:h", long_options, NULL)) != -1) {
+    while ((c = ms_cli_next("meshconv", argc, argv, "o:h", long_options)) != -1) {
         switch (c) {
         case 'o': output = optarg; break;
         case 'b': binary = true; break;
         case 'a': binary = false; break;
         case 'd': use_double = true; break;
         case 'h': print_usage(stdout); return EXIT_SUCCESS;
-        case ':': return usage_error("option needs a value", argv[optind - 1]);
-        default: return usage_error("unknown option", argv[optind - 1]);
+        default: return EXIT_USAGE; /* reported by ms_cli_next */
         }
     }
     if (optind >= argc)

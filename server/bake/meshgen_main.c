@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "ms_demo_model.h"
+#include "ms_cli.h"
 #include "ms_json_out.h"
 #include "ms_mesh_io.h"
 #include "ms_progress.h"
@@ -58,34 +59,30 @@ int main(int argc, char **argv)
         {NULL, 0, NULL, 0},
     };
     int c;
-    while ((c = getopt_long(argc, argv, "o:t:s:h", options, NULL)) != -1) {
+    while ((c = ms_cli_next("meshgen", argc, argv, "o:t:s:h", options)) != -1) {
         switch (c) {
         case 'o': output = optarg; break;
         case 't':
             if (!parse_u64(optarg, 48, 200000000, &triangles)) {
-                fprintf(stderr, "meshgen: --triangles wants an integer in [48, 200000000], got '%s'\n", optarg);
-                return 2;
+                return ms_cli_usage_error("meshgen", "--triangles wants an integer in [48, 200000000]", optarg);
             }
             break;
         case 's':
             if (!parse_u64(optarg, 0, UINT64_MAX, &seed)) {
-                fprintf(stderr, "meshgen: --seed wants an unsigned integer, got '%s'\n", optarg);
-                return 2;
+                return ms_cli_usage_error("meshgen", "--seed wants an unsigned integer", optarg);
             }
             break;
         case OPT_ASCII: ascii = true; break;
         case OPT_JSON: json = true; break;
         case 'h': usage(stdout); return 0;
-        default: fprintf(stderr, "meshgen: try 'meshgen --help'\n"); return 2;
+        default: return MS_CLI_USAGE; /* reported by ms_cli_next */
         }
     }
     if (optind < argc) {
-        fprintf(stderr, "meshgen: unexpected argument '%s'\n", argv[optind]);
-        return 2;
+        return ms_cli_usage_error("meshgen", "unexpected argument", argv[optind]);
     }
     if (!output) {
-        fprintf(stderr, "meshgen: missing -o OUT.ply (try 'meshgen --help')\n");
-        return 2;
+        return ms_cli_usage_error("meshgen", "missing -o OUT.ply", NULL);
     }
 
     ms_demo_model model = {.grid = ms_demo_grid_for_triangles(triangles), .seed = seed};

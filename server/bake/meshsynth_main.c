@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "ms_parse_number.h"
+#include "ms_cli.h"
 #include "ms_synthetic_archive.h"
 #include "ms_version.h"
 
@@ -45,7 +46,7 @@ int main(int argc, char **argv)
     int c;
     int64_t v = 0;
     ms_error e;
-    while ((c = getopt_long(argc, argv, "h", options, NULL)) != -1) {
+    while ((c = ms_cli_next("meshsynth", argc, argv, "h", options)) != -1) {
         ms_status bad = MS_OK;
         switch (c) {
         case 'l': bad = ms_option_int("--levels", optarg, 0, 3, &v, &e); spec.levels = (unsigned)v; break;
@@ -68,11 +69,10 @@ int main(int argc, char **argv)
             break;
         case 's': bad = ms_option_int("--seed", optarg, 0, UINT32_MAX, &v, &e); spec.seed = (uint32_t)v; break;
         case 'h': usage(stdout); return 0;
-        default: fprintf(stderr, "meshsynth: try 'meshsynth --help'\n"); return 2;
+        default: return MS_CLI_USAGE; /* reported by ms_cli_next */
         }
         if (bad != MS_OK) {
-            fprintf(stderr, "meshsynth: %s (try 'meshsynth --help')\n", e.text);
-            return 2;
+            return ms_cli_usage_error("meshsynth", e.text, NULL);
         }
     }
     if (optind != argc - 2) {

@@ -31,8 +31,7 @@ struct ms_archive_writer {
     uint64_t spool_size;
     ms_archive_header header;
     cell_state *cells;
-    unsigned version;        /* MS_ARCHIVE_VERSION or MS_ARCHIVE_VERSION_ZLIB_INDEX */
-    unsigned subtree_levels; /* version 3: S */
+    unsigned subtree_levels; /* S, levels per index subtree */
     unsigned threads;        /* for the subtrees at finish, >= 1 */
 };
 
@@ -116,7 +115,6 @@ ms_status ms_archive_writer_open(const char *path, const ms_archive_header *head
     if (!w)
         return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory", path);
     w->header = *header;
-    w->version = MS_ARCHIVE_VERSION;
     w->threads = 1;
     w->subtree_levels = ms_subtree_default_levels(header->n);
     size_t len = strlen(path);
@@ -244,23 +242,6 @@ ms_status ms_archive_writer_put_apo(ms_archive_writer *w, uint32_t cell, const u
     return MS_OK;
 }
 
-/* The index as one zlib stream (RFC 1950), with the subtrees' fixed parameters
- * (ms_subtree_deflate), so the stream depends only on the index bytes (and the
- * zlib build), never on the baker's threads. Z_FILTERED suits the records' small
- * numbers: on the dragon it is 4 % shorter than the default strategy. */
-static ms_status compress_index(const ms_archive_writer *w, const uint8_t *index, uint64_t size,
-                                uint8_t **out, uint64_t *out_size, ms_error *err)
-{
-    size_t produced = 0;
-    ms_error why;
-    ms_status st = ms_subtree_deflate(index, (size_t)size, out, &produced, &why);
-    *out_size = produced;
-    if (st != MS_OK)
-        return ms_error_set(err, st, "%s: zlib could not compress the index (%s)", w->path,
-                            ms_status_name(st));
-    return MS_OK;
-}
-
 /* Copies `length` spool bytes from `offset` to the output. */
 static int copy_from_spool(ms_archive_writer *w, FILE *out, uint64_t offset, uint32_t length)
 {
@@ -281,17 +262,13 @@ void ms_archive_writer_set_threads(ms_archive_writer *w, unsigned threads)
     w->threads = threads ? threads : 1;
 }
 
-ms_status ms_archive_writer_set_format(ms_archive_writer *w, unsigned version,
-                                       unsigned subtree_levels, ms_error *err)
+ms_status ms_archive_writer_set_subtree_levels(ms_archive_writer *w, unsigned subtree_levels,
+                                               ms_error *err)
 {
-    if (version != MS_ARCHIVE_VERSION_SUBTREES && version != MS_ARCHIVE_VERSION_ZLIB_INDEX)
-        return ms_error_set(err, MS_ERR_ARG, "archive writer: version %u, it writes %u and %u",
-                            version, MS_ARCHIVE_VERSION_ZLIB_INDEX, MS_ARCHIVE_VERSION_SUBTREES);
     if (subtree_levels != 0 &&
         (subtree_levels < MS_SUBTREE_MIN_LEVELS || subtree_levels > MS_SUBTREE_MAX_LEVELS))
         return ms_error_set(err, MS_ERR_ARG, "archive writer: subtree depth %u outside %u..%u",
                             subtree_levels, MS_SUBTREE_MIN_LEVELS, MS_SUBTREE_MAX_LEVELS);
-    w->version = version;
     w->subtree_levels = subtree_levels ? subtree_levels : ms_subtree_default_levels(w->header.n);
     return MS_OK;
 }
@@ -365,11 +342,11 @@ static void free_subtree_job(subtree_job *j)
     free(j->errs);
 }
 
-/* Version 3's index section: the subtree directory (per subtree, in ascending
- * id: id, offset from the end of the directory, stored length; then the CRC32
- * of those entries) followed by the stored subtrees in the same order. The
- * subtrees come from the reader's own encoder over the index as a version-1
- * blob, so what a server computes from an older file is the same bytes. */
+/* The index section: the subtree directory (per subtree, in ascending id: id,
+ * offset from the end of the directory, stored length; then the CRC32 of those
+ * entries) followed by the stored subtrees in the same order. The subtrees come
+ * from the reader's own encoder over the index as an index blob, so what a
+ * server computes from a blob is the same bytes. */
 static ms_status encode_subtrees(const ms_archive_writer *w, const uint8_t *index,
                                  uint64_t index_size, uint64_t payload, uint32_t index_crc,
                                  uint8_t **out, uint64_t *out_size, uint32_t *out_count,
@@ -381,8 +358,7 @@ static ms_status encode_subtrees(const ms_archive_writer *w, const uint8_t *inde
     uint8_t *blob = malloc(blob_size);
     if (!blob)
         return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory for the index", w->path);
-    ms_archive_encode_header(&w->header, MS_ARCHIVE_VERSION_RAW_INDEX, index_size, index_size,
-                             payload, index_crc, blob);
+    ms_archive_encode_blob_header(&w->header, index_size, payload, index_crc, blob);
     memcpy(blob + MS_ARCHIVE_HEADER_SIZE, index, (size_t)index_size);
     ms_archive *a;
     ms_status st = ms_archive_open_index(blob, blob_size, w->path, &a, err);
@@ -472,29 +448,22 @@ ms_status ms_archive_writer_finish(ms_archive_writer *w, ms_error *err)
             p[0] = (uint8_t)v, p[1] = (uint8_t)(v >> 8), p[2] = (uint8_t)(v >> 16), p[3] = (uint8_t)(v >> 24);
         }
     }
-    /* The CRC covers the raw index; version 2 holds its zlib stream, version 3
-     * its subtrees. */
+    /* The CRC covers the raw index; the file holds it as subtrees. */
     uint32_t index_crc = (uint32_t)crc32_z(0L, index, index_size);
     uint8_t *stored = NULL;
     uint64_t stored_size = 0;
     uint32_t subtree_count = 0;
-    ms_status zst = w->version == MS_ARCHIVE_VERSION_SUBTREES
-                        ? encode_subtrees(w, index, index_size, payload, index_crc, &stored,
-                                          &stored_size, &subtree_count, err)
-                        : compress_index(w, index, index_size, &stored, &stored_size, err);
+    ms_status zst = encode_subtrees(w, index, index_size, payload, index_crc, &stored,
+                                    &stored_size, &subtree_count, err);
     free(index);
     if (zst != MS_OK) {
         ms_archive_writer_abort(w);
         return zst;
     }
     uint8_t head[MS_ARCHIVE_HEADER_SIZE];
-    if (w->version == MS_ARCHIVE_VERSION_SUBTREES)
-        ms_archive_encode_header_v3(h, index_size, (uint32_t)stored_size, payload,
-                                    MS_ARCHIVE_HEADER_SIZE + stored_size + payload, index_crc,
-                                    w->subtree_levels, subtree_count, head);
-    else
-        ms_archive_encode_header(h, w->version, index_size, stored_size, payload, index_crc,
-                                 head);
+    ms_archive_encode_header(h, index_size, (uint32_t)stored_size, payload,
+                             MS_ARCHIVE_HEADER_SIZE + stored_size + payload, index_crc,
+                             w->subtree_levels, subtree_count, head);
 
     FILE *out = fopen(w->partial_path, "wb");
     int failed = !out;

@@ -1,6 +1,6 @@
-/* Writing a meshstream archive file (docs/ARCHIVE.md, version 3 by default: the
- * index stored as a directory and its subtrees, each one zlib stream with fixed
- * parameters; or version 2: one zlib stream, level 9, fixed parameters).
+/* Writing a meshstream archive file (docs/ARCHIVE.md, version 3: the index
+ * stored as a directory and its subtrees, each one zlib stream with fixed
+ * parameters).
  *
  * Usage: open with the header fields and the tree topology (for each cell in
  * breadth-first order, the index of its first child or MS_ARCHIVE_NONE), put each
@@ -56,14 +56,13 @@ void ms_archive_writer_window(const ms_archive_writer *writer, uint32_t cell, ui
 void ms_archive_writer_set_counts(ms_archive_writer *writer, uint64_t vertex_count,
                                   uint64_t triangle_count);
 
-/* Chooses the file version (MS_ARCHIVE_VERSION, the default, or
- * MS_ARCHIVE_VERSION_ZLIB_INDEX) and, for version 3, the subtree depth (1..8;
- * 0: ms_subtree_default_levels of the header's n, the default). MS_ERR_ARG
- * otherwise. The records, payloads and content id do not depend on either. */
-ms_status ms_archive_writer_set_format(ms_archive_writer *writer, unsigned version,
-                                       unsigned subtree_levels, ms_error *err);
+/* Chooses the index's subtree depth S (1..8; 0: ms_subtree_default_levels of
+ * the header's n, the default). MS_ERR_ARG otherwise. The records, payloads
+ * and content id do not depend on it. */
+ms_status ms_archive_writer_set_subtree_levels(ms_archive_writer *writer, unsigned subtree_levels,
+                                               ms_error *err);
 
-/* The threads finish may encode and deflate version 3's subtrees on (0 or 1, the
+/* The threads finish may encode and deflate the index's subtrees on (0 or 1, the
  * default: the calling thread alone); the file's bytes are the same for any
  * value. */
 void ms_archive_writer_set_threads(ms_archive_writer *writer, unsigned threads);

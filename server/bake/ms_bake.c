@@ -26,7 +26,6 @@ void ms_bake_options_default(ms_bake_options *o)
     o->min_triangles = 0; /* by model size: ms_nsp_default_min_triangles */
     o->mem_mb = 512;
     o->public_bits = -1;
-    o->archive_version = MS_ARCHIVE_VERSION;
     long cpus = sysconf(_SC_NPROCESSORS_ONLN);
     o->threads = cpus > 0 ? (unsigned)cpus : 1;
     ms_bake_apo_params_default(&o->apo);
@@ -365,7 +364,7 @@ ms_status ms_bake(const ms_bake_options *o, ms_bake_report *r, ms_error *err)
     ms_archive_header h = archive_header(o, &b);
     if ((s = ms_archive_writer_open(r->archive_path, &h, first_child, &w, err)) != MS_OK)
         goto done;
-    if ((s = ms_archive_writer_set_format(w, o->archive_version, o->subtree_levels, err)) !=
+    if ((s = ms_archive_writer_set_subtree_levels(w, o->subtree_levels, err)) !=
         MS_OK)
         goto done;
     ms_archive_writer_set_threads(w, o->threads ? o->threads : 1);

@@ -60,9 +60,8 @@ typedef struct ms_bake_options {
     FILE *progress;        /* progress bar target (drawn only on a terminal), or NULL */
     FILE *notes;           /* one-line notices (stale files removed), or NULL */
     ms_bake_apo_params apo; /* per-cell APO chunks (ms_bake_apo.h) */
-    unsigned archive_version; /* file version written: 3 (default) or 2 */
-    unsigned subtree_levels;  /* version 3: levels per index subtree, 1..8; 0: the default
-                               * for n (ms_subtree_default_levels) */
+    unsigned subtree_levels;  /* levels per index subtree, 1..8; 0: the default for n
+                               * (ms_subtree_default_levels) */
 } ms_bake_options;
 
 /* Defaults: 16 bits, n = 4, p_r = 7, N_min by model size (8000 up to 4 M input

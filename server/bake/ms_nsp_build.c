@@ -1,7 +1,9 @@
 /* Out-of-core nSP-tree construction: see ms_nsp_build.h. */
+#define _GNU_SOURCE /* O_TMPFILE (Linux): temporary files that never have a name */
 #include "ms_nsp_build.h"
 
 #include <errno.h>
+#include <fcntl.h>
 #include <float.h>
 #include <inttypes.h>
 #ifdef __GLIBC__
@@ -26,6 +28,18 @@
 
 int ms_nsp_temp_file(const char *dir, ms_error *err)
 {
+#ifdef O_TMPFILE
+    /* a file that never had a name: a bake killed at any instant leaves
+     * nothing behind (mkstemp then unlink leaves one if killed in between) */
+    int tmp = open(dir, O_TMPFILE | O_RDWR | O_CLOEXEC, 0600);
+    if (tmp >= 0)
+        return tmp;
+    if (errno != EOPNOTSUPP && errno != EISDIR && errno != EINVAL) {
+        ms_error_set(err, MS_ERR_IO, "%s: cannot create a temporary file: %s", dir,
+                     strerror(errno));
+        return -1;
+    }
+#endif
     char path[4096];
     int n = snprintf(path, sizeof path, "%s/.meshbake-tmp-XXXXXX", dir);
     if (n < 0 || (size_t)n >= sizeof path) {

@@ -80,7 +80,7 @@ typedef struct ms_nsp_io {
  * leaves range from about N_min / n^2 to N_min, and the copies a leaf stores for
  * its border go as 1 / sqrt(its triangles): with a fixed N_min the deeper trees
  * of large models end in many small leaves (10.2 % stored duplication at 100 M
- * with 8000; docs/PERFORMANCE.md, issue 23). The fourth root keeps the leaves
+ * with 8000; docs/PERFORMANCE.md, "Baking at scale"). The fourth root keeps the leaves
  * large enough for at most 8 % there while the number of cells still grows
  * nearly as the model (T^(3/4)); models up to 4 M triangles (every shared model)
  * keep 8000, and their archives are unchanged. scale_from replaces

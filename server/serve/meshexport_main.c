@@ -11,6 +11,7 @@
 #include <unistd.h>
 
 #include "ms_access.h"
+#include "ms_cli.h"
 #include "ms_archive.h"
 #include "ms_catalog.h"
 #include "ms_json_out.h"
@@ -30,8 +31,9 @@ static void usage(FILE *out)
             "OUT_DIR/models/NAME/cells/ID/geometry and .../apo (prefixes are byte ranges of\n"
             "these files, served with Range by any static web server).\n"
             "Only what an anonymous reader may read is written: a model with a public\n"
-            "preview (catalogue public_max_bits) gets each geometry cut at the preview, and\n"
-            "no files for cells wholly beyond it.\n\n"
+            "preview (catalogue public_max_bits) gets each geometry cut at the preview, each\n"
+            "APO chunk cut to the levels no finer than the preview, and no files for cells\n"
+            "wholly beyond it.\n\n"
             "  -o, --output DIR   where to write (created; existing files are replaced)\n"
             "      --full         write every byte, as a token holder reads them (for a\n"
             "                     server that is itself access-controlled)\n"
@@ -91,10 +93,16 @@ static int export_cell(ms_model *model, const ms_access *grant, const char *arch
     snprintf(path, sizeof path, "%s/models/%s/cells/%u", out_dir, name, cell);
     failed |= make_dir(path);
     for (int apo = 0; apo < 2 && !failed; ++apo) {
-        uint8_t permitted = apo ? grant->permitted_apo_steps : grant->permitted_geometry_steps;
+        uint8_t permitted = apo ? ms_access_cell_apo_steps(model, grant, cell)
+                                : grant->permitted_geometry_steps;
         const uint8_t *data = apo ? ms_archive_apo(a, cell, &size) : ms_archive_geometry(a, cell, &size);
-        if (apo && (!size || !permitted))
-            continue; /* no APO chunk */
+        if (apo && (!size || !permitted)) {
+            /* no APO chunk, or none of it under the preview: nor one an
+             * earlier --full export left */
+            snprintf(path, sizeof path, "%s/models/%s/cells/%u/apo", out_dir, name, cell);
+            remove(path);
+            continue;
+        }
         ms_proto_cell_request all = {cell, apo ? MS_PROTO_STREAM_APO : MS_PROTO_STREAM_GEOMETRY,
                                      MS_PROTO_UNIT_STEPS, 0, 0, permitted - 1u};
         if (all.b > MS_PROTO_MAX_STEP)
@@ -159,13 +167,13 @@ int main(int argc, char **argv)
     const char *out_dir = NULL;
     bool json = false, full = false;
     int c;
-    while ((c = getopt_long(argc, argv, "o:h", options, NULL)) != -1) {
+    while ((c = ms_cli_next("meshexport", argc, argv, "o:h", options)) != -1) {
         switch (c) {
         case 'o': out_dir = optarg; break;
         case 'j': json = true; break;
         case 'f': full = true; break;
         case 'h': usage(stdout); return 0;
-        default: fprintf(stderr, "meshexport: try 'meshexport --help'\n"); return 2;
+        default: return MS_CLI_USAGE; /* reported by ms_cli_next */
         }
     }
     if (optind != argc - 2 || !out_dir) {

@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "ms_json_out.h"
+#include "ms_cli.h"
 #include "ms_progress.h"
 #include "ms_server.h"
 #include "ms_version.h"
@@ -69,7 +70,7 @@ int main(int argc, char **argv)
     int override_count = 0;
     bool json = false;
     int c;
-    while ((c = getopt_long(argc, argv, "h", options, NULL)) != -1) {
+    while ((c = ms_cli_next("meshserve", argc, argv, "h", options)) != -1) {
         switch (c) {
         case OPT_PORT: overrides[override_count++] = (setting){"port", optarg, "--port"}; break;
         case OPT_MAX_CLIENTS: overrides[override_count++] = (setting){"max_clients", optarg, "--max-clients"}; break;
@@ -79,7 +80,7 @@ int main(int argc, char **argv)
         case OPT_CONFIG: config_path = optarg; break;
         case OPT_JSON: json = true; break;
         case 'h': usage(stdout); return 0;
-        default: fprintf(stderr, "meshserve: try 'meshserve --help'\n"); return 2;
+        default: return MS_CLI_USAGE; /* reported by ms_cli_next */
         }
         if (override_count == 16) {
             fprintf(stderr, "meshserve: too many options\n");

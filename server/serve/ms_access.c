@@ -3,6 +3,7 @@
 
 #include <string.h>
 
+#include "ms_preview.h"
 #include "ms_subtree.h"
 
 ms_access ms_access_grant(const ms_model *model, bool token_accepted)
@@ -15,8 +16,11 @@ ms_access ms_access_grant(const ms_model *model, bool token_accepted)
     bool full = token_accepted || model->entry.public_max_bits >= bits;
     grant.permitted_geometry_steps =
         (uint8_t)(full ? bits + 1u : model->entry.public_max_bits + 1u);
-    /* APO is limited cell by cell (ms_access_cell_hidden), not by level. */
+    /* APO is limited cell by cell (ms_access_cell_apo_steps); the grant says
+     * the most any cell gives, a cell at level 0: public_max_bits + 1 levels. */
     grant.permitted_apo_steps = model->max_apo_levels;
+    if (!full && model->entry.public_max_bits + 1u < grant.permitted_apo_steps)
+        grant.permitted_apo_steps = (uint8_t)(model->entry.public_max_bits + 1u);
     return grant;
 }
 
@@ -31,6 +35,18 @@ bool ms_access_cell_hidden(const ms_model *model, const ms_access *grant, uint32
     const ms_archive_cell *c = ms_archive_get_cell(model->archive, cell);
     return c && grant->permitted_geometry_steps < grant->geometry_steps &&
            c->bits_min >= grant->permitted_geometry_steps;
+}
+
+uint8_t ms_access_cell_apo_steps(const ms_model *model, const ms_access *grant, uint32_t cell)
+{
+    const ms_archive_cell *c = ms_archive_get_cell(model->archive, cell);
+    if (!c)
+        return 0;
+    if (grant->permitted_geometry_steps >= grant->geometry_steps)
+        return grant->apo_steps;
+    unsigned levels = ms_archive_preview_apo_levels(ms_archive_get_header(model->archive), c,
+                                                    grant->permitted_geometry_steps);
+    return (uint8_t)(levels < grant->apo_steps ? levels : grant->apo_steps);
 }
 
 static ms_status access_fault(ms_proto_fault *fault, uint16_t code, uint64_t detail,
@@ -87,14 +103,17 @@ ms_status ms_access_resolve(const ms_model *model, const ms_access *grant,
             ends[i] = ms_archive_geometry_prefix(a, request->cell_id, cell->bits_min + i);
         access = (ms_proto_stream_access){grant->geometry_steps, grant->permitted_geometry_steps};
     } else {
-        /* APO detail follows the geometric preview cell by cell (section 8). */
+        /* APO detail follows the geometric preview cell by cell (section 8):
+         * nothing of a hidden cell, and no texel finer than the preview's
+         * grid step (ms_archive_preview_apo_levels). */
         if (ms_access_cell_hidden(model, grant, request->cell_id))
             return access_fault(fault, MS_PROTO_E_FORBIDDEN, grant->permitted_geometry_steps, err,
                                 "the cell is beyond the public preview");
         steps.step_count = cell->apo_levels;
         for (uint32_t i = 0; i < steps.step_count; ++i)
             ends[i] = ms_archive_apo_prefix(a, request->cell_id, i, NULL);
-        access = (ms_proto_stream_access){grant->apo_steps, grant->permitted_apo_steps};
+        access = (ms_proto_stream_access){grant->apo_steps,
+                                          ms_access_cell_apo_steps(model, grant, request->cell_id)};
     }
     return ms_proto_resolve_range(request, &steps, &access, out, fault, err);
 }

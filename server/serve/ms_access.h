@@ -13,6 +13,10 @@
  *     permitted step of the cell;
  *   - a cell whose geometric window starts at or beyond the preview is hidden:
  *     its APO (which would give its shape away) is forbidden too;
+ *   - of every other cell, a limited grant reads the APO levels whose texels
+ *     are no finer than the preview's grid step (ms_archive_preview_apo_levels:
+ *     public_max_bits - log2(n) * level + 1 levels), so the detail normals
+ *     show no more of the shape than the preview's geometry does;
  *   - a full grant reads everything; steps are only clamped;
  *   - the index's subtrees (stream INDEX) are read by every reader of the
  *     model, preview or not: they hold sizes and CRCs, no geometry. They are
@@ -36,7 +40,8 @@ typedef struct ms_access {
     uint8_t geometry_steps;           /* the model's: bits + 1 */
     uint8_t apo_steps;                /* the model's: most APO levels of any cell */
     uint8_t permitted_geometry_steps; /* <= geometry_steps; below it: a preview */
-    uint8_t permitted_apo_steps;      /* <= apo_steps */
+    uint8_t permitted_apo_steps;      /* <= apo_steps; with a preview, the most
+                                       * any cell gives (ms_access_cell_apo_steps) */
 } ms_access;
 
 /* The grant of a reader of model: everything with token_accepted (a token the
@@ -51,6 +56,13 @@ bool ms_access_is_full(const ms_access *grant);
  * preview): both its streams are forbidden. False for a cell that does not
  * exist (ms_access_resolve reports that). */
 bool ms_access_cell_hidden(const ms_model *model, const ms_access *grant, uint32_t cell);
+
+/* The APO steps (levels) of cell that the grant reads: the whole model's
+ * apo_steps with full geometry, else 0 for a hidden cell and otherwise
+ * ms_archive_preview_apo_levels, at most apo_steps. A STEPS request on the
+ * cell's APO with b at or above it, or BYTES past its end, is FORBIDDEN
+ * (detail: this count), as for geometry. 0 for a cell that does not exist. */
+uint8_t ms_access_cell_apo_steps(const ms_model *model, const ms_access *grant, uint32_t cell);
 
 /* Resolves one request entry (validated as PROTOCOL.md section 4.10 requires)
  * on model under grant to the byte range [out->begin, out->end) of the cell's

@@ -53,9 +53,11 @@ struct ms_http_door {
     struct evhttp *http;
     struct evconnlistener *listener;
     struct event *sweep;
+    struct event *next_turn;    /* zero-delay timer: the loop's next turn */
+    size_t accepts_this_turn;   /* connections accepted since next_turn was armed */
     tracked_connection *connections;
     size_t connection_count, connection_capacity;
-    bool accept_paused_full;    /* at http_max_connections */
+    bool accept_held;           /* at http_max_connections, or this turn's accepts made */
     ms_log_limit accept_log;    /* accept failures */
     rate_bucket buckets[RATE_BUCKETS];
     double request_started;     /* when the request being handled arrived, for the access log */
@@ -136,6 +138,8 @@ void ms_http_send_text(ms_http_door *door, struct evhttp_request *req, int code,
                       "text/plain; charset=utf-8");
     if (code >= 400)
         door->server->metrics.http_errors++;
+    if (code == 403)
+        door->server->metrics.http_forbidden++;
     ms_http_reply(door, req, code, reason, body, body ? evbuffer_get_length(body) : 0);
     if (body)
         evbuffer_free(body);
@@ -155,9 +159,9 @@ bool ms_http_parse_u32(const char *text, uint32_t max, uint32_t *out)
 }
 
 /* Compares without an early exit, so response time does not leak the token. */
-static bool token_equal(const char *given, const char *expected)
+static bool token_equal(const char *given, size_t a, const char *expected)
 {
-    size_t a = strlen(given), b = strlen(expected);
+    size_t b = strlen(expected);
     unsigned diff = (unsigned)(a ^ b);
     for (size_t i = 0; i < b; ++i)
         diff |= (unsigned char)(i < a ? given[i] : 0) ^ (unsigned char)expected[i];
@@ -165,14 +169,18 @@ static bool token_equal(const char *given, const char *expected)
 }
 
 /* True when the request carries the configured token in an Authorization:
- * Bearer header (the only place it is accepted: a URL ends up in logs). */
+ * Bearer header (the only place it is accepted: a URL ends up in logs); the
+ * scheme in any case, as RFC 9110 wants (ms_http_bearer_credential). */
 static bool authorized(const ms_http_door *door, struct evhttp_request *req)
 {
     const char *expected = door->server->config.token;
     if (!expected)
         return false;
     const char *auth = evhttp_find_header(evhttp_request_get_input_headers(req), "Authorization");
-    return auth && !strncmp(auth, "Bearer ", 7) && token_equal(auth + 7, expected);
+    const char *given;
+    size_t length;
+    return ms_http_bearer_credential(auth, &given, &length) &&
+           token_equal(given, length, expected);
 }
 
 /* The reader's grant of model; *token_used says whether the token widened it
@@ -275,6 +283,9 @@ static void serve_metrics(ms_http_door *door, struct evhttp_request *req)
         {"meshstream_requests_total{door=\"http\"}", NULL, NULL, m->http_requests},
         {"meshstream_errors_total{door=\"binary\"}", "counter", "Requests answered with an error", m->binary_errors},
         {"meshstream_errors_total{door=\"http\"}", NULL, NULL, m->http_errors},
+        {"meshstream_forbidden_total{door=\"binary\"}", "counter",
+         "Requests refused as past the public preview (FORBIDDEN, 403)", m->binary_forbidden},
+        {"meshstream_forbidden_total{door=\"http\"}", NULL, NULL, m->http_forbidden},
         {"meshstream_bytes_sent_total{door=\"binary\"}", "counter", "Payload bytes sent", m->binary_bytes_sent},
         {"meshstream_bytes_sent_total{door=\"http\"}", NULL, NULL, m->http_bytes_sent},
         {"meshstream_queued_requests", "gauge", "Requests queued over all connections", m->queued_requests},
@@ -285,6 +296,14 @@ static void serve_metrics(ms_http_door *door, struct evhttp_request *req)
         {"meshstream_http_connections_dropped_total", "counter",
          "HTTP connections closed for a late request header or no send progress",
          m->http_connections_dropped},
+        {"meshstream_http_connections_shed_total", "counter",
+         "Idle HTTP connections closed at http_max_connections to admit a new one",
+         m->http_connections_shed},
+        {"meshstream_connections_dropped_total", "counter",
+         "Binary-protocol connections closed for no send progress", m->binary_connections_dropped},
+        {"meshstream_log_lines_held_back_total", "counter",
+         "Log lines caused by clients and held back by the rate limit (counted as each "
+         "window ends)", m->log_lines_held_back},
     };
     for (size_t i = 0; i < sizeof rows / sizeof *rows; ++i) {
         if (rows[i].type) {
@@ -421,29 +440,132 @@ static void handle_request(struct evhttp_request *req, void *arg)
 
 #define SWEEP_INTERVAL_US 250000
 
+/* True once evhttp has freed the connection (it clears the callbacks). */
+static bool freed_by_evhttp(const tracked_connection *t)
+{
+    bufferevent_data_cb read_cb, write_cb;
+    bufferevent_event_cb event_cb;
+    void *cb_arg;
+    bufferevent_getcb(t->bev, &read_cb, &write_cb, &event_cb, &cb_arg);
+    return !read_cb && !write_cb && !event_cb;
+}
+
+/* Lets go of the records of connections evhttp has freed. */
+static void forget_freed(ms_http_door *door)
+{
+    for (size_t i = 0; i < door->connection_count;) {
+        if (freed_by_evhttp(&door->connections[i])) {
+            bufferevent_decref(door->connections[i].bev);
+            door->connections[i] = door->connections[--door->connection_count];
+            continue;
+        }
+        ++i;
+    }
+}
+
+/* Connections that hold a slot: those the door has not shut down (a shut one
+ * keeps its descriptor only until evhttp reads the end of stream, within a
+ * loop turn). */
+static size_t live_connections(const ms_http_door *door)
+{
+    size_t live = 0;
+    for (size_t i = 0; i < door->connection_count; ++i)
+        live += !door->connections[i].dropped;
+    return live;
+}
+
+/* The connection to shed when a newcomer finds every slot taken: the one
+ * waiting longest for a request header (since its accept or its previous
+ * request) with no answer being sent; NULL when every connection is sending.
+ * A slowloris connection waits for ever; a legitimate client sends its header
+ * with its connection, so it is the newest, not the oldest, and is answered
+ * before many newcomers could push it out. */
+static tracked_connection *shed_candidate(ms_http_door *door)
+{
+    tracked_connection *oldest = NULL;
+    for (size_t i = 0; i < door->connection_count; ++i) {
+        tracked_connection *t = &door->connections[i];
+        if (t->dropped || evbuffer_get_length(bufferevent_get_output(t->bev)) != 0)
+            continue;
+        if (!oldest || t->deadline_from < oldest->deadline_from)
+            oldest = t;
+    }
+    return oldest;
+}
+
+/* Accepts per turn of the loop: well under the cap, so that a connection
+ * accepted in a burst has its request read (the next turn) before the rest of
+ * the burst could push it out as the oldest idle one. */
+static size_t accepts_per_turn(const ms_http_door *door)
+{
+    size_t per_turn = door->server->config.http_max_connections / 4;
+    return per_turn ? per_turn : 1;
+}
+
 static void update_accepting(ms_http_door *door)
 {
-    bool full = door->connection_count >= door->server->config.http_max_connections;
-    if (!door->listener || (full && door->accept_paused_full))
+    size_t live = live_connections(door);
+    door->server->metrics.http_connections = live;
+    bool full = live >= door->server->config.http_max_connections && !shed_candidate(door);
+    bool hold = full || door->accepts_this_turn >= accepts_per_turn(door);
+    if (!door->listener || (hold && door->accept_held))
         return;
-    door->accept_paused_full = full;
-    /* At the cap, further clients wait in the kernel's backlog: they hold no
-     * descriptor of ours, and the binary door's stay free. Below it, enabling
-     * also ends a pause after an accept failure (on_accept_error). */
-    if (full)
+    door->accept_held = hold;
+    /* At the cap with every connection sending an answer, further clients
+     * wait in the kernel's backlog: they hold no descriptor of ours, and the
+     * binary door's stay free. At the cap with an idle connection, a newcomer
+     * takes its slot (new_connection): waiting in the backlog behind slowloris
+     * connections that each hold a slot for http_header_timeout made
+     * legitimate requests wait 11.5-19 s (issue 32, item 8). Below the cap,
+     * enabling also ends a pause after an accept failure (on_accept_error).
+     * Disabling inside evhttp's accept callback also ends libevent's accept
+     * loop for this turn. */
+    if (hold)
         evconnlistener_disable(door->listener);
     else
         evconnlistener_enable(door->listener);
 }
 
+static void on_next_turn(evutil_socket_t fd, short what, void *arg)
+{
+    (void)fd, (void)what;
+    ms_http_door *door = arg;
+    door->accepts_this_turn = 0;
+    update_accepting(door);
+}
+
+/* Ends a connection evhttp still owns: shutting the socket down makes evhttp
+ * see the end of stream and free it. shed: to admit a newcomer at the cap
+ * (counted apart from the time-outs). */
+static void drop_connection(ms_http_door *door, tracked_connection *t, bool shed)
+{
+    if (t->dropped)
+        return;
+    t->dropped = true;
+    evutil_socket_t fd = bufferevent_getfd(t->bev);
+    if (fd >= 0)
+        shutdown(fd, SHUT_RDWR);
+    if (shed)
+        door->server->metrics.http_connections_shed++;
+    else
+        door->server->metrics.http_connections_dropped++;
+}
+
 /* evhttp asks for each accepted connection's bufferevent: the door makes it,
- * and keeps a reference to track it. */
+ * and keeps a reference to track it. At the cap, the newcomer takes the slot
+ * of the connection that has waited longest for a request header. */
 static struct bufferevent *new_connection(struct event_base *base, void *arg)
 {
     ms_http_door *door = arg;
     struct bufferevent *bev = bufferevent_socket_new(base, -1, BEV_OPT_CLOSE_ON_FREE);
     if (!bev)
         return NULL; /* evhttp makes one itself; that one goes untracked */
+    forget_freed(door);
+    if (live_connections(door) >= door->server->config.http_max_connections) {
+        tracked_connection *idle = shed_candidate(door);
+        if (idle)
+            drop_connection(door, idle, true);
+    }
     if (door->connection_count == door->connection_capacity) {
         size_t capacity = door->connection_capacity ? 2 * door->connection_capacity : 64;
         tracked_connection *grown = realloc(door->connections, capacity * sizeof *grown);
@@ -455,22 +577,13 @@ static struct bufferevent *new_connection(struct event_base *base, void *arg)
     bufferevent_incref(bev);
     double now = ms_now_seconds();
     door->connections[door->connection_count++] = (tracked_connection){bev, now, 0, now, false};
-    door->server->metrics.http_connections = door->connection_count;
+    /* A zero-delay timer runs after the next poll's reads: the count starts
+     * over once the connections accepted now have had their turn. */
+    static const struct timeval next_poll = {0, 0};
+    if (door->accepts_this_turn++ == 0 && evtimer_add(door->next_turn, &next_poll) != 0)
+        door->accepts_this_turn = 0; /* no timer: no per-turn bound rather than no accepts */
     update_accepting(door);
     return bev;
-}
-
-/* Ends a connection evhttp still owns: shutting the socket down makes evhttp
- * see the end of stream and free it. */
-static void drop_connection(ms_http_door *door, tracked_connection *t)
-{
-    if (t->dropped)
-        return;
-    t->dropped = true;
-    evutil_socket_t fd = bufferevent_getfd(t->bev);
-    if (fd >= 0)
-        shutdown(fd, SHUT_RDWR);
-    door->server->metrics.http_connections_dropped++;
 }
 
 static void sweep(evutil_socket_t fd, short what, void *arg)
@@ -479,29 +592,19 @@ static void sweep(evutil_socket_t fd, short what, void *arg)
     ms_http_door *door = arg;
     const ms_server_config *config = &door->server->config;
     double now = ms_now_seconds();
-    for (size_t i = 0; i < door->connection_count;) {
+    forget_freed(door);
+    for (size_t i = 0; i < door->connection_count; ++i) {
         tracked_connection *t = &door->connections[i];
-        bufferevent_data_cb read_cb, write_cb;
-        bufferevent_event_cb event_cb;
-        void *cb_arg;
-        bufferevent_getcb(t->bev, &read_cb, &write_cb, &event_cb, &cb_arg);
-        if (!read_cb && !write_cb && !event_cb) { /* evhttp freed it: let it go */
-            bufferevent_decref(t->bev);
-            door->connections[i] = door->connections[--door->connection_count];
-            continue;
-        }
         size_t waiting = evbuffer_get_length(bufferevent_get_output(t->bev));
         if (waiting != t->output_length) {
             t->output_length = waiting;
             t->output_since = now;
         }
         if (waiting && now - t->output_since > config->send_timeout_s)
-            drop_connection(door, t); /* a slow reader */
+            drop_connection(door, t, false); /* a slow reader */
         else if (!waiting && now - t->deadline_from > config->http_header_timeout_s)
-            drop_connection(door, t); /* no complete request header in time */
-        ++i;
+            drop_connection(door, t, false); /* no complete request header in time */
     }
-    door->server->metrics.http_connections = door->connection_count;
     update_accepting(door);
 }
 
@@ -549,8 +652,9 @@ ms_status ms_http_door_open(ms_server *server, ms_http_door **out, uint16_t *bou
     }
     door->listener = evhttp_bound_socket_get_listener(socket);
     door->sweep = event_new(server->base, -1, EV_PERSIST, sweep, door);
+    door->next_turn = evtimer_new(server->base, on_next_turn, door);
     struct timeval tick = {0, SWEEP_INTERVAL_US};
-    if (!door->listener || !door->sweep ||
+    if (!door->listener || !door->sweep || !door->next_turn ||
         event_add(door->sweep, &tick) != 0) {
         ms_http_door_close(door);
         return ms_error_set(err, MS_ERR_NOMEM, "http: cannot set up connection tracking");
@@ -577,5 +681,7 @@ void ms_http_door_close(ms_http_door *door)
     free(door->connections);
     if (door->sweep)
         event_free(door->sweep);
+    if (door->next_turn)
+        event_free(door->next_turn);
     free(door);
 }

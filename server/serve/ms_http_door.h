@@ -12,14 +12,17 @@
  *   /metrics                              Prometheus text format
  *
  * Payloads, the head and subtrees honour a single `Range: bytes=...` (206 /
- * 416), carry an ETag (the head's and subtrees' from the model's content id) and are
+ * 416; several ranges are 416), carry an ETag (the head's and subtrees' from the model's content id) and are
  * sent from the archive mapping without copying. Access (ms_access.h decides):
  * above a model's public precision a client must present the operator's token
- * in `Authorization: Bearer TOKEN`, else 403; a `token` query parameter is
+ * in `Authorization: Bearer TOKEN` (the scheme in any case), else 403; a
+ * `token` query parameter is
  * refused (400: URLs end up in logs). Answers whose body the token widened are
  * `Cache-Control: private`, the others `public`, all with `Vary: Authorization`.
- * Requests per client address are rate-limited (429). Thread-safety: runs on
- * the server loop.
+ * Requests per client address are rate-limited (429). At most
+ * http_max_connections connections: at the cap a newcomer takes the slot of
+ * the one that has waited longest for a request header (docs/SECURITY.md,
+ * section 4). Thread-safety: runs on the server loop.
  */
 #ifndef MS_HTTP_DOOR_H
 #define MS_HTTP_DOOR_H

@@ -117,7 +117,8 @@ static void serve_index(ms_http_door *door, struct evhttp_request *req, ms_model
 }
 
 /* A cell's geometry (?bits=B: the prefix complete at B bits; bits above the
- * cell's own top mean all of it) or APO (?levels=L: the first L levels). The
+ * cell's own top mean all of it) or APO (?levels=L: the first L levels; by
+ * default as many as the grant reads of it). The
  * URL is turned into a request entry and ms_access_resolve decides, as for the
  * binary door: the preview check runs on the clamped precision. */
 static void serve_cell(ms_http_door *door, struct evhttp_request *req, ms_model *model,
@@ -152,7 +153,14 @@ static void serve_cell(ms_http_door *door, struct evhttp_request *req, ms_model 
         }
         entry.b = bits < c->bits_max ? bits : c->bits_max;
     } else {
-        uint32_t levels = c->apo_levels;
+        /* by default, all the grant allows (a preview reads fewer levels) */
+        uint32_t permitted = ms_access_cell_apo_steps(model, &grant, cell);
+        uint32_t levels = c->apo_levels < permitted ? c->apo_levels : permitted;
+        if (c->apo_levels > 0 && permitted == 0) {
+            ms_http_send_text(door, req, 403, "Forbidden",
+                              "error: this cell's detail normals are beyond the public preview; a token is required");
+            return;
+        }
         const char *levels_text = evhttp_find_header(query, "levels");
         if (levels_text && (!ms_http_parse_u32(levels_text, 64, &levels) || levels == 0)) {
             ms_http_send_text(door, req, 400, "Bad Request", "error: levels must be an integer in 1..64");

@@ -1,4 +1,4 @@
-/* Range and If-None-Match parsing: see ms_http_parse.h. */
+/* Range, If-None-Match and Authorization parsing: see ms_http_parse.h. */
 #include "ms_http_parse.h"
 
 #include <stddef.h>
@@ -35,8 +35,10 @@ static bool read_number(const char **p, uint64_t *value)
 ms_http_range_result ms_http_parse_range(const char *header, uint64_t length, uint64_t *first,
                                          uint64_t *last)
 {
-    if (!header || strncmp(header, "bytes=", 6) != 0 || strchr(header, ','))
+    if (!header || strncmp(header, "bytes=", 6) != 0)
         return MS_HTTP_RANGE_NONE;
+    if (strchr(header, ','))
+        return MS_HTTP_RANGE_UNSATISFIABLE; /* several ranges: one per request */
     const char *p = skip_spaces(header + 6);
     uint64_t start = 0, end = 0;
     bool suffix = *p == '-';
@@ -104,4 +106,34 @@ bool ms_http_none_match(const char *header, const char *etag)
             return true;
         p += n;
     }
+}
+
+static bool is_space_or_tab(char c) { return c == ' ' || c == '\t'; }
+
+bool ms_http_bearer_credential(const char *header, const char **token, size_t *length)
+{
+    if (!header)
+        return false;
+    const char *p = header;
+    while (is_space_or_tab(*p))
+        ++p;
+    static const char scheme[] = "bearer";
+    for (size_t i = 0; i < sizeof scheme - 1; ++i, ++p)
+        if ((*p | 0x20) != scheme[i]) /* ASCII letters only: '\0' never matches */
+            return false;
+    if (*p != ' ')
+        return false; /* "Bearerx", or no credential */
+    while (*p == ' ')
+        ++p;
+    const char *start = p;
+    while (*p > ' ' && *p < 0x7f)
+        ++p;
+    size_t n = (size_t)(p - start);
+    while (is_space_or_tab(*p))
+        ++p;
+    if (n == 0 || *p != '\0')
+        return false;
+    *token = start;
+    *length = n;
+    return true;
 }

@@ -1,8 +1,11 @@
 /* The HTTP side door's parsing of request headers that select what is sent:
- * Range and If-None-Match. Strict, answering as nginx does, so that meshserve
- * and a static server holding meshexport's tree agree on every request.
- * Pure functions of their arguments; thread-safe.
+ * Range, If-None-Match and Authorization. Strict, answering as nginx does
+ * where nginx has an answer (one range; several are refused, where nginx
+ * would send a multipart body that no meshstream client asks for), so that
+ * meshserve and a static server holding meshexport's tree agree on the
+ * requests clients make. Pure functions of their arguments; thread-safe.
  */
+#include <stddef.h>
 #ifndef MS_HTTP_PARSE_H
 #define MS_HTTP_PARSE_H
 
@@ -16,8 +19,9 @@ typedef enum ms_http_range_result {
 } ms_http_range_result;
 
 /* Interprets a Range header (NULL: none) against a body of `length` bytes.
- * A header that does not start with "bytes=", or asks for several ranges, is
- * ignored (NONE). After "bytes=", one range of the forms FIRST-LAST, FIRST- or
+ * A header that does not start with "bytes=" is ignored (NONE). After
+ * "bytes=", several ranges (any comma) are UNSATISFIABLE (docs/SECURITY.md:
+ * one range per request); one range of the forms FIRST-LAST, FIRST- or
  * -SUFFIX (decimal digits only, spaces allowed around the parts, no sign, no
  * value past 2^63 - 1) is accepted; any other text, FIRST > LAST, FIRST at or
  * past the end, a suffix of 0 or an empty body is UNSATISFIABLE. LAST is
@@ -29,5 +33,15 @@ ms_http_range_result ms_http_parse_range(const char *header, uint64_t length, ui
  * strong entity tag): "*", or a comma-separated list holding etag, compared
  * weakly (a W/ prefix is ignored), as RFC 9110 section 13.1.2 requires. */
 bool ms_http_none_match(const char *header, const char *etag);
+
+/* Finds the credential of an Authorization header (NULL: none) of the Bearer
+ * scheme, as RFC 9110 section 11 (formerly RFC 7235) writes credentials:
+ * optional spaces or tabs, the scheme in any case ("Bearer", "bearer",
+ * "BEARER"), one or more spaces, the credential (a run of visible ASCII
+ * characters: token68, or any token the server's config accepts), optional
+ * trailing spaces or tabs, and nothing else. True with *token pointing at the
+ * credential inside header and *length its length; false (outputs untouched)
+ * for another scheme, no credential, or text after it. */
+bool ms_http_bearer_credential(const char *header, const char **token, size_t *length);
 
 #endif

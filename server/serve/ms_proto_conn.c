@@ -55,7 +55,7 @@ void ms_serve_conn_fail(ms_serve_conn *c, uint16_t code, uint64_t detail, const 
     c->fatal_code = code;
     ms_error err;
     if (ms_frame_out_error(output(c), code, true, 0, 0, detail, text, &err) != MS_OK) {
-        ms_server_log(server_of(c), "binary: cannot send %s: %s", ms_proto_error_name(code),
+        ms_server_log_client(server_of(c), "binary: cannot send %s: %s", ms_proto_error_name(code),
                       err.text);
         ms_serve_conn_broken(c);
         return;
@@ -73,6 +73,8 @@ void ms_serve_conn_send_error(ms_serve_conn *c, uint16_t code, uint32_t request_
         return;
     }
     metrics_of(c)->binary_errors += count ? count : 1;
+    if (code == MS_PROTO_E_FORBIDDEN)
+        metrics_of(c)->binary_forbidden += count ? count : 1;
     ms_error err;
     if (ms_frame_out_error(output(c), code, false, request_id, count, detail, text, &err) != MS_OK)
         ms_serve_conn_broken(c);
@@ -82,7 +84,7 @@ void ms_serve_conn_send_message(ms_serve_conn *c, const ms_proto_message *msg)
 {
     ms_error err;
     if (ms_frame_out_message(output(c), msg, &err) != MS_OK) {
-        ms_server_log(server_of(c), "binary: cannot send %s: %s", ms_proto_type_name(msg->type),
+        ms_server_log_client(server_of(c), "binary: cannot send %s: %s", ms_proto_type_name(msg->type),
                       err.text);
         ms_serve_conn_broken(c);
     }
@@ -358,8 +360,9 @@ bool ms_serve_conn_sweep(ms_serve_conn *c, double now)
         now - c->last_send_progress > c->door->send_timeout_s) {
         char text[96];
         snprintf(text, sizeof text, "no send progress for %.0f s", c->door->send_timeout_s);
-        ms_server_log(server_of(c), "binary: connection dropped: %s (%zu bytes waiting)", text,
-                      waiting);
+        ms_server_log_client(server_of(c), "binary: connection dropped: %s (%zu bytes waiting)",
+                             text, waiting);
+        metrics_of(c)->binary_connections_dropped++;
         ms_serve_conn_fail(c, MS_PROTO_E_IDLE_TIMEOUT, (uint64_t)(c->door->send_timeout_s * 1000),
                            text);
     }

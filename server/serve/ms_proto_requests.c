@@ -273,7 +273,7 @@ static void handle_open_model(ms_serve_conn *c, uint32_t id, const ms_proto_open
         wire_size = m->index_head_size;
         mo->index_size = (uint32_t)m->index_head_size;
         mo->index_crc32 = m->index_head_crc32;
-        mo->archive_version = MS_ARCHIVE_VERSION_SUBTREES; /* the head's header */
+        mo->archive_version = MS_ARCHIVE_VERSION; /* the head's header */
         mo->index_encoding = MS_PROTO_INDEX_SUBTREES;
     } else if ((c->capabilities & MS_PROTO_CAP_INDEX_ZLIB) && m->index_zlib) {
         wire = m->index_zlib;
@@ -541,9 +541,9 @@ void ms_serve_conn_handle_message(ms_serve_conn *c, const ms_proto_message *msg)
     case MS_PROTO_PONG: break;
     case MS_PROTO_ERROR:
         if (msg->body.error.fatal) {
-            ms_server_log(server_of(c), "binary: client reported %s: %.*s",
-                          ms_proto_error_name(msg->body.error.code),
-                          (int)msg->body.error.text_length, msg->body.error.text);
+            ms_server_log_client(server_of(c), "binary: client reported %s: %.*s",
+                                 ms_proto_error_name(msg->body.error.code),
+                                 (int)msg->body.error.text_length, msg->body.error.text);
             ms_serve_conn_start_closing(c);
         }
         break;

@@ -31,6 +31,48 @@ void ms_server_log(const ms_server *server, const char *fmt, ...)
     fprintf(stderr, "%s meshserve: %s\n", stamp, line);
 }
 
+/* Ends the client log's window when it is over (or now, when ending): writes
+ * the summary of what it held back, if anything. */
+static void client_log_end_window(ms_server *server, bool ending)
+{
+    ms_client_log *log = &server->client_log;
+    if (!log->window_started ||
+        (!ending && ms_now_seconds() - log->window_started < MS_CLIENT_LOG_WINDOW_S))
+        return;
+    if (log->held)
+        ms_server_log(server, "%llu more since %s: client log lines held back (at most %u per "
+                      "%.0f s)", (unsigned long long)log->held, log->held_since,
+                      MS_CLIENT_LOG_LINES, MS_CLIENT_LOG_WINDOW_S);
+    server->metrics.log_lines_held_back += log->held;
+    memset(log, 0, sizeof *log);
+}
+
+void ms_server_log_client(ms_server *server, const char *fmt, ...)
+{
+    ms_client_log *log = &server->client_log;
+    client_log_end_window(server, false);
+    if (!log->window_started)
+        log->window_started = ms_now_seconds();
+    if (log->lines >= MS_CLIENT_LOG_LINES) {
+        if (!log->held++)
+            ms_catalog_now(log->held_since, sizeof log->held_since);
+        return;
+    }
+    log->lines++;
+    char line[1024];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(line, sizeof line, fmt, ap);
+    va_end(ap);
+    ms_server_log(server, "%s", line);
+}
+
+static void on_client_log_tick(evutil_socket_t fd, short what, void *arg)
+{
+    (void)fd, (void)what;
+    client_log_end_window(arg, false);
+}
+
 typedef struct event_search {
     void (*cb)(int, short, void *);
     void *arg;
@@ -257,6 +299,12 @@ static ms_status server_start(ms_server *s, ms_server_config *config, ms_error *
             return st;
         }
     }
+    struct timeval second = {1, 0};
+    s->client_log_timer = event_new(s->base, -1, EV_PERSIST, on_client_log_tick, s);
+    if (!s->client_log_timer || event_add(s->client_log_timer, &second) != 0) {
+        server_stop(s);
+        return ms_error_set(err, MS_ERR_NOMEM, "cannot create the client log's timer");
+    }
     const int signals[3] = {SIGTERM, SIGINT, SIGHUP};
     for (int i = 0; i < 3; ++i) {
         s->signal_events[i] = evsignal_new(s->base, signals[i], on_signal, s);
@@ -277,6 +325,9 @@ void ms_server_run(ms_server *s) { event_base_dispatch(s->base); }
 
 static void server_stop(ms_server *s)
 {
+    client_log_end_window(s, true);
+    if (s->client_log_timer)
+        event_free(s->client_log_timer);
     ms_serve_door_close(s->binary);
     s->binary = NULL;
     ms_http_door_close(s->http);

@@ -23,11 +23,13 @@ struct evhttp;
 typedef struct ms_server_metrics {
     uint64_t http_requests;
     uint64_t http_errors;
+    uint64_t http_forbidden;           /* of them 403: past the public preview */
     uint64_t http_bytes_sent;
     uint64_t binary_connections;       /* open now */
     uint64_t binary_connections_total;
     uint64_t binary_requests;
     uint64_t binary_errors;
+    uint64_t binary_forbidden;         /* of them FORBIDDEN: past the public preview */
     uint64_t binary_bytes_sent;
     uint64_t queued_requests;          /* over all connections, now */
     uint64_t queued_bytes;             /* over all connections, now */
@@ -36,6 +38,9 @@ typedef struct ms_server_metrics {
     uint64_t transfers_in_flight;      /* payload buffers not yet sent, both doors */
     uint64_t http_connections;         /* open now */
     uint64_t http_connections_dropped; /* closed for a late header or no send progress */
+    uint64_t http_connections_shed;    /* idle ones closed at the cap for a newcomer */
+    uint64_t binary_connections_dropped; /* slow readers closed for no send progress */
+    uint64_t log_lines_held_back;      /* client log lines not written (ms_server_log_client) */
 } ms_server_metrics;
 
 typedef struct ms_http_door ms_http_door;

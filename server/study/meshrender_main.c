@@ -11,6 +11,7 @@
 #include <sys/stat.h>
 
 #include "ms_archive.h"
+#include "ms_cli.h"
 #include "ms_camera_path.h"
 #include "ms_json_out.h"
 #include "ms_mesh_io.h"
@@ -89,7 +90,7 @@ static int parse_options(int argc, char **argv, options *o)
     *o = (options){.width = 640, .height = 480, .tolerance = 1};
     int c;
     double v;
-    while ((c = getopt_long(argc, argv, "p:o:h", long_options, NULL)) != -1) {
+    while ((c = ms_cli_next("meshrender", argc, argv, "p:o:h", long_options)) != -1) {
         switch (c) {
         case 'p': o->path = optarg; break;
         case 'o': o->out_dir = optarg; break;
@@ -129,7 +130,7 @@ static int parse_options(int argc, char **argv, options *o)
             }
             *(c == 'T' ? &o->threads : &o->apo_levels) = (unsigned)v;
             break;
-        default: fprintf(stderr, "meshrender: try 'meshrender --help'\n"); return EXIT_USAGE;
+        default: return MS_CLI_USAGE; /* reported by ms_cli_next */
         }
     }
     if (optind != argc - 1 || !o->path || !o->out_dir) {

@@ -13,6 +13,7 @@
 #include <string.h>
 
 #include "ms_archive.h"
+#include "ms_cli.h"
 #include "ms_camera_path.h"
 #include "ms_json_out.h"
 #include "ms_mesh_io.h"
@@ -125,7 +126,7 @@ static int parse_options(int argc, char **argv, options *o)
     *o = (options){.width = 320, .height = 240, .tolerances = {1, 4, 16}, .tolerance_count = 3, .apo_geometry_ratio = 1};
     int c;
     double v;
-    while ((c = getopt_long(argc, argv, "p:h", long_options, NULL)) != -1) {
+    while ((c = ms_cli_next("meshstudy", argc, argv, "p:h", long_options)) != -1) {
         switch (c) {
         case 'p': o->path = optarg; break;
         case 'w': o->whole = optarg; break;
@@ -185,7 +186,7 @@ static int parse_options(int argc, char **argv, options *o)
                 return EXIT_USAGE;
             }
             break;
-        default: fprintf(stderr, "meshstudy: try 'meshstudy --help'\n"); return EXIT_USAGE;
+        default: return MS_CLI_USAGE; /* reported by ms_cli_next */
         }
     }
     if (optind != argc - (o->whole ? 1 : 2) || !o->path) {

@@ -98,6 +98,19 @@ static void ms_fuzz_http_one(const uint8_t *data, size_t size)
         }
     }
     MS_FUZZ_HTTP_CHECK(ms_http_parse_range(NULL, length, &first, &last) == MS_HTTP_RANGE_NONE);
+    if (!strncmp(range, "bytes=", 6) && strchr(range, ',')) /* several ranges: refused */
+        MS_FUZZ_HTTP_CHECK(r == MS_HTTP_RANGE_UNSATISFIABLE);
+
+    /* The same text as an Authorization header: a credential found lies
+     * inside it, is visible ASCII without spaces, and follows the scheme. */
+    const char *token = NULL;
+    size_t token_length = 0;
+    if (ms_http_bearer_credential(range, &token, &token_length)) {
+        MS_FUZZ_HTTP_CHECK(token > range + 6 && token + token_length <= range + strlen(range));
+        MS_FUZZ_HTTP_CHECK(token_length > 0);
+        for (size_t i = 0; i < token_length; ++i)
+            MS_FUZZ_HTTP_CHECK(token[i] > ' ' && token[i] < 0x7f);
+    }
 
     const char *etag = "\"5-a-17-g12\"";
     bool matched = ms_http_none_match(none_match, etag);

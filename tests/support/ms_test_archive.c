@@ -34,17 +34,14 @@ void ms_test_archive_fill(uint8_t *buf, uint32_t length, uint32_t seed)
 uint32_t ms_test_archive_geometry_length(uint32_t cell) { return 20 + (cell * 37) % 300; }
 uint32_t ms_test_archive_apo_levels(uint32_t cell) { return cell % 3 == 0 ? 0 : 1 + cell % 5; }
 
-/* Writes a tree of h.cell_count cells with the synthetic payloads, as file
- * `version` (3 or 2). */
+/* Writes a tree of h.cell_count cells with the synthetic payloads. */
 static void write_tree(const char *path, const ms_archive_header *hp, const uint32_t *first_child,
-                       uint32_t salt, unsigned version)
+                       uint32_t salt)
 {
     ms_archive_header h = *hp;
     ms_archive_writer *w;
     ms_error err;
     if (ms_archive_writer_open(path, &h, first_child, &w, &err) != MS_OK)
-        fail_msg("%s", err.text);
-    if (ms_archive_writer_set_format(w, version, 0, &err) != MS_OK)
         fail_msg("%s", err.text);
     uint8_t buf[1024];
     /* Reverse order, APO before geometry on odd cells: the writer must not care. */
@@ -82,18 +79,13 @@ static void write_tree(const char *path, const ms_archive_header *hp, const uint
 
 void ms_test_write_archive(const char *path, uint32_t salt)
 {
-    ms_test_write_archive_version(path, salt, MS_ARCHIVE_VERSION);
-}
-
-void ms_test_write_archive_version(const char *path, uint32_t salt, unsigned version)
-{
     ms_archive_header h = ms_test_archive_header();
     uint32_t first_child[MS_TEST_ARCHIVE_CELLS];
     for (uint32_t i = 0; i < MS_TEST_ARCHIVE_CELLS; ++i)
         first_child[i] = MS_ARCHIVE_NONE;
     first_child[0] = 1;
     first_child[5] = 65;
-    write_tree(path, &h, first_child, salt, version);
+    write_tree(path, &h, first_child, salt);
 }
 
 void ms_test_write_deep_archive(const char *path, uint32_t salt)
@@ -115,15 +107,7 @@ void ms_test_write_deep_archive(const char *path, uint32_t salt)
     }
     if (next != MS_TEST_DEEP_ARCHIVE_CELLS)
         fail_msg("deep synthetic archive: %u cells, expected %u", next, MS_TEST_DEEP_ARCHIVE_CELLS);
-    write_tree(path, &h, first_child, salt, MS_ARCHIVE_VERSION);
-}
-
-static uint64_t le_get(const uint8_t *p, int bytes)
-{
-    uint64_t v = 0;
-    for (int i = 0; i < bytes; ++i)
-        v |= (uint64_t)p[i] << (8 * i);
-    return v;
+    write_tree(path, &h, first_child, salt);
 }
 
 static void le_put(uint8_t *p, uint64_t v, int bytes)
@@ -132,30 +116,15 @@ static void le_put(uint8_t *p, uint64_t v, int bytes)
         p[i] = (uint8_t)(v >> (8 * i));
 }
 
-/* Header fields of docs/ARCHIVE.md, version 2. */
+/* Header fields of docs/ARCHIVE.md. */
 #define AT_RAW_SIZE 80
 #define AT_PAYLOAD_SIZE 88
 #define AT_FILE_SIZE 96
 #define AT_INDEX_CRC 108
-#define AT_STORED_SIZE 112
 
-/* The stored index size of a version-2 or version-3 image (fails the test on
- * anything else). */
-static uint64_t check_v2(const uint8_t *file, size_t size)
-{
-    uint64_t version = size < 128 ? 0 : le_get(file + 8, 4);
-    if (version != 2 && version != 3)
-        fail_msg("not a version-2 or 3 archive image (%zu bytes)", size);
-    uint64_t stored = le_get(file + AT_STORED_SIZE, version == 2 ? 8 : 4);
-    uint64_t payload = le_get(file + AT_PAYLOAD_SIZE, 8);
-    if (stored > size - 128 || payload != size - 128 - stored)
-        fail_msg("version-%u image with inconsistent sizes", (unsigned)version);
-    return stored;
-}
-
-/* A version-3 image's raw index, through the reader (its subtrees are many
- * streams): written to a scratch file, opened, and the index blob copied. */
-static uint8_t *raw_index_v3(const uint8_t *file, size_t size, size_t *raw_size)
+/* A file image's index blob, through the reader (its subtrees are many
+ * streams): written to a scratch file, opened, and the blob copied. */
+static uint8_t *image_blob(const uint8_t *file, size_t size, size_t *blob_size)
 {
     char dir[512], path[600];
     ms_test_tmpdir(dir, sizeof dir);
@@ -165,12 +134,10 @@ static uint8_t *raw_index_v3(const uint8_t *file, size_t size, size_t *raw_size)
     ms_error err;
     if (ms_archive_open(path, &a, &err) != MS_OK)
         fail_msg("%s", err.text);
-    size_t blob_size;
-    const uint8_t *blob = ms_archive_index_bytes(a, &blob_size);
-    *raw_size = blob_size - 128;
-    uint8_t *out = malloc(*raw_size ? *raw_size : 1);
+    const uint8_t *blob = ms_archive_index_bytes(a, blob_size);
+    uint8_t *out = malloc(*blob_size);
     assert_non_null(out);
-    memcpy(out, blob + 128, *raw_size);
+    memcpy(out, blob, *blob_size);
     ms_archive_close(a);
     ms_test_rmdir(dir);
     return out;
@@ -178,28 +145,13 @@ static uint8_t *raw_index_v3(const uint8_t *file, size_t size, size_t *raw_size)
 
 uint8_t *ms_test_archive_raw_index(const uint8_t *file, size_t size, size_t *raw_size)
 {
-    check_v2(file, size);
-    if (le_get(file + 8, 4) == 3)
-        return raw_index_v3(file, size, raw_size);
-    uLongf raw = (uLongf)le_get(file + AT_RAW_SIZE, 8);
-    uint8_t *out = malloc(raw ? raw : 1);
+    size_t blob_size;
+    uint8_t *blob = image_blob(file, size, &blob_size);
+    *raw_size = blob_size - 128;
+    uint8_t *out = malloc(*raw_size ? *raw_size : 1);
     assert_non_null(out);
-    uLongf got = raw;
-    if (uncompress(out, &got, file + 128, (uLong)le_get(file + AT_STORED_SIZE, 8)) != Z_OK ||
-        got != raw)
-        fail_msg("the stored index does not inflate to its %lu bytes", (unsigned long)raw);
-    *raw_size = raw;
-    return out;
-}
-
-uint8_t *ms_test_zlib(const uint8_t *data, size_t size, size_t *out_size)
-{
-    uLongf n = compressBound((uLong)size);
-    uint8_t *out = malloc(n);
-    assert_non_null(out);
-    if (compress2(out, &n, data, (uLong)size, 9) != Z_OK)
-        fail_msg("compress2 failed");
-    *out_size = n;
+    memcpy(out, blob + 128, *raw_size);
+    free(blob);
     return out;
 }
 
@@ -208,41 +160,33 @@ void ms_test_archive_seal(uint8_t *file)
     le_put(file + 124, crc32(0L, file, 124), 4);
 }
 
-uint8_t *ms_test_archive_compose(const uint8_t *file, size_t size, const uint8_t *stored,
-                                 size_t stored_size, uint64_t raw_size, uint32_t index_crc,
-                                 size_t *out_size)
+uint8_t *ms_test_archive_blob(const uint8_t *file, size_t size, const uint8_t *raw,
+                              size_t raw_size, uint32_t index_crc, size_t *out_size)
 {
-    uint64_t old_stored = check_v2(file, size);
-    size_t payload = size - 128 - (size_t)old_stored;
-    size_t n = 128 + stored_size + payload;
+    size_t blob_size;
+    uint8_t *blob = image_blob(file, size, &blob_size);
+    size_t n = 128 + raw_size;
     uint8_t *out = malloc(n);
     assert_non_null(out);
-    memcpy(out, file, 128);
-    memcpy(out + 128, stored, stored_size);
-    memcpy(out + 128 + stored_size, file + 128 + old_stored, payload);
-    /* Always a version-2 header: version 3's subtree fields become version
-     * 2's stored size and encoding. */
-    le_put(out + 8, 2, 4);
-    memset(out + 112, 0, 12);
-    out[120] = MS_ARCHIVE_INDEX_ZLIB;
+    memcpy(out, blob, 128);
+    memcpy(out + 128, raw, raw_size);
+    free(blob);
+    uint64_t payload = 0;
+    for (int i = 0; i < 8; ++i)
+        payload |= (uint64_t)out[AT_PAYLOAD_SIZE + i] << (8 * i);
     le_put(out + AT_RAW_SIZE, raw_size, 8);
-    le_put(out + AT_FILE_SIZE, n, 8);
+    le_put(out + AT_FILE_SIZE, 128 + raw_size + payload, 8);
     le_put(out + AT_INDEX_CRC, index_crc, 4);
-    le_put(out + AT_STORED_SIZE, stored_size, 8);
     ms_test_archive_seal(out);
     *out_size = n;
     return out;
 }
 
-uint8_t *ms_test_archive_with_index(const uint8_t *file, size_t size, const uint8_t *raw,
-                                    size_t raw_size, size_t *out_size)
+uint8_t *ms_test_archive_blob_with_index(const uint8_t *file, size_t size, const uint8_t *raw,
+                                         size_t raw_size, size_t *out_size)
 {
-    size_t z_size;
-    uint8_t *z = ms_test_zlib(raw, raw_size, &z_size);
-    uint8_t *out = ms_test_archive_compose(file, size, z, z_size, raw_size,
-                                           (uint32_t)crc32_z(0L, raw, raw_size), out_size);
-    free(z);
-    return out;
+    return ms_test_archive_blob(file, size, raw, raw_size, (uint32_t)crc32_z(0L, raw, raw_size),
+                                out_size);
 }
 
 void ms_test_add_model(const char *dir, const char *name, uint32_t salt, uint8_t public_max_bits)

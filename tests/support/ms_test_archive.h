@@ -20,8 +20,6 @@ uint32_t ms_test_archive_apo_levels(uint32_t cell);      /* 0 = no chunk; 40 byt
 /* Writes the archive at path (fails the test on error). `salt` changes every
  * payload byte, to tell two versions of a model apart. */
 void ms_test_write_archive(const char *path, uint32_t salt);
-/* The same model as file version 2 or 3 (ms_archive_writer_set_format). */
-void ms_test_write_archive_version(const char *path, uint32_t salt, unsigned version);
 
 /* A deeper one for the subtree tests: n = 2, p = 12, p_r = 4, six levels
  * (the root splits; below it the first and the last cell of every group of 8
@@ -30,27 +28,25 @@ void ms_test_write_archive_version(const char *path, uint32_t salt, unsigned ver
 #define MS_TEST_DEEP_ARCHIVE_CELLS 249u
 void ms_test_write_deep_archive(const char *path, uint32_t salt);
 
-/* --- File images of version 2 or 3 (docs/ARCHIVE.md), for tests that take
- * them apart. These read the header fields themselves (but a version-3 image's
- * raw index comes through the reader), and fail the test on any error; every
- * buffer they return is malloc'd. The images they compose are version 2. */
+/* --- File images and index blobs (docs/ARCHIVE.md), for tests that take them
+ * apart. An image's raw index comes through the reader (its subtrees are many
+ * streams); they fail the test on any error; every buffer they return is
+ * malloc'd. */
 
 /* The raw index of an image (*raw_size bytes). */
 uint8_t *ms_test_archive_raw_index(const uint8_t *file, size_t size, size_t *raw_size);
-/* One zlib stream (level 9) of data. */
-uint8_t *ms_test_zlib(const uint8_t *data, size_t size, size_t *out_size);
-/* Recomputes the header CRC (bytes 124..127) of an image. */
+/* Recomputes the header CRC (bytes 124..127) of an image or a blob. */
 void ms_test_archive_seal(uint8_t *file);
-/* A new version-2 image from a version-2 or 3 image: its header and payload area, with `stored`
- * as the stored index and the header saying raw size raw_size and index CRC
- * index_crc; the file and stored sizes follow, and the header CRC is redone. */
-uint8_t *ms_test_archive_compose(const uint8_t *file, size_t size, const uint8_t *stored,
-                                 size_t stored_size, uint64_t raw_size, uint32_t index_crc,
-                                 size_t *out_size);
-/* ms_test_archive_compose with the zlib stream and the CRC of `raw`: a
- * consistent image whose raw index is `raw`. */
-uint8_t *ms_test_archive_with_index(const uint8_t *file, size_t size, const uint8_t *raw,
-                                    size_t raw_size, size_t *out_size);
+/* The index blob of an image (ms_archive_index_bytes) with `raw` as its raw
+ * index and the header saying raw size raw_size and index CRC index_crc; the
+ * file size follows and the header CRC is redone. Open it with
+ * ms_archive_open_index: the same checks as a file's index. */
+uint8_t *ms_test_archive_blob(const uint8_t *file, size_t size, const uint8_t *raw,
+                              size_t raw_size, uint32_t index_crc, size_t *out_size);
+/* ms_test_archive_blob with the CRC of `raw`: a consistent blob whose raw
+ * index is `raw`, so only the structural checks can refuse it. */
+uint8_t *ms_test_archive_blob_with_index(const uint8_t *file, size_t size, const uint8_t *raw,
+                                         size_t raw_size, size_t *out_size);
 
 /* Writes DIR/NAME.msa and adds NAME to DIR/catalog.json. */
 void ms_test_add_model(const char *dir, const char *name, uint32_t salt, uint8_t public_max_bits);

@@ -156,11 +156,17 @@ void main()
                 l = normalize(to_light);
                 falloff = 1.0 / (1.0 + d * d);
             }
-            // The self-shadowing factor keeps a detail normal from lighting a
-            // surface the geometry turns away from the light: the triangle's
-            // own normal, and only where a detail normal (APO) is used (the
-            // vertex and flat normals are the geometry's already).
-            float self_shadow = detail ? max(0.0, dot(l, ng)) : 1.0;
+            // The self-shadowing factor, for every normal: meshrender's
+            // lighting model (server/study/ms_study_render.c, the study's
+            // reference), so the same mesh shades alike in both (a flat face
+            // under the head light as (N . L)^2). With an APO normal it is
+            // max(0, L . N_geometric): a detail normal does not light a
+            // triangle the geometry turns away from the light. Otherwise it
+            // is max(0, L . N), the vertex or flat normal itself: the same as
+            // meshrender's on a flat face and on a fine mesh, and smooth on a
+            // coarse level, whose triangles' own normals are rough (their
+            // corners sit at kd-cell centres) and would speckle the picture.
+            float self_shadow = max(0.0, dot(l, detail ? ng : n));
             vec3 c = light_colour[i] * (falloff * self_shadow);
             diffuse += c * max(0.0, dot(n, l));
 #ifdef MS_EFFECT_SPECULAR
