@@ -12,6 +12,7 @@
  *     nothing leaked (AddressSanitizer's leak check);
  *   - the catalogue of the server and of the directory list the model.
  * Every wait is bounded. */
+#include <pthread.h>
 #include <setjmp.h>
 #include <signal.h>
 #include <stdarg.h>
@@ -288,6 +289,128 @@ static void test_local_budget_below_the_root(void **state)
     ms_core_stop(core);
 }
 
+/* The budget's evictions as the test hook sees them, in order. */
+typedef struct eviction_log {
+    pthread_mutex_t lock;
+    size_t count, out_of_view, in_view_after_coarsening;
+    size_t first_in_view;       /* index of the first in-view eviction, count if none */
+    double largest_factor;      /* the tolerance factor at any eviction */
+} eviction_log;
+
+static void log_eviction(uint32_t cell, bool in_view, double tolerance_factor,
+                         double culled_give_up, void *arg)
+{
+    (void)cell, (void)culled_give_up;
+    eviction_log *l = arg;
+    pthread_mutex_lock(&l->lock);
+    if (in_view && l->first_in_view == SIZE_MAX)
+        l->first_in_view = l->count;
+    l->out_of_view += !in_view;
+    if (tolerance_factor > l->largest_factor)
+        l->largest_factor = tolerance_factor;
+    l->count++;
+    pthread_mutex_unlock(&l->lock);
+}
+
+/* Plays the close-up keyframe by keyframe on a local core with options o,
+ * each until complete; the largest memory at a complete keyframe in
+ * *largest, per keyframe checks when `check` (the budget's test). */
+static void play_path(const ms_core_options *o, double *reference_error, uint64_t *largest,
+                      ms_core_stats *last)
+{
+    bool check = o->eviction_hook != NULL;
+    ms_core *core;
+    ms_error err;
+    assert_int_equal(ms_core_start(o, &core, &err), MS_OK);
+    *largest = 0;
+    for (size_t k = 0; k < g->path.count; ++k) {
+        ms_camera cam = key_camera(k);
+        ms_core_set_camera(core, &cam);
+        ms_core_stats st;
+        if (!ms_test_core_wait_complete(core, WAIT_SECONDS, &st, NULL))
+            fail_msg("keyframe %zu not complete: '%s' '%s'", k, st.error, st.warning);
+        if (check) {
+            fprintf(stderr, "  keyframe %zu: error %.3f px at tolerance %.3f px, memory %llu "
+                    "(peak %llu), %llu evictions\n", k, st.achieved_error_px, st.tolerance_px,
+                    (unsigned long long)st.memory, (unsigned long long)st.peak_memory,
+                    (unsigned long long)st.evictions);
+            /* the view is complete at the tolerance asked for: nothing in view
+             * was coarsened for memory */
+            assert_true(st.tolerance_px == 1.0);
+            /* (above 1 px only where the archive's precision ends, as without
+             * a budget) */
+            assert_true(st.achieved_error_px <= fmax(1.0, reference_error[k]) + 1e-9);
+            assert_true(st.memory <= o->memory_target);
+            assert_true(st.peak_memory <= o->memory_ceiling);
+        }
+        if (!check)
+            reference_error[k] = st.achieved_error_px;
+        if (st.memory > *largest)
+            *largest = st.memory;
+        *last = st;
+    }
+    ms_core_stop(core);
+}
+
+/* A zoom-in under a budget that holds every keyframe's view but not the whole
+ * path's: each keyframe completes at the tolerance (1 px), the memory stays
+ * under the budget, and what is evicted is what left the view, before any
+ * cell in view is given up (docs/CLIENT.md, "Memory budget"). */
+static void test_local_budget_zoom_in(void **state)
+{
+    (void)state;
+    ms_core_options o = local_options(g->file);
+    o.export_frames = false;
+    /* a budget that never binds (split cells keep no decoder under one) */
+    o.memory_target = 1ull << 40;
+    o.memory_ceiling = 1ull << 41;
+    uint64_t view_need = 0;
+    for (size_t k = 0; k < g->path.count; ++k) {
+        ms_core *core;
+        ms_error err;
+        assert_int_equal(ms_core_start(&o, &core, &err), MS_OK);
+        ms_camera cam = key_camera(k);
+        ms_core_set_camera(core, &cam);
+        ms_core_stats st;
+        if (!ms_test_core_wait_complete(core, WAIT_SECONDS, &st, NULL))
+            fail_msg("keyframe %zu alone not complete: '%s'", k, st.error);
+        if (st.memory > view_need)
+            view_need = st.memory;
+        ms_core_stop(core);
+    }
+    ms_core_stats st;
+    uint64_t path_total;
+    double reference_error[64];
+    assert_true(g->path.count <= 64);
+    play_path(&o, reference_error, &path_total, &st);
+    assert_int_equal(st.evictions, 0);
+    fprintf(stderr, "zoom-in: the largest view holds %llu bytes alone, the whole path %llu\n",
+            (unsigned long long)view_need, (unsigned long long)path_total);
+    /* the test's premise: the path holds clearly more than any view */
+    assert_true(path_total > view_need + view_need / 8);
+    eviction_log log = {.first_in_view = SIZE_MAX, .largest_factor = 0};
+    pthread_mutex_init(&log.lock, NULL);
+    o.memory_target = view_need + (path_total - view_need) / 3;
+    o.memory_ceiling = o.memory_target + o.memory_target / 4;
+    o.eviction_hook = log_eviction;
+    o.eviction_hook_arg = &log;
+    uint64_t largest;
+    play_path(&o, reference_error, &largest, &st);
+    pthread_mutex_destroy(&log.lock);
+    fprintf(stderr, "zoom-in under %llu bytes: %zu evictions, %zu of them out of view, the "
+            "first in view at %zu, tolerance factor at most %.2f\n",
+            (unsigned long long)o.memory_target, log.count, log.out_of_view,
+            log.first_in_view == SIZE_MAX ? log.count : log.first_in_view,
+            log.largest_factor);
+    assert_true(log.count > 0);
+    assert_true(st.evictions <= log.count); /* and APO chunks of cells out of view */
+    /* every eviction while nothing in view was coarsened */
+    assert_true(log.largest_factor == 1.0);
+    /* what left the view first */
+    assert_true(log.out_of_view > 0);
+    assert_true(log.first_in_view >= log.out_of_view || log.first_in_view == SIZE_MAX);
+}
+
 /* Starts a local core on file and waits for an error or view complete. */
 static void run_local(const char *file, ms_core_stats *st)
 {
@@ -454,6 +577,7 @@ int main(void)
         cmocka_unit_test(test_local_path),
         cmocka_unit_test(test_local_bad_archives),
         cmocka_unit_test(test_local_budget_below_the_root),
+        cmocka_unit_test(test_local_budget_zoom_in),
         cmocka_unit_test(test_catalogues),
         cmocka_unit_test(test_meshload_local),
     };

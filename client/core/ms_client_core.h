@@ -194,6 +194,15 @@ typedef void (*ms_core_payload_filter)(uint32_t cell, bool apo, uint32_t offset,
 typedef void (*ms_core_index_filter)(uint32_t subtree, uint32_t offset, uint8_t *data,
                                      size_t length, void *arg);
 
+/* Test hook: sees every cell the memory budget evicts (its bytes, or the APO
+ * chunk of a shown cell outside the view), in the order evicted,
+ * on the decode thread: whether its cube meets the pass's frustum (grown by
+ * frustum_margin), and the budget's tolerance factor (1: no cell in view
+ * coarsened for memory) and culled give-up (bits taken off the cells outside
+ * the view) at that moment. */
+typedef void (*ms_core_eviction_hook)(uint32_t cell, bool in_view, double tolerance_factor,
+                                      double culled_give_up, void *arg);
+
 typedef struct ms_core_options {
     const char *host;          /* numeric IPv4/IPv6 address */
     uint16_t port;
@@ -245,6 +254,8 @@ typedef struct ms_core_options {
     ms_core_payload_filter payload_filter;
     ms_core_index_filter index_filter; /* takes payload_filter_arg too */
     void *payload_filter_arg;
+    ms_core_eviction_hook eviction_hook;
+    void *eviction_hook_arg;
 } ms_core_options;
 
 /* Starts the threads and connects; returns at once (the camera may be set

@@ -1,7 +1,18 @@
 /* The client core's memory budget (ms_client_core.h, "Memory budget"): what
- * the decoded cells hold, the tolerance steps that keep it near the target,
- * eviction of hidden cells, and the ceiling on loading. Decode thread only,
- * except the shared budget (ms_core_budget), which has its own mutex.
+ * the decoded cells hold, the steps that keep it near the target, eviction of
+ * hidden cells, and the ceiling on loading. Decode thread only, except the
+ * shared budget (ms_core_budget), which has its own mutex.
+ *
+ * Over the target the budget gives up what the view no longer shows before
+ * anything it shows: first the cached cells (hidden, culled ones first), then
+ * precision outside the frustum (the culled give-up: culled cells' need
+ * lowered CULLED_GIVE_UP_STEP bits a step, so what left the view merges and its
+ * bytes become cached, hence evictable), and only then the screen tolerance
+ * of the cells in view. It gives them back in the reverse order, a step at a
+ * time, when a what-if selection at the finer step says the cut would fit
+ * under 90 % of the target (before, it waited for memory to fall below 70 %
+ * of the target, so after a zoom-in whose close-up fits the budget but not
+ * in 70 % of it the tolerance stayed raised for good).
  *
  * A shared budget changes three things and nothing else: the memory compared
  * with the target and ceiling is every member's (each publishes its own after
@@ -21,6 +32,8 @@
 typedef struct budget_member {
     bool used;
     uint64_t memory, in_flight;
+    uint64_t finer_memory;  /* what its cut would hold one step finer (what-if); memory
+                               when it did not ask */
     double least_useful;   /* usefulness of its least useful eviction candidate; +inf none */
     double refused_need;   /* usefulness of the want the ceiling refused it last pass */
     uint64_t refused_bytes; /* that want's bytes; 0 none */
@@ -29,7 +42,7 @@ typedef struct budget_member {
 struct ms_core_budget {
     pthread_mutex_t lock;
     uint64_t target, ceiling, peak;
-    double tolerance_factor;
+    double tolerance_factor, culled_give_up;
     double last_step, last_blocked; /* ms_now_seconds */
     budget_member members[MS_CORE_BUDGET_MAX_MEMBERS];
 };
@@ -50,6 +63,7 @@ ms_status ms_core_budget_new(uint64_t memory_target, uint64_t memory_ceiling,
     b->target = memory_target;
     b->ceiling = memory_ceiling;
     b->tolerance_factor = 1.0;
+    b->culled_give_up = 0.0;
     b->last_step = ms_now_seconds();
     b->last_blocked = -1e9;
     *budget = b;
@@ -119,6 +133,7 @@ void ms_core_budget_sync(ms_core *c)
         return;
     pthread_mutex_lock(&c->shared->lock);
     c->tolerance_factor = c->shared->tolerance_factor;
+    c->culled_give_up = c->shared->culled_give_up;
     pthread_mutex_unlock(&c->shared->lock);
 }
 
@@ -127,6 +142,7 @@ typedef struct budget_terms {
     uint64_t target, ceiling;
     uint64_t others_memory;     /* held by the other members */
     uint64_t others_planned;    /* held and in flight */
+    uint64_t others_finer;      /* what they would hold one step finer */
     double others_least;        /* the other members' least useful candidate */
     double refused_need;        /* the most useful want another member was refused */
     uint64_t refused_bytes;
@@ -134,7 +150,7 @@ typedef struct budget_terms {
 
 static budget_terms read_terms(const ms_core *c)
 {
-    budget_terms bt = {c->o.memory_target, c->o.memory_ceiling, 0, 0, INFINITY, -INFINITY, 0};
+    budget_terms bt = {c->o.memory_target, c->o.memory_ceiling, 0, 0, 0, INFINITY, -INFINITY, 0};
     ms_core_budget *b = c->shared;
     if (!b)
         return bt;
@@ -146,6 +162,7 @@ static budget_terms read_terms(const ms_core *c)
             continue;
         bt.others_memory += m->memory;
         bt.others_planned += m->memory + m->in_flight;
+        bt.others_finer += m->finer_memory;
         bt.others_least = fmin(bt.others_least, m->least_useful);
         if (m->refused_bytes && m->refused_need > bt.refused_need)
             bt.refused_need = m->refused_need, bt.refused_bytes = m->refused_bytes;
@@ -154,15 +171,15 @@ static budget_terms read_terms(const ms_core *c)
     return bt;
 }
 
-static void publish(ms_core *c, uint64_t memory, uint64_t in_flight, double least_useful,
-                    double refused_need, uint64_t refused_bytes)
+static void publish(ms_core *c, uint64_t memory, uint64_t in_flight, uint64_t finer_memory,
+                    double least_useful, double refused_need, uint64_t refused_bytes)
 {
     ms_core_budget *b = c->shared;
     if (!b)
         return;
     pthread_mutex_lock(&b->lock);
-    b->members[c->member] = (budget_member){true, memory, in_flight, least_useful, refused_need,
-                                            refused_bytes};
+    b->members[c->member] = (budget_member){true, memory, in_flight, finer_memory, least_useful,
+                                            refused_need, refused_bytes};
     uint64_t held = members_held_locked(b);
     if (held > b->peak)
         b->peak = held;
@@ -178,6 +195,7 @@ static void factor_begin(ms_core *c)
         return;
     pthread_mutex_lock(&b->lock);
     c->tolerance_factor = b->tolerance_factor;
+    c->culled_give_up = b->culled_give_up;
     c->last_budget_step = b->last_step - c->t0;
     c->last_blocked = b->last_blocked - c->t0;
 }
@@ -188,24 +206,38 @@ static void factor_end(ms_core *c)
     if (!b)
         return;
     b->tolerance_factor = c->tolerance_factor;
+    b->culled_give_up = c->culled_give_up;
     b->last_step = c->last_budget_step + c->t0;
     b->last_blocked = c->last_blocked + c->t0;
     pthread_mutex_unlock(&b->lock);
 }
 
-/* What a cell holds: payload bytes and, shown, its decoded estimate. */
+/* What a cell holds: payload bytes and, shown (or split with its decoder),
+ * its decoded estimate. */
 static uint64_t cell_memory(const ms_core *c, uint32_t cell)
 {
     const dcell *d = ms_core_dcell(c, cell);
     uint64_t m = ms_view_held_bytes(c->view, cell) + d->geo.cap + d->apo.cap;
-    if (ms_view_state(c->view, cell) != MS_VIEW_HIDDEN)
+    ms_view_cell_state state = ms_view_state(c->view, cell);
+    if (state == MS_VIEW_SHOWN || (state == MS_VIEW_SPLIT && ms_view_holds_decoder(c->view, cell)))
         m += (uint64_t)ms_core_decoded_estimate(ms_archive_get_cell(c->index, cell),
                                                 ms_view_bits(c->view, cell));
     return m;
 }
 
-static void evict(ms_core *c, uint32_t cell)
+typedef struct evict_candidate {
+    uint32_t cell;
+    double usefulness;
+    uint64_t bytes;
+    bool visible;           /* its cube meets the pass's frustum */
+} evict_candidate;
+
+static void evict(ms_core *c, const evict_candidate *e)
 {
+    uint32_t cell = e->cell;
+    if (c->o.eviction_hook)
+        c->o.eviction_hook(cell, e->visible, c->tolerance_factor, c->culled_give_up,
+                           c->o.eviction_hook_arg);
     dcell *d = ms_core_dcell(c, cell);
     ms_view_forget(c->view, cell, NULL);
     ms_core_rx_free(&d->geo);
@@ -217,12 +249,6 @@ static void evict(ms_core *c, uint32_t cell)
     c->stats.evictions++;
     pthread_mutex_unlock(&c->lock);
 }
-
-typedef struct evict_candidate {
-    uint32_t cell;
-    double usefulness;
-    uint64_t bytes;
-} evict_candidate;
 
 static int compare_candidates(const void *x, const void *y)
 {
@@ -262,7 +288,7 @@ static evict_candidate *evict_candidates(ms_core *c, const frame_view *fv, size_
             continue;
         bool visible;
         double u = ms_core_cell_need(c, fv, i, &visible);
-        cand[nc++] = (evict_candidate){i, visible ? u : u - 64.0, b};
+        cand[nc++] = (evict_candidate){i, visible ? u : u - 64.0, b, visible};
     }
     if (nc)
         qsort(cand, nc, sizeof *cand, compare_candidates);
@@ -279,9 +305,52 @@ static void evict_unneeded(ms_core *c, const frame_view *fv, uint64_t limit, dou
     uint64_t m = memory_held(c);
     for (size_t k = 0; k < nc && m > limit && cand[k].usefulness <= at_most; ++k) {
         m -= cand[k].bytes < m ? cand[k].bytes : m;
-        evict(c, cand[k].cell);
+        evict(c, &cand[k]);
     }
     free(cand);
+}
+
+/* Under a budget a split cell keeps no decoder: its complex at bits_max is
+ * what its children hold, refined, and on a close-up the ancestors held most
+ * of the decoded memory (a merge decodes it again from its bytes). */
+static void drop_split_decoders(ms_core *c)
+{
+    for (uint32_t i = 0; i != MS_ARCHIVE_NONE; i = ms_view_next_known(c->view, i))
+        if (ms_view_state(c->view, i) == MS_VIEW_SPLIT) {
+            if (ms_view_holds_decoder(c->view, i))
+                (void)ms_view_drop_decoder(c->view, i, NULL);
+            /* nor APO: a split cell is not drawn */
+            dcell *d = ms_core_dcell(c, i);
+            if (d->apo.cap) {
+                ms_core_rx_free(&d->apo);
+                d->apo_given = 0;
+            }
+        }
+}
+
+/* Over the target with the cache spent: the APO chunks of shown cells
+ * outside the view (fetched while they were in it; a culled cell fetches
+ * none) go before any precision; returns the bytes freed. */
+static uint64_t drop_culled_apo(ms_core *c, dec_pass *pass)
+{
+    uint64_t freed = 0;
+    for (uint32_t i = 0; i != MS_ARCHIVE_NONE; i = ms_view_next_known(c->view, i)) {
+        dcell *d = ms_core_dcell(c, i);
+        if (!d->apo.cap || ms_view_state(c->view, i) != MS_VIEW_SHOWN)
+            continue;
+        bool visible;
+        (void)ms_core_cell_need(c, &pass->fv, i, &visible);
+        if (visible)
+            continue;
+        freed += d->apo.cap;
+        if (c->o.eviction_hook)
+            c->o.eviction_hook(i, false, c->tolerance_factor, c->culled_give_up,
+                               c->o.eviction_hook_arg);
+        ms_core_rx_free(&d->apo);
+        d->apo_given = 0;
+        pass->changed = true;
+    }
+    return freed;
 }
 
 /* Selects and applies the view for the pass's tolerance; false when decoding
@@ -300,10 +369,20 @@ static bool reselect(ms_core *c, dec_pass *pass)
     return true;
 }
 
+/* The pass's selection parameters for the core's factor and give-up. */
+static void pass_params(const ms_core *c, dec_pass *pass)
+{
+    pass->fv.tolerance = pass->sp.tolerance_px = pass->base_tol * c->tolerance_factor;
+    pass->sp.culled_bits_less = c->o.culled_bits_less + c->culled_give_up;
+}
+
 bool ms_core_budget_ceiling(ms_core *c, dec_pass *pass)
 {
+    if (c->o.memory_target || c->shared)
+        drop_split_decoders(c);
     /* Hard ceiling: evict what the view does not need; if that is not enough,
-     * coarsen at once (double the tolerance) and evict what that frees. */
+     * give up at once every bit outside the view it can, then coarsen the
+     * view (double the tolerance), evicting what each step frees. */
     for (int round = 0; round < 8; ++round) {
         budget_terms bt = read_terms(c);
         if (!bt.ceiling || memory_held(c) + bt.others_memory <= bt.ceiling)
@@ -315,37 +394,113 @@ bool ms_core_budget_ceiling(ms_core *c, dec_pass *pass)
         if (memory_held(c) + bt.others_memory <= bt.ceiling || bt.others_least < INFINITY)
             break;
         factor_begin(c);
-        bool at_most = c->tolerance_factor >= MAX_TOLERANCE_FACTOR;
-        if (!at_most) {
+        bool at_most = c->tolerance_factor >= MAX_TOLERANCE_FACTOR &&
+                       c->culled_give_up >= MAX_CULLED_GIVE_UP;
+        if (c->culled_give_up < MAX_CULLED_GIVE_UP)
+            c->culled_give_up = MAX_CULLED_GIVE_UP;
+        else if (!at_most)
             c->tolerance_factor *= 2;
+        if (!at_most)
             c->last_budget_step = ms_core_since_start(c);
-        }
         factor_end(c);
         if (at_most)
             break;
         pass->factor = c->tolerance_factor;
-        pass->fv.tolerance = pass->sp.tolerance_px = pass->base_tol * pass->factor;
+        pass_params(c, pass);
         if (!reselect(c, pass))
             return false;
+        drop_split_decoders(c);
         pass->changed = true;
     }
     return true;
 }
 
-/* Over the target: raise the tolerance half a bit (every 0.1 s at most);
- * well below it and not blocked lately: lower it back. */
-static void step_tolerance(ms_core *c, uint64_t memory, uint64_t target, double t)
+/* One step coarser (every 0.1 s at most): first CULLED_GIVE_UP_STEP
+ * bits off the cells outside the view, and only when those are at their
+ * coarsest, the tolerance of the view half a bit (x1.41). */
+static void coarsen_step(ms_core *c, double t)
 {
     factor_begin(c);
-    if (memory > target && c->tolerance_factor < MAX_TOLERANCE_FACTOR &&
-        t - c->last_budget_step > 0.1) {
-        c->tolerance_factor *= M_SQRT2;
-        c->last_budget_step = t;
-    } else if (memory < 0.7 * target && c->tolerance_factor > 1.0 &&
-               t - c->last_budget_step > 0.1 && t - c->last_blocked > 2.0) {
-        c->tolerance_factor /= M_SQRT2;
-        if (c->tolerance_factor < 1.0)
-            c->tolerance_factor = 1.0;
+    if (t - c->last_budget_step > 0.1) {
+        if (c->culled_give_up < MAX_CULLED_GIVE_UP) {
+            c->culled_give_up = fmin(MAX_CULLED_GIVE_UP, c->culled_give_up + CULLED_GIVE_UP_STEP);
+            c->last_budget_step = t;
+        } else if (c->tolerance_factor < MAX_TOLERANCE_FACTOR) {
+            c->tolerance_factor = fmin(MAX_TOLERANCE_FACTOR, c->tolerance_factor * M_SQRT2);
+            c->last_budget_step = t;
+        }
+    }
+    factor_end(c);
+}
+
+/* The step back, finer, from (factor, give_up): the view's tolerance first,
+ * then the bits outside the view. False when at the finest already. */
+static bool finer_step(double factor, double give_up, double *finer_factor,
+                       double *finer_give_up)
+{
+    *finer_factor = factor, *finer_give_up = give_up;
+    if (factor > 1.0)
+        *finer_factor = fmax(1.0, factor / M_SQRT2);
+    else if (give_up > 0.0)
+        *finer_give_up = fmax(0.0, give_up - CULLED_GIVE_UP_STEP);
+    else
+        return false;
+    return true;
+}
+
+/* What the cut would hold with the selection at (factor, give_up): every cell
+ * it would show or split, at that precision (its payload prefix, or what it
+ * holds if more, its APO bytes and its decoded estimate), and the index and
+ * state held; cached cells are left out (they are evicted first). A what-if:
+ * the view's targets are the pass's again after it. */
+static uint64_t what_if_memory(ms_core *c, dec_pass *pass, double factor, double give_up)
+{
+    ms_view_select_params sp = pass->sp;
+    sp.tolerance_px = pass->base_tol * factor;
+    sp.culled_bits_less = c->o.culled_bits_less + give_up;
+    ms_view_select(c->view, pass->cam, &sp, &c->what_if_report);
+    uint64_t m = c->by_subtree ? c->index_bytes_held + ms_core_state_bytes_held(c) : 0;
+    for (uint32_t i = 0; i != MS_ARCHIVE_NONE; i = ms_view_next_known(c->view, i)) {
+        uint8_t target = ms_view_target(c->view, i);
+        if (target == MS_VIEW_TARGET_HIDDEN)
+            continue;
+        const ms_archive_cell *rec = ms_archive_get_cell(c->index, i);
+        unsigned bits = target == MS_VIEW_TARGET_SPLIT ? rec->bits_max : target;
+        const dcell *d = ms_core_dcell(c, i);
+        uint64_t held = ms_view_held_bytes(c->view, i) + d->geo.cap;
+        uint64_t prefix = ms_archive_geometry_prefix(c->index, i, bits);
+        m += (held > prefix ? held : prefix) + d->apo.cap;
+        if (target != MS_VIEW_TARGET_SPLIT) /* a split cell's decoder is dropped */
+            m += (uint64_t)ms_core_decoded_estimate(rec, bits);
+    }
+    ms_view_select(c->view, pass->cam, &pass->sp, &c->report);
+    return m;
+}
+
+/* Below the target: one step finer when the cut would then fit under 90 % of
+ * it (the others' cuts too, with a shared budget: each member publishes what
+ * its cut would hold one step finer), at most every 0.1 s and not within 2 s
+ * of loading having been blocked. *finer_memory: this core's what-if (its
+ * memory when there is no finer step to weigh). */
+static void relax_step(ms_core *c, dec_pass *pass, const budget_terms *bt, double t,
+                       uint64_t *finer_memory)
+{
+    *finer_memory = pass->memory;
+    factor_begin(c);
+    double factor = c->tolerance_factor, give_up = c->culled_give_up;
+    bool due = t - c->last_budget_step > 0.1 && t - c->last_blocked > 2.0;
+    factor_end(c);
+    double finer_factor, finer_give_up;
+    if (!finer_step(factor, give_up, &finer_factor, &finer_give_up))
+        return;
+    *finer_memory = what_if_memory(c, pass, finer_factor, finer_give_up);
+    if (!due || *finer_memory + bt->others_finer > 0.9 * (double)bt->target)
+        return;
+    factor_begin(c);
+    /* shared: another member may have stepped meanwhile; step from where it is */
+    if (c->tolerance_factor == factor && c->culled_give_up == give_up) {
+        c->tolerance_factor = finer_factor;
+        c->culled_give_up = finer_give_up;
         c->last_budget_step = t;
     }
     factor_end(c);
@@ -381,7 +536,7 @@ static size_t fit_wants(ms_core *c, dec_pass *pass, const evict_candidate *cand,
         while (planned + need_bytes > ceiling && *next < nc && cand[*next].usefulness + 1.0 < u) {
             planned -= cand[*next].bytes < planned ? cand[*next].bytes : planned;
             *memory -= cand[*next].bytes < *memory ? cand[*next].bytes : *memory;
-            evict(c, cand[(*next)++].cell);
+            evict(c, &cand[(*next)++]);
         }
         if (planned + need_bytes > ceiling) {
             *refused_need = u;
@@ -403,39 +558,47 @@ void ms_core_budget_step(ms_core *c, dec_pass *pass)
         return;
     budget_terms bt = read_terms(c);
     double t = ms_core_since_start(c);
-    step_tolerance(c, pass->memory + bt.others_memory, bt.target, t);
     size_t nc;
     evict_candidate *cand = evict_candidates(c, &pass->fv, &nc);
     size_t next = 0;
     /* over the target: free down to 90 % of it, least useful first (of all
-     * the members: shared, this core evicts while it holds the least useful) */
+     * the members: shared, this core evicts while it holds the least useful);
+     * cached cells go before anything shown is coarsened */
     if (pass->memory + bt.others_memory > bt.target)
         while (pass->memory + bt.others_memory > 0.9 * bt.target && next < nc &&
                cand[next].usefulness <= bt.others_least) {
             pass->memory -= cand[next].bytes;
-            evict(c, cand[next++].cell);
+            evict(c, &cand[next++]);
         }
     /* another member was refused a range clearly (one bit) more useful than
      * this core's candidates: make room for it */
     while (bt.refused_bytes && next < nc && cand[next].usefulness + 1.0 < bt.refused_need &&
            pass->memory + in_flight + bt.others_planned + bt.refused_bytes > bt.ceiling) {
         pass->memory -= cand[next].bytes < pass->memory ? cand[next].bytes : pass->memory;
-        evict(c, cand[next++].cell);
+        evict(c, &cand[next++]);
     }
+    /* still over the target with the cache spent: the cut itself is too big,
+     * so a step coarser (outside the view first); below it, perhaps finer */
+    uint64_t finer_memory = pass->memory;
+    if (pass->memory + bt.others_memory > bt.target) {
+        uint64_t freed = drop_culled_apo(c, pass);
+        pass->memory -= freed < pass->memory ? freed : pass->memory;
+    }
+    if (pass->memory + bt.others_memory > bt.target)
+        coarsen_step(c, t);
+    else
+        relax_step(c, pass, &bt, t, &finer_memory);
     double refused_need;
     uint64_t refused_bytes;
     size_t keep = fit_wants(c, pass, cand, nc, &next, &pass->memory, in_flight, &bt,
                             &refused_need, &refused_bytes);
     if (keep < pass->wl.n && in_flight == 0) {
         /* blocked by the ceiling with nothing on its way: the view cannot
-         * complete at this tolerance, so raise it (as over the target) */
+         * complete at this tolerance, so a step coarser (as over the target) */
         factor_begin(c);
         c->last_blocked = t;
-        if (t - c->last_budget_step > 0.1 && c->tolerance_factor < MAX_TOLERANCE_FACTOR) {
-            c->tolerance_factor *= M_SQRT2;
-            c->last_budget_step = t;
-        }
         factor_end(c);
+        coarsen_step(c, t);
         if (pass->factor >= MAX_TOLERANCE_FACTOR && !c->budget_floor_warned) {
             /* nothing more can be given up: this pass selected at the coarsest
              * and is still blocked, so the view cannot complete in this budget,
@@ -450,7 +613,7 @@ void ms_core_budget_step(ms_core *c, dec_pass *pass)
         }
     }
     pass->wl.n = keep;
-    publish(c, pass->memory, in_flight, next < nc ? cand[next].usefulness : INFINITY,
-            refused_need, refused_bytes);
+    publish(c, pass->memory, in_flight, finer_memory,
+            next < nc ? cand[next].usefulness : INFINITY, refused_need, refused_bytes);
     free(cand);
 }

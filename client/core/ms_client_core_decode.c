@@ -333,7 +333,7 @@ static void dec_pass_begin(ms_core *c, const ms_camera *cam, dec_pass *pass)
     pass->sp = (ms_view_select_params){.tolerance_px = pass->fv.tolerance,
                                        .margin = c->o.frustum_margin,
                                        .hysteresis = c->o.hysteresis_bits,
-                                       .culled_bits_less = c->o.culled_bits_less,
+                                       .culled_bits_less = c->o.culled_bits_less + c->culled_give_up,
                                        .chunkless_tolerance_scale = chunkless,
                                        .permitted_steps = c->preview_steps};
 }

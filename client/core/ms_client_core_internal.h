@@ -36,6 +36,12 @@
 #define SLOT_BUCKET_BITS 10u /* 1,024 chains for at most MAX_SLOTS slots */
 #define BYTES_PER_VERTEX 64.0
 #define MAX_TOLERANCE_FACTOR 4096.0
+/* Bits the budget gives up on cells outside the view before it coarsens any
+ * cell in it (added to culled_bits_less, CULLED_GIVE_UP_STEP at a time): at
+ * the most every culled cell is at its coarsest and what the view no longer
+ * sees merges into the cells that reach into it. */
+#define MAX_CULLED_GIVE_UP 32.0
+#define CULLED_GIVE_UP_STEP 4.0
 /* A stored subtree's size before its first frame tells it (a window's guess:
  * the dragon's average is 1.5 KB, a 30,000-triangle demo's 0.9 KB) */
 #define SUBTREE_BYTES_GUESS 2048u
@@ -255,6 +261,9 @@ struct ms_core {
     uint64_t index_bytes_held;  /* raw index bytes of the subtrees held */
     bool subtrees_changed;      /* a subtree came or went since the last pass's frame */
     double tolerance_factor, last_budget_step, last_blocked;
+    double culled_give_up;    /* bits the budget takes off culled cells' need (on top
+                                 of o.culled_bits_less), 0 .. MAX_CULLED_GIVE_UP */
+    ms_view_select_report what_if_report; /* scratch of the budget's what-if selection */
     bool budget_floor_warned; /* the "budget too small" warning was given */
     uint64_t generation;
     uint64_t consumed_seq;
@@ -437,7 +446,8 @@ bool ms_core_budget_ceiling(ms_core *c, dec_pass *pass);
  * MS_ERR_ARG when full. */
 ms_status ms_core_budget_join(ms_core_budget *budget, int *member, ms_error *err);
 void ms_core_budget_leave(ms_core_budget *budget, int member);
-/* Takes the shared tolerance factor into the core (decode thread, pass start). */
+/* Takes the shared tolerance factor and culled give-up into the core (decode
+ * thread, pass start). */
 void ms_core_budget_sync(ms_core *c);
 /* Measures memory into pass->memory; with a budget, steps the tolerance,
  * evicts, and cuts pass->wl where loading would cross the ceiling. */

@@ -321,4 +321,5 @@ void ms_core_subtrees_free(ms_core *c)
     c->subtrees = NULL;
     c->subtree_count = c->subtree_cap = 0;
     ms_view_select_report_free(&c->report);
+    ms_view_select_report_free(&c->what_if_report);
 }

@@ -368,6 +368,52 @@ unsigned ms_view_available_bits(const ms_view *v, uint32_t cell)
     return c ? held_bits(c) : 0;
 }
 
+/* A fresh decoder of cell from its bytes (and its start state, below the
+ * root) at `bits`: the complex a split cell had before its decoder was
+ * dropped (ms_view_drop_decoder). Decoding is deterministic, so this is the
+ * very complex the dropped decoder held. */
+static ms_status decoder_at(const ms_view *v, const vcell *c, uint32_t cell, unsigned bits,
+                            ms_codec_decoder **out, ms_error *err)
+{
+    *out = NULL;
+    ms_quant_box box = {{v->header.box_origin[0], v->header.box_origin[1], v->header.box_origin[2]},
+                        v->header.box_side};
+    ms_codec_decoder_options o = {.box = &box};
+    ms_codec_decoder *d;
+    ms_status s = ms_codec_decoder_create(c->bytes, c->nbytes, cell == 0 ? NULL : &c->start, &o,
+                                          &d, err);
+    if (s != MS_OK)
+        return s;
+    if (ms_codec_decoder_available_level(d) < 3 * bits)
+        s = ms_error_set(err, MS_ERR_FORMAT, "cell %u: bytes for %u bits not held", cell, bits);
+    else
+        s = ms_codec_decoder_set_level(d, 3 * bits, err);
+    if (s != MS_OK) {
+        ms_codec_decoder_destroy(d);
+        return s;
+    }
+    *out = d;
+    return MS_OK;
+}
+
+ms_status ms_view_drop_decoder(ms_view *v, uint32_t cell, ms_error *err)
+{
+    vcell *c = ms_view_vcell(v, cell);
+    if (!c || c->state != MS_VIEW_SPLIT)
+        return ms_error_set(err, MS_ERR_RANGE, "cell %u is not split", cell);
+    if (c->dec)
+        ms_codec_decoder_destroy(c->dec);
+    c->dec = NULL;
+    c->dec_bytes = 0;
+    return MS_OK;
+}
+
+bool ms_view_holds_decoder(const ms_view *v, uint32_t cell)
+{
+    const vcell *c = ms_view_vcell(v, cell);
+    return c && c->dec;
+}
+
 /* Makes sure the cell's decoder exists and can reach `bits` (extending it with
  * the bytes that came since, so decoding goes on from its current level). */
 static ms_status ensure_decoder(ms_view *v, uint32_t cell, unsigned bits, ms_error *err)
@@ -447,6 +493,18 @@ ms_status ms_view_cell_state_copy(const ms_view *v, uint32_t cell, ms_codec_stat
         ms_status s = ms_codec_decoder_state(c->dec, out, err);
         if (s == MS_OK)
             s = ms_codec_state_canonicalise(out, err);
+        return s;
+    }
+    if (c->state == MS_VIEW_SPLIT && c->rec.geometry_length > 0 && (cell == 0 || c->has_start)) {
+        /* its decoder was dropped: decode its complex again, for this copy only */
+        ms_codec_decoder *d;
+        ms_status s = decoder_at(v, c, cell, c->rec.bits_max, &d, err);
+        if (s == MS_OK) {
+            s = ms_codec_decoder_state(d, out, err);
+            if (s == MS_OK)
+                s = ms_codec_state_canonicalise(out, err);
+            ms_codec_decoder_destroy(d);
+        }
         return s;
     }
     out->bits = c->rec.bits_max;
@@ -538,7 +596,9 @@ ms_status ms_view_split(ms_view *v, uint32_t cell, ms_error *err)
     return s;
 }
 
-ms_status ms_view_merge(ms_view *v, uint32_t cell, ms_error *err)
+/* Merges a split cell; `rebuild`: decode its complex again if its decoder
+ * was dropped (not for descendants, which are reset at once). */
+static ms_status merge_cell(ms_view *v, uint32_t cell, bool rebuild, ms_error *err)
 {
     vcell *c = ms_view_vcell(v, cell);
     if (!c || c->state != MS_VIEW_SPLIT)
@@ -548,12 +608,23 @@ ms_status ms_view_merge(ms_view *v, uint32_t cell, ms_error *err)
         uint32_t id = c->rec.first_child + k;
         vcell *ch = ms_view_vcell(v, id); /* known: a split cell's children stay known */
         if (ch->state == MS_VIEW_SPLIT)
-            (void)ms_view_merge(v, id, NULL);
+            (void)merge_cell(v, id, false, NULL);
         cell_reset(ch);
     }
     c->state = MS_VIEW_SHOWN;
     c->bits = c->rec.bits_max;
+    if (rebuild && !c->dec && c->rec.geometry_length > 0 && (cell == 0 || c->has_start)) {
+        ms_status s = decoder_at(v, c, cell, c->rec.bits_max, &c->dec, err);
+        if (s != MS_OK)
+            return s;
+        c->dec_bytes = c->nbytes;
+    }
     return MS_OK;
+}
+
+ms_status ms_view_merge(ms_view *v, uint32_t cell, ms_error *err)
+{
+    return merge_cell(v, cell, true, err);
 }
 
 /* ---- selection ------------------------------------------------------------ */

@@ -159,8 +159,20 @@ ms_status ms_view_set_bits(ms_view *view, uint32_t cell, unsigned bits, ms_error
 ms_status ms_view_split(ms_view *view, uint32_t cell, ms_error *err);
 
 /* Merges a SPLIT cell back (merging split descendants first): it becomes SHOWN at
- * bits_max, exactly as it was before the split. */
+ * bits_max, exactly as it was before the split (decoded again from its bytes
+ * when its decoder was dropped; an error from that leaves it SHOWN without
+ * one). */
 ms_status ms_view_merge(ms_view *view, uint32_t cell, ms_error *err);
+
+/* Frees the decoder of a SPLIT cell: the complex at bits_max that its
+ * children now hold, refined (a client's memory budget: the ancestors of a
+ * close-up held most of its decoded memory). The bytes and start state stay,
+ * so ms_view_merge decodes the cell again (the identical complex, decoding
+ * being deterministic) and ms_view_cell_state_copy decodes it for the copy.
+ * A no-op when it holds none. MS_ERR_RANGE when the cell is not SPLIT. */
+ms_status ms_view_drop_decoder(ms_view *view, uint32_t cell, ms_error *err);
+/* Whether the cell holds a decoder (a decoded complex). */
+bool ms_view_holds_decoder(const ms_view *view, uint32_t cell);
 
 /* The current complex of a SHOWN or SPLIT cell, canonical (ms_codec.h); caller
  * frees. Empty cells give vertex_count 0. */
