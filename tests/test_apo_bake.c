@@ -356,7 +356,13 @@ static void test_cli_reports_apo(void **state)
     assert_true(bytes > 0 && internal > 0 && leaves > internal);
     assert_int_equal(raw, 4 * texels);
     assert_int_equal(texels, leaves + 2 * internal);
-    assert_true(json_is_number(json_object_get(json_object_get(j, "seconds"), "apo")));
+    json_t *seconds = json_object_get(j, "seconds");
+    assert_true(json_is_number(json_object_get(seconds, "apo")));
+    /* the APO build's share of the bake: its seconds over the total */
+    double share = json_number_value(json_object_get(apo, "share_of_bake"));
+    assert_true(share >= 0 && share <= 1);
+    assert_float_equal(share, json_number_value(json_object_get(seconds, "apo")) /
+                                  json_number_value(json_object_get(seconds, "total")), 1e-9);
     json_t *sampling = json_object_get(apo, "sampling");
     json_int_t rays = json_integer_value(json_object_get(sampling, "rays"));
     assert_true(rays > 0 && rays <= 2 * (json_int_t)MS_APO_SAMPLES_PER_LEAF * leaves);
