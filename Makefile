@@ -171,7 +171,7 @@ test:
 models:
 	@scripts/fetch-models
 
-# The unit tier alone, every core at once: no servers, no display, no shared models.
+# The unit tier alone, every core at once: no servers, no display, no fetched models.
 UNIT_TESTS := $(patsubst %,build/asan/tests/%,$(shell awk '$$1 ~ /^test_/ && $$2 == "unit" {print $$1}' tests/tiers.txt))
 check:
 	@$(MAKE) --no-print-directory MODE=asan $(UNIT_TESTS)

@@ -1,5 +1,5 @@
 /* The repository stands alone (issue 33): a clone of the committed tree into a
- * scratch folder with nothing beside it (no ../shared, no MESHSTREAM_MODELS,
+ * scratch folder with nothing beside it (no sibling folders, no MESHSTREAM_MODELS,
  * no build/) builds and passes `make check`, the unit tier. The clone is of
  * HEAD, so uncommitted changes are not part of it; outside a git checkout (a
  * release tarball) the test is skipped, saying so. The figures of the run (its
