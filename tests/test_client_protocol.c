@@ -215,27 +215,8 @@ static int setup(void **state)
      * server sends right decodes without a warning of its own */
     char off[600], bin[512], cmd[2000], out[4096];
     snprintf(off, sizeof off, "%s/sphere.off", x->dir);
-    FILE *m = fopen(off, "w");
-    if (!m)
+    if (ms_test_write_bumpy_sphere(off, 1.0) != 0)
         return -1;
-    enum { NU = 48, NV = 24 };
-    fprintf(m, "OFF\n%d %d 0\n", NU * (NV + 1), 2 * NU * (NV - 1));
-    for (int j = 0; j <= NV; ++j)
-        for (int i = 0; i < NU; ++i) {
-            double th = M_PI * j / NV, ph = 2 * M_PI * i / NU;
-            double r = 1 + 0.05 * sin(5 * ph) * sin(3 * th);
-            fprintf(m, "%.17g %.17g %.17g\n", r * sin(th) * cos(ph), r * cos(th),
-                    r * sin(th) * sin(ph));
-        }
-    for (int j = 0; j < NV; ++j)
-        for (int i = 0; i < NU; ++i) {
-            int a = j * NU + i, b = j * NU + (i + 1) % NU, c = a + NU, d = b + NU;
-            if (j > 0)
-                fprintf(m, "3 %d %d %d\n", a, b, c);
-            if (j < NV - 1)
-                fprintf(m, "3 %d %d %d\n", b, d, c);
-        }
-    fclose(m);
     ms_test_bin_path(bin, sizeof bin, "meshbake");
     snprintf(cmd, sizeof cmd, "%s %s -o %s/archives --name fake --min-tris 200 2>&1", bin, off,
              x->dir);

@@ -47,26 +47,7 @@ static void bake_sphere(const fixture *f, const char *name, double scale)
 {
     char off[700], bin[512], cmd[2000], out[4096];
     snprintf(off, sizeof off, "%s/%s.off", f->dir, name);
-    FILE *m = fopen(off, "w");
-    assert_non_null(m);
-    enum { NU = 48, NV = 24 };
-    fprintf(m, "OFF\n%d %d 0\n", NU * (NV + 1), 2 * NU * (NV - 1));
-    for (int j = 0; j <= NV; ++j)
-        for (int i = 0; i < NU; ++i) {
-            double th = M_PI * j / NV, ph = 2 * M_PI * i / NU;
-            double r = scale * (1 + 0.05 * sin(5 * ph) * sin(3 * th));
-            fprintf(m, "%.17g %.17g %.17g\n", r * sin(th) * cos(ph), r * cos(th),
-                    r * sin(th) * sin(ph));
-        }
-    for (int j = 0; j < NV; ++j)
-        for (int i = 0; i < NU; ++i) {
-            int a = j * NU + i, b = j * NU + (i + 1) % NU, c = a + NU, d = b + NU;
-            if (j > 0)
-                fprintf(m, "3 %d %d %d\n", a, b, c);
-            if (j < NV - 1)
-                fprintf(m, "3 %d %d %d\n", b, d, c);
-        }
-    assert_int_equal(fclose(m), 0);
+    assert_int_equal(ms_test_write_bumpy_sphere(off, scale), 0);
     ms_test_bin_path(bin, sizeof bin, "meshbake");
     snprintf(cmd, sizeof cmd, "%s %s -o %s/archives --name %s --min-tris 200 2>&1", bin, off,
              f->dir, name);

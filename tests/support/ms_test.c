@@ -1,5 +1,6 @@
 #include "ms_test.h"
 
+#include <math.h>
 #include <stdarg.h>
 #include <stddef.h>
 #include <setjmp.h>
@@ -121,4 +122,29 @@ json_t *ms_test_run_json(const char *command, int want_status)
         fail_msg("'%s': not JSON (%s): %.300s", command, je.text, out);
     free(out);
     return root;
+}
+
+int ms_test_write_bumpy_sphere(const char *path, double scale)
+{
+    FILE *m = fopen(path, "w");
+    if (!m)
+        return -1;
+    enum { NU = 48, NV = 24 };
+    fprintf(m, "OFF\n%d %d 0\n", NU * (NV + 1), 2 * NU * (NV - 1));
+    for (int j = 0; j <= NV; ++j)
+        for (int i = 0; i < NU; ++i) {
+            double th = M_PI * j / NV, ph = 2 * M_PI * i / NU;
+            double r = scale * (1 + 0.05 * sin(5 * ph) * sin(3 * th));
+            fprintf(m, "%.17g %.17g %.17g\n", r * sin(th) * cos(ph), r * cos(th),
+                    r * sin(th) * sin(ph));
+        }
+    for (int j = 0; j < NV; ++j)
+        for (int i = 0; i < NU; ++i) {
+            int a = j * NU + i, b = j * NU + (i + 1) % NU, c = a + NU, d = b + NU;
+            if (j > 0)
+                fprintf(m, "3 %d %d %d\n", a, b, c);
+            if (j < NV - 1)
+                fprintf(m, "3 %d %d %d\n", b, d, c);
+        }
+    return fclose(m) == 0 ? 0 : -1;
 }

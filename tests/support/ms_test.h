@@ -30,6 +30,11 @@ int ms_test_run(const char *command, char *out, size_t size);
  * test otherwise, quoting the command and its output. */
 json_t *ms_test_run_json(const char *command, int want_status);
 
+/* Writes path: an OFF bumpy sphere of radius about `scale` (48 x 24 grid,
+ * 2,256 triangles, closed), for tests that bake a small real model.
+ * 0, or -1 when the file cannot be written. */
+int ms_test_write_bumpy_sphere(const char *path, double scale);
+
 /* A whole file into a malloc'd buffer (the caller frees it), and a buffer into
  * a file; both fail the test on any error. */
 unsigned char *ms_test_read_file(const char *path, size_t *size);
