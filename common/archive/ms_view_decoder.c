@@ -20,13 +20,19 @@ void ms_view_cache_drop(vcell *c)
     c->cache_valid = false;
 }
 
-static void cell_reset(vcell *c)
+/* The cell's codec decoder, freed: a later decode starts again from its bytes. */
+static void decoder_drop(vcell *c)
 {
-    ms_view_cache_drop(c);
     if (c->dec)
         ms_codec_decoder_destroy(c->dec);
     c->dec = NULL;
     c->dec_bytes = 0;
+}
+
+static void cell_reset(vcell *c)
+{
+    ms_view_cache_drop(c);
+    decoder_drop(c);
     ms_codec_state_free(&c->start);
     c->has_start = false;
     c->state = MS_VIEW_HIDDEN;
@@ -401,10 +407,7 @@ ms_status ms_view_drop_decoder(ms_view *v, uint32_t cell, ms_error *err)
     vcell *c = ms_view_vcell(v, cell);
     if (!c || c->state != MS_VIEW_SPLIT)
         return ms_error_set(err, MS_ERR_RANGE, "cell %u is not split", cell);
-    if (c->dec)
-        ms_codec_decoder_destroy(c->dec);
-    c->dec = NULL;
-    c->dec_bytes = 0;
+    decoder_drop(c);
     return MS_OK;
 }
 
