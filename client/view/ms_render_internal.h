@@ -109,7 +109,10 @@ typedef struct ms_render_split {
     double *fan_sum;         /* 3 per fan corner: the group sums, at the group's root */
     size_t fan_cap;
     double *face_slack;      /* per triangle: how far its normal may be off, radians
-                                (its vertices' decode error over its smallest height) */
+                                (its vertices' decode error over its smallest height);
+                                -e until asked for (the atan2 only where an edge
+                                fails the plain crease test), e its corners' error */
+    double *face_rlen;       /* per triangle: 1 / |face_normal| (0 for no area) */
     double crease_cos;       /* cosine of the crease angle of the last split */
     double crease_rad;       /* the crease angle of the last split, radians */
     float *vertices;

@@ -45,6 +45,7 @@ void ms_render_split_free(ms_render_split *s)
     free(s->stamp);
     free(s->face_normal);
     free(s->face_slack);
+    free(s->face_rlen);
     free(s->corner_packed);
     free(s->fan);
     free(s->fan_start);
@@ -136,6 +137,32 @@ static uint32_t fan_find(ms_render_split *s, uint32_t i, uint8_t *flip)
     return root;
 }
 
+/* How far triangle t's normal may be off (radians): a corner moved by e
+ * tilts the plane by up to about atan(e / h), h the smallest height (twice
+ * the area over the longest side). Computed when first asked for: most
+ * edges pass the plain crease test and never ask. */
+static double face_slack(ms_render_split *s, const ms_view_mesh *mesh, uint32_t t)
+{
+    double slack = s->face_slack[t];
+    if (slack >= 0.0)
+        return slack;
+    double e = -slack;
+    const uint32_t *tri = &mesh->triangles[3 * (size_t)t];
+    const double *p = mesh->positions;
+    const double *a = &p[3 * (size_t)tri[0]], *b = &p[3 * (size_t)tri[1]], *c = &p[3 * (size_t)tri[2]];
+    double l = 0.0;
+    for (int k = 0; k < 3; ++k) {
+        const double *u = k == 0 ? a : k == 1 ? b : c, *w = k == 0 ? b : k == 1 ? c : a;
+        double d2 = (w[0] - u[0]) * (w[0] - u[0]) + (w[1] - u[1]) * (w[1] - u[1]) +
+                    (w[2] - u[2]) * (w[2] - u[2]);
+        l = d2 > l ? d2 : l;
+    }
+    double twice_area = s->face_rlen[t] > 0.0 ? 1.0 / s->face_rlen[t] : 0.0;
+    slack = twice_area > 0.0 ? atan2(e * sqrt(l), twice_area) : M_PI / 2;
+    s->face_slack[t] = slack;
+    return slack;
+}
+
 /* The corner normals of one vertex's fan (ms_render_internal.h says the rule). */
 static void fan_normals(ms_render_split *s, const ms_view_mesh *mesh, const uint32_t *corners, uint32_t f)
 {
@@ -163,18 +190,18 @@ static void fan_normals(ms_render_split *s, const ms_view_mesh *mesh, const uint
             uint32_t j = (uint32_t)(s->fan_keys[a + 1] & 0xFFFFFFFFu) >> 1;
             /* used in the same direction: one of the two faces is flipped */
             uint8_t flipped = (s->fan_keys[a] & 1u) == (s->fan_keys[a + 1] & 1u);
-            const double *ni = &s->face_normal[3 * (size_t)(corners[i] / 3)];
-            const double *nj = &s->face_normal[3 * (size_t)(corners[j] / 3)];
+            uint32_t ti = corners[i] / 3, tj = corners[j] / 3;
+            const double *ni = &s->face_normal[3 * (size_t)ti];
+            const double *nj = &s->face_normal[3 * (size_t)tj];
             double dot = ni[0] * nj[0] + ni[1] * nj[1] + ni[2] * nj[2];
-            double li = sqrt(ni[0] * ni[0] + ni[1] * ni[1] + ni[2] * ni[2]);
-            double lj = sqrt(nj[0] * nj[0] + nj[1] * nj[1] + nj[2] * nj[2]);
-            double cosine = (flipped ? -dot : dot) / (li * lj);
-            /* the crease angle widened by how far each normal may be off (a
-             * coarse level's vertices sit at their kd-cells' centres) */
-            double slack = s->face_slack[corners[i] / 3] + s->face_slack[corners[j] / 3];
+            double cosine = (flipped ? -dot : dot) * s->face_rlen[ti] * s->face_rlen[tj];
             bool smooth = cosine >= s->crease_cos;
-            if (!smooth && slack > 0.0)
+            if (!smooth && (s->face_slack[ti] != 0.0 || s->face_slack[tj] != 0.0)) {
+                /* the crease angle widened by how far each normal may be off
+                 * (a coarse level's vertices sit at their kd-cells' centres) */
+                double slack = face_slack(s, mesh, ti) + face_slack(s, mesh, tj);
                 smooth = s->crease_rad + slack >= M_PI || cosine >= cos(s->crease_rad + slack);
+            }
             if (i != j && smooth) {
                 uint8_t fi, fj;
                 uint32_t ri = fan_find(s, i, &fi), rj = fan_find(s, j, &fj);
@@ -198,12 +225,20 @@ static void fan_normals(ms_render_split *s, const ms_view_mesh *mesh, const uint
         for (int a = 0; a < 3; ++a)
             s->fan_sum[3 * (size_t)root + (size_t)a] += sign * n[a];
     }
+    /* packed once per group and side (the keys are free again: a group's
+     * packed word for either side, UINT64_MAX until made) */
+    for (uint32_t i = 0; i < f; ++i)
+        s->fan_keys[2 * (size_t)i] = s->fan_keys[2 * (size_t)i + 1] = UINT64_MAX;
     for (uint32_t i = 0; i < f; ++i) {
         uint8_t flip;
         uint32_t root = fan_find(s, i, &flip);
-        const double *sum = &s->fan_sum[3 * (size_t)root];
-        double sign = flip ? -1.0 : 1.0, n[3] = {sign * sum[0], sign * sum[1], sign * sum[2]};
-        s->corner_packed[corners[i]] = ms_render_pack_normal(n);
+        uint64_t *packed = &s->fan_keys[2 * (size_t)root + flip];
+        if (*packed == UINT64_MAX) {
+            const double *sum = &s->fan_sum[3 * (size_t)root];
+            double sign = flip ? -1.0 : 1.0, n[3] = {sign * sum[0], sign * sum[1], sign * sum[2]};
+            *packed = ms_render_pack_normal(n);
+        }
+        s->corner_packed[corners[i]] = (uint32_t)*packed;
     }
 }
 
@@ -221,7 +256,10 @@ static ms_status corner_normals(ms_render_split *s, const ms_view_mesh *mesh, ms
         double *slack = cp ? realloc(s->face_slack, nt * sizeof *slack) : NULL;
         if (slack)
             s->face_slack = slack;
-        uint32_t *fan = slack ? realloc(s->fan, 3 * nt * sizeof *fan) : NULL;
+        double *rlen = slack ? realloc(s->face_rlen, nt * sizeof *rlen) : NULL;
+        if (rlen)
+            s->face_rlen = rlen;
+        uint32_t *fan = rlen ? realloc(s->fan, 3 * nt * sizeof *fan) : NULL;
         if (!fan)
             return ms_error_set(err, MS_ERR_NOMEM, "render: no memory for %zu triangles' normals", nt);
         s->fan = fan;
@@ -263,9 +301,10 @@ static ms_status corner_normals(ms_render_split *s, const ms_view_mesh *mesh, ms
         n[0] = e1[1] * e2[2] - e1[2] * e2[1];
         n[1] = e1[2] * e2[0] - e1[0] * e2[2];
         n[2] = e1[0] * e2[1] - e1[1] * e2[0];
-        /* How far the normal may be off: a corner moved by e tilts the plane
-         * by up to about atan(e / h), h the smallest height (twice the area
-         * over the longest side). */
+        double twice_area = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        s->face_rlen[t] = twice_area > 0.0 ? 1.0 / twice_area : 0.0;
+        /* its corners' decode error, turned into an angle when an edge asks
+         * (face_slack) */
         double e = 0.0;
         if (mesh->levels)
             for (int k = 0; k < 3; ++k) {
@@ -273,17 +312,7 @@ static ms_status corner_normals(ms_render_split *s, const ms_view_mesh *mesh, ms
                 double ek = level < 64 ? level_error[level] : 0.0;
                 e = ek > e ? ek : e;
             }
-        double slack = 0.0;
-        if (e > 0.0) {
-            double e3[3] = {c[0] - b[0], c[1] - b[1], c[2] - b[2]};
-            double l1 = e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2];
-            double l2 = e2[0] * e2[0] + e2[1] * e2[1] + e2[2] * e2[2];
-            double l3 = e3[0] * e3[0] + e3[1] * e3[1] + e3[2] * e3[2];
-            double longest = sqrt(l1 > l2 ? (l1 > l3 ? l1 : l3) : (l2 > l3 ? l2 : l3));
-            double twice_area = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-            slack = twice_area > 0.0 ? atan2(e * longest, twice_area) : M_PI / 2;
-        }
-        s->face_slack[t] = slack;
+        s->face_slack[t] = -e;
         for (int k = 0; k < 3; ++k)
             s->fan_start[tri[k] + 1]++;
     }
