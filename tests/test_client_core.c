@@ -454,8 +454,8 @@ static void server_killed_and_restarted(bool whole)
     ms_camera cam;
     ms_core *core = start_at_key(&o, g->path.count - 1, &cam);
     ms_core_stats st;
-    poll_stats(core, WAIT_SECONDS, 0.01, received, 20000, &st);
-    assert_true(st.bytes_received >= 20000);
+    poll_stats(core, WAIT_SECONDS, 0.01, received, 8000, &st);
+    assert_true(st.bytes_received >= 8000);
     assert_false(st.view_complete);
     assert_int_equal(st.index_by_subtree, !whole);
     assert_int_equal(ms_test_stop(f.pid, SIGKILL, 5.0), -1);
@@ -465,7 +465,7 @@ static void server_killed_and_restarted(bool whole)
     ms_core_frame *frame = NULL;
     if (!ms_test_core_wait_complete(core, WAIT_SECONDS, &st, &frame))
         fail_msg("not complete after the restart: %s", st.error);
-    print_message("killed at %d bytes of %llu, %u reconnects\n", 20000,
+    print_message("killed at %d bytes of %llu, %u reconnects\n", 8000,
                   (unsigned long long)st.bytes_received, (unsigned)st.reconnects);
     assert_true(st.reconnects >= 1);
     /* the server was away at least the 0.5 s before the relaunch */
