@@ -34,6 +34,7 @@ typedef struct cell_case {
     ms_codec_region region; /* the octant x, y, z < 2^11 */
     ms_quant_box box;
     size_t foreign, frozen; /* foreign vertices; those with a freeze level */
+    unsigned ahead;         /* geometry ahead of the streams encoded */
 } cell_case;
 
 static bool inside(const ms_codec_region *r, uint64_t key)
@@ -113,6 +114,7 @@ static ms_status encode_with(const cell_case *k, const ms_codec_region *region,
     par.region = region;
     par.freeze_level = freeze;
     par.compact_header = compact;
+    par.ahead = k->ahead;
     return ms_codec_encode(&k->full, &par, buf, size, start, err);
 }
 
@@ -122,11 +124,32 @@ static ms_status encode(const cell_case *k, const ms_codec_region *region, const
     return encode_with(k, region, freeze, false, buf, size, start, err);
 }
 
-static void test_frozen_levels_and_state(void **state)
+/* With geometry ahead, every own vertex is drawn inside its cell (at the last
+ * level at its centre), a foreign one (which never runs ahead) at its centre. */
+static void check_points(const cell_case *k, const ms_codec_state *s)
 {
-    (void)state;
+    if (k->ahead == 0) {
+        assert_null(s->rep);
+        return;
+    }
+    assert_non_null(s->rep);
+    size_t off_centre = 0;
+    for (size_t i = 0; i < s->vertex_count; ++i) {
+        bool own = inside(&k->region, s->cells[i] << (D - s->level));
+        for (int a = 0; a < 3; ++a) {
+            if (!own || s->level == D)
+                assert_int_equal(s->rep[3 * i + (size_t)a], 32768);
+            off_centre += s->rep[3 * i + (size_t)a] != 32768;
+        }
+    }
+    assert_true((off_centre > 0) == (s->level < D));
+}
+
+static void check_frozen_levels(unsigned ahead)
+{
     cell_case k;
     make_cell(&k);
+    k.ahead = ahead;
     assert_true(k.foreign > 20 && k.frozen == k.foreign); /* every foreign one freezes */
     ms_error err;
     uint8_t *with, *without;
@@ -152,6 +175,7 @@ static void test_frozen_levels_and_state(void **state)
     for (unsigned L = LMIN + 1; L <= D; ++L) {
         assert_int_equal(ms_codec_decoder_set_level(d, L, &err), MS_OK);
         assert_int_equal(ms_codec_decoder_state(d, &up[L], &err), MS_OK);
+        check_points(&k, &up[L]);
     }
     /* final: foreign vertices at their freeze level, as the first key of it */
     size_t n = ms_codec_decoder_vertex_count(d);
@@ -193,6 +217,9 @@ static void test_frozen_levels_and_state(void **state)
         ms_codec_state got;
         assert_int_equal(ms_codec_decoder_state(d, &got, &err), MS_OK);
         assert_true(ms_codec_state_equal(&got, &up[L], true));
+        assert_true((got.rep == NULL) == (up[L].rep == NULL));
+        if (got.rep) /* the same points too */
+            assert_memory_equal(got.rep, up[L].rep, 3 * got.vertex_count * sizeof *got.rep);
         ms_codec_state_free(&got);
     }
     assert_int_equal(ms_codec_decoder_vertex_levels(d, levels), 0);
@@ -213,6 +240,22 @@ static void test_frozen_levels_and_state(void **state)
     free(with);
     free(without);
     free_cell(&k);
+}
+
+static void test_frozen_levels_and_state(void **state)
+{
+    (void)state;
+    check_frozen_levels(0);
+}
+
+/* The same with geometry ahead: foreign cells keep coding their geometry as
+ * they go, own ones run ahead; frozen levels, states and points survive
+ * coarsening and refining again. */
+static void test_frozen_levels_with_geometry_ahead(void **state)
+{
+    (void)state;
+    check_frozen_levels(MS_CODEC_DEFAULT_AHEAD);
+    check_frozen_levels(MS_CODEC_MAX_AHEAD);
 }
 
 static void expect_refused(const cell_case *k, const ms_codec_region *region, const uint8_t *freeze,
@@ -316,7 +359,8 @@ static void test_damaged_region_bytes(void **state)
         {72 + 13, 1, "reserved bytes"},
         {72 + 0, 1, "not aligned"},                     /* min x = 1 */
         {72 + 1, 0x10, "not aligned"},                  /* min x = 4096: off the grid */
-        {7, 5, "flags"},                                /* an unknown flag (bit 2) */
+        {7, 0x21, "flags"},                             /* an unknown flag (bit 5) */
+        {7, 0x1D, "at most 6"},                         /* geometry ahead by 7 */
     };
     for (size_t i = 0; i < sizeof cases / sizeof *cases; ++i) {
         memcpy(x, buf, size);
@@ -483,6 +527,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_frozen_levels_and_state),
+        cmocka_unit_test(test_frozen_levels_with_geometry_ahead),
         cmocka_unit_test(test_encoder_refuses),
         cmocka_unit_test(test_damaged_region_bytes),
         cmocka_unit_test(test_damaged_bodies),

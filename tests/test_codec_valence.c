@@ -211,7 +211,7 @@ static void test_fan_roundtrip(void **state)
         set_tri(&m, i, 0, 1 + i, 1 + (i + 1) % N);
     }
     ms_codec_check_result res;
-    ms_codec_check_roundtrip_ex(&m, 20, 0, false, &res);
+    ms_codec_check_roundtrip_ex(&m, 20, 0, false, MS_CHECK_AHEAD_BOTH, &res);
     assert_int_equal(res.vertices, N + 1);
     assert_int_equal(res.triangles, N);
     assert_int_equal(res.weld.welded_vertices, 0);
@@ -233,7 +233,7 @@ static void test_book_roundtrip(void **state)
         set_tri(&m, i, 0, 1, 2 + i);
     }
     ms_codec_check_result res;
-    ms_codec_check_roundtrip_ex(&m, 20, 0, false, &res);
+    ms_codec_check_roundtrip_ex(&m, 20, 0, false, MS_CHECK_AHEAD_BOTH, &res);
     assert_int_equal(res.vertices, N + 2);
     assert_int_equal(res.triangles, N);
     ms_mesh_free(&m);
@@ -269,7 +269,7 @@ static void test_obj_polygon_roundtrip(void **state)
         assert_int_equal(m.triangles[3 * t + 2], t + 2);
     }
     ms_codec_check_result res;
-    ms_codec_check_roundtrip_ex(&m, 20, 0, false, &res);
+    ms_codec_check_roundtrip_ex(&m, 20, 0, false, MS_CHECK_AHEAD_BOTH, &res);
     assert_int_equal(res.vertices, N);
     assert_int_equal(res.triangles, N - 2);
     ms_mesh_free(&m);

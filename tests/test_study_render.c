@@ -287,7 +287,9 @@ static void unit(const float in[3], float out[3])
 
 /* One cell holding the cube, its chunk a root with 8 leaf children: the lower x
  * half (octants 0-3) has normal A, the upper half B. Seen face-on, pixels left of
- * the centre column get A, the others B (a point on the mid-plane goes up). */
+ * the centre column get A, the others B (a point on the mid-plane goes up; the
+ * centre column's hit points sit on the plane to within Embree's rounding, which
+ * differs between its CPU code paths, so either is accepted there). */
 static void test_apo_normals(void **state)
 {
     (void)state;
@@ -332,6 +334,8 @@ static void test_apo_normals(void **state)
             if (!ms_study_image_covered(&im, p))
                 continue;
             const float *n = &im.normal[3 * p], *want = i < 15 ? a : b;
+            if (i == 15 && fabs(n[0] - b[0]) > 1e-6)
+                want = a;
             double l = sqrt((double)want[0] * want[0] + (double)want[1] * want[1] + (double)want[2] * want[2]);
             for (int k = 0; k < 3; ++k)
                 assert_true(fabs(n[k] - want[k] / l) < 1e-6);

@@ -189,9 +189,12 @@ static ms_status out_vertex(ms_view *v, ms_view_mesh *m, uint32_t cell, uint32_t
     uint32_t xyz[3], width[3];
     kd_cell_grid(v, prefix, level, xyz, width);
     double unit = v->header.box_side / (double)(1u << v->shape.bits);
+    /* the point the stream draws for the cell (geometry ahead), else its centre */
+    const uint16_t *rep = c->cache.rep ? &c->cache.rep[3 * (size_t)i] : NULL;
     for (int a = 0; a < 3; ++a)
         m->positions[3 * k + (size_t)a] =
-            v->header.box_origin[a] + ((double)xyz[a] + 0.5 * width[a]) * unit;
+            v->header.box_origin[a] +
+            ((double)xyz[a] + (rep ? rep[a] / 65536.0 : 0.5) * width[a]) * unit;
     unsigned shift = 3 * v->shape.bits - level;
     m->keys[k] = shift >= 64 ? 0 : prefix << shift;
     m->levels[k] = (uint8_t)level;

@@ -39,9 +39,15 @@
 #include "ms_quant.h"
 
 /* The stream version written and the only one read (docs/CODEC.md): every
- * context starts from the built-in prior (ms_codec_prior.h). A stream of
- * another version is refused with MS_ERR_UNSUPPORTED naming it. */
-#define MS_CODEC_VERSION 2
+ * context starts from the built-in prior (ms_codec_prior.h) and geometry may
+ * run ahead of connectivity (MS_CODEC_MAX_AHEAD). A stream of another version
+ * is refused with MS_ERR_UNSUPPORTED naming it. */
+#define MS_CODEC_VERSION 3
+/* Geometry ahead of connectivity: at most this many kd-levels (two bits). */
+#define MS_CODEC_MAX_AHEAD 6
+/* The default of the encoding programs (meshcodec, meshbake), by measurement
+ * (docs/CODEC.md §4.1). */
+#define MS_CODEC_DEFAULT_AHEAD 3
 #define MS_CODEC_MAX_BITS 20
 #define MS_CODEC_MAX_VERTICES (1u << 26)
 #define MS_CODEC_MAX_TRIANGLES (1u << 27)
@@ -58,6 +64,12 @@ typedef struct ms_codec_state {
     uint64_t *cells; /* vertex_count kd prefixes, each < 2^level */
     uint32_t *tris;  /* 3 * tri_count */
     uint32_t *edges; /* 2 * edge_count */
+    /* Optional (NULL: every vertex at its cell's centre): where each vertex is
+     * drawn inside its cell, 3 per vertex, in 1/65536 of the cell's width along
+     * each axis from its minimum corner (32768: the centre). A decoder of a
+     * stream with geometry ahead gives the barycentre of the vertex's known
+     * descendants; ignored by the encoder, equality and checksums. */
+    uint16_t *rep;
 } ms_codec_state;
 
 void ms_codec_state_free(ms_codec_state *s);
@@ -106,6 +118,11 @@ typedef struct ms_codec_encode_params {
      * archive has it; decoders are given it, ms_codec_decoder_options.box), counts
      * and chunk ends are varints. */
     bool compact_header;
+    /* Geometry ahead of connectivity, in kd-levels, 0..MS_CODEC_MAX_AHEAD: the
+     * stream codes each own cell's occupied descendants this many levels before
+     * its connectivity, so a decoder draws a vertex at their barycentre (foreign
+     * cells of a region never run ahead). 0: every vertex at its cell centre. */
+    unsigned ahead;
     /* Training the prior (meshcodec train), normally NULL: when set, every coded
      * decision adds 1 to context_counts[2 i + bit], i its context in the prior's
      * layout; the array has 2 * ms_codec_prior_contexts() entries, owned by the
@@ -135,6 +152,7 @@ typedef struct ms_codec_header {
     ms_codec_region region;
     bool compact;               /* flags bit 1: compact layout, box not in the stream (zero
                                  * here unless the decoder was given it) */
+    unsigned ahead;             /* flags bits 2-4: geometry ahead, kd-levels */
     uint32_t start_vertices, start_tris, start_edges;
     uint64_t start_checksum;
     uint32_t end_vertices, end_tris, end_edges;

@@ -1,6 +1,7 @@
 /* Codec decoder: incremental and reversible refinement of the complex. */
 #include "ms_codec.h"
 #include "ms_big_alloc.h"
+#include "ms_codec_decisions.h"
 #include "ms_codec_internal.h"
 #include "ms_codec_model.h"
 #include "ms_codec_prior.h"
@@ -10,31 +11,6 @@
 
 #include <stdlib.h>
 #include <string.h>
-
-/* Encode mode: the next decision taken from src, counted and coded. */
-static int dbit_encode(ms_codec_decoder *d, ms_rc_prob *p)
-{
-    int bit = 0;
-    if (d->src_pos < d->src_n)
-        bit = d->src[d->src_pos];
-    d->src_pos++;
-    if (d->train && ms_prior_has((uint32_t)(p - d->model), d->D))
-        d->train[2 * ms_prior_index((uint32_t)(p - d->model), d->D) + (unsigned)bit]++;
-    ms_rc_encode(d->enc, p, bit);
-    return bit;
-}
-
-/* One binary decision: decoded, or (encode mode) taken from src and coded. */
-static inline __attribute__((always_inline)) int dbit(ms_codec_decoder *d, ms_rc_prob *p)
-{
-    return d->enc ? dbit_encode(d, p) : ms_rc_decode(&d->rc, p);
-}
-
-/* dbit for a decision close to a coin toss (ms_rc_decode_unpredictable). */
-static inline __attribute__((always_inline)) int dbit_coin(ms_codec_decoder *d, ms_rc_prob *p)
-{
-    return d->enc ? dbit_encode(d, p) : ms_rc_decode_unpredictable(&d->rc, p);
-}
 
 static ms_status corrupt(ms_codec_decoder *d, ms_error *err, const char *what)
 {
@@ -430,6 +406,44 @@ static ms_status enter_chunk(ms_codec_decoder *d, unsigned c, ms_error *err)
     return MS_OK;
 }
 
+/* Refines cell s (level L) that runs ahead: its split is read off its mask,
+ * its connectivity decoded as usual; then each resulting cell learns its
+ * descendants one level deeper (unless the window's end is that close). */
+static ms_status refine_ahead(ms_codec_decoder *d, uint32_t s, unsigned L, uint32_t *w,
+                              ms_error *err)
+{
+    ms_complex *cx = &d->cx;
+    unsigned depth = ms_ahead_depth(d, L); /* >= 1: L < D */
+    unsigned half = 1u << (depth - 1);
+    uint64_t m = cx->ahead[s], lo = m & ((1ull << half) - 1), hi = m >> half;
+    uint32_t out[2] = {s, MS_CX_NONE};
+    if (lo && hi) {
+        ms_status r = split(d, s, L, &out[1], err);
+        if (r != MS_OK) {
+            d->broken = true;
+            return r;
+        }
+        cx->ahead[s] = lo;
+        cx->ahead[out[1]] = hi;
+    } else {
+        int second = lo == 0;
+        cx->v[s].key |= second ? 1ull << (d->D - L - 1) : 0;
+        ms_cx_refine_cell(cx, s, L, second);
+        cx->ahead[s] = second ? hi : lo;
+    }
+    /* a cell that did not split keeps its descendants, hence its point; the
+     * halves of a split have theirs */
+    unsigned dc = ms_ahead_depth(d, L + 1);
+    for (int k = 0; k < 2 && out[k] != MS_CX_NONE; ++k) {
+        d->order2[(*w)++] = out[k];
+        if (out[1] != MS_CX_NONE)
+            ms_ahead_update_rep(cx, out[k], L + 1, depth - 1);
+        if (dc == depth)
+            ms_ahead_deepen(d, out[k], L + 1, dc);
+    }
+    return MS_OK;
+}
+
 /* Refines every cell of the current level by one kd-level. */
 static ms_status refine_level(ms_codec_decoder *d, ms_error *err)
 {
@@ -440,6 +454,8 @@ static ms_status refine_level(ms_codec_decoder *d, ms_error *err)
         if ((L - d->Lmin) % 3 != 0)
             return ms_error_set(err, MS_ERR_ARG, "decoder state lost mid-chunk");
         if ((r = enter_chunk(d, c, err)) != MS_OK)
+            return r;
+        if (L == d->Lmin && d->h.ahead && (r = ms_ahead_prelude(d, err)) != MS_OK)
             return r;
     }
     ms_complex *cx = &d->cx;
@@ -459,6 +475,11 @@ static ms_status refine_level(ms_codec_decoder *d, ms_error *err)
             d->order2[w++] = s;
             continue;
         }
+        if (cx->ahead && cx->ahead[s]) {
+            if ((r = refine_ahead(d, s, L, &w, err)) != MS_OK)
+                return r;
+            continue;
+        }
         unsigned run = geo_run(L, v->birth);
         if (region && cell_outside(cx, region, s) &&
             dbit(d, &d->model[frz_ctx(d->D, run, bits_in)])) {
@@ -473,6 +494,7 @@ static ms_status refine_level(ms_codec_decoder *d, ms_error *err)
                 d->broken = true;
                 return r;
             }
+            ms_cx_rep_follow(cx, s); /* s2 follows from its birth */
             d->order2[w++] = s;
             d->order2[w++] = s2;
         } else {
@@ -482,6 +504,7 @@ static ms_status refine_level(ms_codec_decoder *d, ms_error *err)
             int second = dbit_coin(d, &d->model[GEO_HALF(L, run, b)]);
             v->key |= bit & (0 - (uint64_t)second); /* no branch: a coin toss, nearly */
             ms_cx_refine_cell_by(cx, s, L, axis, child_width, second);
+            ms_cx_rep_follow(cx, s);
             d->order2[w++] = s;
         }
     }
@@ -548,7 +571,9 @@ static ms_status coarsen_level(ms_codec_decoder *d, ms_error *err)
         if (k > 0 && (cx->v[d->order[k - 1]].key >> shift) == (lv->key >> shift))
             first = d->order[--k];
         uint32_t keep = last;
+        uint64_t mask_first = 0, mask_last = cx->ahead ? cx->ahead[last] : 0;
         if (first != MS_CX_NONE) {
+            mask_first = cx->ahead ? cx->ahead[first] : 0;
             ms_status r = ms_cx_merge(cx, first, last, err);
             if (r != MS_OK) {
                 d->broken = true;
@@ -565,6 +590,15 @@ static ms_status coarsen_level(ms_codec_decoder *d, ms_error *err)
         int second = (v->key & child_bit) != 0;
         v->key &= ~child_bit;
         ms_cx_coarsen_cell(cx, keep, L, second);
+        if (mask_last) { /* runs ahead: the mask one level up, then its point */
+            unsigned depth = ms_ahead_depth(d, L);
+            uint64_t lo = first != MS_CX_NONE ? mask_first : second ? 0 : mask_last;
+            uint64_t hi = first != MS_CX_NONE || second ? mask_last : 0;
+            cx->ahead[keep] = ms_ahead_parent_mask(lo, hi, depth, ms_ahead_depth(d, L + 1));
+            ms_ahead_update_rep(cx, keep, L, depth);
+        } else {
+            ms_cx_rep_follow(cx, keep);
+        }
         d->order2[w++] = keep;
     }
     for (uint32_t k = 0; k < w; ++k)
@@ -572,6 +606,8 @@ static ms_status coarsen_level(ms_codec_decoder *d, ms_error *err)
     d->norder = w;
     d->level = L;
     d->rc_chunk = UINT32_MAX;
+    if (L == d->Lmin && cx->ahead) /* the prelude belongs to the first chunk: undone */
+        ms_ahead_forget(d);
     return MS_OK;
 }
 
@@ -633,6 +669,7 @@ static ms_status decoder_init(ms_codec_decoder *d, const ms_codec_state *start, 
     if ((r = ms_cx_init(&d->cx, d->h.p_max, d->h.end_vertices, d->h.end_tris, max_e, err)) !=
         MS_OK)
         return r;
+    d->cx.with_ahead = d->h.ahead > 0;
     /* Reserve the declared final size up front (no regrowth copies), as far as
      * the body makes it plausible: real streams hold under 4 vertices per byte. */
     uint64_t room = 16 * (uint64_t)(d->enc ? d->h.end_vertices : d->body_avail) + 1024;
@@ -643,7 +680,14 @@ static ms_status decoder_init(ms_codec_decoder *d, const ms_codec_state *start, 
         return r;
     if (!order_room(d, rv))
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory creating a decoder");
-    return ms_codec_decoder_load_start(d, start, err);
+    if ((r = ms_codec_decoder_load_start(d, start, err)) != MS_OK)
+        return r;
+    /* the cells that run ahead: all but the foreign ones, each knowing only
+     * itself until the first chunk's prelude */
+    const ms_codec_region *region = d->h.has_region ? &d->h.region : NULL;
+    for (uint32_t k = 0; d->h.ahead && k < d->norder; ++k)
+        d->cx.ahead[d->order[k]] = !region || !cell_outside(&d->cx, region, d->order[k]);
+    return MS_OK;
 }
 
 ms_status ms_codec_decoder_create(const uint8_t *data, size_t size, const ms_codec_state *start,
@@ -712,8 +756,9 @@ ms_status ms_codec_decoder_extend(ms_codec_decoder *d, const uint8_t *data, size
 }
 
 ms_status ms_codec_run_encoder(ms_codec_header *h, const ms_codec_state *start,
-                               const uint8_t *decisions, size_t n, ms_rc_encoder *enc,
-                               uint64_t *context_counts, ms_error *err)
+                               const uint8_t *decisions, size_t n, const uint64_t *keys,
+                               size_t nkeys, ms_rc_encoder *enc, uint64_t *context_counts,
+                               ms_error *err)
 {
     ms_codec_decoder *d = calloc(1, sizeof *d);
     if (!d)
@@ -724,6 +769,8 @@ ms_status ms_codec_run_encoder(ms_codec_header *h, const ms_codec_state *start,
     d->src = decisions;
     d->src_n = n;
     d->train = context_counts;
+    d->okeys = keys;
+    d->nokeys = nkeys;
     ms_status r = decoder_init(d, start, err);
     if (r == MS_OK)
         r = ms_codec_decoder_set_level(d, d->D, err);

@@ -72,11 +72,12 @@ ms_status ms_codec_decoder_mesh(const ms_codec_decoder *d, ms_mesh *out, ms_erro
     if (!rank)
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory exporting a mesh");
     double scale = d->h.box.size / (double)(1u << cx->P);
+    int32_t (*at)[4] = cx->rep ? cx->rep : cx->cen; /* drawn points, with geometry ahead */
     for (uint32_t i = 0; i < d->norder; ++i) {
         uint32_t s = d->order[i];
         rank[s] = i;
         for (int a = 0; a < 3; ++a)
-            out->positions[3 * i + a] = d->h.box.origin[a] + 0.5 * cx->cen[s][a] * scale;
+            out->positions[3 * i + a] = d->h.box.origin[a] + 0.5 * at[s][a] * scale;
     }
     size_t w = 0;
     for (uint32_t t = 0; t < cx->nt; ++t) {

@@ -275,6 +275,13 @@ static ms_status export_state(const ms_complex *cx, const uint32_t *order, uint3
         rank[order[i]] = i;
         out->cells[i] = shift >= 64 ? 0 : cx->v[order[i]].key >> shift;
     }
+    if (cx->rep && !(out->rep = malloc((n ? n : 1) * 3 * sizeof *out->rep))) {
+        free(rank);
+        ms_codec_state_free(out);
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory exporting a complex");
+    }
+    for (uint32_t i = 0; cx->rep && i < n; ++i)
+        ms_cx_rep_fraction(cx, order[i], &out->rep[3 * i]);
     size_t w = 0;
     for (uint32_t t = 0; t < cx->nt; ++t) {
         if (cx->tri[t][0] == MS_CX_NONE)
@@ -454,22 +461,26 @@ static ms_status merge_group(enc *e, const ms_codec_encode_params *params, unsig
 {
     uint64_t child_bit = 1ull << (e->D - L - 1);
     size_t group = e->sym.n;
-    if (params->region && cell_outside(&e->cx, params->region, last))
-        put(e, 0); /* foreign, not frozen at L */
+    bool foreign = params->region && cell_outside(&e->cx, params->region, last);
+    if (foreign)
+        put(e, 0); /* not frozen at L */
+    /* a cell that runs ahead codes its geometry from the keys (forward pass) */
+    bool geometry = foreign || params->ahead == 0;
     *keep = first != MS_CX_NONE ? first : last;
     if (first != MS_CX_NONE) {
-        put(e, 1);
+        if (geometry)
+            put(e, 1);
         ms_status s = record_split(e, first, last, err);
         if (s != MS_OK || (s = ms_cx_merge(&e->cx, first, last, err)) != MS_OK)
             return s;
-    } else {
+    } else if (geometry) {
         put(e, 0);
     }
     ms_cx_vert *v = &e->cx.v[*keep];
     int second = (v->key & child_bit) != 0;
     v->key &= ~child_bit;
     ms_cx_coarsen_cell(&e->cx, *keep, L, second);
-    if (first == MS_CX_NONE)
+    if (first == MS_CX_NONE && geometry)
         put(e, second);
     if (e->nomem)
         return out_of_memory(err);
@@ -525,8 +536,10 @@ static uint8_t *decisions_in_decode_order(enc *e, unsigned Lmin, size_t *count)
         return NULL;
     size_t nd = 0;
     for (unsigned L = Lmin; L < e->D; ++L) {
-        memcpy(dec + nd, e->sym.s + e->level_first[L], e->level_end[L] - e->level_first[L]);
-        nd += e->level_end[L] - e->level_first[L];
+        size_t n = e->level_end[L] - e->level_first[L]; /* none at all: sym.s is NULL */
+        if (n)
+            memcpy(dec + nd, e->sym.s + e->level_first[L], n);
+        nd += n;
     }
     free(e->sym.s);
     e->sym.s = NULL;
@@ -543,6 +556,7 @@ static void fill_header(ms_codec_header *h, const ms_codec_encode_params *params
     h->p_max = P;
     h->box = params->box;
     h->compact = params->compact_header;
+    h->ahead = params->ahead;
     if (params->region) {
         h->has_region = true;
         h->region = *params->region;
@@ -585,6 +599,9 @@ static ms_status check_params(const ms_codec_state *full, const ms_codec_encode_
     ms_status s = validate_full(full, err);
     if (s != MS_OK)
         return s;
+    if (params->ahead > MS_CODEC_MAX_AHEAD)
+        return ms_error_set(err, MS_ERR_ARG, "geometry ahead by %u kd-levels (at most %u)",
+                            params->ahead, MS_CODEC_MAX_AHEAD);
     if (params->p_min > full->bits)
         return ms_error_set(err, MS_ERR_ARG, "p_min %u above the precision %u", params->p_min,
                             full->bits);
@@ -647,8 +664,8 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
     fill_header(&h, params, pmin, P, &start, &canon);
     /* Forward pass: the decoder itself chooses every context. */
     ms_cx_free(&e.cx);
-    s = ms_codec_run_encoder(&h, pmin == 0 ? NULL : &start, dec, nd, &rc, params->context_counts,
-                             err);
+    s = ms_codec_run_encoder(&h, pmin == 0 ? NULL : &start, dec, nd, canon.cells,
+                             canon.vertex_count, &rc, params->context_counts, err);
     if (s == MS_OK && rc.failed)
         s = out_of_memory(err);
     if (s == MS_OK)

@@ -44,12 +44,14 @@ ms_status ms_codec_parse_header(const uint8_t *data, size_t size, ms_codec_heade
                                 bool verify_crc, ms_error *err);
 
 /* The encoder's forward pass: runs the decoder from `start` over the window of h,
- * taking each binary decision from decisions[0..n) (decode order) and coding it
+ * taking each binary decision from decisions[0..n) (decode order), or for the
+ * geometry ahead (h->ahead > 0) from the sorted full keys[0..nkeys), and coding it
  * into enc with the decoder's contexts; fills h's chunk table. context_counts
  * (may be NULL) accumulates the decisions per context (ms_codec_encode_params). */
 ms_status ms_codec_run_encoder(ms_codec_header *h, const ms_codec_state *start,
-                               const uint8_t *decisions, size_t n, ms_rc_encoder *enc,
-                               uint64_t *context_counts, ms_error *err);
+                               const uint8_t *decisions, size_t n, const uint64_t *keys,
+                               size_t nkeys, ms_rc_encoder *enc, uint64_t *context_counts,
+                               ms_error *err);
 
 /* Exports a complex whose live cells (order[0..n), sorted by key) all sit at
  * `level` as a canonical ms_codec_state. */
@@ -102,6 +104,10 @@ struct ms_codec_decoder {
     size_t src_n, src_pos;
     ms_codec_header *enc_h;
     uint64_t *train;        /* encode mode: context counts in the prior's layout */
+    /* Encode mode with geometry ahead: every vertex's full key, sorted; the
+     * ahead decisions are read off it (ms_codec_ahead.c). */
+    const uint64_t *okeys;
+    size_t nokeys;
     bool skip_crc;
     bool has_box;           /* world positions known (ms_codec_decoder_mesh) */
     bool broken;
@@ -113,5 +119,29 @@ struct ms_codec_decoder {
  * checksum, indices), MS_ERR_NOMEM. ms_codec_decoder_start.c. */
 ms_status ms_codec_decoder_load_start(ms_codec_decoder *d, const ms_codec_state *start,
                                       ms_error *err);
+
+/* Geometry ahead of connectivity (ms_codec_ahead.c, docs/CODEC.md §4.1). A cell
+ * runs ahead when its mask (cx.ahead) is not 0: h.ahead > 0 and the cell is not
+ * foreign. Its depth at kd-level L is min(h.ahead, D - L). */
+static inline unsigned ms_ahead_depth(const ms_codec_decoder *d, unsigned level)
+{
+    unsigned left = d->D - level;
+    return left < d->h.ahead ? left : d->h.ahead;
+}
+/* The prelude at the start of the first chunk: every cell that runs ahead
+ * (mask reset to itself) learns its descendants ahead_depth(Lmin) levels down,
+ * level by level; then the drawn points. */
+ms_status ms_ahead_prelude(ms_codec_decoder *d, ms_error *err);
+/* Every cell that runs ahead back to knowing only itself, drawn at its centre
+ * (the state at Lmin before the prelude). */
+void ms_ahead_forget(ms_codec_decoder *d);
+/* Cell s (at `level`, mask of depth - 1, its point up to date) learns its
+ * descendants one level deeper; its point follows. */
+void ms_ahead_deepen(ms_codec_decoder *d, uint32_t s, unsigned level, unsigned depth);
+/* Recomputes the point drawn for cell s at `level` from its mask of `depth`. */
+void ms_ahead_update_rep(ms_complex *cx, uint32_t s, unsigned level, unsigned depth);
+/* The mask of a cell at kd-level L (depth d) from its children's at L + 1
+ * (depth dc; lo, hi: the first and second child's masks, 0 when absent). */
+uint64_t ms_ahead_parent_mask(uint64_t lo, uint64_t hi, unsigned d, unsigned dc);
 
 #endif

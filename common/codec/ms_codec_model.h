@@ -92,14 +92,15 @@ static inline unsigned geo_run(unsigned level, unsigned birth)
     return r < GEO_RUNS ? r : GEO_RUNS - 1;
 }
 
-/* Sum of the doubled centres along axis of cell s's neighbours, each counted once
- * per incident simplex; *count receives the number of terms. (The hottest loop
- * of the decoder: one column of the centres, cell s's own term taken out once.) */
-static inline int64_t geo_sum(const ms_complex *cx, uint32_t s, int axis, int64_t *count)
+/* Sum of the doubled positions (one column of cen or rep, stride 4) of cell s's
+ * neighbours, each counted once per incident simplex; *count receives the
+ * number of terms. (The hottest loop of the decoder: cell s's own term taken
+ * out once.) */
+static inline int64_t geo_sum_col(const ms_complex *cx, uint32_t s, const int32_t *col,
+                                  int64_t *count)
 {
     const ms_cx_vert *v = &cx->v[s];
-    const uint32_t *l = v->cap ? v->ext : v->inl;
-    const int32_t *col = &cx->cen[0][axis]; /* centre of slot x: col[4 * x] */
+    const uint32_t *l = v->cap ? v->ext : v->inl; /* col: position of slot x at col[4 * x] */
     const uint32_t(*tri)[3] = (const uint32_t(*)[3])cx->tri;
     int64_t sum = 0;
     uint32_t edges = 0;
@@ -118,6 +119,12 @@ static inline int64_t geo_sum(const ms_complex *cx, uint32_t s, int axis, int64_
     sum -= (int64_t)tris * col[4 * (size_t)s];
     *count = 2 * (int64_t)tris + edges;
     return sum;
+}
+
+/* geo_sum_col over the neighbours' cell centres along axis. */
+static inline int64_t geo_sum(const ms_complex *cx, uint32_t s, int axis, int64_t *count)
+{
+    return geo_sum_col(cx, s, &cx->cen[0][axis], count);
 }
 
 /* Context of the "which half" bit of a cell (width wp along the level's axis,

@@ -14,6 +14,7 @@ void ms_codec_state_free(ms_codec_state *s)
     if (!s)
         return;
     free(s->cells);
+    free(s->rep);
     free(s->tris);
     free(s->edges);
     memset(s, 0, sizeof *s);
@@ -129,6 +130,17 @@ ms_status ms_codec_state_canonicalise(ms_codec_state *s, ms_error *err)
     ms_status st = ms_radix_sort_pairs(s->cells, pos, n, key_bits, err);
     for (size_t i = 0; st == MS_OK && i < n; ++i)
         remap[pos[i]] = (uint32_t)i;
+    if (st == MS_OK && s->rep) { /* the drawn points follow their cells */
+        uint16_t *rep = malloc((n ? n : 1) * 3 * sizeof *rep);
+        if (!rep)
+            st = ms_error_set(err, MS_ERR_NOMEM, "out of memory canonicalising a complex");
+        for (size_t i = 0; rep && i < n; ++i)
+            memcpy(&rep[3 * i], &s->rep[3 * (size_t)pos[i]], 3 * sizeof *rep);
+        if (rep) {
+            free(s->rep);
+            s->rep = rep;
+        }
+    }
     for (size_t t = 0; st == MS_OK && t < s->tri_count; ++t) {
         uint32_t *x = &s->tris[3 * t];
         uint32_t a = remap[x[0]], b = remap[x[1]], c = remap[x[2]];

@@ -36,6 +36,8 @@ void ms_cx_free(ms_complex *cx)
             }
     free(cx->v);
     free(cx->cen);
+    free(cx->ahead);
+    free(cx->rep);
     free(cx->tri);
     free(cx->edge);
     free(cx->free_v);
@@ -88,6 +90,16 @@ ms_status ms_cx_reserve(ms_complex *cx, uint32_t v, uint32_t t, uint32_t e, ms_e
         if (!cen)
             goto nomem;
         cx->cen = cen;
+        if (cx->with_ahead) { /* (also below, when set after the first growth) */
+            uint64_t *ahead = ms_big_realloc(cx->ahead, (size_t)cap * sizeof *cx->ahead);
+            if (ahead)
+                cx->ahead = ahead;
+            int32_t (*rep)[4] = ms_big_realloc(cx->rep, (size_t)cap * sizeof *cx->rep);
+            if (rep)
+                cx->rep = rep;
+            if (!ahead || !rep)
+                goto nomem;
+        }
         uint32_t c2 = cx->cv;
         p = cx->free_v;
         if (!grow(&p, &c2, cap, cap, sizeof(uint32_t)))
@@ -107,6 +119,12 @@ ms_status ms_cx_reserve(ms_complex *cx, uint32_t v, uint32_t t, uint32_t e, ms_e
             if (i == 3) cx->stamp2 = n;
         }
         cx->cv = cap;
+    }
+    if (cx->with_ahead && !cx->ahead && cx->cv) {
+        cx->ahead = ms_big_realloc(NULL, (size_t)cx->cv * sizeof *cx->ahead);
+        cx->rep = ms_big_realloc(NULL, (size_t)cx->cv * sizeof *cx->rep);
+        if (!cx->ahead || !cx->rep)
+            goto nomem;
     }
     if (want_t > cx->ct) {
         uint32_t cap = cx->ct;

@@ -60,6 +60,15 @@ typedef struct ms_complex {
     unsigned P, D;            /* bits per coordinate, D = 3P kd-levels */
     ms_cx_vert *v;
     int32_t (*cen)[4];        /* per slot: twice the cell centre per axis, then the level */
+    /* Geometry ahead (codec decoder only, with_ahead set before the first
+     * reserve; NULL otherwise): per slot, the occupied descendants known ahead
+     * (bit i: the descendant whose kd bits below the cell's level read i, the
+     * first split's bit highest; 0 for a cell that does not run ahead) and twice
+     * the point drawn for the cell (their barycentre; the centre when mask is 0),
+     * laid out as cen. Kept by the codec, moved by ms_cx_compact. */
+    uint64_t *ahead;
+    int32_t (*rep)[4];
+    bool with_ahead;
     uint32_t (*tri)[3];
     uint32_t (*edge)[2];
     uint32_t nv, nt, ne;      /* slots used (live + free) */
@@ -164,6 +173,28 @@ static inline void ms_cx_refine_cell(ms_complex *cx, uint32_t s, unsigned L, int
 {
     int axis = (int)(L % 3);
     ms_cx_refine_cell_by(cx, s, L, axis, (int32_t)ms_cx_width(cx, L + 1, axis), second);
+}
+
+/* The point drawn for cell s back on its centre (a cell that does not run
+ * ahead, after its centre moved); nothing without geometry ahead. */
+static inline void ms_cx_rep_follow(ms_complex *cx, uint32_t s)
+{
+    if (cx->rep)
+        for (int a = 0; a < 4; ++a)
+            cx->rep[s][a] = cx->cen[s][a];
+}
+
+/* Where the point drawn for cell s lies in it, per axis in 1/65536 of the
+ * cell's width from its minimum corner (ms_codec_state.rep). */
+static inline void ms_cx_rep_fraction(const ms_complex *cx, uint32_t s, uint16_t out[3])
+{
+    unsigned level = ms_cx_level(cx, s);
+    for (int a = 0; a < 3; ++a) {
+        int64_t w = ms_cx_width(cx, level, a); /* twice the half width */
+        int64_t off = (int64_t)cx->rep[s][a] - (cx->cen[s][a] - w); /* 0 .. 2 w */
+        int64_t f = (off * 32768 + w / 2) / w;
+        out[a] = (uint16_t)(f < 0 ? 0 : f > 65535 ? 65535 : f);
+    }
 }
 
 /* Inverse of ms_cx_refine_cell: cell s (at L + 1, `second` half) back to L. */

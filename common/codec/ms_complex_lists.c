@@ -153,6 +153,9 @@ uint32_t ms_cx_add_vertex(ms_complex *cx, uint64_t key, unsigned level, const ui
     for (int a = 0; a < 3; ++a)
         cx->cen[s][a] = (int32_t)(2 * c[a] + ms_cx_width(cx, level, a));
     cx->cen[s][3] = (int32_t)level;
+    ms_cx_rep_follow(cx, s);
+    if (cx->ahead)
+        cx->ahead[s] = 0;
     cx->live_v++;
     return s;
 }

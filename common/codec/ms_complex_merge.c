@@ -280,8 +280,13 @@ ms_status ms_cx_compact(ms_complex *cx, uint32_t *order, uint32_t n, ms_error *e
             cx->edge[e][1] = vmap[cx->edge[e][1]];
         }
     permute_in_place(tsrc, cx->nt, (unsigned char *)cx->tri, sizeof *cx->tri, NULL, 0);
+    if (cx->ahead) /* the same permutation on a copy (vmap is spent): the next call consumes vsrc */
+        memcpy(vmap, vsrc, (size_t)cx->nv * sizeof *vsrc);
     permute_in_place(vsrc, cx->nv, (unsigned char *)cx->v, sizeof *cx->v,
                      (unsigned char *)cx->cen, sizeof *cx->cen);
+    if (cx->ahead)
+        permute_in_place(vmap, cx->nv, (unsigned char *)cx->ahead, sizeof *cx->ahead,
+                         (unsigned char *)cx->rep, sizeof *cx->rep);
     cx->nv = n;
     cx->nfree_v = 0;
     cx->nt = live_t;

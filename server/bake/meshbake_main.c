@@ -17,6 +17,8 @@
 
 #include <jansson.h>
 
+#include "ms_codec.h"
+
 #include "ms_apo_classic_cli.h"
 #include "ms_cli.h"
 #include "ms_archive.h"
@@ -48,7 +50,8 @@ static void print_usage(FILE *out)
           "                [--root-bits 7] [--min-tris T] [--threads N] [--mem MB]\n"
           "                [--tmp DIR] [--public-bits B] [--no-apo] [--apo-lead 1]\n"
           "                [--apo-max-depth 10] [--apo-tol 0.2] [--apo-init-depth 0]\n"
-          "                [--apo-verify] [--apo-accuracy] [--subtree-levels S] [--json]\n"
+          "                [--apo-verify] [--apo-accuracy] [--subtree-levels S] [--ahead 3]\n"
+          "                [--json]\n"
           "       meshbake --info FILE [--json]\n"
           "       meshbake --set-public-bits B -o ARCHIVE_DIR --name NAME\n"
           "       meshbake --list ARCHIVE_DIR [--json]\n"
@@ -79,6 +82,10 @@ static void print_usage(FILE *out)
           "  --subtree-levels S  levels of the nSP tree per index subtree, the pieces a\n"
           "                    client fetches the index in, 1..8 (default 1 for --n 4 or\n"
           "                    8, 2 for --n 2)\n"
+          "  --ahead K         geometry ahead of connectivity by K kd-levels, 0..6\n"
+          "                    (default 3): a coarse level draws each vertex at the\n"
+          "                    barycentre of its known descendants, not at its kd-cell's\n"
+          "                    centre (no staircase); 0 draws cell centres\n"
           "  --apo, --no-apo   give every cell an APO chunk of normals (default: on)\n"
           "  --apo-lead L      chunk depth: L levels below the cell's finest geometric\n"
           "                    precision, 0..16 (default 1)\n"
@@ -209,6 +216,7 @@ static int parse_options(int argc, char **argv, bake_options *options)
         {"list", required_argument, NULL, 'l'},
         {"remove", required_argument, NULL, 'R'},
         {"subtree-levels", required_argument, NULL, 'Y'},
+        {"ahead", required_argument, NULL, 'K'},
         {NULL, 0, NULL, 0},
     };
     memset(options, 0, sizeof *options);
@@ -239,6 +247,11 @@ static int parse_options(int argc, char **argv, bake_options *options)
             if (!option_int(long_options, c, optarg, 1, 8, &value, &status))
                 return status;
             options->bake.subtree_levels = (unsigned)value;
+            break;
+        case 'K':
+            if (!option_int(long_options, c, optarg, 0, MS_CODEC_MAX_AHEAD, &value, &status))
+                return status;
+            options->bake.ahead = (unsigned)value;
             break;
         case 'A': options->bake.apo.enabled = true; break;
         case 'a': options->bake.apo.enabled = false; break;

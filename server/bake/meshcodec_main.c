@@ -42,7 +42,7 @@ static const char *const top_usage =
     "Exit status: 0 on success, 1 for an input or processing error, 2 for a usage error.\n";
 
 static const char *const encode_usage =
-    "usage: meshcodec encode IN -o OUT [--bits P]\n"
+    "usage: meshcodec encode IN -o OUT [--bits P] [--ahead K]\n"
     "\n"
     "Reads IN, quantises it onto a cubic 2^P grid (P in 8..20, default 16), welds\n"
     "coincident points, drops degenerate and duplicate triangles, and writes the coded\n"
@@ -50,6 +50,9 @@ static const char *const encode_usage =
     "\n"
     "  -o, --output OUT   output stream\n"
     "  -b, --bits P       precision in bits per coordinate (default 16)\n"
+    "      --ahead K      geometry ahead of connectivity by K kd-levels, 0..6 (default\n"
+    "                     3): coarse levels draw each vertex at the\n"
+    "                     barycentre of its known descendants instead of its cell centre\n"
     "  -h, --help         print this help and exit\n"
     "      --version      print the version and exit\n";
 
@@ -68,7 +71,7 @@ static const char *const decode_usage =
     "      --version      print the version and exit\n";
 
 static const char *const roundtrip_usage =
-    "usage: meshcodec roundtrip IN [--bits P] [--json]\n"
+    "usage: meshcodec roundtrip IN [--bits P] [--ahead K] [--json]\n"
     "\n"
     "Quantises IN at P bits (default 16), encodes, decodes at full precision and checks\n"
     "that the result equals the quantised, welded input (same points, same oriented\n"
@@ -76,6 +79,7 @@ static const char *const roundtrip_usage =
     "vertex and encode/decode times; exit status 1 when the result differs.\n"
     "\n"
     "  -b, --bits P       precision (default 16)\n"
+    "      --ahead K      geometry ahead by K kd-levels (see encode --help)\n"
     "      --json         print one JSON object on stdout\n"
     "  -h, --help         print this help and exit\n"
     "      --version      print the version and exit\n";
@@ -90,6 +94,9 @@ static const char *const train_usage =
     "\n"
     "  -o, --output OUT   output C file\n"
     "  -b, --bits P       precision in bits per coordinate (default 16)\n"
+    "      --ahead K      geometry ahead of connectivity by K kd-levels, 0..6 (default\n"
+    "                     3): coarse levels draw each vertex at the\n"
+    "                     barycentre of its known descendants instead of its cell centre\n"
     "  -h, --help         print this help and exit\n"
     "      --version      print the version and exit\n";
 
@@ -124,6 +131,7 @@ typedef struct options {
     char **inputs; /* every input (train) */
     int input_count;
     int bits; /* -1 when not given */
+    int ahead; /* geometry ahead, kd-levels */
     bool json, ascii;
 } options;
 
@@ -134,10 +142,12 @@ static int parse(const char *cmd, const char *help, int argc, char **argv, optio
     static const struct option longs[] = {
         {"output", required_argument, NULL, 'o'}, {"bits", required_argument, NULL, 'b'},
         {"json", no_argument, NULL, 'j'},         {"ascii", no_argument, NULL, 'a'},
-        {"help", no_argument, NULL, 'h'},         {NULL, 0, NULL, 0},
+        {"ahead", required_argument, NULL, 'A'},  {"help", no_argument, NULL, 'h'},
+        {NULL, 0, NULL, 0},
     };
     memset(o, 0, sizeof *o);
     o->bits = -1;
+    o->ahead = MS_CODEC_DEFAULT_AHEAD;
     optind = 1;
     int c;
     char name[64];
@@ -155,6 +165,16 @@ static int parse(const char *cmd, const char *help, int argc, char **argv, optio
             if (ms_option_int("--bits", optarg, 0, 64, &v, &e) != MS_OK)
                 return usage_error(cmd, e.text, NULL);
             o->bits = (int)v;
+            break;
+        }
+        case 'A': {
+            int64_t v;
+            ms_error e;
+            if (allow_ascii) /* decode: the stream says */
+                return usage_error(cmd, "unknown option", "--ahead");
+            if (ms_option_int("--ahead", optarg, 0, MS_CODEC_MAX_AHEAD, &v, &e) != MS_OK)
+                return usage_error(cmd, e.text, NULL);
+            o->ahead = (int)v;
             break;
         }
         case 'j':
@@ -200,8 +220,8 @@ static ms_status load_quantised(const char *path, unsigned bits, ms_qmesh *q,
     return st;
 }
 
-static ms_status encode_q(const ms_qmesh *q, uint64_t *context_counts, uint8_t **buf,
-                          size_t *size, ms_error *err)
+static ms_status encode_q(const ms_qmesh *q, unsigned ahead, uint64_t *context_counts,
+                          uint8_t **buf, size_t *size, ms_error *err)
 {
     ms_codec_state full;
     ms_status st = ms_codec_state_from_qmesh(q, &full, err);
@@ -211,6 +231,7 @@ static ms_status encode_q(const ms_qmesh *q, uint64_t *context_counts, uint8_t *
     memset(&par, 0, sizeof par);
     par.box = q->box;
     par.context_counts = context_counts;
+    par.ahead = ahead;
     st = ms_codec_encode(&full, &par, buf, size, NULL, err);
     ms_codec_state_free(&full);
     return st;
@@ -308,7 +329,7 @@ static int cmd_encode(int argc, char **argv)
         return input_error("encode", &err);
     uint8_t *buf = NULL;
     size_t size = 0;
-    ms_status st = encode_q(&q, NULL, &buf, &size, &err);
+    ms_status st = encode_q(&q, (unsigned)o.ahead, NULL, &buf, &size, &err);
     if (st == MS_OK)
         st = write_file(o.output, buf, size, &err);
     free(buf);
@@ -386,7 +407,7 @@ static int cmd_roundtrip(int argc, char **argv)
     uint8_t *buf = NULL;
     size_t size = 0;
     double t0 = now_seconds();
-    ms_status st = encode_q(&q, NULL, &buf, &size, &err);
+    ms_status st = encode_q(&q, (unsigned)o.ahead, NULL, &buf, &size, &err);
     double t1 = now_seconds();
     ms_codec_decoder *d = NULL;
     double t2 = 0, t3 = 0;
@@ -516,7 +537,7 @@ static int cmd_train(int argc, char **argv)
             break;
         uint8_t *buf = NULL;
         size_t size = 0;
-        st = encode_q(&q, counts, &buf, &size, &err);
+        st = encode_q(&q, (unsigned)o.ahead, counts, &buf, &size, &err);
         if (st == MS_OK)
             printf("%s: %zu vertices, %zu bytes with the current prior\n", o.inputs[i],
                    q.vertex_count, size);

@@ -11,6 +11,7 @@
 #endif
 
 #include "ms_archive_writer.h"
+#include "ms_codec.h"
 #include "ms_catalog.h"
 #include "ms_nsp_build.h"
 #include "ms_nsp_encode.h"
@@ -26,6 +27,7 @@ void ms_bake_options_default(ms_bake_options *o)
     o->min_triangles = 0; /* by model size: ms_nsp_default_min_triangles */
     o->mem_mb = 512;
     o->public_bits = -1;
+    o->ahead = MS_CODEC_DEFAULT_AHEAD;
     long cpus = sysconf(_SC_NPROCESSORS_ONLN);
     o->threads = cpus > 0 ? (unsigned)cpus : 1;
     ms_bake_apo_params_default(&o->apo);
@@ -268,6 +270,7 @@ static ms_status encode_cells(const ms_bake_options *o, ms_nsp_build *b,
     ms_nsp_encode_params ep = {
         .threads = o->threads ? o->threads : 1,
         .apo = &o->apo,
+        .ahead = o->ahead,
         .progress = on_progress,
         .progress_context = progress,
     };

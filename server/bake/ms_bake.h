@@ -62,11 +62,12 @@ typedef struct ms_bake_options {
     ms_bake_apo_params apo; /* per-cell APO chunks (ms_bake_apo.h) */
     unsigned subtree_levels;  /* levels per index subtree, 1..8; 0: the default for n
                                * (ms_subtree_default_levels) */
+    unsigned ahead;        /* geometry ahead of connectivity, kd-levels (ms_codec.h) */
 } ms_bake_options;
 
 /* Defaults: 16 bits, n = 4, p_r = 7, N_min by model size (8000 up to 4 M input
  * triangles: ms_nsp_default_min_triangles), threads = online CPUs, 512 MB,
- * APO on with ms_bake_apo_params_default. */
+ * APO on with ms_bake_apo_params_default, geometry ahead by MS_CODEC_DEFAULT_AHEAD. */
 void ms_bake_options_default(ms_bake_options *options);
 
 typedef struct ms_bake_report {

@@ -499,7 +499,8 @@ static ms_status encode_cell(pool *p, uint32_t node, ms_apo_builder **builder, c
     if (s == MS_OK && apo && leaf && st.vertex_count > 0)
         s = leaf_mesh(&st, &b->box, &m_leaf, err);
     if (s == MS_OK && st.vertex_count > 0) {
-        ms_codec_encode_params ep = {.p_min = lo, .box = b->box, .compact_header = true};
+        ms_codec_encode_params ep = {
+            .p_min = lo, .box = b->box, .compact_header = true, .ahead = p->params->ahead};
         if (freezing) {
             ep.region = &region;
             ep.freeze_level = freeze;

@@ -44,6 +44,7 @@
 typedef struct ms_nsp_encode_params {
     unsigned threads; /* >= 1 */
     const ms_bake_apo_params *apo; /* NULL or not enabled: no APO chunks */
+    unsigned ahead;   /* geometry ahead of connectivity, kd-levels (ms_codec.h) */
     void (*progress)(void *context, const char *phase, double fraction);
     void *progress_context;
 } ms_nsp_encode_params;

@@ -74,8 +74,73 @@ static void assert_valid_complex(const ms_codec_state *s)
     }
 }
 
+/* With geometry ahead by k, every vertex of state a (kd-level L) is drawn at
+ * the barycentre of the cells at level min(L + k, D) that hold vertices of the
+ * full complex canon inside it (up to the decoder's rounding to half a grid
+ * unit: at D, its own centre; at level 0, before the first chunk's prelude,
+ * too); with k = 0 the state has no points. */
+static void assert_ahead_points(const ms_codec_state *a, const ms_codec_state *canon, unsigned L,
+                                unsigned k)
+{
+    unsigned P = canon->bits, D = 3 * P;
+    /* at the stream's first level (0) nothing is known ahead yet: the
+     * prelude is part of refining it */
+    unsigned M = L == 0 ? 0 : L + k < D ? L + k : D;
+    if (k == 0) {
+        assert_null(a->rep);
+        return;
+    }
+    assert_non_null(a->rep);
+    size_t j = 0;
+    for (size_t i = 0; i < a->vertex_count; ++i) {
+        uint64_t prefix = a->cells[i];
+        while (j < canon->vertex_count && (canon->cells[j] >> (D - L)) < prefix)
+            j++;
+        double sum[3] = {0, 0, 0};
+        size_t n = 0;
+        uint64_t last = UINT64_MAX;
+        for (size_t t = j; t < canon->vertex_count && (canon->cells[t] >> (D - L)) == prefix; ++t) {
+            uint64_t cell = canon->cells[t] >> (D - M);
+            if (cell == last)
+                continue;
+            last = cell;
+            uint32_t c[3];
+            ms_quant_unkey(canon->cells[t], P, c);
+            for (int ax = 0; ax < 3; ++ax) {
+                uint32_t w = 1u << (P - (M + 2 - (unsigned)ax) / 3);
+                sum[ax] += (c[ax] & ~(w - 1)) + 0.5 * w;
+            }
+            n++;
+        }
+        assert_true(n > 0);
+        uint32_t c[3];
+        ms_quant_unkey(canon->cells[j], P, c);
+        for (int ax = 0; ax < 3; ++ax) {
+            uint32_t w = 1u << (P - (L + 2 - (unsigned)ax) / 3);
+            double want = (sum[ax] / (double)n - (c[ax] & ~(w - 1))) / w * 65536.0;
+            double got = a->rep[3 * i + (size_t)ax];
+            if (fabs(got - want) > 16384.0 / w + 1.0)
+                fail_msg("level %u (ahead %u), vertex %zu, axis %d: drawn at %.0f/65536 of its "
+                         "cell, the barycentre of its descendants is at %.1f", L, k, i, ax, got,
+                         want);
+        }
+    }
+}
+
+static void check_roundtrip_ahead(const ms_mesh *mesh, unsigned bits, unsigned level_step,
+                                  bool twice, unsigned ahead, ms_codec_check_result *res);
+
 void ms_codec_check_roundtrip_ex(const ms_mesh *mesh, unsigned bits, unsigned level_step,
-                                 bool twice, ms_codec_check_result *res)
+                                 bool twice, unsigned aheads, ms_codec_check_result *res)
+{
+    assert_true(aheads != 0);
+    for (unsigned k = 0; k <= MS_CODEC_MAX_AHEAD; ++k)
+        if (aheads & (1u << k))
+            check_roundtrip_ahead(mesh, bits, level_step, twice, k, res);
+}
+
+static void check_roundtrip_ahead(const ms_mesh *mesh, unsigned bits, unsigned level_step,
+                                  bool twice, unsigned ahead, ms_codec_check_result *res)
 {
     ms_error err;
     ms_qmesh q;
@@ -88,6 +153,7 @@ void ms_codec_check_roundtrip_ex(const ms_mesh *mesh, unsigned bits, unsigned le
     ms_codec_encode_params par;
     memset(&par, 0, sizeof par);
     par.box = q.box;
+    par.ahead = ahead;
     uint8_t *buf = NULL, *buf2 = NULL;
     size_t size = 0, size2 = 0;
     assert_int_equal(ms_codec_encode(&full, &par, &buf, &size, NULL, &err), MS_OK);
@@ -131,6 +197,7 @@ void ms_codec_check_roundtrip_ex(const ms_mesh *mesh, unsigned bits, unsigned le
             ms_codec_state a, r;
             assert_int_equal(ms_codec_decoder_state(d, &a, &err), MS_OK);
             assert_valid_complex(&a);
+            assert_ahead_points(&a, &canon, L, ahead);
             ms_ref_coarsen(&canon, L, &r);
             if (!ms_codec_state_equal(&a, &r, false))
                 fail_msg("level %u differs from the reference: V %zu/%zu T %zu/%zu E %zu/%zu", L,
@@ -149,6 +216,10 @@ void ms_codec_check_roundtrip_ex(const ms_mesh *mesh, unsigned bits, unsigned le
         assert_int_equal(ms_codec_decoder_set_level(d, mid, &err), MS_OK);
         assert_int_equal(ms_codec_decoder_state(d, &s2, &err), MS_OK);
         assert_true(ms_codec_state_equal(&s1, &s2, true));
+        assert_true((s1.rep == NULL) == (s2.rep == NULL));
+        if (s1.rep)
+            assert_memory_equal(s1.rep, s2.rep, 3 * s1.vertex_count * sizeof *s1.rep);
+        assert_ahead_points(&s1, &canon, mid, ahead);
         ms_codec_state_free(&s1);
         ms_codec_state_free(&s2);
         assert_int_equal(ms_codec_decoder_set_level(d, D, &err), MS_OK);

@@ -15,16 +15,23 @@ typedef struct ms_codec_check_result {
     ms_weld_report weld;
 } ms_codec_check_result;
 
-/* Quantises mesh at bits, encodes, decodes to full precision and asserts the
- * result equals the welded input (oriented). When level_step > 0, coarsens back
- * level by level and compares every level L with L % level_step == 0 (and the
- * first three) against the reference coarsener (unoriented), then refines again
- * and asserts the byte-identical canonical state. With twice, also asserts that
- * encoding twice gives identical bytes. */
+/* Which geometry-ahead settings a check encodes with: bit k for ahead k. */
+#define MS_CHECK_AHEAD_ALL (1u | 1u << 1 | 1u << 3 | 1u << MS_CODEC_MAX_AHEAD)
+#define MS_CHECK_AHEAD_DEFAULT (1u << MS_CODEC_DEFAULT_AHEAD)
+#define MS_CHECK_AHEAD_BOTH (1u | MS_CHECK_AHEAD_DEFAULT)
+
+/* For each ahead setting in the mask `aheads`: quantises mesh at bits, encodes,
+ * decodes to full precision and asserts the result equals the welded input
+ * (oriented). When level_step > 0, coarsens back level by level and compares
+ * every level L with L % level_step == 0 (and the first three) against the
+ * reference coarsener (unoriented) and, with geometry ahead, each vertex's
+ * drawn point against the barycentre of its descendants; then refines again
+ * and asserts the byte-identical canonical state and points. With twice, also
+ * asserts that encoding twice gives identical bytes. res: the last setting's. */
 void ms_codec_check_roundtrip_ex(const ms_mesh *mesh, unsigned bits, unsigned level_step,
-                                 bool twice, ms_codec_check_result *res);
+                                 bool twice, unsigned aheads, ms_codec_check_result *res);
 #define ms_codec_check_roundtrip(mesh, bits, step, res) \
-    ms_codec_check_roundtrip_ex(mesh, bits, step, true, res)
+    ms_codec_check_roundtrip_ex(mesh, bits, step, true, MS_CHECK_AHEAD_ALL, res)
 
 /* A closed torus grid of nu x nv vertices (radii R, r), 2 nu nv triangles,
  * consistently oriented. */
