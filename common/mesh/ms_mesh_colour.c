@@ -1,5 +1,6 @@
-/* Distinct vertex colours, by a radix sort of the colours as 32-bit keys. */
+/* Distinct vertex colours: the colours as 32-bit keys, radix-sorted, runs counted. */
 #include "ms_mesh_colour.h"
+#include "ms_radix_sort.h"
 
 #include <stdlib.h>
 #include <string.h>
@@ -12,19 +13,19 @@ ms_status ms_colour_tally_add(ms_colour_tally *t, const uint8_t *rgba, size_t co
     if (count > t->capacity - t->count) {
         size_t cap = t->capacity ? t->capacity : 4096;
         while (cap - t->count < count) {
-            if (cap > SIZE_MAX / (2 * 2 * sizeof *t->keys))
+            if (cap > SIZE_MAX / (2 * sizeof *t->keys))
                 return ms_error_set(err, MS_ERR_NOMEM, "too many colours to count");
             cap *= 2;
         }
-        uint32_t *grown = realloc(t->keys, cap * sizeof *grown);
+        uint64_t *grown = realloc(t->keys, cap * sizeof *grown);
         if (!grown)
             return ms_error_set(err, MS_ERR_NOMEM, "out of memory counting %zu colours", cap);
         t->keys = grown;
         t->capacity = cap;
     }
-    uint32_t *out = t->keys + t->count;
+    uint64_t *out = t->keys + t->count;
     for (size_t i = 0; i < count; ++i, rgba += 4)
-        out[i] = (uint32_t)rgba[0] << 24 | (uint32_t)rgba[1] << 16 | (uint32_t)rgba[2] << 8 |
+        out[i] = (uint64_t)rgba[0] << 24 | (uint64_t)rgba[1] << 16 | (uint64_t)rgba[2] << 8 |
                  rgba[3];
     t->count += count;
     return MS_OK;
@@ -33,33 +34,19 @@ ms_status ms_colour_tally_add(ms_colour_tally *t, const uint8_t *rgba, size_t co
 ms_status ms_colour_tally_distinct(ms_colour_tally *t, uint64_t *distinct, ms_error *err)
 {
     *distinct = 0;
-    const size_t count = t->count;
-    if (count == 0)
+    if (t->count == 0)
         return MS_OK;
-    uint32_t *scratch = malloc(count * sizeof *scratch);
-    if (!scratch)
-        return ms_error_set(err, MS_ERR_NOMEM, "out of memory counting %zu colours", count);
-    uint32_t *keys = t->keys, *other = scratch;
-    /* Least significant byte first: four stable counting passes sort the keys; after
-     * an even number of passes they are back in t->keys. */
-    for (unsigned shift = 0; shift < 32; shift += 8) {
-        size_t start[257];
-        memset(start, 0, sizeof start);
-        for (size_t i = 0; i < count; ++i)
-            ++start[(keys[i] >> shift & 255) + 1];
-        for (int b = 0; b < 256; ++b)
-            start[b + 1] += start[b];
-        for (size_t i = 0; i < count; ++i)
-            other[start[keys[i] >> shift & 255]++] = keys[i];
-        uint32_t *swap = keys;
-        keys = other;
-        other = swap;
-    }
+    uint32_t *values = calloc(t->count, sizeof *values); /* the sort carries a value */
+    if (!values)
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory counting %zu colours", t->count);
+    ms_status st = ms_radix_sort_pairs(t->keys, values, t->count, 32, err);
+    free(values);
+    if (st != MS_OK)
+        return st;
     uint64_t n = 1;
-    for (size_t i = 1; i < count; ++i)
-        n += keys[i] != keys[i - 1];
+    for (size_t i = 1; i < t->count; ++i)
+        n += t->keys[i] != t->keys[i - 1];
     *distinct = n;
-    free(scratch);
     return MS_OK;
 }
 

@@ -31,10 +31,11 @@ static inline bool ms_colour_from_unit(double v, uint8_t *out)
 }
 
 /* Colours gathered chunk by chunk (a mesh reader's sink) to count the distinct
- * ones: 4 bytes per colour while gathering, 4 more while counting. Zero it to
- * start; ms_colour_tally_free releases it. */
+ * ones: 8 bytes per colour while gathering, 16 more while counting (the radix
+ * sort of common/util/ms_radix_sort.h). Zero it to start; ms_colour_tally_free
+ * releases it. */
 typedef struct ms_colour_tally {
-    uint32_t *keys; /* r g b a packed, most significant byte r */
+    uint64_t *keys; /* r g b a packed in the low 32 bits, r most significant */
     size_t count, capacity;
 } ms_colour_tally;
 

@@ -115,26 +115,25 @@ static ms_status find_colour(ms_reader *r, ply_element *e)
         for (size_t i = 0; i < e->prop_count; ++i)
             if (strcmp(e->props[i].name, name) == 0)
                 e->colour[c] = (int)i;
+        found += c < 3 && e->colour[c] >= 0;
+    }
+    /* Without all three of red, green and blue there is no colour: the channels
+     * there are skipped like any other property. */
+    e->has_colour = found == 3;
+    for (int c = 0; c < 4; ++c) {
+        if (!e->has_colour)
+            e->colour[c] = -1;
         if (e->colour[c] < 0)
             continue;
         const ply_property *p = &e->props[e->colour[c]];
         if (p->is_list)
-            return ms_reader_fail_line(r, MS_ERR_FORMAT, "vertex property %s is a list", name);
+            return ms_reader_fail_line(r, MS_ERR_FORMAT, "vertex property %s is a list", p->name);
         if (p->type != PLY_UINT8 && p->type != PLY_UINT16 && p->type != PLY_FLOAT32 &&
             p->type != PLY_FLOAT64)
             return ms_reader_fail_line(r, MS_ERR_UNSUPPORTED,
                                        "colour property %s of type %s (uchar, ushort, float or "
-                                       "double expected)", name, type_name(p->type));
-        found += c < 3;
+                                       "double expected)", p->name, type_name(p->type));
     }
-    if (found > 0 && found < 3)
-        return ms_reader_fail_line(r, MS_ERR_FORMAT,
-                                   "vertex colour needs %sred, %sgreen and %sblue (%s%s missing)",
-                                   prefix, prefix, prefix, prefix,
-                                   channel[e->colour[0] < 0 ? 0 : e->colour[1] < 0 ? 1 : 2]);
-    e->has_colour = found == 3;
-    if (!e->has_colour) /* alpha alone is no colour: skipped like any other property */
-        e->colour[3] = -1;
     return MS_OK;
 }
 
