@@ -3,7 +3,8 @@
  * ms_mesh_load reads a PLY (ascii, binary little/big endian), OBJ or OFF file,
  * optionally gzip-compressed, into an ms_mesh, applying the cleaning policy of
  * docs/INPUT.md (faces with a repeated vertex dropped and counted; zero-area faces
- * with distinct vertices kept; isolated vertices counted). It is built on the
+ * with distinct vertices kept; isolated vertices counted), with the vertex colour
+ * when the file has one (mesh->colours, else NULL). It is built on the
  * streaming readers (ms_mesh_reader.h) and holds the whole mesh in memory; the
  * baker uses the streaming interface instead for models larger than memory.
  *

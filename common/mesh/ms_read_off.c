@@ -86,6 +86,52 @@ static ms_status off_count(ms_reader *r, char **p, int64_t *value, const char *w
     return MS_OK;
 }
 
+/* What the OFF keyword's prefixes add to each vertex line after x y z. */
+typedef struct off_layout {
+    bool normal, colour, st; /* N: 3 numbers, C: r g b [a], ST: 2 numbers, in this order */
+} off_layout;
+
+/* Vertex i, its line p (with content). */
+static ms_status off_vertex(ms_reader *r, char *p, int64_t i, const off_layout *layout)
+{
+    ms_status st;
+    double xyz[3];
+    for (int a = 0; a < 3; ++a) {
+        p = ms_skip_blanks(p);
+        const char *end = ms_parse_double(p, &xyz[a]);
+        if (!end)
+            return ms_reader_fail_line(r, MS_ERR_FORMAT, "%s vertex coordinate",
+                                       *p ? "non-numeric" : "missing");
+        p = (char *)end;
+    }
+    double value[9];
+    bool integer[9];
+    int count;
+    if ((st = off_vertex_values(r, p, value, integer, 9, &count)) != MS_OK)
+        return st;
+    if (!isfinite(xyz[0]) || !isfinite(xyz[1]) || !isfinite(xyz[2]))
+        return ms_reader_fail_line(r, MS_ERR_RANGE, "vertex %lld has a non-finite coordinate",
+                                   (long long)i);
+    if (!layout->colour)
+        return ms_reader_add_vertex(r, xyz[0], xyz[1], xyz[2]);
+    const int skip = layout->normal ? 3 : 0;
+    const int channels = count - skip - (layout->st ? 2 : 0);
+    if (channels != 3 && channels != 4)
+        return ms_reader_fail_line(r, MS_ERR_FORMAT,
+                                   "vertex %lld: %d colour values (3 or 4 expected)",
+                                   (long long)i, channels < 0 ? 0 : channels);
+    if (i == 0 && (st = ms_reader_enable_colour(r, channels == 4)) != MS_OK)
+        return st;
+    if ((channels == 4) != r->colour_alpha)
+        return ms_reader_fail_line(r, MS_ERR_FORMAT,
+                                   "vertex %lld: %d colour values, vertex 0 has %d",
+                                   (long long)i, channels, r->colour_alpha ? 4 : 3);
+    uint8_t rgba[4];
+    if ((st = off_colour(r, i, value + skip, integer + skip, channels, rgba)) != MS_OK)
+        return st;
+    return ms_reader_add_coloured_vertex(r, xyz[0], xyz[1], xyz[2], rgba);
+}
+
 ms_status ms_read_off(ms_reader *r)
 {
     char *p;
@@ -98,13 +144,13 @@ ms_status ms_read_off(ms_reader *r)
     size_t len = (size_t)(p - keyword);
     /* Prefixes ST (texture), C (colour), N (normal) only add per-vertex values. */
     size_t k = 0;
-    bool has_st = false, has_colour = false, has_normal = false;
+    off_layout layout = {false, false, false};
     if (len - k > 3 && keyword[k] == 'S' && keyword[k + 1] == 'T')
-        k += 2, has_st = true;
+        k += 2, layout.st = true;
     if (len - k > 3 && keyword[k] == 'C')
-        ++k, has_colour = true;
+        ++k, layout.colour = true;
     if (len - k > 3 && keyword[k] == 'N')
-        ++k, has_normal = true;
+        ++k, layout.normal = true;
     if (len - k != 3 || memcmp(keyword + k, "OFF", 3) != 0)
         return ms_reader_fail_line(r, MS_ERR_UNSUPPORTED, "unsupported OFF variant '%.*s'",
                                    (int)len, keyword);
@@ -134,43 +180,7 @@ ms_status ms_read_off(ms_reader *r)
             return ms_reader_fail_line(r, MS_ERR_FORMAT,
                                        "file ends after %lld of %lld vertices (truncated?)",
                                        (long long)i, (long long)vertices);
-        double xyz[3];
-        for (int a = 0; a < 3; ++a) {
-            p = ms_skip_blanks(p);
-            const char *end = ms_parse_double(p, &xyz[a]);
-            if (!end)
-                return ms_reader_fail_line(r, MS_ERR_FORMAT, "%s vertex coordinate",
-                                           *p ? "non-numeric" : "missing");
-            p = (char *)end;
-        }
-        double value[9];
-        bool integer[9];
-        int count;
-        if ((st = off_vertex_values(r, p, value, integer, 9, &count)) != MS_OK)
-            return st;
-        if (!isfinite(xyz[0]) || !isfinite(xyz[1]) || !isfinite(xyz[2]))
-            return ms_reader_fail_line(r, MS_ERR_RANGE, "vertex %lld has a non-finite coordinate",
-                                       (long long)i);
-        if (!has_colour) {
-            if ((st = ms_reader_add_vertex(r, xyz[0], xyz[1], xyz[2])) != MS_OK)
-                return st;
-            continue;
-        }
-        const int skip = has_normal ? 3 : 0;
-        const int channels = count - skip - (has_st ? 2 : 0);
-        if (channels != 3 && channels != 4)
-            return ms_reader_fail_line(r, MS_ERR_FORMAT,
-                                       "vertex %lld: %d colour values (3 or 4 expected)",
-                                       (long long)i, channels < 0 ? 0 : channels);
-        if (i == 0 && (st = ms_reader_enable_colour(r, channels == 4)) != MS_OK)
-            return st;
-        if ((channels == 4) != r->colour_alpha)
-            return ms_reader_fail_line(r, MS_ERR_FORMAT,
-                                       "vertex %lld: %d colour values, vertex 0 has %d",
-                                       (long long)i, channels, r->colour_alpha ? 4 : 3);
-        uint8_t rgba[4];
-        if ((st = off_colour(r, i, value + skip, integer + skip, channels, rgba)) != MS_OK ||
-            (st = ms_reader_add_coloured_vertex(r, xyz[0], xyz[1], xyz[2], rgba)) != MS_OK)
+        if ((st = off_vertex(r, p, i, &layout)) != MS_OK)
             return st;
     }
     if ((st = ms_reader_flush_vertices(r)) != MS_OK)
