@@ -2,7 +2,8 @@
  * small meshes written here: a closed cube (18 manifold edges), the cube with
  * one triangle flipped (its 3 edges become inconsistently oriented), with a
  * fin (a triangle on one of its edges: non-manifold), an open strip (boundary
- * edges), and the same figures from the program, text and JSON. */
+ * edges), and the same figures from the program, text and JSON; and the
+ * program's vertex colour report (present, alpha, distinct colours). */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -102,12 +103,60 @@ static void test_meshbake_info(void **state)
     assert_int_equal(json_integer_value(json_object_get(edges, "non_manifold")), 1);
     assert_int_equal(json_integer_value(json_object_get(edges, "boundary")), 2);
     assert_int_equal(json_integer_value(json_object_get(edges, "manifold")), 14);
+    json_t *colour = json_object_get(report, "colour");
+    assert_true(json_is_false(json_object_get(colour, "present")));
+    assert_true(json_is_false(json_object_get(colour, "alpha")));
+    assert_int_equal(json_integer_value(json_object_get(colour, "distinct")), 0);
     json_decref(report);
     snprintf(command, sizeof command, "%s --info %s", bin, path);
     assert_int_equal(ms_test_run(command, out, sizeof out), 0);
     assert_non_null(strstr(out, "edges:             20 (2 boundary, 14 manifold)"));
     assert_non_null(strstr(out, "flipped edges:     3 "));
     assert_non_null(strstr(out, "non-manifold:      1 edges"));
+    assert_non_null(strstr(out, "vertex colour:     none\n"));
+    ms_test_rmdir(dir);
+}
+
+/* The colour line of `meshbake --info`: with and without alpha, the exact count
+ * of distinct colours (alpha counts). */
+static void test_meshbake_info_colour(void **state)
+{
+    (void)state;
+    char dir[512], path[600], bin[600], command[2048], out[8192];
+    ms_test_tmpdir(dir, sizeof dir);
+    snprintf(path, sizeof path, "%s/coloured.ply", dir);
+    ms_mesh m = {0};
+    ms_error err;
+    assert_int_equal(ms_mesh_reserve(&m, 8, 12, &err), MS_OK);
+    for (uint32_t v = 0; v < 8; ++v) {
+        m.positions[3 * v] = v & 1, m.positions[3 * v + 1] = (v >> 1) & 1, m.positions[3 * v + 2] = (v >> 2) & 1;
+    }
+    m.vertex_count = 8;
+    memcpy(m.triangles, cube, sizeof cube);
+    m.triangle_count = 12;
+    assert_int_equal(ms_mesh_add_colours(&m, true, &err), MS_OK);
+    /* 8 vertices: red twice, red with alpha 0 once, green, blue, and white three times */
+    static const uint8_t rgba[8][4] = {{255, 0, 0, 255}, {255, 0, 0, 255}, {255, 0, 0, 0},
+                                       {0, 255, 0, 255}, {0, 0, 255, 255}, {255, 255, 255, 255},
+                                       {255, 255, 255, 255}, {255, 255, 255, 255}};
+    memcpy(m.colours, rgba, sizeof rgba);
+    ms_test_bin_path(bin, sizeof bin, "meshbake");
+    for (int alpha = 1; alpha >= 0; --alpha) {
+        m.colour_alpha = alpha;
+        assert_int_equal(ms_ply_write(path, &m, true, false, &err), MS_OK);
+        snprintf(command, sizeof command, "%s --info --json %s", bin, path);
+        json_t *report = ms_test_run_json(command, 0);
+        json_t *colour = json_object_get(report, "colour");
+        assert_true(json_is_true(json_object_get(colour, "present")));
+        assert_int_equal(json_is_true(json_object_get(colour, "alpha")), alpha);
+        assert_int_equal(json_integer_value(json_object_get(colour, "distinct")), alpha ? 5 : 4);
+        json_decref(report);
+        snprintf(command, sizeof command, "%s --info %s", bin, path);
+        assert_int_equal(ms_test_run(command, out, sizeof out), 0);
+        assert_non_null(strstr(out, alpha ? "vertex colour:     rgba, 5 distinct\n"
+                                          : "vertex colour:     rgb, 4 distinct\n"));
+    }
+    ms_mesh_free(&m);
     ms_test_rmdir(dir);
 }
 
@@ -116,6 +165,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_counts),
         cmocka_unit_test(test_meshbake_info),
+        cmocka_unit_test(test_meshbake_info_colour),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

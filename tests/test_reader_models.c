@@ -236,6 +236,19 @@ static void test_meshconv_round_trip(void **state)
     ms_mesh_free(&b);
     snprintf(command, sizeof command, "%s '%s'", bin, model);
     assert_int_equal(ms_test_run(command, out, sizeof out), 2);
+    /* the colour trefoil keeps its vertex colours, alpha included, in ascii too */
+    ms_test_model_path(model, sizeof model, "trefoil_color.ply.gz");
+    snprintf(out_path, sizeof out_path, "%s/trefoil.ply", dir);
+    snprintf(command, sizeof command, "%s '%s' -o '%s' --ascii", bin, model, out_path);
+    assert_int_equal(ms_test_run(command, out, sizeof out), 0);
+    assert_int_equal(ms_mesh_load(model, &a, NULL, &err), MS_OK);
+    assert_int_equal(ms_mesh_load(out_path, &b, &report, &err), MS_OK);
+    assert_string_equal(report.format, "ply-ascii");
+    assert_int_equal(a.vertex_count, b.vertex_count);
+    assert_true(a.colours && b.colours && a.colour_alpha && b.colour_alpha);
+    assert_memory_equal(a.colours, b.colours, 4 * a.vertex_count);
+    ms_mesh_free(&a);
+    ms_mesh_free(&b);
     ms_test_rmdir(dir);
 }
 

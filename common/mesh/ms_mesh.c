@@ -10,17 +10,16 @@ void ms_mesh_free(ms_mesh *mesh)
         return;
     free(mesh->positions);
     free(mesh->triangles);
+    free(mesh->colours);
     memset(mesh, 0, sizeof *mesh);
 }
 
-/* Grows *array to hold at least `want` items of `item_size` bytes, doubling so
- * that repeated appends stay linear. */
-static ms_status grow_array(void **array, size_t *capacity, size_t want, size_t item_size,
-                            ms_error *err)
+/* The capacity, from *capacity doubling, that holds `want` items of item_size
+ * bytes: so that repeated appends stay linear. */
+static ms_status next_capacity(size_t capacity, size_t want, size_t item_size, size_t *out,
+                               ms_error *err)
 {
-    if (want <= *capacity)
-        return MS_OK;
-    size_t cap = *capacity ? *capacity : 1024;
+    size_t cap = capacity ? capacity : 1024;
     while (cap < want) {
         if (cap > SIZE_MAX / 2)
             return ms_error_set(err, MS_ERR_NOMEM, "mesh too large (%zu items)", want);
@@ -28,6 +27,20 @@ static ms_status grow_array(void **array, size_t *capacity, size_t want, size_t 
     }
     if (cap > SIZE_MAX / item_size)
         return ms_error_set(err, MS_ERR_NOMEM, "mesh too large (%zu items)", want);
+    *out = cap;
+    return MS_OK;
+}
+
+/* Grows *array to hold at least `want` items of `item_size` bytes. */
+static ms_status grow_array(void **array, size_t *capacity, size_t want, size_t item_size,
+                            ms_error *err)
+{
+    if (want <= *capacity)
+        return MS_OK;
+    size_t cap;
+    ms_status st = next_capacity(*capacity, want, item_size, &cap, err);
+    if (st != MS_OK)
+        return st;
     void *grown = realloc(*array, cap * item_size);
     if (!grown)
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory reserving %zu mesh items", want);
@@ -39,15 +52,48 @@ static ms_status grow_array(void **array, size_t *capacity, size_t want, size_t 
 ms_status ms_mesh_reserve(ms_mesh *mesh, size_t vertex_capacity, size_t triangle_capacity,
                           ms_error *err)
 {
-    void *positions = mesh->positions;
-    ms_status st = grow_array(&positions, &mesh->vertex_capacity, vertex_capacity,
-                              3 * sizeof(double), err);
-    mesh->positions = positions;
-    if (st != MS_OK)
-        return st;
+    if (vertex_capacity > mesh->vertex_capacity) {
+        /* Positions and colours grow together; the capacity is raised only when
+         * both have the room. */
+        size_t cap;
+        ms_status st = next_capacity(mesh->vertex_capacity, vertex_capacity, 3 * sizeof(double),
+                                     &cap, err);
+        if (st != MS_OK)
+            return st;
+        double *positions = realloc(mesh->positions, cap * 3 * sizeof(double));
+        if (!positions)
+            return ms_error_set(err, MS_ERR_NOMEM, "out of memory reserving %zu mesh items",
+                                vertex_capacity);
+        mesh->positions = positions;
+        if (mesh->colours) {
+            uint8_t *colours = realloc(mesh->colours, cap * 4);
+            if (!colours)
+                return ms_error_set(err, MS_ERR_NOMEM, "out of memory reserving %zu mesh items",
+                                    vertex_capacity);
+            mesh->colours = colours;
+        }
+        mesh->vertex_capacity = cap;
+    }
     void *triangles = mesh->triangles;
-    st = grow_array(&triangles, &mesh->triangle_capacity, triangle_capacity,
-                    3 * sizeof(uint32_t), err);
+    ms_status st = grow_array(&triangles, &mesh->triangle_capacity, triangle_capacity,
+                              3 * sizeof(uint32_t), err);
     mesh->triangles = triangles;
     return st;
+}
+
+ms_status ms_mesh_add_colours(ms_mesh *mesh, bool alpha, ms_error *err)
+{
+    if (mesh->colours) {
+        mesh->colour_alpha = mesh->colour_alpha || alpha;
+        return MS_OK;
+    }
+    size_t room = mesh->vertex_capacity ? mesh->vertex_capacity : 1;
+    if (room > SIZE_MAX / 4)
+        return ms_error_set(err, MS_ERR_NOMEM, "mesh too large (%zu items)", room);
+    mesh->colours = malloc(room * 4);
+    if (!mesh->colours)
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory for %zu vertex colours", room);
+    memset(mesh->colours, 255, mesh->vertex_count * 4);
+    mesh->colour_alpha = alpha;
+    return MS_OK;
 }

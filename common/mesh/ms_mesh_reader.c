@@ -142,8 +142,23 @@ ms_status ms_reader_flush_vertices(ms_reader *r)
         return st;
     r->vertex_pending = 0;
     report_progress(r);
-    if (r->sink->vertices)
-        return r->sink->vertices(r->sink->context, v, n, r->err);
+    if (r->sink->vertices && (st = r->sink->vertices(r->sink->context, v, n, r->err)) != MS_OK)
+        return st;
+    if (r->colour && r->sink->colours)
+        return r->sink->colours(r->sink->context, r->colour_chunk, n, r->err);
+    return MS_OK;
+}
+
+ms_status ms_reader_enable_colour(ms_reader *r, bool alpha)
+{
+    if (!r->colour_chunk) {
+        r->colour_chunk = malloc(4 * MS_MESH_READ_CHUNK_VERTICES);
+        if (!r->colour_chunk)
+            return ms_error_set(r->err, MS_ERR_NOMEM, "%s: out of memory for read buffers",
+                                r->path);
+    }
+    r->colour = true;
+    r->colour_alpha = alpha;
     return MS_OK;
 }
 
@@ -283,6 +298,8 @@ done:
         report->input_faces = r.input_faces;
         report->dropped_faces = stats.dropped_faces;
         report->isolated_vertices = stats.isolated_vertices;
+        report->colour = r.colour;
+        report->colour_alpha = r.colour_alpha;
         for (int a = 0; a < 3; ++a) {
             report->bbox_min[a] = report->vertices ? r.bbox_min[a] : 0.0;
             report->bbox_max[a] = report->vertices ? r.bbox_max[a] : 0.0;
@@ -290,6 +307,7 @@ done:
     }
     free(r.vertex_chunk);
     free(r.triangle_chunk);
+    free(r.colour_chunk);
     ms_mesh_cleaner_free(&r.cleaner);
     if (r.src.buf)
         ms_byte_source_close(&r.src);

@@ -56,6 +56,11 @@ typedef struct ms_mesh_sink {
     /* `count` triangles as three vertex indices each; valid only during the call.
      * May be NULL. */
     ms_status (*triangles)(void *context, const uint32_t *indices, size_t count, ms_error *err);
+    /* Only for files with per-vertex colour (docs/INPUT.md): right after each
+     * vertices call, the same `count` vertices' colours as r g b a bytes (a is
+     * 255 when the file has no alpha; the report says which). Valid only during
+     * the call. May be NULL. */
+    ms_status (*colours)(void *context, const uint8_t *rgba, size_t count, ms_error *err);
     /* Called with each chunk handed over, with how far through the file on disk the read
      * is (compressed bytes for gzip input) and the file size. May be NULL. */
     void (*progress)(void *context, uint64_t disk_bytes_done, uint64_t disk_bytes_total);
@@ -70,6 +75,8 @@ typedef struct ms_mesh_read_report {
     uint64_t input_faces;       /* faces (or strips) as read, before triangulation */
     uint64_t dropped_faces;     /* triangles dropped for a repeated vertex index */
     uint64_t isolated_vertices; /* vertices referenced by no delivered triangle */
+    bool colour;                /* the vertices have colour (handed to sink->colours) */
+    bool colour_alpha;          /* ... with an alpha channel */
     double bbox_min[3];         /* bounding box of all vertices, file units */
     double bbox_max[3];
 } ms_mesh_read_report;

@@ -7,6 +7,7 @@
 #include <math.h>
 #include <stdbool.h>
 #include <stdint.h>
+#include <string.h>
 
 #include "ms_byte_source.h"
 #include "ms_mesh_clean.h"
@@ -29,6 +30,8 @@ typedef struct ms_reader {
     uint64_t vertex_total;     /* vertices read so far (delivered + pending) */
     uint64_t input_faces;
     double *vertex_chunk;      /* MS_MESH_READ_CHUNK_VERTICES * 3 */
+    uint8_t *colour_chunk;     /* MS_MESH_READ_CHUNK_VERTICES * 4 when colour, else NULL */
+    bool colour, colour_alpha; /* the file's vertices have colour (with alpha) */
     size_t vertex_pending;
     uint32_t *triangle_chunk;  /* MS_MESH_READ_CHUNK_TRIANGLES * 3 */
     size_t triangle_pending;
@@ -88,6 +91,20 @@ static inline ms_status ms_reader_add_vertex(ms_reader *r, double x, double y, d
     v[2] = z;
     ++r->vertex_total;
     return MS_OK;
+}
+
+/* Declares that every vertex of the file has a colour (with alpha or not);
+ * called by a parser before its first vertex. MS_ERR_NOMEM. */
+ms_status ms_reader_enable_colour(ms_reader *r, bool alpha);
+
+/* Appends one vertex with its colour (r g b a; the reader has colour). */
+static inline ms_status ms_reader_add_coloured_vertex(ms_reader *r, double x, double y, double z,
+                                                      const uint8_t rgba[4])
+{
+    ms_status st = ms_reader_add_vertex(r, x, y, z);
+    if (st == MS_OK)
+        memcpy(r->colour_chunk + 4 * (r->vertex_pending - 1), rgba, 4);
+    return st;
 }
 
 /* Appends one triangle whose indices the parser has checked against

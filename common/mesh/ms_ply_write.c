@@ -12,6 +12,7 @@ struct ms_ply_writer {
     char *path;     /* final name */
     char *tmp_path; /* name written until finish */
     bool binary, use_double;
+    int colour_channels; /* 0, 3 (red green blue) or 4 (and alpha) uchars per vertex */
     uint64_t vertices_left, triangles_left;
     uint64_t vertex_count; /* for index range checks */
 };
@@ -65,6 +66,14 @@ static ms_status writer_fail(ms_ply_writer *w, ms_error *err)
 ms_status ms_ply_writer_open(const char *path, uint64_t vertex_count, uint64_t triangle_count,
                              bool binary, bool use_double, ms_ply_writer **writer, ms_error *err)
 {
+    return ms_ply_writer_open_colour(path, vertex_count, triangle_count, binary, use_double, 0,
+                                     writer, err);
+}
+
+ms_status ms_ply_writer_open_colour(const char *path, uint64_t vertex_count,
+                                    uint64_t triangle_count, bool binary, bool use_double,
+                                    int colour_channels, ms_ply_writer **writer, ms_error *err)
+{
     *writer = NULL;
     if (vertex_count > INT32_MAX)
         return ms_error_set(err, MS_ERR_RANGE, "%s: %" PRIu64 " vertices exceed PLY int indices",
@@ -83,6 +92,7 @@ ms_status ms_ply_writer_open(const char *path, uint64_t vertex_count, uint64_t t
     snprintf(w->tmp_path, len + 16, "%s.partial", path);
     w->binary = binary;
     w->use_double = use_double;
+    w->colour_channels = colour_channels == 3 || colour_channels == 4 ? colour_channels : 0;
     w->vertices_left = w->vertex_count = vertex_count;
     w->triangles_left = triangle_count;
     w->file = fopen(w->tmp_path, "wb");
@@ -97,8 +107,12 @@ ms_status ms_ply_writer_open(const char *path, uint64_t vertex_count, uint64_t t
     if (fprintf(w->file,
                 "ply\nformat %s 1.0\ncomment written by meshstream\n"
                 "element vertex %" PRIu64 "\nproperty %s x\nproperty %s y\nproperty %s z\n"
+                "%s%s"
                 "element face %" PRIu64 "\nproperty list uchar int vertex_indices\nend_header\n",
                 binary ? "binary_little_endian" : "ascii", vertex_count, type, type, type,
+                w->colour_channels ? "property uchar red\nproperty uchar green\n"
+                                     "property uchar blue\n" : "",
+                w->colour_channels == 4 ? "property uchar alpha\n" : "",
                 triangle_count) < 0)
         return writer_fail(w, err);
     *writer = w;
@@ -107,6 +121,13 @@ ms_status ms_ply_writer_open(const char *path, uint64_t vertex_count, uint64_t t
 
 ms_status ms_ply_writer_vertex(ms_ply_writer *w, const double p[3], ms_error *err)
 {
+    static const uint8_t white[4] = {255, 255, 255, 255};
+    return ms_ply_writer_coloured_vertex(w, p, white, err);
+}
+
+ms_status ms_ply_writer_coloured_vertex(ms_ply_writer *w, const double p[3], const uint8_t rgba[4],
+                                        ms_error *err)
+{
     if (w->vertices_left == 0) {
         ms_status st = ms_error_set(err, MS_ERR_ARG, "%s: more vertices than declared", w->path);
         ms_ply_writer_abort(w);
@@ -114,8 +135,9 @@ ms_status ms_ply_writer_vertex(ms_ply_writer *w, const double p[3], ms_error *er
     }
     w->vertices_left--;
     int failed;
+    const int channels = w->colour_channels;
     if (w->binary) {
-        uint8_t buf[24];
+        uint8_t buf[28];
         size_t n = 0;
         for (int a = 0; a < 3; ++a) {
             if (w->use_double) {
@@ -127,11 +149,17 @@ ms_status ms_ply_writer_vertex(ms_ply_writer *w, const double p[3], ms_error *er
                 n += 4;
             }
         }
+        memcpy(buf + n, rgba, (size_t)channels);
+        n += (size_t)channels;
         failed = fwrite(buf, 1, n, w->file) != n;
-    } else if (w->use_double) {
-        failed = fprintf(w->file, "%.17g %.17g %.17g\n", p[0], p[1], p[2]) < 0;
     } else {
-        failed = fprintf(w->file, "%.9g %.9g %.9g\n", (float)p[0], (float)p[1], (float)p[2]) < 0;
+        if (w->use_double)
+            failed = fprintf(w->file, "%.17g %.17g %.17g", p[0], p[1], p[2]) < 0;
+        else
+            failed = fprintf(w->file, "%.9g %.9g %.9g", (float)p[0], (float)p[1], (float)p[2]) < 0;
+        for (int c = 0; c < channels && !failed; ++c)
+            failed = fprintf(w->file, " %u", (unsigned)rgba[c]) < 0;
+        failed = failed || fputc('\n', w->file) == EOF;
     }
     return failed ? writer_fail(w, err) : MS_OK;
 }
@@ -189,10 +217,13 @@ ms_status ms_ply_write(const char *path, const ms_mesh *mesh, bool binary, bool 
                        ms_error *err)
 {
     ms_ply_writer *w;
-    ms_status st = ms_ply_writer_open(path, mesh->vertex_count, mesh->triangle_count, binary,
-                                      use_double, &w, err);
+    int channels = mesh->colours ? (mesh->colour_alpha ? 4 : 3) : 0;
+    ms_status st = ms_ply_writer_open_colour(path, mesh->vertex_count, mesh->triangle_count,
+                                             binary, use_double, channels, &w, err);
     for (size_t v = 0; st == MS_OK && v < mesh->vertex_count; ++v)
-        st = ms_ply_writer_vertex(w, mesh->positions + 3 * v, err);
+        st = channels ? ms_ply_writer_coloured_vertex(w, mesh->positions + 3 * v,
+                                                      mesh->colours + 4 * v, err)
+                      : ms_ply_writer_vertex(w, mesh->positions + 3 * v, err);
     for (size_t t = 0; st == MS_OK && t < mesh->triangle_count; ++t)
         st = ms_ply_writer_triangle(w, mesh->triangles + 3 * t, err);
     return st == MS_OK ? ms_ply_writer_finish(w, err) : st;

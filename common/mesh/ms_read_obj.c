@@ -1,7 +1,10 @@
 /* Wavefront OBJ parser for ms_mesh_read: `v` and `f` statements; everything else
  * (vt, vn, g, o, s, usemtl, mtllib, l, p, comments, ...) is ignored. Faces may
  * use v, v/vt, v//vn or v/vt/vn corners, negative (relative) indices, and any
- * number of corners (fan-triangulated). A line ending in '\' continues. */
+ * number of corners (fan-triangulated). A line ending in '\' continues. Vertex
+ * colour: `v x y z r g b [a]`, 0..1, on every vertex or on none (the first one
+ * decides). */
+#include "ms_mesh_colour.h"
 #include "ms_mesh_reader_internal.h"
 #include "ms_parse_number.h"
 
@@ -23,15 +26,37 @@ static ms_status obj_vertex(ms_reader *r, char *p)
         ++count;
         p = (char *)end;
     }
-    if (count < 3)
-        return ms_reader_fail_line(r, MS_ERR_FORMAT, "v statement with %d values", count);
+    if (count < 3 || count == 5)
+        return ms_reader_fail_line(r, MS_ERR_FORMAT,
+                                   "v statement with %d values (x y z [w], or x y z r g b [a])",
+                                   count);
+    const unsigned long long vertex = (unsigned long long)r->vertex_total + 1;
     if (!isfinite(value[0]) || !isfinite(value[1]) || !isfinite(value[2]))
         return ms_reader_fail_line(r, MS_ERR_RANGE, "vertex %llu has a non-finite coordinate",
-                                   (unsigned long long)r->vertex_total + 1);
+                                   vertex);
     if (r->vertex_total >= UINT32_MAX)
         return ms_reader_fail_line(r, MS_ERR_RANGE, "more than %u vertices are not supported",
                                    (unsigned)UINT32_MAX);
-    return ms_reader_add_vertex(r, value[0], value[1], value[2]);
+    const int channels = count >= 6 ? count - 3 : 0; /* a 4th value alone is w */
+    ms_status st;
+    if (r->vertex_total == 0 && channels > 0 &&
+        (st = ms_reader_enable_colour(r, channels == 4)) != MS_OK)
+        return st;
+    const int expected = r->colour ? (r->colour_alpha ? 4 : 3) : 0;
+    if (channels != expected)
+        return ms_reader_fail_line(r, MS_ERR_FORMAT,
+                                   "vertex %llu has %d colour values, vertex 1 has %d (colour "
+                                   "must be on every vertex or on none)",
+                                   vertex, channels, expected);
+    if (!channels)
+        return ms_reader_add_vertex(r, value[0], value[1], value[2]);
+    uint8_t rgba[4] = {0, 0, 0, 255};
+    for (int c = 0; c < channels; ++c)
+        if (!ms_colour_from_unit(value[3 + c], &rgba[c]))
+            return ms_reader_fail_line(r, MS_ERR_RANGE,
+                                       "vertex %llu: colour value %.9g is not in 0..1", vertex,
+                                       value[3 + c]);
+    return ms_reader_add_coloured_vertex(r, value[0], value[1], value[2], rgba);
 }
 
 /* Parses one face corner (v, v/vt, v//vn, v/vt/vn) and resolves its vertex. */

@@ -5,8 +5,10 @@
  * tristrips element: its index list, unrolled with -1 restarts. Other elements
  * are skipped. This file parses the header and runs the body readers. */
 #include "ms_read_ply_internal.h"
+#include "ms_mesh_colour.h"
 #include "ms_parse_number.h"
 
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -54,6 +56,87 @@ static char *next_word(char **cursor)
     return w;
 }
 
+static const char *type_name(ply_type t)
+{
+    static const char *const names[] = {"char", "uchar", "short", "ushort",
+                                        "int", "uint", "float", "double"};
+    return names[t];
+}
+
+bool ms_ply_colour_value(double v, ply_type t, uint8_t *out)
+{
+    switch (t) {
+    case PLY_UINT8:
+        if (!(v >= 0.0 && v <= 255.0) || v != (double)(int)v)
+            return false;
+        *out = (uint8_t)v;
+        return true;
+    case PLY_UINT16:
+        if (!(v >= 0.0 && v <= 65535.0) || v != (double)(int)v)
+            return false;
+        *out = ms_colour_from_u16((uint32_t)v);
+        return true;
+    case PLY_FLOAT32:
+    case PLY_FLOAT64:
+        return ms_colour_from_unit(v, out);
+    default:
+        return false; /* refused in the header */
+    }
+}
+
+void ms_ply_colour_complaint(char *buf, size_t size, uint64_t vertex, const ply_element *e,
+                             int channel, double v)
+{
+    ply_type t = e->props[e->colour[channel]].type;
+    const char *range = t == PLY_UINT8 ? "an integer in 0..255"
+                        : t == PLY_UINT16 ? "an integer in 0..65535" : "in 0..1";
+    snprintf(buf, size, "vertex %llu: colour %s = %.9g is not %s (%s)",
+             (unsigned long long)vertex, e->props[e->colour[channel]].name, v, range,
+             type_name(t));
+}
+
+/* The colour properties of the vertex element: red green blue [alpha], or the
+ * same with the prefix diffuse_; scalars of type uchar, ushort, float or double. */
+static ms_status find_colour(ms_reader *r, ply_element *e)
+{
+    static const char *const channel[4] = {"red", "green", "blue", "alpha"};
+    const char *prefix = "";
+    for (size_t i = 0; i < e->prop_count; ++i)
+        if (strcmp(e->props[i].name, "diffuse_red") == 0)
+            prefix = "diffuse_";
+    for (size_t i = 0; i < e->prop_count; ++i)
+        if (strcmp(e->props[i].name, "red") == 0)
+            prefix = "";
+    int found = 0;
+    for (int c = 0; c < 4; ++c) {
+        char name[32];
+        snprintf(name, sizeof name, "%s%s", prefix, channel[c]);
+        e->colour[c] = -1;
+        for (size_t i = 0; i < e->prop_count; ++i)
+            if (strcmp(e->props[i].name, name) == 0)
+                e->colour[c] = (int)i;
+        found += c < 3 && e->colour[c] >= 0;
+    }
+    /* Without all three of red, green and blue there is no colour: the channels
+     * there are skipped like any other property. */
+    e->has_colour = found == 3;
+    for (int c = 0; c < 4; ++c) {
+        if (!e->has_colour)
+            e->colour[c] = -1;
+        if (e->colour[c] < 0)
+            continue;
+        const ply_property *p = &e->props[e->colour[c]];
+        if (p->is_list)
+            return ms_reader_fail_line(r, MS_ERR_FORMAT, "vertex property %s is a list", p->name);
+        if (p->type != PLY_UINT8 && p->type != PLY_UINT16 && p->type != PLY_FLOAT32 &&
+            p->type != PLY_FLOAT64)
+            return ms_reader_fail_line(r, MS_ERR_UNSUPPORTED,
+                                       "colour property %s of type %s (uchar, ushort, float or "
+                                       "double expected)", p->name, type_name(p->type));
+    }
+    return MS_OK;
+}
+
 static ms_status finish_element(ms_reader *r, ply_element *e)
 {
     e->all_scalar = true;
@@ -78,6 +161,9 @@ static ms_status finish_element(ms_reader *r, ply_element *e)
                 return ms_reader_fail_line(r, MS_ERR_FORMAT,
                                            "vertex property %s is a list", axis[a]);
         }
+        ms_status st = find_colour(r, e);
+        if (st != MS_OK)
+            return st;
     } else if (e->role == PLY_ROLE_FACE || e->role == PLY_ROLE_STRIPS) {
         e->index_list = -1;
         for (size_t i = 0; i < e->prop_count; ++i)
@@ -269,8 +355,13 @@ ms_status ms_read_ply(ms_reader *r)
     ply_state s = {.r = r, .h = h, .vertex_count = 0};
     for (size_t i = 0; st == MS_OK && i < h->element_count; ++i) {
         const ply_element *e = &h->elements[i];
-        if (e->role == PLY_ROLE_VERTEX)
+        if (e->role == PLY_ROLE_VERTEX) {
             s.vertex_count = e->count;
+            if (e->has_colour)
+                st = ms_reader_enable_colour(r, e->colour[3] >= 0);
+            if (st != MS_OK)
+                break;
+        }
         st = h->binary ? ms_ply_binary_element(&s, e) : ms_ply_ascii_element(&s, e);
         /* Faces are checked against the complete vertex element; hand it over
          * so the cleaner knows every vertex. */

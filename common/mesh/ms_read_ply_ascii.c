@@ -88,11 +88,17 @@ static ms_status ascii_vertices(ply_state *s, const ply_element *e)
                 return st;
             first_other = 3;
         }
+        double colour[4] = {0, 0, 0, 255};
         for (size_t k = first_other; k < e->prop_count; ++k) {
             int axis = (int)k == e->coord[0] ? 0 : (int)k == e->coord[1] ? 1
                        : (int)k == e->coord[2] ? 2 : -1;
-            st = axis >= 0 ? ascii_number(r, &p, &xyz[axis], e->props[k].name)
-                           : ascii_skip_property(r, &p, &e->props[k]);
+            int channel = e->has_colour ? ply_colour_channel(e, k) : -1;
+            if (axis >= 0)
+                st = ascii_number(r, &p, &xyz[axis], e->props[k].name);
+            else if (channel >= 0)
+                st = ascii_number(r, &p, &colour[channel], e->props[k].name);
+            else
+                st = ascii_skip_property(r, &p, &e->props[k]);
             if (st != MS_OK)
                 return st;
         }
@@ -101,7 +107,21 @@ static ms_status ascii_vertices(ply_state *s, const ply_element *e)
         if (!isfinite(xyz[0]) || !isfinite(xyz[1]) || !isfinite(xyz[2]))
             return ms_reader_fail_line(r, MS_ERR_RANGE, "vertex %llu has a non-finite coordinate",
                                        (unsigned long long)r->vertex_total);
-        if ((st = ms_reader_add_vertex(r, xyz[0], xyz[1], xyz[2])) != MS_OK)
+        if (!e->has_colour) {
+            if ((st = ms_reader_add_vertex(r, xyz[0], xyz[1], xyz[2])) != MS_OK)
+                return st;
+            continue;
+        }
+        uint8_t rgba[4] = {0, 0, 0, 255};
+        for (int c = 0; c < 4; ++c)
+            if (e->colour[c] >= 0 && !ms_ply_colour_value(colour[c], e->props[e->colour[c]].type,
+                                                          &rgba[c])) {
+                char complaint[160];
+                ms_ply_colour_complaint(complaint, sizeof complaint, r->vertex_total, e, c,
+                                        colour[c]);
+                return ms_reader_fail_line(r, MS_ERR_RANGE, "%s", complaint);
+            }
+        if ((st = ms_reader_add_coloured_vertex(r, xyz[0], xyz[1], xyz[2], rgba)) != MS_OK)
             return st;
     }
     return MS_OK;

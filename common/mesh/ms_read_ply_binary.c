@@ -101,6 +101,22 @@ static ms_status binary_skip_property(ms_reader *r, const ply_property *p, bool 
     return binary_skip(r, n * ply_type_size(p->type), what);
 }
 
+/* The colour of a vertex from its channel values (as doubles) or a complaint
+ * naming the vertex, at the byte offset of its record. */
+static ms_status binary_colour(ms_reader *r, const ply_element *e, const double value[4],
+                               uint64_t offset, uint8_t rgba[4])
+{
+    rgba[3] = 255;
+    for (int c = 0; c < 4; ++c)
+        if (e->colour[c] >= 0 &&
+            !ms_ply_colour_value(value[c], e->props[e->colour[c]].type, &rgba[c])) {
+            char complaint[160];
+            ms_ply_colour_complaint(complaint, sizeof complaint, r->vertex_total, e, c, value[c]);
+            return ms_reader_fail_offset(r, MS_ERR_RANGE, offset, "%s", complaint);
+        }
+    return MS_OK;
+}
+
 static ms_status binary_vertices(ply_state *s, const ply_element *e)
 {
     ms_reader *r = s->r;
@@ -117,6 +133,15 @@ static ms_status binary_vertices(ply_state *s, const ply_element *e)
         }
         const bool plain_floats = !swap && tx == PLY_FLOAT32 && ty == PLY_FLOAT32 &&
                                   tz == PLY_FLOAT32;
+        size_t coff[4] = {0, 0, 0, 0};
+        bool byte_colour = true; /* every channel uchar: no conversion, no check */
+        for (int c = 0; e->has_colour && c < 4; ++c) {
+            if (e->colour[c] < 0)
+                continue;
+            for (int i = 0; i < e->colour[c]; ++i)
+                coff[c] += ply_type_size(e->props[i].type);
+            byte_colour = byte_colour && e->props[e->colour[c]].type == PLY_UINT8;
+        }
         const size_t stride = e->stride;
         while (remaining > 0) {
             ms_status st = ms_reader_need(r, stride, "the vertex list");
@@ -145,7 +170,27 @@ static ms_status binary_vertices(ply_state *s, const ply_element *e)
                         r, MS_ERR_RANGE, r->src.base + (uint64_t)(p - r->src.buf),
                         "vertex %llu has a non-finite coordinate",
                         (unsigned long long)r->vertex_total);
-                st = ms_reader_add_vertex(r, x, y, z);
+                if (!e->has_colour) {
+                    st = ms_reader_add_vertex(r, x, y, z);
+                } else {
+                    uint8_t rgba[4] = {0, 0, 0, 255};
+                    if (byte_colour) {
+                        for (int c = 0; c < 4; ++c)
+                            if (e->colour[c] >= 0)
+                                rgba[c] = (uint8_t)p[coff[c]];
+                    } else {
+                        double value[4] = {0, 0, 0, 0};
+                        for (int c = 0; c < 4; ++c)
+                            if (e->colour[c] >= 0)
+                                value[c] = read_binary_double(p + coff[c],
+                                                              e->props[e->colour[c]].type, swap);
+                        st = binary_colour(r, e, value, r->src.base + (uint64_t)(p - r->src.buf),
+                                           rgba);
+                        if (st != MS_OK)
+                            return st;
+                    }
+                    st = ms_reader_add_coloured_vertex(r, x, y, z, rgba);
+                }
                 if (st != MS_OK)
                     return st;
             }
@@ -156,18 +201,20 @@ static ms_status binary_vertices(ply_state *s, const ply_element *e)
     }
     /* General layout: some vertex property is a list. */
     for (; remaining > 0; --remaining) {
-        double xyz[3] = {0, 0, 0};
+        double xyz[3] = {0, 0, 0}, value[4] = {0, 0, 0, 0};
         uint64_t start = ms_byte_source_offset(&r->src);
         for (size_t i = 0; i < e->prop_count; ++i) {
             const ply_property *p = &e->props[i];
             int axis = (int)i == e->coord[0] ? 0 : (int)i == e->coord[1] ? 1
                        : (int)i == e->coord[2] ? 2 : -1;
+            int channel = e->has_colour ? ply_colour_channel(e, i) : -1;
             ms_status st;
-            if (axis >= 0) {
+            if (axis >= 0 || channel >= 0) {
                 st = ms_reader_need(r, ply_type_size(p->type), "the vertex list");
                 if (st != MS_OK)
                     return st;
-                xyz[axis] = read_binary_double(r->src.buf + r->src.pos, p->type, swap);
+                double v = read_binary_double(r->src.buf + r->src.pos, p->type, swap);
+                *(axis >= 0 ? &xyz[axis] : &value[channel]) = v;
                 r->src.pos += ply_type_size(p->type);
             } else if ((st = binary_skip_property(r, p, swap, "the vertex list")) != MS_OK) {
                 return st;
@@ -177,7 +224,12 @@ static ms_status binary_vertices(ply_state *s, const ply_element *e)
             return ms_reader_fail_offset(r, MS_ERR_RANGE, start,
                                          "vertex %llu has a non-finite coordinate",
                                          (unsigned long long)r->vertex_total);
-        ms_status st = ms_reader_add_vertex(r, xyz[0], xyz[1], xyz[2]);
+        ms_status st;
+        uint8_t rgba[4];
+        if (!e->has_colour)
+            st = ms_reader_add_vertex(r, xyz[0], xyz[1], xyz[2]);
+        else if ((st = binary_colour(r, e, value, start, rgba)) == MS_OK)
+            st = ms_reader_add_coloured_vertex(r, xyz[0], xyz[1], xyz[2], rgba);
         if (st != MS_OK)
             return st;
     }

@@ -42,6 +42,8 @@ typedef struct ply_element {
     ply_property props[PLY_MAX_PROPERTIES];
     size_t prop_count;
     int coord[3];       /* vertex: property index of x, y, z */
+    int colour[4];      /* vertex: property index of red, green, blue, alpha, or -1 */
+    bool has_colour;    /* vertex: red, green and blue are there */
     int index_list;     /* face/strips: property index of the index list */
     bool all_scalar;
     size_t stride;      /* record size when all_scalar */
@@ -59,6 +61,26 @@ typedef struct ply_state {
     ply_header *h;
     uint64_t vertex_count; /* declared by the vertex element */
 } ply_state;
+
+/* The colour channel (0 red .. 3 alpha) that property k of vertex element e
+ * holds, or -1. */
+static inline int ply_colour_channel(const ply_element *e, size_t k)
+{
+    for (int c = 0; c < 4; ++c)
+        if (e->colour[c] == (int)k)
+            return c;
+    return -1;
+}
+
+/* Stores a vertex's colour channel value v, read as a double from a property
+ * of type t, into *out as 8 bits (docs/INPUT.md: uchar as is, ushort scaled,
+ * float and double 0..1). False for a value outside its type's range, NaN, or a
+ * fraction in an integer type. */
+bool ms_ply_colour_value(double v, ply_type t, uint8_t *out);
+
+/* The one-line complaint about a bad colour value, without position prefix. */
+void ms_ply_colour_complaint(char *buf, size_t size, uint64_t vertex, const ply_element *e,
+                             int channel, double v);
 
 /* The body readers: one element each, in the order of the header, then a check
  * that nothing follows the last element. */

@@ -25,6 +25,7 @@
 #include "ms_bake.h"
 #include "ms_catalog.h"
 #include "ms_json_out.h"
+#include "ms_mesh_colour.h"
 #include "ms_mesh_edges.h"
 #include "ms_mesh_reader.h"
 #include "ms_parse_number.h"
@@ -296,7 +297,13 @@ typedef struct progress_state {
     /* --info: every triangle's vertex indices, for the edge counts */
     uint32_t *triangles;
     size_t triangle_count, triangle_cap;
+    ms_colour_tally colours; /* --info: every vertex colour, for the distinct count */
 } progress_state;
+
+static ms_status keep_colours(void *context, const uint8_t *rgba, size_t count, ms_error *err)
+{
+    return ms_colour_tally_add(&((progress_state *)context)->colours, rgba, count, err);
+}
 
 static ms_status keep_triangles(void *context, const uint32_t *indices, size_t count, ms_error *err)
 {
@@ -340,11 +347,11 @@ static void show_progress(void *context, uint64_t done, uint64_t total)
 }
 
 static void print_json(const char *path, const ms_mesh_read_report *r, const ms_mesh_edge_counts *e,
-                       double seconds)
+                       uint64_t colours, double seconds)
 {
     ms_json_print(stdout,
                   json_pack("{s:o, s:s, s:b, s:I, s:I, s:I, s:[f, f, f], s:[f, f, f], s:I, s:I, s:I, s:o, "
-                            "s:{s:I, s:I, s:I, s:I, s:I}}",
+                            "s:{s:I, s:I, s:I, s:I, s:I}, s:{s:b, s:b, s:I}}",
                             "file", ms_json_text(path), "format", ms_mesh_format_name(r->format), "gzip",
                             r->gzip, "vertices", (json_int_t)r->vertices, "triangles",
                             (json_int_t)r->triangles, "input_faces", (json_int_t)r->input_faces,
@@ -355,12 +362,13 @@ static void print_json(const char *path, const ms_mesh_read_report *r, const ms_
                             "seconds", ms_json_fixed(seconds, 9), "edges", "total", (json_int_t)e->edges,
                             "boundary", (json_int_t)e->boundary, "manifold", (json_int_t)e->manifold,
                             "inconsistently_oriented", (json_int_t)e->flipped, "non_manifold",
-                            (json_int_t)e->non_manifold),
+                            (json_int_t)e->non_manifold, "colour", "present", r->colour, "alpha",
+                            r->colour_alpha, "distinct", (json_int_t)colours),
                   MS_JSON_SPACED | MS_JSON_EXACT); /* the bounding box as read */
 }
 
 static void print_text(const char *path, const ms_mesh_read_report *r, const ms_mesh_edge_counts *e,
-                       double seconds)
+                       uint64_t colours, double seconds)
 {
     printf("file:              %s\n", path);
     printf("format:            %s%s\n", ms_mesh_format_name(r->format),
@@ -374,6 +382,11 @@ static void print_text(const char *path, const ms_mesh_read_report *r, const ms_
            r->bbox_max[2]);
     printf("dropped faces:     %" PRIu64 " (repeated vertex)\n", r->dropped_faces);
     printf("isolated vertices: %" PRIu64 "\n", r->isolated_vertices);
+    if (r->colour)
+        printf("vertex colour:     %s, %" PRIu64 " distinct\n", r->colour_alpha ? "rgba" : "rgb",
+               colours);
+    else
+        printf("vertex colour:     none\n");
     printf("edges:             %" PRIu64 " (%" PRIu64 " boundary, %" PRIu64 " manifold)\n", e->edges,
            e->boundary, e->manifold);
     printf("flipped edges:     %" PRIu64 " (used twice in the same direction: faces inconsistently oriented)\n",
@@ -390,6 +403,7 @@ static int run_info(const bake_options *options)
     const ms_mesh_sink sink = {
         .context = &progress,
         .triangles = keep_triangles,
+        .colours = keep_colours,
         .progress = isatty(STDERR_FILENO) ? show_progress : NULL,
     };
     ms_mesh_read_report report;
@@ -404,14 +418,18 @@ static int run_info(const bake_options *options)
     if (st == MS_OK)
         st = ms_mesh_count_edges(progress.triangles, progress.triangle_count, &edges, &err);
     free(progress.triangles);
+    uint64_t colours = 0;
+    if (st == MS_OK)
+        st = ms_colour_tally_distinct(&progress.colours, &colours, &err);
+    ms_colour_tally_free(&progress.colours);
     if (st != MS_OK) {
         fprintf(stderr, "meshbake: %s\n", err.text);
         return EXIT_INPUT;
     }
     if (options->json)
-        print_json(options->input, &report, &edges, seconds);
+        print_json(options->input, &report, &edges, colours, seconds);
     else
-        print_text(options->input, &report, &edges, seconds);
+        print_text(options->input, &report, &edges, colours, seconds);
     return fflush(stdout) == 0 ? EXIT_SUCCESS : EXIT_INPUT;
 }
 

@@ -7,6 +7,7 @@
  * collapse is left).
  *
  * Ownership: *out must be zeroed; on success it owns new arrays (ms_mesh_free).
+ * Vertex colour is not carried: out->colours stays NULL whatever in has.
  * Errors: MS_ERR_EMPTY (no usable triangle), MS_ERR_ARG (bad index, target 0),
  * MS_ERR_NOMEM. Thread-safety: independent calls may run concurrently, except
  * that OpenMesh's own error stream is silenced during a call (a process-wide
