@@ -35,6 +35,8 @@ uniform int apo_base;         // first word of the cell's chunk in apo_words
 uniform bool apo_root_internal;
 uniform uint apo_stop_depth;  // min(depth cap, complete levels - 1)
 uniform bool apo_nearest_rule; // missing child: nearest (true) or stop
+uniform bool apo_filter;      // 8-cell interpolation (true) or the nearest node
+uniform float apo_footprint_scale; // a pixel's width in cell units per unit of eye depth; 0: no limit
 #endif
 uniform mat3 world_to_eye;    // rotation part of the view (times the model's placement)
 uniform uint cell_number;
@@ -108,7 +110,11 @@ void main()
     bool detail = false;
 #ifdef MS_EFFECT_DETAIL_NORMALS
     if (apo_on) {
-        n_world = apo_lookup(FRAG_CELL, apo_base, apo_root_internal, apo_stop_depth, apo_nearest_rule);
+        // no texel smaller than the pixel (minification), then interpolation
+        // between neighbouring texels (magnification) or the nearest one
+        uint stop = min(apo_stop_depth, apo_footprint_depth(-FRAG_EYE.z * apo_footprint_scale));
+        n_world = apo_filter ? apo_lookup_filtered(FRAG_CELL, apo_base, apo_root_internal, stop, apo_nearest_rule)
+                             : apo_lookup(FRAG_CELL, apo_base, apo_root_internal, stop, apo_nearest_rule);
         detail = true;
     }
 #endif
