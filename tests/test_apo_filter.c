@@ -228,6 +228,40 @@ static void test_missing_neighbour(void **state)
     fixture_free(&f);
 }
 
+/* (-x - z)/sqrt(2) on the upper half (a scan whose faces are wound
+ * inconsistently, or a sample from the other sheet of a thin part), facing away
+ * from the +z of the lower half: taken turned over, so the blend across x = 1/2
+ * is the mean of +z and (x + z)/sqrt(2), not of two normals that half cancel. */
+static const float away[3] = {-0.70710678f, 0.0f, -0.70710678f};
+
+static const float *flipped_normal(uint32_t depth, const uint32_t cell[3])
+{
+    (void)depth;
+    return cell[0] ? away : Z;
+}
+
+static void test_neighbour_facing_away(void **state)
+{
+    (void)state;
+    fixture f;
+    small_tree(0xFF, 0, flipped_normal, &f.tree);
+    fixture_make(&f);
+    uint32_t below[3] = {0x7FFFFFFFu, 0x40000000u, 0x40000000u}, p[3] = {0x60000000u, 0x40000000u, 0x40000000u};
+    ms_apo_filter_result r;
+    float dec[3]; /* the stored code of `away`, decoded */
+    ms_apo_normal_decode(ms_apo_normal_encode(away), dec);
+    ms_apo_lookup_filtered_fixed(&f.view, below, 30, MS_APO_MISSING_NEAREST, &r);
+    assert_normal(r.normal, -0.5 * dec[0], 0, 0.5 - 0.5 * dec[2]);
+    ms_apo_lookup_filtered_fixed(&f.view, p, 30, MS_APO_MISSING_NEAREST, &r);
+    double t = 0.25;
+    assert_normal(r.normal, -t * dec[0], 0, (1 - t) - t * dec[2]);
+    /* and from the upper side, +z is turned over to its side */
+    uint32_t above[3] = {0x80000000u, 0x40000000u, 0x40000000u};
+    ms_apo_lookup_filtered_fixed(&f.view, above, 30, MS_APO_MISSING_NEAREST, &r);
+    assert_normal(r.normal, 0.5 * dec[0], 0, 0.5 * dec[2] - 0.5);
+    fixture_free(&f);
+}
+
 /* At the cube's faces the neighbour belongs to another chunk: the axis stays
  * (clamp to edge), so near x = 0 the +z cell keeps its normal. */
 static void test_cube_faces_clamp(void **state)
@@ -300,7 +334,7 @@ static void test_random_against_brute_force(void **state)
 {
     (void)state;
     uint64_t rng = 99;
-    uint64_t missing = 0, deeper = 0;
+    uint64_t missing = 0, deeper = 0, flipped = 0;
     for (int k = 0; k < 6; ++k) {
         fixture f;
         ms_test_random_tree(500 + (uint64_t)k, 5 + (uint32_t)k, 0.6, &f.tree);
@@ -351,8 +385,11 @@ static void test_random_against_brute_force(void **state)
                                                             MS_APO_MISSING_STOP, &stop)];
                     deeper += nb->depth > c->depth;
                 }
-                float dec[3];
+                float dec[3], own[3];
                 ms_apo_normal_decode(ms_apo_normal_encode(nb->normal), dec);
+                ms_apo_normal_decode(ms_apo_normal_encode(c->normal), own);
+                if (dec[0] * own[0] + dec[1] * own[1] + dec[2] * own[2] < 0)
+                    wk = -wk, flipped++;
                 for (int a = 0; a < 3; ++a)
                     n[a] += wk * dec[a];
             }
@@ -361,9 +398,9 @@ static void test_random_against_brute_force(void **state)
         }
         fixture_free(&f);
     }
-    print_message("neighbours missing %llu, deeper than the centre %llu\n", (unsigned long long)missing,
-                  (unsigned long long)deeper);
-    assert_true(missing > 1000 && deeper > 1000);
+    print_message("neighbours missing %llu, deeper than the centre %llu, turned over %llu\n",
+                  (unsigned long long)missing, (unsigned long long)deeper, (unsigned long long)flipped);
+    assert_true(missing > 1000 && deeper > 1000 && flipped > 1000);
 }
 
 int main(void)
@@ -372,6 +409,7 @@ int main(void)
         cmocka_unit_test(test_step_across_a_face),  cmocka_unit_test(test_deeper_neighbour),
         cmocka_unit_test(test_missing_neighbour),   cmocka_unit_test(test_cube_faces_clamp),
         cmocka_unit_test(test_footprint_depth),     cmocka_unit_test(test_random_against_brute_force),
+        cmocka_unit_test(test_neighbour_facing_away),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

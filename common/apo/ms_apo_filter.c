@@ -62,8 +62,12 @@ ms_apo_stop ms_apo_lookup_filtered_fixed(const ms_apo_view *view, const uint32_t
         } else {
             res->neighbour_depth[k] = d;
         }
+        /* a neighbour facing away from the centre is taken turned over */
+        float side = n[0] * res->centre.normal[0] + n[1] * res->centre.normal[1] + n[2] * res->centre.normal[2] < 0.0f
+                         ? -w
+                         : w;
         for (int a = 0; a < 3; ++a)
-            sum[a] += w * n[a];
+            sum[a] += side * n[a];
     }
     float len = sqrtf(sum[0] * sum[0] + sum[1] * sum[1] + sum[2] * sum[2]);
     if (len >= 1e-6f)

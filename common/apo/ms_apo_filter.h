@@ -22,8 +22,10 @@
  * deeper (smaller) than the centre, at the point of it nearest to u. An axis
  * whose q would leave the cube stays at u (clamp to edge: the neighbour across
  * the cube's face belongs to another chunk). The result is
- *     n = normalize(sum over k of prod_a (bit_a(k) ? t_a : 1 - t_a) * n_k)
- * summed in octant order k = 0..7 (n_0 the centre's normal), and the centre's
+ *     n = normalize(sum over k of s_k * prod_a (bit_a(k) ? t_a : 1 - t_a) * n_k)
+ * summed in octant order k = 0..7 (n_0 the centre's normal), s_k = -1 where
+ * n_k . n_0 < 0 (a neighbour facing away, from a scan wound inconsistently or
+ * the other sheet of a thin part, is taken turned over), else 1; and the centre's
  * normal where that sum is shorter than 1e-6. A centre at depth 0 (the whole
  * cube) gives the plain lookup; an EMPTY chunk a zero normal.
  *

@@ -159,7 +159,7 @@ vec3 apo_lookup_filtered(vec3 p, int base, bool root_internal, uint stop_depth, 
             uvec3 c;
             n = apo_decode(apo_walk(q, base, root_internal, stop_depth, false, d, c));
         }
-        sum += w * n;
+        sum += (dot(n, n0) < 0.0 ? -w : w) * n; // a neighbour facing away: turned over
     }
     float len = length(sum);
     return len >= 1e-6 ? sum / len : n0;
