@@ -305,25 +305,27 @@ static void test_footprint_depth(void **state)
     assert_int_equal(ms_apo_footprint_depth(1.0f), 0);
     assert_int_equal(ms_apo_footprint_depth(7.0f), 0);
     assert_int_equal(ms_apo_footprint_depth(INFINITY), 0);
-    assert_int_equal(ms_apo_footprint_depth(0.99f), 0); /* 2^0 >= 0.99 > 2^-1 */
+    assert_int_equal(ms_apo_footprint_depth(0.99f), 1); /* 2^-1 <= 0.99 < 2^0 */
     assert_int_equal(ms_apo_footprint_depth(0.5f), 1);
-    assert_int_equal(ms_apo_footprint_depth(0.3f), 1);
+    assert_int_equal(ms_apo_footprint_depth(0.3f), 2);
     assert_int_equal(ms_apo_footprint_depth(0.25f), 2);
-    assert_int_equal(ms_apo_footprint_depth(nextafterf(0.25f, 1.0f)), 1);
-    assert_int_equal(ms_apo_footprint_depth(nextafterf(0.25f, 0.0f)), 2);
+    assert_int_equal(ms_apo_footprint_depth(nextafterf(0.25f, 1.0f)), 2);
+    assert_int_equal(ms_apo_footprint_depth(nextafterf(0.25f, 0.0f)), 3);
     assert_int_equal(ms_apo_footprint_depth(ldexpf(1.0f, -20)), 20);
-    assert_int_equal(ms_apo_footprint_depth(ldexpf(1.5f, -21)), 20);
+    assert_int_equal(ms_apo_footprint_depth(ldexpf(1.5f, -21)), 21);
     assert_int_equal(ms_apo_footprint_depth(ldexpf(1.0f, -40)), 40);
     assert_int_equal(ms_apo_footprint_depth(0.0f), UINT32_MAX);
     assert_int_equal(ms_apo_footprint_depth(-1.0f), UINT32_MAX);
     assert_int_equal(ms_apo_footprint_depth(NAN), UINT32_MAX);
-    /* every depth d: 2^-d >= footprint > 2^-(d+1) */
+    /* every depth d >= 1: 2^-d <= footprint < 2^-(d-1), the first depth whose
+     * cells are no wider than the footprint */
     uint64_t rng = 7;
     for (int i = 0; i < 100000; ++i) {
         float f = ldexpf(0.5f + 0.5f * ms_test_randf(&rng), -(int)(ms_test_rand(&rng) % 30));
         uint32_t d = ms_apo_footprint_depth(f);
-        assert_true(ldexpf(1.0f, -(int)d) >= f);
-        assert_true(ldexpf(1.0f, -(int)d - 1) < f);
+        assert_true(d >= 1);
+        assert_true(ldexpf(1.0f, -(int)d) <= f);
+        assert_true(ldexpf(1.0f, 1 - (int)d) > f);
     }
 }
 

@@ -166,9 +166,10 @@ typedef struct ms_render_options {
     bool apo_filter;          /* 8-cell interpolation between neighbouring texels
                                  (ms_apo_lookup_filtered; default true) or the
                                  nearest node (ms_apo_lookup) */
-    bool apo_footprint;       /* no texel smaller than the pixel: the depth is also
-                                 capped at ms_apo_footprint_depth of the fragment's
-                                 footprint (ms_render_apo_footprint_scale; default true) */
+    bool apo_footprint;       /* octree mip-mapping: the depth is also capped at
+                                 ms_apo_footprint_depth of the fragment's footprint
+                                 (ms_render_apo_footprint_scale), the first level
+                                 whose texels fit in the pixel (default true) */
     float background[3];      /* linear RGB the colour buffer is cleared to */
     bool smooth;              /* where APO is not used: interpolated vertex normals
                                  (true) or each triangle's flat normal (false) */

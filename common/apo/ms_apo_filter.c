@@ -12,8 +12,8 @@ uint32_t ms_apo_footprint_depth(float footprint)
     if (footprint >= 1.0f)
         return 0;
     int e;
-    float m = frexpf(footprint, &e); /* footprint = m * 2^e, m in [0.5, 1), e <= 0 */
-    return (uint32_t)(m == 0.5f ? 1 - e : -e);
+    frexpf(footprint, &e); /* footprint = m * 2^e, m in [0.5, 1), e <= 0 */
+    return (uint32_t)(1 - e);
 }
 
 ms_apo_stop ms_apo_lookup_filtered_fixed(const ms_apo_view *view, const uint32_t fixed[3], uint32_t depth_cap,

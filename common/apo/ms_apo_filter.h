@@ -2,9 +2,10 @@
  * "Filtering"), after the thesis's chapter 4.3.
  *
  * Minification: a pixel whose footprint on the surface is f (cell-local units,
- * the width of one pixel at the fragment's distance) cannot use texels smaller
- * than itself. ms_apo_footprint_depth gives the deepest depth whose cells are at
- * least one pixel wide; the caller takes the smaller of it and its depth cap.
+ * the width of one pixel at the fragment's distance) does not descend past the
+ * first depth whose cells are no wider than itself (the thesis's
+ * p = ceil(log2(1 / f))): ms_apo_footprint_depth; the caller takes the smaller
+ * of it and its depth cap.
  *
  * Magnification: 8-cell interpolation. The plain lookup (ms_apo_lookup_fixed
  * with the caller's rule) finds the centre node: depth d >= 1, width W = 2^(32-d)
@@ -43,8 +44,9 @@
 
 #include "ms_apo_traverse.h"
 
-/* The deepest depth d with 2^-d >= footprint (exact, through frexp): 0 for a
- * footprint >= 1, UINT32_MAX (no limit) for footprint <= 0 or NaN. */
+/* The first depth d with 2^-d <= footprint: 1 - e where footprint = m * 2^e,
+ * m in [0.5, 1) (frexp: exact); 0 for a footprint >= 1, UINT32_MAX (no limit)
+ * for footprint <= 0 or NaN. */
 uint32_t ms_apo_footprint_depth(float footprint);
 
 typedef struct ms_apo_filter_result {

@@ -99,19 +99,18 @@ vec3 apo_lookup(vec3 p, int base, bool root_internal, uint stop_depth, bool near
     return apo_decode(apo_walk(apo_fixed(p), base, root_internal, stop_depth, nearest, depth, cell));
 }
 
-// The deepest depth whose cells are at least a pixel footprint f wide
-// (ms_apo_footprint_depth): 2^-depth >= f. With f = m * 2^e, m in [0.5, 1)
-// (frexp's split, read from the float's bits: exact): 1 - e where m = 1/2,
-// else -e. A subnormal f gives at least 126: no limit within 30 levels.
+// The first depth whose cells are no wider than the pixel footprint f
+// (ms_apo_footprint_depth): 2^-depth <= f. With f = m * 2^e, m in [0.5, 1)
+// (frexp's split, read from the float's bits: exact): 1 - e. A subnormal f
+// gives 127: no limit within 30 levels.
 uint apo_footprint_depth(float f)
 {
     if (!(f > 0.0))
         return 0xFFFFFFFFu;
     if (f >= 1.0)
         return 0u;
-    uint bits = floatBitsToUint(f);
-    int e = int((bits >> 23) & 0xFFu) - 126;
-    return uint((bits & 0x7FFFFFu) == 0u ? 1 - e : -e);
+    int e = int((floatBitsToUint(f) >> 23) & 0xFFu) - 126;
+    return uint(1 - e);
 }
 
 // 8-cell interpolation (ms_apo_lookup_filtered, docs/APO.md "Filtering"): the

@@ -110,7 +110,7 @@ void main()
     bool detail = false;
 #ifdef MS_EFFECT_DETAIL_NORMALS
     if (apo_on) {
-        // no texel smaller than the pixel (minification), then interpolation
+        // no deeper than the first texel within the pixel (minification), then interpolation
         // between neighbouring texels (magnification) or the nearest one
         uint stop = min(apo_stop_depth, apo_footprint_depth(-FRAG_EYE.z * apo_footprint_scale));
         n_world = apo_filter ? apo_lookup_filtered(FRAG_CELL, apo_base, apo_root_internal, stop, apo_nearest_rule)
