@@ -3,9 +3,13 @@
  * with the renderer in NORMALS mode into a float colour + 32F depth framebuffer,
  * and in CELL_ID mode. For every covered pixel the surface point is recomputed
  * from the depth (ms_render_unproject), taken to the drawing cell's local
- * coordinates, and ms_apo_lookup is evaluated there on the chunk prefix inflated
- * independently (ms_apo_stream_inflate with the archive's level table), with the
- * same depth cap and missing-child rule. The angle between the two normals must
+ * coordinates, and ms_apo_lookup_filtered (the renderer's default filter) or
+ * ms_apo_lookup (--apo-filter none) is evaluated there on the chunk prefix
+ * inflated independently (ms_apo_stream_inflate with the archive's level
+ * table), with the same depth cap, missing-child rule and, with the filter, the
+ * footprint depth of the pixel (ms_render_apo_footprint_scale times its eye
+ * depth; near a power of two the depth on either side is accepted, as a node
+ * face is). The angle between the two normals must
  * be within 1 degree at >= 99.5 % of covered pixels and within 5 degrees
  * everywhere except on borders: a pixel whose 3x3 neighbourhood holds another
  * cell id or background (silhouettes and cell borders), which is counted and
@@ -25,6 +29,7 @@
 #include <cmocka.h>
 
 #include "ms_apo_stream.h"
+#include "ms_apo_filter.h"
 #include "ms_apo_traverse.h"
 #include "ms_render.h"
 #include "ms_render_internal.h"
@@ -43,6 +48,8 @@ static double now_seconds(void)
 
 typedef struct figures {
     size_t covered, within_1, border, border_over_5, ambiguous, inner_over_5, disagree_full;
+    size_t filter_changed;   /* the filtered normal > 1 degree from the nearest leaf's */
+    size_t footprint_bound;  /* the footprint depth stopped above the nearest leaf */
     double worst_inner, worst_border, worst_face;
 } figures;
 
@@ -124,10 +131,32 @@ static double angle_deg(const double a[3], const double b[3])
  * depth alone is good to about 1e-7 of the box side here). */
 #define POSITION_SLACK (1.0 / (1 << 18))
 
+/* How the shader looked up: the options' cap, rule and filter, and the camera
+ * for the footprint. */
+typedef struct lookup_rule {
+    uint32_t cap;
+    ms_apo_missing_rule rule;
+    bool filter, footprint;
+    const ms_camera *camera;
+} lookup_rule;
+
+/* The footprint depth at a world point in a cube of side `side`, with the
+ * footprint scaled by (1 + nudge) (the float rounding of the GPU's eye depth). */
+static uint32_t footprint_depth(const lookup_rule *l, const double world[3], double side, double nudge)
+{
+    const ms_camera *c = l->camera;
+    double z = 0;
+    for (int k = 0; k < 3; ++k)
+        z += (world[k] - c->position[k]) * c->forward[k];
+    float f = (float)z * ms_render_apo_footprint_scale(c, side);
+    return ms_apo_footprint_depth(f * (float)(1.0 + nudge));
+}
+
 /* The oracle's normal at a pixel of the drawing cell, the cell-local position
- * moved by offset[k] * POSITION_SLACK (false: no chunk). */
+ * moved by offset[k] * POSITION_SLACK, with the footprint nudged (false: no
+ * chunk). */
 static bool oracle_normal_at(const oracle *o, const ms_archive *a, uint32_t cell, const double world[3],
-                             const int offset[3], uint32_t cap, ms_apo_missing_rule rule, double n[3])
+                             const int offset[3], double nudge, const lookup_rule *l, double n[3])
 {
     if (cell >= o->cell_count || !o->have[cell])
         return false;
@@ -136,31 +165,46 @@ static bool oracle_normal_at(const oracle *o, const ms_archive *a, uint32_t cell
     float p[3];
     for (int k = 0; k < 3; ++k)
         p[k] = (float)((world[k] - origin[k]) / side + offset[k] * POSITION_SLACK);
-    ms_apo_lookup_result res;
-    ms_apo_lookup(&o->views[cell], p, cap, rule, &res);
-    for (int k = 0; k < 3; ++k)
-        n[k] = res.normal[k];
+    uint32_t cap = l->cap;
+    if (l->footprint) {
+        uint32_t d = footprint_depth(l, world, side, nudge);
+        cap = d < cap ? d : cap;
+    }
+    if (l->filter) {
+        ms_apo_filter_result res;
+        ms_apo_lookup_filtered(&o->views[cell], p, cap, l->rule, &res);
+        for (int k = 0; k < 3; ++k)
+            n[k] = res.normal[k];
+    } else {
+        ms_apo_lookup_result res;
+        ms_apo_lookup(&o->views[cell], p, cap, l->rule, &res);
+        for (int k = 0; k < 3; ++k)
+            n[k] = res.normal[k];
+    }
     return true;
 }
 
 static bool oracle_normal(const oracle *o, const ms_archive *a, uint32_t cell, const double world[3],
-                          uint32_t cap, ms_apo_missing_rule rule, double n[3])
+                          const lookup_rule *l, double n[3])
 {
     static const int here[3] = {0, 0, 0};
-    return oracle_normal_at(o, a, cell, world, here, cap, rule, n);
+    return oracle_normal_at(o, a, cell, world, here, 0.0, l, n);
 }
 
 /* True when the oracle gives got (within 1 degree) somewhere within the position
- * slack of the point: the pixel sits on an octree node's face. */
+ * slack of the point (the pixel sits on an octree node's face), or with the
+ * footprint 0.1 % larger or smaller (it sits where the footprint depth changes). */
 static bool near_node_face(const oracle *o, const ms_archive *a, uint32_t cell, const double world[3],
-                           uint32_t cap, ms_apo_missing_rule rule, const double got[3])
+                           const lookup_rule *l, const double got[3])
 {
-    for (int i = 0; i < 27; ++i) {
-        int offset[3] = {i % 3 - 1, i / 3 % 3 - 1, i / 9 - 1};
-        double n[3];
-        if (oracle_normal_at(o, a, cell, world, offset, cap, rule, n) && angle_deg(n, got) <= 1.0)
-            return true;
-    }
+    static const double nudges[3] = {0.0, -1e-3, 1e-3};
+    for (int j = 0; j < (l->footprint ? 3 : 1); ++j)
+        for (int i = 0; i < 27; ++i) {
+            int offset[3] = {i % 3 - 1, i / 3 % 3 - 1, i / 9 - 1};
+            double n[3];
+            if (oracle_normal_at(o, a, cell, world, offset, nudges[j], l, n) && angle_deg(n, got) <= 1.0)
+                return true;
+        }
     return false;
 }
 
@@ -188,8 +232,9 @@ static void compare(const ms_archive *a, ms_render *r, const ms_camera *cam, con
         fail_msg("%s", err.text);
     ms_test_fbo_read(&fbo, ids, NULL);
     ms_test_fbo_free(&fbo);
-    uint32_t cap = opt->apo_depth_cap ? opt->apo_depth_cap : UINT32_MAX;
-    ms_apo_missing_rule rule = opt->apo_nearest ? MS_APO_MISSING_NEAREST : MS_APO_MISSING_STOP;
+    lookup_rule l = {opt->apo_depth_cap ? opt->apo_depth_cap : UINT32_MAX,
+                     opt->apo_nearest ? MS_APO_MISSING_NEAREST : MS_APO_MISSING_STOP, opt->apo_filter,
+                     opt->apo_footprint, cam};
     for (int y = 0; y < HEIGHT; ++y)
         for (int x = 0; x < WIDTH; ++x) {
             size_t p = (size_t)y * WIDTH + (size_t)x;
@@ -210,7 +255,7 @@ static void compare(const ms_archive *a, ms_render *r, const ms_camera *cam, con
                 }
             double world[3], want[3], got[3];
             assert_true(ms_render_unproject(cam, x + 0.5, y + 0.5, depth[p], world));
-            if (!oracle_normal(given, a, id - 1, world, cap, rule, want))
+            if (!oracle_normal(given, a, id - 1, world, &l, want))
                 fail_msg("pixel (%d, %d) drawn by cell %u, which has no chunk", x, y, id - 1);
             for (int k = 0; k < 3; ++k)
                 got[k] = 2.0 * normals[4 * p + (size_t)k] - 1.0;
@@ -222,7 +267,7 @@ static void compare(const ms_archive *a, ms_render *r, const ms_camera *cam, con
                 f->border_over_5 += angle > 5.0;
                 if (angle > f->worst_border)
                     f->worst_border = angle;
-            } else if (angle > 1.0 && near_node_face(given, a, id - 1, world, cap, rule, got)) {
+            } else if (angle > 1.0 && near_node_face(given, a, id - 1, world, &l, got)) {
                 f->ambiguous++;
                 if (angle > f->worst_face)
                     f->worst_face = angle;
@@ -232,8 +277,23 @@ static void compare(const ms_archive *a, ms_render *r, const ms_camera *cam, con
                     f->worst_inner = angle;
             }
             double other[3];
-            if (full && oracle_normal(full, a, id - 1, world, cap, rule, other) && angle_deg(other, want) > 1.0)
+            if (full && oracle_normal(full, a, id - 1, world, &l, other) && angle_deg(other, want) > 1.0)
                 f->disagree_full++;
+            if (l.filter || l.footprint) {
+                lookup_rule plain = l;
+                plain.filter = plain.footprint = false;
+                oracle_normal(given, a, id - 1, world, &plain, other);
+                f->filter_changed += angle_deg(other, want) > 1.0;
+                double origin[3], side;
+                ms_render_cell_cube(ms_archive_get_header(a), ms_archive_get_cell(a, id - 1), origin, &side);
+                uint32_t fd = footprint_depth(&l, world, side, 0.0);
+                float local[3];
+                for (int k = 0; k < 3; ++k)
+                    local[k] = (float)((world[k] - origin[k]) / side);
+                ms_apo_lookup_result deep;
+                ms_apo_lookup(&given->views[id - 1], local, l.cap, l.rule, &deep);
+                f->footprint_bound += l.footprint && deep.depth > fd;
+            }
         }
     free(normals);
     free(ids);
@@ -282,8 +342,9 @@ static void run_model(ms_archive *a, const char *name, const double dirs[][3], s
             bool mid;
             bool nearest;
             uint32_t cap;
-        } cases[] = {{0, false, true, 0}, {0, false, false, 0}, {0, false, false, 4}, {3, true, true, 0},
-                     {2, false, true, 0}};
+            bool unfiltered; /* --apo-filter none: the nearest leaf, no footprint */
+        } cases[] = {{0, false, true, 0, false}, {0, false, false, 0, false}, {0, false, false, 4, false},
+                     {3, true, true, 0, false},  {2, false, true, 0, false},  {0, false, true, 0, true}};
         for (size_t k = 0; k < sizeof cases / sizeof *cases; ++k) {
             ms_core_apo_chunk *apo, *apo_full;
             size_t count, count_full;
@@ -300,14 +361,22 @@ static void run_model(ms_archive *a, const char *name, const double dirs[][3], s
             ms_render_options_default(&o);
             o.apo_nearest = cases[k].nearest;
             o.apo_depth_cap = cases[k].cap;
+            o.apo_filter = o.apo_footprint = !cases[k].unfiltered;
             o.smooth = false; /* the oracle's fallback is the flat normal */
             figures f;
             compare(a, r, &cam, &o, &given, cases[k].levels ? &full : NULL, &f);
             char what[128];
-            snprintf(what, sizeof what, "%s view %zu%s%s (%u cells)", name, d,
-                     cases[k].levels ? (cases[k].mid ? ", 3 levels + half" : ", 2 levels") : "", !cases[k].nearest ? (cases[k].cap ? ", STOP, cap 4" : ", STOP") : "", cells_drawing);
+            snprintf(what, sizeof what, "%s view %zu%s%s%s (%u cells)", name, d,
+                     cases[k].levels ? (cases[k].mid ? ", 3 levels + half" : ", 2 levels") : "", !cases[k].nearest ? (cases[k].cap ? ", STOP, cap 4" : ", STOP") : "",
+                     cases[k].unfiltered ? ", unfiltered" : "", cells_drawing);
             print_figures(what, &f);
             check_figures(&f);
+            if (!cases[k].unfiltered) {
+                /* the filter really is exercised: it moves the normal at many pixels */
+                print_message("%-44s %6zu px moved > 1 deg by the filter, %zu px stopped by the footprint\n", "",
+                              f.filter_changed, f.footprint_bound);
+                assert_true(f.filter_changed > f.covered / 10);
+            }
             if (cases[k].levels) {
                 /* the prefix really is read short: the full chunk would shade differently */
                 print_message("%-44s %6zu px differ from the full chunk by > 1 deg\n", "", f.disagree_full);

@@ -780,6 +780,8 @@ int main(int argc, char **argv)
         snprintf(v.where, sizeof v.where, "server %s:%u", o.host, o.port);
     ms_render_options_default(&v.render);
     v.render.smooth = !o.flat;
+    v.render.apo_filter = o.apo_filter;
+    v.render.apo_footprint = o.apo_footprint;
     v.render.shading = o.shading;
     update_shading(&v);
     rc = o.scripted ? scripted(&v) : interactive(&v);

@@ -23,6 +23,8 @@ void ms_render_options_default(ms_render_options *o)
     o->wireframe = false;
     o->apo_depth_cap = 0;
     o->apo_nearest = true;
+    o->apo_filter = true;
+    o->apo_footprint = true;
     o->smooth = true;
     o->background[0] = o->background[1] = o->background[2] = 0.02f;
     o->effects = MS_EFFECTS_VIEWER;

@@ -163,6 +163,13 @@ typedef struct ms_render_options {
     bool wireframe;           /* overlay triangle edges */
     uint32_t apo_depth_cap;   /* 0: no cap */
     bool apo_nearest;         /* missing child: MS_APO_MISSING_NEAREST (true) or STOP */
+    bool apo_filter;          /* 8-cell interpolation between neighbouring texels
+                                 (ms_apo_lookup_filtered; default true) or the
+                                 nearest node (ms_apo_lookup) */
+    bool apo_footprint;       /* octree mip-mapping: the depth is also capped at
+                                 ms_apo_footprint_depth of the fragment's footprint
+                                 (ms_render_apo_footprint_scale), the first level
+                                 whose texels fit in the pixel (default true) */
     float background[3];      /* linear RGB the colour buffer is cleared to */
     bool smooth;              /* where APO is not used: interpolated vertex normals
                                  (true) or each triangle's flat normal (false) */
@@ -317,6 +324,15 @@ ms_status ms_render_program_source(unsigned effects, bool wireframe, char **sour
 /* Column-major view (world to eye) and projection matrices the renderer draws
  * with, in doubles. */
 void ms_render_camera_matrices(const ms_camera *camera, double view[16], double projection[16]);
+
+/* The APO footprint of a pixel per unit of eye depth, in units of a cube of
+ * side cube_side (eye units): 2 tan(fovy / 2) / (height * cube_side), as a
+ * float. A fragment at eye depth z (distance along the view direction) covers
+ * z times this in its cell's local coordinates; ms_apo_footprint_depth of that
+ * is the depth the shader stops at with options.apo_footprint. It is the
+ * thesis's min(|dFdx p|, |dFdy p|) without the surface's slope, exact and the
+ * same on the CPU. */
+float ms_render_apo_footprint_scale(const ms_camera *camera, double cube_side);
 
 /* World point seen at framebuffer pixel (x, y), measured from the bottom-left
  * corner (pixel centres at + 0.5), at window depth depth in [0, 1); false for

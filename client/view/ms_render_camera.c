@@ -60,6 +60,11 @@ void ms_render_camera_matrices(const ms_camera *c, double view[16], double proje
     projection[14] = 2.0 * fa * n / (n - fa);
 }
 
+float ms_render_apo_footprint_scale(const ms_camera *c, double cube_side)
+{
+    return (float)(2.0 * tan(0.5 * c->fovy) / (c->height * cube_side));
+}
+
 bool ms_render_unproject(const ms_camera *c, double x, double y, double depth, double world[3])
 {
     if (!c || !(depth >= 0.0 && depth < 1.0) || !isfinite(x) || !isfinite(y))

@@ -122,6 +122,7 @@ static void set_frame_uniforms(const ms_render *r, const ms_render_program *p, c
     glUniform2f(p->viewport, (float)lround(camera->width), (float)lround(camera->height));
     glUniform1i(p->shading, (int)o->shading);
     glUniform1i(p->apo_nearest, o->apo_nearest);
+    glUniform1i(p->apo_filter, o->apo_filter);
     glUniform1i(p->smooth, o->smooth);
     glUniform3fv(p->albedo, 1, o->albedo);
     set_lights(p, o, view);
@@ -294,6 +295,8 @@ ms_status ms_render_draw(ms_render *r, const ms_camera *camera, const ms_render_
             glUniform1i(p->apo_base, (GLint)c->apo.start);
             glUniform1i(p->apo_root_internal, c->apo.root_internal);
             glUniform1ui(p->apo_stop_depth, cap < last ? cap : last);
+            glUniform1f(p->apo_footprint_scale,
+                        o->apo_footprint ? ms_render_apo_footprint_scale(camera, side * scale) : 0.0f);
         }
         glBindVertexArray(c->mesh.vao);
         glDrawElements(tessellated ? GL_PATCHES : GL_TRIANGLES, (GLsizei)(3 * c->mesh.triangle_count),

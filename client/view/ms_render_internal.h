@@ -201,7 +201,8 @@ typedef struct ms_render_program {
     bool wireframe;
     bool tessellated;         /* with the displacement stages: draws GL_PATCHES */
     GLint modelview, projection, viewport;
-    GLint shading, apo_on, apo_base, apo_root_internal, apo_stop_depth, apo_nearest;
+    GLint shading, apo_on, apo_base, apo_root_internal, apo_stop_depth, apo_nearest, apo_filter,
+        apo_footprint_scale;
     GLint world_to_eye, cell_number, cell_tint, apo_words, smooth;
     GLint albedo, light_count, light_eye, light_colour, light_range;
     GLint specular, shininess, two_sided, haze_density, haze_colour; /* -1 when not compiled in */

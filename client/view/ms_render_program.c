@@ -270,6 +270,8 @@ ms_status ms_render_program_build(ms_render_program *p, unsigned effects, bool w
     p->apo_root_internal = glGetUniformLocation(g, "apo_root_internal");
     p->apo_stop_depth = glGetUniformLocation(g, "apo_stop_depth");
     p->apo_nearest = glGetUniformLocation(g, "apo_nearest_rule");
+    p->apo_filter = glGetUniformLocation(g, "apo_filter");
+    p->apo_footprint_scale = glGetUniformLocation(g, "apo_footprint_scale");
     p->world_to_eye = glGetUniformLocation(g, "world_to_eye");
     p->cell_number = glGetUniformLocation(g, "cell_number");
     p->cell_tint = glGetUniformLocation(g, "cell_tint");

@@ -24,6 +24,10 @@ void ms_viewer_options_usage(FILE *out)
           "  --apo-levels L         most APO octree levels fetched; the core fetches down to\n"
           "                         the level whose texel covers about a pixel (default 16)\n"
           "  --no-apo               fetch no APO; shade with geometry normals\n"
+          "  --apo-filter F         linear (default: 8-texel interpolation, no deeper than\n"
+          "                         the first level whose texels fit in a pixel) | nearest\n"
+          "                         (the nearest texel, the same depth limit) | none (the\n"
+          "                         nearest leaf)\n"
           "  --shading MODE         apo | geometry | normals | cells (default apo); geometry\n"
           "                         fetches no APO\n"
           "  --upload-budget BYTES  GPU upload per frame at most (default 4000000)\n"
@@ -204,6 +208,7 @@ static void default_options(ms_viewer_options *o)
     o->apo_shading = true;
     o->tolerance_px = 0; /* the stream's default */
     o->apo_levels = 16;
+    o->apo_filter = true, o->apo_footprint = true;
     o->upload_budget = 4000000;
     o->keyframe_timeout = 30;
     o->up_axis = 2;
@@ -264,6 +269,18 @@ static int apply_option(int ch, const char *arg, ms_viewer_options *o, option_le
         o->apo_levels = (unsigned)i;
         break;
     case 'n': left->no_apo = true; break;
+    case 'F':
+        if (!strcmp(arg, "linear"))
+            o->apo_filter = true, o->apo_footprint = true;
+        else if (!strcmp(arg, "nearest"))
+            o->apo_filter = false, o->apo_footprint = true;
+        else if (!strcmp(arg, "none"))
+            o->apo_filter = false, o->apo_footprint = false;
+        else {
+            fprintf(err, "meshview: --apo-filter wants linear, nearest or none, not '%s'\n", arg);
+            return 2;
+        }
+        break;
     case 'S': left->shading = arg; break;
     case 'u':
         if (!integer(err, "--upload-budget", arg, 4096, INT64_C(1) << 40, &i))
@@ -327,6 +344,7 @@ int ms_viewer_options_parse(int argc, char **argv, ms_viewer_options *o, FILE *e
         {"token", required_argument, NULL, 'T'},      {"size", required_argument, NULL, 'z'},
         {"tolerance", required_argument, NULL, 't'},  {"apo-levels", required_argument, NULL, 'a'},
         {"no-apo", no_argument, NULL, 'n'},           {"shading", required_argument, NULL, 'S'},
+        {"apo-filter", required_argument, NULL, 'F'},
         {"upload-budget", required_argument, NULL, 'u'},
         {"memory", required_argument, NULL, 'M'},     {"bandwidth", required_argument, NULL, 'b'},
         {"up", required_argument, NULL, 'U'},         {"path", required_argument, NULL, 'p'},

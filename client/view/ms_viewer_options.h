@@ -36,6 +36,8 @@ typedef struct ms_viewer_options {
     bool apo_shading;          /* shade with APO normals (false: geometry normals) */
     double tolerance_px;       /* geometric; 0: the default (ms_viewer_stream.h) */
     unsigned apo_levels;       /* fetched; 0: none */
+    bool apo_filter;           /* --apo-filter: interpolate between texels (linear) */
+    bool apo_footprint;        /* --apo-filter: depth limited by the pixel's footprint (linear, nearest) */
     uint64_t upload_budget;    /* bytes per frame */
     double memory_mb, bandwidth, keyframe_timeout;
     bool whole_index;          /* the whole index at open (ms_core_options.whole_index) */

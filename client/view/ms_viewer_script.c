@@ -545,6 +545,8 @@ static ms_status scene_run(const ms_viewer_options *o, const ms_viewer_source *s
     s.render.shading = o->shading;
     s.render.apo = o->apo_shading;
     s.render.smooth = !o->flat;
+    s.render.apo_filter = o->apo_filter;
+    s.render.apo_footprint = o->apo_footprint;
     ms_viewer_scene_settings settings = ms_viewer_options_scene_settings(o);
     json_t *keys = json_array();
     double started = now_s();
@@ -609,6 +611,8 @@ ms_status ms_viewer_script_run(const ms_viewer_options *o, const ms_viewer_sourc
     s.render.shading = o->shading;
     s.render.apo = o->apo_shading;
     s.render.smooth = !o->flat;
+    s.render.apo_filter = o->apo_filter;
+    s.render.apo_footprint = o->apo_footprint;
     ms_viewer_stream_settings settings = ms_viewer_options_stream_settings(o);
     json_t *keys = json_array();
     double started = now_s();

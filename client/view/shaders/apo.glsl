@@ -59,15 +59,18 @@ uint apo_nearest(uint exist, uint oct, inout uvec3 u, uint depth)
     return best;
 }
 
-// stop_depth = min(depth cap, last complete level): an internal node there
-// returns its mean normal (CAP / PREFIX); a level not wholly received is never
-// read. Offsets were validated on the CPU (ms_apo_view_init) before upload.
-vec3 apo_lookup(vec3 p, int base, bool root_internal, uint stop_depth, bool nearest)
+// The walk from the root at a fixed-point point: the 24-bit normal code of the
+// node where it stops, that node's depth and integer cell coordinates.
+// stop_depth = min(depth cap, last complete level, footprint depth): an internal
+// node there returns its mean normal (CAP / PREFIX); a level not wholly received
+// is never read. Offsets were validated on the CPU (ms_apo_view_init) before
+// upload.
+uint apo_walk(uvec3 u, int base, bool root_internal, uint stop_depth, bool nearest, out uint depth, out uvec3 cell)
 {
-    uvec3 u = apo_fixed(p);
     int word = base;
     bool internal = root_internal;
-    uint depth = 0u;
+    depth = 0u;
+    cell = uvec3(0u);
     while (internal && depth < stop_depth) {
         uint header = texelFetch(apo_words, word).r;
         uint kind = texelFetch(apo_words, word + 1).r >> 24;
@@ -82,7 +85,83 @@ vec3 apo_lookup(vec3 p, int base, bool root_internal, uint stop_depth, bool near
         uint below = (1u << oct) - 1u;
         word += int((header >> 8) + uint(bitCount(exist & below) + bitCount(exist & kind & below)));
         internal = ((kind >> oct) & 1u) != 0u;
+        cell = 2u * cell + uvec3((oct >> 2) & 1u, (oct >> 1) & 1u, oct & 1u);
         ++depth;
     }
-    return apo_decode(texelFetch(apo_words, internal ? word + 1 : word).r & 0xFFFFFFu);
+    return texelFetch(apo_words, internal ? word + 1 : word).r & 0xFFFFFFu;
+}
+
+// The nearest node's normal (ms_apo_lookup).
+vec3 apo_lookup(vec3 p, int base, bool root_internal, uint stop_depth, bool nearest)
+{
+    uint depth;
+    uvec3 cell;
+    return apo_decode(apo_walk(apo_fixed(p), base, root_internal, stop_depth, nearest, depth, cell));
+}
+
+// The first depth whose cells are no wider than the pixel footprint f
+// (ms_apo_footprint_depth): 2^-depth <= f. With f = m * 2^e, m in [0.5, 1)
+// (frexp's split, read from the float's bits: exact): 1 - e. A subnormal f
+// gives 127: no limit within 30 levels.
+uint apo_footprint_depth(float f)
+{
+    if (!(f > 0.0))
+        return 0xFFFFFFFFu;
+    if (f >= 1.0)
+        return 0u;
+    int e = int((floatBitsToUint(f) >> 23) & 0xFFu) - 126;
+    return uint(1 - e);
+}
+
+// 8-cell interpolation (ms_apo_lookup_filtered, docs/APO.md "Filtering"): the
+// centre node, and the 7 neighbours on the sides of its nearer faces, each
+// looked up one fixed-point unit past the face with the STOP rule (a neighbour
+// not stored gives its deepest stored ancestor's mean normal); an axis whose
+// neighbour would leave the cube stays (clamp to edge).
+vec3 apo_lookup_filtered(vec3 p, int base, bool root_internal, uint stop_depth, bool nearest)
+{
+    uvec3 u = apo_fixed(p);
+    uint depth;
+    uvec3 cell;
+    vec3 n0 = apo_decode(apo_walk(u, base, root_internal, stop_depth, nearest, depth, cell));
+    if (depth == 0u)
+        return n0;
+    uint shift = 32u - depth;
+    uint width = 1u << shift;
+    uint half_width = width >> 1;
+    uvec3 at, across;
+    bvec3 moves;
+    vec3 t;
+    for (int a = 0; a < 3; ++a) {
+        uint lower = cell[a] << shift;
+        uint v = clamp(u[a], lower, lower + (width - 1u));
+        uint r = v - lower;
+        bool upper = r >= half_width;
+        uint dist = upper ? r - half_width : half_width - 1u - r;
+        t[a] = (float(dist) + 0.5) / float(width);
+        at[a] = v;
+        moves[a] = upper ? cell[a] + 1u < (1u << depth) : cell[a] > 0u;
+        across[a] = upper ? lower + width : lower - 1u;
+    }
+    vec3 sum = vec3(0.0);
+    for (uint k = 0u; k < 8u; ++k) {
+        float w = 1.0;
+        uvec3 q;
+        bool moved = false;
+        for (int a = 0; a < 3; ++a) {
+            bool bit = ((k >> uint(2 - a)) & 1u) != 0u;
+            w *= bit ? t[a] : 1.0 - t[a];
+            q[a] = (bit && moves[a]) ? across[a] : at[a];
+            moved = moved || (bit && moves[a]);
+        }
+        vec3 n = n0;
+        if (moved) {
+            uint d;
+            uvec3 c;
+            n = apo_decode(apo_walk(q, base, root_internal, stop_depth, false, d, c));
+        }
+        sum += (dot(n, n0) < 0.0 ? -w : w) * n; // a neighbour facing away: turned over
+    }
+    float len = length(sum);
+    return len >= 1e-6 ? sum / len : n0;
 }

@@ -35,6 +35,8 @@ uniform int apo_base;         // first word of the cell's chunk in apo_words
 uniform bool apo_root_internal;
 uniform uint apo_stop_depth;  // min(depth cap, complete levels - 1)
 uniform bool apo_nearest_rule; // missing child: nearest (true) or stop
+uniform bool apo_filter;      // 8-cell interpolation (true) or the nearest node
+uniform float apo_footprint_scale; // a pixel's width in cell units per unit of eye depth; 0: no limit
 #endif
 uniform mat3 world_to_eye;    // rotation part of the view (times the model's placement)
 uniform uint cell_number;
@@ -108,7 +110,11 @@ void main()
     bool detail = false;
 #ifdef MS_EFFECT_DETAIL_NORMALS
     if (apo_on) {
-        n_world = apo_lookup(FRAG_CELL, apo_base, apo_root_internal, apo_stop_depth, apo_nearest_rule);
+        // no deeper than the first texel within the pixel (minification), then interpolation
+        // between neighbouring texels (magnification) or the nearest one
+        uint stop = min(apo_stop_depth, apo_footprint_depth(-FRAG_EYE.z * apo_footprint_scale));
+        n_world = apo_filter ? apo_lookup_filtered(FRAG_CELL, apo_base, apo_root_internal, stop, apo_nearest_rule)
+                             : apo_lookup(FRAG_CELL, apo_base, apo_root_internal, stop, apo_nearest_rule);
         detail = true;
     }
 #endif
@@ -128,10 +134,11 @@ void main()
         vec3 ng = normalize(world_to_eye * g_n);
         vec3 n = normalize(world_to_eye * n_world);
         // An APO normal against the triangle's own was sampled on another sheet
-        // of the surface (a thin part), and a vertex normal against it comes
-        // from a fold: the triangle's normal stands in for it.
+        // of the surface (a thin part) or on a face wound the other way: it is
+        // turned to the triangle's side (as meshrender does). A vertex normal
+        // against it comes from a fold: the triangle's normal stands in for it.
         if (dot(n, ng) < 0.0)
-            n = ng;
+            n = detail ? -n : ng;
 #ifdef MS_EFFECT_TWO_SIDED
         // Two-sided: a surface seen from behind is lit as its other side.
         if (two_sided && dot(ng, view_dir) < 0.0) {
@@ -159,14 +166,13 @@ void main()
             // The self-shadowing factor, for every normal: meshrender's
             // lighting model (server/study/ms_study_render.c, the study's
             // reference), so the same mesh shades alike in both (a flat face
-            // under the head light as (N . L)^2). With an APO normal it is
-            // max(0, L . N_geometric): a detail normal does not light a
-            // triangle the geometry turns away from the light. Otherwise it
-            // is max(0, L . N), the vertex or flat normal itself: the same as
-            // meshrender's on a flat face and on a fine mesh, and smooth on a
-            // coarse level, whose triangles' own normals are rough (their
-            // corners sit at kd-cell centres) and would speckle the picture.
-            float self_shadow = max(0.0, dot(l, detail ? ng : n));
+            // under the head light as (N . L)^2). It is max(0, L . N), N the
+            // APO, vertex or flat normal itself: the same as meshrender's
+            // max(0, L . N_geometric) on a flat face and on a fine mesh, and
+            // smooth on a coarse level, whose triangles' own normals are rough
+            // (their corners sit at kd-cell centres, a staircase at 12 px) and
+            // would darken whole triangles under a good APO normal.
+            float self_shadow = max(0.0, dot(l, n));
             vec3 c = light_colour[i] * (falloff * self_shadow);
             diffuse += c * max(0.0, dot(n, l));
 #ifdef MS_EFFECT_SPECULAR
