@@ -31,6 +31,8 @@ FUZZ_CFLAGS := -std=c11 -D_DEFAULT_SOURCE -D_FILE_OFFSET_BITS=64 -O1 -g \
                -Wall -Wextra -Werror -Wshadow -Wstrict-prototypes -Wvla \
                $(addprefix -I,$(wildcard common/*) protocol server/serve tests/support) -pthread
 FUZZ_LIBS  := $(shell pkg-config --libs jansson libevent libpng zlib) -lm -pthread
+# the one version of the project, as the main Makefile gives it
+$(FUZZ_DIR)/obj/common/util/ms_version.o: FUZZ_CFLAGS += -DMS_VERSION='"$(shell cat VERSION)"'
 
 .PHONY: all build run merge clean
 .SECONDARY:
