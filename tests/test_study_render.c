@@ -5,8 +5,8 @@
  * the thread count nor on a far-away origin; APO normals come from the drawing
  * cell's chunk at the hit's cell-local coordinate, the nearest leaf unfiltered
  * and the client's filter by default (8-cell interpolation, depth limited by
- * the pixel's footprint), and light with their own self-shadowing factor; PNG
- * output. */
+ * the pixel's footprint), and light with their own self-shadowing factor; a
+ * smooth normal from a fold gives way to N_g; PNG output. */
 #include <stdarg.h>
 #include <stddef.h>
 #include <setjmp.h>
@@ -536,6 +536,48 @@ static void test_apo_filtered(void **state)
     ms_study_scene_free(s);
 }
 
+/* A fold: triangle 0 in z = 0 facing +z, triangle 1 on its hypotenuse folded
+ * back over it (its third corner at (0.3, 0.3, 0.1), wound to face about -z).
+ * The shared corners' area-weighted normals lean to +z, so near the shared
+ * edge triangle 1's interpolated normal lies against its own stored normal:
+ * there, as in the client's shader, its facing N_g stands in exactly; where it
+ * does not (near its own corner) the normal is the interpolated one turned over
+ * with the face, on N_g's side. Seen from above, both kinds of pixel occur. */
+static void test_smooth_fold(void **state)
+{
+    (void)state;
+    const double pos[12] = {0, 0, 0, 1, 0, 0, 0, 1, 0, 0.3, 0.3, 0.1};
+    const uint32_t tri[6] = {0, 1, 2, 2, 1, 3};
+    ms_study_scene *s;
+    ms_error err;
+    assert_int_equal(ms_study_scene_new(pos, 4, tri, 2, &s, &err), MS_OK);
+    ms_camera cam;
+    const double eye[3] = {0.35, 0.35, 3}, target[3] = {0.35, 0.35, 0};
+    look(eye, target, 61, 61, &cam);
+    ms_study_render_options o = {.threads = 2, .smooth = true};
+    ms_study_image im = {0};
+    assert_int_equal(ms_study_render(s, &cam, &o, &im, &err), MS_OK);
+    /* triangle 1's stored normal is -(0.1, 0.1, 0.4) normalised; facing the camera, +(0.1, 0.1, 0.4) */
+    double len = sqrt(0.18), ng[3] = {0.1 / len, 0.1 / len, 0.4 / len};
+    size_t as_ng = 0, interpolated = 0;
+    for (size_t p = 0; p < (size_t)im.width * im.height; ++p) {
+        if (!ms_study_image_covered(&im, p) || im.triangle[p] != 1)
+            continue;
+        const float *n = &im.normal[3 * p];
+        if (fabs(n[0] - ng[0]) < 1e-6 && fabs(n[1] - ng[1]) < 1e-6 && fabs(n[2] - ng[2]) < 1e-6) {
+            as_ng++;
+            continue;
+        }
+        assert_true(n[0] * ng[0] + n[1] * ng[1] + n[2] * ng[2] > 0);
+        interpolated++;
+    }
+    print_message("fold: %zu pixels of triangle 1 with N_g, %zu with the interpolated normal\n", as_ng,
+                  interpolated);
+    assert_true(as_ng > 10 && interpolated > 10);
+    ms_study_image_free(&im);
+    ms_study_scene_free(s);
+}
+
 /* The cube of an archive cell. */
 static void test_cell_cube(void **state)
 {
@@ -557,6 +599,7 @@ int main(void)
         cmocka_unit_test(test_deterministic_and_far_origin),
         cmocka_unit_test(test_apo_normals),
         cmocka_unit_test(test_apo_filtered),
+        cmocka_unit_test(test_smooth_fold),
         cmocka_unit_test(test_cell_cube),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
