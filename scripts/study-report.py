@@ -232,9 +232,11 @@ series.append(("Draco whole download, smooth (qp = 8-20)",
 dats = [(title, write_dat(f"s{i}.dat", rows), style) for i, (title, rows, style) in enumerate(series)]
 
 
-def gnuplot(png, body):
-    script = (f"set terminal pngcairo size 900,560 font 'sans,10'\nset output '{png}'\nset grid\n"
-              "set key inside left top vertical Left reverse box opaque\n" + body)
+def gnuplot(png, body, below=False):
+    """below: the key beside the plot, on the right (the figures with many series), else inside at the top left."""
+    size, key = ("1300,600", "set key outside right top vertical Left reverse box\n") if below else (
+        "900,560", "set key inside left top vertical Left reverse box opaque\n")
+    script = (f"set terminal pngcairo size {size} font 'sans,10'\nset output '{png}'\nset grid\n" + key + body)
     subprocess.run(["gnuplot"], input=script.encode(), check=True)
 
 
@@ -246,14 +248,14 @@ key_text = f"dragon close-up (key {closeup}), {meta['width']}x{meta['height']}"
 gnuplot(os.path.join(args.images_dir, "study-bytes-error.png"),
         f"set title 'Bytes against image error: {key_text}'\nset logscale x\n"
         "set xlabel 'bytes fetched (index + geometry [+ APO]; whole file)'\n"
-        "set ylabel 'PSNR against the full model, dB (higher: less error)'\n" + plot_lines("1"))
+        "set ylabel 'PSNR against the full model, dB (higher: less error)'\n" + plot_lines("1"), below=True)
 for bw in BANDWIDTHS:
     mbit = int(bw / 1e6)
     gnuplot(os.path.join(args.images_dir, f"study-time-error-{mbit}mbit.png"),
             f"set title 'Time to view complete at {mbit} Mbit/s: {key_text}'\nset logscale x\n"
             f"set xlabel 'seconds (bytes * 8 / {mbit} Mbit/s + measured decode)'\n"
             "set ylabel 'PSNR against the full model, dB (higher: less error)'\n" +
-            plot_lines(f"($1*8/{bw:g}+$2)"))
+            plot_lines(f"($1*8/{bw:g}+$2)"), below=True)
 dec_ours = write_dat("dec_ours.dat", [(r["bits"], r["decode"]) for r in ours_whole])
 dec_draco = write_dat("dec_draco.dat", [(r["bits"], r["decode"]) for r in draco_whole])
 gnuplot(os.path.join(args.images_dir, "study-decode-precision.png"),
