@@ -423,6 +423,30 @@ static int cmd_decode(int argc, char **argv)
     return EXIT_SUCCESS;
 }
 
+/* The colour figures of roundtrip: into obj (JSON), or a line on stdout. */
+static void report_colour(json_t *obj, int bits, bool alpha, const ms_colour_roundtrip_report *c,
+                          size_t vertices)
+{
+    double bpv = 8.0 * (double)c->bytes / (double)vertices;
+    if (!obj) {
+        printf("colour at %d bits per channel%s: %zu bytes, %.3f bits/vertex; encode %.3f s, "
+               "decode %.3f s; %s\n",
+               bits, alpha ? " with alpha" : "", c->bytes, bpv, c->encode_seconds,
+               c->decode_seconds, c->lossless ? "lossless" : "MISMATCH");
+        return;
+    }
+    json_t *extra = json_pack("{s:i, s:b, s:I, s:o, s:o, s:o, s:b}", "colour_bits", bits,
+                              "colour_alpha", alpha, "colour_bytes", (json_int_t)c->bytes,
+                              "colour_bits_per_vertex", ms_json_fixed(bpv, 4),
+                              "colour_encode_seconds", ms_json_fixed(c->encode_seconds, 6),
+                              "colour_decode_seconds", ms_json_fixed(c->decode_seconds, 6),
+                              "colour_lossless", c->lossless);
+    if (extra) {
+        json_object_update(obj, extra);
+        json_decref(extra);
+    }
+}
+
 static int cmd_roundtrip(int argc, char **argv)
 {
     options o;
@@ -502,20 +526,8 @@ static int cmd_roundtrip(int argc, char **argv)
                                 "decode_seconds", ms_json_fixed(dec, 6), "decode_mtriangles_per_second",
                                 ms_json_fixed(dec > 0 ? (double)q.tri_count / dec / 1e6 : 0.0, 3), "lossless",
                                 lossless);
-        json_t *extra = obj && colours ? json_pack("{s:i, s:b, s:I, s:o, s:o, s:o, s:b}", "colour_bits",
-                                              o.colour_bits, "colour_alpha", alpha, "colour_bytes",
-                                              (json_int_t)colour.bytes, "colour_bits_per_vertex",
-                                              ms_json_fixed(8.0 * (double)colour.bytes /
-                                                            (double)q.vertex_count, 4),
-                                              "colour_encode_seconds",
-                                              ms_json_fixed(colour.encode_seconds, 6),
-                                              "colour_decode_seconds",
-                                              ms_json_fixed(colour.decode_seconds, 6),
-                                              "colour_lossless", colour.lossless) : NULL;
-        if (extra) {
-            json_object_update(obj, extra);
-            json_decref(extra);
-        }
+        if (obj && colours)
+            report_colour(obj, o.colour_bits, alpha, &colour, q.vertex_count);
         ms_json_print(stdout, obj, MS_JSON_SPACED);
     } else {
         printf("%s at %d bits: %zu vertices, %zu triangles (welded %zu, dropped %zu degenerate + "
@@ -525,11 +537,7 @@ static int cmd_roundtrip(int argc, char **argv)
                weld.degenerate_triangles, weld.duplicate_triangles, size, bpv, enc, dec,
                lossless ? "lossless" : "MISMATCH");
         if (colours)
-            printf("colour at %d bits per channel%s: %zu bytes, %.3f bits/vertex; encode %.3f s, "
-                   "decode %.3f s; %s\n",
-                   o.colour_bits, alpha ? " with alpha" : "", colour.bytes,
-                   8.0 * (double)colour.bytes / (double)q.vertex_count, colour.encode_seconds,
-                   colour.decode_seconds, colour.lossless ? "lossless" : "MISMATCH");
+            report_colour(NULL, o.colour_bits, alpha, &colour, q.vertex_count);
     }
     ms_qmesh_free(&q);
     bool had_colours = colours != NULL;
