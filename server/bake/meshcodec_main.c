@@ -36,6 +36,7 @@ static const char *const top_usage =
     "  encode IN -o OUT --bits P      quantise IN (PLY/OBJ/OFF, .gz ok) to P bits and code it\n"
     "  decode IN -o OUT.ply [--bits Q] decode a stream, at Q <= P bits for a coarser level\n"
     "  roundtrip IN --bits P [--json] encode, decode, check losslessness, report sizes/times\n"
+    "            [--colour-bits C]    (and the per-vertex colour's stream, C bits per channel)\n"
     "  train IN... -o TABLE.c         estimate the built-in prior from meshes (developers)\n"
     "\n"
     "`meshcodec COMMAND --help` describes each command; `meshcodec --version` prints\n"
