@@ -122,7 +122,10 @@ unsigned ms_colour_decoder_level(const ms_colour_decoder *d);
  * neighbours, which predict the colours); the cells at every level in between
  * are its cells' prefixes. It must continue what was decoded: its prefixes at
  * the current level are exactly the current cells, and at each chunk end the
- * count is the header's (else MS_ERR_ARG, decoder unchanged). A level at or
+ * count is the header's (else MS_ERR_ARG, decoder unchanged). The complex
+ * must be the geometry of the encoded one (its image at geo->level): cells
+ * without their triangles, or another complex on the same cells, decode other
+ * colours or fail as corrupted, since the neighbours predict. A level at or
  * below the current one only checks the cells. Past the available bytes:
  * MS_ERR_FORMAT (truncated). A corrupted stream: MS_ERR_CORRUPT, and the
  * decoder refuses further work. */
