@@ -16,6 +16,9 @@ void ms_view_mesh_free(ms_view_mesh *m)
     free(m->levels);
     free(m->triangles);
     free(m->triangle_cell);
+    free(m->run_cell);
+    free(m->run_first);
+    free(m->run_version);
     memset(m, 0, sizeof *m);
 }
 
@@ -56,8 +59,9 @@ static ms_status refresh_cache(ms_view *v, uint32_t cell, ms_error *err)
 }
 
 /* The shown cell holding kd-cell (prefix, level), or OWNER_FINER when the kd-cell
- * spans several shown cells (all finer than `level`). */
-static uint32_t owner_of(const ms_view *v, uint64_t prefix, unsigned level)
+ * spans several shown cells (all finer than `level`); *end: the cell the walk
+ * down from the root stopped at (the owner, or the split cell too coarse). */
+static uint32_t owner_of(const ms_view *v, uint64_t prefix, unsigned level, uint32_t *end)
 {
     uint32_t xyz[3];
     ms_nsp_prefix_corner(&v->shape, prefix, level, xyz);
@@ -65,10 +69,13 @@ static uint32_t owner_of(const ms_view *v, uint64_t prefix, unsigned level)
     const vcell *at;
     while ((at = ms_view_vcell(v, cell)) != NULL && at->state == MS_VIEW_SPLIT) {
         const ms_archive_cell *r = &at->rec;
-        if (level < 3u * (r->level + 1u) * v->shape.log2n)
+        if (level < 3u * (r->level + 1u) * v->shape.log2n) {
+            *end = cell;
             return OWNER_FINER;
+        }
         cell = r->first_child + ms_nsp_child_offset(&v->shape, r->level, xyz);
     }
+    *end = cell;
     return cell;
 }
 
@@ -268,24 +275,84 @@ static ms_status drop_snapped_repeats(ms_view_mesh *m, size_t first, const uint8
     return MS_OK;
 }
 
+/* One step of the run versions' hash (ms_view_mesh.run_version). */
+static uint64_t version_mix(uint64_t h, uint64_t cell, uint64_t stamp)
+{
+    h = (h ^ cell) * 0x9E3779B97F4A7C15ull;
+    h ^= h >> 29;
+    h = (h ^ stamp) * 0xBF58476D1CE4E5B9ull;
+    return h ^ h >> 32;
+}
+
+static uint64_t stamp_of(const ms_view *v, uint32_t cell)
+{
+    const vcell *c = ms_view_vcell(v, cell);
+    return c ? c->stamp : 0;
+}
+
+/* Appends cell's run (its triangles from first on) to the mesh's runs. */
+static ms_status add_run(ms_view_mesh *m, uint32_t cell, size_t first, uint64_t version, ms_error *err)
+{
+    if (m->run_count + 2 > m->run_cap) {
+        size_t c = grown(m->run_cap, m->run_count + 2);
+        uint32_t *ids = realloc(m->run_cell, c * sizeof *ids);
+        if (ids)
+            m->run_cell = ids;
+        uint32_t *starts = realloc(m->run_first, c * sizeof *starts);
+        if (starts)
+            m->run_first = starts;
+        uint64_t *versions = realloc(m->run_version, c * sizeof *versions);
+        if (versions)
+            m->run_version = versions;
+        if (!ids || !starts || !versions)
+            return ms_error_set(err, MS_ERR_NOMEM, "out of memory stitching");
+        m->run_cap = c;
+    }
+    m->run_cell[m->run_count] = cell;
+    m->run_first[m->run_count] = (uint32_t)first;
+    m->run_version[m->run_count++] = version;
+    m->run_first[m->run_count] = (uint32_t)m->triangle_count;
+    return MS_OK;
+}
+
 ms_status ms_view_stitch(ms_view *v, const bool *visible, ms_view_mesh *m, ms_error *err)
 {
     uint8_t *snapped = NULL;
     size_t snapped_cap = 0;
     m->vertex_count = m->triangle_count = 0;
     m->dropped_finer = m->dropped_snapped = m->unresolved = m->snapped_frozen = 0;
+    m->run_count = 0;
     ms_status s = MS_OK;
-    /* Caches and owners of every shown cell. */
+    /* A new stamp for every cell whose state or precision changed since the
+     * last stitch (a cell whose group was freed and made again starts hidden
+     * at 0 bits with stamp 0, so it gets one as soon as it differs). */
+    for (uint32_t id = 0; id != MS_ARCHIVE_NONE; id = ms_view_next_known(v, id)) {
+        vcell *c = ms_view_vcell(v, id);
+        if (c && (c->state != c->stitched_state || c->bits != c->stitched_bits)) {
+            c->stitched_state = c->state;
+            c->stitched_bits = c->bits;
+            c->stamp = ++v->stitch_stamps;
+        }
+    }
+    /* Caches and owners of every shown cell, and its triangles' version: its
+     * own stamp and those of the cells its vertices' owner walks ended at. */
     for (uint32_t id = 0; id != MS_ARCHIVE_NONE && s == MS_OK; id = ms_view_next_known(v, id)) {
         vcell *c = ms_view_vcell(v, id);
         if (!c || c->state != MS_VIEW_SHOWN)
             continue;
         if ((s = refresh_cache(v, id, err)) != MS_OK)
             break;
+        uint64_t version = version_mix(0x243F6A8885A308D3ull, id, c->stamp);
+        uint32_t last_end = NONE;
         for (size_t i = 0; i < c->cache.vertex_count; ++i) {
+            uint32_t end = id;
             c->out_index[i] = NONE;
-            c->owner[i] = owner_of(v, c->cache.cells[i], c->cache.level);
+            c->owner[i] = owner_of(v, c->cache.cells[i], c->cache.level, &end);
+            if (end != last_end && end != id)
+                version = version_mix(version, end, stamp_of(v, end));
+            last_end = end;
         }
+        c->stitch_version = version;
     }
     for (uint32_t id = 0; id != MS_ARCHIVE_NONE && s == MS_OK; id = ms_view_next_known(v, id)) {
         vcell *c = ms_view_vcell(v, id);
@@ -359,6 +426,8 @@ ms_status ms_view_stitch(ms_view *v, const bool *visible, ms_view_mesh *m, ms_er
         }
         if (s == MS_OK)
             s = drop_snapped_repeats(m, first, snapped, err);
+        if (s == MS_OK)
+            s = add_run(m, id, first, c->stitch_version, err);
     }
     free(snapped);
     return s;
