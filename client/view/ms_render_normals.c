@@ -245,12 +245,9 @@ static ms_status check_triangle(const ms_view_mesh *mesh, size_t t, uint32_t cel
     return MS_OK;
 }
 
-ms_status ms_render_split_normals(ms_render_split *s, const uint32_t *shade, uint32_t shade_count,
-                                  const uint32_t *around, uint32_t around_count, ms_error *err)
+/* The per-triangle arrays for nt triangles, the per-vertex ones for nv. */
+static ms_status normals_room(ms_render_split *s, size_t nv, size_t nt, ms_error *err)
 {
-    const ms_view_mesh *mesh = s->mesh;
-    size_t nv = mesh->vertex_count, nt = mesh->triangle_count;
-    s->fans_made = s->faces_made = 0;
     if (nt > s->triangle_normal_cap) {
         double *fn = realloc(s->face_normal, 3 * nt * sizeof *fn);
         if (fn)
@@ -279,6 +276,47 @@ ms_status ms_render_split_normals(ms_render_split *s, const uint32_t *shade, uin
         s->fan_vlocal = vlocal;
         s->fan_vertex_cap = nv;
     }
+    return MS_OK;
+}
+
+/* The normals of every vertex of the shaded cells, each once, from the fans. */
+static void shade_fans(ms_render_split *s, const uint32_t *shade, uint32_t shade_count)
+{
+    const ms_view_mesh *mesh = s->mesh;
+    /* the fans of the shaded cells' vertices, each once */
+    for (uint32_t j = 0; j < shade_count; ++j) {
+        uint32_t k = shade[j], count = s->present_start[k + 1] - s->present_start[k];
+        for (uint32_t i = 0; i < count; ++i) {
+            size_t t = ms_render_split_triangle(s, k, i);
+            for (int c = 0; c < 3; ++c) {
+                uint32_t v = s->fan_vlocal[mesh->triangles[3 * t + (size_t)c]];
+                if (s->fan_done[v])
+                    continue;
+                s->fan_done[v] = 1;
+                uint32_t first = s->fan_start[v], f = s->fan_start[v + 1] - first;
+                uint32_t *fan = &s->fan[first];
+                for (uint32_t a = 1; a < f; ++a) { /* ascending already with runs */
+                    uint32_t x = fan[a], b = a;
+                    for (; b > 0 && fan[b - 1] > x; --b)
+                        fan[b] = fan[b - 1];
+                    fan[b] = x;
+                }
+                fan_normals(s, mesh, fan, f);
+                s->fans_made++;
+            }
+        }
+    }
+}
+
+ms_status ms_render_split_normals(ms_render_split *s, const uint32_t *shade, uint32_t shade_count,
+                                  const uint32_t *around, uint32_t around_count, ms_error *err)
+{
+    const ms_view_mesh *mesh = s->mesh;
+    size_t nv = mesh->vertex_count, nt = mesh->triangle_count;
+    s->fans_made = s->faces_made = 0;
+    ms_status st = normals_room(s, nv, nt, err);
+    if (st != MS_OK)
+        return st;
     if (++s->fan_pass == 0) { /* wrapped: every stamp is stale again */
         memset(s->fan_vstamp, 0, s->fan_vertex_cap * sizeof *s->fan_vstamp);
         s->fan_pass = 1;
@@ -290,11 +328,8 @@ ms_status ms_render_split_normals(ms_render_split *s, const uint32_t *shade, uin
         uint32_t k = around[j], count = s->present_start[k + 1] - s->present_start[k];
         for (uint32_t i = 0; i < count; ++i) {
             size_t t = ms_render_split_triangle(s, k, i);
-            if (s->runs) {
-                ms_status st = check_triangle(mesh, t, s->present[k], err);
-                if (st != MS_OK)
-                    return st;
-            }
+            if (s->runs && (st = check_triangle(mesh, t, s->present[k], err)) != MS_OK)
+                return st;
             make_face(s, mesh, t);
             for (int c = 0; c < 3; ++c) {
                 uint32_t v = mesh->triangles[3 * t + (size_t)c];
@@ -353,28 +388,6 @@ ms_status ms_render_split_normals(ms_render_split *s, const uint32_t *shade, uin
         s->fan_sum = sum;
         s->fan_cap = widest;
     }
-    /* the fans of the shaded cells' vertices, each once */
-    for (uint32_t j = 0; j < shade_count; ++j) {
-        uint32_t k = shade[j], count = s->present_start[k + 1] - s->present_start[k];
-        for (uint32_t i = 0; i < count; ++i) {
-            size_t t = ms_render_split_triangle(s, k, i);
-            for (int c = 0; c < 3; ++c) {
-                uint32_t v = s->fan_vlocal[mesh->triangles[3 * t + (size_t)c]];
-                if (s->fan_done[v])
-                    continue;
-                s->fan_done[v] = 1;
-                uint32_t first = s->fan_start[v], f = s->fan_start[v + 1] - first;
-                uint32_t *fan = &s->fan[first];
-                for (uint32_t a = 1; a < f; ++a) { /* ascending already with runs */
-                    uint32_t x = fan[a], b = a;
-                    for (; b > 0 && fan[b - 1] > x; --b)
-                        fan[b] = fan[b - 1];
-                    fan[b] = x;
-                }
-                fan_normals(s, mesh, fan, f);
-                s->fans_made++;
-            }
-        }
-    }
+    shade_fans(s, shade, shade_count);
     return MS_OK;
 }
