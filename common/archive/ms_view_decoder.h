@@ -301,8 +301,9 @@ typedef struct ms_view_mesh {
      * [run_first[k], run_first[k + 1]) (run_count + 1 entries), and
      * run_version[k] changes whenever those triangles may have changed since an
      * earlier stitch of the same view: it is a hash of the stamps of the cell
-     * and of every shown or split cell its vertices' owners were looked up in,
-     * a stamp being renewed whenever a cell's state or precision changes. The
+     * and of every cell its triangles' corners' owner lookups ended at (the
+     * owner, or the split cell too coarse to hold the corner), a stamp being
+     * renewed whenever a stitch sees a cell's state or precision changed. The
      * same version means the same triangles: same vertex positions and levels,
      * same corners, same order. */
     size_t run_count, run_cap;

@@ -35,7 +35,6 @@ typedef struct vcell {
     /* versions of the stitched triangles (ms_view_mesh.run_version) */
     uint8_t stitched_state, stitched_bits; /* as the last stitch saw them */
     uint64_t stamp;         /* renewed when a stitch sees them change */
-    uint64_t stitch_version;
 } vcell;
 
 /* Cells are kept per sibling group: ids are breadth-first, so every group of

@@ -284,10 +284,25 @@ static uint64_t version_mix(uint64_t h, uint64_t cell, uint64_t stamp)
     return h ^ h >> 32;
 }
 
-static uint64_t stamp_of(const ms_view *v, uint32_t cell)
+/* The running version of a cell's triangles: each cell looked at, with what
+ * of it was used (its stamp; or only its level, a tag above any stamp; or
+ * only that it is split too coarse), once per run of equal notes. */
+typedef struct dep_note {
+    uint64_t version;
+    uint32_t cell;
+    uint64_t word;
+} dep_note;
+
+#define DEP_FINER (UINT64_MAX - 255u)
+#define DEP_LEVEL (UINT64_MAX - 254u)
+
+static void note_dep(dep_note *d, uint32_t cell, uint64_t word)
 {
-    const vcell *c = ms_view_vcell(v, cell);
-    return c ? c->stamp : 0;
+    if (cell == d->cell && word == d->word)
+        return;
+    d->cell = cell;
+    d->word = word;
+    d->version = version_mix(d->version, cell, word);
 }
 
 /* Appends cell's run (its triangles from first on) to the mesh's runs. */
@@ -334,25 +349,18 @@ ms_status ms_view_stitch(ms_view *v, const bool *visible, ms_view_mesh *m, ms_er
             c->stamp = ++v->stitch_stamps;
         }
     }
-    /* Caches and owners of every shown cell, and its triangles' version: its
-     * own stamp and those of the cells its vertices' owner walks ended at. */
+    /* Caches and owners of every shown cell. */
     for (uint32_t id = 0; id != MS_ARCHIVE_NONE && s == MS_OK; id = ms_view_next_known(v, id)) {
         vcell *c = ms_view_vcell(v, id);
         if (!c || c->state != MS_VIEW_SHOWN)
             continue;
         if ((s = refresh_cache(v, id, err)) != MS_OK)
             break;
-        uint64_t version = version_mix(0x243F6A8885A308D3ull, id, c->stamp);
-        uint32_t last_end = NONE;
         for (size_t i = 0; i < c->cache.vertex_count; ++i) {
-            uint32_t end = id;
+            uint32_t end;
             c->out_index[i] = NONE;
             c->owner[i] = owner_of(v, c->cache.cells[i], c->cache.level, &end);
-            if (end != last_end && end != id)
-                version = version_mix(version, end, stamp_of(v, end));
-            last_end = end;
         }
-        c->stitch_version = version;
     }
     for (uint32_t id = 0; id != MS_ARCHIVE_NONE && s == MS_OK; id = ms_view_next_known(v, id)) {
         vcell *c = ms_view_vcell(v, id);
@@ -360,6 +368,10 @@ ms_status ms_view_stitch(ms_view *v, const bool *visible, ms_view_mesh *m, ms_er
             continue;
         const unsigned Lc = c->cache.level;
         const size_t first = m->triangle_count;
+        /* the triangles' version: the cell's stamp and those of the cells each
+         * corner's owner lookup ended at, as far as the loop below looks (what
+         * it does depends on nothing else) */
+        dep_note dep = {version_mix(0x243F6A8885A308D3ull, id, c->stamp), NONE, 0};
         if (c->cache.tri_count > snapped_cap) {
             uint8_t *p = realloc(snapped, c->cache.tri_count);
             if (!p) {
@@ -380,7 +392,10 @@ ms_status ms_view_stitch(ms_view *v, const bool *visible, ms_view_mesh *m, ms_er
             bool keep = true, moved = false;
             for (int j = 0; j < 3 && keep; ++j) {
                 uint32_t o = c->owner[x[j]];
-                if (o == OWNER_FINER) {
+                if (o == OWNER_FINER) { /* depends only on the cells split above */
+                    uint32_t end = o;
+                    (void)owner_of(v, c->cache.cells[x[j]], Lc, &end);
+                    note_dep(&dep, end, DEP_FINER);
                     keep = false;
                     m->dropped_finer++;
                     break;
@@ -392,11 +407,13 @@ ms_status ms_view_stitch(ms_view *v, const bool *visible, ms_view_mesh *m, ms_er
                 }
                 vcell *oc = ms_view_vcell(v, o);
                 unsigned Lo = oc->cache.level;
-                if (Lo > Lc || (Lo == Lc && o > id)) {
+                if (Lo > Lc || (Lo == Lc && o > id)) { /* depends only on its level */
+                    note_dep(&dep, o, DEP_LEVEL + Lo);
                     keep = false;
                     m->dropped_finer++;
                     break;
                 }
+                note_dep(&dep, o, oc->stamp); /* its vertices: its whole state */
                 /* a frozen foreign vertex is known only to its lone kd-cell (level
                  * lx): the holder's vertex inside it is the one it stands for */
                 unsigned lx = c->levels ? c->levels[x[j]] : Lc, at = lx < Lo ? lx : Lo;
@@ -427,7 +444,7 @@ ms_status ms_view_stitch(ms_view *v, const bool *visible, ms_view_mesh *m, ms_er
         if (s == MS_OK)
             s = drop_snapped_repeats(m, first, snapped, err);
         if (s == MS_OK)
-            s = add_run(m, id, first, c->stitch_version, err);
+            s = add_run(m, id, first, dep.version, err);
     }
     free(snapped);
     return s;
