@@ -115,12 +115,6 @@ static uint64_t vertex_key(const double *p)
     return h;
 }
 
-static int compare_key(const void *a, const void *b)
-{
-    uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
-    return (x > y) - (x < y);
-}
-
 /* The cell's touch list out of the table, its keys onto r->keys (the places
  * whose fans may change). */
 static bool forget_touch(ms_render *r, uint32_t id, render_cell *c)
@@ -146,37 +140,39 @@ void ms_render_cell_forget(ms_render *r, uint32_t id, render_cell *c)
         r->derived_crease = -1.0; /* no room to say where: derive every cell next time */
 }
 
-/* The present cell k's touch list made from its triangles now, into the table
- * and onto r->keys. */
+/* The present cell k's touch list made from its triangles now (each vertex
+ * once: the splitter's per-vertex stamps), into the table and onto r->keys. */
 static bool make_touch(ms_render *r, uint32_t k, render_cell *c)
 {
-    const ms_render_split *s = &r->split;
+    ms_render_split *s = &r->split;
     const ms_view_mesh *m = s->mesh;
     uint32_t count = s->present_start[k + 1] - s->present_start[k];
     uint64_t *touch = malloc(3 * (size_t)count * sizeof *touch);
     if (!touch)
         return false;
+    if (++s->pass == 0) { /* wrapped: every stamp is stale again */
+        memset(s->stamp, 0, s->vertex_cap * sizeof *s->stamp);
+        s->pass = 1;
+    }
     size_t n = 0;
     for (uint32_t i = 0; i < count; ++i) {
         size_t t = ms_render_split_triangle(s, k, i);
         for (int j = 0; j < 3; ++j) {
             uint32_t v = m->triangles[3 * t + (size_t)j];
-            if (v < m->vertex_count) /* a bad index is reported by the normals' check */
+            /* a bad index is reported by the normals' check */
+            if (v < m->vertex_count && s->stamp[v] != s->pass) {
+                s->stamp[v] = s->pass;
                 touch[n++] = vertex_key(&m->positions[3 * (size_t)v]);
+            }
         }
     }
-    qsort(touch, n, sizeof *touch, compare_key);
-    size_t unique = 0;
-    for (size_t i = 0; i < n; ++i)
-        if (unique == 0 || touch[i] != touch[unique - 1])
-            touch[unique++] = touch[i];
-    if (!keys_room(r, unique)) {
+    if (!keys_room(r, n)) {
         free(touch);
         return false;
     }
     c->touch = touch;
-    c->touch_count = (uint32_t)unique;
-    for (size_t i = 0; i < unique; ++i) {
+    c->touch_count = (uint32_t)n;
+    for (size_t i = 0; i < n; ++i) {
         r->keys[r->key_count++] = touch[i];
         if (!map_add(&r->touch, touch[i], s->present[k]))
             return false;

@@ -327,7 +327,7 @@ typedef struct render_cell {
     /* what its mesh was derived from (ms_render_cells.c) */
     bool has_version;
     uint64_t version;          /* the frame's version of its triangles (ms_render_split) */
-    uint64_t *touch;           /* the keys of the vertices its triangles use, sorted, unique */
+    uint64_t *touch;           /* the keys of the vertices its triangles use, each once */
     uint32_t touch_count;
     uint32_t frame_index;      /* set_frame scratch: its index in the frame's present cells */
     uint32_t mark;             /* set_frame scratch: the pass that put it in a set */
