@@ -321,32 +321,48 @@ ms_status ms_render_split_normals(ms_render_split *s, const uint32_t *shade, uin
         memset(s->fan_vstamp, 0, s->fan_vertex_cap * sizeof *s->fan_vstamp);
         s->fan_pass = 1;
     }
-    /* the vertices of the cells around, numbered; their corner counts; the faces */
-    size_t corners = 0;
+    /* the shaded cells' vertices, numbered: only their fans are made */
     uint32_t fan_vertices = 0;
+    for (uint32_t j = 0; j < shade_count; ++j) {
+        uint32_t k = shade[j], count = s->present_start[k + 1] - s->present_start[k];
+        for (uint32_t i = 0; i < count; ++i) {
+            size_t t = ms_render_split_triangle(s, k, i);
+            for (int c = 0; c < 3; ++c) {
+                uint32_t v = mesh->triangles[3 * t + (size_t)c];
+                if (v >= nv || s->fan_vstamp[v] == s->fan_pass)
+                    continue; /* a bad index: reported below */
+                s->fan_vstamp[v] = s->fan_pass;
+                if (!room((void **)&s->fan_start, &s->fan_start_cap, (size_t)fan_vertices + 2, sizeof *s->fan_start))
+                    return ms_error_set(err, MS_ERR_NOMEM, "render: no memory for the normals' fans");
+                s->fan_start[fan_vertices + 1] = 0;
+                s->fan_vlocal[v] = fan_vertices++;
+            }
+        }
+    }
+    /* the corners of the cells around at those vertices, counted; the faces
+     * of their triangles (no other triangle is in a fan made) */
+    size_t corners = 0;
     for (uint32_t j = 0; j < around_count; ++j) {
         uint32_t k = around[j], count = s->present_start[k + 1] - s->present_start[k];
         for (uint32_t i = 0; i < count; ++i) {
             size_t t = ms_render_split_triangle(s, k, i);
             if (s->runs && (st = check_triangle(mesh, t, s->present[k], err)) != MS_OK)
                 return st;
-            make_face(s, mesh, t);
+            size_t hits = 0;
             for (int c = 0; c < 3; ++c) {
                 uint32_t v = mesh->triangles[3 * t + (size_t)c];
-                if (s->fan_vstamp[v] != s->fan_pass) {
-                    s->fan_vstamp[v] = s->fan_pass;
-                    if (!room((void **)&s->fan_start, &s->fan_start_cap, (size_t)fan_vertices + 2,
-                              sizeof *s->fan_start))
-                        return ms_error_set(err, MS_ERR_NOMEM, "render: no memory for the normals' fans");
-                    s->fan_start[fan_vertices + 1] = 0;
-                    s->fan_vlocal[v] = fan_vertices++;
+                if (s->fan_vstamp[v] == s->fan_pass) {
+                    s->fan_start[s->fan_vlocal[v] + 1]++;
+                    hits++;
                 }
-                s->fan_start[s->fan_vlocal[v] + 1]++;
+            }
+            if (hits) {
+                make_face(s, mesh, t);
+                s->faces_made++;
+                corners += hits;
             }
         }
-        corners += 3 * (size_t)count;
     }
-    s->faces_made = corners / 3;
     if (!room((void **)&s->fan, &s->fan_corner_cap, corners ? corners : 1, sizeof *s->fan) ||
         !room((void **)&s->fan_done, &s->fan_done_cap, (size_t)fan_vertices + 1, sizeof *s->fan_done))
         return ms_error_set(err, MS_ERR_NOMEM, "render: no memory for the normals' fans");
@@ -365,8 +381,11 @@ ms_status ms_render_split_normals(ms_render_split *s, const uint32_t *shade, uin
         uint32_t k = around[j], count = s->present_start[k + 1] - s->present_start[k];
         for (uint32_t i = 0; i < count; ++i) {
             size_t t = ms_render_split_triangle(s, k, i);
-            for (size_t c = 3 * t; c < 3 * t + 3; ++c)
-                s->fan[s->fan_start[s->fan_vlocal[mesh->triangles[c]]]++] = (uint32_t)c;
+            for (size_t c = 3 * t; c < 3 * t + 3; ++c) {
+                uint32_t v = mesh->triangles[c];
+                if (s->fan_vstamp[v] == s->fan_pass)
+                    s->fan[s->fan_start[s->fan_vlocal[v]]++] = (uint32_t)c;
+            }
         }
     }
     for (uint32_t v = fan_vertices; v > 0; --v)
