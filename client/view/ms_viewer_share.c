@@ -22,6 +22,8 @@ bool ms_viewer_numbers(const char *text, char sep, double *out, size_t n)
             return false;
         memcpy(field, p, len);
         field[len] = 0;
+        if (strspn(field, "0123456789+-.eE") != len) /* no spaces, hex or names */
+            return false;
         const char *end = ms_parse_double(field, &out[i]);
         if (!end || *end || !isfinite(out[i]))
             return false;
@@ -41,6 +43,9 @@ static int shortest(char *out, size_t size, double x)
         if (end && !*end && memcmp(&back, &x, sizeof x) == 0)
             break;
     }
+    /* an exponent with fewer digits than the integer part: an integer, "4e+01" as "40" */
+    if (strchr(out, 'e') && fabs(x) >= 1 && fabs(x) < 1e17)
+        len = snprintf(out, size, "%.0f", x);
     return len;
 }
 
