@@ -6,7 +6,8 @@
  *     distance within the reported precision of the one computed here from
  *     the camera (the rays through the pixels met with the plane y = 0), the
  *     precision the grid step box_side / 2^bits at the bits the cell holds;
- *     a pixel off the model is a point not hit and no distance;
+ *     with --hud the picture marks the points; a pixel off the model is a
+ *     point not hit and no distance;
  *   - --light: the face's grey under az 60 equals az -60 and el 60 (the same
  *     angle to the normal) within one level, and against az 75 the linear
  *     intensities (sRGB decoded, the 5 % ambient taken off) go as meshview's
@@ -171,6 +172,17 @@ static void test_measure_on_the_face(void **state)
     assert_string_equal(json_string_value(json_object_get(m, "unit")), "model units");
     assert_false(json_is_true(json_object_get(m, "refined_to_full")));
     json_decref(report);
+
+    /* with --hud the keyframe's picture marks the points (yellow squares) */
+    char png[800];
+    report = view(f, "measure-hud", "--hud --measure 52.25,90.5:111.5,77.75", true, png, sizeof png);
+    json_decref(report);
+    uint32_t w, h;
+    uint8_t *rgb = ms_test_png_read(png, &w, &h);
+    const uint8_t *at = &rgb[3 * (90 * w + 52)];
+    printf("marker pixel: %d %d %d\n", at[0], at[1], at[2]);
+    assert_true(at[0] >= 240 && at[1] >= 200 && at[1] <= 230 && at[2] <= 80);
+    free(rgb);
 
     /* a pixel off the model: not hit, no distance */
     report = view(f, "miss", "--measure 80,60:2,2", true, NULL, 0);

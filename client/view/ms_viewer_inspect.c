@@ -99,23 +99,46 @@ size_t ms_viewer_inspect_hud(ms_viewer_inspect *in, const ms_viewer_stream *stre
     return n;
 }
 
+/* Where camera c shows world point p (framebuffer pixels, top-left origin);
+ * false behind the eye. */
+static bool project(const ms_camera *c, const double p[3], double *sx, double *sy)
+{
+    double th = tan(0.5 * c->fovy), aspect = c->width / c->height;
+    double rel[3] = {p[0] - c->position[0], p[1] - c->position[1], p[2] - c->position[2]};
+    double z = rel[0] * c->forward[0] + rel[1] * c->forward[1] + rel[2] * c->forward[2];
+    if (!(z > 0))
+        return false;
+    double x = rel[0] * c->right[0] + rel[1] * c->right[1] + rel[2] * c->right[2];
+    double y = rel[0] * c->up[0] + rel[1] * c->up[1] + rel[2] * c->up[2];
+    *sx = 0.5 * c->width * (1 + x / (z * th * aspect));
+    *sy = 0.5 * c->height * (1 - y / (z * th));
+    return isfinite(*sx) && isfinite(*sy);
+}
+
 void ms_viewer_inspect_markers(const ms_viewer_inspect *in, ms_viewer_text *text)
 {
+    static const float ink[4] = {1.0f, 0.85f, 0.2f, 1};
     const ms_camera *c = &in->camera;
     if (!in->have_camera)
         return;
-    static const float ink[4] = {1.0f, 0.85f, 0.2f, 1};
-    double th = tan(0.5 * c->fovy), aspect = c->width / c->height, s = 3.0 * ms_viewer_text_scale(text);
+    double s = 3.0 * ms_viewer_text_scale(text), px = 0, py = 0;
+    bool have_previous = false;
     for (size_t i = 0; i < in->measure.count; ++i) {
         const double *p = in->measure.found[i] ? in->measure.hit[i].point : in->measure.anchor[i];
-        double rel[3] = {p[0] - c->position[0], p[1] - c->position[1], p[2] - c->position[2]};
-        double z = rel[0] * c->forward[0] + rel[1] * c->forward[1] + rel[2] * c->forward[2];
-        if (!(z > 0))
+        double x, y;
+        if (!project(c, p, &x, &y)) {
+            have_previous = false;
             continue;
-        double x = rel[0] * c->right[0] + rel[1] * c->right[1] + rel[2] * c->right[2];
-        double y = rel[0] * c->up[0] + rel[1] * c->up[1] + rel[2] * c->up[2];
-        double sx = 0.5 * c->width * (1 + x / (z * th * aspect)), sy = 0.5 * c->height * (1 - y / (z * th));
-        ms_viewer_text_rect(text, sx - s, sy - s, 2 * s, 2 * s, ink);
+        }
+        ms_viewer_text_rect(text, x - s, y - s, 2 * s, 2 * s, ink);
+        /* the segment from the previous point: a dotted line, a dot every 2 s pixels */
+        double len = hypot(x - px, y - py);
+        for (int k = 1; have_previous && len < 1e5 && k < (int)(len / (2 * s)); ++k) {
+            double f = k * 2 * s / len;
+            ms_viewer_text_rect(text, px + f * (x - px) - s / 3, py + f * (y - py) - s / 3, 2 * s / 3, 2 * s / 3,
+                                ink);
+        }
+        px = x, py = y, have_previous = true;
     }
 }
 
@@ -149,34 +172,32 @@ static json_t *point_json(const ms_viewer_measure *m, size_t i, const double *pi
     return p;
 }
 
-void ms_viewer_inspect_report_measure(const ms_viewer_options *o, ms_viewer_stream *stream,
+bool ms_viewer_inspect_report_measure(const ms_viewer_options *o, ms_viewer_inspect *look, ms_viewer_stream *stream,
                                       const ms_camera *camera, json_t *report)
 {
-    if (!report || (!o->measure_count && !(o->has_view && o->view.points)))
-        return;
-    ms_viewer_inspect in;
-    ms_viewer_inspect_init(&in, o);
+    if (!report || (!o->measure_count && !look->measure.count))
+        return false;
     const ms_core_frame *frame = ms_viewer_stream_frame(stream);
     const ms_viewer_model *model = ms_viewer_stream_model(stream);
-    ms_viewer_measure_update(&in.measure, frame, model->header.box_side);
-    size_t shared = in.measure.count;
+    ms_viewer_measure_update(&look->measure, frame, model->header.box_side);
+    size_t shared = look->measure.count;
     json_t *points = json_array();
     for (size_t i = 0; i < shared; ++i)
-        json_array_append_new(points, point_json(&in.measure, i, NULL));
+        json_array_append_new(points, point_json(&look->measure, i, NULL));
     for (size_t k = 0; k < o->measure_count; ++k) {
         double origin[3], direction[3];
         ms_viewer_measure_pixel_ray(camera, o->measure_px[k][0], o->measure_px[k][1], origin, direction);
-        if (!ms_viewer_measure_add(&in.measure, frame, model->header.box_side, origin, direction)) {
+        if (!ms_viewer_measure_add(&look->measure, frame, model->header.box_side, origin, direction)) {
             /* no surface there: kept in the chain as a point not found */
             double nowhere[3] = {origin[0], origin[1], origin[2]};
-            ms_viewer_measure_add_anchor(&in.measure, nowhere, direction);
+            ms_viewer_measure_add_anchor(&look->measure, nowhere, direction);
         }
-        json_array_append_new(points, point_json(&in.measure, in.measure.count - 1, o->measure_px[k]));
+        json_array_append_new(points, point_json(&look->measure, look->measure.count - 1, o->measure_px[k]));
     }
     ms_viewer_measure_result r;
-    bool ok = ms_viewer_measure_result_of(&in.measure, model->header.bits, &r);
+    bool ok = ms_viewer_measure_result_of(&look->measure, model->header.bits, &r);
     char text[MS_HUD_LINE_MAX];
-    ms_viewer_inspect_describe(&in.measure, model->header.bits, text, sizeof text);
+    ms_viewer_inspect_describe(&look->measure, model->header.bits, text, sizeof text);
     json_object_set_new(report, "measure",
                         json_pack("{s:o, s:o, s:o, s:o, s:I, s:b, s:s, s:s, s:b}", "points", points, "length",
                                   ok ? json_real(r.length) : json_null(), "precision",
@@ -184,4 +205,6 @@ void ms_viewer_inspect_report_measure(const ms_viewer_options *o, ms_viewer_stre
                                   ok ? json_real(r.last_length) : json_null(), "bits_min",
                                   (json_int_t)(ok ? r.bits_min : 0), "full_precision", ok && r.full, "unit",
                                   "model units", "text", text, "refined_to_full", false));
+    look->generation = frame ? frame->generation : 0;
+    return true;
 }

@@ -74,10 +74,12 @@ void ms_viewer_inspect_describe(const ms_viewer_measure *m, unsigned model_bits,
 
 /* Scripted: the report's "light" and (with --view) "view", the view text as
  * parsed and printed again; and, at the first keyframe (camera, the view
- * settled), its "measure": the --view chain then the --measure pixels, cast
- * on the stream's frame. Added to report. */
+ * settled), its "measure": in's chain (the --view points) cast on the
+ * stream's frame, then the --measure pixels added to it (so that the HUD and
+ * the markers show them). Added to report; false (nothing added) when there
+ * is nothing to measure. */
 void ms_viewer_inspect_report_light(const ms_viewer_options *o, json_t *report);
-void ms_viewer_inspect_report_measure(const ms_viewer_options *o, ms_viewer_stream *stream,
+bool ms_viewer_inspect_report_measure(const ms_viewer_options *o, ms_viewer_inspect *in, ms_viewer_stream *stream,
                                       const ms_camera *camera, json_t *report);
 
 #endif

@@ -179,6 +179,7 @@ typedef struct script {
     ms_viewer_rss rss;          /* the caller's two stages, then the run's */
     uint64_t rss_shaders, rss_first_frame; /* VmRSS at those stages; 0: not read */
     json_t *inspect;            /* the report's light, view and measure (one model) */
+    ms_viewer_inspect look;     /* the light, the measuring chain drawn with --hud */
 } script;
 
 /* VmRSS now, 0 when it cannot be read (the report then says 0). */
@@ -251,8 +252,8 @@ static ms_status frame(script *s, const ms_camera *camera, ms_viewer_step *step,
         return ms_error_set(err, MS_ERR_IO, "interrupted while the model streamed");
     double t0 = now_s();
     ms_status st = run_step(s, camera, step, err);
-    if (s->stream) /* --light, --view: in the camera's frame */
-        ms_viewer_light_apply(&s->o->light, camera, &s->render);
+    if (s->stream) /* --light, --view: the light in the camera's frame, the chain cast */
+        ms_viewer_inspect_frame(&s->look, s->stream, camera, &s->render);
     if (st != MS_OK)
         return st;
     glFinish(); /* the upload's share of the GPU's work counts to the step */
@@ -301,10 +302,13 @@ static ms_status frame(script *s, const ms_camera *camera, ms_viewer_step *step,
                                    .triangles_drawn = drawn.triangles_drawn,
                                    .cells_drawn = drawn.cells_drawn,
                                    .core = &cs,
-                                   .settled = step->settled};
+                                   .settled = step->settled,
+                                   .extra = s->look.lines,
+                                   .extra_count = s->stream ? ms_viewer_inspect_hud(&s->look, s->stream) : 0};
         ms_viewer_text_begin(s->text, s->o->width, s->o->height,
                              ms_viewer_text_auto_scale(s->o->height, 1, false));
         ms_viewer_hud_draw(s->text, &info, s->o->width, s->o->height, true);
+        ms_viewer_inspect_markers(&s->look, s->text);
         if ((st = ms_viewer_text_draw(s->text, err)) != MS_OK)
             return st;
     }
@@ -498,8 +502,13 @@ static ms_status play(script *s, const ms_viewer_model *model, json_t *keys, boo
         snprintf(png, sizeof png, "%s/keyframe-%02zu.png", o->screenshot_dir, k);
         if ((st = ms_viewer_screenshot(png, o->width, o->height, err)) != MS_OK)
             goto done;
-        if (k == 0 && s->stream && s->inspect) /* --measure: on the first keyframe's picture */
-            ms_viewer_inspect_report_measure(o, s->stream, &camera, s->inspect);
+        if (k == 0 && s->stream && s->inspect && ms_viewer_inspect_report_measure(o, &s->look, s->stream, &camera,
+                                                                               s->inspect) && o->hud) {
+            ms_viewer_step again; /* the picture again, with the points and the distance */
+            if ((st = frame(s, &camera, &again, err)) != MS_OK ||
+                (st = ms_viewer_screenshot(png, o->width, o->height, err)) != MS_OK)
+                goto done;
+        }
         ms_core_stats cs;
         run_stats(s, &cs);
         *all_complete &= settled;
@@ -615,6 +624,7 @@ ms_status ms_viewer_script_run(const ms_viewer_options *o, const ms_viewer_sourc
         return st;
     script s = {.o = o, .window = window, .name = o->model, .opened_at = opened_at, .first_display = -1,
                 .rss = *rss, .inspect = json_object()};
+    ms_viewer_inspect_init(&s.look, o);
     ms_render_options_default(&s.render);
     s.render.shading = o->shading;
     s.render.apo = o->apo_shading;
