@@ -318,7 +318,8 @@ static void on_mouse_button(GLFWwindow *w, int button, int action, int mods)
         /* a click (no drag) in a scene picks the piece under it; measuring, adds a point */
         if (button == GLFW_MOUSE_BUTTON_LEFT && (v->vscene || v->inspect.measuring) &&
             fabs(x - v->last_click_x) < DOUBLE_CLICK_PX && fabs(y - v->last_click_y) < DOUBLE_CLICK_PX) {
-            v->pick_requested = v->vscene != NULL, v->inspect.add_requested = !v->vscene;
+            v->pick_requested = v->vscene != NULL; /* a double click's second adds no point */
+            v->inspect.add_requested = !v->vscene && v->last_click_time >= 0;
             v->recentre_x = v->inspect.add_x = x * ratio, v->recentre_y = v->inspect.add_y = y * ratio;
         }
         return;

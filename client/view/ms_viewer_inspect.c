@@ -55,7 +55,13 @@ void ms_viewer_inspect_frame(ms_viewer_inspect *in, ms_viewer_stream *stream, co
     const ms_core_frame *frame = ms_viewer_stream_frame(stream);
     if (!frame)
         return;
-    if (frame->generation != in->generation) {
+    /* the chain follows the cut once the view settles there (a cast reads every
+     * triangle drawn: not at every frame of a refinement), or while a point is
+     * not found */
+    bool lost = false;
+    for (size_t i = 0; i < in->measure.count; ++i)
+        lost |= !in->measure.found[i];
+    if (frame->generation != in->generation && (lost || ms_viewer_stream_settled(stream))) {
         ms_viewer_measure_update(&in->measure, frame, box_side(stream));
         in->generation = frame->generation;
     }

@@ -57,7 +57,7 @@ bool ms_viewer_inspect_key(ms_viewer_inspect *in, int key, const ms_viewer_contr
 
 /* Per frame, after the stream's step and before its draw: the light into
  * the options for camera; a pending click cast on the frame; the chain cast
- * again when the frame is new. */
+ * again on a new frame once the view settled (or while a point is lost). */
 void ms_viewer_inspect_frame(ms_viewer_inspect *in, ms_viewer_stream *stream, const ms_camera *camera,
                              ms_render_options *render);
 

@@ -60,43 +60,54 @@ static bool ray_triangle(const double o[3], const double d[3], const double *p0,
     return isfinite(*t);
 }
 
-bool ms_viewer_measure_cast(const ms_core_frame *frame, double box_side, const double origin[3],
-                            const double direction[3], double t_min, double t_near,
-                            ms_viewer_measure_hit *hit)
+/* The hit of each of n rays (t >= t_min[i], t nearest t_near[i]) in one pass
+ * over the triangles, so that the mesh is read once for every ray. */
+static void cast_rays(const ms_core_frame *frame, double box_side, size_t n, const double (*origin)[3],
+                      const double (*d)[3], const double *t_min, const double *t_near, ms_viewer_measure_hit *hit,
+                      bool *found)
 {
-    double d[3];
-    if (!frame || !unit3(direction, d))
-        return false;
     const ms_view_mesh *m = &frame->mesh;
-    bool found = false;
-    double best = INFINITY, best_t = 0;
-    size_t best_tri = 0;
+    double best[MS_VIEWER_MEASURE_MAX_POINTS];
+    size_t best_tri[MS_VIEWER_MEASURE_MAX_POINTS] = {0};
+    for (size_t r = 0; r < n; ++r)
+        best[r] = INFINITY, found[r] = false;
     for (size_t i = 0; i < m->triangle_count; ++i) {
         const uint32_t *tri = &m->triangles[3 * i];
         if (tri[0] >= m->vertex_count || tri[1] >= m->vertex_count || tri[2] >= m->vertex_count)
             continue;
-        double t;
-        if (!ray_triangle(origin, d, &m->positions[3 * tri[0]], &m->positions[3 * tri[1]],
-                          &m->positions[3 * tri[2]], &t) ||
-            t < t_min)
-            continue;
-        if (fabs(t - t_near) < best) {
-            best = fabs(t - t_near);
-            best_t = t;
-            best_tri = i;
-            found = true;
+        const double *p0 = &m->positions[3 * tri[0]], *p1 = &m->positions[3 * tri[1]], *p2 = &m->positions[3 * tri[2]];
+        for (size_t r = 0; r < n; ++r) {
+            double t;
+            if (ray_triangle(origin[r], d[r], p0, p1, p2, &t) && t >= t_min[r] && fabs(t - t_near[r]) < best[r]) {
+                best[r] = fabs(t - t_near[r]);
+                hit[r].t = t;
+                best_tri[r] = i;
+                found[r] = true;
+            }
         }
     }
-    if (!found)
+    for (size_t r = 0; r < n; ++r) {
+        if (!found[r])
+            continue;
+        for (int a = 0; a < 3; ++a)
+            hit[r].point[a] = origin[r][a] + hit[r].t * d[r][a];
+        hit[r].cell = m->triangle_cell ? m->triangle_cell[best_tri[r]] : 0;
+        uint8_t bits = ms_core_frame_cell_bits(frame, hit[r].cell);
+        hit[r].bits = bits <= 64 ? bits : 0;
+        hit[r].step = ldexp(box_side, -(int)hit[r].bits);
+    }
+}
+
+bool ms_viewer_measure_cast(const ms_core_frame *frame, double box_side, const double origin[3],
+                            const double direction[3], double t_min, double t_near,
+                            ms_viewer_measure_hit *hit)
+{
+    double d[1][3];
+    bool found;
+    if (!frame || !unit3(direction, d[0]))
         return false;
-    for (int a = 0; a < 3; ++a)
-        hit->point[a] = origin[a] + best_t * d[a];
-    hit->t = best_t;
-    hit->cell = m->triangle_cell ? m->triangle_cell[best_tri] : 0;
-    uint8_t bits = ms_core_frame_cell_bits(frame, hit->cell);
-    hit->bits = bits <= 64 ? bits : 0;
-    hit->step = ldexp(box_side, -(int)hit->bits);
-    return true;
+    cast_rays(frame, box_side, 1, (const double(*)[3])origin, (const double(*)[3])d, &t_min, &t_near, hit, &found);
+    return found;
 }
 
 bool ms_viewer_measure_add(ms_viewer_measure *m, const ms_core_frame *frame, double box_side,
@@ -131,12 +142,22 @@ bool ms_viewer_measure_add_anchor(ms_viewer_measure *m, const double anchor[3], 
 
 void ms_viewer_measure_update(ms_viewer_measure *m, const ms_core_frame *frame, double box_side)
 {
+    double d[MS_VIEWER_MEASURE_MAX_POINTS][3], t_min[MS_VIEWER_MEASURE_MAX_POINTS],
+        t_near[MS_VIEWER_MEASURE_MAX_POINTS];
+    ms_viewer_measure_hit hit[MS_VIEWER_MEASURE_MAX_POINTS];
+    bool found[MS_VIEWER_MEASURE_MAX_POINTS];
     for (size_t i = 0; i < m->count; ++i) {
-        ms_viewer_measure_hit hit;
-        m->found[i] = ms_viewer_measure_cast(frame, box_side, m->anchor[i], m->direction[i], -INFINITY, 0, &hit);
+        unit3(m->direction[i], d[i]); /* never zero: checked when added */
+        t_min[i] = -INFINITY, t_near[i] = 0;
+    }
+    if (frame)
+        cast_rays(frame, box_side, m->count, (const double(*)[3])m->anchor, (const double(*)[3])d, t_min, t_near,
+                  hit, found);
+    for (size_t i = 0; i < m->count; ++i) {
+        m->found[i] = frame && found[i];
         if (m->found[i]) {
-            m->hit[i] = hit;
-            memcpy(m->anchor[i], hit.point, sizeof hit.point);
+            m->hit[i] = hit[i];
+            memcpy(m->anchor[i], hit[i].point, sizeof hit[i].point);
         }
     }
 }
