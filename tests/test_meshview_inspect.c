@@ -2,10 +2,11 @@
  * "Shareable views"): the built program, scripted under Xvfb at 160x120, on
  * a unit cube baked at 20 bits without APO, seen head-on from -y (the face
  * y = 0 fills the middle of the picture):
- *   - --measure between two pixels of the face: both points on it, the
- *     distance within the reported precision of the one computed here from
- *     the camera (the rays through the pixels met with the plane y = 0), the
- *     precision the grid step box_side / 2^bits at the bits the cell holds;
+ *   - --measure between two pixels of the face: both points on it; what the
+ *     view held (6 bits at this size) and what the probe refined (20 bits,
+ *     the model's) each within its precision of the distance computed here
+ *     from the camera (the rays through the pixels met with the plane y = 0),
+ *     the precision the grid step box_side / 2^bits at the bits held;
  *     with --hud the picture marks the points; a pixel off the model is a
  *     point not hit and no distance;
  *   - --light: the face's grey under az 60 equals az -60 and el 60 (the same
@@ -165,12 +166,21 @@ static void test_measure_on_the_face(void **state)
         assert_true(fabs(json_real_value(json_array_get(json_object_get(p, "point"), 1))) <= step);
     }
     double length = number(m, "length"), precision = number(m, "precision");
-    printf("measured %.9f, computed %.9f (off %.3g), precision %.3g at %lld bits\n", length, expected,
-           length - expected, precision, (long long)json_integer_value(json_object_get(m, "bits_min")));
-    assert_true(precision == step_max);
+    double view_length = number(m, "view_length"), view_precision = number(m, "view_precision");
+    int view_bits = (int)json_integer_value(json_object_get(m, "view_bits_min"));
+    printf("the view (%d bits): %.9f +- %.3g; refined (%lld bits): %.9f +- %.3g; computed %.9f\n", view_bits,
+           view_length, view_precision, (long long)json_integer_value(json_object_get(m, "bits_min")), length,
+           precision, expected);
+    /* what the view held: coarser, still within its own precision */
+    assert_true(view_bits > 0 && view_bits < 20);
+    assert_true(view_precision == ldexp(f->box_side, -view_bits));
+    assert_true(fabs(view_length - expected) <= view_precision);
+    /* refined by the probe to the model's 20 bits */
+    assert_true(json_is_true(json_object_get(m, "refined_to_full")));
+    assert_int_equal(json_integer_value(json_object_get(m, "bits_min")), 20);
+    assert_true(precision == step_max && precision == ldexp(f->box_side, -20));
     assert_true(fabs(length - expected) <= precision);
     assert_string_equal(json_string_value(json_object_get(m, "unit")), "model units");
-    assert_false(json_is_true(json_object_get(m, "refined_to_full")));
     json_decref(report);
 
     /* with --hud the keyframe's picture marks the points (yellow squares) */

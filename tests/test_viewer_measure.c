@@ -35,10 +35,12 @@
 #include "ms_client_core.h"
 #include "ms_mesh.h"
 #include "ms_mesh_io.h"
+#include "ms_progress.h"
 #include "ms_test.h"
 #include "ms_test_core.h"
 #include "ms_viewer_light.h"
 #include "ms_viewer_measure.h"
+#include "ms_viewer_probe.h"
 #include "ms_viewer_share.h"
 
 #define WAIT_SECONDS 60.0
@@ -268,6 +270,64 @@ static void test_sphere_diameter_at_20_bits(void **state)
     assert_true(fabs(m.hit[0].point[0] - 1.0) <= sag + m.hit[0].step);
     ms_core_frame_free(coarse);
     ms_core_frame_free(frame);
+    ms_test_rmdir(md.dir);
+}
+
+/* The probe (ms_viewer_probe.h): points picked on a coarse frame of the
+ * sphere (a tree of cells) are refined to 20 bits by a core of its own
+ * fetching the cells under them, and the diameter between the poles is then
+ * within the 20-bit step of 1; a point removed while its probe runs is not
+ * written. */
+static void test_probe_refines_to_full_precision(void **state)
+{
+    (void)state;
+    model md;
+    ms_mesh mesh = {0};
+    sphere(&mesh);
+    bake(&md, "sphere", &mesh, 600);
+    ms_mesh_free(&mesh);
+    double far_eye[3] = {40, -30, 25};
+    ms_core_frame *coarse = stream(&md, far_eye, 64);
+    ms_viewer_measure m = {0};
+    double top[3] = {0.5, 0.5, 3}, down[3] = {0, 0, -1}, bottom[3] = {0.5, 0.5, -2}, upward[3] = {0, 0, 1};
+    assert_true(ms_viewer_measure_add(&m, coarse, md.header.box_side, top, down));
+    assert_true(ms_viewer_measure_add(&m, coarse, md.header.box_side, bottom, upward));
+    ms_viewer_measure_result before, after;
+    assert_true(ms_viewer_measure_result_of(&m, 20, &before));
+    assert_true(before.bits_min < 20 && !before.refined);
+
+    ms_viewer_source source = {.archive_dir = md.archives};
+    ms_viewer_model vm = {.header = md.header};
+    snprintf(vm.name, sizeof vm.name, "sphere");
+    snprintf(vm.archive_path, sizeof vm.archive_path, "%s", md.file);
+    ms_viewer_probe *probe;
+    ms_error err;
+    assert_int_equal(ms_viewer_probe_start(&source, &vm, &probe, &err), MS_OK);
+    double until = ms_now_seconds() + WAIT_SECONDS;
+    while (ms_viewer_probe_step(probe, &m) && ms_now_seconds() < until)
+        ms_test_sleep_s(0.005);
+    assert_true(m.refined[0] && m.refined[1]);
+    assert_true(ms_viewer_measure_result_of(&m, 20, &after));
+    printf("coarse %.9f +- %.3g (%u bits); probed %.9f +- %.3g (%u bits)\n", before.length, before.precision,
+           before.bits_min, after.length, after.precision, after.bits_min);
+    assert_true(after.refined && after.full);
+    assert_int_equal(after.bits_min, 20);
+    assert_true(after.precision == md.header.box_side / 1048576.0);
+    /* the rays through (0.5, 0.5): near the poles, the fan's slope (a
+     * 96-gon's first ring) adds at most 0.04 of a step a point */
+    assert_true(fabs(after.length - 1.0) <= 1.1 * after.precision);
+    /* a refined point stays when the view's coarse frame is cast again */
+    ms_viewer_measure_update(&m, coarse, md.header.box_side);
+    assert_int_equal(m.hit[0].bits, 20);
+    /* a point popped while its probe runs: nothing written */
+    double side[3] = {3, 0.5, 0.5}, west[3] = {-1, 0, 0};
+    assert_true(ms_viewer_measure_add(&m, coarse, md.header.box_side, side, west));
+    assert_true(ms_viewer_probe_step(probe, &m));
+    ms_viewer_measure_pop(&m);
+    assert_false(ms_viewer_probe_step(probe, &m));
+    assert_int_equal(m.count, 2);
+    ms_viewer_probe_stop(probe);
+    ms_core_frame_free(coarse);
     ms_test_rmdir(md.dir);
 }
 
@@ -536,6 +596,7 @@ int main(void)
         cmocka_unit_test(test_hostile_view_texts),
         cmocka_unit_test(test_cube_edge_at_20_bits),
         cmocka_unit_test(test_sphere_diameter_at_20_bits),
+        cmocka_unit_test(test_probe_refines_to_full_precision),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -142,6 +142,7 @@ static const char *mode_name(viewer *v)
 
 static void close_model(viewer *v)
 {
+    ms_viewer_inspect_close(&v->inspect); /* its probe streams the model too */
     ms_viewer_stream_close(v->stream);
     v->stream = NULL;
     ms_viewer_model_close(&v->model);
@@ -790,7 +791,7 @@ int main(int argc, char **argv)
     v.render.apo_footprint = o.apo_footprint;
     v.render.shading = o.shading;
     update_shading(&v);
-    ms_viewer_inspect_init(&v.inspect, &o);
+    ms_viewer_inspect_init(&v.inspect, &o, &v.source);
     rc = o.scripted ? scripted(&v) : interactive(&v);
     ms_viewer_playback_free(&v.playback);
     return rc;

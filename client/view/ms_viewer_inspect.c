@@ -4,6 +4,9 @@
 #include <GLFW/glfw3.h>
 #include <math.h>
 #include <string.h>
+#include <time.h>
+
+#include "ms_progress.h"
 
 #include "ms_viewer_share.h"
 
@@ -12,12 +15,38 @@ static double box_side(const ms_viewer_stream *stream)
     return ms_viewer_stream_model(stream)->header.box_side;
 }
 
-void ms_viewer_inspect_init(ms_viewer_inspect *in, const ms_viewer_options *o)
+void ms_viewer_inspect_init(ms_viewer_inspect *in, const ms_viewer_options *o, const ms_viewer_source *source)
 {
     memset(in, 0, sizeof *in);
+    in->source = source;
     in->light = o->light;
     if (o->has_view)
         ms_viewer_share_give(&o->view, NULL, NULL, &in->measure);
+}
+
+void ms_viewer_inspect_close(ms_viewer_inspect *in)
+{
+    ms_viewer_probe_stop(in->probe);
+    in->probe = NULL;
+    in->probe_failed = in->refining = false;
+    in->generation = 0;
+}
+
+/* Polls the probe once the view is settled, starting it when a point wants
+ * refining. */
+static void refine(ms_viewer_inspect *in, ms_viewer_stream *stream)
+{
+    bool wanted = false;
+    for (size_t i = 0; i < in->measure.count; ++i)
+        wanted |= in->measure.found[i] && !in->measure.refined[i];
+    if (!in->probe && (!wanted || in->probe_failed || !in->source))
+        return;
+    ms_error err;
+    if (!in->probe && ms_viewer_probe_start(in->source, ms_viewer_stream_model(stream), &in->probe, &err) != MS_OK) {
+        in->probe_failed = true;
+        return;
+    }
+    in->refining = ms_viewer_probe_step(in->probe, &in->measure);
 }
 
 void ms_viewer_inspect_view(const ms_viewer_options *o, ms_viewer_controls *c)
@@ -71,6 +100,8 @@ void ms_viewer_inspect_frame(ms_viewer_inspect *in, ms_viewer_stream *stream, co
         ms_viewer_measure_add(&in->measure, frame, box_side(stream), origin, direction);
         in->add_requested = false;
     }
+    if (ms_viewer_stream_settled(stream) || in->refining)
+        refine(in, stream);
 }
 
 void ms_viewer_inspect_describe(const ms_viewer_measure *m, unsigned model_bits, char *text, size_t size)
@@ -96,10 +127,9 @@ size_t ms_viewer_inspect_hud(ms_viewer_inspect *in, const ms_viewer_stream *stre
     if (in->measuring || in->measure.count) {
         ms_viewer_inspect_describe(&in->measure, ms_viewer_stream_model(stream)->header.bits, in->lines[n],
                                    MS_HUD_LINE_MAX);
-        if (in->measuring) {
-            size_t used = strlen(in->lines[n]);
-            snprintf(in->lines[n] + used, MS_HUD_LINE_MAX - used, "  [T]");
-        }
+        size_t used = strlen(in->lines[n]);
+        snprintf(in->lines[n] + used, MS_HUD_LINE_MAX - used, "%s%s", in->refining ? "  refining" : "",
+                 in->measuring ? "  [T]" : "");
         n++;
     }
     return n;
@@ -200,7 +230,25 @@ bool ms_viewer_inspect_report_measure(const ms_viewer_options *o, ms_viewer_insp
         }
         json_array_append_new(points, point_json(&look->measure, look->measure.count - 1, o->measure_px[k]));
     }
-    ms_viewer_measure_result r;
+    ms_viewer_measure_result view, r;
+    bool view_ok = ms_viewer_measure_result_of(&look->measure, model->header.bits, &view);
+    /* the probe: the cells under the points to full precision (a bounded wait) */
+    for (double start = ms_now_seconds(); ms_now_seconds() - start < MS_VIEWER_PROBE_TIMEOUT_S * 16;) {
+        refine(look, stream);
+        if (!look->refining)
+            break;
+        struct timespec nap = {0, 5000000};
+        nanosleep(&nap, NULL);
+    }
+    for (size_t i = 0; i < json_array_size(points); ++i) /* the points as refined */
+        if (look->measure.found[i]) {
+            json_t *p = json_array_get(points, i);
+            const ms_viewer_measure_hit *h = &look->measure.hit[i];
+            json_object_set_new(p, "point", json_pack("[f, f, f]", h->point[0], h->point[1], h->point[2]));
+            json_object_set_new(p, "cell", json_integer(h->cell));
+            json_object_set_new(p, "bits", json_integer(h->bits));
+            json_object_set_new(p, "step", json_real(h->step));
+        }
     bool ok = ms_viewer_measure_result_of(&look->measure, model->header.bits, &r);
     char text[MS_HUD_LINE_MAX];
     ms_viewer_inspect_describe(&look->measure, model->header.bits, text, sizeof text);
@@ -210,7 +258,12 @@ bool ms_viewer_inspect_report_measure(const ms_viewer_options *o, ms_viewer_insp
                                   ok ? json_real(r.precision) : json_null(), "last_length",
                                   ok ? json_real(r.last_length) : json_null(), "bits_min",
                                   (json_int_t)(ok ? r.bits_min : 0), "full_precision", ok && r.full, "unit",
-                                  "model units", "text", text, "refined_to_full", false));
+                                  "model units", "text", text, "refined_to_full", ok && r.refined && r.full));
+    json_t *jm = json_object_get(report, "measure");
+    json_object_set_new(jm, "refined", json_boolean(ok && r.refined));
+    json_object_set_new(jm, "view_length", view_ok ? json_real(view.length) : json_null());
+    json_object_set_new(jm, "view_precision", view_ok ? json_real(view.precision) : json_null());
+    json_object_set_new(jm, "view_bits_min", json_integer((json_int_t)(view_ok ? view.bits_min : 0)));
     look->generation = frame ? frame->generation : 0;
     return true;
 }

@@ -26,6 +26,7 @@
 #include "ms_viewer_light.h"
 #include "ms_viewer_measure.h"
 #include "ms_viewer_options.h"
+#include "ms_viewer_probe.h"
 #include "ms_viewer_stream.h"
 #include "ms_viewer_text.h"
 
@@ -41,12 +42,19 @@ typedef struct ms_viewer_inspect {
     uint64_t generation;     /* the frame the chain was last cast on */
     ms_camera camera;        /* the last frame's, for the markers */
     bool have_camera;
+    const ms_viewer_source *source; /* for the probe */
+    ms_viewer_probe *probe;  /* refining the points' cells (started when needed) */
+    bool probe_failed;       /* it could not start: the view's precision stays */
+    bool refining;           /* the probe has a point in hand */
     char lines[MS_VIEWER_INSPECT_LINES][MS_HUD_LINE_MAX];
 } ms_viewer_inspect;
 
 /* The options' light and, with --view, its chain (the controls are set by
- * ms_viewer_inspect_view). */
-void ms_viewer_inspect_init(ms_viewer_inspect *in, const ms_viewer_options *o);
+ * ms_viewer_inspect_view); source (kept) is where the probe streams from. */
+void ms_viewer_inspect_init(ms_viewer_inspect *in, const ms_viewer_options *o, const ms_viewer_source *source);
+
+/* Stops the probe (the model closes); the chain and the light stay. */
+void ms_viewer_inspect_close(ms_viewer_inspect *in);
 
 /* --view on freshly initialised controls (nothing without --view). */
 void ms_viewer_inspect_view(const ms_viewer_options *o, ms_viewer_controls *c);
@@ -57,7 +65,9 @@ bool ms_viewer_inspect_key(ms_viewer_inspect *in, int key, const ms_viewer_contr
 
 /* Per frame, after the stream's step and before its draw: the light into
  * the options for camera; a pending click cast on the frame; the chain cast
- * again on a new frame once the view settled (or while a point is lost). */
+ * again on a new frame once the view settled (or while a point is lost);
+ * once settled, the probe refines the points' cells (polled, never waited
+ * for). */
 void ms_viewer_inspect_frame(ms_viewer_inspect *in, ms_viewer_stream *stream, const ms_camera *camera,
                              ms_render_options *render);
 
@@ -76,8 +86,9 @@ void ms_viewer_inspect_describe(const ms_viewer_measure *m, unsigned model_bits,
  * parsed and printed again; and, at the first keyframe (camera, the view
  * settled), its "measure": in's chain (the --view points) cast on the
  * stream's frame, then the --measure pixels added to it (so that the HUD and
- * the markers show them). Added to report; false (nothing added) when there
- * is nothing to measure. */
+ * the markers show them), then refined by the probe (waiting at most
+ * MS_VIEWER_PROBE_TIMEOUT_S a point): the figures before (view_*) and after.
+ * Added to report; false (nothing added) when there is nothing to measure. */
 void ms_viewer_inspect_report_light(const ms_viewer_options *o, json_t *report);
 bool ms_viewer_inspect_report_measure(const ms_viewer_options *o, ms_viewer_inspect *in, ms_viewer_stream *stream,
                                       const ms_camera *camera, json_t *report);

@@ -122,6 +122,8 @@ bool ms_viewer_measure_add(ms_viewer_measure *m, const ms_core_frame *frame, dou
     memcpy(m->anchor[i], hit.point, sizeof hit.point);
     m->hit[i] = hit;
     m->found[i] = true;
+    m->refined[i] = false;
+    m->id[i] = ++m->next_id;
     return true;
 }
 
@@ -137,6 +139,8 @@ bool ms_viewer_measure_add_anchor(ms_viewer_measure *m, const double anchor[3], 
     memset(&m->hit[i], 0, sizeof m->hit[i]);
     memcpy(m->hit[i].point, anchor, sizeof d);
     m->found[i] = false;
+    m->refined[i] = false;
+    m->id[i] = ++m->next_id;
     return true;
 }
 
@@ -154,6 +158,8 @@ void ms_viewer_measure_update(ms_viewer_measure *m, const ms_core_frame *frame, 
         cast_rays(frame, box_side, m->count, (const double(*)[3])m->anchor, (const double(*)[3])d, t_min, t_near,
                   hit, found);
     for (size_t i = 0; i < m->count; ++i) {
+        if (m->refined[i] && m->found[i])
+            continue; /* at the probe's precision: the view's frame is no finer */
         m->found[i] = frame && found[i];
         if (m->found[i]) {
             m->hit[i] = hit[i];
@@ -176,11 +182,12 @@ bool ms_viewer_measure_result_of(const ms_viewer_measure *m, unsigned model_bits
     r->points = m->count;
     if (m->count < 2)
         return false;
-    r->full = true;
+    r->full = r->refined = true;
     r->bits_min = 255;
     for (size_t i = 0; i < m->count; ++i) {
         if (!m->found[i])
             return false;
+        r->refined &= m->refined[i];
         r->full &= m->hit[i].bits >= model_bits;
         if (m->hit[i].bits < r->bits_min)
             r->bits_min = m->hit[i].bits;

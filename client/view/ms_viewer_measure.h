@@ -13,11 +13,12 @@
  *
  * Refinement. A point keeps the ray that picked it (its anchor on the surface
  * and the ray's direction): ms_viewer_measure_update casts it again against
- * each new frame, taking the hit nearest the anchor along the ray, so that as
+ * a new frame, taking the hit nearest the anchor along the ray, so that as
  * the cut refines under it the point follows the finer surface and its
  * precision rises with the cell's bits. The client core has no way to raise
- * one cell's target: the cells under the points refine as far as the camera
- * asks, and the report says whether that was full precision.
+ * one cell's target, so a probe (ms_viewer_probe.h) refines the cells under
+ * each point to full precision with a core of its own, and marks the point
+ * refined.
  *
  * Units: world (model) units; pixels are framebuffer pixels with the origin
  * at the top-left corner, continuous (pixel (i, j)'s centre is i + 0.5,
@@ -64,6 +65,10 @@ typedef struct ms_viewer_measure {
     double direction[MS_VIEWER_MEASURE_MAX_POINTS][3]; /* its ray's, unit */
     ms_viewer_measure_hit hit[MS_VIEWER_MEASURE_MAX_POINTS];
     bool found[MS_VIEWER_MEASURE_MAX_POINTS];          /* hit is on the present frame */
+    bool refined[MS_VIEWER_MEASURE_MAX_POINTS];        /* done by the probe (ms_viewer_probe.h):
+                                                          update leaves the point alone */
+    uint64_t id[MS_VIEWER_MEASURE_MAX_POINTS];         /* each point's own, from 1 */
+    uint64_t next_id;
 } ms_viewer_measure;
 
 /* Adds the point the ray from origin along direction hits first; false (the
@@ -92,6 +97,7 @@ typedef struct ms_viewer_measure_result {
     double last_length, last_precision; /* the last segment's */
     unsigned bits_min;   /* the coarsest point's bits */
     bool full;           /* every point's cell at the model's bits */
+    bool refined;        /* every point done by the probe */
 } ms_viewer_measure_result;
 
 /* The chain's figures; false when it has fewer than two points or one is not

@@ -546,6 +546,7 @@ static void script_free(script *s)
     free(s->plain_draw_ms.v);
     free(s->log.upload);
     json_decref(s->inspect);
+    ms_viewer_inspect_close(&s->look);
 }
 
 /* --scene: the scene's models streamed and drawn together along its path. */
@@ -624,7 +625,7 @@ ms_status ms_viewer_script_run(const ms_viewer_options *o, const ms_viewer_sourc
         return st;
     script s = {.o = o, .window = window, .name = o->model, .opened_at = opened_at, .first_display = -1,
                 .rss = *rss, .inspect = json_object()};
-    ms_viewer_inspect_init(&s.look, o);
+    ms_viewer_inspect_init(&s.look, o, source);
     ms_render_options_default(&s.render);
     s.render.shading = o->shading;
     s.render.apo = o->apo_shading;
