@@ -298,6 +298,7 @@ static void test_usage_errors(void **state)
         "--model cube --screenshot-dir /tmp/x --measure 1,2:3",
         "--model cube --screenshot-dir /tmp/x --measure 1,2:3,4:",
         "--model cube --measure 1,2:3,4",                /* a scripted run's */
+        "--model cube --screenshot-dir /tmp/x --size 160x120 --measure 1,2:170,4", /* outside */
         "--light 10,10",                                 /* needs --model */
         "--model cube --screenshot-dir /tmp/x --path /tmp/p.cam --view mv1:t=0,0,0:d=1:o=0,0:f=40:u=z",
     };

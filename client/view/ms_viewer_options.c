@@ -232,6 +232,13 @@ static int finish_options(ms_viewer_options *o, const char *shading, bool no_apo
         fprintf(err, "meshview: --measure is for a scripted run (--screenshot-dir); in the window T measures\n");
         return 2;
     }
+    for (size_t i = 0; i < o->measure_count; ++i)
+        if (!(o->measure_px[i][0] >= 0 && o->measure_px[i][0] <= o->width && o->measure_px[i][1] >= 0 &&
+              o->measure_px[i][1] <= o->height)) {
+            fprintf(err, "meshview: --measure: pixel %zu is outside the %dx%d picture\n", i + 1, o->width,
+                    o->height);
+            return 2;
+        }
     if (o->has_view && o->path_file && o->scripted) {
         fprintf(err, "meshview: --view and --path exclude each other in a scripted run\n");
         return 2;
