@@ -69,8 +69,8 @@ bool ms_bake_apo_same_tree(const ms_apo_tree *a, const ms_apo_tree *b, size_t *n
         const ms_apo_node *x = &a->nodes[i], *y = &b->nodes[i];
         *node = i;
         if (x->first_child != y->first_child || x->child_mask != y->child_mask || x->depth != y->depth ||
-            memcmp(x->cell, y->cell, sizeof x->cell) != 0 ||
-            ms_apo_normal_encode(x->normal) != ms_apo_normal_encode(y->normal))
+            memcmp(x->cell, y->cell, sizeof x->cell) != 0 || (x->smooth != 0) != (y->smooth != 0) ||
+            (!x->smooth && ms_apo_normal_encode(x->normal) != ms_apo_normal_encode(y->normal)))
             return false;
     }
     return true;
@@ -446,6 +446,12 @@ ms_status ms_bake_apo_cell(ms_apo_builder *builder, const ms_bake_apo_params *p,
     unsigned g = bits_max > shape->log2n * depth ? bits_max - shape->log2n * depth : 0;
     o.distance_bound = sqrt(3.0) * ldexp(1.0, -(int)g);
     o.threads = threads ? threads : 1;
+    /* Corrections of what the client draws: m's smooth normals, its vertices
+     * up to half a grid cell's diagonal from where they stand for (the
+     * renderer's slack), the client's default crease angle. */
+    o.correction = !p->full_normals;
+    o.correction_tolerance = p->tolerance;
+    o.vertex_error = 0.5 * o.distance_bound;
     ms_apo_tree tree;
     memset(&tree, 0, sizeof tree);
     ms_apo_build_stats stats;

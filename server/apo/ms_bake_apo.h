@@ -13,7 +13,11 @@
  * normals spread more than `tolerance` radians (the builder's spread measure).
  *
  * No chunk where the geometry renders M (ms_bake_apo_geometry_renders: every
- * leaf cell), unless params->every_cell.
+ * leaf cell), unless params->every_cell. Inside a chunk, only corrections: the
+ * texels where M's normal differs from m's smooth normal, what the client draws
+ * without a texel, by more than `tolerance` (ms_apo_correct.h; crease 60
+ * degrees, m's vertices up to half a grid cell's diagonal off), unless
+ * params->full_normals; a chunk left without texels is no chunk.
  *
  * Units: meshes in world units (the archive box's); the cube is derived from the
  * box and the cell. Ownership: the result owns its bytes (ms_bake_apo_result_free).
@@ -54,6 +58,10 @@ typedef struct ms_bake_apo_params {
      * geometry already renders M (ms_bake_apo_geometry_renders); the former rule,
      * kept to measure the trade and to exercise the format on small models. */
     bool every_cell;
+    /* full_normals: every node keeps its texel, also where m's smooth normal
+     * already gives M's (the former rule, before chunks were corrections:
+     * docs/APO.md "APO as a correction"); kept to measure the trade. */
+    bool full_normals;
 } ms_bake_apo_params;
 
 /* Defaults as above, enabled. */
