@@ -460,8 +460,9 @@ static void print_bake_json(const ms_bake_options *o, const ms_bake_report *r)
         json_object_set_new(apo, "share_of_bake",
                             json_real(r->seconds_total > 0 ? r->seconds_apo / r->seconds_total : 0.0));
     if (apo)
-        json_object_set_new(apo, "sampling", json_pack("{s:I, s:I}", "rays", (json_int_t)r->apo_rays,
-                                                       "point_queries", (json_int_t)r->apo_point_queries));
+        json_object_set_new(apo, "sampling", json_pack("{s:I, s:I, s:I}", "rays", (json_int_t)r->apo_rays,
+                                                       "point_queries", (json_int_t)r->apo_point_queries,
+                                                       "smooth_leaves", (json_int_t)r->apo_smooth_leaves));
     if (apo && o->apo.accuracy)
         json_object_set_new(apo, "accuracy",
                             json_pack("{s:I, s:f, s:f, s:f}", "points", (json_int_t)r->apo_accuracy_points,
@@ -539,8 +540,9 @@ static void print_bake_text(const ms_bake_report *r)
            r->bits_per_vertex);
     if (r->apo_chunks > 0) {
         printf("APO:                  %u chunks, %" PRIu64 " bytes (%" PRIu64 " raw), %" PRIu64
-               " internal nodes, %" PRIu64 " leaves\n",
-               r->apo_chunks, r->apo_bytes, r->apo_raw_bytes, r->apo_internal_nodes, r->apo_leaves);
+               " internal nodes, %" PRIu64 " leaves (%" PRIu64 " more left to the smooth normal)\n",
+               r->apo_chunks, r->apo_bytes, r->apo_raw_bytes, r->apo_internal_nodes, r->apo_leaves,
+               r->apo_smooth_leaves);
         printf("APO sampling:         internal cells' M %" PRIu64 " triangles, largest %" PRIu64 "; %" PRIu64
                " rays, %" PRIu64 " closest-point queries\n",
                r->apo_sample_triangles, r->apo_sample_triangles_max, r->apo_rays, r->apo_point_queries);
