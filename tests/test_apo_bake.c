@@ -350,6 +350,7 @@ static void test_cli_reports_apo(void **state)
     assert_null(json_object_get(apo, "every_cell"));
     assert_int_equal(json_integer_value(json_object_get(apo, "max_depth")), 6);
     assert_int_equal(json_integer_value(json_object_get(apo, "lead")), 1);
+    assert_true(json_real_value(json_object_get(apo, "correction")) == 0.2);
     json_int_t bytes = json_integer_value(json_object_get(apo, "bytes"));
     json_int_t raw = json_integer_value(json_object_get(apo, "raw_bytes"));
     json_int_t internal = json_integer_value(json_object_get(apo, "internal_nodes"));

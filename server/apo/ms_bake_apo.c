@@ -19,6 +19,7 @@ void ms_bake_apo_params_default(ms_bake_apo_params *p)
     p->max_depth = 10;
     p->init_depth = 0;
     p->tolerance = 0.2;
+    p->correction = 0.2;
     p->zlib_level = 6;
 }
 
@@ -30,6 +31,8 @@ ms_status ms_bake_apo_params_check(const ms_bake_apo_params *p, ms_error *err)
         return ms_error_set(err, MS_ERR_ARG, "--apo-max-depth must be at most %u", MS_BAKE_APO_MAX_DEPTH);
     if (!(p->tolerance >= 0.0 && p->tolerance < 1e12))
         return ms_error_set(err, MS_ERR_ARG, "--apo-tol must be a number >= 0");
+    if (!(p->correction >= 0.0 && p->correction <= 3.2))
+        return ms_error_set(err, MS_ERR_ARG, "--apo-correction must be a number from 0 to 3.2");
     if (p->zlib_level < 0 || p->zlib_level > 9)
         return ms_error_set(err, MS_ERR_ARG, "APO zlib level must be 0..9");
     return MS_OK;
@@ -450,7 +453,7 @@ ms_status ms_bake_apo_cell(ms_apo_builder *builder, const ms_bake_apo_params *p,
      * up to half a grid cell's diagonal from where they stand for (the
      * renderer's slack), the client's default crease angle. */
     o.correction = !p->full_normals;
-    o.correction_tolerance = p->tolerance;
+    o.correction_tolerance = p->correction;
     o.vertex_error = 0.5 * o.distance_bound;
     ms_apo_tree tree;
     memset(&tree, 0, sizeof tree);

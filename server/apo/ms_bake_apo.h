@@ -15,7 +15,7 @@
  * No chunk where the geometry renders M (ms_bake_apo_geometry_renders: every
  * leaf cell), unless params->every_cell. Inside a chunk, only corrections: the
  * texels where M's normal differs from m's smooth normal, what the client draws
- * without a texel, by more than `tolerance` (ms_apo_correct.h; crease 60
+ * without a texel, by more than `correction` (ms_apo_correct.h; crease 60
  * degrees, m's vertices up to half a grid cell's diagonal off), unless
  * params->full_normals; a chunk left without texels is no chunk.
  *
@@ -45,6 +45,7 @@ typedef struct ms_bake_apo_params {
     uint32_t max_depth;   /* cap on the chunk's depth, <= 24 (default 10) */
     uint32_t init_depth;  /* split unconditionally above this depth (default 0) */
     double tolerance;     /* spread of M's normals, radians (default 0.2) */
+    double correction;    /* keep a texel where it differs from the smooth normal by more, radians (default 0.2, the tolerance) */
     int zlib_level;       /* 0..9 (default 6) */
     bool verify;          /* decode each stored chunk back and compare it with the built tree */
     /* Diagnostics, off by default. sample_leaves: an internal cell's M is every
