@@ -15,6 +15,14 @@ study found meshview) is joined to the image error of the same cut: geometry
 alone at T to the geometry-alone run's point at T; geometry + APO (the client's
 default: geometry to T, APO by footprint at 1 px) to the run with K = T on the
 default bake at 1 px, where the study has one.
+
+Geometry alone is drawn both flat (its triangles' own normals) and smooth (its
+interpolated vertex normals: what the client draws without APO, so the plain
+alternative every APO figure is compared with). Geometry ahead of connectivity
+(ahead-MODEL-aK.json: the no-APO bakes with --ahead 0 and meshbake's default)
+is compared at the same tolerance and at equal bytes: the PSNR of one series
+interpolated linearly over log bytes between the neighbouring points of the
+other.
 """
 import argparse
 import glob
@@ -63,6 +71,11 @@ def psnr(image):
     return math.inf if image["psnr_db"] is None else image["psnr_db"]
 
 
+def smooth_image(point):
+    """The cut drawn with its interpolated vertex normals (reports before it: the flat one)."""
+    return point.get("image_smooth", point["image"])
+
+
 # --- the data ------------------------------------------------------------------------------
 runs = []  # (APO tolerance, geometry ratio K)
 for path in glob.glob(os.path.join(J, "study-dragon-*-k*.json")):
@@ -89,6 +102,15 @@ demo = load("study-demo.json") if os.path.exists(os.path.join(J, "study-demo.jso
 demo_k4 = load("study-demo-k4.json") if os.path.exists(os.path.join(J, "study-demo-k4.json")) else None
 demo_bake = load("bake-demo.json") if demo else None
 meta = studies[GEO]
+# geometry ahead of connectivity: {model: {K: the study of its no-APO bake with --ahead K}}
+ahead_default = load("ahead-meta.json")["default"] if os.path.exists(os.path.join(J, "ahead-meta.json")) else None
+ahead = {}
+if ahead_default is not None:
+    for model in ("dragon", "demo"):
+        found = {a: load(f"ahead-{model}-a{a}.json") for a in (0, ahead_default)
+                 if os.path.exists(os.path.join(J, f"ahead-{model}-a{a}.json"))}
+        if len(found) == 2:
+            ahead[model] = found
 
 
 def frame_runs():
@@ -137,7 +159,8 @@ def cut_rows(run, key):
             "apo": b["apo"], "bytes_geo": geo, "bytes_apo": geo + b["apo"],
             "decode": fastest_cut[(p["key"], p["triangles"], b["geometry"])],
             "h_px": p["geometric"]["hausdorff_px"], "rms_px": p["geometric"]["rms_px"],
-            "h": p["geometric"]["hausdorff"], "img": p["image"], "img_apo": p.get("image_apo", p["image"]),
+            "h": p["geometric"]["hausdorff"], "img": p["image"], "img_smooth": smooth_image(p),
+            "img_apo": p.get("image_apo", p["image"]),
         })
     return sorted(rows, key=lambda r: r["tol"])
 
@@ -152,7 +175,7 @@ def whole_rows(kind):
             bytes_, dec = draco[p]["bytes"], draco[p]["decode_seconds"]
         rows.append({"bits": p, "bytes": bytes_, "decode": dec, "tris": w["triangles"],
                      "h_px": w["geometric"]["hausdorff_px"], "rms_px": w["geometric"]["rms_px"],
-                     "h": w["geometric"]["hausdorff"], "img": w["image"]})
+                     "h": w["geometric"]["hausdorff"], "img": w["image"], "img_smooth": smooth_image(w)})
     return rows
 
 
@@ -172,24 +195,48 @@ def write_dat(name, rows):
     return path
 
 
+def point_rows(study, key):
+    """The rows of a study that is not one of the APO runs (no fastest-cut join): one per tolerance at key."""
+    rows = []
+    for p in study["points"]:
+        if p["key"] != key:
+            continue
+        b = p["bytes"]
+        rows.append({"tol": p["tolerance_px"], "tris": p["triangles"], "index": b["index"], "geometry": b["geometry"],
+                     "bytes_geo": b["index"] + b["geometry"], "decode": p["seconds"]["cut"],
+                     "h": p["geometric"]["hausdorff"], "h_px": p["geometric"]["hausdorff_px"],
+                     "rms": p["geometric"]["rms"], "rms_px": p["geometric"]["rms_px"],
+                     "img": p["image"], "img_smooth": smooth_image(p)})
+    return sorted(rows, key=lambda r: r["tol"])
+
+
 series = []  # (title, x-by-bandwidth rows)
 geo_rows = cut_rows(GEO, closeup)
-series.append(("geometry only (cut, tolerance 0.5-32 px)",
-               [(r["bytes_geo"], r["decode"], psnr(r["img"]), r["h_px"]) for r in geo_rows], "lp pt 7 lw 2"))
+series.append(("geometry only, flat (cut, tolerance 0.5-32 px)",
+               [(r["bytes_geo"], r["decode"], psnr(r["img"]), r["h_px"]) for r in geo_rows], "lp pt 7 lw 1 dt 3"))
+series.append(("geometry only, smooth (as the client draws it)",
+               [(r["bytes_geo"], r["decode"], psnr(r["img_smooth"]), r["h_px"]) for r in geo_rows], "lp pt 7 lw 2"))
+if "dragon" in ahead:
+    series.append(("geometry only, smooth, --ahead 0 (vertices at kd-cell centres)",
+                   [(r["bytes_geo"], r["decode"], psnr(r["img_smooth"]), r["h_px"])
+                    for r in point_rows(ahead["dragon"][0], closeup)], "lp pt 6 lw 2 dt 4"))
 for i, run in enumerate(r for r in runs if r[1] == "1" or r[0] == GEO[0]):  # the figure stays readable
     series.append((f"geometry + APO ({run_label(run)})",
                    [(r["bytes_apo"], r["decode"], psnr(r["img_apo"]), r["h_px"]) for r in cut_rows(run, closeup)],
                    f"lp pt {4 + i}"))
-series.append(("single-stream whole download (p = 8-20)",
-               [(r["bytes"], r["decode"], min(psnr(r["img"]), 99), r["h_px"]) for r in ours_whole], "lp pt 9 dt 2"))
-series.append(("Draco whole download (qp = 8-20)",
-               [(r["bytes"], r["decode"], min(psnr(r["img"]), 99), r["h_px"]) for r in draco_whole], "lp pt 11 dt 2"))
+series.append(("single-stream whole download, smooth (p = 8-20)",
+               [(r["bytes"], r["decode"], min(psnr(r["img_smooth"]), 99), r["h_px"]) for r in ours_whole], "lp pt 9 dt 2"))
+series.append(("Draco whole download, smooth (qp = 8-20)",
+               [(r["bytes"], r["decode"], min(psnr(r["img_smooth"]), 99), r["h_px"]) for r in draco_whole],
+               "lp pt 11 dt 2"))
 dats = [(title, write_dat(f"s{i}.dat", rows), style) for i, (title, rows, style) in enumerate(series)]
 
 
-def gnuplot(png, body):
-    script = (f"set terminal pngcairo size 900,560 font 'sans,10'\nset output '{png}'\nset grid\n"
-              "set key inside left top vertical Left reverse box opaque\n" + body)
+def gnuplot(png, body, below=False):
+    """below: the key beside the plot, on the right (the figures with many series), else inside at the top left."""
+    size, key = ("1300,600", "set key outside right top vertical Left reverse box\n") if below else (
+        "900,560", "set key inside left top vertical Left reverse box opaque\n")
+    script = (f"set terminal pngcairo size {size} font 'sans,10'\nset output '{png}'\nset grid\n" + key + body)
     subprocess.run(["gnuplot"], input=script.encode(), check=True)
 
 
@@ -201,14 +248,14 @@ key_text = f"dragon close-up (key {closeup}), {meta['width']}x{meta['height']}"
 gnuplot(os.path.join(args.images_dir, "study-bytes-error.png"),
         f"set title 'Bytes against image error: {key_text}'\nset logscale x\n"
         "set xlabel 'bytes fetched (index + geometry [+ APO]; whole file)'\n"
-        "set ylabel 'PSNR against the full model, dB (higher: less error)'\n" + plot_lines("1"))
+        "set ylabel 'PSNR against the full model, dB (higher: less error)'\n" + plot_lines("1"), below=True)
 for bw in BANDWIDTHS:
     mbit = int(bw / 1e6)
     gnuplot(os.path.join(args.images_dir, f"study-time-error-{mbit}mbit.png"),
             f"set title 'Time to view complete at {mbit} Mbit/s: {key_text}'\nset logscale x\n"
             f"set xlabel 'seconds (bytes * 8 / {mbit} Mbit/s + measured decode)'\n"
             "set ylabel 'PSNR against the full model, dB (higher: less error)'\n" +
-            plot_lines(f"($1*8/{bw:g}+$2)"))
+            plot_lines(f"($1*8/{bw:g}+$2)"), below=True)
 dec_ours = write_dat("dec_ours.dat", [(r["bits"], r["decode"]) for r in ours_whole])
 dec_draco = write_dat("dec_draco.dat", [(r["bits"], r["decode"]) for r in draco_whole])
 gnuplot(os.path.join(args.images_dir, "study-decode-precision.png"),
@@ -241,7 +288,8 @@ def frame_rows(key):
             run = GEO if mode == "geo" else next(
                 (r for r in runs if r[0] == GEO[0] and float(r[1]) == tol), None)
             sp = study_point(run, key, tol if mode == "geo" else 1.0)
-            img = None if sp is None else (sp["img"] if mode == "geo" else sp["img_apo"])
+            # meshview draws geometry alone smooth (its vertex normals)
+            img = None if sp is None else (sp["img_smooth"] if mode == "geo" else sp["img_apo"])
             row[mode] = {"p50": f["frames"]["frame_ms_p50"], "p95": f["frames"]["frame_ms_p95"],
                          "frames": f["frames"]["frames"], "tris": f["keyframes"][-1]["triangles_drawn"],
                          "apo": f["keyframes"][-1]["apo_bytes"], "geometry": f["keyframes"][-1]["geometry_bytes"],
@@ -312,7 +360,11 @@ w("### Bakes")
 w("")
 w("| bake | geometry B | APO B | APO / geometry | bake s | of which APO s |")
 w("|---|---|---|---|---|---|")
-w(f"| no APO | {noapo['geometry_bytes']:,} | 0 | 0 | {noapo['seconds']['total']:.1f} | 0 |")
+w(f"| no APO{f' (ahead {ahead_default}, the default)' if ahead_default is not None else ''} | "
+  f"{noapo['geometry_bytes']:,} | 0 | 0 | {noapo['seconds']['total']:.1f} | 0 |")
+if os.path.exists(os.path.join(J, "bake-dragon-noapo-a0.json")):
+    a0 = load("bake-dragon-noapo-a0.json")
+    w(f"| no APO, ahead 0 | {a0['geometry_bytes']:,} | 0 | 0 | {a0['seconds']['total']:.1f} | 0 |")
 for t in tols:
     b = bakes[t]
     w(f"| APO tolerance {t} rad | {b['geometry_bytes']:,} | {b['apo']['bytes']:,} | "
@@ -324,17 +376,19 @@ w("")
 for key in keys:
     w(f"### Dragon, key {key}: screen tolerance sweep")
     w("")
-    w("Geometry alone (one cut per tolerance, drawn with its flat normals), and the same cut drawn with APO "
+    w("Geometry alone (one cut per tolerance, drawn flat with its triangles' own normals and smooth with its "
+      "interpolated vertex normals, as the client draws it), and the same cut drawn with APO "
       f"(APO tolerance {default_tol}, K = 1):")
     w("")
-    w("| tol px | triangles | index + geometry B | decode s | view complete 8 / 100 Mbit/s s | h px | RMS px | PSNR | "
-      "normal mean deg | APO B | PSNR / normal deg with APO |")
+    w("| tol px | triangles | index + geometry B | decode s | view complete 8 / 100 Mbit/s s | h px | RMS px | "
+      "PSNR flat / smooth | normal mean deg flat / smooth | APO B | PSNR / normal deg with APO |")
     w("|---|---|---|---|---|---|---|---|---|---|---|")
     for r in cut_rows(GEO, key):
         w(f"| {r['tol']:g} | {r['tris']:,} | {r['bytes_geo']:,} | {r['decode']:.2f} | "
           f"{seconds_at(r['bytes_geo'], r['decode'], 8e6):.2f} / {seconds_at(r['bytes_geo'], r['decode'], 100e6):.2f} | "
-          f"{r['h_px']:.2f} | {r['rms_px']:.3f} | {num(psnr(r['img']), '{:.1f}')} | {r['img']['normal_mean_deg']:.1f} | "
-          f"{r['apo']:,} | {num(psnr(r['img_apo']), '{:.1f}')} / {r['img_apo']['normal_mean_deg']:.1f} |")
+          f"{r['h_px']:.2f} | {r['rms_px']:.3f} | {num(psnr(r['img']), '{:.1f}')} / "
+          f"{num(psnr(r['img_smooth']), '{:.1f}')} | {r['img']['normal_mean_deg']:.1f} / "
+          f"{r['img_smooth']['normal_mean_deg']:.1f} | {r['apo']:,} | {num(psnr(r['img_apo']), '{:.1f}')} / {r['img_apo']['normal_mean_deg']:.1f} |")
     w("")
     w("The client core's APO mode: where a cell carries a chunk, geometry only to K × the tolerance; APO by "
       "footprint at the tolerance. Bytes = index + geometry + APO:")
@@ -352,20 +406,133 @@ for key in keys:
               f"{num(psnr(r['img_apo']), '{:.1f}')} | {r['img_apo']['normal_mean_deg']:.1f} |")
     w("")
 
+AHEAD_CRITERION = (8, 16, 1.5, 1.15)  # issue 30: at 8 and 16 px, +1.5 dB at <= 1.15x the geometry bytes
+
+
+def psnr_at_bytes(rows, field, target, img):
+    """PSNR of a series at `target` bytes (row[field]), linear in log bytes between its neighbouring points;
+    (value, None) or (None, why it cannot be interpolated)."""
+    pts = sorted((r[field], psnr(r[img])) for r in rows)
+    if target < pts[0][0]:
+        return None, f"below its cheapest point ({pts[0][0]:,} B)"
+    if target > pts[-1][0]:
+        return None, f"above its dearest point ({pts[-1][0]:,} B)"
+    for (b0, p0), (b1, p1) in zip(pts, pts[1:]):
+        if b0 <= target <= b1:
+            if b1 == b0:
+                return max(p0, p1), None
+            f = (math.log(target) - math.log(b0)) / (math.log(b1) - math.log(b0))
+            return p0 + f * (p1 - p0), None
+    return pts[-1][1], None  # target equals the only point
+
+
+def signed(v, fmt="{:+.2f}"):
+    return "–" if v is None else fmt.format(v)
+
+
+def ahead_section(model, runs_by_k, title_keys):
+    a0, ad = runs_by_k[0], runs_by_k[ahead_default]
+    lines = []
+    for key in sorted({p["key"] for p in ad["points"]}):
+        r0, rd = point_rows(a0, key), point_rows(ad, key)
+        by_tol = {r["tol"]: r for r in r0}
+        w(f"{model.capitalize()}, key {key}{title_keys.get(key, '')}:")
+        w("")
+        w("| tol px | ahead | triangles | geometry B | index + geometry B | Hausdorff / px | RMS / px | "
+          "PSNR flat / smooth | SSIM flat / smooth |")
+        w("|---|---|---|---|---|---|---|---|---|")
+        for r in rd:
+            for a, q in ((0, by_tol.get(r["tol"])), (ahead_default, r)):
+                if q is None:
+                    continue
+                w(f"| {r['tol']:g} | {a} | {q['tris']:,} | {q['geometry']:,} | {q['bytes_geo']:,} | "
+                  f"{q['h']:.3g} / {q['h_px']:.2f} | {q['rms']:.3g} / {q['rms_px']:.3f} | "
+                  f"{num(psnr(q['img']), '{:.2f}')} / {num(psnr(q['img_smooth']), '{:.2f}')} | "
+                  f"{q['img']['ssim']:.3f} / {q['img_smooth']['ssim']:.3f} |")
+        w("")
+        w(f"Ahead {ahead_default} against ahead 0: ratio of bytes and PSNR difference at the same tolerance; "
+          f"PSNR difference at equal bytes (ahead {ahead_default}'s point against ahead 0's PSNR interpolated "
+          "linearly over log bytes between its neighbouring points):")
+        w("")
+        w("| tol px | geometry B ratio | index + geometry B ratio | ΔPSNR same tol, flat / smooth | "
+          "ΔPSNR equal geometry B, flat / smooth | ΔPSNR equal index + geometry B, smooth |")
+        w("|---|---|---|---|---|---|")
+        notes = []
+        for r in rd:
+            q = by_tol.get(r["tol"])
+            if q is None:
+                continue
+            cells = []
+            for field, img in (("geometry", "img"), ("geometry", "img_smooth"), ("bytes_geo", "img_smooth")):
+                v, why = psnr_at_bytes(r0, field, r[field], img)
+                cells.append(None if v is None else psnr(r[img]) - v)
+                if why and img == "img_smooth":
+                    notes.append(f"{r['tol']:g} px, {'geometry' if field == 'geometry' else 'index + geometry'} "
+                                 f"bytes {r[field]:,}: not interpolated, {why} of ahead 0")
+            same_flat, same_smooth = psnr(r["img"]) - psnr(q["img"]), psnr(r["img_smooth"]) - psnr(q["img_smooth"])
+            gr, tr = r["geometry"] / q["geometry"], r["bytes_geo"] / q["bytes_geo"]
+            w(f"| {r['tol']:g} | {gr:.2f} | {tr:.3f} | {same_flat:+.2f} / {same_smooth:+.2f} | "
+              f"{signed(cells[0])} / {signed(cells[1])} | {signed(cells[2])} |")
+            tmin, tmax, need_db, max_ratio = AHEAD_CRITERION
+            if model == "dragon" and r["tol"] in (tmin, tmax):
+                short = (["gain"] if same_smooth < need_db else []) + (["bytes"] if gr > max_ratio else [])
+                lines.append(f"- Key {key}, {r['tol']:g} px: smooth {same_smooth:+.2f} dB (flat {same_flat:+.2f}) at "
+                             f"{gr:.2f}x the geometry bytes ({q['geometry']:,} -> {r['geometry']:,} B; "
+                             f"{tr:.3f}x with the index); at equal geometry bytes {signed(cells[1])} dB smooth, "
+                             f"{signed(cells[0])} flat: criterion (>= +{need_db} dB at <= {max_ratio}x) "
+                             + ("met." if not short else f"not met ({' and '.join(short)})."))
+        w("")
+        for n in notes:
+            w(f"- {n}.")
+        if notes:
+            w("")
+    return lines
+
+
+if ahead:
+    w(f"### Geometry ahead of connectivity (`meshbake --ahead`)")
+    w("")
+    sizes = []
+    for model in ahead:
+        for a in (0, ahead_default):
+            name = (f"bake-{model}-noapo-a{a}.json" if model == "demo" or a == 0 else "bake-dragon-noapo.json")
+            if os.path.exists(os.path.join(J, name)):
+                sizes.append(f"{model} ahead {a}: {load(name)['geometry_bytes']:,} B")
+    w(f"No-APO bakes with `--ahead 0` (every vertex of a coarse level at its kd-cell's centre: the codec before "
+      f"geometry ahead) and the default `--ahead {ahead_default}` (at the barycentre of its known descendants), "
+      "the same cameras and tolerances; geometry alone, drawn flat and smooth. Geometry of the whole model: "
+      + "; ".join(sizes) + ". Bytes of a cut: geometry B = the shown and split cells' geometry prefixes, "
+      "index + geometry B with the index blob a client fetches first. Hausdorff and RMS in model units and "
+      "projected pixels, symmetric, over the samples (in view for px).")
+    w("")
+    criterion = []
+    for model in ahead:
+        title_keys = ({keys[0]: " (overview)", closeup: " (close-up)"} if model == "dragon"
+                      else {0: " (`scripts/paths/demo-closeup.cam`)"})
+        criterion += ahead_section(model, ahead[model], title_keys)
+    if criterion:
+        w(f"Issue 30's criterion on the dragon (smooth PSNR, as the client draws; at the same tolerance):")
+        w("")
+        for line in criterion:
+            w(line)
+        w("")
+
 w(f"### Precision sweep: the whole dragon, single stream and Draco (measured at key {closeup})")
 w("")
-w("| p | single-stream B | decode s | view complete 8 / 100 Mbit/s s | h px | PSNR | Draco B | Draco decode s | "
-  "Draco view complete 8 / 100 Mbit/s s | Draco h px | Draco PSNR |")
+w("| p | single-stream B | decode s | view complete 8 / 100 Mbit/s s | h px | PSNR flat / smooth | Draco B | "
+  "Draco decode s | Draco view complete 8 / 100 Mbit/s s | Draco h px | Draco PSNR flat / smooth |")
 w("|---|---|---|---|---|---|---|---|---|---|---|")
 for o, d in zip(ours_whole, draco_whole):
     w(f"| {o['bits']} | {o['bytes']:,} | {o['decode']:.3f} | {seconds_at(o['bytes'], o['decode'], 8e6):.2f} / "
-      f"{seconds_at(o['bytes'], o['decode'], 100e6):.2f} | {o['h_px']:.2f} | {num(psnr(o['img']), '{:.1f}')} | "
+      f"{seconds_at(o['bytes'], o['decode'], 100e6):.2f} | {o['h_px']:.2f} | {num(psnr(o['img']), '{:.1f}')} / "
+      f"{num(psnr(o['img_smooth']), '{:.1f}')} | "
       f"{d['bytes']:,} | {d['decode']:.3f} | {seconds_at(d['bytes'], d['decode'], 8e6):.2f} / "
-      f"{seconds_at(d['bytes'], d['decode'], 100e6):.2f} | {d['h_px']:.2f} | {num(psnr(d['img']), '{:.1f}')} |")
+      f"{seconds_at(d['bytes'], d['decode'], 100e6):.2f} | {d['h_px']:.2f} | {num(psnr(d['img']), '{:.1f}')} / "
+      f"{num(psnr(d['img_smooth']), '{:.1f}')} |")
 w("")
 w("Encode: `meshcodec roundtrip --bits p` (in-process decode to full precision, welded triangles); "
   "`draco_encoder -qp p -cl 7` and the decode time `draco_decoder` reports. Both decoded meshes are drawn "
-  "whole with their flat normals.")
+  "whole, flat and smooth.")
 w("")
 
 if demo:
@@ -374,17 +541,19 @@ if demo:
     w(f"Baked with the defaults: {demo_bake['geometry_bytes']:,} B of geometry, {demo_bake['apo']['bytes']:,} B of "
       f"APO, {demo_bake['seconds']['total']:.1f} s.")
     w("")
-    w("| K | key | tol px | triangles | index + geometry B | APO B | decode s | h px | PSNR / normal deg | with APO |")
-    w("|---|---|---|---|---|---|---|---|---|---|")
+    w("| K | key | tol px | triangles | index + geometry B | APO B | decode s | h px | PSNR / normal deg flat | "
+      "smooth | with APO |")
+    w("|---|---|---|---|---|---|---|---|---|---|---|")
     for k, d in (("1", demo), ("4", demo_k4)):
         if not d:
             continue
         for p in d["points"]:
             b = p["bytes"]
-            ia = p.get("image_apo", p["image"])
+            ia, sm = p.get("image_apo", p["image"]), smooth_image(p)
             w(f"| {k} | {p['key']} | {p['tolerance_px']:g} | {p['triangles']:,} | {b['index'] + b['geometry']:,} | "
               f"{b['apo']:,} | {p['seconds']['cut']:.2f} | {p['geometric']['hausdorff_px']:.2f} | "
               f"{num(psnr(p['image']), '{:.1f}')} / {p['image']['normal_mean_deg']:.1f} | "
+              f"{num(psnr(sm), '{:.1f}')} / {sm['normal_mean_deg']:.1f} | "
               f"{num(psnr(ia), '{:.1f}')} / {ia['normal_mean_deg']:.1f} |")
     w("")
 
@@ -399,8 +568,8 @@ if frames:
       f"{frames_meta['repeats']} runs of each point. Geometry alone: "
       "`--no-apo --tolerance T`; geometry + APO: the client's default, `--tolerance T` (geometry to T where a "
       "cell has a chunk, leaves to 1 px, APO by footprint at 1 px). PSNR: the study's image error of the same "
-      "cut (geometry alone: its point at T; geometry + APO: the run with K = T at 1 px, drawn with APO; – where "
-      "the study made no such cut).")
+      "cut (geometry alone: its point at T, drawn smooth as meshview draws it; geometry + APO: the run with "
+      "K = T at 1 px, drawn with APO; – where the study made no such cut).")
     w("")
     w(f"**These are not GPU figures.** OpenGL here is {frames_meta['renderer'] or 'unknown'}: Mesa's software "
       f"rasteriser on {cpu}, {os.cpu_count()} cores shared with other work, under Xvfb. Frame time grows with "
@@ -499,15 +668,18 @@ for tpx in PX_TARGETS:
     w(f"| {tpx} px | " + " | ".join(row) + " |")
     headline.append(("px", tpx, row))
 w("")
-w("Shaded image: PSNR against the reference render, at least (APO's own image where APO is fetched):")
+w("Shaded image: PSNR against the reference render, at least (APO's own image where APO is fetched; "
+  "without APO the mesh drawn smooth, as the client draws it, and geometry alone also flat):")
 w("")
-w(f"| target | geometry alone | geometry + APO, defaults (APO {GEO[0]} rad, K 1) | geometry + APO, best of the sweep "
-  "| Draco whole download | single stream whole |")
-w("|---|---|---|---|---|---|")
+w(f"| target | geometry alone, smooth | geometry alone, flat | geometry + APO, defaults (APO {GEO[0]} rad, K 1) "
+  "| geometry + APO, best of the sweep | Draco whole download | single stream whole |")
+w("|---|---|---|---|---|---|---|")
 for tdb in PSNR_TARGETS:
-    geo_reach = lambda c, tdb=tdb: psnr(c[3]["img"]) >= tdb
+    geo_reach = lambda c, tdb=tdb: psnr(c[3]["img_smooth"]) >= tdb
+    flat_reach = lambda c, tdb=tdb: psnr(c[3]["img"]) >= tdb
     apo_reach = lambda c, tdb=tdb: psnr(c[3]["img_apo"]) >= tdb
     row = [cell((lambda b: b and b[:3])(cheapest(geo_c, geo_reach))),
+           cell((lambda b: b and b[:3])(cheapest(geo_c, flat_reach))),
            cell((lambda b: b and b[:3])(cheapest(dflt_c, apo_reach))),
            cell((lambda b: b and b[:3])(cheapest(apo_c, apo_reach))),
            cell((lambda b: b and b[:3])(cheapest(dra_c, geo_reach))),
@@ -518,6 +690,8 @@ w("")
 # --- plain sentences -----------------------------------------------------------------------
 w("### What the numbers say (computed)")
 w("")
+w("Geometry alone here is the cut drawn smooth (the client's plain draw, the best plain alternative).")
+w("")
 for key in keys:
     wins, losses = [], []
     geo_here = [(q["bytes_geo"], q["decode"], f"{q['tol']:g} px", q) for q in cut_rows(GEO, key)]
@@ -526,7 +700,7 @@ for key in keys:
             if r["apo"] == 0:
                 continue
             target = psnr(r["img_apo"])
-            g = cheapest(geo_here, lambda c: psnr(c[3]["img"]) >= target)
+            g = cheapest(geo_here, lambda c: psnr(c[3]["img_smooth"]) >= target)
             (wins if g is None or g[0] > r["bytes_apo"] else losses).append((run, r, g))
     if wins:
         run, r, g = max(wins, key=lambda x: (x[2] is None, (x[2][0] - x[1]["bytes_apo"]) if x[2] else 0))

@@ -5,7 +5,7 @@
  * coarsen identical, encoding deterministic (12 bits, all but the dragon); at
  * 12 bits with cell centres and with the default geometry ahead (the dragon:
  * ahead only), at 16 bits with the default geometry ahead. Also the meshcodec
- * CLI. */
+ * CLI, its colour figures on the colour trefoil fixture included. */
 #include <stdarg.h>
 #include <stdbool.h>
 #include <stddef.h>
@@ -85,6 +85,22 @@ static void test_cli(void **state)
     assert_non_null(strstr(out, "\"bits_per_vertex\": "));
     assert_non_null(strstr(out, "\"encode_seconds\": "));
     assert_non_null(strstr(out, "\"decode_seconds\": "));
+
+    /* a model with colour: its colour stream too (docs/COLOUR.md) */
+    snprintf(cmd, sizeof cmd, "%s roundtrip tests/data/trefoil_color.ply.gz --bits 12 --json", bin);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
+    assert_non_null(strstr(out, "\"colour_alpha\": true"));
+    assert_non_null(strstr(out, "\"colour_bytes\": 6862,"));
+    assert_non_null(strstr(out, "\"colour_lossless\": true"));
+    snprintf(cmd, sizeof cmd, "%s roundtrip tests/data/trefoil_color.ply.gz --bits 12 "
+             "--colour-bits 4 --json", bin);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
+    assert_non_null(strstr(out, "\"colour_bytes\": 2940,"));
+    snprintf(cmd, sizeof cmd, "%s roundtrip %s --colour-bits 9", bin, model);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 2);
+    snprintf(cmd, sizeof cmd, "%s roundtrip %s --bits 12 --json", bin, model);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
+    assert_null(strstr(out, "colour_bytes")); /* no colour, no colour figures */
 
     snprintf(cmd, sizeof cmd, "%s encode %s -o %s/b.msgc --bits 12", bin, model, dir);
     assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);

@@ -1,12 +1,13 @@
-/* Replays the regression corpora of six libFuzzer targets through their
+/* Replays the regression corpora of seven libFuzzer targets through their
  * contract checks: tests/corpus/archive_index/ (the archive index reader,
  * tests/fuzz/fuzz_archive_index.c), tests/corpus/subtree/ (the index head and
  * subtree reader of a client's partial index, tests/fuzz/fuzz_subtree.c), tests/corpus/apo_chunk/ (the APO chunk
  * readers and traversal, tests/fuzz/fuzz_apo_chunk.c), tests/corpus/camera_path/ (the
  * camera-path parser, tests/fuzz/fuzz_camera_path.c),
  * tests/corpus/config_catalog/ (meshserve's config file and catalog.json,
- * tests/fuzz/fuzz_config_catalog.c) and tests/corpus/mesh_reader/ (the mesh
- * readers, vertex colour included, tests/fuzz/fuzz_mesh_reader.c). Seeds named
+ * tests/fuzz/fuzz_config_catalog.c), tests/corpus/mesh_reader/ (the mesh
+ * readers, vertex colour included, tests/fuzz/fuzz_mesh_reader.c) and
+ * tests/corpus/colour/ (the colour decoder, tests/fuzz/fuzz_colour.c). Seeds named
  * seed-*-ok and seed-*.cam must be accepted, the other seed-* refused;
  * fuzzer finds only need to run clean. */
 #include <dirent.h>
@@ -24,6 +25,7 @@
 #include "fuzz/fuzz_apo_chunk.c"
 #include "fuzz/fuzz_archive_index.c"
 #include "fuzz/fuzz_camera_path.c"
+#include "fuzz/fuzz_colour.c"
 #include "fuzz/fuzz_config_catalog.c"
 #include "fuzz/fuzz_mesh_reader.c"
 #include "fuzz/fuzz_subtree.c"
@@ -106,6 +108,12 @@ static void test_mesh_reader_corpus(void **state)
         ms_test_rmdir(ms_fuzz_mesh_dir);
 }
 
+static void test_colour_corpus(void **state)
+{
+    (void)state;
+    assert_true(replay("tests/corpus/colour", ms_fuzz_colour_one) >= 14);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -115,6 +123,7 @@ int main(void)
         cmocka_unit_test(test_camera_path_corpus),
         cmocka_unit_test(test_config_catalog_corpus),
         cmocka_unit_test(test_mesh_reader_corpus),
+        cmocka_unit_test(test_colour_corpus),
     };
     return cmocka_run_group_tests_name("fuzz_replay", tests, NULL, NULL);
 }

@@ -78,6 +78,11 @@ static void test_exit_codes(void **state)
     assert_int_equal(ms_test_run(cmd, out, sizeof out), 1);
     snprintf(cmd, sizeof cmd, "%s %s %s -p %s --keys 9", f->study, f->mesh, f->archive, f->path);
     assert_int_equal(ms_test_run(cmd, out, sizeof out), 1); /* the path has keys 0..8 */
+    snprintf(cmd, sizeof cmd, "%s %s %s -p %s --apo-filter trilinear", f->study, f->mesh, f->archive, f->path);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 2);
+    assert_non_null(strstr(out, "--apo-filter wants linear, nearest or none, not 'trilinear'"));
+    snprintf(cmd, sizeof cmd, "%s %s -p %s -o %s/r --apo --apo-filter Linear", f->render, f->archive, f->path, f->dir);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 2);
     snprintf(cmd, sizeof cmd, "%s %s %s -p %s --tolerances 1,-2", f->study, f->mesh, f->archive, f->path);
     assert_int_equal(ms_test_run(cmd, out, sizeof out), 2);
 }
@@ -161,6 +166,10 @@ static void test_small_study(void **state)
         assert_true(number(p, "seconds", "cut") > 0); /* a fresh view's selection, decoding and stitching */
         assert_true(number(p, "geometric", "samples_in_view") <= number(p, "geometric", "samples"));
         assert_true(number(p, "image", "compared_px") > 0);
+        /* drawn smooth: the same cut, so the same pixels covered */
+        assert_true(number(p, "image_smooth", "compared_px") == number(p, "image", "compared_px"));
+        assert_true(number(p, "image_smooth", "silhouette_px") == number(p, "image", "silhouette_px"));
+        assert_true(number(p, "image_smooth", "ssim") > 0 && number(p, "image_smooth", "ssim") < 1);
         prev_geometry = geometry;
         prev_tris = tris;
         prev_psnr = psnr;
@@ -187,6 +196,23 @@ static void test_small_study(void **state)
             assert_true(number(p, "bytes", "apo") > 0 && number(p, "bytes", "apo") < whole_apo);
         json_decref(root);
     }
+    /* the APO lookup: the client's filter by default; unfiltered, the same cut
+     * and bytes with other normals */
+    double mean_deg[2];
+    const char *filters[2] = {"linear", "none"};
+    for (int i = 0; i < 2; ++i) {
+        snprintf(cmd, sizeof cmd,
+                 "%s %s %s -p %s --keys 0 --tolerances 4 --width 80 --height 60 --spacing 0.004%s%s --json",
+                 f->study, f->mesh, f->archive, f->path, i ? " --apo-filter " : "", i ? filters[i] : "");
+        root = ms_test_run_json(cmd, 0);
+        assert_string_equal(json_string_value(json_object_get(root, "apo_filter")), filters[i]);
+        json_t *p = json_array_get(json_object_get(root, "points"), 0);
+        assert_true(number(p, "bytes", "geometry") == whole_geometry && number(p, "bytes", "apo") == whole_apo);
+        mean_deg[i] = number(p, "image_apo", "normal_mean_deg");
+        json_decref(root);
+    }
+    print_message("4 px, APO normal error: filtered %.3f deg, nearest leaf %.3f deg\n", mean_deg[0], mean_deg[1]);
+    assert_true(mean_deg[0] != mean_deg[1]);
 }
 
 /* The whole model against itself (meshstudy --whole): every image error
@@ -222,6 +248,9 @@ static void test_whole_against_itself(void **state)
         assert_true(number(image, "normal_max_deg", NULL) == 0);
         assert_true(number(image, "compared_px", NULL) > 0);
         assert_null(json_object_get(p, "image_apo"));
+        /* drawn smooth against the flat reference: the same pixels, other normals */
+        assert_true(number(p, "image_smooth", "silhouette_px") == 0);
+        assert_true(number(p, "image_smooth", "normal_max_deg") > 0);
     }
     json_decref(root);
     /* an archive and --whole together is a usage error */

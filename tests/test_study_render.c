@@ -3,7 +3,10 @@
  * border), at the expected depth and normal, shaded by the documented formula;
  * a sphere covers the disc its silhouette projects to; renders do not depend on
  * the thread count nor on a far-away origin; APO normals come from the drawing
- * cell's chunk at the hit's cell-local coordinate; PNG output. */
+ * cell's chunk at the hit's cell-local coordinate, the nearest leaf unfiltered
+ * and the client's filter by default (8-cell interpolation, depth limited by
+ * the pixel's footprint), and light with their own self-shadowing factor; a
+ * smooth normal from a fold gives way to N_g; PNG output. */
 #include <stdarg.h>
 #include <stddef.h>
 #include <setjmp.h>
@@ -285,17 +288,13 @@ static void unit(const float in[3], float out[3])
         out[k] = (float)(in[k] / l);
 }
 
-/* One cell holding the cube, its chunk a root with 8 leaf children: the lower x
- * half (octants 0-3) has normal A, the upper half B. Seen face-on, pixels left of
- * the centre column get A, the others B (a point on the mid-plane goes up; the
- * centre column's hit points sit on the plane to within Embree's rounding, which
- * differs between its CPU code paths, so either is accepted there). */
-static void test_apo_normals(void **state)
+/* The two-halves chunk: a root (mean +z) with 8 leaf children, the lower x half
+ * (octants 0-3) normal A, the upper half B (decoded: a[], b[]). */
+static const uint32_t TWO_HALVES_LEVELS[2] = {2, 8};
+static uint32_t *two_halves_words(float a[3], float b[3])
 {
-    (void)state;
-    ms_study_scene *s = cube_scene(0);
     const float a_raw[3] = {-0.3f, 0.2f, 0.9f}, b_raw[3] = {0.5f, -0.1f, 0.8f};
-    float a_in[3], b_in[3], a[3], b[3];
+    float a_in[3], b_in[3];
     unit(a_raw, a_in);
     unit(b_raw, b_in);
     uint32_t ca = ms_apo_normal_encode(a_in), cb = ms_apo_normal_encode(b_in);
@@ -307,12 +306,41 @@ static void test_apo_normals(void **state)
     words[1] = ms_apo_mean_word(0, ms_apo_normal_encode((const float[3]){0, 0, 1}));
     for (int o = 0; o < 8; ++o)
         words[2 + o] = ms_apo_leaf_word(o < 4 ? ca : cb);
-    const uint32_t levels[2] = {2, 8};
+    return words;
+}
+
+/* The head light's shading of a pixel with normal n at slopes (x, y), the
+ * self-shadowing factor taken from `shadow_from` (the documented formula). */
+static int shaded(const float n[3], const double shadow_from[3], double x, double y)
+{
+    double len = sqrt(x * x + y * y + 1), l[3] = {-x / len, -y / len, 1 / len};
+    double nl = fmax(0, n[0] * l[0] + n[1] * l[1] + n[2] * l[2]);
+    double self = fmax(0, shadow_from[0] * l[0] + shadow_from[1] * l[1] + shadow_from[2] * l[2]);
+    return ms_study_srgb8(MS_STUDY_AMBIENT +
+                          self * (MS_STUDY_DIFFUSE * nl + MS_STUDY_SPECULAR * pow(nl, MS_STUDY_SHININESS)));
+}
+
+/* One cell holding the cube, its chunk the two halves. Read unfiltered (the
+ * nearest leaf, meshview's --apo-filter none, the study's rule before the
+ * client filtered), seen face-on, pixels left of the centre column get A, the
+ * others B (a point on the mid-plane goes up; the centre column's hit points
+ * sit on the plane to within Embree's rounding, which differs between its CPU
+ * code paths, so either is accepted there), and each is lit with its APO
+ * normal's own self-shadowing factor (the client's rule; the triangle's +z
+ * factor gives other values). */
+static void test_apo_normals(void **state)
+{
+    (void)state;
+    ms_study_scene *s = cube_scene(0);
+    float a[3], b[3];
+    uint32_t *words = two_halves_words(a, b);
+    const uint32_t *levels = TWO_HALVES_LEVELS;
     ms_apo_chunk chunk = {0};
     ms_apo_chunk_adopt(&chunk, words, 10, 2, levels);
     ms_study_apo *apo;
     ms_error err;
     assert_int_equal(ms_study_apo_new(1, 0, UINT32_MAX, MS_APO_MISSING_NEAREST, &apo, &err), MS_OK);
+    ms_study_apo_set_filter(apo, MS_STUDY_APO_FILTER_NONE);
     const double origin[3] = {-0.5, -0.5, -0.5};
     assert_int_equal(ms_study_apo_put(apo, 0, origin, 1.0, &chunk, &err), MS_OK);
     assert_int_equal(ms_study_apo_chunk_count(apo), 1);
@@ -326,7 +354,7 @@ static void test_apo_normals(void **state)
     ms_study_image im = {0}, plain = {0};
     assert_int_equal(ms_study_render(s, &cam, &o, &im, &err), MS_OK);
     render(s, &cam, 2, &plain);
-    size_t with_a = 0, with_b = 0;
+    size_t with_a = 0, with_b = 0, other_rule = 0;
     for (uint32_t j = 0; j < im.height; ++j)
         for (uint32_t i = 0; i < im.width; ++i) {
             size_t p = (size_t)j * im.width + i;
@@ -341,8 +369,14 @@ static void test_apo_normals(void **state)
                 assert_true(fabs(n[k] - want[k] / l) < 1e-6);
             with_a += i < 15;
             with_b += i >= 15;
+            double x, y;
+            slopes(&cam, i, j, &x, &y);
+            const double own[3] = {n[0], n[1], n[2]}, ng[3] = {0, 0, 1};
+            assert_true(abs((int)im.rgb[3 * p] - shaded(n, own, x, y)) <= 1);
+            other_rule += abs((int)im.rgb[3 * p] - shaded(n, ng, x, y)) > 1;
         }
     assert_true(with_a > 0 && with_b > with_a);
+    assert_true(other_rule > 0); /* the rule is seen: N_g's factor would shade otherwise */
     /* APO changes the shading and the normal error against the plain render is
      * the angle between +z and A or B */
     ms_study_image_error e;
@@ -385,6 +419,165 @@ static void test_apo_normals(void **state)
     ms_study_scene_free(s);
 }
 
+/* The angle between two unit vectors, radians. */
+static double angle(const double u[3], const float v[3])
+{
+    double c = u[0] * v[0] + u[1] * v[1] + u[2] * v[2];
+    return acos(fmin(1, fmax(-1, c)));
+}
+
+/* The two-halves chunk read as the client reads it by default (filtered: the
+ * footprint depth, then 8-cell interpolation; docs/APO.md "Filtering"), the cube
+ * seen face-on at 31 x 21 (a pixel is 0.087 of the cube at the front face: the
+ * footprint depth 4 leaves the depth-1 leaves whole). Along x the centre leaf's
+ * nearer face decides: in the outer quarters it is the cube's face (no
+ * neighbour there), so the normal is exactly A (left) or B (right); in the
+ * inner quarters it is the mid-plane, and the normal is A and B blended with
+ * the neighbour's weight t = (distance from the leaf's centre) / (leaf width),
+ * normalised; across y and z the neighbours are of the same half. NEAREST (the
+ * footprint depth only) is the unfiltered picture here. Seen from 60 units at
+ * 3 x 3 pixels a pixel is 8.7 cubes wide: the footprint depth is 0 and the
+ * centre pixel shows the root's mean (+z), where the unfiltered lookup gives
+ * a leaf (its hit is on the mid-plane to Embree's rounding: A or B). */
+static void test_apo_filtered(void **state)
+{
+    (void)state;
+    ms_study_scene *s = cube_scene(0);
+    float a[3], b[3];
+    uint32_t *words = two_halves_words(a, b);
+    ms_apo_chunk chunk = {0};
+    ms_apo_chunk_adopt(&chunk, words, 10, 2, TWO_HALVES_LEVELS);
+    ms_study_apo *apo;
+    ms_error err;
+    assert_int_equal(ms_study_apo_new(1, 0, UINT32_MAX, MS_APO_MISSING_NEAREST, &apo, &err), MS_OK);
+    const double origin[3] = {-0.5, -0.5, -0.5};
+    assert_int_equal(ms_study_apo_put(apo, 0, origin, 1.0, &chunk, &err), MS_OK);
+    uint32_t triangle_cell[12] = {0};
+    ms_camera cam;
+    const double eye[3] = {0, 0, 3}, target[3] = {0, 0, 0};
+    look(eye, target, 31, 21, &cam);
+    ms_study_render_options o = {.threads = 2, .apo = apo, .triangle_cell = triangle_cell};
+    ms_study_image im = {0}, nearest = {0}, none = {0};
+    assert_int_equal(ms_study_render(s, &cam, &o, &im, &err), MS_OK);
+    ms_study_apo_set_filter(apo, MS_STUDY_APO_FILTER_NEAREST);
+    assert_int_equal(ms_study_render(s, &cam, &o, &nearest, &err), MS_OK);
+    ms_study_apo_set_filter(apo, MS_STUDY_APO_FILTER_NONE);
+    assert_int_equal(ms_study_render(s, &cam, &o, &none, &err), MS_OK);
+    size_t n_pixels = (size_t)im.width * im.height;
+    assert_memory_equal(nearest.normal, none.normal, 3 * n_pixels * sizeof *im.normal);
+    double ad[3] = {a[0], a[1], a[2]}, bd[3] = {b[0], b[1], b[2]};
+    double la = sqrt(ad[0] * ad[0] + ad[1] * ad[1] + ad[2] * ad[2]), lb = sqrt(bd[0] * bd[0] + bd[1] * bd[1] + bd[2] * bd[2]);
+    for (int k = 0; k < 3; ++k) {
+        ad[k] /= la;
+        bd[k] /= lb;
+    }
+    size_t outer = 0, blended = 0;
+    for (uint32_t j = 0; j < im.height; ++j)
+        for (uint32_t i = 0; i < im.width; ++i) {
+            size_t p = (size_t)j * im.width + i;
+            if (!ms_study_image_covered(&im, p))
+                continue;
+            double x, y;
+            slopes(&cam, i, j, &x, &y);
+            double u = 0.5 + 2.5 * x; /* the hit's cell-local x on the front face */
+            if (fabs(u - 0.25) < 1e-4 || fabs(u - 0.5) < 1e-4 || fabs(u - 0.75) < 1e-4)
+                continue; /* on a leaf's centre or face: either side */
+            const float *n = &im.normal[3 * p];
+            double want[3];
+            if (u < 0.25 || u > 0.75) {
+                memcpy(want, u < 0.25 ? ad : bd, sizeof want);
+                outer++;
+            } else {
+                double t = u < 0.5 ? (u - 0.25) / 0.5 : (0.75 - u) / 0.5, len = 0;
+                const double *own = u < 0.5 ? ad : bd, *other = u < 0.5 ? bd : ad;
+                for (int k = 0; k < 3; ++k) {
+                    want[k] = (1 - t) * own[k] + t * other[k];
+                    len += want[k] * want[k];
+                }
+                for (int k = 0; k < 3; ++k)
+                    want[k] /= sqrt(len);
+                /* strictly between A and B, on the arc joining them */
+                assert_true(angle(ad, n) > 1e-3 && angle(bd, n) > 1e-3);
+                assert_true(fabs(angle(ad, n) + angle(bd, n) - acos(ad[0] * bd[0] + ad[1] * bd[1] + ad[2] * bd[2])) <
+                            1e-4);
+                blended++;
+            }
+            for (int k = 0; k < 3; ++k)
+                if (fabs(n[k] - want[k]) > 1e-4)
+                    fail_msg("pixel (%u, %u), u = %.4f: normal[%d] %.6f, expected %.6f", i, j, u, k, n[k], want[k]);
+        }
+    assert_true(outer > 0 && blended > 0);
+    /* far away: the footprint depth is 0, the root's mean (+z) */
+    const double far_eye[3] = {0, 0, 60};
+    look(far_eye, target, 3, 3, &cam);
+    float up[3];
+    ms_apo_normal_decode(ms_apo_normal_encode((const float[3]){0, 0, 1}), up);
+    for (int f = 0; f < 3; ++f) {
+        ms_study_apo_set_filter(apo, (ms_study_apo_filter)f);
+        assert_int_equal(ms_study_render(s, &cam, &o, &im, &err), MS_OK);
+        assert_true(ms_study_image_covered(&im, 4));
+        const float *want = f == MS_STUDY_APO_FILTER_NONE ? b : up;
+        if (f == MS_STUDY_APO_FILTER_NONE && fabs(im.normal[12] - b[0]) > 1e-6)
+            want = a; /* the hit is on the mid-plane to Embree's rounding: either leaf */
+        for (int k = 0; k < 3; ++k)
+            if (fabs(im.normal[3 * 4 + k] - want[k]) > 1e-6)
+                fail_msg("filter %d: normal (%.6f, %.6f, %.6f), expected (%.6f, %.6f, %.6f)", f, im.normal[12],
+                         im.normal[13], im.normal[14], want[0], want[1], want[2]);
+    }
+    ms_study_apo_filter parsed;
+    assert_true(ms_study_apo_filter_parse("linear", &parsed) && parsed == MS_STUDY_APO_FILTER_LINEAR);
+    assert_true(ms_study_apo_filter_parse("nearest", &parsed) && parsed == MS_STUDY_APO_FILTER_NEAREST);
+    assert_true(ms_study_apo_filter_parse("none", &parsed) && parsed == MS_STUDY_APO_FILTER_NONE);
+    assert_false(ms_study_apo_filter_parse("Linear", &parsed));
+    ms_study_image_free(&im);
+    ms_study_image_free(&nearest);
+    ms_study_image_free(&none);
+    ms_study_apo_free(apo);
+    ms_study_scene_free(s);
+}
+
+/* A fold: triangle 0 in z = 0 facing +z, triangle 1 on its hypotenuse folded
+ * back over it (its third corner at (0.3, 0.3, 0.1), wound to face about -z).
+ * The shared corners' area-weighted normals lean to +z, so near the shared
+ * edge triangle 1's interpolated normal lies against its own stored normal:
+ * there, as in the client's shader, its facing N_g stands in exactly; where it
+ * does not (near its own corner) the normal is the interpolated one turned over
+ * with the face, on N_g's side. Seen from above, both kinds of pixel occur. */
+static void test_smooth_fold(void **state)
+{
+    (void)state;
+    const double pos[12] = {0, 0, 0, 1, 0, 0, 0, 1, 0, 0.3, 0.3, 0.1};
+    const uint32_t tri[6] = {0, 1, 2, 2, 1, 3};
+    ms_study_scene *s;
+    ms_error err;
+    assert_int_equal(ms_study_scene_new(pos, 4, tri, 2, &s, &err), MS_OK);
+    ms_camera cam;
+    const double eye[3] = {0.35, 0.35, 3}, target[3] = {0.35, 0.35, 0};
+    look(eye, target, 61, 61, &cam);
+    ms_study_render_options o = {.threads = 2, .smooth = true};
+    ms_study_image im = {0};
+    assert_int_equal(ms_study_render(s, &cam, &o, &im, &err), MS_OK);
+    /* triangle 1's stored normal is -(0.1, 0.1, 0.4) normalised; facing the camera, +(0.1, 0.1, 0.4) */
+    double len = sqrt(0.18), ng[3] = {0.1 / len, 0.1 / len, 0.4 / len};
+    size_t as_ng = 0, interpolated = 0;
+    for (size_t p = 0; p < (size_t)im.width * im.height; ++p) {
+        if (!ms_study_image_covered(&im, p) || im.triangle[p] != 1)
+            continue;
+        const float *n = &im.normal[3 * p];
+        if (fabs(n[0] - ng[0]) < 1e-6 && fabs(n[1] - ng[1]) < 1e-6 && fabs(n[2] - ng[2]) < 1e-6) {
+            as_ng++;
+            continue;
+        }
+        assert_true(n[0] * ng[0] + n[1] * ng[1] + n[2] * ng[2] > 0);
+        interpolated++;
+    }
+    print_message("fold: %zu pixels of triangle 1 with N_g, %zu with the interpolated normal\n", as_ng,
+                  interpolated);
+    assert_true(as_ng > 10 && interpolated > 10);
+    ms_study_image_free(&im);
+    ms_study_scene_free(s);
+}
+
 /* The cube of an archive cell. */
 static void test_cell_cube(void **state)
 {
@@ -405,6 +598,8 @@ int main(void)
         cmocka_unit_test(test_sphere),
         cmocka_unit_test(test_deterministic_and_far_origin),
         cmocka_unit_test(test_apo_normals),
+        cmocka_unit_test(test_apo_filtered),
+        cmocka_unit_test(test_smooth_fold),
         cmocka_unit_test(test_cell_cube),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -270,8 +270,14 @@ static void test_hud_path_and_piece(void **state)
     piece.material = &open;
     snprintf(cs.error, sizeof cs.error, "dragon: server gone");
     cs.preview = true, cs.preview_bits = 0;
+    const char extra[2][MS_HUD_LINE_MAX] = {"light az -80.0 el 0.0 deg",
+                                            "measure 2 points: 1.06 +- 0.016 model units (6 bits)"};
+    info.extra = extra, info.extra_count = 2; /* the light and a measurement (ms_viewer_inspect.h) */
     n = ms_viewer_hud_lines(&info, lines);
     assert_int_equal(n, MS_HUD_MAX_LINES); /* every line there can be */
+    assert_string_equal(lines[14], extra[0]);
+    assert_string_equal(lines[15], extra[1]);
+    info.extra_count = 0;
     assert_string_equal(lines[8], "preview: 0 bits, a token gives more");
     assert_string_equal(lines[9], "dragon: server gone");
     assert_string_equal(lines[10], "path 12.3 of 26.0 s  paused");

@@ -16,7 +16,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/stat.h>
 #include <time.h>
 
 #include "ms_gl_window.h"
@@ -25,6 +24,7 @@
 #include "ms_viewer_controls.h"
 #include "ms_viewer_font.h"
 #include "ms_viewer_hud.h"
+#include "ms_viewer_inspect.h"
 #include "ms_viewer_model.h"
 #include "ms_viewer_options.h"
 #include "ms_viewer_pick.h"
@@ -60,6 +60,8 @@ typedef struct viewer {
     ms_viewer_controls controls;
     ms_viewer_playback playback;   /* the path Space plays (--path, or the scene's) */
     long selected;                 /* the selected piece of a scene; -1: none */
+    ms_viewer_inspect inspect;     /* measuring, the light, the view text (one model) */
+    unsigned model_opens;
     ms_render_options render;
     bool apo, geometry_normals, hud;
     char message[256];             /* shown on the catalogue screen (last failure) */
@@ -140,6 +142,7 @@ static const char *mode_name(viewer *v)
 
 static void close_model(viewer *v)
 {
+    ms_viewer_inspect_close(&v->inspect); /* its probe streams the model too */
     ms_viewer_stream_close(v->stream);
     v->stream = NULL;
     ms_viewer_model_close(&v->model);
@@ -176,6 +179,10 @@ static bool open_model(viewer *v, const char *name)
     glfwGetFramebufferSize(v->window, &fw, &fh);
     ms_viewer_controls_init(&v->controls, lo, hi, v->o->up_axis,
                             fw > 0 && fh > 0 ? (double)fw / fh : (double)v->o->width / v->o->height);
+    if (v->model_opens++ == 0) /* --view: the first model's (--model) */
+        ms_viewer_inspect_view(v->o, &v->controls);
+    else
+        ms_viewer_measure_clear(&v->inspect.measure);
     ms_viewer_playback_stop(&v->playback);
     v->on_catalogue = false;
     v->message[0] = 0;
@@ -243,18 +250,9 @@ static void on_key(GLFWwindow *w, int key, int scancode, int action, int mods)
     if (v->on_catalogue) {
         int fw, fh;
         glfwGetFramebufferSize(w, &fw, &fh);
-        int s = text_scale(v);
-        if (key == GLFW_KEY_DOWN)
-            ms_viewer_catalogue_move(&v->catalogue, 1, fh, s);
-        else if (key == GLFW_KEY_UP)
-            ms_viewer_catalogue_move(&v->catalogue, -1, fh, s);
-        else if (key == GLFW_KEY_PAGE_DOWN)
-            ms_viewer_catalogue_move(&v->catalogue, 10, fh, s);
-        else if (key == GLFW_KEY_PAGE_UP)
-            ms_viewer_catalogue_move(&v->catalogue, -10, fh, s);
-        else if (key == GLFW_KEY_ENTER || key == GLFW_KEY_KP_ENTER)
-            v->open_requested = true;
-        else if (key == GLFW_KEY_TAB && v->stream)
+        ms_catalogue_action act = ms_viewer_catalogue_key(&v->catalogue, key, fh, text_scale(v));
+        v->open_requested |= act == MS_CATALOGUE_OPEN;
+        if (act == MS_CATALOGUE_BACK && v->stream)
             v->on_catalogue = false;
         return;
     }
@@ -262,6 +260,8 @@ static void on_key(GLFWwindow *w, int key, int scancode, int action, int mods)
         key != GLFW_KEY_KP_ADD && key != GLFW_KEY_KP_SUBTRACT)
         return;
     ms_viewer_controls *c = &v->controls;
+    if (!v->vscene && ms_viewer_inspect_key(&v->inspect, key, c, stdout))
+        return;
     switch (key) {
     case GLFW_KEY_O: v->apo = !v->apo; break;
     case GLFW_KEY_G: v->geometry_normals = !v->geometry_normals; break;
@@ -315,12 +315,13 @@ static void on_mouse_button(GLFWwindow *w, int button, int action, int mods)
     v->cursor_x = x, v->cursor_y = y;
     double ratio = pixel_ratio(w);
     if (action == GLFW_RELEASE) {
-        v->rotating = v->panning = false;
-        /* a click (no drag) in a scene picks the piece under it */
-        if (button == GLFW_MOUSE_BUTTON_LEFT && v->vscene && fabs(x - v->last_click_x) < DOUBLE_CLICK_PX &&
-            fabs(y - v->last_click_y) < DOUBLE_CLICK_PX) {
-            v->pick_requested = true;
-            v->recentre_x = x * ratio, v->recentre_y = y * ratio;
+        v->rotating = v->panning = v->inspect.lighting = false;
+        /* a click (no drag) in a scene picks the piece under it; measuring, adds a point */
+        if (button == GLFW_MOUSE_BUTTON_LEFT && (v->vscene || v->inspect.measuring) &&
+            fabs(x - v->last_click_x) < DOUBLE_CLICK_PX && fabs(y - v->last_click_y) < DOUBLE_CLICK_PX) {
+            v->pick_requested = v->vscene != NULL; /* a double click's second adds no point */
+            v->inspect.add_requested = !v->vscene && v->last_click_time >= 0;
+            v->recentre_x = v->inspect.add_x = x * ratio, v->recentre_y = v->inspect.add_y = y * ratio;
         }
         return;
     }
@@ -353,7 +354,9 @@ static void on_mouse_button(GLFWwindow *w, int button, int action, int mods)
         v->recentre_x = x * ratio, v->recentre_y = y * ratio;
         return;
     }
-    if (pan)
+    if (button == GLFW_MOUSE_BUTTON_LEFT && (mods & GLFW_MOD_CONTROL) && !v->vscene)
+        v->inspect.lighting = true; /* Ctrl + drag moves the light */
+    else if (pan)
         v->panning = true;
     else if (button == GLFW_MOUSE_BUTTON_LEFT)
         v->rotating = true;
@@ -365,11 +368,13 @@ static void on_cursor(GLFWwindow *w, double x, double y)
     double ratio = pixel_ratio(w);
     double dx = (x - v->cursor_x) * ratio, dy = (y - v->cursor_y) * ratio;
     v->cursor_x = x, v->cursor_y = y;
-    if (v->on_catalogue || (!v->rotating && !v->panning))
+    if (v->on_catalogue || (!v->rotating && !v->panning && !v->inspect.lighting))
         return;
     int fw, fh;
     glfwGetFramebufferSize(w, &fw, &fh);
-    if (v->panning)
+    if (v->inspect.lighting)
+        ms_viewer_light_drag(&v->inspect.light, dx, dy, fh);
+    else if (v->panning)
         ms_viewer_controls_pan(&v->controls, dx, dy, fh);
     else
         ms_viewer_controls_rotate(&v->controls, dx, dy, fh);
@@ -410,14 +415,10 @@ static const char *shown_name(const viewer *v)
 
 static void take_screenshot(viewer *v, int fw, int fh)
 {
-    const char *dir = v->o->screenshot_dir ? v->o->screenshot_dir : ".";
     char path[4200];
     ms_error err;
-    struct stat sb;
-    do
-        snprintf(path, sizeof path, "%s/meshview-%s-%03d.png", dir, shown_name(v), v->screenshots++);
-    while (stat(path, &sb) == 0 && v->screenshots < 1000);
-    if (ms_viewer_screenshot(path, fw, fh, &err) != MS_OK)
+    if (ms_viewer_screenshot_numbered(v->o->screenshot_dir ? v->o->screenshot_dir : ".", shown_name(v),
+                                      &v->screenshots, fw, fh, path, sizeof path, &err) != MS_OK)
         snprintf(v->message, sizeof v->message, "%.250s", err.text);
     else
         fprintf(stderr, "meshview: wrote %s\n", path);
@@ -448,7 +449,6 @@ static bool reopen_changed_model(viewer *v, const char *why)
     return true;
 }
 
-/* One frame of the model view. 1 on a fatal error (printed). */
 /* Seconds since the last frame; updates the frame time (smoothed over about
  * half a second of frames) and the frame rate. */
 static double frame_tick(viewer *v)
@@ -486,6 +486,7 @@ static uint64_t gl_bytes(viewer *v)
     return bytes + m.gl_bytes + ms_viewer_text_gl_bytes(v->text);
 }
 
+/* One frame of the model view. 1 on a fatal error (printed). */
 static int view_frame(viewer *v, int fw, int fh, double seconds)
 {
     ms_error err;
@@ -498,6 +499,8 @@ static int view_frame(viewer *v, int fw, int fh, double seconds)
         ms_viewer_step step;
         ms_status st = v->vscene ? ms_viewer_scene_step(v->vscene, &camera, v->o->upload_budget, &step, &err)
                                  : ms_viewer_stream_step(v->stream, &camera, v->o->upload_budget, &step, &err);
+        if (st == MS_OK && !v->vscene) /* the light; the chain on the frame, a click's point */
+            ms_viewer_inspect_frame(&v->inspect, v->stream, &camera, &v->render);
         if (st == MS_OK)
             st = v->vscene ? ms_viewer_scene_draw(v->vscene, &camera, &v->render, &v->drawn, &err)
                            : ms_viewer_stream_draw(v->stream, &camera, &v->render, &v->drawn, &err);
@@ -538,7 +541,9 @@ static int view_frame(viewer *v, int fw, int fh, double seconds)
                                .core = &cs,
                                .settled = v->settled,
                                .fly = v->controls.fly,
-                               .playback = &v->playback};
+                               .playback = &v->playback,
+                               .extra = v->inspect.lines,
+                               .extra_count = v->vscene ? 0 : ms_viewer_inspect_hud(&v->inspect, v->stream)};
     ms_viewer_scene_piece piece;
     if (v->vscene && v->selected >= 0) {
         ms_viewer_scene_piece_info(v->vscene, (size_t)v->selected, &piece);
@@ -548,6 +553,8 @@ static int view_frame(viewer *v, int fw, int fh, double seconds)
     }
     ms_viewer_text_begin(v->text, fw, fh, text_scale(v));
     ms_viewer_hud_draw(v->text, &info, fw, fh, v->hud);
+    if (!v->vscene)
+        ms_viewer_inspect_markers(&v->inspect, v->text);
     if (ms_viewer_text_draw(v->text, &err) != MS_OK) {
         fprintf(stderr, "meshview: %s\n", err.text);
         return 1;
@@ -784,6 +791,7 @@ int main(int argc, char **argv)
     v.render.apo_footprint = o.apo_footprint;
     v.render.shading = o.shading;
     update_shading(&v);
+    ms_viewer_inspect_init(&v.inspect, &o, &v.source);
     rc = o.scripted ? scripted(&v) : interactive(&v);
     ms_viewer_playback_free(&v.playback);
     return rc;

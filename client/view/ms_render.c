@@ -121,6 +121,10 @@ static void drop_current_apo(ms_render *r, render_cell *c)
 
 static void drop_cell(ms_render *r, render_cell *c)
 {
+    free(c->touch);
+    c->touch = NULL;
+    c->touch_count = 0;
+    c->has_version = false;
     delete_gpu_mesh(r, &c->mesh);
     drop_pending_mesh(r, &c->next_mesh);
     drop_pending_apo(r, &c->next_apo);
@@ -250,6 +254,7 @@ ms_status ms_render_new(const ms_archive_header *header, const ms_archive_cell *
     if (!r)
         return ms_error_set(err, MS_ERR_NOMEM, "render: no memory");
     r->crease_angle_deg = MS_RENDER_CREASE_ANGLE_DEFAULT;
+    r->derived_crease = -1.0;
     ms_status st = header ? take_model(r, header, cells, err) : MS_OK;
     ms_render_split_init(&r->split, &r->header);
     const ms_render_program *viewer = NULL, *unused;
@@ -336,6 +341,10 @@ void ms_render_free(ms_render *r)
     for (uint32_t i = 0; i < r->program_count; ++i)
         ms_render_program_free(&r->programs[i]);
     ms_render_split_free(&r->split);
+    ms_render_touch_map_free(&r->touch);
+    free(r->keys);
+    free(r->shade);
+    free(r->around);
     free(r->records);
     free(r->groups);
     free(r->frame_cells);
@@ -345,9 +354,7 @@ void ms_render_free(ms_render *r)
 
 /* ---- frames ------------------------------------------------------------------ */
 
-/* The cell's mesh in the new frame: nothing to do when it is what the cell draws
- * or already waits for; otherwise it becomes the pending mesh. */
-static ms_status take_mesh(ms_render *r, render_cell *c, const ms_render_cell_mesh *m, ms_error *err)
+ms_status ms_render_take_mesh(ms_render *r, render_cell *c, const ms_render_cell_mesh *m, ms_error *err)
 {
     bool same_as_current = c->mesh.vao && c->mesh.hash == m->hash && c->mesh.vertex_count == m->vertex_count &&
                            c->mesh.triangle_count == m->triangle_count;
@@ -454,6 +461,7 @@ ms_status ms_render_set_frame(ms_render *r, const ms_view_mesh *mesh, const ms_c
         if (apo[i].length && !apo[i].data)
             return ms_error_set(err, MS_ERR_ARG, "render: APO chunk %zu has no bytes", i);
     }
+    memset(&r->frame_stats, 0, sizeof r->frame_stats);
     ms_status st = ms_render_split_frame(&r->split, mesh, r->crease_angle_deg, err);
     if (st != MS_OK)
         return st;
@@ -500,19 +508,17 @@ ms_status ms_render_set_frame(ms_render *r, const ms_view_mesh *mesh, const ms_c
         ms_render_cell_at(r, r->split.present[k])->in_frame = true;
     for (uint32_t k = 0; k < r->frame_cell_count; ++k) {
         render_cell *c = ms_render_cell_at(r, r->frame_cells[k]);
-        if (!c->in_frame)
+        if (!c->in_frame) {
+            ms_render_cell_forget(r, r->frame_cells[k], c);
             drop_cell(r, c);
-    }
-    for (uint32_t k = 0; k < present && st == MS_OK; ++k) {
-        ms_render_cell_mesh m;
-        render_cell *c = ms_render_cell_at(r, r->split.present[k]);
-        st = ms_render_split_cell(&r->split, k, &c->record, &m, err);
-        if (st == MS_OK)
-            st = take_mesh(r, c, &m, err);
-        if (st == MS_OK) {
-            uint32_t e = c->frame_apo_entry;
-            st = take_apo(r, m.cell, e ? &apo[e - 1] : NULL, e ? c->frame_apo_levels : 0, err);
         }
+    }
+    /* the meshes of the cells whose triangles or normals may have changed */
+    st = ms_render_derive_cells(r, err);
+    for (uint32_t k = 0; k < present && st == MS_OK; ++k) {
+        render_cell *c = ms_render_cell_at(r, r->split.present[k]);
+        uint32_t e = c->frame_apo_entry;
+        st = take_apo(r, r->split.present[k], e ? &apo[e - 1] : NULL, e ? c->frame_apo_levels : 0, err);
     }
     for (size_t i = 0; i < apo_count; ++i) {
         render_cell *c = ms_render_cell_at(r, apo[i].cell);

@@ -10,9 +10,11 @@
  * cell-to-eye transform is computed in doubles on the CPU each draw, so 20-bit
  * models far from the origin keep their precision.
  *
- * Uploads. ms_render_set_frame finds the cells whose drawn triangles, vertex
- * positions or vertex normals changed since the previous frame (per-cell content hash) and queues
- * them; ms_render_upload sends queued data to the GPU within a byte budget per
+ * Uploads. ms_render_set_frame derives again only the cells whose triangles
+ * may have changed (the mesh's run versions) and their neighbours
+ * (ms_render_frame_stats), and queues those whose drawn triangles, vertex
+ * positions or vertex normals changed since the previous frame (per-cell
+ * content hash); ms_render_upload sends queued data to the GPU within a byte budget per
  * call (a cell larger than the budget goes up in pieces over several calls). A
  * cell keeps drawing its previous mesh until its new one is wholly on the GPU;
  * cells absent from the new frame stop drawing at once.
@@ -26,8 +28,9 @@
  * not load, or APO off), N is the smooth vertex normal (options.smooth) or the
  * triangle's flat normal.
  *
- * Vertex normals. ms_render_set_frame computes them once per frame over the whole
- * stitched mesh, so they are continuous across cell borders: around each
+ * Vertex normals. They are those of the whole stitched mesh (made only for
+ * the cells derived, from the fans of the cells around them), so they are
+ * continuous across cell borders: around each
  * vertex, the triangles across edges sharper than the crease angle
  * (ms_render_set_crease_angle, default MS_RENDER_CREASE_ANGLE_DEFAULT) widened
  * by how far each of the two triangles' normals may be off (its corners' decode
@@ -258,6 +261,25 @@ void ms_render_free(ms_render *render);
  * MS_ERR_ARG for a bad mesh or a drawing cell whose record is unknown. */
 ms_status ms_render_set_frame(ms_render *render, const ms_view_mesh *mesh,
                               const ms_core_apo_chunk *apo, size_t apo_count, ms_error *err);
+
+/* The work of the latest ms_render_set_frame. A cell's mesh (renumbered
+ * vertices, corner normals, packing, content hash) is derived again only when
+ * its triangles changed (the mesh's run version, ms_view_mesh; a hash of its
+ * corners for a mesh without runs) or when it shares a vertex with what such a
+ * cell, or one that left the frame, drew before or draws now (its normals
+ * there may have moved); every other cell keeps its mesh without being looked
+ * at beyond its version. A frame like the previous one derives nothing. */
+typedef struct ms_render_frame_stats {
+    uint32_t cells_present;    /* cells with triangles in the frame */
+    uint32_t cells_changed;    /* of them, new or with another version */
+    uint32_t cells_left;       /* cells of the previous frame not in this one */
+    uint32_t cells_derived;    /* meshes derived: the changed cells and their neighbours */
+    uint64_t vertex_fans;      /* vertices whose normals were made */
+    uint64_t face_normals;     /* triangles whose face normals were made */
+} ms_render_frame_stats;
+
+/* The figures of the latest ms_render_set_frame (zeros before the first). */
+void ms_render_frame_stats_get(const ms_render *render, ms_render_frame_stats *stats);
 
 typedef struct ms_render_upload_stats {
     uint64_t bytes;            /* sent to the GPU by this call (vertices, indices, texels) */

@@ -79,30 +79,44 @@ typedef struct ms_render_split {
     const ms_archive_header *header;
     uint32_t cell_count;
     const ms_view_mesh *mesh;
-    /* Sized by the frame, not the model: the triangles sorted by drawing cell
-     * (a stable radix sort on the cell id), and the cells that draw, each with
-     * the first entry of its run in order. */
-    uint32_t *order;         /* triangles sorted by drawing cell */
+    double level_error[64];  /* per kd-level: how far a vertex decoded there may be off */
+    /* The frame's cells (ms_render_split_frame): the mesh's own runs when it
+     * has them (runs true: ms_view_stitch's, with their versions); else the
+     * triangles sorted by drawing cell (a stable radix sort on the cell id)
+     * and a version hashed from each cell's corners. Sized by the frame, not
+     * the model. */
+    bool runs;
+    uint32_t *order;         /* triangles sorted by drawing cell (without runs) */
     uint64_t *sort_keys;     /* per triangle: its drawing cell, the sort's keys */
     size_t order_cap;
     uint32_t *present;       /* cells with triangles in this frame, ascending */
-    uint32_t *present_start; /* present_count + 1: each present cell's first entry of order */
+    uint32_t *present_start; /* present_count + 1: each present cell's first entry of order
+                                (with runs: its first triangle) */
+    uint64_t *present_version; /* per present cell: the same while its triangles are */
     size_t present_cap;
     uint32_t present_count;
     uint32_t *local;         /* per mesh vertex: its index in the current cell */
     uint32_t *stamp;         /* per mesh vertex: the cell pass that set local */
     size_t vertex_cap;
     uint32_t pass;
-    /* The normals (ms_render_split_frame): per triangle its unnormalised face
-     * normal, per corner its packed normal; the corners around each vertex
-     * (fan_start, nv + 1 entries, into fan: corner numbers 3t + k); scratch for
-     * one vertex's fan. */
+    /* The normals (ms_render_split_normals, ms_render_normals.c): per triangle
+     * its unnormalised face normal, per corner its packed normal, written for
+     * the triangles of the cells asked about; the corners around each vertex of
+     * those cells (fan_start, one more than their vertices, into fan: corner
+     * numbers 3t + k, ascending); scratch for one vertex's fan. */
     double *face_normal;     /* 3 per triangle */
     uint32_t *corner_packed; /* 3 per triangle */
-    uint32_t *fan;           /* 3 per triangle */
     size_t triangle_normal_cap;
-    uint32_t *fan_start;     /* nv + 1 */
+    uint32_t *fan;           /* 3 per triangle of the cells around */
+    size_t fan_corner_cap;
+    uint32_t *fan_start;     /* per fan vertex + 1 */
+    uint8_t *fan_done;       /* per fan vertex: its normals made */
+    size_t fan_done_cap;
     size_t fan_start_cap;
+    uint32_t *fan_vstamp;    /* per mesh vertex: the normals pass that numbered it */
+    uint32_t *fan_vlocal;    /* per mesh vertex: its fan vertex number */
+    size_t fan_vertex_cap;
+    uint32_t fan_pass;
     uint64_t *fan_keys;      /* 2 per fan corner: (other vertex, fan slot, direction) */
     uint32_t *fan_parent;    /* per fan corner: union-find over the fan's faces */
     uint8_t *fan_parity;     /* per fan corner: 1 when its face is flipped against its parent */
@@ -115,6 +129,8 @@ typedef struct ms_render_split {
     double *face_rlen;       /* per triangle: 1 / |face_normal| (0 for no area) */
     double crease_cos;       /* cosine of the crease angle of the last split */
     double crease_rad;       /* the crease angle of the last split, radians */
+    uint64_t fans_made;      /* the last ms_render_split_normals: vertices whose fans it made */
+    uint64_t faces_made;     /* ... and triangles whose face normals it made */
     float *vertices;
     uint32_t *normals;
     uint32_t *same_next;     /* per cell vertex: the next cell vertex of the same mesh vertex */
@@ -132,25 +148,60 @@ void ms_render_split_free(ms_render_split *split);
  * vector need not be unit: it is normalised first. */
 uint32_t ms_render_pack_normal(const double n[3]);
 
-/* Checks the mesh (indices in range, drawing cells in the model, positions
- * finite, counts below 2^32), groups its triangles by cell and computes the
- * corner normals of the whole stitched mesh (continuous across cell borders,
- * since a border vertex is one mesh vertex): around each vertex, its
- * triangles are joined across every edge they share with exactly one other
- * triangle whose normal (turned over when the two use the edge in the same
- * direction: one of them is flipped) lies within crease_angle_deg ([0, 180])
- * of theirs; each group's normal is the sum of its unnormalised face normals
- * (area-weighted), each turned to the group's orientation, and a corner gets
- * its group's normal turned to its own triangle's orientation. The mesh is
- * borrowed until the next call. MS_ERR_ARG for a bad mesh or angle,
- * MS_ERR_NOMEM. */
+/* Groups the mesh's triangles by drawing cell and gives each present cell its
+ * version. A mesh with runs (ms_view_stitch's) is checked as far as its runs
+ * (ascending cells in the model, covering the triangles in order; the
+ * triangles themselves are checked as ms_render_split_normals uses them);
+ * one without is checked whole (indices in range, drawing cells in the model,
+ * positions finite, counts below 2^32), and each cell's version is a hash of
+ * its corners' positions and levels in order. The mesh is borrowed until the
+ * next call. MS_ERR_ARG for a bad mesh or angle, MS_ERR_NOMEM. */
 ms_status ms_render_split_frame(ms_render_split *split, const ms_view_mesh *mesh, double crease_angle_deg,
                                 ms_error *err);
 
+/* The number of triangles of the k-th present cell, and the i-th of them. */
+static inline uint32_t ms_render_split_triangle(const ms_render_split *s, uint32_t k, uint32_t i)
+{
+    return s->runs ? s->present_start[k] + i : s->order[s->present_start[k] + i];
+}
+
+/* The corner normals of the triangles of the present cells shade[0..shade_count)
+ * (indices into present, ascending), from the fans made of the triangles of the
+ * present cells around[0..around_count) (ascending, a superset of shade that
+ * holds every cell with a triangle at a vertex of a shaded cell): around each
+ * such vertex, its triangles are joined across every edge they share with
+ * exactly one other triangle whose normal (turned over when the two use the
+ * edge in the same direction: one of them is flipped) lies within the crease
+ * angle of theirs, widened by both triangles' slack; each group's normal is the
+ * sum of its unnormalised face normals (area-weighted), each turned to the
+ * group's orientation, and a corner gets its group's normal turned to its own
+ * triangle's orientation. The same result as over the whole mesh. With runs,
+ * checks the triangles of around (indices, drawing cell, finite positions):
+ * MS_ERR_ARG; MS_ERR_NOMEM. */
+ms_status ms_render_split_normals(ms_render_split *split, const uint32_t *shade, uint32_t shade_count,
+                                  const uint32_t *around, uint32_t around_count, ms_error *err);
+
 /* The k-th present cell's mesh (k < present_count), in the cube of record (that
- * cell's). MS_ERR_NOMEM. */
+ * cell's), with the normals ms_render_split_normals made for it. MS_ERR_NOMEM. */
 ms_status ms_render_split_cell(ms_render_split *split, uint32_t k, const ms_archive_cell *record,
                                ms_render_cell_mesh *out, ms_error *err);
+
+/* ---- ms_render_cells.c ------------------------------------------------- */
+
+/* Which cells touch each vertex: a multiset of (vertex key, cell) pairs, the
+ * key a hash of the vertex's position, in one open-addressing table. */
+typedef struct ms_render_touch_slot {
+    uint64_t key;
+    uint32_t cell;
+    uint32_t state; /* 0 empty, 1 held, 2 removed */
+} ms_render_touch_slot;
+
+typedef struct ms_render_touch_map {
+    ms_render_touch_slot *slots;
+    size_t cap, held, used; /* used: held and removed */
+} ms_render_touch_map;
+
+void ms_render_touch_map_free(ms_render_touch_map *map);
 
 /* ---- ms_render_apo.c --------------------------------------------------- */
 
@@ -274,6 +325,13 @@ typedef struct render_cell {
     bool in_frame;
     uint32_t frame_apo_entry;  /* set_frame scratch: index into the frame's apo array + 1 */
     uint32_t frame_apo_levels; /* set_frame scratch */
+    /* what its mesh was derived from (ms_render_cells.c) */
+    bool has_version;
+    uint64_t version;          /* the frame's version of its triangles (ms_render_split) */
+    uint64_t *touch;           /* the keys of the vertices its triangles use, each once */
+    uint32_t touch_count;
+    uint32_t frame_index;      /* set_frame scratch: its index in the frame's present cells */
+    uint32_t mark;             /* set_frame scratch: the pass that put it in a set */
 } render_cell;
 
 /* Per-cell state is kept per sibling group, as the view decoder keeps its
@@ -304,7 +362,31 @@ struct ms_render {
     uint32_t *queue;            /* cells with something pending, oldest first (frame cells) */
     uint32_t queue_count;
     size_t frame_cap;           /* entries frame_cells and queue hold */
+    /* the cells' derivation (ms_render_cells.c) */
+    ms_render_touch_map touch;
+    double derived_crease;      /* the crease angle the cells' meshes were made with */
+    uint32_t mark_pass;
+    uint64_t *keys;             /* scratch: vertex keys */
+    size_t key_count, key_cap;
+    uint32_t *shade, *around;   /* scratch: present indices */
+    size_t shade_count, around_count, set_cap;
+    ms_render_frame_stats frame_stats;
 };
+
+/* Drops what a cell's mesh was derived from (its touch list from the map). */
+void ms_render_cell_forget(ms_render *r, uint32_t id, render_cell *c);
+
+/* The new frame's cells (split grouped, every present cell with its state and
+ * in_frame, cells that left already forgotten): derives the meshes of the
+ * cells whose triangles changed and of those sharing a vertex with what they
+ * drew or draw now, and takes them (ms_render_take_mesh). Fills
+ * r->frame_stats. On error every cell is forgotten, so the next frame derives
+ * all. MS_ERR_ARG (a bad mesh), MS_ERR_NOMEM. */
+ms_status ms_render_derive_cells(ms_render *r, ms_error *err);
+
+/* The cell's mesh in the new frame (ms_render.c): nothing to do when it is what
+ * the cell draws or already waits for; otherwise it becomes the pending mesh. */
+ms_status ms_render_take_mesh(ms_render *r, render_cell *c, const ms_render_cell_mesh *m, ms_error *err);
 
 /* The state of cell id, NULL when its group holds none. */
 render_cell *ms_render_cell_at(const ms_render *r, uint32_t id);

@@ -1,5 +1,6 @@
 #include "ms_viewer_catalogue.h"
 
+#include <GLFW/glfw3.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -99,4 +100,15 @@ void ms_viewer_catalogue_draw(ms_viewer_text *text, const ms_viewer_catalogue *c
     }
     ms_viewer_text_print(text, x, height - 2 * MS_FONT_LINE_HEIGHT * s, dim,
                          "up/down or mouse: choose   enter or double-click: open   esc: quit");
+}
+
+ms_catalogue_action ms_viewer_catalogue_key(ms_viewer_catalogue *cat, int key, int height, int scale)
+{
+    long move = key == GLFW_KEY_DOWN ? 1 : key == GLFW_KEY_UP ? -1 : key == GLFW_KEY_PAGE_DOWN ? 10
+                : key == GLFW_KEY_PAGE_UP                      ? -10 : 0;
+    if (move)
+        ms_viewer_catalogue_move(cat, move, height, scale);
+    return key == GLFW_KEY_ENTER || key == GLFW_KEY_KP_ENTER ? MS_CATALOGUE_OPEN
+           : key == GLFW_KEY_TAB                             ? MS_CATALOGUE_BACK
+                                                             : MS_CATALOGUE_STAY;
 }

@@ -23,6 +23,12 @@ typedef struct ms_viewer_catalogue {
 /* Moves the selection by delta rows (clamped) and scrolls to keep it shown. */
 void ms_viewer_catalogue_move(ms_viewer_catalogue *cat, long delta, int height, int scale);
 
+/* A key (GLFW_KEY_*) on the catalogue screen: Up / Down and PgUp / PgDn move
+ * the selection (1 and 10 rows); MS_CATALOGUE_OPEN for Enter, MS_CATALOGUE_BACK
+ * for Tab (back to the model), else MS_CATALOGUE_STAY. */
+typedef enum { MS_CATALOGUE_STAY, MS_CATALOGUE_OPEN, MS_CATALOGUE_BACK } ms_catalogue_action;
+ms_catalogue_action ms_viewer_catalogue_key(ms_viewer_catalogue *cat, int key, int height, int scale);
+
 /* The row under framebuffer point (x, y), or -1. */
 long ms_viewer_catalogue_row_at(const ms_viewer_catalogue *cat, double x, double y, int width,
                                 int height, int scale);

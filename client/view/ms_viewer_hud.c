@@ -79,6 +79,8 @@ size_t ms_viewer_hud_lines(const ms_viewer_hud_info *info,
                  pb->state == MS_PLAYBACK_PLAYING ? "playing" : "paused");
     if (info->piece && info->piece->material)
         n += piece_lines(info, lines + n);
+    for (size_t i = 0; i < info->extra_count && n < MS_HUD_MAX_LINES; ++i)
+        snprintf(lines[n++], MS_HUD_LINE_MAX, "%s", info->extra[i]);
     return n;
 }
 

@@ -24,7 +24,7 @@
 #include "ms_viewer_scene.h"
 #include "ms_viewer_text.h"
 
-#define MS_HUD_MAX_LINES 14
+#define MS_HUD_MAX_LINES 16
 #define MS_HUD_LINE_MAX 96
 
 typedef struct ms_viewer_hud_info {
@@ -42,6 +42,9 @@ typedef struct ms_viewer_hud_info {
     const ms_viewer_playback *playback; /* a line while the path drives the camera; may be NULL */
     const ms_viewer_scene_piece *piece; /* the selected piece: three lines; NULL: none */
     size_t piece_index, piece_count;    /* its index (from 0) and the scene's pieces */
+    const char (*extra)[MS_HUD_LINE_MAX]; /* lines added at the end (the light, a
+                                           measurement: ms_viewer_inspect.h) */
+    size_t extra_count;                 /* at most 2 */
 } ms_viewer_hud_info;
 
 /* Writes the HUD's lines; returns how many (at most MS_HUD_MAX_LINES). */

@@ -49,6 +49,15 @@ void ms_viewer_options_usage(FILE *out)
           "  --connection-per-model from a server, one connection per model (default: one\n"
           "                         connection for all the models, their requests merged by\n"
           "                         priority); for comparisons\n"
+          "Looking closely (one model; docs/VIEWER.md):\n"
+          "  --light AZ,EL          a directional light, degrees in the camera's frame (azimuth\n"
+          "                         from the view axis, > 0 from the right; elevation, > 0 from\n"
+          "                         above; default the head light)\n"
+          "  --view TEXT            start from a view printed by the V key (camera, light and\n"
+          "                         measuring points: mv1:t=...)\n"
+          "  --measure X,Y:X,Y...   scripted: measure along the surface points seen at these\n"
+          "                         pixels of the first keyframe (top-left origin), 2 to 16;\n"
+          "                         the distance and its precision in the report\n"
           "Camera path:\n"
           "  --path FILE            a camera path (docs/CAMERA_PATHS.md): Space plays it in the\n"
           "                         window; scripted, the camera follows it (else the home view)\n"
@@ -80,6 +89,10 @@ void ms_viewer_options_usage(FILE *out)
           "       Space  play / pause the camera path (--path, or the scene's) from\n"
           "              where the camera is; a drag, the wheel or a move stops it\n"
           "       . / ,  next / previous keyframe of the path\n"
+          "       T  measuring on/off: a click adds the surface point under the cursor;\n"
+          "          Backspace removes the last point, Delete clears them\n"
+          "       L  raking light from the left, top, right, bottom, then the head light\n"
+          "       Ctrl + left drag  moves the light     V  print the view text (--view)\n"
           "Scene: ] / [  select the next / previous piece   Z  frame the selected piece\n"
           "Exit status: 0 on success, 1 on an error (no OpenGL 4.1, server gone, unknown\n"
           "model, window closed while a scripted run streams), 2 for a usage error.\n",
@@ -147,6 +160,26 @@ static bool effect_list(const char *text, unsigned *bits)
     }
 }
 
+/* "X,Y:X,Y..." into o->measure_px: 2 to 16 points, each coordinate finite. */
+static bool measure_pixels(const char *text, ms_viewer_options *o)
+{
+    o->measure_count = 0;
+    for (const char *p = text;;) {
+        size_t len = strcspn(p, ":");
+        char pair[96];
+        if (o->measure_count >= MS_VIEWER_MEASURE_MAX_POINTS || len >= sizeof pair)
+            return false;
+        memcpy(pair, p, len);
+        pair[len] = 0;
+        if (!ms_viewer_numbers(pair, ',', o->measure_px[o->measure_count], 2))
+            return false;
+        o->measure_count++;
+        if (!p[len])
+            return o->measure_count >= 2;
+        p += len + 1;
+    }
+}
+
 /* The checks across options and the settings derived from them, after the
  * command line was read; 0, or 2 after printing the one line. */
 static int finish_options(ms_viewer_options *o, const char *shading, bool no_apo, FILE *err)
@@ -191,6 +224,27 @@ static int finish_options(ms_viewer_options *o, const char *shading, bool no_apo
                 "--scene\n");
         return 2;
     }
+    if ((o->has_view || o->measure_count || o->light.directional) && !o->model) {
+        fprintf(err, "meshview: --view, --light and --measure need --model\n");
+        return 2;
+    }
+    if (o->measure_count && !o->scripted) {
+        fprintf(err, "meshview: --measure is for a scripted run (--screenshot-dir); in the window T measures\n");
+        return 2;
+    }
+    for (size_t i = 0; i < o->measure_count; ++i)
+        if (!(o->measure_px[i][0] >= 0 && o->measure_px[i][0] <= o->width && o->measure_px[i][1] >= 0 &&
+              o->measure_px[i][1] <= o->height)) {
+            fprintf(err, "meshview: --measure: pixel %zu is outside the %dx%d picture\n", i + 1, o->width,
+                    o->height);
+            return 2;
+        }
+    if (o->has_view && o->path_file && o->scripted) {
+        fprintf(err, "meshview: --view and --path exclude each other in a scripted run\n");
+        return 2;
+    }
+    if (o->has_view && !o->light.directional) /* --light wins over the view's */
+        o->light = o->view.light;
     if (o->json && !o->scripted) {
         fprintf(err, "meshview: --json reports a scripted run (--screenshot-dir)\n");
         return 2;
@@ -332,6 +386,28 @@ static int apply_option(int ch, const char *arg, ms_viewer_options *o, option_le
             return 2;
         }
         break;
+    case 'L':
+        if (!ms_viewer_light_parse(arg, &o->light)) {
+            fprintf(err, "meshview: --light wants AZ,EL in degrees, AZ in [-180, 180] and EL in [-90, 90], "
+                    "not '%.64s'\n", arg);
+            return 2;
+        }
+        break;
+    case 'V': {
+        ms_error e;
+        if (ms_viewer_share_parse(arg, &o->view, &e) != MS_OK) {
+            fprintf(err, "meshview: --view: %s\n", e.text);
+            return 2;
+        }
+        o->has_view = true;
+        break;
+    }
+    case 'G':
+        if (!measure_pixels(arg, o)) {
+            fprintf(err, "meshview: --measure wants 2 to 16 pixels X,Y separated by ':', not '%.64s'\n", arg);
+            return 2;
+        }
+        break;
     default: return OPTION_UNKNOWN;
     }
     return 0;
@@ -361,6 +437,9 @@ int ms_viewer_options_parse(int argc, char **argv, ms_viewer_options *o, FILE *e
         {"whole-index", no_argument, NULL, 'W'},
         {"flat", no_argument, NULL, 'l'},
         {"crease-angle", required_argument, NULL, 'K'},
+        {"light", required_argument, NULL, 'L'},
+        {"view", required_argument, NULL, 'V'},
+        {"measure", required_argument, NULL, 'G'},
         {NULL, 0, NULL, 0}};
     default_options(o);
     option_leftovers left = {false, NULL};

@@ -23,6 +23,7 @@
 
 #include "ms_render.h"
 #include "ms_viewer_scene.h"
+#include "ms_viewer_share.h"
 
 typedef struct ms_viewer_options {
     const char *archive_dir;   /* positional: a local archive directory */
@@ -52,6 +53,12 @@ typedef struct ms_viewer_options {
                                   connection per model instead of one for all */
     bool flat;                 /* --flat: each triangle's own normal where no APO normal is used */
     double crease_angle_deg;   /* --crease-angle; negative: the catalogue's, else the default */
+    ms_viewer_light light;     /* --light AZ,EL (directional); else the head light */
+    bool has_view;             /* --view TEXT: the camera, light and chain to start from */
+    ms_viewer_share view;
+    size_t measure_count;      /* --measure X,Y:X,Y...: scripted, framebuffer pixels of the
+                                  first keyframe (top-left origin) */
+    double measure_px[MS_VIEWER_MEASURE_MAX_POINTS][2];
 } ms_viewer_options;
 
 /* 0: parsed (o->help for --help); 2: a usage error, one line written to err. */

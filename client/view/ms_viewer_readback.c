@@ -1,7 +1,9 @@
 #include "ms_viewer_readback.h"
 
 #include <epoxy/gl.h>
+#include <stdio.h>
 #include <stdlib.h>
+#include <sys/stat.h>
 #include <string.h>
 
 #include "ms_png.h"
@@ -98,4 +100,14 @@ void ms_viewer_target_free(ms_viewer_target *t)
     if (t->depth)
         glDeleteRenderbuffers(1, &t->depth);
     memset(t, 0, sizeof *t);
+}
+
+ms_status ms_viewer_screenshot_numbered(const char *dir, const char *name, int *counter, int width, int height,
+                                        char *written, size_t size, ms_error *err)
+{
+    struct stat sb;
+    do
+        snprintf(written, size, "%s/meshview-%s-%03d.png", dir, name, (*counter)++);
+    while (stat(written, &sb) == 0 && *counter < 1000);
+    return ms_viewer_screenshot(written, width, height, err);
 }

@@ -13,6 +13,7 @@
 #define MS_VIEWER_READBACK_H
 
 #include <stdbool.h>
+#include <stddef.h>
 #include <stdint.h>
 
 #include "ms_error.h"
@@ -20,6 +21,11 @@
 /* Writes the bound read framebuffer's width x height colour pixels to path as an
  * RGB PNG (top row first). */
 ms_status ms_viewer_screenshot(const char *path, int width, int height, ms_error *err);
+
+/* The P key: the screenshot as DIR/meshview-NAME-NNN.png, NNN from *counter
+ * on, the first name not taken (at most 1000 tries); its path into written. */
+ms_status ms_viewer_screenshot_numbered(const char *dir, const char *name, int *counter, int width, int height,
+                                        char *written, size_t size, ms_error *err);
 
 /* Reads width x height RGB pixels, top row first, into a malloc'd buffer. */
 ms_status ms_viewer_read_rgb(int width, int height, uint8_t **pixels, ms_error *err);

@@ -16,6 +16,7 @@
 #include "ms_viewer_catalogue.h"
 #include "ms_viewer_controls.h"
 #include "ms_viewer_hud.h"
+#include "ms_viewer_inspect.h"
 #include "ms_viewer_readback.h"
 #include "ms_viewer_scene.h"
 #include "ms_viewer_signals.h"
@@ -177,6 +178,8 @@ typedef struct script {
     uint64_t last_triangles;
     ms_viewer_rss rss;          /* the caller's two stages, then the run's */
     uint64_t rss_shaders, rss_first_frame; /* VmRSS at those stages; 0: not read */
+    json_t *inspect;            /* the report's light, view and measure (one model) */
+    ms_viewer_inspect look;     /* the light, the measuring chain drawn with --hud */
 } script;
 
 /* VmRSS now, 0 when it cannot be read (the report then says 0). */
@@ -249,6 +252,8 @@ static ms_status frame(script *s, const ms_camera *camera, ms_viewer_step *step,
         return ms_error_set(err, MS_ERR_IO, "interrupted while the model streamed");
     double t0 = now_s();
     ms_status st = run_step(s, camera, step, err);
+    if (s->stream) /* --light, --view: the light in the camera's frame, the chain cast */
+        ms_viewer_inspect_frame(&s->look, s->stream, camera, &s->render);
     if (st != MS_OK)
         return st;
     glFinish(); /* the upload's share of the GPU's work counts to the step */
@@ -297,10 +302,13 @@ static ms_status frame(script *s, const ms_camera *camera, ms_viewer_step *step,
                                    .triangles_drawn = drawn.triangles_drawn,
                                    .cells_drawn = drawn.cells_drawn,
                                    .core = &cs,
-                                   .settled = step->settled};
+                                   .settled = step->settled,
+                                   .extra = s->look.lines,
+                                   .extra_count = s->stream ? ms_viewer_inspect_hud(&s->look, s->stream) : 0};
         ms_viewer_text_begin(s->text, s->o->width, s->o->height,
                              ms_viewer_text_auto_scale(s->o->height, 1, false));
         ms_viewer_hud_draw(s->text, &info, s->o->width, s->o->height, true);
+        ms_viewer_inspect_markers(&s->look, s->text);
         if ((st = ms_viewer_text_draw(s->text, err)) != MS_OK)
             return st;
     }
@@ -459,13 +467,14 @@ static ms_status play(script *s, const ms_viewer_model *model, json_t *keys, boo
     } else { /* the home view as a path of one keyframe */
         ms_viewer_controls c;
         ms_viewer_controls_init(&c, lo, hi, o->up_axis, (double)o->width / o->height);
+        ms_viewer_inspect_view(o, &c); /* --view */
         path.keys = calloc(1, sizeof *path.keys);
         if (!path.keys)
             return ms_error_set(err, MS_ERR_NOMEM, "out of memory for a path");
         path.count = 1;
         ms_viewer_controls_eye(&c, path.keys[0].position);
         memcpy(path.keys[0].target, c.target, sizeof c.target);
-        path.keys[0].up[o->up_axis] = 1;
+        path.keys[0].up[c.up_axis] = 1;
         path.keys[0].fovy_degrees = c.fovy_degrees;
     }
     *all_complete = true;
@@ -493,6 +502,13 @@ static ms_status play(script *s, const ms_viewer_model *model, json_t *keys, boo
         snprintf(png, sizeof png, "%s/keyframe-%02zu.png", o->screenshot_dir, k);
         if ((st = ms_viewer_screenshot(png, o->width, o->height, err)) != MS_OK)
             goto done;
+        if (k == 0 && s->stream && s->inspect && ms_viewer_inspect_report_measure(o, &s->look, s->stream, &camera,
+                                                                               s->inspect) && o->hud) {
+            ms_viewer_step again; /* the picture again, with the points and the distance */
+            if ((st = frame(s, &camera, &again, err)) != MS_OK ||
+                (st = ms_viewer_screenshot(png, o->width, o->height, err)) != MS_OK)
+                goto done;
+        }
         ms_core_stats cs;
         run_stats(s, &cs);
         *all_complete &= settled;
@@ -529,6 +545,8 @@ static void script_free(script *s)
     free(s->apo_draw_ms.v);
     free(s->plain_draw_ms.v);
     free(s->log.upload);
+    json_decref(s->inspect);
+    ms_viewer_inspect_close(&s->look);
 }
 
 /* --scene: the scene's models streamed and drawn together along its path. */
@@ -606,7 +624,8 @@ ms_status ms_viewer_script_run(const ms_viewer_options *o, const ms_viewer_sourc
     if ((st = ms_viewer_model_open(source, o->model, &model, err)) != MS_OK)
         return st;
     script s = {.o = o, .window = window, .name = o->model, .opened_at = opened_at, .first_display = -1,
-                .rss = *rss};
+                .rss = *rss, .inspect = json_object()};
+    ms_viewer_inspect_init(&s.look, o, source);
     ms_render_options_default(&s.render);
     s.render.shading = o->shading;
     s.render.apo = o->apo_shading;
@@ -661,6 +680,8 @@ ms_status ms_viewer_script_run(const ms_viewer_options *o, const ms_viewer_sourc
     if (*report) {
         json_object_set_new(*report, "flat", json_boolean(o->flat));
         json_object_set_new(*report, "crease_angle_deg", json_real(ms_viewer_stream_crease_angle(s.stream)));
+        ms_viewer_inspect_report_light(o, *report);
+        json_object_update(*report, s.inspect);
     }
     if (!*report)
         st = ms_error_set(err, MS_ERR_NOMEM, "out of memory for the report");
@@ -674,7 +695,7 @@ done:
 void ms_viewer_script_print(const json_t *report, bool json)
 {
     if (json) {
-        char *text = json_dumps(report, JSON_INDENT(2) | JSON_PRESERVE_ORDER | JSON_REAL_PRECISION(6));
+        char *text = json_dumps(report, JSON_INDENT(2) | JSON_PRESERVE_ORDER | JSON_REAL_PRECISION(17));
         if (text)
             printf("%s\n", text);
         free(text);

@@ -124,6 +124,8 @@ void ms_viewer_stream_set_tolerance(ms_viewer_stream *s, double tolerance_px)
 
 double ms_viewer_stream_tolerance(const ms_viewer_stream *s) { return s->tolerance; }
 
+const ms_core_frame *ms_viewer_stream_frame(const ms_viewer_stream *s) { return s->frame; }
+
 /* k: core pixels per screen pixel. */
 static double core_scale(const ms_viewer_stream *s) { return s->start_tolerance / s->tolerance; }
 

@@ -111,6 +111,11 @@ bool ms_viewer_stream_settled(const ms_viewer_stream *stream);
 
 const ms_viewer_model *ms_viewer_stream_model(const ms_viewer_stream *stream);
 
+/* The core frame the renderer was last given (owned by the stream, valid until
+ * the next step or close), or NULL before the first: what measuring casts its
+ * rays against (ms_viewer_measure.h). */
+const ms_core_frame *ms_viewer_stream_frame(const ms_viewer_stream *stream);
+
 /* The stream's renderer (owned by the stream), e.g. to capture an impostor. */
 ms_render *ms_viewer_stream_render(ms_viewer_stream *stream);
 

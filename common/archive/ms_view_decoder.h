@@ -296,6 +296,20 @@ typedef struct ms_view_mesh {
     size_t snapped_frozen;   /* triangle corners given by a frozen foreign vertex (known
                               * only to a lone kd-cell coarser than its holder: ms_codec.h,
                               * regions) resolved to the holder's vertex inside that cell */
+    /* The stitched cells, ascending (ms_view_stitch fills them; a mesh made by
+     * hand may leave run_count 0): cell run_cell[k] drew triangles
+     * [run_first[k], run_first[k + 1]) (run_count + 1 entries), and
+     * run_version[k] changes whenever those triangles may have changed since an
+     * earlier stitch of the same view: it is a hash of the stamps of the cell
+     * and of every cell its triangles' corners' owner lookups ended at (the
+     * owner, or the split cell too coarse to hold the corner), a stamp being
+     * renewed whenever a stitch sees a cell's state or precision changed. The
+     * same version means the same triangles: same vertex positions and levels,
+     * same corners, same order. */
+    size_t run_count, run_cap;
+    uint32_t *run_cell;
+    uint32_t *run_first;
+    uint64_t *run_version;
 } ms_view_mesh;
 
 /* Builds the mesh of the shown cells whose visible[cell] is true (NULL: all).

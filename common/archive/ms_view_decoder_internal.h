@@ -32,6 +32,9 @@ typedef struct vcell {
     uint32_t *owner;        /* per cache vertex: shown cell holding it, NONE = finer cells */
     uint8_t *levels;        /* per cache vertex: its kd-level, when some foreign vertex is
                              * frozen coarser than the cell (else NULL: all at its level) */
+    /* versions of the stitched triangles (ms_view_mesh.run_version) */
+    uint8_t stitched_state, stitched_bits; /* as the last stitch saw them */
+    uint64_t stamp;         /* renewed when a stitch sees them change */
 } vcell;
 
 /* Cells are kept per sibling group: ids are breadth-first, so every group of
@@ -49,6 +52,7 @@ struct ms_view {
     uint32_t known;         /* cells whose records are known */
     uint32_t block_cells;   /* cells of the blocks in `groups` (known or not) */
     uint32_t stamp_epoch;
+    uint64_t stitch_stamps; /* the last stamp handed out (vcell.stamp) */
 };
 
 /* The group of cell id and its place in it. */

@@ -16,6 +16,9 @@ void ms_view_mesh_free(ms_view_mesh *m)
     free(m->levels);
     free(m->triangles);
     free(m->triangle_cell);
+    free(m->run_cell);
+    free(m->run_first);
+    free(m->run_version);
     memset(m, 0, sizeof *m);
 }
 
@@ -56,8 +59,9 @@ static ms_status refresh_cache(ms_view *v, uint32_t cell, ms_error *err)
 }
 
 /* The shown cell holding kd-cell (prefix, level), or OWNER_FINER when the kd-cell
- * spans several shown cells (all finer than `level`). */
-static uint32_t owner_of(const ms_view *v, uint64_t prefix, unsigned level)
+ * spans several shown cells (all finer than `level`); *end: the cell the walk
+ * down from the root stopped at (the owner, or the split cell too coarse). */
+static uint32_t owner_of(const ms_view *v, uint64_t prefix, unsigned level, uint32_t *end)
 {
     uint32_t xyz[3];
     ms_nsp_prefix_corner(&v->shape, prefix, level, xyz);
@@ -65,10 +69,13 @@ static uint32_t owner_of(const ms_view *v, uint64_t prefix, unsigned level)
     const vcell *at;
     while ((at = ms_view_vcell(v, cell)) != NULL && at->state == MS_VIEW_SPLIT) {
         const ms_archive_cell *r = &at->rec;
-        if (level < 3u * (r->level + 1u) * v->shape.log2n)
+        if (level < 3u * (r->level + 1u) * v->shape.log2n) {
+            *end = cell;
             return OWNER_FINER;
+        }
         cell = r->first_child + ms_nsp_child_offset(&v->shape, r->level, xyz);
     }
+    *end = cell;
     return cell;
 }
 
@@ -271,13 +278,80 @@ static ms_status drop_snapped_repeats(ms_view_mesh *m, size_t first, const uint8
     return MS_OK;
 }
 
+/* One step of the run versions' hash (ms_view_mesh.run_version). */
+static uint64_t version_mix(uint64_t h, uint64_t cell, uint64_t stamp)
+{
+    h = (h ^ cell) * 0x9E3779B97F4A7C15ull;
+    h ^= h >> 29;
+    h = (h ^ stamp) * 0xBF58476D1CE4E5B9ull;
+    return h ^ h >> 32;
+}
+
+/* The running version of a cell's triangles: each cell looked at, with what
+ * of it was used (its stamp; or only its level, a tag above any stamp; or
+ * only that it is split too coarse), once per run of equal notes. */
+typedef struct dep_note {
+    uint64_t version;
+    uint32_t cell;
+    uint64_t word;
+} dep_note;
+
+#define DEP_FINER (UINT64_MAX - 255u)
+#define DEP_LEVEL (UINT64_MAX - 254u)
+
+static void note_dep(dep_note *d, uint32_t cell, uint64_t word)
+{
+    if (cell == d->cell && word == d->word)
+        return;
+    d->cell = cell;
+    d->word = word;
+    d->version = version_mix(d->version, cell, word);
+}
+
+/* Appends cell's run (its triangles from first on) to the mesh's runs. */
+static ms_status add_run(ms_view_mesh *m, uint32_t cell, size_t first, uint64_t version, ms_error *err)
+{
+    if (m->run_count + 2 > m->run_cap) {
+        size_t c = grown(m->run_cap, m->run_count + 2);
+        uint32_t *ids = realloc(m->run_cell, c * sizeof *ids);
+        if (ids)
+            m->run_cell = ids;
+        uint32_t *starts = realloc(m->run_first, c * sizeof *starts);
+        if (starts)
+            m->run_first = starts;
+        uint64_t *versions = realloc(m->run_version, c * sizeof *versions);
+        if (versions)
+            m->run_version = versions;
+        if (!ids || !starts || !versions)
+            return ms_error_set(err, MS_ERR_NOMEM, "out of memory stitching");
+        m->run_cap = c;
+    }
+    m->run_cell[m->run_count] = cell;
+    m->run_first[m->run_count] = (uint32_t)first;
+    m->run_version[m->run_count++] = version;
+    m->run_first[m->run_count] = (uint32_t)m->triangle_count;
+    return MS_OK;
+}
+
 ms_status ms_view_stitch(ms_view *v, const bool *visible, ms_view_mesh *m, ms_error *err)
 {
     uint8_t *snapped = NULL;
     size_t snapped_cap = 0;
     m->vertex_count = m->triangle_count = 0;
     m->dropped_finer = m->dropped_snapped = m->unresolved = m->snapped_frozen = 0;
+    m->run_count = 0;
     ms_status s = MS_OK;
+    /* A new stamp for every cell whose state or precision changed since the
+     * last stitch (a cell whose group was freed and made again starts hidden
+     * at 0 bits with stamp 0, so it gets one as soon as it differs). */
+    for (uint32_t id = 0; id != MS_ARCHIVE_NONE; id = ms_view_next_known(v, id)) {
+        vcell *c = ms_view_vcell(v, id);
+        if (c && (c->state != c->stitched_state || c->bits != c->stitched_bits)) {
+            c->stitched_state = c->state;
+            c->stitched_bits = c->bits;
+            c->stamp = ++v->stitch_stamps;
+        }
+    }
     /* Caches and owners of every shown cell. */
     for (uint32_t id = 0; id != MS_ARCHIVE_NONE && s == MS_OK; id = ms_view_next_known(v, id)) {
         vcell *c = ms_view_vcell(v, id);
@@ -286,8 +360,9 @@ ms_status ms_view_stitch(ms_view *v, const bool *visible, ms_view_mesh *m, ms_er
         if ((s = refresh_cache(v, id, err)) != MS_OK)
             break;
         for (size_t i = 0; i < c->cache.vertex_count; ++i) {
+            uint32_t end;
             c->out_index[i] = NONE;
-            c->owner[i] = owner_of(v, c->cache.cells[i], c->cache.level);
+            c->owner[i] = owner_of(v, c->cache.cells[i], c->cache.level, &end);
         }
     }
     for (uint32_t id = 0; id != MS_ARCHIVE_NONE && s == MS_OK; id = ms_view_next_known(v, id)) {
@@ -296,6 +371,10 @@ ms_status ms_view_stitch(ms_view *v, const bool *visible, ms_view_mesh *m, ms_er
             continue;
         const unsigned Lc = c->cache.level;
         const size_t first = m->triangle_count;
+        /* the triangles' version: the cell's stamp and those of the cells each
+         * corner's owner lookup ended at, as far as the loop below looks (what
+         * it does depends on nothing else) */
+        dep_note dep = {version_mix(0x243F6A8885A308D3ull, id, c->stamp), NONE, 0};
         if (c->cache.tri_count > snapped_cap) {
             uint8_t *p = realloc(snapped, c->cache.tri_count);
             if (!p) {
@@ -316,7 +395,10 @@ ms_status ms_view_stitch(ms_view *v, const bool *visible, ms_view_mesh *m, ms_er
             bool keep = true, moved = false;
             for (int j = 0; j < 3 && keep; ++j) {
                 uint32_t o = c->owner[x[j]];
-                if (o == OWNER_FINER) {
+                if (o == OWNER_FINER) { /* depends only on the cells split above */
+                    uint32_t end = o;
+                    (void)owner_of(v, c->cache.cells[x[j]], Lc, &end);
+                    note_dep(&dep, end, DEP_FINER);
                     keep = false;
                     m->dropped_finer++;
                     break;
@@ -328,11 +410,13 @@ ms_status ms_view_stitch(ms_view *v, const bool *visible, ms_view_mesh *m, ms_er
                 }
                 vcell *oc = ms_view_vcell(v, o);
                 unsigned Lo = oc->cache.level;
-                if (Lo > Lc || (Lo == Lc && o > id)) {
+                if (Lo > Lc || (Lo == Lc && o > id)) { /* depends only on its level */
+                    note_dep(&dep, o, DEP_LEVEL + Lo);
                     keep = false;
                     m->dropped_finer++;
                     break;
                 }
+                note_dep(&dep, o, oc->stamp); /* its vertices: its whole state */
                 /* a frozen foreign vertex is known only to its lone kd-cell (level
                  * lx): the holder's vertex inside it is the one it stands for */
                 unsigned lx = c->levels ? c->levels[x[j]] : Lc, at = lx < Lo ? lx : Lo;
@@ -362,6 +446,8 @@ ms_status ms_view_stitch(ms_view *v, const bool *visible, ms_view_mesh *m, ms_er
         }
         if (s == MS_OK)
             s = drop_snapped_repeats(m, first, snapped, err);
+        if (s == MS_OK)
+            s = add_run(m, id, first, dep.version, err);
     }
     free(snapped);
     return s;

@@ -482,7 +482,7 @@ static void print_bake_json(const ms_bake_options *o, const ms_bake_report *r)
                                       r->apo_accuracy_median, "p90_deg", r->apo_accuracy_p90));
     json_t *root = json_pack(
         "{s:o, s:o, s:o, s:I, s:I, s:I, s:I, s:i, s:i, s:i, s:i, s:f, s:I, s:I, s:I, s:f, s:o, "
-        "s:f, s:i, s:f, s:f, s:I, s:o, s:{s:i, s:i, s:i, s:i, s:i}}",
+        "s:f, s:i, s:f, s:f, s:I, s:o, s:{s:i, s:i, s:i, s:i, s:i, s:i}}",
         "name", ms_json_text(r->name), "archive", ms_json_text(r->archive_path), "source",
         ms_json_text(o->input),
         "input_vertices", (json_int_t)r->input_vertices,
@@ -499,7 +499,7 @@ static void print_bake_json(const ms_bake_options *o, const ms_bake_report *r)
         "peak_rss_build_mb", r->peak_rss_build_mb,
         "spilled_blocks", (json_int_t)r->blocks_written, "apo", apo,
         "parameters", "bits", (int)o->bits, "n", (int)o->n, "root_bits", (int)o->root_bits,
-        "min_tris", (int)r->min_triangles, "mem_mb", (int)o->mem_mb);
+        "min_tris", (int)r->min_triangles, "mem_mb", (int)o->mem_mb, "ahead", (int)o->ahead);
     const struct { const char *phase; const ms_nsp_io *io; } phases[] = {
         {"read", &r->io_read}, {"quantise", &r->io_quantise}, {"distribute", &r->io_distribute},
         {"lone", &r->io_lone}, {"encode", &r->io_encode}};

@@ -16,6 +16,7 @@
 
 #include "ms_codec.h"
 #include "ms_cli.h"
+#include "ms_colour_roundtrip.h"
 #include "ms_input_file.h"
 #include "ms_codec_prior.h"
 #include "ms_json_out.h"
@@ -35,6 +36,7 @@ static const char *const top_usage =
     "  encode IN -o OUT --bits P      quantise IN (PLY/OBJ/OFF, .gz ok) to P bits and code it\n"
     "  decode IN -o OUT.ply [--bits Q] decode a stream, at Q <= P bits for a coarser level\n"
     "  roundtrip IN --bits P [--json] encode, decode, check losslessness, report sizes/times\n"
+    "            [--colour-bits C]    (and the per-vertex colour's stream, C bits per channel)\n"
     "  train IN... -o TABLE.c         estimate the built-in prior from meshes (developers)\n"
     "\n"
     "`meshcodec COMMAND --help` describes each command; `meshcodec --version` prints\n"
@@ -71,15 +73,19 @@ static const char *const decode_usage =
     "      --version      print the version and exit\n";
 
 static const char *const roundtrip_usage =
-    "usage: meshcodec roundtrip IN [--bits P] [--ahead K] [--json]\n"
+    "usage: meshcodec roundtrip IN [--bits P] [--ahead K] [--colour-bits C] [--json]\n"
     "\n"
     "Quantises IN at P bits (default 16), encodes, decodes at full precision and checks\n"
     "that the result equals the quantised, welded input (same points, same oriented\n"
     "triangles, compared canonically). Reports counts, weld figures, bytes, bits per\n"
     "vertex and encode/decode times; exit status 1 when the result differs.\n"
+    "When IN has per-vertex colour, also codes it as its own stream (docs/COLOUR.md:\n"
+    "each welded vertex the rounded mean of its input colours) and checks that it\n"
+    "decodes exactly; reports its bytes (colour_bytes).\n"
     "\n"
     "  -b, --bits P       precision (default 16)\n"
     "      --ahead K      geometry ahead by K kd-levels (see encode --help)\n"
+    "      --colour-bits C  colour precision, bits per channel, 1..8 (default 8)\n"
     "      --json         print one JSON object on stdout\n"
     "  -h, --help         print this help and exit\n"
     "      --version      print the version and exit\n";
@@ -132,6 +138,7 @@ typedef struct options {
     int input_count;
     int bits; /* -1 when not given */
     int ahead; /* geometry ahead, kd-levels */
+    int colour_bits; /* roundtrip: colour precision (default 8) */
     bool json, ascii;
 } options;
 
@@ -143,11 +150,13 @@ static int parse(const char *cmd, const char *help, int argc, char **argv, optio
         {"output", required_argument, NULL, 'o'}, {"bits", required_argument, NULL, 'b'},
         {"json", no_argument, NULL, 'j'},         {"ascii", no_argument, NULL, 'a'},
         {"ahead", required_argument, NULL, 'A'},  {"help", no_argument, NULL, 'h'},
+        {"colour-bits", required_argument, NULL, 'C'},
         {NULL, 0, NULL, 0},
     };
     memset(o, 0, sizeof *o);
     o->bits = -1;
     o->ahead = MS_CODEC_DEFAULT_AHEAD;
+    o->colour_bits = MS_COLOUR_DEFAULT_BITS;
     optind = 1;
     int c;
     char name[64];
@@ -175,6 +184,16 @@ static int parse(const char *cmd, const char *help, int argc, char **argv, optio
             if (ms_option_int("--ahead", optarg, 0, MS_CODEC_MAX_AHEAD, &v, &e) != MS_OK)
                 return usage_error(cmd, e.text, NULL);
             o->ahead = (int)v;
+            break;
+        }
+        case 'C': {
+            int64_t v;
+            ms_error e;
+            if (!allow_json) /* roundtrip only */
+                return usage_error(cmd, "unknown option", "--colour-bits");
+            if (ms_option_int("--colour-bits", optarg, 1, MS_COLOUR_MAX_BITS, &v, &e) != MS_OK)
+                return usage_error(cmd, e.text, NULL);
+            o->colour_bits = (int)v;
             break;
         }
         case 'j':
@@ -205,8 +224,11 @@ static int parse(const char *cmd, const char *help, int argc, char **argv, optio
 }
 
 /* Loads and quantises; fills q and report. */
-static ms_status load_quantised(const char *path, unsigned bits, ms_qmesh *q,
-                                ms_weld_report *weld, ms_mesh_load_report *load, ms_error *err)
+/* colours (may be NULL): the welded vertices' colours (ms_colour_weld), NULL
+ * when the input has none; *alpha whether it had alpha. */
+static ms_status load_quantised_colours(const char *path, unsigned bits, ms_qmesh *q,
+                                        ms_weld_report *weld, ms_mesh_load_report *load,
+                                        uint8_t **colours, bool *alpha, ms_error *err)
 {
     ms_mesh mesh;
     memset(&mesh, 0, sizeof mesh);
@@ -216,8 +238,22 @@ static ms_status load_quantised(const char *path, unsigned bits, ms_qmesh *q,
     st = ms_quantise_mesh(&mesh, bits, q, weld, err);
     if (st == MS_ERR_EMPTY)
         ms_error_set(err, MS_ERR_EMPTY, "%s: empty mesh (no vertex): nothing to encode", path);
+    if (colours) {
+        *colours = NULL;
+        *alpha = mesh.colour_alpha;
+        if (st == MS_OK && mesh.colours)
+            st = ms_colour_weld(&mesh, q, colours, err);
+        if (st != MS_OK)
+            ms_qmesh_free(q);
+    }
     ms_mesh_free(&mesh);
     return st;
+}
+
+static ms_status load_quantised(const char *path, unsigned bits, ms_qmesh *q,
+                                ms_weld_report *weld, ms_mesh_load_report *load, ms_error *err)
+{
+    return load_quantised_colours(path, bits, q, weld, load, NULL, NULL, err);
 }
 
 static ms_status encode_q(const ms_qmesh *q, unsigned ahead, uint64_t *context_counts,
@@ -388,6 +424,30 @@ static int cmd_decode(int argc, char **argv)
     return EXIT_SUCCESS;
 }
 
+/* The colour figures of roundtrip: into obj (JSON), or a line on stdout. */
+static void report_colour(json_t *obj, int bits, bool alpha, const ms_colour_roundtrip_report *c,
+                          size_t vertices)
+{
+    double bpv = 8.0 * (double)c->bytes / (double)vertices;
+    if (!obj) {
+        printf("colour at %d bits per channel%s: %zu bytes, %.3f bits/vertex; encode %.3f s, "
+               "decode %.3f s; %s\n",
+               bits, alpha ? " with alpha" : "", c->bytes, bpv, c->encode_seconds,
+               c->decode_seconds, c->lossless ? "lossless" : "MISMATCH");
+        return;
+    }
+    json_t *extra = json_pack("{s:i, s:b, s:I, s:o, s:o, s:o, s:b}", "colour_bits", bits,
+                              "colour_alpha", alpha, "colour_bytes", (json_int_t)c->bytes,
+                              "colour_bits_per_vertex", ms_json_fixed(bpv, 4),
+                              "colour_encode_seconds", ms_json_fixed(c->encode_seconds, 6),
+                              "colour_decode_seconds", ms_json_fixed(c->decode_seconds, 6),
+                              "colour_lossless", c->lossless);
+    if (extra) {
+        json_object_update(obj, extra);
+        json_decref(extra);
+    }
+}
+
 static int cmd_roundtrip(int argc, char **argv)
 {
     options o;
@@ -402,8 +462,18 @@ static int cmd_roundtrip(int argc, char **argv)
     ms_qmesh q;
     ms_weld_report weld;
     ms_mesh_load_report load;
-    if (load_quantised(o.input, (unsigned)o.bits, &q, &weld, &load, &err) != MS_OK)
+    uint8_t *colours = NULL;
+    bool alpha = false;
+    if (load_quantised_colours(o.input, (unsigned)o.bits, &q, &weld, &load, &colours, &alpha,
+                               &err) != MS_OK)
         return input_error("roundtrip", &err);
+    ms_colour_roundtrip_report colour = {0};
+    if (colours && ms_colour_roundtrip(&q, colours, alpha, (unsigned)o.colour_bits, &colour,
+                                       &err) != MS_OK) {
+        free(colours);
+        ms_qmesh_free(&q);
+        return input_error("roundtrip", &err);
+    }
     uint8_t *buf = NULL;
     size_t size = 0;
     double t0 = now_seconds();
@@ -433,6 +503,7 @@ static int cmd_roundtrip(int argc, char **argv)
     ms_codec_state_free(&want);
     free(buf);
     if (st != MS_OK) {
+        free(colours);
         ms_qmesh_free(&q);
         return input_error("roundtrip", &err);
     }
@@ -440,7 +511,7 @@ static int cmd_roundtrip(int argc, char **argv)
     double bpiv = 8.0 * (double)size / (double)weld.input_vertices;
     double dec = t3 - t2, enc = t1 - t0;
     if (o.json) {
-        ms_json_print(stdout,
+        json_t *obj =
                       json_pack("{s:o, s:i, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:o, s:o, s:o, s:o, "
                                 "s:o, s:b}",
                                 "input", ms_json_text(o.input), "bits", o.bits, "vertices",
@@ -455,8 +526,10 @@ static int cmd_roundtrip(int argc, char **argv)
                                 ms_json_fixed(bpiv, 4), "encode_seconds", ms_json_fixed(enc, 6),
                                 "decode_seconds", ms_json_fixed(dec, 6), "decode_mtriangles_per_second",
                                 ms_json_fixed(dec > 0 ? (double)q.tri_count / dec / 1e6 : 0.0, 3), "lossless",
-                                lossless),
-                      MS_JSON_SPACED);
+                                lossless);
+        if (obj && colours)
+            report_colour(obj, o.colour_bits, alpha, &colour, q.vertex_count);
+        ms_json_print(stdout, obj, MS_JSON_SPACED);
     } else {
         printf("%s at %d bits: %zu vertices, %zu triangles (welded %zu, dropped %zu degenerate + "
                "%zu duplicate) -> %zu bytes, %.3f bits/vertex; encode %.3f s, decode %.3f s; "
@@ -464,10 +537,19 @@ static int cmd_roundtrip(int argc, char **argv)
                o.input, o.bits, q.vertex_count, q.tri_count, weld.welded_vertices,
                weld.degenerate_triangles, weld.duplicate_triangles, size, bpv, enc, dec,
                lossless ? "lossless" : "MISMATCH");
+        if (colours)
+            report_colour(NULL, o.colour_bits, alpha, &colour, q.vertex_count);
     }
     ms_qmesh_free(&q);
+    bool had_colours = colours != NULL;
+    free(colours);
     if (!lossless) {
         fprintf(stderr, "meshcodec roundtrip: %s: decoded mesh differs from the input\n",
+                o.input);
+        return EXIT_INPUT;
+    }
+    if (had_colours && !colour.lossless) {
+        fprintf(stderr, "meshcodec roundtrip: %s: decoded colours differ from the input\n",
                 o.input);
         return EXIT_INPUT;
     }

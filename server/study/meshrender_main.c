@@ -29,7 +29,7 @@ static void usage(FILE *out)
 {
     fputs("usage: meshrender INPUT -p CAMERA_PATH -o OUT_DIR [--width 640] [--height 480]\n"
           "                  [--near D] [--far D] [--tolerance 1] [--apo] [--apo-levels L]\n"
-          "                  [--smooth] [--normals]\n"
+          "                  [--apo-filter linear|nearest|none] [--smooth] [--normals]\n"
           "                  [--threads N] [--json]\n"
           "Ray casts INPUT on the CPU (Embree) at every keyframe of CAMERA_PATH and writes\n"
           "OUT_DIR/frame_K.png (K = keyframe number, 3 digits): head light at the camera,\n"
@@ -44,6 +44,9 @@ static void usage(FILE *out)
           "      --apo           archive: shade with the APO chunks (CPU traversal)\n"
           "      --apo-levels L  only the first L levels of each chunk, as a client that\n"
           "                      fetched that many (default 0: whole chunks)\n"
+          "      --apo-filter F  the APO lookup, as meshview's: linear (default: depth\n"
+          "                      limited by the pixel's footprint, 8-cell interpolation),\n"
+          "                      nearest (footprint depth only), none (the nearest leaf)\n"
           "      --smooth        interpolated vertex normals instead of flat ones (where\n"
           "                      APO gives none)\n"
           "      --normals       also write OUT_DIR/normals_K.png, rgb = (N + 1) / 2\n"
@@ -71,6 +74,7 @@ typedef struct options {
     const char *input, *path, *out_dir;
     double width, height, near_distance, far_distance, tolerance;
     unsigned threads, apo_levels;
+    ms_study_apo_filter apo_filter;
     bool apo, smooth, normals, json;
 } options;
 
@@ -85,7 +89,7 @@ static int parse_options(int argc, char **argv, options *o)
         {"apo", no_argument, NULL, 'a'},            {"normals", no_argument, NULL, 'N'},
         {"smooth", no_argument, NULL, 'S'},         {"apo-levels", required_argument, NULL, 'L'},
         {"json", no_argument, NULL, 'j'},           {"help", no_argument, NULL, 'h'},
-        {NULL, 0, NULL, 0},
+        {"apo-filter", required_argument, NULL, 'F'}, {NULL, 0, NULL, 0},
     };
     *o = (options){.width = 640, .height = 480, .tolerance = 1};
     int c;
@@ -99,6 +103,12 @@ static int parse_options(int argc, char **argv, options *o)
         case 'S': o->smooth = true; break;
         case 'j': o->json = true; break;
         case 'h': usage(stdout); return 0;
+        case 'F':
+            if (!ms_study_apo_filter_parse(optarg, &o->apo_filter)) {
+                fprintf(stderr, "meshrender: --apo-filter wants linear, nearest or none, not '%s'\n", optarg);
+                return EXIT_USAGE;
+            }
+            break;
         case 'W':
         case 'H':
             if (!parse_positive(optarg, &v) || v != (double)(long)v || v > 65535) {
@@ -192,7 +202,10 @@ static ms_status open_source(const options *o, source *s, ms_error *err)
     if (o->apo) {
         if (!h->has_apo)
             return ms_error_set(err, MS_ERR_ARG, "%s: the archive has no APO chunks (baked with --no-apo)", o->input);
-        return ms_study_apo_from_archive(s->archive, o->apo_levels, UINT32_MAX, MS_APO_MISSING_NEAREST, &s->apo, err);
+        if ((st = ms_study_apo_from_archive(s->archive, o->apo_levels, UINT32_MAX, MS_APO_MISSING_NEAREST, &s->apo,
+                                            err)) != MS_OK)
+            return st;
+        ms_study_apo_set_filter(s->apo, o->apo_filter);
     }
     return MS_OK;
 }

@@ -35,14 +35,16 @@ static void usage(FILE *out)
           "       meshstudy MESH --whole CANDIDATE -p CAMERA_PATH [--keys ...] [options]\n"
           "                 [--width 320] [--height 240] [--spacing S] [--reference flat|smooth]\n"
           "                 [--apo-levels L|footprint] [--apo-texel PX] [--apo-geometry-ratio K]\n"
-          "                 [--threads N] [--json]\n"
+          "                 [--apo-filter linear|nearest|none] [--threads N] [--json]\n"
           "For every chosen keyframe of CAMERA_PATH and every screen tolerance (pixels),\n"
           "makes the cut of ARCHIVE (baked from MESH) a client shows for that camera and\n"
           "measures it against MESH at full resolution: bytes (index, geometry, APO),\n"
           "triangles, symmetric Hausdorff and RMS distance (model units and projected\n"
           "pixels), and the image error of its CPU render against MESH's reference render\n"
-          "(normal angle, PSNR, SSIM, silhouette), with geometric normals and, when the\n"
-          "archive has APO, with APO normals. Each cut is made from a fresh view, so its\n"
+          "(normal angle, PSNR, SSIM, silhouette), drawn flat (geometric normals), smooth\n"
+          "(interpolated vertex normals, as the client draws without APO) and, when the\n"
+          "archive has APO, with APO normals (smooth where a cell has no chunk, as the\n"
+          "client draws it). Each cut is made from a fresh view, so its\n"
           "seconds.cut are a client's whole selection, decoding and stitching for it.\n"
           "With --whole, CANDIDATE is a mesh file (a decoded Draco or meshcodec stream,\n"
           "say) measured whole, one point per keyframe (tolerance_px 0, bytes 0).\n"
@@ -68,6 +70,9 @@ static void usage(FILE *out)
           "                        times the tolerance (the client's apo_geometry_tolerance_px\n"
           "                        over tolerance_px), cells without one to the tolerance;\n"
           "                        default 1 (one cut for both renders)\n"
+          "      --apo-filter F    the APO lookup, as meshview's: linear (default: depth\n"
+          "                        limited by the pixel's footprint, 8-cell interpolation),\n"
+          "                        nearest (footprint depth only), none (the nearest leaf)\n"
           "      --whole FILE      measure the mesh FILE drawn whole instead of an archive's cuts\n"
           "      --threads N       threads (default: every core)\n"
           "      --json            print the results as one JSON object\n"
@@ -108,6 +113,7 @@ typedef struct options {
     double width, height, spacing;
     unsigned threads, apo_levels;
     double apo_texel_px, apo_geometry_ratio;
+    ms_study_apo_filter apo_filter;
     bool apo_footprint, smooth_reference, json;
 } options;
 
@@ -120,7 +126,7 @@ static int parse_options(int argc, char **argv, options *o)
         {"threads", required_argument, NULL, 'T'}, {"json", no_argument, NULL, 'j'},
         {"reference", required_argument, NULL, 'r'}, {"apo-levels", required_argument, NULL, 'L'},
         {"apo-texel", required_argument, NULL, 'X'},  {"whole", required_argument, NULL, 'w'},
-        {"apo-geometry-ratio", required_argument, NULL, 'G'},
+        {"apo-geometry-ratio", required_argument, NULL, 'G'}, {"apo-filter", required_argument, NULL, 'F'},
         {"help", no_argument, NULL, 'h'},         {NULL, 0, NULL, 0},
     };
     *o = (options){.width = 320, .height = 240, .tolerances = {1, 4, 16}, .tolerance_count = 3, .apo_geometry_ratio = 1};
@@ -139,6 +145,12 @@ static int parse_options(int argc, char **argv, options *o)
             o->smooth_reference = !strcmp(optarg, "smooth");
             break;
         case 'h': usage(stdout); return 0;
+        case 'F':
+            if (!ms_study_apo_filter_parse(optarg, &o->apo_filter)) {
+                fprintf(stderr, "meshstudy: --apo-filter wants linear, nearest or none, not '%s'\n", optarg);
+                return EXIT_USAGE;
+            }
+            break;
         case 'k':
         case 't':
             if (!parse_list(optarg, c == 'k', c == 'k' ? o->keys : o->tolerances,
@@ -263,7 +275,7 @@ static ms_status study_key(study *s, size_t key, json_t *points, ms_error *err)
     ms_status st = ms_study_key_camera(&s->path, key, o->width, o->height, 0, 0, lo, hi, &camera, err);
     if (st != MS_OK)
         return st;
-    ms_study_render_options plain = {.threads = o->threads};
+    ms_study_render_options plain = {.threads = o->threads}, smooth = {.threads = o->threads, .smooth = true};
     ms_study_render_options truth = {.threads = o->threads, .smooth = o->smooth_reference};
     ms_study_image reference = {0}, image = {0};
     ms_view_mesh cut = {0};
@@ -305,11 +317,15 @@ static ms_status study_key(study *s, size_t key, json_t *points, ms_error *err)
         ms_study_distance_params dp = {.spacing = s->spacing, .threads = o->threads, .camera = &camera};
         st = ms_study_distance_measure(cut_scene, s->full, &dp, &dist, err);
         double t1 = ms_now_seconds();
-        ms_study_image_error plain_error = {0}, apo_error = {0};
+        ms_study_image_error plain_error = {0}, smooth_error = {0}, apo_error = {0};
         if (st == MS_OK && (st = ms_study_render(cut_scene, &camera, &plain, &image, err)) == MS_OK)
             st = ms_study_image_compare(&image, &reference, &plain_error, err);
+        if (st == MS_OK && (st = ms_study_render(cut_scene, &camera, &smooth, &image, err)) == MS_OK)
+            st = ms_study_image_compare(&image, &reference, &smooth_error, err);
         if (st == MS_OK && s->apo) {
-            ms_study_render_options with_apo = {.threads = o->threads, .apo = s->apo, .triangle_cell = cut.triangle_cell};
+            /* cells without a chunk drawn smooth, as the client draws them */
+            ms_study_render_options with_apo = {
+                .threads = o->threads, .apo = s->apo, .triangle_cell = cut.triangle_cell, .smooth = true};
             if ((st = ms_study_render(cut_scene, &camera, &with_apo, &image, err)) == MS_OK)
                 st = ms_study_image_compare(&image, &reference, &apo_error, err);
         }
@@ -327,17 +343,20 @@ static ms_status study_key(study *s, size_t key, json_t *points, ms_error *err)
             dist.rms_px, "samples", (json_int_t)(dist.samples_a + dist.samples_b), "samples_in_view",
             (json_int_t)dist.samples_px, "image", image_json(&plain_error), "seconds", "cut", cr.seconds,
             "distance", t1 - t0, "render", t2 - t1);
+        if (point)
+            json_object_set_new(point, "image_smooth", image_json(&smooth_error));
         if (point && s->apo)
             json_object_set_new(point, "image_apo", image_json(&apo_error));
         json_array_append_new(points, point);
         if (!o->json)
             printf("key %zu, %5g px: %8llu tris, %9llu B geometry, %9llu B APO, Hausdorff %.3g (%.3g px), RMS %.3g "
-                   "(%.3g px); normals %.2f / %.2f deg (APO %.2f / %.2f), PSNR %.2f (APO %.2f), SSIM %.4f (APO "
-                   "%.4f), silhouette %llu px\n",
+                   "(%.3g px); normals %.2f / %.2f deg (APO %.2f / %.2f), PSNR %.2f (smooth %.2f, APO %.2f), SSIM "
+                   "%.4f (smooth %.4f, APO %.4f), silhouette %llu px\n",
                    key, o->tolerances[t], (unsigned long long)cr.triangles, (unsigned long long)cr.geometry_bytes,
                    (unsigned long long)cr.apo_bytes, dist.hausdorff, dist.hausdorff_px, dist.rms, dist.rms_px,
                    plain_error.normal_mean_deg, plain_error.normal_p95_deg, apo_error.normal_mean_deg,
-                   apo_error.normal_p95_deg, plain_error.psnr_db, apo_error.psnr_db, plain_error.ssim, apo_error.ssim,
+                   apo_error.normal_p95_deg, plain_error.psnr_db, smooth_error.psnr_db, apo_error.psnr_db,
+                   plain_error.ssim, smooth_error.ssim, apo_error.ssim,
                    (unsigned long long)plain_error.silhouette_mismatch);
     }
     ms_view_mesh_free(&cut);
@@ -392,7 +411,10 @@ static ms_status open_study(const options *o, study *s, ms_error *err)
         for (uint32_t c = 0; c < h->cell_count; ++c)
             s->tolerance_scale[c] = ms_archive_get_cell(s->archive, c)->apo_levels ? (float)o->apo_geometry_ratio : 1;
     }
-    return ms_study_apo_from_archive(s->archive, 0, UINT32_MAX, MS_APO_MISSING_NEAREST, &s->apo, err);
+    if ((st = ms_study_apo_from_archive(s->archive, 0, UINT32_MAX, MS_APO_MISSING_NEAREST, &s->apo, err)) != MS_OK)
+        return st;
+    ms_study_apo_set_filter(s->apo, o->apo_filter);
+    return MS_OK;
 }
 
 int main(int argc, char **argv)
@@ -413,9 +435,10 @@ int main(int argc, char **argv)
         st = study_key(&s, o.key_count ? (size_t)o.keys[k] : k, points, &err);
     json_t *root = NULL;
     if (st == MS_OK)
-        root = json_pack("{s:o, s:o, s:o, s:s, s:o, s:I, s:I, s:I, s:f, s:b, s:f, s:o, s:f}", "mesh", ms_json_text(o.mesh),
+        root = json_pack("{s:o, s:o, s:o, s:s, s:o, s:s, s:I, s:I, s:I, s:f, s:b, s:f, s:o, s:f}", "mesh", ms_json_text(o.mesh),
                          "archive", ms_json_text(o.whole ? o.whole : o.archive), "path", ms_json_text(o.path), "reference", o.smooth_reference ? "smooth" : "flat", "apo_levels",
-                         o.apo_footprint ? json_string("footprint") : json_integer((json_int_t)o.apo_levels), "width", (json_int_t)o.width, "height", (json_int_t)o.height,
+                         o.apo_footprint ? json_string("footprint") : json_integer((json_int_t)o.apo_levels),
+                         "apo_filter", (const char *[]){"linear", "nearest", "none"}[o.apo_filter], "width", (json_int_t)o.width, "height", (json_int_t)o.height,
                          "mesh_triangles", (json_int_t)ms_study_scene_triangle_count(s.full), "spacing", s.spacing,
                          "apo", s.apo != NULL, "apo_geometry_ratio", o.apo_geometry_ratio, "points", points, "seconds", ms_now_seconds() - start);
     else

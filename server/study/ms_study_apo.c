@@ -5,6 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "ms_apo_filter.h"
 #include "ms_apo_stream.h"
 
 typedef struct apo_cell {
@@ -19,6 +20,7 @@ struct ms_study_apo {
     uint32_t cell_count, chunk_count;
     uint32_t levels, depth_cap;
     ms_apo_missing_rule rule;
+    ms_study_apo_filter filter;
 };
 
 /* A view of the chunk's first `levels` levels (0: all). */
@@ -67,6 +69,7 @@ ms_status ms_study_apo_new(uint32_t cell_count, uint32_t levels, uint32_t depth_
     s->levels = levels;
     s->depth_cap = depth_cap;
     s->rule = rule;
+    s->filter = MS_STUDY_APO_FILTER_LINEAR;
     *out = s;
     return MS_OK;
 }
@@ -152,7 +155,24 @@ ms_status ms_study_apo_from_archive(const ms_archive *a, uint32_t levels, uint32
     return MS_OK;
 }
 
-bool ms_study_apo_normal(const ms_study_apo *s, uint32_t cell, const double x[3], double normal[3])
+void ms_study_apo_set_filter(ms_study_apo *s, ms_study_apo_filter filter)
+{
+    s->filter = filter;
+}
+
+bool ms_study_apo_filter_parse(const char *name, ms_study_apo_filter *filter)
+{
+    static const char *const names[] = {"linear", "nearest", "none"};
+    for (int f = 0; f < 3; ++f)
+        if (!strcmp(name, names[f])) {
+            *filter = (ms_study_apo_filter)f;
+            return true;
+        }
+    return false;
+}
+
+bool ms_study_apo_normal(const ms_study_apo *s, uint32_t cell, const double x[3], double footprint,
+                         double normal[3])
 {
     if (cell >= s->cell_count || !s->cells[cell].present)
         return false;
@@ -160,15 +180,28 @@ bool ms_study_apo_normal(const ms_study_apo *s, uint32_t cell, const double x[3]
     float local[3];
     for (int k = 0; k < 3; ++k)
         local[k] = (float)((x[k] - c->origin[k]) / c->side);
+    uint32_t cap = s->depth_cap;
+    if (s->filter != MS_STUDY_APO_FILTER_NONE && footprint > 0) {
+        uint32_t d = ms_apo_footprint_depth((float)(footprint / c->side));
+        cap = d < cap ? d : cap;
+    }
+    const float *n;
     ms_apo_lookup_result r;
-    if (ms_apo_lookup(&c->view, local, s->depth_cap, s->rule, &r) == MS_APO_STOP_EMPTY)
-        return false;
-    double len = sqrt((double)r.normal[0] * r.normal[0] + (double)r.normal[1] * r.normal[1] +
-                      (double)r.normal[2] * r.normal[2]);
+    ms_apo_filter_result fr;
+    if (s->filter == MS_STUDY_APO_FILTER_LINEAR) {
+        if (ms_apo_lookup_filtered(&c->view, local, cap, s->rule, &fr) == MS_APO_STOP_EMPTY)
+            return false;
+        n = fr.normal;
+    } else {
+        if (ms_apo_lookup(&c->view, local, cap, s->rule, &r) == MS_APO_STOP_EMPTY)
+            return false;
+        n = r.normal;
+    }
+    double len = sqrt((double)n[0] * n[0] + (double)n[1] * n[1] + (double)n[2] * n[2]);
     if (!(len > 0))
         return false;
     for (int k = 0; k < 3; ++k)
-        normal[k] = r.normal[k] / len;
+        normal[k] = n[k] / len;
     return true;
 }
 

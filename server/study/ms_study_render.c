@@ -72,6 +72,7 @@ typedef struct render_job {
     const ms_study_render_options *options;
     ms_study_image *image;
     double tan_y, tan_x;
+    double footprint_per_depth; /* a pixel's width in world units per unit of eye depth */
     float origin[3]; /* camera position in the scene's local frame */
 } render_job;
 
@@ -82,16 +83,16 @@ static void shade_pixel(const render_job *job, size_t p, uint32_t t, double dept
     ms_study_image *im = job->image;
     /* L: from the hit to the camera, i.e. -dir normalised. */
     double len = sqrt(ms_vec3_dot(dir, dir)), l[3] = {-dir[0] / len, -dir[1] / len, -dir[2] / len};
-    double ng[3];
-    memcpy(ng, &s->face_normal[3 * t], sizeof ng);
-    if (ms_vec3_dot(ng, l) < 0)
-        for (int k = 0; k < 3; ++k)
-            ng[k] = -ng[k];
+    /* Ng turned to face the camera (two-sided), `facing` the sign it took */
+    double ng[3], facing = ms_vec3_dot(&s->face_normal[3 * t], l) < 0 ? -1 : 1;
+    for (int k = 0; k < 3; ++k)
+        ng[k] = facing * s->face_normal[3 * t + k];
     double n[3];
     memcpy(n, ng, sizeof n);
     if (job->options->smooth) {
         /* The interpolated vertex normal (the APO builder's rule for M), turned
-         * to the facing side; the face normal where the vertex normals cancel. */
+         * over with the face; where it lies against the face's own normal (a
+         * fold) Ng stands in, as in the client's shader. */
         const uint32_t *tv = &s->triangles[3 * t];
         double sm[3], len2 = 0;
         for (int k = 0; k < 3; ++k) {
@@ -99,11 +100,9 @@ static void shade_pixel(const render_job *job, size_t p, uint32_t t, double dept
                     v * s->vertex_normal[3 * tv[2] + k];
             len2 += sm[k] * sm[k];
         }
-        if (len2 > 0) {
-            double scale = (ms_vec3_dot(sm, ng) < 0 ? -1 : 1) / sqrt(len2);
+        if (len2 > 0 && ms_vec3_dot(sm, &s->face_normal[3 * t]) >= 0)
             for (int k = 0; k < 3; ++k)
-                n[k] = scale * sm[k];
-        }
+                n[k] = facing * sm[k] / sqrt(len2);
     }
     if (job->options->apo) {
         /* The hit from its barycentrics, in doubles: on the triangle, so inside
@@ -113,13 +112,15 @@ static void shade_pixel(const render_job *job, size_t p, uint32_t t, double dept
         double x[3], apo[3];
         for (int k = 0; k < 3; ++k)
             x[k] = s->origin[k] + a[k] + u * (b[k] - a[k]) + v * (cc[k] - a[k]);
-        if (ms_study_apo_normal(job->options->apo, job->options->triangle_cell[t], x, apo)) {
+        if (ms_study_apo_normal(job->options->apo, job->options->triangle_cell[t], x,
+                                depth * job->footprint_per_depth, apo)) {
             double side = ms_vec3_dot(apo, ng) < 0 ? -1 : 1;
             for (int k = 0; k < 3; ++k)
                 n[k] = side * apo[k];
         }
     }
-    double shadow = fmax(0, ms_vec3_dot(l, ng)), nl = fmax(0, ms_vec3_dot(n, l));
+    /* the self-shadowing factor from the normal shaded with (the client's rule) */
+    double nl = fmax(0, ms_vec3_dot(n, l)), shadow = nl;
     double c = MS_STUDY_AMBIENT + shadow * (MS_STUDY_DIFFUSE * nl + MS_STUDY_SPECULAR * pow(nl, MS_STUDY_SHININESS));
     uint8_t value = ms_study_srgb8(c);
     im->depth[p] = (float)depth;
@@ -186,6 +187,7 @@ ms_status ms_study_render(const ms_study_scene *scene, const ms_camera *camera,
     render_job job = {.scene = scene, .camera = camera, .options = options, .image = image};
     job.tan_y = tan(camera->fovy / 2);
     job.tan_x = job.tan_y * w / h;
+    job.footprint_per_depth = 2 * job.tan_y / h;
     for (int k = 0; k < 3; ++k)
         job.origin[k] = (float)(camera->position[k] - scene->origin[k]);
     size_t blocks = (image->height + ROWS_PER_BLOCK - 1) / ROWS_PER_BLOCK;

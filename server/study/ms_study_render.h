@@ -19,17 +19,20 @@
  *   normal    the shading normal N, unit, world axes: the hit triangle's
  *             geometric normal Ng turned to face the camera (two-sided); with
  *             `smooth`, the barycentric interpolation of the area-weighted vertex
- *             normals (the rule the APO builder samples M with), normalised and
- *             turned to Ng's side; with APO, the APO normal of the drawing cell
- *             at the hit, turned to Ng's side (where the cell has a chunk);
- *             (0, 0, 0) for background;
+ *             normals (the rule the APO builder samples M with), normalised,
+ *             where it lies on Ng's side (from a fold, against Ng, Ng stands in,
+ *             as in the client's shader); with APO, the APO normal of the
+ *             drawing cell at the hit (ms_study_apo_normal: by default the
+ *             client's filtered lookup, limited by the pixel's footprint),
+ *             turned to Ng's side (where the cell has a chunk); (0, 0, 0) for
+ *             background;
  *   rgb       the shaded colour, 8-bit sRGB.
  *
  * Shading (head light at the camera, as the viewer's MS_SHADING_LIT): with L = V
- * the unit vector from the hit to the camera, H = L, Ng the facing geometric
- * normal, in linear RGB
- *     c = ambient + max(0, L.Ng) (diffuse max(0, N.L) + specular max(0, N.H)^shininess)
- * (the factor max(0, L.Ng) is the viewer's self-shadowing term), grey albedo,
+ * the unit vector from the hit to the camera, H = L, in linear RGB
+ *     c = ambient + max(0, L.N) (diffuse max(0, N.L) + specular max(0, N.H)^shininess)
+ * (the factor max(0, L.N) is the viewer's self-shadowing term, from the normal
+ * it shades with: Ng when flat, the vertex or APO normal otherwise), grey albedo,
  * constants MS_STUDY_AMBIENT, _DIFFUSE, _SPECULAR, _SHININESS; background
  * MS_STUDY_BACKGROUND. Output is sRGB-encoded (the exact sRGB transfer function)
  * and rounded to nearest.

@@ -1,0 +1,319 @@
+/* Which cells' meshes a frame derives again (ms_render_derive_cells,
+ * ms_render_internal.h; the rule in ms_render.h, ms_render_frame_stats).
+ *
+ * A cell's mesh is a function of its triangles (named by the frame's version
+ * of them) and of the corner normals at their vertices, which depend on every
+ * triangle around those vertices, of whichever cell. So a frame derives the
+ * cells whose version changed (or that are new), plus every other cell that
+ * touches a vertex such a cell, or a cell that left, touched before or touches
+ * now: only there can a vertex's fan have changed, since the triangles of an
+ * unchanged cell are the same. Vertices are named across frames by a hash of
+ * their position (the stitched mesh's indices change from frame to frame); a
+ * table keeps which cells touch each such key, updated for the cells derived
+ * and those leaving, so finding the neighbours costs what the changed cells
+ * hold, not the frame. The normals of the derived cells are then made from the
+ * fans of the cells around them (ms_render_split_normals): the same as over the
+ * whole stitched mesh, so the picture is the one a renderer deriving every
+ * cell would draw. */
+#include <stdlib.h>
+#include <string.h>
+
+#include "ms_render_internal.h"
+
+/* ---- the touch table ------------------------------------------------------ */
+
+static size_t slot_of(uint64_t key, size_t cap)
+{
+    uint64_t h = key * 0x9E3779B97F4A7C15ull;
+    return (size_t)(h ^ h >> 31) & (cap - 1);
+}
+
+void ms_render_touch_map_free(ms_render_touch_map *map)
+{
+    free(map->slots);
+    memset(map, 0, sizeof *map);
+}
+
+/* Room for one more pair: rebuilt (removed slots dropped) at half full. */
+static bool map_room(ms_render_touch_map *map)
+{
+    if (map->cap && 2 * (map->used + 1) <= map->cap)
+        return true;
+    size_t cap = 1024;
+    while (cap < 4 * (map->held + 1))
+        cap *= 2;
+    ms_render_touch_slot *slots = calloc(cap, sizeof *slots);
+    if (!slots)
+        return false;
+    for (size_t i = 0; i < map->cap; ++i) {
+        if (map->slots[i].state != 1)
+            continue;
+        size_t at = slot_of(map->slots[i].key, cap);
+        while (slots[at].state)
+            at = (at + 1) & (cap - 1);
+        slots[at] = map->slots[i];
+    }
+    free(map->slots);
+    map->slots = slots;
+    map->cap = cap;
+    map->used = map->held;
+    return true;
+}
+
+static bool map_add(ms_render_touch_map *map, uint64_t key, uint32_t cell)
+{
+    if (!map_room(map))
+        return false;
+    size_t at = slot_of(key, map->cap);
+    while (map->slots[at].state == 1)
+        at = (at + 1) & (map->cap - 1);
+    map->used += map->slots[at].state == 0;
+    map->slots[at] = (ms_render_touch_slot){key, cell, 1};
+    map->held++;
+    return true;
+}
+
+static void map_remove(ms_render_touch_map *map, uint64_t key, uint32_t cell)
+{
+    for (size_t at = map->cap ? slot_of(key, map->cap) : 0; map->cap && map->slots[at].state;
+         at = (at + 1) & (map->cap - 1))
+        if (map->slots[at].state == 1 && map->slots[at].key == key && map->slots[at].cell == cell) {
+            map->slots[at].state = 2;
+            map->held--;
+            return;
+        }
+}
+
+/* ---- per-cell bookkeeping --------------------------------------------------- */
+
+static bool keys_room(ms_render *r, size_t more)
+{
+    size_t need = r->key_count + more;
+    if (need <= r->key_cap)
+        return true;
+    size_t cap = r->key_cap ? r->key_cap : 1024;
+    while (cap < need)
+        cap *= 2;
+    uint64_t *keys = realloc(r->keys, cap * sizeof *keys);
+    if (!keys)
+        return false;
+    r->keys = keys;
+    r->key_cap = cap;
+    return true;
+}
+
+static uint64_t vertex_key(const double *p)
+{
+    uint64_t h = 0x6A09E667F3BCC909ull;
+    for (int a = 0; a < 3; ++a) {
+        uint64_t w;
+        double x = p[a] == 0.0 ? 0.0 : p[a]; /* -0 and 0 are one place */
+        memcpy(&w, &x, sizeof w);
+        h = (h ^ w) * 0x9E3779B97F4A7C15ull;
+        h ^= h >> 29;
+    }
+    return h;
+}
+
+/* The cell's touch list out of the table, its keys onto r->keys (the places
+ * whose fans may change). */
+static bool forget_touch(ms_render *r, uint32_t id, render_cell *c)
+{
+    if (!keys_room(r, c->touch_count))
+        return false;
+    for (uint32_t i = 0; i < c->touch_count; ++i) {
+        map_remove(&r->touch, c->touch[i], id);
+        r->keys[r->key_count++] = c->touch[i];
+    }
+    free(c->touch);
+    c->touch = NULL;
+    c->touch_count = 0;
+    c->has_version = false;
+    return true;
+}
+
+void ms_render_cell_forget(ms_render *r, uint32_t id, render_cell *c)
+{
+    if (c->has_version || c->touch)
+        r->frame_stats.cells_left++;
+    if (!forget_touch(r, id, c))
+        r->derived_crease = -1.0; /* no room to say where: derive every cell next time */
+}
+
+/* The present cell k's touch list made from its triangles now (each vertex
+ * once: the splitter's per-vertex stamps), into the table and onto r->keys. */
+static bool make_touch(ms_render *r, uint32_t k, render_cell *c)
+{
+    ms_render_split *s = &r->split;
+    const ms_view_mesh *m = s->mesh;
+    uint32_t count = s->present_start[k + 1] - s->present_start[k];
+    uint64_t *touch = malloc(3 * (size_t)count * sizeof *touch);
+    if (!touch)
+        return false;
+    if (++s->pass == 0) { /* wrapped: every stamp is stale again */
+        memset(s->stamp, 0, s->vertex_cap * sizeof *s->stamp);
+        s->pass = 1;
+    }
+    size_t n = 0;
+    for (uint32_t i = 0; i < count; ++i) {
+        size_t t = ms_render_split_triangle(s, k, i);
+        for (int j = 0; j < 3; ++j) {
+            uint32_t v = m->triangles[3 * t + (size_t)j];
+            /* a bad index is reported by the normals' check */
+            if (v < m->vertex_count && s->stamp[v] != s->pass) {
+                s->stamp[v] = s->pass;
+                touch[n++] = vertex_key(&m->positions[3 * (size_t)v]);
+            }
+        }
+    }
+    if (!keys_room(r, n)) {
+        free(touch);
+        return false;
+    }
+    c->touch = touch;
+    c->touch_count = (uint32_t)n;
+    for (size_t i = 0; i < n; ++i) {
+        r->keys[r->key_count++] = touch[i];
+        if (!map_add(&r->touch, touch[i], s->present[k]))
+            return false;
+    }
+    return true;
+}
+
+/* ---- the frame -------------------------------------------------------------- */
+
+static bool set_room(ms_render *r, size_t need)
+{
+    if (need <= r->set_cap)
+        return true;
+    size_t cap = r->set_cap ? r->set_cap : 64;
+    while (cap < need)
+        cap *= 2;
+    uint32_t *shade = realloc(r->shade, cap * sizeof *shade);
+    if (shade)
+        r->shade = shade;
+    uint32_t *around = shade ? realloc(r->around, cap * sizeof *around) : NULL;
+    if (!around)
+        return false;
+    r->around = around;
+    r->set_cap = cap;
+    return true;
+}
+
+/* Every cell present and marked in this pass, for the cells touching key, onto
+ * list (present indices). */
+static void add_touching(ms_render *r, uint64_t key, uint32_t *list, size_t *count)
+{
+    const ms_render_touch_map *map = &r->touch;
+    for (size_t at = map->cap ? slot_of(key, map->cap) : 0; map->cap && map->slots[at].state;
+         at = (at + 1) & (map->cap - 1)) {
+        if (map->slots[at].state != 1 || map->slots[at].key != key)
+            continue;
+        render_cell *c = ms_render_cell_at(r, map->slots[at].cell);
+        if (!c || !c->in_frame || c->mark == r->mark_pass)
+            continue;
+        c->mark = r->mark_pass;
+        list[(*count)++] = c->frame_index;
+    }
+}
+
+static int compare_u32(const void *a, const void *b)
+{
+    uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
+    return (x > y) - (x < y);
+}
+
+static void new_mark_pass(ms_render *r)
+{
+    if (++r->mark_pass != 0)
+        return;
+    for (uint32_t g = 0; g < r->group_count; ++g)
+        for (uint32_t k = 0; r->groups[g] && k < r->group_size; ++k)
+            r->groups[g][k].mark = 0;
+    r->mark_pass = 1;
+}
+
+static ms_status derive(ms_render *r, ms_error *err)
+{
+    ms_render_split *s = &r->split;
+    uint32_t present = s->present_count;
+    bool all = r->derived_crease != r->crease_angle_deg;
+    if (!set_room(r, present))
+        return ms_error_set(err, MS_ERR_NOMEM, "render: no memory for %u cells", present);
+    /* the changed cells: their old and new vertices' keys */
+    new_mark_pass(r);
+    r->shade_count = 0;
+    for (uint32_t k = 0; k < present; ++k) {
+        render_cell *c = ms_render_cell_at(r, s->present[k]);
+        c->frame_index = k;
+        if (!all && c->has_version && c->version == s->present_version[k])
+            continue;
+        if (!forget_touch(r, s->present[k], c) || !make_touch(r, k, c))
+            return ms_error_set(err, MS_ERR_NOMEM, "render: no memory for cell %u's vertices", s->present[k]);
+        c->mark = r->mark_pass;
+        r->shade[r->shade_count++] = k;
+    }
+    r->frame_stats.cells_changed = (uint32_t)r->shade_count;
+    if (r->key_count == 0)
+        return MS_OK;
+    /* their neighbours, old and new, then every cell around the ones derived */
+    for (size_t i = 0; i < r->key_count; ++i)
+        add_touching(r, r->keys[i], r->shade, &r->shade_count);
+    qsort(r->shade, r->shade_count, sizeof *r->shade, compare_u32);
+    new_mark_pass(r);
+    r->around_count = 0;
+    for (size_t j = 0; j < r->shade_count; ++j) {
+        render_cell *c = ms_render_cell_at(r, s->present[r->shade[j]]);
+        for (uint32_t i = 0; i < c->touch_count; ++i)
+            add_touching(r, c->touch[i], r->around, &r->around_count);
+    }
+    qsort(r->around, r->around_count, sizeof *r->around, compare_u32);
+    ms_status st = ms_render_split_normals(s, r->shade, (uint32_t)r->shade_count, r->around,
+                                           (uint32_t)r->around_count, err);
+    r->frame_stats.vertex_fans = s->fans_made;
+    r->frame_stats.face_normals = s->faces_made;
+    for (size_t j = 0; j < r->shade_count && st == MS_OK; ++j) {
+        uint32_t k = r->shade[j];
+        render_cell *c = ms_render_cell_at(r, s->present[k]);
+        ms_render_cell_mesh m;
+        st = ms_render_split_cell(s, k, &c->record, &m, err);
+        if (st == MS_OK)
+            st = ms_render_take_mesh(r, c, &m, err);
+        if (st == MS_OK) {
+            c->has_version = true;
+            c->version = s->present_version[k];
+        }
+    }
+    r->frame_stats.cells_derived = (uint32_t)r->shade_count;
+    return st;
+}
+
+ms_status ms_render_derive_cells(ms_render *r, ms_error *err)
+{
+    r->frame_stats.cells_present = r->split.present_count;
+    ms_status st = derive(r, err);
+    r->key_count = 0;
+    if (st == MS_OK) {
+        r->derived_crease = r->crease_angle_deg;
+        return MS_OK;
+    }
+    /* start again from nothing: every cell forgotten, the next frame derives all */
+    for (uint32_t g = 0; g < r->group_count; ++g)
+        for (uint32_t k = 0; r->groups[g] && k < r->group_size; ++k) {
+            render_cell *c = &r->groups[g][k];
+            free(c->touch);
+            c->touch = NULL;
+            c->touch_count = 0;
+            c->has_version = false;
+        }
+    ms_render_touch_map_free(&r->touch);
+    r->derived_crease = -1.0;
+    return st;
+}
+
+void ms_render_frame_stats_get(const ms_render *r, ms_render_frame_stats *stats)
+{
+    memset(stats, 0, sizeof *stats);
+    if (r)
+        *stats = r->frame_stats;
+}

@@ -1,0 +1,269 @@
+/* Looking closely in meshview: see ms_viewer_inspect.h. */
+#include "ms_viewer_inspect.h"
+
+#include <GLFW/glfw3.h>
+#include <math.h>
+#include <string.h>
+#include <time.h>
+
+#include "ms_progress.h"
+
+#include "ms_viewer_share.h"
+
+static double box_side(const ms_viewer_stream *stream)
+{
+    return ms_viewer_stream_model(stream)->header.box_side;
+}
+
+void ms_viewer_inspect_init(ms_viewer_inspect *in, const ms_viewer_options *o, const ms_viewer_source *source)
+{
+    memset(in, 0, sizeof *in);
+    in->source = source;
+    in->light = o->light;
+    if (o->has_view)
+        ms_viewer_share_give(&o->view, NULL, NULL, &in->measure);
+}
+
+void ms_viewer_inspect_close(ms_viewer_inspect *in)
+{
+    ms_viewer_probe_stop(in->probe);
+    in->probe = NULL;
+    in->probe_failed = in->refining = false;
+    in->generation = 0;
+}
+
+/* Polls the probe once the view is settled, starting it when a point wants
+ * refining. */
+static void refine(ms_viewer_inspect *in, ms_viewer_stream *stream)
+{
+    bool wanted = false;
+    for (size_t i = 0; i < in->measure.count; ++i)
+        wanted |= in->measure.found[i] && !in->measure.refined[i];
+    if (!in->probe && (!wanted || in->probe_failed || !in->source))
+        return;
+    ms_error err;
+    if (!in->probe && ms_viewer_probe_start(in->source, ms_viewer_stream_model(stream), &in->probe, &err) != MS_OK) {
+        in->probe_failed = true;
+        return;
+    }
+    in->refining = ms_viewer_probe_step(in->probe, &in->measure);
+}
+
+void ms_viewer_inspect_view(const ms_viewer_options *o, ms_viewer_controls *c)
+{
+    if (o->has_view)
+        ms_viewer_share_give(&o->view, c, NULL, NULL);
+}
+
+bool ms_viewer_inspect_key(ms_viewer_inspect *in, int key, const ms_viewer_controls *c, FILE *out)
+{
+    switch (key) {
+    case GLFW_KEY_T: in->measuring = !in->measuring; return true;
+    case GLFW_KEY_BACKSPACE: ms_viewer_measure_pop(&in->measure); return true;
+    case GLFW_KEY_DELETE: ms_viewer_measure_clear(&in->measure); return true;
+    case GLFW_KEY_L: ms_viewer_light_next_preset(&in->light); return true;
+    case GLFW_KEY_V: {
+        ms_viewer_share share;
+        char text[MS_VIEWER_SHARE_MAX];
+        ms_viewer_share_take(c, &in->light, &in->measure, &share);
+        ms_viewer_share_print(&share, text, sizeof text);
+        fprintf(out, "%s\n", text);
+        fflush(out);
+        return true;
+    }
+    default: return false;
+    }
+}
+
+void ms_viewer_inspect_frame(ms_viewer_inspect *in, ms_viewer_stream *stream, const ms_camera *camera,
+                             ms_render_options *render)
+{
+    ms_viewer_light_apply(&in->light, camera, render);
+    in->camera = *camera;
+    in->have_camera = true;
+    const ms_core_frame *frame = ms_viewer_stream_frame(stream);
+    if (!frame)
+        return;
+    /* the chain follows the cut once the view settles there (a cast reads every
+     * triangle drawn: not at every frame of a refinement), or while a point is
+     * not found */
+    bool lost = false;
+    for (size_t i = 0; i < in->measure.count; ++i)
+        lost |= !in->measure.found[i];
+    if (frame->generation != in->generation && (lost || ms_viewer_stream_settled(stream))) {
+        ms_viewer_measure_update(&in->measure, frame, box_side(stream));
+        in->generation = frame->generation;
+    }
+    if (in->add_requested) {
+        double origin[3], direction[3];
+        ms_viewer_measure_pixel_ray(camera, in->add_x, in->add_y, origin, direction);
+        ms_viewer_measure_add(&in->measure, frame, box_side(stream), origin, direction);
+        in->add_requested = false;
+    }
+    if (ms_viewer_stream_settled(stream) || in->refining)
+        refine(in, stream);
+}
+
+void ms_viewer_inspect_describe(const ms_viewer_measure *m, unsigned model_bits, char *text, size_t size)
+{
+    ms_viewer_measure_result r;
+    if (!ms_viewer_measure_result_of(m, model_bits, &r)) {
+        snprintf(text, size, "measure %zu point%s%s", m->count, m->count == 1 ? "" : "s",
+                 m->count >= 2 ? ": not on the surface drawn" : "");
+        return;
+    }
+    /* as many decimals as the precision has: its first significant digit and one more */
+    int decimals = r.precision > 0 ? 1 - (int)floor(log10(r.precision)) : 6;
+    decimals = decimals < 0 ? 0 : decimals > 12 ? 12 : decimals;
+    snprintf(text, size, "measure %zu points: %.*f +- %.*f model units (%u bits%s)", r.points, decimals, r.length,
+             decimals, r.precision, r.bits_min, r.full ? ", full" : "");
+}
+
+size_t ms_viewer_inspect_hud(ms_viewer_inspect *in, const ms_viewer_stream *stream)
+{
+    size_t n = 0;
+    if (in->light.directional)
+        ms_viewer_light_describe(&in->light, in->lines[n++], MS_HUD_LINE_MAX);
+    if (in->measuring || in->measure.count) {
+        ms_viewer_inspect_describe(&in->measure, ms_viewer_stream_model(stream)->header.bits, in->lines[n],
+                                   MS_HUD_LINE_MAX);
+        size_t used = strlen(in->lines[n]);
+        snprintf(in->lines[n] + used, MS_HUD_LINE_MAX - used, "%s%s", in->refining ? "  refining" : "",
+                 in->measuring ? "  [T]" : "");
+        n++;
+    }
+    return n;
+}
+
+/* Where camera c shows world point p (framebuffer pixels, top-left origin);
+ * false behind the eye. */
+static bool project(const ms_camera *c, const double p[3], double *sx, double *sy)
+{
+    double th = tan(0.5 * c->fovy), aspect = c->width / c->height;
+    double rel[3] = {p[0] - c->position[0], p[1] - c->position[1], p[2] - c->position[2]};
+    double z = rel[0] * c->forward[0] + rel[1] * c->forward[1] + rel[2] * c->forward[2];
+    if (!(z > 0))
+        return false;
+    double x = rel[0] * c->right[0] + rel[1] * c->right[1] + rel[2] * c->right[2];
+    double y = rel[0] * c->up[0] + rel[1] * c->up[1] + rel[2] * c->up[2];
+    *sx = 0.5 * c->width * (1 + x / (z * th * aspect));
+    *sy = 0.5 * c->height * (1 - y / (z * th));
+    return isfinite(*sx) && isfinite(*sy);
+}
+
+void ms_viewer_inspect_markers(const ms_viewer_inspect *in, ms_viewer_text *text)
+{
+    static const float ink[4] = {1.0f, 0.85f, 0.2f, 1};
+    const ms_camera *c = &in->camera;
+    if (!in->have_camera)
+        return;
+    double s = 3.0 * ms_viewer_text_scale(text), px = 0, py = 0;
+    bool have_previous = false;
+    for (size_t i = 0; i < in->measure.count; ++i) {
+        const double *p = in->measure.found[i] ? in->measure.hit[i].point : in->measure.anchor[i];
+        double x, y;
+        if (!project(c, p, &x, &y)) {
+            have_previous = false;
+            continue;
+        }
+        ms_viewer_text_rect(text, x - s, y - s, 2 * s, 2 * s, ink);
+        /* the segment from the previous point: a dotted line, a dot every 2 s pixels */
+        double len = hypot(x - px, y - py);
+        for (int k = 1; have_previous && len < 1e5 && k < (int)(len / (2 * s)); ++k) {
+            double f = k * 2 * s / len;
+            ms_viewer_text_rect(text, px + f * (x - px) - s / 3, py + f * (y - py) - s / 3, 2 * s / 3, 2 * s / 3,
+                                ink);
+        }
+        px = x, py = y, have_previous = true;
+    }
+}
+
+void ms_viewer_inspect_report_light(const ms_viewer_options *o, json_t *report)
+{
+    if (!report)
+        return;
+    json_object_set_new(report, "light",
+                        o->light.directional ? json_pack("{s:f, s:f}", "azimuth_deg", o->light.azimuth_deg,
+                                                         "elevation_deg", o->light.elevation_deg)
+                                             : json_pack("{s:b}", "head", true));
+    if (o->has_view) {
+        char view[MS_VIEWER_SHARE_MAX];
+        ms_viewer_share_print(&o->view, view, sizeof view);
+        json_object_set_new(report, "view", json_string(view));
+    }
+}
+
+static json_t *point_json(const ms_viewer_measure *m, size_t i, const double *pixel)
+{
+    const ms_viewer_measure_hit *h = &m->hit[i];
+    json_t *p = json_pack("{s:b}", "hit", m->found[i]);
+    if (pixel)
+        json_object_set_new(p, "pixel", json_pack("[f, f]", pixel[0], pixel[1]));
+    if (m->found[i]) {
+        json_object_set_new(p, "point", json_pack("[f, f, f]", h->point[0], h->point[1], h->point[2]));
+        json_object_set_new(p, "cell", json_integer(h->cell));
+        json_object_set_new(p, "bits", json_integer(h->bits));
+        json_object_set_new(p, "step", json_real(h->step));
+    }
+    return p;
+}
+
+bool ms_viewer_inspect_report_measure(const ms_viewer_options *o, ms_viewer_inspect *look, ms_viewer_stream *stream,
+                                      const ms_camera *camera, json_t *report)
+{
+    if (!report || (!o->measure_count && !look->measure.count))
+        return false;
+    const ms_core_frame *frame = ms_viewer_stream_frame(stream);
+    const ms_viewer_model *model = ms_viewer_stream_model(stream);
+    ms_viewer_measure_update(&look->measure, frame, model->header.box_side);
+    size_t shared = look->measure.count;
+    json_t *points = json_array();
+    for (size_t i = 0; i < shared; ++i)
+        json_array_append_new(points, point_json(&look->measure, i, NULL));
+    for (size_t k = 0; k < o->measure_count; ++k) {
+        double origin[3], direction[3];
+        ms_viewer_measure_pixel_ray(camera, o->measure_px[k][0], o->measure_px[k][1], origin, direction);
+        if (!ms_viewer_measure_add(&look->measure, frame, model->header.box_side, origin, direction)) {
+            /* no surface there: kept in the chain as a point not found */
+            double nowhere[3] = {origin[0], origin[1], origin[2]};
+            ms_viewer_measure_add_anchor(&look->measure, nowhere, direction);
+        }
+        json_array_append_new(points, point_json(&look->measure, look->measure.count - 1, o->measure_px[k]));
+    }
+    ms_viewer_measure_result view, r;
+    bool view_ok = ms_viewer_measure_result_of(&look->measure, model->header.bits, &view);
+    /* the probe: the cells under the points to full precision (a bounded wait) */
+    for (double start = ms_now_seconds(); ms_now_seconds() - start < MS_VIEWER_PROBE_TIMEOUT_S * 16;) {
+        refine(look, stream);
+        if (!look->refining)
+            break;
+        struct timespec nap = {0, 5000000};
+        nanosleep(&nap, NULL);
+    }
+    for (size_t i = 0; i < json_array_size(points); ++i) /* the points as refined */
+        if (look->measure.found[i]) {
+            json_t *p = json_array_get(points, i);
+            const ms_viewer_measure_hit *h = &look->measure.hit[i];
+            json_object_set_new(p, "point", json_pack("[f, f, f]", h->point[0], h->point[1], h->point[2]));
+            json_object_set_new(p, "cell", json_integer(h->cell));
+            json_object_set_new(p, "bits", json_integer(h->bits));
+            json_object_set_new(p, "step", json_real(h->step));
+        }
+    bool ok = ms_viewer_measure_result_of(&look->measure, model->header.bits, &r);
+    char text[MS_HUD_LINE_MAX];
+    ms_viewer_inspect_describe(&look->measure, model->header.bits, text, sizeof text);
+    json_object_set_new(report, "measure",
+                        json_pack("{s:o, s:o, s:o, s:o, s:I, s:b, s:s, s:s, s:b}", "points", points, "length",
+                                  ok ? json_real(r.length) : json_null(), "precision",
+                                  ok ? json_real(r.precision) : json_null(), "last_length",
+                                  ok ? json_real(r.last_length) : json_null(), "bits_min",
+                                  (json_int_t)(ok ? r.bits_min : 0), "full_precision", ok && r.full, "unit",
+                                  "model units", "text", text, "refined_to_full", ok && r.refined && r.full));
+    json_t *jm = json_object_get(report, "measure");
+    json_object_set_new(jm, "refined", json_boolean(ok && r.refined));
+    json_object_set_new(jm, "view_length", view_ok ? json_real(view.length) : json_null());
+    json_object_set_new(jm, "view_precision", view_ok ? json_real(view.precision) : json_null());
+    json_object_set_new(jm, "view_bits_min", json_integer((json_int_t)(view_ok ? view.bits_min : 0)));
+    look->generation = frame ? frame->generation : 0;
+    return true;
+}
