@@ -191,7 +191,7 @@ static void test_bump_keeps_texels_where_it_deviates(void **state)
     ms_apo_lookup(&view, far_away, 30, MS_APO_MISSING_STOP, &r);
     assert_true(r.smooth);
     ms_apo_filter_result f;
-    ms_apo_lookup_filtered(&view, far_away, 30, MS_APO_MISSING_STOP, smooth, &f);
+    ms_apo_lookup_filtered_smooth(&view, far_away, 30, MS_APO_MISSING_STOP, smooth, &f);
     assert_int_equal(f.texels, 0);
     assert_true(f.normal[0] == 0.0f && f.normal[1] == 0.0f && f.normal[2] == 1.0f);
     ms_apo_lookup(&view, steep, 30, MS_APO_MISSING_STOP, &r);

@@ -177,7 +177,7 @@ static bool oracle_normal_at(const oracle *o, const ms_archive *a, uint32_t cell
     }
     if (l->filter) {
         ms_apo_filter_result res;
-        ms_apo_lookup_filtered(&o->views[cell], p, cap, l->rule, base, &res);
+        ms_apo_lookup_filtered_smooth(&o->views[cell], p, cap, l->rule, base, &res);
         for (int k = 0; k < 3; ++k)
             n[k] = res.normal[k];
     } else {

@@ -84,10 +84,17 @@ ms_apo_stop ms_apo_lookup_filtered_fixed(const ms_apo_view *view, const uint32_t
     return stop;
 }
 
-ms_apo_stop ms_apo_lookup_filtered(const ms_apo_view *view, const float position[3], uint32_t depth_cap,
-                                   ms_apo_missing_rule rule, const float smooth[3], ms_apo_filter_result *result)
+ms_apo_stop ms_apo_lookup_filtered_smooth(const ms_apo_view *view, const float position[3], uint32_t depth_cap,
+                                          ms_apo_missing_rule rule, const float smooth[3],
+                                          ms_apo_filter_result *result)
 {
     uint32_t fixed[3];
     ms_apo_position_to_fixed(position, fixed);
     return ms_apo_lookup_filtered_fixed(view, fixed, depth_cap, rule, smooth, result);
+}
+
+ms_apo_stop ms_apo_lookup_filtered(const ms_apo_view *view, const float position[3], uint32_t depth_cap,
+                                   ms_apo_missing_rule rule, ms_apo_filter_result *result)
+{
+    return ms_apo_lookup_filtered_smooth(view, position, depth_cap, rule, NULL, result);
 }

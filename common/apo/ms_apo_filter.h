@@ -72,7 +72,14 @@ ms_apo_stop ms_apo_lookup_filtered_fixed(const ms_apo_view *view, const uint32_t
                                          ms_apo_filter_result *result);
 
 /* Same with a float cell-local position. */
+ms_apo_stop ms_apo_lookup_filtered_smooth(const ms_apo_view *view, const float position[3], uint32_t depth_cap,
+                                          ms_apo_missing_rule rule, const float smooth[3],
+                                          ms_apo_filter_result *result);
+
+/* The same without a smooth normal (a zero vector): where no corner has a
+ * texel the normal is zero, elsewhere the texels' blend (for callers that
+ * fall back to a normal of their own, as meshrender does). */
 ms_apo_stop ms_apo_lookup_filtered(const ms_apo_view *view, const float position[3], uint32_t depth_cap,
-                                   ms_apo_missing_rule rule, const float smooth[3], ms_apo_filter_result *result);
+                                   ms_apo_missing_rule rule, ms_apo_filter_result *result);
 
 #endif
