@@ -72,6 +72,7 @@ typedef struct archive_check {
     uint32_t chunks, at_rule_depth;  /* cells with a chunk; of them, as deep as the rule allows */
     uint32_t multi_level;            /* chunks with at least 2 levels */
     uint32_t internal_with_chunk;    /* internal cells (M gathered from several leaves) */
+    uint32_t smooth_cells;           /* cells that could have a chunk, left without: no texel needed */
 } archive_check;
 
 /* Everything a client may rely on, for every cell of the archive at path.
@@ -88,9 +89,12 @@ static archive_check check_archive(const char *path, bool every_cell)
     assert_true(h->has_apo);
     for (uint32_t i = 0; i < h->cell_count; ++i) {
         const ms_archive_cell *c = ms_archive_get_cell(a, i);
-        /* a chunk exactly where m has triangles, leaf cells aside by default */
+        /* a chunk only where m has triangles, leaf cells aside by default; of
+         * those, none where m's smooth normal gives every texel */
         bool leaf = c->first_child == MS_ARCHIVE_NONE;
-        assert_int_equal(c->apo_levels > 0, c->triangle_count > 0 && (every_cell || !leaf));
+        if (c->apo_levels > 0)
+            assert_true(c->triangle_count > 0 && (every_cell || !leaf));
+        k.smooth_cells += c->apo_levels == 0 && c->triangle_count > 0 && (every_cell || !leaf);
         if (c->apo_levels == 0) {
             assert_int_equal(c->apo_length, 0);
             continue;
@@ -210,9 +214,11 @@ static void test_depth_rule_exact(void **state)
     apo.max_depth = 4;
     apo.verify = true;
     apo.every_cell = true;
+    apo.full_normals = true; /* the split's depth: no texel left to the smooth normal */
     bake(model, dir, "cap", 2, &apo, 16, 4, 7, 800);
     archive_check k = check_baked(dir, "cap", true);
     assert_true(k.chunks > 10);
+    assert_int_equal(k.smooth_cells, 0);
     assert_int_equal(k.at_rule_depth, k.chunks);
 
     apo.max_depth = 24;
@@ -344,6 +350,7 @@ static void test_cli_reports_apo(void **state)
     assert_null(json_object_get(apo, "every_cell"));
     assert_int_equal(json_integer_value(json_object_get(apo, "max_depth")), 6);
     assert_int_equal(json_integer_value(json_object_get(apo, "lead")), 1);
+    assert_true(json_real_value(json_object_get(apo, "correction")) == 0.2);
     json_int_t bytes = json_integer_value(json_object_get(apo, "bytes"));
     json_int_t raw = json_integer_value(json_object_get(apo, "raw_bytes"));
     json_int_t internal = json_integer_value(json_object_get(apo, "internal_nodes"));
@@ -365,7 +372,9 @@ static void test_cli_reports_apo(void **state)
                                   json_number_value(json_object_get(seconds, "total")), 1e-9);
     json_t *sampling = json_object_get(apo, "sampling");
     json_int_t rays = json_integer_value(json_object_get(sampling, "rays"));
-    assert_true(rays > 0 && rays <= 2 * (json_int_t)MS_APO_SAMPLES_PER_LEAF * leaves);
+    json_int_t smooth = json_integer_value(json_object_get(sampling, "smooth_leaves"));
+    assert_true(smooth > 0); /* leaves whose texel m's smooth normal already gives */
+    assert_true(rays > 0 && rays <= 2 * (json_int_t)MS_APO_SAMPLES_PER_LEAF * (leaves + smooth));
     assert_true(json_is_integer(json_object_get(sampling, "point_queries")));
     json_decref(j);
     /* the archive's chunks add up to the report */
@@ -619,8 +628,8 @@ static void write_ply(const char *path, const double *v, size_t nv, const uint32
 /* The 12-triangle cube (issue 18: 211 KB of APO before, 926 times its geometry):
  * its one cell is a leaf whose geometry renders every face and crease, so a
  * default bake stores no chunk (0 bytes, within the issue's geometry + 2 KB);
- * apo.every_cell (a chunk on every cell with triangles) refines its 12 creases
- * to the cap. */
+ * apo.every_cell with apo.full_normals (a chunk on every cell with triangles,
+ * every texel kept) refines its 12 creases to the cap. */
 static void test_cube_costs_no_apo(void **state)
 {
     (void)state;
@@ -642,6 +651,7 @@ static void test_cube_costs_no_apo(void **state)
     assert_int_equal(r.apo_bytes, 0);
     assert_true(r.apo_bytes <= r.geometry_bytes + 2048);
     apo.every_cell = true;
+    apo.full_normals = true;
     bake_report(path, dir, "cube_every", 1, &apo, 16, 4, 7, 8000, &r);
     assert_int_equal(r.apo_chunks, 1);
     assert_int_equal(r.apo_levels, apo.max_depth + 1); /* the creases go to the cap */
@@ -703,6 +713,7 @@ static void test_crease_rendered_by_geometry(void **state)
     assert_int_equal(out.levels, 0);
     assert_null(out.data);
     p.every_cell = true;
+    p.full_normals = true;
     assert_int_equal(ms_bake_apo_cell(builder, &p, &shape, &box, 0, position, 8, &m, &M, NULL, 1, &out, &err),
                      MS_OK);
     uint32_t rule = 8 + p.lead < p.max_depth ? 8 + p.lead : p.max_depth; /* the crease splits to the rule */
@@ -714,9 +725,10 @@ static void test_crease_rendered_by_geometry(void **state)
 }
 
 /* A flat fan of 20,000 triangles (issue 18: 100,000 took 182 s with APO): its
- * leaf cells get no chunk (their geometry renders M), its internal cells one
- * leaf each (M flat), and each leaf samples at most MS_APO_SAMPLES_PER_LEAF
- * triangles (test_apo_build.c counts the rays). */
+ * leaf cells get no chunk (their geometry renders M), its internal cells none
+ * either (M flat: m's smooth normal gives it, APO as a correction); with every
+ * texel kept (full_normals) one leaf each, and each leaf samples at most
+ * MS_APO_SAMPLES_PER_LEAF triangles (test_apo_build.c counts the rays). */
 static void test_flat_fan_bakes(void **state)
 {
     (void)state;
@@ -742,6 +754,12 @@ static void test_flat_fan_bakes(void **state)
     apo.verify = true;
     ms_bake_report r;
     bake_report(path, dir, "fan", 2, &apo, 16, 4, 7, 8000, &r);
+    assert_true(r.cells > r.leaves);
+    assert_int_equal(r.apo_chunks, 0);
+    assert_int_equal(r.apo_bytes, 0);
+    assert_true(r.apo_smooth_leaves >= r.cells - r.leaves); /* each internal cell's one leaf, dropped */
+    apo.full_normals = true;
+    bake_report(path, dir, "fan_full", 2, &apo, 16, 4, 7, 8000, &r);
     assert_true(r.cells > r.leaves && r.apo_chunks > 0);
     assert_int_equal(r.apo_internal_nodes, 0);
     assert_int_equal(r.apo_leaves, r.apo_chunks); /* one texel per chunk */
@@ -751,7 +769,7 @@ static void test_flat_fan_bakes(void **state)
      * fan's M is crowded, so most are answered from the leaf's own list */
     assert_true(r.apo_rays <= 2 * MS_APO_SAMPLES_PER_LEAF * r.apo_leaves);
     assert_true(r.apo_point_queries <= r.apo_leaves);
-    archive_check k = check_baked(dir, "fan", false);
+    archive_check k = check_baked(dir, "fan_full", false);
     assert_int_equal(k.chunks, r.apo_chunks);
     assert_int_equal(k.multi_level, 0);
     ms_test_rmdir(dir);

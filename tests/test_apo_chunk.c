@@ -2,6 +2,7 @@
  * validating loader (corrupted offsets, masks, tables, prefixes) and the stored
  * blob (zlib, CRCs). */
 #include <stdarg.h>
+#include <stdio.h>
 #include <stddef.h>
 #include <setjmp.h>
 #include <stdint.h>
@@ -219,6 +220,71 @@ static void test_exact_words(void **state)
     ms_apo_chunk_free(&c);
 }
 
+/* A mean word may say "smooth" (MS_APO_NORMAL_SMOOTH: no correction there); it
+ * encodes, loads and decodes back as such. Pruning keeps the chosen nodes in
+ * breadth-first order, renumbers the children and turns a kept internal node
+ * without kept children into a leaf. */
+static void test_smooth_and_prune(void **state)
+{
+    (void)state;
+    ms_apo_tree tree;
+    memset(&tree, 0, sizeof tree);
+    tree.nodes = calloc(5, sizeof *tree.nodes);
+    assert_non_null(tree.nodes);
+    tree.node_count = 5, tree.level_count = 3;
+    tree.level_start[1] = 1, tree.level_start[2] = 3, tree.level_start[3] = 5;
+    ms_apo_node *n = tree.nodes;
+    n[0] = (ms_apo_node){.first_child = 1, .child_mask = 0x21, .smooth = 1, .normal = {0, 0, 1}};
+    n[1] = (ms_apo_node){.first_child = 3, .child_mask = 0x42, .depth = 1, .normal = {1, 0, 0}};
+    n[2] = (ms_apo_node){.cell = {1, 0, 1}, .depth = 1, .normal = {0, 1, 0}};
+    n[3] = (ms_apo_node){.cell = {0, 0, 1}, .depth = 2, .normal = {0, -1, 0}};
+    n[4] = (ms_apo_node){.cell = {1, 1, 0}, .depth = 2, .normal = {-1, 0, 0}};
+    ms_apo_chunk c;
+    assert_int_equal(ms_apo_chunk_encode(&tree, &c, NULL), MS_OK);
+    assert_int_equal(ms_apo_word_normal(c.texels[1]), MS_APO_NORMAL_SMOOTH);
+    assert_int_equal(ms_apo_word_normal(c.texels[3]), ms_apo_normal_encode(n[1].normal));
+    ms_apo_view v;
+    assert_int_equal(ms_apo_view_of_chunk(&v, &c, NULL), MS_OK);
+    ms_apo_tree back;
+    assert_int_equal(ms_apo_view_decode(&v, &back, NULL), MS_OK);
+    assert_int_equal(back.node_count, 5);
+    assert_int_equal(back.nodes[0].smooth, 1);
+    assert_int_equal(back.nodes[1].smooth, 0);
+    ms_apo_tree_free(&back);
+    ms_apo_chunk_free(&c);
+    /* keep the root, node 1 and its second child: node 2 and 3 go */
+    uint8_t keep[5] = {1, 1, 0, 0, 1};
+    assert_int_equal(ms_apo_tree_prune(&tree, keep, NULL), MS_OK);
+    assert_int_equal(ms_apo_tree_check(&tree, NULL), MS_OK);
+    assert_int_equal(tree.node_count, 3);
+    assert_int_equal(tree.level_count, 3);
+    assert_int_equal(tree.nodes[0].child_mask, 0x01);
+    assert_int_equal(tree.nodes[1].child_mask, 0x40);
+    assert_int_equal(tree.nodes[1].first_child, 2);
+    assert_int_equal(tree.nodes[2].cell[0], 1);
+    assert_true(tree.nodes[2].normal[0] == -1.0f);
+    /* a kept node under a dropped parent is refused, the tree unchanged */
+    uint8_t orphan[3] = {1, 0, 1};
+    ms_error err;
+    ms_error_clear(&err);
+    assert_int_equal(ms_apo_tree_prune(&tree, orphan, &err), MS_ERR_ARG);
+    assert_string_equal(err.text, "apo prune: node 2 kept under a dropped parent");
+    assert_int_equal(tree.node_count, 3);
+    /* the internal node 1 kept without its child: a leaf */
+    uint8_t top[3] = {1, 1, 0};
+    assert_int_equal(ms_apo_tree_prune(&tree, top, NULL), MS_OK);
+    assert_int_equal(ms_apo_tree_check(&tree, NULL), MS_OK);
+    assert_int_equal(tree.node_count, 2);
+    assert_int_equal(tree.level_count, 2);
+    assert_int_equal(tree.nodes[1].child_mask, 0);
+    /* nothing kept: an empty tree */
+    uint8_t none[2] = {0, 0};
+    assert_int_equal(ms_apo_tree_prune(&tree, none, NULL), MS_OK);
+    assert_int_equal(tree.node_count, 0);
+    assert_int_equal(tree.level_count, 0);
+    assert_null(tree.nodes);
+}
+
 static void test_loader_rejects_corruption(void **state)
 {
     (void)state;
@@ -252,6 +318,17 @@ static void test_loader_rejects_corruption(void **state)
     assert_int_equal(load_words(&c, w, 7), MS_ERR_CORRUPT);
     memcpy(w, c.texels, sizeof w);
     w[6] = 0xFFFu;
+    assert_int_equal(load_words(&c, w, 7), MS_ERR_CORRUPT);
+    /* "Smooth" is a mean word's code only: a leaf always holds a normal. */
+    memcpy(w, c.texels, sizeof w);
+    w[6] = MS_APO_NORMAL_SMOOTH;
+    assert_int_equal(load_words(&c, w, 7), MS_ERR_CORRUPT);
+    memcpy(w, c.texels, sizeof w);
+    w[1] = ms_apo_mean_word(ms_apo_mean_kind(w[1]), MS_APO_NORMAL_SMOOTH);
+    w[3] = ms_apo_mean_word(ms_apo_mean_kind(w[3]), MS_APO_NORMAL_SMOOTH);
+    assert_int_equal(load_words(&c, w, 7), MS_OK);
+    /* ... and a mean word with another invalid code is refused */
+    w[3] = ms_apo_mean_word(ms_apo_mean_kind(w[3]), 0xFFEFFFu);
     assert_int_equal(load_words(&c, w, 7), MS_ERR_CORRUPT);
     /* More children than the next level holds (a mask with every bit set). */
     memcpy(w, c.texels, sizeof w);
@@ -419,10 +496,21 @@ static void test_blob_damage(void **state)
     /* Every truncation is rejected. */
     for (size_t n = 0; n < size; n += 1 + n / 8)
         assert_true(ms_apo_blob_read(blob, n, &back, NULL) != MS_OK);
-    /* Version and magic. */
-    memcpy(copy, blob, size);
-    copy[4] = 2;
-    assert_int_equal(ms_apo_blob_read(copy, size, &back, NULL), MS_ERR_UNSUPPORTED);
+    /* Version and magic: version 2 (chunks are corrections of the smooth
+     * normal); 1, whose missing nodes meant the nearest texel, and 3 are
+     * refused in one line naming the version. */
+    assert_int_equal(blob[4] | blob[5] << 8, 2);
+    for (int v = 1; v <= 3; v += 2) {
+        memcpy(copy, blob, size);
+        copy[4] = (uint8_t)v;
+        ms_error verr;
+        ms_error_clear(&verr);
+        assert_int_equal(ms_apo_blob_read(copy, size, &back, &verr), MS_ERR_UNSUPPORTED);
+        char want[80];
+        snprintf(want, sizeof want, "apo blob: version %d (this reader knows only 2)", v);
+        assert_string_equal(verr.text, want);
+        assert_null(back.texels);
+    }
     memcpy(copy, blob, size);
     copy[0] = 'X';
     assert_int_equal(ms_apo_blob_read(copy, size, &back, NULL), MS_ERR_FORMAT);
@@ -446,7 +534,7 @@ int main(void)
         cmocka_unit_test(test_round_trip),
         cmocka_unit_test(test_exact_words),               cmocka_unit_test(test_loader_rejects_corruption),
         cmocka_unit_test(test_loader_random_damage),      cmocka_unit_test(test_truncated_mid_level),       cmocka_unit_test(test_empty_chunk),
-        cmocka_unit_test(test_blob_damage),
+        cmocka_unit_test(test_blob_damage),               cmocka_unit_test(test_smooth_and_prune),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

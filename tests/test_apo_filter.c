@@ -134,8 +134,8 @@ static void test_step_across_a_face(void **state)
     assert_normal(a.normal, 0, 0, 1); /* today's lookup: a step of 90 degrees */
     assert_normal(b.normal, 1, 0, 0);
     ms_apo_filter_result fa, fb;
-    ms_apo_lookup_filtered_fixed(&f.view, below, 30, MS_APO_MISSING_NEAREST, &fa);
-    ms_apo_lookup_filtered_fixed(&f.view, above, 30, MS_APO_MISSING_NEAREST, &fb);
+    ms_apo_lookup_filtered_fixed(&f.view, below, 30, MS_APO_MISSING_NEAREST, NULL, &fa);
+    ms_apo_lookup_filtered_fixed(&f.view, above, 30, MS_APO_MISSING_NEAREST, NULL, &fb);
     assert_normal(fa.normal, 1, 0, 1);
     assert_normal(fb.normal, 1, 0, 1);
     assert_int_equal(fa.lookups, 8);
@@ -144,14 +144,14 @@ static void test_step_across_a_face(void **state)
      * (2^29 + 1/2) / 2^31 on +x; y and z at the centres (weights 2^-32) */
     uint32_t p[3] = {0x60000000u, 0x40000000u, 0x40000000u};
     ms_apo_filter_result r;
-    ms_apo_lookup_filtered_fixed(&f.view, p, 30, MS_APO_MISSING_NEAREST, &r);
+    ms_apo_lookup_filtered_fixed(&f.view, p, 30, MS_APO_MISSING_NEAREST, NULL, &r);
     double t = (536870912.0 + 0.5) / 2147483648.0;
     assert_true(fabsf(r.weight[0] - (float)t) < 1e-9f);
     assert_true(r.weight[1] < 1e-9f && r.weight[2] < 1e-9f);
     assert_normal(r.normal, t, 0, 1 - t);
     /* at the cell's centre: its own normal */
     at(0.25, 0.25, 0.25, p);
-    ms_apo_lookup_filtered_fixed(&f.view, p, 30, MS_APO_MISSING_NEAREST, &r);
+    ms_apo_lookup_filtered_fixed(&f.view, p, 30, MS_APO_MISSING_NEAREST, NULL, &r);
     assert_normal(r.normal, 0, 0, 1);
     /* continuous across the face: sweep x over the face in small steps, the
      * filtered normal moves by at most the step's share of 90 degrees */
@@ -159,7 +159,7 @@ static void test_step_across_a_face(void **state)
     float prev[3] = {0};
     for (int i = -64; i <= 64; ++i) {
         uint32_t q[3] = {0x80000000u + (uint32_t)(i * (1 << 22)), 0x40000000u, 0x40000000u};
-        ms_apo_lookup_filtered_fixed(&f.view, q, 30, MS_APO_MISSING_NEAREST, &r);
+        ms_apo_lookup_filtered_fixed(&f.view, q, 30, MS_APO_MISSING_NEAREST, NULL, &r);
         if (last >= 0) {
             double c = prev[0] * r.normal[0] + prev[1] * r.normal[1] + prev[2] * r.normal[2];
             double step = acos(c > 1 ? 1 : c);
@@ -182,7 +182,7 @@ static void test_deeper_neighbour(void **state)
     fixture_make(&f);
     uint32_t p[3] = {0x60000000u, 0x40000000u, 0x40000000u};
     ms_apo_filter_result r;
-    ms_apo_lookup_filtered_fixed(&f.view, p, 30, MS_APO_MISSING_NEAREST, &r);
+    ms_apo_lookup_filtered_fixed(&f.view, p, 30, MS_APO_MISSING_NEAREST, NULL, &r);
     assert_int_equal(r.centre.depth, 1);
     assert_int_equal(r.neighbour_depth[4], 2); /* x neighbour: depth-2 cell (2, 1, 1) */
     assert_int_equal(r.neighbour_depth[6], 1); /* x and y: octant 6, a depth-1 leaf */
@@ -198,33 +198,91 @@ static void test_deeper_neighbour(void **state)
     }
     assert_normal(r.normal, n[0], n[1], n[2]);
     /* with a depth cap of 1 the deep cell is not read: its mean instead */
-    ms_apo_lookup_filtered_fixed(&f.view, p, 1, MS_APO_MISSING_NEAREST, &r);
+    ms_apo_lookup_filtered_fixed(&f.view, p, 1, MS_APO_MISSING_NEAREST, NULL, &r);
     assert_int_equal(r.neighbour_depth[4], 1);
     fixture_free(&f);
 }
 
-/* A neighbour that was not stored gives its deepest stored ancestor's mean (the
- * thesis's missing-neighbour rule), here the root's. */
+/* A neighbour that was not stored gives the caller's smooth normal (a chunk is
+ * a correction of it: docs/APO.md), not its ancestor's mean; so does a centre
+ * that was not stored, whose cell is then the absent child's, so that the
+ * texels next to it blend into it. Without a texel in any corner the smooth
+ * normal comes back exactly as given (not renormalised). */
+static const float S[3] = {0.0f, 0.6f, 0.8f};
+
 static void test_missing_neighbour(void **state)
 {
     (void)state;
     fixture f;
     small_tree(0x11, 0, step_normal, &f.tree); /* only octants 0 (+z) and 4 (+x) */
     fixture_make(&f);
-    float root[3];
-    ms_apo_normal_decode(ms_apo_normal_encode(f.tree.nodes[0].normal), root);
     uint32_t p[3] = {0x60000000u, 0x60000000u, 0x40000000u};
     ms_apo_filter_result r;
-    ms_apo_lookup_filtered_fixed(&f.view, p, 30, MS_APO_MISSING_STOP, &r);
+    ms_apo_lookup_filtered_fixed(&f.view, p, 30, MS_APO_MISSING_STOP, S, &r);
     assert_int_equal(r.missing, 6); /* every corner but 0 (the centre) and 4 (+x) */
+    assert_int_equal(r.smooth, 6);
     double t = (536870912.0 + 0.5) / 2147483648.0, s = 1.0 / 4294967296.0, n[3] = {0, 0, 0};
     for (int k = 0; k < 8; ++k) {
         double w = ((k & 4) ? t : 1 - t) * ((k & 2) ? t : 1 - t) * ((k & 1) ? s : 1 - s);
-        const float *c = k == 0 ? Z : (k == 4 ? X : root);
+        const float *c = k == 0 ? Z : (k == 4 ? X : S);
         for (int a = 0; a < 3; ++a)
             n[a] += w * c[a];
     }
     assert_normal(r.normal, n[0], n[1], n[2]);
+    /* the centre absent (octant 2: y upper), its cell the child's at depth 1:
+     * blended with octant 0 below it (+z) by the same weights */
+    uint32_t q[3] = {0x20000000u, 0x90000000u, 0x20000000u};
+    ms_apo_lookup_filtered_fixed(&f.view, q, 30, MS_APO_MISSING_STOP, S, &r);
+    assert_int_equal(r.centre.stop, MS_APO_STOP_MISSING);
+    assert_true(r.centre.smooth);
+    assert_int_equal(r.centre.depth, 1);
+    assert_int_equal(r.centre.cell[0], 0);
+    assert_int_equal(r.centre.cell[1], 1);
+    assert_int_equal(r.centre.cell[2], 0);
+    /* per axis t = (W/2 - 1 - r + 0.5) / W, r the offset in the cell (W = 2^31) */
+    double ty = (0x40000000 - 1 - 0x10000000 + 0.5) / 2147483648.0;
+    double tx = (0x40000000 - 1 - 0x20000000 + 0.5) / 2147483648.0, tz = tx;
+    double m[3] = {0, 0, 0};
+    for (int k = 0; k < 8; ++k) {
+        double w = ((k & 4) ? tx : 1 - tx) * ((k & 2) ? ty : 1 - ty) * ((k & 1) ? tz : 1 - tz);
+        /* x lower side: no neighbour (cube face), z likewise: only y moves, to octant 0 */
+        bool y = k & 2;
+        const float *c = y ? Z : S;
+        for (int a = 0; a < 3; ++a)
+            m[a] += w * c[a];
+    }
+    assert_normal(r.normal, m[0], m[1], m[2]);
+    /* far from every texel: the smooth normal as given */
+    const float longer[3] = {0.0f, 1.2f, 1.6f};
+    uint32_t far_point[3] = {0x20000000u, 0xE0000000u, 0xE0000000u};
+    ms_apo_lookup_filtered_fixed(&f.view, far_point, 30, MS_APO_MISSING_STOP, longer, &r);
+    assert_int_equal(r.texels, 0);
+    assert_true(r.normal[0] == 0.0f && r.normal[1] == 1.2f && r.normal[2] == 1.6f);
+    fixture_free(&f);
+}
+
+/* A node whose mean word says "smooth", where a depth cap stops: the smooth
+ * normal there; the same point one level deeper reaches its texel. */
+static void test_smooth_mean(void **state)
+{
+    (void)state;
+    fixture f;
+    small_tree(0x01, 0x01, step_normal, &f.tree); /* octant 0 internal, 8 leaves below */
+    f.tree.nodes[1].smooth = 1;
+    fixture_make(&f);
+    uint32_t p[3] = {0x10000000u, 0x10000000u, 0x10000000u};
+    ms_apo_lookup_result plain;
+    ms_apo_lookup_fixed(&f.view, p, 1, MS_APO_MISSING_STOP, &plain);
+    assert_int_equal(plain.stop, MS_APO_STOP_CAP);
+    assert_true(plain.smooth);
+    assert_int_equal(plain.code, MS_APO_NORMAL_SMOOTH);
+    ms_apo_filter_result r;
+    ms_apo_lookup_filtered_fixed(&f.view, p, 1, MS_APO_MISSING_STOP, S, &r);
+    assert_int_equal(r.texels, 0);
+    assert_normal(r.normal, S[0], S[1], S[2]);
+    ms_apo_lookup_fixed(&f.view, p, 30, MS_APO_MISSING_STOP, &plain);
+    assert_int_equal(plain.stop, MS_APO_STOP_LEAF);
+    assert_false(plain.smooth);
     fixture_free(&f);
 }
 
@@ -250,14 +308,14 @@ static void test_neighbour_facing_away(void **state)
     ms_apo_filter_result r;
     float dec[3]; /* the stored code of `away`, decoded */
     ms_apo_normal_decode(ms_apo_normal_encode(away), dec);
-    ms_apo_lookup_filtered_fixed(&f.view, below, 30, MS_APO_MISSING_NEAREST, &r);
+    ms_apo_lookup_filtered_fixed(&f.view, below, 30, MS_APO_MISSING_NEAREST, NULL, &r);
     assert_normal(r.normal, -0.5 * dec[0], 0, 0.5 - 0.5 * dec[2]);
-    ms_apo_lookup_filtered_fixed(&f.view, p, 30, MS_APO_MISSING_NEAREST, &r);
+    ms_apo_lookup_filtered_fixed(&f.view, p, 30, MS_APO_MISSING_NEAREST, NULL, &r);
     double t = 0.25;
     assert_normal(r.normal, -t * dec[0], 0, (1 - t) - t * dec[2]);
     /* and from the upper side, +z is turned over to its side */
     uint32_t above[3] = {0x80000000u, 0x40000000u, 0x40000000u};
-    ms_apo_lookup_filtered_fixed(&f.view, above, 30, MS_APO_MISSING_NEAREST, &r);
+    ms_apo_lookup_filtered_fixed(&f.view, above, 30, MS_APO_MISSING_NEAREST, NULL, &r);
     assert_normal(r.normal, 0.5 * dec[0], 0, 0.5 * dec[2] - 0.5);
     fixture_free(&f);
 }
@@ -272,11 +330,11 @@ static void test_cube_faces_clamp(void **state)
     fixture_make(&f);
     uint32_t p[3] = {0x01000000u, 0x40000000u, 0x40000000u};
     ms_apo_filter_result r;
-    ms_apo_lookup_filtered_fixed(&f.view, p, 30, MS_APO_MISSING_NEAREST, &r);
+    ms_apo_lookup_filtered_fixed(&f.view, p, 30, MS_APO_MISSING_NEAREST, NULL, &r);
     assert_normal(r.normal, 0, 0, 1);
     assert_true(r.weight[0] > 0.49f);
     uint32_t q[3] = {0xFFFFFFFFu, 0xFFFFFFFFu, 0xFFFFFFFFu};
-    ms_apo_lookup_filtered_fixed(&f.view, q, 30, MS_APO_MISSING_NEAREST, &r);
+    ms_apo_lookup_filtered_fixed(&f.view, q, 30, MS_APO_MISSING_NEAREST, NULL, &r);
     assert_normal(r.normal, 1, 0, 0);
     assert_int_equal(r.lookups, 1);
     /* a leaf root: no neighbours */
@@ -288,15 +346,17 @@ static void test_cube_faces_clamp(void **state)
     memcpy(f.tree.nodes[0].normal, Y, sizeof Y);
     f.tree.level_count = 1, f.tree.node_count = 1, f.tree.level_start[1] = 1;
     fixture_make(&f);
-    ms_apo_lookup_filtered_fixed(&f.view, p, 30, MS_APO_MISSING_NEAREST, &r);
+    ms_apo_lookup_filtered_fixed(&f.view, p, 30, MS_APO_MISSING_NEAREST, NULL, &r);
     assert_normal(r.normal, 0, 1, 0);
     assert_int_equal(r.lookups, 1);
     fixture_free(&f);
-    /* an empty chunk: zero */
+    /* an empty chunk: the smooth normal (zero without one) */
     ms_apo_view empty;
     memset(&empty, 0, sizeof empty);
-    assert_int_equal(ms_apo_lookup_filtered_fixed(&empty, p, 30, MS_APO_MISSING_NEAREST, &r), MS_APO_STOP_EMPTY);
+    assert_int_equal(ms_apo_lookup_filtered_fixed(&empty, p, 30, MS_APO_MISSING_NEAREST, NULL, &r), MS_APO_STOP_EMPTY);
     assert_true(r.normal[0] == 0.0f && r.normal[1] == 0.0f && r.normal[2] == 0.0f);
+    assert_int_equal(ms_apo_lookup_filtered_fixed(&empty, p, 30, MS_APO_MISSING_STOP, S, &r), MS_APO_STOP_EMPTY);
+    assert_true(r.normal[0] == S[0] && r.normal[1] == S[1] && r.normal[2] == S[2]);
 }
 
 static void test_footprint_depth(void **state)
@@ -329,17 +389,42 @@ static void test_footprint_depth(void **state)
     }
 }
 
-/* Random trees and points: the filter against the same rule written with the
- * brute-force lookup (cells tested in doubles), both missing-child rules and
- * random depth caps. */
+/* The normal the brute-force lookup gives at a fixed point: a texel, or the
+ * smooth normal S where the node is absent (STOP) or says "smooth"; the node's
+ * depth and cell (an absent child's where it is absent). */
+static bool brute_normal(const ms_apo_tree *tree, const uint32_t u[3], uint32_t cap, uint32_t complete,
+                         ms_apo_missing_rule rule, float n[3], uint32_t *depth, uint32_t cell[3])
+{
+    ms_apo_stop stop;
+    const ms_apo_node *c = &tree->nodes[ms_test_brute_lookup(tree, u, cap, complete, rule, &stop)];
+    *depth = c->depth;
+    memcpy(cell, c->cell, 3 * sizeof *cell);
+    if (stop == MS_APO_STOP_MISSING) {
+        *depth = c->depth + 1u;
+        for (int a = 0; a < 3; ++a)
+            cell[a] = 2 * c->cell[a] + (u[a] >> (31 - c->depth) & 1u);
+    }
+    if (stop == MS_APO_STOP_MISSING || (c->child_mask && c->smooth)) {
+        memcpy(n, S, 3 * sizeof *n);
+        return false;
+    }
+    ms_apo_normal_decode(ms_apo_normal_encode(c->normal), n);
+    return true;
+}
+
+/* Random trees (a third of their internal nodes "smooth") and points: the
+ * filter against the same rule written with the brute-force lookup (cells
+ * tested in doubles), both missing-child rules and random depth caps. */
 static void test_random_against_brute_force(void **state)
 {
     (void)state;
     uint64_t rng = 99;
-    uint64_t missing = 0, deeper = 0, flipped = 0;
+    uint64_t missing = 0, deeper = 0, flipped = 0, smooth = 0, plain_smooth = 0;
     for (int k = 0; k < 6; ++k) {
         fixture f;
         ms_test_random_tree(500 + (uint64_t)k, 5 + (uint32_t)k, 0.6, &f.tree);
+        for (size_t i = 0; i < f.tree.node_count; ++i)
+            f.tree.nodes[i].smooth = f.tree.nodes[i].child_mask && ms_test_rand(&rng) % 3 == 0;
         fixture_make(&f);
         for (int i = 0; i < 20000; ++i) {
             float p[3] = {ms_test_randf(&rng), ms_test_randf(&rng), ms_test_randf(&rng)};
@@ -348,22 +433,22 @@ static void test_random_against_brute_force(void **state)
             uint32_t cap = (i & 3) == 0 ? (uint32_t)(ms_test_rand(&rng) % 8) : 30;
             ms_apo_missing_rule rule = (i & 1) ? MS_APO_MISSING_NEAREST : MS_APO_MISSING_STOP;
             ms_apo_filter_result r;
-            ms_apo_lookup_filtered_fixed(&f.view, u, cap, rule, &r);
+            ms_apo_lookup_filtered_fixed(&f.view, u, cap, rule, S, &r);
             missing += r.missing;
-            ms_apo_stop stop;
-            const ms_apo_node *c = &f.tree.nodes[ms_test_brute_lookup(&f.tree, u, cap, f.view.complete_levels,
-                                                                      rule, &stop)];
-            double n[3] = {0, 0, 0};
-            if (c->depth == 0) {
-                float got[3];
-                ms_apo_normal_decode(ms_apo_normal_encode(c->normal), got);
-                assert_normal(r.normal, got[0], got[1], got[2]);
+            smooth += r.smooth;
+            float own[3];
+            uint32_t depth, cell[3];
+            bool texels = brute_normal(&f.tree, u, cap, f.view.complete_levels, rule, own, &depth, cell);
+            assert_int_equal(r.centre.depth, depth);
+            assert_int_equal(r.centre.smooth, !texels);
+            if (depth == 0) {
+                assert_normal(r.normal, own[0], own[1], own[2]);
                 continue;
             }
-            double w = ldexp(1.0, -(int)c->depth), unit = ldexp(1.0, -32), lo[3], x[3], t[3], q[3];
+            double w = ldexp(1.0, -(int)depth), unit = ldexp(1.0, -32), lo[3], x[3], t[3], q[3];
             bool moves[3];
             for (int a = 0; a < 3; ++a) {
-                lo[a] = c->cell[a] * w;
+                lo[a] = cell[a] * w;
                 double v = u[a] * unit;
                 x[a] = v < lo[a] ? lo[a] : (v > lo[a] + w - unit ? lo[a] + w - unit : v);
                 bool upper = x[a] >= lo[a] + w / 2;
@@ -372,6 +457,7 @@ static void test_random_against_brute_force(void **state)
                 moves[a] = q[a] >= 0 && q[a] < 1;
                 assert_true(fabs(r.weight[a] - t[a]) < 1e-6);
             }
+            double n[3] = {0, 0, 0};
             for (int corner = 0; corner < 8; ++corner) {
                 double wk = 1;
                 uint32_t pt[3];
@@ -380,29 +466,35 @@ static void test_random_against_brute_force(void **state)
                     wk *= bit ? t[a] : 1 - t[a];
                     pt[a] = (uint32_t)((bit && moves[a] ? q[a] : x[a]) * 4294967296.0);
                 }
-                const ms_apo_node *nb = c;
+                float dec[3];
+                memcpy(dec, own, sizeof dec);
                 if (corner && (pt[0] != (uint32_t)(x[0] * 4294967296.0) || pt[1] != (uint32_t)(x[1] * 4294967296.0) ||
                                pt[2] != (uint32_t)(x[2] * 4294967296.0))) {
-                    nb = &f.tree.nodes[ms_test_brute_lookup(&f.tree, pt, cap, f.view.complete_levels,
-                                                            MS_APO_MISSING_STOP, &stop)];
-                    deeper += nb->depth > c->depth;
+                    uint32_t nd, nc[3];
+                    texels |= brute_normal(&f.tree, pt, cap, f.view.complete_levels, MS_APO_MISSING_STOP, dec, &nd,
+                                           nc);
+                    deeper += nd > depth;
                 }
-                float dec[3], own[3];
-                ms_apo_normal_decode(ms_apo_normal_encode(nb->normal), dec);
-                ms_apo_normal_decode(ms_apo_normal_encode(c->normal), own);
                 if (dec[0] * own[0] + dec[1] * own[1] + dec[2] * own[2] < 0)
                     wk = -wk, flipped++;
                 for (int a = 0; a < 3; ++a)
                     n[a] += wk * dec[a];
             }
-            if (sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]) > 1e-2)
+            if (!texels) {
+                plain_smooth++;
+                assert_true(r.texels == 0 && r.normal[0] == S[0] && r.normal[1] == S[1] && r.normal[2] == S[2]);
+            } else if (sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]) > 1e-2) {
+                assert_true(r.texels > 0);
                 assert_normal_within(r.normal, n[0], n[1], n[2], 1e-4);
+            }
         }
         fixture_free(&f);
     }
-    print_message("neighbours missing %llu, deeper than the centre %llu, turned over %llu\n",
-                  (unsigned long long)missing, (unsigned long long)deeper, (unsigned long long)flipped);
-    assert_true(missing > 1000 && deeper > 1000 && flipped > 1000);
+    print_message("neighbours missing %llu, smooth %llu, deeper than the centre %llu, turned over %llu; "
+                  "points without a texel around %llu\n",
+                  (unsigned long long)missing, (unsigned long long)smooth, (unsigned long long)deeper,
+                  (unsigned long long)flipped, (unsigned long long)plain_smooth);
+    assert_true(missing > 1000 && deeper > 1000 && flipped > 1000 && smooth > missing && plain_smooth > 100);
 }
 
 int main(void)
@@ -411,7 +503,7 @@ int main(void)
         cmocka_unit_test(test_step_across_a_face),  cmocka_unit_test(test_deeper_neighbour),
         cmocka_unit_test(test_missing_neighbour),   cmocka_unit_test(test_cube_faces_clamp),
         cmocka_unit_test(test_footprint_depth),     cmocka_unit_test(test_random_against_brute_force),
-        cmocka_unit_test(test_neighbour_facing_away),
+        cmocka_unit_test(test_neighbour_facing_away), cmocka_unit_test(test_smooth_mean),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -66,9 +66,25 @@ static void check_point(const fixture *f, const uint32_t fixed[3], uint32_t cap,
     substitutions += r.substitutions;
     if (r.depth > deepest)
         deepest = r.depth;
+    if (stop == MS_APO_STOP_MISSING) {
+        /* no texel: the smooth normal, at the absent child's cell */
+        assert_int_equal(r.depth, n->depth + 1u);
+        for (int a = 0; a < 3; ++a)
+            assert_int_equal(r.cell[a], 2 * n->cell[a] + (fixed[a] >> (31 - n->depth) & 1u));
+        assert_true(r.smooth);
+        assert_int_equal(r.code, MS_APO_NORMAL_SMOOTH);
+        assert_true(r.normal[0] == 0.0f && r.normal[1] == 0.0f && r.normal[2] == 0.0f);
+        return;
+    }
     assert_int_equal(r.depth, n->depth);
     assert_memory_equal(r.cell, n->cell, sizeof r.cell);
-    assert_int_equal(r.code, ms_apo_normal_encode(n->normal));
+    if (n->child_mask && n->smooth) {
+        assert_true(r.smooth);
+        assert_int_equal(r.code, MS_APO_NORMAL_SMOOTH);
+    } else {
+        assert_false(r.smooth);
+        assert_int_equal(r.code, ms_apo_normal_encode(n->normal));
+    }
 }
 
 /* A million random points (float positions, as the shader gets them), over
@@ -82,6 +98,8 @@ static void test_random_points_against_brute_force(void **state)
     for (int k = 0; k < trees; ++k) {
         fixture f;
         ms_test_random_tree(100 + (uint64_t)k, 6 + (uint32_t)k, 0.55, &f.tree);
+        for (size_t i = 0; i < f.tree.node_count; ++i) /* a quarter of the means "smooth" */
+            f.tree.nodes[i].smooth = f.tree.nodes[i].child_mask && ms_test_rand(&rng) % 4 == 0;
         fixture_make(&f);
         for (int i = 0; i < points; ++i) {
             float p[3] = {ms_test_randf(&rng), ms_test_randf(&rng), ms_test_randf(&rng)};
@@ -223,7 +241,7 @@ static void test_faces_and_corners(void **state)
     fixture_free(&f);
 }
 
-/* Missing children: STOP returns the parent's mean normal; NEAREST goes to the
+/* Missing children: STOP returns "smooth" (no texel); NEAREST goes to the
  * nearest existing sibling (exact integer distances) and keeps descending. */
 static void test_missing_child_rules(void **state)
 {
@@ -250,7 +268,10 @@ static void test_missing_child_rules(void **state)
     float p[3] = {0.9f, 0.9f, 0.9f};
     assert_int_equal(ms_apo_lookup(&f.view, p, 30, MS_APO_MISSING_STOP, &r), MS_APO_STOP_MISSING);
     assert_int_equal(r.word, 0);
-    assert_int_equal(r.code, ms_apo_normal_encode(t.nodes[0].normal));
+    assert_true(r.smooth); /* no texel: the client's smooth normal */
+    assert_int_equal(r.code, MS_APO_NORMAL_SMOOTH);
+    assert_int_equal(r.depth, 1);
+    assert_int_equal(r.cell[0] + r.cell[1] + r.cell[2], 3);
     /* Nearest: octant 3 (one axis away, distance 0.4) beats octant 0 (three axes
      * away, 0.4 too: the tie goes to fewer axes); the point moves to x = 0.5 - 2^-32
      * and then lands in octant 7 of node 2 (y, z >= 0.75). */

@@ -509,8 +509,12 @@ static void view_apo_normals(const fixture *f, const char *name, const char *tag
 /* APO at a coarse cut (issue 31): the nearest-leaf lookup shows the octree's
  * cells as blocks; the filtered lookup (8-cell interpolation, footprint depth)
  * is no worse against Embree's normals of the full mesh, and both beat the
- * cut's own smooth normals. Measured (160 x 120): 4 px linear 25.3, none 24.7,
- * geometry 20.4 dB; 8 px 20.0, 19.8, 16.8 dB. */
+ * cut's own smooth normals. The chunks are corrections of those smooth normals
+ * (docs/APO.md): texels only where they differ by more than 0.2 rad, so the
+ * gain over geometry is smaller than with every texel (before: 4 px linear
+ * 27.2, geometry 23.1 dB; 8 px 21.9, 18.4 dB; at 2.0 to 2.5 times the APO
+ * bytes). Measured (160 x 120): 4 px linear 24.8, none 24.6, geometry 23.1 dB;
+ * 8 px linear 19.4, geometry 18.4 dB. */
 static void test_filtered_apo_no_worse(void **state)
 {
     fixture *f = *state;
@@ -547,7 +551,7 @@ static void test_filtered_apo_no_worse(void **state)
                "nearest leaf %.2f dB, the cut's smooth normals %.2f dB\n",
                tolerances[i], l, n, g);
         assert_true(l >= n);
-        assert_true(l >= g + 2.0);
+        assert_true(l >= g + 0.5);
     }
 }
 

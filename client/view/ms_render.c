@@ -22,7 +22,7 @@ void ms_render_options_default(ms_render_options *o)
     o->apo = true;
     o->wireframe = false;
     o->apo_depth_cap = 0;
-    o->apo_nearest = true;
+    o->apo_nearest = false; /* a missing child is "no correction" (docs/APO.md) */
     o->apo_filter = true;
     o->apo_footprint = true;
     o->smooth = true;

@@ -165,7 +165,8 @@ typedef struct ms_render_options {
     bool apo;                 /* APO normals where a chunk is held; false: geometric */
     bool wireframe;           /* overlay triangle edges */
     uint32_t apo_depth_cap;   /* 0: no cap */
-    bool apo_nearest;         /* missing child: MS_APO_MISSING_NEAREST (true) or STOP */
+    bool apo_nearest;         /* missing child: MS_APO_MISSING_NEAREST (true) or STOP
+                                 (default: the smooth normal, what a correction chunk means) */
     bool apo_filter;          /* 8-cell interpolation between neighbouring texels
                                  (ms_apo_lookup_filtered; default true) or the
                                  nearest node (ms_apo_lookup) */
@@ -174,8 +175,8 @@ typedef struct ms_render_options {
                                  (ms_render_apo_footprint_scale), the first level
                                  whose texels fit in the pixel (default true) */
     float background[3];      /* linear RGB the colour buffer is cleared to */
-    bool smooth;              /* where APO is not used: interpolated vertex normals
-                                 (true) or each triangle's flat normal (false) */
+    bool smooth;              /* interpolated vertex normals (true) or each triangle's
+                                 flat normal (false), also where an APO chunk has no texel */
     /* Scenes (docs/SCENES.md). The defaults draw a lone model as before scenes. */
     unsigned effects;         /* MS_EFFECT_* compiled into the program drawn with
                                  (built on first use, kept); default MS_EFFECTS_VIEWER */
@@ -208,7 +209,7 @@ typedef struct ms_render_options {
     float dissolve;
 } ms_render_options;
 
-/* LIT, APO on, no wireframe, no cap, nearest rule, dark grey background,
+/* LIT, APO on, no wireframe, no cap, STOP rule, dark grey background,
  * smooth; effects MS_EFFECTS_VIEWER with the plaster albedo, a 0.18 highlight of
  * exponent 40, two-sided, no haze, one head light, no placement, clear. */
 void ms_render_options_default(ms_render_options *options);

@@ -96,7 +96,7 @@ ms_status ms_apo_blob_read(const uint8_t *data, size_t size, ms_apo_chunk *chunk
         return ms_error_set(err, MS_ERR_FORMAT, "apo blob: no APO chunk header (%zu bytes)", size);
     uint32_t version = get_u16(data + 4);
     if (version != MS_APO_BLOB_VERSION)
-        return ms_error_set(err, MS_ERR_UNSUPPORTED, "apo blob: version %u (this reader knows %u)", version,
+        return ms_error_set(err, MS_ERR_UNSUPPORTED, "apo blob: version %u (this reader knows only %u)", version,
                             MS_APO_BLOB_VERSION);
     uint32_t levels = get_u16(data + 6);
     if (levels > MS_APO_MAX_LEVELS)

@@ -3,7 +3,9 @@
  * chunk"). Every integer is little-endian.
  *
  *   0  4  magic "MSAP"
- *   4  2  version (1)
+ *   4  2  version (2: texels are corrections of the smooth normal, docs/APO.md;
+ *         version 1, whose missing nodes meant "the nearest texel", was never
+ *         released and is refused)
  *   6  2  level_count L (0..MS_APO_MAX_LEVELS)
  *   8  4  texel_count (sum of the level table)
  *  12  4  compressed_size C
@@ -23,7 +25,7 @@
 #include "ms_apo_chunk.h"
 #include "ms_error.h"
 
-#define MS_APO_BLOB_VERSION 1u
+#define MS_APO_BLOB_VERSION 2u
 #define MS_APO_BLOB_HEADER_BYTES 24u
 
 /* Serialises a complete chunk (texel_count must equal the table's total) into a

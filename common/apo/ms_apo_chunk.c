@@ -56,7 +56,7 @@ ms_status ms_apo_chunk_encode(const ms_apo_tree *tree, ms_apo_chunk *chunk, ms_e
     /* Pass 2: the words, now that every child's index is known. */
     for (size_t i = 0; i < tree->node_count; ++i) {
         const ms_apo_node *n = &tree->nodes[i];
-        uint32_t code = ms_apo_normal_encode(n->normal);
+        uint32_t code = n->child_mask && n->smooth ? MS_APO_NORMAL_SMOOTH : ms_apo_normal_encode(n->normal);
         uint64_t w = word_index[i];
         if (!n->child_mask) {
             chunk->texels[w] = ms_apo_leaf_word(code);
@@ -169,7 +169,8 @@ ms_status ms_apo_view_init(ms_apo_view *view, const uint32_t *level_texels, uint
                 uint64_t offset = ms_apo_header_offset(texels[w]);
                 if (exist == 0 || (kind & ~exist) != 0)
                     st = ms_error_set(err, MS_ERR_CORRUPT, "apo chunk: word %zu has bad masks", w);
-                else if (!ms_apo_normal_code_valid(ms_apo_word_normal(texels[w + 1])))
+                else if (!ms_apo_normal_code_valid(ms_apo_word_normal(texels[w + 1])) &&
+                         ms_apo_word_normal(texels[w + 1]) != MS_APO_NORMAL_SMOOTH)
                     st = ms_error_set(err, MS_ERR_CORRUPT, "apo chunk: word %zu has a bad mean normal", w + 1);
                 else if (d + 1 >= level_count)
                     st = ms_error_set(err, MS_ERR_CORRUPT, "apo chunk: word %zu has children below the last level", w);
@@ -259,9 +260,12 @@ ms_status ms_apo_view_decode(const ms_apo_view *view, ms_apo_tree *tree, ms_erro
             ms_apo_normal_decode(ms_apo_word_normal(view->texels[w]), n->normal);
             continue;
         }
-        ms_apo_normal_decode(ms_apo_word_normal(view->texels[w + 1]), n->normal);
+        uint32_t mean = ms_apo_word_normal(view->texels[w + 1]);
+        n->smooth = mean == MS_APO_NORMAL_SMOOTH;
+        if (!n->smooth)
+            ms_apo_normal_decode(mean, n->normal);
         if (depth + 1 >= view->complete_levels)
-            continue; /* children not received: keep it as a leaf with its mean normal */
+            continue; /* children not received: a leaf with its mean normal (or smooth) */
         uint32_t exist = ms_apo_header_exist(view->texels[w]);
         uint32_t kind = ms_apo_mean_kind(view->texels[w + 1]);
         uint64_t child_word = w + ms_apo_header_offset(view->texels[w]);

@@ -65,8 +65,9 @@ ms_status ms_apo_view_init(ms_apo_view *view, const uint32_t *level_texels, uint
 ms_status ms_apo_view_of_chunk(ms_apo_view *view, const ms_apo_chunk *chunk, ms_error *err);
 
 /* Rebuilds the tree of the complete levels of a validated view (normals are the
- * decoded codes; a node of the last complete level whose children are missing
- * becomes a leaf carrying its mean normal). *tree must be zeroed. */
+ * decoded codes, smooth set where a mean word holds MS_APO_NORMAL_SMOOTH; a node
+ * of the last complete level whose children are missing becomes a leaf carrying
+ * its mean, which may be smooth). *tree must be zeroed. */
 ms_status ms_apo_view_decode(const ms_apo_view *view, ms_apo_tree *tree, ms_error *err);
 
 #endif

@@ -18,6 +18,11 @@
  * projected point, the one whose decoded direction is nearest to the input, so
  * the angular error stays below MS_APO_NORMAL_MAX_ERROR_RAD (measured in the tests).
  *
+ * A texel is a correction of the client's smooth normal (docs/APO.md, "APO as a
+ * correction"): where no node is stored, and where a node's mean word holds
+ * MS_APO_NORMAL_SMOOTH, the client draws its own interpolated smooth vertex
+ * normal. A leaf always holds a normal (a leaf that would not is not stored).
+ *
  * Everything here is a pure function: thread-safe, no allocation.
  */
 #ifndef MS_APO_FORMAT_H
@@ -36,6 +41,7 @@
 #define MS_APO_NORMAL_STEPS 2047                /* code = round(c * 2047) + 2047 */
 #define MS_APO_NORMAL_MAX_CODE 4094u            /* per 12-bit component */
 #define MS_APO_NORMAL_MAX_ERROR_RAD 0.002       /* the promised bound (measured 8.2e-4) */
+#define MS_APO_NORMAL_SMOOTH 0xFFFFFFu          /* mean word only: "no correction here" */
 
 /* Word 0 of an internal node. */
 static inline uint32_t ms_apo_header_word(uint32_t offset, uint32_t exist_mask)
@@ -89,7 +95,8 @@ uint32_t ms_apo_normal_encode(const float n[3]);
  * callers validate codes before they get here). */
 void ms_apo_normal_decode(uint32_t code, float out[3]);
 
-/* True when both 12-bit components are <= MS_APO_NORMAL_MAX_CODE. */
+/* True when both 12-bit components are <= MS_APO_NORMAL_MAX_CODE (so
+ * MS_APO_NORMAL_SMOOTH is not a valid normal code). */
 bool ms_apo_normal_code_valid(uint32_t code);
 
 #endif

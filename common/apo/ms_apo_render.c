@@ -27,9 +27,10 @@ uint64_t ms_apo_render_top_view(const ms_apo_view *view, uint32_t depth_cap, uin
                     ++hits;
                     break;
                 }
-                /* The missing child spans 2^(31 - depth) fixed-point units in z:
-                 * continue just below its lower face. */
-                uint32_t lower = u[2] & ~((1u << (31u - r.depth)) - 1u);
+                /* The missing child (r.depth >= 1 is its depth) spans
+                 * 2^(32 - depth) fixed-point units in z: continue just below
+                 * its lower face. */
+                uint32_t lower = u[2] & ~((1u << (32u - r.depth)) - 1u);
                 if (lower == 0)
                     break;
                 u[2] = lower - 1u;

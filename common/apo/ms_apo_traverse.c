@@ -62,8 +62,11 @@ static uint32_t nearest_existing_child(uint32_t exist, uint32_t octant, uint32_t
 static void finish(const ms_apo_view *view, uint32_t word, bool internal, uint32_t depth, const uint32_t cell[3],
                    ms_apo_stop stop, ms_apo_lookup_result *r)
 {
-    r->code = ms_apo_word_normal(view->texels[internal ? word + 1 : word]);
-    ms_apo_normal_decode(r->code, r->normal);
+    r->code = stop == MS_APO_STOP_MISSING ? MS_APO_NORMAL_SMOOTH
+                                          : ms_apo_word_normal(view->texels[internal ? word + 1 : word]);
+    r->smooth = r->code == MS_APO_NORMAL_SMOOTH;
+    if (!r->smooth)
+        ms_apo_normal_decode(r->code, r->normal);
     r->word = word;
     r->depth = depth;
     memcpy(r->cell, cell, sizeof r->cell);
@@ -76,6 +79,8 @@ ms_apo_stop ms_apo_lookup_fixed(const ms_apo_view *view, const uint32_t fixed[3]
     memset(r, 0, sizeof *r);
     if (view->complete_levels == 0) {
         r->stop = MS_APO_STOP_EMPTY;
+        r->code = MS_APO_NORMAL_SMOOTH;
+        r->smooth = true;
         return r->stop;
     }
     uint32_t u[3] = {fixed[0], fixed[1], fixed[2]};
@@ -101,7 +106,10 @@ ms_apo_stop ms_apo_lookup_fixed(const ms_apo_view *view, const uint32_t fixed[3]
         uint32_t octant = octant_at(u, depth);
         if (!(exist >> octant & 1u)) {
             if (rule == MS_APO_MISSING_STOP) {
-                finish(view, word, true, depth, cell, MS_APO_STOP_MISSING, r);
+                /* no texel: the absent child's cell, for the filter */
+                uint32_t child[3] = {2 * cell[0] + (octant >> 2 & 1u), 2 * cell[1] + (octant >> 1 & 1u),
+                                     2 * cell[2] + (octant & 1u)};
+                finish(view, word, true, depth + 1, child, MS_APO_STOP_MISSING, r);
                 break;
             }
             octant = nearest_existing_child(exist, octant, u, depth);

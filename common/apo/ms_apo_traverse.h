@@ -15,19 +15,27 @@
  * popcount(exist & kind & below), below = (1 << octant) - 1.
  *
  * Stopping: at a leaf (its normal); at depth_cap or at the last complete level of
- * the received prefix (the node's mean normal); at a missing child, by rule:
- *   MS_APO_MISSING_STOP     the node's mean normal;
+ * the received prefix (the node's mean normal, or "smooth" where the mean word
+ * holds MS_APO_NORMAL_SMOOTH); at a missing child, by rule:
+ *   MS_APO_MISSING_STOP     no texel: "smooth" (the chunk is a correction of the
+ *       client's smooth normal, which a missing node leaves as it is); the
+ *       result's depth and cell are the absent child's;
  *   MS_APO_MISSING_NEAREST  descend into the existing child nearest to the point
  *       (L-infinity distance to the child's cell, computed exactly in integers;
  *       ties: fewer differing axes, then the lower octant), and replace the point
  *       by its closest point in that child (on each flipped axis: the child's
- *       nearest face), so deeper levels stay consistent.
+ *       nearest face), so deeper levels stay consistent. Kept for measurements:
+ *       since chunks are corrections (docs/APO.md), it paints a neighbour's
+ *       correction where the chunk says "smooth".
+ * A "smooth" result (also EMPTY) has smooth = true, code MS_APO_NORMAL_SMOOTH and
+ * a zero normal: the caller uses its own smooth normal there.
  *
  * Thread-safety: reads the view only; any number of threads may call it.
  */
 #ifndef MS_APO_TRAVERSE_H
 #define MS_APO_TRAVERSE_H
 
+#include <stdbool.h>
 #include <stdint.h>
 
 #include "ms_apo_chunk.h"
@@ -41,15 +49,16 @@ typedef enum ms_apo_stop {
     MS_APO_STOP_LEAF = 0,    /* reached a leaf */
     MS_APO_STOP_CAP = 1,     /* an internal node at depth_cap */
     MS_APO_STOP_PREFIX = 2,  /* an internal node on the last complete received level */
-    MS_APO_STOP_MISSING = 3, /* the child was absent (MS_APO_MISSING_STOP) */
-    MS_APO_STOP_EMPTY = 4    /* no complete level: nothing to read, normal is 0 */
+    MS_APO_STOP_MISSING = 3, /* the child was absent (MS_APO_MISSING_STOP): smooth */
+    MS_APO_STOP_EMPTY = 4    /* no complete level: nothing to read, smooth */
 } ms_apo_stop;
 
 typedef struct ms_apo_lookup_result {
-    float normal[3];        /* decoded unit normal; (0,0,0) for MS_APO_STOP_EMPTY */
-    uint32_t code;          /* its 24-bit normal code */
-    uint32_t word;          /* index of the node's first word */
-    uint32_t depth;         /* depth of the node whose normal was returned */
+    float normal[3];        /* decoded unit normal; (0,0,0) where smooth */
+    uint32_t code;          /* its 24-bit normal code; MS_APO_NORMAL_SMOOTH where smooth */
+    bool smooth;            /* no texel here: the caller's smooth normal */
+    uint32_t word;          /* index of the node's first word (MISSING: the parent's) */
+    uint32_t depth;         /* depth of the node whose normal was returned (MISSING: the absent child's) */
     uint32_t cell[3];       /* that node's integer cell coordinates */
     uint32_t substitutions; /* missing children replaced by a neighbour */
     ms_apo_stop stop;

@@ -79,6 +79,65 @@ void ms_apo_tree_average_normals(ms_apo_tree *tree)
     }
 }
 
+ms_status ms_apo_tree_prune(ms_apo_tree *tree, const uint8_t *keep, ms_error *err)
+{
+    if (tree->node_count == 0)
+        return MS_OK;
+    for (size_t i = 0; i < tree->node_count; ++i) {
+        const ms_apo_node *n = &tree->nodes[i];
+        uint32_t count = ms_apo_popcount8(n->child_mask);
+        for (uint32_t k = 0; k < count; ++k)
+            if (keep[n->first_child + k] && !keep[i])
+                return ms_error_set(err, MS_ERR_ARG, "apo prune: node %zu kept under a dropped parent",
+                                    (size_t)n->first_child + k);
+    }
+    if (!keep[0]) {
+        ms_apo_tree_free(tree);
+        return MS_OK;
+    }
+    uint32_t *new_index = malloc(tree->node_count * sizeof *new_index);
+    if (!new_index)
+        return ms_error_set(err, MS_ERR_NOMEM, "apo prune: no memory for %zu nodes", tree->node_count);
+    /* Breadth-first order is kept by keeping the nodes in their order: the
+     * children of a kept node stay contiguous and in octant order. */
+    size_t kept = 0;
+    for (size_t i = 0; i < tree->node_count; ++i)
+        new_index[i] = keep[i] ? (uint32_t)kept++ : UINT32_MAX;
+    size_t at = 0;
+    uint32_t levels = 0;
+    size_t level_start[MS_APO_MAX_LEVELS + 1];
+    for (size_t i = 0; i < tree->node_count; ++i) {
+        if (!keep[i])
+            continue;
+        ms_apo_node n = tree->nodes[i];
+        uint32_t first = UINT32_MAX;
+        uint8_t mask = 0;
+        for (uint32_t o = 0, k = 0; o < 8; ++o) {
+            if (!(n.child_mask >> o & 1u))
+                continue;
+            uint32_t c = n.first_child + k++;
+            if (keep[c]) {
+                mask |= (uint8_t)(1u << o);
+                if (first == UINT32_MAX)
+                    first = new_index[c];
+            }
+        }
+        n.child_mask = mask;
+        n.first_child = mask ? first : 0;
+        if (!mask)
+            n.smooth = 0; /* a leaf holds its normal */
+        while (levels <= n.depth)
+            level_start[levels++] = at;
+        tree->nodes[at++] = n;
+    }
+    free(new_index);
+    level_start[levels] = at;
+    tree->node_count = at;
+    tree->level_count = levels;
+    memcpy(tree->level_start, level_start, (levels + 1) * sizeof *level_start);
+    return MS_OK;
+}
+
 void ms_apo_tree_counts(const ms_apo_tree *tree, size_t *internal_nodes, size_t *leaves)
 {
     size_t in = 0;

@@ -23,6 +23,8 @@ typedef struct ms_apo_node {
     uint32_t cell[3];      /* integer cell coordinates at `depth` */
     uint8_t child_mask;    /* bit i: octant i stored; 0 for a leaf */
     uint8_t depth;         /* 0 = root */
+    uint8_t smooth;        /* internal nodes: 1 = no correction here, the client's smooth
+                              normal (encoded MS_APO_NORMAL_SMOOTH; normal ignored) */
     float normal[3];       /* unit normal: sampled (leaf) or normalised mean (internal) */
 } ms_apo_node;
 
@@ -43,6 +45,13 @@ ms_status ms_apo_tree_check(const ms_apo_tree *tree, ms_error *err);
 /* Sets every internal node's normal to the normalised mean of its children's
  * normals, bottom-up. A zero sum keeps the first child's normal. */
 void ms_apo_tree_average_normals(ms_apo_tree *tree);
+
+/* Keeps only the nodes with keep[i] set (a kept node's parent must be kept, the
+ * root's flag decides whether anything is left): the tree is rebuilt in place,
+ * breadth-first, children masks and first_child renumbered; a kept internal
+ * node none of whose children is kept becomes a leaf. MS_ERR_NOMEM (the tree is
+ * then unchanged), MS_ERR_ARG when a kept node's parent is not kept. */
+ms_status ms_apo_tree_prune(ms_apo_tree *tree, const uint8_t *keep, ms_error *err);
 
 /* Counts of internal nodes and leaves. */
 void ms_apo_tree_counts(const ms_apo_tree *tree, size_t *internal_nodes, size_t *leaves);

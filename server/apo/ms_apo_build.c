@@ -8,6 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "ms_apo_correct.h"
 #include "ms_apo_local_mesh.h"
 #include "ms_apo_sample.h"
 #include "ms_parallel.h"
@@ -360,6 +361,7 @@ static void split_block(void *ctx, size_t block)
 
 typedef struct sample_job {
     const ms_apo_build_options *o;
+    float *predicted;              /* 3 per node, or NULL: m's smooth normal at the leaf's samples */
     const ms_apo_local_mesh *m;
     const ms_apo_sampler *sampler;
     ms_apo_tree *tree;
@@ -396,7 +398,8 @@ static void sample_block(void *ctx, size_t block)
             probe.big_count = (size_t)(l->big_off[li + 1] - l->big_off[li]);
         }
         memcpy(probe.centre, centre, sizeof centre);
-        ms_apo_sample_leaf(job->sampler, job->m, &probe, s, node->normal, &job->counts[block]);
+        ms_apo_sample_leaf(job->sampler, job->m, &probe, s, node->normal,
+                           job->predicted ? &job->predicted[3 * i] : NULL, &job->counts[block]);
     }
 }
 
@@ -410,6 +413,10 @@ void ms_apo_build_options_default(ms_apo_build_options *o)
     o->max_depth = 12;
     o->tolerance = 0.05;
     o->measure = MS_APO_MEASURE_SPREAD;
+    o->correction = false;
+    o->correction_tolerance = 0.2;
+    o->crease_angle = M_PI / 3.0;
+    o->vertex_error = 0.0;
 }
 
 ms_status ms_apo_builder_create(ms_apo_builder **builder, ms_error *err)
@@ -593,9 +600,13 @@ static ms_status sample_normals(const ms_apo_build_options *o, unsigned threads,
     size_t bs = block_size_for(tree->node_count, 1024, 256);
     size_t blocks = (tree->node_count + bs - 1) / bs;
     ms_apo_sample_counts *counts = calloc(blocks, sizeof *counts);
-    if (!counts)
+    float *predicted = o->correction ? malloc(3 * tree->node_count * sizeof *predicted) : NULL;
+    if (!counts || (o->correction && !predicted)) {
+        free(counts);
+        free(predicted);
         return ms_error_set(err, MS_ERR_NOMEM, "apo build: no memory");
-    sample_job sj = {.o = o, .m = m, .sampler = sampler, .tree = tree, .levels = levels,
+    }
+    sample_job sj = {.o = o, .predicted = predicted, .m = m, .sampler = sampler, .tree = tree, .levels = levels,
                      .h = stats->m_to_M_distance, .block_size = bs, .counts = counts};
     ms_status st = ms_parallel_for(threads, blocks, sample_block, &sj, err);
     for (size_t b = 0; b < blocks; ++b) {
@@ -610,6 +621,9 @@ static ms_status sample_normals(const ms_apo_build_options *o, unsigned threads,
     }
     free(counts);
     ms_apo_tree_average_normals(tree);
+    if (st == MS_OK && predicted)
+        st = ms_apo_correct(tree, predicted, o->correction_tolerance, &stats->smooth_leaves, err);
+    free(predicted);
     return st;
 }
 
@@ -625,7 +639,9 @@ ms_status ms_apo_builder_build_tree(ms_apo_builder *builder, const ms_mesh *m_me
     if (!(o->cube_size > 0.0) || !isfinite(o->cube_size) || o->max_depth > MS_APO_MAX_DEPTH ||
         !(o->tolerance >= 0.0) || !isfinite(o->cube_origin[0] + o->cube_origin[1] + o->cube_origin[2]) ||
         (o->measure != MS_APO_MEASURE_SPREAD && o->measure != MS_APO_MEASURE_CLASSIC) ||
-        !(o->search_distance < 1e30) || !(o->distance_bound < 1e30))
+        !(o->search_distance < 1e30) || !(o->distance_bound < 1e30) ||
+        (o->correction && (!(o->correction_tolerance >= 0.0) || !(o->crease_angle >= 0.0) ||
+                           !(o->vertex_error >= 0.0) || !(o->vertex_error < 1e30) || !(o->crease_angle < 1e30))))
         return ms_error_set(err, MS_ERR_ARG, "apo build: bad options (cube size %g, max depth %u, tolerance %g)",
                             o->cube_size, o->max_depth, o->tolerance);
     unsigned threads = o->threads ? o->threads : ms_parallel_cores();
@@ -634,7 +650,10 @@ ms_status ms_apo_builder_build_tree(ms_apo_builder *builder, const ms_mesh *m_me
     ms_status st = ms_apo_local_mesh_make(m_mesh, o->cube_origin, o->cube_size, "m", &m, err);
     if (st != MS_OK)
         return st;
-    st = ms_apo_local_mesh_make(big_mesh, o->cube_origin, o->cube_size, "M", &big, err);
+    if (o->correction)
+        st = ms_apo_local_mesh_corner_normals(&m, o->crease_angle, o->vertex_error, err);
+    if (st == MS_OK)
+        st = ms_apo_local_mesh_make(big_mesh, o->cube_origin, o->cube_size, "M", &big, err);
     if (st != MS_OK) {
         ms_apo_local_mesh_free(&m);
         return st;

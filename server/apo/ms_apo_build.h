@@ -20,6 +20,8 @@
  *    where w is the leaf's width and h estimates m's distance to M (the largest
  *    distance from m's vertices and face centroids to M, or the caller's bound),
  *    unless the options fix s. Internal nodes get the normalised mean of their children's normals.
+ * 3. Correction (options.correction): the texels m's smooth normal already
+ *    gives are dropped (ms_apo_correct.h).
  *
  * Determinism: the output depends only on the inputs and options, never on the
  * thread count (work is split into blocks fixed by the work size; every block
@@ -36,6 +38,7 @@
 #ifndef MS_APO_BUILD_H
 #define MS_APO_BUILD_H
 
+#include <stdbool.h>
 #include <stddef.h>
 #include <stdint.h>
 
@@ -71,6 +74,17 @@ typedef struct ms_apo_build_options {
      * hub); <= 0 measures it. */
     double distance_bound;
     unsigned threads;        /* 0 = all cores */
+    /* APO as a correction (ms_apo_correct.h, docs/APO.md): keep only the texels
+     * whose normal differs from m's smooth normal (what the client draws without
+     * a texel) by more than correction_tolerance radians. m's smooth normals
+     * follow the client's rule (ms_apo_local_mesh_corner_normals) with
+     * crease_angle (radians) and vertex_error (cube units: how far m's vertices
+     * may be from where they stand for, the renderer's slack). Off by default:
+     * every node is kept, as before. */
+    bool correction;
+    double correction_tolerance;
+    double crease_angle;     /* default 60 degrees, the client's default */
+    double vertex_error;
 } ms_apo_build_options;
 
 /* Defaults: unit cube at the origin, init 0, max 12, spread tolerance 0.05 rad,
@@ -89,6 +103,7 @@ typedef struct ms_apo_build_stats {
     uint64_t point_queries;    /* closest-point queries while sampling (<= 1 per leaf; h's not counted) */
     uint64_t local_answers;    /* ray pairs and closest points answered from a leaf's own M-triangles */
     double crowding;           /* ms_apo_crowding of M; above 64 the leaves keep M lists */
+    size_t smooth_leaves;      /* leaves dropped by the correction rule (m's smooth normal suffices) */
     /* The build's own work, one per triangle looked at: list entries made by
      * the splits, m- and M-triangles tested by the leaves (Embree's queries,
      * counted in rays and point_queries, not included). */

@@ -25,6 +25,8 @@ typedef struct ms_apo_local_mesh {
     float *fnormal;  /* 3 per triangle, unit (0 for degenerate) */
     float *area;     /* per triangle */
     float *vnormal;  /* 3 per vertex, unit (0 if no valid face) */
+    float *cnormal;  /* NULL, or 9 per triangle: its corners' smooth normals
+                        (ms_apo_local_mesh_corner_normals), unit or 0 */
     size_t vertex_count, triangle_count;
 } ms_apo_local_mesh;
 
@@ -40,6 +42,26 @@ void ms_apo_local_mesh_free(ms_apo_local_mesh *lm);
  * normalised; the face normal where the vertex normals cancel (zero for a
  * degenerate triangle). */
 void ms_apo_local_mesh_normal_at(const ms_apo_local_mesh *lm, uint32_t t, float u, float v, double out[3]);
+
+/* The smooth normals a client draws m with (docs/RENDERER.md, "Vertex normals"),
+ * as closely as the builder computes them, into lm->cnormal: around each vertex,
+ * its triangles are grouped greedily in index order, each joining the first
+ * group whose first triangle's normal lies within crease + both triangles'
+ * slack of its own (or of its reverse: a triangle wound the other way joins
+ * turned over), else starting a group (at most 16; beyond that it joins the
+ * nearest); a corner gets its group's area-weighted sum turned to its own
+ * triangle's side. A triangle's slack is atan(e / height) with height = twice
+ * its area over its longest side: how far its normal may be off when its
+ * corners are up to e (cube units: vertex_error) from where they stand for; 0
+ * for e = 0. Linear in the triangles (a fan's hub costs its valence times 16).
+ * crease in radians (>= pi joins every triangle of a vertex). MS_ERR_NOMEM. */
+ms_status ms_apo_local_mesh_corner_normals(ms_apo_local_mesh *lm, double crease, double vertex_error,
+                                           ms_error *err);
+
+/* The smooth normal at barycentric (1-u-v, u, v) of triangle t: the corners'
+ * normals (cnormal) interpolated, normalised, or ms_apo_local_mesh_normal_at
+ * without them; the face normal where they cancel. */
+void ms_apo_local_mesh_smooth_at(const ms_apo_local_mesh *lm, uint32_t t, float u, float v, double out[3]);
 
 /* How crowded Embree's boxes of the mesh are: the sum of its triangles' squared
  * bounding-box diagonals over the sum of their areas (cube units; 0 without

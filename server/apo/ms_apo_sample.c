@@ -360,7 +360,7 @@ static bool candidate_before(const leaf_candidate *a, const leaf_candidate *b)
 }
 
 void ms_apo_sample_leaf(const ms_apo_sampler *sampler, const ms_apo_local_mesh *m, const ms_apo_leaf_probe *leaf,
-                        float search, float normal[3], ms_apo_sample_counts *counts)
+                        float search, float normal[3], float smooth[3], ms_apo_sample_counts *counts)
 {
     /* The nearest MS_APO_SAMPLES_PER_LEAF m-triangles, kept sorted (insertion:
      * the list is short), so that the rays cast do not grow with the leaf's list. */
@@ -381,7 +381,7 @@ void ms_apo_sample_leaf(const ms_apo_sampler *sampler, const ms_apo_local_mesh *
         kept[at] = c;
     }
     counts->triangle_tests += leaf->m_count;
-    double sum[3] = {0, 0, 0}, first_sample[3] = {0, 0, 1};
+    double sum[3] = {0, 0, 0}, first_sample[3] = {0, 0, 1}, pred[3] = {0, 0, 0};
     bool have_closest = false, closest_done = false;
     double closest[3] = {0, 0, 0};
     for (size_t k = 0; k < kept_n; ++k) {
@@ -417,10 +417,21 @@ void ms_apo_sample_leaf(const ms_apo_sampler *sampler, const ms_apo_local_mesh *
             memcpy(first_sample, n, sizeof n);
         for (int a = 0; a < 3; ++a)
             sum[a] += n[a];
+        if (smooth) { /* what the client draws at the same point without a texel */
+            double p[3];
+            ms_apo_local_mesh_smooth_at(m, kept[k].tri, kept[k].wb, kept[k].wc, p);
+            for (int a = 0; a < 3; ++a)
+                pred[a] += p[a];
+        }
     }
     double len = sqrt(sum[0] * sum[0] + sum[1] * sum[1] + sum[2] * sum[2]);
     for (int a = 0; a < 3; ++a)
         normal[a] = (float)(len > 1e-12 ? sum[a] / len : first_sample[a]);
+    if (smooth) {
+        double plen = sqrt(pred[0] * pred[0] + pred[1] * pred[1] + pred[2] * pred[2]);
+        for (int a = 0; a < 3; ++a)
+            smooth[a] = (float)(plen > 1e-12 ? pred[a] / plen : 0.0);
+    }
 }
 
 /* h: the largest distance from m's vertices and face centroids to M. */

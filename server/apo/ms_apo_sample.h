@@ -69,11 +69,14 @@ typedef struct ms_apo_leaf_probe {
  * own M-triangles: when the nearest hit found there lies inside the leaf's cube,
  * by a margin, every nearer hit would too, so its triangle touches the leaf and
  * is in the list: the answer is M's. Otherwise Embree answers over all of M.
+ * smooth (may be NULL): the prediction, the normalised sum of m's smooth
+ * normals (ms_apo_local_mesh_smooth_at) at the same closest points, what the
+ * client draws there without a texel (zero when they cancel or no sample).
  * Embree's boxes of a fan's slivers all hold its hub, so one of its queries
  * there visits a good part of M; the leaf's list holds only the triangles that
  * touch the leaf itself (exact triangle/box tests).
  * Adds what happened to *counts. */
 void ms_apo_sample_leaf(const ms_apo_sampler *sampler, const ms_apo_local_mesh *m, const ms_apo_leaf_probe *leaf,
-                        float search, float normal[3], ms_apo_sample_counts *counts);
+                        float search, float normal[3], float smooth[3], ms_apo_sample_counts *counts);
 
 #endif

@@ -19,6 +19,7 @@ void ms_bake_apo_params_default(ms_bake_apo_params *p)
     p->max_depth = 10;
     p->init_depth = 0;
     p->tolerance = 0.2;
+    p->correction = 0.2;
     p->zlib_level = 6;
 }
 
@@ -30,6 +31,8 @@ ms_status ms_bake_apo_params_check(const ms_bake_apo_params *p, ms_error *err)
         return ms_error_set(err, MS_ERR_ARG, "--apo-max-depth must be at most %u", MS_BAKE_APO_MAX_DEPTH);
     if (!(p->tolerance >= 0.0 && p->tolerance < 1e12))
         return ms_error_set(err, MS_ERR_ARG, "--apo-tol must be a number >= 0");
+    if (!(p->correction >= 0.0 && p->correction <= 3.2))
+        return ms_error_set(err, MS_ERR_ARG, "--apo-correction must be a number from 0 to 3.2");
     if (p->zlib_level < 0 || p->zlib_level > 9)
         return ms_error_set(err, MS_ERR_ARG, "APO zlib level must be 0..9");
     return MS_OK;
@@ -69,8 +72,8 @@ bool ms_bake_apo_same_tree(const ms_apo_tree *a, const ms_apo_tree *b, size_t *n
         const ms_apo_node *x = &a->nodes[i], *y = &b->nodes[i];
         *node = i;
         if (x->first_child != y->first_child || x->child_mask != y->child_mask || x->depth != y->depth ||
-            memcmp(x->cell, y->cell, sizeof x->cell) != 0 ||
-            ms_apo_normal_encode(x->normal) != ms_apo_normal_encode(y->normal))
+            memcmp(x->cell, y->cell, sizeof x->cell) != 0 || (x->smooth != 0) != (y->smooth != 0) ||
+            (!x->smooth && ms_apo_normal_encode(x->normal) != ms_apo_normal_encode(y->normal)))
             return false;
     }
     return true;
@@ -446,6 +449,12 @@ ms_status ms_bake_apo_cell(ms_apo_builder *builder, const ms_bake_apo_params *p,
     unsigned g = bits_max > shape->log2n * depth ? bits_max - shape->log2n * depth : 0;
     o.distance_bound = sqrt(3.0) * ldexp(1.0, -(int)g);
     o.threads = threads ? threads : 1;
+    /* Corrections of what the client draws: m's smooth normals, its vertices
+     * up to half a grid cell's diagonal from where they stand for (the
+     * renderer's slack), the client's default crease angle. */
+    o.correction = !p->full_normals;
+    o.correction_tolerance = p->correction;
+    o.vertex_error = 0.5 * o.distance_bound;
     ms_apo_tree tree;
     memset(&tree, 0, sizeof tree);
     ms_apo_build_stats stats;
@@ -463,6 +472,7 @@ ms_status ms_bake_apo_cell(ms_apo_builder *builder, const ms_bake_apo_params *p,
         ms_apo_tree_counts(&tree, &out->internal_nodes, &out->leaves);
         out->rays = stats.rays;
         out->point_queries = stats.point_queries;
+        out->smooth_leaves = stats.smooth_leaves;
         if (p->verify && out->levels > 0)
             st = verify_stored(&tree, out, err);
         if (st == MS_OK && reference && out->levels > 0)

@@ -13,7 +13,11 @@
  * normals spread more than `tolerance` radians (the builder's spread measure).
  *
  * No chunk where the geometry renders M (ms_bake_apo_geometry_renders: every
- * leaf cell), unless params->every_cell.
+ * leaf cell), unless params->every_cell. Inside a chunk, only corrections: the
+ * texels where M's normal differs from m's smooth normal, what the client draws
+ * without a texel, by more than `correction` (ms_apo_correct.h; crease 60
+ * degrees, m's vertices up to half a grid cell's diagonal off), unless
+ * params->full_normals; a chunk left without texels is no chunk.
  *
  * Units: meshes in world units (the archive box's); the cube is derived from the
  * box and the cell. Ownership: the result owns its bytes (ms_bake_apo_result_free).
@@ -41,6 +45,7 @@ typedef struct ms_bake_apo_params {
     uint32_t max_depth;   /* cap on the chunk's depth, <= 24 (default 10) */
     uint32_t init_depth;  /* split unconditionally above this depth (default 0) */
     double tolerance;     /* spread of M's normals, radians (default 0.2) */
+    double correction;    /* keep a texel where it differs from the smooth normal by more, radians (default 0.2, the tolerance) */
     int zlib_level;       /* 0..9 (default 6) */
     bool verify;          /* decode each stored chunk back and compare it with the built tree */
     /* Diagnostics, off by default. sample_leaves: an internal cell's M is every
@@ -54,6 +59,10 @@ typedef struct ms_bake_apo_params {
      * geometry already renders M (ms_bake_apo_geometry_renders); the former rule,
      * kept to measure the trade and to exercise the format on small models. */
     bool every_cell;
+    /* full_normals: every node keeps its texel, also where m's smooth normal
+     * already gives M's (the former rule, before chunks were corrections:
+     * docs/APO.md "APO as a correction"); kept to measure the trade. */
+    bool full_normals;
 } ms_bake_apo_params;
 
 /* Defaults as above, enabled. */
@@ -97,6 +106,7 @@ typedef struct ms_bake_apo_result {
     uint64_t texels;
     size_t internal_nodes, leaves;
     uint64_t rays, point_queries; /* the builder's sampling work (ms_apo_build_stats) */
+    size_t smooth_leaves;      /* leaves dropped: m's smooth normal gives M's there */
     ms_bake_apo_accuracy accuracy; /* filled when a reference mesh was given */
 } ms_bake_apo_result;
 

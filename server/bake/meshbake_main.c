@@ -93,6 +93,8 @@ static void print_usage(FILE *out)
           "  --apo-max-depth D cap on the chunk depth, 0..24 (default 10)\n"
           "  --apo-tol T       split while the normals of the original mesh in a node\n"
           "                    spread more than T radians (default 0.2)\n"
+          "  --apo-correction C  keep a texel only where its normal differs from the\n"
+          "                    client's smooth normal by more than C radians (default 0.2)\n"
           "  --apo-init-depth D  split unconditionally above depth D (default 0)\n"
           "  --apo-verify      decode every chunk back and check it gives the built tree\n"
           "  --apo-accuracy    measure the internal cells' chunks against the full-precision\n"
@@ -210,6 +212,7 @@ static int parse_options(int argc, char **argv, bake_options *options)
         {"apo-max-depth", required_argument, NULL, 'D'},
         {"apo-init-depth", required_argument, NULL, 'I'},
         {"apo-tol", required_argument, NULL, 'E'},
+        {"apo-correction", required_argument, NULL, 'G'},
         {"apo-verify", no_argument, NULL, 'V'},
         {"apo-accuracy", no_argument, NULL, 'C'},
         {"public-bits", required_argument, NULL, 'P'},
@@ -278,6 +281,13 @@ static int parse_options(int argc, char **argv, bake_options *options)
         case 'E': {
             ms_error e;
             if (ms_option_double("--apo-tol", optarg, 0, 1e12, &options->bake.apo.tolerance,
+                                 &e) != MS_OK)
+                return usage_error(e.text, NULL);
+            break;
+        }
+        case 'G': {
+            ms_error e;
+            if (ms_option_double("--apo-correction", optarg, 0, 3.2, &options->bake.apo.correction,
                                  &e) != MS_OK)
                 return usage_error(e.text, NULL);
             break;
@@ -455,13 +465,16 @@ static void print_bake_json(const ms_bake_options *o, const ms_bake_report *r)
                             (json_int_t)r->apo_leaves, "level_texels", per_level,
                             "sample_triangles", (json_int_t)r->apo_sample_triangles,
                             "sample_triangles_max", (json_int_t)r->apo_sample_triangles_max);
+    if (apo) /* keep a texel only where it corrects the smooth normal by more (docs/APO.md) */
+        json_object_set_new(apo, "correction", json_real(o->apo.correction));
     /* the issue-31 target is stated as this share: the APO build against the whole bake */
     if (apo)
         json_object_set_new(apo, "share_of_bake",
                             json_real(r->seconds_total > 0 ? r->seconds_apo / r->seconds_total : 0.0));
     if (apo)
-        json_object_set_new(apo, "sampling", json_pack("{s:I, s:I}", "rays", (json_int_t)r->apo_rays,
-                                                       "point_queries", (json_int_t)r->apo_point_queries));
+        json_object_set_new(apo, "sampling", json_pack("{s:I, s:I, s:I}", "rays", (json_int_t)r->apo_rays,
+                                                       "point_queries", (json_int_t)r->apo_point_queries,
+                                                       "smooth_leaves", (json_int_t)r->apo_smooth_leaves));
     if (apo && o->apo.accuracy)
         json_object_set_new(apo, "accuracy",
                             json_pack("{s:I, s:f, s:f, s:f}", "points", (json_int_t)r->apo_accuracy_points,
@@ -539,8 +552,9 @@ static void print_bake_text(const ms_bake_report *r)
            r->bits_per_vertex);
     if (r->apo_chunks > 0) {
         printf("APO:                  %u chunks, %" PRIu64 " bytes (%" PRIu64 " raw), %" PRIu64
-               " internal nodes, %" PRIu64 " leaves\n",
-               r->apo_chunks, r->apo_bytes, r->apo_raw_bytes, r->apo_internal_nodes, r->apo_leaves);
+               " internal nodes, %" PRIu64 " leaves (%" PRIu64 " more left to the smooth normal)\n",
+               r->apo_chunks, r->apo_bytes, r->apo_raw_bytes, r->apo_internal_nodes, r->apo_leaves,
+               r->apo_smooth_leaves);
         printf("APO sampling:         internal cells' M %" PRIu64 " triangles, largest %" PRIu64 "; %" PRIu64
                " rays, %" PRIu64 " closest-point queries\n",
                r->apo_sample_triangles, r->apo_sample_triangles_max, r->apo_rays, r->apo_point_queries);

@@ -550,6 +550,11 @@ static ms_status finish_cell(pool *p, uint32_t node, cell_out *out, ms_error *er
     free(out->stream);
     out->stream = NULL;
     const ms_bake_apo_result *a = &out->apo;
+    if (s == MS_OK) { /* the sampling work, also of a chunk left without texels */
+        p->stats.apo_rays += a->rays;
+        p->stats.apo_point_queries += a->point_queries;
+        p->stats.apo_smooth_leaves += a->smooth_leaves;
+    }
     if (s == MS_OK && a->levels > 0) {
         s = ms_archive_writer_put_apo(p->writer, p->cell_of_node[node], a->data, (uint32_t)a->size,
                                       (uint32_t)(4 * a->texels), a->level_table, (uint8_t)a->levels, err);
@@ -558,8 +563,6 @@ static ms_status finish_cell(pool *p, uint32_t node, cell_out *out, ms_error *er
         p->stats.apo_chunks++;
         p->stats.apo_internal_nodes += a->internal_nodes;
         p->stats.apo_leaves += a->leaves;
-        p->stats.apo_rays += a->rays;
-        p->stats.apo_point_queries += a->point_queries;
         for (uint32_t d = 0; d < a->levels; ++d)
             p->stats.apo_level_texels[d] += a->level_texels[d];
         if (a->levels > p->stats.apo_levels)

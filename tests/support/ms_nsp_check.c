@@ -90,6 +90,7 @@ int ms_nsp_test_bake_demo(const char *work_dir, uint64_t triangles, const char *
     ms_bake_options o;
     ms_bake_options_default(&o); /* APO on */
     o.apo.every_cell = every_cell;
+    o.apo.full_normals = every_cell;
     o.input = ply;
     o.archive_dir = archive_dir;
     o.name = name;

@@ -113,6 +113,12 @@ void ms_test_fbo_read(const ms_test_fbo *f, float *rgba, float *depth)
 ms_archive *ms_test_render_bake(const char *input, const char *dir, const char *name, unsigned bits,
                                 uint32_t min_triangles, unsigned apo_max_depth)
 {
+    return ms_test_render_bake_apo(input, dir, name, bits, min_triangles, apo_max_depth, true);
+}
+
+ms_archive *ms_test_render_bake_apo(const char *input, const char *dir, const char *name, unsigned bits,
+                                    uint32_t min_triangles, unsigned apo_max_depth, bool full_normals)
+{
     ms_bake_options o;
     ms_bake_options_default(&o);
     o.input = input;
@@ -124,6 +130,7 @@ ms_archive *ms_test_render_bake(const char *input, const char *dir, const char *
     /* every cell gets a chunk (the default leaves none where the geometry
      * renders the input, i.e. in every leaf): the shader is tested on chunks */
     o.apo.every_cell = true;
+    o.apo.full_normals = full_normals;
     if (apo_max_depth)
         o.apo.max_depth = apo_max_depth;
     ms_bake_report rep;

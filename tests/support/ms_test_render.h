@@ -47,10 +47,15 @@ void ms_test_fbo_free(ms_test_fbo *fbo);
 void ms_test_fbo_read(const ms_test_fbo *fbo, float *rgba, float *depth);
 
 /* Bakes input (a mesh file) at `bits` with N_min = min_triangles into
- * dir/NAME.msa (APO on in every cell, leaves included, with max depth apo_max_depth;
- * 0 = default) and opens it. */
+ * dir/NAME.msa (APO on in every cell, leaves included, every texel kept
+ * (apo.full_normals: chunks everywhere, not only corrections), with max depth
+ * apo_max_depth; 0 = default) and opens it. */
 ms_archive *ms_test_render_bake(const char *input, const char *dir, const char *name, unsigned bits,
                                 uint32_t min_triangles, unsigned apo_max_depth);
+/* The same with the bake's own rule inside each chunk (full_normals false: only
+ * the texels that correct the smooth normal, docs/APO.md). */
+ms_archive *ms_test_render_bake_apo(const char *input, const char *dir, const char *name, unsigned bits,
+                                    uint32_t min_triangles, unsigned apo_max_depth, bool full_normals);
 /* The demo model at `grid` (ms_demo_model.h), written to dir/demo.ply, baked. */
 ms_archive *ms_test_render_bake_demo(uint32_t grid, const char *dir, unsigned bits, uint32_t min_triangles,
                                      unsigned apo_max_depth);

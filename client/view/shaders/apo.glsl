@@ -5,6 +5,10 @@
 
 uniform usamplerBuffer apo_words;
 
+// A node without a texel (a missing child, or a mean word holding this code):
+// the fragment's smooth normal (docs/APO.md, "APO as a correction").
+#define APO_SMOOTH 0xFFFFFFu
+
 uvec3 apo_fixed(vec3 p)
 {
     uvec3 u;
@@ -60,7 +64,8 @@ uint apo_nearest(uint exist, uint oct, inout uvec3 u, uint depth)
 }
 
 // The walk from the root at a fixed-point point: the 24-bit normal code of the
-// node where it stops, that node's depth and integer cell coordinates.
+// node where it stops (APO_SMOOTH: no texel), that node's depth and integer cell
+// coordinates (at a missing child: the child's).
 // stop_depth = min(depth cap, last complete level, footprint depth): an internal
 // node there returns its mean normal (CAP / PREFIX); a level not wholly received
 // is never read. Offsets were validated on the CPU (ms_apo_view_init) before
@@ -78,8 +83,12 @@ uint apo_walk(uvec3 u, int base, bool root_internal, uint stop_depth, bool neare
         uint bit = 31u - depth;
         uint oct = (((u.x >> bit) & 1u) << 2) | (((u.y >> bit) & 1u) << 1) | ((u.z >> bit) & 1u);
         if (((exist >> oct) & 1u) == 0u) {
-            if (!nearest)
-                break; // MISSING: the node's mean normal
+            if (!nearest) {
+                // MISSING: no texel, the smooth normal; the absent child's cell
+                cell = 2u * cell + uvec3((oct >> 2) & 1u, (oct >> 1) & 1u, oct & 1u);
+                ++depth;
+                return APO_SMOOTH;
+            }
             oct = apo_nearest(exist, oct, u, depth);
         }
         uint below = (1u << oct) - 1u;
@@ -91,12 +100,15 @@ uint apo_walk(uvec3 u, int base, bool root_internal, uint stop_depth, bool neare
     return texelFetch(apo_words, internal ? word + 1 : word).r & 0xFFFFFFu;
 }
 
-// The nearest node's normal (ms_apo_lookup).
-vec3 apo_lookup(vec3 p, int base, bool root_internal, uint stop_depth, bool nearest)
+// The nearest node's normal (ms_apo_lookup); smooth_n where it has no texel
+// (texel false).
+vec3 apo_lookup(vec3 p, int base, bool root_internal, uint stop_depth, bool nearest, vec3 smooth_n, out bool texel)
 {
     uint depth;
     uvec3 cell;
-    return apo_decode(apo_walk(apo_fixed(p), base, root_internal, stop_depth, nearest, depth, cell));
+    uint code = apo_walk(apo_fixed(p), base, root_internal, stop_depth, nearest, depth, cell);
+    texel = code != APO_SMOOTH;
+    return texel ? apo_decode(code) : smooth_n;
 }
 
 // The first depth whose cells are no wider than the pixel footprint f
@@ -116,14 +128,18 @@ uint apo_footprint_depth(float f)
 // 8-cell interpolation (ms_apo_lookup_filtered, docs/APO.md "Filtering"): the
 // centre node, and the 7 neighbours on the sides of its nearer faces, each
 // looked up one fixed-point unit past the face with the STOP rule (a neighbour
-// not stored gives its deepest stored ancestor's mean normal); an axis whose
-// neighbour would leave the cube stays (clamp to edge).
-vec3 apo_lookup_filtered(vec3 p, int base, bool root_internal, uint stop_depth, bool nearest)
+// without a texel gives smooth_n, the fragment's smooth normal); an axis whose
+// neighbour would leave the cube stays (clamp to edge). texel: some corner gave
+// a texel (else the result is smooth_n itself).
+vec3 apo_lookup_filtered(vec3 p, int base, bool root_internal, uint stop_depth, bool nearest, vec3 smooth_n,
+                         out bool texel)
 {
     uvec3 u = apo_fixed(p);
     uint depth;
     uvec3 cell;
-    vec3 n0 = apo_decode(apo_walk(u, base, root_internal, stop_depth, nearest, depth, cell));
+    uint code0 = apo_walk(u, base, root_internal, stop_depth, nearest, depth, cell);
+    texel = code0 != APO_SMOOTH;
+    vec3 n0 = texel ? apo_decode(code0) : smooth_n;
     if (depth == 0u)
         return n0;
     uint shift = 32u - depth;
@@ -158,10 +174,14 @@ vec3 apo_lookup_filtered(vec3 p, int base, bool root_internal, uint stop_depth, 
         if (moved) {
             uint d;
             uvec3 c;
-            n = apo_decode(apo_walk(q, base, root_internal, stop_depth, false, d, c));
+            uint code = apo_walk(q, base, root_internal, stop_depth, false, d, c);
+            texel = texel || code != APO_SMOOTH;
+            n = code != APO_SMOOTH ? apo_decode(code) : smooth_n;
         }
         sum += (dot(n, n0) < 0.0 ? -w : w) * n; // a neighbour facing away: turned over
     }
+    if (!texel)
+        return smooth_n; // no texel around: the smooth normal as given
     float len = length(sum);
     return len >= 1e-6 ? sum / len : n0;
 }

@@ -108,17 +108,7 @@ void main()
     vec3 g_n = geometric_normal();
     vec3 n_world = g_n;
     bool detail = false;
-#ifdef MS_EFFECT_DETAIL_NORMALS
-    if (apo_on) {
-        // no deeper than the first texel within the pixel (minification), then interpolation
-        // between neighbouring texels (magnification) or the nearest one
-        uint stop = min(apo_stop_depth, apo_footprint_depth(-FRAG_EYE.z * apo_footprint_scale));
-        n_world = apo_filter ? apo_lookup_filtered(FRAG_CELL, apo_base, apo_root_internal, stop, apo_nearest_rule)
-                             : apo_lookup(FRAG_CELL, apo_base, apo_root_internal, stop, apo_nearest_rule);
-        detail = true;
-    }
-#endif
-    if (!detail && smooth_on) {
+    if (smooth_on) {
         // The interpolated vertex normal; a vertex whose normal is undefined
         // (only degenerate triangles around it) packs to zero: flat there.
         vec3 v = FRAG_VERTEX_NORMAL;
@@ -126,6 +116,18 @@ void main()
         if (len > 1e-3)
             n_world = v / len;
     }
+#ifdef MS_EFFECT_DETAIL_NORMALS
+    if (apo_on) {
+        // A correction of the normal above (docs/APO.md): where the chunk has no
+        // texel around, that normal as it is. No deeper than the first texel
+        // within the pixel (minification), then interpolation between
+        // neighbouring texels (magnification) or the nearest one.
+        uint stop = min(apo_stop_depth, apo_footprint_depth(-FRAG_EYE.z * apo_footprint_scale));
+        n_world = apo_filter
+                      ? apo_lookup_filtered(FRAG_CELL, apo_base, apo_root_internal, stop, apo_nearest_rule, n_world, detail)
+                      : apo_lookup(FRAG_CELL, apo_base, apo_root_internal, stop, apo_nearest_rule, n_world, detail);
+    }
+#endif
     vec3 rgb;
     if (shading == 1) {
         rgb = (n_world + 1.0) * 0.5;
