@@ -202,7 +202,7 @@ static ms_status open_source(const options *o, source *s, ms_error *err)
     if (o->apo) {
         if (!h->has_apo)
             return ms_error_set(err, MS_ERR_ARG, "%s: the archive has no APO chunks (baked with --no-apo)", o->input);
-        if ((st = ms_study_apo_from_archive(s->archive, o->apo_levels, UINT32_MAX, MS_APO_MISSING_NEAREST, &s->apo,
+        if ((st = ms_study_apo_from_archive(s->archive, o->apo_levels, UINT32_MAX, MS_APO_MISSING_STOP, &s->apo,
                                             err)) != MS_OK)
             return st;
         ms_study_apo_set_filter(s->apo, o->apo_filter);

@@ -411,7 +411,7 @@ static ms_status open_study(const options *o, study *s, ms_error *err)
         for (uint32_t c = 0; c < h->cell_count; ++c)
             s->tolerance_scale[c] = ms_archive_get_cell(s->archive, c)->apo_levels ? (float)o->apo_geometry_ratio : 1;
     }
-    if ((st = ms_study_apo_from_archive(s->archive, 0, UINT32_MAX, MS_APO_MISSING_NEAREST, &s->apo, err)) != MS_OK)
+    if ((st = ms_study_apo_from_archive(s->archive, 0, UINT32_MAX, MS_APO_MISSING_STOP, &s->apo, err)) != MS_OK)
         return st;
     ms_study_apo_set_filter(s->apo, o->apo_filter);
     return MS_OK;

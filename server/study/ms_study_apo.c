@@ -172,7 +172,7 @@ bool ms_study_apo_filter_parse(const char *name, ms_study_apo_filter *filter)
 }
 
 bool ms_study_apo_normal(const ms_study_apo *s, uint32_t cell, const double x[3], double footprint,
-                         double normal[3])
+                         const double smooth[3], double normal[3])
 {
     if (cell >= s->cell_count || !s->cells[cell].present)
         return false;
@@ -189,11 +189,14 @@ bool ms_study_apo_normal(const ms_study_apo *s, uint32_t cell, const double x[3]
     ms_apo_lookup_result r;
     ms_apo_filter_result fr;
     if (s->filter == MS_STUDY_APO_FILTER_LINEAR) {
-        if (ms_apo_lookup_filtered(&c->view, local, cap, s->rule, &fr) == MS_APO_STOP_EMPTY)
+        const float sm[3] = {(float)smooth[0], (float)smooth[1], (float)smooth[2]};
+        if (ms_apo_lookup_filtered_smooth(&c->view, local, cap, s->rule, sm, &fr) ==
+                MS_APO_STOP_EMPTY ||
+            fr.texels == 0)
             return false;
         n = fr.normal;
     } else {
-        if (ms_apo_lookup(&c->view, local, cap, s->rule, &r) == MS_APO_STOP_EMPTY)
+        if (ms_apo_lookup(&c->view, local, cap, s->rule, &r) == MS_APO_STOP_EMPTY || r.smooth)
             return false;
         n = r.normal;
     }

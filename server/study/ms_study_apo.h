@@ -50,7 +50,7 @@ typedef enum ms_study_apo_filter {
  * is read as if only its first `levels` levels had been received (what a client
  * that fetches that many levels shows), 0 for whole chunks. depth_cap:
  * UINT32_MAX for none (what the viewer's default does); rule: the missing-child
- * rule (the viewer's default is MS_APO_MISSING_NEAREST). The filter is
+ * rule (the viewer's default is MS_APO_MISSING_STOP: a correction). The filter is
  * MS_STUDY_APO_FILTER_LINEAR until ms_study_apo_set_filter. */
 ms_status ms_study_apo_new(uint32_t cell_count, uint32_t levels, uint32_t depth_cap, ms_apo_missing_rule rule,
                            ms_study_apo **set, ms_error *err);
@@ -87,10 +87,13 @@ void ms_study_cell_cube(const ms_archive_header *header, const ms_archive_cell *
 
 /* The APO normal (unit, in world axes) at world point x of cell, seen by a
  * pixel `footprint` world units wide there (used by the LINEAR and NEAREST
- * filters; <= 0: no footprint limit); false when the cell has no chunk or the
- * lookup finds nothing. */
+ * filters; <= 0: no footprint limit), over `smooth`, the normal the renderer
+ * draws there without APO (unit, the model's orientation): a chunk is a
+ * correction of it (docs/APO.md), so where no texel lies the filter blends
+ * it in as the client's shader does. False when the cell has no chunk or the
+ * lookup finds no texel (the caller keeps its smooth normal). */
 bool ms_study_apo_normal(const ms_study_apo *set, uint32_t cell, const double x[3], double footprint,
-                         double normal[3]);
+                         const double smooth[3], double normal[3]);
 
 /* Cells holding a chunk. */
 uint32_t ms_study_apo_chunk_count(const ms_study_apo *set);

@@ -112,8 +112,9 @@ static void shade_pixel(const render_job *job, size_t p, uint32_t t, double dept
         double x[3], apo[3];
         for (int k = 0; k < 3; ++k)
             x[k] = s->origin[k] + a[k] + u * (b[k] - a[k]) + v * (cc[k] - a[k]);
+        const double smooth[3] = {facing * n[0], facing * n[1], facing * n[2]}; /* unturned */
         if (ms_study_apo_normal(job->options->apo, job->options->triangle_cell[t], x,
-                                depth * job->footprint_per_depth, apo)) {
+                                depth * job->footprint_per_depth, smooth, apo)) {
             double side = ms_vec3_dot(apo, ng) < 0 ? -1 : 1;
             for (int k = 0; k < 3; ++k)
                 n[k] = side * apo[k];
