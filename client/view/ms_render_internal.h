@@ -139,6 +139,10 @@ typedef struct ms_render_split {
 } ms_render_split;
 
 /* Zeroes the splitter for a model (the header is borrowed). */
+/* Grows *array (realloc, contents kept) to hold at least need elements of
+ * size bytes, doubling from 64; false (nothing changed) when out of memory. */
+bool ms_render_grow(void **array, size_t *cap, size_t need, size_t size);
+
 void ms_render_split_init(ms_render_split *split, const ms_archive_header *header);
 void ms_render_split_free(ms_render_split *split);
 

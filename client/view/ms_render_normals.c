@@ -184,22 +184,6 @@ static void fan_normals(ms_render_split *s, const ms_view_mesh *mesh, const uint
     }
 }
 
-/* Grows *array to hold at least need elements of size bytes (contents not kept). */
-static bool room(void **array, size_t *cap, size_t need, size_t size)
-{
-    if (need <= *cap)
-        return true;
-    size_t cap2 = *cap ? *cap : 64;
-    while (cap2 < need)
-        cap2 *= 2;
-    void *p = realloc(*array, cap2 * size);
-    if (!p)
-        return false;
-    *array = p;
-    *cap = cap2;
-    return true;
-}
-
 /* Face normal, its inverse length and its corners' decode error (turned into
  * an angle when an edge asks: face_slack) of triangle t. */
 static void make_face(ms_render_split *s, const ms_view_mesh *mesh, size_t t)
@@ -332,7 +316,7 @@ ms_status ms_render_split_normals(ms_render_split *s, const uint32_t *shade, uin
                 if (v >= nv || s->fan_vstamp[v] == s->fan_pass)
                     continue; /* a bad index: reported below */
                 s->fan_vstamp[v] = s->fan_pass;
-                if (!room((void **)&s->fan_start, &s->fan_start_cap, (size_t)fan_vertices + 2, sizeof *s->fan_start))
+                if (!ms_render_grow((void **)&s->fan_start, &s->fan_start_cap, (size_t)fan_vertices + 2, sizeof *s->fan_start))
                     return ms_error_set(err, MS_ERR_NOMEM, "render: no memory for the normals' fans");
                 s->fan_start[fan_vertices + 1] = 0;
                 s->fan_vlocal[v] = fan_vertices++;
@@ -363,8 +347,8 @@ ms_status ms_render_split_normals(ms_render_split *s, const uint32_t *shade, uin
             }
         }
     }
-    if (!room((void **)&s->fan, &s->fan_corner_cap, corners ? corners : 1, sizeof *s->fan) ||
-        !room((void **)&s->fan_done, &s->fan_done_cap, (size_t)fan_vertices + 1, sizeof *s->fan_done))
+    if (!ms_render_grow((void **)&s->fan, &s->fan_corner_cap, corners ? corners : 1, sizeof *s->fan) ||
+        !ms_render_grow((void **)&s->fan_done, &s->fan_done_cap, (size_t)fan_vertices + 1, sizeof *s->fan_done))
         return ms_error_set(err, MS_ERR_NOMEM, "render: no memory for the normals' fans");
     s->fan_start[0] = 0;
     uint32_t widest = 0;

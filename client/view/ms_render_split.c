@@ -72,8 +72,7 @@ void ms_render_split_free(ms_render_split *s)
     memset(s, 0, sizeof *s);
 }
 
-/* Grows *array to hold at least need elements of size bytes (contents kept). */
-static bool grow(void **array, size_t *cap, size_t need, size_t size)
+bool ms_render_grow(void **array, size_t *cap, size_t need, size_t size)
 {
     if (need <= *cap)
         return true;
@@ -94,10 +93,10 @@ static uint64_t hash_bytes(uint64_t h, const void *data, size_t size);
 static ms_status add_present(ms_render_split *s, uint32_t cell, uint32_t first, uint64_t version, ms_error *err)
 {
     size_t cap = s->present_cap, cap2 = cap, cap3 = cap;
-    if (!grow((void **)&s->present, &cap, (size_t)s->present_count + 2, sizeof *s->present) ||
+    if (!ms_render_grow((void **)&s->present, &cap, (size_t)s->present_count + 2, sizeof *s->present) ||
         (cap != s->present_cap &&
-         (!grow((void **)&s->present_version, &cap2, cap, sizeof *s->present_version) ||
-          !grow((void **)&s->present_start, &cap3, cap, sizeof *s->present_start))))
+         (!ms_render_grow((void **)&s->present_version, &cap2, cap, sizeof *s->present_version) ||
+          !ms_render_grow((void **)&s->present_start, &cap3, cap, sizeof *s->present_start))))
         return ms_error_set(err, MS_ERR_NOMEM, "render: no memory for the frame's cells");
     s->present_cap = cap;
     s->present_start[s->present_count] = first;
@@ -146,9 +145,9 @@ static ms_status split_sorted(ms_render_split *s, const ms_view_mesh *mesh, ms_e
                                     mesh->triangles[3 * t + (size_t)k], nv);
     }
     size_t order_cap = s->order_cap;
-    if (!grow((void **)&s->order, &order_cap, nt ? nt : 1, sizeof *s->order) ||
+    if (!ms_render_grow((void **)&s->order, &order_cap, nt ? nt : 1, sizeof *s->order) ||
         (order_cap != s->order_cap &&
-         !grow((void **)&s->sort_keys, &s->order_cap, order_cap, sizeof *s->sort_keys)))
+         !ms_render_grow((void **)&s->sort_keys, &s->order_cap, order_cap, sizeof *s->sort_keys)))
         return ms_error_set(err, MS_ERR_NOMEM, "render: no memory to split %zu triangles", nt);
     /* the triangles by cell, in their order within a cell (a stable radix sort on
      * as many bits as the model's largest cell id needs) */
@@ -207,7 +206,7 @@ ms_status ms_render_split_frame(ms_render_split *s, const ms_view_mesh *mesh, do
     if ((nv && !mesh->positions) || (nt && (!mesh->triangles || !mesh->triangle_cell)))
         return ms_error_set(err, MS_ERR_ARG, "render: mesh arrays missing");
     size_t local_cap = s->vertex_cap;
-    if (!grow((void **)&s->local, &local_cap, nv ? nv : 1, sizeof *s->local))
+    if (!ms_render_grow((void **)&s->local, &local_cap, nv ? nv : 1, sizeof *s->local))
         return ms_error_set(err, MS_ERR_NOMEM, "render: no memory to split %zu vertices", nv);
     if (local_cap != s->vertex_cap) {
         uint32_t *stamp = realloc(s->stamp, local_cap * sizeof *stamp);
@@ -263,7 +262,7 @@ ms_status ms_render_split_cell(ms_render_split *s, uint32_t k, const ms_archive_
     uint32_t cell = s->present[k];
     uint32_t first = s->present_start[k], end = s->present_start[k + 1];
     uint32_t tris = end - first;
-    if (!grow((void **)&s->indices, &s->cell_triangle_cap, 3 * (size_t)tris, sizeof *s->indices))
+    if (!ms_render_grow((void **)&s->indices, &s->cell_triangle_cap, 3 * (size_t)tris, sizeof *s->indices))
         return ms_error_set(err, MS_ERR_NOMEM, "render: no memory for cell %u", cell);
     if (++s->pass == 0) { /* wrapped: every stamp is stale again */
         memset(s->stamp, 0, s->vertex_cap * sizeof *s->stamp);
@@ -288,11 +287,11 @@ ms_status ms_render_split_cell(ms_render_split *s, uint32_t k, const ms_archive_
                     }
             if (found == UINT32_MAX) {
                 size_t cap = s->cell_normal_cap;
-                if (!grow((void **)&s->vertices, &s->cell_vertex_cap, 3 * ((size_t)verts + 1),
+                if (!ms_render_grow((void **)&s->vertices, &s->cell_vertex_cap, 3 * ((size_t)verts + 1),
                           sizeof *s->vertices) ||
-                    !grow((void **)&s->normals, &cap, (size_t)verts + 1, sizeof *s->normals) ||
+                    !ms_render_grow((void **)&s->normals, &cap, (size_t)verts + 1, sizeof *s->normals) ||
                     (cap != s->cell_normal_cap &&
-                     !grow((void **)&s->same_next, &s->cell_normal_cap, cap, sizeof *s->same_next)))
+                     !ms_render_grow((void **)&s->same_next, &s->cell_normal_cap, cap, sizeof *s->same_next)))
                     return ms_error_set(err, MS_ERR_NOMEM, "render: no memory for cell %u", cell);
                 /* a new head of v's chain: the first-use order is kept in the arrays */
                 s->same_next[verts] = s->stamp[v] == s->pass ? s->local[v] : UINT32_MAX;
