@@ -288,6 +288,10 @@ typedef struct ms_view_mesh {
     uint8_t *levels;       /* per vertex: kd-level */
     uint32_t *triangles;   /* 3 per triangle, oriented */
     uint32_t *triangle_cell; /* per triangle: the cell that drew it */
+    /* per vertex r g b a (8 bits each, docs/COLOUR.md: the vertex's colour at
+     * the colour bits held), or NULL when the model has no colour stream or
+     * none of it is held yet; a renderer then uses its default albedo */
+    uint8_t *colours;
     size_t vertex_cap, triangle_cap;
     /* diagnostics */
     size_t dropped_finer;    /* triangles left to a finer (or tie-winning) cell */

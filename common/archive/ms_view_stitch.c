@@ -16,6 +16,7 @@ void ms_view_mesh_free(ms_view_mesh *m)
     free(m->levels);
     free(m->triangles);
     free(m->triangle_cell);
+    free(m->colours);
     free(m->run_cell);
     free(m->run_first);
     free(m->run_version);
