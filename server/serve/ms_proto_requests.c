@@ -164,7 +164,7 @@ static void handle_list_catalogue(ms_serve_conn *c, uint32_t id)
     c->requests++;
     if (!ids_free(c, id, 1) || !rate_allows(c, id, 1))
         return;
-    const ms_registry *r = server_of(c)->registry;
+    ms_registry *r = server_of(c)->registry;
     size_t model_count = ms_registry_count(r);
     ms_proto_catalogue_entry entries[CATALOGUE_FRAME_BYTES / MS_PROTO_CATALOGUE_ENTRY_FIXED];
     char titles[CATALOGUE_FRAME_BYTES / MS_PROTO_CATALOGUE_ENTRY_FIXED][64];
@@ -172,7 +172,11 @@ static void handle_list_catalogue(ms_serve_conn *c, uint32_t id)
         c->client_max_frame < CATALOGUE_FRAME_BYTES ? c->client_max_frame : CATALOGUE_FRAME_BYTES;
     size_t count = 0, body = MS_PROTO_CATALOGUE_FIXED, listed = 0;
     for (size_t i = 0; i <= model_count; ++i) {
-        const ms_model *m = i < model_count ? ms_registry_model(r, i) : NULL;
+        /* The binary listing names each model's content and steps, so it
+         * opens the archives it lists (the registry closes the idle ones). */
+        const ms_model *m = NULL;
+        if (i < model_count && !(m = ms_registry_find(r, ms_registry_entry(r, i)->name)))
+            continue;
         if (m && !model_servable(c, m))
             continue;
         size_t name_length = m ? strlen(m->entry.name) : 0;
@@ -347,7 +351,7 @@ void ms_serve_conn_models_changed(ms_serve_conn *c, const ms_registry *registry)
         ms_open_model *slot = &c->models[i];
         if (!slot->handle)
             continue;
-        const ms_model *current = ms_registry_find(registry, slot->model->entry.name);
+        const ms_model *current = ms_registry_peek(registry, slot->model->entry.name);
         if (current && current->content_id == slot->model->content_id)
             continue; /* unchanged, even if its file was rewritten */
         char text[128];
