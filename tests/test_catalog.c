@@ -11,7 +11,9 @@
 #include <cmocka.h>
 
 #include "ms_catalog.h"
+#include "ms_archive.h"
 #include "ms_test.h"
+#include "ms_test_archive.h"
 
 static ms_catalog_entry sample(const char *name, uint64_t triangles)
 {
@@ -126,6 +128,54 @@ static void test_malformed_catalogues(void **state)
     snprintf(two, sizeof two, entry, "a", "2");
     snprintf(text, sizeof text, "{\"version\": 1, \"models\": [%s, %s]}", one, two);
     expect_load_error(text, MS_ERR_FORMAT, "listed twice");
+    /* the listing figures: 16 lower-case hex digits and an apo_levels */
+    const char *listings[] = {"\"content_id\": \"0123456789ABCDEF\", \"apo_levels\": 3",
+                              "\"content_id\": \"0123456789abcde\", \"apo_levels\": 3",
+                              "\"content_id\": 7, \"apo_levels\": 3",
+                              "\"content_id\": \"0123456789abcdef\"",
+                              "\"content_id\": \"0123456789abcdef\", \"apo_levels\": 65"};
+    for (size_t i = 0; i < sizeof listings / sizeof *listings; ++i) {
+        snprintf(one, sizeof one, entry, "a", "1");
+        snprintf(one + strlen(one) - 1, sizeof one - strlen(one) + 1, ", %s}", listings[i]);
+        snprintf(text, sizeof text, "{\"version\": 1, \"models\": [%s]}", one);
+        expect_load_error(text, MS_ERR_FORMAT, "content_id is not 16 lower-case hex digits");
+    }
+}
+
+/* A bake records what a server lists without opening the archive, and the
+ * catalogue keeps it exactly. */
+static void test_listing_figures_round_trip(void **state)
+{
+    (void)state;
+    char dir[512], path[700];
+    ms_test_tmpdir(dir, sizeof dir);
+    ms_test_add_model(dir, "bust", 5, 12);
+    snprintf(path, sizeof path, "%s/bust.msa", dir);
+    ms_archive *a;
+    ms_error err;
+    assert_int_equal(ms_archive_open(path, &a, &err), MS_OK);
+    ms_catalog c;
+    assert_int_equal(ms_catalog_load(dir, &c, &err), MS_OK);
+    const ms_catalog_entry *e = ms_catalog_find(&c, "bust");
+    assert_true(e->has_listing);
+    assert_true(e->content_id == ms_archive_content_id(a));
+    assert_int_equal(e->apo_levels, ms_archive_max_apo_levels(a));
+    assert_true(e->apo_levels > 0);
+    ms_archive_close(a);
+    ms_catalog_entry changed = *e;
+    changed.content_id = 0xfedcba9876543210ull;
+    changed.apo_levels = 64;
+    assert_int_equal(ms_catalog_update(dir, &changed, &err), MS_OK);
+    ms_catalog_free(&c);
+    assert_int_equal(ms_catalog_load(dir, &c, &err), MS_OK);
+    e = ms_catalog_find(&c, "bust");
+    assert_true(e->content_id == 0xfedcba9876543210ull && e->apo_levels == 64);
+    ms_catalog_free(&c);
+    snprintf(path, sizeof path, "%s/nothing.msa", dir);
+    changed.has_listing = false;
+    assert_int_equal(ms_catalog_entry_fill_listing(&changed, path, &err), MS_ERR_IO);
+    assert_false(changed.has_listing);
+    ms_test_rmdir(dir);
 }
 
 /* Several processes updating at once: every entry survives. */
@@ -168,6 +218,7 @@ int main(void)
         cmocka_unit_test(test_model_names),
         cmocka_unit_test(test_add_replace_remove),
         cmocka_unit_test(test_malformed_catalogues),
+        cmocka_unit_test(test_listing_figures_round_trip),
         cmocka_unit_test(test_concurrent_updates_lose_nothing),
     };
     return cmocka_run_group_tests_name("catalog", tests, NULL, NULL);

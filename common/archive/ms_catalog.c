@@ -1,8 +1,11 @@
 /* catalog.json reading and locked updating. See ms_catalog.h. */
 #include "ms_catalog.h"
+
+#include "ms_archive.h"
 #include "ms_input_file.h"
 
 #include <errno.h>
+#include <inttypes.h>
 #include <fcntl.h>
 #include <jansson.h>
 #include <math.h>
@@ -125,6 +128,22 @@ static ms_status parse_entry(const char *path, size_t index, json_t *obj, ms_cat
         e->has_crease_angle = true;
         e->crease_angle_deg = deg;
     }
+    json_t *id = json_object_get(obj, "content_id");
+    if (id) {
+        const char *hex = json_is_string(id) ? json_string_value(id) : "";
+        char *end = NULL;
+        uint64_t levels;
+        if (strlen(hex) != 16 || strspn(hex, "0123456789abcdef") != 16 ||
+            !get_uint(obj, "apo_levels", 64, &levels)) {
+            free(e->source);
+            e->source = NULL;
+            return ms_error_set(err, MS_ERR_FORMAT, "%s: model %zu: content_id is not 16 "
+                                "lower-case hex digits with an apo_levels of 0..64", path, index);
+        }
+        e->content_id = strtoull(hex, &end, 16);
+        e->apo_levels = (uint8_t)levels;
+        e->has_listing = true;
+    }
     return MS_OK;
 }
 
@@ -190,6 +209,20 @@ ms_status ms_catalog_load(const char *dir, ms_catalog *c, ms_error *err)
     return st;
 }
 
+ms_status ms_catalog_entry_fill_listing(ms_catalog_entry *e, const char *archive_path,
+                                        ms_error *err)
+{
+    ms_archive *a;
+    ms_status st = ms_archive_open(archive_path, &a, err);
+    if (st != MS_OK)
+        return st;
+    e->content_id = ms_archive_content_id(a);
+    e->apo_levels = ms_archive_max_apo_levels(a);
+    e->has_listing = true;
+    ms_archive_close(a);
+    return MS_OK;
+}
+
 /* --- Entries to JSON ------------------------------------------------------- */
 
 static json_t *entry_to_json(const ms_catalog_entry *e)
@@ -205,6 +238,12 @@ static json_t *entry_to_json(const ms_catalog_entry *e)
                      "public_max_bits", (int)e->public_max_bits);
     if (obj && e->has_crease_angle)
         json_object_set_new(obj, "crease_angle", json_real(e->crease_angle_deg));
+    if (obj && e->has_listing) {
+        char hex[17];
+        snprintf(hex, sizeof hex, "%016" PRIx64, e->content_id);
+        json_object_set_new(obj, "content_id", json_string(hex));
+        json_object_set_new(obj, "apo_levels", json_integer(e->apo_levels));
+    }
     return obj;
 }
 

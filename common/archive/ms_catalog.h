@@ -47,6 +47,14 @@ typedef struct ms_catalog_entry {
      * viewer's default. Kept when the model is baked again. */
     bool has_crease_angle;
     double crease_angle_deg;
+    /* What a server lists without opening the archive (written at bake by
+     * ms_catalog_entry_fill_listing; "content_id" as 16 hex digits and
+     * "apo_levels"): the archive's ms_archive_content_id and most APO levels
+     * in a cell. Absent (has_listing false): the server opens the archive to
+     * list it. */
+    bool has_listing;
+    uint64_t content_id;
+    uint8_t apo_levels;
 } ms_catalog_entry;
 
 typedef struct ms_catalog {
@@ -65,6 +73,11 @@ void ms_catalog_free(ms_catalog *catalog);
 
 /* The entry named name, or NULL. */
 const ms_catalog_entry *ms_catalog_find(const ms_catalog *catalog, const char *name);
+
+/* Opens the archive at archive_path and records its listing figures in entry
+ * (content_id, apo_levels, has_listing). Errors: the archive reader's. */
+ms_status ms_catalog_entry_fill_listing(ms_catalog_entry *entry, const char *archive_path,
+                                        ms_error *err);
 
 /* Adds or replaces entry (copied) in DIR/catalog.json, under the lock. */
 ms_status ms_catalog_update(const char *dir, const ms_catalog_entry *entry, ms_error *err);

@@ -2,6 +2,9 @@
 #include "ms_registry.h"
 
 #include <stdbool.h>
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -238,11 +241,7 @@ ms_status ms_model_open(const char *dir, const ms_catalog_entry *entry, ms_model
     }
     if (m->entry.public_max_bits > h->bits)
         m->entry.public_max_bits = h->bits;
-    for (uint32_t cell = 0; cell < h->cell_count; ++cell) {
-        const ms_archive_cell *c = ms_archive_get_cell(m->archive, cell);
-        if (c->apo_levels > m->max_apo_levels)
-            m->max_apo_levels = c->apo_levels;
-    }
+    m->max_apo_levels = ms_archive_max_apo_levels(m->archive);
     size_t index_size;
     const uint8_t *index = ms_archive_index_bytes(m->archive, &index_size);
     m->index_crc32 = (uint32_t)crc32_z(0L, index, index_size);
@@ -255,10 +254,7 @@ ms_status ms_model_open(const char *dir, const ms_catalog_entry *entry, ms_model
         m->index_head_crc32 = (uint32_t)crc32_z(0L, m->index_head, m->index_head_size);
     else
         m->index_head = NULL, m->index_head_size = 0;
-    uint64_t hash = 1469598103934665603ull;
-    for (size_t i = 0; i < index_size; ++i)
-        hash = (hash ^ index[i]) * 1099511628211ull;
-    m->content_id = hash;
+    m->content_id = ms_archive_content_id(m->archive);
     m->refs = 1;
     m->file_inode = (uint64_t)st.st_ino;
     m->file_size = (uint64_t)st.st_size;
@@ -440,6 +436,11 @@ ms_status ms_registry_scan(const char *dir, const ms_registry *previous, size_t 
         }
     }
     ms_catalog_free(&catalog);
+#if defined(__GLIBC__)
+    /* The catalogue's JSON tree and entries (megabytes at 10,000 models) were
+     * freed: give the pages back rather than hold them as idle heap. */
+    malloc_trim(0);
+#endif
     close_over_limit(out, out->max_open, NULL);
     *result = out;
     return MS_OK;

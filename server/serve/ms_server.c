@@ -170,7 +170,8 @@ static void warn_model(void *arg, const char *message) { ms_server_log(arg, "%s"
 ms_status ms_server_rescan(ms_server *s, ms_error *err)
 {
     ms_registry *fresh;
-    ms_status st = ms_registry_scan(s->config.archive_dir, s->registry, s->config.max_open_models, &fresh, warn_model, s, err);
+    ms_status st = ms_registry_scan(s->config.archive_dir, s->registry, s->config.max_open_models,
+                                    &fresh, warn_model, s, err);
     if (st != MS_OK) {
         s->metrics.rescan_failures++;
         return st;
@@ -270,7 +271,8 @@ static ms_status server_start(ms_server *s, ms_server_config *config, ms_error *
         ms_server_config_free(&s->config);
         return st;
     }
-    st = ms_registry_scan(s->config.archive_dir, NULL, s->config.max_open_models, &s->registry, warn_model, s, err);
+    st = ms_registry_scan(s->config.archive_dir, NULL, s->config.max_open_models, &s->registry,
+                         warn_model, s, err);
     if (st != MS_OK) {
         if (s->access_log)
             fclose(s->access_log);
