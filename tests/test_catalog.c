@@ -9,6 +9,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 #include <cmocka.h>
+#include <jansson.h>
 
 #include "ms_catalog.h"
 #include "ms_archive.h"
@@ -178,6 +179,64 @@ static void test_listing_figures_round_trip(void **state)
     ms_test_rmdir(dir);
 }
 
+/* A reload parses again only the entries whose text changed: an unchanged
+ * entry is copied from the previous catalogue (shown by a value changed in
+ * memory surviving), a changed one is read from the file; a file in another
+ * layout is parsed whole and gives the same entries. */
+static void test_reload_parses_only_what_changed(void **state)
+{
+    (void)state;
+    char dir[512], path[600];
+    ms_test_tmpdir(dir, sizeof dir);
+    ms_error err;
+    const char *names[3] = {"alpha", "beta", "gamma"};
+    for (int i = 0; i < 3; ++i) {
+        ms_catalog_entry e = sample(names[i], 100 + (uint64_t)i);
+        e.source = (char *)"a \"quoted\" {brace} [x] \\ path";
+        assert_int_equal(ms_catalog_update(dir, &e, &err), MS_OK);
+    }
+    ms_catalog first, second;
+    assert_int_equal(ms_catalog_load(dir, &first, &err), MS_OK);
+    assert_int_equal(first.count, 3);
+    for (size_t i = 0; i < 3; ++i)
+        assert_true(first.entries[i].text_hash != 0);
+    assert_string_equal(first.entries[1].source, "a \"quoted\" {brace} [x] \\ path");
+    first.entries[0].vertices = 777; /* alpha: in memory only */
+    first.entries[2].vertices = 888; /* gamma: in memory, and changed on disk */
+    ms_catalog_entry g = sample("gamma", 555);
+    assert_int_equal(ms_catalog_update(dir, &g, &err), MS_OK);
+    assert_int_equal(ms_catalog_reload(dir, &first, &second, &err), MS_OK);
+    assert_int_equal(second.count, 3);
+    assert_int_equal(ms_catalog_find(&second, "alpha")->vertices, 777);
+    assert_int_equal(ms_catalog_find(&second, "beta")->triangles, 101);
+    assert_int_equal(ms_catalog_find(&second, "gamma")->triangles, 555);
+    assert_int_equal(ms_catalog_find(&second, "gamma")->vertices, 437645);
+    assert_string_equal(ms_catalog_find(&second, "beta")->source,
+                        "a \"quoted\" {brace} [x] \\ path");
+    ms_catalog_free(&second);
+    ms_catalog_free(&first);
+
+    /* "version" before "models": not the writer's layout, parsed whole */
+    assert_int_equal(ms_catalog_load(dir, &first, &err), MS_OK);
+    snprintf(path, sizeof path, "%s/catalog.json", dir);
+    json_error_t jerr;
+    json_t *root = json_load_file(path, 0, &jerr);
+    json_t *swapped = json_pack("{s:i, s:O}", "version", 1, "models", json_object_get(root, "models"));
+    assert_int_equal(json_dump_file(swapped, path, JSON_INDENT(1) | JSON_PRESERVE_ORDER), 0);
+    json_decref(swapped);
+    json_decref(root);
+    assert_int_equal(ms_catalog_reload(dir, &first, &second, &err), MS_OK);
+    assert_int_equal(second.count, 3);
+    for (size_t i = 0; i < 3; ++i) {
+        assert_string_equal(second.entries[i].name, first.entries[i].name);
+        assert_int_equal(second.entries[i].triangles, first.entries[i].triangles);
+        assert_int_equal(second.entries[i].text_hash, 0);
+    }
+    ms_catalog_free(&second);
+    ms_catalog_free(&first);
+    ms_test_rmdir(dir);
+}
+
 /* Several processes updating at once: every entry survives. */
 static void test_concurrent_updates_lose_nothing(void **state)
 {
@@ -219,6 +278,7 @@ int main(void)
         cmocka_unit_test(test_add_replace_remove),
         cmocka_unit_test(test_malformed_catalogues),
         cmocka_unit_test(test_listing_figures_round_trip),
+        cmocka_unit_test(test_reload_parses_only_what_changed),
         cmocka_unit_test(test_concurrent_updates_lose_nothing),
     };
     return cmocka_run_group_tests_name("catalog", tests, NULL, NULL);

@@ -71,7 +71,7 @@ ms_status ms_model_check_payload(ms_model *m, uint32_t cell, bool apo, bool *fir
 
 /* One catalogue entry and, once asked for, its open model. */
 typedef struct registry_slot {
-    ms_catalog_entry entry;   /* entry.source owned; public_max_bits clamped to entry.bits */
+    ms_catalog_entry *entry;  /* in the registry's catalogue; public_max_bits clamped to bits */
     ms_model *model;          /* the open model (one reference), or NULL */
     uint64_t file_inode, file_size;
     int64_t file_mtime_ns;    /* the file as the scan found it */
@@ -84,6 +84,8 @@ typedef struct registry_slot {
 
 struct ms_registry {
     char *dir;
+    ms_catalog catalog;   /* the scan's catalogue: the slots' entries, and the next
+                           * scan's reference for what did not change */
     registry_slot *slots; /* sorted by name */
     size_t count;
     size_t open_count, max_open;
@@ -151,9 +153,9 @@ void ms_registry_free(ms_registry *r)
         return;
     for (size_t i = 0; i < r->count; ++i) {
         ms_model_unref(r->slots[i].model);
-        free(r->slots[i].entry.source);
     }
     free(r->slots);
+    ms_catalog_free(&r->catalog);
     free(r->dir);
     free(r);
 }
@@ -164,7 +166,7 @@ size_t ms_registry_open_count(const ms_registry *r) { return r->open_count; }
 
 const ms_catalog_entry *ms_registry_entry(const ms_registry *r, size_t i)
 {
-    return &r->slots[i].entry;
+    return r->slots[i].entry;
 }
 
 ms_model *ms_registry_open_model_at(const ms_registry *r, size_t i) { return r->slots[i].model; }
@@ -176,7 +178,7 @@ static registry_slot *find_slot(const ms_registry *r, const char *name)
     size_t lo = 0, hi = r->count;
     while (lo < hi) {
         size_t mid = lo + (hi - lo) / 2;
-        int c = strcmp(r->slots[mid].entry.name, name);
+        int c = strcmp(r->slots[mid].entry->name, name);
         if (c == 0)
             return &r->slots[mid];
         if (c < 0)
@@ -283,7 +285,7 @@ static void close_over_limit(ms_registry *r, size_t keep, const registry_slot *s
 static ms_model *slot_open(ms_registry *r, registry_slot *slot, ms_error *err)
 {
     ms_model *m;
-    if (ms_model_open(r->dir, &slot->entry, &m, err) != MS_OK) {
+    if (ms_model_open(r->dir, slot->entry, &m, err) != MS_OK) {
         slot->broken = true;
         return NULL;
     }
@@ -315,7 +317,7 @@ ms_model *ms_registry_find(ms_registry *r, const char *name)
     ms_error err;
     ms_model *m = slot_open(r, slot, &err);
     if (!m) /* once: the slot is broken now */
-        warn_model(r->warn, r->warn_arg, "model '%s' cannot be served: %s", slot->entry.name,
+        warn_model(r->warn, r->warn_arg, "model '%s' cannot be served: %s", slot->entry->name,
                    err.text);
     return m;
 }
@@ -349,7 +351,7 @@ static bool entry_unchanged(const ms_catalog_entry *was, const ms_catalog_entry 
  * (work in proportion to what changed), and a broken replacement keeps the
  * verified version being served. Every other model opens on first request.
  * False when the file is missing (warned). */
-static bool slot_fill(ms_registry *r, registry_slot *slot, const ms_catalog_entry *entry,
+static bool slot_fill(ms_registry *r, registry_slot *slot, ms_catalog_entry *entry,
                       const ms_registry *previous)
 {
     char path[4096];
@@ -361,12 +363,7 @@ static bool slot_fill(ms_registry *r, registry_slot *slot, const ms_catalog_entr
         return false;
     }
     slot->newer = slot->older = NO_SLOT;
-    slot->entry = *entry;
-    if (slot->entry.public_max_bits > slot->entry.bits)
-        slot->entry.public_max_bits = slot->entry.bits;
-    slot->entry.source = strdup(entry->source ? entry->source : "");
-    if (!slot->entry.source)
-        return false;
+    slot->entry = entry;
     slot->file_inode = (uint64_t)st.st_ino;
     slot->file_size = (uint64_t)st.st_size;
     slot->file_mtime_ns = (int64_t)st.st_mtim.tv_sec * 1000000000 + st.st_mtim.tv_nsec;
@@ -382,7 +379,7 @@ static bool slot_fill(ms_registry *r, registry_slot *slot, const ms_catalog_entr
         slot->broken = old->broken;
     if (!old->model)
         return true;
-    if (same_file && entry_unchanged(&old->entry, entry)) {
+    if (same_file && entry_unchanged(old->entry, entry)) {
         ms_model_ref(old->model);
         slot_opened(r, slot, old->model);
         return true;
@@ -407,38 +404,40 @@ ms_status ms_registry_scan(const char *dir, const ms_registry *previous, size_t 
     struct stat st;
     if (stat(dir, &st) != 0 || !S_ISDIR(st.st_mode))
         return ms_error_set(err, MS_ERR_IO, "%s: not a directory", dir);
-    ms_catalog catalog;
-    ms_status status = ms_catalog_load(dir, &catalog, err);
-    if (status != MS_OK)
-        return status;
     ms_registry *out = calloc(1, sizeof *out);
-    if (out) {
-        out->dir = strdup(dir);
-        out->slots = calloc(catalog.count ? catalog.count : 1, sizeof *out->slots);
-        out->max_open = max_open ? max_open : 1;
-        out->warn = warn;
-        out->warn_arg = warn_arg;
-        out->newest = out->oldest = NO_SLOT;
-    }
-    if (!out || !out->dir || !out->slots) {
-        ms_catalog_free(&catalog);
-        ms_registry_free(out);
+    if (!out || !(out->dir = strdup(dir))) {
+        free(out);
         return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory", dir);
     }
-    /* The catalogue is sorted by name, so the registry is too. */
-    for (size_t i = 0; i < catalog.count; ++i) {
-        registry_slot *slot = &out->slots[out->count];
-        if (slot_fill(out, slot, &catalog.entries[i], previous)) {
-            out->count++;
-        } else {
-            free(slot->entry.source);
-            memset(slot, 0, sizeof *slot);
-        }
+    /* Only the entries whose text changed since the previous scan are parsed
+     * again: a reload after one bake costs one entry's parse. */
+    ms_status status =
+        ms_catalog_reload(dir, previous ? &previous->catalog : NULL, &out->catalog, err);
+    out->slots = calloc(out->catalog.count ? out->catalog.count : 1, sizeof *out->slots);
+    out->max_open = max_open ? max_open : 1;
+    out->warn = warn;
+    out->warn_arg = warn_arg;
+    out->newest = out->oldest = NO_SLOT;
+    if (status == MS_OK && !out->slots)
+        status = ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory", dir);
+    if (status != MS_OK) {
+        ms_registry_free(out);
+        return status;
     }
-    ms_catalog_free(&catalog);
+    /* The catalogue is sorted by name, so the registry is too. */
+    for (size_t i = 0; i < out->catalog.count; ++i) {
+        ms_catalog_entry *entry = &out->catalog.entries[i];
+        if (entry->public_max_bits > entry->bits)
+            entry->public_max_bits = entry->bits;
+        registry_slot *slot = &out->slots[out->count];
+        if (slot_fill(out, slot, entry, previous))
+            out->count++;
+        else
+            memset(slot, 0, sizeof *slot);
+    }
 #if defined(__GLIBC__)
-    /* The catalogue's JSON tree and entries (megabytes at 10,000 models) were
-     * freed: give the pages back rather than hold them as idle heap. */
+    /* The catalogue's transient text and JSON (megabytes at 10,000 models)
+     * were freed: give the pages back rather than hold them as idle heap. */
     malloc_trim(0);
 #endif
     close_over_limit(out, out->max_open, NULL);
