@@ -207,6 +207,14 @@ static void test_albedo_interpolates_the_corner_colours(void **state)
                     fail_msg("corner %d of quad %d at pixel (%d, %d): channel %d is %u, not %u", c, k, i, j, a,
                              pixel[a], q.colours[4 * (4 * k + c) + a]);
         }
+    /* bad arguments: one line, nothing drawn */
+    ms_error err;
+    uint8_t *none = (uint8_t *)&err;
+    ms_camera camera;
+    face_on(&camera);
+    assert_int_equal(ms_render_picture(NULL, NULL, &q.mesh, NULL, 0, &camera, &o, &none, &err), MS_ERR_ARG);
+    assert_string_equal(err.text, "render picture: no model header and index");
+    assert_null(none);
     /* the background is the lit picture's: options.background sRGB-encoded */
     assert_int_equal(rgb[0], 39);
     /* the wireframe overlay: the same pixels away from the edges */
