@@ -25,7 +25,7 @@
 
 #define MS_CATALOG_VERSION 1
 #define MS_MODEL_NAME_MAX 64
-#define MS_CATALOG_MAX_ENTRIES 100000
+#define MS_CATALOG_MAX_ENTRIES 200000
 #define MS_CATALOG_MAX_BYTES (64u << 20)
 
 typedef struct ms_catalog_entry {

@@ -52,7 +52,7 @@ static bool parse_request(const struct evkeyvalq *query, catalog_request *out, c
     const char *v;
     if ((v = evhttp_find_header(query, "offset")) &&
         !ms_http_parse_u32(v, MS_CATALOG_MAX_ENTRIES, &out->offset)) {
-        *why = "error: offset must be an integer in 0..100000";
+        *why = "error: offset must be an integer in 0..200000";
         return false;
     }
     if ((v = evhttp_find_header(query, "limit")) &&
