@@ -1,0 +1,198 @@
+// The decoding worker of the viewer page (docs/BROWSER.md): the view decoder
+// of the C sources, compiled to WebAssembly (make wasm: meshstream.js and
+// meshstream.wasm, the interface of client/web/ms_web_view.h), fed over the
+// HTTP side door. Messages in: {type: 'start', name, token, camera},
+// {type: 'camera', camera} (a new camera: the loop plans again). Out:
+// {type: 'box'}, {type: 'progress'}, {type: 'mesh'} (positions and triangles,
+// transferred), {type: 'complete'}, {type: 'error', message}.
+'use strict';
+importScripts('/web/meshstream.js');
+
+const IN_FLIGHT = 8;        // cell fetches at a time
+const PLAN_MAX = 256;       // cells listed by one plan
+const ERROR_SIZE = 520;     // sizeof(ms_error), with room
+
+let M = null;               // the WebAssembly module
+let view = 0;               // ms_web_view *
+
+function fail(message) {
+  postMessage({ type: 'error', message });
+}
+
+function lastError() {
+  return M.UTF8ToString(M._ms_web_view_error(view));
+}
+
+// A fetch whose error names what was asked; the body of an error answer is
+// the server's one line.
+async function get(url, token, extra) {
+  const headers = Object.assign({}, extra || {});
+  if (token)
+    headers.Authorization = 'Bearer ' + token;   // never in the URL
+  let answer;
+  try {
+    answer = await fetch(url, { headers, cache: 'default' });
+  } catch (e) {
+    throw new Error('the server cannot be reached (' + url + ')');
+  }
+  if (answer.status !== 200 && answer.status !== 206) {
+    const text = (await answer.text()).trim().replace(/^error: /, '');
+    const e = new Error(text || ('the server answered ' + answer.status));
+    e.status = answer.status;
+    throw e;
+  }
+  return answer;
+}
+
+function withHeap(bytes, fn) {
+  const p = M._malloc(Math.max(bytes.length, 1));
+  if (!p)
+    throw new Error('out of memory in the WebAssembly module');
+  try {
+    M.HEAPU8.set(bytes, p);
+    return fn(p);
+  } finally {
+    M._free(p);
+  }
+}
+
+function openIndex(blob, name) {
+  const err = M._malloc(ERROR_SIZE), out = M._malloc(4);
+  const nameBytes = new TextEncoder().encode(name + '\0');
+  try {
+    const st = withHeap(nameBytes, namePtr =>
+      withHeap(blob, blobPtr => M._ms_web_view_new(blobPtr, blob.length, namePtr, out, err)));
+    if (st !== 0)
+      throw new Error('the model\'s index cannot be read: ' + M.UTF8ToString(err + 4));
+    return M.HEAPU32[out >> 2];
+  } finally {
+    M._free(err);
+    M._free(out);
+  }
+}
+
+function setCamera(c) {
+  const p = M._malloc(9 * 8);
+  const d = new Float64Array(M.HEAPU8.buffer, p, 9);
+  d.set([...c.position, ...c.target, ...c.up]);
+  const st = M._ms_web_view_camera(view, p, p + 24, p + 48, c.fovy, c.width, c.height,
+                                   0, 0, c.tolerance);
+  M._free(p);
+  if (st !== 0)
+    throw new Error('bad camera: ' + lastError());
+}
+
+// Fetches what the cell lacks of its payload prefix at `bits` (null: all the
+// reader may read) and hands it over; returns the bytes received.
+async function fetchCell(name, token, cell, bits) {
+  const held = M._ms_web_view_held(view, cell);
+  const answer = await get('/models/' + encodeURIComponent(name) + '/cells/' + cell +
+                           '/geometry' + (bits === null ? '' : '?bits=' + bits), token,
+                           held ? { Range: 'bytes=' + held + '-' } : null);
+  const bytes = new Uint8Array(await answer.arrayBuffer());
+  const offset = answer.status === 206 ? held : 0;
+  const st = withHeap(bytes, p => M._ms_web_view_give(view, cell, offset, p, bytes.length));
+  if (st !== 0)
+    throw new Error('cell ' + cell + ': ' + lastError());
+  return bytes.length;
+}
+
+function postMesh(final) {
+  if (M._ms_web_view_stitch(view) !== 0)
+    throw new Error('stitching the cut: ' + lastError());
+  const nv = M._ms_web_view_vertex_count(view), nt = M._ms_web_view_triangle_count(view);
+  const positions = new Float32Array(M.HEAPF32.buffer, M._ms_web_view_positions(view), 3 * nv).slice();
+  const triangles = new Uint32Array(M.HEAPU32.buffer, M._ms_web_view_triangles(view), 3 * nt).slice();
+  postMessage({ type: 'mesh', final, positions, triangles,
+                cells: M._ms_web_view_shown_cells(view) },
+              [positions.buffer, triangles.buffer]);
+}
+
+// The camera the page asked for last, not yet applied, and the wake-up of a
+// settled loop waiting for one.
+let pendingCamera = null, wake = null;
+
+function nextCamera() {
+  return new Promise(resolve => { wake = resolve; });
+}
+
+async function run(msg) {
+  const { name, token } = msg;
+  const started = performance.now();
+  M = await createMeshstream({ locateFile: file => '/web/' + file });
+  let catalogue;
+  try {
+    catalogue = await (await get('/catalog', token)).json();
+  } catch (e) {
+    throw new Error('cannot read the catalogue: ' + e.message);
+  }
+  const entry = catalogue.models.find(m => m.name === name);
+  if (!entry)
+    throw new Error('no model named "' + name + '" on this server');
+  const blob = new Uint8Array(await (await get('/models/' + encodeURIComponent(name), token)).arrayBuffer());
+  view = openIndex(blob, name);
+  const bp = M._malloc(32);
+  M._ms_web_view_box(view, bp);
+  const box = Array.from(new Float64Array(M.HEAPU8.buffer, bp, 4));
+  M._free(bp);
+  let bytes = blob.length, rounds = 0, bounds = null;
+  if (!msg.camera) {
+    // the root's bytes tell where the model lies in its box: the home camera
+    bytes += await fetchCell(name, token, 0, null);
+    const p = M._malloc(48);
+    if (M._ms_web_view_bounds(view, p) === 0)
+      bounds = Array.from(new Float64Array(M.HEAPU8.buffer, p, 6));
+    M._free(p);
+  }
+  postMessage({ type: 'box', box, bounds, triangles: entry.triangles });
+  // A reader without a token reads a preview model to public_max_bits only.
+  if (!token && entry.public_max_bits < entry.bits)
+    M._ms_web_view_permit(view, entry.public_max_bits + 1);
+  if (msg.camera)
+    pendingCamera = msg.camera;
+  while (!pendingCamera)
+    await nextCamera();
+  const settledPtr = M._malloc(4);
+  for (;;) {
+    if (pendingCamera) {
+      setCamera(pendingCamera);
+      pendingCamera = null;
+    }
+    if (M._ms_web_view_plan(view, PLAN_MAX, settledPtr) !== 0)
+      throw new Error('selecting the cut: ' + lastError());
+    const count = M._ms_web_view_plan_count(view);
+    if (M.HEAPU32[settledPtr >> 2]) {
+      postMesh(true);
+      postMessage({ type: 'complete', bytes, rounds, seconds: (performance.now() - started) / 1000 });
+      while (!pendingCamera)
+        await nextCamera();
+      continue;
+    }
+    const wanted = [];
+    for (let k = 0; k < count; ++k)
+      wanted.push([M._ms_web_view_plan_cell(view, k), M._ms_web_view_plan_bits(view, k)]);
+    let next = 0;
+    const lane = async () => {
+      while (next < wanted.length) {
+        const [cell, bits] = wanted[next++];
+        bytes += await fetchCell(name, token, cell, bits);
+      }
+    };
+    await Promise.all(Array.from({ length: Math.min(IN_FLIGHT, wanted.length) }, lane));
+    rounds++;
+    postMessage({ type: 'progress', bytes, rounds, wanted: count });
+    postMesh(false);              // what the bytes so far show
+  }
+}
+
+onmessage = e => {
+  if (e.data.type === 'start') {
+    run(e.data).catch(err => fail(err.message || String(err)));
+  } else if (e.data.type === 'camera') {
+    pendingCamera = e.data.camera;
+    if (wake) {
+      wake();
+      wake = null;
+    }
+  }
+};
