@@ -14,6 +14,7 @@
 
 CC      ?= gcc
 CXX     ?= g++
+EMCC    ?= emcc
 MODE    ?= release
 BUILD   := build/$(MODE)
 
@@ -105,7 +106,8 @@ LINK      := $(CXX)
 all: programs
 
 programs: $(PROGRAMS)
-tests: $(TESTS) $(PROGRAMS)
+# the browser's module too where Emscripten is installed (tests/test_browser.c)
+tests: $(TESTS) $(PROGRAMS) $(if $(shell command -v $(EMCC) 2>/dev/null),wasm)
 
 # Every library pkg-config should know (cmocka too when tests are built), and
 # Embree 3's header: one line naming what is missing, before any compiler error.
@@ -289,7 +291,6 @@ uninstall:
 # (Debian's emscripten; its Node needs NODE_PATH) with the page of web/, into
 # build/wasm/site, the folder meshserve --web-dir serves. Only what the view
 # decoder needs: no JSON, PNG or gzip input; zlib's CRC-32 from web/wasm.
-EMCC        ?= emcc
 comma       := ,
 space       := $(subst ,, )
 WASM        := build/wasm
@@ -306,7 +307,7 @@ WASM_EXPORTS := malloc free ms_web_view_new ms_web_view_free ms_web_view_error m
                ms_web_view_plan_count ms_web_view_plan_cell ms_web_view_plan_bits \
                ms_web_view_plan_bytes ms_web_view_held ms_web_view_give ms_web_view_stitch \
                ms_web_view_vertex_count ms_web_view_triangle_count ms_web_view_positions \
-               ms_web_view_triangles ms_web_view_shown_cells ms_web_view_bytes_held
+               ms_web_view_triangles ms_web_view_shown_cells ms_web_view_max_bits ms_web_view_bytes_held
 WASM_LDFLAGS := -O2 -sMODULARIZE=1 -sEXPORT_NAME=createMeshstream -sENVIRONMENT=worker \
                -sALLOW_MEMORY_GROWTH=1 -sFILESYSTEM=0 -sEXIT_RUNTIME=0 \
                -sEXPORTED_RUNTIME_METHODS=[HEAPU8,HEAPU32,HEAPF32,HEAPF64,UTF8ToString] \

@@ -7,11 +7,11 @@
 // The token is asked once, kept for the tab (sessionStorage) and sent as
 // Authorization by the worker, never in a URL. window.meshstream holds the
 // page's state for scripts: state ('loading', 'complete', 'error'), message,
-// triangles, cells, bytes, firstPixelMs, completeMs.
+// triangles, cells, bits (the finest shown), bytes, firstPixelMs, completeMs.
 'use strict';
 
 const TOKEN_KEY = 'meshstream-token';
-const page = { state: 'loading', message: '', triangles: 0, cells: 0, bytes: 0,
+const page = { state: 'loading', message: '', triangles: 0, cells: 0, bits: 0, bytes: 0,
                firstPixelMs: null, completeMs: null };
 window.meshstream = page;
 
@@ -318,6 +318,7 @@ function start() {
       upload(m.positions, m.triangles);
       page.triangles = m.triangles.length / 3;
       page.cells = m.cells;
+      page.bits = m.bits;
       requestDraw();
     } else if (m.type === 'complete') {
       page.bytes = m.bytes;
@@ -325,7 +326,8 @@ function start() {
       page.state = 'complete';
       progress.value = 1;
       say(name + ': ' + page.triangles.toLocaleString('en') + ' triangles in ' + page.cells +
-          ' cells, ' + (m.bytes / 1e3).toFixed(0) + ' kB, view complete');
+          ' cells, up to ' + page.bits + ' bits, ' + (m.bytes / 1e3).toFixed(0) + ' kB, view complete' +
+          (m.preview ? ' (the public preview: a token gives more)' : ''));
     } else if (m.type === 'error') {
       failPage(m.message.charAt(0).toUpperCase() + m.message.slice(1));
     }

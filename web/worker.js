@@ -104,7 +104,7 @@ function postMesh(final) {
   const positions = new Float32Array(M.HEAPF32.buffer, M._ms_web_view_positions(view), 3 * nv).slice();
   const triangles = new Uint32Array(M.HEAPU32.buffer, M._ms_web_view_triangles(view), 3 * nt).slice();
   postMessage({ type: 'mesh', final, positions, triangles,
-                cells: M._ms_web_view_shown_cells(view) },
+                cells: M._ms_web_view_shown_cells(view), bits: M._ms_web_view_max_bits(view) },
               [positions.buffer, triangles.buffer]);
 }
 
@@ -146,7 +146,8 @@ async function run(msg) {
   }
   postMessage({ type: 'box', box, bounds, triangles: entry.triangles });
   // A reader without a token reads a preview model to public_max_bits only.
-  if (!token && entry.public_max_bits < entry.bits)
+  const preview = !token && entry.public_max_bits < entry.bits;
+  if (preview)
     M._ms_web_view_permit(view, entry.public_max_bits + 1);
   if (msg.camera)
     pendingCamera = msg.camera;
@@ -163,7 +164,8 @@ async function run(msg) {
     const count = M._ms_web_view_plan_count(view);
     if (M.HEAPU32[settledPtr >> 2]) {
       postMesh(true);
-      postMessage({ type: 'complete', bytes, rounds, seconds: (performance.now() - started) / 1000 });
+      postMessage({ type: 'complete', bytes, rounds, preview,
+                    seconds: (performance.now() - started) / 1000 });
       while (!pendingCamera)
         await nextCamera();
       continue;
@@ -175,7 +177,8 @@ async function run(msg) {
     const lane = async () => {
       while (next < wanted.length) {
         const [cell, bits] = wanted[next++];
-        bytes += await fetchCell(name, token, cell, bits);
+        const got = await fetchCell(name, token, cell, bits); // not `bytes += await`: lanes interleave
+        bytes += got;
       }
     };
     await Promise.all(Array.from({ length: Math.min(IN_FLIGHT, wanted.length) }, lane));

@@ -264,6 +264,15 @@ uint32_t ms_web_view_shown_cells(const ms_web_view *v)
     return shown;
 }
 
+uint32_t ms_web_view_max_bits(const ms_web_view *v)
+{
+    uint32_t best = 0, n = ms_view_cell_count(v->view);
+    for (uint32_t c = 0; c < n; ++c)
+        if (ms_view_state(v->view, c) == MS_VIEW_SHOWN && ms_view_bits(v->view, c) > best)
+            best = ms_view_bits(v->view, c);
+    return best;
+}
+
 uint64_t ms_web_view_bytes_held(const ms_web_view *v)
 {
     uint64_t total = 0;

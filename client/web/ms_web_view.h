@@ -89,8 +89,10 @@ uint32_t ms_web_view_triangle_count(const ms_web_view *view);
 /* 3 floats per vertex (world units), 3 corners per triangle (oriented). */
 const float *ms_web_view_positions(const ms_web_view *view);
 const uint32_t *ms_web_view_triangles(const ms_web_view *view);
-/* Shown cells and geometry bytes held, for the page's figures. */
+/* Shown cells, the highest precision (bits) any of them is shown at, and the
+ * geometry bytes held: the page's figures. */
 uint32_t ms_web_view_shown_cells(const ms_web_view *view);
+uint32_t ms_web_view_max_bits(const ms_web_view *view);
 uint64_t ms_web_view_bytes_held(const ms_web_view *view);
 
 #endif
