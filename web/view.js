@@ -322,6 +322,8 @@ function start() {
       requestDraw();
     } else if (m.type === 'complete') {
       page.bytes = m.bytes;
+      page.rounds = m.rounds;
+      page.timing = m.timing;
       page.completeMs = Math.round(performance.now());
       page.state = 'complete';
       progress.value = 1;

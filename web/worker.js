@@ -97,7 +97,24 @@ async function fetchCell(name, token, cell, bits) {
   return bytes.length;
 }
 
+// Seconds spent, for the page's figures: selecting and decoding (plan),
+// waiting for cells (fetch), stitching and copying out the mesh (stitch).
+const timing = { plan: 0, fetch: 0, stitch: 0 };
+
+function timed(key, fn) {
+  const t = performance.now();
+  try {
+    return fn();
+  } finally {
+    timing[key] += (performance.now() - t) / 1000;
+  }
+}
+
 function postMesh(final) {
+  timed('stitch', () => stitchAndPost(final));
+}
+
+function stitchAndPost(final) {
   if (M._ms_web_view_stitch(view) !== 0)
     throw new Error('stitching the cut: ' + lastError());
   const nv = M._ms_web_view_vertex_count(view), nt = M._ms_web_view_triangle_count(view);
@@ -159,17 +176,19 @@ async function run(msg) {
       setCamera(pendingCamera);
       pendingCamera = null;
     }
-    if (M._ms_web_view_plan(view, PLAN_MAX, settledPtr) !== 0)
+    if (timed('plan', () => M._ms_web_view_plan(view, PLAN_MAX, settledPtr)) !== 0)
       throw new Error('selecting the cut: ' + lastError());
     const count = M._ms_web_view_plan_count(view);
     if (M.HEAPU32[settledPtr >> 2]) {
       postMesh(true);
-      postMessage({ type: 'complete', bytes, rounds, preview,
+      postMessage({ type: 'complete', bytes, rounds, preview, timing,
                     seconds: (performance.now() - started) / 1000 });
       while (!pendingCamera)
         await nextCamera();
       continue;
     }
+    if (rounds === 0 && bounds)
+      postMesh(false);            // the root the home camera was framed with: pixels at once
     const wanted = [];
     for (let k = 0; k < count; ++k)
       wanted.push([M._ms_web_view_plan_cell(view, k), M._ms_web_view_plan_bits(view, k)]);
@@ -181,7 +200,9 @@ async function run(msg) {
         bytes += got;
       }
     };
+    const fetchStart = performance.now();
     await Promise.all(Array.from({ length: Math.min(IN_FLIGHT, wanted.length) }, lane));
+    timing.fetch += (performance.now() - fetchStart) / 1000;
     rounds++;
     postMessage({ type: 'progress', bytes, rounds, wanted: count });
     postMesh(false);              // what the bytes so far show

@@ -182,6 +182,12 @@ ms_status ms_web_view_plan(ms_web_view *v, uint32_t max, int *settled)
         const ms_archive_cell *rec = ms_view_cell(v->view, c);
         if (!rec || rec->geometry_length == 0)
             continue;
+        /* the next step only: cells of the cut, and the children of a shown
+         * cell about to split (so that the first rounds are small and each
+         * round's mesh shows more) */
+        if (ms_view_state(v->view, c) == MS_VIEW_HIDDEN &&
+            (rec->parent == MS_ARCHIVE_NONE || ms_view_state(v->view, rec->parent) != MS_VIEW_SHOWN))
+            continue;
         unsigned goal = goal_bits(v, c, rec);
         if (goal == 0 || ms_view_available_bits(v->view, c) >= goal)
             continue;

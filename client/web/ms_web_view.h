@@ -61,9 +61,11 @@ void ms_web_view_permit(ms_web_view *view, unsigned steps);
 
 /* Selects for the camera and applies as far as the bytes allow, repeating
  * while the cut still changes. Then lists the cells whose target needs bytes
- * not held: ms_web_view_plan_count of them, the k-th with its cell id, the
- * precision (bits) wanted and the byte length of the payload prefix complete
- * at it (GET /models/NAME/cells/ID/geometry?bits=BITS), in cell order, at
+ * not held, of the next step only (the shown and split cells, and the children
+ * of a shown cell that is to split: a plan after their bytes lists the level
+ * below, so the first plans ask for little and each round shows more):
+ * ms_web_view_plan_count of them, the k-th with its cell id, the precision
+ * (bits) wanted and the byte length of the payload prefix complete at it (GET /models/NAME/cells/ID/geometry?bits=BITS), in cell order, at
  * most `max` cells (0: no limit). *settled (may be NULL) is true when the cut
  * no longer changes and nothing is wanted: the view is complete. */
 ms_status ms_web_view_plan(ms_web_view *view, uint32_t max, int *settled);
