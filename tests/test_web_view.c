@@ -3,7 +3,7 @@
  *   - fed only what its plans ask for, in two pieces a cell, it reaches the
  *     very cut a client with every byte makes for the same camera
  *     (ms_study_cut: the same shown cells, vertices and triangles), and then
- *     plans nothing;
+ *     plans nothing; its vertex normals are unit and outward;
  *   - a reader capped at the preview's steps is shown at most those bits;
  *   - the root's bytes give the model's bounds, inside its box;
  *   - bad input: a damaged index blob, no camera, a bad camera or tolerance,
@@ -149,6 +149,16 @@ static void test_streams_to_the_cut_of_every_byte(void **state)
     const float *positions = ms_web_view_positions(v);
     for (size_t i = 0; i < 3 * mesh.vertex_count; ++i)
         assert_true(positions[i] == (float)mesh.positions[i]);
+    /* unit normals, outward on the (star-shaped, centred) demo sculpture */
+    const float *normals = ms_web_view_normals(v);
+    size_t outward = 0;
+    for (size_t i = 0; i < mesh.vertex_count; ++i) {
+        const float *n = normals + 3 * i, *p = positions + 3 * i;
+        assert_true(fabs(sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]) - 1.0) < 1e-5);
+        outward += n[0] * p[0] + n[1] * p[1] + n[2] * p[2] > 0;
+    }
+    printf("%zu of %zu normals outward\n", outward, mesh.vertex_count);
+    assert_true(outward * 100 >= mesh.vertex_count * 95);
     uint32_t max_bits = 0;
     for (uint32_t c = 0; c < ms_view_cell_count(full); ++c)
         if (ms_view_state(full, c) == MS_VIEW_SHOWN && ms_view_bits(full, c) > max_bits)

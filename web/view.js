@@ -84,22 +84,28 @@ function viewProjection(c, width, height, near, far) {
 
 const VERTEX = `#version 300 es
 layout(location = 0) in vec3 position;
+layout(location = 1) in vec3 normal;
 uniform mat4 viewProjection;
 out vec3 world;
+out vec3 smoothNormal;
 void main() {
   world = position;
+  smoothNormal = normal;
   gl_Position = viewProjection * vec4(position, 1.0);
 }`;
 
-// Flat shading from the screen derivatives, a head light at the camera
-// (Lambert and a little Blinn-Phong), sRGB out: as the reference renderer.
+// The vertex normals the decoder derived (area-weighted, interpolated; flat
+// from the screen derivatives where a vertex has none), a head light at the
+// camera (Lambert and a little Blinn-Phong), lit from both sides, sRGB out.
 const FRAGMENT = `#version 300 es
 precision highp float;
 in vec3 world;
+in vec3 smoothNormal;
 uniform vec3 eye;
 out vec4 colour;
 void main() {
-  vec3 n = normalize(cross(dFdx(world), dFdy(world)));
+  vec3 n = dot(smoothNormal, smoothNormal) > 1e-12 ? normalize(smoothNormal)
+                                                   : normalize(cross(dFdx(world), dFdy(world)));
   vec3 l = normalize(eye - world);
   if (dot(n, l) < 0.0) n = -n;
   float diffuse = max(dot(n, l), 0.0);
@@ -109,7 +115,7 @@ void main() {
 }`;
 
 const gl = canvas.getContext('webgl2', { antialias: false });
-let program = null, vao = null, positionBuffer = null, indexBuffer = null;
+let program = null, vao = null, positionBuffer = null, normalBuffer = null, indexBuffer = null;
 let indexCount = 0, box = null, frameRequested = false;
 
 function compile(type, source) {
@@ -131,10 +137,14 @@ function setUpGl() {
   vao = gl.createVertexArray();
   gl.bindVertexArray(vao);
   positionBuffer = gl.createBuffer();
+  normalBuffer = gl.createBuffer();
   indexBuffer = gl.createBuffer();
   gl.bindBuffer(gl.ARRAY_BUFFER, positionBuffer);
   gl.enableVertexAttribArray(0);
   gl.vertexAttribPointer(0, 3, gl.FLOAT, false, 0, 0);
+  gl.bindBuffer(gl.ARRAY_BUFFER, normalBuffer);
+  gl.enableVertexAttribArray(1);
+  gl.vertexAttribPointer(1, 3, gl.FLOAT, false, 0, 0);
   gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, indexBuffer);
   gl.enable(gl.DEPTH_TEST);
 }
@@ -190,10 +200,12 @@ function requestDraw() {
   }
 }
 
-function upload(positions, triangles) {
+function upload(positions, normals, triangles) {
   gl.bindVertexArray(vao);
   gl.bindBuffer(gl.ARRAY_BUFFER, positionBuffer);
   gl.bufferData(gl.ARRAY_BUFFER, positions, gl.STATIC_DRAW);
+  gl.bindBuffer(gl.ARRAY_BUFFER, normalBuffer);
+  gl.bufferData(gl.ARRAY_BUFFER, normals, gl.STATIC_DRAW);
   gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, indexBuffer);
   gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, triangles, gl.STATIC_DRAW);
   indexCount = triangles.length;
@@ -315,7 +327,7 @@ function start() {
       progress.removeAttribute('value');
       say('Loading ' + name + ': ' + (m.bytes / 1e3).toFixed(0) + ' kB, ' + m.wanted + ' cells wanted');
     } else if (m.type === 'mesh') {
-      upload(m.positions, m.triangles);
+      upload(m.positions, m.normals, m.triangles);
       page.triangles = m.triangles.length / 3;
       page.cells = m.cells;
       page.bits = m.bits;

@@ -120,9 +120,10 @@ function stitchAndPost(final) {
   const nv = M._ms_web_view_vertex_count(view), nt = M._ms_web_view_triangle_count(view);
   const positions = new Float32Array(M.HEAPF32.buffer, M._ms_web_view_positions(view), 3 * nv).slice();
   const triangles = new Uint32Array(M.HEAPU32.buffer, M._ms_web_view_triangles(view), 3 * nt).slice();
-  postMessage({ type: 'mesh', final, positions, triangles,
+  const normals = new Float32Array(M.HEAPF32.buffer, M._ms_web_view_normals(view), 3 * nv).slice();
+  postMessage({ type: 'mesh', final, positions, normals, triangles,
                 cells: M._ms_web_view_shown_cells(view), bits: M._ms_web_view_max_bits(view) },
-              [positions.buffer, triangles.buffer]);
+              [positions.buffer, normals.buffer, triangles.buffer]);
 }
 
 // The camera the page asked for last, not yet applied, and the wake-up of a

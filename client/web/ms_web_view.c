@@ -28,7 +28,7 @@ struct ms_web_view {
     planned *plan;
     uint32_t plan_count, plan_cap;
     ms_view_mesh mesh;
-    float *positions;
+    float *positions, *normals;
     size_t positions_cap;
     ms_error err;
 };
@@ -67,6 +67,7 @@ void ms_web_view_free(ms_web_view *v)
     ms_archive_close(v->index);
     free(v->plan);
     free(v->positions);
+    free(v->normals);
     free(v);
 }
 
@@ -239,6 +240,33 @@ ms_status ms_web_view_give(ms_web_view *v, uint32_t cell, uint32_t offset, const
     return ms_view_append_bytes(v->view, cell, data + skip, length - skip, &v->err);
 }
 
+/* Per vertex, the sum of its triangles' (area-weighted) normals, normalised;
+ * a vertex of degenerate triangles only gets (0, 0, 0). */
+static void vertex_normals(ms_web_view *v)
+{
+    const ms_view_mesh *m = &v->mesh;
+    float *n = v->normals;
+    memset(n, 0, 3 * m->vertex_count * sizeof *n);
+    for (size_t t = 0; t < m->triangle_count; ++t) {
+        const uint32_t *c = m->triangles + 3 * t;
+        const double *a = m->positions + 3 * c[0], *b = m->positions + 3 * c[1],
+                     *d = m->positions + 3 * c[2];
+        double e[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+        double f[3] = {d[0] - a[0], d[1] - a[1], d[2] - a[2]};
+        double x[3] = {e[1] * f[2] - e[2] * f[1], e[2] * f[0] - e[0] * f[2], e[0] * f[1] - e[1] * f[0]};
+        for (int k = 0; k < 3; ++k)
+            for (int a3 = 0; a3 < 3; ++a3)
+                n[3 * c[k] + a3] += (float)x[a3];
+    }
+    for (size_t i = 0; i < m->vertex_count; ++i) {
+        float *p = n + 3 * i;
+        float length = sqrtf(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
+        if (length > 0)
+            for (int a = 0; a < 3; ++a)
+                p[a] /= length;
+    }
+}
+
 ms_status ms_web_view_stitch(ms_web_view *v)
 {
     ms_status st = ms_view_stitch(v->view, NULL, &v->mesh, &v->err);
@@ -247,13 +275,17 @@ ms_status ms_web_view_stitch(ms_web_view *v)
     size_t need = 3 * v->mesh.vertex_count;
     if (need > v->positions_cap) {
         float *grown = realloc(v->positions, need * sizeof *grown);
-        if (!grown)
+        if (grown)
+            v->positions = grown;
+        float *grown_normals = grown ? realloc(v->normals, need * sizeof *grown_normals) : NULL;
+        if (!grown_normals)
             return fail(v, MS_ERR_NOMEM, "out of memory for the positions");
-        v->positions = grown;
+        v->normals = grown_normals;
         v->positions_cap = need;
     }
     for (size_t i = 0; i < need; ++i)
         v->positions[i] = (float)v->mesh.positions[i];
+    vertex_normals(v);
     return MS_OK;
 }
 
@@ -261,6 +293,7 @@ uint32_t ms_web_view_vertex_count(const ms_web_view *v) { return (uint32_t)v->me
 uint32_t ms_web_view_triangle_count(const ms_web_view *v) { return (uint32_t)v->mesh.triangle_count; }
 const float *ms_web_view_positions(const ms_web_view *v) { return v->positions; }
 const uint32_t *ms_web_view_triangles(const ms_web_view *v) { return v->mesh.triangles; }
+const float *ms_web_view_normals(const ms_web_view *v) { return v->normals; }
 
 uint32_t ms_web_view_shown_cells(const ms_web_view *v)
 {

@@ -88,9 +88,12 @@ ms_status ms_web_view_give(ms_web_view *view, uint32_t cell, uint32_t offset, co
 ms_status ms_web_view_stitch(ms_web_view *view);
 uint32_t ms_web_view_vertex_count(const ms_web_view *view);
 uint32_t ms_web_view_triangle_count(const ms_web_view *view);
-/* 3 floats per vertex (world units), 3 corners per triangle (oriented). */
+/* 3 floats per vertex (world units), 3 corners per triangle (oriented), and
+ * 3 floats per vertex of unit normal: the area-weighted mean of its
+ * triangles' (0 0 0 for a vertex of degenerate triangles only). */
 const float *ms_web_view_positions(const ms_web_view *view);
 const uint32_t *ms_web_view_triangles(const ms_web_view *view);
+const float *ms_web_view_normals(const ms_web_view *view);
 /* Shown cells, the highest precision (bits) any of them is shown at, and the
  * geometry bytes held: the page's figures. */
 uint32_t ms_web_view_shown_cells(const ms_web_view *view);
