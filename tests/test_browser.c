@@ -9,6 +9,9 @@
  *     camera and tolerance (intersection over union >= 0.98);
  *   - the catalogue page lists the models;
  *   - a model that does not exist: the page says so, in state 'error';
+ *   - the server going away mid-stream (a relay with 150 ms each way, cut
+ *     once the first cell is asked for): the page says it cannot reach the
+ *     server, in state 'error', and nothing hangs;
  *   - a preview model: without a token the page completes below full
  *     precision with no refused request; with the token (entered as the form
  *     keeps it, sent as Authorization) it reads more.
@@ -26,11 +29,14 @@
 #include <string.h>
 #include <strings.h>
 #include <sys/stat.h>
+#include <sys/wait.h>
+#include <time.h>
 #include <unistd.h>
 #include <cmocka.h>
 #include <jansson.h>
 
 #include "ms_test.h"
+#include "ms_test_delay.h"
 #include "ms_test_net.h"
 #include "ms_test_picture.h"
 
@@ -325,6 +331,72 @@ static void test_missing_model_says_so(void **state)
     json_decref(report);
 }
 
+static double seconds_now(void)
+{
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
+}
+
+static void test_server_gone_mid_stream(void **state)
+{
+    fixture *f = *state;
+    NEED_BROWSER(f);
+    ms_test_delay *relay = NULL;
+    uint16_t relay_port;
+    assert_int_equal(ms_test_delay_start(f->http_port, 0.15, &relay, &relay_port), 0);
+    uint64_t before = 0;
+    assert_int_equal(ms_test_metric(f->http_port, "meshstream_model_requests_total{model=\"demo\"}", &before), 0);
+    char url[256], shot[700], log[700];
+    snprintf(url, sizeof url, "http://127.0.0.1:%u/view/demo#cam=0.3,0.2,1.6,0,0,0,0,1,0,40&hud=0",
+             relay_port);
+    snprintf(shot, sizeof shot, "%s/gone.png", f->dir);
+    snprintf(log, sizeof log, "%s/gone.json", f->dir);
+    char *argv[] = {"tests/browser-page", url, "--size", "320x240", "--out", shot, "--timeout", "60",
+                    NULL};
+    pid_t driver = ms_test_spawn(argv, log);
+    assert_true(driver > 0);
+    /* the index and a first cell asked for: the server goes away */
+    double deadline = seconds_now() + 60;
+    uint64_t requests = before;
+    while (requests < before + 2 && seconds_now() < deadline) {
+        usleep(5000);
+        assert_int_equal(ms_test_metric(f->http_port, "meshstream_model_requests_total{model=\"demo\"}",
+                                        &requests), 0);
+    }
+    ms_test_delay_stop(relay);
+    double cut_at = seconds_now();
+    assert_true(requests >= before + 2);
+    int status = -1;
+    while (seconds_now() < deadline) {
+        pid_t done = waitpid(driver, &status, WNOHANG);
+        if (done == driver)
+            break;
+        usleep(20000);
+    }
+    if (!WIFEXITED(status)) {
+        kill(driver, SIGKILL);
+        waitpid(driver, &status, 0);
+        fail_msg("the browser's driver did not end within 60 s");
+    }
+    size_t length;
+    unsigned char *text = ms_test_read_file(log, &length);
+    json_error_t jerr;
+    json_t *report = json_loadb((const char *)text, length, 0, &jerr);
+    if (!report)
+        fail_msg("%s: %.*s", log, (int)length, (const char *)text);
+    printf("cut after %llu model requests; the page %.2f s later: %s, %s\n",
+           (unsigned long long)(requests - before), seconds_now() - cut_at,
+           json_string_value(json_object_get(report, "state")),
+           json_string_value(json_object_get(report, "message")));
+    assert_int_equal(WEXITSTATUS(status), 0);
+    assert_string_equal(json_string_value(json_object_get(report, "state")), "error");
+    assert_non_null(strstr(json_string_value(json_object_get(report, "message")),
+                           "The server cannot be reached (/models/demo/"));
+    json_decref(report);
+    free(text);
+}
+
 static uint64_t forbidden(const fixture *f)
 {
     uint64_t n = 0;
@@ -371,6 +443,7 @@ int main(void)
         cmocka_unit_test(test_viewer_draws_the_model),
         cmocka_unit_test(test_catalogue_page),
         cmocka_unit_test(test_missing_model_says_so),
+        cmocka_unit_test(test_server_gone_mid_stream),
         cmocka_unit_test(test_preview_and_token),
     };
     return cmocka_run_group_tests(tests, group_setup, group_teardown);

@@ -23,25 +23,27 @@ function lastError() {
   return M.UTF8ToString(M._ms_web_view_error(view));
 }
 
-// A fetch whose error names what was asked; the body of an error answer is
-// the server's one line.
+// A GET whose answer is read whole: {status, bytes}. Any failure of the
+// network, before or during the body, is one error naming what was asked;
+// an error answer's is the server's own line.
 async function get(url, token, extra) {
   const headers = Object.assign({}, extra || {});
   if (token)
     headers.Authorization = 'Bearer ' + token;   // never in the URL
-  let answer;
+  let answer, bytes;
   try {
     answer = await fetch(url, { headers, cache: 'default' });
+    bytes = new Uint8Array(await answer.arrayBuffer());
   } catch (e) {
     throw new Error('the server cannot be reached (' + url + ')');
   }
   if (answer.status !== 200 && answer.status !== 206) {
-    const text = (await answer.text()).trim().replace(/^error: /, '');
+    const text = new TextDecoder().decode(bytes).trim().replace(/^error: /, '');
     const e = new Error(text || ('the server answered ' + answer.status));
     e.status = answer.status;
     throw e;
   }
-  return answer;
+  return { status: answer.status, bytes };
 }
 
 function withHeap(bytes, fn) {
@@ -89,7 +91,7 @@ async function fetchCell(name, token, cell, bits) {
   const answer = await get('/models/' + encodeURIComponent(name) + '/cells/' + cell +
                            '/geometry' + (bits === null ? '' : '?bits=' + bits), token,
                            held ? { Range: 'bytes=' + held + '-' } : null);
-  const bytes = new Uint8Array(await answer.arrayBuffer());
+  const bytes = answer.bytes;
   const offset = answer.status === 206 ? held : 0;
   const st = withHeap(bytes, p => M._ms_web_view_give(view, cell, offset, p, bytes.length));
   if (st !== 0)
@@ -140,14 +142,14 @@ async function run(msg) {
   M = await createMeshstream({ locateFile: file => '/web/' + file });
   let catalogue;
   try {
-    catalogue = await (await get('/catalog', token)).json();
+    catalogue = JSON.parse(new TextDecoder().decode((await get('/catalog', token)).bytes));
   } catch (e) {
     throw new Error('cannot read the catalogue: ' + e.message);
   }
   const entry = catalogue.models.find(m => m.name === name);
   if (!entry)
     throw new Error('no model named "' + name + '" on this server');
-  const blob = new Uint8Array(await (await get('/models/' + encodeURIComponent(name), token)).arrayBuffer());
+  const blob = (await get('/models/' + encodeURIComponent(name), token)).bytes;
   view = openIndex(blob, name);
   const bp = M._malloc(32);
   M._ms_web_view_box(view, bp);
