@@ -25,17 +25,25 @@ function lastError() {
 
 // A GET whose answer is read whole: {status, bytes}. Any failure of the
 // network, before or during the body, is one error naming what was asked;
-// an error answer's is the server's own line.
+// an error answer's is the server's own line; 429 (the request rate limit)
+// is retried after its Retry-After, four times at most.
 async function get(url, token, extra) {
   const headers = Object.assign({}, extra || {});
   if (token)
     headers.Authorization = 'Bearer ' + token;   // never in the URL
   let answer, bytes;
-  try {
-    answer = await fetch(url, { headers, cache: 'default' });
-    bytes = new Uint8Array(await answer.arrayBuffer());
-  } catch (e) {
-    throw new Error('the server cannot be reached (' + url + ')');
+  for (let attempt = 0; ; ++attempt) {
+    try {
+      answer = await fetch(url, { headers, cache: 'default' });
+      bytes = new Uint8Array(await answer.arrayBuffer());
+    } catch (e) {
+      throw new Error('the server cannot be reached (' + url + ')');
+    }
+    // the server's request rate limit: wait as it says, a few times
+    if (answer.status !== 429 || attempt === 4)
+      break;
+    const wait = Math.min(Number(answer.headers.get('Retry-After')) || 1, 10);
+    await new Promise(resolve => setTimeout(resolve, wait * 1000));
   }
   if (answer.status !== 200 && answer.status !== 206) {
     const text = new TextDecoder().decode(bytes).trim().replace(/^error: /, '');
