@@ -3,6 +3,7 @@
 // holds the camera, so a view can be shared:
 //   #cam=PX,PY,PZ,TX,TY,TZ,UX,UY,UZ,FOVY   position, target, up, degrees
 //   &tol=PIXELS                             screen tolerance (default 1)
+//   &culled=BITS                            bits given up outside the view (default 6)
 //   &hud=0                                  no overlay (pictures for tests)
 // The token is asked once, kept for the tab (sessionStorage) and sent as
 // Authorization by the worker, never in a URL. window.meshstream holds the
@@ -50,6 +51,8 @@ function parseCamera(text) {
 
 let camera = parseCamera(hash.get('cam'));
 const tolerance = Number(hash.get('tol')) > 0 ? Number(hash.get('tol')) : 1;
+// bits given up outside the view: the client core's 6 unless the URL says
+const culled = hash.get('culled') !== null && Number(hash.get('culled')) >= 0 ? Number(hash.get('culled')) : 6;
 if (hash.get('cam') && !camera)
   failPage('The camera in the URL is not ten numbers (#cam=PX,PY,PZ,TX,TY,TZ,UX,UY,UZ,FOVY).');
 
@@ -346,7 +349,7 @@ function start() {
       failPage(m.message.charAt(0).toUpperCase() + m.message.slice(1));
     }
   };
-  worker.postMessage({ type: 'start', name, token: sessionStorage.getItem(TOKEN_KEY) || '',
+  worker.postMessage({ type: 'start', name, token: sessionStorage.getItem(TOKEN_KEY) || '', culled,
                        camera: camera ? workerCamera() : null });
 }
 

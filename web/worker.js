@@ -1,7 +1,7 @@
 // The decoding worker of the viewer page (docs/BROWSER.md): the view decoder
 // of the C sources, compiled to WebAssembly (make wasm: meshstream.js and
 // meshstream.wasm, the interface of client/web/ms_web_view.h), fed over the
-// HTTP side door. Messages in: {type: 'start', name, token, camera},
+// HTTP side door. Messages in: {type: 'start', name, token, camera, culled},
 // {type: 'camera', camera} (a new camera: the loop plans again). Out:
 // {type: 'box'}, {type: 'progress'}, {type: 'mesh'} (positions and triangles,
 // transferred), {type: 'complete'}, {type: 'error', message}.
@@ -174,6 +174,7 @@ async function run(msg) {
   }
   postMessage({ type: 'box', box, bounds, triangles: entry.triangles });
   // A reader without a token reads a preview model to public_max_bits only.
+  M._ms_web_view_culled(view, msg.culled);
   const preview = !token && entry.public_max_bits < entry.bits;
   if (preview)
     M._ms_web_view_permit(view, entry.public_max_bits + 1);

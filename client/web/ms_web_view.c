@@ -133,6 +133,12 @@ ms_status ms_web_view_camera(ms_web_view *v, const double position[3], const dou
 
 void ms_web_view_permit(ms_web_view *v, unsigned steps) { v->params.permitted_steps = steps; }
 
+void ms_web_view_culled(ms_web_view *v, double bits_less)
+{
+    if (bits_less >= 0 && isfinite(bits_less))
+        v->params.culled_bits_less = bits_less;
+}
+
 /* The precision a known cell's target needs held: its bits, or bits_max for a
  * cell that splits (its children start from its complex at bits_max); 0 for a
  * hidden one. */

@@ -55,6 +55,11 @@ ms_status ms_web_view_camera(ms_web_view *view, const double position[3], const 
                              const double up[3], double fovy_degrees, double width, double height,
                              double near_distance, double far_distance, double tolerance_px);
 
+/* Bits given up on cells outside the view (>= 0): ms_view_select_params'
+ * culled_bits_less. A new view has the decoder's default, 2 (meshrender's
+ * cut); the client core uses 6, fewer bytes for what is not seen. */
+void ms_web_view_culled(ms_web_view *view, double bits_less);
+
 /* Caps every cell at bits 0 .. steps - 1 (a reader without a token on a
  * preview model: public_max_bits + 1); 0 lifts the cap. */
 void ms_web_view_permit(ms_web_view *view, unsigned steps);
