@@ -1,5 +1,5 @@
-// The catalogue page (/): the models meshserve serves, from GET /catalog,
-// each a link to its viewer page (docs/BROWSER.md).
+// The catalogue page (/): the models meshserve serves, from GET /catalog
+// (its first 1000 by name), each a link to its viewer page (docs/BROWSER.md).
 'use strict';
 
 function megabytes(bytes) {
@@ -11,7 +11,7 @@ async function showCatalogue() {
   const table = document.getElementById('models');
   window.meshstream = { state: 'loading', message: '' };
   try {
-    const answer = await fetch('/catalog');
+    const answer = await fetch('/catalog?limit=1000&sort=name');
     if (!answer.ok)
       throw new Error('the server answered ' + answer.status + ': ' + (await answer.text()).trim());
     const catalogue = await answer.json();
@@ -32,7 +32,9 @@ async function showCatalogue() {
       });
     }
     table.hidden = false;
-    status.textContent = catalogue.models.length + (catalogue.models.length === 1 ? ' model' : ' models');
+    const total = catalogue.total === undefined ? catalogue.models.length : catalogue.total;
+    status.textContent = total + (total === 1 ? ' model' : ' models') +
+      (catalogue.models.length < total ? ' (the first ' + catalogue.models.length + ' shown)' : '');
     window.meshstream = { state: 'complete', message: status.textContent, models: catalogue.models.length };
   } catch (e) {
     status.textContent = 'Cannot read the catalogue: ' + e.message;

@@ -150,7 +150,9 @@ async function run(msg) {
   M = await createMeshstream({ locateFile: file => '/web/' + file });
   let catalogue;
   try {
-    catalogue = JSON.parse(new TextDecoder().decode((await get('/catalog', token)).bytes));
+    // the catalogue's entries whose name holds NAME (a page of at most 1000)
+    catalogue = JSON.parse(new TextDecoder().decode(
+      (await get('/catalog?limit=1000&q=' + encodeURIComponent(name), token)).bytes));
   } catch (e) {
     throw new Error('cannot read the catalogue: ' + e.message);
   }

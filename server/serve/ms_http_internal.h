@@ -1,8 +1,8 @@
 /* Inside the HTTP side door (ms_http_door.h): the answers its routes share
- * (ms_http_door.c: connections, routing, catalogue, metrics;
- * ms_http_models.c: a model's index, head, subtrees, cell streams and Draco
- * file; ms_http_pages.c: the browser pages). Private to server/serve/; every
- * function runs on the server loop.
+ * (ms_http_door.c: connections, routing, metrics; ms_http_catalog.c: the
+ * catalogue's pages; ms_http_models.c: a model's index, head, subtrees, cell
+ * streams and Draco file; ms_http_pages.c: the browser pages). Private to
+ * server/serve/; every function runs on the server loop.
  */
 #ifndef MS_HTTP_INTERNAL_H
 #define MS_HTTP_INTERNAL_H
@@ -54,5 +54,12 @@ bool ms_http_route_model(ms_http_door *door, struct evhttp_request *req, ms_mode
  * (view.html) and /web/FILE from the configured web_dir; seg[0..n) is the
  * path. Returns false, having sent nothing, for any other path. */
 bool ms_http_route_page(ms_http_door *door, struct evhttp_request *req, char **seg, int n);
+
+/* Answers GET /catalog: one page of the catalogue as JSON, with the query's
+ * offset, limit (default 100, at most 1000), sort (name, size, date,
+ * triangles), order (asc, desc) and q (a case-insensitive text filter on name
+ * and source); a bad parameter gets 400 and one line. Opens no archive. */
+void ms_http_serve_catalog(ms_http_door *door, struct evhttp_request *req,
+                           const struct evkeyvalq *query);
 
 #endif
