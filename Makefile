@@ -14,6 +14,7 @@
 
 CC      ?= gcc
 CXX     ?= g++
+EMCC    ?= emcc
 MODE    ?= release
 BUILD   := build/$(MODE)
 
@@ -40,7 +41,8 @@ LDFLAGS  := $(OPT) -pthread
 # (pkg-config names; Embree 3 ships no .pc file and is named embree3).
 ROOMS := common/util common/mesh common/codec common/apo common/camera \
          common/archive protocol server/geometry server/apo server/bake \
-         server/serve server/study client/core client/lib client/load client/view
+         server/serve server/study client/core client/lib client/load client/view \
+         client/web
 USES_common/util     :=
 USES_common/mesh     := common/util
 USES_common/codec    := common/mesh
@@ -57,6 +59,7 @@ USES_client/core     := common/archive protocol
 USES_client/lib      := client/core
 USES_client/load     := client/core
 USES_client/view     := client/core common/apo
+USES_client/web      := common/archive
 PKGS_common/util     := jansson libpng zlib
 PKGS_common/codec    := zlib
 PKGS_common/apo      := zlib
@@ -103,7 +106,8 @@ LINK      := $(CXX)
 all: programs
 
 programs: $(PROGRAMS)
-tests: $(TESTS) $(PROGRAMS)
+# the browser's module too where Emscripten is installed (tests/test_browser.c)
+tests: $(TESTS) $(PROGRAMS) $(if $(shell command -v $(EMCC) 2>/dev/null),wasm)
 
 # Every library pkg-config should know (cmocka too when tests are built), and
 # Embree 3's header: one line naming what is missing, before any compiler error.
@@ -281,6 +285,46 @@ install: programs client-lib man
 uninstall:
 	rm -f $(addprefix $(DESTDIR),$(INSTALLED))
 	-rmdir $(addprefix $(DESTDIR),$(DOCDIR)/examples $(DOCDIR) $(DATADIR)/deploy $(DATADIR)) 2>/dev/null
+
+# ---- The browser client (docs/BROWSER.md) -----------------------------------
+# `make wasm`: the decoding sources compiled to WebAssembly by Emscripten
+# (Debian's emscripten; its Node needs NODE_PATH) with the page of web/, into
+# build/wasm/site, the folder meshserve --web-dir serves. Only what the view
+# decoder needs: no JSON, PNG or gzip input; zlib's CRC-32 from web/wasm.
+comma       := ,
+space       := $(subst ,, )
+WASM        := build/wasm
+WASM_ROOMS  := common/util common/mesh common/codec common/camera common/archive client/web
+WASM_SKIP   := common/util/ms_byte_source.c common/util/ms_json_out.c common/util/ms_png.c \
+               common/util/ms_version.c common/util/ms_parallel.c common/util/ms_input_file.c \
+               common/util/ms_cli.c common/util/ms_process_memory.c common/archive/ms_catalog.c
+WASM_SRCS   := $(filter-out $(WASM_SKIP),$(foreach r,$(WASM_ROOMS),$(call lib_srcs,$(r)))) \
+               web/wasm/ms_wasm_zlib.c
+WASM_OBJS   := $(patsubst %.c,$(WASM)/obj/%.o,$(WASM_SRCS))
+WASM_CFLAGS := $(CSTD) $(WARN) -O2 -DNDEBUG -Iweb/wasm/include $(addprefix -I,$(WASM_ROOMS))
+WASM_EXPORTS := malloc free ms_web_view_new ms_web_view_free ms_web_view_error ms_web_view_box \
+               ms_web_view_cell_count ms_web_view_bounds ms_web_view_camera ms_web_view_culled ms_web_view_permit ms_web_view_plan \
+               ms_web_view_plan_count ms_web_view_plan_cell ms_web_view_plan_bits \
+               ms_web_view_plan_bytes ms_web_view_held ms_web_view_give ms_web_view_stitch \
+               ms_web_view_vertex_count ms_web_view_triangle_count ms_web_view_positions ms_web_view_normals \
+               ms_web_view_triangles ms_web_view_shown_cells ms_web_view_max_bits ms_web_view_bytes_held
+WASM_LDFLAGS := -O2 -sMODULARIZE=1 -sEXPORT_NAME=createMeshstream -sENVIRONMENT=worker \
+               -sALLOW_MEMORY_GROWTH=1 -sFILESYSTEM=0 -sEXIT_RUNTIME=0 \
+               -sEXPORTED_RUNTIME_METHODS=[HEAPU8,HEAPU32,HEAPF32,HEAPF64,UTF8ToString] \
+               -sEXPORTED_FUNCTIONS=[$(subst $(space),$(comma),$(strip $(addprefix _,$(WASM_EXPORTS))))]
+WEB_FILES   := $(wildcard web/*.html web/*.js web/*.css)
+.PHONY: wasm
+wasm: $(WASM)/site/meshstream.js $(patsubst web/%,$(WASM)/site/%,$(WEB_FILES))
+$(WASM)/obj/%.o: %.c
+	@mkdir -p $(dir $@)
+	@command -v $(EMCC) >/dev/null || { echo "wasm: emcc is missing (scripts/install-deps)" >&2; exit 1; }
+	NODE_PATH=/usr/share/nodejs $(EMCC) $(WASM_CFLAGS) -MMD -MP -c $< -o $@
+$(WASM)/site/meshstream.js: $(WASM_OBJS)
+	@mkdir -p $(dir $@)
+	NODE_PATH=/usr/share/nodejs $(EMCC) $(WASM_LDFLAGS) $^ -o $@
+$(WASM)/site/%: web/%
+	@mkdir -p $(dir $@)
+	cp $< $@
 
 # The layering, for tests/test_layering.c and for reading: `make -s rooms`, and
 # `make -s room-flags ROOM=client/view` (the include paths that room compiles with).

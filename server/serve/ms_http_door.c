@@ -345,6 +345,8 @@ static void route(ms_http_door *door, struct evhttp_request *req, char *path,
         if (ms_http_route_model(door, req, model, seg + 1, n - 1, query))
             return;
     }
+    if (n >= 0 && ms_http_route_page(door, req, seg, n))
+        return;
     ms_http_send_text(door, req, 404, "Not Found", "error: no such resource");
 }
 

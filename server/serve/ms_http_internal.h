@@ -1,8 +1,8 @@
 /* Inside the HTTP side door (ms_http_door.h): the answers its routes share
  * (ms_http_door.c: connections, routing, metrics; ms_http_catalog.c: the
- * catalogue's pages;
- * ms_http_models.c: a model's index, head, subtrees, cell streams and Draco
- * file). Private to server/serve/; every function runs on the server loop.
+ * catalogue's pages; ms_http_models.c: a model's index, head, subtrees, cell
+ * streams and Draco file; ms_http_pages.c: the browser pages). Private to
+ * server/serve/; every function runs on the server loop.
  */
 #ifndef MS_HTTP_INTERNAL_H
 #define MS_HTTP_INTERNAL_H
@@ -49,6 +49,11 @@ ms_access ms_http_reader_grant(const ms_http_door *door, struct evhttp_request *
  * know (the caller answers 404). */
 bool ms_http_route_model(ms_http_door *door, struct evhttp_request *req, ms_model *model,
                          char **seg, int n, const struct evkeyvalq *query);
+
+/* Answers the browser pages (ms_http_pages.c): / (index.html), /view/NAME
+ * (view.html) and /web/FILE from the configured web_dir; seg[0..n) is the
+ * path. Returns false, having sent nothing, for any other path. */
+bool ms_http_route_page(ms_http_door *door, struct evhttp_request *req, char **seg, int n);
 
 /* Answers GET /catalog: one page of the catalogue as JSON, with the query's
  * offset, limit (default 100, at most 1000), sort (name, size, date,

@@ -38,6 +38,7 @@ void ms_server_config_free(ms_server_config *c)
     free(c->token);
     free(c->port_file);
     free(c->access_log);
+    free(c->web_dir);
     memset(c, 0, sizeof *c);
 }
 
@@ -137,6 +138,11 @@ ms_status ms_server_config_set(ms_server_config *c, const char *key, const char 
         if (!*value)
             return ms_error_set(err, MS_ERR_RANGE, "%s: access_log wants a file path", where);
         return set_string(&c->access_log, value, where, err);
+    }
+    if (!strcmp(key, "web_dir")) {
+        if (!*value)
+            return ms_error_set(err, MS_ERR_RANGE, "%s: web_dir wants a folder", where);
+        return set_string(&c->web_dir, value, where, err);
     }
     return ms_error_set(err, MS_ERR_ARG, "%s: unknown setting '%s'", where, key);
 }

@@ -40,6 +40,9 @@ typedef struct ms_server_config {
     char *port_file;          /* if set, "PORT HTTP_PORT\n" is written there once listening */
     char *access_log;         /* if set, one JSON line per binary connection and per HTTP
                                  request is appended there (ms_server.h); reopened on SIGHUP */
+    char *web_dir;            /* if set, the browser pages (make wasm: build/wasm/site) are
+                                 served from there at /, /view/NAME and /web/FILE
+                                 (docs/BROWSER.md) */
 } ms_server_config;
 
 void ms_server_config_defaults(ms_server_config *config);

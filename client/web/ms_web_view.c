@@ -1,0 +1,328 @@
+/* The browser client's decoding core: see ms_web_view.h. */
+#include "ms_web_view.h"
+
+#include <math.h>
+#include <stdbool.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "ms_archive.h"
+#include "ms_camera.h"
+#include "ms_view_decoder.h"
+
+/* Rounds of select + apply before a plan gives up on the cut settling (the
+ * study's cut uses the same bound). */
+#define MAX_ROUNDS 64u
+
+typedef struct planned {
+    uint32_t cell, bits, bytes;
+} planned;
+
+struct ms_web_view {
+    ms_archive *index;
+    ms_view *view;
+    ms_camera camera;
+    bool has_camera;
+    ms_view_select_params params;
+    planned *plan;
+    uint32_t plan_count, plan_cap;
+    ms_view_mesh mesh;
+    float *positions, *normals;
+    size_t positions_cap;
+    ms_error err;
+};
+
+static ms_status fail(ms_web_view *v, ms_status st, const char *what)
+{
+    ms_error_set(&v->err, st, "%s", what);
+    return st;
+}
+
+ms_status ms_web_view_new(const uint8_t *blob, size_t size, const char *name, ms_web_view **out,
+                          ms_error *err)
+{
+    *out = NULL;
+    ms_web_view *v = calloc(1, sizeof *v);
+    if (!v)
+        return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory", name);
+    ms_status st = ms_archive_open_index(blob, size, name, &v->index, err);
+    if (st == MS_OK)
+        st = ms_view_create_from_archive(v->index, &v->view, err);
+    if (st != MS_OK) {
+        ms_web_view_free(v);
+        return st;
+    }
+    ms_view_select_params_default(&v->params);
+    *out = v;
+    return MS_OK;
+}
+
+void ms_web_view_free(ms_web_view *v)
+{
+    if (!v)
+        return;
+    ms_view_mesh_free(&v->mesh);
+    ms_view_destroy(v->view);
+    ms_archive_close(v->index);
+    free(v->plan);
+    free(v->positions);
+    free(v->normals);
+    free(v);
+}
+
+const char *ms_web_view_error(const ms_web_view *v) { return v->err.text; }
+
+void ms_web_view_box(const ms_web_view *v, double out[4])
+{
+    const ms_archive_header *h = ms_archive_get_header(v->index);
+    for (int a = 0; a < 3; ++a)
+        out[a] = h->box_origin[a];
+    out[3] = h->box_side;
+}
+
+uint32_t ms_web_view_cell_count(const ms_web_view *v) { return ms_view_cell_count(v->view); }
+
+ms_status ms_web_view_bounds(ms_web_view *v, double out[6])
+{
+    if (ms_view_state(v->view, 0) != MS_VIEW_SHOWN)
+        return fail(v, MS_ERR_RANGE, "the root is no longer the whole cut");
+    unsigned bits = ms_view_available_bits(v->view, 0);
+    ms_status st = MS_OK;
+    if (bits != ms_view_bits(v->view, 0))
+        st = ms_view_set_bits(v->view, 0, bits, &v->err);
+    if (st == MS_OK)
+        st = ms_view_cell_bounds(v->view, 0, out, out + 3, &v->err);
+    return st;
+}
+
+ms_status ms_web_view_camera(ms_web_view *v, const double position[3], const double target[3],
+                             const double up[3], double fovy_degrees, double width, double height,
+                             double near_distance, double far_distance, double tolerance_px)
+{
+    if (!(tolerance_px > 0) || !isfinite(tolerance_px))
+        return fail(v, MS_ERR_ARG, "the screen tolerance must be a positive number of pixels");
+    if (!(far_distance > 0)) {
+        /* as meshrender: just past the farthest corner of the box */
+        double box[4], farthest2 = 0;
+        ms_web_view_box(v, box);
+        for (int corner = 0; corner < 8; ++corner) {
+            double d2 = 0;
+            for (int a = 0; a < 3; ++a) {
+                double c = box[a] + ((corner >> a) & 1 ? box[3] : 0), d = c - position[a];
+                d2 += d * d;
+            }
+            farthest2 = fmax(farthest2, d2);
+        }
+        far_distance = 1.01 * sqrt(farthest2);
+        if (!(far_distance > 0))
+            far_distance = 1;
+    }
+    if (!(near_distance > 0))
+        near_distance = far_distance * 1e-5;
+    ms_camera camera;
+    ms_status st = ms_camera_look_at(position, target, up, fovy_degrees, width, height,
+                                     near_distance, far_distance, &camera, &v->err);
+    if (st != MS_OK)
+        return st;
+    v->camera = camera;
+    v->has_camera = true;
+    v->params.tolerance_px = tolerance_px;
+    return MS_OK;
+}
+
+void ms_web_view_permit(ms_web_view *v, unsigned steps) { v->params.permitted_steps = steps; }
+
+void ms_web_view_culled(ms_web_view *v, double bits_less)
+{
+    if (bits_less >= 0 && isfinite(bits_less))
+        v->params.culled_bits_less = bits_less;
+}
+
+/* The precision a known cell's target needs held: its bits, or bits_max for a
+ * cell that splits (its children start from its complex at bits_max); 0 for a
+ * hidden one. */
+static unsigned goal_bits(const ms_web_view *v, uint32_t cell, const ms_archive_cell *rec)
+{
+    uint8_t t = ms_view_target(v->view, cell);
+    if (t == MS_VIEW_TARGET_HIDDEN)
+        return 0;
+    unsigned goal = t == MS_VIEW_TARGET_SPLIT ? rec->bits_max : t;
+    return goal > rec->bits_max ? rec->bits_max : goal;
+}
+
+static bool plan_push(ms_web_view *v, planned p)
+{
+    if (v->plan_count == v->plan_cap) {
+        uint32_t cap = v->plan_cap ? 2 * v->plan_cap : 64;
+        planned *grown = realloc(v->plan, cap * sizeof *grown);
+        if (!grown)
+            return false;
+        v->plan = grown;
+        v->plan_cap = cap;
+    }
+    v->plan[v->plan_count++] = p;
+    return true;
+}
+
+ms_status ms_web_view_plan(ms_web_view *v, uint32_t max, int *settled)
+{
+    if (settled)
+        *settled = 0;
+    v->plan_count = 0;
+    if (!v->has_camera)
+        return fail(v, MS_ERR_ARG, "no camera set");
+    bool changed = true;
+    for (unsigned round = 0; changed; ++round) {
+        if (round == MAX_ROUNDS)
+            return ms_error_set(&v->err, MS_ERR_RANGE,
+                                "the selection still changes after %u rounds", MAX_ROUNDS);
+        ms_view_select(v->view, &v->camera, &v->params, NULL);
+        ms_view_apply_report r;
+        ms_status st = ms_view_apply(v->view, &r, &v->err);
+        if (st != MS_OK)
+            return st;
+        changed = r.splits || r.merges || r.refined || r.coarsened;
+    }
+    uint32_t n = ms_view_cell_count(v->view);
+    for (uint32_t c = 0; c < n && (max == 0 || v->plan_count < max); ++c) {
+        const ms_archive_cell *rec = ms_view_cell(v->view, c);
+        if (!rec || rec->geometry_length == 0)
+            continue;
+        /* the next step only: cells of the cut, and the children of a shown
+         * cell about to split (so that the first rounds are small and each
+         * round's mesh shows more) */
+        if (ms_view_state(v->view, c) == MS_VIEW_HIDDEN &&
+            (rec->parent == MS_ARCHIVE_NONE || ms_view_state(v->view, rec->parent) != MS_VIEW_SHOWN))
+            continue;
+        unsigned goal = goal_bits(v, c, rec);
+        if (goal == 0 || ms_view_available_bits(v->view, c) >= goal)
+            continue;
+        uint32_t bytes = ms_archive_geometry_prefix(v->index, c, goal);
+        if (bytes <= ms_view_held_bytes(v->view, c))
+            continue;
+        if (!plan_push(v, (planned){c, goal, bytes}))
+            return fail(v, MS_ERR_NOMEM, "out of memory for the plan");
+    }
+    if (settled)
+        *settled = v->plan_count == 0;
+    return MS_OK;
+}
+
+uint32_t ms_web_view_plan_count(const ms_web_view *v) { return v->plan_count; }
+
+uint32_t ms_web_view_plan_cell(const ms_web_view *v, uint32_t k)
+{
+    return k < v->plan_count ? v->plan[k].cell : MS_ARCHIVE_NONE;
+}
+
+uint32_t ms_web_view_plan_bits(const ms_web_view *v, uint32_t k)
+{
+    return k < v->plan_count ? v->plan[k].bits : 0;
+}
+
+uint32_t ms_web_view_plan_bytes(const ms_web_view *v, uint32_t k)
+{
+    return k < v->plan_count ? v->plan[k].bytes : 0;
+}
+
+uint32_t ms_web_view_held(const ms_web_view *v, uint32_t cell)
+{
+    return (uint32_t)ms_view_held_bytes(v->view, cell);
+}
+
+ms_status ms_web_view_give(ms_web_view *v, uint32_t cell, uint32_t offset, const uint8_t *data,
+                           uint32_t length)
+{
+    if (!ms_view_cell(v->view, cell))
+        return ms_error_set(&v->err, MS_ERR_ARG, "no cell %u in the model", cell);
+    size_t held = ms_view_held_bytes(v->view, cell);
+    if (offset > held)
+        return ms_error_set(&v->err, MS_ERR_ARG, "cell %u: bytes from %u leave a gap after the %zu held",
+                            cell, offset, held);
+    if ((uint64_t)offset + length <= held)
+        return MS_OK; /* nothing new */
+    uint32_t skip = (uint32_t)(held - offset);
+    return ms_view_append_bytes(v->view, cell, data + skip, length - skip, &v->err);
+}
+
+/* Per vertex, the sum of its triangles' (area-weighted) normals, normalised;
+ * a vertex of degenerate triangles only gets (0, 0, 0). */
+static void vertex_normals(ms_web_view *v)
+{
+    const ms_view_mesh *m = &v->mesh;
+    float *n = v->normals;
+    memset(n, 0, 3 * m->vertex_count * sizeof *n);
+    for (size_t t = 0; t < m->triangle_count; ++t) {
+        const uint32_t *c = m->triangles + 3 * t;
+        const double *a = m->positions + 3 * c[0], *b = m->positions + 3 * c[1],
+                     *d = m->positions + 3 * c[2];
+        double e[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+        double f[3] = {d[0] - a[0], d[1] - a[1], d[2] - a[2]};
+        double x[3] = {e[1] * f[2] - e[2] * f[1], e[2] * f[0] - e[0] * f[2], e[0] * f[1] - e[1] * f[0]};
+        for (int k = 0; k < 3; ++k)
+            for (int a3 = 0; a3 < 3; ++a3)
+                n[3 * c[k] + a3] += (float)x[a3];
+    }
+    for (size_t i = 0; i < m->vertex_count; ++i) {
+        float *p = n + 3 * i;
+        float length = sqrtf(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
+        if (length > 0)
+            for (int a = 0; a < 3; ++a)
+                p[a] /= length;
+    }
+}
+
+ms_status ms_web_view_stitch(ms_web_view *v)
+{
+    ms_status st = ms_view_stitch(v->view, NULL, &v->mesh, &v->err);
+    if (st != MS_OK)
+        return st;
+    size_t need = 3 * v->mesh.vertex_count;
+    if (need > v->positions_cap) {
+        float *grown = realloc(v->positions, need * sizeof *grown);
+        if (grown)
+            v->positions = grown;
+        float *grown_normals = grown ? realloc(v->normals, need * sizeof *grown_normals) : NULL;
+        if (!grown_normals)
+            return fail(v, MS_ERR_NOMEM, "out of memory for the positions");
+        v->normals = grown_normals;
+        v->positions_cap = need;
+    }
+    for (size_t i = 0; i < need; ++i)
+        v->positions[i] = (float)v->mesh.positions[i];
+    vertex_normals(v);
+    return MS_OK;
+}
+
+uint32_t ms_web_view_vertex_count(const ms_web_view *v) { return (uint32_t)v->mesh.vertex_count; }
+uint32_t ms_web_view_triangle_count(const ms_web_view *v) { return (uint32_t)v->mesh.triangle_count; }
+const float *ms_web_view_positions(const ms_web_view *v) { return v->positions; }
+const uint32_t *ms_web_view_triangles(const ms_web_view *v) { return v->mesh.triangles; }
+const float *ms_web_view_normals(const ms_web_view *v) { return v->normals; }
+
+uint32_t ms_web_view_shown_cells(const ms_web_view *v)
+{
+    uint32_t shown = 0, n = ms_view_cell_count(v->view);
+    for (uint32_t c = 0; c < n; ++c)
+        shown += ms_view_state(v->view, c) == MS_VIEW_SHOWN;
+    return shown;
+}
+
+uint32_t ms_web_view_max_bits(const ms_web_view *v)
+{
+    uint32_t best = 0, n = ms_view_cell_count(v->view);
+    for (uint32_t c = 0; c < n; ++c)
+        if (ms_view_state(v->view, c) == MS_VIEW_SHOWN && ms_view_bits(v->view, c) > best)
+            best = ms_view_bits(v->view, c);
+    return best;
+}
+
+uint64_t ms_web_view_bytes_held(const ms_web_view *v)
+{
+    uint64_t total = 0;
+    uint32_t n = ms_view_cell_count(v->view);
+    for (uint32_t c = 0; c < n; ++c)
+        total += ms_view_held_bytes(v->view, c);
+    return total;
+}

@@ -1,0 +1,108 @@
+/* The browser client's decoding core (docs/BROWSER.md): the small C interface
+ * that web/ compiles to WebAssembly with the same view decoder as the native
+ * client (common/archive/ms_view_decoder.h). It is also built natively, into
+ * the room's library, so that its tests run under the sanitizers.
+ *
+ * A web view holds one model's whole index (the index blob of GET
+ * /models/NAME) and a view over it. The caller (the page's Web Worker) loops:
+ *   ms_web_view_camera     sets the camera and the screen tolerance;
+ *   ms_web_view_plan       selects and applies: the cut moves as far as the
+ *                          bytes held allow, and the cells still short of
+ *                          bytes are listed with the prefix they need;
+ *   ms_web_view_give       hands over the bytes fetched for one of them;
+ * until the plan lists nothing, then ms_web_view_stitch builds the mesh to
+ * draw (float positions, 32-bit triangle corners). Fetching is the caller's:
+ * the C side never does I/O.
+ *
+ * Every function that can fail returns ms_status and leaves a one-line
+ * message in ms_web_view_error. Not thread-safe: one caller. */
+#ifndef MS_WEB_VIEW_H
+#define MS_WEB_VIEW_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "ms_error.h"
+
+typedef struct ms_web_view ms_web_view;
+
+/* A view over the index blob (copied; name is used in errors). On failure
+ * *out is NULL and err says why. */
+ms_status ms_web_view_new(const uint8_t *blob, size_t size, const char *name, ms_web_view **out,
+                          ms_error *err);
+void ms_web_view_free(ms_web_view *view);
+
+/* The last error's message ("" when none). */
+const char *ms_web_view_error(const ms_web_view *view);
+
+/* The model's box: origin x y z and side (4 doubles). */
+void ms_web_view_box(const ms_web_view *view, double out[4]);
+uint32_t ms_web_view_cell_count(const ms_web_view *view);
+
+/* The box of the model's vertices as the root cell's bytes held show it
+ * (lo x y z, hi x y z; within the root's grid step of the true box), for a
+ * home camera before any other camera: hand over the root's payload first
+ * (GET /models/NAME/cells/0/geometry). Brings the root, while it is the whole
+ * cut, to the precision its bytes allow. MS_ERR_RANGE once the root is split;
+ * MS_ERR_EMPTY for a model without a vertex. */
+ms_status ms_web_view_bounds(ms_web_view *view, double out[6]);
+
+/* The camera: position, target, up (3 doubles each), vertical field of view in
+ * degrees, the viewport in pixels, near and far distances (<= 0: from the
+ * model's box, as meshrender chooses them) and the screen tolerance in pixels
+ * (> 0). MS_ERR_ARG for an invalid camera. */
+ms_status ms_web_view_camera(ms_web_view *view, const double position[3], const double target[3],
+                             const double up[3], double fovy_degrees, double width, double height,
+                             double near_distance, double far_distance, double tolerance_px);
+
+/* Bits given up on cells outside the view (>= 0): ms_view_select_params'
+ * culled_bits_less. A new view has the decoder's default, 2 (meshrender's
+ * cut); the client core uses 6, fewer bytes for what is not seen. */
+void ms_web_view_culled(ms_web_view *view, double bits_less);
+
+/* Caps every cell at bits 0 .. steps - 1 (a reader without a token on a
+ * preview model: public_max_bits + 1); 0 lifts the cap. */
+void ms_web_view_permit(ms_web_view *view, unsigned steps);
+
+/* Selects for the camera and applies as far as the bytes allow, repeating
+ * while the cut still changes. Then lists the cells whose target needs bytes
+ * not held, of the next step only (the shown and split cells, and the children
+ * of a shown cell that is to split: a plan after their bytes lists the level
+ * below, so the first plans ask for little and each round shows more):
+ * ms_web_view_plan_count of them, the k-th with its cell id, the precision
+ * (bits) wanted and the byte length of the payload prefix complete at it (GET /models/NAME/cells/ID/geometry?bits=BITS), in cell order, at
+ * most `max` cells (0: no limit). *settled (may be NULL) is true when the cut
+ * no longer changes and nothing is wanted: the view is complete. */
+ms_status ms_web_view_plan(ms_web_view *view, uint32_t max, int *settled);
+uint32_t ms_web_view_plan_count(const ms_web_view *view);
+uint32_t ms_web_view_plan_cell(const ms_web_view *view, uint32_t k);
+uint32_t ms_web_view_plan_bits(const ms_web_view *view, uint32_t k);
+uint32_t ms_web_view_plan_bytes(const ms_web_view *view, uint32_t k);
+/* Bytes of the cell's payload already held (a fetch may ask for the rest with
+ * Range: bytes=HELD-). */
+uint32_t ms_web_view_held(const ms_web_view *view, uint32_t cell);
+
+/* Hands over bytes [offset, offset + length) of the cell's geometry payload:
+ * offset must be what is held (a longer prefix extends it). MS_ERR_RANGE
+ * past the payload's length, MS_ERR_ARG for a gap or an unknown cell. */
+ms_status ms_web_view_give(ms_web_view *view, uint32_t cell, uint32_t offset, const uint8_t *data,
+                           uint32_t length);
+
+/* Builds the mesh of the cut (every shown cell). Read it with the accessors
+ * below; valid until the next stitch or free. */
+ms_status ms_web_view_stitch(ms_web_view *view);
+uint32_t ms_web_view_vertex_count(const ms_web_view *view);
+uint32_t ms_web_view_triangle_count(const ms_web_view *view);
+/* 3 floats per vertex (world units), 3 corners per triangle (oriented), and
+ * 3 floats per vertex of unit normal: the area-weighted mean of its
+ * triangles' (0 0 0 for a vertex of degenerate triangles only). */
+const float *ms_web_view_positions(const ms_web_view *view);
+const uint32_t *ms_web_view_triangles(const ms_web_view *view);
+const float *ms_web_view_normals(const ms_web_view *view);
+/* Shown cells, the highest precision (bits) any of them is shown at, and the
+ * geometry bytes held: the page's figures. */
+uint32_t ms_web_view_shown_cells(const ms_web_view *view);
+uint32_t ms_web_view_max_bits(const ms_web_view *view);
+uint64_t ms_web_view_bytes_held(const ms_web_view *view);
+
+#endif

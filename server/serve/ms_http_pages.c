@@ -1,0 +1,100 @@
+/* The browser pages on the side door (ms_http_internal.h; docs/BROWSER.md):
+ * files of the configured web_dir, sent as they are. They hold no model
+ * bytes: the page fetches those through /models/..., where every byte range
+ * goes through ms_access like any other reader's. */
+#include <event2/buffer.h>
+#include <event2/http.h>
+#include <event2/keyvalq_struct.h>
+#include <fcntl.h>
+#include <stdio.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "ms_http_internal.h"
+#include "ms_server_internal.h"
+
+/* The Content-Type of a page file by its name's ending, or NULL for a name
+ * that is not one: [A-Za-z0-9_-]+ then .html, .js, .css or .wasm (no path,
+ * no dot file, nothing else of the folder). */
+static const char *page_type(const char *name)
+{
+    static const struct {
+        const char *ending, *type;
+    } types[] = {
+        {".html", "text/html; charset=utf-8"},
+        {".js", "text/javascript; charset=utf-8"},
+        {".css", "text/css; charset=utf-8"},
+        {".wasm", "application/wasm"},
+    };
+    size_t stem = strspn(name, "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789_-");
+    if (stem == 0 || stem > 64)
+        return NULL;
+    for (size_t i = 0; i < sizeof types / sizeof *types; ++i)
+        if (!strcmp(name + stem, types[i].ending))
+            return types[i].type;
+    return NULL;
+}
+
+static void send_page(ms_http_door *door, struct evhttp_request *req, const char *name)
+{
+    const char *dir = ms_http_door_server(door)->config.web_dir;
+    const char *type = page_type(name);
+    if (!dir) {
+        ms_http_send_text(door, req, 404, "Not Found",
+                          "error: the browser pages are not served here (meshserve --web-dir DIR)");
+        return;
+    }
+    if (!type) {
+        ms_http_send_text(door, req, 404, "Not Found", "error: no such page file");
+        return;
+    }
+    char path[4200];
+    snprintf(path, sizeof path, "%s/%s", dir, name);
+    int fd = open(path, O_RDONLY | O_CLOEXEC);
+    struct stat st;
+    if (fd < 0 || fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
+        if (fd >= 0)
+            close(fd);
+        ms_http_send_text(door, req, 404, "Not Found", "error: no such page file");
+        return;
+    }
+    struct evbuffer *body = evbuffer_new();
+    if (!body || (st.st_size > 0 && evbuffer_add_file(body, fd, 0, st.st_size) != 0)) {
+        if (body)
+            evbuffer_free(body);
+        else
+            close(fd);
+        ms_http_send_text(door, req, 500, "Internal Server Error", "error: cannot send the file");
+        return;
+    }
+    if (st.st_size == 0)
+        close(fd);
+    struct evkeyvalq *out = evhttp_request_get_output_headers(req);
+    evhttp_add_header(out, "Content-Type", type);
+    evhttp_add_header(out, "Cache-Control", "no-cache");
+    evhttp_add_header(out, "X-Content-Type-Options", "nosniff");
+    if (!strcmp(type, "text/html; charset=utf-8"))
+        evhttp_add_header(out, "Content-Security-Policy",
+                          "default-src 'self'; script-src 'self' 'wasm-unsafe-eval'; "
+                          "style-src 'self'; img-src 'self' data:; base-uri 'none'");
+    ms_http_reply(door, req, 200, "OK", body, (uint64_t)st.st_size); /* a HEAD: freeing body closes fd */
+    evbuffer_free(body);
+}
+
+bool ms_http_route_page(ms_http_door *door, struct evhttp_request *req, char **seg, int n)
+{
+    if (n == 0) {
+        send_page(door, req, "index.html");
+        return true;
+    }
+    if (n == 2 && !strcmp(seg[0], "view")) {
+        send_page(door, req, "view.html");
+        return true;
+    }
+    if (n == 2 && !strcmp(seg[0], "web")) {
+        send_page(door, req, seg[1]);
+        return true;
+    }
+    return false;
+}

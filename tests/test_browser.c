@@ -1,0 +1,451 @@
+/* The browser client (docs/BROWSER.md): meshserve --web-dir on loopback, the
+ * pages of web/ with the WebAssembly module of `make wasm`
+ * (build/wasm/site), run in headless Chromium on SwiftShader through
+ * tests/browser-page (the DevTools protocol over a pipe):
+ *   - the page routes: /, /view/NAME, /web/FILE with the right types, no
+ *     file outside the page names, a clear 404 when no web_dir is set;
+ *   - the viewer draws the demo model: view complete, the triangles of the
+ *     cut, and its silhouette that of meshrender's picture of the same
+ *     camera and tolerance (intersection over union >= 0.98);
+ *   - the catalogue page lists the models;
+ *   - a model that does not exist: the page says so, in state 'error';
+ *   - the server going away mid-stream (a relay with 150 ms each way, cut
+ *     once the first cell is asked for): the page says it cannot reach the
+ *     server, in state 'error', and nothing hangs;
+ *   - a preview model: without a token the page completes below full
+ *     precision with no refused request; with the token (entered as the form
+ *     keeps it, sent as Authorization) it reads more.
+ * The cases that need the browser skip, saying why, only when
+ * chromium-headless-shell or emscripten is not installed; with emscripten
+ * installed a missing module fails (`make test` builds it). */
+#include <math.h>
+#include <setjmp.h>
+#include <signal.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+#include <cmocka.h>
+#include <jansson.h>
+
+#include "ms_test.h"
+#include "ms_test_delay.h"
+#include "ms_test_net.h"
+#include "ms_test_picture.h"
+
+#define SITE "build/wasm/site"
+#define TOKEN "browser-test-token"
+#define PREVIEW_BITS 9
+#define WIDTH 320
+#define HEIGHT 240
+
+typedef struct fixture {
+    char dir[512], archives[600], log[600], port_file[600];
+    pid_t server;
+    uint16_t port, http_port;
+    char why_skip[256]; /* set when the browser cases cannot run */
+} fixture;
+
+/* Whether a program is on PATH. */
+static int have_program(const char *name)
+{
+    char command[256], out[256];
+    snprintf(command, sizeof command, "command -v %s", name);
+    return ms_test_run(command, out, sizeof out) == 0;
+}
+
+static int run_or_say(const char *command)
+{
+    char out[4096];
+    int status = ms_test_run(command, out, sizeof out);
+    if (status != 0)
+        fprintf(stderr, "%s: exit %d: %s\n", command, status, out);
+    return status;
+}
+
+static int group_setup(void **state)
+{
+    fixture *f = calloc(1, sizeof *f);
+    if (!f)
+        return -1;
+    ms_test_tmpdir(f->dir, sizeof f->dir);
+    snprintf(f->archives, sizeof f->archives, "%s/archive", f->dir);
+    snprintf(f->log, sizeof f->log, "%s/meshserve.log", f->dir);
+    snprintf(f->port_file, sizeof f->port_file, "%s/ports", f->dir);
+    if (mkdir(f->archives, 0755) != 0)
+        return -1;
+    char meshgen[600], meshbake[600], command[8192];
+    ms_test_bin_path(meshgen, sizeof meshgen, "meshgen");
+    ms_test_bin_path(meshbake, sizeof meshbake, "meshbake");
+    snprintf(command, sizeof command,
+             "%s -o %s/demo.ply --triangles 20000 && "
+             "%s %s/demo.ply -o %s --name demo --min-tris 1500 --no-apo --threads 2 && "
+             "%s %s/demo.ply -o %s --name preview --min-tris 1500 --no-apo --threads 2 "
+             "--public-bits %d",
+             meshgen, f->dir, meshbake, f->dir, f->archives, meshbake, f->dir, f->archives,
+             PREVIEW_BITS);
+    if (run_or_say(command) != 0)
+        return -1;
+    /* the built site; without it the page files of web/ still answer the
+     * routes (the cases that need the module skip or fail below) */
+    struct stat st;
+    char config[700], settings[256];
+    snprintf(config, sizeof config, "%s/meshserve.conf", f->dir);
+    snprintf(settings, sizeof settings, "token = " TOKEN "\nweb_dir = %s\n",
+             stat(SITE "/meshstream.wasm", &st) == 0 ? SITE : "web");
+    ms_test_write_file(config, settings, strlen(settings));
+    if (!have_program("chromium-headless-shell"))
+        snprintf(f->why_skip, sizeof f->why_skip,
+                 "chromium-headless-shell is not installed (scripts/install-deps)");
+    else if (stat(SITE "/meshstream.wasm", &st) != 0 && !have_program("emcc"))
+        snprintf(f->why_skip, sizeof f->why_skip,
+                 "emscripten is not installed (scripts/install-deps), so no " SITE);
+    /* with emcc installed, a missing module fails the cases that need it */
+    const char *extra[] = {"--config", config, NULL};
+    f->server = ms_test_meshserve_start(f->archives, extra, 0, f->port_file, f->log, &f->port,
+                                        &f->http_port);
+    if (!f->server)
+        return -1;
+    *state = f;
+    return 0;
+}
+
+static int group_teardown(void **state)
+{
+    fixture *f = *state;
+    if (!f)
+        return 0;
+    if (f->server)
+        ms_test_stop(f->server, SIGTERM, 10.0);
+    ms_test_rmdir(f->dir);
+    free(f);
+    return 0;
+}
+
+/* Skips a case that needs the browser when the tools are missing, saying which. */
+#define NEED_BROWSER(f)                                                                    \
+    do {                                                                                   \
+        if ((f)->why_skip[0]) {                                                            \
+            printf("skipped: %s\n", (f)->why_skip);                                        \
+            skip();                                                                        \
+        }                                                                                  \
+        struct stat st_;                                                                   \
+        if (stat(SITE "/meshstream.wasm", &st_) != 0)                                      \
+            fail_msg("emscripten is installed but " SITE "/meshstream.wasm is missing: "   \
+                     "run make wasm");                                                     \
+    } while (0)
+
+/* Opens path (after http://127.0.0.1:PORT) in the browser; the driver's JSON
+ * report, the screenshot written to shot. */
+static json_t *open_page(const fixture *f, const char *path, const char *shot, const char *token)
+{
+    char command[4096];
+    snprintf(command, sizeof command,
+             "tests/browser-page 'http://127.0.0.1:%u%s' --size %dx%d --out %s --timeout 120%s%s",
+             f->http_port, path, WIDTH, HEIGHT, shot, token ? " --token " : "", token ? token : "");
+    json_t *report = ms_test_run_json(command, 0);
+    printf("%s: %s, %s\n", path, json_string_value(json_object_get(report, "state")),
+           json_string_value(json_object_get(report, "message")));
+    return report;
+}
+
+static json_int_t page_int(json_t *report, const char *key)
+{
+    return json_integer_value(json_object_get(json_object_get(report, "page"), key));
+}
+
+static void test_page_routes(void **state)
+{
+    fixture *f = *state;
+    static const struct {
+        const char *path;
+        int status;
+        const char *type;
+    } cases[] = {
+        {"/", 200, "text/html; charset=utf-8"},
+        {"/view/demo", 200, "text/html; charset=utf-8"},
+        {"/view/no-such-model", 200, "text/html; charset=utf-8"}, /* the page says so */
+        {"/web/view.js", 200, "text/javascript; charset=utf-8"},
+        {"/web/meshstream.css", 200, "text/css; charset=utf-8"},
+        {"/web/..%2Fmeshstream.conf", 404, NULL},
+        {"/web/.hidden.js", 404, NULL},
+        {"/web/notes.txt", 404, NULL},
+        {"/web/missing.js", 404, NULL},
+        {"/web/a/b.js", 404, NULL},
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof *cases; ++i) {
+        ms_test_http_response r;
+        assert_int_equal(ms_test_http_get(f->http_port, cases[i].path, NULL, &r), 0);
+        if (r.status != cases[i].status)
+            fail_msg("%s: %d, wanted %d", cases[i].path, r.status, cases[i].status);
+        char type[128] = "";
+        ms_test_http_header(&r, "Content-Type", type, sizeof type);
+        if (cases[i].type)
+            assert_string_equal(type, cases[i].type);
+        ms_test_http_free(&r);
+    }
+    /* the token is never taken from a URL, pages included */
+    ms_test_http_response r;
+    assert_int_equal(ms_test_http_get(f->http_port, "/view/demo?token=" TOKEN, NULL, &r), 0);
+    assert_int_equal(r.status, 400);
+    ms_test_http_free(&r);
+    /* a server without web_dir says how to serve the pages */
+    char log[700], ports[700];
+    snprintf(log, sizeof log, "%s/bare.log", f->dir);
+    snprintf(ports, sizeof ports, "%s/bare.ports", f->dir);
+    uint16_t port, http_port;
+    pid_t bare = ms_test_meshserve_start(f->archives, NULL, 0, ports, log, &port, &http_port);
+    assert_true(bare > 0);
+    assert_int_equal(ms_test_http_get(http_port, "/", NULL, &r), 0);
+    assert_int_equal(r.status, 404);
+    assert_non_null(strstr((const char *)r.body, "--web-dir"));
+    ms_test_http_free(&r);
+    assert_int_equal(ms_test_stop(bare, SIGTERM, 10.0), 0);
+}
+
+/* Pixels that differ from the picture's top-left pixel (the background) by
+ * more than 8 in a channel: the model's silhouette. */
+static uint8_t *silhouette(const char *png, uint32_t *width, uint32_t *height, size_t *covered)
+{
+    uint8_t *rgb = ms_test_png_read(png, width, height);
+    size_t n = (size_t)*width * *height;
+    uint8_t *mask = calloc(n, 1);
+    assert_non_null(mask);
+    *covered = 0;
+    for (size_t i = 0; i < n; ++i) {
+        for (int c = 0; c < 3; ++c)
+            if (abs((int)rgb[3 * i + c] - (int)rgb[c]) > 8)
+                mask[i] = 1;
+        *covered += mask[i];
+    }
+    free(rgb);
+    return mask;
+}
+
+/* The viewer at two cameras of the demo model: the whole sculpture three
+ * quarters on, and a close-up where the cut refines the cells in view (190
+ * cells). Each: view complete, the very cut meshrender makes for the same
+ * camera and tolerance (the same selection code: the same shown cells and
+ * triangles), and the same silhouette (IoU >= 0.98). */
+static void test_viewer_draws_the_model(void **state)
+{
+    fixture *f = *state;
+    NEED_BROWSER(f);
+    static const char *const cameras[] = {"0.9,0.6,3.2,0,0,0,0,1,0,40", "0.3,0.2,1.6,0,0,0,0,1,0,40"};
+    enum { KEYS = sizeof cameras / sizeof *cameras };
+    char path_file[700], text[512], ref_dir[700], command[4096], meshrender[600];
+    /* the same cameras as keyframes "K PX PY PZ TX TY TZ UX UY UZ FOVY" */
+    size_t used = (size_t)snprintf(text, sizeof text, "meshstream-camera-path 1\n");
+    for (int k = 0; k < KEYS; ++k) {
+        char line[128];
+        snprintf(line, sizeof line, "%d %s\n", k, cameras[k]);
+        for (char *c = line; *c; ++c)
+            *c = *c == ',' ? ' ' : *c;
+        used += (size_t)snprintf(text + used, sizeof text - used, "%s", line);
+    }
+    snprintf(path_file, sizeof path_file, "%s/cameras.cam", f->dir);
+    ms_test_write_file(path_file, text, used);
+    snprintf(ref_dir, sizeof ref_dir, "%s/ref", f->dir);
+    ms_test_bin_path(meshrender, sizeof meshrender, "meshrender");
+    snprintf(command, sizeof command,
+             "%s %s/demo.msa -p %s -o %s --width %d --height %d --tolerance 1 --threads 2 --json",
+             meshrender, f->archives, path_file, ref_dir, WIDTH, HEIGHT);
+    json_t *ref = ms_test_run_json(command, 0);
+    json_t *frames = json_object_get(ref, "frames");
+    assert_int_equal(json_array_size(frames), KEYS);
+    for (int k = 0; k < KEYS; ++k) {
+        json_t *cut = json_object_get(json_array_get(frames, k), "cut");
+        json_int_t ref_triangles = json_integer_value(json_object_get(cut, "triangles"));
+        json_int_t ref_cells = json_integer_value(json_object_get(cut, "shown_cells"));
+        char shot[700], page[256];
+        snprintf(shot, sizeof shot, "%s/view_%d.png", f->dir, k);
+        /* culled=2: meshrender's selection (the page's default is the client core's 6) */
+        snprintf(page, sizeof page, "/view/demo#cam=%s&tol=1&culled=2&hud=0", cameras[k]);
+        json_t *report = open_page(f, page, shot, NULL);
+        assert_string_equal(json_string_value(json_object_get(report, "state")), "complete");
+        assert_int_equal(json_array_size(json_object_get(report, "console")), 0);
+        printf("page: %lld triangles in %lld cells, %lld bytes, first pixels at %lld ms, "
+               "complete at %lld ms; meshrender's cut: %lld triangles in %lld cells\n",
+               (long long)page_int(report, "triangles"), (long long)page_int(report, "cells"),
+               (long long)page_int(report, "bytes"), (long long)page_int(report, "firstPixelMs"),
+               (long long)page_int(report, "completeMs"), (long long)ref_triangles,
+               (long long)ref_cells);
+        assert_int_equal(page_int(report, "triangles"), ref_triangles);
+        assert_int_equal(page_int(report, "cells"), ref_cells);
+
+        char ref_png[800];
+        snprintf(ref_png, sizeof ref_png, "%s/frame_%03d.png", ref_dir, k);
+        uint32_t w, h, rw, rh;
+        size_t covered, ref_covered, both = 0, either = 0;
+        uint8_t *mask = silhouette(shot, &w, &h, &covered);
+        uint8_t *ref_mask = silhouette(ref_png, &rw, &rh, &ref_covered);
+        assert_int_equal(w, WIDTH);
+        assert_int_equal(h, HEIGHT);
+        assert_int_equal(rw, WIDTH);
+        assert_int_equal(rh, HEIGHT);
+        for (size_t i = 0; i < (size_t)w * h; ++i) {
+            both += mask[i] & ref_mask[i];
+            either += mask[i] | ref_mask[i];
+        }
+        double iou = either ? (double)both / (double)either : 0.0;
+        printf("silhouette: %zu px covered (meshrender %zu), IoU %.4f\n", covered, ref_covered, iou);
+        assert_true(covered > (size_t)w * h / 20);
+        assert_true(iou >= 0.98);
+        free(mask);
+        free(ref_mask);
+        json_decref(report);
+    }
+    json_decref(ref);
+}
+
+static void test_catalogue_page(void **state)
+{
+    fixture *f = *state;
+    NEED_BROWSER(f);
+    char shot[700];
+    snprintf(shot, sizeof shot, "%s/catalogue.png", f->dir);
+    json_t *report = open_page(f, "/", shot, NULL);
+    assert_string_equal(json_string_value(json_object_get(report, "state")), "complete");
+    assert_int_equal(page_int(report, "models"), 2);
+    assert_string_equal(json_string_value(json_object_get(report, "message")), "2 models");
+    json_decref(report);
+}
+
+static void test_missing_model_says_so(void **state)
+{
+    fixture *f = *state;
+    NEED_BROWSER(f);
+    char shot[700];
+    snprintf(shot, sizeof shot, "%s/missing.png", f->dir);
+    json_t *report = open_page(f, "/view/no-such-model", shot, NULL);
+    assert_string_equal(json_string_value(json_object_get(report, "state")), "error");
+    assert_string_equal(json_string_value(json_object_get(report, "message")),
+                        "No model named \"no-such-model\" on this server");
+    assert_int_equal(page_int(report, "triangles"), 0);
+    json_decref(report);
+}
+
+static double seconds_now(void)
+{
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
+}
+
+static void test_server_gone_mid_stream(void **state)
+{
+    fixture *f = *state;
+    NEED_BROWSER(f);
+    ms_test_delay *relay = NULL;
+    uint16_t relay_port;
+    assert_int_equal(ms_test_delay_start(f->http_port, 0.15, &relay, &relay_port), 0);
+    uint64_t before = 0;
+    assert_int_equal(ms_test_metric(f->http_port, "meshstream_model_requests_total{model=\"demo\"}", &before), 0);
+    char url[256], shot[700], log[700];
+    snprintf(url, sizeof url, "http://127.0.0.1:%u/view/demo#cam=0.3,0.2,1.6,0,0,0,0,1,0,40&hud=0",
+             relay_port);
+    snprintf(shot, sizeof shot, "%s/gone.png", f->dir);
+    snprintf(log, sizeof log, "%s/gone.json", f->dir);
+    char *argv[] = {"tests/browser-page", url, "--size", "320x240", "--out", shot, "--timeout", "60",
+                    NULL};
+    pid_t driver = ms_test_spawn(argv, log);
+    assert_true(driver > 0);
+    /* the index and a first cell asked for: the server goes away */
+    double deadline = seconds_now() + 60;
+    uint64_t requests = before;
+    while (requests < before + 2 && seconds_now() < deadline) {
+        usleep(5000);
+        assert_int_equal(ms_test_metric(f->http_port, "meshstream_model_requests_total{model=\"demo\"}",
+                                        &requests), 0);
+    }
+    ms_test_delay_stop(relay);
+    double cut_at = seconds_now();
+    assert_true(requests >= before + 2);
+    int status = -1;
+    while (seconds_now() < deadline) {
+        pid_t done = waitpid(driver, &status, WNOHANG);
+        if (done == driver)
+            break;
+        usleep(20000);
+    }
+    if (!WIFEXITED(status)) {
+        kill(driver, SIGKILL);
+        waitpid(driver, &status, 0);
+        fail_msg("the browser's driver did not end within 60 s");
+    }
+    size_t length;
+    unsigned char *text = ms_test_read_file(log, &length);
+    json_error_t jerr;
+    json_t *report = json_loadb((const char *)text, length, 0, &jerr);
+    if (!report)
+        fail_msg("%s: %.*s", log, (int)length, (const char *)text);
+    printf("cut after %llu model requests; the page %.2f s later: %s, %s\n",
+           (unsigned long long)(requests - before), seconds_now() - cut_at,
+           json_string_value(json_object_get(report, "state")),
+           json_string_value(json_object_get(report, "message")));
+    assert_int_equal(WEXITSTATUS(status), 0);
+    assert_string_equal(json_string_value(json_object_get(report, "state")), "error");
+    assert_non_null(strstr(json_string_value(json_object_get(report, "message")),
+                           "The server cannot be reached (/models/demo/"));
+    json_decref(report);
+    free(text);
+}
+
+static uint64_t forbidden(const fixture *f)
+{
+    uint64_t n = 0;
+    assert_int_equal(ms_test_metric(f->http_port, "meshstream_forbidden_total{door=\"http\"}", &n), 0);
+    return n;
+}
+
+static void test_preview_and_token(void **state)
+{
+    fixture *f = *state;
+    NEED_BROWSER(f);
+    /* close to the surface: a camera that wants more than the preview */
+    static const char page[] = "/view/preview#cam=0.3,0.2,1.6,0,0,0,0,1,0,40&tol=1&hud=0";
+    char shot[700];
+    snprintf(shot, sizeof shot, "%s/preview.png", f->dir);
+    uint64_t refused = forbidden(f);
+    json_t *anonymous = open_page(f, page, shot, NULL);
+    assert_string_equal(json_string_value(json_object_get(anonymous, "state")), "complete");
+    assert_int_equal(forbidden(f), refused); /* it asked for nothing past the preview */
+    snprintf(shot, sizeof shot, "%s/full.png", f->dir);
+    json_t *full = open_page(f, page, shot, TOKEN);
+    assert_string_equal(json_string_value(json_object_get(full, "state")), "complete");
+    assert_int_equal(forbidden(f), refused);
+    json_int_t a = page_int(anonymous, "bits"), b = page_int(full, "bits");
+    printf("preview: cells up to %lld bits, %lld triangles, %lld bytes; with the token: %lld "
+           "bits, %lld triangles, %lld bytes\n",
+           (long long)a, (long long)page_int(anonymous, "triangles"),
+           (long long)page_int(anonymous, "bytes"), (long long)b,
+           (long long)page_int(full, "triangles"), (long long)page_int(full, "bytes"));
+    assert_true(page_int(anonymous, "triangles") > 0);
+    assert_int_equal(a, PREVIEW_BITS);
+    assert_true(b > PREVIEW_BITS);
+    assert_non_null(strstr(json_string_value(json_object_get(anonymous, "message")),
+                           "a token gives more"));
+    assert_null(strstr(json_string_value(json_object_get(full, "message")), "a token gives more"));
+    json_decref(anonymous);
+    json_decref(full);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_page_routes),
+        cmocka_unit_test(test_viewer_draws_the_model),
+        cmocka_unit_test(test_catalogue_page),
+        cmocka_unit_test(test_missing_model_says_so),
+        cmocka_unit_test(test_server_gone_mid_stream),
+        cmocka_unit_test(test_preview_and_token),
+    };
+    return cmocka_run_group_tests(tests, group_setup, group_teardown);
+}

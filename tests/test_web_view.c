@@ -1,0 +1,266 @@
+/* The browser client's decoding core (client/web/ms_web_view.h), built
+ * natively: on a generated demo archive (4,000 triangles, a few cells),
+ *   - fed only what its plans ask for, in two pieces a cell, it reaches the
+ *     very cut a client with every byte makes for the same camera
+ *     (ms_study_cut: the same shown cells, vertices and triangles), and then
+ *     plans nothing; its vertex normals are unit and outward;
+ *   - a reader capped at the preview's steps is shown at most those bits;
+ *   - the root's bytes give the model's bounds, inside its box;
+ *   - bad input: a damaged index blob, no camera, a bad camera or tolerance,
+ *     a gap, bytes past the payload, an unknown cell: each a status and one
+ *     line, nothing held. */
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <cmocka.h>
+
+#include "ms_archive.h"
+#include "ms_nsp_check.h"
+#include "ms_study_cut.h"
+#include "ms_test.h"
+#include "ms_view_decoder.h"
+#include "ms_web_view.h"
+
+typedef struct fixture {
+    char dir[512], archives[600];
+    ms_archive *archive;
+} fixture;
+
+static int group_setup(void **state)
+{
+    fixture *f = calloc(1, sizeof *f);
+    if (!f || ms_nsp_test_demo_archive(f->dir, sizeof f->dir, f->archives, sizeof f->archives) != 0)
+        return -1;
+    char path[700];
+    snprintf(path, sizeof path, "%s/demo.msa", f->archives);
+    ms_error err;
+    if (ms_archive_open(path, &f->archive, &err) != MS_OK) {
+        fprintf(stderr, "%s\n", err.text);
+        return -1;
+    }
+    *state = f;
+    return 0;
+}
+
+static int group_teardown(void **state)
+{
+    fixture *f = *state;
+    ms_archive_close(f->archive);
+    ms_test_rmdir(f->dir);
+    free(f);
+    return 0;
+}
+
+static ms_web_view *open_view(const fixture *f)
+{
+    size_t size;
+    const uint8_t *blob = ms_archive_index_bytes(f->archive, &size);
+    ms_web_view *v = NULL;
+    ms_error err;
+    assert_int_equal(ms_web_view_new(blob, size, "demo", &v, &err), MS_OK);
+    assert_non_null(v);
+    return v;
+}
+
+static const double POSITION[3] = {0.3, 0.2, 1.6}, TARGET[3] = {0, 0, 0}, UP[3] = {0, 1, 0};
+
+/* Plans and hands over what each plan asks for, each cell's new bytes in two
+ * pieces (the second overlapping the first by a byte), until settled. */
+static unsigned stream(const fixture *f, ms_web_view *v)
+{
+    unsigned rounds = 0;
+    for (;;) {
+        int settled = -1;
+        assert_int_equal(ms_web_view_plan(v, 7, &settled), MS_OK);
+        if (settled) {
+            assert_int_equal(ms_web_view_plan_count(v), 0);
+            return rounds;
+        }
+        assert_true(ms_web_view_plan_count(v) > 0);
+        assert_true(ms_web_view_plan_count(v) <= 7);
+        for (uint32_t k = 0; k < ms_web_view_plan_count(v); ++k) {
+            uint32_t cell = ms_web_view_plan_cell(v, k), want = ms_web_view_plan_bytes(v, k);
+            uint32_t held = ms_web_view_held(v, cell);
+            assert_int_equal(want, ms_archive_geometry_prefix(f->archive, cell, ms_web_view_plan_bits(v, k)));
+            assert_true(want > held);
+            size_t total;
+            const uint8_t *payload = ms_archive_geometry(f->archive, cell, &total);
+            uint32_t half = held + (want - held) / 2;
+            assert_int_equal(ms_web_view_give(v, cell, held, payload + held, half - held), MS_OK);
+            uint32_t from = half > held ? half - 1 : held;
+            assert_int_equal(ms_web_view_give(v, cell, from, payload + from, want - from), MS_OK);
+            assert_int_equal(ms_web_view_held(v, cell), want);
+        }
+        assert_true(++rounds < 100);
+    }
+}
+
+static void test_streams_to_the_cut_of_every_byte(void **state)
+{
+    fixture *f = *state;
+    ms_web_view *v = open_view(f);
+    assert_int_equal(ms_web_view_cell_count(v), ms_archive_get_header(f->archive)->cell_count);
+    assert_int_equal(ms_web_view_camera(v, POSITION, TARGET, UP, 40, 320, 240, 0, 0, 1.0), MS_OK);
+    unsigned rounds = stream(f, v);
+    assert_int_equal(ms_web_view_stitch(v), MS_OK);
+
+    /* the reference: every byte held, the selection converged */
+    ms_view *full;
+    ms_error err;
+    assert_int_equal(ms_view_create_from_archive(f->archive, &full, &err), MS_OK);
+    double box[4];
+    ms_web_view_box(v, box);
+    const ms_archive_header *h = ms_archive_get_header(f->archive);
+    for (int a = 0; a < 3; ++a)
+        assert_true(box[a] == h->box_origin[a]);
+    assert_true(box[3] == h->box_side);
+    double far2 = 0;
+    for (int corner = 0; corner < 8; ++corner) {
+        double d2 = 0;
+        for (int a = 0; a < 3; ++a) {
+            double c = box[a] + ((corner >> a) & 1 ? box[3] : 0) - POSITION[a];
+            d2 += c * c;
+        }
+        far2 = fmax(far2, d2);
+    }
+    double far = 1.01 * sqrt(far2);
+    ms_camera camera;
+    assert_int_equal(ms_camera_look_at(POSITION, TARGET, UP, 40, 320, 240, far * 1e-5, far, &camera, &err),
+                     MS_OK);
+    ms_view_select_params params;
+    ms_view_select_params_default(&params);
+    ms_view_mesh mesh = {0};
+    ms_study_cut_report report;
+    assert_int_equal(ms_study_cut(f->archive, full, &camera, &params, NULL, &mesh, &report, &err), MS_OK);
+    printf("%u rounds; %u cells, %u vertices, %u triangles (every byte: %u cells, %zu vertices, "
+           "%zu triangles); %llu bytes held\n", rounds, ms_web_view_shown_cells(v),
+           ms_web_view_vertex_count(v), ms_web_view_triangle_count(v), report.shown_cells,
+           mesh.vertex_count, mesh.triangle_count, (unsigned long long)ms_web_view_bytes_held(v));
+    assert_true(rounds >= 1);
+    assert_int_equal(ms_web_view_shown_cells(v), report.shown_cells);
+    assert_int_equal(ms_web_view_vertex_count(v), mesh.vertex_count);
+    assert_int_equal(ms_web_view_triangle_count(v), mesh.triangle_count);
+    assert_memory_equal(ms_web_view_triangles(v), mesh.triangles, 3 * mesh.triangle_count * sizeof(uint32_t));
+    const float *positions = ms_web_view_positions(v);
+    for (size_t i = 0; i < 3 * mesh.vertex_count; ++i)
+        assert_true(positions[i] == (float)mesh.positions[i]);
+    /* unit normals, outward on the (star-shaped, centred) demo sculpture */
+    const float *normals = ms_web_view_normals(v);
+    size_t outward = 0;
+    for (size_t i = 0; i < mesh.vertex_count; ++i) {
+        const float *n = normals + 3 * i, *p = positions + 3 * i;
+        assert_true(fabs(sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]) - 1.0) < 1e-5);
+        outward += n[0] * p[0] + n[1] * p[1] + n[2] * p[2] > 0;
+    }
+    printf("%zu of %zu normals outward\n", outward, mesh.vertex_count);
+    assert_true(outward * 100 >= mesh.vertex_count * 95);
+    uint32_t max_bits = 0;
+    for (uint32_t c = 0; c < ms_view_cell_count(full); ++c)
+        if (ms_view_state(full, c) == MS_VIEW_SHOWN && ms_view_bits(full, c) > max_bits)
+            max_bits = ms_view_bits(full, c);
+    assert_int_equal(ms_web_view_max_bits(v), max_bits);
+    ms_view_mesh_free(&mesh);
+    ms_view_destroy(full);
+    ms_web_view_free(v);
+}
+
+static void test_preview_cap(void **state)
+{
+    fixture *f = *state;
+    ms_web_view *v = open_view(f);
+    ms_web_view_permit(v, 6);
+    assert_int_equal(ms_web_view_camera(v, POSITION, TARGET, UP, 40, 320, 240, 0, 0, 1.0), MS_OK);
+    stream(f, v);
+    assert_int_equal(ms_web_view_stitch(v), MS_OK);
+    printf("capped at 6 steps: %u cells up to %u bits, %u triangles\n", ms_web_view_shown_cells(v),
+           ms_web_view_max_bits(v), ms_web_view_triangle_count(v));
+    assert_true(ms_web_view_max_bits(v) <= 5);
+    assert_true(ms_web_view_triangle_count(v) > 0);
+    ms_web_view_free(v);
+}
+
+static void test_bounds_from_the_root(void **state)
+{
+    fixture *f = *state;
+    ms_web_view *v = open_view(f);
+    size_t total;
+    const uint8_t *root = ms_archive_geometry(f->archive, 0, &total);
+    assert_int_equal(ms_web_view_give(v, 0, 0, root, (uint32_t)total), MS_OK);
+    double b[6], box[4];
+    assert_int_equal(ms_web_view_bounds(v, b), MS_OK);
+    ms_web_view_box(v, box);
+    for (int a = 0; a < 3; ++a) {
+        assert_true(b[a] < b[a + 3]);
+        assert_true(b[a] >= box[a]);
+        assert_true(b[a + 3] <= box[a] + box[3]);
+        /* the demo sculpture is about 2 units across, centred near 0 */
+        assert_true(b[a] < -0.5 && b[a + 3] > 0.5);
+    }
+    ms_web_view_free(v);
+}
+
+static void test_bad_input(void **state)
+{
+    fixture *f = *state;
+    size_t size;
+    const uint8_t *blob = ms_archive_index_bytes(f->archive, &size);
+    uint8_t *damaged = malloc(size);
+    assert_non_null(damaged);
+    memcpy(damaged, blob, size);
+    damaged[200] ^= 0x40;
+    ms_web_view *v = (ms_web_view *)1;
+    ms_error err;
+    assert_int_not_equal(ms_web_view_new(damaged, size, "demo", &v, &err), MS_OK);
+    assert_null(v);
+    printf("damaged blob: %s\n", err.text);
+    assert_non_null(strstr(err.text, "demo"));
+    assert_int_not_equal(ms_web_view_new(blob, 100, "demo", &v, &err), MS_OK);
+    assert_null(v);
+    free(damaged);
+
+    v = open_view(f);
+    assert_string_equal(ms_web_view_error(v), "");
+    int settled = 1;
+    assert_int_equal(ms_web_view_plan(v, 0, &settled), MS_ERR_ARG);
+    assert_int_equal(settled, 0);
+    assert_string_equal(ms_web_view_error(v), "no camera set");
+    assert_int_equal(ms_web_view_camera(v, TARGET, TARGET, UP, 40, 320, 240, 0, 0, 1.0), MS_ERR_ARG);
+    assert_int_equal(ms_web_view_camera(v, POSITION, TARGET, UP, 40, 320, 240, 0, 0, 0.0), MS_ERR_ARG);
+    assert_string_equal(ms_web_view_error(v), "the screen tolerance must be a positive number of pixels");
+    assert_int_equal(ms_web_view_camera(v, POSITION, TARGET, UP, 40, 320, 240, 0, 0, NAN), MS_ERR_ARG);
+    assert_int_equal(ms_web_view_plan(v, 0, NULL), MS_ERR_ARG); /* still no camera */
+
+    size_t total;
+    const uint8_t *root = ms_archive_geometry(f->archive, 0, &total);
+    assert_int_equal(ms_web_view_give(v, 0, 5, root + 5, 10), MS_ERR_ARG); /* a gap */
+    printf("gap: %s\n", ms_web_view_error(v));
+    assert_int_equal(ms_web_view_held(v, 0), 0);
+    assert_int_equal(ms_web_view_give(v, 0, 0, root, (uint32_t)total + 1), MS_ERR_RANGE);
+    printf("past the payload: %s\n", ms_web_view_error(v));
+    assert_int_equal(ms_web_view_held(v, 0), 0);
+    uint32_t cells = ms_web_view_cell_count(v);
+    assert_int_equal(ms_web_view_give(v, cells, 0, root, 1), MS_ERR_ARG);
+    char expected[64];
+    snprintf(expected, sizeof expected, "no cell %u in the model", cells);
+    assert_string_equal(ms_web_view_error(v), expected);
+    assert_int_equal(ms_web_view_plan_cell(v, 0), MS_ARCHIVE_NONE);
+    assert_int_equal(ms_web_view_plan_bits(v, 3), 0);
+    ms_web_view_free(v);
+    ms_web_view_free(NULL);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_streams_to_the_cut_of_every_byte),
+        cmocka_unit_test(test_preview_cap),
+        cmocka_unit_test(test_bounds_from_the_root),
+        cmocka_unit_test(test_bad_input),
+    };
+    return cmocka_run_group_tests(tests, group_setup, group_teardown);
+}

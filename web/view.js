@@ -1,0 +1,356 @@
+// The viewer page (/view/NAME#cam=...): decodes in a Web Worker (worker.js)
+// and draws the stitched cut with WebGL 2 (docs/BROWSER.md). The URL's hash
+// holds the camera, so a view can be shared:
+//   #cam=PX,PY,PZ,TX,TY,TZ,UX,UY,UZ,FOVY   position, target, up, degrees
+//   &tol=PIXELS                             screen tolerance (default 1)
+//   &culled=BITS                            bits given up outside the view (default 6)
+//   &hud=0                                  no overlay (pictures for tests)
+// The token is asked once, kept for the tab (sessionStorage) and sent as
+// Authorization by the worker, never in a URL. window.meshstream holds the
+// page's state for scripts: state ('loading', 'complete', 'error'), message,
+// triangles, cells, bits (the finest shown), bytes, firstPixelMs, completeMs.
+'use strict';
+
+const TOKEN_KEY = 'meshstream-token';
+const page = { state: 'loading', message: '', triangles: 0, cells: 0, bits: 0, bytes: 0,
+               firstPixelMs: null, completeMs: null };
+window.meshstream = page;
+
+const canvas = document.getElementById('view');
+const statusLine = document.getElementById('status');
+const progress = document.getElementById('progress');
+
+function say(text, isError) {
+  statusLine.textContent = text;
+  statusLine.className = isError ? 'error' : '';
+  page.message = text;
+}
+
+function failPage(text) {
+  say(text, true);
+  page.state = 'error';
+}
+
+// ---- URL: model and camera -------------------------------------------------
+
+const name = decodeURIComponent(location.pathname.replace(/^\/view\//, ''));
+const hash = new URLSearchParams(location.hash.slice(1));
+document.getElementById('model').textContent = name;
+document.title = name + ' · meshstream';
+if (hash.get('hud') === '0')
+  document.getElementById('hud').className = 'hidden';
+
+function parseCamera(text) {
+  if (!text)
+    return null;
+  const v = text.split(',').map(Number);
+  if (v.length !== 10 || v.some(x => !Number.isFinite(x)))
+    return null;
+  return { position: v.slice(0, 3), target: v.slice(3, 6), up: v.slice(6, 9), fovy: v[9] };
+}
+
+let camera = parseCamera(hash.get('cam'));
+const tolerance = Number(hash.get('tol')) > 0 ? Number(hash.get('tol')) : 1;
+// bits given up outside the view: the client core's 6 unless the URL says
+const culled = hash.get('culled') !== null && Number(hash.get('culled')) >= 0 ? Number(hash.get('culled')) : 6;
+if (hash.get('cam') && !camera)
+  failPage('The camera in the URL is not ten numbers (#cam=PX,PY,PZ,TX,TY,TZ,UX,UY,UZ,FOVY).');
+
+// ---- Small vector and matrix helpers (column-major 4x4) ---------------------
+
+const sub = (a, b) => [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+const dot = (a, b) => a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+const cross = (a, b) => [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
+const norm = a => { const l = Math.hypot(...a); return [a[0] / l, a[1] / l, a[2] / l]; };
+
+function viewProjection(c, width, height, near, far) {
+  const f = norm(sub(c.target, c.position));
+  const r = norm(cross(f, c.up));
+  const u = cross(r, f);
+  const view = [r[0], u[0], -f[0], 0, r[1], u[1], -f[1], 0, r[2], u[2], -f[2], 0,
+                -dot(r, c.position), -dot(u, c.position), dot(f, c.position), 1];
+  const t = 1 / Math.tan(c.fovy * Math.PI / 360), a = width / height;
+  const proj = [t / a, 0, 0, 0, 0, t, 0, 0, 0, 0, (far + near) / (near - far), -1,
+                0, 0, 2 * far * near / (near - far), 0];
+  const m = new Float32Array(16);
+  for (let i = 0; i < 4; ++i)
+    for (let j = 0; j < 4; ++j) {
+      let s = 0;
+      for (let k = 0; k < 4; ++k)
+        s += proj[k * 4 + j] * view[i * 4 + k];
+      m[i * 4 + j] = s;
+    }
+  return m;
+}
+
+// ---- WebGL 2 -----------------------------------------------------------------
+
+const VERTEX = `#version 300 es
+layout(location = 0) in vec3 position;
+layout(location = 1) in vec3 normal;
+uniform mat4 viewProjection;
+out vec3 world;
+out vec3 smoothNormal;
+void main() {
+  world = position;
+  smoothNormal = normal;
+  gl_Position = viewProjection * vec4(position, 1.0);
+}`;
+
+// The vertex normals the decoder derived (area-weighted, interpolated; flat
+// from the screen derivatives where a vertex has none), a head light at the
+// camera (Lambert and a little Blinn-Phong), lit from both sides, sRGB out.
+const FRAGMENT = `#version 300 es
+precision highp float;
+in vec3 world;
+in vec3 smoothNormal;
+uniform vec3 eye;
+out vec4 colour;
+void main() {
+  vec3 n = dot(smoothNormal, smoothNormal) > 1e-12 ? normalize(smoothNormal)
+                                                   : normalize(cross(dFdx(world), dFdy(world)));
+  vec3 l = normalize(eye - world);
+  if (dot(n, l) < 0.0) n = -n;
+  float diffuse = max(dot(n, l), 0.0);
+  float specular = pow(max(dot(n, l), 0.0), 64.0) * 0.15;
+  vec3 linear = vec3(0.70, 0.68, 0.64) * (0.08 + 0.92 * diffuse) + specular;
+  colour = vec4(pow(clamp(linear, 0.0, 1.0), vec3(1.0 / 2.2)), 1.0);
+}`;
+
+const gl = canvas.getContext('webgl2', { antialias: false });
+let program = null, vao = null, positionBuffer = null, normalBuffer = null, indexBuffer = null;
+let indexCount = 0, box = null, frameRequested = false;
+
+function compile(type, source) {
+  const s = gl.createShader(type);
+  gl.shaderSource(s, source);
+  gl.compileShader(s);
+  if (!gl.getShaderParameter(s, gl.COMPILE_STATUS))
+    throw new Error('shader: ' + gl.getShaderInfoLog(s));
+  return s;
+}
+
+function setUpGl() {
+  program = gl.createProgram();
+  gl.attachShader(program, compile(gl.VERTEX_SHADER, VERTEX));
+  gl.attachShader(program, compile(gl.FRAGMENT_SHADER, FRAGMENT));
+  gl.linkProgram(program);
+  if (!gl.getProgramParameter(program, gl.LINK_STATUS))
+    throw new Error('program: ' + gl.getProgramInfoLog(program));
+  vao = gl.createVertexArray();
+  gl.bindVertexArray(vao);
+  positionBuffer = gl.createBuffer();
+  normalBuffer = gl.createBuffer();
+  indexBuffer = gl.createBuffer();
+  gl.bindBuffer(gl.ARRAY_BUFFER, positionBuffer);
+  gl.enableVertexAttribArray(0);
+  gl.vertexAttribPointer(0, 3, gl.FLOAT, false, 0, 0);
+  gl.bindBuffer(gl.ARRAY_BUFFER, normalBuffer);
+  gl.enableVertexAttribArray(1);
+  gl.vertexAttribPointer(1, 3, gl.FLOAT, false, 0, 0);
+  gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, indexBuffer);
+  gl.enable(gl.DEPTH_TEST);
+}
+
+function resize() {
+  const ratio = window.devicePixelRatio || 1;
+  const w = Math.max(1, Math.round(canvas.clientWidth * ratio));
+  const h = Math.max(1, Math.round(canvas.clientHeight * ratio));
+  if (canvas.width !== w || canvas.height !== h) {
+    canvas.width = w;
+    canvas.height = h;
+  }
+}
+
+// Clipping planes that frame the model's box from where the camera is.
+function depthRange() {
+  let far = 0, near = Infinity;
+  for (let corner = 0; corner < 8; ++corner) {
+    const p = [0, 1, 2].map(a => box[a] + ((corner >> a) & 1 ? box[3] : 0));
+    const d = Math.hypot(...sub(p, camera.position));
+    far = Math.max(far, d);
+    near = Math.min(near, d);
+  }
+  far *= 1.01;
+  const inside = [0, 1, 2].every(a => camera.position[a] >= box[a] && camera.position[a] <= box[a] + box[3]);
+  near = inside ? far * 1e-4 : Math.max(far * 1e-4, 0.5 * near - box[3]);
+  return [Math.max(near, far * 1e-4), far];
+}
+
+function draw() {
+  frameRequested = false;
+  resize();
+  gl.viewport(0, 0, canvas.width, canvas.height);
+  gl.clearColor(0.125, 0.133, 0.149, 1);
+  gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
+  if (!indexCount || !camera || !box)
+    return;
+  const [near, far] = depthRange();
+  gl.useProgram(program);
+  gl.uniformMatrix4fv(gl.getUniformLocation(program, 'viewProjection'), false,
+                      viewProjection(camera, canvas.width, canvas.height, near, far));
+  gl.uniform3fv(gl.getUniformLocation(program, 'eye'), camera.position);
+  gl.bindVertexArray(vao);
+  gl.drawElements(gl.TRIANGLES, indexCount, gl.UNSIGNED_INT, 0);
+  if (page.firstPixelMs === null)
+    page.firstPixelMs = Math.round(performance.now());
+}
+
+function requestDraw() {
+  if (!frameRequested) {
+    frameRequested = true;
+    requestAnimationFrame(draw);
+  }
+}
+
+function upload(positions, normals, triangles) {
+  gl.bindVertexArray(vao);
+  gl.bindBuffer(gl.ARRAY_BUFFER, positionBuffer);
+  gl.bufferData(gl.ARRAY_BUFFER, positions, gl.STATIC_DRAW);
+  gl.bindBuffer(gl.ARRAY_BUFFER, normalBuffer);
+  gl.bufferData(gl.ARRAY_BUFFER, normals, gl.STATIC_DRAW);
+  gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, indexBuffer);
+  gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, triangles, gl.STATIC_DRAW);
+  indexCount = triangles.length;
+}
+
+// ---- Camera: home, orbit, zoom, the URL ------------------------------------
+
+// The whole model in view: its bounds (lo, hi) when the root told them, else
+// its cubic box (origin, side).
+function homeCamera(b, bounds) {
+  const lo = bounds ? bounds.slice(0, 3) : b.slice(0, 3);
+  const hi = bounds ? bounds.slice(3, 6) : b.slice(0, 3).map(x => x + b[3]);
+  const fovy = 40, centre = [0, 1, 2].map(a => (lo[a] + hi[a]) / 2);
+  const radius = Math.hypot(...sub(hi, lo)) / 2;
+  const distance = 1.05 * radius / Math.sin(fovy * Math.PI / 360);
+  const dir = norm([Math.sin(0.35), 0.25, Math.cos(0.35)]);
+  return { position: centre.map((c, a) => c + distance * dir[a]), target: centre, up: [0, 1, 0], fovy };
+}
+
+function cameraText(c) {
+  return [...c.position, ...c.target, ...c.up, c.fovy].map(x => +x.toPrecision(7)).join(',');
+}
+
+let worker = null, cameraTimer = null;
+
+function cameraMoved() {
+  requestDraw();
+  if (cameraTimer)
+    return;
+  cameraTimer = setTimeout(() => {
+    cameraTimer = null;
+    hash.set('cam', cameraText(camera));
+    history.replaceState(null, '', '#' + hash.toString().replace(/%2C/g, ','));
+    worker.postMessage({ type: 'camera', camera: workerCamera() });
+  }, 100);
+}
+
+function orbit(dx, dy) {
+  const offset = sub(camera.position, camera.target);
+  const up = norm(camera.up), right = norm(cross(norm(sub(camera.target, camera.position)), up));
+  const rotate = (v, axis, angle) => {
+    const c = Math.cos(angle), s = Math.sin(angle), k = dot(axis, v), x = cross(axis, v);
+    return [0, 1, 2].map(a => v[a] * c + x[a] * s + axis[a] * k * (1 - c));
+  };
+  let o = rotate(offset, up, -dx * 0.01);
+  o = rotate(o, right, -dy * 0.01);
+  camera.position = camera.target.map((t, a) => t + o[a]);
+  camera.up = norm(cross(right, norm(sub(camera.target, camera.position))).map(x => -x));
+  cameraMoved();
+}
+
+function zoom(factor) {
+  camera.position = camera.target.map((t, a) => t + (camera.position[a] - t) * factor);
+  cameraMoved();
+}
+
+let dragging = null;
+canvas.addEventListener('pointerdown', e => { dragging = [e.clientX, e.clientY]; canvas.setPointerCapture(e.pointerId); });
+canvas.addEventListener('pointerup', () => { dragging = null; });
+canvas.addEventListener('pointermove', e => {
+  if (!dragging || !camera)
+    return;
+  orbit(e.clientX - dragging[0], e.clientY - dragging[1]);
+  dragging = [e.clientX, e.clientY];
+});
+canvas.addEventListener('wheel', e => {
+  e.preventDefault();
+  if (camera)
+    zoom(Math.exp(e.deltaY * 0.001));
+}, { passive: false });
+window.addEventListener('resize', () => { if (camera && worker) cameraMoved(); requestDraw(); });
+
+function workerCamera() {
+  resize();
+  return Object.assign({}, camera, { width: canvas.width, height: canvas.height, tolerance });
+}
+
+// ---- The token -----------------------------------------------------------
+
+document.getElementById('token-form').addEventListener('submit', e => {
+  e.preventDefault();
+  const value = document.getElementById('token').value.trim();
+  if (value)
+    sessionStorage.setItem(TOKEN_KEY, value);
+  else
+    sessionStorage.removeItem(TOKEN_KEY);
+  location.reload();
+});
+
+// ---- The worker ----------------------------------------------------------
+
+function start() {
+  if (page.state === 'error')
+    return;
+  if (!gl) {
+    failPage('This browser offers no WebGL 2: the model cannot be drawn.');
+    return;
+  }
+  try {
+    setUpGl();
+  } catch (e) {
+    failPage('WebGL 2 failed: ' + e.message);
+    return;
+  }
+  say('Loading ' + name + '…');
+  worker = new Worker('/web/worker.js');
+  worker.onerror = e => failPage('The decoder failed: ' + (e.message || 'the worker did not start'));
+  worker.onmessage = e => {
+    const m = e.data;
+    if (m.type === 'box') {
+      box = m.box;
+      if (!camera) {
+        camera = homeCamera(box, m.bounds);
+        worker.postMessage({ type: 'camera', camera: workerCamera() });
+      }
+    } else if (m.type === 'progress') {
+      page.state = 'loading';
+      page.bytes = m.bytes;
+      progress.removeAttribute('value');
+      say('Loading ' + name + ': ' + (m.bytes / 1e3).toFixed(0) + ' kB, ' + m.wanted + ' cells wanted');
+    } else if (m.type === 'mesh') {
+      upload(m.positions, m.normals, m.triangles);
+      page.triangles = m.triangles.length / 3;
+      page.cells = m.cells;
+      page.bits = m.bits;
+      requestDraw();
+    } else if (m.type === 'complete') {
+      page.bytes = m.bytes;
+      page.rounds = m.rounds;
+      page.timing = m.timing;
+      page.completeMs = Math.round(performance.now());
+      page.state = 'complete';
+      progress.value = 1;
+      say(name + ': ' + page.triangles.toLocaleString('en') + ' triangles in ' + page.cells +
+          ' cells, up to ' + page.bits + ' bits, ' + (m.bytes / 1e3).toFixed(0) + ' kB, view complete' +
+          (m.preview ? ' (the public preview: a token gives more)' : ''));
+    } else if (m.type === 'error') {
+      failPage(m.message.charAt(0).toUpperCase() + m.message.slice(1));
+    }
+  };
+  worker.postMessage({ type: 'start', name, token: sessionStorage.getItem(TOKEN_KEY) || '', culled,
+                       camera: camera ? workerCamera() : null });
+}
+
+start();

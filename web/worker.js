@@ -1,0 +1,236 @@
+// The decoding worker of the viewer page (docs/BROWSER.md): the view decoder
+// of the C sources, compiled to WebAssembly (make wasm: meshstream.js and
+// meshstream.wasm, the interface of client/web/ms_web_view.h), fed over the
+// HTTP side door. Messages in: {type: 'start', name, token, camera, culled},
+// {type: 'camera', camera} (a new camera: the loop plans again). Out:
+// {type: 'box'}, {type: 'progress'}, {type: 'mesh'} (positions and triangles,
+// transferred), {type: 'complete'}, {type: 'error', message}.
+'use strict';
+importScripts('/web/meshstream.js');
+
+const IN_FLIGHT = 8;        // cell fetches at a time
+const PLAN_MAX = 256;       // cells listed by one plan
+const ERROR_SIZE = 520;     // sizeof(ms_error), with room
+
+let M = null;               // the WebAssembly module
+let view = 0;               // ms_web_view *
+
+function fail(message) {
+  postMessage({ type: 'error', message });
+}
+
+function lastError() {
+  return M.UTF8ToString(M._ms_web_view_error(view));
+}
+
+// A GET whose answer is read whole: {status, bytes}. Any failure of the
+// network, before or during the body, is one error naming what was asked;
+// an error answer's is the server's own line; 429 (the request rate limit)
+// is retried after its Retry-After, four times at most.
+async function get(url, token, extra) {
+  const headers = Object.assign({}, extra || {});
+  if (token)
+    headers.Authorization = 'Bearer ' + token;   // never in the URL
+  let answer, bytes;
+  for (let attempt = 0; ; ++attempt) {
+    try {
+      answer = await fetch(url, { headers, cache: 'default' });
+      bytes = new Uint8Array(await answer.arrayBuffer());
+    } catch (e) {
+      throw new Error('the server cannot be reached (' + url + ')');
+    }
+    // the server's request rate limit: wait as it says, a few times
+    if (answer.status !== 429 || attempt === 4)
+      break;
+    const wait = Math.min(Number(answer.headers.get('Retry-After')) || 1, 10);
+    await new Promise(resolve => setTimeout(resolve, wait * 1000));
+  }
+  if (answer.status !== 200 && answer.status !== 206) {
+    const text = new TextDecoder().decode(bytes).trim().replace(/^error: /, '');
+    const e = new Error(text || ('the server answered ' + answer.status));
+    e.status = answer.status;
+    throw e;
+  }
+  return { status: answer.status, bytes };
+}
+
+function withHeap(bytes, fn) {
+  const p = M._malloc(Math.max(bytes.length, 1));
+  if (!p)
+    throw new Error('out of memory in the WebAssembly module');
+  try {
+    M.HEAPU8.set(bytes, p);
+    return fn(p);
+  } finally {
+    M._free(p);
+  }
+}
+
+function openIndex(blob, name) {
+  const err = M._malloc(ERROR_SIZE), out = M._malloc(4);
+  const nameBytes = new TextEncoder().encode(name + '\0');
+  try {
+    const st = withHeap(nameBytes, namePtr =>
+      withHeap(blob, blobPtr => M._ms_web_view_new(blobPtr, blob.length, namePtr, out, err)));
+    if (st !== 0)
+      throw new Error('the model\'s index cannot be read: ' + M.UTF8ToString(err + 4));
+    return M.HEAPU32[out >> 2];
+  } finally {
+    M._free(err);
+    M._free(out);
+  }
+}
+
+function setCamera(c) {
+  const p = M._malloc(9 * 8);
+  const d = new Float64Array(M.HEAPU8.buffer, p, 9);
+  d.set([...c.position, ...c.target, ...c.up]);
+  const st = M._ms_web_view_camera(view, p, p + 24, p + 48, c.fovy, c.width, c.height,
+                                   0, 0, c.tolerance);
+  M._free(p);
+  if (st !== 0)
+    throw new Error('bad camera: ' + lastError());
+}
+
+// Fetches what the cell lacks of its payload prefix at `bits` (null: all the
+// reader may read) and hands it over; returns the bytes received.
+async function fetchCell(name, token, cell, bits) {
+  const held = M._ms_web_view_held(view, cell);
+  const answer = await get('/models/' + encodeURIComponent(name) + '/cells/' + cell +
+                           '/geometry' + (bits === null ? '' : '?bits=' + bits), token,
+                           held ? { Range: 'bytes=' + held + '-' } : null);
+  const bytes = answer.bytes;
+  const offset = answer.status === 206 ? held : 0;
+  const st = withHeap(bytes, p => M._ms_web_view_give(view, cell, offset, p, bytes.length));
+  if (st !== 0)
+    throw new Error('cell ' + cell + ': ' + lastError());
+  return bytes.length;
+}
+
+// Seconds spent, for the page's figures: selecting and decoding (plan),
+// waiting for cells (fetch), stitching and copying out the mesh (stitch).
+const timing = { plan: 0, fetch: 0, stitch: 0 };
+
+function timed(key, fn) {
+  const t = performance.now();
+  try {
+    return fn();
+  } finally {
+    timing[key] += (performance.now() - t) / 1000;
+  }
+}
+
+function postMesh(final) {
+  timed('stitch', () => stitchAndPost(final));
+}
+
+function stitchAndPost(final) {
+  if (M._ms_web_view_stitch(view) !== 0)
+    throw new Error('stitching the cut: ' + lastError());
+  const nv = M._ms_web_view_vertex_count(view), nt = M._ms_web_view_triangle_count(view);
+  const positions = new Float32Array(M.HEAPF32.buffer, M._ms_web_view_positions(view), 3 * nv).slice();
+  const triangles = new Uint32Array(M.HEAPU32.buffer, M._ms_web_view_triangles(view), 3 * nt).slice();
+  const normals = new Float32Array(M.HEAPF32.buffer, M._ms_web_view_normals(view), 3 * nv).slice();
+  postMessage({ type: 'mesh', final, positions, normals, triangles,
+                cells: M._ms_web_view_shown_cells(view), bits: M._ms_web_view_max_bits(view) },
+              [positions.buffer, normals.buffer, triangles.buffer]);
+}
+
+// The camera the page asked for last, not yet applied, and the wake-up of a
+// settled loop waiting for one.
+let pendingCamera = null, wake = null;
+
+function nextCamera() {
+  return new Promise(resolve => { wake = resolve; });
+}
+
+async function run(msg) {
+  const { name, token } = msg;
+  const started = performance.now();
+  M = await createMeshstream({ locateFile: file => '/web/' + file });
+  let catalogue;
+  try {
+    // the catalogue's entries whose name holds NAME (a page of at most 1000)
+    catalogue = JSON.parse(new TextDecoder().decode(
+      (await get('/catalog?limit=1000&q=' + encodeURIComponent(name), token)).bytes));
+  } catch (e) {
+    throw new Error('cannot read the catalogue: ' + e.message);
+  }
+  const entry = catalogue.models.find(m => m.name === name);
+  if (!entry)
+    throw new Error('no model named "' + name + '" on this server');
+  const blob = (await get('/models/' + encodeURIComponent(name), token)).bytes;
+  view = openIndex(blob, name);
+  const bp = M._malloc(32);
+  M._ms_web_view_box(view, bp);
+  const box = Array.from(new Float64Array(M.HEAPU8.buffer, bp, 4));
+  M._free(bp);
+  let bytes = blob.length, rounds = 0, bounds = null;
+  if (!msg.camera) {
+    // the root's bytes tell where the model lies in its box: the home camera
+    bytes += await fetchCell(name, token, 0, null);
+    const p = M._malloc(48);
+    if (M._ms_web_view_bounds(view, p) === 0)
+      bounds = Array.from(new Float64Array(M.HEAPU8.buffer, p, 6));
+    M._free(p);
+  }
+  postMessage({ type: 'box', box, bounds, triangles: entry.triangles });
+  // A reader without a token reads a preview model to public_max_bits only.
+  M._ms_web_view_culled(view, msg.culled);
+  const preview = !token && entry.public_max_bits < entry.bits;
+  if (preview)
+    M._ms_web_view_permit(view, entry.public_max_bits + 1);
+  if (msg.camera)
+    pendingCamera = msg.camera;
+  while (!pendingCamera)
+    await nextCamera();
+  const settledPtr = M._malloc(4);
+  for (;;) {
+    if (pendingCamera) {
+      setCamera(pendingCamera);
+      pendingCamera = null;
+    }
+    if (timed('plan', () => M._ms_web_view_plan(view, PLAN_MAX, settledPtr)) !== 0)
+      throw new Error('selecting the cut: ' + lastError());
+    const count = M._ms_web_view_plan_count(view);
+    if (M.HEAPU32[settledPtr >> 2]) {
+      postMesh(true);
+      postMessage({ type: 'complete', bytes, rounds, preview, timing,
+                    seconds: (performance.now() - started) / 1000 });
+      while (!pendingCamera)
+        await nextCamera();
+      continue;
+    }
+    if (rounds === 0 && bounds)
+      postMesh(false);            // the root the home camera was framed with: pixels at once
+    const wanted = [];
+    for (let k = 0; k < count; ++k)
+      wanted.push([M._ms_web_view_plan_cell(view, k), M._ms_web_view_plan_bits(view, k)]);
+    let next = 0;
+    const lane = async () => {
+      while (next < wanted.length) {
+        const [cell, bits] = wanted[next++];
+        const got = await fetchCell(name, token, cell, bits); // not `bytes += await`: lanes interleave
+        bytes += got;
+      }
+    };
+    const fetchStart = performance.now();
+    await Promise.all(Array.from({ length: Math.min(IN_FLIGHT, wanted.length) }, lane));
+    timing.fetch += (performance.now() - fetchStart) / 1000;
+    rounds++;
+    postMessage({ type: 'progress', bytes, rounds, wanted: count });
+    postMesh(false);              // what the bytes so far show
+  }
+}
+
+onmessage = e => {
+  if (e.data.type === 'start') {
+    run(e.data).catch(err => fail(err.message || String(err)));
+  } else if (e.data.type === 'camera') {
+    pendingCamera = e.data.camera;
+    if (wake) {
+      wake();
+      wake = null;
+    }
+  }
+};
