@@ -57,6 +57,10 @@
 #define MS_PROTO_CANCEL_RANGE_SIZE 8u
 #define MS_PROTO_ERROR_FIXED 18u
 #define MS_PROTO_CATALOGUE_FIXED 4u
+#define MS_PROTO_LIST_PAGE_FIXED 12u        /* version 3: LIST_PAGE before its query */
+#define MS_PROTO_CATALOGUE_PAGE_FIXED 8u    /* version 3: CATALOGUE_PAGE before its entries */
+#define MS_PROTO_MAX_PAGE 1000u             /* entries one LIST_PAGE asks for */
+#define MS_PROTO_MAX_PAGE_QUERY 64u         /* bytes of a LIST_PAGE text filter */
 #define MS_PROTO_CATALOGUE_ENTRY_FIXED 32u
 #define MS_PROTO_MODEL_OPENED_SIZE 32u
 #define MS_PROTO_INDEX_DATA_FIXED 4u
@@ -89,6 +93,7 @@ typedef enum ms_proto_type {
     MS_PROTO_CLOSE_MODEL = 0x04,
     MS_PROTO_REQUEST_CELLS = 0x05,
     MS_PROTO_CANCEL = 0x06,
+    MS_PROTO_LIST_PAGE = 0x07,          /* version 3 */
     MS_PROTO_PING = 0x40,
     MS_PROTO_PONG = 0x41,
     MS_PROTO_ERROR = 0x7F,
@@ -96,7 +101,8 @@ typedef enum ms_proto_type {
     MS_PROTO_CATALOGUE = 0x82,
     MS_PROTO_MODEL_OPENED = 0x83,
     MS_PROTO_INDEX_DATA = 0x84,
-    MS_PROTO_PAYLOAD = 0x85
+    MS_PROTO_PAYLOAD = 0x85,
+    MS_PROTO_CATALOGUE_PAGE = 0x86      /* version 3 */
 } ms_proto_type;
 
 /* Wire error codes (section 9). */
@@ -212,7 +218,29 @@ typedef struct ms_proto_catalogue_entry {
 typedef struct ms_proto_catalogue {
     const ms_proto_catalogue_entry *entries;
     uint16_t entry_count; /* 0 only with MS_PROTO_FLAG_LAST */
+    uint32_t total;       /* CATALOGUE_PAGE only: the models the page's filter matches */
 } ms_proto_catalogue;
+
+/* LIST_PAGE's sort keys (version 3, section 4.11). */
+typedef enum ms_proto_page_sort {
+    MS_PROTO_SORT_NAME = 0,
+    MS_PROTO_SORT_SIZE = 1,      /* archive bytes */
+    MS_PROTO_SORT_DATE = 2,      /* bake time */
+    MS_PROTO_SORT_TRIANGLES = 3,
+    MS_PROTO_SORT_LAST = MS_PROTO_SORT_TRIANGLES
+} ms_proto_page_sort;
+
+/* One page of the catalogue (version 3): entries [offset, offset + limit) of
+ * the models whose name or source contains query (ASCII case-insensitively;
+ * empty: every model), in sort order. */
+typedef struct ms_proto_list_page {
+    uint32_t offset;
+    uint16_t limit;         /* [1, MS_PROTO_MAX_PAGE] */
+    uint8_t sort;           /* ms_proto_page_sort */
+    uint8_t descending;     /* 0 or 1 */
+    const char *query;      /* UTF-8 text, no control characters */
+    uint8_t query_length;   /* [0, MS_PROTO_MAX_PAGE_QUERY] */
+} ms_proto_list_page;
 
 typedef struct ms_proto_open_model {
     const char *name;    /* [A-Za-z0-9_-], else MS_PROTO_E_BAD_MODEL_NAME */
@@ -300,7 +328,8 @@ typedef struct ms_proto_message {
         ms_proto_hello hello;
         ms_proto_hello_reply hello_reply;
         ms_proto_ping ping;                 /* PING and PONG */
-        ms_proto_catalogue catalogue;
+        ms_proto_catalogue catalogue;       /* CATALOGUE and CATALOGUE_PAGE */
+        ms_proto_list_page list_page;
         ms_proto_open_model open_model;
         ms_proto_model_opened model_opened;
         ms_proto_close_model close_model;

@@ -429,7 +429,7 @@ static bool sample_message(unsigned i, ms_proto_message *m)
     case 8:
         m->type = MS_PROTO_CATALOGUE;
         m->request_id = 2;
-        m->body.catalogue = (ms_proto_catalogue){catalogue_entries, 3};
+        m->body.catalogue = (ms_proto_catalogue){catalogue_entries, 3, 0};
         return true;
     case 9:
         m->type = MS_PROTO_OPEN_MODEL;
