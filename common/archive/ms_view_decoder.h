@@ -134,7 +134,19 @@ ms_status ms_view_set_bytes(ms_view *view, uint32_t cell, const uint8_t *data, s
 ms_status ms_view_append_bytes(ms_view *view, uint32_t cell, const uint8_t *data, size_t length,
                                ms_error *err);
 
-/* Releases the bytes and decoder of a HIDDEN cell (a client's cache eviction);
+/* Hands over the first `length` bytes of a cell's colour stream (copied;
+ * docs/ARCHIVE.md, "Colour streams"): a later call must extend what was given.
+ * Colour decodes in lockstep with the cell's geometry, as far as the colour
+ * bytes allow (a prefix stops colour at fewer bits than geometry); the
+ * stitched mesh then carries colours (ms_view_mesh.colours). A stream that
+ * turns out damaged fails the stitch with one line. MS_ERR_RANGE for an
+ * unknown cell, MS_ERR_ARG for bytes that do not extend those held. */
+ms_status ms_view_set_colour_bytes(ms_view *view, uint32_t cell, const uint8_t *data,
+                                   size_t length, ms_error *err);
+/* Bytes of the cell's colour stream held. */
+size_t ms_view_held_colour_bytes(const ms_view *view, uint32_t cell);
+
+/* Releases the bytes (colour included) and decoder of a HIDDEN cell (a client's cache eviction);
  * the cell needs its payload again before it can be refined once shown.
  * MS_ERR_RANGE when the cell is not HIDDEN. */
 ms_status ms_view_forget(ms_view *view, uint32_t cell, ms_error *err);

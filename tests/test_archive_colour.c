@@ -1,0 +1,414 @@
+/* Per-vertex colour through the archive (docs/ARCHIVE.md, "Colour streams"):
+ * meshbake bakes the colour trefoil fixture's colour as each cell's own
+ * section; the view decoder, fully refined, gives every stitched vertex
+ * exactly its welded input colour; coarse cuts give each vertex its kd-cell's
+ * colour by the rule of docs/COLOUR.md §1 (an independent implementation
+ * here); every colour prefix decodes; a model without colour, or a bake with
+ * no_colour, stitches with colours NULL; damaged colour tables, header fields
+ * and streams are refused with one line. */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <zlib.h>
+#include <cmocka.h>
+
+#include "ms_archive.h"
+#include "ms_colour.h"
+#include "ms_mesh_io.h"
+#include "ms_nsp_check.h"
+#include "ms_quant.h"
+#include "ms_test.h"
+#include "ms_view_decoder.h"
+
+#define FIXTURE "trefoil_color.ply.gz"
+
+/* The welded input: per distinct key (sorted) the rounded mean of its input
+ * colours, computed here from the loaded mesh. */
+typedef struct welded {
+    size_t n;
+    uint64_t *keys;
+    uint8_t *rgba;
+    bool alpha;
+} welded;
+
+static int cmp_key(const void *x, const void *y)
+{
+    const uint64_t *a = x, *b = y; /* key, input index */
+    return a[0] != b[0] ? (a[0] < b[0] ? -1 : 1) : (a[1] < b[1] ? -1 : a[1] > b[1]);
+}
+
+static void weld_input(const char *path, const ms_archive_header *h, welded *w)
+{
+    ms_mesh mesh;
+    ms_error err;
+    if (ms_mesh_load(path, &mesh, NULL, &err) != MS_OK)
+        fail_msg("%s", err.text);
+    assert_non_null(mesh.colours);
+    ms_quant_box box = {{h->box_origin[0], h->box_origin[1], h->box_origin[2]}, h->box_side};
+    size_t V = mesh.vertex_count;
+    uint64_t *pairs = malloc(2 * V * sizeof *pairs);
+    for (size_t v = 0; v < V; ++v) {
+        uint32_t q[3];
+        for (int a = 0; a < 3; ++a)
+            q[a] = ms_quantise(&box, h->bits, a, mesh.positions[3 * v + (size_t)a]);
+        pairs[2 * v] = ms_quant_key(q[0], q[1], q[2], h->bits);
+        pairs[2 * v + 1] = v;
+    }
+    qsort(pairs, V, 2 * sizeof *pairs, cmp_key);
+    w->keys = malloc(V * sizeof *w->keys);
+    w->rgba = malloc(4 * V);
+    w->n = 0;
+    w->alpha = mesh.colour_alpha;
+    for (size_t i = 0; i < V;) {
+        size_t j = i;
+        unsigned sum[4] = {0, 0, 0, 0};
+        for (; j < V && pairs[2 * j] == pairs[2 * i]; ++j)
+            for (int k = 0; k < 4; ++k)
+                sum[k] += mesh.colours[4 * pairs[2 * j + 1] + (size_t)k];
+        unsigned cnt = (unsigned)(j - i);
+        w->keys[w->n] = pairs[2 * i];
+        for (int k = 0; k < 4; ++k)
+            w->rgba[4 * w->n + (size_t)k] = (uint8_t)((2 * sum[k] + cnt) / (2 * cnt));
+        w->n++;
+        i = j;
+    }
+    free(pairs);
+    ms_mesh_free(&mesh);
+}
+
+static void welded_free(welded *w)
+{
+    free(w->keys);
+    free(w->rgba);
+}
+
+/* The rule, level by level: the colour (c-bit channels) of the vertices
+ * [lo, hi) lying in one kd-cell of level L (3p-bit keys). */
+static void rule_ref(const welded *w, unsigned p, unsigned c, size_t lo, size_t hi, unsigned L,
+                     unsigned out[4])
+{
+    if (L == 3 * p) {
+        assert_int_equal(hi - lo, 1);
+        for (int k = 0; k < 4; ++k)
+            out[k] = w->rgba[4 * lo + (size_t)k] >> (8 - c);
+        return;
+    }
+    unsigned bit = 3 * p - 1 - L;
+    size_t m = lo;
+    while (m < hi && !((w->keys[m] >> bit) & 1))
+        ++m;
+    if (m == lo || m == hi) {
+        rule_ref(w, p, c, lo, hi, L + 1, out);
+        return;
+    }
+    unsigned a[4], b[4];
+    rule_ref(w, p, c, lo, m, L + 1, a);
+    rule_ref(w, p, c, m, hi, L + 1, b);
+    for (int k = 0; k < 4; ++k)
+        out[k] = (a[k] + b[k]) / 2;
+}
+
+/* Every stitched vertex's colour is its kd-cell's by the rule at c bits,
+ * widened (alpha 255 without alpha in the input). */
+static void check_colours(const ms_view_mesh *m, const welded *w, unsigned p, unsigned c)
+{
+    assert_non_null(m->colours);
+    for (size_t k = 0; k < m->vertex_count; ++k) {
+        unsigned shift = 3 * p - m->levels[k];
+        uint64_t first = m->keys[k], end = first + (1ull << shift);
+        size_t lo = 0;
+        while (lo < w->n && w->keys[lo] < first)
+            ++lo;
+        size_t hi = lo;
+        while (hi < w->n && w->keys[hi] < end)
+            ++hi;
+        assert_true(hi > lo);
+        unsigned want[4];
+        rule_ref(w, p, c, lo, hi, m->levels[k], want);
+        for (int ch = 0; ch < 4; ++ch) {
+            unsigned expect = ch == 3 && !w->alpha ? 255 : ms_colour_widen(want[ch], c);
+            if (m->colours[4 * k + (size_t)ch] != expect)
+                fail_msg("vertex %zu (level %u) channel %d: %u, expected %u", k, m->levels[k],
+                         ch, m->colours[4 * k + (size_t)ch], expect);
+        }
+    }
+}
+
+static void bake(const char *dir, const char *name, unsigned colour_bits, bool no_colour,
+                 ms_bake_report *rep)
+{
+    char model[4096];
+    ms_bake_options o;
+    ms_nsp_test_bake_options(ms_test_model_path(model, sizeof model, FIXTURE), dir, name, &o);
+    o.min_triangles = 2000; /* 64 leaves: foreign vertices, frozen ones too */
+    o.colour_bits = colour_bits;
+    o.no_colour = no_colour;
+    ms_error err;
+    if (ms_bake(&o, rep, &err) != MS_OK)
+        fail_msg("bake: %s", err.text);
+}
+
+static ms_view *open_view(const char *path, ms_archive **a)
+{
+    ms_error err;
+    if (ms_archive_open(path, a, &err) != MS_OK)
+        fail_msg("%s", err.text);
+    ms_view *v;
+    if (ms_view_create_from_archive(*a, &v, &err) != MS_OK)
+        fail_msg("%s", err.text);
+    return v;
+}
+
+/* Full precision: exactly the welded input colours, every vertex; and a
+ * coarse cut (the root alone at each of its precisions): the rule. */
+static void test_trefoil_full_and_coarse(void **state)
+{
+    (void)state;
+    char dir[512], model[4096];
+    ms_test_tmpdir(dir, sizeof dir);
+    const unsigned precisions[2] = {8, 3};
+    for (int pi = 0; pi < 2; ++pi) {
+        unsigned c = precisions[pi];
+        ms_bake_report rep;
+        bake(dir, "trefoil", c, false, &rep);
+        assert_true(rep.colour);
+        assert_true(rep.colour_alpha);
+        assert_int_equal(rep.colour_bits, c);
+        assert_true(rep.colour_bytes > 0);
+        ms_archive *a;
+        ms_view *v = open_view(rep.archive_path, &a);
+        const ms_archive_header *h = ms_archive_get_header(a);
+        assert_true(h->has_colour);
+        assert_int_equal(h->colour_bits, c);
+        uint64_t sum = 0;
+        for (uint32_t cell = 0; cell < h->cell_count; ++cell)
+            sum += ms_archive_colour_length(a, cell);
+        assert_int_equal(sum, rep.colour_bytes);
+        welded w;
+        weld_input(ms_test_model_path(model, sizeof model, FIXTURE), h, &w);
+        ms_view_mesh m = {0};
+        ms_error err;
+        for (unsigned b = 0; b <= h->root_bits; ++b) {
+            assert_int_equal(ms_view_set_bits(v, 0, b, &err), MS_OK);
+            assert_int_equal(ms_view_stitch(v, NULL, &m, &err), MS_OK);
+            check_colours(&m, &w, h->bits, c);
+        }
+        ms_nsp_test_decode_all(v);
+        if (ms_view_stitch(v, NULL, &m, &err) != MS_OK)
+            fail_msg("%s", err.text);
+        assert_int_equal(m.vertex_count, w.n);
+        assert_int_equal(m.vertex_count, rep.vertices);
+        check_colours(&m, &w, h->bits, c);
+        if (c == 8) /* lossless: the input's own colours */
+            for (size_t k = 0; k < m.vertex_count; ++k) {
+                size_t i = 0;
+                while (w.keys[i] != m.keys[k])
+                    ++i;
+                assert_memory_equal(&m.colours[4 * k], &w.rgba[4 * i], 4);
+            }
+        ms_view_mesh_free(&m);
+        ms_view_destroy(v);
+        ms_archive_close(a);
+        welded_free(&w);
+    }
+    ms_test_rmdir(dir);
+}
+
+/* Colour bytes handed in prefixes (each precision's prefix of every cell, then
+ * every 5th byte of the root's stream): every prefix stitches, with colours
+ * once a base is held, and the whole streams give the exact colours. */
+static void test_prefixes(void **state)
+{
+    (void)state;
+    char dir[512], model[4096];
+    ms_test_tmpdir(dir, sizeof dir);
+    ms_bake_report rep;
+    bake(dir, "trefoil", 8, false, &rep);
+    ms_archive *a;
+    ms_error err;
+    assert_int_equal(ms_archive_open(rep.archive_path, &a, &err), MS_OK);
+    const ms_archive_header *h = ms_archive_get_header(a);
+    welded w;
+    weld_input(ms_test_model_path(model, sizeof model, FIXTURE), h, &w);
+    ms_archive_cell *recs = malloc(h->cell_count * sizeof *recs);
+    for (uint32_t i = 0; i < h->cell_count; ++i)
+        recs[i] = *ms_archive_get_cell(a, i);
+    ms_view *v;
+    assert_int_equal(ms_view_create(h, recs, &v, &err), MS_OK);
+    free(recs);
+    for (uint32_t i = 0; i < h->cell_count; ++i) {
+        size_t len;
+        const uint8_t *g = ms_archive_geometry(a, i, &len);
+        assert_int_equal(ms_view_set_bytes(v, i, g, len, &err), MS_OK);
+    }
+    ms_view_mesh m = {0};
+    assert_int_equal(ms_view_set_bits(v, 0, h->root_bits, &err), MS_OK);
+    size_t root_len;
+    const uint8_t *root = ms_archive_colour(a, 0, &root_len);
+    assert_true(root_len > 0);
+    for (size_t len = 0; len <= root_len; len += len + 5 > root_len && len < root_len ? root_len - len : 5) {
+        assert_int_equal(ms_view_set_colour_bytes(v, 0, root, len, &err), MS_OK);
+        if (ms_view_stitch(v, NULL, &m, &err) != MS_OK)
+            fail_msg("root prefix %zu: %s", len, err.text);
+        assert_int_equal(m.colours != NULL, len >= ms_archive_colour_prefix(a, 0, 0));
+    }
+    check_colours(&m, &w, h->bits, 8);
+    ms_nsp_test_decode_all(v);
+    assert_int_equal(ms_view_stitch(v, NULL, &m, &err), MS_OK);
+    for (unsigned b = 0; b <= h->bits; ++b) {
+        for (uint32_t i = 1; i < h->cell_count; ++i) {
+            size_t len;
+            const uint8_t *col = ms_archive_colour(a, i, &len);
+            assert_int_equal(ms_view_set_colour_bytes(v, i, col, ms_archive_colour_prefix(a, i, b), &err),
+                             MS_OK);
+        }
+        if (ms_view_stitch(v, NULL, &m, &err) != MS_OK)
+            fail_msg("prefix at %u bits: %s", b, err.text);
+        assert_non_null(m.colours);
+    }
+    check_colours(&m, &w, h->bits, 8);
+    ms_view_mesh_free(&m);
+    ms_view_destroy(v);
+    ms_archive_close(a);
+    welded_free(&w);
+    ms_test_rmdir(dir);
+}
+
+/* No colour: a bake with no_colour, and an input without colour. */
+static void test_without_colour(void **state)
+{
+    (void)state;
+    char dir[512], model[4096];
+    ms_test_tmpdir(dir, sizeof dir);
+    ms_bake_report rep;
+    bake(dir, "plain", 8, true, &rep);
+    assert_false(rep.colour);
+    assert_int_equal(rep.colour_bytes, 0);
+    ms_bake_options o;
+    ms_nsp_test_bake_options(ms_test_model_path(model, sizeof model, "torus_tristrips.ply.gz"),
+                             dir, "torus", &o);
+    ms_bake_report rep2;
+    ms_error err;
+    assert_int_equal(ms_bake(&o, &rep2, &err), MS_OK);
+    assert_false(rep2.colour);
+    const char *paths[2] = {rep.archive_path, rep2.archive_path};
+    for (int i = 0; i < 2; ++i) {
+        ms_archive *a;
+        ms_view *v = open_view(paths[i], &a);
+        assert_false(ms_archive_get_header(a)->has_colour);
+        assert_int_equal(ms_archive_colour_length(a, 0), 0);
+        ms_nsp_test_decode_all(v);
+        ms_view_mesh m = {0};
+        assert_int_equal(ms_view_stitch(v, NULL, &m, &err), MS_OK);
+        assert_true(m.vertex_count > 0);
+        assert_null(m.colours);
+        uint8_t byte = 0;
+        assert_int_equal(ms_view_set_colour_bytes(v, 0, &byte, 1, &err), MS_ERR_ARG);
+        ms_view_mesh_free(&m);
+        ms_view_destroy(v);
+        ms_archive_close(a);
+    }
+    ms_test_rmdir(dir);
+}
+
+/* An index blob with one byte changed and its CRCs made good again: what the
+ * reader says of it. */
+static ms_status open_damaged(const uint8_t *blob, size_t size, size_t at, uint8_t value,
+                              ms_error *err)
+{
+    uint8_t *copy = malloc(size);
+    memcpy(copy, blob, size);
+    copy[at] = value;
+    uint32_t crc = (uint32_t)crc32(0L, copy + MS_ARCHIVE_HEADER_SIZE,
+                                   (uInt)(size - MS_ARCHIVE_HEADER_SIZE));
+    for (int i = 0; i < 4; ++i)
+        copy[108 + i] = (uint8_t)(crc >> (8 * i));
+    crc = (uint32_t)crc32(0L, copy, 124);
+    for (int i = 0; i < 4; ++i)
+        copy[124 + i] = (uint8_t)(crc >> (8 * i));
+    ms_archive *a = NULL;
+    ms_status st = ms_archive_open_index(copy, size, "damaged", &a, err);
+    ms_archive_close(a);
+    free(copy);
+    return st;
+}
+
+static void test_hostile(void **state)
+{
+    (void)state;
+    char dir[512];
+    ms_test_tmpdir(dir, sizeof dir);
+    ms_bake_report rep;
+    bake(dir, "trefoil", 8, false, &rep);
+    ms_archive *a;
+    ms_error err;
+    assert_int_equal(ms_archive_open(rep.archive_path, &a, &err), MS_OK);
+    const ms_archive_header *h = ms_archive_get_header(a);
+    size_t size;
+    const uint8_t *blob = ms_archive_index_bytes(a, &size);
+    /* the blob as it is opens */
+    if (open_damaged(blob, size, 0, blob[0], &err) != MS_OK)
+        fail_msg("%s", err.text);
+    /* header: precision 0 and 9, unknown colour flags, colour fields without the flag */
+    assert_int_equal(open_damaged(blob, size, 106, 0, &err), MS_ERR_FORMAT);
+    assert_non_null(strstr(err.text, "colour precision 0 outside 1..8"));
+    assert_int_equal(open_damaged(blob, size, 106, 9, &err), MS_ERR_FORMAT);
+    assert_int_equal(open_damaged(blob, size, 107, 2, &err), MS_ERR_FORMAT);
+    assert_int_equal(open_damaged(blob, size, 51, blob[51] & ~2u, &err), MS_ERR_FORMAT);
+    /* the root's colour prefix table: not monotone, past the payload area */
+    const ms_archive_cell *root = ms_archive_get_cell(a, 0);
+    size_t window = (size_t)root->bits_max - root->bits_min + 1;
+    size_t table = MS_ARCHIVE_HEADER_SIZE + (size_t)h->cell_count * MS_ARCHIVE_RECORD_SIZE +
+                   4 * ((size_t)root->table_first + window + 2u * root->apo_levels);
+    assert_int_equal(open_damaged(blob, size, table + 3, 0x7F, &err), MS_ERR_FORMAT);
+    assert_non_null(strstr(err.text, "cell 0: colour prefix table is not monotone"));
+    assert_int_equal(open_damaged(blob, size, table + 4 * (window - 1) + 3, 0x7F, &err),
+                     MS_ERR_FORMAT);
+    assert_non_null(strstr(err.text, "cell 0: colour stream outside the payload area"));
+    assert_null(strchr(err.text, '\n'));
+    /* a damaged stream: its CRC; without the CRC, the stitch says so in one line */
+    size_t len;
+    const uint8_t *col = ms_archive_colour(a, 0, &len);
+    uint8_t *bad = malloc(len);
+    memcpy(bad, col, len);
+    bad[len - 3] ^= 0x5A;
+    assert_int_equal(ms_archive_check_colour(a, 0, bad, len, &err), MS_ERR_CORRUPT);
+    assert_string_equal(err.text, "cell 0: colour stream checksum mismatch");
+    assert_int_equal(ms_archive_check_colour(a, 0, col, len - 1, &err), MS_ERR_CORRUPT);
+    ms_archive_cell *recs = malloc(h->cell_count * sizeof *recs);
+    for (uint32_t i = 0; i < h->cell_count; ++i)
+        recs[i] = *ms_archive_get_cell(a, i);
+    ms_view *v;
+    assert_int_equal(ms_view_create(h, recs, &v, &err), MS_OK);
+    free(recs);
+    size_t glen;
+    const uint8_t *g = ms_archive_geometry(a, 0, &glen);
+    assert_int_equal(ms_view_set_bytes(v, 0, g, glen, &err), MS_OK);
+    assert_int_equal(ms_view_set_colour_bytes(v, 0, bad, len, &err), MS_OK);
+    assert_int_equal(ms_view_set_bits(v, 0, root->bits_max, &err), MS_OK);
+    ms_view_mesh m = {0};
+    assert_int_not_equal(ms_view_stitch(v, NULL, &m, &err), MS_OK);
+    assert_non_null(strstr(err.text, "cell 0: colour stream: "));
+    assert_null(strchr(err.text, '\n'));
+    ms_view_mesh_free(&m);
+    ms_view_destroy(v);
+    free(bad);
+    ms_archive_close(a);
+    ms_test_rmdir(dir);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_trefoil_full_and_coarse),
+        cmocka_unit_test(test_prefixes),
+        cmocka_unit_test(test_without_colour),
+        cmocka_unit_test(test_hostile),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
