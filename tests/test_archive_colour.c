@@ -18,11 +18,14 @@
 #include <cmocka.h>
 
 #include "ms_archive.h"
+#include "ms_camera.h"
+#include "ms_client_core.h"
 #include "ms_colour.h"
 #include "ms_mesh_io.h"
 #include "ms_nsp_check.h"
 #include "ms_quant.h"
 #include "ms_test.h"
+#include "ms_test_core.h"
 #include "ms_view_decoder.h"
 
 #define FIXTURE "trefoil_color.ply.gz"
@@ -402,6 +405,54 @@ static void test_hostile(void **state)
     ms_test_rmdir(dir);
 }
 
+/* The client core in local mode: its frames carry the colours, each vertex
+ * its kd-cell's at the precision shown (docs/CLIENT.md). */
+static void test_client_core_local(void **state)
+{
+    (void)state;
+    char dir[512], model[4096];
+    ms_test_tmpdir(dir, sizeof dir);
+    ms_bake_report rep;
+    bake(dir, "trefoil", 8, false, &rep);
+    ms_archive *a;
+    ms_error err;
+    assert_int_equal(ms_archive_open(rep.archive_path, &a, &err), MS_OK);
+    const ms_archive_header *h = ms_archive_get_header(a);
+    welded w;
+    weld_input(ms_test_model_path(model, sizeof model, FIXTURE), h, &w);
+    double centre[3], eye[3], up[3] = {0, 1, 0};
+    for (int k = 0; k < 3; ++k)
+        centre[k] = h->box_origin[k] + h->box_side / 2;
+    memcpy(eye, centre, sizeof eye);
+    eye[2] += 1.5 * h->box_side;
+    ms_camera cam;
+    assert_int_equal(ms_camera_look_at(eye, centre, up, 50, 640, 480, 1e-3 * h->box_side,
+                                       10 * h->box_side, &cam, &err), MS_OK);
+    const double tolerances[2] = {4.0, 0.02}; /* mixed precisions, then (near) full */
+    for (int t = 0; t < 2; ++t) {
+        ms_core_options o = {0};
+        o.archive_path = rep.archive_path;
+        o.tolerance_px = tolerances[t];
+        o.hysteresis_bits = 0;
+        o.export_frames = true;
+        ms_core *core;
+        assert_int_equal(ms_core_start(&o, &core, &err), MS_OK);
+        ms_core_set_camera(core, &cam);
+        ms_core_stats st;
+        ms_core_frame *frame = NULL;
+        if (!ms_test_core_wait_complete(core, 60, &st, &frame))
+            fail_msg("view not complete: '%s'", st.error);
+        assert_non_null(frame);
+        assert_true(frame->mesh.vertex_count > 0);
+        check_colours(&frame->mesh, &w, h->bits, 8);
+        ms_core_frame_free(frame);
+        ms_core_stop(core);
+    }
+    ms_archive_close(a);
+    welded_free(&w);
+    ms_test_rmdir(dir);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -409,6 +460,7 @@ int main(void)
         cmocka_unit_test(test_prefixes),
         cmocka_unit_test(test_without_colour),
         cmocka_unit_test(test_hostile),
+        cmocka_unit_test(test_client_core_local),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

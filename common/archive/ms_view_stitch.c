@@ -341,17 +341,11 @@ static ms_status add_run(ms_view_mesh *m, uint32_t cell, size_t first, uint64_t 
     return MS_OK;
 }
 
-ms_status ms_view_stitch(ms_view *v, const bool *visible, ms_view_mesh *m, ms_error *err)
+/* A new stamp for every cell whose state, precision or colour bytes changed
+ * since the last stitch (a cell whose group was freed and made again starts
+ * hidden at 0 bits with stamp 0, so it gets one as soon as it differs). */
+static void renew_stamps(ms_view *v)
 {
-    uint8_t *snapped = NULL;
-    size_t snapped_cap = 0;
-    m->vertex_count = m->triangle_count = 0;
-    m->dropped_finer = m->dropped_snapped = m->unresolved = m->snapped_frozen = 0;
-    m->run_count = 0;
-    ms_status s = MS_OK;
-    /* A new stamp for every cell whose state or precision changed since the
-     * last stitch (a cell whose group was freed and made again starts hidden
-     * at 0 bits with stamp 0, so it gets one as soon as it differs). */
     for (uint32_t id = 0; id != MS_ARCHIVE_NONE; id = ms_view_next_known(v, id)) {
         vcell *c = ms_view_vcell(v, id);
         if (c && (c->state != c->stitched_state || c->bits != c->stitched_bits ||
@@ -362,6 +356,31 @@ ms_status ms_view_stitch(ms_view *v, const bool *visible, ms_view_mesh *m, ms_er
             c->stamp = ++v->stitch_stamps;
         }
     }
+}
+
+/* Colours per vertex when some shown cell has its colour (docs/COLOUR.md §1:
+ * each vertex its kd-cell's colour at the colour decoded), else NULL; the
+ * array follows vertex_cap (mesh_room). */
+static ms_status colour_room(ms_view_mesh *m, bool coloured, ms_error *err)
+{
+    if (!coloured) {
+        free(m->colours);
+        m->colours = NULL;
+    } else if (!m->colours && !(m->colours = malloc(4 * (m->vertex_cap ? m->vertex_cap : 1)))) {
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory stitching");
+    }
+    return MS_OK;
+}
+
+ms_status ms_view_stitch(ms_view *v, const bool *visible, ms_view_mesh *m, ms_error *err)
+{
+    uint8_t *snapped = NULL;
+    size_t snapped_cap = 0;
+    m->vertex_count = m->triangle_count = 0;
+    m->dropped_finer = m->dropped_snapped = m->unresolved = m->snapped_frozen = 0;
+    m->run_count = 0;
+    ms_status s = MS_OK;
+    renew_stamps(v);
     /* Caches, colours and owners of every shown cell. */
     bool coloured = false;
     for (uint32_t id = 0; id != MS_ARCHIVE_NONE && s == MS_OK; id = ms_view_next_known(v, id)) {
@@ -378,15 +397,8 @@ ms_status ms_view_stitch(ms_view *v, const bool *visible, ms_view_mesh *m, ms_er
             c->owner[i] = owner_of(v, c->cache.cells[i], c->cache.level, &end);
         }
     }
-    /* colours: per vertex when some shown cell has its colour (docs/COLOUR.md
-     * §1: each vertex its kd-cell's colour at the colour decoded), else NULL */
-    if (s == MS_OK && coloured && !m->colours &&
-        !(m->colours = malloc(4 * (m->vertex_cap ? m->vertex_cap : 1))))
-        s = ms_error_set(err, MS_ERR_NOMEM, "out of memory stitching");
-    if (!coloured) {
-        free(m->colours);
-        m->colours = NULL;
-    }
+    if (s == MS_OK)
+        s = colour_room(m, coloured, err);
     for (uint32_t id = 0; id != MS_ARCHIVE_NONE && s == MS_OK; id = ms_view_next_known(v, id)) {
         vcell *c = ms_view_vcell(v, id);
         if (!c || c->state != MS_VIEW_SHOWN || (visible && !visible[id]))
