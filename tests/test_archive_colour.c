@@ -2,8 +2,8 @@
  * meshbake bakes the colour trefoil fixture's colour as each cell's own
  * section; the view decoder, fully refined, gives every stitched vertex
  * exactly its welded input colour; coarse cuts give each vertex its kd-cell's
- * colour by the rule of docs/COLOUR.md §1 (an independent implementation
- * here); every colour prefix decodes; a model without colour, or a bake with
+ * colour by the rule of docs/COLOUR.md §1 (an independent implementation,
+ * tests/support/ms_colour_check.c); every colour prefix decodes; a model without colour, or a bake with
  * no_colour, stitches with colours NULL; damaged colour tables, header fields
  * and streams are refused with one line. */
 #include <setjmp.h>
@@ -21,6 +21,7 @@
 #include "ms_camera.h"
 #include "ms_client_core.h"
 #include "ms_colour.h"
+#include "ms_colour_check.h"
 #include "ms_mesh_io.h"
 #include "ms_nsp_check.h"
 #include "ms_quant.h"
@@ -29,118 +30,6 @@
 #include "ms_view_decoder.h"
 
 #define FIXTURE "trefoil_color.ply.gz"
-
-/* The welded input: per distinct key (sorted) the rounded mean of its input
- * colours, computed here from the loaded mesh. */
-typedef struct welded {
-    size_t n;
-    uint64_t *keys;
-    uint8_t *rgba;
-    bool alpha;
-} welded;
-
-static int cmp_key(const void *x, const void *y)
-{
-    const uint64_t *a = x, *b = y; /* key, input index */
-    return a[0] != b[0] ? (a[0] < b[0] ? -1 : 1) : (a[1] < b[1] ? -1 : a[1] > b[1]);
-}
-
-static void weld_input(const char *path, const ms_archive_header *h, welded *w)
-{
-    ms_mesh mesh;
-    ms_error err;
-    if (ms_mesh_load(path, &mesh, NULL, &err) != MS_OK)
-        fail_msg("%s", err.text);
-    assert_non_null(mesh.colours);
-    ms_quant_box box = {{h->box_origin[0], h->box_origin[1], h->box_origin[2]}, h->box_side};
-    size_t V = mesh.vertex_count;
-    uint64_t *pairs = malloc(2 * V * sizeof *pairs);
-    for (size_t v = 0; v < V; ++v) {
-        uint32_t q[3];
-        for (int a = 0; a < 3; ++a)
-            q[a] = ms_quantise(&box, h->bits, a, mesh.positions[3 * v + (size_t)a]);
-        pairs[2 * v] = ms_quant_key(q[0], q[1], q[2], h->bits);
-        pairs[2 * v + 1] = v;
-    }
-    qsort(pairs, V, 2 * sizeof *pairs, cmp_key);
-    w->keys = malloc(V * sizeof *w->keys);
-    w->rgba = malloc(4 * V);
-    w->n = 0;
-    w->alpha = mesh.colour_alpha;
-    for (size_t i = 0; i < V;) {
-        size_t j = i;
-        unsigned sum[4] = {0, 0, 0, 0};
-        for (; j < V && pairs[2 * j] == pairs[2 * i]; ++j)
-            for (int k = 0; k < 4; ++k)
-                sum[k] += mesh.colours[4 * pairs[2 * j + 1] + (size_t)k];
-        unsigned cnt = (unsigned)(j - i);
-        w->keys[w->n] = pairs[2 * i];
-        for (int k = 0; k < 4; ++k)
-            w->rgba[4 * w->n + (size_t)k] = (uint8_t)((2 * sum[k] + cnt) / (2 * cnt));
-        w->n++;
-        i = j;
-    }
-    free(pairs);
-    ms_mesh_free(&mesh);
-}
-
-static void welded_free(welded *w)
-{
-    free(w->keys);
-    free(w->rgba);
-}
-
-/* The rule, level by level: the colour (c-bit channels) of the vertices
- * [lo, hi) lying in one kd-cell of level L (3p-bit keys). */
-static void rule_ref(const welded *w, unsigned p, unsigned c, size_t lo, size_t hi, unsigned L,
-                     unsigned out[4])
-{
-    if (L == 3 * p) {
-        assert_int_equal(hi - lo, 1);
-        for (int k = 0; k < 4; ++k)
-            out[k] = w->rgba[4 * lo + (size_t)k] >> (8 - c);
-        return;
-    }
-    unsigned bit = 3 * p - 1 - L;
-    size_t m = lo;
-    while (m < hi && !((w->keys[m] >> bit) & 1))
-        ++m;
-    if (m == lo || m == hi) {
-        rule_ref(w, p, c, lo, hi, L + 1, out);
-        return;
-    }
-    unsigned a[4], b[4];
-    rule_ref(w, p, c, lo, m, L + 1, a);
-    rule_ref(w, p, c, m, hi, L + 1, b);
-    for (int k = 0; k < 4; ++k)
-        out[k] = (a[k] + b[k]) / 2;
-}
-
-/* Every stitched vertex's colour is its kd-cell's by the rule at c bits,
- * widened (alpha 255 without alpha in the input). */
-static void check_colours(const ms_view_mesh *m, const welded *w, unsigned p, unsigned c)
-{
-    assert_non_null(m->colours);
-    for (size_t k = 0; k < m->vertex_count; ++k) {
-        unsigned shift = 3 * p - m->levels[k];
-        uint64_t first = m->keys[k], end = first + (1ull << shift);
-        size_t lo = 0;
-        while (lo < w->n && w->keys[lo] < first)
-            ++lo;
-        size_t hi = lo;
-        while (hi < w->n && w->keys[hi] < end)
-            ++hi;
-        assert_true(hi > lo);
-        unsigned want[4];
-        rule_ref(w, p, c, lo, hi, m->levels[k], want);
-        for (int ch = 0; ch < 4; ++ch) {
-            unsigned expect = ch == 3 && !w->alpha ? 255 : ms_colour_widen(want[ch], c);
-            if (m->colours[4 * k + (size_t)ch] != expect)
-                fail_msg("vertex %zu (level %u) channel %d: %u, expected %u", k, m->levels[k],
-                         ch, m->colours[4 * k + (size_t)ch], expect);
-        }
-    }
-}
 
 static void bake(const char *dir, const char *name, unsigned colour_bits, bool no_colour,
                  ms_bake_report *rep)
@@ -192,21 +81,21 @@ static void test_trefoil_full_and_coarse(void **state)
         for (uint32_t cell = 0; cell < h->cell_count; ++cell)
             sum += ms_archive_colour_length(a, cell);
         assert_int_equal(sum, rep.colour_bytes);
-        welded w;
-        weld_input(ms_test_model_path(model, sizeof model, FIXTURE), h, &w);
+        ms_colour_test_welded w;
+        ms_colour_test_weld(ms_test_model_path(model, sizeof model, FIXTURE), h, &w);
         ms_view_mesh m = {0};
         ms_error err;
         for (unsigned b = 0; b <= h->root_bits; ++b) {
             assert_int_equal(ms_view_set_bits(v, 0, b, &err), MS_OK);
             assert_int_equal(ms_view_stitch(v, NULL, &m, &err), MS_OK);
-            check_colours(&m, &w, h->bits, c);
+            ms_colour_test_check(&m, &w, h->bits, c);
         }
         ms_nsp_test_decode_all(v);
         if (ms_view_stitch(v, NULL, &m, &err) != MS_OK)
             fail_msg("%s", err.text);
         assert_int_equal(m.vertex_count, w.n);
         assert_int_equal(m.vertex_count, rep.vertices);
-        check_colours(&m, &w, h->bits, c);
+        ms_colour_test_check(&m, &w, h->bits, c);
         if (c == 8) /* lossless: the input's own colours */
             for (size_t k = 0; k < m.vertex_count; ++k) {
                 size_t i = 0;
@@ -217,7 +106,7 @@ static void test_trefoil_full_and_coarse(void **state)
         ms_view_mesh_free(&m);
         ms_view_destroy(v);
         ms_archive_close(a);
-        welded_free(&w);
+        ms_colour_test_welded_free(&w);
     }
     ms_test_rmdir(dir);
 }
@@ -236,8 +125,8 @@ static void test_prefixes(void **state)
     ms_error err;
     assert_int_equal(ms_archive_open(rep.archive_path, &a, &err), MS_OK);
     const ms_archive_header *h = ms_archive_get_header(a);
-    welded w;
-    weld_input(ms_test_model_path(model, sizeof model, FIXTURE), h, &w);
+    ms_colour_test_welded w;
+    ms_colour_test_weld(ms_test_model_path(model, sizeof model, FIXTURE), h, &w);
     ms_archive_cell *recs = malloc(h->cell_count * sizeof *recs);
     for (uint32_t i = 0; i < h->cell_count; ++i)
         recs[i] = *ms_archive_get_cell(a, i);
@@ -260,7 +149,7 @@ static void test_prefixes(void **state)
             fail_msg("root prefix %zu: %s", len, err.text);
         assert_int_equal(m.colours != NULL, len >= ms_archive_colour_prefix(a, 0, 0));
     }
-    check_colours(&m, &w, h->bits, 8);
+    ms_colour_test_check(&m, &w, h->bits, 8);
     ms_nsp_test_decode_all(v);
     assert_int_equal(ms_view_stitch(v, NULL, &m, &err), MS_OK);
     for (unsigned b = 0; b <= h->bits; ++b) {
@@ -274,11 +163,11 @@ static void test_prefixes(void **state)
             fail_msg("prefix at %u bits: %s", b, err.text);
         assert_non_null(m.colours);
     }
-    check_colours(&m, &w, h->bits, 8);
+    ms_colour_test_check(&m, &w, h->bits, 8);
     ms_view_mesh_free(&m);
     ms_view_destroy(v);
     ms_archive_close(a);
-    welded_free(&w);
+    ms_colour_test_welded_free(&w);
     ms_test_rmdir(dir);
 }
 
@@ -418,8 +307,8 @@ static void test_client_core_local(void **state)
     ms_error err;
     assert_int_equal(ms_archive_open(rep.archive_path, &a, &err), MS_OK);
     const ms_archive_header *h = ms_archive_get_header(a);
-    welded w;
-    weld_input(ms_test_model_path(model, sizeof model, FIXTURE), h, &w);
+    ms_colour_test_welded w;
+    ms_colour_test_weld(ms_test_model_path(model, sizeof model, FIXTURE), h, &w);
     double centre[3], eye[3], up[3] = {0, 1, 0};
     for (int k = 0; k < 3; ++k)
         centre[k] = h->box_origin[k] + h->box_side / 2;
@@ -444,12 +333,12 @@ static void test_client_core_local(void **state)
             fail_msg("view not complete: '%s'", st.error);
         assert_non_null(frame);
         assert_true(frame->mesh.vertex_count > 0);
-        check_colours(&frame->mesh, &w, h->bits, 8);
+        ms_colour_test_check(&frame->mesh, &w, h->bits, 8);
         ms_core_frame_free(frame);
         ms_core_stop(core);
     }
     ms_archive_close(a);
-    welded_free(&w);
+    ms_colour_test_welded_free(&w);
     ms_test_rmdir(dir);
 }
 

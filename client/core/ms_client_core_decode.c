@@ -349,8 +349,6 @@ static void dec_pass_begin(ms_core *c, const ms_camera *cam, dec_pass *pass)
     memset(pass, 0, sizeof *pass);
     pass->cam = cam;
     pass->apo_on = c->o.apo_levels > 0 && h->has_apo;
-    /* colour: in local mode (the doors do not carry colour streams yet) */
-    pass->colour_on = h->has_colour && c->archive_path != NULL;
     pass->fv.cam = *cam;
     ms_camera_frustum(cam, &pass->fv.frustum);
     pass->base_tol = pass->apo_on ? c->o.apo_geometry_tolerance_px : c->o.tolerance_px;
@@ -366,6 +364,8 @@ static void dec_pass_begin(ms_core *c, const ms_camera *cam, dec_pass *pass)
      * (PROTOCOL.md sections 4.10 and 8: a client need never trip FORBIDDEN). */
     pthread_mutex_lock(&c->lock);
     c->preview_steps = c->permitted_geometry_steps;
+    /* colour: from a local archive, or a connection that negotiated CAP_COLOUR */
+    pass->colour_on = h->has_colour && c->colour_served;
     pthread_mutex_unlock(&c->lock);
     pass->sp = (ms_view_select_params){.tolerance_px = pass->fv.tolerance,
                                        .margin = c->o.frustum_margin,

@@ -221,6 +221,7 @@ struct ms_core {
      * steps this reader may read; 0 until known, and in local mode (the file
      * holds everything) */
     uint8_t permitted_geometry_steps;
+    bool colour_served;      /* the connection negotiated CAP_COLOUR (or a local archive) */
     want *wants;
     size_t want_count;
     uint64_t want_serial;

@@ -96,6 +96,7 @@ void *ms_core_local_main(void *arg)
     c->index_new = true;
     c->stats.index_bytes_received = index_size;
     c->connected = c->model_open = true;
+    c->colour_served = true;
     pthread_cond_broadcast(&c->wake);
     for (;;) {
         /* a fresh list, computed after the decode thread took what we handed */
