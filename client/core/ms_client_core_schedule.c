@@ -265,6 +265,11 @@ void ms_core_schedule(ms_core *c, dec_pass *pass)
         pass->failed += ms_core_dcell(c, i)->failed;
         if (st == MS_VIEW_SPLIT) {
             pass->split++;
+            /* its children take their base colours from its whole stream */
+            const ms_archive_cell *rec = ms_archive_get_cell(c->index, i);
+            bool visible;
+            double need = ms_core_cell_need(c, &pass->fv, i, &visible);
+            pass->loading += schedule_colour(c, pass, i, rec->bits_max, visible, need);
         } else if (st == MS_VIEW_HIDDEN) {
             pass->cached += ms_view_held_bytes(c->view, i) > 0;
             schedule_prefetch(c, pass, i);

@@ -10,6 +10,12 @@ void ms_view_colour_drop(vcell *c)
 {
     ms_colour_decoder_destroy(c->cdec);
     c->cdec = NULL;
+    c->colour_based = false;
+    free(c->top_cells);
+    free(c->top_colours);
+    c->top_cells = NULL;
+    c->top_colours = NULL;
+    c->top_n = 0;
     free(c->cache_colours);
     c->cache_colours = NULL;
     c->colour_valid = false;
@@ -68,15 +74,18 @@ static ms_status colour_fail(vcell *c, uint32_t cell, ms_status st, const ms_err
     return ms_error_set(err, st, "cell %u: colour stream: %s", cell, inner->text);
 }
 
-ms_status ms_view_colour_refresh(vcell *c, uint32_t cell, ms_error *err)
+static ms_status parent_top(ms_view *v, uint32_t cell, bool *ok, ms_error *err);
+
+/* The cell's colour decoder with its base: *ready false while the bytes or
+ * (a stream whose base its parent gives) the parent's whole colour are not
+ * there yet. */
+static ms_status colour_decoder(ms_view *v, uint32_t cell, vcell *c, bool *ready, ms_error *err)
 {
-    if (c->colour_valid || c->colour_nbytes == 0 || !c->cache_valid)
-        return MS_OK;
-    size_t n = c->cache.vertex_count;
-    if (n == 0)
-        return MS_OK;
+    *ready = false;
     ms_error inner;
     ms_status st = MS_OK;
+    if (c->colour_nbytes == 0)
+        return MS_OK;
     if (!c->cdec &&
         (st = ms_colour_decoder_create(c->colour_bytes, c->colour_nbytes, NULL, &c->cdec, &inner)) !=
             MS_OK) {
@@ -87,8 +96,105 @@ ms_status ms_view_colour_refresh(vcell *c, uint32_t cell, ms_error *err)
                    ? MS_OK
                    : colour_fail(c, cell, st, &inner, err);
     }
-    if (!ms_colour_decoder_has_base(c->cdec))
+    if (!c->colour_based && ms_colour_decoder_header(c->cdec)->base_given) {
+        bool ok = false;
+        if (!c->has_start || c->rec.parent == MS_ARCHIVE_NONE)
+            return c->rec.parent == MS_ARCHIVE_NONE
+                       ? ms_error_set(err, MS_ERR_CORRUPT,
+                                      "cell %u: colour stream: the root's takes no base", cell)
+                       : MS_OK;
+        if ((st = parent_top(v, c->rec.parent, &ok, err)) != MS_OK || !ok)
+            return st;
+        const vcell *p = ms_view_vcell(v, c->rec.parent);
+        size_t n = c->start.vertex_count;
+        uint8_t *rgba = malloc(4 * (n ? n : 1));
+        if (!rgba)
+            return ms_error_set(err, MS_ERR_NOMEM, "out of memory for cell %u's colours", cell);
+        size_t j = 0;
+        for (size_t i = 0; i < n && st == MS_OK; ++i) {
+            while (j < p->top_n && p->top_cells[j] < c->start.cells[i])
+                ++j;
+            if (j == p->top_n || p->top_cells[j] != c->start.cells[i])
+                st = ms_error_set(err, MS_ERR_CORRUPT, "cell %u: start cell not in its parent", cell);
+            else
+                memcpy(rgba + 4 * i, p->top_colours + 4 * j, 4);
+        }
+        if (st == MS_OK &&
+            (st = ms_colour_decoder_set_base(c->cdec, c->start.cells, n, rgba, &inner)) != MS_OK)
+            st = colour_fail(c, cell, st, &inner, err);
+        free(rgba);
+        if (st != MS_OK)
+            return st;
+    }
+    c->colour_based = true;
+    *ready = ms_colour_decoder_has_base(c->cdec);
+    return MS_OK;
+}
+
+/* The colours of a (split) cell's complex at bits_max, decoded from its whole
+ * colour stream, kept for its children's bases: *ok false while they cannot
+ * be had yet. */
+static ms_status parent_top(ms_view *v, uint32_t cell, bool *ok, ms_error *err)
+{
+    *ok = false;
+    vcell *p = ms_view_vcell(v, cell);
+    if (!p || p->state == MS_VIEW_HIDDEN)
         return MS_OK;
+    if (p->top_colours) {
+        *ok = true;
+        return MS_OK;
+    }
+    bool ready;
+    ms_status st = colour_decoder(v, cell, p, &ready, err);
+    unsigned top = 3u * p->rec.bits_max;
+    if (st != MS_OK || !ready || ms_colour_decoder_available_level(p->cdec) < top)
+        return st;
+    ms_codec_state s;
+    memset(&s, 0, sizeof s);
+    const ms_codec_state *at = &s;
+    if (p->cache_valid && p->cache_bits == p->rec.bits_max)
+        at = &p->cache;
+    else if ((st = ms_view_cell_state_copy(v, cell, &s, err)) != MS_OK)
+        return st;
+    ms_error inner;
+    size_t n = at->vertex_count;
+    p->top_cells = malloc((n ? n : 1) * sizeof *p->top_cells);
+    p->top_colours = malloc(4 * (n ? n : 1));
+    if (!p->top_cells || !p->top_colours)
+        st = ms_error_set(err, MS_ERR_NOMEM, "out of memory for cell %u's colours", cell);
+    else if (ms_colour_decoder_level(p->cdec) < top &&
+             (st = ms_colour_decoder_refine(p->cdec, at, top, &inner)) != MS_OK)
+        st = colour_fail(p, cell, st, &inner, err);
+    else if ((st = ms_colour_decoder_colours(p->cdec, at->cells, n, at->level, p->top_colours,
+                                             &inner)) != MS_OK)
+        st = colour_fail(p, cell, st, &inner, err);
+    if (st == MS_OK) {
+        memcpy(p->top_cells, at->cells, n * sizeof *at->cells);
+        p->top_n = n;
+        *ok = true;
+    } else if (p->top_cells || p->top_colours) {
+        free(p->top_cells);
+        free(p->top_colours);
+        p->top_cells = NULL;
+        p->top_colours = NULL;
+    }
+    ms_codec_state_free(&s);
+    return st;
+}
+
+ms_status ms_view_colour_refresh(ms_view *v, uint32_t cell, ms_error *err)
+{
+    vcell *c = ms_view_vcell(v, cell);
+    if (!c || c->colour_valid || c->colour_nbytes == 0 || !c->cache_valid)
+        return MS_OK;
+    size_t n = c->cache.vertex_count;
+    if (n == 0)
+        return MS_OK;
+    bool ready;
+    ms_status st = colour_decoder(v, cell, c, &ready, err);
+    if (st != MS_OK || !ready)
+        return st;
+    ms_error inner;
     unsigned target = c->cache.level, available = ms_colour_decoder_available_level(c->cdec);
     if (target > available)
         target = available;
@@ -103,5 +209,6 @@ ms_status ms_view_colour_refresh(vcell *c, uint32_t cell, ms_error *err)
                                         &inner)) != MS_OK)
         return colour_fail(c, cell, st, &inner, err);
     c->colour_valid = true;
+    c->colour_rev++; /* its stitched triangles' colours changed (run_version) */
     return MS_OK;
 }

@@ -38,6 +38,10 @@ typedef struct vcell {
     uint8_t *colour_bytes;
     size_t colour_nbytes;
     ms_colour_decoder *cdec;
+    bool colour_based;      /* cdec has its base colours (its own, or given from the parent) */
+    uint64_t *top_cells;    /* once its whole colour is decoded: its cells at bits_max and */
+    uint8_t *top_colours;   /* their colours, the base its children's streams take */
+    size_t top_n;
     uint8_t *cache_colours;
     bool colour_valid;
     uint32_t colour_rev, stitched_colour_rev; /* renewed with every new colour byte */
@@ -100,9 +104,10 @@ void ms_view_colour_drop(vcell *c);
 void ms_view_colour_free(vcell *c);
 /* Whether the cell can give colours (it holds its colour stream's base). */
 bool ms_view_colour_ready(const vcell *c);
-/* Fills c->cache_colours for the cell's valid cache (decoding its colour as
- * far as the cache's level and the bytes allow): one line on a damaged
+/* Fills the cache colours of cell (its valid cache; decoding its colour as far
+ * as the cache's level and the bytes allow, its base from its parent's whole
+ * colour stream when the stream takes it from there): one line on a damaged
  * stream. */
-ms_status ms_view_colour_refresh(vcell *c, uint32_t cell, ms_error *err);
+ms_status ms_view_colour_refresh(ms_view *view, uint32_t cell, ms_error *err);
 
 #endif

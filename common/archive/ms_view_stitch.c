@@ -380,7 +380,6 @@ ms_status ms_view_stitch(ms_view *v, const bool *visible, ms_view_mesh *m, ms_er
     m->dropped_finer = m->dropped_snapped = m->unresolved = m->snapped_frozen = 0;
     m->run_count = 0;
     ms_status s = MS_OK;
-    renew_stamps(v);
     /* Caches, colours and owners of every shown cell. */
     bool coloured = false;
     for (uint32_t id = 0; id != MS_ARCHIVE_NONE && s == MS_OK; id = ms_view_next_known(v, id)) {
@@ -388,7 +387,7 @@ ms_status ms_view_stitch(ms_view *v, const bool *visible, ms_view_mesh *m, ms_er
         if (!c || c->state != MS_VIEW_SHOWN)
             continue;
         if ((s = refresh_cache(v, id, err)) != MS_OK ||
-            (s = ms_view_colour_refresh(c, id, err)) != MS_OK)
+            (s = ms_view_colour_refresh(v, id, err)) != MS_OK)
             break;
         coloured |= ms_view_colour_ready(c);
         for (size_t i = 0; i < c->cache.vertex_count; ++i) {
@@ -397,6 +396,8 @@ ms_status ms_view_stitch(ms_view *v, const bool *visible, ms_view_mesh *m, ms_er
             c->owner[i] = owner_of(v, c->cache.cells[i], c->cache.level, &end);
         }
     }
+    /* after the caches: a cell whose colours came in this stitch renews too */
+    renew_stamps(v);
     if (s == MS_OK)
         s = colour_room(m, coloured, err);
     for (uint32_t id = 0; id != MS_ARCHIVE_NONE && s == MS_OK; id = ms_view_next_known(v, id)) {

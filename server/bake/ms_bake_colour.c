@@ -186,15 +186,45 @@ ms_status ms_bake_colour_of(const ms_bake_colours *t, uint64_t key, unsigned lev
     return MS_OK;
 }
 
+/* Whether a cell's stream takes its base from its parent: not the root, and
+ * every cube of the chain lies at or above its cell's first level. */
+static bool base_from_parent(const ms_bake_colour_cube *chain, size_t chain_n)
+{
+    if (chain_n < 2)
+        return false;
+    for (size_t i = 0; i < chain_n; ++i)
+        if (chain[i].cube_level > 3 * chain[i].lo)
+            return false;
+    return true;
+}
+
+ms_status ms_bake_colour_decoded(const ms_bake_colours *t, const ms_bake_colour_cube *chain,
+                                 size_t chain_n, uint64_t key, unsigned level,
+                                 unsigned colour_bits, uint32_t *rgba, ms_error *err)
+{
+    for (size_t i = 0; i + 1 < chain_n; ++i) {
+        const ms_bake_colour_cube *x = &chain[i];
+        if (key >> (level - x->cube_level) == x->cube)
+            break; /* inside the cell's cube: its own colour */
+        /* foreign: its ancestor at the cell's first level, as the parent gives it */
+        key >>= level - 3 * x->lo;
+        level = 3 * x->lo;
+    }
+    return ms_bake_colour_of(t, key, level, colour_bits, rgba, err);
+}
+
 ms_status ms_bake_colour_cell(const ms_bake_colours *t, const ms_codec_state *st,
-                              const uint8_t *freeze, unsigned lo, unsigned colour_bits,
-                              uint8_t **out, size_t *size, uint32_t *table, ms_error *err)
+                              const uint8_t *freeze, const ms_bake_colour_cube *chain,
+                              size_t chain_n, unsigned colour_bits, uint8_t **out, size_t *size,
+                              uint32_t *table, ms_error *err)
 {
     *out = NULL;
     *size = 0;
     size_t n = st->vertex_count;
     if (n == 0)
         return MS_OK;
+    unsigned lo = chain[0].lo;
+    bool given = base_from_parent(chain, chain_n);
     if (st->level != 3 * st->bits || st->bits > t->bits || lo > st->bits)
         return ms_error_set(err, MS_ERR_ARG, "colour: a cell's complex at level %u of %u bits",
                             st->level, st->bits);
@@ -203,7 +233,9 @@ ms_status ms_bake_colour_cell(const ms_bake_colours *t, const ms_codec_state *st
     ms_status s = cells && rgba ? MS_OK : ms_error_set(err, MS_ERR_NOMEM, "colour: out of memory");
     for (size_t v = 0; s == MS_OK && v < n; ++v) {
         uint32_t c = 0;
-        s = ms_bake_colour_of(t, st->cells[v], st->level, colour_bits, &c, err);
+        s = given ? ms_bake_colour_decoded(t, chain, chain_n, st->cells[v], st->level, colour_bits,
+                                           &c, err)
+                  : ms_bake_colour_of(t, st->cells[v], st->level, colour_bits, &c, err);
         for (unsigned k = 0; k < 4; ++k)
             rgba[4 * v + k] = (uint8_t)(c >> (8 * k));
         cells[v] = st->cells[v];
@@ -215,7 +247,8 @@ ms_status ms_bake_colour_cell(const ms_bake_colours *t, const ms_codec_state *st
     ms_codec_state coded = *st;
     coded.cells = cells;
     coded.rep = NULL;
-    ms_colour_encode_params par = {.p_min = lo, .colour_bits = colour_bits, .alpha = t->alpha};
+    ms_colour_encode_params par = {
+        .p_min = lo, .colour_bits = colour_bits, .alpha = t->alpha, .base_given = given};
     if (s == MS_OK)
         s = ms_colour_encode(&coded, rgba, &par, out, size, err);
     ms_colour_header h;

@@ -52,13 +52,38 @@ void ms_bake_colours_free(ms_bake_colours *c);
 ms_status ms_bake_colour_of(const ms_bake_colours *c, uint64_t key, unsigned level,
                             unsigned colour_bits, uint32_t *rgba, ms_error *err);
 
+/* A cell of the tree as the colour of its vertices needs it: its cube (the
+ * kd prefix `cube` at kd-level cube_level = 3 log2(n) depth; the root's: 0, 0)
+ * and its window's first precision lo. */
+typedef struct ms_bake_colour_cube {
+    uint64_t cube;
+    unsigned cube_level;
+    unsigned lo;
+} ms_bake_colour_cube;
+
+/* The colour a cell's stream decodes for the kd-cell `key` of kd-level
+ * `level` (3 bits_max of chain[0]) of its complex at bits_max, chain[0] the
+ * cell, chain[1] its parent, ..., the root last (chain_n cells): a kd-cell
+ * inside the cell's cube (or any of the root's) has its model-wide colour by
+ * the rule; a foreign one the colour of its ancestor at the cell's first
+ * level, which the cell's stream takes from its parent (docs/ARCHIVE.md,
+ * "Colour streams"). Packed as ms_bake_colour_of gives it. */
+ms_status ms_bake_colour_decoded(const ms_bake_colours *c, const ms_bake_colour_cube *chain,
+                                 size_t chain_n, uint64_t key, unsigned level,
+                                 unsigned colour_bits, uint32_t *rgba, ms_error *err);
+
 /* A cell's colour stream: st is its complex at bits_max (= st->bits), freeze
- * (NULL: none) the kd-level each vertex freezes at or MS_CODEC_NO_FREEZE, lo
- * the window's first precision. On success *out (malloc'd) and *size hold the
- * stream and table[0 .. st->bits - lo] its prefix table (docs/ARCHIVE.md).
- * Empty complex: *size 0. */
+ * (NULL: none) the kd-level each vertex freezes at or MS_CODEC_NO_FREEZE, and
+ * chain its cube and its ancestors' (ms_bake_colour_decoded; chain[0].lo is
+ * its window's first precision). A cell other than the root takes its base
+ * colours from its parent's stream (base_given) when every cube starts no
+ * finer than its cell's window (log2 n <= p_r); otherwise it codes them, and
+ * every vertex gets its model-wide colour. On success *out (malloc'd) and
+ * *size hold the stream and table[0 .. st->bits - lo] its prefix table
+ * (docs/ARCHIVE.md). Empty complex: *size 0. */
 ms_status ms_bake_colour_cell(const ms_bake_colours *c, const ms_codec_state *st,
-                              const uint8_t *freeze, unsigned lo, unsigned colour_bits,
-                              uint8_t **out, size_t *size, uint32_t *table, ms_error *err);
+                              const uint8_t *freeze, const ms_bake_colour_cube *chain,
+                              size_t chain_n, unsigned colour_bits, uint8_t **out, size_t *size,
+                              uint32_t *table, ms_error *err);
 
 #endif

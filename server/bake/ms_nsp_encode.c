@@ -524,10 +524,21 @@ static ms_status encode_cell(pool *p, uint32_t node, ms_apo_builder **builder, c
         out->vertices = (uint32_t)st.vertex_count;
         out->triangles = (uint32_t)st.tri_count;
     }
-    if (s == MS_OK && p->params->colours)
-        s = ms_bake_colour_cell(p->params->colours, &st, freezing ? freeze : NULL, lo,
+    if (s == MS_OK && p->params->colours) {
+        ms_bake_colour_cube chain[MS_NSP_MAX_DEPTH + 1];
+        size_t chain_n = 0;
+        for (uint32_t x = node; x != MS_NSP_NONE; x = b->nodes[x].parent) {
+            const ms_nsp_node *xn = &b->nodes[x];
+            unsigned xlo, xhi;
+            ms_nsp_window(&b->params.shape, xn->depth, xn->first_child == MS_NSP_NONE, &xlo, &xhi);
+            chain[chain_n++] = (ms_bake_colour_cube){
+                ms_quant_key(xn->position[0], xn->position[1], xn->position[2], 0),
+                3u * b->params.shape.log2n * xn->depth, xlo};
+        }
+        s = ms_bake_colour_cell(p->params->colours, &st, freezing ? freeze : NULL, chain, chain_n,
                                 p->params->colour_bits, &out->colour, &out->colour_size,
                                 out->colour_table, err);
+    }
     ms_codec_state_free(&st);
     free(freeze);
     if (s == MS_OK && apo && out->size > 0 && !*builder)
