@@ -3,7 +3,8 @@
  * refused without it), its HTTP side door (/models/M/cells/C/colour?bits=B),
  * meshexport's static files, each giving an anonymous reader exactly the
  * colour prefix of the preview's precision and the token holder all of it;
- * and the client core over the network, whose frames carry the colours. */
+ * the client core over the network, whose frames carry the colours; and
+ * meshbake's colour options and reports. */
 #include <setjmp.h>
 #include <signal.h>
 #include <stdarg.h>
@@ -230,12 +231,55 @@ static void test_client_core_network(void **state)
     unserve(&s);
 }
 
+/* meshbake's colour options and reports: --colour-bits (1..8), --no-colour,
+ * the JSON report's colour object, --list's colour column and colour_bytes. */
+static void test_meshbake_options(void **state)
+{
+    (void)state;
+    char dir[512], bin[4096], model[4096], cmd[16384];
+    static char out[1 << 16];
+    ms_test_tmpdir(dir, sizeof dir);
+    ms_test_bin_path(bin, sizeof bin, "meshbake");
+    ms_test_model_path(model, sizeof model, FIXTURE);
+    snprintf(cmd, sizeof cmd, "%s '%s' -o '%s/a' --colour-bits 9 2>&1", bin, model, dir);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 2);
+    assert_non_null(strstr(out, "--colour-bits"));
+    snprintf(cmd, sizeof cmd, "%s '%s' -o '%s/a' --name c5 --no-apo --colour-bits 5 --json", bin,
+             model, dir);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
+    assert_non_null(strstr(out, "\"colour\":{\"present\":true,\"alpha\":true,\"bits\":5,\"bytes\":"));
+    snprintf(cmd, sizeof cmd, "%s '%s' -o '%s/a' --name none --no-apo --no-colour --json", bin,
+             model, dir);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
+    assert_non_null(strstr(out, "\"colour\":{\"present\":false,\"alpha\":false,\"bits\":0,\"bytes\":0}"));
+    snprintf(cmd, sizeof cmd, "%s --list '%s/a'", bin, dir);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
+    assert_non_null(strstr(out, "colour  preview"));
+    char path[700];
+    snprintf(path, sizeof path, "%s/a/c5.msa", dir);
+    ms_archive *a;
+    assert_int_equal(ms_archive_open(path, &a, NULL), MS_OK);
+    uint64_t sum = 0;
+    for (uint32_t i = 0; i < ms_archive_get_header(a)->cell_count; ++i)
+        sum += ms_archive_colour_length(a, i);
+    assert_int_equal(ms_archive_get_header(a)->colour_bits, 5);
+    ms_archive_close(a);
+    char want[64];
+    snprintf(want, sizeof want, "\"colour_bytes\": %llu", (unsigned long long)sum);
+    snprintf(cmd, sizeof cmd, "%s --list '%s/a' --json", bin, dir);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
+    assert_non_null(strstr(out, want));
+    assert_non_null(strstr(out, "\"colour_bytes\": 0"));
+    ms_test_rmdir(dir);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_binary_door),
         cmocka_unit_test(test_http_door_and_export),
         cmocka_unit_test(test_client_core_network),
+        cmocka_unit_test(test_meshbake_options),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
