@@ -3,9 +3,11 @@
  * section; the view decoder, fully refined, gives every stitched vertex
  * exactly its welded input colour; coarse cuts give each vertex its kd-cell's
  * colour by the rule of docs/COLOUR.md §1 (an independent implementation,
- * tests/support/ms_colour_check.c); every colour prefix decodes; a model without colour, or a bake with
- * no_colour, stitches with colours NULL; damaged colour tables, header fields
- * and streams are refused with one line. */
+ * tests/support/ms_colour_check.c); every colour prefix decodes, a child's
+ * colour waiting for its parent's whole stream; a model without colour, or a
+ * bake with no_colour, stitches with colours NULL; damaged colour tables,
+ * header fields and streams are refused with one line; a local client core's
+ * frames carry the colours. */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stdbool.h>
@@ -164,6 +166,68 @@ static void test_prefixes(void **state)
         assert_non_null(m.colours);
     }
     ms_colour_test_check(&m, &w, h->bits, 8);
+    ms_view_mesh_free(&m);
+    ms_view_destroy(v);
+    ms_archive_close(a);
+    ms_colour_test_welded_free(&w);
+    ms_test_rmdir(dir);
+}
+
+/* A child's stream takes its base from its parent's whole stream: with the
+ * root's colour one precision short, the children (all shown) have no colour
+ * yet; once it is whole they have exactly theirs, and the version of every
+ * run that draws triangles changed (the renderer uploads the new colours). */
+static void test_child_waits_for_parent(void **state)
+{
+    (void)state;
+    char dir[512], model[4096];
+    ms_test_tmpdir(dir, sizeof dir);
+    ms_bake_report rep;
+    bake(dir, "trefoil", 8, false, &rep);
+    ms_archive *a;
+    ms_error err;
+    assert_int_equal(ms_archive_open(rep.archive_path, &a, &err), MS_OK);
+    const ms_archive_header *h = ms_archive_get_header(a);
+    ms_colour_test_welded w;
+    ms_colour_test_weld(ms_test_model_path(model, sizeof model, FIXTURE), h, &w);
+    ms_archive_cell *recs = malloc(h->cell_count * sizeof *recs);
+    for (uint32_t i = 0; i < h->cell_count; ++i)
+        recs[i] = *ms_archive_get_cell(a, i);
+    ms_view *v;
+    assert_int_equal(ms_view_create(h, recs, &v, &err), MS_OK);
+    free(recs);
+    for (uint32_t i = 0; i < h->cell_count; ++i) {
+        size_t len;
+        const uint8_t *g = ms_archive_geometry(a, i, &len);
+        assert_int_equal(ms_view_set_bytes(v, i, g, len, &err), MS_OK);
+        const uint8_t *col = ms_archive_colour(a, i, &len);
+        if (i == 0)
+            len = ms_archive_colour_prefix(a, 0, ms_archive_get_cell(a, 0)->bits_max - 1);
+        if (len)
+            assert_int_equal(ms_view_set_colour_bytes(v, i, col, len, &err), MS_OK);
+    }
+    ms_nsp_test_decode_all(v);
+    ms_view_mesh m = {0};
+    assert_int_equal(ms_view_stitch(v, NULL, &m, &err), MS_OK);
+    assert_null(m.colours);
+    size_t runs = m.run_count;
+    assert_true(runs > 1);
+    uint64_t *before = malloc(runs * sizeof *before);
+    memcpy(before, m.run_version, runs * sizeof *before);
+    size_t len;
+    const uint8_t *root = ms_archive_colour(a, 0, &len);
+    assert_int_equal(ms_view_set_colour_bytes(v, 0, root, len, &err), MS_OK);
+    assert_int_equal(ms_view_stitch(v, NULL, &m, &err), MS_OK);
+    ms_colour_test_check(&m, &w, h->bits, 8);
+    assert_int_equal(m.run_count, runs);
+    size_t drawn = 0;
+    for (size_t k = 0; k < runs; ++k) /* a cell that draws nothing keeps its version */
+        if (m.run_first[k + 1] > m.run_first[k]) {
+            assert_true(m.run_version[k] != before[k]);
+            ++drawn;
+        }
+    assert_true(drawn > 1);
+    free(before);
     ms_view_mesh_free(&m);
     ms_view_destroy(v);
     ms_archive_close(a);
@@ -347,6 +411,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_trefoil_full_and_coarse),
         cmocka_unit_test(test_prefixes),
+        cmocka_unit_test(test_child_waits_for_parent),
         cmocka_unit_test(test_without_colour),
         cmocka_unit_test(test_hostile),
         cmocka_unit_test(test_client_core_local),

@@ -91,6 +91,13 @@ static ms_status weld(reader *r, ms_bake_colours *out, ms_error *err)
         i = j;
     }
     out->count = w;
+    /* 12 bytes a welded vertex from here on */
+    uint64_t *k = realloc(r->keys, (w ? w : 1) * sizeof *k);
+    if (k)
+        r->keys = k;
+    uint32_t *c = realloc(r->rgba, (w ? w : 1) * sizeof *c);
+    if (c)
+        r->rgba = c;
     out->keys = r->keys;
     out->rgba = r->rgba;
     r->keys = NULL;
