@@ -21,6 +21,10 @@
  *     worse than the nearest leaf (--apo-filter none), and better than the
  *     same cut's own smooth normals, against Embree's normals of the full
  *     mesh over the pixels both cover;
+ *   - the cube's albedo pictures, meshview --shading albedo against meshrender
+ *     --albedo (no colours: the viewer's grey in both), by the colour PSNR
+ *     over the pixels covered in either: every pixel covered in both is the
+ *     grey exactly, and only the silhouette differs;
  *   - meshview's bad --crease-angle values are usage errors. */
 #include <math.h>
 #include <setjmp.h>
@@ -37,6 +41,7 @@
 #include "ms_catalog.h"
 #include "ms_mesh.h"
 #include "ms_mesh_io.h"
+#include "ms_study_measure.h"
 #include "ms_test.h"
 #include "ms_test_display.h"
 #include "ms_test_picture.h"
@@ -272,6 +277,46 @@ static double psnr(const char *a, const char *b)
     return sum > 0 ? 10.0 * log10(255.0 * 255.0 / (sum / (double)n)) : INFINITY;
 }
 
+/* The cube's albedo pictures: meshview's and meshrender's (the comparison the
+ * colour scans get once archives carry colour). */
+static void cube_albedo(const fixture *f)
+{
+    char albedo[800], bin[600], command[4096], ref[800];
+    json_t *report = view(f, "cube", "albedo", "--shading albedo", albedo, sizeof albedo);
+    assert_string_equal(json_string_value(json_object_get(report, "shading")), "albedo");
+    json_decref(report);
+    ms_test_bin_path(bin, sizeof bin, "meshrender");
+    snprintf(command, sizeof command,
+             "%s %s/cube.ply -p %s/cube.cam -o %s/cube-ref-albedo --width %d --height %d --albedo --json", bin, f->dir,
+             f->dir, f->dir, WIDTH, HEIGHT);
+    json_decref(ms_test_run_json(command, 0));
+    snprintf(ref, sizeof ref, "%s/cube-ref-albedo/frame_000.png", f->dir);
+    uint32_t wa, ha, wb, hb;
+    uint8_t *a = ms_test_png_read(albedo, &wa, &ha), *b = ms_test_png_read(ref, &wb, &hb);
+    assert_true(wa == wb && ha == hb);
+    size_t n = (size_t)wa * ha, both = 0;
+    uint8_t *mask = malloc(n);
+    assert_non_null(mask);
+    static const uint8_t bg[3] = {39, 39, 39}, grey[3] = {221, 216, 209};
+    size_t covered = ms_study_colour_mask(a, b, n, bg, false, mask);
+    for (size_t p = 0; p < n; ++p)
+        if (memcmp(&a[3 * p], bg, 3) != 0 && memcmp(&b[3 * p], bg, 3) != 0) {
+            assert_memory_equal(&a[3 * p], grey, 3);
+            assert_memory_equal(&b[3 * p], grey, 3);
+            both++;
+        }
+    ms_study_colour_error e;
+    ms_error err;
+    assert_int_equal(ms_study_colour_psnr(a, b, n, mask, &e, &err), MS_OK);
+    print_message("cube albedo: %zu pixels covered in either, %zu in both, colour PSNR %.2f dB\n", covered, both,
+                  e.psnr_db);
+    assert_true(both > covered * 97 / 100);
+    assert_true(e.psnr_db > 20.0);
+    free(mask);
+    free(a);
+    free(b);
+}
+
 static void test_cube_and_bracket_keep_their_edges(void **state)
 {
     fixture *f = *state;
@@ -288,6 +333,7 @@ static void test_cube_and_bracket_keep_their_edges(void **state)
     reference(f, "cube", "cube", false, ref, sizeof ref);
     json_decref(view(f, "cube", "default", "", png, sizeof png));
     double cube_db = psnr(png, ref);
+    cube_albedo(f);
     /* the normals themselves: every face pixel shows its face's normal */
     snprintf(ref_normals, sizeof ref_normals, "%s/cube-ref/normals_000.png", f->dir);
     size_t both, both_before;

@@ -1,5 +1,6 @@
 /* Model registry: scan, reuse on rescan, replacement, removal while held,
- * broken archives skipped, names never used as paths. */
+ * broken archives skipped, names never used as paths, archives opened on first
+ * request and closed by use order and idleness. */
 #include <stdarg.h>
 #include <stddef.h>
 #include <setjmp.h>
@@ -10,6 +11,7 @@
 #include <unistd.h>
 #include <cmocka.h>
 
+#include "ms_progress.h"
 #include "ms_registry.h"
 #include "ms_test.h"
 #include "ms_test_archive.h"
@@ -36,7 +38,7 @@ static void test_scan_rescan_replace_remove(void **state)
     warnings w = {0};
     ms_registry *r1, *r2, *r3;
     ms_error err;
-    assert_int_equal(ms_registry_scan(dir, NULL, &r1, collect, &w, &err), MS_OK);
+    assert_int_equal(ms_registry_scan(dir, NULL, 16, &r1, collect, &w, &err), MS_OK);
     assert_int_equal(ms_registry_count(r1), 2);
     assert_int_equal(w.count, 0);
     ms_model *dragon = ms_registry_find(r1, "dragon");
@@ -47,7 +49,7 @@ static void test_scan_rescan_replace_remove(void **state)
     assert_null(ms_registry_find(r1, "zebra"));
 
     /* Unchanged files are reused, not reopened. */
-    assert_int_equal(ms_registry_scan(dir, r1, &r2, collect, &w, &err), MS_OK);
+    assert_int_equal(ms_registry_scan(dir, r1, 16, &r2, collect, &w, &err), MS_OK);
     assert_ptr_equal(ms_registry_find(r2, "dragon"), dragon);
     assert_int_equal(dragon->refs, 2);
 
@@ -57,7 +59,7 @@ static void test_scan_rescan_replace_remove(void **state)
     assert_int_equal(ms_catalog_remove(dir, "dragon", &err), MS_OK);
     snprintf(path, sizeof path, "%s/dragon.msa", dir);
     assert_int_equal(unlink(path), 0);
-    assert_int_equal(ms_registry_scan(dir, r2, &r3, collect, &w, &err), MS_OK);
+    assert_int_equal(ms_registry_scan(dir, r2, 16, &r3, collect, &w, &err), MS_OK);
     assert_int_equal(ms_registry_count(r3), 1);
     assert_null(ms_registry_find(r3, "dragon"));
     ms_model *bunny_new = ms_registry_find(r3, "bunny");
@@ -95,22 +97,126 @@ static void test_broken_models_are_skipped(void **state)
     assert_int_equal(unlink(path), 0);
     warnings w = {0};
     ms_registry *r;
-    assert_int_equal(ms_registry_scan(dir, NULL, &r, collect, &w, NULL), MS_OK);
-    assert_int_equal(ms_registry_count(r), 1);
-    assert_non_null(ms_registry_find(r, "good"));
-    assert_int_equal(w.count, 2);
+    assert_int_equal(ms_registry_scan(dir, NULL, 16, &r, collect, &w, NULL), MS_OK);
+    /* The scan reads no archive: the broken one is found at its first request,
+     * warned about once, and then absent. */
+    assert_int_equal(ms_registry_count(r), 2);
+    assert_int_equal(w.count, 1);
     assert_non_null(strstr(w.last, "model 'missing' skipped: archive file missing"));
+    assert_non_null(ms_registry_find(r, "good"));
+    assert_null(ms_registry_find(r, "broken"));
+    assert_int_equal(w.count, 2);
+    assert_non_null(strstr(w.last, "model 'broken' cannot be served: "));
+    assert_null(ms_registry_find(r, "broken"));
+    assert_int_equal(w.count, 2);
+    assert_int_equal(ms_registry_open_count(r), 1);
     ms_registry_free(r);
 
     ms_error err;
-    assert_int_equal(ms_registry_scan("/nonexistent", NULL, &r, NULL, NULL, &err), MS_ERR_IO);
+    assert_int_equal(ms_registry_scan("/nonexistent", NULL, 16, &r, NULL, NULL, &err), MS_ERR_IO);
     assert_null(r);
     snprintf(path, sizeof path, "%s/catalog.json", dir);
     f = fopen(path, "w");
     fputs("{", f);
     fclose(f);
-    assert_int_equal(ms_registry_scan(dir, NULL, &r, NULL, NULL, &err), MS_ERR_FORMAT);
+    assert_int_equal(ms_registry_scan(dir, NULL, 16, &r, NULL, NULL, &err), MS_ERR_FORMAT);
     assert_null(r);
+    ms_test_rmdir(dir);
+}
+
+static void test_archives_open_on_first_request_and_close_by_use(void **state)
+{
+    (void)state;
+    char dir[512];
+    ms_test_tmpdir(dir, sizeof dir);
+    const char *names[4] = {"a", "b", "c", "d"};
+    for (int i = 0; i < 4; ++i)
+        ms_test_add_model(dir, names[i], (uint32_t)i + 1, 12);
+    ms_registry *r;
+    ms_error err;
+    assert_int_equal(ms_registry_scan(dir, NULL, 2, &r, NULL, NULL, &err), MS_OK);
+    assert_int_equal(ms_registry_count(r), 4);
+    assert_int_equal(ms_registry_open_count(r), 0);
+    assert_string_equal(ms_registry_entry(r, 2)->name, "c");
+    assert_null(ms_registry_peek(r, "a"));
+
+    ms_model *a = ms_registry_find(r, "a");
+    assert_non_null(a);
+    assert_ptr_equal(ms_registry_peek(r, "a"), a);
+    assert_ptr_equal(ms_registry_open_model_at(r, 0), a);
+    assert_null(ms_registry_open_model_at(r, 1));
+    a->requests = 5;
+    assert_non_null(ms_registry_find(r, "b"));
+    assert_int_equal(ms_registry_open_count(r), 2);
+    /* A third: the least recently used one (a) closes, its counters kept. */
+    assert_non_null(ms_registry_find(r, "c"));
+    assert_int_equal(ms_registry_open_count(r), 2);
+    assert_null(ms_registry_peek(r, "a"));
+    assert_non_null(ms_registry_peek(r, "b"));
+    /* Using b makes c the oldest. */
+    assert_non_null(ms_registry_find(r, "b"));
+    a = ms_registry_find(r, "a");
+    assert_int_equal(a->requests, 5);
+    assert_null(ms_registry_peek(r, "c"));
+    /* A model a client holds is never closed, even over the limit. */
+    ms_model_ref(a);
+    assert_non_null(ms_registry_find(r, "c"));
+    assert_non_null(ms_registry_find(r, "d"));
+    assert_int_equal(ms_registry_open_count(r), 2);
+    assert_ptr_equal(ms_registry_peek(r, "a"), a);
+    assert_non_null(ms_registry_peek(r, "d"));
+    assert_null(ms_registry_peek(r, "b"));
+    assert_null(ms_registry_peek(r, "c"));
+
+    /* Idleness: every model unused for the period closes, unless held. */
+    ms_registry_close_idle(r, ms_now_seconds() + 1000.0, 300.0);
+    assert_int_equal(ms_registry_open_count(r), 1);
+    assert_ptr_equal(ms_registry_peek(r, "a"), a);
+    ms_model_unref(a);
+    assert_non_null(ms_registry_find(r, "b"));
+    ms_registry_close_idle(r, ms_now_seconds(), 300.0);
+    assert_int_equal(ms_registry_open_count(r), 2);
+    ms_registry_close_idle(r, ms_now_seconds() + 301.0, 300.0);
+    assert_int_equal(ms_registry_open_count(r), 0);
+    ms_registry_free(r);
+    ms_test_rmdir(dir);
+}
+
+static void test_rescan_keeps_the_served_version_of_a_broken_replacement(void **state)
+{
+    (void)state;
+    char dir[512], path[700], aside[720];
+    ms_test_tmpdir(dir, sizeof dir);
+    ms_test_add_model(dir, "bust", 1, 12);
+    ms_test_add_model(dir, "idle", 2, 12);
+    warnings w = {0};
+    ms_registry *r1, *r2;
+    assert_int_equal(ms_registry_scan(dir, NULL, 8, &r1, collect, &w, NULL), MS_OK);
+    ms_model *bust = ms_registry_find(r1, "bust");
+    assert_non_null(bust);
+    bust->bytes_sent = 1234;
+    /* A broken file renamed over both: the open one is checked at the rescan,
+     * the idle one at its next request. */
+    const char *names[2] = {"bust", "idle"};
+    for (int i = 0; i < 2; ++i) {
+        snprintf(path, sizeof path, "%s/%s.msa", dir, names[i]);
+        snprintf(aside, sizeof aside, "%s/%s.new", dir, names[i]);
+        FILE *f = fopen(aside, "wb");
+        assert_non_null(f);
+        fputs("not an archive", f);
+        fclose(f);
+        assert_int_equal(rename(aside, path), 0);
+    }
+    assert_int_equal(ms_registry_scan(dir, r1, 8, &r2, collect, &w, NULL), MS_OK);
+    assert_int_equal(w.count, 1);
+    assert_non_null(strstr(w.last, "model 'bust': keeping the version being served"));
+    assert_ptr_equal(ms_registry_find(r2, "bust"), bust);
+    assert_int_equal(bust->bytes_sent, 1234);
+    assert_null(ms_registry_find(r2, "idle"));
+    assert_int_equal(w.count, 2);
+    assert_non_null(strstr(w.last, "model 'idle' cannot be served: "));
+    ms_registry_free(r1);
+    ms_registry_free(r2);
     ms_test_rmdir(dir);
 }
 
@@ -119,6 +225,8 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_scan_rescan_replace_remove),
         cmocka_unit_test(test_broken_models_are_skipped),
+        cmocka_unit_test(test_archives_open_on_first_request_and_close_by_use),
+        cmocka_unit_test(test_rescan_keeps_the_served_version_of_a_broken_replacement),
     };
     return cmocka_run_group_tests_name("registry", tests, NULL, NULL);
 }

@@ -7,7 +7,8 @@
  * piece of an upload, both meshes while a cell refines, and back exactly to
  * the texel buffer when the cells leave the frame; the peak is the largest of
  * those states. The impostor's and the offscreen framebuffer's counts are
- * their textures' and renderbuffers' sizes. */
+ * their textures' and renderbuffers' sizes. A frame with vertex colours
+ * counts 20 bytes per vertex (4 of colour), as GL reports each buffer. */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stdbool.h>
@@ -28,12 +29,13 @@
 /* What the renderer uploads per vertex (12 bytes of position, 4 of packed
  * normal) and per triangle (three 32-bit indices): ms_render.h. */
 #define VERTEX_BYTES 16u
+#define COLOURED_VERTEX_BYTES 20u /* and 4 of colour, with vertex colours */
 #define TRIANGLE_BYTES 12u
 /* The warm-up's triangle (ms_render_warm_up): 3 vertices and 3 indices. */
 #define WARM_UP_BYTES (3u * VERTEX_BYTES + 3u * 4u)
 
 /* The bytes of each drawing cell's buffers in mesh: distinct vertices of its
- * triangles x 16 + triangles x 12; bytes[c] for c < cells. */
+ * triangles x 16 (20 with colours) + triangles x 12; bytes[c] for c < cells. */
 static void cell_bytes(const ms_view_mesh *m, uint32_t cells, uint64_t *bytes)
 {
     memset(bytes, 0, cells * sizeof *bytes);
@@ -47,7 +49,7 @@ static void cell_bytes(const ms_view_mesh *m, uint32_t cells, uint64_t *bytes)
             for (int k = 0; k < 3; ++k) {
                 uint32_t v = m->triangles[3 * t + (size_t)k];
                 if (!used[v])
-                    used[v] = true, bytes[c] += VERTEX_BYTES;
+                    used[v] = true, bytes[c] += m->colours ? COLOURED_VERTEX_BYTES : VERTEX_BYTES;
             }
         }
         free(used);
@@ -208,6 +210,71 @@ static void test_frame_counted_exactly(void **state)
     assert_int_equal(m.gl_bytes + m.gl_bytes_peak, 0);
 }
 
+/* GL's own size of a buffer. */
+static uint64_t buffer_size(GLuint buffer)
+{
+    GLint64 size = 0;
+    glBindBuffer(GL_ARRAY_BUFFER, buffer);
+    glGetBufferParameteri64v(GL_ARRAY_BUFFER, GL_BUFFER_SIZE, &size);
+    glBindBuffer(GL_ARRAY_BUFFER, 0);
+    return (uint64_t)size;
+}
+
+/* The hand-made frame with vertex colours: 20 bytes a vertex, each cell's
+ * buffers as GL has them; the same frame without colours goes back to 16. */
+static void test_colours_counted(void **state)
+{
+    (void)state;
+    ms_render *r = nine_cells();
+    uint64_t texels = memory(r).texel_bytes;
+    uint8_t colours[12 * 4];
+    for (size_t i = 0; i < sizeof colours; ++i)
+        colours[i] = (uint8_t)(37 * i);
+    ms_view_mesh mesh = {.vertex_count = 12,
+                         .triangle_count = 6,
+                         .positions = (double *)positions,
+                         .triangles = (uint32_t *)triangles,
+                         .triangle_cell = (uint32_t *)triangle_cells,
+                         .colours = colours};
+    uint64_t bytes[CELLS];
+    cell_bytes(&mesh, CELLS, bytes);
+    assert_int_equal(bytes[1], 4 * COLOURED_VERTEX_BYTES + 2 * TRIANGLE_BYTES);
+    assert_int_equal(bytes[5], 6 * COLOURED_VERTEX_BYTES + 3 * TRIANGLE_BYTES);
+    set_frame(r, &mesh, NULL, 0);
+    ms_render_upload_stats up = upload(r, UINT64_MAX);
+    uint64_t all = sum(bytes, CELLS);
+    assert_int_equal(up.bytes, all);
+    ms_render_memory_stats m = memory(r);
+    assert_int_equal(m.mesh_bytes, all);
+    assert_int_equal(m.gl_bytes, texels + all);
+    static const uint32_t drawing[3] = {1, 2, 5};
+    for (int k = 0; k < 3; ++k) {
+        const gpu_mesh *g = &ms_render_cell_at(r, drawing[k])->mesh;
+        assert_true(g->coloured);
+        assert_int_equal(buffer_size(g->vbo) + buffer_size(g->ibo), bytes[drawing[k]]);
+        assert_int_equal(g->gl_bytes, bytes[drawing[k]]);
+    }
+    mesh.colours = NULL;
+    uint64_t grey[CELLS];
+    cell_bytes(&mesh, CELLS, grey);
+    set_frame(r, &mesh, NULL, 0);
+    upload(r, UINT64_MAX);
+    m = memory(r);
+    assert_int_equal(m.mesh_bytes, sum(grey, CELLS));
+    assert_int_equal(sum(bytes, CELLS) - sum(grey, CELLS), 13 * 4); /* 13 cell vertices, 4 bytes each */
+    /* the cells refine in turn (1, 2, 5), each holding its old and new buffers
+     * while the new go up: the peak is the largest of those states */
+    uint64_t held = all, peak = all;
+    for (int k = 0; k < 3; ++k) {
+        uint32_t c = drawing[k];
+        peak = held + grey[c] > peak ? held + grey[c] : peak;
+        held = held + grey[c] - bytes[c];
+    }
+    assert_int_equal(peak, all + 104); /* the last: 88 + 60 + 156 held, 132 more */
+    assert_int_equal(m.gl_bytes_peak, texels + peak);
+    ms_render_free(r);
+}
+
 /* A baked model's view with every APO level: the meshes from the view, the
  * texel words from the archive, the texel buffer's size from GL. */
 static void test_view_with_apo(void **state)
@@ -303,6 +370,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_frame_counted_exactly),
+        cmocka_unit_test(test_colours_counted),
         cmocka_unit_test(test_view_with_apo),
         cmocka_unit_test(test_impostor_and_target),
     };

@@ -1,7 +1,9 @@
 /* meshrender and meshstudy as programs: usage and input errors give 2 and 1; a
  * mesh renders to one PNG per keyframe; an archive's cut renders with and
  * without APO; the small study (one model, one keyframe, three tolerances) gives
- * three points whose bytes and errors move the way the tolerance says. */
+ * three points whose bytes and errors move the way the tolerance says; the
+ * coloured trefoil renders with its colours, lit and --albedo, the pictures
+ * those of the renderer in process. */
 #include <stdarg.h>
 #include <stddef.h>
 #include <setjmp.h>
@@ -14,7 +16,11 @@
 #include <sys/stat.h>
 #include <cmocka.h>
 
+#include "ms_camera_path.h"
+#include "ms_mesh_io.h"
+#include "ms_study_render.h"
 #include "ms_test.h"
+#include "ms_test_picture.h"
 
 typedef struct fixture {
     char dir[512], model[600], mesh[700], archive[700], path[700];
@@ -100,6 +106,7 @@ static void test_meshrender(void **state)
         json_t *fr = json_array_get(frames, k);
         assert_int_equal(json_integer_value(json_object_get(fr, "triangles")), 11102);
         assert_true(json_integer_value(json_object_get(fr, "pixels_covered")) > 0);
+        assert_true(json_is_false(json_object_get(fr, "coloured")));
         struct stat st;
         snprintf(file, sizeof file, "%s/mesh/frame_%03zu.png", f->dir, k);
         assert_int_equal(stat(file, &st), 0);
@@ -121,6 +128,56 @@ static void test_meshrender(void **state)
     assert_true(json_integer_value(json_object_get(cut, "apo_bytes")) > 0);
     assert_true(json_integer_value(json_object_get(cut, "index_bytes")) > 0);
     json_decref(root);
+}
+
+/* The coloured trefoil through meshrender, lit and --albedo: the PNGs are the
+ * in-process renders of the mesh with its colours at the path's camera. */
+static void test_meshrender_colour(void **state)
+{
+    fixture *f = *state;
+    char model[600], cam[700], cmd[4096], file[900];
+    ms_test_model_path(model, sizeof model, "trefoil_color.ply.gz");
+    snprintf(cam, sizeof cam, "%s/trefoil.cam", f->dir);
+    const char *text = "meshstream-camera-path 1\n0  0.5 0.2 0.8  0 -0.028 0  0 1 0  35\n";
+    ms_test_write_file(cam, text, strlen(text));
+    ms_mesh mesh = {0};
+    ms_study_scene *scene;
+    ms_camera_path path = {0};
+    ms_camera camera;
+    ms_error err;
+    double lo[3], hi[3];
+    assert_int_equal(ms_mesh_load(model, &mesh, NULL, &err), MS_OK);
+    assert_int_equal(ms_study_scene_new(mesh.positions, mesh.vertex_count, mesh.triangles, mesh.triangle_count,
+                                        &scene, &err),
+                     MS_OK);
+    ms_study_scene_bounds(scene, lo, hi);
+    assert_int_equal(ms_camera_path_load(cam, &path, &err), MS_OK);
+    assert_int_equal(ms_study_key_camera(&path, 0, 96, 72, 0, 0, lo, hi, &camera, &err), MS_OK);
+    for (int albedo = 0; albedo < 2; ++albedo) {
+        snprintf(cmd, sizeof cmd, "%s %s -p %s -o %s/colour%d --width 96 --height 72 --smooth %s --json", f->render,
+                 model, cam, f->dir, albedo, albedo ? "--albedo" : "");
+        json_t *root = ms_test_run_json(cmd, 0);
+        assert_true(json_is_true(json_object_get(json_array_get(json_object_get(root, "frames"), 0), "coloured")));
+        json_decref(root);
+        snprintf(file, sizeof file, "%s/colour%d/frame_000.png", f->dir, albedo);
+        uint32_t w, h;
+        uint8_t *png = ms_test_png_read(file, &w, &h);
+        assert_true(w == 96 && h == 72);
+        ms_study_image im = {0};
+        ms_study_render_options o = {.colours = mesh.colours, .albedo = albedo != 0, .smooth = true};
+        assert_int_equal(ms_study_render(scene, &camera, &o, &im, &err), MS_OK);
+        assert_memory_equal(png, im.rgb, 3 * 96 * 72);
+        /* in colour: a covered pixel whose channels differ */
+        size_t coloured = 0;
+        for (size_t p = 0; p < 96 * 72; ++p)
+            coloured += png[3 * p] != png[3 * p + 1] || png[3 * p + 1] != png[3 * p + 2];
+        assert_true(coloured > 500);
+        free(png);
+        ms_study_image_free(&im);
+    }
+    ms_camera_path_free(&path);
+    ms_study_scene_free(scene);
+    ms_mesh_free(&mesh);
 }
 
 static double number(json_t *obj, const char *a, const char *b)
@@ -264,6 +321,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_exit_codes),
         cmocka_unit_test(test_meshrender),
+        cmocka_unit_test(test_meshrender_colour),
         cmocka_unit_test(test_small_study),
         cmocka_unit_test(test_whole_against_itself),
     };

@@ -887,7 +887,7 @@ static void test_meshbake_subtree_levels(void **state)
 
     ms_registry *r;
     ms_error err;
-    if (ms_registry_scan(f->dir, NULL, &r, NULL, NULL, &err) != MS_OK)
+    if (ms_registry_scan(f->dir, NULL, 16, &r, NULL, NULL, &err) != MS_OK)
         fail_msg("%s", err.text);
     ms_model *m3 = ms_registry_find(r, "b3"), *m2 = ms_registry_find(r, "b3s2");
     assert_non_null(m3);

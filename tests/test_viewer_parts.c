@@ -346,6 +346,17 @@ static void test_crease_angle_cycle(void **state)
     assert_true(ms_viewer_next_crease_angle(120) == 180);
 }
 
+/* N, C and B: a shading mode, the same key again lit, another key that mode. */
+static void test_shading_keys(void **state)
+{
+    (void)state;
+    assert_int_equal(ms_viewer_toggle_shading(MS_SHADING_LIT, MS_SHADING_ALBEDO), MS_SHADING_ALBEDO);
+    assert_int_equal(ms_viewer_toggle_shading(MS_SHADING_ALBEDO, MS_SHADING_ALBEDO), MS_SHADING_LIT);
+    assert_int_equal(ms_viewer_toggle_shading(MS_SHADING_NORMALS, MS_SHADING_ALBEDO), MS_SHADING_ALBEDO);
+    assert_int_equal(ms_viewer_toggle_shading(MS_SHADING_ALBEDO, MS_SHADING_CELLS), MS_SHADING_CELLS);
+    assert_int_equal(ms_viewer_toggle_shading(MS_SHADING_NORMALS, MS_SHADING_NORMALS), MS_SHADING_LIT);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -353,6 +364,7 @@ int main(void)
         cmocka_unit_test(test_hud_lines),            cmocka_unit_test(test_hud_path_and_piece),
         cmocka_unit_test(test_catalogue_rows),       cmocka_unit_test(test_home_view_frames_the_box),
         cmocka_unit_test(test_quantile),             cmocka_unit_test(test_crease_angle_cycle),
+        cmocka_unit_test(test_shading_keys),
     };
     return cmocka_run_group_tests_name("viewer_parts", tests, NULL, NULL);
 }

@@ -127,6 +127,7 @@ static const char *mode_name(viewer *v)
     switch (v->render.shading) {
     case MS_SHADING_NORMALS: mode = v->render.apo ? "normals (APO)" : "normals (geometry)"; break;
     case MS_SHADING_CELLS: mode = v->render.apo ? "cells, APO lit" : "cells, geometry lit"; break;
+    case MS_SHADING_ALBEDO: mode = "albedo (unlit)"; break;
     default: mode = v->render.apo ? "APO lit" : "geometry lit"; break;
     }
     /* where no APO normal is used: flat, or smooth with the crease angle (M, K) */
@@ -265,13 +266,9 @@ static void on_key(GLFWwindow *w, int key, int scancode, int action, int mods)
     switch (key) {
     case GLFW_KEY_O: v->apo = !v->apo; break;
     case GLFW_KEY_G: v->geometry_normals = !v->geometry_normals; break;
-    case GLFW_KEY_N:
-        v->render.shading =
-            v->render.shading == MS_SHADING_NORMALS ? MS_SHADING_LIT : MS_SHADING_NORMALS;
-        break;
-    case GLFW_KEY_C:
-        v->render.shading = v->render.shading == MS_SHADING_CELLS ? MS_SHADING_LIT : MS_SHADING_CELLS;
-        break;
+    case GLFW_KEY_N: v->render.shading = ms_viewer_toggle_shading(v->render.shading, MS_SHADING_NORMALS); break;
+    case GLFW_KEY_C: v->render.shading = ms_viewer_toggle_shading(v->render.shading, MS_SHADING_CELLS); break;
+    case GLFW_KEY_B: v->render.shading = ms_viewer_toggle_shading(v->render.shading, MS_SHADING_ALBEDO); break;
     case GLFW_KEY_X: v->render.wireframe = !v->render.wireframe; break;
     case GLFW_KEY_M: v->render.smooth = !v->render.smooth; break;
     case GLFW_KEY_K: next_crease_angle(v); break;

@@ -99,6 +99,7 @@ static void drop_pending_mesh(ms_render *r, pending_mesh *p)
 {
     free(p->vertices);
     free(p->normals);
+    free(p->colours);
     free(p->indices);
     delete_gpu_mesh(r, &p->gpu);
     memset(p, 0, sizeof *p);
@@ -356,11 +357,13 @@ void ms_render_free(ms_render *r)
 
 ms_status ms_render_take_mesh(ms_render *r, render_cell *c, const ms_render_cell_mesh *m, ms_error *err)
 {
+    bool coloured = m->colours != NULL;
     bool same_as_current = c->mesh.vao && c->mesh.hash == m->hash && c->mesh.vertex_count == m->vertex_count &&
-                           c->mesh.triangle_count == m->triangle_count;
+                           c->mesh.triangle_count == m->triangle_count && c->mesh.coloured == coloured;
     if (c->next_mesh.active) {
         const gpu_mesh *g = &c->next_mesh.gpu;
-        if (g->hash == m->hash && g->vertex_count == m->vertex_count && g->triangle_count == m->triangle_count)
+        if (g->hash == m->hash && g->vertex_count == m->vertex_count && g->triangle_count == m->triangle_count &&
+            g->coloured == coloured)
             return MS_OK;
         drop_pending_mesh(r, &c->next_mesh);
     }
@@ -370,13 +373,17 @@ ms_status ms_render_take_mesh(ms_render *r, render_cell *c, const ms_render_cell
     p->vertices = malloc(3 * (size_t)m->vertex_count * sizeof *p->vertices);
     p->normals = malloc((size_t)m->vertex_count * sizeof *p->normals);
     p->indices = malloc(3 * (size_t)m->triangle_count * sizeof *p->indices);
-    if (!p->vertices || !p->normals || !p->indices) {
+    p->colours = coloured ? malloc((size_t)m->vertex_count * sizeof *p->colours) : NULL;
+    if (!p->vertices || !p->normals || !p->indices || (coloured && !p->colours)) {
         drop_pending_mesh(r, p);
         return ms_error_set(err, MS_ERR_NOMEM, "render: no memory for cell %u", m->cell);
     }
     memcpy(p->vertices, m->vertices, 3 * (size_t)m->vertex_count * sizeof *p->vertices);
     memcpy(p->normals, m->normals, (size_t)m->vertex_count * sizeof *p->normals);
     memcpy(p->indices, m->indices, 3 * (size_t)m->triangle_count * sizeof *p->indices);
+    if (coloured)
+        memcpy(p->colours, m->colours, (size_t)m->vertex_count * sizeof *p->colours);
+    p->gpu.coloured = coloured;
     p->gpu.vertex_count = m->vertex_count;
     p->gpu.triangle_count = m->triangle_count;
     p->gpu.hash = m->hash;
@@ -554,13 +561,15 @@ ms_status ms_render_set_frame(ms_render *r, const ms_view_mesh *mesh, const ms_c
 
 /* Sends up to *left bytes of a pending mesh; true once it is current. The vertex
  * buffer holds the positions (3 floats per vertex) followed by the packed
- * normals (4 bytes per vertex): 16 bytes per vertex. */
+ * normals (4 bytes per vertex) and, with colours, the colours (4 bytes per
+ * vertex): 16 bytes per vertex, 20 with colours. */
 static bool upload_mesh(ms_render *r, render_cell *c, uint64_t *left, uint64_t *bytes)
 {
     pending_mesh *p = &c->next_mesh;
     gpu_mesh *g = &p->gpu;
-    uint64_t position_bytes = 12ull * g->vertex_count;
-    uint64_t vertex_bytes = position_bytes + 4ull * g->vertex_count, index_bytes = 12ull * g->triangle_count;
+    uint64_t position_bytes = 12ull * g->vertex_count, normal_end = position_bytes + 4ull * g->vertex_count;
+    uint64_t vertex_bytes = normal_end + (g->coloured ? 4ull * g->vertex_count : 0);
+    uint64_t index_bytes = 12ull * g->triangle_count;
     if (!g->vbo) {
         glGenBuffers(1, &g->vbo);
         glGenBuffers(1, &g->ibo);
@@ -587,8 +596,12 @@ static bool upload_mesh(ms_render *r, render_cell *c, uint64_t *left, uint64_t *
             src = (const uint8_t *)p->vertices + offset;
             if (part > position_bytes - offset)
                 part = position_bytes - offset;
-        } else
+        } else if (offset < normal_end) {
             src = (const uint8_t *)p->normals + (offset - position_bytes);
+            if (part > normal_end - offset)
+                part = normal_end - offset;
+        } else
+            src = (const uint8_t *)p->colours + (offset - normal_end);
         glBindBuffer(GL_ARRAY_BUFFER, vertices ? g->vbo : g->ibo);
         glBufferSubData(GL_ARRAY_BUFFER, (GLintptr)offset, (GLsizeiptr)part, src);
         p->sent += part;
@@ -605,6 +618,10 @@ static bool upload_mesh(ms_render *r, render_cell *c, uint64_t *left, uint64_t *
     glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 12, NULL);
     glEnableVertexAttribArray(1);
     glVertexAttribPointer(1, 4, GL_INT_2_10_10_10_REV, GL_TRUE, 4, (const void *)(uintptr_t)position_bytes);
+    if (g->coloured) {
+        glEnableVertexAttribArray(2);
+        glVertexAttribPointer(2, 4, GL_UNSIGNED_BYTE, GL_TRUE, 4, (const void *)(uintptr_t)normal_end);
+    }
     glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, g->ibo);
     glBindVertexArray(0);
     glBindBuffer(GL_ARRAY_BUFFER, 0);

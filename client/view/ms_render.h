@@ -47,9 +47,23 @@
  * the cell's content hash: a cell whose vertex normals changed because a
  * neighbour refined around a shared border vertex is uploaded again.
  *
+ * Vertex colours. A mesh with colours (ms_view_mesh.colours: r g b a per
+ * vertex, 8-bit sRGB as scanned) gives every cell vertex its mesh vertex's
+ * colour, a third vertex attribute (GL_UNSIGNED_BYTE normalised, 4 bytes per
+ * vertex after the normals: 20 bytes per vertex instead of 16), part of the
+ * cell's content hash, so a cell whose colours changed is uploaded again. The
+ * cells derived again are those whose version changed: the data path changes
+ * a run's version when its corners' colours change, as when its positions do
+ * (a mesh without runs hashes the colours into the version), and a mesh
+ * gaining or losing its colours derives every cell. Where a cell has colours,
+ * they are the albedo: interpolated across the triangle as sRGB values and
+ * made linear per pixel; the normals (APO, smooth or flat) only shade. A mesh
+ * without colours draws as before, with options.albedo, to the byte.
+ *
  * Shading (ms_render_options.shading):
  *   MS_SHADING_LIT      the options' lights (default: a head light at the
- *                       camera): albedo times (0.05 + 0.95 * sum of Lambert),
+ *                       camera): albedo (the vertex colours where the cell
+ *                       has them) times (0.05 + 0.95 * sum of Lambert),
  *                       plus the Blinn-Phong highlight (specular effect) with the
  *                       normal N (APO, smooth or flat), each light's terms times
  *                       the self-shadowing factor: max(0, L . N_geometric) where
@@ -63,6 +77,12 @@
  *   MS_SHADING_CELLS    LIT tinted by a colour hashed from the cell number.
  *   MS_SHADING_CELL_ID  rgb = the drawing cell's number + 1 as 24 bits (r low
  *                       byte), a = 1; 0 is background. For picking and tests.
+ *   MS_SHADING_ALBEDO   unlit: the vertex colours interpolated as they are
+ *                       (no gamma step, so a pixel at a vertex is its 8-bit
+ *                       colour), or options.albedo sRGB-encoded for a cell
+ *                       without; the background as LIT's. No normal is used;
+ *                       wireframe overlays. The picture to compare with
+ *                       meshrender --albedo (ms_render_picture.h).
  * N_geometric is the flat normal of the triangle (oriented as stored, facing the
  * camera side of front faces; with the two-sided effect and options.two_sided, a
  * back face's is turned towards the camera). wireframe overlays the triangle
@@ -77,7 +97,7 @@
  *
  * GL memory. The renderer counts the bytes of storage it asks of GL: every
  * buffer's size as given to glBufferData (a cell's vertex buffer, 16 bytes per
- * vertex, and index buffer, 12 bytes per triangle, counted from the first piece
+ * vertex, 20 with colours, and index buffer, 12 bytes per triangle, counted from the first piece
  * of their upload until they are deleted, so a cell refining holds its old and
  * new buffers at once; the APO texel buffer, 4 bytes per word of its capacity,
  * which grows by doubling and never shrinks, both buffers counted while a growth
@@ -119,7 +139,8 @@ typedef enum ms_shading {
     MS_SHADING_LIT = 0,
     MS_SHADING_NORMALS = 1,
     MS_SHADING_CELLS = 2,
-    MS_SHADING_CELL_ID = 3
+    MS_SHADING_CELL_ID = 3,
+    MS_SHADING_ALBEDO = 4
 } ms_shading;
 
 /* Effects a shader program can hold (bits). Each is compiled in only when the

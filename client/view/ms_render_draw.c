@@ -169,7 +169,7 @@ static unsigned effects_ran(const ms_render_program *p, const ms_render_options 
 {
     unsigned ran = 0;
     bool lit = o->shading == MS_SHADING_LIT || o->shading == MS_SHADING_CELLS;
-    if (drawn && any_detail && o->shading != MS_SHADING_CELL_ID)
+    if (drawn && any_detail && o->shading != MS_SHADING_CELL_ID && o->shading != MS_SHADING_ALBEDO)
         ran |= MS_EFFECT_DETAIL_NORMALS;
     if (drawn && lit && o->specular > 0.0f && o->light_count > 0)
         ran |= MS_EFFECT_SPECULAR;
@@ -237,7 +237,7 @@ ms_status ms_render_draw(ms_render *r, const ms_camera *camera, const ms_render_
     ms_status st = ms_render_camera_check(camera, err);
     if (st != MS_OK)
         return st;
-    if ((unsigned)o->shading > MS_SHADING_CELL_ID)
+    if ((unsigned)o->shading > MS_SHADING_ALBEDO)
         return ms_error_set(err, MS_ERR_ARG, "render: shading mode %d unknown", (int)o->shading);
     st = check_scene_options(o, err);
     if (st != MS_OK)
@@ -287,6 +287,7 @@ ms_status ms_render_draw(ms_render *r, const ms_camera *camera, const ms_render_
         }
         glUniform1ui(p->cell_number, cell);
         glUniform3fv(p->cell_tint, 1, tint);
+        glUniform1i(p->vertex_colour, c->mesh.coloured);
         bool apo_on = detail_program && o->apo && c->apo.count > 0;
         any_detail = any_detail || apo_on;
         glUniform1i(p->apo_on, apo_on);

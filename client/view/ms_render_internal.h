@@ -72,7 +72,10 @@ typedef struct ms_render_cell_mesh {
                               * vertex with several (creases, flipped triangles) is one cell vertex
                               * per distinct normal */
     const uint32_t *indices; /* 3 per triangle, into vertices, orientation kept */
-    uint64_t hash;           /* of the counts, vertex floats, packed normals and indices */
+    const uint32_t *colours; /* NULL (the mesh has none), or 1 per vertex: its mesh vertex's
+                              * r g b a bytes in that order (ms_view_mesh.colours) */
+    uint64_t hash;           /* of the counts, vertex floats, packed normals, indices and
+                              * colours (when there are) */
 } ms_render_cell_mesh;
 
 typedef struct ms_render_split {
@@ -135,7 +138,8 @@ typedef struct ms_render_split {
     uint32_t *normals;
     uint32_t *same_next;     /* per cell vertex: the next cell vertex of the same mesh vertex */
     uint32_t *indices;
-    size_t cell_vertex_cap, cell_normal_cap, cell_triangle_cap;
+    uint32_t *colours;       /* per cell vertex, with a mesh that has colours */
+    size_t cell_vertex_cap, cell_normal_cap, cell_triangle_cap, cell_colour_cap;
 } ms_render_split;
 
 /* Zeroes the splitter for a model (the header is borrowed). */
@@ -158,8 +162,12 @@ uint32_t ms_render_pack_normal(const double n[3]);
  * triangles themselves are checked as ms_render_split_normals uses them);
  * one without is checked whole (indices in range, drawing cells in the model,
  * positions finite, counts below 2^32), and each cell's version is a hash of
- * its corners' positions and levels in order. The mesh is borrowed until the
- * next call. MS_ERR_ARG for a bad mesh or angle, MS_ERR_NOMEM. */
+ * its corners' positions, levels and colours (when the mesh has them) in
+ * order. A run's version goes as the mesh gives it, turned by a constant when
+ * the mesh has colours: the data path changes a run's version when its
+ * corners' colours change (ms_view_mesh), and a mesh gaining or losing its
+ * colours derives every cell again. The mesh is borrowed until the next
+ * call. MS_ERR_ARG for a bad mesh or angle, MS_ERR_NOMEM. */
 ms_status ms_render_split_frame(ms_render_split *split, const ms_view_mesh *mesh, double crease_angle_deg,
                                 ms_error *err);
 
@@ -258,7 +266,7 @@ typedef struct ms_render_program {
     GLint modelview, projection, viewport;
     GLint shading, apo_on, apo_base, apo_root_internal, apo_stop_depth, apo_nearest, apo_filter,
         apo_footprint_scale;
-    GLint world_to_eye, cell_number, cell_tint, apo_words, smooth;
+    GLint world_to_eye, cell_number, cell_tint, apo_words, smooth, vertex_colour;
     GLint albedo, light_count, light_eye, light_colour, light_range;
     GLint specular, shininess, two_sided, haze_density, haze_colour; /* -1 when not compiled in */
     GLint dissolve;
@@ -291,6 +299,7 @@ typedef struct gpu_mesh {
     GLuint vao, vbo, ibo;
     uint64_t gl_bytes;      /* the vbo's and ibo's storage, counted in ms_render.gl */
     uint32_t vertex_count, triangle_count;
+    bool coloured;          /* the vbo ends with 4 bytes of colour per vertex */
     uint64_t hash;
 } gpu_mesh;
 
@@ -298,9 +307,10 @@ typedef struct pending_mesh {
     bool active;
     float *vertices;        /* 3 per vertex, owned */
     uint32_t *normals;      /* 1 per vertex (packed), owned */
+    uint32_t *colours;      /* 1 per vertex (r g b a bytes), owned; NULL without colours */
     uint32_t *indices;      /* 3 per triangle, owned */
     gpu_mesh gpu;           /* buffers being filled (created with the first piece) */
-    uint64_t sent;          /* bytes of positions, normals, then indices already sent */
+    uint64_t sent;          /* bytes of positions, normals, colours, then indices already sent */
 } pending_mesh;
 
 typedef struct apo_range {

@@ -236,6 +236,7 @@ ms_status ms_render_program_build(ms_render_program *p, unsigned effects, bool w
         glAttachShader(p->program, fs);
         glBindAttribLocation(p->program, 0, "cell_position");
         glBindAttribLocation(p->program, 1, "cell_normal");
+        glBindAttribLocation(p->program, 2, "cell_colour");
         glBindFragDataLocation(p->program, 0, "colour");
         glLinkProgram(p->program);
         GLint ok = 0;
@@ -277,6 +278,7 @@ ms_status ms_render_program_build(ms_render_program *p, unsigned effects, bool w
     p->cell_tint = glGetUniformLocation(g, "cell_tint");
     p->apo_words = glGetUniformLocation(g, "apo_words");
     p->smooth = glGetUniformLocation(g, "smooth_on");
+    p->vertex_colour = glGetUniformLocation(g, "vertex_colour");
     p->albedo = glGetUniformLocation(g, "albedo");
     p->light_count = glGetUniformLocation(g, "light_count");
     p->light_eye = glGetUniformLocation(g, "light_eye");

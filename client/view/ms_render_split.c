@@ -14,7 +14,8 @@
  * so a vertex on a cell border has the same normals in every cell that draws
  * it; they are part of a cell's hash, so a cell whose normals moved because a
  * neighbour refined (new triangles around a shared border vertex) is uploaded
- * again. A mesh vertex with several normals is several cell vertices. */
+ * again. A mesh vertex with several normals is several cell vertices. A mesh
+ * with colours gives each cell vertex its mesh vertex's colour, hashed too. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -69,6 +70,7 @@ void ms_render_split_free(ms_render_split *s)
     free(s->normals);
     free(s->same_next);
     free(s->indices);
+    free(s->colours);
     memset(s, 0, sizeof *s);
 }
 
@@ -105,6 +107,10 @@ static ms_status add_present(ms_render_split *s, uint32_t cell, uint32_t first, 
     return MS_OK;
 }
 
+/* What a run's version is turned by when the mesh has colours: a cell's
+ * version changes when the mesh gains or loses them. */
+#define COLOURED_VERSION 0xC0105C0105C01051ull
+
 /* The cells of a mesh with runs: the runs checked, the empty ones left out. */
 static ms_status split_runs(ms_render_split *s, const ms_view_mesh *mesh, ms_error *err)
 {
@@ -119,7 +125,8 @@ static ms_status split_runs(ms_render_split *s, const ms_view_mesh *mesh, ms_err
                                 s->cell_count);
         if (end == first)
             continue;
-        ms_status st = add_present(s, cell, first, mesh->run_version[k], err);
+        uint64_t version = mesh->run_version[k] ^ (mesh->colours ? COLOURED_VERSION : 0);
+        ms_status st = add_present(s, cell, first, version, err);
         if (st != MS_OK)
             return st;
     }
@@ -162,7 +169,7 @@ static ms_status split_sorted(ms_render_split *s, const ms_view_mesh *mesh, ms_e
     ms_status sorted = ms_radix_sort_pairs(s->sort_keys, order, nt, key_bits, err);
     if (sorted != MS_OK)
         return sorted;
-    /* the runs of equal cells, each hashed: its corners' positions and levels */
+    /* the runs of equal cells, each hashed: its corners' positions, levels and colours */
     uint64_t h = 0;
     for (size_t i = 0; i < nt; ++i) {
         uint32_t cell = mesh->triangle_cell[order[i]];
@@ -179,6 +186,8 @@ static ms_status split_sorted(ms_render_split *s, const ms_view_mesh *mesh, ms_e
             h = hash_bytes(h, &mesh->positions[3 * (size_t)v], 3 * sizeof *mesh->positions);
             uint32_t level = mesh->levels ? mesh->levels[v] : 0;
             h = hash_bytes(h, &level, sizeof level);
+            if (mesh->colours)
+                h = hash_bytes(h, &mesh->colours[4 * (size_t)v], 4);
         }
     }
     if (s->present_count) {
@@ -301,6 +310,12 @@ ms_status ms_render_split_cell(ms_render_split *s, uint32_t k, const ms_archive_
                     s->vertices[3 * (size_t)verts + (size_t)a] =
                         (float)((m->positions[3 * (size_t)v + (size_t)a] - origin[a]) / side);
                 s->normals[verts] = packed;
+                if (m->colours) {
+                    if (!ms_render_grow((void **)&s->colours, &s->cell_colour_cap, (size_t)verts + 1,
+                                        sizeof *s->colours))
+                        return ms_error_set(err, MS_ERR_NOMEM, "render: no memory for cell %u", cell);
+                    memcpy(&s->colours[verts], &m->colours[4 * (size_t)v], 4);
+                }
                 found = verts++;
             }
             s->indices[3 * (size_t)(i - first) + (size_t)c] = found;
@@ -311,12 +326,15 @@ ms_status ms_render_split_cell(ms_render_split *s, uint32_t k, const ms_archive_
     h = hash_bytes(h, s->vertices, 3 * (size_t)verts * sizeof *s->vertices);
     h = hash_bytes(h, s->normals, (size_t)verts * sizeof *s->normals);
     h = hash_bytes(h, s->indices, 3 * (size_t)tris * sizeof *s->indices);
+    if (m->colours)
+        h = hash_bytes(h, s->colours, (size_t)verts * sizeof *s->colours);
     out->cell = cell;
     out->vertex_count = verts;
     out->triangle_count = tris;
     out->vertices = s->vertices;
     out->normals = s->normals;
     out->indices = s->indices;
+    out->colours = m->colours ? s->colours : NULL;
     out->hash = h;
     return MS_OK;
 }

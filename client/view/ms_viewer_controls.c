@@ -247,6 +247,11 @@ ms_status ms_viewer_controls_camera(const ms_viewer_controls *c, double width, d
                              camera, err);
 }
 
+ms_shading ms_viewer_toggle_shading(ms_shading current, ms_shading mode)
+{
+    return current == mode ? MS_SHADING_LIT : mode;
+}
+
 double ms_viewer_next_crease_angle(double degrees)
 {
     static const double steps[] = {30, 45, 60, 90, 180};

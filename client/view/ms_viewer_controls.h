@@ -20,6 +20,7 @@
 
 #include "ms_camera.h"
 #include "ms_error.h"
+#include "ms_render.h"
 
 typedef struct ms_viewer_controls {
     double home_target[3];  /* the model's centre */
@@ -95,6 +96,10 @@ void ms_viewer_controls_depth_range(const ms_viewer_controls *c, double *near_di
  * MS_ERR_ARG only for an empty framebuffer or a degenerate state. */
 ms_status ms_viewer_controls_camera(const ms_viewer_controls *c, double width, double height,
                                     ms_camera *camera, ms_error *err);
+
+/* The N, C and B keys: shading `mode` (normals, cells, albedo), or lit again
+ * when it is the current one. */
+ms_shading ms_viewer_toggle_shading(ms_shading current, ms_shading mode);
 
 /* The K key: the crease angle after `degrees` in the cycle 30, 45, 60, 90, 180
  * (the first step above it; 30 again after 180 or anything above). */

@@ -28,8 +28,9 @@ void ms_viewer_options_usage(FILE *out)
           "                         the first level whose texels fit in a pixel) | nearest\n"
           "                         (the nearest texel, the same depth limit) | none (the\n"
           "                         nearest leaf)\n"
-          "  --shading MODE         apo | geometry | normals | cells (default apo); geometry\n"
-          "                         fetches no APO\n"
+          "  --shading MODE         apo | geometry | normals | cells | albedo (default apo);\n"
+          "                         geometry fetches no APO; albedo is the model's colour\n"
+          "                         unlit (its vertex colours; grey without)\n"
           "  --upload-budget BYTES  GPU upload per frame at most (default 4000000)\n"
           "  --memory MB            client cache target (default none)\n"
           "  --bandwidth B          bytes per second read (default unlimited)\n"
@@ -77,6 +78,7 @@ void ms_viewer_options_usage(FILE *out)
           "scene a click selects the piece under the cursor.\n"
           "Keys:  O  APO normals on/off        G  geometry-normal shading on/off\n"
           "       N  normals as colours        C  cell colours\n"
+          "       B  albedo: the model's colour, unlit (B again: lit)\n"
           "       X  wireframe overlay         H  HUD on/off\n"
           "       M  smooth / flat shading where no APO normal is used\n"
           "       K  crease angle: 30, 45, 60, 90, 180 degrees (hard edges)\n"
@@ -201,8 +203,10 @@ static int finish_options(ms_viewer_options *o, const char *shading, bool no_apo
             o->shading = MS_SHADING_NORMALS;
         else if (!strcmp(shading, "cells"))
             o->shading = MS_SHADING_CELLS;
+        else if (!strcmp(shading, "albedo"))
+            o->shading = MS_SHADING_ALBEDO;
         else {
-            fprintf(err, "meshview: --shading wants apo, geometry, normals or cells\n");
+            fprintf(err, "meshview: --shading wants apo, geometry, normals, cells or albedo\n");
             return 2;
         }
     }

@@ -295,6 +295,7 @@ static ms_status frame(script *s, const ms_camera *camera, ms_viewer_step *step,
                                    .show_effects = s->scene != NULL,
                                    .effects_ran = drawn.effects_ran,
                                    .mode = s->render.shading == MS_SHADING_NORMALS ? "normals"
+                                           : s->render.shading == MS_SHADING_ALBEDO ? "albedo"
                                            : s->render.apo                        ? "APO lit"
                                                                                   : "geometry lit",
                                    .frame_ms = s->last_ms,
@@ -665,6 +666,7 @@ ms_status ms_viewer_script_run(const ms_viewer_options *o, const ms_viewer_sourc
                         "shading",
                         o->shading == MS_SHADING_NORMALS ? "normals"
                         : o->shading == MS_SHADING_CELLS ? "cells"
+                        : o->shading == MS_SHADING_ALBEDO ? "albedo"
                         : o->apo_shading                 ? "apo"
                                                          : "geometry",
                         "width", o->width, "height", o->height, "tolerance_px",

@@ -593,6 +593,27 @@ const uint8_t *ms_archive_index_bytes(const ms_archive *a, size_t *size)
     return a->blob;
 }
 
+uint64_t ms_archive_content_id(const ms_archive *a)
+{
+    size_t size;
+    const uint8_t *index = ms_archive_index_bytes(a, &size);
+    uint64_t hash = 1469598103934665603ull;
+    for (size_t i = 0; i < size; ++i)
+        hash = (hash ^ index[i]) * 1099511628211ull;
+    return hash;
+}
+
+uint8_t ms_archive_max_apo_levels(const ms_archive *a)
+{
+    uint8_t most = 0;
+    for (uint32_t cell = 0; cell < a->header.cell_count; ++cell) {
+        const ms_archive_cell *c = ms_archive_get_cell(a, cell);
+        if (c->apo_levels > most)
+            most = c->apo_levels;
+    }
+    return most;
+}
+
 const uint8_t *ms_archive_geometry(const ms_archive *a, uint32_t cell, size_t *length)
 {
     const ms_archive_cell *c = ms_archive_get_cell(a, cell);

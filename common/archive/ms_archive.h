@@ -111,6 +111,14 @@ const ms_archive_cell *ms_archive_get_cell(const ms_archive *archive, uint32_t c
  * file's subtrees assemble. NULL (size 0) on a partial archive. */
 const uint8_t *ms_archive_index_bytes(const ms_archive *archive, size_t *size);
 
+/* The archive's content identity: FNV-1a 64 of the index blob, which holds
+ * every payload's CRC-32, so that two archives with the same id serve the same
+ * bytes (clients key their caches on it; the catalogue records it at bake). */
+uint64_t ms_archive_content_id(const ms_archive *archive);
+
+/* The most APO levels any cell stores (0: no APO). O(cells). */
+uint8_t ms_archive_max_apo_levels(const ms_archive *archive);
+
 /* Payload bytes (not yet CRC-checked). Zero length for an absent APO chunk; NULL
  * on an index-only archive. */
 const uint8_t *ms_archive_geometry(const ms_archive *archive, uint32_t cell, size_t *length);

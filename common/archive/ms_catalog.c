@@ -1,8 +1,12 @@
 /* catalog.json reading and locked updating. See ms_catalog.h. */
 #include "ms_catalog.h"
+
+#include "ms_archive.h"
+#include "ms_catalog_internal.h"
 #include "ms_input_file.h"
 
 #include <errno.h>
+#include <inttypes.h>
 #include <fcntl.h>
 #include <jansson.h>
 #include <math.h>
@@ -125,29 +129,28 @@ static ms_status parse_entry(const char *path, size_t index, json_t *obj, ms_cat
         e->has_crease_angle = true;
         e->crease_angle_deg = deg;
     }
+    json_t *id = json_object_get(obj, "content_id");
+    if (id) {
+        const char *hex = json_is_string(id) ? json_string_value(id) : "";
+        char *end = NULL;
+        uint64_t levels;
+        if (strlen(hex) != 16 || strspn(hex, "0123456789abcdef") != 16 ||
+            !get_uint(obj, "apo_levels", 64, &levels)) {
+            free(e->source);
+            e->source = NULL;
+            return ms_error_set(err, MS_ERR_FORMAT, "%s: model %zu: content_id is not 16 "
+                                "lower-case hex digits with an apo_levels of 0..64", path, index);
+        }
+        e->content_id = strtoull(hex, &end, 16);
+        e->apo_levels = (uint8_t)levels;
+        e->has_listing = true;
+    }
     return MS_OK;
 }
 
-static ms_status parse_catalog(const char *path, json_t *root, ms_catalog *c, ms_error *err)
+/* Sorts the entries by name and refuses a name listed twice. */
+static ms_status finish_catalog(const char *path, ms_catalog *c, ms_error *err)
 {
-    json_t *version = json_object_get(root, "version"), *models = json_object_get(root, "models");
-    if (!json_is_object(root) || !json_is_integer(version) || !json_is_array(models))
-        return ms_error_set(err, MS_ERR_FORMAT, "%s: not a meshstream catalogue", path);
-    if (json_integer_value(version) != MS_CATALOG_VERSION)
-        return ms_error_set(err, MS_ERR_UNSUPPORTED, "%s: catalogue version %lld, this build reads %d",
-                            path, (long long)json_integer_value(version), MS_CATALOG_VERSION);
-    size_t count = json_array_size(models);
-    if (count > MS_CATALOG_MAX_ENTRIES)
-        return ms_error_set(err, MS_ERR_RANGE, "%s: %zu models exceed the limit", path, count);
-    c->entries = calloc(count ? count : 1, sizeof *c->entries);
-    if (!c->entries)
-        return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory", path);
-    for (size_t i = 0; i < count; ++i) {
-        ms_status st = parse_entry(path, i, json_array_get(models, i), &c->entries[i], err);
-        if (st != MS_OK)
-            return st;
-        c->count++;
-    }
     qsort(c->entries, c->count, sizeof *c->entries, compare_entries);
     for (size_t i = 1; i < c->count; ++i)
         if (!strcmp(c->entries[i].name, c->entries[i - 1].name))
@@ -156,38 +159,177 @@ static ms_status parse_catalog(const char *path, json_t *root, ms_catalog *c, ms
     return MS_OK;
 }
 
-ms_status ms_catalog_load(const char *dir, ms_catalog *c, ms_error *err)
+/* The whole document through jansson: any layout (entries get no text hash). */
+static ms_status parse_catalog(const char *path, const char *text, size_t size, ms_catalog *c,
+                               ms_error *err)
 {
-    memset(c, 0, sizeof *c);
-    char path[4096];
-    catalog_path(dir, "catalog.json", path, sizeof path);
+    json_error_t jerr;
+    json_t *root = json_loadb(text, size, JSON_REJECT_DUPLICATES, &jerr);
+    if (!root)
+        return ms_error_set(err, MS_ERR_FORMAT, "%s: line %d: %s", path, jerr.line, jerr.text);
+    json_t *version = json_object_get(root, "version"), *models = json_object_get(root, "models");
+    ms_status st = MS_OK;
+    size_t count = json_array_size(models);
+    if (!json_is_object(root) || !json_is_integer(version) || !json_is_array(models))
+        st = ms_error_set(err, MS_ERR_FORMAT, "%s: not a meshstream catalogue", path);
+    else if (json_integer_value(version) != MS_CATALOG_VERSION)
+        st = ms_error_set(err, MS_ERR_UNSUPPORTED, "%s: catalogue version %lld, this build reads %d",
+                          path, (long long)json_integer_value(version), MS_CATALOG_VERSION);
+    else if (count > MS_CATALOG_MAX_ENTRIES)
+        st = ms_error_set(err, MS_ERR_RANGE, "%s: %zu models exceed the limit", path, count);
+    else if (!(c->entries = calloc(count ? count : 1, sizeof *c->entries)))
+        st = ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory", path);
+    for (size_t i = 0; st == MS_OK && i < count; ++i)
+        if ((st = parse_entry(path, i, json_array_get(models, i), &c->entries[i], err)) == MS_OK)
+            c->count++;
+    json_decref(root);
+    return st;
+}
+
+/* Open-addressing table of a previous catalogue's entries by text hash. */
+typedef struct hash_index {
+    size_t *slots; /* entry index + 1; 0 empty */
+    size_t mask;
+} hash_index;
+
+static bool hash_index_build(hash_index *h, const ms_catalog *previous)
+{
+    size_t size = 16;
+    while (previous && size < 2 * previous->count)
+        size *= 2;
+    h->slots = calloc(size, sizeof *h->slots);
+    h->mask = size - 1;
+    if (!h->slots)
+        return false;
+    for (size_t i = 0; previous && i < previous->count; ++i) {
+        uint64_t key = previous->entries[i].text_hash;
+        if (!key)
+            continue;
+        size_t at = (size_t)key & h->mask;
+        while (h->slots[at])
+            at = (at + 1) & h->mask;
+        h->slots[at] = i + 1;
+    }
+    return true;
+}
+
+static const ms_catalog_entry *hash_index_find(const hash_index *h, const ms_catalog *previous,
+                                               uint64_t key)
+{
+    for (size_t at = (size_t)key & h->mask; h->slots[at]; at = (at + 1) & h->mask)
+        if (previous->entries[h->slots[at] - 1].text_hash == key)
+            return &previous->entries[h->slots[at] - 1];
+    return NULL;
+}
+
+/* The writer's layout, entry by entry: an entry whose text previous already
+ * parsed is copied, the others parsed. */
+static ms_status parse_spans(const char *path, const char *text, const ms_catalog_span *spans,
+                             size_t count, const ms_catalog *previous, ms_catalog *c,
+                             ms_error *err)
+{
+    hash_index index;
+    c->entries = calloc(count ? count : 1, sizeof *c->entries);
+    if (!c->entries || !hash_index_build(&index, previous))
+        return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory", path);
+    ms_status st = MS_OK;
+    for (size_t i = 0; st == MS_OK && i < count; ++i) {
+        ms_catalog_entry *e = &c->entries[i];
+        uint64_t key = ms_catalog_span_hash(text, spans[i]);
+        const ms_catalog_entry *known = previous ? hash_index_find(&index, previous, key) : NULL;
+        if (known) {
+            *e = *known;
+            e->source = strdup(known->source ? known->source : "");
+            if (!e->source)
+                st = ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory", path);
+        } else {
+            json_error_t jerr;
+            json_t *obj = json_loadb(text + spans[i].offset, spans[i].length,
+                                     JSON_REJECT_DUPLICATES, &jerr);
+            st = obj ? parse_entry(path, i, obj, e, err)
+                     : ms_error_set(err, MS_ERR_FORMAT, "%s: model %zu: %s", path, i, jerr.text);
+            json_decref(obj);
+        }
+        e->text_hash = key;
+        if (st == MS_OK)
+            c->count++;
+    }
+    free(index.slots);
+    return st;
+}
+
+/* Reads DIR/catalog.json whole into *text (malloc'ed); *text NULL and MS_OK
+ * when there is no catalogue yet. */
+static ms_status read_catalog_text(const char *path, char **text, size_t *size, ms_error *err)
+{
+    *text = NULL;
+    *size = 0;
     if (access(path, F_OK) != 0 && errno == ENOENT)
-        return MS_OK; /* no catalogue yet: an empty collection */
+        return MS_OK;
     FILE *f;
     ms_status opened = ms_input_fopen(path, &f, err);
     if (opened != MS_OK)
         return opened;
-    char *text = malloc(MS_CATALOG_MAX_BYTES + 1);
-    size_t size = text ? fread(text, 1, MS_CATALOG_MAX_BYTES + 1, f) : 0;
+    char *buffer = malloc(MS_CATALOG_MAX_BYTES + 1);
+    size_t got = buffer ? fread(buffer, 1, MS_CATALOG_MAX_BYTES + 1, f) : 0;
     int read_error = ferror(f);
     fclose(f);
-    if (!text)
+    if (!buffer)
         return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory", path);
-    if (read_error || size > MS_CATALOG_MAX_BYTES) {
-        free(text);
+    if (read_error || got > MS_CATALOG_MAX_BYTES) {
+        free(buffer);
         return ms_error_set(err, read_error ? MS_ERR_IO : MS_ERR_RANGE, "%s: %s", path,
                             read_error ? "read failed" : "larger than 64 MiB");
     }
-    json_error_t jerr;
-    json_t *root = json_loadb(text, size, JSON_REJECT_DUPLICATES, &jerr);
+    *text = buffer;
+    *size = got;
+    return MS_OK;
+}
+
+ms_status ms_catalog_reload(const char *dir, const ms_catalog *previous, ms_catalog *c,
+                            ms_error *err)
+{
+    memset(c, 0, sizeof *c);
+    char path[4096];
+    catalog_path(dir, "catalog.json", path, sizeof path);
+    char *text;
+    size_t size;
+    ms_status st = read_catalog_text(path, &text, &size, err);
+    if (st != MS_OK || !text)
+        return st; /* no catalogue yet: an empty collection */
+    ms_catalog_span *spans;
+    size_t count;
+    if (ms_catalog_cut_spans(text, size, MS_CATALOG_MAX_ENTRIES, &spans, &count) == 0) {
+        st = parse_spans(path, text, spans, count, previous, c, err);
+        free(spans);
+    } else {
+        st = parse_catalog(path, text, size, c, err);
+    }
     free(text);
-    if (!root)
-        return ms_error_set(err, MS_ERR_FORMAT, "%s: line %d: %s", path, jerr.line, jerr.text);
-    ms_status st = parse_catalog(path, root, c, err);
-    json_decref(root);
+    if (st == MS_OK)
+        st = finish_catalog(path, c, err);
     if (st != MS_OK)
         ms_catalog_free(c);
     return st;
+}
+
+ms_status ms_catalog_load(const char *dir, ms_catalog *c, ms_error *err)
+{
+    return ms_catalog_reload(dir, NULL, c, err);
+}
+
+ms_status ms_catalog_entry_fill_listing(ms_catalog_entry *e, const char *archive_path,
+                                        ms_error *err)
+{
+    ms_archive *a;
+    ms_status st = ms_archive_open(archive_path, &a, err);
+    if (st != MS_OK)
+        return st;
+    e->content_id = ms_archive_content_id(a);
+    e->apo_levels = ms_archive_max_apo_levels(a);
+    e->has_listing = true;
+    ms_archive_close(a);
+    return MS_OK;
 }
 
 /* --- Entries to JSON ------------------------------------------------------- */
@@ -205,6 +347,12 @@ static json_t *entry_to_json(const ms_catalog_entry *e)
                      "public_max_bits", (int)e->public_max_bits);
     if (obj && e->has_crease_angle)
         json_object_set_new(obj, "crease_angle", json_real(e->crease_angle_deg));
+    if (obj && e->has_listing) {
+        char hex[17];
+        snprintf(hex, sizeof hex, "%016" PRIx64, e->content_id);
+        json_object_set_new(obj, "content_id", json_string(hex));
+        json_object_set_new(obj, "apo_levels", json_integer(e->apo_levels));
+    }
     return obj;
 }
 

@@ -47,6 +47,18 @@ typedef struct ms_catalog_entry {
      * viewer's default. Kept when the model is baked again. */
     bool has_crease_angle;
     double crease_angle_deg;
+    /* What a server lists without opening the archive (written at bake by
+     * ms_catalog_entry_fill_listing; "content_id" as 16 hex digits and
+     * "apo_levels"): the archive's ms_archive_content_id and most APO levels
+     * in a cell. Absent (has_listing false): the server opens the archive to
+     * list it. */
+    bool has_listing;
+    uint64_t content_id;
+    uint8_t apo_levels;
+    /* The reader's bookkeeping: FNV-1a 64 of the entry's text in the file it
+     * was read from (0: not known), by which ms_catalog_reload recognises an
+     * unchanged entry. Never written. */
+    uint64_t text_hash;
 } ms_catalog_entry;
 
 typedef struct ms_catalog {
@@ -61,10 +73,23 @@ bool ms_model_name_valid(const char *name);
  * (bad JSON, wrong version, missing or mistyped field, invalid name, duplicate
  * name, more than MS_CATALOG_MAX_ENTRIES) is MS_ERR_FORMAT with the reason. */
 ms_status ms_catalog_load(const char *dir, ms_catalog *catalog, ms_error *err);
+
+/* ms_catalog_load, parsing again only the entries whose text differs from an
+ * entry of previous (may be NULL; a catalogue this reader loaded): the others
+ * are copied. A reload after one bake in a collection of 10,000 parses one
+ * entry instead of all. A file not in the writer's layout (hand-edited) is
+ * parsed whole. Same results and errors as ms_catalog_load. */
+ms_status ms_catalog_reload(const char *dir, const ms_catalog *previous, ms_catalog *catalog,
+                            ms_error *err);
 void ms_catalog_free(ms_catalog *catalog);
 
 /* The entry named name, or NULL. */
 const ms_catalog_entry *ms_catalog_find(const ms_catalog *catalog, const char *name);
+
+/* Opens the archive at archive_path and records its listing figures in entry
+ * (content_id, apo_levels, has_listing). Errors: the archive reader's. */
+ms_status ms_catalog_entry_fill_listing(ms_catalog_entry *entry, const char *archive_path,
+                                        ms_error *err);
 
 /* Adds or replaces entry (copied) in DIR/catalog.json, under the lock. */
 ms_status ms_catalog_update(const char *dir, const ms_catalog_entry *entry, ms_error *err);

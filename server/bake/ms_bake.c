@@ -331,7 +331,9 @@ static ms_status record_in_catalog(const ms_bake_options *o, const ms_bake_repor
     e.apo_lead = h->apo_lead;
     e.apo_max_depth = h->apo_max_depth;
     e.apo_tolerance = o->apo.enabled ? o->apo.tolerance : 0.0;
-    ms_status s = ms_catalog_update(o->archive_dir, &e, err);
+    ms_status s = ms_catalog_entry_fill_listing(&e, r->archive_path, err);
+    if (s == MS_OK)
+        s = ms_catalog_update(o->archive_dir, &e, err);
     if (s != MS_OK)
         unlink(r->archive_path);
     return s;

@@ -130,5 +130,7 @@ ms_status ms_synthetic_archive_write(const char *dir, const char *name,
     e.bits = h.bits, e.n = 4, e.root_bits = 7, e.min_triangles = 8000;
     e.apo = h.has_apo, e.apo_lead = 3, e.apo_max_depth = 20, e.apo_tolerance = 0.1;
     e.public_max_bits = spec->public_max_bits > h.bits ? h.bits : spec->public_max_bits;
+    if ((st = ms_catalog_entry_fill_listing(&e, path, err)) != MS_OK)
+        return st;
     return ms_catalog_update(dir, &e, err);
 }

@@ -6,22 +6,34 @@
 #include "ms_preview.h"
 #include "ms_subtree.h"
 
-ms_access ms_access_grant(const ms_model *model, bool token_accepted)
+/* The grant for a model of bits geometry bits, apo_levels APO levels and a
+ * public preview of public_bits. */
+static ms_access grant_of(unsigned bits, uint8_t apo_levels, unsigned public_bits,
+                          bool token_accepted)
 {
-    unsigned bits = ms_archive_get_header(model->archive)->bits;
     ms_access grant;
     grant.geometry_steps = (uint8_t)(bits + 1u);
-    grant.apo_steps = model->max_apo_levels;
+    grant.apo_steps = apo_levels;
     /* The registry clamps public_max_bits to bits; clamp again rather than trust it. */
-    bool full = token_accepted || model->entry.public_max_bits >= bits;
-    grant.permitted_geometry_steps =
-        (uint8_t)(full ? bits + 1u : model->entry.public_max_bits + 1u);
+    bool full = token_accepted || public_bits >= bits;
+    grant.permitted_geometry_steps = (uint8_t)(full ? bits + 1u : public_bits + 1u);
     /* APO is limited cell by cell (ms_access_cell_apo_steps); the grant says
      * the most any cell gives, a cell at level 0: public_max_bits + 1 levels. */
-    grant.permitted_apo_steps = model->max_apo_levels;
-    if (!full && model->entry.public_max_bits + 1u < grant.permitted_apo_steps)
-        grant.permitted_apo_steps = (uint8_t)(model->entry.public_max_bits + 1u);
+    grant.permitted_apo_steps = apo_levels;
+    if (!full && public_bits + 1u < grant.permitted_apo_steps)
+        grant.permitted_apo_steps = (uint8_t)(public_bits + 1u);
     return grant;
+}
+
+ms_access ms_access_grant(const ms_model *model, bool token_accepted)
+{
+    return grant_of(ms_archive_get_header(model->archive)->bits, model->max_apo_levels,
+                    model->entry.public_max_bits, token_accepted);
+}
+
+ms_access ms_access_grant_listed(const ms_catalog_entry *entry, bool token_accepted)
+{
+    return grant_of(entry->bits, entry->apo_levels, entry->public_max_bits, token_accepted);
 }
 
 bool ms_access_is_full(const ms_access *grant)

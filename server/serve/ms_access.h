@@ -49,6 +49,11 @@ typedef struct ms_access {
  * covers the whole model; otherwise the preview. */
 ms_access ms_access_grant(const ms_model *model, bool token_accepted);
 
+/* The same rule from a catalogue entry's recorded figures (bits, apo_levels,
+ * public_max_bits; has_listing), for listing a model whose archive is not
+ * open. Opening it applies ms_access_grant to the archive itself. */
+ms_access ms_access_grant_listed(const ms_catalog_entry *entry, bool token_accepted);
+
 /* True when the grant reads every byte of the model. */
 bool ms_access_is_full(const ms_access *grant);
 

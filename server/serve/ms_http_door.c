@@ -234,37 +234,6 @@ static int split_path(char *path, char **segments, int max)
 
 /* --- JSON and metrics -------------------------------------------------------- */
 
-static void serve_catalog(ms_http_door *door, struct evhttp_request *req)
-{
-    const ms_registry *r = door->server->registry;
-    json_t *models = json_array();
-    for (size_t i = 0; models && i < ms_registry_count(r); ++i) {
-        const ms_catalog_entry *e = &ms_registry_model(r, i)->entry;
-        json_array_append_new(
-            models, json_pack("{s:s, s:I, s:I, s:I, s:i, s:i, s:b, s:I, s:s}", "name", e->name,
-                              "vertices", (json_int_t)e->vertices, "triangles",
-                              (json_int_t)e->triangles, "cells", (json_int_t)e->cells, "bits",
-                              (int)e->bits, "public_max_bits", (int)e->public_max_bits, "apo",
-                              (int)e->apo, "archive_bytes", (json_int_t)e->archive_bytes,
-                              "baked_at", e->baked_at));
-    }
-    json_t *root = models ? json_pack("{s:i, s:o}", "version", 1, "models", models) : NULL;
-    char *text = root ? json_dumps(root, JSON_INDENT(2) | JSON_SORT_KEYS) : NULL;
-    json_decref(root);
-    if (!text) {
-        ms_http_send_text(door, req, 500, "Internal Server Error", "error: out of memory");
-        return;
-    }
-    struct evbuffer *body = evbuffer_new();
-    if (body) {
-        evbuffer_add_printf(body, "%s\n", text);
-        evhttp_add_header(evhttp_request_get_output_headers(req), "Content-Type", "application/json");
-        ms_http_reply(door, req, 200, "OK", body, evbuffer_get_length(body));
-        evbuffer_free(body);
-    }
-    free(text);
-}
-
 static void serve_metrics(ms_http_door *door, struct evhttp_request *req)
 {
     const ms_server *s = door->server;
@@ -313,22 +282,35 @@ static void serve_metrics(ms_http_door *door, struct evhttp_request *req)
         }
         evbuffer_add_printf(body, "%s %" PRIu64 "\n", rows[i].name, rows[i].value);
     }
-    /* Per model (names are [A-Za-z0-9_-]: nothing to escape in a label). */
+    /* Per model, for the open models only, so that the page stays bounded by
+     * max_open_models and by what clients hold, whatever the collection's size
+     * (names are [A-Za-z0-9_-]: nothing to escape in a label). */
     const ms_registry *r = s->registry;
     size_t models = ms_registry_count(r);
+    evbuffer_add_printf(body, "# HELP meshstream_open_models Models whose archive is open\n"
+                              "# TYPE meshstream_open_models gauge\n"
+                              "meshstream_open_models %zu\n",
+                        ms_registry_open_count(r));
     evbuffer_add_printf(body, "# HELP meshstream_model_requests_total Requests received for the "
-                              "model (opens, cell requests, HTTP answers)\n"
+                              "model (opens, cell requests, HTTP answers); open models only\n"
                               "# TYPE meshstream_model_requests_total counter\n");
-    for (size_t i = 0; i < models; ++i)
-        evbuffer_add_printf(body, "meshstream_model_requests_total{model=\"%s\"} %" PRIu64 "\n",
-                            ms_registry_model(r, i)->entry.name, ms_registry_model(r, i)->requests);
+    for (size_t i = 0; i < models; ++i) {
+        const ms_model *model = ms_registry_open_model_at(r, i);
+        if (model)
+            evbuffer_add_printf(body,
+                                "meshstream_model_requests_total{model=\"%s\"} %" PRIu64 "\n",
+                                model->entry.name, model->requests);
+    }
     evbuffer_add_printf(body, "# HELP meshstream_model_bytes_sent_total Payload bytes of the "
-                              "model sent, both doors\n"
+                              "model sent, both doors; open models only\n"
                               "# TYPE meshstream_model_bytes_sent_total counter\n");
-    for (size_t i = 0; i < models; ++i)
-        evbuffer_add_printf(body, "meshstream_model_bytes_sent_total{model=\"%s\"} %" PRIu64 "\n",
-                            ms_registry_model(r, i)->entry.name,
-                            ms_registry_model(r, i)->bytes_sent);
+    for (size_t i = 0; i < models; ++i) {
+        const ms_model *model = ms_registry_open_model_at(r, i);
+        if (model)
+            evbuffer_add_printf(body,
+                                "meshstream_model_bytes_sent_total{model=\"%s\"} %" PRIu64 "\n",
+                                model->entry.name, model->bytes_sent);
+    }
     evhttp_add_header(evhttp_request_get_output_headers(req), "Content-Type",
                       "text/plain; version=0.0.4");
     ms_http_reply(door, req, 200, "OK", body, evbuffer_get_length(body));
@@ -347,7 +329,7 @@ static void route(ms_http_door *door, struct evhttp_request *req, char *path,
         return;
     }
     if (n == 1 && !strcmp(seg[0], "catalog")) {
-        serve_catalog(door, req);
+        ms_http_serve_catalog(door, req, query);
         return;
     }
     if (n == 1 && !strcmp(seg[0], "metrics")) {

@@ -1,5 +1,6 @@
 /* Inside the HTTP side door (ms_http_door.h): the answers its routes share
- * (ms_http_door.c: connections, routing, catalogue, metrics;
+ * (ms_http_door.c: connections, routing, metrics; ms_http_catalog.c: the
+ * catalogue's pages;
  * ms_http_models.c: a model's index, head, subtrees, cell streams and Draco
  * file). Private to server/serve/; every function runs on the server loop.
  */
@@ -48,5 +49,12 @@ ms_access ms_http_reader_grant(const ms_http_door *door, struct evhttp_request *
  * know (the caller answers 404). */
 bool ms_http_route_model(ms_http_door *door, struct evhttp_request *req, ms_model *model,
                          char **seg, int n, const struct evkeyvalq *query);
+
+/* Answers GET /catalog: one page of the catalogue as JSON, with the query's
+ * offset, limit (default 100, at most 1000), sort (name, size, date,
+ * triangles), order (asc, desc) and q (a case-insensitive text filter on name
+ * and source); a bad parameter gets 400 and one line. Opens no archive. */
+void ms_http_serve_catalog(ms_http_door *door, struct evhttp_request *req,
+                           const struct evkeyvalq *query);
 
 #endif

@@ -159,13 +159,49 @@ static void handle_hello(ms_serve_conn *c, const ms_proto_hello *h)
         c->state = MS_CONN_READY;
 }
 
+/* What the binary listing says of one model: from its open archive, else
+ * from the figures its catalogue entry recorded at bake, so that listing opens
+ * no archive; an entry without them (an older bake) opens it. False when the
+ * model cannot be listed to this connection. */
+static bool listed_model(ms_serve_conn *c, ms_registry *r, size_t i, ms_proto_catalogue_entry *e)
+{
+    const ms_catalog_entry *entry = ms_registry_entry(r, i);
+    const ms_model *m = ms_registry_peek(r, entry->name);
+    if (!m && !entry->has_listing && !(m = ms_registry_find(r, entry->name)))
+        return false;
+    memset(e, 0, sizeof *e);
+    e->name = entry->name;
+    e->name_length = (uint8_t)strlen(entry->name);
+    if (m) {
+        if (!model_servable(c, m))
+            return false;
+        model_steps(c, m, &e->geometry_steps, &e->apo_steps, &e->permitted_geometry_steps,
+                    &e->permitted_apo_steps);
+        e->cell_count = ms_archive_get_header(m->archive)->cell_count;
+        e->content_id = m->content_id;
+        e->archive_bytes = m->file_size;
+        return true;
+    }
+    if (entry->cells > MS_PROTO_MAX_CELLS)
+        return false;
+    ms_access grant = ms_access_grant_listed(entry, c->token_accepted);
+    e->geometry_steps = grant.geometry_steps;
+    e->apo_steps = grant.apo_steps;
+    e->permitted_geometry_steps = grant.permitted_geometry_steps;
+    e->permitted_apo_steps = grant.permitted_apo_steps;
+    e->cell_count = entry->cells;
+    e->content_id = entry->content_id;
+    e->archive_bytes = entry->archive_bytes;
+    return true;
+}
+
 static void handle_list_catalogue(ms_serve_conn *c, uint32_t id)
 {
     metrics_of(c)->binary_requests++;
     c->requests++;
     if (!ids_free(c, id, 1) || !rate_allows(c, id, 1))
         return;
-    const ms_registry *r = server_of(c)->registry;
+    ms_registry *r = server_of(c)->registry;
     size_t model_count = ms_registry_count(r);
     ms_proto_catalogue_entry entries[CATALOGUE_FRAME_BYTES / MS_PROTO_CATALOGUE_ENTRY_FIXED];
     char titles[CATALOGUE_FRAME_BYTES / MS_PROTO_CATALOGUE_ENTRY_FIXED][64];
@@ -173,42 +209,35 @@ static void handle_list_catalogue(ms_serve_conn *c, uint32_t id)
         c->client_max_frame < CATALOGUE_FRAME_BYTES ? c->client_max_frame : CATALOGUE_FRAME_BYTES;
     size_t count = 0, body = MS_PROTO_CATALOGUE_FIXED, listed = 0;
     for (size_t i = 0; i <= model_count; ++i) {
-        const ms_model *m = i < model_count ? ms_registry_model(r, i) : NULL;
-        if (m && !model_servable(c, m))
+        ms_proto_catalogue_entry next;
+        bool last = i == model_count;
+        if (!last && !listed_model(c, r, i, &next))
             continue;
-        size_t name_length = m ? strlen(m->entry.name) : 0;
+        const ms_catalog_entry *entry = last ? NULL : ms_registry_entry(r, i);
         size_t entry_size = 0;
-        if (m) {
+        if (!last) {
             snprintf(titles[count], sizeof titles[count], "%llu vertices, %llu triangles",
-                     (unsigned long long)m->entry.vertices, (unsigned long long)m->entry.triangles);
-            entry_size = MS_PROTO_CATALOGUE_ENTRY_FIXED + name_length + strlen(titles[count]);
+                     (unsigned long long)entry->vertices, (unsigned long long)entry->triangles);
+            entry_size = MS_PROTO_CATALOGUE_ENTRY_FIXED + next.name_length + strlen(titles[count]);
         }
-        bool flush = !m || body + entry_size > limit ||
+        bool flush = last || body + entry_size > limit ||
                      count + 1 == sizeof entries / sizeof *entries || listed == 65535;
-        if (flush && (count || !m)) {
+        if (flush && (count || last)) {
             ms_proto_message msg = {.type = MS_PROTO_CATALOGUE, .request_id = id};
-            msg.flags = !m || listed == 65535 ? MS_PROTO_FLAG_LAST : 0;
+            msg.flags = last || listed == 65535 ? MS_PROTO_FLAG_LAST : 0;
             msg.body.catalogue.entries = entries;
             msg.body.catalogue.entry_count = (uint16_t)count;
             ms_serve_conn_send_message(c, &msg);
-            if (!m || listed == 65535)
+            if (last || listed == 65535)
                 return;
             /* The pending title was written at titles[count]: move it. */
             memcpy(titles[0], titles[count], sizeof titles[0]);
             count = 0;
             body = MS_PROTO_CATALOGUE_FIXED;
         }
-        ms_proto_catalogue_entry *e = &entries[count];
-        memset(e, 0, sizeof *e);
-        e->name = m->entry.name;
-        e->name_length = (uint8_t)name_length;
-        model_steps(c, m, &e->geometry_steps, &e->apo_steps, &e->permitted_geometry_steps,
-                    &e->permitted_apo_steps);
-        e->title = titles[count];
-        e->title_length = (uint16_t)strlen(titles[count]);
-        e->cell_count = ms_archive_get_header(m->archive)->cell_count;
-        e->content_id = m->content_id;
-        e->archive_bytes = m->file_size;
+        entries[count] = next;
+        entries[count].title = titles[count];
+        entries[count].title_length = (uint16_t)strlen(titles[count]);
         body += entry_size;
         ++count;
         ++listed;
@@ -348,7 +377,7 @@ void ms_serve_conn_models_changed(ms_serve_conn *c, const ms_registry *registry)
         ms_open_model *slot = &c->models[i];
         if (!slot->handle)
             continue;
-        const ms_model *current = ms_registry_find(registry, slot->model->entry.name);
+        const ms_model *current = ms_registry_peek(registry, slot->model->entry.name);
         if (current && current->content_id == slot->model->content_id)
             continue; /* unchanged, even if its file was rewritten */
         char text[128];

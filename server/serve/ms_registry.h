@@ -1,24 +1,32 @@
-/* The models a server offers: the catalogue of an archive directory and each
- * model's archive, opened (mapped and validated) once.
+/* The models a server offers: the catalogue of an archive directory and, for
+ * the models asked for, their archives, opened (mapped and validated) on first
+ * request and closed again when the registry alone holds them and more than
+ * its limit are open.
  *
- * A registry snapshot is immutable. ms_registry_scan builds a new one from the
- * directory, reusing the already-open archive of every model whose file did not
- * change (same inode, size and modification time) and whose catalogue entry
- * did not change either (a new public_max_bits takes effect at the rescan; an
- * open binary-protocol handle keeps the grant it was given), so a rescan (SIGHUP) costs
- * little. Each model is reference-counted: after a rescan the server closes
- * every handle on a model that was removed or replaced (ERROR MODEL_CHANGED,
+ * A scan (ms_registry_scan) reads DIR/catalog.json and stats each model's
+ * file, nothing more: start and rescan cost no archive reading, so a server of
+ * 10,000 models answers at once and holds only their catalogue entries. A
+ * model's archive is opened by ms_registry_find, at its first request; one that
+ * does not open is warned about once and treated as absent until a rescan
+ * finds its file changed (`meshbake --list` checks every archive ahead of
+ * time). A rescan (SIGHUP) reuses the open archive of every model whose file
+ * did not change (same inode, size and modification time) and whose catalogue
+ * entry did not change either (a new public_max_bits takes effect at the
+ * rescan; an open binary-protocol handle keeps the grant it was given). An open
+ * model whose file changed is opened again during the rescan, so that a broken
+ * replacement keeps its previous, verified version, with a warning: publish a
+ * new version by writing it aside and renaming it over the old. Each model is
+ * reference-counted: after a rescan the server closes every handle on a model
+ * that was removed or replaced (ERROR MODEL_CHANGED,
  * ms_serve_conn_models_changed), and the frames already queued keep their
  * mapping alive until they are sent.
  *
  * Only names that ms_model_name_valid accepts ever reach the file system, and
- * only as DIR/NAME.msa. A model whose file changed but no longer opens (a
- * broken replacement) keeps its previous, verified version, with a warning:
- * publish a new version by writing it aside and renaming it over the old. A catalogue entry whose archive is missing or invalid is
+ * only as DIR/NAME.msa. A catalogue entry whose archive file is missing is
  * skipped with a one-line warning (reported through the callback), not fatal.
  *
- * Thread-safety: reference counts are not atomic; use from one thread (the
- * server's event loop).
+ * Thread-safety: none (reference counts are not atomic, and a find may open
+ * or close archives); use from one thread (the server's event loop).
  */
 #ifndef MS_REGISTRY_H
 #define MS_REGISTRY_H
@@ -74,30 +82,52 @@ enum {
     MS_PAYLOAD_COLOUR_GONE = 256,
 };
 
-/* The models of one scan of a directory, sorted by name, each held by one
- * reference: opaque, built by ms_registry_scan, released by ms_registry_free. */
+/* The models of one scan of a directory, sorted by name: opaque, built by
+ * ms_registry_scan, released by ms_registry_free. */
 typedef struct ms_registry ms_registry;
 
-/* Called with a one-line message for each model skipped during a scan. */
+/* Called with a one-line message for each model skipped or failing. */
 typedef void (*ms_registry_warn_fn)(void *arg, const char *message);
 
-/* Builds *out (the caller's, ms_registry_free) from DIR. previous (may be
- * NULL) lends its open archives. A catalogue that cannot be read at all is an
- * error (*out NULL); models that fail are warned about and skipped. */
-ms_status ms_registry_scan(const char *dir, const ms_registry *previous, ms_registry **out,
-                           ms_registry_warn_fn warn, void *warn_arg, ms_error *err);
+/* Builds *out (the caller's, ms_registry_free) from DIR, keeping at most
+ * max_open archives open that nobody but the registry holds (at least 1).
+ * previous (may be NULL) lends its open archives and the models' counters. A
+ * catalogue that cannot be read at all is an error (*out NULL); models whose
+ * file is missing are warned about and skipped. warn (may be NULL) is also
+ * called by later finds. */
+ms_status ms_registry_scan(const char *dir, const ms_registry *previous, size_t max_open,
+                           ms_registry **out, ms_registry_warn_fn warn, void *warn_arg,
+                           ms_error *err);
 
 /* Drops the registry's references (models still held elsewhere stay alive) and
  * frees it; NULL is a no-op. */
 void ms_registry_free(ms_registry *registry);
 
-/* The number of models, and model i (0 <= i < count, by name) without taking
- * a reference. */
+/* The number of models, and model i's catalogue entry (0 <= i < count, by
+ * name; public_max_bits clamped to bits), without opening anything. */
 size_t ms_registry_count(const ms_registry *registry);
-ms_model *ms_registry_model(const ms_registry *registry, size_t i);
+const ms_catalog_entry *ms_registry_entry(const ms_registry *registry, size_t i);
 
-/* The model named name (validated first), or NULL. Does not take a reference. */
-ms_model *ms_registry_find(const ms_registry *registry, const char *name);
+/* The model named name (validated first), its archive opened if it was not,
+ * or NULL (no such model, or its archive does not open: warned once). Does not
+ * take a reference: the model stays valid until the next find or scan unless
+ * the caller takes one. Opening one may close the least recently used model
+ * that only the registry holds. */
+ms_model *ms_registry_find(ms_registry *registry, const char *name);
+
+/* The model named name if its archive is open, else NULL; opens nothing. */
+ms_model *ms_registry_peek(const ms_registry *registry, const char *name);
+
+/* Model i's open model, or NULL when it is not open (for per-model metrics of
+ * the open models only). */
+ms_model *ms_registry_open_model_at(const ms_registry *registry, size_t i);
+
+/* The number of open archives (held by clients or kept for reuse). */
+size_t ms_registry_open_count(const ms_registry *registry);
+
+/* Closes the archives only the registry holds whose last find is idle_s or
+ * more before now (ms_now_seconds). O(closed + held by clients). */
+void ms_registry_close_idle(ms_registry *registry, double now, double idle_s);
 
 /* Opens DIR/NAME.msa for the catalogue entry (copied; public_max_bits clamped
  * to the archive's bits) as a model holding one reference. Errors: MS_ERR_IO

@@ -70,7 +70,10 @@ void ms_server_log_client(ms_server *server, const char *fmt, ...)
 static void on_client_log_tick(evutil_socket_t fd, short what, void *arg)
 {
     (void)fd, (void)what;
-    client_log_end_window(arg, false);
+    ms_server *s = arg;
+    client_log_end_window(s, false);
+    /* Archives nobody used for model_idle_timeout close (docs/DEPLOY.md). */
+    ms_registry_close_idle(s->registry, ms_now_seconds(), s->config.model_idle_timeout_s);
 }
 
 typedef struct event_search {
@@ -167,7 +170,8 @@ static void warn_model(void *arg, const char *message) { ms_server_log(arg, "%s"
 ms_status ms_server_rescan(ms_server *s, ms_error *err)
 {
     ms_registry *fresh;
-    ms_status st = ms_registry_scan(s->config.archive_dir, s->registry, &fresh, warn_model, s, err);
+    ms_status st = ms_registry_scan(s->config.archive_dir, s->registry, s->config.max_open_models,
+                                    &fresh, warn_model, s, err);
     if (st != MS_OK) {
         s->metrics.rescan_failures++;
         return st;
@@ -267,7 +271,8 @@ static ms_status server_start(ms_server *s, ms_server_config *config, ms_error *
         ms_server_config_free(&s->config);
         return st;
     }
-    st = ms_registry_scan(s->config.archive_dir, NULL, &s->registry, warn_model, s, err);
+    st = ms_registry_scan(s->config.archive_dir, NULL, s->config.max_open_models, &s->registry,
+                         warn_model, s, err);
     if (st != MS_OK) {
         if (s->access_log)
             fclose(s->access_log);

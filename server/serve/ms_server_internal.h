@@ -41,7 +41,8 @@ struct ms_server {
     double started_at;
     FILE *access_log;            /* config.access_log, open for appending; NULL: none */
     ms_client_log client_log;    /* ms_server_log_client's limit */
-    struct event *client_log_timer; /* ends the client log's windows, once a second */
+    struct event *client_log_timer; /* once a second: ends the client log's windows,
+                                     * closes idle models' archives */
 };
 
 /* Logs one line caused by a client, within the limit of ms_client_log. */

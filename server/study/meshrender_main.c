@@ -30,12 +30,14 @@ static void usage(FILE *out)
     fputs("usage: meshrender INPUT -p CAMERA_PATH -o OUT_DIR [--width 640] [--height 480]\n"
           "                  [--near D] [--far D] [--tolerance 1] [--apo] [--apo-levels L]\n"
           "                  [--apo-filter linear|nearest|none] [--smooth] [--normals]\n"
-          "                  [--threads N] [--json]\n"
+          "                  [--albedo] [--threads N] [--json]\n"
           "Ray casts INPUT on the CPU (Embree) at every keyframe of CAMERA_PATH and writes\n"
           "OUT_DIR/frame_K.png (K = keyframe number, 3 digits): head light at the camera,\n"
           "Lambert + Blinn-Phong, sRGB. INPUT is a mesh file (PLY, OBJ, OFF, optionally\n"
           "gzipped), rendered whole, or an archive (*.msa), rendered as the cut a client\n"
-          "shows for each camera (every payload held, selection converged).\n\n"
+          "shows for each camera (every payload held, selection converged). A model with\n"
+          "vertex colours is shaded with them as its albedo (interpolated across each\n"
+          "triangle, as meshview does); without, grey.\n\n"
           "  -p, --path FILE     camera path (docs/CAMERA_PATHS.md)\n"
           "  -o, --output DIR    where to write (created)\n"
           "      --width N, --height N   viewport in pixels (1 to 65535)\n"
@@ -50,6 +52,8 @@ static void usage(FILE *out)
           "      --smooth        interpolated vertex normals instead of flat ones (where\n"
           "                      APO gives none)\n"
           "      --normals       also write OUT_DIR/normals_K.png, rgb = (N + 1) / 2\n"
+          "      --albedo        the unlit picture: the vertex colours interpolated (the\n"
+          "                      viewer's grey without colours), as meshview --shading albedo\n"
           "      --threads N     render threads (default: every core)\n"
           "      --json          print the summary as one JSON object\n"
           "  -h, --help          show this help\n"
@@ -75,7 +79,7 @@ typedef struct options {
     double width, height, near_distance, far_distance, tolerance;
     unsigned threads, apo_levels;
     ms_study_apo_filter apo_filter;
-    bool apo, smooth, normals, json;
+    bool apo, smooth, normals, albedo, json;
 } options;
 
 /* Parses argv; returns -1 to go on, else the exit status. */
@@ -89,7 +93,8 @@ static int parse_options(int argc, char **argv, options *o)
         {"apo", no_argument, NULL, 'a'},            {"normals", no_argument, NULL, 'N'},
         {"smooth", no_argument, NULL, 'S'},         {"apo-levels", required_argument, NULL, 'L'},
         {"json", no_argument, NULL, 'j'},           {"help", no_argument, NULL, 'h'},
-        {"apo-filter", required_argument, NULL, 'F'}, {NULL, 0, NULL, 0},
+        {"apo-filter", required_argument, NULL, 'F'}, {"albedo", no_argument, NULL, 'A'},
+        {NULL, 0, NULL, 0},
     };
     *o = (options){.width = 640, .height = 480, .tolerance = 1};
     int c;
@@ -101,6 +106,7 @@ static int parse_options(int argc, char **argv, options *o)
         case 'a': o->apo = true; break;
         case 'N': o->normals = true; break;
         case 'S': o->smooth = true; break;
+        case 'A': o->albedo = true; break;
         case 'j': o->json = true; break;
         case 'h': usage(stdout); return 0;
         case 'F':
@@ -166,6 +172,7 @@ typedef struct source {
     ms_view *view;
     ms_study_apo *apo;
     uint32_t *apo_levels; /* per cell, with --apo-levels */
+    uint8_t *colours;     /* the mesh input's vertex colours, NULL without */
     double lo[3], hi[3];
 } source;
 
@@ -179,6 +186,10 @@ static ms_status open_source(const options *o, source *s, ms_error *err)
             return st;
         st = ms_study_scene_new(mesh.positions, mesh.vertex_count, mesh.triangles, mesh.triangle_count,
                                 &s->mesh_scene, err);
+        if (st == MS_OK && mesh.colours) { /* the scene keeps the vertices' numbers */
+            s->colours = mesh.colours;
+            mesh.colours = NULL;
+        }
         ms_mesh_free(&mesh);
         if (st == MS_OK)
             ms_study_scene_bounds(s->mesh_scene, s->lo, s->hi);
@@ -215,6 +226,7 @@ static void close_source(source *s)
     ms_study_scene_free(s->mesh_scene);
     ms_study_apo_free(s->apo);
     free(s->apo_levels);
+    free(s->colours);
     ms_view_destroy(s->view);
     ms_archive_close(s->archive);
 }
@@ -262,8 +274,11 @@ int main(int argc, char **argv)
                 break;
             scene = cut_scene;
         }
+        /* the colours: the mesh's, or the cut's where the archive carries them */
         ms_study_render_options ro = {.threads = o.threads, .apo = src.apo, .triangle_cell = cut.triangle_cell,
-                                   .smooth = o.smooth};
+                                      .smooth = o.smooth, .colours = src.mesh_scene ? src.colours : cut.colours,
+                                      .albedo = o.albedo};
+        bool coloured = ro.colours != NULL;
         st = ms_study_render(scene, &camera, &ro, &image, &err);
         size_t triangles = ms_study_scene_triangle_count(scene);
         ms_study_scene_free(cut_scene);
@@ -282,9 +297,9 @@ int main(int argc, char **argv)
         for (size_t p = 0; p < (size_t)image.width * image.height; ++p)
             covered += ms_study_image_covered(&image, p) != 0;
         pixels_covered += covered;
-        json_t *frame = json_pack("{s:I, s:f, s:o, s:I, s:I, s:f}", "key", (json_int_t)key, "time",
+        json_t *frame = json_pack("{s:I, s:f, s:o, s:I, s:I, s:b, s:f}", "key", (json_int_t)key, "time",
                                   path.keys[key].time, "png", ms_json_text(file), "pixels_covered", (json_int_t)covered,
-                                  "triangles", (json_int_t)triangles,
+                                  "triangles", (json_int_t)triangles, "coloured", coloured,
                                   "seconds", ms_now_seconds() - frame_start);
         if (frame && !src.mesh_scene)
             json_object_set_new(frame, "cut",

@@ -35,11 +35,22 @@
  *     smaller than 11 pixels either way);
  *   - silhouette mismatch: pixels covered in exactly one of the two.
  *
+ * Colour (ms_study_colour_psnr), of two pictures of a coloured model, usually
+ * albedo pictures (the unlit vertex colours: meshview's MS_SHADING_ALBEDO read
+ * back, meshrender --albedo, ms_study_render with options.albedo), over the
+ * pixels of a mask (those covered in either picture: the background, the same
+ * in both, would only raise the figure):
+ *   - PSNR of the 8-bit sRGB values, 10 log10(255^2 / MSE), MSE over the three
+ *     channels of the pixels compared; per channel the same over its values;
+ *     +infinity where they are identical;
+ *   - the largest difference of one value.
+ *
  * Thread-safety: pure functions of their inputs (scenes and images are read).
  */
 #ifndef MS_STUDY_MEASURE_H
 #define MS_STUDY_MEASURE_H
 
+#include <stdbool.h>
 #include <stdint.h>
 
 #include "ms_camera.h"
@@ -82,6 +93,35 @@ typedef struct ms_study_image_error {
 /* test against reference (same size: MS_ERR_ARG otherwise); MS_ERR_NOMEM. */
 ms_status ms_study_image_compare(const ms_study_image *test, const ms_study_image *reference,
                                  ms_study_image_error *out, ms_error *err);
+
+typedef struct ms_study_colour_error {
+    uint64_t pixels;         /* compared: the mask's */
+    double mse;              /* of the 8-bit values, over the three channels */
+    double psnr_db;          /* +infinity for identical pixels */
+    double channel_psnr_db[3]; /* r, g, b alone */
+    unsigned max_difference; /* of one value, 0 to 255 */
+} ms_study_colour_error;
+
+/* test against reference: two RGB pictures of `pixels` pixels (3 bytes each,
+ * 8-bit sRGB, any row order as long as it is the same), over the pixels whose
+ * mask byte is not 0 (mask NULL: every pixel). MS_ERR_ARG when no pixel is
+ * compared or a buffer is missing. */
+ms_status ms_study_colour_psnr(const uint8_t *test, const uint8_t *reference, size_t pixels, const uint8_t *mask,
+                               ms_study_colour_error *out, ms_error *err);
+
+/* The mask of the pixels covered in either picture (both false) or in both
+ * (both true: the colours alone, the silhouette apart), known by their
+ * colour: a pixel is covered in a picture where it differs from background
+ * (r g b, the pictures' background colour: meshview's and meshrender's is
+ * 39 39 39). mask holds `pixels` bytes, 1 or 0; returns how many are 1. */
+size_t ms_study_colour_mask(const uint8_t *test, const uint8_t *reference, size_t pixels, const uint8_t background[3],
+                            bool both, uint8_t *mask);
+
+/* The same over two study images of one size (ms_study_render.h), the pixels
+ * covered in either (by their hits, not their colours). MS_ERR_ARG for images
+ * of different sizes or no pixel covered; MS_ERR_NOMEM. */
+ms_status ms_study_image_colour_psnr(const ms_study_image *test, const ms_study_image *reference,
+                                     ms_study_colour_error *out, ms_error *err);
 
 /* The pieces, for callers with bare buffers: PSNR of two 8-bit buffers of count
  * values; SSIM of two RGB images (3 * width * height bytes each). */

@@ -66,6 +66,11 @@ uint8_t ms_study_srgb8(double x)
     return (uint8_t)lround(255 * s);
 }
 
+double ms_study_srgb_decode(double c)
+{
+    return c <= 0.04045 ? c / 12.92 : pow((c + 0.055) / 1.055, 2.4);
+}
+
 typedef struct render_job {
     const ms_study_scene *scene;
     const ms_camera *camera;
@@ -129,6 +134,26 @@ static void shade_pixel(const render_job *job, size_t p, uint32_t t, double dept
     for (int k = 0; k < 3; ++k) {
         im->normal[3 * p + k] = (float)n[k];
         im->rgb[3 * p + k] = value;
+    }
+    const uint8_t *colours = job->options->colours;
+    if (!colours && !job->options->albedo)
+        return;
+    /* the albedo: the vertex colours interpolated as sRGB values, else the
+     * viewer's grey */
+    double srgb[3] = {0, 0, 0};
+    static const double grey[3] = {MS_STUDY_ALBEDO_R, MS_STUDY_ALBEDO_G, MS_STUDY_ALBEDO_B};
+    const uint32_t *tv = &s->triangles[3 * t];
+    for (int k = 0; k < 3; ++k)
+        srgb[k] = colours ? ((1 - u - v) * colours[4 * (size_t)tv[0] + (size_t)k] +
+                             u * colours[4 * (size_t)tv[1] + (size_t)k] + v * colours[4 * (size_t)tv[2] + (size_t)k]) /
+                                255.0
+                          : ms_study_srgb8(grey[k]) / 255.0;
+    double lit = MS_STUDY_AMBIENT + shadow * MS_STUDY_DIFFUSE * nl, highlight = shadow * MS_STUDY_SPECULAR *
+                                                                                 pow(nl, MS_STUDY_SHININESS);
+    for (int k = 0; k < 3; ++k) {
+        double a = fmin(1, fmax(0, srgb[k]));
+        im->rgb[3 * p + k] = job->options->albedo ? (uint8_t)lround(255 * a)
+                                                  : ms_study_srgb8(ms_study_srgb_decode(a) * lit + highlight);
     }
 }
 

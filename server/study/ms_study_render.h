@@ -37,6 +37,17 @@
  * MS_STUDY_BACKGROUND. Output is sRGB-encoded (the exact sRGB transfer function)
  * and rounded to nearest.
  *
+ * Colour (options.colours: r g b a per scene vertex, 8-bit sRGB as scanned):
+ * the hit's colour C is the barycentric interpolation of its triangle's
+ * vertex colours (as sRGB values, as the viewer's rasteriser interpolates
+ * them), A = C made linear is the albedo, per channel
+ *     c = A (ambient + max(0, L.N) diffuse max(0, N.L)) + max(0, L.N) specular max(0, N.H)^shininess
+ * (the same law as the grey one, which is A = 1, and as the viewer's: the
+ * albedo times the ambient and diffuse terms, a white highlight; the normals
+ * only shade). options.albedo gives the unlit picture (the viewer's
+ * MS_SHADING_ALBEDO): rgb = C rounded to nearest, or MS_STUDY_ALBEDO
+ * sRGB-encoded without colours; the background as the lit picture's.
+ *
  * Determinism: rows are rendered in fixed blocks on the project's thread pool
  * (ms_parallel.h), each pixel from its own ray: the buffers do not depend on the
  * thread count.
@@ -62,6 +73,11 @@
 #define MS_STUDY_SPECULAR 0.20
 #define MS_STUDY_SHININESS 32.0
 #define MS_STUDY_BACKGROUND 0.02 /* linear grey */
+/* The albedo picture of a model without colour: the viewer's default
+ * material (ms_render_options_default), linear. */
+#define MS_STUDY_ALBEDO_R 0.72
+#define MS_STUDY_ALBEDO_G 0.69
+#define MS_STUDY_ALBEDO_B 0.64
 
 typedef struct ms_study_image {
     uint32_t width, height;
@@ -88,6 +104,8 @@ typedef struct ms_study_render_options {
     const ms_study_apo *apo;        /* NULL: geometric normals */
     const uint32_t *triangle_cell;  /* with apo: the drawing cell of every scene triangle */
     bool smooth;                    /* interpolated vertex normals instead of flat ones */
+    const uint8_t *colours;         /* NULL, or r g b a per scene vertex: the albedo ("Colour") */
+    bool albedo;                    /* the unlit albedo picture instead of the lit one */
 } ms_study_render_options;
 
 /* Renders scene at camera into *image, (re)allocated to the camera's viewport
@@ -115,5 +133,7 @@ ms_status ms_study_key_camera(const ms_camera_path *path, size_t key, double wid
 
 /* sRGB encoding of a linear value in [0, 1] (clamped), rounded to 8 bits. */
 uint8_t ms_study_srgb8(double linear);
+/* The linear value of an sRGB value in [0, 1] (the exact transfer function). */
+double ms_study_srgb_decode(double srgb);
 
 #endif

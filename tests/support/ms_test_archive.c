@@ -204,6 +204,6 @@ void ms_test_add_model(const char *dir, const char *name, uint32_t salt, uint8_t
     e.apo = true, e.apo_lead = 3, e.apo_max_depth = 13, e.apo_tolerance = 0.1;
     e.public_max_bits = public_max_bits;
     ms_error err;
-    if (ms_catalog_update(dir, &e, &err) != MS_OK)
+    if (ms_catalog_entry_fill_listing(&e, path, &err) != MS_OK || ms_catalog_update(dir, &e, &err) != MS_OK)
         fail_msg("%s", err.text);
 }

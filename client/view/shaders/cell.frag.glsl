@@ -14,21 +14,25 @@
 in vec3 g_cell;
 in vec3 g_eye;
 in vec3 g_vertex_normal;
+in vec3 g_colour;
 flat in vec3 g_normal;
 noperspective in vec3 g_edge;
 #define FRAG_CELL g_cell
 #define FRAG_EYE g_eye
 #define FRAG_VERTEX_NORMAL g_vertex_normal
+#define FRAG_COLOUR g_colour
 #else
 in vec3 v_cell;
 in vec3 v_eye;
 in vec3 v_normal;
+in vec3 v_colour;
 #define FRAG_CELL v_cell
 #define FRAG_EYE v_eye
 #define FRAG_VERTEX_NORMAL v_normal
+#define FRAG_COLOUR v_colour
 #endif
 
-uniform int shading;          // 0 LIT, 1 NORMALS, 2 CELLS, 3 CELL_ID
+uniform int shading;          // 0 LIT, 1 NORMALS, 2 CELLS, 3 CELL_ID, 4 ALBEDO
 #ifdef MS_EFFECT_DETAIL_NORMALS
 uniform bool apo_on;          // this cell has a chunk prefix and APO is wanted
 uniform int apo_base;         // first word of the cell's chunk in apo_words
@@ -43,6 +47,8 @@ uniform uint cell_number;
 uniform vec3 cell_tint;       // linear albedo for CELLS
 uniform bool smooth_on;       // without APO: interpolated vertex normals, else flat
 uniform vec3 albedo;          // the material's linear albedo
+uniform bool vertex_colour;   // this cell's vertices carry colours (FRAG_COLOUR,
+                              // sRGB as scanned): they are the albedo
 // Lights in eye space: w 0 directional (xyz towards the light), 1 point (xyz
 // its position, falling off with range), 2 the head light (at the eye, no
 // falloff); colour times intensity, linear.
@@ -78,6 +84,23 @@ vec3 srgb_encode(vec3 c)
     return mix(12.92 * c, 1.055 * pow(c, vec3(1.0 / 2.4)) - 0.055, greaterThan(c, vec3(0.0031308)));
 }
 
+vec3 srgb_decode(vec3 c)
+{
+    c = clamp(c, 0.0, 1.0);
+    return mix(c / 12.92, pow((c + 0.055) / 1.055, vec3(2.4)), greaterThan(c, vec3(0.04045)));
+}
+
+// The wireframe overlay over a shaded colour.
+vec3 overlay(vec3 rgb)
+{
+#ifdef MS_WIREFRAME
+    float d = min(g_edge.x, min(g_edge.y, g_edge.z));
+    float line = 1.0 - smoothstep(0.5, 1.5, d);
+    rgb = mix(rgb, vec3(0.05, 0.05, 0.08), 0.85 * line);
+#endif
+    return rgb;
+}
+
 // The triangle's normal in its stored orientation (cell frame = world frame up
 // to a uniform scale).
 vec3 geometric_normal()
@@ -103,6 +126,13 @@ void main()
     if (shading == 3) {
         uint id = cell_number + 1u;
         colour = vec4(float(id & 0xFFu), float((id >> 8) & 0xFFu), float((id >> 16) & 0xFFu), 255.0) / 255.0;
+        return;
+    }
+    if (shading == 4) {
+        // ALBEDO: the surface's own colour, unlit: the vertex colours as
+        // scanned, interpolated (no gamma step: a vertex's pixel is its 8-bit
+        // colour), or the material's albedo sRGB-encoded.
+        colour = vec4(overlay(vertex_colour ? clamp(FRAG_COLOUR, 0.0, 1.0) : srgb_encode(albedo)), 1.0);
         return;
     }
     vec3 g_n = geometric_normal();
@@ -181,7 +211,7 @@ void main()
             highlight += c * pow(max(0.0, dot(n, normalize(l + view_dir))), shininess);
 #endif
         }
-        vec3 base = shading == 2 ? cell_tint : albedo;
+        vec3 base = shading == 2 ? cell_tint : (vertex_colour ? srgb_decode(FRAG_COLOUR) : albedo);
         vec3 linear = base * (0.05 + 0.95 * diffuse);
 #ifdef MS_EFFECT_SPECULAR
         linear += specular_strength * highlight;
@@ -191,10 +221,5 @@ void main()
 #endif
         rgb = srgb_encode(linear);
     }
-#ifdef MS_WIREFRAME
-    float d = min(g_edge.x, min(g_edge.y, g_edge.z));
-    float line = 1.0 - smoothstep(0.5, 1.5, d);
-    rgb = mix(rgb, vec3(0.05, 0.05, 0.08), 0.85 * line);
-#endif
-    colour = vec4(rgb, 1.0);
+    colour = vec4(overlay(rgb), 1.0);
 }

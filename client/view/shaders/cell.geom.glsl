@@ -9,12 +9,14 @@ layout(triangle_strip, max_vertices = 3) out;
 in vec3 v_cell[];
 in vec3 v_eye[];
 in vec3 v_normal[];
+in vec3 v_colour[];
 
 uniform vec2 viewport;
 
 out vec3 g_cell;
 out vec3 g_eye;
 out vec3 g_vertex_normal;
+out vec3 g_colour;
 flat out vec3 g_normal;
 noperspective out vec3 g_edge;
 
@@ -39,6 +41,7 @@ void main()
         g_cell = v_cell[i];
         g_eye = v_eye[i];
         g_vertex_normal = v_normal[i];
+        g_colour = v_colour[i];
         g_normal = n;
         g_edge = vec3(0.0);
         g_edge[i] = heights[i];

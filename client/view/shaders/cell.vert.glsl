@@ -8,6 +8,10 @@ layout(location = 0) in vec3 cell_position;
 // The vertex normal (world frame, unit; zero where it is undefined), from
 // GL_INT_2_10_10_10_REV normalised.
 layout(location = 1) in vec4 cell_normal;
+// The vertex colour (r g b a, 8 bits each, sRGB as scanned) from
+// GL_UNSIGNED_BYTE normalised; a cell without colours has no array there and
+// the fragment stage takes its albedo instead (vertex_colour false).
+layout(location = 2) in vec4 cell_colour;
 
 uniform mat4 modelview;
 uniform mat4 projection;
@@ -15,6 +19,7 @@ uniform mat4 projection;
 out vec3 v_cell;
 out vec3 v_eye;
 out vec3 v_normal;
+out vec3 v_colour;
 
 void main()
 {
@@ -22,5 +27,6 @@ void main()
     v_cell = cell_position;
     v_eye = eye.xyz;
     v_normal = cell_normal.xyz;
+    v_colour = cell_colour.rgb;
     gl_Position = projection * eye;
 }

@@ -12,8 +12,10 @@ layout(vertices = 3) out;
 
 in vec3 c_cell[];
 in vec3 c_normal[];
+in vec3 c_colour[];
 out vec3 e_cell[];
 out vec3 e_normal[];
+out vec3 e_colour[];
 
 uniform mat4 modelview;
 uniform mat4 projection;
@@ -46,6 +48,7 @@ void main()
 {
     e_cell[gl_InvocationID] = c_cell[gl_InvocationID];
     e_normal[gl_InvocationID] = c_normal[gl_InvocationID];
+    e_colour[gl_InvocationID] = c_colour[gl_InvocationID];
     if (gl_InvocationID == 0) {
         vec3 a = (modelview * vec4(c_cell[0], 1.0)).xyz;
         vec3 b = (modelview * vec4(c_cell[1], 1.0)).xyz;

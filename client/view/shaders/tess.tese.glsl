@@ -14,6 +14,7 @@ layout(triangles, fractional_odd_spacing, ccw) in;
 
 in vec3 e_cell[];
 in vec3 e_normal[];
+in vec3 e_colour[];
 
 uniform mat4 modelview;
 uniform mat4 projection;
@@ -27,6 +28,7 @@ uniform uint displacement_seed;
 out vec3 v_cell;
 out vec3 v_eye;
 out vec3 v_normal;
+out vec3 v_colour;
 
 uint mix_bits(uint h)
 {
@@ -77,6 +79,7 @@ void main()
     cell += n * (atoms(q) / cell_side);
     v_cell = cell;
     v_normal = t.x * e_normal[0] + t.y * e_normal[1] + t.z * e_normal[2];
+    v_colour = t.x * e_colour[0] + t.y * e_colour[1] + t.z * e_colour[2];
     vec4 eye = modelview * vec4(cell, 1.0);
     v_eye = eye.xyz;
     gl_Position = projection * eye;
