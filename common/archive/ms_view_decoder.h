@@ -302,7 +302,9 @@ typedef struct ms_view_mesh {
     uint32_t *triangle_cell; /* per triangle: the cell that drew it */
     /* per vertex r g b a (8 bits each, docs/COLOUR.md: the vertex's colour at
      * the colour bits held), or NULL when the model has no colour stream or
-     * none of it is held yet; a renderer then uses its default albedo */
+     * none of it is held yet; a renderer then uses its default albedo. The
+     * vertices of a shown cell without its colour yet (its bytes, or for a
+     * child its split parent's whole stream, not held) are opaque white. */
     uint8_t *colours;
     size_t vertex_cap, triangle_cap;
     /* diagnostics */
