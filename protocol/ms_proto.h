@@ -78,6 +78,8 @@
 /* Version 3: the index may be sent as its head (archive header + root subtree)
  * and the rest of it requested by subtree, as stream INDEX (sections 4.7, 4.10). */
 #define MS_PROTO_CAP_INDEX_SUBTREES 0x00000004u
+/* Version 3: per-vertex colour streams (stream COLOUR, section 4.10). */
+#define MS_PROTO_CAP_COLOUR 0x00000008u
 /* HELLO_REPLY server_flags bits. */
 #define MS_PROTO_SERVER_TOKEN_ACCEPTED 0x0001u
 /* CANCEL flags bits. */
@@ -149,7 +151,10 @@ typedef enum ms_proto_stream {
     MS_PROTO_STREAM_APO = 1,
     /* Version 3, with CAP_INDEX_SUBTREES: the stored (zlib) bytes of one index
      * subtree; cell_id is the subtree id, the stream has exactly one step. */
-    MS_PROTO_STREAM_INDEX = 2
+    MS_PROTO_STREAM_INDEX = 2,
+    /* Version 3, with CAP_COLOUR: a cell's colour stream (docs/ARCHIVE.md,
+     * "Colour streams"); steps are precision bits, as geometry's. */
+    MS_PROTO_STREAM_COLOUR = 3
 } ms_proto_stream;
 
 /* How INDEX_DATA carries the index blob (MODEL_OPENED index_encoding). */

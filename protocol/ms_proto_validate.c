@@ -410,8 +410,8 @@ static ms_status check_request_cells(check_ctx *c, const ms_proto_request_cells 
     for (uint32_t i = 0; i < r->count; ++i) {
         const ms_proto_cell_request *e = &r->entries[i];
         size_t base = MS_PROTO_REQUEST_CELLS_FIXED + (size_t)i * MS_PROTO_CELL_REQUEST_SIZE;
-        if (e->stream > MS_PROTO_STREAM_INDEX)
-            return OUT_OF_RANGE(c, base + 4, "entry %u: stream %u (0 geometry, 1 APO, 2 index)",
+        if (e->stream > MS_PROTO_STREAM_COLOUR)
+            return OUT_OF_RANGE(c, base + 4, "entry %u: stream %u (0 geometry, 1 APO, 2 index, 3 colour)",
                                 (unsigned)i, e->stream);
         if (e->unit > MS_PROTO_UNIT_BYTES)
             return OUT_OF_RANGE(c, base + 5, "entry %u: unit %u (0 steps, 1 bytes)", (unsigned)i,
@@ -477,8 +477,8 @@ static ms_status check_index_data(check_ctx *c, const ms_proto_index_data *d)
 static ms_status check_payload(check_ctx *c, const ms_proto_payload *p)
 {
     bool last = (c->msg->flags & MS_PROTO_FLAG_LAST) != 0;
-    if (p->stream > MS_PROTO_STREAM_INDEX)
-        return OUT_OF_RANGE(c, 4, "stream %u (0 geometry, 1 APO, 2 index)", p->stream);
+    if (p->stream > MS_PROTO_STREAM_COLOUR)
+        return OUT_OF_RANGE(c, 4, "stream %u (0 geometry, 1 APO, 2 index, 3 colour)", p->stream);
     if (p->data_length && !p->data)
         return OUT_OF_RANGE(c, 16, "data missing");
     uint64_t stop = (uint64_t)p->offset + p->data_length;
@@ -592,7 +592,7 @@ uint32_t ms_proto_version_capabilities(uint16_t version)
     if (version >= 2)
         caps |= MS_PROTO_CAP_INDEX_ZLIB;
     if (version >= 3)
-        caps |= MS_PROTO_CAP_INDEX_SUBTREES;
+        caps |= MS_PROTO_CAP_INDEX_SUBTREES | MS_PROTO_CAP_COLOUR;
     return caps;
 }
 
@@ -602,6 +602,7 @@ static uint32_t stream_capability(uint8_t stream)
     switch (stream) {
     case MS_PROTO_STREAM_APO: return MS_PROTO_CAP_APO;
     case MS_PROTO_STREAM_INDEX: return MS_PROTO_CAP_INDEX_SUBTREES;
+    case MS_PROTO_STREAM_COLOUR: return MS_PROTO_CAP_COLOUR;
     default: return 0;
     }
 }
@@ -612,6 +613,7 @@ static const char *capability_name(uint32_t capability)
     case MS_PROTO_CAP_APO: return "CAP_APO";
     case MS_PROTO_CAP_INDEX_ZLIB: return "CAP_INDEX_ZLIB";
     case MS_PROTO_CAP_INDEX_SUBTREES: return "CAP_INDEX_SUBTREES";
+    case MS_PROTO_CAP_COLOUR: return "CAP_COLOUR";
     default: return "an undefined capability";
     }
 }

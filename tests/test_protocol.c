@@ -1020,7 +1020,7 @@ static void test_out_of_range_fields(void **state)
     ms_proto_cell_request e;
     size_t n;
     /* Not fatal in a client's frame: the ERROR names the whole batch. */
-    e = good, e.stream = MS_PROTO_STREAM_INDEX + 1;
+    e = good, e.stream = MS_PROTO_STREAM_COLOUR + 1;
     n = raw_batch(f, 100, 1, 3, e);
     expect_fault(MS_PROTO_ROLE_SERVER, 8, f, n, MS_PROTO_E_FIELD_OUT_OF_RANGE, false, 100, 3, 8 + 4);
     e = good, e.unit = 9;
@@ -1589,7 +1589,7 @@ static void write_corpus(const char *dir)
     f[6] = 0;
     n = raw_batch(f, 10, 1, 20, good);
     write_seed(dir, "server-BATCH_TOO_LARGE.bin", 2, f, n, NULL, 0);
-    e = good, e.stream = MS_PROTO_STREAM_INDEX + 1;
+    e = good, e.stream = MS_PROTO_STREAM_COLOUR + 1;
     n = raw_batch(f, 10, 1, 2, e);
     write_seed(dir, "server-FIELD_OUT_OF_RANGE-stream.bin", 2, f, n, NULL, 0);
     e = good, e.stream = MS_PROTO_STREAM_INDEX, e.a = 0, e.b = 1; /* a subtree has step 0 only */

@@ -296,7 +296,8 @@ static bool reply_acceptable(ms_client *c, const ms_proto_hello_reply *r)
 {
     char why[160];
     uint16_t code = MS_PROTO_E_FIELD_OUT_OF_RANGE;
-    uint32_t asked = MS_PROTO_CAP_APO | (c->ask_index_zlib ? MS_PROTO_CAP_INDEX_ZLIB : 0) |
+    uint32_t asked = MS_PROTO_CAP_APO | MS_PROTO_CAP_COLOUR |
+                     (c->ask_index_zlib ? MS_PROTO_CAP_INDEX_ZLIB : 0) |
                      (c->ask_index_subtrees ? MS_PROTO_CAP_INDEX_SUBTREES : 0);
     if (r->version < MS_PROTO_MIN_VERSION || r->version > MS_PROTO_VERSION)
         snprintf(why, sizeof why, "server chose protocol version %u, outside our %u..%u",
@@ -505,7 +506,8 @@ ms_status ms_client_connect(struct event_base *base, const ms_client_options *o,
     h->max_version = MS_PROTO_VERSION;
     c->ask_index_zlib = !o->raw_index;
     c->ask_index_subtrees = o->index_subtrees;
-    h->capabilities = MS_PROTO_CAP_APO | (c->ask_index_zlib ? MS_PROTO_CAP_INDEX_ZLIB : 0) |
+    h->capabilities = MS_PROTO_CAP_APO | MS_PROTO_CAP_COLOUR |
+                      (c->ask_index_zlib ? MS_PROTO_CAP_INDEX_ZLIB : 0) |
                       (c->ask_index_subtrees ? MS_PROTO_CAP_INDEX_SUBTREES : 0);
     h->max_frame = max_frame;
     h->token = o->token;

@@ -52,7 +52,7 @@ static void print_usage(FILE *out)
           "                [--tmp DIR] [--public-bits B] [--no-apo] [--apo-lead 1]\n"
           "                [--apo-max-depth 10] [--apo-tol 0.2] [--apo-init-depth 0]\n"
           "                [--apo-verify] [--apo-accuracy] [--subtree-levels S] [--ahead 3]\n"
-          "                [--json]\n"
+          "                [--colour-bits 8] [--no-colour] [--json]\n"
           "       meshbake --info FILE [--json]\n"
           "       meshbake --set-public-bits B -o ARCHIVE_DIR --name NAME\n"
           "       meshbake --list ARCHIVE_DIR [--json]\n"
@@ -87,6 +87,8 @@ static void print_usage(FILE *out)
           "                    (default 3): a coarse level draws each vertex at the\n"
           "                    barycentre of its known descendants, not at its kd-cell's\n"
           "                    centre (no staircase); 0 draws cell centres\n"
+          "  --colour-bits C   per-vertex colour (when the input has it), C bits per\n"
+          "                    channel, 1..8 (default 8); --no-colour leaves it out\n"
           "  --apo, --no-apo   give every cell an APO chunk of normals (default: on)\n"
           "  --apo-lead L      chunk depth: L levels below the cell's finest geometric\n"
           "                    precision, 0..16 (default 1)\n"
@@ -221,6 +223,8 @@ static int parse_options(int argc, char **argv, bake_options *options)
         {"remove", required_argument, NULL, 'R'},
         {"subtree-levels", required_argument, NULL, 'Y'},
         {"ahead", required_argument, NULL, 'K'},
+        {"colour-bits", required_argument, NULL, 'c'},
+        {"no-colour", no_argument, NULL, 'Z'},
         {NULL, 0, NULL, 0},
     };
     memset(options, 0, sizeof *options);
@@ -257,6 +261,12 @@ static int parse_options(int argc, char **argv, bake_options *options)
                 return status;
             options->bake.ahead = (unsigned)value;
             break;
+        case 'c':
+            if (!option_int(long_options, c, optarg, 1, 8, &value, &status))
+                return status;
+            options->bake.colour_bits = (unsigned)value;
+            break;
+        case 'Z': options->bake.no_colour = true; break;
         case 'A': options->bake.apo.enabled = true; break;
         case 'a': options->bake.apo.enabled = false; break;
         case 'V': options->bake.apo.verify = true; break;
@@ -525,6 +535,10 @@ static void print_bake_json(const ms_bake_options *o, const ms_bake_report *r)
     } else {
         json_decref(io);
     }
+    if (root) /* colour streams (docs/ARCHIVE.md): present, precision, bytes */
+        json_object_set_new(root, "colour", json_pack("{s:b, s:b, s:i, s:I}", "present", r->colour,
+                                                      "alpha", r->colour_alpha, "bits", (int)r->colour_bits,
+                                                      "bytes", (json_int_t)r->colour_bytes));
     if (root) {
         json_object_set_new(root, "duplicated_at_insertion",
                             json_real(r->duplicated_at_insertion_percent));
@@ -550,6 +564,10 @@ static void print_bake_text(const ms_bake_report *r)
            r->duplicated_percent, r->duplicated_at_insertion_percent);
     printf("archive:              %" PRIu64 " bytes, %.2f bits per vertex\n", r->archive_bytes,
            r->bits_per_vertex);
+    printf("geometry:             %" PRIu64 " bytes\n", r->geometry_bytes);
+    if (r->colour)
+        printf("colour:               %" PRIu64 " bytes, %u bits per channel, %s\n", r->colour_bytes,
+               r->colour_bits, r->colour_alpha ? "rgba" : "rgb");
     if (r->apo_chunks > 0) {
         printf("APO:                  %u chunks, %" PRIu64 " bytes (%" PRIu64 " raw), %" PRIu64
                " internal nodes, %" PRIu64 " leaves (%" PRIu64 " more left to the smooth normal)\n",
@@ -653,32 +671,35 @@ static int run_list(const bake_options *o)
     json_t *models = json_array();
     size_t failed = 0;
     if (!o->json)
-        printf("%-24s %12s %7s %12s %8s  %s\n", "model", "triangles", "cells", "bytes",
-               "preview", "checksums");
+        printf("%-24s %12s %7s %12s %10s %8s  %s\n", "model", "triangles", "cells", "bytes",
+               "colour", "preview", "checksums");
     for (size_t i = 0; i < catalog.count; ++i) {
         const ms_catalog_entry *e = &catalog.entries[i];
         char path[4200], problem[MS_ERROR_TEXT_MAX + 80] = "";
         snprintf(path, sizeof path, "%s/%s.msa", dir, e->name);
         ms_archive *a = NULL;
-        uint64_t file_bytes = 0;
+        uint64_t file_bytes = 0, colour_bytes = 0;
         if (ms_archive_open(path, &a, &err) != MS_OK) {
             snprintf(problem, sizeof problem, "%s", err.text);
         } else {
             const ms_archive_header *h = ms_archive_get_header(a);
             file_bytes = h->file_size;
-            for (uint32_t cell = 0; cell < h->cell_count && !problem[0]; ++cell)
+            for (uint32_t cell = 0; cell < h->cell_count && !problem[0]; ++cell) {
+                colour_bytes += ms_archive_colour_length(a, cell);
                 if (ms_archive_verify_payload(a, cell, &err) != MS_OK)
                     snprintf(problem, sizeof problem, "%s.msa: %s", e->name, err.text);
+            }
             ms_archive_close(a);
         }
         failed += problem[0] != 0;
         unsigned preview = e->public_max_bits < e->bits ? e->public_max_bits : e->bits;
         if (o->json) {
             json_array_append_new(
-                models, json_pack("{s:o, s:I, s:I, s:i, s:I, s:i, s:i, s:b, s:s, s:b, s:o}",
+                models, json_pack("{s:o, s:I, s:I, s:i, s:I, s:I, s:i, s:i, s:b, s:s, s:b, s:o}",
                                   "name", ms_json_text(e->name), "triangles",
                                   (json_int_t)e->triangles, "vertices", (json_int_t)e->vertices,
                                   "cells", (int)e->cells, "bytes", (json_int_t)file_bytes,
+                                  "colour_bytes", (json_int_t)colour_bytes,
                                   "bits", (int)e->bits, "public_bits", (int)preview, "apo",
                                   e->apo, "baked_at", e->baked_at, "ok", !problem[0], "error",
                                   ms_json_text(problem)));
@@ -688,8 +709,11 @@ static int run_list(const bake_options *o)
                 snprintf(preview_text, sizeof preview_text, "all");
             else
                 snprintf(preview_text, sizeof preview_text, "%u/%u", preview, e->bits);
-            printf("%-24s %12" PRIu64 " %7u %12" PRIu64 " %8s  %s\n", e->name, e->triangles,
-                   e->cells, file_bytes, preview_text, problem[0] ? "FAILED" : "ok");
+            char colour_text[24] = "-";
+            if (colour_bytes)
+                snprintf(colour_text, sizeof colour_text, "%" PRIu64, colour_bytes);
+            printf("%-24s %12" PRIu64 " %7u %12" PRIu64 " %10s %8s  %s\n", e->name, e->triangles,
+                   e->cells, file_bytes, colour_text, preview_text, problem[0] ? "FAILED" : "ok");
             if (problem[0])
                 fprintf(stderr, "meshbake: %s\n", problem);
         }

@@ -145,7 +145,8 @@ static void handle_hello(ms_serve_conn *c, const ms_proto_hello *h)
     /* Only the capabilities the chosen version defines: a version-1 peer never
      * gets CAP_INDEX_ZLIB, a version-2 peer never CAP_INDEX_SUBTREES. */
     uint32_t offered =
-        (MS_PROTO_CAP_APO | MS_PROTO_CAP_INDEX_ZLIB | MS_PROTO_CAP_INDEX_SUBTREES) &
+        (MS_PROTO_CAP_APO | MS_PROTO_CAP_INDEX_ZLIB | MS_PROTO_CAP_INDEX_SUBTREES |
+         MS_PROTO_CAP_COLOUR) &
         ms_proto_version_capabilities(version);
     c->version = version;
     c->capabilities = h->capabilities & offered;
@@ -483,8 +484,7 @@ static resolved resolve_entry(const ms_serve_conn *c, const ms_open_model *slot,
         return (resolved){fault.code, fault.detail, 0, 0};
     /* Subtrees were validated (CRC, structure) when the archive was opened. */
     if (range.begin < range.end && e->stream != MS_PROTO_STREAM_INDEX &&
-        !ms_server_payload_intact(server_of(c), slot->model, e->cell_id,
-                                  e->stream == MS_PROTO_STREAM_APO))
+        !ms_server_payload_intact(server_of(c), slot->model, e->cell_id, e->stream))
         return (resolved){MS_PROTO_E_INTERNAL, 0, 0, 0};
     return (resolved){0, 0, range.begin, range.end};
 }
