@@ -228,6 +228,43 @@ static void test_child_waits_for_parent(void **state)
         }
     assert_true(drawn > 1);
     free(before);
+    uint32_t withheld = 0; /* the child cell that draws the most triangles */
+    size_t most = 0;
+    for (size_t k = 0; k < m.run_count; ++k)
+        if (m.run_cell[k] != 0 && m.run_first[k + 1] - m.run_first[k] > most)
+            most = m.run_first[k + 1] - m.run_first[k], withheld = m.run_cell[k];
+    assert_true(withheld != 0);
+    ms_view_mesh_free(&m);
+    ms_view_destroy(v);
+
+    /* Every cell's colour but one shown cell's: that cell draws in the
+     * renderers' default grey until its colour arrives, never white. */
+    recs = malloc(h->cell_count * sizeof *recs);
+    for (uint32_t i = 0; i < h->cell_count; ++i)
+        recs[i] = *ms_archive_get_cell(a, i);
+    assert_int_equal(ms_view_create(h, recs, &v, &err), MS_OK);
+    free(recs);
+    for (uint32_t i = 0; i < h->cell_count; ++i) {
+        const uint8_t *g = ms_archive_geometry(a, i, &len);
+        assert_int_equal(ms_view_set_bytes(v, i, g, len, &err), MS_OK);
+        const uint8_t *col = ms_archive_colour(a, i, &len);
+        if (len && i != withheld)
+            assert_int_equal(ms_view_set_colour_bytes(v, i, col, len, &err), MS_OK);
+    }
+    ms_nsp_test_decode_all(v);
+    m = (ms_view_mesh){0};
+    assert_int_equal(ms_view_stitch(v, NULL, &m, &err), MS_OK);
+    assert_non_null(m.colours);
+    static const uint8_t pending[4] = {221, 216, 209, 255}, white[4] = {255, 255, 255, 255};
+    size_t own_pending = 0, own_corners = 0;
+    for (size_t t = 0; t < m.triangle_count; ++t)
+        for (int k = 0; k < 3 && m.triangle_cell[t] == withheld; ++k, ++own_corners)
+            own_pending += !memcmp(&m.colours[4 * (size_t)m.triangles[3 * t + k]], pending, 4);
+    for (size_t i = 0; i < m.vertex_count; ++i)
+        assert_memory_not_equal(&m.colours[4 * i], white, 4);
+    print_message("the withheld cell's corners: %zu, %zu of them pending\n", own_corners, own_pending);
+    assert_true(own_corners > 0);
+    assert_true(own_pending * 2 > own_corners);
     ms_view_mesh_free(&m);
     ms_view_destroy(v);
     ms_archive_close(a);

@@ -304,7 +304,8 @@ typedef struct ms_view_mesh {
      * the colour bits held), or NULL when the model has no colour stream or
      * none of it is held yet; a renderer then uses its default albedo. The
      * vertices of a shown cell without its colour yet (its bytes, or for a
-     * child its split parent's whole stream, not held) are opaque white. */
+     * child its split parent's whole stream, not held) are the renderers'
+     * default grey, 221 216 209 255. */
     uint8_t *colours;
     size_t vertex_cap, triangle_cap;
     /* diagnostics */

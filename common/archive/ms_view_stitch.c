@@ -209,9 +209,13 @@ static ms_status out_vertex(ms_view *v, ms_view_mesh *m, uint32_t cell, uint32_t
     unsigned shift = 3 * v->shape.bits - level;
     m->keys[k] = shift >= 64 ? 0 : prefix << shift;
     m->levels[k] = (uint8_t)level;
-    if (m->colours) { /* a cell without its colour yet: opaque white */
-        static const uint8_t white[4] = {255, 255, 255, 255};
-        memcpy(&m->colours[4 * k], ms_view_colour_ready(c) ? &c->cache_colours[4 * (size_t)i] : white, 4);
+    if (m->colours) {
+        /* A cell without its colour yet draws in the renderers' default grey
+         * (sRGB of meshview's and meshrender's albedo 0.72 0.69 0.64), as the
+         * model looked before colour: no white flash while a stream arrives. */
+        static const uint8_t pending[4] = {221, 216, 209, 255};
+        memcpy(&m->colours[4 * k],
+               ms_view_colour_ready(c) ? &c->cache_colours[4 * (size_t)i] : pending, 4);
     }
     c->out_index[i] = (uint32_t)k;
     *out = (uint32_t)k;
