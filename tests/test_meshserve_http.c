@@ -32,6 +32,8 @@ typedef struct server_fixture {
     char log[600];
     pid_t pid;
     uint16_t port, http_port;
+    char access_log[600]; /* start_logged_server's */
+    char extra_dir[512];  /* a second temporary folder, removed with the fixture */
 } server_fixture;
 
 static int start_server_with(void **state, const char *settings)
@@ -82,6 +84,8 @@ static int stop_server(void **state)
     if (f->pid > 0)
         ms_test_stop(f->pid, SIGKILL, 5.0);
     ms_test_rmdir(f->dir);
+    if (f->extra_dir[0])
+        ms_test_rmdir(f->extra_dir);
     free(f);
     return 0;
 }
@@ -676,6 +680,118 @@ static void test_legitimate_request_at_the_cap(void **state)
         close(loris[i]);
 }
 
+/* Default settings, with an access log (in a folder of its own). */
+static int start_logged_server(void **state)
+{
+    char settings[700];
+    char dir[512];
+    ms_test_tmpdir(dir, sizeof dir);
+    snprintf(settings, sizeof settings, "access_log = %s/access.log\n", dir);
+    int rc = start_server_with(state, settings);
+    server_fixture *f = *state;
+    snprintf(f->access_log, sizeof f->access_log, "%s/access.log", dir);
+    snprintf(f->extra_dir, sizeof f->extra_dir, "%s", dir);
+    return rc;
+}
+
+/* The "request" field of each line of the access log, in order (at most max). */
+static size_t logged_requests(const char *path, char (*requests)[64], size_t max)
+{
+    FILE *log = fopen(path, "r");
+    assert_non_null(log);
+    char line[2048];
+    size_t n = 0;
+    while (n < max && fgets(line, sizeof line, log)) {
+        const char *at = strstr(line, "\"request\":");
+        assert_non_null(at);
+        at = strchr(at + 10, '"');
+        assert_non_null(at);
+        size_t length = strcspn(at + 1, "\"");
+        snprintf(requests[n++], 64, "%.*s", (int)length, at + 1);
+    }
+    fclose(log);
+    return n;
+}
+
+/* Reads one whole answer (Connection: close) into buffer; returns its length. */
+static size_t read_answer(int fd, char *buffer, size_t size)
+{
+    size_t got = 0;
+    for (;;) {
+        ssize_t n = recv(fd, buffer + got, size - 1 - got, 0);
+        assert_true(n >= 0); /* the 30 s receive time-out bounds a broken server */
+        if (n == 0 || got + (size_t)n == size - 1)
+            break;
+        got += (size_t)n;
+    }
+    buffer[got] = '\0';
+    return got;
+}
+
+/* Issue 32, item 8: a connection whose request header arrives in pieces waits
+ * behind every complete request (libevent priorities, docs/SECURITY.md
+ * section 4). Sixteen connections send the first line of a request and no
+ * more: each is demoted after that first read (/metrics counts 16 trickling).
+ * The server is stopped (SIGSTOP); each of the sixteen sends the rest of its
+ * header, and only then a new client connects and sends a whole request. On
+ * SIGCONT the server finds the seventeen ready in one turn. Before, libevent
+ * ran them in the order their bytes came: the sixteen answered first, the
+ * newcomer last. Now the newcomer's request is handled first: it is the first
+ * line the access log writes after the stop, and the sixteen follow, each
+ * answered, none lost; once answered, none is counted as trickling. */
+static void test_trickling_headers_wait(void **state)
+{
+    server_fixture *f = *state;
+    enum { TRICKLERS = 16 };
+    int trickler[TRICKLERS];
+    const char start[] = "GET /healthz HTTP/1.1\r\n";
+    for (int i = 0; i < TRICKLERS; ++i) {
+        trickler[i] = connect_loopback(f->http_port);
+        assert_int_equal(send(trickler[i], start, sizeof start - 1, MSG_NOSIGNAL),
+                         (ssize_t)sizeof start - 1);
+    }
+    uint64_t trickling = 0;
+    for (int tries = 0; tries < 500 && trickling != TRICKLERS; ++tries) { /* at most 5 s */
+        assert_int_equal(
+            ms_test_metric(f->http_port, "meshstream_http_connections_trickling", &trickling), 0);
+        if (trickling != TRICKLERS)
+            usleep(10000);
+    }
+    assert_int_equal(trickling, TRICKLERS);
+    char before[64][64];
+    size_t lines_before = logged_requests(f->access_log, before, 64);
+    assert_int_equal(kill(f->pid, SIGSTOP), 0);
+    const char rest[] = "Host: x\r\nConnection: close\r\n\r\n";
+    for (int i = 0; i < TRICKLERS; ++i)
+        assert_int_equal(send(trickler[i], rest, sizeof rest - 1, MSG_NOSIGNAL),
+                         (ssize_t)sizeof rest - 1);
+    int newcomer = connect_loopback(f->http_port); /* the kernel's backlog accepts it */
+    const char whole[] = "GET /catalog HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n";
+    assert_int_equal(send(newcomer, whole, sizeof whole - 1, MSG_NOSIGNAL),
+                     (ssize_t)sizeof whole - 1);
+    assert_int_equal(kill(f->pid, SIGCONT), 0);
+    char answer[8192];
+    read_answer(newcomer, answer, sizeof answer);
+    assert_memory_equal(answer, "HTTP/1.1 200 OK\r\n", 17);
+    assert_non_null(strstr(answer, "\"bunny\""));
+    close(newcomer);
+    for (int i = 0; i < TRICKLERS; ++i) {
+        read_answer(trickler[i], answer, sizeof answer);
+        assert_memory_equal(answer, "HTTP/1.1 200 OK\r\n", 17);
+        assert_non_null(strstr(answer, "\r\n\r\nok\n"));
+        close(trickler[i]);
+    }
+    char after[64][64];
+    size_t lines = logged_requests(f->access_log, after, 64);
+    assert_int_equal(lines, lines_before + 1 + TRICKLERS);
+    assert_string_equal(after[lines_before], "/catalog");
+    for (size_t i = lines_before + 1; i < lines; ++i)
+        assert_string_equal(after[i], "/healthz");
+    assert_int_equal(
+        ms_test_metric(f->http_port, "meshstream_http_connections_trickling", &trickling), 0);
+    assert_int_equal(trickling, 0);
+}
+
 static void test_hostile_requests(void **state)
 {
     server_fixture *f = *state;
@@ -765,6 +881,8 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_replaced_and_truncated_archives, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_slowloris_bounded, start_guarded_server, stop_server),
         cmocka_unit_test_setup_teardown(test_legitimate_request_at_the_cap, start_capped_server,
+                                        stop_server),
+        cmocka_unit_test_setup_teardown(test_trickling_headers_wait, start_logged_server,
                                         stop_server),
         cmocka_unit_test_setup_teardown(test_hostile_requests, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_sighup_adds_model_and_sigterm_drains, start_server, stop_server),
