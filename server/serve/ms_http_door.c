@@ -714,6 +714,16 @@ ms_status ms_http_door_open(ms_server *server, ms_http_door **out, uint16_t *bou
         ms_http_door_close(door);
         return st;
     }
+    /* evhttp listens with a backlog of 128: a burst of reconnections
+     * (slowloris) fills it, and a SYN that finds it full is dropped, its
+     * client retrying after a second (1.03 s in scripts/attack). The binary
+     * door's 1024; listen() again only resizes the queue. */
+    if (listen(evhttp_bound_socket_get_fd(socket), 1024) != 0) {
+        ms_status st = ms_error_set(err, MS_ERR_IO, "http: cannot listen on %s:%u: %s", address,
+                                    server->config.http_port, strerror(errno));
+        ms_http_door_close(door);
+        return st;
+    }
     door->listener = evhttp_bound_socket_get_listener(socket);
     door->sweep = event_new(server->base, -1, EV_PERSIST, sweep, door);
     door->next_turn = evtimer_new(server->base, on_next_turn, door);
