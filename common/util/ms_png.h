@@ -13,4 +13,9 @@
 ms_status ms_png_write(const char *path, const uint8_t *pixels, uint32_t width, uint32_t height,
                        int channels, ms_error *err);
 
+/* The same, smaller: rows filtered (libpng's adaptive choice) and deflated
+ * at level 9; for pictures served over the network (thumbnails). */
+ms_status ms_png_write_compact(const char *path, const uint8_t *pixels, uint32_t width,
+                               uint32_t height, int channels, ms_error *err);
+
 #endif

@@ -38,10 +38,15 @@ static bool contains_folded(const char *haystack, const char *needle)
     return n == 0;
 }
 
+/* The text filter: name, source, and the metadata's title and description
+ * (UTF-8: ASCII letters fold, other characters match as they are). */
 static bool entry_matches(const ms_catalog_entry *e, const char *text)
 {
+    const ms_metadata *m = e->metadata;
     return !text[0] || contains_folded(e->name, text) ||
-           (e->source && contains_folded(e->source, text));
+           (e->source && contains_folded(e->source, text)) ||
+           (m && m->title && contains_folded(m->title, text)) ||
+           (m && m->description && contains_folded(m->description, text));
 }
 
 /* Reads the query; false with a one-line reason in why. */
@@ -107,13 +112,24 @@ static int compare_items(const void *a, const void *b)
     return x->sign * c;
 }
 
+/* One model: its figures, "thumbnail" (true when /models/NAME/thumbnail
+ * answers a picture) and, when the catalogue has them, the metadata's
+ * fields as JSON strings (text as given: a page escapes it). */
 static json_t *entry_json(const ms_catalog_entry *e)
 {
-    return json_pack("{s:s, s:I, s:I, s:I, s:i, s:i, s:b, s:I, s:s}", "name", e->name, "vertices",
-                     (json_int_t)e->vertices, "triangles", (json_int_t)e->triangles, "cells",
-                     (json_int_t)e->cells, "bits", (int)e->bits, "public_max_bits",
-                     (int)e->public_max_bits, "apo", (int)e->apo, "archive_bytes",
-                     (json_int_t)e->archive_bytes, "baked_at", e->baked_at);
+    json_t *obj = json_pack("{s:s, s:I, s:I, s:I, s:i, s:i, s:b, s:I, s:s, s:b}", "name", e->name,
+                            "vertices", (json_int_t)e->vertices, "triangles",
+                            (json_int_t)e->triangles, "cells", (json_int_t)e->cells, "bits",
+                            (int)e->bits, "public_max_bits", (int)e->public_max_bits, "apo",
+                            (int)e->apo, "archive_bytes", (json_int_t)e->archive_bytes,
+                            "baked_at", e->baked_at, "thumbnail",
+                            e->has_thumbnail && e->thumbnail_bits <= e->public_max_bits);
+    for (int k = 0; obj && k < MS_METADATA_FIELDS; ++k) {
+        const char *v = ms_metadata_field(e->metadata, k);
+        if (v)
+            json_object_set_new(obj, ms_metadata_field_names[k], json_string(v));
+    }
+    return obj;
 }
 
 /* The page as JSON text (malloc'ed), or NULL when out of memory. */
