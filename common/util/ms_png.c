@@ -9,6 +9,7 @@
 #include <setjmp.h>
 #include <stdbool.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
 
@@ -100,4 +101,41 @@ ms_status ms_png_write_compact(const char *path, const uint8_t *pixels, uint32_t
                                uint32_t height, int channels, ms_error *err)
 {
     return write_file(path, pixels, width, height, channels, true, err);
+}
+
+ms_status ms_png_read_rgb(const char *path, uint32_t max_width, uint32_t max_height,
+                          uint8_t **pixels, uint32_t *width, uint32_t *height, ms_error *err)
+{
+    *pixels = NULL;
+    *width = *height = 0;
+    FILE *f = fopen(path, "rb");
+    if (!f)
+        return ms_error_set(err, MS_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    png_image image;
+    memset(&image, 0, sizeof image);
+    image.version = PNG_IMAGE_VERSION;
+    ms_status st = MS_OK;
+    if (!png_image_begin_read_from_stdio(&image, f)) {
+        st = ms_error_set(err, MS_ERR_FORMAT, "%s: %s", path, image.message);
+    } else if (image.width > max_width || image.height > max_height) {
+        st = ms_error_set(err, MS_ERR_RANGE, "%s: %ux%u pixels, at most %ux%u", path,
+                          image.width, image.height, max_width, max_height);
+    } else {
+        image.format = PNG_FORMAT_RGB;
+        uint8_t *buffer = malloc(PNG_IMAGE_SIZE(image));
+        if (!buffer)
+            st = ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory", path);
+        else if (!png_image_finish_read(&image, NULL, buffer, 0, NULL))
+            st = ms_error_set(err, MS_ERR_FORMAT, "%s: %s", path, image.message);
+        if (st == MS_OK) {
+            *pixels = buffer;
+            *width = image.width;
+            *height = image.height;
+        } else {
+            free(buffer);
+        }
+    }
+    png_image_free(&image);
+    fclose(f);
+    return st;
 }
