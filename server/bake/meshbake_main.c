@@ -164,6 +164,8 @@ static bool option_int(const struct option *opts, int c, const char *text, int64
  * go on, or the exit status to end with. */
 static int check_mode(int argc, char **argv, bake_options *options)
 {
+    if (options->metadata_path && options->mode != MODE_NONE)
+        return usage_error("--metadata goes with a bake (IN -o ARCHIVE_DIR)", NULL);
     if (options->mode == MODE_LIST || options->mode == MODE_REMOVE ||
         options->mode == MODE_THUMBNAIL) {
         if (options->mode == MODE_REMOVE && !options->bake.archive_dir)

@@ -24,13 +24,14 @@ typedef struct catalog_request {
     char text[CATALOG_QUERY_MAX + 1]; /* lower case; empty: every model */
 } catalog_request;
 
-/* Case-insensitive substring test (ASCII: names are [A-Za-z0-9_-]). */
+/* Case-insensitive substring test: ASCII letters fold, other bytes (UTF-8 of
+ * a title) compare as they are. */
 static bool contains_folded(const char *haystack, const char *needle)
 {
     size_t n = strlen(needle);
     for (const char *h = haystack; *h; ++h) {
         size_t i = 0;
-        while (i < n && h[i] && tolower((unsigned char)h[i]) == needle[i])
+        while (i < n && h[i] && tolower((unsigned char)h[i]) == (unsigned char)needle[i])
             ++i;
         if (i == n)
             return true;
