@@ -193,13 +193,14 @@ static void test_the_catalogue_keeps_metadata(void **state)
     ms_catalog_free(&first);
     ms_catalog_free(&second);
     /* the thumbnail fields alone */
-    assert_int_equal(ms_catalog_update_thumbnail(dir, "beta", true, 12, &err), MS_OK);
-    assert_int_equal(ms_catalog_update_thumbnail(dir, "gamma", true, 12, &err), MS_ERR_RANGE);
+    assert_int_equal(ms_catalog_update_thumbnail(dir, "beta", true, 12, 1, &err), MS_OK);
+    assert_int_equal(ms_catalog_update_thumbnail(dir, "gamma", true, 12, 1, &err), MS_ERR_RANGE);
     char want[700];
     snprintf(want, sizeof want, "no model 'gamma' in %s/catalog.json", dir);
     assert_string_equal(err.text, want);
     assert_int_equal(ms_catalog_load(dir, &first, &err), MS_OK);
     assert_int_equal(ms_catalog_find(&first, "beta")->thumbnail_bits, 12);
+    assert_int_equal(ms_catalog_find(&first, "beta")->thumbnail_up, 1);
     assert_int_equal(ms_catalog_find(&first, "beta")->triangles, 16);
     assert_true(ms_metadata_equal(ms_catalog_find(&first, "alpha")->metadata, meta));
     ms_catalog_free(&first);
@@ -216,6 +217,8 @@ static void test_the_catalogue_keeps_metadata(void **state)
         {"\"metadata\": {\"x\": \"y\"}",
          "unknown metadata field 'x' (title, creator, date, licence, description)"},
         {"\"thumbnail_bits\": 21", "thumbnail_bits is not an integer in 0..20"},
+        {"\"thumbnail_bits\": 8, \"thumbnail_up\": \"w\"",
+         "thumbnail_up is not \"x\", \"y\" or \"z\""},
     };
     for (size_t i = 0; i < sizeof bad / sizeof *bad; ++i) {
         char text[1200];

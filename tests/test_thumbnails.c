@@ -95,7 +95,7 @@ static void test_bake_renders_and_keeps(void **state)
     write_text(path, "{\"title\": \"Demo <script>alert(1)</script>\", \"creator\": \"M\\u00fcller\", "
                      "\"description\": \"The demo sculpture,\\nin marble.\"}");
     char args[800];
-    snprintf(args, sizeof args, "--name full --metadata '%s'", path);
+    snprintf(args, sizeof args, "--name full --up y --metadata '%s'", path);
     json_t *full = bake(f, args);
     json_t *thumb = json_object_get(full, "thumbnail");
     assert_int_equal(json_integer_value(json_object_get(thumb, "width")), 160);
@@ -119,11 +119,12 @@ static void test_bake_renders_and_keeps(void **state)
     assert_null(e->metadata->licence);
     assert_true(e->has_thumbnail);
     assert_true(e->thumbnail_bits > 6);
+    assert_int_equal(e->thumbnail_up, 1);
     e = ms_catalog_find(&c, "preview");
     assert_null(e->metadata);
     assert_int_equal(e->thumbnail_bits, preview_bits);
     ms_catalog_free(&c);
-    /* --thumbnail renders the same picture again */
+    /* --thumbnail renders the same picture again (y up, as it was) */
     snprintf(cmd, sizeof cmd, "%s --thumbnail full -o '%s' --json", f->bake, f->archives);
     json_decref(ms_test_run_json(cmd, 0));
     uint8_t *again = picture(f, "full");
@@ -162,6 +163,7 @@ static void test_bake_renders_and_keeps(void **state)
     e = entry(&c, f, "full");
     assert_int_equal(e->public_max_bits, 4);
     assert_true(e->has_thumbnail && e->thumbnail_bits <= 4);
+    assert_int_equal(e->thumbnail_up, 1); /* the picture's up kept */
     assert_string_equal(e->metadata->title, "Demo <script>alert(1)</script>");
     ms_catalog_free(&c);
     /* --remove takes the picture too */

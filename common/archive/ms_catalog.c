@@ -157,6 +157,17 @@ static ms_status parse_entry(const char *path, size_t index, json_t *obj, ms_cat
         }
         e->has_thumbnail = true;
         e->thumbnail_bits = (uint8_t)thumb_bits;
+        e->thumbnail_up = 2;
+        json_t *up = json_object_get(obj, "thumbnail_up");
+        const char *axis = json_is_string(up) ? json_string_value(up) : "";
+        if (up && (strlen(axis) != 1 || axis[0] < 'x' || axis[0] > 'z')) {
+            free(e->source);
+            e->source = NULL;
+            return ms_error_set(err, MS_ERR_FORMAT, "%s: model %zu: thumbnail_up is not "
+                                "\"x\", \"y\" or \"z\"", path, index);
+        }
+        if (up)
+            e->thumbnail_up = (uint8_t)(axis[0] - 'x');
     }
     json_t *meta = json_object_get(obj, "metadata");
     if (meta) {
@@ -383,8 +394,11 @@ static json_t *entry_to_json(const ms_catalog_entry *e)
         json_object_set_new(obj, "content_id", json_string(hex));
         json_object_set_new(obj, "apo_levels", json_integer(e->apo_levels));
     }
-    if (obj && e->has_thumbnail)
+    if (obj && e->has_thumbnail) {
+        char axis[2] = {(char)('x' + (e->thumbnail_up <= 2 ? e->thumbnail_up : 2)), 0};
         json_object_set_new(obj, "thumbnail_bits", json_integer(e->thumbnail_bits));
+        json_object_set_new(obj, "thumbnail_up", json_string(axis));
+    }
     if (obj && e->metadata) {
         json_t *meta = ms_metadata_to_json(e->metadata);
         if (!meta || json_object_set_new(obj, "metadata", meta) != 0) {
@@ -451,7 +465,8 @@ static void unlock_catalog(int lock)
 }
 
 ms_status ms_catalog_update_thumbnail(const char *dir, const char *name, bool has_thumbnail,
-                                      unsigned thumbnail_bits, ms_error *err)
+                                      unsigned thumbnail_bits, unsigned thumbnail_up,
+                                      ms_error *err)
 {
     int lock = lock_catalog(dir, err);
     if (lock < 0)
@@ -465,6 +480,7 @@ ms_status ms_catalog_update_thumbnail(const char *dir, const char *name, bool ha
         } else {
             e->has_thumbnail = has_thumbnail;
             e->thumbnail_bits = has_thumbnail ? (uint8_t)thumbnail_bits : 0;
+            e->thumbnail_up = (uint8_t)(thumbnail_up <= 2 ? thumbnail_up : 2);
             st = catalog_save(dir, &c, err);
         }
         ms_catalog_free(&c);

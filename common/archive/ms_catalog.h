@@ -66,6 +66,7 @@ typedef struct ms_catalog_entry {
      * thumbnail_bits <= public_max_bits. */
     bool has_thumbnail;
     uint8_t thumbnail_bits;
+    uint8_t thumbnail_up;      /* "thumbnail_up": its world up, 0 x, 1 y, 2 z (default) */
     /* The reader's bookkeeping: FNV-1a 64 of the entry's text in the file it
      * was read from (0: not known), by which ms_catalog_reload recognises an
      * unchanged entry. Never written. */
@@ -106,10 +107,11 @@ ms_status ms_catalog_entry_fill_listing(ms_catalog_entry *entry, const char *arc
 ms_status ms_catalog_update(const char *dir, const ms_catalog_entry *entry, ms_error *err);
 
 /* Sets the thumbnail fields of the entry named name (has_thumbnail,
- * thumbnail_bits), under the lock, leaving the rest of the entry as it is.
+ * thumbnail_bits, thumbnail_up), under the lock, leaving the rest of the entry as it is.
  * MS_ERR_RANGE when there is no such entry. */
 ms_status ms_catalog_update_thumbnail(const char *dir, const char *name, bool has_thumbnail,
-                                      unsigned thumbnail_bits, ms_error *err);
+                                      unsigned thumbnail_bits, unsigned thumbnail_up,
+                                      ms_error *err);
 
 /* Removes the entry named name, if any, under the lock. */
 ms_status ms_catalog_remove(const char *dir, const char *name, ms_error *err);

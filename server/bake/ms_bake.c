@@ -29,7 +29,7 @@ void ms_bake_options_default(ms_bake_options *o)
     o->mem_mb = 512;
     o->public_bits = -1;
     o->ahead = MS_CODEC_DEFAULT_AHEAD;
-    o->thumbnail_up = 2;
+    o->thumbnail_up = -1;
     long cpus = sysconf(_SC_NPROCESSORS_ONLN);
     o->threads = cpus > 0 ? (unsigned)cpus : 1;
     ms_bake_apo_params_default(&o->apo);
@@ -325,7 +325,14 @@ static ms_status record_in_catalog(const ms_bake_options *o, ms_bake_report *r,
     if (s == MS_OK && !o->no_thumbnail) {
         ms_study_thumbnail_report tr;
         ms_error terr;
-        if (ms_bake_thumbnail(o->archive_dir, &e, o->thumbnail_up, o->threads, &tr, &terr) ==
+        int up = o->thumbnail_up;
+        ms_catalog before;
+        if (up < 0 && ms_catalog_load(o->archive_dir, &before, &terr) == MS_OK) {
+            const ms_catalog_entry *was = ms_catalog_find(&before, e.name);
+            up = was && was->has_thumbnail ? was->thumbnail_up : 2;
+            ms_catalog_free(&before);
+        }
+        if (ms_bake_thumbnail(o->archive_dir, &e, up, o->threads, &tr, &terr) ==
             MS_OK) {
             r->seconds_thumbnail = tr.seconds;
             r->thumbnail_bytes = tr.png_bytes;

@@ -67,7 +67,8 @@ typedef struct ms_bake_options {
     const ms_metadata *metadata; /* NULL, or the sidecar's (kept in the catalogue entry;
                                   * NULL keeps what a previous bake of NAME had) */
     bool no_thumbnail;     /* skip DIR/NAME.thumb.png (ms_bake_thumbnail.h) */
-    int thumbnail_up;      /* the thumbnail's world up: 0 x, 1 y, 2 z (default) */
+    int thumbnail_up;      /* the thumbnail's world up: 0 x, 1 y, 2 z; < 0 (default):
+                            * a previous bake's of NAME, else z */
 } ms_bake_options;
 
 /* Defaults: 16 bits, n = 4, p_r = 7, N_min by model size (8000 up to 4 M input

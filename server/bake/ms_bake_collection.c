@@ -195,7 +195,8 @@ int ms_bake_cli_thumbnail(const char *dir, const char *name, int up_axis, unsign
     ms_error update_err;
     /* the entry says what is on disk now, the picture or none */
     ms_status recorded = ms_catalog_update_thumbnail(dir, name, e.has_thumbnail,
-                                                     e.thumbnail_bits, &update_err);
+                                                     e.thumbnail_bits, e.thumbnail_up,
+                                                     &update_err);
     if (st != MS_OK || recorded != MS_OK) {
         fprintf(stderr, "meshbake: %s\n", st != MS_OK ? err.text : update_err.text);
         return EXIT_INPUT;

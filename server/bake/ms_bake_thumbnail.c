@@ -17,7 +17,7 @@ ms_status ms_bake_thumbnail(const char *dir, ms_catalog_entry *e, int up_axis, u
     ms_bake_thumbnail_path(dir, e->name, png, sizeof png);
     ms_study_thumbnail_options o;
     ms_study_thumbnail_options_default(&o);
-    o.up_axis = up_axis;
+    o.up_axis = up_axis >= 0 && up_axis <= 2 ? up_axis : e->has_thumbnail ? e->thumbnail_up : 2;
     o.threads = threads;
     o.permitted_bits = e->public_max_bits < e->bits ? e->public_max_bits : e->bits;
     e->has_thumbnail = false;
@@ -28,6 +28,7 @@ ms_status ms_bake_thumbnail(const char *dir, ms_catalog_entry *e, int up_axis, u
         return st;
     }
     e->has_thumbnail = true;
+    e->thumbnail_up = (uint8_t)o.up_axis;
     e->thumbnail_bits = (uint8_t)(report->bits < o.permitted_bits ? report->bits
                                                                    : o.permitted_bits);
     return MS_OK;

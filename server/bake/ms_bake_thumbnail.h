@@ -17,9 +17,10 @@
 void ms_bake_thumbnail_path(const char *dir, const char *name, char *out, size_t size);
 
 /* Renders the thumbnail of entry's archive DIR/NAME.msa at the entry's
- * preview (public_max_bits) with world up up_axis (0..2), and sets
- * entry->has_thumbnail and thumbnail_bits (the catalogue is not written
- * here). On failure no file is left and the entry says no thumbnail. */
+ * preview (public_max_bits) with world up up_axis (0..2; < 0: the entry's
+ * thumbnail_up when it has a thumbnail, else z), and sets
+ * entry->has_thumbnail, thumbnail_bits and thumbnail_up (the catalogue is not
+ * written here). On failure no file is left and the entry says no thumbnail. */
 ms_status ms_bake_thumbnail(const char *dir, ms_catalog_entry *entry, int up_axis,
                             unsigned threads, ms_study_thumbnail_report *report, ms_error *err);
 
