@@ -296,7 +296,8 @@ static bool reply_acceptable(ms_client *c, const ms_proto_hello_reply *r)
 {
     char why[160];
     uint16_t code = MS_PROTO_E_FIELD_OUT_OF_RANGE;
-    uint32_t asked = MS_PROTO_CAP_APO | (c->ask_index_zlib ? MS_PROTO_CAP_INDEX_ZLIB : 0) |
+    uint32_t asked = MS_PROTO_CAP_APO | MS_PROTO_CAP_COLOUR |
+                     (c->ask_index_zlib ? MS_PROTO_CAP_INDEX_ZLIB : 0) |
                      (c->ask_index_subtrees ? MS_PROTO_CAP_INDEX_SUBTREES : 0);
     if (r->version < MS_PROTO_MIN_VERSION || r->version > MS_PROTO_VERSION)
         snprintf(why, sizeof why, "server chose protocol version %u, outside our %u..%u",
@@ -395,10 +396,11 @@ static bool handle_message(ms_client *c, const ms_proto_message *m)
         if (c->handlers->pong)
             c->handlers->pong(c, m->body.ping.opaque, c->arg);
         break;
-    case MS_PROTO_CATALOGUE: {
+    case MS_PROTO_CATALOGUE:
+    case MS_PROTO_CATALOGUE_PAGE: {
         pending *q = pending_find(c, m->request_id);
         if (!q || q->kind != PENDING_LIST) {
-            violation(c, MS_PROTO_E_UNEXPECTED_MESSAGE, MS_PROTO_CATALOGUE,
+            violation(c, MS_PROTO_E_UNEXPECTED_MESSAGE, m->type,
                       "CATALOGUE for request %u, which is no catalogue request", m->request_id);
             break;
         }
@@ -504,7 +506,8 @@ ms_status ms_client_connect(struct event_base *base, const ms_client_options *o,
     h->max_version = MS_PROTO_VERSION;
     c->ask_index_zlib = !o->raw_index;
     c->ask_index_subtrees = o->index_subtrees;
-    h->capabilities = MS_PROTO_CAP_APO | (c->ask_index_zlib ? MS_PROTO_CAP_INDEX_ZLIB : 0) |
+    h->capabilities = MS_PROTO_CAP_APO | MS_PROTO_CAP_COLOUR |
+                      (c->ask_index_zlib ? MS_PROTO_CAP_INDEX_ZLIB : 0) |
                       (c->ask_index_subtrees ? MS_PROTO_CAP_INDEX_SUBTREES : 0);
     h->max_frame = max_frame;
     h->token = o->token;
@@ -534,10 +537,22 @@ void ms_client_free(ms_client *c)
     free(c);
 }
 
-/* LIST_CATALOGUE (ms_client_fetch_catalogue's request). */
-static ms_status list_catalogue(ms_client *c, uint32_t *request_id, ms_error *err)
+/* LIST_CATALOGUE, or LIST_PAGE for page (ms_client_fetch_catalogue's
+ * requests). */
+static ms_status list_catalogue(ms_client *c, const ms_client_page_request *page,
+                                uint32_t *request_id, ms_error *err)
 {
-    ms_proto_message m = {.type = MS_PROTO_LIST_CATALOGUE, .request_id = take_ids(c, 1)};
+    ms_proto_message m = {.type = page ? MS_PROTO_LIST_PAGE : MS_PROTO_LIST_CATALOGUE,
+                          .request_id = take_ids(c, 1)};
+    if (page) {
+        ms_proto_list_page *l = &m.body.list_page;
+        l->offset = page->offset;
+        l->limit = page->limit;
+        l->sort = page->sort;
+        l->descending = page->descending;
+        l->query = page->query ? page->query : "";
+        l->query_length = (uint8_t)strlen(l->query);
+    }
     *request_id = m.request_id;
     ms_status st = send_message(c, &m, err);
     pending *p = st == MS_OK ? pending_add(c, m.request_id) : NULL;
@@ -638,6 +653,8 @@ uint64_t ms_client_bytes_read(const ms_client *c) { return c->bytes_read; }
 typedef struct catalogue_fetch {
     struct event_base *base;
     uint32_t request;
+    const ms_client_page_request *page; /* NULL: the whole catalogue */
+    ms_status page_status;              /* of sending LIST_PAGE once ready */
     ms_client_catalogue *out;
     size_t cap;
     bool done, failed;
@@ -687,10 +704,30 @@ static void fetch_on_catalogue(ms_client *client, uint32_t request_id,
         d->content_id = e->content_id;
         d->archive_bytes = e->archive_bytes;
     }
+    out->total = f->page ? cat->total : out->count;
     if (last) {
         f->done = true;
         event_base_loopbreak(f->base);
     }
+}
+
+/* A page waits for the handshake: LIST_PAGE needs version 3. */
+static void fetch_on_ready(ms_client *client, const ms_proto_hello_reply *reply, void *arg)
+{
+    catalogue_fetch *f = arg;
+    if (!f->page)
+        return;
+    if (reply->version < 3) {
+        f->page_status = MS_ERR_UNSUPPORTED;
+        char why[120];
+        snprintf(why, sizeof why, "the server speaks protocol version %u, which has no "
+                 "catalogue pages (version 3)", reply->version);
+        fetch_fail(f, why);
+        return;
+    }
+    ms_error e;
+    if ((f->page_status = list_catalogue(client, f->page, &f->request, &e)) != MS_OK)
+        fetch_fail(f, e.text);
 }
 
 static void fetch_on_error(ms_client *client, uint32_t first_id, uint32_t count,
@@ -718,20 +755,22 @@ static void fetch_on_timeout(evutil_socket_t fd, short what, void *arg)
     fetch_fail(arg, "no complete answer in time");
 }
 
-ms_status ms_client_fetch_catalogue(const ms_client_options *options, double timeout_s,
-                                    ms_client_catalogue *catalogue, ms_error *err)
+static ms_status fetch_catalogue(const ms_client_options *options, double timeout_s,
+                                 const ms_client_page_request *page,
+                                 ms_client_catalogue *catalogue, ms_error *err)
 {
     catalogue->entries = NULL;
-    catalogue->count = 0;
+    catalogue->count = catalogue->total = 0;
     if (!options || !options->host || !(timeout_s >= 0) || timeout_s > 86400)
         return ms_error_set(err, MS_ERR_ARG, "catalogue: a server address and a time-out in "
                             "[0, 86400] s are needed");
     if (timeout_s == 0)
         timeout_s = 5.0;
-    static const ms_client_handlers handlers = {.catalogue = fetch_on_catalogue,
+    static const ms_client_handlers handlers = {.ready = fetch_on_ready,
+                                                .catalogue = fetch_on_catalogue,
                                                 .request_error = fetch_on_error,
                                                 .closed = fetch_on_closed};
-    catalogue_fetch f = {.out = catalogue};
+    catalogue_fetch f = {.out = catalogue, .page = page};
     struct event *timer = NULL;
     ms_client *client = NULL;
     ms_status st = MS_OK;
@@ -741,7 +780,7 @@ ms_status ms_client_fetch_catalogue(const ms_client_options *options, double tim
     }
     if ((st = ms_client_connect(f.base, options, &handlers, &f, &client, err)) != MS_OK)
         goto done;
-    if ((st = list_catalogue(client, &f.request, err)) != MS_OK)
+    if (!page && (st = list_catalogue(client, NULL, &f.request, err)) != MS_OK)
         goto done;
     struct timeval limit = {(time_t)timeout_s, (suseconds_t)((timeout_s - (double)(time_t)timeout_s) * 1e6)};
     evtimer_add(timer, &limit);
@@ -749,8 +788,8 @@ ms_status ms_client_fetch_catalogue(const ms_client_options *options, double tim
     if (!f.done)
         fetch_fail(&f, "the event loop ended early");
     if (f.failed)
-        st = ms_error_set(err, MS_ERR_IO, "catalogue of %s:%u: %s", options->host, options->port,
-                          f.why);
+        st = ms_error_set(err, f.page_status != MS_OK ? f.page_status : MS_ERR_IO,
+                          "catalogue of %s:%u: %s", options->host, options->port, f.why);
 done:
     ms_client_free(client);
     if (timer)
@@ -762,13 +801,35 @@ done:
     return st;
 }
 
+ms_status ms_client_fetch_catalogue(const ms_client_options *options, double timeout_s,
+                                    ms_client_catalogue *catalogue, ms_error *err)
+{
+    return fetch_catalogue(options, timeout_s, NULL, catalogue, err);
+}
+
+ms_status ms_client_fetch_catalogue_page(const ms_client_options *options, double timeout_s,
+                                         const ms_client_page_request *page,
+                                         ms_client_catalogue *catalogue, ms_error *err)
+{
+    size_t query = page && page->query ? strnlen(page->query, MS_PROTO_MAX_PAGE_QUERY + 1) : 0;
+    if (!page || page->limit < 1 || page->limit > MS_PROTO_MAX_PAGE ||
+        page->sort > MS_PROTO_SORT_LAST || query > MS_PROTO_MAX_PAGE_QUERY) {
+        catalogue->entries = NULL;
+        catalogue->count = catalogue->total = 0;
+        return ms_error_set(err, MS_ERR_ARG, "catalogue page: a limit in 1..%u, a sort in "
+                            "0..%u and a query of at most %u bytes are needed",
+                            MS_PROTO_MAX_PAGE, MS_PROTO_SORT_LAST, MS_PROTO_MAX_PAGE_QUERY);
+    }
+    return fetch_catalogue(options, timeout_s, page, catalogue, err);
+}
+
 void ms_client_catalogue_free(ms_client_catalogue *catalogue)
 {
     if (!catalogue)
         return;
     free(catalogue->entries);
     catalogue->entries = NULL;
-    catalogue->count = 0;
+    catalogue->count = catalogue->total = 0;
 }
 
 uint32_t ms_client_index_wire_bytes(const ms_client *c) { return c->index_wire; }

@@ -58,7 +58,8 @@ static void print_usage(FILE *out)
           "                [--tmp DIR] [--public-bits B] [--no-apo] [--apo-lead 1]\n"
           "                [--apo-max-depth 10] [--apo-tol 0.2] [--apo-init-depth 0]\n"
           "                [--apo-verify] [--apo-accuracy] [--subtree-levels S] [--ahead 3]\n"
-          "                [--metadata FILE.json] [--no-thumbnail] [--up x|y|z] [--json]\n"
+          "                [--colour-bits 8] [--no-colour] [--metadata FILE.json]\n"
+          "                [--no-thumbnail] [--up x|y|z] [--json]\n"
           "       meshbake --info FILE [--json]\n"
           "       meshbake --set-public-bits B -o ARCHIVE_DIR --name NAME\n"
           "       meshbake --thumbnail NAME -o ARCHIVE_DIR [--up x|y|z] [--json]\n"
@@ -95,6 +96,8 @@ static void print_usage(FILE *out)
           "                    (default 3): a coarse level draws each vertex at the\n"
           "                    barycentre of its known descendants, not at its kd-cell's\n"
           "                    centre (no staircase); 0 draws cell centres\n"
+          "  --colour-bits C   per-vertex colour (when the input has it), C bits per\n"
+          "                    channel, 1..8 (default 8); --no-colour leaves it out\n"
           "  --metadata FILE   a sidecar JSON object of title, creator, date, licence and\n"
           "                    description strings, kept in the catalogue entry (default:\n"
           "                    what an earlier bake of NAME had)\n"
@@ -212,6 +215,23 @@ static int check_mode(int argc, char **argv, bake_options *options)
     return -1;
 }
 
+/* The thumbnail's and the sidecar's options (--thumbnail, --metadata,
+ * --no-thumbnail, --up): -1 to go on, or the exit status to end with. */
+static int picture_option(int c, const char *arg, bake_options *options)
+{
+    switch (c) {
+    case 'B': options->mode = MODE_THUMBNAIL; options->thumbnail_name = arg; break;
+    case 'X': options->metadata_path = arg; break;
+    case 'O': options->bake.no_thumbnail = true; break;
+    default:
+        if (strlen(arg) != 1 || arg[0] < 'x' || arg[0] > 'z')
+            return usage_error("--up wants x, y or z", arg);
+        options->bake.thumbnail_up = arg[0] - 'x';
+        break;
+    }
+    return -1;
+}
+
 /* Returns -1 to go on, or the exit status to end with. */
 static int parse_options(int argc, char **argv, bake_options *options)
 {
@@ -243,10 +263,9 @@ static int parse_options(int argc, char **argv, bake_options *options)
         {"remove", required_argument, NULL, 'R'},
         {"subtree-levels", required_argument, NULL, 'Y'},
         {"ahead", required_argument, NULL, 'K'},
-        {"metadata", required_argument, NULL, 'X'},
-        {"thumbnail", required_argument, NULL, 'B'},
-        {"no-thumbnail", no_argument, NULL, 'O'},
-        {"up", required_argument, NULL, 'u'},
+        {"colour-bits", required_argument, NULL, 'c'}, {"no-colour", no_argument, NULL, 'Z'},
+        {"metadata", required_argument, NULL, 'X'}, {"thumbnail", required_argument, NULL, 'B'},
+        {"no-thumbnail", no_argument, NULL, 'O'}, {"up", required_argument, NULL, 'u'},
         {NULL, 0, NULL, 0},
     };
     memset(options, 0, sizeof *options);
@@ -258,13 +277,9 @@ static int parse_options(int argc, char **argv, bake_options *options)
         case 'i': options->mode = MODE_INFO; break;
         case 'l': options->mode = MODE_LIST; options->list_dir = optarg; break;
         case 'R': options->mode = MODE_REMOVE; options->remove_name = optarg; break;
-        case 'B': options->mode = MODE_THUMBNAIL; options->thumbnail_name = optarg; break;
-        case 'X': options->metadata_path = optarg; break;
-        case 'O': options->bake.no_thumbnail = true; break;
-        case 'u':
-            if (strlen(optarg) != 1 || optarg[0] < 'x' || optarg[0] > 'z')
-                return usage_error("--up wants x, y or z", optarg);
-            options->bake.thumbnail_up = optarg[0] - 'x';
+        case 'B': case 'X': case 'O': case 'u':
+            if ((status = picture_option(c, optarg, options)) >= 0)
+                return status;
             break;
         case 'j': options->json = true; break;
         case 'h': print_usage(stdout); return EXIT_SUCCESS;
@@ -291,6 +306,12 @@ static int parse_options(int argc, char **argv, bake_options *options)
                 return status;
             options->bake.ahead = (unsigned)value;
             break;
+        case 'c':
+            if (!option_int(long_options, c, optarg, 1, 8, &value, &status))
+                return status;
+            options->bake.colour_bits = (unsigned)value;
+            break;
+        case 'Z': options->bake.no_colour = true; break;
         case 'A': options->bake.apo.enabled = true; break;
         case 'a': options->bake.apo.enabled = false; break;
         case 'V': options->bake.apo.verify = true; break;
@@ -559,6 +580,10 @@ static void print_bake_json(const ms_bake_options *o, const ms_bake_report *r)
     } else {
         json_decref(io);
     }
+    if (root) /* colour streams (docs/ARCHIVE.md): present, precision, bytes */
+        json_object_set_new(root, "colour", json_pack("{s:b, s:b, s:i, s:I}", "present", r->colour,
+                                                      "alpha", r->colour_alpha, "bits", (int)r->colour_bits,
+                                                      "bytes", (json_int_t)r->colour_bytes));
     if (root && r->thumbnail_bytes)
         json_object_set_new(root, "thumbnail",
                             json_pack("{s:i, s:i, s:I, s:i, s:f}", "width", MS_THUMBNAIL_WIDTH,
@@ -590,6 +615,10 @@ static void print_bake_text(const ms_bake_report *r)
            r->duplicated_percent, r->duplicated_at_insertion_percent);
     printf("archive:              %" PRIu64 " bytes, %.2f bits per vertex\n", r->archive_bytes,
            r->bits_per_vertex);
+    printf("geometry:             %" PRIu64 " bytes\n", r->geometry_bytes);
+    if (r->colour)
+        printf("colour:               %" PRIu64 " bytes, %u bits per channel, %s\n", r->colour_bytes,
+               r->colour_bits, r->colour_alpha ? "rgba" : "rgb");
     if (r->apo_chunks > 0) {
         printf("APO:                  %u chunks, %" PRIu64 " bytes (%" PRIu64 " raw), %" PRIu64
                " internal nodes, %" PRIu64 " leaves (%" PRIu64 " more left to the smooth normal)\n",

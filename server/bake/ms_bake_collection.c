@@ -73,32 +73,35 @@ int ms_bake_cli_list(const char *dir, bool json)
     json_t *models = json_array();
     size_t failed = 0;
     if (!json)
-        printf("%-24s %12s %7s %12s %8s  %s\n", "model", "triangles", "cells", "bytes",
-               "preview", "checksums");
+        printf("%-24s %12s %7s %12s %10s %8s  %s\n", "model", "triangles", "cells", "bytes",
+               "colour", "preview", "checksums");
     for (size_t i = 0; i < catalog.count; ++i) {
         const ms_catalog_entry *e = &catalog.entries[i];
         char path[4200], problem[MS_ERROR_TEXT_MAX + 80] = "";
         snprintf(path, sizeof path, "%s/%s.msa", dir, e->name);
         ms_archive *a = NULL;
-        uint64_t file_bytes = 0;
+        uint64_t file_bytes = 0, colour_bytes = 0;
         if (ms_archive_open(path, &a, &err) != MS_OK) {
             snprintf(problem, sizeof problem, "%s", err.text);
         } else {
             const ms_archive_header *h = ms_archive_get_header(a);
             file_bytes = h->file_size;
-            for (uint32_t cell = 0; cell < h->cell_count && !problem[0]; ++cell)
+            for (uint32_t cell = 0; cell < h->cell_count && !problem[0]; ++cell) {
+                colour_bytes += ms_archive_colour_length(a, cell);
                 if (ms_archive_verify_payload(a, cell, &err) != MS_OK)
                     snprintf(problem, sizeof problem, "%s.msa: %s", e->name, err.text);
+            }
             ms_archive_close(a);
         }
         failed += problem[0] != 0;
         unsigned preview = e->public_max_bits < e->bits ? e->public_max_bits : e->bits;
         if (json) {
             json_array_append_new(
-                models, json_pack("{s:o, s:I, s:I, s:i, s:I, s:i, s:i, s:b, s:s, s:b, s:o}",
+                models, json_pack("{s:o, s:I, s:I, s:i, s:I, s:I, s:i, s:i, s:b, s:s, s:b, s:o}",
                                   "name", ms_json_text(e->name), "triangles",
                                   (json_int_t)e->triangles, "vertices", (json_int_t)e->vertices,
                                   "cells", (int)e->cells, "bytes", (json_int_t)file_bytes,
+                                  "colour_bytes", (json_int_t)colour_bytes,
                                   "bits", (int)e->bits, "public_bits", (int)preview, "apo",
                                   e->apo, "baked_at", e->baked_at, "ok", !problem[0], "error",
                                   ms_json_text(problem)));
@@ -108,8 +111,11 @@ int ms_bake_cli_list(const char *dir, bool json)
                 snprintf(preview_text, sizeof preview_text, "all");
             else
                 snprintf(preview_text, sizeof preview_text, "%u/%u", preview, e->bits);
-            printf("%-24s %12" PRIu64 " %7u %12" PRIu64 " %8s  %s\n", e->name, e->triangles,
-                   e->cells, file_bytes, preview_text, problem[0] ? "FAILED" : "ok");
+            char colour_text[24] = "-";
+            if (colour_bytes)
+                snprintf(colour_text, sizeof colour_text, "%" PRIu64, colour_bytes);
+            printf("%-24s %12" PRIu64 " %7u %12" PRIu64 " %10s %8s  %s\n", e->name, e->triangles,
+                   e->cells, file_bytes, colour_text, preview_text, problem[0] ? "FAILED" : "ok");
             if (problem[0])
                 fprintf(stderr, "meshbake: %s\n", problem);
         }

@@ -35,6 +35,12 @@ void ms_http_reply(ms_http_door *door, struct evhttp_request *req, int code, con
 void ms_http_send_text(ms_http_door *door, struct evhttp_request *req, int code,
                        const char *reason, const char *text);
 
+/* A regular file's bytes as an answer body (the file handed to the buffer,
+ * sent without copying): the body and *length, or NULL having answered 404
+ * with missing (one line) when path is no regular file, or 500. */
+struct evbuffer *ms_http_file_body(ms_http_door *door, struct evhttp_request *req,
+                                   const char *path, const char *missing, uint64_t *length);
+
 /* Decimal digits only (at most 10), at most max; false otherwise. */
 bool ms_http_parse_u32(const char *text, uint32_t max, uint32_t *out);
 

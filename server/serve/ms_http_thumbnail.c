@@ -1,7 +1,9 @@
 /* The HTTP door's model pictures (GET /models/NAME/thumbnail,
  * ms_http_internal.h): DIR/NAME.thumb.png as meshbake rendered it
  * (docs/ARCHIVE.md, "Thumbnails"), from the file, without opening the
- * model's archive: a catalogue page of 100 pictures opens nothing. */
+ * model's archive: a catalogue page of 100 pictures opens nothing. Not
+ * through ms_http_file_body: the ETag, the 304 and the size limit come from
+ * the same descriptor's fstat as the bytes sent. */
 #include <event2/buffer.h>
 #include <event2/http.h>
 #include <fcntl.h>

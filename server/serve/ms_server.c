@@ -119,11 +119,11 @@ void ms_server_log_limited(const ms_server *server, ms_log_limit *limit, const c
     limit->held = 0;
 }
 
-bool ms_server_payload_intact(const ms_server *s, ms_model *model, uint32_t cell, bool apo)
+bool ms_server_payload_intact(const ms_server *s, ms_model *model, uint32_t cell, uint8_t stream)
 {
     bool first_report;
     ms_error err;
-    if (ms_model_check_payload(model, cell, apo, &first_report, &err) == MS_OK)
+    if (ms_model_check_payload(model, cell, stream, &first_report, &err) == MS_OK)
         return true;
     if (first_report)
         ms_server_log(s, "model '%s': %s; not served", model->entry.name, err.text);
