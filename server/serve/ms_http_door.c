@@ -344,6 +344,10 @@ static void route(ms_http_door *door, struct evhttp_request *req, char *path,
         serve_metrics(door, req);
         return;
     }
+    if (n == 3 && !strcmp(seg[0], "models") && !strcmp(seg[2], "thumbnail")) {
+        ms_http_serve_thumbnail(door, req, seg[1]); /* a picture: no archive opened */
+        return;
+    }
     if (n >= 2 && !strcmp(seg[0], "models")) {
         ms_model *model = ms_registry_find(door->server->registry, seg[1]);
         if (!model) {

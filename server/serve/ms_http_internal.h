@@ -63,9 +63,16 @@ bool ms_http_route_page(ms_http_door *door, struct evhttp_request *req, char **s
 
 /* Answers GET /catalog: one page of the catalogue as JSON, with the query's
  * offset, limit (default 100, at most 1000), sort (name, size, date,
- * triangles), order (asc, desc) and q (a case-insensitive text filter on name
- * and source); a bad parameter gets 400 and one line. Opens no archive. */
+ * triangles), order (asc, desc) and q (a case-insensitive text filter on name,
+ * source, and the metadata's title and description); a bad parameter gets
+ * 400 and one line. Opens no archive. */
 void ms_http_serve_catalog(ms_http_door *door, struct evhttp_request *req,
                            const struct evkeyvalq *query);
+
+/* Answers GET /models/NAME/thumbnail (ms_http_thumbnail.c): the model's
+ * DIR/NAME.thumb.png, only while its catalogue entry says it was rendered
+ * within the public preview (thumbnail_bits <= public_max_bits), so it is
+ * the same public answer for every reader; 404 otherwise. Opens no archive. */
+void ms_http_serve_thumbnail(ms_http_door *door, struct evhttp_request *req, const char *name);
 
 #endif
