@@ -236,8 +236,8 @@ typedef enum ms_proto_page_sort {
 } ms_proto_page_sort;
 
 /* One page of the catalogue (version 3): entries [offset, offset + limit) of
- * the models whose name or source contains query (ASCII case-insensitively;
- * empty: every model), in sort order. */
+ * the models whose name, source, title or description contains query (ASCII
+ * case-insensitively; empty: every model), in sort order. */
 typedef struct ms_proto_list_page {
     uint32_t offset;
     uint16_t limit;         /* [1, MS_PROTO_MAX_PAGE] */

@@ -321,7 +321,7 @@ static void test_catalogue_page(void **state)
     /* both thumbnails shown; the sidecar's title is text, not markup: shown as
      * written, and no script element came of it */
     assert_int_equal(page_int(report, "thumbnails"), 2);
-    json_t *titles = json_object_get(report, "titles");
+    json_t *titles = json_object_get(json_object_get(report, "page"), "titles");
     assert_int_equal(json_array_size(titles), 1);
     assert_string_equal(json_string_value(json_array_get(titles, 0)),
                         "Demo <script>window.pwned = 1</script>");

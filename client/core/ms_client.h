@@ -122,7 +122,7 @@ typedef struct ms_client_page_request {
     uint8_t sort;          /* ms_proto_page_sort */
     bool descending;
     const char *query;     /* NULL or "": every model; else matched (ASCII case-insensitively)
-                              in the name and the source; at most 64 bytes of UTF-8 */
+                              in the name, source, title and description; at most 64 bytes */
 } ms_client_page_request;
 
 /* The models a server offers this token: connects to options->host:port
