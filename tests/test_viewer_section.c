@@ -4,6 +4,8 @@
  *     (at most three), their planes a b c d, its keys (Y across the axis
  *     nearest the view, cutting the half towards the eye; J, 9, 0, I) and its
  *     HUD line;
+ *   - meshview's --section options (ms_viewer_options_parse): repeated, with
+ *     --view's s= as the default, and hostile values one line and status 2;
  *   - the frustum's section half-spaces (ms_frustum_add_section): a box wholly
  *     on the side cut away is culled, one that straddles the plane or lies
  *     within the margin kept;
@@ -34,6 +36,7 @@
 #include "ms_section.h"
 #include "ms_test.h"
 #include "ms_view_decoder.h"
+#include "ms_viewer_options.h"
 #include "ms_viewer_section.h"
 
 static void test_section_text(void **state)
@@ -138,6 +141,71 @@ static void test_viewer_sections(void **state)
     assert_false(ms_viewer_sections_add(&s, target, zero));
     assert_false(ms_viewer_sections_add(&s, huge, huge));
     assert_int_equal(s.count, 0);
+}
+
+/* meshview's options from a command line; the status, what went to err. */
+static int parse_line(const char *line, ms_viewer_options *o, char *out, size_t size)
+{
+    char copy[2048], *argv[32];
+    int argc = 0;
+    snprintf(copy, sizeof copy, "meshview %s", line);
+    for (char *t = strtok(copy, " "); t && argc < 31; t = strtok(NULL, " "))
+        argv[argc++] = t;
+    argv[argc] = NULL;
+    FILE *err = tmpfile();
+    assert_non_null(err);
+    int status = ms_viewer_options_parse(argc, argv, o, err);
+    rewind(err);
+    size_t n = fread(out, 1, size - 1, err);
+    out[n] = 0;
+    fclose(err);
+    return status;
+}
+
+static void test_section_options(void **state)
+{
+    (void)state;
+    ms_viewer_options o;
+    char out[1024];
+    assert_int_equal(parse_line("/a --model m --section x=1 --section 0,0,0,0,1,-1e-3", &o, out, sizeof out), 0);
+    assert_string_equal(out, "");
+    assert_int_equal(o.sections.count, 2);
+    assert_true(o.sections.point[0][0] == 1 && o.sections.normal[0][0] == 1);
+    assert_true(o.sections.normal[1][1] == 1 && o.sections.normal[1][2] == -1e-3);
+    /* the view's sections, unless --section is given */
+    assert_int_equal(parse_line("/a --model m --view mv1:t=0,0,0:d=1:o=0,0:f=40:u=y:s=0,0,2,0,0,-1", &o, out,
+                                sizeof out),
+                     0);
+    assert_int_equal(o.sections.count, 1);
+    assert_true(o.sections.point[0][2] == 2 && o.sections.normal[0][2] == -1);
+    assert_int_equal(parse_line("/a --model m --view mv1:t=0,0,0:d=1:o=0,0:f=40:u=y:s=0,0,2,0,0,-1 --section y=3",
+                                &o, out, sizeof out),
+                     0);
+    assert_int_equal(o.sections.count, 1);
+    assert_true(o.sections.point[0][1] == 3 && o.sections.normal[0][1] == 1);
+    assert_int_equal(parse_line("/a --model m", &o, out, sizeof out), 0);
+    assert_int_equal(o.sections.count, 0);
+    static const char *const bad[] = {
+        "/a --model m --section x",
+        "/a --model m --section x=nan",
+        "/a --model m --section x=1e400",
+        "/a --model m --section q=1",
+        "/a --model m --section 1,2,3,0,0,0",
+        "/a --model m --section 1,2,3,4,5",
+        "/a --model m --section 1,2,3,4,5,6,7",
+        "/a --model m --section x=1 --section y=1 --section z=1 --section x=2",
+        "/a --section x=1",
+        "/a --model m --view mv1:t=0,0,0:d=1:o=0,0:f=40:u=y:s=0,0,2,0,0,0",
+        "/a --model m --section 77777777777777777777777777777777777777777777777777777777777777777777777777777777",
+    };
+    for (size_t i = 0; i < sizeof bad / sizeof *bad; ++i) {
+        int status = parse_line(bad[i], &o, out, sizeof out);
+        size_t lines = 0;
+        for (const char *p = out; *p; ++p)
+            lines += *p == '\n';
+        if (status != 2 || lines != 1 || strncmp(out, "meshview: ", 10) != 0 || strlen(out) > 200)
+            fail_msg("'%s': status %d, output '%s'", bad[i], status, out);
+    }
 }
 
 static void test_frustum_sections(void **state)
@@ -332,6 +400,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_section_text),
         cmocka_unit_test(test_viewer_sections),
+        cmocka_unit_test(test_section_options),
         cmocka_unit_test(test_frustum_sections),
         cmocka_unit_test(test_selection_culls_the_side_cut_away),
     };
