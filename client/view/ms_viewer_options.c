@@ -303,6 +303,46 @@ typedef struct {
 
 enum { OPTION_UNKNOWN = -1 };
 
+/* The options of looking closely (--light, --view, --section, --measure), as
+ * apply_option. */
+static int inspect_option(int ch, const char *arg, ms_viewer_options *o, FILE *err)
+{
+    switch (ch) {
+    case 'L':
+        if (!ms_viewer_light_parse(arg, &o->light)) {
+            fprintf(err, "meshview: --light wants AZ,EL in degrees, AZ in [-180, 180] and EL in [-90, 90], "
+                    "not '%.64s'\n", arg);
+            return 2;
+        }
+        break;
+    case 'V': {
+        ms_error e;
+        if (ms_viewer_share_parse(arg, &o->view, &e) != MS_OK) {
+            fprintf(err, "meshview: --view: %s\n", e.text);
+            return 2;
+        }
+        o->has_view = true;
+        break;
+    }
+    case 'X': {
+        ms_error e;
+        if (ms_viewer_sections_add_text(&o->sections, arg, &e) != MS_OK) {
+            fprintf(err, "meshview: --section: %s\n", e.text);
+            return 2;
+        }
+        break;
+    }
+    case 'G':
+        if (!measure_pixels(arg, o)) {
+            fprintf(err, "meshview: --measure wants 2 to 16 pixels X,Y separated by ':', not '%.64s'\n", arg);
+            return 2;
+        }
+        break;
+    default: return OPTION_UNKNOWN;
+    }
+    return 0;
+}
+
 /* Applies the option getopt_long returned as ch with its value arg: 0, 2
  * after printing the one line to err, or OPTION_UNKNOWN for a ch it does not
  * know. */
@@ -398,37 +438,7 @@ static int apply_option(int ch, const char *arg, ms_viewer_options *o, option_le
             return 2;
         }
         break;
-    case 'L':
-        if (!ms_viewer_light_parse(arg, &o->light)) {
-            fprintf(err, "meshview: --light wants AZ,EL in degrees, AZ in [-180, 180] and EL in [-90, 90], "
-                    "not '%.64s'\n", arg);
-            return 2;
-        }
-        break;
-    case 'V': {
-        ms_error e;
-        if (ms_viewer_share_parse(arg, &o->view, &e) != MS_OK) {
-            fprintf(err, "meshview: --view: %s\n", e.text);
-            return 2;
-        }
-        o->has_view = true;
-        break;
-    }
-    case 'X': {
-        ms_error e;
-        if (ms_viewer_sections_add_text(&o->sections, arg, &e) != MS_OK) {
-            fprintf(err, "meshview: --section: %s\n", e.text);
-            return 2;
-        }
-        break;
-    }
-    case 'G':
-        if (!measure_pixels(arg, o)) {
-            fprintf(err, "meshview: --measure wants 2 to 16 pixels X,Y separated by ':', not '%.64s'\n", arg);
-            return 2;
-        }
-        break;
-    default: return OPTION_UNKNOWN;
+    default: return inspect_option(ch, arg, o, err);
     }
     return 0;
 }
