@@ -15,7 +15,10 @@
  *     culled_bits_less, ms_view_cell_need -1), every other cell the need it
  *     had without the plane, to the bit; in the converged cut the cells
  *     beyond are shown at fewer bits in all (none at more), every other cell
- *     as without the plane, and the kept side's triangles are as many. */
+ *     as without the plane, and the kept side's triangles are as many; a
+ *     local client core given the plane (ms_core_set_sections) completes
+ *     with fewer bits beyond it and every other cell as without; more than
+ *     three planes or a zero normal are MS_ERR_ARG. */
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -34,7 +37,9 @@
 #include "ms_mesh.h"
 #include "ms_mesh_io.h"
 #include "ms_section.h"
+#include "ms_client_core.h"
 #include "ms_test.h"
+#include "ms_test_core.h"
 #include "ms_view_decoder.h"
 #include "ms_viewer_options.h"
 #include "ms_viewer_section.h"
@@ -391,6 +396,48 @@ static void test_selection_culls_the_side_cut_away(void **state)
     assert_int_equal(cut_kept, plain_kept);
     ms_view_destroy(plain);
     ms_view_destroy(cut);
+
+    /* the core: the planes through ms_core_set_sections cull alike */
+    ms_core_frame *frames[2] = {NULL, NULL};
+    for (int with = 0; with < 2; ++with) {
+        ms_core_options co = {0};
+        co.archive_path = report.archive_path;
+        co.tolerance_px = 1;
+        co.hysteresis_bits = 0.0;
+        co.culled_bits_less = 6;
+        co.export_frames = true;
+        ms_core *core;
+        if (ms_core_start(&co, &core, &err) != MS_OK)
+            fail_msg("%s", err.text);
+        if (with) {
+            const double too_many[4][4] = {{1, 0, 0, 0}, {1, 0, 0, 0}, {1, 0, 0, 0}, {1, 0, 0, 0}};
+            const double flat[1][4] = {{0, 0, 0, 1}};
+            assert_int_equal(ms_core_set_sections(core, too_many, 4, &err), MS_ERR_ARG);
+            assert_int_equal(ms_core_set_sections(core, flat, 1, &err), MS_ERR_ARG);
+            assert_int_equal(ms_core_set_sections(core, (const double(*)[4])q.sections, 1, &err), MS_OK);
+        }
+        ms_core_set_camera(core, &camera);
+        ms_core_stats stats;
+        bool complete = ms_test_core_wait_complete(core, 60.0, &stats, &frames[with]);
+        ms_core_stop(core);
+        if (!complete || !frames[with])
+            fail_msg("the view did not complete: %s", stats.error);
+    }
+    unsigned core_plain = 0, core_cut = 0;
+    for (uint32_t i = 0; i < frames[0]->cell_count && i < frames[1]->cell_count; ++i) {
+        const ms_archive_cell *rec = ms_archive_get_cell(archive, i);
+        double side = h->box_side / pow((double)h->n, rec->level);
+        uint8_t a = ms_core_frame_cell_bits(frames[0], i), b = ms_core_frame_cell_bits(frames[1], i);
+        if (h->box_origin[0] + side * rec->position[0] > 0.5) {
+            core_plain += a <= 64 ? a : 0, core_cut += b <= 64 ? b : 0;
+        } else if (a != b) {
+            fail_msg("cell %u on the kept side: %u without the plane, %u with", i, a, b);
+        }
+    }
+    printf("the core: bits shown beyond x = 0.5: %u without the plane, %u with\n", core_plain, core_cut);
+    assert_true(core_cut < core_plain);
+    ms_core_frame_free(frames[0]);
+    ms_core_frame_free(frames[1]);
     ms_archive_close(archive);
     ms_test_rmdir(dir);
 }
