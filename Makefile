@@ -40,8 +40,8 @@ LDFLAGS  := $(OPT) -pthread
 # room may include directly; PKGS_room the Debian libraries its own code calls
 # (pkg-config names; Embree 3 ships no .pc file and is named embree3).
 ROOMS := common/util common/mesh common/codec common/apo common/camera \
-         common/archive protocol server/geometry server/apo server/bake \
-         server/serve server/study client/core client/lib client/load client/view \
+         common/archive protocol server/geometry server/apo server/study \
+         server/bake server/serve client/core client/lib client/load client/view \
          client/web
 USES_common/util     :=
 USES_common/mesh     := common/util
@@ -52,7 +52,7 @@ USES_common/archive  := common/codec common/camera
 USES_protocol        := common/util
 USES_server/geometry := common/mesh
 USES_server/apo      := server/geometry common/apo common/archive
-USES_server/bake     := server/apo
+USES_server/bake     := server/apo server/study
 USES_server/serve    := common/archive protocol
 USES_server/study    := common/apo common/archive
 USES_client/core     := common/archive protocol

@@ -150,7 +150,8 @@ async function run(msg) {
   M = await createMeshstream({ locateFile: file => '/web/' + file });
   let catalogue;
   try {
-    // the catalogue's entries whose name holds NAME (a page of at most 1000)
+    // the catalogue's entries whose name (or title, description) holds NAME
+    // (a page of at most 1000)
     catalogue = JSON.parse(new TextDecoder().decode(
       (await get('/catalog?limit=1000&q=' + encodeURIComponent(name), token)).bytes));
   } catch (e) {

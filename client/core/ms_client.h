@@ -138,6 +138,13 @@ ms_status ms_client_fetch_catalogue(const ms_client_options *options, double tim
                                     ms_client_catalogue *catalogue, ms_error *err);
 void ms_client_catalogue_free(ms_client_catalogue *catalogue);
 
+/* Sends LIST_CATALOGUE (page NULL) or, on a connection that negotiated
+ * version 3, LIST_PAGE for page, as request *request_id: the answer comes to
+ * handlers->catalogue, frame by frame. MS_ERR_IO when the connection is
+ * closed; the encoder's errors for a page outside the protocol's ranges. */
+ms_status ms_client_list_catalogue(ms_client *client, const ms_client_page_request *page,
+                                   uint32_t *request_id, ms_error *err);
+
 /* ms_client_fetch_catalogue for one page: the server filters, sorts and cuts
  * (LIST_PAGE), so a front end shows the first page of a 10,000-model
  * collection without the whole list; catalogue->total says how many models

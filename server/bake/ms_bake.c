@@ -11,6 +11,7 @@
 #endif
 
 #include "ms_archive_writer.h"
+#include "ms_bake_thumbnail.h"
 #include "ms_bake_colour.h"
 #include "ms_colour.h"
 #include "ms_codec.h"
@@ -30,6 +31,7 @@ void ms_bake_options_default(ms_bake_options *o)
     o->mem_mb = 512;
     o->public_bits = -1;
     o->ahead = MS_CODEC_DEFAULT_AHEAD;
+    o->thumbnail_up = -1;
     long cpus = sysconf(_SC_NPROCESSORS_ONLN);
     o->threads = cpus > 0 ? (unsigned)cpus : 1;
     ms_bake_apo_params_default(&o->apo);
@@ -310,7 +312,7 @@ static ms_status encode_cells(const ms_bake_options *o, ms_nsp_build *b,
 
 /* Adds the baked model to the directory's catalogue; without its entry the
  * archive is removed. */
-static ms_status record_in_catalog(const ms_bake_options *o, const ms_bake_report *r,
+static ms_status record_in_catalog(const ms_bake_options *o, ms_bake_report *r,
                                    const ms_archive_header *h, ms_error *err)
 {
     ms_catalog_entry e;
@@ -331,7 +333,31 @@ static ms_status record_in_catalog(const ms_bake_options *o, const ms_bake_repor
     e.apo_lead = h->apo_lead;
     e.apo_max_depth = h->apo_max_depth;
     e.apo_tolerance = o->apo.enabled ? o->apo.tolerance : 0.0;
+    e.metadata = (ms_metadata *)o->metadata;
     ms_status s = ms_catalog_entry_fill_listing(&e, r->archive_path, err);
+    if (s == MS_OK && !o->no_thumbnail) {
+        ms_study_thumbnail_report tr;
+        ms_error terr;
+        int up = o->thumbnail_up;
+        ms_catalog before;
+        if (up < 0 && ms_catalog_load(o->archive_dir, &before, &terr) == MS_OK) {
+            const ms_catalog_entry *was = ms_catalog_find(&before, e.name);
+            up = was && was->has_thumbnail ? was->thumbnail_up : 2;
+            ms_catalog_free(&before);
+        }
+        if (ms_bake_thumbnail(o->archive_dir, &e, up, o->threads, &tr, &terr) ==
+            MS_OK) {
+            r->seconds_thumbnail = tr.seconds;
+            r->thumbnail_bytes = tr.png_bytes;
+            r->thumbnail_bits = e.thumbnail_bits;
+        } else if (o->notes) { /* the model is served without a picture */
+            fprintf(o->notes, "meshbake: no thumbnail: %s\n", terr.text);
+        }
+    } else if (s == MS_OK) { /* an older picture would not match this archive */
+        char png[4200];
+        ms_bake_thumbnail_path(o->archive_dir, e.name, png, sizeof png);
+        unlink(png);
+    }
     if (s == MS_OK)
         s = ms_catalog_update(o->archive_dir, &e, err);
     if (s != MS_OK)

@@ -5,13 +5,14 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* Case-insensitive substring test (ASCII: names are [A-Za-z0-9_-]). */
+/* Case-insensitive substring test: ASCII letters fold, other bytes (the
+ * UTF-8 of a title) compare as they are. */
 static bool contains_folded(const char *haystack, const char *needle)
 {
     size_t n = strlen(needle);
     for (const char *h = haystack; *h; ++h) {
         size_t i = 0;
-        while (i < n && h[i] && tolower((unsigned char)h[i]) == needle[i])
+        while (i < n && h[i] && tolower((unsigned char)h[i]) == (unsigned char)needle[i])
             ++i;
         if (i == n)
             return true;
@@ -19,10 +20,15 @@ static bool contains_folded(const char *haystack, const char *needle)
     return n == 0;
 }
 
+/* The text filter: name, source, and the metadata's title and description
+ * (docs/ARCHIVE.md, "Metadata"). */
 static bool entry_matches(const ms_catalog_entry *e, const char *text)
 {
+    const ms_metadata *m = e->metadata;
     return !text[0] || contains_folded(e->name, text) ||
-           (e->source && contains_folded(e->source, text));
+           (e->source && contains_folded(e->source, text)) ||
+           (m && m->title && contains_folded(m->title, text)) ||
+           (m && m->description && contains_folded(m->description, text));
 }
 
 /* One matched entry with its sort key; sign is -1 for a descending order. */

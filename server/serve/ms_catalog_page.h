@@ -28,8 +28,9 @@ typedef struct ms_catalog_page_query {
     ms_catalog_sort sort;
     bool descending;
     char text[MS_CATALOG_PAGE_QUERY_MAX + 1]; /* empty: every model; else matched
-                                                * ASCII case-insensitively in the
-                                                * name and the source */
+                                                * in the name, the source and the
+                                                * metadata's title and description,
+                                                * ASCII letters case-insensitively */
 } ms_catalog_page_query;
 
 /* The registry positions of the page's entries in order (*indices, malloc'ed,

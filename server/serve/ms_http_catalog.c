@@ -62,13 +62,24 @@ static bool parse_request(const struct evkeyvalq *query, ms_catalog_page_query *
     return true;
 }
 
+/* One model: its figures, "thumbnail" (true when /models/NAME/thumbnail
+ * answers a picture) and, when the catalogue has them, the metadata's
+ * fields as JSON strings (text as given: a page escapes it). */
 static json_t *entry_json(const ms_catalog_entry *e)
 {
-    return json_pack("{s:s, s:I, s:I, s:I, s:i, s:i, s:b, s:I, s:s}", "name", e->name, "vertices",
-                     (json_int_t)e->vertices, "triangles", (json_int_t)e->triangles, "cells",
-                     (json_int_t)e->cells, "bits", (int)e->bits, "public_max_bits",
-                     (int)e->public_max_bits, "apo", (int)e->apo, "archive_bytes",
-                     (json_int_t)e->archive_bytes, "baked_at", e->baked_at);
+    json_t *obj = json_pack("{s:s, s:I, s:I, s:I, s:i, s:i, s:b, s:I, s:s, s:b}", "name", e->name,
+                            "vertices", (json_int_t)e->vertices, "triangles",
+                            (json_int_t)e->triangles, "cells", (json_int_t)e->cells, "bits",
+                            (int)e->bits, "public_max_bits", (int)e->public_max_bits, "apo",
+                            (int)e->apo, "archive_bytes", (json_int_t)e->archive_bytes,
+                            "baked_at", e->baked_at, "thumbnail",
+                            e->has_thumbnail && e->thumbnail_bits <= e->public_max_bits);
+    for (int k = 0; obj && k < MS_METADATA_FIELDS; ++k) {
+        const char *v = ms_metadata_field(e->metadata, k);
+        if (v)
+            json_object_set_new(obj, ms_metadata_field_names[k], json_string(v));
+    }
+    return obj;
 }
 
 /* The page as JSON text (malloc'ed), or NULL when out of memory. */

@@ -265,13 +265,31 @@ static void serve_draco(ms_http_door *door, struct evhttp_request *req, ms_model
     }
     char path[4096];
     snprintf(path, sizeof path, "%s/%s.drc", ms_http_door_server(door)->config.archive_dir, name);
+    uint64_t length;
+    struct evbuffer *body =
+        ms_http_file_body(door, req, path, "error: no Draco file for this model", &length);
+    if (!body)
+        return;
+    struct evkeyvalq *out = evhttp_request_get_output_headers(req);
+    evhttp_add_header(out, "Content-Type", "application/octet-stream");
+    evhttp_add_header(out, "Cache-Control", token_used ? "private, max-age=3600" : "public, max-age=3600");
+    evhttp_add_header(out, "Vary", "Authorization");
+    if (!ms_http_is_head(req))
+        ms_http_door_server(door)->metrics.http_bytes_sent += length;
+    ms_http_reply(door, req, 200, "OK", body, length); /* a HEAD: freeing body closes the file */
+    evbuffer_free(body);
+}
+
+struct evbuffer *ms_http_file_body(ms_http_door *door, struct evhttp_request *req,
+                                   const char *path, const char *missing, uint64_t *length)
+{
     int fd = open(path, O_RDONLY | O_CLOEXEC);
     struct stat st;
     if (fd < 0 || fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
         if (fd >= 0)
             close(fd);
-        ms_http_send_text(door, req, 404, "Not Found", "error: no Draco file for this model");
-        return;
+        ms_http_send_text(door, req, 404, "Not Found", missing);
+        return NULL;
     }
     struct evbuffer *body = evbuffer_new();
     if (!body || (st.st_size > 0 && evbuffer_add_file(body, fd, 0, st.st_size) != 0)) {
@@ -280,18 +298,12 @@ static void serve_draco(ms_http_door *door, struct evhttp_request *req, ms_model
         else
             close(fd);
         ms_http_send_text(door, req, 500, "Internal Server Error", "error: cannot send the file");
-        return;
+        return NULL;
     }
     if (st.st_size == 0)
         close(fd);
-    struct evkeyvalq *out = evhttp_request_get_output_headers(req);
-    evhttp_add_header(out, "Content-Type", "application/octet-stream");
-    evhttp_add_header(out, "Cache-Control", token_used ? "private, max-age=3600" : "public, max-age=3600");
-    evhttp_add_header(out, "Vary", "Authorization");
-    if (!ms_http_is_head(req))
-        ms_http_door_server(door)->metrics.http_bytes_sent += (uint64_t)st.st_size;
-    ms_http_reply(door, req, 200, "OK", body, (uint64_t)st.st_size); /* a HEAD: freeing body closes fd */
-    evbuffer_free(body);
+    *length = (uint64_t)st.st_size;
+    return body;
 }
 
 bool ms_http_route_model(ms_http_door *door, struct evhttp_request *req, ms_model *model,

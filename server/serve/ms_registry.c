@@ -194,6 +194,12 @@ static registry_slot *find_slot(const ms_registry *r, const char *name)
     return NULL;
 }
 
+const ms_catalog_entry *ms_registry_entry_named(const ms_registry *r, const char *name)
+{
+    registry_slot *slot = find_slot(r, name);
+    return slot ? slot->entry : NULL;
+}
+
 ms_model *ms_registry_peek(const ms_registry *r, const char *name)
 {
     registry_slot *slot = find_slot(r, name);
@@ -228,6 +234,7 @@ ms_status ms_model_open(const char *dir, const ms_catalog_entry *entry, ms_model
         return status;
     }
     m->entry = *entry;
+    m->entry.metadata = NULL; /* the catalogue's, not the model's: /catalog shows it */
     m->entry.source = strdup(entry->source ? entry->source : "");
     m->file_path = strdup(path);
     if (!m->entry.source || !m->file_path) {

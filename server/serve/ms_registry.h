@@ -115,6 +115,10 @@ const ms_catalog_entry *ms_registry_entry(const ms_registry *registry, size_t i)
  * that only the registry holds. */
 ms_model *ms_registry_find(ms_registry *registry, const char *name);
 
+/* The catalogue entry of the model named name (validated first), or NULL;
+ * opens nothing. */
+const ms_catalog_entry *ms_registry_entry_named(const ms_registry *registry, const char *name);
+
 /* The model named name if its archive is open, else NULL; opens nothing. */
 ms_model *ms_registry_peek(const ms_registry *registry, const char *name);
 

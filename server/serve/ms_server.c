@@ -288,6 +288,10 @@ static ms_status server_start(ms_server *s, ms_server_config *config, ms_error *
     s->base = event_settings ? event_base_new_with_config(event_settings) : NULL;
     if (event_settings)
         event_config_free(event_settings);
+    if (s->base && event_base_priority_init(s->base, MS_PRIORITY_LEVELS) != 0) {
+        server_stop(s);
+        return ms_error_set(err, MS_ERR_NOMEM, "cannot set the event loop's priorities");
+    }
     if (!s->base) {
         server_stop(s);
         return ms_error_set(err, MS_ERR_NOMEM, "cannot create the event loop");
