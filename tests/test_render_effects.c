@@ -332,6 +332,63 @@ static void floor_camera(double distance, bool away, ms_camera *cam)
     assert_int_equal(ms_camera_look_at(eye, target, upv, 40.0, SIZE, SIZE, 0.01, 20.0, cam, NULL), MS_OK);
 }
 
+/* Sections clip every program: plain, wireframe, tessellated and both. The
+ * floor seen from above (front faces) and from below (back faces), whole and
+ * with the plane x = 0.5 cutting its half away: about half its pixels stay,
+ * from above each as it was, from below each in the section colour. */
+static void test_sections_clip_every_program(void **state)
+{
+    (void)state;
+    ms_render *floor = make_floor();
+    const float section[3] = {MS_SECTION_R / 255.0f, MS_SECTION_G / 255.0f, MS_SECTION_B / 255.0f};
+    for (int variant = 0; variant < 8; ++variant) {
+        bool tess = variant & 1, wire = variant & 2, below = variant & 4;
+        ms_render_options o;
+        ms_render_options_default(&o);
+        o.effects = MS_EFFECT_TWO_SIDED | (tess ? MS_EFFECT_DISPLACEMENT : 0u);
+        o.displace = tess;
+        o.wireframe = wire;
+        o.apo = false;
+        const double eye[3] = {0.5, below ? -2.0 : 2.0, 1.2}, centre[3] = {0.5, 0.0, 0.5}, upv[3] = {0, 1, 0};
+        ms_camera cam;
+        assert_int_equal(ms_camera_look_at(eye, centre, upv, 40.0, SIZE, SIZE, 0.01, 20.0, &cam, NULL), MS_OK);
+        float *whole = draw(floor, &cam, &o, NULL);
+        o.section_count = 1;
+        const double plane[4] = {1, 0, 0, -0.5};
+        memcpy(o.sections[0], plane, sizeof plane);
+        float *cut = draw(floor, &cam, &o, NULL);
+        const float *bg = whole; /* the corner: background */
+        size_t covered = 0, kept = 0, wrong = 0;
+        for (size_t i = 0; i < (size_t)SIZE * SIZE; ++i) {
+            const float *a = &whole[4 * i], *b = &cut[4 * i];
+            bool in_whole = fabsf(a[0] - bg[0]) + fabsf(a[1] - bg[1]) + fabsf(a[2] - bg[2]) > 1e-3f;
+            bool in_cut = fabsf(b[0] - bg[0]) + fabsf(b[1] - bg[1]) + fabsf(b[2] - bg[2]) > 1e-3f;
+            covered += in_whole, kept += in_cut;
+            if (!in_cut)
+                continue;
+            bool same = fabsf(a[0] - b[0]) + fabsf(a[1] - b[1]) + fabsf(a[2] - b[2]) <= 1e-3f;
+            bool coloured = fabsf(b[0] - section[0]) + fabsf(b[1] - section[1]) + fabsf(b[2] - section[2]) <= 3e-3f;
+            wrong += !in_whole || (below ? !coloured : !same);
+        }
+        print_message("sections: %s%s from %s: %zu of %zu pixels kept, %zu wrong\n", tess ? "tessellated" : "plain",
+                      wire ? " wireframe" : "", below ? "below" : "above", kept, covered, wrong);
+        assert_true(covered > 400);
+        assert_true(kept > covered * 3 / 10 && kept < covered * 7 / 10);
+        assert_int_equal(wrong, 0);
+        free(whole);
+        free(cut);
+    }
+    ms_render_options o;
+    ms_render_options_default(&o);
+    o.section_count = MS_SECTIONS_MAX + 1;
+    ms_error err;
+    assert_int_equal(ms_render_draw(floor, &fx.camera, &o, NULL, &err), MS_ERR_ARG);
+    o.section_count = 1;
+    memset(o.sections, 0, sizeof o.sections);
+    assert_int_equal(ms_render_draw(floor, &fx.camera, &o, NULL, &err), MS_ERR_ARG);
+    ms_render_free(floor);
+}
+
 static void test_displacement_levels(void **state)
 {
     (void)state;
@@ -598,6 +655,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_source_composition),
         cmocka_unit_test(test_same_picture_without_effect),
+        cmocka_unit_test(test_sections_clip_every_program),
         cmocka_unit_test(test_every_set_builds),
         cmocka_unit_test(test_placement),
         cmocka_unit_test(test_bad_options),

@@ -462,6 +462,9 @@ static void assert_same_state(const ms_viewer_share *a, const ms_viewer_share *b
         assert_memory_equal(&a->light.azimuth_deg, &b->light.azimuth_deg, sizeof(double));
         assert_memory_equal(&a->light.elevation_deg, &b->light.elevation_deg, sizeof(double));
     }
+    assert_int_equal(a->sections.count, b->sections.count);
+    assert_memory_equal(a->sections.point, b->sections.point, a->sections.count * sizeof a->sections.point[0]);
+    assert_memory_equal(a->sections.normal, b->sections.normal, a->sections.count * sizeof a->sections.normal[0]);
     assert_int_equal(a->points, b->points);
     assert_memory_equal(a->anchor, b->anchor, a->points * sizeof a->anchor[0]);
     assert_memory_equal(a->direction, b->direction, a->points * sizeof a->direction[0]);
@@ -484,6 +487,12 @@ static void test_view_text_round_trip(void **state)
         v.up_axis = i % 3;
         if (i % 2)
             v.light = (ms_viewer_light){true, random_double(&seed, -180, 180), random_double(&seed, -90, 90)};
+        v.sections.count = (size_t)(i % 4);
+        for (size_t k = 0; k < v.sections.count; ++k)
+            for (int a = 0; a < 3; ++a) {
+                v.sections.point[k][a] = random_double(&seed, -1e3, 1e3);
+                v.sections.normal[k][a] = random_double(&seed, -1, 1) + (a == 1 ? 3 : 0);
+            }
         v.points = (size_t)(i % 17);
         for (size_t p = 0; p < v.points; ++p)
             for (int a = 0; a < 3; ++a) {
@@ -502,7 +511,7 @@ static void test_view_text_round_trip(void **state)
         ms_viewer_share_print(&back, again, sizeof again);
         assert_string_equal(text, again);
     }
-    printf("longest view text: %zu bytes (16 points)\n", longest);
+    printf("longest view text: %zu bytes (16 points, 3 sections)\n", longest);
     assert_true(longest < MS_VIEWER_SHARE_MAX);
 
     /* a canonical text prints back to itself; through the controls too */
@@ -529,6 +538,18 @@ static void test_view_text_round_trip(void **state)
     assert_int_equal(ms_viewer_share_parse("mv1:t=0,0,0:d=1:o=0,0:f=40:u=y", &v, &err), MS_OK);
     assert_false(v.light.directional);
     assert_int_equal(v.points, 0);
+    assert_int_equal(v.sections.count, 0);
+    /* sections: between the light and the points, exact both ways */
+    const char *sectioned = "mv1:t=0,0,0:d=1:o=0,0:f=40:u=y:l=10,20:s=0,0,-0.005,0,0,1/0.25,0,0,-1,0,0:m=0,0,0,0,0,1";
+    assert_int_equal(ms_viewer_share_parse(sectioned, &v, &err), MS_OK);
+    assert_int_equal(v.sections.count, 2);
+    assert_true(v.sections.point[0][2] == -0.005 && v.sections.normal[0][2] == 1);
+    assert_true(v.sections.point[1][0] == 0.25 && v.sections.normal[1][0] == -1);
+    ms_viewer_share_print(&v, text, sizeof text);
+    assert_string_equal(text, sectioned);
+    assert_int_equal(ms_viewer_share_parse("mv1:t=0,0,0:d=1:o=0,0:f=40:u=y:s=1,2,3,0.5,0.5,0", &v, &err), MS_OK);
+    ms_viewer_share_print(&v, text, sizeof text);
+    assert_string_equal(text, "mv1:t=0,0,0:d=1:o=0,0:f=40:u=y:s=1,2,3,0.5,0.5,0");
 }
 
 static void test_hostile_view_texts(void **state)
@@ -560,6 +581,16 @@ static void test_hostile_view_texts(void **state)
         "mv1:t=0,0,0:d=1:o=0,0:f=40:u=z:m=",
         "mv1:t=0,0,0:d=1:o=0,0:f=40:u=z:m=1,2,3,0,0,1:l=0,0",
         "mv1:t=0,0,0:d=1:o=0,0:f=40:u=z:x=1",
+        "mv1:t=0,0,0:d=1:o=0,0:f=40:u=z:s=",
+        "mv1:t=0,0,0:d=1:o=0,0:f=40:u=z:s=1,2,3,0,0,0",
+        "mv1:t=0,0,0:d=1:o=0,0:f=40:u=z:s=1,2,3,0,0",
+        "mv1:t=0,0,0:d=1:o=0,0:f=40:u=z:s=1,2,3,0,0,1/",
+        "mv1:t=0,0,0:d=1:o=0,0:f=40:u=z:s=x=1",
+        "mv1:t=0,0,0:d=1:o=0,0:f=40:u=z:s=1,2,3,0,0,1/1,2,3,0,0,1/1,2,3,0,0,1/1,2,3,0,0,1",
+        "mv1:t=0,0,0:d=1:o=0,0:f=40:u=z:s=1e300,0,0,1e300,0,0",
+        "mv1:t=0,0,0:d=1:o=0,0:f=40:u=z:m=1,2,3,0,0,1:s=0,0,0,0,0,1",
+        "mv1:t=0,0,0:d=1:o=0,0:f=40:u=z:s=0,0,0,0,0,1:l=0,0",
+        "mv1:t=0,0,0:d=1:o=0,0:f=40:u=z:s=0,0,nan,0,0,1",
         "mv1:t= 0,0,0:d=1:o=0,0:f=40:u=z",
         "mv1:t=0,,0:d=1:o=0,0:f=40:u=z",
         "mv1:t=0x1p3,0,0:d=1:o=0,0:f=40:u=z:q",

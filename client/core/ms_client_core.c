@@ -251,6 +251,24 @@ void ms_core_set_camera(ms_core *c, const ms_camera *camera)
     pthread_mutex_unlock(&c->lock);
 }
 
+ms_status ms_core_set_sections(ms_core *c, const double (*planes)[4], size_t count, ms_error *err)
+{
+    if (count > MS_SECTIONS_MAX || (count && !planes))
+        return ms_error_set(err, MS_ERR_ARG, "core: %zu section planes, at most %d", count, MS_SECTIONS_MAX);
+    ms_frustum check = {0};
+    for (size_t k = 0; k < count; ++k)
+        if (!ms_frustum_add_section(&check, planes[k]))
+            return ms_error_set(err, MS_ERR_ARG, "core: section plane %zu has a zero normal or a number not finite", k);
+    pthread_mutex_lock(&c->lock);
+    c->section_count = (unsigned)count;
+    for (size_t k = 0; k < count; ++k)
+        memcpy(c->sections[k], planes[k], sizeof c->sections[k]);
+    c->camera_serial++; /* a new pass for the same camera */
+    pthread_cond_broadcast(&c->wake);
+    pthread_mutex_unlock(&c->lock);
+    return MS_OK;
+}
+
 static int compare_double(const void *a, const void *b)
 {
     double x = *(const double *)a, y = *(const double *)b;

@@ -308,6 +308,14 @@ void ms_core_stop(ms_core *core);
 /* The camera to serve from now on (copied). */
 void ms_core_set_camera(ms_core *core, const ms_camera *camera);
 
+/* The section planes of the view from now on (copied; count 0: none; docs/
+ * VIEWER.md, "Sections"): each a b c d cuts away the side a x + b y + c z + d
+ * > 0 (model coordinates). A cell wholly cut away counts as outside the
+ * frustum: requested coarser and after the cells seen (as a culled cell,
+ * ms_view_select_params.section_count). MS_ERR_ARG, nothing changed, for more
+ * than MS_SECTIONS_MAX planes, a zero normal or a number not finite. */
+ms_status ms_core_set_sections(ms_core *core, const double (*planes)[4], size_t count, ms_error *err);
+
 typedef struct ms_core_apo_chunk {
     uint32_t cell;
     unsigned levels;          /* complete octree levels in data */

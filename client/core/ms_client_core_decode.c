@@ -366,13 +366,21 @@ static void dec_pass_begin(ms_core *c, const ms_camera *cam, dec_pass *pass)
     c->preview_steps = c->permitted_geometry_steps;
     /* colour: from a local archive, or a connection that negotiated CAP_COLOUR */
     pass->colour_on = h->has_colour && c->colour_served;
+    unsigned sections = c->section_count;
+    double planes[MS_SECTIONS_MAX][4];
+    memcpy(planes, c->sections, sizeof planes);
     pthread_mutex_unlock(&c->lock);
+    /* the sections cull as the frustum's sides do (selection and schedule) */
+    for (unsigned k = 0; k < sections; ++k)
+        ms_frustum_add_section(&pass->fv.frustum, planes[k]);
     pass->sp = (ms_view_select_params){.tolerance_px = pass->fv.tolerance,
                                        .margin = c->o.frustum_margin,
                                        .hysteresis = c->o.hysteresis_bits,
                                        .culled_bits_less = c->o.culled_bits_less + c->culled_give_up,
                                        .chunkless_tolerance_scale = chunkless,
-                                       .permitted_steps = c->preview_steps};
+                                       .permitted_steps = c->preview_steps,
+                                       .section_count = sections};
+    memcpy(pass->sp.sections, planes, sizeof planes);
 }
 
 /* Selects the cells for the camera, refines in parallel what can go up, and

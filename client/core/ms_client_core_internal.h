@@ -212,6 +212,8 @@ struct ms_core {
     ms_camera camera;
     bool have_camera;
     uint64_t camera_serial;
+    unsigned section_count;     /* ms_core_set_sections */
+    double sections[MS_SECTIONS_MAX][4];
     chunk_msg *inbox, *inbox_tail;
     ms_archive *index;          /* set once by the network thread */
     ms_core_opening opening;    /* with export_frames: the index at the first open */

@@ -47,7 +47,7 @@ static void visit(selection *s, uint32_t id, unsigned depth)
 size_t ms_view_select_cells(const ms_archive *index, const ms_camera *camera, double tolerance_px,
                       ms_view_cell *out, size_t capacity)
 {
-    selection s = {index, camera, {{{0}}, {0}}, tolerance_px, 0, {0}, out, capacity, 0};
+    selection s = {.index = index, .camera = camera, .tolerance = tolerance_px, .out = out, .capacity = capacity};
     ms_camera_frustum(camera, &s.frustum);
     const ms_archive_header *h = ms_archive_get_header(index);
     s.side[0] = h->box_side;

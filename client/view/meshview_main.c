@@ -257,8 +257,8 @@ static void on_key(GLFWwindow *w, int key, int scancode, int action, int mods)
             v->on_catalogue = false;
         return;
     }
-    if (action == GLFW_REPEAT && key != GLFW_KEY_EQUAL && key != GLFW_KEY_MINUS &&
-        key != GLFW_KEY_KP_ADD && key != GLFW_KEY_KP_SUBTRACT)
+    if (action == GLFW_REPEAT && key != GLFW_KEY_EQUAL && key != GLFW_KEY_MINUS && key != GLFW_KEY_KP_ADD &&
+        key != GLFW_KEY_KP_SUBTRACT && key != GLFW_KEY_9 && key != GLFW_KEY_0) /* held: the section moves on */
         return;
     ms_viewer_controls *c = &v->controls;
     if (!v->vscene && ms_viewer_inspect_key(&v->inspect, key, c, stdout))

@@ -46,6 +46,7 @@ void ms_render_options_default(ms_render_options *o)
     o->displacement_density = 100.0f;
     o->displacement_seed = 1;
     o->tess_pixels_per_level = 8.0f;
+    o->section_colour[0] = MS_SECTION_R, o->section_colour[1] = MS_SECTION_G, o->section_colour[2] = MS_SECTION_B;
 }
 
 ms_status ms_render_find_program(ms_render *r, unsigned effects, bool wireframe, bool tessellated,

@@ -228,6 +228,14 @@ typedef struct ms_render_options {
      * the pixels of a 4x4 Bayer pattern below dissolve are left out, for the
      * impostor to draw. Default 0: all drawn. */
     float dissolve;
+    /* Sections (docs/RENDERER.md, "Sections"): up to MS_SECTIONS_MAX planes a
+     * b c d in model coordinates cut away the side a x + b y + c z + d > 0
+     * (gl_ClipDistance in every program); a back face seen through the cut
+     * draws in section_colour, flat (8-bit sRGB; LIT, CELLS and ALBEDO
+     * shading). Default none, MS_SECTION_R G B. */
+    unsigned section_count;
+    double sections[MS_SECTIONS_MAX][4];
+    uint8_t section_colour[3];
 } ms_render_options;
 
 /* LIT, APO on, no wireframe, no cap, STOP rule, dark grey background,

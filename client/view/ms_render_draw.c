@@ -50,6 +50,14 @@ static ms_status check_scene_options(const ms_render_options *o, ms_error *err)
          !(o->displacement_density > 0.0f) || !isfinite(o->displacement_density) ||
          !(o->tess_pixels_per_level >= 1.0f) || !isfinite(o->tess_pixels_per_level)))
         return ms_error_set(err, MS_ERR_ARG, "render: displacement amplitude, radius, density or level size out of range");
+    if (o->section_count > MS_SECTIONS_MAX)
+        return ms_error_set(err, MS_ERR_ARG, "render: %u sections, at most %d", o->section_count, MS_SECTIONS_MAX);
+    for (unsigned k = 0; k < o->section_count; ++k) {
+        const double *s = o->sections[k];
+        double len2 = s[0] * s[0] + s[1] * s[1] + s[2] * s[2];
+        if (!(len2 > 0.0) || !isfinite(len2) || !isfinite(s[3]))
+            return ms_error_set(err, MS_ERR_ARG, "render: section %u has a zero normal or a number not finite", k);
+    }
     if (o->placed) {
         double scale = sqrt(o->placement[0] * o->placement[0] + o->placement[1] * o->placement[1] +
                             o->placement[2] * o->placement[2]);
@@ -141,9 +149,33 @@ static void set_frame_uniforms(const ms_render *r, const ms_render_program *p, c
         glUniform1ui(p->disp_seed, o->displacement_seed);
         glPatchParameteri(GL_PATCH_VERTICES, 3);
     }
+    glUniform1i(p->section_count, (GLint)o->section_count);
+    glUniform3f(p->section_colour, o->section_colour[0] / 255.0f, o->section_colour[1] / 255.0f,
+                o->section_colour[2] / 255.0f);
+    for (unsigned k = 0; k < MS_SECTIONS_MAX; ++k) {
+        if (k < o->section_count)
+            glEnable(GL_CLIP_DISTANCE0 + k);
+        else
+            glDisable(GL_CLIP_DISTANCE0 + k);
+    }
     glActiveTexture(GL_TEXTURE0);
     glBindTexture(GL_TEXTURE_BUFFER, r->texels.texture);
     glUniform1i(p->apo_words, 0);
+}
+
+/* The sections in the cell's local frame for gl_ClipDistance (>= 0 kept): the
+ * model point origin + side * c is kept where a . (origin + side c) + d <= 0. */
+static void set_cell_sections(const ms_render_program *p, const ms_render_options *o, const double origin[3],
+                              double side)
+{
+    float planes[4 * MS_SECTIONS_MAX] = {0};
+    for (unsigned k = 0; k < o->section_count; ++k) {
+        const double *s = o->sections[k];
+        for (int a = 0; a < 3; ++a)
+            planes[4 * k + a] = (float)(-s[a] * side);
+        planes[4 * k + 3] = (float)-(s[0] * origin[0] + s[1] * origin[1] + s[2] * origin[2] + s[3]);
+    }
+    glUniform4fv(p->section_plane, MS_SECTIONS_MAX, planes);
 }
 
 /* Clears the bound framebuffer to the options' background (sRGB-encoded but
@@ -280,6 +312,7 @@ ms_status ms_render_draw(ms_render *r, const ms_camera *camera, const ms_render_
         ms_render_cell_modelview(model_view, origin, side, modelview);
         cell_tint(cell, tint);
         glUniformMatrix4fv(p->modelview, 1, GL_FALSE, modelview);
+        set_cell_sections(p, o, origin, side);
         if (tessellated) {
             float cell_origin[3] = {(float)origin[0], (float)origin[1], (float)origin[2]};
             glUniform3fv(p->cell_origin, 1, cell_origin);
@@ -308,6 +341,8 @@ ms_status ms_render_draw(ms_render *r, const ms_camera *camera, const ms_render_
     glBindVertexArray(0);
     glBindTexture(GL_TEXTURE_BUFFER, 0);
     glUseProgram(0);
+    for (unsigned k = 0; k < MS_SECTIONS_MAX; ++k) /* what draws next (text, impostors) is not cut */
+        glDisable(GL_CLIP_DISTANCE0 + k);
     if (stats) {
         stats->cells_drawn = drawn;
         stats->triangles_drawn = triangles;

@@ -271,6 +271,7 @@ typedef struct ms_render_program {
     GLint specular, shininess, two_sided, haze_density, haze_colour; /* -1 when not compiled in */
     GLint dissolve;
     GLint tess_pixels, disp_amplitude, disp_radius, disp_spacing, disp_seed, cell_origin, cell_side;
+    GLint section_plane, section_count, section_colour;
 } ms_render_program;
 
 /* Compiles and links the embedded shaders with the effects given (the fragment

@@ -297,6 +297,9 @@ ms_status ms_render_program_build(ms_render_program *p, unsigned effects, bool w
     p->disp_seed = glGetUniformLocation(g, "displacement_seed");
     p->cell_origin = glGetUniformLocation(g, "cell_origin");
     p->cell_side = glGetUniformLocation(g, "cell_side");
+    p->section_plane = glGetUniformLocation(g, "section_plane");
+    p->section_count = glGetUniformLocation(g, "section_count");
+    p->section_colour = glGetUniformLocation(g, "section_colour");
     p->effects = effects;
     p->wireframe = wireframe;
     p->tessellated = tessellated;

@@ -20,6 +20,7 @@ void ms_viewer_inspect_init(ms_viewer_inspect *in, const ms_viewer_options *o, c
     memset(in, 0, sizeof *in);
     in->source = source;
     in->light = o->light;
+    in->sections = o->sections; /* --section, else --view's */
     if (o->has_view)
         ms_viewer_share_give(&o->view, NULL, NULL, &in->measure);
 }
@@ -30,6 +31,7 @@ void ms_viewer_inspect_close(ms_viewer_inspect *in)
     in->probe = NULL;
     in->probe_failed = in->refining = false;
     in->generation = 0;
+    in->sections_known = false; /* the next stream's core is told again */
 }
 
 /* Polls the probe once the view is settled, starting it when a point wants
@@ -57,6 +59,8 @@ void ms_viewer_inspect_view(const ms_viewer_options *o, ms_viewer_controls *c)
 
 bool ms_viewer_inspect_key(ms_viewer_inspect *in, int key, const ms_viewer_controls *c, FILE *out)
 {
+    if (in->have_camera && ms_viewer_sections_key(&in->sections, key, in->camera.forward, c->target, in->box_side))
+        return true;
     switch (key) {
     case GLFW_KEY_T: in->measuring = !in->measuring; return true;
     case GLFW_KEY_BACKSPACE: ms_viewer_measure_pop(&in->measure); return true;
@@ -66,6 +70,7 @@ bool ms_viewer_inspect_key(ms_viewer_inspect *in, int key, const ms_viewer_contr
         ms_viewer_share share;
         char text[MS_VIEWER_SHARE_MAX];
         ms_viewer_share_take(c, &in->light, &in->measure, &share);
+        share.sections = in->sections;
         ms_viewer_share_print(&share, text, sizeof text);
         fprintf(out, "%s\n", text);
         fflush(out);
@@ -79,6 +84,17 @@ void ms_viewer_inspect_frame(ms_viewer_inspect *in, ms_viewer_stream *stream, co
                              ms_render_options *render)
 {
     ms_viewer_light_apply(&in->light, camera, render);
+    ms_viewer_sections_apply(&in->sections, render);
+    in->box_side = box_side(stream);
+    if (!in->sections_known || memcmp(&in->sections_sent, &in->sections, sizeof in->sections) != 0) {
+        double planes[MS_SECTIONS_MAX][4];
+        size_t n = ms_viewer_sections_planes(&in->sections, planes);
+        ms_error err;
+        if (ms_viewer_stream_set_sections(stream, (const double(*)[4])planes, n, &err) == MS_OK) {
+            in->sections_sent = in->sections;
+            in->sections_known = true;
+        }
+    }
     in->camera = *camera;
     in->have_camera = true;
     const ms_core_frame *frame = ms_viewer_stream_frame(stream);
@@ -124,6 +140,8 @@ size_t ms_viewer_inspect_hud(ms_viewer_inspect *in, const ms_viewer_stream *stre
     size_t n = 0;
     if (in->light.directional)
         ms_viewer_light_describe(&in->light, in->lines[n++], MS_HUD_LINE_MAX);
+    if (in->sections.count)
+        ms_viewer_sections_describe(&in->sections, in->lines[n++], MS_HUD_LINE_MAX);
     if (in->measuring || in->measure.count) {
         ms_viewer_inspect_describe(&in->measure, ms_viewer_stream_model(stream)->header.bits, in->lines[n],
                                    MS_HUD_LINE_MAX);
@@ -186,6 +204,13 @@ void ms_viewer_inspect_report_light(const ms_viewer_options *o, json_t *report)
                         o->light.directional ? json_pack("{s:f, s:f}", "azimuth_deg", o->light.azimuth_deg,
                                                          "elevation_deg", o->light.elevation_deg)
                                              : json_pack("{s:b}", "head", true));
+    json_t *sections = json_array();
+    for (size_t k = 0; k < o->sections.count; ++k) {
+        const double *p = o->sections.point[k], *m = o->sections.normal[k];
+        json_array_append_new(sections, json_pack("{s:[f, f, f], s:[f, f, f]}", "point", p[0], p[1], p[2], "normal",
+                                                  m[0], m[1], m[2]));
+    }
+    json_object_set_new(report, "sections", sections);
     if (o->has_view) {
         char view[MS_VIEWER_SHARE_MAX];
         ms_viewer_share_print(&o->view, view, sizeof view);

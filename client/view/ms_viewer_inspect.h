@@ -1,5 +1,5 @@
 /* Looking closely in meshview's window and scripted runs (docs/VIEWER.md,
- * "Measuring", "Light", "Shareable views"): the glue between the window's
+ * "Measuring", "Light", "Sections", "Shareable views"): the glue between the window's
  * input, the stream's frames, the HUD and the report on one side, and the
  * measuring chain (ms_viewer_measure.h), the light (ms_viewer_light.h) and the
  * view text (ms_viewer_share.h) on the other.
@@ -30,10 +30,16 @@
 #include "ms_viewer_stream.h"
 #include "ms_viewer_text.h"
 
-#define MS_VIEWER_INSPECT_LINES 2
+#include "ms_viewer_section.h"
+
+#define MS_VIEWER_INSPECT_LINES 3
 
 typedef struct ms_viewer_inspect {
     ms_viewer_light light;
+    ms_viewer_sections sections;
+    ms_viewer_sections sections_sent; /* what the core culls with */
+    bool sections_known;     /* sections_sent was sent to this stream */
+    double box_side;         /* the model's, for the section keys' steps */
     ms_viewer_measure measure;
     bool measuring;          /* T: a click adds a point */
     bool lighting;           /* a Ctrl drag is moving the light */
@@ -60,18 +66,20 @@ void ms_viewer_inspect_close(ms_viewer_inspect *in);
 void ms_viewer_inspect_view(const ms_viewer_options *o, ms_viewer_controls *c);
 
 /* A key (GLFW_KEY_*) pressed: true when it is one of T, Backspace, Delete, L,
- * V (V prints the view text of the controls, light and chain on out). */
+ * V (V prints the view text of the controls, light, sections and chain on
+ * out), or a section key (Y J 9 0 I, ms_viewer_section.h). */
 bool ms_viewer_inspect_key(ms_viewer_inspect *in, int key, const ms_viewer_controls *c, FILE *out);
 
-/* Per frame, after the stream's step and before its draw: the light into
- * the options for camera; a pending click cast on the frame; the chain cast
+/* Per frame, after the stream's step and before its draw: the light and the
+ * sections into the options for camera, the sections to the core when they
+ * changed; a pending click cast on the frame; the chain cast
  * again on a new frame once the view settled (or while a point is lost);
  * once settled, the probe refines the points' cells (polled, never waited
  * for). */
 void ms_viewer_inspect_frame(ms_viewer_inspect *in, ms_viewer_stream *stream, const ms_camera *camera,
                              ms_render_options *render);
 
-/* The HUD's lines (the light, the measurement): how many are set. */
+/* The HUD's lines (the light, the sections, the measurement): how many are set. */
 size_t ms_viewer_inspect_hud(ms_viewer_inspect *in, const ms_viewer_stream *stream);
 
 /* Marks the chain's points on the overlay (small squares where they are
@@ -82,7 +90,8 @@ void ms_viewer_inspect_markers(const ms_viewer_inspect *in, ms_viewer_text *text
  * units (20 bits, full)". */
 void ms_viewer_inspect_describe(const ms_viewer_measure *m, unsigned model_bits, char *text, size_t size);
 
-/* Scripted: the report's "light" and (with --view) "view", the view text as
+/* Scripted: the report's "light", "sections" (an array of {point, normal},
+ * empty without) and (with --view) "view", the view text as
  * parsed and printed again; and, at the first keyframe (camera, the view
  * settled), its "measure": in's chain (the --view points) cast on the
  * stream's frame, then the --measure pixels added to it (so that the HUD and

@@ -54,6 +54,9 @@ void ms_viewer_options_usage(FILE *out)
           "  --light AZ,EL          a directional light, degrees in the camera's frame (azimuth\n"
           "                         from the view axis, > 0 from the right; elevation, > 0 from\n"
           "                         above; default the head light)\n"
+          "  --section PLANE        cut the model (up to 3 times): AXIS=VALUE (AXIS x, y, z,\n"
+          "                         -x, -y, -z: x=V cuts away x > V) or PX,PY,PZ,NX,NY,NZ (a\n"
+          "                         point, and the normal of the side cut away)\n"
           "  --view TEXT            start from a view printed by the V key (camera, light and\n"
           "                         measuring points: mv1:t=...)\n"
           "  --measure X,Y:X,Y...   scripted: measure along the surface points seen at these\n"
@@ -95,6 +98,9 @@ void ms_viewer_options_usage(FILE *out)
           "          Backspace removes the last point, Delete clears them\n"
           "       L  raking light from the left, top, right, bottom, then the head light\n"
           "       Ctrl + left drag  moves the light     V  print the view text (--view)\n"
+          "       Y  add a section through the orbit centre, across the view (up to 3)\n"
+          "       J  turn the last section over     9 / 0  move it back / forward\n"
+          "       I  remove the last section\n"
           "Scene: ] / [  select the next / previous piece   Z  frame the selected piece\n"
           "Exit status: 0 on success, 1 on an error (no OpenGL 4.1, server gone, unknown\n"
           "model, window closed while a scripted run streams), 2 for a usage error.\n",
@@ -228,8 +234,8 @@ static int finish_options(ms_viewer_options *o, const char *shading, bool no_apo
                 "--scene\n");
         return 2;
     }
-    if ((o->has_view || o->measure_count || o->light.directional) && !o->model) {
-        fprintf(err, "meshview: --view, --light and --measure need --model\n");
+    if ((o->has_view || o->measure_count || o->light.directional || o->sections.count) && !o->model) {
+        fprintf(err, "meshview: --view, --light, --section and --measure need --model\n");
         return 2;
     }
     if (o->measure_count && !o->scripted) {
@@ -249,6 +255,8 @@ static int finish_options(ms_viewer_options *o, const char *shading, bool no_apo
     }
     if (o->has_view && !o->light.directional) /* --light wins over the view's */
         o->light = o->view.light;
+    if (o->has_view && !o->sections.count) /* so does --section */
+        o->sections = o->view.sections;
     if (o->json && !o->scripted) {
         fprintf(err, "meshview: --json reports a scripted run (--screenshot-dir)\n");
         return 2;
@@ -294,6 +302,46 @@ typedef struct {
 } option_leftovers;
 
 enum { OPTION_UNKNOWN = -1 };
+
+/* The options of looking closely (--light, --view, --section, --measure), as
+ * apply_option. */
+static int inspect_option(int ch, const char *arg, ms_viewer_options *o, FILE *err)
+{
+    switch (ch) {
+    case 'L':
+        if (!ms_viewer_light_parse(arg, &o->light)) {
+            fprintf(err, "meshview: --light wants AZ,EL in degrees, AZ in [-180, 180] and EL in [-90, 90], "
+                    "not '%.64s'\n", arg);
+            return 2;
+        }
+        break;
+    case 'V': {
+        ms_error e;
+        if (ms_viewer_share_parse(arg, &o->view, &e) != MS_OK) {
+            fprintf(err, "meshview: --view: %s\n", e.text);
+            return 2;
+        }
+        o->has_view = true;
+        break;
+    }
+    case 'X': {
+        ms_error e;
+        if (ms_viewer_sections_add_text(&o->sections, arg, &e) != MS_OK) {
+            fprintf(err, "meshview: --section: %s\n", e.text);
+            return 2;
+        }
+        break;
+    }
+    case 'G':
+        if (!measure_pixels(arg, o)) {
+            fprintf(err, "meshview: --measure wants 2 to 16 pixels X,Y separated by ':', not '%.64s'\n", arg);
+            return 2;
+        }
+        break;
+    default: return OPTION_UNKNOWN;
+    }
+    return 0;
+}
 
 /* Applies the option getopt_long returned as ch with its value arg: 0, 2
  * after printing the one line to err, or OPTION_UNKNOWN for a ch it does not
@@ -390,29 +438,7 @@ static int apply_option(int ch, const char *arg, ms_viewer_options *o, option_le
             return 2;
         }
         break;
-    case 'L':
-        if (!ms_viewer_light_parse(arg, &o->light)) {
-            fprintf(err, "meshview: --light wants AZ,EL in degrees, AZ in [-180, 180] and EL in [-90, 90], "
-                    "not '%.64s'\n", arg);
-            return 2;
-        }
-        break;
-    case 'V': {
-        ms_error e;
-        if (ms_viewer_share_parse(arg, &o->view, &e) != MS_OK) {
-            fprintf(err, "meshview: --view: %s\n", e.text);
-            return 2;
-        }
-        o->has_view = true;
-        break;
-    }
-    case 'G':
-        if (!measure_pixels(arg, o)) {
-            fprintf(err, "meshview: --measure wants 2 to 16 pixels X,Y separated by ':', not '%.64s'\n", arg);
-            return 2;
-        }
-        break;
-    default: return OPTION_UNKNOWN;
+    default: return inspect_option(ch, arg, o, err);
     }
     return 0;
 }
@@ -444,6 +470,7 @@ int ms_viewer_options_parse(int argc, char **argv, ms_viewer_options *o, FILE *e
         {"light", required_argument, NULL, 'L'},
         {"view", required_argument, NULL, 'V'},
         {"measure", required_argument, NULL, 'G'},
+        {"section", required_argument, NULL, 'X'},
         {NULL, 0, NULL, 0}};
     default_options(o);
     option_leftovers left = {false, NULL};

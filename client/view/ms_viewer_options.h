@@ -54,6 +54,7 @@ typedef struct ms_viewer_options {
     bool flat;                 /* --flat: each triangle's own normal where no APO normal is used */
     double crease_angle_deg;   /* --crease-angle; negative: the catalogue's, else the default */
     ms_viewer_light light;     /* --light AZ,EL (directional); else the head light */
+    ms_viewer_sections sections; /* --section (repeatable); else --view's */
     bool has_view;             /* --view TEXT: the camera, light and chain to start from */
     ms_viewer_share view;
     size_t measure_count;      /* --measure X,Y:X,Y...: scripted, framebuffer pixels of the

@@ -89,6 +89,12 @@ void ms_viewer_share_print(const ms_viewer_share *v, char *text, size_t size)
         double l[2] = {v->light.azimuth_deg, v->light.elevation_deg};
         append_numbers(text, size, &used, l, 2);
     }
+    for (size_t i = 0; i < v->sections.count && i < MS_SECTIONS_MAX; ++i) {
+        append(text, size, &used, i ? "/" : ":s=");
+        double p[6] = {v->sections.point[i][0],  v->sections.point[i][1],  v->sections.point[i][2],
+                       v->sections.normal[i][0], v->sections.normal[i][1], v->sections.normal[i][2]};
+        append_numbers(text, size, &used, p, 6);
+    }
     for (size_t i = 0; i < v->points; ++i) {
         append(text, size, &used, i ? "/" : ":m=");
         double p[6] = {v->anchor[i][0],    v->anchor[i][1],    v->anchor[i][2],
@@ -143,6 +149,26 @@ static ms_status parse_points(char *value, ms_viewer_share *v, ms_error *err)
     }
 }
 
+/* The section planes "PX,PY,PZ,NX,NY,NZ/..." */
+static ms_status parse_sections(char *value, ms_viewer_share *v, ms_error *err)
+{
+    for (char *p = value;;) {
+        if (v->sections.count >= MS_SECTIONS_MAX)
+            return bad(err, "more than 3 section planes");
+        char *slash = strchr(p, '/');
+        if (slash)
+            *slash = 0;
+        double n[6];
+        if (!ms_viewer_numbers(p, ',', n, 6))
+            return bad(err, "a section plane wants six numbers PX,PY,PZ,NX,NY,NZ");
+        if (!ms_viewer_sections_add(&v->sections, n, n + 3))
+            return bad(err, "a section plane's normal is zero or its numbers too large");
+        if (!slash)
+            return MS_OK;
+        p = slash + 1;
+    }
+}
+
 ms_status ms_viewer_share_parse(const char *text, ms_viewer_share *v, ms_error *err)
 {
     memset(v, 0, sizeof *v);
@@ -172,6 +198,13 @@ ms_status ms_viewer_share_parse(const char *text, ms_viewer_share *v, ms_error *
         if (!field(&p, 'l', value, sizeof value) || !ms_viewer_light_parse(value, &v->light))
             return bad(err, "l= wants AZ,EL in degrees, AZ in [-180, 180], EL in [-90, 90]");
     }
+    if (*p == 's') {
+        if (!field(&p, 's', value, sizeof value))
+            return bad(err, "s= wants section planes");
+        ms_status st = parse_sections(value, v, err);
+        if (st != MS_OK)
+            return st;
+    }
     if (*p == 'm') {
         if (!field(&p, 'm', value, sizeof value))
             return bad(err, "m= wants measuring points");
@@ -180,7 +213,7 @@ ms_status ms_viewer_share_parse(const char *text, ms_viewer_share *v, ms_error *
             return st;
     }
     if (*p || p[-1] == ':')
-        return bad(err, "unknown or misplaced field after u= (l=, then m=, may follow)");
+        return bad(err, "unknown or misplaced field after u= (l=, s=, then m=, may follow)");
     return MS_OK;
 }
 

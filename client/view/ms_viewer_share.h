@@ -2,14 +2,16 @@
  * and the measurement points of meshview as one short line of text, printed
  * by the V key and taken by --view TEXT, in the window and in scripted runs:
  *
- *   mv1:t=X,Y,Z:d=D:o=YAW,PITCH:f=FOVY:u=AXIS[:l=AZ,EL][:m=POINT/POINT/...]
+ *   mv1:t=X,Y,Z:d=D:o=YAW,PITCH:f=FOVY:u=AXIS[:l=AZ,EL][:s=PLANE/...][:m=POINT/POINT/...]
  *
  * t the orbit centre, d the eye's distance from it (> 0), o the view's yaw
  * and pitch about the up axis (radians, |pitch| at most 89 degrees), f the
  * vertical field of view (degrees, in (0, 180)), u the up axis (x, y or z):
  * the camera controller's state (ms_viewer_controls.h), so the view comes
  * back as it was. l a directional light (ms_viewer_light.h; absent: the head
- * light). m the measuring chain (ms_viewer_measure.h), at most 16 points,
+ * light). s the section planes (ms_viewer_section.h), one to three, each
+ * PX,PY,PZ,NX,NY,NZ: a point and the normal of the side cut away (not
+ * zero). m the measuring chain (ms_viewer_measure.h), at most 16 points,
  * each X,Y,Z,DX,DY,DZ: where it lies and its ray's direction, cast again on
  * the model as it streams in. The fields come in this order, without spaces
  * (the text needs no quoting in a shell). Numbers are printed in the
@@ -29,6 +31,7 @@
 #include "ms_viewer_controls.h"
 #include "ms_viewer_light.h"
 #include "ms_viewer_measure.h"
+#include "ms_viewer_section.h"
 
 /* Longest text, terminator included: a longer one is refused. */
 #define MS_VIEWER_SHARE_MAX 4096
@@ -37,6 +40,7 @@ typedef struct ms_viewer_share {
     double target[3], distance, yaw, pitch, fovy_degrees;
     int up_axis;
     ms_viewer_light light;
+    ms_viewer_sections sections; /* copied by the caller of _take and _give */
     size_t points;
     double anchor[MS_VIEWER_MEASURE_MAX_POINTS][3], direction[MS_VIEWER_MEASURE_MAX_POINTS][3];
 } ms_viewer_share;

@@ -214,3 +214,8 @@ ms_status ms_viewer_stream_set_crease_angle(ms_viewer_stream *s, double degrees,
 }
 
 double ms_viewer_stream_crease_angle(const ms_viewer_stream *s) { return ms_render_crease_angle(s->render); }
+
+ms_status ms_viewer_stream_set_sections(ms_viewer_stream *s, const double (*planes)[4], size_t count, ms_error *err)
+{
+    return ms_core_set_sections(s->core, planes, count, err);
+}

@@ -127,4 +127,9 @@ ms_status ms_viewer_stream_set_crease_angle(ms_viewer_stream *stream, double deg
 /* The crease angle in effect, degrees. */
 double ms_viewer_stream_crease_angle(const ms_viewer_stream *stream);
 
+/* The section planes the core culls with (ms_core_set_sections: the cells
+ * wholly cut away are requested last); its errors. */
+ms_status ms_viewer_stream_set_sections(ms_viewer_stream *stream, const double (*planes)[4], size_t count,
+                                        ms_error *err);
+
 #endif

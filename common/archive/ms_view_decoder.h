@@ -227,11 +227,17 @@ typedef struct ms_view_select_params {
      * children it could not read, and a cell so capped counts as at its
      * target (reported in capped_count). */
     unsigned permitted_steps;
+    /* Section planes (ms_frustum_add_section: a b c d, the side a x + b y + c z
+     * + d > 0 cut away): a cell wholly cut away counts as outside the frustum
+     * (culled: its need less culled_bits_less, never split for the view).
+     * Default none. */
+    unsigned section_count;
+    double sections[MS_SECTIONS_MAX][4];
 } ms_view_select_params;
 
 /* 1 pixel, no margin, 0.5 bit of hysteresis, culled cells 2 bits coarser (keeps
  * the precision steps at the frustum border small: see ms_view_stitch), one
- * tolerance for every cell. */
+ * tolerance for every cell, no sections. */
 void ms_view_select_params_default(ms_view_select_params *params);
 
 /* Real-valued precision (bits) a cell needs for the camera, or -1 when it is

@@ -27,6 +27,15 @@ void ms_view_select_params_default(ms_view_select_params *p)
     p->tolerance_scale = NULL;
     p->chunkless_tolerance_scale = 0.0;
     p->permitted_steps = 0;
+    p->section_count = 0;
+}
+
+/* The camera's frustum with the params' sections. */
+static void params_frustum(const ms_camera *cam, const ms_view_select_params *p, ms_frustum *f)
+{
+    ms_camera_frustum(cam, f);
+    for (unsigned k = 0; k < p->section_count && k < MS_SECTIONS_MAX; ++k)
+        ms_frustum_add_section(f, p->sections[k]);
 }
 
 static double cell_tolerance(const ms_view_select_params *p, uint32_t cell,
@@ -48,7 +57,7 @@ double ms_view_cell_need(const ms_view *v, const ms_camera *cam, uint32_t cell,
     double lo[3], hi[3];
     cell_box(v, &c->rec, lo, hi);
     ms_frustum f;
-    ms_camera_frustum(cam, &f);
+    params_frustum(cam, p, &f);
     if (!ms_frustum_keeps_box(&f, lo, hi, p->margin))
         return -1.0;
     double d = ms_camera_box_distance(cam, lo, hi);
@@ -76,7 +85,7 @@ double ms_view_cell_select_need(const ms_view *v, const ms_camera *cam, uint32_t
     if (!c)
         return -INFINITY;
     ms_frustum f;
-    ms_camera_frustum(cam, &f);
+    params_frustum(cam, p, &f);
     return select_need(v, cam, &f, p, cell, c);
 }
 
@@ -152,7 +161,7 @@ void ms_view_select(ms_view *v, const ms_camera *cam, const ms_view_select_param
     if (!ms_view_vcell(v, 0))
         return; /* nothing known yet */
     ms_frustum f;
-    ms_camera_frustum(cam, &f);
+    params_frustum(cam, p, &f);
     select_cell(v, cam, &f, p, 0, report);
 }
 

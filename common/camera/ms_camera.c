@@ -66,6 +66,7 @@ static void set_plane(ms_frustum *fr, int k, const double n[3], const double p[3
 
 void ms_camera_frustum(const ms_camera *c, ms_frustum *fr)
 {
+    fr->sections = 0;
     double ty = tan(c->fovy / 2.0), tx = ty * c->width / c->height;
     const double *f = c->forward, *u = c->up, *r = c->right, *p = c->position;
     double near_point[3], far_point[3], back[3];
@@ -92,17 +93,38 @@ void ms_camera_frustum(const ms_camera *c, ms_frustum *fr)
     set_plane(fr, 5, n, p);
 }
 
+bool ms_frustum_add_section(ms_frustum *fr, const double plane[4])
+{
+    double len = sqrt(plane[0] * plane[0] + plane[1] * plane[1] + plane[2] * plane[2]);
+    if (fr->sections >= MS_SECTIONS_MAX || !(len > 0.0) || !isfinite(len) || !isfinite(plane[3]))
+        return false;
+    /* inward: towards the kept side */
+    for (int i = 0; i < 3; ++i)
+        fr->section_normal[fr->sections][i] = -plane[i] / len;
+    fr->section_offset[fr->sections] = -plane[3] / len;
+    fr->sections++;
+    return true;
+}
+
+/* False when the box lies wholly beyond margin on the outer side of the plane. */
+static bool plane_keeps_box(const double n[3], double offset, const double lo[3], const double hi[3], double margin)
+{
+    /* The box corner furthest along the inward normal. */
+    double best[3];
+    for (int i = 0; i < 3; ++i)
+        best[i] = n[i] >= 0.0 ? hi[i] : lo[i];
+    return ms_vec3_dot(n, best) + offset >= -margin;
+}
+
 bool ms_frustum_keeps_box(const ms_frustum *fr, const double lo[3], const double hi[3],
                           double margin)
 {
-    for (int k = 0; k < 6; ++k) {
-        /* The box corner furthest along the inward normal. */
-        double best[3];
-        for (int i = 0; i < 3; ++i)
-            best[i] = fr->normal[k][i] >= 0.0 ? hi[i] : lo[i];
-        if (ms_vec3_dot(fr->normal[k], best) + fr->offset[k] < -margin)
+    for (int k = 0; k < 6; ++k)
+        if (!plane_keeps_box(fr->normal[k], fr->offset[k], lo, hi, margin))
             return false;
-    }
+    for (unsigned k = 0; k < fr->sections && k < MS_SECTIONS_MAX; ++k)
+        if (!plane_keeps_box(fr->section_normal[k], fr->section_offset[k], lo, hi, margin))
+            return false;
     return true;
 }
 

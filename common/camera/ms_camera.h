@@ -38,17 +38,38 @@ ms_status ms_camera_look_at(const double position[3], const double target[3],
 /* Pixels covered by one world unit seen face-on at distance 1: H / (2 tan(fovy/2)). */
 double ms_camera_pixels_per_unit(const ms_camera *camera);
 
+/* At most this many section planes (docs/VIEWER.md, "Sections") cut a view. */
+#define MS_SECTIONS_MAX 3
+/* The flat colour, 8-bit sRGB, both renderers draw the cut's inside in (the
+ * back faces seen through the cut: docs/RENDERER.md, "Sections"). */
+#define MS_SECTION_R 214
+#define MS_SECTION_G 64
+#define MS_SECTION_B 48
+
 /* The six frustum planes, normals pointing inwards: a point p is inside plane k
- * when dot(normal_k, p) + offset_k >= 0. */
+ * when dot(normal_k, p) + offset_k >= 0; then up to MS_SECTIONS_MAX section
+ * half-spaces, the same way (ms_frustum_add_section), 0 from
+ * ms_camera_frustum. */
 typedef struct ms_frustum {
     double normal[6][3];
     double offset[6];
+    unsigned sections;
+    double section_normal[MS_SECTIONS_MAX][3];
+    double section_offset[MS_SECTIONS_MAX];
 } ms_frustum;
 
 void ms_camera_frustum(const ms_camera *camera, ms_frustum *frustum);
 
+/* Adds a section plane (a b c d): the points p with a p0 + b p1 + c p2 + d > 0
+ * are cut away, those with <= 0 kept. False (nothing added) when the frustum
+ * holds MS_SECTIONS_MAX already, or (a, b, c) is zero or a number is not
+ * finite. */
+bool ms_frustum_add_section(ms_frustum *frustum, const double plane[4]);
+
 /* True when the box [lo, hi] intersects the frustum grown by margin (world units)
- * on every side (conservative: may keep a box slightly outside near a corner). */
+ * on every side (conservative: may keep a box slightly outside near a corner),
+ * and no section cuts it wholly away (a box within margin of the kept side is
+ * kept). */
 bool ms_frustum_keeps_box(const ms_frustum *frustum, const double lo[3], const double hi[3],
                           double margin);
 

@@ -12,6 +12,7 @@
 
 #include "ms_archive.h"
 #include "ms_cli.h"
+#include "ms_section.h"
 #include "ms_camera_path.h"
 #include "ms_json_out.h"
 #include "ms_mesh_io.h"
@@ -30,7 +31,7 @@ static void usage(FILE *out)
     fputs("usage: meshrender INPUT -p CAMERA_PATH -o OUT_DIR [--width 640] [--height 480]\n"
           "                  [--near D] [--far D] [--tolerance 1] [--apo] [--apo-levels L]\n"
           "                  [--apo-filter linear|nearest|none] [--smooth] [--normals]\n"
-          "                  [--albedo] [--threads N] [--json]\n"
+          "                  [--albedo] [--section PLANE]... [--threads N] [--json]\n"
           "Ray casts INPUT on the CPU (Embree) at every keyframe of CAMERA_PATH and writes\n"
           "OUT_DIR/frame_K.png (K = keyframe number, 3 digits): head light at the camera,\n"
           "Lambert + Blinn-Phong, sRGB. INPUT is a mesh file (PLY, OBJ, OFF, optionally\n"
@@ -54,6 +55,10 @@ static void usage(FILE *out)
           "      --normals       also write OUT_DIR/normals_K.png, rgb = (N + 1) / 2\n"
           "      --albedo        the unlit picture: the vertex colours interpolated (the\n"
           "                      viewer's grey without colours), as meshview --shading albedo\n"
+          "      --section PLANE cut the model (up to 3 times), as meshview --section:\n"
+          "                      AXIS=VALUE (x=V cuts away x > V; -x, -y, -z the other\n"
+          "                      side) or PX,PY,PZ,NX,NY,NZ; the inside seen through the\n"
+          "                      cut (back faces) drawn flat in the section colour\n"
           "      --threads N     render threads (default: every core)\n"
           "      --json          print the summary as one JSON object\n"
           "  -h, --help          show this help\n"
@@ -80,6 +85,8 @@ typedef struct options {
     unsigned threads, apo_levels;
     ms_study_apo_filter apo_filter;
     bool apo, smooth, normals, albedo, json;
+    unsigned section_count;
+    double sections[MS_SECTIONS_MAX][4];
 } options;
 
 /* Parses argv; returns -1 to go on, else the exit status. */
@@ -94,6 +101,7 @@ static int parse_options(int argc, char **argv, options *o)
         {"smooth", no_argument, NULL, 'S'},         {"apo-levels", required_argument, NULL, 'L'},
         {"json", no_argument, NULL, 'j'},           {"help", no_argument, NULL, 'h'},
         {"apo-filter", required_argument, NULL, 'F'}, {"albedo", no_argument, NULL, 'A'},
+        {"section", required_argument, NULL, 'X'},
         {NULL, 0, NULL, 0},
     };
     *o = (options){.width = 640, .height = 480, .tolerance = 1};
@@ -107,6 +115,20 @@ static int parse_options(int argc, char **argv, options *o)
         case 'N': o->normals = true; break;
         case 'S': o->smooth = true; break;
         case 'A': o->albedo = true; break;
+        case 'X': {
+            double point[3], normal[3];
+            ms_error e;
+            if (o->section_count >= MS_SECTIONS_MAX) {
+                fprintf(stderr, "meshrender: --section: at most %d section planes\n", MS_SECTIONS_MAX);
+                return EXIT_USAGE;
+            }
+            if (ms_section_parse(optarg, point, normal, &e) != MS_OK) {
+                fprintf(stderr, "meshrender: --section: %s\n", e.text);
+                return EXIT_USAGE;
+            }
+            ms_section_plane(point, normal, o->sections[o->section_count++]);
+            break;
+        }
         case 'j': o->json = true; break;
         case 'h': usage(stdout); return 0;
         case 'F':
@@ -277,7 +299,8 @@ int main(int argc, char **argv)
         /* the colours: the mesh's, or the cut's where the archive carries them */
         ms_study_render_options ro = {.threads = o.threads, .apo = src.apo, .triangle_cell = cut.triangle_cell,
                                       .smooth = o.smooth, .colours = src.mesh_scene ? src.colours : cut.colours,
-                                      .albedo = o.albedo};
+                                      .albedo = o.albedo, .section_count = o.section_count};
+        memcpy(ro.sections, o.sections, sizeof ro.sections);
         bool coloured = ro.colours != NULL;
         st = ms_study_render(scene, &camera, &ro, &image, &err);
         size_t triangles = ms_study_scene_triangle_count(scene);

@@ -126,6 +126,17 @@ static void shade_pixel(const render_job *job, size_t p, uint32_t t, double dept
         }
     }
     /* the self-shadowing factor from the normal shaded with (the client's rule) */
+    if (job->options->section_count && facing < 0) {
+        /* the inside seen through the cut */
+        static const uint8_t section[3] = {MS_SECTION_R, MS_SECTION_G, MS_SECTION_B};
+        im->depth[p] = (float)depth;
+        im->triangle[p] = t;
+        for (int k = 0; k < 3; ++k) {
+            im->normal[3 * p + k] = (float)n[k];
+            im->rgb[3 * p + k] = section[k];
+        }
+        return;
+    }
     double nl = fmax(0, ms_vec3_dot(n, l)), shadow = nl;
     double c = MS_STUDY_AMBIENT + shadow * (MS_STUDY_DIFFUSE * nl + MS_STUDY_SPECULAR * pow(nl, MS_STUDY_SHININESS));
     uint8_t value = ms_study_srgb8(c);
@@ -157,6 +168,23 @@ static void shade_pixel(const render_job *job, size_t p, uint32_t t, double dept
     }
 }
 
+/* Narrows [t0, t1] of the ray camera position + t dir to the kept side of
+ * every section: n . (o + t d) + w <= 0. */
+static void clip_interval(const render_job *job, const double dir[3], double *t0, double *t1)
+{
+    const ms_study_render_options *o = job->options;
+    for (unsigned k = 0; k < o->section_count; ++k) {
+        const double *s = o->sections[k];
+        double a = ms_vec3_dot(s, job->camera->position) + s[3], b = ms_vec3_dot(s, dir);
+        if (b > 0)
+            *t1 = fmin(*t1, -a / b);
+        else if (b < 0)
+            *t0 = fmax(*t0, -a / b);
+        else if (a > 0)
+            *t1 = -INFINITY; /* parallel, on the side cut away */
+    }
+}
+
 static void render_block(void *ctx, size_t block)
 {
     const render_job *job = ctx;
@@ -178,8 +206,12 @@ static void render_block(void *ctx, size_t block)
             rh.ray.dir_x = (float)dir[0];
             rh.ray.dir_y = (float)dir[1];
             rh.ray.dir_z = (float)dir[2];
-            rh.ray.tnear = (float)c->near_distance;
-            rh.ray.tfar = (float)c->far_distance;
+            double t0 = c->near_distance, t1 = c->far_distance;
+            clip_interval(job, dir, &t0, &t1);
+            if (!(t0 <= t1))
+                continue; /* wholly cut away */
+            rh.ray.tnear = (float)t0;
+            rh.ray.tfar = (float)t1;
             rh.ray.mask = UINT32_MAX;
             rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
             rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
@@ -199,6 +231,16 @@ ms_status ms_study_render(const ms_study_scene *scene, const ms_camera *camera,
         options = &defaults;
     if (options->apo && !options->triangle_cell)
         return ms_error_set(err, MS_ERR_ARG, "study render: APO normals need the triangles' cells");
+    if (options->section_count > MS_SECTIONS_MAX)
+        return ms_error_set(err, MS_ERR_ARG, "study render: %u sections, at most %d", options->section_count,
+                            MS_SECTIONS_MAX);
+    for (unsigned k = 0; k < options->section_count; ++k) {
+        const double *s = options->sections[k];
+        double len2 = ms_vec3_dot(s, s);
+        if (!(len2 > 0) || !isfinite(len2) || !isfinite(s[3]))
+            return ms_error_set(err, MS_ERR_ARG, "study render: section %u has a zero normal or a number not finite",
+                                k);
+    }
     double w = camera->width, h = camera->height;
     if (!(w >= 1 && w <= 65535 && h >= 1 && h <= 65535) || w != floor(w) || h != floor(h))
         return ms_error_set(err, MS_ERR_RANGE, "study render: a %g x %g viewport (whole pixels, 1 to 65535)", w, h);

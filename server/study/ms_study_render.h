@@ -48,6 +48,14 @@
  * MS_SHADING_ALBEDO): rgb = C rounded to nearest, or MS_STUDY_ALBEDO
  * sRGB-encoded without colours; the background as the lit picture's.
  *
+ * Sections (options.sections, docs/RENDERER.md "Sections"): planes a b c d
+ * cutting away the side a x + b y + c z + d > 0 (world coordinates); each
+ * ray's interval [near, far] is narrowed to the kept side of every plane (the
+ * kept region is convex: one interval), and a hit on a back face (the ray
+ * along the triangle's stored normal: the model's inside, seen through the
+ * cut) is drawn flat in the section colour MS_SECTION_R G B (lit and albedo
+ * pictures alike; its depth, triangle and normal as any hit's).
+ *
  * Determinism: rows are rendered in fixed blocks on the project's thread pool
  * (ms_parallel.h), each pixel from its own ray: the buffers do not depend on the
  * thread count.
@@ -106,12 +114,15 @@ typedef struct ms_study_render_options {
     bool smooth;                    /* interpolated vertex normals instead of flat ones */
     const uint8_t *colours;         /* NULL, or r g b a per scene vertex: the albedo ("Colour") */
     bool albedo;                    /* the unlit albedo picture instead of the lit one */
+    unsigned section_count;         /* at most MS_SECTIONS_MAX ("Sections") */
+    double sections[MS_SECTIONS_MAX][4];
 } ms_study_render_options;
 
 /* Renders scene at camera into *image, (re)allocated to the camera's viewport
  * (width and height must be whole numbers in [1, 65535]: MS_ERR_RANGE). options
- * may be NULL (all cores, no APO). MS_ERR_ARG for apo without triangle_cell;
- * MS_ERR_NOMEM. */
+ * may be NULL (all cores, no APO). MS_ERR_ARG for apo without triangle_cell,
+ * more than MS_SECTIONS_MAX sections or one with a zero normal or a number
+ * not finite; MS_ERR_NOMEM. */
 ms_status ms_study_render(const ms_study_scene *scene, const ms_camera *camera,
                           const ms_study_render_options *options, ms_study_image *image, ms_error *err);
 

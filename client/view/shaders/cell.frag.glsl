@@ -76,6 +76,12 @@ uniform vec3 haze_colour;     // linear
 uniform float dissolve;
 #endif
 
+// Sections: with a plane in use, a back face is the model's inside seen
+// through the cut, drawn flat in the section colour (sRGB as given), so the
+// cut reads as a filled outline (meshrender draws its back-face hits alike).
+uniform int section_count;
+uniform vec3 section_colour;
+
 out vec4 colour;
 
 vec3 srgb_encode(vec3 c)
@@ -126,6 +132,10 @@ void main()
     if (shading == 3) {
         uint id = cell_number + 1u;
         colour = vec4(float(id & 0xFFu), float((id >> 8) & 0xFFu), float((id >> 16) & 0xFFu), 255.0) / 255.0;
+        return;
+    }
+    if (section_count > 0 && !gl_FrontFacing && shading != 1) {
+        colour = vec4(section_colour, 1.0);
         return;
     }
     if (shading == 4) {

@@ -13,6 +13,16 @@ in vec3 v_colour[];
 
 uniform vec2 viewport;
 
+// The sections' clip distances pass through (written by the stage before).
+in gl_PerVertex {
+    vec4 gl_Position;
+    float gl_ClipDistance[3];
+} gl_in[];
+out gl_PerVertex {
+    vec4 gl_Position;
+    float gl_ClipDistance[3];
+};
+
 out vec3 g_cell;
 out vec3 g_eye;
 out vec3 g_vertex_normal;
@@ -46,6 +56,8 @@ void main()
         g_edge = vec3(0.0);
         g_edge[i] = heights[i];
         gl_Position = gl_in[i].gl_Position;
+        for (int k = 0; k < 3; ++k)
+            gl_ClipDistance[k] = gl_in[i].gl_ClipDistance[k];
         EmitVertex();
     }
     EndPrimitive();

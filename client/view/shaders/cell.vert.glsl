@@ -15,6 +15,14 @@ layout(location = 2) in vec4 cell_colour;
 
 uniform mat4 modelview;
 uniform mat4 projection;
+// Sections (ms_render.h): per plane, in the cell's local frame, the kept side
+// where dot(xyz, position) + w >= 0; gl_ClipDistance of all three is written,
+// the renderer enables those in use.
+uniform vec4 section_plane[3];
+out gl_PerVertex { // as cell.geom.glsl reads it
+    vec4 gl_Position;
+    float gl_ClipDistance[3];
+};
 
 out vec3 v_cell;
 out vec3 v_eye;
@@ -29,4 +37,6 @@ void main()
     v_normal = cell_normal.xyz;
     v_colour = cell_colour.rgb;
     gl_Position = projection * eye;
+    for (int k = 0; k < 3; ++k)
+        gl_ClipDistance[k] = dot(section_plane[k].xyz, cell_position) + section_plane[k].w;
 }

@@ -21,6 +21,15 @@ uniform mat4 projection;
 uniform vec3 cell_origin;            // world position of the cell's cube corner
 uniform float cell_side;             // world units per cell unit
 uniform float displacement_amplitude;
+// Sections (ms_render.h): per plane, in the cell's local frame, the kept side
+// where dot(xyz, position) + w >= 0; gl_ClipDistance of all three is written,
+// the renderer enables those in use.
+uniform vec4 section_plane[3];
+out gl_PerVertex { // as cell.geom.glsl reads it
+    vec4 gl_Position;
+    float gl_ClipDistance[3];
+};
+
 uniform float displacement_radius;
 uniform float displacement_spacing;
 uniform uint displacement_seed;
@@ -83,4 +92,6 @@ void main()
     vec4 eye = modelview * vec4(cell, 1.0);
     v_eye = eye.xyz;
     gl_Position = projection * eye;
+    for (int k = 0; k < 3; ++k)
+        gl_ClipDistance[k] = dot(section_plane[k].xyz, cell) + section_plane[k].w;
 }
