@@ -26,9 +26,18 @@ function say(text, isError) {
   page.message = text;
 }
 
+// In a frame of another page (web/embed.js), that page hears how the view
+// goes: {meshstream: a copy of window.meshstream} at each round, view
+// complete and error. The state holds no token and no model bytes.
+function tellEmbedder() {
+  if (window.parent !== window)
+    window.parent.postMessage({ meshstream: Object.assign({}, page) }, '*');
+}
+
 function failPage(text) {
   say(text, true);
   page.state = 'error';
+  tellEmbedder();
 }
 
 // ---- URL: model and camera -------------------------------------------------
@@ -329,6 +338,7 @@ function start() {
       page.bytes = m.bytes;
       progress.removeAttribute('value');
       say('Loading ' + name + ': ' + (m.bytes / 1e3).toFixed(0) + ' kB, ' + m.wanted + ' cells wanted');
+      tellEmbedder();
     } else if (m.type === 'mesh') {
       upload(m.positions, m.normals, m.triangles);
       page.triangles = m.triangles.length / 3;
@@ -345,6 +355,7 @@ function start() {
       say(name + ': ' + page.triangles.toLocaleString('en') + ' triangles in ' + page.cells +
           ' cells, up to ' + page.bits + ' bits, ' + (m.bytes / 1e3).toFixed(0) + ' kB, view complete' +
           (m.preview ? ' (the public preview: a token gives more)' : ''));
+      tellEmbedder();
     } else if (m.type === 'error') {
       failPage(m.message.charAt(0).toUpperCase() + m.message.slice(1));
     }
