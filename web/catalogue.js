@@ -1,4 +1,4 @@
-// The catalogue page (/): the models meshserve serves, from GET /catalog
+// The catalogue page (/): the models meshserve serves, from GET /catalog.json
 // (its first 1000 by name), each a link to its viewer page (docs/BROWSER.md).
 'use strict';
 
@@ -11,7 +11,10 @@ async function showCatalogue() {
   const table = document.getElementById('models');
   window.meshstream = { state: 'loading', message: '' };
   try {
-    const answer = await fetch('/catalog?limit=1000&sort=name');
+    // meshserve's paged catalogue, or a static export's whole one
+    // (meshexport --web-dir), which ignores the query and names each
+    // model's page (view/NAME.html; meshserve's are view/NAME)
+    const answer = await fetch('catalog.json?limit=1000&sort=name');
     if (!answer.ok)
       throw new Error('the server answered ' + answer.status + ': ' + (await answer.text()).trim());
     const catalogue = await answer.json();
@@ -19,7 +22,8 @@ async function showCatalogue() {
     for (const m of catalogue.models) {
       const row = body.insertRow();
       const link = document.createElement('a');
-      link.href = '/view/' + encodeURIComponent(m.name);
+      link.href = /^view\/[A-Za-z0-9_-]+\.html$/.test(m.view || '') ? m.view
+                                                                   : 'view/' + encodeURIComponent(m.name);
       link.textContent = m.name;
       row.insertCell().appendChild(link);
       const cells = [m.triangles.toLocaleString('en'), megabytes(m.archive_bytes),

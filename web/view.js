@@ -42,7 +42,12 @@ function failPage(text) {
 
 // ---- URL: model and camera -------------------------------------------------
 
-const name = decodeURIComponent(location.pathname.replace(/^\/view\//, ''));
+// Two layouts of the same pages: meshserve's /view/NAME, and a static
+// export's view/NAME.html (meshexport --web-dir; docs/BROWSER.md): the worker
+// reads the model where the layout keeps it. Every other path is relative,
+// so a site may live under any folder of its server.
+const staticSite = location.pathname.endsWith('.html');
+const name = decodeURIComponent(location.pathname.replace(/^.*\/view\//, '').replace(/\.html$/, ''));
 const hash = new URLSearchParams(location.hash.slice(1));
 document.getElementById('model').textContent = name;
 document.title = name + ' · meshstream';
@@ -323,7 +328,7 @@ function start() {
     return;
   }
   say('Loading ' + name + '…');
-  worker = new Worker('/web/worker.js');
+  worker = new Worker('../web/worker.js');
   worker.onerror = e => failPage('The decoder failed: ' + (e.message || 'the worker did not start'));
   worker.onmessage = e => {
     const m = e.data;
@@ -354,13 +359,14 @@ function start() {
       progress.value = 1;
       say(name + ': ' + page.triangles.toLocaleString('en') + ' triangles in ' + page.cells +
           ' cells, up to ' + page.bits + ' bits, ' + (m.bytes / 1e3).toFixed(0) + ' kB, view complete' +
-          (m.preview ? ' (the public preview: a token gives more)' : ''));
+          (m.preview ? (staticSite ? ' (the public preview)' : ' (the public preview: a token gives more)') : ''));
       tellEmbedder();
     } else if (m.type === 'error') {
       failPage(m.message.charAt(0).toUpperCase() + m.message.slice(1));
     }
   };
   worker.postMessage({ type: 'start', name, token: sessionStorage.getItem(TOKEN_KEY) || '', culled,
+                       layout: staticSite ? 'static' : 'door',
                        camera: camera ? workerCamera() : null });
 }
 

@@ -10,6 +10,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "ms_http_door.h"
 #include "ms_http_internal.h"
 #include "ms_server_internal.h"
 
@@ -107,7 +108,7 @@ static int compare_items(const void *a, const void *b)
     return x->sign * c;
 }
 
-static json_t *entry_json(const ms_catalog_entry *e)
+json_t *ms_http_catalog_entry(const ms_catalog_entry *e)
 {
     return json_pack("{s:s, s:I, s:I, s:I, s:i, s:i, s:b, s:I, s:s}", "name", e->name, "vertices",
                      (json_int_t)e->vertices, "triangles", (json_int_t)e->triangles, "cells",
@@ -143,7 +144,7 @@ static char *catalog_page(const ms_registry *r, const catalog_request *q)
         }
     json_t *models = json_array();
     for (size_t i = q->offset; models && i < matched && i < (size_t)q->offset + q->limit; ++i)
-        json_array_append_new(models, entry_json(ms_registry_entry(r, items[i].index)));
+        json_array_append_new(models, ms_http_catalog_entry(ms_registry_entry(r, items[i].index)));
     free(items);
     json_t *root = models ? json_pack("{s:i, s:I, s:I, s:I, s:o}", "version", 1, "total",
                                       (json_int_t)matched, "offset", (json_int_t)q->offset,

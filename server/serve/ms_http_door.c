@@ -329,7 +329,9 @@ static void route(ms_http_door *door, struct evhttp_request *req, char *path,
         ms_http_send_text(door, req, 200, "OK", door->server->draining ? "draining" : "ok");
         return;
     }
-    if (n == 1 && !strcmp(seg[0], "catalog")) {
+    /* catalog.json: the same, at the path of a static export's catalogue
+     * (meshexport --web-dir), so the catalogue page reads either */
+    if (n == 1 && (!strcmp(seg[0], "catalog") || !strcmp(seg[0], "catalog.json"))) {
         ms_http_serve_catalog(door, req, query);
         return;
     }

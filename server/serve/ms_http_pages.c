@@ -11,13 +11,14 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "ms_http_door.h"
 #include "ms_http_internal.h"
 #include "ms_server_internal.h"
 
 /* The Content-Type of a page file by its name's ending, or NULL for a name
  * that is not one: [A-Za-z0-9_-]+ then .html, .js, .css or .wasm (no path,
  * no dot file, nothing else of the folder). */
-static const char *page_type(const char *name)
+const char *ms_http_page_type(const char *name)
 {
     static const struct {
         const char *ending, *type;
@@ -39,7 +40,7 @@ static const char *page_type(const char *name)
 static void send_page(ms_http_door *door, struct evhttp_request *req, const char *name)
 {
     const char *dir = ms_http_door_server(door)->config.web_dir;
-    const char *type = page_type(name);
+    const char *type = ms_http_page_type(name);
     if (!dir) {
         ms_http_send_text(door, req, 404, "Not Found",
                           "error: the browser pages are not served here (meshserve --web-dir DIR)");
