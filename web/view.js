@@ -111,25 +111,54 @@ void main() {
   gl_Position = viewProjection * vec4(position, 1.0);
 }`;
 
-// The vertex normals the decoder derived (area-weighted, interpolated; flat
-// from the screen derivatives where a vertex has none), a head light at the
-// camera (Lambert and a little Blinn-Phong), lit from both sides, sRGB out.
+// meshview's lit shading in its geometry mode (client/view/shaders/
+// cell.frag.glsl, LIT without APO, the viewer's default options of
+// ms_render.c), in GLSL ES 3.00: the interpolated vertex normal (the
+// decoder's: per vertex the area-weighted mean of its triangles', in their
+// winding), the triangle's own where a vertex has none or the vertex normal
+// stands against it (a fold); two-sided (a face seen from behind is lit as
+// its other side); one head light of colour 1 with meshrender's
+// self-shadowing factor, so diffuse (N.L)^2; a Blinn-Phong highlight of
+// strength 0.18 and shininess 40 under the same factor; albedo (0.72, 0.69,
+// 0.64) times (0.05 + 0.95 diffuse); the exact sRGB curve out. The same
+// dot products in world space as meshview's in eye space (a rotation apart).
 const FRAGMENT = `#version 300 es
 precision highp float;
 in vec3 world;
 in vec3 smoothNormal;
 uniform vec3 eye;
 out vec4 colour;
+const vec3 ALBEDO = vec3(0.72, 0.69, 0.64);
+const float SPECULAR = 0.18, SHININESS = 40.0;
+vec3 srgbEncode(vec3 c) {
+  c = clamp(c, 0.0, 1.0);
+  return mix(12.92 * c, 1.055 * pow(c, vec3(1.0 / 2.4)) - 0.055, greaterThan(c, vec3(0.0031308)));
+}
 void main() {
-  vec3 n = dot(smoothNormal, smoothNormal) > 1e-12 ? normalize(smoothNormal)
-                                                   : normalize(cross(dFdx(world), dFdy(world)));
-  vec3 l = normalize(eye - world);
-  if (dot(n, l) < 0.0) n = -n;
-  float diffuse = max(dot(n, l), 0.0);
-  float specular = pow(max(dot(n, l), 0.0), 64.0) * 0.15;
-  vec3 linear = vec3(0.70, 0.68, 0.64) * (0.08 + 0.92 * diffuse) + specular;
-  colour = vec4(pow(clamp(linear, 0.0, 1.0), vec3(1.0 / 2.2)), 1.0);
+  // the stored orientation of the triangle: cross(d/dx, d/dy) faces the eye
+  vec3 g = cross(dFdx(world), dFdy(world));
+  g = dot(g, g) > 0.0 ? normalize(g) : vec3(0.0, 0.0, 1.0);
+  vec3 ng = gl_FrontFacing ? g : -g;
+  vec3 n = ng;
+  float len = length(smoothNormal);
+  if (len > 1e-3)
+    n = smoothNormal / len;
+  if (dot(n, ng) < 0.0)
+    n = ng;
+  vec3 v = normalize(eye - world);
+  if (dot(ng, v) < 0.0) {
+    ng = -ng;
+    n = -n;
+  }
+  float selfShadow = max(0.0, dot(v, n));
+  float diffuse = selfShadow * max(0.0, dot(n, v));
+  float highlight = selfShadow * pow(max(0.0, dot(n, v)), SHININESS);
+  vec3 linear = ALBEDO * (0.05 + 0.95 * diffuse) + SPECULAR * highlight;
+  colour = vec4(srgbEncode(linear), 1.0);
 }`;
+
+// meshview's background: linear 0.02, sRGB-encoded.
+const BACKGROUND = 0.1517;
 
 const gl = canvas.getContext('webgl2', { antialias: false });
 let program = null, vao = null, positionBuffer = null, normalBuffer = null, indexBuffer = null;
@@ -195,7 +224,7 @@ function draw() {
   frameRequested = false;
   resize();
   gl.viewport(0, 0, canvas.width, canvas.height);
-  gl.clearColor(0.125, 0.133, 0.149, 1);
+  gl.clearColor(BACKGROUND, BACKGROUND, BACKGROUND, 1);
   gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
   if (!indexCount || !camera || !box)
     return;
@@ -295,10 +324,31 @@ canvas.addEventListener('wheel', e => {
 }, { passive: false });
 window.addEventListener('resize', () => { if (camera && worker) cameraMoved(); requestDraw(); });
 
+// Each camera the worker gets is numbered: a 'complete' for an earlier one
+// (crossing the new camera on its way) leaves the page loading.
+let cameraSeq = 0, cameraSentAt = 0;
+
 function workerCamera() {
   resize();
-  return Object.assign({}, camera, { width: canvas.width, height: canvas.height, tolerance });
+  if (page.state !== 'error')
+    page.state = 'loading';
+  cameraSentAt = performance.now();
+  return Object.assign({}, camera, { width: canvas.width, height: canvas.height, tolerance,
+                                     seq: ++cameraSeq });
 }
+
+// A camera typed or pasted into the URL's hash (or set by a script, as the
+// tests do along a camera path) moves the view there.
+window.addEventListener('hashchange', () => {
+  const next = new URLSearchParams(location.hash.slice(1));
+  const c = parseCamera(next.get('cam'));
+  if (!c || !worker || !box || (camera && cameraText(c) === cameraText(camera)))
+    return;
+  camera = c;
+  hash.set('cam', cameraText(camera));
+  worker.postMessage({ type: 'camera', camera: workerCamera() });
+  requestDraw();
+});
 
 // ---- The token -----------------------------------------------------------
 
@@ -351,10 +401,13 @@ function start() {
       page.bits = m.bits;
       requestDraw();
     } else if (m.type === 'complete') {
+      if (m.seq !== cameraSeq)
+        return;              // an earlier camera's; the latest one is under way
       page.bytes = m.bytes;
       page.rounds = m.rounds;
       page.timing = m.timing;
       page.completeMs = Math.round(performance.now());
+      page.settleMs = Math.round(performance.now() - cameraSentAt);  // from this camera
       page.state = 'complete';
       progress.value = 1;
       say(name + ': ' + page.triangles.toLocaleString('en') + ' triangles in ' + page.cells +

@@ -213,9 +213,11 @@ async function run(msg) {
   while (!pendingCamera)
     await nextCamera();
   const settledPtr = M._malloc(4);
+  let seq = 0;                    // the page's number of the camera applied
   for (;;) {
     if (pendingCamera) {
       setCamera(pendingCamera);
+      seq = pendingCamera.seq;
       pendingCamera = null;
     }
     if (timed('plan', () => M._ms_web_view_plan(view, PLAN_MAX, settledPtr)) !== 0)
@@ -223,7 +225,7 @@ async function run(msg) {
     const count = M._ms_web_view_plan_count(view);
     if (M.HEAPU32[settledPtr >> 2]) {
       postMesh(true);
-      postMessage({ type: 'complete', bytes, rounds, preview, timing,
+      postMessage({ type: 'complete', seq, bytes, rounds, preview, timing,
                     seconds: (performance.now() - started) / 1000 });
       while (!pendingCamera)
         await nextCamera();
