@@ -237,19 +237,25 @@ async function run(msg) {
     for (let k = 0; k < count; ++k)
       wanted.push([M._ms_web_view_plan_cell(view, k), M._ms_web_view_plan_bits(view, k),
                    M._ms_web_view_plan_bytes(view, k)]);
+    // the bytes this round still wants: the page's progress bar
+    let need = 0;
+    for (const [cell, , prefix] of wanted)
+      need += Math.max(prefix - M._ms_web_view_held(view, cell), 0);
+    postMessage({ type: 'progress', bytes, need, rounds, wanted: count });
     let next = 0;
     const lane = async () => {
       while (next < wanted.length) {
         const [cell, bits, prefix] = wanted[next++];
         const got = await fetchCell(name, token, cell, bits, prefix); // not `bytes += await`: lanes interleave
         bytes += got;
+        need = Math.max(need - got, 0);
+        postMessage({ type: 'progress', bytes, need, rounds, wanted: count });
       }
     };
     const fetchStart = performance.now();
     await Promise.all(Array.from({ length: Math.min(IN_FLIGHT, wanted.length) }, lane));
     timing.fetch += (performance.now() - fetchStart) / 1000;
     rounds++;
-    postMessage({ type: 'progress', bytes, rounds, wanted: count });
     postMesh(false);              // what the bytes so far show
   }
 }
