@@ -193,6 +193,16 @@ static void test_page_routes(void **state)
             assert_string_equal(type, cases[i].type);
         ms_test_http_free(&r);
     }
+    /* /view/NAME/: to /view/NAME, where the page's relative paths work */
+    {
+        ms_test_http_response moved;
+        char location[64] = "";
+        assert_int_equal(ms_test_http_get(f->http_port, "/view/demo/", NULL, &moved), 0);
+        assert_int_equal(moved.status, 301);
+        assert_string_equal(ms_test_http_header(&moved, "Location", location, sizeof location),
+                            "/view/demo");
+        ms_test_http_free(&moved);
+    }
     /* the token is never taken from a URL, pages included */
     ms_test_http_response r;
     assert_int_equal(ms_test_http_get(f->http_port, "/view/demo?token=" TOKEN, NULL, &r), 0);
