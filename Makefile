@@ -40,8 +40,8 @@ LDFLAGS  := $(OPT) -pthread
 # room may include directly; PKGS_room the Debian libraries its own code calls
 # (pkg-config names; Embree 3 ships no .pc file and is named embree3).
 ROOMS := common/util common/mesh common/codec common/apo common/camera \
-         common/archive protocol server/geometry server/apo server/bake \
-         server/serve server/study client/core client/lib client/load client/view \
+         common/archive protocol server/geometry server/apo server/study \
+         server/bake server/serve client/core client/lib client/load client/view \
          client/web
 USES_common/util     :=
 USES_common/mesh     := common/util
@@ -52,7 +52,7 @@ USES_common/archive  := common/codec common/camera
 USES_protocol        := common/util
 USES_server/geometry := common/mesh
 USES_server/apo      := server/geometry common/apo common/archive
-USES_server/bake     := server/apo
+USES_server/bake     := server/apo server/study
 USES_server/serve    := common/archive protocol
 USES_server/study    := common/apo common/archive
 USES_client/core     := common/archive protocol
@@ -297,7 +297,8 @@ WASM        := build/wasm
 WASM_ROOMS  := common/util common/mesh common/codec common/camera common/archive client/web
 WASM_SKIP   := common/util/ms_byte_source.c common/util/ms_json_out.c common/util/ms_png.c \
                common/util/ms_version.c common/util/ms_parallel.c common/util/ms_input_file.c \
-               common/util/ms_cli.c common/util/ms_process_memory.c common/archive/ms_catalog.c
+               common/util/ms_cli.c common/util/ms_process_memory.c common/archive/ms_catalog.c \
+               common/archive/ms_catalog_text.c common/archive/ms_metadata.c
 WASM_SRCS   := $(filter-out $(WASM_SKIP),$(foreach r,$(WASM_ROOMS),$(call lib_srcs,$(r)))) \
                web/wasm/ms_wasm_zlib.c
 WASM_OBJS   := $(patsubst %.c,$(WASM)/obj/%.o,$(WASM_SRCS))

@@ -57,6 +57,10 @@
 #define MS_PROTO_CANCEL_RANGE_SIZE 8u
 #define MS_PROTO_ERROR_FIXED 18u
 #define MS_PROTO_CATALOGUE_FIXED 4u
+#define MS_PROTO_LIST_PAGE_FIXED 12u        /* version 3: LIST_PAGE before its query */
+#define MS_PROTO_CATALOGUE_PAGE_FIXED 8u    /* version 3: CATALOGUE_PAGE before its entries */
+#define MS_PROTO_MAX_PAGE 1000u             /* entries one LIST_PAGE asks for */
+#define MS_PROTO_MAX_PAGE_QUERY 64u         /* bytes of a LIST_PAGE text filter */
 #define MS_PROTO_CATALOGUE_ENTRY_FIXED 32u
 #define MS_PROTO_MODEL_OPENED_SIZE 32u
 #define MS_PROTO_INDEX_DATA_FIXED 4u
@@ -74,6 +78,8 @@
 /* Version 3: the index may be sent as its head (archive header + root subtree)
  * and the rest of it requested by subtree, as stream INDEX (sections 4.7, 4.10). */
 #define MS_PROTO_CAP_INDEX_SUBTREES 0x00000004u
+/* Version 3: per-vertex colour streams (stream COLOUR, section 4.10). */
+#define MS_PROTO_CAP_COLOUR 0x00000008u
 /* HELLO_REPLY server_flags bits. */
 #define MS_PROTO_SERVER_TOKEN_ACCEPTED 0x0001u
 /* CANCEL flags bits. */
@@ -89,6 +95,7 @@ typedef enum ms_proto_type {
     MS_PROTO_CLOSE_MODEL = 0x04,
     MS_PROTO_REQUEST_CELLS = 0x05,
     MS_PROTO_CANCEL = 0x06,
+    MS_PROTO_LIST_PAGE = 0x07,          /* version 3 */
     MS_PROTO_PING = 0x40,
     MS_PROTO_PONG = 0x41,
     MS_PROTO_ERROR = 0x7F,
@@ -96,7 +103,8 @@ typedef enum ms_proto_type {
     MS_PROTO_CATALOGUE = 0x82,
     MS_PROTO_MODEL_OPENED = 0x83,
     MS_PROTO_INDEX_DATA = 0x84,
-    MS_PROTO_PAYLOAD = 0x85
+    MS_PROTO_PAYLOAD = 0x85,
+    MS_PROTO_CATALOGUE_PAGE = 0x86      /* version 3 */
 } ms_proto_type;
 
 /* Wire error codes (section 9). */
@@ -143,7 +151,10 @@ typedef enum ms_proto_stream {
     MS_PROTO_STREAM_APO = 1,
     /* Version 3, with CAP_INDEX_SUBTREES: the stored (zlib) bytes of one index
      * subtree; cell_id is the subtree id, the stream has exactly one step. */
-    MS_PROTO_STREAM_INDEX = 2
+    MS_PROTO_STREAM_INDEX = 2,
+    /* Version 3, with CAP_COLOUR: a cell's colour stream (docs/ARCHIVE.md,
+     * "Colour streams"); steps are precision bits, as geometry's. */
+    MS_PROTO_STREAM_COLOUR = 3
 } ms_proto_stream;
 
 /* How INDEX_DATA carries the index blob (MODEL_OPENED index_encoding). */
@@ -212,7 +223,29 @@ typedef struct ms_proto_catalogue_entry {
 typedef struct ms_proto_catalogue {
     const ms_proto_catalogue_entry *entries;
     uint16_t entry_count; /* 0 only with MS_PROTO_FLAG_LAST */
+    uint32_t total;       /* CATALOGUE_PAGE only: the models the page's filter matches */
 } ms_proto_catalogue;
+
+/* LIST_PAGE's sort keys (version 3, section 4.11). */
+typedef enum ms_proto_page_sort {
+    MS_PROTO_SORT_NAME = 0,
+    MS_PROTO_SORT_SIZE = 1,      /* archive bytes */
+    MS_PROTO_SORT_DATE = 2,      /* bake time */
+    MS_PROTO_SORT_TRIANGLES = 3,
+    MS_PROTO_SORT_LAST = MS_PROTO_SORT_TRIANGLES
+} ms_proto_page_sort;
+
+/* One page of the catalogue (version 3): entries [offset, offset + limit) of
+ * the models whose name, source, title or description contains query (ASCII
+ * case-insensitively; empty: every model), in sort order. */
+typedef struct ms_proto_list_page {
+    uint32_t offset;
+    uint16_t limit;         /* [1, MS_PROTO_MAX_PAGE] */
+    uint8_t sort;           /* ms_proto_page_sort */
+    uint8_t descending;     /* 0 or 1 */
+    const char *query;      /* UTF-8 text, no control characters */
+    uint8_t query_length;   /* [0, MS_PROTO_MAX_PAGE_QUERY] */
+} ms_proto_list_page;
 
 typedef struct ms_proto_open_model {
     const char *name;    /* [A-Za-z0-9_-], else MS_PROTO_E_BAD_MODEL_NAME */
@@ -300,7 +333,8 @@ typedef struct ms_proto_message {
         ms_proto_hello hello;
         ms_proto_hello_reply hello_reply;
         ms_proto_ping ping;                 /* PING and PONG */
-        ms_proto_catalogue catalogue;
+        ms_proto_catalogue catalogue;       /* CATALOGUE and CATALOGUE_PAGE */
+        ms_proto_list_page list_page;
         ms_proto_open_model open_model;
         ms_proto_model_opened model_opened;
         ms_proto_close_model close_model;

@@ -221,11 +221,14 @@ static uint16_t parse_catalogue(ms_proto_decoder *dec, ms_proto_message *msg, ch
     const uint8_t *b = dec->body;
     const uint32_t n = dec->body_length;
     ms_proto_catalogue *cat = &msg->body.catalogue;
+    bool page = msg->type == MS_PROTO_CATALOGUE_PAGE;
+    size_t fixed = page ? MS_PROTO_CATALOGUE_PAGE_FIXED : MS_PROTO_CATALOGUE_FIXED;
     cat->entry_count = ms_wire_get16(b);
+    cat->total = page ? ms_wire_get32(b + 4) : 0;
     if (ms_wire_get16(b + 2) != 0)
         return MALFORMED("CATALOGUE: reserved field is not 0");
     /* Bound the count by the body before allocating for it. */
-    if ((size_t)cat->entry_count * MS_PROTO_CATALOGUE_ENTRY_FIXED > n - MS_PROTO_CATALOGUE_FIXED)
+    if ((size_t)cat->entry_count * MS_PROTO_CATALOGUE_ENTRY_FIXED > n - fixed)
         return MALFORMED("CATALOGUE: %u entries cannot fit in %u bytes", cat->entry_count,
                          (unsigned)n);
     if (grow(&dec->scratch, &dec->scratch_capacity,
@@ -235,7 +238,7 @@ static uint16_t parse_catalogue(ms_proto_decoder *dec, ms_proto_message *msg, ch
         return MS_PROTO_E_INTERNAL;
     }
     ms_proto_catalogue_entry *entries = dec->scratch;
-    size_t at = MS_PROTO_CATALOGUE_FIXED;
+    size_t at = fixed;
     for (uint32_t i = 0; i < cat->entry_count; ++i) {
         if (n - at < MS_PROTO_CATALOGUE_ENTRY_FIXED)
             return MALFORMED("CATALOGUE: entry %u truncated", (unsigned)i);
@@ -262,6 +265,26 @@ static uint16_t parse_catalogue(ms_proto_decoder *dec, ms_proto_message *msg, ch
     if (at != n)
         return MALFORMED("CATALOGUE: %zu bytes after the last entry", n - at);
     cat->entries = entries;
+    return 0;
+}
+
+static uint16_t parse_list_page(ms_proto_decoder *dec, ms_proto_message *msg, char *why,
+                                size_t why_size)
+{
+    const uint8_t *b = dec->body;
+    const uint32_t n = dec->body_length;
+    ms_proto_list_page *l = &msg->body.list_page;
+    l->offset = ms_wire_get32(b);
+    l->limit = ms_wire_get16(b + 4);
+    l->sort = b[6];
+    l->descending = b[7];
+    l->query_length = b[8];
+    if (b[9] != 0 || ms_wire_get16(b + 10) != 0)
+        return MALFORMED("LIST_PAGE: reserved field is not 0");
+    if ((size_t)MS_PROTO_LIST_PAGE_FIXED + l->query_length != n)
+        return MALFORMED("LIST_PAGE: body length %u, layout says %zu", (unsigned)n,
+                         (size_t)MS_PROTO_LIST_PAGE_FIXED + l->query_length);
+    l->query = (const char *)b + MS_PROTO_LIST_PAGE_FIXED;
     return 0;
 }
 
@@ -433,7 +456,10 @@ static uint16_t parse_body(ms_proto_decoder *dec, ms_proto_message *msg, char *w
     case MS_PROTO_LIST_CATALOGUE:
         return 0;
     case MS_PROTO_CATALOGUE:
+    case MS_PROTO_CATALOGUE_PAGE:
         return parse_catalogue(dec, msg, why, why_size);
+    case MS_PROTO_LIST_PAGE:
+        return parse_list_page(dec, msg, why, why_size);
     case MS_PROTO_OPEN_MODEL:
         return parse_open_model(dec, msg, why, why_size);
     case MS_PROTO_MODEL_OPENED:

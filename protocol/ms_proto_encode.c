@@ -21,8 +21,12 @@ static size_t body_size(const ms_proto_message *msg)
         return MS_PROTO_PING_SIZE;
     case MS_PROTO_LIST_CATALOGUE:
         return 0;
-    case MS_PROTO_CATALOGUE: {
-        size_t size = MS_PROTO_CATALOGUE_FIXED;
+    case MS_PROTO_LIST_PAGE:
+        return MS_PROTO_LIST_PAGE_FIXED + (size_t)msg->body.list_page.query_length;
+    case MS_PROTO_CATALOGUE:
+    case MS_PROTO_CATALOGUE_PAGE: {
+        size_t size = msg->type == MS_PROTO_CATALOGUE ? MS_PROTO_CATALOGUE_FIXED
+                                                      : MS_PROTO_CATALOGUE_PAGE_FIXED;
         const ms_proto_catalogue *cat = &msg->body.catalogue;
         for (uint32_t i = 0; cat->entries && i < cat->entry_count; ++i)
             size += MS_PROTO_CATALOGUE_ENTRY_FIXED + (size_t)cat->entries[i].name_length +
@@ -111,6 +115,10 @@ static void write_catalogue(const ms_proto_message *msg, uint8_t *b)
     ms_wire_put16(b, cat->entry_count);
     ms_wire_put16(b + 2, 0);
     uint8_t *p = b + MS_PROTO_CATALOGUE_FIXED;
+    if (msg->type == MS_PROTO_CATALOGUE_PAGE) {
+        ms_wire_put32(b + 4, cat->total);
+        p = b + MS_PROTO_CATALOGUE_PAGE_FIXED;
+    }
     for (uint32_t i = 0; i < cat->entry_count; ++i) {
         const ms_proto_catalogue_entry *e = &cat->entries[i];
         p[0] = e->name_length;
@@ -127,6 +135,19 @@ static void write_catalogue(const ms_proto_message *msg, uint8_t *b)
         p = put_bytes(p + MS_PROTO_CATALOGUE_ENTRY_FIXED, e->name, e->name_length);
         p = put_bytes(p, e->title, e->title_length);
     }
+}
+
+static void write_list_page(const ms_proto_message *msg, uint8_t *b)
+{
+    const ms_proto_list_page *l = &msg->body.list_page;
+    ms_wire_put32(b, l->offset);
+    ms_wire_put16(b + 4, l->limit);
+    b[6] = l->sort;
+    b[7] = l->descending;
+    b[8] = l->query_length;
+    b[9] = 0;
+    ms_wire_put16(b + 10, 0);
+    put_bytes(b + MS_PROTO_LIST_PAGE_FIXED, l->query, l->query_length);
 }
 
 static void write_model_opened(const ms_proto_message *msg, uint8_t *b)
@@ -216,7 +237,11 @@ static void write_body(const ms_proto_message *msg, uint8_t *b)
     case MS_PROTO_LIST_CATALOGUE:
         break;
     case MS_PROTO_CATALOGUE:
+    case MS_PROTO_CATALOGUE_PAGE:
         write_catalogue(msg, b);
+        break;
+    case MS_PROTO_LIST_PAGE:
+        write_list_page(msg, b);
         break;
     case MS_PROTO_OPEN_MODEL: {
         const ms_proto_open_model *o = &msg->body.open_model;

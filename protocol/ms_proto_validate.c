@@ -12,6 +12,8 @@ static const ms_wire_type_info type_table[] = {
     {MS_PROTO_HELLO, MS_WIRE_FROM_CLIENT, MS_WIRE_ID_ZERO, 0, MS_PROTO_HELLO_FIXED,
      MS_PROTO_HELLO_FIXED + MS_PROTO_MAX_TOKEN + MS_PROTO_MAX_LABEL, "HELLO"},
     {MS_PROTO_LIST_CATALOGUE, MS_WIRE_FROM_CLIENT, MS_WIRE_ID_NONZERO, 0, 0, 0, "LIST_CATALOGUE"},
+    {MS_PROTO_LIST_PAGE, MS_WIRE_FROM_CLIENT, MS_WIRE_ID_NONZERO, 0, MS_PROTO_LIST_PAGE_FIXED,
+     MS_PROTO_LIST_PAGE_FIXED + MS_PROTO_MAX_PAGE_QUERY, "LIST_PAGE"},
     {MS_PROTO_OPEN_MODEL, MS_WIRE_FROM_CLIENT, MS_WIRE_ID_NONZERO, 0, MS_PROTO_OPEN_MODEL_FIXED + 1,
      MS_PROTO_OPEN_MODEL_FIXED + MS_PROTO_MAX_MODEL_NAME, "OPEN_MODEL"},
     {MS_PROTO_CLOSE_MODEL, MS_WIRE_FROM_CLIENT, MS_WIRE_ID_ZERO, 0, MS_PROTO_CLOSE_MODEL_SIZE,
@@ -36,6 +38,8 @@ static const ms_wire_type_info type_table[] = {
      MS_WIRE_BODY_UNBOUNDED, "INDEX_DATA"},
     {MS_PROTO_PAYLOAD, MS_WIRE_FROM_SERVER, MS_WIRE_ID_NONZERO, 1, MS_PROTO_PAYLOAD_FIXED,
      MS_WIRE_BODY_UNBOUNDED, "PAYLOAD"},
+    {MS_PROTO_CATALOGUE_PAGE, MS_WIRE_FROM_SERVER, MS_WIRE_ID_NONZERO, 1,
+     MS_PROTO_CATALOGUE_PAGE_FIXED, MS_WIRE_BODY_UNBOUNDED, "CATALOGUE_PAGE"},
 };
 
 const ms_wire_type_info *ms_wire_type_lookup(uint8_t type)
@@ -328,7 +332,11 @@ static ms_status check_catalogue(check_ctx *c, const ms_proto_catalogue *cat)
         return OUT_OF_RANGE(c, 0, "entry_count 0 on a frame without LAST");
     if (cat->entry_count && !cat->entries)
         return OUT_OF_RANGE(c, 0, "entries missing");
-    size_t offset = MS_PROTO_CATALOGUE_FIXED;
+    size_t offset = c->msg->type == MS_PROTO_CATALOGUE_PAGE ? MS_PROTO_CATALOGUE_PAGE_FIXED
+                                                             : MS_PROTO_CATALOGUE_FIXED;
+    if (c->msg->type == MS_PROTO_CATALOGUE_PAGE && cat->total < cat->entry_count)
+        return OUT_OF_RANGE(c, 4, "total %u below the frame's %u entries", (unsigned)cat->total,
+                            (unsigned)cat->entry_count);
     for (uint32_t i = 0; i < cat->entry_count; ++i) {
         const ms_proto_catalogue_entry *e = &cat->entries[i];
         char where[32];
@@ -402,8 +410,8 @@ static ms_status check_request_cells(check_ctx *c, const ms_proto_request_cells 
     for (uint32_t i = 0; i < r->count; ++i) {
         const ms_proto_cell_request *e = &r->entries[i];
         size_t base = MS_PROTO_REQUEST_CELLS_FIXED + (size_t)i * MS_PROTO_CELL_REQUEST_SIZE;
-        if (e->stream > MS_PROTO_STREAM_INDEX)
-            return OUT_OF_RANGE(c, base + 4, "entry %u: stream %u (0 geometry, 1 APO, 2 index)",
+        if (e->stream > MS_PROTO_STREAM_COLOUR)
+            return OUT_OF_RANGE(c, base + 4, "entry %u: stream %u (0 geometry, 1 APO, 2 index, 3 colour)",
                                 (unsigned)i, e->stream);
         if (e->unit > MS_PROTO_UNIT_BYTES)
             return OUT_OF_RANGE(c, base + 5, "entry %u: unit %u (0 steps, 1 bytes)", (unsigned)i,
@@ -469,8 +477,8 @@ static ms_status check_index_data(check_ctx *c, const ms_proto_index_data *d)
 static ms_status check_payload(check_ctx *c, const ms_proto_payload *p)
 {
     bool last = (c->msg->flags & MS_PROTO_FLAG_LAST) != 0;
-    if (p->stream > MS_PROTO_STREAM_INDEX)
-        return OUT_OF_RANGE(c, 4, "stream %u (0 geometry, 1 APO, 2 index)", p->stream);
+    if (p->stream > MS_PROTO_STREAM_COLOUR)
+        return OUT_OF_RANGE(c, 4, "stream %u (0 geometry, 1 APO, 2 index, 3 colour)", p->stream);
     if (p->data_length && !p->data)
         return OUT_OF_RANGE(c, 16, "data missing");
     uint64_t stop = (uint64_t)p->offset + p->data_length;
@@ -506,6 +514,23 @@ static ms_status check_error(check_ctx *c, const ms_proto_error_body *e)
     return MS_OK;
 }
 
+static ms_status check_list_page(check_ctx *c, const ms_proto_list_page *l)
+{
+    if (l->limit < 1 || l->limit > MS_PROTO_MAX_PAGE)
+        return OUT_OF_RANGE(c, 4, "limit %u outside [1, %u]", l->limit, MS_PROTO_MAX_PAGE);
+    if (l->sort > MS_PROTO_SORT_LAST)
+        return OUT_OF_RANGE(c, 6, "sort %u undefined", l->sort);
+    if (l->descending > 1)
+        return OUT_OF_RANGE(c, 7, "descending %u is not 0 or 1", l->descending);
+    if (l->query_length > MS_PROTO_MAX_PAGE_QUERY || (l->query_length && !l->query))
+        return OUT_OF_RANGE(c, 8, "query_length %u above %u", l->query_length,
+                            MS_PROTO_MAX_PAGE_QUERY);
+    if (!ms_proto_text_valid((const uint8_t *)l->query, l->query_length))
+        return OUT_OF_RANGE(c, MS_PROTO_LIST_PAGE_FIXED,
+                            "query is not UTF-8 text without control characters");
+    return MS_OK;
+}
+
 ms_status ms_proto_check_message(const ms_proto_message *msg, uint32_t max_batch,
                                  ms_proto_fault *fault, ms_error *err)
 {
@@ -516,7 +541,8 @@ ms_status ms_proto_check_message(const ms_proto_message *msg, uint32_t max_batch
     if (!info)
         return fail(&c, MS_PROTO_E_UNKNOWN_TYPE, msg->type, "undefined type 0x%02x", msg->type);
     /* The ids a rejection of this frame ends (section 4.10, 5). */
-    if (msg->type == MS_PROTO_LIST_CATALOGUE || msg->type == MS_PROTO_OPEN_MODEL) {
+    if (msg->type == MS_PROTO_LIST_CATALOGUE || msg->type == MS_PROTO_LIST_PAGE ||
+        msg->type == MS_PROTO_OPEN_MODEL) {
         c.ids_first = msg->request_id;
         c.ids_count = msg->request_id ? 1 : 0;
     } else if (msg->type == MS_PROTO_REQUEST_CELLS && msg->request_id != 0 &&
@@ -534,7 +560,9 @@ ms_status ms_proto_check_message(const ms_proto_message *msg, uint32_t max_batch
     switch ((ms_proto_type)msg->type) {
     case MS_PROTO_HELLO: return check_hello(&c, &msg->body.hello);
     case MS_PROTO_HELLO_REPLY: return check_hello_reply(&c, &msg->body.hello_reply);
-    case MS_PROTO_CATALOGUE: return check_catalogue(&c, &msg->body.catalogue);
+    case MS_PROTO_CATALOGUE:
+    case MS_PROTO_CATALOGUE_PAGE: return check_catalogue(&c, &msg->body.catalogue);
+    case MS_PROTO_LIST_PAGE: return check_list_page(&c, &msg->body.list_page);
     case MS_PROTO_OPEN_MODEL: return check_open_model(&c, &msg->body.open_model);
     case MS_PROTO_MODEL_OPENED: return check_model_opened(&c, &msg->body.model_opened);
     case MS_PROTO_CLOSE_MODEL:
@@ -564,7 +592,7 @@ uint32_t ms_proto_version_capabilities(uint16_t version)
     if (version >= 2)
         caps |= MS_PROTO_CAP_INDEX_ZLIB;
     if (version >= 3)
-        caps |= MS_PROTO_CAP_INDEX_SUBTREES;
+        caps |= MS_PROTO_CAP_INDEX_SUBTREES | MS_PROTO_CAP_COLOUR;
     return caps;
 }
 
@@ -574,6 +602,7 @@ static uint32_t stream_capability(uint8_t stream)
     switch (stream) {
     case MS_PROTO_STREAM_APO: return MS_PROTO_CAP_APO;
     case MS_PROTO_STREAM_INDEX: return MS_PROTO_CAP_INDEX_SUBTREES;
+    case MS_PROTO_STREAM_COLOUR: return MS_PROTO_CAP_COLOUR;
     default: return 0;
     }
 }
@@ -584,6 +613,7 @@ static const char *capability_name(uint32_t capability)
     case MS_PROTO_CAP_APO: return "CAP_APO";
     case MS_PROTO_CAP_INDEX_ZLIB: return "CAP_INDEX_ZLIB";
     case MS_PROTO_CAP_INDEX_SUBTREES: return "CAP_INDEX_SUBTREES";
+    case MS_PROTO_CAP_COLOUR: return "CAP_COLOUR";
     default: return "an undefined capability";
     }
 }
@@ -596,6 +626,13 @@ ms_status ms_proto_check_negotiated(const ms_proto_message *msg, uint16_t versio
     const ms_wire_type_info *info = ms_wire_type_lookup(msg->type);
     check_ctx c = {msg, info ? info->name : "?", 0, 0, fault, err};
     switch (msg->type) {
+    case MS_PROTO_LIST_PAGE:
+    case MS_PROTO_CATALOGUE_PAGE:
+        c.ids_first = msg->request_id;
+        c.ids_count = msg->request_id ? 1 : 0;
+        if (version < 3)
+            return OUT_OF_RANGE(&c, 0, "a catalogue page needs version 3 (version %u)", version);
+        return MS_OK;
     case MS_PROTO_HELLO_REPLY: {
         uint32_t undefined = msg->body.hello_reply.capabilities &
                              ~ms_proto_version_capabilities(msg->body.hello_reply.version);

@@ -88,11 +88,14 @@ static int group_setup(void **state)
     ms_test_bin_path(meshbake, sizeof meshbake, "meshbake");
     snprintf(command, sizeof command,
              "%s -o %s/demo.ply --triangles 20000 && "
-             "%s %s/demo.ply -o %s --name demo --min-tris 1500 --no-apo --threads 2 && "
+             "printf '{\"title\": \"Demo <script>window.pwned = 1</script>\", "
+             "\"description\": \"<b>bold</b>\"}' > %s/demo.json && "
+             "%s %s/demo.ply -o %s --name demo --min-tris 1500 --no-apo --threads 2 "
+             "--metadata %s/demo.json && "
              "%s %s/demo.ply -o %s --name preview --min-tris 1500 --no-apo --threads 2 "
              "--public-bits %d",
-             meshgen, f->dir, meshbake, f->dir, f->archives, meshbake, f->dir, f->archives,
-             PREVIEW_BITS);
+             meshgen, f->dir, f->dir, meshbake, f->dir, f->archives, f->dir, meshbake, f->dir,
+             f->archives, PREVIEW_BITS);
     if (run_or_say(command) != 0)
         return -1;
     /* the built site; without it the page files of web/ still answer the
@@ -327,6 +330,14 @@ static void test_catalogue_page(void **state)
     assert_string_equal(json_string_value(json_object_get(report, "state")), "complete");
     assert_int_equal(page_int(report, "models"), 2);
     assert_string_equal(json_string_value(json_object_get(report, "message")), "2 models");
+    /* both thumbnails shown; the sidecar's title is text, not markup: shown as
+     * written, and no script element came of it */
+    assert_int_equal(page_int(report, "thumbnails"), 2);
+    json_t *titles = json_object_get(json_object_get(report, "page"), "titles");
+    assert_int_equal(json_array_size(titles), 1);
+    assert_string_equal(json_string_value(json_array_get(titles, 0)),
+                        "Demo <script>window.pwned = 1</script>");
+    assert_int_equal(page_int(report, "scripts"), 1);
     json_decref(report);
 }
 

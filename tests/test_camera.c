@@ -8,6 +8,7 @@
 #include <cmocka.h>
 
 #include "ms_camera.h"
+#include "ms_viewer_controls.h"
 
 static ms_camera standard_camera(void)
 {
@@ -182,6 +183,49 @@ static void test_apo_footprint_levels(void **state)
     assert_int_equal(ms_apo_footprint_levels(&c, side_cube, 1.0, 20.0 / 16.0, 11), 5);
 }
 
+/* The thumbnails' home view is meshview's: the same camera, to the last
+ * bit, as ms_viewer_controls_init + _camera, for boxes long along each axis,
+ * each up axis, wide, tall and square viewports and an empty box. */
+static void test_home_view_is_meshviews(void **state)
+{
+    (void)state;
+    const double boxes[][6] = {{0, 0, 0, 1, 1, 1},       {-3, 2, 5, 7, 2.5, 6},
+                               {1e6, 1e6, 0, 1e6 + 2, 1e6 + 9, 1}, {0, -4, 0, 1, 4, 0.5},
+                               {2, 2, 2, 2, 2, 2}};
+    const double sizes[][2] = {{160, 120}, {120, 160}, {64, 64}, {960, 540}};
+    for (size_t b = 0; b < sizeof boxes / sizeof *boxes; ++b)
+        for (int up = 0; up < 3; ++up)
+            for (size_t s = 0; s < sizeof sizes / sizeof *sizes; ++s) {
+                const double *lo = boxes[b], *hi = boxes[b] + 3;
+                double w = sizes[s][0], h = sizes[s][1];
+                ms_viewer_controls c;
+                ms_viewer_controls_init(&c, lo, hi, up, w / h);
+                ms_camera want, got;
+                ms_error err;
+                assert_int_equal(ms_viewer_controls_camera(&c, w, h, &want, &err), MS_OK);
+                assert_int_equal(ms_camera_home(lo, hi, up, w, h, &got, &err), MS_OK);
+                for (int k = 0; k < 3; ++k) {
+                    assert_true(fabs(got.position[k] - want.position[k]) <=
+                                1e-12 * (1 + fabs(want.position[k])));
+                    assert_true(fabs(got.forward[k] - want.forward[k]) <= 1e-12);
+                    assert_true(fabs(got.up[k] - want.up[k]) <= 1e-12);
+                }
+                assert_true(got.fovy == want.fovy);
+                assert_true(fabs(got.near_distance - want.near_distance) <= 1e-9 * want.near_distance);
+                assert_true(fabs(got.far_distance - want.far_distance) <= 1e-9 * want.far_distance);
+            }
+    /* z up is the default, as meshview's; a bad box or viewport is refused */
+    const double lo[3] = {0, 0, 0}, hi[3] = {1, 2, 3}, bad[3] = {0, NAN, 0};
+    ms_camera z, other;
+    ms_error err;
+    assert_int_equal(ms_camera_home(lo, hi, 2, 160, 120, &z, &err), MS_OK);
+    assert_int_equal(ms_camera_home(lo, hi, 7, 160, 120, &other, &err), MS_OK);
+    assert_memory_equal(&z, &other, sizeof z);
+    assert_int_equal(ms_camera_home(bad, hi, 2, 160, 120, &other, &err), MS_ERR_ARG);
+    assert_string_equal(err.text, "home view: a non-finite box or an empty viewport");
+    assert_int_equal(ms_camera_home(lo, hi, 2, 0, 120, &other, &err), MS_ERR_ARG);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -191,6 +235,7 @@ int main(void)
         cmocka_unit_test(test_depth_range_frames_the_box),
         cmocka_unit_test(test_hysteresis),
         cmocka_unit_test(test_apo_footprint_levels),
+        cmocka_unit_test(test_home_view_is_meshviews),
     };
     return cmocka_run_group_tests_name("camera", tests, NULL, NULL);
 }

@@ -19,6 +19,7 @@
 #include <cmocka.h>
 
 #include "ms_catalog.h"
+#include "ms_client.h"
 #include "ms_progress.h"
 #include "ms_test.h"
 #include "ms_test_archive.h"
@@ -255,6 +256,33 @@ static void test_ten_thousand_models_from_one_start(void **state)
         ms_test_http_free(&r);
     }
 
+    /* the binary door's page: the same selection, from the client library */
+    ms_client_options co = {.host = "127.0.0.1", .port = port, .agent = "test"};
+    ms_client_page_request pr = {.offset = 0, .limit = 5, .sort = MS_PROTO_SORT_TRIANGLES,
+                                 .descending = true, .query = "igea"};
+    ms_client_catalogue cat;
+    ms_error err;
+    assert_int_equal(ms_client_fetch_catalogue_page(&co, 30.0, &pr, &cat, &err), MS_OK);
+    assert_int_equal(cat.total, MODELS / 100);
+    assert_int_equal(cat.count, 5);
+    int best = -1;
+    for (int i = 42; i < MODELS; i += 100) /* the largest triangle count among the Igeas */
+        if (best < 0 || (i * 7919) % MODELS > (best * 7919) % MODELS)
+            best = i;
+    char expect[16];
+    snprintf(expect, sizeof expect, "m%05d", best);
+    assert_string_equal(cat.entries[0].name, expect);
+    ms_client_catalogue_free(&cat);
+    pr = (ms_client_page_request){.offset = 9995, .limit = 1000};
+    assert_int_equal(ms_client_fetch_catalogue_page(&co, 30.0, &pr, &cat, &err), MS_OK);
+    assert_int_equal(cat.total, MODELS);
+    assert_int_equal(cat.count, 5);
+    assert_string_equal(cat.entries[4].name, "m09999");
+    ms_client_catalogue_free(&cat);
+    pr.limit = 0;
+    assert_int_equal(ms_client_fetch_catalogue_page(&co, 30.0, &pr, &cat, &err), MS_ERR_ARG);
+    assert_int_equal(metric(http_port, "\nmeshstream_open_models "), 0);
+
     /* any model opens at its first request: exactly that archive */
     t0 = ms_now_seconds();
     ms_test_http_response r;
@@ -271,7 +299,6 @@ static void test_ten_thousand_models_from_one_start(void **state)
     snprintf(link_path, sizeof link_path, "%s/m10000.msa", f->archives);
     assert_int_equal(link(path, link_path), 0);
     ms_catalog catalog;
-    ms_error err;
     assert_int_equal(ms_catalog_load(f->archives, &catalog, &err), MS_OK);
     ms_catalog_entry added = *ms_catalog_find(&catalog, "m00000");
     snprintf(added.name, sizeof added.name, "m10000");

@@ -526,6 +526,64 @@ static void test_window(void **state)
     ms_mesh_free(&mesh);
 }
 
+/* A window whose base colours the caller gives (base_given, as an archive
+ * cell's parent gives them): smaller, decodes exactly once given, refused
+ * without them, with other cells, twice, or on a stream that codes its own. */
+static void test_base_given(void **state)
+{
+    (void)state;
+    ms_mesh mesh;
+    model m;
+    small_model(&m, &mesh);
+    ms_error err;
+    uint8_t *own = NULL, *buf = NULL;
+    size_t own_size = 0, size = 0;
+    ms_colour_encode_params par = {.p_min = 4, .colour_bits = 7, .alpha = true};
+    assert_int_equal(ms_colour_encode(&m.full, m.rgba, &par, &own, &own_size, &err), MS_OK);
+    par.base_given = true;
+    assert_int_equal(ms_colour_encode(&m.full, m.rgba, &par, &buf, &size, &err), MS_OK);
+    assert_true(size < own_size);
+    const ms_codec_state *base = &m.levels[12];
+    uint8_t *rgba = malloc(4 * base->vertex_count);
+    for (size_t i = 0; i < base->vertex_count; ++i) /* the rule's colours, 8 bits */
+        ref_colour(&m, base->cells[i], 12, 8, true, rgba + 4 * i);
+    ms_colour_decoder *d = NULL;
+    assert_int_equal(ms_colour_decoder_create(buf, size, NULL, &d, &err), MS_OK);
+    assert_true(ms_colour_decoder_header(d)->base_given);
+    assert_int_equal(ms_colour_decoder_refine(d, &m.levels[12], 12, &err), MS_ERR_ARG);
+    assert_non_null(strstr(err.text, "base colours were not given"));
+    assert_int_equal(ms_colour_decoder_set_base(d, base->cells, base->vertex_count - 1, rgba, &err),
+                     MS_ERR_ARG);
+    assert_int_equal(ms_colour_decoder_set_base(d, base->cells, base->vertex_count, rgba, &err), MS_OK);
+    assert_int_equal(ms_colour_decoder_set_base(d, base->cells, base->vertex_count, rgba, &err),
+                     MS_ERR_ARG);
+    for (unsigned L = 12; L <= m.D; ++L) {
+        assert_int_equal(ms_colour_decoder_refine(d, &m.levels[L], L, &err), MS_OK);
+        check_level(&m, d, L, 7, true);
+    }
+    ms_colour_decoder_destroy(d);
+    /* other cells than the geometry's first level */
+    assert_int_equal(ms_colour_decoder_create(buf, size, NULL, &d, &err), MS_OK);
+    uint64_t *shifted = malloc(base->vertex_count * sizeof *shifted);
+    for (size_t i = 0; i < base->vertex_count; ++i)
+        shifted[i] = base->cells[i] + 1000000;
+    assert_int_equal(ms_colour_decoder_set_base(d, shifted, base->vertex_count, rgba, &err), MS_OK);
+    assert_int_equal(ms_colour_decoder_refine(d, &m.levels[13], 13, &err), MS_ERR_ARG);
+    assert_non_null(strstr(err.text, "not the cells' at its first level"));
+    ms_colour_decoder_destroy(d);
+    /* a stream that codes its own base takes none */
+    assert_int_equal(ms_colour_decoder_create(own, own_size, NULL, &d, &err), MS_OK);
+    assert_int_equal(ms_colour_decoder_set_base(d, base->cells, base->vertex_count, rgba, &err),
+                     MS_ERR_ARG);
+    ms_colour_decoder_destroy(d);
+    free(shifted);
+    free(rgba);
+    free(buf);
+    free(own);
+    model_free(&m);
+    ms_mesh_free(&mesh);
+}
+
 /* ---- hostile streams ---- */
 
 static void put32(uint8_t *p, uint32_t v)
@@ -566,7 +624,7 @@ static void test_header_fields(void **state)
         {5, 0, MS_ERR_FORMAT},         /* p_max 0 */
         {5, 21, MS_ERR_FORMAT},        /* p_max 21 */
         {6, 11, MS_ERR_FORMAT},        /* p_min > p_max */
-        {7, 2, MS_ERR_FORMAT},         /* unknown flag */
+        {7, 4, MS_ERR_FORMAT},         /* unknown flag (bit 1: base given) */
         {8, 0, MS_ERR_FORMAT},         /* colour bits 0 */
         {8, 9, MS_ERR_FORMAT},         /* colour bits 9 */
         {9, 1, MS_ERR_FORMAT},         /* reserved */
@@ -678,6 +736,7 @@ int main(void)
         cmocka_unit_test(test_torus_fewer_bits),
         cmocka_unit_test(test_widen_and_weld),
         cmocka_unit_test(test_trefoil),
+        cmocka_unit_test(test_base_given),
         cmocka_unit_test(test_prefixes),
         cmocka_unit_test(test_jumps),
         cmocka_unit_test(test_wrong_cells),

@@ -1,4 +1,4 @@
-/* Replays the regression corpora of seven libFuzzer targets through their
+/* Replays the regression corpora of eight libFuzzer targets through their
  * contract checks: tests/corpus/archive_index/ (the archive index reader,
  * tests/fuzz/fuzz_archive_index.c), tests/corpus/subtree/ (the index head and
  * subtree reader of a client's partial index, tests/fuzz/fuzz_subtree.c), tests/corpus/apo_chunk/ (the APO chunk
@@ -6,8 +6,9 @@
  * camera-path parser, tests/fuzz/fuzz_camera_path.c),
  * tests/corpus/config_catalog/ (meshserve's config file and catalog.json,
  * tests/fuzz/fuzz_config_catalog.c), tests/corpus/mesh_reader/ (the mesh
- * readers, vertex colour included, tests/fuzz/fuzz_mesh_reader.c) and
- * tests/corpus/colour/ (the colour decoder, tests/fuzz/fuzz_colour.c). Seeds named
+ * readers, vertex colour included, tests/fuzz/fuzz_mesh_reader.c),
+ * tests/corpus/colour/ (the colour decoder, tests/fuzz/fuzz_colour.c) and
+ * tests/corpus/metadata/ (meshbake's sidecar metadata, tests/fuzz/fuzz_metadata.c). Seeds named
  * seed-*-ok and seed-*.cam must be accepted, the other seed-* refused;
  * fuzzer finds only need to run clean. */
 #include <dirent.h>
@@ -28,6 +29,7 @@
 #include "fuzz/fuzz_colour.c"
 #include "fuzz/fuzz_config_catalog.c"
 #include "fuzz/fuzz_mesh_reader.c"
+#include "fuzz/fuzz_metadata.c"
 #include "fuzz/fuzz_subtree.c"
 
 typedef bool (*fuzz_one_fn)(const uint8_t *data, size_t size);
@@ -114,6 +116,12 @@ static void test_colour_corpus(void **state)
     assert_true(replay("tests/corpus/colour", ms_fuzz_colour_one) >= 14);
 }
 
+static void test_metadata_corpus(void **state)
+{
+    (void)state;
+    assert_true(replay("tests/corpus/metadata", ms_fuzz_metadata_one) >= 23);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -124,6 +132,7 @@ int main(void)
         cmocka_unit_test(test_config_catalog_corpus),
         cmocka_unit_test(test_mesh_reader_corpus),
         cmocka_unit_test(test_colour_corpus),
+        cmocka_unit_test(test_metadata_corpus),
     };
     return cmocka_run_group_tests_name("fuzz_replay", tests, NULL, NULL);
 }

@@ -322,6 +322,39 @@ static void test_small_on_screen_never_vanishes(void **state)
     json_decref(report);
 }
 
+/* From a local archive directory the catalogue's panel shows the selected
+ * model's thumbnail (meshbake's, docs/ARCHIVE.md "Thumbnails"): at 960x540
+ * and scale 2 the picture fills x 672..936, y 96..294 (the list is 50
+ * columns of 12 pixels from x 24, the panel 48 pixels further, 264 wide). */
+static void test_catalogue_panel_shows_the_thumbnail(void **state)
+{
+    fixture *f = *state;
+    char args[2048], out[700], err_text[4096];
+    snprintf(out, sizeof out, "%s/panel.json", f->dir);
+    snprintf(args, sizeof args, "%s --size 960x540 --screenshot-dir %s/panel --json", f->archives,
+             f->dir);
+    assert_int_equal(run_viewer(f, args, out, err_text, sizeof err_text), 0);
+    json_t *report = load_report(out);
+    assert_true(json_is_true(json_object_get(report, "picture_shown")));
+    json_t *m = json_array_get(json_object_get(report, "models"), 0);
+    assert_true(json_is_true(json_object_get(m, "thumbnail")));
+    uint32_t w, h;
+    uint8_t *pixels = ms_test_png_read(json_string_value(json_object_get(report, "png")), &w, &h);
+    assert_int_equal(w, 960);
+    size_t lit = 0, outside = 0; /* the model's grey against the dark background */
+    for (uint32_t y = 0; y < h; ++y)
+        for (uint32_t x = 640; x < w; ++x) {
+            bool in_picture = x >= 676 && x < 932 && y >= 100 && y < 290;
+            bool bright = pixels[3 * ((size_t)y * w + x)] > 90;
+            lit += in_picture && bright;
+            outside += !in_picture && bright && y >= 96 && y < 294;
+        }
+    assert_true(lit > 2000);
+    assert_int_equal(outside, 0);
+    free(pixels);
+    json_decref(report);
+}
+
 static void test_catalogue_screen(void **state)
 {
     fixture *f = *state;
@@ -547,6 +580,7 @@ int main(void)
         cmocka_unit_test(test_streaming_and_local_archive),
         cmocka_unit_test(test_geometry_shading_fetches_no_apo),
         cmocka_unit_test(test_catalogue_screen),
+        cmocka_unit_test(test_catalogue_panel_shows_the_thumbnail),
         cmocka_unit_test(test_small_on_screen_never_vanishes),
         cmocka_unit_test(test_interactive_until_terminated),
         cmocka_unit_test(test_interactive_from_a_server_lists_once),

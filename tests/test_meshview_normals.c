@@ -601,6 +601,69 @@ static void test_filtered_apo_no_worse(void **state)
     }
 }
 
+/* A colour model streamed from its archive (issue 34): meshview's albedo
+ * picture of the trefoil fixture (per-vertex colour, 8 bits a channel) against
+ * meshrender's albedo picture of the whole coloured mesh, from a camera that
+ * frames it: at least 30 dB over the pixels both cover, and the silhouettes
+ * agree (the cut at 1 px is not the full mesh at its edge). */
+static void test_colour_model_albedo_matches_embree(void **state)
+{
+    fixture *f = *state;
+    char ply[700], command[4096], bin[600], cam[700];
+    ms_test_model_path(ply, sizeof ply, "trefoil_color.ply.gz");
+    ms_mesh mesh;
+    ms_error err;
+    assert_int_equal(ms_mesh_load(ply, &mesh, NULL, &err), MS_OK);
+    assert_non_null(mesh.colours);
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (size_t v = 0; v < mesh.vertex_count; ++v)
+        for (int k = 0; k < 3; ++k) {
+            lo[k] = fmin(lo[k], mesh.positions[3 * v + k]);
+            hi[k] = fmax(hi[k], mesh.positions[3 * v + k]);
+        }
+    ms_mesh_free(&mesh);
+    double c[3] = {(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, (lo[2] + hi[2]) / 2};
+    double size = fmax(hi[0] - lo[0], fmax(hi[1] - lo[1], hi[2] - lo[2]));
+    ms_test_bin_path(bin, sizeof bin, "meshbake");
+    snprintf(command, sizeof command, "%s %s -o %s --name trefoil --no-apo --json", bin, ply, f->archives);
+    json_t *baked = ms_test_run_json(command, 0);
+    assert_true(json_integer_value(json_object_get(json_object_get(baked, "colour"), "bytes")) > 0);
+    json_decref(baked);
+    snprintf(cam, sizeof cam, "%s/trefoil.cam", f->dir);
+    FILE *out = fopen(cam, "w");
+    assert_non_null(out);
+    fprintf(out, "meshstream-camera-path 1\n0 %.9g %.9g %.9g %.9g %.9g %.9g 0 1 0 40\n", c[0] + 0.4 * size,
+            c[1] + 0.5 * size, c[2] + 1.6 * size, c[0], c[1], c[2]);
+    fclose(out);
+    char albedo[800], ref[800];
+    json_decref(view(f, "trefoil", "albedo", "--shading albedo", albedo, sizeof albedo));
+    ms_test_bin_path(bin, sizeof bin, "meshrender");
+    snprintf(command, sizeof command, "%s %s -p %s -o %s/trefoil-ref --width %d --height %d --albedo --json", bin,
+             ply, cam, f->dir, WIDTH, HEIGHT);
+    json_decref(ms_test_run_json(command, 0));
+    snprintf(ref, sizeof ref, "%s/trefoil-ref/frame_000.png", f->dir);
+    uint32_t wa, ha, wb, hb;
+    uint8_t *a = ms_test_png_read(albedo, &wa, &ha), *b = ms_test_png_read(ref, &wb, &hb);
+    assert_true(wa == wb && ha == hb);
+    size_t n = (size_t)wa * ha;
+    uint8_t *mask = malloc(n);
+    assert_non_null(mask);
+    static const uint8_t bg[3] = {39, 39, 39};
+    size_t either = ms_study_colour_mask(a, b, n, bg, false, mask);
+    size_t both = ms_study_colour_mask(a, b, n, bg, true, mask);
+    ms_study_colour_error e;
+    assert_int_equal(ms_study_colour_psnr(a, b, n, mask, &e, &err), MS_OK);
+    print_message("trefoil albedo: %zu pixels covered in either, %zu in both (IoU %.4f), colour PSNR %.2f dB "
+                  "over both, largest difference %u\n",
+                  either, both, (double)both / (double)either, e.psnr_db, e.max_difference);
+    assert_true(both > 2000);
+    assert_true((double)both / (double)either >= 0.97);
+    assert_true(e.psnr_db >= 30.0);
+    free(mask);
+    free(a);
+    free(b);
+}
+
 static void test_bad_crease_angles(void **state)
 {
     fixture *f = *state;
@@ -622,6 +685,7 @@ int main(void)
         cmocka_unit_test(test_flipped_faces_shade_as_consistent_ones),
         cmocka_unit_test(test_coarse_scan_levels_stay_smooth),
         cmocka_unit_test(test_filtered_apo_no_worse),
+        cmocka_unit_test(test_colour_model_albedo_matches_embree),
         cmocka_unit_test(test_bad_crease_angles),
     };
     return cmocka_run_group_tests(tests, group_setup, group_teardown);

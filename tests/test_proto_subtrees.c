@@ -183,13 +183,13 @@ static void test_stream_index_validation(void **state)
         assert_int_equal(fault.detail, bad_steps[i].detail);
         ms_proto_decoder_free(dec);
     }
-    /* Stream 3 is undefined. */
-    n = raw_request(f, 9, 65, MS_PROTO_STREAM_INDEX + 1, MS_PROTO_UNIT_STEPS, 0, 0);
+    /* Stream 4 is undefined (3 is COLOUR). */
+    n = raw_request(f, 9, 65, MS_PROTO_STREAM_COLOUR + 1, MS_PROTO_UNIT_STEPS, 0, 0);
     assert_int_equal(decode(MS_PROTO_ROLE_SERVER, f, n, &got, &fault, &dec), MS_ERR_RANGE);
     assert_int_equal(fault.detail, 8 + 4);
     ms_proto_decoder_free(dec);
 
-    /* PAYLOAD of stream 2: valid; stream 3: fatal to the client. */
+    /* PAYLOAD of stream 2: valid; stream 4: fatal to the client. */
     ms_proto_message m = {.type = MS_PROTO_PAYLOAD, .flags = MS_PROTO_FLAG_LAST, .request_id = 5};
     m.body.payload = (ms_proto_payload){.cell_id = 65, .stream = MS_PROTO_STREAM_INDEX,
                                         .offset = 3, .end = 3};
@@ -197,7 +197,7 @@ static void test_stream_index_validation(void **state)
     assert_int_equal(decode(MS_PROTO_ROLE_CLIENT, f, n, &got, &fault, &dec), MS_OK);
     assert_int_equal(got.body.payload.stream, MS_PROTO_STREAM_INDEX);
     ms_proto_decoder_free(dec);
-    f[12 + 4] = MS_PROTO_STREAM_INDEX + 1;
+    f[12 + 4] = MS_PROTO_STREAM_COLOUR + 1;
     assert_int_equal(decode(MS_PROTO_ROLE_CLIENT, f, n, &got, &fault, &dec), MS_ERR_RANGE);
     assert_true(fault.fatal);
     assert_int_equal(fault.detail, 4);
@@ -247,7 +247,8 @@ static void test_version_capabilities(void **state)
     assert_int_equal(ms_proto_version_capabilities(0), 0);
     assert_int_equal(ms_proto_version_capabilities(1), MS_PROTO_CAP_APO);
     assert_int_equal(ms_proto_version_capabilities(2), MS_PROTO_CAP_APO | MS_PROTO_CAP_INDEX_ZLIB);
-    const uint32_t all = MS_PROTO_CAP_APO | MS_PROTO_CAP_INDEX_ZLIB | MS_PROTO_CAP_INDEX_SUBTREES;
+    const uint32_t all = MS_PROTO_CAP_APO | MS_PROTO_CAP_INDEX_ZLIB | MS_PROTO_CAP_INDEX_SUBTREES |
+                         MS_PROTO_CAP_COLOUR;
     assert_int_equal(ms_proto_version_capabilities(3), all);
     /* A later version keeps them (it defines nothing more here). */
     assert_int_equal(ms_proto_version_capabilities(UINT16_MAX), all);

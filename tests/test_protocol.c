@@ -219,9 +219,21 @@ static void assert_same(const ms_proto_message *a, const ms_proto_message *b)
         break;
     case MS_PROTO_LIST_CATALOGUE:
         break;
-    case MS_PROTO_CATALOGUE: {
+    case MS_PROTO_LIST_PAGE: {
+        const ms_proto_list_page *x = &a->body.list_page, *y = &b->body.list_page;
+        assert_int_equal(x->offset, y->offset);
+        assert_int_equal(x->limit, y->limit);
+        assert_int_equal(x->sort, y->sort);
+        assert_int_equal(x->descending, y->descending);
+        assert_int_equal(x->query_length, y->query_length);
+        assert_bytes(x->query, y->query, x->query_length);
+        break;
+    }
+    case MS_PROTO_CATALOGUE:
+    case MS_PROTO_CATALOGUE_PAGE: {
         const ms_proto_catalogue *x = &a->body.catalogue, *y = &b->body.catalogue;
         assert_int_equal(x->entry_count, y->entry_count);
+        assert_int_equal(x->total, y->total);
         for (unsigned i = 0; i < x->entry_count; ++i) {
             const ms_proto_catalogue_entry *e = &x->entries[i], *f = &y->entries[i];
             assert_int_equal(e->name_length, f->name_length);
@@ -429,7 +441,7 @@ static bool sample_message(unsigned i, ms_proto_message *m)
     case 8:
         m->type = MS_PROTO_CATALOGUE;
         m->request_id = 2;
-        m->body.catalogue = (ms_proto_catalogue){catalogue_entries, 3};
+        m->body.catalogue = (ms_proto_catalogue){catalogue_entries, 3, 0};
         return true;
     case 9:
         m->type = MS_PROTO_OPEN_MODEL;
@@ -550,6 +562,19 @@ static bool sample_message(unsigned i, ms_proto_message *m)
         m->request_id = 40;
         m->body.request_cells = (ms_proto_request_cells){2, subtree_requests, 2};
         return true;
+    case 30: /* version 3: a page of the catalogue, and its answer */
+        m->type = MS_PROTO_LIST_PAGE;
+        m->request_id = 41;
+        m->body.list_page = (ms_proto_list_page){.offset = 200, .limit = 100,
+                                                 .sort = MS_PROTO_SORT_DATE, .descending = 1,
+                                                 .query = "Büste", .query_length = 6};
+        return true;
+    case 31:
+        m->type = MS_PROTO_CATALOGUE_PAGE;
+        m->flags = MS_PROTO_FLAG_LAST;
+        m->request_id = 41;
+        m->body.catalogue = (ms_proto_catalogue){catalogue_entries, 3, 10000};
+        return true;
     case 29: /* version 3: a subtree's last chunk */
         m->type = MS_PROTO_PAYLOAD;
         m->flags = MS_PROTO_FLAG_LAST;
@@ -565,7 +590,7 @@ static bool sample_message(unsigned i, ms_proto_message *m)
 
 static bool client_sends(uint8_t type)
 {
-    return type <= MS_PROTO_CANCEL || type == MS_PROTO_PING || type == MS_PROTO_PONG ||
+    return type <= MS_PROTO_LIST_PAGE || type == MS_PROTO_PING || type == MS_PROTO_PONG ||
            type == MS_PROTO_ERROR;
 }
 
@@ -662,7 +687,7 @@ static void test_roundtrip_every_type(void **state)
         MS_PROTO_HELLO, MS_PROTO_LIST_CATALOGUE, MS_PROTO_OPEN_MODEL, MS_PROTO_CLOSE_MODEL,
         MS_PROTO_REQUEST_CELLS, MS_PROTO_CANCEL, MS_PROTO_PING, MS_PROTO_PONG, MS_PROTO_ERROR,
         MS_PROTO_HELLO_REPLY, MS_PROTO_CATALOGUE, MS_PROTO_MODEL_OPENED, MS_PROTO_INDEX_DATA,
-        MS_PROTO_PAYLOAD};
+        MS_PROTO_PAYLOAD, MS_PROTO_LIST_PAGE, MS_PROTO_CATALOGUE_PAGE};
     for (size_t i = 0; i < sizeof all_types; ++i)
         if (!seen[all_types[i]])
             fail_msg("no round trip for %s", ms_proto_type_name(all_types[i]));
@@ -850,7 +875,7 @@ static void test_unknown_type(void **state)
 {
     (void)state;
     uint8_t f[12];
-    static const uint8_t undefined[] = {0x00, 0x07, 0x3F, 0x42, 0x7E, 0x80, 0x86, 0xFF};
+    static const uint8_t undefined[] = {0x00, 0x08, 0x3F, 0x42, 0x7E, 0x80, 0x87, 0xFF};
     for (size_t i = 0; i < sizeof undefined; ++i) {
         raw_header(f, 0, undefined[i], 0, 0);
         expect_fault(MS_PROTO_ROLE_SERVER, 8, f, 12, MS_PROTO_E_UNKNOWN_TYPE, true, 0, 0,
@@ -1020,7 +1045,7 @@ static void test_out_of_range_fields(void **state)
     ms_proto_cell_request e;
     size_t n;
     /* Not fatal in a client's frame: the ERROR names the whole batch. */
-    e = good, e.stream = MS_PROTO_STREAM_INDEX + 1;
+    e = good, e.stream = MS_PROTO_STREAM_COLOUR + 1;
     n = raw_batch(f, 100, 1, 3, e);
     expect_fault(MS_PROTO_ROLE_SERVER, 8, f, n, MS_PROTO_E_FIELD_OUT_OF_RANGE, false, 100, 3, 8 + 4);
     e = good, e.unit = 9;
@@ -1097,6 +1122,62 @@ static void test_out_of_range_fields(void **state)
     memset(f + 12, 0, 18);
     put16(f + 12, MS_PROTO_E_IDLE_TIMEOUT);
     expect_fault(MS_PROTO_ROLE_CLIENT, 0, f, 30, MS_PROTO_E_FIELD_OUT_OF_RANGE, true, 0, 0, 2);
+}
+
+/* LIST_PAGE's ranges, its layout, and the negotiated version (section 4.11). */
+static void test_catalogue_page_rules(void **state)
+{
+    (void)state;
+    uint8_t f[12 + 12 + 80];
+    struct {
+        uint32_t offset;
+        uint16_t limit;
+        uint8_t sort, descending, query_length, reserved;
+        const char *query;
+        uint16_t code;
+        uint64_t detail;
+    } cases[] = {
+        {0, 0, 0, 0, 0, 0, "", MS_PROTO_E_FIELD_OUT_OF_RANGE, 4},
+        {0, 1001, 0, 0, 0, 0, "", MS_PROTO_E_FIELD_OUT_OF_RANGE, 4},
+        {0, 10, 4, 0, 0, 0, "", MS_PROTO_E_FIELD_OUT_OF_RANGE, 6},
+        {0, 10, 0, 2, 0, 0, "", MS_PROTO_E_FIELD_OUT_OF_RANGE, 7},
+        {0, 10, 0, 0, 65, 0, "", MS_PROTO_E_MALFORMED_FRAME, 0},
+        {0, 10, 0, 0, 2, 0, "a\n", MS_PROTO_E_FIELD_OUT_OF_RANGE, 12},
+        {0, 10, 0, 0, 2, 0, "\xC3\x28", MS_PROTO_E_FIELD_OUT_OF_RANGE, 12},
+        {0, 10, 0, 0, 0, 1, "", MS_PROTO_E_MALFORMED_FRAME, 0},
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof *cases; ++i) {
+        size_t q = strlen(cases[i].query), body = 12 + q;
+        if (cases[i].query_length == 65) /* a length the body does not hold */
+            body = 12 + 64, q = 64;
+        raw_header(f, (uint32_t)body, MS_PROTO_LIST_PAGE, 0, 9);
+        memset(f + 12, 0, body);
+        put32(f + 12, cases[i].offset);
+        put16(f + 16, cases[i].limit);
+        f[18] = cases[i].sort;
+        f[19] = cases[i].descending;
+        f[20] = cases[i].query_length;
+        f[21] = cases[i].reserved;
+        memcpy(f + 24, cases[i].query, strlen(cases[i].query));
+        bool malformed = cases[i].code == MS_PROTO_E_MALFORMED_FRAME;
+        expect_fault(MS_PROTO_ROLE_SERVER, 8, f, 12 + body, cases[i].code, malformed,
+                     malformed ? 0 : 9, malformed ? 0 : 1, cases[i].detail);
+    }
+    /* a page needs version 3 */
+    ms_proto_message m = {.type = MS_PROTO_LIST_PAGE, .request_id = 5};
+    m.body.list_page = (ms_proto_list_page){.limit = 10, .query = ""};
+    ms_proto_fault fault;
+    assert_int_equal(ms_proto_check_negotiated(&m, 3, 0, &fault, NULL), MS_OK);
+    assert_int_equal(ms_proto_check_negotiated(&m, 2, 0, &fault, NULL), MS_ERR_RANGE);
+    assert_int_equal(fault.code, MS_PROTO_E_FIELD_OUT_OF_RANGE);
+    assert_int_equal(fault.request_id, 5);
+    /* a page's answer cannot count fewer models than it carries */
+    m = (ms_proto_message){.type = MS_PROTO_CATALOGUE_PAGE, .request_id = 5,
+                           .flags = MS_PROTO_FLAG_LAST};
+    fill_fixtures();
+    m.body.catalogue = (ms_proto_catalogue){catalogue_entries, 3, 2};
+    assert_int_equal(ms_proto_check_message(&m, MS_PROTO_MAX_BATCH, &fault, NULL), MS_ERR_RANGE);
+    assert_int_equal(fault.detail, 4);
 }
 
 static void test_oversized_batch(void **state)
@@ -1589,7 +1670,7 @@ static void write_corpus(const char *dir)
     f[6] = 0;
     n = raw_batch(f, 10, 1, 20, good);
     write_seed(dir, "server-BATCH_TOO_LARGE.bin", 2, f, n, NULL, 0);
-    e = good, e.stream = MS_PROTO_STREAM_INDEX + 1;
+    e = good, e.stream = MS_PROTO_STREAM_COLOUR + 1;
     n = raw_batch(f, 10, 1, 2, e);
     write_seed(dir, "server-FIELD_OUT_OF_RANGE-stream.bin", 2, f, n, NULL, 0);
     e = good, e.stream = MS_PROTO_STREAM_INDEX, e.a = 0, e.b = 1; /* a subtree has step 0 only */
@@ -1641,6 +1722,7 @@ int main(void)
         cmocka_unit_test(test_header_rules),
         cmocka_unit_test(test_hello_errors_are_fatal),
         cmocka_unit_test(test_out_of_range_fields),
+        cmocka_unit_test(test_catalogue_page_rules),
         cmocka_unit_test(test_oversized_batch),
         cmocka_unit_test(test_unknown_cell_decodes),
         cmocka_unit_test(test_path_like_model_names),

@@ -17,7 +17,7 @@
 
 static const char *const SCRIPTS[] = {
     "attack",       "bake-gallery", "bench",       "bench-apo",    "bench-apo-bake", "bench-bake",
-    "bench-bake-scale", "bench-client", "bench-client-scale", "bench-codec",  "bench-codec-peer", "bench-limits", "bench-read", "bench-scene-link", "bench-scenes", "bench-serve",
+    "bench-bake-scale", "bench-client", "bench-client-scale", "bench-codec", "bench-collection",  "bench-codec-peer", "bench-limits", "bench-read", "bench-scene-link", "bench-scenes", "bench-serve",
     "bench-valence", "bench-viewer", "cluster",    "demo",         "fetch-models",   "install-deps",   "run-tests",
     "screenshots",  "study",
 };
@@ -31,8 +31,8 @@ static bool listed(const char *name)
 }
 
 /* Every shell script in the folder is in the list (the sourced helpers, the
- * Python generator and report writer and the camera paths and scenes folders
- * aside), so a new one is tested. */
+ * Python generator and report writer and the camera paths, scenes and
+ * metadata sidecar folders aside), so a new one is tested. */
 static void test_every_script_is_listed(void **state)
 {
     (void)state;
@@ -42,6 +42,7 @@ static void test_every_script_is_listed(void **state)
     for (struct dirent *e; (e = readdir(dir));) {
         const char *n = e->d_name;
         if (n[0] == '.' || strcmp(n, "paths") == 0 || strcmp(n, "scenes") == 0 ||
+            strcmp(n, "metadata") == 0 ||
             strcmp(n, "script-usage.sh") == 0 || strcmp(n, "models.sh") == 0 ||
             strcmp(n, "gen-camera-paths.py") == 0 ||
             strcmp(n, "study-report.py") == 0)

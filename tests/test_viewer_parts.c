@@ -321,6 +321,21 @@ static void test_catalogue_rows(void **state)
     ms_viewer_catalogue_move(&cat, -100, 200, 1);
     assert_int_equal(cat.selected, 0);
     assert_int_equal(cat.first, 0);
+    /* the panel's metadata lines: words wrapped, cut with "...", one '?' a
+     * non-ASCII character, line feeds kept */
+    char out[256];
+    assert_int_equal(ms_viewer_catalogue_wrap("Demo <script>alert(1)</script> sculpture", 22, 2,
+                                              out, sizeof out), 2);
+    assert_string_equal(out, "Demo\n<script>alert(1)</s...");
+    assert_int_equal(ms_viewer_catalogue_wrap("by M\xc3\xbcller & S\xc3\xb8n \xf0\x9f\x97\xbf", 30, 1,
+                                              out, sizeof out), 1);
+    assert_string_equal(out, "by M?ller & S?n ?");
+    assert_int_equal(ms_viewer_catalogue_wrap("one\ntwo words here", 9, 3, out, sizeof out), 3);
+    assert_string_equal(out, "one\ntwo words\nhere");
+    assert_int_equal(ms_viewer_catalogue_wrap("one\ntwo words here", 9, 2, out, sizeof out), 2);
+    assert_string_equal(out, "one\ntwo wo...");
+    assert_int_equal(ms_viewer_catalogue_wrap("", 9, 2, out, sizeof out), 0);
+    assert_string_equal(out, "");
 }
 
 static void test_quantile(void **state)

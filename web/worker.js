@@ -176,7 +176,8 @@ async function run(msg) {
   M = await createMeshstream({ locateFile: file => new URL(file, self.location.href).href });
   let catalogue;
   try {
-    // the catalogue's entries whose name holds NAME (a page of at most 1000)
+    // the catalogue's entries whose name (or title, description) holds NAME
+    // (a page of at most 1000)
     catalogue = JSON.parse(new TextDecoder().decode(
       (await get(layout.catalogue(name), token)).bytes));
   } catch (e) {

@@ -296,7 +296,8 @@ static bool reply_acceptable(ms_client *c, const ms_proto_hello_reply *r)
 {
     char why[160];
     uint16_t code = MS_PROTO_E_FIELD_OUT_OF_RANGE;
-    uint32_t asked = MS_PROTO_CAP_APO | (c->ask_index_zlib ? MS_PROTO_CAP_INDEX_ZLIB : 0) |
+    uint32_t asked = MS_PROTO_CAP_APO | MS_PROTO_CAP_COLOUR |
+                     (c->ask_index_zlib ? MS_PROTO_CAP_INDEX_ZLIB : 0) |
                      (c->ask_index_subtrees ? MS_PROTO_CAP_INDEX_SUBTREES : 0);
     if (r->version < MS_PROTO_MIN_VERSION || r->version > MS_PROTO_VERSION)
         snprintf(why, sizeof why, "server chose protocol version %u, outside our %u..%u",
@@ -395,10 +396,11 @@ static bool handle_message(ms_client *c, const ms_proto_message *m)
         if (c->handlers->pong)
             c->handlers->pong(c, m->body.ping.opaque, c->arg);
         break;
-    case MS_PROTO_CATALOGUE: {
+    case MS_PROTO_CATALOGUE:
+    case MS_PROTO_CATALOGUE_PAGE: {
         pending *q = pending_find(c, m->request_id);
         if (!q || q->kind != PENDING_LIST) {
-            violation(c, MS_PROTO_E_UNEXPECTED_MESSAGE, MS_PROTO_CATALOGUE,
+            violation(c, MS_PROTO_E_UNEXPECTED_MESSAGE, m->type,
                       "CATALOGUE for request %u, which is no catalogue request", m->request_id);
             break;
         }
@@ -504,7 +506,8 @@ ms_status ms_client_connect(struct event_base *base, const ms_client_options *o,
     h->max_version = MS_PROTO_VERSION;
     c->ask_index_zlib = !o->raw_index;
     c->ask_index_subtrees = o->index_subtrees;
-    h->capabilities = MS_PROTO_CAP_APO | (c->ask_index_zlib ? MS_PROTO_CAP_INDEX_ZLIB : 0) |
+    h->capabilities = MS_PROTO_CAP_APO | MS_PROTO_CAP_COLOUR |
+                      (c->ask_index_zlib ? MS_PROTO_CAP_INDEX_ZLIB : 0) |
                       (c->ask_index_subtrees ? MS_PROTO_CAP_INDEX_SUBTREES : 0);
     h->max_frame = max_frame;
     h->token = o->token;
@@ -534,10 +537,20 @@ void ms_client_free(ms_client *c)
     free(c);
 }
 
-/* LIST_CATALOGUE (ms_client_fetch_catalogue's request). */
-static ms_status list_catalogue(ms_client *c, uint32_t *request_id, ms_error *err)
+ms_status ms_client_list_catalogue(ms_client *c, const ms_client_page_request *page,
+                                   uint32_t *request_id, ms_error *err)
 {
-    ms_proto_message m = {.type = MS_PROTO_LIST_CATALOGUE, .request_id = take_ids(c, 1)};
+    ms_proto_message m = {.type = page ? MS_PROTO_LIST_PAGE : MS_PROTO_LIST_CATALOGUE,
+                          .request_id = take_ids(c, 1)};
+    if (page) {
+        ms_proto_list_page *l = &m.body.list_page;
+        l->offset = page->offset;
+        l->limit = page->limit;
+        l->sort = page->sort;
+        l->descending = page->descending;
+        l->query = page->query ? page->query : "";
+        l->query_length = (uint8_t)strlen(l->query);
+    }
     *request_id = m.request_id;
     ms_status st = send_message(c, &m, err);
     pending *p = st == MS_OK ? pending_add(c, m.request_id) : NULL;
@@ -632,143 +645,5 @@ ms_status ms_client_set_rate_limit(ms_client *c, double bytes_per_second, ms_err
 }
 
 uint64_t ms_client_bytes_read(const ms_client *c) { return c->bytes_read; }
-
-/* --- ms_client_fetch_catalogue: one connection, one LIST_CATALOGUE ---------- */
-
-typedef struct catalogue_fetch {
-    struct event_base *base;
-    uint32_t request;
-    ms_client_catalogue *out;
-    size_t cap;
-    bool done, failed;
-    char why[MS_ERROR_TEXT_MAX];
-} catalogue_fetch;
-
-static void fetch_fail(catalogue_fetch *f, const char *why)
-{
-    if (f->done)
-        return;
-    f->done = f->failed = true;
-    snprintf(f->why, sizeof f->why, "%s", why);
-    event_base_loopbreak(f->base);
-}
-
-static void fetch_on_catalogue(ms_client *client, uint32_t request_id,
-                               const ms_proto_catalogue *cat, bool last, void *arg)
-{
-    (void)client;
-    catalogue_fetch *f = arg;
-    if (request_id != f->request || f->done)
-        return;
-    ms_client_catalogue *out = f->out;
-    if (out->count + cat->entry_count > f->cap) {
-        size_t cap = f->cap ? f->cap : 16;
-        while (cap < out->count + cat->entry_count)
-            cap *= 2;
-        ms_client_catalogue_entry *grown = realloc(out->entries, cap * sizeof *grown);
-        if (!grown) {
-            fetch_fail(f, "out of memory for the catalogue");
-            return;
-        }
-        out->entries = grown;
-        f->cap = cap;
-    }
-    for (uint16_t i = 0; i < cat->entry_count; ++i) {
-        const ms_proto_catalogue_entry *e = &cat->entries[i];
-        ms_client_catalogue_entry *d = &out->entries[out->count++];
-        memset(d, 0, sizeof *d);
-        /* lengths are bounded by the decoder (PROTOCOL.md 4.5) */
-        memcpy(d->name, e->name, e->name_length);
-        memcpy(d->title, e->title, e->title_length);
-        d->geometry_steps = e->geometry_steps, d->apo_steps = e->apo_steps;
-        d->permitted_geometry_steps = e->permitted_geometry_steps;
-        d->permitted_apo_steps = e->permitted_apo_steps;
-        d->cell_count = e->cell_count;
-        d->content_id = e->content_id;
-        d->archive_bytes = e->archive_bytes;
-    }
-    if (last) {
-        f->done = true;
-        event_base_loopbreak(f->base);
-    }
-}
-
-static void fetch_on_error(ms_client *client, uint32_t first_id, uint32_t count,
-                           const ms_proto_error_body *e, void *arg)
-{
-    (void)client;
-    catalogue_fetch *f = arg;
-    if (count != 0 && (f->request < first_id || f->request - first_id >= count))
-        return;
-    char why[MS_ERROR_TEXT_MAX];
-    snprintf(why, sizeof why, "%s %.*s", ms_proto_error_name(e->code),
-             (int)(e->text_length > 150 ? 150 : e->text_length), e->text);
-    fetch_fail(f, why);
-}
-
-static void fetch_on_closed(ms_client *client, const char *why, void *arg)
-{
-    (void)client;
-    fetch_fail(arg, why);
-}
-
-static void fetch_on_timeout(evutil_socket_t fd, short what, void *arg)
-{
-    (void)fd, (void)what;
-    fetch_fail(arg, "no complete answer in time");
-}
-
-ms_status ms_client_fetch_catalogue(const ms_client_options *options, double timeout_s,
-                                    ms_client_catalogue *catalogue, ms_error *err)
-{
-    catalogue->entries = NULL;
-    catalogue->count = 0;
-    if (!options || !options->host || !(timeout_s >= 0) || timeout_s > 86400)
-        return ms_error_set(err, MS_ERR_ARG, "catalogue: a server address and a time-out in "
-                            "[0, 86400] s are needed");
-    if (timeout_s == 0)
-        timeout_s = 5.0;
-    static const ms_client_handlers handlers = {.catalogue = fetch_on_catalogue,
-                                                .request_error = fetch_on_error,
-                                                .closed = fetch_on_closed};
-    catalogue_fetch f = {.out = catalogue};
-    struct event *timer = NULL;
-    ms_client *client = NULL;
-    ms_status st = MS_OK;
-    if (!(f.base = event_base_new()) || !(timer = evtimer_new(f.base, fetch_on_timeout, &f))) {
-        st = ms_error_set(err, MS_ERR_NOMEM, "out of memory for a catalogue request");
-        goto done;
-    }
-    if ((st = ms_client_connect(f.base, options, &handlers, &f, &client, err)) != MS_OK)
-        goto done;
-    if ((st = list_catalogue(client, &f.request, err)) != MS_OK)
-        goto done;
-    struct timeval limit = {(time_t)timeout_s, (suseconds_t)((timeout_s - (double)(time_t)timeout_s) * 1e6)};
-    evtimer_add(timer, &limit);
-    event_base_dispatch(f.base);
-    if (!f.done)
-        fetch_fail(&f, "the event loop ended early");
-    if (f.failed)
-        st = ms_error_set(err, MS_ERR_IO, "catalogue of %s:%u: %s", options->host, options->port,
-                          f.why);
-done:
-    ms_client_free(client);
-    if (timer)
-        event_free(timer);
-    if (f.base)
-        event_base_free(f.base);
-    if (st != MS_OK)
-        ms_client_catalogue_free(catalogue);
-    return st;
-}
-
-void ms_client_catalogue_free(ms_client_catalogue *catalogue)
-{
-    if (!catalogue)
-        return;
-    free(catalogue->entries);
-    catalogue->entries = NULL;
-    catalogue->count = 0;
-}
 
 uint32_t ms_client_index_wire_bytes(const ms_client *c) { return c->index_wire; }

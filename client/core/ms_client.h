@@ -108,9 +108,22 @@ typedef struct ms_client_catalogue_entry {
 } ms_client_catalogue_entry;
 
 typedef struct ms_client_catalogue {
-    ms_client_catalogue_entry *entries;  /* in the server's order: by name */
+    ms_client_catalogue_entry *entries;  /* in the server's order: by name (a page: by
+                                            its sort) */
     size_t count;
+    size_t total;                        /* a page: the models its filter matches; a
+                                            whole catalogue: count */
 } ms_client_catalogue;
+
+/* One page of a catalogue (protocol version 3, PROTOCOL.md 4.11). */
+typedef struct ms_client_page_request {
+    uint32_t offset;
+    uint16_t limit;        /* 1 .. MS_PROTO_MAX_PAGE */
+    uint8_t sort;          /* ms_proto_page_sort */
+    bool descending;
+    const char *query;     /* NULL or "": every model; else matched (ASCII case-insensitively)
+                              in the name, source, title and description; at most 64 bytes */
+} ms_client_page_request;
 
 /* The models a server offers this token: connects to options->host:port
  * (token, agent, max_frame as for ms_client_connect), sends LIST_CATALOGUE,
@@ -124,6 +137,23 @@ typedef struct ms_client_catalogue {
 ms_status ms_client_fetch_catalogue(const ms_client_options *options, double timeout_s,
                                     ms_client_catalogue *catalogue, ms_error *err);
 void ms_client_catalogue_free(ms_client_catalogue *catalogue);
+
+/* Sends LIST_CATALOGUE (page NULL) or, on a connection that negotiated
+ * version 3, LIST_PAGE for page, as request *request_id: the answer comes to
+ * handlers->catalogue, frame by frame. MS_ERR_IO when the connection is
+ * closed; the encoder's errors for a page outside the protocol's ranges. */
+ms_status ms_client_list_catalogue(ms_client *client, const ms_client_page_request *page,
+                                   uint32_t *request_id, ms_error *err);
+
+/* ms_client_fetch_catalogue for one page: the server filters, sorts and cuts
+ * (LIST_PAGE), so a front end shows the first page of a 10,000-model
+ * collection without the whole list; catalogue->total says how many models
+ * match. Errors as ms_client_fetch_catalogue, and MS_ERR_UNSUPPORTED when
+ * the server speaks a protocol version below 4 (ask for the whole catalogue
+ * instead), MS_ERR_ARG for a page outside the protocol's ranges. */
+ms_status ms_client_fetch_catalogue_page(const ms_client_options *options, double timeout_s,
+                                         const ms_client_page_request *page,
+                                         ms_client_catalogue *catalogue, ms_error *err);
 
 /* Throttles what this connection reads to bytes_per_second (a token bucket
  * refilled every 10 ms); 0 removes the limit. MS_ERR_NOMEM. */

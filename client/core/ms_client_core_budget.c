@@ -217,7 +217,7 @@ static void factor_end(ms_core *c)
 static uint64_t cell_memory(const ms_core *c, uint32_t cell)
 {
     const dcell *d = ms_core_dcell(c, cell);
-    uint64_t m = ms_view_held_bytes(c->view, cell) + d->geo.cap + d->apo.cap;
+    uint64_t m = ms_view_held_bytes(c->view, cell) + d->geo.cap + d->apo.cap + d->col.cap;
     ms_view_cell_state state = ms_view_state(c->view, cell);
     if (state == MS_VIEW_SHOWN || (state == MS_VIEW_SPLIT && ms_view_holds_decoder(c->view, cell)))
         m += (uint64_t)ms_core_decoded_estimate(ms_archive_get_cell(c->index, cell),
@@ -242,9 +242,10 @@ static void evict(ms_core *c, const evict_candidate *e)
     ms_view_forget(c->view, cell, NULL);
     ms_core_rx_free(&d->geo);
     ms_core_rx_free(&d->apo);
+    ms_core_rx_free(&d->col);
     free(d->header);
     d->header = NULL;
-    d->given = d->apo_given = 0;
+    d->given = d->apo_given = d->colour_given = 0;
     pthread_mutex_lock(&c->lock);
     c->stats.evictions++;
     pthread_mutex_unlock(&c->lock);

@@ -47,6 +47,7 @@ void ms_core_dcell_clear(dcell *d)
 {
     ms_core_rx_free(&d->geo);
     ms_core_rx_free(&d->apo);
+    ms_core_rx_free(&d->col);
     free(d->header);
     *d = (dcell){0};
 }

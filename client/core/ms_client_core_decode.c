@@ -212,6 +212,34 @@ static void dec_apo_received(ms_core *c, uint32_t cell)
     d->apo_given = d->apo.end;
 }
 
+/* Colour bytes received contiguously from 0 go to the view (each of the
+ * stream's chunks carries its own CRC, which the colour decoder checks); the
+ * whole stream is checked against the index's CRC once complete. True when
+ * the view got new bytes. */
+static bool dec_colour_received(ms_core *c, uint32_t cell)
+{
+    dcell *d = ms_core_dcell(c, cell);
+    if (d->col.end <= d->colour_given)
+        return false;
+    ms_error err;
+    if (d->col.end == ms_archive_colour_length(c->index, cell) &&
+        ms_archive_check_colour(c->index, cell, d->col.buf, d->col.end, &err) != MS_OK) {
+        ms_core_rx_free(&d->col);
+        d->colour_given = 0;
+        if (!d->failed) {
+            d->failed = true;
+            ms_core_warn(c, err.text);
+        }
+        return false;
+    }
+    if (ms_view_set_colour_bytes(c->view, cell, d->col.buf, d->col.end, &err) != MS_OK) {
+        ms_core_warn(c, err.text);
+        return false;
+    }
+    d->colour_given = d->col.end;
+    return true;
+}
+
 typedef struct refine_batch {
     ms_view *view;
     const refine_job *jobs;
@@ -278,7 +306,14 @@ static bool dec_take_chunks(ms_core *c, chunk_msg *chunks)
         c->consumed_seq = m->seq;
         dcell *d = m->stream == STREAM_INDEX ? NULL : ms_core_dcell(c, m->cell);
         bool apo = m->stream == STREAM_APO;
-        if (m->stream == STREAM_INDEX) {
+        if (m->stream == STREAM_COLOUR) {
+            if (d && !m->failed) {
+                if (!ms_core_rx_add(&d->col, m->offset, m->data, m->length))
+                    ms_core_warn(c, "out of memory for received bytes");
+                else
+                    apo_changed |= dec_colour_received(c, m->cell);
+            }
+        } else if (m->stream == STREAM_INDEX) {
             if (c->o.index_filter && !m->failed)
                 c->o.index_filter(m->cell, m->offset, m->data, m->length,
                                   c->o.payload_filter_arg);
@@ -329,6 +364,8 @@ static void dec_pass_begin(ms_core *c, const ms_camera *cam, dec_pass *pass)
      * (PROTOCOL.md sections 4.10 and 8: a client need never trip FORBIDDEN). */
     pthread_mutex_lock(&c->lock);
     c->preview_steps = c->permitted_geometry_steps;
+    /* colour: from a local archive, or a connection that negotiated CAP_COLOUR */
+    pass->colour_on = h->has_colour && c->colour_served;
     pthread_mutex_unlock(&c->lock);
     pass->sp = (ms_view_select_params){.tolerance_px = pass->fv.tolerance,
                                        .margin = c->o.frustum_margin,

@@ -49,7 +49,7 @@
 /* What a range belongs to: a cell's geometry or APO payload, or (with an
  * index that comes by subtree) a subtree's stored bytes, by subtree id
  * (PROTOCOL.md: the same numbers on the wire). */
-enum { STREAM_GEOMETRY = 0, STREAM_APO = 1, STREAM_INDEX = 2, STREAM_COUNT = 3 };
+enum { STREAM_GEOMETRY = 0, STREAM_APO = 1, STREAM_INDEX = 2, STREAM_COLOUR = 3, STREAM_COUNT = 4 };
 
 /* A received payload chunk (or a failed request: length 0, failed true),
  * passed from the network thread to the decode thread. `total`: the stored
@@ -98,6 +98,8 @@ typedef struct rx {
 
 typedef struct dcell {
     rx geo, apo;
+    rx col;                  /* colour stream bytes (local mode; from 0: base stays 0) */
+    uint32_t colour_given;   /* colour bytes handed to the view */
     ms_codec_header *header; /* parsed once the header arrived */
     uint32_t given;          /* geometry bytes handed to the view */
     uint32_t apo_given;      /* APO bytes complete (in apo.buf from 0: base stays 0) */
@@ -219,6 +221,7 @@ struct ms_core {
      * steps this reader may read; 0 until known, and in local mode (the file
      * holds everything) */
     uint8_t permitted_geometry_steps;
+    bool colour_served;      /* the connection negotiated CAP_COLOUR (or a local archive) */
     want *wants;
     size_t want_count;
     uint64_t want_serial;
@@ -298,6 +301,7 @@ typedef struct dec_pass {
     double factor;            /* the budget's factor this pass selects at (fv.tolerance =
                                  base_tol x factor) */
     bool apo_on;
+    bool colour_on;          /* colour streams wanted (a local archive with colour) */
     bool changed;             /* the view (or its APO bytes) changed in this pass */
     want_list wl;             /* what is missing, best first */
     double worst;             /* the largest screen error of a visible shown cell, px */

@@ -43,6 +43,7 @@ static chunk_msg *local_chunk(const ms_archive *a, const want *w)
     size_t length = 0;
     const uint8_t *src = w->stream == STREAM_INDEX ? ms_archive_subtree(a, w->cell, &length)
                          : w->stream == STREAM_APO ? ms_archive_apo(a, w->cell, &length)
+                         : w->stream == STREAM_COLOUR ? ms_archive_colour(a, w->cell, &length)
                                                    : ms_archive_geometry(a, w->cell, &length);
     uint32_t end = w->end;
     if (w->stream == STREAM_INDEX && end > length)
@@ -95,6 +96,7 @@ void *ms_core_local_main(void *arg)
     c->index_new = true;
     c->stats.index_bytes_received = index_size;
     c->connected = c->model_open = true;
+    c->colour_served = true;
     pthread_cond_broadcast(&c->wake);
     for (;;) {
         /* a fresh list, computed after the decode thread took what we handed */
@@ -118,7 +120,7 @@ void *ms_core_local_main(void *arg)
             memcpy(list, c->wants, count * sizeof *list);
         pthread_mutex_unlock(&c->lock);
 
-        uint64_t handed = 0, geometry = 0, apo = 0, ranges = 0;
+        uint64_t handed = 0, geometry = 0, apo = 0, colour = 0, ranges = 0;
         for (size_t i = 0; i < count && handed < c->window; ++i) {
             chunk_msg *m = local_chunk(a, &list[i]);
             if (!m) {
@@ -126,13 +128,15 @@ void *ms_core_local_main(void *arg)
                 break;
             }
             handed += m->length;
-            if (m->stream != STREAM_INDEX)
+            if (m->stream == STREAM_COLOUR)
+                colour += m->length;
+            else if (m->stream != STREAM_INDEX)
                 *(m->stream == STREAM_APO ? &apo : &geometry) += m->length;
             ranges++;
             ms_core_push_chunk(c, m);
         }
         pthread_mutex_lock(&c->lock);
-        c->bytes_received += geometry + apo; /* payload; subtrees: index_bytes_received */
+        c->bytes_received += geometry + apo + colour; /* payload; subtrees: index_bytes_received */
         c->geometry_bytes_received += geometry;
         c->apo_bytes_received += apo;
         c->requests += ranges;

@@ -252,6 +252,7 @@ static void on_model_opened(ms_client *client, uint32_t request_id,
     pthread_mutex_lock(&c->lock);
     c->model_open = true;
     c->connected = true;
+    c->colour_served = (ms_client_limits(client)->capabilities & MS_PROTO_CAP_COLOUR) != 0;
     /* each open says what this connection may read (a SIGHUP may have
      * changed the preview between two opens) */
     c->permitted_geometry_steps =
@@ -292,8 +293,9 @@ static void on_payload(ms_client *client, uint32_t id, const ms_proto_payload *p
         pthread_mutex_lock(&c->lock);
         if (s->stream != STREAM_INDEX) { /* subtrees: stats.index_bytes_received */
             c->bytes_received += p->data_length;
-            *(s->stream == STREAM_APO ? &c->apo_bytes_received
-                                      : &c->geometry_bytes_received) += p->data_length;
+            if (s->stream != STREAM_COLOUR) /* colour: bytes_received only */
+                *(s->stream == STREAM_APO ? &c->apo_bytes_received
+                                          : &c->geometry_bytes_received) += p->data_length;
         }
         if (got > s->got)
             c->bytes_in_flight -= got - s->got;

@@ -198,7 +198,31 @@ static bool schedule_apo(ms_core *c, dec_pass *pass, uint32_t i, bool visible, d
     return true;
 }
 
-/* Shown cell i: its screen error, then its missing geometry and APO bytes. */
+/* The colour stream of shown cell i up to `goal` bits, one want a bit,
+ * following its geometry (docs/CLIENT.md); true when the cell is loading. */
+static bool schedule_colour(ms_core *c, dec_pass *pass, uint32_t i, unsigned goal, bool visible,
+                            double need)
+{
+    const ms_archive_cell *rec = ms_archive_get_cell(c->index, i);
+    const dcell *d = ms_core_dcell(c, i);
+    if (!pass->colour_on || rec->vertex_count == 0 || d->failed ||
+        d->col.end >= ms_archive_colour_prefix(c->index, i, goal))
+        return false;
+    pass->complete = false;
+    for (unsigned s = rec->bits_min; s <= goal; ++s) {
+        uint32_t a = s == rec->bits_min ? 0 : ms_archive_colour_prefix(c->index, i, s - 1);
+        uint32_t b = ms_archive_colour_prefix(c->index, i, s);
+        if (a < d->col.end)
+            a = d->col.end;
+        if (a >= b)
+            continue;
+        double p = (visible ? 132.0 : 196.0) - 8.0 * (need - s);
+        ms_core_want_push(&pass->wl, (want){i, a, b, STREAM_COLOUR, ms_core_clamp_priority(p), 0});
+    }
+    return true;
+}
+
+/* Shown cell i: its screen error, then its missing geometry, colour and APO bytes. */
 static void schedule_shown(ms_core *c, dec_pass *pass, uint32_t i)
 {
     const ms_archive_cell *rec = ms_archive_get_cell(c->index, i);
@@ -222,6 +246,7 @@ static void schedule_shown(ms_core *c, dec_pass *pass, uint32_t i)
     if (d->pending)
         ms_core_hand_over(c, i);
     bool loading = schedule_geometry(c, pass, i, goal, avail, visible, need);
+    loading |= schedule_colour(c, pass, i, goal, visible, need);
     loading |= schedule_apo(c, pass, i, visible, need, bits);
     pass->loading += loading;
 }
@@ -240,6 +265,11 @@ void ms_core_schedule(ms_core *c, dec_pass *pass)
         pass->failed += ms_core_dcell(c, i)->failed;
         if (st == MS_VIEW_SPLIT) {
             pass->split++;
+            /* its children take their base colours from its whole stream */
+            const ms_archive_cell *rec = ms_archive_get_cell(c->index, i);
+            bool visible;
+            double need = ms_core_cell_need(c, &pass->fv, i, &visible);
+            pass->loading += schedule_colour(c, pass, i, rec->bits_max, visible, need);
         } else if (st == MS_VIEW_HIDDEN) {
             pass->cached += ms_view_held_bytes(c->view, i) > 0;
             schedule_prefetch(c, pass, i);

@@ -682,7 +682,8 @@ static int interactive(viewer *v)
     glfwSetMouseButtonCallback(v->window, on_mouse_button);
     glfwSetCursorPosCallback(v->window, on_cursor);
     glfwSetScrollCallback(v->window, on_scroll);
-    v->catalogue = (ms_viewer_catalogue){.list = &v->list, .where = v->where};
+    v->catalogue = (ms_viewer_catalogue){.list = &v->list, .where = v->where,
+                                         .archive_dir = o->archive_dir};
     v->on_catalogue = true;
     if (o->model) {
         for (size_t i = 0; v->have_list && i < v->list.count; ++i)
@@ -721,6 +722,7 @@ done:
     close_model(v);
     ms_viewer_text_free(v->text);
     ms_gl_window_free(v->window);
+    ms_viewer_catalogue_free(&v->catalogue);
     ms_viewer_model_list_free(&v->list);
     return rc;
 }

@@ -2,9 +2,16 @@
 
 #include <GLFW/glfw3.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
+#include "ms_png.h"
 #include "ms_viewer_font.h"
+
+/* The panel: a thumbnail is MS_THUMB_W x MS_THUMB_H (meshbake's) */
+#define PANEL_THUMB_W 160.0
+#define PANEL_THUMB_H 120.0
+#define LIST_COLUMNS 49 /* the row text's width in characters */
 
 /* Layout, in font pixels times scale: a margin, the title, the column heads,
  * then rows 1.5 lines tall. */
@@ -67,11 +74,141 @@ void ms_viewer_catalogue_row_text(const ms_viewer_model_entry *e, char *out, siz
     char tris[32] = "?";
     if (e->triangles)
         grouped(e->triangles, tris, sizeof tris);
-    snprintf(out, size, "%-24.24s %13s %9.1f MB%s", e->name, tris, (double)e->bytes / 1e6,
+    snprintf(out, size, "%-20.20s %11s %8.1f MB%s", e->name, tris, (double)e->bytes / 1e6,
              e->apo ? "  APO" : "");
 }
 
-void ms_viewer_catalogue_draw(ms_viewer_text *text, const ms_viewer_catalogue *cat, int width,
+void ms_viewer_catalogue_free(ms_viewer_catalogue *cat)
+{
+    free(cat->thumbnail);
+    cat->thumbnail = NULL;
+    cat->thumbnail_of = 0;
+}
+
+int ms_viewer_catalogue_wrap(const char *text, int columns, int max_lines, char *out,
+                             size_t size)
+{
+    if (columns < 4 || max_lines < 1 || size < 2) {
+        if (size)
+            out[0] = 0;
+        return 0;
+    }
+    /* ASCII first: each UTF-8 sequence one '?' */
+    size_t n = strlen(text), o = 0;
+    char *flat = malloc(n + 1);
+    if (!flat) {
+        out[0] = 0;
+        return 0;
+    }
+    for (size_t i = 0; i < n; ++i) {
+        unsigned char c = (unsigned char)text[i];
+        if (c >= 0x80 && (c & 0xC0) == 0x80)
+            continue; /* a continuation byte */
+        flat[o++] = c == '\n' ? '\n' : c < 0x20 || c >= 0x7F ? '?' : (char)c;
+    }
+    flat[o] = 0;
+    int lines = 0;
+    size_t at = 0, w = 0;
+    while (flat[at] && lines < max_lines) {
+        size_t len = strcspn(flat + at, "\n"), take = len;
+        if (take > (size_t)columns) { /* break at the last space that fits */
+            take = (size_t)columns;
+            while (take > 0 && flat[at + take] != ' ')
+                --take;
+            if (take == 0)
+                take = (size_t)columns;
+        }
+        bool last = lines + 1 == max_lines;
+        bool more = flat[at + take] && !(flat[at + take] == '\n' && !flat[at + take + 1]);
+        if (last && more) { /* cut, with an ellipsis */
+            if (take + 3 > (size_t)columns)
+                take = (size_t)columns - 3;
+        }
+        if (w + take + 5 >= size)
+            break;
+        if (lines)
+            out[w++] = '\n';
+        memcpy(out + w, flat + at, take);
+        w += take;
+        if (last && more) {
+            memcpy(out + w, "...", 3);
+            w += 3;
+        }
+        ++lines;
+        at += take;
+        while (flat[at] == ' ')
+            ++at;
+        if (flat[at] == '\n')
+            ++at;
+    }
+    out[w] = 0;
+    free(flat);
+    return lines;
+}
+
+/* The selected model's picture, read once per selection. */
+static void load_thumbnail(ms_viewer_catalogue *cat)
+{
+    if (cat->thumbnail_of == cat->selected + 1)
+        return;
+    ms_viewer_catalogue_free(cat);
+    cat->thumbnail_of = cat->selected + 1;
+    const ms_viewer_model_entry *e = &cat->list->entries[cat->selected];
+    if (!cat->archive_dir || !e->has_thumbnail)
+        return;
+    char path[4200];
+    snprintf(path, sizeof path, "%s/%s.thumb.png", cat->archive_dir, e->name);
+    ms_error err;
+    if (ms_png_read_rgb(path, 1024, 1024, &cat->thumbnail, &cat->thumbnail_width,
+                        &cat->thumbnail_height, &err) != MS_OK)
+        cat->thumbnail = NULL; /* shown as "no picture" */
+}
+
+/* The selected model's panel at x (width w): picture, then metadata. */
+static void draw_panel(ms_viewer_text *text, ms_viewer_catalogue *cat, double x, double y,
+                       double w, int height)
+{
+    int s = ms_viewer_text_scale(text);
+    static const float ink[4] = {0.92f, 0.92f, 0.88f, 1}, dim[4] = {0.6f, 0.6f, 0.6f, 1},
+                       frame[4] = {0.12f, 0.12f, 0.14f, 1};
+    load_thumbnail(cat);
+    double scale = w / PANEL_THUMB_W < s ? w / PANEL_THUMB_W : s;
+    double tw = PANEL_THUMB_W * scale, th = PANEL_THUMB_H * scale;
+    ms_viewer_text_rect(text, x, y, tw, th, frame);
+    if (cat->thumbnail)
+        ms_viewer_text_image(text, x, y, tw, th, cat->thumbnail, (int)cat->thumbnail_width,
+                             (int)cat->thumbnail_height, cat->thumbnail_of);
+    else
+        ms_viewer_text_print(text, x + 8 * s, y + th / 2 - 4 * s, dim, "no picture");
+    y += th + MS_FONT_LINE_HEIGHT * s;
+    const ms_viewer_model_entry *e = &cat->list->entries[cat->selected];
+    const ms_metadata *m = e->metadata;
+    int columns = (int)(w / (MS_FONT_ADVANCE_X * s));
+    double bottom = height - 3 * MS_FONT_LINE_HEIGHT * s;
+    const char *labels[MS_METADATA_FIELDS] = {"", "by ", "", "licence: ", ""};
+    char wrapped[2048], field[MS_METADATA_DESCRIPTION_MAX + 16];
+    for (int k = 0; k < MS_METADATA_FIELDS && y < bottom; ++k) {
+        const char *v = k == 0 && !ms_metadata_field(m, 0) ? e->name : ms_metadata_field(m, k);
+        if (!v)
+            continue;
+        snprintf(field, sizeof field, "%s%s", labels[k], v);
+        int room = (int)((bottom - y) / (MS_FONT_LINE_HEIGHT * s));
+        int lines = ms_viewer_catalogue_wrap(field, columns, k == 4 ? room : k == 0 ? 2 : 1,
+                                             wrapped, sizeof wrapped);
+        char *line = wrapped;
+        for (int l = 0; l < lines; ++l) {
+            char *next = strchr(line, '\n');
+            if (next)
+                *next = 0;
+            ms_viewer_text_print(text, x, y, k == 0 ? ink : dim, line);
+            y += MS_FONT_LINE_HEIGHT * s;
+            line = next ? next + 1 : line + strlen(line);
+        }
+        y += (k == 0 || k == 3) ? MS_FONT_LINE_HEIGHT * s / 2 : 0;
+    }
+}
+
+void ms_viewer_catalogue_draw(ms_viewer_text *text, ms_viewer_catalogue *cat, int width,
                               int height)
 {
     int s = ms_viewer_text_scale(text);
@@ -82,18 +219,25 @@ void ms_viewer_catalogue_draw(ms_viewer_text *text, const ms_viewer_catalogue *c
     snprintf(line, sizeof line, "meshstream models - %s", cat->where ? cat->where : "");
     ms_viewer_text_print(text, x, y, title, line);
     y += 2 * MS_FONT_LINE_HEIGHT * s;
-    snprintf(line, sizeof line, "%-24s %13s %12s", "name", "triangles", "size");
+    snprintf(line, sizeof line, "%-20s %11s %11s", "name", "triangles", "size");
     ms_viewer_text_print(text, x, y, dim, line);
     if (!cat->list->count) {
         ms_viewer_text_print(text, x, FIRST_ROW_Y * s, ink, "(no models)");
         return;
     }
     size_t shown = rows_visible(height, s);
+    /* the panel, where it fits beside the rows */
+    double list_w = (LIST_COLUMNS + 1) * MS_FONT_ADVANCE_X * s, panel_x = x + list_w + 2 * MARGIN * s;
+    double panel_w = width - panel_x - MARGIN * s;
+    bool panel = panel_w >= PANEL_THUMB_W && cat->selected < cat->list->count;
+    double band_w = panel ? list_w + 8 * s : width - 2 * x + 8 * s;
+    if (panel)
+        draw_panel(text, cat, panel_x, FIRST_ROW_Y * s, panel_w, height);
     for (size_t r = 0; r < shown && cat->first + r < cat->list->count; ++r) {
         size_t i = cat->first + r;
         double row_y = (FIRST_ROW_Y + r * ROW) * s;
         if (i == cat->selected)
-            ms_viewer_text_rect(text, x - 4 * s, row_y - 3 * s, width - 2 * x + 8 * s,
+            ms_viewer_text_rect(text, x - 4 * s, row_y - 3 * s, band_w,
                                 (MS_FONT_GLYPH_H + 6) * s, band);
         ms_viewer_catalogue_row_text(&cat->list->entries[i], line, sizeof line);
         ms_viewer_text_print(text, x, row_y, ink, line);

@@ -1,6 +1,11 @@
 /* meshview's catalogue screen: the models of a server or archive directory as
  * a list (name, triangles, size) to pick from with the arrow keys and Enter, or
- * with the mouse (a click selects, a double click or Enter opens). Layout in
+ * with the mouse (a click selects, a double click or Enter opens). Beside the
+ * list, where the window is wide enough, the selected model's panel: its
+ * thumbnail (DIR/NAME.thumb.png, from a local archive directory that has
+ * one) and its metadata (title, creator, date, licence, description, from a
+ * local catalog.json), drawn as glyphs of the bitmap font (a character
+ * outside ASCII shows as one '?'; text is never interpreted). Layout in
  * framebuffer pixels through the overlay pass (ms_viewer_text.h), so a click
  * maps to a row with the same arithmetic the drawing used.
  * Thread-safety: none shared.
@@ -9,6 +14,7 @@
 #define MS_VIEWER_CATALOGUE_H
 
 #include <stddef.h>
+#include <stdint.h>
 
 #include "ms_viewer_model.h"
 #include "ms_viewer_text.h"
@@ -16,9 +22,17 @@
 typedef struct ms_viewer_catalogue {
     const ms_viewer_model_list *list; /* not owned */
     const char *where;                /* "server 127.0.0.1:7000" or the directory */
+    const char *archive_dir;          /* NULL: a server (no thumbnails) */
     size_t selected;
     size_t first;                     /* first row shown (scrolling) */
+    /* the selected model's thumbnail, read when the selection changes */
+    uint8_t *thumbnail;               /* RGB, owned; NULL: none */
+    uint32_t thumbnail_width, thumbnail_height;
+    size_t thumbnail_of;              /* entry index + 1 it was read for; 0: none */
 } ms_viewer_catalogue;
+
+/* Frees the thumbnail cache (the rest is borrowed). */
+void ms_viewer_catalogue_free(ms_viewer_catalogue *cat);
 
 /* Moves the selection by delta rows (clamped) and scrolls to keep it shown. */
 void ms_viewer_catalogue_move(ms_viewer_catalogue *cat, long delta, int height, int scale);
@@ -36,7 +50,15 @@ long ms_viewer_catalogue_row_at(const ms_viewer_catalogue *cat, double x, double
 /* One row's text: name, triangles and size in columns. */
 void ms_viewer_catalogue_row_text(const ms_viewer_model_entry *e, char *out, size_t size);
 
-void ms_viewer_catalogue_draw(ms_viewer_text *text, const ms_viewer_catalogue *cat, int width,
+/* Up to max_lines lines of at most columns characters of text (UTF-8; a
+ * non-ASCII character becomes one '?', a line feed breaks), words wrapped,
+ * the last line cut with "..." when more is left; into out (lines separated by
+ * '\n'). Returns the number of lines. */
+int ms_viewer_catalogue_wrap(const char *text, int columns, int max_lines, char *out,
+                             size_t size);
+
+/* Draws the screen (reads the selected model's thumbnail when it changed). */
+void ms_viewer_catalogue_draw(ms_viewer_text *text, ms_viewer_catalogue *cat, int width,
                               int height);
 
 #endif

@@ -36,6 +36,9 @@ static ms_status list_local(const char *dir, ms_viewer_model_list *list, ms_erro
         d->apo = e->apo;
         d->has_crease_angle = e->has_crease_angle;
         d->crease_angle_deg = e->crease_angle_deg;
+        d->has_thumbnail = e->has_thumbnail;
+        d->metadata = e->metadata; /* moved: the catalogue's copy is dropped below */
+        catalog.entries[i].metadata = NULL;
     }
     list->count = catalog.count;
     ms_catalog_free(&catalog);
@@ -90,6 +93,8 @@ void ms_viewer_model_list_free(ms_viewer_model_list *list)
 {
     if (!list)
         return;
+    for (size_t i = 0; i < list->count; ++i)
+        ms_metadata_free(list->entries[i].metadata);
     free(list->entries);
     list->entries = NULL;
     list->count = 0;

@@ -45,6 +45,11 @@ typedef struct ms_viewer_model_entry {
     bool has_crease_angle;   /* the catalogue sets the model's crease angle (local
                                 catalog.json only: the binary door does not carry it) */
     double crease_angle_deg;
+    /* local catalog.json only (the binary door's listing carries neither): the
+     * sidecar metadata (owned; NULL: none) and whether DIR/NAME.thumb.png was
+     * made (ms_catalog_entry.has_thumbnail) */
+    ms_metadata *metadata;
+    bool has_thumbnail;
 } ms_viewer_model_entry;
 
 typedef struct ms_viewer_model_list {

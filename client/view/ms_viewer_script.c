@@ -132,19 +132,26 @@ static ms_status catalogue_shot(const ms_viewer_options *o, const ms_viewer_sour
     glViewport(0, 0, o->width, o->height);
     glClearColor(0.08f, 0.08f, 0.09f, 1);
     glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
-    ms_viewer_catalogue cat = {.list = &list, .where = where};
+    ms_viewer_catalogue cat = {.list = &list, .where = where, .archive_dir = source->archive_dir};
     ms_viewer_text_begin(text, o->width, o->height, ms_viewer_text_auto_scale(o->height, 1, true));
     ms_viewer_catalogue_draw(text, &cat, o->width, o->height);
+    bool pictured = cat.thumbnail != NULL; /* the selected (first) model's */
+    ms_viewer_catalogue_free(&cat);
     if ((st = ms_viewer_text_draw(text, err)) != MS_OK ||
         (st = ms_viewer_screenshot(png, o->width, o->height, err)) != MS_OK)
         goto done;
     json_t *models = json_array();
     for (size_t i = 0; i < list.count; ++i)
-        json_array_append_new(models, json_pack("{s:s, s:I, s:I, s:b}", "name", list.entries[i].name,
-                                                "triangles", (json_int_t)list.entries[i].triangles,
-                                                "bytes", (json_int_t)list.entries[i].bytes, "apo",
-                                                list.entries[i].apo));
-    *report = json_pack("{s:s, s:o}", "png", png, "models", models);
+        json_array_append_new(models, json_pack("{s:s, s:I, s:I, s:b, s:b, s:o}", "name",
+                                                list.entries[i].name, "triangles",
+                                                (json_int_t)list.entries[i].triangles, "bytes",
+                                                (json_int_t)list.entries[i].bytes, "apo",
+                                                list.entries[i].apo, "thumbnail",
+                                                list.entries[i].has_thumbnail, "title",
+                                                ms_json_text(ms_metadata_field(
+                                                    list.entries[i].metadata, 0))));
+    *report = json_pack("{s:s, s:o, s:b}", "png", png, "models", models, "picture_shown",
+                        pictured);
 done:
     ms_viewer_target_free(&target);
     ms_viewer_text_free(text);

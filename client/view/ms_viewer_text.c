@@ -16,7 +16,12 @@
 
 struct ms_viewer_text {
     GLuint program, vao, vbo, atlas;
-    GLint viewport_uniform;
+    GLint viewport_uniform, mode_uniform;
+    /* the batch's picture (ms_viewer_text_image): an RGB8 texture */
+    GLuint image;
+    uint64_t image_key, image_bytes;
+    bool image_shown;
+    float image_rect[4];
     uint64_t atlas_bytes, vbo_bytes; /* GL storage (ms_viewer_text_gl_bytes) */
     float *vertices;
     size_t count, cap; /* vertices */
@@ -44,8 +49,13 @@ static const char *fragment_source =
     "in vec2 v_texel;\n"
     "in vec4 v_colour;\n"
     "uniform sampler2D atlas;\n"
+    "uniform int mode;\n"
     "out vec4 fragment;\n"
     "void main() {\n"
+    "    if (mode == 1) {\n"
+    "        fragment = vec4(texture(atlas, v_texel).rgb, 1.0);\n"
+    "        return;\n"
+    "    }\n"
     "    if (v_texel.x >= 0.0 && texelFetch(atlas, ivec2(floor(v_texel)), 0).r < 0.5)\n"
     "        discard;\n"
     "    fragment = v_colour;\n"
@@ -94,6 +104,7 @@ static ms_status build_program(ms_viewer_text *t, ms_error *err)
         return ms_error_set(err, MS_ERR_UNSUPPORTED, "overlay program: %s", log);
     }
     t->viewport_uniform = glGetUniformLocation(t->program, "viewport");
+    t->mode_uniform = glGetUniformLocation(t->program, "mode");
     return MS_OK;
 }
 
@@ -165,6 +176,8 @@ void ms_viewer_text_free(ms_viewer_text *t)
         glDeleteVertexArrays(1, &t->vao);
     if (t->atlas)
         glDeleteTextures(1, &t->atlas);
+    if (t->image)
+        glDeleteTextures(1, &t->image);
     free(t->vertices);
     free(t);
 }
@@ -172,6 +185,7 @@ void ms_viewer_text_free(ms_viewer_text *t)
 void ms_viewer_text_begin(ms_viewer_text *t, int width, int height, int scale)
 {
     t->count = 0;
+    t->image_shown = false;
     t->width = width > 0 ? width : 1;
     t->height = height > 0 ? height : 1;
     t->scale = scale > 0 ? scale : 1;
@@ -181,7 +195,34 @@ int ms_viewer_text_scale(const ms_viewer_text *t) { return t->scale; }
 
 uint64_t ms_viewer_text_gl_bytes(const ms_viewer_text *t)
 {
-    return t ? t->atlas_bytes + t->vbo_bytes : 0;
+    return t ? t->atlas_bytes + t->vbo_bytes + t->image_bytes : 0;
+}
+
+void ms_viewer_text_image(ms_viewer_text *t, double x, double y, double w, double h,
+                          const uint8_t *rgb, int width, int height, uint64_t key)
+{
+    if (!rgb || width < 1 || height < 1 || width > 4096 || height > 4096 || !(w > 0) ||
+        !(h > 0))
+        return;
+    if (!t->image || key != t->image_key) {
+        if (!t->image)
+            glGenTextures(1, &t->image);
+        glBindTexture(GL_TEXTURE_2D, t->image);
+        glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+        glTexImage2D(GL_TEXTURE_2D, 0, GL_RGB8, width, height, 0, GL_RGB, GL_UNSIGNED_BYTE, rgb);
+        glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAX_LEVEL, 0);
+        glBindTexture(GL_TEXTURE_2D, 0);
+        t->image_key = key;
+        t->image_bytes = 3ull * (uint64_t)width * (uint64_t)height;
+    }
+    t->image_shown = true;
+    t->image_rect[0] = (float)x, t->image_rect[1] = (float)y;
+    t->image_rect[2] = (float)(x + w), t->image_rect[3] = (float)(y + h);
 }
 
 int ms_viewer_text_auto_scale(int height, double pixel_ratio, bool large)
@@ -245,7 +286,7 @@ ms_status ms_viewer_text_draw(ms_viewer_text *t, ms_error *err)
         t->count = 0;
         return ms_error_set(err, MS_ERR_NOMEM, "overlay: out of memory");
     }
-    if (!t->count)
+    if (!t->count && !t->image_shown)
         return MS_OK;
     GLboolean depth = glIsEnabled(GL_DEPTH_TEST), blend = glIsEnabled(GL_BLEND),
               cull = glIsEnabled(GL_CULL_FACE);
@@ -259,12 +300,24 @@ ms_status ms_viewer_text_draw(ms_viewer_text *t, ms_error *err)
     glActiveTexture(GL_TEXTURE0);
     glBindTexture(GL_TEXTURE_2D, t->atlas);
     glUniform1i(glGetUniformLocation(t->program, "atlas"), 0);
+    glUniform1i(t->mode_uniform, 0);
     glBindVertexArray(t->vao);
     glBindBuffer(GL_ARRAY_BUFFER, t->vbo);
+    size_t glyphs = t->count;
+    if (t->image_shown) { /* the picture's quad after the batch, texels 0..1 */
+        static const float white[4] = {1, 1, 1, 1};
+        const float *r = t->image_rect;
+        quad(t, r[0], r[1], r[2], r[3], 0, 0, 1, 1, white);
+    }
     glBufferData(GL_ARRAY_BUFFER, (GLsizeiptr)(t->count * FLOATS_PER_VERTEX * sizeof(float)),
                  t->vertices, GL_STREAM_DRAW);
     t->vbo_bytes = t->count * FLOATS_PER_VERTEX * sizeof(float);
-    glDrawArrays(GL_TRIANGLES, 0, (GLsizei)t->count);
+    glDrawArrays(GL_TRIANGLES, 0, (GLsizei)glyphs);
+    if (t->count > glyphs) {
+        glBindTexture(GL_TEXTURE_2D, t->image);
+        glUniform1i(t->mode_uniform, 1);
+        glDrawArrays(GL_TRIANGLES, (GLint)glyphs, (GLsizei)(t->count - glyphs));
+    }
     glBindVertexArray(0);
     glBindBuffer(GL_ARRAY_BUFFER, 0);
     glBindTexture(GL_TEXTURE_2D, 0);
@@ -276,5 +329,6 @@ ms_status ms_viewer_text_draw(ms_viewer_text *t, ms_error *err)
     if (cull)
         glEnable(GL_CULL_FACE);
     t->count = 0;
+    t->image_shown = false;
     return MS_OK;
 }

@@ -42,8 +42,15 @@ void ms_viewer_text_rect(ms_viewer_text *text, double x, double y, double w, dou
 double ms_viewer_text_print(ms_viewer_text *text, double x, double y, const float rgba[4],
                             const char *line);
 
+/* An RGB picture (rgb: height rows of 3 * width bytes, top row first, 8-bit
+ * sRGB) stretched over the rectangle (x, y, w, h), drawn after the batch's
+ * rectangles and text (one picture a batch: a later call replaces it). key
+ * names the picture: its texture is uploaded again only when key changes. */
+void ms_viewer_text_image(ms_viewer_text *text, double x, double y, double w, double h,
+                          const uint8_t *rgb, int width, int height, uint64_t key);
+
 /* Bytes of GL storage the overlay holds: its font atlas (1 byte a texel) and
- * its vertex buffer as sized by the latest draw. 0 for NULL. No GL needed. */
+ * its vertex buffer as sized by the latest draw, and its picture's texture. 0 for NULL. No GL needed. */
 uint64_t ms_viewer_text_gl_bytes(const ms_viewer_text *text);
 
 /* Draws the batch over the bound framebuffer (no depth test, blending on; the

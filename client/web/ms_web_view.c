@@ -104,19 +104,11 @@ ms_status ms_web_view_camera(ms_web_view *v, const double position[3], const dou
         return fail(v, MS_ERR_ARG, "the screen tolerance must be a positive number of pixels");
     if (!(far_distance > 0)) {
         /* as meshrender: just past the farthest corner of the box */
-        double box[4], farthest2 = 0;
+        double box[4], unused;
         ms_web_view_box(v, box);
-        for (int corner = 0; corner < 8; ++corner) {
-            double d2 = 0;
-            for (int a = 0; a < 3; ++a) {
-                double c = box[a] + ((corner >> a) & 1 ? box[3] : 0), d = c - position[a];
-                d2 += d * d;
-            }
-            farthest2 = fmax(farthest2, d2);
-        }
-        far_distance = 1.01 * sqrt(farthest2);
-        if (!(far_distance > 0))
-            far_distance = 1;
+        double lo[3] = {box[0], box[1], box[2]};
+        double hi[3] = {box[0] + box[3], box[1] + box[3], box[2] + box[3]};
+        ms_camera_depth_range(position, lo, hi, &unused, &far_distance);
     }
     if (!(near_distance > 0))
         near_distance = far_distance * 1e-5;

@@ -69,7 +69,7 @@ static void encode_common(const ms_archive_header *h, uint32_t version, uint64_t
     out[48] = h->bits;
     out[49] = h->n;
     out[50] = h->root_bits;
-    out[51] = h->has_apo ? 1 : 0;
+    out[51] = (uint8_t)((h->has_apo ? 1 : 0) | (h->has_colour ? 2 : 0));
     ms_put_u32(out + 52, h->cell_count);
     ms_put_u64(out + 56, h->vertex_count);
     ms_put_u64(out + 64, h->triangle_count);
@@ -80,6 +80,8 @@ static void encode_common(const ms_archive_header *h, uint32_t version, uint64_t
     ms_put_u64(out + 96, file_size);
     out[104] = h->apo_lead;
     out[105] = h->apo_max_depth;
+    out[106] = h->has_colour ? h->colour_bits : 0;
+    out[107] = h->has_colour && h->colour_alpha ? 1 : 0;
     ms_put_u32(out + 108, index_crc);
 }
 
@@ -201,8 +203,8 @@ ms_status ms_archive_parse_header(const char *path, const uint8_t *p, size_t siz
      * and S (121). */
     const uint8_t *reserved_tail = p + (subtrees ? 122 : 112);
     size_t reserved_tail_size = subtrees ? 2 : 12;
-    if (ms_get_u32(p + 12) != MS_ARCHIVE_HEADER_SIZE || !all_zero(p + 106, 2) ||
-        !all_zero(reserved_tail, reserved_tail_size) || (p[51] & ~1u))
+    if (ms_get_u32(p + 12) != MS_ARCHIVE_HEADER_SIZE ||
+        !all_zero(reserved_tail, reserved_tail_size) || (p[51] & ~3u))
         return ms_error_set(err, MS_ERR_FORMAT, "%s: bad header size or reserved bytes", path);
     if (subtrees && p[120] != MS_ARCHIVE_INDEX_SUBTREES)
         return ms_error_set(err, MS_ERR_FORMAT,
@@ -227,6 +229,9 @@ ms_status ms_archive_parse_header(const char *path, const uint8_t *p, size_t siz
     h->file_size = ms_get_u64(p + 96);
     h->apo_lead = p[104];
     h->apo_max_depth = p[105];
+    ms_status colour = ms_archive_check_colour_header(path, p, h, err);
+    if (colour != MS_OK)
+        return colour;
     sec->index_crc = ms_get_u32(p + 108);
     sec->stored_size = subtrees ? ms_get_u32(p + 112) : sec->index_size;
     if (subtrees) {
@@ -353,7 +358,7 @@ ms_status ms_archive_check_record(const char *path, const ms_archive_header *h,
         return CELL_FAIL("%s: cell %u: bad APO chunk description", path, id);
     /* Tables: inside the table words, monotone, ending at the lengths. */
     uint64_t geometry_words = (uint64_t)c->bits_max - c->bits_min + 1;
-    uint64_t words = geometry_words + 2ull * c->apo_levels;
+    uint64_t words = ms_archive_cell_table_words(h, c);
     /* Tables are laid out in cell order with no gaps, so no two cells share one. */
     if (c->table_first != *next_table)
         return CELL_FAIL("%s: cell %u: tables out of order", path, id);
@@ -381,7 +386,7 @@ ms_status ms_archive_check_record(const char *path, const ms_archive_header *h,
     if (c->apo_levels && (prev_bytes != c->apo_length || prev_texels != c->apo_raw_length / 4))
         return CELL_FAIL("%s: cell %u: APO level table does not end at the chunk size", path, id);
 #undef CELL_FAIL
-    return MS_OK;
+    return ms_archive_check_colour_tables(path, h, payload_size, id, c, tables, err);
 }
 
 /* Every non-root cell must be claimed by exactly one parent, and the tables must
@@ -400,7 +405,7 @@ static ms_status check_tree_cover(const char *path, const ms_archive *a, ms_erro
                                         path, id, c->first_child + k);
             claimed += children;
         }
-        table_used += (uint64_t)c->bits_max - c->bits_min + 1 + 2ull * c->apo_levels;
+        table_used += ms_archive_cell_table_words(h, c);
     }
     if (claimed != (uint64_t)h->cell_count - 1)
         return ms_error_set(err, MS_ERR_FORMAT, "%s: the cell tree does not cover the index", path);
@@ -665,7 +670,9 @@ ms_status ms_archive_verify_payload(const ms_archive *a, uint32_t cell, ms_error
         return ms_error_set(err, MS_ERR_CORRUPT, "cell %u: geometry payload checksum mismatch", cell);
     if (crc32_z(0L, a->payload + c->apo_offset, c->apo_length) != c->apo_crc)
         return ms_error_set(err, MS_ERR_CORRUPT, "cell %u: APO chunk checksum mismatch", cell);
-    return MS_OK;
+    size_t colour_length;
+    const uint8_t *colour = ms_archive_colour(a, cell, &colour_length);
+    return ms_archive_check_colour(a, cell, colour, colour_length, err);
 }
 
 ms_status ms_archive_check_payload(const ms_archive *a, uint32_t cell, bool apo,

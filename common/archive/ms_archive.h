@@ -46,6 +46,12 @@ typedef struct ms_archive_header {
     bool has_apo;
     uint8_t apo_lead;
     uint8_t apo_max_depth;
+    /* Per-vertex colour (docs/ARCHIVE.md, "Colour streams"): flags bit 1; every
+     * cell's tables then end with its colour prefix table and colour CRC, and
+     * its colour stream (docs/COLOUR.md) follows its geometry payload. */
+    bool has_colour;
+    uint8_t colour_bits;   /* 1..8 bits per channel with colour, else 0 */
+    bool colour_alpha;     /* the colour streams code alpha */
     uint32_t cell_count;
     uint32_t table_words;
     uint32_t min_triangles; /* N_min used by the baker */
@@ -127,7 +133,23 @@ uint32_t ms_archive_geometry_prefix(const ms_archive *archive, uint32_t cell, un
 uint32_t ms_archive_apo_prefix(const ms_archive *archive, uint32_t cell, unsigned level,
                                uint32_t *texels);
 
-/* Checks both payload CRCs of a cell: MS_ERR_CORRUPT naming the cell on mismatch;
+/* ---- colour streams (ms_archive_colour.c; docs/ARCHIVE.md, "Colour
+ * streams"). On an archive without colour: length 0, prefix 0, NULL. */
+
+/* The cell's colour stream: it follows the geometry payload; its length is the
+ * last entry of its colour prefix table. NULL on an index-only archive. */
+const uint8_t *ms_archive_colour(const ms_archive *archive, uint32_t cell, size_t *length);
+uint32_t ms_archive_colour_length(const ms_archive *archive, uint32_t cell);
+/* Byte length of the colour prefix that decodes the cell's colour to `bits`
+ * (clamped to the cell's window; at bits_min: the stream header and its base
+ * chunk). */
+uint32_t ms_archive_colour_prefix(const ms_archive *archive, uint32_t cell, unsigned bits);
+/* Checks a whole colour stream received from elsewhere (length and CRC32):
+ * MS_ERR_CORRUPT on mismatch, MS_ERR_RANGE for a cell not held. */
+ms_status ms_archive_check_colour(const ms_archive *archive, uint32_t cell, const uint8_t *data,
+                                  size_t length, ms_error *err);
+
+/* Checks both payload CRCs of a cell (and its colour stream's): MS_ERR_CORRUPT naming the cell on mismatch;
  * MS_ERR_ARG on an index-only archive. */
 ms_status ms_archive_verify_payload(const ms_archive *archive, uint32_t cell, ms_error *err);
 

@@ -118,11 +118,31 @@ ms_status ms_archive_check_record(const char *where, const ms_archive_header *h,
 bool ms_archive_cell_tables(const ms_archive *a, uint32_t cell, const ms_archive_cell **c,
                             const uint8_t **tables);
 
-/* Words of a cell's tables: its geometry prefix table and its APO level table. */
-static inline uint64_t ms_archive_cell_table_words(const ms_archive_cell *c)
+/* Words of a cell's tables: its geometry prefix table, its APO level table and,
+ * with colour, its colour prefix table and colour CRC. */
+static inline uint64_t ms_archive_cell_table_words(const ms_archive_header *h,
+                                                   const ms_archive_cell *c)
 {
-    return (uint64_t)c->bits_max - c->bits_min + 1 + 2ull * c->apo_levels;
+    uint64_t window = (uint64_t)c->bits_max - c->bits_min + 1;
+    return window + 2ull * c->apo_levels + (h->has_colour ? window + 1 : 0);
 }
+
+/* The first of a cell's colour table words (its prefix table; the CRC follows). */
+static inline uint64_t ms_archive_colour_table_first(const ms_archive_cell *c)
+{
+    return (uint64_t)c->table_first + (c->bits_max - c->bits_min + 1u) + 2ull * c->apo_levels;
+}
+
+/* ms_archive_colour.c: the colour fields of a header (flags bit 1, bytes 106
+ * and 107) checked together; and a record's colour tables checked (prefix
+ * table monotone, the stream inside the payload area right after the
+ * geometry). One line starting with `where`, MS_ERR_FORMAT. */
+ms_status ms_archive_check_colour_header(const char *where, const uint8_t *p,
+                                         ms_archive_header *h, ms_error *err);
+ms_status ms_archive_check_colour_tables(const char *where, const ms_archive_header *h,
+                                         uint64_t payload_size, uint32_t id,
+                                         const ms_archive_cell *c, const uint8_t *tables,
+                                         ms_error *err);
 
 /* ms_subtree.c: sets up the subtree ids of an archive validated as a whole
  * (levels: the file's S, or the default for an index blob), and frees them. */

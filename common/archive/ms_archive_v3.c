@@ -128,7 +128,7 @@ ms_status ms_archive_v3_assemble(const char *path, ms_archive *a, const ms_archi
     uint64_t next = 0;
     for (uint32_t c = 0; st == MS_OK && c < cells; ++c) {
         const ms_archive_cell *cell = &s.cells[c];
-        uint64_t n = ms_archive_cell_table_words(cell);
+        uint64_t n = ms_archive_cell_table_words(&a->header, cell);
         if (n > a->header.table_words - next) {
             st = ms_error_set(err, MS_ERR_FORMAT, "%s: the subtrees hold more than %u table words",
                               path, a->header.table_words);

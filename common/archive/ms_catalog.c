@@ -41,8 +41,10 @@ void ms_catalog_free(ms_catalog *c)
 {
     if (!c)
         return;
-    for (size_t i = 0; i < c->count; ++i)
+    for (size_t i = 0; i < c->count; ++i) {
         free(c->entries[i].source);
+        ms_metadata_free(c->entries[i].metadata);
+    }
     free(c->entries);
     c->entries = NULL;
     c->count = 0;
@@ -145,6 +147,39 @@ static ms_status parse_entry(const char *path, size_t index, json_t *obj, ms_cat
         e->apo_levels = (uint8_t)levels;
         e->has_listing = true;
     }
+    uint64_t thumb_bits;
+    if (json_object_get(obj, "thumbnail_bits")) {
+        if (!get_uint(obj, "thumbnail_bits", 20, &thumb_bits)) {
+            free(e->source);
+            e->source = NULL;
+            return ms_error_set(err, MS_ERR_FORMAT, "%s: model %zu: thumbnail_bits is not an "
+                                "integer in 0..20", path, index);
+        }
+        e->has_thumbnail = true;
+        e->thumbnail_bits = (uint8_t)thumb_bits;
+        e->thumbnail_up = 2;
+        json_t *up = json_object_get(obj, "thumbnail_up");
+        const char *axis = json_is_string(up) ? json_string_value(up) : "";
+        if (up && (strlen(axis) != 1 || axis[0] < 'x' || axis[0] > 'z')) {
+            free(e->source);
+            e->source = NULL;
+            return ms_error_set(err, MS_ERR_FORMAT, "%s: model %zu: thumbnail_up is not "
+                                "\"x\", \"y\" or \"z\"", path, index);
+        }
+        if (up)
+            e->thumbnail_up = (uint8_t)(axis[0] - 'x');
+    }
+    json_t *meta = json_object_get(obj, "metadata");
+    if (meta) {
+        char where[4200];
+        snprintf(where, sizeof where, "%s: model %zu", path, index);
+        ms_status st = ms_metadata_from_json(meta, where, &e->metadata, err);
+        if (st != MS_OK) {
+            free(e->source);
+            e->source = NULL;
+            return st;
+        }
+    }
     return MS_OK;
 }
 
@@ -239,9 +274,15 @@ static ms_status parse_spans(const char *path, const char *text, const ms_catalo
         const ms_catalog_entry *known = previous ? hash_index_find(&index, previous, key) : NULL;
         if (known) {
             *e = *known;
+            bool failed = false;
             e->source = strdup(known->source ? known->source : "");
-            if (!e->source)
+            e->metadata = ms_metadata_dup(known->metadata, &failed);
+            if (!e->source || failed) {
+                free(e->source);
+                ms_metadata_free(e->metadata);
+                e->source = NULL, e->metadata = NULL;
                 st = ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory", path);
+            }
         } else {
             json_error_t jerr;
             json_t *obj = json_loadb(text + spans[i].offset, spans[i].length,
@@ -353,6 +394,18 @@ static json_t *entry_to_json(const ms_catalog_entry *e)
         json_object_set_new(obj, "content_id", json_string(hex));
         json_object_set_new(obj, "apo_levels", json_integer(e->apo_levels));
     }
+    if (obj && e->has_thumbnail) {
+        char axis[2] = {(char)('x' + (e->thumbnail_up <= 2 ? e->thumbnail_up : 2)), 0};
+        json_object_set_new(obj, "thumbnail_bits", json_integer(e->thumbnail_bits));
+        json_object_set_new(obj, "thumbnail_up", json_string(axis));
+    }
+    if (obj && e->metadata) {
+        json_t *meta = ms_metadata_to_json(e->metadata);
+        if (!meta || json_object_set_new(obj, "metadata", meta) != 0) {
+            json_decref(obj);
+            return NULL;
+        }
+    }
     return obj;
 }
 
@@ -387,29 +440,77 @@ static ms_status catalog_save(const char *dir, const ms_catalog *c, ms_error *er
     return MS_OK;
 }
 
-/* Runs the read-modify-write under DIR/catalog.lock. */
-static ms_status catalog_change(const char *dir, const ms_catalog_entry *add,
-                                const char *remove_name, ms_error *err)
+/* Takes DIR/catalog.lock exclusively: its descriptor, or -1 with err set. */
+static int lock_catalog(const char *dir, ms_error *err)
 {
     char lock_path[4096];
     catalog_path(dir, "catalog.lock", lock_path, sizeof lock_path);
     int lock = open(lock_path, O_RDWR | O_CREAT | O_CLOEXEC, 0644);
-    if (lock < 0)
-        return ms_error_set(err, MS_ERR_IO, "%s: cannot open: %s", lock_path, strerror(errno));
-    if (flock(lock, LOCK_EX) != 0) {
-        close(lock);
-        return ms_error_set(err, MS_ERR_IO, "%s: cannot lock: %s", lock_path, strerror(errno));
+    if (lock < 0) {
+        ms_error_set(err, MS_ERR_IO, "%s: cannot open: %s", lock_path, strerror(errno));
+        return -1;
     }
+    if (flock(lock, LOCK_EX) != 0) {
+        ms_error_set(err, MS_ERR_IO, "%s: cannot lock: %s", lock_path, strerror(errno));
+        close(lock);
+        return -1;
+    }
+    return lock;
+}
+
+static void unlock_catalog(int lock)
+{
+    flock(lock, LOCK_UN);
+    close(lock);
+}
+
+ms_status ms_catalog_update_thumbnail(const char *dir, const char *name, bool has_thumbnail,
+                                      unsigned thumbnail_bits, unsigned thumbnail_up,
+                                      ms_error *err)
+{
+    int lock = lock_catalog(dir, err);
+    if (lock < 0)
+        return err ? err->code : MS_ERR_IO;
+    ms_catalog c;
+    ms_status st = ms_catalog_load(dir, &c, err);
+    if (st == MS_OK) {
+        ms_catalog_entry *e = (ms_catalog_entry *)ms_catalog_find(&c, name);
+        if (!e) {
+            st = ms_error_set(err, MS_ERR_RANGE, "no model '%s' in %s/catalog.json", name, dir);
+        } else {
+            e->has_thumbnail = has_thumbnail;
+            e->thumbnail_bits = has_thumbnail ? (uint8_t)thumbnail_bits : 0;
+            e->thumbnail_up = (uint8_t)(thumbnail_up <= 2 ? thumbnail_up : 2);
+            st = catalog_save(dir, &c, err);
+        }
+        ms_catalog_free(&c);
+    }
+    unlock_catalog(lock);
+    return st;
+}
+
+/* Runs the read-modify-write under DIR/catalog.lock. */
+static ms_status catalog_change(const char *dir, const ms_catalog_entry *add,
+                                const char *remove_name, ms_error *err)
+{
+    int lock = lock_catalog(dir, err);
+    if (lock < 0)
+        return err ? err->code : MS_ERR_IO;
     ms_catalog c;
     ms_status st = ms_catalog_load(dir, &c, err);
     if (st == MS_OK) {
         const char *name = add ? add->name : remove_name;
         ms_catalog_entry *found = (ms_catalog_entry *)ms_catalog_find(&c, name);
-        /* a model baked again keeps the crease angle set for it */
+        /* a model baked again keeps the crease angle and metadata set for it */
         bool keep_crease = add && found && found->has_crease_angle && !add->has_crease_angle;
         double crease = keep_crease ? found->crease_angle_deg : 0.0;
+        bool failed = false;
+        ms_metadata *metadata = !add ? NULL
+                                : add->metadata ? ms_metadata_dup(add->metadata, &failed)
+                                : found ? ms_metadata_dup(found->metadata, &failed) : NULL;
         if (found) { /* drop the old entry, keeping the array sorted */
             free(found->source);
+            ms_metadata_free(found->metadata);
             size_t at = (size_t)(found - c.entries);
             memmove(found, found + 1, (c.count - at - 1) * sizeof *found);
             c.count--;
@@ -417,8 +518,9 @@ static ms_status catalog_change(const char *dir, const ms_catalog_entry *add,
         if (add) {
             ms_catalog_entry *grown = realloc(c.entries, (c.count + 1) * sizeof *grown);
             char *source = strdup(add->source ? add->source : "");
-            if (!grown || !source) {
+            if (!grown || !source || failed) {
                 free(source);
+                ms_metadata_free(metadata);
                 if (grown)
                     c.entries = grown;
                 st = ms_error_set(err, MS_ERR_NOMEM, "catalogue: out of memory");
@@ -426,6 +528,7 @@ static ms_status catalog_change(const char *dir, const ms_catalog_entry *add,
                 c.entries = grown;
                 c.entries[c.count] = *add;
                 c.entries[c.count].source = source;
+                c.entries[c.count].metadata = metadata;
                 if (keep_crease) {
                     c.entries[c.count].has_crease_angle = true;
                     c.entries[c.count].crease_angle_deg = crease;
@@ -438,8 +541,7 @@ static ms_status catalog_change(const char *dir, const ms_catalog_entry *add,
             st = catalog_save(dir, &c, err);
         ms_catalog_free(&c);
     }
-    flock(lock, LOCK_UN);
-    close(lock);
+    unlock_catalog(lock);
     return st;
 }
 

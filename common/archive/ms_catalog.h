@@ -10,8 +10,8 @@
  * so concurrent bakes never lose each other's entries and readers never see a
  * half-written file.
  *
- * Ownership: an ms_catalog owns its entries and their strings; free it with
- * ms_catalog_free. Thread-safety: a catalogue object is not shared between
+ * Ownership: an ms_catalog owns its entries and their strings (source,
+ * metadata); free it with ms_catalog_free. Thread-safety: a catalogue object is not shared between
  * threads; the file-level protocol is safe across processes.
  */
 #ifndef MS_CATALOG_H
@@ -22,6 +22,7 @@
 #include <stdint.h>
 
 #include "ms_error.h"
+#include "ms_metadata.h"
 
 #define MS_CATALOG_VERSION 1
 #define MS_MODEL_NAME_MAX 64
@@ -55,6 +56,17 @@ typedef struct ms_catalog_entry {
     bool has_listing;
     uint64_t content_id;
     uint8_t apo_levels;
+    /* Optional "metadata" (ms_metadata.h: title, creator, date, licence,
+     * description, from meshbake --metadata); NULL: none. Owned by the
+     * entry; kept when the model is baked again without --metadata. */
+    ms_metadata *metadata;
+    /* Optional "thumbnail_bits": DIR/NAME.thumb.png exists, rendered from the
+     * cut at this precision (the preview's, public_max_bits, for a preview
+     * model: docs/SECURITY.md). A server offers the picture only while
+     * thumbnail_bits <= public_max_bits. */
+    bool has_thumbnail;
+    uint8_t thumbnail_bits;
+    uint8_t thumbnail_up;      /* "thumbnail_up": its world up, 0 x, 1 y, 2 z (default) */
     /* The reader's bookkeeping: FNV-1a 64 of the entry's text in the file it
      * was read from (0: not known), by which ms_catalog_reload recognises an
      * unchanged entry. Never written. */
@@ -93,6 +105,13 @@ ms_status ms_catalog_entry_fill_listing(ms_catalog_entry *entry, const char *arc
 
 /* Adds or replaces entry (copied) in DIR/catalog.json, under the lock. */
 ms_status ms_catalog_update(const char *dir, const ms_catalog_entry *entry, ms_error *err);
+
+/* Sets the thumbnail fields of the entry named name (has_thumbnail,
+ * thumbnail_bits, thumbnail_up), under the lock, leaving the rest of the entry as it is.
+ * MS_ERR_RANGE when there is no such entry. */
+ms_status ms_catalog_update_thumbnail(const char *dir, const char *name, bool has_thumbnail,
+                                      unsigned thumbnail_bits, unsigned thumbnail_up,
+                                      ms_error *err);
 
 /* Removes the entry named name, if any, under the lock. */
 ms_status ms_catalog_remove(const char *dir, const char *name, ms_error *err);

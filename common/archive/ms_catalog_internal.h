@@ -5,8 +5,11 @@
 #ifndef MS_CATALOG_INTERNAL_H
 #define MS_CATALOG_INTERNAL_H
 
+#include <jansson.h>
 #include <stddef.h>
 #include <stdint.h>
+
+#include "ms_metadata.h"
 
 /* One model entry's JSON object in the file's text. */
 typedef struct ms_catalog_span {
@@ -27,5 +30,14 @@ int ms_catalog_cut_spans(const char *text, size_t size, size_t max_count, ms_cat
 /* FNV-1a 64 of a span's text: the identity by which a reload recognises an
  * entry it has already parsed (never 0: 0 means "not from a span"). */
 uint64_t ms_catalog_span_hash(const char *text, ms_catalog_span span);
+
+/* A catalogue entry's or a sidecar's metadata object to *out (NULL when it
+ * holds no non-empty member), under ms_metadata.h's rules; where names the
+ * file (and entry) in errors. */
+ms_status ms_metadata_from_json(json_t *obj, const char *where, ms_metadata **out, ms_error *err);
+
+/* The object of m's present fields (an empty object for NULL); NULL when out
+ * of memory. */
+json_t *ms_metadata_to_json(const ms_metadata *m);
 
 #endif

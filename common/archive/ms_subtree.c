@@ -128,7 +128,7 @@ ms_status ms_subtree_encode(const ms_archive *a, unsigned levels, uint32_t id, u
         return st;
     uint64_t t = 0;
     for (size_t i = 0; i < m; ++i)
-        t += ms_archive_cell_table_words(&a->cells[members[i]]);
+        t += ms_archive_cell_table_words(&a->header, &a->cells[members[i]]);
     size_t total = MS_SUBTREE_HEADER_SIZE + (4 + MS_ARCHIVE_RECORD_SIZE) * m + 4 * (size_t)t;
     uint8_t *out = malloc(total);
     if (!out) {
@@ -149,7 +149,7 @@ ms_status ms_subtree_encode(const ms_archive *a, unsigned levels, uint32_t id, u
     uint32_t next = 0;
     for (size_t i = 0; i < m; ++i) {
         ms_archive_cell c = a->cells[members[i]];
-        uint64_t words = ms_archive_cell_table_words(&c);
+        uint64_t words = ms_archive_cell_table_words(&a->header, &c);
         memcpy(tables + 4 * (size_t)next, a->tables + 4 * (size_t)c.table_first, 4 * words);
         c.table_first = next;
         next += (uint32_t)words;

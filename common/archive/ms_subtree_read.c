@@ -77,7 +77,8 @@ ms_status ms_subtree_blob_read(const char *where, const ms_archive_header *h, un
         m = ms_get_u32(head + 12);
         t = ms_get_u32(head + 16);
         uint64_t m_cap = max_members(h, levels, id == 0);
-        uint64_t t_cap = m * (uint64_t)(h->bits + 1 + 2 * MS_ARCHIVE_MAX_APO_LEVELS);
+        uint64_t t_cap = m * (uint64_t)(h->bits + 1 + 2 * MS_ARCHIVE_MAX_APO_LEVELS +
+                                          (h->has_colour ? h->bits + 2 : 0));
         if (t_cap > h->table_words)
             t_cap = h->table_words;
         if (memcmp(head, MS_SUBTREE_MAGIC, 4) != 0)

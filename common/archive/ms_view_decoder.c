@@ -18,6 +18,9 @@ void ms_view_cache_drop(vcell *c)
     c->out_index = c->owner = NULL;
     c->levels = NULL;
     c->cache_valid = false;
+    free(c->cache_colours);
+    c->cache_colours = NULL;
+    c->colour_valid = false;
 }
 
 /* The cell's codec decoder, freed: a later decode starts again from its bytes. */
@@ -32,6 +35,7 @@ static void decoder_drop(vcell *c)
 static void cell_reset(vcell *c)
 {
     ms_view_cache_drop(c);
+    ms_view_colour_drop(c);
     decoder_drop(c);
     ms_codec_state_free(&c->start);
     c->has_start = false;
@@ -150,6 +154,7 @@ ms_status ms_view_unlearn(ms_view *v, const uint32_t *ids, size_t count, ms_erro
             continue;
         cell_reset(c);
         free(c->bytes);
+        ms_view_colour_free(c);
         memset(c, 0, sizeof *c);
         v->known--;
         uint32_t g = ms_view_group_of(v, ids[k]);
@@ -246,6 +251,9 @@ ms_status ms_view_create_from_archive(const ms_archive *a, ms_view **out, ms_err
             break; /* an index without payloads: the bytes will come later */
         if ((s = ms_archive_verify_payload(a, i, err)) == MS_OK)
             s = ms_view_set_bytes(*out, i, g, len, err);
+        const uint8_t *colour = ms_archive_colour(a, i, &len);
+        if (s == MS_OK && colour && len)
+            s = ms_view_set_colour_bytes(*out, i, colour, len, err);
     }
     if (s != MS_OK) {
         ms_view_destroy(*out);
@@ -265,6 +273,7 @@ void ms_view_destroy(ms_view *v)
                 continue;
             cell_reset(&block[k]);
             free(block[k].bytes);
+            ms_view_colour_free(&block[k]);
         }
         free(block);
     }
@@ -344,6 +353,7 @@ ms_status ms_view_forget(ms_view *v, uint32_t cell, ms_error *err)
     free(c->bytes);
     c->bytes = NULL;
     c->nbytes = 0;
+    ms_view_colour_free(c);
     return MS_OK;
 }
 

@@ -134,7 +134,19 @@ ms_status ms_view_set_bytes(ms_view *view, uint32_t cell, const uint8_t *data, s
 ms_status ms_view_append_bytes(ms_view *view, uint32_t cell, const uint8_t *data, size_t length,
                                ms_error *err);
 
-/* Releases the bytes and decoder of a HIDDEN cell (a client's cache eviction);
+/* Hands over the first `length` bytes of a cell's colour stream (copied;
+ * docs/ARCHIVE.md, "Colour streams"): a later call must extend what was given.
+ * Colour decodes in lockstep with the cell's geometry, as far as the colour
+ * bytes allow (a prefix stops colour at fewer bits than geometry); the
+ * stitched mesh then carries colours (ms_view_mesh.colours). A stream that
+ * turns out damaged fails the stitch with one line. MS_ERR_RANGE for an
+ * unknown cell, MS_ERR_ARG for bytes that do not extend those held. */
+ms_status ms_view_set_colour_bytes(ms_view *view, uint32_t cell, const uint8_t *data,
+                                   size_t length, ms_error *err);
+/* Bytes of the cell's colour stream held. */
+size_t ms_view_held_colour_bytes(const ms_view *view, uint32_t cell);
+
+/* Releases the bytes (colour included) and decoder of a HIDDEN cell (a client's cache eviction);
  * the cell needs its payload again before it can be refined once shown.
  * MS_ERR_RANGE when the cell is not HIDDEN. */
 ms_status ms_view_forget(ms_view *view, uint32_t cell, ms_error *err);
@@ -290,7 +302,10 @@ typedef struct ms_view_mesh {
     uint32_t *triangle_cell; /* per triangle: the cell that drew it */
     /* per vertex r g b a (8 bits each, docs/COLOUR.md: the vertex's colour at
      * the colour bits held), or NULL when the model has no colour stream or
-     * none of it is held yet; a renderer then uses its default albedo */
+     * none of it is held yet; a renderer then uses its default albedo. The
+     * vertices of a shown cell without its colour yet (its bytes, or for a
+     * child its split parent's whole stream, not held) are the renderers'
+     * default grey, 221 216 209 255. */
     uint8_t *colours;
     size_t vertex_cap, triangle_cap;
     /* diagnostics */

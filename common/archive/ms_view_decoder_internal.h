@@ -9,6 +9,7 @@
 #include <stdint.h>
 
 #include "ms_codec.h"
+#include "ms_colour.h"
 #include "ms_nsp.h"
 #include "ms_view_decoder.h"
 
@@ -32,6 +33,18 @@ typedef struct vcell {
     uint32_t *owner;        /* per cache vertex: shown cell holding it, NONE = finer cells */
     uint8_t *levels;        /* per cache vertex: its kd-level, when some foreign vertex is
                              * frozen coarser than the cell (else NULL: all at its level) */
+    /* colour (ms_view_colour.c): the colour stream's bytes held, its decoder,
+     * and per cache vertex its colour (valid with colour_valid) */
+    uint8_t *colour_bytes;
+    size_t colour_nbytes;
+    ms_colour_decoder *cdec;
+    bool colour_based;      /* cdec has its base colours (its own, or given from the parent) */
+    uint64_t *top_cells;    /* once its whole colour is decoded: its cells at bits_max and */
+    uint8_t *top_colours;   /* their colours, the base its children's streams take */
+    size_t top_n;
+    uint8_t *cache_colours;
+    bool colour_valid;
+    uint32_t colour_rev, stitched_colour_rev; /* renewed with every new colour byte */
     /* versions of the stitched triangles (ms_view_mesh.run_version) */
     uint8_t stitched_state, stitched_bits; /* as the last stitch saw them */
     uint64_t stamp;         /* renewed when a stitch sees them change */
@@ -84,5 +97,17 @@ static inline vcell *ms_view_vcell(const ms_view *v, uint32_t id)
 
 /* Drops a cell's stitching cache. */
 void ms_view_cache_drop(vcell *c);
+
+/* ms_view_colour.c: drops a cell's colour decoder and cached colours (keeps
+ * its colour bytes), and frees everything colour of it. */
+void ms_view_colour_drop(vcell *c);
+void ms_view_colour_free(vcell *c);
+/* Whether the cell can give colours (it holds its colour stream's base). */
+bool ms_view_colour_ready(const vcell *c);
+/* Fills the cache colours of cell (its valid cache; decoding its colour as far
+ * as the cache's level and the bytes allow, its base from its parent's whole
+ * colour stream when the stream takes it from there): one line on a damaged
+ * stream. */
+ms_status ms_view_colour_refresh(ms_view *view, uint32_t cell, ms_error *err);
 
 #endif

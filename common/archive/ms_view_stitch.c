@@ -118,7 +118,10 @@ static ms_status mesh_room(ms_view_mesh *m, size_t vertices, size_t triangles, m
         uint8_t *l = realloc(m->levels, c);
         if (l)
             m->levels = l;
-        if (!p || !k || !l)
+        uint8_t *rgba = m->colours ? realloc(m->colours, 4 * c) : NULL;
+        if (rgba)
+            m->colours = rgba;
+        if (!p || !k || !l || (m->colours && !rgba))
             return ms_error_set(err, MS_ERR_NOMEM, "out of memory stitching");
         m->vertex_cap = c;
     }
@@ -206,6 +209,14 @@ static ms_status out_vertex(ms_view *v, ms_view_mesh *m, uint32_t cell, uint32_t
     unsigned shift = 3 * v->shape.bits - level;
     m->keys[k] = shift >= 64 ? 0 : prefix << shift;
     m->levels[k] = (uint8_t)level;
+    if (m->colours) {
+        /* A cell without its colour yet draws in the renderers' default grey
+         * (sRGB of meshview's and meshrender's albedo 0.72 0.69 0.64), as the
+         * model looked before colour: no white flash while a stream arrives. */
+        static const uint8_t pending[4] = {221, 216, 209, 255};
+        memcpy(&m->colours[4 * k],
+               ms_view_colour_ready(c) ? &c->cache_colours[4 * (size_t)i] : pending, 4);
+    }
     c->out_index[i] = (uint32_t)k;
     *out = (uint32_t)k;
     return MS_OK;
@@ -334,6 +345,37 @@ static ms_status add_run(ms_view_mesh *m, uint32_t cell, size_t first, uint64_t 
     return MS_OK;
 }
 
+/* A new stamp for every cell whose state, precision or colour bytes changed
+ * since the last stitch (a cell whose group was freed and made again starts
+ * hidden at 0 bits with stamp 0, so it gets one as soon as it differs). */
+static void renew_stamps(ms_view *v)
+{
+    for (uint32_t id = 0; id != MS_ARCHIVE_NONE; id = ms_view_next_known(v, id)) {
+        vcell *c = ms_view_vcell(v, id);
+        if (c && (c->state != c->stitched_state || c->bits != c->stitched_bits ||
+                  c->colour_rev != c->stitched_colour_rev)) {
+            c->stitched_state = c->state;
+            c->stitched_bits = c->bits;
+            c->stitched_colour_rev = c->colour_rev;
+            c->stamp = ++v->stitch_stamps;
+        }
+    }
+}
+
+/* Colours per vertex when some shown cell has its colour (docs/COLOUR.md §1:
+ * each vertex its kd-cell's colour at the colour decoded), else NULL; the
+ * array follows vertex_cap (mesh_room). */
+static ms_status colour_room(ms_view_mesh *m, bool coloured, ms_error *err)
+{
+    if (!coloured) {
+        free(m->colours);
+        m->colours = NULL;
+    } else if (!m->colours && !(m->colours = malloc(4 * (m->vertex_cap ? m->vertex_cap : 1)))) {
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory stitching");
+    }
+    return MS_OK;
+}
+
 ms_status ms_view_stitch(ms_view *v, const bool *visible, ms_view_mesh *m, ms_error *err)
 {
     uint8_t *snapped = NULL;
@@ -342,30 +384,26 @@ ms_status ms_view_stitch(ms_view *v, const bool *visible, ms_view_mesh *m, ms_er
     m->dropped_finer = m->dropped_snapped = m->unresolved = m->snapped_frozen = 0;
     m->run_count = 0;
     ms_status s = MS_OK;
-    /* A new stamp for every cell whose state or precision changed since the
-     * last stitch (a cell whose group was freed and made again starts hidden
-     * at 0 bits with stamp 0, so it gets one as soon as it differs). */
-    for (uint32_t id = 0; id != MS_ARCHIVE_NONE; id = ms_view_next_known(v, id)) {
-        vcell *c = ms_view_vcell(v, id);
-        if (c && (c->state != c->stitched_state || c->bits != c->stitched_bits)) {
-            c->stitched_state = c->state;
-            c->stitched_bits = c->bits;
-            c->stamp = ++v->stitch_stamps;
-        }
-    }
-    /* Caches and owners of every shown cell. */
+    /* Caches, colours and owners of every shown cell. */
+    bool coloured = false;
     for (uint32_t id = 0; id != MS_ARCHIVE_NONE && s == MS_OK; id = ms_view_next_known(v, id)) {
         vcell *c = ms_view_vcell(v, id);
         if (!c || c->state != MS_VIEW_SHOWN)
             continue;
-        if ((s = refresh_cache(v, id, err)) != MS_OK)
+        if ((s = refresh_cache(v, id, err)) != MS_OK ||
+            (s = ms_view_colour_refresh(v, id, err)) != MS_OK)
             break;
+        coloured |= ms_view_colour_ready(c);
         for (size_t i = 0; i < c->cache.vertex_count; ++i) {
             uint32_t end;
             c->out_index[i] = NONE;
             c->owner[i] = owner_of(v, c->cache.cells[i], c->cache.level, &end);
         }
     }
+    /* after the caches: a cell whose colours came in this stitch renews too */
+    renew_stamps(v);
+    if (s == MS_OK)
+        s = colour_room(m, coloured, err);
     for (uint32_t id = 0; id != MS_ARCHIVE_NONE && s == MS_OK; id = ms_view_next_known(v, id)) {
         vcell *c = ms_view_vcell(v, id);
         if (!c || c->state != MS_VIEW_SHOWN || (visible && !visible[id]))

@@ -196,3 +196,38 @@ unsigned ms_select_bits(double need, unsigned current, unsigned min_bits, unsign
         chosen = max_bits;
     return chosen;
 }
+
+ms_status ms_camera_home(const double lo[3], const double hi[3], int up_axis, double width,
+                         double height, ms_camera *camera, ms_error *err)
+{
+    if (!finite3(lo) || !finite3(hi) || !(width >= 1) || !(height >= 1) || !isfinite(width) ||
+        !isfinite(height))
+        return ms_error_set(err, MS_ERR_ARG, "home view: a non-finite box or an empty viewport");
+    int a = up_axis >= 0 && up_axis <= 2 ? up_axis : 2;
+    double up[3] = {0, 0, 0}, h0[3] = {0, 0, 0}, h1[3] = {0, 0, 0}, target[3];
+    up[a] = 1;
+    h0[(a + 2) % 3] = 1;
+    h1[(a + 1) % 3] = 1;
+    double side = 0, diagonal = 0, along0 = 0, along1 = 0;
+    for (int k = 0; k < 3; ++k) {
+        double extent = hi[k] - lo[k];
+        target[k] = (lo[k] + hi[k]) / 2;
+        side = extent > side ? extent : side;
+        diagonal += extent * extent;
+        along0 += extent * h0[k];
+        along1 += extent * h1[k];
+    }
+    double model_size = side > 0 ? side : 1, radius = 0.5 * sqrt(diagonal);
+    radius = 1.05 * (radius > 0 ? radius : 0.5 * model_size);
+    double yaw = (along0 > along1 ? M_PI / 2 : 0) + 0.35, pitch = -0.3, fovy = 40;
+    double half = fovy * M_PI / 360, aspect = width / height;
+    if (aspect < 1) /* the narrower, horizontal field must hold it */
+        half = atan(tan(half) * aspect);
+    double distance = radius / sin(half), eye[3], near_d, far_d;
+    for (int k = 0; k < 3; ++k) {
+        double forward = -cos(pitch) * (cos(yaw) * h0[k] + sin(yaw) * h1[k]) + sin(pitch) * up[k];
+        eye[k] = target[k] - distance * forward;
+    }
+    ms_camera_depth_range(eye, lo, hi, &near_d, &far_d);
+    return ms_camera_look_at(eye, target, up, fovy, width, height, near_d, far_d, camera, err);
+}

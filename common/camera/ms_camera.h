@@ -64,6 +64,22 @@ double ms_camera_box_distance(const ms_camera *camera, const double lo[3], const
 void ms_camera_depth_range(const double position[3], const double lo[3], const double hi[3],
                            double *near_distance, double *far_distance);
 
+/* The home view of a model whose bounds are the box [lo, hi] (world units) on
+ * a width x height viewport: meshview's (its R key, client/view
+ * ms_viewer_controls.h), which the thumbnails meshbake renders use too
+ * (docs/ARCHIVE.md, "Thumbnails"). With up_axis (0 x, 1 y, 2 z; another value:
+ * z) as world up, h0 = the axis after it twice and h1 = the axis after it
+ * (z-up: h0 = y, h1 = x), the eye looks at the box's centre from yaw
+ * 0.35 rad (plus a quarter turn when the box is longer along h0 than along
+ * h1, to look across it) and pitch -0.3 rad (from above): forward =
+ * -cos(pitch) (cos(yaw) h0 + sin(yaw) h1) + sin(pitch) up. The vertical field
+ * of view is 40 degrees; the distance frames the sphere of 1.05 times half the
+ * box's diagonal (half its largest side, or 0.5, for an empty box): radius /
+ * sin(half the narrower field). Near and far from ms_camera_depth_range.
+ * MS_ERR_ARG for a non-finite box or an empty viewport. */
+ms_status ms_camera_home(const double lo[3], const double hi[3], int up_axis, double width,
+                         double height, ms_camera *camera, ms_error *err);
+
 /* The geometric error on screen, in pixels, of a cut at `bits` of a model whose
  * cube has side `cube_side`, seen at `distance`: the half-diagonal of a
  * kd-cell, (√3 / 2) · cube_side / 2^bits, projected. A decoded vertex sits at

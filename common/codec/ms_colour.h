@@ -51,6 +51,11 @@ typedef struct ms_colour_encode_params {
     unsigned p_min;       /* first precision bit of the window, as the geometry stream's */
     unsigned colour_bits; /* 1..8 bits per channel (0: MS_COLOUR_DEFAULT_BITS) */
     bool alpha;           /* code the alpha channel (else decoded alpha is 255) */
+    /* The colours of the window's first level are not coded (header flags
+     * bit 1): the decoder is given them (ms_colour_decoder_set_base), e.g. by
+     * the stream of an archive cell's parent. The base chunk is then empty
+     * but for the range coder's flush. */
+    bool base_given;
 } ms_colour_encode_params;
 
 /* Encodes the colours of `full` (the full-precision complex: level 3 * bits,
@@ -71,6 +76,7 @@ ms_status ms_colour_encode(const ms_codec_state *full, const uint8_t *rgba,
 typedef struct ms_colour_header {
     unsigned version, p_min, p_max, colour_bits;
     bool alpha;
+    bool base_given; /* flags bit 1: the base colours come from the caller */
     uint32_t start_cells, end_cells;
     size_t header_size; /* bytes before the body */
     size_t body_size;   /* declared body size */
@@ -103,6 +109,16 @@ void ms_colour_decoder_destroy(ms_colour_decoder *d);
  * held; MS_ERR_ARG otherwise). Decoding goes on where it stood. */
 ms_status ms_colour_decoder_extend(ms_colour_decoder *d, const uint8_t *data, size_t size,
                                    ms_error *err);
+
+/* For a stream with base_given: the colours (r g b a, 8 bits each, reduced to
+ * the stream's precision as the encoder reduces its input; alpha ignored
+ * without alpha) of its n cells at kd-level 3 p_min, strictly increasing
+ * (copied). Before the first refine or colours call; those then check that
+ * the cells are the geometry's there (else MS_ERR_ARG) and fail with MS_ERR_ARG
+ * while no base was given. MS_ERR_ARG for a stream without base_given or a
+ * decoder already started. */
+ms_status ms_colour_decoder_set_base(ms_colour_decoder *d, const uint64_t *cells, size_t n,
+                                     const uint8_t *rgba, ms_error *err);
 
 const ms_colour_header *ms_colour_decoder_header(const ms_colour_decoder *d);
 unsigned ms_colour_decoder_min_level(const ms_colour_decoder *d);

@@ -18,6 +18,9 @@ struct ms_colour_decoder {
     cc_level cur, nxt;
     cc_model model;
     cc_coder coder;
+    uint64_t *base_cells; /* base_given: the caller's base (ms_colour_decoder_set_base) */
+    uint8_t *base_col;    /* 4 per base cell, reduced to the stream's precision */
+    size_t base_n;
     uint64_t *pre;  /* scratch: prefixes of the caller's cells */
     size_t pre_cap;
     cc_graph graph;
@@ -64,9 +67,43 @@ void ms_colour_decoder_destroy(ms_colour_decoder *d)
     cc_level_free(&d->cur);
     cc_level_free(&d->nxt);
     free(d->pre);
+    free(d->base_cells);
+    free(d->base_col);
     cc_graph_free(&d->graph);
     free(d->data);
     free(d);
+}
+
+ms_status ms_colour_decoder_set_base(ms_colour_decoder *d, const uint64_t *cells, size_t n,
+                                     const uint8_t *rgba, ms_error *err)
+{
+    if (!d->h.base_given || d->started || d->base_cells)
+        return ms_error_set(err, MS_ERR_ARG, "colour decoder: %s",
+                            !d->h.base_given ? "the stream codes its own base colours"
+                                             : "base colours given twice or too late");
+    if (n != d->h.start_cells)
+        return ms_error_set(err, MS_ERR_ARG, "colour decoder: %zu base colours for %u cells", n,
+                            d->h.start_cells);
+    for (size_t i = 1; i < n; ++i)
+        if (cells[i] <= cells[i - 1])
+            return ms_error_set(err, MS_ERR_ARG, "colour decoder: base cells not increasing");
+    d->base_cells = malloc((n ? n : 1) * sizeof *d->base_cells);
+    d->base_col = malloc(4 * (n ? n : 1));
+    if (!d->base_cells || !d->base_col) {
+        free(d->base_cells);
+        free(d->base_col);
+        d->base_cells = NULL;
+        d->base_col = NULL;
+        return ms_error_set(err, MS_ERR_NOMEM, "colour decoder: out of memory");
+    }
+    unsigned c = d->h.colour_bits;
+    memcpy(d->base_cells, cells, n * sizeof *cells);
+    for (size_t i = 0; i < n; ++i)
+        for (unsigned k = 0; k < 4; ++k)
+            d->base_col[4 * i + k] = k == 3 && !d->h.alpha ? (uint8_t)((1u << c) - 1)
+                                                           : (uint8_t)(rgba[4 * i + k] >> (8 - c));
+    d->base_n = n;
+    return MS_OK;
 }
 
 ms_status ms_colour_decoder_extend(ms_colour_decoder *d, const uint8_t *data, size_t size,
@@ -219,9 +256,19 @@ static ms_status start(ms_colour_decoder *d, const uint64_t *cells, size_t n,
         return st;
     memcpy(d->cur.cells, d->pre, m * sizeof *d->pre);
     d->cur.n = m;
+    if (d->h.base_given && (!d->base_cells || d->base_n != m ||
+                            memcmp(d->base_cells, d->pre, m * sizeof *d->pre) != 0))
+        return ms_error_set(err, MS_ERR_ARG, "colour stream: %s", d->base_cells
+                                ? "the base colours given are not the cells' at its first level"
+                                : "its base colours were not given");
     if ((st = open_chunk(d, 0, err)) != MS_OK)
         return st;
-    st = cc_code_base(&d->coder, &d->cur, err);
+    if (d->h.base_given) {
+        memcpy(d->cur.col, d->base_col, 4 * m);
+        memset(d->cur.act, 0, m * CC_SLOTS * sizeof *d->cur.act);
+    } else {
+        st = cc_code_base(&d->coder, &d->cur, err);
+    }
     if (st == MS_OK)
         st = close_chunk(d, 0, err);
     if (st != MS_OK) {

@@ -177,6 +177,7 @@ ms_status ms_colour_encode(const ms_codec_state *full, const uint8_t *rgba,
     h.p_max = full->bits;
     h.colour_bits = c;
     h.alpha = p.alpha;
+    h.base_given = p.base_given;
     h.start_cells = (uint32_t)w.lv.n;
     h.end_cells = (uint32_t)V;
     h.chunk_cells[0] = h.start_cells;
@@ -186,7 +187,10 @@ ms_status ms_colour_encode(const ms_codec_state *full, const uint8_t *rgba,
     w.coder.slots = p.alpha ? 4 : 3;
     w.coder.m = &w.model;
     ms_rc_encoder_init(&w.coder.enc);
-    st = cc_code_base(&w.coder, &w.lv, err);
+    if (!p.base_given)
+        st = cc_code_base(&w.coder, &w.lv, err);
+    else /* the lineages start without activity, as cc_code_base leaves them */
+        memset(w.lv.act, 0, w.lv.n * CC_SLOTS * sizeof *w.lv.act);
     ms_rc_encoder_flush(&w.coder.enc);
     h.chunk_end[0] = (uint32_t)w.coder.enc.size;
     for (unsigned L = L0; L < D && st == MS_OK; ++L) {

@@ -5,7 +5,7 @@
 #include <string.h>
 #include <zlib.h>
 
-enum { FLAG_ALPHA = 1 };
+enum { FLAG_ALPHA = 1, FLAG_BASE_GIVEN = 2 };
 
 static void put32(uint8_t *p, uint32_t v)
 {
@@ -34,7 +34,7 @@ size_t cc_write_header(uint8_t *p, const ms_colour_header *h)
     p[4] = (uint8_t)h->version;
     p[5] = (uint8_t)h->p_max;
     p[6] = (uint8_t)h->p_min;
-    p[7] = h->alpha ? FLAG_ALPHA : 0;
+    p[7] = (uint8_t)((h->alpha ? FLAG_ALPHA : 0) | (h->base_given ? FLAG_BASE_GIVEN : 0));
     p[8] = (uint8_t)h->colour_bits;
     put32(p + 12, h->start_cells);
     put32(p + 16, h->end_cells);
@@ -77,9 +77,10 @@ static ms_status read_header(const uint8_t *data, size_t size, ms_colour_header 
     if (h->p_min > h->p_max)
         return ms_error_set(err, MS_ERR_FORMAT, "colour stream: window [%u, %u] is empty",
                             h->p_min, h->p_max);
-    if (data[7] & ~FLAG_ALPHA)
+    if (data[7] & ~(FLAG_ALPHA | FLAG_BASE_GIVEN))
         return ms_error_set(err, MS_ERR_FORMAT, "colour stream: unknown flags 0x%02x", data[7]);
     h->alpha = data[7] & FLAG_ALPHA;
+    h->base_given = (data[7] & FLAG_BASE_GIVEN) != 0;
     h->colour_bits = data[8];
     if (h->colour_bits < 1 || h->colour_bits > MS_COLOUR_MAX_BITS)
         return ms_error_set(err, MS_ERR_FORMAT, "colour stream: colour precision %u outside 1..%d",

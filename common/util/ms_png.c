@@ -9,7 +9,9 @@
 #include <setjmp.h>
 #include <stdbool.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 typedef struct png_failure {
     char text[200];
@@ -29,7 +31,7 @@ static void on_png_warning(png_structp png, png_const_charp message)
 
 /* Writes the whole image to f; false with failure->text set on any libpng error. */
 static bool write_image(FILE *f, const uint8_t *pixels, uint32_t width, uint32_t height,
-                        int channels, png_failure *failure)
+                        int channels, bool compact, png_failure *failure)
 {
     png_structp png =
         png_create_write_struct(PNG_LIBPNG_VER_STRING, failure, on_png_error, on_png_warning);
@@ -50,10 +52,11 @@ static bool write_image(FILE *f, const uint8_t *pixels, uint32_t width, uint32_t
     png_init_io(png, f);
     png_set_IHDR(png, info, width, height, 8, channels == 3 ? PNG_COLOR_TYPE_RGB : PNG_COLOR_TYPE_GRAY,
                  PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
-    png_set_compression_level(png, 6);
+    png_set_compression_level(png, compact ? 9 : 6);
     /* Rows stored unfiltered: the inflated stream is the image itself, byte for
-     * byte (what tests/test_png.c checks); screenshots stay small enough. */
-    png_set_filter(png, PNG_FILTER_TYPE_BASE, PNG_FILTER_NONE);
+     * byte (what tests/test_png.c checks); screenshots stay small enough.
+     * Compact: libpng's adaptive choice of filter per row. */
+    png_set_filter(png, PNG_FILTER_TYPE_BASE, compact ? PNG_ALL_FILTERS : PNG_FILTER_NONE);
     png_write_info(png, info);
     size_t row_bytes = (size_t)width * (size_t)channels;
     for (uint32_t y = 0; y < height; ++y)
@@ -63,8 +66,8 @@ static bool write_image(FILE *f, const uint8_t *pixels, uint32_t width, uint32_t
     return true;
 }
 
-ms_status ms_png_write(const char *path, const uint8_t *pixels, uint32_t width, uint32_t height,
-                       int channels, ms_error *err)
+static ms_status write_file(const char *path, const uint8_t *pixels, uint32_t width,
+                            uint32_t height, int channels, bool compact, ms_error *err)
 {
     if (width < 1 || width > 65535 || height < 1 || height > 65535 ||
         (channels != 1 && channels != 3))
@@ -76,7 +79,9 @@ ms_status ms_png_write(const char *path, const uint8_t *pixels, uint32_t width, 
     if (!f)
         return ms_error_set(err, MS_ERR_IO, "%s: cannot create: %s", tmp, strerror(errno));
     png_failure failure = {{0}};
-    bool written = write_image(f, pixels, width, height, channels, &failure);
+    bool written = write_image(f, pixels, width, height, channels, compact, &failure);
+    if (written && compact) /* served files: on disk before the rename, as archives */
+        written = fflush(f) == 0 && fsync(fileno(f)) == 0;
     bool closed = fclose(f) == 0;
     if (!written || !closed || rename(tmp, path) != 0) {
         remove(tmp);
@@ -84,4 +89,53 @@ ms_status ms_png_write(const char *path, const uint8_t *pixels, uint32_t width, 
                             failure.text);
     }
     return MS_OK;
+}
+
+ms_status ms_png_write(const char *path, const uint8_t *pixels, uint32_t width, uint32_t height,
+                       int channels, ms_error *err)
+{
+    return write_file(path, pixels, width, height, channels, false, err);
+}
+
+ms_status ms_png_write_compact(const char *path, const uint8_t *pixels, uint32_t width,
+                               uint32_t height, int channels, ms_error *err)
+{
+    return write_file(path, pixels, width, height, channels, true, err);
+}
+
+ms_status ms_png_read_rgb(const char *path, uint32_t max_width, uint32_t max_height,
+                          uint8_t **pixels, uint32_t *width, uint32_t *height, ms_error *err)
+{
+    *pixels = NULL;
+    *width = *height = 0;
+    FILE *f = fopen(path, "rb");
+    if (!f)
+        return ms_error_set(err, MS_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    png_image image;
+    memset(&image, 0, sizeof image);
+    image.version = PNG_IMAGE_VERSION;
+    ms_status st = MS_OK;
+    if (!png_image_begin_read_from_stdio(&image, f)) {
+        st = ms_error_set(err, MS_ERR_FORMAT, "%s: %s", path, image.message);
+    } else if (image.width > max_width || image.height > max_height) {
+        st = ms_error_set(err, MS_ERR_RANGE, "%s: %ux%u pixels, at most %ux%u", path,
+                          image.width, image.height, max_width, max_height);
+    } else {
+        image.format = PNG_FORMAT_RGB;
+        uint8_t *buffer = malloc(PNG_IMAGE_SIZE(image));
+        if (!buffer)
+            st = ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory", path);
+        else if (!png_image_finish_read(&image, NULL, buffer, 0, NULL))
+            st = ms_error_set(err, MS_ERR_FORMAT, "%s: %s", path, image.message);
+        if (st == MS_OK) {
+            *pixels = buffer;
+            *width = image.width;
+            *height = image.height;
+        } else {
+            free(buffer);
+        }
+    }
+    png_image_free(&image);
+    fclose(f);
+    return st;
 }

@@ -13,4 +13,18 @@
 ms_status ms_png_write(const char *path, const uint8_t *pixels, uint32_t width, uint32_t height,
                        int channels, ms_error *err);
 
+/* The same, smaller: rows filtered (libpng's adaptive choice) and deflated
+ * at level 9; for pictures served over the network (thumbnails). */
+ms_status ms_png_write_compact(const char *path, const uint8_t *pixels, uint32_t width,
+                               uint32_t height, int channels, ms_error *err);
+
+/* Reads a PNG file as 8-bit RGB (any PNG colour type converted; alpha
+ * composed on black) into *pixels (malloc'ed, height rows of 3 * width bytes,
+ * top row first; the caller frees it). A picture wider than max_width or
+ * taller than max_height is refused before its pixels are read
+ * (MS_ERR_RANGE); a file libpng cannot read is MS_ERR_FORMAT (its message),
+ * a missing one MS_ERR_IO. */
+ms_status ms_png_read_rgb(const char *path, uint32_t max_width, uint32_t max_height,
+                          uint8_t **pixels, uint32_t *width, uint32_t *height, ms_error *err);
+
 #endif

@@ -23,6 +23,8 @@
 #include "ms_cli.h"
 #include "ms_archive.h"
 #include "ms_bake.h"
+#include "ms_bake_collection.h"
+#include "ms_study_thumbnail.h"
 #include "ms_catalog.h"
 #include "ms_json_out.h"
 #include "ms_mesh_colour.h"
@@ -33,7 +35,9 @@
 
 enum { EXIT_INPUT = 1, EXIT_USAGE = 2 };
 
-typedef enum bake_mode { MODE_NONE, MODE_INFO, MODE_BAKE, MODE_SET_PUBLIC, MODE_LIST, MODE_REMOVE } bake_mode;
+typedef enum bake_mode {
+    MODE_NONE, MODE_INFO, MODE_BAKE, MODE_SET_PUBLIC, MODE_LIST, MODE_REMOVE, MODE_THUMBNAIL
+} bake_mode;
 
 typedef struct bake_options {
     bake_mode mode;
@@ -43,6 +47,8 @@ typedef struct bake_options {
     unsigned set_public_bits; /* MODE_SET_PUBLIC */
     const char *list_dir;     /* MODE_LIST */
     const char *remove_name;  /* MODE_REMOVE */
+    const char *thumbnail_name; /* MODE_THUMBNAIL */
+    const char *metadata_path;  /* --metadata */
 } bake_options;
 
 static void print_usage(FILE *out)
@@ -52,9 +58,11 @@ static void print_usage(FILE *out)
           "                [--tmp DIR] [--public-bits B] [--no-apo] [--apo-lead 1]\n"
           "                [--apo-max-depth 10] [--apo-tol 0.2] [--apo-init-depth 0]\n"
           "                [--apo-verify] [--apo-accuracy] [--subtree-levels S] [--ahead 3]\n"
-          "                [--json]\n"
+          "                [--colour-bits 8] [--no-colour] [--metadata FILE.json]\n"
+          "                [--no-thumbnail] [--up x|y|z] [--json]\n"
           "       meshbake --info FILE [--json]\n"
           "       meshbake --set-public-bits B -o ARCHIVE_DIR --name NAME\n"
+          "       meshbake --thumbnail NAME -o ARCHIVE_DIR [--up x|y|z] [--json]\n"
           "       meshbake --list ARCHIVE_DIR [--json]\n"
           "       meshbake --remove NAME -o ARCHIVE_DIR\n"
           "\n"
@@ -62,7 +70,8 @@ static void print_usage(FILE *out)
           "\n"
           "Baking: quantises IN, distributes its triangles into an nSP-tree out of core and\n"
           "encodes every cell as an independent progressive stream into ARCHIVE_DIR/NAME.msa,\n"
-          "then adds NAME to ARCHIVE_DIR/catalog.json.\n"
+          "renders its thumbnail ARCHIVE_DIR/NAME.thumb.png (160x120, meshview's home view,\n"
+          "at the preview's precision) and adds NAME to ARCHIVE_DIR/catalog.json.\n"
           "  -o, --output DIR  archive directory (must exist)\n"
           "  --name NAME       model name (default: the input file name without extensions)\n"
           "  --bits P          bits per coordinate, 8..20 (default 16)\n"
@@ -87,6 +96,14 @@ static void print_usage(FILE *out)
           "                    (default 3): a coarse level draws each vertex at the\n"
           "                    barycentre of its known descendants, not at its kd-cell's\n"
           "                    centre (no staircase); 0 draws cell centres\n"
+          "  --colour-bits C   per-vertex colour (when the input has it), C bits per\n"
+          "                    channel, 1..8 (default 8); --no-colour leaves it out\n"
+          "  --metadata FILE   a sidecar JSON object of title, creator, date, licence and\n"
+          "                    description strings, kept in the catalogue entry (default:\n"
+          "                    what an earlier bake of NAME had)\n"
+          "  --no-thumbnail    make no thumbnail\n"
+          "  --up x|y|z        the thumbnail's world up, as meshview's --up (default: the\n"
+          "                    model's earlier picture's, else z)\n"
           "  --apo, --no-apo   give every cell an APO chunk of normals (default: on)\n"
           "  --apo-lead L      chunk depth: L levels below the cell's finest geometric\n"
           "                    precision, 0..16 (default 1)\n"
@@ -104,6 +121,7 @@ static void print_usage(FILE *out)
           "  --set-public-bits B  change the preview of the baked model NAME in\n"
           "                    ARCHIVE_DIR/catalog.json (0..its P); SIGHUP a running\n"
           "                    meshserve to apply it\n"
+          "  --thumbnail NAME  render the thumbnail of the baked model NAME again\n"
           "  --list DIR        the collection: every model of DIR/catalog.json (name,\n"
           "                    triangles, cells, file size, preview precision) with each\n"
           "                    archive opened and every payload checked against its CRC;\n"
@@ -150,9 +168,14 @@ static bool option_int(const struct option *opts, int c, const char *text, int64
  * go on, or the exit status to end with. */
 static int check_mode(int argc, char **argv, bake_options *options)
 {
-    if (options->mode == MODE_LIST || options->mode == MODE_REMOVE) {
+    if (options->metadata_path && options->mode != MODE_NONE)
+        return usage_error("--metadata goes with a bake (IN -o ARCHIVE_DIR)", NULL);
+    if (options->mode == MODE_LIST || options->mode == MODE_REMOVE ||
+        options->mode == MODE_THUMBNAIL) {
         if (options->mode == MODE_REMOVE && !options->bake.archive_dir)
             return usage_error("--remove needs -o ARCHIVE_DIR", NULL);
+        if (options->mode == MODE_THUMBNAIL && !options->bake.archive_dir)
+            return usage_error("--thumbnail needs -o ARCHIVE_DIR", NULL);
         if (options->mode == MODE_LIST && options->bake.archive_dir)
             return usage_error("--list and -o are two different modes", NULL);
         if (optind < argc)
@@ -185,8 +208,27 @@ static int check_mode(int argc, char **argv, bake_options *options)
         return usage_error("unexpected argument", argv[optind]);
     if (options->mode == MODE_NONE)
         return usage_error("no mode given: bake with -o ARCHIVE_DIR, or use --info", NULL);
+    if (options->metadata_path && options->mode != MODE_BAKE)
+        return usage_error("--metadata goes with a bake (IN -o ARCHIVE_DIR)", NULL);
     if (!options->input)
         return usage_error("missing input file", NULL);
+    return -1;
+}
+
+/* The thumbnail's and the sidecar's options (--thumbnail, --metadata,
+ * --no-thumbnail, --up): -1 to go on, or the exit status to end with. */
+static int picture_option(int c, const char *arg, bake_options *options)
+{
+    switch (c) {
+    case 'B': options->mode = MODE_THUMBNAIL; options->thumbnail_name = arg; break;
+    case 'X': options->metadata_path = arg; break;
+    case 'O': options->bake.no_thumbnail = true; break;
+    default:
+        if (strlen(arg) != 1 || arg[0] < 'x' || arg[0] > 'z')
+            return usage_error("--up wants x, y or z", arg);
+        options->bake.thumbnail_up = arg[0] - 'x';
+        break;
+    }
     return -1;
 }
 
@@ -221,6 +263,9 @@ static int parse_options(int argc, char **argv, bake_options *options)
         {"remove", required_argument, NULL, 'R'},
         {"subtree-levels", required_argument, NULL, 'Y'},
         {"ahead", required_argument, NULL, 'K'},
+        {"colour-bits", required_argument, NULL, 'c'}, {"no-colour", no_argument, NULL, 'Z'},
+        {"metadata", required_argument, NULL, 'X'}, {"thumbnail", required_argument, NULL, 'B'},
+        {"no-thumbnail", no_argument, NULL, 'O'}, {"up", required_argument, NULL, 'u'},
         {NULL, 0, NULL, 0},
     };
     memset(options, 0, sizeof *options);
@@ -232,6 +277,10 @@ static int parse_options(int argc, char **argv, bake_options *options)
         case 'i': options->mode = MODE_INFO; break;
         case 'l': options->mode = MODE_LIST; options->list_dir = optarg; break;
         case 'R': options->mode = MODE_REMOVE; options->remove_name = optarg; break;
+        case 'B': case 'X': case 'O': case 'u':
+            if ((status = picture_option(c, optarg, options)) >= 0)
+                return status;
+            break;
         case 'j': options->json = true; break;
         case 'h': print_usage(stdout); return EXIT_SUCCESS;
         case 'o': options->bake.archive_dir = optarg; break;
@@ -257,6 +306,12 @@ static int parse_options(int argc, char **argv, bake_options *options)
                 return status;
             options->bake.ahead = (unsigned)value;
             break;
+        case 'c':
+            if (!option_int(long_options, c, optarg, 1, 8, &value, &status))
+                return status;
+            options->bake.colour_bits = (unsigned)value;
+            break;
+        case 'Z': options->bake.no_colour = true; break;
         case 'A': options->bake.apo.enabled = true; break;
         case 'a': options->bake.apo.enabled = false; break;
         case 'V': options->bake.apo.verify = true; break;
@@ -525,6 +580,16 @@ static void print_bake_json(const ms_bake_options *o, const ms_bake_report *r)
     } else {
         json_decref(io);
     }
+    if (root) /* colour streams (docs/ARCHIVE.md): present, precision, bytes */
+        json_object_set_new(root, "colour", json_pack("{s:b, s:b, s:i, s:I}", "present", r->colour,
+                                                      "alpha", r->colour_alpha, "bits", (int)r->colour_bits,
+                                                      "bytes", (json_int_t)r->colour_bytes));
+    if (root && r->thumbnail_bytes)
+        json_object_set_new(root, "thumbnail",
+                            json_pack("{s:i, s:i, s:I, s:i, s:f}", "width", MS_THUMBNAIL_WIDTH,
+                                      "height", MS_THUMBNAIL_HEIGHT, "bytes",
+                                      (json_int_t)r->thumbnail_bytes, "bits",
+                                      (int)r->thumbnail_bits, "seconds", r->seconds_thumbnail));
     if (root) {
         json_object_set_new(root, "duplicated_at_insertion",
                             json_real(r->duplicated_at_insertion_percent));
@@ -550,6 +615,10 @@ static void print_bake_text(const ms_bake_report *r)
            r->duplicated_percent, r->duplicated_at_insertion_percent);
     printf("archive:              %" PRIu64 " bytes, %.2f bits per vertex\n", r->archive_bytes,
            r->bits_per_vertex);
+    printf("geometry:             %" PRIu64 " bytes\n", r->geometry_bytes);
+    if (r->colour)
+        printf("colour:               %" PRIu64 " bytes, %u bits per channel, %s\n", r->colour_bytes,
+               r->colour_bits, r->colour_alpha ? "rgba" : "rgb");
     if (r->apo_chunks > 0) {
         printf("APO:                  %u chunks, %" PRIu64 " bytes (%" PRIu64 " raw), %" PRIu64
                " internal nodes, %" PRIu64 " leaves (%" PRIu64 " more left to the smooth normal)\n",
@@ -579,6 +648,10 @@ static void print_bake_text(const ms_bake_report *r)
            r->io_quantise.read_back / 1e6, r->io_distribute.spilled / 1e6,
            r->io_distribute.read_back / 1e6, r->io_lone.spilled / 1e6, r->io_lone.read_back / 1e6,
            r->io_encode.spilled / 1e6, r->io_encode.read_back / 1e6);
+    if (r->thumbnail_bytes)
+        printf("thumbnail:            %ux%u, %" PRIu64 " bytes at %u bits, %.2f s\n",
+               MS_THUMBNAIL_WIDTH, MS_THUMBNAIL_HEIGHT, r->thumbnail_bytes, r->thumbnail_bits,
+               r->seconds_thumbnail);
     printf("peak memory:          %.1f MB (the process's peak resident set, from the OS)\n",
            r->peak_rss_mb);
 }
@@ -591,7 +664,16 @@ static int run_bake(bake_options *options)
     ms_bake_report report;
     ms_error err;
     ms_error_clear(&err);
+    ms_metadata *metadata = NULL;
+    if (options->metadata_path &&
+        ms_metadata_load(options->metadata_path, &metadata, &err) != MS_OK) {
+        fprintf(stderr, "meshbake: %s\n", err.text);
+        return EXIT_INPUT;
+    }
+    options->bake.metadata = metadata;
     ms_status st = ms_bake(&options->bake, &report, &err);
+    options->bake.metadata = NULL;
+    ms_metadata_free(metadata);
     if (st != MS_OK) {
         fprintf(stderr, "meshbake: %s\n", err.text);
         return st == MS_ERR_ARG ? EXIT_USAGE : EXIT_INPUT;
@@ -601,146 +683,6 @@ static int run_bake(bake_options *options)
     else
         print_bake_text(&report);
     return fflush(stdout) == 0 ? EXIT_SUCCESS : EXIT_INPUT;
-}
-
-/* Changes the preview of a baked model in its catalogue (under the
- * catalogue's lock, like a bake). */
-static int run_set_public(const bake_options *o)
-{
-    const char *dir = o->bake.archive_dir, *name = o->bake.name;
-    ms_catalog catalog;
-    ms_error err;
-    if (ms_catalog_load(dir, &catalog, &err) != MS_OK) {
-        fprintf(stderr, "meshbake: %s\n", err.text);
-        return EXIT_INPUT;
-    }
-    const ms_catalog_entry *found = ms_catalog_find(&catalog, name);
-    int status = EXIT_SUCCESS;
-    if (!found) {
-        fprintf(stderr, "meshbake: no model '%s' in %s/catalog.json\n", name, dir);
-        status = EXIT_INPUT;
-    } else if (o->set_public_bits > found->bits) {
-        fprintf(stderr, "meshbake: model '%s' has %u bits; --set-public-bits %u is more\n", name,
-                found->bits, o->set_public_bits);
-        status = EXIT_INPUT;
-    } else {
-        ms_catalog_entry e = *found;
-        unsigned before = e.public_max_bits;
-        e.public_max_bits = (uint8_t)o->set_public_bits;
-        if (ms_catalog_update(dir, &e, &err) != MS_OK) {
-            fprintf(stderr, "meshbake: %s\n", err.text);
-            status = EXIT_INPUT;
-        } else {
-            printf("meshbake: model '%s': public_max_bits %u -> %u (SIGHUP a running meshserve "
-                   "to apply it)\n", name, before, o->set_public_bits);
-        }
-    }
-    ms_catalog_free(&catalog);
-    return status;
-}
-
-/* The catalogue of a directory, each archive opened (which validates its
- * header and index) and every payload checked against its CRC. */
-static int run_list(const bake_options *o)
-{
-    const char *dir = o->list_dir;
-    ms_catalog catalog;
-    ms_error err;
-    if (ms_catalog_load(dir, &catalog, &err) != MS_OK) {
-        fprintf(stderr, "meshbake: %s\n", err.text);
-        return EXIT_INPUT;
-    }
-    json_t *models = json_array();
-    size_t failed = 0;
-    if (!o->json)
-        printf("%-24s %12s %7s %12s %8s  %s\n", "model", "triangles", "cells", "bytes",
-               "preview", "checksums");
-    for (size_t i = 0; i < catalog.count; ++i) {
-        const ms_catalog_entry *e = &catalog.entries[i];
-        char path[4200], problem[MS_ERROR_TEXT_MAX + 80] = "";
-        snprintf(path, sizeof path, "%s/%s.msa", dir, e->name);
-        ms_archive *a = NULL;
-        uint64_t file_bytes = 0;
-        if (ms_archive_open(path, &a, &err) != MS_OK) {
-            snprintf(problem, sizeof problem, "%s", err.text);
-        } else {
-            const ms_archive_header *h = ms_archive_get_header(a);
-            file_bytes = h->file_size;
-            for (uint32_t cell = 0; cell < h->cell_count && !problem[0]; ++cell)
-                if (ms_archive_verify_payload(a, cell, &err) != MS_OK)
-                    snprintf(problem, sizeof problem, "%s.msa: %s", e->name, err.text);
-            ms_archive_close(a);
-        }
-        failed += problem[0] != 0;
-        unsigned preview = e->public_max_bits < e->bits ? e->public_max_bits : e->bits;
-        if (o->json) {
-            json_array_append_new(
-                models, json_pack("{s:o, s:I, s:I, s:i, s:I, s:i, s:i, s:b, s:s, s:b, s:o}",
-                                  "name", ms_json_text(e->name), "triangles",
-                                  (json_int_t)e->triangles, "vertices", (json_int_t)e->vertices,
-                                  "cells", (int)e->cells, "bytes", (json_int_t)file_bytes,
-                                  "bits", (int)e->bits, "public_bits", (int)preview, "apo",
-                                  e->apo, "baked_at", e->baked_at, "ok", !problem[0], "error",
-                                  ms_json_text(problem)));
-        } else {
-            char preview_text[16];
-            if (preview >= e->bits)
-                snprintf(preview_text, sizeof preview_text, "all");
-            else
-                snprintf(preview_text, sizeof preview_text, "%u/%u", preview, e->bits);
-            printf("%-24s %12" PRIu64 " %7u %12" PRIu64 " %8s  %s\n", e->name, e->triangles,
-                   e->cells, file_bytes, preview_text, problem[0] ? "FAILED" : "ok");
-            if (problem[0])
-                fprintf(stderr, "meshbake: %s\n", problem);
-        }
-    }
-    if (o->json)
-        ms_json_print(stdout,
-                      json_pack("{s:o, s:I, s:I, s:o}", "directory", ms_json_text(dir), "count",
-                                (json_int_t)catalog.count, "failed", (json_int_t)failed, "models",
-                                models),
-                      MS_JSON_SPACED);
-    else
-        json_decref(models);
-    ms_catalog_free(&catalog);
-    return failed ? EXIT_INPUT : EXIT_SUCCESS;
-}
-
-/* Takes a model out of a directory: the catalogue entry first (renamed into
- * place under the lock, so a rescan that follows no longer offers it), then
- * the file (a running server's mapping keeps the old inode alive). */
-static int run_remove(const bake_options *o)
-{
-    const char *dir = o->bake.archive_dir, *name = o->remove_name;
-    if (!ms_model_name_valid(name)) {
-        fprintf(stderr, "meshbake: '%s' is not a model name\n", name);
-        return EXIT_USAGE;
-    }
-    ms_catalog catalog;
-    ms_error err;
-    if (ms_catalog_load(dir, &catalog, &err) != MS_OK) {
-        fprintf(stderr, "meshbake: %s\n", err.text);
-        return EXIT_INPUT;
-    }
-    bool known = ms_catalog_find(&catalog, name) != NULL;
-    ms_catalog_free(&catalog);
-    if (!known) {
-        fprintf(stderr, "meshbake: no model '%s' in %s/catalog.json\n", name, dir);
-        return EXIT_INPUT;
-    }
-    if (ms_catalog_remove(dir, name, &err) != MS_OK) {
-        fprintf(stderr, "meshbake: %s\n", err.text);
-        return EXIT_INPUT;
-    }
-    char path[4200];
-    snprintf(path, sizeof path, "%s/%s.msa", dir, name);
-    if (unlink(path) != 0 && errno != ENOENT) {
-        fprintf(stderr, "meshbake: %s: cannot remove: %s\n", path, strerror(errno));
-        return EXIT_INPUT;
-    }
-    printf("meshbake: model '%s' removed from %s (SIGHUP a running meshserve to apply it)\n",
-           name, dir);
-    return EXIT_SUCCESS;
 }
 
 int main(int argc, char **argv)
@@ -757,9 +699,16 @@ int main(int argc, char **argv)
     switch (options.mode) {
     case MODE_INFO: return run_info(&options);
     case MODE_BAKE: return run_bake(&options);
-    case MODE_SET_PUBLIC: return run_set_public(&options);
-    case MODE_LIST: return run_list(&options);
-    case MODE_REMOVE: return run_remove(&options);
+    case MODE_SET_PUBLIC:
+        return ms_bake_cli_set_public(options.bake.archive_dir, options.bake.name,
+                                      options.set_public_bits, options.bake.thumbnail_up,
+                                      options.bake.threads);
+    case MODE_LIST: return ms_bake_cli_list(options.list_dir, options.json);
+    case MODE_REMOVE: return ms_bake_cli_remove(options.bake.archive_dir, options.remove_name);
+    case MODE_THUMBNAIL:
+        return ms_bake_cli_thumbnail(options.bake.archive_dir, options.thumbnail_name,
+                                     options.bake.thumbnail_up, options.bake.threads,
+                                     options.json);
     case MODE_NONE: break;
     }
     return EXIT_USAGE;

@@ -18,10 +18,11 @@
 
 typedef struct cell_state {
     ms_archive_cell cell;
-    uint64_t geometry_spool, apo_spool; /* offsets in the spool file */
+    uint64_t geometry_spool, apo_spool, colour_spool; /* offsets in the spool file */
     uint32_t *geometry_table;           /* bits_max - bits_min + 1 words */
     uint32_t *apo_table;                /* 2 * apo_levels words */
-    bool has_geometry, has_apo;
+    uint32_t *colour_table;             /* bits_max - bits_min + 1 words, then the CRC */
+    bool has_geometry, has_apo, has_colour;
 } cell_state;
 
 struct ms_archive_writer {
@@ -35,6 +36,13 @@ struct ms_archive_writer {
     unsigned threads;        /* for the subtrees at finish, >= 1 */
 };
 
+/* Words of a cell's tables (docs/ARCHIVE.md, "Per-cell tables"). */
+static uint64_t cell_table_words(const ms_archive_header *h, const ms_archive_cell *c)
+{
+    uint64_t window = (uint64_t)c->bits_max - c->bits_min + 1;
+    return window + 2ull * c->apo_levels + (h->has_colour ? window + 1 : 0);
+}
+
 static void writer_free(ms_archive_writer *w)
 {
     if (!w)
@@ -43,7 +51,8 @@ static void writer_free(ms_archive_writer *w)
         fclose(w->spool);
     if (w->cells)
         for (uint32_t i = 0; i < w->header.cell_count; ++i)
-            free(w->cells[i].geometry_table), free(w->cells[i].apo_table);
+            free(w->cells[i].geometry_table), free(w->cells[i].apo_table),
+                free(w->cells[i].colour_table);
     free(w->cells);
     free(w->path);
     free(w->partial_path);
@@ -242,6 +251,37 @@ ms_status ms_archive_writer_put_apo(ms_archive_writer *w, uint32_t cell, const u
     return MS_OK;
 }
 
+ms_status ms_archive_writer_put_colour(ms_archive_writer *w, uint32_t cell, const uint8_t *data,
+                                       uint32_t length, const uint32_t *prefix_table,
+                                       ms_error *err)
+{
+    if (!w->header.has_colour || cell >= w->header.cell_count || w->cells[cell].has_colour ||
+        length == 0)
+        return ms_error_set(err, MS_ERR_ARG, "archive writer: unexpected colour stream for cell %u",
+                            cell);
+    cell_state *s = &w->cells[cell];
+    size_t words = (size_t)s->cell.bits_max - s->cell.bits_min + 1;
+    uint32_t previous = 0;
+    for (size_t k = 0; k < words; ++k) {
+        if (prefix_table[k] < previous || prefix_table[k] > length)
+            return ms_error_set(err, MS_ERR_ARG, "archive writer: cell %u: bad colour prefix table", cell);
+        previous = prefix_table[k];
+    }
+    if (previous != length)
+        return ms_error_set(err, MS_ERR_ARG, "archive writer: cell %u: colour prefix table must end at %u",
+                            cell, length);
+    s->colour_table = malloc((words + 1) * sizeof *s->colour_table);
+    if (!s->colour_table)
+        return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory", w->path);
+    memcpy(s->colour_table, prefix_table, words * sizeof *s->colour_table);
+    s->colour_table[words] = (uint32_t)crc32_z(0L, data, length);
+    ms_status st = spool_append(w, data, length, &s->colour_spool, err);
+    if (st != MS_OK)
+        return st;
+    s->has_colour = true;
+    return MS_OK;
+}
+
 /* Copies `length` spool bytes from `offset` to the output. */
 static int copy_from_spool(ms_archive_writer *w, FILE *out, uint64_t offset, uint32_t length)
 {
@@ -418,12 +458,22 @@ ms_status ms_archive_writer_finish(ms_archive_writer *w, ms_error *err)
             ms_archive_writer_abort(w);
             return st;
         }
+        if (h->has_colour && s->has_colour != (s->cell.vertex_count > 0)) {
+            ms_status st = ms_error_set(err, MS_ERR_ARG, "archive writer: cell %u: %s", id,
+                                        s->has_colour ? "colour stream for an empty cell"
+                                                      : "no colour stream");
+            ms_archive_writer_abort(w);
+            return st;
+        }
         s->cell.geometry_offset = payload;
         payload += s->cell.geometry_length;
+        /* the colour stream follows the geometry (docs/ARCHIVE.md) */
+        size_t window = (size_t)s->cell.bits_max - s->cell.bits_min + 1;
+        payload += s->has_colour ? s->colour_table[window - 1] : 0;
         s->cell.apo_offset = s->has_apo ? payload : 0;
         payload += s->cell.apo_length;
         s->cell.table_first = (uint32_t)table_words;
-        table_words += (uint64_t)s->cell.bits_max - s->cell.bits_min + 1 + 2u * s->cell.apo_levels;
+        table_words += cell_table_words(h, &s->cell);
     }
     if (table_words > MS_ARCHIVE_MAX_TABLE_WORDS) {
         ms_archive_writer_abort(w);
@@ -441,9 +491,13 @@ ms_status ms_archive_writer_finish(ms_archive_writer *w, ms_error *err)
         cell_state *s = &w->cells[id];
         ms_archive_encode_cell(&s->cell, index + (size_t)id * MS_ARCHIVE_RECORD_SIZE);
         size_t geometry_words = (size_t)s->cell.bits_max - s->cell.bits_min + 1;
-        size_t n = geometry_words + 2u * s->cell.apo_levels;
+        size_t apo_end = geometry_words + 2u * s->cell.apo_levels;
+        size_t n = (size_t)cell_table_words(h, &s->cell);
         for (size_t k = 0; k < n; ++k) {
-            uint32_t v = k < geometry_words ? s->geometry_table[k] : s->apo_table[k - geometry_words];
+            uint32_t v = k < geometry_words ? s->geometry_table[k]
+                         : k < apo_end      ? s->apo_table[k - geometry_words]
+                         : s->has_colour    ? s->colour_table[k - apo_end]
+                                            : 0;
             uint8_t *p = words + 4 * ((size_t)s->cell.table_first + k);
             p[0] = (uint8_t)v, p[1] = (uint8_t)(v >> 8), p[2] = (uint8_t)(v >> 16), p[3] = (uint8_t)(v >> 24);
         }
@@ -476,6 +530,9 @@ ms_status ms_archive_writer_finish(ms_archive_writer *w, ms_error *err)
         for (uint32_t id = 0; !failed && id < h->cell_count; ++id) {
             cell_state *s = &w->cells[id];
             failed |= copy_from_spool(w, out, s->geometry_spool, s->cell.geometry_length);
+            if (s->has_colour)
+                failed |= copy_from_spool(w, out, s->colour_spool,
+                                          s->colour_table[s->cell.bits_max - s->cell.bits_min]);
             if (s->has_apo)
                 failed |= copy_from_spool(w, out, s->apo_spool, s->cell.apo_length);
         }

@@ -47,6 +47,15 @@ ms_status ms_archive_writer_put_apo(ms_archive_writer *writer, uint32_t cell,
                                     const uint8_t *data, uint32_t length, uint32_t raw_length,
                                     const uint32_t *level_table, uint8_t levels, ms_error *err);
 
+/* The cell's colour stream (docs/COLOUR.md) over its window: prefix_table has
+ * bits_max - bits_min + 1 entries, entry k the bytes that decode its colour to
+ * bits_min + k bits (entry 0: the stream header and base chunk), the last the
+ * length. Exactly once for each cell with vertices, only when the header has
+ * has_colour (and colour_bits, colour_alpha). */
+ms_status ms_archive_writer_put_colour(ms_archive_writer *writer, uint32_t cell,
+                                       const uint8_t *data, uint32_t length,
+                                       const uint32_t *prefix_table, ms_error *err);
+
 /* The precision window the writer expects for a cell (from the topology). */
 void ms_archive_writer_window(const ms_archive_writer *writer, uint32_t cell, uint8_t *bits_min,
                               uint8_t *bits_max);

@@ -11,6 +11,9 @@
 #endif
 
 #include "ms_archive_writer.h"
+#include "ms_bake_thumbnail.h"
+#include "ms_bake_colour.h"
+#include "ms_colour.h"
 #include "ms_codec.h"
 #include "ms_catalog.h"
 #include "ms_nsp_build.h"
@@ -28,6 +31,7 @@ void ms_bake_options_default(ms_bake_options *o)
     o->mem_mb = 512;
     o->public_bits = -1;
     o->ahead = MS_CODEC_DEFAULT_AHEAD;
+    o->thumbnail_up = -1;
     long cpus = sysconf(_SC_NPROCESSORS_ONLN);
     o->threads = cpus > 0 ? (unsigned)cpus : 1;
     ms_bake_apo_params_default(&o->apo);
@@ -108,6 +112,9 @@ static ms_status check_options(const ms_bake_options *o, ms_nsp_shape *shape, ms
                             MS_NSP_DEFAULT_MIN_TRIANGLES_MAX);
     if (o->apo.enabled && (s = ms_bake_apo_params_check(&o->apo, err)) != MS_OK)
         return s;
+    if (o->colour_bits > MS_COLOUR_MAX_BITS)
+        return ms_error_set(err, MS_ERR_ARG, "--colour-bits %u outside 1..%u", o->colour_bits,
+                            MS_COLOUR_MAX_BITS);
     return MS_OK;
 }
 
@@ -210,7 +217,8 @@ static ms_status order_cells(ms_nsp_build *b, uint32_t **order, uint32_t **first
     return MS_OK;
 }
 
-static ms_archive_header archive_header(const ms_bake_options *o, const ms_nsp_build *b)
+static ms_archive_header archive_header(const ms_bake_options *o, const ms_nsp_build *b,
+                                        const ms_bake_report *r)
 {
     ms_archive_header h;
     memset(&h, 0, sizeof h);
@@ -225,6 +233,9 @@ static ms_archive_header archive_header(const ms_bake_options *o, const ms_nsp_b
     h.has_apo = o->apo.enabled;
     h.apo_lead = o->apo.enabled ? (uint8_t)o->apo.lead : 0;
     h.apo_max_depth = o->apo.enabled ? (uint8_t)o->apo.max_depth : 0;
+    h.has_colour = r->colour;
+    h.colour_bits = (uint8_t)r->colour_bits;
+    h.colour_alpha = r->colour_alpha;
     return h;
 }
 
@@ -265,13 +276,16 @@ static void report_apo_and_duplicates(const ms_nsp_encode_stats *es, unsigned th
 /* Encodes every cell (geometry, and APO when on) into w; the figures into r.
  * A model whose every triangle welds away is an error. */
 static ms_status encode_cells(const ms_bake_options *o, ms_nsp_build *b,
-                              const uint32_t *cell_of_node, ms_archive_writer *w,
-                              bake_progress *progress, ms_bake_report *r, ms_error *err)
+                              const uint32_t *cell_of_node, const ms_bake_colours *colours,
+                              ms_archive_writer *w, bake_progress *progress, ms_bake_report *r,
+                              ms_error *err)
 {
     ms_nsp_encode_params ep = {
         .threads = o->threads ? o->threads : 1,
         .apo = &o->apo,
         .ahead = o->ahead,
+        .colours = r->colour ? colours : NULL,
+        .colour_bits = r->colour_bits,
         .progress = on_progress,
         .progress_context = progress,
     };
@@ -281,6 +295,7 @@ static ms_status encode_cells(const ms_bake_options *o, ms_nsp_build *b,
     if (s != MS_OK)
         return s;
     r->seconds_encode = es.seconds;
+    r->colour_bytes = es.colour_bytes;
     r->io_encode = es.io;
     memcpy(r->depth_leaves, es.depth_leaves, sizeof r->depth_leaves);
     memcpy(r->depth_triangles, es.depth_triangles, sizeof r->depth_triangles);
@@ -297,7 +312,7 @@ static ms_status encode_cells(const ms_bake_options *o, ms_nsp_build *b,
 
 /* Adds the baked model to the directory's catalogue; without its entry the
  * archive is removed. */
-static ms_status record_in_catalog(const ms_bake_options *o, const ms_bake_report *r,
+static ms_status record_in_catalog(const ms_bake_options *o, ms_bake_report *r,
                                    const ms_archive_header *h, ms_error *err)
 {
     ms_catalog_entry e;
@@ -318,7 +333,31 @@ static ms_status record_in_catalog(const ms_bake_options *o, const ms_bake_repor
     e.apo_lead = h->apo_lead;
     e.apo_max_depth = h->apo_max_depth;
     e.apo_tolerance = o->apo.enabled ? o->apo.tolerance : 0.0;
+    e.metadata = (ms_metadata *)o->metadata;
     ms_status s = ms_catalog_entry_fill_listing(&e, r->archive_path, err);
+    if (s == MS_OK && !o->no_thumbnail) {
+        ms_study_thumbnail_report tr;
+        ms_error terr;
+        int up = o->thumbnail_up;
+        ms_catalog before;
+        if (up < 0 && ms_catalog_load(o->archive_dir, &before, &terr) == MS_OK) {
+            const ms_catalog_entry *was = ms_catalog_find(&before, e.name);
+            up = was && was->has_thumbnail ? was->thumbnail_up : 2;
+            ms_catalog_free(&before);
+        }
+        if (ms_bake_thumbnail(o->archive_dir, &e, up, o->threads, &tr, &terr) ==
+            MS_OK) {
+            r->seconds_thumbnail = tr.seconds;
+            r->thumbnail_bytes = tr.png_bytes;
+            r->thumbnail_bits = e.thumbnail_bits;
+        } else if (o->notes) { /* the model is served without a picture */
+            fprintf(o->notes, "meshbake: no thumbnail: %s\n", terr.text);
+        }
+    } else if (s == MS_OK) { /* an older picture would not match this archive */
+        char png[4200];
+        ms_bake_thumbnail_path(o->archive_dir, e.name, png, sizeof png);
+        unlink(png);
+    }
     if (s == MS_OK)
         s = ms_catalog_update(o->archive_dir, &e, err);
     if (s != MS_OK)
@@ -361,21 +400,32 @@ ms_status ms_bake(const ms_bake_options *o, ms_bake_report *r, ms_error *err)
     }
     uint32_t *order = NULL, *first_child = NULL, *cell_of_node = NULL;
     ms_archive_writer *w = NULL;
+    ms_bake_colours colours;
+    memset(&colours, 0, sizeof colours);
+    if (!o->no_colour) {
+        double t_colour = ms_now_seconds();
+        if ((s = ms_bake_colours_read(o->input, &b.box, o->bits, &colours, &r->colour, err)) != MS_OK)
+            goto done;
+        r->colour_alpha = colours.alpha;
+        r->colour_bits = r->colour ? (o->colour_bits ? o->colour_bits : MS_COLOUR_DEFAULT_BITS) : 0;
+        r->seconds_colour = ms_now_seconds() - t_colour;
+    }
     double t_lone = ms_now_seconds();
     if ((s = ms_nsp_lone_segments(&b, o->threads ? o->threads : 1, &r->io_lone, err)) != MS_OK)
         goto done;
     r->seconds_lone = ms_now_seconds() - t_lone;
     if ((s = order_cells(&b, &order, &first_child, &cell_of_node, err)) != MS_OK)
         goto done;
-    ms_archive_header h = archive_header(o, &b);
+    ms_archive_header h = archive_header(o, &b, r);
     if ((s = ms_archive_writer_open(r->archive_path, &h, first_child, &w, err)) != MS_OK)
         goto done;
     if ((s = ms_archive_writer_set_subtree_levels(w, o->subtree_levels, err)) !=
         MS_OK)
         goto done;
     ms_archive_writer_set_threads(w, o->threads ? o->threads : 1);
-    if ((s = encode_cells(o, &b, cell_of_node, w, &progress, r, err)) != MS_OK)
+    if ((s = encode_cells(o, &b, cell_of_node, &colours, w, &progress, r, err)) != MS_OK)
         goto done;
+    ms_bake_colours_free(&colours);
     double t_write = ms_now_seconds();
     s = finish_archive(o, &b, w, &h, r, err);
     w = NULL;
@@ -387,6 +437,7 @@ done:
     if (w)
         ms_archive_writer_abort(w);
     ms_nsp_build_free(&b);
+    ms_bake_colours_free(&colours);
     free(order);
     free(first_child);
     free(cell_of_node);

@@ -36,6 +36,7 @@
 #include "ms_apo_format.h"
 #include "ms_bake_apo.h"
 #include "ms_error.h"
+#include "ms_metadata.h"
 #include "ms_nsp_build.h"
 
 /* The smallest mem_mb a bake works in: MS_BAKE_MEM_BASE_MB for the fixed buffers
@@ -63,6 +64,15 @@ typedef struct ms_bake_options {
     unsigned subtree_levels;  /* levels per index subtree, 1..8; 0: the default for n
                                * (ms_subtree_default_levels) */
     unsigned ahead;        /* geometry ahead of connectivity, kd-levels (ms_codec.h) */
+    /* Per-vertex colour, when the input has it (ms_bake_colour.h): colour_bits
+     * per channel, 1..8 (0: MS_COLOUR_DEFAULT_BITS); no_colour leaves it out. */
+    unsigned colour_bits;
+    bool no_colour;
+    const ms_metadata *metadata; /* NULL, or the sidecar's (kept in the catalogue entry;
+                                  * NULL keeps what a previous bake of NAME had) */
+    bool no_thumbnail;     /* skip DIR/NAME.thumb.png (ms_bake_thumbnail.h) */
+    int thumbnail_up;      /* the thumbnail's world up: 0 x, 1 y, 2 z; < 0 (default):
+                            * a previous bake's of NAME, else z */
 } ms_bake_options;
 
 /* Defaults: 16 bits, n = 4, p_r = 7, N_min by model size (8000 up to 4 M input
@@ -84,9 +94,16 @@ typedef struct ms_bake_report {
     uint32_t cells, leaves, empty_cells, depth;
     uint32_t min_triangles;                    /* N_min used (options' or the default) */
     uint64_t archive_bytes, geometry_bytes;
+    bool colour, colour_alpha;                 /* colour streams baked (with alpha) */
+    unsigned colour_bits;                      /* their precision, 0 without colour */
+    uint64_t colour_bytes;                     /* all cells' colour streams */
+    double seconds_colour;                     /* reading the colours (a second read) */
     double bits_per_vertex;                    /* 8 archive_bytes / vertices */
     double seconds_read, seconds_quantise, seconds_distribute, seconds_lone, seconds_encode,
         seconds_write, seconds_total;
+    double seconds_thumbnail;                  /* inside seconds_write */
+    uint64_t thumbnail_bytes;                  /* 0: none made */
+    unsigned thumbnail_bits;
     double peak_rss_mb;
     double peak_rss_build_mb;              /* peak when the tree was built (before encoding) */
     unsigned threads;

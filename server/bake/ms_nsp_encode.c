@@ -12,6 +12,7 @@
 #include <string.h>
 
 #include "ms_apo_build.h"
+#include "ms_bake_colour.h"
 #include "ms_codec.h"
 #include "ms_nsp.h"
 #include "ms_nsp_cell_state.h"
@@ -221,6 +222,9 @@ typedef struct cell_out {
     double apo_seconds;
     ms_bake_apo_part part;    /* the APO m, averaged, kept for the parent's M */
     size_t sample_triangles;  /* M's triangles */
+    uint8_t *colour;          /* the colour stream (ms_bake_colour.h), or NULL */
+    size_t colour_size;
+    uint32_t colour_table[MS_CODEC_MAX_BITS + 1];
 } cell_out;
 
 /* ---- APO inputs ---------------------------------------------------------- */
@@ -520,6 +524,21 @@ static ms_status encode_cell(pool *p, uint32_t node, ms_apo_builder **builder, c
         out->vertices = (uint32_t)st.vertex_count;
         out->triangles = (uint32_t)st.tri_count;
     }
+    if (s == MS_OK && p->params->colours) {
+        ms_bake_colour_cube chain[MS_NSP_MAX_DEPTH + 1];
+        size_t chain_n = 0;
+        for (uint32_t x = node; x != MS_NSP_NONE; x = b->nodes[x].parent) {
+            const ms_nsp_node *xn = &b->nodes[x];
+            unsigned xlo, xhi;
+            ms_nsp_window(&b->params.shape, xn->depth, xn->first_child == MS_NSP_NONE, &xlo, &xhi);
+            chain[chain_n++] = (ms_bake_colour_cube){
+                ms_quant_key(xn->position[0], xn->position[1], xn->position[2], 0),
+                3u * b->params.shape.log2n * xn->depth, xlo};
+        }
+        s = ms_bake_colour_cell(p->params->colours, &st, freezing ? freeze : NULL, chain, chain_n,
+                                p->params->colour_bits, &out->colour, &out->colour_size,
+                                out->colour_table, err);
+    }
     ms_codec_state_free(&st);
     free(freeze);
     if (s == MS_OK && apo && out->size > 0 && !*builder)
@@ -529,6 +548,7 @@ static ms_status encode_cell(pool *p, uint32_t node, ms_apo_builder **builder, c
     ms_mesh_free(&m_leaf);
     if (s != MS_OK) {
         free(out->stream);
+        free(out->colour);
         ms_codec_state_free(&out->start);
         ms_bake_apo_result_free(&out->apo);
         ms_bake_apo_part_free(&out->part);
@@ -549,6 +569,12 @@ static ms_status finish_cell(pool *p, uint32_t node, cell_out *out, ms_error *er
     p->stats.empty_cells += out->size == 0;
     free(out->stream);
     out->stream = NULL;
+    if (s == MS_OK && out->colour_size > 0)
+        s = ms_archive_writer_put_colour(p->writer, p->cell_of_node[node], out->colour,
+                                         (uint32_t)out->colour_size, out->colour_table, err);
+    p->stats.colour_bytes += out->colour_size;
+    free(out->colour);
+    out->colour = NULL;
     const ms_bake_apo_result *a = &out->apo;
     if (s == MS_OK) { /* the sampling work, also of a chunk left without texels */
         p->stats.apo_rays += a->rays;

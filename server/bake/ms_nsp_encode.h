@@ -45,6 +45,10 @@ typedef struct ms_nsp_encode_params {
     unsigned threads; /* >= 1 */
     const ms_bake_apo_params *apo; /* NULL or not enabled: no APO chunks */
     unsigned ahead;   /* geometry ahead of connectivity, kd-levels (ms_codec.h) */
+    /* NULL: no colour. Else every cell with vertices gets its colour stream
+     * (ms_bake_colour.h) at colour_bits (1..8) per channel. */
+    const struct ms_bake_colours *colours;
+    unsigned colour_bits;
     void (*progress)(void *context, const char *phase, double fraction);
     void *progress_context;
 } ms_nsp_encode_params;
@@ -56,6 +60,7 @@ typedef struct ms_nsp_encode_stats {
     uint64_t leaf_duplicates;   /* input triangles unified inside leaves (same vertex set) */
     uint64_t isolated_vertices;
     uint64_t geometry_bytes;    /* all payloads */
+    uint64_t colour_bytes;      /* all colour streams */
     uint32_t empty_cells;
     uint64_t apo_bytes;         /* compressed chunks */
     uint64_t apo_raw_bytes;     /* texel bytes */

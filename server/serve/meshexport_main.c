@@ -29,10 +29,11 @@ static void usage(FILE *out)
             "side door: OUT_DIR/models/NAME.index (header and cell index, served at\n"
             "/models/NAME), OUT_DIR/models/NAME.head (the index head, served at\n"
             "/models/NAME/head), OUT_DIR/models/NAME/subtrees/ID (the index in subtrees),\n"
-            "OUT_DIR/models/NAME/cells/ID/geometry and .../apo (prefixes are byte ranges of\n"
-            "these files, served with Range by any static web server).\n"
+            "OUT_DIR/models/NAME/cells/ID/geometry, .../apo and .../colour (prefixes are byte\n"
+            "ranges of these files, served with Range by any static web server).\n"
             "Only what an anonymous reader may read is written: a model with a public\n"
-            "preview (catalogue public_max_bits) gets each geometry cut at the preview, each\n"
+            "preview (catalogue public_max_bits) gets each geometry and colour stream cut at\n"
+            "the preview, each\n"
             "APO chunk cut to the levels no finer than the preview, and no files for cells\n"
             "wholly beyond it.\n\n"
             "  -o, --output DIR   where to write (created; existing files are replaced)\n"
@@ -77,6 +78,7 @@ static int export_cell(ms_model *model, const ms_access *grant, const char *arch
                        uint64_t *files)
 {
     const ms_archive *a = model->archive;
+    static const char *const kinds[3] = {"geometry", "apo", "colour"};
     char path[4096];
     size_t size;
     ms_error err;
@@ -87,9 +89,8 @@ static int export_cell(ms_model *model, const ms_access *grant, const char *arch
     }
     if (ms_access_cell_hidden(model, grant, cell)) {
         /* An earlier --full export into OUT_DIR must not stay behind. */
-        for (int apo = 0; apo < 2; ++apo) {
-            snprintf(path, sizeof path, "%s/models/%s/cells/%u/%s", out_dir, name, cell,
-                     apo ? "apo" : "geometry");
+        for (int k = 0; k < 3; ++k) {
+            snprintf(path, sizeof path, "%s/models/%s/cells/%u/%s", out_dir, name, cell, kinds[k]);
             remove(path);
         }
         snprintf(path, sizeof path, "%s/models/%s/cells/%u", out_dir, name, cell);
@@ -98,18 +99,26 @@ static int export_cell(ms_model *model, const ms_access *grant, const char *arch
     }
     snprintf(path, sizeof path, "%s/models/%s/cells/%u", out_dir, name, cell);
     failed |= make_dir(path);
-    for (int apo = 0; apo < 2 && !failed; ++apo) {
+    /* geometry, APO and colour (docs/ARCHIVE.md): colour follows the
+     * geometric preview (ms_access.h), as its stream's steps are bits */
+    for (int k = 0; k < 3 && !failed; ++k) {
+        bool apo = k == 1, colour = k == 2;
         uint8_t permitted = apo ? ms_access_cell_apo_steps(model, grant, cell)
                                 : grant->permitted_geometry_steps;
-        const uint8_t *data = apo ? ms_archive_apo(a, cell, &size) : ms_archive_geometry(a, cell, &size);
-        if (apo && (!size || !permitted)) {
-            /* no APO chunk, or none of it under the preview: nor one an
-             * earlier --full export left */
-            snprintf(path, sizeof path, "%s/models/%s/cells/%u/apo", out_dir, name, cell);
+        const uint8_t *data = apo      ? ms_archive_apo(a, cell, &size)
+                              : colour ? ms_archive_colour(a, cell, &size)
+                                       : ms_archive_geometry(a, cell, &size);
+        if ((apo || colour) && (!size || !permitted)) {
+            /* no APO chunk or colour stream, or none of it under the preview:
+             * nor one an earlier --full export left */
+            snprintf(path, sizeof path, "%s/models/%s/cells/%u/%s", out_dir, name, cell, kinds[k]);
             remove(path);
             continue;
         }
-        ms_proto_cell_request all = {cell, apo ? MS_PROTO_STREAM_APO : MS_PROTO_STREAM_GEOMETRY,
+        ms_proto_cell_request all = {cell,
+                                     apo      ? MS_PROTO_STREAM_APO
+                                     : colour ? MS_PROTO_STREAM_COLOUR
+                                              : MS_PROTO_STREAM_GEOMETRY,
                                      MS_PROTO_UNIT_STEPS, 0, 0, permitted - 1u};
         if (all.b > MS_PROTO_MAX_STEP)
             all.b = MS_PROTO_MAX_STEP;
@@ -118,8 +127,7 @@ static int export_cell(ms_model *model, const ms_access *grant, const char *arch
             fprintf(stderr, "meshexport: %s: cell %u: %s\n", archive_dir, cell, err.text);
             return 1;
         }
-        snprintf(path, sizeof path, "%s/models/%s/cells/%u/%s", out_dir, name, cell,
-                 apo ? "apo" : "geometry");
+        snprintf(path, sizeof path, "%s/models/%s/cells/%u/%s", out_dir, name, cell, kinds[k]);
         failed |= write_file(path, data, range.end);
         *bytes += range.end, (*files)++;
     }

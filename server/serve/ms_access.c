@@ -114,6 +114,17 @@ ms_status ms_access_resolve(const ms_model *model, const ms_access *grant,
         for (uint32_t i = 0; i < steps.step_count; ++i)
             ends[i] = ms_archive_geometry_prefix(a, request->cell_id, cell->bits_min + i);
         access = (ms_proto_stream_access){grant->geometry_steps, grant->permitted_geometry_steps};
+    } else if (request->stream == MS_PROTO_STREAM_COLOUR) {
+        /* Colour follows the geometric preview (section 8): the same steps,
+         * precision bits of the cell's window, and the same permitted count,
+         * so a preview reader sees no vertex's colour finer than its shape. */
+        steps.first_step = cell->bits_min;
+        steps.step_count = cell->bits_max >= cell->bits_min ? cell->bits_max - cell->bits_min + 1u : 0;
+        if (steps.step_count > MS_PROTO_MAX_STEPS)
+            steps.step_count = MS_PROTO_MAX_STEPS;
+        for (uint32_t i = 0; i < steps.step_count; ++i)
+            ends[i] = ms_archive_colour_prefix(a, request->cell_id, cell->bits_min + i);
+        access = (ms_proto_stream_access){grant->geometry_steps, grant->permitted_geometry_steps};
     } else {
         /* APO detail follows the geometric preview cell by cell (section 8):
          * nothing of a hidden cell, and no texel finer than the preview's

@@ -150,6 +150,8 @@ static ms_status write_catalogue(const char *out_dir, const ms_catalog_entry *en
     }
     if (full) /* every byte is in the tree: the reader needs no token */
         json_object_set_new(mine, "public_max_bits", json_integer(entry->bits));
+    /* no thumbnail in the export (meshserve's /models/NAME/thumbnail) */
+    json_object_set_new(mine, "thumbnail", json_false());
     /* the model's viewer page in the export (meshserve's is view/NAME) */
     char page[128];
     snprintf(page, sizeof page, "view/%s.html", entry->name);

@@ -35,6 +35,12 @@ void ms_http_reply(ms_http_door *door, struct evhttp_request *req, int code, con
 void ms_http_send_text(ms_http_door *door, struct evhttp_request *req, int code,
                        const char *reason, const char *text);
 
+/* A regular file's bytes as an answer body (the file handed to the buffer,
+ * sent without copying): the body and *length, or NULL having answered 404
+ * with missing (one line) when path is no regular file, or 500. */
+struct evbuffer *ms_http_file_body(ms_http_door *door, struct evhttp_request *req,
+                                   const char *path, const char *missing, uint64_t *length);
+
 /* Decimal digits only (at most 10), at most max; false otherwise. */
 bool ms_http_parse_u32(const char *text, uint32_t max, uint32_t *out);
 
@@ -57,9 +63,16 @@ bool ms_http_route_page(ms_http_door *door, struct evhttp_request *req, char **s
 
 /* Answers GET /catalog: one page of the catalogue as JSON, with the query's
  * offset, limit (default 100, at most 1000), sort (name, size, date,
- * triangles), order (asc, desc) and q (a case-insensitive text filter on name
- * and source); a bad parameter gets 400 and one line. Opens no archive. */
+ * triangles), order (asc, desc) and q (a case-insensitive text filter on name,
+ * source, and the metadata's title and description); a bad parameter gets
+ * 400 and one line. Opens no archive. */
 void ms_http_serve_catalog(ms_http_door *door, struct evhttp_request *req,
                            const struct evkeyvalq *query);
+
+/* Answers GET /models/NAME/thumbnail (ms_http_thumbnail.c): the model's
+ * DIR/NAME.thumb.png, only while its catalogue entry says it was rendered
+ * within the public preview (thumbnail_bits <= public_max_bits), so it is
+ * the same public answer for every reader; 404 otherwise. Opens no archive. */
+void ms_http_serve_thumbnail(ms_http_door *door, struct evhttp_request *req, const char *name);
 
 #endif

@@ -116,8 +116,8 @@ static void serve_index(ms_http_door *door, struct evhttp_request *req, ms_model
     send_bytes(door, req, model, index, size, etag, false);
 }
 
-/* A cell's geometry (?bits=B: the prefix complete at B bits; bits above the
- * cell's own top mean all of it) or APO (?levels=L: the first L levels; by
+/* A cell's geometry or colour stream (?bits=B: the prefix complete at B bits;
+ * bits above the cell's own top mean all of it) or APO (?levels=L: the first L levels; by
  * default as many as the grant reads of it). The
  * URL is turned into a request entry and ms_access_resolve decides, as for the
  * binary door: the preview check runs on the clamped precision. */
@@ -138,9 +138,12 @@ static void serve_cell(ms_http_door *door, struct evhttp_request *req, ms_model 
         ms_http_send_text(door, req, 403, "Forbidden", "error: this cell is beyond the public preview; a token is required");
         return;
     }
-    bool geometry = !strcmp(kind, "geometry");
-    ms_proto_cell_request entry = {cell, geometry ? MS_PROTO_STREAM_GEOMETRY : MS_PROTO_STREAM_APO,
-                                   MS_PROTO_UNIT_STEPS, 0, 0, 0};
+    bool colour = !strcmp(kind, "colour");
+    bool geometry = colour || !strcmp(kind, "geometry"); /* colour steps are bits too */
+    uint8_t stream = colour     ? MS_PROTO_STREAM_COLOUR
+                     : geometry ? MS_PROTO_STREAM_GEOMETRY
+                                : MS_PROTO_STREAM_APO;
+    ms_proto_cell_request entry = {cell, stream, MS_PROTO_UNIT_STEPS, 0, 0, 0};
     bool empty = false;
     if (geometry) {
         uint32_t bits = c->bits_max;
@@ -180,17 +183,18 @@ static void serve_cell(ms_http_door *door, struct evhttp_request *req, ms_model 
             ms_http_send_text(door, req, 500, "Internal Server Error", "error: the cell's index is inconsistent");
         return;
     }
-    if (range.end > 0 && !ms_server_payload_intact(ms_http_door_server(door), model, cell, !geometry)) {
+    if (range.end > 0 && !ms_server_payload_intact(ms_http_door_server(door), model, cell, stream)) {
         ms_http_send_text(door, req, 500, "Internal Server Error",
                   "error: the archive's copy of this payload is damaged");
         return;
     }
     size_t total;
-    const uint8_t *data = geometry ? ms_archive_geometry(model->archive, cell, &total)
-                                   : ms_archive_apo(model->archive, cell, &total);
+    const uint8_t *data = colour     ? ms_archive_colour(model->archive, cell, &total)
+                          : geometry ? ms_archive_geometry(model->archive, cell, &total)
+                                     : ms_archive_apo(model->archive, cell, &total);
     char etag[160];
     snprintf(etag, sizeof etag, "\"%" PRIx64 "-%" PRIx64 "-%u-%c%u\"", model->file_inode,
-             (uint64_t)model->file_mtime_ns, cell, geometry ? 'g' : 'a',
+             (uint64_t)model->file_mtime_ns, cell, colour ? 'c' : geometry ? 'g' : 'a',
              geometry ? entry.b : (empty ? 0 : entry.b + 1));
     /* Resolved ranges of a STEPS request from step 0 start at byte 0. */
     send_bytes(door, req, model, data, range.end, etag, token_used);
@@ -261,13 +265,31 @@ static void serve_draco(ms_http_door *door, struct evhttp_request *req, ms_model
     }
     char path[4096];
     snprintf(path, sizeof path, "%s/%s.drc", ms_http_door_server(door)->config.archive_dir, name);
+    uint64_t length;
+    struct evbuffer *body =
+        ms_http_file_body(door, req, path, "error: no Draco file for this model", &length);
+    if (!body)
+        return;
+    struct evkeyvalq *out = evhttp_request_get_output_headers(req);
+    evhttp_add_header(out, "Content-Type", "application/octet-stream");
+    evhttp_add_header(out, "Cache-Control", token_used ? "private, max-age=3600" : "public, max-age=3600");
+    evhttp_add_header(out, "Vary", "Authorization");
+    if (!ms_http_is_head(req))
+        ms_http_door_server(door)->metrics.http_bytes_sent += length;
+    ms_http_reply(door, req, 200, "OK", body, length); /* a HEAD: freeing body closes the file */
+    evbuffer_free(body);
+}
+
+struct evbuffer *ms_http_file_body(ms_http_door *door, struct evhttp_request *req,
+                                   const char *path, const char *missing, uint64_t *length)
+{
     int fd = open(path, O_RDONLY | O_CLOEXEC);
     struct stat st;
     if (fd < 0 || fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
         if (fd >= 0)
             close(fd);
-        ms_http_send_text(door, req, 404, "Not Found", "error: no Draco file for this model");
-        return;
+        ms_http_send_text(door, req, 404, "Not Found", missing);
+        return NULL;
     }
     struct evbuffer *body = evbuffer_new();
     if (!body || (st.st_size > 0 && evbuffer_add_file(body, fd, 0, st.st_size) != 0)) {
@@ -276,18 +298,12 @@ static void serve_draco(ms_http_door *door, struct evhttp_request *req, ms_model
         else
             close(fd);
         ms_http_send_text(door, req, 500, "Internal Server Error", "error: cannot send the file");
-        return;
+        return NULL;
     }
     if (st.st_size == 0)
         close(fd);
-    struct evkeyvalq *out = evhttp_request_get_output_headers(req);
-    evhttp_add_header(out, "Content-Type", "application/octet-stream");
-    evhttp_add_header(out, "Cache-Control", token_used ? "private, max-age=3600" : "public, max-age=3600");
-    evhttp_add_header(out, "Vary", "Authorization");
-    if (!ms_http_is_head(req))
-        ms_http_door_server(door)->metrics.http_bytes_sent += (uint64_t)st.st_size;
-    ms_http_reply(door, req, 200, "OK", body, (uint64_t)st.st_size); /* a HEAD: freeing body closes fd */
-    evbuffer_free(body);
+    *length = (uint64_t)st.st_size;
+    return body;
 }
 
 bool ms_http_route_model(ms_http_door *door, struct evhttp_request *req, ms_model *model,
@@ -310,7 +326,7 @@ bool ms_http_route_model(ms_http_door *door, struct evhttp_request *req, ms_mode
         return true;
     }
     if (n == 4 && !strcmp(seg[1], "cells") &&
-        (!strcmp(seg[3], "geometry") || !strcmp(seg[3], "apo"))) {
+        (!strcmp(seg[3], "geometry") || !strcmp(seg[3], "apo") || !strcmp(seg[3], "colour"))) {
         serve_cell(door, req, model, seg[2], seg[3], query);
         return true;
     }

@@ -5,10 +5,8 @@
 #include <event2/buffer.h>
 #include <event2/http.h>
 #include <event2/keyvalq_struct.h>
-#include <fcntl.h>
 #include <stdio.h>
 #include <string.h>
-#include <sys/stat.h>
 #include <unistd.h>
 
 #include "ms_catalog.h"
@@ -53,25 +51,10 @@ static void send_page(ms_http_door *door, struct evhttp_request *req, const char
     }
     char path[4200];
     snprintf(path, sizeof path, "%s/%s", dir, name);
-    int fd = open(path, O_RDONLY | O_CLOEXEC);
-    struct stat st;
-    if (fd < 0 || fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
-        if (fd >= 0)
-            close(fd);
-        ms_http_send_text(door, req, 404, "Not Found", "error: no such page file");
+    uint64_t length;
+    struct evbuffer *body = ms_http_file_body(door, req, path, "error: no such page file", &length);
+    if (!body)
         return;
-    }
-    struct evbuffer *body = evbuffer_new();
-    if (!body || (st.st_size > 0 && evbuffer_add_file(body, fd, 0, st.st_size) != 0)) {
-        if (body)
-            evbuffer_free(body);
-        else
-            close(fd);
-        ms_http_send_text(door, req, 500, "Internal Server Error", "error: cannot send the file");
-        return;
-    }
-    if (st.st_size == 0)
-        close(fd);
     struct evkeyvalq *out = evhttp_request_get_output_headers(req);
     evhttp_add_header(out, "Content-Type", type);
     evhttp_add_header(out, "Cache-Control", "no-cache");
@@ -80,7 +63,7 @@ static void send_page(ms_http_door *door, struct evhttp_request *req, const char
         evhttp_add_header(out, "Content-Security-Policy",
                           "default-src 'self'; script-src 'self' 'wasm-unsafe-eval'; "
                           "style-src 'self'; img-src 'self' data:; base-uri 'none'");
-    ms_http_reply(door, req, 200, "OK", body, (uint64_t)st.st_size); /* a HEAD: freeing body closes fd */
+    ms_http_reply(door, req, 200, "OK", body, length); /* a HEAD: freeing body closes the file */
     evbuffer_free(body);
 }
 

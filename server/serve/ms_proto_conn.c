@@ -208,6 +208,8 @@ bool ms_serve_conn_send_chunk(ms_fair_link *link, void *arg)
                               ? ms_archive_geometry(r->model->archive, r->cell, &length)
                           : r->stream == MS_PROTO_STREAM_APO
                               ? ms_archive_apo(r->model->archive, r->cell, &length)
+                          : r->stream == MS_PROTO_STREAM_COLOUR
+                              ? ms_archive_colour(r->model->archive, r->cell, &length)
                               : ms_archive_subtree(r->model->archive, r->cell, &length);
     bool last = r->next + chunk == r->end;
     ms_error err;

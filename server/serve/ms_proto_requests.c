@@ -10,10 +10,12 @@
 #include <string.h>
 
 #include "ms_access.h"
+#include "ms_catalog_page.h"
 #include "ms_frame_out.h"
 #include "ms_progress.h"
 #include "ms_proto_conn.h"
 #include "ms_proto_range.h"
+#include "ms_catalog_page.h"
 #include "ms_registry.h"
 #include "ms_server_internal.h"
 #include "ms_subtree.h"
@@ -143,7 +145,8 @@ static void handle_hello(ms_serve_conn *c, const ms_proto_hello *h)
     /* Only the capabilities the chosen version defines: a version-1 peer never
      * gets CAP_INDEX_ZLIB, a version-2 peer never CAP_INDEX_SUBTREES. */
     uint32_t offered =
-        (MS_PROTO_CAP_APO | MS_PROTO_CAP_INDEX_ZLIB | MS_PROTO_CAP_INDEX_SUBTREES) &
+        (MS_PROTO_CAP_APO | MS_PROTO_CAP_INDEX_ZLIB | MS_PROTO_CAP_INDEX_SUBTREES |
+         MS_PROTO_CAP_COLOUR) &
         ms_proto_version_capabilities(version);
     c->version = version;
     c->capabilities = h->capabilities & offered;
@@ -194,22 +197,24 @@ static bool listed_model(ms_serve_conn *c, ms_registry *r, size_t i, ms_proto_ca
     return true;
 }
 
-static void handle_list_catalogue(ms_serve_conn *c, uint32_t id)
+/* Sends the models at registry positions indices[0..count) (indices NULL:
+ * every model) as frames of type (CATALOGUE, or CATALOGUE_PAGE carrying
+ * total), split by the client's max_frame, the last with LAST. */
+static void send_listing(ms_serve_conn *c, uint32_t id, uint8_t type, const size_t *indices,
+                         size_t count_in, uint32_t total)
 {
-    metrics_of(c)->binary_requests++;
-    c->requests++;
-    if (!ids_free(c, id, 1) || !rate_allows(c, id, 1))
-        return;
     ms_registry *r = server_of(c)->registry;
-    size_t model_count = ms_registry_count(r);
     ms_proto_catalogue_entry entries[CATALOGUE_FRAME_BYTES / MS_PROTO_CATALOGUE_ENTRY_FIXED];
     char titles[CATALOGUE_FRAME_BYTES / MS_PROTO_CATALOGUE_ENTRY_FIXED][64];
     uint32_t limit =
         c->client_max_frame < CATALOGUE_FRAME_BYTES ? c->client_max_frame : CATALOGUE_FRAME_BYTES;
-    size_t count = 0, body = MS_PROTO_CATALOGUE_FIXED, listed = 0;
-    for (size_t i = 0; i <= model_count; ++i) {
+    size_t fixed = type == MS_PROTO_CATALOGUE ? MS_PROTO_CATALOGUE_FIXED
+                                              : MS_PROTO_CATALOGUE_PAGE_FIXED;
+    size_t count = 0, body = fixed, listed = 0;
+    for (size_t k = 0; k <= count_in; ++k) {
         ms_proto_catalogue_entry next;
-        bool last = i == model_count;
+        bool last = k == count_in;
+        size_t i = last ? 0 : indices ? indices[k] : k;
         if (!last && !listed_model(c, r, i, &next))
             continue;
         const ms_catalog_entry *entry = last ? NULL : ms_registry_entry(r, i);
@@ -222,17 +227,18 @@ static void handle_list_catalogue(ms_serve_conn *c, uint32_t id)
         bool flush = last || body + entry_size > limit ||
                      count + 1 == sizeof entries / sizeof *entries || listed == 65535;
         if (flush && (count || last)) {
-            ms_proto_message msg = {.type = MS_PROTO_CATALOGUE, .request_id = id};
+            ms_proto_message msg = {.type = type, .request_id = id};
             msg.flags = last || listed == 65535 ? MS_PROTO_FLAG_LAST : 0;
             msg.body.catalogue.entries = entries;
             msg.body.catalogue.entry_count = (uint16_t)count;
+            msg.body.catalogue.total = total;
             ms_serve_conn_send_message(c, &msg);
             if (last || listed == 65535)
                 return;
             /* The pending title was written at titles[count]: move it. */
             memcpy(titles[0], titles[count], sizeof titles[0]);
             count = 0;
-            body = MS_PROTO_CATALOGUE_FIXED;
+            body = fixed;
         }
         entries[count] = next;
         entries[count].title = titles[count];
@@ -241,6 +247,38 @@ static void handle_list_catalogue(ms_serve_conn *c, uint32_t id)
         ++count;
         ++listed;
     }
+}
+
+static void handle_list_catalogue(ms_serve_conn *c, uint32_t id)
+{
+    metrics_of(c)->binary_requests++;
+    c->requests++;
+    if (!ids_free(c, id, 1) || !rate_allows(c, id, 1))
+        return;
+    send_listing(c, id, MS_PROTO_CATALOGUE, NULL, ms_registry_count(server_of(c)->registry), 0);
+}
+
+/* Version 3: one page of the catalogue, as the HTTP door's GET /catalog
+ * selects it (ms_catalog_page.h). Its total counts the models the filter
+ * matches, listable or not. */
+static void handle_list_page(ms_serve_conn *c, uint32_t id, const ms_proto_list_page *l)
+{
+    metrics_of(c)->binary_requests++;
+    c->requests++;
+    if (!ids_free(c, id, 1) || !rate_allows(c, id, 1))
+        return;
+    ms_catalog_page_query q = {.offset = l->offset, .limit = l->limit,
+                               .sort = (ms_catalog_sort)l->sort, .descending = l->descending};
+    memcpy(q.text, l->query, l->query_length);
+    q.text[l->query_length] = '\0';
+    size_t *indices, count, total;
+    if (ms_catalog_page_select(server_of(c)->registry, &q, &indices, &count, &total, NULL) !=
+        MS_OK) {
+        ms_serve_conn_send_error(c, MS_PROTO_E_INTERNAL, id, 1, 0, "out of memory");
+        return;
+    }
+    send_listing(c, id, MS_PROTO_CATALOGUE_PAGE, indices, count, (uint32_t)total);
+    free(indices);
 }
 
 /* Adds name to the connection's list of models for the access log, once. */
@@ -446,8 +484,7 @@ static resolved resolve_entry(const ms_serve_conn *c, const ms_open_model *slot,
         return (resolved){fault.code, fault.detail, 0, 0};
     /* Subtrees were validated (CRC, structure) when the archive was opened. */
     if (range.begin < range.end && e->stream != MS_PROTO_STREAM_INDEX &&
-        !ms_server_payload_intact(server_of(c), slot->model, e->cell_id,
-                                  e->stream == MS_PROTO_STREAM_APO))
+        !ms_server_payload_intact(server_of(c), slot->model, e->cell_id, e->stream))
         return (resolved){MS_PROTO_E_INTERNAL, 0, 0, 0};
     return (resolved){0, 0, range.begin, range.end};
 }
@@ -555,6 +592,7 @@ void ms_serve_conn_handle_message(ms_serve_conn *c, const ms_proto_message *msg)
     switch ((ms_proto_type)msg->type) {
     case MS_PROTO_HELLO: handle_hello(c, &msg->body.hello); break;
     case MS_PROTO_LIST_CATALOGUE: handle_list_catalogue(c, msg->request_id); break;
+    case MS_PROTO_LIST_PAGE: handle_list_page(c, msg->request_id, &msg->body.list_page); break;
     case MS_PROTO_OPEN_MODEL: handle_open_model(c, msg->request_id, &msg->body.open_model); break;
     case MS_PROTO_CLOSE_MODEL: handle_close_model(c, msg->body.close_model.model_handle); break;
     case MS_PROTO_REQUEST_CELLS:

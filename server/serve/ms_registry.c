@@ -29,20 +29,24 @@ void ms_model_unref(ms_model *m)
     free(m);
 }
 
-ms_status ms_model_check_payload(ms_model *m, uint32_t cell, bool apo, bool *first_report,
+ms_status ms_model_check_payload(ms_model *m, uint32_t cell, uint8_t stream, bool *first_report,
                                  ms_error *err)
 {
     *first_report = false;
     const ms_archive_cell *c = ms_archive_get_cell(m->archive, cell);
     if (!c)
         return ms_error_set(err, MS_ERR_RANGE, "cell %u does not exist", cell);
-    uint8_t checked = apo ? MS_PAYLOAD_APO_CHECKED : MS_PAYLOAD_GEOMETRY_CHECKED;
-    uint8_t bad = apo ? MS_PAYLOAD_APO_BAD : MS_PAYLOAD_GEOMETRY_BAD;
-    uint8_t gone = apo ? MS_PAYLOAD_APO_GONE : MS_PAYLOAD_GEOMETRY_GONE;
-    uint8_t *state = &m->payload_checks[cell];
+    bool apo = stream == MS_PROTO_STREAM_APO, colour = stream == MS_PROTO_STREAM_COLOUR;
+    uint16_t checked = apo ? MS_PAYLOAD_APO_CHECKED : colour ? MS_PAYLOAD_COLOUR_CHECKED : MS_PAYLOAD_GEOMETRY_CHECKED;
+    uint16_t bad = apo ? MS_PAYLOAD_APO_BAD : colour ? MS_PAYLOAD_COLOUR_BAD : MS_PAYLOAD_GEOMETRY_BAD;
+    uint16_t gone = apo ? MS_PAYLOAD_APO_GONE : colour ? MS_PAYLOAD_COLOUR_GONE : MS_PAYLOAD_GEOMETRY_GONE;
+    const char *what = apo ? "APO chunk" : colour ? "colour stream" : "geometry payload";
+    uint16_t *state = &m->payload_checks[cell];
     /* Truncated in place? Then the mapping's pages past the end are gone. */
     uint64_t end = MS_ARCHIVE_HEADER_SIZE + ms_archive_get_header(m->archive)->index_stored_size +
-                   (apo ? c->apo_offset + c->apo_length : c->geometry_offset + c->geometry_length);
+                   (apo ? c->apo_offset + c->apo_length
+                        : c->geometry_offset + c->geometry_length +
+                              (colour ? ms_archive_colour_length(m->archive, cell) : 0));
     struct stat now;
     if (stat(m->file_path, &now) == 0 && (uint64_t)now.st_ino == m->file_inode &&
         (uint64_t)now.st_size < end) {
@@ -51,20 +55,21 @@ ms_status ms_model_check_payload(ms_model *m, uint32_t cell, bool apo, bool *fir
         return ms_error_set(err, MS_ERR_IO,
                             "cell %u: the archive file shrank to %llu bytes under the server; "
                             "the %s ended at %llu", cell, (unsigned long long)now.st_size,
-                            apo ? "APO chunk" : "geometry payload", (unsigned long long)end);
+                            what, (unsigned long long)end);
     }
     if (!(*state & checked)) {
         size_t length;
-        const uint8_t *data = apo ? ms_archive_apo(m->archive, cell, &length)
-                                  : ms_archive_geometry(m->archive, cell, &length);
-        ms_status st = ms_archive_check_payload(m->archive, cell, apo, data, length, err);
+        const uint8_t *data = apo      ? ms_archive_apo(m->archive, cell, &length)
+                              : colour ? ms_archive_colour(m->archive, cell, &length)
+                                       : ms_archive_geometry(m->archive, cell, &length);
+        ms_status st = colour ? ms_archive_check_colour(m->archive, cell, data, length, err)
+                              : ms_archive_check_payload(m->archive, cell, apo, data, length, err);
         *state |= checked | (st != MS_OK ? bad : 0);
         *first_report = st != MS_OK;
         return st;
     }
     if (*state & bad)
-        return ms_error_set(err, MS_ERR_CORRUPT, "cell %u: %s checksum mismatch", cell,
-                            apo ? "APO chunk" : "geometry payload");
+        return ms_error_set(err, MS_ERR_CORRUPT, "cell %u: %s checksum mismatch", cell, what);
     return MS_OK;
 }
 
@@ -189,6 +194,12 @@ static registry_slot *find_slot(const ms_registry *r, const char *name)
     return NULL;
 }
 
+const ms_catalog_entry *ms_registry_entry_named(const ms_registry *r, const char *name)
+{
+    registry_slot *slot = find_slot(r, name);
+    return slot ? slot->entry : NULL;
+}
+
 ms_model *ms_registry_peek(const ms_registry *r, const char *name)
 {
     registry_slot *slot = find_slot(r, name);
@@ -223,6 +234,7 @@ ms_status ms_model_open(const char *dir, const ms_catalog_entry *entry, ms_model
         return status;
     }
     m->entry = *entry;
+    m->entry.metadata = NULL; /* the catalogue's, not the model's: /catalog shows it */
     m->entry.source = strdup(entry->source ? entry->source : "");
     m->file_path = strdup(path);
     if (!m->entry.source || !m->file_path) {
@@ -233,7 +245,7 @@ ms_status ms_model_open(const char *dir, const ms_catalog_entry *entry, ms_model
         return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory", path);
     }
     const ms_archive_header *h = ms_archive_get_header(m->archive);
-    m->payload_checks = calloc(h->cell_count ? h->cell_count : 1, 1);
+    m->payload_checks = calloc(h->cell_count ? h->cell_count : 1, sizeof *m->payload_checks);
     if (!m->payload_checks) {
         ms_archive_close(m->archive);
         free(m->file_path);

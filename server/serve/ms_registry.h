@@ -63,7 +63,7 @@ typedef struct ms_model {
     int64_t file_mtime_ns;
     /* Per cell, what ms_model_check_payload found (MS_PAYLOAD_* bits), so that
      * each payload's CRC is computed once, on first use. */
-    uint8_t *payload_checks;
+    uint16_t *payload_checks;
     /* /metrics counters of this model, both doors: requests received for it
      * (opens, cell requests, HTTP answers) and payload bytes sent. Carried
      * over to the new version when a rescan replaces the model. */
@@ -77,6 +77,9 @@ enum {
     MS_PAYLOAD_APO_BAD = 8,
     MS_PAYLOAD_GEOMETRY_GONE = 16, /* reported: the file shrank under it */
     MS_PAYLOAD_APO_GONE = 32,
+    MS_PAYLOAD_COLOUR_CHECKED = 64,
+    MS_PAYLOAD_COLOUR_BAD = 128,
+    MS_PAYLOAD_COLOUR_GONE = 256,
 };
 
 /* The models of one scan of a directory, sorted by name: opaque, built by
@@ -112,6 +115,10 @@ const ms_catalog_entry *ms_registry_entry(const ms_registry *registry, size_t i)
  * that only the registry holds. */
 ms_model *ms_registry_find(ms_registry *registry, const char *name);
 
+/* The catalogue entry of the model named name (validated first), or NULL;
+ * opens nothing. */
+const ms_catalog_entry *ms_registry_entry_named(const ms_registry *registry, const char *name);
+
 /* The model named name if its archive is open, else NULL; opens nothing. */
 ms_model *ms_registry_peek(const ms_registry *registry, const char *name);
 
@@ -132,7 +139,8 @@ void ms_registry_close_idle(ms_registry *registry, double now, double idle_s);
 ms_status ms_model_open(const char *dir, const ms_catalog_entry *entry, ms_model **out,
                         ms_error *err);
 
-/* Checks one payload of a cell (its geometry, or its APO chunk when apo)
+/* Checks one payload of a cell (stream: MS_PROTO_STREAM_GEOMETRY, _APO or
+ * _COLOUR: its geometry, APO chunk or colour stream)
  * against the CRC-32 in the index, the first time it is asked, and remembers
  * the answer. MS_OK when it is intact; MS_ERR_CORRUPT naming the cell and the
  * stream when not, with *first_report true only the first time (to log it
@@ -140,8 +148,8 @@ ms_status ms_model_open(const char *dir, const ms_catalog_entry *entry, ms_model
  * that the file under the mapping (same inode at file_path) still reaches past
  * the payload: a file truncated in place gives MS_ERR_IO ("the archive file
  * shrank"), never a read past its end (SIGBUS) or a silent short answer. */
-ms_status ms_model_check_payload(ms_model *model, uint32_t cell, bool apo, bool *first_report,
-                                 ms_error *err);
+ms_status ms_model_check_payload(ms_model *model, uint32_t cell, uint8_t stream,
+                                 bool *first_report, ms_error *err);
 
 void ms_model_ref(ms_model *model);
 void ms_model_unref(ms_model *model);

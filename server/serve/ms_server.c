@@ -119,11 +119,11 @@ void ms_server_log_limited(const ms_server *server, ms_log_limit *limit, const c
     limit->held = 0;
 }
 
-bool ms_server_payload_intact(const ms_server *s, ms_model *model, uint32_t cell, bool apo)
+bool ms_server_payload_intact(const ms_server *s, ms_model *model, uint32_t cell, uint8_t stream)
 {
     bool first_report;
     ms_error err;
-    if (ms_model_check_payload(model, cell, apo, &first_report, &err) == MS_OK)
+    if (ms_model_check_payload(model, cell, stream, &first_report, &err) == MS_OK)
         return true;
     if (first_report)
         ms_server_log(s, "model '%s': %s; not served", model->entry.name, err.text);
@@ -288,6 +288,10 @@ static ms_status server_start(ms_server *s, ms_server_config *config, ms_error *
     s->base = event_settings ? event_base_new_with_config(event_settings) : NULL;
     if (event_settings)
         event_config_free(event_settings);
+    if (s->base && event_base_priority_init(s->base, MS_PRIORITY_LEVELS) != 0) {
+        server_stop(s);
+        return ms_error_set(err, MS_ERR_NOMEM, "cannot set the event loop's priorities");
+    }
     if (!s->base) {
         server_stop(s);
         return ms_error_set(err, MS_ERR_NOMEM, "cannot create the event loop");

@@ -39,6 +39,7 @@ typedef struct ms_server_metrics {
     uint64_t http_connections;         /* open now */
     uint64_t http_connections_dropped; /* closed for a late header or no send progress */
     uint64_t http_connections_shed;    /* idle ones closed at the cap for a newcomer */
+    uint64_t http_connections_trickling; /* open now, their request header arriving in pieces */
     uint64_t binary_connections_dropped; /* slow readers closed for no send progress */
     uint64_t log_lines_held_back;      /* client log lines not written (ms_server_log_client) */
 } ms_server_metrics;
@@ -74,11 +75,13 @@ uint16_t ms_server_bound_port(const ms_server *server, bool http);
 const ms_server_metrics *ms_server_get_metrics(const ms_server *server);
 double ms_server_started_at(const ms_server *server);
 
-/* True when payload (a cell's geometry, or its APO chunk when apo) is intact:
+/* True when payload (a cell's stream: MS_PROTO_STREAM_GEOMETRY, _APO or
+ * _COLOUR) is intact:
  * checked against its CRC once, on first use (ms_model_check_payload); a
  * damaged one is logged once, and both doors refuse to serve it (INTERNAL,
  * 500). */
-bool ms_server_payload_intact(const ms_server *server, ms_model *model, uint32_t cell, bool apo);
+bool ms_server_payload_intact(const ms_server *server, ms_model *model, uint32_t cell,
+                              uint8_t stream);
 
 /* The access log (config access_log): one JSON object a line, appended and
  * flushed as each entry ends (docs/DEPLOY.md, "Access log"):

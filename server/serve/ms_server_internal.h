@@ -26,6 +26,18 @@ typedef struct ms_client_log {
     char held_since[32];       /* ms_catalog_now of the first held back */
 } ms_client_log;
 
+/* The loop's priorities (event_base_priority_init): each turn libevent runs
+ * the ready events of the most urgent level that has any and leaves the rest
+ * for the next turns, which poll without waiting. Everything runs at
+ * MS_PRIORITY_NORMAL (libevent's default for three levels), except the side
+ * door's connections whose request header arrives in pieces: a slowloris
+ * connection's bytes wait behind every other connection's work
+ * (ms_http_door.c). MS_PRIORITY_URGENT is unused: room above the default. */
+#define MS_PRIORITY_LEVELS 3
+#define MS_PRIORITY_URGENT 0
+#define MS_PRIORITY_NORMAL 1
+#define MS_PRIORITY_TRICKLE 2
+
 struct ms_server {
     struct event_base *base;
     ms_server_config config;     /* owned */

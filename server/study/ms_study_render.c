@@ -245,19 +245,9 @@ ms_status ms_study_key_camera(const ms_camera_path *path, size_t key, double wid
     if (key >= path->count)
         return ms_error_set(err, MS_ERR_RANGE, "camera path: keyframe %zu of %zu", key, path->count);
     const ms_camera_key *k = &path->keys[key];
-    if (!(far_distance > 0)) {
-        double farthest2 = 0;
-        for (int corner = 0; corner < 8; ++corner) {
-            double d2 = 0;
-            for (int a = 0; a < 3; ++a) {
-                double c = (corner >> a) & 1 ? hi[a] : lo[a], d = c - k->position[a];
-                d2 += d * d;
-            }
-            farthest2 = fmax(farthest2, d2);
-        }
-        far_distance = 1.01 * sqrt(farthest2);
-        if (!(far_distance > 0))
-            far_distance = 1;
+    if (!(far_distance > 0)) { /* just past the box's farthest corner */
+        double unused;
+        ms_camera_depth_range(k->position, lo, hi, &unused, &far_distance);
     }
     if (!(near_distance > 0))
         near_distance = far_distance * 1e-5;

@@ -5,8 +5,9 @@
  * Input: the blob. Besides the sanitizers, the target checks the reader's
  * contract and aborts when it is broken: a blob accepted has a header whose
  * cell count matches the cells it answers for; every cell's geometry prefix
- * grows with the precision and stays within the stored length, and so does
- * every APO prefix with the level; an index-only archive has no payload
+ * grows with the precision and stays within the stored length, and so do
+ * every APO prefix with the level and every colour prefix with the precision
+ * (none without colour); an index-only archive has no payload
  * bytes; a refused blob leaves no archive and a one-line error.
  *
  * tests/test_fuzz_replay.c includes this file to replay
@@ -59,9 +60,17 @@ static bool ms_fuzz_archive_index_one(const uint8_t *data, size_t size)
             MS_FUZZ_INDEX_CHECK(p >= previous && p <= c->apo_length);
             previous = p;
         }
+        previous = 0;
+        for (unsigned bits = 0; bits <= 64; ++bits) {
+            uint32_t p = ms_archive_colour_prefix(a, cell, bits);
+            MS_FUZZ_INDEX_CHECK(p >= previous && p <= ms_archive_colour_length(a, cell));
+            MS_FUZZ_INDEX_CHECK(h->has_colour || p == 0);
+            previous = p;
+        }
         size_t length;
         MS_FUZZ_INDEX_CHECK(ms_archive_geometry(a, cell, &length) == NULL);
         MS_FUZZ_INDEX_CHECK(ms_archive_apo(a, cell, &length) == NULL);
+        MS_FUZZ_INDEX_CHECK(ms_archive_colour(a, cell, &length) == NULL);
     }
     size_t blob_size;
     MS_FUZZ_INDEX_CHECK(ms_archive_index_bytes(a, &blob_size) != NULL && blob_size > 0);
