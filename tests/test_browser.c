@@ -14,7 +14,9 @@
  *     server, in state 'error', and nothing hangs;
  *   - a preview model: without a token the page completes below full
  *     precision with no refused request; with the token (entered as the form
- *     keeps it, sent as Authorization) it reads more.
+ *     keeps it, sent as Authorization) it reads more;
+ *   - mouse and touch (orbit, pan, pinch) by the DevTools protocol's real
+ *     input, from meshview's view text in the URL, the text shown back.
  * The cases that need the browser skip, saying why, only when
  * chromium-headless-shell or emscripten is not installed; with emscripten
  * installed a missing module fails (`make test` builds it). */
@@ -193,6 +195,16 @@ static void test_page_routes(void **state)
         if (cases[i].type)
             assert_string_equal(type, cases[i].type);
         ms_test_http_free(&r);
+    }
+    /* /view/NAME/: to /view/NAME, where the page's relative paths work */
+    {
+        ms_test_http_response moved;
+        char location[64] = "";
+        assert_int_equal(ms_test_http_get(f->http_port, "/view/demo/", NULL, &moved), 0);
+        assert_int_equal(moved.status, 301);
+        assert_string_equal(ms_test_http_header(&moved, "Location", location, sizeof location),
+                            "/view/demo");
+        ms_test_http_free(&moved);
     }
     /* the token is never taken from a URL, pages included */
     ms_test_http_response r;
@@ -448,6 +460,73 @@ static void test_preview_and_token(void **state)
     json_decref(full);
 }
 
+/* Mouse and touch through the DevTools protocol's real input: a drag orbits
+ * (meshview's pi per canvas height), a right drag pans (a pixel a pixel at
+ * the target's depth), a two-finger spread zooms; the page starts at
+ * meshview's view text (#view=mv1:...), shows the text of its camera (the
+ * same text back), and rewrites its URL's #cam= as the camera moves. */
+static void test_controls_and_view_text(void **state)
+{
+    fixture *f = *state;
+    NEED_BROWSER(f);
+    static const char steps[] =
+        "[{\"method\": \"Input.dispatchMouseEvent\", \"params\": {\"type\": \"mousePressed\", \"x\": 160, \"y\": 120, \"button\": \"left\", \"buttons\": 1, \"clickCount\": 1}},\n"
+        " {\"method\": \"Input.dispatchMouseEvent\", \"params\": {\"type\": \"mouseMoved\", \"x\": 200, \"y\": 120, \"button\": \"left\", \"buttons\": 1}},\n"
+        " {\"method\": \"Input.dispatchMouseEvent\", \"params\": {\"type\": \"mouseReleased\", \"x\": 200, \"y\": 120, \"button\": \"left\", \"buttons\": 0, \"clickCount\": 1}},\n"
+        " {\"settle\": true},\n"
+        " {\"method\": \"Input.dispatchMouseEvent\", \"params\": {\"type\": \"mousePressed\", \"x\": 160, \"y\": 120, \"button\": \"right\", \"buttons\": 2, \"clickCount\": 1}},\n"
+        " {\"method\": \"Input.dispatchMouseEvent\", \"params\": {\"type\": \"mouseMoved\", \"x\": 160, \"y\": 144, \"button\": \"right\", \"buttons\": 2}},\n"
+        " {\"method\": \"Input.dispatchMouseEvent\", \"params\": {\"type\": \"mouseReleased\", \"x\": 160, \"y\": 144, \"button\": \"right\", \"buttons\": 0, \"clickCount\": 1}},\n"
+        " {\"settle\": true},\n"
+        " {\"method\": \"Input.dispatchTouchEvent\", \"params\": {\"type\": \"touchStart\", \"touchPoints\": [{\"x\": 140, \"y\": 120, \"id\": 1}, {\"x\": 180, \"y\": 120, \"id\": 2}]}},\n"
+        " {\"method\": \"Input.dispatchTouchEvent\", \"params\": {\"type\": \"touchMove\", \"touchPoints\": [{\"x\": 120, \"y\": 120, \"id\": 1}, {\"x\": 200, \"y\": 120, \"id\": 2}]}},\n"
+        " {\"method\": \"Input.dispatchTouchEvent\", \"params\": {\"type\": \"touchEnd\", \"touchPoints\": []}},\n"
+        " {\"settle\": true}]\n";
+    char steps_file[700], shot[700], command[4096];
+    snprintf(steps_file, sizeof steps_file, "%s/steps.json", f->dir);
+    ms_test_write_file(steps_file, steps, strlen(steps));
+    snprintf(shot, sizeof shot, "%s/controls.png", f->dir);
+    snprintf(command, sizeof command,
+             "tests/browser-page 'http://127.0.0.1:%u/view/demo#view=mv1:t=0,0,0:d=3.4:o=0.35,-0.2:f=40:u=y&hud=0' "
+             "--size %dx%d --out %s --input %s --timeout 120",
+             f->http_port, WIDTH, HEIGHT, shot, steps_file);
+    json_t *report = ms_test_run_json(command, 0);
+    json_t *page = json_object_get(report, "page");
+    assert_string_equal(json_string_value(json_object_get(report, "state")), "complete");
+    assert_string_equal(json_string_value(json_object_get(page, "view")),
+                        "mv1:t=0,0,0:d=3.4:o=0.35,-0.2:f=40:u=y");
+    assert_true(json_real_value(json_object_get(page, "progress")) == 1.0 ||
+                json_integer_value(json_object_get(page, "progress")) == 1);
+    json_t *after = json_object_get(report, "steps");
+    assert_int_equal(json_array_size(after), 3);
+    double t[3][3], d[3], yaw[3], pitch[3];
+    for (int k = 0; k < 3; ++k) {
+        json_t *step = json_array_get(after, (size_t)k);
+        const char *view = json_string_value(json_object_get(json_object_get(step, "page"), "view"));
+        const char *hash = json_string_value(json_object_get(step, "hash"));
+        printf("after step %d: %s, URL #%s\n", k, view, hash + 1);
+        assert_string_equal(json_string_value(json_object_get(json_object_get(step, "page"), "state")),
+                            "complete");
+        assert_int_equal(sscanf(view, "mv1:t=%lf,%lf,%lf:d=%lf:o=%lf,%lf:f=40:u=y", &t[k][0], &t[k][1],
+                                &t[k][2], &d[k], &yaw[k], &pitch[k]), 6);
+        assert_non_null(strstr(hash, "cam="));
+        assert_null(strstr(hash, "view="));
+    }
+    const double pi = 3.14159265358979323846;
+    /* 40 px right: the yaw turns by 40 pi / 240; nothing else moves */
+    assert_true(fabs(yaw[0] - (0.35 + 40 * pi / 240)) < 1e-9);
+    assert_true(fabs(pitch[0] + 0.2) < 1e-9 && fabs(d[0] - 3.4) < 1e-9);
+    assert_true(fabs(t[0][0]) < 1e-12 && fabs(t[0][1]) < 1e-12 && fabs(t[0][2]) < 1e-12);
+    /* 24 px down with the right button: the target rises along the camera's
+     * up by 24 pixels at its depth (2 d tan(20 deg) / 240 a pixel) */
+    double rise = 24 * 2 * 3.4 * tan(20 * pi / 180) / 240;
+    assert_true(fabs(t[1][1] - rise * cos(0.2)) < 1e-9);
+    assert_true(fabs(d[1] - 3.4) < 1e-9 && fabs(yaw[1] - yaw[0]) < 1e-12);
+    /* two fingers from 40 px apart to 80: half the distance */
+    assert_true(fabs(d[2] - 1.7) < 1e-9 && fabs(yaw[2] - yaw[0]) < 1e-12);
+    json_decref(report);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -457,6 +536,7 @@ int main(void)
         cmocka_unit_test(test_missing_model_says_so),
         cmocka_unit_test(test_server_gone_mid_stream),
         cmocka_unit_test(test_preview_and_token),
+        cmocka_unit_test(test_controls_and_view_text),
     };
     return cmocka_run_group_tests(tests, group_setup, group_teardown);
 }

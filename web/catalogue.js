@@ -1,5 +1,6 @@
-// The catalogue page (/): the models meshserve serves, from GET /catalog
-// (its first 1000 by name), each with its thumbnail (/models/NAME/thumbnail,
+// The catalogue page (/): the models meshserve serves, from GET /catalog.json
+// (the same as /catalog; its first 1000 by name; a static export's whole
+// catalog.json, meshexport --web-dir), each with its thumbnail (/models/NAME/thumbnail,
 // where the server has one) and its metadata, and a link to its viewer page
 // (docs/BROWSER.md). Text from the catalogue (names, titles, creators,
 // descriptions: a sidecar's, anyone's) only ever goes in as text nodes, never
@@ -23,7 +24,11 @@ async function showCatalogue() {
   const table = document.getElementById('models');
   window.meshstream = { state: 'loading', message: '' };
   try {
-    const answer = await fetch('/catalog?limit=1000&sort=name');
+    // meshserve's paged catalogue, or a static export's whole one, which
+    // ignores the query and names each model's page (view/NAME.html;
+    // meshserve's are view/NAME). Paths are relative: a site may live in a
+    // folder of its server.
+    const answer = await fetch('catalog.json?limit=1000&sort=name');
     if (!answer.ok)
       throw new Error('the server answered ' + answer.status + ': ' + (await answer.text()).trim());
     const catalogue = await answer.json();
@@ -36,7 +41,7 @@ async function showCatalogue() {
       picture.className = 'thumbnail';
       if (m.thumbnail) {
         const img = document.createElement('img');
-        img.src = '/models/' + encodeURIComponent(m.name) + '/thumbnail';
+        img.src = 'models/' + encodeURIComponent(m.name) + '/thumbnail';
         img.width = 160;
         img.height = 120;
         img.loading = 'lazy';
@@ -46,7 +51,8 @@ async function showCatalogue() {
       }
       const about = row.insertCell();
       const link = document.createElement('a');
-      link.href = '/view/' + encodeURIComponent(m.name);
+      link.href = /^view\/[A-Za-z0-9_-]+\.html$/.test(m.view || '') ? m.view
+                                                                   : 'view/' + encodeURIComponent(m.name);
       link.textContent = m.title || m.name;
       about.appendChild(link);
       if (m.title) {

@@ -19,6 +19,8 @@ window.meshstream = page;
 const canvas = document.getElementById('view');
 const statusLine = document.getElementById('status');
 const progress = document.getElementById('progress');
+const figures = document.getElementById('figures');
+const shareLine = document.getElementById('share');
 
 function say(text, isError) {
   statusLine.textContent = text;
@@ -26,14 +28,28 @@ function say(text, isError) {
   page.message = text;
 }
 
+// In a frame of another page (web/embed.js), that page hears how the view
+// goes: {meshstream: a copy of window.meshstream} at each round, view
+// complete and error. The state holds no token and no model bytes.
+function tellEmbedder() {
+  if (window.parent !== window)
+    window.parent.postMessage({ meshstream: Object.assign({}, page) }, '*');
+}
+
 function failPage(text) {
   say(text, true);
   page.state = 'error';
+  tellEmbedder();
 }
 
 // ---- URL: model and camera -------------------------------------------------
 
-const name = decodeURIComponent(location.pathname.replace(/^\/view\//, ''));
+// Two layouts of the same pages: meshserve's /view/NAME, and a static
+// export's view/NAME.html (meshexport --web-dir; docs/BROWSER.md): the worker
+// reads the model where the layout keeps it. Every other path is relative,
+// so a site may live under any folder of its server.
+const staticSite = location.pathname.endsWith('.html');
+const name = decodeURIComponent(location.pathname.replace(/^.*\/view\//, '').replace(/\.html$/, ''));
 const hash = new URLSearchParams(location.hash.slice(1));
 document.getElementById('model').textContent = name;
 document.title = name + ' · meshstream';
@@ -49,12 +65,13 @@ function parseCamera(text) {
   return { position: v.slice(0, 3), target: v.slice(3, 6), up: v.slice(6, 9), fovy: v[9] };
 }
 
-let camera = parseCamera(hash.get('cam'));
+let camera = parseCamera(hash.get('cam'));   // or #view=mv1:..., read in start()
 const tolerance = Number(hash.get('tol')) > 0 ? Number(hash.get('tol')) : 1;
 // bits given up outside the view: the client core's 6 unless the URL says
 const culled = hash.get('culled') !== null && Number(hash.get('culled')) >= 0 ? Number(hash.get('culled')) : 6;
-if (hash.get('cam') && !camera)
+if (hash.get('cam') && !parseCamera(hash.get('cam')))
   failPage('The camera in the URL is not ten numbers (#cam=PX,PY,PZ,TX,TY,TZ,UX,UY,UZ,FOVY).');
+
 
 // ---- Small vector and matrix helpers (column-major 4x4) ---------------------
 
@@ -97,25 +114,54 @@ void main() {
   gl_Position = viewProjection * vec4(position, 1.0);
 }`;
 
-// The vertex normals the decoder derived (area-weighted, interpolated; flat
-// from the screen derivatives where a vertex has none), a head light at the
-// camera (Lambert and a little Blinn-Phong), lit from both sides, sRGB out.
+// meshview's lit shading in its geometry mode (client/view/shaders/
+// cell.frag.glsl, LIT without APO, the viewer's default options of
+// ms_render.c), in GLSL ES 3.00: the interpolated vertex normal (the
+// decoder's: per vertex the area-weighted mean of its triangles', in their
+// winding), the triangle's own where a vertex has none or the vertex normal
+// stands against it (a fold); two-sided (a face seen from behind is lit as
+// its other side); one head light of colour 1 with meshrender's
+// self-shadowing factor, so diffuse (N.L)^2; a Blinn-Phong highlight of
+// strength 0.18 and shininess 40 under the same factor; albedo (0.72, 0.69,
+// 0.64) times (0.05 + 0.95 diffuse); the exact sRGB curve out. The same
+// dot products in world space as meshview's in eye space (a rotation apart).
 const FRAGMENT = `#version 300 es
 precision highp float;
 in vec3 world;
 in vec3 smoothNormal;
 uniform vec3 eye;
 out vec4 colour;
+const vec3 ALBEDO = vec3(0.72, 0.69, 0.64);
+const float SPECULAR = 0.18, SHININESS = 40.0;
+vec3 srgbEncode(vec3 c) {
+  c = clamp(c, 0.0, 1.0);
+  return mix(12.92 * c, 1.055 * pow(c, vec3(1.0 / 2.4)) - 0.055, greaterThan(c, vec3(0.0031308)));
+}
 void main() {
-  vec3 n = dot(smoothNormal, smoothNormal) > 1e-12 ? normalize(smoothNormal)
-                                                   : normalize(cross(dFdx(world), dFdy(world)));
-  vec3 l = normalize(eye - world);
-  if (dot(n, l) < 0.0) n = -n;
-  float diffuse = max(dot(n, l), 0.0);
-  float specular = pow(max(dot(n, l), 0.0), 64.0) * 0.15;
-  vec3 linear = vec3(0.70, 0.68, 0.64) * (0.08 + 0.92 * diffuse) + specular;
-  colour = vec4(pow(clamp(linear, 0.0, 1.0), vec3(1.0 / 2.2)), 1.0);
+  // the stored orientation of the triangle: cross(d/dx, d/dy) faces the eye
+  vec3 g = cross(dFdx(world), dFdy(world));
+  g = dot(g, g) > 0.0 ? normalize(g) : vec3(0.0, 0.0, 1.0);
+  vec3 ng = gl_FrontFacing ? g : -g;
+  vec3 n = ng;
+  float len = length(smoothNormal);
+  if (len > 1e-3)
+    n = smoothNormal / len;
+  if (dot(n, ng) < 0.0)
+    n = ng;
+  vec3 v = normalize(eye - world);
+  if (dot(ng, v) < 0.0) {
+    ng = -ng;
+    n = -n;
+  }
+  float selfShadow = max(0.0, dot(v, n));
+  float diffuse = selfShadow * max(0.0, dot(n, v));
+  float highlight = selfShadow * pow(max(0.0, dot(n, v)), SHININESS);
+  vec3 linear = ALBEDO * (0.05 + 0.95 * diffuse) + SPECULAR * highlight;
+  colour = vec4(srgbEncode(linear), 1.0);
 }`;
+
+// meshview's background: linear 0.02, sRGB-encoded.
+const BACKGROUND = 0.1517;
 
 const gl = canvas.getContext('webgl2', { antialias: false });
 let program = null, vao = null, positionBuffer = null, normalBuffer = null, indexBuffer = null;
@@ -181,7 +227,7 @@ function draw() {
   frameRequested = false;
   resize();
   gl.viewport(0, 0, canvas.width, canvas.height);
-  gl.clearColor(0.125, 0.133, 0.149, 1);
+  gl.clearColor(BACKGROUND, BACKGROUND, BACKGROUND, 1);
   gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
   if (!indexCount || !camera || !box)
     return;
@@ -241,22 +287,75 @@ function cameraMoved() {
   cameraTimer = setTimeout(() => {
     cameraTimer = null;
     hash.set('cam', cameraText(camera));
+    hash.delete('view');
     history.replaceState(null, '', '#' + hash.toString().replace(/%2C/g, ','));
+    showShare();
     worker.postMessage({ type: 'camera', camera: workerCamera() });
   }, 100);
 }
 
+// ---- Controls: meshview's (client/view/ms_viewer_controls.c) --------------
+// A turntable about the camera's up: yaw and pitch (at most 89 degrees), pi
+// radians per canvas height; pan moves the target in the view plane, a pixel
+// a pixel at the target's depth; zoom scales the distance by 0.85 a step.
+// Mouse: drag to orbit, right or middle drag (or shift drag) to pan, wheel to
+// zoom. Touch: one finger orbits, two pinch to zoom and move to pan.
+
+// The frame of an up vector: up, and two horizontal axes with yaw 0 looking
+// along -h0; for a coordinate axis meshview's (y up: h0 = z, h1 = x; z up:
+// h0 = y, h1 = z + 1 = x).
+function upFrame(up) {
+  const u = norm(up);
+  const axis = [0, 1, 2].find(a => Math.abs(u[a]) > 1 - 1e-12 && u[a] > 0);
+  if (axis !== undefined) {
+    const h0 = [0, 0, 0], h1 = [0, 0, 0];
+    h0[(axis + 2) % 3] = 1;
+    h1[(axis + 1) % 3] = 1;
+    return { up: u, h0, h1, axis };
+  }
+  const h1 = norm(cross(u, Math.abs(u[0]) < 0.9 ? [1, 0, 0] : [0, 1, 0]));
+  return { up: u, h0: cross(h1, u), h1, axis: undefined };
+}
+
+const PITCH_LIMIT = 89 * Math.PI / 180;
+
+// The camera as meshview's controller state: target, distance, yaw, pitch.
+function orbitState(c) {
+  const fr = upFrame(c.up), f = sub(c.target, c.position);
+  const a = -dot(f, fr.h0), b = -dot(f, fr.h1), u = dot(f, fr.up);
+  const horizontal = Math.hypot(a, b);
+  return { frame: fr, distance: Math.hypot(...f), yaw: horizontal > 0 ? Math.atan2(b, a) : 0,
+           pitch: Math.max(-PITCH_LIMIT, Math.min(PITCH_LIMIT, Math.atan2(u, horizontal))) };
+}
+
+function forwardOf(fr, yaw, pitch) {
+  const cp = Math.cos(pitch), sp = Math.sin(pitch), cy = Math.cos(yaw), sy = Math.sin(yaw);
+  return [0, 1, 2].map(k => -cp * (cy * fr.h0[k] + sy * fr.h1[k]) + sp * fr.up[k]);
+}
+
+function placeCamera(st, target) {
+  const f = forwardOf(st.frame, st.yaw, st.pitch);
+  camera.target = target;
+  camera.position = target.map((t, k) => t - st.distance * f[k]);
+  camera.up = st.frame.up;
+}
+
 function orbit(dx, dy) {
-  const offset = sub(camera.position, camera.target);
-  const up = norm(camera.up), right = norm(cross(norm(sub(camera.target, camera.position)), up));
-  const rotate = (v, axis, angle) => {
-    const c = Math.cos(angle), s = Math.sin(angle), k = dot(axis, v), x = cross(axis, v);
-    return [0, 1, 2].map(a => v[a] * c + x[a] * s + axis[a] * k * (1 - c));
-  };
-  let o = rotate(offset, up, -dx * 0.01);
-  o = rotate(o, right, -dy * 0.01);
-  camera.position = camera.target.map((t, a) => t + o[a]);
-  camera.up = norm(cross(right, norm(sub(camera.target, camera.position))).map(x => -x));
+  const st = orbitState(camera), perPixel = Math.PI / Math.max(canvas.clientHeight, 1);
+  st.yaw = Math.atan2(Math.sin(st.yaw + dx * perPixel), Math.cos(st.yaw + dx * perPixel));
+  st.pitch = Math.max(-PITCH_LIMIT, Math.min(PITCH_LIMIT, st.pitch - dy * perPixel));
+  placeCamera(st, camera.target);
+  cameraMoved();
+}
+
+function pan(dx, dy) {
+  const f = norm(sub(camera.target, camera.position));
+  const right = norm(cross(f, camera.up)), camUp = cross(right, f);
+  const distance = Math.hypot(...sub(camera.target, camera.position));
+  const perPixel = 2 * distance * Math.tan(camera.fovy * Math.PI / 360) / Math.max(canvas.clientHeight, 1);
+  const move = [0, 1, 2].map(k => (-dx * right[k] + dy * camUp[k]) * perPixel);
+  camera.target = camera.target.map((t, k) => t + move[k]);
+  camera.position = camera.position.map((p, k) => p + move[k]);
   cameraMoved();
 }
 
@@ -265,25 +364,127 @@ function zoom(factor) {
   cameraMoved();
 }
 
-let dragging = null;
-canvas.addEventListener('pointerdown', e => { dragging = [e.clientX, e.clientY]; canvas.setPointerCapture(e.pointerId); });
-canvas.addEventListener('pointerup', () => { dragging = null; });
+// Pointers down on the canvas (mouse, pen, fingers), by id: where each was.
+const pointers = new Map();
+let panning = false, pinch = null;
+
+function pinchState() {
+  const [a, b] = [...pointers.values()];
+  return { gap: Math.hypot(a[0] - b[0], a[1] - b[1]), mid: [(a[0] + b[0]) / 2, (a[1] + b[1]) / 2] };
+}
+
+canvas.addEventListener('contextmenu', e => e.preventDefault());
+canvas.addEventListener('pointerdown', e => {
+  canvas.setPointerCapture(e.pointerId);
+  pointers.set(e.pointerId, [e.clientX, e.clientY]);
+  panning = e.button === 1 || e.button === 2 || e.shiftKey;
+  pinch = pointers.size === 2 ? pinchState() : null;
+});
+const lift = e => {
+  pointers.delete(e.pointerId);
+  pinch = pointers.size === 2 ? pinchState() : null;
+};
+canvas.addEventListener('pointerup', lift);
+canvas.addEventListener('pointercancel', lift);
 canvas.addEventListener('pointermove', e => {
-  if (!dragging || !camera)
+  const was = pointers.get(e.pointerId);
+  if (!was || !camera)
     return;
-  orbit(e.clientX - dragging[0], e.clientY - dragging[1]);
-  dragging = [e.clientX, e.clientY];
+  pointers.set(e.pointerId, [e.clientX, e.clientY]);
+  if (pointers.size === 2 && pinch) {
+    const now = pinchState();
+    if (now.gap > 0 && pinch.gap > 0)
+      zoom(pinch.gap / now.gap);
+    pan(now.mid[0] - pinch.mid[0], now.mid[1] - pinch.mid[1]);
+    pinch = now;
+  } else if (pointers.size === 1) {
+    const dx = e.clientX - was[0], dy = e.clientY - was[1];
+    if (panning)
+      pan(dx, dy);
+    else
+      orbit(dx, dy);
+  }
 });
 canvas.addEventListener('wheel', e => {
   e.preventDefault();
   if (camera)
-    zoom(Math.exp(e.deltaY * 0.001));
+    zoom(Math.pow(0.85, -e.deltaY / 100));
 }, { passive: false });
+
+// ---- meshview's view text (client/view/ms_viewer_share.h) -------------------
+// mv1:t=X,Y,Z:d=D:o=YAW,PITCH:f=FOVY:u=AXIS[:l=...][:m=...]: the page takes
+// the camera of it (light and measuring points are meshview's own), and
+// shows the text of its camera when its up is a coordinate axis.
+
+function parseShare(text) {
+  const m = /^mv1:t=([^:]+):d=([^:]+):o=([^:]+):f=([^:]+):u=([xyz])(:l=[^:]*)?(:m=[^:]*)?$/.exec(text || '');
+  if (!m)
+    return null;
+  const t = m[1].split(',').map(Number), o = m[3].split(',').map(Number);
+  const d = Number(m[2]), fovy = Number(m[4]);
+  if (t.length !== 3 || o.length !== 2 || ![...t, ...o, d, fovy].every(Number.isFinite) ||
+      !(d > 0) || !(fovy > 0 && fovy < 180) || Math.abs(o[1]) > PITCH_LIMIT + 1e-9)
+    return null;
+  const up = [0, 0, 0];
+  up['xyz'.indexOf(m[5])] = 1;
+  const fr = upFrame(up), f = forwardOf(fr, o[0], o[1]);
+  return { position: t.map((x, k) => x - d * f[k]), target: t, up, fovy };
+}
+
+// Shortest text that reads back to the same double (as meshview prints).
+function shareText(c) {
+  const st = orbitState(c);
+  if (st.frame.axis === undefined)
+    return null;
+  return 'mv1:t=' + c.target.join(',') + ':d=' + st.distance + ':o=' + st.yaw + ',' + st.pitch +
+         ':f=' + c.fovy + ':u=' + 'xyz'[st.frame.axis];
+}
+
 window.addEventListener('resize', () => { if (camera && worker) cameraMoved(); requestDraw(); });
+
+// Each camera the worker gets is numbered: a 'complete' for an earlier one
+// (crossing the new camera on its way) leaves the page loading.
+let cameraSeq = 0, cameraSentAt = 0;
 
 function workerCamera() {
   resize();
-  return Object.assign({}, camera, { width: canvas.width, height: canvas.height, tolerance });
+  if (page.state !== 'error')
+    page.state = 'loading';
+  cameraSentAt = performance.now();
+  return Object.assign({}, camera, { width: canvas.width, height: canvas.height, tolerance,
+                                     seq: ++cameraSeq });
+}
+
+// A camera typed or pasted into the URL's hash (or set by a script, as the
+// tests do along a camera path) moves the view there.
+window.addEventListener('hashchange', () => {
+  const next = new URLSearchParams(location.hash.slice(1));
+  const c = parseCamera(next.get('cam')) || parseShare(next.get('view'));
+  if (!c || !worker || !box || (camera && cameraText(c) === cameraText(camera)))
+    return;
+  camera = c;
+  hash.set('cam', cameraText(camera));
+  worker.postMessage({ type: 'camera', camera: workerCamera() });
+  requestDraw();
+});
+
+// ---- The HUD: figures and the view's text ---------------------------------
+
+function showFigures() {
+  const parts = [page.triangles.toLocaleString('en') + ' triangles', page.cells + ' cells',
+                 'up to ' + page.bits + ' bits', (page.bytes / 1e3).toFixed(0) + ' kB',
+                 'round ' + (page.rounds || 0)];
+  if (page.firstPixelMs !== null)
+    parts.push('first pixels ' + page.firstPixelMs + ' ms');
+  if (page.state === 'complete')
+    parts.push('complete ' + page.settleMs + ' ms after the camera');
+  figures.textContent = parts.join(' · ');
+}
+
+function showShare() {
+  const text = camera ? shareText(camera) : null;
+  page.view = text;
+  shareLine.textContent = text || '';
 }
 
 // ---- The token -----------------------------------------------------------
@@ -301,6 +502,11 @@ document.getElementById('token-form').addEventListener('submit', e => {
 // ---- The worker ----------------------------------------------------------
 
 function start() {
+  if (!camera && hash.get('view')) {
+    camera = parseShare(hash.get('view'));
+    if (!camera)
+      failPage('The view in the URL is not meshview\'s text (#view=mv1:t=X,Y,Z:d=D:o=YAW,PITCH:f=FOVY:u=AXIS).');
+  }
   if (page.state === 'error')
     return;
   if (!gl) {
@@ -314,7 +520,7 @@ function start() {
     return;
   }
   say('Loading ' + name + '…');
-  worker = new Worker('/web/worker.js');
+  worker = new Worker('../web/worker.js');
   worker.onerror = e => failPage('The decoder failed: ' + (e.message || 'the worker did not start'));
   worker.onmessage = e => {
     const m = e.data;
@@ -325,31 +531,45 @@ function start() {
         worker.postMessage({ type: 'camera', camera: workerCamera() });
       }
     } else if (m.type === 'progress') {
-      page.state = 'loading';
       page.bytes = m.bytes;
-      progress.removeAttribute('value');
+      page.rounds = m.rounds;
+      // received over received plus what this round still wants (the next
+      // round's plan is not known yet: the bar fills once per round)
+      page.progress = m.bytes / Math.max(m.bytes + m.need, 1);
+      progress.value = page.progress;
       say('Loading ' + name + ': ' + (m.bytes / 1e3).toFixed(0) + ' kB, ' + m.wanted + ' cells wanted');
+      showFigures();
+      tellEmbedder();
     } else if (m.type === 'mesh') {
       upload(m.positions, m.normals, m.triangles);
       page.triangles = m.triangles.length / 3;
       page.cells = m.cells;
       page.bits = m.bits;
+      showFigures();
       requestDraw();
     } else if (m.type === 'complete') {
+      if (m.seq !== cameraSeq)
+        return;              // an earlier camera's; the latest one is under way
       page.bytes = m.bytes;
       page.rounds = m.rounds;
       page.timing = m.timing;
       page.completeMs = Math.round(performance.now());
+      page.settleMs = Math.round(performance.now() - cameraSentAt);  // from this camera
       page.state = 'complete';
+      page.progress = 1;
       progress.value = 1;
+      showFigures();
+      showShare();
       say(name + ': ' + page.triangles.toLocaleString('en') + ' triangles in ' + page.cells +
           ' cells, up to ' + page.bits + ' bits, ' + (m.bytes / 1e3).toFixed(0) + ' kB, view complete' +
-          (m.preview ? ' (the public preview: a token gives more)' : ''));
+          (m.preview ? (staticSite ? ' (the public preview)' : ' (the public preview: a token gives more)') : ''));
+      tellEmbedder();
     } else if (m.type === 'error') {
       failPage(m.message.charAt(0).toUpperCase() + m.message.slice(1));
     }
   };
   worker.postMessage({ type: 'start', name, token: sessionStorage.getItem(TOKEN_KEY) || '', culled,
+                       layout: staticSite ? 'static' : 'door',
                        camera: camera ? workerCamera() : null });
 }
 

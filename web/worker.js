@@ -6,7 +6,29 @@
 // {type: 'box'}, {type: 'progress'}, {type: 'mesh'} (positions and triangles,
 // transferred), {type: 'complete'}, {type: 'error', message}.
 'use strict';
-importScripts('/web/meshstream.js');
+importScripts('meshstream.js');   // beside this file
+
+// Where the model's files are, relative to the site's root (the folder above
+// web/): meshserve's side door, or a static export (meshexport --web-dir),
+// whose index is a file of its own and whose cells are whole files, read by
+// byte ranges (any web server honours Range; a query string it ignores).
+const ROOT = new URL('../', self.location.href);
+const LAYOUTS = {
+  door: {
+    catalogue: name => 'catalog?limit=1000&q=' + encodeURIComponent(name),
+    index: name => 'models/' + encodeURIComponent(name),
+    cell: (name, cell, bits) => 'models/' + encodeURIComponent(name) + '/cells/' + cell +
+                                '/geometry' + (bits === null ? '' : '?bits=' + bits),
+    ranged: false,      // the server cuts the prefix at ?bits=
+  },
+  static: {
+    catalogue: () => 'catalog.json',
+    index: name => 'models/' + encodeURIComponent(name) + '.index',
+    cell: (name, cell) => 'models/' + encodeURIComponent(name) + '/cells/' + cell + '/geometry',
+    ranged: true,       // the prefix is a byte range of the whole file
+  },
+};
+let layout = LAYOUTS.door;
 
 const IN_FLIGHT = 8;        // cell fetches at a time
 const PLAN_MAX = 256;       // cells listed by one plan
@@ -27,7 +49,8 @@ function lastError() {
 // network, before or during the body, is one error naming what was asked;
 // an error answer's is the server's own line; 429 (the request rate limit)
 // is retried after its Retry-After, four times at most.
-async function get(url, token, extra) {
+async function get(path, token, extra) {
+  const url = new URL(path, ROOT).href;
   const headers = Object.assign({}, extra || {});
   if (token)
     headers.Authorization = 'Bearer ' + token;   // never in the URL
@@ -37,7 +60,7 @@ async function get(url, token, extra) {
       answer = await fetch(url, { headers, cache: 'default' });
       bytes = new Uint8Array(await answer.arrayBuffer());
     } catch (e) {
-      throw new Error('the server cannot be reached (' + url + ')');
+      throw new Error('the server cannot be reached (/' + path.replace(/\?.*/, '') + ')');
     }
     // the server's request rate limit: wait as it says, a few times
     if (answer.status !== 429 || attempt === 4)
@@ -94,11 +117,13 @@ function setCamera(c) {
 
 // Fetches what the cell lacks of its payload prefix at `bits` (null: all the
 // reader may read) and hands it over; returns the bytes received.
-async function fetchCell(name, token, cell, bits) {
+// prefix: the byte length complete at bits (ms_web_view_plan_bytes), which a
+// static layout asks for as a range.
+async function fetchCell(name, token, cell, bits, prefix) {
   const held = M._ms_web_view_held(view, cell);
-  const answer = await get('/models/' + encodeURIComponent(name) + '/cells/' + cell +
-                           '/geometry' + (bits === null ? '' : '?bits=' + bits), token,
-                           held ? { Range: 'bytes=' + held + '-' } : null);
+  const end = layout.ranged && bits !== null ? '' + (prefix - 1) : '';
+  const range = held || end ? { Range: 'bytes=' + held + '-' + end } : null;
+  const answer = await get(layout.cell(name, cell, bits), token, range);
   const bytes = answer.bytes;
   const offset = answer.status === 206 ? held : 0;
   const st = withHeap(bytes, p => M._ms_web_view_give(view, cell, offset, p, bytes.length));
@@ -147,20 +172,21 @@ function nextCamera() {
 async function run(msg) {
   const { name, token } = msg;
   const started = performance.now();
-  M = await createMeshstream({ locateFile: file => '/web/' + file });
+  layout = LAYOUTS[msg.layout] || LAYOUTS.door;
+  M = await createMeshstream({ locateFile: file => new URL(file, self.location.href).href });
   let catalogue;
   try {
     // the catalogue's entries whose name (or title, description) holds NAME
     // (a page of at most 1000)
     catalogue = JSON.parse(new TextDecoder().decode(
-      (await get('/catalog?limit=1000&q=' + encodeURIComponent(name), token)).bytes));
+      (await get(layout.catalogue(name), token)).bytes));
   } catch (e) {
     throw new Error('cannot read the catalogue: ' + e.message);
   }
   const entry = catalogue.models.find(m => m.name === name);
   if (!entry)
     throw new Error('no model named "' + name + '" on this server');
-  const blob = (await get('/models/' + encodeURIComponent(name), token)).bytes;
+  const blob = (await get(layout.index(name), token)).bytes;
   view = openIndex(blob, name);
   const bp = M._malloc(32);
   M._ms_web_view_box(view, bp);
@@ -169,7 +195,7 @@ async function run(msg) {
   let bytes = blob.length, rounds = 0, bounds = null;
   if (!msg.camera) {
     // the root's bytes tell where the model lies in its box: the home camera
-    bytes += await fetchCell(name, token, 0, null);
+    bytes += await fetchCell(name, token, 0, null, 0);
     const p = M._malloc(48);
     if (M._ms_web_view_bounds(view, p) === 0)
       bounds = Array.from(new Float64Array(M.HEAPU8.buffer, p, 6));
@@ -178,7 +204,9 @@ async function run(msg) {
   postMessage({ type: 'box', box, bounds, triangles: entry.triangles });
   // A reader without a token reads a preview model to public_max_bits only.
   M._ms_web_view_culled(view, msg.culled);
-  const preview = !token && entry.public_max_bits < entry.bits;
+  // A static tree holds only what its catalogue lists as public (meshexport
+  // --full lists every bit): no server there widens it for a token.
+  const preview = (!token || layout.ranged) && entry.public_max_bits < entry.bits;
   if (preview)
     M._ms_web_view_permit(view, entry.public_max_bits + 1);
   if (msg.camera)
@@ -186,9 +214,11 @@ async function run(msg) {
   while (!pendingCamera)
     await nextCamera();
   const settledPtr = M._malloc(4);
+  let seq = 0;                    // the page's number of the camera applied
   for (;;) {
     if (pendingCamera) {
       setCamera(pendingCamera);
+      seq = pendingCamera.seq;
       pendingCamera = null;
     }
     if (timed('plan', () => M._ms_web_view_plan(view, PLAN_MAX, settledPtr)) !== 0)
@@ -196,7 +226,7 @@ async function run(msg) {
     const count = M._ms_web_view_plan_count(view);
     if (M.HEAPU32[settledPtr >> 2]) {
       postMesh(true);
-      postMessage({ type: 'complete', bytes, rounds, preview, timing,
+      postMessage({ type: 'complete', seq, bytes, rounds, preview, timing,
                     seconds: (performance.now() - started) / 1000 });
       while (!pendingCamera)
         await nextCamera();
@@ -206,20 +236,27 @@ async function run(msg) {
       postMesh(false);            // the root the home camera was framed with: pixels at once
     const wanted = [];
     for (let k = 0; k < count; ++k)
-      wanted.push([M._ms_web_view_plan_cell(view, k), M._ms_web_view_plan_bits(view, k)]);
+      wanted.push([M._ms_web_view_plan_cell(view, k), M._ms_web_view_plan_bits(view, k),
+                   M._ms_web_view_plan_bytes(view, k)]);
+    // the bytes this round still wants: the page's progress bar
+    let need = 0;
+    for (const [cell, , prefix] of wanted)
+      need += Math.max(prefix - M._ms_web_view_held(view, cell), 0);
+    postMessage({ type: 'progress', bytes, need, rounds, wanted: count });
     let next = 0;
     const lane = async () => {
       while (next < wanted.length) {
-        const [cell, bits] = wanted[next++];
-        const got = await fetchCell(name, token, cell, bits); // not `bytes += await`: lanes interleave
+        const [cell, bits, prefix] = wanted[next++];
+        const got = await fetchCell(name, token, cell, bits, prefix); // not `bytes += await`: lanes interleave
         bytes += got;
+        need = Math.max(need - got, 0);
+        postMessage({ type: 'progress', bytes, need, rounds, wanted: count });
       }
     };
     const fetchStart = performance.now();
     await Promise.all(Array.from({ length: Math.min(IN_FLIGHT, wanted.length) }, lane));
     timing.fetch += (performance.now() - fetchStart) / 1000;
     rounds++;
-    postMessage({ type: 'progress', bytes, rounds, wanted: count });
     postMesh(false);              // what the bytes so far show
   }
 }

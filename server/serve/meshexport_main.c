@@ -14,6 +14,7 @@
 #include "ms_cli.h"
 #include "ms_archive.h"
 #include "ms_catalog.h"
+#include "ms_export_site.h"
 #include "ms_json_out.h"
 #include "ms_progress.h"
 #include "ms_registry.h"
@@ -23,7 +24,7 @@
 static void usage(FILE *out)
 {
     fprintf(out,
-            "Usage: meshexport ARCHIVE_DIR NAME -o OUT_DIR [--full] [--json]\n"
+            "Usage: meshexport ARCHIVE_DIR NAME -o OUT_DIR [--full] [--web-dir DIR] [--json]\n"
             "Writes model NAME of ARCHIVE_DIR as static files laid out like meshserve's HTTP\n"
             "side door: OUT_DIR/models/NAME.index (header and cell index, served at\n"
             "/models/NAME), OUT_DIR/models/NAME.head (the index head, served at\n"
@@ -38,6 +39,11 @@ static void usage(FILE *out)
             "  -o, --output DIR   where to write (created; existing files are replaced)\n"
             "      --full         write every byte, as a token holder reads them (for a\n"
             "                     server that is itself access-controlled)\n"
+            "      --web-dir DIR  also write the browser pages of DIR (make wasm: build/wasm/site)\n"
+            "                     beside the model: OUT_DIR/index.html, OUT_DIR/view/NAME.html,\n"
+            "                     OUT_DIR/web/ and OUT_DIR/catalog.json (every model exported\n"
+            "                     there), so a plain web server serves the viewer too\n"
+            "                     (docs/BROWSER.md)\n"
             "      --json         print the summary as one JSON object\n"
             "  -h, --help         show this help\n"
             "      --version      show the version\n");
@@ -169,10 +175,11 @@ int main(int argc, char **argv)
         {"output", required_argument, NULL, 'o'},
         {"json", no_argument, NULL, 'j'},
         {"full", no_argument, NULL, 'f'},
+        {"web-dir", required_argument, NULL, 'w'},
         {"help", no_argument, NULL, 'h'},
         {NULL, 0, NULL, 0},
     };
-    const char *out_dir = NULL;
+    const char *out_dir = NULL, *web_dir = NULL;
     bool json = false, full = false;
     int c;
     while ((c = ms_cli_next("meshexport", argc, argv, "o:h", options)) != -1) {
@@ -180,6 +187,7 @@ int main(int argc, char **argv)
         case 'o': out_dir = optarg; break;
         case 'j': json = true; break;
         case 'f': full = true; break;
+        case 'w': web_dir = optarg; break;
         case 'h': usage(stdout); return 0;
         default: return MS_CLI_USAGE; /* reported by ms_cli_next */
         }
@@ -247,9 +255,16 @@ int main(int argc, char **argv)
         ms_progress_update(&progress, cell);
     }
     ms_progress_finish(&progress);
-    ms_model_unref(model);
     if (failed) {
+        ms_model_unref(model);
         fprintf(stderr, "meshexport: cannot write under %s: %s\n", out_dir, strerror(errno));
+        return 1;
+    }
+    ms_status site = web_dir ? ms_export_site(web_dir, out_dir, &model->entry, full, &bytes, &files, &err)
+                             : MS_OK;
+    ms_model_unref(model);
+    if (site != MS_OK) {
+        fprintf(stderr, "meshexport: %s\n", err.text);
         return 1;
     }
     double seconds = ms_now_seconds() - start;

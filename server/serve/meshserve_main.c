@@ -40,10 +40,14 @@ static void usage(FILE *out)
             "                       connection and per HTTP answer, docs/DEPLOY.md),\n"
             "                       max_open_models (archives kept open that no client\n"
             "                       holds, 256), model_idle_timeout (s before an unused\n"
-            "                       model's archive closes, 300), web_dir\n"
+            "                       model's archive closes, 300), web_dir,\n"
+            "                       cors_origins\n"
             "  --web-dir DIR        serve the browser pages from DIR (make wasm builds them\n"
             "                       into build/wasm/site) at /, /view/NAME and /web/FILE\n"
             "                       (docs/BROWSER.md; default: not served)\n"
+            "  --cors-origins LIST  the origins whose pages may read the HTTP answers\n"
+            "                       (https://museum.example[:PORT], comma-separated) or '*'\n"
+            "                       (default: none; docs/BROWSER.md)\n"
             "  --port-file FILE     write \"PORT HTTP_PORT\" there once listening (for scripts)\n"
             "  --json               print the exit summary as one JSON object\n"
             "  -h, --help           show this help\n"
@@ -57,7 +61,7 @@ int main(int argc, char **argv)
     if (ms_version_asked(argc, argv))
         return ms_version_print("meshserve");
     enum { OPT_PORT = 256, OPT_MAX_CLIENTS, OPT_HTTP_PORT, OPT_BIND, OPT_CONFIG, OPT_PORT_FILE, OPT_JSON,
-           OPT_WEB_DIR };
+           OPT_WEB_DIR, OPT_CORS };
     static const struct option options[] = {
         {"port", required_argument, NULL, OPT_PORT},
         {"max-clients", required_argument, NULL, OPT_MAX_CLIENTS},
@@ -67,6 +71,7 @@ int main(int argc, char **argv)
         {"port-file", required_argument, NULL, OPT_PORT_FILE},
         {"json", no_argument, NULL, OPT_JSON},
         {"web-dir", required_argument, NULL, OPT_WEB_DIR},
+        {"cors-origins", required_argument, NULL, OPT_CORS},
         {"help", no_argument, NULL, 'h'},
         {NULL, 0, NULL, 0},
     };
@@ -86,6 +91,7 @@ int main(int argc, char **argv)
         case OPT_BIND: overrides[override_count++] = (setting){"bind", optarg, "--bind"}; break;
         case OPT_PORT_FILE: overrides[override_count++] = (setting){"port_file", optarg, "--port-file"}; break;
         case OPT_WEB_DIR: overrides[override_count++] = (setting){"web_dir", optarg, "--web-dir"}; break;
+        case OPT_CORS: overrides[override_count++] = (setting){"cors_origins", optarg, "--cors-origins"}; break;
         case OPT_CONFIG: config_path = optarg; break;
         case OPT_JSON: json = true; break;
         case 'h': usage(stdout); return 0;

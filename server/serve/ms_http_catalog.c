@@ -11,6 +11,7 @@
 #include <string.h>
 
 #include "ms_catalog_page.h"
+#include "ms_http_door.h"
 #include "ms_http_internal.h"
 #include "ms_server_internal.h"
 
@@ -65,7 +66,7 @@ static bool parse_request(const struct evkeyvalq *query, ms_catalog_page_query *
 /* One model: its figures, "thumbnail" (true when /models/NAME/thumbnail
  * answers a picture) and, when the catalogue has them, the metadata's
  * fields as JSON strings (text as given: a page escapes it). */
-static json_t *entry_json(const ms_catalog_entry *e)
+json_t *ms_http_catalog_entry(const ms_catalog_entry *e)
 {
     json_t *obj = json_pack("{s:s, s:I, s:I, s:I, s:i, s:i, s:b, s:I, s:s, s:b}", "name", e->name,
                             "vertices", (json_int_t)e->vertices, "triangles",
@@ -90,7 +91,7 @@ static char *catalog_page(const ms_registry *r, const ms_catalog_page_query *q)
         return NULL;
     json_t *models = json_array();
     for (size_t i = 0; models && i < count; ++i)
-        json_array_append_new(models, entry_json(ms_registry_entry(r, indices[i])));
+        json_array_append_new(models, ms_http_catalog_entry(ms_registry_entry(r, indices[i])));
     free(indices);
     json_t *root = models ? json_pack("{s:i, s:I, s:I, s:I, s:o}", "version", 1, "total",
                                       (json_int_t)total, "offset", (json_int_t)q->offset,

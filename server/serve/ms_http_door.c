@@ -23,6 +23,7 @@
 #include <unistd.h>
 
 #include "ms_access.h"
+#include "ms_http_cors.h"
 #include "ms_http_internal.h"
 #include "ms_http_parse.h"
 #include "ms_progress.h"
@@ -336,7 +337,9 @@ static void route(ms_http_door *door, struct evhttp_request *req, char *path,
         ms_http_send_text(door, req, 200, "OK", door->server->draining ? "draining" : "ok");
         return;
     }
-    if (n == 1 && !strcmp(seg[0], "catalog")) {
+    /* catalog.json: the same, at the path of a static export's catalogue
+     * (meshexport --web-dir), so the catalogue page reads either */
+    if (n == 1 && (!strcmp(seg[0], "catalog") || !strcmp(seg[0], "catalog.json"))) {
         ms_http_serve_catalog(door, req, query);
         return;
     }
@@ -360,6 +363,34 @@ static void route(ms_http_door *door, struct evhttp_request *req, char *path,
     if (n >= 0 && ms_http_route_page(door, req, seg, n))
         return;
     ms_http_send_text(door, req, 404, "Not Found", "error: no such resource");
+}
+
+/* OPTIONS: a CORS preflight (an Origin and Access-Control-Request-Method)
+ * from an allowed origin gets 204 and the preflight headers, from another
+ * origin 403 and one line; any other OPTIONS the methods. */
+static void answer_options(ms_http_door *door, struct evhttp_request *req)
+{
+    struct evkeyvalq *in = evhttp_request_get_input_headers(req);
+    struct evkeyvalq *out = evhttp_request_get_output_headers(req);
+    if (!evhttp_find_header(in, "Origin") || !evhttp_find_header(in, "Access-Control-Request-Method")) {
+        evhttp_add_header(out, "Allow", "GET, HEAD, OPTIONS");
+        ms_http_reply(door, req, 204, "No Content", NULL, 0);
+        return;
+    }
+    if (ms_http_cors_preflight(door->server->config.cors_origins, req)) {
+        ms_http_reply(door, req, 204, "No Content", NULL, 0);
+        return;
+    }
+    /* Not ms_http_send_text's 403, which counts a read past a preview. */
+    struct evbuffer *body = evbuffer_new();
+    if (body)
+        evbuffer_add_printf(body, "error: origin not allowed to read this server (meshserve "
+                                  "cors_origins)\n");
+    evhttp_add_header(out, "Content-Type", "text/plain; charset=utf-8");
+    door->server->metrics.http_errors++;
+    ms_http_reply(door, req, 403, "Forbidden", body, body ? evbuffer_get_length(body) : 0);
+    if (body)
+        evbuffer_free(body);
 }
 
 /* Pipelined answers must not wait for the client's delayed ACK (Nagle's
@@ -432,14 +463,23 @@ static void handle_request(struct evhttp_request *req, void *arg)
     }
     door->server->metrics.http_requests++;
     enum evhttp_cmd_type cmd = evhttp_request_get_command(req);
-    if (cmd != EVHTTP_REQ_GET && cmd != EVHTTP_REQ_HEAD) {
-        evhttp_add_header(evhttp_request_get_output_headers(req), "Allow", "GET, HEAD");
+    bool options = cmd == EVHTTP_REQ_OPTIONS;
+    /* Every other answer, errors included, is readable by an allowed origin's
+     * page (a 429's Retry-After too). */
+    if (!options)
+        ms_http_cors_headers(door->server->config.cors_origins, req);
+    if (!options && cmd != EVHTTP_REQ_GET && cmd != EVHTTP_REQ_HEAD) {
+        evhttp_add_header(evhttp_request_get_output_headers(req), "Allow", "GET, HEAD, OPTIONS");
         ms_http_send_text(door, req, 405, "Method Not Allowed", "error: only GET and HEAD");
         return;
     }
     if (!rate_allowed(door, req)) {
         evhttp_add_header(evhttp_request_get_output_headers(req), "Retry-After", "1");
         ms_http_send_text(door, req, 429, "Too Many Requests", "error: request rate limit");
+        return;
+    }
+    if (options) {
+        answer_options(door, req);
         return;
     }
     const struct evhttp_uri *uri = evhttp_request_get_evhttp_uri(req);
@@ -691,7 +731,8 @@ ms_status ms_http_door_open(ms_server *server, ms_http_door **out, uint16_t *bou
         return ms_error_set(err, MS_ERR_NOMEM, "http: cannot create the HTTP server");
     }
     evhttp_set_allowed_methods(door->http, EVHTTP_REQ_GET | EVHTTP_REQ_HEAD | EVHTTP_REQ_POST |
-                                               EVHTTP_REQ_PUT | EVHTTP_REQ_DELETE);
+                                               EVHTTP_REQ_PUT | EVHTTP_REQ_DELETE |
+                                               EVHTTP_REQ_OPTIONS);
     evhttp_set_max_headers_size(door->http, 16384);
     evhttp_set_max_body_size(door->http, 4096);
     evhttp_set_timeout(door->http, (int)server->config.idle_timeout_s);

@@ -3,7 +3,7 @@
  * caching proxies. Routes (GET and HEAD only):
  *
  *   /healthz                              "ok"
- *   /catalog                              JSON list of the models
+ *   /catalog, /catalog.json               JSON list of the models
  *   /models/NAME                          the model's header and cell index (binary)
  *   /models/NAME/head                     the index head: version-3 header + root subtree
  *   /models/NAME/subtrees/ID              subtree ID of the index, its stored zlib bytes
@@ -32,7 +32,18 @@
 #include "ms_error.h"
 
 struct ms_server;
+struct ms_catalog_entry;
+struct json_t;
 typedef struct ms_http_door ms_http_door;
+
+/* The Content-Type of a browser page file by its name (ms_http_pages.c):
+ * [A-Za-z0-9_-]+ then .html, .js, .css or .wasm; NULL for any other name. */
+const char *ms_http_page_type(const char *name);
+
+/* One model as GET /catalog lists it (a new JSON object, or NULL when out of
+ * memory): name, vertices, triangles, cells, bits, public_max_bits, apo,
+ * archive_bytes, baked_at. */
+struct json_t *ms_http_catalog_entry(const struct ms_catalog_entry *entry);
 
 ms_status ms_http_door_open(struct ms_server *server, ms_http_door **door, uint16_t *bound_port,
                             ms_error *err);

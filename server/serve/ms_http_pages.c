@@ -9,13 +9,15 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "ms_catalog.h"
+#include "ms_http_door.h"
 #include "ms_http_internal.h"
 #include "ms_server_internal.h"
 
 /* The Content-Type of a page file by its name's ending, or NULL for a name
  * that is not one: [A-Za-z0-9_-]+ then .html, .js, .css or .wasm (no path,
  * no dot file, nothing else of the folder). */
-static const char *page_type(const char *name)
+const char *ms_http_page_type(const char *name)
 {
     static const struct {
         const char *ending, *type;
@@ -37,7 +39,7 @@ static const char *page_type(const char *name)
 static void send_page(ms_http_door *door, struct evhttp_request *req, const char *name)
 {
     const char *dir = ms_http_door_server(door)->config.web_dir;
-    const char *type = page_type(name);
+    const char *type = ms_http_page_type(name);
     if (!dir) {
         ms_http_send_text(door, req, 404, "Not Found",
                           "error: the browser pages are not served here (meshserve --web-dir DIR)");
@@ -72,6 +74,19 @@ bool ms_http_route_page(ms_http_door *door, struct evhttp_request *req, char **s
         return true;
     }
     if (n == 2 && !strcmp(seg[0], "view")) {
+        /* The page's paths are relative (../web/...): /view/NAME/ would put
+         * them under /view/; send the browser to /view/NAME (it keeps the
+         * #hash). NAME is the checked segment, so the Location is plain. */
+        const struct evhttp_uri *uri = evhttp_request_get_evhttp_uri(req);
+        const char *path = uri ? evhttp_uri_get_path(uri) : NULL;
+        size_t length = path ? strlen(path) : 0;
+        if (length && path[length - 1] == '/' && ms_model_name_valid(seg[1])) {
+            char location[128];
+            snprintf(location, sizeof location, "/view/%s", seg[1]);
+            evhttp_add_header(evhttp_request_get_output_headers(req), "Location", location);
+            ms_http_send_text(door, req, 301, "Moved Permanently", location);
+            return true;
+        }
         send_page(door, req, "view.html");
         return true;
     }

@@ -1,5 +1,6 @@
 /* meshserve settings: see ms_server_config.h. */
 #include "ms_server_config.h"
+#include "ms_http_cors.h"
 #include "ms_input_file.h"
 #include "ms_parse_number.h"
 
@@ -39,6 +40,7 @@ void ms_server_config_free(ms_server_config *c)
     free(c->port_file);
     free(c->access_log);
     free(c->web_dir);
+    free(c->cors_origins);
     memset(c, 0, sizeof *c);
 }
 
@@ -143,6 +145,10 @@ ms_status ms_server_config_set(ms_server_config *c, const char *key, const char 
         if (!*value)
             return ms_error_set(err, MS_ERR_RANGE, "%s: web_dir wants a folder", where);
         return set_string(&c->web_dir, value, where, err);
+    }
+    if (!strcmp(key, "cors_origins")) {
+        ms_status checked = ms_http_cors_check(value, where, err);
+        return checked != MS_OK ? checked : set_string(&c->cors_origins, value, where, err);
     }
     return ms_error_set(err, MS_ERR_ARG, "%s: unknown setting '%s'", where, key);
 }

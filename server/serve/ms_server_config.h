@@ -43,6 +43,8 @@ typedef struct ms_server_config {
     char *web_dir;            /* if set, the browser pages (make wasm: build/wasm/site) are
                                  served from there at /, /view/NAME and /web/FILE
                                  (docs/BROWSER.md) */
+    char *cors_origins;       /* if set, the origins (or "*") whose pages may read the HTTP
+                                 side door's answers (ms_http_cors.h); default none */
 } ms_server_config;
 
 void ms_server_config_defaults(ms_server_config *config);

@@ -1,0 +1,218 @@
+/* The browser's pictures against meshview's (docs/BROWSER.md "Pictures"):
+ * the demo model along the close-up path (scripts/paths/demo-closeup.cam,
+ * three of its keyframes: the overview, the middle, the carved relief), the
+ * page in headless Chromium following the path through its #cam= (one page,
+ * the camera moved by the URL's hash) and meshview's scripted run of the
+ * same path, same size, same tolerance, both from one meshserve. At every
+ * keyframe: the page reaches view complete with no console error, and its
+ * screenshot matches meshview's picture: silhouette intersection over union
+ * >= 0.98 and PSNR >= 30 dB (the page shades with meshview's lit law in its
+ * geometry mode). Skips, saying why, without chromium-headless-shell or
+ * emscripten; needs an X display for meshview (Xvfb, ms_test_display). */
+#include <math.h>
+#include <setjmp.h>
+#include <signal.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+#include <cmocka.h>
+#include <jansson.h>
+
+#include "ms_test.h"
+#include "ms_test_display.h"
+#include "ms_test_net.h"
+#include "ms_test_picture.h"
+
+#define SITE "build/wasm/site"
+#define WIDTH 320
+#define HEIGHT 240
+#define KEYS 3
+
+/* Keyframes 0, 4 and 8 of scripts/paths/demo-closeup.cam, one second apart. */
+static const char *const KEYFRAMES[KEYS] = {
+    "3.5 0.5 0.4 0.6 0 0.1 0 0 1 40",
+    "1.26875 0.15 0.225 0.6 0 0.1 0 0 1 35",
+    "0.95 0.1 0.2 0.6 0 0.1 0 0 1 30",
+};
+
+typedef struct fixture {
+    ms_test_display display;
+    char dir[512], archives[600];
+    pid_t server;
+    uint16_t port, http_port;
+    char why_skip[256];
+} fixture;
+
+static int have_program(const char *name)
+{
+    char command[256], out[256];
+    snprintf(command, sizeof command, "command -v %s", name);
+    return ms_test_run(command, out, sizeof out) == 0;
+}
+
+static int group_setup(void **state)
+{
+    fixture *f = calloc(1, sizeof *f);
+    char why[256];
+    if (!f || !ms_test_display_start(&f->display, why, sizeof why)) {
+        fprintf(stderr, "no X display: %s\n", why);
+        free(f);
+        return -1;
+    }
+    *state = f;
+    ms_test_tmpdir(f->dir, sizeof f->dir);
+    snprintf(f->archives, sizeof f->archives, "%s/archive", f->dir);
+    if (mkdir(f->archives, 0755) != 0)
+        return -1;
+    char meshgen[600], meshbake[600], command[4096], out[4096];
+    ms_test_bin_path(meshgen, sizeof meshgen, "meshgen");
+    ms_test_bin_path(meshbake, sizeof meshbake, "meshbake");
+    snprintf(command, sizeof command,
+             "%s -o %s/demo.ply --triangles 20000 && "
+             "%s %s/demo.ply -o %s --name demo --min-tris 1500 --no-apo --threads 2",
+             meshgen, f->dir, meshbake, f->dir, f->archives);
+    if (ms_test_run(command, out, sizeof out) != 0) {
+        fprintf(stderr, "%s: %s\n", command, out);
+        return -1;
+    }
+    struct stat st;
+    int built = stat(SITE "/meshstream.wasm", &st) == 0;
+    if (!have_program("chromium-headless-shell"))
+        snprintf(f->why_skip, sizeof f->why_skip, "chromium-headless-shell is not installed");
+    else if (!built && !have_program("emcc"))
+        snprintf(f->why_skip, sizeof f->why_skip, "emscripten is not installed, so no " SITE);
+    char log[700], ports[700];
+    snprintf(log, sizeof log, "%s/meshserve.log", f->dir);
+    snprintf(ports, sizeof ports, "%s/ports", f->dir);
+    const char *extra[] = {"--web-dir", built ? SITE : "web", NULL};
+    f->server = ms_test_meshserve_start(f->archives, extra, 0, ports, log, &f->port, &f->http_port);
+    return f->server ? 0 : -1;
+}
+
+static int group_teardown(void **state)
+{
+    fixture *f = *state;
+    if (!f)
+        return 0;
+    if (f->server)
+        ms_test_stop(f->server, SIGTERM, 10.0);
+    ms_test_rmdir(f->dir);
+    ms_test_display_stop(&f->display);
+    free(f);
+    return 0;
+}
+
+/* Pixels that differ from the top-left one (the background) by more than 8
+ * in a channel. */
+static uint8_t *silhouette(const uint8_t *rgb, size_t n)
+{
+    uint8_t *mask = calloc(n, 1);
+    assert_non_null(mask);
+    for (size_t i = 0; i < n; ++i)
+        for (int c = 0; c < 3; ++c)
+            if (abs((int)rgb[3 * i + c] - (int)rgb[c]) > 8)
+                mask[i] = 1;
+    return mask;
+}
+
+/* IoU of the silhouettes and PSNR (dB, all three channels) of two pictures
+ * of WIDTH x HEIGHT. */
+static void compare(const char *a_path, const char *b_path, double *iou, double *psnr)
+{
+    uint32_t aw, ah, bw, bh;
+    uint8_t *a = ms_test_png_read(a_path, &aw, &ah), *b = ms_test_png_read(b_path, &bw, &bh);
+    assert_int_equal(aw, WIDTH);
+    assert_int_equal(ah, HEIGHT);
+    assert_int_equal(bw, WIDTH);
+    assert_int_equal(bh, HEIGHT);
+    size_t n = (size_t)WIDTH * HEIGHT, both = 0, either = 0;
+    uint8_t *ma = silhouette(a, n), *mb = silhouette(b, n);
+    double squares = 0;
+    for (size_t i = 0; i < n; ++i) {
+        both += ma[i] & mb[i];
+        either += ma[i] | mb[i];
+        for (int c = 0; c < 3; ++c) {
+            double d = (double)a[3 * i + c] - (double)b[3 * i + c];
+            squares += d * d;
+        }
+    }
+    *iou = either ? (double)both / (double)either : 0.0;
+    double mse = squares / (double)(3 * n);
+    *psnr = mse > 0 ? 10.0 * log10(255.0 * 255.0 / mse) : 99.0;
+    free(a), free(b), free(ma), free(mb);
+}
+
+static void test_closeup_path_against_meshview(void **state)
+{
+    fixture *f = *state;
+    if (f->why_skip[0]) {
+        printf("skipped: %s\n", f->why_skip);
+        skip();
+    }
+    struct stat st;
+    if (stat(SITE "/meshstream.wasm", &st) != 0)
+        fail_msg("emscripten is installed but " SITE "/meshstream.wasm is missing: run make wasm");
+    char path_file[700], text[1024], command[4096], meshview[600];
+    size_t used = (size_t)snprintf(text, sizeof text, "meshstream-camera-path 1\n");
+    for (int k = 0; k < KEYS; ++k)
+        used += (size_t)snprintf(text + used, sizeof text - used, "%d %s\n", k, KEYFRAMES[k]);
+    snprintf(path_file, sizeof path_file, "%s/closeup.cam", f->dir);
+    ms_test_write_file(path_file, text, used);
+    /* meshview's pictures: lit, geometry normals, 1 px, from the same server */
+    ms_test_bin_path(meshview, sizeof meshview, "meshview");
+    snprintf(command, sizeof command,
+             "%s --server 127.0.0.1:%u --model demo --path %s --size %dx%d --screenshot-dir %s/mv "
+             "--shading geometry --tolerance 1 --frames 1 --json",
+             meshview, f->port, path_file, WIDTH, HEIGHT, f->dir);
+    json_t *mv = ms_test_run_json(command, 0);
+    json_t *mv_keys = json_object_get(mv, "keyframes");
+    assert_int_equal(json_array_size(mv_keys), KEYS);
+    /* the page along the same path: one page, its #cam= moved keyframe by keyframe */
+    char first[256];
+    snprintf(first, sizeof first, "%s", KEYFRAMES[0]);
+    for (char *c = first; *c; ++c)
+        *c = *c == ' ' ? ',' : *c;
+    snprintf(command, sizeof command,
+             "tests/browser-page 'http://127.0.0.1:%u/view/demo#cam=%s&tol=1&hud=0' --size %dx%d "
+             "--out %s/page.png --keyframes %s --timeout 120",
+             f->http_port, first, WIDTH, HEIGHT, f->dir, path_file);
+    json_t *page = ms_test_run_json(command, 0);
+    json_t *page_keys = json_object_get(page, "keyframes");
+    assert_int_equal(json_array_size(page_keys), KEYS);
+    assert_int_equal(json_array_size(json_object_get(page, "console")), 0);
+    for (int k = 0; k < KEYS; ++k) {
+        json_t *p = json_array_get(page_keys, (size_t)k), *m = json_array_get(mv_keys, (size_t)k);
+        char shot[700], ref[700];
+        snprintf(shot, sizeof shot, "%s/page-%02d.png", f->dir, k);
+        snprintf(ref, sizeof ref, "%s/mv/keyframe-%02d.png", f->dir, k);
+        double iou, psnr;
+        compare(shot, ref, &iou, &psnr);
+        printf("keyframe %d: page %s, %lld triangles in %lld cells, settled %lld ms after its "
+               "camera; meshview complete %s, %lld triangles; IoU %.4f, PSNR %.2f dB\n",
+               k, json_string_value(json_object_get(p, "state")),
+               (long long)json_integer_value(json_object_get(p, "triangles")),
+               (long long)json_integer_value(json_object_get(p, "cells")),
+               (long long)json_integer_value(json_object_get(p, "settleMs")),
+               json_is_true(json_object_get(m, "complete")) ? "yes" : "no",
+               (long long)json_integer_value(json_object_get(m, "triangles_drawn")), iou, psnr);
+        assert_string_equal(json_string_value(json_object_get(p, "state")), "complete");
+        assert_true(json_is_true(json_object_get(m, "complete")));
+        assert_true(iou >= 0.98);
+        assert_true(psnr >= 30.0);
+    }
+    json_decref(page);
+    json_decref(mv);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_closeup_path_against_meshview),
+    };
+    return cmocka_run_group_tests(tests, group_setup, group_teardown);
+}
