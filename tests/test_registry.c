@@ -182,6 +182,32 @@ static void test_archives_open_on_first_request_and_close_by_use(void **state)
     ms_test_rmdir(dir);
 }
 
+/* A rescan keeps the open models' order of use (not their name order), so
+ * the least recently used closes first after it too. */
+static void test_rescan_keeps_the_order_of_use(void **state)
+{
+    (void)state;
+    char dir[512];
+    ms_test_tmpdir(dir, sizeof dir);
+    ms_test_add_model(dir, "a", 1, 12);
+    ms_test_add_model(dir, "b", 2, 12);
+    ms_test_add_model(dir, "c", 3, 12);
+    ms_registry *r1, *r2;
+    assert_int_equal(ms_registry_scan(dir, NULL, 8, &r1, NULL, NULL, NULL), MS_OK);
+    assert_non_null(ms_registry_find(r1, "b"));
+    usleep(2000);
+    assert_non_null(ms_registry_find(r1, "a")); /* a used after b */
+    assert_int_equal(ms_registry_scan(dir, r1, 2, &r2, NULL, NULL, NULL), MS_OK);
+    assert_int_equal(ms_registry_open_count(r2), 2);
+    ms_registry_free(r1);
+    assert_non_null(ms_registry_find(r2, "c"));
+    assert_int_equal(ms_registry_open_count(r2), 2);
+    assert_non_null(ms_registry_peek(r2, "a"));
+    assert_null(ms_registry_peek(r2, "b"));
+    ms_registry_free(r2);
+    ms_test_rmdir(dir);
+}
+
 static void test_rescan_keeps_the_served_version_of_a_broken_replacement(void **state)
 {
     (void)state;
@@ -226,6 +252,7 @@ int main(void)
         cmocka_unit_test(test_scan_rescan_replace_remove),
         cmocka_unit_test(test_broken_models_are_skipped),
         cmocka_unit_test(test_archives_open_on_first_request_and_close_by_use),
+        cmocka_unit_test(test_rescan_keeps_the_order_of_use),
         cmocka_unit_test(test_rescan_keeps_the_served_version_of_a_broken_replacement),
     };
     return cmocka_run_group_tests_name("registry", tests, NULL, NULL);

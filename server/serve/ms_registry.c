@@ -408,6 +408,40 @@ static bool slot_fill(ms_registry *r, registry_slot *slot, ms_catalog_entry *ent
     return true;
 }
 
+typedef struct use_order {
+    double last_use;
+    size_t slot;
+} use_order;
+
+static int compare_use(const void *a, const void *b)
+{
+    const use_order *x = a, *y = b;
+    if (x->last_use != y->last_use)
+        return x->last_use < y->last_use ? -1 : 1;
+    return (x->slot > y->slot) - (x->slot < y->slot);
+}
+
+/* The open slots' use list in the order of their last use (a scan links the
+ * models it keeps in name order), so that idleness and the limit close the
+ * least recently used first across rescans. */
+static void use_list_by_last_use(ms_registry *r)
+{
+    use_order *open = malloc((r->open_count ? r->open_count : 1) * sizeof *open);
+    size_t n = 0;
+    if (!open)
+        return; /* the name order stays: only the closing order differs */
+    for (size_t i = r->oldest; i != NO_SLOT && n < r->open_count; i = r->slots[i].newer)
+        open[n++] = (use_order){r->slots[i].last_use, i};
+    qsort(open, n, sizeof *open, compare_use);
+    r->newest = r->oldest = NO_SLOT;
+    for (size_t k = 0; k < n; ++k) {
+        registry_slot *slot = &r->slots[open[k].slot];
+        slot->newer = slot->older = NO_SLOT;
+        use_list_push_newest(r, slot);
+    }
+    free(open);
+}
+
 ms_status ms_registry_scan(const char *dir, const ms_registry *previous, size_t max_open,
                            ms_registry **result, ms_registry_warn_fn warn, void *warn_arg,
                            ms_error *err)
@@ -452,6 +486,7 @@ ms_status ms_registry_scan(const char *dir, const ms_registry *previous, size_t 
      * were freed: give the pages back rather than hold them as idle heap. */
     malloc_trim(0);
 #endif
+    use_list_by_last_use(out);
     close_over_limit(out, out->max_open, NULL);
     *result = out;
     return MS_OK;
