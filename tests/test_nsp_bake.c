@@ -102,7 +102,8 @@ static void test_json_report_and_catalog(void **state)
     for (uint32_t c = 0; c < h->cell_count; ++c)
         assert_int_equal(ms_archive_verify_payload(a, c, &err), MS_OK);
     ms_archive_close(a);
-    const char *expected[] = {"dragon3.msa", "catalog.json", "catalog.lock", NULL};
+    const char *expected[] = {"dragon3.msa", "dragon3.thumb.png", "catalog.json", "catalog.lock",
+                              NULL};
     assert_int_equal(strays(dir, expected), 0);
 
     /* Text report on a second model; --info still works. */
@@ -249,7 +250,7 @@ static void test_archive_directory(void **state)
     snprintf(sub, sizeof sub, "%s/new", dir);
     snprintf(cmd, sizeof cmd, "%s '%s' -o '%s' --name b --no-apo", bin, model, sub);
     assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
-    const char *made[] = {"b.msa", "catalog.json", "catalog.lock", NULL};
+    const char *made[] = {"b.msa", "b.thumb.png", "catalog.json", "catalog.lock", NULL};
     assert_int_equal(strays(sub, made), 0);
 
     snprintf(cmd, sizeof cmd, "%s '%s' -o '%s/b.msa' --name c", bin, model, sub);
@@ -287,8 +288,8 @@ static void test_failure_leaves_nothing(void **state)
     assert_int_equal(ms_test_run(cmd, out, sizeof out), 1);
     snprintf(cmd, sizeof cmd, "cmp '%s/catalog.json' '%s/catalog.before'", dir, dir);
     assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
-    const char *expected[] = {"good.msa", "catalog.json", "catalog.lock", "catalog.before",
-                              "broken.ply", NULL};
+    const char *expected[] = {"good.msa", "good.thumb.png", "catalog.json", "catalog.lock",
+                              "catalog.before", "broken.ply", NULL};
     assert_int_equal(strays(dir, expected), 0);
     ms_test_rmdir(dir);
 }
@@ -332,8 +333,8 @@ static void test_killed_bake_leaves_nothing(void **state)
             assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
             continue;
         }
-        const char *expected[] = {"big.ply", "other.msa", "catalog.json", "catalog.lock",
-                                  "catalog.before", NULL};
+        const char *expected[] = {"big.ply", "other.msa", "other.thumb.png", "catalog.json",
+                                  "catalog.lock", "catalog.before", NULL};
         assert_int_equal(strays(dir, expected), 0);
         snprintf(cmd, sizeof cmd, "cmp '%s/catalog.json' '%s/catalog.before'", dir, dir);
         assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
@@ -365,7 +366,8 @@ static void test_stale_partial_removed(void **state)
     assert_non_null(strstr(out, "meshbake: removed ghost.msa.partial, left by an interrupted bake\n"));
     assert_null(strstr(out, "live.msa.partial"));
     close(fd);
-    const char *expected[] = {"b.msa", "catalog.json", "catalog.lock", "live.msa.partial", NULL};
+    const char *expected[] = {"b.msa", "b.thumb.png", "catalog.json", "catalog.lock",
+                              "live.msa.partial", NULL};
     assert_int_equal(strays(dir, expected), 0);
     ms_test_rmdir(dir);
 }
