@@ -132,10 +132,10 @@ int ms_bake_cli_list(const char *dir, bool json)
     return failed ? EXIT_INPUT : EXIT_SUCCESS;
 }
 
-/* Takes a model out of a directory: the catalogue entry first (renamed into
- * place under the lock, so a rescan that follows no longer offers it), then
- * the file (a running server's mapping keeps the old inode alive). */
-int ms_bake_cli_remove(const char *dir, const char *name)
+/* The catalogue entry of model name in dir, copied into *entry without its
+ * strings (source and metadata NULL); EXIT_SUCCESS, or the exit status after
+ * one line on stderr (a bad name, an unreadable catalogue, no such model). */
+static int find_model(const char *dir, const char *name, ms_catalog_entry *entry)
 {
     if (!ms_model_name_valid(name)) {
         fprintf(stderr, "meshbake: '%s' is not a model name\n", name);
@@ -147,12 +147,30 @@ int ms_bake_cli_remove(const char *dir, const char *name)
         fprintf(stderr, "meshbake: %s\n", err.text);
         return EXIT_INPUT;
     }
-    bool known = ms_catalog_find(&catalog, name) != NULL;
+    const ms_catalog_entry *found = ms_catalog_find(&catalog, name);
+    if (found) {
+        *entry = *found;
+        entry->source = NULL;
+        entry->metadata = NULL;
+    }
     ms_catalog_free(&catalog);
-    if (!known) {
+    if (!found) {
         fprintf(stderr, "meshbake: no model '%s' in %s/catalog.json\n", name, dir);
         return EXIT_INPUT;
     }
+    return EXIT_SUCCESS;
+}
+
+/* Takes a model out of a directory: the catalogue entry first (renamed into
+ * place under the lock, so a rescan that follows no longer offers it), then
+ * the file (a running server's mapping keeps the old inode alive). */
+int ms_bake_cli_remove(const char *dir, const char *name)
+{
+    ms_catalog_entry e;
+    int status = find_model(dir, name, &e);
+    if (status != EXIT_SUCCESS)
+        return status;
+    ms_error err;
     if (ms_catalog_remove(dir, name, &err) != MS_OK) {
         fprintf(stderr, "meshbake: %s\n", err.text);
         return EXIT_INPUT;
@@ -175,27 +193,12 @@ int ms_bake_cli_remove(const char *dir, const char *name)
 int ms_bake_cli_thumbnail(const char *dir, const char *name, int up_axis, unsigned threads,
                           bool json)
 {
-    if (!ms_model_name_valid(name)) {
-        fprintf(stderr, "meshbake: '%s' is not a model name\n", name);
-        return EXIT_USAGE;
-    }
-    ms_catalog catalog;
-    ms_error err;
-    if (ms_catalog_load(dir, &catalog, &err) != MS_OK) {
-        fprintf(stderr, "meshbake: %s\n", err.text);
-        return EXIT_INPUT;
-    }
-    const ms_catalog_entry *found = ms_catalog_find(&catalog, name);
+    /* without its strings: an update without metadata keeps the entry's */
     ms_catalog_entry e;
-    if (found)
-        e = *found;
-    ms_catalog_free(&catalog); /* e's strings are not used below */
-    if (!found) {
-        fprintf(stderr, "meshbake: no model '%s' in %s/catalog.json\n", name, dir);
-        return EXIT_INPUT;
-    }
-    e.source = NULL;
-    e.metadata = NULL; /* kept: an update without metadata keeps the entry's */
+    int status = find_model(dir, name, &e);
+    if (status != EXIT_SUCCESS)
+        return status;
+    ms_error err;
     ms_study_thumbnail_report r;
     ms_status st = ms_bake_thumbnail(dir, &e, up_axis, threads, &r, &err);
     ms_error update_err;
