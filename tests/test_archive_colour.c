@@ -60,6 +60,21 @@ static ms_view *open_view(const char *path, ms_archive **a)
 
 /* Full precision: exactly the welded input colours, every vertex; and a
  * coarse cut (the root alone at each of its precisions): the rule. */
+/* A view decoder over every cell record of archive a (the caller's). */
+static ms_view *view_of(const ms_archive *a)
+{
+    const ms_archive_header *h = ms_archive_get_header(a);
+    ms_archive_cell *recs = malloc(h->cell_count * sizeof *recs);
+    assert_non_null(recs);
+    for (uint32_t i = 0; i < h->cell_count; ++i)
+        recs[i] = *ms_archive_get_cell(a, i);
+    ms_view *v;
+    ms_error err;
+    assert_int_equal(ms_view_create(h, recs, &v, &err), MS_OK);
+    free(recs);
+    return v;
+}
+
 static void test_trefoil_full_and_coarse(void **state)
 {
     (void)state;
@@ -129,12 +144,7 @@ static void test_prefixes(void **state)
     const ms_archive_header *h = ms_archive_get_header(a);
     ms_colour_test_welded w;
     ms_colour_test_weld(ms_test_model_path(model, sizeof model, FIXTURE), h, &w);
-    ms_archive_cell *recs = malloc(h->cell_count * sizeof *recs);
-    for (uint32_t i = 0; i < h->cell_count; ++i)
-        recs[i] = *ms_archive_get_cell(a, i);
-    ms_view *v;
-    assert_int_equal(ms_view_create(h, recs, &v, &err), MS_OK);
-    free(recs);
+    ms_view *v = view_of(a);
     for (uint32_t i = 0; i < h->cell_count; ++i) {
         size_t len;
         const uint8_t *g = ms_archive_geometry(a, i, &len);
@@ -190,12 +200,7 @@ static void test_child_waits_for_parent(void **state)
     const ms_archive_header *h = ms_archive_get_header(a);
     ms_colour_test_welded w;
     ms_colour_test_weld(ms_test_model_path(model, sizeof model, FIXTURE), h, &w);
-    ms_archive_cell *recs = malloc(h->cell_count * sizeof *recs);
-    for (uint32_t i = 0; i < h->cell_count; ++i)
-        recs[i] = *ms_archive_get_cell(a, i);
-    ms_view *v;
-    assert_int_equal(ms_view_create(h, recs, &v, &err), MS_OK);
-    free(recs);
+    ms_view *v = view_of(a);
     for (uint32_t i = 0; i < h->cell_count; ++i) {
         size_t len;
         const uint8_t *g = ms_archive_geometry(a, i, &len);
@@ -239,11 +244,7 @@ static void test_child_waits_for_parent(void **state)
 
     /* Every cell's colour but one shown cell's: that cell draws in the
      * renderers' default grey until its colour arrives, never white. */
-    recs = malloc(h->cell_count * sizeof *recs);
-    for (uint32_t i = 0; i < h->cell_count; ++i)
-        recs[i] = *ms_archive_get_cell(a, i);
-    assert_int_equal(ms_view_create(h, recs, &v, &err), MS_OK);
-    free(recs);
+    v = view_of(a);
     for (uint32_t i = 0; i < h->cell_count; ++i) {
         const uint8_t *g = ms_archive_geometry(a, i, &len);
         assert_int_equal(ms_view_set_bytes(v, i, g, len, &err), MS_OK);
@@ -373,12 +374,7 @@ static void test_hostile(void **state)
     assert_int_equal(ms_archive_check_colour(a, 0, bad, len, &err), MS_ERR_CORRUPT);
     assert_string_equal(err.text, "cell 0: colour stream checksum mismatch");
     assert_int_equal(ms_archive_check_colour(a, 0, col, len - 1, &err), MS_ERR_CORRUPT);
-    ms_archive_cell *recs = malloc(h->cell_count * sizeof *recs);
-    for (uint32_t i = 0; i < h->cell_count; ++i)
-        recs[i] = *ms_archive_get_cell(a, i);
-    ms_view *v;
-    assert_int_equal(ms_view_create(h, recs, &v, &err), MS_OK);
-    free(recs);
+    ms_view *v = view_of(a);
     size_t glen;
     const uint8_t *g = ms_archive_geometry(a, 0, &glen);
     assert_int_equal(ms_view_set_bytes(v, 0, g, glen, &err), MS_OK);
