@@ -48,6 +48,8 @@ void ms_core_push_chunk(ms_core *c, chunk_msg *m)
 {
     pthread_mutex_lock(&c->lock);
     m->seq = ++c->push_seq;
+    if (m->stream != STREAM_INDEX)
+        c->bytes_queued += m->length;
     if (c->inbox_tail)
         c->inbox_tail->next = m;
     else

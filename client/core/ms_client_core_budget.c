@@ -377,6 +377,8 @@ static void pass_params(const ms_core *c, dec_pass *pass)
     pass->sp.culled_bits_less = c->o.culled_bits_less + c->culled_give_up;
 }
 
+static uint64_t what_if_memory(ms_core *c, dec_pass *pass, double factor, double give_up);
+
 bool ms_core_budget_ceiling(ms_core *c, dec_pass *pass)
 {
     if (c->o.memory_target || c->shared)
@@ -393,6 +395,13 @@ bool ms_core_budget_ceiling(ms_core *c, dec_pass *pass)
                        bt.others_least);
         /* shared: another member holds less useful cells; it evicts them */
         if (memory_held(c) + bt.others_memory <= bt.ceiling || bt.others_least < INFINITY)
+            break;
+        /* the cut selected now would fit: what is over is a transient (bytes
+         * arriving, another member's figure from its last pass) that the view
+         * sheds by itself; coarsening for it would throw the view away, a
+         * doubling a round, down to its root */
+        double give_up = pass->sp.culled_bits_less - c->o.culled_bits_less;
+        if (what_if_memory(c, pass, pass->factor, give_up) + bt.others_memory <= bt.ceiling)
             break;
         factor_begin(c);
         bool at_most = c->tolerance_factor >= MAX_TOLERANCE_FACTOR &&
@@ -507,6 +516,19 @@ static void relax_step(ms_core *c, dec_pass *pass, const budget_terms *bt, doubl
     factor_end(c);
 }
 
+/* What loading a want adds to the budget's measure: the bytes the view will
+ * hold, the growth of the reception buffer that takes them (it doubles, and
+ * its capacity is counted) and the decoded growth. */
+static uint64_t want_bytes(const ms_core *c, const want *w)
+{
+    const dcell *d = ms_core_dcell(c, w->cell);
+    const rx *r = w->stream == STREAM_APO      ? &d->apo
+                  : w->stream == STREAM_COLOUR ? &d->col
+                                               : &d->geo;
+    return (uint64_t)(w->end - w->start) + (ms_core_rx_cap_for(r, w->end) - r->cap) +
+           w->decoded_growth;
+}
+
 /* Loading stays under the ceiling; to make room, evicts only cells clearly
  * (one bit) less useful than the one being loaded (candidates from *next on).
  * Returns how many of the pass's wants fit; the first refused one's
@@ -525,7 +547,7 @@ static size_t fit_wants(ms_core *c, dec_pass *pass, const evict_candidate *cand,
         if (w->stream == STREAM_INDEX || ms_core_content_want(c, w))
             continue; /* a subtree (the root's first bits) is small, and the cut cannot
                          refine (the model cannot be placed) without it */
-        uint64_t need_bytes = (uint64_t)(w->end - w->start) + w->decoded_growth;
+        uint64_t need_bytes = want_bytes(c, w);
         if (planned + need_bytes <= ceiling) {
             planned += need_bytes;
             continue;
@@ -553,7 +575,8 @@ void ms_core_budget_step(ms_core *c, dec_pass *pass)
 {
     pass->memory = memory_held(c);
     pthread_mutex_lock(&c->lock);
-    uint64_t in_flight = c->bytes_in_flight;
+    /* bytes received and not yet taken are held, though not yet counted */
+    uint64_t in_flight = c->bytes_in_flight + c->bytes_queued;
     pthread_mutex_unlock(&c->lock);
     if (!c->o.memory_target && !c->shared)
         return;

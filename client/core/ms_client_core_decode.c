@@ -28,6 +28,16 @@ static void rx_cut(rx *r, uint32_t keep)
     r->niv = 0;
 }
 
+uint64_t ms_core_rx_cap_for(const rx *r, uint64_t end)
+{
+    if (end <= r->base || end - r->base <= r->cap)
+        return r->cap;
+    uint64_t cap = r->cap ? r->cap : 4096;
+    while (cap < end - r->base)
+        cap *= 2;
+    return cap;
+}
+
 /* Adds received bytes; ignores what is already held or below base. */
 bool ms_core_rx_add(rx *r, uint32_t offset, const uint8_t *data, uint32_t length)
 {
@@ -40,9 +50,7 @@ bool ms_core_rx_add(rx *r, uint32_t offset, const uint8_t *data, uint32_t length
         offset = r->end;
     }
     if (end - r->base > r->cap) {
-        uint64_t cap = r->cap ? r->cap : 4096;
-        while (cap < end - r->base)
-            cap *= 2;
+        uint64_t cap = ms_core_rx_cap_for(r, end);
         uint8_t *b = realloc(r->buf, cap);
         if (!b)
             return false;
@@ -461,6 +469,7 @@ void *ms_core_decode_main(void *arg)
             continue;
         chunk_msg *chunks = c->inbox;
         c->inbox = c->inbox_tail = NULL;
+        c->bytes_queued = 0; /* this pass takes them all */
         ms_camera cam = c->camera;
         uint64_t serial = c->camera_serial;
         bool have = c->have_camera;

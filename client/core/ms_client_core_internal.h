@@ -236,6 +236,8 @@ struct ms_core {
     /* network figures */
     bool connected, model_open;
     uint64_t bytes_received, bytes_in_flight, requests, cancels, reconnects;
+    uint64_t bytes_queued; /* received payload bytes in the inbox, not yet taken by the
+                              decode thread (the budget plans them as in flight) */
     double longest_outage; /* seconds, lost connection to model open again (under lock) */
     uint64_t geometry_bytes_received, apo_bytes_received;
     uint64_t socket_bytes;      /* read from every connection, frames and index included */
@@ -421,6 +423,9 @@ void ms_core_rx_free(rx *r);
 /* Adds received bytes at offset; ignores what is already held or below base.
  * False when out of memory. */
 bool ms_core_rx_add(rx *r, uint32_t offset, const uint8_t *data, uint32_t length);
+/* The buffer's capacity once it holds bytes up to `end` (it grows by doubling,
+ * so the budget plans the growth, not only the range's bytes). */
+uint64_t ms_core_rx_cap_for(const rx *r, uint64_t end);
 /* Hands the newly received, verified geometry bytes of cell to the view (in
  * few steps: see the function). */
 void ms_core_hand_over(ms_core *c, uint32_t cell);
