@@ -513,13 +513,9 @@ function start() {
     failPage('This browser offers no WebGL 2: the model cannot be drawn.');
     return;
   }
-  try {
-    setUpGl();
-  } catch (e) {
-    failPage('WebGL 2 failed: ' + e.message);
-    return;
-  }
   say('Loading ' + name + '…');
+  // The worker first: it compiles the module and fetches the index while
+  // WebGL compiles its program (its messages come after this task ends).
   worker = new Worker('../web/worker.js');
   worker.onerror = e => failPage('The decoder failed: ' + (e.message || 'the worker did not start'));
   worker.onmessage = e => {
@@ -571,6 +567,12 @@ function start() {
   worker.postMessage({ type: 'start', name, token: sessionStorage.getItem(TOKEN_KEY) || '', culled,
                        layout: staticSite ? 'static' : 'door',
                        camera: camera ? workerCamera() : null });
+  try {
+    setUpGl();
+  } catch (e) {
+    worker.terminate();
+    failPage('WebGL 2 failed: ' + e.message);
+  }
 }
 
 start();
