@@ -2,9 +2,14 @@
 // of the C sources, compiled to WebAssembly (make wasm: meshstream.js and
 // meshstream.wasm, the interface of client/web/ms_web_view.h), fed over the
 // HTTP side door. Messages in: {type: 'start', name, token, camera, culled},
-// {type: 'camera', camera} (a new camera: the loop plans again). Out:
-// {type: 'box'}, {type: 'progress'}, {type: 'mesh'} (positions and triangles,
-// transferred), {type: 'complete'}, {type: 'error', message}.
+// {type: 'camera', camera} (a new camera: the loop plans again),
+// {type: 'sections', planes} (a b c d each: ms_web_view_sections; the page
+// sends a camera after them), {type: 'cast', rays: [{origin, direction,
+// tMin, tNear}], ...} (ms_web_view_cast on the last mesh; answered at once
+// with the message's fields and hits: [{point, t, bits, step, modelBits} or
+// null]). Out: {type: 'box'}, {type: 'progress'}, {type: 'mesh'} (positions
+// and triangles, transferred), {type: 'complete'}, {type: 'cast'},
+// {type: 'error', message}.
 'use strict';
 importScripts('meshstream.js');   // beside this file
 
@@ -188,6 +193,7 @@ async function run(msg) {
     throw new Error('no model named "' + name + '" on this server');
   const blob = (await get(layout.index(name), token)).bytes;
   view = openIndex(blob, name);
+  applySections();
   const bp = M._malloc(32);
   M._ms_web_view_box(view, bp);
   const box = Array.from(new Float64Array(M.HEAPU8.buffer, bp, 4));
@@ -261,7 +267,52 @@ async function run(msg) {
   }
 }
 
+// The section planes asked for (applied once the view exists).
+let sections = [];
+
+function applySections() {
+  if (!view)
+    return;
+  const p = M._malloc(Math.max(sections.length, 1) * 32);
+  new Float64Array(M.HEAPU8.buffer, p, 4 * sections.length).set(sections.flat());
+  const st = M._ms_web_view_sections(view, p, sections.length);
+  M._free(p);
+  if (st !== 0)
+    fail('section planes: ' + lastError());
+}
+
+function cast(msg) {
+  const hits = [];
+  const p = view ? M._malloc(13 * 8) : 0;
+  for (const r of msg.rays) {
+    if (!view) {
+      hits.push(null);
+      continue;
+    }
+    const d = new Float64Array(M.HEAPU8.buffer, p, 13);
+    d.set([...r.origin, ...r.direction]);
+    if (M._ms_web_view_cast(view, p, p + 24, r.tMin, r.tNear, p + 48)) {
+      const o = Array.from(new Float64Array(M.HEAPU8.buffer, p + 48, 7));
+      hits.push({ point: o.slice(0, 3), t: o[3], bits: o[4], step: o[5], modelBits: o[6] });
+    } else {
+      hits.push(null);
+    }
+  }
+  if (p)
+    M._free(p);
+  postMessage(Object.assign({}, msg, { type: 'cast', hits }));
+}
+
 onmessage = e => {
+  if (e.data.type === 'sections') {
+    sections = e.data.planes;
+    applySections();
+    return;
+  }
+  if (e.data.type === 'cast') {
+    cast(e.data);
+    return;
+  }
   if (e.data.type === 'start') {
     run(e.data).catch(err => fail(err.message || String(err)));
   } else if (e.data.type === 'camera') {
