@@ -20,7 +20,9 @@
  *   - measuring: on the cube baked at 20 bits, T and a click add the surface
  *     point under the cursor; two rays along x onto its faces x = 0 and x = 1
  *     measure 1 within the reported precision, which is the grid step at the
- *     coarser point's bits (box side / 2^bits).
+ *     coarser point's bits (box side / 2^bits); once the view is complete
+ *     the probe refines the cells under both points to the model's 20 bits,
+ *     and the measure is 1 within 2^-20.
  * Skips, saying why, without chromium-headless-shell or emscripten. */
 #include <math.h>
 #include <setjmp.h>
@@ -355,6 +357,8 @@ static void test_lambert_on_a_face(void **state)
     assert_true(fabs(diffuse[2] / diffuse[0] - 0.5) < 0.01);
 }
 
+static void check_edge(json_t *m);
+
 static void test_measure_cube_edge(void **state)
 {
     fixture *f = *state;
@@ -373,18 +377,39 @@ static void test_measure_cube_edge(void **state)
         "\"Delete\", \"windowsVirtualKeyCode\": 46}},\n"
         " {\"method\": \"Runtime.evaluate\", \"params\": {\"expression\": "
         "\"MsTools.measureRay([-1, 0.5, 0.5], [1, 0, 0]); MsTools.measureRay([2, 0.5, 0.5], [-1, 0, 0])\"}},\n"
+        " {\"settle\": true},\n"
+        /* the probe: wait until both points are refined */
+        " {\"method\": \"Runtime.evaluate\", \"params\": {\"awaitPromise\": true, \"expression\": "
+        "\"new Promise(r => { const t = setInterval(() => { const m = window.meshstream.measure; "
+        "if (m.refined && !m.refining) { clearInterval(t); r(); } }, 50); })\"}},\n"
         " {\"settle\": true}]\n";
     char shot[700];
     snprintf(shot, sizeof shot, "%s/measure.png", f->dir);
     json_t *report = page(f, "cube", "mv1:t=0.5,0.5,0.5:d=3:o=0.6,0.4:f=40:u=y", steps, shot);
     json_t *steps_done = json_object_get(report, "steps");
-    assert_int_equal(json_array_size(steps_done), 2);
+    assert_int_equal(json_array_size(steps_done), 3);
     json_t *clicked = json_object_get(json_object_get(json_array_get(steps_done, 0), "page"), "measure");
     printf("a click: %s\n", json_string_value(json_object_get(clicked, "text")));
     assert_int_equal(json_array_size(json_object_get(clicked, "points")), 1);
     json_t *hit = json_array_get(json_object_get(clicked, "points"), 0);
     assert_true(json_is_object(hit));
-    json_t *m = json_object_get(json_object_get(json_array_get(steps_done, 1), "page"), "measure");
+    json_t *m = json_object_get(json_object_get(json_array_get(steps_done, 2), "page"), "measure");
+    check_edge(m);
+    /* as the view held them, before the probe: coarser, and as exact */
+    json_t *held = json_object_get(m, "view");
+    double length = number(json_object_get(held, "length")), precision = number(json_object_get(held, "precision"));
+    int bits = (int)number(json_object_get(held, "bitsMin"));
+    printf("as the view held them: %.9f +- %.9f (%d bits)\n", length, precision, bits);
+    assert_true(bits >= 1 && bits < 20);
+    assert_true(precision == ldexp(1.0, -bits) * ldexp(number(json_object_get(json_array_get(json_object_get(m, "points"), 0), "step")), 20));
+    assert_true(fabs(length - 1.0) <= precision);
+    json_decref(report);
+}
+
+/* The measure of the two rays onto x = 0 and x = 1, refined: 1 within its
+ * precision, the grid step at the points' bits, 20. */
+static void check_edge(json_t *m)
+{
     json_t *points = json_object_get(m, "points");
     assert_int_equal(json_array_size(points), 2);
     double length = number(json_object_get(m, "length")), precision = number(json_object_get(m, "precision"));
@@ -402,7 +427,9 @@ static void test_measure_cube_edge(void **state)
     assert_true(precision == fmax(step[0], step[1]));
     assert_true(precision == ldexp(box[0], -(int)fmin(bits[0], bits[1])));
     assert_true(fabs(length - 1.0) <= precision);
-    json_decref(report);
+    assert_true(json_is_true(json_object_get(m, "refined")));
+    assert_true(json_is_true(json_object_get(m, "full")));
+    assert_true(bits[0] == 20 && bits[1] == 20);
 }
 
 int main(void)

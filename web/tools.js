@@ -10,7 +10,7 @@
 
 const MsTools = (() => {
   const st = { light: null, sections: [], points: [], measuring: false, modelBits: 0, castSeq: 0,
-               fromText: null };
+               fromText: null, refineSeq: 0, refining: 0 };
   const el = id => document.getElementById(id);
 
   function sameCamera(a, b) {
@@ -26,10 +26,12 @@ const MsTools = (() => {
     page.sections = st.sections.map(s => ({ point: s.point.slice(), normal: s.normal.slice() }));
     page.measuring = st.measuring;
     const r = MsMeasure.result(st.points, st.modelBits);
-    page.measure = { points: st.points.map(p => p.hit ? Object.assign({}, p.hit) : null),
+    page.measure = { points: st.points.map(p => p.hit ? Object.assign({ refined: !!p.refined }, p.hit) : null),
                      length: r ? r.length : null, precision: r ? r.precision : null,
                      bitsMin: r ? r.bitsMin : 0, full: r ? r.full : false, unit: 'model units',
-                     text: MsMeasure.describe(st.points, st.modelBits) };
+                     refining: st.refining > 0,
+                     view: MsMeasure.result(st.points.map(p => ({ hit: p.viewHit || p.hit })), st.modelBits), refined: st.points.length > 0 && st.points.every(p => p.refined),
+                     text: MsMeasure.describe(st.points, st.modelBits) + (st.refining ? '  refining' : '') };
     const lines = [];
     if (st.light)
       lines.push(MsLight.describe(st.light));
@@ -105,9 +107,13 @@ const MsTools = (() => {
     st.light = v.light;
     st.sections = v.sections;
     st.points = v.points.map(p => ({ anchor: p.anchor, direction: p.direction, hit: null }));
-    sendSections();
-    recast();
     publish();
+    if (worker && box) {        // a text typed into the URL: the planes, a new plan
+      sendSections();
+      worker.postMessage({ type: 'camera', camera: workerCamera() });
+      recast();
+      requestDraw();
+    }
     return c;
   }
 
@@ -126,18 +132,43 @@ const MsTools = (() => {
       origin: p.hit ? p.hit.point : p.anchor, direction: p.direction, tMin: -Infinity, tNear: 0 })) });
   }
 
+  // Once the view is complete, the points not refined yet go to the
+  // worker's probe (full precision under each); one round at a time.
+  function refineSoon() {
+    const todo = st.points.filter(p => p.hit && !p.refined);
+    if (st.refining || !todo.length || window.meshstream.state !== 'complete' || !worker)
+      return;
+    st.refining = todo.length;
+    todo.forEach(p => { p.viewHit = p.hit; });     // as the view held it
+    worker.postMessage({ type: 'refine', seq: ++st.refineSeq,
+                         points: todo.map(p => ({ point: p.hit.point, direction: p.direction })) });
+    st.refineList = todo;
+  }
+
   // A worker message view.js does not know; true when it was the tools'.
   function message(m) {
     if (m.type !== 'cast')
       return false;
-    if (m.add) {
+    if (m.refine) {
+      if (m.seq !== st.refineSeq)
+        return true;                // a round the chain has dropped
+      const p = st.refineList ? st.refineList[m.index] : null;
+      st.refining = Math.max(0, st.refining - 1);
+      if (p && st.points.includes(p)) {
+        p.refined = true;           // the view's frames no longer move it
+        if (m.hit) {
+          p.hit = m.hit;
+          p.anchor = m.hit.point;
+        }
+      }
+    } else if (m.add) {
       if (m.hits[0] && st.points.length < MsMeasure.MAX) {
         st.modelBits = m.hits[0].modelBits;
         st.points.push({ anchor: m.hits[0].point, direction: m.direction, hit: m.hits[0] });
       }
     } else if (m.seq === st.castSeq) {
       m.hits.forEach((h, i) => {
-        if (!st.points[i])
+        if (!st.points[i] || st.points[i].refined)
           return;
         st.points[i].hit = h;
         if (h) {
@@ -146,6 +177,7 @@ const MsTools = (() => {
         }
       });
     }
+    refineSoon();
     publish();
     writeUrl();
     requestDraw();
@@ -195,6 +227,10 @@ const MsTools = (() => {
         st.points.pop();
       else
         st.points = [];
+      if (st.refining) {        // answers of the round under way are dropped
+        st.refining = 0;
+        st.refineSeq++;
+      }
       changed(true);
       return true;
     }
