@@ -23,6 +23,9 @@
  *     coarser point's bits (box side / 2^bits); once the view is complete
  *     the probe refines the cells under both points to the model's 20 bits,
  *     and the measure is 1 within 2^-20.
+ *   - hostile view texts (a zero plane normal, four planes, a light out of
+ *     range, a field out of order) end the page in state error with
+ *     meshview's one line, nothing drawn, no console error.
  * Skips, saying why, without chromium-headless-shell or emscripten. */
 #include <math.h>
 #include <setjmp.h>
@@ -432,6 +435,39 @@ static void check_edge(json_t *m)
     assert_true(bits[0] == 20 && bits[1] == 20);
 }
 
+static void test_bad_view_text(void **state)
+{
+    fixture *f = *state;
+    NEED_BROWSER(f);
+    static const struct {
+        const char *text, *line;
+    } cases[] = {
+        {"mv1:t=0,0,0:d=3:o=0,0:f=40:u=y:s=0,0,0,0,0,0",
+         "a section plane wants six numbers PX,PY,PZ,NX,NY,NZ, the normal not zero, at most 3 planes"},
+        {"mv1:t=0,0,0:d=3:o=0,0:f=40:u=y:s=0,0,0,1,0,0/0,0,0,1,0,0/0,0,0,1,0,0/0,0,0,1,0,0",
+         "a section plane wants six numbers PX,PY,PZ,NX,NY,NZ, the normal not zero, at most 3 planes"},
+        {"mv1:t=0,0,0:d=3:o=0,0:f=40:u=y:l=0,91", "l= wants AZ,EL in degrees, AZ in [-180, 180], EL in [-90, 90]"},
+        {"mv1:t=0,0,0:d=3:o=0,0:f=40:u=y:s=0,0,0,1,0,0:l=0,0",
+         "unknown or misplaced field after u= (l=, s=, then m=, may follow)"},
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof *cases; ++i) {
+        char command[4096], shot[700], want[512];
+        snprintf(shot, sizeof shot, "%s/bad.png", f->dir);
+        snprintf(command, sizeof command,
+                 "tests/browser-page 'http://127.0.0.1:%u/view/demo#view=%s' --size %dx%d --out %s --timeout 60",
+                 f->http_port, cases[i].text, WIDTH, HEIGHT, shot);
+        json_t *report = ms_test_run_json(command, 0);
+        const char *message = json_string_value(json_object_get(report, "message"));
+        printf("%s: %s\n", cases[i].text, message);
+        assert_string_equal(json_string_value(json_object_get(report, "state")), "error");
+        snprintf(want, sizeof want, "The view in the URL is not meshview's text: %s (docs/VIEWER.md, \"Shareable "
+                 "views\").", cases[i].line);
+        assert_string_equal(message, want);
+        assert_int_equal(json_array_size(json_object_get(report, "console")), 0);
+        json_decref(report);
+    }
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -439,6 +475,7 @@ int main(void)
         cmocka_unit_test(test_section_against_meshview),
         cmocka_unit_test(test_lambert_on_a_face),
         cmocka_unit_test(test_measure_cube_edge),
+        cmocka_unit_test(test_bad_view_text),
     };
     return cmocka_run_group_tests(tests, group_setup, group_teardown);
 }

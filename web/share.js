@@ -73,7 +73,7 @@ const MsShare = (() => {
 
   // The text's state, or {error: one line} as meshview says it.
   function parse(text) {
-    const bad = what => ({ error: 'the view text: ' + what + ' (docs/VIEWER.md, "Shareable views")' });
+    const bad = what => ({ error: what + ' (docs/VIEWER.md, "Shareable views")' });
     if (typeof text !== 'string' || text.length >= 4096)
       return bad('missing or longer than 4095 bytes');
     if (!text.startsWith('mv1:'))

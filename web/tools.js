@@ -95,6 +95,7 @@ const MsTools = (() => {
   // The camera of a view text (and the tools' state from it), or null.
   function fromView(text) {
     const v = MsShare.parse(text);
+    st.error = v.error || '';
     if (v.error)
       return null;
     const up = [0, 0, 0];
@@ -323,6 +324,11 @@ const MsTools = (() => {
                          rays: [{ origin, direction, tMin: 0, tNear: 0 }] });
   }
 
-  return { viewText, toHash, hashString, fromView, message, started, recast, uniforms, drawn, act, measureAt, measureRay,
-           publish };
+  // Why the last view text was refused ('' when it was not).
+  function viewError() {
+    return st.error || '';
+  }
+
+  return { viewText, viewError, toHash, hashString, fromView, message, started, recast, uniforms, drawn, act,
+           measureAt, measureRay, publish };
 })();

@@ -508,7 +508,7 @@ function start() {
   if (!camera && hash.get('view')) {
     camera = parseShare(hash.get('view'));
     if (!camera)
-      failPage('The view in the URL is not meshview\'s text (#view=mv1:t=X,Y,Z:d=D:o=YAW,PITCH:f=FOVY:u=AXIS).');
+      failPage('The view in the URL is not meshview\'s text: ' + MsTools.viewError() + '.');
   }
   if (page.state === 'error')
     return;
