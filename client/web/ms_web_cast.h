@@ -2,7 +2,8 @@
  * (docs/BROWSER.md, "Measuring"): the ray against every triangle of an
  * ms_view_mesh, in doubles, both faces, edges included, the points on the
  * cut-away side of the section planes skipped (what the page does not draw).
- * meshview casts the same way on its core's frame (ms_viewer_measure_cast).
+ * meshview casts the same way on its core's frame (ms_viewer_measure_cast),
+ * with the same ray-triangle test (ms_ray.h).
  *
  * Pure function; thread-safe. */
 #ifndef MS_WEB_CAST_H
