@@ -2,9 +2,16 @@
 // of the C sources, compiled to WebAssembly (make wasm: meshstream.js and
 // meshstream.wasm, the interface of client/web/ms_web_view.h), fed over the
 // HTTP side door. Messages in: {type: 'start', name, token, camera, culled},
-// {type: 'camera', camera} (a new camera: the loop plans again). Out:
-// {type: 'box'}, {type: 'progress'}, {type: 'mesh'} (positions and triangles,
-// transferred), {type: 'complete'}, {type: 'error', message}.
+// {type: 'camera', camera} (a new camera: the loop plans again),
+// {type: 'sections', planes} (a b c d each: ms_web_view_sections; the page
+// sends a camera after them), {type: 'cast', rays: [{origin, direction,
+// tMin, tNear}], ...} (ms_web_view_cast on the last mesh; answered at once
+// with the message's fields and hits: [{point, t, bits, step, modelBits} or
+// null]), {type: 'refine', seq, points: [{point, direction}]} (each point
+// refined to full precision by a probe, then cast: answered point by point).
+// Out: {type: 'box'}, {type: 'progress'}, {type: 'mesh'} (positions
+// and triangles, transferred), {type: 'complete'}, {type: 'cast'},
+// {type: 'error', message}.
 'use strict';
 importScripts('meshstream.js');   // beside this file
 
@@ -46,8 +53,8 @@ function fail(message) {
   postMessage({ type: 'error', message });
 }
 
-function lastError() {
-  return M.UTF8ToString(M._ms_web_view_error(view));
+function lastError(v) {
+  return M.UTF8ToString(M._ms_web_view_error(v || view));
 }
 
 // A GET whose answer is read whole: {status, bytes}. Any failure of the
@@ -162,16 +169,17 @@ function setCamera(c) {
 // reader may read) and hands it over; returns the bytes received.
 // prefix: the byte length complete at bits (ms_web_view_plan_bytes), which a
 // static layout asks for as a range.
-async function fetchCell(name, token, cell, bits, prefix) {
-  const held = M._ms_web_view_held(view, cell);
+async function fetchCell(name, token, cell, bits, prefix, v) {
+  v = v || view;
+  const held = M._ms_web_view_held(v, cell);
   const end = layout.ranged && bits !== null ? '' + (prefix - 1) : '';
   const range = held || end ? { Range: 'bytes=' + held + '-' + end } : null;
   const answer = await get(layout.cell(name, cell, bits), token, range);
   const bytes = answer.bytes;
   const offset = answer.status === 206 ? held : 0;
-  const st = withHeap(bytes, p => M._ms_web_view_give(view, cell, offset, p, bytes.length));
+  const st = withHeap(bytes, p => M._ms_web_view_give(v, cell, offset, p, bytes.length));
   if (st !== 0)
-    throw new Error('cell ' + cell + ': ' + lastError());
+    throw new Error('cell ' + cell + ': ' + lastError(v));
   return bytes.length;
 }
 
@@ -249,6 +257,8 @@ async function run(msg) {
   const blob = indexAnswer.bytes;
   mark('index');
   view = openIndex(blob, name);
+  opened = { name, token, blob };
+  applySections();
   const bp = M._malloc(32);
   M._ms_web_view_box(view, bp);
   const box = Array.from(new Float64Array(M.HEAPU8.buffer, bp, 4));
@@ -270,6 +280,7 @@ async function run(msg) {
   const preview = (!token || layout.ranged) && entry.public_max_bits < entry.bits;
   if (preview)
     M._ms_web_view_permit(view, entry.public_max_bits + 1);
+  opened.permit = preview ? entry.public_max_bits + 1 : 0;
   if (msg.camera)
     pendingCamera = msg.camera;
   while (!pendingCamera)
@@ -402,7 +413,114 @@ function changed(count) {
   return differs;
 }
 
+// The section planes asked for (applied once the view exists), and what
+// the model was opened with (a probe opens it again).
+let sections = [], opened = null;
+
+function applySections(v) {
+  v = v || view;
+  if (!v)
+    return;
+  const p = M._malloc(Math.max(sections.length, 1) * 32);
+  new Float64Array(M.HEAPU8.buffer, p, 4 * sections.length).set(sections.flat());
+  const st = M._ms_web_view_sections(v, p, sections.length);
+  M._free(p);
+  if (st !== 0)
+    fail('section planes: ' + lastError(v));
+}
+
+// The cast of a ray on view v's last stitch: {point, t, bits, step,
+// modelBits} or null. p: 13 doubles of the heap.
+function castOne(v, r, p) {
+  const d = new Float64Array(M.HEAPU8.buffer, p, 13);
+  d.set([...r.origin, ...r.direction]);
+  if (!M._ms_web_view_cast(v, p, p + 24, r.tMin, r.tNear, p + 48))
+    return null;
+  const o = Array.from(new Float64Array(M.HEAPU8.buffer, p + 48, 7));
+  return { point: o.slice(0, 3), t: o[3], bits: o[4], step: o[5], modelBits: o[6] };
+}
+
+// The probe (meshview's ms_viewer_probe.h): the cells under a measuring
+// point refined to full precision by a view of its own, which sees only the
+// point (from a thousandth of the box side in front of it along its ray, a
+// hundredth of a degree on 1000 x 1000 pixels: the cells there want more
+// bits than the model has; nothing outside wanted, culled 64 bits less),
+// fetched to settled (the browser's cache holds what the view fetched);
+// then the ray cast on its mesh. Answers {type: 'cast', refine: true, seq,
+// index, hit}.
+async function refine(msg) {
+  if (!opened)
+    return;
+  const box = new Float64Array(4), bp = M._malloc(32);
+  M._ms_web_view_box(view, bp);
+  box.set(new Float64Array(M.HEAPU8.buffer, bp, 4));
+  M._free(bp);
+  for (const [index, r] of msg.points.entries()) {
+    const probe = openIndex(opened.blob, opened.name);
+    let hit = null;
+    try {
+      M._ms_web_view_culled(probe, 64);
+      if (opened.permit)
+        M._ms_web_view_permit(probe, opened.permit);
+      applySections(probe);
+      const len = Math.hypot(...r.direction), dir = r.direction.map(x => x / len);
+      const back = box[3] / 1000, position = r.point.map((x, a) => x - back * dir[a]);
+      const side = Math.abs(dir[1]) < 0.9 ? [0, 1, 0] : [1, 0, 0];
+      const p = M._malloc(13 * 8);
+      try {
+        new Float64Array(M.HEAPU8.buffer, p, 9).set([...position, ...r.point, ...side]);
+        if (M._ms_web_view_camera(probe, p, p + 24, p + 48, 0.01, 1000, 1000, 0, 0, 1) !== 0)
+          throw new Error(lastError(probe));
+        const settled = p + 72;
+        for (let round = 0; round < 64; ++round) {
+          if (M._ms_web_view_plan(probe, PLAN_MAX, settled) !== 0)
+            throw new Error(lastError(probe));
+          if (M.HEAPU32[settled >> 2])
+            break;
+          const n = M._ms_web_view_plan_count(probe);
+          for (let k = 0; k < n; ++k)
+            await fetchCell(opened.name, opened.token, M._ms_web_view_plan_cell(probe, k),
+                            M._ms_web_view_plan_bits(probe, k), M._ms_web_view_plan_bytes(probe, k), probe);
+        }
+        if (M._ms_web_view_stitch(probe) !== 0)
+          throw new Error(lastError(probe));
+        hit = castOne(probe, { origin: position, direction: dir, tMin: 0, tNear: back }, p);
+      } finally {
+        M._free(p);
+      }
+    } catch (e) {
+      hit = null;             // the point stays as the view has it
+    } finally {
+      M._ms_web_view_free(probe);
+    }
+    postMessage({ type: 'cast', refine: true, seq: msg.seq, index, hit });
+  }
+}
+
+function cast(msg) {
+  const hits = [];
+  const p = view ? M._malloc(13 * 8) : 0;
+  for (const r of msg.rays)
+    hits.push(view ? castOne(view, r, p) : null);
+  if (p)
+    M._free(p);
+  postMessage(Object.assign({}, msg, { type: 'cast', hits }));
+}
+
 onmessage = e => {
+  if (e.data.type === 'sections') {
+    sections = e.data.planes;
+    applySections();
+    return;
+  }
+  if (e.data.type === 'cast') {
+    cast(e.data);
+    return;
+  }
+  if (e.data.type === 'refine') {
+    refine(e.data).catch(err => fail('refining a measuring point: ' + (err.message || String(err))));
+    return;
+  }
   if (e.data.type === 'start') {
     run(e.data).catch(err => fail(err.message || String(err)));
   } else if (e.data.type === 'camera') {
