@@ -683,7 +683,7 @@ static int interactive(viewer *v)
     glfwSetCursorPosCallback(v->window, on_cursor);
     glfwSetScrollCallback(v->window, on_scroll);
     v->catalogue = (ms_viewer_catalogue){.list = &v->list, .where = v->where,
-                                         .archive_dir = o->archive_dir};
+                                         .archive_dir = o->archive_dir, .source = &v->source};
     v->on_catalogue = true;
     if (o->model) {
         for (size_t i = 0; v->have_list && i < v->list.count; ++i)

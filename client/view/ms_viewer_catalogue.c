@@ -146,19 +146,30 @@ int ms_viewer_catalogue_wrap(const char *text, int columns, int max_lines, char 
     return lines;
 }
 
-/* The selected model's picture, read once per selection. */
+/* The selected model's picture, read once per selection; a server's
+ * documents are fetched the first time its model is selected, and kept. */
 static void load_thumbnail(ms_viewer_catalogue *cat)
 {
     if (cat->thumbnail_of == cat->selected + 1)
         return;
     ms_viewer_catalogue_free(cat);
     cat->thumbnail_of = cat->selected + 1;
-    const ms_viewer_model_entry *e = &cat->list->entries[cat->selected];
-    if (!cat->archive_dir || !e->has_thumbnail)
+    ms_viewer_model_entry *e = &cat->list->entries[cat->selected];
+    ms_error err;
+    if (!cat->archive_dir) {
+        if (cat->source)
+            (void)ms_viewer_model_fetch_documents(cat->source, e, &err); /* "no picture" */
+        if (e->thumbnail_png &&
+            ms_png_decode_rgb(e->thumbnail_png, e->thumbnail_png_size, 1024, 1024,
+                              &cat->thumbnail, &cat->thumbnail_width, &cat->thumbnail_height,
+                              &err) != MS_OK)
+            cat->thumbnail = NULL;
+        return;
+    }
+    if (!e->has_thumbnail)
         return;
     char path[4200];
     snprintf(path, sizeof path, "%s/%s.thumb.png", cat->archive_dir, e->name);
-    ms_error err;
     if (ms_png_read_rgb(path, 1024, 1024, &cat->thumbnail, &cat->thumbnail_width,
                         &cat->thumbnail_height, &err) != MS_OK)
         cat->thumbnail = NULL; /* shown as "no picture" */

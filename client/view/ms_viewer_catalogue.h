@@ -2,9 +2,10 @@
  * a list (name, triangles, size) to pick from with the arrow keys and Enter, or
  * with the mouse (a click selects, a double click or Enter opens). Beside the
  * list, where the window is wide enough, the selected model's panel: its
- * thumbnail (DIR/NAME.thumb.png, from a local archive directory that has
- * one) and its metadata (title, creator, date, licence, description, from a
- * local catalog.json), drawn as glyphs of the bitmap font (a character
+ * thumbnail (DIR/NAME.thumb.png from a local archive directory, or from a
+ * server the THUMBNAIL document of its binary door) and its metadata (title,
+ * creator, date, licence, description: a local catalog.json's, or the
+ * server's METADATA document), drawn as glyphs of the bitmap font (a character
  * outside ASCII shows as one '?'; text is never interpreted). Layout in
  * framebuffer pixels through the overlay pass (ms_viewer_text.h), so a click
  * maps to a row with the same arithmetic the drawing used.
@@ -20,9 +21,13 @@
 #include "ms_viewer_text.h"
 
 typedef struct ms_viewer_catalogue {
-    const ms_viewer_model_list *list; /* not owned */
+    ms_viewer_model_list *list;       /* not owned; a server's entries keep their
+                                         documents once fetched */
     const char *where;                /* "server 127.0.0.1:7000" or the directory */
-    const char *archive_dir;          /* NULL: a server (no thumbnails) */
+    const char *archive_dir;          /* NULL: a server */
+    const ms_viewer_source *source;   /* a server's: its documents fetched through the
+                                         binary door for the selected model only (NULL:
+                                         none fetched) */
     size_t selected;
     size_t first;                     /* first row shown (scrolling) */
     /* the selected model's thumbnail, read when the selection changes */

@@ -6,6 +6,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include <jansson.h>
+
 #include "ms_client.h"
 
 static int by_name(const void *a, const void *b)
@@ -93,11 +95,68 @@ void ms_viewer_model_list_free(ms_viewer_model_list *list)
 {
     if (!list)
         return;
-    for (size_t i = 0; i < list->count; ++i)
+    for (size_t i = 0; i < list->count; ++i) {
         ms_metadata_free(list->entries[i].metadata);
+        free(list->entries[i].thumbnail_png);
+    }
     free(list->entries);
     list->entries = NULL;
     list->count = 0;
+}
+
+/* The METADATA document's sidecar fields, checked by the sidecar's parser. */
+static ms_status parse_metadata(const uint8_t *bytes, size_t length, ms_viewer_model_entry *entry,
+                                ms_error *err)
+{
+    json_error_t jerr;
+    json_t *doc = json_loadb((const char *)bytes, length, 0, &jerr);
+    json_t *fields = doc && json_is_object(doc) ? json_object() : NULL;
+    if (!fields) {
+        json_decref(doc);
+        return ms_error_set(err, MS_ERR_FORMAT, "%s: the server's metadata is not a JSON object",
+                            entry->name);
+    }
+    for (int k = 0; k < MS_METADATA_FIELDS; ++k) {
+        json_t *v = json_object_get(doc, ms_metadata_field_names[k]);
+        if (v)
+            json_object_set(fields, ms_metadata_field_names[k], v);
+    }
+    entry->has_thumbnail = json_is_true(json_object_get(doc, "thumbnail"));
+    json_decref(doc);
+    char *text = json_dumps(fields, JSON_COMPACT);
+    json_decref(fields);
+    if (!text)
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory for metadata");
+    ms_metadata_free(entry->metadata);
+    entry->metadata = NULL;
+    ms_status st = ms_metadata_parse(text, strlen(text), entry->name, &entry->metadata, err);
+    free(text);
+    return st;
+}
+
+ms_status ms_viewer_model_fetch_documents(const ms_viewer_source *source,
+                                          ms_viewer_model_entry *entry, ms_error *err)
+{
+    if (source->archive_dir || entry->documents_fetched)
+        return MS_OK;
+    entry->documents_fetched = true;
+    ms_client_options co = {.host = source->host, .port = source->port, .token = source->token,
+                            .agent = "meshview/0.1"};
+    uint8_t *bytes;
+    size_t length;
+    ms_status st = ms_client_fetch_document_at(&co, source->timeout_s, entry->name,
+                                               MS_DOCUMENT_METADATA, &bytes, &length, err);
+    if (st != MS_OK)
+        return st;
+    st = parse_metadata(bytes, length, entry, err);
+    free(bytes);
+    if (st != MS_OK || !entry->has_thumbnail)
+        return st;
+    st = ms_client_fetch_document_at(&co, source->timeout_s, entry->name, MS_DOCUMENT_THUMBNAIL,
+                                     &entry->thumbnail_png, &entry->thumbnail_png_size, err);
+    if (st != MS_OK)
+        entry->has_thumbnail = false;
+    return st;
 }
 
 ms_status ms_viewer_model_open_listed(const ms_viewer_source *source,

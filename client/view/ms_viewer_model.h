@@ -50,6 +50,11 @@ typedef struct ms_viewer_model_entry {
      * made (ms_catalog_entry.has_thumbnail) */
     ms_metadata *metadata;
     bool has_thumbnail;
+    /* a server's model: its documents, fetched once, when the catalogue first
+     * shows its panel (ms_viewer_model_fetch_documents) */
+    bool documents_fetched;
+    uint8_t *thumbnail_png;  /* the PNG's bytes (owned); NULL: none */
+    size_t thumbnail_png_size;
 } ms_viewer_model_entry;
 
 typedef struct ms_viewer_model_list {
@@ -60,6 +65,18 @@ typedef struct ms_viewer_model_list {
 ms_status ms_viewer_list_models(const ms_viewer_source *source, ms_viewer_model_list *list,
                                 ms_error *err);
 void ms_viewer_model_list_free(ms_viewer_model_list *list);
+
+/* A server's model: its metadata and thumbnail through the binary door
+ * (GET_DOCUMENT, PROTOCOL.md 4.5b: ms_client_fetch_document_at, one
+ * connection, bounded by the source's time-out), once: entry->metadata (the
+ * sidecar's fields of the METADATA document, checked as a sidecar is),
+ * has_thumbnail (its "thumbnail"), and thumbnail_png (the THUMBNAIL document)
+ * when it has one; documents_fetched is set even when they fail (no retry),
+ * with the first failure's line in err and MS_ERR_IO (no server),
+ * MS_ERR_FORMAT (a document that does not parse) or MS_ERR_NOMEM. A local
+ * source, or an entry already fetched: MS_OK, nothing done. */
+ms_status ms_viewer_model_fetch_documents(const ms_viewer_source *source,
+                                          ms_viewer_model_entry *entry, ms_error *err);
 
 typedef struct ms_viewer_model {
     char name[MS_MODEL_NAME_MAX + 1];

@@ -132,7 +132,8 @@ static ms_status catalogue_shot(const ms_viewer_options *o, const ms_viewer_sour
     glViewport(0, 0, o->width, o->height);
     glClearColor(0.08f, 0.08f, 0.09f, 1);
     glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
-    ms_viewer_catalogue cat = {.list = &list, .where = where, .archive_dir = source->archive_dir};
+    ms_viewer_catalogue cat = {.list = &list, .where = where, .archive_dir = source->archive_dir,
+                               .source = source};
     ms_viewer_text_begin(text, o->width, o->height, ms_viewer_text_auto_scale(o->height, 1, true));
     ms_viewer_catalogue_draw(text, &cat, o->width, o->height);
     bool pictured = cat.thumbnail != NULL; /* the selected (first) model's */
