@@ -47,6 +47,18 @@ static ms_status list_local(const char *dir, ms_viewer_model_list *list, ms_erro
     return MS_OK;
 }
 
+void ms_viewer_entry_from_server(const ms_client_catalogue_entry *e, ms_viewer_model_entry *d)
+{
+    memset(d, 0, sizeof *d);
+    snprintf(d->name, sizeof d->name, "%s", e->name);
+    /* meshserve's title: "V vertices, T triangles"; other servers may say less. */
+    unsigned long long vertices, triangles;
+    if (sscanf(e->title, "%llu vertices, %llu triangles", &vertices, &triangles) == 2)
+        d->triangles = triangles;
+    d->bytes = e->archive_bytes;
+    d->apo = e->apo_steps > 0;
+}
+
 static ms_status list_server(const ms_viewer_source *source, ms_viewer_model_list *list,
                              ms_error *err)
 {
@@ -63,17 +75,8 @@ static ms_status list_server(const ms_viewer_source *source, ms_viewer_model_lis
             return ms_error_set(err, MS_ERR_NOMEM, "out of memory for the catalogue");
         }
     }
-    for (size_t i = 0; i < catalogue.count; ++i) {
-        const ms_client_catalogue_entry *e = &catalogue.entries[i];
-        ms_viewer_model_entry *d = &list->entries[i];
-        snprintf(d->name, sizeof d->name, "%s", e->name);
-        /* meshserve's title: "V vertices, T triangles"; other servers may say less. */
-        unsigned long long vertices, triangles;
-        if (sscanf(e->title, "%llu vertices, %llu triangles", &vertices, &triangles) == 2)
-            d->triangles = triangles;
-        d->bytes = e->archive_bytes;
-        d->apo = e->apo_steps > 0;
-    }
+    for (size_t i = 0; i < catalogue.count; ++i)
+        ms_viewer_entry_from_server(&catalogue.entries[i], &list->entries[i]);
     list->count = catalogue.count;
     ms_client_catalogue_free(&catalogue);
     return MS_OK;
@@ -82,8 +85,7 @@ static ms_status list_server(const ms_viewer_source *source, ms_viewer_model_lis
 ms_status ms_viewer_list_models(const ms_viewer_source *source, ms_viewer_model_list *list,
                                 ms_error *err)
 {
-    list->entries = NULL;
-    list->count = 0;
+    memset(list, 0, sizeof *list);
     ms_status st = source->archive_dir ? list_local(source->archive_dir, list, err)
                                        : list_server(source, list, err);
     if (st == MS_OK && list->count)
@@ -101,7 +103,8 @@ void ms_viewer_model_list_free(ms_viewer_model_list *list)
     }
     free(list->entries);
     list->entries = NULL;
-    list->count = 0;
+    list->count = list->total = 0;
+    list->query[0] = 0;
 }
 
 /* The METADATA document's sidecar fields, checked by the sidecar's parser. */
@@ -172,6 +175,13 @@ ms_status ms_viewer_model_open_listed(const ms_viewer_source *source,
     const ms_viewer_model_entry *entry =
         list->count ? bsearch(&key, list->entries, list->count, sizeof *list->entries, by_name)
                     : NULL;
+    ms_viewer_model_entry found; /* a model of a server's later pages */
+    if (!entry && !source->archive_dir && list->total > list->count) {
+        ms_status st = ms_viewer_list_lookup(source, name, &found, err);
+        if (st != MS_OK && st != MS_ERR_RANGE)
+            return st;
+        entry = st == MS_OK ? &found : NULL;
+    }
     if (!entry) {
         if (source->archive_dir)
             return ms_error_set(err, MS_ERR_RANGE, "model '%s' does not exist in %s", name,

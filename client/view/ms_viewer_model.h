@@ -60,11 +60,48 @@ typedef struct ms_viewer_model_entry {
 typedef struct ms_viewer_model_list {
     ms_viewer_model_entry *entries; /* by name */
     size_t count;
+    /* ms_viewer_list_page's: the models the source offers that match query;
+     * above count while a server's later pages are not fetched yet
+     * (ms_viewer_list_more). 0 (or count) for a whole list. */
+    size_t total;
+    char query[65];                 /* the search text it was made with; "": none */
 } ms_viewer_model_list;
+
+/* Models a page of a server's catalogue brings (PROTOCOL.md 4.4a). */
+#define MS_VIEWER_PAGE 200
 
 ms_status ms_viewer_list_models(const ms_viewer_source *source, ms_viewer_model_list *list,
                                 ms_error *err);
 void ms_viewer_model_list_free(ms_viewer_model_list *list);
+
+/* The catalogue screen's list (ms_viewer_pages.c): the models whose name,
+ * title or description holds query (ASCII case-insensitively; NULL or "":
+ * every model; at most 64 bytes, else MS_ERR_ARG), by name. From a server,
+ * its first page only: LIST_PAGE with query as the server's text filter (the
+ * server searches, also the source), MS_VIEWER_PAGE models, list->total the
+ * models that match; a server below protocol version 3 lists everything and
+ * meshview filters the names. From a local directory, the whole catalogue,
+ * filtered here. Errors as ms_viewer_list_models. */
+ms_status ms_viewer_list_page(const ms_viewer_source *source, const char *query,
+                              ms_viewer_model_list *list, ms_error *err);
+
+/* Appends the server's next page to list (the same query), when total says
+ * there are more: MS_OK doing nothing otherwise (a local list is whole).
+ * On an error list keeps what it had. */
+ms_status ms_viewer_list_more(const ms_viewer_source *source, ms_viewer_model_list *list,
+                              ms_error *err);
+
+/* The entry of model name as the server lists it (a page searched for the
+ * name), for a model not in the pages fetched so far: MS_ERR_RANGE when the
+ * server does not list it. */
+ms_status ms_viewer_list_lookup(const ms_viewer_source *source, const char *name,
+                                ms_viewer_model_entry *entry, ms_error *err);
+
+/* One server catalogue entry as a list entry (meshserve's title gives the
+ * triangles). */
+struct ms_client_catalogue_entry;
+void ms_viewer_entry_from_server(const struct ms_client_catalogue_entry *e,
+                                 ms_viewer_model_entry *d);
 
 /* A server's model: its metadata and thumbnail through the binary door
  * (GET_DOCUMENT, PROTOCOL.md 4.5b: ms_client_fetch_document_at, one

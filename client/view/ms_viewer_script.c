@@ -113,7 +113,7 @@ static ms_status catalogue_shot(const ms_viewer_options *o, const ms_viewer_sour
                                 json_t **report, ms_error *err)
 {
     ms_viewer_model_list list;
-    ms_status st = ms_viewer_list_models(source, &list, err);
+    ms_status st = ms_viewer_list_page(source, NULL, &list, err);
     if (st != MS_OK)
         return st;
     char where[128], png[4200];
@@ -151,8 +151,9 @@ static ms_status catalogue_shot(const ms_viewer_options *o, const ms_viewer_sour
                                                 list.entries[i].has_thumbnail, "title",
                                                 ms_json_text(ms_metadata_field(
                                                     list.entries[i].metadata, 0))));
-    *report = json_pack("{s:s, s:o, s:b}", "png", png, "models", models, "picture_shown",
-                        pictured);
+    *report = json_pack("{s:s, s:o, s:b, s:I}", "png", png, "models", models, "picture_shown",
+                        pictured, "total",
+                        (json_int_t)(list.total > list.count ? list.total : list.count));
 done:
     ms_viewer_target_free(&target);
     ms_viewer_text_free(text);
