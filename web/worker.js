@@ -351,8 +351,11 @@ async function run(msg) {
     postMessage({ type: 'progress', bytes, need, rounds, wanted: count });
     let next = 0, given = 0, shownAt = performance.now(), fresh = 0;
     const queued = new Map(wanted.map(([cell, bits]) => [cell, bits]));
+    // A new camera ends the round: what is in flight lands, nothing more of
+    // the old plan is asked for (the next plan asks again what the new view
+    // still needs).
     const lane = async () => {
-      while (next < wanted.length) {
+      while (next < wanted.length && !pendingCamera) {
         const [cell, bits, prefix] = wanted[next++];
         const got = await fetchCell(name, token, cell, bits, prefix); // not `bytes += await`: lanes interleave
         bytes += got;
