@@ -122,11 +122,7 @@ static int group_setup(void **state)
         return -1;
     }
     ms_test_browser_why_skip(f->why_skip, sizeof f->why_skip);
-    char log[700], ports[700];
-    snprintf(log, sizeof log, "%s/meshserve.log", f->dir);
-    snprintf(ports, sizeof ports, "%s/ports", f->dir);
-    const char *extra[] = {"--web-dir", ms_test_browser_web_dir(), NULL};
-    f->server = ms_test_meshserve_start(f->archives, extra, 0, ports, log, &f->port, &f->http_port);
+    f->server = ms_test_browser_serve(f->dir, f->archives, &f->port, &f->http_port);
     return f->server ? 0 : -1;
 }
 

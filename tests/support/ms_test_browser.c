@@ -5,6 +5,7 @@
 #include <sys/stat.h>
 
 #include "ms_test.h"
+#include "ms_test_net.h"
 
 bool ms_test_have_program(const char *name)
 {
@@ -43,4 +44,13 @@ json_t *ms_test_browser_run(const char *url, const char *arguments)
 json_int_t ms_test_browser_page_int(json_t *report, const char *key)
 {
     return json_integer_value(json_object_get(json_object_get(report, "page"), key));
+}
+
+pid_t ms_test_browser_serve(const char *dir, const char *archives, uint16_t *port, uint16_t *http_port)
+{
+    char log[700], ports[700];
+    snprintf(log, sizeof log, "%s/meshserve.log", dir);
+    snprintf(ports, sizeof ports, "%s/ports", dir);
+    const char *extra[] = {"--web-dir", ms_test_browser_web_dir(), NULL};
+    return ms_test_meshserve_start(archives, extra, 0, ports, log, port, http_port);
 }

@@ -10,7 +10,9 @@
 #include <jansson.h>
 #include <stdbool.h>
 #include <stddef.h>
+#include <stdint.h>
 #include <sys/stat.h>
+#include <sys/types.h>
 
 /* `make wasm`'s site: the module and the pages. */
 #define MS_TEST_SITE "build/wasm/site"
@@ -28,6 +30,10 @@ void ms_test_browser_why_skip(char *why, size_t size);
  * else web/ (its routes still answer; the cases that need the module skip or
  * fail). */
 const char *ms_test_browser_web_dir(void);
+
+/* Starts meshserve on archives with the web folder (its log and port file in
+ * dir), filling its ports: the pid, or 0 when it did not start. */
+pid_t ms_test_browser_serve(const char *dir, const char *archives, uint16_t *port, uint16_t *http_port);
 
 /* Runs `tests/browser-page 'URL' ARGUMENTS` (the size, --out, --timeout,
  * ...) and returns the driver's JSON report (the test fails when it prints
