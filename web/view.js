@@ -8,12 +8,15 @@
 // The token is asked once, kept for the tab (sessionStorage) and sent as
 // Authorization by the worker, never in a URL. window.meshstream holds the
 // page's state for scripts: state ('loading', 'complete', 'error'), message,
-// triangles, cells, bits (the finest shown), bytes, firstPixelMs, completeMs.
+// triangles, cells, bits (the finest shown), bytes, firstPixelMs, completeMs,
+// workerMs (when the worker was started; the worker's own marks in timing
+// count from there), all in ms from the navigation.
 'use strict';
 
-const TOKEN_KEY = 'meshstream-token';
+const boot = window.meshstreamBoot;   // boot.js, in the page's head
+const TOKEN_KEY = boot.tokenKey;
 const page = { state: 'loading', message: '', triangles: 0, cells: 0, bits: 0, bytes: 0,
-               firstPixelMs: null, completeMs: null };
+               firstPixelMs: null, completeMs: null, workerMs: null };
 window.meshstream = page;
 
 const canvas = document.getElementById('view');
@@ -48,8 +51,8 @@ function failPage(text) {
 // export's view/NAME.html (meshexport --web-dir; docs/BROWSER.md): the worker
 // reads the model where the layout keeps it. Every other path is relative,
 // so a site may live under any folder of its server.
-const staticSite = location.pathname.endsWith('.html');
-const name = decodeURIComponent(location.pathname.replace(/^.*\/view\//, '').replace(/\.html$/, ''));
+const staticSite = boot.staticSite;
+const name = boot.name;
 const hash = new URLSearchParams(location.hash.slice(1));
 document.getElementById('model').textContent = name;
 document.title = name + ' · meshstream';
@@ -505,21 +508,23 @@ document.getElementById('token-form').addEventListener('submit', e => {
 // ---- The worker ----------------------------------------------------------
 
 function start() {
+  // The worker was started by boot.js in the page's head: it compiles the
+  // module and fetches the index already, while the page loads and WebGL
+  // compiles its program (its messages come after this task ends).
   if (!camera && hash.get('view')) {
     camera = parseShare(hash.get('view'));
     if (!camera)
       failPage('The view in the URL is not meshview\'s text: ' + MsTools.viewError() + '.');
   }
-  if (page.state === 'error')
-    return;
-  if (!gl) {
+  if (page.state !== 'error' && !gl)
     failPage('This browser offers no WebGL 2: the model cannot be drawn.');
+  if (page.state === 'error') {
+    boot.worker.terminate();
     return;
   }
   say('Loading ' + name + '…');
-  // The worker first: it compiles the module and fetches the index while
-  // WebGL compiles its program (its messages come after this task ends).
-  worker = new Worker('../web/worker.js');
+  worker = boot.worker;
+  page.workerMs = Math.round(boot.at);
   worker.onerror = e => failPage('The decoder failed: ' + (e.message || 'the worker did not start'));
   worker.onmessage = e => {
     const m = e.data;

@@ -15,6 +15,10 @@
 'use strict';
 importScripts('meshstream.js');   // beside this file
 
+// The module compiles from the moment the page starts the worker (boot.js),
+// before the page sends the model.
+const modulePromise = createMeshstream({ locateFile: file => new URL(file, self.location.href).href });
+
 // Where the model's files are, relative to the site's root (the folder above
 // web/): meshserve's side door, or a static export (meshexport --web-dir),
 // whose index is a file of its own and whose cells are whole files, read by
@@ -233,22 +237,35 @@ function nextCamera() {
   return new Promise(resolve => { wake = resolve; });
 }
 
+// The catalogue's entry and the index of the model a message names, asked for
+// at once: {name, token, layout, listing, index} (promises).
+let prefetched = null;
+function prefetch(msg) {
+  layout = LAYOUTS[msg.layout] || LAYOUTS.door;
+  mark('prefetch');
+  // the catalogue's entries whose name (or title, description) holds NAME
+  // (a page of at most 1000)
+  const listing = get(layout.catalogue(msg.name), msg.token).then(
+    answer => JSON.parse(new TextDecoder().decode(answer.bytes)),
+    e => { throw new Error('cannot read the catalogue: ' + e.message); });
+  listing.catch(() => {});        // told by run(), if it runs
+  // the index's failure is told after the catalogue's verdict (an unknown
+  // model is named as such, not as the index's 404)
+  const index = get(layout.index(msg.name), msg.token).catch(e => e);
+  return { name: msg.name, token: msg.token, layout: msg.layout, listing, index };
+}
+
 async function run(msg) {
   mark('start');
   const { name, token } = msg;
   const started = performance.now();
-  layout = LAYOUTS[msg.layout] || LAYOUTS.door;
   // The module compiles while the catalogue's entry and the index arrive: the
-  // three at once, not one round trip after another (first pixels).
-  const module = createMeshstream({ locateFile: file => new URL(file, self.location.href).href });
-  // the catalogue's entries whose name (or title, description) holds NAME
-  // (a page of at most 1000)
-  const listing = get(layout.catalogue(name), token).then(
-    answer => JSON.parse(new TextDecoder().decode(answer.bytes)),
-    e => { throw new Error('cannot read the catalogue: ' + e.message); });
-  // the index's failure is told after the catalogue's verdict (an unknown
-  // model is named as such, not as the index's 404)
-  const index = get(layout.index(name), token).catch(e => e);
+  // three at once, not one round trip after another (first pixels), and
+  // from the page's first script on (boot.js's prefetch).
+  const module = modulePromise;
+  const { listing, index } = prefetched && prefetched.name === name && prefetched.token === token &&
+                             prefetched.layout === msg.layout ? prefetched : prefetch(msg);
+  layout = LAYOUTS[msg.layout] || LAYOUTS.door;
   const [catalogue, indexAnswer] = await Promise.all([
     listing.then(c => { mark('catalogue'); return c; }),
     index.then(a => { mark('index fetched'); return a; }),
@@ -515,6 +532,10 @@ function cast(msg) {
 }
 
 onmessage = e => {
+  if (e.data.type === 'prefetch') {
+    prefetched = prefetch(e.data);
+    return;
+  }
   if (e.data.type === 'sections') {
     sections = e.data.planes;
     applySections();
