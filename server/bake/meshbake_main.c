@@ -225,13 +225,15 @@ static int check_mode(int argc, char **argv, bake_options *options)
     return -1;
 }
 
-/* The thumbnail's and the sidecar's options (--thumbnail, --metadata,
- * --no-thumbnail, --up): -1 to go on, or the exit status to end with. */
+/* The thumbnail's and the sidecars' options (--thumbnail, --metadata,
+ * --annotations, --no-thumbnail, --up): -1 to go on, or the exit status to
+ * end with. */
 static int picture_option(int c, const char *arg, bake_options *options)
 {
     switch (c) {
     case 'B': options->mode = MODE_THUMBNAIL; options->thumbnail_name = arg; break;
     case 'X': options->metadata_path = arg; break;
+    case 'W': options->mode = MODE_ANNOTATIONS; options->annotations_path = arg; break;
     case 'O': options->bake.no_thumbnail = true; break;
     default:
         if (strlen(arg) != 1 || arg[0] < 'x' || arg[0] > 'z')
@@ -276,8 +278,7 @@ static int parse_options(int argc, char **argv, bake_options *options)
         {"colour-bits", required_argument, NULL, 'c'}, {"no-colour", no_argument, NULL, 'Z'},
         {"metadata", required_argument, NULL, 'X'}, {"thumbnail", required_argument, NULL, 'B'},
         {"no-thumbnail", no_argument, NULL, 'O'}, {"up", required_argument, NULL, 'u'},
-        {"annotations", required_argument, NULL, 'W'},
-        {NULL, 0, NULL, 0},
+        {"annotations", required_argument, NULL, 'W'}, {NULL, 0, NULL, 0},
     };
     memset(options, 0, sizeof *options);
     ms_bake_options_default(&options->bake);
@@ -288,8 +289,7 @@ static int parse_options(int argc, char **argv, bake_options *options)
         case 'i': options->mode = MODE_INFO; break;
         case 'l': options->mode = MODE_LIST; options->list_dir = optarg; break;
         case 'R': options->mode = MODE_REMOVE; options->remove_name = optarg; break;
-        case 'W': options->mode = MODE_ANNOTATIONS; options->annotations_path = optarg; break;
-        case 'B': case 'X': case 'O': case 'u':
+        case 'B': case 'X': case 'O': case 'u': case 'W':
             if ((status = picture_option(c, optarg, options)) >= 0)
                 return status;
             break;
