@@ -51,26 +51,6 @@ typedef struct fixture {
     char dir[512], archives[600], cam[700], view_bin[600], bake_bin[600], file[700];
 } fixture;
 
-/* The two boxes as OFF: the cube [-1, 1]^3 and [-0.8, -0.2] x [-2.5, -2] x [-0.8, -0.2]. */
-static void write_boxes(const char *path)
-{
-    FILE *out = fopen(path, "w");
-    assert_non_null(out);
-    fprintf(out, "OFF\n16 24 0\n");
-    const double boxes[2][2][3] = {{{-1, -1, -1}, {1, 1, 1}}, {{-0.8, -2.5, -0.8}, {-0.2, -2.0, -0.2}}};
-    for (int b = 0; b < 2; ++b)
-        for (int v = 0; v < 8; ++v) /* vertex v: x bit 2, y bit 1, z bit 0 */
-            fprintf(out, "%g %g %g\n", boxes[b][(v >> 2) & 1][0], boxes[b][(v >> 1) & 1][1], boxes[b][v & 1][2]);
-    static const int quads[6][4] = {{0, 1, 3, 2}, {4, 6, 7, 5}, {0, 4, 5, 1}, {2, 3, 7, 6}, {0, 2, 6, 4}, {1, 5, 7, 3}};
-    for (int b = 0; b < 2; ++b)
-        for (int q = 0; q < 6; ++q) {
-            const int *v = quads[q];
-            fprintf(out, "3 %d %d %d\n3 %d %d %d\n", 8 * b + v[0], 8 * b + v[1], 8 * b + v[2], 8 * b + v[0],
-                    8 * b + v[2], 8 * b + v[3]);
-        }
-    fclose(out);
-}
-
 static int group_setup(void **state)
 {
     fixture *f = calloc(1, sizeof *f);
@@ -86,7 +66,8 @@ static int group_setup(void **state)
         return -1;
     char off[700], command[8192];
     snprintf(off, sizeof off, "%s/boxes.off", f->dir);
-    write_boxes(off);
+    if (ms_test_write_two_boxes(off) != 0)
+        return -1;
     ms_test_bin_path(f->bake_bin, sizeof f->bake_bin, "meshbake");
     ms_test_bin_path(f->view_bin, sizeof f->view_bin, "meshview");
     snprintf(command, sizeof command, "%s %s -o %s --name boxes --no-thumbnail --json", f->bake_bin, off, f->archives);
