@@ -44,8 +44,8 @@ typedef struct ms_viewer_hud_info {
     const ms_viewer_scene_piece *piece; /* the selected piece: three lines; NULL: none */
     size_t piece_index, piece_count;    /* its index (from 0) and the scene's pieces */
     const char (*extra)[MS_HUD_LINE_MAX]; /* lines added at the end (the light, a
-                                           measurement: ms_viewer_inspect.h) */
-    size_t extra_count;                 /* at most 2 */
+                                           measurement, the annotations: ms_viewer_inspect.h) */
+    size_t extra_count;                 /* at most MS_VIEWER_INSPECT_LINES (4) */
 } ms_viewer_hud_info;
 
 /* The shading line of the HUD for render's options: the shading, then flat,
