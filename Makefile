@@ -309,7 +309,8 @@ WASM_EXPORTS := malloc free ms_web_view_new ms_web_view_free ms_web_view_error m
                ms_web_view_plan_count ms_web_view_plan_cell ms_web_view_plan_bits \
                ms_web_view_plan_bytes ms_web_view_held ms_web_view_give ms_web_view_stitch \
                ms_web_view_vertex_count ms_web_view_triangle_count ms_web_view_positions ms_web_view_normals \
-               ms_web_view_triangles ms_web_view_shown_cells ms_web_view_max_bits ms_web_view_bytes_held
+               ms_web_view_triangles ms_web_view_shown_cells ms_web_view_max_bits ms_web_view_bytes_held \
+               ms_web_view_sections ms_web_view_cast
 WASM_LDFLAGS := -O2 -sMODULARIZE=1 -sEXPORT_NAME=createMeshstream -sENVIRONMENT=worker \
                -sALLOW_MEMORY_GROWTH=1 -sFILESYSTEM=0 -sEXIT_RUNTIME=0 \
                -sEXPORTED_RUNTIME_METHODS=[HEAPU8,HEAPU32,HEAPF32,HEAPF64,UTF8ToString] \

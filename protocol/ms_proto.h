@@ -61,6 +61,9 @@
 #define MS_PROTO_CATALOGUE_PAGE_FIXED 8u    /* version 3: CATALOGUE_PAGE before its entries */
 #define MS_PROTO_MAX_PAGE 1000u             /* entries one LIST_PAGE asks for */
 #define MS_PROTO_MAX_PAGE_QUERY 64u         /* bytes of a LIST_PAGE text filter */
+#define MS_PROTO_GET_DOCUMENT_FIXED 4u       /* version 3: GET_DOCUMENT before its name */
+#define MS_PROTO_DOCUMENT_FIXED 12u          /* version 3: DOCUMENT before its data */
+#define MS_PROTO_MAX_DOCUMENT (1u << 20)     /* bytes of one document (1 MiB) */
 #define MS_PROTO_CATALOGUE_ENTRY_FIXED 32u
 #define MS_PROTO_MODEL_OPENED_SIZE 32u
 #define MS_PROTO_INDEX_DATA_FIXED 4u
@@ -96,6 +99,7 @@ typedef enum ms_proto_type {
     MS_PROTO_REQUEST_CELLS = 0x05,
     MS_PROTO_CANCEL = 0x06,
     MS_PROTO_LIST_PAGE = 0x07,          /* version 3 */
+    MS_PROTO_GET_DOCUMENT = 0x08,       /* version 3 */
     MS_PROTO_PING = 0x40,
     MS_PROTO_PONG = 0x41,
     MS_PROTO_ERROR = 0x7F,
@@ -104,8 +108,21 @@ typedef enum ms_proto_type {
     MS_PROTO_MODEL_OPENED = 0x83,
     MS_PROTO_INDEX_DATA = 0x84,
     MS_PROTO_PAYLOAD = 0x85,
-    MS_PROTO_CATALOGUE_PAGE = 0x86      /* version 3 */
+    MS_PROTO_CATALOGUE_PAGE = 0x86,     /* version 3 */
+    MS_PROTO_DOCUMENT = 0x87            /* version 3 */
 } ms_proto_type;
+
+/* The documents of a model (GET_DOCUMENT's kind, version 3, section 4.5b);
+ * the same numbers on both sides and at both doors. */
+typedef enum ms_document_kind {
+    MS_DOCUMENT_THUMBNAIL = 1,   /* the PNG meshbake drew (DIR/NAME.thumb.png) */
+    MS_DOCUMENT_METADATA = 2,    /* the model's catalogue entry as JSON, as /catalog lists it */
+    MS_DOCUMENT_ANNOTATIONS = 3  /* DIR/NAME.annotations.json as stored, at most 1 MiB */
+} ms_document_kind;
+#define MS_DOCUMENT_FIRST 1
+#define MS_DOCUMENT_LAST 3
+/* "thumbnail", "metadata", "annotations" (the HTTP door's path), or "?". */
+const char *ms_document_kind_name(int kind);
 
 /* Wire error codes (section 9). */
 typedef enum ms_proto_error_code {
@@ -134,10 +151,13 @@ typedef enum ms_proto_error_code {
     /* Server only, never fatal, request_id 0, detail = a model handle: a
      * rescan replaced or removed that handle's model; the handle is closed and
      * every request outstanding on it ended (section 9). */
-    MS_PROTO_E_MODEL_CHANGED = 23
+    MS_PROTO_E_MODEL_CHANGED = 23,
+    /* Version 3, never fatal, detail = the kind asked for: the model has no
+     * such document, or none this reader may see (section 4.5b). */
+    MS_PROTO_E_NO_DOCUMENT = 24
 } ms_proto_error_code;
 #define MS_PROTO_E_FIRST 1
-#define MS_PROTO_E_LAST 23
+#define MS_PROTO_E_LAST 24
 
 /* Whether an error code is fatal (the FATAL column of section 9). */
 typedef enum ms_proto_fatality {
@@ -247,6 +267,24 @@ typedef struct ms_proto_list_page {
     uint8_t query_length;   /* [0, MS_PROTO_MAX_PAGE_QUERY] */
 } ms_proto_list_page;
 
+/* One document of a model (version 3, section 4.5b). */
+typedef struct ms_proto_get_document {
+    uint8_t kind;        /* ms_document_kind */
+    const char *name;    /* the model's name, [A-Za-z0-9_-], else MS_PROTO_E_BAD_MODEL_NAME */
+    uint8_t name_length; /* [1, 64] */
+} ms_proto_get_document;
+
+/* A chunk of a document (version 3, section 4.5b): data is the document's
+ * bytes [offset, offset + data_length) of total_length; LAST on the frame
+ * that ends it. */
+typedef struct ms_proto_document {
+    uint8_t kind;           /* ms_document_kind, the request's */
+    uint32_t total_length;  /* [0, MS_PROTO_MAX_DOCUMENT] */
+    uint32_t offset;        /* offset + data_length <= total_length */
+    const uint8_t *data;
+    uint32_t data_length;   /* 0 only for an empty document */
+} ms_proto_document;
+
 typedef struct ms_proto_open_model {
     const char *name;    /* [A-Za-z0-9_-], else MS_PROTO_E_BAD_MODEL_NAME */
     uint8_t name_length; /* [1, 64] */
@@ -335,6 +373,8 @@ typedef struct ms_proto_message {
         ms_proto_ping ping;                 /* PING and PONG */
         ms_proto_catalogue catalogue;       /* CATALOGUE and CATALOGUE_PAGE */
         ms_proto_list_page list_page;
+        ms_proto_get_document get_document;
+        ms_proto_document document;
         ms_proto_open_model open_model;
         ms_proto_model_opened model_opened;
         ms_proto_close_model close_model;

@@ -288,6 +288,38 @@ static uint16_t parse_list_page(ms_proto_decoder *dec, ms_proto_message *msg, ch
     return 0;
 }
 
+static uint16_t parse_get_document(ms_proto_decoder *dec, ms_proto_message *msg, char *why,
+                                   size_t why_size)
+{
+    const uint8_t *b = dec->body;
+    const uint32_t n = dec->body_length;
+    ms_proto_get_document *g = &msg->body.get_document;
+    g->kind = b[0];
+    g->name_length = b[1];
+    if (ms_wire_get16(b + 2) != 0)
+        return MALFORMED("GET_DOCUMENT: reserved field is not 0");
+    if ((size_t)MS_PROTO_GET_DOCUMENT_FIXED + g->name_length != n)
+        return MALFORMED("GET_DOCUMENT: body length %u, layout says %zu", (unsigned)n,
+                         (size_t)MS_PROTO_GET_DOCUMENT_FIXED + g->name_length);
+    g->name = (const char *)b + MS_PROTO_GET_DOCUMENT_FIXED;
+    return 0;
+}
+
+static uint16_t parse_document(ms_proto_decoder *dec, ms_proto_message *msg, char *why,
+                               size_t why_size)
+{
+    const uint8_t *b = dec->body;
+    ms_proto_document *d = &msg->body.document;
+    d->kind = b[0];
+    if (b[1] != 0 || ms_wire_get16(b + 2) != 0)
+        return MALFORMED("DOCUMENT: reserved field is not 0");
+    d->total_length = ms_wire_get32(b + 4);
+    d->offset = ms_wire_get32(b + 8);
+    d->data = b + MS_PROTO_DOCUMENT_FIXED;
+    d->data_length = dec->body_length - MS_PROTO_DOCUMENT_FIXED;
+    return 0;
+}
+
 static uint16_t parse_open_model(ms_proto_decoder *dec, ms_proto_message *msg, char *why,
                                  size_t why_size)
 {
@@ -460,6 +492,10 @@ static uint16_t parse_body(ms_proto_decoder *dec, ms_proto_message *msg, char *w
         return parse_catalogue(dec, msg, why, why_size);
     case MS_PROTO_LIST_PAGE:
         return parse_list_page(dec, msg, why, why_size);
+    case MS_PROTO_GET_DOCUMENT:
+        return parse_get_document(dec, msg, why, why_size);
+    case MS_PROTO_DOCUMENT:
+        return parse_document(dec, msg, why, why_size);
     case MS_PROTO_OPEN_MODEL:
         return parse_open_model(dec, msg, why, why_size);
     case MS_PROTO_MODEL_OPENED:

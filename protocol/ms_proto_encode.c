@@ -33,6 +33,10 @@ static size_t body_size(const ms_proto_message *msg)
                     cat->entries[i].title_length;
         return size;
     }
+    case MS_PROTO_GET_DOCUMENT:
+        return MS_PROTO_GET_DOCUMENT_FIXED + (size_t)msg->body.get_document.name_length;
+    case MS_PROTO_DOCUMENT:
+        return MS_PROTO_DOCUMENT_FIXED + (size_t)msg->body.document.data_length;
     case MS_PROTO_OPEN_MODEL:
         return MS_PROTO_OPEN_MODEL_FIXED + (size_t)msg->body.open_model.name_length;
     case MS_PROTO_MODEL_OPENED:
@@ -243,6 +247,24 @@ static void write_body(const ms_proto_message *msg, uint8_t *b)
     case MS_PROTO_LIST_PAGE:
         write_list_page(msg, b);
         break;
+    case MS_PROTO_GET_DOCUMENT: {
+        const ms_proto_get_document *g = &msg->body.get_document;
+        b[0] = g->kind;
+        b[1] = g->name_length;
+        ms_wire_put16(b + 2, 0);
+        put_bytes(b + MS_PROTO_GET_DOCUMENT_FIXED, g->name, g->name_length);
+        break;
+    }
+    case MS_PROTO_DOCUMENT: {
+        const ms_proto_document *d = &msg->body.document;
+        b[0] = d->kind;
+        b[1] = 0;
+        ms_wire_put16(b + 2, 0);
+        ms_wire_put32(b + 4, d->total_length);
+        ms_wire_put32(b + 8, d->offset);
+        put_bytes(b + MS_PROTO_DOCUMENT_FIXED, d->data, d->data_length);
+        break;
+    }
     case MS_PROTO_OPEN_MODEL: {
         const ms_proto_open_model *o = &msg->body.open_model;
         b[0] = o->name_length;

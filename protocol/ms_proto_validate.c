@@ -14,6 +14,9 @@ static const ms_wire_type_info type_table[] = {
     {MS_PROTO_LIST_CATALOGUE, MS_WIRE_FROM_CLIENT, MS_WIRE_ID_NONZERO, 0, 0, 0, "LIST_CATALOGUE"},
     {MS_PROTO_LIST_PAGE, MS_WIRE_FROM_CLIENT, MS_WIRE_ID_NONZERO, 0, MS_PROTO_LIST_PAGE_FIXED,
      MS_PROTO_LIST_PAGE_FIXED + MS_PROTO_MAX_PAGE_QUERY, "LIST_PAGE"},
+    {MS_PROTO_GET_DOCUMENT, MS_WIRE_FROM_CLIENT, MS_WIRE_ID_NONZERO, 0,
+     MS_PROTO_GET_DOCUMENT_FIXED + 1, MS_PROTO_GET_DOCUMENT_FIXED + MS_PROTO_MAX_MODEL_NAME,
+     "GET_DOCUMENT"},
     {MS_PROTO_OPEN_MODEL, MS_WIRE_FROM_CLIENT, MS_WIRE_ID_NONZERO, 0, MS_PROTO_OPEN_MODEL_FIXED + 1,
      MS_PROTO_OPEN_MODEL_FIXED + MS_PROTO_MAX_MODEL_NAME, "OPEN_MODEL"},
     {MS_PROTO_CLOSE_MODEL, MS_WIRE_FROM_CLIENT, MS_WIRE_ID_ZERO, 0, MS_PROTO_CLOSE_MODEL_SIZE,
@@ -40,6 +43,8 @@ static const ms_wire_type_info type_table[] = {
      MS_WIRE_BODY_UNBOUNDED, "PAYLOAD"},
     {MS_PROTO_CATALOGUE_PAGE, MS_WIRE_FROM_SERVER, MS_WIRE_ID_NONZERO, 1,
      MS_PROTO_CATALOGUE_PAGE_FIXED, MS_WIRE_BODY_UNBOUNDED, "CATALOGUE_PAGE"},
+    {MS_PROTO_DOCUMENT, MS_WIRE_FROM_SERVER, MS_WIRE_ID_NONZERO, 1, MS_PROTO_DOCUMENT_FIXED,
+     MS_WIRE_BODY_UNBOUNDED, "DOCUMENT"},
 };
 
 const ms_wire_type_info *ms_wire_type_lookup(uint8_t type)
@@ -83,6 +88,7 @@ static const struct {
     [MS_PROTO_E_SHUTTING_DOWN] = {"SHUTTING_DOWN", MS_PROTO_FATAL_ALWAYS},
     [MS_PROTO_E_INTERNAL] = {"INTERNAL", MS_PROTO_FATAL_EITHER},
     [MS_PROTO_E_MODEL_CHANGED] = {"MODEL_CHANGED", MS_PROTO_FATAL_NEVER},
+    [MS_PROTO_E_NO_DOCUMENT] = {"NO_DOCUMENT", MS_PROTO_FATAL_NEVER},
 };
 
 const char *ms_proto_error_name(uint16_t code)
@@ -90,6 +96,12 @@ const char *ms_proto_error_name(uint16_t code)
     if (code < MS_PROTO_E_FIRST || code > MS_PROTO_E_LAST)
         return "?";
     return error_table[code].name;
+}
+
+const char *ms_document_kind_name(int kind)
+{
+    static const char *const names[] = {"?", "thumbnail", "metadata", "annotations"};
+    return kind >= MS_DOCUMENT_FIRST && kind <= MS_DOCUMENT_LAST ? names[kind] : "?";
 }
 
 ms_proto_fatality ms_proto_error_fatality(uint16_t code)
@@ -514,6 +526,42 @@ static ms_status check_error(check_ctx *c, const ms_proto_error_body *e)
     return MS_OK;
 }
 
+static ms_status check_get_document(check_ctx *c, const ms_proto_get_document *g)
+{
+    if (g->kind < MS_DOCUMENT_FIRST || g->kind > MS_DOCUMENT_LAST)
+        return OUT_OF_RANGE(c, 0, "document kind %u undefined (%u..%u)", g->kind,
+                            MS_DOCUMENT_FIRST, MS_DOCUMENT_LAST);
+    size_t bad;
+    if (!ms_proto_model_name_valid(g->name, g->name_length, &bad))
+        return fail(c, MS_PROTO_E_BAD_MODEL_NAME, bad,
+                    "model name is not an identifier [A-Za-z0-9_-]{1,64} (byte %zu of %u)", bad,
+                    g->name_length);
+    return MS_OK;
+}
+
+static ms_status check_document(check_ctx *c, const ms_proto_document *d)
+{
+    bool last = (c->msg->flags & MS_PROTO_FLAG_LAST) != 0;
+    if (d->kind < MS_DOCUMENT_FIRST || d->kind > MS_DOCUMENT_LAST)
+        return OUT_OF_RANGE(c, 0, "document kind %u undefined (%u..%u)", d->kind,
+                            MS_DOCUMENT_FIRST, MS_DOCUMENT_LAST);
+    if (d->total_length > MS_PROTO_MAX_DOCUMENT)
+        return OUT_OF_RANGE(c, 4, "total_length %u above %u", (unsigned)d->total_length,
+                            MS_PROTO_MAX_DOCUMENT);
+    if (d->data_length && !d->data)
+        return OUT_OF_RANGE(c, MS_PROTO_DOCUMENT_FIXED, "data missing");
+    if ((uint64_t)d->offset + d->data_length > d->total_length)
+        return OUT_OF_RANGE(c, 8, "offset %u + %u bytes past the document's %u",
+                            (unsigned)d->offset, (unsigned)d->data_length,
+                            (unsigned)d->total_length);
+    if (d->data_length == 0 && d->total_length != 0)
+        return OUT_OF_RANGE(c, MS_PROTO_DOCUMENT_FIXED, "no data");
+    if (last != ((uint64_t)d->offset + d->data_length == d->total_length))
+        return OUT_OF_RANGE(c, 8, "LAST %s on a frame %s the document", last ? "set" : "not set",
+                            last ? "that does not end" : "that ends");
+    return MS_OK;
+}
+
 static ms_status check_list_page(check_ctx *c, const ms_proto_list_page *l)
 {
     if (l->limit < 1 || l->limit > MS_PROTO_MAX_PAGE)
@@ -542,7 +590,7 @@ ms_status ms_proto_check_message(const ms_proto_message *msg, uint32_t max_batch
         return fail(&c, MS_PROTO_E_UNKNOWN_TYPE, msg->type, "undefined type 0x%02x", msg->type);
     /* The ids a rejection of this frame ends (section 4.10, 5). */
     if (msg->type == MS_PROTO_LIST_CATALOGUE || msg->type == MS_PROTO_LIST_PAGE ||
-        msg->type == MS_PROTO_OPEN_MODEL) {
+        msg->type == MS_PROTO_GET_DOCUMENT || msg->type == MS_PROTO_OPEN_MODEL) {
         c.ids_first = msg->request_id;
         c.ids_count = msg->request_id ? 1 : 0;
     } else if (msg->type == MS_PROTO_REQUEST_CELLS && msg->request_id != 0 &&
@@ -563,6 +611,8 @@ ms_status ms_proto_check_message(const ms_proto_message *msg, uint32_t max_batch
     case MS_PROTO_CATALOGUE:
     case MS_PROTO_CATALOGUE_PAGE: return check_catalogue(&c, &msg->body.catalogue);
     case MS_PROTO_LIST_PAGE: return check_list_page(&c, &msg->body.list_page);
+    case MS_PROTO_GET_DOCUMENT: return check_get_document(&c, &msg->body.get_document);
+    case MS_PROTO_DOCUMENT: return check_document(&c, &msg->body.document);
     case MS_PROTO_OPEN_MODEL: return check_open_model(&c, &msg->body.open_model);
     case MS_PROTO_MODEL_OPENED: return check_model_opened(&c, &msg->body.model_opened);
     case MS_PROTO_CLOSE_MODEL:
@@ -632,6 +682,13 @@ ms_status ms_proto_check_negotiated(const ms_proto_message *msg, uint16_t versio
         c.ids_count = msg->request_id ? 1 : 0;
         if (version < 3)
             return OUT_OF_RANGE(&c, 0, "a catalogue page needs version 3 (version %u)", version);
+        return MS_OK;
+    case MS_PROTO_GET_DOCUMENT:
+    case MS_PROTO_DOCUMENT:
+        c.ids_first = msg->request_id;
+        c.ids_count = msg->request_id ? 1 : 0;
+        if (version < 3)
+            return OUT_OF_RANGE(&c, 0, "a document needs version 3 (version %u)", version);
         return MS_OK;
     case MS_PROTO_HELLO_REPLY: {
         uint32_t undefined = msg->body.hello_reply.capabilities &

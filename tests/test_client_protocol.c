@@ -47,7 +47,8 @@ typedef enum {
     BREAK_NEVER_REQUESTED,
     BREAK_CELL_COUNT,
     BREAK_HELLO,
-    BREAK_SILENT
+    BREAK_SILENT,
+    BREAK_DOCUMENT /* a DOCUMENT for no GET_DOCUMENT, before the model's answer */
 } break_kind;
 
 typedef struct fake_server {
@@ -162,10 +163,17 @@ static void converse(fake_server *f, int conn)
             if (m.type == MS_PROTO_HELLO) {
                 ms_proto_message r = {.type = MS_PROTO_HELLO_REPLY};
                 r.body.hello_reply = (ms_proto_hello_reply){
-                    .version = f->kind == BREAK_HELLO ? 9 : 2, .capabilities = MS_PROTO_CAP_APO,
+                    .version = f->kind == BREAK_HELLO ? 9 : f->kind == BREAK_DOCUMENT ? 3 : 2,
+                    .capabilities = MS_PROTO_CAP_APO,
                     .max_frame = MS_PROTO_MIN_FRAME, .max_batch = 64, .max_outstanding = 1024,
                     .max_queued_bytes = 1u << 26, .max_open_models = 4};
                 send_frame(conn, &r);
+            } else if (m.type == MS_PROTO_OPEN_MODEL && f->kind == BREAK_DOCUMENT) {
+                static const uint8_t doc[] = "{}";
+                ms_proto_message d = {.type = MS_PROTO_DOCUMENT, .request_id = 77,
+                                      .flags = MS_PROTO_FLAG_LAST};
+                d.body.document = (ms_proto_document){MS_DOCUMENT_ANNOTATIONS, 2, 0, doc, 2};
+                send_frame(conn, &d);
             } else if (m.type == MS_PROTO_OPEN_MODEL) {
                 answer_open(f, conn, m.request_id);
             } else if (m.type == MS_PROTO_REQUEST_CELLS && !answered_cells) {
@@ -352,6 +360,13 @@ static void test_payload_never_requested(void **state)
     assert_int_equal(f.client_error, MS_PROTO_E_UNEXPECTED_MESSAGE);
 }
 
+static void test_document_never_requested(void **state)
+{
+    expect_violation(BREAK_DOCUMENT,
+                     "DOCUMENT for request 77 out of order, or for no document request",
+                     MS_PROTO_E_UNEXPECTED_MESSAGE, state);
+}
+
 static void test_model_opened_lies_about_cells(void **state)
 {
     fixture *x = *state;
@@ -517,6 +532,7 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_payload_after_last, setup, teardown),
         cmocka_unit_test_setup_teardown(test_payload_never_requested, setup, teardown),
         cmocka_unit_test_setup_teardown(test_model_opened_lies_about_cells, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_document_never_requested, setup, teardown),
         cmocka_unit_test_setup_teardown(test_hello_reply_out_of_range, setup, teardown),
         cmocka_unit_test_setup_teardown(test_meshload_says_why, setup, teardown),
         cmocka_unit_test(test_http_body_bounded),

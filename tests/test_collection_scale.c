@@ -18,6 +18,8 @@
 #include <unistd.h>
 #include <cmocka.h>
 
+#include <GLFW/glfw3.h>
+
 #include "ms_catalog.h"
 #include "ms_client.h"
 #include "ms_progress.h"
@@ -25,6 +27,8 @@
 #include "ms_test_archive.h"
 #include "ms_test_net.h"
 #include "ms_test_proto.h"
+#include "ms_viewer_catalogue.h"
+#include "ms_viewer_model.h"
 
 enum { MODELS = 10000 };
 
@@ -187,6 +191,77 @@ static pid_t start(const fixture *f, const char *dir, uint16_t *http_port, uint1
     return pid;
 }
 
+/* meshview's catalogue screen on the collection: its first page only, the
+ * next pages as the selection moves down, the typed search sent to the
+ * server (q=), and a model beyond the pages fetched still opens by name. */
+static void meshview_catalogue_pages(uint16_t port)
+{
+    ms_viewer_source source = {.host = "127.0.0.1", .port = port, .timeout_s = 30.0};
+    ms_viewer_model_list list;
+    ms_error err;
+    double t0 = ms_now_seconds();
+    assert_int_equal(ms_viewer_list_page(&source, NULL, &list, &err), MS_OK);
+    printf("meshview's first page: %.1f ms\n", (ms_now_seconds() - t0) * 1e3);
+    assert_int_equal(list.count, MS_VIEWER_PAGE);
+    assert_int_equal(list.total, MODELS);
+    assert_string_equal(list.entries[0].name, "m00000");
+    assert_string_equal(list.entries[MS_VIEWER_PAGE - 1].name, "m00199");
+    ms_viewer_catalogue cat = {.list = &list, .source = &source};
+    /* 200 pixels at scale 1 show 9 rows: 150 rows down stays in the first
+     * page (150 + 2 x 9 < 200), 200 more fetch the second (368 < 400) */
+    ms_viewer_catalogue_move(&cat, 150, 200, 1);
+    assert_int_equal(list.count, MS_VIEWER_PAGE);
+    ms_viewer_catalogue_move(&cat, 200, 200, 1);
+    assert_int_equal(cat.selected, 350);
+    assert_int_equal(list.count, 2 * MS_VIEWER_PAGE);
+    assert_string_equal(list.entries[350].name, "m00350");
+    assert_string_equal(list.entries[399].name, "m00399");
+    ms_viewer_catalogue_move(&cat, 100, 200, 1); /* 468: the third */
+    assert_int_equal(list.count, 3 * MS_VIEWER_PAGE);
+    /* a model beyond the pages held opens (the server is asked for it) */
+    ms_viewer_model model;
+    assert_int_equal(ms_viewer_model_open_listed(&source, &list, "m09876", &model, &err), MS_OK);
+    ms_viewer_model_close(&model);
+    assert_int_equal(ms_viewer_model_open_listed(&source, &list, "m99999", &model, &err),
+                     MS_ERR_RANGE);
+    ms_viewer_model_close(&model);
+    /* typing "m0004" searches on the server: m00040..m00049 */
+    static const int keys[] = {GLFW_KEY_M, GLFW_KEY_0, GLFW_KEY_0, GLFW_KEY_0, GLFW_KEY_4};
+    for (size_t i = 0; i < sizeof keys / sizeof *keys; ++i)
+        assert_int_equal(ms_viewer_catalogue_key(&cat, keys[i], 200, 1), MS_CATALOGUE_STAY);
+    assert_string_equal(cat.search, "m0004");
+    assert_string_equal(list.query, "m0004");
+    assert_int_equal(cat.selected, 0);
+    assert_int_equal(list.total, 10);
+    assert_int_equal(list.count, 10);
+    assert_string_equal(list.entries[0].name, "m00040");
+    assert_string_equal(list.entries[9].name, "m00049");
+    /* "igea" matches the source: 100 models */
+    ms_viewer_catalogue_search(&cat, "IGEA", &err);
+    assert_string_equal(cat.search, "igea");
+    assert_int_equal(list.total, MODELS / 100);
+    assert_int_equal(list.count, MODELS / 100);
+    assert_string_equal(list.entries[0].name, "m00042");
+    /* Backspace: "ige" */
+    assert_int_equal(ms_viewer_catalogue_key(&cat, GLFW_KEY_BACKSPACE, 200, 1), MS_CATALOGUE_STAY);
+    assert_string_equal(cat.search, "ige");
+    assert_int_equal(list.total, MODELS / 100);
+    /* nothing matches: an empty list, the search kept */
+    assert_int_equal(ms_viewer_catalogue_search(&cat, "granite", &err), MS_OK);
+    assert_int_equal(list.count, 0);
+    assert_int_equal(list.total, 0);
+    ms_viewer_catalogue_move(&cat, 5, 200, 1);
+    assert_int_equal(cat.selected, 0);
+    /* a search above 64 bytes is refused, the list kept */
+    char long_search[80];
+    memset(long_search, 'a', sizeof long_search - 1);
+    long_search[sizeof long_search - 1] = 0;
+    assert_int_equal(ms_viewer_catalogue_search(&cat, long_search, &err), MS_ERR_ARG);
+    assert_string_equal(cat.search, "granite");
+    ms_viewer_catalogue_free(&cat);
+    ms_viewer_model_list_free(&list);
+}
+
 static void test_ten_thousand_models_from_one_start(void **state)
 {
     fixture *f = *state;
@@ -281,6 +356,8 @@ static void test_ten_thousand_models_from_one_start(void **state)
     ms_client_catalogue_free(&cat);
     pr.limit = 0;
     assert_int_equal(ms_client_fetch_catalogue_page(&co, 30.0, &pr, &cat, &err), MS_ERR_ARG);
+    assert_int_equal(metric(http_port, "\nmeshstream_open_models "), 0);
+    meshview_catalogue_pages(port);
     assert_int_equal(metric(http_port, "\nmeshstream_open_models "), 0);
 
     /* any model opens at its first request: exactly that archive */

@@ -63,6 +63,38 @@ static void test_ranges(void **state)
     expect_range("bytes=-1", 0, BAD, 0, 0);
 }
 
+/* Accept-Encoding as RFC 9110 section 12.5.3 reads it. */
+static void test_accepts_coding(void **state)
+{
+    (void)state;
+    assert_false(ms_http_accepts_coding(NULL, "deflate"));
+    assert_false(ms_http_accepts_coding("", "deflate"));
+    assert_true(ms_http_accepts_coding("deflate", "deflate"));
+    assert_true(ms_http_accepts_coding("gzip, deflate, br, zstd", "deflate")); /* Chromium's */
+    assert_true(ms_http_accepts_coding("GZIP , Deflate", "deflate"));
+    assert_false(ms_http_accepts_coding("gzip, br", "deflate"));
+    assert_false(ms_http_accepts_coding("deflatex, xdeflate", "deflate"));
+    assert_true(ms_http_accepts_coding("deflate;q=0.5", "deflate"));
+    assert_true(ms_http_accepts_coding("deflate; q=1.000", "deflate"));
+    assert_true(ms_http_accepts_coding("deflate;Q=0.001", "deflate"));
+    assert_false(ms_http_accepts_coding("deflate;q=0", "deflate"));
+    assert_false(ms_http_accepts_coding("deflate;q=0.000", "deflate"));
+    assert_true(ms_http_accepts_coding("*", "deflate"));
+    assert_true(ms_http_accepts_coding("gzip;q=0, *;q=0.1", "deflate"));
+    assert_false(ms_http_accepts_coding("*;q=0", "deflate"));
+    assert_false(ms_http_accepts_coding("*, deflate;q=0", "deflate")); /* named beats the star */
+    assert_true(ms_http_accepts_coding("*;q=0, deflate", "deflate"));
+    /* malformed weights refuse: past 1, four decimals, a sign, text, other parameters */
+    assert_false(ms_http_accepts_coding("deflate;q=1.5", "deflate"));
+    assert_false(ms_http_accepts_coding("deflate;q=2", "deflate"));
+    assert_false(ms_http_accepts_coding("deflate;q=0.1234", "deflate"));
+    assert_false(ms_http_accepts_coding("deflate;q=-1", "deflate"));
+    assert_false(ms_http_accepts_coding("deflate;q=", "deflate"));
+    assert_false(ms_http_accepts_coding("deflate;level=9", "deflate"));
+    assert_false(ms_http_accepts_coding("deflate;q=0.5x", "deflate"));
+    assert_true(ms_http_accepts_coding(",,, deflate ,", "deflate"));
+}
+
 static void test_none_match(void **state)
 {
     (void)state;
@@ -160,6 +192,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_ranges),
         cmocka_unit_test(test_none_match),
+        cmocka_unit_test(test_accepts_coding),
         cmocka_unit_test(test_bearer_credential),
         cmocka_unit_test(test_corpus_replay),
     };

@@ -20,6 +20,7 @@
 #include <sys/time.h>
 #include <unistd.h>
 #include <cmocka.h>
+#include <zlib.h>
 
 #include "ms_archive.h"
 #include "ms_catalog.h"
@@ -153,6 +154,59 @@ static void test_catalog_index_and_payloads(void **state)
     ms_test_http_free(&r);
     get(f, "/models/bunny/cells/70/apo?levels=1", NULL, 200, &r);
     assert_int_equal(r.body_length, 40);
+    ms_test_http_free(&r);
+    ms_archive_close(a);
+}
+
+/* The index blob deflated for a reader that accepts it (a browser always
+ * does): the body inflates to exactly the blob, the answer names its coding
+ * and varies with Accept-Encoding, and its tag is not the plain blob's; a
+ * reader that refuses deflate, or says nothing, gets the blob itself. */
+static void test_index_deflated_when_accepted(void **state)
+{
+    server_fixture *f = *state;
+    ms_archive *a = open_model(f, "bunny");
+    size_t size;
+    const uint8_t *index = ms_archive_index_bytes(a, &size);
+    ms_test_http_response r;
+    char value[256], plain_tag[256], deflated_tag[256];
+    get(f, "/models/bunny", "Accept-Encoding: gzip, deflate, br\r\n", 200, &r);
+    assert_string_equal(ms_test_http_header(&r, "Content-Encoding", value, sizeof value), "deflate");
+    assert_string_equal(ms_test_http_header(&r, "Vary", value, sizeof value),
+                        "Authorization, Accept-Encoding");
+    assert_non_null(ms_test_http_header(&r, "ETag", deflated_tag, sizeof deflated_tag));
+    assert_true(r.body_length < size / 2);
+    uLongf inflated_size = (uLongf)size + 1;
+    uint8_t *inflated = malloc(inflated_size);
+    assert_non_null(inflated);
+    assert_int_equal(uncompress(inflated, &inflated_size, r.body, (uLong)r.body_length), Z_OK);
+    assert_int_equal(inflated_size, size);
+    assert_memory_equal(inflated, index, size);
+    free(inflated);
+    ms_test_http_free(&r);
+    static const char *const plain[] = {NULL, "Accept-Encoding: gzip\r\n",
+                                        "Accept-Encoding: deflate;q=0, *\r\n"};
+    for (size_t i = 0; i < sizeof plain / sizeof *plain; ++i) {
+        get(f, "/models/bunny", plain[i], 200, &r);
+        assert_null(ms_test_http_header(&r, "Content-Encoding", value, sizeof value));
+        assert_string_equal(ms_test_http_header(&r, "Vary", value, sizeof value),
+                            "Authorization, Accept-Encoding");
+        assert_non_null(ms_test_http_header(&r, "ETag", plain_tag, sizeof plain_tag));
+        assert_string_not_equal(plain_tag, deflated_tag);
+        assert_int_equal(r.body_length, size);
+        assert_memory_equal(r.body, index, size);
+        ms_test_http_free(&r);
+    }
+    /* a cached deflated answer revalidates with its own tag */
+    char headers[400];
+    snprintf(headers, sizeof headers, "Accept-Encoding: deflate\r\nIf-None-Match: %s\r\n",
+             deflated_tag);
+    get(f, "/models/bunny", headers, 304, &r);
+    ms_test_http_free(&r);
+    /* a cell's stream is already coded: one form, whatever the reader accepts */
+    get(f, "/models/bunny/cells/3/geometry", "Accept-Encoding: deflate\r\n", 200, &r);
+    assert_null(ms_test_http_header(&r, "Content-Encoding", value, sizeof value));
+    assert_string_equal(ms_test_http_header(&r, "Vary", value, sizeof value), "Authorization");
     ms_test_http_free(&r);
     ms_archive_close(a);
 }
@@ -310,7 +364,10 @@ static void test_cache_headers(void **state)
         get(f, public_paths[i], NULL, 200, &r);
         assert_string_equal(ms_test_http_header(&r, "Cache-Control", value, sizeof value),
                             "public, max-age=3600");
-        assert_string_equal(ms_test_http_header(&r, "Vary", value, sizeof value), "Authorization");
+        /* the index's answer also varies with its coding */
+        assert_string_equal(ms_test_http_header(&r, "Vary", value, sizeof value),
+                            strcmp(public_paths[i], "/models/dragon") ? "Authorization"
+                                                                      : "Authorization, Accept-Encoding");
         assert_non_null(ms_test_http_header(&r, "ETag", value, sizeof value));
         ms_test_http_free(&r);
     }
@@ -1014,6 +1071,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test_setup_teardown(test_catalog_index_and_payloads, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_ranges_and_etags, start_server, stop_server),
+        cmocka_unit_test_setup_teardown(test_index_deflated_when_accepted, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_access_control, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_preview_bypass_refused, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_cache_headers, start_server, stop_server),

@@ -6,7 +6,8 @@
  *     differs from the final one;
  *   - the local-archive mode draws the same pictures (with --compare-apo, which
  *     times both shadings of each frame and still pictures the run's own);
- *   - the catalogue screen lists the model;
+ *   - the catalogue screen lists the model, and its panel shows the model's
+ *     thumbnail from a local directory and from a server (binary door);
  *   - a model small on screen (400 down to 15 px tall) is drawn at every size,
  *     its silhouette that of meshrender's picture of the full mesh;
  *   - bad input: --help (0), bad options (2), no display (1), unknown model (1),
@@ -326,15 +327,9 @@ static void test_small_on_screen_never_vanishes(void **state)
  * model's thumbnail (meshbake's, docs/ARCHIVE.md "Thumbnails"): at 960x540
  * and scale 2 the picture fills x 672..936, y 96..294 (the list is 50
  * columns of 12 pixels from x 24, the panel 48 pixels further, 264 wide). */
-static void test_catalogue_panel_shows_the_thumbnail(void **state)
+/* The panel's picture at x 676..932, y 100..290 lit, nothing bright around it. */
+static void assert_panel_picture(json_t *report)
 {
-    fixture *f = *state;
-    char args[2048], out[700], err_text[4096];
-    snprintf(out, sizeof out, "%s/panel.json", f->dir);
-    snprintf(args, sizeof args, "%s --size 960x540 --screenshot-dir %s/panel --json", f->archives,
-             f->dir);
-    assert_int_equal(run_viewer(f, args, out, err_text, sizeof err_text), 0);
-    json_t *report = load_report(out);
     assert_true(json_is_true(json_object_get(report, "picture_shown")));
     json_t *m = json_array_get(json_object_get(report, "models"), 0);
     assert_true(json_is_true(json_object_get(m, "thumbnail")));
@@ -352,6 +347,34 @@ static void test_catalogue_panel_shows_the_thumbnail(void **state)
     assert_true(lit > 2000);
     assert_int_equal(outside, 0);
     free(pixels);
+}
+
+static void test_catalogue_panel_shows_the_thumbnail(void **state)
+{
+    fixture *f = *state;
+    char args[2048], out[700], err_text[4096];
+    snprintf(out, sizeof out, "%s/panel.json", f->dir);
+    snprintf(args, sizeof args, "%s --size 960x540 --screenshot-dir %s/panel --json", f->archives,
+             f->dir);
+    assert_int_equal(run_viewer(f, args, out, err_text, sizeof err_text), 0);
+    json_t *report = load_report(out);
+    assert_panel_picture(report);
+    json_decref(report);
+}
+
+/* From a server the panel shows the same picture, fetched through the binary
+ * door (GET_DOCUMENT THUMBNAIL and METADATA, for the selected model only). */
+static void test_catalogue_panel_from_a_server(void **state)
+{
+    fixture *f = *state;
+    char args[2048], out[700], err_text[4096];
+    snprintf(out, sizeof out, "%s/panel-server.json", f->dir);
+    snprintf(args, sizeof args,
+             "--server 127.0.0.1:%u --size 960x540 --screenshot-dir %s/panel-server --json",
+             f->port, f->dir);
+    assert_int_equal(run_viewer(f, args, out, err_text, sizeof err_text), 0);
+    json_t *report = load_report(out);
+    assert_panel_picture(report);
     json_decref(report);
 }
 
@@ -581,6 +604,7 @@ int main(void)
         cmocka_unit_test(test_geometry_shading_fetches_no_apo),
         cmocka_unit_test(test_catalogue_screen),
         cmocka_unit_test(test_catalogue_panel_shows_the_thumbnail),
+        cmocka_unit_test(test_catalogue_panel_from_a_server),
         cmocka_unit_test(test_small_on_screen_never_vanishes),
         cmocka_unit_test(test_interactive_until_terminated),
         cmocka_unit_test(test_interactive_from_a_server_lists_once),

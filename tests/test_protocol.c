@@ -313,6 +313,21 @@ static void assert_same(const ms_proto_message *a, const ms_proto_message *b)
         assert_bytes(x->data, y->data, x->data_length);
         break;
     }
+    case MS_PROTO_GET_DOCUMENT:
+        assert_int_equal(a->body.get_document.kind, b->body.get_document.kind);
+        assert_int_equal(a->body.get_document.name_length, b->body.get_document.name_length);
+        assert_bytes(a->body.get_document.name, b->body.get_document.name,
+                     a->body.get_document.name_length);
+        break;
+    case MS_PROTO_DOCUMENT: {
+        const ms_proto_document *x = &a->body.document, *y = &b->body.document;
+        assert_int_equal(x->kind, y->kind);
+        assert_int_equal(x->total_length, y->total_length);
+        assert_int_equal(x->offset, y->offset);
+        assert_int_equal(x->data_length, y->data_length);
+        assert_bytes(x->data, y->data, x->data_length);
+        break;
+    }
     case MS_PROTO_ERROR: {
         const ms_proto_error_body *x = &a->body.error, *y = &b->body.error;
         assert_int_equal(x->code, y->code);
@@ -575,6 +590,33 @@ static bool sample_message(unsigned i, ms_proto_message *m)
         m->request_id = 41;
         m->body.catalogue = (ms_proto_catalogue){catalogue_entries, 3, 10000};
         return true;
+    case 32: /* version 3: a model's document, and its answer in two frames */
+        m->type = MS_PROTO_GET_DOCUMENT;
+        m->request_id = 42;
+        m->body.get_document = (ms_proto_get_document){MS_DOCUMENT_ANNOTATIONS, long_name,
+                                                       MS_PROTO_MAX_MODEL_NAME};
+        return true;
+    case 33:
+        m->type = MS_PROTO_DOCUMENT;
+        m->request_id = 42;
+        m->body.document = (ms_proto_document){.kind = MS_DOCUMENT_ANNOTATIONS,
+                                               .total_length = MS_PROTO_MAX_DOCUMENT, .offset = 0,
+                                               .data = blob, .data_length = 65536};
+        return true;
+    case 34:
+        m->type = MS_PROTO_DOCUMENT;
+        m->flags = MS_PROTO_FLAG_LAST;
+        m->request_id = 42;
+        m->body.document = (ms_proto_document){.kind = MS_DOCUMENT_THUMBNAIL,
+                                               .total_length = 1000, .offset = 700, .data = blob,
+                                               .data_length = 300};
+        return true;
+    case 35: /* an empty document: one LAST frame with no data */
+        m->type = MS_PROTO_DOCUMENT;
+        m->flags = MS_PROTO_FLAG_LAST;
+        m->request_id = 43;
+        m->body.document = (ms_proto_document){.kind = MS_DOCUMENT_METADATA};
+        return true;
     case 29: /* version 3: a subtree's last chunk */
         m->type = MS_PROTO_PAYLOAD;
         m->flags = MS_PROTO_FLAG_LAST;
@@ -590,7 +632,7 @@ static bool sample_message(unsigned i, ms_proto_message *m)
 
 static bool client_sends(uint8_t type)
 {
-    return type <= MS_PROTO_LIST_PAGE || type == MS_PROTO_PING || type == MS_PROTO_PONG ||
+    return type <= MS_PROTO_GET_DOCUMENT || type == MS_PROTO_PING || type == MS_PROTO_PONG ||
            type == MS_PROTO_ERROR;
 }
 
@@ -687,7 +729,8 @@ static void test_roundtrip_every_type(void **state)
         MS_PROTO_HELLO, MS_PROTO_LIST_CATALOGUE, MS_PROTO_OPEN_MODEL, MS_PROTO_CLOSE_MODEL,
         MS_PROTO_REQUEST_CELLS, MS_PROTO_CANCEL, MS_PROTO_PING, MS_PROTO_PONG, MS_PROTO_ERROR,
         MS_PROTO_HELLO_REPLY, MS_PROTO_CATALOGUE, MS_PROTO_MODEL_OPENED, MS_PROTO_INDEX_DATA,
-        MS_PROTO_PAYLOAD, MS_PROTO_LIST_PAGE, MS_PROTO_CATALOGUE_PAGE};
+        MS_PROTO_PAYLOAD, MS_PROTO_LIST_PAGE, MS_PROTO_CATALOGUE_PAGE, MS_PROTO_GET_DOCUMENT,
+        MS_PROTO_DOCUMENT};
     for (size_t i = 0; i < sizeof all_types; ++i)
         if (!seen[all_types[i]])
             fail_msg("no round trip for %s", ms_proto_type_name(all_types[i]));
@@ -749,6 +792,22 @@ static void test_encoder_refuses_out_of_range(void **state)
            MS_PROTO_E_FIELD_OUT_OF_RANGE);
     /* MODEL_CHANGED is never fatal */
     REFUSE((sample_message(26, &m), m.body.error.fatal = true), MS_PROTO_E_FIELD_OUT_OF_RANGE);
+    /* documents: the kind, the name, the range, LAST where the document ends */
+    REFUSE((sample_message(32, &m), m.body.get_document.kind = 0), MS_PROTO_E_FIELD_OUT_OF_RANGE);
+    REFUSE((sample_message(32, &m), m.body.get_document.kind = MS_DOCUMENT_LAST + 1),
+           MS_PROTO_E_FIELD_OUT_OF_RANGE);
+    REFUSE((sample_message(32, &m), m.body.get_document.name = "a/b",
+            m.body.get_document.name_length = 3), MS_PROTO_E_BAD_MODEL_NAME);
+    REFUSE((sample_message(32, &m), m.request_id = 0), MS_PROTO_E_MALFORMED_FRAME);
+    REFUSE((sample_message(34, &m), m.body.document.kind = 4), MS_PROTO_E_FIELD_OUT_OF_RANGE);
+    REFUSE((sample_message(34, &m), m.body.document.total_length = MS_PROTO_MAX_DOCUMENT + 1,
+            m.body.document.offset = MS_PROTO_MAX_DOCUMENT + 1 - 300),
+           MS_PROTO_E_FIELD_OUT_OF_RANGE);
+    REFUSE((sample_message(34, &m), m.body.document.offset = 701), MS_PROTO_E_FIELD_OUT_OF_RANGE);
+    REFUSE((sample_message(34, &m), m.flags = 0), MS_PROTO_E_FIELD_OUT_OF_RANGE);
+    REFUSE((sample_message(33, &m), m.flags = MS_PROTO_FLAG_LAST), MS_PROTO_E_FIELD_OUT_OF_RANGE);
+    REFUSE((sample_message(35, &m), m.body.document.total_length = 5),
+           MS_PROTO_E_FIELD_OUT_OF_RANGE);
 #undef REFUSE
     /* Too small a buffer: nothing written, size needed reported. */
     sample_message(4, &m);
@@ -875,7 +934,7 @@ static void test_unknown_type(void **state)
 {
     (void)state;
     uint8_t f[12];
-    static const uint8_t undefined[] = {0x00, 0x08, 0x3F, 0x42, 0x7E, 0x80, 0x87, 0xFF};
+    static const uint8_t undefined[] = {0x00, 0x09, 0x3F, 0x42, 0x7E, 0x80, 0x88, 0xFF};
     for (size_t i = 0; i < sizeof undefined; ++i) {
         raw_header(f, 0, undefined[i], 0, 0);
         expect_fault(MS_PROTO_ROLE_SERVER, 8, f, 12, MS_PROTO_E_UNKNOWN_TYPE, true, 0, 0,
@@ -1362,7 +1421,16 @@ static void test_error_from_fault(void **state)
     for (uint16_t c = MS_PROTO_E_FIRST; c <= MS_PROTO_E_LAST; ++c)
         assert_string_not_equal(ms_proto_error_name(c), "?");
     assert_int_equal(MS_PROTO_E_MODEL_CHANGED, 23);
-    assert_int_equal(MS_PROTO_E_LAST, MS_PROTO_E_MODEL_CHANGED);
+    assert_int_equal(MS_PROTO_E_NO_DOCUMENT, 24);
+    assert_int_equal(MS_PROTO_E_LAST, MS_PROTO_E_NO_DOCUMENT);
+    assert_string_equal(ms_proto_error_name(MS_PROTO_E_NO_DOCUMENT), "NO_DOCUMENT");
+    assert_int_equal(ms_proto_error_fatality(MS_PROTO_E_NO_DOCUMENT), MS_PROTO_FATAL_NEVER);
+    /* the document kinds are fixed: other programs rely on the numbers */
+    assert_int_equal(MS_DOCUMENT_THUMBNAIL, 1);
+    assert_int_equal(MS_DOCUMENT_METADATA, 2);
+    assert_int_equal(MS_DOCUMENT_ANNOTATIONS, 3);
+    assert_string_equal(ms_document_kind_name(MS_DOCUMENT_ANNOTATIONS), "annotations");
+    assert_string_equal(ms_document_kind_name(4), "?");
     assert_string_equal(ms_proto_error_name(MS_PROTO_E_MODEL_CHANGED), "MODEL_CHANGED");
     assert_int_equal(ms_proto_error_fatality(MS_PROTO_E_MODEL_CHANGED), MS_PROTO_FATAL_NEVER);
 }
@@ -1685,6 +1753,12 @@ static void write_corpus(const char *dir)
     f[12] = 13;
     memcpy(f + 16, "../etc/passwd", 13);
     write_seed(dir, "server-BAD_MODEL_NAME.bin", 2, f, 29, NULL, 0);
+    raw_header(f, 4 + 5, MS_PROTO_GET_DOCUMENT, 0, 43);
+    f[12] = MS_DOCUMENT_LAST + 1, f[13] = 5;
+    memcpy(f + 16, "model", 5);
+    write_seed(dir, "server-FIELD_OUT_OF_RANGE-document-kind.bin", 2, f, 21, NULL, 0);
+    f[12] = MS_DOCUMENT_ANNOTATIONS;
+    write_seed(dir, "server-MALFORMED_FRAME-document-truncated.bin", 2, f, 19, NULL, 0);
     m = (ms_proto_message){.type = MS_PROTO_PING, .body.ping.opaque = 1};
     n = encode(&m, f, sizeof f);
     memset(f + n, 0xFF, 12);

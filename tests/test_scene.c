@@ -167,7 +167,7 @@ static void test_missing_model(void **state)
     assert_int_equal(parse_with(GOOD_MODEL ", {\"model\": \"armadillo\", \"position\": [1, 1, 0]}", "", &s, &err),
                      MS_OK);
     ms_viewer_model_entry entries[2] = {{.name = "bunny"}, {.name = "dragon"}};
-    ms_viewer_model_list list = {entries, 2};
+    ms_viewer_model_list list = {.entries = entries, .count = 2};
     assert_int_equal(ms_scene_check_models(&s, "t.json", &list, &err), MS_ERR_RANGE);
     assert_string_equal(err.text, "scene t.json: models[1].model: \"armadillo\" is not in the catalogue");
     snprintf(entries[1].name, sizeof entries[1].name, "armadillo");

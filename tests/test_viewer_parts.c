@@ -12,6 +12,10 @@
 #include <stdio.h>
 #include <string.h>
 #include <cmocka.h>
+#include <GLFW/glfw3.h>
+
+#include "ms_catalog.h"
+#include "ms_test.h"
 
 #include "ms_viewer_catalogue.h"
 #include "ms_viewer_controls.h"
@@ -300,7 +304,7 @@ static void test_catalogue_rows(void **state)
     memset(entries, 0, sizeof entries);
     for (int i = 0; i < 30; ++i)
         snprintf(entries[i].name, sizeof entries[i].name, "model%02d", i);
-    ms_viewer_model_list list = {entries, 30};
+    ms_viewer_model_list list = {.entries = entries, .count = 30};
     ms_viewer_catalogue cat = {.list = &list};
     char row[160];
     entries[0].triangles = 1234567, entries[0].bytes = 2500000, entries[0].apo = true;
@@ -372,6 +376,59 @@ static void test_shading_keys(void **state)
     assert_int_equal(ms_viewer_toggle_shading(MS_SHADING_NORMALS, MS_SHADING_NORMALS), MS_SHADING_LIT);
 }
 
+/* The catalogue's search on a local directory: typed keys filter the names,
+ * titles and descriptions (ASCII case-insensitively), Backspace widens
+ * again; the list is whole (total = count: no pages to fetch). */
+static void test_catalogue_search_local(void **state)
+{
+    (void)state;
+    char dir[512];
+    ms_test_tmpdir(dir, sizeof dir);
+    static const char *const names[] = {"alpha", "beta_bust", "gamma", "delta"};
+    static const char *const titles[] = {NULL, NULL, "Bust of Igea", NULL};
+    static const char *const descriptions[] = {NULL, NULL, NULL, "A marble BUST, 1998"};
+    ms_error err;
+    for (int i = 0; i < 4; ++i) {
+        ms_catalog_entry e;
+        memset(&e, 0, sizeof e);
+        snprintf(e.name, sizeof e.name, "%s", names[i]);
+        e.source = (char *)"scan.ply";
+        snprintf(e.baked_at, sizeof e.baked_at, "2026-12-06T00:00:00Z");
+        e.triangles = 100, e.vertices = 52, e.cells = 1, e.bits = 12, e.n = 2;
+        e.public_max_bits = 12;
+        ms_metadata m = {.title = (char *)titles[i], .description = (char *)descriptions[i]};
+        e.metadata = titles[i] || descriptions[i] ? &m : NULL;
+        if (ms_catalog_update(dir, &e, &err) != MS_OK)
+            fail_msg("%s", err.text);
+    }
+    ms_viewer_source source = {.archive_dir = dir};
+    ms_viewer_model_list list;
+    assert_int_equal(ms_viewer_list_page(&source, NULL, &list, &err), MS_OK);
+    assert_int_equal(list.count, 4);
+    ms_viewer_catalogue cat = {.list = &list, .archive_dir = dir, .source = &source};
+    static const int keys[] = {GLFW_KEY_B, GLFW_KEY_U, GLFW_KEY_S, GLFW_KEY_T};
+    for (size_t i = 0; i < 4; ++i)
+        assert_int_equal(ms_viewer_catalogue_key(&cat, keys[i], 200, 1), MS_CATALOGUE_STAY);
+    assert_string_equal(cat.search, "bust");
+    assert_int_equal(list.count, 3); /* the name, the title, the description */
+    assert_int_equal(list.total, 3);
+    assert_string_equal(list.entries[0].name, "beta_bust");
+    assert_string_equal(list.entries[1].name, "delta");
+    assert_string_equal(list.entries[2].name, "gamma");
+    assert_string_equal(ms_metadata_field(list.entries[2].metadata, 0), "Bust of Igea");
+    ms_viewer_catalogue_key(&cat, GLFW_KEY_MINUS, 200, 1);
+    assert_int_equal(list.count, 0);
+    ms_viewer_catalogue_move(&cat, 3, 200, 1); /* nothing to choose: no harm */
+    assert_int_equal(cat.selected, 0);
+    for (int i = 0; i < 5; ++i)
+        ms_viewer_catalogue_key(&cat, GLFW_KEY_BACKSPACE, 200, 1);
+    assert_string_equal(cat.search, "");
+    assert_int_equal(list.count, 4);
+    ms_viewer_catalogue_free(&cat);
+    ms_viewer_model_list_free(&list);
+    ms_test_rmdir(dir);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -379,7 +436,7 @@ int main(void)
         cmocka_unit_test(test_hud_lines),            cmocka_unit_test(test_hud_path_and_piece),
         cmocka_unit_test(test_catalogue_rows),       cmocka_unit_test(test_home_view_frames_the_box),
         cmocka_unit_test(test_quantile),             cmocka_unit_test(test_crease_angle_cycle),
-        cmocka_unit_test(test_shading_keys),
+        cmocka_unit_test(test_shading_keys),         cmocka_unit_test(test_catalogue_search_local),
     };
     return cmocka_run_group_tests_name("viewer_parts", tests, NULL, NULL);
 }

@@ -6,6 +6,11 @@
  *     plans nothing; its vertex normals are unit and outward;
  *   - a reader capped at the preview's steps is shown at most those bits;
  *   - the root's bytes give the model's bounds, inside its box;
+ *   - sections: a plane cutting away the half towards the eye streams fewer
+ *     bytes (the cells wholly cut away culled), and a cast skips what it
+ *     cuts away: the ray through the middle then meets the far wall, on the
+ *     kept side; a cast's point lies on the ray, its precision is the grid
+ *     step of its cell's bits, and t_near picks the hit nearest it;
  *   - bad input: a damaged index blob, no camera, a bad camera or tolerance,
  *     a gap, bytes past the payload, an unknown cell: each a status and one
  *     line, nothing held. */
@@ -204,6 +209,73 @@ static void test_bounds_from_the_root(void **state)
     ms_web_view_free(v);
 }
 
+static void test_sections_and_casts(void **state)
+{
+    fixture *f = *state;
+    const ms_archive_header *h = ms_archive_get_header(f->archive);
+    ms_web_view *v = open_view(f);
+    assert_int_equal(ms_web_view_camera(v, POSITION, TARGET, UP, 40, 320, 240, 0, 0, 1.0), MS_OK);
+    stream(f, v);
+    assert_int_equal(ms_web_view_stitch(v), MS_OK);
+    uint64_t whole = ms_web_view_bytes_held(v);
+    double dir[3], front[7], back[7], far_hit[7];
+    for (int a = 0; a < 3; ++a)
+        dir[a] = TARGET[a] - POSITION[a];
+    assert_int_equal(ms_web_view_cast(v, POSITION, dir, 0, 0, front), 1);
+    /* the last hit along the ray: t_near far beyond */
+    assert_int_equal(ms_web_view_cast(v, POSITION, dir, 0, 1e9, far_hit), 1);
+    printf("through the middle: first hit t %.6f at %u bits (step %g), last t %.6f; model %g bits\n", front[3],
+           (unsigned)front[4], front[5], far_hit[3], front[6]);
+    assert_true(front[3] > 0 && front[3] < 1 && far_hit[3] > 1 && far_hit[3] < 2);
+    for (int a = 0; a < 3; ++a)
+        assert_true(fabs(front[a] - (POSITION[a] + front[3] * dir[a])) < 1e-12);
+    assert_true(front[4] >= 1 && front[4] <= h->bits);
+    assert_true(front[5] == ldexp(h->box_side, -(int)front[4]));
+    assert_true(front[6] == h->bits);
+    /* cut away the half towards the eye, through the centre: the ray now
+     * meets the far wall first */
+    double n[3], len = sqrt(dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]);
+    for (int a = 0; a < 3; ++a)
+        n[a] = -dir[a] / len;
+    double plane[4] = {n[0], n[1], n[2], -(n[0] * TARGET[0] + n[1] * TARGET[1] + n[2] * TARGET[2])};
+    assert_int_equal(ms_web_view_sections(v, plane, 1), MS_OK);
+    assert_int_equal(ms_web_view_cast(v, POSITION, dir, 0, 0, back), 1);
+    assert_true(back[3] > 0.5);
+    assert_true(plane[0] * back[0] + plane[1] * back[1] + plane[2] * back[2] + plane[3] <= 0);
+    assert_true(back[3] == far_hit[3]);
+    /* a fresh view with the plane from the start holds fewer bytes */
+    ms_web_view *cut = open_view(f);
+    assert_int_equal(ms_web_view_sections(cut, plane, 1), MS_OK);
+    assert_int_equal(ms_web_view_camera(cut, POSITION, TARGET, UP, 40, 320, 240, 0, 0, 1.0), MS_OK);
+    stream(f, cut);
+    printf("bytes held: %llu whole, %llu with the front half cut away\n", (unsigned long long)whole,
+           (unsigned long long)ms_web_view_bytes_held(cut));
+    assert_true(ms_web_view_bytes_held(cut) < whole);
+    /* bad planes: the planes unchanged, one line */
+    double bad[8] = {0, 0, 0, 1, 1, 0, 0, 0};
+    assert_int_equal(ms_web_view_sections(v, bad, 1), MS_ERR_ARG);
+    assert_string_equal(ms_web_view_error(v), "section plane 0 has a zero normal or a number not finite");
+    bad[0] = NAN;
+    assert_int_equal(ms_web_view_sections(v, bad, 1), MS_ERR_ARG);
+    assert_int_equal(ms_web_view_sections(v, bad, 4), MS_ERR_ARG);
+    assert_string_equal(ms_web_view_error(v), "4 section planes, at most 3");
+    assert_int_equal(ms_web_view_cast(v, POSITION, dir, 0, 0, back), 1);
+    assert_true(back[3] == far_hit[3]); /* still cut */
+    assert_int_equal(ms_web_view_sections(v, NULL, 0), MS_OK);
+    assert_int_equal(ms_web_view_cast(v, POSITION, dir, 0, 0, back), 1);
+    assert_true(back[3] == front[3]);
+    /* no hit: a zero direction, a ray away from the model */
+    double zero[3] = {0, 0, 0}, away[3] = {-dir[0], -dir[1], -dir[2]};
+    assert_int_equal(ms_web_view_cast(v, POSITION, zero, 0, 0, back), 0);
+    assert_int_equal(ms_web_view_cast(v, POSITION, away, 0, 0, back), 0);
+    ms_web_view_free(cut);
+    ms_web_view_free(v);
+    /* nothing stitched yet */
+    v = open_view(f);
+    assert_int_equal(ms_web_view_cast(v, POSITION, dir, 0, 0, back), 0);
+    ms_web_view_free(v);
+}
+
 static void test_bad_input(void **state)
 {
     fixture *f = *state;
@@ -260,6 +332,7 @@ int main(void)
         cmocka_unit_test(test_streams_to_the_cut_of_every_byte),
         cmocka_unit_test(test_preview_cap),
         cmocka_unit_test(test_bounds_from_the_root),
+        cmocka_unit_test(test_sections_and_casts),
         cmocka_unit_test(test_bad_input),
     };
     return cmocka_run_group_tests(tests, group_setup, group_teardown);

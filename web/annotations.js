@@ -10,15 +10,17 @@
 //
 // Occlusion is a ray test on the CPU against the mesh the page draws: the
 // segment from the eye to the point must not cross a triangle nearer than
-// the point less max(radius, 1% of its distance) (meshview's allowance). It
+// the point less max(radius, 1% of its distance) (meshview's allowance),
+// where no section plane cuts the surface away. It
 // runs 150 ms after the camera or the mesh last changed (markers keep their
 // last answer while the camera moves), and not at all when annotations times
 // triangles pass 4e7 (markers then all shown; window.meshstream.annotations
 // .occlusion says 'skipped').
 //
 // Uses view.js's globals (a classic script loaded after it): camera, canvas,
-// box, hash, name, staticSite, depthRange, viewProjection, parseShare,
-// cameraMoved, requestDraw, page. view.js calls annotationsOnMesh and
+// box, hash, name, staticSite, TOKEN_KEY, depthRange, viewProjection,
+// orbitState, placeCamera, upFrame, forwardOf, cameraMoved, requestDraw,
+// page; and share.js's MsShare.parse. view.js calls annotationsOnMesh and
 // annotationsOnDraw.
 'use strict';
 
@@ -127,6 +129,13 @@ function projectPoint(p, matrix) {
   return [r.left + (x / w + 1) / 2 * r.width, r.top + (1 - y / w) / 2 * r.height];
 }
 
+// Whether the page's section planes (tools.js: window.meshstream.sections,
+// each a point and the normal of the side cut away) cut point h away.
+function cutAway(h) {
+  return (page.sections || []).some(q => (h[0] - q.point[0]) * q.normal[0] + (h[1] - q.point[1]) * q.normal[1] +
+                                         (h[2] - q.point[2]) * q.normal[2] > 0);
+}
+
 // Whether the segment from the eye to p crosses the mesh before p, less the allowance.
 function occluded(p, radius, positions, triangles) {
   const e = camera.position, d = [p[0] - e[0], p[1] - e[1], p[2] - e[2]];
@@ -150,7 +159,7 @@ function occluded(p, radius, positions, triangles) {
     if (v < 0 || u + v > 1)
       continue;
     const s = (e2x * qx + e2y * qy + e2z * qz) * inv;
-    if (s > 1e-9 && s < limit)
+    if (s > 1e-9 && s < limit && !cutAway([e[0] + s * d[0], e[1] + s * d[1], e[2] + s * d[2]]))
       return true;
   }
   return false;
@@ -224,14 +233,26 @@ function deselect() {
 }
 panel.addEventListener('click', deselect);
 
+// The camera of a stored view (share.js), or null; its light, planes and
+// points are left to the page's tools as they are.
+function viewCamera(text) {
+  const v = MsShare.parse(text);
+  if (v.error)
+    return null;
+  const up = [0, 0, 0];
+  up[v.axis] = 1;
+  const f = forwardOf(upFrame(up), v.yaw, v.pitch);
+  return { position: v.target.map((x, k) => x - v.distance * f[k]), target: v.target.slice(), up, fovy: v.fovy };
+}
+
 // The pending selection's move, once the page has a camera.
 function startMove() {
   const a = annotations.pending;
   annotations.pending = null;
   if (!a)
     return;
-  let to = a.view ? parseShare(a.view) : null;
-  if (!to) { // no view: the orbit centre goes to the point
+  let to = a.view ? viewCamera(a.view) : null;
+  if (!to) { // no view (or one the page cannot read): the orbit centre goes to the point
     const offset = camera.position.map((x, k) => x - camera.target[k]);
     to = { target: a.point.slice(), position: a.point.map((x, k) => x + offset[k]), up: camera.up, fovy: camera.fovy };
   }

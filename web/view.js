@@ -125,11 +125,20 @@ void main() {
 // strength 0.18 and shininess 40 under the same factor; albedo (0.72, 0.69,
 // 0.64) times (0.05 + 0.95 diffuse); the exact sRGB curve out. The same
 // dot products in world space as meshview's in eye space (a rotation apart).
+// The light and the section planes are tools.js's (light.js, section.js):
+// a directional light replaces the head light's direction in the same law;
+// what a plane cuts away is discarded, and a back face seen through the cut
+// is drawn flat in the section colour, as meshview draws it.
 const FRAGMENT = `#version 300 es
 precision highp float;
 in vec3 world;
 in vec3 smoothNormal;
 uniform vec3 eye;
+uniform bool headLight;
+uniform vec3 lightDir;          // towards the light, world, unit
+uniform int sectionCount;
+uniform vec4 sectionPlane[3];   // a b c d: a x + b y + c z + d > 0 cut away
+uniform vec3 sectionColour;
 out vec4 colour;
 const vec3 ALBEDO = vec3(0.72, 0.69, 0.64);
 const float SPECULAR = 0.18, SHININESS = 40.0;
@@ -138,6 +147,13 @@ vec3 srgbEncode(vec3 c) {
   return mix(12.92 * c, 1.055 * pow(c, vec3(1.0 / 2.4)) - 0.055, greaterThan(c, vec3(0.0031308)));
 }
 void main() {
+  for (int k = 0; k < 3; ++k)
+    if (k < sectionCount && dot(sectionPlane[k].xyz, world) + sectionPlane[k].w > 0.0)
+      discard;
+  if (sectionCount > 0 && !gl_FrontFacing) {
+    colour = vec4(sectionColour, 1.0);
+    return;
+  }
   // the stored orientation of the triangle: cross(d/dx, d/dy) faces the eye
   vec3 g = cross(dFdx(world), dFdy(world));
   g = dot(g, g) > 0.0 ? normalize(g) : vec3(0.0, 0.0, 1.0);
@@ -153,9 +169,10 @@ void main() {
     ng = -ng;
     n = -n;
   }
-  float selfShadow = max(0.0, dot(v, n));
-  float diffuse = selfShadow * max(0.0, dot(n, v));
-  float highlight = selfShadow * pow(max(0.0, dot(n, v)), SHININESS);
+  vec3 l = headLight ? v : lightDir;
+  float selfShadow = max(0.0, dot(l, n));
+  float diffuse = selfShadow * max(0.0, dot(n, l));
+  float highlight = selfShadow * pow(max(0.0, dot(n, normalize(l + v))), SHININESS);
   vec3 linear = ALBEDO * (0.05 + 0.95 * diffuse) + SPECULAR * highlight;
   colour = vec4(srgbEncode(linear), 1.0);
 }`;
@@ -236,8 +253,10 @@ function draw() {
   gl.uniformMatrix4fv(gl.getUniformLocation(program, 'viewProjection'), false,
                       viewProjection(camera, canvas.width, canvas.height, near, far));
   gl.uniform3fv(gl.getUniformLocation(program, 'eye'), camera.position);
+  MsTools.uniforms(gl, program, camera);
   gl.bindVertexArray(vao);
   gl.drawElements(gl.TRIANGLES, indexCount, gl.UNSIGNED_INT, 0);
+  MsTools.drawn(camera);
   if (typeof annotationsOnDraw === 'function')   // web/annotations.js: the markers
     annotationsOnDraw();
   if (page.firstPixelMs === null)
@@ -290,9 +309,8 @@ function cameraMoved() {
     return;
   cameraTimer = setTimeout(() => {
     cameraTimer = null;
-    hash.set('cam', cameraText(camera));
-    hash.delete('view');
-    history.replaceState(null, '', '#' + hash.toString().replace(/%2C/g, ','));
+    MsTools.toHash(hash);   // #cam=, or #view= with the light, planes, points
+    history.replaceState(null, '', '#' + MsTools.hashString(hash));
     showShare();
     worker.postMessage({ type: 'camera', camera: workerCamera() });
   }, 100);
@@ -416,32 +434,17 @@ canvas.addEventListener('wheel', e => {
 }, { passive: false });
 
 // ---- meshview's view text (client/view/ms_viewer_share.h) -------------------
-// mv1:t=X,Y,Z:d=D:o=YAW,PITCH:f=FOVY:u=AXIS[:l=...][:m=...]: the page takes
-// the camera of it (light and measuring points are meshview's own), and
-// shows the text of its camera when its up is a coordinate axis.
+// mv1:t=X,Y,Z:d=D:o=YAW,PITCH:f=FOVY:u=AXIS[:l=...][:s=...][:m=...]: the page
+// takes all of it (share.js; the light, planes and points into tools.js), and
+// shows the text of its view when its up is a coordinate axis.
 
 function parseShare(text) {
-  const m = /^mv1:t=([^:]+):d=([^:]+):o=([^:]+):f=([^:]+):u=([xyz])(:l=[^:]*)?(:m=[^:]*)?$/.exec(text || '');
-  if (!m)
-    return null;
-  const t = m[1].split(',').map(Number), o = m[3].split(',').map(Number);
-  const d = Number(m[2]), fovy = Number(m[4]);
-  if (t.length !== 3 || o.length !== 2 || ![...t, ...o, d, fovy].every(Number.isFinite) ||
-      !(d > 0) || !(fovy > 0 && fovy < 180) || Math.abs(o[1]) > PITCH_LIMIT + 1e-9)
-    return null;
-  const up = [0, 0, 0];
-  up['xyz'.indexOf(m[5])] = 1;
-  const fr = upFrame(up), f = forwardOf(fr, o[0], o[1]);
-  return { position: t.map((x, k) => x - d * f[k]), target: t, up, fovy };
+  return MsTools.fromView(text);
 }
 
-// Shortest text that reads back to the same double (as meshview prints).
+// The view's text, as meshview prints it (share.js).
 function shareText(c) {
-  const st = orbitState(c);
-  if (st.frame.axis === undefined)
-    return null;
-  return 'mv1:t=' + c.target.join(',') + ':d=' + st.distance + ':o=' + st.yaw + ',' + st.pitch +
-         ':f=' + c.fovy + ':u=' + 'xyz'[st.frame.axis];
+  return MsTools.viewText(c);
 }
 
 window.addEventListener('resize', () => { if (camera && worker) cameraMoved(); requestDraw(); });
@@ -509,7 +512,7 @@ function start() {
   if (!camera && hash.get('view')) {
     camera = parseShare(hash.get('view'));
     if (!camera)
-      failPage('The view in the URL is not meshview\'s text (#view=mv1:t=X,Y,Z:d=D:o=YAW,PITCH:f=FOVY:u=AXIS).');
+      failPage('The view in the URL is not meshview\'s text: ' + MsTools.viewError() + '.');
   }
   if (page.state === 'error')
     return;
@@ -517,17 +520,15 @@ function start() {
     failPage('This browser offers no WebGL 2: the model cannot be drawn.');
     return;
   }
-  try {
-    setUpGl();
-  } catch (e) {
-    failPage('WebGL 2 failed: ' + e.message);
-    return;
-  }
   say('Loading ' + name + '…');
+  // The worker first: it compiles the module and fetches the index while
+  // WebGL compiles its program (its messages come after this task ends).
   worker = new Worker('../web/worker.js');
   worker.onerror = e => failPage('The decoder failed: ' + (e.message || 'the worker did not start'));
   worker.onmessage = e => {
     const m = e.data;
+    if (MsTools.message(m))
+      return;               // the tools' (casts)
     if (m.type === 'box') {
       box = m.box;
       if (!camera) {
@@ -551,6 +552,7 @@ function start() {
       page.bits = m.bits;
       showFigures();
       requestDraw();
+      MsTools.recast();     // measuring points follow the finer surface
     } else if (m.type === 'complete') {
       if (m.seq !== cameraSeq)
         return;              // an earlier camera's; the latest one is under way
@@ -575,6 +577,14 @@ function start() {
   worker.postMessage({ type: 'start', name, token: sessionStorage.getItem(TOKEN_KEY) || '', culled,
                        layout: staticSite ? 'static' : 'door',
                        camera: camera ? workerCamera() : null });
+  try {
+    setUpGl();
+  } catch (e) {
+    worker.terminate();
+    failPage('WebGL 2 failed: ' + e.message);
+    return;
+  }
+  MsTools.started();
 }
 
 start();

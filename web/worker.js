@@ -2,9 +2,16 @@
 // of the C sources, compiled to WebAssembly (make wasm: meshstream.js and
 // meshstream.wasm, the interface of client/web/ms_web_view.h), fed over the
 // HTTP side door. Messages in: {type: 'start', name, token, camera, culled},
-// {type: 'camera', camera} (a new camera: the loop plans again). Out:
-// {type: 'box'}, {type: 'progress'}, {type: 'mesh'} (positions and triangles,
-// transferred), {type: 'complete'}, {type: 'error', message}.
+// {type: 'camera', camera} (a new camera: the loop plans again),
+// {type: 'sections', planes} (a b c d each: ms_web_view_sections; the page
+// sends a camera after them), {type: 'cast', rays: [{origin, direction,
+// tMin, tNear}], ...} (ms_web_view_cast on the last mesh; answered at once
+// with the message's fields and hits: [{point, t, bits, step, modelBits} or
+// null]), {type: 'refine', seq, points: [{point, direction}]} (each point
+// refined to full precision by a probe, then cast: answered point by point).
+// Out: {type: 'box'}, {type: 'progress'}, {type: 'mesh'} (positions
+// and triangles, transferred), {type: 'complete'}, {type: 'cast'},
+// {type: 'error', message}.
 'use strict';
 importScripts('meshstream.js');   // beside this file
 
@@ -31,7 +38,12 @@ const LAYOUTS = {
 let layout = LAYOUTS.door;
 
 const IN_FLIGHT = 8;        // cell fetches at a time
+const SILENCE_MS = 10000;   // a request with nothing heard for this long is abandoned
 const PLAN_MAX = 256;       // cells listed by one plan
+const SHOW_EVERY_MS = 200;       // within a round, how often what came is decoded and shown,
+const DECODE_EVERY_BYTES = 32768; // or after how many bytes
+const FIRST_LOOK = [16, 64, 256, 4096]; // the first round's tolerances, times the camera's
+const FIRST_LOOK_BYTES = 32768;         // and the most that round may fetch
 const ERROR_SIZE = 520;     // sizeof(ms_error), with room
 
 let M = null;               // the WebAssembly module
@@ -41,8 +53,8 @@ function fail(message) {
   postMessage({ type: 'error', message });
 }
 
-function lastError() {
-  return M.UTF8ToString(M._ms_web_view_error(view));
+function lastError(v) {
+  return M.UTF8ToString(M._ms_web_view_error(v || view));
 }
 
 // A GET whose answer is read whole: {status, bytes}. Any failure of the
@@ -56,11 +68,24 @@ async function get(path, token, extra) {
     headers.Authorization = 'Bearer ' + token;   // never in the URL
   let answer, bytes;
   for (let attempt = 0; ; ++attempt) {
+    // A silent server (or a connection the browser keeps waiting on after
+    // its peer went away) must not leave the page loading for ever: the
+    // request is abandoned after SILENCE_MS without a byte.
+    const abort = new AbortController();
+    let timer = setTimeout(() => abort.abort(), SILENCE_MS);
+    const heard = () => {
+      clearTimeout(timer);
+      timer = setTimeout(() => abort.abort(), SILENCE_MS);
+    };
     try {
-      answer = await fetch(url, { headers, cache: 'default' });
-      bytes = new Uint8Array(await answer.arrayBuffer());
+      answer = await fetch(url, { headers, cache: 'default', signal: abort.signal });
+      heard();
+      bytes = await readBody(answer, heard);
     } catch (e) {
-      throw new Error('the server cannot be reached (/' + path.replace(/\?.*/, '') + ')');
+      throw new Error((abort.signal.aborted ? 'the server stopped answering' : 'the server cannot be reached') +
+                      ' (/' + path.replace(/\?.*/, '') + ')');
+    } finally {
+      clearTimeout(timer);
     }
     // the server's request rate limit: wait as it says, a few times
     if (answer.status !== 429 || attempt === 4)
@@ -75,6 +100,31 @@ async function get(path, token, extra) {
     throw e;
   }
   return { status: answer.status, bytes };
+}
+
+// An answer's body, whole; heard() at each piece that comes.
+async function readBody(answer, heard) {
+  if (!answer.body)
+    return new Uint8Array(await answer.arrayBuffer());
+  const reader = answer.body.getReader(), pieces = [];
+  let length = 0;
+  for (;;) {
+    const { done, value } = await reader.read();
+    if (done)
+      break;
+    heard();
+    pieces.push(value);
+    length += value.length;
+  }
+  if (pieces.length === 1)
+    return pieces[0];
+  const bytes = new Uint8Array(length);
+  let at = 0;
+  for (const piece of pieces) {
+    bytes.set(piece, at);
+    at += piece.length;
+  }
+  return bytes;
 }
 
 function withHeap(bytes, fn) {
@@ -119,22 +169,30 @@ function setCamera(c) {
 // reader may read) and hands it over; returns the bytes received.
 // prefix: the byte length complete at bits (ms_web_view_plan_bytes), which a
 // static layout asks for as a range.
-async function fetchCell(name, token, cell, bits, prefix) {
-  const held = M._ms_web_view_held(view, cell);
+async function fetchCell(name, token, cell, bits, prefix, v) {
+  v = v || view;
+  const held = M._ms_web_view_held(v, cell);
   const end = layout.ranged && bits !== null ? '' + (prefix - 1) : '';
   const range = held || end ? { Range: 'bytes=' + held + '-' + end } : null;
   const answer = await get(layout.cell(name, cell, bits), token, range);
   const bytes = answer.bytes;
   const offset = answer.status === 206 ? held : 0;
-  const st = withHeap(bytes, p => M._ms_web_view_give(view, cell, offset, p, bytes.length));
+  const st = withHeap(bytes, p => M._ms_web_view_give(v, cell, offset, p, bytes.length));
   if (st !== 0)
-    throw new Error('cell ' + cell + ': ' + lastError());
+    throw new Error('cell ' + cell + ': ' + lastError(v));
   return bytes.length;
 }
 
 // Seconds spent, for the page's figures: selecting and decoding (plan),
 // waiting for cells (fetch), stitching and copying out the mesh (stitch).
-const timing = { plan: 0, fetch: 0, stitch: 0 };
+// marks: milliseconds from the worker's start to its first steps (index
+// read, first mesh posted).
+const timing = { plan: 0, fetch: 0, stitch: 0, marks: {} };
+
+function mark(name) {
+  if (!(name in timing.marks))
+    timing.marks[name] = Math.round(performance.now());
+}
 
 function timed(key, fn) {
   const t = performance.now();
@@ -147,6 +205,8 @@ function timed(key, fn) {
 
 function postMesh(final) {
   timed('stitch', () => stitchAndPost(final));
+  if (M._ms_web_view_triangle_count(view))
+    mark('mesh');
 }
 
 function stitchAndPost(final) {
@@ -170,24 +230,35 @@ function nextCamera() {
 }
 
 async function run(msg) {
+  mark('start');
   const { name, token } = msg;
   const started = performance.now();
   layout = LAYOUTS[msg.layout] || LAYOUTS.door;
-  M = await createMeshstream({ locateFile: file => new URL(file, self.location.href).href });
-  let catalogue;
-  try {
-    // the catalogue's entries whose name (or title, description) holds NAME
-    // (a page of at most 1000)
-    catalogue = JSON.parse(new TextDecoder().decode(
-      (await get(layout.catalogue(name), token)).bytes));
-  } catch (e) {
-    throw new Error('cannot read the catalogue: ' + e.message);
-  }
+  // The module compiles while the catalogue's entry and the index arrive: the
+  // three at once, not one round trip after another (first pixels).
+  const module = createMeshstream({ locateFile: file => new URL(file, self.location.href).href });
+  // the catalogue's entries whose name (or title, description) holds NAME
+  // (a page of at most 1000)
+  const listing = get(layout.catalogue(name), token).then(
+    answer => JSON.parse(new TextDecoder().decode(answer.bytes)),
+    e => { throw new Error('cannot read the catalogue: ' + e.message); });
+  // the index's failure is told after the catalogue's verdict (an unknown
+  // model is named as such, not as the index's 404)
+  const index = get(layout.index(name), token).catch(e => e);
+  const [catalogue, indexAnswer] = await Promise.all([
+    listing.then(c => { mark('catalogue'); return c; }),
+    index.then(a => { mark('index fetched'); return a; }),
+    module.then(m => { M = m; mark('module'); })]);
   const entry = catalogue.models.find(m => m.name === name);
   if (!entry)
     throw new Error('no model named "' + name + '" on this server');
-  const blob = (await get(layout.index(name), token)).bytes;
+  if (indexAnswer instanceof Error)
+    throw indexAnswer;
+  const blob = indexAnswer.bytes;
+  mark('index');
   view = openIndex(blob, name);
+  opened = { name, token, blob };
+  applySections();
   const bp = M._malloc(32);
   M._ms_web_view_box(view, bp);
   const box = Array.from(new Float64Array(M.HEAPU8.buffer, bp, 4));
@@ -209,21 +280,51 @@ async function run(msg) {
   const preview = (!token || layout.ranged) && entry.public_max_bits < entry.bits;
   if (preview)
     M._ms_web_view_permit(view, entry.public_max_bits + 1);
+  opened.permit = preview ? entry.public_max_bits + 1 : 0;
   if (msg.camera)
     pendingCamera = msg.camera;
   while (!pendingCamera)
     await nextCamera();
   const settledPtr = M._malloc(4);
   let seq = 0;                    // the page's number of the camera applied
+  // A first look: with nothing drawn yet (a camera from the URL), the first
+  // round selects at the finest of a few coarser tolerances whose bytes stay
+  // within FIRST_LOOK_BYTES: the coarse levels, drawn within a round trip.
+  // The rounds after it refine from there, and the streams being
+  // progressive, its bytes are the prefixes they extend, not extra bytes.
+  const firstLookCamera = c => {
+    for (const times of FIRST_LOOK) {
+      const coarse = Object.assign({}, c, { tolerance: c.tolerance * times });
+      setCamera(coarse);
+      if (timed('plan', () => M._ms_web_view_plan(view, PLAN_MAX, settledPtr)) !== 0)
+        throw new Error('selecting the cut: ' + lastError());
+      if (planNeed(M._ms_web_view_plan_count(view)) <= FIRST_LOOK_BYTES)
+        return;
+    }
+  };
+  let current = null, looking = false, firstLook = !bounds;
   for (;;) {
     if (pendingCamera) {
-      setCamera(pendingCamera);
-      seq = pendingCamera.seq;
+      current = pendingCamera;
+      seq = current.seq;
       pendingCamera = null;
+      looking = firstLook;
+      firstLook = false;
+      if (looking)
+        firstLookCamera(current);
+      else
+        setCamera(current);
+    } else if (looking) {
+      looking = false;            // the first look is in: the camera's own tolerance
+      setCamera(current);
     }
     if (timed('plan', () => M._ms_web_view_plan(view, PLAN_MAX, settledPtr)) !== 0)
       throw new Error('selecting the cut: ' + lastError());
     const count = M._ms_web_view_plan_count(view);
+    if (M.HEAPU32[settledPtr >> 2] && looking) {
+      postMesh(false);
+      continue;
+    }
     if (M.HEAPU32[settledPtr >> 2]) {
       postMesh(true);
       postMessage({ type: 'complete', seq, bytes, rounds, preview, timing,
@@ -232,36 +333,194 @@ async function run(msg) {
         await nextCamera();
       continue;
     }
-    if (rounds === 0 && bounds)
-      postMesh(false);            // the root the home camera was framed with: pixels at once
+    // what this plan decoded, at once: the root the home camera was framed
+    // with, then each round's cells (before, a round's picture waited for
+    // the next round's fetches)
+    if (changed(count) || (rounds === 0 && bounds))
+      postMesh(false);
     const wanted = [];
     for (let k = 0; k < count; ++k)
       wanted.push([M._ms_web_view_plan_cell(view, k), M._ms_web_view_plan_bits(view, k),
                    M._ms_web_view_plan_bytes(view, k)]);
     // the bytes this round still wants: the page's progress bar
-    let need = 0;
-    for (const [cell, , prefix] of wanted)
-      need += Math.max(prefix - M._ms_web_view_held(view, cell), 0);
+    let need = planNeed(count);
     postMessage({ type: 'progress', bytes, need, rounds, wanted: count });
-    let next = 0;
+    let next = 0, given = 0, shownAt = performance.now(), fresh = 0;
+    const queued = new Map(wanted.map(([cell, bits]) => [cell, bits]));
     const lane = async () => {
       while (next < wanted.length) {
         const [cell, bits, prefix] = wanted[next++];
         const got = await fetchCell(name, token, cell, bits, prefix); // not `bytes += await`: lanes interleave
         bytes += got;
         need = Math.max(need - got, 0);
+        given++;
+        fresh += got;
         postMessage({ type: 'progress', bytes, need, rounds, wanted: count });
+        // A long round decodes what has come every DECODE_EVERY_BYTES and
+        // shows it every SHOW_EVERY_MS: decoding the cells given so far overlaps
+        // the fetches still on their way (the browser's network goes on
+        // while the worker decodes), and the picture fills in cell by cell
+        // instead of waiting for the round.
+        // What that plan lists beyond the round (the children of the cells
+        // just decoded) joins the round's queue while the camera stays, so
+        // the next level's fetches start without waiting for the round's
+        // last cell.
+        const showDue = performance.now() - shownAt >= SHOW_EVERY_MS;
+        if (given < wanted.length && (showDue || fresh >= DECODE_EVERY_BYTES)) {
+          fresh = 0;
+          if (timed('plan', () => M._ms_web_view_plan(view, PLAN_MAX, settledPtr)) !== 0)
+            throw new Error('selecting the cut: ' + lastError());
+          const listed = M._ms_web_view_plan_count(view);
+          if (showDue && changed(listed)) { // stitching is the whole cut's: not every decode
+            postMesh(false);
+            shownAt = performance.now();
+          }
+          for (let k = 0; k < listed && !pendingCamera; ++k) {
+            const cell = M._ms_web_view_plan_cell(view, k), bits = M._ms_web_view_plan_bits(view, k);
+            if (!queued.has(cell) || queued.get(cell) < bits) {
+              queued.set(cell, bits);
+              wanted.push([cell, bits, M._ms_web_view_plan_bytes(view, k)]);
+            }
+          }
+        }
       }
     };
     const fetchStart = performance.now();
     await Promise.all(Array.from({ length: Math.min(IN_FLIGHT, wanted.length) }, lane));
     timing.fetch += (performance.now() - fetchStart) / 1000;
     rounds++;
-    postMesh(false);              // what the bytes so far show
   }
 }
 
+// The bytes the plan's cells lack of the prefixes it lists.
+function planNeed(count) {
+  let need = 0;
+  for (let k = 0; k < count; ++k)
+    need += Math.max(M._ms_web_view_plan_bytes(view, k) -
+                     M._ms_web_view_held(view, M._ms_web_view_plan_cell(view, k)), 0);
+  return need;
+}
+
+// Whether the cut differs from the one last posted (its shown cells, their
+// finest bits and the bytes held behind them): a plan that decoded nothing
+// new posts nothing. `count`: the plan's length, which changes with the cut.
+let lastShown = null;
+function changed(count) {
+  const now = [M._ms_web_view_shown_cells(view), M._ms_web_view_max_bits(view),
+               Number(M._ms_web_view_bytes_held(view)), count].join(',');
+  const differs = now !== lastShown;
+  lastShown = now;
+  return differs;
+}
+
+// The section planes asked for (applied once the view exists), and what
+// the model was opened with (a probe opens it again).
+let sections = [], opened = null;
+
+function applySections(v) {
+  v = v || view;
+  if (!v)
+    return;
+  const p = M._malloc(Math.max(sections.length, 1) * 32);
+  new Float64Array(M.HEAPU8.buffer, p, 4 * sections.length).set(sections.flat());
+  const st = M._ms_web_view_sections(v, p, sections.length);
+  M._free(p);
+  if (st !== 0)
+    fail('section planes: ' + lastError(v));
+}
+
+// The cast of a ray on view v's last stitch: {point, t, bits, step,
+// modelBits} or null. p: 13 doubles of the heap.
+function castOne(v, r, p) {
+  const d = new Float64Array(M.HEAPU8.buffer, p, 13);
+  d.set([...r.origin, ...r.direction]);
+  if (!M._ms_web_view_cast(v, p, p + 24, r.tMin, r.tNear, p + 48))
+    return null;
+  const o = Array.from(new Float64Array(M.HEAPU8.buffer, p + 48, 7));
+  return { point: o.slice(0, 3), t: o[3], bits: o[4], step: o[5], modelBits: o[6] };
+}
+
+// The probe (meshview's ms_viewer_probe.h): the cells under a measuring
+// point refined to full precision by a view of its own, which sees only the
+// point (from a thousandth of the box side in front of it along its ray, a
+// hundredth of a degree on 1000 x 1000 pixels: the cells there want more
+// bits than the model has; nothing outside wanted, culled 64 bits less),
+// fetched to settled (the browser's cache holds what the view fetched);
+// then the ray cast on its mesh. Answers {type: 'cast', refine: true, seq,
+// index, hit}.
+async function refine(msg) {
+  if (!opened)
+    return;
+  const box = new Float64Array(4), bp = M._malloc(32);
+  M._ms_web_view_box(view, bp);
+  box.set(new Float64Array(M.HEAPU8.buffer, bp, 4));
+  M._free(bp);
+  for (const [index, r] of msg.points.entries()) {
+    const probe = openIndex(opened.blob, opened.name);
+    let hit = null;
+    try {
+      M._ms_web_view_culled(probe, 64);
+      if (opened.permit)
+        M._ms_web_view_permit(probe, opened.permit);
+      applySections(probe);
+      const len = Math.hypot(...r.direction), dir = r.direction.map(x => x / len);
+      const back = box[3] / 1000, position = r.point.map((x, a) => x - back * dir[a]);
+      const side = Math.abs(dir[1]) < 0.9 ? [0, 1, 0] : [1, 0, 0];
+      const p = M._malloc(13 * 8);
+      try {
+        new Float64Array(M.HEAPU8.buffer, p, 9).set([...position, ...r.point, ...side]);
+        if (M._ms_web_view_camera(probe, p, p + 24, p + 48, 0.01, 1000, 1000, 0, 0, 1) !== 0)
+          throw new Error(lastError(probe));
+        const settled = p + 72;
+        for (let round = 0; round < 64; ++round) {
+          if (M._ms_web_view_plan(probe, PLAN_MAX, settled) !== 0)
+            throw new Error(lastError(probe));
+          if (M.HEAPU32[settled >> 2])
+            break;
+          const n = M._ms_web_view_plan_count(probe);
+          for (let k = 0; k < n; ++k)
+            await fetchCell(opened.name, opened.token, M._ms_web_view_plan_cell(probe, k),
+                            M._ms_web_view_plan_bits(probe, k), M._ms_web_view_plan_bytes(probe, k), probe);
+        }
+        if (M._ms_web_view_stitch(probe) !== 0)
+          throw new Error(lastError(probe));
+        hit = castOne(probe, { origin: position, direction: dir, tMin: 0, tNear: back }, p);
+      } finally {
+        M._free(p);
+      }
+    } catch (e) {
+      hit = null;             // the point stays as the view has it
+    } finally {
+      M._ms_web_view_free(probe);
+    }
+    postMessage({ type: 'cast', refine: true, seq: msg.seq, index, hit });
+  }
+}
+
+function cast(msg) {
+  const hits = [];
+  const p = view ? M._malloc(13 * 8) : 0;
+  for (const r of msg.rays)
+    hits.push(view ? castOne(view, r, p) : null);
+  if (p)
+    M._free(p);
+  postMessage(Object.assign({}, msg, { type: 'cast', hits }));
+}
+
 onmessage = e => {
+  if (e.data.type === 'sections') {
+    sections = e.data.planes;
+    applySections();
+    return;
+  }
+  if (e.data.type === 'cast') {
+    cast(e.data);
+    return;
+  }
+  if (e.data.type === 'refine') {
+    refine(e.data).catch(err => fail('refining a measuring point: ' + (err.message || String(err))));
+    return;
+  }
   if (e.data.type === 'start') {
     run(e.data).catch(err => fail(err.message || String(err)));
   } else if (e.data.type === 'camera') {

@@ -1,5 +1,6 @@
 /* Binary-protocol client connection: see ms_client.h. */
 #include "ms_client.h"
+#include "ms_client_internal.h"
 
 #include <event2/buffer.h>
 #include <event2/bufferevent.h>
@@ -15,55 +16,17 @@
 
 #define DEFAULT_MAX_FRAME (1u << 20)
 
-/* A request sent and not yet ended by its terminal frame (PROTOCOL.md 5):
- * what the server may answer. Kept in id order (ids come from one counter). */
-typedef enum { PENDING_CELLS, PENDING_OPEN, PENDING_LIST } pending_kind;
-typedef struct pending {
-    uint32_t id;
-    uint32_t handle, cell;     /* CELLS: the handle, cell (subtree) id asked for */
-    uint32_t start, end;       /* CELLS, BYTES: the range; STEPS: end from the first frame */
-    uint32_t next;             /* the offset the next PAYLOAD must start at, once started */
-    uint8_t kind, stream, unit;
-    bool started;              /* a first PAYLOAD, or OPEN: MODEL_OPENED, came */
-    bool done;                 /* its terminal frame came */
-} pending;
 
-struct ms_client {
-    struct bufferevent *bev;
-    const ms_client_handlers *handlers;
-    void *arg;
-    ms_proto_decoder *decoder; /* owned */
-    ms_proto_hello_reply limits;
-    uint32_t next_id;
-    bool over;
-    /* The index blob being received (one OPEN_MODEL at a time is reassembled;
-     * others interleave only if the caller opens several at once, which the
-     * server answers in order anyway). */
-    uint32_t index_request;
-    ms_proto_model_opened opened;
-    uint8_t *index;         /* index_size bytes: the blob, received or inflated */
-    uint32_t index_have;    /* bytes of INDEX_DATA received (the wire form's) */
-    uint32_t index_wire;    /* the wire size of the last index handed over */
-    uint8_t *index_zlib;    /* the compressed form as it arrives (ZLIB encoding) */
-    bool ask_index_zlib;    /* offer CAP_INDEX_ZLIB in HELLO */
-    bool ask_index_subtrees; /* offer CAP_INDEX_SUBTREES in HELLO */
-    struct ev_token_bucket_cfg *rate;
-    uint64_t bytes_read;
-    pending *pending;          /* outstanding requests, ids ascending (done ones until compacted) */
-    size_t pending_count, pending_cap, pending_done;
-};
-
-static void finish(ms_client *c, const char *why)
+void ms_client_finish(ms_client *c, const char *why)
 {
     if (c->over)
         return;
     c->over = true;
+    snprintf(c->why, sizeof c->why, "%s", why);
     bufferevent_disable(c->bev, EV_READ | EV_WRITE);
     if (c->handlers->closed)
         c->handlers->closed(c, why, c->arg);
 }
-
-static ms_status send_message(ms_client *c, const ms_proto_message *msg, ms_error *err);
 
 /* A frame from the server broke the protocol: the client can no longer trust
  * the connection (PROTOCOL.md 9, last paragraph). It says so to the server
@@ -97,9 +60,9 @@ static void violation(ms_client *c, uint16_t code, uint64_t detail, const char *
         ms_proto_encode(&e, frame, sizeof frame, &n, NULL) == MS_OK)
         (void)!send(fd, frame, n, MSG_NOSIGNAL | MSG_DONTWAIT);
     else
-        send_message(c, &e, NULL);
+        ms_client_send_message(c, &e, NULL);
     snprintf(why, sizeof why, "protocol violation: %s", what);
-    finish(c, why);
+    ms_client_finish(c, why);
 }
 
 void ms_client_violation(ms_client *c, uint16_t code, uint64_t detail, const char *why)
@@ -114,7 +77,7 @@ static int compare_pending(const void *key, const void *entry)
 }
 
 /* The outstanding request id, or NULL (never sent, or ended). */
-static pending *pending_find(ms_client *c, uint32_t id)
+pending *ms_client_pending_find(ms_client *c, uint32_t id)
 {
     pending *p = c->pending_count ? bsearch(&id, c->pending, c->pending_count, sizeof *p,
                                             compare_pending)
@@ -122,7 +85,7 @@ static pending *pending_find(ms_client *c, uint32_t id)
     return p && !p->done ? p : NULL;
 }
 
-static pending *pending_add(ms_client *c, uint32_t id)
+pending *ms_client_pending_add(ms_client *c, uint32_t id)
 {
     if (c->pending_count == c->pending_cap) {
         size_t cap = c->pending_cap ? 2 * c->pending_cap : 64;
@@ -142,7 +105,7 @@ static pending *pending_add(ms_client *c, uint32_t id)
     return p;
 }
 
-static void pending_end(ms_client *c, pending *p)
+void ms_client_pending_end(ms_client *c, pending *p)
 {
     p->done = true;
     c->pending_done++;
@@ -166,7 +129,7 @@ static void pending_compact(ms_client *c)
  * contiguous from its range's start, with the same end (PROTOCOL.md 4.11). */
 static bool payload_acceptable(ms_client *c, uint32_t id, const ms_proto_payload *p, bool last)
 {
-    pending *q = pending_find(c, id);
+    pending *q = ms_client_pending_find(c, id);
     if (!q || q->kind != PENDING_CELLS) {
         violation(c, MS_PROTO_E_UNEXPECTED_MESSAGE, MS_PROTO_PAYLOAD,
                   "PAYLOAD for request %u, which is not an outstanding cell request", id);
@@ -192,11 +155,11 @@ static bool payload_acceptable(ms_client *c, uint32_t id, const ms_proto_payload
     q->end = p->end;
     q->next = p->offset + p->data_length;
     if (last)
-        pending_end(c, q);
+        ms_client_pending_end(c, q);
     return true;
 }
 
-static ms_status send_message(ms_client *c, const ms_proto_message *msg, ms_error *err)
+ms_status ms_client_send_message(ms_client *c, const ms_proto_message *msg, ms_error *err)
 {
     if (c->over)
         return ms_error_set(err, MS_ERR_IO, "the connection is closed");
@@ -219,7 +182,7 @@ static ms_status send_message(ms_client *c, const ms_proto_message *msg, ms_erro
     return st;
 }
 
-static uint32_t take_ids(ms_client *c, uint32_t count)
+uint32_t ms_client_take_ids(ms_client *c, uint32_t count)
 {
     if (c->next_id == 0 || (uint64_t)c->next_id + count > 0xFFFFFFFFull)
         c->next_id = 1;
@@ -240,13 +203,13 @@ static bool index_complete(ms_client *c)
         if (st != MS_OK) {
             char why[MS_ERROR_TEXT_MAX + 40];
             snprintf(why, sizeof why, "bad model index from the server: %s", err.text);
-            finish(c, why);
+            ms_client_finish(c, why);
         }
         return st == MS_OK;
     }
     if (c->index_have != c->opened.index_size ||
         crc32_z(0L, c->index, c->index_have) != c->opened.index_crc32) {
-        finish(c, "model index blob fails its CRC-32");
+        ms_client_finish(c, "model index blob fails its CRC-32");
         return false;
     }
     return true;
@@ -269,7 +232,7 @@ static void handle_index(ms_client *c, const ms_proto_message *m)
     if (zlib) {
         to = realloc(c->index_zlib, (size_t)c->index_have + d->data_length);
         if (!to) {
-            finish(c, "out of memory for a model index");
+            ms_client_finish(c, "out of memory for a model index");
             return;
         }
         c->index_zlib = to;
@@ -278,9 +241,9 @@ static void handle_index(ms_client *c, const ms_proto_message *m)
     c->index_have += d->data_length;
     if (!(m->flags & MS_PROTO_FLAG_LAST) || !index_complete(c))
         return;
-    pending *q = pending_find(c, m->request_id);
+    pending *q = ms_client_pending_find(c, m->request_id);
     if (q)
-        pending_end(c, q);
+        ms_client_pending_end(c, q);
     uint8_t *index = c->index;
     c->index = NULL;
     c->index_request = 0;
@@ -335,7 +298,7 @@ static bool handle_message(ms_client *c, const ms_proto_message *m)
             break;
         }
         {
-            pending *q = pending_find(c, m->request_id);
+            pending *q = ms_client_pending_find(c, m->request_id);
             if (!q || q->kind != PENDING_OPEN || q->started || c->index) {
                 violation(c, MS_PROTO_E_UNEXPECTED_MESSAGE, MS_PROTO_MODEL_OPENED,
                           "MODEL_OPENED for request %u, which is no open request awaiting it",
@@ -351,9 +314,10 @@ static bool handle_message(ms_client *c, const ms_proto_message *m)
         c->index_have = 0;
         c->index_request = m->request_id;
         if (!c->index)
-            finish(c, "out of memory for a model index");
+            ms_client_finish(c, "out of memory for a model index");
         break;
     case MS_PROTO_INDEX_DATA: handle_index(c, m); break;
+    case MS_PROTO_DOCUMENT: ms_client_handle_document(c, m); break;
     case MS_PROTO_PAYLOAD:
         if (!payload_acceptable(c, m->request_id, &m->body.payload, m->flags & MS_PROTO_FLAG_LAST))
             break;
@@ -367,19 +331,27 @@ static bool handle_message(ms_client *c, const ms_proto_message *m)
             snprintf(why, sizeof why, "server error %s: %.*s",
                      ms_proto_error_name(m->body.error.code), (int)m->body.error.text_length,
                      m->body.error.text);
-            finish(c, why);
+            ms_client_finish(c, why);
         } else {
             const ms_proto_error_body *e = &m->body.error;
             for (uint64_t id = m->request_id; id < (uint64_t)m->request_id + e->request_count; ++id) {
-                pending *q = pending_find(c, (uint32_t)id);
+                pending *q = ms_client_pending_find(c, (uint32_t)id);
                 if (q)
-                    pending_end(c, q);
+                    ms_client_pending_end(c, q);
+            }
+            if (c->waiting && c->wait_id >= m->request_id &&
+                c->wait_id - m->request_id < e->request_count) { /* the wait's answer */
+                snprintf(c->why, sizeof c->why, "%s %.*s", ms_proto_error_name(e->code),
+                         (int)(e->text_length > 150 ? 150 : e->text_length), e->text);
+                c->wait_done = true;
+                c->wait_id = 0;
+                break;
             }
             if (e->request_count == 0 && e->code == MS_PROTO_E_MODEL_CHANGED)
                 for (size_t i = 0; i < c->pending_count; ++i) /* the handle's requests ended */
                     if (!c->pending[i].done && c->pending[i].kind == PENDING_CELLS &&
                         c->pending[i].handle == e->detail)
-                        pending_end(c, &c->pending[i]);
+                        ms_client_pending_end(c, &c->pending[i]);
         }
         if (!m->body.error.fatal && c->handlers->request_error) {
             c->handlers->request_error(c, m->request_id, m->body.error.request_count,
@@ -389,7 +361,7 @@ static bool handle_message(ms_client *c, const ms_proto_message *m)
     case MS_PROTO_PING: {
         ms_proto_message pong = {.type = MS_PROTO_PONG};
         pong.body.ping = m->body.ping;
-        send_message(c, &pong, NULL);
+        ms_client_send_message(c, &pong, NULL);
         break;
     }
     case MS_PROTO_PONG:
@@ -398,14 +370,14 @@ static bool handle_message(ms_client *c, const ms_proto_message *m)
         break;
     case MS_PROTO_CATALOGUE:
     case MS_PROTO_CATALOGUE_PAGE: {
-        pending *q = pending_find(c, m->request_id);
+        pending *q = ms_client_pending_find(c, m->request_id);
         if (!q || q->kind != PENDING_LIST) {
             violation(c, MS_PROTO_E_UNEXPECTED_MESSAGE, m->type,
                       "CATALOGUE for request %u, which is no catalogue request", m->request_id);
             break;
         }
         if (m->flags & MS_PROTO_FLAG_LAST)
-            pending_end(c, q);
+            ms_client_pending_end(c, q);
         if (c->handlers->catalogue)
             c->handlers->catalogue(c, m->request_id, &m->body.catalogue,
                                    m->flags & MS_PROTO_FLAG_LAST, c->arg);
@@ -437,7 +409,7 @@ static void on_read(struct bufferevent *bev, void *arg)
         if (st != MS_OK) {
             char why[MS_ERROR_TEXT_MAX + 32];
             snprintf(why, sizeof why, "bad frame from the server: %s", err.text);
-            finish(c, why);
+            ms_client_finish(c, why);
             return;
         }
         if (have && !handle_message(c, &m))
@@ -454,7 +426,7 @@ static void on_event(struct bufferevent *bev, short what, void *arg)
         setsockopt(bufferevent_getfd(c->bev), IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
         return;
     }
-    finish(c, what & BEV_EVENT_EOF ? "closed by the server" : "socket error");
+    ms_client_finish(c, what & BEV_EVENT_EOF ? "closed by the server" : "socket error");
 }
 
 ms_status ms_client_connect(struct event_base *base, const ms_client_options *o,
@@ -514,7 +486,7 @@ ms_status ms_client_connect(struct event_base *base, const ms_client_options *o,
     h->token_length = o->token ? (uint16_t)strlen(o->token) : 0;
     h->agent = o->agent ? o->agent : "";
     h->agent_length = (uint16_t)strlen(h->agent);
-    if ((st = send_message(c, &hello, err)) != MS_OK) {
+    if ((st = ms_client_send_message(c, &hello, err)) != MS_OK) {
         ms_client_free(c);
         return st;
     }
@@ -534,6 +506,8 @@ void ms_client_free(ms_client *c)
     free(c->index);
     free(c->index_zlib);
     free(c->pending);
+    free(c->doc);
+    free(c->wait_bytes);
     free(c);
 }
 
@@ -541,7 +515,7 @@ ms_status ms_client_list_catalogue(ms_client *c, const ms_client_page_request *p
                                    uint32_t *request_id, ms_error *err)
 {
     ms_proto_message m = {.type = page ? MS_PROTO_LIST_PAGE : MS_PROTO_LIST_CATALOGUE,
-                          .request_id = take_ids(c, 1)};
+                          .request_id = ms_client_take_ids(c, 1)};
     if (page) {
         ms_proto_list_page *l = &m.body.list_page;
         l->offset = page->offset;
@@ -552,8 +526,8 @@ ms_status ms_client_list_catalogue(ms_client *c, const ms_client_page_request *p
         l->query_length = (uint8_t)strlen(l->query);
     }
     *request_id = m.request_id;
-    ms_status st = send_message(c, &m, err);
-    pending *p = st == MS_OK ? pending_add(c, m.request_id) : NULL;
+    ms_status st = ms_client_send_message(c, &m, err);
+    pending *p = st == MS_OK ? ms_client_pending_add(c, m.request_id) : NULL;
     if (st == MS_OK && !p)
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory for a request");
     if (p)
@@ -566,12 +540,12 @@ ms_status ms_client_open_model(ms_client *c, const char *name, uint32_t *request
     size_t n = strlen(name);
     if (!ms_proto_model_name_valid(name, n, NULL))
         return ms_error_set(err, MS_ERR_ARG, "'%s' is not a model name", name);
-    ms_proto_message m = {.type = MS_PROTO_OPEN_MODEL, .request_id = take_ids(c, 1)};
+    ms_proto_message m = {.type = MS_PROTO_OPEN_MODEL, .request_id = ms_client_take_ids(c, 1)};
     m.body.open_model.name = name;
     m.body.open_model.name_length = (uint8_t)n;
     *request_id = m.request_id;
-    ms_status st = send_message(c, &m, err);
-    pending *p = st == MS_OK ? pending_add(c, m.request_id) : NULL;
+    ms_status st = ms_client_send_message(c, &m, err);
+    pending *p = st == MS_OK ? ms_client_pending_add(c, m.request_id) : NULL;
     if (st == MS_OK && !p)
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory for a request");
     if (p)
@@ -583,7 +557,7 @@ ms_status ms_client_close_model(ms_client *c, uint32_t handle, ms_error *err)
 {
     ms_proto_message m = {.type = MS_PROTO_CLOSE_MODEL};
     m.body.close_model.model_handle = handle;
-    return send_message(c, &m, err);
+    return ms_client_send_message(c, &m, err);
 }
 
 ms_status ms_client_request_cells(ms_client *c, uint32_t handle, const ms_proto_cell_request *e,
@@ -591,14 +565,14 @@ ms_status ms_client_request_cells(ms_client *c, uint32_t handle, const ms_proto_
 {
     if (count == 0 || count > MS_PROTO_MAX_BATCH)
         return ms_error_set(err, MS_ERR_ARG, "batch of %u requests", count);
-    ms_proto_message m = {.type = MS_PROTO_REQUEST_CELLS, .request_id = take_ids(c, count)};
+    ms_proto_message m = {.type = MS_PROTO_REQUEST_CELLS, .request_id = ms_client_take_ids(c, count)};
     m.body.request_cells.model_handle = handle;
     m.body.request_cells.entries = e;
     m.body.request_cells.count = count;
     *first_id = m.request_id;
-    ms_status st = send_message(c, &m, err);
+    ms_status st = ms_client_send_message(c, &m, err);
     for (uint16_t i = 0; st == MS_OK && i < count; ++i) {
-        pending *p = pending_add(c, m.request_id + i);
+        pending *p = ms_client_pending_add(c, m.request_id + i);
         if (!p)
             return ms_error_set(err, MS_ERR_NOMEM, "out of memory for a request");
         p->kind = PENDING_CELLS;
@@ -615,7 +589,7 @@ ms_status ms_client_cancel(ms_client *c, const ms_proto_id_range *ranges, uint16
     ms_proto_message m = {.type = MS_PROTO_CANCEL};
     m.body.cancel.ranges = ranges;
     m.body.cancel.range_count = count;
-    return send_message(c, &m, err);
+    return ms_client_send_message(c, &m, err);
 }
 
 const ms_proto_hello_reply *ms_client_limits(const ms_client *c) { return &c->limits; }

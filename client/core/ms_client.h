@@ -48,6 +48,11 @@ typedef struct ms_client_handlers {
     /* The connection is over: why is one line (a fatal ERROR's text, a
      * protocol violation, a socket error, or "closed"). */
     void (*closed)(ms_client *client, const char *why, void *arg);
+    /* The whole document asked for by ms_client_request_document (kind:
+     * ms_document_kind): length bytes, valid during the call. A refusal comes
+     * to request_error (NO_DOCUMENT, UNKNOWN_MODEL, ...). */
+    void (*document)(ms_client *client, uint32_t request_id, uint8_t kind, const uint8_t *bytes,
+                     size_t length, void *arg);
 } ms_client_handlers;
 
 typedef struct ms_client_options {
@@ -154,6 +159,45 @@ ms_status ms_client_list_catalogue(ms_client *client, const ms_client_page_reque
 ms_status ms_client_fetch_catalogue_page(const ms_client_options *options, double timeout_s,
                                          const ms_client_page_request *page,
                                          ms_client_catalogue *catalogue, ms_error *err);
+
+/* --- A model's documents (protocol version 3, PROTOCOL.md 4.5b) ---------- */
+
+/* The longest ms_client_fetch_document waits for its answer, in seconds. */
+#define MS_CLIENT_DOCUMENT_TIMEOUT_S 30
+
+/* Sends GET_DOCUMENT for the document of kind (MS_DOCUMENT_THUMBNAIL, _METADATA
+ * or _ANNOTATIONS, ms_proto.h) of the model named model, as request
+ * *request_id: the answer comes to handlers->document whole, or a refusal to
+ * request_error. MS_ERR_ARG for a bad name or kind, MS_ERR_UNSUPPORTED when
+ * the server negotiated a version below 3, MS_ERR_IO when the connection is
+ * closed. */
+ms_status ms_client_request_document(ms_client *client, const char *model, int kind,
+                                     uint32_t *request_id, ms_error *err);
+
+/* The document of kind of the model named model, on this connection,
+ * blocking: waits for the handshake if it has not completed, sends
+ * GET_DOCUMENT and runs the connection's event loop (its other handlers run
+ * as usual meanwhile) until the whole document has come, or a refusal, or at
+ * most MS_CLIENT_DOCUMENT_TIMEOUT_S. On MS_OK *bytes (malloc'd, the caller
+ * frees it; NULL for an empty document) holds *length bytes: the PNG, the
+ * model's catalogue entry as JSON (the object GET /catalog lists: figures,
+ * "thumbnail", and the sidecar's title, creator, date, licence, description),
+ * or DIR/NAME.annotations.json as stored (at most 1 MiB). Errors (one line):
+ * MS_ERR_ARG for a bad name or kind, or when called from inside the
+ * connection's own event loop (a handler: use ms_client_request_document
+ * there); MS_ERR_UNSUPPORTED for a server below version 3; MS_ERR_IO for the
+ * server's refusal ("NO_DOCUMENT no annotations for this model",
+ * "UNKNOWN_MODEL no such model", ...), a closed connection or the time-out;
+ * MS_ERR_NOMEM. The handlers must not free the client while this waits. */
+ms_status ms_client_fetch_document(ms_client *client, const char *model, int kind,
+                                   uint8_t **bytes, size_t *length, ms_error *err);
+
+/* ms_client_fetch_document on a connection of its own (options as for
+ * ms_client_fetch_catalogue; its own event loop, so it may run on any
+ * thread), closed before it returns; timeout_s 0 = 5. */
+ms_status ms_client_fetch_document_at(const ms_client_options *options, double timeout_s,
+                                      const char *model, int kind, uint8_t **bytes,
+                                      size_t *length, ms_error *err);
 
 /* Throttles what this connection reads to bytes_per_second (a token bucket
  * refilled every 10 ms); 0 removes the limit. MS_ERR_NOMEM. */

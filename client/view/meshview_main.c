@@ -650,9 +650,9 @@ static int interactive(viewer *v)
     }
     if (o->scene_file)
         return interactive_scene(v);
-    /* The catalogue is listed once: a missing server, or an unknown model,
-     * is an error before any window; every model opens from this list. */
-    v->have_list = ms_viewer_list_models(&v->source, &v->list, &err) == MS_OK;
+    /* The catalogue's first page is listed once: a missing server, or an
+     * unknown model, is an error before any window; models open from it. */
+    v->have_list = ms_viewer_list_page(&v->source, NULL, &v->list, &err) == MS_OK;
     if (v->have_list && o->model &&
         ms_viewer_model_open_listed(&v->source, &v->list, o->model, &v->model, &err) != MS_OK)
         v->have_list = false;
@@ -680,7 +680,7 @@ static int interactive(viewer *v)
     glfwSetScrollCallback(v->window, on_scroll);
     glfwSetCharCallback(v->window, on_char);
     v->catalogue = (ms_viewer_catalogue){.list = &v->list, .where = v->where,
-                                         .archive_dir = o->archive_dir};
+                                         .archive_dir = o->archive_dir, .source = &v->source};
     v->on_catalogue = true;
     if (o->model) {
         for (size_t i = 0; v->have_list && i < v->list.count; ++i)

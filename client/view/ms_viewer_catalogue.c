@@ -28,12 +28,20 @@ static size_t rows_visible(int height, int scale)
 
 void ms_viewer_catalogue_move(ms_viewer_catalogue *cat, long delta, int height, int scale)
 {
+    size_t shown = rows_visible(height, scale);
+    ms_error err;
+    /* a server's next page, when the selection comes near the end of those held */
+    while (cat->source && cat->list->total > cat->list->count && delta > 0 &&
+           cat->selected + (size_t)delta + 2 * shown >= cat->list->count) {
+        size_t had = cat->list->count;
+        if (ms_viewer_list_more(cat->source, cat->list, &err) != MS_OK || cat->list->count == had)
+            break; /* the rows held stay */
+    }
     size_t count = cat->list->count;
     if (!count)
         return;
     long to = (long)cat->selected + delta;
     cat->selected = to < 0 ? 0 : (size_t)to >= count ? count - 1 : (size_t)to;
-    size_t shown = rows_visible(height, scale);
     if (cat->selected < cat->first)
         cat->first = cat->selected;
     if (cat->selected >= cat->first + shown)
@@ -146,19 +154,30 @@ int ms_viewer_catalogue_wrap(const char *text, int columns, int max_lines, char 
     return lines;
 }
 
-/* The selected model's picture, read once per selection. */
+/* The selected model's picture, read once per selection; a server's
+ * documents are fetched the first time its model is selected, and kept. */
 static void load_thumbnail(ms_viewer_catalogue *cat)
 {
     if (cat->thumbnail_of == cat->selected + 1)
         return;
     ms_viewer_catalogue_free(cat);
     cat->thumbnail_of = cat->selected + 1;
-    const ms_viewer_model_entry *e = &cat->list->entries[cat->selected];
-    if (!cat->archive_dir || !e->has_thumbnail)
+    ms_viewer_model_entry *e = &cat->list->entries[cat->selected];
+    ms_error err;
+    if (!cat->archive_dir) {
+        if (cat->source)
+            (void)ms_viewer_model_fetch_documents(cat->source, e, &err); /* "no picture" */
+        if (e->thumbnail_png &&
+            ms_png_decode_rgb(e->thumbnail_png, e->thumbnail_png_size, 1024, 1024,
+                              &cat->thumbnail, &cat->thumbnail_width, &cat->thumbnail_height,
+                              &err) != MS_OK)
+            cat->thumbnail = NULL;
+        return;
+    }
+    if (!e->has_thumbnail)
         return;
     char path[4200];
     snprintf(path, sizeof path, "%s/%s.thumb.png", cat->archive_dir, e->name);
-    ms_error err;
     if (ms_png_read_rgb(path, 1024, 1024, &cat->thumbnail, &cat->thumbnail_width,
                         &cat->thumbnail_height, &err) != MS_OK)
         cat->thumbnail = NULL; /* shown as "no picture" */
@@ -218,11 +237,19 @@ void ms_viewer_catalogue_draw(ms_viewer_text *text, ms_viewer_catalogue *cat, in
     char line[160];
     snprintf(line, sizeof line, "meshstream models - %s", cat->where ? cat->where : "");
     ms_viewer_text_print(text, x, y, title, line);
+    if (cat->search[0] || cat->list->total > cat->list->count) {
+        char count[64] = "";
+        if (cat->list->total > cat->list->count)
+            snprintf(count, sizeof count, "  (%zu of %zu)", cat->list->count, cat->list->total);
+        snprintf(line, sizeof line, "search: %s_%s", cat->search, count);
+        ms_viewer_text_print(text, x, y + MS_FONT_LINE_HEIGHT * s, dim, line);
+    }
     y += 2 * MS_FONT_LINE_HEIGHT * s;
     snprintf(line, sizeof line, "%-20s %11s %11s", "name", "triangles", "size");
     ms_viewer_text_print(text, x, y, dim, line);
     if (!cat->list->count) {
-        ms_viewer_text_print(text, x, FIRST_ROW_Y * s, ink, "(no models)");
+        ms_viewer_text_print(text, x, FIRST_ROW_Y * s, ink,
+                             cat->search[0] ? "(no models match)" : "(no models)");
         return;
     }
     size_t shown = rows_visible(height, s);
@@ -243,11 +270,52 @@ void ms_viewer_catalogue_draw(ms_viewer_text *text, ms_viewer_catalogue *cat, in
         ms_viewer_text_print(text, x, row_y, ink, line);
     }
     ms_viewer_text_print(text, x, height - 2 * MS_FONT_LINE_HEIGHT * s, dim,
-                         "up/down or mouse: choose   enter or double-click: open   esc: quit");
+                         "up/down or mouse: choose   enter or double-click: open   type: search   "
+                         "esc: quit");
+}
+
+ms_status ms_viewer_catalogue_search(ms_viewer_catalogue *cat, const char *search,
+                                     ms_error *err)
+{
+    if (!cat->source)
+        return MS_OK;
+    ms_viewer_model_list fresh;
+    ms_status st = ms_viewer_list_page(cat->source, search, &fresh, err);
+    if (st != MS_OK)
+        return st;
+    ms_viewer_catalogue_free(cat);
+    ms_viewer_model_list_free(cat->list);
+    *cat->list = fresh;
+    snprintf(cat->search, sizeof cat->search, "%s", fresh.query);
+    cat->selected = cat->first = 0;
+    return MS_OK;
+}
+
+/* The character a key types into the search, or 0. */
+static char search_char(int key)
+{
+    if (key >= GLFW_KEY_A && key <= GLFW_KEY_Z)
+        return (char)('a' + (key - GLFW_KEY_A));
+    if (key >= GLFW_KEY_0 && key <= GLFW_KEY_9)
+        return (char)('0' + (key - GLFW_KEY_0));
+    return key == GLFW_KEY_SPACE ? ' ' : key == GLFW_KEY_MINUS ? '-' : 0;
 }
 
 ms_catalogue_action ms_viewer_catalogue_key(ms_viewer_catalogue *cat, int key, int height, int scale)
 {
+    char c = search_char(key);
+    size_t n = strlen(cat->search);
+    if ((c && n + 1 < sizeof cat->search) || (key == GLFW_KEY_BACKSPACE && n)) {
+        char search[sizeof cat->search];
+        snprintf(search, sizeof search, "%s", cat->search);
+        if (c)
+            search[n] = c, search[n + 1] = 0;
+        else
+            search[n - 1] = 0;
+        ms_error err;
+        (void)ms_viewer_catalogue_search(cat, search, &err); /* failed: the list as it was */
+        return MS_CATALOGUE_STAY;
+    }
     long move = key == GLFW_KEY_DOWN ? 1 : key == GLFW_KEY_UP ? -1 : key == GLFW_KEY_PAGE_DOWN ? 10
                 : key == GLFW_KEY_PAGE_UP                      ? -10 : 0;
     if (move)

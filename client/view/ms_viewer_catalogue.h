@@ -2,12 +2,18 @@
  * a list (name, triangles, size) to pick from with the arrow keys and Enter, or
  * with the mouse (a click selects, a double click or Enter opens). Beside the
  * list, where the window is wide enough, the selected model's panel: its
- * thumbnail (DIR/NAME.thumb.png, from a local archive directory that has
- * one) and its metadata (title, creator, date, licence, description, from a
- * local catalog.json), drawn as glyphs of the bitmap font (a character
+ * thumbnail (DIR/NAME.thumb.png from a local archive directory, or from a
+ * server the THUMBNAIL document of its binary door) and its metadata (title,
+ * creator, date, licence, description: a local catalog.json's, or the
+ * server's METADATA document), drawn as glyphs of the bitmap font (a character
  * outside ASCII shows as one '?'; text is never interpreted). Layout in
  * framebuffer pixels through the overlay pass (ms_viewer_text.h), so a click
  * maps to a row with the same arithmetic the drawing used.
+ * Typing searches: letters (lower case), digits, space and '-' add to the
+ * search text, Backspace takes the last one off; the list is then made again
+ * with it (ms_viewer_list_page: from a server its first page, searched by the
+ * server). Moving the selection near the end of a server's fetched pages
+ * fetches the next one (ms_viewer_list_more).
  * Thread-safety: none shared.
  */
 #ifndef MS_VIEWER_CATALOGUE_H
@@ -20,26 +26,40 @@
 #include "ms_viewer_text.h"
 
 typedef struct ms_viewer_catalogue {
-    const ms_viewer_model_list *list; /* not owned */
+    ms_viewer_model_list *list;       /* not owned; a server's entries keep their
+                                         documents once fetched */
     const char *where;                /* "server 127.0.0.1:7000" or the directory */
-    const char *archive_dir;          /* NULL: a server (no thumbnails) */
+    const char *archive_dir;          /* NULL: a server */
+    const ms_viewer_source *source;   /* a server's: its documents fetched through the
+                                         binary door for the selected model only (NULL:
+                                         none fetched) */
     size_t selected;
     size_t first;                     /* first row shown (scrolling) */
     /* the selected model's thumbnail, read when the selection changes */
     uint8_t *thumbnail;               /* RGB, owned; NULL: none */
     uint32_t thumbnail_width, thumbnail_height;
     size_t thumbnail_of;              /* entry index + 1 it was read for; 0: none */
+    char search[65];                  /* the search text typed ("": none) */
 } ms_viewer_catalogue;
+
+/* Makes the list again for search (with cat->source; nothing without one):
+ * the selection back to the first row. On an error the list stays as it was
+ * and err says why. */
+ms_status ms_viewer_catalogue_search(ms_viewer_catalogue *cat, const char *search,
+                                     ms_error *err);
 
 /* Frees the thumbnail cache (the rest is borrowed). */
 void ms_viewer_catalogue_free(ms_viewer_catalogue *cat);
 
-/* Moves the selection by delta rows (clamped) and scrolls to keep it shown. */
+/* Moves the selection by delta rows (clamped) and scrolls to keep it shown;
+ * within two screens of the end of a server's fetched pages, fetches the
+ * next page first. */
 void ms_viewer_catalogue_move(ms_viewer_catalogue *cat, long delta, int height, int scale);
 
 /* A key (GLFW_KEY_*) on the catalogue screen: Up / Down and PgUp / PgDn move
- * the selection (1 and 10 rows); MS_CATALOGUE_OPEN for Enter, MS_CATALOGUE_BACK
- * for Tab (back to the model), else MS_CATALOGUE_STAY. */
+ * the selection (1 and 10 rows); A-Z, 0-9, space, '-' and Backspace edit the
+ * search text (ms_viewer_catalogue_search); MS_CATALOGUE_OPEN for Enter,
+ * MS_CATALOGUE_BACK for Tab (back to the model), else MS_CATALOGUE_STAY. */
 typedef enum { MS_CATALOGUE_STAY, MS_CATALOGUE_OPEN, MS_CATALOGUE_BACK } ms_catalogue_action;
 ms_catalogue_action ms_viewer_catalogue_key(ms_viewer_catalogue *cat, int key, int height, int scale);
 

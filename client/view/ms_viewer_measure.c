@@ -4,14 +4,9 @@
 #include <math.h>
 #include <string.h>
 
-static double dot3(const double a[3], const double b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+#include "ms_ray.h"
 
-static void cross3(const double a[3], const double b[3], double out[3])
-{
-    out[0] = a[1] * b[2] - a[2] * b[1];
-    out[1] = a[2] * b[0] - a[0] * b[2];
-    out[2] = a[0] * b[1] - a[1] * b[0];
-}
+static double dot3(const double a[3], const double b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
 
 static bool unit3(const double v[3], double out[3])
 {
@@ -36,30 +31,6 @@ void ms_viewer_measure_pixel_ray(const ms_camera *c, double x, double y, double 
         memcpy(direction, c->forward, sizeof d);
 }
 
-/* The ray's parameter where it meets triangle (p0, p1, p2), both sides, edges
- * included (Moller-Trumbore); false when it misses or runs parallel. */
-static bool ray_triangle(const double o[3], const double d[3], const double *p0, const double *p1,
-                         const double *p2, double *t)
-{
-    double e1[3], e2[3], pv[3], tv[3], qv[3];
-    for (int a = 0; a < 3; ++a)
-        e1[a] = p1[a] - p0[a], e2[a] = p2[a] - p0[a], tv[a] = o[a] - p0[a];
-    cross3(d, e2, pv);
-    double det = dot3(e1, pv);
-    if (det == 0 || !isfinite(det))
-        return false;
-    double inv = 1.0 / det, slack = 1e-12;
-    double u = dot3(tv, pv) * inv;
-    if (u < -slack || u > 1 + slack)
-        return false;
-    cross3(tv, e1, qv);
-    double v = dot3(d, qv) * inv;
-    if (v < -slack || u + v > 1 + slack)
-        return false;
-    *t = dot3(e2, qv) * inv;
-    return isfinite(*t);
-}
-
 /* The hit of each of n rays (t >= t_min[i], t nearest t_near[i]) in one pass
  * over the triangles, so that the mesh is read once for every ray. */
 static void cast_rays(const ms_core_frame *frame, double box_side, size_t n, const double (*origin)[3],
@@ -78,7 +49,7 @@ static void cast_rays(const ms_core_frame *frame, double box_side, size_t n, con
         const double *p0 = &m->positions[3 * tri[0]], *p1 = &m->positions[3 * tri[1]], *p2 = &m->positions[3 * tri[2]];
         for (size_t r = 0; r < n; ++r) {
             double t;
-            if (ray_triangle(origin[r], d[r], p0, p1, p2, &t) && t >= t_min[r] && fabs(t - t_near[r]) < best[r]) {
+            if (ms_ray_triangle(origin[r], d[r], p0, p1, p2, &t) && t >= t_min[r] && fabs(t - t_near[r]) < best[r]) {
                 best[r] = fabs(t - t_near[r]);
                 hit[r].t = t;
                 best_tri[r] = i;

@@ -6,6 +6,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include <jansson.h>
+
 #include "ms_client.h"
 
 static int by_name(const void *a, const void *b)
@@ -45,6 +47,18 @@ static ms_status list_local(const char *dir, ms_viewer_model_list *list, ms_erro
     return MS_OK;
 }
 
+void ms_viewer_entry_from_server(const ms_client_catalogue_entry *e, ms_viewer_model_entry *d)
+{
+    memset(d, 0, sizeof *d);
+    snprintf(d->name, sizeof d->name, "%s", e->name);
+    /* meshserve's title: "V vertices, T triangles"; other servers may say less. */
+    unsigned long long vertices, triangles;
+    if (sscanf(e->title, "%llu vertices, %llu triangles", &vertices, &triangles) == 2)
+        d->triangles = triangles;
+    d->bytes = e->archive_bytes;
+    d->apo = e->apo_steps > 0;
+}
+
 static ms_status list_server(const ms_viewer_source *source, ms_viewer_model_list *list,
                              ms_error *err)
 {
@@ -61,17 +75,8 @@ static ms_status list_server(const ms_viewer_source *source, ms_viewer_model_lis
             return ms_error_set(err, MS_ERR_NOMEM, "out of memory for the catalogue");
         }
     }
-    for (size_t i = 0; i < catalogue.count; ++i) {
-        const ms_client_catalogue_entry *e = &catalogue.entries[i];
-        ms_viewer_model_entry *d = &list->entries[i];
-        snprintf(d->name, sizeof d->name, "%s", e->name);
-        /* meshserve's title: "V vertices, T triangles"; other servers may say less. */
-        unsigned long long vertices, triangles;
-        if (sscanf(e->title, "%llu vertices, %llu triangles", &vertices, &triangles) == 2)
-            d->triangles = triangles;
-        d->bytes = e->archive_bytes;
-        d->apo = e->apo_steps > 0;
-    }
+    for (size_t i = 0; i < catalogue.count; ++i)
+        ms_viewer_entry_from_server(&catalogue.entries[i], &list->entries[i]);
     list->count = catalogue.count;
     ms_client_catalogue_free(&catalogue);
     return MS_OK;
@@ -80,8 +85,7 @@ static ms_status list_server(const ms_viewer_source *source, ms_viewer_model_lis
 ms_status ms_viewer_list_models(const ms_viewer_source *source, ms_viewer_model_list *list,
                                 ms_error *err)
 {
-    list->entries = NULL;
-    list->count = 0;
+    memset(list, 0, sizeof *list);
     ms_status st = source->archive_dir ? list_local(source->archive_dir, list, err)
                                        : list_server(source, list, err);
     if (st == MS_OK && list->count)
@@ -93,11 +97,69 @@ void ms_viewer_model_list_free(ms_viewer_model_list *list)
 {
     if (!list)
         return;
-    for (size_t i = 0; i < list->count; ++i)
+    for (size_t i = 0; i < list->count; ++i) {
         ms_metadata_free(list->entries[i].metadata);
+        free(list->entries[i].thumbnail_png);
+    }
     free(list->entries);
     list->entries = NULL;
-    list->count = 0;
+    list->count = list->total = 0;
+    list->query[0] = 0;
+}
+
+/* The METADATA document's sidecar fields, checked by the sidecar's parser. */
+static ms_status parse_metadata(const uint8_t *bytes, size_t length, ms_viewer_model_entry *entry,
+                                ms_error *err)
+{
+    json_error_t jerr;
+    json_t *doc = json_loadb((const char *)bytes, length, 0, &jerr);
+    json_t *fields = doc && json_is_object(doc) ? json_object() : NULL;
+    if (!fields) {
+        json_decref(doc);
+        return ms_error_set(err, MS_ERR_FORMAT, "%s: the server's metadata is not a JSON object",
+                            entry->name);
+    }
+    for (int k = 0; k < MS_METADATA_FIELDS; ++k) {
+        json_t *v = json_object_get(doc, ms_metadata_field_names[k]);
+        if (v)
+            json_object_set(fields, ms_metadata_field_names[k], v);
+    }
+    entry->has_thumbnail = json_is_true(json_object_get(doc, "thumbnail"));
+    json_decref(doc);
+    char *text = json_dumps(fields, JSON_COMPACT);
+    json_decref(fields);
+    if (!text)
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory for metadata");
+    ms_metadata_free(entry->metadata);
+    entry->metadata = NULL;
+    ms_status st = ms_metadata_parse(text, strlen(text), entry->name, &entry->metadata, err);
+    free(text);
+    return st;
+}
+
+ms_status ms_viewer_model_fetch_documents(const ms_viewer_source *source,
+                                          ms_viewer_model_entry *entry, ms_error *err)
+{
+    if (source->archive_dir || entry->documents_fetched)
+        return MS_OK;
+    entry->documents_fetched = true;
+    ms_client_options co = {.host = source->host, .port = source->port, .token = source->token,
+                            .agent = "meshview/0.1"};
+    uint8_t *bytes;
+    size_t length;
+    ms_status st = ms_client_fetch_document_at(&co, source->timeout_s, entry->name,
+                                               MS_DOCUMENT_METADATA, &bytes, &length, err);
+    if (st != MS_OK)
+        return st;
+    st = parse_metadata(bytes, length, entry, err);
+    free(bytes);
+    if (st != MS_OK || !entry->has_thumbnail)
+        return st;
+    st = ms_client_fetch_document_at(&co, source->timeout_s, entry->name, MS_DOCUMENT_THUMBNAIL,
+                                     &entry->thumbnail_png, &entry->thumbnail_png_size, err);
+    if (st != MS_OK)
+        entry->has_thumbnail = false;
+    return st;
 }
 
 ms_status ms_viewer_model_open_listed(const ms_viewer_source *source,
@@ -113,6 +175,13 @@ ms_status ms_viewer_model_open_listed(const ms_viewer_source *source,
     const ms_viewer_model_entry *entry =
         list->count ? bsearch(&key, list->entries, list->count, sizeof *list->entries, by_name)
                     : NULL;
+    ms_viewer_model_entry found; /* a model of a server's later pages */
+    if (!entry && !source->archive_dir && list->total > list->count) {
+        ms_status st = ms_viewer_list_lookup(source, name, &found, err);
+        if (st != MS_OK && st != MS_ERR_RANGE)
+            return st;
+        entry = st == MS_OK ? &found : NULL;
+    }
     if (!entry) {
         if (source->archive_dir)
             return ms_error_set(err, MS_ERR_RANGE, "model '%s' does not exist in %s", name,

@@ -50,16 +50,70 @@ typedef struct ms_viewer_model_entry {
      * made (ms_catalog_entry.has_thumbnail) */
     ms_metadata *metadata;
     bool has_thumbnail;
+    /* a server's model: its documents, fetched once, when the catalogue first
+     * shows its panel (ms_viewer_model_fetch_documents) */
+    bool documents_fetched;
+    uint8_t *thumbnail_png;  /* the PNG's bytes (owned); NULL: none */
+    size_t thumbnail_png_size;
 } ms_viewer_model_entry;
 
 typedef struct ms_viewer_model_list {
     ms_viewer_model_entry *entries; /* by name */
     size_t count;
+    /* ms_viewer_list_page's: the models the source offers that match query;
+     * above count while a server's later pages are not fetched yet
+     * (ms_viewer_list_more). 0 (or count) for a whole list. */
+    size_t total;
+    char query[65];                 /* the search text it was made with; "": none */
 } ms_viewer_model_list;
+
+/* Models a page of a server's catalogue brings (PROTOCOL.md 4.4a). */
+#define MS_VIEWER_PAGE 200
 
 ms_status ms_viewer_list_models(const ms_viewer_source *source, ms_viewer_model_list *list,
                                 ms_error *err);
 void ms_viewer_model_list_free(ms_viewer_model_list *list);
+
+/* The catalogue screen's list (ms_viewer_pages.c): the models whose name,
+ * title or description holds query (ASCII case-insensitively; NULL or "":
+ * every model; at most 64 bytes, else MS_ERR_ARG), by name. From a server,
+ * its first page only: LIST_PAGE with query as the server's text filter (the
+ * server searches, also the source), MS_VIEWER_PAGE models, list->total the
+ * models that match; a server below protocol version 3 lists everything and
+ * meshview filters the names. From a local directory, the whole catalogue,
+ * filtered here. Errors as ms_viewer_list_models. */
+ms_status ms_viewer_list_page(const ms_viewer_source *source, const char *query,
+                              ms_viewer_model_list *list, ms_error *err);
+
+/* Appends the server's next page to list (the same query), when total says
+ * there are more: MS_OK doing nothing otherwise (a local list is whole).
+ * On an error list keeps what it had. */
+ms_status ms_viewer_list_more(const ms_viewer_source *source, ms_viewer_model_list *list,
+                              ms_error *err);
+
+/* The entry of model name as the server lists it (a page searched for the
+ * name), for a model not in the pages fetched so far: MS_ERR_RANGE when the
+ * server does not list it. */
+ms_status ms_viewer_list_lookup(const ms_viewer_source *source, const char *name,
+                                ms_viewer_model_entry *entry, ms_error *err);
+
+/* One server catalogue entry as a list entry (meshserve's title gives the
+ * triangles). */
+struct ms_client_catalogue_entry;
+void ms_viewer_entry_from_server(const struct ms_client_catalogue_entry *e,
+                                 ms_viewer_model_entry *d);
+
+/* A server's model: its metadata and thumbnail through the binary door
+ * (GET_DOCUMENT, PROTOCOL.md 4.5b: ms_client_fetch_document_at, one
+ * connection, bounded by the source's time-out), once: entry->metadata (the
+ * sidecar's fields of the METADATA document, checked as a sidecar is),
+ * has_thumbnail (its "thumbnail"), and thumbnail_png (the THUMBNAIL document)
+ * when it has one; documents_fetched is set even when they fail (no retry),
+ * with the first failure's line in err and MS_ERR_IO (no server),
+ * MS_ERR_FORMAT (a document that does not parse) or MS_ERR_NOMEM. A local
+ * source, or an entry already fetched: MS_OK, nothing done. */
+ms_status ms_viewer_model_fetch_documents(const ms_viewer_source *source,
+                                          ms_viewer_model_entry *entry, ms_error *err);
 
 typedef struct ms_viewer_model {
     char name[MS_MODEL_NAME_MAX + 1];

@@ -113,7 +113,7 @@ static ms_status catalogue_shot(const ms_viewer_options *o, const ms_viewer_sour
                                 json_t **report, ms_error *err)
 {
     ms_viewer_model_list list;
-    ms_status st = ms_viewer_list_models(source, &list, err);
+    ms_status st = ms_viewer_list_page(source, NULL, &list, err);
     if (st != MS_OK)
         return st;
     char where[128], png[4200];
@@ -132,7 +132,8 @@ static ms_status catalogue_shot(const ms_viewer_options *o, const ms_viewer_sour
     glViewport(0, 0, o->width, o->height);
     glClearColor(0.08f, 0.08f, 0.09f, 1);
     glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
-    ms_viewer_catalogue cat = {.list = &list, .where = where, .archive_dir = source->archive_dir};
+    ms_viewer_catalogue cat = {.list = &list, .where = where, .archive_dir = source->archive_dir,
+                               .source = source};
     ms_viewer_text_begin(text, o->width, o->height, ms_viewer_text_auto_scale(o->height, 1, true));
     ms_viewer_catalogue_draw(text, &cat, o->width, o->height);
     bool pictured = cat.thumbnail != NULL; /* the selected (first) model's */
@@ -150,8 +151,9 @@ static ms_status catalogue_shot(const ms_viewer_options *o, const ms_viewer_sour
                                                 list.entries[i].has_thumbnail, "title",
                                                 ms_json_text(ms_metadata_field(
                                                     list.entries[i].metadata, 0))));
-    *report = json_pack("{s:s, s:o, s:b}", "png", png, "models", models, "picture_shown",
-                        pictured);
+    *report = json_pack("{s:s, s:o, s:b, s:I}", "png", png, "models", models, "picture_shown",
+                        pictured, "total",
+                        (json_int_t)(list.total > list.count ? list.total : list.count));
 done:
     ms_viewer_target_free(&target);
     ms_viewer_text_free(text);

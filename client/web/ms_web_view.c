@@ -10,6 +10,7 @@
 #include "ms_archive.h"
 #include "ms_camera.h"
 #include "ms_view_decoder.h"
+#include "ms_web_cast.h"
 
 /* Rounds of select + apply before a plan gives up on the cut settling (the
  * study's cut uses the same bound). */
@@ -30,6 +31,7 @@ struct ms_web_view {
     ms_view_mesh mesh;
     float *positions, *normals;
     size_t positions_cap;
+    uint8_t *stitched_bits; /* per cell: its bits at the last stitch (the mesh's) */
     ms_error err;
 };
 
@@ -68,6 +70,7 @@ void ms_web_view_free(ms_web_view *v)
     free(v->plan);
     free(v->positions);
     free(v->normals);
+    free(v->stitched_bits);
     free(v);
 }
 
@@ -129,6 +132,46 @@ void ms_web_view_culled(ms_web_view *v, double bits_less)
 {
     if (bits_less >= 0 && isfinite(bits_less))
         v->params.culled_bits_less = bits_less;
+}
+
+ms_status ms_web_view_sections(ms_web_view *v, const double *planes, uint32_t count)
+{
+    if (count > MS_SECTIONS_MAX)
+        return ms_error_set(&v->err, MS_ERR_ARG, "%u section planes, at most %d", count, MS_SECTIONS_MAX);
+    for (uint32_t k = 0; k < count; ++k) {
+        const double *p = planes + 4 * k;
+        if (!isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2]) || !isfinite(p[3]) ||
+            !(p[0] * p[0] + p[1] * p[1] + p[2] * p[2] > 0))
+            return ms_error_set(&v->err, MS_ERR_ARG, "section plane %u has a zero normal or a number not finite",
+                                k);
+    }
+    for (uint32_t k = 0; k < count; ++k)
+        memcpy(v->params.sections[k], planes + 4 * k, sizeof v->params.sections[k]);
+    v->params.section_count = count;
+    return MS_OK;
+}
+
+int ms_web_view_cast(ms_web_view *v, const double origin[3], const double direction[3], double t_min,
+                     double t_near, double out[7])
+{
+    double len2 = direction[0] * direction[0] + direction[1] * direction[1] + direction[2] * direction[2];
+    if (!(len2 > 0) || !isfinite(len2) || !isfinite(origin[0]) || !isfinite(origin[1]) || !isfinite(origin[2]))
+        return 0;
+    double t;
+    size_t tri;
+    if (!ms_web_cast(&v->mesh, origin, direction, t_min, t_near, (const double(*)[4])v->params.sections,
+                     v->params.section_count, &t, &tri))
+        return 0;
+    for (int a = 0; a < 3; ++a)
+        out[a] = origin[a] + t * direction[a];
+    out[3] = t;
+    uint32_t cell = v->mesh.triangle_cell ? v->mesh.triangle_cell[tri] : 0;
+    const ms_archive_header *h = ms_archive_get_header(v->index);
+    unsigned bits = v->stitched_bits && cell < ms_view_cell_count(v->view) ? v->stitched_bits[cell] : 0;
+    out[4] = bits;
+    out[5] = ldexp(h->box_side, -(int)bits);
+    out[6] = h->bits;
+    return 1;
 }
 
 /* The precision a known cell's target needs held: its bits, or bits_max for a
@@ -283,6 +326,13 @@ ms_status ms_web_view_stitch(ms_web_view *v)
     }
     for (size_t i = 0; i < need; ++i)
         v->positions[i] = (float)v->mesh.positions[i];
+    uint32_t cells = ms_view_cell_count(v->view);
+    if (!v->stitched_bits && !(v->stitched_bits = malloc(cells ? cells : 1)))
+        return fail(v, MS_ERR_NOMEM, "out of memory for the cells' bits");
+    for (uint32_t c = 0; c < cells; ++c) {
+        unsigned b = ms_view_state(v->view, c) == MS_VIEW_SHOWN ? ms_view_bits(v->view, c) : 0;
+        v->stitched_bits[c] = (uint8_t)(b < 255 ? b : 255);
+    }
     vertex_normals(v);
     return MS_OK;
 }

@@ -88,6 +88,26 @@ uint32_t ms_web_view_held(const ms_web_view *view, uint32_t cell);
 ms_status ms_web_view_give(ms_web_view *view, uint32_t cell, uint32_t offset, const uint8_t *data,
                            uint32_t length);
 
+/* Section planes (docs/BROWSER.md, "Sections"): count (0 to 3) planes of 4
+ * doubles a b c d each, the side a x + b y + c z + d > 0 cut away. The
+ * selection then treats a cell wholly cut away as one outside the view
+ * (culled: coarser, never split for the view; ms_view_select_params.sections,
+ * as meshview's ms_core_set_sections), and ms_web_view_cast skips what they
+ * cut away. MS_ERR_ARG (the planes unchanged) for more than three, a zero
+ * normal or a number not finite. */
+ms_status ms_web_view_sections(ms_web_view *view, const double *planes, uint32_t count);
+
+/* Measuring (docs/BROWSER.md, "Measuring"): the ray from origin along
+ * direction (need not be unit) cast on the last stitched mesh in doubles
+ * (ms_web_cast.h): of the hits with t >= t_min not cut away by the sections,
+ * the one whose t is nearest t_near (0, 0: the first surface in front).
+ * out: x y z (the point), t, the bits its triangle's cell is shown at, and
+ * the grid step at those bits (box side / 2^bits): the point's precision,
+ * then the model's bits (7 doubles). 1 on a hit, 0 otherwise (nothing
+ * stitched, a zero or not finite direction, nothing hit). */
+int ms_web_view_cast(ms_web_view *view, const double origin[3], const double direction[3], double t_min,
+                     double t_near, double out[7]);
+
 /* Builds the mesh of the cut (every shown cell). Read it with the accessors
  * below; valid until the next stitch or free. */
 ms_status ms_web_view_stitch(ms_web_view *view);

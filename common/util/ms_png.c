@@ -103,6 +103,37 @@ ms_status ms_png_write_compact(const char *path, const uint8_t *pixels, uint32_t
     return write_file(path, pixels, width, height, channels, true, err);
 }
 
+/* Reads the picture image began on (its header read when began), of the
+ * file or memory named where, as 8-bit RGB. */
+static ms_status finish_rgb(png_image *image, int began, const char *where, uint32_t max_width,
+                            uint32_t max_height, uint8_t **pixels, uint32_t *width,
+                            uint32_t *height, ms_error *err)
+{
+    ms_status st = MS_OK;
+    if (!began) {
+        st = ms_error_set(err, MS_ERR_FORMAT, "%s: %s", where, image->message);
+    } else if (image->width > max_width || image->height > max_height) {
+        st = ms_error_set(err, MS_ERR_RANGE, "%s: %ux%u pixels, at most %ux%u", where,
+                          image->width, image->height, max_width, max_height);
+    } else {
+        image->format = PNG_FORMAT_RGB;
+        uint8_t *buffer = malloc(PNG_IMAGE_SIZE(*image));
+        if (!buffer)
+            st = ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory", where);
+        else if (!png_image_finish_read(image, NULL, buffer, 0, NULL))
+            st = ms_error_set(err, MS_ERR_FORMAT, "%s: %s", where, image->message);
+        if (st == MS_OK) {
+            *pixels = buffer;
+            *width = image->width;
+            *height = image->height;
+        } else {
+            free(buffer);
+        }
+    }
+    png_image_free(image);
+    return st;
+}
+
 ms_status ms_png_read_rgb(const char *path, uint32_t max_width, uint32_t max_height,
                           uint8_t **pixels, uint32_t *width, uint32_t *height, ms_error *err)
 {
@@ -114,28 +145,25 @@ ms_status ms_png_read_rgb(const char *path, uint32_t max_width, uint32_t max_hei
     png_image image;
     memset(&image, 0, sizeof image);
     image.version = PNG_IMAGE_VERSION;
-    ms_status st = MS_OK;
-    if (!png_image_begin_read_from_stdio(&image, f)) {
-        st = ms_error_set(err, MS_ERR_FORMAT, "%s: %s", path, image.message);
-    } else if (image.width > max_width || image.height > max_height) {
-        st = ms_error_set(err, MS_ERR_RANGE, "%s: %ux%u pixels, at most %ux%u", path,
-                          image.width, image.height, max_width, max_height);
-    } else {
-        image.format = PNG_FORMAT_RGB;
-        uint8_t *buffer = malloc(PNG_IMAGE_SIZE(image));
-        if (!buffer)
-            st = ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory", path);
-        else if (!png_image_finish_read(&image, NULL, buffer, 0, NULL))
-            st = ms_error_set(err, MS_ERR_FORMAT, "%s: %s", path, image.message);
-        if (st == MS_OK) {
-            *pixels = buffer;
-            *width = image.width;
-            *height = image.height;
-        } else {
-            free(buffer);
-        }
-    }
-    png_image_free(&image);
+    int began = png_image_begin_read_from_stdio(&image, f);
+    ms_status st =
+        finish_rgb(&image, began, path, max_width, max_height, pixels, width, height, err);
     fclose(f);
     return st;
+}
+
+ms_status ms_png_decode_rgb(const uint8_t *bytes, size_t size, uint32_t max_width,
+                            uint32_t max_height, uint8_t **pixels, uint32_t *width,
+                            uint32_t *height, ms_error *err)
+{
+    *pixels = NULL;
+    *width = *height = 0;
+    if (!bytes || size == 0)
+        return ms_error_set(err, MS_ERR_FORMAT, "picture: no bytes");
+    png_image image;
+    memset(&image, 0, sizeof image);
+    image.version = PNG_IMAGE_VERSION;
+    int began = png_image_begin_read_from_memory(&image, bytes, size);
+    return finish_rgb(&image, began, "picture", max_width, max_height, pixels, width, height,
+                      err);
 }

@@ -27,4 +27,11 @@ ms_status ms_png_write_compact(const char *path, const uint8_t *pixels, uint32_t
 ms_status ms_png_read_rgb(const char *path, uint32_t max_width, uint32_t max_height,
                           uint8_t **pixels, uint32_t *width, uint32_t *height, ms_error *err);
 
+/* ms_png_read_rgb for a PNG held in memory (size bytes; a picture a server
+ * sent): the same limits and errors, MS_ERR_FORMAT for bytes that are not a
+ * PNG libpng reads. */
+ms_status ms_png_decode_rgb(const uint8_t *bytes, size_t size, uint32_t max_width,
+                            uint32_t max_height, uint8_t **pixels, uint32_t *width,
+                            uint32_t *height, ms_error *err);
+
 #endif

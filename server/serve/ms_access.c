@@ -36,6 +36,19 @@ ms_access ms_access_grant_listed(const ms_catalog_entry *entry, bool token_accep
     return grant_of(entry->bits, entry->apo_levels, entry->public_max_bits, token_accepted);
 }
 
+bool ms_access_document(const ms_catalog_entry *entry, int kind)
+{
+    switch (kind) {
+    case MS_DOCUMENT_THUMBNAIL:
+        return entry->has_thumbnail && entry->thumbnail_bits <= entry->public_max_bits;
+    case MS_DOCUMENT_METADATA:
+    case MS_DOCUMENT_ANNOTATIONS:
+        return true;
+    default:
+        return false;
+    }
+}
+
 bool ms_access_is_full(const ms_access *grant)
 {
     return grant->permitted_geometry_steps >= grant->geometry_steps &&

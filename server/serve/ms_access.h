@@ -22,6 +22,10 @@
  *     model, preview or not: they hold sizes and CRCs, no geometry. They are
  *     still resolved here, so that no door reaches bytes around this file.
  *
+ * A model's documents (its thumbnail, metadata and annotations: GET_DOCUMENT
+ * and /models/NAME/thumbnail, /metadata, /annotations) are decided here too,
+ * by ms_access_document, from the catalogue entry alone.
+ *
  * Pure functions of the model's index; no state; thread-safe.
  */
 #ifndef MS_ACCESS_H
@@ -53,6 +57,14 @@ ms_access ms_access_grant(const ms_model *model, bool token_accepted);
  * public_max_bits; has_listing), for listing a model whose archive is not
  * open. Opening it applies ms_access_grant to the archive itself. */
 ms_access ms_access_grant_listed(const ms_catalog_entry *entry, bool token_accepted);
+
+/* Whether any reader may read the document of kind (ms_document_kind) of the
+ * listed model entry. The thumbnail only while it was drawn within the public
+ * preview (thumbnail_bits <= public_max_bits, clamped to bits by the
+ * registry): it is one public picture for every reader, cached as such, so a
+ * token does not widen it; the metadata and annotations (public descriptive
+ * data) of every listed model. False for an undefined kind. */
+bool ms_access_document(const ms_catalog_entry *entry, int kind);
 
 /* True when the grant reads every byte of the model. */
 bool ms_access_is_full(const ms_access *grant);

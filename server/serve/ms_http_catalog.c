@@ -74,7 +74,7 @@ json_t *ms_http_catalog_entry(const ms_catalog_entry *e)
                             (int)e->bits, "public_max_bits", (int)e->public_max_bits, "apo",
                             (int)e->apo, "archive_bytes", (json_int_t)e->archive_bytes,
                             "baked_at", e->baked_at, "thumbnail",
-                            e->has_thumbnail && e->thumbnail_bits <= e->public_max_bits);
+                            ms_access_document(e, MS_DOCUMENT_THUMBNAIL));
     for (int k = 0; obj && k < MS_METADATA_FIELDS; ++k) {
         const char *v = ms_metadata_field(e->metadata, k);
         if (v)

@@ -347,8 +347,14 @@ static void route(ms_http_door *door, struct evhttp_request *req, char *path,
         serve_metrics(door, req);
         return;
     }
-    if (n == 3 && !strcmp(seg[0], "models") && !strcmp(seg[2], "thumbnail")) {
-        ms_http_serve_thumbnail(door, req, seg[1]); /* a picture: no archive opened */
+    /* a model's documents: no archive opened */
+    if (n == 3 && !strcmp(seg[0], "models") &&
+        (!strcmp(seg[2], "thumbnail") || !strcmp(seg[2], "metadata") ||
+         !strcmp(seg[2], "annotations"))) {
+        int kind = !strcmp(seg[2], "thumbnail")  ? MS_DOCUMENT_THUMBNAIL
+                   : !strcmp(seg[2], "metadata") ? MS_DOCUMENT_METADATA
+                                                 : MS_DOCUMENT_ANNOTATIONS;
+        ms_http_serve_document(door, req, seg[1], kind);
         return;
     }
     if (n >= 2 && !strcmp(seg[0], "models")) {

@@ -69,10 +69,12 @@ bool ms_http_route_page(ms_http_door *door, struct evhttp_request *req, char **s
 void ms_http_serve_catalog(ms_http_door *door, struct evhttp_request *req,
                            const struct evkeyvalq *query);
 
-/* Answers GET /models/NAME/thumbnail (ms_http_thumbnail.c): the model's
- * DIR/NAME.thumb.png, only while its catalogue entry says it was rendered
- * within the public preview (thumbnail_bits <= public_max_bits), so it is
- * the same public answer for every reader; 404 otherwise. Opens no archive. */
-void ms_http_serve_thumbnail(ms_http_door *door, struct evhttp_request *req, const char *name);
+/* Answers GET /models/NAME/thumbnail, /metadata and /annotations
+ * (ms_http_document.c) with the document of kind (ms_document_kind) read by
+ * ms_model_document_read: image/png or application/json, cacheable; 404 and
+ * one line for a model or document there is not (a thumbnail finer than the
+ * public preview is not), 500 for a file above its limit. Opens no archive. */
+void ms_http_serve_document(ms_http_door *door, struct evhttp_request *req, const char *name,
+                            int kind);
 
 #endif

@@ -3,6 +3,7 @@
 
 #include <stddef.h>
 #include <string.h>
+#include <strings.h>
 
 #define VALUE_MAX 0x7fffffffffffffffull /* nginx's off_t cut-off */
 
@@ -136,4 +137,69 @@ bool ms_http_bearer_credential(const char *header, const char **token, size_t *l
     *token = start;
     *length = n;
     return true;
+}
+
+/* The weight of one Accept-Encoding element's parameters [p, end): 1000 for
+ * none, 0..1000 (thousandths) for ";q=VALUE", -1 when malformed. */
+static int coding_weight(const char *p, const char *end)
+{
+    int weight = 1000;
+    while (p < end) {
+        while (p < end && (is_space_or_tab(*p) || *p == ';'))
+            ++p;
+        if (p == end)
+            break;
+        const char *param_end = p;
+        while (param_end < end && *param_end != ';')
+            ++param_end;
+        const char *value_end = param_end;
+        while (value_end > p && is_space_or_tab(value_end[-1]))
+            --value_end;
+        if (value_end - p < 3 || (p[0] != 'q' && p[0] != 'Q') || p[1] != '=')
+            return -1; /* the only parameter a coding takes is its weight */
+        const char *v = p + 2;
+        if (*v != '0' && *v != '1')
+            return -1;
+        int whole = *v++ - '0', thousandths = 0, digits = 0;
+        if (v < value_end && *v == '.') {
+            for (++v; v < value_end && digits < 3 && *v >= '0' && *v <= '9'; ++v, ++digits)
+                thousandths = 10 * thousandths + (*v - '0');
+            for (int d = digits; d < 3; ++d)
+                thousandths *= 10;
+        }
+        if (v != value_end || (whole == 1 && thousandths != 0))
+            return -1;
+        weight = whole * 1000 + thousandths;
+        p = param_end;
+    }
+    return weight;
+}
+
+bool ms_http_accepts_coding(const char *header, const char *coding)
+{
+    if (!header)
+        return false;
+    size_t coding_length = strlen(coding);
+    int named = -2, star = -2; /* -2: not listed */
+    const char *p = header;
+    while (*p) {
+        while (*p == ',' || is_space_or_tab(*p))
+            ++p;
+        if (!*p)
+            break;
+        const char *element_end = p + strcspn(p, ",");
+        const char *name_end = p;
+        while (name_end < element_end && *name_end != ';' && !is_space_or_tab(*name_end))
+            ++name_end;
+        int weight = coding_weight(name_end, element_end);
+        size_t n = (size_t)(name_end - p);
+        if (n == 1 && *p == '*')
+            star = weight;
+        else if (n == coding_length && !strncasecmp(p, coding, n))
+            named = weight;
+        p = element_end;
+    }
+    if (named != -2)
+        return named > 0;
+    return star > 0;
 }

@@ -44,4 +44,14 @@ bool ms_http_none_match(const char *header, const char *etag);
  * for another scheme, no credential, or text after it. */
 bool ms_http_bearer_credential(const char *header, const char **token, size_t *length);
 
+/* Whether an Accept-Encoding header (NULL: none) accepts the content coding
+ * `coding` (lower case, e.g. "deflate"), as RFC 9110 section 12.5.3 reads
+ * it: a comma-separated list of codings (any case), each with an optional
+ * ";q=VALUE" weight (0 to 1, at most three decimals; a weight of 0 refuses).
+ * The coding named with a weight above 0 is accepted; named with 0, refused;
+ * not named, accepted when "*" is listed with a weight above 0. An element
+ * with a malformed weight counts as refusing. No header: not accepted (the
+ * identity body is always sent then). */
+bool ms_http_accepts_coding(const char *header, const char *coding);
+
 #endif

@@ -14,14 +14,15 @@
 #include "ms_frame_out.h"
 #include "ms_progress.h"
 #include "ms_proto_conn.h"
+#include "ms_model_document.h"
 #include "ms_proto_range.h"
-#include "ms_catalog_page.h"
 #include "ms_registry.h"
 #include "ms_server_internal.h"
 #include "ms_subtree.h"
 
 #define INDEX_CHUNK_BYTES (1u << 20)
 #define CATALOGUE_FRAME_BYTES 65536u
+#define DOCUMENT_CHUNK_BYTES 65536u
 
 static struct evbuffer *output(const ms_serve_conn *c) { return bufferevent_get_output(c->bev); }
 static ms_server *server_of(const ms_serve_conn *c) { return c->door->server; }
@@ -279,6 +280,54 @@ static void handle_list_page(ms_serve_conn *c, uint32_t id, const ms_proto_list_
     }
     send_listing(c, id, MS_PROTO_CATALOGUE_PAGE, indices, count, (uint32_t)total);
     free(indices);
+}
+
+/* Version 3: one document of a model (PROTOCOL.md 4.5b), read as the HTTP
+ * door reads it (ms_model_document.h), in DOCUMENT frames of at most 64 KiB
+ * (and the client's max_frame), the last with LAST. */
+static void handle_get_document(ms_serve_conn *c, const ms_proto_message *msg)
+{
+    const ms_proto_get_document *g = &msg->body.get_document;
+    uint32_t id = msg->request_id;
+    metrics_of(c)->binary_requests++;
+    c->requests++;
+    ms_proto_fault fault;
+    ms_error err;
+    if (ms_proto_check_negotiated(msg, c->version, c->capabilities, &fault, &err) != MS_OK) {
+        ms_serve_conn_send_error(c, fault.code, id, 1, fault.detail, err.text);
+        return;
+    }
+    if (!ids_free(c, id, 1) || !rate_allows(c, id, 1))
+        return;
+    char name[MS_PROTO_MAX_MODEL_NAME + 1];
+    memcpy(name, g->name, g->name_length);
+    name[g->name_length] = '\0';
+    ms_model_document doc;
+    ms_document_refusal why;
+    ms_server *server = server_of(c);
+    if (ms_model_document_read(server->registry, server->config.archive_dir, name, g->kind, &doc,
+                               &why, &err) != MS_OK) {
+        uint16_t code = why == MS_DOCUMENT_NO_MODEL ? MS_PROTO_E_UNKNOWN_MODEL
+                        : why == MS_DOCUMENT_ABSENT ? MS_PROTO_E_NO_DOCUMENT
+                                                    : MS_PROTO_E_INTERNAL;
+        ms_serve_conn_send_error(c, code, id, 1, g->kind, err.text);
+        return;
+    }
+    uint32_t chunk = c->client_max_frame - MS_PROTO_DOCUMENT_FIXED;
+    if (chunk > DOCUMENT_CHUNK_BYTES)
+        chunk = DOCUMENT_CHUNK_BYTES;
+    uint32_t total = (uint32_t)doc.length, offset = 0;
+    do {
+        uint32_t n = total - offset < chunk ? total - offset : chunk;
+        ms_proto_message out = {.type = MS_PROTO_DOCUMENT, .request_id = id};
+        out.flags = offset + n == total ? MS_PROTO_FLAG_LAST : 0;
+        out.body.document = (ms_proto_document){.kind = g->kind, .total_length = total,
+                                                .offset = offset, .data = doc.bytes + offset,
+                                                .data_length = n};
+        ms_serve_conn_send_message(c, &out);
+        offset += n;
+    } while (offset < total && c->state != MS_CONN_CLOSING);
+    ms_model_document_free(&doc);
 }
 
 /* Adds name to the connection's list of models for the access log, once. */
@@ -593,6 +642,7 @@ void ms_serve_conn_handle_message(ms_serve_conn *c, const ms_proto_message *msg)
     case MS_PROTO_HELLO: handle_hello(c, &msg->body.hello); break;
     case MS_PROTO_LIST_CATALOGUE: handle_list_catalogue(c, msg->request_id); break;
     case MS_PROTO_LIST_PAGE: handle_list_page(c, msg->request_id, &msg->body.list_page); break;
+    case MS_PROTO_GET_DOCUMENT: handle_get_document(c, msg); break;
     case MS_PROTO_OPEN_MODEL: handle_open_model(c, msg->request_id, &msg->body.open_model); break;
     case MS_PROTO_CLOSE_MODEL: handle_close_model(c, msg->body.close_model.model_handle); break;
     case MS_PROTO_REQUEST_CELLS:

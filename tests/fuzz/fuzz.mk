@@ -23,7 +23,8 @@ FUZZ_BINS    := $(patsubst %,$(FUZZ_DIR)/fuzz_%,$(FUZZ_TARGETS))
 # From server/serve/: the side door's header parsing (fuzz_http_request) and the
 # config reader (fuzz_config_catalog).
 LIB_SRCS   := $(filter-out %_main.c,$(wildcard common/*/*.c protocol/*.c)) \
-              server/serve/ms_http_parse.c server/serve/ms_server_config.c server/serve/ms_http_cors.c
+              server/serve/ms_http_parse.c server/serve/ms_server_config.c \
+              server/serve/ms_http_cors.c
 LIB_OBJS   := $(patsubst %.c,$(FUZZ_DIR)/obj/%.o,$(LIB_SRCS))
 SAN        := -fsanitize=address,undefined -fno-sanitize-recover=undefined
 FUZZ_CFLAGS := -std=c11 -D_DEFAULT_SOURCE -D_FILE_OFFSET_BITS=64 -O1 -g \
