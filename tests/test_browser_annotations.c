@@ -10,7 +10,7 @@
  *     (computed here); the one on the far face and the one behind the small
  *     box are hidden by the page's ray test;
  *   - a real click on the front marker shows its title and text as written
- *     (no element made of them: the page's two scripts only, nothing ran),
+ *     (no element made of them: as many script elements as before, nothing ran),
  *     puts #annotation=front in the URL and moves the camera to the stored
  *     view (eye (0, 6, 0)), from where the far face's marker is the one seen.
  * The door cases skip, saying so, while meshserve does not serve the
@@ -224,13 +224,15 @@ static void test_the_page_shows_them(void **state)
     assert_string_equal(json_string_value(json_object_get(after, "selected")), "front");
     assert_string_equal(json_string_value(json_object_get(after, "title")), title);
     assert_string_equal(json_string_value(json_object_get(after, "text")), text);
-    assert_int_equal(json_integer_value(json_object_get(after, "scripts")), 2);
+    assert_int_equal(json_integer_value(json_object_get(after, "scripts")),
+                     json_integer_value(json_object_get(before, "scripts")));
     assert_true(json_is_null(json_object_get(after, "pwned")));
     const char *hash = json_string_value(json_object_get(last, "hash"));
     assert_non_null(strstr(hash, "annotation=front"));
     assert_non_null(strstr(hash, "cam=0,6,0,0,0,0,0,0,1,40"));
-    assert_string_equal(json_string_value(json_object_get(json_object_get(last, "page"), "view")),
-                        "mv1:t=0,0,0:d=6:o=0,0:f=40:u=z");
+    /* the page's view text of that camera (its yaw may print as -0) */
+    const char *view = json_string_value(json_object_get(json_object_get(last, "page"), "view"));
+    assert_true(!strcmp(view, "mv1:t=0,0,0:d=6:o=0,0:f=40:u=z") || !strcmp(view, "mv1:t=0,0,0:d=6:o=-0,0:f=40:u=z"));
     assert_false(seen(after, "front", NULL));
     assert_true(seen(after, "back", NULL));
     assert_false(seen(after, "shadowed", NULL));

@@ -15,7 +15,13 @@
  *   - meshbake installs the file as the format writes it (read back equal),
  *     refuses a hostile file with one line, exit status 1; meshview refuses a
  *     hostile --annotations file (a stored view it cannot read) with one line,
- *     exit status 2. */
+ *     exit status 2;
+ *   - both doors: meshserve serves the sidecar as the model's annotations
+ *     document, by HTTP (GET /models/boxes/annotations) and by the binary
+ *     door (GET_DOCUMENT, ms_client_fetch_document_at), both the file's bytes
+ *     and read back the annotations given; a model without them: 404 and
+ *     NO_DOCUMENT; meshview from the server shows the same markers, seen and
+ *     hidden as from the archive. */
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -28,9 +34,14 @@
 #include <cmocka.h>
 #include <jansson.h>
 
+#include <signal.h>
+
 #include "ms_annotations.h"
+#include "ms_client.h"
+#include "ms_proto.h"
 #include "ms_test.h"
 #include "ms_test_display.h"
+#include "ms_test_net.h"
 #include "ms_test_picture.h"
 
 #define WIDTH 400
@@ -48,7 +59,7 @@ static const char annotations[] =
 
 typedef struct fixture {
     ms_test_display display;
-    char dir[512], archives[600], cam[700], view_bin[600], bake_bin[600], file[700];
+    char dir[512], archives[600], cam[700], view_bin[600], bake_bin[600], file[700], sidecar[700];
 } fixture;
 
 static int group_setup(void **state)
@@ -73,6 +84,7 @@ static int group_setup(void **state)
     snprintf(command, sizeof command, "%s %s -o %s --name boxes --no-thumbnail --json", f->bake_bin, off, f->archives);
     json_decref(ms_test_run_json(command, 0));
     snprintf(f->file, sizeof f->file, "%s/boxes.json", f->dir);
+    snprintf(f->sidecar, sizeof f->sidecar, "%s/boxes.annotations.json", f->archives);
     ms_test_write_file(f->file, annotations, strlen(annotations));
     snprintf(f->cam, sizeof f->cam, "%s/boxes.cam", f->dir);
     FILE *out = fopen(f->cam, "w");
@@ -104,12 +116,13 @@ static void project(const double p[3], double *x, double *y)
     *y = 0.5 * HEIGHT * (1 - p[2] / (depth * t));
 }
 
-static json_t *view(const fixture *f, const char *tag, const char *extra, uint8_t **rgb)
+/* meshview on the archive, or with source "--server HOST:PORT" from a server. */
+static json_t *view_from(const fixture *f, const char *source, const char *tag, const char *extra, uint8_t **rgb)
 {
     char command[8192];
     snprintf(command, sizeof command,
              "%s %s --model boxes --path %s --size %dx%d --frames 1 --hud --screenshot-dir %s/%s --json %s",
-             f->view_bin, f->archives, f->cam, WIDTH, HEIGHT, f->dir, tag, extra);
+             f->view_bin, source ? source : f->archives, f->cam, WIDTH, HEIGHT, f->dir, tag, extra);
     json_t *report = ms_test_run_json(command, 0);
     json_t *key = json_array_get(json_object_get(report, "keyframes"), 0);
     assert_true(json_is_true(json_object_get(key, "complete")));
@@ -118,6 +131,11 @@ static json_t *view(const fixture *f, const char *tag, const char *extra, uint8_
     assert_int_equal(w, WIDTH);
     assert_int_equal(h, HEIGHT);
     return report;
+}
+
+static json_t *view(const fixture *f, const char *tag, const char *extra, uint8_t **rgb)
+{
+    return view_from(f, NULL, tag, extra, rgb);
 }
 
 /* The report's marker for id: seen, and its pixel equal to the projection. */
@@ -230,10 +248,79 @@ static void test_markers_are_drawn_where_seen(void **state)
     assert_string_equal(out, want);
 }
 
+/* Parses a document's bytes and compares them with the file's, and the set with the given file's. */
+static void same_as_given(const fixture *f, const uint8_t *bytes, size_t length)
+{
+    size_t size;
+    unsigned char *file = ms_test_read_file(f->sidecar, &size);
+    assert_int_equal(length, size);
+    assert_memory_equal(bytes, file, size);
+    free(file);
+    ms_annotations *given, *served;
+    ms_error err;
+    assert_int_equal(ms_annotations_load(f->file, &given, &err), MS_OK);
+    assert_int_equal(ms_annotations_parse((const char *)bytes, length, "served", &served, &err), MS_OK);
+    assert_true(ms_annotations_equal(given, served));
+    ms_annotations_free(given);
+    ms_annotations_free(served);
+}
+
+static void test_both_doors_and_meshview_from_a_server(void **state)
+{
+    fixture *f = *state;
+    char log[700], ports[700], off[700], command[8192], out[4096];
+    snprintf(off, sizeof off, "%s/boxes.off", f->dir);
+    snprintf(command, sizeof command, "%s %s -o %s --name plain --no-thumbnail && %s --annotations %s -o %s --name boxes",
+             f->bake_bin, off, f->archives, f->bake_bin, f->file, f->archives);
+    assert_int_equal(ms_test_run(command, out, sizeof out), 0);
+    snprintf(log, sizeof log, "%s/meshserve.log", f->dir);
+    snprintf(ports, sizeof ports, "%s/ports", f->dir);
+    uint16_t port, http_port;
+    pid_t server = ms_test_meshserve_start(f->archives, NULL, 0, ports, log, &port, &http_port);
+    assert_true(server > 0);
+    /* the side door */
+    ms_test_http_response r;
+    assert_int_equal(ms_test_http_get(http_port, "/models/boxes/annotations", NULL, &r), 0);
+    assert_int_equal(r.status, 200);
+    same_as_given(f, r.body, r.body_length);
+    ms_test_http_free(&r);
+    assert_int_equal(ms_test_http_get(http_port, "/models/plain/annotations", NULL, &r), 0);
+    assert_int_equal(r.status, 404);
+    ms_test_http_free(&r);
+    /* the binary door */
+    ms_client_options o = {.host = "127.0.0.1", .port = port, .agent = "test"};
+    uint8_t *bytes;
+    size_t length;
+    ms_error err;
+    assert_int_equal(ms_client_fetch_document_at(&o, 10.0, "boxes", MS_DOCUMENT_ANNOTATIONS, &bytes, &length, &err),
+                     MS_OK);
+    same_as_given(f, bytes, length);
+    free(bytes);
+    assert_int_equal(ms_client_fetch_document_at(&o, 10.0, "plain", MS_DOCUMENT_ANNOTATIONS, &bytes, &length, &err),
+                     MS_ERR_IO);
+    assert_non_null(strstr(err.text, ": NO_DOCUMENT "));
+    /* meshview from the server: the same markers */
+    char source[64];
+    snprintf(source, sizeof source, "--server 127.0.0.1:%u", port);
+    uint8_t *rgb;
+    json_t *report = view_from(f, source, "server", "", &rgb);
+    json_t *notes = json_object_get(report, "annotations");
+    assert_string_equal(json_string_value(json_object_get(notes, "from")), "server");
+    assert_int_equal(json_integer_value(json_object_get(notes, "count")), 3);
+    assert_true(marker_seen(report, "front", front));
+    assert_false(marker_seen(report, "back", back));
+    assert_false(marker_seen(report, "shadowed", shadowed));
+    assert_memory_equal(at(rgb, front), marker_rgb, 3);
+    free(rgb);
+    json_decref(report);
+    ms_test_stop(server, SIGTERM, 10.0);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_markers_are_drawn_where_seen),
+        cmocka_unit_test(test_both_doors_and_meshview_from_a_server),
     };
     return cmocka_run_group_tests(tests, group_setup, group_teardown);
 }

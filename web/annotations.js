@@ -27,7 +27,7 @@
 const annotations = {
   list: [], markers: [], seen: [], selected: -1, mesh: null, timer: null, moving: null, pending: null,
   report: { state: 'loading', count: 0, markers: [], selected: null, title: null, text: null,
-            occlusion: 'none' },
+            occlusion: 'none', scripts: document.scripts.length, pwned: null },
 };
 page.annotations = annotations.report;
 

@@ -8,7 +8,9 @@
 #include <string.h>
 #include <sys/stat.h>
 
+#include "ms_client.h"
 #include "ms_metadata.h"
+#include "ms_proto.h"
 #include "ms_render.h"
 #include "ms_viewer_font.h"
 #include "ms_viewer_measure.h"
@@ -29,18 +31,17 @@ void ms_viewer_annotate_free(ms_viewer_annotate *a)
     a->set = NULL;
 }
 
-ms_status ms_viewer_annotate_read(const char *path, ms_annotations **out, ms_error *err)
+/* Keeps set in *out when every view it stores reads as a view text; else
+ * frees it with one line naming where and the annotation. */
+static ms_status check_views(ms_annotations *set, const char *where, ms_annotations **out, ms_error *err)
 {
-    ms_annotations *set;
-    ms_status st = ms_annotations_load(path, &set, err);
-    if (st != MS_OK)
-        return st;
+    ms_status st;
     for (size_t i = 0; i < ms_annotations_count(set); ++i) {
         const ms_annotation *n = ms_annotations_get(set, i);
         ms_viewer_share share;
         ms_error why;
         if (n->view && ms_viewer_share_parse(n->view, &share, &why) != MS_OK) {
-            st = ms_error_set(err, MS_ERR_FORMAT, "%.300s: annotation %zu (%s): view: %.150s", path, i + 1, n->id,
+            st = ms_error_set(err, MS_ERR_FORMAT, "%.300s: annotation %zu (%s): view: %.150s", where, i + 1, n->id,
                               why.text);
             ms_annotations_free(set);
             return st;
@@ -48,6 +49,37 @@ ms_status ms_viewer_annotate_read(const char *path, ms_annotations **out, ms_err
     }
     *out = set;
     return MS_OK;
+}
+
+ms_status ms_viewer_annotate_read(const char *path, ms_annotations **out, ms_error *err)
+{
+    ms_annotations *set;
+    ms_status st = ms_annotations_load(path, &set, err);
+    return st != MS_OK ? st : check_views(set, path, out, err);
+}
+
+/* The model's annotations document through the binary door (GET_DOCUMENT,
+ * one connection of its own): MS_OK with *out NULL when the server has none
+ * (NO_DOCUMENT). */
+static ms_status fetch(const ms_viewer_source *source, const char *model, ms_annotations **out, ms_error *err)
+{
+    *out = NULL;
+    ms_client_options co = {.host = source->host, .port = source->port, .token = source->token,
+                            .agent = "meshview/0.1"};
+    uint8_t *bytes;
+    size_t length;
+    ms_status st = ms_client_fetch_document_at(&co, source->timeout_s, model, MS_DOCUMENT_ANNOTATIONS, &bytes,
+                                               &length, err);
+    if (st == MS_ERR_IO && strstr(err->text, ": NO_DOCUMENT "))
+        return MS_OK;
+    if (st != MS_OK)
+        return st;
+    char where[200];
+    snprintf(where, sizeof where, "the server's annotations of %s", model);
+    ms_annotations *set;
+    st = ms_annotations_parse((const char *)bytes, length, where, &set, err);
+    free(bytes);
+    return st != MS_OK ? st : check_views(set, where, out, err);
 }
 
 void ms_viewer_annotate_load(ms_viewer_annotate *a, const ms_viewer_source *source, const char *model, FILE *log)
@@ -75,14 +107,17 @@ void ms_viewer_annotate_load(ms_viewer_annotate *a, const ms_viewer_source *sour
     else
         snprintf(a->save_path, sizeof a->save_path, "%s.annotations.json", model);
     ms_error err;
-    if (path && ms_viewer_annotate_read(path, &a->set, &err) != MS_OK) {
+    ms_status st = path                  ? ms_viewer_annotate_read(path, &a->set, &err)
+                   : !source->archive_dir ? fetch(source, model, &a->set, &err)
+                                          : MS_OK;
+    if (st != MS_OK) {
         snprintf(a->message, sizeof a->message, "%.*s", (int)sizeof a->message - 1, err.text);
         if (log)
             fprintf(log, "meshview: %s\n", err.text);
         return;
     }
-    if (path)
-        snprintf(a->from, sizeof a->from, "%s", a->file ? "file" : "archive");
+    if (a->set)
+        snprintf(a->from, sizeof a->from, "%s", path ? (a->file ? "file" : "archive") : "server");
     if (!a->set && !(a->set = ms_annotations_new()))
         return;
     long i = ms_annotations_find(a->set, a->select_id);

@@ -7,8 +7,9 @@
  *
  * Where they come from, the first that applies: --annotations FILE; a local
  * archive's sidecar DIR/NAME.annotations.json (none when it does not exist);
- * from a server, none yet (the doors' annotations document is not read by
- * meshview in this version). Ctrl+S saves to FILE, or to the archive's
+ * from a server, the model's annotations document through the binary door
+ * (GET_DOCUMENT, ms_client_fetch_document_at on a connection of its own,
+ * bounded by the source's time-out; NO_DOCUMENT: none). Ctrl+S saves to FILE, or to the archive's
  * sidecar, or (from a server) to NAME.annotations.json in the working
  * directory. Every stored view must read as a view text
  * (ms_viewer_share_parse), or the whole file is refused with one line.
