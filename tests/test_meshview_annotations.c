@@ -21,7 +21,7 @@
  *     door (GET_DOCUMENT, ms_client_fetch_document_at), both the file's bytes
  *     and read back the annotations given; a model without them: 404 and
  *     NO_DOCUMENT; meshview from the server shows the same markers, seen and
- *     hidden as from the archive. */
+ *     hidden as from the archive; meshbake --remove removes the sidecar. */
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -314,6 +314,11 @@ static void test_both_doors_and_meshview_from_a_server(void **state)
     free(rgb);
     json_decref(report);
     ms_test_stop(server, SIGTERM, 10.0);
+    /* meshbake --remove takes the sidecar away with the model */
+    snprintf(command, sizeof command, "%s --remove boxes -o %s", f->bake_bin, f->archives);
+    assert_int_equal(ms_test_run(command, out, sizeof out), 0);
+    struct stat st;
+    assert_int_not_equal(stat(f->sidecar, &st), 0);
 }
 
 int main(void)
