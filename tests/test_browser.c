@@ -6,7 +6,9 @@
  *     file outside the page names, a clear 404 when no web_dir is set;
  *   - the viewer draws the demo model: view complete, the triangles of the
  *     cut, and its silhouette that of meshrender's picture of the same
- *     camera and tolerance (intersection over union >= 0.98);
+ *     camera and tolerance (intersection over union >= 0.98); its first
+ *     picture came from at most 32 kB of cells beside the index (the first
+ *     look);
  *   - the catalogue page lists the models;
  *   - a model that does not exist: the page says so, in state 'error';
  *   - the page files deflated for a reader that accepts it, to the same bytes;
@@ -41,6 +43,7 @@
 #include <zlib.h>
 #include <jansson.h>
 
+#include "ms_archive.h"
 #include "ms_test.h"
 #include "ms_test_delay.h"
 #include "ms_test_net.h"
@@ -57,6 +60,7 @@ typedef struct fixture {
     pid_t server;
     uint16_t port, http_port;
     char why_skip[256]; /* set when the browser cases cannot run */
+    size_t index_size;  /* the demo's index blob, bytes */
 } fixture;
 
 /* Whether a program is on PATH. */
@@ -102,6 +106,16 @@ static int group_setup(void **state)
              f->archives, PREVIEW_BITS);
     if (run_or_say(command) != 0)
         return -1;
+    char demo[700];
+    snprintf(demo, sizeof demo, "%s/demo.msa", f->archives);
+    ms_archive *archive;
+    ms_error err;
+    if (ms_archive_open(demo, &archive, &err) != MS_OK) {
+        fprintf(stderr, "%s\n", err.text);
+        return -1;
+    }
+    (void)ms_archive_index_bytes(archive, &f->index_size);
+    ms_archive_close(archive);
     /* the built site; without it the page files of web/ still answer the
      * routes (the cases that need the module skip or fail below) */
     struct stat st;
@@ -323,6 +337,14 @@ static void test_viewer_draws_the_model(void **state)
                (long long)ref_cells);
         assert_int_equal(page_int(report, "triangles"), ref_triangles);
         assert_int_equal(page_int(report, "cells"), ref_cells);
+        /* the first look: the first picture came from at most 32 kB of cells
+         * (docs/BROWSER.md), read beside the index, before the view's own */
+        json_int_t first = json_integer_value(json_object_get(
+            json_object_get(json_object_get(report, "page"), "timing"), "firstMeshBytes"));
+        printf("first picture after %lld bytes (the index %zu)\n", (long long)first, f->index_size);
+        assert_true(first > (json_int_t)f->index_size);
+        assert_true(first <= (json_int_t)f->index_size + 32768);
+        assert_true(first < page_int(report, "bytes"));
 
         char ref_png[800];
         snprintf(ref_png, sizeof ref_png, "%s/frame_%03d.png", ref_dir, k);

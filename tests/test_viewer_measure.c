@@ -39,6 +39,7 @@
 #include "ms_test.h"
 #include "ms_test_core.h"
 #include "ms_viewer_light.h"
+#include "ms_section.h"
 #include "ms_viewer_measure.h"
 #include "ms_viewer_probe.h"
 #include "ms_viewer_share.h"
@@ -364,6 +365,29 @@ static void test_cast_on_a_hand_made_frame(void **state)
     assert_false(ms_viewer_measure_cast(&frame, 8.0, outside, d, 0, 0, &hit));
     assert_false(ms_viewer_measure_cast(&frame, 8.0, o, zero, 0, 0, &hit));
     assert_false(ms_viewer_measure_cast(NULL, 8.0, o, d, 0, 0, &hit));
+    /* a section cutting away z > 0.5: the chain's ray passes through the upper
+     * square (not drawn) to the lower one; without the plane, the upper again */
+    ms_viewer_measure m;
+    memset(&m, 0, sizeof m);
+    double cut[1][4], cut_point[3] = {0, 0, 0.5}, cut_normal[3] = {0, 0, 1};
+    ms_section_plane(cut_point, cut_normal, cut[0]);
+    assert_true(ms_viewer_measure_set_planes(&m, (const double(*)[4])cut, 1));
+    assert_false(ms_viewer_measure_set_planes(&m, (const double(*)[4])cut, 1)); /* unchanged */
+    assert_true(ms_viewer_measure_add(&m, &frame, 8.0, o, d));
+    assert_int_equal(m.hit[0].cell, 3);
+    assert_true(m.hit[0].point[2] == 0.0);
+    assert_true(ms_viewer_measure_set_planes(&m, NULL, 0));
+    ms_viewer_measure_update(&m, &frame, 8.0); /* cast again from its anchor, both ways */
+    assert_true(m.found[0] && m.hit[0].point[2] == 0.0); /* nearest the anchor: where it was */
+    assert_true(ms_viewer_measure_add(&m, &frame, 8.0, o, d));
+    assert_int_equal(m.hit[1].cell, 7);
+    /* a plane cutting both squares away: nothing to measure */
+    double all[1][4], all_point[3] = {0, 0, -1};
+    ms_section_plane(all_point, cut_normal, all[0]);
+    assert_true(ms_viewer_measure_set_planes(&m, (const double(*)[4])all, 1));
+    assert_false(ms_viewer_measure_add(&m, &frame, 8.0, o, d));
+    ms_viewer_measure_update(&m, &frame, 8.0);
+    assert_false(m.found[0] || m.found[1]);
     /* the pixel ray through the framebuffer's centre is the view direction */
     ms_camera cam;
     ms_error err;

@@ -203,10 +203,14 @@ function timed(key, fn) {
   }
 }
 
-function postMesh(final) {
+// received: the bytes read so far (the first non-empty mesh's are kept in
+// timing.firstMeshBytes: what the first look cost).
+function postMesh(final, received) {
   timed('stitch', () => stitchAndPost(final));
-  if (M._ms_web_view_triangle_count(view))
+  if (M._ms_web_view_triangle_count(view) && !('mesh' in timing.marks)) {
     mark('mesh');
+    timing.firstMeshBytes = received;
+  }
 }
 
 function stitchAndPost(final) {
@@ -322,11 +326,11 @@ async function run(msg) {
       throw new Error('selecting the cut: ' + lastError());
     const count = M._ms_web_view_plan_count(view);
     if (M.HEAPU32[settledPtr >> 2] && looking) {
-      postMesh(false);
+      postMesh(false, bytes);
       continue;
     }
     if (M.HEAPU32[settledPtr >> 2]) {
-      postMesh(true);
+      postMesh(true, bytes);
       postMessage({ type: 'complete', seq, bytes, rounds, preview, timing,
                     seconds: (performance.now() - started) / 1000 });
       while (!pendingCamera)
@@ -337,7 +341,7 @@ async function run(msg) {
     // with, then each round's cells (before, a round's picture waited for
     // the next round's fetches)
     if (changed(count) || (rounds === 0 && bounds))
-      postMesh(false);
+      postMesh(false, bytes);
     const wanted = [];
     for (let k = 0; k < count; ++k)
       wanted.push([M._ms_web_view_plan_cell(view, k), M._ms_web_view_plan_bits(view, k),
@@ -347,8 +351,11 @@ async function run(msg) {
     postMessage({ type: 'progress', bytes, need, rounds, wanted: count });
     let next = 0, given = 0, shownAt = performance.now(), fresh = 0;
     const queued = new Map(wanted.map(([cell, bits]) => [cell, bits]));
+    // A new camera ends the round: what is in flight lands, nothing more of
+    // the old plan is asked for (the next plan asks again what the new view
+    // still needs).
     const lane = async () => {
-      while (next < wanted.length) {
+      while (next < wanted.length && !pendingCamera) {
         const [cell, bits, prefix] = wanted[next++];
         const got = await fetchCell(name, token, cell, bits, prefix); // not `bytes += await`: lanes interleave
         bytes += got;
@@ -372,7 +379,7 @@ async function run(msg) {
             throw new Error('selecting the cut: ' + lastError());
           const listed = M._ms_web_view_plan_count(view);
           if (showDue && changed(listed)) { // stitching is the whole cut's: not every decode
-            postMesh(false);
+            postMesh(false, bytes);
             shownAt = performance.now();
           }
           for (let k = 0; k < listed && !pendingCamera; ++k) {

@@ -83,6 +83,16 @@ bool ms_viewer_inspect_key(ms_viewer_inspect *in, int key, const ms_viewer_contr
     }
 }
 
+/* What the sections cut away is not measured (it is not drawn): new planes
+ * cast the chain again. */
+static void measure_planes(ms_viewer_inspect *in)
+{
+    double planes[MS_SECTIONS_MAX][4];
+    size_t n = ms_viewer_sections_planes(&in->sections, planes);
+    if (ms_viewer_measure_set_planes(&in->measure, (const double(*)[4])planes, n))
+        in->generation = 0;
+}
+
 void ms_viewer_inspect_frame(ms_viewer_inspect *in, ms_viewer_stream *stream, const ms_camera *camera,
                              ms_render_options *render)
 {
@@ -106,6 +116,7 @@ void ms_viewer_inspect_frame(ms_viewer_inspect *in, ms_viewer_stream *stream, co
     ms_viewer_annotate_frame(&in->notes, frame, box_side(stream), camera);
     if (!frame)
         return;
+    measure_planes(in);
     /* the chain follows the cut once the view settles there (a cast reads every
      * triangle drawn: not at every frame of a refinement), or while a point is
      * not found */
@@ -242,6 +253,7 @@ bool ms_viewer_inspect_report_measure(const ms_viewer_options *o, ms_viewer_insp
         return false;
     const ms_core_frame *frame = ms_viewer_stream_frame(stream);
     const ms_viewer_model *model = ms_viewer_stream_model(stream);
+    measure_planes(look);
     ms_viewer_measure_update(&look->measure, frame, model->header.box_side);
     size_t shared = look->measure.count;
     json_t *points = json_array();

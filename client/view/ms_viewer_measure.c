@@ -5,6 +5,7 @@
 #include <string.h>
 
 #include "ms_ray.h"
+#include "ms_section.h"
 
 static double dot3(const double a[3], const double b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
 
@@ -34,8 +35,8 @@ void ms_viewer_measure_pixel_ray(const ms_camera *c, double x, double y, double 
 /* The hit of each of n rays (t >= t_min[i], t nearest t_near[i]) in one pass
  * over the triangles, so that the mesh is read once for every ray. */
 static void cast_rays(const ms_core_frame *frame, double box_side, size_t n, const double (*origin)[3],
-                      const double (*d)[3], const double *t_min, const double *t_near, ms_viewer_measure_hit *hit,
-                      bool *found)
+                      const double (*d)[3], const double *t_min, const double *t_near,
+                      const double (*planes)[4], size_t plane_count, ms_viewer_measure_hit *hit, bool *found)
 {
     const ms_view_mesh *m = &frame->mesh;
     double best[MS_VIEWER_MEASURE_MAX_POINTS];
@@ -50,6 +51,9 @@ static void cast_rays(const ms_core_frame *frame, double box_side, size_t n, con
         for (size_t r = 0; r < n; ++r) {
             double t;
             if (ms_ray_triangle(origin[r], d[r], p0, p1, p2, &t) && t >= t_min[r] && fabs(t - t_near[r]) < best[r]) {
+                double x[3] = {origin[r][0] + t * d[r][0], origin[r][1] + t * d[r][1], origin[r][2] + t * d[r][2]};
+                if (ms_section_cuts_away(planes, plane_count, x))
+                    continue; /* not drawn: behind it, the surface the picture shows */
                 best[r] = fabs(t - t_near[r]);
                 hit[r].t = t;
                 best_tri[r] = i;
@@ -77,8 +81,33 @@ bool ms_viewer_measure_cast(const ms_core_frame *frame, double box_side, const d
     bool found;
     if (!frame || !unit3(direction, d[0]))
         return false;
-    cast_rays(frame, box_side, 1, (const double(*)[3])origin, (const double(*)[3])d, &t_min, &t_near, hit, &found);
+    cast_rays(frame, box_side, 1, (const double(*)[3])origin, (const double(*)[3])d, &t_min, &t_near, NULL, 0,
+              hit, &found);
     return found;
+}
+
+/* The one cast of add: its planes. */
+static bool measure_cast(const ms_viewer_measure *m, const ms_core_frame *frame, double box_side,
+                         const double origin[3], const double direction[3], ms_viewer_measure_hit *hit)
+{
+    double d[1][3], t_min = 0, t_near = 0;
+    bool found;
+    if (!frame || !unit3(direction, d[0]))
+        return false;
+    cast_rays(frame, box_side, 1, (const double(*)[3])origin, (const double(*)[3])d, &t_min, &t_near,
+              (const double(*)[4])m->planes, m->plane_count, hit, &found);
+    return found;
+}
+
+bool ms_viewer_measure_set_planes(ms_viewer_measure *m, const double (*planes)[4], size_t count)
+{
+    if (count > MS_VIEWER_MEASURE_MAX_PLANES)
+        count = MS_VIEWER_MEASURE_MAX_PLANES;
+    bool same = count == m->plane_count && (!count || !memcmp(m->planes, planes, count * sizeof *planes));
+    if (count)
+        memcpy(m->planes, planes, count * sizeof *planes);
+    m->plane_count = count;
+    return !same;
 }
 
 bool ms_viewer_measure_add(ms_viewer_measure *m, const ms_core_frame *frame, double box_side,
@@ -86,7 +115,7 @@ bool ms_viewer_measure_add(ms_viewer_measure *m, const ms_core_frame *frame, dou
 {
     ms_viewer_measure_hit hit;
     if (m->count >= MS_VIEWER_MEASURE_MAX_POINTS ||
-        !ms_viewer_measure_cast(frame, box_side, origin, direction, 0, 0, &hit))
+        !measure_cast(m, frame, box_side, origin, direction, &hit))
         return false;
     size_t i = m->count++;
     unit3(direction, m->direction[i]);
@@ -127,7 +156,7 @@ void ms_viewer_measure_update(ms_viewer_measure *m, const ms_core_frame *frame, 
     }
     if (frame)
         cast_rays(frame, box_side, m->count, (const double(*)[3])m->anchor, (const double(*)[3])d, t_min, t_near,
-                  hit, found);
+                  (const double(*)[4])m->planes, m->plane_count, hit, found);
     for (size_t i = 0; i < m->count; ++i) {
         if (m->refined[i] && m->found[i])
             continue; /* at the probe's precision: the view's frame is no finer */

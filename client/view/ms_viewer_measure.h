@@ -35,6 +35,7 @@
 #include "ms_client_core.h"
 
 #define MS_VIEWER_MEASURE_MAX_POINTS 16
+#define MS_VIEWER_MEASURE_MAX_PLANES 3 /* meshview's MS_SECTIONS_MAX */
 
 typedef struct ms_viewer_measure_hit {
     double point[3];     /* on the drawn surface */
@@ -74,7 +75,15 @@ typedef struct ms_viewer_measure {
                                                           update leaves the point alone */
     uint64_t id[MS_VIEWER_MEASURE_MAX_POINTS];         /* each point's own, from 1 */
     uint64_t next_id;
+    double planes[MS_VIEWER_MEASURE_MAX_PLANES][4];    /* the section planes: what they cut
+                                                          away is not hit (ms_section.h) */
+    size_t plane_count;
 } ms_viewer_measure;
+
+/* The section planes the casts of add and update respect (count clamped to
+ * MS_VIEWER_MEASURE_MAX_PLANES); true when they changed, so that the caller
+ * casts the chain again. */
+bool ms_viewer_measure_set_planes(ms_viewer_measure *m, const double (*planes)[4], size_t count);
 
 /* Adds the point the ray from origin along direction hits first; false (the
  * chain unchanged) when it hits nothing or the chain is full. */

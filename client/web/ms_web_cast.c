@@ -4,14 +4,7 @@
 #include <math.h>
 
 #include "ms_ray.h"
-
-static bool cut_away(const double x[3], const double (*planes)[4], size_t count)
-{
-    for (size_t k = 0; k < count; ++k)
-        if (planes[k][0] * x[0] + planes[k][1] * x[1] + planes[k][2] * x[2] + planes[k][3] > 0)
-            return true;
-    return false;
-}
+#include "ms_section.h"
 
 bool ms_web_cast(const ms_view_mesh *m, const double origin[3], const double direction[3], double t_min,
                  double t_near, const double (*planes)[4], size_t count, double *t_out, size_t *triangle)
@@ -28,7 +21,7 @@ bool ms_web_cast(const ms_view_mesh *m, const double origin[3], const double dir
             t < t_min || !(fabs(t - t_near) < best))
             continue;
         double x[3] = {origin[0] + t * direction[0], origin[1] + t * direction[1], origin[2] + t * direction[2]};
-        if (cut_away(x, planes, count))
+        if (ms_section_cuts_away(planes, count, x))
             continue;
         best = fabs(t - t_near);
         *t_out = t;

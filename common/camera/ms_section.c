@@ -63,3 +63,11 @@ void ms_section_plane(const double point[3], const double normal[3], double plan
         plane[a] = normal[a];
     plane[3] = -(normal[0] * point[0] + normal[1] * point[1] + normal[2] * point[2]);
 }
+
+bool ms_section_cuts_away(const double (*planes)[4], size_t count, const double p[3])
+{
+    for (size_t k = 0; k < count; ++k)
+        if (planes[k][0] * p[0] + planes[k][1] * p[1] + planes[k][2] * p[2] + planes[k][3] > 0)
+            return true;
+    return false;
+}
