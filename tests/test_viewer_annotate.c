@@ -1,8 +1,8 @@
 /* meshview's annotations without a window (ms_viewer_annotate.h): a click
  * selects the nearest marker seen within reach (or none), the camera moves
  * to the selected annotation's stored view (part way after part of the time,
- * exactly there at the end, stopped by a drag), and typing a new annotation,
- * deleting and saving it. In process, no GL. */
+ * exactly there at the end, stopped by a drag), typing a new annotation,
+ * deleting and saving it, and where they are loaded from. In process, no GL. */
 #include <GLFW/glfw3.h>
 #include <math.h>
 #include <setjmp.h>
@@ -161,11 +161,63 @@ static void test_typing_deleting_saving(void **state)
     ms_test_rmdir(dir);
 }
 
+/* Where they come from: the archive's sidecar (none without one, a refused
+ * one's line), --annotations FILE first; where Ctrl+S saves; --annotation ID. */
+static void test_loading(void **state)
+{
+    (void)state;
+    char dir[512], path[700], file[700];
+    ms_test_tmpdir(dir, sizeof dir);
+    ms_viewer_source local = {.archive_dir = dir};
+    ms_viewer_annotate a;
+    ms_viewer_annotate_init(&a, NULL, "b");
+    ms_viewer_annotate_load(&a, &local, "m", NULL); /* no sidecar: none, an empty set to add to */
+    assert_string_equal(a.from, "none");
+    assert_non_null(a.set);
+    assert_int_equal(ms_annotations_count(a.set), 0);
+    snprintf(path, sizeof path, "%s/m.annotations.json", dir);
+    assert_string_equal(a.save_path, path);
+    assert_string_equal(a.message, "--annotation: no annotation 'b' among 0");
+    ms_test_write_file(path, file_text, strlen(file_text));
+    ms_viewer_annotate_load(&a, &local, "m", NULL); /* the same model: kept as it is */
+    assert_int_equal(ms_annotations_count(a.set), 0);
+    ms_viewer_annotate_free(&a);
+    ms_viewer_annotate_init(&a, NULL, "b");
+    ms_viewer_annotate_load(&a, &local, "m", NULL);
+    assert_string_equal(a.from, "archive");
+    assert_int_equal(ms_annotations_count(a.set), 2);
+    assert_int_equal(a.selected, 1);
+    assert_true(a.go);
+    assert_string_equal(a.message, "");
+    ms_viewer_annotate_free(&a);
+    /* a refused sidecar: none, its line */
+    const char *bad = "{\"format\": \"meshstream-annotations\", \"version\": 1, \"annotations\": ["
+                      "{\"id\": \"a\", \"point\": [0, 0, 0], \"title\": \"t\", \"view\": \"mv1:nope\"}]}";
+    ms_test_write_file(path, bad, strlen(bad));
+    ms_viewer_annotate_init(&a, NULL, NULL);
+    ms_viewer_annotate_load(&a, &local, "m", NULL);
+    assert_null(a.set);
+    assert_string_equal(a.from, "none");
+    assert_non_null(strstr(a.message, "m.annotations.json: annotation 1 (a): view: "));
+    ms_viewer_annotate_free(&a);
+    /* --annotations FILE wins over the sidecar, and is where Ctrl+S saves */
+    snprintf(file, sizeof file, "%s/mine.json", dir);
+    ms_test_write_file(file, file_text, strlen(file_text));
+    ms_viewer_annotate_init(&a, file, NULL);
+    ms_viewer_annotate_load(&a, &local, "m", NULL);
+    assert_string_equal(a.from, "file");
+    assert_string_equal(a.save_path, file);
+    assert_int_equal(ms_annotations_count(a.set), 2);
+    ms_viewer_annotate_free(&a);
+    ms_test_rmdir(dir);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_a_click_selects_and_the_camera_moves),
         cmocka_unit_test(test_typing_deleting_saving),
+        cmocka_unit_test(test_loading),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -123,6 +123,12 @@ void ms_viewer_annotate_load(ms_viewer_annotate *a, const ms_viewer_source *sour
     long i = ms_annotations_find(a->set, a->select_id);
     if (i >= 0)
         ms_viewer_annotate_select(a, i);
+    else if (a->select_id) {
+        snprintf(a->message, sizeof a->message, "--annotation: no annotation '%.40s' among %zu",
+                 a->select_id, ms_annotations_count(a->set));
+        if (log)
+            fprintf(log, "meshview: %s\n", a->message);
+    }
 }
 
 void ms_viewer_annotate_select(ms_viewer_annotate *a, long i)
