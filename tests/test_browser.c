@@ -45,11 +45,11 @@
 
 #include "ms_archive.h"
 #include "ms_test.h"
+#include "ms_test_browser.h"
 #include "ms_test_delay.h"
 #include "ms_test_net.h"
 #include "ms_test_picture.h"
 
-#define SITE "build/wasm/site"
 #define TOKEN "browser-test-token"
 #define PREVIEW_BITS 9
 #define WIDTH 320
@@ -62,14 +62,6 @@ typedef struct fixture {
     char why_skip[256]; /* set when the browser cases cannot run */
     size_t index_size;  /* the demo's index blob, bytes */
 } fixture;
-
-/* Whether a program is on PATH. */
-static int have_program(const char *name)
-{
-    char command[256], out[256];
-    snprintf(command, sizeof command, "command -v %s", name);
-    return ms_test_run(command, out, sizeof out) == 0;
-}
 
 static int run_or_say(const char *command)
 {
@@ -118,18 +110,12 @@ static int group_setup(void **state)
     ms_archive_close(archive);
     /* the built site; without it the page files of web/ still answer the
      * routes (the cases that need the module skip or fail below) */
-    struct stat st;
     char config[700], settings[256];
     snprintf(config, sizeof config, "%s/meshserve.conf", f->dir);
     snprintf(settings, sizeof settings, "token = " TOKEN "\nweb_dir = %s\n",
-             stat(SITE "/meshstream.wasm", &st) == 0 ? SITE : "web");
+             ms_test_browser_web_dir());
     ms_test_write_file(config, settings, strlen(settings));
-    if (!have_program("chromium-headless-shell"))
-        snprintf(f->why_skip, sizeof f->why_skip,
-                 "chromium-headless-shell is not installed (scripts/install-deps)");
-    else if (stat(SITE "/meshstream.wasm", &st) != 0 && !have_program("emcc"))
-        snprintf(f->why_skip, sizeof f->why_skip,
-                 "emscripten is not installed (scripts/install-deps), so no " SITE);
+    ms_test_browser_why_skip(f->why_skip, sizeof f->why_skip);
     /* with emcc installed, a missing module fails the cases that need it */
     const char *extra[] = {"--config", config, NULL};
     f->server = ms_test_meshserve_start(f->archives, extra, 0, f->port_file, f->log, &f->port,
@@ -152,36 +138,15 @@ static int group_teardown(void **state)
     return 0;
 }
 
-/* Skips a case that needs the browser when the tools are missing, saying which. */
-#define NEED_BROWSER(f)                                                                    \
-    do {                                                                                   \
-        if ((f)->why_skip[0]) {                                                            \
-            printf("skipped: %s\n", (f)->why_skip);                                        \
-            skip();                                                                        \
-        }                                                                                  \
-        struct stat st_;                                                                   \
-        if (stat(SITE "/meshstream.wasm", &st_) != 0)                                      \
-            fail_msg("emscripten is installed but " SITE "/meshstream.wasm is missing: "   \
-                     "run make wasm");                                                     \
-    } while (0)
-
 /* Opens path (after http://127.0.0.1:PORT) in the browser; the driver's JSON
  * report, the screenshot written to shot. */
 static json_t *open_page(const fixture *f, const char *path, const char *shot, const char *token)
 {
-    char command[4096];
-    snprintf(command, sizeof command,
-             "tests/browser-page 'http://127.0.0.1:%u%s' --size %dx%d --out %s --timeout 120%s%s",
-             f->http_port, path, WIDTH, HEIGHT, shot, token ? " --token " : "", token ? token : "");
-    json_t *report = ms_test_run_json(command, 0);
-    printf("%s: %s, %s\n", path, json_string_value(json_object_get(report, "state")),
-           json_string_value(json_object_get(report, "message")));
-    return report;
-}
-
-static json_int_t page_int(json_t *report, const char *key)
-{
-    return json_integer_value(json_object_get(json_object_get(report, "page"), key));
+    char url[1024], arguments[1024];
+    snprintf(url, sizeof url, "http://127.0.0.1:%u%s", f->http_port, path);
+    snprintf(arguments, sizeof arguments, "--size %dx%d --out %s --timeout 120%s%s", WIDTH, HEIGHT, shot,
+             token ? " --token " : "", token ? token : "");
+    return ms_test_browser_run(url, arguments);
 }
 
 static void test_page_routes(void **state)
@@ -295,7 +260,7 @@ static uint8_t *silhouette(const char *png, uint32_t *width, uint32_t *height, s
 static void test_viewer_draws_the_model(void **state)
 {
     fixture *f = *state;
-    NEED_BROWSER(f);
+    MS_TEST_NEED_BROWSER(f->why_skip);
     static const char *const cameras[] = {"0.9,0.6,3.2,0,0,0,0,1,0,40", "0.3,0.2,1.6,0,0,0,0,1,0,40"};
     enum { KEYS = sizeof cameras / sizeof *cameras };
     char path_file[700], text[512], ref_dir[700], command[4096], meshrender[600];
@@ -331,12 +296,12 @@ static void test_viewer_draws_the_model(void **state)
         assert_int_equal(json_array_size(json_object_get(report, "console")), 0);
         printf("page: %lld triangles in %lld cells, %lld bytes, first pixels at %lld ms, "
                "complete at %lld ms; meshrender's cut: %lld triangles in %lld cells\n",
-               (long long)page_int(report, "triangles"), (long long)page_int(report, "cells"),
-               (long long)page_int(report, "bytes"), (long long)page_int(report, "firstPixelMs"),
-               (long long)page_int(report, "completeMs"), (long long)ref_triangles,
+               (long long)ms_test_browser_page_int(report, "triangles"), (long long)ms_test_browser_page_int(report, "cells"),
+               (long long)ms_test_browser_page_int(report, "bytes"), (long long)ms_test_browser_page_int(report, "firstPixelMs"),
+               (long long)ms_test_browser_page_int(report, "completeMs"), (long long)ref_triangles,
                (long long)ref_cells);
-        assert_int_equal(page_int(report, "triangles"), ref_triangles);
-        assert_int_equal(page_int(report, "cells"), ref_cells);
+        assert_int_equal(ms_test_browser_page_int(report, "triangles"), ref_triangles);
+        assert_int_equal(ms_test_browser_page_int(report, "cells"), ref_cells);
         /* the first look: the first picture came from at most 32 kB of cells
          * (docs/BROWSER.md), read beside the index, before the view's own */
         json_int_t first = json_integer_value(json_object_get(
@@ -344,7 +309,7 @@ static void test_viewer_draws_the_model(void **state)
         printf("first picture after %lld bytes (the index %zu)\n", (long long)first, f->index_size);
         assert_true(first > (json_int_t)f->index_size);
         assert_true(first <= (json_int_t)f->index_size + 32768);
-        assert_true(first < page_int(report, "bytes"));
+        assert_true(first < ms_test_browser_page_int(report, "bytes"));
 
         char ref_png[800];
         snprintf(ref_png, sizeof ref_png, "%s/frame_%03d.png", ref_dir, k);
@@ -374,35 +339,35 @@ static void test_viewer_draws_the_model(void **state)
 static void test_catalogue_page(void **state)
 {
     fixture *f = *state;
-    NEED_BROWSER(f);
+    MS_TEST_NEED_BROWSER(f->why_skip);
     char shot[700];
     snprintf(shot, sizeof shot, "%s/catalogue.png", f->dir);
     json_t *report = open_page(f, "/", shot, NULL);
     assert_string_equal(json_string_value(json_object_get(report, "state")), "complete");
-    assert_int_equal(page_int(report, "models"), 2);
+    assert_int_equal(ms_test_browser_page_int(report, "models"), 2);
     assert_string_equal(json_string_value(json_object_get(report, "message")), "2 models");
     /* both thumbnails shown; the sidecar's title is text, not markup: shown as
      * written, and no script element came of it */
-    assert_int_equal(page_int(report, "thumbnails"), 2);
+    assert_int_equal(ms_test_browser_page_int(report, "thumbnails"), 2);
     json_t *titles = json_object_get(json_object_get(report, "page"), "titles");
     assert_int_equal(json_array_size(titles), 1);
     assert_string_equal(json_string_value(json_array_get(titles, 0)),
                         "Demo <script>window.pwned = 1</script>");
-    assert_int_equal(page_int(report, "scripts"), 1);
+    assert_int_equal(ms_test_browser_page_int(report, "scripts"), 1);
     json_decref(report);
 }
 
 static void test_missing_model_says_so(void **state)
 {
     fixture *f = *state;
-    NEED_BROWSER(f);
+    MS_TEST_NEED_BROWSER(f->why_skip);
     char shot[700];
     snprintf(shot, sizeof shot, "%s/missing.png", f->dir);
     json_t *report = open_page(f, "/view/no-such-model", shot, NULL);
     assert_string_equal(json_string_value(json_object_get(report, "state")), "error");
     assert_string_equal(json_string_value(json_object_get(report, "message")),
                         "No model named \"no-such-model\" on this server");
-    assert_int_equal(page_int(report, "triangles"), 0);
+    assert_int_equal(ms_test_browser_page_int(report, "triangles"), 0);
     json_decref(report);
 }
 
@@ -416,7 +381,7 @@ static double seconds_now(void)
 static void test_server_gone_mid_stream(void **state)
 {
     fixture *f = *state;
-    NEED_BROWSER(f);
+    MS_TEST_NEED_BROWSER(f->why_skip);
     ms_test_delay *relay = NULL;
     uint16_t relay_port;
     assert_int_equal(ms_test_delay_start(f->http_port, 0.15, &relay, &relay_port), 0);
@@ -486,7 +451,7 @@ static uint64_t forbidden(const fixture *f)
 static void test_preview_and_token(void **state)
 {
     fixture *f = *state;
-    NEED_BROWSER(f);
+    MS_TEST_NEED_BROWSER(f->why_skip);
     /* close to the surface: a camera that wants more than the preview */
     static const char page[] = "/view/preview#cam=0.3,0.2,1.6,0,0,0,0,1,0,40&tol=1&hud=0";
     char shot[700];
@@ -499,13 +464,13 @@ static void test_preview_and_token(void **state)
     json_t *full = open_page(f, page, shot, TOKEN);
     assert_string_equal(json_string_value(json_object_get(full, "state")), "complete");
     assert_int_equal(forbidden(f), refused);
-    json_int_t a = page_int(anonymous, "bits"), b = page_int(full, "bits");
+    json_int_t a = ms_test_browser_page_int(anonymous, "bits"), b = ms_test_browser_page_int(full, "bits");
     printf("preview: cells up to %lld bits, %lld triangles, %lld bytes; with the token: %lld "
            "bits, %lld triangles, %lld bytes\n",
-           (long long)a, (long long)page_int(anonymous, "triangles"),
-           (long long)page_int(anonymous, "bytes"), (long long)b,
-           (long long)page_int(full, "triangles"), (long long)page_int(full, "bytes"));
-    assert_true(page_int(anonymous, "triangles") > 0);
+           (long long)a, (long long)ms_test_browser_page_int(anonymous, "triangles"),
+           (long long)ms_test_browser_page_int(anonymous, "bytes"), (long long)b,
+           (long long)ms_test_browser_page_int(full, "triangles"), (long long)ms_test_browser_page_int(full, "bytes"));
+    assert_true(ms_test_browser_page_int(anonymous, "triangles") > 0);
     assert_int_equal(a, PREVIEW_BITS);
     assert_true(b > PREVIEW_BITS);
     assert_non_null(strstr(json_string_value(json_object_get(anonymous, "message")),
@@ -523,7 +488,7 @@ static void test_preview_and_token(void **state)
 static void test_controls_and_view_text(void **state)
 {
     fixture *f = *state;
-    NEED_BROWSER(f);
+    MS_TEST_NEED_BROWSER(f->why_skip);
     static const char steps[] =
         "[{\"method\": \"Input.dispatchMouseEvent\", \"params\": {\"type\": \"mousePressed\", \"x\": 160, \"y\": 120, \"button\": \"left\", \"buttons\": 1, \"clickCount\": 1}},\n"
         " {\"method\": \"Input.dispatchMouseEvent\", \"params\": {\"type\": \"mouseMoved\", \"x\": 200, \"y\": 120, \"button\": \"left\", \"buttons\": 1}},\n"

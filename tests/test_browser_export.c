@@ -31,9 +31,9 @@
 #include <jansson.h>
 
 #include "ms_test.h"
+#include "ms_test_browser.h"
 #include "ms_test_net.h"
 
-#define SITE "build/wasm/site"
 #define TOKEN "export-test-token"
 #define NGINX "/usr/sbin/nginx"
 #define CLOSE_UP "0.3,0.2,1.6,0,0,0,0,1,0,40"
@@ -44,13 +44,6 @@ typedef struct fixture {
     uint16_t port, http_port, nginx_port;
     char why_skip[256];
 } fixture;
-
-static int have_program(const char *name)
-{
-    char command[256], out[256];
-    snprintf(command, sizeof command, "command -v %s", name);
-    return ms_test_run(command, out, sizeof out) == 0;
-}
 
 static int run_or_say(const char *command)
 {
@@ -129,8 +122,7 @@ static int group_setup(void **state)
     snprintf(f->www, sizeof f->www, "%s/www", f->dir);
     if (mkdir(f->archives, 0755) != 0)
         return -1;
-    struct stat st;
-    int built = stat(SITE "/meshstream.wasm", &st) == 0;
+    const char *web_dir = ms_test_browser_web_dir();
     char meshgen[600], meshbake[600], meshexport[600], command[16384];
     ms_test_bin_path(meshgen, sizeof meshgen, "meshgen");
     ms_test_bin_path(meshbake, sizeof meshbake, "meshbake");
@@ -141,15 +133,11 @@ static int group_setup(void **state)
              "%s %s/demo.ply -o %s --name preview --min-tris 1500 --no-apo --threads 2 "
              "--public-bits 9 && %s %s demo -o %s --web-dir %s && %s %s preview -o %s --web-dir %s",
              meshgen, f->dir, meshbake, f->dir, f->archives, meshbake, f->dir, f->archives,
-             meshexport, f->archives, f->www, built ? SITE : "web", meshexport, f->archives,
-             f->www, built ? SITE : "web");
+             meshexport, f->archives, f->www, web_dir, meshexport, f->archives, f->www, web_dir);
     if (run_or_say(command) != 0)
         return -1;
-    if (!have_program("chromium-headless-shell"))
-        snprintf(f->why_skip, sizeof f->why_skip, "chromium-headless-shell is not installed");
-    else if (!built && !have_program("emcc"))
-        snprintf(f->why_skip, sizeof f->why_skip, "emscripten is not installed, so no " SITE);
-    else if (access(NGINX, X_OK) != 0)
+    ms_test_browser_why_skip(f->why_skip, sizeof f->why_skip);
+    if (!f->why_skip[0] && access(NGINX, X_OK) != 0)
         snprintf(f->why_skip, sizeof f->why_skip, "nginx is not installed");
     if (!f->why_skip[0] && start_nginx(f) != 0)
         return -1;
@@ -158,7 +146,7 @@ static int group_setup(void **state)
     snprintf(config, sizeof config, "%s/meshserve.conf", f->dir);
     snprintf(settings, sizeof settings,
              "token = " TOKEN "\nweb_dir = %s\ncors_origins = http://127.0.0.1:%u\n",
-             built ? SITE : "web", f->nginx_port ? f->nginx_port : 1);
+             web_dir, f->nginx_port ? f->nginx_port : 1);
     ms_test_write_file(config, settings, strlen(settings));
     snprintf(log, sizeof log, "%s/meshserve.log", f->dir);
     snprintf(ports, sizeof ports, "%s/ports", f->dir);
@@ -184,33 +172,12 @@ static int group_teardown(void **state)
     return 0;
 }
 
-#define NEED_BROWSER(f)                                                                    \
-    do {                                                                                   \
-        if ((f)->why_skip[0]) {                                                            \
-            printf("skipped: %s\n", (f)->why_skip);                                        \
-            skip();                                                                        \
-        }                                                                                  \
-        struct stat st_;                                                                   \
-        if (stat(SITE "/meshstream.wasm", &st_) != 0)                                      \
-            fail_msg("emscripten is installed but " SITE "/meshstream.wasm is missing: "   \
-                     "run make wasm");                                                     \
-    } while (0)
-
 /* Opens url in the browser: the driver's report. */
 static json_t *open_url(const fixture *f, const char *url, const char *shot_name)
 {
-    char command[4096];
-    snprintf(command, sizeof command, "tests/browser-page '%s' --size 320x240 --out %s/%s --timeout 120",
-             url, f->dir, shot_name);
-    json_t *report = ms_test_run_json(command, 0);
-    printf("%s: %s, %s\n", url, json_string_value(json_object_get(report, "state")),
-           json_string_value(json_object_get(report, "message")));
-    return report;
-}
-
-static json_int_t page_int(json_t *report, const char *key)
-{
-    return json_integer_value(json_object_get(json_object_get(report, "page"), key));
+    char arguments[1024];
+    snprintf(arguments, sizeof arguments, "--size 320x240 --out %s/%s --timeout 120", f->dir, shot_name);
+    return ms_test_browser_run(url, arguments);
 }
 
 /* The nginx access log's answers with a status of 400 or more. */
@@ -271,7 +238,7 @@ static void test_export_writes_the_site(void **state)
 static void test_static_viewer(void **state)
 {
     fixture *f = *state;
-    NEED_BROWSER(f);
+    MS_TEST_NEED_BROWSER(f->why_skip);
     /* the module with its type, as a plain nginx sends it */
     ms_test_http_response r;
     assert_int_equal(ms_test_http_get(f->nginx_port, "/web/meshstream.wasm", NULL, &r), 0);
@@ -297,8 +264,8 @@ static void test_static_viewer(void **state)
     json_t *report = open_url(f, url, "static.png");
     assert_string_equal(json_string_value(json_object_get(report, "state")), "complete");
     assert_int_equal(json_array_size(json_object_get(report, "console")), 0);
-    assert_int_equal(page_int(report, "triangles"), json_integer_value(json_object_get(cut, "triangles")));
-    assert_int_equal(page_int(report, "cells"), json_integer_value(json_object_get(cut, "shown_cells")));
+    assert_int_equal(ms_test_browser_page_int(report, "triangles"), json_integer_value(json_object_get(cut, "triangles")));
+    assert_int_equal(ms_test_browser_page_int(report, "cells"), json_integer_value(json_object_get(cut, "shown_cells")));
     assert_int_equal(nginx_errors(f), errors); /* every byte range within its file */
     json_decref(report);
     json_decref(ref);
@@ -307,7 +274,7 @@ static void test_static_viewer(void **state)
 static void test_static_catalogue_and_preview(void **state)
 {
     fixture *f = *state;
-    NEED_BROWSER(f);
+    MS_TEST_NEED_BROWSER(f->why_skip);
     char url[512];
     unsigned errors = nginx_errors(f);
     snprintf(url, sizeof url, "http://127.0.0.1:%u/", f->nginx_port);
@@ -320,8 +287,8 @@ static void test_static_catalogue_and_preview(void **state)
              f->nginx_port);
     report = open_url(f, url, "preview.png");
     assert_string_equal(json_string_value(json_object_get(report, "state")), "complete");
-    assert_int_equal(page_int(report, "bits"), 9);
-    assert_true(page_int(report, "triangles") > 0);
+    assert_int_equal(ms_test_browser_page_int(report, "bits"), 9);
+    assert_true(ms_test_browser_page_int(report, "triangles") > 0);
     assert_non_null(strstr(json_string_value(json_object_get(report, "message")), "(the public preview)"));
     assert_int_equal(nginx_errors(f), errors); /* nothing asked past the exported preview */
     json_decref(report);
@@ -330,7 +297,7 @@ static void test_static_catalogue_and_preview(void **state)
 static void test_embedded_in_another_site(void **state)
 {
     fixture *f = *state;
-    NEED_BROWSER(f);
+    MS_TEST_NEED_BROWSER(f->why_skip);
     /* the museum's page: at nginx's origin, the viewer and the side door at
      * meshserve's (localhost: another origin than 127.0.0.1) */
     char page[4096], path[700], url[256];
@@ -361,7 +328,7 @@ static void test_embedded_in_another_site(void **state)
     json_t *p = json_object_get(report, "page");
     printf("cross-origin read: %s\n", json_string_value(json_object_get(p, "cors")));
     assert_string_equal(json_string_value(json_object_get(report, "state")), "complete");
-    assert_true(page_int(report, "triangles") > 0);
+    assert_true(ms_test_browser_page_int(report, "triangles") > 0);
     const char *cors = json_string_value(json_object_get(p, "cors"));
     assert_non_null(cors);
     assert_int_equal(strncmp(cors, "206 4 bytes 0-3/", 16), 0);

@@ -24,11 +24,11 @@
 #include <jansson.h>
 
 #include "ms_test.h"
+#include "ms_test_browser.h"
 #include "ms_test_display.h"
 #include "ms_test_net.h"
 #include "ms_test_picture.h"
 
-#define SITE "build/wasm/site"
 #define WIDTH 320
 #define HEIGHT 240
 #define KEYS 3
@@ -47,13 +47,6 @@ typedef struct fixture {
     uint16_t port, http_port;
     char why_skip[256];
 } fixture;
-
-static int have_program(const char *name)
-{
-    char command[256], out[256];
-    snprintf(command, sizeof command, "command -v %s", name);
-    return ms_test_run(command, out, sizeof out) == 0;
-}
 
 static int group_setup(void **state)
 {
@@ -80,17 +73,8 @@ static int group_setup(void **state)
         fprintf(stderr, "%s: %s\n", command, out);
         return -1;
     }
-    struct stat st;
-    int built = stat(SITE "/meshstream.wasm", &st) == 0;
-    if (!have_program("chromium-headless-shell"))
-        snprintf(f->why_skip, sizeof f->why_skip, "chromium-headless-shell is not installed");
-    else if (!built && !have_program("emcc"))
-        snprintf(f->why_skip, sizeof f->why_skip, "emscripten is not installed, so no " SITE);
-    char log[700], ports[700];
-    snprintf(log, sizeof log, "%s/meshserve.log", f->dir);
-    snprintf(ports, sizeof ports, "%s/ports", f->dir);
-    const char *extra[] = {"--web-dir", built ? SITE : "web", NULL};
-    f->server = ms_test_meshserve_start(f->archives, extra, 0, ports, log, &f->port, &f->http_port);
+    ms_test_browser_why_skip(f->why_skip, sizeof f->why_skip);
+    f->server = ms_test_browser_serve(f->dir, f->archives, &f->port, &f->http_port);
     return f->server ? 0 : -1;
 }
 
@@ -150,13 +134,7 @@ static void compare(const char *a_path, const char *b_path, double *iou, double 
 static void test_closeup_path_against_meshview(void **state)
 {
     fixture *f = *state;
-    if (f->why_skip[0]) {
-        printf("skipped: %s\n", f->why_skip);
-        skip();
-    }
-    struct stat st;
-    if (stat(SITE "/meshstream.wasm", &st) != 0)
-        fail_msg("emscripten is installed but " SITE "/meshstream.wasm is missing: run make wasm");
+    MS_TEST_NEED_BROWSER(f->why_skip);
     char path_file[700], text[1024], command[4096], meshview[600];
     size_t used = (size_t)snprintf(text, sizeof text, "meshstream-camera-path 1\n");
     for (int k = 0; k < KEYS; ++k)

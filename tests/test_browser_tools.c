@@ -43,11 +43,11 @@
 
 #include "ms_camera.h"
 #include "ms_test.h"
+#include "ms_test_browser.h"
 #include "ms_test_display.h"
 #include "ms_test_net.h"
 #include "ms_test_picture.h"
 
-#define SITE "build/wasm/site"
 #define WIDTH 320
 #define HEIGHT 240
 #define GRID 8 /* the cube's faces: GRID x GRID squares */
@@ -59,13 +59,6 @@ typedef struct fixture {
     uint16_t port, http_port;
     char why_skip[256];
 } fixture;
-
-static int have_program(const char *name)
-{
-    char command[256], out[256];
-    snprintf(command, sizeof command, "command -v %s", name);
-    return ms_test_run(command, out, sizeof out) == 0;
-}
 
 /* The unit cube, each face a GRID x GRID grid of squares, wound outwards. */
 static void write_cube(const char *path)
@@ -128,17 +121,8 @@ static int group_setup(void **state)
         fprintf(stderr, "%s: %s\n", command, out);
         return -1;
     }
-    struct stat st;
-    int built = stat(SITE "/meshstream.wasm", &st) == 0;
-    if (!have_program("chromium-headless-shell"))
-        snprintf(f->why_skip, sizeof f->why_skip, "chromium-headless-shell is not installed");
-    else if (!built && !have_program("emcc"))
-        snprintf(f->why_skip, sizeof f->why_skip, "emscripten is not installed, so no " SITE);
-    char log[700], ports[700];
-    snprintf(log, sizeof log, "%s/meshserve.log", f->dir);
-    snprintf(ports, sizeof ports, "%s/ports", f->dir);
-    const char *extra[] = {"--web-dir", built ? SITE : "web", NULL};
-    f->server = ms_test_meshserve_start(f->archives, extra, 0, ports, log, &f->port, &f->http_port);
+    ms_test_browser_why_skip(f->why_skip, sizeof f->why_skip);
+    f->server = ms_test_browser_serve(f->dir, f->archives, &f->port, &f->http_port);
     return f->server ? 0 : -1;
 }
 
@@ -155,32 +139,20 @@ static int group_teardown(void **state)
     return 0;
 }
 
-#define NEED_BROWSER(f)                                                                                            \
-    do {                                                                                                           \
-        if ((f)->why_skip[0]) {                                                                                    \
-            printf("skipped: %s\n", (f)->why_skip);                                                                \
-            skip();                                                                                                \
-        }                                                                                                          \
-        struct stat st_;                                                                                           \
-        if (stat(SITE "/meshstream.wasm", &st_) != 0)                                                              \
-            fail_msg("emscripten is installed but " SITE "/meshstream.wasm is missing: run make wasm");            \
-    } while (0)
-
 /* The page of model at #view=TEXT (hud off), with the input steps (NULL:
  * none); its screenshot into shot. The driver's report, the page complete
  * and without a console error. */
 static json_t *page(const fixture *f, const char *model, const char *view, const char *steps, const char *shot)
 {
-    char command[8192], steps_file[700] = "";
+    char url[4096], arguments[2048], steps_file[700] = "";
     if (steps) {
         snprintf(steps_file, sizeof steps_file, "%s/steps.json", f->dir);
         ms_test_write_file(steps_file, steps, strlen(steps));
     }
-    snprintf(command, sizeof command,
-             "tests/browser-page 'http://127.0.0.1:%u/view/%s#view=%s&tol=1&hud=0' --size %dx%d --out %s "
-             "--timeout 120%s%s",
-             f->http_port, model, view, WIDTH, HEIGHT, shot, steps ? " --input " : "", steps ? steps_file : "");
-    json_t *report = ms_test_run_json(command, 0);
+    snprintf(url, sizeof url, "http://127.0.0.1:%u/view/%s#view=%s&tol=1&hud=0", f->http_port, model, view);
+    snprintf(arguments, sizeof arguments, "--size %dx%d --out %s --timeout 120%s%s", WIDTH, HEIGHT, shot,
+             steps ? " --input " : "", steps ? steps_file : "");
+    json_t *report = ms_test_browser_run(url, arguments);
     if (strcmp(json_string_value(json_object_get(report, "state")), "complete") != 0)
         fail_msg("the page: %s (console: %s)", json_string_value(json_object_get(report, "message")),
                  json_string_value(json_array_get(json_object_get(report, "console"), 0)));
@@ -214,7 +186,7 @@ static double number(json_t *j) { return json_number_value(j); }
 static void test_view_text_both_ways(void **state)
 {
     fixture *f = *state;
-    NEED_BROWSER(f);
+    MS_TEST_NEED_BROWSER(f->why_skip);
     static const char text[] = "mv1:t=0,0,0:d=3.4:o=0.35,-0.2:f=40:u=y:l=60,10:s=0,0,0,0,0,1";
     /* a Ctrl drag 24 px right, then Y */
     static const char steps[] =
@@ -276,7 +248,7 @@ static bool model_pixel(const uint8_t *rgb, size_t i)
 static void test_section_against_meshview(void **state)
 {
     fixture *f = *state;
-    NEED_BROWSER(f);
+    MS_TEST_NEED_BROWSER(f->why_skip);
     static const char text[] = "mv1:t=0,0,0:d=3.4:o=0.35,-0.2:f=40:u=y:s=0,0,0,1,0,0";
     static const char whole[] = "mv1:t=0,0,0:d=3.4:o=0.35,-0.2:f=40:u=y";
     char shot[700], uncut[700], ref[800];
@@ -318,7 +290,7 @@ static double srgb_decode(double c)
 static void test_lambert_on_a_face(void **state)
 {
     fixture *f = *state;
-    NEED_BROWSER(f);
+    MS_TEST_NEED_BROWSER(f->why_skip);
     /* the face x = 1 head-on (y up, yaw 0: the eye on +x), filling the middle */
     static const struct {
         const char *light;
@@ -365,7 +337,7 @@ static void check_edge(json_t *m);
 static void test_measure_cube_edge(void **state)
 {
     fixture *f = *state;
-    NEED_BROWSER(f);
+    MS_TEST_NEED_BROWSER(f->why_skip);
     /* T, a click at the centre (one point), Delete; then two rays along x
      * onto the faces x = 0 and x = 1 through the cube's middle */
     static const char steps[] =
@@ -438,7 +410,7 @@ static void check_edge(json_t *m)
 static void test_bad_view_text(void **state)
 {
     fixture *f = *state;
-    NEED_BROWSER(f);
+    MS_TEST_NEED_BROWSER(f->why_skip);
     static const struct {
         const char *text, *line;
     } cases[] = {
