@@ -298,7 +298,8 @@ WASM_ROOMS  := common/util common/mesh common/codec common/camera common/archive
 WASM_SKIP   := common/util/ms_byte_source.c common/util/ms_json_out.c common/util/ms_png.c \
                common/util/ms_version.c common/util/ms_parallel.c common/util/ms_input_file.c \
                common/util/ms_cli.c common/util/ms_process_memory.c common/archive/ms_catalog.c \
-               common/archive/ms_catalog_text.c common/archive/ms_metadata.c
+               common/archive/ms_catalog_text.c common/archive/ms_metadata.c \
+               common/archive/ms_annotations.c
 WASM_SRCS   := $(filter-out $(WASM_SKIP),$(foreach r,$(WASM_ROOMS),$(call lib_srcs,$(r)))) \
                web/wasm/ms_wasm_zlib.c
 WASM_OBJS   := $(patsubst %.c,$(WASM)/obj/%.o,$(WASM_SRCS))

@@ -1,4 +1,4 @@
-/* Replays the regression corpora of eight libFuzzer targets through their
+/* Replays the regression corpora of nine libFuzzer targets through their
  * contract checks: tests/corpus/archive_index/ (the archive index reader,
  * tests/fuzz/fuzz_archive_index.c), tests/corpus/subtree/ (the index head and
  * subtree reader of a client's partial index, tests/fuzz/fuzz_subtree.c), tests/corpus/apo_chunk/ (the APO chunk
@@ -7,8 +7,9 @@
  * tests/corpus/config_catalog/ (meshserve's config file and catalog.json,
  * tests/fuzz/fuzz_config_catalog.c), tests/corpus/mesh_reader/ (the mesh
  * readers, vertex colour included, tests/fuzz/fuzz_mesh_reader.c),
- * tests/corpus/colour/ (the colour decoder, tests/fuzz/fuzz_colour.c) and
- * tests/corpus/metadata/ (meshbake's sidecar metadata, tests/fuzz/fuzz_metadata.c). Seeds named
+ * tests/corpus/colour/ (the colour decoder, tests/fuzz/fuzz_colour.c),
+ * tests/corpus/metadata/ (meshbake's sidecar metadata, tests/fuzz/fuzz_metadata.c) and
+ * tests/corpus/annotations/ (a model's annotations, tests/fuzz/fuzz_annotations.c). Seeds named
  * seed-*-ok and seed-*.cam must be accepted, the other seed-* refused;
  * fuzzer finds only need to run clean. */
 #include <dirent.h>
@@ -23,6 +24,7 @@
 #include "ms_test.h"
 
 #define MS_FUZZ_NO_ENTRY_POINT
+#include "fuzz/fuzz_annotations.c"
 #include "fuzz/fuzz_apo_chunk.c"
 #include "fuzz/fuzz_archive_index.c"
 #include "fuzz/fuzz_camera_path.c"
@@ -122,6 +124,12 @@ static void test_metadata_corpus(void **state)
     assert_true(replay("tests/corpus/metadata", ms_fuzz_metadata_one) >= 23);
 }
 
+static void test_annotations_corpus(void **state)
+{
+    (void)state;
+    assert_true(replay("tests/corpus/annotations", ms_fuzz_annotations_one) >= 26);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -133,6 +141,7 @@ int main(void)
         cmocka_unit_test(test_mesh_reader_corpus),
         cmocka_unit_test(test_colour_corpus),
         cmocka_unit_test(test_metadata_corpus),
+        cmocka_unit_test(test_annotations_corpus),
     };
     return cmocka_run_group_tests_name("fuzz_replay", tests, NULL, NULL);
 }

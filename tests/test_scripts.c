@@ -32,7 +32,7 @@ static bool listed(const char *name)
 
 /* Every shell script in the folder is in the list (the sourced helpers, the
  * Python generator and report writer and the camera paths, scenes and
- * metadata sidecar folders aside), so a new one is tested. */
+ * metadata and annotations sidecar folders aside), so a new one is tested. */
 static void test_every_script_is_listed(void **state)
 {
     (void)state;
@@ -42,7 +42,7 @@ static void test_every_script_is_listed(void **state)
     for (struct dirent *e; (e = readdir(dir));) {
         const char *n = e->d_name;
         if (n[0] == '.' || strcmp(n, "paths") == 0 || strcmp(n, "scenes") == 0 ||
-            strcmp(n, "metadata") == 0 ||
+            strcmp(n, "metadata") == 0 || strcmp(n, "annotations") == 0 ||
             strcmp(n, "script-usage.sh") == 0 || strcmp(n, "models.sh") == 0 ||
             strcmp(n, "gen-camera-paths.py") == 0 ||
             strcmp(n, "study-report.py") == 0)

@@ -260,6 +260,8 @@ function draw() {
   gl.bindVertexArray(vao);
   gl.drawElements(gl.TRIANGLES, indexCount, gl.UNSIGNED_INT, 0);
   MsTools.drawn(camera);
+  if (typeof annotationsOnDraw === 'function')   // web/annotations.js: the markers
+    annotationsOnDraw();
   if (page.firstPixelMs === null)
     page.firstPixelMs = Math.round(performance.now());
 }
@@ -280,6 +282,8 @@ function upload(positions, normals, triangles) {
   gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, indexBuffer);
   gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, triangles, gl.STATIC_DRAW);
   indexCount = triangles.length;
+  if (typeof annotationsOnMesh === 'function')   // web/annotations.js: occlusion
+    annotationsOnMesh(positions, triangles);
 }
 
 // ---- Camera: home, orbit, zoom, the URL ------------------------------------

@@ -65,7 +65,7 @@ typedef struct viewer {
     ms_render_options render;
     bool apo, geometry_normals, hud;
     char message[256];             /* shown on the catalogue screen (last failure) */
-    char mode_text[96];            /* the HUD's shading line (mode_name) */
+    char mode_text[96];            /* the HUD's shading line (ms_viewer_hud_mode) */
     int screenshots;
     /* input */
     bool rotating, panning;
@@ -119,26 +119,6 @@ static int text_scale(const viewer *v)
 static void update_shading(viewer *v)
 {
     v->render.apo = v->apo && !v->geometry_normals;
-}
-
-static const char *mode_name(viewer *v)
-{
-    const char *mode;
-    switch (v->render.shading) {
-    case MS_SHADING_NORMALS: mode = v->render.apo ? "normals (APO)" : "normals (geometry)"; break;
-    case MS_SHADING_CELLS: mode = v->render.apo ? "cells, APO lit" : "cells, geometry lit"; break;
-    case MS_SHADING_ALBEDO: mode = "albedo (unlit)"; break;
-    default: mode = v->render.apo ? "APO lit" : "geometry lit"; break;
-    }
-    /* where no APO normal is used: flat, or smooth with the crease angle (M, K) */
-    if (!v->render.smooth)
-        snprintf(v->mode_text, sizeof v->mode_text, "%s, flat", mode);
-    else if (v->stream)
-        snprintf(v->mode_text, sizeof v->mode_text, "%s, creases %.0f deg", mode,
-                 ms_viewer_stream_crease_angle(v->stream));
-    else
-        snprintf(v->mode_text, sizeof v->mode_text, "%s", mode);
-    return v->mode_text;
 }
 
 static void close_model(viewer *v)
@@ -240,10 +220,14 @@ static void frame_selected(viewer *v)
 
 static void on_key(GLFWwindow *w, int key, int scancode, int action, int mods)
 {
-    (void)scancode, (void)mods;
+    (void)scancode;
     viewer *v = glfwGetWindowUserPointer(w);
     if (action != GLFW_PRESS && action != GLFW_REPEAT)
         return;
+    v->inspect.notes.cursor_x = v->cursor_x * pixel_ratio(w), v->inspect.notes.cursor_y = v->cursor_y * pixel_ratio(w);
+    if (!v->on_catalogue && !v->vscene && (action == GLFW_PRESS || v->inspect.notes.typing) &&
+        ms_viewer_annotate_key(&v->inspect.notes, key, mods, &v->controls, &v->inspect.light, stderr))
+        return; /* annotations: Enter, Shift+Delete, Ctrl+S; every key while typing */
     if (key == GLFW_KEY_ESCAPE) {
         glfwSetWindowShouldClose(w, GLFW_TRUE);
         return;
@@ -313,12 +297,15 @@ static void on_mouse_button(GLFWwindow *w, int button, int action, int mods)
     double ratio = pixel_ratio(w);
     if (action == GLFW_RELEASE) {
         v->rotating = v->panning = v->inspect.lighting = false;
-        /* a click (no drag) in a scene picks the piece under it; measuring, adds a point */
-        if (button == GLFW_MOUSE_BUTTON_LEFT && (v->vscene || v->inspect.measuring) &&
-            fabs(x - v->last_click_x) < DOUBLE_CLICK_PX && fabs(y - v->last_click_y) < DOUBLE_CLICK_PX) {
+        /* a click (no drag) in a scene picks the piece under it; measuring, adds a
+         * point; else selects the annotation under it */
+        if (button == GLFW_MOUSE_BUTTON_LEFT && fabs(x - v->last_click_x) < DOUBLE_CLICK_PX &&
+            fabs(y - v->last_click_y) < DOUBLE_CLICK_PX) {
             v->pick_requested = v->vscene != NULL; /* a double click's second adds no point */
-            v->inspect.add_requested = !v->vscene && v->last_click_time >= 0;
-            v->recentre_x = v->inspect.add_x = x * ratio, v->recentre_y = v->inspect.add_y = y * ratio;
+            v->inspect.add_requested = !v->vscene && v->inspect.measuring && v->last_click_time >= 0;
+            v->inspect.notes.click_requested = !v->vscene && !v->inspect.measuring;
+            v->recentre_x = v->inspect.add_x = v->inspect.notes.click_x = x * ratio;
+            v->recentre_y = v->inspect.add_y = v->inspect.notes.click_y = y * ratio;
         }
         return;
     }
@@ -357,6 +344,12 @@ static void on_mouse_button(GLFWwindow *w, int button, int action, int mods)
         v->panning = true;
     else if (button == GLFW_MOUSE_BUTTON_LEFT)
         v->rotating = true;
+}
+
+static void on_char(GLFWwindow *w, unsigned codepoint)
+{
+    viewer *v = glfwGetWindowUserPointer(w);
+    ms_viewer_annotate_char(&v->inspect.notes, codepoint);
 }
 
 static void on_cursor(GLFWwindow *w, double x, double y)
@@ -489,6 +482,8 @@ static int view_frame(viewer *v, int fw, int fh, double seconds)
     ms_error err;
     v->controls.aspect = (double)fw / fh; /* the home view (R) frames this shape */
     fly_keys(v, seconds);
+    if (!v->vscene) /* toward a selected annotation's view */
+        ms_viewer_annotate_animate(&v->inspect.notes, &v->controls, &v->inspect.light, seconds);
     ms_camera camera;
     if (ms_viewer_playback_frame_camera(&v->playback, &v->controls, fw, fh, seconds, &camera, &err) != MS_OK)
         ms_viewer_controls_reset(&v->controls);
@@ -530,7 +525,8 @@ static int view_frame(viewer *v, int fw, int fh, double seconds)
                                .gl_bytes = gl_bytes(v),
                                .show_effects = v->vscene != NULL,
                                .effects_ran = v->drawn.effects_ran,
-                               .mode = mode_name(v),
+                               .mode = ms_viewer_hud_mode(&v->render, v->stream ? ms_viewer_stream_crease_angle(v->stream) : -1,
+                                                          v->mode_text, sizeof v->mode_text),
                                .frame_ms = v->frame_ms,
                                .fps = v->fps,
                                .triangles_drawn = v->drawn.triangles_drawn,
@@ -682,6 +678,7 @@ static int interactive(viewer *v)
     glfwSetMouseButtonCallback(v->window, on_mouse_button);
     glfwSetCursorPosCallback(v->window, on_cursor);
     glfwSetScrollCallback(v->window, on_scroll);
+    glfwSetCharCallback(v->window, on_char);
     v->catalogue = (ms_viewer_catalogue){.list = &v->list, .where = v->where,
                                          .archive_dir = o->archive_dir, .source = &v->source};
     v->on_catalogue = true;

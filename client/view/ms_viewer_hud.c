@@ -125,3 +125,22 @@ void ms_viewer_hud_draw(ms_viewer_text *text, const ms_viewer_hud_info *info, in
                              i == 7u + info->show_effects && info->core->error[0] ? alert : ink,
                              lines[i]);
 }
+
+const char *ms_viewer_hud_mode(const ms_render_options *render, double crease_deg, char *text, size_t size)
+{
+    const char *mode;
+    switch (render->shading) {
+    case MS_SHADING_NORMALS: mode = render->apo ? "normals (APO)" : "normals (geometry)"; break;
+    case MS_SHADING_CELLS: mode = render->apo ? "cells, APO lit" : "cells, geometry lit"; break;
+    case MS_SHADING_ALBEDO: mode = "albedo (unlit)"; break;
+    default: mode = render->apo ? "APO lit" : "geometry lit"; break;
+    }
+    /* where no APO normal is used: flat, or smooth with the crease angle (M, K) */
+    if (!render->smooth)
+        snprintf(text, size, "%s, flat", mode);
+    else if (crease_deg >= 0)
+        snprintf(text, size, "%s, creases %.0f deg", mode, crease_deg);
+    else
+        snprintf(text, size, "%s", mode);
+    return text;
+}

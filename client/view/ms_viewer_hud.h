@@ -20,6 +20,7 @@
 #include <stdint.h>
 
 #include "ms_client_core.h"
+#include "ms_render.h"
 #include "ms_viewer_playback.h"
 #include "ms_viewer_scene.h"
 #include "ms_viewer_text.h"
@@ -43,9 +44,13 @@ typedef struct ms_viewer_hud_info {
     const ms_viewer_scene_piece *piece; /* the selected piece: three lines; NULL: none */
     size_t piece_index, piece_count;    /* its index (from 0) and the scene's pieces */
     const char (*extra)[MS_HUD_LINE_MAX]; /* lines added at the end (the light, a
-                                           measurement: ms_viewer_inspect.h) */
-    size_t extra_count;                 /* at most 2 */
+                                           measurement, the annotations: ms_viewer_inspect.h) */
+    size_t extra_count;                 /* at most MS_VIEWER_INSPECT_LINES (4) */
 } ms_viewer_hud_info;
+
+/* The shading line of the HUD for render's options: the shading, then flat,
+ * or the crease angle (crease_deg < 0: not said), written into text. */
+const char *ms_viewer_hud_mode(const ms_render_options *render, double crease_deg, char *text, size_t size);
 
 /* Writes the HUD's lines; returns how many (at most MS_HUD_MAX_LINES). */
 size_t ms_viewer_hud_lines(const ms_viewer_hud_info *info,

@@ -23,6 +23,7 @@ void ms_viewer_inspect_init(ms_viewer_inspect *in, const ms_viewer_options *o, c
     in->sections = o->sections; /* --section, else --view's */
     if (o->has_view)
         ms_viewer_share_give(&o->view, NULL, NULL, &in->measure);
+    ms_viewer_annotate_init(&in->notes, o->annotations_file, o->annotation_id);
 }
 
 void ms_viewer_inspect_close(ms_viewer_inspect *in)
@@ -32,6 +33,8 @@ void ms_viewer_inspect_close(ms_viewer_inspect *in)
     in->probe_failed = in->refining = false;
     in->generation = 0;
     in->sections_known = false; /* the next stream's core is told again */
+    ms_viewer_annotate_free(&in->notes);
+    ms_viewer_annotate_init(&in->notes, in->notes.file, in->notes.select_id);
 }
 
 /* Polls the probe once the view is settled, starting it when a point wants
@@ -108,6 +111,9 @@ void ms_viewer_inspect_frame(ms_viewer_inspect *in, ms_viewer_stream *stream, co
     in->camera = *camera;
     in->have_camera = true;
     const ms_core_frame *frame = ms_viewer_stream_frame(stream);
+    if (in->source)
+        ms_viewer_annotate_load(&in->notes, in->source, ms_viewer_stream_model(stream)->name, stderr);
+    ms_viewer_annotate_frame(&in->notes, frame, box_side(stream), camera);
     if (!frame)
         return;
     measure_planes(in);
@@ -161,37 +167,26 @@ size_t ms_viewer_inspect_hud(ms_viewer_inspect *in, const ms_viewer_stream *stre
                  in->measuring ? "  [T]" : "");
         n++;
     }
+    size_t notes = ms_annotations_count(in->notes.set);
+    if (notes || in->notes.typing)
+        snprintf(in->lines[n++], MS_HUD_LINE_MAX, "annotations %zu (%s)  Enter adds",
+                 notes, in->notes.from);
     return n;
 }
 
-/* Where camera c shows world point p (framebuffer pixels, top-left origin);
- * false behind the eye. */
-static bool project(const ms_camera *c, const double p[3], double *sx, double *sy)
-{
-    double th = tan(0.5 * c->fovy), aspect = c->width / c->height;
-    double rel[3] = {p[0] - c->position[0], p[1] - c->position[1], p[2] - c->position[2]};
-    double z = rel[0] * c->forward[0] + rel[1] * c->forward[1] + rel[2] * c->forward[2];
-    if (!(z > 0))
-        return false;
-    double x = rel[0] * c->right[0] + rel[1] * c->right[1] + rel[2] * c->right[2];
-    double y = rel[0] * c->up[0] + rel[1] * c->up[1] + rel[2] * c->up[2];
-    *sx = 0.5 * c->width * (1 + x / (z * th * aspect));
-    *sy = 0.5 * c->height * (1 - y / (z * th));
-    return isfinite(*sx) && isfinite(*sy);
-}
-
-void ms_viewer_inspect_markers(const ms_viewer_inspect *in, ms_viewer_text *text)
+void ms_viewer_inspect_markers(ms_viewer_inspect *in, ms_viewer_text *text)
 {
     static const float ink[4] = {1.0f, 0.85f, 0.2f, 1};
     const ms_camera *c = &in->camera;
     if (!in->have_camera)
         return;
+    ms_viewer_annotate_markers(&in->notes, c, text);
     double s = 3.0 * ms_viewer_text_scale(text), px = 0, py = 0;
     bool have_previous = false;
     for (size_t i = 0; i < in->measure.count; ++i) {
         const double *p = in->measure.found[i] ? in->measure.hit[i].point : in->measure.anchor[i];
         double x, y;
-        if (!project(c, p, &x, &y)) {
+        if (!ms_viewer_measure_project(c, p, &x, &y)) {
             have_previous = false;
             continue;
         }
@@ -227,6 +222,13 @@ void ms_viewer_inspect_report_light(const ms_viewer_options *o, json_t *report)
         ms_viewer_share_print(&o->view, view, sizeof view);
         json_object_set_new(report, "view", json_string(view));
     }
+}
+
+void ms_viewer_inspect_report_annotations(ms_viewer_inspect *in, json_t *report)
+{
+    if (in->have_camera)
+        ms_viewer_annotate_markers(&in->notes, &in->camera, NULL);
+    ms_viewer_annotate_report(&in->notes, report);
 }
 
 static json_t *point_json(const ms_viewer_measure *m, size_t i, const double *pixel)

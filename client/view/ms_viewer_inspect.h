@@ -21,6 +21,7 @@
 #include <stdint.h>
 #include <stdio.h>
 
+#include "ms_viewer_annotate.h"
 #include "ms_viewer_controls.h"
 #include "ms_viewer_hud.h"
 #include "ms_viewer_light.h"
@@ -32,7 +33,7 @@
 
 #include "ms_viewer_section.h"
 
-#define MS_VIEWER_INSPECT_LINES 3
+#define MS_VIEWER_INSPECT_LINES 4
 
 typedef struct ms_viewer_inspect {
     ms_viewer_light light;
@@ -52,6 +53,7 @@ typedef struct ms_viewer_inspect {
     ms_viewer_probe *probe;  /* refining the points' cells (started when needed) */
     bool probe_failed;       /* it could not start: the view's precision stays */
     bool refining;           /* the probe has a point in hand */
+    ms_viewer_annotate notes; /* the model's annotations (ms_viewer_annotate.h) */
     char lines[MS_VIEWER_INSPECT_LINES][MS_HUD_LINE_MAX];
 } ms_viewer_inspect;
 
@@ -59,7 +61,8 @@ typedef struct ms_viewer_inspect {
  * ms_viewer_inspect_view); source (kept) is where the probe streams from. */
 void ms_viewer_inspect_init(ms_viewer_inspect *in, const ms_viewer_options *o, const ms_viewer_source *source);
 
-/* Stops the probe (the model closes); the chain and the light stay. */
+/* Stops the probe (the model closes); the chain and the light stay, the
+ * annotations go (the next model loads its own). */
 void ms_viewer_inspect_close(ms_viewer_inspect *in);
 
 /* --view on freshly initialised controls (nothing without --view). */
@@ -75,16 +78,20 @@ bool ms_viewer_inspect_key(ms_viewer_inspect *in, int key, const ms_viewer_contr
  * changed; a pending click cast on the frame; the chain cast
  * again on a new frame once the view settled (or while a point is lost);
  * once settled, the probe refines the points' cells (polled, never waited
- * for). */
+ * for). The model's annotations are loaded at its first frame; a pending
+ * Enter or click on them is handled (ms_viewer_annotate_frame). */
 void ms_viewer_inspect_frame(ms_viewer_inspect *in, ms_viewer_stream *stream, const ms_camera *camera,
                              ms_render_options *render);
 
-/* The HUD's lines (the light, the sections, the measurement): how many are set. */
+/* The HUD's lines (the light, the sections, the measurement, the
+ * annotations): how many are set. */
 size_t ms_viewer_inspect_hud(ms_viewer_inspect *in, const ms_viewer_stream *stream);
 
 /* Marks the chain's points on the overlay (small squares where they are
- * seen from the last frame's camera). */
-void ms_viewer_inspect_markers(const ms_viewer_inspect *in, ms_viewer_text *text);
+ * seen from the last frame's camera), and the annotations' markers where the
+ * frame just drawn does not hide them (the bound read framebuffer's depth),
+ * with the selected one's title and text. */
+void ms_viewer_inspect_markers(ms_viewer_inspect *in, ms_viewer_text *text);
 
 /* The measurement as text: "measure 2 points: 1.0000005 +- 0.0000010 model
  * units (20 bits, full)". */
@@ -99,6 +106,9 @@ void ms_viewer_inspect_describe(const ms_viewer_measure *m, unsigned model_bits,
  * MS_VIEWER_PROBE_TIMEOUT_S a point): the figures before (view_*) and after.
  * Added to report; false (nothing added) when there is nothing to measure. */
 void ms_viewer_inspect_report_light(const ms_viewer_options *o, json_t *report);
+/* Scripted: the report's "annotations" (ms_viewer_annotate_report), their
+ * markers tested against the frame last drawn (the bound read framebuffer). */
+void ms_viewer_inspect_report_annotations(ms_viewer_inspect *in, json_t *report);
 bool ms_viewer_inspect_report_measure(const ms_viewer_options *o, ms_viewer_inspect *in, ms_viewer_stream *stream,
                                       const ms_camera *camera, json_t *report);
 

@@ -202,3 +202,19 @@ bool ms_viewer_measure_result_of(const ms_viewer_measure *m, unsigned model_bits
     }
     return true;
 }
+
+/* Where camera c shows world point p (framebuffer pixels, top-left origin);
+ * false behind the eye. */
+bool ms_viewer_measure_project(const ms_camera *c, const double p[3], double *sx, double *sy)
+{
+    double th = tan(0.5 * c->fovy), aspect = c->width / c->height;
+    double rel[3] = {p[0] - c->position[0], p[1] - c->position[1], p[2] - c->position[2]};
+    double z = rel[0] * c->forward[0] + rel[1] * c->forward[1] + rel[2] * c->forward[2];
+    if (!(z > 0))
+        return false;
+    double x = rel[0] * c->right[0] + rel[1] * c->right[1] + rel[2] * c->right[2];
+    double y = rel[0] * c->up[0] + rel[1] * c->up[1] + rel[2] * c->up[2];
+    *sx = 0.5 * c->width * (1 + x / (z * th * aspect));
+    *sy = 0.5 * c->height * (1 - y / (z * th));
+    return isfinite(*sx) && isfinite(*sy);
+}

@@ -50,6 +50,11 @@ typedef struct ms_viewer_measure_hit {
 void ms_viewer_measure_pixel_ray(const ms_camera *camera, double x, double y, double origin[3],
                                  double direction[3]);
 
+/* Where camera shows world point p (framebuffer pixels, top-left origin,
+ * continuous): the inverse of ms_viewer_measure_pixel_ray; false behind the
+ * eye. */
+bool ms_viewer_measure_project(const ms_camera *camera, const double p[3], double *x, double *y);
+
 /* Casts the ray (direction need not be unit) against the frame's triangles:
  * of the hits with t >= t_min, the one whose t is nearest t_near (t_min 0 and
  * t_near 0: the first surface in front of the origin). box_side is the

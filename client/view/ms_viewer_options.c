@@ -7,6 +7,7 @@
 
 #include "ms_catalog.h"
 #include "ms_parse_number.h"
+#include "ms_viewer_annotate.h"
 
 void ms_viewer_options_usage(FILE *out)
 {
@@ -59,6 +60,11 @@ void ms_viewer_options_usage(FILE *out)
           "                         point, and the normal of the side cut away)\n"
           "  --view TEXT            start from a view printed by the V key (camera, light and\n"
           "                         measuring points: mv1:t=...)\n"
+          "  --annotations FILE     the model's annotations from FILE (docs/ANNOTATIONS.md;\n"
+          "                         default: the archive's DIR/NAME.annotations.json, or the\n"
+          "                         server's); Ctrl+S saves to it\n"
+          "  --annotation ID        select annotation ID at the start (its text in the HUD;\n"
+          "                         in the window the camera moves to its view)\n"
           "  --measure X,Y:X,Y...   scripted: measure along the surface points seen at these\n"
           "                         pixels of the first keyframe (top-left origin), 2 to 16;\n"
           "                         the distance and its precision in the report\n"
@@ -101,6 +107,11 @@ void ms_viewer_options_usage(FILE *out)
           "       Y  add a section through the orbit centre, across the view (up to 3)\n"
           "       J  turn the last section over     9 / 0  move it back / forward\n"
           "       I  remove the last section\n"
+          "       a click on an annotation's marker selects it: its title and text in the\n"
+          "          HUD, the camera moves to its view; a click elsewhere deselects\n"
+          "       Enter  add an annotation at the surface under the cursor (type its\n"
+          "          title, Enter, its text, Enter; Esc cancels)\n"
+          "       Shift+Delete  delete the selected annotation   Ctrl+S  save them\n"
           "Scene: ] / [  select the next / previous piece   Z  frame the selected piece\n"
           "Exit status: 0 on success, 1 on an error (no OpenGL 4.1, server gone, unknown\n"
           "model, window closed while a scripted run streams), 2 for a usage error.\n",
@@ -234,8 +245,9 @@ static int finish_options(ms_viewer_options *o, const char *shading, bool no_apo
                 "--scene\n");
         return 2;
     }
-    if ((o->has_view || o->measure_count || o->light.directional || o->sections.count) && !o->model) {
-        fprintf(err, "meshview: --view, --light, --section and --measure need --model\n");
+    if ((o->has_view || o->measure_count || o->light.directional || o->sections.count || o->annotations_file ||
+         o->annotation_id) && !o->model) {
+        fprintf(err, "meshview: --view, --light, --section, --measure and --annotations need --model\n");
         return 2;
     }
     if (o->measure_count && !o->scripted) {
@@ -332,6 +344,18 @@ static int inspect_option(int ch, const char *arg, ms_viewer_options *o, FILE *e
         }
         break;
     }
+    case 'Q': {
+        ms_annotations *set;
+        ms_error e;
+        if (ms_viewer_annotate_read(arg, &set, &e) != MS_OK) {
+            fprintf(err, "meshview: --annotations: %s\n", e.text);
+            return 2;
+        }
+        ms_annotations_free(set);
+        o->annotations_file = arg;
+        break;
+    }
+    case 'q': o->annotation_id = arg; break;
     case 'G':
         if (!measure_pixels(arg, o)) {
             fprintf(err, "meshview: --measure wants 2 to 16 pixels X,Y separated by ':', not '%.64s'\n", arg);
@@ -471,6 +495,8 @@ int ms_viewer_options_parse(int argc, char **argv, ms_viewer_options *o, FILE *e
         {"view", required_argument, NULL, 'V'},
         {"measure", required_argument, NULL, 'G'},
         {"section", required_argument, NULL, 'X'},
+        {"annotations", required_argument, NULL, 'Q'},
+        {"annotation", required_argument, NULL, 'q'},
         {NULL, 0, NULL, 0}};
     default_options(o);
     option_leftovers left = {false, NULL};

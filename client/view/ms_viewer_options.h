@@ -60,6 +60,8 @@ typedef struct ms_viewer_options {
     size_t measure_count;      /* --measure X,Y:X,Y...: scripted, framebuffer pixels of the
                                   first keyframe (top-left origin) */
     double measure_px[MS_VIEWER_MEASURE_MAX_POINTS][2];
+    const char *annotations_file; /* --annotations FILE (checked when parsed); NULL: the model's */
+    const char *annotation_id;    /* --annotation ID: selected at the start */
 } ms_viewer_options;
 
 /* 0: parsed (o->help for --help); 2: a usage error, one line written to err. */

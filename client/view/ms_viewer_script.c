@@ -692,6 +692,7 @@ ms_status ms_viewer_script_run(const ms_viewer_options *o, const ms_viewer_sourc
         json_object_set_new(*report, "flat", json_boolean(o->flat));
         json_object_set_new(*report, "crease_angle_deg", json_real(ms_viewer_stream_crease_angle(s.stream)));
         ms_viewer_inspect_report_light(o, *report);
+        ms_viewer_inspect_report_annotations(&s.look, *report);
         json_object_update(*report, s.inspect);
     }
     if (!*report)

@@ -36,7 +36,8 @@
 enum { EXIT_INPUT = 1, EXIT_USAGE = 2 };
 
 typedef enum bake_mode {
-    MODE_NONE, MODE_INFO, MODE_BAKE, MODE_SET_PUBLIC, MODE_LIST, MODE_REMOVE, MODE_THUMBNAIL
+    MODE_NONE, MODE_INFO, MODE_BAKE, MODE_SET_PUBLIC, MODE_LIST, MODE_REMOVE, MODE_THUMBNAIL,
+    MODE_ANNOTATIONS
 } bake_mode;
 
 typedef struct bake_options {
@@ -49,6 +50,7 @@ typedef struct bake_options {
     const char *remove_name;  /* MODE_REMOVE */
     const char *thumbnail_name; /* MODE_THUMBNAIL */
     const char *metadata_path;  /* --metadata */
+    const char *annotations_path; /* MODE_ANNOTATIONS */
 } bake_options;
 
 static void print_usage(FILE *out)
@@ -63,6 +65,7 @@ static void print_usage(FILE *out)
           "       meshbake --info FILE [--json]\n"
           "       meshbake --set-public-bits B -o ARCHIVE_DIR --name NAME\n"
           "       meshbake --thumbnail NAME -o ARCHIVE_DIR [--up x|y|z] [--json]\n"
+          "       meshbake --annotations FILE -o ARCHIVE_DIR --name NAME [--json]\n"
           "       meshbake --list ARCHIVE_DIR [--json]\n"
           "       meshbake --remove NAME -o ARCHIVE_DIR\n"
           "\n"
@@ -122,6 +125,10 @@ static void print_usage(FILE *out)
           "                    ARCHIVE_DIR/catalog.json (0..its P); SIGHUP a running\n"
           "                    meshserve to apply it\n"
           "  --thumbnail NAME  render the thumbnail of the baked model NAME again\n"
+          "  --annotations FILE  check FILE against the annotations format\n"
+          "                    (docs/ANNOTATIONS.md) and install it beside the baked model\n"
+          "                    NAME as ARCHIVE_DIR/NAME.annotations.json, which both doors\n"
+          "                    serve and meshview reads and edits\n"
           "  --list DIR        the collection: every model of DIR/catalog.json (name,\n"
           "                    triangles, cells, file size, preview precision) with each\n"
           "                    archive opened and every payload checked against its CRC;\n"
@@ -182,9 +189,12 @@ static int check_mode(int argc, char **argv, bake_options *options)
             return usage_error("unexpected argument", argv[optind]);
         return -1;
     }
-    if (options->mode == MODE_SET_PUBLIC) {
+    if (options->mode == MODE_SET_PUBLIC || options->mode == MODE_ANNOTATIONS) {
         if (!options->bake.archive_dir || !options->bake.name)
-            return usage_error("--set-public-bits needs -o ARCHIVE_DIR and --name NAME", NULL);
+            return usage_error(options->mode == MODE_SET_PUBLIC
+                                   ? "--set-public-bits needs -o ARCHIVE_DIR and --name NAME"
+                                   : "--annotations needs -o ARCHIVE_DIR and --name NAME",
+                               NULL);
         if (optind < argc)
             return usage_error("unexpected argument", argv[optind]);
         return -1;
@@ -215,13 +225,15 @@ static int check_mode(int argc, char **argv, bake_options *options)
     return -1;
 }
 
-/* The thumbnail's and the sidecar's options (--thumbnail, --metadata,
- * --no-thumbnail, --up): -1 to go on, or the exit status to end with. */
+/* The thumbnail's and the sidecars' options (--thumbnail, --metadata,
+ * --annotations, --no-thumbnail, --up): -1 to go on, or the exit status to
+ * end with. */
 static int picture_option(int c, const char *arg, bake_options *options)
 {
     switch (c) {
     case 'B': options->mode = MODE_THUMBNAIL; options->thumbnail_name = arg; break;
     case 'X': options->metadata_path = arg; break;
+    case 'W': options->mode = MODE_ANNOTATIONS; options->annotations_path = arg; break;
     case 'O': options->bake.no_thumbnail = true; break;
     default:
         if (strlen(arg) != 1 || arg[0] < 'x' || arg[0] > 'z')
@@ -266,7 +278,7 @@ static int parse_options(int argc, char **argv, bake_options *options)
         {"colour-bits", required_argument, NULL, 'c'}, {"no-colour", no_argument, NULL, 'Z'},
         {"metadata", required_argument, NULL, 'X'}, {"thumbnail", required_argument, NULL, 'B'},
         {"no-thumbnail", no_argument, NULL, 'O'}, {"up", required_argument, NULL, 'u'},
-        {NULL, 0, NULL, 0},
+        {"annotations", required_argument, NULL, 'W'}, {NULL, 0, NULL, 0},
     };
     memset(options, 0, sizeof *options);
     ms_bake_options_default(&options->bake);
@@ -277,7 +289,7 @@ static int parse_options(int argc, char **argv, bake_options *options)
         case 'i': options->mode = MODE_INFO; break;
         case 'l': options->mode = MODE_LIST; options->list_dir = optarg; break;
         case 'R': options->mode = MODE_REMOVE; options->remove_name = optarg; break;
-        case 'B': case 'X': case 'O': case 'u':
+        case 'B': case 'X': case 'O': case 'u': case 'W':
             if ((status = picture_option(c, optarg, options)) >= 0)
                 return status;
             break;
@@ -704,6 +716,9 @@ int main(int argc, char **argv)
                                       options.set_public_bits, options.bake.thumbnail_up,
                                       options.bake.threads);
     case MODE_LIST: return ms_bake_cli_list(options.list_dir, options.json);
+    case MODE_ANNOTATIONS:
+        return ms_bake_cli_annotations(options.bake.archive_dir, options.bake.name,
+                                       options.annotations_path, options.json);
     case MODE_REMOVE: return ms_bake_cli_remove(options.bake.archive_dir, options.remove_name);
     case MODE_THUMBNAIL:
         return ms_bake_cli_thumbnail(options.bake.archive_dir, options.thumbnail_name,

@@ -1,5 +1,5 @@
 /* meshbake's collection modes (ms_bake_collection.h): --set-public-bits,
- * --list, --remove and --thumbnail on an archive directory. */
+ * --list, --remove, --thumbnail and --annotations on an archive directory. */
 #include "ms_bake_collection.h"
 
 #include <errno.h>
@@ -9,6 +9,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "ms_annotations.h"
 #include "ms_archive.h"
 #include "ms_bake_thumbnail.h"
 #include "ms_catalog.h"
@@ -179,6 +180,9 @@ int ms_bake_cli_remove(const char *dir, const char *name)
     ms_bake_thumbnail_path(dir, name, path, sizeof path);
     if (unlink(path) != 0 && errno != ENOENT)
         fprintf(stderr, "meshbake: %s: cannot remove: %s\n", path, strerror(errno));
+    ms_annotations_sidecar_path(dir, name, path, sizeof path);
+    if (unlink(path) != 0 && errno != ENOENT)
+        fprintf(stderr, "meshbake: %s: cannot remove: %s\n", path, strerror(errno));
     snprintf(path, sizeof path, "%s/%s.msa", dir, name);
     if (unlink(path) != 0 && errno != ENOENT) {
         fprintf(stderr, "meshbake: %s: cannot remove: %s\n", path, strerror(errno));
@@ -224,5 +228,36 @@ int ms_bake_cli_thumbnail(const char *dir, const char *name, int up_axis, unsign
         printf("meshbake: %s: %ux%u, %" PRIu64 " bytes, %" PRIu64 " triangles at %u bits, "
                "%.2f s\n", path, r.width, r.height, r.png_bytes, r.triangles,
                (unsigned)e.thumbnail_bits, r.seconds);
+    return fflush(stdout) == 0 ? EXIT_SUCCESS : EXIT_INPUT;
+}
+
+int ms_bake_cli_annotations(const char *dir, const char *name, const char *file, bool json)
+{
+    ms_catalog_entry e;
+    int status = find_model(dir, name, &e);
+    if (status != EXIT_SUCCESS)
+        return status;
+    ms_annotations *set;
+    ms_error err;
+    if (ms_annotations_load(file, &set, &err) != MS_OK) {
+        fprintf(stderr, "meshbake: %s\n", err.text);
+        return EXIT_INPUT;
+    }
+    char path[4200];
+    ms_annotations_sidecar_path(dir, name, path, sizeof path);
+    ms_status st = ms_annotations_save(set, path, &err);
+    size_t count = ms_annotations_count(set);
+    ms_annotations_free(set);
+    if (st != MS_OK) {
+        fprintf(stderr, "meshbake: %s\n", err.text);
+        return EXIT_INPUT;
+    }
+    if (json)
+        ms_json_print(stdout,
+                      json_pack("{s:o, s:o, s:I}", "name", ms_json_text(name), "annotations",
+                                ms_json_text(path), "count", (json_int_t)count),
+                      MS_JSON_COMPACT);
+    else
+        printf("meshbake: %s: %zu annotation%s installed\n", path, count, count == 1 ? "" : "s");
     return fflush(stdout) == 0 ? EXIT_SUCCESS : EXIT_INPUT;
 }

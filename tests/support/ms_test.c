@@ -148,3 +148,23 @@ int ms_test_write_bumpy_sphere(const char *path, double scale)
         }
     return fclose(m) == 0 ? 0 : -1;
 }
+
+int ms_test_write_two_boxes(const char *path)
+{
+    FILE *out = fopen(path, "w");
+    if (!out)
+        return -1;
+    fprintf(out, "OFF\n16 24 0\n");
+    const double boxes[2][2][3] = {{{-1, -1, -1}, {1, 1, 1}}, {{-0.8, -2.5, -0.8}, {-0.2, -2.0, -0.2}}};
+    for (int b = 0; b < 2; ++b)
+        for (int v = 0; v < 8; ++v) /* vertex v: x bit 2, y bit 1, z bit 0 */
+            fprintf(out, "%g %g %g\n", boxes[b][(v >> 2) & 1][0], boxes[b][(v >> 1) & 1][1], boxes[b][v & 1][2]);
+    static const int quads[6][4] = {{0, 1, 3, 2}, {4, 6, 7, 5}, {0, 4, 5, 1}, {2, 3, 7, 6}, {0, 2, 6, 4}, {1, 5, 7, 3}};
+    for (int b = 0; b < 2; ++b)
+        for (int q = 0; q < 6; ++q) {
+            const int *v = quads[q];
+            fprintf(out, "3 %d %d %d\n3 %d %d %d\n", 8 * b + v[0], 8 * b + v[1], 8 * b + v[2], 8 * b + v[0],
+                    8 * b + v[2], 8 * b + v[3]);
+        }
+    return fclose(out) == 0 ? 0 : -1;
+}

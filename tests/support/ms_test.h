@@ -35,6 +35,12 @@ json_t *ms_test_run_json(const char *command, int want_status);
  * 0, or -1 when the file cannot be written. */
 int ms_test_write_bumpy_sphere(const char *path, double scale);
 
+/* Writes path: an OFF of two boxes, 24 triangles, outward-facing: the cube
+ * [-1, 1]^3 and the small box [-0.8, -0.2] x [-2.5, -2] x [-0.8, -0.2] in
+ * front of its y = -1 face (for the annotation tests: a marker behind it is
+ * hidden from an eye on -y). 0, or -1 when the file cannot be written. */
+int ms_test_write_two_boxes(const char *path);
+
 /* A whole file into a malloc'd buffer (the caller frees it), and a buffer into
  * a file; both fail the test on any error. */
 unsigned char *ms_test_read_file(const char *path, size_t *size);
