@@ -406,7 +406,7 @@ static void test_catalogue_draws_on_against_a_silent_server(void **state)
     fixture *f = *state;
     ms_test_quiet *quiet;
     uint16_t port;
-    assert_int_equal(ms_test_quiet_start("quiet", &quiet, &port), 0);
+    assert_int_equal(ms_test_quiet_start("quiet", false, &quiet, &port), 0);
     char args[2048], out[700], err_text[4096];
     snprintf(out, sizeof out, "%s/quiet.json", f->dir);
     snprintf(args, sizeof args,
@@ -598,7 +598,9 @@ static void test_interactive_from_a_server_lists_once(void **state)
     uint64_t connections, requests = 0, n;
     assert_int_equal(ms_test_metric(f->http_port, "meshstream_connections_total", &connections), 0);
     ms_test_metric(f->http_port, series, &requests); /* absent before any request */
-    char *argv[] = {f->bin, "--server", server, "--model", MODEL, "--size", "160x120", NULL};
+    /* 640 x 360: the catalogue's panel fits in the frame drawn while the
+     * model opens, which asks the server nothing */
+    char *argv[] = {f->bin, "--server", server, "--model", MODEL, "--size", "640x360", NULL};
     pid_t viewer = ms_test_spawn(argv, log);
     bool asked = false;
     for (int i = 0; i < 400 && !asked; ++i) { /* 40 s at most */

@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "ms_png.h"
+#include "ms_progress.h"
 #include "ms_viewer_font.h"
 
 /* The panel: a thumbnail is MS_THUMB_W x MS_THUMB_H (meshbake's) */
@@ -272,6 +273,13 @@ ms_catalogue_panel ms_viewer_catalogue_panel(ms_viewer_catalogue *cat)
         return MS_PANEL_NONE;
     ms_viewer_model_entry *e = &cat->list->entries[cat->selected];
     if (served(cat) && !e->documents_fetched) {
+        double now = ms_now_seconds();
+        if (strcmp(cat->panel_name, e->name)) { /* selected since now */
+            snprintf(cat->panel_name, sizeof cat->panel_name, "%s", e->name);
+            cat->panel_since = now;
+        }
+        if (now - cat->panel_since < MS_CATALOGUE_SETTLE_S)
+            return MS_PANEL_LOADING; /* passed by, perhaps: not asked for yet */
         ms_viewer_fetcher *f = fetcher(cat);
         if (f) {
             ms_viewer_fetcher_want_documents(f, e->name); /* supersedes another waiting */

@@ -55,7 +55,14 @@ typedef struct ms_viewer_catalogue {
     char page_query[65];
     size_t page_offset;
     char failure[160];                /* the last fetch's failure ("": none) */
+    char panel_name[MS_MODEL_NAME_MAX + 1]; /* the model the panel shows, selected */
+    double panel_since;                     /* at this time (ms_now_seconds) */
 } ms_viewer_catalogue;
+
+/* A server's model is asked for once it has stayed selected this long: the
+ * models passed by with the arrow keys (and the screen drawn once while a
+ * model opens) are not. */
+#define MS_CATALOGUE_SETTLE_S 0.1
 
 /* Takes what the worker fetched: documents into their entry (by name; a
  * model no longer listed drops them), a search's first page as the new list
@@ -65,8 +72,9 @@ typedef struct ms_viewer_catalogue {
 bool ms_viewer_catalogue_poll(ms_viewer_catalogue *cat);
 
 /* What the panel shows for the selected model: asks the worker for its
- * documents when they have not come (LOADING), else reads its picture once
- * per selection (PICTURE, or NO_PICTURE when it has none or they failed). */
+ * documents when they have not come, once it has been selected for
+ * MS_CATALOGUE_SETTLE_S (LOADING meanwhile), else reads its picture once per
+ * selection (PICTURE, or NO_PICTURE when it has none or they failed). */
 typedef enum {
     MS_PANEL_NONE,
     MS_PANEL_LOADING,

@@ -11,6 +11,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/socket.h>
+#include <time.h>
 #include <unistd.h>
 
 #include "ms_proto.h"
@@ -20,6 +21,7 @@ struct ms_test_quiet {
     pthread_t thread;
     atomic_bool stop;
     atomic_uint connections;
+    bool hang_up;
     char name[65];
 };
 
@@ -31,7 +33,8 @@ static void send_frame(int fd, const ms_proto_message *m)
         (void)!send(fd, out, n, MSG_NOSIGNAL); /* the client may have hung up */
 }
 
-static void answer(ms_test_quiet *q, int conn, const ms_proto_message *m)
+/* Answers m; true when it was a listing. */
+static bool answer(ms_test_quiet *q, int conn, const ms_proto_message *m)
 {
     if (m->type == MS_PROTO_HELLO) {
         ms_proto_message r = {.type = MS_PROTO_HELLO_REPLY};
@@ -52,7 +55,16 @@ static void answer(ms_test_quiet *q, int conn, const ms_proto_message *m)
         bool first = !page || m->body.list_page.offset == 0;
         r.body.catalogue = (ms_proto_catalogue){first ? &e : NULL, first ? 1 : 0, 1};
         send_frame(conn, &r);
+        return true;
     } /* anything else: silence */
+    return false;
+}
+
+static double now_s(void)
+{
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return (double)t.tv_sec + t.tv_nsec * 1e-9;
 }
 
 static void converse(ms_test_quiet *q, int conn)
@@ -62,7 +74,8 @@ static void converse(ms_test_quiet *q, int conn)
     if (ms_proto_decoder_new(&dc, &dec, NULL) != MS_OK)
         return;
     uint8_t buf[16384];
-    while (!atomic_load(&q->stop)) {
+    double hang_up_at = 0; /* 0: not yet */
+    while (!atomic_load(&q->stop) && !(hang_up_at && now_s() > hang_up_at)) {
         struct pollfd p = {conn, POLLIN, 0};
         if (poll(&p, 1, 50) <= 0)
             continue;
@@ -78,8 +91,8 @@ static void converse(ms_test_quiet *q, int conn)
                                       NULL) != MS_OK)
                 goto done;
             at += used;
-            if (have)
-                answer(q, conn, &m);
+            if (have && answer(q, conn, &m) && q->hang_up && !hang_up_at)
+                hang_up_at = now_s() + 0.1;
         }
     }
 done:
@@ -103,12 +116,13 @@ static void *serve(void *arg)
     return NULL;
 }
 
-int ms_test_quiet_start(const char *name, ms_test_quiet **server, uint16_t *port)
+int ms_test_quiet_start(const char *name, bool hang_up, ms_test_quiet **server, uint16_t *port)
 {
     *server = NULL;
     ms_test_quiet *q = calloc(1, sizeof *q);
     if (!q)
         return -1;
+    q->hang_up = hang_up;
     snprintf(q->name, sizeof q->name, "%s", name);
     q->fd = socket(AF_INET, SOCK_STREAM, 0);
     struct sockaddr_in a = {.sin_family = AF_INET, .sin_addr.s_addr = htonl(INADDR_LOOPBACK)};
