@@ -125,7 +125,7 @@ static int silent_listener(uint16_t *port)
 static void test_a_silent_server_never_holds_the_frames(void **state)
 {
     (void)state;
-    uint16_t port;
+    uint16_t port = 0;
     int fd = silent_listener(&port);
     assert_true(fd >= 0);
     ms_viewer_model_entry entries[3] = {{.name = "alpha"}, {.name = "beta"}, {.name = "gamma"}};
