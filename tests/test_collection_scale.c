@@ -191,6 +191,21 @@ static pid_t start(const fixture *f, const char *dir, uint16_t *http_port, uint1
     return pid;
 }
 
+/* Takes what the catalogue's worker fetched until it has nothing left to do
+ * (at most 30 s). */
+static void settle(ms_viewer_catalogue *cat)
+{
+    double t0 = ms_now_seconds();
+    for (;;) {
+        bool busy = cat->fetcher && ms_viewer_fetcher_busy(cat->fetcher);
+        (void)ms_viewer_catalogue_poll(cat);
+        if (!busy)
+            return;
+        assert_true(ms_now_seconds() - t0 < 30);
+        usleep(2000);
+    }
+}
+
 /* meshview's catalogue screen on the collection: its first page only, the
  * next pages as the selection moves down, the typed search sent to the
  * server (q=), and a model beyond the pages fetched still opens by name. */
@@ -208,16 +223,25 @@ static void meshview_catalogue_pages(uint16_t port)
     assert_string_equal(list.entries[MS_VIEWER_PAGE - 1].name, "m00199");
     ms_viewer_catalogue cat = {.list = &list, .source = &source};
     /* 200 pixels at scale 1 show 9 rows: 150 rows down stays in the first
-     * page (150 + 2 x 9 < 200), 200 more fetch the second (368 < 400) */
+     * page (150 + 2 x 9 < 200), 200 more ask the catalogue's worker for the
+     * second (the selection stays in the rows held until it came) */
     ms_viewer_catalogue_move(&cat, 150, 200, 1);
+    assert_false(cat.page_pending);
     assert_int_equal(list.count, MS_VIEWER_PAGE);
     ms_viewer_catalogue_move(&cat, 200, 200, 1);
-    assert_int_equal(cat.selected, 350);
+    assert_int_equal(cat.selected, MS_VIEWER_PAGE - 1);
+    assert_true(cat.page_pending);
+    settle(&cat);
+    assert_false(cat.page_pending);
     assert_int_equal(list.count, 2 * MS_VIEWER_PAGE);
+    ms_viewer_catalogue_move(&cat, 151, 200, 1);
+    assert_int_equal(cat.selected, 350);
     assert_string_equal(list.entries[350].name, "m00350");
     assert_string_equal(list.entries[399].name, "m00399");
-    ms_viewer_catalogue_move(&cat, 100, 200, 1); /* 468: the third */
+    ms_viewer_catalogue_move(&cat, 100, 200, 1); /* 450 asked for: the third */
+    settle(&cat);
     assert_int_equal(list.count, 3 * MS_VIEWER_PAGE);
+    assert_int_equal(ms_viewer_fetcher_connections(cat.fetcher), 1);
     /* a model beyond the pages held opens (the server is asked for it) */
     ms_viewer_model model;
     assert_int_equal(ms_viewer_model_open_listed(&source, &list, "m09876", &model, &err), MS_OK);
@@ -230,6 +254,7 @@ static void meshview_catalogue_pages(uint16_t port)
     for (size_t i = 0; i < sizeof keys / sizeof *keys; ++i)
         assert_int_equal(ms_viewer_catalogue_key(&cat, keys[i], 200, 1), MS_CATALOGUE_STAY);
     assert_string_equal(cat.search, "m0004");
+    settle(&cat); /* the last search's first page: the older ones superseded or dropped */
     assert_string_equal(list.query, "m0004");
     assert_int_equal(cat.selected, 0);
     assert_int_equal(list.total, 10);
@@ -245,6 +270,8 @@ static void meshview_catalogue_pages(uint16_t port)
     /* Backspace: "ige" */
     assert_int_equal(ms_viewer_catalogue_key(&cat, GLFW_KEY_BACKSPACE, 200, 1), MS_CATALOGUE_STAY);
     assert_string_equal(cat.search, "ige");
+    settle(&cat);
+    assert_string_equal(list.query, "ige");
     assert_int_equal(list.total, MODELS / 100);
     /* nothing matches: an empty list, the search kept */
     assert_int_equal(ms_viewer_catalogue_search(&cat, "granite", &err), MS_OK);

@@ -7,7 +7,9 @@
  *   - the local-archive mode draws the same pictures (with --compare-apo, which
  *     times both shadings of each frame and still pictures the run's own);
  *   - the catalogue screen lists the model, and its panel shows the model's
- *     thumbnail from a local directory and from a server (binary door);
+ *     thumbnail from a local directory and from a server (binary door, by
+ *     the catalogue's worker: "loading" first), and draws on against a server
+ *     that never answers the documents ("loading", then "no picture");
  *   - a model small on screen (400 down to 15 px tall) is drawn at every size,
  *     its silhouette that of meshrender's picture of the full mesh;
  *   - bad input: --help (0), bad options (2), no display (1), unknown model (1),
@@ -36,6 +38,7 @@
 #include "ms_test_display.h"
 #include "ms_test_net.h"
 #include "ms_test_picture.h"
+#include "ms_test_quiet.h"
 
 #define MODEL "demo"
 #define PATH_FILE "scripts/paths/demo-closeup.cam"
@@ -349,6 +352,16 @@ static void assert_panel_picture(json_t *report)
     free(pixels);
 }
 
+/* The states the scripted catalogue's panel went through ("panel"). */
+static void assert_panel_states(json_t *report, const char *first, const char *second)
+{
+    json_t *panel = json_object_get(report, "panel");
+    assert_int_equal(json_array_size(panel), second ? 2 : 1);
+    assert_string_equal(json_string_value(json_array_get(panel, 0)), first);
+    if (second)
+        assert_string_equal(json_string_value(json_array_get(panel, 1)), second);
+}
+
 static void test_catalogue_panel_shows_the_thumbnail(void **state)
 {
     fixture *f = *state;
@@ -359,11 +372,14 @@ static void test_catalogue_panel_shows_the_thumbnail(void **state)
     assert_int_equal(run_viewer(f, args, out, err_text, sizeof err_text), 0);
     json_t *report = load_report(out);
     assert_panel_picture(report);
+    assert_panel_states(report, "picture", NULL); /* read at once: one frame */
+    assert_int_equal(json_integer_value(json_object_get(report, "frames")), 1);
     json_decref(report);
 }
 
 /* From a server the panel shows the same picture, fetched through the binary
- * door (GET_DOCUMENT THUMBNAIL and METADATA, for the selected model only). */
+ * door (GET_DOCUMENT THUMBNAIL and METADATA, for the selected model only) by
+ * the catalogue's worker while frames are drawn: "loading" first. */
 static void test_catalogue_panel_from_a_server(void **state)
 {
     fixture *f = *state;
@@ -375,7 +391,44 @@ static void test_catalogue_panel_from_a_server(void **state)
     assert_int_equal(run_viewer(f, args, out, err_text, sizeof err_text), 0);
     json_t *report = load_report(out);
     assert_panel_picture(report);
+    assert_panel_states(report, "loading", "picture");
+    assert_true(json_integer_value(json_object_get(report, "frames")) >= 2);
     json_decref(report);
+}
+
+/* A server that lists its model and never answers its documents (a stalled
+ * peer): the scripted catalogue screen draws on while the catalogue's worker
+ * waits, the panel "loading" until the time-out (meshview's 5 s), then "no
+ * picture"; no frame waits (the fetch on the drawing thread held the first
+ * for the whole time-out). Two connections: the listing, the worker's. */
+static void test_catalogue_draws_on_against_a_silent_server(void **state)
+{
+    fixture *f = *state;
+    ms_test_quiet *quiet;
+    uint16_t port;
+    assert_int_equal(ms_test_quiet_start("quiet", false, &quiet, &port), 0);
+    char args[2048], out[700], err_text[4096];
+    snprintf(out, sizeof out, "%s/quiet.json", f->dir);
+    snprintf(args, sizeof args,
+             "--server 127.0.0.1:%u --size 640x360 --screenshot-dir %s/quiet --json", port, f->dir);
+    struct timespec t0, t1;
+    clock_gettime(CLOCK_MONOTONIC, &t0);
+    assert_int_equal(run_viewer(f, args, out, err_text, sizeof err_text), 0);
+    clock_gettime(CLOCK_MONOTONIC, &t1);
+    json_t *report = load_report(out);
+    assert_panel_states(report, "loading", "no picture");
+    assert_false(json_is_true(json_object_get(report, "picture_shown")));
+    json_int_t frames = json_integer_value(json_object_get(report, "frames"));
+    double slowest = json_real_value(json_object_get(report, "slowest_frame_ms"));
+    double run_s = (double)(t1.tv_sec - t0.tv_sec) + (t1.tv_nsec - t0.tv_nsec) * 1e-9;
+    print_message("silent server: %lld frames, the slowest %.1f ms, the run %.2f s\n",
+                  (long long)frames, slowest, run_s);
+    assert_true(frames >= 20);
+    assert_true(slowest < 1000);
+    assert_true(run_s >= 5.0 && run_s < 15.0);
+    assert_int_equal(ms_test_quiet_connections(quiet), 2);
+    json_decref(report);
+    ms_test_quiet_stop(quiet);
 }
 
 static void test_catalogue_screen(void **state)
@@ -545,7 +598,9 @@ static void test_interactive_from_a_server_lists_once(void **state)
     uint64_t connections, requests = 0, n;
     assert_int_equal(ms_test_metric(f->http_port, "meshstream_connections_total", &connections), 0);
     ms_test_metric(f->http_port, series, &requests); /* absent before any request */
-    char *argv[] = {f->bin, "--server", server, "--model", MODEL, "--size", "160x120", NULL};
+    /* 640 x 360: the catalogue's panel fits in the frame drawn while the
+     * model opens, which asks the server nothing */
+    char *argv[] = {f->bin, "--server", server, "--model", MODEL, "--size", "640x360", NULL};
     pid_t viewer = ms_test_spawn(argv, log);
     bool asked = false;
     for (int i = 0; i < 400 && !asked; ++i) { /* 40 s at most */
@@ -605,6 +660,7 @@ int main(void)
         cmocka_unit_test(test_catalogue_screen),
         cmocka_unit_test(test_catalogue_panel_shows_the_thumbnail),
         cmocka_unit_test(test_catalogue_panel_from_a_server),
+        cmocka_unit_test(test_catalogue_draws_on_against_a_silent_server),
         cmocka_unit_test(test_small_on_screen_never_vanishes),
         cmocka_unit_test(test_interactive_until_terminated),
         cmocka_unit_test(test_interactive_from_a_server_lists_once),

@@ -137,15 +137,16 @@ static int catalogue_frame(viewer *v, int fw, int fh);
 static bool open_model(viewer *v, const char *name)
 {
     close_model(v);
-    ms_error err;
+    int fw, fh;
     if (v->text) {
-        int fw, fh;
         glfwGetFramebufferSize(v->window, &fw, &fh);
         snprintf(v->message, sizeof v->message, "opening %s ...", name);
         if (fw > 0 && fh > 0 && catalogue_frame(v, fw, fh) == 0)
             glfwSwapBuffers(v->window);
     }
+    ms_viewer_catalogue_free(&v->catalogue); /* its worker stops (a fetch in flight too) */
     ms_viewer_stream_settings settings = ms_viewer_options_stream_settings(v->o);
+    ms_error err;
     /* from the catalogue already listed: opening costs no listing (at a
      * distance, a connection and a round trip) */
     if (ms_viewer_model_open_listed(&v->source, &v->list, name, &v->model, &err) != MS_OK ||
@@ -156,7 +157,6 @@ static bool open_model(viewer *v, const char *name)
     }
     double lo[3], hi[3];
     ms_viewer_model_bounds(&v->model, lo, hi);
-    int fw, fh;
     glfwGetFramebufferSize(v->window, &fw, &fh);
     ms_viewer_controls_init(&v->controls, lo, hi, v->o->up_axis,
                             fw > 0 && fh > 0 ? (double)fw / fh : (double)v->o->width / v->o->height);

@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "ms_png.h"
+#include "ms_progress.h"
 #include "ms_viewer_font.h"
 
 /* The panel: a thumbnail is MS_THUMB_W x MS_THUMB_H (meshbake's) */
@@ -26,17 +27,44 @@ static size_t rows_visible(int height, int scale)
     return rows < 1 ? 1 : (size_t)rows;
 }
 
+/* A server's screen: its fetches go to the worker. */
+static bool served(const ms_viewer_catalogue *cat)
+{
+    return cat->source && !cat->archive_dir && !cat->source->archive_dir;
+}
+
+/* The worker, made at the first need; NULL when it cannot be (the failure
+ * line says why). */
+static ms_viewer_fetcher *fetcher(ms_viewer_catalogue *cat)
+{
+    ms_error err;
+    if (!cat->fetcher && served(cat) &&
+        ms_viewer_fetcher_new(cat->source, &cat->fetcher, &err) != MS_OK)
+        snprintf(cat->failure, sizeof cat->failure, "%.150s", err.text);
+    return cat->fetcher;
+}
+
+/* Asks the worker for the page of query from offset, once. */
+static void request_page(ms_viewer_catalogue *cat, const char *query, size_t offset)
+{
+    ms_viewer_fetcher *f = fetcher(cat);
+    if (!f || (cat->page_pending && !strcmp(cat->page_query, query) && cat->page_offset == offset))
+        return;
+    ms_viewer_fetcher_want_page(f, query, offset);
+    cat->page_pending = true;
+    snprintf(cat->page_query, sizeof cat->page_query, "%s", query);
+    cat->page_offset = offset;
+}
+
 void ms_viewer_catalogue_move(ms_viewer_catalogue *cat, long delta, int height, int scale)
 {
     size_t shown = rows_visible(height, scale);
-    ms_error err;
-    /* a server's next page, when the selection comes near the end of those held */
-    while (cat->source && cat->list->total > cat->list->count && delta > 0 &&
-           cat->selected + (size_t)delta + 2 * shown >= cat->list->count) {
-        size_t had = cat->list->count;
-        if (ms_viewer_list_more(cat->source, cat->list, &err) != MS_OK || cat->list->count == had)
-            break; /* the rows held stay */
-    }
+    /* a server's next page, when the selection comes near the end of those
+     * held (not while a search's first page is on its way) */
+    if (served(cat) && cat->list->total > cat->list->count && delta > 0 &&
+        !strcmp(cat->search, cat->list->query) &&
+        cat->selected + (size_t)delta + 2 * shown >= cat->list->count)
+        request_page(cat, cat->list->query, cat->list->count);
     size_t count = cat->list->count;
     if (!count)
         return;
@@ -86,11 +114,96 @@ void ms_viewer_catalogue_row_text(const ms_viewer_model_entry *e, char *out, siz
              e->apo ? "  APO" : "");
 }
 
-void ms_viewer_catalogue_free(ms_viewer_catalogue *cat)
+static void clear_thumbnail(ms_viewer_catalogue *cat)
 {
     free(cat->thumbnail);
     cat->thumbnail = NULL;
     cat->thumbnail_of = 0;
+}
+
+void ms_viewer_catalogue_free(ms_viewer_catalogue *cat)
+{
+    clear_thumbnail(cat);
+    ms_viewer_fetcher_free(cat->fetcher);
+    cat->fetcher = NULL;
+    cat->page_pending = false;
+    if (cat->list) /* a search whose page did not come: the list's own text */
+        snprintf(cat->search, sizeof cat->search, "%s", cat->list->query);
+}
+
+/* A model's documents from the worker into its entry, when it is listed. */
+static void take_documents(ms_viewer_catalogue *cat, ms_viewer_fetched *r)
+{
+    ms_viewer_model_list *list = cat->list;
+    for (size_t i = 0; i < list->count; ++i) {
+        ms_viewer_model_entry *e = &list->entries[i];
+        if (strcmp(e->name, r->entry.name) || e->documents_fetched)
+            continue;
+        ms_metadata_free(e->metadata);
+        free(e->thumbnail_png);
+        e->metadata = r->entry.metadata, e->has_thumbnail = r->entry.has_thumbnail;
+        e->thumbnail_png = r->entry.thumbnail_png;
+        e->thumbnail_png_size = r->entry.thumbnail_png_size;
+        e->documents_fetched = true;
+        r->entry.metadata = NULL, r->entry.thumbnail_png = NULL; /* moved */
+        if (cat->thumbnail_of == i + 1)
+            clear_thumbnail(cat);
+        break;
+    }
+}
+
+/* A page from the worker: a search's first page, or the list's next. */
+static void take_page(ms_viewer_catalogue *cat, ms_viewer_fetched *r)
+{
+    ms_viewer_model_list *list = cat->list;
+    if (cat->page_pending && !strcmp(cat->page_query, r->query) && cat->page_offset == r->offset) {
+        cat->page_pending = false;
+        if (r->status != MS_OK)
+            snprintf(cat->failure, sizeof cat->failure, "%.150s", r->why);
+    }
+    if (r->status != MS_OK && r->offset == 0 && !strcmp(r->query, cat->search))
+        snprintf(cat->search, sizeof cat->search, "%s", list->query); /* the list as it was */
+    if (r->status != MS_OK)
+        return;
+    if (r->offset == 0 && !strcmp(r->query, cat->search)) {
+        clear_thumbnail(cat);
+        ms_viewer_model_list_free(list);
+        *list = r->page;
+        memset(&r->page, 0, sizeof r->page);
+        cat->selected = cat->first = 0;
+    } else if (r->offset == list->count && !strcmp(r->query, list->query)) {
+        ms_viewer_model_entry *grown =
+            r->page.count ? realloc(list->entries, (list->count + r->page.count) * sizeof *grown)
+                          : list->entries;
+        if (!grown) {
+            snprintf(cat->failure, sizeof cat->failure, "out of memory for the catalogue");
+            return;
+        }
+        list->entries = grown;
+        memcpy(list->entries + list->count, r->page.entries, r->page.count * sizeof *grown);
+        list->count += r->page.count;
+        list->total = r->page.count ? r->page.total : list->count;
+        r->page.count = 0; /* moved */
+    }
+}
+
+bool ms_viewer_catalogue_poll(ms_viewer_catalogue *cat)
+{
+    bool any = false;
+    ms_viewer_fetched r;
+    while (cat->fetcher && ms_viewer_fetcher_take(cat->fetcher, &r)) {
+        any = true;
+        if (r.kind == MS_FETCHED_DOCUMENTS)
+            take_documents(cat, &r);
+        else
+            take_page(cat, &r);
+        if (r.kind == MS_FETCHED_DOCUMENTS && r.status != MS_OK)
+            snprintf(cat->failure, sizeof cat->failure, "%.150s", r.why);
+        else if (r.status == MS_OK)
+            cat->failure[0] = 0;
+        ms_viewer_fetched_free(&r);
+    }
+    return any;
 }
 
 int ms_viewer_catalogue_wrap(const char *text, int columns, int max_lines, char *out,
@@ -154,33 +267,45 @@ int ms_viewer_catalogue_wrap(const char *text, int columns, int max_lines, char 
     return lines;
 }
 
-/* The selected model's picture, read once per selection; a server's
- * documents are fetched the first time its model is selected, and kept. */
-static void load_thumbnail(ms_viewer_catalogue *cat)
+ms_catalogue_panel ms_viewer_catalogue_panel(ms_viewer_catalogue *cat)
 {
-    if (cat->thumbnail_of == cat->selected + 1)
-        return;
-    ms_viewer_catalogue_free(cat);
-    cat->thumbnail_of = cat->selected + 1;
+    if (cat->selected >= cat->list->count)
+        return MS_PANEL_NONE;
     ms_viewer_model_entry *e = &cat->list->entries[cat->selected];
-    ms_error err;
-    if (!cat->archive_dir) {
-        if (cat->source)
-            (void)ms_viewer_model_fetch_documents(cat->source, e, &err); /* "no picture" */
-        if (e->thumbnail_png &&
-            ms_png_decode_rgb(e->thumbnail_png, e->thumbnail_png_size, 1024, 1024,
-                              &cat->thumbnail, &cat->thumbnail_width, &cat->thumbnail_height,
-                              &err) != MS_OK)
-            cat->thumbnail = NULL;
-        return;
+    if (served(cat) && !e->documents_fetched) {
+        double now = ms_now_seconds();
+        if (strcmp(cat->panel_name, e->name)) { /* selected since now */
+            snprintf(cat->panel_name, sizeof cat->panel_name, "%s", e->name);
+            cat->panel_since = now;
+        }
+        if (now - cat->panel_since < MS_CATALOGUE_SETTLE_S)
+            return MS_PANEL_LOADING; /* passed by, perhaps: not asked for yet */
+        ms_viewer_fetcher *f = fetcher(cat);
+        if (f) {
+            ms_viewer_fetcher_want_documents(f, e->name); /* supersedes another waiting */
+            return MS_PANEL_LOADING;
+        }
+        e->documents_fetched = true; /* no worker: none to show */
     }
-    if (!e->has_thumbnail)
-        return;
-    char path[4200];
-    snprintf(path, sizeof path, "%s/%s.thumb.png", cat->archive_dir, e->name);
-    if (ms_png_read_rgb(path, 1024, 1024, &cat->thumbnail, &cat->thumbnail_width,
-                        &cat->thumbnail_height, &err) != MS_OK)
-        cat->thumbnail = NULL; /* shown as "no picture" */
+    if (cat->thumbnail_of != cat->selected + 1) {
+        clear_thumbnail(cat);
+        cat->thumbnail_of = cat->selected + 1;
+        ms_error err;
+        char path[4200];
+        if (!cat->archive_dir) {
+            if (e->thumbnail_png &&
+                ms_png_decode_rgb(e->thumbnail_png, e->thumbnail_png_size, 1024, 1024,
+                                  &cat->thumbnail, &cat->thumbnail_width, &cat->thumbnail_height,
+                                  &err) != MS_OK)
+                cat->thumbnail = NULL; /* shown as "no picture" */
+        } else if (e->has_thumbnail) {
+            snprintf(path, sizeof path, "%s/%s.thumb.png", cat->archive_dir, e->name);
+            if (ms_png_read_rgb(path, 1024, 1024, &cat->thumbnail, &cat->thumbnail_width,
+                                &cat->thumbnail_height, &err) != MS_OK)
+                cat->thumbnail = NULL;
+        }
+    }
+    return cat->thumbnail ? MS_PANEL_PICTURE : MS_PANEL_NO_PICTURE;
 }
 
 /* The selected model's panel at x (width w): picture, then metadata. */
@@ -190,7 +315,7 @@ static void draw_panel(ms_viewer_text *text, ms_viewer_catalogue *cat, double x,
     int s = ms_viewer_text_scale(text);
     static const float ink[4] = {0.92f, 0.92f, 0.88f, 1}, dim[4] = {0.6f, 0.6f, 0.6f, 1},
                        frame[4] = {0.12f, 0.12f, 0.14f, 1};
-    load_thumbnail(cat);
+    ms_catalogue_panel shows = ms_viewer_catalogue_panel(cat);
     double scale = w / PANEL_THUMB_W < s ? w / PANEL_THUMB_W : s;
     double tw = PANEL_THUMB_W * scale, th = PANEL_THUMB_H * scale;
     ms_viewer_text_rect(text, x, y, tw, th, frame);
@@ -198,7 +323,8 @@ static void draw_panel(ms_viewer_text *text, ms_viewer_catalogue *cat, double x,
         ms_viewer_text_image(text, x, y, tw, th, cat->thumbnail, (int)cat->thumbnail_width,
                              (int)cat->thumbnail_height, cat->thumbnail_of);
     else
-        ms_viewer_text_print(text, x + 8 * s, y + th / 2 - 4 * s, dim, "no picture");
+        ms_viewer_text_print(text, x + 8 * s, y + th / 2 - 4 * s, dim,
+                             shows == MS_PANEL_LOADING ? "loading..." : "no picture");
     y += th + MS_FONT_LINE_HEIGHT * s;
     const ms_viewer_model_entry *e = &cat->list->entries[cat->selected];
     const ms_metadata *m = e->metadata;
@@ -235,13 +361,20 @@ void ms_viewer_catalogue_draw(ms_viewer_text *text, ms_viewer_catalogue *cat, in
                        title[4] = {0.45f, 0.8f, 1.0f, 1}, band[4] = {0.25f, 0.45f, 0.7f, 0.9f};
     double x = MARGIN * s, y = MARGIN * s;
     char line[160];
+    (void)ms_viewer_catalogue_poll(cat);
+    bool searching = strcmp(cat->search, cat->list->query) != 0; /* its page on its way */
+    if (cat->failure[0]) {
+        static const float alert[4] = {1.0f, 0.55f, 0.45f, 1};
+        ms_viewer_text_print(text, x, height - 3 * MS_FONT_LINE_HEIGHT * s, alert, cat->failure);
+    }
     snprintf(line, sizeof line, "meshstream models - %s", cat->where ? cat->where : "");
     ms_viewer_text_print(text, x, y, title, line);
     if (cat->search[0] || cat->list->total > cat->list->count) {
         char count[64] = "";
         if (cat->list->total > cat->list->count)
             snprintf(count, sizeof count, "  (%zu of %zu)", cat->list->count, cat->list->total);
-        snprintf(line, sizeof line, "search: %s_%s", cat->search, count);
+        snprintf(line, sizeof line, "search: %s_%s%s", cat->search, count,
+                 searching ? "  (searching...)" : "");
         ms_viewer_text_print(text, x, y + MS_FONT_LINE_HEIGHT * s, dim, line);
     }
     y += 2 * MS_FONT_LINE_HEIGHT * s;
@@ -249,7 +382,9 @@ void ms_viewer_catalogue_draw(ms_viewer_text *text, ms_viewer_catalogue *cat, in
     ms_viewer_text_print(text, x, y, dim, line);
     if (!cat->list->count) {
         ms_viewer_text_print(text, x, FIRST_ROW_Y * s, ink,
-                             cat->search[0] ? "(no models match)" : "(no models)");
+                             searching        ? "(searching...)"
+                             : cat->search[0] ? "(no models match)"
+                                              : "(no models)");
         return;
     }
     size_t shown = rows_visible(height, s);
@@ -269,6 +404,12 @@ void ms_viewer_catalogue_draw(ms_viewer_text *text, ms_viewer_catalogue *cat, in
         ms_viewer_catalogue_row_text(&cat->list->entries[i], line, sizeof line);
         ms_viewer_text_print(text, x, row_y, ink, line);
     }
+    /* the next page on its way: a row saying so below the last */
+    size_t last = cat->list->count;
+    if (cat->page_pending && cat->page_offset == last && !strcmp(cat->page_query, cat->list->query) &&
+        last >= cat->first && last - cat->first < shown)
+        ms_viewer_text_print(text, x, (FIRST_ROW_Y + (double)(last - cat->first) * ROW) * s, dim,
+                             "loading...");
     ms_viewer_text_print(text, x, height - 2 * MS_FONT_LINE_HEIGHT * s, dim,
                          "up/down or mouse: choose   enter or double-click: open   type: search   "
                          "esc: quit");
@@ -283,9 +424,10 @@ ms_status ms_viewer_catalogue_search(ms_viewer_catalogue *cat, const char *searc
     ms_status st = ms_viewer_list_page(cat->source, search, &fresh, err);
     if (st != MS_OK)
         return st;
-    ms_viewer_catalogue_free(cat);
+    clear_thumbnail(cat);
     ms_viewer_model_list_free(cat->list);
     *cat->list = fresh;
+    cat->page_pending = false;
     snprintf(cat->search, sizeof cat->search, "%s", fresh.query);
     cat->selected = cat->first = 0;
     return MS_OK;
@@ -313,13 +455,25 @@ ms_catalogue_action ms_viewer_catalogue_key(ms_viewer_catalogue *cat, int key, i
         else
             search[n - 1] = 0;
         ms_error err;
-        (void)ms_viewer_catalogue_search(cat, search, &err); /* failed: the list as it was */
+        if (!served(cat)) {
+            (void)ms_viewer_catalogue_search(cat, search, &err); /* failed: the list as it was */
+            return MS_CATALOGUE_STAY;
+        }
+        snprintf(cat->search, sizeof cat->search, "%s", search);
+        if (strcmp(search, cat->list->query)) {
+            request_page(cat, search, 0); /* supersedes an older search waiting */
+        } else if (cat->page_pending && cat->page_offset == 0) { /* back to the list held */
+            ms_viewer_fetcher_want_page(cat->fetcher, NULL, 0);
+            cat->page_pending = false;
+        }
         return MS_CATALOGUE_STAY;
     }
     long move = key == GLFW_KEY_DOWN ? 1 : key == GLFW_KEY_UP ? -1 : key == GLFW_KEY_PAGE_DOWN ? 10
                 : key == GLFW_KEY_PAGE_UP                      ? -10 : 0;
     if (move)
         ms_viewer_catalogue_move(cat, move, height, scale);
+    if (key == GLFW_KEY_TAB) /* the screen closes: its worker stops (made again if it stays) */
+        ms_viewer_catalogue_free(cat);
     return key == GLFW_KEY_ENTER || key == GLFW_KEY_KP_ENTER ? MS_CATALOGUE_OPEN
            : key == GLFW_KEY_TAB                             ? MS_CATALOGUE_BACK
                                                              : MS_CATALOGUE_STAY;

@@ -108,8 +108,8 @@ void ms_viewer_model_list_free(ms_viewer_model_list *list)
 }
 
 /* The METADATA document's sidecar fields, checked by the sidecar's parser. */
-static ms_status parse_metadata(const uint8_t *bytes, size_t length, ms_viewer_model_entry *entry,
-                                ms_error *err)
+ms_status ms_viewer_entry_set_metadata(ms_viewer_model_entry *entry, const uint8_t *bytes,
+                                       size_t length, ms_error *err)
 {
     json_error_t jerr;
     json_t *doc = json_loadb((const char *)bytes, length, 0, &jerr);
@@ -151,7 +151,7 @@ ms_status ms_viewer_model_fetch_documents(const ms_viewer_source *source,
                                                MS_DOCUMENT_METADATA, &bytes, &length, err);
     if (st != MS_OK)
         return st;
-    st = parse_metadata(bytes, length, entry, err);
+    st = ms_viewer_entry_set_metadata(entry, bytes, length, err);
     free(bytes);
     if (st != MS_OK || !entry->has_thumbnail)
         return st;

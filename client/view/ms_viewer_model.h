@@ -51,7 +51,7 @@ typedef struct ms_viewer_model_entry {
     ms_metadata *metadata;
     bool has_thumbnail;
     /* a server's model: its documents, fetched once, when the catalogue first
-     * shows its panel (ms_viewer_model_fetch_documents) */
+     * shows its panel (by the screen's worker, ms_viewer_fetcher.h) */
     bool documents_fetched;
     uint8_t *thumbnail_png;  /* the PNG's bytes (owned); NULL: none */
     size_t thumbnail_png_size;
@@ -111,9 +111,17 @@ void ms_viewer_entry_from_server(const struct ms_client_catalogue_entry *e,
  * when it has one; documents_fetched is set even when they fail (no retry),
  * with the first failure's line in err and MS_ERR_IO (no server),
  * MS_ERR_FORMAT (a document that does not parse) or MS_ERR_NOMEM. A local
- * source, or an entry already fetched: MS_OK, nothing done. */
+ * source, or an entry already fetched: MS_OK, nothing done. Blocks: the
+ * catalogue screen fetches through its worker instead (ms_viewer_fetcher.h). */
 ms_status ms_viewer_model_fetch_documents(const ms_viewer_source *source,
                                           ms_viewer_model_entry *entry, ms_error *err);
+
+/* A server's METADATA document (bytes, length: the model's catalogue entry as
+ * JSON) into entry: metadata (the sidecar's fields, checked as a sidecar is)
+ * and has_thumbnail. MS_ERR_FORMAT (not a JSON object, or a field the
+ * sidecar's rules refuse), MS_ERR_NOMEM. */
+ms_status ms_viewer_entry_set_metadata(ms_viewer_model_entry *entry, const uint8_t *bytes,
+                                       size_t length, ms_error *err);
 
 typedef struct ms_viewer_model {
     char name[MS_MODEL_NAME_MAX + 1];

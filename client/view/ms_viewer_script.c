@@ -131,16 +131,42 @@ static ms_status catalogue_shot(const ms_viewer_options *o, const ms_viewer_sour
     ms_viewer_target_bind(&target);
     glViewport(0, 0, o->width, o->height);
     glClearColor(0.08f, 0.08f, 0.09f, 1);
-    glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
     ms_viewer_catalogue cat = {.list = &list, .where = where, .archive_dir = source->archive_dir,
                                .source = source};
-    ms_viewer_text_begin(text, o->width, o->height, ms_viewer_text_auto_scale(o->height, 1, true));
-    ms_viewer_catalogue_draw(text, &cat, o->width, o->height);
+    /* frames until the selected (first) model's panel is whole: from a
+     * server its documents come from the catalogue's worker meanwhile, each
+     * bounded by the time-out; the states the panel showed, in order */
+    static const char *const panel_names[] = {"none", "loading", "picture", "no picture"};
+    json_t *panel = json_array();
+    ms_catalogue_panel shows, was = MS_PANEL_NONE;
+    double start = now_s(), slowest_ms = 0;
+    double limit = 2 * (source->timeout_s > 0 ? source->timeout_s : 5) + 1;
+    int frames = 0;
+    do {
+        double t0 = now_s();
+        glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+        ms_viewer_text_begin(text, o->width, o->height,
+                             ms_viewer_text_auto_scale(o->height, 1, true));
+        ms_viewer_catalogue_draw(text, &cat, o->width, o->height);
+        st = ms_viewer_text_draw(text, err);
+        glFinish();
+        double ms = (now_s() - t0) * 1e3;
+        slowest_ms = ms > slowest_ms ? ms : slowest_ms;
+        ++frames;
+        if ((shows = ms_viewer_catalogue_panel(&cat)) != was || frames == 1)
+            json_array_append_new(panel, json_string(panel_names[shows]));
+        was = shows;
+        if (shows == MS_PANEL_LOADING) {
+            struct timespec nap = {0, 5000000};
+            nanosleep(&nap, NULL);
+        }
+    } while (st == MS_OK && shows == MS_PANEL_LOADING && now_s() - start < limit);
     bool pictured = cat.thumbnail != NULL; /* the selected (first) model's */
     ms_viewer_catalogue_free(&cat);
-    if ((st = ms_viewer_text_draw(text, err)) != MS_OK ||
-        (st = ms_viewer_screenshot(png, o->width, o->height, err)) != MS_OK)
+    if (st != MS_OK || (st = ms_viewer_screenshot(png, o->width, o->height, err)) != MS_OK) {
+        json_decref(panel);
         goto done;
+    }
     json_t *models = json_array();
     for (size_t i = 0; i < list.count; ++i)
         json_array_append_new(models, json_pack("{s:s, s:I, s:I, s:b, s:b, s:o}", "name",
@@ -151,9 +177,10 @@ static ms_status catalogue_shot(const ms_viewer_options *o, const ms_viewer_sour
                                                 list.entries[i].has_thumbnail, "title",
                                                 ms_json_text(ms_metadata_field(
                                                     list.entries[i].metadata, 0))));
-    *report = json_pack("{s:s, s:o, s:b, s:I}", "png", png, "models", models, "picture_shown",
-                        pictured, "total",
-                        (json_int_t)(list.total > list.count ? list.total : list.count));
+    *report = json_pack("{s:s, s:o, s:b, s:I, s:i, s:o, s:f}", "png", png, "models", models,
+                        "picture_shown", pictured, "total",
+                        (json_int_t)(list.total > list.count ? list.total : list.count),
+                        "frames", frames, "panel", panel, "slowest_frame_ms", slowest_ms);
 done:
     ms_viewer_target_free(&target);
     ms_viewer_text_free(text);
