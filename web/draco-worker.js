@@ -146,12 +146,12 @@ onmessage = async e => {
     // the download starts first; the decoder's script and module load meanwhile
     const file = download('../models/' + encodeURIComponent(name) + '/draco', token);
     file.catch(() => {});
-    const decoder = loadDecoder();
+    let ready = 0;
+    const decoder = loadDecoder().then(module => { ready = performance.now(); return module; });
     decoder.catch(() => {});
     const bytes = await file;
     const fetched = performance.now();
     const D = await decoder;
-    const ready = performance.now();
     const { positions, triangles } = decode(D, bytes);
     const decoded = performance.now();
     if (!triangles.length)
