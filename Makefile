@@ -316,8 +316,19 @@ WASM_LDFLAGS := -O2 -sMODULARIZE=1 -sEXPORT_NAME=createMeshstream -sENVIRONMENT=
                -sEXPORTED_RUNTIME_METHODS=[HEAPU8,HEAPU32,HEAPF32,HEAPF64,UTF8ToString] \
                -sEXPORTED_FUNCTIONS=[$(subst $(space),$(comma),$(strip $(addprefix _,$(WASM_EXPORTS))))]
 WEB_FILES   := $(wildcard web/*.html web/*.js web/*.css)
+# Draco's own WebAssembly decoder (npm draco3d, which scripts/install-deps puts
+# in a cache outside the repository) for the Draco page, web/draco.html: copied
+# beside the pages when there, a note when not (the page then says so).
+DRACO3D     ?= $(or $(MESHSTREAM_DRACO3D),$(or $(XDG_CACHE_HOME),$(HOME)/.cache)/meshstream/draco3d)
+DRACO3D_FILES := draco_decoder_nodejs.js draco_decoder.wasm
 .PHONY: wasm
 wasm: $(WASM)/site/meshstream.js $(patsubst web/%,$(WASM)/site/%,$(WEB_FILES))
+	@if [ -s "$(DRACO3D)/draco_decoder_nodejs.js" ] && [ -s "$(DRACO3D)/draco_decoder.wasm" ]; then \
+	  for f in $(DRACO3D_FILES); do cmp -s "$(DRACO3D)/$$f" $(WASM)/site/$$f || cp "$(DRACO3D)/$$f" $(WASM)/site/$$f; done; \
+	else \
+	  rm -f $(addprefix $(WASM)/site/,$(DRACO3D_FILES)); \
+	  echo "wasm: no Draco decoder in $(DRACO3D) (npm draco3d: scripts/install-deps); the Draco page will say so"; \
+	fi
 $(WASM)/obj/%.o: %.c
 	@mkdir -p $(dir $@)
 	@command -v $(EMCC) >/dev/null || { echo "wasm: emcc is missing (scripts/install-deps)" >&2; exit 1; }
