@@ -583,11 +583,12 @@ static void test_interactive_until_terminated(void **state)
 }
 
 /* The interactive viewer on a model from meshserve lists the catalogue once
- * and opens the model from that list: two connections in all (the listing
- * and the core's), where it made four (a listing to check the model, one for
- * the catalogue screen, one more to open it); at a distance each was a
- * connection and a round trip more before the first picture. It draws until
- * its core asks for cells, and ends cleanly on SIGTERM. */
+ * and opens the model from that list: three connections in all (the listing,
+ * the core's, and the model's annotations document asked for once as the
+ * model opens), not one more for the catalogue screen and one more to open
+ * the model; at a distance each was a connection and a round trip more
+ * before the first picture. It draws until its core asks for cells, and
+ * ends cleanly on SIGTERM. */
 static void test_interactive_from_a_server_lists_once(void **state)
 {
     fixture *f = *state;
@@ -602,17 +603,20 @@ static void test_interactive_from_a_server_lists_once(void **state)
      * model opens, which asks the server nothing */
     char *argv[] = {f->bin, "--server", server, "--model", MODEL, "--size", "640x360", NULL};
     pid_t viewer = ms_test_spawn(argv, log);
-    bool asked = false;
-    for (int i = 0; i < 400 && !asked; ++i) { /* 40 s at most */
+    bool asked = false, all = false;
+    for (int i = 0; i < 400 && !(asked && all); ++i) { /* 40 s at most */
         asked = ms_test_metric(f->http_port, series, &n) == 0 && n > requests;
+        /* the annotations come on the frame after the model opened */
+        all = ms_test_metric(f->http_port, "meshstream_connections_total", &n) == 0 &&
+              n - connections >= 3;
         struct timespec pause = {0, 100000000};
-        if (!asked)
+        if (!(asked && all))
             nanosleep(&pause, NULL);
     }
     assert_int_equal(ms_test_stop(viewer, SIGTERM, 20.0), 0);
     assert_true(asked);
     assert_int_equal(ms_test_metric(f->http_port, "meshstream_connections_total", &n), 0);
-    assert_int_equal(n - connections, 2);
+    assert_int_equal(n - connections, 3);
     char *text = read_text(log);
     if (text[0])
         fail_msg("meshview printed: %.2000s", text);
