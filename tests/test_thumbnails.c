@@ -139,7 +139,7 @@ static void test_bake_renders_and_keeps(void **state)
          "metadata title holds a bidirectional override or isolate character"},
         {"{\"title\": [\"x\"]}", "metadata title is not a string"},
         {"{\"rights\": \"all\"}",
-         "unknown metadata field 'rights' (title, creator, date, licence, description)"},
+         "unknown metadata field 'rights' (title, creator, date, licence, description, unit)"},
     };
     for (size_t i = 0; i < sizeof hostile / sizeof *hostile; ++i) {
         write_text(path, hostile[i].text);
