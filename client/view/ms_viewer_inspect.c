@@ -114,7 +114,8 @@ void ms_viewer_inspect_frame(ms_viewer_inspect *in, ms_viewer_stream *stream, co
     const ms_core_frame *frame = ms_viewer_stream_frame(stream);
     if (in->source)
         ms_viewer_annotate_load(&in->notes, in->source, ms_viewer_stream_model(stream)->name, stderr);
-    ms_viewer_unit_update(&in->unit, in->source, ms_viewer_stream_model(stream), stderr);
+    if (in->measuring || in->measure.count) /* asked for only by a model measured */
+        ms_viewer_unit_update(&in->unit, in->source, ms_viewer_stream_model(stream), stderr);
     ms_viewer_annotate_frame(&in->notes, frame, box_side(stream), camera);
     if (!frame)
         return;

@@ -81,7 +81,9 @@ bool ms_viewer_inspect_key(ms_viewer_inspect *in, int key, const ms_viewer_contr
  * again on a new frame once the view settled (or while a point is lost);
  * once settled, the probe refines the points' cells (polled, never waited
  * for). The model's annotations are loaded at its first frame; a pending
- * Enter or click on them is handled (ms_viewer_annotate_frame). */
+ * Enter or click on them is handled (ms_viewer_annotate_frame). While
+ * measuring (T, or a chain), the measurements' unit is asked for and polled
+ * (ms_viewer_unit.h). */
 void ms_viewer_inspect_frame(ms_viewer_inspect *in, ms_viewer_stream *stream, const ms_camera *camera,
                              ms_render_options *render);
 

@@ -5,7 +5,9 @@
  * Where it comes from: a local archive's catalog.json entry, or a server
  * entry whose documents the catalogue screen already fetched, is in the
  * model as opened (ms_viewer_model.unit_known). Otherwise, from a server, the
- * model's METADATA document once, by a fetcher thread of its own
+ * model's METADATA document once, when the model is first measured (T, or a
+ * chain from --view: a model never measured costs no connection), by a
+ * fetcher thread of its own
  * (ms_viewer_fetcher.h, bounded by the source's time-out), so the drawing
  * thread never waits on the network; until it comes, and when it fails
  * (logged once), measurements say "model units".
