@@ -22,7 +22,9 @@
  *     measure 1 within the reported precision, which is the grid step at the
  *     coarser point's bits (box side / 2^bits); once the view is complete
  *     the probe refines the cells under both points to the model's 20 bits,
- *     and the measure is 1 within 2^-20.
+ *     and the measure is 1 within 2^-20, in the unit the cube's sidecar
+ *     metadata declares ("unit": "mm": the page's line ends "mm (20 bits,
+ *     full)").
  *   - hostile view texts (a zero plane normal, four planes, a light out of
  *     range, a field out of order) end the page in state error with
  *     meshview's one line, nothing drawn, no console error.
@@ -112,11 +114,14 @@ static int group_setup(void **state)
     ms_test_bin_path(meshbake, sizeof meshbake, "meshbake");
     snprintf(cube, sizeof cube, "%s/cube.ply", f->dir);
     write_cube(cube);
+    char sidecar[700];
+    snprintf(sidecar, sizeof sidecar, "%s/mm.json", f->dir);
+    ms_test_write_file(sidecar, "{\"unit\": \"mm\"}", strlen("{\"unit\": \"mm\"}"));
     snprintf(command, sizeof command,
              "%s -o %s/demo.ply --triangles 20000 && "
              "%s %s/demo.ply -o %s --name demo --min-tris 1500 --no-apo --threads 2 && "
-             "%s %s -o %s --name cube --bits 20 --no-apo --threads 2",
-             meshgen, f->dir, meshbake, f->dir, f->archives, meshbake, cube, f->archives);
+             "%s %s -o %s --name cube --bits 20 --no-apo --threads 2 --metadata %s",
+             meshgen, f->dir, meshbake, f->dir, f->archives, meshbake, cube, f->archives, sidecar);
     if (ms_test_run(command, out, sizeof out) != 0) {
         fprintf(stderr, "%s: %s\n", command, out);
         return -1;
@@ -405,6 +410,12 @@ static void check_edge(json_t *m)
     assert_true(json_is_true(json_object_get(m, "refined")));
     assert_true(json_is_true(json_object_get(m, "full")));
     assert_true(bits[0] == 20 && bits[1] == 20);
+    /* in the unit the cube's metadata declares */
+    assert_string_equal(json_string_value(json_object_get(m, "unit")), "mm");
+    const char *text = json_string_value(json_object_get(m, "text"));
+    const char *tail = strstr(text, " mm (20 bits, full)");
+    assert_non_null(tail);
+    assert_string_equal(tail, " mm (20 bits, full)");
 }
 
 static void test_bad_view_text(void **state)

@@ -121,7 +121,7 @@ static void test_colour_corpus(void **state)
 static void test_metadata_corpus(void **state)
 {
     (void)state;
-    assert_true(replay("tests/corpus/metadata", ms_fuzz_metadata_one) >= 23);
+    assert_true(replay("tests/corpus/metadata", ms_fuzz_metadata_one) >= 30);
 }
 
 static void test_annotations_corpus(void **state)

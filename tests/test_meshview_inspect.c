@@ -20,6 +20,7 @@
  *   - usage errors: hostile --view texts, bad --light and --measure values and
  *     misplaced options are one line and exit status 2. */
 #include <math.h>
+#include <signal.h>
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -34,6 +35,7 @@
 #include "ms_archive.h"
 #include "ms_test.h"
 #include "ms_test_display.h"
+#include "ms_test_net.h"
 #include "ms_test_picture.h"
 
 #define WIDTH 160
@@ -108,20 +110,28 @@ static int group_teardown(void **state)
     return 0;
 }
 
-/* meshview on the cube with extra options (along the front path unless
- * `extra` gives a view); the report, the keyframe's PNG into png. */
-static json_t *view(const fixture *f, const char *tag, const char *extra, bool path, char *png, size_t size)
+/* meshview on model from source (the archive directory, or "--server
+ * HOST:PORT") with extra options (along the front path unless `extra` gives a
+ * view); the report, the keyframe's PNG into png. */
+static json_t *view_at(const fixture *f, const char *source, const char *model, const char *tag, const char *extra,
+                       bool path, char *png, size_t size)
 {
     char command[8192];
     snprintf(command, sizeof command,
-             "%s %s --model cube %s%s --size %dx%d --shading geometry --frames 1 --screenshot-dir %s/%s --json %s",
-             f->bin, f->archives, path ? "--path " : "", path ? f->cam : "", WIDTH, HEIGHT, f->dir, tag, extra);
+             "%s %s --model %s %s%s --size %dx%d --shading geometry --frames 1 --screenshot-dir %s/%s --json %s",
+             f->bin, source, model, path ? "--path " : "", path ? f->cam : "", WIDTH, HEIGHT, f->dir, tag, extra);
     json_t *report = ms_test_run_json(command, 0);
     json_t *key = json_array_get(json_object_get(report, "keyframes"), 0);
     assert_true(json_is_true(json_object_get(key, "complete")));
     if (png)
         snprintf(png, size, "%s", json_string_value(json_object_get(key, "png")));
     return report;
+}
+
+/* The cube from the archive directory. */
+static json_t *view(const fixture *f, const char *tag, const char *extra, bool path, char *png, size_t size)
+{
+    return view_at(f, f->archives, "cube", tag, extra, path, png, size);
 }
 
 /* The point of the plane y = 0 seen at framebuffer point (x, y), computed
@@ -181,6 +191,9 @@ static void test_measure_on_the_face(void **state)
     assert_true(precision == step_max && precision == ldexp(f->box_side, -20));
     assert_true(fabs(length - expected) <= precision);
     assert_string_equal(json_string_value(json_object_get(m, "unit")), "model units");
+    const char *text = json_string_value(json_object_get(m, "text"));
+    assert_non_null(strstr(text, " model units (20 bits, full)"));
+    assert_int_equal(strlen(strstr(text, " model units (20 bits, full)")), strlen(" model units (20 bits, full)"));
     json_decref(report);
 
     /* with --hud the keyframe's picture marks the points (yellow squares) */
@@ -281,6 +294,50 @@ static void test_view_text(void **state)
     json_decref(report);
 }
 
+/* The measurement's unit and its text, for the front pixels on model. */
+static void assert_unit(const fixture *f, const char *source, const char *model, const char *tag, const char *unit)
+{
+    json_t *report = view_at(f, source, model, tag, "--measure 52.25,40.5:111.5,77.75", true, NULL, 0);
+    json_t *m = json_object_get(report, "measure");
+    assert_string_equal(json_string_value(json_object_get(m, "unit")), unit);
+    char want[200];
+    double precision = number(m, "precision");
+    int decimals = 1 - (int)floor(log10(precision)); /* its first significant digit and one more */
+    snprintf(want, sizeof want, "measure 2 points: %.*f +- %.*f %s (20 bits, full)", decimals, number(m, "length"),
+             decimals, precision, unit);
+    printf("%s: %s\n", tag, json_string_value(json_object_get(m, "text")));
+    assert_string_equal(json_string_value(json_object_get(m, "text")), want);
+    json_decref(report);
+}
+
+/* A model baked with a sidecar that declares "unit": "mm" is measured in mm,
+ * from the archive directory and from a server (its METADATA document);
+ * the cube without metadata in "model units". */
+static void test_measure_in_the_declared_unit(void **state)
+{
+    fixture *f = *state;
+    char sidecar[700], ply[700], bake[600], command[4096], out[4096];
+    snprintf(sidecar, sizeof sidecar, "%s/mm.json", f->dir);
+    const char *mm = "{\"title\": \"cube\", \"unit\": \"mm\"}";
+    ms_test_write_file(sidecar, mm, strlen(mm));
+    snprintf(ply, sizeof ply, "%s/cube.ply", f->dir);
+    ms_test_bin_path(bake, sizeof bake, "meshbake");
+    snprintf(command, sizeof command, "%s %s -o %s --name cube_mm --bits 20 --no-apo --no-thumbnail --metadata %s",
+             bake, ply, f->archives, sidecar);
+    assert_int_equal(ms_test_run(command, out, sizeof out), 0);
+    assert_unit(f, f->archives, "cube_mm", "unit-local", "mm");
+    char log[700], ports[700], source[64];
+    snprintf(log, sizeof log, "%s/meshserve.log", f->dir);
+    snprintf(ports, sizeof ports, "%s/ports", f->dir);
+    uint16_t port, http_port;
+    pid_t server = ms_test_meshserve_start(f->archives, NULL, 0, ports, log, &port, &http_port);
+    assert_true(server > 0);
+    snprintf(source, sizeof source, "--server 127.0.0.1:%u", port);
+    assert_unit(f, source, "cube_mm", "unit-server", "mm");
+    assert_unit(f, source, "cube", "unit-server-none", "model units");
+    ms_test_stop(server, SIGTERM, 10.0);
+}
+
 static void test_usage_errors(void **state)
 {
     fixture *f = *state;
@@ -320,6 +377,7 @@ int main(void)
         cmocka_unit_test(test_measure_on_the_face),
         cmocka_unit_test(test_light_follows_lambert),
         cmocka_unit_test(test_view_text),
+        cmocka_unit_test(test_measure_in_the_declared_unit),
         cmocka_unit_test(test_usage_errors),
     };
     return cmocka_run_group_tests(tests, group_setup, group_teardown);

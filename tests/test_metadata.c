@@ -75,7 +75,7 @@ static void test_hostile_sidecars_get_one_line(void **state)
         {"[\"title\"]", MS_ERR_FORMAT, "side.json: metadata is not a JSON object"},
         {"{\"title\": 1}", MS_ERR_FORMAT, "side.json: metadata title is not a string"},
         {"{\"author\": \"x\"}", MS_ERR_FORMAT,
-         "side.json: unknown metadata field 'author' (title, creator, date, licence, description)"},
+         "side.json: unknown metadata field 'author' (title, creator, date, licence, description, unit)"},
         {"{\"title\": \"a\", \"title\": \"b\"}", MS_ERR_FORMAT,
          "side.json: line 1: duplicate object key near '\"title\"'"},
         {"{\"title\": \"a\\u0000b\"}", MS_ERR_FORMAT,
@@ -163,7 +163,7 @@ static void test_the_catalogue_keeps_metadata(void **state)
     ms_error err;
     ms_metadata *meta;
     assert_int_equal(parse("{\"title\": \"A \\\"quoted\\\" {brace}\", \"description\": "
-                           "\"<b>x</b>\\nsecond line\"}", &meta, &err), MS_OK);
+                           "\"<b>x</b>\\nsecond line\", \"unit\": \"cm\"}", &meta, &err), MS_OK);
     ms_catalog_entry a = sample("alpha"), b = sample("beta");
     a.metadata = meta;
     a.has_thumbnail = true, a.thumbnail_bits = 9;
@@ -215,7 +215,9 @@ static void test_the_catalogue_keeps_metadata(void **state)
         {"\"metadata\": {\"title\": \"a\\u202eb\"}",
          "metadata title holds a bidirectional override or isolate character"},
         {"\"metadata\": {\"x\": \"y\"}",
-         "unknown metadata field 'x' (title, creator, date, licence, description)"},
+         "unknown metadata field 'x' (title, creator, date, licence, description, unit)"},
+        {"\"metadata\": {\"unit\": \"inch\"}",
+         "metadata unit is not one of um, mm, cm, m, in, ft"},
         {"\"thumbnail_bits\": 21", "thumbnail_bits is not an integer in 0..20"},
         {"\"thumbnail_bits\": 8, \"thumbnail_up\": \"w\"",
          "thumbnail_up is not \"x\", \"y\" or \"z\""},
@@ -237,6 +239,55 @@ static void test_the_catalogue_keeps_metadata(void **state)
     ms_test_rmdir(dir);
 }
 
+/* Each unit of the list is kept as given; anything else is refused with one
+ * line; an empty unit is none ("model units"). */
+static void test_a_unit_is_one_of_the_list(void **state)
+{
+    (void)state;
+    static const char *const units[] = {"um", "mm", "cm", "m", "in", "ft"};
+    char text[200];
+    ms_metadata *m;
+    ms_error err;
+    for (size_t i = 0; i < sizeof units / sizeof *units; ++i) {
+        snprintf(text, sizeof text, "{\"title\": \"t\", \"unit\": \"%s\"}", units[i]);
+        assert_int_equal(parse(text, &m, &err), MS_OK);
+        assert_string_equal(m->unit, units[i]);
+        assert_string_equal(ms_metadata_field(m, 5), units[i]);
+        assert_string_equal(ms_metadata_unit_name(m), units[i]);
+        assert_true(ms_metadata_unit_valid(units[i]));
+        ms_metadata *copy = ms_metadata_dup(m, NULL);
+        assert_true(ms_metadata_equal(m, copy));
+        ms_metadata_free(copy);
+        ms_metadata_free(m);
+    }
+    /* a unit alone is metadata; an empty one is none */
+    assert_int_equal(parse("{\"unit\": \"mm\"}", &m, &err), MS_OK);
+    assert_null(m->title);
+    assert_string_equal(m->unit, "mm");
+    ms_metadata_free(m);
+    assert_int_equal(parse("{\"unit\": \"\"}", &m, &err), MS_OK);
+    assert_null(m);
+    assert_string_equal(ms_metadata_unit_name(NULL), "model units");
+    assert_int_equal(parse("{\"title\": \"t\"}", &m, &err), MS_OK);
+    assert_string_equal(ms_metadata_unit_name(m), "model units");
+    ms_metadata_free(m);
+    static const char *const bad[] = {
+        "{\"unit\": \"MM\"}",         "{\"unit\": \"mm \"}",      "{\"unit\": \"millimetre\"}",
+        "{\"unit\": \"model units\"}", "{\"unit\": \"m\\u202e\"}", "{\"unit\": \"\\u00b5m\"}",
+        "{\"unit\": \"km\"}",         "{\"unit\": \"m\\n\"}",
+    };
+    for (size_t i = 0; i < sizeof bad / sizeof *bad; ++i) {
+        m = (ms_metadata *)&err;
+        assert_int_equal(parse(bad[i], &m, &err), MS_ERR_FORMAT);
+        assert_null(m);
+        assert_string_equal(err.text, "side.json: metadata unit is not one of um, mm, cm, m, in, ft");
+    }
+    assert_int_equal(parse("{\"unit\": 1}", &m, &err), MS_ERR_FORMAT);
+    assert_string_equal(err.text, "side.json: metadata unit is not a string");
+    assert_false(ms_metadata_unit_valid(NULL));
+    assert_false(ms_metadata_unit_valid(""));
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -244,6 +295,7 @@ int main(void)
         cmocka_unit_test(test_hostile_sidecars_get_one_line),
         cmocka_unit_test(test_a_sidecar_file),
         cmocka_unit_test(test_the_catalogue_keeps_metadata),
+        cmocka_unit_test(test_a_unit_is_one_of_the_list),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -139,7 +139,7 @@ static void test_bake_renders_and_keeps(void **state)
          "metadata title holds a bidirectional override or isolate character"},
         {"{\"title\": [\"x\"]}", "metadata title is not a string"},
         {"{\"rights\": \"all\"}",
-         "unknown metadata field 'rights' (title, creator, date, licence, description)"},
+         "unknown metadata field 'rights' (title, creator, date, licence, description, unit)"},
     };
     for (size_t i = 0; i < sizeof hostile / sizeof *hostile; ++i) {
         write_text(path, hostile[i].text);
@@ -196,7 +196,7 @@ static void test_meshserve_serves_them(void **state)
     char path[700];
     snprintf(path, sizeof path, "%s/meta.json", f->dir);
     write_text(path, "{\"title\": \"<img src=x onerror=alert(1)>\", \"description\": \"Carrara "
-                     "marble, \\u00e9t\\u00e9 1998\"}");
+                     "marble, \\u00e9t\\u00e9 1998\", \"unit\": \"cm\"}");
     char args[800];
     snprintf(args, sizeof args, "--name withheld --public-bits 6 --metadata '%s'", path);
     json_decref(bake(f, args));
@@ -268,6 +268,7 @@ static void test_meshserve_serves_them(void **state)
                         "Carrara marble, \xc3\xa9t\xc3\xa9 1998");
     assert_true(json_is_false(json_object_get(m, "thumbnail")));
     assert_null(json_object_get(m, "creator"));
+    assert_string_equal(json_string_value(json_object_get(m, "unit")), "cm");
     json_decref(page);
     get(http, "/catalog?q=onerror", NULL, 200, &r);
     if (!strstr((char *)r.body, "\"total\": 1"))
@@ -287,6 +288,7 @@ static void test_meshserve_serves_them(void **state)
     assert_true(json_is_true(json_object_get(json_array_get(models, 0), "thumbnail"))); /* full */
     assert_true(json_is_true(json_object_get(json_array_get(models, 1), "thumbnail"))); /* shown */
     assert_null(json_object_get(json_array_get(models, 0), "title"));
+    assert_null(json_object_get(json_array_get(models, 0), "unit"));
     json_decref(page);
     ms_test_stop(pid, SIGTERM, 10.0);
 }

@@ -62,6 +62,7 @@ async function showCatalogue() {
       const credit = [m.creator, m.date].filter(Boolean).join(', ');
       if (credit) about.appendChild(textDiv('credit', credit));
       if (m.licence) about.appendChild(textDiv('licence', m.licence));
+      if (m.unit) about.appendChild(textDiv('unit', 'unit: ' + m.unit));
       if (m.description) about.appendChild(textDiv('description', m.description));
       const cells = [m.triangles.toLocaleString('en'), megabytes(m.archive_bytes),
                      m.public_max_bits < m.bits ? 'preview to ' + m.public_max_bits + ' bits'

@@ -49,8 +49,9 @@ const MsMeasure = (() => {
              full: points.every(p => p.hit.bits >= modelBits) };
   }
 
-  // meshview's HUD line: "measure 3 points: 1.41 +- 0.032 model units (6 bits)".
-  function describe(points, modelBits) {
+  // meshview's HUD line: "measure 3 points: 1.41 +- 0.032 model units (6 bits)",
+  // in unit when the model's metadata declares one ("... 1.41 +- 0.032 mm ...").
+  function describe(points, modelBits, unit) {
     const r = result(points, modelBits);
     if (!r)
       return 'measure ' + points.length + ' point' + (points.length === 1 ? '' : 's') +
@@ -58,7 +59,7 @@ const MsMeasure = (() => {
     let decimals = r.precision > 0 ? 1 - Math.floor(Math.log10(r.precision)) : 6;
     decimals = Math.max(0, Math.min(12, decimals));
     return 'measure ' + r.points + ' points: ' + r.length.toFixed(decimals) + ' +- ' +
-           r.precision.toFixed(decimals) + ' model units (' + r.bitsMin + ' bits' + (r.full ? ', full' : '') + ')';
+           r.precision.toFixed(decimals) + ' ' + (unit || 'model units') + ' (' + r.bitsMin + ' bits' + (r.full ? ', full' : '') + ')';
   }
 
   // Where a world point falls on the canvas (CSS pixels), or null behind the eye.

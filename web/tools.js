@@ -10,7 +10,7 @@
 
 const MsTools = (() => {
   const st = { light: null, sections: [], points: [], measuring: false, modelBits: 0, castSeq: 0,
-               fromText: null, refineSeq: 0, refining: 0 };
+               fromText: null, refineSeq: 0, refining: 0, unit: null };
   const el = id => document.getElementById(id);
 
   function sameCamera(a, b) {
@@ -28,10 +28,10 @@ const MsTools = (() => {
     const r = MsMeasure.result(st.points, st.modelBits);
     page.measure = { points: st.points.map(p => p.hit ? Object.assign({ refined: !!p.refined }, p.hit) : null),
                      length: r ? r.length : null, precision: r ? r.precision : null,
-                     bitsMin: r ? r.bitsMin : 0, full: r ? r.full : false, unit: 'model units',
+                     bitsMin: r ? r.bitsMin : 0, full: r ? r.full : false, unit: st.unit || 'model units',
                      refining: st.refining > 0,
                      view: MsMeasure.result(st.points.map(p => ({ hit: p.viewHit || p.hit })), st.modelBits), refined: st.points.length > 0 && st.points.every(p => p.refined),
-                     text: MsMeasure.describe(st.points, st.modelBits) + (st.refining ? '  refining' : '') };
+                     text: MsMeasure.describe(st.points, st.modelBits, st.unit) + (st.refining ? '  refining' : '') };
     const lines = [];
     if (st.light)
       lines.push(MsLight.describe(st.light));
@@ -147,7 +147,10 @@ const MsTools = (() => {
   }
 
   // A worker message view.js does not know; true when it was the tools'.
+  // The model's box also brings its unit (view.js handles the rest of it).
   function message(m) {
+    if (m.type === 'box')
+      st.unit = m.unit || null;
     if (m.type !== 'cast')
       return false;
     if (m.refine) {

@@ -293,7 +293,10 @@ async function run(msg) {
       bounds = Array.from(new Float64Array(M.HEAPU8.buffer, p, 6));
     M._free(p);
   }
-  postMessage({ type: 'box', box, bounds, triangles: entry.triangles });
+  // the unit the model's metadata declares (docs/ARCHIVE.md, "Metadata"), for
+  // the measuring line; null: "model units"
+  postMessage({ type: 'box', box, bounds, triangles: entry.triangles,
+                unit: typeof entry.unit === 'string' && entry.unit ? entry.unit : null });
   // A reader without a token reads a preview model to public_max_bits only.
   M._ms_web_view_culled(view, msg.culled);
   // A static tree holds only what its catalogue lists as public (meshexport

@@ -181,7 +181,7 @@ ms_status ms_client_request_document(ms_client *client, const char *model, int k
  * most MS_CLIENT_DOCUMENT_TIMEOUT_S. On MS_OK *bytes (malloc'd, the caller
  * frees it; NULL for an empty document) holds *length bytes: the PNG, the
  * model's catalogue entry as JSON (the object GET /catalog lists: figures,
- * "thumbnail", and the sidecar's title, creator, date, licence, description),
+ * "thumbnail", and the sidecar's title, creator, date, licence, description, unit),
  * or DIR/NAME.annotations.json as stored (at most 1 MiB). Errors (one line):
  * MS_ERR_ARG for a bad name or kind, or when called from inside the
  * connection's own event loop (a handler: use ms_client_request_document

@@ -330,9 +330,11 @@ static void draw_panel(ms_viewer_text *text, ms_viewer_catalogue *cat, double x,
     const ms_metadata *m = e->metadata;
     int columns = (int)(w / (MS_FONT_ADVANCE_X * s));
     double bottom = height - 3 * MS_FONT_LINE_HEIGHT * s;
-    const char *labels[MS_METADATA_FIELDS] = {"", "by ", "", "licence: ", ""};
+    const char *labels[MS_METADATA_FIELDS] = {"", "by ", "", "licence: ", "", "unit: "};
+    static const int order[MS_METADATA_FIELDS] = {0, 1, 2, 3, 5, 4}; /* the description last */
     char wrapped[2048], field[MS_METADATA_DESCRIPTION_MAX + 16];
-    for (int k = 0; k < MS_METADATA_FIELDS && y < bottom; ++k) {
+    for (int i = 0; i < MS_METADATA_FIELDS && y < bottom; ++i) {
+        int k = order[i];
         const char *v = k == 0 && !ms_metadata_field(m, 0) ? e->name : ms_metadata_field(m, k);
         if (!v)
             continue;

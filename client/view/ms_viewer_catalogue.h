@@ -4,7 +4,7 @@
  * list, where the window is wide enough, the selected model's panel: its
  * thumbnail (DIR/NAME.thumb.png from a local archive directory, or from a
  * server the THUMBNAIL document of its binary door) and its metadata (title,
- * creator, date, licence, description: a local catalog.json's, or the
+ * creator, date, licence, unit, description: a local catalog.json's, or the
  * server's METADATA document), drawn as glyphs of the bitmap font (a character
  * outside ASCII shows as one '?'; text is never interpreted). Layout in
  * framebuffer pixels through the overlay pass (ms_viewer_text.h), so a click

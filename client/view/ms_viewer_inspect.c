@@ -35,6 +35,7 @@ void ms_viewer_inspect_close(ms_viewer_inspect *in)
     in->sections_known = false; /* the next stream's core is told again */
     ms_viewer_annotate_free(&in->notes);
     ms_viewer_annotate_init(&in->notes, in->notes.file, in->notes.select_id);
+    ms_viewer_unit_free(&in->unit);
 }
 
 /* Polls the probe once the view is settled, starting it when a point wants
@@ -113,6 +114,8 @@ void ms_viewer_inspect_frame(ms_viewer_inspect *in, ms_viewer_stream *stream, co
     const ms_core_frame *frame = ms_viewer_stream_frame(stream);
     if (in->source)
         ms_viewer_annotate_load(&in->notes, in->source, ms_viewer_stream_model(stream)->name, stderr);
+    if (in->measuring || in->measure.count) /* asked for only by a model measured */
+        ms_viewer_unit_update(&in->unit, in->source, ms_viewer_stream_model(stream), stderr);
     ms_viewer_annotate_frame(&in->notes, frame, box_side(stream), camera);
     if (!frame)
         return;
@@ -137,7 +140,8 @@ void ms_viewer_inspect_frame(ms_viewer_inspect *in, ms_viewer_stream *stream, co
         refine(in, stream);
 }
 
-void ms_viewer_inspect_describe(const ms_viewer_measure *m, unsigned model_bits, char *text, size_t size)
+void ms_viewer_inspect_describe(const ms_viewer_measure *m, unsigned model_bits, const char *unit, char *text,
+                                size_t size)
 {
     ms_viewer_measure_result r;
     if (!ms_viewer_measure_result_of(m, model_bits, &r)) {
@@ -148,8 +152,8 @@ void ms_viewer_inspect_describe(const ms_viewer_measure *m, unsigned model_bits,
     /* as many decimals as the precision has: its first significant digit and one more */
     int decimals = r.precision > 0 ? 1 - (int)floor(log10(r.precision)) : 6;
     decimals = decimals < 0 ? 0 : decimals > 12 ? 12 : decimals;
-    snprintf(text, size, "measure %zu points: %.*f +- %.*f model units (%u bits%s)", r.points, decimals, r.length,
-             decimals, r.precision, r.bits_min, r.full ? ", full" : "");
+    snprintf(text, size, "measure %zu points: %.*f +- %.*f %s (%u bits%s)", r.points, decimals, r.length,
+             decimals, r.precision, unit ? unit : MS_METADATA_NO_UNIT, r.bits_min, r.full ? ", full" : "");
 }
 
 size_t ms_viewer_inspect_hud(ms_viewer_inspect *in, const ms_viewer_stream *stream)
@@ -160,8 +164,8 @@ size_t ms_viewer_inspect_hud(ms_viewer_inspect *in, const ms_viewer_stream *stre
     if (in->sections.count)
         ms_viewer_sections_describe(&in->sections, in->lines[n++], MS_HUD_LINE_MAX);
     if (in->measuring || in->measure.count) {
-        ms_viewer_inspect_describe(&in->measure, ms_viewer_stream_model(stream)->header.bits, in->lines[n],
-                                   MS_HUD_LINE_MAX);
+        ms_viewer_inspect_describe(&in->measure, ms_viewer_stream_model(stream)->header.bits,
+                                   ms_viewer_unit_name(&in->unit), in->lines[n], MS_HUD_LINE_MAX);
         size_t used = strlen(in->lines[n]);
         snprintf(in->lines[n] + used, MS_HUD_LINE_MAX - used, "%s%s", in->refining ? "  refining" : "",
                  in->measuring ? "  [T]" : "");
@@ -289,15 +293,18 @@ bool ms_viewer_inspect_report_measure(const ms_viewer_options *o, ms_viewer_insp
             json_object_set_new(p, "step", json_real(h->step));
         }
     bool ok = ms_viewer_measure_result_of(&look->measure, model->header.bits, &r);
+    double unit_wait = look->source && look->source->timeout_s > 0 ? look->source->timeout_s : 5;
+    ms_viewer_unit_wait(&look->unit, look->source, model, unit_wait, stderr);
+    const char *unit = ms_viewer_unit_name(&look->unit);
     char text[MS_HUD_LINE_MAX];
-    ms_viewer_inspect_describe(&look->measure, model->header.bits, text, sizeof text);
+    ms_viewer_inspect_describe(&look->measure, model->header.bits, unit, text, sizeof text);
     json_object_set_new(report, "measure",
                         json_pack("{s:o, s:o, s:o, s:o, s:I, s:b, s:s, s:s, s:b}", "points", points, "length",
                                   ok ? json_real(r.length) : json_null(), "precision",
                                   ok ? json_real(r.precision) : json_null(), "last_length",
                                   ok ? json_real(r.last_length) : json_null(), "bits_min",
                                   (json_int_t)(ok ? r.bits_min : 0), "full_precision", ok && r.full, "unit",
-                                  "model units", "text", text, "refined_to_full", ok && r.refined && r.full));
+                                  unit, "text", text, "refined_to_full", ok && r.refined && r.full));
     json_t *jm = json_object_get(report, "measure");
     json_object_set_new(jm, "refined", json_boolean(ok && r.refined));
     json_object_set_new(jm, "view_length", view_ok ? json_real(view.length) : json_null());

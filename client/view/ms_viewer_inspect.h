@@ -30,6 +30,7 @@
 #include "ms_viewer_probe.h"
 #include "ms_viewer_stream.h"
 #include "ms_viewer_text.h"
+#include "ms_viewer_unit.h"
 
 #include "ms_viewer_section.h"
 
@@ -54,6 +55,7 @@ typedef struct ms_viewer_inspect {
     bool probe_failed;       /* it could not start: the view's precision stays */
     bool refining;           /* the probe has a point in hand */
     ms_viewer_annotate notes; /* the model's annotations (ms_viewer_annotate.h) */
+    ms_viewer_unit unit;      /* the measurements' unit (ms_viewer_unit.h) */
     char lines[MS_VIEWER_INSPECT_LINES][MS_HUD_LINE_MAX];
 } ms_viewer_inspect;
 
@@ -79,7 +81,9 @@ bool ms_viewer_inspect_key(ms_viewer_inspect *in, int key, const ms_viewer_contr
  * again on a new frame once the view settled (or while a point is lost);
  * once settled, the probe refines the points' cells (polled, never waited
  * for). The model's annotations are loaded at its first frame; a pending
- * Enter or click on them is handled (ms_viewer_annotate_frame). */
+ * Enter or click on them is handled (ms_viewer_annotate_frame). While
+ * measuring (T, or a chain), the measurements' unit is asked for and polled
+ * (ms_viewer_unit.h). */
 void ms_viewer_inspect_frame(ms_viewer_inspect *in, ms_viewer_stream *stream, const ms_camera *camera,
                              ms_render_options *render);
 
@@ -93,9 +97,11 @@ size_t ms_viewer_inspect_hud(ms_viewer_inspect *in, const ms_viewer_stream *stre
  * with the selected one's title and text. */
 void ms_viewer_inspect_markers(ms_viewer_inspect *in, ms_viewer_text *text);
 
-/* The measurement as text: "measure 2 points: 1.0000005 +- 0.0000010 model
- * units (20 bits, full)". */
-void ms_viewer_inspect_describe(const ms_viewer_measure *m, unsigned model_bits, char *text, size_t size);
+/* The measurement as text in unit (NULL: MS_METADATA_NO_UNIT): "measure 2
+ * points: 1.0000005 +- 0.0000010 model units (20 bits, full)", "measure 2
+ * points: 12.5 +- 0.01 mm (20 bits, full)". */
+void ms_viewer_inspect_describe(const ms_viewer_measure *m, unsigned model_bits, const char *unit, char *text,
+                                size_t size);
 
 /* Scripted: the report's "light", "sections" (an array of {point, normal},
  * empty without) and (with --view) "view", the view text as
@@ -103,7 +109,9 @@ void ms_viewer_inspect_describe(const ms_viewer_measure *m, unsigned model_bits,
  * settled), its "measure": in's chain (the --view points) cast on the
  * stream's frame, then the --measure pixels added to it (so that the HUD and
  * the markers show them), then refined by the probe (waiting at most
- * MS_VIEWER_PROBE_TIMEOUT_S a point): the figures before (view_*) and after.
+ * MS_VIEWER_PROBE_TIMEOUT_S a point): the figures before (view_*) and after,
+ * and its "unit" (the model's, waited for at most the source's time-out:
+ * ms_viewer_unit.h; "model units" without).
  * Added to report; false (nothing added) when there is nothing to measure. */
 void ms_viewer_inspect_report_light(const ms_viewer_options *o, json_t *report);
 /* Scripted: the report's "annotations" (ms_viewer_annotate_report), their

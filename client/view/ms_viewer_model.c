@@ -192,6 +192,9 @@ ms_status ms_viewer_model_open_listed(const ms_viewer_source *source,
     model->apo = entry->apo;
     model->has_crease_angle = entry->has_crease_angle;
     model->crease_angle_deg = entry->crease_angle_deg;
+    model->unit_known = source->archive_dir || entry->documents_fetched;
+    if (entry->metadata && entry->metadata->unit)
+        snprintf(model->unit, sizeof model->unit, "%s", entry->metadata->unit);
     if (source->archive_dir) {
         int n = snprintf(model->archive_path, sizeof model->archive_path, "%s/%s.msa",
                          source->archive_dir, model->name);

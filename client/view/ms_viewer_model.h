@@ -129,6 +129,11 @@ typedef struct ms_viewer_model {
     bool apo;                 /* the source lists the model with APO */
     bool has_crease_angle;    /* the source's catalogue sets its crease angle */
     double crease_angle_deg;
+    /* the unit its sidecar metadata declares ("": none), when the listing
+     * says (unit_known: a local catalog.json, or a server entry whose
+     * documents were fetched); else ms_viewer_unit.h asks the server */
+    char unit[MS_METADATA_UNIT_MAX + 1];
+    bool unit_known;
     /* filled by ms_viewer_stream_open once the core opened the model: */
     ms_archive_header header;
     ms_core_opening index;    /* the head (by subtree) or the whole index, and the

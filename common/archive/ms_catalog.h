@@ -57,7 +57,7 @@ typedef struct ms_catalog_entry {
     uint64_t content_id;
     uint8_t apo_levels;
     /* Optional "metadata" (ms_metadata.h: title, creator, date, licence,
-     * description, from meshbake --metadata); NULL: none. Owned by the
+     * description, unit, from meshbake --metadata); NULL: none. Owned by the
      * entry; kept when the model is baked again without --metadata. */
     ms_metadata *metadata;
     /* Optional "thumbnail_bits": DIR/NAME.thumb.png exists, rendered from the

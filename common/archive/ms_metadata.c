@@ -10,19 +10,33 @@
 #include "ms_catalog_internal.h"
 #include "ms_input_file.h"
 
-const char *const ms_metadata_field_names[MS_METADATA_FIELDS] = {"title", "creator", "date",
-                                                                 "licence", "description"};
+const char *const ms_metadata_field_names[MS_METADATA_FIELDS] = {
+    "title", "creator", "date", "licence", "description", "unit"};
 const size_t ms_metadata_field_max[MS_METADATA_FIELDS] = {
     MS_METADATA_TITLE_MAX, MS_METADATA_CREATOR_MAX, MS_METADATA_DATE_MAX,
-    MS_METADATA_LICENCE_MAX, MS_METADATA_DESCRIPTION_MAX};
+    MS_METADATA_LICENCE_MAX, MS_METADATA_DESCRIPTION_MAX, MS_METADATA_UNIT_MAX};
 
-enum { DESCRIPTION = 4 };
+enum { DESCRIPTION = 4, UNIT = 5 };
 
 static char **field_slot(ms_metadata *m, int k)
 {
     char **slots[MS_METADATA_FIELDS] = {&m->title, &m->creator, &m->date, &m->licence,
-                                        &m->description};
+                                        &m->description, &m->unit};
     return slots[k];
+}
+
+bool ms_metadata_unit_valid(const char *unit)
+{
+    static const char *const units[] = {"um", "mm", "cm", "m", "in", "ft"};
+    for (size_t i = 0; unit && i < sizeof units / sizeof *units; ++i)
+        if (!strcmp(unit, units[i]))
+            return true;
+    return false;
+}
+
+const char *ms_metadata_unit_name(const ms_metadata *m)
+{
+    return m && m->unit ? m->unit : MS_METADATA_NO_UNIT;
 }
 
 const char *ms_metadata_field(const ms_metadata *m, int k)
@@ -142,11 +156,15 @@ ms_status ms_metadata_from_json(json_t *obj, const char *where, ms_metadata **ou
         if (k == MS_METADATA_FIELDS)
             return ms_error_set(err, MS_ERR_FORMAT,
                                 "%s: unknown metadata field '%.40s' (title, creator, date, "
-                                "licence, description)", where, key);
+                                "licence, description, unit)", where, key);
         if (!json_is_string(value))
             return ms_error_set(err, MS_ERR_FORMAT, "%s: metadata %s is not a string", where,
                                 key);
         size_t n = json_string_length(value);
+        if (k == UNIT && n && (strlen(json_string_value(value)) != n ||
+                               !ms_metadata_unit_valid(json_string_value(value))))
+            return ms_error_set(err, MS_ERR_FORMAT, "%s: metadata unit is not one of %s", where,
+                                MS_METADATA_UNITS);
         if (n > ms_metadata_field_max[k])
             return ms_error_set(err, MS_ERR_RANGE, "%s: metadata %s is %zu bytes, at most %zu",
                                 where, key, n, ms_metadata_field_max[k]);

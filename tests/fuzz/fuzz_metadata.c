@@ -7,7 +7,7 @@
  * one-line error and no metadata; an accepted one holds only fields within
  * their byte limits that pass ms_metadata_text_ok (valid UTF-8, no control
  * character but line feeds in the description, no bidirectional override),
- * and survives a copy unchanged.
+ * and a unit among MS_METADATA_UNITS, and survives a copy unchanged.
  *
  * tests/test_fuzz_replay.c includes this file to replay tests/corpus/metadata/
  * in `make test`; it then calls ms_fuzz_metadata_one() directly. */
@@ -46,7 +46,8 @@ static bool ms_fuzz_metadata_one(const uint8_t *data, size_t size)
             continue;
         size_t n = strlen(v);
         MS_FUZZ_METADATA_CHECK(n >= 1 && n <= ms_metadata_field_max[k]);
-        MS_FUZZ_METADATA_CHECK(ms_metadata_text_ok(v, n, k == MS_METADATA_FIELDS - 1, &why));
+        MS_FUZZ_METADATA_CHECK(ms_metadata_text_ok(v, n, k == 4, &why)); /* the description */
+        MS_FUZZ_METADATA_CHECK(k != 5 || ms_metadata_unit_valid(v));
     }
     bool failed = false;
     ms_metadata *copy = ms_metadata_dup(m, &failed);
