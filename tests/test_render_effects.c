@@ -211,7 +211,9 @@ static void test_same_picture_without_effect(void **state)
             fail_msg("%s: pictures differ by %g (%zu pixels)", ms_effect_name(e), worst, differing);
         assert_int_equal(s_without.effects_compiled, 0);
         assert_int_equal(s_without.effects_ran, 0);
-        assert_int_equal(s_with.effects_compiled, e);
+        /* detail normals not called for: the draw takes the program without
+         * them (a software rasteriser pays for a compiled-in branch) */
+        assert_int_equal(s_with.effects_compiled, e == MS_EFFECT_DETAIL_NORMALS ? 0 : e);
         assert_int_equal(s_with.effects_ran, 0);
         /* called for, the effect changes a good part of the picture */
         call_for(e, &with);

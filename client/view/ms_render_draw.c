@@ -276,7 +276,12 @@ ms_status ms_render_draw(ms_render *r, const ms_camera *camera, const ms_render_
         return st;
     const ms_render_program *p;
     bool tessellated = o->displace && (o->effects & MS_EFFECT_DISPLACEMENT);
-    st = ms_render_find_program(r, o->effects, o->wireframe && o->shading != MS_SHADING_CELL_ID, tessellated, &p,
+    /* A frame drawn without APO takes the program without the APO traversal:
+     * the picture is the same (the block's #else is the plain path), but a
+     * software rasteriser runs a compiled-in branch's code under a mask even
+     * when no pixel takes it (llvmpipe: most of a frame's fragment time). */
+    unsigned effects = o->apo ? o->effects : o->effects & ~(unsigned)MS_EFFECT_DETAIL_NORMALS;
+    st = ms_render_find_program(r, effects, o->wireframe && o->shading != MS_SHADING_CELL_ID, tessellated, &p,
                                 err);
     if (st != MS_OK)
         return st;
