@@ -233,25 +233,6 @@ static void test_page_routes(void **state)
     assert_int_equal(ms_test_stop(bare, SIGTERM, 10.0), 0);
 }
 
-/* Pixels that differ from the picture's top-left pixel (the background) by
- * more than 8 in a channel: the model's silhouette. */
-static uint8_t *silhouette(const char *png, uint32_t *width, uint32_t *height, size_t *covered)
-{
-    uint8_t *rgb = ms_test_png_read(png, width, height);
-    size_t n = (size_t)*width * *height;
-    uint8_t *mask = calloc(n, 1);
-    assert_non_null(mask);
-    *covered = 0;
-    for (size_t i = 0; i < n; ++i) {
-        for (int c = 0; c < 3; ++c)
-            if (abs((int)rgb[3 * i + c] - (int)rgb[c]) > 8)
-                mask[i] = 1;
-        *covered += mask[i];
-    }
-    free(rgb);
-    return mask;
-}
-
 /* The viewer at two cameras of the demo model: the whole sculpture three
  * quarters on, and a close-up where the cut refines the cells in view (190
  * cells). Each: view complete, the very cut meshrender makes for the same
@@ -315,8 +296,8 @@ static void test_viewer_draws_the_model(void **state)
         snprintf(ref_png, sizeof ref_png, "%s/frame_%03d.png", ref_dir, k);
         uint32_t w, h, rw, rh;
         size_t covered, ref_covered, both = 0, either = 0;
-        uint8_t *mask = silhouette(shot, &w, &h, &covered);
-        uint8_t *ref_mask = silhouette(ref_png, &rw, &rh, &ref_covered);
+        uint8_t *mask = ms_test_silhouette(shot, &w, &h, &covered);
+        uint8_t *ref_mask = ms_test_silhouette(ref_png, &rw, &rh, &ref_covered);
         assert_int_equal(w, WIDTH);
         assert_int_equal(h, HEIGHT);
         assert_int_equal(rw, WIDTH);

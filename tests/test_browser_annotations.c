@@ -31,9 +31,9 @@
 #include <jansson.h>
 
 #include "ms_test.h"
+#include "ms_test_browser.h"
 #include "ms_test_net.h"
 
-#define SITE "build/wasm/site"
 #define WIDTH 320
 #define HEIGHT 240
 
@@ -45,7 +45,6 @@ typedef struct fixture {
     pid_t server;
     uint16_t port, http_port;
     char why_skip[256];     /* the browser cases cannot run */
-    char door_missing[256]; /* the door does not serve annotations */
 } fixture;
 
 static int group_setup(void **state)
@@ -82,26 +81,15 @@ static int group_setup(void **state)
         return -1;
     }
     snprintf(f->sidecar, sizeof f->sidecar, "%s/boxes.annotations.json", f->archives);
-    struct stat st;
     char config[700], settings[256];
     snprintf(config, sizeof config, "%s/meshserve.conf", f->dir);
-    snprintf(settings, sizeof settings, "web_dir = %s\n", stat(SITE "/meshstream.wasm", &st) == 0 ? SITE : "web");
+    snprintf(settings, sizeof settings, "web_dir = %s\n", ms_test_browser_web_dir());
     ms_test_write_file(config, settings, strlen(settings));
-    if (ms_test_run("command -v chromium-headless-shell", out, sizeof out) != 0)
-        snprintf(f->why_skip, sizeof f->why_skip, "chromium-headless-shell is not installed (scripts/install-deps)");
-    else if (stat(SITE "/meshstream.wasm", &st) != 0)
-        snprintf(f->why_skip, sizeof f->why_skip, SITE "/meshstream.wasm is missing (make wasm)");
+    ms_test_browser_why_skip(f->why_skip, sizeof f->why_skip);
     const char *extra[] = {"--config", config, NULL};
     f->server = ms_test_meshserve_start(f->archives, extra, 0, f->port_file, f->log, &f->port, &f->http_port);
     if (!f->server)
         return -1;
-    ms_test_http_response r;
-    if (ms_test_http_get(f->http_port, "/models/boxes/annotations", NULL, &r) != 0)
-        return -1;
-    if (r.status == 404)
-        snprintf(f->door_missing, sizeof f->door_missing,
-                 "meshserve does not serve GET /models/NAME/annotations (the doors' annotations document) yet");
-    ms_test_http_free(&r);
     *state = f;
     return 0;
 }
@@ -118,18 +106,9 @@ static int group_teardown(void **state)
     return 0;
 }
 
-#define NEED_DOOR(f)                                                                                               \
-    do {                                                                                                           \
-        if ((f)->door_missing[0]) {                                                                                \
-            printf("skipped: %s\n", (f)->door_missing);                                                           \
-            skip();                                                                                                \
-        }                                                                                                          \
-    } while (0)
-
 static void test_the_door_serves_the_sidecar(void **state)
 {
     fixture *f = *state;
-    NEED_DOOR(f);
     size_t size;
     unsigned char *want = ms_test_read_file(f->sidecar, &size);
     ms_test_http_response r;
@@ -182,11 +161,7 @@ static bool seen(json_t *annotations, const char *id, const double *want)
 static void test_the_page_shows_them(void **state)
 {
     fixture *f = *state;
-    NEED_DOOR(f);
-    if (f->why_skip[0]) {
-        printf("skipped: %s\n", f->why_skip);
-        skip();
-    }
+    MS_TEST_NEED_BROWSER(f->why_skip);
     static const double front[3] = {0.5, -1, 0.5}, back[3] = {0, 1, 0}, shadowed[3] = {-0.5, -1, -0.5};
     double x, y;
     project(front, &x, &y);

@@ -29,10 +29,10 @@
 #include <jansson.h>
 
 #include "ms_test.h"
+#include "ms_test_browser.h"
 #include "ms_test_net.h"
 #include "ms_test_picture.h"
 
-#define SITE "build/wasm/site"
 #define TOKEN "draco-test-token"
 #define WIDTH 320
 #define HEIGHT 240
@@ -44,13 +44,6 @@ typedef struct fixture {
     long long drc_triangles, drc_bytes; /* the demo's Draco file, as draco_decoder reads it */
     char why_skip[256];
 } fixture;
-
-static int have_program(const char *name)
-{
-    char command[256], out[256];
-    snprintf(command, sizeof command, "command -v %s", name);
-    return ms_test_run(command, out, sizeof out) == 0;
-}
 
 static int exists(const char *path)
 {
@@ -72,18 +65,18 @@ static int group_setup(void **state)
     if (!f)
         return -1;
     *state = f;
-    if (!have_program("chromium-headless-shell"))
-        snprintf(f->why_skip, sizeof f->why_skip,
-                 "chromium-headless-shell is not installed (scripts/install-deps)");
-    else if (!have_program("draco_encoder") || !have_program("draco_decoder"))
-        snprintf(f->why_skip, sizeof f->why_skip,
-                 "Debian's draco (draco_encoder, draco_decoder) is not installed (scripts/install-deps)");
-    else if (!exists(SITE "/draco.html"))
-        snprintf(f->why_skip, sizeof f->why_skip,
-                 "no " SITE "/draco.html (emscripten missing? scripts/install-deps, then make wasm)");
-    else if (!exists(SITE "/draco_decoder_nodejs.js") || !exists(SITE "/draco_decoder.wasm"))
-        snprintf(f->why_skip, sizeof f->why_skip,
-                 "npm draco3d's decoder is not in " SITE " (scripts/install-deps, then make wasm)");
+    ms_test_browser_why_skip(f->why_skip, sizeof f->why_skip);
+    if (!f->why_skip[0]) { /* and what the Draco page needs besides */
+        if (!ms_test_have_program("draco_encoder") || !ms_test_have_program("draco_decoder"))
+            snprintf(f->why_skip, sizeof f->why_skip,
+                     "Debian's draco (draco_encoder, draco_decoder) is not installed (scripts/install-deps)");
+        else if (!exists(MS_TEST_SITE "/draco.html"))
+            snprintf(f->why_skip, sizeof f->why_skip,
+                     "no " MS_TEST_SITE "/draco.html (emscripten missing? scripts/install-deps, then make wasm)");
+        else if (!exists(MS_TEST_SITE "/draco_decoder_nodejs.js") || !exists(MS_TEST_SITE "/draco_decoder.wasm"))
+            snprintf(f->why_skip, sizeof f->why_skip,
+                     "npm draco3d's decoder is not in " MS_TEST_SITE " (scripts/install-deps, then make wasm)");
+    }
     if (f->why_skip[0])
         return 0;
     ms_test_tmpdir(f->dir, sizeof f->dir);
@@ -115,7 +108,7 @@ static int group_setup(void **state)
     snprintf(config, sizeof config, "%s/meshserve.conf", f->dir);
     snprintf(log, sizeof log, "%s/meshserve.log", f->dir);
     snprintf(ports, sizeof ports, "%s/ports", f->dir);
-    snprintf(settings, sizeof settings, "token = " TOKEN "\nweb_dir = " SITE "\n");
+    snprintf(settings, sizeof settings, "token = " TOKEN "\nweb_dir = " MS_TEST_SITE "\n");
     ms_test_write_file(config, settings, strlen(settings));
     const char *extra[] = {"--config", config, NULL};
     f->server = ms_test_meshserve_start(f->archives, extra, 0, ports, log, &f->port, &f->http_port);
@@ -134,14 +127,6 @@ static int group_teardown(void **state)
     free(f);
     return 0;
 }
-
-#define NEED_BROWSER(f)                                                                    \
-    do {                                                                                   \
-        if ((f)->why_skip[0]) {                                                            \
-            printf("skipped: %s\n", (f)->why_skip);                                        \
-            skip();                                                                        \
-        }                                                                                  \
-    } while (0)
 
 /* Opens path on the server at http_port in the browser: the driver's report. */
 static json_t *open_page(uint16_t http_port, const char *path, const char *shot, const char *token)
@@ -166,25 +151,6 @@ static const char *report_state(json_t *report)
     return json_string_value(json_object_get(report, "state"));
 }
 
-/* Pixels that differ from the picture's top-left pixel (the background) by
- * more than 8 in a channel: the model's silhouette (test_browser.c's rule). */
-static uint8_t *silhouette(const char *png, uint32_t *width, uint32_t *height, size_t *covered)
-{
-    uint8_t *rgb = ms_test_png_read(png, width, height);
-    size_t n = (size_t)*width * *height;
-    uint8_t *mask = calloc(n, 1);
-    assert_non_null(mask);
-    *covered = 0;
-    for (size_t i = 0; i < n; ++i) {
-        for (int c = 0; c < 3; ++c)
-            if (abs((int)rgb[3 * i + c] - (int)rgb[c]) > 8)
-                mask[i] = 1;
-        *covered += mask[i];
-    }
-    free(rgb);
-    return mask;
-}
-
 /* The demo at the whole sculpture and a close-up: the Draco file's very
  * triangles and bytes, and meshrender's silhouette. The page draws the whole
  * mesh at Draco's 16 bits, meshrender the cut at 1 px: the outlines differ by
@@ -192,7 +158,7 @@ static uint8_t *silhouette(const char *png, uint32_t *width, uint32_t *height, s
 static void test_draco_page_draws_the_model(void **state)
 {
     fixture *f = *state;
-    NEED_BROWSER(f);
+    MS_TEST_NEED_BROWSER(f->why_skip);
     static const char *const cameras[] = {"0.9,0.6,3.2,0,0,0,0,1,0,40", "0.3,0.2,1.6,0,0,0,0,1,0,40"};
     enum { KEYS = sizeof cameras / sizeof *cameras };
     char path_file[700], text[512], ref_dir[700], command[4096], meshrender[600];
@@ -232,8 +198,8 @@ static void test_draco_page_draws_the_model(void **state)
         snprintf(ref_png, sizeof ref_png, "%s/frame_%03d.png", ref_dir, k);
         uint32_t w, h, rw, rh;
         size_t covered, ref_covered, both = 0, either = 0;
-        uint8_t *mask = silhouette(shot, &w, &h, &covered);
-        uint8_t *ref_mask = silhouette(ref_png, &rw, &rh, &ref_covered);
+        uint8_t *mask = ms_test_silhouette(shot, &w, &h, &covered);
+        uint8_t *ref_mask = ms_test_silhouette(ref_png, &rw, &rh, &ref_covered);
         assert_int_equal(w, WIDTH);
         assert_int_equal(h, HEIGHT);
         assert_int_equal(rw, WIDTH);
@@ -256,7 +222,7 @@ static void test_draco_page_draws_the_model(void **state)
 static void test_draco_page_errors(void **state)
 {
     fixture *f = *state;
-    NEED_BROWSER(f);
+    MS_TEST_NEED_BROWSER(f->why_skip);
     static const struct {
         const char *path, *token, *message;
     } cases[] = {
@@ -293,12 +259,12 @@ static void test_draco_page_errors(void **state)
 static void test_draco_page_without_decoder(void **state)
 {
     fixture *f = *state;
-    NEED_BROWSER(f);
+    MS_TEST_NEED_BROWSER(f->why_skip);
     char site[700], command[4096], out[1024], config[700], settings[800], log[700], ports[700];
     snprintf(site, sizeof site, "%s/bare-site", f->dir);
     snprintf(command, sizeof command,
-             "mkdir -p %s && cp " SITE "/draco.html " SITE "/draco.js " SITE "/draco-worker.js "
-             SITE "/meshstream.css %s/",
+             "mkdir -p %s && cp " MS_TEST_SITE "/draco.html " MS_TEST_SITE "/draco.js " MS_TEST_SITE "/draco-worker.js "
+             MS_TEST_SITE "/meshstream.css %s/",
              site, site);
     assert_int_equal(run_or_say(command, out, sizeof out), 0);
     snprintf(config, sizeof config, "%s/bare.conf", f->dir);

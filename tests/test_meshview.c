@@ -232,25 +232,6 @@ static void test_streaming_and_local_archive(void **state)
     json_decref(local);
 }
 
-/* Pixels that differ from the picture's top-left pixel (the background) by
- * more than 8 in a channel: the model's silhouette. */
-static uint8_t *silhouette(const char *png, uint32_t *width, uint32_t *height, size_t *covered)
-{
-    uint8_t *rgb = ms_test_png_read(png, width, height);
-    size_t n = (size_t)*width * *height;
-    uint8_t *mask = calloc(n, 1);
-    assert_non_null(mask);
-    *covered = 0;
-    for (size_t i = 0; i < n; ++i) {
-        for (int c = 0; c < 3; ++c)
-            if (abs((int)rgb[3 * i + c] - (int)rgb[c]) > 8)
-                mask[i] = 1;
-        *covered += mask[i];
-    }
-    free(rgb);
-    return mask;
-}
-
 /* A model seen from ever farther, 400 down to 15 px tall: meshview draws it
  * at every distance (the clipping planes frame the model, not a fixed range
  * of its size: it vanished behind the far plane at 8 box sides), and down to
@@ -305,8 +286,8 @@ static void test_small_on_screen_never_vanishes(void **state)
         snprintf(ref, sizeof ref, "%s/far-ref/frame_%03d.png", f->dir, k);
         uint32_t w, h2, rw, rh;
         size_t covered, ref_covered, both = 0, either = 0;
-        uint8_t *mask = silhouette(json_string_value(json_object_get(key, "png")), &w, &h2, &covered);
-        uint8_t *ref_mask = silhouette(ref, &rw, &rh, &ref_covered);
+        uint8_t *mask = ms_test_silhouette(json_string_value(json_object_get(key, "png")), &w, &h2, &covered);
+        uint8_t *ref_mask = ms_test_silhouette(ref, &rw, &rh, &ref_covered);
         assert_int_equal(w, rw);
         assert_int_equal(h2, rh);
         for (size_t i = 0; i < (size_t)w * h2; ++i) {

@@ -41,3 +41,20 @@ size_t ms_test_png_differing(const char *a_path, const char *b_path, int toleran
     free(b);
     return n;
 }
+
+uint8_t *ms_test_silhouette(const char *path, uint32_t *width, uint32_t *height, size_t *covered)
+{
+    uint8_t *rgb = ms_test_png_read(path, width, height);
+    size_t n = (size_t)*width * *height;
+    uint8_t *mask = calloc(n ? n : 1, 1);
+    assert_non_null(mask);
+    *covered = 0;
+    for (size_t i = 0; i < n; ++i) {
+        for (int c = 0; c < 3; ++c)
+            if (abs((int)rgb[3 * i + c] - (int)rgb[c]) > 8)
+                mask[i] = 1;
+        *covered += mask[i];
+    }
+    free(rgb);
+    return mask;
+}

@@ -14,4 +14,9 @@ uint8_t *ms_test_png_read(const char *path, uint32_t *width, uint32_t *height);
  * tolerance in a channel. */
 size_t ms_test_png_differing(const char *a_path, const char *b_path, int tolerance);
 
+/* A PNG's silhouette: 1 where a pixel differs from the picture's top-left
+ * pixel (the background) by more than 8 in a channel, else 0 (malloc'd, one
+ * byte per pixel; the caller frees it); its size and the pixels set. */
+uint8_t *ms_test_silhouette(const char *path, uint32_t *width, uint32_t *height, size_t *covered);
+
 #endif
