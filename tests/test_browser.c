@@ -294,24 +294,11 @@ static void test_viewer_draws_the_model(void **state)
 
         char ref_png[800];
         snprintf(ref_png, sizeof ref_png, "%s/frame_%03d.png", ref_dir, k);
-        uint32_t w, h, rw, rh;
-        size_t covered, ref_covered, both = 0, either = 0;
-        uint8_t *mask = ms_test_silhouette(shot, &w, &h, &covered);
-        uint8_t *ref_mask = ms_test_silhouette(ref_png, &rw, &rh, &ref_covered);
-        assert_int_equal(w, WIDTH);
-        assert_int_equal(h, HEIGHT);
-        assert_int_equal(rw, WIDTH);
-        assert_int_equal(rh, HEIGHT);
-        for (size_t i = 0; i < (size_t)w * h; ++i) {
-            both += mask[i] & ref_mask[i];
-            either += mask[i] | ref_mask[i];
-        }
-        double iou = either ? (double)both / (double)either : 0.0;
+        size_t covered, ref_covered;
+        double iou = ms_test_silhouette_iou(shot, ref_png, WIDTH, HEIGHT, &covered, &ref_covered);
         printf("silhouette: %zu px covered (meshrender %zu), IoU %.4f\n", covered, ref_covered, iou);
-        assert_true(covered > (size_t)w * h / 20);
+        assert_true(covered > (size_t)WIDTH * HEIGHT / 20);
         assert_true(iou >= 0.98);
-        free(mask);
-        free(ref_mask);
         json_decref(report);
     }
     json_decref(ref);

@@ -213,20 +213,12 @@ ms_status ms_metadata_parse(const char *text, size_t size, const char *where, ms
 ms_status ms_metadata_load(const char *path, ms_metadata **out, ms_error *err)
 {
     *out = NULL;
-    FILE *f;
-    ms_status st = ms_input_fopen(path, &f, err);
+    char *text;
+    size_t got;
+    ms_status st = ms_input_read_most(path, MS_METADATA_FILE_MAX, &text, &got, err);
     if (st != MS_OK)
         return st;
-    char *text = malloc(MS_METADATA_FILE_MAX + 1);
-    size_t got = text ? fread(text, 1, MS_METADATA_FILE_MAX + 1, f) : 0;
-    int failed = ferror(f);
-    fclose(f);
-    if (!text)
-        return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory", path);
-    if (failed)
-        st = ms_error_set(err, MS_ERR_IO, "%s: read failed", path);
-    else
-        st = ms_metadata_parse(text, got, path, out, err);
+    st = ms_metadata_parse(text, got, path, out, err); /* it says when got is too many */
     free(text);
     return st;
 }

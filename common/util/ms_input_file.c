@@ -3,6 +3,7 @@
 
 #include <errno.h>
 #include <fcntl.h>
+#include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -62,5 +63,28 @@ ms_status ms_input_fopen(const char *path, FILE **out, ms_error *err)
         return ms_error_set(err, MS_ERR_IO, "%s: cannot open: %s", path, strerror(saved));
     }
     *out = f;
+    return MS_OK;
+}
+
+ms_status ms_input_read_most(const char *path, size_t max, char **text, size_t *length, ms_error *err)
+{
+    *text = NULL;
+    *length = 0;
+    FILE *f;
+    ms_status st = ms_input_fopen(path, &f, err);
+    if (st != MS_OK)
+        return st;
+    char *buf = malloc(max + 1);
+    size_t got = buf ? fread(buf, 1, max + 1, f) : 0;
+    int failed = ferror(f);
+    fclose(f);
+    if (!buf)
+        return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory", path);
+    if (failed) {
+        free(buf);
+        return ms_error_set(err, MS_ERR_IO, "%s: read failed", path);
+    }
+    *text = buf;
+    *length = got;
     return MS_OK;
 }

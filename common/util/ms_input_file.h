@@ -14,6 +14,7 @@
 #ifndef MS_INPUT_FILE_H
 #define MS_INPUT_FILE_H
 
+#include <stddef.h>
 #include <stdio.h>
 
 #include "ms_error.h"
@@ -25,5 +26,12 @@ ms_status ms_input_open(const char *path, int *fd, ms_error *err);
 /* The same as a stdio stream opened for reading ("rb"); NULL on error. The
  * caller fcloses it. */
 ms_status ms_input_fopen(const char *path, FILE **file, ms_error *err);
+
+/* Reads at most max + 1 bytes of the regular file at path (ms_input_fopen's
+ * checks) into *text (malloc'd, max + 1 bytes; the caller frees it) and their
+ * count into *length: a length past max tells the caller the file is larger
+ * than it takes. MS_ERR_NOMEM, MS_ERR_IO ("PATH: read failed") or
+ * ms_input_fopen's errors, with *text NULL. */
+ms_status ms_input_read_most(const char *path, size_t max, char **text, size_t *length, ms_error *err);
 
 #endif

@@ -58,3 +58,23 @@ uint8_t *ms_test_silhouette(const char *path, uint32_t *width, uint32_t *height,
     free(rgb);
     return mask;
 }
+
+double ms_test_silhouette_iou(const char *path, const char *ref_path, uint32_t width, uint32_t height,
+                              size_t *covered, size_t *ref_covered)
+{
+    uint32_t w, h, rw, rh;
+    uint8_t *mask = ms_test_silhouette(path, &w, &h, covered);
+    uint8_t *ref_mask = ms_test_silhouette(ref_path, &rw, &rh, ref_covered);
+    assert_int_equal(w, width);
+    assert_int_equal(h, height);
+    assert_int_equal(rw, width);
+    assert_int_equal(rh, height);
+    size_t both = 0, either = 0;
+    for (size_t i = 0; i < (size_t)w * h; ++i) {
+        both += mask[i] & ref_mask[i];
+        either += mask[i] | ref_mask[i];
+    }
+    free(mask);
+    free(ref_mask);
+    return either ? (double)both / (double)either : 0.0;
+}

@@ -19,4 +19,10 @@ size_t ms_test_png_differing(const char *a_path, const char *b_path, int toleran
  * byte per pixel; the caller frees it); its size and the pixels set. */
 uint8_t *ms_test_silhouette(const char *path, uint32_t *width, uint32_t *height, size_t *covered);
 
+/* The intersection over union of two PNGs' silhouettes (ms_test_silhouette),
+ * which must both be width x height (the test fails otherwise); their
+ * covered pixels in *covered and *ref_covered. */
+double ms_test_silhouette_iou(const char *path, const char *ref_path, uint32_t width, uint32_t height,
+                              size_t *covered, size_t *ref_covered);
+
 #endif
