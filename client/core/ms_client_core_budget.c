@@ -16,7 +16,8 @@
  *
  * A shared budget changes three things and nothing else: the memory compared
  * with the target and ceiling is every member's (each publishes its own after
- * each pass), the tolerance factor is one for all members, and a core evicts a
+ * each pass, with what its plan accepted as on its way; members plan one at
+ * a time), the tolerance factor is one for all members, and a core evicts a
  * hidden cell only when it is the least useful candidate of all the members
  * (or when another member was refused a range at least one bit more useful).
  * Without one the figures below reduce to the core's own: others 0, the
@@ -31,7 +32,9 @@
 
 typedef struct budget_member {
     bool used;
-    uint64_t memory, in_flight;
+    uint64_t memory;
+    uint64_t in_flight; /* on its way: requested (or received, not yet taken), or
+                           accepted by its last plan and not yet arrived */
     uint64_t finer_memory;  /* what its cut would hold one step finer (what-if); memory
                                when it did not ask */
     double least_useful;   /* usefulness of its least useful eviction candidate; +inf none */
@@ -41,6 +44,11 @@ typedef struct budget_member {
 
 struct ms_core_budget {
     pthread_mutex_t lock;
+    /* One member plans at a time (ms_core_budget_step: read the others'
+     * figures, accept wants, publish), so that two members never both accept
+     * wants against figures that leave out the other's: taken before lock,
+     * never under it. */
+    pthread_mutex_t planning;
     uint64_t target, ceiling, peak;
     double tolerance_factor, culled_give_up;
     double last_step, last_blocked; /* ms_now_seconds */
@@ -60,6 +68,7 @@ ms_status ms_core_budget_new(uint64_t memory_target, uint64_t memory_ceiling,
     if (!b)
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory for a shared budget");
     pthread_mutex_init(&b->lock, NULL);
+    pthread_mutex_init(&b->planning, NULL);
     b->target = memory_target;
     b->ceiling = memory_ceiling;
     b->tolerance_factor = 1.0;
@@ -75,6 +84,7 @@ void ms_core_budget_free(ms_core_budget *b)
     if (!b)
         return;
     pthread_mutex_destroy(&b->lock);
+    pthread_mutex_destroy(&b->planning);
     free(b);
 }
 
@@ -535,12 +545,14 @@ static uint64_t want_bytes(const ms_core *c, const want *w)
  * usefulness and bytes in *refused_need, *refused_bytes (0: none). */
 static size_t fit_wants(ms_core *c, dec_pass *pass, const evict_candidate *cand, size_t nc,
                         size_t *next, uint64_t *memory, uint64_t in_flight,
-                        const budget_terms *bt, double *refused_need, uint64_t *refused_bytes)
+                        const budget_terms *bt, double *refused_need, uint64_t *refused_bytes,
+                        uint64_t *accepted)
 {
     uint64_t ceiling = bt->ceiling ? bt->ceiling : UINT64_MAX;
     uint64_t planned = *memory + in_flight + bt->others_planned;
     *refused_need = -INFINITY;
     *refused_bytes = 0;
+    *accepted = 0;
     size_t keep = 0;
     for (; keep < pass->wl.n; ++keep) {
         const want *w = &pass->wl.w[keep];
@@ -550,6 +562,7 @@ static size_t fit_wants(ms_core *c, dec_pass *pass, const evict_candidate *cand,
         uint64_t need_bytes = want_bytes(c, w);
         if (planned + need_bytes <= ceiling) {
             planned += need_bytes;
+            *accepted += need_bytes;
             continue;
         }
         bool visible;
@@ -567,6 +580,7 @@ static size_t fit_wants(ms_core *c, dec_pass *pass, const evict_candidate *cand,
             break;
         }
         planned += need_bytes;
+        *accepted += need_bytes;
     }
     return keep;
 }
@@ -580,6 +594,8 @@ void ms_core_budget_step(ms_core *c, dec_pass *pass)
     pthread_mutex_unlock(&c->lock);
     if (!c->o.memory_target && !c->shared)
         return;
+    if (c->shared)
+        pthread_mutex_lock(&c->shared->planning);
     budget_terms bt = read_terms(c);
     double t = ms_core_since_start(c);
     size_t nc;
@@ -613,9 +629,9 @@ void ms_core_budget_step(ms_core *c, dec_pass *pass)
     else
         relax_step(c, pass, &bt, t, &finer_memory);
     double refused_need;
-    uint64_t refused_bytes;
+    uint64_t refused_bytes, accepted;
     size_t keep = fit_wants(c, pass, cand, nc, &next, &pass->memory, in_flight, &bt,
-                            &refused_need, &refused_bytes);
+                            &refused_need, &refused_bytes, &accepted);
     if (keep < pass->wl.n && in_flight == 0) {
         /* blocked by the ceiling with nothing on its way: the view cannot
          * complete at this tolerance, so a step coarser (as over the target) */
@@ -637,7 +653,13 @@ void ms_core_budget_step(ms_core *c, dec_pass *pass)
         }
     }
     pass->wl.n = keep;
-    publish(c, pass->memory, in_flight, finer_memory,
+    /* What this plan accepted is on its way as far as the others are
+     * concerned (the local responder's bytes were counted nowhere until
+     * they arrived); the larger of it and what is in flight, since the
+     * wants list the ranges already requested again. */
+    publish(c, pass->memory, accepted > in_flight ? accepted : in_flight, finer_memory,
             next < nc ? cand[next].usefulness : INFINITY, refused_need, refused_bytes);
+    if (c->shared)
+        pthread_mutex_unlock(&c->shared->planning);
     free(cand);
 }
