@@ -87,14 +87,6 @@ static int cors_lines(const ms_test_http_response *r)
     return n;
 }
 
-/* Whether the answer's Vary lines name field. */
-static int varies_on(const ms_test_http_response *r, const char *field)
-{
-    char line[64];
-    snprintf(line, sizeof line, "\r\nVary: %s\r\n", field);
-    return strstr(r->headers, line) != NULL;
-}
-
 static void test_no_origin_configured(void **state)
 {
     (void)state;
@@ -135,13 +127,13 @@ static void test_listed_origins(void **state)
         assert_string_equal(header(&r, "Access-Control-Allow-Origin"), MUSEUM);
         assert_string_equal(header(&r, "Access-Control-Expose-Headers"), expose);
         assert_int_equal(cors_lines(&r), 2);
-        assert_true(varies_on(&r, "Origin"));
+        assert_true(ms_test_http_varies_on(&r, "Origin"));
         ms_test_http_free(&r);
     }
     /* Case-insensitively, and the second origin of the list. */
     request(f, "GET", "/models/bunny", "Origin: http://LOCALHOST:8080\r\n", 200, &r);
     assert_string_equal(header(&r, "Access-Control-Allow-Origin"), "http://LOCALHOST:8080");
-    assert_true(varies_on(&r, "Authorization") && varies_on(&r, "Origin"));
+    assert_true(ms_test_http_varies_on(&r, "Authorization") && ms_test_http_varies_on(&r, "Origin"));
     ms_test_http_free(&r);
     /* Another origin, a port that differs, none: no CORS header at all. */
     const char *others[] = {"Origin: https://evil.example\r\n", "Origin: http://localhost:8081\r\n",
@@ -149,7 +141,7 @@ static void test_listed_origins(void **state)
     for (int i = 0; i < 4; ++i) {
         request(f, "GET", "/models/bunny", others[i], 200, &r);
         assert_int_equal(cors_lines(&r), 0);
-        assert_false(varies_on(&r, "Origin"));
+        assert_false(ms_test_http_varies_on(&r, "Origin"));
         ms_test_http_free(&r);
     }
     /* The preflight of a cell request with the token and a range. */
@@ -163,7 +155,7 @@ static void test_listed_origins(void **state)
                         "Authorization, Range, If-None-Match");
     assert_string_equal(header(&r, "Access-Control-Max-Age"), "600");
     assert_int_equal(cors_lines(&r), 4);
-    assert_true(varies_on(&r, "Origin"));
+    assert_true(ms_test_http_varies_on(&r, "Origin"));
     assert_int_equal(r.body_length, 0);
     ms_test_http_free(&r);
     request(f, "OPTIONS", "/catalog",
@@ -189,7 +181,7 @@ static void test_any_origin(void **state)
     ms_test_http_response r;
     request(f, "GET", "/models/bunny", "Origin: https://anywhere.example\r\n", 200, &r);
     assert_string_equal(header(&r, "Access-Control-Allow-Origin"), "*");
-    assert_false(varies_on(&r, "Origin")); /* the same answer for every origin */
+    assert_false(ms_test_http_varies_on(&r, "Origin")); /* the same answer for every origin */
     ms_test_http_free(&r);
     request(f, "OPTIONS", "/models/bunny",
             "Origin: https://anywhere.example\r\nAccess-Control-Request-Method: GET\r\n", 204, &r);

@@ -172,8 +172,7 @@ static void test_index_deflated_when_accepted(void **state)
     char value[256], plain_tag[256], deflated_tag[256];
     get(f, "/models/bunny", "Accept-Encoding: gzip, deflate, br\r\n", 200, &r);
     assert_string_equal(ms_test_http_header(&r, "Content-Encoding", value, sizeof value), "deflate");
-    assert_string_equal(ms_test_http_header(&r, "Vary", value, sizeof value),
-                        "Authorization, Accept-Encoding");
+    assert_true(ms_test_http_varies_on(&r, "Authorization") && ms_test_http_varies_on(&r, "Accept-Encoding"));
     assert_non_null(ms_test_http_header(&r, "ETag", deflated_tag, sizeof deflated_tag));
     assert_true(r.body_length < size / 2);
     uLongf inflated_size = (uLongf)size + 1;
@@ -189,8 +188,8 @@ static void test_index_deflated_when_accepted(void **state)
     for (size_t i = 0; i < sizeof plain / sizeof *plain; ++i) {
         get(f, "/models/bunny", plain[i], 200, &r);
         assert_null(ms_test_http_header(&r, "Content-Encoding", value, sizeof value));
-        assert_string_equal(ms_test_http_header(&r, "Vary", value, sizeof value),
-                            "Authorization, Accept-Encoding");
+        assert_true(ms_test_http_varies_on(&r, "Authorization") &&
+                    ms_test_http_varies_on(&r, "Accept-Encoding"));
         assert_non_null(ms_test_http_header(&r, "ETag", plain_tag, sizeof plain_tag));
         assert_string_not_equal(plain_tag, deflated_tag);
         assert_int_equal(r.body_length, size);
@@ -206,7 +205,7 @@ static void test_index_deflated_when_accepted(void **state)
     /* a cell's stream is already coded: one form, whatever the reader accepts */
     get(f, "/models/bunny/cells/3/geometry", "Accept-Encoding: deflate\r\n", 200, &r);
     assert_null(ms_test_http_header(&r, "Content-Encoding", value, sizeof value));
-    assert_string_equal(ms_test_http_header(&r, "Vary", value, sizeof value), "Authorization");
+    assert_true(ms_test_http_varies_on(&r, "Authorization") && !ms_test_http_varies_on(&r, "Accept-Encoding"));
     ms_test_http_free(&r);
     ms_archive_close(a);
 }
@@ -365,9 +364,8 @@ static void test_cache_headers(void **state)
         assert_string_equal(ms_test_http_header(&r, "Cache-Control", value, sizeof value),
                             "public, max-age=3600");
         /* the index's answer also varies with its coding */
-        assert_string_equal(ms_test_http_header(&r, "Vary", value, sizeof value),
-                            strcmp(public_paths[i], "/models/dragon") ? "Authorization"
-                                                                      : "Authorization, Accept-Encoding");
+        assert_string_equal(ms_test_http_header(&r, "Vary", value, sizeof value), "Authorization");
+        assert_int_equal(ms_test_http_varies_on(&r, "Accept-Encoding"), !strcmp(public_paths[i], "/models/dragon"));
         assert_non_null(ms_test_http_header(&r, "ETag", value, sizeof value));
         ms_test_http_free(&r);
     }

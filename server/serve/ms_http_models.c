@@ -55,7 +55,9 @@ static void send_bytes(ms_http_door *door, struct evhttp_request *req, ms_model 
     evhttp_add_header(out, "ETag", etag);
     evhttp_add_header(out, "Cache-Control",
                       private_answer ? "private, max-age=3600" : "public, max-age=3600");
-    evhttp_add_header(out, "Vary", coding ? "Authorization, Accept-Encoding" : "Authorization");
+    evhttp_add_header(out, "Vary", "Authorization");
+    if (coding) /* a line of its own: a Vary line names one field (as CORS adds Origin) */
+        evhttp_add_header(out, "Vary", "Accept-Encoding");
     if (coding && strcmp(coding, "identity") != 0)
         evhttp_add_header(out, "Content-Encoding", coding);
     if (ms_http_none_match(evhttp_find_header(in, "If-None-Match"), etag)) {

@@ -208,3 +208,10 @@ int ms_test_stop(pid_t pid, int sig, double seconds)
     waitpid(pid, &status, 0);
     return -1;
 }
+
+int ms_test_http_varies_on(const ms_test_http_response *r, const char *field)
+{
+    char line[128];
+    snprintf(line, sizeof line, "\r\nVary: %s\r\n", field);
+    return strstr(r->headers, line) != NULL;
+}

@@ -36,6 +36,10 @@ int ms_test_metric(uint16_t http_port, const char *series, uint64_t *value);
 const char *ms_test_http_header(const ms_test_http_response *response, const char *name,
                                 char *out, size_t size);
 
+/* Whether one of the answer's Vary lines is exactly field (a server may send
+ * several Vary lines; each names one field here). */
+int ms_test_http_varies_on(const ms_test_http_response *r, const char *field);
+
 /* Starts argv[0] with argv, stdout and stderr to log_path; returns the pid. */
 pid_t ms_test_spawn(char *const argv[], const char *log_path);
 
