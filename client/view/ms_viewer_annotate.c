@@ -112,7 +112,10 @@ void ms_viewer_annotate_load(ms_viewer_annotate *a, const ms_viewer_source *sour
                                           : MS_OK;
     if (st != MS_OK) {
         snprintf(a->message, sizeof a->message, "%.*s", (int)sizeof a->message - 1, err.text);
-        if (log)
+        /* a server that cannot be reached is the stream's error to tell, once
+         * (a failure ends with one line); a refused file or document is ours */
+        bool unreachable = !path && st == MS_ERR_IO;
+        if (log && !unreachable)
             fprintf(log, "meshview: %s\n", err.text);
         return;
     }
