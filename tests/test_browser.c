@@ -244,26 +244,10 @@ static void test_viewer_draws_the_model(void **state)
     MS_TEST_NEED_BROWSER(f->why_skip);
     static const char *const cameras[] = {"0.9,0.6,3.2,0,0,0,0,1,0,40", "0.3,0.2,1.6,0,0,0,0,1,0,40"};
     enum { KEYS = sizeof cameras / sizeof *cameras };
-    char path_file[700], text[512], ref_dir[700], command[4096], meshrender[600];
-    /* the same cameras as keyframes "K PX PY PZ TX TY TZ UX UY UZ FOVY" */
-    size_t used = (size_t)snprintf(text, sizeof text, "meshstream-camera-path 1\n");
-    for (int k = 0; k < KEYS; ++k) {
-        char line[128];
-        snprintf(line, sizeof line, "%d %s\n", k, cameras[k]);
-        for (char *c = line; *c; ++c)
-            *c = *c == ',' ? ' ' : *c;
-        used += (size_t)snprintf(text + used, sizeof text - used, "%s", line);
-    }
-    snprintf(path_file, sizeof path_file, "%s/cameras.cam", f->dir);
-    ms_test_write_file(path_file, text, used);
-    snprintf(ref_dir, sizeof ref_dir, "%s/ref", f->dir);
-    ms_test_bin_path(meshrender, sizeof meshrender, "meshrender");
-    snprintf(command, sizeof command,
-             "%s %s/demo.msa -p %s -o %s --width %d --height %d --tolerance 1 --threads 2 --json",
-             meshrender, f->archives, path_file, ref_dir, WIDTH, HEIGHT);
-    json_t *ref = ms_test_run_json(command, 0);
+    char ref_dir[700], archive[700];
+    snprintf(archive, sizeof archive, "%s/demo.msa", f->archives);
+    json_t *ref = ms_test_browser_reference(f->dir, archive, cameras, KEYS, WIDTH, HEIGHT, ref_dir, sizeof ref_dir);
     json_t *frames = json_object_get(ref, "frames");
-    assert_int_equal(json_array_size(frames), KEYS);
     for (int k = 0; k < KEYS; ++k) {
         json_t *cut = json_object_get(json_array_get(frames, k), "cut");
         json_int_t ref_triangles = json_integer_value(json_object_get(cut, "triangles"));

@@ -35,6 +35,13 @@ const char *ms_test_browser_web_dir(void);
  * dir), filling its ports: the pid, or 0 when it did not start. */
 pid_t ms_test_browser_serve(const char *dir, const char *archives, uint16_t *port, uint16_t *http_port);
 
+/* meshrender's pictures of archive for the page's cameras (`cam=` values:
+ * "PX,PY,PZ,TX,TY,TZ,UX,UY,UZ,FOVY"), count of them, at width x height and a
+ * 1 px tolerance, into ref_dir (DIR/ref; frame_NNN.png each): its JSON report
+ * (the caller frees it), with one frame per camera checked. */
+json_t *ms_test_browser_reference(const char *dir, const char *archive, const char *const *cameras, int count,
+                                  int width, int height, char *ref_dir, size_t ref_size);
+
 /* Runs `tests/browser-page 'URL' ARGUMENTS` (the size, --out, --timeout,
  * ...) and returns the driver's JSON report (the test fails when it prints
  * none), after printing the page's state and message. Caller frees. */
