@@ -4,6 +4,11 @@
  *     very cut a client with every byte makes for the same camera
  *     (ms_study_cut: the same shown cells, vertices and triangles), and then
  *     plans nothing; its vertex normals are unit and outward;
+ *   - plans that look ahead (on a deeper demo archive, 20,000 triangles in
+ *     three levels of cells) list the whole target cut at once, parents
+ *     before children, in fewer rounds, and end with the very cut, mesh and
+ *     bytes of plans of the next step; decoding on helper threads (2) gives
+ *     the same, byte for byte;
  *   - a reader capped at the preview's steps is shown at most those bits;
  *   - the root's bytes give the model's bounds, inside its box;
  *   - sections: a plane cutting away the half towards the eye streams fewer
@@ -34,6 +39,7 @@
 typedef struct fixture {
     char dir[512], archives[600];
     ms_archive *archive;
+    ms_archive *deep; /* 20,000 triangles, N_min 150: three levels of cells */
 } fixture;
 
 static int group_setup(void **state)
@@ -48,6 +54,13 @@ static int group_setup(void **state)
         fprintf(stderr, "%s\n", err.text);
         return -1;
     }
+    if (ms_nsp_test_bake_demo(f->dir, 20000, f->archives, "deep", 150, false) != 0)
+        return -1;
+    snprintf(path, sizeof path, "%s/deep.msa", f->archives);
+    if (ms_archive_open(path, &f->deep, &err) != MS_OK) {
+        fprintf(stderr, "%s\n", err.text);
+        return -1;
+    }
     *state = f;
     return 0;
 }
@@ -56,6 +69,7 @@ static int group_teardown(void **state)
 {
     fixture *f = *state;
     ms_archive_close(f->archive);
+    ms_archive_close(f->deep);
     ms_test_rmdir(f->dir);
     free(f);
     return 0;
@@ -172,6 +186,99 @@ static void test_streams_to_the_cut_of_every_byte(void **state)
     ms_view_mesh_free(&mesh);
     ms_view_destroy(full);
     ms_web_view_free(v);
+}
+
+/* Streams with unlimited plans, each plan's cells in its order; returns the
+ * rounds, with the first plan's length and the bytes handed over. With
+ * `ordered`, every listed cell's parent that is listed too comes before it
+ * (the ahead part: level by level). */
+static unsigned stream_all(ms_archive *a, ms_web_view *v, bool ordered, uint32_t *first_plan,
+                           uint64_t *bytes)
+{
+    unsigned rounds = 0;
+    *bytes = 0;
+    uint32_t cells = ms_web_view_cell_count(v);
+    uint32_t *at = malloc(cells * sizeof *at);
+    assert_non_null(at);
+    for (;;) {
+        int settled = -1;
+        assert_int_equal(ms_web_view_plan(v, 0, &settled), MS_OK);
+        uint32_t n = ms_web_view_plan_count(v);
+        if (rounds == 0)
+            *first_plan = n;
+        if (settled) {
+            free(at);
+            return rounds;
+        }
+        for (uint32_t c = 0; c < cells; ++c)
+            at[c] = UINT32_MAX;
+        for (uint32_t k = 0; k < n; ++k)
+            at[ms_web_view_plan_cell(v, k)] = k;
+        for (uint32_t k = 0; k < n; ++k) {
+            uint32_t cell = ms_web_view_plan_cell(v, k), want = ms_web_view_plan_bytes(v, k);
+            uint32_t parent = ms_archive_get_cell(a, cell)->parent;
+            if (ordered && parent != MS_ARCHIVE_NONE && at[parent] != UINT32_MAX)
+                assert_true(at[parent] < k);
+            uint32_t held = ms_web_view_held(v, cell);
+            size_t total;
+            const uint8_t *payload = ms_archive_geometry(a, cell, &total);
+            assert_int_equal(ms_web_view_give(v, cell, held, payload + held, want - held), MS_OK);
+            *bytes += want - held;
+        }
+        assert_true(++rounds < 100);
+    }
+}
+
+/* Plans that look ahead list the whole target cut at once (fewer rounds,
+ * parents before children) and end with the very cut, mesh and bytes of
+ * plans of the next step; decoding on helper threads changes nothing of
+ * it. */
+static void test_ahead_and_threads(void **state)
+{
+    fixture *f = *state;
+    static const double NEAR[3] = {0.15, 0.1, 0.75};
+    size_t size;
+    const uint8_t *blob = ms_archive_index_bytes(f->deep, &size);
+    ms_web_view *plain, *ahead;
+    ms_error err;
+    assert_int_equal(ms_web_view_new(blob, size, "deep", &plain, &err), MS_OK);
+    assert_int_equal(ms_web_view_new(blob, size, "deep", &ahead, &err), MS_OK);
+    ms_web_view_culled(plain, 6);
+    ms_web_view_culled(ahead, 6);
+    assert_int_equal(ms_web_view_threads(ahead, 2), 2);
+    assert_int_equal(ms_web_view_threads(ahead, 0), 0);
+    assert_int_equal(ms_web_view_threads(ahead, 1000), MS_WEB_VIEW_HELPERS_MAX);
+    assert_int_equal(ms_web_view_threads(ahead, 2), 2);
+    assert_int_equal(ms_web_view_plan_ahead(ahead, 1), MS_OK);
+    assert_int_equal(ms_web_view_camera(plain, NEAR, TARGET, UP, 40, 640, 480, 0, 0, 1.0), MS_OK);
+    assert_int_equal(ms_web_view_camera(ahead, NEAR, TARGET, UP, 40, 640, 480, 0, 0, 1.0), MS_OK);
+    uint32_t plain_first, ahead_first;
+    uint64_t plain_bytes, ahead_bytes;
+    unsigned plain_rounds = stream_all(f->deep, plain, false, &plain_first, &plain_bytes);
+    unsigned ahead_rounds = stream_all(f->deep, ahead, true, &ahead_first, &ahead_bytes);
+    assert_int_equal(ms_web_view_stitch(plain), MS_OK);
+    assert_int_equal(ms_web_view_stitch(ahead), MS_OK);
+    printf("next step: %u rounds, first plan %u cells; ahead on 3 threads: %u rounds, first plan %u "
+           "cells; %llu bytes, %u cells, %u triangles\n", plain_rounds, plain_first, ahead_rounds, ahead_first,
+           (unsigned long long)ahead_bytes, ms_web_view_shown_cells(ahead), ms_web_view_triangle_count(ahead));
+    assert_true(ahead_first > plain_first);
+    assert_true(ahead_rounds < plain_rounds);
+    assert_int_equal(ahead_bytes, plain_bytes);
+    assert_int_equal(ms_web_view_bytes_held(ahead), ms_web_view_bytes_held(plain));
+    assert_int_equal(ms_web_view_shown_cells(ahead), ms_web_view_shown_cells(plain));
+    assert_int_equal(ms_web_view_max_bits(ahead), ms_web_view_max_bits(plain));
+    assert_int_equal(ms_web_view_vertex_count(ahead), ms_web_view_vertex_count(plain));
+    assert_int_equal(ms_web_view_triangle_count(ahead), ms_web_view_triangle_count(plain));
+    assert_memory_equal(ms_web_view_triangles(ahead), ms_web_view_triangles(plain),
+                        3 * (size_t)ms_web_view_triangle_count(plain) * sizeof(uint32_t));
+    assert_memory_equal(ms_web_view_positions(ahead), ms_web_view_positions(plain),
+                        3 * (size_t)ms_web_view_vertex_count(plain) * sizeof(float));
+    assert_memory_equal(ms_web_view_normals(ahead), ms_web_view_normals(plain),
+                        3 * (size_t)ms_web_view_vertex_count(plain) * sizeof(float));
+    /* off again: the next step only */
+    assert_int_equal(ms_web_view_plan_ahead(ahead, 0), MS_OK);
+    ms_web_view_free(plain);
+    ms_web_view_free(ahead);
 }
 
 static void test_preview_cap(void **state)
@@ -330,6 +437,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_streams_to_the_cut_of_every_byte),
+        cmocka_unit_test(test_ahead_and_threads),
         cmocka_unit_test(test_preview_cap),
         cmocka_unit_test(test_bounds_from_the_root),
         cmocka_unit_test(test_sections_and_casts),

@@ -9,6 +9,7 @@
 
 #include "ms_archive.h"
 #include "ms_camera.h"
+#include "ms_parallel.h"
 #include "ms_view_decoder.h"
 #include "ms_web_cast.h"
 
@@ -18,7 +19,13 @@
 
 typedef struct planned {
     uint32_t cell, bits, bytes;
+    uint32_t depth; /* the cell's level (the ahead part's order) */
 } planned;
+
+/* A cell to refine to `bits` on the pool (the client core's parallel refine). */
+typedef struct refine_job {
+    uint32_t cell, bits;
+} refine_job;
 
 struct ms_web_view {
     ms_archive *index;
@@ -32,6 +39,11 @@ struct ms_web_view {
     float *positions, *normals;
     size_t positions_cap;
     uint8_t *stitched_bits; /* per cell: its bits at the last stitch (the mesh's) */
+    bool ahead;             /* plans list the whole target cut (ms_web_view_plan_ahead) */
+    uint32_t *depth;        /* per cell: its level in the tree (for the ahead part's order) */
+    ms_pool *pool;          /* NULL: decoding on the caller's thread alone */
+    refine_job *jobs;
+    uint32_t job_cap;
     ms_error err;
 };
 
@@ -64,6 +76,9 @@ void ms_web_view_free(ms_web_view *v)
 {
     if (!v)
         return;
+    ms_pool_free(v->pool);
+    free(v->jobs);
+    free(v->depth);
     ms_view_mesh_free(&v->mesh);
     ms_view_destroy(v->view);
     ms_archive_close(v->index);
@@ -128,6 +143,41 @@ ms_status ms_web_view_camera(ms_web_view *v, const double position[3], const dou
 
 void ms_web_view_permit(ms_web_view *v, unsigned steps) { v->params.permitted_steps = steps; }
 
+ms_status ms_web_view_plan_ahead(ms_web_view *v, int on)
+{
+    if (on && !v->depth) {
+        uint32_t n = ms_view_cell_count(v->view);
+        if (!(v->depth = calloc(n ? n : 1, sizeof *v->depth)))
+            return fail(v, MS_ERR_NOMEM, "out of memory for the cells' levels");
+        for (uint32_t c = 0; c < n; ++c) {
+            uint32_t level = 0;
+            for (uint32_t up = ms_view_cell(v->view, c)->parent; up != MS_ARCHIVE_NONE && level < n;
+                 up = ms_view_cell(v->view, up)->parent)
+                ++level;
+            v->depth[c] = level;
+        }
+    }
+    v->ahead = on != 0;
+    return MS_OK;
+}
+
+unsigned ms_web_view_threads(ms_web_view *v, unsigned helpers)
+{
+    ms_pool_free(v->pool);
+    v->pool = NULL;
+    if (helpers > MS_WEB_VIEW_HELPERS_MAX)
+        helpers = MS_WEB_VIEW_HELPERS_MAX;
+    ms_error err;
+    if (helpers == 0 || ms_pool_new(helpers, &v->pool, &err) != MS_OK)
+        return 0;
+    if (ms_pool_helpers(v->pool) == 0) {
+        ms_pool_free(v->pool);
+        v->pool = NULL;
+        return 0;
+    }
+    return ms_pool_helpers(v->pool);
+}
+
 void ms_web_view_culled(ms_web_view *v, double bits_less)
 {
     if (bits_less >= 0 && isfinite(bits_less))
@@ -186,6 +236,73 @@ static unsigned goal_bits(const ms_web_view *v, uint32_t cell, const ms_archive_
     return goal > rec->bits_max ? rec->bits_max : goal;
 }
 
+typedef struct refine_batch {
+    ms_view *view;
+    const refine_job *jobs;
+} refine_batch;
+
+/* One refine job: a failure is met again, and reported, by ms_view_apply. */
+static void refine_one(void *ctx, size_t k)
+{
+    const refine_batch *b = ctx;
+    (void)ms_view_set_bits(b->view, b->jobs[k].cell, b->jobs[k].bits, NULL);
+}
+
+static int compare_jobs_by_work(const void *x, const void *y)
+{
+    const refine_job *a = x, *b = y;
+    return a->bits > b->bits ? -1 : a->bits < b->bits;
+}
+
+/* With a pool: the shown cells whose target is finer than their bits and
+ * whose bytes allow some of it go up on every thread (ms_view_set_bits on
+ * distinct cells may run at once), before ms_view_apply does the rest
+ * (splits, merges, coarsening) on the caller's; the same decoding as apply's,
+ * in another order, so the same cut (the client core's dec_parallel_refine).
+ * Returns how many cells went up. */
+static uint32_t parallel_refine(ms_web_view *v)
+{
+    if (!v->pool)
+        return 0;
+    uint32_t count = 0, n = ms_view_cell_count(v->view);
+    for (uint32_t c = 0; c < n; ++c) {
+        uint8_t target = ms_view_target(v->view, c);
+        if (ms_view_state(v->view, c) != MS_VIEW_SHOWN || target == MS_VIEW_TARGET_HIDDEN)
+            continue;
+        const ms_archive_cell *rec = ms_view_cell(v->view, c);
+        if (rec->geometry_length == 0 || ms_view_held_bytes(v->view, c) == 0)
+            continue;
+        unsigned goal = target == MS_VIEW_TARGET_SPLIT ? rec->bits_max : target;
+        unsigned avail = ms_view_available_bits(v->view, c), cur = ms_view_bits(v->view, c);
+        if (goal > avail)
+            goal = avail;
+        if (goal <= cur)
+            continue;
+        if (count == v->job_cap) {
+            uint32_t cap = v->job_cap ? 2 * v->job_cap : 64;
+            refine_job *grown = realloc(v->jobs, cap * sizeof *grown);
+            if (!grown)
+                break; /* apply refines the rest */
+            v->jobs = grown;
+            v->job_cap = cap;
+        }
+        v->jobs[count++] = (refine_job){c, goal};
+    }
+    if (count > 1)
+        qsort(v->jobs, count, sizeof *v->jobs, compare_jobs_by_work);
+    refine_batch batch = {v->view, v->jobs};
+    ms_pool_for(v->pool, count, refine_one, &batch);
+    return count;
+}
+
+static int compare_planned_by_depth(const void *x, const void *y)
+{
+    const planned *a = x, *b = y;
+    if (a->depth != b->depth)
+        return a->depth < b->depth ? -1 : 1;
+    return a->cell < b->cell ? -1 : a->cell > b->cell;
+}
+
 static bool plan_push(ms_web_view *v, planned p)
 {
     if (v->plan_count == v->plan_cap) {
@@ -213,31 +330,38 @@ ms_status ms_web_view_plan(ms_web_view *v, uint32_t max, int *settled)
             return ms_error_set(&v->err, MS_ERR_RANGE,
                                 "the selection still changes after %u rounds", MAX_ROUNDS);
         ms_view_select(v->view, &v->camera, &v->params, NULL);
+        uint32_t refined = parallel_refine(v);
         ms_view_apply_report r;
         ms_status st = ms_view_apply(v->view, &r, &v->err);
         if (st != MS_OK)
             return st;
-        changed = r.splits || r.merges || r.refined || r.coarsened;
+        changed = refined || r.splits || r.merges || r.refined || r.coarsened;
     }
     uint32_t n = ms_view_cell_count(v->view);
-    for (uint32_t c = 0; c < n && (max == 0 || v->plan_count < max); ++c) {
-        const ms_archive_cell *rec = ms_view_cell(v->view, c);
-        if (!rec || rec->geometry_length == 0)
-            continue;
-        /* the next step only: cells of the cut, and the children of a shown
-         * cell about to split (so that the first rounds are small and each
-         * round's mesh shows more) */
-        if (ms_view_state(v->view, c) == MS_VIEW_HIDDEN &&
-            (rec->parent == MS_ARCHIVE_NONE || ms_view_state(v->view, rec->parent) != MS_VIEW_SHOWN))
-            continue;
-        unsigned goal = goal_bits(v, c, rec);
-        if (goal == 0 || ms_view_available_bits(v->view, c) >= goal)
-            continue;
-        uint32_t bytes = ms_archive_geometry_prefix(v->index, c, goal);
-        if (bytes <= ms_view_held_bytes(v->view, c))
-            continue;
-        if (!plan_push(v, (planned){c, goal, bytes}))
-            return fail(v, MS_ERR_NOMEM, "out of memory for the plan");
+    /* pass 0: the next step (cells of the cut, and the children of a shown
+     * cell about to split: the first rounds are small and each round's mesh
+     * shows more); pass 1, ahead: the rest of the target cut, level by level */
+    for (int pass = 0; pass < (v->ahead ? 2 : 1); ++pass) {
+        uint32_t first = v->plan_count;
+        for (uint32_t c = 0; c < n && (max == 0 || v->plan_count < max); ++c) {
+            const ms_archive_cell *rec = ms_view_cell(v->view, c);
+            if (!rec || rec->geometry_length == 0)
+                continue;
+            bool next = ms_view_state(v->view, c) != MS_VIEW_HIDDEN ||
+                        (rec->parent != MS_ARCHIVE_NONE && ms_view_state(v->view, rec->parent) == MS_VIEW_SHOWN);
+            if (next != (pass == 0))
+                continue;
+            unsigned goal = goal_bits(v, c, rec);
+            if (goal == 0 || ms_view_available_bits(v->view, c) >= goal)
+                continue;
+            uint32_t bytes = ms_archive_geometry_prefix(v->index, c, goal);
+            if (bytes <= ms_view_held_bytes(v->view, c))
+                continue;
+            if (!plan_push(v, (planned){c, goal, bytes, v->depth ? v->depth[c] : 0}))
+                return fail(v, MS_ERR_NOMEM, "out of memory for the plan");
+        }
+        if (pass == 1 && v->plan_count - first > 1)
+            qsort(v->plan + first, v->plan_count - first, sizeof *v->plan, compare_planned_by_depth);
     }
     if (settled)
         *settled = v->plan_count == 0;

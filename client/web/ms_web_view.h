@@ -15,7 +15,8 @@
  * the C side never does I/O.
  *
  * Every function that can fail returns ms_status and leaves a one-line
- * message in ms_web_view_error. Not thread-safe: one caller. */
+ * message in ms_web_view_error. Not thread-safe: one caller (its helper
+ * threads, ms_web_view_threads, are its own). */
 #ifndef MS_WEB_VIEW_H
 #define MS_WEB_VIEW_H
 
@@ -64,6 +65,16 @@ void ms_web_view_culled(ms_web_view *view, double bits_less);
  * preview model: public_max_bits + 1); 0 lifts the cap. */
 void ms_web_view_permit(ms_web_view *view, unsigned steps);
 
+/* Decoding on `helpers` threads besides the caller's (at most
+ * MS_WEB_VIEW_HELPERS_MAX; 0: the caller's alone, as a new view decodes):
+ * each plan refines the cells that can go up with the bytes held on all of
+ * them at once (ms_view_set_bits on distinct cells), the splits and merges
+ * staying on the caller's; the same cut and mesh whatever the count. Returns
+ * the helpers that started (0 where threads cannot be made: WebAssembly
+ * built without pthreads, or a page not cross-origin isolated). */
+#define MS_WEB_VIEW_HELPERS_MAX 7u
+unsigned ms_web_view_threads(ms_web_view *view, unsigned helpers);
+
 /* Selects for the camera and applies as far as the bytes allow, repeating
  * while the cut still changes. Then lists the cells whose target needs bytes
  * not held, of the next step only (the shown and split cells, and the children
@@ -75,6 +86,14 @@ void ms_web_view_permit(ms_web_view *view, unsigned steps);
  * no longer changes and nothing is wanted: the view is complete. */
 ms_status ms_web_view_plan(ms_web_view *view, uint32_t max, int *settled);
 uint32_t ms_web_view_plan_count(const ms_web_view *view);
+
+/* Plans that look ahead (on != 0; a new view's plans do not): after the
+ * next step, a plan lists the rest of the cut the selection targets, the
+ * cells below the shown ones that its splits will need, level by level from
+ * the root (by cell number within a level), so that a caller can keep the
+ * link busy while it decodes what came; the same cells and bytes in the
+ * end, asked for sooner. MS_ERR_NOMEM. */
+ms_status ms_web_view_plan_ahead(ms_web_view *view, int on);
 uint32_t ms_web_view_plan_cell(const ms_web_view *view, uint32_t k);
 uint32_t ms_web_view_plan_bits(const ms_web_view *view, uint32_t k);
 uint32_t ms_web_view_plan_bytes(const ms_web_view *view, uint32_t k);
