@@ -296,7 +296,7 @@ space       := $(subst ,, )
 WASM        := build/wasm
 WASM_ROOMS  := common/util common/mesh common/codec common/camera common/archive client/web
 WASM_SKIP   := common/util/ms_byte_source.c common/util/ms_json_out.c common/util/ms_png.c \
-               common/util/ms_version.c common/util/ms_parallel.c common/util/ms_input_file.c \
+               common/util/ms_version.c common/util/ms_input_file.c \
                common/util/ms_cli.c common/util/ms_process_memory.c common/archive/ms_catalog.c \
                common/archive/ms_catalog_text.c common/archive/ms_metadata.c \
                common/archive/ms_annotations.c
@@ -310,11 +310,20 @@ WASM_EXPORTS := malloc free ms_web_view_new ms_web_view_free ms_web_view_error m
                ms_web_view_plan_bytes ms_web_view_held ms_web_view_give ms_web_view_stitch \
                ms_web_view_vertex_count ms_web_view_triangle_count ms_web_view_positions ms_web_view_normals \
                ms_web_view_triangles ms_web_view_shown_cells ms_web_view_max_bits ms_web_view_bytes_held \
-               ms_web_view_sections ms_web_view_cast
+               ms_web_view_sections ms_web_view_cast ms_web_view_threads ms_web_view_plan_ahead
 WASM_LDFLAGS := -O2 -sMODULARIZE=1 -sEXPORT_NAME=createMeshstream -sENVIRONMENT=worker \
                -sALLOW_MEMORY_GROWTH=1 -sFILESYSTEM=0 -sEXIT_RUNTIME=0 \
                -sEXPORTED_RUNTIME_METHODS=[HEAPU8,HEAPU32,HEAPF32,HEAPF64,UTF8ToString] \
                -sEXPORTED_FUNCTIONS=[$(subst $(space),$(comma),$(strip $(addprefix _,$(WASM_EXPORTS))))]
+# The same module with pthreads (meshstream-mt: decoding on several threads,
+# ms_web_view_threads), which a cross-origin isolated page loads (meshserve
+# sends COOP and COEP); its objects are built apart, with -pthread. The
+# helper threads' script is renamed meshstream-mt-worker.js (a page file's
+# name has one dot); the loader finds it through the worker's locateFile.
+WASM_MT_OBJS := $(patsubst %.c,$(WASM)/obj-mt/%.o,$(WASM_SRCS))
+WASM_MT_LDFLAGS := $(subst createMeshstream,createMeshstreamThreads,$(WASM_LDFLAGS)) -pthread \
+               -sPTHREAD_POOL_SIZE=2 -Wno-pthreads-mem-growth \
+               -sEXPORTED_RUNTIME_METHODS=[HEAPU8,HEAPU32,HEAPF32,HEAPF64,UTF8ToString,wasmMemory]
 WEB_FILES   := $(wildcard web/*.html web/*.js web/*.css)
 # Draco's own WebAssembly decoder (npm draco3d, which scripts/install-deps puts
 # in a cache outside the repository) for the Draco page, web/draco.html: copied
@@ -322,7 +331,7 @@ WEB_FILES   := $(wildcard web/*.html web/*.js web/*.css)
 DRACO3D     ?= $(or $(MESHSTREAM_DRACO3D),$(or $(XDG_CACHE_HOME),$(HOME)/.cache)/meshstream/draco3d)
 DRACO3D_FILES := draco_decoder_nodejs.js draco_decoder.wasm
 .PHONY: wasm
-wasm: $(WASM)/site/meshstream.js $(patsubst web/%,$(WASM)/site/%,$(WEB_FILES))
+wasm: $(WASM)/site/meshstream.js $(WASM)/site/meshstream-mt.js $(patsubst web/%,$(WASM)/site/%,$(WEB_FILES))
 	@if [ -s "$(DRACO3D)/draco_decoder_nodejs.js" ] && [ -s "$(DRACO3D)/draco_decoder.wasm" ]; then \
 	  for f in $(DRACO3D_FILES); do cmp -s "$(DRACO3D)/$$f" $(WASM)/site/$$f || cp "$(DRACO3D)/$$f" $(WASM)/site/$$f; done; \
 	else \
@@ -336,6 +345,14 @@ $(WASM)/obj/%.o: %.c
 $(WASM)/site/meshstream.js: $(WASM_OBJS)
 	@mkdir -p $(dir $@)
 	NODE_PATH=/usr/share/nodejs $(EMCC) $(WASM_LDFLAGS) $^ -o $@
+$(WASM)/obj-mt/%.o: %.c
+	@mkdir -p $(dir $@)
+	@command -v $(EMCC) >/dev/null || { echo "wasm: emcc is missing (scripts/install-deps)" >&2; exit 1; }
+	NODE_PATH=/usr/share/nodejs $(EMCC) $(WASM_CFLAGS) -pthread -MMD -MP -c $< -o $@
+$(WASM)/site/meshstream-mt.js: $(WASM_MT_OBJS)
+	@mkdir -p $(dir $@)
+	NODE_PATH=/usr/share/nodejs $(EMCC) $(WASM_MT_LDFLAGS) $^ -o $@
+	mv $(WASM)/site/meshstream-mt.worker.js $(WASM)/site/meshstream-mt-worker.js
 $(WASM)/site/%: web/%
 	@mkdir -p $(dir $@)
 	cp $< $@

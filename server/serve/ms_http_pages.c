@@ -5,6 +5,7 @@
 #include <event2/buffer.h>
 #include <event2/http.h>
 #include <event2/keyvalq_struct.h>
+#include <stdbool.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -110,10 +111,20 @@ static void send_page(ms_http_door *door, struct evhttp_request *req, const char
     evhttp_add_header(out, "Content-Type", type);
     evhttp_add_header(out, "Cache-Control", "no-cache");
     evhttp_add_header(out, "X-Content-Type-Options", "nosniff");
-    if (!strcmp(type, "text/html; charset=utf-8"))
+    bool html = !strcmp(type, "text/html; charset=utf-8");
+    if (html)
         evhttp_add_header(out, "Content-Security-Policy",
                           "default-src 'self'; script-src 'self' 'wasm-unsafe-eval'; "
                           "style-src 'self'; img-src 'self' data:; base-uri 'none'");
+    /* Cross-origin isolation (docs/BROWSER.md, "Threads"): a page opened at
+     * the top loads only its own origin's files, so it may have
+     * SharedArrayBuffer and the worker the threaded module. In a frame of
+     * another page the opener policy is ignored and the viewer runs on one
+     * thread; the embedder policy does not stop it being framed. */
+    if (html)
+        evhttp_add_header(out, "Cross-Origin-Opener-Policy", "same-origin");
+    if (html || !strcmp(type, "text/javascript; charset=utf-8"))
+        evhttp_add_header(out, "Cross-Origin-Embedder-Policy", "require-corp");
     ms_http_reply(door, req, 200, "OK", body, length); /* a HEAD: freeing body closes the file */
     evbuffer_free(body);
 }
