@@ -12,6 +12,12 @@
  *   - the catalogue page lists the models;
  *   - a model that does not exist: the page says so, in state 'error';
  *   - the page files deflated for a reader that accepts it, to the same bytes;
+ *   - the page is cross-origin isolated (COOP and COEP) and decodes with
+ *     the threaded module;
+ *   - a camera that leaves before its cells came: its requests still
+ *     waiting for an answer are cancelled (the page's counter), the server
+ *     sees fewer than that camera needs, and the page completes at the
+ *     next camera;
  *   - the server going away mid-stream (a relay with 150 ms each way, cut
  *     once the first cell is asked for): the page says it cannot reach the
  *     server or that it stopped answering (a request Chromium keeps waiting
@@ -204,6 +210,37 @@ static void test_page_routes(void **state)
         ms_test_http_free(&plain);
         ms_test_http_free(&packed);
     }
+    /* cross-origin isolation: the pages with the opener and embedder
+     * policies, the scripts (the workers') with the embedder's, so that the
+     * worker may take the threaded module */
+    {
+        static const struct {
+            const char *path, *opener, *embedder;
+        } isolated[] = {
+            {"/view/demo", "same-origin", "require-corp"},
+            {"/", "same-origin", "require-corp"},
+            {"/web/worker.js", NULL, "require-corp"},
+            {"/web/meshstream-mt-worker.js", NULL, "require-corp"},
+            {"/web/meshstream.css", NULL, NULL},
+        };
+        for (size_t i = 0; i < sizeof isolated / sizeof *isolated; ++i) {
+            ms_test_http_response r;
+            char value[64];
+            assert_int_equal(ms_test_http_get(f->http_port, isolated[i].path, NULL, &r), 0);
+            assert_int_equal(r.status, 200);
+            const char *opener = ms_test_http_header(&r, "Cross-Origin-Opener-Policy", value, sizeof value);
+            if (isolated[i].opener)
+                assert_string_equal(opener, isolated[i].opener);
+            else
+                assert_null(opener);
+            const char *embedder = ms_test_http_header(&r, "Cross-Origin-Embedder-Policy", value, sizeof value);
+            if (isolated[i].embedder)
+                assert_string_equal(embedder, isolated[i].embedder);
+            else
+                assert_null(embedder);
+            ms_test_http_free(&r);
+        }
+    }
     /* /view/NAME/: to /view/NAME, where the page's relative paths work */
     {
         ms_test_http_response moved;
@@ -267,6 +304,15 @@ static void test_viewer_draws_the_model(void **state)
                (long long)ref_cells);
         assert_int_equal(ms_test_browser_page_int(report, "triangles"), ref_triangles);
         assert_int_equal(ms_test_browser_page_int(report, "cells"), ref_cells);
+        /* the page is cross-origin isolated: the worker decodes with the
+         * threaded module, on as many threads as the cores allow (1 to 3) */
+        json_t *timing = json_object_get(json_object_get(report, "page"), "timing");
+        printf("threaded module: %s, %lld threads decoding\n",
+               json_is_true(json_object_get(timing, "threaded")) ? "yes" : "no",
+               (long long)json_integer_value(json_object_get(timing, "threads")));
+        assert_true(json_is_true(json_object_get(timing, "threaded")));
+        assert_true(json_integer_value(json_object_get(timing, "threads")) >= 1);
+        assert_true(json_integer_value(json_object_get(timing, "threads")) <= 3);
         /* the first look: the first picture came from at most 32 kB of cells
          * (docs/BROWSER.md), read beside the index, before the view's own */
         json_int_t first = json_integer_value(json_object_get(
@@ -393,6 +439,69 @@ static void test_server_gone_mid_stream(void **state)
     free(text);
 }
 
+/* A camera that leaves before its cells came: the page reached through a
+ * relay with 150 ms each way, complete at the whole sculpture; then the
+ * close-up (its plan asks for its cells at once, most of them waiting in
+ * the browser's queue behind its 6 connections), and 0.35 s later the
+ * whole sculpture again. The close-up's requests still waiting are
+ * cancelled (the page's counter), the server sees fewer requests than the
+ * close-up needs (as the close-up alone, cold, asks for them: its own
+ * page's counter), and the page completes at the sculpture. */
+static void test_camera_change_cancels(void **state)
+{
+    fixture *f = *state;
+    MS_TEST_NEED_BROWSER(f->why_skip);
+    static const char far[] = "0.9,0.6,3.2,0,0,0,0,1,0,40", near[] = "0.3,0.2,1.6,0,0,0,0,1,0,40";
+    char page[256], shot[700];
+    /* what the close-up asks for, cold: its requests */
+    snprintf(page, sizeof page, "/view/demo#cam=%s&hud=0", near);
+    snprintf(shot, sizeof shot, "%s/near.png", f->dir);
+    json_t *alone = open_page(f, page, shot, NULL);
+    assert_string_equal(json_string_value(json_object_get(alone, "state")), "complete");
+    json_int_t near_requests = json_integer_value(
+        json_object_get(json_object_get(json_object_get(alone, "page"), "timing"), "requests"));
+    json_decref(alone);
+
+    ms_test_delay *relay = NULL;
+    uint16_t relay_port;
+    assert_int_equal(ms_test_delay_start(f->http_port, 0.15, &relay, &relay_port), 0);
+    char steps[2048], steps_file[700], command[4096];
+    snprintf(steps, sizeof steps,
+             "[{\"method\": \"Runtime.evaluate\", \"params\": {\"expression\": \"location.hash = 'cam=%s&hud=0'\"}},\n"
+             " {\"method\": \"Runtime.evaluate\", \"params\": {\"expression\": \"new Promise(r => setTimeout(r, 350))\", \"awaitPromise\": true}},\n"
+             " {\"method\": \"Runtime.evaluate\", \"params\": {\"expression\": \"location.hash = 'cam=%s&hud=0'\"}},\n"
+             " {\"settle\": true}]\n", near, far);
+    snprintf(steps_file, sizeof steps_file, "%s/cancel-steps.json", f->dir);
+    ms_test_write_file(steps_file, steps, strlen(steps));
+    uint64_t before = 0, after = 0;
+    snprintf(shot, sizeof shot, "%s/cancel.png", f->dir);
+    snprintf(command, sizeof command,
+             "tests/browser-page 'http://127.0.0.1:%u/view/demo#cam=%s&hud=0' --size %dx%d --out %s "
+             "--input %s --timeout 120", relay_port, far, WIDTH, HEIGHT, shot, steps_file);
+    assert_int_equal(ms_test_metric(f->http_port, "meshstream_model_requests_total{model=\"demo\"}", &before), 0);
+    json_t *report = ms_test_run_json(command, 0);
+    assert_int_equal(ms_test_metric(f->http_port, "meshstream_model_requests_total{model=\"demo\"}", &after), 0);
+    ms_test_delay_stop(relay);
+    json_t *steps_seen = json_object_get(report, "steps");
+    assert_int_equal(json_array_size(steps_seen), 1);
+    json_t *last = json_object_get(json_array_get(steps_seen, 0), "page");
+    json_t *timing = json_object_get(last, "timing");
+    json_int_t cancelled = json_integer_value(json_object_get(timing, "cancelled"));
+    json_int_t answered = json_integer_value(json_object_get(timing, "requests"));
+    printf("the close-up alone: %lld requests; with the camera gone after 0.35 s: %lld cancelled, %lld "
+           "answered in all, the server saw %llu model requests (catalogue and index included)\n",
+           (long long)near_requests, (long long)cancelled, (long long)answered,
+           (unsigned long long)(after - before));
+    assert_string_equal(json_string_value(json_object_get(last, "state")), "complete");
+    assert_true(cancelled >= 10);
+    assert_true(near_requests >= 20);
+    /* the server saw the catalogue, the index, the sculpture's cells and
+     * what of the close-up's had gone out: fewer than the close-up's alone
+     * and the answered ones (the sculpture's among them) */
+    assert_true(after - before < (uint64_t)(near_requests + answered));
+    json_decref(report);
+}
+
 static uint64_t forbidden(const fixture *f)
 {
     uint64_t n = 0;
@@ -507,6 +616,7 @@ int main(void)
         cmocka_unit_test(test_catalogue_page),
         cmocka_unit_test(test_missing_model_says_so),
         cmocka_unit_test(test_server_gone_mid_stream),
+        cmocka_unit_test(test_camera_change_cancels),
         cmocka_unit_test(test_preview_and_token),
         cmocka_unit_test(test_controls_and_view_text),
     };

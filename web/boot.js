@@ -10,7 +10,11 @@
   // /view/NAME from meshserve, or view/NAME.html in a static export
   const staticSite = location.pathname.endsWith('.html');
   const name = decodeURIComponent(location.pathname.replace(/^.*\/view\//, '').replace(/\.html$/, ''));
-  const worker = new Worker('../web/worker.js');
+  // #threads=0 in the URL: decode on the worker's thread alone (a figure
+  // for comparison; the worker otherwise takes the threaded module where
+  // the page is cross-origin isolated)
+  const single = new URLSearchParams(location.hash.slice(1)).get('threads') === '0';
+  const worker = new Worker('../web/worker.js' + (single ? '?threads=0' : ''));
   worker.postMessage({ type: 'prefetch', name, token: sessionStorage.getItem(tokenKey) || '',
                        layout: staticSite ? 'static' : 'door' });
   window.meshstreamBoot = { worker, at: performance.now(), name, staticSite, tokenKey };

@@ -243,7 +243,20 @@ function depthRange() {
   return [Math.max(near, far * 1e-4), far];
 }
 
+// The page's own share of the time (window.meshstream.timing, beside the
+// worker's): seconds uploading meshes and issuing frames, and their counts.
+const pageTiming = { upload: 0, draw: 0, meshes: 0, frames: 0 };
+
 function draw() {
+  const t = performance.now();
+  try {
+    drawFrame();
+  } finally {
+    pageTiming.draw += (performance.now() - t) / 1000;
+  }
+}
+
+function drawFrame() {
   frameRequested = false;
   resize();
   gl.viewport(0, 0, canvas.width, canvas.height);
@@ -259,6 +272,7 @@ function draw() {
   MsTools.uniforms(gl, program, camera);
   gl.bindVertexArray(vao);
   gl.drawElements(gl.TRIANGLES, indexCount, gl.UNSIGNED_INT, 0);
+  pageTiming.frames++;
   MsTools.drawn(camera);
   if (typeof annotationsOnDraw === 'function')   // web/annotations.js: the markers
     annotationsOnDraw();
@@ -274,6 +288,8 @@ function requestDraw() {
 }
 
 function upload(positions, normals, triangles) {
+  const t = performance.now();
+  pageTiming.meshes++;
   gl.bindVertexArray(vao);
   gl.bindBuffer(gl.ARRAY_BUFFER, positionBuffer);
   gl.bufferData(gl.ARRAY_BUFFER, positions, gl.STATIC_DRAW);
@@ -282,6 +298,7 @@ function upload(positions, normals, triangles) {
   gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, indexBuffer);
   gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, triangles, gl.STATIC_DRAW);
   indexCount = triangles.length;
+  pageTiming.upload += (performance.now() - t) / 1000;
   if (typeof annotationsOnMesh === 'function')   // web/annotations.js: occlusion
     annotationsOnMesh(positions, triangles);
 }
@@ -563,7 +580,7 @@ function start() {
         return;              // an earlier camera's; the latest one is under way
       page.bytes = m.bytes;
       page.rounds = m.rounds;
-      page.timing = m.timing;
+      page.timing = Object.assign({}, m.timing, pageTiming);
       page.completeMs = Math.round(performance.now());
       page.settleMs = Math.round(performance.now() - cameraSentAt);  // from this camera
       page.state = 'complete';

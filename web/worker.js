@@ -13,11 +13,49 @@
 // and triangles, transferred), {type: 'complete'}, {type: 'cast'},
 // {type: 'error', message}.
 'use strict';
-importScripts('meshstream.js');   // beside this file
 
-// The module compiles from the moment the page starts the worker (boot.js),
-// before the page sends the model.
-const modulePromise = createMeshstream({ locateFile: file => new URL(file, self.location.href).href });
+// The module, beside this file: in a cross-origin isolated page (meshserve
+// sends COOP and COEP; SharedArrayBuffer exists) the build with pthreads,
+// meshstream-mt, which decodes on several threads (ms_web_view_threads);
+// elsewhere (a static export's server without those headers, a frame of a
+// page that is not isolated) the single-threaded one. Its script is read
+// (importScripts waits for it) once the first message has sent the
+// model's first requests (boot.js's prefetch), and it compiles while they
+// travel, before the page sends the camera.
+const here = file => new URL(file, self.location.href).href;
+let threaded = self.crossOriginIsolated === true && typeof SharedArrayBuffer === 'function' &&
+               new URL(self.location.href).searchParams.get('threads') !== '0';   // boot.js's #threads=0
+let modulePromise = null;
+function loadModule() {
+  if (modulePromise)
+    return modulePromise;
+  if (threaded) {
+    try {
+      importScripts('meshstream-mt.js');
+    } catch (e) {
+      threaded = false;           // a site built before the threaded module
+    }
+  }
+  if (!threaded)
+    importScripts('meshstream.js');
+  modulePromise = threaded
+    ? createMeshstreamThreads({
+        locateFile: file => here(file === 'meshstream-mt.worker.js' ? 'meshstream-mt-worker.js' : file),
+        mainScriptUrlOrBlob: here('meshstream-mt.js') })
+    : createMeshstream({ locateFile: here });
+  return modulePromise;
+}
+// Helper threads for decoding: the cores less this one, at most the
+// threaded module's pool (PTHREAD_POOL_SIZE in the Makefile: threads there
+// from the start).
+const helpers = () => threaded ? Math.max(0, Math.min((navigator.hardwareConcurrency || 1) - 1, 2)) : 0;
+
+// The module's memory: with threads it is shared and grows from any thread,
+// so the views are made afresh from its current buffer at each use (a view
+// made before a helper grew it would miss the new part).
+const heap = () => (M.wasmMemory ? M.wasmMemory.buffer : M.HEAPU8.buffer);
+const U8 = () => new Uint8Array(heap());
+const U32 = () => new Uint32Array(heap());
 
 // Where the model's files are, relative to the site's root (the folder above
 // web/): meshserve's side door, or a static export (meshexport --web-dir),
@@ -41,10 +79,14 @@ const LAYOUTS = {
 };
 let layout = LAYOUTS.door;
 
-const IN_FLIGHT = 8;        // cell fetches at a time
+// Cell fetches at a time: more than the browser's 6 connections to a host,
+// so that its network keeps the link busy while the worker decodes (a long
+// decode cannot issue requests; what waits in the browser's queue goes on).
+const IN_FLIGHT = 64;
 const SILENCE_MS = 10000;   // a request with nothing heard for this long is abandoned
-const PLAN_MAX = 256;       // cells listed by one plan
-const SHOW_EVERY_MS = 200;       // within a round, how often what came is decoded and shown,
+const PLAN_MAX = 1024;      // cells listed by one plan
+const SHOW_EVERY_MS = 200;       // within a round, how often what came is decoded and shown
+const STITCH_SHARE = 5;          // (at least this many times the last stitch's time apart),
 const DECODE_EVERY_BYTES = 32768; // or after how many bytes
 const FIRST_LOOK = [16, 64, 256, 4096]; // the first round's tolerances, times the camera's
 const FIRST_LOOK_BYTES = 32768;         // and the most that round may fetch
@@ -65,7 +107,11 @@ function lastError(v) {
 // network, before or during the body, is one error naming what was asked;
 // an error answer's is the server's own line; 429 (the request rate limit)
 // is retried after its Retry-After, four times at most.
-async function get(path, token, extra) {
+// ticket (optional): {cancel: AbortController, started: false}: the caller's
+// to cancel the request while it waits for its answer's head (a new camera,
+// below); started is set once the head came. A cancelled request throws an
+// error whose `cancelled` is true.
+async function get(path, token, extra, ticket) {
   const url = new URL(path, ROOT).href;
   const headers = Object.assign({}, extra || {});
   if (token)
@@ -81,15 +127,29 @@ async function get(path, token, extra) {
       clearTimeout(timer);
       timer = setTimeout(() => abort.abort(), SILENCE_MS);
     };
+    const cancel = () => abort.abort();
+    if (ticket)
+      ticket.cancel.signal.addEventListener('abort', cancel);
     try {
+      if (ticket && ticket.cancel.signal.aborted)
+        throw new Error('cancelled');
       answer = await fetch(url, { headers, cache: 'default', signal: abort.signal });
+      if (ticket)
+        ticket.started = true;
       heard();
       bytes = await readBody(answer, heard);
     } catch (e) {
+      if (ticket && ticket.cancel.signal.aborted) {
+        const c = new Error('cancelled (/' + path.replace(/\?.*/, '') + ')');
+        c.cancelled = true;
+        throw c;
+      }
       throw new Error((abort.signal.aborted ? 'the server stopped answering' : 'the server cannot be reached') +
                       ' (/' + path.replace(/\?.*/, '') + ')');
     } finally {
       clearTimeout(timer);
+      if (ticket)
+        ticket.cancel.signal.removeEventListener('abort', cancel);
     }
     // the server's request rate limit: wait as it says, a few times
     if (answer.status !== 429 || attempt === 4)
@@ -136,7 +196,7 @@ function withHeap(bytes, fn) {
   if (!p)
     throw new Error('out of memory in the WebAssembly module');
   try {
-    M.HEAPU8.set(bytes, p);
+    U8().set(bytes, p);
     return fn(p);
   } finally {
     M._free(p);
@@ -151,7 +211,7 @@ function openIndex(blob, name) {
       withHeap(blob, blobPtr => M._ms_web_view_new(blobPtr, blob.length, namePtr, out, err)));
     if (st !== 0)
       throw new Error('the model\'s index cannot be read: ' + M.UTF8ToString(err + 4));
-    return M.HEAPU32[out >> 2];
+    return U32()[out >> 2];
   } finally {
     M._free(err);
     M._free(out);
@@ -160,7 +220,7 @@ function openIndex(blob, name) {
 
 function setCamera(c) {
   const p = M._malloc(9 * 8);
-  const d = new Float64Array(M.HEAPU8.buffer, p, 9);
+  const d = new Float64Array(heap(), p, 9);
   d.set([...c.position, ...c.target, ...c.up]);
   const st = M._ms_web_view_camera(view, p, p + 24, p + 48, c.fovy, c.width, c.height,
                                    0, 0, c.tolerance);
@@ -173,13 +233,16 @@ function setCamera(c) {
 // reader may read) and hands it over; returns the bytes received.
 // prefix: the byte length complete at bits (ms_web_view_plan_bytes), which a
 // static layout asks for as a range.
-async function fetchCell(name, token, cell, bits, prefix, v) {
+// ticket: as get()'s.
+async function fetchCell(name, token, cell, bits, prefix, v, ticket) {
   v = v || view;
   const held = M._ms_web_view_held(v, cell);
   const end = layout.ranged && bits !== null ? '' + (prefix - 1) : '';
   const range = held || end ? { Range: 'bytes=' + held + '-' + end } : null;
-  const answer = await get(layout.cell(name, cell, bits), token, range);
+  const answer = await get(layout.cell(name, cell, bits), token, range, ticket);
   const bytes = answer.bytes;
+  timing.requests++;
+  timing.requestBytes += bytes.length;
   const offset = answer.status === 206 ? held : 0;
   const st = withHeap(bytes, p => M._ms_web_view_give(v, cell, offset, p, bytes.length));
   if (st !== 0)
@@ -187,11 +250,18 @@ async function fetchCell(name, token, cell, bits, prefix, v) {
   return bytes.length;
 }
 
-// Seconds spent, for the page's figures: selecting and decoding (plan),
-// waiting for cells (fetch), stitching and copying out the mesh (stitch).
+// Seconds spent, for the page's figures (window.meshstream.timing): selecting
+// and decoding (plan), the rounds of fetches from their first request to
+// their last answer, decoding included (fetch), of which the worker had
+// nothing to do but wait for the network (wait), stitching the cut (stitch) and copying the
+// mesh out of the module to the page (copy); whether the module is the
+// threaded one (threaded) and the threads decoding (threads); counts:
+// plans, stitches, cell requests answered and their bytes (requests,
+// requestBytes), requests cancelled by a new camera (cancelled).
 // marks: milliseconds from the worker's start to its first steps (index
 // read, first mesh posted).
-const timing = { plan: 0, fetch: 0, stitch: 0, marks: {} };
+const timing = { plan: 0, fetch: 0, wait: 0, stitch: 0, copy: 0, threads: 1, plans: 0, stitches: 0,
+                 requests: 0, requestBytes: 0, cancelled: 0, marks: {} };
 
 function mark(name) {
   if (!(name in timing.marks))
@@ -209,29 +279,46 @@ function timed(key, fn) {
 
 // received: the bytes read so far (the first non-empty mesh's are kept in
 // timing.firstMeshBytes: what the first look cost).
+// lastStitchMs: what the last stitch and copy took (a round shows its
+// progress no more often than STITCH_SHARE times that: the stitch is the
+// whole cut's, each costs more as the cut grows).
+let lastStitchMs = 0;
 function postMesh(final, received) {
-  timed('stitch', () => stitchAndPost(final));
+  const t = performance.now();
+  timed('stitch', () => {
+    if (M._ms_web_view_stitch(view) !== 0)
+      throw new Error('stitching the cut: ' + lastError());
+  });
+  timing.stitches++;
+  timed('copy', () => copyAndPost(final));
+  lastStitchMs = performance.now() - t;
   if (M._ms_web_view_triangle_count(view) && !('mesh' in timing.marks)) {
     mark('mesh');
     timing.firstMeshBytes = received;
   }
 }
 
-function stitchAndPost(final) {
-  if (M._ms_web_view_stitch(view) !== 0)
-    throw new Error('stitching the cut: ' + lastError());
+function copyAndPost(final) {
   const nv = M._ms_web_view_vertex_count(view), nt = M._ms_web_view_triangle_count(view);
-  const positions = new Float32Array(M.HEAPF32.buffer, M._ms_web_view_positions(view), 3 * nv).slice();
-  const triangles = new Uint32Array(M.HEAPU32.buffer, M._ms_web_view_triangles(view), 3 * nt).slice();
-  const normals = new Float32Array(M.HEAPF32.buffer, M._ms_web_view_normals(view), 3 * nv).slice();
+  const positions = new Float32Array(heap(), M._ms_web_view_positions(view), 3 * nv).slice();
+  const triangles = new Uint32Array(heap(), M._ms_web_view_triangles(view), 3 * nt).slice();
+  const normals = new Float32Array(heap(), M._ms_web_view_normals(view), 3 * nv).slice();
   postMessage({ type: 'mesh', final, positions, normals, triangles,
                 cells: M._ms_web_view_shown_cells(view), bits: M._ms_web_view_max_bits(view) },
               [positions.buffer, normals.buffer, triangles.buffer]);
 }
 
+// ms_web_view_plan on the view, timed and counted.
+function plan(settledPtr) {
+  timing.plans++;
+  return timed('plan', () => M._ms_web_view_plan(view, PLAN_MAX, settledPtr));
+}
+
 // The camera the page asked for last, not yet applied, and the wake-up of a
-// settled loop waiting for one.
+// settled loop waiting for one; the tickets of the cell requests in flight
+// (get()'s), which a new camera cancels while they wait for their answer.
 let pendingCamera = null, wake = null;
+const tickets = new Set();
 
 function nextCamera() {
   return new Promise(resolve => { wake = resolve; });
@@ -262,9 +349,9 @@ async function run(msg) {
   // The module compiles while the catalogue's entry and the index arrive: the
   // three at once, not one round trip after another (first pixels), and
   // from the page's first script on (boot.js's prefetch).
-  const module = modulePromise;
   const { listing, index } = prefetched && prefetched.name === name && prefetched.token === token &&
                              prefetched.layout === msg.layout ? prefetched : prefetch(msg);
+  const module = loadModule();
   layout = LAYOUTS[msg.layout] || LAYOUTS.door;
   const [catalogue, indexAnswer] = await Promise.all([
     listing.then(c => { mark('catalogue'); return c; }),
@@ -278,11 +365,13 @@ async function run(msg) {
   const blob = indexAnswer.bytes;
   mark('index');
   view = openIndex(blob, name);
+  timing.threaded = threaded;     // the threaded module (a cross-origin isolated page)
+  timing.threads = 1 + M._ms_web_view_threads(view, helpers());
   opened = { name, token, blob };
   applySections();
   const bp = M._malloc(32);
   M._ms_web_view_box(view, bp);
-  const box = Array.from(new Float64Array(M.HEAPU8.buffer, bp, 4));
+  const box = Array.from(new Float64Array(heap(), bp, 4));
   M._free(bp);
   let bytes = blob.length, rounds = 0, bounds = null;
   if (!msg.camera) {
@@ -290,7 +379,7 @@ async function run(msg) {
     bytes += await fetchCell(name, token, 0, null, 0);
     const p = M._malloc(48);
     if (M._ms_web_view_bounds(view, p) === 0)
-      bounds = Array.from(new Float64Array(M.HEAPU8.buffer, p, 6));
+      bounds = Array.from(new Float64Array(heap(), p, 6));
     M._free(p);
   }
   // the unit the model's metadata declares (docs/ARCHIVE.md, "Metadata"), for
@@ -320,7 +409,7 @@ async function run(msg) {
     for (const times of FIRST_LOOK) {
       const coarse = Object.assign({}, c, { tolerance: c.tolerance * times });
       setCamera(coarse);
-      if (timed('plan', () => M._ms_web_view_plan(view, PLAN_MAX, settledPtr)) !== 0)
+      if (plan(settledPtr) !== 0)
         throw new Error('selecting the cut: ' + lastError());
       if (planNeed(M._ms_web_view_plan_count(view)) <= FIRST_LOOK_BYTES)
         return;
@@ -334,22 +423,26 @@ async function run(msg) {
       pendingCamera = null;
       looking = firstLook;
       firstLook = false;
+      // the first look's plans see the next step only (their bytes are
+      // weighed against FIRST_LOOK_BYTES); the camera's own look ahead
+      M._ms_web_view_plan_ahead(view, looking ? 0 : 1);
       if (looking)
         firstLookCamera(current);
       else
         setCamera(current);
     } else if (looking) {
       looking = false;            // the first look is in: the camera's own tolerance
+      M._ms_web_view_plan_ahead(view, 1);
       setCamera(current);
     }
-    if (timed('plan', () => M._ms_web_view_plan(view, PLAN_MAX, settledPtr)) !== 0)
+    if (plan(settledPtr) !== 0)
       throw new Error('selecting the cut: ' + lastError());
     const count = M._ms_web_view_plan_count(view);
-    if (M.HEAPU32[settledPtr >> 2] && looking) {
+    if (U32()[settledPtr >> 2] && looking) {
       postMesh(false, bytes);
       continue;
     }
-    if (M.HEAPU32[settledPtr >> 2]) {
+    if (U32()[settledPtr >> 2]) {
       postMesh(true, bytes);
       postMessage({ type: 'complete', seq, bytes, rounds, preview, timing,
                     seconds: (performance.now() - started) / 1000 });
@@ -371,13 +464,27 @@ async function run(msg) {
     postMessage({ type: 'progress', bytes, need, rounds, wanted: count });
     let next = 0, given = 0, shownAt = performance.now(), fresh = 0;
     const queued = new Map(wanted.map(([cell, bits]) => [cell, bits]));
-    // A new camera ends the round: what is in flight lands, nothing more of
-    // the old plan is asked for (the next plan asks again what the new view
-    // still needs).
+    // A new camera ends the round: nothing more of the old plan is asked
+    // for, what still waits for its answer's head is cancelled (tickets,
+    // the message handler below; timing.cancelled counts them), what is
+    // arriving lands; the next plan asks again what the new view still
+    // needs.
     const lane = async () => {
       while (next < wanted.length && !pendingCamera) {
         const [cell, bits, prefix] = wanted[next++];
-        const got = await fetchCell(name, token, cell, bits, prefix); // not `bytes += await`: lanes interleave
+        const ticket = { cancel: new AbortController(), started: false };
+        tickets.add(ticket);
+        let got;
+        try {
+          got = await fetchCell(name, token, cell, bits, prefix, view, ticket); // not `bytes += await`: lanes interleave
+        } catch (e) {
+          if (!e.cancelled)
+            throw e;
+          timing.cancelled++;
+          continue;
+        } finally {
+          tickets.delete(ticket);
+        }
         bytes += got;
         need = Math.max(need - got, 0);
         given++;
@@ -392,10 +499,10 @@ async function run(msg) {
         // just decoded) joins the round's queue while the camera stays, so
         // the next level's fetches start without waiting for the round's
         // last cell.
-        const showDue = performance.now() - shownAt >= SHOW_EVERY_MS;
+        const showDue = performance.now() - shownAt >= Math.max(SHOW_EVERY_MS, STITCH_SHARE * lastStitchMs);
         if (given < wanted.length && (showDue || fresh >= DECODE_EVERY_BYTES)) {
           fresh = 0;
-          if (timed('plan', () => M._ms_web_view_plan(view, PLAN_MAX, settledPtr)) !== 0)
+          if (plan(settledPtr) !== 0)
             throw new Error('selecting the cut: ' + lastError());
           const listed = M._ms_web_view_plan_count(view);
           if (showDue && changed(listed)) { // stitching is the whole cut's: not every decode
@@ -412,9 +519,13 @@ async function run(msg) {
         }
       }
     };
-    const fetchStart = performance.now();
+    const fetchStart = performance.now(), busy = timing.plan + timing.stitch + timing.copy;
     await Promise.all(Array.from({ length: Math.min(IN_FLIGHT, wanted.length) }, lane));
-    timing.fetch += (performance.now() - fetchStart) / 1000;
+    const roundSeconds = (performance.now() - fetchStart) / 1000;
+    timing.fetch += roundSeconds;
+    // the round's time the worker did not decode, stitch or copy: waiting on
+    // the network (and on the browser's own work for the fetches)
+    timing.wait += Math.max(roundSeconds - (timing.plan + timing.stitch + timing.copy - busy), 0);
     rounds++;
   }
 }
@@ -449,7 +560,7 @@ function applySections(v) {
   if (!v)
     return;
   const p = M._malloc(Math.max(sections.length, 1) * 32);
-  new Float64Array(M.HEAPU8.buffer, p, 4 * sections.length).set(sections.flat());
+  new Float64Array(heap(), p, 4 * sections.length).set(sections.flat());
   const st = M._ms_web_view_sections(v, p, sections.length);
   M._free(p);
   if (st !== 0)
@@ -459,11 +570,11 @@ function applySections(v) {
 // The cast of a ray on view v's last stitch: {point, t, bits, step,
 // modelBits} or null. p: 13 doubles of the heap.
 function castOne(v, r, p) {
-  const d = new Float64Array(M.HEAPU8.buffer, p, 13);
+  const d = new Float64Array(heap(), p, 13);
   d.set([...r.origin, ...r.direction]);
   if (!M._ms_web_view_cast(v, p, p + 24, r.tMin, r.tNear, p + 48))
     return null;
-  const o = Array.from(new Float64Array(M.HEAPU8.buffer, p + 48, 7));
+  const o = Array.from(new Float64Array(heap(), p + 48, 7));
   return { point: o.slice(0, 3), t: o[3], bits: o[4], step: o[5], modelBits: o[6] };
 }
 
@@ -480,7 +591,7 @@ async function refine(msg) {
     return;
   const box = new Float64Array(4), bp = M._malloc(32);
   M._ms_web_view_box(view, bp);
-  box.set(new Float64Array(M.HEAPU8.buffer, bp, 4));
+  box.set(new Float64Array(heap(), bp, 4));
   M._free(bp);
   for (const [index, r] of msg.points.entries()) {
     const probe = openIndex(opened.blob, opened.name);
@@ -495,14 +606,14 @@ async function refine(msg) {
       const side = Math.abs(dir[1]) < 0.9 ? [0, 1, 0] : [1, 0, 0];
       const p = M._malloc(13 * 8);
       try {
-        new Float64Array(M.HEAPU8.buffer, p, 9).set([...position, ...r.point, ...side]);
+        new Float64Array(heap(), p, 9).set([...position, ...r.point, ...side]);
         if (M._ms_web_view_camera(probe, p, p + 24, p + 48, 0.01, 1000, 1000, 0, 0, 1) !== 0)
           throw new Error(lastError(probe));
         const settled = p + 72;
         for (let round = 0; round < 64; ++round) {
           if (M._ms_web_view_plan(probe, PLAN_MAX, settled) !== 0)
             throw new Error(lastError(probe));
-          if (M.HEAPU32[settled >> 2])
+          if (U32()[settled >> 2])
             break;
           const n = M._ms_web_view_plan_count(probe);
           for (let k = 0; k < n; ++k)
@@ -537,6 +648,7 @@ function cast(msg) {
 onmessage = e => {
   if (e.data.type === 'prefetch') {
     prefetched = prefetch(e.data);
+    loadModule();
     return;
   }
   if (e.data.type === 'sections') {
@@ -556,6 +668,9 @@ onmessage = e => {
     run(e.data).catch(err => fail(err.message || String(err)));
   } else if (e.data.type === 'camera') {
     pendingCamera = e.data.camera;
+    for (const ticket of tickets)
+      if (!ticket.started)
+        ticket.cancel.abort();
     if (wake) {
       wake();
       wake = null;
