@@ -163,7 +163,7 @@ async function get(path, token, extra, ticket) {
     e.status = answer.status;
     throw e;
   }
-  return { status: answer.status, bytes };
+  return { status: answer.status, bytes, headers: answer.headers };
 }
 
 // An answer's body, whole; heard() at each piece that comes.
@@ -258,8 +258,9 @@ async function fetchCell(name, token, cell, bits, prefix, v, ticket) {
 // threaded one (threaded) and the threads decoding (threads); counts:
 // plans, stitches, cell requests answered and their bytes (requests,
 // requestBytes), requests cancelled by a new camera (cancelled).
-// marks: milliseconds from the worker's start to its first steps (index
-// read, first mesh posted).
+// indexWireBytes: the index's bytes as they travelled. marks: milliseconds
+// from the worker's start to its first steps (index read, first mesh
+// posted).
 const timing = { plan: 0, fetch: 0, wait: 0, stitch: 0, copy: 0, threads: 1, plans: 0, stitches: 0,
                  requests: 0, requestBytes: 0, cancelled: 0, marks: {} };
 
@@ -363,6 +364,11 @@ async function run(msg) {
   if (indexAnswer instanceof Error)
     throw indexAnswer;
   const blob = indexAnswer.bytes;
+  // the index as it travelled (deflated by meshserve for a browser): the
+  // page's bytes count it inflated
+  timing.indexWireBytes = indexAnswer.headers.get('Content-Encoding') === 'deflate' &&
+                          Number(indexAnswer.headers.get('Content-Length')) > 0
+    ? Number(indexAnswer.headers.get('Content-Length')) : blob.length;
   mark('index');
   view = openIndex(blob, name);
   timing.threaded = threaded;     // the threaded module (a cross-origin isolated page)
