@@ -316,13 +316,14 @@ WASM_LDFLAGS := -O2 -sMODULARIZE=1 -sEXPORT_NAME=createMeshstream -sENVIRONMENT=
                -sEXPORTED_RUNTIME_METHODS=[HEAPU8,HEAPU32,HEAPF32,HEAPF64,UTF8ToString] \
                -sEXPORTED_FUNCTIONS=[$(subst $(space),$(comma),$(strip $(addprefix _,$(WASM_EXPORTS))))]
 # The same module with pthreads (meshstream-mt: decoding on several threads,
-# ms_web_view_threads), which a cross-origin isolated page loads (meshserve
+# ms_web_view_threads; no pool made in advance: the worker makes its helpers
+# after the first picture), which a cross-origin isolated page loads (meshserve
 # sends COOP and COEP); its objects are built apart, with -pthread. The
 # helper threads' script is renamed meshstream-mt-worker.js (a page file's
 # name has one dot); the loader finds it through the worker's locateFile.
 WASM_MT_OBJS := $(patsubst %.c,$(WASM)/obj-mt/%.o,$(WASM_SRCS))
 WASM_MT_LDFLAGS := $(subst createMeshstream,createMeshstreamThreads,$(WASM_LDFLAGS)) -pthread \
-               -sPTHREAD_POOL_SIZE=2 -Wno-pthreads-mem-growth \
+               -Wno-pthreads-mem-growth \
                -sEXPORTED_RUNTIME_METHODS=[HEAPU8,HEAPU32,HEAPF32,HEAPF64,UTF8ToString,wasmMemory]
 WEB_FILES   := $(wildcard web/*.html web/*.js web/*.css)
 # Draco's own WebAssembly decoder (npm draco3d, which scripts/install-deps puts

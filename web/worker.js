@@ -45,10 +45,15 @@ function loadModule() {
     : createMeshstream({ locateFile: here });
   return modulePromise;
 }
-// Helper threads for decoding: the cores less this one, at most the
-// threaded module's pool (PTHREAD_POOL_SIZE in the Makefile: threads there
-// from the start).
+// Helper threads for decoding: the cores less this one, at most 2. They are
+// made once the first picture is posted (each is a worker of its own that
+// loads the module: not before the first pixels), and join the plans from
+// when they have started.
 const helpers = () => threaded ? Math.max(0, Math.min((navigator.hardwareConcurrency || 1) - 1, 2)) : 0;
+function startHelpers() {
+  if (timing.threads === 1 && helpers() > 0)
+    timing.threads = 1 + M._ms_web_view_threads(view, helpers());
+}
 
 // The module's memory: with threads it is shared and grows from any thread,
 // so the views are made afresh from its current buffer at each use (a view
@@ -372,7 +377,6 @@ async function run(msg) {
   mark('index');
   view = openIndex(blob, name);
   timing.threaded = threaded;     // the threaded module (a cross-origin isolated page)
-  timing.threads = 1 + M._ms_web_view_threads(view, helpers());
   opened = { name, token, blob };
   applySections();
   const bp = M._malloc(32);
@@ -446,6 +450,7 @@ async function run(msg) {
     const count = M._ms_web_view_plan_count(view);
     if (U32()[settledPtr >> 2] && looking) {
       postMesh(false, bytes);
+      startHelpers();
       continue;
     }
     if (U32()[settledPtr >> 2]) {
@@ -461,6 +466,7 @@ async function run(msg) {
     // the next round's fetches)
     if (changed(count) || (rounds === 0 && bounds))
       postMesh(false, bytes);
+    startHelpers();                 // (the home camera's: after the root's picture)
     const wanted = [];
     for (let k = 0; k < count; ++k)
       wanted.push([M._ms_web_view_plan_cell(view, k), M._ms_web_view_plan_bits(view, k),
