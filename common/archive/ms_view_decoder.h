@@ -202,6 +202,17 @@ ms_status ms_view_cell_state_copy(const ms_view *view, uint32_t cell, ms_codec_s
 ms_status ms_view_cell_bounds(ms_view *view, uint32_t cell, double lo[3], double hi[3],
                               ms_error *err);
 
+/* The true error of a SHOWN cell's current complex (docs/CLIENT.md, "The
+ * error of a cut"), world units: an upper bound of the distance from each
+ * point it draws to every full-precision vertex that point stands for. From
+ * its decoder, ms_codec_decoder_error_bound (geometry ahead: the farthest
+ * point of the point's known occupied descendants, often well below the
+ * half-diagonal, and above it for some points drawn off their centre);
+ * without one (drawn at its kd-cells' centres) the kd-cell's half-diagonal,
+ * (√3 / 2) · box_side / 2^bits. 0 for an empty cell; -1 for a cell not
+ * SHOWN. Kept until the cell's precision or decoder changes. */
+double ms_view_cell_error_bound(ms_view *view, uint32_t cell);
+
 /* ---- selection: what the client calls every frame ---------------------- */
 
 #define MS_VIEW_TARGET_HIDDEN 0xFFu /* an ancestor is shown */
@@ -286,6 +297,11 @@ void ms_view_select_report_free(ms_view_select_report *report);
 /* The target the last ms_view_select gave cell (MS_VIEW_TARGET_HIDDEN for a
  * cell it did not reach, learned since, or unknown). */
 uint8_t ms_view_target(const ms_view *view, uint32_t cell);
+/* Whether that target is a step on the way: a decoded cell whose error bound
+ * is above its tolerance is sent one bit below the half-diagonal's need, and
+ * the bound it has there decides whether it goes on (docs/CLIENT.md, "The
+ * error of a cut"); a view is not complete while a cell steps. */
+bool ms_view_target_provisional(const ms_view *view, uint32_t cell);
 
 typedef struct ms_view_apply_report {
     uint32_t splits, merges, refined, coarsened;

@@ -19,6 +19,8 @@ typedef struct vcell {
     uint8_t state;
     uint8_t bits;           /* current precision (SHOWN), bits_max (SPLIT) */
     uint8_t target;         /* the last selection's (ms_view_select), MS_VIEW_TARGET_* or bits */
+    bool provisional;       /* target one bit below the half-diagonal's need, pending the
+                             * error bound there (ms_view_target_provisional) */
     bool has_start;         /* start state held (non-root cells once their parent split) */
     ms_codec_state start;
     ms_codec_decoder *dec;
@@ -48,6 +50,12 @@ typedef struct vcell {
     /* versions of the stitched triangles (ms_view_mesh.run_version) */
     uint8_t stitched_state, stitched_bits; /* as the last stitch saw them */
     uint64_t stamp;         /* renewed when a stitch sees them change */
+    /* ms_view_cell_error_bound's last answer (world units), for bound_bits
+     * with decoder bound_dec */
+    bool bound_valid;
+    uint8_t bound_bits;
+    const ms_codec_decoder *bound_dec;
+    double bound;
 } vcell;
 
 /* Cells are kept per sibling group: ids are breadth-first, so every group of
