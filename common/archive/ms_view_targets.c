@@ -108,16 +108,26 @@ static void list_push(uint32_t **list, size_t *count, size_t *cap, bool *failed,
  * against its tolerance, once it is decoded (docs/CLIENT.md, "The error of a
  * cut"): within it, the cell refines no further, whatever its half-diagonal
  * says (geometry ahead often draws well within it); above it, one bit more at
- * least. A cell whose stream runs ahead (or not yet known to run ahead) steps
- * to one bit below the half-diagonal's need, where its own bound decides the
- * last bit, and coarsens only with a bit more to spare than the hysteresis (a
- * point drawn off its centre may be up to the whole diagonal from a vertex). */
+ * least. A cell whose stream runs ahead (or not yet known to run ahead: a
+ * hidden cell too) steps to one bit below the half-diagonal's need, where its
+ * own bound decides the last bit, and coarsens only with a bit more to spare
+ * than the hysteresis (a point drawn off its centre may be up to the whole
+ * diagonal from a vertex). */
 static unsigned bound_want(ms_view *v, const ms_camera *cam, const ms_frustum *f,
                            const ms_view_select_params *p, uint32_t cell, vcell *c, double need,
                            unsigned current, unsigned top, unsigned want)
 {
-    if (c->state != MS_VIEW_SHOWN || c->rec.geometry_length == 0)
+    if (c->state == MS_VIEW_SPLIT || c->rec.geometry_length == 0)
         return want;
+    if (c->state == MS_VIEW_HIDDEN) {
+        /* shown at bits_min once its parent splits, knowing nothing yet: it
+         * steps as a decoded cell above its tolerance does */
+        if (want > current + 1 && current + 1 <= top) {
+            want--;
+            c->provisional = true;
+        }
+        return want;
+    }
     double e = ms_view_cell_error_bound(v, cell);
     if (!(e >= 0))
         return want;
