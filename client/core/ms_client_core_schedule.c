@@ -250,10 +250,6 @@ static void schedule_shown(ms_core *c, dec_pass *pass, uint32_t i)
     d->goal_bytes = ms_archive_geometry_prefix(c->index, i, goal);
     if (d->pending)
         ms_core_hand_over(c, i);
-    /* a cell stepping towards its bound (ms_view_target_provisional) has
-     * another target to come once decoded */
-    if (ms_view_target_provisional(c->view, i))
-        pass->complete = false;
     bool loading = schedule_geometry(c, pass, i, goal, avail, visible, need);
     loading |= schedule_colour(c, pass, i, goal, visible, need);
     loading |= schedule_apo(c, pass, i, visible, need, bits);

@@ -297,11 +297,6 @@ void ms_view_select_report_free(ms_view_select_report *report);
 /* The target the last ms_view_select gave cell (MS_VIEW_TARGET_HIDDEN for a
  * cell it did not reach, learned since, or unknown). */
 uint8_t ms_view_target(const ms_view *view, uint32_t cell);
-/* Whether that target is a step on the way: a decoded cell whose error bound
- * is above its tolerance is sent one bit below the half-diagonal's need, and
- * the bound it has there decides whether it goes on (docs/CLIENT.md, "The
- * error of a cut"); a view is not complete while a cell steps. */
-bool ms_view_target_provisional(const ms_view *view, uint32_t cell);
 
 typedef struct ms_view_apply_report {
     uint32_t splits, merges, refined, coarsened;

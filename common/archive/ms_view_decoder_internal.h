@@ -19,8 +19,6 @@ typedef struct vcell {
     uint8_t state;
     uint8_t bits;           /* current precision (SHOWN), bits_max (SPLIT) */
     uint8_t target;         /* the last selection's (ms_view_select), MS_VIEW_TARGET_* or bits */
-    bool provisional;       /* target one bit below the half-diagonal's need, pending the
-                             * error bound there (ms_view_target_provisional) */
     bool has_start;         /* start state held (non-root cells once their parent split) */
     ms_codec_state start;
     ms_codec_decoder *dec;
@@ -56,6 +54,11 @@ typedef struct vcell {
     uint8_t bound_bits;
     const ms_codec_decoder *bound_dec;
     double bound;
+    /* over_valid: its bound at over_bits (the same whenever it is decoded
+     * there), which the selection found above the tolerance and refined from */
+    bool over_valid;
+    uint8_t over_bits;
+    double over_bound;
 } vcell;
 
 /* Cells are kept per sibling group: ids are breadth-first, so every group of

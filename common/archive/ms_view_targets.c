@@ -106,28 +106,20 @@ static void list_push(uint32_t **list, size_t *count, size_t *cap, bool *failed,
 
 /* The true error of what a shown cell draws now (ms_view_cell_error_bound)
  * against its tolerance, once it is decoded (docs/CLIENT.md, "The error of a
- * cut"): within it, the cell refines no further, whatever its half-diagonal
- * says (geometry ahead often draws well within it); above it, one bit more at
- * least. A cell whose stream runs ahead (or not yet known to run ahead: a
- * hidden cell too) steps to one bit below the half-diagonal's need, where its
- * own bound decides the last bit, and coarsens only with a bit more to spare
- * than the hysteresis (a point drawn off its centre may be up to the whole
- * diagonal from a vertex). */
+ * cut"): above it (a point drawn off its centre may be up to the whole
+ * diagonal from a vertex it stands for), one bit more at least, so that a
+ * complete view is within its tolerance; the cell remembers that precision's
+ * bound and coarsens back to it only when it is within the tolerance there
+ * (no flicker between the two). The half-diagonal's need decides the rest: a
+ * bound below it is not used to stop early (the cut would depend on the
+ * precisions a cell came through, the next bit's bound being unknown before
+ * it is decoded). */
 static unsigned bound_want(ms_view *v, const ms_camera *cam, const ms_frustum *f,
-                           const ms_view_select_params *p, uint32_t cell, vcell *c, double need,
+                           const ms_view_select_params *p, uint32_t cell, vcell *c,
                            unsigned current, unsigned top, unsigned want)
 {
-    if (c->state == MS_VIEW_SPLIT || c->rec.geometry_length == 0)
+    if (c->state != MS_VIEW_SHOWN || c->rec.geometry_length == 0 || want > current)
         return want;
-    if (c->state == MS_VIEW_HIDDEN) {
-        /* shown at bits_min once its parent splits, knowing nothing yet: it
-         * steps as a decoded cell above its tolerance does */
-        if (want > current + 1 && current + 1 <= top) {
-            want--;
-            c->provisional = true;
-        }
-        return want;
-    }
     double e = ms_view_cell_error_bound(v, cell);
     if (!(e >= 0))
         return want;
@@ -137,24 +129,19 @@ static unsigned bound_want(ms_view *v, const ms_camera *cam, const ms_frustum *f
     double tol = cell_tolerance(p, cell, &c->rec);
     if (!ms_frustum_keeps_box(f, lo, hi, p->margin))
         tol *= exp2(p->culled_bits_less);
-    double px = d > 0 ? e * ms_camera_pixels_per_unit(cam) / d : INFINITY;
-    bool ahead = !c->dec || ms_codec_decoder_header(c->dec)->ahead > 0;
-    if (want < current && ahead) {
-        double down = ceil(need + 1.0 + p->hysteresis);
-        want = down >= (double)current ? current
-               : down > (double)want  ? (unsigned)down
-                                      : want;
+    double ppu = d > 0 ? ms_camera_pixels_per_unit(cam) / d : INFINITY;
+    if (want < current) {
+        if (c->over_valid && c->over_bits >= want && c->over_bits < current &&
+            c->over_bound * ppu > tol)
+            want = c->over_bits + 1u;
+        return want;
     }
-    if (px <= tol)
-        return want < current ? want : current;
-    unsigned next = current + 1 <= top ? current + 1 : top;
-    if (want <= current)
-        return next;
-    if (ahead && want > next) {
-        want--;
-        c->provisional = true; /* its bound there decides: not final */
-    }
-    return want;
+    if (e * ppu <= tol || current >= top)
+        return want;
+    c->over_valid = true;
+    c->over_bits = (uint8_t)current;
+    c->over_bound = e;
+    return current + 1;
 }
 
 static void select_cell(ms_view *v, const ms_camera *cam, const ms_frustum *f,
@@ -162,7 +149,6 @@ static void select_cell(ms_view *v, const ms_camera *cam, const ms_frustum *f,
                         ms_view_select_report *report)
 {
     vcell *c = ms_view_vcell(v, cell);
-    c->provisional = false;
     double need = select_need(v, cam, f, p, cell, c);
     unsigned current = c->state == MS_VIEW_SHOWN ? c->bits
                        : c->state == MS_VIEW_SPLIT ? c->rec.bits_max + 1u
@@ -177,7 +163,7 @@ static void select_cell(ms_view *v, const ms_camera *cam, const ms_frustum *f,
     if (current > top)
         current = top;
     unsigned want = ms_select_bits(need, current, c->rec.bits_min, top, p->hysteresis);
-    want = bound_want(v, cam, f, p, cell, c, need, current, top, want);
+    want = bound_want(v, cam, f, p, cell, c, current, top, want);
     if (report && top < v->header.bits && need > (double)top)
         report->capped_count++;
     if (need > (double)top)
@@ -218,12 +204,6 @@ void ms_view_select(ms_view *v, const ms_camera *cam, const ms_view_select_param
     ms_frustum f;
     params_frustum(cam, p, &f);
     select_cell(v, cam, &f, p, 0, report);
-}
-
-bool ms_view_target_provisional(const ms_view *v, uint32_t cell)
-{
-    const vcell *c = ms_view_vcell(v, cell);
-    return c && c->target != MS_VIEW_TARGET_HIDDEN && c->provisional;
 }
 
 uint8_t ms_view_target(const ms_view *v, uint32_t cell)
