@@ -286,7 +286,10 @@ typedef struct ms_view_select_report {
  * precision their nearest point needs (with hysteresis against the current
  * state); culled cells get that need less culled_bits_less bits (a large value
  * keeps them at their bits_min; a small one keeps precision jumps at the
- * frustum border small). On a partly known view a cell whose children's
+ * frustum border small). A shown cell whose error bound
+ * (ms_view_cell_error_bound) projects above its tolerance gets one bit more
+ * at least, and does not coarsen back to that precision while it would be
+ * above it there. On a partly known view a cell whose children's
  * records are not known gets bits_max instead of SPLIT; report (NULL: none)
  * lists such cells and those near splitting. With the root not known yet
  * every target is HIDDEN. */
