@@ -40,6 +40,8 @@ double ms_core_cell_need(const ms_core *c, const frame_view *fv, uint32_t cell, 
     return isfinite(need) ? need : 64.0;
 }
 
+/* The true error on screen of what shown cell `cell` draws now: its error
+ * bound (ms_view_cell_error_bound) projected at its cube's nearest point. */
 static double cell_error_px(const ms_core *c, const frame_view *fv, uint32_t cell, unsigned bits)
 {
     const ms_archive_header *h = ms_archive_get_header(c->index);
@@ -49,7 +51,10 @@ static double cell_error_px(const ms_core *c, const frame_view *fv, uint32_t cel
     /* nothing nearer than the near plane is drawn */
     if (d < fv->cam.near_distance)
         d = fv->cam.near_distance;
-    return ms_screen_error_px(&fv->cam, h->box_side, bits, d);
+    double e = ms_view_cell_error_bound(c->view, cell);
+    if (e < 0)
+        return ms_screen_error_px(&fv->cam, h->box_side, bits, d);
+    return e * ms_camera_pixels_per_unit(&fv->cam) / d;
 }
 
 uint8_t ms_core_clamp_priority(double p)

@@ -70,6 +70,12 @@ typedef struct ms_codec_state {
      * stream with geometry ahead gives the barycentre of the vertex's known
      * descendants; ignored by the encoder, equality and checksums. */
     uint16_t *rep;
+    /* Optional (NULL from every producer but a decoder): per vertex, an upper
+     * bound, in grid units (box size / 2^bits), of the distance from the point
+     * drawn for it (rep, or its centre) to every full-precision vertex it
+     * stands for (ms_codec_decoder_error_bound); follows the vertices in
+     * ms_codec_state_canonicalise. */
+    float *bound;
 } ms_codec_state;
 
 void ms_codec_state_free(ms_codec_state *s);
@@ -222,6 +228,19 @@ ms_status ms_codec_decoder_mesh(const ms_codec_decoder *d, ms_mesh *out, ms_erro
  * the prefix of its first descendant at the state's level (its lower bits zero);
  * ms_codec_decoder_vertex_levels tells which. */
 ms_status ms_codec_decoder_state(const ms_codec_decoder *d, ms_codec_state *out, ms_error *err);
+
+/* The true error of the points drawn (docs/CODEC.md §4.1, "The error of a
+ * drawn point"): every full-precision vertex a cell of the current state
+ * stands for lies in one of its known occupied descendants (geometry ahead),
+ * else in its kd-cell; the bound of a cell is the largest distance from its
+ * drawn point (as ms_codec_state.rep places it, rounding included) to a point
+ * of those boxes, in grid units (box size / 2^P), computed exactly per axis and
+ * rounded up. Returns the largest over the cells of the stream's own region
+ * (all cells without a region; foreign cells are drawn at their owner's
+ * point), 0 without a vertex. At most the full diagonal of a cell; the
+ * half-diagonal when the cell is drawn at its centre knowing nothing below it
+ * (no geometry ahead, the window's first level, its last). */
+double ms_codec_decoder_error_bound(const ms_codec_decoder *d);
 
 /* levels[i] = kd-level of vertex i of ms_codec_decoder_state (the current level,
  * or the coarser one at which a foreign cell froze); levels has

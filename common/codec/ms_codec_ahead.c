@@ -3,6 +3,8 @@
  * many levels before its connectivity, and is drawn at their barycentre, which
  * always lies inside the cell. The decoder's refinement of such a cell reads its
  * split off the mask; these functions keep the masks and the drawn points. */
+#include <math.h>
+
 #include "ms_codec_decisions.h"
 #include "ms_codec_internal.h"
 #include "ms_codec_model.h"
@@ -189,4 +191,48 @@ uint64_t ms_ahead_parent_mask(uint64_t lo, uint64_t hi, unsigned d, unsigned dc)
         hi = coarser_mask(hi, dc);
     }
     return lo | hi << (1u << (d - 1));
+}
+
+unsigned ms_ahead_state_depth(const ms_codec_decoder *d)
+{
+    /* at the window's first level every cell knows only itself (the prelude
+     * belongs to refining it) */
+    return d->h.ahead && d->level > d->Lmin ? ms_ahead_depth(d, d->level) : 0;
+}
+
+double ms_ahead_cell_bound(const ms_complex *cx, uint32_t s, unsigned depth)
+{
+    unsigned level = ms_cx_level(cx, s);
+    /* the drawn point, in doubled grid units, exactly where a renderer puts it
+     * from ms_codec_state.rep: its cell's minimum corner plus the 16-bit
+     * fraction of its width (dyadic: exact in a double) */
+    double p[3];
+    uint16_t f[3] = {32768, 32768, 32768};
+    if (cx->rep)
+        ms_cx_rep_fraction(cx, s, f);
+    for (int a = 0; a < 3; ++a) {
+        double w = (double)ms_cx_width(cx, level, a);
+        p[a] = ((double)cx->cen[s][a] - w) + (double)f[a] * w / 32768.0;
+    }
+    uint64_t m = cx->ahead ? cx->ahead[s] : 0;
+    /* no mask (a foreign cell, no geometry ahead) or none of this depth: the
+     * whole cell, descendant 0 at depth 0 */
+    if (m == 0 || depth > MS_CODEC_MAX_AHEAD || (depth < 6 && (m >> (1u << depth)) != 0))
+        m = 1, depth = 0;
+    double worst = 0;
+    for (uint64_t b = m; b; b &= b - 1) {
+        uint32_t i = (uint32_t)__builtin_ctzll(b);
+        double d2 = 0;
+        for (int a = 0; a < 3; ++a) {
+            double c = (double)descendant_centre2(cx, s, level, i, depth, a);
+            double hw = (double)ms_cx_width(cx, level + depth, a); /* doubled half width */
+            double e = fmax(fabs(p[a] - (c - hw)), fabs(p[a] - (c + hw)));
+            d2 += e * e;
+        }
+        if (d2 > worst)
+            worst = d2;
+    }
+    /* halved back to grid units; the squares and the root round by a few
+     * ulps at most: 2^-40 more covers them */
+    return 0.5 * sqrt(worst) * (1.0 + 0x1p-40);
 }

@@ -1,5 +1,6 @@
 /* The codec decoder's read-outs and release: its levels and counts, the
  * current complex as a state or a mesh (ms_codec.h). */
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -40,13 +41,46 @@ void ms_codec_decoder_destroy(ms_codec_decoder *d)
     free(d);
 }
 
+/* b as a float no smaller than b (an upper bound stays one). */
+static float float_up(double b)
+{
+    float f = (float)b;
+    return (double)f < b ? nextafterf(f, INFINITY) : f;
+}
+
 ms_status ms_codec_decoder_state(const ms_codec_decoder *d, ms_codec_state *out, ms_error *err)
 {
     if (d->broken) {
         memset(out, 0, sizeof *out);
         return ms_error_set(err, MS_ERR_CORRUPT, "decoder stopped after a corrupted stream");
     }
-    return ms_codec_export_complex(&d->cx, d->order, d->norder, d->level, out, err);
+    float *bound = malloc((d->norder ? d->norder : 1) * sizeof *bound);
+    if (!bound) {
+        memset(out, 0, sizeof *out);
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory exporting a complex");
+    }
+    unsigned depth = ms_ahead_state_depth(d);
+    for (uint32_t i = 0; i < d->norder; ++i)
+        bound[i] = float_up(ms_ahead_cell_bound(&d->cx, d->order[i], depth));
+    ms_status s = ms_codec_export_complex(&d->cx, d->order, d->norder, d->level, bound, out, err);
+    free(bound);
+    return s;
+}
+
+double ms_codec_decoder_error_bound(const ms_codec_decoder *d)
+{
+    const ms_codec_region *region = d->h.has_region ? &d->h.region : NULL;
+    unsigned depth = ms_ahead_state_depth(d);
+    double worst = 0;
+    for (uint32_t i = 0; i < d->norder; ++i) {
+        uint32_t s = d->order[i];
+        if (region && cell_outside(&d->cx, region, s))
+            continue;
+        double b = ms_ahead_cell_bound(&d->cx, s, depth);
+        if (b > worst)
+            worst = b;
+    }
+    return worst;
 }
 
 size_t ms_codec_decoder_vertex_levels(const ms_codec_decoder *d, uint8_t *levels)

@@ -54,9 +54,11 @@ ms_status ms_codec_run_encoder(ms_codec_header *h, const ms_codec_state *start,
                                ms_error *err);
 
 /* Exports a complex whose live cells (order[0..n), sorted by key) all sit at
- * `level` as a canonical ms_codec_state. */
+ * `level` as a canonical ms_codec_state; bound (NULL, or n values in order's
+ * order) becomes its per-vertex bound. */
 ms_status ms_codec_export_complex(const ms_complex *cx, const uint32_t *order, uint32_t n,
-                                  unsigned level, ms_codec_state *out, ms_error *err);
+                                  unsigned level, const float *bound, ms_codec_state *out,
+                                  ms_error *err);
 
 /* Sorts n tuples of `arity` (2 or 3) vertex indices, each below index_limit,
  * lexicographically in place (stable; radix sort). MS_ERR_NOMEM on allocation
@@ -138,6 +140,12 @@ void ms_ahead_forget(ms_codec_decoder *d);
 /* Cell s (at `level`, mask of depth - 1, its point up to date) learns its
  * descendants one level deeper; its point follows. */
 void ms_ahead_deepen(ms_codec_decoder *d, uint32_t s, unsigned level, unsigned depth);
+/* The error bound of cell s (ms_codec_decoder_error_bound), its mask of
+ * `depth` levels (0: it knows only itself), grid units, rounded up. */
+double ms_ahead_cell_bound(const ms_complex *cx, uint32_t s, unsigned depth);
+/* The depth of the masks of the current state's cells: 0 at the window's first
+ * level (before the prelude) and without geometry ahead. */
+unsigned ms_ahead_state_depth(const ms_codec_decoder *d);
 /* Recomputes the point drawn for cell s at `level` from its mask of `depth`. */
 void ms_ahead_update_rep(ms_complex *cx, uint32_t s, unsigned level, unsigned depth);
 /* The mask of a cell at kd-level L (depth d) from its children's at L + 1

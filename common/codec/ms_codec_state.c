@@ -15,6 +15,7 @@ void ms_codec_state_free(ms_codec_state *s)
         return;
     free(s->cells);
     free(s->rep);
+    free(s->bound);
     free(s->tris);
     free(s->edges);
     memset(s, 0, sizeof *s);
@@ -139,6 +140,17 @@ ms_status ms_codec_state_canonicalise(ms_codec_state *s, ms_error *err)
         if (rep) {
             free(s->rep);
             s->rep = rep;
+        }
+    }
+    if (st == MS_OK && s->bound) { /* and their error bounds */
+        float *bound = malloc((n ? n : 1) * sizeof *bound);
+        if (!bound)
+            st = ms_error_set(err, MS_ERR_NOMEM, "out of memory canonicalising a complex");
+        for (size_t i = 0; bound && i < n; ++i)
+            bound[i] = s->bound[pos[i]];
+        if (bound) {
+            free(s->bound);
+            s->bound = bound;
         }
     }
     for (size_t t = 0; st == MS_OK && t < s->tri_count; ++t) {

@@ -127,6 +127,64 @@ static void assert_ahead_points(const ms_codec_state *a, const ms_codec_state *c
     }
 }
 
+/* The error bound of every vertex of state a (kd-level L; docs/CODEC.md §4.1,
+ * "The error of a drawn point"), computed here independently: the point is
+ * drawn where a renderer puts it (its cell's corner plus rep / 65536 of its
+ * width, else its centre), the cells it knows are those at level M = min(L +
+ * k, D) holding vertices of the full complex canon inside it (M = L at level 0
+ * and with k = 0), and the bound is the largest distance from the point to a
+ * corner of one of them: the state's float must be that value rounded up
+ * (within a float's precision). Every full-precision vertex inside the cell,
+ * its whole grid cell even, then lies within the bound (checked too), and the
+ * bound never exceeds the cell's whole diagonal; without anything known below
+ * the cell it is exactly the half-diagonal. */
+static void assert_bounds(const ms_codec_state *a, const ms_codec_state *canon, unsigned L,
+                          unsigned k)
+{
+    unsigned P = canon->bits, D = 3 * P;
+    unsigned M = L == 0 || k == 0 ? L : L + k < D ? L + k : D;
+    assert_non_null(a->bound);
+    size_t j = 0;
+    for (size_t i = 0; i < a->vertex_count; ++i) {
+        uint64_t prefix = a->cells[i];
+        while (j < canon->vertex_count && (canon->cells[j] >> (D - L)) < prefix)
+            j++;
+        uint32_t c[3];
+        ms_quant_unkey(canon->cells[j], P, c);
+        double p[3], w[3], diag = 0;
+        for (int ax = 0; ax < 3; ++ax) {
+            w[ax] = (double)(1u << (P - (L + 2 - (unsigned)ax) / 3));
+            double corner = (double)(c[ax] & ~((uint32_t)w[ax] - 1));
+            p[ax] = corner + (a->rep ? a->rep[3 * i + (size_t)ax] / 65536.0 : 0.5) * w[ax];
+            diag += w[ax] * w[ax];
+        }
+        double want = 0, worst_vertex = 0;
+        for (size_t t = j; t < canon->vertex_count && (canon->cells[t] >> (D - L)) == prefix; ++t) {
+            uint32_t v[3];
+            ms_quant_unkey(canon->cells[t], P, v);
+            double dk = 0, dv = 0;
+            for (int ax = 0; ax < 3; ++ax) {
+                uint32_t wm = 1u << (P - (M + 2 - (unsigned)ax) / 3);
+                double lo = (double)(v[ax] & ~(wm - 1)), hi = lo + wm;
+                double e = fmax(fabs(p[ax] - lo), fabs(p[ax] - hi));
+                dk += e * e;
+                double ev = fmax(fabs(p[ax] - v[ax]), fabs(p[ax] - (v[ax] + 1.0)));
+                dv += ev * ev;
+            }
+            want = fmax(want, sqrt(dk));
+            worst_vertex = fmax(worst_vertex, sqrt(dv));
+        }
+        double got = a->bound[i];
+        if (!(got >= want && got <= want * (1.0 + 0x1p-20)))
+            fail_msg("level %u (ahead %u), vertex %zu: error bound %.9g, its known cells' "
+                     "farthest corner at %.9g", L, k, i, got, want);
+        assert_true(worst_vertex <= got);
+        assert_true(got <= sqrt(diag) * (1.0 + 0x1p-20));
+        if (M == L)
+            assert_true(fabs(got - 0.5 * sqrt(diag)) <= 0.5 * sqrt(diag) * 0x1p-20);
+    }
+}
+
 static void check_roundtrip_ahead(const ms_mesh *mesh, unsigned bits, unsigned level_step,
                                   bool twice, unsigned ahead, ms_codec_check_result *res);
 
@@ -198,6 +256,7 @@ static void check_roundtrip_ahead(const ms_mesh *mesh, unsigned bits, unsigned l
             assert_int_equal(ms_codec_decoder_state(d, &a, &err), MS_OK);
             assert_valid_complex(&a);
             assert_ahead_points(&a, &canon, L, ahead);
+            assert_bounds(&a, &canon, L, ahead);
             ms_ref_coarsen(&canon, L, &r);
             if (!ms_codec_state_equal(&a, &r, false))
                 fail_msg("level %u differs from the reference: V %zu/%zu T %zu/%zu E %zu/%zu", L,
@@ -220,6 +279,7 @@ static void check_roundtrip_ahead(const ms_mesh *mesh, unsigned bits, unsigned l
         if (s1.rep)
             assert_memory_equal(s1.rep, s2.rep, 3 * s1.vertex_count * sizeof *s1.rep);
         assert_ahead_points(&s1, &canon, mid, ahead);
+        assert_bounds(&s1, &canon, mid, ahead);
         ms_codec_state_free(&s1);
         ms_codec_state_free(&s2);
         assert_int_equal(ms_codec_decoder_set_level(d, D, &err), MS_OK);
