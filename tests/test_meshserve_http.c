@@ -3,6 +3,7 @@
  * metrics, SIGHUP rescans, SIGTERM drains. */
 #include <errno.h>
 #include <stdarg.h>
+#include <stdbool.h>
 #include <stddef.h>
 #include <setjmp.h>
 #include <stdint.h>
@@ -989,6 +990,86 @@ static void test_quiet_client_kept_at_the_cap(void **state)
         close(trickler[i]);
 }
 
+/* The server's read system calls so far (/proc/PID/io's syscr: read, readv
+ * and the like): a count of its work that the machine's load does not change. */
+static uint64_t read_calls(pid_t pid)
+{
+    char path[64], line[128];
+    snprintf(path, sizeof path, "/proc/%d/io", (int)pid);
+    FILE *file = fopen(path, "r");
+    assert_non_null(file);
+    unsigned long long calls = 0;
+    bool found = false;
+    while (!found && fgets(line, sizeof line, file))
+        found = sscanf(line, "syscr: %llu", &calls) == 1;
+    fclose(file);
+    assert_true(found);
+    return calls;
+}
+
+/* Issue 32, item 8 (scripts/attack: some 28,000 slowloris reconnections shed
+ * at the cap in a run): the work per connection shed. Seven connections send
+ * the start of a header each (trickling, /metrics counts them); then SHED + 1
+ * newcomers do the same one at a time, each after the test has seen the
+ * connection before it end: the first takes the eighth slot, each later one
+ * sheds the oldest trickling connection. Last, a whole request sheds one more
+ * and is answered. The server read SHED + 2 times over that: once for each
+ * newcomer's header and once for the whole request, nothing for the SHED + 1
+ * connections it shed: each was freed at once, its socket closed (before,
+ * shut down and read to its end of stream: one read more per shed
+ * connection, 2 * SHED + 3 reads). */
+static void test_shed_connection_costs_no_read(void **state)
+{
+    server_fixture *f = *state;
+    enum { CAP = 8, SHED = 40 };
+    int trickler[CAP + SHED];
+    const char start[] = "GET /healthz HTTP/1.1\r\n";
+    for (int i = 0; i < CAP - 1; ++i) {
+        trickler[i] = connect_loopback(f->http_port);
+        assert_int_equal(send(trickler[i], start, sizeof start - 1, MSG_NOSIGNAL),
+                         (ssize_t)sizeof start - 1);
+    }
+    uint64_t trickling = 0;
+    for (int tries = 0; tries < 500 && trickling != CAP - 1; ++tries) { /* at most 5 s */
+        assert_int_equal(
+            ms_test_metric(f->http_port, "meshstream_http_connections_trickling", &trickling), 0);
+        if (trickling != CAP - 1)
+            usleep(10000);
+    }
+    assert_int_equal(trickling, CAP - 1);
+    uint64_t reads_before = read_calls(f->pid);
+    for (int i = CAP - 1; i < CAP + SHED; ++i) {
+        trickler[i] = connect_loopback(f->http_port);
+        assert_int_equal(send(trickler[i], start, sizeof start - 1, MSG_NOSIGNAL),
+                         (ssize_t)sizeof start - 1);
+        if (i == CAP - 1)
+            continue; /* the eighth slot was free */
+        char byte;
+        struct pollfd p = {trickler[i - CAP], POLLIN, 0};
+        assert_int_equal(poll(&p, 1, 5000), 1); /* a bound, not a measurement */
+        assert_true(recv(trickler[i - CAP], &byte, 1, 0) <= 0); /* shed: end of stream or reset */
+    }
+    int whole = connect_loopback(f->http_port);
+    const char request[] = "GET /healthz HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n";
+    assert_int_equal(send(whole, request, sizeof request - 1, MSG_NOSIGNAL),
+                     (ssize_t)sizeof request - 1);
+    char answer[1024];
+    read_answer(whole, answer, sizeof answer);
+    assert_memory_equal(answer, "HTTP/1.1 200 OK\r\n", 17);
+    uint64_t reads = read_calls(f->pid) - reads_before;
+    close(whole);
+    char byte;
+    assert_true(recv(trickler[SHED], &byte, 1, 0) <= 0); /* shed by the whole request */
+    for (int i = SHED + 1; i < CAP + SHED; ++i) {
+        errno = 0;
+        assert_int_equal(recv(trickler[i], &byte, 1, MSG_DONTWAIT), -1);
+        assert_true(errno == EAGAIN || errno == EWOULDBLOCK);
+    }
+    for (int i = 0; i < CAP + SHED; ++i)
+        close(trickler[i]);
+    assert_int_equal(reads, SHED + 2);
+}
+
 static void test_hostile_requests(void **state)
 {
     server_fixture *f = *state;
@@ -1084,6 +1165,8 @@ int main(void)
                                         stop_server),
         cmocka_unit_test_setup_teardown(test_accept_queue_holds_a_burst, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_quiet_client_kept_at_the_cap, start_capped_server,
+                                        stop_server),
+        cmocka_unit_test_setup_teardown(test_shed_connection_costs_no_read, start_capped_server,
                                         stop_server),
         cmocka_unit_test_setup_teardown(test_hostile_requests, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_sighup_adds_model_and_sigterm_drains, start_server, stop_server),
