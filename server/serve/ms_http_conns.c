@@ -174,6 +174,36 @@ static void trickle_check(struct evbuffer *input, const struct evbuffer_cb_info 
         set_trickling(t, true);
 }
 
+/* A connection accepted in this turn's batch, before its first read (evhttp
+ * has made its connection; the next poll reads it): when the start of a
+ * request header waits in its socket without the header's end, it is
+ * demoted now (trickle_check's rule, applied before the read instead of
+ * after it), so that in the next turns the complete requests of the batch
+ * are read first and its own bytes only when no other work is ready. At the
+ * cap a connection demoted so is shed like any trickling one, and one shed
+ * before its read costs no read and no parse: in a burst of reconnections the
+ * server falls behind, and the slowloris connections queued in the batches
+ * before a ready request no longer delay it by their reads. A connection
+ * with nothing in its socket yet (a client slow to send) stays at the normal
+ * priority, counted as quiet. One peek of at most 4 KiB (evbuffer's own
+ * largest read). */
+static void classify_unread(tracked_connection *t)
+{
+    if (!t || !t->evcon || t->header_begun || t->trickling ||
+        evbuffer_get_length(bufferevent_get_input(t->bev)) != 0)
+        return;
+    evutil_socket_t fd = bufferevent_getfd(t->bev);
+    char peek[4096];
+    ssize_t n = fd >= 0 ? recv(fd, peek, sizeof peek, MSG_PEEK | MSG_DONTWAIT) : -1;
+    if (n <= 0)
+        return;
+    for (ssize_t i = 1; i < n; ++i)
+        if (peek[i] == '\n' && (peek[i - 1] == '\n' || (i >= 2 && peek[i - 1] == '\r' &&
+                                                           peek[i - 2] == '\n')))
+            return; /* a whole header: read it as any other */
+    set_trickling(t, true);
+}
+
 void ms_http_conns_request(ms_http_conns *conns, struct evhttp_request *req)
 {
     struct evhttp_connection *evcon = evhttp_request_get_connection(req);
@@ -302,6 +332,7 @@ static struct bufferevent *new_connection(struct event_base *base, void *arg)
     if (!bev)
         return NULL; /* evhttp makes one itself; that one goes untracked */
     adopt(conns->pending); /* evhttp has made the previous one's connection */
+    classify_unread(conns->pending);
     conns->pending = NULL;
     if (conns->live >= conns->server->config.http_max_connections) {
         tracked_connection *idle = shed_candidate(conns);
