@@ -3,6 +3,7 @@
  * metrics, SIGHUP rescans, SIGTERM drains. */
 #include <errno.h>
 #include <stdarg.h>
+#include <stdbool.h>
 #include <stddef.h>
 #include <setjmp.h>
 #include <stdint.h>
@@ -827,11 +828,18 @@ static void test_trickling_headers_wait(void **state)
     enum { TRICKLERS = 16 };
     int trickler[TRICKLERS];
     const char start[] = "GET /healthz HTTP/1.1\r\n";
-    for (int i = 0; i < TRICKLERS; ++i) {
+    /* Accepted first, with nothing to read: each is demoted at its first
+     * read, which /metrics then counts (one demoted at its accept would be
+     * counted before its read, and a turn reading it could be the one the
+     * stop below interrupts). */
+    for (int i = 0; i < TRICKLERS; ++i)
         trickler[i] = connect_loopback(f->http_port);
+    ms_test_http_response r;
+    get(f, "/healthz", NULL, 200, &r); /* after the sixteen's accepts */
+    ms_test_http_free(&r);
+    for (int i = 0; i < TRICKLERS; ++i)
         assert_int_equal(send(trickler[i], start, sizeof start - 1, MSG_NOSIGNAL),
                          (ssize_t)sizeof start - 1);
-    }
     uint64_t trickling = 0;
     for (int tries = 0; tries < 500 && trickling != TRICKLERS; ++tries) { /* at most 5 s */
         assert_int_equal(
@@ -989,6 +997,165 @@ static void test_quiet_client_kept_at_the_cap(void **state)
         close(trickler[i]);
 }
 
+/* The server's read system calls so far (/proc/PID/io's syscr: read, readv
+ * and the like): a count of its work that the machine's load does not change. */
+static uint64_t read_calls(pid_t pid)
+{
+    char path[64], line[128];
+    snprintf(path, sizeof path, "/proc/%d/io", (int)pid);
+    FILE *file = fopen(path, "r");
+    assert_non_null(file);
+    unsigned long long calls = 0;
+    bool found = false;
+    while (!found && fgets(line, sizeof line, file))
+        found = sscanf(line, "syscr: %llu", &calls) == 1;
+    fclose(file);
+    assert_true(found);
+    return calls;
+}
+
+/* Issue 32, item 8 (scripts/attack: some 28,000 slowloris reconnections shed
+ * at the cap in a run): the work per connection shed. Seven connections send
+ * the start of a header each once accepted (trickling, /metrics counts them
+ * once each has been read); then SHED + 1
+ * newcomers do the same one at a time, each after the test has seen the
+ * connection before it end: the first takes the eighth slot, each later one
+ * sheds the oldest trickling connection. Last, a whole request sheds one more
+ * and is answered. The server read at most SHED + 2 times over that: at most
+ * once for each newcomer's header (none for one demoted at its accept and
+ * shed before its read: test_burst_reads_before_a_ready_request) and once
+ * for the whole request, nothing for the end of stream of the SHED + 1
+ * connections it shed: each was freed at once, its socket closed (before,
+ * shut down and read to its end of stream: one read more per shed
+ * connection, 2 * SHED + 3 = 83 reads). */
+static void test_shed_connection_costs_no_read(void **state)
+{
+    server_fixture *f = *state;
+    enum { CAP = 8, SHED = 40 };
+    int trickler[CAP + SHED];
+    const char start[] = "GET /healthz HTTP/1.1\r\n";
+    /* Accepted with nothing to read (so not demoted at their accept), then
+     * sending: each is counted trickling once its first piece is read. */
+    for (int i = 0; i < CAP - 1; ++i)
+        trickler[i] = connect_loopback(f->http_port);
+    ms_test_http_response r;
+    get(f, "/healthz", NULL, 200, &r); /* after the seven's accepts */
+    ms_test_http_free(&r);
+    for (int i = 0; i < CAP - 1; ++i)
+        assert_int_equal(send(trickler[i], start, sizeof start - 1, MSG_NOSIGNAL),
+                         (ssize_t)sizeof start - 1);
+    uint64_t trickling = 0;
+    for (int tries = 0; tries < 500 && trickling != CAP - 1; ++tries) { /* at most 5 s */
+        assert_int_equal(
+            ms_test_metric(f->http_port, "meshstream_http_connections_trickling", &trickling), 0);
+        if (trickling != CAP - 1)
+            usleep(10000);
+    }
+    assert_int_equal(trickling, CAP - 1);
+    uint64_t reads_before = read_calls(f->pid);
+    for (int i = CAP - 1; i < CAP + SHED; ++i) {
+        trickler[i] = connect_loopback(f->http_port);
+        assert_int_equal(send(trickler[i], start, sizeof start - 1, MSG_NOSIGNAL),
+                         (ssize_t)sizeof start - 1);
+        if (i == CAP - 1)
+            continue; /* the eighth slot was free */
+        char byte;
+        struct pollfd p = {trickler[i - CAP], POLLIN, 0};
+        assert_int_equal(poll(&p, 1, 5000), 1); /* a bound, not a measurement */
+        assert_true(recv(trickler[i - CAP], &byte, 1, 0) <= 0); /* shed: end of stream or reset */
+    }
+    int whole = connect_loopback(f->http_port);
+    const char request[] = "GET /healthz HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n";
+    assert_int_equal(send(whole, request, sizeof request - 1, MSG_NOSIGNAL),
+                     (ssize_t)sizeof request - 1);
+    char answer[1024];
+    read_answer(whole, answer, sizeof answer);
+    assert_memory_equal(answer, "HTTP/1.1 200 OK\r\n", 17);
+    uint64_t reads = read_calls(f->pid) - reads_before;
+    close(whole);
+    char byte;
+    assert_true(recv(trickler[SHED], &byte, 1, 0) <= 0); /* shed by the whole request */
+    for (int i = SHED + 1; i < CAP + SHED; ++i) {
+        errno = 0;
+        assert_int_equal(recv(trickler[i], &byte, 1, MSG_DONTWAIT), -1);
+        assert_true(errno == EAGAIN || errno == EWOULDBLOCK);
+    }
+    for (int i = 0; i < CAP + SHED; ++i)
+        close(trickler[i]);
+    assert_in_range(reads, 0, SHED + 2);
+}
+
+/* Issue 32, item 8: what a burst of reconnections does to a ready request.
+ * With the server stopped (SIGSTOP), BURST connections send the start of a
+ * header each and then one sends a whole request: all wait in the kernel's
+ * accept queue, the ready one last. Resumed, the server accepts two a turn
+ * (a quarter of the cap of 8); each connection of a turn's batch but the last
+ * is looked at before its first read, found holding a header's start and
+ * demoted, and its read waits behind the accepts that follow, which shed it
+ * (the oldest trickling connection) before it is read. So the server reads
+ * BURST / 2 connections of the burst (each batch's last) before the ready
+ * request, and one read for that. Then the burst's 7 survivors send the
+ * rest of their headers and are answered: one read each, and one more for
+ * each of the 3 demoted at their accept whose first piece a turn with
+ * nothing else to do read before the rest came (whether it did depends on
+ * when that turn came): BURST / 2 + 1 + 7 to BURST / 2 + 1 + 10 reads in
+ * all, 28 to 31 (before, every connection of the burst was read before the
+ * ready request and again for the end of stream of each one shed: 83; with
+ * the shed connections freed at once but each read first: 48). */
+static void test_burst_reads_before_a_ready_request(void **state)
+{
+    server_fixture *f = *state;
+    enum { CAP = 8, BURST = 40 };
+    int loris[BURST];
+    const char start[] = "GET /healthz HTTP/1.1\r\n";
+    uint64_t shed_before = 0, shed = 0;
+    assert_int_equal(
+        ms_test_metric(f->http_port, "meshstream_http_connections_shed_total", &shed_before), 0);
+    stop_process(f->pid);
+    for (int i = 0; i < BURST; ++i) {
+        loris[i] = connect_loopback(f->http_port); /* the kernel's backlog accepts it */
+        assert_int_equal(send(loris[i], start, sizeof start - 1, MSG_NOSIGNAL),
+                         (ssize_t)sizeof start - 1);
+    }
+    int ready = connect_loopback(f->http_port);
+    const char request[] = "GET /healthz HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n";
+    assert_int_equal(send(ready, request, sizeof request - 1, MSG_NOSIGNAL),
+                     (ssize_t)sizeof request - 1);
+    uint64_t reads_before = read_calls(f->pid);
+    assert_int_equal(kill(f->pid, SIGCONT), 0);
+    char answer[1024];
+    read_answer(ready, answer, sizeof answer);
+    assert_memory_equal(answer, "HTTP/1.1 200 OK\r\n", 17);
+    close(ready);
+    /* The survivors are the newest seven; those shed got their end. */
+    for (int i = 0; i < BURST; ++i) {
+        char byte;
+        if (i < BURST - (CAP - 1)) {
+            assert_true(recv(loris[i], &byte, 1, 0) <= 0);
+        } else {
+            errno = 0;
+            assert_int_equal(recv(loris[i], &byte, 1, MSG_DONTWAIT), -1);
+            assert_true(errno == EAGAIN || errno == EWOULDBLOCK);
+        }
+    }
+    /* The survivors send the rest of their headers and are answered: every
+     * read of theirs is then made, and counted. */
+    const char rest[] = "Host: x\r\nConnection: close\r\n\r\n";
+    for (int i = BURST - (CAP - 1); i < BURST; ++i) {
+        assert_int_equal(send(loris[i], rest, sizeof rest - 1, MSG_NOSIGNAL),
+                         (ssize_t)sizeof rest - 1);
+        read_answer(loris[i], answer, sizeof answer);
+        assert_memory_equal(answer, "HTTP/1.1 200 OK\r\n", 17);
+    }
+    uint64_t reads = read_calls(f->pid) - reads_before;
+    assert_int_equal(
+        ms_test_metric(f->http_port, "meshstream_http_connections_shed_total", &shed), 0);
+    for (int i = 0; i < BURST; ++i)
+        close(loris[i]);
+    assert_int_equal(shed - shed_before, BURST - (CAP - 1));
+    assert_in_range(reads, BURST / 2 + 1 + (CAP - 1), BURST / 2 + 1 + (CAP - 1) + 3);
+}
+
 static void test_hostile_requests(void **state)
 {
     server_fixture *f = *state;
@@ -1085,6 +1252,10 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_accept_queue_holds_a_burst, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_quiet_client_kept_at_the_cap, start_capped_server,
                                         stop_server),
+        cmocka_unit_test_setup_teardown(test_shed_connection_costs_no_read, start_capped_server,
+                                        stop_server),
+        cmocka_unit_test_setup_teardown(test_burst_reads_before_a_ready_request,
+                                        start_capped_server, stop_server),
         cmocka_unit_test_setup_teardown(test_hostile_requests, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_sighup_adds_model_and_sigterm_drains, start_server, stop_server),
     };

@@ -11,7 +11,6 @@
 #include <inttypes.h>
 #include <jansson.h>
 #include <netinet/in.h>
-#include <netinet/tcp.h>
 #include <stdbool.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -23,6 +22,7 @@
 #include <unistd.h>
 
 #include "ms_access.h"
+#include "ms_http_conns.h"
 #include "ms_http_cors.h"
 #include "ms_http_internal.h"
 #include "ms_http_parse.h"
@@ -38,33 +38,10 @@ typedef struct rate_bucket {
     double updated;
 } rate_bucket;
 
-/* One HTTP connection, as the door tracks it: evhttp owns the connection;
- * the door holds a reference on its bufferevent (so the record never points
- * at freed memory) and notices evhttp's free when the callbacks are gone.
- * Records are allocated one by one: the input buffer's callback holds one. */
-typedef struct tracked_connection {
-    ms_http_door *door;
-    struct bufferevent *bev;
-    struct evbuffer_cb_entry *on_input; /* watches the reads (trickle_check) */
-    double deadline_from;  /* accept, or the last request received */
-    size_t output_length;  /* bytes waiting at the last sweep */
-    double output_since;   /* when output_length last changed */
-    bool dropped;          /* shut down by the door; evhttp frees it next */
-    bool header_begun;     /* bytes of a request header read, the request not yet handled */
-    bool trickling;        /* at MS_PRIORITY_TRICKLE: its header came in pieces */
-} tracked_connection;
-
 struct ms_http_door {
     ms_server *server;
     struct evhttp *http;
-    struct evconnlistener *listener;
-    struct event *sweep;
-    struct event *next_turn;    /* zero-delay timer: the loop's next turn */
-    size_t accepts_this_turn;   /* connections accepted since next_turn was armed */
-    tracked_connection **connections;
-    size_t connection_count, connection_capacity;
-    bool accept_held;           /* at http_max_connections, or this turn's accepts made */
-    ms_log_limit accept_log;    /* accept failures */
+    ms_http_conns *conns;       /* the cap, the deadlines, the trickle priority */
     rate_bucket buckets[RATE_BUCKETS];
     double request_started;     /* when the request being handled arrived, for the access log */
 };
@@ -399,74 +376,11 @@ static void answer_options(ms_http_door *door, struct evhttp_request *req)
         evbuffer_free(body);
 }
 
-/* Pipelined answers must not wait for the client's delayed ACK (Nagle's
- * algorithm): evhttp offers no hook at accept time, so each request turns it
- * off on its connection's socket (one cheap system call; idempotent). */
-static void disable_nagle(struct evhttp_request *req)
-{
-    struct evhttp_connection *conn = evhttp_request_get_connection(req);
-    struct bufferevent *bev = conn ? evhttp_connection_get_bufferevent(conn) : NULL;
-    evutil_socket_t fd = bev ? bufferevent_getfd(bev) : -1;
-    int one = 1;
-    if (fd >= 0)
-        setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
-}
-
-static tracked_connection *find_tracked(ms_http_door *door, struct evhttp_request *req)
-{
-    struct evhttp_connection *conn = evhttp_request_get_connection(req);
-    struct bufferevent *bev = conn ? evhttp_connection_get_bufferevent(conn) : NULL;
-    for (size_t i = 0; bev && i < door->connection_count; ++i)
-        if (door->connections[i]->bev == bev)
-            return door->connections[i];
-    return NULL;
-}
-
-/* Moves a connection to MS_PRIORITY_TRICKLE or back to MS_PRIORITY_NORMAL.
- * libevent refuses while one of its events is ready to run; it then stays
- * where it is until the next change. */
-static void set_trickling(tracked_connection *t, bool trickling)
-{
-    if (t->trickling == trickling ||
-        bufferevent_priority_set(t->bev, trickling ? MS_PRIORITY_TRICKLE : MS_PRIORITY_NORMAL) != 0)
-        return;
-    t->trickling = trickling;
-    if (trickling)
-        t->door->server->metrics.http_connections_trickling++;
-    else
-        t->door->server->metrics.http_connections_trickling--;
-}
-
-/* Each read into a connection's input (the callback runs inside the read,
- * before evhttp parses): the first read of a request that holds no end of
- * header (an empty line) demotes the connection to MS_PRIORITY_TRICKLE, so
- * that the rest of its header is read only when no connection at
- * MS_PRIORITY_NORMAL has work ready (a slowloris connection's byte waits
- * behind every complete request). A request handled (handle_request) or the
- * connection shut down (drop_connection) restores it. The search runs once
- * per request, over that first read: later pieces cost nothing here. */
-static void trickle_check(struct evbuffer *input, const struct evbuffer_cb_info *info, void *arg)
-{
-    tracked_connection *t = arg;
-    if (!info->n_added || t->header_begun || t->dropped)
-        return;
-    t->header_begun = true;
-    if (evbuffer_search(input, "\n\r\n", 3, NULL).pos < 0 &&
-        evbuffer_search(input, "\n\n", 2, NULL).pos < 0)
-        set_trickling(t, true);
-}
-
 static void handle_request(struct evhttp_request *req, void *arg)
 {
     ms_http_door *door = arg;
     door->request_started = ms_now_seconds();
-    disable_nagle(req);
-    tracked_connection *t = find_tracked(door, req);
-    if (t) {
-        t->deadline_from = ms_now_seconds();
-        t->header_begun = false;
-        set_trickling(t, false);
-    }
+    ms_http_conns_request(door->conns, req);
     door->server->metrics.http_requests++;
     enum evhttp_cmd_type cmd = evhttp_request_get_command(req);
     bool options = cmd == EVHTTP_REQ_OPTIONS;
@@ -515,214 +429,6 @@ static void handle_request(struct evhttp_request *req, void *arg)
     evhttp_clear_headers(&query);
 }
 
-/* --- Connections: a cap, a header deadline, a send deadline ------------------ */
-
-#define SWEEP_INTERVAL_US 250000
-
-/* True once evhttp has freed the connection (it clears the callbacks). */
-static bool freed_by_evhttp(const tracked_connection *t)
-{
-    bufferevent_data_cb read_cb, write_cb;
-    bufferevent_event_cb event_cb;
-    void *cb_arg;
-    bufferevent_getcb(t->bev, &read_cb, &write_cb, &event_cb, &cb_arg);
-    return !read_cb && !write_cb && !event_cb;
-}
-
-/* Lets go of a record and the door's reference on its bufferevent. */
-static void forget(tracked_connection *t)
-{
-    if (t->trickling)
-        t->door->server->metrics.http_connections_trickling--;
-    if (t->on_input)
-        evbuffer_remove_cb_entry(bufferevent_get_input(t->bev), t->on_input);
-    bufferevent_decref(t->bev);
-    free(t);
-}
-
-/* Lets go of the records of connections evhttp has freed. */
-static void forget_freed(ms_http_door *door)
-{
-    for (size_t i = 0; i < door->connection_count;) {
-        if (freed_by_evhttp(door->connections[i])) {
-            forget(door->connections[i]);
-            door->connections[i] = door->connections[--door->connection_count];
-            continue;
-        }
-        ++i;
-    }
-}
-
-/* Connections that hold a slot: those the door has not shut down (a shut one
- * keeps its descriptor only until evhttp reads the end of stream, within a
- * loop turn). */
-static size_t live_connections(const ms_http_door *door)
-{
-    size_t live = 0;
-    for (size_t i = 0; i < door->connection_count; ++i)
-        live += !door->connections[i]->dropped;
-    return live;
-}
-
-/* The connection to shed when a newcomer finds every slot taken: among those
- * with no answer being sent, the one waiting longest for a request header
- * (since its accept or its previous request), taken first among those whose
- * header arrives in pieces (trickling); NULL when every connection is sending.
- * A slowloris connection waits for ever and trickles; a legitimate client
- * sends its header with its connection, so it is the newest, not the oldest,
- * and one that has not sent its header yet (a client slow to be scheduled) is
- * shed only when no trickling connection is left (before, 1 of 1,000 such
- * requests in scripts/attack was closed unanswered 4 ms after its connect). */
-static tracked_connection *shed_candidate(ms_http_door *door)
-{
-    tracked_connection *oldest = NULL;
-    for (size_t i = 0; i < door->connection_count; ++i) {
-        tracked_connection *t = door->connections[i];
-        if (t->dropped || evbuffer_get_length(bufferevent_get_output(t->bev)) != 0)
-            continue;
-        if (!oldest || t->trickling > oldest->trickling ||
-            (t->trickling == oldest->trickling && t->deadline_from < oldest->deadline_from))
-            oldest = t;
-    }
-    return oldest;
-}
-
-/* Accepts per turn of the loop: well under the cap, so that a connection
- * accepted in a burst has its request read (the next turn) before the rest of
- * the burst could push it out as the oldest idle one. */
-static size_t accepts_per_turn(const ms_http_door *door)
-{
-    size_t per_turn = door->server->config.http_max_connections / 4;
-    return per_turn ? per_turn : 1;
-}
-
-static void update_accepting(ms_http_door *door)
-{
-    size_t live = live_connections(door);
-    door->server->metrics.http_connections = live;
-    bool full = live >= door->server->config.http_max_connections && !shed_candidate(door);
-    bool hold = full || door->accepts_this_turn >= accepts_per_turn(door);
-    if (!door->listener || (hold && door->accept_held))
-        return;
-    door->accept_held = hold;
-    /* At the cap with every connection sending an answer, further clients
-     * wait in the kernel's backlog: they hold no descriptor of ours, and the
-     * binary door's stay free. At the cap with an idle connection, a newcomer
-     * takes its slot (new_connection): waiting in the backlog behind slowloris
-     * connections that each hold a slot for http_header_timeout made
-     * legitimate requests wait 11.5-19 s (issue 32, item 8). Below the cap,
-     * enabling also ends a pause after an accept failure (on_accept_error).
-     * Disabling inside evhttp's accept callback also ends libevent's accept
-     * loop for this turn. */
-    if (hold)
-        evconnlistener_disable(door->listener);
-    else
-        evconnlistener_enable(door->listener);
-}
-
-static void on_next_turn(evutil_socket_t fd, short what, void *arg)
-{
-    (void)fd, (void)what;
-    ms_http_door *door = arg;
-    door->accepts_this_turn = 0;
-    update_accepting(door);
-}
-
-/* Ends a connection evhttp still owns: shutting the socket down makes evhttp
- * see the end of stream and free it. shed: to admit a newcomer at the cap
- * (counted apart from the time-outs). */
-static void drop_connection(ms_http_door *door, tracked_connection *t, bool shed)
-{
-    if (t->dropped)
-        return;
-    set_trickling(t, false); /* evhttp's reading of the end of stream is not put off */
-    t->dropped = true;
-    evutil_socket_t fd = bufferevent_getfd(t->bev);
-    if (fd >= 0)
-        shutdown(fd, SHUT_RDWR);
-    if (shed)
-        door->server->metrics.http_connections_shed++;
-    else
-        door->server->metrics.http_connections_dropped++;
-}
-
-/* evhttp asks for each accepted connection's bufferevent: the door makes it,
- * and keeps a reference to track it. At the cap, the newcomer takes the slot
- * of the connection that has waited longest for a request header. */
-static struct bufferevent *new_connection(struct event_base *base, void *arg)
-{
-    ms_http_door *door = arg;
-    struct bufferevent *bev = bufferevent_socket_new(base, -1, BEV_OPT_CLOSE_ON_FREE);
-    if (!bev)
-        return NULL; /* evhttp makes one itself; that one goes untracked */
-    forget_freed(door);
-    if (live_connections(door) >= door->server->config.http_max_connections) {
-        tracked_connection *idle = shed_candidate(door);
-        if (idle)
-            drop_connection(door, idle, true);
-    }
-    if (door->connection_count == door->connection_capacity) {
-        size_t capacity = door->connection_capacity ? 2 * door->connection_capacity : 64;
-        tracked_connection **grown = realloc(door->connections, capacity * sizeof *grown);
-        if (!grown)
-            return bev;
-        door->connections = grown;
-        door->connection_capacity = capacity;
-    }
-    tracked_connection *t = malloc(sizeof *t);
-    if (!t)
-        return bev;
-    double now = ms_now_seconds();
-    *t = (tracked_connection){.door = door, .bev = bev, .deadline_from = now, .output_since = now};
-    t->on_input = evbuffer_add_cb(bufferevent_get_input(bev), trickle_check, t);
-    bufferevent_incref(bev);
-    door->connections[door->connection_count++] = t;
-    /* A zero-delay timer runs after the next poll's reads: the count starts
-     * over once the connections accepted now have had their turn. */
-    static const struct timeval next_poll = {0, 0};
-    if (door->accepts_this_turn++ == 0 && evtimer_add(door->next_turn, &next_poll) != 0)
-        door->accepts_this_turn = 0; /* no timer: no per-turn bound rather than no accepts */
-    update_accepting(door);
-    return bev;
-}
-
-static void sweep(evutil_socket_t fd, short what, void *arg)
-{
-    (void)fd, (void)what;
-    ms_http_door *door = arg;
-    const ms_server_config *config = &door->server->config;
-    double now = ms_now_seconds();
-    forget_freed(door);
-    for (size_t i = 0; i < door->connection_count; ++i) {
-        tracked_connection *t = door->connections[i];
-        if (t->dropped)
-            set_trickling(t, false); /* if drop_connection could not */
-        size_t waiting = evbuffer_get_length(bufferevent_get_output(t->bev));
-        if (waiting != t->output_length) {
-            t->output_length = waiting;
-            t->output_since = now;
-        }
-        if (waiting && now - t->output_since > config->send_timeout_s)
-            drop_connection(door, t, false); /* a slow reader */
-        else if (!waiting && now - t->deadline_from > config->http_header_timeout_s)
-            drop_connection(door, t, false); /* no complete request header in time */
-    }
-    update_accepting(door);
-}
-
-/* Accept failed (out of descriptors): pause until the next sweep. The door is
- * its sweep timer's argument (evhttp owns the listener's); logs rate-limited. */
-static void on_accept_error(struct evconnlistener *listener, void *arg)
-{
-    (void)arg;
-    int error = EVUTIL_SOCKET_ERROR();
-    evconnlistener_disable(listener);
-    ms_http_door *door = ms_server_event_arg(evconnlistener_get_base(listener), sweep);
-    if (door)
-        ms_server_log_limited(door->server, &door->accept_log, "http: accept failed: %s; "
-                              "accepting paused until the next sweep", strerror(error));
-}
-
 ms_status ms_http_door_open(ms_server *server, ms_http_door **out, uint16_t *bound_port,
                             ms_error *err)
 {
@@ -743,7 +449,6 @@ ms_status ms_http_door_open(ms_server *server, ms_http_door **out, uint16_t *bou
     evhttp_set_max_body_size(door->http, 4096);
     evhttp_set_timeout(door->http, (int)server->config.idle_timeout_s);
     evhttp_set_gencb(door->http, handle_request, door);
-    evhttp_set_bevcb(door->http, new_connection, door);
     const char *address = server->config.bind_address ? server->config.bind_address : "127.0.0.1";
     struct evhttp_bound_socket *socket =
         evhttp_bind_socket_with_handle(door->http, address, (ev_uint16_t)server->config.http_port);
@@ -763,16 +468,16 @@ ms_status ms_http_door_open(ms_server *server, ms_http_door **out, uint16_t *bou
         ms_http_door_close(door);
         return st;
     }
-    door->listener = evhttp_bound_socket_get_listener(socket);
-    door->sweep = event_new(server->base, -1, EV_PERSIST, sweep, door);
-    door->next_turn = evtimer_new(server->base, on_next_turn, door);
-    struct timeval tick = {0, SWEEP_INTERVAL_US};
-    if (!door->listener || !door->sweep || !door->next_turn ||
-        event_add(door->sweep, &tick) != 0) {
+    struct evconnlistener *listener = evhttp_bound_socket_get_listener(socket);
+    if (!listener) {
         ms_http_door_close(door);
         return ms_error_set(err, MS_ERR_NOMEM, "http: cannot set up connection tracking");
     }
-    evconnlistener_set_error_cb(door->listener, on_accept_error);
+    ms_status st = ms_http_conns_new(server, door->http, listener, &door->conns, err);
+    if (st != MS_OK) {
+        ms_http_door_close(door);
+        return st;
+    }
     struct sockaddr_storage ss;
     socklen_t len = sizeof ss;
     *bound_port = 0;
@@ -789,12 +494,6 @@ void ms_http_door_close(ms_http_door *door)
         return;
     if (door->http)
         evhttp_free(door->http); /* frees its connections, then the door's references go */
-    for (size_t i = 0; i < door->connection_count; ++i)
-        forget(door->connections[i]);
-    free(door->connections);
-    if (door->sweep)
-        event_free(door->sweep);
-    if (door->next_turn)
-        event_free(door->next_turn);
+    ms_http_conns_free(door->conns);
     free(door);
 }

@@ -1,5 +1,5 @@
 /* Inside the HTTP side door (ms_http_door.h): the answers its routes share
- * (ms_http_door.c: connections, routing, metrics; ms_http_catalog.c: the
+ * (ms_http_door.c: routing, metrics; ms_http_conns.c: connections; ms_http_catalog.c: the
  * catalogue's pages; ms_http_models.c: a model's index, head, subtrees, cell
  * streams and Draco file; ms_http_pages.c: the browser pages). Private to
  * server/serve/; every function runs on the server loop.
