@@ -316,18 +316,44 @@ void ms_core_set_camera(ms_core *core, const ms_camera *camera);
  * than MS_SECTIONS_MAX planes, a zero normal or a number not finite. */
 ms_status ms_core_set_sections(ms_core *core, const double (*planes)[4], size_t count, ms_error *err);
 
+/* Bytes shared between frames, reference-counted (opaque): a frame's APO
+ * chunk that did not change since the previous frame points at the same
+ * bytes, never copied again (docs/CLIENT.md, "Frames"). */
+typedef struct ms_core_bytes ms_core_bytes;
+
 typedef struct ms_core_apo_chunk {
     uint32_t cell;
     unsigned levels;          /* complete octree levels in data */
-    uint8_t *data;            /* the chunk's prefix, as stored (compressed per ARCHIVE.md) */
+    uint8_t *data;            /* the chunk's prefix, as stored (compressed per ARCHIVE.md);
+                                 read only when shared is set */
     size_t length;
+    ms_core_bytes *shared;    /* the shared bytes data points into (a core's frame;
+                                 ms_core_frame_free releases them), or NULL: data is
+                                 the caller's own */
 } ms_core_apo_chunk;
+
+/* What making a frame cost the core, and what changed in it against the
+ * previous frame (docs/CLIENT.md, "Frames"). A cell's triangles are named by
+ * its stitch version (ms_view_mesh.run_version): a cell changed is one new in
+ * the frame or with another version; a cell removed drew in the previous frame
+ * and draws nothing in this one. */
+typedef struct ms_core_frame_work {
+    uint64_t apo_bytes_copied;   /* APO bytes copied into this frame: the chunks new or
+                                    grown since the previous frame, only */
+    uint32_t apo_chunks_copied;  /* of apo_count: chunks copied (new or grown) */
+    uint32_t apo_chunks_shared;  /* of apo_count: chunks shared with the previous frame */
+    uint32_t cells_stitched;     /* shown cells whose triangles the stitch walked (every
+                                    shown cell: the stitch is still whole, docs/CLIENT.md) */
+    uint32_t cells_changed;      /* drawing cells new or with another version */
+    uint32_t cells_removed;      /* cells that drew in the previous frame, not in this one */
+} ms_core_frame_work;
 
 /* What to draw: the stitched mesh of every shown cell (ms_view_stitch), the
  * cut, and the APO chunks of the shown cells that have one. */
 typedef struct ms_core_frame {
     uint64_t generation;      /* increases with each published frame */
     double time;              /* seconds since ms_core_start */
+    ms_core_frame_work work;  /* what making it cost, what changed */
     ms_view_mesh mesh;
     uint32_t cell_count;      /* cells of the model */
     /* the cut: the cells shown or split, ids ascending; cut_bits[i] is cell
