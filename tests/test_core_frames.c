@@ -11,7 +11,9 @@
  *     add up to the frame's chunks;
  *   - cells_changed and cells_removed are exactly the drawing cells new or with
  *     another run version and the cells gone, counted here from both meshes;
- *     cells_stitched is the frame's runs;
+ *     cells_stitched and triangles_stitched are exactly the runs (drawing or
+ *     not) new or with another version and their triangles: the stitch worked
+ *     out those cells again and kept the others' pieces;
  *   - the renderer given the frame finds the same cells changed and gone, and
  *     derives no mesh when none changed and none left;
  *   - the same frame given again derives nothing and uploads nothing.
@@ -43,6 +45,7 @@ typedef struct totals {
     unsigned exact_frames;   /* frames checked against their direct predecessor */
     unsigned refining;       /* of them, frames that changed some cells */
     uint64_t chunks_shared, chunks_copied, bytes_copied, bytes_shown;
+    uint64_t cells_stitched, cells_drawn;
 } totals;
 
 /* Whether cell's run in m has triangles, and its version. */
@@ -105,8 +108,29 @@ static void check_against_previous(const ms_core_frame *a, const ms_core_frame *
     }
     assert_int_equal(b->work.cells_changed, changed);
     assert_int_equal(b->work.cells_removed, removed);
-    assert_int_equal(b->work.cells_stitched, b->mesh.run_count);
-    (void)present;
+    /* the stitch worked out exactly the runs new or with another version
+     * (empty ones included), and kept the others */
+    uint32_t restitched = 0;
+    uint64_t tris = 0;
+    for (size_t k = 0; k < b->mesh.run_count; ++k) {
+        size_t lo = 0, hi = a->mesh.run_count;
+        while (lo < hi) {
+            size_t mid = lo + (hi - lo) / 2;
+            if (a->mesh.run_cell[mid] < b->mesh.run_cell[k])
+                lo = mid + 1;
+            else
+                hi = mid;
+        }
+        if (lo == a->mesh.run_count || a->mesh.run_cell[lo] != b->mesh.run_cell[k] ||
+            a->mesh.run_version[lo] != b->mesh.run_version[k]) {
+            restitched++;
+            tris += b->mesh.run_first[k + 1] - b->mesh.run_first[k];
+        }
+    }
+    assert_int_equal(b->work.cells_stitched, restitched);
+    assert_int_equal(b->work.triangles_stitched, tris);
+    t->cells_stitched += restitched;
+    t->cells_drawn += present;
     t->exact_frames++;
     t->refining += changed > 0;
     t->chunks_shared += shared;
@@ -213,13 +237,15 @@ static void test_frames_cell_by_cell(void **state)
     assert_null(none);
     ms_core_stop(core);
     printf("frames checked against their predecessor: %u (%u refining); APO chunks shared %llu, "
-           "copied %llu; bytes copied %llu of %llu shown\n",
+           "copied %llu; bytes copied %llu of %llu shown; cells stitched %llu of %llu drawn\n",
            t.exact_frames, t.refining, (unsigned long long)t.chunks_shared, (unsigned long long)t.chunks_copied,
-           (unsigned long long)t.bytes_copied, (unsigned long long)t.bytes_shown);
+           (unsigned long long)t.bytes_copied, (unsigned long long)t.bytes_shown,
+           (unsigned long long)t.cells_stitched, (unsigned long long)t.cells_drawn);
     assert_true(t.exact_frames >= 5);
     assert_true(t.refining >= 3);
     assert_true(t.chunks_shared > 0);
     assert_true(t.bytes_copied < t.bytes_shown);
+    assert_true(t.cells_stitched < t.cells_drawn);
     ms_core_frame_free(previous);
     ms_render_free(r);
     ms_camera_path_free(&path);

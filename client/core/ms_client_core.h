@@ -342,8 +342,10 @@ typedef struct ms_core_frame_work {
                                     grown since the previous frame, only */
     uint32_t apo_chunks_copied;  /* of apo_count: chunks copied (new or grown) */
     uint32_t apo_chunks_shared;  /* of apo_count: chunks shared with the previous frame */
-    uint32_t cells_stitched;     /* shown cells whose triangles the stitch walked (every
-                                    shown cell: the stitch is still whole, docs/CLIENT.md) */
+    uint32_t cells_stitched;     /* shown cells whose triangles the stitch worked out again
+                                    (ms_view_mesh.cells_stitched: the cells changed and the
+                                    neighbours whose borders they touch; the others' kept) */
+    uint64_t triangles_stitched; /* of the frame's triangles, those of cells_stitched */
     uint32_t cells_changed;      /* drawing cells new or with another version */
     uint32_t cells_removed;      /* cells that drew in the previous frame, not in this one */
 } ms_core_frame_work;
@@ -434,6 +436,13 @@ typedef struct ms_core_stats {
                                   estimate, and with an index by subtree index_bytes_held
                                   and state_bytes_held */
     double decode_seconds;     /* decode thread busy time (verify, decode, select) */
+    /* with export_frames, summed over every frame made, taken or not
+     * (ms_core_frame_work; docs/CLIENT.md, "Frames") */
+    uint64_t frames_made;
+    double frame_seconds;      /* of decode_seconds: making frames (stitch, APO, counts) */
+    uint64_t frame_triangles;  /* triangles stitched */
+    uint64_t frame_apo_bytes;  /* APO bytes the frames hold (each frame all its chunks) */
+    ms_core_frame_work frame_work; /* the frames' work, summed */
     double latency_p50, latency_p99; /* request send to last byte, seconds */
     char error[256];           /* why the core stopped, or "" */
     bool model_changed;        /* error says "the model changed on the server": a rescan

@@ -189,7 +189,8 @@ static ms_core_frame *make_frame(ms_core *c, ms_error *err)
         ms_core_frame_free(f);
         return NULL;
     }
-    f->work.cells_stitched = (uint32_t)f->mesh.run_count;
+    f->work.cells_stitched = (uint32_t)f->mesh.cells_stitched;
+    f->work.triangles_stitched = f->mesh.triangles_stitched;
     if (!count_changes(c, f)) {
         ms_core_frame_free(f);
         ms_error_set(err, MS_ERR_NOMEM, "out of memory for a frame");
@@ -227,7 +228,7 @@ static bool something_drawn(ms_core *c, const frame_view *fv)
 /* Under the lock: the pass's wants (when they changed, or a republish was
  * asked for), the chunks it consumed, its frame and its figures. */
 static void publish_locked(ms_core *c, dec_pass *pass, uint64_t serial, ms_core_frame *frame,
-                           double busy)
+                           double busy, double frame_busy)
 {
     want_list *wl = &pass->wl;
     bool same = wl->n == c->want_count &&
@@ -245,12 +246,24 @@ static void publish_locked(ms_core *c, dec_pass *pass, uint64_t serial, ms_core_
         c->want_serial += same; /* let the network thread release finished requests */
     }
     pthread_cond_broadcast(&c->wake); /* the local responder waits for a new list */
+    ms_core_stats *st = &c->stats;
     if (frame) {
         if (c->frame)
             ms_core_frame_free(c->frame);
         c->frame = frame;
+        st->frames_made++;
+        st->frame_triangles += frame->mesh.triangle_count;
+        for (size_t i = 0; i < frame->apo_count; ++i)
+            st->frame_apo_bytes += frame->apo[i].length;
+        ms_core_frame_work *w = &st->frame_work;
+        w->apo_bytes_copied += frame->work.apo_bytes_copied;
+        w->apo_chunks_copied += frame->work.apo_chunks_copied;
+        w->apo_chunks_shared += frame->work.apo_chunks_shared;
+        w->cells_stitched += frame->work.cells_stitched;
+        w->triangles_stitched += frame->work.triangles_stitched;
+        w->cells_changed += frame->work.cells_changed;
+        w->cells_removed += frame->work.cells_removed;
     }
-    ms_core_stats *st = &c->stats;
     st->view_complete = pass->complete && serial == c->camera_serial;
     st->camera_serial = serial;
     st->achieved_error_px = pass->worst;
@@ -264,6 +277,7 @@ static void publish_locked(ms_core *c, dec_pass *pass, uint64_t serial, ms_core_
     if (pass->memory > st->peak_memory)
         st->peak_memory = pass->memory;
     st->decode_seconds += busy;
+    st->frame_seconds += frame_busy;
     if (pass->warning[0])
         snprintf(st->warning, sizeof st->warning, "%s", pass->warning);
 }
@@ -282,9 +296,12 @@ void ms_core_publish(ms_core *c, dec_pass *pass, uint64_t serial, double t_start
     }
     bool first_display = look && something_drawn(c, &pass->fv);
     ms_core_frame *frame = NULL;
+    double frame_busy = 0.0;
     if (c->o.export_frames && (pass->changed || c->generation == 0)) {
         ms_error err;
+        double t_frame = ms_now_seconds();
         frame = make_frame(c, &err);
+        frame_busy = ms_now_seconds() - t_frame;
         if (frame) {
             frame->generation = ++c->generation;
             frame->time = t_now;
@@ -297,7 +314,7 @@ void ms_core_publish(ms_core *c, dec_pass *pass, uint64_t serial, double t_start
         c->stats.first_display = t_now;
         c->stats.first_display_generation = frame ? frame->generation : 0;
     }
-    publish_locked(c, pass, serial, frame, busy);
+    publish_locked(c, pass, serial, frame, busy, frame_busy);
     pthread_mutex_unlock(&c->lock);
     free(pass->wl.w);
     pass->wl.w = NULL;

@@ -11,6 +11,7 @@
 
 void ms_view_cache_drop(vcell *c)
 {
+    ms_view_piece_free(c);
     ms_codec_state_free(&c->cache);
     free(c->out_index);
     free(c->owner);

@@ -321,6 +321,11 @@ typedef struct ms_view_mesh {
     size_t snapped_frozen;   /* triangle corners given by a frozen foreign vertex (known
                               * only to a lone kd-cell coarser than its holder: ms_codec.h,
                               * regions) resolved to the holder's vertex inside that cell */
+    /* Shown cells whose triangles this stitch worked out again (the others'
+     * were kept from an earlier stitch of the same view, every cell they
+     * depend on unchanged: the run version's rule below) and, of the
+     * triangles, those that came from them. The mesh is the same either way. */
+    size_t cells_stitched, triangles_stitched;
     /* The stitched cells, ascending (ms_view_stitch fills them; a mesh made by
      * hand may leave run_count 0): cell run_cell[k] drew triangles
      * [run_first[k], run_first[k + 1]) (run_count + 1 entries), and
