@@ -16,6 +16,8 @@ void ms_view_cache_drop(vcell *c)
     free(c->out_index);
     free(c->owner);
     free(c->levels);
+    free(c->positions);
+    c->positions = NULL;
     c->out_index = c->owner = NULL;
     c->levels = NULL;
     c->cache_valid = false;

@@ -53,6 +53,8 @@ typedef struct vcell {
     ms_codec_state cache;
     uint32_t *out_index;    /* per cache vertex: index in the stitched mesh, or NONE */
     uint32_t *owner;        /* per cache vertex: shown cell holding it, NONE = finer cells */
+    double *positions;      /* per cache vertex: its position, 3 doubles (world units; made
+                             * with the cache, so a stitch copies them) */
     uint8_t *levels;        /* per cache vertex: its kd-level, when some foreign vertex is
                              * frozen coarser than the cell (else NULL: all at its level) */
     /* colour (ms_view_colour.c): the colour stream's bytes held, its decoder,

@@ -23,6 +23,29 @@ void ms_view_mesh_free(ms_view_mesh *m)
     memset(m, 0, sizeof *m);
 }
 
+/* Kd-cell (prefix, level) on the model's grid: its corner and its width on
+ * each axis, in grid units of box_side / 2^p. Kd-level l halves axis l mod 3,
+ * so after `level` levels axis a is cut (level + 2 - a) / 3 times. */
+static void kd_cell_grid(const ms_view *v, uint64_t prefix, unsigned level, uint32_t xyz[3],
+                         uint32_t width[3])
+{
+    ms_nsp_prefix_corner(&v->shape, prefix, level, xyz);
+    for (int a = 0; a < 3; ++a)
+        width[a] = 1u << (v->shape.bits - (level + 2u - (unsigned)a) / 3u);
+}
+
+/* The point the stream draws for vertex i of the cell's cache (geometry
+ * ahead), else its kd-cell's centre, world units. */
+static void vertex_position(const ms_view *v, const vcell *c, size_t i, double out[3])
+{
+    uint32_t xyz[3], width[3];
+    kd_cell_grid(v, c->cache.cells[i], c->cache.level, xyz, width);
+    double unit = v->header.box_side / (double)(1u << v->shape.bits);
+    const uint16_t *rep = c->cache.rep ? &c->cache.rep[3 * i] : NULL;
+    for (int a = 0; a < 3; ++a)
+        out[a] = v->header.box_origin[a] + ((double)xyz[a] + (rep ? rep[a] / 65536.0 : 0.5) * width[a]) * unit;
+}
+
 static ms_status refresh_cache(ms_view *v, uint32_t cell, ms_error *err)
 {
     vcell *c = ms_view_vcell(v, cell);
@@ -35,10 +58,13 @@ static ms_status refresh_cache(ms_view *v, uint32_t cell, ms_error *err)
     size_t n = c->cache.vertex_count;
     c->out_index = malloc((n ? n : 1) * sizeof *c->out_index);
     c->owner = malloc((n ? n : 1) * sizeof *c->owner);
-    if (!c->out_index || !c->owner) {
+    c->positions = malloc(3 * (n ? n : 1) * sizeof *c->positions);
+    if (!c->out_index || !c->owner || !c->positions) {
         ms_view_cache_drop(c);
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory stitching");
     }
+    for (size_t i = 0; i < n; ++i)
+        vertex_position(v, c, i, &c->positions[3 * i]);
     if (c->dec) {
         if (ms_codec_decoder_vertex_count(c->dec) != n) {
             ms_view_cache_drop(c);
@@ -140,17 +166,6 @@ static ms_status mesh_room(ms_view_mesh *m, size_t vertices, size_t triangles, m
     return MS_OK;
 }
 
-/* Kd-cell (prefix, level) on the model's grid: its corner and its width on
- * each axis, in grid units of box_side / 2^p. Kd-level l halves axis l mod 3,
- * so after `level` levels axis a is cut (level + 2 - a) / 3 times. */
-static void kd_cell_grid(const ms_view *v, uint64_t prefix, unsigned level, uint32_t xyz[3],
-                         uint32_t width[3])
-{
-    ms_nsp_prefix_corner(&v->shape, prefix, level, xyz);
-    for (int a = 0; a < 3; ++a)
-        width[a] = 1u << (v->shape.bits - (level + 2u - (unsigned)a) / 3u);
-}
-
 ms_status ms_view_cell_bounds(ms_view *v, uint32_t cell, double lo[3], double hi[3],
                               ms_error *err)
 {
@@ -197,15 +212,7 @@ static ms_status out_vertex(ms_view *v, ms_view_mesh *m, uint32_t cell, uint32_t
     size_t k = m->vertex_count++;
     unsigned level = c->cache.level;
     uint64_t prefix = c->cache.cells[i];
-    uint32_t xyz[3], width[3];
-    kd_cell_grid(v, prefix, level, xyz, width);
-    double unit = v->header.box_side / (double)(1u << v->shape.bits);
-    /* the point the stream draws for the cell (geometry ahead), else its centre */
-    const uint16_t *rep = c->cache.rep ? &c->cache.rep[3 * (size_t)i] : NULL;
-    for (int a = 0; a < 3; ++a)
-        m->positions[3 * k + (size_t)a] =
-            v->header.box_origin[a] +
-            ((double)xyz[a] + (rep ? rep[a] / 65536.0 : 0.5) * width[a]) * unit;
+    memcpy(&m->positions[3 * k], &c->positions[3 * (size_t)i], 3 * sizeof *m->positions);
     unsigned shift = 3 * v->shape.bits - level;
     m->keys[k] = shift >= 64 ? 0 : prefix << shift;
     m->levels[k] = (uint8_t)level;
@@ -630,6 +637,16 @@ ms_status ms_view_stitch(ms_view *v, const bool *visible, ms_view_mesh *m, ms_er
         m->cells_stitched++;
         m->triangles_stitched += c->piece->tri_count;
     }
+    /* room for the whole mesh at once: every cell's own vertices and those it
+     * asks its neighbours for (an upper bound), and its triangles */
+    size_t vertices = 0, triangles = 0;
+    for (uint32_t id = 0; id != MS_ARCHIVE_NONE && s == MS_OK; id = ms_view_next_known(v, id)) {
+        vcell *c = ms_view_vcell(v, id);
+        if (c && c->state == MS_VIEW_SHOWN && (!visible || visible[id]))
+            vertices += c->cache.vertex_count + c->piece->call_count, triangles += c->piece->tri_count;
+    }
+    if (s == MS_OK)
+        s = mesh_room(m, vertices, triangles, err);
     for (uint32_t id = 0; id != MS_ARCHIVE_NONE && s == MS_OK; id = ms_view_next_known(v, id)) {
         vcell *c = ms_view_vcell(v, id);
         if (c && c->state == MS_VIEW_SHOWN && (!visible || visible[id]))
