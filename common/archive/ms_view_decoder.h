@@ -344,7 +344,11 @@ typedef struct ms_view_mesh {
 
 /* Builds the mesh of the shown cells whose visible[cell] is true (NULL: all).
  * *out must be zeroed or previously filled (its arrays are reused). Vertices are
- * those of the drawn triangles and every vertex inside a drawn cell. */
+ * those of the drawn triangles and every vertex inside a drawn cell. The view
+ * keeps each shown cell's stitched triangles (its piece) and works a cell out
+ * again only when its run version would change (a cell it depends on changed:
+ * out->cells_stitched); the mesh is the same as if every cell were worked out
+ * (docs/CLIENT.md, "Frames"). */
 ms_status ms_view_stitch(ms_view *view, const bool *visible, ms_view_mesh *out, ms_error *err);
 void ms_view_mesh_free(ms_view_mesh *mesh);
 
