@@ -130,9 +130,9 @@ static void test_bad_calls(void **state)
     mesh.positions[4] = NAN;
     expect(ms_render_set_frame(r, &mesh, NULL, 0, &err), MS_ERR_ARG, &err);
     mesh.positions[4] = keep_x;
-    ms_core_apo_chunk bad_apo = {h->cell_count, 1, NULL, 0};
+    ms_core_apo_chunk bad_apo = {h->cell_count, 1, NULL, 0, NULL};
     expect(ms_render_set_frame(r, &mesh, &bad_apo, 1, &err), MS_ERR_ARG, &err);
-    bad_apo = (ms_core_apo_chunk){mesh.triangle_cell[0], 1, NULL, 10};
+    bad_apo = (ms_core_apo_chunk){mesh.triangle_cell[0], 1, NULL, 10, NULL};
     expect(ms_render_set_frame(r, &mesh, &bad_apo, 1, &err), MS_ERR_ARG, &err);
 
     ms_render_upload_stats up;

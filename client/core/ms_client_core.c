@@ -230,6 +230,7 @@ void ms_core_stop(ms_core *c)
         free(m);
     }
     ms_core_dcells_free(c);
+    ms_core_frames_free(c);
     ms_core_subtrees_free(c);
     ms_view_destroy(c->view);
     ms_archive_close(c->index);

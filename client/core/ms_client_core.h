@@ -316,18 +316,46 @@ void ms_core_set_camera(ms_core *core, const ms_camera *camera);
  * than MS_SECTIONS_MAX planes, a zero normal or a number not finite. */
 ms_status ms_core_set_sections(ms_core *core, const double (*planes)[4], size_t count, ms_error *err);
 
+/* Bytes shared between frames, reference-counted (opaque): a frame's APO
+ * chunk that did not change since the previous frame points at the same
+ * bytes, never copied again (docs/CLIENT.md, "Frames"). */
+typedef struct ms_core_bytes ms_core_bytes;
+
 typedef struct ms_core_apo_chunk {
     uint32_t cell;
     unsigned levels;          /* complete octree levels in data */
-    uint8_t *data;            /* the chunk's prefix, as stored (compressed per ARCHIVE.md) */
+    uint8_t *data;            /* the chunk's prefix, as stored (compressed per ARCHIVE.md);
+                                 read only when shared is set */
     size_t length;
+    ms_core_bytes *shared;    /* the shared bytes data points into (a core's frame;
+                                 ms_core_frame_free releases them), or NULL: data is
+                                 the caller's own */
 } ms_core_apo_chunk;
+
+/* What making a frame cost the core, and what changed in it against the
+ * previous frame (docs/CLIENT.md, "Frames"). A cell's triangles are named by
+ * its stitch version (ms_view_mesh.run_version): a cell changed is one new in
+ * the frame or with another version; a cell removed drew in the previous frame
+ * and draws nothing in this one. */
+typedef struct ms_core_frame_work {
+    uint64_t apo_bytes_copied;   /* APO bytes copied into this frame: the chunks new or
+                                    grown since the previous frame, only */
+    uint32_t apo_chunks_copied;  /* of apo_count: chunks copied (new or grown) */
+    uint32_t apo_chunks_shared;  /* of apo_count: chunks shared with the previous frame */
+    uint32_t cells_stitched;     /* shown cells whose triangles the stitch worked out again
+                                    (ms_view_mesh.cells_stitched: the cells changed and the
+                                    neighbours whose borders they touch; the others' kept) */
+    uint64_t triangles_stitched; /* of the frame's triangles, those of cells_stitched */
+    uint32_t cells_changed;      /* drawing cells new or with another version */
+    uint32_t cells_removed;      /* cells that drew in the previous frame, not in this one */
+} ms_core_frame_work;
 
 /* What to draw: the stitched mesh of every shown cell (ms_view_stitch), the
  * cut, and the APO chunks of the shown cells that have one. */
 typedef struct ms_core_frame {
     uint64_t generation;      /* increases with each published frame */
     double time;              /* seconds since ms_core_start */
+    ms_core_frame_work work;  /* what making it cost, what changed */
     ms_view_mesh mesh;
     uint32_t cell_count;      /* cells of the model */
     /* the cut: the cells shown or split, ids ascending; cut_bits[i] is cell
@@ -408,6 +436,13 @@ typedef struct ms_core_stats {
                                   estimate, and with an index by subtree index_bytes_held
                                   and state_bytes_held */
     double decode_seconds;     /* decode thread busy time (verify, decode, select) */
+    /* with export_frames, summed over every frame made, taken or not
+     * (ms_core_frame_work; docs/CLIENT.md, "Frames") */
+    uint64_t frames_made;
+    double frame_seconds;      /* of decode_seconds: making frames (stitch, APO, counts) */
+    uint64_t frame_triangles;  /* triangles stitched */
+    uint64_t frame_apo_bytes;  /* APO bytes the frames hold (each frame all its chunks) */
+    ms_core_frame_work frame_work; /* the frames' work, summed */
     double latency_p50, latency_p99; /* request send to last byte, seconds */
     char error[256];           /* why the core stopped, or "" */
     bool model_changed;        /* error says "the model changed on the server": a rescan

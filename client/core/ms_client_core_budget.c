@@ -251,7 +251,7 @@ static void evict(ms_core *c, const evict_candidate *e)
     dcell *d = ms_core_dcell(c, cell);
     ms_view_forget(c->view, cell, NULL);
     ms_core_rx_free(&d->geo);
-    ms_core_rx_free(&d->apo);
+    ms_core_apo_drop(d);
     ms_core_rx_free(&d->col);
     free(d->header);
     d->header = NULL;
@@ -333,8 +333,7 @@ static void drop_split_decoders(ms_core *c)
             /* nor APO: a split cell is not drawn */
             dcell *d = ms_core_dcell(c, i);
             if (d->apo.cap) {
-                ms_core_rx_free(&d->apo);
-                d->apo_given = 0;
+                ms_core_apo_drop(d);
             }
         }
 }
@@ -357,8 +356,7 @@ static uint64_t drop_culled_apo(ms_core *c, dec_pass *pass)
         if (c->o.eviction_hook)
             c->o.eviction_hook(i, false, c->tolerance_factor, c->culled_give_up,
                                c->o.eviction_hook_arg);
-        ms_core_rx_free(&d->apo);
-        d->apo_given = 0;
+        ms_core_apo_drop(d);
         pass->changed = true;
     }
     return freed;

@@ -46,7 +46,7 @@ bool ms_core_dcells_grow(ms_core *c, const uint32_t *cells, size_t count)
 void ms_core_dcell_clear(dcell *d)
 {
     ms_core_rx_free(&d->geo);
-    ms_core_rx_free(&d->apo);
+    ms_core_apo_drop(d);
     ms_core_rx_free(&d->col);
     free(d->header);
     *d = (dcell){0};

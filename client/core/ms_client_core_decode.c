@@ -208,8 +208,7 @@ static void dec_apo_received(ms_core *c, uint32_t cell)
     }
     ms_error err;
     if (ms_archive_check_payload(c->index, cell, true, d->apo.buf, d->apo.end, &err) != MS_OK) {
-        ms_core_rx_free(&d->apo);
-        d->apo_given = 0;
+        ms_core_apo_drop(d);
         d->retries++;
         if (d->retries >= 2 && !d->failed) {
             d->failed = true;

@@ -3,11 +3,122 @@
  * display, and each pass's wants and figures. */
 #include "ms_client_core_internal.h"
 
+#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
 
 #include "ms_progress.h"
+
+/* ---- bytes shared between frames ------------------------------------------ */
+
+struct ms_core_bytes {
+    atomic_uint refs;   /* the dcell's hold and each frame's */
+    size_t length;
+    uint8_t data[];
+};
+
+static ms_core_bytes *bytes_copy(const uint8_t *data, size_t length)
+{
+    ms_core_bytes *b = malloc(sizeof *b + (length ? length : 1));
+    if (!b)
+        return NULL;
+    atomic_init(&b->refs, 1);
+    b->length = length;
+    memcpy(b->data, data, length);
+    return b;
+}
+
+static ms_core_bytes *bytes_retain(ms_core_bytes *b)
+{
+    atomic_fetch_add_explicit(&b->refs, 1, memory_order_relaxed);
+    return b;
+}
+
+/* Frames are freed on the caller's thread, the dcell's hold on the decode
+ * thread: the last release frees, whichever it is. */
+static void bytes_release(ms_core_bytes *b)
+{
+    if (b && atomic_fetch_sub_explicit(&b->refs, 1, memory_order_acq_rel) == 1)
+        free(b);
+}
+
+void ms_core_apo_drop(dcell *d)
+{
+    ms_core_rx_free(&d->apo);
+    d->apo_given = 0;
+    bytes_release(d->apo_shared);
+    d->apo_shared = NULL;
+}
+
+void ms_core_frames_free(ms_core *c)
+{
+    free(c->last_run_cell);
+    free(c->last_run_version);
+    c->last_run_cell = NULL;
+    c->last_run_version = NULL;
+    c->last_run_count = c->last_run_cap = 0;
+}
+
+/* The frame's chunk of cell i: the bytes of the previous frames when its
+ * prefix did not change since (shared), else a copy made once and kept in
+ * the dcell for the frames after. False when out of memory. */
+static bool share_apo(dcell *d, ms_core_frame_work *work, ms_core_apo_chunk *chunk)
+{
+    if (!d->apo_shared || d->apo_shared->length != d->apo_given) {
+        ms_core_bytes *b = bytes_copy(d->apo.buf, d->apo_given);
+        if (!b)
+            return false;
+        bytes_release(d->apo_shared);
+        d->apo_shared = b;
+        work->apo_bytes_copied += d->apo_given;
+        work->apo_chunks_copied++;
+    } else {
+        work->apo_chunks_shared++;
+    }
+    chunk->shared = bytes_retain(d->apo_shared);
+    chunk->data = d->apo_shared->data;
+    chunk->length = d->apo_shared->length;
+    return true;
+}
+
+/* The frame's drawing cells (runs with triangles) against the previous
+ * frame's: the cells new or with another version, and those gone; then this
+ * frame's become the previous. O(cells drawing), never the triangles. */
+static bool count_changes(ms_core *c, ms_core_frame *f)
+{
+    const ms_view_mesh *m = &f->mesh;
+    size_t n = 0;
+    for (size_t k = 0; k < m->run_count; ++k)
+        n += m->run_first[k + 1] > m->run_first[k];
+    uint32_t *cells = malloc((n ? n : 1) * sizeof *cells);
+    uint64_t *versions = malloc((n ? n : 1) * sizeof *versions);
+    if (!cells || !versions) {
+        free(cells);
+        free(versions);
+        return false;
+    }
+    size_t j = 0, w = 0;
+    for (size_t k = 0; k < m->run_count; ++k) {
+        if (m->run_first[k + 1] == m->run_first[k])
+            continue;
+        uint32_t cell = m->run_cell[k];
+        while (j < c->last_run_count && c->last_run_cell[j] < cell)
+            j++, f->work.cells_removed++;
+        bool same = j < c->last_run_count && c->last_run_cell[j] == cell;
+        f->work.cells_changed += !same || c->last_run_version[j] != m->run_version[k];
+        j += same;
+        cells[w] = cell;
+        versions[w++] = m->run_version[k];
+    }
+    f->work.cells_removed += (uint32_t)(c->last_run_count - j);
+    free(c->last_run_cell);
+    free(c->last_run_version);
+    c->last_run_cell = cells;
+    c->last_run_version = versions;
+    c->last_run_count = w;
+    return true;
+}
 
 /* The view as a frame for the caller (NULL and err when out of memory). Its
  * arrays are sized by the cut (cells shown or split), never by the model. */
@@ -46,22 +157,22 @@ static ms_core_frame *make_frame(ms_core *c, ms_error *err)
         const ms_archive_cell *rec = ms_archive_get_cell(c->index, i);
         f->record_ids[f->record_count] = i;
         f->records[f->record_count++] = *rec;
-        const dcell *d = ms_core_dcell(c, i);
+        dcell *d = ms_core_dcell(c, i);
         if (d->apo_given == 0)
             continue;
-        uint8_t *copy = malloc(d->apo_given);
-        if (!copy) {
-            ms_core_frame_free(f);
-            ms_error_set(err, MS_ERR_NOMEM, "out of memory for a frame");
-            return NULL;
-        }
-        memcpy(copy, d->apo.buf, d->apo_given);
         /* complete levels: ms_archive_apo_prefix(depth) ends depth's level */
         unsigned levels = 0;
         for (unsigned depth = 0; depth < rec->apo_levels; ++depth)
             if (ms_archive_apo_prefix(c->index, i, depth, NULL) <= d->apo_given)
                 levels = depth + 1;
-        f->apo[f->apo_count++] = (ms_core_apo_chunk){i, levels, copy, d->apo_given};
+        ms_core_apo_chunk *chunk = &f->apo[f->apo_count];
+        *chunk = (ms_core_apo_chunk){.cell = i, .levels = levels};
+        if (!share_apo(d, &f->work, chunk)) {
+            ms_core_frame_free(f);
+            ms_error_set(err, MS_ERR_NOMEM, "out of memory for a frame");
+            return NULL;
+        }
+        f->apo_count++;
     }
     size_t held = 0;
     for (size_t k = 0; k < c->subtree_count; ++k)
@@ -76,6 +187,13 @@ static ms_core_frame *make_frame(ms_core *c, ms_error *err)
             f->subtrees[f->subtree_count++] = c->subtrees[k].id;
     if (ms_view_stitch(c->view, NULL, &f->mesh, err) != MS_OK) {
         ms_core_frame_free(f);
+        return NULL;
+    }
+    f->work.cells_stitched = (uint32_t)f->mesh.cells_stitched;
+    f->work.triangles_stitched = f->mesh.triangles_stitched;
+    if (!count_changes(c, f)) {
+        ms_core_frame_free(f);
+        ms_error_set(err, MS_ERR_NOMEM, "out of memory for a frame");
         return NULL;
     }
     return f;
@@ -110,7 +228,7 @@ static bool something_drawn(ms_core *c, const frame_view *fv)
 /* Under the lock: the pass's wants (when they changed, or a republish was
  * asked for), the chunks it consumed, its frame and its figures. */
 static void publish_locked(ms_core *c, dec_pass *pass, uint64_t serial, ms_core_frame *frame,
-                           double busy)
+                           double busy, double frame_busy)
 {
     want_list *wl = &pass->wl;
     bool same = wl->n == c->want_count &&
@@ -128,12 +246,24 @@ static void publish_locked(ms_core *c, dec_pass *pass, uint64_t serial, ms_core_
         c->want_serial += same; /* let the network thread release finished requests */
     }
     pthread_cond_broadcast(&c->wake); /* the local responder waits for a new list */
+    ms_core_stats *st = &c->stats;
     if (frame) {
         if (c->frame)
             ms_core_frame_free(c->frame);
         c->frame = frame;
+        st->frames_made++;
+        st->frame_triangles += frame->mesh.triangle_count;
+        for (size_t i = 0; i < frame->apo_count; ++i)
+            st->frame_apo_bytes += frame->apo[i].length;
+        ms_core_frame_work *w = &st->frame_work;
+        w->apo_bytes_copied += frame->work.apo_bytes_copied;
+        w->apo_chunks_copied += frame->work.apo_chunks_copied;
+        w->apo_chunks_shared += frame->work.apo_chunks_shared;
+        w->cells_stitched += frame->work.cells_stitched;
+        w->triangles_stitched += frame->work.triangles_stitched;
+        w->cells_changed += frame->work.cells_changed;
+        w->cells_removed += frame->work.cells_removed;
     }
-    ms_core_stats *st = &c->stats;
     st->view_complete = pass->complete && serial == c->camera_serial;
     st->camera_serial = serial;
     st->achieved_error_px = pass->worst;
@@ -147,6 +277,7 @@ static void publish_locked(ms_core *c, dec_pass *pass, uint64_t serial, ms_core_
     if (pass->memory > st->peak_memory)
         st->peak_memory = pass->memory;
     st->decode_seconds += busy;
+    st->frame_seconds += frame_busy;
     if (pass->warning[0])
         snprintf(st->warning, sizeof st->warning, "%s", pass->warning);
 }
@@ -165,9 +296,12 @@ void ms_core_publish(ms_core *c, dec_pass *pass, uint64_t serial, double t_start
     }
     bool first_display = look && something_drawn(c, &pass->fv);
     ms_core_frame *frame = NULL;
+    double frame_busy = 0.0;
     if (c->o.export_frames && (pass->changed || c->generation == 0)) {
         ms_error err;
+        double t_frame = ms_now_seconds();
         frame = make_frame(c, &err);
+        frame_busy = ms_now_seconds() - t_frame;
         if (frame) {
             frame->generation = ++c->generation;
             frame->time = t_now;
@@ -180,7 +314,7 @@ void ms_core_publish(ms_core *c, dec_pass *pass, uint64_t serial, double t_start
         c->stats.first_display = t_now;
         c->stats.first_display_generation = frame ? frame->generation : 0;
     }
-    publish_locked(c, pass, serial, frame, busy);
+    publish_locked(c, pass, serial, frame, busy, frame_busy);
     pthread_mutex_unlock(&c->lock);
     free(pass->wl.w);
     pass->wl.w = NULL;
@@ -215,7 +349,7 @@ void ms_core_frame_free(ms_core_frame *f)
         return;
     ms_view_mesh_free(&f->mesh);
     for (size_t i = 0; i < f->apo_count; ++i)
-        free(f->apo[i].data);
+        bytes_release(f->apo[i].shared);
     free(f->apo);
     free(f->cut_cells);
     free(f->cut_bits);

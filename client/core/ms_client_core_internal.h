@@ -103,6 +103,8 @@ typedef struct dcell {
     ms_codec_header *header; /* parsed once the header arrived */
     uint32_t given;          /* geometry bytes handed to the view */
     uint32_t apo_given;      /* APO bytes complete (in apo.buf from 0: base stays 0) */
+    ms_core_bytes *apo_shared; /* the frames' copy of apo_given's bytes (shared with
+                                 the frames that show them), or NULL */
     uint32_t goal_bytes;     /* geometry prefix the current target needs */
     double handed_at;        /* last hand-over, seconds since start */
     uint8_t retries;
@@ -273,6 +275,11 @@ struct ms_core {
     ms_view_select_report what_if_report; /* scratch of the budget's what-if selection */
     bool budget_floor_warned; /* the "budget too small" warning was given */
     uint64_t generation;
+    /* the previous frame's drawing cells and their versions (ids ascending):
+     * what the next frame's cells changed and removed are counted against */
+    uint32_t *last_run_cell;
+    uint64_t *last_run_version;
+    size_t last_run_count, last_run_cap;
     uint64_t consumed_seq;
     bool first_display_seen;
     /* the caller's camera serial last looked at for a first display (a pass
@@ -481,6 +488,12 @@ bool ms_core_content_want(const ms_core *c, const want *w);
 void ms_core_content_note(ms_core *c);
 
 /* ---- ms_client_core_frames.c ---- */
+
+/* Drops a cell's APO bytes: its reception buffer and the frames' copy (which
+ * frames still holding it keep until they are freed). */
+void ms_core_apo_drop(dcell *d);
+/* Frees the previous frame's cell list (at ms_core_stop). */
+void ms_core_frames_free(ms_core *c);
 
 /* First display, the frame and the pass's wants and figures, published under
  * the lock; takes pass->wl. */

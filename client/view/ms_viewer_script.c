@@ -410,6 +410,17 @@ static void add_memory_figures(json_t *report, script *s, const ms_core_stats *c
     if (ms_process_memory_read(&m, &ignored) != MS_OK)
         memset(&m, 0, sizeof m);
     json_object_set_new(report, "core_memory", json_integer((json_int_t)cs->memory));
+    const ms_core_frame_work *w = &cs->frame_work;
+    json_object_set_new(report, "core_frames",
+                        json_pack("{s:I, s:f, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:I, s:I}", "frames",
+                                  (json_int_t)cs->frames_made, "seconds", cs->frame_seconds, "triangles",
+                                  (json_int_t)cs->frame_triangles, "apo_bytes", (json_int_t)cs->frame_apo_bytes,
+                                  "apo_bytes_copied", (json_int_t)w->apo_bytes_copied, "apo_chunks_copied",
+                                  (json_int_t)w->apo_chunks_copied, "apo_chunks_shared",
+                                  (json_int_t)w->apo_chunks_shared, "cells_stitched",
+                                  (json_int_t)w->cells_stitched, "triangles_stitched",
+                                  (json_int_t)w->triangles_stitched, "cells_changed", (json_int_t)w->cells_changed,
+                                  "cells_removed", (json_int_t)w->cells_removed));
     json_object_set_new(report, "core_peak_memory", json_integer((json_int_t)cs->peak_memory));
     json_object_set_new(report, "gl_bytes", json_integer((json_int_t)gl_bytes));
     json_object_set_new(report, "gl_bytes_peak", json_integer((json_int_t)gl_peak));

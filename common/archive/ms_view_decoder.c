@@ -11,10 +11,13 @@
 
 void ms_view_cache_drop(vcell *c)
 {
+    ms_view_piece_free(c);
     ms_codec_state_free(&c->cache);
     free(c->out_index);
     free(c->owner);
     free(c->levels);
+    free(c->positions);
+    c->positions = NULL;
     c->out_index = c->owner = NULL;
     c->levels = NULL;
     c->cache_valid = false;

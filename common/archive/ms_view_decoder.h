@@ -335,6 +335,11 @@ typedef struct ms_view_mesh {
     size_t snapped_frozen;   /* triangle corners given by a frozen foreign vertex (known
                               * only to a lone kd-cell coarser than its holder: ms_codec.h,
                               * regions) resolved to the holder's vertex inside that cell */
+    /* Shown cells whose triangles this stitch worked out again (the others'
+     * were kept from an earlier stitch of the same view, every cell they
+     * depend on unchanged: the run version's rule below) and, of the
+     * triangles, those that came from them. The mesh is the same either way. */
+    size_t cells_stitched, triangles_stitched;
     /* The stitched cells, ascending (ms_view_stitch fills them; a mesh made by
      * hand may leave run_count 0): cell run_cell[k] drew triangles
      * [run_first[k], run_first[k + 1]) (run_count + 1 entries), and
@@ -353,7 +358,11 @@ typedef struct ms_view_mesh {
 
 /* Builds the mesh of the shown cells whose visible[cell] is true (NULL: all).
  * *out must be zeroed or previously filled (its arrays are reused). Vertices are
- * those of the drawn triangles and every vertex inside a drawn cell. */
+ * those of the drawn triangles and every vertex inside a drawn cell. The view
+ * keeps each shown cell's stitched triangles (its piece) and works a cell out
+ * again only when its run version would change (a cell it depends on changed:
+ * out->cells_stitched); the mesh is the same as if every cell were worked out
+ * (docs/CLIENT.md, "Frames"). */
 ms_status ms_view_stitch(ms_view *view, const bool *visible, ms_view_mesh *out, ms_error *err);
 void ms_view_mesh_free(ms_view_mesh *mesh);
 

@@ -13,6 +13,28 @@
 #include "ms_nsp.h"
 #include "ms_view_decoder.h"
 
+/* A shown cell's stitch, kept for the next stitches (ms_view_stitch.c): its
+ * triangles as corners of its cache (r < vertex count: its own vertex r) or of
+ * foreign vertices (r - vertex count: entry of `calls`, a neighbour's cache
+ * vertex, in the order the stitch first asked for them), the cells and what of
+ * them it depended on (deps: the notes of its version), its version and its
+ * figures. Valid while every dep says the same (ms_view_stitch.c). */
+typedef struct vpiece_dep {
+    uint32_t cell;
+    uint64_t word;
+} vpiece_dep;
+
+typedef struct vpiece {
+    uint64_t version;
+    uint32_t *corners;       /* 3 per triangle */
+    size_t tri_count, tri_cap; /* tri_cap: in corners */
+    uint32_t *calls;         /* 2 per call: cell, cache vertex */
+    size_t call_count, call_cap;
+    vpiece_dep *deps;
+    size_t dep_count, dep_cap;
+    size_t dropped_finer, dropped_snapped, unresolved, snapped_frozen;
+} vpiece;
+
 typedef struct vcell {
     ms_archive_cell rec;
     bool known;             /* rec holds the cell's record (ms_view_learn) */
@@ -31,6 +53,8 @@ typedef struct vcell {
     ms_codec_state cache;
     uint32_t *out_index;    /* per cache vertex: index in the stitched mesh, or NONE */
     uint32_t *owner;        /* per cache vertex: shown cell holding it, NONE = finer cells */
+    double *positions;      /* per cache vertex: its position, 3 doubles (world units; made
+                             * with the cache, so a stitch copies them) */
     uint8_t *levels;        /* per cache vertex: its kd-level, when some foreign vertex is
                              * frozen coarser than the cell (else NULL: all at its level) */
     /* colour (ms_view_colour.c): the colour stream's bytes held, its decoder,
@@ -59,6 +83,8 @@ typedef struct vcell {
     bool over_valid;
     uint8_t over_bits;
     double over_bound;
+    vpiece *piece;          /* the last stitch of the cell (NULL: none; dropped with the
+                             * cache) */
 } vcell;
 
 /* Cells are kept per sibling group: ids are breadth-first, so every group of
@@ -106,7 +132,12 @@ static inline vcell *ms_view_vcell(const ms_view *v, uint32_t id)
 #define NONE 0xFFFFFFFFu
 #define OWNER_FINER 0xFFFFFFFEu
 
-/* Drops a cell's stitching cache. */
+/* Frees a cell's kept stitch (ms_view_stitch.c). */
+void ms_view_piece_free(vcell *c);
+/* Frees every cell's kept stitch: the next stitch works out every cell again
+ * (the tests' reference for the stitch that keeps them). */
+void ms_view_pieces_forget(ms_view *view);
+/* Drops a cell's stitching cache (and its kept stitch). */
 void ms_view_cache_drop(vcell *c);
 
 /* ms_view_colour.c: drops a cell's colour decoder and cached colours (keeps

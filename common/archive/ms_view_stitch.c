@@ -23,6 +23,29 @@ void ms_view_mesh_free(ms_view_mesh *m)
     memset(m, 0, sizeof *m);
 }
 
+/* Kd-cell (prefix, level) on the model's grid: its corner and its width on
+ * each axis, in grid units of box_side / 2^p. Kd-level l halves axis l mod 3,
+ * so after `level` levels axis a is cut (level + 2 - a) / 3 times. */
+static void kd_cell_grid(const ms_view *v, uint64_t prefix, unsigned level, uint32_t xyz[3],
+                         uint32_t width[3])
+{
+    ms_nsp_prefix_corner(&v->shape, prefix, level, xyz);
+    for (int a = 0; a < 3; ++a)
+        width[a] = 1u << (v->shape.bits - (level + 2u - (unsigned)a) / 3u);
+}
+
+/* The point the stream draws for vertex i of the cell's cache (geometry
+ * ahead), else its kd-cell's centre, world units. */
+static void vertex_position(const ms_view *v, const vcell *c, size_t i, double out[3])
+{
+    uint32_t xyz[3], width[3];
+    kd_cell_grid(v, c->cache.cells[i], c->cache.level, xyz, width);
+    double unit = v->header.box_side / (double)(1u << v->shape.bits);
+    const uint16_t *rep = c->cache.rep ? &c->cache.rep[3 * i] : NULL;
+    for (int a = 0; a < 3; ++a)
+        out[a] = v->header.box_origin[a] + ((double)xyz[a] + (rep ? rep[a] / 65536.0 : 0.5) * width[a]) * unit;
+}
+
 static ms_status refresh_cache(ms_view *v, uint32_t cell, ms_error *err)
 {
     vcell *c = ms_view_vcell(v, cell);
@@ -35,10 +58,13 @@ static ms_status refresh_cache(ms_view *v, uint32_t cell, ms_error *err)
     size_t n = c->cache.vertex_count;
     c->out_index = malloc((n ? n : 1) * sizeof *c->out_index);
     c->owner = malloc((n ? n : 1) * sizeof *c->owner);
-    if (!c->out_index || !c->owner) {
+    c->positions = malloc(3 * (n ? n : 1) * sizeof *c->positions);
+    if (!c->out_index || !c->owner || !c->positions) {
         ms_view_cache_drop(c);
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory stitching");
     }
+    for (size_t i = 0; i < n; ++i)
+        vertex_position(v, c, i, &c->positions[3 * i]);
     if (c->dec) {
         if (ms_codec_decoder_vertex_count(c->dec) != n) {
             ms_view_cache_drop(c);
@@ -140,17 +166,6 @@ static ms_status mesh_room(ms_view_mesh *m, size_t vertices, size_t triangles, m
     return MS_OK;
 }
 
-/* Kd-cell (prefix, level) on the model's grid: its corner and its width on
- * each axis, in grid units of box_side / 2^p. Kd-level l halves axis l mod 3,
- * so after `level` levels axis a is cut (level + 2 - a) / 3 times. */
-static void kd_cell_grid(const ms_view *v, uint64_t prefix, unsigned level, uint32_t xyz[3],
-                         uint32_t width[3])
-{
-    ms_nsp_prefix_corner(&v->shape, prefix, level, xyz);
-    for (int a = 0; a < 3; ++a)
-        width[a] = 1u << (v->shape.bits - (level + 2u - (unsigned)a) / 3u);
-}
-
 ms_status ms_view_cell_bounds(ms_view *v, uint32_t cell, double lo[3], double hi[3],
                               ms_error *err)
 {
@@ -197,15 +212,7 @@ static ms_status out_vertex(ms_view *v, ms_view_mesh *m, uint32_t cell, uint32_t
     size_t k = m->vertex_count++;
     unsigned level = c->cache.level;
     uint64_t prefix = c->cache.cells[i];
-    uint32_t xyz[3], width[3];
-    kd_cell_grid(v, prefix, level, xyz, width);
-    double unit = v->header.box_side / (double)(1u << v->shape.bits);
-    /* the point the stream draws for the cell (geometry ahead), else its centre */
-    const uint16_t *rep = c->cache.rep ? &c->cache.rep[3 * (size_t)i] : NULL;
-    for (int a = 0; a < 3; ++a)
-        m->positions[3 * k + (size_t)a] =
-            v->header.box_origin[a] +
-            ((double)xyz[a] + (rep ? rep[a] / 65536.0 : 0.5) * width[a]) * unit;
+    memcpy(&m->positions[3 * k], &c->positions[3 * (size_t)i], 3 * sizeof *m->positions);
     unsigned shift = 3 * v->shape.bits - level;
     m->keys[k] = shift >= 64 ? 0 : prefix << shift;
     m->levels[k] = (uint8_t)level;
@@ -223,8 +230,8 @@ static ms_status out_vertex(ms_view *v, ms_view_mesh *m, uint32_t cell, uint32_t
 }
 
 typedef struct snapped_tri {
-    uint32_t s[3]; /* sorted output vertex indices */
-    uint32_t at;   /* position in the output */
+    uint64_t s[3]; /* its corners' vertices (cell, cache vertex), sorted */
+    uint32_t at;   /* its place among the piece's triangles */
 } snapped_tri;
 
 static int cmp_snapped(const void *x, const void *y)
@@ -236,55 +243,64 @@ static int cmp_snapped(const void *x, const void *y)
     return a->at < b->at ? -1 : (a->at > b->at);
 }
 
+/* The vertex a piece's corner stands for: (cell, cache vertex) as one word. */
+static uint64_t corner_vertex(const vpiece *p, uint32_t cell, size_t own, uint32_t r)
+{
+    if (r < own)
+        return (uint64_t)cell << 32 | r;
+    const uint32_t *call = &p->calls[2 * (size_t)(r - own)];
+    return (uint64_t)call[0] << 32 | call[1];
+}
+
 /* Two triangles of one cell, distinct at its precision, may become the same
  * triangle once their vertices in coarser neighbours snap (triangles of different
  * cells never can: each keeps a vertex of its own cell, and the precision rule
  * lets only one of two cells draw). Keeps the first of each such group. */
-static ms_status drop_snapped_repeats(ms_view_mesh *m, size_t first, const uint8_t *snapped,
+static ms_status drop_snapped_repeats(vpiece *p, uint32_t cell, size_t own, const uint8_t *snapped,
                                       ms_error *err)
 {
     size_t n = 0;
-    for (size_t t = first; t < m->triangle_count; ++t)
-        n += snapped[t - first];
+    for (size_t t = 0; t < p->tri_count; ++t)
+        n += snapped[t];
     if (n < 2)
         return MS_OK;
     snapped_tri *a = malloc(n * sizeof *a);
-    uint8_t *drop = calloc(m->triangle_count - first, 1);
+    uint8_t *drop = calloc(p->tri_count, 1);
     if (!a || !drop) {
         free(a);
         free(drop);
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory stitching");
     }
     n = 0;
-    for (size_t t = first; t < m->triangle_count; ++t) {
-        if (!snapped[t - first])
+    for (size_t t = 0; t < p->tri_count; ++t) {
+        if (!snapped[t])
             continue;
-        uint32_t x = m->triangles[3 * t], y = m->triangles[3 * t + 1], z = m->triangles[3 * t + 2], w;
+        uint64_t x = corner_vertex(p, cell, own, p->corners[3 * t]),
+                 y = corner_vertex(p, cell, own, p->corners[3 * t + 1]),
+                 z = corner_vertex(p, cell, own, p->corners[3 * t + 2]), w;
         if (x > y)
             w = x, x = y, y = w;
         if (y > z)
             w = y, y = z, z = w;
         if (x > y)
             w = x, x = y, y = w;
-        a[n++] = (snapped_tri){{x, y, z}, (uint32_t)(t - first)};
+        a[n++] = (snapped_tri){{x, y, z}, (uint32_t)t};
     }
     qsort(a, n, sizeof *a, cmp_snapped);
     for (size_t i = 1; i < n; ++i)
         if (memcmp(a[i].s, a[i - 1].s, sizeof a[i].s) == 0)
             drop[a[i].at] = 1;
-    size_t w = first;
-    for (size_t t = first; t < m->triangle_count; ++t) {
-        if (drop[t - first]) {
-            m->dropped_snapped++;
+    size_t w = 0;
+    for (size_t t = 0; t < p->tri_count; ++t) {
+        if (drop[t]) {
+            p->dropped_snapped++;
             continue;
         }
-        if (w != t) {
-            memcpy(&m->triangles[3 * w], &m->triangles[3 * t], 12);
-            m->triangle_cell[w] = m->triangle_cell[t];
-        }
+        if (w != t)
+            memcpy(&p->corners[3 * w], &p->corners[3 * t], 3 * sizeof *p->corners);
         w++;
     }
-    m->triangle_count = w;
+    p->tri_count = w;
     free(a);
     free(drop);
     return MS_OK;
@@ -301,7 +317,8 @@ static uint64_t version_mix(uint64_t h, uint64_t cell, uint64_t stamp)
 
 /* The running version of a cell's triangles: each cell looked at, with what
  * of it was used (its stamp; or only its level, a tag above any stamp; or
- * only that it is split too coarse), once per run of equal notes. */
+ * only that it is split too coarse), once per run of equal notes, each note
+ * kept in the piece (what makes it valid again). */
 typedef struct dep_note {
     uint64_t version;
     uint32_t cell;
@@ -311,13 +328,174 @@ typedef struct dep_note {
 #define DEP_FINER (UINT64_MAX - 255u)
 #define DEP_LEVEL (UINT64_MAX - 254u)
 
-static void note_dep(dep_note *d, uint32_t cell, uint64_t word)
+static bool grow_array(void **array, size_t *cap, size_t need, size_t size)
+{
+    if (need <= *cap)
+        return true;
+    size_t c = grown(*cap, need);
+    void *q = realloc(*array, c * size);
+    if (!q)
+        return false;
+    *array = q;
+    *cap = c;
+    return true;
+}
+
+static bool note_dep(vpiece *p, dep_note *d, uint32_t cell, uint64_t word)
 {
     if (cell == d->cell && word == d->word)
-        return;
+        return true;
     d->cell = cell;
     d->word = word;
     d->version = version_mix(d->version, cell, word);
+    if (!grow_array((void **)&p->deps, &p->dep_cap, p->dep_count + 1, sizeof *p->deps))
+        return false;
+    p->deps[p->dep_count++] = (vpiece_dep){cell, word};
+    return true;
+}
+
+void ms_view_piece_free(vcell *c)
+{
+    if (!c->piece)
+        return;
+    free(c->piece->corners);
+    free(c->piece->calls);
+    free(c->piece->deps);
+    free(c->piece);
+    c->piece = NULL;
+}
+
+void ms_view_pieces_forget(ms_view *v)
+{
+    for (uint32_t id = 0; id != MS_ARCHIVE_NONE; id = ms_view_next_known(v, id))
+        ms_view_piece_free(ms_view_vcell(v, id));
+}
+
+/* Whether cell's kept piece still holds: every cell it looked at says what it
+ * said then (a stamp the same; still shown at that level; still split). The
+ * cell's own stamp is its first note's. */
+static bool piece_valid(const ms_view *v, const vcell *c)
+{
+    const vpiece *p = c->piece;
+    if (!p)
+        return false;
+    for (size_t i = 0; i < p->dep_count; ++i) {
+        const vcell *o = ms_view_vcell(v, p->deps[i].cell);
+        uint64_t w = p->deps[i].word;
+        if (!o)
+            return false;
+        if (w == DEP_FINER) {
+            if (o->state != MS_VIEW_SPLIT)
+                return false;
+        } else if (w >= DEP_LEVEL) {
+            if (o->state != MS_VIEW_SHOWN || !o->cache_valid || o->cache.level != (unsigned)(w - DEP_LEVEL))
+                return false;
+        } else if (o->stamp != w || o->state != MS_VIEW_SHOWN) {
+            return false;
+        }
+    }
+    return true;
+}
+
+/* Works out cell id's triangles again into its piece: which are drawn, their
+ * corners snapped to the neighbours' representatives, repeats dropped; the
+ * version of the notes made. Needs every shown cell's cache and the cell's
+ * owners. */
+static ms_status make_piece(ms_view *v, uint32_t id, vcell *c, uint8_t **snapped, size_t *snapped_cap,
+                            ms_error *err)
+{
+    if (!c->piece && !(c->piece = calloc(1, sizeof *c->piece)))
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory stitching");
+    vpiece *p = c->piece;
+    p->tri_count = p->call_count = p->dep_count = 0;
+    p->dropped_finer = p->dropped_snapped = p->unresolved = p->snapped_frozen = 0;
+    const unsigned Lc = c->cache.level;
+    const size_t own = c->cache.vertex_count;
+    if (own >= NONE / 2)
+        return ms_error_set(err, MS_ERR_RANGE, "cell %u: too many vertices to stitch", id);
+    if (c->cache.tri_count > *snapped_cap) {
+        uint8_t *q = realloc(*snapped, c->cache.tri_count);
+        if (!q)
+            return ms_error_set(err, MS_ERR_NOMEM, "out of memory stitching");
+        *snapped = q;
+        *snapped_cap = c->cache.tri_count;
+    }
+    /* the triangles' version: the cell's stamp and those of the cells each
+     * corner's owner lookup ended at, as far as the loop below looks (what
+     * it does depends on nothing else) */
+    dep_note dep = {version_mix(0x243F6A8885A308D3ull, id, c->stamp), NONE, 0};
+    bool room = grow_array((void **)&p->deps, &p->dep_cap, 1, sizeof *p->deps);
+    if (room)
+        p->deps[p->dep_count++] = (vpiece_dep){id, c->stamp};
+    for (size_t t = 0; t < c->cache.tri_count && room; ++t) {
+        const uint32_t *x = &c->cache.tris[3 * t];
+        uint32_t r[3];
+        uint64_t vert[3];
+        bool keep = true, moved = false;
+        for (int j = 0; j < 3 && keep && room; ++j) {
+            uint32_t o = c->owner[x[j]];
+            if (o == OWNER_FINER) { /* depends only on the cells split above */
+                uint32_t end = o;
+                (void)owner_of(v, c->cache.cells[x[j]], Lc, &end);
+                room = note_dep(p, &dep, end, DEP_FINER);
+                keep = false;
+                p->dropped_finer++;
+                break;
+            }
+            if (o == id) {
+                r[j] = x[j];
+                vert[j] = (uint64_t)id << 32 | x[j];
+                continue;
+            }
+            vcell *oc = ms_view_vcell(v, o);
+            unsigned Lo = oc->cache.level;
+            if (Lo > Lc || (Lo == Lc && o > id)) { /* depends only on its level */
+                room = note_dep(p, &dep, o, DEP_LEVEL + Lo);
+                keep = false;
+                p->dropped_finer++;
+                break;
+            }
+            room = note_dep(p, &dep, o, oc->stamp); /* its vertices: its whole state */
+            /* a frozen foreign vertex is known only to its lone kd-cell (level
+             * lx): the holder's vertex inside it is the one it stands for */
+            unsigned lx = c->levels ? c->levels[x[j]] : Lc, at = lx < Lo ? lx : Lo;
+            uint32_t k = find_inside(&oc->cache, c->cache.cells[x[j]] >> (Lc - at), Lo - at);
+            if (k == NONE) {
+                keep = false;
+                p->unresolved++;
+                break;
+            }
+            p->snapped_frozen += lx < Lo;
+            /* the vertex goes out here, drawn or not (as the stitch asks for it) */
+            if (!(room = room && grow_array((void **)&p->calls, &p->call_cap, 2 * (p->call_count + 1),
+                                            sizeof *p->calls)))
+                break;
+            p->calls[2 * p->call_count] = o;
+            p->calls[2 * p->call_count + 1] = k;
+            r[j] = (uint32_t)(own + p->call_count++);
+            vert[j] = (uint64_t)o << 32 | k;
+            moved = true;
+        }
+        if (!room || !keep)
+            continue;
+        if (vert[0] == vert[1] || vert[1] == vert[2] || vert[0] == vert[2]) {
+            p->dropped_snapped++;
+            continue;
+        }
+        if (!(room = grow_array((void **)&p->corners, &p->tri_cap, 3 * (p->tri_count + 1), sizeof *p->corners)))
+            break;
+        memcpy(&p->corners[3 * p->tri_count], r, sizeof r);
+        (*snapped)[p->tri_count++] = moved;
+    }
+    if (!room) {
+        ms_view_piece_free(c);
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory stitching");
+    }
+    p->version = dep.version;
+    ms_status s = drop_snapped_repeats(p, id, own, *snapped, err);
+    if (s != MS_OK)
+        ms_view_piece_free(c);
+    return s;
 }
 
 /* Appends cell's run (its triangles from first on) to the mesh's runs. */
@@ -343,6 +521,44 @@ static ms_status add_run(ms_view_mesh *m, uint32_t cell, size_t first, uint64_t 
     m->run_version[m->run_count++] = version;
     m->run_first[m->run_count] = (uint32_t)m->triangle_count;
     return MS_OK;
+}
+
+/* Cell id's piece into the mesh: its own vertices, then the neighbours'
+ * vertices in the order the stitch asked for them, then its triangles. */
+static ms_status put_piece(ms_view *v, ms_view_mesh *m, uint32_t id, vcell *c, ms_error *err)
+{
+    const vpiece *p = c->piece;
+    const size_t own = c->cache.vertex_count, first = m->triangle_count;
+    ms_status s = MS_OK;
+    uint32_t dummy;
+    for (size_t i = 0; i < own && s == MS_OK; ++i)
+        if (c->owner[i] == id)
+            s = out_vertex(v, m, id, (uint32_t)i, &dummy, err);
+    for (size_t i = 0; i < p->call_count && s == MS_OK; ++i)
+        s = out_vertex(v, m, p->calls[2 * i], p->calls[2 * i + 1], &dummy, err);
+    if (s == MS_OK)
+        s = mesh_room(m, 0, first + p->tri_count, err);
+    if (s != MS_OK)
+        return s;
+    for (size_t t = 0; t < p->tri_count; ++t) {
+        uint32_t *out = &m->triangles[3 * (first + t)];
+        for (int j = 0; j < 3; ++j) {
+            uint32_t r = p->corners[3 * t + (size_t)j];
+            if (r < own) {
+                out[j] = c->out_index[r];
+            } else {
+                const uint32_t *call = &p->calls[2 * (size_t)(r - own)];
+                out[j] = ms_view_vcell(v, call[0])->out_index[call[1]];
+            }
+        }
+        m->triangle_cell[first + t] = id;
+    }
+    m->triangle_count = first + p->tri_count;
+    m->dropped_finer += p->dropped_finer;
+    m->dropped_snapped += p->dropped_snapped;
+    m->unresolved += p->unresolved;
+    m->snapped_frozen += p->snapped_frozen;
+    return add_run(m, id, first, p->version, err);
 }
 
 /* A new stamp for every cell whose state, precision or colour bytes changed
@@ -376,15 +592,20 @@ static ms_status colour_room(ms_view_mesh *m, bool coloured, ms_error *err)
     return MS_OK;
 }
 
+/* Each shown cell drawn is worked out again only when its kept piece no
+ * longer holds (piece_valid): then its owners are looked up and its
+ * triangles walked; the mesh is then put together from the pieces in cell
+ * order, as one walk of every cell would have made it. */
 ms_status ms_view_stitch(ms_view *v, const bool *visible, ms_view_mesh *m, ms_error *err)
 {
     uint8_t *snapped = NULL;
     size_t snapped_cap = 0;
     m->vertex_count = m->triangle_count = 0;
     m->dropped_finer = m->dropped_snapped = m->unresolved = m->snapped_frozen = 0;
+    m->cells_stitched = m->triangles_stitched = 0;
     m->run_count = 0;
     ms_status s = MS_OK;
-    /* Caches, colours and owners of every shown cell. */
+    /* Caches and colours of every shown cell, their vertices not yet out. */
     bool coloured = false;
     for (uint32_t id = 0; id != MS_ARCHIVE_NONE && s == MS_OK; id = ms_view_next_known(v, id)) {
         vcell *c = ms_view_vcell(v, id);
@@ -394,99 +615,42 @@ ms_status ms_view_stitch(ms_view *v, const bool *visible, ms_view_mesh *m, ms_er
             (s = ms_view_colour_refresh(v, id, err)) != MS_OK)
             break;
         coloured |= ms_view_colour_ready(c);
-        for (size_t i = 0; i < c->cache.vertex_count; ++i) {
-            uint32_t end;
+        for (size_t i = 0; i < c->cache.vertex_count; ++i)
             c->out_index[i] = NONE;
-            c->owner[i] = owner_of(v, c->cache.cells[i], c->cache.level, &end);
-        }
     }
     /* after the caches: a cell whose colours came in this stitch renews too */
     renew_stamps(v);
     if (s == MS_OK)
         s = colour_room(m, coloured, err);
+    /* the pieces that no longer hold, worked out again (their owners first:
+     * a piece reads only its own cell's) */
     for (uint32_t id = 0; id != MS_ARCHIVE_NONE && s == MS_OK; id = ms_view_next_known(v, id)) {
         vcell *c = ms_view_vcell(v, id);
-        if (!c || c->state != MS_VIEW_SHOWN || (visible && !visible[id]))
+        if (!c || c->state != MS_VIEW_SHOWN || (visible && !visible[id]) || piece_valid(v, c))
             continue;
-        const unsigned Lc = c->cache.level;
-        const size_t first = m->triangle_count;
-        /* the triangles' version: the cell's stamp and those of the cells each
-         * corner's owner lookup ended at, as far as the loop below looks (what
-         * it does depends on nothing else) */
-        dep_note dep = {version_mix(0x243F6A8885A308D3ull, id, c->stamp), NONE, 0};
-        if (c->cache.tri_count > snapped_cap) {
-            uint8_t *p = realloc(snapped, c->cache.tri_count);
-            if (!p) {
-                s = ms_error_set(err, MS_ERR_NOMEM, "out of memory stitching");
-                break;
-            }
-            snapped = p;
-            snapped_cap = c->cache.tri_count;
+        for (size_t i = 0; i < c->cache.vertex_count; ++i) {
+            uint32_t end;
+            c->owner[i] = owner_of(v, c->cache.cells[i], c->cache.level, &end);
         }
-        for (size_t i = 0; i < c->cache.vertex_count && s == MS_OK; ++i)
-            if (c->owner[i] == id) {
-                uint32_t dummy;
-                s = out_vertex(v, m, id, (uint32_t)i, &dummy, err);
-            }
-        for (size_t t = 0; t < c->cache.tri_count && s == MS_OK; ++t) {
-            const uint32_t *x = &c->cache.tris[3 * t];
-            uint32_t idx[3];
-            bool keep = true, moved = false;
-            for (int j = 0; j < 3 && keep; ++j) {
-                uint32_t o = c->owner[x[j]];
-                if (o == OWNER_FINER) { /* depends only on the cells split above */
-                    uint32_t end = o;
-                    (void)owner_of(v, c->cache.cells[x[j]], Lc, &end);
-                    note_dep(&dep, end, DEP_FINER);
-                    keep = false;
-                    m->dropped_finer++;
-                    break;
-                }
-                if (o == id) {
-                    if ((s = out_vertex(v, m, id, x[j], &idx[j], err)) != MS_OK)
-                        break;
-                    continue;
-                }
-                vcell *oc = ms_view_vcell(v, o);
-                unsigned Lo = oc->cache.level;
-                if (Lo > Lc || (Lo == Lc && o > id)) { /* depends only on its level */
-                    note_dep(&dep, o, DEP_LEVEL + Lo);
-                    keep = false;
-                    m->dropped_finer++;
-                    break;
-                }
-                note_dep(&dep, o, oc->stamp); /* its vertices: its whole state */
-                /* a frozen foreign vertex is known only to its lone kd-cell (level
-                 * lx): the holder's vertex inside it is the one it stands for */
-                unsigned lx = c->levels ? c->levels[x[j]] : Lc, at = lx < Lo ? lx : Lo;
-                uint32_t k = find_inside(&oc->cache, c->cache.cells[x[j]] >> (Lc - at), Lo - at);
-                if (k == NONE) {
-                    keep = false;
-                    m->unresolved++;
-                    break;
-                }
-                m->snapped_frozen += lx < Lo;
-                if ((s = out_vertex(v, m, o, k, &idx[j], err)) != MS_OK)
-                    break;
-                moved = true;
-            }
-            if (s != MS_OK || !keep)
-                continue;
-            if (idx[0] == idx[1] || idx[1] == idx[2] || idx[0] == idx[2]) {
-                m->dropped_snapped++;
-                continue;
-            }
-            if ((s = mesh_room(m, 0, m->triangle_count + 1, err)) != MS_OK)
-                break;
-            memcpy(&m->triangles[3 * m->triangle_count], idx, sizeof idx);
-            m->triangle_cell[m->triangle_count] = id;
-            snapped[m->triangle_count - first] = moved;
-            m->triangle_count++;
-        }
-        if (s == MS_OK)
-            s = drop_snapped_repeats(m, first, snapped, err);
-        if (s == MS_OK)
-            s = add_run(m, id, first, dep.version, err);
+        if ((s = make_piece(v, id, c, &snapped, &snapped_cap, err)) != MS_OK)
+            break;
+        m->cells_stitched++;
+        m->triangles_stitched += c->piece->tri_count;
+    }
+    /* room for the whole mesh at once: every cell's own vertices and those it
+     * asks its neighbours for (an upper bound), and its triangles */
+    size_t vertices = 0, triangles = 0;
+    for (uint32_t id = 0; id != MS_ARCHIVE_NONE && s == MS_OK; id = ms_view_next_known(v, id)) {
+        vcell *c = ms_view_vcell(v, id);
+        if (c && c->state == MS_VIEW_SHOWN && (!visible || visible[id]))
+            vertices += c->cache.vertex_count + c->piece->call_count, triangles += c->piece->tri_count;
+    }
+    if (s == MS_OK)
+        s = mesh_room(m, vertices, triangles, err);
+    for (uint32_t id = 0; id != MS_ARCHIVE_NONE && s == MS_OK; id = ms_view_next_known(v, id)) {
+        vcell *c = ms_view_vcell(v, id);
+        if (c && c->state == MS_VIEW_SHOWN && (!visible || visible[id]))
+            s = put_piece(v, m, id, c, err);
     }
     free(snapped);
     return s;

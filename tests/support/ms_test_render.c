@@ -217,7 +217,7 @@ void ms_test_render_apo(const ms_archive *a, const ms_view_mesh *mesh, unsigned 
         if (mid_level && levels < rec->apo_levels)
             length += (ms_archive_apo_prefix(a, c, levels, NULL) - length) / 2;
         assert_true(length <= stored);
-        (*chunks)[(*count)++] = (ms_core_apo_chunk){c, levels, (uint8_t *)(uintptr_t)data, length};
+        (*chunks)[(*count)++] = (ms_core_apo_chunk){c, levels, (uint8_t *)(uintptr_t)data, length, NULL};
     }
     free(drawing);
 }
