@@ -219,7 +219,7 @@ void ms_core_stop(ms_core *c)
     if (c->member >= 0)
         ms_core_budget_leave(c->shared, c->member);
     ms_pool_free(c->pool);
-    free(c->jobs);
+    ms_view_refine_jobs_free(&c->jobs);
     if (c->locked) {
         pthread_mutex_destroy(&c->lock);
         pthread_cond_destroy(&c->wake);

@@ -247,61 +247,6 @@ static bool dec_colour_received(ms_core *c, uint32_t cell)
     return true;
 }
 
-typedef struct refine_batch {
-    ms_view *view;
-    const refine_job *jobs;
-} refine_batch;
-
-/* One refine job: failures are seen again, and reported, by ms_view_apply. */
-static void refine_one(void *ctx, size_t k)
-{
-    const refine_batch *b = ctx;
-    (void)ms_view_set_bits(b->view, b->jobs[k].cell, b->jobs[k].bits, NULL);
-}
-
-static int compare_jobs_by_work(const void *x, const void *y)
-{
-    const refine_job *a = x, *b = y;
-    return a->bits > b->bits ? -1 : a->bits < b->bits;
-}
-
-/* The parallel part of a pass: shown cells that can go up with the bytes held. */
-static size_t dec_parallel_refine(ms_core *c)
-{
-    size_t count = 0;
-    for (uint32_t i = 0; i != MS_ARCHIVE_NONE; i = ms_view_next_known(c->view, i)) {
-        uint8_t target = ms_view_target(c->view, i);
-        if (ms_view_state(c->view, i) != MS_VIEW_SHOWN || target == MS_VIEW_TARGET_HIDDEN)
-            continue;
-        const ms_archive_cell *rec = ms_archive_get_cell(c->index, i);
-        if (rec->geometry_length == 0 || ms_view_held_bytes(c->view, i) == 0)
-            continue;
-        unsigned goal = target == MS_VIEW_TARGET_SPLIT ? rec->bits_max : target;
-        unsigned cur = ms_view_bits(c->view, i);
-        if (goal <= cur)
-            continue;
-        unsigned avail = ms_view_available_bits(c->view, i);
-        if (goal > avail)
-            goal = avail;
-        if (goal <= cur)
-            continue;
-        if (count == c->job_cap) {
-            size_t cap = c->job_cap ? 2 * c->job_cap : 64;
-            refine_job *g = realloc(c->jobs, cap * sizeof *g);
-            if (!g)
-                break;
-            c->jobs = g;
-            c->job_cap = cap;
-        }
-        c->jobs[count++] = (refine_job){i, goal};
-    }
-    if (count > 1)
-        qsort(c->jobs, count, sizeof *c->jobs, compare_jobs_by_work);
-    refine_batch batch = {c->view, c->jobs};
-    ms_pool_for(c->pool, count, refine_one, &batch);
-    return count;
-}
-
 /* Received bytes into their cells' reception buffers, verified and handed to
  * the view; true when new APO bytes changed the frame (as new geometry does). */
 static bool dec_take_chunks(ms_core *c, chunk_msg *chunks)
@@ -395,7 +340,7 @@ static void dec_pass_begin(ms_core *c, const ms_camera *cam, dec_pass *pass)
 static bool dec_select(ms_core *c, dec_pass *pass)
 {
     ms_view_select(c->view, pass->cam, &pass->sp, &c->report);
-    size_t refined_in_parallel = dec_parallel_refine(c);
+    size_t refined_in_parallel = ms_view_refine_parallel(c->view, c->pool, &c->jobs);
     ms_view_apply_report report;
     ms_error err;
     if (ms_view_apply(c->view, &report, &err) != MS_OK) {

@@ -29,6 +29,7 @@
 #include "ms_client_core.h"
 #include "ms_codec.h"
 #include "ms_parallel.h"
+#include "ms_view_refine.h"
 
 #define MAX_SLOTS 512u
 #define LATENCY_KEEP 65536u
@@ -129,14 +130,6 @@ enum { SUBTREE_RECEIVING = 0, SUBTREE_HELD = 1, SUBTREE_FAILED = 2 };
 /* The content bounds (ms_client_core_content.c): being worked out, known, or
  * not to be had (an empty model, a root that failed below root precision). */
 enum { CONTENT_PENDING = 0, CONTENT_KNOWN = 1, CONTENT_NONE = 2 };
-
-/* Decode helpers: refine distinct shown cells in parallel before the
- * (single-threaded) apply does the splits and merges (ms_view_decoder.h
- * allows ms_view_set_bits on distinct cells concurrently). */
-typedef struct refine_job {
-    uint32_t cell;
-    unsigned bits;
-} refine_job;
 
 
 /* A core's place in a link: what the connection knows of it. The entry is
@@ -287,8 +280,7 @@ struct ms_core {
     uint64_t display_checked_serial;
     bool display_checked;
     ms_pool *pool;          /* decode helpers */
-    refine_job *jobs;
-    size_t job_cap;
+    ms_view_refine_jobs jobs; /* their job list (ms_view_refine_parallel), kept between passes */
 };
 
 /* The camera of one decode pass, as selection and scheduling see it. */

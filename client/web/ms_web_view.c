@@ -11,6 +11,7 @@
 #include "ms_camera.h"
 #include "ms_parallel.h"
 #include "ms_view_decoder.h"
+#include "ms_view_refine.h"
 #include "ms_web_cast.h"
 
 /* Rounds of select + apply before a plan gives up on the cut settling (the
@@ -21,11 +22,6 @@ typedef struct planned {
     uint32_t cell, bits, bytes;
     uint32_t depth; /* the cell's level (the ahead part's order) */
 } planned;
-
-/* A cell to refine to `bits` on the pool (the client core's parallel refine). */
-typedef struct refine_job {
-    uint32_t cell, bits;
-} refine_job;
 
 struct ms_web_view {
     ms_archive *index;
@@ -42,8 +38,7 @@ struct ms_web_view {
     bool ahead;             /* plans list the whole target cut (ms_web_view_plan_ahead) */
     uint32_t *depth;        /* per cell: its level in the tree (for the ahead part's order) */
     ms_pool *pool;          /* NULL: decoding on the caller's thread alone */
-    refine_job *jobs;
-    uint32_t job_cap;
+    ms_view_refine_jobs jobs; /* the pool's job list, kept between plans */
     ms_error err;
 };
 
@@ -77,7 +72,7 @@ void ms_web_view_free(ms_web_view *v)
     if (!v)
         return;
     ms_pool_free(v->pool);
-    free(v->jobs);
+    ms_view_refine_jobs_free(&v->jobs);
     free(v->depth);
     ms_view_mesh_free(&v->mesh);
     ms_view_destroy(v->view);
@@ -236,63 +231,12 @@ static unsigned goal_bits(const ms_web_view *v, uint32_t cell, const ms_archive_
     return goal > rec->bits_max ? rec->bits_max : goal;
 }
 
-typedef struct refine_batch {
-    ms_view *view;
-    const refine_job *jobs;
-} refine_batch;
-
-/* One refine job: a failure is met again, and reported, by ms_view_apply. */
-static void refine_one(void *ctx, size_t k)
+/* With a pool: the shown cells whose bytes allow it go up on every thread
+ * (ms_view_refine_parallel) before ms_view_apply does the rest (splits, merges,
+ * coarsening) on the caller's. Returns how many cells went up. */
+static size_t parallel_refine(ms_web_view *v)
 {
-    const refine_batch *b = ctx;
-    (void)ms_view_set_bits(b->view, b->jobs[k].cell, b->jobs[k].bits, NULL);
-}
-
-static int compare_jobs_by_work(const void *x, const void *y)
-{
-    const refine_job *a = x, *b = y;
-    return a->bits > b->bits ? -1 : a->bits < b->bits;
-}
-
-/* With a pool: the shown cells whose target is finer than their bits and
- * whose bytes allow some of it go up on every thread (ms_view_set_bits on
- * distinct cells may run at once), before ms_view_apply does the rest
- * (splits, merges, coarsening) on the caller's; the same decoding as apply's,
- * in another order, so the same cut (the client core's dec_parallel_refine).
- * Returns how many cells went up. */
-static uint32_t parallel_refine(ms_web_view *v)
-{
-    if (!v->pool)
-        return 0;
-    uint32_t count = 0, n = ms_view_cell_count(v->view);
-    for (uint32_t c = 0; c < n; ++c) {
-        uint8_t target = ms_view_target(v->view, c);
-        if (ms_view_state(v->view, c) != MS_VIEW_SHOWN || target == MS_VIEW_TARGET_HIDDEN)
-            continue;
-        const ms_archive_cell *rec = ms_view_cell(v->view, c);
-        if (rec->geometry_length == 0 || ms_view_held_bytes(v->view, c) == 0)
-            continue;
-        unsigned goal = target == MS_VIEW_TARGET_SPLIT ? rec->bits_max : target;
-        unsigned avail = ms_view_available_bits(v->view, c), cur = ms_view_bits(v->view, c);
-        if (goal > avail)
-            goal = avail;
-        if (goal <= cur)
-            continue;
-        if (count == v->job_cap) {
-            uint32_t cap = v->job_cap ? 2 * v->job_cap : 64;
-            refine_job *grown = realloc(v->jobs, cap * sizeof *grown);
-            if (!grown)
-                break; /* apply refines the rest */
-            v->jobs = grown;
-            v->job_cap = cap;
-        }
-        v->jobs[count++] = (refine_job){c, goal};
-    }
-    if (count > 1)
-        qsort(v->jobs, count, sizeof *v->jobs, compare_jobs_by_work);
-    refine_batch batch = {v->view, v->jobs};
-    ms_pool_for(v->pool, count, refine_one, &batch);
-    return count;
+    return v->pool ? ms_view_refine_parallel(v->view, v->pool, &v->jobs) : 0;
 }
 
 static int compare_planned_by_depth(const void *x, const void *y)
@@ -330,7 +274,7 @@ ms_status ms_web_view_plan(ms_web_view *v, uint32_t max, int *settled)
             return ms_error_set(&v->err, MS_ERR_RANGE,
                                 "the selection still changes after %u rounds", MAX_ROUNDS);
         ms_view_select(v->view, &v->camera, &v->params, NULL);
-        uint32_t refined = parallel_refine(v);
+        size_t refined = parallel_refine(v);
         ms_view_apply_report r;
         ms_status st = ms_view_apply(v->view, &r, &v->err);
         if (st != MS_OK)
