@@ -3,6 +3,9 @@
  *    effect is in the set, for every set and both variants, and no effect
  *    directive is left for the driver (the markers are identifiers only the
  *    effect's code uses);
+ *  - a program's variant (ms_render_program_variant) holds the vertex colours,
+ *    the sections and the light loop's kinds exactly as the draw's options
+ *    and cells call for them;
  *  - every set of the implemented effects compiles and links;
  *  - for each effect, a program without it renders the same picture (RGBA32F,
  *    every channel within 2e-6) as a program with it whose input does not call
@@ -32,6 +35,7 @@
 
 #include "ms_render.h"
 #include "ms_render_impostor.h"
+#include "ms_render_internal.h"
 #include "ms_test.h"
 #include "ms_test_render.h"
 
@@ -109,6 +113,49 @@ static void test_source_composition(void **state)
     assert_string_equal(ms_effect_name(MS_EFFECT_HAZE), "haze");
     assert_null(ms_effect_name(3));
     assert_null(ms_effect_name(1u << MS_EFFECT_COUNT));
+}
+
+/* The variant's defines: colours and sections only where the draw uses them
+ * (the wireframe program always: its geometry stage passes both on), the
+ * lights' count and kinds as given; the general source keeps the uniforms. */
+static void test_variant_source(void **state)
+{
+    (void)state;
+    ms_render_options o;
+    ms_render_options_default(&o);
+    ms_error err;
+    char *src;
+    uint32_t v = ms_render_program_variant(&o, false, false, false);
+    assert_int_equal(v & (MS_RENDER_VARIANT_COLOUR | MS_RENDER_VARIANT_SECTIONS), 0);
+    assert_int_equal(ms_render_program_source_variant(MS_EFFECTS_VIEWER, v, false, &src, &err), MS_OK);
+    assert_non_null(strstr(src, "#define MS_LIGHT_COUNT 1\n#define MS_LIGHT_KINDS float[](2.0)\n"));
+    assert_null(strstr(src, "#define MS_VERTEX_COLOUR"));
+    assert_null(strstr(src, "#define MS_SECTIONS"));
+    free(src);
+    assert_true(ms_render_program_variant(&o, true, false, false) & MS_RENDER_VARIANT_COLOUR);
+    assert_int_equal(ms_render_program_variant(&o, false, true, false) & MS_RENDER_VARIANT_GENERAL,
+                     MS_RENDER_VARIANT_GENERAL);
+    assert_int_equal(ms_render_program_variant(&o, false, false, true) & MS_RENDER_VARIANT_GENERAL,
+                     MS_RENDER_VARIANT_GENERAL);
+    o.section_count = 1;
+    o.light_count = 3;
+    o.lights[0].kind = MS_RENDER_LIGHT_DIRECTIONAL;
+    o.lights[1].kind = MS_RENDER_LIGHT_POINT;
+    o.lights[2].kind = MS_RENDER_LIGHT_HEAD;
+    v = ms_render_program_variant(&o, true, false, false);
+    assert_int_equal(ms_render_program_source_variant(MS_EFFECTS_VIEWER, v, false, &src, &err), MS_OK);
+    assert_non_null(strstr(src, "#define MS_VERTEX_COLOUR 1\n#define MS_SECTIONS 1\n"
+                                "#define MS_LIGHT_COUNT 3\n#define MS_LIGHT_KINDS float[](0.0, 1.0, 2.0)\n"));
+    free(src);
+    o.light_count = 0; /* no light: the array still has a size */
+    v = ms_render_program_variant(&o, false, false, false);
+    assert_int_equal(ms_render_program_source_variant(0, v, false, &src, &err), MS_OK);
+    assert_non_null(strstr(src, "#define MS_LIGHT_COUNT 0\n#define MS_LIGHT_KINDS float[](0.0)\n"));
+    free(src);
+    assert_int_equal(ms_render_program_source(MS_EFFECTS_VIEWER, false, &src, &err), MS_OK);
+    assert_non_null(strstr(src, "#define MS_VERTEX_COLOUR 1\n#define MS_SECTIONS 1\n"));
+    assert_null(strstr(src, "MS_LIGHT_KINDS float"));
+    free(src);
 }
 
 /* ---- pictures -------------------------------------------------------------- */
@@ -252,6 +299,38 @@ static void test_every_set_builds(void **state)
             assert_int_equal(s.effects_ran, effects);
         }
     }
+}
+
+/* The programs built for light sets (the loop unrolled, the kinds resolved
+ * when compiled) link and draw: none, each kind alone, eight of them; each
+ * lit set draws a different picture from the unlit one. */
+static void test_light_sets_build(void **state)
+{
+    (void)state;
+    ms_render_options o;
+    ms_render_options_default(&o);
+    o.light_count = 0;
+    ms_render_draw_stats s;
+    float *dark = draw(fx.render, &fx.camera, &o, &s);
+    assert_true(s.cells_drawn > 0);
+    for (unsigned set = 0; set < 4; ++set) {
+        ms_render_options_default(&o);
+        o.light_count = set == 3 ? MS_RENDER_MAX_LIGHTS : 1;
+        for (unsigned i = 0; i < o.light_count; ++i) {
+            ms_render_light *l = &o.lights[i];
+            l->kind = set == 3 ? (ms_render_light_kind)(i % 3) : (ms_render_light_kind)set;
+            l->colour[0] = l->colour[1] = l->colour[2] = 1.0f / (float)o.light_count;
+            l->vector[0] = 0.3, l->vector[1] = 0.4, l->vector[2] = 2.0;
+            l->range = 5.0;
+        }
+        float *lit = draw(fx.render, &fx.camera, &o, &s);
+        assert_true(s.cells_drawn > 0);
+        size_t differing;
+        compare(dark, lit, &differing);
+        assert_true(differing > (size_t)SIZE * SIZE / 20);
+        free(lit);
+    }
+    free(dark);
 }
 
 /* A model placed by a translation, seen by a camera translated alike, gives
@@ -656,9 +735,11 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_source_composition),
+        cmocka_unit_test(test_variant_source),
         cmocka_unit_test(test_same_picture_without_effect),
         cmocka_unit_test(test_sections_clip_every_program),
         cmocka_unit_test(test_every_set_builds),
+        cmocka_unit_test(test_light_sets_build),
         cmocka_unit_test(test_placement),
         cmocka_unit_test(test_bad_options),
         cmocka_unit_test(test_displacement_levels),

@@ -49,11 +49,12 @@ void ms_render_options_default(ms_render_options *o)
     o->section_colour[0] = MS_SECTION_R, o->section_colour[1] = MS_SECTION_G, o->section_colour[2] = MS_SECTION_B;
 }
 
-ms_status ms_render_find_program(ms_render *r, unsigned effects, bool wireframe, bool tessellated,
+ms_status ms_render_find_program(ms_render *r, unsigned effects, uint32_t variant, bool wireframe, bool tessellated,
                                  const ms_render_program **out, ms_error *err)
 {
     for (uint32_t i = 0; i < r->program_count; ++i)
-        if (r->programs[i].effects == effects && r->programs[i].wireframe == wireframe &&
+        if (r->programs[i].effects == effects && r->programs[i].variant == variant &&
+            r->programs[i].wireframe == wireframe &&
             r->programs[i].tessellated == tessellated) {
             *out = &r->programs[i];
             return MS_OK;
@@ -66,7 +67,7 @@ ms_status ms_render_find_program(ms_render *r, unsigned effects, bool wireframe,
         r->program_next = (r->program_next + 1) % MS_RENDER_PROGRAM_CACHE;
         ms_render_program_free(&r->programs[slot]);
     }
-    ms_status st = ms_render_program_build(&r->programs[slot], effects, wireframe, tessellated, err);
+    ms_status st = ms_render_program_build(&r->programs[slot], effects, variant, wireframe, tessellated, err);
     if (st != MS_OK) {
         /* an evicted slot is empty now: the last program fills the hole */
         if (slot < r->program_count) {
@@ -260,10 +261,14 @@ ms_status ms_render_new(const ms_archive_header *header, const ms_archive_cell *
     ms_status st = header ? take_model(r, header, cells, err) : MS_OK;
     ms_render_split_init(&r->split, &r->header);
     const ms_render_program *viewer = NULL, *unused;
+    ms_render_options defaults; /* the viewer's first draw: no colour, no section, the head light */
+    ms_render_options_default(&defaults);
     if (st == MS_OK)
-        st = ms_render_find_program(r, MS_EFFECTS_VIEWER, false, false, &viewer, err);
+        st = ms_render_find_program(r, MS_EFFECTS_VIEWER, ms_render_program_variant(&defaults, false, false, false),
+                                    false, false, &viewer, err);
     if (st == MS_OK)
-        st = ms_render_find_program(r, MS_EFFECTS_VIEWER, true, false, &unused, err);
+        st = ms_render_find_program(r, MS_EFFECTS_VIEWER, ms_render_program_variant(&defaults, false, true, false),
+                                    true, false, &unused, err);
     if (st == MS_OK)
         st = ms_render_texels_init(&r->texels, &r->gl, err);
     /* the viewer's first draw compiles nothing more: the model's first frame

@@ -92,8 +92,11 @@
  * options.effects (ms_render_program_source): one program per effect set and
  * wireframe variant, built the first time it is drawn with and kept; a scene
  * draws with the effects it calls for (ms_scene_effects), so an effect it does
- * not use is not compiled in. ms_render_draw_stats says which effects the
- * program held and which of them changed the picture.
+ * not use is not compiled in. Likewise per draw: vertex colours only when a
+ * drawn cell has them, sections only with a plane, and the light loop with the
+ * options' light count and kinds fixed (docs/RENDERER.md, "Variants").
+ * ms_render_draw_stats says which effects the program held and which of them
+ * changed the picture.
  *
  * GL memory. The renderer counts the bytes of storage it asks of GL: every
  * buffer's size as given to glBufferData (a cell's vertex buffer, 16 bytes per

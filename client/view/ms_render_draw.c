@@ -281,8 +281,15 @@ ms_status ms_render_draw(ms_render *r, const ms_camera *camera, const ms_render_
      * software rasteriser runs a compiled-in branch's code under a mask even
      * when no pixel takes it (llvmpipe: most of a frame's fragment time). */
     unsigned effects = o->apo ? o->effects : o->effects & ~(unsigned)MS_EFFECT_DETAIL_NORMALS;
-    st = ms_render_find_program(r, effects, o->wireframe && o->shading != MS_SHADING_CELL_ID, tessellated, &p,
-                                err);
+    /* likewise colours, sections and the light loop: only what this draw uses */
+    bool coloured = false;
+    for (uint32_t k = 0; k < r->frame_cell_count && !coloured; ++k) {
+        const render_cell *c = ms_render_cell_at(r, r->frame_cells[k]);
+        coloured = c->mesh.vao && c->mesh.coloured;
+    }
+    bool wireframe = o->wireframe && o->shading != MS_SHADING_CELL_ID;
+    st = ms_render_find_program(r, effects, ms_render_program_variant(o, coloured, wireframe, tessellated), wireframe,
+                                tessellated, &p, err);
     if (st != MS_OK)
         return st;
     double view[16], proj[16];

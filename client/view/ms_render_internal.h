@@ -258,9 +258,32 @@ void ms_render_texels_release(ms_render_texels *texels, uint32_t start, uint32_t
 
 /* ---- ms_render_program.c ----------------------------------------------- */
 
+/* What a draw uses of the cell program's general code beyond the effects
+ * (docs/RENDERER.md, "Composed programs"), each compiled in only when the draw
+ * needs it: llvmpipe runs a branch's code under a mask even when no pixel
+ * takes it, and a loop over uniform lights as a loop. */
+#define MS_RENDER_VARIANT_COLOUR 1u   /* vertex colours (some cell drawn has them) */
+#define MS_RENDER_VARIANT_SECTIONS 2u /* clip distances and the section colour */
+#define MS_RENDER_VARIANT_LIGHTS 4u   /* the light count and kinds fixed in the program */
+#define MS_RENDER_VARIANT_LIGHT_COUNT_SHIFT 4 /* 4 bits: 0..MS_RENDER_MAX_LIGHTS */
+#define MS_RENDER_VARIANT_LIGHT_KIND_SHIFT 8  /* 2 bits per light: ms_render_light_kind */
+/* The general program: colours and sections, lights from the uniforms (what
+ * ms_render_program_source gives). */
+#define MS_RENDER_VARIANT_GENERAL (MS_RENDER_VARIANT_COLOUR | MS_RENDER_VARIANT_SECTIONS)
+
+/* The variant a draw of options needs (coloured: some cell it draws carries
+ * vertex colours). The wireframe and tessellated programs always take colours
+ * and sections (their middle stages pass both on); lights are fixed for all. */
+uint32_t ms_render_program_variant(const ms_render_options *options, bool coloured, bool wireframe,
+                                   bool tessellated);
+/* The fragment source of ms_render_program_source for a variant. */
+ms_status ms_render_program_source_variant(unsigned effects, uint32_t variant, bool wireframe, char **source,
+                                           ms_error *err);
+
 typedef struct ms_render_program {
     GLuint program;
     unsigned effects;         /* MS_EFFECT_* compiled in */
+    uint32_t variant;         /* MS_RENDER_VARIANT_* and the lights */
     bool wireframe;
     bool tessellated;         /* with the displacement stages: draws GL_PATCHES */
     GLint modelview, projection, viewport;
@@ -282,8 +305,8 @@ typedef struct ms_render_program {
  * without, vertex + fragment only (the flat normal from screen derivatives),
  * several times faster on software rasterisers. MS_ERR_UNSUPPORTED with the
  * first line of the driver's log. */
-ms_status ms_render_program_build(ms_render_program *program, unsigned effects, bool wireframe, bool tessellated,
-                                  ms_error *err);
+ms_status ms_render_program_build(ms_render_program *program, unsigned effects, uint32_t variant, bool wireframe,
+                                  bool tessellated, ms_error *err);
 /* A program of one vertex and one fragment shader (output "colour"), with
  * frag_insert (NULL: none) after the fragment shader's #version line; name
  * for errors. MS_ERR_UNSUPPORTED with the driver's first log line. */
@@ -418,7 +441,7 @@ const ms_archive_cell *ms_render_record(const ms_render *r, uint32_t id);
 void ms_render_warm_up(ms_render *r, const ms_render_program *p);
 
 /* The program for an effect set and variant: from the cache, else built. */
-ms_status ms_render_find_program(ms_render *r, unsigned effects, bool wireframe, bool tessellated,
+ms_status ms_render_find_program(ms_render *r, unsigned effects, uint32_t variant, bool wireframe, bool tessellated,
                                  const ms_render_program **out, ms_error *err);
 
 /* ---- ms_render.c: for tests ----------------------------------------------- */

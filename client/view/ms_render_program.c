@@ -163,7 +163,75 @@ static ms_status resolve_blocks(text_buf *out, const char *text, unsigned effect
     return MS_OK;
 }
 
+uint32_t ms_render_program_variant(const ms_render_options *o, bool coloured, bool wireframe, bool tessellated)
+{
+    if (wireframe || tessellated)
+        coloured = true;
+    uint32_t v = MS_RENDER_VARIANT_LIGHTS;
+    if (coloured)
+        v |= MS_RENDER_VARIANT_COLOUR;
+    if (o->section_count > 0 || wireframe || tessellated)
+        v |= MS_RENDER_VARIANT_SECTIONS;
+    unsigned n = o->light_count < MS_RENDER_MAX_LIGHTS ? o->light_count : MS_RENDER_MAX_LIGHTS;
+    v |= (uint32_t)n << MS_RENDER_VARIANT_LIGHT_COUNT_SHIFT;
+    for (unsigned i = 0; i < n; ++i)
+        v |= ((uint32_t)o->lights[i].kind & 3u) << (MS_RENDER_VARIANT_LIGHT_KIND_SHIFT + 2 * i);
+    return v;
+}
+
+/* The variant's defines, one per line, for every stage after its #version:
+ * MS_VERTEX_COLOUR, MS_SECTIONS, and with fixed lights MS_LIGHT_COUNT and
+ * MS_LIGHT_KINDS (each light's code as light_eye's w: 0 directional, 1
+ * point, 2 the head light; one 0 for no light, the array needs a size). */
+static void variant_defines(uint32_t variant, text_buf *t)
+{
+    char line[256];
+    if (variant & MS_RENDER_VARIANT_COLOUR)
+        text_add(t, "#define MS_VERTEX_COLOUR 1\n", strlen("#define MS_VERTEX_COLOUR 1\n"));
+    if (variant & MS_RENDER_VARIANT_SECTIONS)
+        text_add(t, "#define MS_SECTIONS 1\n", strlen("#define MS_SECTIONS 1\n"));
+    if (!(variant & MS_RENDER_VARIANT_LIGHTS))
+        return;
+    unsigned n = (variant >> MS_RENDER_VARIANT_LIGHT_COUNT_SHIFT) & 15u;
+    int len = snprintf(line, sizeof line, "#define MS_LIGHT_COUNT %u\n#define MS_LIGHT_KINDS float[](", n);
+    for (unsigned i = 0; i < (n ? n : 1); ++i) {
+        unsigned kind = (variant >> (MS_RENDER_VARIANT_LIGHT_KIND_SHIFT + 2 * i)) & 3u;
+        const char *code = i >= n                                ? "0.0"
+                           : kind == MS_RENDER_LIGHT_DIRECTIONAL ? "0.0"
+                           : kind == MS_RENDER_LIGHT_POINT       ? "1.0"
+                                                                 : "2.0";
+        len += snprintf(line + len, sizeof line - (size_t)len, "%s%s", i ? ", " : "", code);
+    }
+    snprintf(line + len, sizeof line - (size_t)len, ")\n");
+    text_add(t, line, strlen(line));
+}
+
+/* A stage's source with the variant's defines after its #version line. */
+static ms_status stage_source(const char *src, uint32_t variant, char **out, ms_error *err)
+{
+    const char *after = strncmp(src, "#version", 8) == 0 ? strchr(src, '\n') : NULL;
+    if (!after)
+        return ms_error_set(err, MS_ERR_UNSUPPORTED, "render: a shader does not start with #version");
+    after++;
+    text_buf t = {0};
+    text_add(&t, src, (size_t)(after - src));
+    variant_defines(variant, &t);
+    text_add(&t, after, strlen(after));
+    if (t.failed) {
+        free(t.data);
+        return ms_error_set(err, MS_ERR_NOMEM, "render: no memory for the shader source");
+    }
+    *out = t.data;
+    return MS_OK;
+}
+
 ms_status ms_render_program_source(unsigned effects, bool wireframe, char **source, ms_error *err)
+{
+    return ms_render_program_source_variant(effects, MS_RENDER_VARIANT_GENERAL, wireframe, source, err);
+}
+
+ms_status ms_render_program_source_variant(unsigned effects, uint32_t variant, bool wireframe, char **source,
+                                           ms_error *err)
 {
     if (!source)
         return ms_error_set(err, MS_ERR_ARG, "render: no result pointer");
@@ -171,7 +239,7 @@ ms_status ms_render_program_source(unsigned effects, bool wireframe, char **sour
     if (effects & ~(unsigned)MS_EFFECTS_ALL)
         return ms_error_set(err, MS_ERR_ARG, "render: effects 0x%x outside 0x%x", effects, (unsigned)MS_EFFECTS_ALL);
     /* its first line (#version, which Mesa wants first), the variant's
-     * define, the APO traversal, then the rest */
+     * defines, the APO traversal, then the rest */
     const char *frag = ms_shader_cell_frag;
     const char *after = strncmp(frag, "#version", 8) == 0 ? strchr(frag, '\n') : NULL;
     if (!after)
@@ -181,6 +249,7 @@ ms_status ms_render_program_source(unsigned effects, bool wireframe, char **sour
     text_add(&t, frag, (size_t)(after - frag));
     if (wireframe)
         text_add(&t, "#define MS_WIREFRAME 1\n", strlen("#define MS_WIREFRAME 1\n"));
+    variant_defines(variant, &t);
     ms_status st = MS_OK;
     if (effects & MS_EFFECT_DETAIL_NORMALS)
         st = resolve_blocks(&t, ms_shader_apo, effects, err);
@@ -198,17 +267,21 @@ ms_status ms_render_program_source(unsigned effects, bool wireframe, char **sour
     return MS_OK;
 }
 
-ms_status ms_render_program_build(ms_render_program *p, unsigned effects, bool wireframe, bool tessellated,
-                                  ms_error *err)
+ms_status ms_render_program_build(ms_render_program *p, unsigned effects, uint32_t variant, bool wireframe,
+                                  bool tessellated, ms_error *err)
 {
     memset(p, 0, sizeof *p);
     if (tessellated && !(effects & MS_EFFECT_DISPLACEMENT))
         return ms_error_set(err, MS_ERR_ARG, "render: displacement stages without the displacement effect");
-    char *frag = NULL;
-    ms_status st0 = ms_render_program_source(effects, wireframe, &frag, err);
-    if (st0 != MS_OK)
+    char *frag = NULL, *vert = NULL;
+    ms_status st0 = ms_render_program_source_variant(effects, variant, wireframe, &frag, err);
+    if (st0 == MS_OK)
+        st0 = stage_source(tessellated ? ms_shader_tess_vert : ms_shader_cell_vert, variant, &vert, err);
+    if (st0 != MS_OK) {
+        free(frag);
         return st0;
-    const char *vert_src[] = {tessellated ? ms_shader_tess_vert : ms_shader_cell_vert};
+    }
+    const char *vert_src[] = {vert};
     const char *tesc_src[] = {ms_shader_tess_tesc};
     const char *tese_src[] = {ms_shader_tess_tese};
     const char *geom_src[] = {ms_shader_cell_geom};
@@ -224,6 +297,7 @@ ms_status ms_render_program_build(ms_render_program *p, unsigned effects, bool w
     if (st == MS_OK)
         st = compile(GL_FRAGMENT_SHADER, frag_src, 1, "fragment", &fs, err);
     free(frag);
+    free(vert);
     if (st == MS_OK) {
         p->program = glCreateProgram();
         glAttachShader(p->program, vs);
@@ -301,6 +375,7 @@ ms_status ms_render_program_build(ms_render_program *p, unsigned effects, bool w
     p->section_count = glGetUniformLocation(g, "section_count");
     p->section_colour = glGetUniformLocation(g, "section_colour");
     p->effects = effects;
+    p->variant = variant;
     p->wireframe = wireframe;
     p->tessellated = tessellated;
     return MS_OK;

@@ -25,11 +25,13 @@ noperspective in vec3 g_edge;
 in vec3 v_cell;
 in vec3 v_eye;
 in vec3 v_normal;
-in vec3 v_colour;
 #define FRAG_CELL v_cell
 #define FRAG_EYE v_eye
 #define FRAG_VERTEX_NORMAL v_normal
+#ifdef MS_VERTEX_COLOUR
+in vec3 v_colour;
 #define FRAG_COLOUR v_colour
+#endif
 #endif
 
 uniform int shading;          // 0 LIT, 1 NORMALS, 2 CELLS, 3 CELL_ID, 4 ALBEDO
@@ -47,11 +49,22 @@ uniform uint cell_number;
 uniform vec3 cell_tint;       // linear albedo for CELLS
 uniform bool smooth_on;       // without APO: interpolated vertex normals, else flat
 uniform vec3 albedo;          // the material's linear albedo
+#ifdef MS_VERTEX_COLOUR
 uniform bool vertex_colour;   // this cell's vertices carry colours (FRAG_COLOUR,
                               // sRGB as scanned): they are the albedo
+#define CELL_COLOURED vertex_colour
+#else
+#define CELL_COLOURED false   // no cell of the draw has colours: the albedo
+#ifndef FRAG_COLOUR
+#define FRAG_COLOUR vec3(0.0)
+#endif
+#endif
 // Lights in eye space: w 0 directional (xyz towards the light), 1 point (xyz
 // its position, falling off with range), 2 the head light (at the eye, no
-// falloff); colour times intensity, linear.
+// falloff); colour times intensity, linear. A program built for the draw's
+// lights (MS_LIGHT_COUNT, MS_LIGHT_KINDS: each light's w, defined after the
+// #version line) has the loop unrolled and the kinds' branches resolved when
+// it is compiled; the general program reads count and kinds from the uniforms.
 #define MAX_LIGHTS 8
 uniform int light_count;
 uniform vec4 light_eye[MAX_LIGHTS];
@@ -79,8 +92,10 @@ uniform float dissolve;
 // Sections: with a plane in use, a back face is the model's inside seen
 // through the cut, drawn flat in the section colour (sRGB as given), so the
 // cut reads as a filled outline (meshrender draws its back-face hits alike).
+#ifdef MS_SECTIONS
 uniform int section_count;
 uniform vec3 section_colour;
+#endif
 
 out vec4 colour;
 
@@ -134,15 +149,17 @@ void main()
         colour = vec4(float(id & 0xFFu), float((id >> 8) & 0xFFu), float((id >> 16) & 0xFFu), 255.0) / 255.0;
         return;
     }
+#ifdef MS_SECTIONS
     if (section_count > 0 && !gl_FrontFacing && shading != 1) {
         colour = vec4(section_colour, 1.0);
         return;
     }
+#endif
     if (shading == 4) {
         // ALBEDO: the surface's own colour, unlit: the vertex colours as
         // scanned, interpolated (no gamma step: a vertex's pixel is its 8-bit
         // colour), or the material's albedo sRGB-encoded.
-        colour = vec4(overlay(vertex_colour ? clamp(FRAG_COLOUR, 0.0, 1.0) : srgb_encode(albedo)), 1.0);
+        colour = vec4(overlay(CELL_COLOURED ? clamp(FRAG_COLOUR, 0.0, 1.0) : srgb_encode(albedo)), 1.0);
         return;
     }
     vec3 g_n = geometric_normal();
@@ -192,12 +209,19 @@ void main()
 #ifdef MS_EFFECT_SPECULAR
         vec3 highlight = vec3(0.0);
 #endif
+#ifdef MS_LIGHT_COUNT
+        const float light_kind[] = MS_LIGHT_KINDS;
+        for (int i = 0; i < MS_LIGHT_COUNT; ++i) {
+            float kind = light_kind[i];
+#else
         for (int i = 0; i < light_count && i < MAX_LIGHTS; ++i) {
+            float kind = light_eye[i].w;
+#endif
             vec3 l;
             float falloff = 1.0;
-            if (light_eye[i].w == 0.0) {
+            if (kind == 0.0) {
                 l = light_eye[i].xyz;
-            } else if (light_eye[i].w == 2.0) {
+            } else if (kind == 2.0) {
                 l = view_dir;
             } else {
                 vec3 to_light = light_eye[i].xyz - FRAG_EYE;
@@ -221,7 +245,7 @@ void main()
             highlight += c * pow(max(0.0, dot(n, normalize(l + view_dir))), shininess);
 #endif
         }
-        vec3 base = shading == 2 ? cell_tint : (vertex_colour ? srgb_decode(FRAG_COLOUR) : albedo);
+        vec3 base = shading == 2 ? cell_tint : (CELL_COLOURED ? srgb_decode(FRAG_COLOUR) : albedo);
         vec3 linear = base * (0.05 + 0.95 * diffuse);
 #ifdef MS_EFFECT_SPECULAR
         linear += specular_strength * highlight;

@@ -15,6 +15,10 @@ layout(location = 2) in vec4 cell_colour;
 
 uniform mat4 modelview;
 uniform mat4 projection;
+// The program's variant (ms_render_program_variant) is defined after the
+// #version line: MS_SECTIONS and MS_VERTEX_COLOUR only where the draw uses
+// them (what a stage does not write costs no interpolation either).
+#ifdef MS_SECTIONS
 // Sections (ms_render.h): per plane, in the cell's local frame, the kept side
 // where dot(xyz, position) + w >= 0; gl_ClipDistance of all three is written,
 // the renderer enables those in use.
@@ -23,11 +27,14 @@ out gl_PerVertex { // as cell.geom.glsl reads it
     vec4 gl_Position;
     float gl_ClipDistance[3];
 };
+#endif
 
 out vec3 v_cell;
 out vec3 v_eye;
 out vec3 v_normal;
+#ifdef MS_VERTEX_COLOUR
 out vec3 v_colour;
+#endif
 
 void main()
 {
@@ -35,8 +42,12 @@ void main()
     v_cell = cell_position;
     v_eye = eye.xyz;
     v_normal = cell_normal.xyz;
+#ifdef MS_VERTEX_COLOUR
     v_colour = cell_colour.rgb;
+#endif
     gl_Position = projection * eye;
+#ifdef MS_SECTIONS
     for (int k = 0; k < 3; ++k)
         gl_ClipDistance[k] = dot(section_plane[k].xyz, cell_position) + section_plane[k].w;
+#endif
 }
