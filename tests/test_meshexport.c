@@ -10,7 +10,11 @@
 #include <unistd.h>
 #include <cmocka.h>
 
+#include <jansson.h>
+
+#include "ms_annotations.h"
 #include "ms_archive.h"
+#include "ms_catalog.h"
 #include "ms_subtree.h"
 #include "ms_test.h"
 #include "ms_test_archive.h"
@@ -48,8 +52,8 @@ static void test_export_tree_matches_archive(void **state)
     snprintf(cmd, sizeof cmd, "%s %s bust -o %s --json", bin, archives, out);
     assert_int_equal(ms_test_run(cmd, text, sizeof text), 0);
     /* 129 geometry files, 86 APO chunks (cells not divisible by 3), one index,
-     * one head, three subtrees (0, 1, 65). */
-    assert_non_null(strstr(text, "\"files\": 220"));
+     * one head, three subtrees (0, 1, 65), the annotations (the empty set). */
+    assert_non_null(strstr(text, "\"files\": 221"));
     snprintf(path, sizeof path, "%s/bust.msa", archives);
     ms_archive *a;
     assert_int_equal(ms_archive_open(path, &a, NULL), MS_OK);
@@ -166,11 +170,93 @@ static void test_export_respects_preview(void **state)
     ms_test_rmdir(dir);
 }
 
+/* The model's documents in the export, read as both doors read them
+ * (ms_model_document_read_entry, under ms_access_document): the thumbnail
+ * and annotations as stored, the picture named by the site's catalogue; a
+ * picture drawn finer than the public preview, and one the model lost, is
+ * removed by the next export; a model without annotations exports the empty
+ * set (a static server answers the page with a document, not a 404). */
+static void test_export_documents(void **state)
+{
+    (void)state;
+    char dir[512], archives[600], out[600], bin[512], cmd[8192], text[4096], path[900];
+    export_setup(dir, archives, out, bin, "bust", 4, 12);
+    /* a minimal folder of pages: meshexport --web-dir needs these two */
+    char web[700];
+    snprintf(web, sizeof web, "%s/web", dir);
+    assert_int_equal(mkdir(web, 0755), 0);
+    snprintf(path, sizeof path, "%s/index.html", web);
+    ms_test_write_file(path, "<!doctype html>\n", 16);
+    snprintf(path, sizeof path, "%s/view.html", web);
+    ms_test_write_file(path, "<!doctype html>\n", 16);
+    static const uint8_t picture[] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n', 1, 2, 3};
+    snprintf(path, sizeof path, "%s/bust.thumb.png", archives);
+    ms_test_write_file(path, picture, sizeof picture);
+    ms_error err;
+    assert_int_equal(ms_catalog_update_thumbnail(archives, "bust", true, 8, 2, &err), MS_OK);
+    const char *notes = "{\"format\": \"meshstream-annotations\", \"version\": 1, \"annotations\": "
+                        "[{\"id\": \"a1\", \"point\": [0, 0, 0], \"title\": \"<b>mark</b>\"}]}\n";
+    snprintf(path, sizeof path, "%s/bust.annotations.json", archives);
+    ms_test_write_file(path, notes, strlen(notes));
+    snprintf(cmd, sizeof cmd, "%s %s bust -o %s --web-dir %s --json", bin, archives, out, web);
+    assert_int_equal(ms_test_run(cmd, text, sizeof text), 0);
+    /* the 220 of the model, its two documents, index.html, view/bust.html, the
+     * two pages again under web/ and catalog.json */
+    assert_non_null(strstr(text, "\"files\": 227"));
+    size_t size;
+    snprintf(path, sizeof path, "%s/models/bust/thumbnail.png", out);
+    uint8_t *data = slurp(path, &size);
+    assert_int_equal(size, sizeof picture);
+    assert_memory_equal(data, picture, size);
+    free(data);
+    snprintf(path, sizeof path, "%s/models/bust/annotations.json", out);
+    data = slurp(path, &size);
+    assert_int_equal(size, strlen(notes));
+    assert_memory_equal(data, notes, size);
+    free(data);
+    snprintf(path, sizeof path, "%s/catalog.json", out);
+    json_t *site = json_load_file(path, 0, NULL);
+    json_t *entry = json_array_get(json_object_get(site, "models"), 0);
+    assert_string_equal(json_string_value(json_object_get(entry, "thumbnail")), "models/bust/thumbnail.png");
+    json_decref(site);
+    /* The preview made coarser than the picture (a hand edit), the
+     * annotations removed: the next export takes the picture back and says
+     * so, and writes the empty set. */
+    ms_catalog catalogue;
+    assert_int_equal(ms_catalog_load(archives, &catalogue, &err), MS_OK);
+    ms_catalog_entry coarser = *ms_catalog_find(&catalogue, "bust");
+    coarser.public_max_bits = 7;
+    assert_int_equal(ms_catalog_update(archives, &coarser, &err), MS_OK);
+    ms_catalog_free(&catalogue);
+    snprintf(path, sizeof path, "%s/bust.annotations.json", archives);
+    assert_int_equal(unlink(path), 0);
+    assert_int_equal(ms_test_run(cmd, text, sizeof text), 0);
+    snprintf(path, sizeof path, "%s/models/bust/thumbnail.png", out);
+    assert_int_equal(access(path, F_OK), -1);
+    snprintf(path, sizeof path, "%s/catalog.json", out);
+    site = json_load_file(path, 0, NULL);
+    entry = json_array_get(json_object_get(site, "models"), 0);
+    assert_true(json_is_false(json_object_get(entry, "thumbnail")));
+    json_decref(site);
+    snprintf(path, sizeof path, "%s/models/bust/annotations.json", out);
+    data = slurp(path, &size);
+    const char *empty = "{\"format\": \"meshstream-annotations\", \"version\": 1, \"annotations\": []}\n";
+    assert_int_equal(size, strlen(empty));
+    assert_memory_equal(data, empty, size);
+    free(data);
+    ms_annotations *set = NULL;
+    assert_int_equal(ms_annotations_parse(empty, strlen(empty), "the empty set", &set, &err), MS_OK);
+    assert_int_equal(ms_annotations_count(set), 0);
+    ms_annotations_free(set);
+    ms_test_rmdir(dir);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_export_tree_matches_archive),
         cmocka_unit_test(test_export_respects_preview),
+        cmocka_unit_test(test_export_documents),
     };
     return cmocka_run_group_tests_name("meshexport", tests, NULL, NULL);
 }

@@ -1,7 +1,7 @@
 // The model's annotations in the viewer page (docs/ANNOTATIONS.md,
 // docs/BROWSER.md "Annotations"): fetched from the side door
-// (models/NAME/annotations), 404 meaning none (a static export has none:
-// meshexport does not export them); each a marker (an HTML button over the canvas, at the
+// (models/NAME/annotations; a static export's file models/NAME/annotations.json,
+// which meshexport writes where the model has any), 404 meaning none; each a marker (an HTML button over the canvas, at the
 // pixel its point projects to, so it always faces the camera), hidden when
 // the drawn surface is in front of it; a click shows its title and text (as
 // text, never as HTML) and moves the camera to the view stored with it
@@ -85,11 +85,7 @@ function makeMarkers() {
 }
 
 async function loadAnnotations() {
-  if (staticSite) {          // meshexport does not export annotations (yet): none to ask for
-    annotations.report.state = 'none';
-    return;
-  }
-  const path = 'models/' + encodeURIComponent(name) + '/annotations';
+  const path = 'models/' + encodeURIComponent(name) + (staticSite ? '/annotations.json' : '/annotations');
   const headers = {};
   const token = sessionStorage.getItem(TOKEN_KEY);
   if (token)

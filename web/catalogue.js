@@ -1,6 +1,7 @@
 // The catalogue page (/): the models meshserve serves, from GET /catalog.json
 // (the same as /catalog; its first 1000 by name; a static export's whole
 // catalog.json, meshexport --web-dir), each with its thumbnail (/models/NAME/thumbnail,
+// or the file a static export names,
 // where the server has one) and its metadata, and a link to its viewer page
 // (docs/BROWSER.md). Text from the catalogue (names, titles, creators,
 // descriptions: a sidecar's, anyone's) only ever goes in as text nodes, never
@@ -41,7 +42,9 @@ async function showCatalogue() {
       picture.className = 'thumbnail';
       if (m.thumbnail) {
         const img = document.createElement('img');
-        img.src = 'models/' + encodeURIComponent(m.name) + '/thumbnail';
+        // a static export names its picture's file; meshserve serves it at models/NAME/thumbnail
+        img.src = /^models\/[A-Za-z0-9_-]+\/thumbnail\.png$/.test(m.thumbnail) ? m.thumbnail
+                                                                        : 'models/' + encodeURIComponent(m.name) + '/thumbnail';
         img.width = 160;
         img.height = 120;
         img.loading = 'lazy';

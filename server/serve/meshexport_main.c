@@ -15,6 +15,7 @@
 #include "ms_archive.h"
 #include "ms_catalog.h"
 #include "ms_export_site.h"
+#include "ms_model_document.h"
 #include "ms_json_out.h"
 #include "ms_progress.h"
 #include "ms_registry.h"
@@ -30,7 +31,10 @@ static void usage(FILE *out)
             "/models/NAME), OUT_DIR/models/NAME.head (the index head, served at\n"
             "/models/NAME/head), OUT_DIR/models/NAME/subtrees/ID (the index in subtrees),\n"
             "OUT_DIR/models/NAME/cells/ID/geometry, .../apo and .../colour (prefixes are byte\n"
-            "ranges of these files, served with Range by any static web server).\n"
+            "ranges of these files, served with Range by any static web server), and the\n"
+            "model's documents as meshserve serves them: OUT_DIR/models/NAME/thumbnail.png\n"
+            "(where its rule gives it to every reader) and .../annotations.json (an empty\n"
+            "set where the model has none).\n"
             "Only what an anonymous reader may read is written: a model with a public\n"
             "preview (catalogue public_max_bits) gets each geometry and colour stream cut at\n"
             "the preview, each\n"
@@ -66,6 +70,60 @@ static int write_file(const char *path, const uint8_t *data, size_t size)
     if (failed || rename(tmp, path) != 0) {
         remove(tmp);
         return -1;
+    }
+    return 0;
+}
+
+/* What a model without annotations exports: an empty set, so that a static
+ * server answers the page's request with a document, not a 404. */
+static const char no_annotations[] =
+    "{\"format\": \"meshstream-annotations\", \"version\": 1, \"annotations\": []}\n";
+
+/* The model's thumbnail and annotations, as both doors serve them (the same
+ * read, under the same rule: ms_model_document_read_entry), to
+ * OUT/models/NAME/thumbnail.png and annotations.json. A picture that no
+ * reader may have, or that the model has not, removes what an earlier export
+ * left; a model without annotations gets the empty set. *thumbnail: whether
+ * the picture was written. 0, -1 when a file could not be written, or 1
+ * after printing an error. */
+static int export_documents(const ms_model *model, const char *archive_dir, const char *out_dir,
+                            const char *name, bool *thumbnail, uint64_t *bytes, uint64_t *files)
+{
+    static const struct {
+        int kind;
+        const char *file;
+    } documents[] = {{MS_DOCUMENT_THUMBNAIL, "thumbnail.png"},
+                     {MS_DOCUMENT_ANNOTATIONS, "annotations.json"}};
+    *thumbnail = false;
+    for (size_t i = 0; i < sizeof documents / sizeof documents[0]; ++i) {
+        bool picture = documents[i].kind == MS_DOCUMENT_THUMBNAIL;
+        char path[4200];
+        snprintf(path, sizeof path, "%s/models/%s/%s", out_dir, name, documents[i].file);
+        ms_model_document doc;
+        ms_document_refusal refusal;
+        ms_error err;
+        if (ms_model_document_read_entry(&model->entry, archive_dir, documents[i].kind, &doc, &refusal,
+                                         &err) != MS_OK) {
+            if (refusal != MS_DOCUMENT_ABSENT) {
+                fprintf(stderr, "meshexport: %s: %s\n", documents[i].file, err.text);
+                return 1;
+            }
+            if (picture) {
+                if (remove(path) != 0 && errno != ENOENT)
+                    return -1;
+                continue;
+            }
+            doc.bytes = NULL;
+            doc.length = 0;
+        }
+        const uint8_t *data = doc.bytes ? doc.bytes : (const uint8_t *)no_annotations;
+        size_t length = doc.bytes ? doc.length : sizeof no_annotations - 1;
+        int failed = write_file(path, data, length);
+        ms_model_document_free(&doc);
+        if (failed)
+            return -1;
+        *bytes += length, (*files)++;
+        *thumbnail |= picture;
     }
     return 0;
 }
@@ -260,7 +318,16 @@ int main(int argc, char **argv)
         fprintf(stderr, "meshexport: cannot write under %s: %s\n", out_dir, strerror(errno));
         return 1;
     }
-    ms_status site = web_dir ? ms_export_site(web_dir, out_dir, &model->entry, full, &bytes, &files, &err)
+    bool thumbnail = false;
+    int documents = export_documents(model, archive_dir, out_dir, name, &thumbnail, &bytes, &files);
+    if (documents != 0) {
+        ms_model_unref(model);
+        if (documents < 0)
+            fprintf(stderr, "meshexport: cannot write under %s: %s\n", out_dir, strerror(errno));
+        return 1;
+    }
+    ms_status site = web_dir ? ms_export_site(web_dir, out_dir, &model->entry, full, thumbnail, &bytes,
+                                              &files, &err)
                              : MS_OK;
     ms_model_unref(model);
     if (site != MS_OK) {

@@ -129,7 +129,7 @@ static int by_name(const void *a, const void *b)
 /* out_dir/catalog.json with entry added or replaced: {"version": 1, "total",
  * "offset": 0, "limit": total, "models": [...]} by name, as GET /catalog. */
 static ms_status write_catalogue(const char *out_dir, const ms_catalog_entry *entry, bool full,
-                                 uint64_t *bytes, uint64_t *files, ms_error *err)
+                                 bool thumbnail, uint64_t *bytes, uint64_t *files, ms_error *err)
 {
     char path[4200];
     snprintf(path, sizeof path, "%s/catalog.json", out_dir);
@@ -150,8 +150,11 @@ static ms_status write_catalogue(const char *out_dir, const ms_catalog_entry *en
     }
     if (full) /* every byte is in the tree: the reader needs no token */
         json_object_set_new(mine, "public_max_bits", json_integer(entry->bits));
-    /* no thumbnail in the export (meshserve's /models/NAME/thumbnail) */
-    json_object_set_new(mine, "thumbnail", json_false());
+    /* the picture's path in the export (meshserve's is models/NAME/thumbnail),
+     * or none */
+    char picture[128];
+    snprintf(picture, sizeof picture, "models/%s/thumbnail.png", entry->name);
+    json_object_set_new(mine, "thumbnail", thumbnail ? json_string(picture) : json_false());
     /* the model's viewer page in the export (meshserve's is view/NAME) */
     char page[128];
     snprintf(page, sizeof page, "view/%s.html", entry->name);
@@ -195,8 +198,8 @@ static ms_status write_catalogue(const char *out_dir, const ms_catalog_entry *en
 }
 
 ms_status ms_export_site(const char *web_dir, const char *out_dir, const ms_catalog_entry *entry,
-                         bool full, uint64_t *bytes, uint64_t *files, ms_error *err)
+                         bool full, bool thumbnail, uint64_t *bytes, uint64_t *files, ms_error *err)
 {
     ms_status st = copy_pages(web_dir, out_dir, entry->name, bytes, files, err);
-    return st != MS_OK ? st : write_catalogue(out_dir, entry, full, bytes, files, err);
+    return st != MS_OK ? st : write_catalogue(out_dir, entry, full, thumbnail, bytes, files, err);
 }

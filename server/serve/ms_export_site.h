@@ -10,7 +10,10 @@
  *                             scripts, style, meshstream.js/.wasm when built)
  *   OUT/catalog.json          the exported models, as GET /catalog lists them,
  *                             each with "view": its page, view/NAME.html
- *                             (merged with the entries of earlier exports)
+ *                             (merged with the entries of earlier exports),
+ *                             and "thumbnail": its picture's path,
+ *                             models/NAME/thumbnail.png, where meshexport
+ *                             wrote one, else false
  *
  * Not thread-safe for one OUT; files are written under a temporary name and
  * renamed, so a server never sends half a file. */
@@ -26,10 +29,10 @@
 /* Writes the pages of web_dir and model entry's page and catalogue entry
  * into out_dir. full: the export holds every byte (meshexport --full), so
  * the catalogue lists the model as public to its last bit (a static server
- * checks no token). Adds what it wrote to *bytes and *files. Errors: a
+ * checks no token). thumbnail: the model's picture is in the export. Adds what it wrote to *bytes and *files. Errors: a
  * web_dir without index.html or view.html, a catalog.json in out_dir that is
  * not one meshexport wrote, a file that cannot be read or written. */
 ms_status ms_export_site(const char *web_dir, const char *out_dir, const ms_catalog_entry *entry,
-                         bool full, uint64_t *bytes, uint64_t *files, ms_error *err);
+                         bool full, bool thumbnail, uint64_t *bytes, uint64_t *files, ms_error *err);
 
 #endif

@@ -89,15 +89,12 @@ static ms_status read_metadata(const ms_catalog_entry *e, ms_model_document *out
     return MS_OK;
 }
 
-ms_status ms_model_document_read(const ms_registry *r, const char *dir, const char *name,
-                                 int kind, ms_model_document *out,
-                                 ms_document_refusal *refusal, ms_error *err)
+ms_status ms_model_document_read_entry(const ms_catalog_entry *e, const char *dir, int kind,
+                                       ms_model_document *out, ms_document_refusal *refusal,
+                                       ms_error *err)
 {
     memset(out, 0, sizeof *out);
     *refusal = MS_DOCUMENT_REFUSED_NONE;
-    const ms_catalog_entry *e = ms_registry_entry_named(r, name);
-    if (!e)
-        return refuse(refusal, MS_DOCUMENT_NO_MODEL, MS_ERR_RANGE, err, "no such model");
     if (kind < MS_DOCUMENT_FIRST || kind > MS_DOCUMENT_LAST)
         return refuse(refusal, MS_DOCUMENT_ABSENT, MS_ERR_RANGE, err, "no such document kind");
     if (!ms_access_document(e, kind))
@@ -117,6 +114,18 @@ ms_status ms_model_document_read(const ms_registry *r, const char *dir, const ch
         return read_file(dir, e->name, ".annotations.json", MS_MODEL_ANNOTATIONS_MAX, true,
                          "no annotations for this model", out, refusal, err);
     }
+}
+
+ms_status ms_model_document_read(const ms_registry *r, const char *dir, const char *name,
+                                 int kind, ms_model_document *out,
+                                 ms_document_refusal *refusal, ms_error *err)
+{
+    const ms_catalog_entry *e = ms_registry_entry_named(r, name);
+    if (!e) {
+        memset(out, 0, sizeof *out);
+        return refuse(refusal, MS_DOCUMENT_NO_MODEL, MS_ERR_RANGE, err, "no such model");
+    }
+    return ms_model_document_read_entry(e, dir, kind, out, refusal, err);
 }
 
 void ms_model_document_free(ms_model_document *doc)

@@ -56,6 +56,13 @@ ms_status ms_model_document_read(const ms_registry *r, const char *dir, const ch
                                  int kind, ms_model_document *out,
                                  ms_document_refusal *refusal, ms_error *err);
 
+/* The same for a catalogue entry at hand (its public_max_bits clamped to its
+ * bits, as the registry's and an open model's are): meshexport's static site
+ * reads a model's documents through this, under the same rule. */
+ms_status ms_model_document_read_entry(const ms_catalog_entry *entry, const char *dir, int kind,
+                                       ms_model_document *out, ms_document_refusal *refusal,
+                                       ms_error *err);
+
 void ms_model_document_free(ms_model_document *doc);
 
 #endif
