@@ -127,13 +127,22 @@ static int group_setup(void **state)
     ms_test_bin_path(meshgen, sizeof meshgen, "meshgen");
     ms_test_bin_path(meshbake, sizeof meshbake, "meshbake");
     ms_test_bin_path(meshexport, sizeof meshexport, "meshexport");
+    /* one annotation on the demo model: the static viewer shows it (the
+     * preview model has none: its page reads the empty set meshexport wrote) */
+    char notes[700];
+    snprintf(notes, sizeof notes, "%s/notes.json", f->dir);
+    const char *note = "{\"format\": \"meshstream-annotations\", \"version\": 1, \"annotations\": "
+                       "[{\"id\": \"top\", \"point\": [0, 0, 0.1], \"title\": \"Top\"}]}\n";
+    ms_test_write_file(notes, note, strlen(note));
     snprintf(command, sizeof command,
              "%s -o %s/demo.ply --triangles 20000 && "
              "%s %s/demo.ply -o %s --name demo --min-tris 1500 --no-apo --threads 2 && "
              "%s %s/demo.ply -o %s --name preview --min-tris 1500 --no-apo --threads 2 "
-             "--public-bits 9 && %s %s demo -o %s --web-dir %s && %s %s preview -o %s --web-dir %s",
-             meshgen, f->dir, meshbake, f->dir, f->archives, meshbake, f->dir, f->archives,
-             meshexport, f->archives, f->www, web_dir, meshexport, f->archives, f->www, web_dir);
+             "--public-bits 9 && %s --annotations %s/notes.json -o %s --name demo && "
+             "%s %s demo -o %s --web-dir %s && %s %s preview -o %s --web-dir %s",
+             meshgen, f->dir, meshbake, f->dir, f->archives, meshbake, f->dir, f->archives, meshbake,
+             f->dir, f->archives, meshexport, f->archives, f->www, web_dir, meshexport, f->archives,
+             f->www, web_dir);
     if (run_or_say(command) != 0)
         return -1;
     ms_test_browser_why_skip(f->why_skip, sizeof f->why_skip);
@@ -266,7 +275,11 @@ static void test_static_viewer(void **state)
     assert_int_equal(json_array_size(json_object_get(report, "console")), 0);
     assert_int_equal(ms_test_browser_page_int(report, "triangles"), json_integer_value(json_object_get(cut, "triangles")));
     assert_int_equal(ms_test_browser_page_int(report, "cells"), json_integer_value(json_object_get(cut, "shown_cells")));
-    assert_int_equal(nginx_errors(f), errors); /* every byte range within its file */
+    /* the annotation, from the file meshexport wrote beside the tree */
+    json_t *notes = json_object_get(json_object_get(report, "page"), "annotations");
+    assert_string_equal(json_string_value(json_object_get(notes, "state")), "loaded");
+    assert_int_equal(json_integer_value(json_object_get(notes, "count")), 1);
+    assert_int_equal(nginx_errors(f), errors); /* every byte range within its file, no 404 */
     json_decref(report);
     json_decref(ref);
 }
@@ -281,6 +294,9 @@ static void test_static_catalogue_and_preview(void **state)
     json_t *report = open_url(f, url, "catalogue.png");
     assert_string_equal(json_string_value(json_object_get(report, "state")), "complete");
     assert_string_equal(json_string_value(json_object_get(report, "message")), "2 models");
+    /* both pictures, drawn within each model's public preview, from the
+     * paths the site's catalogue names */
+    assert_int_equal(ms_test_browser_page_int(report, "thumbnails"), 2);
     assert_int_equal(json_array_size(json_object_get(report, "console")), 0);
     json_decref(report);
     snprintf(url, sizeof url, "http://127.0.0.1:%u/view/preview.html#cam=" CLOSE_UP "&tol=1&hud=0",
