@@ -65,7 +65,7 @@ static int group_setup(void **state)
     json_t *notes = json_pack(
         "{s:s, s:i, s:[{s:s, s:[f, f, f], s:s, s:s, s:s}, {s:s, s:[f, f, f], s:s}, {s:s, s:[f, f, f], s:s}]}",
         "format", "meshstream-annotations", "version", 1, "annotations", "id", "front", "point", 0.5, -1.0, 0.5,
-        "title", title, "text", text, "view", "mv1:t=0,0,0:d=6:o=0,0:f=40:u=z", "id", "back", "point", 0.0, 1.0,
+        "title", title, "text", text, "view", "mv1:t=0,0,0:d=6:o=0,0:f=40:u=z:l=30,10", "id", "back", "point", 0.0, 1.0,
         0.0, "title", "Far face", "id", "shadowed", "point", -0.5, -1.0, -0.5, "title", "Behind the small box");
     snprintf(file, sizeof file, "%s/notes.json", f->dir);
     if (!notes || json_dump_file(notes, file, 0) != 0)
@@ -194,7 +194,7 @@ static void test_the_page_shows_them(void **state)
     assert_false(seen(before, "back", back));
     assert_false(seen(before, "shadowed", shadowed));
     assert_true(json_is_null(json_object_get(before, "selected")));
-    /* after it: the text as text, the URL, the camera at the stored view */
+    /* after it: the text as text, the URL, the camera and light of the stored view */
     json_t *last = json_array_get(list, 4), *after = json_object_get(json_object_get(last, "page"), "annotations");
     assert_string_equal(json_string_value(json_object_get(after, "selected")), "front");
     assert_string_equal(json_string_value(json_object_get(after, "title")), title);
@@ -204,10 +204,20 @@ static void test_the_page_shows_them(void **state)
     assert_true(json_is_null(json_object_get(after, "pwned")));
     const char *hash = json_string_value(json_object_get(last, "hash"));
     assert_non_null(strstr(hash, "annotation=front"));
-    assert_non_null(strstr(hash, "cam=0,6,0,0,0,0,0,0,1,40"));
-    /* the page's view text of that camera (its yaw may print as -0) */
+    /* the page's view text of that camera and the view's light, taken on
+     * arrival as meshview takes it (its yaw may print as -0) */
     const char *view = json_string_value(json_object_get(json_object_get(last, "page"), "view"));
-    assert_true(!strcmp(view, "mv1:t=0,0,0:d=6:o=0,0:f=40:u=z") || !strcmp(view, "mv1:t=0,0,0:d=6:o=-0,0:f=40:u=z"));
+    assert_true(!strcmp(view, "mv1:t=0,0,0:d=6:o=0,0:f=40:u=z:l=30,10") ||
+                !strcmp(view, "mv1:t=0,0,0:d=6:o=-0,0:f=40:u=z:l=30,10"));
+    /* the URL holds it (a raking light is not a #cam=: the view text says it) */
+    char wanted[256];
+    snprintf(wanted, sizeof wanted, "view=%s", view);
+    assert_non_null(strstr(hash, wanted));
+    json_t *light = json_object_get(json_object_get(last, "page"), "light");
+    assert_true(json_real_value(json_object_get(light, "az")) == 30.0 ||
+                json_integer_value(json_object_get(light, "az")) == 30);
+    assert_true(json_real_value(json_object_get(light, "el")) == 10.0 ||
+                json_integer_value(json_object_get(light, "el")) == 10);
     assert_false(seen(after, "front", NULL));
     assert_true(seen(after, "back", NULL));
     assert_false(seen(after, "shadowed", NULL));

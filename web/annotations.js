@@ -232,8 +232,9 @@ function deselect() {
 }
 panel.addEventListener('click', deselect);
 
-// The camera of a stored view (share.js), or null; its light, planes and
-// points are left to the page's tools as they are.
+// The camera of a stored view (share.js) and its light (null: the head
+// light), which the page takes on arrival as meshview does, or null; its
+// planes and points are left to the page's tools as they are.
 function viewCamera(text) {
   const v = MsShare.parse(text);
   if (v.error)
@@ -241,7 +242,8 @@ function viewCamera(text) {
   const up = [0, 0, 0];
   up[v.axis] = 1;
   const f = forwardOf(upFrame(up), v.yaw, v.pitch);
-  return { position: v.target.map((x, k) => x - v.distance * f[k]), target: v.target.slice(), up, fovy: v.fovy };
+  return { position: v.target.map((x, k) => x - v.distance * f[k]), target: v.target.slice(), up, fovy: v.fovy,
+           light: v.light };
 }
 
 // The pending selection's move, once the page has a camera.
@@ -277,10 +279,12 @@ function moveCamera(to) {
                  yaw: from.yaw + f * turn, pitch: from.pitch + f * (end.pitch - from.pitch) };
     placeCamera(st, fromTarget.map((x, k) => x + f * (to.target[k] - x)));
     camera.fovy = fromFovy + f * (to.fovy - fromFovy);
-    if (t === 1) {          // there exactly: the view's own camera
+    if (t === 1) {          // there exactly: the view's own camera, and its light
       camera.position = to.position.slice();
       camera.target = to.target.slice();
       camera.up = to.up.slice();
+      if ('light' in to)
+        MsTools.setLight(to.light);
     }
     set = camera.position.slice();
     cameraMoved();

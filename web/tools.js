@@ -207,6 +207,12 @@ const MsTools = (() => {
     }
   }
 
+  // A light from elsewhere (an annotation's stored view): null is the head light.
+  function setLight(light) {
+    st.light = light ? { az: light.az, el: light.el } : null;
+    changed(true);
+  }
+
   function act(key) {
     if (!camera || !box)
       return false;
@@ -333,5 +339,5 @@ const MsTools = (() => {
   }
 
   return { viewText, viewError, toHash, hashString, fromView, message, started, recast, uniforms, drawn, act,
-           measureAt, measureRay, publish };
+           measureAt, measureRay, publish, setLight };
 })();
