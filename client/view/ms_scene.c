@@ -610,20 +610,11 @@ ms_status ms_scene_load(const char *path, ms_scene *scene, ms_error *err)
     if (!scene || !path)
         return ms_error_set(err, MS_ERR_ARG, "scene: no file or result");
     memset(scene, 0, sizeof *scene);
-    FILE *f;
+    char *text;
+    size_t size;
     ms_error why;
-    if (ms_input_fopen(path, &f, &why) != MS_OK)
+    if (ms_input_read_most(path, MS_SCENE_MAX_BYTES, &text, &size, &why) != MS_OK)
         return ms_error_set(err, why.code, "scene %s", why.text);
-    char *text = malloc(MS_SCENE_MAX_BYTES + 1);
-    size_t size = text ? fread(text, 1, MS_SCENE_MAX_BYTES + 1, f) : 0;
-    int read_error = ferror(f);
-    fclose(f);
-    if (!text)
-        return ms_error_set(err, MS_ERR_NOMEM, "scene %s: no memory", path);
-    if (read_error) {
-        free(text);
-        return ms_error_set(err, MS_ERR_IO, "scene %s: read failed", path);
-    }
     /* the folder of the file, for a relative camera path */
     char dir[4096];
     snprintf(dir, sizeof dir, "%s", path);

@@ -307,20 +307,14 @@ static ms_status read_catalog_text(const char *path, char **text, size_t *size, 
     *size = 0;
     if (access(path, F_OK) != 0 && errno == ENOENT)
         return MS_OK;
-    FILE *f;
-    ms_status opened = ms_input_fopen(path, &f, err);
-    if (opened != MS_OK)
-        return opened;
-    char *buffer = malloc(MS_CATALOG_MAX_BYTES + 1);
-    size_t got = buffer ? fread(buffer, 1, MS_CATALOG_MAX_BYTES + 1, f) : 0;
-    int read_error = ferror(f);
-    fclose(f);
-    if (!buffer)
-        return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory", path);
-    if (read_error || got > MS_CATALOG_MAX_BYTES) {
+    char *buffer;
+    size_t got;
+    ms_status st = ms_input_read_most(path, MS_CATALOG_MAX_BYTES, &buffer, &got, err);
+    if (st != MS_OK)
+        return st;
+    if (got > MS_CATALOG_MAX_BYTES) {
         free(buffer);
-        return ms_error_set(err, read_error ? MS_ERR_IO : MS_ERR_RANGE, "%s: %s", path,
-                            read_error ? "read failed" : "larger than 64 MiB");
+        return ms_error_set(err, MS_ERR_RANGE, "%s: larger than 64 MiB", path);
     }
     *text = buffer;
     *size = got;

@@ -139,20 +139,12 @@ ms_status ms_camera_path_parse(const char *text, size_t size, const char *name,
 ms_status ms_camera_path_load(const char *file, ms_camera_path *p, ms_error *err)
 {
     memset(p, 0, sizeof *p);
-    FILE *f;
-    ms_status opened = ms_input_fopen(file, &f, err);
-    if (opened != MS_OK)
-        return opened;
-    char *text = malloc(MAX_FILE + 1);
-    size_t size = text ? fread(text, 1, MAX_FILE + 1, f) : 0;
-    int failed = ferror(f);
-    fclose(f);
-    ms_status st;
-    if (!text)
-        st = ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory", file);
-    else if (failed)
-        st = ms_error_set(err, MS_ERR_IO, "%s: read error", file);
-    else if (size > MAX_FILE)
+    char *text;
+    size_t size;
+    ms_status st = ms_input_read_most(file, MAX_FILE, &text, &size, err);
+    if (st != MS_OK)
+        return st;
+    if (size > MAX_FILE)
         st = ms_error_set(err, MS_ERR_RANGE, "%s: larger than 16 MiB", file);
     else
         st = ms_camera_path_parse(text, size, file, p, err);
