@@ -34,6 +34,8 @@ static void usage(FILE *out)
             "                       without a byte read by a client that has bytes waiting;\n"
             "                       default 60), http_rate, http_max_connections (256),\n"
             "                       http_header_timeout (s to deliver a request header, 30),\n"
+            "                       http_park (s a connection shed at the cap is held unread\n"
+            "                       before its reset, 20; 0 closes it at once),\n"
             "                       max_clients, max_frame (bytes), max_batch, max_outstanding,\n"
             "                       max_queued_bytes (per connection), request_rate (per s and\n"
             "                       connection), access_log (file: one JSON line per binary\n"
