@@ -79,11 +79,11 @@ static int start_guarded_server(void **state)
     return start_server_with(state, "http_max_connections = 8\nhttp_header_timeout = 1\nhttp_park = 0\n");
 }
 
-/* One HTTP connection at most, the connections shed parked for 2 s: a lot of
- * 8 (ms_http_park_capacity). */
+/* One HTTP connection at most, the connections shed parked for 2 s, 8 at
+ * most. */
 static int start_parking_server(void **state)
 {
-    return start_server_with(state, "http_max_connections = 1\nhttp_park = 2\n");
+    return start_server_with(state, "http_max_connections = 1\nhttp_park = 2\nhttp_park_max = 8\n");
 }
 
 /* At most 8 HTTP connections, with the default 30 s for a request header; a
@@ -1037,8 +1037,8 @@ static size_t descriptors(pid_t pid)
 
 /* Parked (issue 32's slowloris figure): a connection shed at the cap is held,
  * unread and unanswered, for http_park seconds, then reset, so a slowloris
- * client sees no end and does not reconnect; the lot (8 per slot) resets its
- * oldest when full. With one slot and a lot of 8: twelve connections that
+ * client sees no end and does not reconnect; the lot (http_park_max) resets
+ * its oldest when full. With one slot and a lot of 8: twelve connections that
  * each send the start of a header, then a /metrics request, shed all twelve
  * (each newcomer takes the only slot): the last 8 shed are parked, the first
  * 4 reset as the lot filled (with http_park 0 all twelve would see their end

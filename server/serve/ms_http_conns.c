@@ -21,8 +21,6 @@
 #include "ms_server_internal.h"
 
 #define SWEEP_INTERVAL_US 250000
-#define PARK_PER_SLOT 8
-#define PARK_MAX 65536
 /* A parked socket's receive buffer (the kernel doubles it): what a client
  * can make the kernel hold for it while it is parked. */
 #define PARK_RECEIVE_BUFFER 2048
@@ -326,10 +324,7 @@ static void on_next_turn(evutil_socket_t fd, short what, void *arg)
 
 size_t ms_http_park_capacity(const ms_server_config *config)
 {
-    if (!config->http_park_s)
-        return 0;
-    size_t n = (size_t)config->http_max_connections * PARK_PER_SLOT;
-    return n < PARK_MAX ? n : PARK_MAX;
+    return config->http_park_s ? config->http_park_max : 0;
 }
 
 /* The lot: as ms_http_park_capacity says, less where the descriptor limit

@@ -48,9 +48,9 @@ void ms_http_conns_request(ms_http_conns *conns, struct evhttp_request *req);
  * parked connections reset. */
 void ms_http_conns_free(ms_http_conns *conns);
 
-/* The most connections the door holds parked: 8 times http_max_connections,
- * at most 65,536 (0 when http_park is 0); meshserve's descriptor limit makes
- * room for them, and the lot is smaller when the limit could not be raised. */
+/* The most connections the door holds parked: http_park_max (0 when
+ * http_park is 0); meshserve's descriptor limit makes room for them, and the
+ * lot is smaller when the limit could not be raised. */
 size_t ms_http_park_capacity(const struct ms_server_config *config);
 
 #endif
