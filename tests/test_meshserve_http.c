@@ -1043,7 +1043,8 @@ static size_t descriptors(pid_t pid)
  * (each newcomer takes the only slot): the last 8 shed are parked, the first
  * 4 reset as the lot filled (with http_park 0 all twelve would see their end
  * at once); 2 s later every one is reset, and the server holds no more
- * descriptors than before. */
+ * descriptors than before. A connection that has sent nothing yet is not
+ * parked when shed: it gets its end at once. */
 static void test_shed_connections_parked(void **state)
 {
     server_fixture *f = *state;
@@ -1078,6 +1079,16 @@ static void test_shed_connections_parked(void **state)
     assert_int_equal(parked, 0);
     usleep(100000);
     assert_true(descriptors(f->pid) <= before + 1); /* + the last /metrics connection */
+    int quiet = connect_loopback(f->http_port);
+    usleep(100000);
+    uint64_t shed_after = 0;
+    assert_int_equal(ms_test_metric(f->http_port, "meshstream_http_connections_shed_total", &shed_after), 0);
+    assert_int_equal(shed_after, TRICKLERS + 1); /* the quiet one, by this /metrics */
+    assert_int_equal(ms_test_metric(f->http_port, "meshstream_http_connections_parked", &parked), 0);
+    assert_int_equal(parked, 0);
+    usleep(100000);
+    assert_true(ended(quiet));
+    close(quiet);
 }
 
 /* The server's read system calls so far (/proc/PID/io's syscr: read, readv

@@ -353,12 +353,14 @@ static void reset_parked(tracked_connection *t)
     evhttp_connection_free(t->evcon); /* calls on_close: t is gone */
 }
 
-/* Holds a connection shed before any request of its own was handled, unread
- * (its events disabled: no reads, no time-outs) with a small receive buffer,
- * the lot's oldest reset when it is full. False when there is no lot. */
+/* Holds a trickling connection shed before any request of its own was
+ * handled, unread (its events disabled: no reads, no time-outs) with a small
+ * receive buffer, the lot's oldest reset when it is full. False when there is
+ * no lot, or t is not trickling: a client that has sent nothing yet (maybe
+ * one slow to be scheduled) gets its end at once, as before, and retries. */
 static bool park(ms_http_conns *conns, tracked_connection *t)
 {
-    if (!conns->park_capacity)
+    if (!conns->park_capacity || !t->trickling)
         return false;
     if (conns->park_count == conns->park_capacity)
         reset_parked(TAILQ_FIRST(&conns->parked));

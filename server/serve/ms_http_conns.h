@@ -13,7 +13,8 @@
  * handled (nothing of ours is on its way to it) is freed at once, without
  * waiting for evhttp to read the end of stream.
  *
- * Parked: such a connection's socket is not closed but held, unread and
+ * Parked: such a connection whose header arrives in pieces (trickling) is
+ * not closed but held, unread and
  * unwatched (no event, a small receive buffer), for http_park seconds, then
  * reset; when the lot is full its oldest is reset first. A slowloris client
  * sees no end to its connection and does not reconnect, so the accepts,
