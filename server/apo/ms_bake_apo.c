@@ -20,6 +20,7 @@ void ms_bake_apo_params_default(ms_bake_apo_params *p)
     p->init_depth = 0;
     p->tolerance = 0.2;
     p->correction = 0.2;
+    p->budget = MS_BAKE_APO_BUDGET;
     p->zlib_level = 6;
 }
 
@@ -33,6 +34,9 @@ ms_status ms_bake_apo_params_check(const ms_bake_apo_params *p, ms_error *err)
         return ms_error_set(err, MS_ERR_ARG, "--apo-tol must be a number >= 0");
     if (!(p->correction >= 0.0 && p->correction <= 3.2))
         return ms_error_set(err, MS_ERR_ARG, "--apo-correction must be a number from 0 to 3.2");
+    if (!(p->budget >= 0.0 && p->budget <= MS_BAKE_APO_MAX_BUDGET))
+        return ms_error_set(err, MS_ERR_ARG, "--apo-budget must be a number from 0 (no budget) to %g",
+                            MS_BAKE_APO_MAX_BUDGET);
     if (p->zlib_level < 0 || p->zlib_level > 9)
         return ms_error_set(err, MS_ERR_ARG, "APO zlib level must be 0..9");
     return MS_OK;

@@ -116,6 +116,9 @@ static void print_usage(FILE *out)
           "                    spread more than T radians (default 0.2)\n"
           "  --apo-correction C  keep a texel only where its normal differs from the\n"
           "                    client's smooth normal by more than C radians (default 0.2)\n"
+          "  --apo-budget R    APO bytes at most R times the geometry bytes, the finest\n"
+          "                    levels dropped first where the chunks hold more; 0: no\n"
+          "                    budget (default 1)\n"
           "  --apo-init-depth D  split unconditionally above depth D (default 0)\n"
           "  --apo-verify      decode every chunk back and check it gives the built tree\n"
           "  --apo-accuracy    measure the internal cells' chunks against the full-precision\n"
@@ -268,6 +271,7 @@ static int parse_options(int argc, char **argv, bake_options *options)
         {"apo-init-depth", required_argument, NULL, 'I'},
         {"apo-tol", required_argument, NULL, 'E'},
         {"apo-correction", required_argument, NULL, 'G'},
+        {"apo-budget", required_argument, NULL, 'F'},
         {"apo-verify", no_argument, NULL, 'V'},
         {"apo-accuracy", no_argument, NULL, 'C'},
         {"public-bits", required_argument, NULL, 'P'},
@@ -353,10 +357,12 @@ static int parse_options(int argc, char **argv, bake_options *options)
                 return usage_error(e.text, NULL);
             break;
         }
-        case 'G': {
+        case 'G': case 'F': {
             ms_error e;
-            if (ms_option_double("--apo-correction", optarg, 0, 3.2, &options->bake.apo.correction,
-                                 &e) != MS_OK)
+            if (c == 'G' ? ms_option_double("--apo-correction", optarg, 0, 3.2, &options->bake.apo.correction,
+                                            &e) != MS_OK
+                         : ms_option_double("--apo-budget", optarg, 0, MS_BAKE_APO_MAX_BUDGET,
+                                            &options->bake.apo.budget, &e) != MS_OK)
                 return usage_error(e.text, NULL);
             break;
         }
@@ -535,6 +541,21 @@ static void print_bake_json(const ms_bake_options *o, const ms_bake_report *r)
                             "sample_triangles_max", (json_int_t)r->apo_sample_triangles_max);
     if (apo) /* keep a texel only where it corrects the smooth normal by more (docs/APO.md) */
         json_object_set_new(apo, "correction", json_real(o->apo.correction));
+    /* the byte budget (docs/APO.md): the stored ratio and what the budget dropped */
+    const ms_bake_apo_budget_report *cut = &r->apo_budget;
+    if (apo)
+        json_object_set_new(apo, "budget",
+                            json_pack("{s:f, s:I, s:I, s:f, s:I, s:I, s:i, s:i, s:i, s:I, s:I, s:I}", "ratio",
+                                      r->geometry_bytes ? (double)r->apo_bytes / (double)r->geometry_bytes : 0.0,
+                                      "geometry_bytes", (json_int_t)r->geometry_bytes, "limit_bytes",
+                                      (json_int_t)cut->limit, "budget", o->apo.budget, "bytes_before",
+                                      (json_int_t)cut->bytes_before, "bytes_dropped",
+                                      (json_int_t)(cut->bytes_before - cut->bytes_after), "chunks_cut",
+                                      (int)cut->chunks_cut, "chunks_removed", (int)cut->chunks_removed,
+                                      "levels_dropped", (int)cut->levels_dropped, "texels_dropped",
+                                      (json_int_t)cut->texels_dropped, "internal_nodes_dropped",
+                                      (json_int_t)cut->internal_dropped, "leaves_dropped",
+                                      (json_int_t)cut->leaves_dropped));
     /* the issue-31 target is stated as this share: the APO build against the whole bake */
     if (apo)
         json_object_set_new(apo, "share_of_bake",
@@ -644,6 +665,11 @@ static void print_bake_text(const ms_bake_report *r)
             printf("APO accuracy:         %" PRIu64 " full-precision centroids of internal cells: "
                    "mean %.2f, median %.2f, p90 %.2f degrees\n",
                    r->apo_accuracy_points, r->apo_accuracy_mean, r->apo_accuracy_median, r->apo_accuracy_p90);
+        printf("APO budget:           %.2f x the geometry (limit %" PRIu64 " bytes); dropped %" PRIu64
+               " bytes, %u levels of %u chunks (%u removed), %" PRIu64 " texels\n",
+               r->geometry_bytes ? (double)r->apo_bytes / (double)r->geometry_bytes : 0.0, r->apo_budget.limit, r->apo_budget.bytes_before - r->apo_budget.bytes_after,
+               r->apo_budget.levels_dropped, r->apo_budget.chunks_cut, r->apo_budget.chunks_removed,
+               r->apo_budget.texels_dropped);
         printf("APO texels per level:");
         for (uint32_t d = 0; d < r->apo_levels; ++d)
             printf(" %" PRIu64, r->apo_level_texels[d]);
