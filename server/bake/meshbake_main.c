@@ -58,7 +58,8 @@ static void print_usage(FILE *out)
     fputs("usage: meshbake IN -o ARCHIVE_DIR [--name NAME] [--bits 16] [--n 4]\n"
           "                [--root-bits 7] [--min-tris T] [--threads N] [--mem MB]\n"
           "                [--tmp DIR] [--public-bits B] [--no-apo] [--apo-lead 1]\n"
-          "                [--apo-max-depth 10] [--apo-tol 0.2] [--apo-init-depth 0]\n"
+          "                [--apo-max-depth 10] [--apo-tol 0.2] [--apo-budget 1]\n"
+          "                [--apo-init-depth 0]\n"
           "                [--apo-verify] [--apo-accuracy] [--subtree-levels S] [--ahead 3]\n"
           "                [--colour-bits 8] [--no-colour] [--metadata FILE.json]\n"
           "                [--no-thumbnail] [--up x|y|z] [--json]\n"
@@ -249,6 +250,19 @@ static int picture_option(int c, const char *arg, bake_options *options)
 }
 
 /* Returns -1 to go on, or the exit status to end with. */
+/* --apo-tol (E), --apo-correction (G), --apo-budget (F): false with *status
+ * set on a bad value. */
+static bool apo_real_option(int c, const char *arg, ms_bake_apo_params *apo, int *status)
+{
+    ms_error e;
+    ms_status s = c == 'E'   ? ms_option_double("--apo-tol", arg, 0, 1e12, &apo->tolerance, &e)
+                  : c == 'G' ? ms_option_double("--apo-correction", arg, 0, 3.2, &apo->correction, &e)
+                             : ms_option_double("--apo-budget", arg, 0, MS_BAKE_APO_MAX_BUDGET, &apo->budget, &e);
+    if (s != MS_OK)
+        *status = usage_error(e.text, NULL);
+    return s == MS_OK;
+}
+
 static int parse_options(int argc, char **argv, bake_options *options)
 {
     static const struct option long_options[] = {
@@ -350,22 +364,10 @@ static int parse_options(int argc, char **argv, bake_options *options)
             else if (c == 'D') options->bake.apo.max_depth = (uint32_t)value;
             else options->bake.apo.init_depth = (uint32_t)value;
             break;
-        case 'E': {
-            ms_error e;
-            if (ms_option_double("--apo-tol", optarg, 0, 1e12, &options->bake.apo.tolerance,
-                                 &e) != MS_OK)
-                return usage_error(e.text, NULL);
+        case 'E': case 'G': case 'F':
+            if (!apo_real_option(c, optarg, &options->bake.apo, &status))
+                return status;
             break;
-        }
-        case 'G': case 'F': {
-            ms_error e;
-            if (c == 'G' ? ms_option_double("--apo-correction", optarg, 0, 3.2, &options->bake.apo.correction,
-                                            &e) != MS_OK
-                         : ms_option_double("--apo-budget", optarg, 0, MS_BAKE_APO_MAX_BUDGET,
-                                            &options->bake.apo.budget, &e) != MS_OK)
-                return usage_error(e.text, NULL);
-            break;
-        }
         default:
             return EXIT_USAGE; /* reported by ms_cli_next */
         }
