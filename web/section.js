@@ -86,5 +86,5 @@ const MsSection = (() => {
     gl.uniform3fv(gl.getUniformLocation(program, 'sectionColour'), COLOUR);
   }
 
-  return { MAX, planes, key, describe, uniforms };
+  return { MAX, COLOUR, planes, key, describe, uniforms };
 })();
