@@ -73,26 +73,46 @@ const MsRender = (() => {
     return { program, u };
   }
 
-  let gl = null, plain = null, detail = null, vao = null, positionBuffer = null, normalBuffer = null, indexBuffer = null;
-  let runs = { cells: new Uint32Array(0), firsts: new Uint32Array(1), cubes: new Float64Array(0) };
+  let gl = null, plain = null, detail = null;
+  // The mesh drawn (current) and the one going up (next): each a vertex array
+  // over its own position, normal and index buffers, with its runs.
+  let current = null, next = null;
+  const meshStats = { bytes: 0, frames: 0, meshes: 0, dropped: 0 };
 
   function setUp(context) {
     gl = context;
     // what meshview's viewer draws with: specular, two-sided, sections
     plain = link(gl, ['MS_EFFECT_SPECULAR', 'MS_EFFECT_TWO_SIDED', 'MS_SECTIONS']);
-    vao = gl.createVertexArray();
-    gl.bindVertexArray(vao);
-    positionBuffer = gl.createBuffer();
-    normalBuffer = gl.createBuffer();
-    indexBuffer = gl.createBuffer();
-    gl.bindBuffer(gl.ARRAY_BUFFER, positionBuffer);
+  }
+
+  function meshBuffers(m) {
+    const b = { vao: gl.createVertexArray(), position: gl.createBuffer(), normal: gl.createBuffer(),
+                index: gl.createBuffer(), m, runs: m.runs, sent: 0 };
+    gl.bindVertexArray(b.vao);
+    gl.bindBuffer(gl.ARRAY_BUFFER, b.position);
+    gl.bufferData(gl.ARRAY_BUFFER, m.positions.byteLength, gl.STATIC_DRAW);
     gl.enableVertexAttribArray(0);
     gl.vertexAttribPointer(0, 3, gl.FLOAT, false, 0, 0);
-    gl.bindBuffer(gl.ARRAY_BUFFER, normalBuffer);
+    gl.bindBuffer(gl.ARRAY_BUFFER, b.normal);
+    gl.bufferData(gl.ARRAY_BUFFER, m.normals.byteLength, gl.STATIC_DRAW);
     gl.enableVertexAttribArray(1);
     gl.vertexAttribPointer(1, 3, gl.FLOAT, false, 0, 0);
-    gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, indexBuffer);
+    gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, b.index);
+    gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, m.triangles.byteLength, gl.STATIC_DRAW);
     gl.bindVertexArray(null);
+    b.parts = [[gl.ARRAY_BUFFER, b.position, m.positions], [gl.ARRAY_BUFFER, b.normal, m.normals],
+               [gl.ELEMENT_ARRAY_BUFFER, b.index, m.triangles]];
+    b.total = m.positions.byteLength + m.normals.byteLength + m.triangles.byteLength;
+    return b;
+  }
+
+  function dropBuffers(b) {
+    if (!b)
+      return;
+    gl.deleteVertexArray(b.vao);
+    gl.deleteBuffer(b.position);
+    gl.deleteBuffer(b.normal);
+    gl.deleteBuffer(b.index);
   }
 
   // ---- APO texels: a 2D integer texture (WebGL 2 has no buffer textures) --
@@ -185,9 +205,10 @@ const MsRender = (() => {
     apoStats.levels[m.cell] = m.levels;
   }
 
-  // This frame's share of the pending chunks; true while some wait.
-  function uploadApo() {
-    let left = UPLOAD_BUDGET;
+  // The frame's share of the pending chunks, within `left` bytes; true while
+  // some wait.
+  function uploadApo(left) {
+    const budget = left;
     while (queue.length && left > 0) {
       const c = chunks.get(queue[0]), p = c.next;
       const part = Math.min(p.count - p.sent, Math.floor(left / 4));
@@ -204,23 +225,54 @@ const MsRender = (() => {
       apoStats.chunks++;
       queue.shift();
     }
-    if (left < UPLOAD_BUDGET)
+    if (left < budget)
       apoStats.frames++;
     return queue.length > 0;
   }
 
   // A mesh of the worker's (positions and normals in world units, the
   // triangles, and runs: the cells and their triangles' ranges and cubes).
+  // It goes up within the frames' upload budget (uploadMesh) into buffers of
+  // its own, and replaces the mesh drawn once all of it is up; a newer mesh
+  // replaces one still going up.
   function upload(m) {
-    gl.bindVertexArray(vao);
-    gl.bindBuffer(gl.ARRAY_BUFFER, positionBuffer);
-    gl.bufferData(gl.ARRAY_BUFFER, m.positions, gl.STATIC_DRAW);
-    gl.bindBuffer(gl.ARRAY_BUFFER, normalBuffer);
-    gl.bufferData(gl.ARRAY_BUFFER, m.normals, gl.STATIC_DRAW);
-    gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, indexBuffer);
-    gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, m.triangles, gl.STATIC_DRAW);
+    if (next) {
+      dropBuffers(next);
+      meshStats.dropped++;
+    }
+    next = meshBuffers(m);
+  }
+
+  // Up to `left` bytes of the next mesh; returns what it sent.
+  function uploadMesh(left) {
+    if (!next)
+      return 0;
+    let sent = 0, at = 0;
     gl.bindVertexArray(null);
-    runs = m.runs;
+    for (const [target, buffer, data] of next.parts) {
+      const end = at + data.byteLength;
+      if (next.sent < end && left > 0) {
+        const from = next.sent - at, part = Math.min(data.byteLength - from, left);
+        gl.bindBuffer(target, buffer);
+        gl.bufferSubData(target, from, new Uint8Array(data.buffer, data.byteOffset + from, part));
+        next.sent += part;
+        left -= part;
+        sent += part;
+      }
+      at = end;
+    }
+    gl.bindBuffer(gl.ARRAY_BUFFER, null);
+    gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, null);
+    meshStats.bytes += sent;
+    if (next.sent === next.total) {
+      dropBuffers(current);
+      current = next;
+      current.parts = null;      // the arrays are the GPU's now
+      current.m = null;
+      next = null;
+      meshStats.meshes++;
+    }
+    return sent;
   }
 
   // The background of a mode, as the clear colour's grey.
@@ -265,14 +317,19 @@ const MsRender = (() => {
     gl.viewport(0, 0, f.width, f.height);
     gl.clearColor(grey, grey, grey, 1);
     gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
-    const n = runs.cells.length;
+    // meshview's order (ms_render_upload): the mesh, then the APO texels,
+    // within one budget a frame
+    const meshSent = uploadMesh(UPLOAD_BUDGET);
+    if (meshSent)
+      meshStats.frames++;
+    const waiting = uploadApo(UPLOAD_BUDGET - meshSent) || next !== null;
+    const runs = current ? current.runs : null, n = runs ? runs.cells.length : 0;
     if (!n || !f.camera)
-      return { cells: 0, waiting: queue.length > 0 };
+      return { cells: 0, waiting };
     gl.enable(gl.DEPTH_TEST);
     gl.depthFunc(gl.LESS);
     gl.disable(gl.CULL_FACE);
     gl.disable(gl.BLEND);
-    const waiting = uploadApo();
     const apo = usesApo(f.shading) && [...chunks.values()].some(c => c.current);
     if (apo && !detail)
       detail = link(gl, ['MS_EFFECT_SPECULAR', 'MS_EFFECT_TWO_SIDED', 'MS_SECTIONS', 'MS_EFFECT_DETAIL_NORMALS'],
@@ -315,7 +372,7 @@ const MsRender = (() => {
       gl.uniform1i(u.apo_filter, 1);
     }
     const footprint = 2 * Math.tan(f.camera.fovy * Math.PI / 360) / f.height;
-    gl.bindVertexArray(vao);
+    gl.bindVertexArray(current.vao);
     const modelview = new Float64Array(16), local = new Float32Array(12);
     for (let k = 0; k < n; ++k) {
       const first = runs.firsts[k], count = runs.firsts[k + 1] - first;
@@ -352,5 +409,8 @@ const MsRender = (() => {
     return { cells: n, waiting };
   }
 
-  return { MODES, usesApo, setUp, upload, apoChunk, apoStats, draw, background, cellTint };
+  // Whether the next mesh or APO texels still wait for upload budget.
+  const pending = () => next !== null || queue.length > 0;
+
+  return { MODES, usesApo, setUp, upload, pending, apoChunk, apoStats, meshStats, draw, background, cellTint };
 })();

@@ -122,7 +122,7 @@ if (hash.get('shading') !== null) {
 page.shading = shading;
 
 const gl = canvas.getContext('webgl2', { antialias: false });
-let indexCount = 0, box = null, frameRequested = false, lastSentApo = false;
+let indexCount = 0, box = null, frameRequested = false, lastSentApo = false, completeWaiting = null;
 
 function setUpGl() {
   MsRender.setUp(gl);
@@ -207,9 +207,15 @@ function drawFrame() {
                                 planes: ready ? MsSection.planes(page.sections || []) : [],
                                 sectionColour: MsSection.COLOUR });
   page.apo = Object.assign({}, MsRender.apoStats, { waiting: drawn.waiting });
+  page.upload = MsRender.meshStats;
   if (drawn.waiting)
-    requestDraw();          // APO texels beyond this frame's upload budget
-  if (!ready)
+    requestDraw();          // a mesh or APO texels beyond this frame's upload budget
+  else if (completeWaiting) {
+    const m = completeWaiting;
+    completeWaiting = null;
+    complete(m);
+  }
+  if (!ready || !drawn.cells)
     return;
   pageTiming.frames++;
   MsTools.drawn(camera);
@@ -412,6 +418,7 @@ function workerCamera() {
     page.state = 'loading';
   cameraSentAt = performance.now();
   lastSentApo = MsRender.usesApo(shading);
+  completeWaiting = null;
   return Object.assign({}, camera, { width: canvas.width, height: canvas.height, tolerance,
                                      seq: ++cameraSeq, apo: MsRender.usesApo(shading) });
 }
@@ -461,6 +468,25 @@ document.getElementById('token-form').addEventListener('submit', e => {
 });
 
 // ---- The worker ----------------------------------------------------------
+
+// View complete: the worker's last mesh and APO texels are drawn (the
+// renderer's upload budget may take a few frames after the worker's message).
+function complete(m) {
+  page.bytes = m.bytes;
+  page.rounds = m.rounds;
+  page.timing = Object.assign({}, m.timing, pageTiming);
+  page.completeMs = Math.round(performance.now());
+  page.settleMs = Math.round(performance.now() - cameraSentAt);  // from this camera
+  page.state = 'complete';
+  page.progress = 1;
+  progress.value = 1;
+  showFigures();
+  showShare();
+  say(name + ': ' + page.triangles.toLocaleString('en') + ' triangles in ' + page.cells +
+      ' cells, up to ' + page.bits + ' bits, ' + (m.bytes / 1e3).toFixed(0) + ' kB, view complete' +
+      (m.preview ? (staticSite ? ' (the public preview)' : ' (the public preview: a token gives more)') : ''));
+  tellEmbedder();
+}
 
 function start() {
   // The worker was started by boot.js in the page's head: it compiles the
@@ -515,20 +541,12 @@ function start() {
     } else if (m.type === 'complete') {
       if (m.seq !== cameraSeq)
         return;              // an earlier camera's; the latest one is under way
-      page.bytes = m.bytes;
-      page.rounds = m.rounds;
-      page.timing = Object.assign({}, m.timing, pageTiming);
-      page.completeMs = Math.round(performance.now());
-      page.settleMs = Math.round(performance.now() - cameraSentAt);  // from this camera
-      page.state = 'complete';
-      page.progress = 1;
-      progress.value = 1;
-      showFigures();
-      showShare();
-      say(name + ': ' + page.triangles.toLocaleString('en') + ' triangles in ' + page.cells +
-          ' cells, up to ' + page.bits + ' bits, ' + (m.bytes / 1e3).toFixed(0) + ' kB, view complete' +
-          (m.preview ? (staticSite ? ' (the public preview)' : ' (the public preview: a token gives more)') : ''));
-      tellEmbedder();
+      if (MsRender.pending()) {
+        completeWaiting = m; // complete once its mesh and texels are up (drawFrame)
+        requestDraw();
+      } else {
+        complete(m);
+      }
     } else if (m.type === 'error') {
       failPage(m.message.charAt(0).toUpperCase() + m.message.slice(1));
     }
