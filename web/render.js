@@ -127,9 +127,11 @@ const MsRender = (() => {
   let texture = null, mirror = new Uint32Array(0), used = 0;
   const chunks = new Map();     // cell: {current: {start, levels, root} or null, next: pending or null}
   const queue = [];             // cells with a pending chunk, in arrival order
-  // texel bytes uploaded, frames that uploaded some, chunks made current, and
-  // per cell the levels of its latest chunk prefix (window.meshstream.apo)
-  const apoStats = { bytes: 0, frames: 0, chunks: 0, levels: {} };
+  // texel bytes uploaded, frames that uploaded some, chunks made current,
+  // textures made afresh (repacks: their whole upload, outside the budget, is
+  // in bytes too), and per cell the levels of its latest chunk prefix
+  // (window.meshstream.apo)
+  const apoStats = { bytes: 0, frames: 0, chunks: 0, repacks: 0, levels: {} };
 
   function makeTexture(rows) {
     if (texture)
@@ -185,6 +187,8 @@ const MsRender = (() => {
     used = at;
     makeTexture(rows);
     sendWords(0, used);
+    apoStats.bytes += 4 * used;
+    apoStats.repacks++;
     for (const c of chunks.values())
       if (c.next)
         c.next.sent = c.next.count;
