@@ -201,11 +201,9 @@ function drawFrame() {
   resize();
   const ready = indexCount && camera && box;
   const [near, far] = ready ? depthRange() : [1, 2];
-  const light = page.light ? MsLight.eye(page.light) : null;
-  const drawn = MsRender.draw({ camera: ready ? camera : null, width: canvas.width, height: canvas.height, near,
-                                far, mode: MsRender.MODES[shading], shading, light,
-                                planes: ready ? MsSection.planes(page.sections || []) : [],
-                                sectionColour: MsSection.COLOUR });
+  const drawn = MsRender.draw(Object.assign(MsTools.lighting(), {
+    camera: ready ? camera : null, width: canvas.width, height: canvas.height, near, far,
+    mode: MsRender.MODES[shading], shading }));
   page.apo = Object.assign({}, MsRender.apoStats, { waiting: drawn.waiting });
   page.upload = MsRender.meshStats;
   if (drawn.waiting)
