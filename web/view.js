@@ -440,6 +440,9 @@ function showFigures() {
   const parts = [page.triangles.toLocaleString('en') + ' triangles', page.cells + ' cells',
                  'up to ' + page.bits + ' bits', (page.bytes / 1e3).toFixed(0) + ' kB',
                  'round ' + (page.rounds || 0)];
+  const apoCells = Object.keys(MsRender.apoStats.levels).length;
+  if (apoCells && MsRender.usesApo(shading))
+    parts.push('APO normals in ' + apoCells + (apoCells === 1 ? ' cell' : ' cells'));
   if (page.firstPixelMs !== null)
     parts.push('first pixels ' + page.firstPixelMs + ' ms');
   if (page.state === 'complete')
