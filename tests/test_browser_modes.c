@@ -15,7 +15,10 @@
  *     beyond the preview rule (ms_archive_preview_apo_levels) and the
  *     server refused nothing (its forbidden counter); with the token the
  *     root's chunk has the levels the preview withheld;
- *   - a shading the page does not know ends in state error with its line.
+ *   - a shading the page does not know ends in state error with its line;
+ *   - the site's shaders.js holds nothing GLSL ES 3.00 lacks, and
+ *     web/es_shaders.py stops, naming the file, on a native text it does
+ *     not expect.
  * Skips, saying why, without chromium-headless-shell or emscripten; needs
  * an X display for meshview (Xvfb, ms_test_display). */
 #include <math.h>
@@ -384,6 +387,46 @@ static void test_apo_preview(void **state)
     json_decref(full);
 }
 
+/* The ES variant is made from meshview's shader files (web/es_shaders.py):
+ * the site's shaders.js holds none of what GLSL ES 3.00 lacks, and a native
+ * text the port does not expect stops the build with one line naming it. */
+static void test_es_shaders(void **state)
+{
+    fixture *f = *state;
+    size_t size;
+    unsigned char *bytes = ms_test_read_file(MS_TEST_SITE "/shaders.js", &size);
+    if (!bytes) {
+        MS_TEST_NEED_BROWSER(f->why_skip); /* no site: skipped or failed there */
+        fail_msg("no " MS_TEST_SITE "/shaders.js");
+    }
+    char *js = malloc(size + 1);
+    assert_non_null(js);
+    memcpy(js, bytes, size);
+    js[size] = '\0';
+    free(bytes);
+    assert_non_null(strstr(js, "#version 300 es"));
+    assert_null(strstr(js, "#version 410"));
+    assert_null(strstr(js, "usamplerBuffer"));
+    assert_null(strstr(js, "texelFetch(apo_words, word"));
+    assert_null(strstr(js, "bitCount("));
+    /* sections by discard in the fragment stage (the vertex stage's clip
+     * distances stay in its MS_SECTIONS block, which the page never defines) */
+    assert_non_null(strstr(js, "if (k < section_count && dot(section_plane[k].xyz, FRAG_CELL) + "
+                               "section_plane[k].w < 0.0)"));
+    assert_non_null(strstr(js, "apo_word(internal ? word + 1 : word)"));
+    free(js);
+    char command[4096], out[4096];
+    snprintf(command, sizeof command,
+             "mkdir -p %s/glsl && cp client/view/shaders/cell.vert.glsl client/view/shaders/apo.glsl %s/glsl/ && "
+             "sed 's/#version 410 core/#version 450 core/' client/view/shaders/cell.frag.glsl > %s/glsl/cell.frag.glsl && "
+             "python3 web/es_shaders.py %s/glsl/out.js %s/glsl 2>&1",
+             f->dir, f->dir, f->dir, f->dir, f->dir);
+    assert_int_not_equal(ms_test_run(command, out, sizeof out), 0);
+    printf("%s", out);
+    assert_non_null(strstr(out, "es_shaders.py: cell.frag.glsl: '#version 410 core\\n' found 0 times, expected 1 "
+                                "(has the native shader changed?)"));
+}
+
 static void test_unknown_shading(void **state)
 {
     fixture *f = *state;
@@ -406,6 +449,7 @@ int main(void)
         cmocka_unit_test(test_apo_against_meshview),
         cmocka_unit_test(test_apo_preview),
         cmocka_unit_test(test_unknown_shading),
+        cmocka_unit_test(test_es_shaders),
     };
     return cmocka_run_group_tests(tests, group_setup, group_teardown);
 }
