@@ -232,6 +232,7 @@ void ms_core_stop(ms_core *c)
     ms_core_dcells_free(c);
     ms_core_frames_free(c);
     ms_core_subtrees_free(c);
+    ms_core_schedule_free(c);
     ms_view_destroy(c->view);
     ms_archive_close(c->index);
     ms_core_opening_free(&c->opening);

@@ -230,7 +230,7 @@ static uint64_t cell_memory(const ms_core *c, uint32_t cell)
     uint64_t m = ms_view_held_bytes(c->view, cell) + d->geo.cap + d->apo.cap + d->col.cap;
     ms_view_cell_state state = ms_view_state(c->view, cell);
     if (state == MS_VIEW_SHOWN || (state == MS_VIEW_SPLIT && ms_view_holds_decoder(c->view, cell)))
-        m += (uint64_t)ms_core_decoded_estimate(ms_archive_get_cell(c->index, cell),
+        m += (uint64_t)ms_sched_decoded_estimate(ms_archive_get_cell(c->index, cell),
                                                 ms_view_bits(c->view, cell));
     return m;
 }
@@ -489,7 +489,7 @@ static uint64_t what_if_memory(ms_core *c, dec_pass *pass, double factor, double
         uint64_t prefix = ms_archive_geometry_prefix(c->index, i, bits);
         m += (held > prefix ? held : prefix) + d->apo.cap;
         if (target != MS_VIEW_TARGET_SPLIT) /* a split cell's decoder is dropped */
-            m += (uint64_t)ms_core_decoded_estimate(rec, bits);
+            m += (uint64_t)ms_sched_decoded_estimate(rec, bits);
     }
     ms_view_select(c->view, pass->cam, &pass->sp, &c->report);
     return m;

@@ -28,6 +28,8 @@
 #include "ms_client.h"
 #include "ms_client_core.h"
 #include "ms_codec.h"
+#include "ms_core_queue.h"
+#include "ms_core_sched.h"
 #include "ms_parallel.h"
 #include "ms_view_refine.h"
 
@@ -35,7 +37,6 @@
 #define LATENCY_KEEP 65536u
 #define NO_SLOT 0xFFFFFFFFu
 #define SLOT_BUCKET_BITS 10u /* 1,024 chains for at most MAX_SLOTS slots */
-#define BYTES_PER_VERTEX 64.0
 #define MAX_TOLERANCE_FACTOR 4096.0
 /* Bits the budget gives up on cells outside the view before it coarsens any
  * cell in it (added to culled_bits_less, CULLED_GIVE_UP_STEP at a time): at
@@ -46,33 +47,6 @@
 /* A stored subtree's size before its first frame tells it (a window's guess:
  * the dragon's average is 1.5 KB, a 30,000-triangle demo's 0.9 KB) */
 #define SUBTREE_BYTES_GUESS 2048u
-
-/* What a range belongs to: a cell's geometry or APO payload, or (with an
- * index that comes by subtree) a subtree's stored bytes, by subtree id
- * (PROTOCOL.md: the same numbers on the wire). */
-enum { STREAM_GEOMETRY = 0, STREAM_APO = 1, STREAM_INDEX = 2, STREAM_COLOUR = 3, STREAM_COUNT = 4 };
-
-/* A received payload chunk (or a failed request: length 0, failed true),
- * passed from the network thread to the decode thread. `total`: the stored
- * size of the whole (a subtree's; 0 when not known). */
-typedef struct chunk_msg {
-    struct chunk_msg *next;
-    uint64_t seq;
-    uint32_t cell, offset, length, total;
-    uint8_t stream;
-    bool failed;
-    uint8_t data[];
-} chunk_msg;
-
-/* A byte range the decode thread wants, best first. An INDEX want asks for
- * subtree `cell` from `start`; its end is the stored size when known, else
- * UINT32_MAX (the whole). */
-typedef struct want {
-    uint32_t cell, start, end;
-    uint8_t stream;
-    uint8_t priority;
-    uint32_t decoded_growth; /* estimated decoded bytes the range adds */
-} want;
 
 /* A request in flight on the current connection, for member `member` of the
  * link. A finished request stays (done) until the member's decode thread has
@@ -125,7 +99,11 @@ typedef struct subtree_entry {
     rx buf;                 /* stored bytes while receiving */
 } subtree_entry;
 
-enum { SUBTREE_RECEIVING = 0, SUBTREE_HELD = 1, SUBTREE_FAILED = 2 };
+enum {
+    SUBTREE_RECEIVING = MS_SCHED_SUBTREE_RECEIVING,
+    SUBTREE_HELD = MS_SCHED_SUBTREE_HELD,
+    SUBTREE_FAILED = MS_SCHED_SUBTREE_FAILED
+};
 
 /* The content bounds (ms_client_core_content.c): being worked out, known, or
  * not to be had (an empty model, a root that failed below root precision). */
@@ -279,21 +257,13 @@ struct ms_core {
      * that changes nothing still counts once for a new camera) */
     uint64_t display_checked_serial;
     bool display_checked;
+    ms_sched_cell *sched_cells; /* the scheduler's snapshot (ms_client_core_schedule.c) */
+    size_t sched_cells_cap;
+    ms_sched_subtree *sched_subtrees;
+    size_t sched_subtrees_cap;
     ms_pool *pool;          /* decode helpers */
     ms_view_refine_jobs jobs; /* their job list (ms_view_refine_parallel), kept between passes */
 };
-
-/* The camera of one decode pass, as selection and scheduling see it. */
-typedef struct frame_view {
-    ms_camera cam;
-    ms_frustum frustum;
-    double tolerance;
-} frame_view;
-
-typedef struct want_list {
-    want *w;
-    size_t n, cap;
-} want_list;
 
 /* One decode pass (dec_step), carried from step to step. */
 typedef struct dec_pass {
@@ -348,11 +318,13 @@ void ms_core_keep_opening(ms_core *c, const ms_archive *index, bool by_subtree);
 bool ms_core_take_index(ms_core *c, ms_error *err);
 /* A received chunk of a subtree's stored bytes (or a failed request). */
 void ms_core_subtree_chunk(ms_core *c, const chunk_msg *m);
-/* After selection: the subtrees the cut needs (held ones stay, missing ones
- * are wanted ahead of the cells they unblock, prefetch for near ones), the
- * others dropped with their cells' bytes. Sets pass->complete false while
- * something is missing. */
-void ms_core_schedule_subtrees(ms_core *c, dec_pass *pass);
+/* The subtrees held or being received, for the scheduler's snapshot (ids
+ * ascending; NULL and 0 without an index by subtree). */
+const ms_sched_subtree *ms_core_subtrees_snapshot(ms_core *c, size_t *count);
+/* After the schedule: keeps the root's subtree and those the plan needs
+ * (missing ones start being received), drops the others with their cells'
+ * bytes; sets pass->complete false while one failed. */
+void ms_core_subtrees_keep(ms_core *c, dec_pass *pass, const ms_sched_need *needs, size_t count);
 void ms_core_subtrees_free(ms_core *c);
 
 /* ---- ms_client_core.c: shared helpers ---- */
@@ -429,23 +401,15 @@ uint64_t ms_core_rx_cap_for(const rx *r, uint64_t end);
  * few steps: see the function). */
 void ms_core_hand_over(ms_core *c, uint32_t cell);
 
-/* ---- ms_client_core_schedule.c ---- */
+/* ---- ms_client_core_schedule.c: the scheduler's snapshot and plan ---- */
 
-/* The side of a cell's cube (world units) and the cube itself. */
-double ms_core_cell_side(const ms_archive_header *h, const ms_archive_cell *rec);
-void ms_core_cell_box(const ms_archive_header *h, const ms_archive_cell *rec, double lo[3],
-                      double hi[3]);
 /* The precision (real bits) the camera wants of cell; *visible tells whether
- * its cube meets the frustum. */
+ * its cube meets the frustum (ms_sched_cell_need with the core's margin). */
 double ms_core_cell_need(const ms_core *c, const frame_view *fv, uint32_t cell, bool *visible);
-/* Decoded bytes of a cell shown at `bits` (an estimate). */
-double ms_core_decoded_estimate(const ms_archive_cell *rec, unsigned bits);
-/* Fills pass->wl (sorted, best first) and the pass's cell counts. */
+/* Fills pass->wl (sorted, best first) and the pass's cell counts from the
+ * scheduler's plan, and keeps the subtrees it needs. */
 void ms_core_schedule(ms_core *c, dec_pass *pass);
-/* A request priority (lower is sooner) clamped to the wire's 0..255. */
-uint8_t ms_core_clamp_priority(double p);
-/* Appends w to the pass's want list (false when out of memory). */
-bool ms_core_want_push(want_list *l, want w);
+void ms_core_schedule_free(ms_core *c);
 
 /* ---- ms_client_core_budget.c ---- */
 

@@ -217,28 +217,24 @@ void ms_core_subtree_chunk(ms_core *c, const chunk_msg *m)
 
 /* ---- each pass ---------------------------------------------------------------- */
 
-static bool want_index(dec_pass *pass, const subtree_entry *e, uint8_t priority)
+const ms_sched_subtree *ms_core_subtrees_snapshot(ms_core *c, size_t *count)
 {
-    return ms_core_want_push(&pass->wl, (want){e->id, e->buf.end, e->total ? e->total : UINT32_MAX,
-                                               STREAM_INDEX, priority, 0});
-}
-
-/* Cell's children's subtree is needed: held ones stay, missing ones are asked
- * for at `priority`. */
-static void need_children(ms_core *c, dec_pass *pass, uint32_t cell, double priority)
-{
-    uint32_t children = ms_archive_children_subtree(c->index, cell);
-    if (children == MS_ARCHIVE_NONE || children == ms_archive_subtree_of(c->index, cell))
-        return; /* a leaf, or its children are in its own subtree */
-    subtree_entry *e = subtree_add(c, children, cell);
-    if (!e)
-        return;
-    e->needed = true;
-    if (e->state == SUBTREE_HELD)
-        return;
-    pass->complete = false;
-    if (e->state == SUBTREE_RECEIVING)
-        want_index(pass, e, ms_core_clamp_priority(priority));
+    *count = 0;
+    if (!c->by_subtree || !c->subtree_count)
+        return NULL;
+    if (c->subtree_count > c->sched_subtrees_cap) {
+        ms_sched_subtree *g = realloc(c->sched_subtrees, c->subtree_count * sizeof *g);
+        if (!g)
+            return NULL;
+        c->sched_subtrees = g;
+        c->sched_subtrees_cap = c->subtree_count;
+    }
+    for (size_t k = 0; k < c->subtree_count; ++k) {
+        const subtree_entry *e = &c->subtrees[k];
+        c->sched_subtrees[k] = (ms_sched_subtree){e->id, e->state, e->buf.end, e->total};
+    }
+    *count = c->subtree_count;
+    return c->sched_subtrees;
 }
 
 /* Forgets subtree k's records and its cells' bytes; false when the view still
@@ -261,40 +257,18 @@ static bool drop_subtree(ms_core *c, size_t k)
     return true;
 }
 
-void ms_core_schedule_subtrees(ms_core *c, dec_pass *pass)
+void ms_core_subtrees_keep(ms_core *c, dec_pass *pass, const ms_sched_need *needs, size_t count)
 {
     if (!c->by_subtree)
         return;
     for (size_t k = 0; k < c->subtree_count; ++k)
         c->subtrees[k].needed = c->subtrees[k].id == 0;
-    /* the subtrees of the cut: a cell split, or about to split, at a
-     * subtree's last level holds its children in the next one */
-    for (uint32_t i = 0; i != MS_ARCHIVE_NONE; i = ms_view_next_known(c->view, i))
-        if (ms_view_state(c->view, i) == MS_VIEW_SPLIT ||
-            ms_view_target(c->view, i) == MS_VIEW_TARGET_SPLIT)
-            need_children(c, pass, i, 0);
-    /* cells that would split: their children's records first, ahead of the
-     * cell's own next bit (priority 128 - 8 (need - bit), 64 later culled) */
-    const ms_view_select_report *r = &c->report;
-    for (size_t k = 0; k < r->blocked_count; ++k) {
-        uint32_t cell = r->blocked[k];
-        const ms_archive_cell *rec = ms_view_cell(c->view, cell);
-        bool visible;
-        double need = ms_core_cell_need(c, &pass->fv, cell, &visible);
-        unsigned next = ms_view_available_bits(c->view, cell);
-        next = (next < rec->bits_max ? next : rec->bits_max) + 1;
-        need_children(c, pass, cell, (visible ? 128.0 : 192.0) - 8.0 * (need - next) - 1.0);
-    }
-    /* prefetch one level beyond the cut: cells within a bit of splitting,
-     * after the bits of the cells shown (as the children's bits of a cell
-     * about to split: 16 later) */
-    for (size_t k = 0; k < r->near_count; ++k) {
-        uint32_t cell = r->near[k];
-        const ms_archive_cell *rec = ms_view_cell(c->view, cell);
-        bool visible;
-        double need = ms_core_cell_need(c, &pass->fv, cell, &visible);
-        need_children(c, pass, cell,
-                      (visible ? 144.0 : 208.0) - 8.0 * (need - (rec->bits_max + 1.0)));
+    /* the ones the cut needs stay; a missing one starts being received (the
+     * scheduler asked for it) */
+    for (size_t k = 0; k < count; ++k) {
+        subtree_entry *e = subtree_add(c, needs[k].id, needs[k].parent);
+        if (e)
+            e->needed = true;
     }
     /* the others go, deepest first (a subtree's id exceeds its parent's) */
     bool dropped = false;
@@ -322,4 +296,7 @@ void ms_core_subtrees_free(ms_core *c)
     c->subtree_count = c->subtree_cap = 0;
     ms_view_select_report_free(&c->report);
     ms_view_select_report_free(&c->what_if_report);
+    free(c->sched_subtrees);
+    c->sched_subtrees = NULL;
+    c->sched_subtrees_cap = 0;
 }
