@@ -38,28 +38,28 @@ static ms_sched_cell snapshot_cell(ms_core *c, const dec_pass *pass, uint32_t i,
     const ms_archive_cell *rec = ms_archive_get_cell(c->index, i);
     dcell *d = ms_core_dcell(c, i);
     ms_sched_cell e = {.id = i,
-                       .state = (uint8_t)ms_view_state(c->view, i),
-                       .target = ms_view_target(c->view, i),
+                       .state = (uint8_t)ms_view_state(c->dec.view, i),
+                       .target = ms_view_target(c->dec.view, i),
                        .parent_state = rec->parent == MS_ARCHIVE_NONE
                                            ? MS_VIEW_HIDDEN
-                                           : (uint8_t)ms_view_state(c->view, rec->parent),
+                                           : (uint8_t)ms_view_state(c->dec.view, rec->parent),
                        .failed = d->failed,
                        .blocked = d->blocked,
                        .error_bound = -1.0};
     if (e.state == MS_VIEW_SHOWN) {
-        e.bits = (uint8_t)ms_view_bits(c->view, i);
+        e.bits = (uint8_t)ms_view_bits(c->dec.view, i);
         bool visible;
         (void)ms_core_cell_need(c, &pass->fv, i, &visible);
         if (visible && rec->geometry_length > 0)
-            e.error_bound = ms_view_cell_error_bound(c->view, i);
+            e.error_bound = ms_view_cell_error_bound(c->dec.view, i);
         unsigned goal = ms_sched_goal(rec, i, e.target, root_goal_min);
         d->goal_bytes = ms_archive_geometry_prefix(c->index, i, goal);
         if (d->pending)
             ms_core_hand_over(c, i);
     } else if (e.state == MS_VIEW_HIDDEN) {
-        e.cached = ms_view_held_bytes(c->view, i) > 0;
+        e.cached = ms_view_held_bytes(c->dec.view, i) > 0;
     }
-    e.avail = (uint8_t)ms_view_available_bits(c->view, i);
+    e.avail = (uint8_t)ms_view_available_bits(c->dec.view, i);
     e.geo_end = d->geo.end;
     e.apo_end = d->apo.end;
     e.col_end = d->col.end;
@@ -73,18 +73,18 @@ void ms_core_schedule(ms_core *c, dec_pass *pass)
     pass->shown = pass->split = pass->cached = pass->loading = pass->failed = 0;
     pass->complete = true;
     /* a cell held back only by its children's records is about to split too */
-    for (size_t k = 0; k < c->report.blocked_count; ++k)
-        ms_core_dcell(c, c->report.blocked[k])->blocked = true;
+    for (size_t k = 0; k < c->dec.report.blocked_count; ++k)
+        ms_core_dcell(c, c->dec.report.blocked[k])->blocked = true;
     unsigned root_goal_min = ms_core_content_goal(c, 0, 0);
     size_t n = 0;
     bool ok = true;
-    for (uint32_t i = 0; i != MS_ARCHIVE_NONE && ok; i = ms_view_next_known(c->view, i)) {
-        ok = grow((void **)&c->sched_cells, &c->sched_cells_cap, n + 1, sizeof *c->sched_cells);
+    for (uint32_t i = 0; i != MS_ARCHIVE_NONE && ok; i = ms_view_next_known(c->dec.view, i)) {
+        ok = grow((void **)&c->dec.sched_cells, &c->dec.sched_cells_cap, n + 1, sizeof *c->dec.sched_cells);
         if (ok)
-            c->sched_cells[n++] = snapshot_cell(c, pass, i, root_goal_min);
+            c->dec.sched_cells[n++] = snapshot_cell(c, pass, i, root_goal_min);
     }
-    for (size_t k = 0; k < c->report.blocked_count; ++k)
-        ms_core_dcell(c, c->report.blocked[k])->blocked = false;
+    for (size_t k = 0; k < c->dec.report.blocked_count; ++k)
+        ms_core_dcell(c, c->dec.report.blocked[k])->blocked = false;
     if (!ok) {
         ms_core_warn(c, "out of memory for the pass's schedule");
         pass->complete = false;
@@ -96,16 +96,16 @@ void ms_core_schedule(ms_core *c, dec_pass *pass)
                          .apo_on = pass->apo_on,
                          .colour_on = pass->colour_on,
                          .apo_levels = c->o.apo_levels,
-                         .apo_tolerance_px = c->o.tolerance_px * c->tolerance_factor,
-                         .preview_steps = c->preview_steps,
+                         .apo_tolerance_px = c->o.tolerance_px * c->dec.tolerance_factor,
+                         .preview_steps = c->dec.preview_steps,
                          .root_goal_min = root_goal_min,
-                         .cells = c->sched_cells,
+                         .cells = c->dec.sched_cells,
                          .cell_count = n,
-                         .by_subtree = c->by_subtree,
-                         .blocked = c->report.blocked,
-                         .near = c->report.near,
-                         .blocked_count = c->report.blocked_count,
-                         .near_count = c->report.near_count};
+                         .by_subtree = c->dec.by_subtree,
+                         .blocked = c->dec.report.blocked,
+                         .near = c->dec.report.near,
+                         .blocked_count = c->dec.report.blocked_count,
+                         .near_count = c->dec.report.near_count};
     in.subtrees = ms_core_subtrees_snapshot(c, &in.subtree_count);
     ms_sched_plan plan = {0};
     ms_sched_plan_make(&in, &plan);
@@ -122,7 +122,7 @@ void ms_core_schedule(ms_core *c, dec_pass *pass)
 
 void ms_core_schedule_free(ms_core *c)
 {
-    free(c->sched_cells);
-    c->sched_cells = NULL;
-    c->sched_cells_cap = 0;
+    free(c->dec.sched_cells);
+    c->dec.sched_cells = NULL;
+    c->dec.sched_cells_cap = 0;
 }
