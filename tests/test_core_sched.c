@@ -335,6 +335,51 @@ static void test_order(void **state)
     ms_sched_plan_free(&plan);
 }
 
+/* The need of a child of the root for the fixture's camera, worked out
+ * apart: its cube is a quarter of the root's side at its position. */
+static double child_need(const fixture *f, uint32_t id)
+{
+    const ms_archive_header *h = ms_archive_get_header(f->index);
+    const ms_archive_cell *rec = ms_archive_get_cell(f->index, id);
+    double lo[3], hi[3], side = h->box_side / 4;
+    for (int a = 0; a < 3; ++a) {
+        lo[a] = h->box_origin[a] + side * rec->position[a];
+        hi[a] = lo[a] + side;
+    }
+    return ms_screen_bits_needed(&f->in.fv.cam, h->box_side,
+                                 ms_camera_box_distance(&f->in.fv.cam, lo, hi), 1.0);
+}
+
+/* The eviction order: cells holding nothing are left out, the others least
+ * useful first, usefulness the precision the camera wants of the cell (its
+ * cube's nearest point), 64 bits less outside the frustum. */
+static void test_eviction_order(void **state)
+{
+    fixture *f = *state;
+    const ms_archive_cell *root = ms_archive_get_cell(f->index, 0);
+    ms_sched_cell cells[64];
+    for (uint32_t k = 0; k < 64; ++k)
+        cells[k] = (ms_sched_cell){.id = root->first_child + k, .state = MS_VIEW_HIDDEN,
+                                   .target = MS_VIEW_TARGET_HIDDEN, .held = k % 4 ? 100 + k : 0};
+    for (int away = 0; away < 2; ++away) {
+        f->in.fv = camera_view(f->index, away, 1.0);
+        ms_sched_candidate out[64];
+        size_t n = ms_sched_rank_evictions(f->index, &f->in.fv, 0.0, cells, 64, out);
+        assert_int_equal(n, 48);
+        for (size_t i = 0; i < n; ++i) {
+            uint32_t k = out[i].cell - root->first_child;
+            assert_int_not_equal(k % 4, 0);
+            assert_int_equal(out[i].bytes, 100 + k);
+            assert_int_equal(out[i].visible, !away); /* the whole cube in view, or none */
+            double u = child_need(f, out[i].cell) - (away ? 64.0 : 0.0);
+            assert_true(fabs(out[i].usefulness - u) < 1e-9);
+            if (i)
+                assert_true(out[i - 1].usefulness <= out[i].usefulness);
+        }
+    }
+    f->in.fv = camera_view(f->index, false, 1.0);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -343,6 +388,7 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_split_and_prefetch, setup, teardown),
         cmocka_unit_test_setup_teardown(test_apo_levels, setup, teardown),
         cmocka_unit_test_setup_teardown(test_order, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_eviction_order, setup, teardown),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -235,12 +235,7 @@ static uint64_t cell_memory(const ms_core *c, uint32_t cell)
     return m;
 }
 
-typedef struct evict_candidate {
-    uint32_t cell;
-    double usefulness;
-    uint64_t bytes;
-    bool visible;           /* its cube meets the pass's frustum */
-} evict_candidate;
+typedef ms_sched_candidate evict_candidate;
 
 static void evict(ms_core *c, const evict_candidate *e)
 {
@@ -261,12 +256,6 @@ static void evict(ms_core *c, const evict_candidate *e)
     pthread_mutex_unlock(&c->lock);
 }
 
-static int compare_candidates(const void *x, const void *y)
-{
-    const evict_candidate *a = x, *b = y;
-    return a->usefulness < b->usefulness ? -1 : a->usefulness > b->usefulness;
-}
-
 /* What every cell holds, and with an index by subtree the index's subtrees
  * and the per-cell state of their cells (a whole index and its state are held
  * whatever the view), the budget's measure. */
@@ -279,31 +268,29 @@ static uint64_t memory_held(const ms_core *c)
 }
 
 /* Hidden cells the view does not target that hold memory, least useful first
- * (culled ones least); *count of them. NULL (and 0) when there is none or no
- * memory for the list. */
+ * (culled ones least: the scheduler's ranking); *count of them. NULL (and 0)
+ * when there is none or no memory for the list. */
 static evict_candidate *evict_candidates(ms_core *c, const frame_view *fv, size_t *count)
 {
     uint32_t n = ms_view_known_count(c->dec.view);
     *count = 0;
     evict_candidate *cand = malloc((n ? n : 1) * sizeof *cand);
-    if (!cand)
+    ms_sched_cell *cells = malloc((n ? n : 1) * sizeof *cells);
+    if (!cand || !cells) {
+        free(cells);
+        free(cand);
         return NULL;
-    size_t nc = 0;
-    for (uint32_t i = ms_view_next_known(c->dec.view, 0); i != MS_ARCHIVE_NONE;
-         i = ms_view_next_known(c->dec.view, i)) {
-        if (ms_view_state(c->dec.view, i) != MS_VIEW_HIDDEN ||
-            ms_view_target(c->dec.view, i) != MS_VIEW_TARGET_HIDDEN)
-            continue;
-        uint64_t b = cell_memory(c, i);
-        if (!b)
-            continue;
-        bool visible;
-        double u = ms_core_cell_need(c, fv, i, &visible);
-        cand[nc++] = (evict_candidate){i, visible ? u : u - 64.0, b, visible};
     }
-    if (nc)
-        qsort(cand, nc, sizeof *cand, compare_candidates);
-    *count = nc;
+    size_t k = 0;
+    for (uint32_t i = ms_view_next_known(c->dec.view, 0); i != MS_ARCHIVE_NONE;
+         i = ms_view_next_known(c->dec.view, i))
+        if (ms_view_state(c->dec.view, i) == MS_VIEW_HIDDEN &&
+            ms_view_target(c->dec.view, i) == MS_VIEW_TARGET_HIDDEN)
+            cells[k++] = (ms_sched_cell){.id = i, .state = MS_VIEW_HIDDEN,
+                                         .target = MS_VIEW_TARGET_HIDDEN,
+                                         .held = cell_memory(c, i)};
+    *count = ms_sched_rank_evictions(c->index, fv, c->o.frustum_margin, cells, k, cand);
+    free(cells);
     return cand;
 }
 

@@ -382,6 +382,28 @@ void ms_sched_plan_make(const ms_sched_input *in, ms_sched_plan *plan)
         qsort(plan->wl.w, plan->wl.n, sizeof *plan->wl.w, compare_wants);
 }
 
+static int compare_candidates(const void *x, const void *y)
+{
+    const ms_sched_candidate *a = x, *b = y;
+    return a->usefulness < b->usefulness ? -1 : a->usefulness > b->usefulness;
+}
+
+size_t ms_sched_rank_evictions(const ms_archive *index, const frame_view *fv, double margin,
+                               const ms_sched_cell *cells, size_t n, ms_sched_candidate *out)
+{
+    size_t nc = 0;
+    for (size_t k = 0; k < n; ++k) {
+        if (!cells[k].held)
+            continue;
+        bool visible;
+        double u = ms_sched_cell_need(index, fv, margin, cells[k].id, &visible);
+        out[nc++] = (ms_sched_candidate){cells[k].id, visible ? u : u - 64.0, cells[k].held, visible};
+    }
+    if (nc)
+        qsort(out, nc, sizeof *out, compare_candidates);
+    return nc;
+}
+
 void ms_sched_plan_free(ms_sched_plan *plan)
 {
     free(plan->wl.w);

@@ -41,6 +41,8 @@ typedef struct ms_sched_cell {
     bool cached;          /* hidden with payload bytes held (ms_view_held_bytes) */
     bool failed;          /* given up after a refetch */
     bool blocked;         /* would split, its children's records missing */
+    uint64_t held;        /* for ms_sched_rank_evictions: the bytes it holds (payload,
+                             reception buffers; with a decoder its decoded estimate) */
     uint32_t geo_end, apo_end, col_end; /* bytes received contiguously per stream */
     double error_bound;   /* shown and visible: ms_view_cell_error_bound (world
                              units, < 0 none); else unused */
@@ -95,6 +97,23 @@ typedef struct ms_sched_plan {
  * ms_sched_plan_free, or take plan->wl and free the rest). */
 void ms_sched_plan_make(const ms_sched_input *in, ms_sched_plan *plan);
 void ms_sched_plan_free(ms_sched_plan *plan);
+
+/* A cell the budget may evict (ms_client_core_budget.c): its usefulness
+ * (the precision the camera would want of it; 64 bits less outside the
+ * frustum), the bytes it holds, whether its cube meets the frustum. */
+typedef struct ms_sched_candidate {
+    uint32_t cell;
+    double usefulness;
+    uint64_t bytes;
+    bool visible;
+} ms_sched_candidate;
+
+/* The eviction order: of the `n` cells given (hidden cells the view does not
+ * target), those that hold bytes, least useful first (culled ones least),
+ * into out (room for n); returns how many. The budget evicts from the front
+ * as far as its figures say. */
+size_t ms_sched_rank_evictions(const ms_archive *index, const frame_view *fv, double margin,
+                               const ms_sched_cell *cells, size_t n, ms_sched_candidate *out);
 
 /* The precision (real bits) the camera wants of cell; *visible tells whether
  * its cube meets the frustum (with margin). */
