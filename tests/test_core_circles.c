@@ -1,8 +1,8 @@
 /* No two files of the client core call into each other both ways (issue 35,
- * item 4), through tests/check-circles: it reads `nm` of the core's object
- * files (build/asan/client/core, built before the tests) and reports every
- * pair where each uses a symbol the other defines. Runs from the repository
- * root, like every test. */
+ * item 4), and no part of it (network, scheduler, decoder, docs/CLIENT.md "The
+ * core's parts") uses what it may not, through tests/check-circles: it reads
+ * `nm` of the core's object files (build/asan/client/core, built before the
+ * tests). Runs from the repository root, like every test. */
 #include <stdarg.h>
 #include <stddef.h>
 #include <setjmp.h>
@@ -21,6 +21,7 @@ static void test_no_circles_in_the_core(void **state)
     if (rc != 0)
         fail_msg("tests/check-circles (exit %d):\n%s", rc, out);
     assert_non_null(strstr(out, "check-circles: 0 circles in "));
+    assert_non_null(strstr(out, "check-circles: 0 crossings between the core's parts"));
 }
 
 static void write_file(const char *dir, const char *name, const char *text)
@@ -60,11 +61,44 @@ static void test_checker_sees_a_circle(void **state)
     ms_test_rmdir(dir);
 }
 
+/* The borders of the parts: in a scratch tree laid out as the repository's,
+ * a network file using a decoder file's symbol and a file in no part are
+ * reported; the decoder using the scheduler is allowed. */
+static void test_checker_sees_a_crossing(void **state)
+{
+    (void)state;
+    char dir[512], src[600], obj[700], cmd[2600];
+    static char out[65536];
+    ms_test_tmpdir(dir, sizeof dir);
+    snprintf(src, sizeof src, "%s/client/core", dir);
+    snprintf(obj, sizeof obj, "%s/build/asan/client/core", dir);
+    snprintf(cmd, sizeof cmd, "mkdir -p '%s' '%s' '%s/tests' && cp tests/check-circles '%s/tests/'",
+             src, obj, dir, dir);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
+    write_file(src, "ms_client_core_net.c", "int rx_add(void);\nint net_main(void) { return rx_add(); }\n");
+    write_file(src, "ms_core_rx.c", "int sched_plan(void);\nint rx_add(void) { return sched_plan(); }\n");
+    write_file(src, "ms_core_sched.c", "int sched_plan(void) { return 1; }\n");
+    write_file(src, "ms_core_extra.c", "int extra(void) { return 2; }\n");
+    snprintf(cmd, sizeof cmd, "cd '%s' && for f in *.c; do cc -c $f -o '%s'/${f%%.c}.o || exit 1; done",
+             src, obj);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
+    snprintf(cmd, sizeof cmd, "cd '%s' && tests/check-circles", dir);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 1);
+    assert_non_null(strstr(out, "check-circles: 0 circles in 4 files"));
+    assert_non_null(strstr(out, "check-circles: ms_client_core_net.c (network) uses "
+                                "ms_core_rx.c's rx_add (decoder)"));
+    assert_non_null(strstr(out, "check-circles: ms_core_extra.c is in no part"));
+    assert_null(strstr(out, "ms_core_rx.c (decoder) uses"));
+    assert_non_null(strstr(out, "check-circles: 2 crossings between the core's parts"));
+    ms_test_rmdir(dir);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_no_circles_in_the_core),
         cmocka_unit_test(test_checker_sees_a_circle),
+        cmocka_unit_test(test_checker_sees_a_crossing),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -17,6 +17,7 @@
 #include <cmocka.h>
 
 #include "ms_core_sched.h"
+#include "ms_subtree.h"
 #include "ms_test.h"
 #include "ms_test_archive.h"
 #include "ms_view_decoder.h"
@@ -335,6 +336,103 @@ static void test_order(void **state)
     ms_sched_plan_free(&plan);
 }
 
+/* An index by subtree (n = 4: one level a subtree, the children of a cell
+ * in the subtree its first child starts): a cell split, or about to split,
+ * needs its children's subtree; a missing one is wanted whole (priority 0:
+ * before everything) or from what arrived, a held one is kept, a failed one
+ * keeps the view incomplete; a blocked cell's children come just before its
+ * next bit, a near cell's after the cut's bits. */
+static void test_subtrees(void **state)
+{
+    fixture *f = *state;
+    const ms_archive_cell *root = ms_archive_get_cell(f->index, 0);
+    const uint32_t five = 5;
+    const ms_archive_cell *rec5 = ms_archive_get_cell(f->index, five);
+    assert_int_not_equal(rec5->first_child, MS_ARCHIVE_NONE);
+    assert_int_equal(ms_archive_children_subtree(f->index, 0), root->first_child);
+    assert_int_equal(ms_archive_children_subtree(f->index, five), rec5->first_child);
+    ms_sched_cell cells[] = {
+        {.id = 0, .state = MS_VIEW_SPLIT, .target = MS_VIEW_TARGET_SPLIT, .bits = 7, .avail = 7,
+         .geo_end = 20},
+        {.id = five, .state = MS_VIEW_SPLIT, .target = MS_VIEW_TARGET_SPLIT,
+         .bits = rec5->bits_max, .avail = rec5->bits_max, .parent_state = MS_VIEW_SPLIT,
+         .geo_end = rec5->geometry_length}};
+    ms_sched_subtree held[] = {{0, MS_SCHED_SUBTREE_HELD, 0, 0},
+                               {root->first_child, MS_SCHED_SUBTREE_HELD, 0, 0},
+                               {rec5->first_child, MS_SCHED_SUBTREE_RECEIVING, 100, 500}};
+    f->in.by_subtree = true;
+    f->in.subtrees = held;
+    f->in.subtree_count = 2; /* five's children's not there yet */
+    ms_sched_plan plan = plan_for(f, cells, 2);
+    assert_int_equal(plan.need_count, 2);
+    assert_int_equal(plan.needs[0].id, root->first_child);
+    assert_int_equal(plan.needs[0].parent, 0);
+    assert_int_equal(plan.needs[1].id, rec5->first_child);
+    assert_int_equal(plan.needs[1].parent, five);
+    assert_int_equal(plan.wl.n, 1);
+    assert_int_equal(plan.wl.w[0].stream, STREAM_INDEX);
+    assert_int_equal(plan.wl.w[0].cell, rec5->first_child);
+    assert_int_equal(plan.wl.w[0].start, 0);
+    assert_int_equal(plan.wl.w[0].end, UINT32_MAX);
+    assert_int_equal(plan.wl.w[0].priority, 0);
+    assert_false(plan.complete);
+    ms_sched_plan_free(&plan);
+
+    /* part of it arrived: the rest, to its stored size */
+    f->in.subtree_count = 3;
+    plan = plan_for(f, cells, 2);
+    assert_int_equal(plan.wl.n, 1);
+    assert_int_equal(plan.wl.w[0].start, 100);
+    assert_int_equal(plan.wl.w[0].end, 500);
+    ms_sched_plan_free(&plan);
+    /* held: nothing wanted, complete */
+    held[2].state = MS_SCHED_SUBTREE_HELD;
+    plan = plan_for(f, cells, 2);
+    assert_int_equal(plan.wl.n, 0);
+    assert_int_equal(plan.need_count, 2);
+    assert_true(plan.complete);
+    ms_sched_plan_free(&plan);
+    /* failed: not asked for again, the view incomplete */
+    held[2].state = MS_SCHED_SUBTREE_FAILED;
+    plan = plan_for(f, cells, 2);
+    assert_int_equal(plan.wl.n, 0);
+    assert_false(plan.complete);
+    ms_sched_plan_free(&plan);
+
+    /* five shown and blocked at 9 bits: its children's records just before
+     * its 10th bit; near instead: after the cut's bits */
+    held[2].state = MS_SCHED_SUBTREE_RECEIVING, held[2].end = 0, held[2].total = 0;
+    cells[1].state = MS_VIEW_SHOWN, cells[1].target = rec5->bits_max, cells[1].bits = 9;
+    cells[1].avail = 9, cells[1].geo_end = ms_archive_geometry_prefix(f->index, five, 9);
+    cells[1].error_bound = -1;
+    uint32_t blocked[] = {five};
+    f->in.blocked = blocked, f->in.blocked_count = 1;
+    plan = plan_for(f, cells, 2);
+    bool visible;
+    double need = ms_sched_cell_need(f->index, &f->in.fv, 0.0, five, &visible);
+    assert_true(visible);
+    const want *index_want = NULL;
+    for (size_t k = 0; k < plan.wl.n; ++k)
+        if (plan.wl.w[k].stream == STREAM_INDEX)
+            index_want = &plan.wl.w[k];
+    assert_non_null(index_want);
+    assert_int_equal(index_want->priority, clamp(128.0 - 8.0 * (need - 10) - 1.0));
+    assert_int_equal(plan.wl.w[0].cell, rec5->first_child); /* before the bit */
+    ms_sched_plan_free(&plan);
+    f->in.blocked_count = 0;
+    f->in.near = blocked, f->in.near_count = 1;
+    plan = plan_for(f, cells, 2);
+    index_want = NULL;
+    for (size_t k = 0; k < plan.wl.n; ++k)
+        if (plan.wl.w[k].stream == STREAM_INDEX)
+            index_want = &plan.wl.w[k];
+    assert_non_null(index_want);
+    assert_int_equal(index_want->priority, clamp(144.0 - 8.0 * (need - (rec5->bits_max + 1.0))));
+    ms_sched_plan_free(&plan);
+    f->in = (ms_sched_input){.index = f->index, .fv = f->in.fv, .apo_levels = 16,
+                             .apo_tolerance_px = 1.0};
+}
+
 /* The need of a child of the root for the fixture's camera, worked out
  * apart: its cube is a quarter of the root's side at its position. */
 static double child_need(const fixture *f, uint32_t id)
@@ -389,6 +487,7 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_apo_levels, setup, teardown),
         cmocka_unit_test_setup_teardown(test_order, setup, teardown),
         cmocka_unit_test_setup_teardown(test_eviction_order, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_subtrees, setup, teardown),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

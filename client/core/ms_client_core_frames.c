@@ -319,48 +319,6 @@ void ms_core_frame_free(ms_core_frame *f)
     free(f);
 }
 
-void ms_core_keep_opening(ms_core *c, const ms_archive *index, bool by_subtree)
-{
-    if (c->have_opening)
-        return;
-    ms_core_opening *o = &c->opening;
-    o->header = *ms_archive_get_header(index);
-    o->by_subtree = by_subtree;
-    if (!c->o.export_frames) { /* the header and the bounds only (meshload): no copy of records */
-        pthread_mutex_lock(&c->lock);
-        c->have_opening = true;
-        pthread_mutex_unlock(&c->lock);
-        return;
-    }
-    size_t known = 0;
-    for (uint32_t i = 0; i < o->header.cell_count; ++i)
-        known += ms_archive_get_cell(index, i) != NULL;
-    o->ids = malloc((known ? known : 1) * sizeof *o->ids);
-    o->records = malloc((known ? known : 1) * sizeof *o->records);
-    if (!o->ids || !o->records) {
-        ms_core_opening_free(o);
-        return;
-    }
-    for (uint32_t i = 0; i < o->header.cell_count; ++i) {
-        const ms_archive_cell *rec = ms_archive_get_cell(index, i);
-        if (rec) {
-            o->ids[o->count] = i;
-            o->records[o->count++] = *rec;
-        }
-    }
-    pthread_mutex_lock(&c->lock);
-    c->have_opening = true;
-    pthread_mutex_unlock(&c->lock);
-}
-
-void ms_core_opening_free(ms_core_opening *o)
-{
-    if (!o)
-        return;
-    free(o->ids);
-    free(o->records);
-    memset(o, 0, sizeof *o);
-}
 
 ms_status ms_core_wait_open(ms_core *c, double timeout_s, ms_core_opening *out, ms_error *err)
 {

@@ -110,6 +110,10 @@ void ms_core_fail(ms_core *c, const char *fmt, const char *text);
 void ms_core_warn(ms_core *c, const char *text);
 /* Queues a chunk for the decode thread (takes the lock); the queue owns it. */
 void ms_core_push_chunk(ms_core *c, chunk_msg *m);
+/* With export_frames, before publishing a freshly opened index (not yet shared
+ * with the decode thread): keeps its header and records for ms_core_wait_open.
+ * Out of memory leaves the opening empty (ms_core_wait_open then says so). */
+void ms_core_keep_opening(ms_core *c, const ms_archive *index, bool by_subtree);
 
 /* ---- ms_client_core_local.c: the byte source from a local archive ---- */
 

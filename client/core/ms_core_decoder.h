@@ -183,13 +183,6 @@ uint8_t *ms_core_bytes_data(ms_core_bytes *b, size_t *length);
  * core's dcell blocks, which cover the same sibling groups. */
 uint64_t ms_core_state_bytes_held(const ms_core *c);
 
-/* ---- ms_client_core_frames.c ---- */
-
-/* With export_frames, before publishing a freshly opened index (not yet shared
- * with the decode thread): keeps its header and records for ms_core_wait_open.
- * Out of memory leaves the opening empty (ms_core_wait_open then says so). */
-void ms_core_keep_opening(ms_core *c, const ms_archive *index, bool by_subtree);
-
 /* ---- ms_client_core_subtrees.c: an index that comes by subtree ---- */
 
 /* The view over the index just opened (a whole one, or a head whose root
