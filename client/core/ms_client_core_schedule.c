@@ -48,9 +48,8 @@ static ms_sched_cell snapshot_cell(ms_core *c, const dec_pass *pass, uint32_t i,
                        .error_bound = -1.0};
     if (e.state == MS_VIEW_SHOWN) {
         e.bits = (uint8_t)ms_view_bits(c->dec.view, i);
-        bool visible;
-        (void)ms_core_cell_need(c, &pass->fv, i, &visible);
-        if (visible && rec->geometry_length > 0)
+        if (rec->geometry_length > 0 &&
+            ms_sched_cell_visible(c->index, &pass->fv, c->o.frustum_margin, i))
             e.error_bound = ms_view_cell_error_bound(c->dec.view, i);
         unsigned goal = ms_sched_goal(rec, i, e.target, root_goal_min);
         d->goal_bytes = ms_archive_geometry_prefix(c->index, i, goal);

@@ -42,6 +42,14 @@ double ms_sched_cell_need(const ms_archive *index, const frame_view *fv, double 
     return isfinite(need) ? need : 64.0;
 }
 
+bool ms_sched_cell_visible(const ms_archive *index, const frame_view *fv, double margin,
+                           uint32_t cell)
+{
+    double lo[3], hi[3];
+    ms_sched_cell_box(ms_archive_get_header(index), ms_archive_get_cell(index, cell), lo, hi);
+    return ms_frustum_keeps_box(&fv->frustum, lo, hi, margin);
+}
+
 unsigned ms_sched_goal(const ms_archive_cell *rec, uint32_t cell, uint8_t target,
                        unsigned root_goal_min)
 {

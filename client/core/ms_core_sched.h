@@ -119,6 +119,10 @@ size_t ms_sched_rank_evictions(const ms_archive *index, const frame_view *fv, do
  * its cube meets the frustum (with margin). */
 double ms_sched_cell_need(const ms_archive *index, const frame_view *fv, double margin,
                           uint32_t cell, bool *visible);
+/* Whether cell's cube meets the frustum (with margin): the visible of
+ * ms_sched_cell_need, without the need. */
+bool ms_sched_cell_visible(const ms_archive *index, const frame_view *fv, double margin,
+                           uint32_t cell);
 /* The geometry goal of a shown cell for its target (bits_max for SPLIT and
  * HIDDEN, at most bits_max), at least root_goal_min for the root. */
 unsigned ms_sched_goal(const ms_archive_cell *rec, uint32_t cell, uint8_t target,
