@@ -1,4 +1,4 @@
-/* Reception buffers (the rx of ms_client_core_internal.h): one stream of one
+/* Reception buffers (the rx of ms_core_decoder.h): one stream of one
  * cell (or one subtree), its bytes from `base` on, pieces that arrived out of
  * order as intervals. Plain buffers of the decode thread; nothing here calls
  * into another file of the core. */
