@@ -317,7 +317,14 @@ static bool handle_message(ms_client *c, const ms_proto_message *m)
             ms_client_finish(c, "out of memory for a model index");
         break;
     case MS_PROTO_INDEX_DATA: handle_index(c, m); break;
-    case MS_PROTO_DOCUMENT: ms_client_handle_document(c, m); break;
+    case MS_PROTO_DOCUMENT:
+        if (c->on_document)
+            c->on_document(c, m);
+        else
+            violation(c, MS_PROTO_E_UNEXPECTED_MESSAGE, MS_PROTO_DOCUMENT,
+                      "DOCUMENT for request %u out of order, or for no document request",
+                      m->request_id);
+        break;
     case MS_PROTO_PAYLOAD:
         if (!payload_acceptable(c, m->request_id, &m->body.payload, m->flags & MS_PROTO_FLAG_LAST))
             break;

@@ -1,7 +1,7 @@
-/* The client core's caller's API and the helpers its threads share: see
- * ms_client_core.h for what it does and ms_client_core_internal.h for its
- * parts (network or local byte source, decode thread, scheduling, budget,
- * frames). */
+/* The client core's caller's API: see ms_client_core.h for what it does and
+ * ms_client_core_internal.h for its parts (network or local byte source,
+ * decode thread, scheduling, budget, frames). Starting a core starts its
+ * parts; nothing of them calls back into this file. */
 #include "ms_client_core_internal.h"
 
 #include <math.h>
@@ -11,63 +11,6 @@
 
 #include "ms_progress.h"
 #include "ms_proto.h"
-
-double ms_core_since_start(const ms_core *c) { return ms_now_seconds() - c->t0; }
-
-uint64_t ms_core_window(uint64_t window_bytes, double bandwidth)
-{
-    uint64_t w = window_bytes ? window_bytes : bandwidth > 0 ? (uint64_t)(bandwidth / 4) : (1u << 20);
-    return w < 65536 ? 65536 : w;
-}
-
-/* Records a fatal error once (caller holds the lock). */
-void ms_core_fail_locked(ms_core *c, const char *fmt, const char *text)
-{
-    if (c->stats.error[0])
-        return;
-    snprintf(c->stats.error, sizeof c->stats.error, fmt, text);
-    c->fatal = true;
-    pthread_cond_broadcast(&c->wake);
-}
-
-void ms_core_fail(ms_core *c, const char *fmt, const char *text)
-{
-    pthread_mutex_lock(&c->lock);
-    ms_core_fail_locked(c, fmt, text);
-    pthread_mutex_unlock(&c->lock);
-}
-
-void ms_core_warn(ms_core *c, const char *text)
-{
-    pthread_mutex_lock(&c->lock);
-    snprintf(c->stats.warning, sizeof c->stats.warning, "%.240s", text);
-    pthread_mutex_unlock(&c->lock);
-}
-
-void ms_core_push_chunk(ms_core *c, chunk_msg *m)
-{
-    pthread_mutex_lock(&c->lock);
-    m->seq = ++c->push_seq;
-    if (m->stream != STREAM_INDEX)
-        c->bytes_queued += m->length;
-    if (c->inbox_tail)
-        c->inbox_tail->next = m;
-    else
-        c->inbox = m;
-    c->inbox_tail = m;
-    pthread_cond_broadcast(&c->wake);
-    pthread_mutex_unlock(&c->lock);
-}
-
-char *ms_core_copy_text(const char *s, bool *fail)
-{
-    if (!s)
-        return NULL;
-    char *d = strdup(s);
-    if (!d)
-        *fail = true;
-    return d;
-}
 
 /* A core given a shared link leaves the connection's settings to it. */
 static bool connection_fields_unset(const ms_core_options *o)
@@ -158,8 +101,6 @@ ms_status ms_core_start(const ms_core_options *o, ms_core **out, ms_error *err)
     c->archive_path = ms_core_copy_text(o->archive_path, &fail);
     c->latencies = malloc(LATENCY_KEEP * sizeof *c->latencies);
     c->t0 = ms_now_seconds();
-    c->tolerance_factor = 1.0;
-    c->last_blocked = -1e9;
     c->stats.first_display = -1;
     pthread_mutex_init(&c->lock, NULL);
     pthread_cond_init(&c->wake, NULL);
@@ -173,7 +114,7 @@ ms_status ms_core_start(const ms_core_options *o, ms_core **out, ms_error *err)
         ms_core_stop(c);
         return MS_ERR_ARG;
     }
-    ms_status pool_status = ms_pool_new(helpers, &c->pool, err);
+    ms_status pool_status = ms_core_decoder_init(c, helpers, err);
     if (pool_status != MS_OK) {
         ms_core_stop(c);
         return pool_status;
@@ -218,8 +159,6 @@ void ms_core_stop(ms_core *c)
         pthread_join(c->dec_thread, NULL);
     if (c->member >= 0)
         ms_core_budget_leave(c->shared, c->member);
-    ms_pool_free(c->pool);
-    ms_view_refine_jobs_free(&c->jobs);
     if (c->locked) {
         pthread_mutex_destroy(&c->lock);
         pthread_cond_destroy(&c->wake);
@@ -229,10 +168,7 @@ void ms_core_stop(ms_core *c)
         c->inbox = m->next;
         free(m);
     }
-    ms_core_dcells_free(c);
-    ms_core_frames_free(c);
-    ms_core_subtrees_free(c);
-    ms_view_destroy(c->view);
+    ms_core_decoder_free(c);
     ms_archive_close(c->index);
     ms_core_opening_free(&c->opening);
     free(c->wants);

@@ -142,8 +142,8 @@ void ms_core_budget_sync(ms_core *c)
     if (!c->shared)
         return;
     pthread_mutex_lock(&c->shared->lock);
-    c->tolerance_factor = c->shared->tolerance_factor;
-    c->culled_give_up = c->shared->culled_give_up;
+    c->dec.tolerance_factor = c->shared->tolerance_factor;
+    c->dec.culled_give_up = c->shared->culled_give_up;
     pthread_mutex_unlock(&c->shared->lock);
 }
 
@@ -204,10 +204,10 @@ static void factor_begin(ms_core *c)
     if (!b)
         return;
     pthread_mutex_lock(&b->lock);
-    c->tolerance_factor = b->tolerance_factor;
-    c->culled_give_up = b->culled_give_up;
-    c->last_budget_step = b->last_step - c->t0;
-    c->last_blocked = b->last_blocked - c->t0;
+    c->dec.tolerance_factor = b->tolerance_factor;
+    c->dec.culled_give_up = b->culled_give_up;
+    c->dec.last_budget_step = b->last_step - c->t0;
+    c->dec.last_blocked = b->last_blocked - c->t0;
 }
 
 static void factor_end(ms_core *c)
@@ -215,10 +215,10 @@ static void factor_end(ms_core *c)
     ms_core_budget *b = c->shared;
     if (!b)
         return;
-    b->tolerance_factor = c->tolerance_factor;
-    b->culled_give_up = c->culled_give_up;
-    b->last_step = c->last_budget_step + c->t0;
-    b->last_blocked = c->last_blocked + c->t0;
+    b->tolerance_factor = c->dec.tolerance_factor;
+    b->culled_give_up = c->dec.culled_give_up;
+    b->last_step = c->dec.last_budget_step + c->t0;
+    b->last_blocked = c->dec.last_blocked + c->t0;
     pthread_mutex_unlock(&b->lock);
 }
 
@@ -227,29 +227,24 @@ static void factor_end(ms_core *c)
 static uint64_t cell_memory(const ms_core *c, uint32_t cell)
 {
     const dcell *d = ms_core_dcell(c, cell);
-    uint64_t m = ms_view_held_bytes(c->view, cell) + d->geo.cap + d->apo.cap + d->col.cap;
-    ms_view_cell_state state = ms_view_state(c->view, cell);
-    if (state == MS_VIEW_SHOWN || (state == MS_VIEW_SPLIT && ms_view_holds_decoder(c->view, cell)))
-        m += (uint64_t)ms_core_decoded_estimate(ms_archive_get_cell(c->index, cell),
-                                                ms_view_bits(c->view, cell));
+    uint64_t m = ms_view_held_bytes(c->dec.view, cell) + d->geo.cap + d->apo.cap + d->col.cap;
+    ms_view_cell_state state = ms_view_state(c->dec.view, cell);
+    if (state == MS_VIEW_SHOWN || (state == MS_VIEW_SPLIT && ms_view_holds_decoder(c->dec.view, cell)))
+        m += (uint64_t)ms_sched_decoded_estimate(ms_archive_get_cell(c->index, cell),
+                                                ms_view_bits(c->dec.view, cell));
     return m;
 }
 
-typedef struct evict_candidate {
-    uint32_t cell;
-    double usefulness;
-    uint64_t bytes;
-    bool visible;           /* its cube meets the pass's frustum */
-} evict_candidate;
+typedef ms_sched_candidate evict_candidate;
 
 static void evict(ms_core *c, const evict_candidate *e)
 {
     uint32_t cell = e->cell;
     if (c->o.eviction_hook)
-        c->o.eviction_hook(cell, e->visible, c->tolerance_factor, c->culled_give_up,
+        c->o.eviction_hook(cell, e->visible, c->dec.tolerance_factor, c->dec.culled_give_up,
                            c->o.eviction_hook_arg);
     dcell *d = ms_core_dcell(c, cell);
-    ms_view_forget(c->view, cell, NULL);
+    ms_view_forget(c->dec.view, cell, NULL);
     ms_core_rx_free(&d->geo);
     ms_core_apo_drop(d);
     ms_core_rx_free(&d->col);
@@ -261,49 +256,41 @@ static void evict(ms_core *c, const evict_candidate *e)
     pthread_mutex_unlock(&c->lock);
 }
 
-static int compare_candidates(const void *x, const void *y)
-{
-    const evict_candidate *a = x, *b = y;
-    return a->usefulness < b->usefulness ? -1 : a->usefulness > b->usefulness;
-}
-
 /* What every cell holds, and with an index by subtree the index's subtrees
  * and the per-cell state of their cells (a whole index and its state are held
  * whatever the view), the budget's measure. */
 static uint64_t memory_held(const ms_core *c)
 {
-    uint64_t m = c->by_subtree ? c->index_bytes_held + ms_core_state_bytes_held(c) : 0;
-    for (uint32_t i = 0; i != MS_ARCHIVE_NONE; i = ms_view_next_known(c->view, i))
+    uint64_t m = c->dec.by_subtree ? c->dec.index_bytes_held + ms_core_state_bytes_held(c) : 0;
+    for (uint32_t i = 0; i != MS_ARCHIVE_NONE; i = ms_view_next_known(c->dec.view, i))
         m += cell_memory(c, i);
     return m;
 }
 
 /* Hidden cells the view does not target that hold memory, least useful first
- * (culled ones least); *count of them. NULL (and 0) when there is none or no
- * memory for the list. */
+ * (culled ones least: the scheduler's ranking); *count of them. NULL (and 0)
+ * when there is none or no memory for the list. */
 static evict_candidate *evict_candidates(ms_core *c, const frame_view *fv, size_t *count)
 {
-    uint32_t n = ms_view_known_count(c->view);
+    uint32_t n = ms_view_known_count(c->dec.view);
     *count = 0;
     evict_candidate *cand = malloc((n ? n : 1) * sizeof *cand);
-    if (!cand)
+    ms_sched_cell *cells = malloc((n ? n : 1) * sizeof *cells);
+    if (!cand || !cells) {
+        free(cells);
+        free(cand);
         return NULL;
-    size_t nc = 0;
-    for (uint32_t i = ms_view_next_known(c->view, 0); i != MS_ARCHIVE_NONE;
-         i = ms_view_next_known(c->view, i)) {
-        if (ms_view_state(c->view, i) != MS_VIEW_HIDDEN ||
-            ms_view_target(c->view, i) != MS_VIEW_TARGET_HIDDEN)
-            continue;
-        uint64_t b = cell_memory(c, i);
-        if (!b)
-            continue;
-        bool visible;
-        double u = ms_core_cell_need(c, fv, i, &visible);
-        cand[nc++] = (evict_candidate){i, visible ? u : u - 64.0, b, visible};
     }
-    if (nc)
-        qsort(cand, nc, sizeof *cand, compare_candidates);
-    *count = nc;
+    size_t k = 0;
+    for (uint32_t i = ms_view_next_known(c->dec.view, 0); i != MS_ARCHIVE_NONE;
+         i = ms_view_next_known(c->dec.view, i))
+        if (ms_view_state(c->dec.view, i) == MS_VIEW_HIDDEN &&
+            ms_view_target(c->dec.view, i) == MS_VIEW_TARGET_HIDDEN)
+            cells[k++] = (ms_sched_cell){.id = i, .state = MS_VIEW_HIDDEN,
+                                         .target = MS_VIEW_TARGET_HIDDEN,
+                                         .held = cell_memory(c, i)};
+    *count = ms_sched_rank_evictions(c->index, fv, c->o.frustum_margin, cells, k, cand);
+    free(cells);
     return cand;
 }
 
@@ -326,10 +313,10 @@ static void evict_unneeded(ms_core *c, const frame_view *fv, uint64_t limit, dou
  * of the decoded memory (a merge decodes it again from its bytes). */
 static void drop_split_decoders(ms_core *c)
 {
-    for (uint32_t i = 0; i != MS_ARCHIVE_NONE; i = ms_view_next_known(c->view, i))
-        if (ms_view_state(c->view, i) == MS_VIEW_SPLIT) {
-            if (ms_view_holds_decoder(c->view, i))
-                (void)ms_view_drop_decoder(c->view, i, NULL);
+    for (uint32_t i = 0; i != MS_ARCHIVE_NONE; i = ms_view_next_known(c->dec.view, i))
+        if (ms_view_state(c->dec.view, i) == MS_VIEW_SPLIT) {
+            if (ms_view_holds_decoder(c->dec.view, i))
+                (void)ms_view_drop_decoder(c->dec.view, i, NULL);
             /* nor APO: a split cell is not drawn */
             dcell *d = ms_core_dcell(c, i);
             if (d->apo.cap) {
@@ -344,9 +331,9 @@ static void drop_split_decoders(ms_core *c)
 static uint64_t drop_culled_apo(ms_core *c, dec_pass *pass)
 {
     uint64_t freed = 0;
-    for (uint32_t i = 0; i != MS_ARCHIVE_NONE; i = ms_view_next_known(c->view, i)) {
+    for (uint32_t i = 0; i != MS_ARCHIVE_NONE; i = ms_view_next_known(c->dec.view, i)) {
         dcell *d = ms_core_dcell(c, i);
-        if (!d->apo.cap || ms_view_state(c->view, i) != MS_VIEW_SHOWN)
+        if (!d->apo.cap || ms_view_state(c->dec.view, i) != MS_VIEW_SHOWN)
             continue;
         bool visible;
         (void)ms_core_cell_need(c, &pass->fv, i, &visible);
@@ -354,7 +341,7 @@ static uint64_t drop_culled_apo(ms_core *c, dec_pass *pass)
             continue;
         freed += d->apo.cap;
         if (c->o.eviction_hook)
-            c->o.eviction_hook(i, false, c->tolerance_factor, c->culled_give_up,
+            c->o.eviction_hook(i, false, c->dec.tolerance_factor, c->dec.culled_give_up,
                                c->o.eviction_hook_arg);
         ms_core_apo_drop(d);
         pass->changed = true;
@@ -368,8 +355,8 @@ static bool reselect(ms_core *c, dec_pass *pass)
 {
     ms_view_apply_report report;
     ms_error err;
-    ms_view_select(c->view, pass->cam, &pass->sp, &c->report);
-    if (ms_view_apply(c->view, &report, &err) != MS_OK) {
+    ms_view_select(c->dec.view, pass->cam, &pass->sp, &c->dec.report);
+    if (ms_view_apply(c->dec.view, &report, &err) != MS_OK) {
         pthread_mutex_lock(&c->lock);
         ms_core_fail_locked(c, "decoding failed: %.200s", err.text);
         pthread_mutex_unlock(&c->lock);
@@ -381,8 +368,8 @@ static bool reselect(ms_core *c, dec_pass *pass)
 /* The pass's selection parameters for the core's factor and give-up. */
 static void pass_params(const ms_core *c, dec_pass *pass)
 {
-    pass->fv.tolerance = pass->sp.tolerance_px = pass->base_tol * c->tolerance_factor;
-    pass->sp.culled_bits_less = c->o.culled_bits_less + c->culled_give_up;
+    pass->fv.tolerance = pass->sp.tolerance_px = pass->base_tol * c->dec.tolerance_factor;
+    pass->sp.culled_bits_less = c->o.culled_bits_less + c->dec.culled_give_up;
 }
 
 static uint64_t what_if_memory(ms_core *c, dec_pass *pass, double factor, double give_up);
@@ -412,18 +399,18 @@ bool ms_core_budget_ceiling(ms_core *c, dec_pass *pass)
         if (what_if_memory(c, pass, pass->factor, give_up) + bt.others_memory <= bt.ceiling)
             break;
         factor_begin(c);
-        bool at_most = c->tolerance_factor >= MAX_TOLERANCE_FACTOR &&
-                       c->culled_give_up >= MAX_CULLED_GIVE_UP;
-        if (c->culled_give_up < MAX_CULLED_GIVE_UP)
-            c->culled_give_up = MAX_CULLED_GIVE_UP;
+        bool at_most = c->dec.tolerance_factor >= MAX_TOLERANCE_FACTOR &&
+                       c->dec.culled_give_up >= MAX_CULLED_GIVE_UP;
+        if (c->dec.culled_give_up < MAX_CULLED_GIVE_UP)
+            c->dec.culled_give_up = MAX_CULLED_GIVE_UP;
         else if (!at_most)
-            c->tolerance_factor *= 2;
+            c->dec.tolerance_factor *= 2;
         if (!at_most)
-            c->last_budget_step = ms_core_since_start(c);
+            c->dec.last_budget_step = ms_core_since_start(c);
         factor_end(c);
         if (at_most)
             break;
-        pass->factor = c->tolerance_factor;
+        pass->factor = c->dec.tolerance_factor;
         pass_params(c, pass);
         if (!reselect(c, pass))
             return false;
@@ -439,13 +426,13 @@ bool ms_core_budget_ceiling(ms_core *c, dec_pass *pass)
 static void coarsen_step(ms_core *c, double t)
 {
     factor_begin(c);
-    if (t - c->last_budget_step > 0.1) {
-        if (c->culled_give_up < MAX_CULLED_GIVE_UP) {
-            c->culled_give_up = fmin(MAX_CULLED_GIVE_UP, c->culled_give_up + CULLED_GIVE_UP_STEP);
-            c->last_budget_step = t;
-        } else if (c->tolerance_factor < MAX_TOLERANCE_FACTOR) {
-            c->tolerance_factor = fmin(MAX_TOLERANCE_FACTOR, c->tolerance_factor * M_SQRT2);
-            c->last_budget_step = t;
+    if (t - c->dec.last_budget_step > 0.1) {
+        if (c->dec.culled_give_up < MAX_CULLED_GIVE_UP) {
+            c->dec.culled_give_up = fmin(MAX_CULLED_GIVE_UP, c->dec.culled_give_up + CULLED_GIVE_UP_STEP);
+            c->dec.last_budget_step = t;
+        } else if (c->dec.tolerance_factor < MAX_TOLERANCE_FACTOR) {
+            c->dec.tolerance_factor = fmin(MAX_TOLERANCE_FACTOR, c->dec.tolerance_factor * M_SQRT2);
+            c->dec.last_budget_step = t;
         }
     }
     factor_end(c);
@@ -476,22 +463,22 @@ static uint64_t what_if_memory(ms_core *c, dec_pass *pass, double factor, double
     ms_view_select_params sp = pass->sp;
     sp.tolerance_px = pass->base_tol * factor;
     sp.culled_bits_less = c->o.culled_bits_less + give_up;
-    ms_view_select(c->view, pass->cam, &sp, &c->what_if_report);
-    uint64_t m = c->by_subtree ? c->index_bytes_held + ms_core_state_bytes_held(c) : 0;
-    for (uint32_t i = 0; i != MS_ARCHIVE_NONE; i = ms_view_next_known(c->view, i)) {
-        uint8_t target = ms_view_target(c->view, i);
+    ms_view_select(c->dec.view, pass->cam, &sp, &c->dec.what_if_report);
+    uint64_t m = c->dec.by_subtree ? c->dec.index_bytes_held + ms_core_state_bytes_held(c) : 0;
+    for (uint32_t i = 0; i != MS_ARCHIVE_NONE; i = ms_view_next_known(c->dec.view, i)) {
+        uint8_t target = ms_view_target(c->dec.view, i);
         if (target == MS_VIEW_TARGET_HIDDEN)
             continue;
         const ms_archive_cell *rec = ms_archive_get_cell(c->index, i);
         unsigned bits = target == MS_VIEW_TARGET_SPLIT ? rec->bits_max : target;
         const dcell *d = ms_core_dcell(c, i);
-        uint64_t held = ms_view_held_bytes(c->view, i) + d->geo.cap;
+        uint64_t held = ms_view_held_bytes(c->dec.view, i) + d->geo.cap;
         uint64_t prefix = ms_archive_geometry_prefix(c->index, i, bits);
         m += (held > prefix ? held : prefix) + d->apo.cap;
         if (target != MS_VIEW_TARGET_SPLIT) /* a split cell's decoder is dropped */
-            m += (uint64_t)ms_core_decoded_estimate(rec, bits);
+            m += (uint64_t)ms_sched_decoded_estimate(rec, bits);
     }
-    ms_view_select(c->view, pass->cam, &pass->sp, &c->report);
+    ms_view_select(c->dec.view, pass->cam, &pass->sp, &c->dec.report);
     return m;
 }
 
@@ -505,8 +492,8 @@ static void relax_step(ms_core *c, dec_pass *pass, const budget_terms *bt, doubl
 {
     *finer_memory = pass->memory;
     factor_begin(c);
-    double factor = c->tolerance_factor, give_up = c->culled_give_up;
-    bool due = t - c->last_budget_step > 0.1 && t - c->last_blocked > 2.0;
+    double factor = c->dec.tolerance_factor, give_up = c->dec.culled_give_up;
+    bool due = t - c->dec.last_budget_step > 0.1 && t - c->dec.last_blocked > 2.0;
     factor_end(c);
     double finer_factor, finer_give_up;
     if (!finer_step(factor, give_up, &finer_factor, &finer_give_up))
@@ -516,10 +503,10 @@ static void relax_step(ms_core *c, dec_pass *pass, const budget_terms *bt, doubl
         return;
     factor_begin(c);
     /* shared: another member may have stepped meanwhile; step from where it is */
-    if (c->tolerance_factor == factor && c->culled_give_up == give_up) {
-        c->tolerance_factor = finer_factor;
-        c->culled_give_up = finer_give_up;
-        c->last_budget_step = t;
+    if (c->dec.tolerance_factor == factor && c->dec.culled_give_up == give_up) {
+        c->dec.tolerance_factor = finer_factor;
+        c->dec.culled_give_up = finer_give_up;
+        c->dec.last_budget_step = t;
     }
     factor_end(c);
 }
@@ -640,10 +627,10 @@ void ms_core_budget_step(ms_core *c, dec_pass *pass)
         /* blocked by the ceiling with nothing on its way: the view cannot
          * complete at this tolerance, so a step coarser (as over the target) */
         factor_begin(c);
-        c->last_blocked = t;
+        c->dec.last_blocked = t;
         factor_end(c);
         coarsen_step(c, t);
-        if (pass->factor >= MAX_TOLERANCE_FACTOR && !c->budget_floor_warned) {
+        if (pass->factor >= MAX_TOLERANCE_FACTOR && !c->dec.budget_floor_warned) {
             /* nothing more can be given up: this pass selected at the coarsest
              * and is still blocked, so the view cannot complete in this budget,
              * which the user must hear once rather than wait. The warning goes
@@ -653,7 +640,7 @@ void ms_core_budget_step(ms_core *c, dec_pass *pass)
                      "memory budget too small: %.2f MB cannot hold this view even at its "
                      "coarsest (the tolerance is %.0fx)",
                      (double)bt.ceiling / 1048576.0, MAX_TOLERANCE_FACTOR);
-            c->budget_floor_warned = true;
+            c->dec.budget_floor_warned = true;
         }
     }
     pass->wl.n = keep;

@@ -28,8 +28,8 @@ static unsigned content_bits(const ms_core *c)
     unsigned root_bits = ms_archive_get_header(c->index)->root_bits;
     unsigned bits = root->bits_max < root_bits ? root->bits_max : root_bits;
     /* a preview coarser than root precision: its bounds, a little looser */
-    if (c->preview_steps && c->preview_steps - 1u < bits)
-        bits = c->preview_steps - 1u;
+    if (c->dec.preview_steps && c->dec.preview_steps - 1u < bits)
+        bits = c->dec.preview_steps - 1u;
     return bits;
 }
 
@@ -67,14 +67,14 @@ bool ms_core_content_want(const ms_core *c, const want *w)
  * memory and its frames stay as the selection left them). */
 static ms_status root_bounds(ms_core *c, unsigned bits, double lo[3], double hi[3], ms_error *err)
 {
-    unsigned shown = ms_view_bits(c->view, 0);
+    unsigned shown = ms_view_bits(c->dec.view, 0);
     if (shown >= bits)
-        return ms_view_cell_bounds(c->view, 0, lo, hi, err);
-    ms_status st = ms_view_set_bits(c->view, 0, bits, err);
+        return ms_view_cell_bounds(c->dec.view, 0, lo, hi, err);
+    ms_status st = ms_view_set_bits(c->dec.view, 0, bits, err);
     if (st == MS_OK)
-        st = ms_view_cell_bounds(c->view, 0, lo, hi, err);
+        st = ms_view_cell_bounds(c->dec.view, 0, lo, hi, err);
     ms_error back_err;
-    if (ms_view_set_bits(c->view, 0, shown, &back_err) != MS_OK && st == MS_OK) {
+    if (ms_view_set_bits(c->dec.view, 0, shown, &back_err) != MS_OK && st == MS_OK) {
         *err = back_err;
         st = back_err.code;
     }
@@ -84,14 +84,14 @@ static ms_status root_bounds(ms_core *c, unsigned bits, double lo[3], double hi[
 void ms_core_content_note(ms_core *c)
 {
     const ms_archive_cell *root = ms_archive_get_cell(c->index, 0);
-    if (c->content != CONTENT_PENDING || !root || ms_view_state(c->view, 0) == MS_VIEW_HIDDEN)
+    if (c->content != CONTENT_PENDING || !root || ms_view_state(c->dec.view, 0) == MS_VIEW_HIDDEN)
         return;
     int content = CONTENT_PENDING;
     double lo[3], hi[3];
     unsigned bits = content_bits(c);
     if (root->geometry_length == 0) {
         content = CONTENT_NONE; /* an empty model */
-    } else if (ms_view_bits(c->view, 0) >= bits || ms_view_available_bits(c->view, 0) >= bits) {
+    } else if (ms_view_bits(c->dec.view, 0) >= bits || ms_view_available_bits(c->dec.view, 0) >= bits) {
         ms_error err;
         ms_status st = root_bounds(c, bits, lo, hi, &err);
         content = st == MS_OK ? CONTENT_KNOWN : CONTENT_NONE;

@@ -3,61 +3,19 @@
  * display, and each pass's wants and figures. */
 #include "ms_client_core_internal.h"
 
-#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
 
 #include "ms_progress.h"
 
-/* ---- bytes shared between frames ------------------------------------------ */
-
-struct ms_core_bytes {
-    atomic_uint refs;   /* the dcell's hold and each frame's */
-    size_t length;
-    uint8_t data[];
-};
-
-static ms_core_bytes *bytes_copy(const uint8_t *data, size_t length)
-{
-    ms_core_bytes *b = malloc(sizeof *b + (length ? length : 1));
-    if (!b)
-        return NULL;
-    atomic_init(&b->refs, 1);
-    b->length = length;
-    memcpy(b->data, data, length);
-    return b;
-}
-
-static ms_core_bytes *bytes_retain(ms_core_bytes *b)
-{
-    atomic_fetch_add_explicit(&b->refs, 1, memory_order_relaxed);
-    return b;
-}
-
-/* Frames are freed on the caller's thread, the dcell's hold on the decode
- * thread: the last release frees, whichever it is. */
-static void bytes_release(ms_core_bytes *b)
-{
-    if (b && atomic_fetch_sub_explicit(&b->refs, 1, memory_order_acq_rel) == 1)
-        free(b);
-}
-
-void ms_core_apo_drop(dcell *d)
-{
-    ms_core_rx_free(&d->apo);
-    d->apo_given = 0;
-    bytes_release(d->apo_shared);
-    d->apo_shared = NULL;
-}
-
 void ms_core_frames_free(ms_core *c)
 {
-    free(c->last_run_cell);
-    free(c->last_run_version);
-    c->last_run_cell = NULL;
-    c->last_run_version = NULL;
-    c->last_run_count = c->last_run_cap = 0;
+    free(c->dec.last_run_cell);
+    free(c->dec.last_run_version);
+    c->dec.last_run_cell = NULL;
+    c->dec.last_run_version = NULL;
+    c->dec.last_run_count = c->dec.last_run_cap = 0;
 }
 
 /* The frame's chunk of cell i: the bytes of the previous frames when its
@@ -65,20 +23,22 @@ void ms_core_frames_free(ms_core *c)
  * the dcell for the frames after. False when out of memory. */
 static bool share_apo(dcell *d, ms_core_frame_work *work, ms_core_apo_chunk *chunk)
 {
-    if (!d->apo_shared || d->apo_shared->length != d->apo_given) {
-        ms_core_bytes *b = bytes_copy(d->apo.buf, d->apo_given);
+    size_t shared_length = 0;
+    if (d->apo_shared)
+        (void)ms_core_bytes_data(d->apo_shared, &shared_length);
+    if (!d->apo_shared || shared_length != d->apo_given) {
+        ms_core_bytes *b = ms_core_bytes_copy(d->apo.buf, d->apo_given);
         if (!b)
             return false;
-        bytes_release(d->apo_shared);
+        ms_core_bytes_release(d->apo_shared);
         d->apo_shared = b;
         work->apo_bytes_copied += d->apo_given;
         work->apo_chunks_copied++;
     } else {
         work->apo_chunks_shared++;
     }
-    chunk->shared = bytes_retain(d->apo_shared);
-    chunk->data = d->apo_shared->data;
-    chunk->length = d->apo_shared->length;
+    chunk->shared = ms_core_bytes_retain(d->apo_shared);
+    chunk->data = ms_core_bytes_data(d->apo_shared, &chunk->length);
     return true;
 }
 
@@ -103,20 +63,20 @@ static bool count_changes(ms_core *c, ms_core_frame *f)
         if (m->run_first[k + 1] == m->run_first[k])
             continue;
         uint32_t cell = m->run_cell[k];
-        while (j < c->last_run_count && c->last_run_cell[j] < cell)
+        while (j < c->dec.last_run_count && c->dec.last_run_cell[j] < cell)
             j++, f->work.cells_removed++;
-        bool same = j < c->last_run_count && c->last_run_cell[j] == cell;
-        f->work.cells_changed += !same || c->last_run_version[j] != m->run_version[k];
+        bool same = j < c->dec.last_run_count && c->dec.last_run_cell[j] == cell;
+        f->work.cells_changed += !same || c->dec.last_run_version[j] != m->run_version[k];
         j += same;
         cells[w] = cell;
         versions[w++] = m->run_version[k];
     }
-    f->work.cells_removed += (uint32_t)(c->last_run_count - j);
-    free(c->last_run_cell);
-    free(c->last_run_version);
-    c->last_run_cell = cells;
-    c->last_run_version = versions;
-    c->last_run_count = w;
+    f->work.cells_removed += (uint32_t)(c->dec.last_run_count - j);
+    free(c->dec.last_run_cell);
+    free(c->dec.last_run_version);
+    c->dec.last_run_cell = cells;
+    c->dec.last_run_version = versions;
+    c->dec.last_run_count = w;
     return true;
 }
 
@@ -125,15 +85,15 @@ static bool count_changes(ms_core *c, ms_core_frame *f)
 static ms_core_frame *make_frame(ms_core *c, ms_error *err)
 {
     size_t shown = 0, cut = 0, apo = 0;
-    for (uint32_t i = 0; i != MS_ARCHIVE_NONE; i = ms_view_next_known(c->view, i)) {
-        ms_view_cell_state st = ms_view_state(c->view, i);
+    for (uint32_t i = 0; i != MS_ARCHIVE_NONE; i = ms_view_next_known(c->dec.view, i)) {
+        ms_view_cell_state st = ms_view_state(c->dec.view, i);
         cut += st != MS_VIEW_HIDDEN;
         shown += st == MS_VIEW_SHOWN;
         apo += st == MS_VIEW_SHOWN && ms_core_dcell(c, i)->apo_given > 0;
     }
     ms_core_frame *f = calloc(1, sizeof *f);
     if (f) {
-        f->cell_count = ms_view_cell_count(c->view);
+        f->cell_count = ms_view_cell_count(c->dec.view);
         f->cut_cells = malloc((cut ? cut : 1) * sizeof *f->cut_cells);
         f->cut_bits = malloc(cut ? cut : 1);
         f->record_ids = malloc((shown ? shown : 1) * sizeof *f->record_ids);
@@ -145,12 +105,12 @@ static ms_core_frame *make_frame(ms_core *c, ms_error *err)
         ms_error_set(err, MS_ERR_NOMEM, "out of memory for a frame");
         return NULL;
     }
-    for (uint32_t i = 0; i != MS_ARCHIVE_NONE; i = ms_view_next_known(c->view, i)) {
-        ms_view_cell_state st = ms_view_state(c->view, i);
+    for (uint32_t i = 0; i != MS_ARCHIVE_NONE; i = ms_view_next_known(c->dec.view, i)) {
+        ms_view_cell_state st = ms_view_state(c->dec.view, i);
         if (st == MS_VIEW_HIDDEN)
             continue;
         f->cut_cells[f->cut_count] = i;
-        f->cut_bits[f->cut_count++] = st == MS_VIEW_SHOWN ? (uint8_t)ms_view_bits(c->view, i)
+        f->cut_bits[f->cut_count++] = st == MS_VIEW_SHOWN ? (uint8_t)ms_view_bits(c->dec.view, i)
                                                           : MS_VIEW_TARGET_SPLIT;
         if (st != MS_VIEW_SHOWN)
             continue;
@@ -175,17 +135,17 @@ static ms_core_frame *make_frame(ms_core *c, ms_error *err)
         f->apo_count++;
     }
     size_t held = 0;
-    for (size_t k = 0; k < c->subtree_count; ++k)
-        held += c->subtrees[k].state == SUBTREE_HELD;
+    for (size_t k = 0; k < c->dec.subtree_count; ++k)
+        held += c->dec.subtrees[k].state == SUBTREE_HELD;
     if (held && !(f->subtrees = malloc(held * sizeof *f->subtrees))) {
         ms_core_frame_free(f);
         ms_error_set(err, MS_ERR_NOMEM, "out of memory for a frame");
         return NULL;
     }
-    for (size_t k = 0; k < c->subtree_count; ++k)
-        if (c->subtrees[k].state == SUBTREE_HELD)
-            f->subtrees[f->subtree_count++] = c->subtrees[k].id;
-    if (ms_view_stitch(c->view, NULL, &f->mesh, err) != MS_OK) {
+    for (size_t k = 0; k < c->dec.subtree_count; ++k)
+        if (c->dec.subtrees[k].state == SUBTREE_HELD)
+            f->subtrees[f->subtree_count++] = c->dec.subtrees[k].id;
+    if (ms_view_stitch(c->dec.view, NULL, &f->mesh, err) != MS_OK) {
         ms_core_frame_free(f);
         return NULL;
     }
@@ -204,8 +164,8 @@ static ms_core_frame *make_frame(ms_core *c, ms_error *err)
  * parent's triangles: the frame that shows it is a display). */
 static bool something_drawn(ms_core *c, const frame_view *fv)
 {
-    for (uint32_t i = 0; i != MS_ARCHIVE_NONE; i = ms_view_next_known(c->view, i)) {
-        if (ms_view_state(c->view, i) != MS_VIEW_SHOWN)
+    for (uint32_t i = 0; i != MS_ARCHIVE_NONE; i = ms_view_next_known(c->dec.view, i)) {
+        if (ms_view_state(c->dec.view, i) != MS_VIEW_SHOWN)
             continue;
         const ms_archive_cell *rec = ms_archive_get_cell(c->index, i);
         if (rec->geometry_length == 0)
@@ -215,7 +175,7 @@ static bool something_drawn(ms_core *c, const frame_view *fv)
         if (!visible)
             continue;
         ms_codec_state s;
-        if (ms_view_cell_state_copy(c->view, i, &s, NULL) != MS_OK)
+        if (ms_view_cell_state_copy(c->dec.view, i, &s, NULL) != MS_OK)
             continue;
         bool drawn = s.tri_count > 0;
         ms_codec_state_free(&s);
@@ -241,8 +201,8 @@ static void publish_locked(ms_core *c, dec_pass *pass, uint64_t serial, ms_core_
         c->republish = false;
         wl->w = NULL;
     }
-    if (c->want_consumed_seq != c->consumed_seq) {
-        c->want_consumed_seq = c->consumed_seq;
+    if (c->want_consumed_seq != c->dec.consumed_seq) {
+        c->want_consumed_seq = c->dec.consumed_seq;
         c->want_serial += same; /* let the network thread release finished requests */
     }
     pthread_cond_broadcast(&c->wake); /* the local responder waits for a new list */
@@ -267,11 +227,11 @@ static void publish_locked(ms_core *c, dec_pass *pass, uint64_t serial, ms_core_
     st->view_complete = pass->complete && serial == c->camera_serial;
     st->camera_serial = serial;
     st->achieved_error_px = pass->worst;
-    st->preview_limited = c->preview_steps && c->report.capped_count > 0;
+    st->preview_limited = c->dec.preview_steps && c->dec.report.capped_count > 0;
     st->tolerance_px = pass->fv.tolerance;
     st->cells_shown = pass->shown, st->cells_split = pass->split, st->cells_cached = pass->cached;
     st->cells_loading = pass->loading, st->cells_failed = pass->failed;
-    st->state_cells = c->view ? ms_view_state_cells(c->view) : 0;
+    st->state_cells = c->dec.view ? ms_view_state_cells(c->dec.view) : 0;
     st->state_bytes_held = ms_core_state_bytes_held(c);
     st->memory = pass->memory;
     if (pass->memory > st->peak_memory)
@@ -288,29 +248,29 @@ void ms_core_publish(ms_core *c, dec_pass *pass, uint64_t serial, double t_start
     /* only the caller's camera displays: the content bounds' camera of the
      * passes before it sees the whole model (a path that never looks at the
      * model must not count as displayed) */
-    bool look = !c->first_display_seen && !pass->for_content &&
-                (pass->changed || !c->display_checked || c->display_checked_serial != serial);
+    bool look = !c->dec.first_display_seen && !pass->for_content &&
+                (pass->changed || !c->dec.display_checked || c->dec.display_checked_serial != serial);
     if (look) {
-        c->display_checked = true;
-        c->display_checked_serial = serial;
+        c->dec.display_checked = true;
+        c->dec.display_checked_serial = serial;
     }
     bool first_display = look && something_drawn(c, &pass->fv);
     ms_core_frame *frame = NULL;
     double frame_busy = 0.0;
-    if (c->o.export_frames && (pass->changed || c->generation == 0)) {
+    if (c->o.export_frames && (pass->changed || c->dec.generation == 0)) {
         ms_error err;
         double t_frame = ms_now_seconds();
         frame = make_frame(c, &err);
         frame_busy = ms_now_seconds() - t_frame;
         if (frame) {
-            frame->generation = ++c->generation;
+            frame->generation = ++c->dec.generation;
             frame->time = t_now;
         }
     }
     double busy = ms_now_seconds() - t_start;
     pthread_mutex_lock(&c->lock);
     if (first_display) {
-        c->first_display_seen = true;
+        c->dec.first_display_seen = true;
         c->stats.first_display = t_now;
         c->stats.first_display_generation = frame ? frame->generation : 0;
     }
@@ -349,7 +309,7 @@ void ms_core_frame_free(ms_core_frame *f)
         return;
     ms_view_mesh_free(&f->mesh);
     for (size_t i = 0; i < f->apo_count; ++i)
-        bytes_release(f->apo[i].shared);
+        ms_core_bytes_release(f->apo[i].shared);
     free(f->apo);
     free(f->cut_cells);
     free(f->cut_bits);
@@ -359,48 +319,6 @@ void ms_core_frame_free(ms_core_frame *f)
     free(f);
 }
 
-void ms_core_keep_opening(ms_core *c, const ms_archive *index, bool by_subtree)
-{
-    if (c->have_opening)
-        return;
-    ms_core_opening *o = &c->opening;
-    o->header = *ms_archive_get_header(index);
-    o->by_subtree = by_subtree;
-    if (!c->o.export_frames) { /* the header and the bounds only (meshload): no copy of records */
-        pthread_mutex_lock(&c->lock);
-        c->have_opening = true;
-        pthread_mutex_unlock(&c->lock);
-        return;
-    }
-    size_t known = 0;
-    for (uint32_t i = 0; i < o->header.cell_count; ++i)
-        known += ms_archive_get_cell(index, i) != NULL;
-    o->ids = malloc((known ? known : 1) * sizeof *o->ids);
-    o->records = malloc((known ? known : 1) * sizeof *o->records);
-    if (!o->ids || !o->records) {
-        ms_core_opening_free(o);
-        return;
-    }
-    for (uint32_t i = 0; i < o->header.cell_count; ++i) {
-        const ms_archive_cell *rec = ms_archive_get_cell(index, i);
-        if (rec) {
-            o->ids[o->count] = i;
-            o->records[o->count++] = *rec;
-        }
-    }
-    pthread_mutex_lock(&c->lock);
-    c->have_opening = true;
-    pthread_mutex_unlock(&c->lock);
-}
-
-void ms_core_opening_free(ms_core_opening *o)
-{
-    if (!o)
-        return;
-    free(o->ids);
-    free(o->records);
-    memset(o, 0, sizeof *o);
-}
 
 ms_status ms_core_wait_open(ms_core *c, double timeout_s, ms_core_opening *out, ms_error *err)
 {

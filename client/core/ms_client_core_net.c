@@ -37,14 +37,6 @@ static bool note_socket_bytes(ms_core_link *l)
     return true;
 }
 
-void ms_core_link_mark_dead(ms_core_link *l, const char *why)
-{
-    if (!l->dead) {
-        l->dead = true;
-        snprintf(l->dead_why, sizeof l->dead_why, "%.240s", why);
-    }
-}
-
 /* Member i stops being streamed (its core failed or stops): its model is
  * closed on the server, which cancels its requests there; its slots are
  * forgotten here, so late frames for them are dropped. */

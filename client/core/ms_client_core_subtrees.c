@@ -18,15 +18,15 @@
 
 static size_t subtree_find(const ms_core *c, uint32_t id, bool *found)
 {
-    size_t lo = 0, hi = c->subtree_count;
+    size_t lo = 0, hi = c->dec.subtree_count;
     while (lo < hi) {
         size_t mid = lo + (hi - lo) / 2;
-        if (c->subtrees[mid].id < id)
+        if (c->dec.subtrees[mid].id < id)
             lo = mid + 1;
         else
             hi = mid;
     }
-    *found = lo < c->subtree_count && c->subtrees[lo].id == id;
+    *found = lo < c->dec.subtree_count && c->dec.subtrees[lo].id == id;
     return lo;
 }
 
@@ -34,7 +34,7 @@ static subtree_entry *subtree_get(ms_core *c, uint32_t id)
 {
     bool found;
     size_t k = subtree_find(c, id, &found);
-    return found ? &c->subtrees[k] : NULL;
+    return found ? &c->dec.subtrees[k] : NULL;
 }
 
 /* The entry of subtree id, made (RECEIVING) when absent; NULL out of memory. */
@@ -43,27 +43,27 @@ static subtree_entry *subtree_add(ms_core *c, uint32_t id, uint32_t parent)
     bool found;
     size_t k = subtree_find(c, id, &found);
     if (found)
-        return &c->subtrees[k];
-    if (c->subtree_count == c->subtree_cap) {
-        size_t cap = c->subtree_cap ? 2 * c->subtree_cap : 64;
-        subtree_entry *g = realloc(c->subtrees, cap * sizeof *g);
+        return &c->dec.subtrees[k];
+    if (c->dec.subtree_count == c->dec.subtree_cap) {
+        size_t cap = c->dec.subtree_cap ? 2 * c->dec.subtree_cap : 64;
+        subtree_entry *g = realloc(c->dec.subtrees, cap * sizeof *g);
         if (!g)
             return NULL;
-        c->subtrees = g;
-        c->subtree_cap = cap;
+        c->dec.subtrees = g;
+        c->dec.subtree_cap = cap;
     }
-    memmove(&c->subtrees[k + 1], &c->subtrees[k], (c->subtree_count - k) * sizeof *c->subtrees);
-    c->subtree_count++;
-    c->subtrees[k] = (subtree_entry){.id = id, .parent = parent, .state = SUBTREE_RECEIVING};
-    return &c->subtrees[k];
+    memmove(&c->dec.subtrees[k + 1], &c->dec.subtrees[k], (c->dec.subtree_count - k) * sizeof *c->dec.subtrees);
+    c->dec.subtree_count++;
+    c->dec.subtrees[k] = (subtree_entry){.id = id, .parent = parent, .state = SUBTREE_RECEIVING};
+    return &c->dec.subtrees[k];
 }
 
 static void subtree_remove(ms_core *c, size_t k)
 {
-    ms_core_rx_free(&c->subtrees[k].buf);
-    memmove(&c->subtrees[k], &c->subtrees[k + 1],
-            (c->subtree_count - k - 1) * sizeof *c->subtrees);
-    c->subtree_count--;
+    ms_core_rx_free(&c->dec.subtrees[k].buf);
+    memmove(&c->dec.subtrees[k], &c->dec.subtrees[k + 1],
+            (c->dec.subtree_count - k - 1) * sizeof *c->dec.subtrees);
+    c->dec.subtree_count--;
 }
 
 /* The view learns the records of subtree id (held by the index). */
@@ -74,7 +74,7 @@ static ms_status learn_subtree(ms_core *c, uint32_t id, ms_error *err)
     size_t n;
     if (!ms_archive_held_subtree(c->index, id, &ids, &recs, &n))
         return ms_error_set(err, MS_ERR_CORRUPT, "subtree %u is not held", id);
-    ms_status s = ms_view_learn(c->view, ids, recs, n, err);
+    ms_status s = ms_view_learn(c->dec.view, ids, recs, n, err);
     if (s == MS_OK && !ms_core_dcells_grow(c, ids, n))
         s = ms_error_set(err, MS_ERR_NOMEM, "out of memory for subtree %u's cells", id);
     return s;
@@ -82,11 +82,11 @@ static ms_status learn_subtree(ms_core *c, uint32_t id, ms_error *err)
 
 static void note_index_held(ms_core *c)
 {
-    c->index_bytes_held = ms_archive_index_bytes_held(c->index);
+    c->dec.index_bytes_held = ms_archive_index_bytes_held(c->index);
     pthread_mutex_lock(&c->lock);
-    c->stats.index_bytes_held = c->index_bytes_held;
-    if (c->index_bytes_held > c->stats.peak_index_bytes_held)
-        c->stats.peak_index_bytes_held = c->index_bytes_held;
+    c->stats.index_bytes_held = c->dec.index_bytes_held;
+    if (c->dec.index_bytes_held > c->stats.peak_index_bytes_held)
+        c->stats.peak_index_bytes_held = c->dec.index_bytes_held;
     c->stats.subtrees_held = ms_archive_subtrees_held(c->index);
     pthread_mutex_unlock(&c->lock);
 }
@@ -94,12 +94,12 @@ static void note_index_held(ms_core *c)
 bool ms_core_take_index(ms_core *c, ms_error *err)
 {
     const ms_archive_header *h = ms_archive_get_header(c->index);
-    if (ms_view_create_partial(h, &c->view, err) != MS_OK)
+    if (ms_view_create_partial(h, &c->dec.view, err) != MS_OK)
         return false;
-    c->by_subtree = ms_archive_is_partial(c->index);
-    if (c->by_subtree) {
-        c->subtree_levels = ms_archive_subtree_levels(c->index);
-        if (c->subtree_levels < 1) {
+    c->dec.by_subtree = ms_archive_is_partial(c->index);
+    if (c->dec.by_subtree) {
+        c->dec.subtree_levels = ms_archive_subtree_levels(c->index);
+        if (c->dec.subtree_levels < 1) {
             ms_error_set(err, MS_ERR_CORRUPT, "index head: no subtree depth");
             return false;
         }
@@ -128,7 +128,7 @@ bool ms_core_take_index(ms_core *c, ms_error *err)
         recs[i] = *ms_archive_get_cell(c->index, i);
     }
     if (s == MS_OK)
-        s = ms_view_learn(c->view, ids, recs, h->cell_count, err);
+        s = ms_view_learn(c->dec.view, ids, recs, h->cell_count, err);
     if (s == MS_OK && !ms_core_dcells_grow(c, ids, h->cell_count))
         s = ms_error_set(err, MS_ERR_NOMEM, "out of memory for %u cells", h->cell_count);
     free(ids);
@@ -211,48 +211,44 @@ void ms_core_subtree_chunk(ms_core *c, const chunk_msg *m)
     pthread_mutex_lock(&c->lock);
     c->stats.subtrees_received++;
     pthread_mutex_unlock(&c->lock);
-    c->subtrees_changed = true;
+    c->dec.subtrees_changed = true;
     note_index_held(c);
 }
 
 /* ---- each pass ---------------------------------------------------------------- */
 
-static bool want_index(dec_pass *pass, const subtree_entry *e, uint8_t priority)
+const ms_sched_subtree *ms_core_subtrees_snapshot(ms_core *c, size_t *count)
 {
-    return ms_core_want_push(&pass->wl, (want){e->id, e->buf.end, e->total ? e->total : UINT32_MAX,
-                                               STREAM_INDEX, priority, 0});
-}
-
-/* Cell's children's subtree is needed: held ones stay, missing ones are asked
- * for at `priority`. */
-static void need_children(ms_core *c, dec_pass *pass, uint32_t cell, double priority)
-{
-    uint32_t children = ms_archive_children_subtree(c->index, cell);
-    if (children == MS_ARCHIVE_NONE || children == ms_archive_subtree_of(c->index, cell))
-        return; /* a leaf, or its children are in its own subtree */
-    subtree_entry *e = subtree_add(c, children, cell);
-    if (!e)
-        return;
-    e->needed = true;
-    if (e->state == SUBTREE_HELD)
-        return;
-    pass->complete = false;
-    if (e->state == SUBTREE_RECEIVING)
-        want_index(pass, e, ms_core_clamp_priority(priority));
+    *count = 0;
+    if (!c->dec.by_subtree || !c->dec.subtree_count)
+        return NULL;
+    if (c->dec.subtree_count > c->dec.sched_subtrees_cap) {
+        ms_sched_subtree *g = realloc(c->dec.sched_subtrees, c->dec.subtree_count * sizeof *g);
+        if (!g)
+            return NULL;
+        c->dec.sched_subtrees = g;
+        c->dec.sched_subtrees_cap = c->dec.subtree_count;
+    }
+    for (size_t k = 0; k < c->dec.subtree_count; ++k) {
+        const subtree_entry *e = &c->dec.subtrees[k];
+        c->dec.sched_subtrees[k] = (ms_sched_subtree){e->id, e->state, e->buf.end, e->total};
+    }
+    *count = c->dec.subtree_count;
+    return c->dec.sched_subtrees;
 }
 
 /* Forgets subtree k's records and its cells' bytes; false when the view still
  * shows one of them (then it stays). */
 static bool drop_subtree(ms_core *c, size_t k)
 {
-    subtree_entry *e = &c->subtrees[k];
+    subtree_entry *e = &c->dec.subtrees[k];
     if (e->state == SUBTREE_HELD) {
         const uint32_t *ids;
         const ms_archive_cell *recs;
         size_t n;
         ms_error err;
         if (!ms_archive_held_subtree(c->index, e->id, &ids, &recs, &n) ||
-            ms_view_unlearn(c->view, ids, n, &err) != MS_OK)
+            ms_view_unlearn(c->dec.view, ids, n, &err) != MS_OK)
             return false;
         ms_core_dcells_release(c, ids, n);
         ms_archive_drop_subtree(c->index, e->id);
@@ -261,65 +257,46 @@ static bool drop_subtree(ms_core *c, size_t k)
     return true;
 }
 
-void ms_core_schedule_subtrees(ms_core *c, dec_pass *pass)
+void ms_core_subtrees_keep(ms_core *c, dec_pass *pass, const ms_sched_need *needs, size_t count)
 {
-    if (!c->by_subtree)
+    if (!c->dec.by_subtree)
         return;
-    for (size_t k = 0; k < c->subtree_count; ++k)
-        c->subtrees[k].needed = c->subtrees[k].id == 0;
-    /* the subtrees of the cut: a cell split, or about to split, at a
-     * subtree's last level holds its children in the next one */
-    for (uint32_t i = 0; i != MS_ARCHIVE_NONE; i = ms_view_next_known(c->view, i))
-        if (ms_view_state(c->view, i) == MS_VIEW_SPLIT ||
-            ms_view_target(c->view, i) == MS_VIEW_TARGET_SPLIT)
-            need_children(c, pass, i, 0);
-    /* cells that would split: their children's records first, ahead of the
-     * cell's own next bit (priority 128 - 8 (need - bit), 64 later culled) */
-    const ms_view_select_report *r = &c->report;
-    for (size_t k = 0; k < r->blocked_count; ++k) {
-        uint32_t cell = r->blocked[k];
-        const ms_archive_cell *rec = ms_view_cell(c->view, cell);
-        bool visible;
-        double need = ms_core_cell_need(c, &pass->fv, cell, &visible);
-        unsigned next = ms_view_available_bits(c->view, cell);
-        next = (next < rec->bits_max ? next : rec->bits_max) + 1;
-        need_children(c, pass, cell, (visible ? 128.0 : 192.0) - 8.0 * (need - next) - 1.0);
-    }
-    /* prefetch one level beyond the cut: cells within a bit of splitting,
-     * after the bits of the cells shown (as the children's bits of a cell
-     * about to split: 16 later) */
-    for (size_t k = 0; k < r->near_count; ++k) {
-        uint32_t cell = r->near[k];
-        const ms_archive_cell *rec = ms_view_cell(c->view, cell);
-        bool visible;
-        double need = ms_core_cell_need(c, &pass->fv, cell, &visible);
-        need_children(c, pass, cell,
-                      (visible ? 144.0 : 208.0) - 8.0 * (need - (rec->bits_max + 1.0)));
+    for (size_t k = 0; k < c->dec.subtree_count; ++k)
+        c->dec.subtrees[k].needed = c->dec.subtrees[k].id == 0;
+    /* the ones the cut needs stay; a missing one starts being received (the
+     * scheduler asked for it) */
+    for (size_t k = 0; k < count; ++k) {
+        subtree_entry *e = subtree_add(c, needs[k].id, needs[k].parent);
+        if (e)
+            e->needed = true;
     }
     /* the others go, deepest first (a subtree's id exceeds its parent's) */
     bool dropped = false;
-    for (size_t k = c->subtree_count; k-- > 0;)
-        if (!c->subtrees[k].needed)
+    for (size_t k = c->dec.subtree_count; k-- > 0;)
+        if (!c->dec.subtrees[k].needed)
             dropped |= drop_subtree(c, k);
     if (dropped) {
         note_index_held(c);
-        c->subtrees_changed = true;
+        c->dec.subtrees_changed = true;
     }
     /* a frame lists the subtrees held: a new list is a new frame */
-    pass->changed |= c->subtrees_changed;
-    c->subtrees_changed = false;
-    for (size_t k = 0; k < c->subtree_count; ++k)
-        if (c->subtrees[k].state == SUBTREE_FAILED)
+    pass->changed |= c->dec.subtrees_changed;
+    c->dec.subtrees_changed = false;
+    for (size_t k = 0; k < c->dec.subtree_count; ++k)
+        if (c->dec.subtrees[k].state == SUBTREE_FAILED)
             pass->complete = false;
 }
 
 void ms_core_subtrees_free(ms_core *c)
 {
-    for (size_t k = 0; k < c->subtree_count; ++k)
-        ms_core_rx_free(&c->subtrees[k].buf);
-    free(c->subtrees);
-    c->subtrees = NULL;
-    c->subtree_count = c->subtree_cap = 0;
-    ms_view_select_report_free(&c->report);
-    ms_view_select_report_free(&c->what_if_report);
+    for (size_t k = 0; k < c->dec.subtree_count; ++k)
+        ms_core_rx_free(&c->dec.subtrees[k].buf);
+    free(c->dec.subtrees);
+    c->dec.subtrees = NULL;
+    c->dec.subtree_count = c->dec.subtree_cap = 0;
+    ms_view_select_report_free(&c->dec.report);
+    ms_view_select_report_free(&c->dec.what_if_report);
+    free(c->dec.sched_subtrees);
+    c->dec.sched_subtrees = NULL;
+    c->dec.sched_subtrees_cap = 0;
 }

@@ -12,7 +12,7 @@
 
 /* One DOCUMENT frame (PROTOCOL.md 4.5b): reassembled into c->doc, handed to
  * the waiting ms_client_fetch_document or to handlers->document at LAST. */
-void ms_client_handle_document(ms_client *c, const ms_proto_message *m)
+static void handle_document(ms_client *c, const ms_proto_message *m)
 {
     const ms_proto_document *d = &m->body.document;
     pending *q = ms_client_pending_find(c, m->request_id);
@@ -79,8 +79,10 @@ ms_status ms_client_request_document(ms_client *c, const char *model, int kind,
     pending *p = st == MS_OK ? ms_client_pending_add(c, m.request_id) : NULL;
     if (st == MS_OK && !p)
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory for a request");
-    if (p)
+    if (p) {
         p->kind = PENDING_DOCUMENT, p->stream = (uint8_t)kind;
+        c->on_document = handle_document;
+    }
     return st;
 }
 

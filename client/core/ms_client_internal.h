@@ -53,6 +53,10 @@ struct ms_client {
     uint32_t doc_request;      /* 0: none */
     uint8_t *doc;              /* doc_total bytes */
     uint32_t doc_total, doc_have;
+    /* The handler of DOCUMENT frames, set by the first GET_DOCUMENT sent
+     * (ms_client_document.c, which uses this file and is not used by it);
+     * NULL: no document was asked for, a DOCUMENT frame is a violation. */
+    void (*on_document)(ms_client *c, const ms_proto_message *m);
     /* ms_client_fetch_document waiting for request wait_id */
     uint32_t wait_id;
     bool waiting, wait_done, wait_timed_out;
@@ -73,7 +77,5 @@ pending *ms_client_pending_find(ms_client *c, uint32_t id);
 /* Records request id as outstanding; NULL when out of memory. */
 pending *ms_client_pending_add(ms_client *c, uint32_t id);
 void ms_client_pending_end(ms_client *c, pending *p);
-/* One DOCUMENT frame (ms_client_document.c). */
-void ms_client_handle_document(ms_client *c, const ms_proto_message *m);
 
 #endif

@@ -10,8 +10,6 @@
 
 #include "ms_progress.h"
 
-double ms_core_link_since_start(const ms_core_link *l) { return ms_now_seconds() - l->t0; }
-
 static bool figure_ok(double x) { return isfinite(x) && x >= 0; }
 
 ms_status ms_core_link_new(const ms_core_link_options *o, ms_core_link **out, ms_error *err)

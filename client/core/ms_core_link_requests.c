@@ -2,15 +2,27 @@
  * requests in flight, found by (member, cell, stream) through a fixed table of
  * buckets, and each round's plan: the members' want lists merged by priority
  * under the one window, what a member no longer wants cancelled, and the
- * REQUEST_CELLS sent, one a run of one member's entries. The link thread's own
- * (ms_client_core_net.c runs the connection). */
+ * REQUEST_CELLS sent, one a run of one member's entries; the link's clock and
+ * its mark of a dead connection. The link thread's own (ms_client_core_net.c
+ * runs the connection and uses this file, never the other way). */
 #include "ms_client_core_internal.h"
 
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "ms_progress.h"
 #include "ms_proto.h"
+
+double ms_core_link_since_start(const ms_core_link *l) { return ms_now_seconds() - l->t0; }
+
+void ms_core_link_mark_dead(ms_core_link *l, const char *why)
+{
+    if (!l->dead) {
+        l->dead = true;
+        snprintf(l->dead_why, sizeof l->dead_why, "%.240s", why);
+    }
+}
 
 /* The chain of slots whose (member, cell, stream) falls in one bucket: a fixed
  * table, whatever the models' sizes (iterations skip the other cells' slots). */
