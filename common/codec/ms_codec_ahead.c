@@ -11,9 +11,17 @@
 #include "ms_complex.h"
 
 /* Set bits of x, without the library call a build for the baseline x86-64
- * makes of __builtin_popcountll. */
+ * makes of __builtin_popcountll: a table for the masks of up to 3 levels
+ * ahead (8 bits, the default), else in parallel. */
+#define POP2(n) n, n + 1, n + 1, n + 2
+#define POP4(n) POP2(n), POP2(n + 1), POP2(n + 1), POP2(n + 2)
+#define POP6(n) POP4(n), POP4(n + 1), POP4(n + 1), POP4(n + 2)
+static const uint8_t pop8[256] = {POP6(0), POP6(1), POP6(1), POP6(2)};
+
 static inline unsigned popcount64(uint64_t x)
 {
+    if (x < 256)
+        return pop8[x];
     x -= (x >> 1) & 0x5555555555555555ull;
     x = (x & 0x3333333333333333ull) + ((x >> 2) & 0x3333333333333333ull);
     x = (x + (x >> 4)) & 0x0F0F0F0F0F0F0F0Full;
