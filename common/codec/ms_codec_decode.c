@@ -436,9 +436,13 @@ static ms_status refine_ahead(ms_codec_decoder *d, uint32_t s, unsigned L, uint3
     unsigned dc = ms_ahead_depth(d, L + 1);
     for (int k = 0; k < 2 && out[k] != MS_CX_NONE; ++k) {
         d->order2[(*w)++] = out[k];
-        if (out[1] != MS_CX_NONE)
+        uint64_t mk = cx->ahead[out[k]];
+        bool deepen = dc == depth, several = (mk & (mk - 1)) != 0;
+        /* (a half that deepens with several descendants gets its point
+         * recomputed there, and its own point is no term of its centroid) */
+        if (out[1] != MS_CX_NONE && !(deepen && several))
             ms_ahead_update_rep(cx, out[k], L + 1, depth - 1);
-        if (dc == depth)
+        if (deepen)
             ms_ahead_deepen(d, out[k], L + 1, dc);
     }
     return MS_OK;
