@@ -10,6 +10,24 @@
 #include "ms_codec_model.h"
 #include "ms_complex.h"
 
+/* Set bits of x, without the library call a build for the baseline x86-64
+ * makes of __builtin_popcountll: a table for the masks of up to 3 levels
+ * ahead (8 bits, the default), else in parallel. */
+#define POP2(n) n, n + 1, n + 1, n + 2
+#define POP4(n) POP2(n), POP2(n + 1), POP2(n + 1), POP2(n + 2)
+#define POP6(n) POP4(n), POP4(n + 1), POP4(n + 1), POP4(n + 2)
+static const uint8_t pop8[256] = {POP6(0), POP6(1), POP6(1), POP6(2)};
+
+static inline unsigned popcount64(uint64_t x)
+{
+    if (x < 256)
+        return pop8[x];
+    x -= (x >> 1) & 0x5555555555555555ull;
+    x = (x & 0x3333333333333333ull) + ((x >> 2) & 0x3333333333333333ull);
+    x = (x + (x >> 4)) & 0x0F0F0F0F0F0F0F0Full;
+    return (unsigned)((x * 0x0101010101010101ull) >> 56);
+}
+
 /* Bit q of a descendant's index is set for the descendants in this set (the
  * index's bits, lowest first). */
 static const uint64_t index_bit_set[6] = {
@@ -53,12 +71,12 @@ void ms_ahead_update_rep(ms_complex *cx, uint32_t s, unsigned level, unsigned de
     }
     /* per axis, the sum of the occupied descendants' slice positions t, one
      * popcount per index bit (weighted by its place in t) */
-    int64_t n = __builtin_popcountll(m), tsum[3] = {0, 0, 0};
+    int64_t n = popcount64(m), tsum[3] = {0, 0, 0};
     unsigned splits[3] = {0, 0, 0};
     for (unsigned j = 0; j < depth; ++j) {
         unsigned a = (level + j) % 3;
         splits[a]++;
-        tsum[a] += (int64_t)__builtin_popcountll(m & index_bit_set[depth - 1 - j])
+        tsum[a] += (int64_t)popcount64(m & index_bit_set[depth - 1 - j])
                    << ((depth - 1 - j) / 3);
     }
     for (int a = 0; a < 3; ++a) {
@@ -107,8 +125,7 @@ void ms_ahead_deepen(ms_codec_decoder *d, uint32_t s, unsigned level, unsigned d
     unsigned cur = depth - 1, lam = level + cur; /* the descendants split now are at lam */
     int axis = (int)(lam % 3);
     int64_t wp = ms_cx_width(cx, lam, axis);
-    int64_t n;
-    int64_t sum = geo_sum_col(cx, s, &cx->rep[0][axis], &n);
+    int64_t n = -1, sum = 0; /* the neighbours' centroid, taken at the first half coded */
     unsigned deg = geo_deg(&cx->v[s]);
     unsigned shift = d->D - lam; /* key bits below a descendant's prefix, >= 1 */
     uint64_t m = cx->ahead[s], out = 0;
@@ -131,6 +148,8 @@ void ms_ahead_deepen(ms_codec_decoder *d, uint32_t s, unsigned level, unsigned d
             both = ms_rc_decode(&d->rc, pboth);
         }
         if (!both) {
+            if (n < 0)
+                sum = geo_sum_col(cx, s, &cx->rep[0][axis], &n);
             int64_t plane2 = lone ? cx->rep[s][axis] : descendant_centre2(cx, s, level, i, cur, axis);
             ms_rc_prob *phalf = &d->model[GEO_HALF(lam, run, geo_bucket(sum, n, wp, plane2))];
             second = d->enc ? dbit_code(d, phalf, second)

@@ -3,6 +3,7 @@
 #include "ms_big_alloc.h"
 #include "ms_codec_decisions.h"
 #include "ms_codec_internal.h"
+#include "ms_codec_lone.h"
 #include "ms_codec_model.h"
 #include "ms_codec_prior.h"
 #include "ms_complex.h"
@@ -436,9 +437,13 @@ static ms_status refine_ahead(ms_codec_decoder *d, uint32_t s, unsigned L, uint3
     unsigned dc = ms_ahead_depth(d, L + 1);
     for (int k = 0; k < 2 && out[k] != MS_CX_NONE; ++k) {
         d->order2[(*w)++] = out[k];
-        if (out[1] != MS_CX_NONE)
+        uint64_t mk = cx->ahead[out[k]];
+        bool deepen = dc == depth, several = (mk & (mk - 1)) != 0;
+        /* (a half that deepens with several descendants gets its point
+         * recomputed there, and its own point is no term of its centroid) */
+        if (out[1] != MS_CX_NONE && !(deepen && several))
             ms_ahead_update_rep(cx, out[k], L + 1, depth - 1);
-        if (dc == depth)
+        if (deepen)
             ms_ahead_deepen(d, out[k], L + 1, dc);
     }
     return MS_OK;
@@ -468,12 +473,24 @@ static ms_status refine_level(ms_codec_decoder *d, ms_error *err)
     uint32_t w = 0;
     const ms_codec_region *region = d->h.has_region ? &d->h.region : NULL;
     unsigned bits_in = (L - d->Lmin) / 3;
+    lone_level lv = {0};
+    bool fast = cx->ahead && !d->enc;
+    if (fast)
+        lone_level_init(d, L, &lv);
     for (uint32_t k = 0; k < d->norder; ++k) {
         uint32_t s = d->order[k];
         ms_cx_vert *v = &cx->v[s];
         if (v->frozen) {
             d->order2[w++] = s;
             continue;
+        }
+        if (fast) {
+            uint64_t m = cx->ahead[s];
+            if (m != 0 && (m & (m - 1)) == 0) {
+                refine_lone(d, &lv, s, v, m);
+                d->order2[w++] = s;
+                continue;
+            }
         }
         if (cx->ahead && cx->ahead[s]) {
             if ((r = refine_ahead(d, s, L, &w, err)) != MS_OK)

@@ -455,25 +455,24 @@ static void gather_small(ms_complex *cx, uint32_t c0, ms_cx_star *st)
         st->adj[i] = 1;
         st->both[i] = MS_CX_NONE;
     }
-    /* pairs sorted by (i, j); a repeated pair (a duplicate triangle) keeps the
+    /* pairs sorted by (i, j): per smaller index i a mask of the larger ones,
+     * read back in order; a repeated pair (a duplicate triangle) keeps the
      * later triangle, as the general gather does */
-    uint64_t x[MS_CX_SMALL_STAR];
+    uint64_t row[2 * MS_CX_SMALL_STAR];
+    uint32_t tri_of[2 * MS_CX_SMALL_STAR][2 * MS_CX_SMALL_STAR];
+    memset(row, 0, (size_t)n * sizeof *row);
     for (uint32_t p = 0; p < np; ++p) {
         uint32_t i = rank[pi[p]], j = rank[pj[p]];
         uint32_t lo = i < j ? i : j, hi = i < j ? j : i;
-        x[p] = (uint64_t)lo << 40 | (uint64_t)hi << 20 | p; /* distinct: p */
+        row[lo] |= 1ull << hi;
+        tri_of[lo][hi] = pt[p];
     }
-    sort_distinct_u64(x, np);
     uint32_t w = 0;
-    for (uint32_t r = 0; r < np; ++r) {
-        uint32_t i = (uint32_t)(x[r] >> 40), j = (uint32_t)(x[r] >> 20) & 0xFFFFF;
-        uint32_t t = pt[x[r] & 0xFFFFF];
-        if (w > 0 && st->pairs[w - 1].i == i && st->pairs[w - 1].j == j) {
-            st->pairs[w - 1].t0 = t;
-            continue;
+    for (uint32_t i = 0; i < n; ++i)
+        for (uint64_t r = row[i]; r; r &= r - 1) {
+            uint32_t j = (uint32_t)__builtin_ctzll(r);
+            st->pairs[w++] = (ms_cx_pair){i, j, tri_of[i][j], MS_CX_NONE};
         }
-        st->pairs[w++] = (ms_cx_pair){i, j, t, MS_CX_NONE};
-    }
     st->np = w;
 }
 
