@@ -15,7 +15,17 @@
   // the page is cross-origin isolated)
   const single = new URLSearchParams(location.hash.slice(1)).get('threads') === '0';
   const worker = new Worker('../web/worker.js' + (single ? '?threads=0' : ''));
+  // where the first milliseconds went, from the navigation (the worker puts
+  // them in window.meshstream.timing.boot): the page's answer, this script's
+  // fetch and its start; and the page's clock's origin, against which the
+  // worker places its own marks (timing.marksFromNavigation)
+  const nav = performance.getEntriesByType('navigation')[0];
+  const me = document.currentScript && performance.getEntriesByName(document.currentScript.src)[0];
+  const ms = x => (typeof x === 'number' ? Math.round(x) : null);
+  const bootTimes = { pageRequest: ms(nav && nav.requestStart), pageAnswer: ms(nav && nav.responseEnd),
+                      bootFetched: ms(me && me.responseEnd), bootRan: ms(performance.now()),
+                      timeOrigin: performance.timeOrigin };
   worker.postMessage({ type: 'prefetch', name, token: sessionStorage.getItem(tokenKey) || '',
-                       layout: staticSite ? 'static' : 'door' });
+                       layout: staticSite ? 'static' : 'door', boot: bootTimes });
   window.meshstreamBoot = { worker, at: performance.now(), name, staticSite, tokenKey };
 })();
