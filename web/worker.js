@@ -20,8 +20,19 @@
 // elsewhere (a static export's server without those headers, a frame of a
 // page that is not isolated) the single-threaded one. Its script is read
 // (importScripts waits for it) once the first message has sent the
-// model's first requests (boot.js's prefetch), and it compiles while they
-// travel, before the page sends the camera.
+// model's first requests (boot.js's prefetch); its WebAssembly comes
+// compiled from the page (boot.js's 'module' message: fetched and compiled
+// while this worker started), or, where the page could not, is fetched and
+// compiled here.
+let fromPage = null;
+const pageModule = new Promise(resolve => { fromPage = resolve; });
+function instantiate(file, imports, receive) {
+  pageModule.then(m => m && m.file === file && m.module ? m.module
+    : fetch(here(file)).then(r => r.arrayBuffer()).then(bytes => WebAssembly.compile(bytes)))
+    .then(module => WebAssembly.instantiate(module, imports).then(instance => receive(instance, module)))
+    .catch(e => fail('the decoder cannot start: ' + (e.message || String(e))));
+  return {};
+}
 const here = file => new URL(file, self.location.href).href;
 let threaded = self.crossOriginIsolated === true && typeof SharedArrayBuffer === 'function' &&
                new URL(self.location.href).searchParams.get('threads') !== '0';   // boot.js's #threads=0
@@ -41,8 +52,10 @@ function loadModule() {
   modulePromise = threaded
     ? createMeshstreamThreads({
         locateFile: file => here(file === 'meshstream-mt.worker.js' ? 'meshstream-mt-worker.js' : file),
-        mainScriptUrlOrBlob: here('meshstream-mt.js') })
-    : createMeshstream({ locateFile: here });
+        mainScriptUrlOrBlob: here('meshstream-mt.js'),
+        instantiateWasm: (imports, receive) => instantiate('meshstream-mt.wasm', imports, receive) })
+    : createMeshstream({ locateFile: here,
+                         instantiateWasm: (imports, receive) => instantiate('meshstream.wasm', imports, receive) });
   return modulePromise;
 }
 // Helper threads for decoding: the cores less this one, at most 2. They are
@@ -389,7 +402,12 @@ function prefetch(msg) {
   // the index's failure is told after the catalogue's verdict (an unknown
   // model is named as such, not as the index's 404)
   const index = get(layout.head(msg.name), msg.token).catch(e => e);
-  return { name: msg.name, token: msg.token, layout: msg.layout, listing, index };
+  // the root cell, all of it the reader may read (no ?bits: never refused):
+  // the first look draws from it without a round trip of its own, the home
+  // camera is framed by it, and every view deeper than the root needs it
+  // whole (a split cell stays at its finest bits)
+  const root = get(layout.cell(msg.name, 0, null), msg.token).catch(e => e);
+  return { name: msg.name, token: msg.token, layout: msg.layout, listing, index, root };
 }
 
 async function run(msg) {
@@ -399,7 +417,7 @@ async function run(msg) {
   // The module compiles while the catalogue's entry and the index arrive: the
   // three at once, not one round trip after another (first pixels), and
   // from the page's first script on (boot.js's prefetch).
-  const { listing, index } = prefetched && prefetched.name === name && prefetched.token === token &&
+  const { listing, index, root } = prefetched && prefetched.name === name && prefetched.token === token &&
                              prefetched.layout === msg.layout ? prefetched : prefetch(msg);
   const module = loadModule();
   layout = LAYOUTS[msg.layout] || LAYOUTS.door;
@@ -436,9 +454,22 @@ async function run(msg) {
   const box = Array.from(new Float64Array(heap(), bp, 4));
   M._free(bp);
   let bytes = blob.length, rounds = 0, bounds = null;
+  const rootAnswer = await root;
+  const giveRoot = () => {
+    if (rootAnswer instanceof Error)
+      return;
+    const got = rootAnswer.bytes;
+    timing.requests++;
+    timing.requestBytes += got.length;
+    if (withHeap(got, p => M._ms_web_view_give(view, 0, 0, p, got.length)) !== 0)
+      throw new Error('cell 0: ' + lastError());
+    bytes += got.length;
+  };
   if (!msg.camera) {
     // the root's bytes tell where the model lies in its box: the home camera
-    bytes += await fetchCell(name, token, 0, null, 0);
+    giveRoot();
+    if (rootAnswer instanceof Error)
+      bytes += await fetchCell(name, token, 0, null, 0);
     const p = M._malloc(48);
     if (M._ms_web_view_bounds(view, p) === 0)
       bounds = Array.from(new Float64Array(heap(), p, 6));
@@ -456,11 +487,23 @@ async function run(msg) {
   if (preview)
     M._ms_web_view_permit(view, entry.public_max_bits + 1);
   opened.permit = preview ? entry.public_max_bits + 1 : 0;
-  if (msg.camera)
+  const settledPtr = M._malloc(4);
+  if (msg.camera) {
+    // the subtrees the camera's own plan wants first: they travel with the
+    // first look (earlySubtrees); the root's bytes are given once the first
+    // look's tolerance is chosen (with them held, each plan tried would
+    // decode the root as far as it wants: to its finest bits where it
+    // would split)
+    setCamera(msg.camera);
+    M._ms_web_view_plan_ahead(view, 1);
+    if (plan(settledPtr) !== 0)
+      throw new Error('selecting the cut: ' + lastError());
+    for (let k = 0, n = M._ms_web_view_plan_subtree_count(view); k < n; ++k)
+      earlySubtrees.push(M._ms_web_view_plan_subtree(view, k));
     pendingCamera = msg.camera;
+  }
   while (!pendingCamera)
     await nextCamera();
-  const settledPtr = M._malloc(4);
   let seq = 0;                    // the page's number of the camera applied
   // A first look: with nothing drawn yet (a camera from the URL), the first
   // round selects at the finest of a few coarser tolerances whose bytes stay
@@ -470,15 +513,9 @@ async function run(msg) {
   // With the index by subtree, the first look is a cut of the cells known
   // (a tolerance whose plan wants no subtree: drawn without waiting for
   // one), and the subtrees the camera's own plan wants first travel with
-  // its bytes (earlySubtrees), so that plan finds them held.
+  // its bytes (earlySubtrees, above), so that plan finds them held; the
+  // root, asked for with the head, is there already.
   const firstLookCamera = c => {
-    setCamera(c);
-    M._ms_web_view_plan_ahead(view, 1);
-    if (plan(settledPtr) !== 0)
-      throw new Error('selecting the cut: ' + lastError());
-    for (let k = 0, n = M._ms_web_view_plan_subtree_count(view); k < n; ++k)
-      earlySubtrees.push(M._ms_web_view_plan_subtree(view, k));
-    M._ms_web_view_plan_ahead(view, 0);
     for (const times of FIRST_LOOK) {
       const coarse = Object.assign({}, c, { tolerance: c.tolerance * times });
       setCamera(coarse);
@@ -489,7 +526,7 @@ async function run(msg) {
         return;
     }
   };
-  let current = null, looking = false, firstLook = !bounds;
+  let current = null, looking = false, firstLook = !bounds, rootGiven = false;
   for (;;) {
     if (pendingCamera) {
       current = pendingCamera;
@@ -504,6 +541,10 @@ async function run(msg) {
         firstLookCamera(current);
       else
         setCamera(current);
+      if (msg.camera && !rootGiven) {
+        rootGiven = true;
+        giveRoot();
+      }
     } else if (looking) {
       looking = false;            // the first look is in: the camera's own tolerance
       M._ms_web_view_plan_ahead(view, 1);
@@ -697,65 +738,6 @@ function castOne(v, r, p) {
   return { point: o.slice(0, 3), t: o[3], bits: o[4], step: o[5], modelBits: o[6] };
 }
 
-// The probe (meshview's ms_viewer_probe.h): the cells under a measuring
-// point refined to full precision by a view of its own, which sees only the
-// point (from a thousandth of the box side in front of it along its ray, a
-// hundredth of a degree on 1000 x 1000 pixels: the cells there want more
-// bits than the model has; nothing outside wanted, culled 64 bits less),
-// fetched to settled (the browser's cache holds what the view fetched);
-// then the ray cast on its mesh. Answers {type: 'cast', refine: true, seq,
-// index, hit}.
-async function refine(msg) {
-  if (!opened)
-    return;
-  const box = new Float64Array(4), bp = M._malloc(32);
-  M._ms_web_view_box(view, bp);
-  box.set(new Float64Array(heap(), bp, 4));
-  M._free(bp);
-  for (const [index, r] of msg.points.entries()) {
-    const probe = openIndex(opened.blob, opened.name, opened.byHead);
-    let hit = null;
-    try {
-      M._ms_web_view_culled(probe, 64);
-      if (opened.permit)
-        M._ms_web_view_permit(probe, opened.permit);
-      applySections(probe);
-      const len = Math.hypot(...r.direction), dir = r.direction.map(x => x / len);
-      const back = box[3] / 1000, position = r.point.map((x, a) => x - back * dir[a]);
-      const side = Math.abs(dir[1]) < 0.9 ? [0, 1, 0] : [1, 0, 0];
-      const p = M._malloc(13 * 8);
-      try {
-        new Float64Array(heap(), p, 9).set([...position, ...r.point, ...side]);
-        if (M._ms_web_view_camera(probe, p, p + 24, p + 48, 0.01, 1000, 1000, 0, 0, 1) !== 0)
-          throw new Error(lastError(probe));
-        const settled = p + 72;
-        for (let round = 0; round < 64; ++round) {
-          if (M._ms_web_view_plan(probe, PLAN_MAX, settled) !== 0)
-            throw new Error(lastError(probe));
-          if (U32()[settled >> 2])
-            break;
-          for (let k = 0, n = M._ms_web_view_plan_subtree_count(probe); k < n; ++k)
-            await fetchSubtree(opened.name, opened.token, M._ms_web_view_plan_subtree(probe, k), probe);
-          const n = M._ms_web_view_plan_count(probe);
-          for (let k = 0; k < n; ++k)
-            await fetchCell(opened.name, opened.token, M._ms_web_view_plan_cell(probe, k),
-                            M._ms_web_view_plan_bits(probe, k), M._ms_web_view_plan_bytes(probe, k), probe);
-        }
-        if (M._ms_web_view_stitch(probe) !== 0)
-          throw new Error(lastError(probe));
-        hit = castOne(probe, { origin: position, direction: dir, tMin: 0, tNear: back }, p);
-      } finally {
-        M._free(p);
-      }
-    } catch (e) {
-      hit = null;             // the point stays as the view has it
-    } finally {
-      M._ms_web_view_free(probe);
-    }
-    postMessage({ type: 'cast', refine: true, seq: msg.seq, index, hit });
-  }
-}
-
 function cast(msg) {
   const hits = [];
   const p = view ? M._malloc(13 * 8) : 0;
@@ -767,6 +749,11 @@ function cast(msg) {
 }
 
 onmessage = e => {
+  if (e.data.type === 'module') {
+    mark('module from the page');
+    fromPage(e.data);
+    return;
+  }
   if (e.data.type === 'prefetch') {
     prefetched = prefetch(e.data);
     loadModule();
@@ -782,6 +769,8 @@ onmessage = e => {
     return;
   }
   if (e.data.type === 'refine') {
+    if (typeof refine !== 'function')
+      importScripts('probe.js');    // the measuring probe: refine()
     refine(e.data).catch(err => fail('refining a measuring point: ' + (err.message || String(err))));
     return;
   }
