@@ -313,7 +313,8 @@ WASM_EXPORTS := malloc free ms_web_view_new ms_web_view_free ms_web_view_error m
                ms_web_view_triangles ms_web_view_shown_cells ms_web_view_max_bits ms_web_view_bytes_held \
                ms_web_view_sections ms_web_view_cast ms_web_view_threads ms_web_view_plan_ahead \
                ms_web_view_new_head ms_web_view_give_subtree ms_web_view_plan_subtree_count \
-               ms_web_view_plan_subtree ms_web_view_subtrees_held ms_web_view_index_bytes_held
+               ms_web_view_plan_subtree ms_web_view_subtrees_held ms_web_view_index_bytes_held \
+               ms_web_view_prefix
 WASM_LDFLAGS := -O2 -sMODULARIZE=1 -sEXPORT_NAME=createMeshstream -sENVIRONMENT=worker \
                -sALLOW_MEMORY_GROWTH=1 -sFILESYSTEM=0 -sEXIT_RUNTIME=0 \
                -sEXPORTED_RUNTIME_METHODS=[HEAPU8,HEAPU32,HEAPF32,HEAPF64,UTF8ToString] \

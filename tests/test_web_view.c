@@ -325,6 +325,25 @@ static void test_bounds_from_the_root(void **state)
         assert_true(b[a] < -0.5 && b[a + 3] > 0.5);
     }
     ms_web_view_free(v);
+    /* from the prefix at 5 bits (what the page gives before the rest): the
+     * same box within the grid step at 5 bits, then the rest of the bytes
+     * extend it */
+    v = open_view(f);
+    uint32_t five = ms_web_view_prefix(v, 0, 5);
+    printf("the root: %zu bytes, %u of them to 5 bits\n", total, five);
+    assert_int_equal(five, ms_archive_geometry_prefix(f->archive, 0, 5));
+    assert_true(five > 0 && five < total);
+    assert_int_equal(ms_web_view_prefix(v, 0, 99), total); /* clamped to the window */
+    assert_int_equal(ms_web_view_prefix(v, ms_web_view_cell_count(v), 5), 0);
+    assert_int_equal(ms_web_view_give(v, 0, 0, root, five), MS_OK);
+    double c[6];
+    assert_int_equal(ms_web_view_bounds(v, c), MS_OK);
+    double step = ldexp(box[3], -5);
+    for (int a = 0; a < 6; ++a)
+        assert_true(fabs(c[a] - b[a]) <= step);
+    assert_int_equal(ms_web_view_give(v, 0, five, root + five, (uint32_t)(total - five)), MS_OK);
+    assert_int_equal(ms_web_view_held(v, 0), total);
+    ms_web_view_free(v);
 }
 
 static void test_sections_and_casts(void **state)

@@ -116,6 +116,7 @@ const STITCH_SHARE = 5;          // (at least this many times the last stitch's 
 const DECODE_EVERY_BYTES = 32768; // or after how many bytes
 const FIRST_LOOK = [16, 64, 256, 4096]; // the first round's tolerances, times the camera's
 const FIRST_LOOK_BYTES = 32768;         // and the most that round may fetch
+const HOME_BITS = 5;        // the root's bits for the home camera's bounds and first picture
 const ERROR_SIZE = 520;     // sizeof(ms_error), with room
 
 let M = null;               // the WebAssembly module
@@ -455,19 +456,25 @@ async function run(msg) {
   M._free(bp);
   let bytes = blob.length, rounds = 0, bounds = null;
   const rootAnswer = await root;
-  const giveRoot = () => {
+  // the root's bytes from `from` to `to` (all of them: counted once)
+  const giveRoot = (from = 0, to = Infinity) => {
     if (rootAnswer instanceof Error)
       return;
-    const got = rootAnswer.bytes;
-    timing.requests++;
-    timing.requestBytes += got.length;
-    if (withHeap(got, p => M._ms_web_view_give(view, 0, 0, p, got.length)) !== 0)
+    const got = rootAnswer.bytes.subarray(from, to);
+    if (from === 0) {
+      timing.requests++;
+      timing.requestBytes += rootAnswer.bytes.length;
+      bytes += rootAnswer.bytes.length;
+    }
+    if (got.length && withHeap(got, p => M._ms_web_view_give(view, 0, from, p, got.length)) !== 0)
       throw new Error('cell 0: ' + lastError());
-    bytes += got.length;
   };
+  let homeCut = 0;
   if (!msg.camera) {
-    // the root's bytes tell where the model lies in its box: the home camera
-    giveRoot();
+    // the root at HOME_BITS tells where the model lies in its box: the home
+    // camera (all of it took 0.5 s to decode), drawn at once; the rest after
+    homeCut = rootAnswer instanceof Error ? 0 : M._ms_web_view_prefix(view, 0, HOME_BITS);
+    giveRoot(0, homeCut);
     if (rootAnswer instanceof Error)
       bytes += await fetchCell(name, token, 0, null, 0);
     const p = M._malloc(48);
@@ -479,6 +486,10 @@ async function run(msg) {
   // the measuring line; null: "model units"
   postMessage({ type: 'box', box, bounds, triangles: entry.triangles,
                 unit: typeof entry.unit === 'string' && entry.unit ? entry.unit : null });
+  if (homeCut) {
+    postMesh(false, bytes);
+    giveRoot(homeCut);
+  }
   // A reader without a token reads a preview model to public_max_bits only.
   M._ms_web_view_culled(view, msg.culled);
   // A static tree holds only what its catalogue lists as public (meshexport

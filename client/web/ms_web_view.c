@@ -463,6 +463,11 @@ uint32_t ms_web_view_plan_bytes(const ms_web_view *v, uint32_t k)
     return k < v->plan_count ? v->plan[k].bytes : 0;
 }
 
+uint32_t ms_web_view_prefix(const ms_web_view *v, uint32_t cell, uint32_t bits)
+{
+    return ms_view_cell(v->view, cell) ? ms_archive_geometry_prefix(v->index, cell, bits) : 0;
+}
+
 uint32_t ms_web_view_held(const ms_web_view *v, uint32_t cell)
 {
     return (uint32_t)ms_view_held_bytes(v->view, cell);

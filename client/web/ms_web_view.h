@@ -127,6 +127,11 @@ ms_status ms_web_view_plan_ahead(ms_web_view *view, int on);
 uint32_t ms_web_view_plan_cell(const ms_web_view *view, uint32_t k);
 uint32_t ms_web_view_plan_bits(const ms_web_view *view, uint32_t k);
 uint32_t ms_web_view_plan_bytes(const ms_web_view *view, uint32_t k);
+/* The byte length of the cell's payload prefix complete at `bits` (clamped to
+ * its window; 0 for a cell whose record is not known): what a caller hands
+ * over to bring a cell to those bits (the home camera: the root's bounds at
+ * a few bits, before the rest of its bytes). */
+uint32_t ms_web_view_prefix(const ms_web_view *view, uint32_t cell, uint32_t bits);
 /* Bytes of the cell's payload already held (a fetch may ask for the rest with
  * Range: bytes=HELD-). */
 uint32_t ms_web_view_held(const ms_web_view *view, uint32_t cell);
