@@ -59,7 +59,7 @@ USES_client/core     := common/archive protocol
 USES_client/lib      := client/core
 USES_client/load     := client/core
 USES_client/view     := client/core common/apo
-USES_client/web      := common/archive
+USES_client/web      := common/archive common/apo
 PKGS_common/util     := jansson libpng zlib
 PKGS_common/codec    := zlib
 PKGS_common/apo      := zlib
@@ -295,12 +295,12 @@ uninstall:
 comma       := ,
 space       := $(subst ,, )
 WASM        := build/wasm
-WASM_ROOMS  := common/util common/mesh common/codec common/camera common/archive client/web
+WASM_ROOMS  := common/util common/mesh common/codec common/apo common/camera common/archive client/web
 WASM_SKIP   := common/util/ms_byte_source.c common/util/ms_json_out.c common/util/ms_png.c \
                common/util/ms_version.c common/util/ms_input_file.c \
                common/util/ms_cli.c common/util/ms_process_memory.c common/archive/ms_catalog.c \
                common/archive/ms_catalog_text.c common/archive/ms_metadata.c \
-               common/archive/ms_annotations.c
+               common/archive/ms_annotations.c common/apo/ms_apo_blob.c common/apo/ms_apo_stream.c
 WASM_SRCS   := $(filter-out $(WASM_SKIP),$(foreach r,$(WASM_ROOMS),$(call lib_srcs,$(r)))) \
                web/wasm/ms_wasm_zlib.c
 WASM_OBJS   := $(patsubst %.c,$(WASM)/obj/%.o,$(WASM_SRCS))
@@ -314,7 +314,10 @@ WASM_EXPORTS := malloc free ms_web_view_new ms_web_view_free ms_web_view_error m
                ms_web_view_sections ms_web_view_cast ms_web_view_threads ms_web_view_plan_ahead \
                ms_web_view_new_head ms_web_view_give_subtree ms_web_view_plan_subtree_count \
                ms_web_view_plan_subtree ms_web_view_subtrees_held ms_web_view_index_bytes_held \
-               ms_web_view_prefix
+               ms_web_view_prefix \
+               ms_web_view_run_count ms_web_view_run_cells ms_web_view_run_firsts ms_web_view_cell_cube \
+               ms_web_apo_new ms_web_apo_free ms_web_apo_geometry ms_web_apo_plan ms_web_apo_plan_cell ms_web_apo_plan_levels \
+               ms_web_apo_plan_bytes ms_web_apo_held ms_web_apo_level_texels ms_web_apo_give
 WASM_LDFLAGS := -O2 -sMODULARIZE=1 -sEXPORT_NAME=createMeshstream -sENVIRONMENT=worker \
                -sALLOW_MEMORY_GROWTH=1 -sFILESYSTEM=0 -sEXIT_RUNTIME=0 \
                -sEXPORTED_RUNTIME_METHODS=[HEAPU8,HEAPU32,HEAPF32,HEAPF64,UTF8ToString] \
@@ -336,7 +339,8 @@ WEB_FILES   := $(wildcard web/*.html web/*.js web/*.css)
 DRACO3D     ?= $(or $(MESHSTREAM_DRACO3D),$(or $(XDG_CACHE_HOME),$(HOME)/.cache)/meshstream/draco3d)
 DRACO3D_FILES := draco_decoder_nodejs.js draco_decoder.wasm
 .PHONY: wasm
-wasm: $(WASM)/site/meshstream.js $(WASM)/site/meshstream-mt.js $(patsubst web/%,$(WASM)/site/%,$(WEB_FILES))
+wasm: $(WASM)/site/meshstream.js $(WASM)/site/meshstream-mt.js $(patsubst web/%,$(WASM)/site/%,$(WEB_FILES)) \
+      $(WASM)/site/shaders.js
 	@if [ -s "$(DRACO3D)/draco_decoder_nodejs.js" ] && [ -s "$(DRACO3D)/draco_decoder.wasm" ]; then \
 	  for f in $(DRACO3D_FILES); do cmp -s "$(DRACO3D)/$$f" $(WASM)/site/$$f || cp "$(DRACO3D)/$$f" $(WASM)/site/$$f; done; \
 	else \
@@ -358,6 +362,11 @@ $(WASM)/site/meshstream-mt.js: $(WASM_MT_OBJS)
 	@mkdir -p $(dir $@)
 	NODE_PATH=/usr/share/nodejs $(EMCC) $(WASM_MT_LDFLAGS) $^ -o $@
 	mv $(WASM)/site/meshstream-mt.worker.js $(WASM)/site/meshstream-mt-worker.js
+# The page's shaders: meshview's, in GLSL ES 3.00 (web/es_shaders.py; docs/BROWSER.md "Drawing").
+$(WASM)/site/shaders.js: client/view/shaders/cell.vert.glsl client/view/shaders/cell.frag.glsl \
+                         client/view/shaders/apo.glsl web/es_shaders.py
+	@mkdir -p $(dir $@)
+	python3 web/es_shaders.py $@ client/view/shaders
 $(WASM)/site/%: web/%
 	@mkdir -p $(dir $@)
 	cp $< $@

@@ -188,6 +188,7 @@ static void test_chunks_round_trip_and_threads_agree(void **state)
     apo.tolerance = 0.15;
     apo.verify = true;
     apo.every_cell = true;
+    apo.budget = 0; /* the chunks as built, at the rule's depth (the budget: test_apo_budget) */
     bake(model, dir, "t1", 1, &apo, 16, 4, 7, 200);
     bake(model, dir, "t2", 2, &apo, 16, 4, 7, 200);
     snprintf(cmd, sizeof cmd, "cmp '%s/t1.msa' '%s/t2.msa'", dir, dir);
@@ -215,6 +216,7 @@ static void test_depth_rule_exact(void **state)
     apo.verify = true;
     apo.every_cell = true;
     apo.full_normals = true; /* the split's depth: no texel left to the smooth normal */
+    apo.budget = 0;          /* nor cut by the byte budget */
     bake(model, dir, "cap", 2, &apo, 16, 4, 7, 800);
     archive_check k = check_baked(dir, "cap", true);
     assert_true(k.chunks > 10);
@@ -652,6 +654,7 @@ static void test_cube_costs_no_apo(void **state)
     assert_true(r.apo_bytes <= r.geometry_bytes + 2048);
     apo.every_cell = true;
     apo.full_normals = true;
+    apo.budget = 0; /* the former rule's cost, which the byte budget would cut */
     bake_report(path, dir, "cube_every", 1, &apo, 16, 4, 7, 8000, &r);
     assert_int_equal(r.apo_chunks, 1);
     assert_int_equal(r.apo_levels, apo.max_depth + 1); /* the creases go to the cap */

@@ -6,6 +6,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 #include <zlib.h>
 #include <cmocka.h>
@@ -377,6 +378,40 @@ static void test_index_file(void **state)
     ms_archive_close(full);
 }
 
+/* ms_archive_file_stat describes the file mapped: after the path is renamed
+ * over by another file it still gives the first file's inode and size, and a
+ * truncation of that file in place shows; an index has no file. */
+static void test_file_stat_follows_the_mapped_file(void **state)
+{
+    fixture *f = *state;
+    ms_archive *a;
+    ms_error err;
+    assert_int_equal(ms_archive_open(f->path, &a, &err), MS_OK);
+    struct stat by_path, mapped;
+    assert_int_equal(stat(f->path, &by_path), 0);
+    assert_int_equal(ms_archive_file_stat(a, &mapped, &err), MS_OK);
+    assert_true(mapped.st_ino == by_path.st_ino && mapped.st_size == by_path.st_size);
+    char moved[700], other[700];
+    snprintf(moved, sizeof moved, "%s/moved.msa", f->dir);
+    snprintf(other, sizeof other, "%s/other.msa", f->dir);
+    assert_int_equal(rename(f->path, moved), 0);
+    ms_test_write_file(other, (const uint8_t *)"x", 1);
+    assert_int_equal(rename(other, f->path), 0);
+    assert_int_equal(ms_archive_file_stat(a, &mapped, &err), MS_OK);
+    assert_true(mapped.st_ino == by_path.st_ino && mapped.st_size == by_path.st_size);
+    assert_int_equal(truncate(moved, 100), 0);
+    assert_int_equal(ms_archive_file_stat(a, &mapped, &err), MS_OK);
+    assert_int_equal(mapped.st_size, 100);
+    size_t size;
+    const uint8_t *blob = ms_archive_index_bytes(a, &size);
+    ms_archive *idx;
+    assert_int_equal(ms_archive_open_index(blob, size, "model", &idx, &err), MS_OK);
+    assert_int_equal(ms_archive_file_stat(idx, &mapped, &err), MS_ERR_ARG);
+    assert_string_equal(err.text, "an index has no archive file");
+    ms_archive_close(idx);
+    ms_archive_close(a);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -388,6 +423,7 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_writer_refuses_bad_use, setup, teardown),
         cmocka_unit_test_setup_teardown(test_index_blob_and_payload_checks, setup, teardown),
         cmocka_unit_test_setup_teardown(test_index_file, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_file_stat_follows_the_mapped_file, setup, teardown),
     };
     return cmocka_run_group_tests_name("archive", tests, NULL, NULL);
 }

@@ -13,6 +13,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <arpa/inet.h>
+#include <dirent.h>
 #include <fcntl.h>
 #include <poll.h>
 #include <netinet/in.h>
@@ -70,16 +71,26 @@ static int start_server_with(void **state, const char *settings)
 
 static int start_server(void **state) { return start_server_with(state, ""); }
 
-/* At most 8 HTTP connections, each with 1 s to deliver a request header. */
+/* At most 8 HTTP connections, each with 1 s to deliver a request header; a
+ * connection shed is closed at once (http_park 0), so that a test sees its
+ * end. */
 static int start_guarded_server(void **state)
 {
-    return start_server_with(state, "http_max_connections = 8\nhttp_header_timeout = 1\n");
+    return start_server_with(state, "http_max_connections = 8\nhttp_header_timeout = 1\nhttp_park = 0\n");
 }
 
-/* At most 8 HTTP connections, with the default 30 s for a request header. */
+/* One HTTP connection at most, the connections shed parked for 2 s, 8 at
+ * most. */
+static int start_parking_server(void **state)
+{
+    return start_server_with(state, "http_max_connections = 1\nhttp_park = 2\nhttp_park_max = 8\n");
+}
+
+/* At most 8 HTTP connections, with the default 30 s for a request header; a
+ * connection shed is closed at once (http_park 0). */
 static int start_capped_server(void **state)
 {
-    return start_server_with(state, "http_max_connections = 8\n");
+    return start_server_with(state, "http_max_connections = 8\nhttp_park = 0\n");
 }
 
 static int stop_server(void **state)
@@ -997,6 +1008,89 @@ static void test_quiet_client_kept_at_the_cap(void **state)
         close(trickler[i]);
 }
 
+/* Whether a connection was ended by the server (its end of stream or a
+ * reset), without waiting. */
+static bool ended(int fd)
+{
+    char byte;
+    errno = 0;
+    ssize_t n = recv(fd, &byte, 1, MSG_DONTWAIT);
+    if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK))
+        return false;
+    assert_true(n <= 0); /* nothing is ever answered to a header never finished */
+    return true;
+}
+
+/* The server's open descriptors. */
+static size_t descriptors(pid_t pid)
+{
+    char path[64];
+    snprintf(path, sizeof path, "/proc/%d/fd", (int)pid);
+    DIR *d = opendir(path);
+    assert_non_null(d);
+    size_t n = 0;
+    for (struct dirent *e; (e = readdir(d));)
+        n += e->d_name[0] != '.';
+    closedir(d);
+    return n;
+}
+
+/* Parked (issue 32's slowloris figure): a connection shed at the cap is held,
+ * unread and unanswered, for http_park seconds, then reset, so a slowloris
+ * client sees no end and does not reconnect; the lot (http_park_max) resets
+ * its oldest when full. With one slot and a lot of 8: twelve connections that
+ * each send the start of a header, then a /metrics request, shed all twelve
+ * (each newcomer takes the only slot): the last 8 shed are parked, the first
+ * 4 reset as the lot filled (with http_park 0 all twelve would see their end
+ * at once); 2 s later every one is reset, and the server holds no more
+ * descriptors than before. A connection that has sent nothing yet is not
+ * parked when shed: it gets its end at once. */
+static void test_shed_connections_parked(void **state)
+{
+    server_fixture *f = *state;
+    enum { TRICKLERS = 12, LOT = 8 };
+    usleep(200000);
+    size_t before = descriptors(f->pid);
+    int trickler[TRICKLERS];
+    const char start[] = "GET /healthz HTTP/1.1\r\nHost: x\r\n";
+    for (int i = 0; i < TRICKLERS; ++i) {
+        trickler[i] = connect_loopback(f->http_port);
+        assert_int_equal(send(trickler[i], start, sizeof start - 1, MSG_NOSIGNAL),
+                         (ssize_t)sizeof start - 1);
+        usleep(20000);
+    }
+    uint64_t shed = 0, parked = 0;
+    assert_int_equal(ms_test_metric(f->http_port, "meshstream_http_connections_shed_total", &shed), 0);
+    assert_int_equal(shed, TRICKLERS); /* the last by /metrics itself */
+    assert_int_equal(ms_test_metric(f->http_port, "meshstream_http_connections_parked", &parked), 0);
+    assert_int_equal(parked, LOT);
+    usleep(100000);
+    int gone = 0;
+    for (int i = 0; i < TRICKLERS; ++i)
+        gone += ended(trickler[i]);
+    assert_int_equal(gone, TRICKLERS - LOT);
+    /* the lot's time: every one reset, the lot empty, its descriptors given back */
+    usleep(2600000);
+    for (int i = 0; i < TRICKLERS; ++i) {
+        assert_true(ended(trickler[i]));
+        close(trickler[i]);
+    }
+    assert_int_equal(ms_test_metric(f->http_port, "meshstream_http_connections_parked", &parked), 0);
+    assert_int_equal(parked, 0);
+    usleep(100000);
+    assert_true(descriptors(f->pid) <= before + 1); /* + the last /metrics connection */
+    int quiet = connect_loopback(f->http_port);
+    usleep(100000);
+    uint64_t shed_after = 0;
+    assert_int_equal(ms_test_metric(f->http_port, "meshstream_http_connections_shed_total", &shed_after), 0);
+    assert_int_equal(shed_after, TRICKLERS + 1); /* the quiet one, by this /metrics */
+    assert_int_equal(ms_test_metric(f->http_port, "meshstream_http_connections_parked", &parked), 0);
+    assert_int_equal(parked, 0);
+    usleep(100000);
+    assert_true(ended(quiet));
+    close(quiet);
+}
+
 /* The server's read system calls so far (/proc/PID/io's syscr: read, readv
  * and the like): a count of its work that the machine's load does not change. */
 static uint64_t read_calls(pid_t pid)
@@ -1256,6 +1350,8 @@ int main(void)
                                         stop_server),
         cmocka_unit_test_setup_teardown(test_burst_reads_before_a_ready_request,
                                         start_capped_server, stop_server),
+        cmocka_unit_test_setup_teardown(test_shed_connections_parked, start_parking_server,
+                                        stop_server),
         cmocka_unit_test_setup_teardown(test_hostile_requests, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_sighup_adds_model_and_sigterm_drains, start_server, stop_server),
     };

@@ -19,7 +19,10 @@
  *     the refusal and serves the next request on the same connection;
  *   - a server that drops the connection while idle: the next request
  *     reconnects once and comes whole; a document that never comes ends
- *     with the time-out's exact line. */
+ *     with the time-out's exact line;
+ *   - a model's annotations (ms_viewer_annotate.h) come the same way: asked
+ *     for at the model's first frame, which returns at once also on a silent
+ *     server, and taken by a later frame; none stored is the empty set. */
 #include <arpa/inet.h>
 #include <netinet/in.h>
 #include <setjmp.h>
@@ -43,6 +46,7 @@
 #include "ms_test_delay.h"
 #include "ms_test_net.h"
 #include "ms_test_quiet.h"
+#include "ms_viewer_annotate.h"
 #include "ms_viewer_catalogue.h"
 #include "ms_viewer_fetcher.h"
 
@@ -350,6 +354,104 @@ static void test_a_dropped_connection_reconnects_once(void **state)
     ms_test_quiet_stop(quiet);
 }
 
+/* Frames of a model's annotations (ms_viewer_annotate_load, as every frame
+ * calls it) until they came, for at most seconds; the slowest kept. */
+static void annotation_frames(ms_viewer_annotate *a, const ms_viewer_source *source, const char *model,
+                              double seconds, double *slowest_ms)
+{
+    double t0 = ms_now_seconds();
+    for (;;) {
+        double f0 = ms_now_seconds();
+        ms_viewer_annotate_load(a, source, model, NULL);
+        double ms = (ms_now_seconds() - f0) * 1e3;
+        if (ms > *slowest_ms)
+            *slowest_ms = ms;
+        if (!ms_viewer_annotate_pending(a) || ms_now_seconds() - t0 >= seconds)
+            return;
+        nap_ms(16);
+    }
+}
+
+/* meshview's annotations from a server: the fetcher brings the document (none
+ * stored: no bytes, no failure); the viewer's load asks and returns at once,
+ * on a silent server too, and a later frame takes them. */
+static void test_annotations_never_hold_the_frames(void **state)
+{
+    (void)state;
+    static const char notes[] =
+        "{\"format\": \"meshstream-annotations\", \"version\": 1, \"annotations\": [\n"
+        " {\"id\": \"tip\", \"point\": [0, 0, 0], \"title\": \"The tip\"},\n"
+        " {\"id\": \"base\", \"point\": [0, -1, 0], \"title\": \"The base\"}]}\n";
+    char sidecar[700];
+    snprintf(sidecar, sizeof sidecar, "%s/m4.annotations.json", fx.archives);
+    ms_test_write_file(sidecar, (const uint8_t *)notes, sizeof notes - 1);
+    ms_viewer_source source = {.host = "127.0.0.1", .port = fx.port, .timeout_s = 5};
+    ms_viewer_fetcher *f;
+    ms_error err;
+    assert_int_equal(ms_viewer_fetcher_new(&source, &f, &err), MS_OK);
+    ms_viewer_fetched r;
+    ms_viewer_fetcher_want_annotations(f, "m3");
+    next_result(f, &r);
+    assert_int_equal(r.kind, MS_FETCHED_ANNOTATIONS);
+    assert_int_equal(r.status, MS_OK);
+    assert_string_equal(r.entry.name, "m3");
+    assert_null(r.document);
+    ms_viewer_fetched_free(&r);
+    ms_viewer_fetcher_want_annotations(f, "m4");
+    next_result(f, &r);
+    assert_int_equal(r.status, MS_OK);
+    assert_int_equal(r.document_size, sizeof notes - 1);
+    assert_memory_equal(r.document, notes, sizeof notes - 1);
+    ms_viewer_fetched_free(&r);
+    assert_int_equal(ms_viewer_fetcher_connections(f), 1);
+    ms_viewer_fetcher_free(f);
+
+    /* the viewer's side: asked, then taken by a later frame, the one selected */
+    ms_viewer_annotate a;
+    ms_viewer_annotate_init(&a, NULL, "base");
+    double slowest_ms = 0;
+    annotation_frames(&a, &source, "m4", 10, &slowest_ms);
+    assert_false(ms_viewer_annotate_pending(&a));
+    assert_int_equal(ms_annotations_count(a.set), 2);
+    assert_string_equal(a.from, "server");
+    assert_int_equal(a.selected, 1);
+    assert_true(slowest_ms < FRAME_LIMIT_MS);
+    annotation_frames(&a, &source, "m3", 10, &slowest_ms); /* none stored: the empty set */
+    assert_false(ms_viewer_annotate_pending(&a));
+    assert_non_null(a.set);
+    assert_int_equal(ms_annotations_count(a.set), 0);
+    assert_string_equal(a.from, "none");
+    assert_string_equal(a.message, "--annotation: no annotation 'base' among 0");
+    ms_viewer_annotate_free(&a);
+
+    /* a silent server: 40 frames go on at their pace, still waiting; leaving
+     * the model with the fetch in flight returns at once */
+    uint16_t port = 0;
+    int fd = silent_listener(&port);
+    assert_true(fd >= 0);
+    ms_viewer_source silent = {.host = "127.0.0.1", .port = port, .timeout_s = SILENT_TIMEOUT_S};
+    ms_viewer_annotate_init(&a, NULL, NULL);
+    slowest_ms = 0;
+    double t0 = ms_now_seconds();
+    for (int i = 0; i < 40; ++i) {
+        annotation_frames(&a, &silent, "m4", 0, &slowest_ms);
+        nap_ms(5);
+    }
+    double forty_s = ms_now_seconds() - t0;
+    printf("annotations from a silent server: 40 frames in %.0f ms, the slowest %.2f ms\n",
+           forty_s * 1e3, slowest_ms);
+    assert_true(forty_s < SILENT_TIMEOUT_S / 4);
+    assert_true(slowest_ms < FRAME_LIMIT_MS);
+    assert_true(ms_viewer_annotate_pending(&a));
+    assert_null(a.set);
+    t0 = ms_now_seconds();
+    ms_viewer_annotate_free(&a);
+    assert_true((ms_now_seconds() - t0) * 1e3 < 200);
+    assert_false(ms_viewer_annotate_pending(&a));
+    close(fd);
+    unlink(sidecar);
+}
+
 static int setup(void **state)
 {
     (void)state;
@@ -387,6 +489,7 @@ int main(void)
         cmocka_unit_test(test_a_distant_server_selecting_quickly),
         cmocka_unit_test(test_a_refusal_keeps_the_connection),
         cmocka_unit_test(test_a_dropped_connection_reconnects_once),
+        cmocka_unit_test(test_annotations_never_hold_the_frames),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }

@@ -24,6 +24,11 @@
  *   - its inflater (ms_web_inflate, the WebAssembly build's zlib) gives
  *     zlib's bytes back for every level and strategy, and refuses a
  *     truncated, damaged or oversized stream;
+ *   - APO (ms_web_apo.h): a camera far enough that the root alone is shown
+ *     lists the root's chunk at exactly the footprint rule's levels and
+ *     prefix; its words (inflated natively) are taken, a wrong count and a
+ *     damaged word refused with one line, nothing held; under a preview the
+ *     levels are the preview rule's at most;
  *   - bad input: a damaged index blob, no camera, a bad camera or tolerance,
  *     a gap, bytes past the payload, an unknown cell: each a status and one
  *     line, nothing held. */
@@ -38,13 +43,17 @@
 #include <cmocka.h>
 #include <zlib.h>
 
+#include "ms_apo_stream.h"
 #include "ms_archive.h"
+#include "ms_camera.h"
+#include "ms_preview.h"
 #include "ms_nsp_check.h"
 #include "ms_study_cut.h"
 #include "ms_subtree.h"
 #include "ms_test.h"
 #include "ms_view_decoder.h"
 #include "ms_web_inflate.h"
+#include "ms_web_apo.h"
 #include "ms_web_view.h"
 
 typedef struct fixture {
@@ -194,6 +203,31 @@ static void test_streams_to_the_cut_of_every_byte(void **state)
         if (ms_view_state(full, c) == MS_VIEW_SHOWN && ms_view_bits(full, c) > max_bits)
             max_bits = ms_view_bits(full, c);
     assert_int_equal(ms_web_view_max_bits(v), max_bits);
+    /* the renderer's cells: the triangles grouped by the cell that drew them,
+     * ascending, each triangle in its cell's run; each cell's cube */
+    uint32_t runs = ms_web_view_run_count(v);
+    const uint32_t *run_cells = ms_web_view_run_cells(v), *run_firsts = ms_web_view_run_firsts(v);
+    assert_true(runs > 1);
+    assert_true(runs <= ms_web_view_shown_cells(v));
+    assert_int_equal(run_firsts[0], 0);
+    assert_int_equal(run_firsts[runs], mesh.triangle_count);
+    for (uint32_t k = 0; k < runs; ++k) {
+        assert_true(k == 0 || run_cells[k] > run_cells[k - 1]);
+        assert_true(run_firsts[k] <= run_firsts[k + 1]);
+        for (uint32_t t = run_firsts[k]; t < run_firsts[k + 1]; ++t)
+            assert_int_equal(mesh.triangle_cell[t], run_cells[k]);
+        const ms_archive_cell *rec = ms_archive_get_cell(f->archive, run_cells[k]);
+        double cube[4], side = h->box_side;
+        assert_int_equal(ms_web_view_cell_cube(v, run_cells[k], cube), MS_OK);
+        for (unsigned l = 0; l < rec->level; ++l)
+            side /= h->n;
+        assert_true(cube[3] == side);
+        for (int a = 0; a < 3; ++a)
+            assert_true(cube[a] == h->box_origin[a] + rec->position[a] * side);
+    }
+    double cube[4];
+    assert_int_equal(ms_web_view_cell_cube(v, ms_web_view_cell_count(v), cube), MS_ERR_ARG);
+    assert_string_equal(ms_web_view_error(v), "no such cell");
     ms_view_mesh_free(&mesh);
     ms_view_destroy(full);
     ms_web_view_free(v);
@@ -410,6 +444,104 @@ static void test_sections_and_casts(void **state)
     /* nothing stitched yet */
     v = open_view(f);
     assert_int_equal(ms_web_view_cast(v, POSITION, dir, 0, 0, back), 0);
+    ms_web_view_free(v);
+}
+
+/* The root's chunk, levels 0 .. levels - 1, inflated from the archive's
+ * stored bytes (natively; the page inflates with the browser's). */
+static uint32_t *root_words(const ms_archive *a, uint32_t levels, uint32_t *count)
+{
+    uint32_t table[2 * 31];
+    const ms_archive_cell *rec = ms_archive_get_cell(a, 0);
+    for (uint32_t l = 0; l < rec->apo_levels; ++l)
+        table[2 * l] = ms_archive_apo_prefix(a, 0, l, &table[2 * l + 1]);
+    size_t length;
+    const uint8_t *stored = ms_archive_apo(a, 0, &length);
+    ms_apo_chunk chunk = {0};
+    ms_error err;
+    assert_int_equal(ms_apo_stream_inflate(stored, ms_archive_apo_prefix(a, 0, levels - 1, NULL), table,
+                                           rec->apo_levels, &chunk, &err), MS_OK);
+    *count = (uint32_t)chunk.texel_count;
+    return chunk.texels; /* owned by the caller */
+}
+
+static void test_apo_plan_and_check(void **state)
+{
+    fixture *f = *state;
+    const ms_archive_cell *root = ms_archive_get_cell(f->archive, 0);
+    assert_true(root->apo_levels > 1); /* the demo's internal cells carry a chunk */
+    ms_web_view *v = open_view(f);
+    ms_web_apo *apo = ms_web_apo_new(v);
+    assert_non_null(apo);
+    assert_int_equal(ms_web_apo_plan(apo, 16, 1.0), 0); /* no camera */
+    /* far: the root alone is shown; APO's detail at 1 px */
+    static const double far_position[3] = {0.6, 0.4, 3.2};
+    assert_int_equal(ms_web_view_camera(v, far_position, TARGET, UP, 40, 320, 240, 0, 0, 64.0), MS_OK);
+    stream(f, v);
+    assert_int_equal(ms_web_view_shown_cells(v), 1);
+    assert_int_equal(ms_web_apo_plan(apo, 16, 1.0), 1);
+    assert_int_equal(ms_web_apo_plan_cell(apo, 0), 0);
+    /* the footprint rule, worked out here with the view's camera */
+    double box[4];
+    ms_web_view_box(v, box);
+    double lo[3] = {box[0], box[1], box[2]}, hi[3] = {box[0] + box[3], box[1] + box[3], box[2] + box[3]}, near,
+           far;
+    ms_camera_depth_range(far_position, lo, hi, &near, &far);
+    ms_camera camera;
+    ms_error err;
+    assert_int_equal(ms_camera_look_at(far_position, TARGET, UP, 40, 320, 240, far * 1e-5, far, &camera, &err),
+                     MS_OK);
+    unsigned levels = ms_apo_footprint_levels(&camera, lo, box[3], 1.0, root->apo_levels);
+    printf("root: %u of its %u APO levels wanted, %u bytes\n", levels, root->apo_levels,
+           ms_web_apo_plan_bytes(apo, 0));
+    assert_int_equal(ms_web_apo_plan_levels(apo, 0), levels);
+    assert_int_equal(ms_web_apo_plan_bytes(apo, 0), ms_archive_apo_prefix(f->archive, 0, levels - 1, NULL));
+    /* a coarser detail tolerance wants fewer levels, or as many */
+    assert_int_equal(ms_web_apo_plan(apo, 16, 64.0), 1);
+    assert_true(ms_web_apo_plan_levels(apo, 0) <= levels);
+    assert_int_equal(ms_web_apo_plan(apo, 2, 1.0), 1);
+    assert_int_equal(ms_web_apo_plan_levels(apo, 0), levels < 2 ? levels : 2);
+
+    uint32_t count, *words = root_words(f->archive, levels, &count);
+    uint32_t total = 0;
+    for (uint32_t l = 0; l < levels; ++l)
+        total += ms_web_apo_level_texels(apo, 0, l);
+    assert_int_equal(count, total);
+    assert_int_equal(ms_web_apo_level_texels(apo, 0, root->apo_levels), 0);
+    /* refused: a count that is not those levels' words, a damaged word */
+    assert_int_equal(ms_web_apo_give(apo, 0, levels, words, count - 1), MS_ERR_ARG);
+    printf("%s\n", ms_web_view_error(v));
+    assert_non_null(strstr(ms_web_view_error(v), "APO words"));
+    assert_int_equal(ms_web_apo_give(apo, 0, root->apo_levels + 1, words, count), MS_ERR_ARG);
+    uint32_t saved = words[0];
+    words[0] = ms_web_apo_level_texels(apo, 0, 0) == 2 ? 0x00000100u : 0xFF000000u; /* an offset / a high byte */
+    assert_int_equal(ms_web_apo_give(apo, 0, levels, words, count), MS_ERR_CORRUPT);
+    printf("%s\n", ms_web_view_error(v));
+    assert_int_equal(ms_web_apo_held(apo, 0), 0);
+    words[0] = saved;
+    assert_int_equal(ms_web_apo_give(apo, 0, levels, words, count), MS_OK);
+    assert_int_equal(ms_web_apo_held(apo, 0), levels);
+    assert_int_equal(ms_web_apo_plan(apo, 16, 1.0), 0); /* all of it held */
+    free(words);
+    ms_web_apo_free(apo);
+    ms_web_view_free(v);
+
+    /* a preview: no level beyond the rule */
+    v = open_view(f);
+    apo = ms_web_apo_new(v);
+    unsigned steps = root->bits_min + 1;
+    ms_web_view_permit(v, steps);
+    assert_int_equal(ms_web_view_camera(v, far_position, TARGET, UP, 40, 320, 240, 0, 0, 64.0), MS_OK);
+    stream(f, v);
+    unsigned rule = ms_archive_preview_apo_levels(ms_archive_get_header(f->archive), root, steps);
+    uint32_t listed = ms_web_apo_plan(apo, 16, 1.0);
+    printf("preview of %u steps: the rule allows %u levels, %u listed\n", steps, rule,
+           listed ? ms_web_apo_plan_levels(apo, 0) : 0);
+    assert_true(rule < levels);
+    assert_int_equal(listed, rule > 0);
+    if (listed)
+        assert_int_equal(ms_web_apo_plan_levels(apo, 0), rule);
+    ms_web_apo_free(apo);
     ms_web_view_free(v);
 }
 
@@ -738,6 +870,7 @@ int main(void)
         cmocka_unit_test(test_preview_cap),
         cmocka_unit_test(test_bounds_from_the_root),
         cmocka_unit_test(test_sections_and_casts),
+        cmocka_unit_test(test_apo_plan_and_check),
         cmocka_unit_test(test_bad_input),
         cmocka_unit_test(test_index_by_subtree),
         cmocka_unit_test(test_bad_subtrees),

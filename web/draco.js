@@ -97,8 +97,10 @@ void main() {
   gl_Position = viewProjection * vec4(position, 1.0);
 }`;
 
-// meshview's lit shading in its geometry mode with the head light, as
-// view.js's FRAGMENT (its comment gives the law).
+// meshview's lit shading in its geometry mode with the head light
+// (client/view/shaders/cell.frag.glsl, LIT, the viewer's default options),
+// ported by hand: the viewer itself draws with that very shader
+// (web/render.js, docs/BROWSER.md "Drawing").
 const FRAGMENT = `#version 300 es
 precision highp float;
 in vec3 world;

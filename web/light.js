@@ -59,11 +59,5 @@ const MsLight = (() => {
     return l ? 'light az ' + l.az.toFixed(1) + ' el ' + l.el.toFixed(1) + ' deg' : 'head light';
   }
 
-  // The fragment shader's uniforms (view.js's FRAGMENT: headLight, lightDir).
-  function uniforms(gl, program, l, camera) {
-    gl.uniform1i(gl.getUniformLocation(program, 'headLight'), l ? 0 : 1);
-    gl.uniform3fv(gl.getUniformLocation(program, 'lightDir'), world(l, camera));
-  }
-
-  return { eye, world, drag, nextPreset, describe, uniforms };
+  return { eye, world, drag, nextPreset, describe };
 })();

@@ -77,14 +77,5 @@ const MsSection = (() => {
     }).join('');
   }
 
-  // The fragment shader's uniforms (view.js's FRAGMENT).
-  function uniforms(gl, program, list) {
-    const p = new Float32Array(4 * MAX);
-    planes(list).forEach((q, k) => p.set(q, 4 * k));
-    gl.uniform1i(gl.getUniformLocation(program, 'sectionCount'), list.length);
-    gl.uniform4fv(gl.getUniformLocation(program, 'sectionPlane'), p);
-    gl.uniform3fv(gl.getUniformLocation(program, 'sectionColour'), COLOUR);
-  }
-
-  return { MAX, planes, key, describe, uniforms };
+  return { MAX, COLOUR, planes, key, describe };
 })();

@@ -4,8 +4,8 @@
 // worker's part (section planes, casts) and their place in meshview's view
 // text (share.js) in the URL. Loaded before view.js; it reads view.js's
 // camera, box, canvas and worker when an event comes, and view.js calls
-// MsTools at a few points (the shader's uniforms, the worker's messages,
-// the URL).
+// MsTools at a few points (the light and planes a frame draws with, the
+// worker's messages, the URL).
 'use strict';
 
 const MsTools = (() => {
@@ -310,9 +310,12 @@ const MsTools = (() => {
 
   // ---- Drawing -----------------------------------------------------------
 
-  function uniforms(gl, program, c) {
-    MsLight.uniforms(gl, program, st.light, c);
-    MsSection.uniforms(gl, program, st.sections);
+  // What a frame draws with (web/render.js): the light's direction in eye
+  // space, towards it (null: the head light), the planes (a b c d, the side
+  // a x + b y + c z + d > 0 cut away) and the section colour.
+  function lighting() {
+    return { light: st.light ? MsLight.eye(st.light) : null, planes: MsSection.planes(st.sections),
+             sectionColour: MsSection.COLOUR };
   }
 
   function drawn(c) {
@@ -338,6 +341,6 @@ const MsTools = (() => {
     return st.error || '';
   }
 
-  return { viewText, viewError, toHash, hashString, fromView, message, started, recast, uniforms, drawn, act,
+  return { viewText, viewError, toHash, hashString, fromView, message, started, recast, lighting, drawn, act,
            measureAt, measureRay, publish, setLight };
 })();

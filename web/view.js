@@ -103,120 +103,60 @@ function viewProjection(c, width, height, near, far) {
   return m;
 }
 
-// ---- WebGL 2 -----------------------------------------------------------------
+// ---- WebGL 2: meshview's shaders (web/render.js) ----------------------------
+// The shading mode: meshview's --shading apo (the default: lit, with the APO
+// normals where a cell's chunk came), geometry (lit, no APO: none fetched),
+// normals or cells (with APO as apo), from #shading= or the HUD's control
+// (its N and C keys toggle normals and cells, as meshview's); the URL keeps
+// it when it is not the default. The worker fetches APO chunks only for a
+// mode that draws them (docs/BROWSER.md, "APO").
 
-const VERTEX = `#version 300 es
-layout(location = 0) in vec3 position;
-layout(location = 1) in vec3 normal;
-uniform mat4 viewProjection;
-out vec3 world;
-out vec3 smoothNormal;
-void main() {
-  world = position;
-  smoothNormal = normal;
-  gl_Position = viewProjection * vec4(position, 1.0);
-}`;
-
-// meshview's lit shading in its geometry mode (client/view/shaders/
-// cell.frag.glsl, LIT without APO, the viewer's default options of
-// ms_render.c), in GLSL ES 3.00: the interpolated vertex normal (the
-// decoder's: per vertex the area-weighted mean of its triangles', in their
-// winding), the triangle's own where a vertex has none or the vertex normal
-// stands against it (a fold); two-sided (a face seen from behind is lit as
-// its other side); one head light of colour 1 with meshrender's
-// self-shadowing factor, so diffuse (N.L)^2; a Blinn-Phong highlight of
-// strength 0.18 and shininess 40 under the same factor; albedo (0.72, 0.69,
-// 0.64) times (0.05 + 0.95 diffuse); the exact sRGB curve out. The same
-// dot products in world space as meshview's in eye space (a rotation apart).
-// The light and the section planes are tools.js's (light.js, section.js):
-// a directional light replaces the head light's direction in the same law;
-// what a plane cuts away is discarded, and a back face seen through the cut
-// is drawn flat in the section colour, as meshview draws it.
-const FRAGMENT = `#version 300 es
-precision highp float;
-in vec3 world;
-in vec3 smoothNormal;
-uniform vec3 eye;
-uniform bool headLight;
-uniform vec3 lightDir;          // towards the light, world, unit
-uniform int sectionCount;
-uniform vec4 sectionPlane[3];   // a b c d: a x + b y + c z + d > 0 cut away
-uniform vec3 sectionColour;
-out vec4 colour;
-const vec3 ALBEDO = vec3(0.72, 0.69, 0.64);
-const float SPECULAR = 0.18, SHININESS = 40.0;
-vec3 srgbEncode(vec3 c) {
-  c = clamp(c, 0.0, 1.0);
-  return mix(12.92 * c, 1.055 * pow(c, vec3(1.0 / 2.4)) - 0.055, greaterThan(c, vec3(0.0031308)));
+const SHADING_NAMES = Object.keys(MsRender.MODES);
+let shading = 'apo';
+if (hash.get('shading') !== null) {
+  if (SHADING_NAMES.includes(hash.get('shading')))
+    shading = hash.get('shading');
+  else
+    failPage('The shading in the URL is not one of ' + SHADING_NAMES.join(', ') + ' (#shading=MODE).');
 }
-void main() {
-  for (int k = 0; k < 3; ++k)
-    if (k < sectionCount && dot(sectionPlane[k].xyz, world) + sectionPlane[k].w > 0.0)
-      discard;
-  if (sectionCount > 0 && !gl_FrontFacing) {
-    colour = vec4(sectionColour, 1.0);
-    return;
-  }
-  // the stored orientation of the triangle: cross(d/dx, d/dy) faces the eye
-  vec3 g = cross(dFdx(world), dFdy(world));
-  g = dot(g, g) > 0.0 ? normalize(g) : vec3(0.0, 0.0, 1.0);
-  vec3 ng = gl_FrontFacing ? g : -g;
-  vec3 n = ng;
-  float len = length(smoothNormal);
-  if (len > 1e-3)
-    n = smoothNormal / len;
-  if (dot(n, ng) < 0.0)
-    n = ng;
-  vec3 v = normalize(eye - world);
-  if (dot(ng, v) < 0.0) {
-    ng = -ng;
-    n = -n;
-  }
-  vec3 l = headLight ? v : lightDir;
-  float selfShadow = max(0.0, dot(l, n));
-  float diffuse = selfShadow * max(0.0, dot(n, l));
-  float highlight = selfShadow * pow(max(0.0, dot(n, normalize(l + v))), SHININESS);
-  vec3 linear = ALBEDO * (0.05 + 0.95 * diffuse) + SPECULAR * highlight;
-  colour = vec4(srgbEncode(linear), 1.0);
-}`;
-
-// meshview's background: linear 0.02, sRGB-encoded.
-const BACKGROUND = 0.1517;
+page.shading = shading;
 
 const gl = canvas.getContext('webgl2', { antialias: false });
-let program = null, vao = null, positionBuffer = null, normalBuffer = null, indexBuffer = null;
-let indexCount = 0, box = null, frameRequested = false;
-
-function compile(type, source) {
-  const s = gl.createShader(type);
-  gl.shaderSource(s, source);
-  gl.compileShader(s);
-  if (!gl.getShaderParameter(s, gl.COMPILE_STATUS))
-    throw new Error('shader: ' + gl.getShaderInfoLog(s));
-  return s;
-}
+let indexCount = 0, box = null, frameRequested = false, lastSentApo = false, completeWaiting = null;
 
 function setUpGl() {
-  program = gl.createProgram();
-  gl.attachShader(program, compile(gl.VERTEX_SHADER, VERTEX));
-  gl.attachShader(program, compile(gl.FRAGMENT_SHADER, FRAGMENT));
-  gl.linkProgram(program);
-  if (!gl.getProgramParameter(program, gl.LINK_STATUS))
-    throw new Error('program: ' + gl.getProgramInfoLog(program));
-  vao = gl.createVertexArray();
-  gl.bindVertexArray(vao);
-  positionBuffer = gl.createBuffer();
-  normalBuffer = gl.createBuffer();
-  indexBuffer = gl.createBuffer();
-  gl.bindBuffer(gl.ARRAY_BUFFER, positionBuffer);
-  gl.enableVertexAttribArray(0);
-  gl.vertexAttribPointer(0, 3, gl.FLOAT, false, 0, 0);
-  gl.bindBuffer(gl.ARRAY_BUFFER, normalBuffer);
-  gl.enableVertexAttribArray(1);
-  gl.vertexAttribPointer(1, 3, gl.FLOAT, false, 0, 0);
-  gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, indexBuffer);
-  gl.enable(gl.DEPTH_TEST);
+  MsRender.setUp(gl);
 }
+
+function setShading(mode) {
+  if (!SHADING_NAMES.includes(mode) || mode === shading)
+    return;
+  shading = mode;
+  page.shading = mode;
+  shadingControl.value = mode;
+  if (mode === 'apo')
+    hash.delete('shading');
+  else
+    hash.set('shading', mode);
+  history.replaceState(null, '', '#' + MsTools.hashString(hash));
+  if (worker && box && camera && MsRender.usesApo(mode) && !lastSentApo)
+    worker.postMessage({ type: 'camera', camera: workerCamera() });   // the chunks, now wanted
+  requestDraw();
+}
+
+const shadingControl = document.getElementById('shading');
+shadingControl.value = shading;
+shadingControl.addEventListener('change', () => setShading(shadingControl.value));
+window.addEventListener('keydown', e => {
+  if (e.target instanceof HTMLInputElement || e.target instanceof HTMLSelectElement || e.ctrlKey ||
+      e.metaKey || e.altKey)
+    return;
+  const k = e.key.toLowerCase(), mode = k === 'n' ? 'normals' : k === 'c' ? 'cells' : null;
+  if (mode) {
+    setShading(shading === mode ? 'apo' : mode);   // meshview's toggle
+    e.preventDefault();
+  }
+});
 
 function resize() {
   const ratio = window.devicePixelRatio || 1;
@@ -259,19 +199,22 @@ function draw() {
 function drawFrame() {
   frameRequested = false;
   resize();
-  gl.viewport(0, 0, canvas.width, canvas.height);
-  gl.clearColor(BACKGROUND, BACKGROUND, BACKGROUND, 1);
-  gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
-  if (!indexCount || !camera || !box)
+  const ready = indexCount && camera && box;
+  const [near, far] = ready ? depthRange() : [1, 2];
+  const drawn = MsRender.draw(Object.assign(MsTools.lighting(), {
+    camera: ready ? camera : null, width: canvas.width, height: canvas.height, near, far,
+    mode: MsRender.MODES[shading], shading }));
+  page.apo = Object.assign({}, MsRender.apoStats, { waiting: drawn.waiting });
+  page.upload = MsRender.meshStats;
+  if (drawn.waiting)
+    requestDraw();          // a mesh or APO texels beyond this frame's upload budget
+  else if (completeWaiting) {
+    const m = completeWaiting;
+    completeWaiting = null;
+    complete(m);
+  }
+  if (!ready || !drawn.cells)
     return;
-  const [near, far] = depthRange();
-  gl.useProgram(program);
-  gl.uniformMatrix4fv(gl.getUniformLocation(program, 'viewProjection'), false,
-                      viewProjection(camera, canvas.width, canvas.height, near, far));
-  gl.uniform3fv(gl.getUniformLocation(program, 'eye'), camera.position);
-  MsTools.uniforms(gl, program, camera);
-  gl.bindVertexArray(vao);
-  gl.drawElements(gl.TRIANGLES, indexCount, gl.UNSIGNED_INT, 0);
   pageTiming.frames++;
   MsTools.drawn(camera);
   if (typeof annotationsOnDraw === 'function')   // web/annotations.js: the markers
@@ -287,20 +230,14 @@ function requestDraw() {
   }
 }
 
-function upload(positions, normals, triangles) {
+function upload(m) {
   const t = performance.now();
   pageTiming.meshes++;
-  gl.bindVertexArray(vao);
-  gl.bindBuffer(gl.ARRAY_BUFFER, positionBuffer);
-  gl.bufferData(gl.ARRAY_BUFFER, positions, gl.STATIC_DRAW);
-  gl.bindBuffer(gl.ARRAY_BUFFER, normalBuffer);
-  gl.bufferData(gl.ARRAY_BUFFER, normals, gl.STATIC_DRAW);
-  gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, indexBuffer);
-  gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, triangles, gl.STATIC_DRAW);
-  indexCount = triangles.length;
+  MsRender.upload(m);
+  indexCount = m.triangles.length;
   pageTiming.upload += (performance.now() - t) / 1000;
   if (typeof annotationsOnMesh === 'function')   // web/annotations.js: occlusion
-    annotationsOnMesh(positions, triangles);
+    annotationsOnMesh(m.positions, m.triangles);
 }
 
 // ---- Camera: home, orbit, zoom, the URL ------------------------------------
@@ -478,8 +415,10 @@ function workerCamera() {
   if (page.state !== 'error')
     page.state = 'loading';
   cameraSentAt = performance.now();
+  lastSentApo = MsRender.usesApo(shading);
+  completeWaiting = null;
   return Object.assign({}, camera, { width: canvas.width, height: canvas.height, tolerance,
-                                     seq: ++cameraSeq });
+                                     seq: ++cameraSeq, apo: MsRender.usesApo(shading) });
 }
 
 // A camera typed or pasted into the URL's hash (or set by a script, as the
@@ -501,6 +440,9 @@ function showFigures() {
   const parts = [page.triangles.toLocaleString('en') + ' triangles', page.cells + ' cells',
                  'up to ' + page.bits + ' bits', (page.bytes / 1e3).toFixed(0) + ' kB',
                  'round ' + (page.rounds || 0)];
+  const apoCells = Object.keys(MsRender.apoStats.levels).length;
+  if (apoCells && MsRender.usesApo(shading))
+    parts.push('APO normals in ' + apoCells + (apoCells === 1 ? ' cell' : ' cells'));
   if (page.firstPixelMs !== null)
     parts.push('first pixels ' + page.firstPixelMs + ' ms');
   if (page.state === 'complete')
@@ -527,6 +469,25 @@ document.getElementById('token-form').addEventListener('submit', e => {
 });
 
 // ---- The worker ----------------------------------------------------------
+
+// View complete: the worker's last mesh and APO texels are drawn (the
+// renderer's upload budget may take a few frames after the worker's message).
+function complete(m) {
+  page.bytes = m.bytes;
+  page.rounds = m.rounds;
+  page.timing = Object.assign({}, m.timing, pageTiming);
+  page.completeMs = Math.round(performance.now());
+  page.settleMs = Math.round(performance.now() - cameraSentAt);  // from this camera
+  page.state = 'complete';
+  page.progress = 1;
+  progress.value = 1;
+  showFigures();
+  showShare();
+  say(name + ': ' + page.triangles.toLocaleString('en') + ' triangles in ' + page.cells +
+      ' cells, up to ' + page.bits + ' bits, ' + (m.bytes / 1e3).toFixed(0) + ' kB, view complete' +
+      (m.preview ? (staticSite ? ' (the public preview)' : ' (the public preview: a token gives more)') : ''));
+  tellEmbedder();
+}
 
 function start() {
   // The worker was started by boot.js in the page's head: it compiles the
@@ -568,30 +529,25 @@ function start() {
       showFigures();
       tellEmbedder();
     } else if (m.type === 'mesh') {
-      upload(m.positions, m.normals, m.triangles);
+      upload(m);
       page.triangles = m.triangles.length / 3;
       page.cells = m.cells;
       page.bits = m.bits;
       showFigures();
       requestDraw();
       MsTools.recast();     // measuring points follow the finer surface
+    } else if (m.type === 'apo') {
+      MsRender.apoChunk(m);
+      requestDraw();
     } else if (m.type === 'complete') {
       if (m.seq !== cameraSeq)
         return;              // an earlier camera's; the latest one is under way
-      page.bytes = m.bytes;
-      page.rounds = m.rounds;
-      page.timing = Object.assign({}, m.timing, pageTiming);
-      page.completeMs = Math.round(performance.now());
-      page.settleMs = Math.round(performance.now() - cameraSentAt);  // from this camera
-      page.state = 'complete';
-      page.progress = 1;
-      progress.value = 1;
-      showFigures();
-      showShare();
-      say(name + ': ' + page.triangles.toLocaleString('en') + ' triangles in ' + page.cells +
-          ' cells, up to ' + page.bits + ' bits, ' + (m.bytes / 1e3).toFixed(0) + ' kB, view complete' +
-          (m.preview ? (staticSite ? ' (the public preview)' : ' (the public preview: a token gives more)') : ''));
-      tellEmbedder();
+      if (MsRender.pending()) {
+        completeWaiting = m; // complete once its mesh and texels are up (drawFrame)
+        requestDraw();
+      } else {
+        complete(m);
+      }
     } else if (m.type === 'error') {
       failPage(m.message.charAt(0).toUpperCase() + m.message.slice(1));
     }

@@ -49,6 +49,7 @@ function loadModule() {
   }
   if (!threaded)
     importScripts('meshstream.js');
+  importScripts('worker-apo.js');     // the APO part: apoRound
   modulePromise = threaded
     ? createMeshstreamThreads({
         locateFile: file => here(file === 'meshstream-mt.worker.js' ? 'meshstream-mt-worker.js' : file),
@@ -257,6 +258,7 @@ function setCamera(c) {
   M._free(p);
   if (st !== 0)
     throw new Error('bad camera: ' + lastError());
+  apoCamera(c);                   // the geometry under APO (web/worker-apo.js)
 }
 
 // Fetches what the cell lacks of its payload prefix at `bits` (null: all the
@@ -356,9 +358,30 @@ function copyAndPost(final) {
   const positions = new Float32Array(heap(), M._ms_web_view_positions(view), 3 * nv).slice();
   const triangles = new Uint32Array(heap(), M._ms_web_view_triangles(view), 3 * nt).slice();
   const normals = new Float32Array(heap(), M._ms_web_view_normals(view), 3 * nv).slice();
-  postMessage({ type: 'mesh', final, positions, normals, triangles,
+  const runs = meshRuns();
+  postMessage({ type: 'mesh', final, positions, normals, triangles, runs,
                 cells: M._ms_web_view_shown_cells(view), bits: M._ms_web_view_max_bits(view) },
-              [positions.buffer, normals.buffer, triangles.buffer]);
+              [positions.buffer, normals.buffer, triangles.buffer, runs.cells.buffer, runs.firsts.buffer,
+               runs.cubes.buffer]);
+}
+
+// The renderer's cells (web/render.js): the stitched triangles grouped by the
+// cell that drew them (ms_web_view_run_*), cell k drawing triangles
+// [firsts[k], firsts[k + 1]), and each cell's cube (origin, side: the frame
+// of its cell-local positions and of its APO chunk).
+function meshRuns() {
+  const n = M._ms_web_view_run_count(view);
+  const cells = n ? new Uint32Array(heap(), M._ms_web_view_run_cells(view), n).slice() : new Uint32Array(0);
+  const firsts = n ? new Uint32Array(heap(), M._ms_web_view_run_firsts(view), n + 1).slice() : new Uint32Array(1);
+  const cubes = new Float64Array(4 * n), p = M._malloc(32);
+  try {
+    for (let k = 0; k < n; ++k)
+      if (M._ms_web_view_cell_cube(view, cells[k], p) === 0)
+        cubes.set(new Float64Array(heap(), p, 4), 4 * k);
+  } finally {
+    M._free(p);
+  }
+  return { cells, firsts, cubes };
 }
 
 // ms_web_view_plan on the view, timed and counted.
@@ -571,6 +594,8 @@ async function run(msg) {
     }
     if (U32()[settledPtr >> 2]) {
       postMesh(true, bytes);
+      if (current.apo)              // the APO chunks the view wants (web/worker-apo.js)
+        bytes += await apoRound(name, token);
       postMessage({ type: 'complete', seq, bytes, rounds, preview, timing,
                     seconds: (performance.now() - started) / 1000 });
       while (!pendingCamera)

@@ -8,9 +8,7 @@
 #include <string.h>
 #include <sys/stat.h>
 
-#include "ms_client.h"
 #include "ms_metadata.h"
-#include "ms_proto.h"
 #include "ms_render.h"
 #include "ms_viewer_font.h"
 #include "ms_viewer_measure.h"
@@ -27,6 +25,8 @@ void ms_viewer_annotate_init(ms_viewer_annotate *a, const char *file, const char
 
 void ms_viewer_annotate_free(ms_viewer_annotate *a)
 {
+    ms_viewer_fetcher_free(a->fetcher); /* interrupts a fetch in flight */
+    a->fetcher = NULL;
     ms_annotations_free(a->set);
     a->set = NULL;
 }
@@ -58,34 +58,75 @@ ms_status ms_viewer_annotate_read(const char *path, ms_annotations **out, ms_err
     return st != MS_OK ? st : check_views(set, path, out, err);
 }
 
-/* The model's annotations document through the binary door (GET_DOCUMENT,
- * one connection of its own): MS_OK with *out NULL when the server has none
- * (NO_DOCUMENT). */
-static ms_status fetch(const ms_viewer_source *source, const char *model, ms_annotations **out, ms_error *err)
+/* The server's annotations document as the fetcher brought it: MS_OK with
+ * *out NULL when the server has none. */
+static ms_status parse_fetched(ms_viewer_fetched *r, ms_annotations **out, ms_error *err)
 {
     *out = NULL;
-    ms_client_options co = {.host = source->host, .port = source->port, .token = source->token,
-                            .agent = "meshview/0.1"};
-    uint8_t *bytes;
-    size_t length;
-    ms_status st = ms_client_fetch_document_at(&co, source->timeout_s, model, MS_DOCUMENT_ANNOTATIONS, &bytes,
-                                               &length, err);
-    if (st == MS_ERR_IO && strstr(err->text, ": NO_DOCUMENT "))
+    if (r->status != MS_OK)
+        return ms_error_set(err, r->status, "%s", r->why);
+    if (!r->document)
         return MS_OK;
-    if (st != MS_OK)
-        return st;
     char where[200];
-    snprintf(where, sizeof where, "the server's annotations of %s", model);
+    snprintf(where, sizeof where, "the server's annotations of %s", r->entry.name);
     ms_annotations *set;
-    st = ms_annotations_parse((const char *)bytes, length, where, &set, err);
-    free(bytes);
+    ms_status st = ms_annotations_parse((const char *)r->document, r->document_size, where, &set, err);
     return st != MS_OK ? st : check_views(set, where, out, err);
 }
 
+/* The end of a load: the set read (a->set, NULL: none) or the failure st. */
+static void finish_load(ms_viewer_annotate *a, ms_status st, const char *from, const ms_error *err,
+                        FILE *log)
+{
+    if (st != MS_OK) {
+        snprintf(a->message, sizeof a->message, "%.*s", (int)sizeof a->message - 1, err->text);
+        /* a server that cannot be reached is the stream's error to tell, once
+         * (a failure ends with one line); a refused file or document is ours */
+        bool unreachable = !strcmp(from, "server") && st == MS_ERR_IO;
+        if (log && !unreachable)
+            fprintf(log, "meshview: %s\n", err->text);
+        return;
+    }
+    if (a->set)
+        snprintf(a->from, sizeof a->from, "%s", from);
+    if (!a->set && !(a->set = ms_annotations_new()))
+        return;
+    long i = ms_annotations_find(a->set, a->select_id);
+    if (i >= 0)
+        ms_viewer_annotate_select(a, i);
+    else if (a->select_id) {
+        snprintf(a->message, sizeof a->message, "--annotation: no annotation '%.40s' among %zu",
+                 a->select_id, ms_annotations_count(a->set));
+        if (log)
+            fprintf(log, "meshview: %s\n", a->message);
+    }
+}
+
+/* The server's answer, once it came. */
+static void take_fetched(ms_viewer_annotate *a, FILE *log)
+{
+    ms_viewer_fetched r;
+    while (a->fetcher && ms_viewer_fetcher_take(a->fetcher, &r)) {
+        bool ours = r.kind == MS_FETCHED_ANNOTATIONS && !strcmp(r.entry.name, a->model);
+        if (ours) {
+            ms_error err;
+            ms_status st = parse_fetched(&r, &a->set, &err);
+            ms_viewer_fetcher_free(a->fetcher);
+            a->fetcher = NULL;
+            finish_load(a, st, "server", &err, log);
+        }
+        ms_viewer_fetched_free(&r);
+    }
+}
+
+bool ms_viewer_annotate_pending(const ms_viewer_annotate *a) { return a->fetcher != NULL; }
+
 void ms_viewer_annotate_load(ms_viewer_annotate *a, const ms_viewer_source *source, const char *model, FILE *log)
 {
-    if (!strcmp(a->model, model))
+    if (!strcmp(a->model, model)) {
+        take_fetched(a, log);
         return;
+    }
     ms_viewer_annotate_free(a);
     snprintf(a->model, sizeof a->model, "%s", model);
     a->selected = -1;
@@ -107,31 +148,16 @@ void ms_viewer_annotate_load(ms_viewer_annotate *a, const ms_viewer_source *sour
     else
         snprintf(a->save_path, sizeof a->save_path, "%s.annotations.json", model);
     ms_error err;
-    ms_status st = path                  ? ms_viewer_annotate_read(path, &a->set, &err)
-                   : !source->archive_dir ? fetch(source, model, &a->set, &err)
-                                          : MS_OK;
-    if (st != MS_OK) {
-        snprintf(a->message, sizeof a->message, "%.*s", (int)sizeof a->message - 1, err.text);
-        /* a server that cannot be reached is the stream's error to tell, once
-         * (a failure ends with one line); a refused file or document is ours */
-        bool unreachable = !path && st == MS_ERR_IO;
-        if (log && !unreachable)
-            fprintf(log, "meshview: %s\n", err.text);
+    if (!path && !source->archive_dir) {
+        ms_status st = ms_viewer_fetcher_new(source, &a->fetcher, &err);
+        if (st == MS_OK)
+            ms_viewer_fetcher_want_annotations(a->fetcher, model);
+        else
+            finish_load(a, st, "server", &err, log);
         return;
     }
-    if (a->set)
-        snprintf(a->from, sizeof a->from, "%s", path ? (a->file ? "file" : "archive") : "server");
-    if (!a->set && !(a->set = ms_annotations_new()))
-        return;
-    long i = ms_annotations_find(a->set, a->select_id);
-    if (i >= 0)
-        ms_viewer_annotate_select(a, i);
-    else if (a->select_id) {
-        snprintf(a->message, sizeof a->message, "--annotation: no annotation '%.40s' among %zu",
-                 a->select_id, ms_annotations_count(a->set));
-        if (log)
-            fprintf(log, "meshview: %s\n", a->message);
-    }
+    ms_status st = path ? ms_viewer_annotate_read(path, &a->set, &err) : MS_OK;
+    finish_load(a, st, a->file ? "file" : "archive", &err, log);
 }
 
 void ms_viewer_annotate_select(ms_viewer_annotate *a, long i)

@@ -8,8 +8,10 @@
  * Where they come from, the first that applies: --annotations FILE; a local
  * archive's sidecar DIR/NAME.annotations.json (none when it does not exist);
  * from a server, the model's annotations document through the binary door
- * (GET_DOCUMENT, ms_client_fetch_document_at on a connection of its own,
- * bounded by the source's time-out; NO_DOCUMENT: none). Ctrl+S saves to FILE, or to the archive's
+ * (GET_DOCUMENT on a fetcher thread of its own, ms_viewer_fetcher.h, bounded
+ * by the source's time-out, so that the drawing thread never waits on the
+ * network: the markers appear when it comes; NO_DOCUMENT: none; scripted
+ * runs hold a keyframe until it came). Ctrl+S saves to FILE, or to the archive's
  * sidecar, or (from a server) to NAME.annotations.json in the working
  * directory. Every stored view must read as a view text
  * (ms_viewer_share_parse), or the whole file is refused with one line.
@@ -46,6 +48,7 @@
 #include "ms_camera.h"
 #include "ms_client_core.h"
 #include "ms_viewer_controls.h"
+#include "ms_viewer_fetcher.h"
 #include "ms_viewer_hud.h"
 #include "ms_viewer_light.h"
 #include "ms_viewer_model.h"
@@ -65,6 +68,7 @@ typedef struct ms_viewer_annotate {
     const char *file;          /* --annotations (NULL: none) */
     const char *select_id;     /* --annotation ID: selected once loaded */
     ms_annotations *set;       /* owned; NULL: none loaded */
+    ms_viewer_fetcher *fetcher; /* a server's document in flight (owned), else NULL */
     char model[128];           /* the model they were loaded for ("" none yet) */
     char from[16];             /* "file", "archive", "server" or "none" */
     char save_path[4200];
@@ -98,10 +102,14 @@ void ms_viewer_annotate_init(ms_viewer_annotate *a, const char *file, const char
 void ms_viewer_annotate_free(ms_viewer_annotate *a);
 
 /* Loads the annotations of model (from source, or file) unless they are the
- * ones held; a failure leaves none, with the one line in a->message and on
- * log (may be NULL). */
+ * ones held or asked for; a failure leaves none, with the one line in
+ * a->message and on log (may be NULL). From a server it only asks: the
+ * answer is taken by a later call (every frame calls it), never waited for. */
 void ms_viewer_annotate_load(ms_viewer_annotate *a, const ms_viewer_source *source, const char *model,
                              FILE *log);
+
+/* Whether a server's annotations are still on their way. */
+bool ms_viewer_annotate_pending(const ms_viewer_annotate *a);
 
 /* Reads a file and checks every view it stores (ms_viewer_share_parse). */
 ms_status ms_viewer_annotate_read(const char *path, ms_annotations **out, ms_error *err);

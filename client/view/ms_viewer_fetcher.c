@@ -30,6 +30,7 @@ struct ms_viewer_fetcher {
     /* under lock */
     bool stop;
     bool doc_wanted, doc_busy;
+    bool doc_notes, doc_busy_notes; /* the annotations, not metadata + thumbnail */
     char doc_name[MS_MODEL_NAME_MAX + 1], doc_busy_name[MS_MODEL_NAME_MAX + 1];
     bool page_wanted, page_busy;
     char page_query[65], page_busy_query[65];
@@ -265,6 +266,22 @@ static void fetch_documents(ms_viewer_fetcher *f, ms_viewer_fetched *r)
         snprintf(r->why, sizeof r->why, "%s: %.400s", e->name, err.text);
 }
 
+static void fetch_annotations(ms_viewer_fetcher *f, ms_viewer_fetched *r)
+{
+    ms_error err;
+    job j = {.model = r->entry.name, .kind = MS_DOCUMENT_ANNOTATIONS};
+    arm(f);
+    r->status = run_job(f, &j, &err);
+    if (r->status == MS_OK) {
+        r->document = f->bytes, r->document_size = f->length;
+        f->bytes = NULL;
+    } else if (f->refused && !strncmp(f->why, "NO_DOCUMENT", 11)) {
+        r->status = MS_OK; /* none stored: the empty set */
+    } else {
+        snprintf(r->why, sizeof r->why, "%s: %.400s", r->entry.name, err.text);
+    }
+}
+
 static void fetch_page(ms_viewer_fetcher *f, ms_viewer_fetched *r)
 {
     ms_error err;
@@ -330,13 +347,16 @@ static void *worker_main(void *arg)
             f->page_busy_offset = f->page_offset;
         } else {
             f->doc_wanted = false, f->doc_busy = true;
-            r->kind = MS_FETCHED_DOCUMENTS;
+            r->kind = f->doc_notes ? MS_FETCHED_ANNOTATIONS : MS_FETCHED_DOCUMENTS;
             memcpy(r->entry.name, f->doc_name, sizeof r->entry.name);
             memcpy(f->doc_busy_name, f->doc_name, sizeof f->doc_busy_name);
+            f->doc_busy_notes = f->doc_notes;
         }
         pthread_mutex_unlock(&f->lock);
         if (r->kind == MS_FETCHED_PAGE)
             fetch_page(f, r);
+        else if (r->kind == MS_FETCHED_ANNOTATIONS)
+            fetch_annotations(f, r);
         else
             fetch_documents(f, r);
         evtimer_del(f->timer);
@@ -445,22 +465,36 @@ void ms_viewer_fetcher_free(ms_viewer_fetcher *f)
     free(f);
 }
 
-void ms_viewer_fetcher_want_documents(ms_viewer_fetcher *f, const char *name)
+/* A model's documents (notes: its annotations), superseding a request still
+ * waiting. */
+static void want_model_documents(ms_viewer_fetcher *f, const char *name, bool notes)
 {
     if (!name || strlen(name) > MS_MODEL_NAME_MAX)
         return;
+    ms_fetched_kind kind = notes ? MS_FETCHED_ANNOTATIONS : MS_FETCHED_DOCUMENTS;
     pthread_mutex_lock(&f->lock);
     bool come = false; /* fetched, not taken yet */
     for (const node *n = f->head; n && !come; n = n->next)
-        come = n->r.kind == MS_FETCHED_DOCUMENTS && !strcmp(n->r.entry.name, name);
-    if (come || (f->doc_busy && !strcmp(f->doc_busy_name, name)))
+        come = n->r.kind == kind && !strcmp(n->r.entry.name, name);
+    if (come || (f->doc_busy && f->doc_busy_notes == notes && !strcmp(f->doc_busy_name, name)))
         f->doc_wanted = false; /* it is on its way */
-    else if (!f->doc_wanted || strcmp(f->doc_name, name)) {
+    else if (!f->doc_wanted || f->doc_notes != notes || strcmp(f->doc_name, name)) {
         snprintf(f->doc_name, sizeof f->doc_name, "%s", name);
+        f->doc_notes = notes;
         f->doc_wanted = true;
         pthread_cond_signal(&f->cond);
     }
     pthread_mutex_unlock(&f->lock);
+}
+
+void ms_viewer_fetcher_want_documents(ms_viewer_fetcher *f, const char *name)
+{
+    want_model_documents(f, name, false);
+}
+
+void ms_viewer_fetcher_want_annotations(ms_viewer_fetcher *f, const char *name)
+{
+    want_model_documents(f, name, true);
 }
 
 void ms_viewer_fetcher_want_page(ms_viewer_fetcher *f, const char *query, size_t offset)
@@ -501,7 +535,8 @@ void ms_viewer_fetched_free(ms_viewer_fetched *r)
         return;
     ms_metadata_free(r->entry.metadata);
     free(r->entry.thumbnail_png);
-    r->entry.metadata = NULL, r->entry.thumbnail_png = NULL;
+    free(r->document);
+    r->entry.metadata = NULL, r->entry.thumbnail_png = NULL, r->document = NULL;
     ms_viewer_model_list_free(&r->page);
 }
 

@@ -9,6 +9,8 @@
  *     models by name): again the most recent request only. A server below
  *     protocol version 3 (no pages) gets the whole catalogue asked for and
  *     filtered here (ms_viewer_list_page), for offset 0.
+ *   - the annotations document of one model (ms_viewer_annotate.h, from a
+ *     server), again the most recent request only.
  * One connection, opened at the first request and reused for the next ones;
  * when it turns out closed (the server dropped it while idle), the request
  * reconnects once. Every request is bounded by the source's time-out (0 = 5 s,
@@ -36,6 +38,7 @@
 
 #include <stdbool.h>
 #include <stddef.h>
+#include <stdint.h>
 
 #include "ms_error.h"
 #include "ms_viewer_model.h"
@@ -61,14 +64,20 @@ void ms_viewer_fetcher_want_documents(ms_viewer_fetcher *f, const char *name);
  * back a page request still waiting. */
 void ms_viewer_fetcher_want_page(ms_viewer_fetcher *f, const char *query, size_t offset);
 
-typedef enum { MS_FETCHED_DOCUMENTS, MS_FETCHED_PAGE } ms_fetched_kind;
+/* Asks for the annotations document of model name (a valid model name), as
+ * ms_viewer_fetcher_want_documents does for the others. */
+void ms_viewer_fetcher_want_annotations(ms_viewer_fetcher *f, const char *name);
+
+typedef enum { MS_FETCHED_DOCUMENTS, MS_FETCHED_PAGE, MS_FETCHED_ANNOTATIONS } ms_fetched_kind;
 
 /* One result. DOCUMENTS: entry.name the model's, entry.metadata,
  * has_thumbnail, thumbnail_png, documents_fetched set (owned here until moved
  * out). PAGE: query and offset as asked; page.entries (owned) the page's
  * models, page.count of them, page.total the models that match (offset +
- * count when nothing more comes). status MS_OK, or the failure and its line
- * in why (the documents: what came before the failure is kept). */
+ * count when nothing more comes). ANNOTATIONS: entry.name the model's,
+ * document (owned, not terminated) its bytes, NULL when the server has none.
+ * status MS_OK, or the failure and its line in why (the documents: what came
+ * before the failure is kept). */
 typedef struct ms_viewer_fetched {
     ms_fetched_kind kind;
     ms_status status;
@@ -77,6 +86,8 @@ typedef struct ms_viewer_fetched {
     char query[65];
     size_t offset;
     ms_viewer_model_list page;
+    uint8_t *document;
+    size_t document_size;
 } ms_viewer_fetched;
 
 /* The oldest result not taken yet into *out (the caller frees it with

@@ -384,13 +384,14 @@ static ms_status hold(script *s, const ms_camera *camera, bool *settled, double 
         if (st != MS_OK)
             return st;
         *waited = now_s() - start;
-        if (step.settled) {
+        /* a server's annotations count to the picture (markers, the selected one) */
+        if (step.settled && !ms_viewer_annotate_pending(&s->look.notes)) {
             *settled = true;
             return MS_OK;
         }
         if (*waited >= s->o->keyframe_timeout)
             return MS_OK;
-        /* Nothing arrived: let the decode threads have the CPU for a moment. */
+        /* Nothing arrived: let the decode threads (or the fetch) have the CPU for a moment. */
         if (!step.new_frame && !step.upload.bytes)
             nap(0.004);
     }

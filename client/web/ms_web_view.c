@@ -575,3 +575,42 @@ uint64_t ms_web_view_bytes_held(const ms_web_view *v)
         total += ms_view_held_bytes(v->view, c);
     return total;
 }
+
+uint32_t ms_web_view_run_count(const ms_web_view *v)
+{
+    return v->mesh.run_first && v->mesh.run_cell ? (uint32_t)v->mesh.run_count : 0;
+}
+
+const uint32_t *ms_web_view_run_cells(const ms_web_view *v)
+{
+    return ms_web_view_run_count(v) ? v->mesh.run_cell : NULL;
+}
+
+const uint32_t *ms_web_view_run_firsts(const ms_web_view *v)
+{
+    return ms_web_view_run_count(v) ? v->mesh.run_first : NULL;
+}
+
+ms_status ms_web_view_cell_cube(ms_web_view *v, uint32_t cell, double out[4])
+{
+    const ms_archive_header *h = ms_archive_get_header(v->index);
+    const ms_archive_cell *c = cell < ms_view_cell_count(v->view) ? ms_archive_get_cell(v->index, cell) : NULL;
+    if (!c)
+        return fail(v, MS_ERR_ARG, "no such cell");
+    double side = h->box_side;
+    for (unsigned l = 0; l < c->level; ++l)
+        side /= (double)h->n;
+    for (int a = 0; a < 3; ++a)
+        out[a] = h->box_origin[a] + (double)c->position[a] * side;
+    out[3] = side;
+    return MS_OK;
+}
+
+void ms_web_view_parts_get(ms_web_view *v, ms_web_view_parts *out)
+{
+    out->index = v->index;
+    out->view = v->view;
+    out->camera = v->has_camera ? &v->camera : NULL;
+    out->params = &v->params;
+    out->err = &v->err;
+}

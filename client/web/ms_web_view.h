@@ -179,4 +179,35 @@ uint32_t ms_web_view_shown_cells(const ms_web_view *view);
 uint32_t ms_web_view_max_bits(const ms_web_view *view);
 uint64_t ms_web_view_bytes_held(const ms_web_view *view);
 
+/* The renderer's cells (docs/BROWSER.md, "Drawing"): the last stitch's mesh
+ * grouped by the cell that drew each triangle (ms_view_mesh's runs), so that
+ * the page draws cell by cell, with its number (CELLS shading) and its cube
+ * (the frame of its APO chunk). ms_web_view_run_count cells, ascending; cell
+ * run_cells[k] drew triangles [run_firsts[k], run_firsts[k + 1]), the
+ * triangles of ms_web_view_triangles (run_count + 1 entries; both NULL when
+ * nothing is stitched). Valid until the next stitch or free. */
+uint32_t ms_web_view_run_count(const ms_web_view *view);
+const uint32_t *ms_web_view_run_cells(const ms_web_view *view);
+const uint32_t *ms_web_view_run_firsts(const ms_web_view *view);
+
+/* A cell's cube: origin x y z and side (4 doubles), as the native renderer
+ * places a cell (ms_render_cell_cube): the cell-local frame its positions and
+ * its APO chunk are given in. MS_ERR_ARG for a cell not in the model. */
+ms_status ms_web_view_cell_cube(ms_web_view *view, uint32_t cell, double out[4]);
+
+/* For the room's own files (ms_web_apo.c): the view's index, decoder, camera
+ * (NULL before ms_web_view_camera), selection parameters and error. */
+struct ms_archive;
+struct ms_view;
+struct ms_camera;
+struct ms_view_select_params;
+typedef struct ms_web_view_parts {
+    const struct ms_archive *index;
+    const struct ms_view *view;
+    const struct ms_camera *camera;
+    struct ms_view_select_params *params;
+    ms_error *err;
+} ms_web_view_parts;
+void ms_web_view_parts_get(ms_web_view *view, ms_web_view_parts *out);
+
 #endif

@@ -501,16 +501,19 @@ ms_status ms_archive_open(const char *path, ms_archive **out, ms_error *err)
                             path, size);
     }
     void *map = mmap(NULL, size, PROT_READ, MAP_SHARED, fd, 0);
-    close(fd);
-    if (map == MAP_FAILED)
+    if (map == MAP_FAILED) {
+        close(fd);
         return ms_error_set(err, MS_ERR_IO, "%s: cannot map: %s", path, strerror(errno));
+    }
     ms_archive *a = calloc(1, sizeof *a);
     if (!a) {
         munmap(map, size);
+        close(fd);
         return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory", path);
     }
     a->map = map;
     a->map_size = size;
+    a->fd = fd;
     ms_status status = archive_validate(path, a, err);
     if (status != MS_OK) {
         ms_archive_close(a);
@@ -551,15 +554,26 @@ void ms_archive_close(ms_archive *a)
 {
     if (!a)
         return;
-    if (a->index_only)
+    if (a->index_only) {
         free((void *)a->map);
-    else
+    } else {
         munmap((void *)a->map, a->map_size);
+        close(a->fd);
+    }
     free(a->inflated_blob);
     free(a->cells);
     ms_archive_subtrees_free(a);
     ms_partial_free(a->partial);
     free(a);
+}
+
+ms_status ms_archive_file_stat(const ms_archive *a, struct stat *st, ms_error *err)
+{
+    if (a->index_only)
+        return ms_error_set(err, MS_ERR_ARG, "an index has no archive file");
+    if (fstat(a->fd, st) != 0)
+        return ms_error_set(err, MS_ERR_IO, "the archive file: %s", strerror(errno));
+    return MS_OK;
 }
 
 const ms_archive_header *ms_archive_get_header(const ms_archive *a) { return &a->header; }

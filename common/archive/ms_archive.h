@@ -22,6 +22,8 @@
 
 #include "ms_error.h"
 
+struct stat;
+
 /* The file version meshbake writes and the reader reads (the only one): the
  * index is stored as subtrees (ms_subtree.h). */
 #define MS_ARCHIVE_VERSION 3u
@@ -87,6 +89,13 @@ typedef struct ms_archive ms_archive;
  * wrong and where (byte offset or cell number). */
 ms_status ms_archive_open(const char *path, ms_archive **archive, ms_error *err);
 void ms_archive_close(ms_archive *archive);
+
+/* fstat of the file an archive opened by ms_archive_open maps, through the
+ * descriptor it keeps open until ms_archive_close: the mapped file itself
+ * (its inode, its size now), whatever its path names since; no path lookup,
+ * so cheap enough for every payload served. MS_ERR_ARG for an index
+ * (ms_archive_open_index*), MS_ERR_IO when fstat fails. Thread-safe. */
+ms_status ms_archive_file_stat(const ms_archive *archive, struct stat *st, ms_error *err);
 
 /* Validates and copies an index blob (blob header + raw cell index, as
  * ms_archive_index_bytes gives it and the server sends it); name is used in

@@ -25,6 +25,9 @@ struct ms_archive {
     const uint8_t *map;
     size_t map_size;
     bool index_only; /* a malloc'd copy of header + index (or NULL), no payloads */
+    /* The mapped file, kept open so that ms_archive_file_stat describes the
+     * very file mapped, not whatever its path names now; -1 for an index. */
+    int fd;
     ms_archive_header header;
     ms_archive_cell *cells; /* cell_count records; NULL on a partial index */
     /* The index blob (blob header + raw index): the start of map for an index

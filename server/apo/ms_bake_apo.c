@@ -20,6 +20,7 @@ void ms_bake_apo_params_default(ms_bake_apo_params *p)
     p->init_depth = 0;
     p->tolerance = 0.2;
     p->correction = 0.2;
+    p->budget = MS_BAKE_APO_BUDGET;
     p->zlib_level = 6;
 }
 
@@ -33,6 +34,9 @@ ms_status ms_bake_apo_params_check(const ms_bake_apo_params *p, ms_error *err)
         return ms_error_set(err, MS_ERR_ARG, "--apo-tol must be a number >= 0");
     if (!(p->correction >= 0.0 && p->correction <= 3.2))
         return ms_error_set(err, MS_ERR_ARG, "--apo-correction must be a number from 0 to 3.2");
+    if (!(p->budget >= 0.0 && p->budget <= MS_BAKE_APO_MAX_BUDGET))
+        return ms_error_set(err, MS_ERR_ARG, "--apo-budget must be a number from 0 (no budget) to %g",
+                            MS_BAKE_APO_MAX_BUDGET);
     if (p->zlib_level < 0 || p->zlib_level > 9)
         return ms_error_set(err, MS_ERR_ARG, "APO zlib level must be 0..9");
     return MS_OK;
@@ -406,23 +410,55 @@ static bool has_area(const ms_mesh *mesh, size_t t)
     return n0 != 0.0 || n1 != 0.0 || n2 != 0.0;
 }
 
+/* A hash of a key's 9 coordinates (-0.0 hashed as 0.0, which compares equal). */
+static uint64_t hash_tri_key(const tri_key *key)
+{
+    uint64_t h = 0x9E3779B97F4A7C15u;
+    for (int k = 0; k < 9; ++k) {
+        double x = key->p[k] + 0.0;
+        uint64_t bits;
+        memcpy(&bits, &x, sizeof bits);
+        h = (h ^ bits) * 0xFF51AFD7ED558CCDu;
+        h ^= h >> 32;
+    }
+    return h;
+}
+
 bool ms_bake_apo_geometry_renders(const ms_mesh *m, const ms_mesh *M)
 {
+    /* m's keys in an open-addressing table (a power of two, at most half full) */
+    size_t cap = 2;
+    while (cap < 2 * m->triangle_count)
+        cap *= 2;
     tri_key *keys = malloc((m->triangle_count + 1) * sizeof *keys);
-    if (!keys)
+    uint32_t *slot = malloc(cap * sizeof *slot); /* key index + 1; 0 empty */
+    if (!keys || !slot || m->triangle_count >= UINT32_MAX) {
+        free(keys);
+        free(slot);
         return false;
-    for (size_t t = 0; t < m->triangle_count; ++t)
+    }
+    memset(slot, 0, cap * sizeof *slot);
+    for (size_t t = 0; t < m->triangle_count; ++t) {
         make_tri_key(m, t, &keys[t]);
-    qsort(keys, m->triangle_count, sizeof *keys, cmp_tri_key);
+        size_t i = (size_t)hash_tri_key(&keys[t]) & (cap - 1);
+        while (slot[i])
+            i = (i + 1) & (cap - 1);
+        slot[i] = (uint32_t)t + 1;
+    }
     bool all = true;
     for (size_t t = 0; t < M->triangle_count && all; ++t) {
         if (!has_area(M, t))
             continue;
         tri_key key;
         make_tri_key(M, t, &key);
-        all = bsearch(&key, keys, m->triangle_count, sizeof *keys, cmp_tri_key) != NULL;
+        size_t i = (size_t)hash_tri_key(&key) & (cap - 1);
+        bool found = false;
+        for (; slot[i] && !found; i = (i + 1) & (cap - 1))
+            found = cmp_tri_key(&key, &keys[slot[i] - 1]) == 0;
+        all = found;
     }
     free(keys);
+    free(slot);
     return all;
 }
 

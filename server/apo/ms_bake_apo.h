@@ -38,6 +38,8 @@
 
 #define MS_BAKE_APO_MAX_LEAD 16u      /* what the archive header can record */
 #define MS_BAKE_APO_MAX_DEPTH 24u
+#define MS_BAKE_APO_BUDGET 1.0        /* APO bytes over geometry bytes, at most (docs/APO.md) */
+#define MS_BAKE_APO_MAX_BUDGET 1000.0
 
 typedef struct ms_bake_apo_params {
     bool enabled;
@@ -46,6 +48,10 @@ typedef struct ms_bake_apo_params {
     uint32_t init_depth;  /* split unconditionally above this depth (default 0) */
     double tolerance;     /* spread of M's normals, radians (default 0.2) */
     double correction;    /* keep a texel where it differs from the smooth normal by more, radians (default 0.2, the tolerance) */
+    /* The chunks together hold at most budget times the geometry bytes, the
+     * finest levels dropped first where they hold more (ms_apo_budget.h,
+     * docs/APO.md "The byte budget"); 0: no budget. Default MS_BAKE_APO_BUDGET. */
+    double budget;
     int zlib_level;       /* 0..9 (default 6) */
     bool verify;          /* decode each stored chunk back and compare it with the built tree */
     /* Diagnostics, off by default. sample_leaves: an internal cell's M is every

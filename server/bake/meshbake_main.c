@@ -58,7 +58,8 @@ static void print_usage(FILE *out)
     fputs("usage: meshbake IN -o ARCHIVE_DIR [--name NAME] [--bits 16] [--n 4]\n"
           "                [--root-bits 7] [--min-tris T] [--threads N] [--mem MB]\n"
           "                [--tmp DIR] [--public-bits B] [--no-apo] [--apo-lead 1]\n"
-          "                [--apo-max-depth 10] [--apo-tol 0.2] [--apo-init-depth 0]\n"
+          "                [--apo-max-depth 10] [--apo-tol 0.2] [--apo-budget 1]\n"
+          "                [--apo-init-depth 0]\n"
           "                [--apo-verify] [--apo-accuracy] [--subtree-levels S] [--ahead 3]\n"
           "                [--colour-bits 8] [--no-colour] [--metadata FILE.json]\n"
           "                [--no-thumbnail] [--up x|y|z] [--json]\n"
@@ -116,6 +117,9 @@ static void print_usage(FILE *out)
           "                    spread more than T radians (default 0.2)\n"
           "  --apo-correction C  keep a texel only where its normal differs from the\n"
           "                    client's smooth normal by more than C radians (default 0.2)\n"
+          "  --apo-budget R    APO bytes at most R times the geometry bytes, the finest\n"
+          "                    levels dropped first where the chunks hold more; 0: no\n"
+          "                    budget (default 1)\n"
           "  --apo-init-depth D  split unconditionally above depth D (default 0)\n"
           "  --apo-verify      decode every chunk back and check it gives the built tree\n"
           "  --apo-accuracy    measure the internal cells' chunks against the full-precision\n"
@@ -246,6 +250,19 @@ static int picture_option(int c, const char *arg, bake_options *options)
 }
 
 /* Returns -1 to go on, or the exit status to end with. */
+/* --apo-tol (E), --apo-correction (G), --apo-budget (F): false with *status
+ * set on a bad value. */
+static bool apo_real_option(int c, const char *arg, ms_bake_apo_params *apo, int *status)
+{
+    ms_error e;
+    ms_status s = c == 'E'   ? ms_option_double("--apo-tol", arg, 0, 1e12, &apo->tolerance, &e)
+                  : c == 'G' ? ms_option_double("--apo-correction", arg, 0, 3.2, &apo->correction, &e)
+                             : ms_option_double("--apo-budget", arg, 0, MS_BAKE_APO_MAX_BUDGET, &apo->budget, &e);
+    if (s != MS_OK)
+        *status = usage_error(e.text, NULL);
+    return s == MS_OK;
+}
+
 static int parse_options(int argc, char **argv, bake_options *options)
 {
     static const struct option long_options[] = {
@@ -268,6 +285,7 @@ static int parse_options(int argc, char **argv, bake_options *options)
         {"apo-init-depth", required_argument, NULL, 'I'},
         {"apo-tol", required_argument, NULL, 'E'},
         {"apo-correction", required_argument, NULL, 'G'},
+        {"apo-budget", required_argument, NULL, 'F'},
         {"apo-verify", no_argument, NULL, 'V'},
         {"apo-accuracy", no_argument, NULL, 'C'},
         {"public-bits", required_argument, NULL, 'P'},
@@ -346,20 +364,10 @@ static int parse_options(int argc, char **argv, bake_options *options)
             else if (c == 'D') options->bake.apo.max_depth = (uint32_t)value;
             else options->bake.apo.init_depth = (uint32_t)value;
             break;
-        case 'E': {
-            ms_error e;
-            if (ms_option_double("--apo-tol", optarg, 0, 1e12, &options->bake.apo.tolerance,
-                                 &e) != MS_OK)
-                return usage_error(e.text, NULL);
+        case 'E': case 'G': case 'F':
+            if (!apo_real_option(c, optarg, &options->bake.apo, &status))
+                return status;
             break;
-        }
-        case 'G': {
-            ms_error e;
-            if (ms_option_double("--apo-correction", optarg, 0, 3.2, &options->bake.apo.correction,
-                                 &e) != MS_OK)
-                return usage_error(e.text, NULL);
-            break;
-        }
         default:
             return EXIT_USAGE; /* reported by ms_cli_next */
         }
@@ -535,6 +543,21 @@ static void print_bake_json(const ms_bake_options *o, const ms_bake_report *r)
                             "sample_triangles_max", (json_int_t)r->apo_sample_triangles_max);
     if (apo) /* keep a texel only where it corrects the smooth normal by more (docs/APO.md) */
         json_object_set_new(apo, "correction", json_real(o->apo.correction));
+    /* the byte budget (docs/APO.md): the stored ratio and what the budget dropped */
+    const ms_bake_apo_budget_report *cut = &r->apo_budget;
+    if (apo)
+        json_object_set_new(apo, "budget",
+                            json_pack("{s:f, s:I, s:I, s:f, s:I, s:I, s:i, s:i, s:i, s:I, s:I, s:I}", "ratio",
+                                      r->geometry_bytes ? (double)r->apo_bytes / (double)r->geometry_bytes : 0.0,
+                                      "geometry_bytes", (json_int_t)r->geometry_bytes, "limit_bytes",
+                                      (json_int_t)cut->limit, "budget", o->apo.budget, "bytes_before",
+                                      (json_int_t)cut->bytes_before, "bytes_dropped",
+                                      (json_int_t)(cut->bytes_before - cut->bytes_after), "chunks_cut",
+                                      (int)cut->chunks_cut, "chunks_removed", (int)cut->chunks_removed,
+                                      "levels_dropped", (int)cut->levels_dropped, "texels_dropped",
+                                      (json_int_t)cut->texels_dropped, "internal_nodes_dropped",
+                                      (json_int_t)cut->internal_dropped, "leaves_dropped",
+                                      (json_int_t)cut->leaves_dropped));
     /* the issue-31 target is stated as this share: the APO build against the whole bake */
     if (apo)
         json_object_set_new(apo, "share_of_bake",
@@ -644,6 +667,11 @@ static void print_bake_text(const ms_bake_report *r)
             printf("APO accuracy:         %" PRIu64 " full-precision centroids of internal cells: "
                    "mean %.2f, median %.2f, p90 %.2f degrees\n",
                    r->apo_accuracy_points, r->apo_accuracy_mean, r->apo_accuracy_median, r->apo_accuracy_p90);
+        printf("APO budget:           %.2f x the geometry (limit %" PRIu64 " bytes); dropped %" PRIu64
+               " bytes, %u levels of %u chunks (%u removed), %" PRIu64 " texels\n",
+               r->geometry_bytes ? (double)r->apo_bytes / (double)r->geometry_bytes : 0.0, r->apo_budget.limit, r->apo_budget.bytes_before - r->apo_budget.bytes_after,
+               r->apo_budget.levels_dropped, r->apo_budget.chunks_cut, r->apo_budget.chunks_removed,
+               r->apo_budget.texels_dropped);
         printf("APO texels per level:");
         for (uint32_t d = 0; d < r->apo_levels; ++d)
             printf(" %" PRIu64, r->apo_level_texels[d]);

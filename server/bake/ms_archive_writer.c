@@ -251,6 +251,41 @@ ms_status ms_archive_writer_put_apo(ms_archive_writer *w, uint32_t cell, const u
     return MS_OK;
 }
 
+ms_status ms_archive_writer_get_apo(ms_archive_writer *w, uint32_t cell, uint8_t **data,
+                                    uint32_t *length, const uint32_t **level_table, uint8_t *levels,
+                                    ms_error *err)
+{
+    *data = NULL, *length = 0, *level_table = NULL, *levels = 0;
+    if (cell >= w->header.cell_count)
+        return ms_error_set(err, MS_ERR_ARG, "archive writer: no cell %u", cell);
+    const cell_state *s = &w->cells[cell];
+    if (!s->has_apo)
+        return MS_OK;
+    uint8_t *copy = malloc(s->cell.apo_length ? s->cell.apo_length : 1);
+    if (!copy)
+        return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory", w->path);
+    if (s->cell.apo_length && (fseeko(w->spool, (off_t)s->apo_spool, SEEK_SET) != 0 ||
+                               fread(copy, 1, s->cell.apo_length, w->spool) != s->cell.apo_length)) {
+        free(copy);
+        return ms_error_set(err, MS_ERR_IO, "%s: spool read failed: %s", w->path, strerror(errno));
+    }
+    *data = copy, *length = s->cell.apo_length, *level_table = s->apo_table, *levels = s->cell.apo_levels;
+    return MS_OK;
+}
+
+void ms_archive_writer_drop_apo(ms_archive_writer *w, uint32_t cell)
+{
+    if (cell >= w->header.cell_count || !w->cells[cell].has_apo)
+        return;
+    cell_state *s = &w->cells[cell];
+    free(s->apo_table);
+    s->apo_table = NULL;
+    s->apo_spool = 0;
+    s->cell.apo_length = s->cell.apo_raw_length = s->cell.apo_crc = 0;
+    s->cell.apo_levels = 0;
+    s->has_apo = false;
+}
+
 ms_status ms_archive_writer_put_colour(ms_archive_writer *w, uint32_t cell, const uint8_t *data,
                                        uint32_t length, const uint32_t *prefix_table,
                                        ms_error *err)

@@ -47,6 +47,18 @@ ms_status ms_archive_writer_put_apo(ms_archive_writer *writer, uint32_t cell,
                                     const uint8_t *data, uint32_t length, uint32_t raw_length,
                                     const uint32_t *level_table, uint8_t levels, ms_error *err);
 
+/* The APO chunk put for a cell, read back: *data (malloc'd, caller frees; NULL
+ * for an empty one), its length and its level table (2 * levels words, borrowed
+ * until the chunk is dropped or the writer finishes); levels 0 and *data NULL
+ * when the cell has none. MS_ERR_ARG for a bad cell, MS_ERR_IO, MS_ERR_NOMEM. */
+ms_status ms_archive_writer_get_apo(ms_archive_writer *writer, uint32_t cell, uint8_t **data,
+                                    uint32_t *length, const uint32_t **level_table, uint8_t *levels,
+                                    ms_error *err);
+
+/* Forgets a cell's APO chunk (its bytes stay in the spool, unused), so that
+ * ms_archive_writer_put_apo may give it another, or it keeps none. */
+void ms_archive_writer_drop_apo(ms_archive_writer *writer, uint32_t cell);
+
 /* The cell's colour stream (docs/COLOUR.md) over its window: prefix_table has
  * bits_max - bits_min + 1 entries, entry k the bytes that decode its colour to
  * bits_min + k bits (entry 0: the stream header and base chunk), the last the

@@ -247,13 +247,18 @@ static void report_apo_and_duplicates(const ms_nsp_encode_stats *es, unsigned th
     r->leaf_triangles = es->leaf_triangles;
     r->empty_cells = es->empty_cells;
     r->geometry_bytes = es->geometry_bytes;
-    r->apo_bytes = es->apo_bytes;
-    r->apo_raw_bytes = es->apo_raw_bytes;
-    r->apo_levels = es->apo_levels;
-    memcpy(r->apo_level_texels, es->apo_level_texels, sizeof r->apo_level_texels);
-    r->apo_chunks = es->apo_chunks;
-    r->apo_internal_nodes = es->apo_internal_nodes;
-    r->apo_leaves = es->apo_leaves;
+    /* what is stored: the chunks as built less what the byte budget cut */
+    const ms_bake_apo_budget_report *cut = &es->apo_budget;
+    r->apo_budget = *cut;
+    r->apo_bytes = es->apo_bytes - (cut->bytes_before - cut->bytes_after);
+    r->apo_raw_bytes = es->apo_raw_bytes - 4 * cut->texels_dropped;
+    r->apo_levels = 0;
+    for (uint32_t d = 0; d < MS_APO_MAX_LEVELS; ++d)
+        if ((r->apo_level_texels[d] = es->apo_level_texels[d] - cut->level_texels_dropped[d]) > 0)
+            r->apo_levels = d + 1;
+    r->apo_chunks = es->apo_chunks - cut->chunks_removed;
+    r->apo_internal_nodes = es->apo_internal_nodes - cut->internal_dropped;
+    r->apo_leaves = es->apo_leaves - cut->leaves_dropped;
     r->apo_rays = es->apo_rays;
     r->apo_point_queries = es->apo_point_queries;
     r->apo_smooth_leaves = es->apo_smooth_leaves;

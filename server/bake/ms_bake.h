@@ -35,6 +35,7 @@
 
 #include "ms_apo_format.h"
 #include "ms_bake_apo.h"
+#include "ms_bake_apo_budget.h"
 #include "ms_error.h"
 #include "ms_metadata.h"
 #include "ms_nsp_build.h"
@@ -116,6 +117,7 @@ typedef struct ms_bake_report {
         depth_owned[MS_NSP_MAX_DEPTH];
     /* APO (all zero when off) */
     uint64_t apo_bytes, apo_raw_bytes;         /* compressed in the archive / texel bytes */
+    ms_bake_apo_budget_report apo_budget;      /* what the byte budget cut (all 0: nothing) */
     uint64_t apo_level_texels[MS_APO_MAX_LEVELS]; /* texels per depth over all chunks */
     uint32_t apo_levels;                       /* entries of apo_level_texels used */
     uint32_t apo_chunks;

@@ -12,6 +12,7 @@
 #include <string.h>
 
 #include "ms_apo_build.h"
+#include "ms_bake_apo_budget.h"
 #include "ms_bake_colour.h"
 #include "ms_codec.h"
 #include "ms_nsp.h"
@@ -40,6 +41,8 @@ typedef struct pool {
     bool failed;
     ms_error err;
     ms_nsp_encode_stats stats;
+    ms_bake_apo_budget_entry *chunks; /* every stored APO chunk, for the budget */
+    size_t chunk_n;                   /* at most the internal cells (or all, every_cell) */
     pthread_mutex_t lock;
     pthread_cond_t wake;
 } pool;
@@ -584,6 +587,10 @@ static ms_status finish_cell(pool *p, uint32_t node, cell_out *out, ms_error *er
     if (s == MS_OK && a->levels > 0) {
         s = ms_archive_writer_put_apo(p->writer, p->cell_of_node[node], a->data, (uint32_t)a->size,
                                       (uint32_t)(4 * a->texels), a->level_table, (uint8_t)a->levels, err);
+        ms_bake_apo_budget_entry *e = &p->chunks[p->chunk_n++];
+        *e = (ms_bake_apo_budget_entry){.chunk = {.cell = p->cell_of_node[node], .levels = a->levels,
+                                                  .scale = b->params.shape.log2n * nd->depth},
+                                        .bytes = a->size, .internal_nodes = a->internal_nodes, .leaves = a->leaves};
         p->stats.apo_bytes += a->size;
         p->stats.apo_raw_bytes += 4 * a->texels;
         p->stats.apo_chunks++;
@@ -699,11 +706,17 @@ ms_status ms_nsp_encode_all(ms_nsp_build *build, const uint32_t *cell_of_node,
     for (uint32_t v = 0; v < n; ++v)
         if (b->nodes[v].depth > p.max_depth)
             p.max_depth = b->nodes[v].depth;
+    const ms_bake_apo_params *ap = params->apo && params->apo->enabled ? params->apo : NULL;
+    size_t may_chunk = 1; /* cells that may get a chunk */
+    for (uint32_t v = 0; ap && v < n; ++v)
+        may_chunk += ap->every_cell || b->nodes[v].first_child != MS_NSP_NONE;
     p.tasks = calloc(n, sizeof *p.tasks);
     p.heap = malloc(n * sizeof *p.heap);
+    p.chunks = ap ? malloc(may_chunk * sizeof *p.chunks) : NULL;
     uint32_t *stack = malloc(n * sizeof *stack);
     uint8_t *visited = calloc(n, 1);
-    if (!p.tasks || !p.heap || !stack || !visited) {
+    if (!p.tasks || !p.heap || !stack || !visited || (ap && !p.chunks)) {
+        free(p.chunks);
         free(p.tasks);
         free(p.heap);
         free(stack);
@@ -751,6 +764,13 @@ ms_status ms_nsp_encode_all(ms_nsp_build *build, const uint32_t *cell_of_node,
         }
         free_child_parts(&p, v);
     }
+    if (s == MS_OK && ap) { /* the byte budget, on the whole archive's chunks */
+        double t1 = ms_now_seconds();
+        s = ms_bake_apo_budget_apply(writer, ap, p.stats.geometry_bytes, p.chunks, p.chunk_n,
+                                     &p.stats.apo_budget, err);
+        p.stats.apo_thread_seconds += (ms_now_seconds() - t1) * threads; /* the others wait */
+    }
+    free(p.chunks);
     pthread_mutex_destroy(&p.lock);
     pthread_cond_destroy(&p.wake);
     free(p.tasks);

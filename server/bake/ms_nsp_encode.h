@@ -38,6 +38,7 @@
 #include "ms_apo_format.h"
 #include "ms_archive_writer.h"
 #include "ms_bake_apo.h"
+#include "ms_bake_apo_budget.h"
 #include "ms_error.h"
 #include "ms_nsp_build.h"
 
@@ -74,6 +75,9 @@ typedef struct ms_nsp_encode_stats {
     uint64_t apo_sample_triangles;     /* M's triangles, summed over the internal cells */
     uint64_t apo_sample_triangles_max; /* the largest internal cell's M */
     ms_bake_apo_accuracy apo_accuracy; /* internal cells, with apo->accuracy */
+    /* what the byte budget then cut (ms_bake_apo_budget.h): the apo_ figures
+     * above are the chunks as built, these their changes (bytes_after: stored) */
+    ms_bake_apo_budget_report apo_budget;
     ms_nsp_io io;               /* read back: leaves' blocks and lone-level segments */
     /* per leaf depth: leaves, their triangles, and the triangles they own (smallest
      * key inside): stored - owned are the depth's duplicates */

@@ -6,18 +6,24 @@
 #include <event2/event.h>
 #include <event2/http.h>
 #include <event2/listener.h>
+#include <fcntl.h>
 #include <netinet/in.h>
 #include <netinet/tcp.h>
 #include <stdbool.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/queue.h>
+#include <sys/resource.h>
 #include <sys/socket.h>
+#include <unistd.h>
 
 #include "ms_progress.h"
 #include "ms_server_internal.h"
 
 #define SWEEP_INTERVAL_US 250000
+/* A parked socket's receive buffer (the kernel doubles it): what a client
+ * can make the kernel hold for it while it is parked. */
+#define PARK_RECEIVE_BUFFER 2048
 
 /* One HTTP connection, as the door tracks it: evhttp owns the connection;
  * the door holds a reference on its bufferevent (so the record never points
@@ -37,6 +43,9 @@ typedef struct tracked_connection {
     bool answered;         /* a request of its own handled: an answer may be on its way */
     bool header_begun;     /* bytes of a request header read, the request not yet handled */
     bool trickling;        /* at MS_PRIORITY_TRICKLE: its header came in pieces */
+    bool parked;           /* shed, held unread in conns->parked (dropped too) */
+    double parked_since;
+    TAILQ_ENTRY(tracked_connection) park; /* in conns->parked while parked */
 } tracked_connection;
 
 TAILQ_HEAD(waiting_list, tracked_connection);
@@ -56,6 +65,10 @@ struct ms_http_conns {
     tracked_connection *pending; /* the last accepted, maybe not yet adopted */
     bool accept_held;           /* at http_max_connections, or this turn's accepts made */
     ms_log_limit accept_log;    /* accept failures */
+    /* The parked connections in the order they were parked, oldest first;
+     * park_capacity 0: none are parked. */
+    struct waiting_list parked;
+    size_t park_capacity, park_count;
 };
 
 /* --- The waiting lists ------------------------------------------------------- */
@@ -91,6 +104,16 @@ static bool freed_by_evhttp(const tracked_connection *t)
     return !read_cb && !write_cb && !event_cb;
 }
 
+/* Out of the lot (forget, or the reset). */
+static void unpark(tracked_connection *t)
+{
+    ms_http_conns *conns = t->conns;
+    TAILQ_REMOVE(&conns->parked, t, park);
+    t->parked = false;
+    conns->park_count--;
+    conns->server->metrics.http_connections_parked--;
+}
+
 /* Lets go of a record and the door's reference on its bufferevent. */
 static void forget(tracked_connection *t)
 {
@@ -101,6 +124,8 @@ static void forget(tracked_connection *t)
     }
     if (t->trickling)
         conns->server->metrics.http_connections_trickling--;
+    if (t->parked)
+        unpark(t);
     if (conns->pending == t)
         conns->pending = NULL;
     tracked_connection *last = conns->all[--conns->count];
@@ -295,6 +320,75 @@ static void on_next_turn(evutil_socket_t fd, short what, void *arg)
     update_accepting(conns);
 }
 
+/* --- The parked connections ------------------------------------------------------ */
+
+size_t ms_http_park_capacity(const ms_server_config *config)
+{
+    return config->http_park_s ? config->http_park_max : 0;
+}
+
+/* The lot: as ms_http_park_capacity says, less where the descriptor limit
+ * could not make room (the other doors' needs, as ms_server.c counts them,
+ * come first). */
+static size_t park_capacity(const ms_server_config *config)
+{
+    size_t n = ms_http_park_capacity(config);
+    struct rlimit rl;
+    if (!n || getrlimit(RLIMIT_NOFILE, &rl) != 0 || rl.rlim_cur == RLIM_INFINITY)
+        return n;
+    rlim_t others = (rlim_t)config->max_clients + config->http_max_connections + 256 + 2 * 64;
+    rlim_t room = rl.rlim_cur > others ? rl.rlim_cur - others : 0;
+    return room < n ? (size_t)room : n;
+}
+
+/* Ends a parked connection with a reset (SO_LINGER 0: the kernel frees it at
+ * once, no orderly close to wait for, no TIME_WAIT); evhttp frees it. */
+static void reset_parked(tracked_connection *t)
+{
+    unpark(t);
+    evutil_socket_t fd = bufferevent_getfd(t->bev);
+    struct linger now = {.l_onoff = 1, .l_linger = 0};
+    if (fd >= 0)
+        (void)setsockopt(fd, SOL_SOCKET, SO_LINGER, &now, sizeof now);
+    evhttp_connection_free(t->evcon); /* calls on_close: t is gone */
+}
+
+/* Holds a trickling connection shed before any request of its own was
+ * handled, unread (its events disabled: no reads, no time-outs) with a small
+ * receive buffer, the lot's oldest reset when it is full. False when there is
+ * no lot, or t is not trickling: a client that has sent nothing yet (maybe
+ * one slow to be scheduled) gets its end at once, as before, and retries. */
+static bool park(ms_http_conns *conns, tracked_connection *t)
+{
+    if (!conns->park_capacity || !t->trickling)
+        return false;
+    if (conns->park_count == conns->park_capacity)
+        reset_parked(TAILQ_FIRST(&conns->parked));
+    bufferevent_disable(t->bev, EV_READ | EV_WRITE);
+    evutil_socket_t fd = bufferevent_getfd(t->bev);
+    int small = PARK_RECEIVE_BUFFER;
+    if (fd >= 0)
+        (void)setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &small, sizeof small);
+    set_trickling(t, false);
+    wait_remove(t);
+    conns->live--;
+    t->dropped = t->parked = true;
+    t->parked_since = ms_now_seconds();
+    TAILQ_INSERT_TAIL(&conns->parked, t, park);
+    conns->park_count++;
+    conns->server->metrics.http_connections_parked++;
+    return true;
+}
+
+/* Resets the connections parked longer than http_park. */
+static void reset_expired(ms_http_conns *conns, double now)
+{
+    double limit = conns->server->config.http_park_s;
+    tracked_connection *t;
+    while ((t = TAILQ_FIRST(&conns->parked)) && now - t->parked_since >= limit)
+        reset_parked(t);
+}
+
 /* Ends a connection evhttp still owns. shed: to admit a newcomer at the cap
  * (counted apart from the time-outs). One shed before any request of its own
  * was handled has nothing of ours on its way: evhttp frees it now (the socket
@@ -310,7 +404,8 @@ static void drop_connection(ms_http_conns *conns, tracked_connection *t, bool sh
         conns->server->metrics.http_connections_dropped++;
     adopt(t);
     if (shed && !t->answered && t->evcon && !freed_by_evhttp(t)) {
-        evhttp_connection_free(t->evcon); /* calls on_close: t is gone */
+        if (!park(conns, t))
+            evhttp_connection_free(t->evcon); /* calls on_close: t is gone */
         return;
     }
     set_trickling(t, false); /* evhttp's reading of the end of stream is not put off */
@@ -376,6 +471,7 @@ static void sweep(evutil_socket_t fd, short what, void *arg)
     ms_http_conns *conns = arg;
     const ms_server_config *config = &conns->server->config;
     double now = ms_now_seconds();
+    reset_expired(conns, now);
     for (size_t i = 0; i < conns->count;) {
         tracked_connection *t = conns->all[i];
         adopt(t);
@@ -422,6 +518,8 @@ ms_status ms_http_conns_new(ms_server *server, struct evhttp *http,
         return ms_error_set(err, MS_ERR_NOMEM, "http: out of memory");
     conns->server = server;
     conns->listener = listener;
+    conns->park_capacity = park_capacity(&server->config);
+    TAILQ_INIT(&conns->parked);
     TAILQ_INIT(&conns->waiting[0]);
     TAILQ_INIT(&conns->waiting[1]);
     conns->sweep = event_new(server->base, -1, EV_PERSIST, sweep, conns);

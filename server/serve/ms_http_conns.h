@@ -10,8 +10,17 @@
  * (trickling, and the others) in the order of their wait, and evhttp's free
  * of a connection is reported by its close callback; only the sweep (every
  * 250 ms) walks them all. A connection shed before any request of its own was
- * handled (nothing of ours is on its way to it) is freed at once, its socket
- * closed, without waiting for evhttp to read the end of stream.
+ * handled (nothing of ours is on its way to it) is freed at once, without
+ * waiting for evhttp to read the end of stream.
+ *
+ * Parked: such a connection whose header arrives in pieces (trickling) is
+ * not closed but held, unread and
+ * unwatched (no event, a small receive buffer), for http_park seconds, then
+ * reset; when the lot is full its oldest is reset first. A slowloris client
+ * sees no end to its connection and does not reconnect, so the accepts,
+ * reads and closes of its reconnections (the server's work under the attack)
+ * stop; the lot costs a descriptor and a few kilobytes of kernel buffer a
+ * connection. http_park 0: closed at once.
  */
 #ifndef MS_HTTP_CONNS_H
 #define MS_HTTP_CONNS_H
@@ -19,6 +28,7 @@
 #include "ms_error.h"
 
 struct evconnlistener;
+struct ms_server_config;
 struct evhttp;
 struct evhttp_request;
 struct ms_server;
@@ -35,7 +45,13 @@ ms_status ms_http_conns_new(struct ms_server *server, struct evhttp *http,
  * its socket (pipelined answers must not wait for a delayed ACK). */
 void ms_http_conns_request(ms_http_conns *conns, struct evhttp_request *req);
 
-/* After evhttp_free (which frees the connections): lets go of the rest. */
+/* After evhttp_free (which frees the connections): lets go of the rest, the
+ * parked connections reset. */
 void ms_http_conns_free(ms_http_conns *conns);
+
+/* The most connections the door holds parked: http_park_max (0 when
+ * http_park is 0); meshserve's descriptor limit makes room for them, and the
+ * lot is smaller when the limit could not be raised. */
+size_t ms_http_park_capacity(const struct ms_server_config *config);
 
 #endif

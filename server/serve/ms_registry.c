@@ -42,14 +42,14 @@ ms_status ms_model_check_payload(ms_model *m, uint32_t cell, uint8_t stream, boo
     uint16_t gone = apo ? MS_PAYLOAD_APO_GONE : colour ? MS_PAYLOAD_COLOUR_GONE : MS_PAYLOAD_GEOMETRY_GONE;
     const char *what = apo ? "APO chunk" : colour ? "colour stream" : "geometry payload";
     uint16_t *state = &m->payload_checks[cell];
-    /* Truncated in place? Then the mapping's pages past the end are gone. */
+    /* Truncated in place? Then the mapping's pages past the end are gone.
+     * fstat of the mapped file: no path lookup for every payload served. */
     uint64_t end = MS_ARCHIVE_HEADER_SIZE + ms_archive_get_header(m->archive)->index_stored_size +
                    (apo ? c->apo_offset + c->apo_length
                         : c->geometry_offset + c->geometry_length +
                               (colour ? ms_archive_colour_length(m->archive, cell) : 0));
     struct stat now;
-    if (stat(m->file_path, &now) == 0 && (uint64_t)now.st_ino == m->file_inode &&
-        (uint64_t)now.st_size < end) {
+    if (ms_archive_file_stat(m->archive, &now, NULL) == MS_OK && (uint64_t)now.st_size < end) {
         *first_report = !(*state & gone);
         *state |= gone;
         return ms_error_set(err, MS_ERR_IO,
@@ -270,6 +270,8 @@ ms_status ms_model_open(const char *dir, const ms_catalog_entry *entry, ms_model
         m->index_head = NULL, m->index_head_size = 0;
     m->content_id = ms_archive_content_id(m->archive);
     m->refs = 1;
+    /* the file mapped, which a rename since the stat above may have replaced */
+    (void)ms_archive_file_stat(m->archive, &st, NULL);
     m->file_inode = (uint64_t)st.st_ino;
     m->file_size = (uint64_t)st.st_size;
     m->file_mtime_ns = (int64_t)st.st_mtim.tv_sec * 1000000000 + st.st_mtim.tv_nsec;

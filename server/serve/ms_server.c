@@ -11,6 +11,7 @@
 #include <sys/resource.h>
 #include <time.h>
 
+#include "ms_http_conns.h"
 #include "ms_http_door.h"
 #include "ms_json_out.h"
 #include "ms_progress.h"
@@ -249,7 +250,8 @@ static ms_status write_port_file(const ms_server *s, ms_error *err)
 static void raise_descriptor_limit(ms_server *s)
 {
     struct rlimit rl;
-    rlim_t want = (rlim_t)s->config.max_clients + s->config.http_max_connections + 256 + 2 * 64;
+    rlim_t want = (rlim_t)s->config.max_clients + s->config.http_max_connections + 256 + 2 * 64 +
+                  (s->config.http_park_s ? ms_http_park_capacity(&s->config) : 0);
     if (getrlimit(RLIMIT_NOFILE, &rl) != 0 || rl.rlim_cur >= want)
         return;
     rl.rlim_cur = want < rl.rlim_max ? want : rl.rlim_max;

@@ -40,6 +40,7 @@ typedef struct ms_server_metrics {
     uint64_t http_connections_dropped; /* closed for a late header or no send progress */
     uint64_t http_connections_shed;    /* idle ones closed at the cap for a newcomer */
     uint64_t http_connections_trickling; /* open now, their request header arriving in pieces */
+    uint64_t http_connections_parked;  /* shed ones held unread until their reset */
     uint64_t binary_connections_dropped; /* slow readers closed for no send progress */
     uint64_t log_lines_held_back;      /* client log lines not written (ms_server_log_client) */
 } ms_server_metrics;

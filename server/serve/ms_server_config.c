@@ -28,6 +28,8 @@ void ms_server_config_defaults(ms_server_config *c)
     c->http_rate = 2000;
     c->http_max_connections = 256;
     c->http_header_timeout_s = 30;
+    c->http_park_s = 20;
+    c->http_park_max = 4096;
     c->max_open_models = 256;
     c->model_idle_timeout_s = 300;
 }
@@ -87,6 +89,8 @@ ms_status ms_server_config_set(ms_server_config *c, const char *key, const char 
         {"http_rate", offsetof(ms_server_config, http_rate), 4, 1, 10000000},
         {"http_max_connections", offsetof(ms_server_config, http_max_connections), 4, 1, 100000},
         {"http_header_timeout", offsetof(ms_server_config, http_header_timeout_s), 4, 1, 3600},
+        {"http_park", offsetof(ms_server_config, http_park_s), 4, 0, 3600},
+        {"http_park_max", offsetof(ms_server_config, http_park_max), 4, 1, 65536},
         {"max_open_models", offsetof(ms_server_config, max_open_models), 4, 1, 1000000},
         {"model_idle_timeout", offsetof(ms_server_config, model_idle_timeout_s), 4, 1, 86400},
     };

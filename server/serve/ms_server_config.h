@@ -34,6 +34,9 @@ typedef struct ms_server_config {
     uint32_t http_max_connections; /* open HTTP connections; more wait in the backlog; default 256 */
     uint32_t http_header_timeout_s; /* most time for an HTTP request header to arrive (after
                                        the accept or the previous request); default 30 */
+    uint32_t http_park_s;     /* a connection shed at the cap is held this long, unread and
+                                 unanswered, before its reset (0: closed at once); default 20 */
+    uint32_t http_park_max;   /* the most connections held so; default 4096 */
     uint32_t max_open_models; /* archives kept open that no client holds; default 256 */
     uint32_t model_idle_timeout_s; /* close a model's archive no client used this long; default 300 */
     char *token;              /* full-precision access token; NULL = none configured */
