@@ -1,10 +1,32 @@
-// The measuring probe of the viewer's decoding worker (web/worker.js, which
-// loads this file with importScripts at its first 'refine' message: none of
-// it is on the way to the first pixels). It runs in the worker's global
-// scope: the module (M), the view's helpers (openIndex, fetchSubtree,
-// fetchCell, applySections, castOne) and what the model was opened with
-// (opened) are worker.js's.
+// The measuring tools' part of the viewer's decoding worker (web/worker.js,
+// which loads this file with importScripts at its first 'cast' or 'refine'
+// message: none of it is on the way to the first pixels): casts on the last
+// mesh and the probe. It runs in the worker's global scope: the module (M),
+// the view (view), its helpers (openIndex, fetchSubtree, fetchCell,
+// applySections) and what the model was opened with (opened) are
+// worker.js's.
 'use strict';
+
+// The cast of a ray on view v's last stitch: {point, t, bits, step,
+// modelBits} or null. p: 13 doubles of the heap.
+function castOne(v, r, p) {
+  const d = new Float64Array(heap(), p, 13);
+  d.set([...r.origin, ...r.direction]);
+  if (!M._ms_web_view_cast(v, p, p + 24, r.tMin, r.tNear, p + 48))
+    return null;
+  const o = Array.from(new Float64Array(heap(), p + 48, 7));
+  return { point: o.slice(0, 3), t: o[3], bits: o[4], step: o[5], modelBits: o[6] };
+}
+
+function cast(msg) {
+  const hits = [];
+  const p = view ? M._malloc(13 * 8) : 0;
+  for (const r of msg.rays)
+    hits.push(view ? castOne(view, r, p) : null);
+  if (p)
+    M._free(p);
+  postMessage(Object.assign({}, msg, { type: 'cast', hits }));
+}
 
 // The probe (meshview's ms_viewer_probe.h): the cells under a measuring
 // point refined to full precision by a view of its own, which sees only the

@@ -231,8 +231,7 @@ function withHeap(bytes, fn) {
   }
 }
 
-// A view over the index: its head (byHead: ms_web_view_new_head, the
-// subtrees to come) or the whole blob.
+// A view over the index: its head (byHead; the subtrees to come) or the whole blob.
 function openIndex(blob, name, byHead) {
   const err = M._malloc(ERROR_SIZE), out = M._malloc(4);
   const nameBytes = new TextEncoder().encode(name + '\0');
@@ -523,11 +522,9 @@ async function run(msg) {
   opened.permit = preview ? entry.public_max_bits + 1 : 0;
   const settledPtr = M._malloc(4);
   if (msg.camera) {
-    // the subtrees the camera's own plan wants first: they travel with the
-    // first look (earlySubtrees); the root's bytes are given once the first
-    // look's tolerance is chosen (with them held, each plan tried would
-    // decode the root as far as it wants: to its finest bits where it
-    // would split)
+    // the subtrees the camera's own plan wants first travel with the first
+    // look (earlySubtrees); the root's bytes come once its tolerance is
+    // chosen (each plan tried would decode the root as far as it wants)
     setCamera(msg.camera);
     M._ms_web_view_plan_ahead(view, 1);
     if (plan(settledPtr) !== 0)
@@ -544,11 +541,8 @@ async function run(msg) {
   // within FIRST_LOOK_BYTES: the coarse levels, drawn within a round trip.
   // The rounds after it refine from there, and the streams being
   // progressive, its bytes are the prefixes they extend, not extra bytes.
-  // With the index by subtree, the first look is a cut of the cells known
-  // (a tolerance whose plan wants no subtree: drawn without waiting for
-  // one), and the subtrees the camera's own plan wants first travel with
-  // its bytes (earlySubtrees, above), so that plan finds them held; the
-  // root, asked for with the head, is there already.
+  // By subtree, the first look is a cut of the cells known (its plan wants
+  // no subtree: drawn without waiting for one; the root came with the head).
   const firstLookCamera = c => {
     for (const times of FIRST_LOOK) {
       const coarse = Object.assign({}, c, { tolerance: c.tolerance * times });
@@ -763,27 +757,6 @@ function applySections(v) {
     fail('section planes: ' + lastError(v));
 }
 
-// The cast of a ray on view v's last stitch: {point, t, bits, step,
-// modelBits} or null. p: 13 doubles of the heap.
-function castOne(v, r, p) {
-  const d = new Float64Array(heap(), p, 13);
-  d.set([...r.origin, ...r.direction]);
-  if (!M._ms_web_view_cast(v, p, p + 24, r.tMin, r.tNear, p + 48))
-    return null;
-  const o = Array.from(new Float64Array(heap(), p + 48, 7));
-  return { point: o.slice(0, 3), t: o[3], bits: o[4], step: o[5], modelBits: o[6] };
-}
-
-function cast(msg) {
-  const hits = [];
-  const p = view ? M._malloc(13 * 8) : 0;
-  for (const r of msg.rays)
-    hits.push(view ? castOne(view, r, p) : null);
-  if (p)
-    M._free(p);
-  postMessage(Object.assign({}, msg, { type: 'cast', hits }));
-}
-
 onmessage = e => {
   if (e.data.type === 'module') {
     mark('module from the page');
@@ -801,6 +774,8 @@ onmessage = e => {
     return;
   }
   if (e.data.type === 'cast') {
+    if (typeof cast !== 'function')
+      importScripts('probe.js');    // the measuring tools: cast()
     cast(e.data);
     return;
   }
