@@ -290,7 +290,8 @@ uninstall:
 # `make wasm`: the decoding sources compiled to WebAssembly by Emscripten
 # (Debian's emscripten; its Node needs NODE_PATH) with the page of web/, into
 # build/wasm/site, the folder meshserve --web-dir serves. Only what the view
-# decoder needs: no JSON, PNG or gzip input; zlib's CRC-32 from web/wasm.
+# decoder needs: no JSON, PNG or gzip input; zlib's CRC-32 and inflate from
+# web/wasm (its inflate: client/web/ms_web_inflate.c).
 comma       := ,
 space       := $(subst ,, )
 WASM        := build/wasm
@@ -311,6 +312,9 @@ WASM_EXPORTS := malloc free ms_web_view_new ms_web_view_free ms_web_view_error m
                ms_web_view_vertex_count ms_web_view_triangle_count ms_web_view_positions ms_web_view_normals \
                ms_web_view_triangles ms_web_view_shown_cells ms_web_view_max_bits ms_web_view_bytes_held \
                ms_web_view_sections ms_web_view_cast ms_web_view_threads ms_web_view_plan_ahead \
+               ms_web_view_new_head ms_web_view_give_subtree ms_web_view_plan_subtree_count \
+               ms_web_view_plan_subtree ms_web_view_subtrees_held ms_web_view_index_bytes_held \
+               ms_web_view_prefix \
                ms_web_view_run_count ms_web_view_run_cells ms_web_view_run_firsts ms_web_view_cell_cube \
                ms_web_apo_new ms_web_apo_free ms_web_apo_geometry ms_web_apo_plan ms_web_apo_plan_cell ms_web_apo_plan_levels \
                ms_web_apo_plan_bytes ms_web_apo_held ms_web_apo_level_texels ms_web_apo_give

@@ -50,6 +50,7 @@
 #include <jansson.h>
 
 #include "ms_archive.h"
+#include "ms_subtree.h"
 #include "ms_test.h"
 #include "ms_test_browser.h"
 #include "ms_test_delay.h"
@@ -67,6 +68,7 @@ typedef struct fixture {
     uint16_t port, http_port;
     char why_skip[256]; /* set when the browser cases cannot run */
     size_t index_size;  /* the demo's index blob, bytes */
+    size_t head_size;   /* its index head (header and root subtree), bytes */
 } fixture;
 
 static int run_or_say(const char *command)
@@ -113,6 +115,7 @@ static int group_setup(void **state)
         return -1;
     }
     (void)ms_archive_index_bytes(archive, &f->index_size);
+    (void)ms_archive_index_head(archive, &f->head_size);
     ms_archive_close(archive);
     /* the built site; without it the page files of web/ still answer the
      * routes (the cases that need the module skip or fail below) */
@@ -314,12 +317,21 @@ static void test_viewer_draws_the_model(void **state)
         assert_true(json_integer_value(json_object_get(timing, "threads")) >= 1);
         assert_true(json_integer_value(json_object_get(timing, "threads")) <= 3);
         /* the first look: the first picture came from at most 32 kB of cells
-         * (docs/BROWSER.md), read beside the index, before the view's own */
-        json_int_t first = json_integer_value(json_object_get(
-            json_object_get(json_object_get(report, "page"), "timing"), "firstMeshBytes"));
-        printf("first picture after %lld bytes (the index %zu)\n", (long long)first, f->index_size);
-        assert_true(first > (json_int_t)f->index_size);
-        assert_true(first <= (json_int_t)f->index_size + 32768);
+         * (docs/BROWSER.md), read beside the index, before the view's own;
+         * the index by subtree: its head and the subtrees asked for by then,
+         * less than the whole index */
+        json_int_t first = json_integer_value(json_object_get(timing, "firstMeshBytes"));
+        json_int_t first_index = json_integer_value(json_object_get(timing, "firstMeshIndexBytes"));
+        printf("first picture after %lld bytes, %lld of them the index's (its head %zu, the whole "
+               "index %zu); the index: %lld bytes in all, %lld subtrees\n", (long long)first,
+               (long long)first_index, f->head_size, f->index_size,
+               (long long)json_integer_value(json_object_get(timing, "indexWireBytes")),
+               (long long)json_integer_value(json_object_get(timing, "subtrees")));
+        assert_true(json_is_true(json_object_get(timing, "byHead")));
+        assert_true(first_index >= (json_int_t)f->head_size);
+        assert_true(first_index < (json_int_t)f->index_size);
+        assert_true(first > first_index);
+        assert_true(first <= first_index + 32768);
         assert_true(first < ms_test_browser_page_int(report, "bytes"));
 
         char ref_png[800];
@@ -394,17 +406,20 @@ static void test_server_gone_mid_stream(void **state)
                     NULL};
     pid_t driver = ms_test_spawn(argv, log);
     assert_true(driver > 0);
-    /* the index and a first cell asked for: the server goes away */
+    /* the index head and the root cell (asked for by the page's first
+     * script, before its other scripts and the module have loaded) and one
+     * more request of the model, from the started page: the server goes
+     * away */
     double deadline = seconds_now() + 60;
     uint64_t requests = before;
-    while (requests < before + 2 && seconds_now() < deadline) {
+    while (requests < before + 3 && seconds_now() < deadline) {
         usleep(5000);
         assert_int_equal(ms_test_metric(f->http_port, "meshstream_model_requests_total{model=\"demo\"}",
                                         &requests), 0);
     }
     ms_test_delay_stop(relay);
     double cut_at = seconds_now();
-    assert_true(requests >= before + 2);
+    assert_true(requests >= before + 3);
     int status = -1;
     while (seconds_now() < deadline) {
         pid_t done = waitpid(driver, &status, WNOHANG);

@@ -280,6 +280,29 @@ static void test_static_viewer(void **state)
     assert_string_equal(json_string_value(json_object_get(notes, "state")), "loaded");
     assert_int_equal(json_integer_value(json_object_get(notes, "count")), 1);
     assert_int_equal(nginx_errors(f), errors); /* every byte range within its file, no 404 */
+    /* the index by subtree, from the files meshexport wrote */
+    json_t *timing = json_object_get(json_object_get(report, "page"), "timing");
+    assert_true(json_is_true(json_object_get(timing, "byHead")));
+    printf("static viewer: the index by subtree, %lld subtrees, %lld bytes\n",
+           (long long)json_integer_value(json_object_get(timing, "subtrees")),
+           (long long)json_integer_value(json_object_get(timing, "indexWireBytes")));
+    assert_true(json_integer_value(json_object_get(timing, "subtrees")) > 0);
+    json_decref(report);
+    /* a site exported before heads were: the whole index, the same cut, one
+     * 404 (the head's) */
+    char head[900], away[900];
+    snprintf(head, sizeof head, "%s/models/demo.head", f->www);
+    snprintf(away, sizeof away, "%s/models/demo.head.away", f->www);
+    assert_int_equal(rename(head, away), 0);
+    report = open_url(f, url, "static-whole.png");
+    assert_int_equal(rename(away, head), 0);
+    assert_string_equal(json_string_value(json_object_get(report, "state")), "complete");
+    assert_int_equal(ms_test_browser_page_int(report, "triangles"), json_integer_value(json_object_get(cut, "triangles")));
+    assert_int_equal(ms_test_browser_page_int(report, "cells"), json_integer_value(json_object_get(cut, "shown_cells")));
+    timing = json_object_get(json_object_get(report, "page"), "timing");
+    assert_false(json_is_true(json_object_get(timing, "byHead")));
+    assert_int_equal(json_integer_value(json_object_get(timing, "subtrees")), 0);
+    assert_int_equal(nginx_errors(f), errors + 1);
     json_decref(report);
     json_decref(ref);
 }

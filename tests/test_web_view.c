@@ -16,6 +16,14 @@
  *     cuts away: the ray through the middle then meets the far wall, on the
  *     kept side; a cast's point lies on the ray, its precision is the grid
  *     step of its cell's bits, and t_near picks the hit nearest it;
+ *   - by subtree: a view of the index head, fed the subtrees and cells its
+ *     plans list (subtrees before the cells they unblock), reaches the very
+ *     cut, mesh and bytes of a view of the whole index, with fewer index
+ *     bytes; a damaged subtree, one whose parent is not held and a subtree
+ *     given to a whole index are refused with one line, nothing learned;
+ *   - its inflater (ms_web_inflate, the WebAssembly build's zlib) gives
+ *     zlib's bytes back for every level and strategy, and refuses a
+ *     truncated, damaged or oversized stream;
  *   - APO (ms_web_apo.h): a camera far enough that the root alone is shown
  *     lists the root's chunk at exactly the footprint rule's levels and
  *     prefix; its words (inflated natively) are taken, a wrong count and a
@@ -33,6 +41,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <cmocka.h>
+#include <zlib.h>
 
 #include "ms_apo_stream.h"
 #include "ms_archive.h"
@@ -40,8 +49,10 @@
 #include "ms_preview.h"
 #include "ms_nsp_check.h"
 #include "ms_study_cut.h"
+#include "ms_subtree.h"
 #include "ms_test.h"
 #include "ms_view_decoder.h"
+#include "ms_web_inflate.h"
 #include "ms_web_apo.h"
 #include "ms_web_view.h"
 
@@ -348,6 +359,25 @@ static void test_bounds_from_the_root(void **state)
         assert_true(b[a] < -0.5 && b[a + 3] > 0.5);
     }
     ms_web_view_free(v);
+    /* from the prefix at 5 bits (what the page gives before the rest): the
+     * same box within the grid step at 5 bits, then the rest of the bytes
+     * extend it */
+    v = open_view(f);
+    uint32_t five = ms_web_view_prefix(v, 0, 5);
+    printf("the root: %zu bytes, %u of them to 5 bits\n", total, five);
+    assert_int_equal(five, ms_archive_geometry_prefix(f->archive, 0, 5));
+    assert_true(five > 0 && five < total);
+    assert_int_equal(ms_web_view_prefix(v, 0, 99), total); /* clamped to the window */
+    assert_int_equal(ms_web_view_prefix(v, ms_web_view_cell_count(v), 5), 0);
+    assert_int_equal(ms_web_view_give(v, 0, 0, root, five), MS_OK);
+    double c[6];
+    assert_int_equal(ms_web_view_bounds(v, c), MS_OK);
+    double step = ldexp(box[3], -5);
+    for (int a = 0; a < 6; ++a)
+        assert_true(fabs(c[a] - b[a]) <= step);
+    assert_int_equal(ms_web_view_give(v, 0, five, root + five, (uint32_t)(total - five)), MS_OK);
+    assert_int_equal(ms_web_view_held(v, 0), total);
+    ms_web_view_free(v);
 }
 
 static void test_sections_and_casts(void **state)
@@ -565,6 +595,273 @@ static void test_bad_input(void **state)
     ms_web_view_free(NULL);
 }
 
+/* Streams a view of the index head: each round hands over the subtrees the
+ * plan lists (their stored bytes, as GET /models/NAME/subtrees/ID answers),
+ * then the cells' bytes. Counts the rounds, subtree requests and their
+ * bytes, and cell bytes. */
+typedef struct head_run {
+    unsigned rounds, subtrees;
+    uint64_t subtree_bytes, cell_bytes;
+} head_run;
+
+static head_run stream_head(ms_archive *a, ms_web_view *v)
+{
+    head_run run = {0};
+    for (;;) {
+        int settled = -1;
+        assert_int_equal(ms_web_view_plan(v, 0, &settled), MS_OK);
+        if (settled) {
+            assert_int_equal(ms_web_view_plan_count(v), 0);
+            assert_int_equal(ms_web_view_plan_subtree_count(v), 0);
+            return run;
+        }
+        for (uint32_t k = 0; k < ms_web_view_plan_subtree_count(v); ++k) {
+            uint32_t id = ms_web_view_plan_subtree(v, k);
+            for (uint32_t j = 0; j < k; ++j)
+                assert_int_not_equal(ms_web_view_plan_subtree(v, j), id); /* each once */
+            size_t size;
+            const uint8_t *stored = ms_archive_subtree(a, id, &size);
+            assert_non_null(stored);
+            assert_int_equal(ms_web_view_give_subtree(v, id, stored, (uint32_t)size), MS_OK);
+            assert_int_equal(ms_web_view_give_subtree(v, id, stored, (uint32_t)size), MS_OK); /* again: held */
+            run.subtrees++;
+            run.subtree_bytes += size;
+        }
+        assert_int_equal(ms_web_view_plan_subtree(v, ms_web_view_plan_subtree_count(v)), MS_ARCHIVE_NONE);
+        for (uint32_t k = 0; k < ms_web_view_plan_count(v); ++k) {
+            uint32_t cell = ms_web_view_plan_cell(v, k), want = ms_web_view_plan_bytes(v, k);
+            assert_int_equal(want, ms_archive_geometry_prefix(a, cell, ms_web_view_plan_bits(v, k)));
+            uint32_t held = ms_web_view_held(v, cell);
+            size_t total;
+            const uint8_t *payload = ms_archive_geometry(a, cell, &total);
+            assert_int_equal(ms_web_view_give(v, cell, held, payload + held, want - held), MS_OK);
+            run.cell_bytes += want - held;
+        }
+        assert_true(++run.rounds < 100);
+    }
+}
+
+/* A view of the index head reaches the very cut of a view of the whole
+ * index, reading fewer index bytes. */
+static void test_index_by_subtree(void **state)
+{
+    fixture *f = *state;
+    static const double NEAR[3] = {0.15, 0.1, 0.75};
+    size_t blob_size, head_size;
+    const uint8_t *blob = ms_archive_index_bytes(f->deep, &blob_size);
+    const uint8_t *head = ms_archive_index_head(f->deep, &head_size);
+    assert_non_null(head);
+    ms_web_view *whole, *byst;
+    ms_error err;
+    assert_int_equal(ms_web_view_new(blob, blob_size, "deep", &whole, &err), MS_OK);
+    assert_int_equal(ms_web_view_new_head(head, head_size, "deep", &byst, &err), MS_OK);
+    assert_int_equal(ms_web_view_cell_count(byst), ms_web_view_cell_count(whole));
+    assert_int_equal(ms_web_view_subtrees_held(byst), 1);
+    uint32_t all_subtrees = ms_web_view_subtrees_held(whole);
+    double box_whole[4], box_byst[4];
+    ms_web_view_box(whole, box_whole);
+    ms_web_view_box(byst, box_byst);
+    assert_memory_equal(box_whole, box_byst, sizeof box_whole);
+    for (int k = 0; k < 2; ++k) {
+        ms_web_view *v = k ? byst : whole;
+        ms_web_view_culled(v, 6);
+        assert_int_equal(ms_web_view_plan_ahead(v, 1), MS_OK);
+        assert_int_equal(ms_web_view_camera(v, NEAR, TARGET, UP, 40, 640, 480, 0, 0, 1.0), MS_OK);
+    }
+    head_run w = stream_head(f->deep, whole), s = stream_head(f->deep, byst);
+    assert_int_equal(w.subtrees, 0); /* the whole index lists none */
+    assert_int_equal(ms_web_view_stitch(whole), MS_OK);
+    assert_int_equal(ms_web_view_stitch(byst), MS_OK);
+    printf("whole index: %zu bytes, %u rounds; by subtree: head %zu + %u subtrees of %llu bytes "
+           "(%u of %u held, %llu raw bytes), %u rounds; %llu cell bytes, %u cells, %u triangles\n",
+           blob_size, w.rounds, head_size, s.subtrees, (unsigned long long)s.subtree_bytes,
+           ms_web_view_subtrees_held(byst), all_subtrees,
+           (unsigned long long)ms_web_view_index_bytes_held(byst), s.rounds,
+           (unsigned long long)s.cell_bytes, ms_web_view_shown_cells(byst),
+           ms_web_view_triangle_count(byst));
+    assert_int_equal(s.cell_bytes, w.cell_bytes);
+    /* exactly, for this demo (its bake is deterministic): the head, 18 of the
+     * other 23 subtrees (the cut's and, ahead, those of the cells within a
+     * bit of splitting), in 3 rounds against the whole index's 1 */
+    assert_int_equal(head_size, 283);
+    assert_int_equal(s.subtrees, 18);
+    assert_int_equal(s.subtree_bytes, 23235);
+    assert_int_equal(s.rounds, 3);
+    assert_int_equal(s.cell_bytes, 33046);
+    assert_int_equal(ms_web_view_bytes_held(byst), ms_web_view_bytes_held(whole));
+    assert_int_equal(ms_web_view_shown_cells(byst), ms_web_view_shown_cells(whole));
+    assert_int_equal(ms_web_view_max_bits(byst), ms_web_view_max_bits(whole));
+    assert_int_equal(ms_web_view_vertex_count(byst), ms_web_view_vertex_count(whole));
+    assert_int_equal(ms_web_view_triangle_count(byst), ms_web_view_triangle_count(whole));
+    assert_memory_equal(ms_web_view_triangles(byst), ms_web_view_triangles(whole),
+                        3 * (size_t)ms_web_view_triangle_count(whole) * sizeof(uint32_t));
+    assert_memory_equal(ms_web_view_positions(byst), ms_web_view_positions(whole),
+                        3 * (size_t)ms_web_view_vertex_count(whole) * sizeof(float));
+    assert_int_equal(ms_web_view_subtrees_held(byst), 1 + s.subtrees);
+    assert_true(ms_web_view_subtrees_held(byst) < all_subtrees);
+    assert_true(head_size + s.subtree_bytes < blob_size);
+    assert_true(s.rounds > w.rounds); /* a level's records come a round before its cells */
+    ms_web_view_free(whole);
+    ms_web_view_free(byst);
+}
+
+/* Subtrees that do not belong: each refused with one line naming it. */
+static void test_bad_subtrees(void **state)
+{
+    fixture *f = *state;
+    size_t blob_size, head_size, size;
+    const uint8_t *blob = ms_archive_index_bytes(f->deep, &blob_size);
+    const uint8_t *head = ms_archive_index_head(f->deep, &head_size);
+    ms_web_view *v;
+    ms_error err;
+    /* a damaged head */
+    uint8_t *copy = malloc(head_size);
+    assert_non_null(copy);
+    memcpy(copy, head, head_size);
+    copy[head_size - 3] ^= 0x21;
+    v = (ms_web_view *)1;
+    assert_int_not_equal(ms_web_view_new_head(copy, head_size, "deep", &v, &err), MS_OK);
+    assert_null(v);
+    printf("damaged head: %s\n", err.text);
+    assert_non_null(strstr(err.text, "deep"));
+    assert_int_not_equal(ms_web_view_new_head(head, 60, "deep", &v, &err), MS_OK);
+    free(copy);
+
+    assert_int_equal(ms_web_view_new_head(head, head_size, "deep", &v, &err), MS_OK);
+    uint32_t *ids;
+    size_t count;
+    assert_int_equal(ms_subtree_list(f->deep, ms_archive_subtree_levels(f->deep), &ids, &count, &err), MS_OK);
+    assert_true(count >= 3); /* the root's, its children's, and below */
+    /* a subtree whose parent cell's record is not held yet */
+    const uint8_t *deep = ms_archive_subtree(f->deep, ids[2], &size);
+    assert_int_equal(ms_web_view_give_subtree(v, ids[2], deep, (uint32_t)size), MS_ERR_RANGE);
+    printf("parent not held: %s\n", ms_web_view_error(v));
+    /* damaged bytes, or another subtree's under this id */
+    const uint8_t *first = ms_archive_subtree(f->deep, ids[1], &size);
+    copy = malloc(size);
+    assert_non_null(copy);
+    memcpy(copy, first, size);
+    copy[size / 2] ^= 0x10;
+    assert_int_not_equal(ms_web_view_give_subtree(v, ids[1], copy, (uint32_t)size), MS_OK);
+    printf("damaged subtree: %s\n", ms_web_view_error(v));
+    char name[32];
+    snprintf(name, sizeof name, "subtree %u", ids[1]);
+    assert_non_null(strstr(ms_web_view_error(v), name));
+    assert_int_not_equal(ms_web_view_give_subtree(v, ids[1], first, (uint32_t)size - 1), MS_OK);
+    assert_int_equal(ms_web_view_subtrees_held(v), 1);
+    /* the right bytes are then taken */
+    assert_int_equal(ms_web_view_give_subtree(v, ids[1], first, (uint32_t)size), MS_OK);
+    assert_int_equal(ms_web_view_subtrees_held(v), 2);
+    free(copy);
+    free(ids);
+    ms_web_view_free(v);
+
+    assert_int_equal(ms_web_view_new(blob, blob_size, "deep", &v, &err), MS_OK);
+    assert_int_equal(ms_web_view_give_subtree(v, 0, head, (uint32_t)head_size), MS_ERR_ARG);
+    assert_string_equal(ms_web_view_error(v), "the view holds the whole index: no subtree to add");
+    ms_web_view_free(v);
+}
+
+/* zlib's stream of data at a level and strategy, inflated by ms_web_inflate. */
+static void inflate_matches(const uint8_t *data, size_t size, int level, int strategy)
+{
+    z_stream z;
+    memset(&z, 0, sizeof z);
+    assert_int_equal(deflateInit2(&z, level, Z_DEFLATED, 15, 8, strategy), Z_OK);
+    uLong cap = deflateBound(&z, (uLong)size) + 16;
+    uint8_t *stored = malloc(cap + 3);
+    assert_non_null(stored);
+    z.next_in = (Bytef *)(uintptr_t)data;
+    z.avail_in = (uInt)size;
+    z.next_out = stored;
+    z.avail_out = (uInt)cap;
+    assert_int_equal(deflate(&z, Z_FINISH), Z_STREAM_END);
+    size_t n = z.total_out;
+    deflateEnd(&z);
+    memcpy(stored + n, "xyz", 3); /* bytes after the stream are not read */
+    uint8_t *out;
+    size_t out_size, used;
+    const char *why;
+    assert_int_equal(ms_web_inflate(stored, n + 3, size + 1, &out, &out_size, &used, &why), MS_WEB_INFLATE_OK);
+    assert_int_equal(used, n);
+    assert_int_equal(out_size, size);
+    if (size)
+        assert_memory_equal(out, data, size);
+    free(out);
+    /* truncated, and too little room */
+    assert_int_equal(ms_web_inflate(stored, n - 1, size + 1, &out, &out_size, &used, &why), MS_WEB_INFLATE_SHORT);
+    free(out);
+    if (size > 0) {
+        assert_int_equal(ms_web_inflate(stored, n, size - 1, &out, &out_size, &used, &why),
+                         MS_WEB_INFLATE_TOO_BIG);
+        free(out);
+    }
+    /* a wrong Adler-32 */
+    stored[n - 1] ^= 1;
+    assert_int_equal(ms_web_inflate(stored, n, size + 1, &out, &out_size, &used, &why), MS_WEB_INFLATE_BAD);
+    assert_string_equal(why, "incorrect data check");
+    free(out);
+    free(stored);
+}
+
+static void test_inflate(void **state)
+{
+    fixture *f = *state;
+    /* text-like, repetitive, random and empty data, every level, every strategy */
+    size_t size = 200000;
+    uint8_t *data = malloc(size);
+    assert_non_null(data);
+    uint32_t x = 12345;
+    for (size_t i = 0; i < size; ++i) {
+        x = x * 1103515245u + 12345u;
+        data[i] = i < 80000 ? (uint8_t)("meshstream "[i % 11] + (x >> 30)) : i < 120000 ? (uint8_t)(i / 300)
+                                                                                      : (uint8_t)(x >> 24);
+    }
+    static const int strategies[] = {Z_DEFAULT_STRATEGY, Z_FILTERED, Z_HUFFMAN_ONLY, Z_RLE, Z_FIXED};
+    for (int level = 0; level <= 9; level += 3)
+        for (size_t k = 0; k < sizeof strategies / sizeof *strategies; ++k)
+            inflate_matches(data, size, level, strategies[k]);
+    inflate_matches(data, 0, 9, Z_DEFAULT_STRATEGY);
+    inflate_matches(data + 5, 1, 9, Z_DEFAULT_STRATEGY);
+    free(data);
+    /* the archive's own subtrees, as stored */
+    uint32_t *ids;
+    size_t count;
+    ms_error err;
+    assert_int_equal(ms_subtree_list(f->deep, ms_archive_subtree_levels(f->deep), &ids, &count, &err), MS_OK);
+    for (size_t k = 0; k < count; ++k) {
+        size_t stored_size, raw_size, out_size, used;
+        const uint8_t *stored = ms_archive_subtree(f->deep, ids[k], &stored_size);
+        uint8_t *raw, *out;
+        const char *why;
+        assert_int_equal(ms_subtree_encode(f->deep, ms_archive_subtree_levels(f->deep), ids[k], &raw, &raw_size, &err),
+                         MS_OK);
+        assert_int_equal(ms_web_inflate(stored, stored_size, raw_size, &out, &out_size, &used, &why),
+                         MS_WEB_INFLATE_OK);
+        assert_int_equal(out_size, raw_size);
+        assert_memory_equal(out, raw, raw_size);
+        free(out);
+        free(raw);
+    }
+    free(ids);
+    /* not zlib: a bad header, a preset dictionary, a reserved block type */
+    uint8_t *out;
+    size_t out_size, used;
+    const char *why;
+    static const uint8_t bad_header[] = {0x78, 0x9d, 0x03, 0x00}, dictionary[] = {0x78, 0xbb, 0, 0, 0, 0},
+                         reserved[] = {0x78, 0x9c, 0x07, 0x00};
+    assert_int_equal(ms_web_inflate(bad_header, sizeof bad_header, 100, &out, &out_size, &used, &why),
+                     MS_WEB_INFLATE_BAD);
+    assert_string_equal(why, "incorrect header check");
+    assert_null(out);
+    assert_int_equal(ms_web_inflate(dictionary, sizeof dictionary, 100, &out, &out_size, &used, &why),
+                     MS_WEB_INFLATE_DICT);
+    assert_int_equal(ms_web_inflate(reserved, sizeof reserved, 100, &out, &out_size, &used, &why),
+                     MS_WEB_INFLATE_BAD);
+    assert_string_equal(why, "a block of reserved type 3");
+    assert_int_equal(ms_web_inflate(reserved, 1, 100, &out, &out_size, &used, &why), MS_WEB_INFLATE_SHORT);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -575,6 +872,9 @@ int main(void)
         cmocka_unit_test(test_sections_and_casts),
         cmocka_unit_test(test_apo_plan_and_check),
         cmocka_unit_test(test_bad_input),
+        cmocka_unit_test(test_index_by_subtree),
+        cmocka_unit_test(test_bad_subtrees),
+        cmocka_unit_test(test_inflate),
     };
     return cmocka_run_group_tests(tests, group_setup, group_teardown);
 }

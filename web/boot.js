@@ -15,7 +15,30 @@
   // the page is cross-origin isolated)
   const single = new URLSearchParams(location.hash.slice(1)).get('threads') === '0';
   const worker = new Worker('../web/worker.js' + (single ? '?threads=0' : ''));
+  // The decoder's WebAssembly, fetched and compiled from here while the
+  // worker starts (a worker's start took 60 to 690 ms after this script ran
+  // on the loaded test machine: docs/BROWSER.md), then handed to it; the
+  // same module the worker would choose: the threaded one where the page is
+  // cross-origin isolated. null where it cannot be (no compileStreaming, a
+  // server that sends the module without application/wasm): the worker then
+  // fetches it itself.
+  const file = self.crossOriginIsolated === true && typeof SharedArrayBuffer === 'function' && !single
+    ? 'meshstream-mt.wasm' : 'meshstream.wasm';
+  const compiled = typeof WebAssembly === 'object' && WebAssembly.compileStreaming
+    ? WebAssembly.compileStreaming(fetch('../web/' + file)).catch(() => null) : Promise.resolve(null);
+  // where the first milliseconds went, from the navigation (the worker puts
+  // them in window.meshstream.timing.boot): the page's answer, this script's
+  // fetch and its start; and the page's clock's origin, against which the
+  // worker places its own marks (timing.marksFromNavigation)
+  const nav = performance.getEntriesByType('navigation')[0];
+  const me = document.currentScript && performance.getEntriesByName(document.currentScript.src)[0];
+  const ms = x => (typeof x === 'number' ? Math.round(x) : null);
+  const bootTimes = { pageRequest: ms(nav && nav.requestStart), pageAnswer: ms(nav && nav.responseEnd),
+                      bootFetched: ms(me && me.responseEnd), bootRan: ms(performance.now()),
+                      timeOrigin: performance.timeOrigin };
   worker.postMessage({ type: 'prefetch', name, token: sessionStorage.getItem(tokenKey) || '',
-                       layout: staticSite ? 'static' : 'door' });
+                       layout: staticSite ? 'static' : 'door', boot: bootTimes });
+  compiled.then(module => worker.postMessage({ type: 'module', file, module,
+                                               at: Math.round(performance.now()) }));
   window.meshstreamBoot = { worker, at: performance.now(), name, staticSite, tokenKey };
 })();

@@ -20,8 +20,19 @@
 // elsewhere (a static export's server without those headers, a frame of a
 // page that is not isolated) the single-threaded one. Its script is read
 // (importScripts waits for it) once the first message has sent the
-// model's first requests (boot.js's prefetch), and it compiles while they
-// travel, before the page sends the camera.
+// model's first requests (boot.js's prefetch); its WebAssembly comes
+// compiled from the page (boot.js's 'module' message: fetched and compiled
+// while this worker started), or, where the page could not, is fetched and
+// compiled here.
+let fromPage = null;
+const pageModule = new Promise(resolve => { fromPage = resolve; });
+function instantiate(file, imports, receive) {
+  pageModule.then(m => m && m.file === file && m.module ? m.module
+    : fetch(here(file)).then(r => r.arrayBuffer()).then(bytes => WebAssembly.compile(bytes)))
+    .then(module => WebAssembly.instantiate(module, imports).then(instance => receive(instance, module)))
+    .catch(e => fail('the decoder cannot start: ' + (e.message || String(e))));
+  return {};
+}
 const here = file => new URL(file, self.location.href).href;
 let threaded = self.crossOriginIsolated === true && typeof SharedArrayBuffer === 'function' &&
                new URL(self.location.href).searchParams.get('threads') !== '0';   // boot.js's #threads=0
@@ -42,8 +53,10 @@ function loadModule() {
   modulePromise = threaded
     ? createMeshstreamThreads({
         locateFile: file => here(file === 'meshstream-mt.worker.js' ? 'meshstream-mt-worker.js' : file),
-        mainScriptUrlOrBlob: here('meshstream-mt.js') })
-    : createMeshstream({ locateFile: here });
+        mainScriptUrlOrBlob: here('meshstream-mt.js'),
+        instantiateWasm: (imports, receive) => instantiate('meshstream-mt.wasm', imports, receive) })
+    : createMeshstream({ locateFile: here,
+                         instantiateWasm: (imports, receive) => instantiate('meshstream.wasm', imports, receive) });
   return modulePromise;
 }
 // Helper threads for decoding: the cores less this one, at most 2. They are
@@ -67,11 +80,17 @@ const U32 = () => new Uint32Array(heap());
 // web/): meshserve's side door, or a static export (meshexport --web-dir),
 // whose index is a file of its own and whose cells are whole files, read by
 // byte ranges (any web server honours Range; a query string it ignores).
+// The index comes by subtree, as the native client reads it: its head (the
+// header and the root subtree) at once, each further subtree as the plans
+// ask (docs/ARCHIVE.md, "Subtrees"); the whole index only where the head is
+// missing (404: a site exported before the head was).
 const ROOT = new URL('../', self.location.href);
 const LAYOUTS = {
   door: {
     catalogue: name => 'catalog?limit=1000&q=' + encodeURIComponent(name),
     index: name => 'models/' + encodeURIComponent(name),
+    head: name => 'models/' + encodeURIComponent(name) + '/head',
+    subtree: (name, id) => 'models/' + encodeURIComponent(name) + '/subtrees/' + id,
     cell: (name, cell, bits) => 'models/' + encodeURIComponent(name) + '/cells/' + cell +
                                 '/geometry' + (bits === null ? '' : '?bits=' + bits),
     ranged: false,      // the server cuts the prefix at ?bits=
@@ -79,6 +98,8 @@ const LAYOUTS = {
   static: {
     catalogue: () => 'catalog.json',
     index: name => 'models/' + encodeURIComponent(name) + '.index',
+    head: name => 'models/' + encodeURIComponent(name) + '.head',
+    subtree: (name, id) => 'models/' + encodeURIComponent(name) + '/subtrees/' + id,
     cell: (name, cell) => 'models/' + encodeURIComponent(name) + '/cells/' + cell + '/geometry',
     ranged: true,       // the prefix is a byte range of the whole file
   },
@@ -96,6 +117,7 @@ const STITCH_SHARE = 5;          // (at least this many times the last stitch's 
 const DECODE_EVERY_BYTES = 32768; // or after how many bytes
 const FIRST_LOOK = [16, 64, 256, 4096]; // the first round's tolerances, times the camera's
 const FIRST_LOOK_BYTES = 32768;         // and the most that round may fetch
+const HOME_BITS = 5;        // the root's bits for the home camera's bounds and first picture
 const ERROR_SIZE = 520;     // sizeof(ms_error), with room
 
 let M = null;               // the WebAssembly module
@@ -209,12 +231,14 @@ function withHeap(bytes, fn) {
   }
 }
 
-function openIndex(blob, name) {
+// A view over the index: its head (byHead; the subtrees to come) or the whole blob.
+function openIndex(blob, name, byHead) {
   const err = M._malloc(ERROR_SIZE), out = M._malloc(4);
   const nameBytes = new TextEncoder().encode(name + '\0');
+  const open = byHead ? M._ms_web_view_new_head : M._ms_web_view_new;
   try {
     const st = withHeap(nameBytes, namePtr =>
-      withHeap(blob, blobPtr => M._ms_web_view_new(blobPtr, blob.length, namePtr, out, err)));
+      withHeap(blob, blobPtr => open(blobPtr, blob.length, namePtr, out, err)));
     if (st !== 0)
       throw new Error('the model\'s index cannot be read: ' + M.UTF8ToString(err + 4));
     return U32()[out >> 2];
@@ -257,6 +281,20 @@ async function fetchCell(name, token, cell, bits, prefix, v, ticket) {
   return bytes.length;
 }
 
+// Fetches subtree id of the index and hands it to view v; returns the bytes
+// received (its stored bytes: a zlib stream, inflated in the module by the
+// native client's reader).
+async function fetchSubtree(name, token, id, v, ticket) {
+  const answer = await get(layout.subtree(name, id), token, null, ticket);
+  const bytes = answer.bytes;
+  timing.subtrees++;
+  timing.indexWireBytes += bytes.length;
+  const st = withHeap(bytes, p => M._ms_web_view_give_subtree(v || view, id, p, bytes.length));
+  if (st !== 0)
+    throw new Error('the model\'s index: ' + lastError(v));
+  return bytes.length;
+}
+
 // Seconds spent, for the page's figures (window.meshstream.timing): selecting
 // and decoding (plan), the rounds of fetches from their first request to
 // their last answer, decoding included (fetch), of which the worker had
@@ -264,12 +302,18 @@ async function fetchCell(name, token, cell, bits, prefix, v, ticket) {
 // mesh out of the module to the page (copy); whether the module is the
 // threaded one (threaded) and the threads decoding (threads); counts:
 // plans, stitches, cell requests answered and their bytes (requests,
-// requestBytes), requests cancelled by a new camera (cancelled).
-// indexWireBytes: the index's bytes as they travelled. marks: milliseconds
+// requestBytes), requests cancelled by a new camera (cancelled), subtrees
+// of the index fetched (subtrees; byHead: whether the index came by
+// subtree). indexWireBytes: the index's bytes as they travelled (head and
+// subtrees, or the whole blob deflated). marks: milliseconds
 // from the worker's start to its first steps (index read, first mesh
-// posted).
+// posted); boot: boot.js's milliseconds from the navigation (the page
+// asked for and answered, boot.js fetched and run) and the worker's clock
+// against the page's (workerClock: a mark + workerClock is from the
+// navigation).
 const timing = { plan: 0, fetch: 0, wait: 0, stitch: 0, copy: 0, threads: 1, plans: 0, stitches: 0,
-                 requests: 0, requestBytes: 0, cancelled: 0, marks: {} };
+                 requests: 0, requestBytes: 0, cancelled: 0, subtrees: 0, indexWireBytes: 0, byHead: false,
+                 marks: {} };
 
 function mark(name) {
   if (!(name in timing.marks))
@@ -286,7 +330,8 @@ function timed(key, fn) {
 }
 
 // received: the bytes read so far (the first non-empty mesh's are kept in
-// timing.firstMeshBytes: what the first look cost).
+// timing.firstMeshBytes: what the first look cost; firstMeshIndexBytes: of
+// them, the index's).
 // lastStitchMs: what the last stitch and copy took (a round shows its
 // progress no more often than STITCH_SHARE times that: the stitch is the
 // whole cut's, each costs more as the cut grows).
@@ -303,6 +348,7 @@ function postMesh(final, received) {
   if (M._ms_web_view_triangle_count(view) && !('mesh' in timing.marks)) {
     mark('mesh');
     timing.firstMeshBytes = received;
+    timing.firstMeshIndexBytes = timing.indexWireBytes;   // of them, the index's
   }
 }
 
@@ -348,6 +394,11 @@ function plan(settledPtr) {
 // (get()'s), which a new camera cancels while they wait for their answer.
 let pendingCamera = null, wake = null;
 const tickets = new Set();
+// The subtrees of the index asked for (in flight or held): each once.
+const subtreesAsked = new Set();
+// The subtrees the camera's own plan wants, asked for with the first look's
+// cells (run(), firstLookCamera).
+const earlySubtrees = [];
 
 function nextCamera() {
   return new Promise(resolve => { wake = resolve; });
@@ -359,6 +410,12 @@ let prefetched = null;
 function prefetch(msg) {
   layout = LAYOUTS[msg.layout] || LAYOUTS.door;
   mark('prefetch');
+  if (msg.boot && typeof msg.boot.timeOrigin === 'number') {
+    // boot.js's times, and this worker's clock against the page's
+    timing.boot = Object.assign({}, msg.boot, {
+      workerClock: Math.round(performance.timeOrigin - msg.boot.timeOrigin) });
+    delete timing.boot.timeOrigin;
+  }
   // the catalogue's entries whose name (or title, description) holds NAME
   // (a page of at most 1000)
   const listing = get(layout.catalogue(msg.name), msg.token).then(
@@ -367,8 +424,13 @@ function prefetch(msg) {
   listing.catch(() => {});        // told by run(), if it runs
   // the index's failure is told after the catalogue's verdict (an unknown
   // model is named as such, not as the index's 404)
-  const index = get(layout.index(msg.name), msg.token).catch(e => e);
-  return { name: msg.name, token: msg.token, layout: msg.layout, listing, index };
+  const index = get(layout.head(msg.name), msg.token).catch(e => e);
+  // the root cell, all of it the reader may read (no ?bits: never refused):
+  // the first look draws from it without a round trip of its own, the home
+  // camera is framed by it, and every view deeper than the root needs it
+  // whole (a split cell stays at its finest bits)
+  const root = get(layout.cell(msg.name, 0, null), msg.token).catch(e => e);
+  return { name: msg.name, token: msg.token, layout: msg.layout, listing, index, root };
 }
 
 async function run(msg) {
@@ -378,38 +440,65 @@ async function run(msg) {
   // The module compiles while the catalogue's entry and the index arrive: the
   // three at once, not one round trip after another (first pixels), and
   // from the page's first script on (boot.js's prefetch).
-  const { listing, index } = prefetched && prefetched.name === name && prefetched.token === token &&
+  const { listing, index, root } = prefetched && prefetched.name === name && prefetched.token === token &&
                              prefetched.layout === msg.layout ? prefetched : prefetch(msg);
   const module = loadModule();
   layout = LAYOUTS[msg.layout] || LAYOUTS.door;
-  const [catalogue, indexAnswer] = await Promise.all([
+  const [catalogue, headAnswer] = await Promise.all([
     listing.then(c => { mark('catalogue'); return c; }),
     index.then(a => { mark('index fetched'); return a; }),
     module.then(m => { M = m; mark('module'); })]);
   const entry = catalogue.models.find(m => m.name === name);
   if (!entry)
     throw new Error('no model named "' + name + '" on this server');
+  // the head; without one (404: a static site exported before heads) the
+  // whole index, one round trip later
+  let indexAnswer = headAnswer, byHead = true;
+  if (indexAnswer instanceof Error && indexAnswer.status === 404) {
+    byHead = false;
+    indexAnswer = await get(layout.index(name), token).catch(e => e);
+  }
   if (indexAnswer instanceof Error)
     throw indexAnswer;
   const blob = indexAnswer.bytes;
-  // the index as it travelled (deflated by meshserve for a browser): the
-  // page's bytes count it inflated
+  // the index as it travelled (the whole blob deflated by meshserve for a
+  // browser: the page's bytes count it inflated; a head is sent as stored)
   timing.indexWireBytes = indexAnswer.headers.get('Content-Encoding') === 'deflate' &&
                           Number(indexAnswer.headers.get('Content-Length')) > 0
     ? Number(indexAnswer.headers.get('Content-Length')) : blob.length;
+  timing.byHead = byHead;
   mark('index');
-  view = openIndex(blob, name);
+  view = openIndex(blob, name, byHead);
   timing.threaded = threaded;     // the threaded module (a cross-origin isolated page)
-  opened = { name, token, blob };
+  opened = { name, token, blob, byHead };
   applySections();
   const bp = M._malloc(32);
   M._ms_web_view_box(view, bp);
   const box = Array.from(new Float64Array(heap(), bp, 4));
   M._free(bp);
   let bytes = blob.length, rounds = 0, bounds = null;
+  const rootAnswer = await root;
+  // the root's bytes from `from` to `to` (all of them: counted once)
+  const giveRoot = (from = 0, to = Infinity) => {
+    if (rootAnswer instanceof Error)
+      return;
+    const got = rootAnswer.bytes.subarray(from, to);
+    if (from === 0) {
+      timing.requests++;
+      timing.requestBytes += rootAnswer.bytes.length;
+      bytes += rootAnswer.bytes.length;
+    }
+    if (got.length && withHeap(got, p => M._ms_web_view_give(view, 0, from, p, got.length)) !== 0)
+      throw new Error('cell 0: ' + lastError());
+  };
+  let homeCut = 0;
   if (!msg.camera) {
-    // the root's bytes tell where the model lies in its box: the home camera
-    bytes += await fetchCell(name, token, 0, null, 0);
+    // the root at HOME_BITS tells where the model lies in its box: the home
+    // camera (all of it took 0.5 s to decode), drawn at once; the rest after
+    homeCut = rootAnswer instanceof Error ? 0 : M._ms_web_view_prefix(view, 0, HOME_BITS);
+    giveRoot(0, homeCut);
+    if (rootAnswer instanceof Error)
+      bytes += await fetchCell(name, token, 0, null, 0);
     const p = M._malloc(48);
     if (M._ms_web_view_bounds(view, p) === 0)
       bounds = Array.from(new Float64Array(heap(), p, 6));
@@ -419,6 +508,10 @@ async function run(msg) {
   // the measuring line; null: "model units"
   postMessage({ type: 'box', box, bounds, triangles: entry.triangles,
                 unit: typeof entry.unit === 'string' && entry.unit ? entry.unit : null });
+  if (homeCut) {
+    postMesh(false, bytes);
+    giveRoot(homeCut);
+  }
   // A reader without a token reads a preview model to public_max_bits only.
   M._ms_web_view_culled(view, msg.culled);
   // A static tree holds only what its catalogue lists as public (meshexport
@@ -427,28 +520,41 @@ async function run(msg) {
   if (preview)
     M._ms_web_view_permit(view, entry.public_max_bits + 1);
   opened.permit = preview ? entry.public_max_bits + 1 : 0;
-  if (msg.camera)
+  const settledPtr = M._malloc(4);
+  if (msg.camera) {
+    // the subtrees the camera's own plan wants first travel with the first
+    // look (earlySubtrees); the root's bytes come once its tolerance is
+    // chosen (each plan tried would decode the root as far as it wants)
+    setCamera(msg.camera);
+    M._ms_web_view_plan_ahead(view, 1);
+    if (plan(settledPtr) !== 0)
+      throw new Error('selecting the cut: ' + lastError());
+    for (let k = 0, n = M._ms_web_view_plan_subtree_count(view); k < n; ++k)
+      earlySubtrees.push(M._ms_web_view_plan_subtree(view, k));
     pendingCamera = msg.camera;
+  }
   while (!pendingCamera)
     await nextCamera();
-  const settledPtr = M._malloc(4);
   let seq = 0;                    // the page's number of the camera applied
   // A first look: with nothing drawn yet (a camera from the URL), the first
   // round selects at the finest of a few coarser tolerances whose bytes stay
   // within FIRST_LOOK_BYTES: the coarse levels, drawn within a round trip.
   // The rounds after it refine from there, and the streams being
   // progressive, its bytes are the prefixes they extend, not extra bytes.
+  // By subtree, the first look is a cut of the cells known (its plan wants
+  // no subtree: drawn without waiting for one; the root came with the head).
   const firstLookCamera = c => {
     for (const times of FIRST_LOOK) {
       const coarse = Object.assign({}, c, { tolerance: c.tolerance * times });
       setCamera(coarse);
       if (plan(settledPtr) !== 0)
         throw new Error('selecting the cut: ' + lastError());
-      if (planNeed(M._ms_web_view_plan_count(view)) <= FIRST_LOOK_BYTES)
+      if (planNeed(M._ms_web_view_plan_count(view)) <= FIRST_LOOK_BYTES &&
+          M._ms_web_view_plan_subtree_count(view) === 0)
         return;
     }
   };
-  let current = null, looking = false, firstLook = !bounds;
+  let current = null, looking = false, firstLook = !bounds, rootGiven = false;
   for (;;) {
     if (pendingCamera) {
       current = pendingCamera;
@@ -463,6 +569,10 @@ async function run(msg) {
         firstLookCamera(current);
       else
         setCamera(current);
+      if (msg.camera && !rootGiven) {
+        rootGiven = true;
+        giveRoot();
+      }
     } else if (looking) {
       looking = false;            // the first look is in: the camera's own tolerance
       M._ms_web_view_plan_ahead(view, 1);
@@ -496,68 +606,111 @@ async function run(msg) {
     for (let k = 0; k < count; ++k)
       wanted.push([M._ms_web_view_plan_cell(view, k), M._ms_web_view_plan_bits(view, k),
                    M._ms_web_view_plan_bytes(view, k)]);
+    // the subtrees of the index the plan lacks: asked for before any cell
+    // (each unblocks the splits below it), each once
+    const subtrees = [];
+    const listSubtrees = () => {
+      const ids = earlySubtrees.splice(0);
+      for (let k = 0, n = M._ms_web_view_plan_subtree_count(view); k < n; ++k)
+        ids.push(M._ms_web_view_plan_subtree(view, k));
+      for (const id of ids) {
+        if (!subtreesAsked.has(id)) {
+          subtreesAsked.add(id);
+          subtrees.push(id);
+        }
+      }
+    };
+    listSubtrees();
+    if (!wanted.length && !subtrees.length)   // (never: a guard against a busy loop)
+      throw new Error('selecting the cut: the plan wants subtrees it has asked for already');
     // the bytes this round still wants: the page's progress bar
     let need = planNeed(count);
     postMessage({ type: 'progress', bytes, need, rounds, wanted: count });
     let next = 0, given = 0, shownAt = performance.now(), fresh = 0;
     const queued = new Map(wanted.map(([cell, bits]) => [cell, bits]));
-    // A new camera ends the round: nothing more of the old plan is asked
+    // A long round decodes what has come every DECODE_EVERY_BYTES and
+    // shows it every SHOW_EVERY_MS, and at once when a subtree of the index
+    // came (its cells are then known to the plans): decoding the cells
+    // given so far overlaps the fetches still on their way (the browser's
+    // network goes on while the worker decodes), and the picture fills in
+    // cell by cell instead of waiting for the round.
+    // What that plan lists beyond the round (the children of the cells
+    // just decoded, the subtrees below them) joins the round's queues while
+    // the camera stays, so the next level's fetches start without waiting
+    // for the round's last cell.
+    const replan = force => {
+      const showDue = performance.now() - shownAt >= Math.max(SHOW_EVERY_MS, STITCH_SHARE * lastStitchMs);
+      if (!force && !(given < wanted.length && (showDue || fresh >= DECODE_EVERY_BYTES)))
+        return;
+      fresh = 0;
+      if (plan(settledPtr) !== 0)
+        throw new Error('selecting the cut: ' + lastError());
+      const listed = M._ms_web_view_plan_count(view);
+      if (showDue && changed(listed)) { // stitching is the whole cut's: not every decode
+        postMesh(false, bytes);
+        shownAt = performance.now();
+      }
+      if (pendingCamera)
+        return;
+      listSubtrees();
+      for (let k = 0; k < listed; ++k) {
+        const cell = M._ms_web_view_plan_cell(view, k), bits = M._ms_web_view_plan_bits(view, k);
+        if (!queued.has(cell) || queued.get(cell) < bits) {
+          queued.set(cell, bits);
+          const prefix = M._ms_web_view_plan_bytes(view, k);
+          need += Math.max(prefix - M._ms_web_view_held(view, cell), 0);
+          wanted.push([cell, bits, prefix]);
+        }
+      }
+    };
+    // One request, a subtree or a cell. A new camera ends the round: nothing more of the old plan is asked
     // for, what still waits for its answer's head is cancelled (tickets,
     // the message handler below; timing.cancelled counts them), what is
     // arriving lands; the next plan asks again what the new view still
     // needs.
-    const lane = async () => {
-      while (next < wanted.length && !pendingCamera) {
-        const [cell, bits, prefix] = wanted[next++];
-        const ticket = { cancel: new AbortController(), started: false };
-        tickets.add(ticket);
-        let got;
-        try {
-          got = await fetchCell(name, token, cell, bits, prefix, view, ticket); // not `bytes += await`: lanes interleave
-        } catch (e) {
-          if (!e.cancelled)
-            throw e;
-          timing.cancelled++;
-          continue;
-        } finally {
-          tickets.delete(ticket);
-        }
-        bytes += got;
+    const job = async ([kind, ...what]) => {
+      const ticket = { cancel: new AbortController(), started: false };
+      tickets.add(ticket);
+      let got;     // not `bytes += await`: jobs interleave
+      try {
+        got = kind === 'subtree' ? await fetchSubtree(name, token, what[0], view, ticket)
+                                 : await fetchCell(name, token, what[0], what[1], what[2], view, ticket);
+      } catch (e) {
+        if (!e.cancelled)
+          throw e;
+        timing.cancelled++;
+        if (kind === 'subtree')
+          subtreesAsked.delete(what[0]);
+        return;
+      } finally {
+        tickets.delete(ticket);
+      }
+      bytes += got;
+      if (kind === 'cell') {
         need = Math.max(need - got, 0);
         given++;
         fresh += got;
-        postMessage({ type: 'progress', bytes, need, rounds, wanted: count });
-        // A long round decodes what has come every DECODE_EVERY_BYTES and
-        // shows it every SHOW_EVERY_MS: decoding the cells given so far overlaps
-        // the fetches still on their way (the browser's network goes on
-        // while the worker decodes), and the picture fills in cell by cell
-        // instead of waiting for the round.
-        // What that plan lists beyond the round (the children of the cells
-        // just decoded) joins the round's queue while the camera stays, so
-        // the next level's fetches start without waiting for the round's
-        // last cell.
-        const showDue = performance.now() - shownAt >= Math.max(SHOW_EVERY_MS, STITCH_SHARE * lastStitchMs);
-        if (given < wanted.length && (showDue || fresh >= DECODE_EVERY_BYTES)) {
-          fresh = 0;
-          if (plan(settledPtr) !== 0)
-            throw new Error('selecting the cut: ' + lastError());
-          const listed = M._ms_web_view_plan_count(view);
-          if (showDue && changed(listed)) { // stitching is the whole cut's: not every decode
-            postMesh(false, bytes);
-            shownAt = performance.now();
-          }
-          for (let k = 0; k < listed && !pendingCamera; ++k) {
-            const cell = M._ms_web_view_plan_cell(view, k), bits = M._ms_web_view_plan_bits(view, k);
-            if (!queued.has(cell) || queued.get(cell) < bits) {
-              queued.set(cell, bits);
-              wanted.push([cell, bits, M._ms_web_view_plan_bytes(view, k)]);
-            }
-          }
-        }
       }
+      postMessage({ type: 'progress', bytes, need, rounds, wanted: count });
+      replan(kind === 'subtree');
     };
+    // IN_FLIGHT requests at a time, subtrees first; a request that ends
+    // starts the next, so what a plan adds mid-round goes out at once.
     const fetchStart = performance.now(), busy = timing.plan + timing.stitch + timing.copy;
-    await Promise.all(Array.from({ length: Math.min(IN_FLIGHT, wanted.length) }, lane));
+    await new Promise((resolve, reject) => {
+      let active = 0, failure = null;
+      const pump = () => {
+        while (!failure && !pendingCamera && active < IN_FLIGHT && (subtrees.length || next < wanted.length)) {
+          active++;
+          job(subtrees.length ? ['subtree', subtrees.shift()] : ['cell', ...wanted[next++]]).then(
+            () => { active--; pump(); },
+            e => { active--; failure = failure || e; pump(); });
+        }
+        if (active === 0)
+          failure ? reject(failure) : resolve();
+      };
+      pump();
+    });
     const roundSeconds = (performance.now() - fetchStart) / 1000;
     timing.fetch += roundSeconds;
     // the round's time the worker did not decode, stitch or copy: waiting on
@@ -604,85 +757,12 @@ function applySections(v) {
     fail('section planes: ' + lastError(v));
 }
 
-// The cast of a ray on view v's last stitch: {point, t, bits, step,
-// modelBits} or null. p: 13 doubles of the heap.
-function castOne(v, r, p) {
-  const d = new Float64Array(heap(), p, 13);
-  d.set([...r.origin, ...r.direction]);
-  if (!M._ms_web_view_cast(v, p, p + 24, r.tMin, r.tNear, p + 48))
-    return null;
-  const o = Array.from(new Float64Array(heap(), p + 48, 7));
-  return { point: o.slice(0, 3), t: o[3], bits: o[4], step: o[5], modelBits: o[6] };
-}
-
-// The probe (meshview's ms_viewer_probe.h): the cells under a measuring
-// point refined to full precision by a view of its own, which sees only the
-// point (from a thousandth of the box side in front of it along its ray, a
-// hundredth of a degree on 1000 x 1000 pixels: the cells there want more
-// bits than the model has; nothing outside wanted, culled 64 bits less),
-// fetched to settled (the browser's cache holds what the view fetched);
-// then the ray cast on its mesh. Answers {type: 'cast', refine: true, seq,
-// index, hit}.
-async function refine(msg) {
-  if (!opened)
-    return;
-  const box = new Float64Array(4), bp = M._malloc(32);
-  M._ms_web_view_box(view, bp);
-  box.set(new Float64Array(heap(), bp, 4));
-  M._free(bp);
-  for (const [index, r] of msg.points.entries()) {
-    const probe = openIndex(opened.blob, opened.name);
-    let hit = null;
-    try {
-      M._ms_web_view_culled(probe, 64);
-      if (opened.permit)
-        M._ms_web_view_permit(probe, opened.permit);
-      applySections(probe);
-      const len = Math.hypot(...r.direction), dir = r.direction.map(x => x / len);
-      const back = box[3] / 1000, position = r.point.map((x, a) => x - back * dir[a]);
-      const side = Math.abs(dir[1]) < 0.9 ? [0, 1, 0] : [1, 0, 0];
-      const p = M._malloc(13 * 8);
-      try {
-        new Float64Array(heap(), p, 9).set([...position, ...r.point, ...side]);
-        if (M._ms_web_view_camera(probe, p, p + 24, p + 48, 0.01, 1000, 1000, 0, 0, 1) !== 0)
-          throw new Error(lastError(probe));
-        const settled = p + 72;
-        for (let round = 0; round < 64; ++round) {
-          if (M._ms_web_view_plan(probe, PLAN_MAX, settled) !== 0)
-            throw new Error(lastError(probe));
-          if (U32()[settled >> 2])
-            break;
-          const n = M._ms_web_view_plan_count(probe);
-          for (let k = 0; k < n; ++k)
-            await fetchCell(opened.name, opened.token, M._ms_web_view_plan_cell(probe, k),
-                            M._ms_web_view_plan_bits(probe, k), M._ms_web_view_plan_bytes(probe, k), probe);
-        }
-        if (M._ms_web_view_stitch(probe) !== 0)
-          throw new Error(lastError(probe));
-        hit = castOne(probe, { origin: position, direction: dir, tMin: 0, tNear: back }, p);
-      } finally {
-        M._free(p);
-      }
-    } catch (e) {
-      hit = null;             // the point stays as the view has it
-    } finally {
-      M._ms_web_view_free(probe);
-    }
-    postMessage({ type: 'cast', refine: true, seq: msg.seq, index, hit });
-  }
-}
-
-function cast(msg) {
-  const hits = [];
-  const p = view ? M._malloc(13 * 8) : 0;
-  for (const r of msg.rays)
-    hits.push(view ? castOne(view, r, p) : null);
-  if (p)
-    M._free(p);
-  postMessage(Object.assign({}, msg, { type: 'cast', hits }));
-}
-
 onmessage = e => {
+  if (e.data.type === 'module') {
+    mark('module from the page');
+    fromPage(e.data);
+    return;
+  }
   if (e.data.type === 'prefetch') {
     prefetched = prefetch(e.data);
     loadModule();
@@ -694,10 +774,14 @@ onmessage = e => {
     return;
   }
   if (e.data.type === 'cast') {
+    if (typeof cast !== 'function')
+      importScripts('probe.js');    // the measuring tools: cast()
     cast(e.data);
     return;
   }
   if (e.data.type === 'refine') {
+    if (typeof refine !== 'function')
+      importScripts('probe.js');    // the measuring probe: refine()
     refine(e.data).catch(err => fail('refining a measuring point: ' + (err.message || String(err))));
     return;
   }

@@ -10,6 +10,7 @@
 #include "ms_archive.h"
 #include "ms_camera.h"
 #include "ms_parallel.h"
+#include "ms_subtree.h"
 #include "ms_view_decoder.h"
 #include "ms_view_refine.h"
 #include "ms_web_cast.h"
@@ -18,10 +19,20 @@
  * study's cut uses the same bound). */
 #define MAX_ROUNDS 64u
 
+/* Every cell whose record the view knows (all of them with a whole index). */
+#define FOR_KNOWN(v, c)                                                                            \
+    for (uint32_t c = ms_view_next_known((v)->view, MS_ARCHIVE_NONE); c != MS_ARCHIVE_NONE;          \
+         c = ms_view_next_known((v)->view, c))
+
 typedef struct planned {
     uint32_t cell, bits, bytes;
     uint32_t depth; /* the cell's level (the ahead part's order) */
 } planned;
+
+/* A subtree a plan wants, and the order it was listed in (priority). */
+typedef struct wanted_subtree {
+    uint32_t id, order;
+} wanted_subtree;
 
 struct ms_web_view {
     ms_archive *index;
@@ -36,7 +47,10 @@ struct ms_web_view {
     size_t positions_cap;
     uint8_t *stitched_bits; /* per cell: its bits at the last stitch (the mesh's) */
     bool ahead;             /* plans list the whole target cut (ms_web_view_plan_ahead) */
-    uint32_t *depth;        /* per cell: its level in the tree (for the ahead part's order) */
+    bool partial;           /* the index comes by subtree (ms_web_view_new_head) */
+    ms_view_select_report report; /* the last selection's blocked and near cells (partial) */
+    wanted_subtree *subtrees; /* the last plan's missing subtrees, in priority order */
+    uint32_t subtree_count, subtree_cap;
     ms_pool *pool;          /* NULL: decoding on the caller's thread alone */
     ms_view_refine_jobs jobs; /* the pool's job list, kept between plans */
     ms_error err;
@@ -67,13 +81,69 @@ ms_status ms_web_view_new(const uint8_t *blob, size_t size, const char *name, ms
     return MS_OK;
 }
 
+/* The view learns the records of held subtree id. */
+static ms_status learn_subtree(ms_web_view *v, uint32_t id, ms_error *err)
+{
+    const uint32_t *ids;
+    const ms_archive_cell *recs;
+    size_t n;
+    if (!ms_archive_held_subtree(v->index, id, &ids, &recs, &n))
+        return ms_error_set(err, MS_ERR_CORRUPT, "subtree %u is not held", id);
+    return ms_view_learn(v->view, ids, recs, n, err);
+}
+
+ms_status ms_web_view_new_head(const uint8_t *head, size_t size, const char *name, ms_web_view **out,
+                               ms_error *err)
+{
+    *out = NULL;
+    ms_web_view *v = calloc(1, sizeof *v);
+    if (!v)
+        return ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory", name);
+    ms_status st = ms_archive_open_head(head, size, name, &v->index, err);
+    if (st == MS_OK)
+        st = ms_view_create_partial(ms_archive_get_header(v->index), &v->view, err);
+    if (st == MS_OK)
+        st = learn_subtree(v, 0, err);
+    if (st != MS_OK) {
+        ms_web_view_free(v);
+        return st;
+    }
+    v->partial = true;
+    ms_view_select_params_default(&v->params);
+    *out = v;
+    return MS_OK;
+}
+
+ms_status ms_web_view_give_subtree(ms_web_view *v, uint32_t id, const uint8_t *data, uint32_t length)
+{
+    if (!v->partial)
+        return fail(v, MS_ERR_ARG, "the view holds the whole index: no subtree to add");
+    if (ms_archive_subtree_held(v->index, id))
+        return MS_OK;
+    ms_status st = ms_archive_add_subtree(v->index, id, data, length, &v->err);
+    if (st == MS_OK && (st = learn_subtree(v, id, &v->err)) != MS_OK)
+        ms_archive_drop_subtree(v->index, id); /* the archive took it, the view did not */
+    return st;
+}
+
+uint32_t ms_web_view_subtrees_held(const ms_web_view *v)
+{
+    return (uint32_t)ms_archive_subtrees_held(v->index);
+}
+
+uint64_t ms_web_view_index_bytes_held(const ms_web_view *v)
+{
+    return ms_archive_index_bytes_held(v->index);
+}
+
 void ms_web_view_free(ms_web_view *v)
 {
     if (!v)
         return;
     ms_pool_free(v->pool);
     ms_view_refine_jobs_free(&v->jobs);
-    free(v->depth);
+    ms_view_select_report_free(&v->report);
+    free(v->subtrees);
     ms_view_mesh_free(&v->mesh);
     ms_view_destroy(v->view);
     ms_archive_close(v->index);
@@ -140,18 +210,6 @@ void ms_web_view_permit(ms_web_view *v, unsigned steps) { v->params.permitted_st
 
 ms_status ms_web_view_plan_ahead(ms_web_view *v, int on)
 {
-    if (on && !v->depth) {
-        uint32_t n = ms_view_cell_count(v->view);
-        if (!(v->depth = calloc(n ? n : 1, sizeof *v->depth)))
-            return fail(v, MS_ERR_NOMEM, "out of memory for the cells' levels");
-        for (uint32_t c = 0; c < n; ++c) {
-            uint32_t level = 0;
-            for (uint32_t up = ms_view_cell(v->view, c)->parent; up != MS_ARCHIVE_NONE && level < n;
-                 up = ms_view_cell(v->view, up)->parent)
-                ++level;
-            v->depth[c] = level;
-        }
-    }
     v->ahead = on != 0;
     return MS_OK;
 }
@@ -261,6 +319,79 @@ static bool plan_push(ms_web_view *v, planned p)
     return true;
 }
 
+static int compare_wanted_by_id(const void *x, const void *y)
+{
+    const wanted_subtree *a = x, *b = y;
+    if (a->id != b->id)
+        return a->id < b->id ? -1 : 1;
+    return a->order < b->order ? -1 : a->order > b->order;
+}
+
+static int compare_wanted_by_order(const void *x, const void *y)
+{
+    const wanted_subtree *a = x, *b = y;
+    return a->order < b->order ? -1 : a->order > b->order;
+}
+
+/* Lists cell's children's subtree when it is not held (nothing for a leaf or
+ * children within cell's own subtree). */
+static bool want_children(ms_web_view *v, uint32_t cell)
+{
+    uint32_t id = ms_archive_children_subtree(v->index, cell);
+    if (id == MS_ARCHIVE_NONE || id == ms_archive_subtree_of(v->index, cell) ||
+        ms_archive_subtree_held(v->index, id))
+        return true;
+    if (v->subtree_count == v->subtree_cap) {
+        uint32_t cap = v->subtree_cap ? 2 * v->subtree_cap : 64;
+        wanted_subtree *grown = realloc(v->subtrees, cap * sizeof *grown);
+        if (!grown)
+            return false;
+        v->subtrees = grown;
+        v->subtree_cap = cap;
+    }
+    v->subtrees[v->subtree_count] = (wanted_subtree){id, v->subtree_count};
+    v->subtree_count++;
+    return true;
+}
+
+/* On a partial index, the subtrees the view needs and lacks, as the client
+ * core asks for them (client/core/ms_client_core_subtrees.c): those holding
+ * the children of the cells the selection would split (blocked: ahead of
+ * everything), then, with plans that look ahead, those of the cells within a
+ * bit of splitting (near: one level beyond the cut); each once, in that
+ * order. Subtrees are never dropped here: the page keeps what it learned. */
+static ms_status plan_subtrees(ms_web_view *v)
+{
+    v->subtree_count = 0;
+    if (!v->partial)
+        return MS_OK;
+    if (v->report.out_of_memory)
+        return fail(v, MS_ERR_NOMEM, "out of memory for the selection's report");
+    for (size_t k = 0; k < v->report.blocked_count; ++k)
+        if (!want_children(v, v->report.blocked[k]))
+            return fail(v, MS_ERR_NOMEM, "out of memory for the plan's subtrees");
+    for (size_t k = 0; v->ahead && k < v->report.near_count; ++k)
+        if (!want_children(v, v->report.near[k]))
+            return fail(v, MS_ERR_NOMEM, "out of memory for the plan's subtrees");
+    if (v->subtree_count > 1) {
+        qsort(v->subtrees, v->subtree_count, sizeof *v->subtrees, compare_wanted_by_id);
+        uint32_t kept = 0;
+        for (uint32_t k = 0; k < v->subtree_count; ++k)
+            if (kept == 0 || v->subtrees[kept - 1].id != v->subtrees[k].id)
+                v->subtrees[kept++] = v->subtrees[k];
+        v->subtree_count = kept;
+        qsort(v->subtrees, v->subtree_count, sizeof *v->subtrees, compare_wanted_by_order);
+    }
+    return MS_OK;
+}
+
+uint32_t ms_web_view_plan_subtree_count(const ms_web_view *v) { return v->subtree_count; }
+
+uint32_t ms_web_view_plan_subtree(const ms_web_view *v, uint32_t k)
+{
+    return k < v->subtree_count ? v->subtrees[k].id : MS_ARCHIVE_NONE;
+}
+
 ms_status ms_web_view_plan(ms_web_view *v, uint32_t max, int *settled)
 {
     if (settled)
@@ -273,7 +404,7 @@ ms_status ms_web_view_plan(ms_web_view *v, uint32_t max, int *settled)
         if (round == MAX_ROUNDS)
             return ms_error_set(&v->err, MS_ERR_RANGE,
                                 "the selection still changes after %u rounds", MAX_ROUNDS);
-        ms_view_select(v->view, &v->camera, &v->params, NULL);
+        ms_view_select(v->view, &v->camera, &v->params, v->partial ? &v->report : NULL);
         size_t refined = parallel_refine(v);
         ms_view_apply_report r;
         ms_status st = ms_view_apply(v->view, &r, &v->err);
@@ -281,13 +412,13 @@ ms_status ms_web_view_plan(ms_web_view *v, uint32_t max, int *settled)
             return st;
         changed = refined || r.splits || r.merges || r.refined || r.coarsened;
     }
-    uint32_t n = ms_view_cell_count(v->view);
     /* pass 0: the next step (cells of the cut, and the children of a shown
      * cell about to split: the first rounds are small and each round's mesh
      * shows more); pass 1, ahead: the rest of the target cut, level by level */
     for (int pass = 0; pass < (v->ahead ? 2 : 1); ++pass) {
         uint32_t first = v->plan_count;
-        for (uint32_t c = 0; c < n && (max == 0 || v->plan_count < max); ++c) {
+        for (uint32_t c = ms_view_next_known(v->view, MS_ARCHIVE_NONE);
+             c != MS_ARCHIVE_NONE && (max == 0 || v->plan_count < max); c = ms_view_next_known(v->view, c)) {
             const ms_archive_cell *rec = ms_view_cell(v->view, c);
             if (!rec || rec->geometry_length == 0)
                 continue;
@@ -301,14 +432,17 @@ ms_status ms_web_view_plan(ms_web_view *v, uint32_t max, int *settled)
             uint32_t bytes = ms_archive_geometry_prefix(v->index, c, goal);
             if (bytes <= ms_view_held_bytes(v->view, c))
                 continue;
-            if (!plan_push(v, (planned){c, goal, bytes, v->depth ? v->depth[c] : 0}))
+            if (!plan_push(v, (planned){c, goal, bytes, rec->level}))
                 return fail(v, MS_ERR_NOMEM, "out of memory for the plan");
         }
         if (pass == 1 && v->plan_count - first > 1)
             qsort(v->plan + first, v->plan_count - first, sizeof *v->plan, compare_planned_by_depth);
     }
+    ms_status st = plan_subtrees(v);
+    if (st != MS_OK)
+        return st;
     if (settled)
-        *settled = v->plan_count == 0;
+        *settled = v->plan_count == 0 && v->subtree_count == 0;
     return MS_OK;
 }
 
@@ -327,6 +461,11 @@ uint32_t ms_web_view_plan_bits(const ms_web_view *v, uint32_t k)
 uint32_t ms_web_view_plan_bytes(const ms_web_view *v, uint32_t k)
 {
     return k < v->plan_count ? v->plan[k].bytes : 0;
+}
+
+uint32_t ms_web_view_prefix(const ms_web_view *v, uint32_t cell, uint32_t bits)
+{
+    return ms_view_cell(v->view, cell) ? ms_archive_geometry_prefix(v->index, cell, bits) : 0;
 }
 
 uint32_t ms_web_view_held(const ms_web_view *v, uint32_t cell)
@@ -397,7 +536,8 @@ ms_status ms_web_view_stitch(ms_web_view *v)
     uint32_t cells = ms_view_cell_count(v->view);
     if (!v->stitched_bits && !(v->stitched_bits = malloc(cells ? cells : 1)))
         return fail(v, MS_ERR_NOMEM, "out of memory for the cells' bits");
-    for (uint32_t c = 0; c < cells; ++c) {
+    memset(v->stitched_bits, 0, cells ? cells : 1);
+    FOR_KNOWN(v, c) {
         unsigned b = ms_view_state(v->view, c) == MS_VIEW_SHOWN ? ms_view_bits(v->view, c) : 0;
         v->stitched_bits[c] = (uint8_t)(b < 255 ? b : 255);
     }
@@ -413,16 +553,16 @@ const float *ms_web_view_normals(const ms_web_view *v) { return v->normals; }
 
 uint32_t ms_web_view_shown_cells(const ms_web_view *v)
 {
-    uint32_t shown = 0, n = ms_view_cell_count(v->view);
-    for (uint32_t c = 0; c < n; ++c)
+    uint32_t shown = 0;
+    FOR_KNOWN(v, c)
         shown += ms_view_state(v->view, c) == MS_VIEW_SHOWN;
     return shown;
 }
 
 uint32_t ms_web_view_max_bits(const ms_web_view *v)
 {
-    uint32_t best = 0, n = ms_view_cell_count(v->view);
-    for (uint32_t c = 0; c < n; ++c)
+    uint32_t best = 0;
+    FOR_KNOWN(v, c)
         if (ms_view_state(v->view, c) == MS_VIEW_SHOWN && ms_view_bits(v->view, c) > best)
             best = ms_view_bits(v->view, c);
     return best;
@@ -431,8 +571,7 @@ uint32_t ms_web_view_max_bits(const ms_web_view *v)
 uint64_t ms_web_view_bytes_held(const ms_web_view *v)
 {
     uint64_t total = 0;
-    uint32_t n = ms_view_cell_count(v->view);
-    for (uint32_t c = 0; c < n; ++c)
+    FOR_KNOWN(v, c)
         total += ms_view_held_bytes(v->view, c);
     return total;
 }

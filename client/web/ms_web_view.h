@@ -3,13 +3,18 @@
  * client (common/archive/ms_view_decoder.h). It is also built natively, into
  * the room's library, so that its tests run under the sanitizers.
  *
- * A web view holds one model's whole index (the index blob of GET
- * /models/NAME) and a view over it. The caller (the page's Web Worker) loops:
+ * A web view holds one model's index and a view over it: the whole index (the
+ * index blob of GET /models/NAME), or its head (GET /models/NAME/head) and
+ * the subtrees its plans ask for (GET /models/NAME/subtrees/ID), read by the
+ * native client's own reader (common/archive's ms_archive_open_head and
+ * ms_archive_add_subtree; docs/ARCHIVE.md, "Subtrees"). The caller (the
+ * page's Web Worker) loops:
  *   ms_web_view_camera     sets the camera and the screen tolerance;
  *   ms_web_view_plan       selects and applies: the cut moves as far as the
  *                          bytes held allow, and the cells still short of
  *                          bytes are listed with the prefix they need;
- *   ms_web_view_give       hands over the bytes fetched for one of them;
+ *   ms_web_view_give       hands over the bytes fetched for one of them,
+ *   ms_web_view_give_subtree  and the subtrees the plan lists;
  * until the plan lists nothing, then ms_web_view_stitch builds the mesh to
  * draw (float positions, 32-bit triangle corners). Fetching is the caller's:
  * the C side never does I/O.
@@ -32,6 +37,23 @@ typedef struct ms_web_view ms_web_view;
 ms_status ms_web_view_new(const uint8_t *blob, size_t size, const char *name, ms_web_view **out,
                           ms_error *err);
 void ms_web_view_free(ms_web_view *view);
+
+/* A view over the index head (copied): its header and root subtree, checked
+ * as the native client checks them; the other subtrees come as plans ask
+ * (ms_web_view_plan_subtree). */
+ms_status ms_web_view_new_head(const uint8_t *head, size_t size, const char *name, ms_web_view **out,
+                               ms_error *err);
+
+/* Hands over subtree id's stored bytes (its whole zlib stream): checked
+ * against the records held, then its cells are known to the plans. MS_OK for
+ * one held already; MS_ERR_RANGE for a subtree whose parent cell is not held,
+ * MS_ERR_FORMAT / MS_ERR_CORRUPT for bytes that disagree (the line names the
+ * subtree; nothing changes); MS_ERR_ARG on a view of the whole index. */
+ms_status ms_web_view_give_subtree(ms_web_view *view, uint32_t id, const uint8_t *data, uint32_t length);
+
+/* Subtrees held (every one with the whole index) and their raw bytes. */
+uint32_t ms_web_view_subtrees_held(const ms_web_view *view);
+uint64_t ms_web_view_index_bytes_held(const ms_web_view *view);
 
 /* The last error's message ("" when none). */
 const char *ms_web_view_error(const ms_web_view *view);
@@ -82,10 +104,18 @@ unsigned ms_web_view_threads(ms_web_view *view, unsigned helpers);
  * below, so the first plans ask for little and each round shows more):
  * ms_web_view_plan_count of them, the k-th with its cell id, the precision
  * (bits) wanted and the byte length of the payload prefix complete at it (GET /models/NAME/cells/ID/geometry?bits=BITS), in cell order, at
- * most `max` cells (0: no limit). *settled (may be NULL) is true when the cut
- * no longer changes and nothing is wanted: the view is complete. */
+ * most `max` cells (0: no limit). On a view of the index head it also lists
+ * the subtrees it lacks (ms_web_view_plan_subtree: those holding the children
+ * of the cells the selection would split, then, with plans that look ahead,
+ * of those within a bit of splitting, as the client core asks for them;
+ * each once; fetch them before the cells). *settled (may be NULL) is true
+ * when the cut no longer changes and nothing is wanted, cells or subtrees:
+ * the view is complete. */
 ms_status ms_web_view_plan(ms_web_view *view, uint32_t max, int *settled);
 uint32_t ms_web_view_plan_count(const ms_web_view *view);
+uint32_t ms_web_view_plan_subtree_count(const ms_web_view *view);
+/* The k-th subtree id the plan lists (GET /models/NAME/subtrees/ID). */
+uint32_t ms_web_view_plan_subtree(const ms_web_view *view, uint32_t k);
 
 /* Plans that look ahead (on != 0; a new view's plans do not): after the
  * next step, a plan lists the rest of the cut the selection targets, the
@@ -97,6 +127,11 @@ ms_status ms_web_view_plan_ahead(ms_web_view *view, int on);
 uint32_t ms_web_view_plan_cell(const ms_web_view *view, uint32_t k);
 uint32_t ms_web_view_plan_bits(const ms_web_view *view, uint32_t k);
 uint32_t ms_web_view_plan_bytes(const ms_web_view *view, uint32_t k);
+/* The byte length of the cell's payload prefix complete at `bits` (clamped to
+ * its window; 0 for a cell whose record is not known): what a caller hands
+ * over to bring a cell to those bits (the home camera: the root's bounds at
+ * a few bits, before the rest of its bytes). */
+uint32_t ms_web_view_prefix(const ms_web_view *view, uint32_t cell, uint32_t bits);
 /* Bytes of the cell's payload already held (a fetch may ask for the rest with
  * Range: bytes=HELD-). */
 uint32_t ms_web_view_held(const ms_web_view *view, uint32_t cell);

@@ -1,8 +1,13 @@
 /* The WebAssembly build's stand-in for zlib (include/zlib.h): the CRC-32 of
  * zlib and PNG (reflected polynomial 0xEDB88320, initial and final complement),
- * computed a byte at a time from a table built at compile time; the stream
- * functions fail with a message saying where inflating happens instead. */
+ * computed a byte at a time from a table built at compile time; inflating by
+ * client/web's ms_web_inflate; deflating fails with a message saying so. */
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
 #include <zlib.h>
+
+#include "ms_web_inflate.h"
 
 #define POLY 0xEDB88320u
 #define R1(c) (((c) >> 1) ^ (POLY & (0u - ((c) & 1u))))
@@ -25,26 +30,72 @@ uLong crc32_z(uLong crc, const Bytef *buf, z_size_t len)
 
 uLong crc32(uLong crc, const Bytef *buf, uInt len) { return crc32_z(crc, buf, len); }
 
-static const char *const not_here =
-    "zlib streams are not inflated in the WebAssembly module (the page uses DecompressionStream)";
+static const char *const not_here = "zlib streams are not deflated in the WebAssembly module";
+
+/* Inflating: the whole stream is inflated at the first call
+ * (ms_web_inflate: the callers, common/archive's subtree reader, give it
+ * whole), then handed out as the caller's room allows; the result comes with
+ * the last byte (Z_STREAM_END, or the failure, as zlib would say it after
+ * the bytes it could give). */
+struct ms_wasm_inflate_state {
+    int started;
+    uint8_t *out;
+    size_t size, at;
+    int result;
+};
 
 int inflateInit(z_stream *strm)
 {
     strm->msg = NULL;
     strm->total_in = strm->total_out = 0;
-    return Z_OK;
+    strm->state = calloc(1, sizeof *strm->state);
+    return strm->state ? Z_OK : Z_MEM_ERROR;
 }
 
 int inflate(z_stream *strm, int flush)
 {
     (void)flush;
-    strm->msg = not_here;
-    return Z_DATA_ERROR;
+    struct ms_wasm_inflate_state *s = strm->state;
+    if (!s)
+        return Z_STREAM_ERROR;
+    if (!s->started) {
+        s->started = 1;
+        size_t used;
+        const char *why;
+        /* the most zlib's format can give a byte in (docs/ARCHIVE.md) */
+        size_t max = (size_t)strm->avail_in * 1032u + 64u;
+        ms_web_inflate_result r = ms_web_inflate(strm->next_in, strm->avail_in, max, &s->out, &s->size,
+                                                 &used, &why);
+        strm->next_in += used;
+        strm->avail_in -= (uInt)used;
+        strm->total_in += used;
+        s->result = r == MS_WEB_INFLATE_OK      ? Z_STREAM_END
+                    : r == MS_WEB_INFLATE_SHORT ? Z_BUF_ERROR
+                    : r == MS_WEB_INFLATE_DICT  ? Z_NEED_DICT
+                    : r == MS_WEB_INFLATE_NOMEM ? Z_MEM_ERROR
+                                                : Z_DATA_ERROR;
+        if (r != MS_WEB_INFLATE_OK)
+            strm->msg = why;
+    }
+    size_t n = s->size - s->at;
+    if (n > strm->avail_out)
+        n = strm->avail_out;
+    if (n)
+        memcpy(strm->next_out, s->out + s->at, n);
+    s->at += n;
+    strm->next_out += n;
+    strm->avail_out -= (uInt)n;
+    strm->total_out += n;
+    return s->at < s->size ? Z_OK : s->result;
 }
 
 int inflateEnd(z_stream *strm)
 {
-    (void)strm;
+    if (strm->state) {
+        free(strm->state->out);
+        free(strm->state);
+        strm->state = NULL;
+    }
     return Z_OK;
 }
 

@@ -1,9 +1,9 @@
 /* The part of zlib's interface that the decoding sources use, for the
  * WebAssembly build only (make wasm; docs/BROWSER.md). Emscripten's zlib port
- * is not available offline, and the browser client needs only the CRC-32:
- * ms_wasm_zlib.c computes it; the stream functions are stubs that fail with a
- * clear message (the page inflates what it needs with the browser's
- * DecompressionStream). Native builds use the real zlib.h. */
+ * is not available offline: ms_wasm_zlib.c computes the CRC-32 and inflates
+ * a zlib stream given whole (client/web/ms_web_inflate.h: the index head and
+ * its subtrees); deflating is a stub that fails with a clear message. Native
+ * builds use the real zlib.h. */
 #ifndef MS_WASM_ZLIB_H
 #define MS_WASM_ZLIB_H
 
@@ -37,6 +37,7 @@ typedef struct z_stream_s {
     uLong total_out;
     const char *msg;
     void *zalloc, *zfree, *opaque;
+    struct ms_wasm_inflate_state *state; /* ms_wasm_zlib.c's */
 } z_stream;
 
 uLong crc32(uLong crc, const Bytef *buf, uInt len);
