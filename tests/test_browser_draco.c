@@ -234,7 +234,7 @@ static void test_draco_page_without_decoder(void **state)
     char site[700], command[4096], out[1024], config[700], settings[800], log[700], ports[700];
     snprintf(site, sizeof site, "%s/bare-site", f->dir);
     snprintf(command, sizeof command,
-             "mkdir -p %s && cp " MS_TEST_SITE "/draco.html " MS_TEST_SITE "/draco.js " MS_TEST_SITE "/draco-worker.js "
+             "mkdir -p %s && cp " MS_TEST_SITE "/draco.html " MS_TEST_SITE "/draco.js " MS_TEST_SITE "/camera.js " MS_TEST_SITE "/draco-worker.js "
              MS_TEST_SITE "/meshstream.css %s/",
              site, site);
     assert_int_equal(run_or_say(command, out, sizeof out), 0);

@@ -285,21 +285,8 @@ const MsRender = (() => {
   }
 
   // Column-major view (world to eye) and projection, in doubles.
-  function matrices(c, width, height, near, far) {
-    const sub = (a, b) => [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
-    const dot = (a, b) => a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-    const cross = (a, b) => [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
-    const norm = a => { const l = Math.hypot(...a); return [a[0] / l, a[1] / l, a[2] / l]; };
-    const f = norm(sub(c.target, c.position));
-    const r = norm(cross(f, c.up));
-    const u = cross(r, f);
-    const view = [r[0], u[0], -f[0], 0, r[1], u[1], -f[1], 0, r[2], u[2], -f[2], 0,
-                  -dot(r, c.position), -dot(u, c.position), dot(f, c.position), 1];
-    const t = 1 / Math.tan(c.fovy * Math.PI / 360), a = width / height;
-    const proj = [t / a, 0, 0, 0, 0, t, 0, 0, 0, 0, (far + near) / (near - far), -1,
-                  0, 0, 2 * far * near / (near - far), 0];
-    return { view, proj };
-  }
+  const matrices = MsCamera.matrices; // web/camera.js
+
 
   // ms_render_cell_modelview: view * [side I | origin], in doubles.
   function cellModelview(view, cube, out) {
