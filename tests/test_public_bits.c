@@ -290,6 +290,7 @@ static void test_preview_caps_apo_through_every_door(void **state)
     bo.min_triangles = 500;
     bo.apo.every_cell = true; /* no longer a meshbake option: through the library */
     bo.apo.max_depth = 8;
+    bo.apo.budget = 0; /* every level of every chunk: the preview's cap is what is tested */
     bo.public_bits = 9;
     bo.threads = 2;
     ms_bake_report br;

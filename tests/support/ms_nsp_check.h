@@ -27,7 +27,8 @@ void ms_nsp_test_demo_ply(const char *path, uint64_t triangles);
 
 /* Writes a demo model of about `triangles` triangles to work_dir/demo.ply and
  * bakes it with APO on (on every cell, leaves included, every texel kept
- * (apo.full_normals: the smooth demo would need few), where every_cell) into
+ * (apo.full_normals: the smooth demo would need few) and no byte budget,
+ * where every_cell) into
  * archive_dir/name.msa with N_min = min_triangles, 2 threads and --mem 64.
  * 0, or -1 with the error on stderr (for group setups). */
 int ms_nsp_test_bake_demo(const char *work_dir, uint64_t triangles, const char *archive_dir, const char *name,
