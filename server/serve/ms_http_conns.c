@@ -6,7 +6,6 @@
 #include <event2/event.h>
 #include <event2/http.h>
 #include <event2/listener.h>
-#include <fcntl.h>
 #include <netinet/in.h>
 #include <netinet/tcp.h>
 #include <stdbool.h>
@@ -15,7 +14,6 @@
 #include <sys/queue.h>
 #include <sys/resource.h>
 #include <sys/socket.h>
-#include <unistd.h>
 
 #include "ms_progress.h"
 #include "ms_server_internal.h"
@@ -336,7 +334,7 @@ static size_t park_capacity(const ms_server_config *config)
     struct rlimit rl;
     if (!n || getrlimit(RLIMIT_NOFILE, &rl) != 0 || rl.rlim_cur == RLIM_INFINITY)
         return n;
-    rlim_t others = (rlim_t)config->max_clients + config->http_max_connections + 256 + 2 * 64;
+    rlim_t others = (rlim_t)ms_server_descriptors_besides_parked(config);
     rlim_t room = rl.rlim_cur > others ? rl.rlim_cur - others : 0;
     return room < n ? (size_t)room : n;
 }

@@ -245,13 +245,19 @@ static ms_status write_port_file(const ms_server *s, ms_error *err)
     return MS_OK;
 }
 
-/* Room for max_clients connections (plus rejected ones, HTTP clients and the
- * archives): raises the soft descriptor limit up to the hard one. */
+size_t ms_server_descriptors_besides_parked(const ms_server_config *config)
+{
+    return (size_t)config->max_clients + config->http_max_connections + 256 + 2 * 64;
+}
+
+/* Room for max_clients connections (plus rejected ones, HTTP clients, the
+ * archives and the HTTP door's parked connections): raises the soft
+ * descriptor limit up to the hard one. */
 static void raise_descriptor_limit(ms_server *s)
 {
     struct rlimit rl;
-    rlim_t want = (rlim_t)s->config.max_clients + s->config.http_max_connections + 256 + 2 * 64 +
-                  (s->config.http_park_s ? ms_http_park_capacity(&s->config) : 0);
+    rlim_t want = (rlim_t)ms_server_descriptors_besides_parked(&s->config) +
+                  ms_http_park_capacity(&s->config);
     if (getrlimit(RLIMIT_NOFILE, &rl) != 0 || rl.rlim_cur >= want)
         return;
     rl.rlim_cur = want < rl.rlim_max ? want : rl.rlim_max;

@@ -61,6 +61,11 @@ struct ms_server {
 void ms_server_log_client(ms_server *server, const char *fmt, ...)
     __attribute__((format(printf, 2, 3)));
 
+/* The descriptors meshserve needs besides the HTTP door's parked connections
+ * (ms_http_conns.h): max_clients, http_max_connections and room for rejected
+ * connections and the archives; the limit it raises is this plus the lot. */
+size_t ms_server_descriptors_besides_parked(const ms_server_config *config);
+
 /* For an event that can repeat very fast (an accept failing for want of
  * descriptors): at most one line per MS_LOG_INTERVAL_S seconds. An occurrence
  * within the interval after a line is only counted; the next line says how
