@@ -91,44 +91,13 @@ static int group_teardown(void **state)
     return 0;
 }
 
-/* Pixels that differ from the top-left one (the background) by more than 8
- * in a channel. */
-static uint8_t *silhouette(const uint8_t *rgb, size_t n)
-{
-    uint8_t *mask = calloc(n, 1);
-    assert_non_null(mask);
-    for (size_t i = 0; i < n; ++i)
-        for (int c = 0; c < 3; ++c)
-            if (abs((int)rgb[3 * i + c] - (int)rgb[c]) > 8)
-                mask[i] = 1;
-    return mask;
-}
-
 /* IoU of the silhouettes and PSNR (dB, all three channels) of two pictures
  * of WIDTH x HEIGHT. */
 static void compare(const char *a_path, const char *b_path, double *iou, double *psnr)
 {
-    uint32_t aw, ah, bw, bh;
-    uint8_t *a = ms_test_png_read(a_path, &aw, &ah), *b = ms_test_png_read(b_path, &bw, &bh);
-    assert_int_equal(aw, WIDTH);
-    assert_int_equal(ah, HEIGHT);
-    assert_int_equal(bw, WIDTH);
-    assert_int_equal(bh, HEIGHT);
-    size_t n = (size_t)WIDTH * HEIGHT, both = 0, either = 0;
-    uint8_t *ma = silhouette(a, n), *mb = silhouette(b, n);
-    double squares = 0;
-    for (size_t i = 0; i < n; ++i) {
-        both += ma[i] & mb[i];
-        either += ma[i] | mb[i];
-        for (int c = 0; c < 3; ++c) {
-            double d = (double)a[3 * i + c] - (double)b[3 * i + c];
-            squares += d * d;
-        }
-    }
-    *iou = either ? (double)both / (double)either : 0.0;
-    double mse = squares / (double)(3 * n);
-    *psnr = mse > 0 ? 10.0 * log10(255.0 * 255.0 / mse) : 99.0;
-    free(a), free(b), free(ma), free(mb);
+    size_t covered, ref_covered;
+    *iou = ms_test_silhouette_iou(a_path, b_path, WIDTH, HEIGHT, &covered, &ref_covered);
+    *psnr = ms_test_png_psnr(a_path, b_path, WIDTH, HEIGHT);
 }
 
 static void test_closeup_path_against_meshview(void **state)

@@ -3,6 +3,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include <png.h>
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 #include <cmocka.h>
@@ -77,4 +78,24 @@ double ms_test_silhouette_iou(const char *path, const char *ref_path, uint32_t w
     free(mask);
     free(ref_mask);
     return either ? (double)both / (double)either : 0.0;
+}
+
+double ms_test_png_psnr(const char *path, const char *ref_path, uint32_t width, uint32_t height)
+{
+    uint32_t w, h, rw, rh;
+    uint8_t *a = ms_test_png_read(path, &w, &h), *b = ms_test_png_read(ref_path, &rw, &rh);
+    assert_int_equal(w, width);
+    assert_int_equal(h, height);
+    assert_int_equal(rw, width);
+    assert_int_equal(rh, height);
+    size_t n = 3 * (size_t)w * h;
+    double squares = 0;
+    for (size_t i = 0; i < n; ++i) {
+        double d = (double)a[i] - (double)b[i];
+        squares += d * d;
+    }
+    free(a);
+    free(b);
+    double mse = n ? squares / (double)n : 0;
+    return mse > 0 ? 10.0 * log10(255.0 * 255.0 / mse) : 99.0;
 }
