@@ -305,13 +305,33 @@ typedef struct ms_render_frame_stats {
     uint32_t cells_present;    /* cells with triangles in the frame */
     uint32_t cells_changed;    /* of them, new or with another version */
     uint32_t cells_left;       /* cells of the previous frame not in this one */
-    uint32_t cells_derived;    /* meshes derived: the changed cells and their neighbours */
+    uint32_t cells_derived;    /* cells looked at: the changed cells and their neighbours */
     uint64_t vertex_fans;      /* vertices whose normals were made */
     uint64_t face_normals;     /* triangles whose face normals were made */
+    uint32_t cells_rebuilt;    /* meshes made again (renumbered, packed, hashed): the
+                                  changed cells and the neighbours_moved */
+    uint32_t neighbours_moved; /* of cells_rebuilt, unchanged cells whose corner normals
+                                  moved (a changed neighbour around a shared vertex) */
+    uint32_t cells_queued;     /* of cells_rebuilt, meshes that differ from what the cell
+                                  draws or waits for: queued for upload */
+    uint64_t triangles_rebuilt;  /* triangles of the cells_rebuilt */
+    uint64_t triangles_walked;   /* triangles of the unchanged neighbours looked at (their
+                                    corners at the changed vertices) */
 } ms_render_frame_stats;
+
+/* The figures of every ms_render_set_frame since ms_render_new, summed
+ * (cells_present summed too: what reading every cell's version costs). */
+typedef struct ms_render_frame_totals {
+    uint64_t frames;
+    uint64_t cells_present, cells_changed, cells_left, cells_derived;
+    uint64_t vertex_fans, face_normals;
+    uint64_t cells_rebuilt, neighbours_moved, cells_queued;
+    uint64_t triangles_rebuilt, triangles_walked;
+} ms_render_frame_totals;
 
 /* The figures of the latest ms_render_set_frame (zeros before the first). */
 void ms_render_frame_stats_get(const ms_render *render, ms_render_frame_stats *stats);
+void ms_render_frame_totals_get(const ms_render *render, ms_render_frame_totals *totals);
 
 typedef struct ms_render_upload_stats {
     uint64_t bytes;            /* sent to the GPU by this call (vertices, indices, texels) */

@@ -277,15 +277,36 @@ static ms_status derive(ms_render *r, ms_error *err)
         render_cell *c = ms_render_cell_at(r, s->present[k]);
         ms_render_cell_mesh m;
         st = ms_render_split_cell(s, k, &c->record, &m, err);
+        bool waiting = st == MS_OK && c->next_mesh.active && c->next_mesh.gpu.hash == m.hash;
+        bool drawn = st == MS_OK && c->mesh.vao && c->mesh.hash == m.hash;
         if (st == MS_OK)
             st = ms_render_take_mesh(r, c, &m, err);
         if (st == MS_OK) {
             c->has_version = true;
             c->version = s->present_version[k];
+            r->frame_stats.cells_rebuilt++;
+            r->frame_stats.triangles_rebuilt += m.triangle_count;
+            r->frame_stats.cells_queued += c->next_mesh.active && !waiting && !drawn;
         }
     }
     r->frame_stats.cells_derived = (uint32_t)r->shade_count;
     return st;
+}
+
+static void add_totals(ms_render_frame_totals *t, const ms_render_frame_stats *f)
+{
+    t->frames++;
+    t->cells_present += f->cells_present;
+    t->cells_changed += f->cells_changed;
+    t->cells_left += f->cells_left;
+    t->cells_derived += f->cells_derived;
+    t->vertex_fans += f->vertex_fans;
+    t->face_normals += f->face_normals;
+    t->cells_rebuilt += f->cells_rebuilt;
+    t->neighbours_moved += f->neighbours_moved;
+    t->cells_queued += f->cells_queued;
+    t->triangles_rebuilt += f->triangles_rebuilt;
+    t->triangles_walked += f->triangles_walked;
 }
 
 ms_status ms_render_derive_cells(ms_render *r, ms_error *err)
@@ -295,6 +316,7 @@ ms_status ms_render_derive_cells(ms_render *r, ms_error *err)
     r->key_count = 0;
     if (st == MS_OK) {
         r->derived_crease = r->crease_angle_deg;
+        add_totals(&r->frame_totals, &r->frame_stats);
         return MS_OK;
     }
     /* start again from nothing: every cell forgotten, the next frame derives all */
@@ -316,4 +338,11 @@ void ms_render_frame_stats_get(const ms_render *r, ms_render_frame_stats *stats)
     memset(stats, 0, sizeof *stats);
     if (r)
         *stats = r->frame_stats;
+}
+
+void ms_render_frame_totals_get(const ms_render *r, ms_render_frame_totals *totals)
+{
+    memset(totals, 0, sizeof *totals);
+    if (r)
+        *totals = r->frame_totals;
 }

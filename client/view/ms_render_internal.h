@@ -409,6 +409,7 @@ struct ms_render {
     uint32_t *shade, *around;   /* scratch: present indices */
     size_t shade_count, around_count, set_cap;
     ms_render_frame_stats frame_stats;
+    ms_render_frame_totals frame_totals;
 };
 
 /* Drops what a cell's mesh was derived from (its touch list from the map). */

@@ -422,6 +422,20 @@ static void add_memory_figures(json_t *report, script *s, const ms_core_stats *c
                                   (json_int_t)w->cells_stitched, "triangles_stitched",
                                   (json_int_t)w->triangles_stitched, "cells_changed", (json_int_t)w->cells_changed,
                                   "cells_removed", (json_int_t)w->cells_removed));
+    if (s->stream) { /* the renderer's work on those frames (docs/RENDERER.md, "Work per frame") */
+        ms_render_frame_totals t;
+        ms_render_frame_totals_get(ms_viewer_stream_render(s->stream), &t);
+        json_t *rf = json_object();
+        const char *names[] = {"frames", "cells_present", "cells_changed", "cells_left", "cells_derived",
+                               "vertex_fans", "face_normals", "cells_rebuilt", "neighbours_moved",
+                               "cells_queued", "triangles_rebuilt", "triangles_walked"};
+        const uint64_t values[] = {t.frames, t.cells_present, t.cells_changed, t.cells_left, t.cells_derived,
+                                   t.vertex_fans, t.face_normals, t.cells_rebuilt, t.neighbours_moved,
+                                   t.cells_queued, t.triangles_rebuilt, t.triangles_walked};
+        for (size_t i = 0; i < sizeof values / sizeof *values; ++i)
+            json_object_set_new(rf, names[i], json_integer((json_int_t)values[i]));
+        json_object_set_new(report, "render_frames", rf);
+    }
     json_object_set_new(report, "core_peak_memory", json_integer((json_int_t)cs->peak_memory));
     json_object_set_new(report, "gl_bytes", json_integer((json_int_t)gl_bytes));
     json_object_set_new(report, "gl_bytes_peak", json_integer((json_int_t)gl_peak));
