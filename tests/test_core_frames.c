@@ -159,6 +159,11 @@ static void render_frame(ms_render *r, const ms_core_frame *f, const ms_core_fra
         if (f->work.cells_changed == 0 && f->work.cells_removed == 0)
             assert_int_equal(st.cells_derived, 0);
     }
+    /* made again: the changed cells and the neighbours whose normals moved,
+     * no other; queued for upload: only meshes made again */
+    assert_int_equal(st.cells_rebuilt, st.cells_changed + st.neighbours_moved);
+    assert_true(st.neighbours_moved <= st.cells_derived - st.cells_changed);
+    assert_true(st.cells_queued <= st.cells_rebuilt);
     ms_render_upload_stats up;
     if (ms_render_upload(r, UINT64_MAX / 2, &up, &err) != MS_OK)
         fail_msg("%s", err.text);
@@ -170,6 +175,9 @@ static void render_frame(ms_render *r, const ms_core_frame *f, const ms_core_fra
     assert_int_equal(st.cells_left, 0);
     assert_int_equal(st.cells_derived, 0);
     assert_int_equal(st.vertex_fans, 0);
+    assert_int_equal(st.cells_rebuilt, 0);
+    assert_int_equal(st.cells_queued, 0);
+    assert_int_equal(st.triangles_walked, 0);
     if (ms_render_upload(r, UINT64_MAX / 2, &up, &err) != MS_OK)
         fail_msg("%s", err.text);
     assert_int_equal(up.bytes, 0);

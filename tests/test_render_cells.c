@@ -146,6 +146,40 @@ static uint32_t expected_derived(const ms_view_mesh *before, const ms_view_mesh 
     return n;
 }
 
+/* The cells present in both frames with the same version whose corner normals
+ * differ, found by two renderers that derive every cell (one per frame): the
+ * neighbours whose meshes must be made again, and *tris their triangles. */
+static uint32_t expected_moved(const ms_view_mesh *before, const ms_view_mesh *after, double crease, uint64_t *tris)
+{
+    ms_render *a, *b;
+    ms_error err;
+    const ms_archive_header *h = ms_archive_get_header(fx.archive);
+    assert_int_equal(ms_render_new(h, ms_archive_get_cell(fx.archive, 0), &a, &err), MS_OK);
+    assert_int_equal(ms_render_new(h, ms_archive_get_cell(fx.archive, 0), &b, &err), MS_OK);
+    assert_int_equal(ms_render_set_crease_angle(a, crease, &err), MS_OK);
+    assert_int_equal(ms_render_set_crease_angle(b, crease, &err), MS_OK);
+    set_frame(a, before);
+    set_frame(b, after);
+    uint32_t moved = 0;
+    *tris = 0;
+    for (size_t k = 0; k < after->run_count; ++k) {
+        uint32_t cell = after->run_cell[k];
+        uint64_t v;
+        if (after->run_first[k + 1] == after->run_first[k] || !version_of(before, cell, &v) ||
+            v != after->run_version[k])
+            continue;
+        const render_cell *x = ms_render_cell_at(a, cell), *y = ms_render_cell_at(b, cell);
+        assert_true(x && y && x->corner_count == y->corner_count && x->corners && y->corners);
+        if (memcmp(x->corners, y->corners, x->corner_count * sizeof *x->corners)) {
+            moved++;
+            *tris += y->corner_count / 3;
+        }
+    }
+    ms_render_free(a);
+    ms_render_free(b);
+    return moved;
+}
+
 /* The mesh cell wants to draw: its pending one (nothing is uploaded here). */
 static const pending_mesh *wanted(const ms_render *r, uint32_t cell)
 {
@@ -225,6 +259,11 @@ static void test_unchanged_frame_derives_nothing(void **state)
     assert_int_equal(st.cells_left, 0);
     assert_int_equal(st.face_normals, mesh.triangle_count);
     assert_true(st.vertex_fans > 0 && st.vertex_fans <= mesh.vertex_count);
+    assert_int_equal(st.cells_rebuilt, present);
+    assert_int_equal(st.cells_queued, present);
+    assert_int_equal(st.neighbours_moved, 0);
+    assert_int_equal(st.triangles_rebuilt, mesh.triangle_count);
+    assert_int_equal(st.triangles_walked, 0);
     check_against_fresh(&mesh, MS_RENDER_CREASE_ANGLE_DEFAULT);
     ms_error err;
     for (int round = 0; round < 2; ++round) {
@@ -237,6 +276,10 @@ static void test_unchanged_frame_derives_nothing(void **state)
         assert_int_equal(st.cells_derived, 0);
         assert_int_equal(st.vertex_fans, 0);
         assert_int_equal(st.face_normals, 0);
+        assert_int_equal(st.cells_rebuilt, 0);
+        assert_int_equal(st.cells_queued, 0);
+        assert_int_equal(st.triangles_rebuilt, 0);
+        assert_int_equal(st.triangles_walked, 0);
     }
     /* another crease angle derives every cell again, as a fresh renderer would */
     assert_int_equal(ms_render_set_crease_angle(fx.render, 25.0, &err), MS_OK);
@@ -293,14 +336,31 @@ static void test_refining_k_cells(void **state)
             if (version_of(&before, cell, &v0) && v0 == after.run_version[r])
                 assert_true(same);
         }
+        uint64_t moved_tris, changed_tris = 0;
+        uint32_t normals_moved = expected_moved(&before, &after, MS_RENDER_CREASE_ANGLE_DEFAULT, &moved_tris);
+        for (size_t r = 0; r < after.run_count; ++r) {
+            uint64_t v0;
+            if (!version_of(&before, after.run_cell[r], &v0) || v0 != after.run_version[r])
+                changed_tris += after.run_first[r + 1] - after.run_first[r];
+        }
         ms_render_frame_stats st = set_frame(fx.render, &after);
-        print_message("refining %zu cells: %u of %u cells changed (%u with other triangles), %u derived, %llu vertex "
-                      "fans of %zu vertices\n",
-                      k, st.cells_changed, st.cells_present, moved, st.cells_derived,
-                      (unsigned long long)st.vertex_fans, after.vertex_count);
+        print_message("refining %zu cells: %u of %u cells changed (%u with other triangles), %u derived, %u rebuilt "
+                      "(%u neighbours whose normals moved), %u queued; %llu vertex fans of %zu vertices, %llu face "
+                      "normals, %llu triangles rebuilt, %llu walked of %zu\n",
+                      k, st.cells_changed, st.cells_present, moved, st.cells_derived, st.cells_rebuilt,
+                      st.neighbours_moved, st.cells_queued, (unsigned long long)st.vertex_fans, after.vertex_count,
+                      (unsigned long long)st.face_normals, (unsigned long long)st.triangles_rebuilt,
+                      (unsigned long long)st.triangles_walked, after.triangle_count);
         assert_true(changed >= k);
         assert_int_equal(st.cells_changed, changed);
         assert_int_equal(st.cells_derived, derived);
+        /* only the changed cells and the neighbours whose normals moved are
+         * made again; the other neighbours are walked, not rebuilt */
+        assert_int_equal(st.neighbours_moved, normals_moved);
+        assert_int_equal(st.cells_rebuilt, changed + normals_moved);
+        assert_int_equal(st.triangles_rebuilt, changed_tris + moved_tris);
+        assert_true(st.cells_queued <= st.cells_rebuilt && st.cells_queued >= moved);
+        assert_true(st.triangles_walked + st.triangles_rebuilt <= after.triangle_count + moved_tris);
         if (k == 1) {
             assert_true(st.cells_derived < st.cells_present);
             assert_true(st.vertex_fans < after.vertex_count);
@@ -310,6 +370,9 @@ static void test_refining_k_cells(void **state)
         st = set_frame(fx.render, &after);
         assert_int_equal(st.cells_changed, 0);
         assert_int_equal(st.cells_derived, 0);
+        assert_int_equal(st.cells_rebuilt, 0);
+        assert_int_equal(st.vertex_fans, 0);
+        assert_int_equal(st.triangles_walked, 0);
         ms_view_mesh tmp = before;
         before = after;
         after = tmp;

@@ -128,6 +128,9 @@ static void drop_cell(ms_render *r, render_cell *c)
     c->touch = NULL;
     c->touch_count = 0;
     c->has_version = false;
+    free(c->corners);
+    c->corners = NULL;
+    c->corner_count = 0;
     delete_gpu_mesh(r, &c->mesh);
     drop_pending_mesh(r, &c->next_mesh);
     drop_pending_apo(r, &c->next_apo);
@@ -351,7 +354,8 @@ void ms_render_free(ms_render *r)
     ms_render_touch_map_free(&r->touch);
     free(r->keys);
     free(r->shade);
-    free(r->around);
+    free(r->fan_vertices);
+    free(r->key_set);
     free(r->records);
     free(r->groups);
     free(r->frame_cells);

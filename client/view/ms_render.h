@@ -295,12 +295,13 @@ ms_status ms_render_set_frame(ms_render *render, const ms_view_mesh *mesh,
                               const ms_core_apo_chunk *apo, size_t apo_count, ms_error *err);
 
 /* The work of the latest ms_render_set_frame. A cell's mesh (renumbered
- * vertices, corner normals, packing, content hash) is derived again only when
+ * vertices, corner normals, packing, content hash) is made again only when
  * its triangles changed (the mesh's run version, ms_view_mesh; a hash of its
  * corners for a mesh without runs) or when it shares a vertex with what such a
- * cell, or one that left the frame, drew before or draws now (its normals
- * there may have moved); every other cell keeps its mesh without being looked
- * at beyond its version. A frame like the previous one derives nothing. */
+ * cell, or one that left the frame, drew before or draws now and its corner
+ * normals there moved (such a neighbour is looked at: its corners at those
+ * vertices compared); every other cell keeps its mesh without being looked at
+ * beyond its version. A frame like the previous one derives nothing. */
 typedef struct ms_render_frame_stats {
     uint32_t cells_present;    /* cells with triangles in the frame */
     uint32_t cells_changed;    /* of them, new or with another version */

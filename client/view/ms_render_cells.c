@@ -11,10 +11,13 @@
  * their position (the stitched mesh's indices change from frame to frame); a
  * table keeps which cells touch each such key, updated for the cells derived
  * and those leaving, so finding the neighbours costs what the changed cells
- * hold, not the frame. The normals of the derived cells are then made from the
- * fans of the cells around them (ms_render_split_normals): the same as over the
- * whole stitched mesh, so the picture is the one a renderer deriving every
- * cell would draw. */
+ * hold, not the frame. Normals are then made only at the places that changed
+ * (every vertex of a changed cell; a neighbour's vertices at those keys), from
+ * the fans of the cells at them (ms_render_split_normals): the same as over the
+ * whole stitched mesh. A changed cell's mesh is made again; a neighbour keeps
+ * the corner normals its mesh was made with (render_cell.corners), compares
+ * those at the changed places, and is made again only when one moved. So the
+ * picture is the one a renderer deriving every cell would draw. */
 #include <stdlib.h>
 #include <string.h>
 
@@ -129,6 +132,9 @@ static bool forget_touch(ms_render *r, uint32_t id, render_cell *c)
     c->touch = NULL;
     c->touch_count = 0;
     c->has_version = false;
+    free(c->corners);
+    c->corners = NULL;
+    c->corner_count = 0;
     return true;
 }
 
@@ -190,12 +196,9 @@ static bool set_room(ms_render *r, size_t need)
     while (cap < need)
         cap *= 2;
     uint32_t *shade = realloc(r->shade, cap * sizeof *shade);
-    if (shade)
-        r->shade = shade;
-    uint32_t *around = shade ? realloc(r->around, cap * sizeof *around) : NULL;
-    if (!around)
+    if (!shade)
         return false;
-    r->around = around;
+    r->shade = shade;
     r->set_cap = cap;
     return true;
 }
@@ -233,6 +236,135 @@ static void new_mark_pass(ms_render *r)
     r->mark_pass = 1;
 }
 
+/* The keys of this frame's changed places (r->keys) as a set. */
+static bool make_key_set(ms_render *r)
+{
+    size_t cap = 64;
+    while (cap < 2 * r->key_count + 2)
+        cap *= 2;
+    if (cap > r->key_set_cap) {
+        uint64_t *set = realloc(r->key_set, cap * sizeof *set);
+        if (!set)
+            return false;
+        r->key_set = set;
+        r->key_set_cap = cap;
+    }
+    memset(r->key_set, 0, cap * sizeof *r->key_set);
+    r->key_set_cap = cap;
+    for (size_t i = 0; i < r->key_count; ++i) {
+        uint64_t key = r->keys[i] ? r->keys[i] : 1; /* 0 marks an empty slot */
+        size_t at = slot_of(key, cap);
+        while (r->key_set[at] && r->key_set[at] != key)
+            at = (at + 1) & (cap - 1);
+        r->key_set[at] = key;
+    }
+    return true;
+}
+
+static bool in_key_set(const ms_render *r, uint64_t key)
+{
+    key = key ? key : 1;
+    for (size_t at = slot_of(key, r->key_set_cap); r->key_set[at]; at = (at + 1) & (r->key_set_cap - 1))
+        if (r->key_set[at] == key)
+            return true;
+    return false;
+}
+
+/* The mesh vertices whose fans may have changed, each once, onto
+ * r->fan_vertices: every vertex of a changed cell, and of the neighbours the
+ * vertices at a changed place (their other vertices' fans hold the same
+ * triangles as when their mesh was made). */
+static bool pick_fan_vertices(ms_render *r)
+{
+    ms_render_split *s = &r->split;
+    const ms_view_mesh *m = s->mesh;
+    r->fan_vertex_count = 0;
+    if (++s->pass == 0) { /* wrapped: every stamp is stale again */
+        memset(s->stamp, 0, s->vertex_cap * sizeof *s->stamp);
+        s->pass = 1;
+    }
+    for (size_t j = 0; j < r->shade_count; ++j) {
+        uint32_t k = r->shade[j], count = s->present_start[k + 1] - s->present_start[k];
+        bool whole = !ms_render_cell_at(r, s->present[k])->has_version;
+        if (!whole)
+            r->frame_stats.triangles_walked += count;
+        for (uint32_t i = 0; i < count; ++i) {
+            size_t t = ms_render_split_triangle(s, k, i);
+            for (int c = 0; c < 3; ++c) {
+                uint32_t v = m->triangles[3 * t + (size_t)c];
+                /* a bad index is reported by the normals' check */
+                if (v >= m->vertex_count || s->stamp[v] == s->pass)
+                    continue;
+                s->stamp[v] = s->pass;
+                if (!whole && !in_key_set(r, vertex_key(&m->positions[3 * (size_t)v])))
+                    continue;
+                if (!ms_render_grow((void **)&r->fan_vertices, &r->fan_vertex_cap, r->fan_vertex_count + 1,
+                                    sizeof *r->fan_vertices))
+                    return false;
+                r->fan_vertices[r->fan_vertex_count++] = v;
+            }
+        }
+    }
+    return true;
+}
+
+/* An unchanged neighbour k's corners: those at the fans made compared with
+ * the ones its mesh was made with (true when one moved), the others filled in
+ * from them, so that its mesh can be made again. */
+static bool neighbour_moved(ms_render *r, uint32_t k, const render_cell *c)
+{
+    ms_render_split *s = &r->split;
+    const ms_view_mesh *m = s->mesh;
+    uint32_t count = s->present_start[k + 1] - s->present_start[k];
+    bool moved = false;
+    for (uint32_t i = 0; i < count; ++i) {
+        size_t t = ms_render_split_triangle(s, k, i);
+        for (size_t j = 0; j < 3; ++j) {
+            uint32_t v = m->triangles[3 * t + j];
+            uint32_t *packed = &s->corner_packed[3 * t + j];
+            if (s->fan_vstamp[v] == s->fan_pass)
+                moved |= *packed != c->corners[3 * (size_t)i + j];
+            else
+                *packed = c->corners[3 * (size_t)i + j];
+        }
+    }
+    return moved;
+}
+
+/* The present cell k's mesh made again from the normals in hand, taken, and
+ * its corners kept for the frames after. */
+static ms_status rebuild(ms_render *r, uint32_t k, render_cell *c, ms_error *err)
+{
+    ms_render_split *s = &r->split;
+    ms_render_cell_mesh m;
+    ms_status st = ms_render_split_cell(s, k, &c->record, &m, err);
+    if (st != MS_OK)
+        return st;
+    bool waiting = c->next_mesh.active && c->next_mesh.gpu.hash == m.hash;
+    bool drawn = c->mesh.vao && c->mesh.hash == m.hash;
+    st = ms_render_take_mesh(r, c, &m, err);
+    if (st != MS_OK)
+        return st;
+    r->frame_stats.cells_rebuilt++;
+    r->frame_stats.triangles_rebuilt += m.triangle_count;
+    r->frame_stats.cells_queued += c->next_mesh.active && !waiting && !drawn;
+    uint32_t corners = 3 * m.triangle_count;
+    if (corners != c->corner_count) {
+        free(c->corners);
+        c->corners = malloc((corners ? corners : 1) * sizeof *c->corners);
+        c->corner_count = c->corners ? corners : 0;
+        if (!c->corners)
+            return ms_error_set(err, MS_ERR_NOMEM, "render: no memory for cell %u's normals", s->present[k]);
+    }
+    for (uint32_t i = 0; i < m.triangle_count; ++i) {
+        size_t t = ms_render_split_triangle(s, k, i);
+        memcpy(&c->corners[3 * (size_t)i], &s->corner_packed[3 * t], 3 * sizeof *c->corners);
+    }
+    c->has_version = true;
+    c->version = s->present_version[k];
+    return MS_OK;
+}
+
 static ms_status derive(ms_render *r, ms_error *err)
 {
     ms_render_split *s = &r->split;
@@ -240,13 +372,15 @@ static ms_status derive(ms_render *r, ms_error *err)
     bool all = r->derived_crease != r->crease_angle_deg;
     if (!set_room(r, present))
         return ms_error_set(err, MS_ERR_NOMEM, "render: no memory for %u cells", present);
-    /* the changed cells: their old and new vertices' keys */
+    /* the changed cells: their old and new vertices' keys (a cell whose kept
+     * corners do not match its triangles counts as changed) */
     new_mark_pass(r);
     r->shade_count = 0;
     for (uint32_t k = 0; k < present; ++k) {
         render_cell *c = ms_render_cell_at(r, s->present[k]);
         c->frame_index = k;
-        if (!all && c->has_version && c->version == s->present_version[k])
+        uint32_t tris = s->present_start[k + 1] - s->present_start[k];
+        if (!all && c->has_version && c->version == s->present_version[k] && c->corner_count == 3 * tris)
             continue;
         if (!forget_touch(r, s->present[k], c) || !make_touch(r, k, c))
             return ms_error_set(err, MS_ERR_NOMEM, "render: no memory for cell %u's vertices", s->present[k]);
@@ -256,40 +390,28 @@ static ms_status derive(ms_render *r, ms_error *err)
     r->frame_stats.cells_changed = (uint32_t)r->shade_count;
     if (r->key_count == 0)
         return MS_OK;
-    /* their neighbours, old and new, then every cell around the ones derived */
+    /* their neighbours, old and new: every cell at a changed place holds all
+     * the triangles of the fans that may have changed */
     for (size_t i = 0; i < r->key_count; ++i)
         add_touching(r, r->keys[i], r->shade, &r->shade_count);
     qsort(r->shade, r->shade_count, sizeof *r->shade, compare_u32);
-    new_mark_pass(r);
-    r->around_count = 0;
-    for (size_t j = 0; j < r->shade_count; ++j) {
-        render_cell *c = ms_render_cell_at(r, s->present[r->shade[j]]);
-        for (uint32_t i = 0; i < c->touch_count; ++i)
-            add_touching(r, c->touch[i], r->around, &r->around_count);
-    }
-    qsort(r->around, r->around_count, sizeof *r->around, compare_u32);
-    ms_status st = ms_render_split_normals(s, r->shade, (uint32_t)r->shade_count, r->around,
-                                           (uint32_t)r->around_count, err);
+    r->frame_stats.cells_derived = (uint32_t)r->shade_count;
+    if (!make_key_set(r) || !pick_fan_vertices(r))
+        return ms_error_set(err, MS_ERR_NOMEM, "render: no memory for the changed vertices");
+    ms_status st = ms_render_split_normals(s, r->fan_vertices, (uint32_t)r->fan_vertex_count, r->shade,
+                                           (uint32_t)r->shade_count, err);
     r->frame_stats.vertex_fans = s->fans_made;
     r->frame_stats.face_normals = s->faces_made;
     for (size_t j = 0; j < r->shade_count && st == MS_OK; ++j) {
         uint32_t k = r->shade[j];
         render_cell *c = ms_render_cell_at(r, s->present[k]);
-        ms_render_cell_mesh m;
-        st = ms_render_split_cell(s, k, &c->record, &m, err);
-        bool waiting = st == MS_OK && c->next_mesh.active && c->next_mesh.gpu.hash == m.hash;
-        bool drawn = st == MS_OK && c->mesh.vao && c->mesh.hash == m.hash;
-        if (st == MS_OK)
-            st = ms_render_take_mesh(r, c, &m, err);
-        if (st == MS_OK) {
-            c->has_version = true;
-            c->version = s->present_version[k];
-            r->frame_stats.cells_rebuilt++;
-            r->frame_stats.triangles_rebuilt += m.triangle_count;
-            r->frame_stats.cells_queued += c->next_mesh.active && !waiting && !drawn;
+        if (c->has_version) {
+            if (!neighbour_moved(r, k, c))
+                continue;
+            r->frame_stats.neighbours_moved++;
         }
+        st = rebuild(r, k, c, err);
     }
-    r->frame_stats.cells_derived = (uint32_t)r->shade_count;
     return st;
 }
 
@@ -327,6 +449,9 @@ ms_status ms_render_derive_cells(ms_render *r, ms_error *err)
             c->touch = NULL;
             c->touch_count = 0;
             c->has_version = false;
+            free(c->corners);
+            c->corners = NULL;
+            c->corner_count = 0;
         }
     ms_render_touch_map_free(&r->touch);
     r->derived_crease = -1.0;

@@ -104,8 +104,8 @@ typedef struct ms_render_split {
     uint32_t pass;
     /* The normals (ms_render_split_normals, ms_render_normals.c): per triangle
      * its unnormalised face normal, per corner its packed normal, written for
-     * the triangles of the cells asked about; the corners around each vertex of
-     * those cells (fan_start, one more than their vertices, into fan: corner
+     * the triangles of the cells asked about; the corners around each vertex
+     * asked about (fan_start, one more than their vertices, into fan: corner
      * numbers 3t + k, ascending); scratch for one vertex's fan. */
     double *face_normal;     /* 3 per triangle */
     uint32_t *corner_packed; /* 3 per triangle */
@@ -113,8 +113,6 @@ typedef struct ms_render_split {
     uint32_t *fan;           /* 3 per triangle of the cells around */
     size_t fan_corner_cap;
     uint32_t *fan_start;     /* per fan vertex + 1 */
-    uint8_t *fan_done;       /* per fan vertex: its normals made */
-    size_t fan_done_cap;
     size_t fan_start_cap;
     uint32_t *fan_vstamp;    /* per mesh vertex: the normals pass that numbered it */
     uint32_t *fan_vlocal;    /* per mesh vertex: its fan vertex number */
@@ -177,10 +175,10 @@ static inline uint32_t ms_render_split_triangle(const ms_render_split *s, uint32
     return s->runs ? s->present_start[k] + i : s->order[s->present_start[k] + i];
 }
 
-/* The corner normals of the triangles of the present cells shade[0..shade_count)
- * (indices into present, ascending), from the fans made of the triangles of the
- * present cells around[0..around_count) (ascending, a superset of shade that
- * holds every cell with a triangle at a vertex of a shaded cell): around each
+/* The corner normals at the mesh vertices vertices[0..vertex_count) (each once,
+ * in range), written for every corner at them of the triangles of the present
+ * cells around[0..around_count) (ascending, holding every cell with a triangle
+ * at one of those vertices), from the fans made of those triangles: around each
  * such vertex, its triangles are joined across every edge they share with
  * exactly one other triangle whose normal (turned over when the two use the
  * edge in the same direction: one of them is flipped) lies within the crease
@@ -190,7 +188,7 @@ static inline uint32_t ms_render_split_triangle(const ms_render_split *s, uint32
  * triangle's orientation. The same result as over the whole mesh. With runs,
  * checks the triangles of around (indices, drawing cell, finite positions):
  * MS_ERR_ARG; MS_ERR_NOMEM. */
-ms_status ms_render_split_normals(ms_render_split *split, const uint32_t *shade, uint32_t shade_count,
+ms_status ms_render_split_normals(ms_render_split *split, const uint32_t *vertices, uint32_t vertex_count,
                                   const uint32_t *around, uint32_t around_count, ms_error *err);
 
 /* The k-th present cell's mesh (k < present_count), in the cube of record (that
@@ -368,6 +366,9 @@ typedef struct render_cell {
     uint64_t version;          /* the frame's version of its triangles (ms_render_split) */
     uint64_t *touch;           /* the keys of the vertices its triangles use, each once */
     uint32_t touch_count;
+    uint32_t *corners;         /* the packed normal of each corner of its triangles (3 per
+                                  triangle, in its run's order) its mesh was made with */
+    uint32_t corner_count;
     uint32_t frame_index;      /* set_frame scratch: its index in the frame's present cells */
     uint32_t mark;             /* set_frame scratch: the pass that put it in a set */
 } render_cell;
@@ -406,8 +407,12 @@ struct ms_render {
     uint32_t mark_pass;
     uint64_t *keys;             /* scratch: vertex keys */
     size_t key_count, key_cap;
-    uint32_t *shade, *around;   /* scratch: present indices */
-    size_t shade_count, around_count, set_cap;
+    uint32_t *shade;            /* scratch: present indices (the cells derived) */
+    size_t shade_count, set_cap;
+    uint32_t *fan_vertices;     /* scratch: the mesh vertices whose normals are made */
+    size_t fan_vertex_count, fan_vertex_cap;
+    uint64_t *key_set;          /* scratch: the keys as a set (open addressing, 0 empty) */
+    size_t key_set_cap;
     ms_render_frame_stats frame_stats;
     ms_render_frame_totals frame_totals;
 };

@@ -263,36 +263,24 @@ static ms_status normals_room(ms_render_split *s, size_t nv, size_t nt, ms_error
     return MS_OK;
 }
 
-/* The normals of every vertex of the shaded cells, each once, from the fans. */
-static void shade_fans(ms_render_split *s, const uint32_t *shade, uint32_t shade_count)
+/* The normals of every fan vertex, from its fan. */
+static void make_fans(ms_render_split *s, uint32_t fan_vertices)
 {
-    const ms_view_mesh *mesh = s->mesh;
-    /* the fans of the shaded cells' vertices, each once */
-    for (uint32_t j = 0; j < shade_count; ++j) {
-        uint32_t k = shade[j], count = s->present_start[k + 1] - s->present_start[k];
-        for (uint32_t i = 0; i < count; ++i) {
-            size_t t = ms_render_split_triangle(s, k, i);
-            for (int c = 0; c < 3; ++c) {
-                uint32_t v = s->fan_vlocal[mesh->triangles[3 * t + (size_t)c]];
-                if (s->fan_done[v])
-                    continue;
-                s->fan_done[v] = 1;
-                uint32_t first = s->fan_start[v], f = s->fan_start[v + 1] - first;
-                uint32_t *fan = &s->fan[first];
-                for (uint32_t a = 1; a < f; ++a) { /* ascending already with runs */
-                    uint32_t x = fan[a], b = a;
-                    for (; b > 0 && fan[b - 1] > x; --b)
-                        fan[b] = fan[b - 1];
-                    fan[b] = x;
-                }
-                fan_normals(s, mesh, fan, f);
-                s->fans_made++;
-            }
+    for (uint32_t v = 0; v < fan_vertices; ++v) {
+        uint32_t first = s->fan_start[v], f = s->fan_start[v + 1] - first;
+        uint32_t *fan = &s->fan[first];
+        for (uint32_t a = 1; a < f; ++a) { /* ascending already with runs */
+            uint32_t x = fan[a], b = a;
+            for (; b > 0 && fan[b - 1] > x; --b)
+                fan[b] = fan[b - 1];
+            fan[b] = x;
         }
+        fan_normals(s, s->mesh, fan, f);
+        s->fans_made++;
     }
 }
 
-ms_status ms_render_split_normals(ms_render_split *s, const uint32_t *shade, uint32_t shade_count,
+ms_status ms_render_split_normals(ms_render_split *s, const uint32_t *vertices, uint32_t vertex_count,
                                   const uint32_t *around, uint32_t around_count, ms_error *err)
 {
     const ms_view_mesh *mesh = s->mesh;
@@ -305,23 +293,15 @@ ms_status ms_render_split_normals(ms_render_split *s, const uint32_t *shade, uin
         memset(s->fan_vstamp, 0, s->fan_vertex_cap * sizeof *s->fan_vstamp);
         s->fan_pass = 1;
     }
-    /* the shaded cells' vertices, numbered: only their fans are made */
-    uint32_t fan_vertices = 0;
-    for (uint32_t j = 0; j < shade_count; ++j) {
-        uint32_t k = shade[j], count = s->present_start[k + 1] - s->present_start[k];
-        for (uint32_t i = 0; i < count; ++i) {
-            size_t t = ms_render_split_triangle(s, k, i);
-            for (int c = 0; c < 3; ++c) {
-                uint32_t v = mesh->triangles[3 * t + (size_t)c];
-                if (v >= nv || s->fan_vstamp[v] == s->fan_pass)
-                    continue; /* a bad index: reported below */
-                s->fan_vstamp[v] = s->fan_pass;
-                if (!ms_render_grow((void **)&s->fan_start, &s->fan_start_cap, (size_t)fan_vertices + 2, sizeof *s->fan_start))
-                    return ms_error_set(err, MS_ERR_NOMEM, "render: no memory for the normals' fans");
-                s->fan_start[fan_vertices + 1] = 0;
-                s->fan_vlocal[v] = fan_vertices++;
-            }
-        }
+    /* the vertices asked about, numbered: only their fans are made */
+    uint32_t fan_vertices = vertex_count;
+    if (!ms_render_grow((void **)&s->fan_start, &s->fan_start_cap, (size_t)fan_vertices + 2, sizeof *s->fan_start))
+        return ms_error_set(err, MS_ERR_NOMEM, "render: no memory for the normals' fans");
+    for (uint32_t i = 0; i < fan_vertices; ++i) {
+        uint32_t v = vertices[i];
+        s->fan_vstamp[v] = s->fan_pass;
+        s->fan_vlocal[v] = i;
+        s->fan_start[i + 1] = 0;
     }
     /* the corners of the cells around at those vertices, counted; the faces
      * of their triangles (no other triangle is in a fan made) */
@@ -347,8 +327,7 @@ ms_status ms_render_split_normals(ms_render_split *s, const uint32_t *shade, uin
             }
         }
     }
-    if (!ms_render_grow((void **)&s->fan, &s->fan_corner_cap, corners ? corners : 1, sizeof *s->fan) ||
-        !ms_render_grow((void **)&s->fan_done, &s->fan_done_cap, (size_t)fan_vertices + 1, sizeof *s->fan_done))
+    if (!ms_render_grow((void **)&s->fan, &s->fan_corner_cap, corners ? corners : 1, sizeof *s->fan))
         return ms_error_set(err, MS_ERR_NOMEM, "render: no memory for the normals' fans");
     s->fan_start[0] = 0;
     uint32_t widest = 0;
@@ -356,7 +335,6 @@ ms_status ms_render_split_normals(ms_render_split *s, const uint32_t *shade, uin
         uint32_t f = s->fan_start[v + 1];
         widest = f > widest ? f : widest;
         s->fan_start[v + 1] += s->fan_start[v];
-        s->fan_done[v] = 0;
     }
     /* fill in ascending corner order (around is ascending, so are its cells'
      * triangles with runs; without, each fan is sorted below): fan_start[v]
@@ -391,6 +369,6 @@ ms_status ms_render_split_normals(ms_render_split *s, const uint32_t *shade, uin
         s->fan_sum = sum;
         s->fan_cap = widest;
     }
-    shade_fans(s, shade, shade_count);
+    make_fans(s, fan_vertices);
     return MS_OK;
 }

@@ -59,7 +59,6 @@ void ms_render_split_free(ms_render_split *s)
     free(s->corner_packed);
     free(s->fan);
     free(s->fan_start);
-    free(s->fan_done);
     free(s->fan_vstamp);
     free(s->fan_vlocal);
     free(s->fan_keys);
