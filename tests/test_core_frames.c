@@ -16,7 +16,11 @@
  *     out those cells again and kept the others' pieces;
  *   - the renderer given the frame finds the same cells changed and gone, and
  *     derives no mesh when none changed and none left;
- *   - the same frame given again derives nothing and uploads nothing.
+ *   - for every frame the renderer makes again exactly the changed cells'
+ *     meshes and those of the neighbours whose normals moved (counted apart,
+ *     at most the neighbours looked at), queues only meshes it made, and its
+ *     upload sends the meshes queued plus cells whose APO prefix alone changed;
+ *   - the same frame given again derives, makes, walks and uploads nothing.
  * A camera set again unchanged publishes no frame. Every wait is bounded. */
 #include <setjmp.h>
 #include <stdarg.h>
@@ -167,6 +171,11 @@ static void render_frame(ms_render *r, const ms_core_frame *f, const ms_core_fra
     ms_render_upload_stats up;
     if (ms_render_upload(r, UINT64_MAX / 2, &up, &err) != MS_OK)
         fail_msg("%s", err.text);
+    /* what goes up: the meshes queued (all of them, the budget being
+     * unbounded here), and cells whose APO prefix alone changed */
+    assert_true(up.cells_completed >= st.cells_queued);
+    assert_true(up.cells_completed <= st.cells_queued + f->apo_count);
+    assert_int_equal(up.cells_pending, 0);
     /* the same frame again: no cell changed, none derived, nothing to send */
     if (ms_render_set_frame(r, &f->mesh, f->apo, f->apo_count, &err) != MS_OK)
         fail_msg("%s", err.text);

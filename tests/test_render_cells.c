@@ -1,8 +1,11 @@
 /* The renderer's work per frame (ms_render.h, ms_render_frame_stats;
  * ms_render_cells.c): a frame derives the meshes of the cells whose triangles
  * changed (the stitched mesh's run versions, ms_view_decoder.h) and of the
- * cells sharing a vertex with what they drew or draw, exactly those; an
- * unchanged frame derives nothing; and the meshes it keeps or derives are,
+ * cells sharing a vertex with what they drew or draw, exactly those, and makes
+ * again the meshes of the changed cells and of the neighbours whose corner
+ * normals moved, exactly those (two renderers deriving every cell, one per
+ * frame, say which moved); an unchanged frame derives, makes and walks
+ * nothing; and the meshes it keeps or derives are,
  * byte for byte, those a renderer deriving every cell of the frame makes (the
  * buffers it would upload), so the picture is the same. */
 #include <math.h>
