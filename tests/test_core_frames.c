@@ -20,6 +20,8 @@
  *     meshes and those of the neighbours whose normals moved (counted apart,
  *     at most the neighbours looked at), queues only meshes it made, and its
  *     upload sends the meshes queued plus cells whose APO prefix alone changed;
+ *   - every cell's mesh is the one a renderer deriving the whole frame makes
+ *     (counts and content hash);
  *   - the same frame given again derives, makes, walks and uploads nothing.
  * A camera set again unchanged publishes no frame. Every wait is bounded. */
 #include <setjmp.h>
@@ -36,6 +38,7 @@
 #include "ms_client_core.h"
 #include "ms_progress.h"
 #include "ms_render.h"
+#include "ms_render_internal.h"
 #include "ms_test.h"
 #include "ms_test_core.h"
 #include "ms_test_render.h"
@@ -50,6 +53,7 @@ typedef struct totals {
     unsigned refining;       /* of them, frames that changed some cells */
     uint64_t chunks_shared, chunks_copied, bytes_copied, bytes_shown;
     uint64_t cells_stitched, cells_drawn;
+    uint64_t rebuilt, neighbours_moved, neighbours_kept; /* the renderer's, every frame */
 } totals;
 
 /* Whether cell's run in m has triangles, and its version. */
@@ -142,16 +146,43 @@ static void check_against_previous(const ms_core_frame *a, const ms_core_frame *
     t->bytes_copied += bytes;
 }
 
+/* Every cell of frame f wants in r (its pending mesh, else its current one)
+ * the mesh a renderer that derives the whole frame makes: same counts and the
+ * same content hash (over the vertices, normals and indices). */
+static void check_against_fresh(const ms_render *r, const ms_core_frame *f, const ms_archive_header *header)
+{
+    ms_render *fresh;
+    ms_error err;
+    if (ms_render_new(NULL, NULL, &fresh, &err) != MS_OK || ms_render_set_model(fresh, header, &err) != MS_OK ||
+        ms_render_learn(fresh, f->record_ids, f->records, f->record_count, &err) != MS_OK ||
+        ms_render_set_frame(fresh, &f->mesh, f->apo, f->apo_count, &err) != MS_OK)
+        fail_msg("%s", err.text);
+    for (uint32_t k = 0; k < fresh->split.present_count; ++k) {
+        uint32_t cell = fresh->split.present[k];
+        const render_cell *a = ms_render_cell_at(r, cell), *b = ms_render_cell_at(fresh, cell);
+        assert_true(a && b && b->next_mesh.active);
+        const gpu_mesh *x = a->next_mesh.active ? &a->next_mesh.gpu : &a->mesh, *y = &b->next_mesh.gpu;
+        if (x->hash != y->hash || x->vertex_count != y->vertex_count || x->triangle_count != y->triangle_count)
+            fail_msg("cell %u: the incremental mesh is not the fresh one", cell);
+    }
+    ms_render_free(fresh);
+}
+
 /* The frame to the renderer; its figures, and with `again` the same frame
  * once more: nothing derived, nothing uploaded. */
-static void render_frame(ms_render *r, const ms_core_frame *f, const ms_core_frame *previous)
+static void render_frame(ms_render *r, const ms_core_frame *f, const ms_core_frame *previous,
+                         const ms_archive_header *header, totals *t)
 {
     ms_error err;
     if (ms_render_learn(r, f->record_ids, f->records, f->record_count, &err) != MS_OK ||
         ms_render_set_frame(r, &f->mesh, f->apo, f->apo_count, &err) != MS_OK)
         fail_msg("%s", err.text);
+    check_against_fresh(r, f, header);
     ms_render_frame_stats st;
     ms_render_frame_stats_get(r, &st);
+    t->rebuilt += st.cells_rebuilt;
+    t->neighbours_moved += st.neighbours_moved;
+    t->neighbours_kept += st.cells_derived - st.cells_changed - st.neighbours_moved;
     uint32_t present = 0;
     for (size_t k = 0; k < f->mesh.run_count; ++k)
         present += f->mesh.run_first[k + 1] > f->mesh.run_first[k];
@@ -234,7 +265,7 @@ static void test_frames_cell_by_cell(void **state)
             if (f) {
                 if (previous && f->generation == previous->generation + 1)
                     check_against_previous(previous, f, &t);
-                render_frame(r, f, previous);
+                render_frame(r, f, previous, &header, &t);
                 ms_core_frame_free(previous);
                 previous = f;
             }
@@ -258,6 +289,9 @@ static void test_frames_cell_by_cell(void **state)
            t.exact_frames, t.refining, (unsigned long long)t.chunks_shared, (unsigned long long)t.chunks_copied,
            (unsigned long long)t.bytes_copied, (unsigned long long)t.bytes_shown,
            (unsigned long long)t.cells_stitched, (unsigned long long)t.cells_drawn);
+    printf("renderer: meshes made again %llu, of them neighbours whose normals moved %llu; neighbours kept %llu\n",
+           (unsigned long long)t.rebuilt, (unsigned long long)t.neighbours_moved,
+           (unsigned long long)t.neighbours_kept);
     assert_true(t.exact_frames >= 5);
     assert_true(t.refining >= 3);
     assert_true(t.chunks_shared > 0);
