@@ -778,6 +778,56 @@ static void test_flat_fan_bakes(void **state)
     ms_test_rmdir(dir);
 }
 
+/* The wavy fan of issue 31 (n slivers around a hub at the origin, rim
+ * (cos a, sin a, 0.1 sin 7a)) baked with the defaults: the APO build's work,
+ * counted without clocks (the triangles the builders look at one by one, plus
+ * every Embree query charged as a visit of the whole fan, what one costs
+ * there), grows linearly with n. Before the capped lists Embree answered
+ * 1,628 rays at 25,000 triangles and 66,056 at 100,000, each visiting a good
+ * part of the fan (docs/PERFORMANCE.md, "APO build on a high-valence fan"). */
+static uint64_t wavy_fan_work(const char *dir, uint32_t n, ms_bake_report *r)
+{
+    char path[700], name[32];
+    double *v = malloc(3 * (n + 1) * sizeof *v);
+    uint32_t *f = malloc(3 * n * sizeof *f);
+    assert_true(v && f);
+    v[0] = v[1] = v[2] = 0.0;
+    for (uint32_t i = 0; i < n; ++i) {
+        double a = 2.0 * M_PI * i / n;
+        v[3 * (i + 1)] = cos(a), v[3 * (i + 1) + 1] = sin(a), v[3 * (i + 1) + 2] = 0.1 * sin(7.0 * a);
+        f[3 * i] = 0, f[3 * i + 1] = 1 + i, f[3 * i + 2] = 1 + (i + 1) % n;
+    }
+    snprintf(name, sizeof name, "wavy%u", n);
+    snprintf(path, sizeof path, "%s/%s.ply", dir, name);
+    write_ply(path, v, n + 1, f, n);
+    free(v);
+    free(f);
+    ms_bake_apo_params apo;
+    ms_bake_apo_params_default(&apo);
+    apo.verify = true;
+    bake_report(path, dir, name, 2, &apo, 16, 4, 7, 8000, r);
+    return r->apo_triangle_visits + (r->apo_rays + r->apo_point_queries) * (uint64_t)n;
+}
+
+static void test_wavy_fan_bake_work_linear(void **state)
+{
+    (void)state;
+    char dir[512];
+    ms_test_tmpdir(dir, sizeof dir);
+    ms_bake_report small, large;
+    uint64_t w_small = wavy_fan_work(dir, 20000, &small), w_large = wavy_fan_work(dir, 40000, &large);
+    print_message("wavy fan bake: 20000 -> %llu (%u chunks), 40000 -> %llu (%u chunks)\n",
+                  (unsigned long long)w_small, small.apo_chunks, (unsigned long long)w_large, large.apo_chunks);
+    assert_true(small.apo_chunks > 0 && large.apo_chunks > 0);
+    /* the fan's M is crowded: its leaves answer from their lists, Embree is
+     * never asked */
+    assert_int_equal(large.apo_rays + large.apo_point_queries, 0);
+    assert_true(w_small > 0);
+    assert_true(w_large * 10 <= 23 * w_small);       /* 1.51 measured */
+    assert_true(w_large <= 256 * 40000ull);          /* 135 per triangle measured */
+    ms_test_rmdir(dir);
+}
+
 /* MESHSTREAM_BIG=1: the 871k dragon with the default settings, verified by the
  * baker and then chunk by chunk here. */
 static void test_big_dragon(void **state)
@@ -816,6 +866,7 @@ int main(void)
         cmocka_unit_test(test_cube_costs_no_apo),
         cmocka_unit_test(test_crease_rendered_by_geometry),
         cmocka_unit_test(test_flat_fan_bakes),
+        cmocka_unit_test(test_wavy_fan_bake_work_linear),
         cmocka_unit_test(test_big_dragon),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

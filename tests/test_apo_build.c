@@ -705,12 +705,29 @@ static void test_wavy_fan_work_linear(void **state)
     assert_true(large.rays + large.point_queries <= large.leaves / 4);
     assert_true(w_large <= 256 * 12000ull * large.levels); /* 4.8 x 10^6 x 4 measured */
     assert_true(w_large <= 5 * w_small);                   /* 4.0 measured */
+    /* the leaves answer from their (capped) lists alone: Embree is never asked */
+    assert_int_equal(small.rays + small.point_queries + large.rays + large.point_queries, 0);
+}
+
+/* A leaf with an M list samples fewer of its m-triangles the longer the list:
+ * one pass over the list per sample, at most MS_APO_LOCAL_TESTS tests in all
+ * (at least one sample); without a list (Embree), all of them. */
+static void test_leaf_samples_follow_the_list(void **state)
+{
+    (void)state;
+    assert_int_equal(ms_apo_leaf_samples(0), MS_APO_SAMPLES_PER_LEAF);
+    assert_int_equal(ms_apo_leaf_samples(1), MS_APO_SAMPLES_PER_LEAF);
+    assert_int_equal(ms_apo_leaf_samples(MS_APO_LOCAL_TESTS / MS_APO_SAMPLES_PER_LEAF), MS_APO_SAMPLES_PER_LEAF);
+    assert_int_equal(ms_apo_leaf_samples(MS_APO_LOCAL_TESTS / 4), 4);
+    assert_int_equal(ms_apo_leaf_samples(MS_APO_LOCAL_TESTS), 1);
+    assert_int_equal(ms_apo_leaf_samples(100000), 1);
 }
 
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_demo_structure_and_normals),
+        cmocka_unit_test(test_leaf_samples_follow_the_list),
         cmocka_unit_test(test_same_output_whatever_the_threads),
         cmocka_unit_test(test_cell_chunk),
         cmocka_unit_test(test_tiny_extent_and_huge_offset),

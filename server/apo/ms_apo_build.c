@@ -177,9 +177,22 @@ static bool splits(const split_job *job, uint32_t depth, const uint32_t *idx, si
     return n > 0 && variation(job, idx, n) > job->o->tolerance;
 }
 
+/* A triangle with a vertex in the closed cube (centre c, half-width half)
+ * touches it: no axis to test. On a crowded M most list entries are slivers
+ * around a shared vertex, and every node near it holds them all. */
+static bool vertex_in_cube(const float c[3], float half, const float *p0, const float *p1, const float *p2)
+{
+    const float *p[3] = {p0, p1, p2};
+    for (int k = 0; k < 3; ++k)
+        if (fabsf(p[k][0] - c[0]) <= half && fabsf(p[k][1] - c[1]) <= half && fabsf(p[k][2] - c[2]) <= half)
+            return true;
+    return false;
+}
+
 /* Which of the `wanted` children of the cell (centre c; children of half-width
  * `quarter`) triangle t touches: a bit mask of octants. */
-static uint32_t child_octants(const ms_apo_local_mesh *lm, uint32_t t, const float c[3], float quarter, uint32_t wanted)
+static uint32_t child_octants(const ms_apo_local_mesh *lm, uint32_t t, const float c[3], float quarter, uint32_t wanted,
+                              bool crowded)
 {
     /* The triangle's bounds, from its vertices: the same floats a stored copy
      * would hold, without 24 bytes per M-triangle for the whole build. */
@@ -207,7 +220,9 @@ static uint32_t child_octants(const ms_apo_local_mesh *lm, uint32_t t, const flo
             continue;
         float cc[3] = {c[0] + ((o >> 2 & 1u) ? quarter : -quarter), c[1] + ((o >> 1 & 1u) ? quarter : -quarter),
                        c[2] + ((o & 1u) ? quarter : -quarter)};
-        if (ms_tri_cube_overlap(cc, quarter, &lm->pos[3 * v[0]], &lm->pos[3 * v[1]], &lm->pos[3 * v[2]]))
+        /* crowded: slivers around a shared vertex, see vertex_in_cube (an
+         * uncrowded M is built as before, to the bit) */
+        if ((crowded && vertex_in_cube(cc, quarter, p0, p1, p2)) || ms_tri_cube_overlap(cc, quarter, p0, p1, p2))
             kept |= 1u << o;
     }
     return kept;
@@ -215,14 +230,22 @@ static uint32_t child_octants(const ms_apo_local_mesh *lm, uint32_t t, const flo
 
 /* Crowded M (ms_apo_crowding above MS_APO_CROWDED): each node keeps the list
  * of the M-triangles touching its cube grown to MS_APO_LIST_REACH times its
- * half-width around its centre, and a leaf answers its rays from its list
- * (ms_apo_sample_leaf) wherever the hit lies that near (M strays from m by up
- * to h, often beyond the leaf itself). The grown cubes nest (a child's lies
- * inside its parent's for any reach >= 1), so each list is its parent's,
- * filtered. Uncrowded M: lists of the nodes' own cubes, none for the leaves,
- * every query by Embree, which answers those fastest. */
+ * half-width around its centre (capped: MS_APO_LIST_CAP), and a leaf answers
+ * its rays and closest points from its list alone (ms_apo_sample_leaf; M
+ * strays from m by up to h, often beyond the leaf itself). The grown cubes
+ * nest (a child's lies inside its parent's for any reach >= 1), so each list
+ * is its parent's, filtered. Uncrowded M: lists of the nodes' own cubes, none
+ * for the leaves, every query by Embree, which answers those fastest. */
 #define MS_APO_LIST_REACH 2.0f
 #define MS_APO_CROWDED 64.0
+
+/* Crowded M: a node keeps at most this many of the M-triangles touching its
+ * grown cube, every k-th of them in M's order where more do (k the smallest
+ * that fits), so that a node's work is bounded whatever the number of slivers
+ * crossing it: the split rule weighs the kept ones, the leaves sample them.
+ * On a fan the kept slivers are evenly spread in angle (M's order is the
+ * fan's), their normals those of their dropped neighbours. */
+#define MS_APO_LIST_CAP 256u
 
 /* Which of the `wanted` children's grown cubes (centres c +- quarter, half-width
  * reach) triangle t touches: a bit mask of octants. */
@@ -252,7 +275,7 @@ static uint32_t child_reach(const ms_apo_local_mesh *lm, uint32_t t, const float
         /* bounds inside the cube: touching without the 13 axes */
         if ((lo3[0] >= cc[0] - reach && hi3[0] <= cc[0] + reach && lo3[1] >= cc[1] - reach &&
              hi3[1] <= cc[1] + reach && lo3[2] >= cc[2] - reach && hi3[2] <= cc[2] + reach) ||
-            ms_tri_cube_overlap(cc, reach, p0, p1, p2))
+            vertex_in_cube(cc, reach, p0, p1, p2) || ms_tri_cube_overlap(cc, reach, p0, p1, p2))
             kept |= 1u << o;
     }
     return kept;
@@ -266,7 +289,8 @@ static bool own_list(const ms_apo_local_mesh *lm, const uint32_t *idx, size_t n,
     out->n = 0;
     for (size_t k = 0; k < n; ++k) {
         const uint32_t *v = &lm->tri[3 * idx[k]];
-        if (ms_tri_cube_overlap(c, half, &lm->pos[3 * v[0]], &lm->pos[3 * v[1]], &lm->pos[3 * v[2]]) &&
+        const float *p0 = &lm->pos[3 * v[0]], *p1 = &lm->pos[3 * v[1]], *p2 = &lm->pos[3 * v[2]];
+        if ((vertex_in_cube(c, half, p0, p1, p2) || ms_tri_cube_overlap(c, half, p0, p1, p2)) &&
             !u32vec_push(out, idx[k]))
             return false;
     }
@@ -308,7 +332,7 @@ static void split_block(void *ctx, size_t block)
         }
         bool ok = true;
         for (uint64_t k = l->m_off[i]; k < l->m_off[i + 1] && ok; ++k) {
-            uint32_t t = l->m_idx[k], mask = child_octants(job->m, t, c, quarter, 0xFFu);
+            uint32_t t = l->m_idx[k], mask = child_octants(job->m, t, c, quarter, 0xFFu, job->crowded);
             for (uint32_t o = 0; o < 8 && ok; ++o)
                 if (mask >> o & 1u)
                     ok = u32vec_push(&child_m[o], t);
@@ -324,7 +348,7 @@ static void split_block(void *ctx, size_t block)
         for (size_t k = 0; k < big_n && ok && exist && (children_split || job->crowded); ++k) {
             uint32_t t = big_idx[k];
             uint32_t mask = job->crowded ? child_reach(job->big, t, c, quarter, MS_APO_LIST_REACH * quarter, exist)
-                                         : child_octants(job->big, t, c, quarter, exist);
+                                         : child_octants(job->big, t, c, quarter, exist, false);
             for (uint32_t o = 0; o < 8 && ok; ++o)
                 if (mask >> o & 1u)
                     ok = u32vec_push(&child_big[o], t);
@@ -335,6 +359,12 @@ static void split_block(void *ctx, size_t block)
             /* Uncrowded, a child that will not split needs no M list: with an
              * empty list the rule above gives it the same answer (no split). */
             size_t big_keep = job->crowded || splits(job, depth + 1, child_big[o].v, child_big[o].n) ? child_big[o].n : 0;
+            if (job->crowded && big_keep > MS_APO_LIST_CAP) {
+                size_t stride = (big_keep + MS_APO_LIST_CAP - 1) / MS_APO_LIST_CAP, kept = 0;
+                for (size_t k = 0; k < big_keep; k += stride)
+                    child_big[o].v[kept++] = child_big[o].v[k];
+                big_keep = child_big[o].n = kept;
+            }
             job->out[block].visits += child_m[o].n + child_big[o].n;
             ok = u32vec_push(&out->cells, 2 * cell[0] + (o >> 2 & 1u)) &&
                  u32vec_push(&out->cells, 2 * cell[1] + (o >> 1 & 1u)) &&
@@ -396,6 +426,7 @@ static void sample_block(void *ctx, size_t block)
         if (l->big_off) { /* crowded M: the leaf's own list */
             probe.big_tris = &l->big_idx[l->big_off[li]];
             probe.big_count = (size_t)(l->big_off[li + 1] - l->big_off[li]);
+            probe.listed = true;
         }
         memcpy(probe.centre, centre, sizeof centre);
         ms_apo_sample_leaf(job->sampler, job->m, &probe, s, node->normal,

@@ -20,6 +20,10 @@
  *    where w is the leaf's width and h estimates m's distance to M (the largest
  *    distance from m's vertices and face centroids to M, or the caller's bound),
  *    unless the options fix s. Internal nodes get the normalised mean of their children's normals.
+ *    Where M is crowded (slivers: ms_apo_crowding above 64) every node keeps a
+ *    capped list of the M-triangles near it and the leaves answer from it,
+ *    never from Embree (ms_apo_sample.h, docs/APO.md "Sampling"), so that the
+ *    work stays linear in M on a fan.
  * 3. Correction (options.correction): the texels m's smooth normal already
  *    gives are dropped (ms_apo_correct.h).
  *

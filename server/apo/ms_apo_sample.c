@@ -218,14 +218,10 @@ void ms_apo_sampler_release(ms_apo_sampler *sampler)
 
 
 /* Leaf-local answers. A hit (or closest point) nearer to the leaf's centre
- * than its cube's faces is inside the cube, as is every nearer one: their
- * triangles touch the cube and are in the leaf's M-list. The margin keeps that
- * true through the float rounding of the triangle/box test that made the list
- * (errors of a few ulps of the cube's unit coordinates). */
-static float local_margin(float half_width)
-{
-    return half_width / 16.0f + 4e-6f;
-}
+ * than its grown cube's faces, by a margin (a sixteenth of the half-width:
+ * the float rounding of the triangle/box test that made the list), is inside
+ * the cube, as is every nearer one: their triangles touch the cube and are in
+ * the leaf's M-list, and the answer is M's. */
 
 /* Ray o + t d against M-triangle tri (Moeller-Trumbore, double; both sides, as
  * Embree): true with t and the barycentric weights of vertices 1 and 2. */
@@ -276,8 +272,13 @@ static void keep_nearer(local_hit *h, double t, double u, double v, uint32_t pri
     }
 }
 
-/* ray_normal over the leaf's M-triangles: true (and the normal) when the
- * nearest hit is certain to be M's nearest (see local_margin). */
+/* ray_normal over the leaf's M-triangles (the triangles touching its cube
+ * grown MS_APO_LIST_REACH times): true (and the normal) when one of them is
+ * hit within [-s, s]. The nearest such hit is M's nearest when it lies inside
+ * the grown cube by a margin (see above); beyond, a triangle outside
+ * the grown cube could be hit first, and the leaf's own hit is kept anyway:
+ * Embree's queries on a crowded M cost a visit of a good part of M each (a
+ * fan's sliver boxes all hold its hub), the leaf's list only its own. */
 static bool local_ray_normal(const ms_apo_local_mesh *big, const ms_apo_leaf_probe *leaf, const double dir[3],
                              float s, double n[3], ms_apo_sample_counts *counts)
 {
@@ -289,10 +290,7 @@ static bool local_ray_normal(const ms_apo_local_mesh *big, const ms_apo_leaf_pro
         if (fabs(d[a]) > dmax)
             dmax = fabs(d[a]);
     }
-    if (!(dmax > 0.0))
-        return false;
-    double inside = (leaf->half_width - local_margin(leaf->half_width)) / dmax;
-    if (!(inside > 0.0))
+    if (!(dmax > 0.0) || leaf->big_count == 0)
         return false;
     local_hit plus = {0}, minus = {0};
     for (size_t k = 0; k < leaf->big_count; ++k) {
@@ -308,7 +306,7 @@ static bool local_ray_normal(const ms_apo_local_mesh *big, const ms_apo_leaf_pro
     counts->triangle_tests += leaf->big_count;
     /* +dir wins ties, as in ray_normal */
     const local_hit *best = plus.found && (!minus.found || plus.t <= minus.t) ? &plus : minus.found ? &minus : NULL;
-    if (!best || best->t > inside)
+    if (!best)
         return false;
     ms_apo_local_mesh_normal_at(big, best->prim, (float)best->u, (float)best->v, n);
     counts->local_answers++;
@@ -316,7 +314,8 @@ static bool local_ray_normal(const ms_apo_local_mesh *big, const ms_apo_leaf_pro
 }
 
 /* closest_normal over the leaf's M-triangles, with the same distances and ties:
- * true when the closest point found is certain to be M's (see local_margin). */
+ * true when one lies within radius (M's closest point when inside the grown
+ * cube by the margin; kept beyond it too, as local_ray_normal's hits). */
 static bool local_closest_normal(const ms_apo_local_mesh *big, const ms_apo_leaf_probe *leaf, float radius,
                                  double n[3], ms_apo_sample_counts *counts)
 {
@@ -339,8 +338,7 @@ static bool local_closest_normal(const ms_apo_local_mesh *big, const ms_apo_leaf
         }
     }
     counts->triangle_tests += leaf->big_count;
-    double inside = leaf->half_width - local_margin(leaf->half_width);
-    if (best_prim == UINT32_MAX || !(inside > 0.0) || sqrt(best_d2) > inside)
+    if (best_prim == UINT32_MAX)
         return false;
     ms_apo_local_mesh_normal_at(big, best_prim, best_uv[0], best_uv[1], n);
     counts->local_answers++;
@@ -359,21 +357,27 @@ static bool candidate_before(const leaf_candidate *a, const leaf_candidate *b)
     return a->d2 < b->d2 || (a->d2 == b->d2 && a->tri < b->tri);
 }
 
+size_t ms_apo_leaf_samples(size_t big_count)
+{
+    size_t n = big_count ? MS_APO_LOCAL_TESTS / big_count : MS_APO_SAMPLES_PER_LEAF;
+    return n < 1 ? 1 : n > MS_APO_SAMPLES_PER_LEAF ? MS_APO_SAMPLES_PER_LEAF : n;
+}
+
 void ms_apo_sample_leaf(const ms_apo_sampler *sampler, const ms_apo_local_mesh *m, const ms_apo_leaf_probe *leaf,
                         float search, float normal[3], float smooth[3], ms_apo_sample_counts *counts)
 {
     /* The nearest MS_APO_SAMPLES_PER_LEAF m-triangles, kept sorted (insertion:
      * the list is short), so that the rays cast do not grow with the leaf's list. */
     leaf_candidate kept[MS_APO_SAMPLES_PER_LEAF];
-    size_t kept_n = 0;
+    size_t kept_n = 0, limit = ms_apo_leaf_samples(leaf->big_count);
     const float *centre = leaf->centre;
     for (size_t k = 0; k < leaf->m_count; ++k) {
         leaf_candidate c = {.tri = leaf->m_tris[k]};
         const uint32_t *v = &m->tri[3 * c.tri];
         c.d2 = closest_on_triangle(centre, &m->pos[3 * v[0]], &m->pos[3 * v[1]], &m->pos[3 * v[2]], &c.wb, &c.wc);
-        if (kept_n == MS_APO_SAMPLES_PER_LEAF && !candidate_before(&c, &kept[kept_n - 1]))
+        if (kept_n == limit && !candidate_before(&c, &kept[kept_n - 1]))
             continue;
-        size_t at = kept_n < MS_APO_SAMPLES_PER_LEAF ? kept_n++ : kept_n - 1;
+        size_t at = kept_n < limit ? kept_n++ : kept_n - 1;
         while (at > 0 && candidate_before(&c, &kept[at - 1])) {
             kept[at] = kept[at - 1];
             --at;
@@ -393,13 +397,16 @@ void ms_apo_sample_leaf(const ms_apo_sampler *sampler, const ms_apo_local_mesh *
         bool has_dir = dir[0] != 0.0 || dir[1] != 0.0 || dir[2] != 0.0;
         if (!has_dir)
             dir[2] = 1.0;
+        /* A leaf with an M list (crowded M) asks Embree nothing: a ray that
+         * misses the listed triangles takes the list's closest point. */
         if (has_dir && (local_ray_normal(sampler->big, leaf, dir, search, n, counts) ||
-                        ray_normal(sampler->scene, sampler->big, centre, dir, search, n, &counts->rays))) {
+                        (leaf->big_count == 0 && !leaf->listed &&
+                         ray_normal(sampler->scene, sampler->big, centre, dir, search, n, &counts->rays)))) {
             counts->ray_hits++;
         } else {
             if (!closest_done) {
                 have_closest = local_closest_normal(sampler->big, leaf, search, closest, counts);
-                if (!have_closest) {
+                if (!have_closest && !leaf->listed) {
                     have_closest = closest_normal(sampler->scene, sampler->big, centre, search, closest);
                     counts->point_queries++;
                 }

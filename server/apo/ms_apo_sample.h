@@ -39,6 +39,15 @@ typedef struct ms_apo_sample_counts {
  * triangle count there (a fan's hub). */
 #define MS_APO_SAMPLES_PER_LEAF 8u
 
+/* A leaf with an M list (crowded M) tests every listed triangle for each of
+ * its samples: it samples at most MS_APO_LOCAL_TESTS / (list length) of its
+ * m-triangles, at least one, so that a leaf at a fan's hub, whose list holds
+ * every sliver, costs one pass over it rather than eight. */
+#define MS_APO_LOCAL_TESTS 16384u
+
+/* The samples a leaf takes, for its M list's length (0: no list, Embree). */
+size_t ms_apo_leaf_samples(size_t big_count);
+
 /* Builds the scene (a fast Morton BVH). MS_ERR_UNSUPPORTED / MS_ERR_NOMEM when
  * Embree fails. On error *sampler is zeroed. */
 ms_status ms_apo_sampler_init(ms_apo_sampler *sampler, RTCDevice device, const ms_apo_local_mesh *big,
@@ -58,6 +67,9 @@ typedef struct ms_apo_leaf_probe {
     size_t m_count;
     const uint32_t *big_tris; /* M-triangles touching the leaf (a superset is fine) */
     size_t big_count;
+    /* The list is the leaf's answer (crowded M): Embree is never asked, a leaf
+     * whose list holds nothing near takes m's own normal (unsampled). */
+    bool listed;
 } ms_apo_leaf_probe;
 
 /* The normal of a leaf: one sample for each of the (at most
@@ -65,16 +77,17 @@ typedef struct ms_apo_leaf_probe {
  * `search`, normalised sum (the nearest triangle's sample where the sum
  * vanishes; +z for no sample).
  *
- * Each ray pair (and the closest-point query) is first answered from the leaf's
- * own M-triangles: when the nearest hit found there lies inside the leaf's cube,
- * by a margin, every nearer hit would too, so its triangle touches the leaf and
- * is in the list: the answer is M's. Otherwise Embree answers over all of M.
+ * A leaf without a list (uncrowded M) asks Embree over all of M. A leaf with
+ * one (leaf->listed: crowded M) answers from it alone: the nearest listed hit
+ * (M's nearest when it lies inside the grown cube by a sixteenth of its
+ * half-width: every nearer hit would too, so its triangle is listed), else
+ * the list's closest point within `search`, else m's own normal (unsampled);
+ * it samples at most ms_apo_leaf_samples(big_count) m-triangles. Embree's
+ * boxes of a fan's slivers all hold its hub, so one of its queries there
+ * visits a good part of M.
  * smooth (may be NULL): the prediction, the normalised sum of m's smooth
  * normals (ms_apo_local_mesh_smooth_at) at the same closest points, what the
  * client draws there without a texel (zero when they cancel or no sample).
- * Embree's boxes of a fan's slivers all hold its hub, so one of its queries
- * there visits a good part of M; the leaf's list holds only the triangles that
- * touch the leaf itself (exact triangle/box tests).
  * Adds what happened to *counts. */
 void ms_apo_sample_leaf(const ms_apo_sampler *sampler, const ms_apo_local_mesh *m, const ms_apo_leaf_probe *leaf,
                         float search, float normal[3], float smooth[3], ms_apo_sample_counts *counts);

@@ -508,6 +508,7 @@ ms_status ms_bake_apo_cell(ms_apo_builder *builder, const ms_bake_apo_params *p,
         ms_apo_tree_counts(&tree, &out->internal_nodes, &out->leaves);
         out->rays = stats.rays;
         out->point_queries = stats.point_queries;
+        out->triangle_visits = stats.triangle_visits;
         out->smooth_leaves = stats.smooth_leaves;
         if (p->verify && out->levels > 0)
             st = verify_stored(&tree, out, err);

@@ -112,6 +112,7 @@ typedef struct ms_bake_apo_result {
     uint64_t texels;
     size_t internal_nodes, leaves;
     uint64_t rays, point_queries; /* the builder's sampling work (ms_apo_build_stats) */
+    uint64_t triangle_visits;     /* the builder's own work: triangles looked at one by one */
     size_t smooth_leaves;      /* leaves dropped: m's smooth normal gives M's there */
     ms_bake_apo_accuracy accuracy; /* filled when a reference mesh was given */
 } ms_bake_apo_result;

@@ -563,9 +563,11 @@ static void print_bake_json(const ms_bake_options *o, const ms_bake_report *r)
         json_object_set_new(apo, "share_of_bake",
                             json_real(r->seconds_total > 0 ? r->seconds_apo / r->seconds_total : 0.0));
     if (apo)
-        json_object_set_new(apo, "sampling", json_pack("{s:I, s:I, s:I}", "rays", (json_int_t)r->apo_rays,
+        json_object_set_new(apo, "sampling", json_pack("{s:I, s:I, s:I, s:I}", "rays", (json_int_t)r->apo_rays,
                                                        "point_queries", (json_int_t)r->apo_point_queries,
-                                                       "smooth_leaves", (json_int_t)r->apo_smooth_leaves));
+                                                       "smooth_leaves", (json_int_t)r->apo_smooth_leaves,
+                                                       "triangle_visits",
+                                                       (json_int_t)r->apo_triangle_visits));
     if (apo && o->apo.accuracy)
         json_object_set_new(apo, "accuracy",
                             json_pack("{s:I, s:f, s:f, s:f}", "points", (json_int_t)r->apo_accuracy_points,
@@ -661,8 +663,9 @@ static void print_bake_text(const ms_bake_report *r)
                r->apo_chunks, r->apo_bytes, r->apo_raw_bytes, r->apo_internal_nodes, r->apo_leaves,
                r->apo_smooth_leaves);
         printf("APO sampling:         internal cells' M %" PRIu64 " triangles, largest %" PRIu64 "; %" PRIu64
-               " rays, %" PRIu64 " closest-point queries\n",
-               r->apo_sample_triangles, r->apo_sample_triangles_max, r->apo_rays, r->apo_point_queries);
+               " rays, %" PRIu64 " closest-point queries, %" PRIu64 " triangle visits\n",
+               r->apo_sample_triangles, r->apo_sample_triangles_max, r->apo_rays, r->apo_point_queries,
+               r->apo_triangle_visits);
         if (r->apo_accuracy_points > 0)
             printf("APO accuracy:         %" PRIu64 " full-precision centroids of internal cells: "
                    "mean %.2f, median %.2f, p90 %.2f degrees\n",

@@ -123,6 +123,7 @@ typedef struct ms_bake_report {
     uint32_t apo_chunks;
     uint64_t apo_internal_nodes, apo_leaves;
     uint64_t apo_rays, apo_point_queries; /* sampling work: rays and closest-point queries cast */
+    uint64_t apo_triangle_visits;         /* the builder's own work: triangles looked at one by one */
     uint64_t apo_smooth_leaves; /* sampled leaves dropped: the client's smooth normal suffices there */
     double seconds_apo;   /* APO's share of the encode phase: thread-seconds / threads */
     uint64_t apo_sample_triangles;     /* triangles of the internal cells' M, summed */

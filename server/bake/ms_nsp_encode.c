@@ -582,6 +582,7 @@ static ms_status finish_cell(pool *p, uint32_t node, cell_out *out, ms_error *er
     if (s == MS_OK) { /* the sampling work, also of a chunk left without texels */
         p->stats.apo_rays += a->rays;
         p->stats.apo_point_queries += a->point_queries;
+        p->stats.apo_triangle_visits += a->triangle_visits;
         p->stats.apo_smooth_leaves += a->smooth_leaves;
     }
     if (s == MS_OK && a->levels > 0) {
