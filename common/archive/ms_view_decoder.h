@@ -37,7 +37,10 @@
  * received, MS_ERR_CORRUPT for a damaged payload.
  * Thread-safety: one object per client, used from one thread, except that
  * ms_view_set_bits and ms_view_set_bytes on *distinct* cells may run concurrently
- * when no split, merge, select, apply or stitch runs at the same time.
+ * when no merge, select, apply or stitch runs at the same time, and so may
+ * ms_view_split of a shown cell beside them (it touches the cell and its
+ * children's state alone, which no other of those calls may name): the
+ * decode pool's waves (ms_view_refine.h).
  */
 #ifndef MS_VIEW_DECODER_H
 #define MS_VIEW_DECODER_H
