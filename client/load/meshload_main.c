@@ -31,6 +31,7 @@
 
 #include "ms_camera_path.h"
 #include "ms_json_out.h"
+#include "ms_load_work.h"
 #include "ms_progress.h"
 #include "ms_client_core.h"
 #include "ms_http_get.h"
@@ -532,42 +533,6 @@ static bool client_complete(const client_result *c, const run *r)
 }
 
 /* One client's figures and keyframes as a JSON object. */
-/* The cold phase's decode work (ms_core_decode_work): CPU seconds by step
- * and thread, jobs, and the share of the work the pool's jobs did. */
-static json_t *decode_work_json(const ms_core_decode_work *w)
-{
-    double thread = w->take_cpu + w->select_cpu + w->refine_cpu + w->apply_cpu + w->content_cpu +
-                    w->plan_cpu + w->publish_cpu;
-    double all = thread + w->helper_cpu;
-    json_t *o = json_pack("{s:I, s:o, s:o, s:o, s:o, s:o, s:o, s:o, s:o, s:o}", "passes",
-                          (json_int_t)w->passes, "take_cpu", ms_json_fixed(w->take_cpu, 4),
-                          "select_cpu", ms_json_fixed(w->select_cpu, 4), "refine_cpu",
-                          ms_json_fixed(w->refine_cpu, 4), "apply_cpu",
-                          ms_json_fixed(w->apply_cpu, 4), "content_cpu",
-                          ms_json_fixed(w->content_cpu, 4), "plan_cpu",
-                          ms_json_fixed(w->plan_cpu, 4), "publish_cpu",
-                          ms_json_fixed(w->publish_cpu, 4), "jobs_cpu",
-                          ms_json_fixed(w->jobs_cpu, 4), "helper_cpu",
-                          ms_json_fixed(w->helper_cpu, 4));
-    json_object_set_new(o, "waves", json_integer((json_int_t)w->waves));
-    json_object_set_new(o, "jobs", json_integer((json_int_t)w->jobs));
-    json_object_set_new(o, "splits", json_integer((json_int_t)w->splits));
-    json_object_set_new(o, "jobs_on_helpers", json_integer((json_int_t)w->jobs_on_helpers));
-    json_object_set_new(o, "apply_refined", json_integer((json_int_t)w->apply_refined));
-    json_object_set_new(o, "apply_splits", json_integer((json_int_t)w->apply_splits));
-    json_object_set_new(o, "jobs_span2_cpu", ms_json_fixed(w->jobs_span2_cpu, 4));
-    /* the parallel fraction: the jobs' CPU time over all the decoding's; and
-     * Amdahl's bound for two threads with the jobs indivisible: all of it
-     * against the serial steps plus the waves' two-thread span */
-    double serial = thread - w->refine_cpu;
-    json_object_set_new(o, "parallel_fraction",
-                        ms_json_fixed(all > 0 ? w->jobs_cpu / all : 0.0, 4));
-    json_object_set_new(o, "two_thread_bound",
-                        ms_json_fixed(serial + w->jobs_span2_cpu > 0
-                                          ? all / (serial + w->jobs_span2_cpu) : 0.0, 4));
-    return o;
-}
-
 static json_t *client_json(unsigned i, const client_result *c, const run *r)
 {
     json_t *keyframes = json_array();
@@ -599,7 +564,7 @@ static json_t *client_json(unsigned i, const client_result *c, const run *r)
         ms_json_fixed(c->download_seconds, 4), "draco_decode_seconds",
         ms_json_fixed(c->decode_draco_seconds, 4), "error", ms_json_text(c->error),
         "failover_seconds", ms_json_fixed(c->longest_outage, 4), "keyframes", keyframes);
-    json_object_set_new(client, "cold_decode_work", decode_work_json(&c->cold_work));
+    json_object_set_new(client, "cold_decode_work", ms_load_decode_work_json(&c->cold_work));
     json_object_set_new(client, "model_changes", json_integer((json_int_t)c->model_changes));
     json_object_set_new(client, "preview_bits",
                         c->preview ? json_integer((json_int_t)c->preview_bits) : json_null());
