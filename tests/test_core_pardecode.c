@@ -3,8 +3,9 @@
  * decode pool (ms_view_refine_parallel), on the built-in demo model (small,
  * baked here), in process:
  *   - for a near and a far camera and back, the view refined in waves on a
- *     pool of one helper, in waves on the caller alone, and by ms_view_apply
- *     alone holds the same cut and stitches the same mesh, byte for byte;
+ *     pool of one helper (and stitched on it: ms_view_set_pool), in waves on
+ *     the caller alone, and by ms_view_apply alone holds the same cut and
+ *     stitches the same mesh, byte for byte;
  *     the waves' job counts do not depend on the threads, and with every
  *     byte at hand apply has no refinement or split left to do;
  *   - the client core in local mode with decode_threads 1 and 2 completes
@@ -143,6 +144,7 @@ static void test_waves_equal_apply(void **state)
     ms_pool *pool;
     ms_error err;
     assert_int_equal(ms_pool_new(1, &pool, &err), MS_OK);
+    ms_view_set_pool(v[0], pool); /* its stitch's caches and pieces on the pool too */
     ms_view_refine_jobs jobs[2] = {{0}, {0}};
     ms_view_mesh mesh[3];
     memset(mesh, 0, sizeof mesh);

@@ -124,6 +124,9 @@ static void dec_step(ms_core *c, chunk_msg *chunks, const ms_camera *cam, uint64
     if (!have_camera && !for_content)
         return;
     w->passes++;
+    /* the frame's stitch works out its cells' caches and pieces on the pool too
+     * (the view may be new since the last pass) */
+    ms_view_set_pool(c->dec.view, c->dec.pool);
     dec_pass pass;
     dec_pass_begin(c, for_content ? &content_camera : cam, &pass);
     pass.apo_on &= !for_content; /* the root's geometry alone */

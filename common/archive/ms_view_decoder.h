@@ -53,6 +53,7 @@
 #include "ms_camera.h"
 #include "ms_codec.h"
 #include "ms_error.h"
+#include "ms_parallel.h"
 
 typedef struct ms_view ms_view;
 
@@ -367,6 +368,13 @@ typedef struct ms_view_mesh {
  * out->cells_stitched); the mesh is the same as if every cell were worked out
  * (docs/CLIENT.md, "Frames"). */
 ms_status ms_view_stitch(ms_view *view, const bool *visible, ms_view_mesh *out, ms_error *err);
+
+/* A pool (ms_parallel.h, borrowed; NULL: none, the default) on which
+ * ms_view_stitch works out the shown cells' caches and pieces, one job per
+ * cell (each writes its own cell's state alone and reads the others' caches
+ * once all are made): the same mesh on any number of threads. Set and stitch
+ * from the pool's one calling thread. */
+void ms_view_set_pool(ms_view *view, ms_pool *pool);
 void ms_view_mesh_free(ms_view_mesh *mesh);
 
 #endif
