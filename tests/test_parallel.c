@@ -1,6 +1,7 @@
 /* The common thread pool and parallel-for: every block runs exactly once per
  * loop, on the helpers and the caller, across many loops of one pool; a pair
- * runs its block 0 on the caller. */
+ * runs its block 0 on the caller; the thread's CPU clock (ms_thread_cpu_ns)
+ * counts the thread's work and not its sleep. */
 #include <stdarg.h>
 #include <stddef.h>
 #include <setjmp.h>
@@ -8,6 +9,7 @@
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 #include <cmocka.h>
 #include <pthread.h>
 
@@ -150,6 +152,27 @@ static void test_pool_pair_runs_block_0_on_the_caller(void **state)
     }
 }
 
+/* The thread's CPU clock: it moves with the thread's own work (a busy loop of
+ * about 20 ms of CPU at the least, however loaded the machine), never back,
+ * and not with a sleep of the thread (50 ms asleep add under 5 ms). */
+static void test_thread_cpu_clock(void **state)
+{
+    (void)state;
+    unsigned long long t0 = ms_thread_cpu_ns();
+    assert_true(t0 > 0);
+    volatile uint64_t x = 1;
+    while (ms_thread_cpu_ns() - t0 < 20000000ull)
+        for (int k = 0; k < 100000; ++k)
+            x = x * 6364136223846793005ull + 1442695040888963407ull;
+    unsigned long long t1 = ms_thread_cpu_ns();
+    assert_true(t1 - t0 >= 20000000ull);
+    struct timespec nap = {0, 50000000L};
+    nanosleep(&nap, NULL);
+    unsigned long long t2 = ms_thread_cpu_ns();
+    assert_true(t2 >= t1);
+    assert_true(t2 - t1 < 5000000ull);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -157,6 +180,7 @@ int main(void)
         cmocka_unit_test(test_pool_without_helpers_runs_on_the_caller),
         cmocka_unit_test(test_parallel_for_any_thread_count),
         cmocka_unit_test(test_pool_pair_runs_block_0_on_the_caller),
+        cmocka_unit_test(test_thread_cpu_clock),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -332,6 +332,32 @@ typedef struct ms_core_apo_chunk {
                                  the caller's own */
 } ms_core_apo_chunk;
 
+/* Where the decode thread's work went, summed over its passes (docs/CLIENT.md,
+ * "Decoding on every core"): CPU time per thread (CLOCK_THREAD_CPUTIME_ID,
+ * seconds: what the work costs, which the machine's load changes little) and
+ * exact counts. The waves of refine and split jobs (ms_view_refine.h) are
+ * the part on the pool; everything else is the decode thread's alone. */
+typedef struct ms_core_decode_work {
+    uint64_t passes;
+    /* the decode thread's CPU time by step of its passes */
+    double take_cpu;      /* received chunks verified and handed over */
+    double select_cpu;    /* ms_view_select */
+    double refine_cpu;    /* the waves, as the decode thread spent them (its own jobs
+                             and waiting for the pool's) */
+    double apply_cpu;     /* ms_view_apply: merges, coarsening, what the waves left */
+    double content_cpu;   /* the content bounds (the root decoded at root precision) */
+    double plan_cpu;      /* budget, schedule and subtrees */
+    double publish_cpu;   /* the frame and the figures */
+    double jobs_cpu;      /* refine and split jobs, on every thread */
+    double helper_cpu;    /* of jobs_cpu: on the pool's helpers */
+    double jobs_span2_cpu; /* the least the waves take on two threads: per wave
+                              max(longest job, half its jobs_cpu), summed */
+    uint64_t waves, jobs, splits; /* pool loops, jobs run, of them splits */
+    uint64_t jobs_on_helpers; /* jobs a helper ran */
+    /* decode steps ms_view_apply did itself (serially) after the waves */
+    uint64_t apply_refined, apply_splits;
+} ms_core_decode_work;
+
 /* What making a frame cost the core, and what changed in it against the
  * previous frame (docs/CLIENT.md, "Frames"). A cell's triangles are named by
  * its stitch version (ms_view_mesh.run_version): a cell changed is one new in
@@ -443,6 +469,7 @@ typedef struct ms_core_stats {
     uint64_t frame_triangles;  /* triangles stitched */
     uint64_t frame_apo_bytes;  /* APO bytes the frames hold (each frame all its chunks) */
     ms_core_frame_work frame_work; /* the frames' work, summed */
+    ms_core_decode_work decode_work; /* the decode passes' work, by step and thread */
     double latency_p50, latency_p99; /* request send to last byte, seconds */
     char error[256];           /* why the core stopped, or "" */
     bool model_changed;        /* error says "the model changed on the server": a rescan

@@ -54,24 +54,58 @@ static void dec_pass_begin(ms_core *c, const ms_camera *cam, dec_pass *pass)
     memcpy(pass->sp.sections, planes, sizeof planes);
 }
 
-/* Selects the cells for the camera, refines in parallel what can go up, and
- * applies the splits and merges; false when decoding failed (then fatal). */
-static bool dec_select(ms_core *c, dec_pass *pass)
+/* The decode thread's CPU seconds since *mark, and *mark moved to now. */
+static double cpu_lap(unsigned long long *mark)
 {
+    unsigned long long now = ms_thread_cpu_ns();
+    double lap = (double)(now - *mark) * 1e-9;
+    *mark = now;
+    return lap;
+}
+
+/* Selects the cells for the camera, refines and splits in waves on the pool
+ * what can go down the cut (ms_view_refine_parallel), and applies the rest
+ * (merges, coarsening); false when decoding failed (then fatal). */
+static bool dec_select(ms_core *c, dec_pass *pass, unsigned long long *mark)
+{
+    ms_core_decode_work *w = &c->dec.work;
     ms_view_select(c->dec.view, pass->cam, &pass->sp, &c->dec.report);
+    w->select_cpu += cpu_lap(mark);
     size_t refined_in_parallel = ms_view_refine_parallel(c->dec.view, c->dec.pool, &c->dec.jobs);
+    w->refine_cpu += cpu_lap(mark);
     ms_view_apply_report report;
     ms_error err;
-    if (ms_view_apply(c->dec.view, &report, &err) != MS_OK) {
+    ms_status st = ms_view_apply(c->dec.view, &report, &err);
+    w->apply_cpu += cpu_lap(mark);
+    if (st != MS_OK) {
         pthread_mutex_lock(&c->lock);
         ms_core_fail_locked(c, "decoding failed: %.200s", err.text);
         pthread_mutex_unlock(&c->lock);
         return false;
     }
+    w->apply_refined += report.refined;
+    w->apply_splits += report.splits;
     pass->changed |= refined_in_parallel || report.splits || report.merges || report.refined ||
                      report.coarsened;
     ms_core_content_note(c);
+    w->content_cpu += cpu_lap(mark);
     return true;
+}
+
+/* The passes' work into the published figures (the job figures from the
+ * refine list's sums). */
+static void dec_work_publish(ms_core *c)
+{
+    ms_core_decode_work *w = &c->dec.work;
+    const ms_view_refine_stats *r = &c->dec.jobs.stats;
+    w->waves = r->waves, w->jobs = r->jobs, w->splits = r->splits;
+    w->jobs_on_helpers = r->jobs_on_helpers;
+    w->jobs_cpu = (double)(r->caller_cpu_ns + r->helper_cpu_ns) * 1e-9;
+    w->helper_cpu = (double)r->helper_cpu_ns * 1e-9;
+    w->jobs_span2_cpu = (double)r->span2_ns * 1e-9;
+    pthread_mutex_lock(&c->lock);
+    c->stats.decode_work = *w;
+    pthread_mutex_unlock(&c->lock);
 }
 
 /* One pass: take inputs, decode, select, plan, publish. Before the caller's
@@ -81,22 +115,39 @@ static void dec_step(ms_core *c, chunk_msg *chunks, const ms_camera *cam, uint64
                      bool have_camera)
 {
     double t_start = ms_now_seconds();
+    unsigned long long mark = ms_thread_cpu_ns();
+    ms_core_decode_work *w = &c->dec.work;
     bool apo_changed = ms_core_take_chunks(c, chunks);
+    w->take_cpu += cpu_lap(&mark);
     ms_camera content_camera;
     bool for_content = !have_camera && ms_core_content_camera(c, &content_camera);
     if (!have_camera && !for_content)
         return;
+    w->passes++;
+    /* the frame's stitch works out its cells' caches and pieces on the pool too
+     * (the view may be new since the last pass) */
+    ms_view_set_pool(c->dec.view, c->dec.pool);
     dec_pass pass;
     dec_pass_begin(c, for_content ? &content_camera : cam, &pass);
     pass.apo_on &= !for_content; /* the root's geometry alone */
     pass.for_content = for_content;
     pass.changed = apo_changed;
-    if (!dec_select(c, &pass) || !ms_core_budget_ceiling(c, &pass))
+    w->plan_cpu += cpu_lap(&mark);
+    if (!dec_select(c, &pass, &mark))
+        return;
+    bool ceiling = ms_core_budget_ceiling(c, &pass);
+    w->plan_cpu += cpu_lap(&mark);
+    if (!ceiling)
         return;
     ms_core_schedule(c, &pass);    /* what is missing, and in which order */
     ms_core_budget_step(c, &pass); /* memory: the budget */
     pass.complete &= !for_content; /* no caller's view to be complete */
+    w->plan_cpu += cpu_lap(&mark);
+    /* the work before the figures that say view complete (publication's own
+     * CPU time shows from the next pass on) */
+    dec_work_publish(c);
     ms_core_publish(c, &pass, serial, t_start);
+    w->publish_cpu += cpu_lap(&mark);
 }
 
 void *ms_core_decode_main(void *arg)

@@ -129,6 +129,7 @@ typedef struct ms_core_decoder {
     size_t sched_subtrees_cap;
     ms_pool *pool;          /* decode helpers */
     ms_view_refine_jobs jobs; /* their job list (ms_view_refine_parallel), kept between passes */
+    ms_core_decode_work work; /* the passes' work, published with the figures */
 } ms_core_decoder;
 
 /* One decode pass (dec_step), carried from step to step. */

@@ -31,6 +31,7 @@
 
 #include "ms_camera_path.h"
 #include "ms_json_out.h"
+#include "ms_load_work.h"
 #include "ms_progress.h"
 #include "ms_client_core.h"
 #include "ms_http_get.h"
@@ -62,6 +63,7 @@ typedef struct client_result {
     uint64_t subtrees_received, index_bytes_received, peak_index_bytes_held;
     uint64_t state_bytes_held; /* per-cell bookkeeping at the cold phase's end */
     uint32_t state_cells;
+    ms_core_decode_work cold_work; /* the decode passes' work to the cold view complete */
     /* path phase */
     key_result keys[MAX_KEYS];
     size_t key_count;
@@ -247,6 +249,7 @@ static void cold_phase(worker *w)
     res->peak_index_bytes_held = st.peak_index_bytes_held;
     res->state_bytes_held = st.state_bytes_held;
     res->state_cells = st.state_cells;
+    res->cold_work = st.decode_work;
     snprintf(res->warning, sizeof res->warning, "%.250s", st.warning);
     if (st.error[0])
         snprintf(res->error, sizeof res->error, "%.250s", st.error);
@@ -561,6 +564,7 @@ static json_t *client_json(unsigned i, const client_result *c, const run *r)
         ms_json_fixed(c->download_seconds, 4), "draco_decode_seconds",
         ms_json_fixed(c->decode_draco_seconds, 4), "error", ms_json_text(c->error),
         "failover_seconds", ms_json_fixed(c->longest_outage, 4), "keyframes", keyframes);
+    json_object_set_new(client, "cold_decode_work", ms_load_decode_work_json(&c->cold_work));
     json_object_set_new(client, "model_changes", json_integer((json_int_t)c->model_changes));
     json_object_set_new(client, "preview_bits",
                         c->preview ? json_integer((json_int_t)c->preview_bits) : json_null());

@@ -37,7 +37,10 @@
  * received, MS_ERR_CORRUPT for a damaged payload.
  * Thread-safety: one object per client, used from one thread, except that
  * ms_view_set_bits and ms_view_set_bytes on *distinct* cells may run concurrently
- * when no split, merge, select, apply or stitch runs at the same time.
+ * when no merge, select, apply or stitch runs at the same time, and so may
+ * ms_view_split of a shown cell beside them (it touches the cell and its
+ * children's state alone, which no other of those calls may name): the
+ * decode pool's waves (ms_view_refine.h).
  */
 #ifndef MS_VIEW_DECODER_H
 #define MS_VIEW_DECODER_H
@@ -50,6 +53,7 @@
 #include "ms_camera.h"
 #include "ms_codec.h"
 #include "ms_error.h"
+#include "ms_parallel.h"
 
 typedef struct ms_view ms_view;
 
@@ -364,6 +368,13 @@ typedef struct ms_view_mesh {
  * out->cells_stitched); the mesh is the same as if every cell were worked out
  * (docs/CLIENT.md, "Frames"). */
 ms_status ms_view_stitch(ms_view *view, const bool *visible, ms_view_mesh *out, ms_error *err);
+
+/* A pool (ms_parallel.h, borrowed; NULL: none, the default) on which
+ * ms_view_stitch works out the shown cells' caches and pieces, one job per
+ * cell (each writes its own cell's state alone and reads the others' caches
+ * once all are made): the same mesh on any number of threads. Set and stitch
+ * from the pool's one calling thread. */
+void ms_view_set_pool(ms_view *view, ms_pool *pool);
 void ms_view_mesh_free(ms_view_mesh *mesh);
 
 #endif

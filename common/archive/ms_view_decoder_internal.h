@@ -11,6 +11,7 @@
 #include "ms_codec.h"
 #include "ms_colour.h"
 #include "ms_nsp.h"
+#include "ms_parallel.h"
 #include "ms_view_decoder.h"
 
 /* A shown cell's stitch, kept for the next stitches (ms_view_stitch.c): its
@@ -103,6 +104,8 @@ struct ms_view {
     uint32_t block_cells;   /* cells of the blocks in `groups` (known or not) */
     uint32_t stamp_epoch;
     uint64_t stitch_stamps; /* the last stamp handed out (vcell.stamp) */
+    ms_pool *pool;          /* borrowed: the stitch's per-cell steps run on it (NULL:
+                             * on the caller alone), ms_view_set_pool */
 };
 
 /* The group of cell id and its place in it. */

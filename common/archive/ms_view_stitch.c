@@ -596,23 +596,93 @@ static ms_status colour_room(ms_view_mesh *m, bool coloured, ms_error *err)
  * longer holds (piece_valid): then its owners are looked up and its
  * triangles walked; the mesh is then put together from the pieces in cell
  * order, as one walk of every cell would have made it. */
-ms_status ms_view_stitch(ms_view *v, const bool *visible, ms_view_mesh *m, ms_error *err)
+void ms_view_set_pool(ms_view *v, ms_pool *pool)
 {
+    v->pool = pool;
+}
+
+/* The stitch's per-cell steps on the pool: the listed cells, each job its own
+ * status and error (the first failure in the list's order is the stitch's). */
+typedef struct stitch_jobs {
+    ms_view *v;
+    const uint32_t *cells;
+    ms_status *status;
+    ms_error *errors;
+} stitch_jobs;
+
+static void cache_job(void *ctx, size_t k)
+{
+    stitch_jobs *j = ctx;
+    j->status[k] = refresh_cache(j->v, j->cells[k], &j->errors[k]);
+}
+
+static void piece_job(void *ctx, size_t k)
+{
+    stitch_jobs *j = ctx;
+    uint32_t id = j->cells[k];
+    vcell *c = ms_view_vcell(j->v, id);
+    for (size_t i = 0; i < c->cache.vertex_count; ++i) {
+        uint32_t end;
+        c->owner[i] = owner_of(j->v, c->cache.cells[i], c->cache.level, &end);
+    }
     uint8_t *snapped = NULL;
     size_t snapped_cap = 0;
+    j->status[k] = make_piece(j->v, id, c, &snapped, &snapped_cap, &j->errors[k]);
+    free(snapped);
+}
+
+/* Runs fn over cells[0, count) on the view's pool; the first failure. */
+static ms_status stitch_run(ms_view *v, const uint32_t *cells, size_t count, ms_parallel_fn fn,
+                            ms_error *err)
+{
+    if (count == 0)
+        return MS_OK;
+    stitch_jobs j = {v, cells, malloc(count * sizeof *j.status), malloc(count * sizeof *j.errors)};
+    if (!j.status || !j.errors) {
+        free(j.status);
+        free(j.errors);
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory stitching");
+    }
+    if (v->pool)
+        ms_pool_for(v->pool, count, fn, &j);
+    else
+        for (size_t k = 0; k < count; ++k)
+            fn(&j, k);
+    ms_status s = MS_OK;
+    for (size_t k = 0; k < count && s == MS_OK; ++k)
+        if ((s = j.status[k]) != MS_OK)
+            *err = j.errors[k];
+    free(j.status);
+    free(j.errors);
+    return s;
+}
+
+ms_status ms_view_stitch(ms_view *v, const bool *visible, ms_view_mesh *m, ms_error *err)
+{
     m->vertex_count = m->triangle_count = 0;
     m->dropped_finer = m->dropped_snapped = m->unresolved = m->snapped_frozen = 0;
     m->cells_stitched = m->triangles_stitched = 0;
     m->run_count = 0;
-    ms_status s = MS_OK;
-    /* Caches and colours of every shown cell, their vertices not yet out. */
-    bool coloured = false;
-    for (uint32_t id = 0; id != MS_ARCHIVE_NONE && s == MS_OK; id = ms_view_next_known(v, id)) {
+    /* the shown cells, ascending */
+    uint32_t *cells = NULL;
+    size_t count = 0, cap = 0;
+    for (uint32_t id = 0; id != MS_ARCHIVE_NONE; id = ms_view_next_known(v, id)) {
         vcell *c = ms_view_vcell(v, id);
         if (!c || c->state != MS_VIEW_SHOWN)
             continue;
-        if ((s = refresh_cache(v, id, err)) != MS_OK ||
-            (s = ms_view_colour_refresh(v, id, err)) != MS_OK)
+        if (!grow_array((void **)&cells, &cap, count + 1, sizeof *cells)) {
+            free(cells);
+            return ms_error_set(err, MS_ERR_NOMEM, "out of memory stitching");
+        }
+        cells[count++] = id;
+    }
+    /* Caches (on the pool: each its own cell's) and colours of every shown
+     * cell, their vertices not yet out. */
+    ms_status s = stitch_run(v, cells, count, cache_job, err);
+    bool coloured = false;
+    for (size_t k = 0; k < count && s == MS_OK; ++k) {
+        vcell *c = ms_view_vcell(v, cells[k]);
+        if ((s = ms_view_colour_refresh(v, cells[k], err)) != MS_OK)
             break;
         coloured |= ms_view_colour_ready(c);
         for (size_t i = 0; i < c->cache.vertex_count; ++i)
@@ -622,21 +692,21 @@ ms_status ms_view_stitch(ms_view *v, const bool *visible, ms_view_mesh *m, ms_er
     renew_stamps(v);
     if (s == MS_OK)
         s = colour_room(m, coloured, err);
-    /* the pieces that no longer hold, worked out again (their owners first:
-     * a piece reads only its own cell's) */
-    for (uint32_t id = 0; id != MS_ARCHIVE_NONE && s == MS_OK; id = ms_view_next_known(v, id)) {
-        vcell *c = ms_view_vcell(v, id);
-        if (!c || c->state != MS_VIEW_SHOWN || (visible && !visible[id]) || piece_valid(v, c))
-            continue;
-        for (size_t i = 0; i < c->cache.vertex_count; ++i) {
-            uint32_t end;
-            c->owner[i] = owner_of(v, c->cache.cells[i], c->cache.level, &end);
-        }
-        if ((s = make_piece(v, id, c, &snapped, &snapped_cap, err)) != MS_OK)
-            break;
-        m->cells_stitched++;
-        m->triangles_stitched += c->piece->tri_count;
+    /* the pieces that no longer hold, worked out again (on the pool: a piece
+     * writes its own cell's owners and piece, and reads the others' caches) */
+    size_t redo = 0;
+    for (size_t k = 0; k < count && s == MS_OK; ++k) {
+        vcell *c = ms_view_vcell(v, cells[k]);
+        if (!(visible && !visible[cells[k]]) && !piece_valid(v, c))
+            cells[redo++] = cells[k];
     }
+    if (s == MS_OK)
+        s = stitch_run(v, cells, redo, piece_job, err);
+    for (size_t k = 0; k < redo && s == MS_OK; ++k) {
+        m->cells_stitched++;
+        m->triangles_stitched += ms_view_vcell(v, cells[k])->piece->tri_count;
+    }
+    free(cells);
     /* room for the whole mesh at once: every cell's own vertices and those it
      * asks its neighbours for (an upper bound), and its triangles */
     size_t vertices = 0, triangles = 0;
@@ -652,6 +722,5 @@ ms_status ms_view_stitch(ms_view *v, const bool *visible, ms_view_mesh *m, ms_er
         if (c && c->state == MS_VIEW_SHOWN && (!visible || visible[id]))
             s = put_piece(v, m, id, c, err);
     }
-    free(snapped);
     return s;
 }

@@ -21,6 +21,11 @@ typedef void (*ms_parallel_fn)(void *ctx, size_t block);
 /* Number of online cores (at least 1). */
 unsigned ms_parallel_cores(void);
 
+/* The calling thread's CPU time so far, nanoseconds (CLOCK_THREAD_CPUTIME_ID;
+ * 0 where the clock is missing): what a thread's work costs, which the
+ * machine's load changes little, unlike wall time. */
+unsigned long long ms_thread_cpu_ns(void);
+
 /* One parallel loop on up to `threads` threads (0 = the number of online
  * cores), the caller's included; the helpers live for this call only. Returns
  * MS_ERR_NOMEM (with err set) if no helper could be set up; the work is done
