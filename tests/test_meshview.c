@@ -295,8 +295,9 @@ static void test_small_on_screen_never_vanishes(void **state)
             either += mask[i] | ref_mask[i];
         }
         double iou = either ? (double)both / (double)either : 0.0;
-        printf("%g px tall: %lld triangles, %zu px covered (meshrender %zu), IoU %.3f\n",
-               heights_px[k], (long long)triangles, covered, ref_covered, iou);
+        printf("%g px tall: %lld triangles, %zu px covered (meshrender %zu), IoU %.3f, %.1f triangles "
+               "per covered pixel\n", heights_px[k], (long long)triangles, covered, ref_covered, iou,
+               (double)triangles / (double)(covered ? covered : 1));
         assert_true(triangles > 0);
         assert_true(covered > 0);
         if (heights_px[k] >= 30)
