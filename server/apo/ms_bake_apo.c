@@ -22,6 +22,7 @@ void ms_bake_apo_params_default(ms_bake_apo_params *p)
     p->correction = 0.2;
     p->budget = MS_BAKE_APO_BUDGET;
     p->zlib_level = 6;
+    p->sample_agreement = MS_BAKE_APO_AGREEMENT;
 }
 
 ms_status ms_bake_apo_params_check(const ms_bake_apo_params *p, ms_error *err)
@@ -39,6 +40,8 @@ ms_status ms_bake_apo_params_check(const ms_bake_apo_params *p, ms_error *err)
                             MS_BAKE_APO_MAX_BUDGET);
     if (p->zlib_level < 0 || p->zlib_level > 9)
         return ms_error_set(err, MS_ERR_ARG, "APO zlib level must be 0..9");
+    if (!(p->sample_agreement >= 0.0 && p->sample_agreement <= 3.2))
+        return ms_error_set(err, MS_ERR_ARG, "APO sample agreement must be a number from 0 to 3.2");
     return MS_OK;
 }
 
@@ -491,6 +494,7 @@ ms_status ms_bake_apo_cell(ms_apo_builder *builder, const ms_bake_apo_params *p,
     o.correction = !p->full_normals;
     o.correction_tolerance = p->correction;
     o.vertex_error = 0.5 * o.distance_bound;
+    o.sample_agreement = p->sample_agreement;
     ms_apo_tree tree;
     memset(&tree, 0, sizeof tree);
     ms_apo_build_stats stats;
@@ -510,6 +514,9 @@ ms_status ms_bake_apo_cell(ms_apo_builder *builder, const ms_bake_apo_params *p,
         out->point_queries = stats.point_queries;
         out->triangle_visits = stats.triangle_visits;
         out->smooth_leaves = stats.smooth_leaves;
+        out->samples = stats.samples;
+        out->sampled_leaves = stats.sampled_leaves;
+        out->agreed_leaves = stats.agreed_leaves;
         if (p->verify && out->levels > 0)
             st = verify_stored(&tree, out, err);
         if (st == MS_OK && reference && out->levels > 0)
