@@ -62,16 +62,9 @@ bool ms_core_content_want(const ms_core *c, const want *w)
     return c->content == CONTENT_PENDING && w->cell == 0 && w->stream == STREAM_GEOMETRY;
 }
 
-/* The root's bounds at root precision, decoded there when it is shown
- * coarser. Under a memory budget (its own or a shared one) it goes back
- * down at once (ms_view_set_bits is exactly reversible: the view, its memory
- * and its frames stay as the selection left them). Without one it stays
- * there, as a camera wanting root precision would have left it: the caller's
- * first camera almost always wants it finer still, and going down (which
- * costs about what decoding does) to decode it up again would decode the
- * root three times over on one thread, the longest serial step of a cold
- * open (docs/PERFORMANCE.md, "Decoding on two threads"); a selection that
- * wants it coarser coarsens it at its next apply. */
+/* The root's bounds at root precision, decoded there and back when it is
+ * shown coarser (ms_view_set_bits is exactly reversible: the view, its
+ * memory and its frames stay as the selection left them). */
 static ms_status root_bounds(ms_core *c, unsigned bits, double lo[3], double hi[3], ms_error *err)
 {
     unsigned shown = ms_view_bits(c->dec.view, 0);
@@ -80,10 +73,8 @@ static ms_status root_bounds(ms_core *c, unsigned bits, double lo[3], double hi[
     ms_status st = ms_view_set_bits(c->dec.view, 0, bits, err);
     if (st == MS_OK)
         st = ms_view_cell_bounds(c->dec.view, 0, lo, hi, err);
-    bool budget = c->shared || c->o.memory_target > 0;
     ms_error back_err;
-    if ((st != MS_OK || budget) && ms_view_set_bits(c->dec.view, 0, shown, &back_err) != MS_OK &&
-        st == MS_OK) {
+    if (ms_view_set_bits(c->dec.view, 0, shown, &back_err) != MS_OK && st == MS_OK) {
         *err = back_err;
         st = back_err.code;
     }
