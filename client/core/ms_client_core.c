@@ -85,7 +85,7 @@ ms_status ms_core_start(const ms_core_options *o, ms_core **out, ms_error *err)
     if (c->o.tolerance_px == 0)
         c->o.tolerance_px = 1.0;
     if (c->o.hysteresis_bits < 0)
-        c->o.hysteresis_bits = 0.5;
+        c->o.hysteresis_bits = MS_SELECT_HYSTERESIS_DEFAULT;
     if (c->o.culled_bits_less == 0)
         c->o.culled_bits_less = 6.0;
     /* Geometry as fine with APO as without: coarser geometry where APO carries

@@ -218,7 +218,7 @@ typedef struct ms_core_options {
     const char *token;         /* NULL: none (preview access) */
     const char *agent;         /* NULL: "meshstream-client" */
     double tolerance_px;       /* geometric screen tolerance, pixels; 0 = 1 */
-    double hysteresis_bits;    /* ms_select_bits hysteresis; < 0 = 0.5 (0 is exact) */
+    double hysteresis_bits;    /* ms_select_bits hysteresis; < 0 = MS_SELECT_HYSTERESIS_DEFAULT (0 is exact) */
     double culled_bits_less;   /* culled cells' need is lowered by this; 0 = 6 (64x the
                                   error outside the view) */
     double frustum_margin;     /* world units; 0 = none */

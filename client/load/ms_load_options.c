@@ -1,4 +1,5 @@
 #include "ms_load_options.h"
+#include "ms_camera.h"
 #include "ms_cli.h"
 
 #include <getopt.h>
@@ -38,7 +39,7 @@ void ms_load_usage(FILE *out)
             "  --keyframe-timeout S   longest wait for a view to complete (default 60)\n"
             "  --viewport WxH         pixels (default 1280x720)\n"
             "  --memory-target MB, --memory-ceiling MB   the cache budget (default none)\n"
-            "  --hysteresis BITS      precision hysteresis (default 0.5)\n"
+            "  --hysteresis BITS      precision hysteresis (default 0.2)\n"
             "  --culled-bits-less B   precision given up on cells outside the view (default 6)\n"
             "  --decode-threads N     decoding threads per client (default 2)\n"
             "  --apo-levels L         APO on, fetching at most L levels of a chunk (default 0:\n"
@@ -173,7 +174,7 @@ int ms_load_options_parse(int argc, char **argv, ms_load_options *o)
     o->tolerance = 1.0;
     o->keyframe_timeout = 60;
     o->width = 1280, o->height = 720;
-    o->hysteresis = 0.5;
+    o->hysteresis = MS_SELECT_HYSTERESIS_DEFAULT;
     o->draco_decoder = "draco_decoder";
     const char *tmp = getenv("TMPDIR");
     o->tmp_dir = tmp && *tmp ? tmp : "/tmp";

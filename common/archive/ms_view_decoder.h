@@ -225,7 +225,7 @@ double ms_view_cell_error_bound(ms_view *view, uint32_t cell);
 typedef struct ms_view_select_params {
     double tolerance_px;  /* screen error allowed for a vertex, pixels (> 0) */
     double margin;        /* frustum margin, world units (>= 0) */
-    double hysteresis;    /* bits to spare before coarsening (ms_select_bits), e.g. 0.5 */
+    double hysteresis;    /* bits to spare before coarsening (ms_select_bits), e.g. MS_SELECT_HYSTERESIS_DEFAULT */
     double culled_bits_less; /* cells outside the frustum get their need minus this */
     /* NULL, or per cell a factor on tolerance_px (> 0): a client with APO on
      * refines cells that carry a chunk only to a coarse geometric tolerance and
@@ -250,7 +250,7 @@ typedef struct ms_view_select_params {
     double sections[MS_SECTIONS_MAX][4];
 } ms_view_select_params;
 
-/* 1 pixel, no margin, 0.5 bit of hysteresis, culled cells 2 bits coarser (keeps
+/* 1 pixel, no margin, MS_SELECT_HYSTERESIS_DEFAULT bits of hysteresis, culled cells 2 bits coarser (keeps
  * the precision steps at the frustum border small: see ms_view_stitch), one
  * tolerance for every cell, no sections. */
 void ms_view_select_params_default(ms_view_select_params *params);

@@ -22,7 +22,7 @@ void ms_view_select_params_default(ms_view_select_params *p)
 {
     p->tolerance_px = 1.0;
     p->margin = 0.0;
-    p->hysteresis = 0.5;
+    p->hysteresis = MS_SELECT_HYSTERESIS_DEFAULT;
     p->culled_bits_less = 2.0;
     p->tolerance_scale = NULL;
     p->chunkless_tolerance_scale = 0.0;

@@ -1,0 +1,224 @@
+/* A model seen from ever farther by the client core alone (local mode, no
+ * window; issue 30's test beside test_meshview's): the demo sculpture with its
+ * box 400, 120, 60, 30 and 15 pixels tall in a 480x480 view draws a non-empty
+ * cut at every distance, held within the 1 px tolerance by the error the core
+ * reports (the true one: above 0, at most the tolerance); drawn by the study's
+ * CPU renderer, its silhouette overlaps that of the full model with an
+ * intersection over union of at least 0.9 down to 30 px. The same cameras
+ * are walked in from far to near by one core too, and out again, so the
+ * hysteresis is exercised both ways and every step is complete. */
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <sys/stat.h>
+#include <cmocka.h>
+
+#include "ms_archive.h"
+#include "ms_camera.h"
+#include "ms_client_core.h"
+#include "ms_mesh.h"
+#include "ms_mesh_io.h"
+#include "ms_nsp_check.h"
+#include "ms_study_render.h"
+#include "ms_study_scene.h"
+#include "ms_test.h"
+#include "ms_test_core.h"
+
+#define SIDE 480
+#define KEYS 5
+static const double heights_px[KEYS] = {400, 120, 60, 30, 15};
+
+typedef struct fixture {
+    char dir[512], archives[600], archive[700];
+    ms_study_scene *full;   /* the demo at full resolution */
+    double centre[3], side; /* the archive's box */
+} fixture;
+
+static int setup(void **state)
+{
+    fixture *f = calloc(1, sizeof *f);
+    if (!f)
+        return -1;
+    ms_test_tmpdir(f->dir, sizeof f->dir);
+    snprintf(f->archives, sizeof f->archives, "%s/archive", f->dir);
+    if (mkdir(f->archives, 0755) != 0 || ms_nsp_test_bake_demo(f->dir, 20000, f->archives, "demo", 1500, false) != 0)
+        return -1;
+    snprintf(f->archive, sizeof f->archive, "%s/demo.msa", f->archives);
+    ms_archive *archive;
+    ms_error err;
+    if (ms_archive_open(f->archive, &archive, &err) != MS_OK)
+        return -1;
+    const ms_archive_header *h = ms_archive_get_header(archive);
+    f->side = h->box_side;
+    for (int a = 0; a < 3; ++a)
+        f->centre[a] = h->box_origin[a] + 0.5 * h->box_side;
+    ms_archive_close(archive);
+    char ply[700];
+    snprintf(ply, sizeof ply, "%s/demo.ply", f->dir);
+    ms_mesh mesh = {0};
+    if (ms_mesh_load(ply, &mesh, NULL, &err) != MS_OK ||
+        ms_study_scene_new(mesh.positions, mesh.vertex_count, mesh.triangles, mesh.triangle_count, &f->full,
+                           &err) != MS_OK) {
+        ms_mesh_free(&mesh);
+        return -1;
+    }
+    ms_mesh_free(&mesh);
+    *state = f;
+    return 0;
+}
+
+static int teardown(void **state)
+{
+    fixture *f = *state;
+    ms_study_scene_free(f->full);
+    ms_test_rmdir(f->dir);
+    free(f);
+    return 0;
+}
+
+/* The camera whose view shows the box's side `height` pixels tall. */
+static ms_camera far_camera(const fixture *f, double height)
+{
+    double d = f->side * SIDE / (height * 2.0 * tan(20.0 * M_PI / 180.0));
+    double eye[3] = {f->centre[0], f->centre[1], f->centre[2] + d}, up[3] = {0, 1, 0};
+    ms_camera cam;
+    ms_error err;
+    assert_int_equal(ms_camera_look_at(eye, f->centre, up, 40.0, SIDE, SIDE, fmax(0.01 * d, d - f->side),
+                                       d + f->side, &cam, &err), MS_OK);
+    return cam;
+}
+
+/* Pixels the scene covers at cam (mask, SIDE x SIDE), and how many. */
+static size_t silhouette(const ms_study_scene *scene, const ms_camera *cam, uint8_t *mask)
+{
+    ms_study_image image = {0};
+    ms_study_render_options o = {.threads = 2};
+    ms_error err;
+    assert_int_equal(ms_study_render(scene, cam, &o, &image, &err), MS_OK);
+    size_t covered = 0;
+    for (size_t i = 0; i < (size_t)SIDE * SIDE; ++i)
+        covered += mask[i] = (uint8_t)ms_study_image_covered(&image, i);
+    ms_study_image_free(&image);
+    return covered;
+}
+
+/* The complete view of one camera: the cut's triangles, the silhouette's
+ * overlap with the full model's, the error reported. */
+static void check_view(const fixture *f, const ms_core_frame *frame, const ms_core_stats *st, size_t k)
+{
+    ms_camera cam = far_camera(f, heights_px[k]);
+    const ms_view_mesh *m = &frame->mesh;
+    assert_true(m->triangle_count > 0);
+    /* the true error of what is drawn: something, within the tolerance */
+    assert_true(st->achieved_error_px > 0);
+    assert_true(st->achieved_error_px <= 1.0 + 1e-9);
+    uint8_t *mask = malloc((size_t)SIDE * SIDE), *ref = malloc((size_t)SIDE * SIDE);
+    assert_non_null(mask);
+    assert_non_null(ref);
+    ms_study_scene *cut;
+    ms_error err;
+    assert_int_equal(ms_study_scene_new(m->positions, m->vertex_count, m->triangles, m->triangle_count, &cut,
+                                        &err), MS_OK);
+    size_t covered = silhouette(cut, &cam, mask), ref_covered = silhouette(f->full, &cam, ref);
+    size_t both = 0, either = 0;
+    for (size_t i = 0; i < (size_t)SIDE * SIDE; ++i) {
+        both += mask[i] & ref[i];
+        either += mask[i] | ref[i];
+    }
+    double iou = either ? (double)both / (double)either : 0.0;
+    print_message("%g px tall: %zu triangles, error %.3f px, %zu px covered (full model %zu), IoU %.3f, "
+                  "%.1f triangles per covered pixel\n", heights_px[k], m->triangle_count,
+                  st->achieved_error_px, covered, ref_covered, iou,
+                  (double)m->triangle_count / (double)(covered ? covered : 1));
+    assert_true(covered > 0);
+    if (heights_px[k] >= 30)
+        assert_true(iou >= 0.9);
+    ms_study_scene_free(cut);
+    free(mask);
+    free(ref);
+}
+
+static ms_core_options local_options(const fixture *f)
+{
+    ms_core_options o = {0};
+    o.archive_path = f->archive;
+    o.tolerance_px = 1.0;
+    o.hysteresis_bits = -1; /* the clients' default */
+    o.export_frames = true;
+    return o;
+}
+
+/* The complete view of a fresh core at distance k: its frame (the caller frees
+ * it) and figures. */
+static ms_core_frame *cold_view(const fixture *f, size_t k, ms_core_stats *st)
+{
+    ms_core_options o = local_options(f);
+    ms_core *core;
+    ms_error err;
+    assert_int_equal(ms_core_start(&o, &core, &err), MS_OK);
+    ms_camera cam = far_camera(f, heights_px[k]);
+    ms_core_set_camera(core, &cam);
+    ms_core_frame *frame = NULL;
+    assert_true(ms_test_core_wait_complete(core, 30.0, st, &frame));
+    assert_non_null(frame);
+    ms_core_stop(core);
+    return frame;
+}
+
+/* Each distance from a fresh core: the cut a visitor opening the model there sees. */
+static void test_each_distance_cold(void **state)
+{
+    fixture *f = *state;
+    for (size_t k = 0; k < KEYS; ++k) {
+        ms_core_stats st;
+        ms_core_frame *frame = cold_view(f, k, &st);
+        check_view(f, frame, &st, k);
+        ms_core_frame_free(frame);
+    }
+}
+
+/* One core walked out and back in: every distance complete both ways, and
+ * walking out the cut is a fresh view's: the hysteresis (0.2 bit) gives up a
+ * bit once it is not needed at these distances, whose needs lie 0.70 bit
+ * above a whole one (half a bit held one more here: 23 to 72 triangles per
+ * covered pixel). */
+static void test_walked_out_and_in(void **state)
+{
+    fixture *f = *state;
+    ms_core_options o = local_options(f);
+    ms_core *core;
+    ms_error err;
+    assert_int_equal(ms_core_start(&o, &core, &err), MS_OK);
+    ms_core_frame *frame = NULL; /* the newest: walking in may need no new one */
+    for (int step = 0; step < 2 * KEYS - 1; ++step) {
+        size_t k = (size_t)(step < KEYS ? step : 2 * KEYS - 2 - step);
+        ms_camera cam = far_camera(f, heights_px[k]);
+        ms_core_set_camera(core, &cam);
+        ms_test_sleep_s(0.05); /* the camera reaches the decode thread's next pass */
+        ms_core_stats st;
+        assert_true(ms_test_core_wait_complete(core, 30.0, &st, &frame));
+        assert_non_null(frame);
+        check_view(f, frame, &st, k);
+        if (step < KEYS) {
+            ms_core_stats cold_st;
+            ms_core_frame *cold = cold_view(f, k, &cold_st);
+            assert_int_equal(frame->mesh.triangle_count, cold->mesh.triangle_count);
+            ms_core_frame_free(cold);
+        }
+    }
+    ms_core_frame_free(frame);
+    ms_core_stop(core);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_each_distance_cold),
+        cmocka_unit_test(test_walked_out_and_in),
+    };
+    return cmocka_run_group_tests(tests, setup, teardown);
+}
