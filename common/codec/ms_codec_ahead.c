@@ -219,11 +219,25 @@ unsigned ms_ahead_state_depth(const ms_codec_decoder *d)
     return d->h.ahead && d->level > d->Lmin ? ms_ahead_depth(d, d->level) : 0;
 }
 
-/* The farthest corner of cell s's known occupied descendants (mask m, `depth`
- * kd-levels below `level`) from point p, squared, all in doubled grid units. */
-static double farthest_known2(const ms_complex *cx, uint32_t s, unsigned level, uint64_t m,
-                              unsigned depth, const double p[3])
+double ms_ahead_cell_bound(const ms_complex *cx, uint32_t s, unsigned depth)
 {
+    unsigned level = ms_cx_level(cx, s);
+    /* the drawn point, in doubled grid units, exactly where a renderer puts it
+     * from ms_codec_state.rep: its cell's minimum corner plus the 16-bit
+     * fraction of its width (dyadic: exact in a double) */
+    double p[3];
+    uint16_t f[3] = {32768, 32768, 32768};
+    if (cx->rep)
+        ms_cx_rep_fraction(cx, s, f);
+    for (int a = 0; a < 3; ++a) {
+        double w = (double)ms_cx_width(cx, level, a);
+        p[a] = ((double)cx->cen[s][a] - w) + (double)f[a] * w / 32768.0;
+    }
+    uint64_t m = cx->ahead ? cx->ahead[s] : 0;
+    /* no mask (a foreign cell, no geometry ahead) or none of this depth: the
+     * whole cell, descendant 0 at depth 0 */
+    if (m == 0 || depth > MS_CODEC_MAX_AHEAD || (depth < 6 && (m >> (1u << depth)) != 0))
+        m = 1, depth = 0;
     double worst = 0;
     for (uint64_t b = m; b; b &= b - 1) {
         uint32_t i = (uint32_t)__builtin_ctzll(b);
@@ -237,93 +251,7 @@ static double farthest_known2(const ms_complex *cx, uint32_t s, unsigned level, 
         if (d2 > worst)
             worst = d2;
     }
-    return worst;
-}
-
-/* The point a renderer draws for fraction f of cell s (its minimum corner plus
- * f / 65536 of its width; dyadic: exact in a double), doubled grid units. */
-static void fraction_point(const ms_complex *cx, uint32_t s, unsigned level, const uint16_t f[3],
-                           double p[3])
-{
-    for (int a = 0; a < 3; ++a) {
-        double w = (double)ms_cx_width(cx, level, a);
-        p[a] = ((double)cx->cen[s][a] - w) + (double)f[a] * w / 32768.0;
-    }
-}
-
-double ms_ahead_cell_drawn(const ms_complex *cx, uint32_t s, unsigned depth, uint16_t f[3])
-{
-    unsigned level = ms_cx_level(cx, s);
-    f[0] = f[1] = f[2] = 32768;
-    if (cx->rep)
-        ms_cx_rep_fraction(cx, s, f);
-    uint64_t m = cx->ahead ? cx->ahead[s] : 0;
-    /* no mask (a foreign cell, no geometry ahead) or none of this depth: the
-     * whole cell, descendant 0 at depth 0 */
-    if (m == 0 || depth > MS_CODEC_MAX_AHEAD || (depth < 6 && (m >> (1u << depth)) != 0))
-        m = 1, depth = 0;
-    double p[3];
-    fraction_point(cx, s, level, f, p);
-    double worst = farthest_known2(cx, s, level, m, depth, p);
-    /* The barycentre of several occupied descendants can lie farther than the
-     * cell's half-diagonal from one of their corners (a dense surface fills
-     * most of them), where the cell's centre would not: such a bound makes a
-     * client refine one bit more (four times the triangles) for a point
-     * meant to be better. The point then moves towards the centre of the
-     * occupied descendants' bounding box (whose bound is half that box's
-     * diagonal, within the cell's) just far enough to be within the cell's
-     * half-diagonal: the least change of the barycentre that keeps it. */
-    double half2 = 0;
-    for (int a = 0; a < 3; ++a) {
-        double w = (double)ms_cx_width(cx, level, a);
-        half2 += w * w;
-    }
-    if (worst > half2 && (m & (m - 1)) != 0) {
-        double lo[3], hi[3];
-        for (int a = 0; a < 3; ++a)
-            lo[a] = INFINITY, hi[a] = -INFINITY;
-        for (uint64_t b = m; b; b &= b - 1) {
-            uint32_t i = (uint32_t)__builtin_ctzll(b);
-            for (int a = 0; a < 3; ++a) {
-                double c = (double)descendant_centre2(cx, s, level, i, depth, a);
-                double hw = (double)ms_cx_width(cx, level + depth, a);
-                lo[a] = fmin(lo[a], c - hw);
-                hi[a] = fmax(hi[a], c + hw);
-            }
-        }
-        uint16_t from[3] = {f[0], f[1], f[2]}, to[3], at[3];
-        for (int a = 0; a < 3; ++a) { /* the box's centre: a dyadic fraction, exact */
-            double w = (double)ms_cx_width(cx, level, a);
-            double off = 0.5 * (lo[a] + hi[a]) - ((double)cx->cen[s][a] - w);
-            to[a] = (uint16_t)fmin(65535.0, floor(off * 32768.0 / w + 0.5));
-        }
-        /* bisection on the segment, each step judged at the rounded fraction
-         * a renderer will use; its far end is always within */
-        int lo_t = 0, hi_t = 1 << 12;
-        while (hi_t - lo_t > 1) {
-            int mid = (lo_t + hi_t) / 2;
-            for (int a = 0; a < 3; ++a)
-                at[a] = (uint16_t)((from[a] * (int64_t)((1 << 12) - mid) + to[a] * (int64_t)mid +
-                                    (1 << 11)) >> 12);
-            fraction_point(cx, s, level, at, p);
-            if (farthest_known2(cx, s, level, m, depth, p) <= half2)
-                hi_t = mid;
-            else
-                lo_t = mid;
-        }
-        for (int a = 0; a < 3; ++a)
-            f[a] = (uint16_t)((from[a] * (int64_t)((1 << 12) - hi_t) + to[a] * (int64_t)hi_t + (1 << 11)) >>
-                              12);
-        fraction_point(cx, s, level, f, p);
-        worst = farthest_known2(cx, s, level, m, depth, p);
-    }
     /* halved back to grid units; the squares and the root round by a few
      * ulps at most: 2^-40 more covers them */
     return 0.5 * sqrt(worst) * (1.0 + 0x1p-40);
-}
-
-double ms_ahead_cell_bound(const ms_complex *cx, uint32_t s, unsigned depth)
-{
-    uint16_t f[3];
-    return ms_ahead_cell_drawn(cx, s, depth, f);
 }

@@ -54,21 +54,16 @@ ms_status ms_codec_decoder_state(const ms_codec_decoder *d, ms_codec_state *out,
         memset(out, 0, sizeof *out);
         return ms_error_set(err, MS_ERR_CORRUPT, "decoder stopped after a corrupted stream");
     }
-    size_t n = d->norder ? d->norder : 1;
-    float *bound = malloc(n * sizeof *bound);
-    uint16_t *rep = malloc(n * 3 * sizeof *rep);
-    if (!bound || !rep) {
-        free(bound);
-        free(rep);
+    float *bound = malloc((d->norder ? d->norder : 1) * sizeof *bound);
+    if (!bound) {
         memset(out, 0, sizeof *out);
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory exporting a complex");
     }
     unsigned depth = ms_ahead_state_depth(d);
     for (uint32_t i = 0; i < d->norder; ++i)
-        bound[i] = float_up(ms_ahead_cell_drawn(&d->cx, d->order[i], depth, &rep[3 * (size_t)i]));
-    ms_status s = ms_codec_export_complex(&d->cx, d->order, d->norder, d->level, bound, rep, out, err);
+        bound[i] = float_up(ms_ahead_cell_bound(&d->cx, d->order[i], depth));
+    ms_status s = ms_codec_export_complex(&d->cx, d->order, d->norder, d->level, bound, out, err);
     free(bound);
-    free(rep);
     return s;
 }
 
@@ -111,20 +106,12 @@ ms_status ms_codec_decoder_mesh(const ms_codec_decoder *d, ms_mesh *out, ms_erro
     if (!rank)
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory exporting a mesh");
     double scale = d->h.box.size / (double)(1u << cx->P);
-    unsigned depth = ms_ahead_state_depth(d);
+    int32_t (*at)[4] = cx->rep ? cx->rep : cx->cen; /* drawn points, with geometry ahead */
     for (uint32_t i = 0; i < d->norder; ++i) {
         uint32_t s = d->order[i];
         rank[s] = i;
-        /* the point drawn (geometry ahead), else the centre; doubled grid units */
-        uint16_t f[3] = {32768, 32768, 32768};
-        if (cx->rep)
-            ms_ahead_cell_drawn(cx, s, depth, f);
-        unsigned level = ms_cx_level(cx, s);
-        for (int a = 0; a < 3; ++a) {
-            double w = (double)ms_cx_width(cx, level, a);
-            double at = ((double)cx->cen[s][a] - w) + (double)f[a] * w / 32768.0;
-            out->positions[3 * i + a] = d->h.box.origin[a] + 0.5 * at * scale;
-        }
+        for (int a = 0; a < 3; ++a)
+            out->positions[3 * i + a] = d->h.box.origin[a] + 0.5 * at[s][a] * scale;
     }
     size_t w = 0;
     for (uint32_t t = 0; t < cx->nt; ++t) {

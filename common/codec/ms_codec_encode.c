@@ -253,8 +253,8 @@ static ms_status freeze_levels(const ms_codec_state *full, const ms_codec_state 
 
 /* Exports the complex (all cells at one level) as a canonical state. */
 static ms_status export_state(const ms_complex *cx, const uint32_t *order, uint32_t n,
-                              unsigned level, const float *bound, const uint16_t *rep,
-                              ms_codec_state *out, ms_error *err)
+                              unsigned level, const float *bound, ms_codec_state *out,
+                              ms_error *err)
 {
     memset(out, 0, sizeof *out);
     out->bits = cx->P;
@@ -281,9 +281,7 @@ static ms_status export_state(const ms_complex *cx, const uint32_t *order, uint3
         ms_codec_state_free(out);
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory exporting a complex");
     }
-    if (cx->rep && rep)
-        memcpy(out->rep, rep, (size_t)n * 3 * sizeof *out->rep);
-    for (uint32_t i = 0; cx->rep && !rep && i < n; ++i)
+    for (uint32_t i = 0; cx->rep && i < n; ++i)
         ms_cx_rep_fraction(cx, order[i], &out->rep[3 * i]);
     if (bound) {
         if (!(out->bound = malloc((n ? n : 1) * sizeof *out->bound))) {
@@ -314,10 +312,10 @@ static ms_status export_state(const ms_complex *cx, const uint32_t *order, uint3
 }
 
 ms_status ms_codec_export_complex(const ms_complex *cx, const uint32_t *order, uint32_t n,
-                                  unsigned level, const float *bound, const uint16_t *rep,
-                                  ms_codec_state *out, ms_error *err)
+                                  unsigned level, const float *bound, ms_codec_state *out,
+                                  ms_error *err)
 {
-    return export_state(cx, order, n, level, bound, rep, out, err);
+    return export_state(cx, order, n, level, bound, out, err);
 }
 
 static ms_status out_of_memory(ms_error *err)
@@ -665,7 +663,7 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
     uint32_t norder = n;
     if ((s = build_complex(&e, &canon, frozen_at, order, err)) != MS_OK ||
         (s = merge_levels(&e, params, Lmin, order, order2, &norder, err)) != MS_OK ||
-        (s = export_state(&e.cx, order, norder, Lmin, NULL, NULL, &start, err)) != MS_OK)
+        (s = export_state(&e.cx, order, norder, Lmin, NULL, &start, err)) != MS_OK)
         goto done;
     size_t nd;
     if (!(dec = decisions_in_decode_order(&e, Lmin, &nd))) {

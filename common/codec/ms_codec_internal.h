@@ -55,11 +55,10 @@ ms_status ms_codec_run_encoder(ms_codec_header *h, const ms_codec_state *start,
 
 /* Exports a complex whose live cells (order[0..n), sorted by key) all sit at
  * `level` as a canonical ms_codec_state; bound (NULL, or n values in order's
- * order) becomes its per-vertex bound, rep (NULL: each cell's own point, or
- * 3 n fractions in order's order) its drawn points. */
+ * order) becomes its per-vertex bound. */
 ms_status ms_codec_export_complex(const ms_complex *cx, const uint32_t *order, uint32_t n,
-                                  unsigned level, const float *bound, const uint16_t *rep,
-                                  ms_codec_state *out, ms_error *err);
+                                  unsigned level, const float *bound, ms_codec_state *out,
+                                  ms_error *err);
 
 /* Sorts n tuples of `arity` (2 or 3) vertex indices, each below index_limit,
  * lexicographically in place (stable; radix sort). MS_ERR_NOMEM on allocation
@@ -144,12 +143,6 @@ void ms_ahead_deepen(ms_codec_decoder *d, uint32_t s, unsigned level, unsigned d
 /* The error bound of cell s (ms_codec_decoder_error_bound), its mask of
  * `depth` levels (0: it knows only itself), grid units, rounded up. */
 double ms_ahead_cell_bound(const ms_complex *cx, uint32_t s, unsigned depth);
-/* The same bound, and in f the point a renderer draws for cell s (per axis in
- * 1/65536 of its width from its minimum corner: ms_codec_state.rep): the
- * barycentre of its known descendants, moved towards the centre of their
- * bounding box where the barycentre lies farther than the cell's
- * half-diagonal from one of them, so the bound never exceeds it. */
-double ms_ahead_cell_drawn(const ms_complex *cx, uint32_t s, unsigned depth, uint16_t f[3]);
 /* The depth of the masks of the current state's cells: 0 at the window's first
  * level (before the prelude) and without geometry ahead. */
 unsigned ms_ahead_state_depth(const ms_codec_decoder *d);

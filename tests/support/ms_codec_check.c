@@ -74,38 +74,11 @@ static void assert_valid_complex(const ms_codec_state *s)
     }
 }
 
-/* The farthest corner, from point p (grid units), of the cells at level M
- * holding the vertices [j, end) of canon (sorted; repeats of a cell skipped). */
-static double farthest_known(const ms_codec_state *canon, size_t j, size_t end, unsigned M,
-                             const double p[3])
-{
-    unsigned P = canon->bits, D = 3 * P;
-    double worst = 0;
-    for (size_t t = j; t < end; ++t) {
-        if (t > j && canon->cells[t] >> (D - M) == canon->cells[t - 1] >> (D - M))
-            continue;
-        uint32_t v[3];
-        ms_quant_unkey(canon->cells[t], P, v);
-        double d2 = 0;
-        for (int ax = 0; ax < 3; ++ax) {
-            uint32_t wm = 1u << (P - (M + 2 - (unsigned)ax) / 3);
-            double lo = (double)(v[ax] & ~(wm - 1)), hi = lo + wm;
-            double e = fmax(fabs(p[ax] - lo), fabs(p[ax] - hi));
-            d2 += e * e;
-        }
-        worst = fmax(worst, sqrt(d2));
-    }
-    return worst;
-}
-
 /* With geometry ahead by k, every vertex of state a (kd-level L) is drawn at
  * the barycentre of the cells at level min(L + k, D) that hold vertices of the
  * full complex canon inside it (up to the decoder's rounding to half a grid
  * unit: at D, its own centre; at level 0, before the first chunk's prelude,
- * too), unless a corner of one of those cells lies farther than the cell's
- * half-diagonal from it: then on the segment from the barycentre to the
- * centre of those cells' bounding box (assert_bounds checks that its bound is
- * within the half-diagonal); with k = 0 the state has no points. */
+ * too); with k = 0 the state has no points. */
 static void assert_ahead_points(const ms_codec_state *a, const ms_codec_state *canon, unsigned L,
                                 unsigned k)
 {
@@ -123,62 +96,33 @@ static void assert_ahead_points(const ms_codec_state *a, const ms_codec_state *c
         uint64_t prefix = a->cells[i];
         while (j < canon->vertex_count && (canon->cells[j] >> (D - L)) < prefix)
             j++;
-        size_t end = j;
-        while (end < canon->vertex_count && (canon->cells[end] >> (D - L)) == prefix)
-            end++;
-        double sum[3] = {0, 0, 0}, lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {0, 0, 0};
+        double sum[3] = {0, 0, 0};
         size_t n = 0;
-        for (size_t t = j; t < end; ++t) {
-            if (t > j && canon->cells[t] >> (D - M) == canon->cells[t - 1] >> (D - M))
+        uint64_t last = UINT64_MAX;
+        for (size_t t = j; t < canon->vertex_count && (canon->cells[t] >> (D - L)) == prefix; ++t) {
+            uint64_t cell = canon->cells[t] >> (D - M);
+            if (cell == last)
                 continue;
+            last = cell;
             uint32_t c[3];
             ms_quant_unkey(canon->cells[t], P, c);
             for (int ax = 0; ax < 3; ++ax) {
                 uint32_t w = 1u << (P - (M + 2 - (unsigned)ax) / 3);
-                double corner = (double)(c[ax] & ~(w - 1));
-                sum[ax] += corner + 0.5 * w;
-                lo[ax] = fmin(lo[ax], corner);
-                hi[ax] = fmax(hi[ax], corner + w);
+                sum[ax] += (c[ax] & ~(w - 1)) + 0.5 * w;
             }
             n++;
         }
         assert_true(n > 0);
         uint32_t c[3];
         ms_quant_unkey(canon->cells[j], P, c);
-        double want[3], box[3], got[3], w[3], bary[3], half = 0;
         for (int ax = 0; ax < 3; ++ax) {
-            w[ax] = (double)(1u << (P - (L + 2 - (unsigned)ax) / 3));
-            double corner = (double)(c[ax] & ~((uint32_t)w[ax] - 1));
-            bary[ax] = sum[ax] / (double)n;
-            want[ax] = (bary[ax] - corner) / w[ax] * 65536.0;
-            box[ax] = (0.5 * (lo[ax] + hi[ax]) - corner) / w[ax] * 65536.0;
-            got[ax] = a->rep[3 * i + (size_t)ax];
-            half += 0.25 * w[ax] * w[ax];
-        }
-        half = sqrt(half);
-        /* the barycentre, or a point moved towards the box's centre where the
-         * barycentre's bound exceeds the half-diagonal; the decoder judges its
-         * barycentre rounded to half a grid unit per axis, which moves the
-         * bound by up to a quarter of the unit diagonal */
-        bool moved = farthest_known(canon, j, end, M, bary) > half - 0.25 * sqrt(3.0) - 0x1p-20;
-        double t = 0, span = 0;
-        for (int ax = 0; ax < 3; ++ax)
-            if (fabs(box[ax] - want[ax]) > span) {
-                span = fabs(box[ax] - want[ax]);
-                t = (got[ax] - want[ax]) / (box[ax] - want[ax]);
-            }
-        /* the nearest point of the segment (rounding can put t a little
-         * outside it where the two ends are close) */
-        t = moved ? fmin(1.0, fmax(0.0, t)) : 0.0;
-        for (int ax = 0; ax < 3; ++ax) {
-            double at = want[ax] + t * (box[ax] - want[ax]);
-            /* the half-unit rounding of both ends and the 1/4096 steps of the
-             * decoder's bisection along the segment */
-            double slack = 16384.0 / w[ax] + 1.0;
-            if (fabs(got[ax] - at) > (moved ? 2.0 * slack + span / 1024.0 : slack))
+            uint32_t w = 1u << (P - (L + 2 - (unsigned)ax) / 3);
+            double want = (sum[ax] / (double)n - (c[ax] & ~(w - 1))) / w * 65536.0;
+            double got = a->rep[3 * i + (size_t)ax];
+            if (fabs(got - want) > 16384.0 / w + 1.0)
                 fail_msg("level %u (ahead %u), vertex %zu, axis %d: drawn at %.0f/65536 of its "
-                         "cell, the barycentre of its descendants is at %.1f%s", L, k, i, ax, got[ax],
-                         want[ax], moved ? " (moved towards their box's centre)" : "");
+                         "cell, the barycentre of its descendants is at %.1f", L, k, i, ax, got,
+                         want);
         }
     }
 }
@@ -192,7 +136,7 @@ static void assert_ahead_points(const ms_codec_state *a, const ms_codec_state *c
  * corner of one of them: the state's float must be that value rounded up
  * (within a float's precision). Every full-precision vertex inside the cell,
  * its whole grid cell even, then lies within the bound (checked too), and the
- * bound never exceeds the cell's half-diagonal; without anything known below
+ * bound never exceeds the cell's whole diagonal; without anything known below
  * the cell it is exactly the half-diagonal. */
 static void assert_bounds(const ms_codec_state *a, const ms_codec_state *canon, unsigned L,
                           unsigned k)
@@ -235,8 +179,7 @@ static void assert_bounds(const ms_codec_state *a, const ms_codec_state *canon, 
             fail_msg("level %u (ahead %u), vertex %zu: error bound %.9g, its known cells' "
                      "farthest corner at %.9g", L, k, i, got, want);
         assert_true(worst_vertex <= got);
-        /* never beyond the half-diagonal (a point drawn at the centre) */
-        assert_true(got <= 0.5 * sqrt(diag) * (1.0 + 0x1p-20));
+        assert_true(got <= sqrt(diag) * (1.0 + 0x1p-20));
         if (M == L)
             assert_true(fabs(got - 0.5 * sqrt(diag)) <= 0.5 * sqrt(diag) * 0x1p-20);
     }
