@@ -2,7 +2,7 @@
  * window; issue 30's test beside test_meshview's): the demo sculpture with its
  * box 400, 120, 60, 30 and 15 pixels tall in a 480x480 view draws a non-empty
  * cut at every distance, whose reported error (the true one) is above 0 and
- * about the 1 px tolerance; drawn by the study's
+ * within the 1 px tolerance; drawn by the study's
  * CPU renderer, its silhouette overlaps that of the full model with an
  * intersection over union of at least 0.9 down to 30 px. The same cameras
  * are walked in from far to near by one core too, and out again, so the
@@ -113,12 +113,11 @@ static void check_view(const fixture *f, const ms_core_frame *frame, const ms_co
     ms_camera cam = far_camera(f, heights_px[k]);
     const ms_view_mesh *m = &frame->mesh;
     assert_true(m->triangle_count > 0);
-    /* the true error of what is drawn: something, about the tolerance. Not
-     * within it everywhere: from a fresh core 60 px tall the view completes
-     * at 1.012 px (a point drawn off its cell's centre, its bound above the
-     * half-diagonal the selection needs; CLIENT.md, "The error of a cut"),
-     * which the selection should have refined: an open defect, bounded here */
-    if (!(st->achieved_error_px > 0 && st->achieved_error_px <= 1.25))
+    /* the true error of what is drawn: something, within the tolerance (a
+     * pass that changed the view selects again: 60 px tall the root's points
+     * drawn off their centres are 1.01 px from a vertex at the half-diagonal's
+     * bit, so it takes one more) */
+    if (!(st->achieved_error_px > 0 && st->achieved_error_px <= 1.0 + 1e-9))
         fail_msg("%g px tall: error %.4f px reported at a 1 px tolerance", heights_px[k], st->achieved_error_px);
     uint8_t *mask = malloc((size_t)SIDE * SIDE), *ref = malloc((size_t)SIDE * SIDE);
     assert_non_null(mask);

@@ -63,30 +63,41 @@ static double cpu_lap(unsigned long long *mark)
     return lap;
 }
 
+/* Rounds of selection in one pass at most: a round that changed the view is
+ * selected again, since a cell's true error is known only once it is decoded
+ * (ms_view_select refines one that is above its tolerance), so the pass's
+ * plan and its "complete" are those of the decoded view. */
+#define SELECT_ROUNDS 4
+
 /* Selects the cells for the camera, refines and splits in waves on the pool
  * what can go down the cut (ms_view_refine_parallel), and applies the rest
- * (merges, coarsening); false when decoding failed (then fatal). */
+ * (merges, coarsening), again while that changed the view; false when
+ * decoding failed (then fatal). */
 static bool dec_select(ms_core *c, dec_pass *pass, unsigned long long *mark)
 {
     ms_core_decode_work *w = &c->dec.work;
-    ms_view_select(c->dec.view, pass->cam, &pass->sp, &c->dec.report);
-    w->select_cpu += cpu_lap(mark);
-    size_t refined_in_parallel = ms_view_refine_parallel(c->dec.view, c->dec.pool, &c->dec.jobs);
-    w->refine_cpu += cpu_lap(mark);
-    ms_view_apply_report report;
-    ms_error err;
-    ms_status st = ms_view_apply(c->dec.view, &report, &err);
-    w->apply_cpu += cpu_lap(mark);
-    if (st != MS_OK) {
-        pthread_mutex_lock(&c->lock);
-        ms_core_fail_locked(c, "decoding failed: %.200s", err.text);
-        pthread_mutex_unlock(&c->lock);
-        return false;
+    bool changed = true;
+    for (unsigned round = 0; changed && round < SELECT_ROUNDS; ++round) {
+        ms_view_select(c->dec.view, pass->cam, &pass->sp, &c->dec.report);
+        w->select_cpu += cpu_lap(mark);
+        size_t refined_in_parallel = ms_view_refine_parallel(c->dec.view, c->dec.pool, &c->dec.jobs);
+        w->refine_cpu += cpu_lap(mark);
+        ms_view_apply_report report;
+        ms_error err;
+        ms_status st = ms_view_apply(c->dec.view, &report, &err);
+        w->apply_cpu += cpu_lap(mark);
+        if (st != MS_OK) {
+            pthread_mutex_lock(&c->lock);
+            ms_core_fail_locked(c, "decoding failed: %.200s", err.text);
+            pthread_mutex_unlock(&c->lock);
+            return false;
+        }
+        w->apply_refined += report.refined;
+        w->apply_splits += report.splits;
+        changed = refined_in_parallel || report.splits || report.merges || report.refined ||
+                  report.coarsened;
+        pass->changed |= changed;
     }
-    w->apply_refined += report.refined;
-    w->apply_splits += report.splits;
-    pass->changed |= refined_in_parallel || report.splits || report.merges || report.refined ||
-                     report.coarsened;
     ms_core_content_note(c);
     w->content_cpu += cpu_lap(mark);
     return true;
