@@ -36,10 +36,7 @@
 #define TRIANGLES 30000
 #define WAIT_SECONDS 60.0
 
-typedef struct fixture {
-    char dir[512], archives[600], file[700];
-    double centre[3], side;
-} fixture;
+typedef ms_nsp_test_demo fixture;
 
 static fixture *g;
 
@@ -47,24 +44,10 @@ static int group_setup(void **state)
 {
     (void)state;
     fixture *f = calloc(1, sizeof *f);
-    ms_test_tmpdir(f->dir, sizeof f->dir);
-    snprintf(f->archives, sizeof f->archives, "%s/archive", f->dir);
-    snprintf(f->file, sizeof f->file, "%s/" MODEL ".msa", f->archives);
-    if (mkdir(f->archives, 0755) != 0)
-        return -1;
-    if (ms_nsp_test_bake_demo(f->dir, TRIANGLES, f->archives, MODEL, 1000, false) != 0)
-        return -1;
-    ms_error err;
-    ms_archive *archive;
-    if (ms_archive_open(f->file, &archive, &err) != MS_OK) {
-        fprintf(stderr, "%s\n", err.text);
+    if (!f || ms_nsp_test_demo_bake(f, TRIANGLES, 1000) != 0) {
+        free(f);
         return -1;
     }
-    const ms_archive_header *h = ms_archive_get_header(archive);
-    f->side = h->box_side;
-    for (int a = 0; a < 3; ++a)
-        f->centre[a] = h->box_origin[a] + h->box_side / 2;
-    ms_archive_close(archive);
     g = f;
     return 0;
 }

@@ -14,10 +14,8 @@
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
-#include <sys/stat.h>
 #include <cmocka.h>
 
-#include "ms_archive.h"
 #include "ms_camera.h"
 #include "ms_client_core.h"
 #include "ms_mesh.h"
@@ -33,33 +31,21 @@
 static const double heights_px[KEYS] = {400, 120, 60, 30, 15};
 
 typedef struct fixture {
-    char dir[512], archives[600], archive[700];
+    ms_nsp_test_demo demo;  /* the archive, its box */
     ms_study_scene *full;   /* the demo at full resolution */
-    double centre[3], side; /* the archive's box */
 } fixture;
 
 static int setup(void **state)
 {
     fixture *f = calloc(1, sizeof *f);
-    if (!f)
+    if (!f || ms_nsp_test_demo_bake(&f->demo, 20000, 1500) != 0) {
+        free(f);
         return -1;
-    ms_test_tmpdir(f->dir, sizeof f->dir);
-    snprintf(f->archives, sizeof f->archives, "%s/archive", f->dir);
-    if (mkdir(f->archives, 0755) != 0 || ms_nsp_test_bake_demo(f->dir, 20000, f->archives, "demo", 1500, false) != 0)
-        return -1;
-    snprintf(f->archive, sizeof f->archive, "%s/demo.msa", f->archives);
-    ms_archive *archive;
-    ms_error err;
-    if (ms_archive_open(f->archive, &archive, &err) != MS_OK)
-        return -1;
-    const ms_archive_header *h = ms_archive_get_header(archive);
-    f->side = h->box_side;
-    for (int a = 0; a < 3; ++a)
-        f->centre[a] = h->box_origin[a] + 0.5 * h->box_side;
-    ms_archive_close(archive);
+    }
     char ply[700];
-    snprintf(ply, sizeof ply, "%s/demo.ply", f->dir);
+    snprintf(ply, sizeof ply, "%s/demo.ply", f->demo.dir);
     ms_mesh mesh = {0};
+    ms_error err;
     if (ms_mesh_load(ply, &mesh, NULL, &err) != MS_OK ||
         ms_study_scene_new(mesh.positions, mesh.vertex_count, mesh.triangles, mesh.triangle_count, &f->full,
                            &err) != MS_OK) {
@@ -75,7 +61,7 @@ static int teardown(void **state)
 {
     fixture *f = *state;
     ms_study_scene_free(f->full);
-    ms_test_rmdir(f->dir);
+    ms_test_rmdir(f->demo.dir);
     free(f);
     return 0;
 }
@@ -83,12 +69,12 @@ static int teardown(void **state)
 /* The camera whose view shows the box's side `height` pixels tall. */
 static ms_camera far_camera(const fixture *f, double height)
 {
-    double d = f->side * SIDE / (height * 2.0 * tan(20.0 * M_PI / 180.0));
-    double eye[3] = {f->centre[0], f->centre[1], f->centre[2] + d}, up[3] = {0, 1, 0};
+    double d = f->demo.side * SIDE / (height * 2.0 * tan(20.0 * M_PI / 180.0));
+    double eye[3] = {f->demo.centre[0], f->demo.centre[1], f->demo.centre[2] + d}, up[3] = {0, 1, 0};
     ms_camera cam;
     ms_error err;
-    assert_int_equal(ms_camera_look_at(eye, f->centre, up, 40.0, SIDE, SIDE, fmax(0.01 * d, d - f->side),
-                                       d + f->side, &cam, &err), MS_OK);
+    assert_int_equal(ms_camera_look_at(eye, f->demo.centre, up, 40.0, SIDE, SIDE, fmax(0.01 * d, d - f->demo.side),
+                                       d + f->demo.side, &cam, &err), MS_OK);
     return cam;
 }
 
@@ -148,7 +134,7 @@ static void check_view(const fixture *f, const ms_core_frame *frame, const ms_co
 static ms_core_options local_options(const fixture *f)
 {
     ms_core_options o = {0};
-    o.archive_path = f->archive;
+    o.archive_path = f->demo.file;
     o.tolerance_px = 1.0;
     o.hysteresis_bits = -1; /* the clients' default */
     o.export_frames = true;

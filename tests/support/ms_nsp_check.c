@@ -12,6 +12,7 @@
 
 #include "ms_nsp_check.h"
 
+#include "ms_archive.h"
 #include "ms_codec.h"
 #include "ms_demo_model.h"
 #include "ms_mesh_io.h"
@@ -117,6 +118,31 @@ int ms_nsp_test_demo_archive(char *dir, size_t dir_size, char *archives, size_t 
         return -1;
     }
     return ms_nsp_test_bake_demo(dir, 4000, archives, "demo", 1500, false);
+}
+
+int ms_nsp_test_demo_bake(ms_nsp_test_demo *d, uint64_t triangles, uint32_t min_triangles)
+{
+    ms_test_tmpdir(d->dir, sizeof d->dir);
+    snprintf(d->archives, sizeof d->archives, "%s/archive", d->dir);
+    snprintf(d->file, sizeof d->file, "%s/demo.msa", d->archives);
+    if (mkdir(d->archives, 0755) != 0) {
+        fprintf(stderr, "%s: cannot be made\n", d->archives);
+        return -1;
+    }
+    if (ms_nsp_test_bake_demo(d->dir, triangles, d->archives, "demo", min_triangles, false) != 0)
+        return -1;
+    ms_error err;
+    ms_archive *archive;
+    if (ms_archive_open(d->file, &archive, &err) != MS_OK) {
+        fprintf(stderr, "%s\n", err.text);
+        return -1;
+    }
+    const ms_archive_header *h = ms_archive_get_header(archive);
+    d->side = h->box_side;
+    for (int a = 0; a < 3; ++a)
+        d->centre[a] = h->box_origin[a] + h->box_side / 2;
+    ms_archive_close(archive);
+    return 0;
 }
 
 void ms_nsp_test_decode_all(ms_view *v)

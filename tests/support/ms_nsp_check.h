@@ -39,6 +39,19 @@ int ms_nsp_test_bake_demo(const char *work_dir, uint64_t triangles, const char *
  * cells), whose source is dir/demo.ply. 0, or -1 with the error on stderr. */
 int ms_nsp_test_demo_archive(char *dir, size_t dir_size, char *archives, size_t archives_size);
 
+/* A baked demo for the client core's tests: a fresh temporary directory,
+ * the demo of about `triangles` triangles baked as "demo" into
+ * dir/archive/demo.msa (N_min = min_triangles, ms_nsp_test_bake_demo without
+ * APO on every cell), and that archive's box. */
+typedef struct ms_nsp_test_demo {
+    char dir[512], archives[600], file[700];
+    double centre[3], side;
+} ms_nsp_test_demo;
+
+/* Fills *d; 0, or -1 with the error on stderr (for group setups). The caller
+ * removes d->dir (ms_test_rmdir). */
+int ms_nsp_test_demo_bake(ms_nsp_test_demo *d, uint64_t triangles, uint32_t min_triangles);
+
 /* Splits every cell down to the leaves and refines each to full precision. */
 void ms_nsp_test_decode_all(ms_view *view);
 
