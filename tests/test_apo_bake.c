@@ -378,6 +378,12 @@ static void test_cli_reports_apo(void **state)
     assert_true(smooth > 0); /* leaves whose texel m's smooth normal already gives */
     assert_true(rays > 0 && rays <= 2 * (json_int_t)MS_APO_SAMPLES_PER_LEAF * (leaves + smooth));
     assert_true(json_is_integer(json_object_get(sampling, "point_queries")));
+    /* adaptive sampling: at most 8 samples a leaf, 2 rays a sample */
+    json_int_t samples = json_integer_value(json_object_get(sampling, "samples"));
+    json_int_t sampled = json_integer_value(json_object_get(sampling, "leaves"));
+    json_int_t agreed = json_integer_value(json_object_get(sampling, "agreed_leaves"));
+    assert_true(sampled >= leaves && samples >= sampled && samples <= 8 * sampled && rays <= 2 * samples);
+    assert_true(agreed > 0 && agreed <= sampled);
     json_decref(j);
     /* the archive's chunks add up to the report */
     char path[700];

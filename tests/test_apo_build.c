@@ -709,6 +709,54 @@ static void test_wavy_fan_work_linear(void **state)
     assert_int_equal(small.rays + small.point_queries + large.rays + large.point_queries, 0);
 }
 
+/* Adaptive sampling on a smooth model (the demo sculpture): the same tree,
+ * most leaves settled by their two nearest samples, so the rays per leaf fall
+ * below a bound (counts, not clocks), and the leaf normals stay close to those
+ * of every sample. */
+static void test_adaptive_sampling_rays_per_leaf(void **state)
+{
+    (void)state;
+    ms_mesh big, m;
+    demo(40, &big);
+    demo(30, &m);
+    ms_apo_build_options o;
+    ms_apo_build_options_default(&o);
+    cube_around(&big, &o);
+    o.max_depth = 5;
+    o.tolerance = 0.1;
+    ms_apo_tree all, adaptive;
+    ms_apo_build_stats sa, sd;
+    build(&m, &big, &o, &all, &sa);
+    o.sample_agreement = 0.5 * o.tolerance;
+    build(&m, &big, &o, &adaptive, &sd);
+    print_message("all: %zu leaves, %llu samples, %llu rays; adaptive: %zu agreed, %llu samples, %llu rays\n",
+                  sa.sampled_leaves, (unsigned long long)sa.samples, (unsigned long long)sa.rays, sd.agreed_leaves,
+                  (unsigned long long)sd.samples, (unsigned long long)sd.rays);
+    assert_int_equal(adaptive.node_count, all.node_count);
+    assert_int_equal(sa.sampled_leaves, sa.leaves);
+    assert_int_equal(sd.sampled_leaves, sa.leaves);
+    assert_int_equal(sa.agreed_leaves, 0);
+    assert_true(sa.samples > 6 * sa.leaves);       /* every sample: up to 8 per leaf */
+    assert_true(sd.agreed_leaves > 0.9 * sd.leaves);
+    assert_true(sd.samples <= 5 * sd.leaves / 2); /* at most 2.5 samples per leaf */
+    assert_true(sd.rays <= 5 * sd.leaves);        /* 2 rays per sample at most */
+    assert_true(sd.rays <= sa.rays / 3);
+    double sum = 0.0, worst = 0.0;
+    for (size_t i = 0; i < all.node_count; ++i) {
+        const float *p = all.nodes[i].normal, *q = adaptive.nodes[i].normal;
+        double dot = (double)p[0] * q[0] + (double)p[1] * q[1] + (double)p[2] * q[2];
+        double angle = acos(dot > 1.0 ? 1.0 : dot < -1.0 ? -1.0 : dot);
+        sum += angle;
+        worst = angle > worst ? angle : worst;
+    }
+    print_message("leaf normals: mean %.4f rad, largest %.4f rad apart\n", sum / (double)all.node_count, worst);
+    assert_true(sum / (double)all.node_count < 0.02);
+    ms_apo_tree_free(&all);
+    ms_apo_tree_free(&adaptive);
+    ms_mesh_free(&big);
+    ms_mesh_free(&m);
+}
+
 /* A leaf with an M list samples fewer of its m-triangles the longer the list:
  * one pass over the list per sample, at most MS_APO_LOCAL_TESTS tests in all
  * (at least one sample); without a list (Embree), all of them. */
@@ -728,6 +776,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_demo_structure_and_normals),
         cmocka_unit_test(test_leaf_samples_follow_the_list),
+        cmocka_unit_test(test_adaptive_sampling_rays_per_leaf),
         cmocka_unit_test(test_same_output_whatever_the_threads),
         cmocka_unit_test(test_cell_chunk),
         cmocka_unit_test(test_tiny_extent_and_huge_offset),

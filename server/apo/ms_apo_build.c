@@ -191,8 +191,7 @@ static bool vertex_in_cube(const float c[3], float half, const float *p0, const 
 
 /* Which of the `wanted` children of the cell (centre c; children of half-width
  * `quarter`) triangle t touches: a bit mask of octants. */
-static uint32_t child_octants(const ms_apo_local_mesh *lm, uint32_t t, const float c[3], float quarter, uint32_t wanted,
-                              bool crowded)
+static uint32_t child_octants(const ms_apo_local_mesh *lm, uint32_t t, const float c[3], float quarter, uint32_t wanted)
 {
     /* The triangle's bounds, from its vertices: the same floats a stored copy
      * would hold, without 24 bytes per M-triangle for the whole build. */
@@ -220,9 +219,10 @@ static uint32_t child_octants(const ms_apo_local_mesh *lm, uint32_t t, const flo
             continue;
         float cc[3] = {c[0] + ((o >> 2 & 1u) ? quarter : -quarter), c[1] + ((o >> 1 & 1u) ? quarter : -quarter),
                        c[2] + ((o & 1u) ? quarter : -quarter)};
-        /* crowded: slivers around a shared vertex, see vertex_in_cube (an
-         * uncrowded M is built as before, to the bit) */
-        if ((crowded && vertex_in_cube(cc, quarter, p0, p1, p2)) || ms_tri_cube_overlap(cc, quarter, p0, p1, p2))
+        /* A vertex in the child's closed cube settles it without the 13
+         * axes: most triangles that straddle a mid-plane have one in each
+         * octant they touch (on a crowded M, slivers around a shared vertex). */
+        if (vertex_in_cube(cc, quarter, p0, p1, p2) || ms_tri_cube_overlap(cc, quarter, p0, p1, p2))
             kept |= 1u << o;
     }
     return kept;
@@ -332,7 +332,7 @@ static void split_block(void *ctx, size_t block)
         }
         bool ok = true;
         for (uint64_t k = l->m_off[i]; k < l->m_off[i + 1] && ok; ++k) {
-            uint32_t t = l->m_idx[k], mask = child_octants(job->m, t, c, quarter, 0xFFu, job->crowded);
+            uint32_t t = l->m_idx[k], mask = child_octants(job->m, t, c, quarter, 0xFFu);
             for (uint32_t o = 0; o < 8 && ok; ++o)
                 if (mask >> o & 1u)
                     ok = u32vec_push(&child_m[o], t);
@@ -348,7 +348,7 @@ static void split_block(void *ctx, size_t block)
         for (size_t k = 0; k < big_n && ok && exist && (children_split || job->crowded); ++k) {
             uint32_t t = big_idx[k];
             uint32_t mask = job->crowded ? child_reach(job->big, t, c, quarter, MS_APO_LIST_REACH * quarter, exist)
-                                         : child_octants(job->big, t, c, quarter, exist, false);
+                                         : child_octants(job->big, t, c, quarter, exist);
             for (uint32_t o = 0; o < 8 && ok; ++o)
                 if (mask >> o & 1u)
                     ok = u32vec_push(&child_big[o], t);
@@ -428,6 +428,8 @@ static void sample_block(void *ctx, size_t block)
             probe.big_count = (size_t)(l->big_off[li + 1] - l->big_off[li]);
             probe.listed = true;
         }
+        probe.agreement = (float)job->o->sample_agreement;
+        job->counts[block].leaves++;
         memcpy(probe.centre, centre, sizeof centre);
         ms_apo_sample_leaf(job->sampler, job->m, &probe, s, node->normal,
                            job->predicted ? &job->predicted[3 * i] : NULL, &job->counts[block]);
@@ -649,6 +651,8 @@ static ms_status sample_normals(const ms_apo_build_options *o, unsigned threads,
         stats->triangle_visits += counts[b].triangle_tests;
         stats->closest_points += counts[b].closest_points;
         stats->unsampled += counts[b].unsampled;
+        stats->sampled_leaves += counts[b].leaves;
+        stats->agreed_leaves += counts[b].agreed;
     }
     free(counts);
     ms_apo_tree_average_normals(tree);
@@ -670,7 +674,7 @@ ms_status ms_apo_builder_build_tree(ms_apo_builder *builder, const ms_mesh *m_me
     if (!(o->cube_size > 0.0) || !isfinite(o->cube_size) || o->max_depth > MS_APO_MAX_DEPTH ||
         !(o->tolerance >= 0.0) || !isfinite(o->cube_origin[0] + o->cube_origin[1] + o->cube_origin[2]) ||
         (o->measure != MS_APO_MEASURE_SPREAD && o->measure != MS_APO_MEASURE_CLASSIC) ||
-        !(o->search_distance < 1e30) || !(o->distance_bound < 1e30) ||
+        !(o->search_distance < 1e30) || !(o->distance_bound < 1e30) || !(o->sample_agreement < 1e30) ||
         (o->correction && (!(o->correction_tolerance >= 0.0) || !(o->crease_angle >= 0.0) ||
                            !(o->vertex_error >= 0.0) || !(o->vertex_error < 1e30) || !(o->crease_angle < 1e30))))
         return ms_error_set(err, MS_ERR_ARG, "apo build: bad options (cube size %g, max depth %u, tolerance %g)",

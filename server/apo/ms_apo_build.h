@@ -89,6 +89,11 @@ typedef struct ms_apo_build_options {
     double correction_tolerance;
     double crease_angle;     /* default 60 degrees, the client's default */
     double vertex_error;
+    /* Adaptive sampling (radians): > 0, a leaf samples its two nearest
+     * m-triangles first and takes the others (up to MS_APO_SAMPLES_PER_LEAF)
+     * only where those two normals differ by more than this angle
+     * (ms_apo_leaf_probe.agreement); <= 0 (default): every sample. */
+    double sample_agreement;
 } ms_apo_build_options;
 
 /* Defaults: unit cube at the origin, init 0, max 12, spread tolerance 0.05 rad,
@@ -106,6 +111,8 @@ typedef struct ms_apo_build_stats {
     uint64_t rays;             /* rays cast while sampling (<= 2 * MS_APO_SAMPLES_PER_LEAF per leaf) */
     uint64_t point_queries;    /* closest-point queries while sampling (<= 1 per leaf; h's not counted) */
     uint64_t local_answers;    /* ray pairs and closest points answered from a leaf's own M-triangles */
+    size_t sampled_leaves;     /* leaves sampled (before the correction rule drops any) */
+    size_t agreed_leaves;      /* of which stopped after two agreeing samples (sample_agreement) */
     double crowding;           /* ms_apo_crowding of M; above 64 the leaves keep M lists */
     size_t smooth_leaves;      /* leaves dropped by the correction rule (m's smooth normal suffices) */
     /* The build's own work, one per triangle looked at: list entries made by

@@ -385,6 +385,8 @@ void ms_apo_sample_leaf(const ms_apo_sampler *sampler, const ms_apo_local_mesh *
         kept[at] = c;
     }
     counts->triangle_tests += leaf->m_count;
+    /* Adaptive: two samples first, the rest only where they disagree. */
+    double agree_cos = leaf->agreement > 0.0f ? cos((double)leaf->agreement) : 2.0;
     double sum[3] = {0, 0, 0}, first_sample[3] = {0, 0, 1}, pred[3] = {0, 0, 0};
     bool have_closest = false, closest_done = false;
     double closest[3] = {0, 0, 0};
@@ -429,6 +431,11 @@ void ms_apo_sample_leaf(const ms_apo_sampler *sampler, const ms_apo_local_mesh *
             ms_apo_local_mesh_smooth_at(m, kept[k].tri, kept[k].wb, kept[k].wc, p);
             for (int a = 0; a < 3; ++a)
                 pred[a] += p[a];
+        }
+        if (k == 1 && kept_n > 2 &&
+            first_sample[0] * n[0] + first_sample[1] * n[1] + first_sample[2] * n[2] >= agree_cos) {
+            counts->agreed++;
+            break;
         }
     }
     double len = sqrt(sum[0] * sum[0] + sum[1] * sum[1] + sum[2] * sum[2]);

@@ -31,6 +31,8 @@ typedef struct ms_apo_sample_counts {
     uint64_t point_queries;  /* rtcPointQuery calls (at most 1 per leaf) */
     uint64_t local_answers;  /* ray pairs and closest points settled by the leaf's own M-triangles */
     uint64_t triangle_tests; /* m- and M-triangles looked at one by one (not counting Embree's) */
+    uint64_t leaves;         /* leaves sampled (counted by the caller) */
+    uint64_t agreed;         /* leaves that stopped after two agreeing samples (agreement > 0) */
 } ms_apo_sample_counts;
 
 /* A leaf samples at most this many of the m-triangles it touches: those whose
@@ -70,6 +72,11 @@ typedef struct ms_apo_leaf_probe {
     /* The list is the leaf's answer (crowded M): Embree is never asked, a leaf
      * whose list holds nothing near takes m's own normal (unsampled). */
     bool listed;
+    /* Adaptive sampling: > 0 (radians): the leaf samples its two nearest
+     * m-triangles first and stops there when their normals lie within this
+     * angle of each other; the others only where they disagree. <= 0: every
+     * sample (at most ms_apo_leaf_samples). */
+    float agreement;
 } ms_apo_leaf_probe;
 
 /* The normal of a leaf: one sample for each of the (at most

@@ -69,7 +69,16 @@ typedef struct ms_bake_apo_params {
      * already gives M's (the former rule, before chunks were corrections:
      * docs/APO.md "APO as a correction"); kept to measure the trade. */
     bool full_normals;
+    /* Adaptive sampling (radians, ms_apo_build_options.sample_agreement): a
+     * leaf whose two nearest samples agree within this angle takes no more;
+     * 0: every sample (the former rule). Default MS_BAKE_APO_AGREEMENT. */
+    double sample_agreement;
 } ms_bake_apo_params;
+
+/* Default adaptive-sampling angle, radians: half the default tolerance. On
+ * the dragon it settles 94 % of the leaves with two samples (3.08 M rays down
+ * to 1.0 M) and brings the chunks closer to M (docs/APO.md, "Sampling"). */
+#define MS_BAKE_APO_AGREEMENT 0.1
 
 /* Defaults as above, enabled. */
 void ms_bake_apo_params_default(ms_bake_apo_params *params);
@@ -113,6 +122,9 @@ typedef struct ms_bake_apo_result {
     size_t internal_nodes, leaves;
     uint64_t rays, point_queries; /* the builder's sampling work (ms_apo_build_stats) */
     uint64_t triangle_visits;     /* the builder's own work: triangles looked at one by one */
+    uint64_t samples;             /* (leaf, m-triangle) samples taken */
+    uint64_t sampled_leaves;      /* leaves sampled (before the correction rule) */
+    uint64_t agreed_leaves;       /* of which settled by two agreeing samples */
     size_t smooth_leaves;      /* leaves dropped: m's smooth normal gives M's there */
     ms_bake_apo_accuracy accuracy; /* filled when a reference mesh was given */
 } ms_bake_apo_result;

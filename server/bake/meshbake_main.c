@@ -519,6 +519,15 @@ static int run_info(const bake_options *options)
     return fflush(stdout) == 0 ? EXIT_SUCCESS : EXIT_INPUT;
 }
 
+/* apo.sampling: the APO builders' work, summed (docs/APO.md, "Per-cell chunks"). */
+static json_t *apo_sampling_json(const ms_bake_report *r)
+{
+    return json_pack("{s:I, s:I, s:I, s:I, s:I, s:I, s:I}", "rays", (json_int_t)r->apo_rays, "point_queries",
+                     (json_int_t)r->apo_point_queries, "smooth_leaves", (json_int_t)r->apo_smooth_leaves,
+                     "triangle_visits", (json_int_t)r->apo_triangle_visits, "samples", (json_int_t)r->apo_samples,
+                     "leaves", (json_int_t)r->apo_sampled_leaves, "agreed_leaves", (json_int_t)r->apo_agreed_leaves);
+}
+
 static void print_bake_json(const ms_bake_options *o, const ms_bake_report *r)
 {
     json_t *seconds = json_pack("{s:f, s:f, s:f, s:f, s:f, s:f, s:f, s:f}", "read", r->seconds_read,
@@ -563,11 +572,7 @@ static void print_bake_json(const ms_bake_options *o, const ms_bake_report *r)
         json_object_set_new(apo, "share_of_bake",
                             json_real(r->seconds_total > 0 ? r->seconds_apo / r->seconds_total : 0.0));
     if (apo)
-        json_object_set_new(apo, "sampling", json_pack("{s:I, s:I, s:I, s:I}", "rays", (json_int_t)r->apo_rays,
-                                                       "point_queries", (json_int_t)r->apo_point_queries,
-                                                       "smooth_leaves", (json_int_t)r->apo_smooth_leaves,
-                                                       "triangle_visits",
-                                                       (json_int_t)r->apo_triangle_visits));
+        json_object_set_new(apo, "sampling", apo_sampling_json(r));
     if (apo && o->apo.accuracy)
         json_object_set_new(apo, "accuracy",
                             json_pack("{s:I, s:f, s:f, s:f}", "points", (json_int_t)r->apo_accuracy_points,

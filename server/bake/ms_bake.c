@@ -262,6 +262,9 @@ static void report_apo_and_duplicates(const ms_nsp_encode_stats *es, unsigned th
     r->apo_rays = es->apo_rays;
     r->apo_point_queries = es->apo_point_queries;
     r->apo_triangle_visits = es->apo_triangle_visits;
+    r->apo_samples = es->apo_samples;
+    r->apo_sampled_leaves = es->apo_sampled_leaves;
+    r->apo_agreed_leaves = es->apo_agreed_leaves;
     r->apo_smooth_leaves = es->apo_smooth_leaves;
     r->seconds_apo = es->apo_thread_seconds / threads;
     r->apo_sample_triangles = es->apo_sample_triangles;

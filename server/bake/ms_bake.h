@@ -124,6 +124,9 @@ typedef struct ms_bake_report {
     uint64_t apo_internal_nodes, apo_leaves;
     uint64_t apo_rays, apo_point_queries; /* sampling work: rays and closest-point queries cast */
     uint64_t apo_triangle_visits;         /* the builder's own work: triangles looked at one by one */
+    uint64_t apo_samples;         /* samples taken (at most MS_APO_SAMPLES_PER_LEAF per leaf) */
+    uint64_t apo_sampled_leaves;  /* leaves sampled, before the correction rule */
+    uint64_t apo_agreed_leaves;   /* of which settled by two agreeing samples (adaptive sampling) */
     uint64_t apo_smooth_leaves; /* sampled leaves dropped: the client's smooth normal suffices there */
     double seconds_apo;   /* APO's share of the encode phase: thread-seconds / threads */
     uint64_t apo_sample_triangles;     /* triangles of the internal cells' M, summed */

@@ -584,6 +584,9 @@ static ms_status finish_cell(pool *p, uint32_t node, cell_out *out, ms_error *er
         p->stats.apo_point_queries += a->point_queries;
         p->stats.apo_triangle_visits += a->triangle_visits;
         p->stats.apo_smooth_leaves += a->smooth_leaves;
+        p->stats.apo_samples += a->samples;
+        p->stats.apo_sampled_leaves += a->sampled_leaves;
+        p->stats.apo_agreed_leaves += a->agreed_leaves;
     }
     if (s == MS_OK && a->levels > 0) {
         s = ms_archive_writer_put_apo(p->writer, p->cell_of_node[node], a->data, (uint32_t)a->size,

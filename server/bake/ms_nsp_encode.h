@@ -71,6 +71,7 @@ typedef struct ms_nsp_encode_stats {
     uint64_t apo_internal_nodes, apo_leaves;
     uint64_t apo_rays, apo_point_queries; /* the APO builder's sampling work, summed */
     uint64_t apo_triangle_visits;         /* the APO builder's own triangle work, summed */
+    uint64_t apo_samples, apo_sampled_leaves, apo_agreed_leaves; /* samples, leaves sampled, settled by two */
     uint64_t apo_smooth_leaves; /* leaves dropped: m's smooth normal gives M's (docs/APO.md) */
     double apo_thread_seconds;  /* time spent on APO, summed over the threads */
     uint64_t apo_sample_triangles;     /* M's triangles, summed over the internal cells */
