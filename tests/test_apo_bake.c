@@ -13,6 +13,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include <stdio.h>
+#include <sys/stat.h>
 #include <stdlib.h>
 #include <string.h>
 #include <cmocka.h>
@@ -198,6 +199,30 @@ static void test_chunks_round_trip_and_threads_agree(void **state)
     assert_true(k.multi_level >= 10);
     assert_true(k.internal_with_chunk >= 2); /* the root and a level-1 cell that split */
     assert_true(k.at_rule_depth >= 1);
+    ms_test_rmdir(dir);
+}
+
+/* The default rule: a leaf's geometry renders its input, so the baker skips
+ * gathering a leaf's M to check it; --apo-verify gathers it and checks. Both
+ * give the same archive, with no chunk on a leaf (check_archive). */
+static void test_leaves_skip_the_renders_check(void **state)
+{
+    (void)state;
+    char dir[512], model[4096], cmd[2048], out[256], plain[600], checked[600];
+    bunny_case(dir, model);
+    snprintf(plain, sizeof plain, "%s/plain", dir);
+    snprintf(checked, sizeof checked, "%s/checked", dir);
+    assert_int_equal(mkdir(plain, 0755), 0);
+    assert_int_equal(mkdir(checked, 0755), 0);
+    ms_bake_apo_params apo;
+    ms_bake_apo_params_default(&apo);
+    bake(model, plain, "b", 2, &apo, 16, 4, 7, 200);
+    apo.verify = true;
+    bake(model, checked, "b", 2, &apo, 16, 4, 7, 200);
+    snprintf(cmd, sizeof cmd, "cmp '%s/b.msa' '%s/b.msa'", plain, checked);
+    assert_int_equal(ms_test_run(cmd, out, sizeof out), 0);
+    archive_check k = check_baked(plain, "b", false);
+    assert_true(k.chunks >= 1); /* internal cells still carry theirs */
     ms_test_rmdir(dir);
 }
 
@@ -863,6 +888,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_chunks_round_trip_and_threads_agree),
+        cmocka_unit_test(test_leaves_skip_the_renders_check),
         cmocka_unit_test(test_depth_rule_exact),
         cmocka_unit_test(test_damaged_chunks_are_rejected),
         cmocka_unit_test(test_cli_reports_apo),

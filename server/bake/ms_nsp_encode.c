@@ -396,9 +396,14 @@ static ms_status apo_cell(pool *p, uint32_t node, unsigned hi, ms_apo_builder *b
             s = ms_codec_decoder_mesh(d, &m, err);
         ms_codec_decoder_destroy(d);
     }
-    if (s == MS_OK && (leaf || ap->sample_leaves))
-        s = full_precision_mesh(b, node, &M, err);
-    else if (s == MS_OK && p->tasks[node].parts)
+    /* A leaf's m is its full-precision complex (leaf_mesh), which renders M
+     * by construction: no chunk, and no need to gather M to find that out,
+     * unless a chunk is wanted anyway or --apo-verify asks for the check. */
+    bool leaf_renders = leaf && !ap->every_cell && !ap->sample_leaves && !ap->verify;
+    if (s == MS_OK && (leaf || ap->sample_leaves)) {
+        if (!leaf_renders)
+            s = full_precision_mesh(b, node, &M, err);
+    } else if (s == MS_OK && p->tasks[node].parts)
         s = ms_bake_apo_union(p->tasks[node].parts, nc, &b->box, &M, &owned, err);
     /* the children's parts are in M now: free them before the build's peak */
     free_child_parts(p, node);
@@ -410,7 +415,7 @@ static ms_status apo_cell(pool *p, uint32_t node, unsigned hi, ms_apo_builder *b
     /* Leaves run one per thread; internal cells, few, large and last in
      * post-order (the root ends the bake alone), use every thread. */
     unsigned threads = leaf ? 1 : p->params->threads;
-    if (s == MS_OK)
+    if (s == MS_OK && !leaf_renders)
         s = ms_bake_apo_cell(builder, ap, &b->params.shape, &b->box, nd->depth, nd->position, hi, &m, &M,
                              !measured ? NULL : ap->sample_leaves ? &M : &reference, threads, &out->apo,
                              err);
