@@ -314,7 +314,9 @@ WASM_EXPORTS := malloc free ms_web_view_new ms_web_view_free ms_web_view_error m
                ms_web_view_sections ms_web_view_cast ms_web_view_threads ms_web_view_plan_ahead \
                ms_web_view_new_head ms_web_view_give_subtree ms_web_view_plan_subtree_count \
                ms_web_view_plan_subtree ms_web_view_subtrees_held ms_web_view_index_bytes_held \
-               ms_web_view_prefix \
+               ms_web_view_prefix ms_web_view_has_colour ms_web_view_plan_colour_count \
+               ms_web_view_plan_colour_cell ms_web_view_plan_colour_bits ms_web_view_plan_colour_bytes \
+               ms_web_view_colour_prefix ms_web_view_colour_held ms_web_view_give_colour ms_web_view_colours \
                ms_web_view_run_count ms_web_view_run_cells ms_web_view_run_firsts ms_web_view_cell_cube \
                ms_web_apo_new ms_web_apo_free ms_web_apo_geometry ms_web_apo_plan ms_web_apo_plan_cell ms_web_apo_plan_levels \
                ms_web_apo_plan_bytes ms_web_apo_held ms_web_apo_level_texels ms_web_apo_give

@@ -7,8 +7,11 @@
  * keyframe: the page reaches view complete with no console error, and its
  * screenshot matches meshview's picture: silhouette intersection over union
  * >= 0.98 and PSNR >= 30 dB (the page shades with meshview's lit law in its
- * geometry mode). Skips, saying why, without chromium-headless-shell or
- * emscripten; needs an X display for meshview (Xvfb, ms_test_display). */
+ * geometry mode). The colour trefoil fixture (tests/data) likewise at one
+ * camera: the page draws its scanned colours (docs/BROWSER.md, "Colour") as
+ * meshview does, not the default grey. Skips, saying why, without
+ * chromium-headless-shell or emscripten; needs an X display for meshview
+ * (Xvfb, ms_test_display). */
 #include <math.h>
 #include <setjmp.h>
 #include <signal.h>
@@ -62,13 +65,15 @@ static int group_setup(void **state)
     snprintf(f->archives, sizeof f->archives, "%s/archive", f->dir);
     if (mkdir(f->archives, 0755) != 0)
         return -1;
-    char meshgen[600], meshbake[600], command[4096], out[4096];
+    char meshgen[600], meshbake[600], trefoil[1024], command[8192], out[4096];
     ms_test_bin_path(meshgen, sizeof meshgen, "meshgen");
     ms_test_bin_path(meshbake, sizeof meshbake, "meshbake");
+    ms_test_model_path(trefoil, sizeof trefoil, "trefoil_color.ply.gz");
     snprintf(command, sizeof command,
              "%s -o %s/demo.ply --triangles 20000 && "
-             "%s %s/demo.ply -o %s --name demo --min-tris 1500 --no-apo --threads 2",
-             meshgen, f->dir, meshbake, f->dir, f->archives);
+             "%s %s/demo.ply -o %s --name demo --min-tris 1500 --no-apo --threads 2 && "
+             "%s %s -o %s --name trefoil --min-tris 2000 --no-apo --threads 2",
+             meshgen, f->dir, meshbake, f->dir, f->archives, meshbake, trefoil, f->archives);
     if (ms_test_run(command, out, sizeof out) != 0) {
         fprintf(stderr, "%s: %s\n", command, out);
         return -1;
@@ -156,10 +161,82 @@ static void test_closeup_path_against_meshview(void **state)
     json_decref(mv);
 }
 
+/* The mean chroma (max - min channel) of a picture's covered pixels. */
+static double mean_chroma(const char *path)
+{
+    uint32_t w, h;
+    size_t covered;
+    uint8_t *mask = ms_test_silhouette(path, &w, &h, &covered);
+    uint8_t *rgb = ms_test_png_read(path, &w, &h);
+    double sum = 0;
+    for (size_t i = 0; i < (size_t)w * h; ++i) {
+        if (!mask[i])
+            continue;
+        const uint8_t *p = rgb + 3 * i;
+        int hi = p[0] > p[1] ? p[0] : p[1], lo = p[0] < p[1] ? p[0] : p[1];
+        hi = p[2] > hi ? p[2] : hi;
+        lo = p[2] < lo ? p[2] : lo;
+        sum += hi - lo;
+    }
+    free(mask);
+    free(rgb);
+    return covered ? sum / (double)covered : 0.0;
+}
+
+static void test_colour_against_meshview(void **state)
+{
+    fixture *f = *state;
+    MS_TEST_NEED_BROWSER(f->why_skip);
+    static const char camera[] = "0.6 0.5 3.4 0 0 0 0 1 0 40";
+    char path_file[700], text[256], command[4096], meshview[600], page_cam[64];
+    int used = snprintf(text, sizeof text, "meshstream-camera-path 1\n0 %s\n", camera);
+    snprintf(path_file, sizeof path_file, "%s/trefoil.cam", f->dir);
+    ms_test_write_file(path_file, text, (size_t)used);
+    ms_test_bin_path(meshview, sizeof meshview, "meshview");
+    snprintf(command, sizeof command,
+             "%s --server 127.0.0.1:%u --model trefoil --path %s --size %dx%d --screenshot-dir %s/mvc "
+             "--shading geometry --tolerance 1 --frames 1 --json",
+             meshview, f->port, path_file, WIDTH, HEIGHT, f->dir);
+    json_t *mv = ms_test_run_json(command, 0);
+    assert_int_equal(json_array_size(json_object_get(mv, "keyframes")), 1);
+    assert_true(json_is_true(json_object_get(json_array_get(json_object_get(mv, "keyframes"), 0), "complete")));
+    snprintf(page_cam, sizeof page_cam, "%s", camera);
+    for (char *c = page_cam; *c; ++c)
+        *c = *c == ' ' ? ',' : *c;
+    snprintf(command, sizeof command,
+             "tests/browser-page 'http://127.0.0.1:%u/view/trefoil#cam=%s&tol=1&hud=0' --size %dx%d "
+             "--out %s/trefoil.png --timeout 120",
+             f->http_port, page_cam, WIDTH, HEIGHT, f->dir);
+    json_t *page = ms_test_run_json(command, 0);
+    assert_int_equal(json_array_size(json_object_get(page, "console")), 0);
+    char shot[700], ref[700];
+    snprintf(shot, sizeof shot, "%s/trefoil.png", f->dir);
+    snprintf(ref, sizeof ref, "%s/mvc/keyframe-00.png", f->dir);
+    double iou, psnr;
+    compare(shot, ref, &iou, &psnr);
+    double chroma = mean_chroma(shot), ref_chroma = mean_chroma(ref);
+    json_t *figures = json_object_get(page, "page");
+    printf("trefoil: page %s, %lld triangles, %lld colour bytes; IoU %.4f, PSNR %.2f dB; mean chroma %.1f "
+           "(meshview %.1f)\n",
+           json_string_value(json_object_get(page, "state")),
+           (long long)json_integer_value(json_object_get(figures, "triangles")),
+           (long long)json_integer_value(json_object_get(json_object_get(figures, "timing"), "colourBytes")), iou,
+           psnr, chroma, ref_chroma);
+    assert_string_equal(json_string_value(json_object_get(page, "state")), "complete");
+    assert_true(iou >= 0.98);
+    assert_true(psnr >= 30.0);
+    /* coloured, as meshview's (the default grey has a chroma of about 10) */
+    assert_true(ref_chroma > 40.0);
+    assert_true(fabs(chroma - ref_chroma) < 0.1 * ref_chroma);
+    json_decref(page);
+    json_decref(mv);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_closeup_path_against_meshview),
+        cmocka_unit_test(test_colour_against_meshview),
     };
     return cmocka_run_group_tests(tests, group_setup, group_teardown);
 }

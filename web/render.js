@@ -6,8 +6,9 @@
 // tint; per frame the projection, the view's rotation, the shading mode and
 // meshview's default lighting (one head light of colour 1, or the page's
 // directional light; specular 0.18, shininess 40, two-sided, albedo 0.72
-// 0.69 0.64, smooth vertex normals). The modes are meshview's --shading
-// geometry, normals and cells (ms_render.h's LIT, NORMALS and CELLS).
+// 0.69 0.64, or a colour model's vertex colours: docs/BROWSER.md, "Colour";
+// smooth vertex normals). The modes are meshview's --shading geometry,
+// normals and cells (ms_render.h's LIT, NORMALS and CELLS).
 'use strict';
 
 const MsRender = (() => {
@@ -58,11 +59,15 @@ const MsRender = (() => {
                     'apo_filter', 'apo_footprint_scale', 'modelview', 'projection', 'cell_cube', 'shading', 'world_to_eye', 'cell_number', 'cell_tint',
                     'smooth_on', 'albedo', 'light_count', 'light_eye', 'light_colour', 'light_range',
                     'specular_strength', 'shininess', 'two_sided', 'section_count', 'section_colour',
-                    'section_plane'];
+                    'section_plane', 'vertex_colour'];
 
-  function link(gl, fragmentDefines, apoText) {
+  // coloured: the variant that reads the vertices' colours (MS_VERTEX_COLOUR,
+  // as meshview links it for a model with colour)
+  function link(gl, fragmentDefines, apoText, coloured) {
     const program = gl.createProgram();
-    gl.attachShader(program, compile(gl, gl.VERTEX_SHADER, source(MsShaders.vertex, [])));
+    const colour = coloured ? ['MS_VERTEX_COLOUR 1'] : [];
+    fragmentDefines = fragmentDefines.concat(colour);
+    gl.attachShader(program, compile(gl, gl.VERTEX_SHADER, source(MsShaders.vertex, colour)));
     gl.attachShader(program, compile(gl, gl.FRAGMENT_SHADER, source(MsShaders.fragment, fragmentDefines, apoText)));
     gl.linkProgram(program);
     if (!gl.getProgramParameter(program, gl.LINK_STATUS))
@@ -73,7 +78,17 @@ const MsRender = (() => {
     return { program, u };
   }
 
-  let gl = null, plain = null, detail = null;
+  // programs by [APO detail][vertex colours], linked when first wanted
+  let gl = null;
+  const programs = [[null, null], [null, null]];
+  const LIT_DEFINES = ['MS_EFFECT_SPECULAR', 'MS_EFFECT_TWO_SIDED', 'MS_SECTIONS'];
+  function program(apo, coloured) {
+    const i = apo ? 1 : 0, j = coloured ? 1 : 0;
+    if (!programs[i][j])
+      programs[i][j] = apo ? link(gl, LIT_DEFINES.concat(['MS_EFFECT_DETAIL_NORMALS']), MsShaders.apo, coloured)
+                           : link(gl, LIT_DEFINES, null, coloured);
+    return programs[i][j];
+  }
   // The mesh drawn (current) and the one going up (next): each a vertex array
   // over its own position, normal and index buffers, with its runs.
   let current = null, next = null;
@@ -82,7 +97,7 @@ const MsRender = (() => {
   function setUp(context) {
     gl = context;
     // what meshview's viewer draws with: specular, two-sided, sections
-    plain = link(gl, ['MS_EFFECT_SPECULAR', 'MS_EFFECT_TWO_SIDED', 'MS_SECTIONS']);
+    program(false, false);
   }
 
   function meshBuffers(m) {
@@ -97,12 +112,23 @@ const MsRender = (() => {
     gl.bufferData(gl.ARRAY_BUFFER, m.normals.byteLength, gl.STATIC_DRAW);
     gl.enableVertexAttribArray(1);
     gl.vertexAttribPointer(1, 3, gl.FLOAT, false, 0, 0);
+    // a colour model's r g b a per vertex (sRGB as scanned), normalised
+    // bytes at meshview's location 2
+    b.colour = m.colours ? gl.createBuffer() : null;
+    if (b.colour) {
+      gl.bindBuffer(gl.ARRAY_BUFFER, b.colour);
+      gl.bufferData(gl.ARRAY_BUFFER, m.colours.byteLength, gl.STATIC_DRAW);
+      gl.enableVertexAttribArray(2);
+      gl.vertexAttribPointer(2, 4, gl.UNSIGNED_BYTE, true, 0, 0);
+    }
     gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, b.index);
     gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, m.triangles.byteLength, gl.STATIC_DRAW);
     gl.bindVertexArray(null);
     b.parts = [[gl.ARRAY_BUFFER, b.position, m.positions], [gl.ARRAY_BUFFER, b.normal, m.normals],
                [gl.ELEMENT_ARRAY_BUFFER, b.index, m.triangles]];
-    b.total = m.positions.byteLength + m.normals.byteLength + m.triangles.byteLength;
+    if (b.colour)
+      b.parts.push([gl.ARRAY_BUFFER, b.colour, m.colours]);
+    b.total = b.parts.reduce((sum, part) => sum + part[2].byteLength, 0);
     return b;
   }
 
@@ -113,6 +139,8 @@ const MsRender = (() => {
     gl.deleteBuffer(b.position);
     gl.deleteBuffer(b.normal);
     gl.deleteBuffer(b.index);
+    if (b.colour)
+      gl.deleteBuffer(b.colour);
   }
 
   // ---- APO texels: a 2D integer texture (WebGL 2 has no buffer textures) --
@@ -322,10 +350,8 @@ const MsRender = (() => {
     gl.disable(gl.CULL_FACE);
     gl.disable(gl.BLEND);
     const apo = usesApo(f.shading) && [...chunks.values()].some(c => c.current);
-    if (apo && !detail)
-      detail = link(gl, ['MS_EFFECT_SPECULAR', 'MS_EFFECT_TWO_SIDED', 'MS_SECTIONS', 'MS_EFFECT_DETAIL_NORMALS'],
-                    MsShaders.apo);
-    const p = apo ? detail : plain, u = p.u;
+    const coloured = current.colour !== null;
+    const p = program(apo, coloured), u = p.u;
     const { view, proj } = matrices(f.camera, f.width, f.height, f.near, f.far);
     gl.useProgram(p.program);
     gl.uniformMatrix4fv(u.projection, false, new Float32Array(proj));
@@ -334,6 +360,8 @@ const MsRender = (() => {
     gl.uniform1i(u.shading, f.mode);
     gl.uniform1i(u.smooth_on, 1);
     gl.uniform3fv(u.albedo, ALBEDO);
+    if (coloured)
+      gl.uniform1i(u.vertex_colour, 1);
     const eye = new Float32Array(32), colour = new Float32Array(24), range = new Float32Array(8);
     if (f.light) {
       const l = f.light, len = Math.hypot(...l);

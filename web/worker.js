@@ -9,8 +9,8 @@
 // with the message's fields and hits: [{point, t, bits, step, modelBits} or
 // null]), {type: 'refine', seq, points: [{point, direction}]} (each point
 // refined to full precision by a probe, then cast: answered point by point).
-// Out: {type: 'box'}, {type: 'progress'}, {type: 'mesh'} (positions
-// and triangles, transferred), {type: 'complete'}, {type: 'cast'},
+// Out: {type: 'box'}, {type: 'progress'}, {type: 'mesh'} (positions, normals,
+// triangles and a colour model's colours, transferred), {type: 'complete'}, {type: 'cast'},
 // {type: 'error', message}.
 'use strict';
 
@@ -93,6 +93,7 @@ const LAYOUTS = {
     subtree: (name, id) => 'models/' + encodeURIComponent(name) + '/subtrees/' + id,
     cell: (name, cell, bits) => 'models/' + encodeURIComponent(name) + '/cells/' + cell +
                                 '/geometry' + (bits === null ? '' : '?bits=' + bits),
+    colour: (name, cell, bits) => 'models/' + encodeURIComponent(name) + '/cells/' + cell + '/colour?bits=' + bits,
     ranged: false,      // the server cuts the prefix at ?bits=
   },
   static: {
@@ -101,6 +102,7 @@ const LAYOUTS = {
     head: name => 'models/' + encodeURIComponent(name) + '.head',
     subtree: (name, id) => 'models/' + encodeURIComponent(name) + '/subtrees/' + id,
     cell: (name, cell) => 'models/' + encodeURIComponent(name) + '/cells/' + cell + '/geometry',
+    colour: (name, cell) => 'models/' + encodeURIComponent(name) + '/cells/' + cell + '/colour',
     ranged: true,       // the prefix is a byte range of the whole file
   },
 };
@@ -281,6 +283,25 @@ async function fetchCell(name, token, cell, bits, prefix, v, ticket) {
   return bytes.length;
 }
 
+// Fetches what the cell lacks of its colour stream's prefix at `bits`
+// (prefix: its byte length, ms_web_view_plan_colour_bytes) and hands it
+// over; returns the bytes received. ticket: as get()'s.
+async function fetchColour(name, token, cell, bits, prefix, ticket) {
+  const held = M._ms_web_view_colour_held(view, cell);
+  const end = layout.ranged ? '' + (prefix - 1) : '';
+  const range = held || end ? { Range: 'bytes=' + held + '-' + end } : null;
+  const answer = await get(layout.colour(name, cell, bits), token, range, ticket);
+  const bytes = answer.bytes;
+  timing.requests++;
+  timing.requestBytes += bytes.length;
+  timing.colourBytes = (timing.colourBytes || 0) + bytes.length;
+  const offset = answer.status === 206 ? held : 0;
+  const st = withHeap(bytes, p => M._ms_web_view_give_colour(view, cell, offset, p, bytes.length));
+  if (st !== 0)
+    throw new Error('cell ' + cell + '\'s colour: ' + lastError());
+  return bytes.length;
+}
+
 // Fetches subtree id of the index and hands it to view v; returns the bytes
 // received (its stored bytes: a zlib stream, inflated in the module by the
 // native client's reader).
@@ -357,11 +378,14 @@ function copyAndPost(final) {
   const positions = new Float32Array(heap(), M._ms_web_view_positions(view), 3 * nv).slice();
   const triangles = new Uint32Array(heap(), M._ms_web_view_triangles(view), 3 * nt).slice();
   const normals = new Float32Array(heap(), M._ms_web_view_normals(view), 3 * nv).slice();
+  // r g b a per vertex (sRGB as scanned) on a colour model, else null
+  const at = M._ms_web_view_colours(view);
+  const colours = at ? new Uint8Array(heap(), at, 4 * nv).slice() : null;
   const runs = meshRuns();
-  postMessage({ type: 'mesh', final, positions, normals, triangles, runs,
+  postMessage({ type: 'mesh', final, positions, normals, triangles, colours, runs,
                 cells: M._ms_web_view_shown_cells(view), bits: M._ms_web_view_max_bits(view) },
               [positions.buffer, normals.buffer, triangles.buffer, runs.cells.buffer, runs.firsts.buffer,
-               runs.cubes.buffer]);
+               runs.cubes.buffer].concat(colours ? [colours.buffer] : []));
 }
 
 // The renderer's cells (web/render.js): the stitched triangles grouped by the
@@ -606,6 +630,18 @@ async function run(msg) {
     for (let k = 0; k < count; ++k)
       wanted.push([M._ms_web_view_plan_cell(view, k), M._ms_web_view_plan_bits(view, k),
                    M._ms_web_view_plan_bytes(view, k)]);
+    // a colour model's colour prefixes, after the cells' geometry
+    const colours = [], colourQueued = new Map();
+    const listColours = () => {
+      for (let k = 0, n = M._ms_web_view_plan_colour_count(view); k < n; ++k) {
+        const cell = M._ms_web_view_plan_colour_cell(view, k), bits = M._ms_web_view_plan_colour_bits(view, k);
+        if (!colourQueued.has(cell) || colourQueued.get(cell) < bits) {
+          colourQueued.set(cell, bits);
+          colours.push([cell, bits, M._ms_web_view_plan_colour_bytes(view, k)]);
+        }
+      }
+    };
+    listColours();
     // the subtrees of the index the plan lacks: asked for before any cell
     // (each unblocks the splits below it), each once
     const subtrees = [];
@@ -621,7 +657,7 @@ async function run(msg) {
       }
     };
     listSubtrees();
-    if (!wanted.length && !subtrees.length)   // (never: a guard against a busy loop)
+    if (!wanted.length && !subtrees.length && !colours.length)   // (never: a guard against a busy loop)
       throw new Error('selecting the cut: the plan wants subtrees it has asked for already');
     // the bytes this round still wants: the page's progress bar
     let need = planNeed(count);
@@ -653,6 +689,7 @@ async function run(msg) {
       if (pendingCamera)
         return;
       listSubtrees();
+      listColours();
       for (let k = 0; k < listed; ++k) {
         const cell = M._ms_web_view_plan_cell(view, k), bits = M._ms_web_view_plan_bits(view, k);
         if (!queued.has(cell) || queued.get(cell) < bits) {
@@ -674,6 +711,7 @@ async function run(msg) {
       let got;     // not `bytes += await`: jobs interleave
       try {
         got = kind === 'subtree' ? await fetchSubtree(name, token, what[0], view, ticket)
+            : kind === 'colour' ? await fetchColour(name, token, what[0], what[1], what[2], ticket)
                                  : await fetchCell(name, token, what[0], what[1], what[2], view, ticket);
       } catch (e) {
         if (!e.cancelled)
@@ -700,9 +738,11 @@ async function run(msg) {
     await new Promise((resolve, reject) => {
       let active = 0, failure = null;
       const pump = () => {
-        while (!failure && !pendingCamera && active < IN_FLIGHT && (subtrees.length || next < wanted.length)) {
+        while (!failure && !pendingCamera && active < IN_FLIGHT &&
+               (subtrees.length || next < wanted.length || colours.length)) {
           active++;
-          job(subtrees.length ? ['subtree', subtrees.shift()] : ['cell', ...wanted[next++]]).then(
+          job(subtrees.length ? ['subtree', subtrees.shift()]
+              : next < wanted.length ? ['cell', ...wanted[next++]] : ['colour', ...colours.shift()]).then(
             () => { active--; pump(); },
             e => { active--; failure = failure || e; pump(); });
         }
@@ -735,7 +775,7 @@ function planNeed(count) {
 let lastShown = null;
 function changed(count) {
   const now = [M._ms_web_view_shown_cells(view), M._ms_web_view_max_bits(view),
-               Number(M._ms_web_view_bytes_held(view)), count].join(',');
+               Number(M._ms_web_view_bytes_held(view)), count, M._ms_web_view_plan_colour_count(view)].join(',');
   const differs = now !== lastShown;
   lastShown = now;
   return differs;

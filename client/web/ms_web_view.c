@@ -42,6 +42,8 @@ struct ms_web_view {
     ms_view_select_params params;
     planned *plan;
     uint32_t plan_count, plan_cap;
+    planned *colour_plan;   /* colour prefixes the target cut lacks (a colour model) */
+    uint32_t colour_count, colour_cap;
     ms_view_mesh mesh;
     float *positions, *normals;
     size_t positions_cap;
@@ -148,6 +150,7 @@ void ms_web_view_free(ms_web_view *v)
     ms_view_destroy(v->view);
     ms_archive_close(v->index);
     free(v->plan);
+    free(v->colour_plan);
     free(v->positions);
     free(v->normals);
     free(v->stitched_bits);
@@ -305,18 +308,42 @@ static int compare_planned_by_depth(const void *x, const void *y)
     return a->cell < b->cell ? -1 : a->cell > b->cell;
 }
 
-static bool plan_push(ms_web_view *v, planned p)
+static bool plan_push(planned **list, uint32_t *count, uint32_t *cap, planned p)
 {
-    if (v->plan_count == v->plan_cap) {
-        uint32_t cap = v->plan_cap ? 2 * v->plan_cap : 64;
-        planned *grown = realloc(v->plan, cap * sizeof *grown);
+    if (*count == *cap) {
+        uint32_t grown_cap = *cap ? 2 * *cap : 64;
+        planned *grown = realloc(*list, grown_cap * sizeof *grown);
         if (!grown)
             return false;
-        v->plan = grown;
-        v->plan_cap = cap;
+        *list = grown;
+        *cap = grown_cap;
     }
-    v->plan[v->plan_count++] = p;
+    (*list)[(*count)++] = p;
     return true;
+}
+
+/* On a colour model: every cell of the target cut (shown, or split: a
+ * child's colour starts from its parent's whole colour) whose colour stream
+ * is not held to its goal's bits, root first, in the cells' order. */
+static ms_status plan_colour(ms_web_view *v)
+{
+    v->colour_count = 0;
+    if (!ms_archive_get_header(v->index)->has_colour)
+        return MS_OK;
+    FOR_KNOWN(v, c) {
+        const ms_archive_cell *rec = ms_view_cell(v->view, c);
+        if (!rec || rec->vertex_count == 0)
+            continue;
+        unsigned goal = goal_bits(v, c, rec);
+        if (goal == 0)
+            continue;
+        uint32_t bytes = ms_archive_colour_prefix(v->index, c, goal);
+        if (bytes <= ms_view_held_colour_bytes(v->view, c))
+            continue;
+        if (!plan_push(&v->colour_plan, &v->colour_count, &v->colour_cap, (planned){c, goal, bytes, rec->level}))
+            return fail(v, MS_ERR_NOMEM, "out of memory for the colour plan");
+    }
+    return MS_OK;
 }
 
 static int compare_wanted_by_id(const void *x, const void *y)
@@ -432,17 +459,19 @@ ms_status ms_web_view_plan(ms_web_view *v, uint32_t max, int *settled)
             uint32_t bytes = ms_archive_geometry_prefix(v->index, c, goal);
             if (bytes <= ms_view_held_bytes(v->view, c))
                 continue;
-            if (!plan_push(v, (planned){c, goal, bytes, rec->level}))
+            if (!plan_push(&v->plan, &v->plan_count, &v->plan_cap, (planned){c, goal, bytes, rec->level}))
                 return fail(v, MS_ERR_NOMEM, "out of memory for the plan");
         }
         if (pass == 1 && v->plan_count - first > 1)
             qsort(v->plan + first, v->plan_count - first, sizeof *v->plan, compare_planned_by_depth);
     }
     ms_status st = plan_subtrees(v);
+    if (st == MS_OK)
+        st = plan_colour(v);
     if (st != MS_OK)
         return st;
     if (settled)
-        *settled = v->plan_count == 0 && v->subtree_count == 0;
+        *settled = v->plan_count == 0 && v->subtree_count == 0 && v->colour_count == 0;
     return MS_OK;
 }
 
@@ -461,6 +490,63 @@ uint32_t ms_web_view_plan_bits(const ms_web_view *v, uint32_t k)
 uint32_t ms_web_view_plan_bytes(const ms_web_view *v, uint32_t k)
 {
     return k < v->plan_count ? v->plan[k].bytes : 0;
+}
+
+int ms_web_view_has_colour(const ms_web_view *v)
+{
+    return ms_archive_get_header(v->index)->has_colour;
+}
+
+uint32_t ms_web_view_plan_colour_count(const ms_web_view *v) { return v->colour_count; }
+
+uint32_t ms_web_view_plan_colour_cell(const ms_web_view *v, uint32_t k)
+{
+    return k < v->colour_count ? v->colour_plan[k].cell : MS_ARCHIVE_NONE;
+}
+
+uint32_t ms_web_view_plan_colour_bits(const ms_web_view *v, uint32_t k)
+{
+    return k < v->colour_count ? v->colour_plan[k].bits : 0;
+}
+
+uint32_t ms_web_view_plan_colour_bytes(const ms_web_view *v, uint32_t k)
+{
+    return k < v->colour_count ? v->colour_plan[k].bytes : 0;
+}
+
+uint32_t ms_web_view_colour_prefix(const ms_web_view *v, uint32_t cell, uint32_t bits)
+{
+    return ms_view_cell(v->view, cell) ? ms_archive_colour_prefix(v->index, cell, bits) : 0;
+}
+
+uint32_t ms_web_view_colour_held(const ms_web_view *v, uint32_t cell)
+{
+    return (uint32_t)ms_view_held_colour_bytes(v->view, cell);
+}
+
+ms_status ms_web_view_give_colour(ms_web_view *v, uint32_t cell, uint32_t offset, const uint8_t *data,
+                                  uint32_t length)
+{
+    if (!ms_view_cell(v->view, cell))
+        return ms_error_set(&v->err, MS_ERR_ARG, "no cell %u in the model", cell);
+    if (!ms_web_view_has_colour(v))
+        return ms_error_set(&v->err, MS_ERR_ARG, "cell %u: the model has no colour", cell);
+    size_t held = ms_view_held_colour_bytes(v->view, cell);
+    if (offset > held)
+        return ms_error_set(&v->err, MS_ERR_ARG, "cell %u: colour bytes from %u leave a gap after the %zu held",
+                            cell, offset, held);
+    if ((uint64_t)offset + length > ms_archive_colour_length(v->index, cell))
+        return ms_error_set(&v->err, MS_ERR_RANGE, "cell %u: colour bytes up to %llu, past its stream's %u",
+                            cell, (unsigned long long)offset + length, ms_archive_colour_length(v->index, cell));
+    if ((uint64_t)offset + length <= held)
+        return MS_OK; /* nothing new */
+    uint32_t skip = (uint32_t)(held - offset);
+    return ms_view_append_colour_bytes(v->view, cell, data + skip, length - skip, &v->err);
+}
+
+const uint8_t *ms_web_view_colours(const ms_web_view *v)
+{
+    return v->mesh.vertex_count ? v->mesh.colours : NULL;
 }
 
 uint32_t ms_web_view_prefix(const ms_web_view *v, uint32_t cell, uint32_t bits)

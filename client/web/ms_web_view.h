@@ -108,9 +108,10 @@ unsigned ms_web_view_threads(ms_web_view *view, unsigned helpers);
  * the subtrees it lacks (ms_web_view_plan_subtree: those holding the children
  * of the cells the selection would split, then, with plans that look ahead,
  * of those within a bit of splitting, as the client core asks for them;
- * each once; fetch them before the cells). *settled (may be NULL) is true
- * when the cut no longer changes and nothing is wanted, cells or subtrees:
- * the view is complete. */
+ * each once; fetch them before the cells), and on a colour model the colour
+ * prefixes (ms_web_view_plan_colour_count). *settled (may be NULL) is true
+ * when the cut no longer changes and nothing is wanted, cells, subtrees or
+ * colour: the view is complete. */
 ms_status ms_web_view_plan(ms_web_view *view, uint32_t max, int *settled);
 uint32_t ms_web_view_plan_count(const ms_web_view *view);
 uint32_t ms_web_view_plan_subtree_count(const ms_web_view *view);
@@ -141,6 +142,30 @@ uint32_t ms_web_view_held(const ms_web_view *view, uint32_t cell);
  * past the payload's length, MS_ERR_ARG for a gap or an unknown cell. */
 ms_status ms_web_view_give(ms_web_view *view, uint32_t cell, uint32_t offset, const uint8_t *data,
                            uint32_t length);
+
+/* Colour (docs/BROWSER.md, "Colour"). A model with a colour stream per cell
+ * (has_colour) draws its vertices in their scanned colours: every plan also
+ * lists the colour prefixes the target cut lacks (each cell's stream to its
+ * goal's bits, split cells too: a child's colour starts from its parent's
+ * whole colour), read with the plan_colour accessors (k < count; out of
+ * range: MS_ARCHIVE_NONE, 0), and a plan is settled only once they are
+ * held. give_colour hands over bytes [offset, offset + length) of a cell's
+ * colour stream as give does the geometry (MS_ERR_ARG: a gap, an unknown
+ * cell, a model without colour; MS_ERR_RANGE: past the stream's length). A
+ * damaged stream fails the stitch with one line. colours: r g b a, 8 bits
+ * each, per vertex of the last stitch (sRGB as scanned; a cell whose colour
+ * is not held yet in the renderers' default grey), or NULL (no colour, or
+ * nothing stitched); valid until the next stitch or free. */
+int ms_web_view_has_colour(const ms_web_view *view);
+uint32_t ms_web_view_plan_colour_count(const ms_web_view *view);
+uint32_t ms_web_view_plan_colour_cell(const ms_web_view *view, uint32_t k);
+uint32_t ms_web_view_plan_colour_bits(const ms_web_view *view, uint32_t k);
+uint32_t ms_web_view_plan_colour_bytes(const ms_web_view *view, uint32_t k);
+uint32_t ms_web_view_colour_prefix(const ms_web_view *view, uint32_t cell, uint32_t bits);
+uint32_t ms_web_view_colour_held(const ms_web_view *view, uint32_t cell);
+ms_status ms_web_view_give_colour(ms_web_view *view, uint32_t cell, uint32_t offset, const uint8_t *data,
+                                  uint32_t length);
+const uint8_t *ms_web_view_colours(const ms_web_view *view);
 
 /* Section planes (docs/BROWSER.md, "Sections"): count (0 to 3) planes of 4
  * doubles a b c d each, the side a x + b y + c z + d > 0 cut away. The

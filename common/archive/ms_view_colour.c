@@ -33,17 +33,27 @@ void ms_view_colour_free(vcell *c)
 ms_status ms_view_set_colour_bytes(ms_view *v, uint32_t cell, const uint8_t *data, size_t length,
                                    ms_error *err)
 {
+    const vcell *c = ms_view_vcell(v, cell);
+    if (!c || length <= c->colour_nbytes)
+        return ms_view_append_colour_bytes(v, cell, data, 0, err); /* its checks, nothing added */
+    return ms_view_append_colour_bytes(v, cell, data + c->colour_nbytes, length - c->colour_nbytes, err);
+}
+
+ms_status ms_view_append_colour_bytes(ms_view *v, uint32_t cell, const uint8_t *data, size_t added,
+                                      ms_error *err)
+{
     vcell *c = ms_view_vcell(v, cell);
     if (!c)
         return ms_error_set(err, MS_ERR_RANGE, "no cell %u known", cell);
     if (!v->header.has_colour)
         return ms_error_set(err, MS_ERR_ARG, "cell %u: the model has no colour", cell);
-    if (length <= c->colour_nbytes)
+    if (added == 0)
         return MS_OK;
+    size_t length = c->colour_nbytes + added;
     uint8_t *b = realloc(c->colour_bytes, length);
     if (!b)
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory for cell %u's colour", cell);
-    memcpy(b + c->colour_nbytes, data + c->colour_nbytes, length - c->colour_nbytes);
+    memcpy(b + c->colour_nbytes, data, added);
     c->colour_bytes = b;
     c->colour_nbytes = length;
     c->colour_rev++;
@@ -71,7 +81,7 @@ static ms_status colour_fail(vcell *c, uint32_t cell, ms_status st, const ms_err
                              ms_error *err)
 {
     ms_view_colour_drop(c);
-    return ms_error_set(err, st, "cell %u: colour stream: %s", cell, inner->text);
+    return ms_error_set(err, st, "cell %u: %s", cell, inner->text); /* the inner line names the colour stream */
 }
 
 static ms_status parent_top(ms_view *v, uint32_t cell, bool *ok, ms_error *err);

@@ -147,6 +147,10 @@ ms_status ms_view_append_bytes(ms_view *view, uint32_t cell, const uint8_t *data
  * unknown cell, MS_ERR_ARG for bytes that do not extend those held. */
 ms_status ms_view_set_colour_bytes(ms_view *view, uint32_t cell, const uint8_t *data,
                                    size_t length, ms_error *err);
+/* Appends `added` bytes to the cell's colour stream (the next part, from
+ * offset ms_view_held_colour_bytes); the same rules as above. */
+ms_status ms_view_append_colour_bytes(ms_view *view, uint32_t cell, const uint8_t *data,
+                                      size_t added, ms_error *err);
 /* Bytes of the cell's colour stream held. */
 size_t ms_view_held_colour_bytes(const ms_view *view, uint32_t cell);
 
