@@ -1,13 +1,15 @@
 /* The browser experience without meshserve (docs/BROWSER.md "Static
  * export"), and embedded in another site's page ("Embed"):
  *   - meshexport --web-dir writes the pages, the module and catalog.json
- *     beside two exported models (one with a public preview), and a bad
- *     --web-dir is one line;
+ *     beside three exported models (one with a public preview, one with
+ *     colour: the trefoil fixture of tests/data), and a bad --web-dir is
+ *     one line;
  *   - nginx (a plain static configuration: a root, mime.types, no rule)
  *     serves that tree; in headless Chromium the viewer page reaches view
  *     complete with meshrender's very cut for the camera, every request
- *     answered without an error; the catalogue lists both models; the
- *     preview model completes at its public precision;
+ *     answered without an error; the catalogue lists the three models;
+ *     the preview model completes at its public precision; the colour
+ *     model draws in its colours, its streams read by byte range;
  *   - a page of another origin (served by that nginx) embeds meshserve's
  *     viewer with the one-line script (web/embed.js), hears its state by
  *     postMessage, and reads a cell range with the token across origins
@@ -33,6 +35,7 @@
 #include "ms_test.h"
 #include "ms_test_browser.h"
 #include "ms_test_net.h"
+#include "ms_test_picture.h"
 
 #define TOKEN "export-test-token"
 #define NGINX "/usr/sbin/nginx"
@@ -123,10 +126,11 @@ static int group_setup(void **state)
     if (mkdir(f->archives, 0755) != 0)
         return -1;
     const char *web_dir = ms_test_browser_web_dir();
-    char meshgen[600], meshbake[600], meshexport[600], command[16384];
+    char meshgen[600], meshbake[600], meshexport[600], trefoil[1024], command[16384];
     ms_test_bin_path(meshgen, sizeof meshgen, "meshgen");
     ms_test_bin_path(meshbake, sizeof meshbake, "meshbake");
     ms_test_bin_path(meshexport, sizeof meshexport, "meshexport");
+    ms_test_model_path(trefoil, sizeof trefoil, "trefoil_color.ply.gz");
     /* one annotation on the demo model: the static viewer shows it (the
      * preview model has none: its page reads the empty set meshexport wrote) */
     char notes[700];
@@ -139,10 +143,12 @@ static int group_setup(void **state)
              "%s %s/demo.ply -o %s --name demo --min-tris 1500 --no-apo --threads 2 && "
              "%s %s/demo.ply -o %s --name preview --min-tris 1500 --no-apo --threads 2 "
              "--public-bits 9 && %s --annotations %s/notes.json -o %s --name demo && "
-             "%s %s demo -o %s --web-dir %s && %s %s preview -o %s --web-dir %s",
+             "%s %s demo -o %s --web-dir %s && %s %s preview -o %s --web-dir %s && "
+             "%s %s -o %s --name trefoil --min-tris 2000 --no-apo --threads 2 && "
+             "%s %s trefoil -o %s --web-dir %s",
              meshgen, f->dir, meshbake, f->dir, f->archives, meshbake, f->dir, f->archives, meshbake,
              f->dir, f->archives, meshexport, f->archives, f->www, web_dir, meshexport, f->archives,
-             f->www, web_dir);
+             f->www, web_dir, meshbake, trefoil, f->archives, meshexport, f->archives, f->www, web_dir);
     if (run_or_say(command) != 0)
         return -1;
     ms_test_browser_why_skip(f->why_skip, sizeof f->why_skip);
@@ -212,12 +218,16 @@ static void test_export_writes_the_site(void **state)
         if (stat(path, &st) != 0)
             fail_msg("meshexport --web-dir wrote no %s", files[i]);
     }
-    /* the catalogue: both exports, by name, each with its page */
+    /* the catalogue: the three exports, by name, each with its page; the
+     * colour model's streams beside its geometry */
+    snprintf(path, sizeof path, "%s/models/trefoil/cells/0/colour", f->www);
+    if (stat(path, &st) != 0 || st.st_size == 0)
+        fail_msg("meshexport wrote no colour stream for the trefoil's root");
     snprintf(path, sizeof path, "%s/catalog.json", f->www);
     json_error_t jerr;
     json_t *catalogue = json_load_file(path, 0, &jerr);
     assert_non_null(catalogue);
-    assert_int_equal(json_integer_value(json_object_get(catalogue, "total")), 2);
+    assert_int_equal(json_integer_value(json_object_get(catalogue, "total")), 3);
     json_t *models = json_object_get(catalogue, "models");
     const char *names[] = {"demo", "preview"};
     const int public_bits[] = {16, 9};
@@ -316,10 +326,10 @@ static void test_static_catalogue_and_preview(void **state)
     snprintf(url, sizeof url, "http://127.0.0.1:%u/", f->nginx_port);
     json_t *report = open_url(f, url, "catalogue.png");
     assert_string_equal(json_string_value(json_object_get(report, "state")), "complete");
-    assert_string_equal(json_string_value(json_object_get(report, "message")), "2 models");
-    /* both pictures, drawn within each model's public preview, from the
-     * paths the site's catalogue names */
-    assert_int_equal(ms_test_browser_page_int(report, "thumbnails"), 2);
+    assert_string_equal(json_string_value(json_object_get(report, "message")), "3 models");
+    /* the three pictures, drawn within each model's public preview, from
+     * the paths the site's catalogue names */
+    assert_int_equal(ms_test_browser_page_int(report, "thumbnails"), 3);
     assert_int_equal(json_array_size(json_object_get(report, "console")), 0);
     json_decref(report);
     snprintf(url, sizeof url, "http://127.0.0.1:%u/view/preview.html#cam=" CLOSE_UP "&tol=1&hud=0",
@@ -330,6 +340,28 @@ static void test_static_catalogue_and_preview(void **state)
     assert_true(ms_test_browser_page_int(report, "triangles") > 0);
     assert_non_null(strstr(json_string_value(json_object_get(report, "message")), "(the public preview)"));
     assert_int_equal(nginx_errors(f), errors); /* nothing asked past the exported preview */
+    json_decref(report);
+}
+
+static void test_static_colour(void **state)
+{
+    fixture *f = *state;
+    MS_TEST_NEED_BROWSER(f->why_skip);
+    char url[512], shot[700];
+    unsigned errors = nginx_errors(f);
+    snprintf(url, sizeof url, "http://127.0.0.1:%u/view/trefoil.html#cam=0.6,0.5,3.4,0,0,0,0,1,0,40&tol=1&hud=0",
+             f->nginx_port);
+    json_t *report = open_url(f, url, "trefoil.png");
+    assert_string_equal(json_string_value(json_object_get(report, "state")), "complete");
+    assert_int_equal(json_array_size(json_object_get(report, "console")), 0);
+    json_t *timing = json_object_get(json_object_get(report, "page"), "timing");
+    snprintf(shot, sizeof shot, "%s/trefoil.png", f->dir);
+    double chroma = ms_test_png_mean_chroma(shot);
+    printf("static colour: %lld colour bytes, mean chroma %.1f\n",
+           (long long)json_integer_value(json_object_get(timing, "colourBytes")), chroma);
+    assert_true(json_integer_value(json_object_get(timing, "colourBytes")) > 0);
+    assert_true(chroma > 40.0); /* its colours, not the grey material (about 10) */
+    assert_int_equal(nginx_errors(f), errors); /* every colour range within its file */
     json_decref(report);
 }
 
@@ -380,6 +412,7 @@ int main(void)
         cmocka_unit_test(test_export_writes_the_site),
         cmocka_unit_test(test_static_viewer),
         cmocka_unit_test(test_static_catalogue_and_preview),
+        cmocka_unit_test(test_static_colour),
         cmocka_unit_test(test_embedded_in_another_site),
     };
     return cmocka_run_group_tests(tests, group_setup, group_teardown);

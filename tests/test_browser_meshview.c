@@ -161,28 +161,6 @@ static void test_closeup_path_against_meshview(void **state)
     json_decref(mv);
 }
 
-/* The mean chroma (max - min channel) of a picture's covered pixels. */
-static double mean_chroma(const char *path)
-{
-    uint32_t w, h;
-    size_t covered;
-    uint8_t *mask = ms_test_silhouette(path, &w, &h, &covered);
-    uint8_t *rgb = ms_test_png_read(path, &w, &h);
-    double sum = 0;
-    for (size_t i = 0; i < (size_t)w * h; ++i) {
-        if (!mask[i])
-            continue;
-        const uint8_t *p = rgb + 3 * i;
-        int hi = p[0] > p[1] ? p[0] : p[1], lo = p[0] < p[1] ? p[0] : p[1];
-        hi = p[2] > hi ? p[2] : hi;
-        lo = p[2] < lo ? p[2] : lo;
-        sum += hi - lo;
-    }
-    free(mask);
-    free(rgb);
-    return covered ? sum / (double)covered : 0.0;
-}
-
 static void test_colour_against_meshview(void **state)
 {
     fixture *f = *state;
@@ -214,7 +192,7 @@ static void test_colour_against_meshview(void **state)
     snprintf(ref, sizeof ref, "%s/mvc/keyframe-00.png", f->dir);
     double iou, psnr;
     compare(shot, ref, &iou, &psnr);
-    double chroma = mean_chroma(shot), ref_chroma = mean_chroma(ref);
+    double chroma = ms_test_png_mean_chroma(shot), ref_chroma = ms_test_png_mean_chroma(ref);
     json_t *figures = json_object_get(page, "page");
     printf("trefoil: page %s, %lld triangles, %lld colour bytes; IoU %.4f, PSNR %.2f dB; mean chroma %.1f "
            "(meshview %.1f)\n",

@@ -99,3 +99,24 @@ double ms_test_png_psnr(const char *path, const char *ref_path, uint32_t width, 
     double mse = n ? squares / (double)n : 0;
     return mse > 0 ? 10.0 * log10(255.0 * 255.0 / mse) : 99.0;
 }
+
+double ms_test_png_mean_chroma(const char *path)
+{
+    uint32_t w, h;
+    size_t covered;
+    uint8_t *mask = ms_test_silhouette(path, &w, &h, &covered);
+    uint8_t *rgb = ms_test_png_read(path, &w, &h);
+    double sum = 0;
+    for (size_t i = 0; i < (size_t)w * h; ++i) {
+        if (!mask[i])
+            continue;
+        const uint8_t *p = rgb + 3 * i;
+        int hi = p[0] > p[1] ? p[0] : p[1], lo = p[0] < p[1] ? p[0] : p[1];
+        hi = p[2] > hi ? p[2] : hi;
+        lo = p[2] < lo ? p[2] : lo;
+        sum += hi - lo;
+    }
+    free(mask);
+    free(rgb);
+    return covered ? sum / (double)covered : 0.0;
+}

@@ -29,4 +29,10 @@ double ms_test_silhouette_iou(const char *path, const char *ref_path, uint32_t w
  * both be width x height (the test fails otherwise). */
 double ms_test_png_psnr(const char *path, const char *ref_path, uint32_t width, uint32_t height);
 
+/* The mean chroma (largest less smallest channel, 0..255) of a PNG's
+ * covered pixels (ms_test_silhouette): about 10 for meshview's grey
+ * material, far more for a model drawn in its colours; 0 when nothing is
+ * covered. */
+double ms_test_png_mean_chroma(const char *path);
+
 #endif
