@@ -758,6 +758,25 @@ static void test_crease_rendered_by_geometry(void **state)
     ms_mesh_free(&m);
 }
 
+/* Writes the fan of n triangles around a hub at the origin, rim
+ * (cos a, sin a, wave sin 7a), to path (PLY). */
+static void write_fan_ply(const char *path, uint32_t n, double wave)
+{
+    double *v = malloc(3 * (n + 1) * sizeof *v);
+    uint32_t *f = malloc(3 * n * sizeof *f);
+    assert_true(v && f);
+    v[0] = v[1] = v[2] = 0.0;
+    for (uint32_t i = 0; i < n; ++i) {
+        double a = 2.0 * M_PI * i / n;
+        v[3 * (i + 1)] = cos(a), v[3 * (i + 1) + 1] = sin(a);
+        v[3 * (i + 1) + 2] = wave != 0.0 ? wave * sin(7.0 * a) : 0.0; /* flat: +0, never -0 */
+        f[3 * i] = 0, f[3 * i + 1] = 1 + i, f[3 * i + 2] = 1 + (i + 1) % n;
+    }
+    write_ply(path, v, n + 1, f, n);
+    free(v);
+    free(f);
+}
+
 /* A flat fan of 20,000 triangles (issue 18: 100,000 took 182 s with APO): its
  * leaf cells get no chunk (their geometry renders M), its internal cells none
  * either (M flat: m's smooth normal gives it, APO as a correction); with every
@@ -768,21 +787,8 @@ static void test_flat_fan_bakes(void **state)
     (void)state;
     char dir[512], path[700];
     ms_test_tmpdir(dir, sizeof dir);
-    const uint32_t n = 20000;
-    double *v = malloc(3 * (n + 1) * sizeof *v);
-    uint32_t *f = malloc(3 * n * sizeof *f);
-    assert_true(v && f);
-    v[0] = v[1] = v[2] = 0.0;
-    for (uint32_t i = 0; i < n; ++i) {
-        v[3 * (i + 1)] = cos(2.0 * M_PI * i / n);
-        v[3 * (i + 1) + 1] = sin(2.0 * M_PI * i / n);
-        v[3 * (i + 1) + 2] = 0.0;
-        f[3 * i] = 0, f[3 * i + 1] = 1 + i, f[3 * i + 2] = 1 + (i + 1) % n;
-    }
     snprintf(path, sizeof path, "%s/fan.ply", dir);
-    write_ply(path, v, n + 1, f, n);
-    free(v);
-    free(f);
+    write_fan_ply(path, 20000, 0.0);
     ms_bake_apo_params apo;
     ms_bake_apo_params_default(&apo);
     apo.verify = true;
@@ -819,20 +825,9 @@ static void test_flat_fan_bakes(void **state)
 static uint64_t wavy_fan_work(const char *dir, uint32_t n, ms_bake_report *r)
 {
     char path[700], name[32];
-    double *v = malloc(3 * (n + 1) * sizeof *v);
-    uint32_t *f = malloc(3 * n * sizeof *f);
-    assert_true(v && f);
-    v[0] = v[1] = v[2] = 0.0;
-    for (uint32_t i = 0; i < n; ++i) {
-        double a = 2.0 * M_PI * i / n;
-        v[3 * (i + 1)] = cos(a), v[3 * (i + 1) + 1] = sin(a), v[3 * (i + 1) + 2] = 0.1 * sin(7.0 * a);
-        f[3 * i] = 0, f[3 * i + 1] = 1 + i, f[3 * i + 2] = 1 + (i + 1) % n;
-    }
     snprintf(name, sizeof name, "wavy%u", n);
     snprintf(path, sizeof path, "%s/%s.ply", dir, name);
-    write_ply(path, v, n + 1, f, n);
-    free(v);
-    free(f);
+    write_fan_ply(path, n, 0.1);
     ms_bake_apo_params apo;
     ms_bake_apo_params_default(&apo);
     apo.verify = true;

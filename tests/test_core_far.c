@@ -24,6 +24,7 @@
 #include "ms_study_render.h"
 #include "ms_study_scene.h"
 #include "ms_test.h"
+#include "ms_test_picture.h"
 #include "ms_test_core.h"
 
 #define SIDE 480
@@ -113,12 +114,7 @@ static void check_view(const fixture *f, const ms_core_frame *frame, const ms_co
     assert_int_equal(ms_study_scene_new(m->positions, m->vertex_count, m->triangles, m->triangle_count, &cut,
                                         &err), MS_OK);
     size_t covered = silhouette(cut, &cam, mask), ref_covered = silhouette(f->full, &cam, ref);
-    size_t both = 0, either = 0;
-    for (size_t i = 0; i < (size_t)SIDE * SIDE; ++i) {
-        both += mask[i] & ref[i];
-        either += mask[i] | ref[i];
-    }
-    double iou = either ? (double)both / (double)either : 0.0;
+    double iou = ms_test_mask_iou(mask, ref, (size_t)SIDE * SIDE);
     print_message("%g px tall: %zu triangles, error %.3f px, %zu px covered (full model %zu), IoU %.3f, "
                   "%.1f triangles per covered pixel\n", heights_px[k], m->triangle_count,
                   st->achieved_error_px, covered, ref_covered, iou,

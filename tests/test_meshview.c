@@ -285,16 +285,12 @@ static void test_small_on_screen_never_vanishes(void **state)
         char ref[800];
         snprintf(ref, sizeof ref, "%s/far-ref/frame_%03d.png", f->dir, k);
         uint32_t w, h2, rw, rh;
-        size_t covered, ref_covered, both = 0, either = 0;
+        size_t covered, ref_covered;
         uint8_t *mask = ms_test_silhouette(json_string_value(json_object_get(key, "png")), &w, &h2, &covered);
         uint8_t *ref_mask = ms_test_silhouette(ref, &rw, &rh, &ref_covered);
         assert_int_equal(w, rw);
         assert_int_equal(h2, rh);
-        for (size_t i = 0; i < (size_t)w * h2; ++i) {
-            both += mask[i] & ref_mask[i];
-            either += mask[i] | ref_mask[i];
-        }
-        double iou = either ? (double)both / (double)either : 0.0;
+        double iou = ms_test_mask_iou(mask, ref_mask, (size_t)w * h2);
         printf("%g px tall: %lld triangles, %zu px covered (meshrender %zu), IoU %.3f, %.1f triangles "
                "per covered pixel\n", heights_px[k], (long long)triangles, covered, ref_covered, iou,
                (double)triangles / (double)(covered ? covered : 1));

@@ -9,6 +9,7 @@
 
 #include "ms_archive.h"
 #include "ms_camera.h"
+#include "ms_grow.h"
 #include "ms_parallel.h"
 #include "ms_subtree.h"
 #include "ms_view_decoder.h"
@@ -41,9 +42,9 @@ struct ms_web_view {
     bool has_camera;
     ms_view_select_params params;
     planned *plan;
-    uint32_t plan_count, plan_cap;
+    size_t plan_count, plan_cap;
     planned *colour_plan;   /* colour prefixes the target cut lacks (a colour model) */
-    uint32_t colour_count, colour_cap;
+    size_t colour_count, colour_cap;
     ms_view_mesh mesh;
     float *positions, *normals;
     size_t positions_cap;
@@ -52,7 +53,7 @@ struct ms_web_view {
     bool partial;           /* the index comes by subtree (ms_web_view_new_head) */
     ms_view_select_report report; /* the last selection's blocked and near cells (partial) */
     wanted_subtree *subtrees; /* the last plan's missing subtrees, in priority order */
-    uint32_t subtree_count, subtree_cap;
+    size_t subtree_count, subtree_cap;
     ms_pool *pool;          /* NULL: decoding on the caller's thread alone */
     ms_view_refine_jobs jobs; /* the pool's job list, kept between plans */
     ms_error err;
@@ -308,16 +309,10 @@ static int compare_planned_by_depth(const void *x, const void *y)
     return a->cell < b->cell ? -1 : a->cell > b->cell;
 }
 
-static bool plan_push(planned **list, uint32_t *count, uint32_t *cap, planned p)
+static bool plan_push(planned **list, size_t *count, size_t *cap, planned p)
 {
-    if (*count == *cap) {
-        uint32_t grown_cap = *cap ? 2 * *cap : 64;
-        planned *grown = realloc(*list, grown_cap * sizeof *grown);
-        if (!grown)
-            return false;
-        *list = grown;
-        *cap = grown_cap;
-    }
+    if (!ms_grow((void **)list, cap, *count + 1, sizeof **list))
+        return false;
     (*list)[(*count)++] = p;
     return true;
 }
@@ -368,15 +363,9 @@ static bool want_children(ms_web_view *v, uint32_t cell)
     if (id == MS_ARCHIVE_NONE || id == ms_archive_subtree_of(v->index, cell) ||
         ms_archive_subtree_held(v->index, id))
         return true;
-    if (v->subtree_count == v->subtree_cap) {
-        uint32_t cap = v->subtree_cap ? 2 * v->subtree_cap : 64;
-        wanted_subtree *grown = realloc(v->subtrees, cap * sizeof *grown);
-        if (!grown)
-            return false;
-        v->subtrees = grown;
-        v->subtree_cap = cap;
-    }
-    v->subtrees[v->subtree_count] = (wanted_subtree){id, v->subtree_count};
+    if (!ms_grow((void **)&v->subtrees, &v->subtree_cap, v->subtree_count + 1, sizeof *v->subtrees))
+        return false;
+    v->subtrees[v->subtree_count] = (wanted_subtree){id, (uint32_t)v->subtree_count};
     v->subtree_count++;
     return true;
 }
@@ -412,7 +401,7 @@ static ms_status plan_subtrees(ms_web_view *v)
     return MS_OK;
 }
 
-uint32_t ms_web_view_plan_subtree_count(const ms_web_view *v) { return v->subtree_count; }
+uint32_t ms_web_view_plan_subtree_count(const ms_web_view *v) { return (uint32_t)v->subtree_count; }
 
 uint32_t ms_web_view_plan_subtree(const ms_web_view *v, uint32_t k)
 {
@@ -443,7 +432,7 @@ ms_status ms_web_view_plan(ms_web_view *v, uint32_t max, int *settled)
      * cell about to split: the first rounds are small and each round's mesh
      * shows more); pass 1, ahead: the rest of the target cut, level by level */
     for (int pass = 0; pass < (v->ahead ? 2 : 1); ++pass) {
-        uint32_t first = v->plan_count;
+        size_t first = v->plan_count;
         for (uint32_t c = ms_view_next_known(v->view, MS_ARCHIVE_NONE);
              c != MS_ARCHIVE_NONE && (max == 0 || v->plan_count < max); c = ms_view_next_known(v->view, c)) {
             const ms_archive_cell *rec = ms_view_cell(v->view, c);
@@ -475,7 +464,7 @@ ms_status ms_web_view_plan(ms_web_view *v, uint32_t max, int *settled)
     return MS_OK;
 }
 
-uint32_t ms_web_view_plan_count(const ms_web_view *v) { return v->plan_count; }
+uint32_t ms_web_view_plan_count(const ms_web_view *v) { return (uint32_t)v->plan_count; }
 
 uint32_t ms_web_view_plan_cell(const ms_web_view *v, uint32_t k)
 {
@@ -497,7 +486,7 @@ int ms_web_view_has_colour(const ms_web_view *v)
     return ms_archive_get_header(v->index)->has_colour;
 }
 
-uint32_t ms_web_view_plan_colour_count(const ms_web_view *v) { return v->colour_count; }
+uint32_t ms_web_view_plan_colour_count(const ms_web_view *v) { return (uint32_t)v->colour_count; }
 
 uint32_t ms_web_view_plan_colour_cell(const ms_web_view *v, uint32_t k)
 {

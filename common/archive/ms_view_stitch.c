@@ -3,6 +3,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "ms_grow.h"
 #include "ms_view_decoder_internal.h"
 
 /* ---- stitching ------------------------------------------------------------ */
@@ -328,19 +329,6 @@ typedef struct dep_note {
 #define DEP_FINER (UINT64_MAX - 255u)
 #define DEP_LEVEL (UINT64_MAX - 254u)
 
-static bool grow_array(void **array, size_t *cap, size_t need, size_t size)
-{
-    if (need <= *cap)
-        return true;
-    size_t c = grown(*cap, need);
-    void *q = realloc(*array, c * size);
-    if (!q)
-        return false;
-    *array = q;
-    *cap = c;
-    return true;
-}
-
 static bool note_dep(vpiece *p, dep_note *d, uint32_t cell, uint64_t word)
 {
     if (cell == d->cell && word == d->word)
@@ -348,7 +336,7 @@ static bool note_dep(vpiece *p, dep_note *d, uint32_t cell, uint64_t word)
     d->cell = cell;
     d->word = word;
     d->version = version_mix(d->version, cell, word);
-    if (!grow_array((void **)&p->deps, &p->dep_cap, p->dep_count + 1, sizeof *p->deps))
+    if (!ms_grow((void **)&p->deps, &p->dep_cap, p->dep_count + 1, sizeof *p->deps))
         return false;
     p->deps[p->dep_count++] = (vpiece_dep){cell, word};
     return true;
@@ -424,7 +412,7 @@ static ms_status make_piece(ms_view *v, uint32_t id, vcell *c, uint8_t **snapped
      * corner's owner lookup ended at, as far as the loop below looks (what
      * it does depends on nothing else) */
     dep_note dep = {version_mix(0x243F6A8885A308D3ull, id, c->stamp), NONE, 0};
-    bool room = grow_array((void **)&p->deps, &p->dep_cap, 1, sizeof *p->deps);
+    bool room = ms_grow((void **)&p->deps, &p->dep_cap, 1, sizeof *p->deps);
     if (room)
         p->deps[p->dep_count++] = (vpiece_dep){id, c->stamp};
     for (size_t t = 0; t < c->cache.tri_count && room; ++t) {
@@ -467,7 +455,7 @@ static ms_status make_piece(ms_view *v, uint32_t id, vcell *c, uint8_t **snapped
             }
             p->snapped_frozen += lx < Lo;
             /* the vertex goes out here, drawn or not (as the stitch asks for it) */
-            if (!(room = room && grow_array((void **)&p->calls, &p->call_cap, 2 * (p->call_count + 1),
+            if (!(room = room && ms_grow((void **)&p->calls, &p->call_cap, 2 * (p->call_count + 1),
                                             sizeof *p->calls)))
                 break;
             p->calls[2 * p->call_count] = o;
@@ -482,7 +470,7 @@ static ms_status make_piece(ms_view *v, uint32_t id, vcell *c, uint8_t **snapped
             p->dropped_snapped++;
             continue;
         }
-        if (!(room = grow_array((void **)&p->corners, &p->tri_cap, 3 * (p->tri_count + 1), sizeof *p->corners)))
+        if (!(room = ms_grow((void **)&p->corners, &p->tri_cap, 3 * (p->tri_count + 1), sizeof *p->corners)))
             break;
         memcpy(&p->corners[3 * p->tri_count], r, sizeof r);
         (*snapped)[p->tri_count++] = moved;
@@ -670,7 +658,7 @@ ms_status ms_view_stitch(ms_view *v, const bool *visible, ms_view_mesh *m, ms_er
         vcell *c = ms_view_vcell(v, id);
         if (!c || c->state != MS_VIEW_SHOWN)
             continue;
-        if (!grow_array((void **)&cells, &cap, count + 1, sizeof *cells)) {
+        if (!ms_grow((void **)&cells, &cap, count + 1, sizeof *cells)) {
             free(cells);
             return ms_error_set(err, MS_ERR_NOMEM, "out of memory stitching");
         }

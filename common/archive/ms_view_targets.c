@@ -7,6 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "ms_grow.h"
 #include "ms_view_decoder_internal.h"
 
 static void cell_box(const ms_view *v, const ms_archive_cell *c, double lo[3], double hi[3])
@@ -91,15 +92,9 @@ double ms_view_cell_select_need(const ms_view *v, const ms_camera *cam, uint32_t
 
 static void list_push(uint32_t **list, size_t *count, size_t *cap, bool *failed, uint32_t cell)
 {
-    if (*count == *cap) {
-        size_t grown = *cap ? 2 * *cap : 64;
-        uint32_t *g = realloc(*list, grown * sizeof *g);
-        if (!g) {
-            *failed = true;
-            return;
-        }
-        *list = g;
-        *cap = grown;
+    if (!ms_grow((void **)list, cap, *count + 1, sizeof **list)) {
+        *failed = true;
+        return;
     }
     (*list)[(*count)++] = cell;
 }

@@ -1,5 +1,7 @@
 #include "ms_mesh.h"
 
+#include "ms_grow.h"
+
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -31,31 +33,13 @@ static ms_status next_capacity(size_t capacity, size_t want, size_t item_size, s
     return MS_OK;
 }
 
-/* Grows *array to hold at least `want` items of `item_size` bytes. */
-static ms_status grow_array(void **array, size_t *capacity, size_t want, size_t item_size,
-                            ms_error *err)
-{
-    if (want <= *capacity)
-        return MS_OK;
-    size_t cap;
-    ms_status st = next_capacity(*capacity, want, item_size, &cap, err);
-    if (st != MS_OK)
-        return st;
-    void *grown = realloc(*array, cap * item_size);
-    if (!grown)
-        return ms_error_set(err, MS_ERR_NOMEM, "out of memory reserving %zu mesh items", want);
-    *array = grown;
-    *capacity = cap;
-    return MS_OK;
-}
-
 ms_status ms_mesh_reserve(ms_mesh *mesh, size_t vertex_capacity, size_t triangle_capacity,
                           ms_error *err)
 {
     if (vertex_capacity > mesh->vertex_capacity) {
         /* Positions and colours grow together; the capacity is raised only when
          * both have the room. */
-        size_t cap;
+        size_t cap = 0;
         ms_status st = next_capacity(mesh->vertex_capacity, vertex_capacity, 3 * sizeof(double),
                                      &cap, err);
         if (st != MS_OK)
@@ -75,10 +59,10 @@ ms_status ms_mesh_reserve(ms_mesh *mesh, size_t vertex_capacity, size_t triangle
         mesh->vertex_capacity = cap;
     }
     void *triangles = mesh->triangles;
-    ms_status st = grow_array(&triangles, &mesh->triangle_capacity, triangle_capacity,
-                              3 * sizeof(uint32_t), err);
+    bool grown = ms_grow(&triangles, &mesh->triangle_capacity, triangle_capacity, 3 * sizeof(uint32_t));
     mesh->triangles = triangles;
-    return st;
+    return grown ? MS_OK
+                 : ms_error_set(err, MS_ERR_NOMEM, "out of memory reserving %zu mesh triangles", triangle_capacity);
 }
 
 ms_status ms_mesh_add_colours(ms_mesh *mesh, bool alpha, ms_error *err)

@@ -70,13 +70,19 @@ double ms_test_silhouette_iou(const char *path, const char *ref_path, uint32_t w
     assert_int_equal(h, height);
     assert_int_equal(rw, width);
     assert_int_equal(rh, height);
-    size_t both = 0, either = 0;
-    for (size_t i = 0; i < (size_t)w * h; ++i) {
-        both += mask[i] & ref_mask[i];
-        either += mask[i] | ref_mask[i];
-    }
+    double iou = ms_test_mask_iou(mask, ref_mask, (size_t)w * h);
     free(mask);
     free(ref_mask);
+    return iou;
+}
+
+double ms_test_mask_iou(const uint8_t *a, const uint8_t *b, size_t n)
+{
+    size_t both = 0, either = 0;
+    for (size_t i = 0; i < n; ++i) {
+        both += a[i] & b[i];
+        either += a[i] | b[i];
+    }
     return either ? (double)both / (double)either : 0.0;
 }
 

@@ -25,6 +25,10 @@ uint8_t *ms_test_silhouette(const char *path, uint32_t *width, uint32_t *height,
 double ms_test_silhouette_iou(const char *path, const char *ref_path, uint32_t width, uint32_t height,
                               size_t *covered, size_t *ref_covered);
 
+/* The intersection over union of two masks of n pixels (0 or 1 each); 0
+ * when neither covers a pixel. */
+double ms_test_mask_iou(const uint8_t *a, const uint8_t *b, size_t n);
+
 /* The PSNR in dB (all three channels; 99 when equal) of two PNGs, which must
  * both be width x height (the test fails otherwise). */
 double ms_test_png_psnr(const char *path, const char *ref_path, uint32_t width, uint32_t height);
