@@ -12,9 +12,12 @@
  * Until the bounds are known the root's bytes are wanted up to root
  * precision (a few kilobytes, which the memory budget lets through as it does
  * the index's subtrees: a far model's root would otherwise wait behind the
- * near models' cells, and its viewer with it); the root is decoded there for
- * the bounds and back to the precision the selection shows it at, so the
- * view, its memory and its frames are the selection's. Before the caller's
+ * near models' cells, and its viewer with it). The bounds are read from the
+ * root as soon as the selection shows it at root precision or finer (on most
+ * views it takes the root there itself while the view streams in); a root the
+ * selection keeps coarser is decoded there for the bounds and back once the
+ * view is complete, so the view, its memory and its frames are the
+ * selection's and a streaming view does not decode its root twice. Before the caller's
  * first camera the decode thread serves a camera of its own that needs
  * nothing more (and no APO), so ms_core_wait_open can hand the bounds over
  * with the index, before anything is drawn. */
@@ -62,10 +65,13 @@ bool ms_core_content_want(const ms_core *c, const want *w)
     return c->content == CONTENT_PENDING && w->cell == 0 && w->stream == STREAM_GEOMETRY;
 }
 
-/* The root's bounds at root precision, decoded there and back when it is
- * shown coarser (ms_view_set_bits is exactly reversible: the view, its
- * memory and its frames stay as the selection left them). */
-static ms_status root_bounds(ms_core *c, unsigned bits, double lo[3], double hi[3], ms_error *err)
+/* The root's bounds at root precision, decoded there when it is shown
+ * coarser, and back (ms_view_set_bits is exactly reversible: the view, its
+ * memory and its frames stay as the selection left them) unless `stay`: a
+ * pass of the content camera, which makes no frame, leaves it there for the
+ * caller's first selection, which usually wants it there or finer (and
+ * otherwise coarsens it before its first frame). */
+static ms_status root_bounds(ms_core *c, unsigned bits, bool stay, double lo[3], double hi[3], ms_error *err)
 {
     unsigned shown = ms_view_bits(c->dec.view, 0);
     if (shown >= bits)
@@ -74,14 +80,14 @@ static ms_status root_bounds(ms_core *c, unsigned bits, double lo[3], double hi[
     if (st == MS_OK)
         st = ms_view_cell_bounds(c->dec.view, 0, lo, hi, err);
     ms_error back_err;
-    if (ms_view_set_bits(c->dec.view, 0, shown, &back_err) != MS_OK && st == MS_OK) {
+    if (!stay && ms_view_set_bits(c->dec.view, 0, shown, &back_err) != MS_OK && st == MS_OK) {
         *err = back_err;
         st = back_err.code;
     }
     return st;
 }
 
-void ms_core_content_note(ms_core *c)
+void ms_core_content_note(ms_core *c, bool now, bool for_content)
 {
     const ms_archive_cell *root = ms_archive_get_cell(c->index, 0);
     if (c->content != CONTENT_PENDING || !root || ms_view_state(c->dec.view, 0) == MS_VIEW_HIDDEN)
@@ -91,9 +97,9 @@ void ms_core_content_note(ms_core *c)
     unsigned bits = content_bits(c);
     if (root->geometry_length == 0) {
         content = CONTENT_NONE; /* an empty model */
-    } else if (ms_view_bits(c->dec.view, 0) >= bits || ms_view_available_bits(c->dec.view, 0) >= bits) {
+    } else if (ms_view_bits(c->dec.view, 0) >= bits || (now && ms_view_available_bits(c->dec.view, 0) >= bits)) {
         ms_error err;
-        ms_status st = root_bounds(c, bits, lo, hi, &err);
+        ms_status st = root_bounds(c, bits, for_content, lo, hi, &err);
         content = st == MS_OK ? CONTENT_KNOWN : CONTENT_NONE;
         if (st != MS_OK && st != MS_ERR_EMPTY)
             ms_core_warn(c, err.text);

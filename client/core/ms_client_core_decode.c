@@ -98,7 +98,8 @@ static bool dec_select(ms_core *c, dec_pass *pass, unsigned long long *mark)
                   report.coarsened;
         pass->changed |= changed;
     }
-    ms_core_content_note(c);
+    /* the view complete: the last pass's verdict (published by this thread) */
+    ms_core_content_note(c, pass->for_content || c->stats.view_complete, pass->for_content);
     w->content_cpu += cpu_lap(mark);
     return true;
 }

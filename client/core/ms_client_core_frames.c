@@ -257,7 +257,8 @@ void ms_core_publish(ms_core *c, dec_pass *pass, uint64_t serial, double t_start
     bool first_display = look && something_drawn(c, &pass->fv);
     ms_core_frame *frame = NULL;
     double frame_busy = 0.0;
-    if (c->o.export_frames && (pass->changed || c->dec.generation == 0)) {
+    if (c->o.export_frames &&
+        (pass->changed || c->dec.generation == 0 || (c->dec.frame_for_content && !pass->for_content))) {
         ms_error err;
         double t_frame = ms_now_seconds();
         frame = make_frame(c, &err);
@@ -265,6 +266,7 @@ void ms_core_publish(ms_core *c, dec_pass *pass, uint64_t serial, double t_start
         if (frame) {
             frame->generation = ++c->dec.generation;
             frame->time = t_now;
+            c->dec.frame_for_content = pass->for_content;
         }
     }
     double busy = ms_now_seconds() - t_start;

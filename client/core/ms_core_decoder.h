@@ -123,6 +123,9 @@ typedef struct ms_core_decoder {
      * that changes nothing still counts once for a new camera) */
     uint64_t display_checked_serial;
     bool display_checked;
+    /* the last frame was made by a pass of the content camera: the caller's
+     * next pass makes its own, whatever changed (its first display's frame) */
+    bool frame_for_content;
     ms_sched_cell *sched_cells; /* the scheduler's snapshot (ms_client_core_schedule.c) */
     size_t sched_cells_cap;
     ms_sched_subtree *sched_subtrees;
@@ -269,9 +272,15 @@ unsigned ms_core_content_goal(const ms_core *c, uint32_t cell, unsigned goal);
 /* Whether w is one the bounds wait for (the root's geometry while they are
  * pending): the budget lets it through. */
 bool ms_core_content_want(const ms_core *c, const want *w);
-/* After the view moved: takes the bounds from the root once its bytes reach
- * root precision (or gives up on them), and publishes them. */
-void ms_core_content_note(ms_core *c);
+/* After a pass: takes the bounds from the root once its bytes reach root
+ * precision (or gives up on them), and publishes them. From a root shown at
+ * root precision or finer at once; from one shown coarser only when `now`
+ * (the content camera's pass, or the caller's view complete): while the view
+ * still streams, the selection usually takes the root there itself, and
+ * decoding it there and back for the bounds would decode it twice. A pass
+ * of the content camera (for_content) leaves the root there for the caller's
+ * first selection. */
+void ms_core_content_note(ms_core *c, bool now, bool for_content);
 
 /* ---- ms_client_core_frames.c ---- */
 
