@@ -26,18 +26,26 @@ typedef struct u32vec {
     size_t n, cap;
 } u32vec;
 
-static bool u32vec_push(u32vec *a, uint32_t x)
+static bool u32vec_grow(u32vec *a, uint32_t x)
 {
-    if (a->n == a->cap) {
-        size_t cap = a->cap ? 2 * a->cap : 64;
-        uint32_t *v = realloc(a->v, cap * sizeof *v);
-        if (!v)
-            return false;
-        a->v = v;
-        a->cap = cap;
-    }
+    size_t cap = a->cap ? 2 * a->cap : 64;
+    uint32_t *v = realloc(a->v, cap * sizeof *v);
+    if (!v)
+        return false;
+    a->v = v;
+    a->cap = cap;
     a->v[a->n++] = x;
     return true;
+}
+
+/* The common case inline, the growth out of line. */
+static inline bool u32vec_push(u32vec *a, uint32_t x)
+{
+    if (a->n < a->cap) {
+        a->v[a->n++] = x;
+        return true;
+    }
+    return u32vec_grow(a, x);
 }
 
 static void u32vec_free(u32vec *a)
@@ -193,16 +201,9 @@ static bool vertex_in_cube(const float c[3], float half, const float *p0, const 
  * `quarter`) triangle t touches: a bit mask of octants. */
 static uint32_t child_octants(const ms_apo_local_mesh *lm, uint32_t t, const float c[3], float quarter, uint32_t wanted)
 {
-    /* The triangle's bounds, from its vertices: the same floats a stored copy
-     * would hold, without 24 bytes per M-triangle for the whole build. */
-    const uint32_t *v = &lm->tri[3 * t];
-    const float *p0 = &lm->pos[3 * v[0]], *p1 = &lm->pos[3 * v[1]], *p2 = &lm->pos[3 * v[2]];
-    float b[6];
-    for (int a = 0; a < 3; ++a) {
-        float lo = p1[a] < p2[a] ? p1[a] : p2[a], hi = p1[a] > p2[a] ? p1[a] : p2[a];
-        b[a] = p0[a] < lo ? p0[a] : lo;
-        b[3 + a] = p0[a] > hi ? p0[a] : hi;
-    }
+    /* The triangle's stored bounds: its corners are fetched only where it
+     * straddles a mid-plane (most triangles, small against the cell, do not). */
+    const float *b = &lm->box[6 * t];
     /* Octants on the lower / upper side of each axis, as masks (x is bit 2). */
     uint32_t x = (b[0] <= c[0] ? 0x0Fu : 0u) | (b[3] >= c[0] ? 0xF0u : 0u);
     uint32_t y = (b[1] <= c[1] ? 0x33u : 0u) | (b[4] >= c[1] ? 0xCCu : 0u);
@@ -214,6 +215,8 @@ static uint32_t child_octants(const ms_apo_local_mesh *lm, uint32_t t, const flo
         return mask & wanted;
     mask &= wanted;
     uint32_t kept = 0;
+    const uint32_t *v = &lm->tri[3 * t];
+    const float *p0 = &lm->pos[3 * v[0]], *p1 = &lm->pos[3 * v[1]], *p2 = &lm->pos[3 * v[2]];
     for (uint32_t o = 0; o < 8; ++o) {
         if (!(mask >> o & 1u))
             continue;
@@ -255,14 +258,10 @@ static uint32_t child_reach(const ms_apo_local_mesh *lm, uint32_t t, const float
     const uint32_t *v = &lm->tri[3 * t];
     const float *p0 = &lm->pos[3 * v[0]], *p1 = &lm->pos[3 * v[1]], *p2 = &lm->pos[3 * v[2]];
     uint32_t side[3];
-    float lo3[3], hi3[3];
+    const float *lo3 = &lm->box[6 * t], *hi3 = lo3 + 3;
     const uint32_t lower[3] = {0x0Fu, 0x33u, 0x55u};
     for (int a = 0; a < 3; ++a) {
-        float lo = p1[a] < p2[a] ? p1[a] : p2[a], hi = p1[a] > p2[a] ? p1[a] : p2[a];
-        lo = p0[a] < lo ? p0[a] : lo;
-        hi = p0[a] > hi ? p0[a] : hi;
-        lo3[a] = lo;
-        hi3[a] = hi;
+        float lo = lo3[a], hi = hi3[a];
         side[a] = (lo <= c[a] - quarter + reach && hi >= c[a] - quarter - reach ? lower[a] : 0u) |
                   (lo <= c[a] + quarter + reach && hi >= c[a] + quarter - reach ? (uint32_t)~lower[a] & 0xFFu : 0u);
     }
@@ -557,15 +556,18 @@ static ms_status root_level(const ms_apo_local_mesh *m, const ms_apo_local_mesh 
     u32vec mi = {0}, bi = {0};
     const float c[3] = {0.5f, 0.5f, 0.5f};
     bool ok = true;
+    /* A corner in the cube settles it without the 13 axes (most triangles of
+     * the cell's own m and M lie inside its cube). */
     for (uint32_t t = 0; t < m->triangle_count && ok; ++t) {
         const uint32_t *v = &m->tri[3 * t];
-        if (ms_tri_cube_overlap(c, 0.5f, &m->pos[3 * v[0]], &m->pos[3 * v[1]], &m->pos[3 * v[2]]))
+        const float *p0 = &m->pos[3 * v[0]], *p1 = &m->pos[3 * v[1]], *p2 = &m->pos[3 * v[2]];
+        if (vertex_in_cube(c, 0.5f, p0, p1, p2) || ms_tri_cube_overlap(c, 0.5f, p0, p1, p2))
             ok = u32vec_push(&mi, t);
     }
     for (uint32_t t = 0; t < big->triangle_count && ok && mi.n; ++t) {
         const uint32_t *v = &big->tri[3 * t];
-        if (ms_tri_cube_overlap(c, 0.5f * reach, &big->pos[3 * v[0]], &big->pos[3 * v[1]],
-                                &big->pos[3 * v[2]]))
+        const float *p0 = &big->pos[3 * v[0]], *p1 = &big->pos[3 * v[1]], *p2 = &big->pos[3 * v[2]];
+        if (vertex_in_cube(c, 0.5f * reach, p0, p1, p2) || ms_tri_cube_overlap(c, 0.5f * reach, p0, p1, p2))
             ok = u32vec_push(&bi, t);
     }
     if (ok && mi.n) {
