@@ -214,18 +214,29 @@ static uint32_t child_octants(const ms_apo_local_mesh *lm, uint32_t t, const flo
     if ((mask & (mask - 1u)) == 0)
         return mask & wanted;
     mask &= wanted;
-    uint32_t kept = 0;
     const uint32_t *v = &lm->tri[3 * t];
-    const float *p0 = &lm->pos[3 * v[0]], *p1 = &lm->pos[3 * v[1]], *p2 = &lm->pos[3 * v[2]];
+    const float *p[3] = {&lm->pos[3 * v[0]], &lm->pos[3 * v[1]], &lm->pos[3 * v[2]]};
+    /* A vertex in a child's closed cube settles it without the 13 axes: most
+     * triangles that straddle a mid-plane have one in each octant they touch
+     * (on a crowded M, slivers around a shared vertex). The children each
+     * vertex lies in, from the same tests vertex_in_cube makes per child (the
+     * child's centre c +- quarter on each axis), made once per vertex and axis. */
+    const uint32_t lower[3] = {0x0Fu, 0x33u, 0x55u};
+    uint32_t holds = 0;
+    for (int k = 0; k < 3; ++k) {
+        uint32_t in = 0xFFu;
+        for (int a = 0; a < 3; ++a)
+            in &= (fabsf(p[k][a] - (c[a] + -quarter)) <= quarter ? lower[a] : 0u) |
+                  (fabsf(p[k][a] - (c[a] + quarter)) <= quarter ? (uint32_t)~lower[a] & 0xFFu : 0u);
+        holds |= in;
+    }
+    uint32_t kept = mask & holds;
     for (uint32_t o = 0; o < 8; ++o) {
-        if (!(mask >> o & 1u))
+        if (!(mask >> o & 1u) || (kept >> o & 1u))
             continue;
         float cc[3] = {c[0] + ((o >> 2 & 1u) ? quarter : -quarter), c[1] + ((o >> 1 & 1u) ? quarter : -quarter),
                        c[2] + ((o & 1u) ? quarter : -quarter)};
-        /* A vertex in the child's closed cube settles it without the 13
-         * axes: most triangles that straddle a mid-plane have one in each
-         * octant they touch (on a crowded M, slivers around a shared vertex). */
-        if (vertex_in_cube(cc, quarter, p0, p1, p2) || ms_tri_cube_overlap(cc, quarter, p0, p1, p2))
+        if (ms_tri_cube_overlap(cc, quarter, p[0], p[1], p[2]))
             kept |= 1u << o;
     }
     return kept;
@@ -323,7 +334,14 @@ static void split_block(void *ctx, size_t block)
             out->failed = true;
             break;
         }
-        if (!splits(job, depth, job->crowded ? own.v : big_idx, !decide ? 0 : job->crowded ? own.n : big_n))
+        /* Uncrowded, below the root, the parent has weighed this list already
+         * (a child keeps it only where the rule splits it, below): a list is
+         * the answer. */
+        bool split = decide && !job->crowded && depth > 0
+                         ? big_n > 0
+                         : splits(job, depth, job->crowded ? own.v : big_idx,
+                                  !decide ? 0 : job->crowded ? own.n : big_n);
+        if (!split)
             continue;
         for (int o = 0; o < 8; ++o) {
             child_m[o].n = 0;
