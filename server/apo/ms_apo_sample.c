@@ -363,35 +363,18 @@ size_t ms_apo_leaf_samples(size_t big_count)
     return n < 1 ? 1 : n > MS_APO_SAMPLES_PER_LEAF ? MS_APO_SAMPLES_PER_LEAF : n;
 }
 
-/* The `limit` m-triangles of the leaf's list nearest to its centre, sorted
- * (insertion: the list is short), into kept; their number. Once `limit` are
- * kept, a triangle whose bounds lie farther than the last kept one (by a
- * margin far above the rounding of closest_on_triangle, which can only
- * make it farther still) cannot enter: its closest point is not computed. The
- * order (distance, then index) is total, so the first k of the nearest
- * `limit` are the nearest k. */
-static size_t nearest_m(const ms_apo_local_mesh *m, const ms_apo_leaf_probe *leaf, size_t limit,
-                        leaf_candidate *kept, ms_apo_sample_counts *counts)
+void ms_apo_sample_leaf(const ms_apo_sampler *sampler, const ms_apo_local_mesh *m, const ms_apo_leaf_probe *leaf,
+                        float search, float normal[3], float smooth[3], ms_apo_sample_counts *counts)
 {
-    size_t kept_n = 0;
+    /* The nearest MS_APO_SAMPLES_PER_LEAF m-triangles, kept sorted (insertion:
+     * the list is short), so that the rays cast do not grow with the leaf's list. */
+    leaf_candidate kept[MS_APO_SAMPLES_PER_LEAF];
+    size_t kept_n = 0, limit = ms_apo_leaf_samples(leaf->big_count);
     const float *centre = leaf->centre;
     for (size_t k = 0; k < leaf->m_count; ++k) {
         leaf_candidate c = {.tri = leaf->m_tris[k]};
-        if (kept_n == limit) {
-            const float *b = &m->box[6 * c.tri];
-            double lb = 0.0;
-            for (int a = 0; a < 3; ++a) {
-                double below = (double)b[a] - centre[a], above = (double)centre[a] - b[3 + a];
-                double out = below > 0.0 ? below : above > 0.0 ? above : 0.0;
-                lb += out * out;
-            }
-            double last = kept[kept_n - 1].d2;
-            if (lb > last + 1e-9 * last + 1e-15)
-                continue;
-        }
         const uint32_t *v = &m->tri[3 * c.tri];
         c.d2 = closest_on_triangle(centre, &m->pos[3 * v[0]], &m->pos[3 * v[1]], &m->pos[3 * v[2]], &c.wb, &c.wc);
-        counts->triangle_tests++;
         if (kept_n == limit && !candidate_before(&c, &kept[kept_n - 1]))
             continue;
         size_t at = kept_n < limit ? kept_n++ : kept_n - 1;
@@ -401,20 +384,7 @@ static size_t nearest_m(const ms_apo_local_mesh *m, const ms_apo_leaf_probe *lea
         }
         kept[at] = c;
     }
-    return kept_n;
-}
-
-void ms_apo_sample_leaf(const ms_apo_sampler *sampler, const ms_apo_local_mesh *m, const ms_apo_leaf_probe *leaf,
-                        float search, float normal[3], float smooth[3], ms_apo_sample_counts *counts)
-{
-    /* The nearest MS_APO_SAMPLES_PER_LEAF m-triangles, so that the rays cast
-     * do not grow with the leaf's list: the nearest two first (most leaves
-     * settle with them), the rest only where those two disagree. */
-    leaf_candidate kept[MS_APO_SAMPLES_PER_LEAF];
-    size_t limit = ms_apo_leaf_samples(leaf->big_count);
-    size_t kept_n = leaf->m_count < limit ? leaf->m_count : limit; /* how many the full search keeps */
-    nearest_m(m, leaf, limit < 2 ? limit : 2, kept, counts);
-    const float *centre = leaf->centre;
+    counts->triangle_tests += leaf->m_count;
     /* Adaptive: two samples first, the rest only where they disagree. */
     double agree_cos = leaf->agreement > 0.0f ? cos((double)leaf->agreement) : 2.0;
     double sum[3] = {0, 0, 0}, first_sample[3] = {0, 0, 1}, pred[3] = {0, 0, 0};
@@ -478,8 +448,6 @@ void ms_apo_sample_leaf(const ms_apo_sampler *sampler, const ms_apo_local_mesh *
             counts->agreed++;
             break;
         }
-        if (k == 1 && kept_n > 2) /* they disagree: the rest of the nearest */
-            nearest_m(m, leaf, limit, kept, counts);
     }
     double len = sqrt(sum[0] * sum[0] + sum[1] * sum[1] + sum[2] * sum[2]);
     for (int a = 0; a < 3; ++a)
