@@ -48,6 +48,24 @@ static inline bool u32vec_push(u32vec *a, uint32_t x)
     return u32vec_grow(a, x);
 }
 
+static bool u32vec_append(u32vec *a, const uint32_t *x, size_t n)
+{
+    if (a->n + n > a->cap) {
+        size_t cap = a->cap ? a->cap : 64;
+        while (cap < a->n + n)
+            cap *= 2;
+        uint32_t *v = realloc(a->v, cap * sizeof *v);
+        if (!v)
+            return false;
+        a->v = v;
+        a->cap = cap;
+    }
+    if (n)
+        memcpy(&a->v[a->n], x, n * sizeof *x);
+    a->n += n;
+    return true;
+}
+
 static void u32vec_free(u32vec *a)
 {
     free(a->v);
@@ -388,10 +406,8 @@ static void split_block(void *ctx, size_t block)
                  u32vec_push(&out->cells, 2 * cell[2] + (o & 1u)) &&
                  u32vec_push(&out->m_count, (uint32_t)child_m[o].n) &&
                  u32vec_push(&out->big_count, (uint32_t)big_keep);
-            for (size_t k = 0; k < child_m[o].n && ok; ++k)
-                ok = u32vec_push(&out->m_idx, child_m[o].v[k]);
-            for (size_t k = 0; k < big_keep && ok; ++k)
-                ok = u32vec_push(&out->big_idx, child_big[o].v[k]);
+            ok = ok && u32vec_append(&out->m_idx, child_m[o].v, child_m[o].n) &&
+                 u32vec_append(&out->big_idx, child_big[o].v, big_keep);
         }
         if (!ok)
             out->failed = true;
