@@ -738,19 +738,7 @@ ms_status ms_apo_builder_build_tree(ms_apo_builder *builder, const ms_mesh *m_me
     stats->crowding = ms_apo_crowding(&big);
     bool crowded = stats->crowding > MS_APO_CROWDED;
     st = root_level(&m, &big, crowded ? MS_APO_LIST_REACH : 1.0f, &levels[0], &level_count, err);
-    /* Embree scene for M, and h. */
-    double ts = ms_now_seconds();
-    if (st == MS_OK && level_count)
-        st = ms_apo_sampler_init(&sampler, builder->device, &big, err);
-    double td = ms_now_seconds();
-    stats->seconds_scene = td - ts;
-    if (st == MS_OK && level_count && o->search_distance <= 0 && o->distance_bound > 0)
-        stats->m_to_M_distance = o->distance_bound;
-    else if (st == MS_OK && level_count && o->search_distance <= 0)
-        st = ms_apo_sampler_distance(&sampler, &m, threads, &stats->m_to_M_distance, err);
     double t1 = ms_now_seconds();
-    stats->seconds_distance = t1 - td;
-    stats->seconds_prepare = t1 - t0;
 
     /* Octree, level by level. */
     for (uint32_t d = 0; st == MS_OK && d < level_count && d < MS_APO_MAX_DEPTH; ++d) {
@@ -767,8 +755,28 @@ ms_status ms_apo_builder_build_tree(ms_apo_builder *builder, const ms_mesh *m_me
     }
     if (st == MS_OK && level_count)
         st = flatten_levels(levels, level_count, tree, err);
+    /* The triangles' bounds served the split alone: gone before Embree's
+     * scene, which the octree does not need, is built (the peak is one or
+     * the other, not both). */
+    free(m.box);
+    free(big.box);
+    m.box = big.box = NULL;
     double t2 = ms_now_seconds();
     stats->seconds_octree = t2 - t1;
+
+    /* Embree scene for M, and h. */
+    if (st == MS_OK && level_count)
+        st = ms_apo_sampler_init(&sampler, builder->device, &big, err);
+    double td = ms_now_seconds();
+    stats->seconds_scene = td - t2;
+    if (st == MS_OK && level_count && o->search_distance <= 0 && o->distance_bound > 0)
+        stats->m_to_M_distance = o->distance_bound;
+    else if (st == MS_OK && level_count && o->search_distance <= 0)
+        st = ms_apo_sampler_distance(&sampler, &m, threads, &stats->m_to_M_distance, err);
+    double t3 = ms_now_seconds();
+    stats->seconds_distance = t3 - td;
+    stats->seconds_prepare = (t1 - t0) + (t3 - t2);
+    t2 = t3;
 
     /* Leaf normals, then the means. */
     if (st == MS_OK && tree->node_count)
