@@ -793,10 +793,8 @@ ms_status ms_codec_run_encoder(ms_codec_header *h, const ms_codec_state *start,
         r = ms_codec_decoder_set_level(d, d->D, err);
     if (r == MS_OK && d->src_pos != n)
         r = ms_error_set(err, MS_ERR_ARG, "encoder: %zu of %zu decisions used", d->src_pos, n);
-    if (r == MS_OK && mesh) {
-        d->has_box = true; /* the header's box is the encoder's (params->box) */
+    if (r == MS_OK && mesh)
         r = ms_codec_decoder_mesh(d, mesh, err);
-    }
     ms_codec_decoder_destroy(d);
     return r;
 }

@@ -11,6 +11,7 @@
 #include "ms_apo_correct.h"
 #include "ms_apo_local_mesh.h"
 #include "ms_apo_sample.h"
+#include "ms_apo_u32vec.h"
 #include "ms_parallel.h"
 #include "ms_progress.h"
 #include "ms_tri_box.h"
@@ -18,59 +19,6 @@
 struct ms_apo_builder {
     RTCDevice device;
 };
-
-/* ---------------------------------------------------------------- growable arrays */
-
-typedef struct u32vec {
-    uint32_t *v;
-    size_t n, cap;
-} u32vec;
-
-static bool u32vec_grow(u32vec *a, uint32_t x)
-{
-    size_t cap = a->cap ? 2 * a->cap : 64;
-    uint32_t *v = realloc(a->v, cap * sizeof *v);
-    if (!v)
-        return false;
-    a->v = v;
-    a->cap = cap;
-    a->v[a->n++] = x;
-    return true;
-}
-
-/* The common case inline, the growth out of line. */
-static inline bool u32vec_push(u32vec *a, uint32_t x)
-{
-    if (a->n < a->cap) {
-        a->v[a->n++] = x;
-        return true;
-    }
-    return u32vec_grow(a, x);
-}
-
-static bool u32vec_append(u32vec *a, const uint32_t *x, size_t n)
-{
-    if (a->n + n > a->cap) {
-        size_t cap = a->cap ? a->cap : 64;
-        while (cap < a->n + n)
-            cap *= 2;
-        uint32_t *v = realloc(a->v, cap * sizeof *v);
-        if (!v)
-            return false;
-        a->v = v;
-        a->cap = cap;
-    }
-    if (n)
-        memcpy(&a->v[a->n], x, n * sizeof *x);
-    a->n += n;
-    return true;
-}
-
-static void u32vec_free(u32vec *a)
-{
-    free(a->v);
-    memset(a, 0, sizeof *a);
-}
 
 /* ---------------------------------------------------------------- octree levels */
 
