@@ -154,6 +154,7 @@ ms_status ms_apo_local_mesh_corner_normals(ms_apo_local_mesh *lm, double crease,
     for (size_t t = 0; t < nt; ++t)
         for (int k = 0; k < 3; ++k)
             fan[start[lm->tri[3 * t + k] + 1]++] = (uint32_t)(3 * t + (size_t)k); /* corners, by vertex */
+    const double cos_crease = cos(crease);
     for (size_t i = 0; i < nv; ++i) {
         uint32_t rep[MS_APO_CORNER_GROUPS];
         double sum[MS_APO_CORNER_GROUPS][3];
@@ -172,7 +173,10 @@ ms_status ms_apo_local_mesh_corner_normals(ms_apo_local_mesh *lm, double crease,
                 const float *r = &lm->fnormal[3 * rep[k]];
                 double cosine = (double)n[0] * r[0] + (double)n[1] * r[1] + (double)n[2] * r[2];
                 double limit = crease + slack[t] + slack[rep[k]];
-                if (limit >= M_PI || fabs(cosine) >= cos(limit)) {
+                /* within the crease itself: within the limit (cos, correctly
+                 * rounded, decreases on [0, pi]), without its cosine */
+                if (limit >= M_PI || (fabs(cosine) >= cos_crease && limit >= crease) ||
+                    fabs(cosine) >= cos(limit)) {
                     g = k;
                     sign = cosine < 0.0 ? -1.0 : 1.0;
                     break;
