@@ -316,9 +316,8 @@ static void split_block(void *ctx, size_t block)
         bool ok = true;
         for (uint64_t k = l->m_off[i]; k < l->m_off[i + 1] && ok; ++k) {
             uint32_t t = l->m_idx[k], mask = child_octants(job->m, t, c, quarter, 0xFFu);
-            for (uint32_t o = 0; o < 8 && ok; ++o)
-                if (mask >> o & 1u)
-                    ok = u32vec_push(&child_m[o], t);
+            for (; mask && ok; mask &= mask - 1u) /* the set bits, lowest first */
+                ok = u32vec_push(&child_m[__builtin_ctz(mask)], t);
         }
         uint32_t exist = 0;
         for (uint32_t o = 0; o < 8; ++o)
@@ -332,9 +331,8 @@ static void split_block(void *ctx, size_t block)
             uint32_t t = big_idx[k];
             uint32_t mask = job->crowded ? child_reach(job->big, t, c, quarter, MS_APO_LIST_REACH * quarter, exist)
                                          : child_octants(job->big, t, c, quarter, exist);
-            for (uint32_t o = 0; o < 8 && ok; ++o)
-                if (mask >> o & 1u)
-                    ok = u32vec_push(&child_big[o], t);
+            for (; mask && ok; mask &= mask - 1u)
+                ok = u32vec_push(&child_big[__builtin_ctz(mask)], t);
         }
         for (uint32_t o = 0; o < 8 && ok; ++o) {
             if (!(exist >> o & 1u))
