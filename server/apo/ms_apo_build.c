@@ -197,9 +197,8 @@ static uint32_t child_octants(const ms_apo_local_mesh *lm, uint32_t t, const flo
         holds |= in;
     }
     uint32_t kept = mask & holds;
-    for (uint32_t o = 0; o < 8; ++o) {
-        if (!(mask >> o & 1u) || (kept >> o & 1u))
-            continue;
+    for (uint32_t left = mask & ~holds; left; left &= left - 1u) {
+        uint32_t o = (uint32_t)__builtin_ctz(left);
         float cc[3] = {c[0] + ((o >> 2 & 1u) ? quarter : -quarter), c[1] + ((o >> 1 & 1u) ? quarter : -quarter),
                        c[2] + ((o & 1u) ? quarter : -quarter)};
         if (ms_tri_cube_overlap(cc, quarter, p[0], p[1], p[2]))
