@@ -135,6 +135,11 @@ typedef struct ms_codec_encode_params {
      * caller and accumulated across calls. Not thread-safe across concurrent
      * encodes sharing one array. */
     uint64_t *context_counts;
+    /* Optional, normally NULL: when set, receives the mesh the stream decodes to
+     * at its full precision (what ms_codec_decoder_mesh gives at level 3 P),
+     * taken from the encoder's own forward pass instead of a second decode (the
+     * bake's APO m of an internal cell). Freed by the caller (ms_mesh_free). */
+    ms_mesh *mesh;
 } ms_codec_encode_params;
 
 /* Number of contexts of the prior (every kd-level of 20 bits plus connectivity). */

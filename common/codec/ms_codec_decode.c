@@ -775,7 +775,7 @@ ms_status ms_codec_decoder_extend(ms_codec_decoder *d, const uint8_t *data, size
 ms_status ms_codec_run_encoder(ms_codec_header *h, const ms_codec_state *start,
                                const uint8_t *decisions, size_t n, const uint64_t *keys,
                                size_t nkeys, ms_rc_encoder *enc, uint64_t *context_counts,
-                               ms_error *err)
+                               ms_mesh *mesh, ms_error *err)
 {
     ms_codec_decoder *d = calloc(1, sizeof *d);
     if (!d)
@@ -793,6 +793,8 @@ ms_status ms_codec_run_encoder(ms_codec_header *h, const ms_codec_state *start,
         r = ms_codec_decoder_set_level(d, d->D, err);
     if (r == MS_OK && d->src_pos != n)
         r = ms_error_set(err, MS_ERR_ARG, "encoder: %zu of %zu decisions used", d->src_pos, n);
+    if (r == MS_OK && mesh)
+        r = ms_codec_decoder_mesh(d, mesh, err);
     ms_codec_decoder_destroy(d);
     return r;
 }

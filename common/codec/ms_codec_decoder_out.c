@@ -94,7 +94,7 @@ ms_status ms_codec_decoder_mesh(const ms_codec_decoder *d, ms_mesh *out, ms_erro
 {
     if (d->broken)
         return ms_error_set(err, MS_ERR_CORRUPT, "decoder stopped after a corrupted stream");
-    if (!d->has_box)
+    if (!d->has_box && !d->enc) /* an encoder's pass has its box (ms_codec_encode_params.box) */
         return ms_error_set(err, MS_ERR_ARG, "a compact codec stream needs its archive's box "
                             "for world positions");
     const ms_complex *cx = &d->cx;

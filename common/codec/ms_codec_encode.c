@@ -675,7 +675,7 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
     /* Forward pass: the decoder itself chooses every context. */
     ms_cx_free(&e.cx);
     s = ms_codec_run_encoder(&h, pmin == 0 ? NULL : &start, dec, nd, canon.cells,
-                             canon.vertex_count, &rc, params->context_counts, err);
+                             canon.vertex_count, &rc, params->context_counts, params->mesh, err);
     if (s == MS_OK && rc.failed)
         s = out_of_memory(err);
     if (s == MS_OK)

@@ -47,11 +47,12 @@ ms_status ms_codec_parse_header(const uint8_t *data, size_t size, ms_codec_heade
  * taking each binary decision from decisions[0..n) (decode order), or for the
  * geometry ahead (h->ahead > 0) from the sorted full keys[0..nkeys), and coding it
  * into enc with the decoder's contexts; fills h's chunk table. context_counts
- * (may be NULL) accumulates the decisions per context (ms_codec_encode_params). */
+ * (may be NULL) accumulates the decisions per context (ms_codec_encode_params);
+ * mesh (may be NULL) receives the decoded mesh at the end (ms_codec_decoder_mesh). */
 ms_status ms_codec_run_encoder(ms_codec_header *h, const ms_codec_state *start,
                                const uint8_t *decisions, size_t n, const uint64_t *keys,
                                size_t nkeys, ms_rc_encoder *enc, uint64_t *context_counts,
-                               ms_error *err);
+                               ms_mesh *mesh, ms_error *err);
 
 /* Exports a complex whose live cells (order[0..n), sorted by key) all sit at
  * `level` as a canonical ms_codec_state; bound (NULL, or n values in order's

@@ -11,6 +11,7 @@
 #include "ms_apo_correct.h"
 #include "ms_apo_local_mesh.h"
 #include "ms_apo_sample.h"
+#include "ms_apo_u32vec.h"
 #include "ms_parallel.h"
 #include "ms_progress.h"
 #include "ms_tri_box.h"
@@ -18,33 +19,6 @@
 struct ms_apo_builder {
     RTCDevice device;
 };
-
-/* ---------------------------------------------------------------- growable arrays */
-
-typedef struct u32vec {
-    uint32_t *v;
-    size_t n, cap;
-} u32vec;
-
-static bool u32vec_push(u32vec *a, uint32_t x)
-{
-    if (a->n == a->cap) {
-        size_t cap = a->cap ? 2 * a->cap : 64;
-        uint32_t *v = realloc(a->v, cap * sizeof *v);
-        if (!v)
-            return false;
-        a->v = v;
-        a->cap = cap;
-    }
-    a->v[a->n++] = x;
-    return true;
-}
-
-static void u32vec_free(u32vec *a)
-{
-    free(a->v);
-    memset(a, 0, sizeof *a);
-}
 
 /* ---------------------------------------------------------------- octree levels */
 
@@ -193,16 +167,9 @@ static bool vertex_in_cube(const float c[3], float half, const float *p0, const 
  * `quarter`) triangle t touches: a bit mask of octants. */
 static uint32_t child_octants(const ms_apo_local_mesh *lm, uint32_t t, const float c[3], float quarter, uint32_t wanted)
 {
-    /* The triangle's bounds, from its vertices: the same floats a stored copy
-     * would hold, without 24 bytes per M-triangle for the whole build. */
-    const uint32_t *v = &lm->tri[3 * t];
-    const float *p0 = &lm->pos[3 * v[0]], *p1 = &lm->pos[3 * v[1]], *p2 = &lm->pos[3 * v[2]];
-    float b[6];
-    for (int a = 0; a < 3; ++a) {
-        float lo = p1[a] < p2[a] ? p1[a] : p2[a], hi = p1[a] > p2[a] ? p1[a] : p2[a];
-        b[a] = p0[a] < lo ? p0[a] : lo;
-        b[3 + a] = p0[a] > hi ? p0[a] : hi;
-    }
+    /* The triangle's stored bounds: its corners are fetched only where it
+     * straddles a mid-plane (most triangles, small against the cell, do not). */
+    const float *b = &lm->box[6 * t];
     /* Octants on the lower / upper side of each axis, as masks (x is bit 2). */
     uint32_t x = (b[0] <= c[0] ? 0x0Fu : 0u) | (b[3] >= c[0] ? 0xF0u : 0u);
     uint32_t y = (b[1] <= c[1] ? 0x33u : 0u) | (b[4] >= c[1] ? 0xCCu : 0u);
@@ -213,16 +180,28 @@ static uint32_t child_octants(const ms_apo_local_mesh *lm, uint32_t t, const flo
     if ((mask & (mask - 1u)) == 0)
         return mask & wanted;
     mask &= wanted;
-    uint32_t kept = 0;
-    for (uint32_t o = 0; o < 8; ++o) {
-        if (!(mask >> o & 1u))
-            continue;
+    const uint32_t *v = &lm->tri[3 * t];
+    const float *p[3] = {&lm->pos[3 * v[0]], &lm->pos[3 * v[1]], &lm->pos[3 * v[2]]};
+    /* A vertex in a child's closed cube settles it without the 13 axes: most
+     * triangles that straddle a mid-plane have one in each octant they touch
+     * (on a crowded M, slivers around a shared vertex). The children each
+     * vertex lies in, from the same tests vertex_in_cube makes per child (the
+     * child's centre c +- quarter on each axis), made once per vertex and axis. */
+    const uint32_t lower[3] = {0x0Fu, 0x33u, 0x55u};
+    uint32_t holds = 0;
+    for (int k = 0; k < 3; ++k) {
+        uint32_t in = 0xFFu;
+        for (int a = 0; a < 3; ++a)
+            in &= (fabsf(p[k][a] - (c[a] + -quarter)) <= quarter ? lower[a] : 0u) |
+                  (fabsf(p[k][a] - (c[a] + quarter)) <= quarter ? (uint32_t)~lower[a] & 0xFFu : 0u);
+        holds |= in;
+    }
+    uint32_t kept = mask & holds;
+    for (uint32_t left = mask & ~holds; left; left &= left - 1u) {
+        uint32_t o = (uint32_t)__builtin_ctz(left);
         float cc[3] = {c[0] + ((o >> 2 & 1u) ? quarter : -quarter), c[1] + ((o >> 1 & 1u) ? quarter : -quarter),
                        c[2] + ((o & 1u) ? quarter : -quarter)};
-        /* A vertex in the child's closed cube settles it without the 13
-         * axes: most triangles that straddle a mid-plane have one in each
-         * octant they touch (on a crowded M, slivers around a shared vertex). */
-        if (vertex_in_cube(cc, quarter, p0, p1, p2) || ms_tri_cube_overlap(cc, quarter, p0, p1, p2))
+        if (ms_tri_cube_overlap(cc, quarter, p[0], p[1], p[2]))
             kept |= 1u << o;
     }
     return kept;
@@ -255,14 +234,10 @@ static uint32_t child_reach(const ms_apo_local_mesh *lm, uint32_t t, const float
     const uint32_t *v = &lm->tri[3 * t];
     const float *p0 = &lm->pos[3 * v[0]], *p1 = &lm->pos[3 * v[1]], *p2 = &lm->pos[3 * v[2]];
     uint32_t side[3];
-    float lo3[3], hi3[3];
+    const float *lo3 = &lm->box[6 * t], *hi3 = lo3 + 3;
     const uint32_t lower[3] = {0x0Fu, 0x33u, 0x55u};
     for (int a = 0; a < 3; ++a) {
-        float lo = p1[a] < p2[a] ? p1[a] : p2[a], hi = p1[a] > p2[a] ? p1[a] : p2[a];
-        lo = p0[a] < lo ? p0[a] : lo;
-        hi = p0[a] > hi ? p0[a] : hi;
-        lo3[a] = lo;
-        hi3[a] = hi;
+        float lo = lo3[a], hi = hi3[a];
         side[a] = (lo <= c[a] - quarter + reach && hi >= c[a] - quarter - reach ? lower[a] : 0u) |
                   (lo <= c[a] + quarter + reach && hi >= c[a] + quarter - reach ? (uint32_t)~lower[a] & 0xFFu : 0u);
     }
@@ -324,7 +299,14 @@ static void split_block(void *ctx, size_t block)
             out->failed = true;
             break;
         }
-        if (!splits(job, depth, job->crowded ? own.v : big_idx, !decide ? 0 : job->crowded ? own.n : big_n))
+        /* Uncrowded, below the root, the parent has weighed this list already
+         * (a child keeps it only where the rule splits it, below): a list is
+         * the answer. */
+        bool split = decide && !job->crowded && depth > 0
+                         ? big_n > 0
+                         : splits(job, depth, job->crowded ? own.v : big_idx,
+                                  !decide ? 0 : job->crowded ? own.n : big_n);
+        if (!split)
             continue;
         for (int o = 0; o < 8; ++o) {
             child_m[o].n = 0;
@@ -333,9 +315,8 @@ static void split_block(void *ctx, size_t block)
         bool ok = true;
         for (uint64_t k = l->m_off[i]; k < l->m_off[i + 1] && ok; ++k) {
             uint32_t t = l->m_idx[k], mask = child_octants(job->m, t, c, quarter, 0xFFu);
-            for (uint32_t o = 0; o < 8 && ok; ++o)
-                if (mask >> o & 1u)
-                    ok = u32vec_push(&child_m[o], t);
+            for (; mask && ok; mask &= mask - 1u) /* the set bits, lowest first */
+                ok = u32vec_push(&child_m[__builtin_ctz(mask)], t);
         }
         uint32_t exist = 0;
         for (uint32_t o = 0; o < 8; ++o)
@@ -349,9 +330,8 @@ static void split_block(void *ctx, size_t block)
             uint32_t t = big_idx[k];
             uint32_t mask = job->crowded ? child_reach(job->big, t, c, quarter, MS_APO_LIST_REACH * quarter, exist)
                                          : child_octants(job->big, t, c, quarter, exist);
-            for (uint32_t o = 0; o < 8 && ok; ++o)
-                if (mask >> o & 1u)
-                    ok = u32vec_push(&child_big[o], t);
+            for (; mask && ok; mask &= mask - 1u)
+                ok = u32vec_push(&child_big[__builtin_ctz(mask)], t);
         }
         for (uint32_t o = 0; o < 8 && ok; ++o) {
             if (!(exist >> o & 1u))
@@ -371,10 +351,8 @@ static void split_block(void *ctx, size_t block)
                  u32vec_push(&out->cells, 2 * cell[2] + (o & 1u)) &&
                  u32vec_push(&out->m_count, (uint32_t)child_m[o].n) &&
                  u32vec_push(&out->big_count, (uint32_t)big_keep);
-            for (size_t k = 0; k < child_m[o].n && ok; ++k)
-                ok = u32vec_push(&out->m_idx, child_m[o].v[k]);
-            for (size_t k = 0; k < big_keep && ok; ++k)
-                ok = u32vec_push(&out->big_idx, child_big[o].v[k]);
+            ok = ok && u32vec_append(&out->m_idx, child_m[o].v, child_m[o].n) &&
+                 u32vec_append(&out->big_idx, child_big[o].v, big_keep);
         }
         if (!ok)
             out->failed = true;
@@ -557,15 +535,18 @@ static ms_status root_level(const ms_apo_local_mesh *m, const ms_apo_local_mesh 
     u32vec mi = {0}, bi = {0};
     const float c[3] = {0.5f, 0.5f, 0.5f};
     bool ok = true;
+    /* A corner in the cube settles it without the 13 axes (most triangles of
+     * the cell's own m and M lie inside its cube). */
     for (uint32_t t = 0; t < m->triangle_count && ok; ++t) {
         const uint32_t *v = &m->tri[3 * t];
-        if (ms_tri_cube_overlap(c, 0.5f, &m->pos[3 * v[0]], &m->pos[3 * v[1]], &m->pos[3 * v[2]]))
+        const float *p0 = &m->pos[3 * v[0]], *p1 = &m->pos[3 * v[1]], *p2 = &m->pos[3 * v[2]];
+        if (vertex_in_cube(c, 0.5f, p0, p1, p2) || ms_tri_cube_overlap(c, 0.5f, p0, p1, p2))
             ok = u32vec_push(&mi, t);
     }
     for (uint32_t t = 0; t < big->triangle_count && ok && mi.n; ++t) {
         const uint32_t *v = &big->tri[3 * t];
-        if (ms_tri_cube_overlap(c, 0.5f * reach, &big->pos[3 * v[0]], &big->pos[3 * v[1]],
-                                &big->pos[3 * v[2]]))
+        const float *p0 = &big->pos[3 * v[0]], *p1 = &big->pos[3 * v[1]], *p2 = &big->pos[3 * v[2]];
+        if (vertex_in_cube(c, 0.5f * reach, p0, p1, p2) || ms_tri_cube_overlap(c, 0.5f * reach, p0, p1, p2))
             ok = u32vec_push(&bi, t);
     }
     if (ok && mi.n) {
@@ -702,19 +683,7 @@ ms_status ms_apo_builder_build_tree(ms_apo_builder *builder, const ms_mesh *m_me
     stats->crowding = ms_apo_crowding(&big);
     bool crowded = stats->crowding > MS_APO_CROWDED;
     st = root_level(&m, &big, crowded ? MS_APO_LIST_REACH : 1.0f, &levels[0], &level_count, err);
-    /* Embree scene for M, and h. */
-    double ts = ms_now_seconds();
-    if (st == MS_OK && level_count)
-        st = ms_apo_sampler_init(&sampler, builder->device, &big, err);
-    double td = ms_now_seconds();
-    stats->seconds_scene = td - ts;
-    if (st == MS_OK && level_count && o->search_distance <= 0 && o->distance_bound > 0)
-        stats->m_to_M_distance = o->distance_bound;
-    else if (st == MS_OK && level_count && o->search_distance <= 0)
-        st = ms_apo_sampler_distance(&sampler, &m, threads, &stats->m_to_M_distance, err);
     double t1 = ms_now_seconds();
-    stats->seconds_distance = t1 - td;
-    stats->seconds_prepare = t1 - t0;
 
     /* Octree, level by level. */
     for (uint32_t d = 0; st == MS_OK && d < level_count && d < MS_APO_MAX_DEPTH; ++d) {
@@ -731,8 +700,28 @@ ms_status ms_apo_builder_build_tree(ms_apo_builder *builder, const ms_mesh *m_me
     }
     if (st == MS_OK && level_count)
         st = flatten_levels(levels, level_count, tree, err);
+    /* The triangles' bounds served the split alone: gone before Embree's
+     * scene, which the octree does not need, is built (the peak is one or
+     * the other, not both). */
+    free(m.box);
+    free(big.box);
+    m.box = big.box = NULL;
     double t2 = ms_now_seconds();
     stats->seconds_octree = t2 - t1;
+
+    /* Embree scene for M, and h. */
+    if (st == MS_OK && level_count)
+        st = ms_apo_sampler_init(&sampler, builder->device, &big, err);
+    double td = ms_now_seconds();
+    stats->seconds_scene = td - t2;
+    if (st == MS_OK && level_count && o->search_distance <= 0 && o->distance_bound > 0)
+        stats->m_to_M_distance = o->distance_bound;
+    else if (st == MS_OK && level_count && o->search_distance <= 0)
+        st = ms_apo_sampler_distance(&sampler, &m, threads, &stats->m_to_M_distance, err);
+    double t3 = ms_now_seconds();
+    stats->seconds_distance = t3 - td;
+    stats->seconds_prepare = (t1 - t0) + (t3 - t2);
+    t2 = t3;
 
     /* Leaf normals, then the means. */
     if (st == MS_OK && tree->node_count)

@@ -14,6 +14,7 @@ void ms_apo_local_mesh_free(ms_apo_local_mesh *lm)
     free(lm->pos);
     free(lm->fnormal);
     free(lm->area);
+    free(lm->box);
     free(lm->vnormal);
     free(lm->cnormal);
     memset(lm, 0, sizeof *lm);
@@ -32,9 +33,10 @@ ms_status ms_apo_local_mesh_make(const ms_mesh *mesh, const double origin[3], do
     lm->pos = malloc((3 * nv + 1) * sizeof *lm->pos);
     lm->fnormal = malloc((3 * nt + 1) * sizeof *lm->fnormal);
     lm->area = malloc((nt + 1) * sizeof *lm->area);
+    lm->box = malloc((6 * nt + 1) * sizeof *lm->box);
     double *acc = calloc(3 * nv + 1, sizeof *acc); /* area-weighted vertex normal sums */
     lm->vnormal = malloc((3 * nv + 1) * sizeof *lm->vnormal);
-    if (!lm->pos || !lm->fnormal || !lm->area || !lm->vnormal || !acc) {
+    if (!lm->pos || !lm->fnormal || !lm->area || !lm->box || !lm->vnormal || !acc) {
         free(acc);
         ms_apo_local_mesh_free(lm);
         return ms_error_set(err, MS_ERR_NOMEM, "apo build: no memory for %s", name);
@@ -60,9 +62,13 @@ ms_status ms_apo_local_mesh_make(const ms_mesh *mesh, const double origin[3], do
         }
         const float *p0 = &lm->pos[3 * v[0]], *p1 = &lm->pos[3 * v[1]], *p2 = &lm->pos[3 * v[2]];
         double e1[3], e2[3];
+        float *b = &lm->box[6 * t];
         for (int a = 0; a < 3; ++a) {
             e1[a] = (double)p1[a] - p0[a];
             e2[a] = (double)p2[a] - p0[a];
+            float lo = p1[a] < p2[a] ? p1[a] : p2[a], hi = p1[a] > p2[a] ? p1[a] : p2[a];
+            b[a] = p0[a] < lo ? p0[a] : lo;
+            b[3 + a] = p0[a] > hi ? p0[a] : hi;
         }
         double c[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
         double len = sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
@@ -148,6 +154,7 @@ ms_status ms_apo_local_mesh_corner_normals(ms_apo_local_mesh *lm, double crease,
     for (size_t t = 0; t < nt; ++t)
         for (int k = 0; k < 3; ++k)
             fan[start[lm->tri[3 * t + k] + 1]++] = (uint32_t)(3 * t + (size_t)k); /* corners, by vertex */
+    const double cos_crease = cos(crease);
     for (size_t i = 0; i < nv; ++i) {
         uint32_t rep[MS_APO_CORNER_GROUPS];
         double sum[MS_APO_CORNER_GROUPS][3];
@@ -166,7 +173,10 @@ ms_status ms_apo_local_mesh_corner_normals(ms_apo_local_mesh *lm, double crease,
                 const float *r = &lm->fnormal[3 * rep[k]];
                 double cosine = (double)n[0] * r[0] + (double)n[1] * r[1] + (double)n[2] * r[2];
                 double limit = crease + slack[t] + slack[rep[k]];
-                if (limit >= M_PI || fabs(cosine) >= cos(limit)) {
+                /* within the crease itself: within the limit (cos, correctly
+                 * rounded, decreases on [0, pi]), without its cosine */
+                if (limit >= M_PI || (fabs(cosine) >= cos_crease && limit >= crease) ||
+                    fabs(cosine) >= cos(limit)) {
                     g = k;
                     sign = cosine < 0.0 ? -1.0 : 1.0;
                     break;

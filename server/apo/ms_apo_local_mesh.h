@@ -24,6 +24,8 @@ typedef struct ms_apo_local_mesh {
     uint32_t *tri;   /* 3 per triangle */
     float *fnormal;  /* 3 per triangle, unit (0 for degenerate) */
     float *area;     /* per triangle */
+    float *box;      /* 6 per triangle: its bounds, low x y z then high x y z
+                        (the octree's split reads them, not the corners) */
     float *vnormal;  /* 3 per vertex, unit (0 if no valid face) */
     float *cnormal;  /* NULL, or 9 per triangle: its corners' smooth normals
                         (ms_apo_local_mesh_corner_normals), unit or 0 */

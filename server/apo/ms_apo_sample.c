@@ -390,6 +390,8 @@ void ms_apo_sample_leaf(const ms_apo_sampler *sampler, const ms_apo_local_mesh *
     double sum[3] = {0, 0, 0}, first_sample[3] = {0, 0, 1}, pred[3] = {0, 0, 0};
     bool have_closest = false, closest_done = false;
     double closest[3] = {0, 0, 0};
+    double prev_dir[3] = {0, 0, 0}, prev_n[3] = {0, 0, 0};
+    uint64_t *prev_count = &counts->unsampled;
     for (size_t k = 0; k < kept_n; ++k) {
         double dir[3], n[3];
         ms_apo_local_mesh_normal_at(m, kept[k].tri, kept[k].wb, kept[k].wc, dir);
@@ -399,12 +401,17 @@ void ms_apo_sample_leaf(const ms_apo_sampler *sampler, const ms_apo_local_mesh *
         bool has_dir = dir[0] != 0.0 || dir[1] != 0.0 || dir[2] != 0.0;
         if (!has_dir)
             dir[2] = 1.0;
-        /* A leaf with an M list (crowded M) asks Embree nothing: a ray that
-         * misses the listed triangles takes the list's closest point. */
-        if (has_dir && (local_ray_normal(sampler->big, leaf, dir, search, n, counts) ||
+        /* The same direction as the previous sample (two m-triangles whose
+         * closest point to the centre is their shared vertex): the same rays
+         * from the same centre, the same answer, none cast again. */
+        if (k > 0 && memcmp(dir, prev_dir, sizeof dir) == 0) {
+            memcpy(n, prev_n, sizeof n);
+            ++*prev_count;
+        } else if (has_dir && (local_ray_normal(sampler->big, leaf, dir, search, n, counts) ||
                         (leaf->big_count == 0 && !leaf->listed &&
                          ray_normal(sampler->scene, sampler->big, centre, dir, search, n, &counts->rays)))) {
             counts->ray_hits++;
+            prev_count = &counts->ray_hits;
         } else {
             if (!closest_done) {
                 have_closest = local_closest_normal(sampler->big, leaf, search, closest, counts);
@@ -417,11 +424,15 @@ void ms_apo_sample_leaf(const ms_apo_sampler *sampler, const ms_apo_local_mesh *
             if (have_closest) {
                 counts->closest_points++;
                 memcpy(n, closest, sizeof n);
+                prev_count = &counts->closest_points;
             } else {
                 counts->unsampled++;
                 memcpy(n, dir, sizeof n);
+                prev_count = &counts->unsampled;
             }
         }
+        memcpy(prev_dir, dir, sizeof dir);
+        memcpy(prev_n, n, sizeof n);
         if (k == 0)
             memcpy(first_sample, n, sizeof n);
         for (int a = 0; a < 3; ++a)

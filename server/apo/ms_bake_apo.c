@@ -236,6 +236,49 @@ static ms_status sort_vertex_keys(vertex_key *vk, size_t n, ms_error *err)
     return s;
 }
 
+/* ms_tri_unify over the triangles of M whose three vertices are all shared
+ * (shared[v]: joined from copies in two or more parts): the only ones that can
+ * repeat another, when no part repeats a triangle of its own (a cell's m is a
+ * complex) and no two vertices of one part were joined (the caller's check). The
+ * same triangles are dropped as by ms_tri_unify over all of M (the later copy of
+ * each vertex set), in the same order, for a sort of the shared strips along
+ * the children's borders instead of all of M. */
+static ms_status unify_shared(ms_mesh *M, const uint8_t *shared, ms_error *err)
+{
+    size_t nt = M->triangle_count, nc = 0;
+    uint32_t *t = M->triangles;
+    for (size_t i = 0; i < nt; ++i)
+        nc += shared[t[3 * i]] && shared[t[3 * i + 1]] && shared[t[3 * i + 2]];
+    uint32_t *cand = malloc((3 * nc + 1) * sizeof *cand);
+    if (!cand)
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory joining the children's meshes");
+    size_t c = 0;
+    for (size_t i = 0; i < nt; ++i)
+        if (shared[t[3 * i]] && shared[t[3 * i + 1]] && shared[t[3 * i + 2]])
+            memcpy(&cand[3 * c++], &t[3 * i], 3 * sizeof *t);
+    size_t kept = nc;
+    ms_status s = ms_tri_unify(cand, &kept, NULL, NULL, err);
+    /* The kept candidates are the candidates in order, less the dropped: a
+     * dropped one repeats an earlier kept one, so it cannot equal the next
+     * kept one, which repeats nothing before it. */
+    size_t w = 0, k = 0;
+    for (size_t i = 0; s == MS_OK && i < nt; ++i) {
+        const uint32_t *x = &t[3 * i];
+        if (shared[x[0]] && shared[x[1]] && shared[x[2]]) {
+            if (!(k < kept && memcmp(x, &cand[3 * k], 3 * sizeof *x) == 0))
+                continue; /* dropped */
+            ++k;
+        }
+        if (w != i)
+            memmove(&t[3 * w], x, 3 * sizeof *x);
+        ++w;
+    }
+    if (s == MS_OK)
+        M->triangle_count = w;
+    free(cand);
+    return s;
+}
+
 ms_status ms_bake_apo_union(const ms_bake_apo_part *parts, size_t count, const ms_quant_box *box, ms_mesh *M,
                             uint32_t **owned, ms_error *err)
 {
@@ -251,16 +294,21 @@ ms_status ms_bake_apo_union(const ms_bake_apo_part *parts, size_t count, const m
     vertex_key *vk = malloc((nv + 1) * sizeof *vk);
     uint32_t *id = malloc((nv + 1) * sizeof *id);
     const double **from = malloc((nv + 1) * sizeof *from);
-    if (!vk || !id || !from) {
+    uint32_t *part_of = malloc((nv + 1) * sizeof *part_of); /* each copy's part */
+    uint8_t *shared = calloc(nv + 1, 1);                     /* per kept vertex: joined from several parts */
+    if (!vk || !id || !from || !part_of || !shared) {
         free(vk);
         free(id);
         free(from);
+        free(part_of);
+        free(shared);
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory joining the children's meshes");
     }
     size_t w = 0;
     for (size_t k = 0; k < count; ++k) {
         const ms_bake_apo_part *pt = &parts[k];
         for (size_t v = 0; v < pt->mesh.vertex_count; ++v, ++w) {
+            part_of[w] = (uint32_t)k;
             const double *x = &pt->mesh.positions[3 * v];
             from[w] = x;
             vk[w].bits = pt->bits;
@@ -275,13 +323,30 @@ ms_status ms_bake_apo_union(const ms_bake_apo_part *parts, size_t count, const m
         free(vk);
         free(id);
         free(from);
+        free(part_of);
+        free(shared);
         return s;
     }
     size_t distinct = 0; /* vk[0..distinct) becomes the kept copies, in order */
+    /* The parts of the current group's copies (up to a few; more, or two from
+     * one part, and M is unified whole). */
+    uint32_t group_parts[8];
+    size_t group_n = 0;
+    bool whole = false;
     for (size_t i = 0; i < nv; ++i) {
         uint32_t seq = vk[i].seq;
-        if (distinct == 0 || vk[i].key != vk[distinct - 1].key || vk[i].bits != vk[distinct - 1].bits)
+        if (distinct == 0 || vk[i].key != vk[distinct - 1].key || vk[i].bits != vk[distinct - 1].bits) {
             vk[distinct++] = vk[i];
+            group_n = 0;
+        } else {
+            shared[distinct - 1] = 1;
+        }
+        for (size_t g = 0; g < group_n; ++g)
+            whole |= group_parts[g] == part_of[seq];
+        if (group_n < 8)
+            group_parts[group_n++] = part_of[seq];
+        else
+            whole = true;
         id[seq] = (uint32_t)(distinct - 1);
     }
     s = ms_mesh_reserve(M, distinct, nt, err);
@@ -301,11 +366,13 @@ ms_status ms_bake_apo_union(const ms_bake_apo_part *parts, size_t count, const m
             base += parts[k].mesh.vertex_count;
         }
         M->triangle_count = nt;
-        s = ms_tri_unify(M->triangles, &M->triangle_count, NULL, NULL, err);
+        s = whole ? ms_tri_unify(M->triangles, &M->triangle_count, NULL, NULL, err) : unify_shared(M, shared, err);
     }
     free(vk);
     free(id);
     free(from);
+    free(part_of);
+    free(shared);
     if (s != MS_OK) {
         ms_mesh_free(M);
         free(*owned);

@@ -506,8 +506,9 @@ static ms_status encode_cell(pool *p, uint32_t node, ms_apo_builder **builder, c
     ms_codec_region region;
     bool freezing = leaf && leaf_freezing(p, nd, lo, freeze, st.vertex_count, &region);
     bool apo = p->params->apo && p->params->apo->enabled;
-    ms_mesh m_leaf;
+    ms_mesh m_leaf; /* the cell's APO m: a leaf's full-precision complex, an internal cell's decoded stream */
     memset(&m_leaf, 0, sizeof m_leaf);
+    bool m_given = apo && (leaf || st.bits == hi);
     if (s == MS_OK && apo && leaf && st.vertex_count > 0)
         s = leaf_mesh(&st, &b->box, &m_leaf, err);
     if (s == MS_OK && st.vertex_count > 0) {
@@ -517,6 +518,10 @@ static ms_status encode_cell(pool *p, uint32_t node, ms_apo_builder **builder, c
             ep.region = &region;
             ep.freeze_level = freeze;
         }
+        /* An internal cell's APO m is its stream decoded to bits_max: the
+         * encoder's forward pass ends in that state, no second decode. */
+        if (m_given && !leaf)
+            ep.mesh = &m_leaf;
         s = ms_codec_encode(&st, &ep, &out->stream, &out->size, &out->start, err);
         if (s == MS_OK && out->size > UINT32_MAX)
             s = ms_error_set(err, MS_ERR_RANGE, "cell %u: payload over 4 GiB",
@@ -552,7 +557,7 @@ static ms_status encode_cell(pool *p, uint32_t node, ms_apo_builder **builder, c
     if (s == MS_OK && apo && out->size > 0 && !*builder)
         s = ms_apo_builder_create(builder, err);
     if (s == MS_OK && apo && out->size > 0)
-        s = apo_cell(p, node, hi, *builder, leaf ? &m_leaf : NULL, out, err);
+        s = apo_cell(p, node, hi, *builder, m_given ? &m_leaf : NULL, out, err);
     ms_mesh_free(&m_leaf);
     if (s != MS_OK) {
         free(out->stream);
