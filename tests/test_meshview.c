@@ -601,8 +601,9 @@ static void test_interactive_from_a_server_lists_once(void **state)
     free(text);
 }
 
-/* The last keyframe's apo_bytes of a scripted run along the close-up path. */
-static json_int_t run_apo_bytes(const fixture *f, const char *extra, const char *name)
+/* The last keyframe's apo_bytes of a scripted run along the close-up path
+ * (*total, when not NULL: the whole run's). */
+static json_int_t run_apo_bytes_total(const fixture *f, const char *extra, const char *name, json_int_t *total)
 {
     char args[2048], out[700], err_text[4096];
     snprintf(out, sizeof out, "%s/%s.json", f->dir, name);
@@ -615,8 +616,34 @@ static json_int_t run_apo_bytes(const fixture *f, const char *extra, const char 
     json_int_t bytes = json_integer_value(json_object_get(json_array_get(keys, json_array_size(keys) - 1),
                                                           "apo_bytes"));
     assert_int_equal(json_integer_value(json_object_get(report, "apo_bytes")) >= 0, 1);
+    if (total)
+        *total = json_integer_value(json_object_get(report, "apo_bytes"));
     json_decref(report);
     return bytes;
+}
+
+static json_int_t run_apo_bytes(const fixture *f, const char *extra, const char *name)
+{
+    return run_apo_bytes_total(f, extra, name, NULL);
+}
+
+/* APO where it pays (docs/ACCURACY.md, "Where APO pays"): at the default 1 px
+ * the path's overview shows internal cells with chunks, yet meshview fetches
+ * none of them (--apo-min-tolerance 2: at 1 px they add bytes and no
+ * picture); allowed at any tolerance, it fetches them; at 2 px, the default's
+ * threshold, it fetches them too. */
+static void test_apo_only_where_geometry_is_coarse(void **state)
+{
+    fixture *f = *state;
+    json_int_t fine, any, coarse;
+    run_apo_bytes_total(f, "", "apo-default", &fine);
+    run_apo_bytes_total(f, "--apo-min-tolerance 0", "apo-any", &any);
+    run_apo_bytes_total(f, "--tolerance 2", "apo-coarse", &coarse);
+    print_message("apo bytes along the path: 1 px %lld, 1 px at any tolerance %lld, 2 px %lld\n",
+                  (long long)fine, (long long)any, (long long)coarse);
+    assert_int_equal(fine, 0);
+    assert_true(any > 0);
+    assert_true(coarse > 0);
 }
 
 /* --shading geometry draws no APO normal, so it fetches no APO byte: at a
@@ -639,6 +666,7 @@ int main(void)
         cmocka_unit_test(test_help_and_usage_errors),
         cmocka_unit_test(test_streaming_and_local_archive),
         cmocka_unit_test(test_geometry_shading_fetches_no_apo),
+        cmocka_unit_test(test_apo_only_where_geometry_is_coarse),
         cmocka_unit_test(test_catalogue_screen),
         cmocka_unit_test(test_catalogue_panel_shows_the_thumbnail),
         cmocka_unit_test(test_catalogue_panel_from_a_server),

@@ -17,6 +17,14 @@
 
 const APO_LEVELS = 16;        // meshview's --apo-levels default: the footprint decides
 const DETAIL_TOLERANCE = 1;   // px: meshview's detail tolerance with APO (the core's tolerance_px)
+// px: meshview's --apo-min-tolerance default (MS_CORE_APO_MIN_TOLERANCE_DEFAULT):
+// at a finer geometric tolerance the chunks add bytes and no picture
+// (docs/ACCURACY.md, "Where APO pays"), so none is fetched
+const APO_MIN_TOLERANCE = 2;
+
+// Whether camera c's view fetches and draws APO: its shading asks for it and
+// its geometry is coarse enough to gain from it.
+const apoWanted = c => !!c.apo && c.tolerance >= APO_MIN_TOLERANCE;
 const APO_IN_FLIGHT = 16;
 let apoState = null, apoView = null;
 const apoHeld = new Map();    // cell: the stored chunk's bytes held (a prefix)
@@ -103,7 +111,7 @@ function apoOf() {
 // APO drawn or not (ms_web_apo_geometry: with APO, the cells without a chunk
 // refine to the detail tolerance).
 function apoCamera(c) {
-  M._ms_web_apo_geometry(apoOf(), c.apo ? 1 : 0, DETAIL_TOLERANCE);
+  M._ms_web_apo_geometry(apoOf(), apoWanted(c) ? 1 : 0, DETAIL_TOLERANCE);
 }
 
 // The chunks the settled view wants, all of them unless a new camera comes.

@@ -612,7 +612,7 @@ async function run(msg) {
     }
     if (U32()[settledPtr >> 2]) {
       postMesh(true, bytes);
-      if (current.apo)              // the APO chunks the view wants (web/worker-apo.js)
+      if (apoWanted(current))       // the APO chunks the view wants (web/worker-apo.js)
         bytes += await apoRound(name, token);
       postMessage({ type: 'complete', seq, bytes, rounds, preview, timing,
                     seconds: (performance.now() - started) / 1000 });

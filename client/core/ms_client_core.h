@@ -104,6 +104,13 @@ typedef struct ms_core_budget ms_core_budget;
 /* Most cores one budget can serve. */
 #define MS_CORE_BUDGET_MAX_MEMBERS 64
 
+/* The geometry tolerance below which a front end fetches no APO
+ * (ms_core_options.apo_min_tolerance_px), pixels: on the dragon's overview
+ * the chunks add 35 % to the bytes of the 1 px cut and 0.0 dB to its picture,
+ * and from 2 px on they give the picture of a cut with 13 to 60 % more
+ * triangles (docs/ACCURACY.md, "Where APO pays"). */
+#define MS_CORE_APO_MIN_TOLERANCE_DEFAULT 2.0
+
 /* target, ceiling: bytes (ceiling 0 = target + target / 4; target > 0 and
  * ceiling >= target else MS_ERR_ARG). MS_ERR_NOMEM. */
 ms_status ms_core_budget_new(uint64_t memory_target, uint64_t memory_ceiling,
@@ -227,6 +234,13 @@ typedef struct ms_core_options {
                                   0 = APO off */
     double apo_geometry_tolerance_px; /* geometry tolerance with APO on; 0 = tolerance_px
                                          (docs/ACCURACY.md: coarser costs more than it saves) */
+    double apo_min_tolerance_px; /* APO fetched only while the geometry tolerance of the
+                                    cells with a chunk (apo_geometry_tolerance_px times the
+                                    budget's factor) is at least this: APO saves triangles
+                                    where geometry is coarse and adds bytes and nothing
+                                    else where it is fine (docs/ACCURACY.md, "Where APO
+                                    pays"); 0 = at any tolerance. The front ends' default:
+                                    MS_CORE_APO_MIN_TOLERANCE_DEFAULT */
     uint64_t memory_target, memory_ceiling; /* bytes; 0 = no budget */
     ms_core_link *shared_link; /* NULL: the core's own connection (host, port, token,
                                   agent, bandwidth, window_bytes, the time-outs, raw_index,

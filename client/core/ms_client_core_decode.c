@@ -19,12 +19,14 @@ static void dec_pass_begin(ms_core *c, const ms_camera *cam, dec_pass *pass)
     const ms_archive_header *h = ms_archive_get_header(c->index);
     memset(pass, 0, sizeof *pass);
     pass->cam = cam;
-    pass->apo_on = c->o.apo_levels > 0 && h->has_apo;
     pass->fv.cam = *cam;
     ms_camera_frustum(cam, &pass->fv.frustum);
-    pass->base_tol = pass->apo_on ? c->o.apo_geometry_tolerance_px : c->o.tolerance_px;
     ms_core_budget_sync(c);
     pass->factor = c->dec.tolerance_factor;
+    /* APO where the geometry it shades is coarse enough to gain from it */
+    pass->apo_on = c->o.apo_levels > 0 && h->has_apo &&
+                   c->o.apo_geometry_tolerance_px * pass->factor >= c->o.apo_min_tolerance_px;
+    pass->base_tol = pass->apo_on ? c->o.apo_geometry_tolerance_px : c->o.tolerance_px;
     pass->fv.tolerance = pass->base_tol * pass->factor;
     /* With APO on, geometry refines only to apo_geometry_tolerance_px where a
      * chunk carries the shading; a cell baked without one (its geometry renders

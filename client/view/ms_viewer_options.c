@@ -24,6 +24,9 @@ void ms_viewer_options_usage(FILE *out)
           "  --tolerance PX         geometric screen tolerance (default 1, with APO or without)\n"
           "  --apo-levels L         most APO octree levels fetched; the core fetches down to\n"
           "                         the level whose texel covers about a pixel (default 16)\n"
+          "  --apo-min-tolerance PX fetch APO only where the geometric tolerance is PX or\n"
+          "                         coarser (default 2: at a finer one the chunks add bytes\n"
+          "                         and no picture, docs/ACCURACY.md); 0: at any tolerance\n"
           "  --no-apo               fetch no APO; shade with geometry normals\n"
           "  --apo-filter F         linear (default: 8-texel interpolation, no deeper than\n"
           "                         the first level whose texels fit in a pixel) | nearest\n"
@@ -286,6 +289,7 @@ static void default_options(ms_viewer_options *o)
     o->apo_shading = true;
     o->tolerance_px = 0; /* the stream's default */
     o->apo_levels = 16;
+    o->apo_min_tolerance_px = MS_CORE_APO_MIN_TOLERANCE_DEFAULT;
     o->apo_filter = true, o->apo_footprint = true;
     o->upload_budget = 4000000;
     o->keyframe_timeout = 30;
@@ -398,6 +402,10 @@ static int apply_option(int ch, const char *arg, ms_viewer_options *o, option_le
             return 2;
         o->apo_levels = (unsigned)i;
         break;
+    case 'N':
+        if (!number(err, "--apo-min-tolerance", arg, 0, 256, &o->apo_min_tolerance_px))
+            return 2;
+        break;
     case 'n': left->no_apo = true; break;
     case 'F':
         if (!strcmp(arg, "linear"))
@@ -474,6 +482,7 @@ int ms_viewer_options_parse(int argc, char **argv, ms_viewer_options *o, FILE *e
         {"token", required_argument, NULL, 'T'},      {"size", required_argument, NULL, 'z'},
         {"tolerance", required_argument, NULL, 't'},  {"apo-levels", required_argument, NULL, 'a'},
         {"no-apo", no_argument, NULL, 'n'},           {"shading", required_argument, NULL, 'S'},
+        {"apo-min-tolerance", required_argument, NULL, 'N'},
         {"apo-filter", required_argument, NULL, 'F'},
         {"upload-budget", required_argument, NULL, 'u'},
         {"memory", required_argument, NULL, 'M'},     {"bandwidth", required_argument, NULL, 'b'},
@@ -529,6 +538,7 @@ ms_viewer_stream_settings ms_viewer_options_stream_settings(const ms_viewer_opti
 {
     ms_viewer_stream_settings s = {.tolerance_px = o->tolerance_px,
                                    .apo_levels = o->apo_levels,
+                                   .apo_min_tolerance_px = o->apo_min_tolerance_px,
                                    .memory_mb = o->memory_mb,
                                    .bandwidth = o->bandwidth,
                                    .whole_index = o->whole_index,

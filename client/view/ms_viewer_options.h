@@ -37,6 +37,7 @@ typedef struct ms_viewer_options {
     bool apo_shading;          /* shade with APO normals (false: geometry normals) */
     double tolerance_px;       /* geometric; 0: the default (ms_viewer_stream.h) */
     unsigned apo_levels;       /* fetched; 0: none */
+    double apo_min_tolerance_px; /* --apo-min-tolerance: APO only at this geometric tolerance or coarser */
     bool apo_filter;           /* --apo-filter: interpolate between texels (linear) */
     bool apo_footprint;        /* --apo-filter: depth limited by the pixel's footprint (linear, nearest) */
     uint64_t upload_budget;    /* bytes per frame */

@@ -52,6 +52,7 @@ ms_status ms_viewer_stream_start(const ms_viewer_source *source, ms_viewer_model
     else
         co.tolerance_px = s->start_tolerance;
     co.apo_levels = settings->apo_levels;
+    co.apo_min_tolerance_px = settings->apo_min_tolerance_px;
     if (settings->memory_mb > 0) {
         co.memory_target = (uint64_t)(settings->memory_mb * 1048576.0);
         co.memory_ceiling = co.memory_target + co.memory_target / 2;

@@ -38,6 +38,7 @@ typedef struct ms_viewer_stream_settings {
                                   default (4 px with APO, whose normals carry the
                                   finer detail, 1 px without) */
     unsigned apo_levels;       /* 0: no APO fetched */
+    double apo_min_tolerance_px; /* ms_core_options.apo_min_tolerance_px */
     double memory_mb;          /* core memory target; 0 = none (ceiling 1.5x) */
     ms_core_budget *shared_budget; /* NULL, or a budget shared with other streams (the
                                   scene's; ms_client_core.h): then memory_mb must be 0 */
