@@ -107,8 +107,8 @@ typedef struct ms_core_budget ms_core_budget;
 /* The geometry tolerance below which a front end fetches no APO
  * (ms_core_options.apo_min_tolerance_px), pixels: on the dragon's overview
  * the chunks add 35 % to the bytes of the 1 px cut and 0.0 dB to its picture,
- * and from 2 px on they give the picture of a cut with 13 to 60 % more
- * triangles (docs/ACCURACY.md, "Where APO pays"). */
+ * and from 2 px on they give the picture a smooth cut needs 1.14 to 2.6
+ * times the triangles for (docs/ACCURACY.md, "Where APO pays"). */
 #define MS_CORE_APO_MIN_TOLERANCE_DEFAULT 2.0
 
 /* target, ceiling: bytes (ceiling 0 = target + target / 4; target > 0 and
