@@ -13,33 +13,12 @@
 
 #include "ms_apo_build.h"
 #include "ms_apo_chunk.h"
+#include "ms_apo_testtree.h"
 #include "ms_apo_render.h"
 #include "ms_apo_sample.h"
 #include "ms_demo_model.h"
 #include "ms_simplify.h"
 #include "ms_tri_box.h"
-
-static void demo(uint32_t grid, ms_mesh *mesh)
-{
-    ms_demo_model model = {.grid = grid, .seed = 0};
-    memset(mesh, 0, sizeof *mesh);
-    assert_int_equal(ms_demo_build(&model, mesh, NULL), MS_OK);
-}
-
-/* The cube around a mesh: lowest bounding-box corner, largest extent, padded. */
-static void cube_around(const ms_mesh *mesh, ms_apo_build_options *o)
-{
-    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    for (size_t i = 0; i < mesh->vertex_count; ++i)
-        for (int a = 0; a < 3; ++a) {
-            lo[a] = fmin(lo[a], mesh->positions[3 * i + a]);
-            hi[a] = fmax(hi[a], mesh->positions[3 * i + a]);
-        }
-    double size = fmax(hi[0] - lo[0], fmax(hi[1] - lo[1], hi[2] - lo[2])) * 1.02;
-    for (int a = 0; a < 3; ++a)
-        o->cube_origin[a] = 0.5 * (lo[a] + hi[a]) - 0.5 * size;
-    o->cube_size = size;
-}
 
 static void build(const ms_mesh *m, const ms_mesh *big, const ms_apo_build_options *o, ms_apo_tree *tree,
                   ms_apo_build_stats *stats)
@@ -58,11 +37,11 @@ static void test_demo_structure_and_normals(void **state)
 {
     (void)state;
     ms_mesh big, m;
-    demo(40, &big);
-    demo(10, &m);
+    ms_test_demo_mesh(40, &big);
+    ms_test_demo_mesh(10, &m);
     ms_apo_build_options o;
     ms_apo_build_options_default(&o);
-    cube_around(&big, &o);
+    ms_test_apo_cube_around(&big, &o);
     o.init_depth = 2;
     o.max_depth = 7;
     o.tolerance = 0.1;
@@ -114,11 +93,11 @@ static void test_same_output_whatever_the_threads(void **state)
 {
     (void)state;
     ms_mesh big, m;
-    demo(30, &big);
-    demo(8, &m);
+    ms_test_demo_mesh(30, &big);
+    ms_test_demo_mesh(8, &m);
     ms_apo_build_options o;
     ms_apo_build_options_default(&o);
-    cube_around(&big, &o);
+    ms_test_apo_cube_around(&big, &o);
     o.max_depth = 7;
     o.tolerance = 0.05;
     ms_apo_chunk ref;
@@ -189,11 +168,11 @@ static void test_tiny_extent_and_huge_offset(void **state)
 {
     (void)state;
     ms_mesh big, m;
-    demo(20, &big);
-    demo(6, &m);
+    ms_test_demo_mesh(20, &big);
+    ms_test_demo_mesh(6, &m);
     ms_apo_build_options o;
     ms_apo_build_options_default(&o);
-    cube_around(&big, &o);
+    ms_test_apo_cube_around(&big, &o);
     o.max_depth = 7;
     o.tolerance = 0.1;
     ms_apo_chunk ref, tiny, far;
@@ -232,11 +211,11 @@ static void test_cell_chunk(void **state)
 {
     (void)state;
     ms_mesh big, m;
-    demo(30, &big);
-    demo(10, &m);
+    ms_test_demo_mesh(30, &big);
+    ms_test_demo_mesh(10, &m);
     ms_apo_build_options o;
     ms_apo_build_options_default(&o);
-    cube_around(&big, &o);
+    ms_test_apo_cube_around(&big, &o);
     o.cube_size *= 0.5;
     for (int a = 0; a < 3; ++a)
         o.cube_origin[a] += o.cube_size;
@@ -268,12 +247,12 @@ static void test_measure_density(void **state)
 {
     (void)state;
     ms_mesh sparse, dense, m;
-    demo(24, &sparse);
+    ms_test_demo_mesh(24, &sparse);
     subdivide(&sparse, &dense);
-    demo(8, &m);
+    ms_test_demo_mesh(8, &m);
     ms_apo_build_options o;
     ms_apo_build_options_default(&o);
-    cube_around(&dense, &o);
+    ms_test_apo_cube_around(&dense, &o);
     o.max_depth = 8;
     size_t counts[2][2];
     for (int measure = 0; measure < 2; ++measure) {
@@ -542,7 +521,7 @@ static void test_simplify(void **state)
 {
     (void)state;
     ms_mesh big, small;
-    demo(24, &big);
+    ms_test_demo_mesh(24, &big);
     ms_simplify_report r;
     assert_int_equal(ms_simplify(&big, 1000, &small, &r, NULL), MS_OK);
     assert_int_equal(r.input_triangles, big.triangle_count);
@@ -717,11 +696,11 @@ static void test_adaptive_sampling_rays_per_leaf(void **state)
 {
     (void)state;
     ms_mesh big, m;
-    demo(40, &big);
-    demo(30, &m);
+    ms_test_demo_mesh(40, &big);
+    ms_test_demo_mesh(30, &m);
     ms_apo_build_options o;
     ms_apo_build_options_default(&o);
-    cube_around(&big, &o);
+    ms_test_apo_cube_around(&big, &o);
     o.max_depth = 5;
     o.tolerance = 0.1;
     ms_apo_tree all, adaptive;

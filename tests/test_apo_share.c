@@ -12,18 +12,13 @@
 #include <cmocka.h>
 
 #include "ms_apo_build.h"
+#include "ms_apo_testtree.h"
 #include "ms_bake_apo.h"
 #include "ms_codec.h"
 #include "ms_demo_model.h"
 #include "ms_quant.h"
 #include "ms_tri_unify.h"
 
-static void demo(uint32_t grid, ms_mesh *mesh)
-{
-    ms_demo_model model = {.grid = grid, .seed = 0};
-    memset(mesh, 0, sizeof *mesh);
-    assert_int_equal(ms_demo_build(&model, mesh, NULL), MS_OK);
-}
 
 /* ms_codec_encode_params.mesh is the mesh a decoder gives at the stream's full
  * precision, vertex for vertex and triangle for triangle: from one vertex and
@@ -33,7 +28,7 @@ static void test_encoder_mesh_is_the_decoded_mesh(void **state)
 {
     (void)state;
     ms_mesh model;
-    demo(12, &model);
+    ms_test_demo_mesh(12, &model);
     ms_qmesh q;
     ms_error err;
     assert_int_equal(ms_quantise_mesh(&model, 9, &q, NULL, &err), MS_OK);
@@ -162,19 +157,11 @@ static void test_samples_share_rays(void **state)
 {
     (void)state;
     ms_mesh big, m;
-    demo(40, &big);
-    demo(30, &m);
+    ms_test_demo_mesh(40, &big);
+    ms_test_demo_mesh(30, &m);
     ms_apo_build_options o;
     ms_apo_build_options_default(&o);
-    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    for (size_t i = 0; i < big.vertex_count; ++i)
-        for (int a = 0; a < 3; ++a) {
-            lo[a] = fmin(lo[a], big.positions[3 * i + a]);
-            hi[a] = fmax(hi[a], big.positions[3 * i + a]);
-        }
-    o.cube_size = fmax(hi[0] - lo[0], fmax(hi[1] - lo[1], hi[2] - lo[2])) * 1.02;
-    for (int a = 0; a < 3; ++a)
-        o.cube_origin[a] = 0.5 * (lo[a] + hi[a]) - 0.5 * o.cube_size;
+    ms_test_apo_cube_around(&big, &o);
     o.max_depth = 5;
     o.tolerance = 0.1;
     o.sample_agreement = 0.05;

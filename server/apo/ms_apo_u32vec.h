@@ -9,6 +9,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "ms_grow.h"
+
 typedef struct u32vec {
     uint32_t *v;
     size_t n, cap;
@@ -16,12 +18,8 @@ typedef struct u32vec {
 
 static inline bool u32vec_grow(u32vec *a, uint32_t x)
 {
-    size_t cap = a->cap ? 2 * a->cap : 64;
-    uint32_t *v = realloc(a->v, cap * sizeof *v);
-    if (!v)
+    if (!ms_grow((void **)&a->v, &a->cap, a->n + 1, sizeof *a->v))
         return false;
-    a->v = v;
-    a->cap = cap;
     a->v[a->n++] = x;
     return true;
 }
@@ -38,16 +36,8 @@ static inline bool u32vec_push(u32vec *a, uint32_t x)
 
 static inline bool u32vec_append(u32vec *a, const uint32_t *x, size_t n)
 {
-    if (a->n + n > a->cap) {
-        size_t cap = a->cap ? a->cap : 64;
-        while (cap < a->n + n)
-            cap *= 2;
-        uint32_t *v = realloc(a->v, cap * sizeof *v);
-        if (!v)
-            return false;
-        a->v = v;
-        a->cap = cap;
-    }
+    if (!ms_grow((void **)&a->v, &a->cap, a->n + n, sizeof *a->v))
+        return false;
     if (n)
         memcpy(&a->v[a->n], x, n * sizeof *x);
     a->n += n;

@@ -8,6 +8,29 @@
 #include <string.h>
 #include <cmocka.h>
 
+#include "ms_demo_model.h"
+
+void ms_test_demo_mesh(uint32_t grid, ms_mesh *mesh)
+{
+    ms_demo_model model = {.grid = grid, .seed = 0};
+    memset(mesh, 0, sizeof *mesh);
+    assert_int_equal(ms_demo_build(&model, mesh, NULL), MS_OK);
+}
+
+void ms_test_apo_cube_around(const ms_mesh *mesh, ms_apo_build_options *o)
+{
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (size_t i = 0; i < mesh->vertex_count; ++i)
+        for (int a = 0; a < 3; ++a) {
+            lo[a] = fmin(lo[a], mesh->positions[3 * i + a]);
+            hi[a] = fmax(hi[a], mesh->positions[3 * i + a]);
+        }
+    double size = fmax(hi[0] - lo[0], fmax(hi[1] - lo[1], hi[2] - lo[2])) * 1.02;
+    for (int a = 0; a < 3; ++a)
+        o->cube_origin[a] = 0.5 * (lo[a] + hi[a]) - 0.5 * size;
+    o->cube_size = size;
+}
+
 uint64_t ms_test_rand(uint64_t *s)
 {
     uint64_t x = *s;

@@ -5,8 +5,18 @@
 
 #include <stdint.h>
 
+#include "ms_apo_build.h"
 #include "ms_apo_traverse.h"
 #include "ms_apo_tree.h"
+#include "ms_mesh.h"
+
+/* The built-in demo sculpture (ms_demo_build) at grid, seed 0, into *mesh
+ * (zeroed first; the caller frees it). */
+void ms_test_demo_mesh(uint32_t grid, ms_mesh *mesh);
+
+/* The APO cube around a mesh (o->cube_origin, o->cube_size): centred on its
+ * bounding box, its largest extent padded by 2 %. */
+void ms_test_apo_cube_around(const ms_mesh *mesh, ms_apo_build_options *o);
 
 /* xorshift64* generator. */
 uint64_t ms_test_rand(uint64_t *state);
