@@ -47,22 +47,14 @@ static fixture *g;
 static int group_setup(void **state)
 {
     (void)state;
-    fixture *f = calloc(1, sizeof *f);
-    if (!f || ms_nsp_test_demo_bake(f, TRIANGLES, 1000) != 0) {
-        free(f);
-        return -1;
-    }
-    g = f;
-    return 0;
+    g = ms_nsp_test_demo_new(TRIANGLES, 1000);
+    return g ? 0 : -1;
 }
 
 static int group_teardown(void **state)
 {
     (void)state;
-    if (!g)
-        return 0;
-    ms_test_rmdir(g->dir);
-    free(g);
+    ms_nsp_test_demo_free(g);
     g = NULL;
     return 0;
 }

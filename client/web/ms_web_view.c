@@ -464,21 +464,18 @@ ms_status ms_web_view_plan(ms_web_view *v, uint32_t max, int *settled)
     return MS_OK;
 }
 
+/* The k-th entry of a plan's list; out of range: no cell, no bits, no bytes. */
+static planned plan_entry(const planned *list, size_t count, uint32_t k)
+{
+    return k < count ? list[k] : (planned){MS_ARCHIVE_NONE, 0, 0, 0};
+}
+
 uint32_t ms_web_view_plan_count(const ms_web_view *v) { return (uint32_t)v->plan_count; }
-
-uint32_t ms_web_view_plan_cell(const ms_web_view *v, uint32_t k)
-{
-    return k < v->plan_count ? v->plan[k].cell : MS_ARCHIVE_NONE;
-}
-
-uint32_t ms_web_view_plan_bits(const ms_web_view *v, uint32_t k)
-{
-    return k < v->plan_count ? v->plan[k].bits : 0;
-}
-
+uint32_t ms_web_view_plan_cell(const ms_web_view *v, uint32_t k) { return plan_entry(v->plan, v->plan_count, k).cell; }
+uint32_t ms_web_view_plan_bits(const ms_web_view *v, uint32_t k) { return plan_entry(v->plan, v->plan_count, k).bits; }
 uint32_t ms_web_view_plan_bytes(const ms_web_view *v, uint32_t k)
 {
-    return k < v->plan_count ? v->plan[k].bytes : 0;
+    return plan_entry(v->plan, v->plan_count, k).bytes;
 }
 
 int ms_web_view_has_colour(const ms_web_view *v)
@@ -490,17 +487,17 @@ uint32_t ms_web_view_plan_colour_count(const ms_web_view *v) { return (uint32_t)
 
 uint32_t ms_web_view_plan_colour_cell(const ms_web_view *v, uint32_t k)
 {
-    return k < v->colour_count ? v->colour_plan[k].cell : MS_ARCHIVE_NONE;
+    return plan_entry(v->colour_plan, v->colour_count, k).cell;
 }
 
 uint32_t ms_web_view_plan_colour_bits(const ms_web_view *v, uint32_t k)
 {
-    return k < v->colour_count ? v->colour_plan[k].bits : 0;
+    return plan_entry(v->colour_plan, v->colour_count, k).bits;
 }
 
 uint32_t ms_web_view_plan_colour_bytes(const ms_web_view *v, uint32_t k)
 {
-    return k < v->colour_count ? v->colour_plan[k].bytes : 0;
+    return plan_entry(v->colour_plan, v->colour_count, k).bytes;
 }
 
 uint32_t ms_web_view_colour_prefix(const ms_web_view *v, uint32_t cell, uint32_t bits)
@@ -513,25 +510,6 @@ uint32_t ms_web_view_colour_held(const ms_web_view *v, uint32_t cell)
     return (uint32_t)ms_view_held_colour_bytes(v->view, cell);
 }
 
-ms_status ms_web_view_give_colour(ms_web_view *v, uint32_t cell, uint32_t offset, const uint8_t *data,
-                                  uint32_t length)
-{
-    if (!ms_view_cell(v->view, cell))
-        return ms_error_set(&v->err, MS_ERR_ARG, "no cell %u in the model", cell);
-    if (!ms_web_view_has_colour(v))
-        return ms_error_set(&v->err, MS_ERR_ARG, "cell %u: the model has no colour", cell);
-    size_t held = ms_view_held_colour_bytes(v->view, cell);
-    if (offset > held)
-        return ms_error_set(&v->err, MS_ERR_ARG, "cell %u: colour bytes from %u leave a gap after the %zu held",
-                            cell, offset, held);
-    if ((uint64_t)offset + length > ms_archive_colour_length(v->index, cell))
-        return ms_error_set(&v->err, MS_ERR_RANGE, "cell %u: colour bytes up to %llu, past its stream's %u",
-                            cell, (unsigned long long)offset + length, ms_archive_colour_length(v->index, cell));
-    if ((uint64_t)offset + length <= held)
-        return MS_OK; /* nothing new */
-    uint32_t skip = (uint32_t)(held - offset);
-    return ms_view_append_colour_bytes(v->view, cell, data + skip, length - skip, &v->err);
-}
 
 const uint8_t *ms_web_view_colours(const ms_web_view *v)
 {
@@ -548,19 +526,42 @@ uint32_t ms_web_view_held(const ms_web_view *v, uint32_t cell)
     return (uint32_t)ms_view_held_bytes(v->view, cell);
 }
 
+/* Bytes [offset, offset + length) of one of a cell's streams, `held` of
+ * which the view has: what is new goes to `append`; a gap is refused. */
+static ms_status give_tail(ms_web_view *v, uint32_t cell, const char *what, size_t held, uint32_t offset,
+                           const uint8_t *data, uint32_t length,
+                           ms_status (*append)(ms_view *, uint32_t, const uint8_t *, size_t, ms_error *))
+{
+    if (offset > held)
+        return ms_error_set(&v->err, MS_ERR_ARG, "cell %u: %s from %u leave a gap after the %zu held", cell,
+                            what, offset, held);
+    if ((uint64_t)offset + length <= held)
+        return MS_OK; /* nothing new */
+    uint32_t skip = (uint32_t)(held - offset);
+    return append(v->view, cell, data + skip, length - skip, &v->err);
+}
+
 ms_status ms_web_view_give(ms_web_view *v, uint32_t cell, uint32_t offset, const uint8_t *data,
                            uint32_t length)
 {
     if (!ms_view_cell(v->view, cell))
         return ms_error_set(&v->err, MS_ERR_ARG, "no cell %u in the model", cell);
-    size_t held = ms_view_held_bytes(v->view, cell);
-    if (offset > held)
-        return ms_error_set(&v->err, MS_ERR_ARG, "cell %u: bytes from %u leave a gap after the %zu held",
-                            cell, offset, held);
-    if ((uint64_t)offset + length <= held)
-        return MS_OK; /* nothing new */
-    uint32_t skip = (uint32_t)(held - offset);
-    return ms_view_append_bytes(v->view, cell, data + skip, length - skip, &v->err);
+    return give_tail(v, cell, "bytes", ms_view_held_bytes(v->view, cell), offset, data, length,
+                     ms_view_append_bytes);
+}
+
+ms_status ms_web_view_give_colour(ms_web_view *v, uint32_t cell, uint32_t offset, const uint8_t *data,
+                                  uint32_t length)
+{
+    if (!ms_view_cell(v->view, cell))
+        return ms_error_set(&v->err, MS_ERR_ARG, "no cell %u in the model", cell);
+    if (!ms_web_view_has_colour(v))
+        return ms_error_set(&v->err, MS_ERR_ARG, "cell %u: the model has no colour", cell);
+    if ((uint64_t)offset + length > ms_archive_colour_length(v->index, cell))
+        return ms_error_set(&v->err, MS_ERR_RANGE, "cell %u: colour bytes up to %llu, past its stream's %u",
+                            cell, (unsigned long long)offset + length, ms_archive_colour_length(v->index, cell));
+    return give_tail(v, cell, "colour bytes", ms_view_held_colour_bytes(v->view, cell), offset, data, length,
+                     ms_view_append_colour_bytes);
 }
 
 /* Per vertex, the sum of its triangles' (area-weighted) normals, normalised;

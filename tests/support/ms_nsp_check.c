@@ -145,6 +145,24 @@ int ms_nsp_test_demo_bake(ms_nsp_test_demo *d, uint64_t triangles, uint32_t min_
     return 0;
 }
 
+ms_nsp_test_demo *ms_nsp_test_demo_new(uint64_t triangles, uint32_t min_triangles)
+{
+    ms_nsp_test_demo *d = calloc(1, sizeof *d);
+    if (!d || ms_nsp_test_demo_bake(d, triangles, min_triangles) != 0) {
+        free(d);
+        return NULL;
+    }
+    return d;
+}
+
+void ms_nsp_test_demo_free(ms_nsp_test_demo *d)
+{
+    if (!d)
+        return;
+    ms_test_rmdir(d->dir);
+    free(d);
+}
+
 void ms_nsp_test_decode_all(ms_view *v)
 {
     decode_below(v, 0);

@@ -51,6 +51,10 @@ typedef struct ms_nsp_test_demo {
 /* Fills *d; 0, or -1 with the error on stderr (for group setups). The caller
  * removes d->dir (ms_test_rmdir). */
 int ms_nsp_test_demo_bake(ms_nsp_test_demo *d, uint64_t triangles, uint32_t min_triangles);
+/* The same, allocated: NULL (the error on stderr) when the bake fails.
+ * ms_nsp_test_demo_free removes its directory and frees it (NULL: nothing). */
+ms_nsp_test_demo *ms_nsp_test_demo_new(uint64_t triangles, uint32_t min_triangles);
+void ms_nsp_test_demo_free(ms_nsp_test_demo *d);
 
 /* Splits every cell down to the leaves and refines each to full precision. */
 void ms_nsp_test_decode_all(ms_view *view);
