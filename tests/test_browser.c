@@ -316,6 +316,24 @@ static void test_viewer_draws_the_model(void **state)
         assert_true(json_is_true(json_object_get(timing, "threaded")));
         assert_true(json_integer_value(json_object_get(timing, "threads")) >= 1);
         assert_true(json_integer_value(json_object_get(timing, "threads")) <= 3);
+        /* the WebGL context is made once the worker runs and holds the
+         * module (creating it holds the page's thread, which the worker's
+         * start waits for), or READY_WAIT_MS (400) after boot.js ran */
+        const char *gl_after = json_string_value(json_object_get(timing, "glAfter"));
+        json_int_t gl_ms = json_integer_value(json_object_get(timing, "glMs"));
+        json_int_t alive_ms = json_integer_value(json_object_get(timing, "aliveMs"));
+        json_int_t boot_ran = json_integer_value(json_object_get(json_object_get(timing, "boot"), "bootRan"));
+        printf("WebGL context at %lld ms, after %s (worker alive at %lld ms, boot.js ran at %lld ms)\n",
+               (long long)gl_ms, gl_after ? gl_after : "?", (long long)alive_ms, (long long)boot_ran);
+        assert_non_null(gl_after);
+        assert_true(gl_ms > 0);
+        if (strcmp(gl_after, "worker") == 0) {
+            assert_true(alive_ms > 0);
+            assert_true(gl_ms >= alive_ms);
+        } else {
+            assert_string_equal(gl_after, "wait");
+            assert_true(gl_ms >= boot_ran + 400);
+        }
         /* the first look: the first picture came from at most 32 kB of cells
          * (docs/BROWSER.md), read beside the index, before the view's own;
          * the index by subtree: its head and the subtrees asked for by then,

@@ -38,7 +38,29 @@
                       timeOrigin: performance.timeOrigin };
   worker.postMessage({ type: 'prefetch', name, token: sessionStorage.getItem(tokenKey) || '',
                        layout: staticSite ? 'static' : 'door', boot: bootTimes });
-  compiled.then(module => worker.postMessage({ type: 'module', file, module,
-                                               at: Math.round(performance.now()) }));
-  window.meshstreamBoot = { worker, at: performance.now(), name, staticSite, tokenKey };
+  const handedOver = compiled.then(module => worker.postMessage({ type: 'module', file, module,
+                                                                  at: Math.round(performance.now()) }));
+  // view.js makes its WebGL context once the worker runs (its 'alive', the
+  // first thing worker.js says) and has the module: creating a context holds
+  // this thread for about 0.1 s on SwiftShader, and both the worker's start
+  // and the module's hand-over wait for a turn of this thread (the worker
+  // used to start only once the context was made: first pixels 350 to 410 ms
+  // on the test machine; docs/BROWSER.md, "First pixels"). Never more than
+  // READY_WAIT_MS after this script: a worker slow to start does not hold
+  // the page's own start.
+  // (window.meshstream.timing says which came first: `glAfter`, 'worker' or
+  // 'wait', with `aliveMs` and `glMs`.)
+  const READY_WAIT_MS = 400;
+  const boot = { worker, at: performance.now(), name, staticSite, tokenKey, aliveAt: null, readyBy: null };
+  const alive = new Promise(resolve => worker.addEventListener('message', function hello(e) {
+    if (e.data && e.data.type === 'alive') {
+      worker.removeEventListener('message', hello);
+      boot.aliveAt = Math.round(performance.now());
+      resolve();
+    }
+  }));
+  boot.ready = Promise.race([
+    Promise.all([alive, handedOver]).then(() => { boot.readyBy = boot.readyBy || 'worker'; }),
+    new Promise(resolve => setTimeout(resolve, READY_WAIT_MS)).then(() => { boot.readyBy = boot.readyBy || 'wait'; })]);
+  window.meshstreamBoot = boot;
 })();

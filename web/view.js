@@ -103,7 +103,8 @@ if (hash.get('shading') !== null) {
 }
 page.shading = shading;
 
-const gl = canvas.getContext('webgl2', { antialias: false });
+// The WebGL 2 context, made once the worker runs (startGl): null before.
+let gl = null;
 let indexCount = 0, box = null, frameRequested = false, lastSentApo = false, completeWaiting = null;
 
 function setUpGl() {
@@ -180,6 +181,8 @@ function draw() {
 
 function drawFrame() {
   frameRequested = false;
+  if (!gl)
+    return;                 // startGl draws once the context is made
   resize();
   const ready = indexCount && camera && box;
   const [near, far] = ready ? depthRange() : [1, 2];
@@ -480,8 +483,6 @@ function start() {
     if (!camera)
       failPage('The view in the URL is not meshview\'s text: ' + MsTools.viewError() + '.');
   }
-  if (page.state !== 'error' && !gl)
-    failPage('This browser offers no WebGL 2: the model cannot be drawn.');
   if (page.state === 'error') {
     boot.worker.terminate();
     return;
@@ -492,59 +493,93 @@ function start() {
   worker.onerror = e => failPage('The decoder failed: ' + (e.message || 'the worker did not start'));
   worker.onmessage = e => {
     const m = e.data;
-    if (MsTools.message(m))
-      return;               // the tools' (casts)
-    if (m.type === 'box') {
-      box = m.box;
-      if (!camera) {
-        camera = homeCamera(box, m.bounds);
-        worker.postMessage({ type: 'camera', camera: workerCamera() });
-      }
-    } else if (m.type === 'progress') {
-      page.bytes = m.bytes;
-      page.rounds = m.rounds;
-      // received over received plus what this round still wants (the next
-      // round's plan is not known yet: the bar fills once per round)
-      page.progress = m.bytes / Math.max(m.bytes + m.need, 1);
-      progress.value = page.progress;
-      say('Loading ' + name + ': ' + (m.bytes / 1e3).toFixed(0) + ' kB, ' + m.wanted + ' cells wanted');
-      showFigures();
-      tellEmbedder();
-    } else if (m.type === 'mesh') {
-      upload(m);
-      page.triangles = m.triangles.length / 3;
-      page.cells = m.cells;
-      page.bits = m.bits;
-      showFigures();
-      requestDraw();
-      MsTools.recast();     // measuring points follow the finer surface
-    } else if (m.type === 'apo') {
-      MsRender.apoChunk(m);
-      requestDraw();
-    } else if (m.type === 'complete') {
-      if (m.seq !== cameraSeq)
-        return;              // an earlier camera's; the latest one is under way
-      if (MsRender.pending()) {
-        completeWaiting = m; // complete once its mesh and texels are up (drawFrame)
-        requestDraw();
-      } else {
-        complete(m);
-      }
-    } else if (m.type === 'error') {
-      failPage(m.message.charAt(0).toUpperCase() + m.message.slice(1));
+    if (!gl && GL_MESSAGES.has(m.type)) {
+      early.push(m);        // drawn once the context is made (startGl)
+      return;
     }
+    handle(m);
   };
   worker.postMessage({ type: 'start', name, token: sessionStorage.getItem(TOKEN_KEY) || '', culled,
                        layout: staticSite ? 'static' : 'door',
                        camera: camera ? workerCamera() : null });
+  (boot.ready || Promise.resolve()).then(startGl);
+}
+
+// The worker's messages that need the context, and those that came before it.
+const GL_MESSAGES = new Set(['mesh', 'apo', 'complete']);
+const early = [];
+
+// The context, made after the worker's start (boot.js's ready): the worker
+// plans and decodes its first look meanwhile.
+function startGl() {
+  if (page.state === 'error')
+    return;
+  gl = canvas.getContext('webgl2', { antialias: false });
+  if (!gl) {
+    worker.terminate();
+    failPage('This browser offers no WebGL 2: the model cannot be drawn.');
+    return;
+  }
   try {
     setUpGl();
   } catch (e) {
+    gl = null;
     worker.terminate();
     failPage('WebGL 2 failed: ' + e.message);
     return;
   }
+  pageTiming.glMs = Math.round(performance.now());   // boot.js: made after the worker's start
+  pageTiming.aliveMs = boot.aliveAt;
+  pageTiming.glAfter = boot.readyBy;
   MsTools.started();
+  for (const m of early.splice(0))
+    handle(m);
+  requestDraw();
+}
+
+// One message of the worker's.
+function handle(m) {
+  if (MsTools.message(m))
+    return;               // the tools' (casts)
+  if (m.type === 'box') {
+    box = m.box;
+    if (!camera) {
+      camera = homeCamera(box, m.bounds);
+      worker.postMessage({ type: 'camera', camera: workerCamera() });
+    }
+  } else if (m.type === 'progress') {
+    page.bytes = m.bytes;
+    page.rounds = m.rounds;
+    // received over received plus what this round still wants (the next
+    // round's plan is not known yet: the bar fills once per round)
+    page.progress = m.bytes / Math.max(m.bytes + m.need, 1);
+    progress.value = page.progress;
+    say('Loading ' + name + ': ' + (m.bytes / 1e3).toFixed(0) + ' kB, ' + m.wanted + ' cells wanted');
+    showFigures();
+    tellEmbedder();
+  } else if (m.type === 'mesh') {
+    upload(m);
+    page.triangles = m.triangles.length / 3;
+    page.cells = m.cells;
+    page.bits = m.bits;
+    showFigures();
+    requestDraw();
+    MsTools.recast();     // measuring points follow the finer surface
+  } else if (m.type === 'apo') {
+    MsRender.apoChunk(m);
+    requestDraw();
+  } else if (m.type === 'complete') {
+    if (m.seq !== cameraSeq)
+      return;              // an earlier camera's; the latest one is under way
+    if (MsRender.pending()) {
+      completeWaiting = m; // complete once its mesh and texels are up (drawFrame)
+      requestDraw();
+    } else {
+      complete(m);
+    }
+  } else if (m.type === 'error') {
+    failPage(m.message.charAt(0).toUpperCase() + m.message.slice(1));
+  }
 }
 
 start();

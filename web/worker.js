@@ -9,10 +9,16 @@
 // with the message's fields and hits: [{point, t, bits, step, modelBits} or
 // null]), {type: 'refine', seq, points: [{point, direction}]} (each point
 // refined to full precision by a probe, then cast: answered point by point).
-// Out: {type: 'box'}, {type: 'progress'}, {type: 'mesh'} (positions, normals,
+// Out: {type: 'alive'} (first: the worker runs), {type: 'box'}, {type: 'progress'},
+// {type: 'mesh'} (positions, normals,
 // triangles and a colour model's colours, transferred), {type: 'complete'}, {type: 'cast'},
 // {type: 'error', message}.
 'use strict';
+
+// Said first: the page makes its WebGL context once this worker runs
+// (boot.js), since making it holds the page's thread that a worker's start
+// waits for.
+postMessage({ type: 'alive' });
 
 // The module, beside this file: in a cross-origin isolated page (meshserve
 // sends COOP and COEP; SharedArrayBuffer exists) the build with pthreads,
@@ -50,6 +56,7 @@ function loadModule() {
   if (!threaded)
     importScripts('meshstream.js');
   importScripts('worker-apo.js');     // the APO part: apoRound
+  mark('loader');
   modulePromise = threaded
     ? createMeshstreamThreads({
         locateFile: file => here(file === 'meshstream-mt.worker.js' ? 'meshstream-mt-worker.js' : file),
