@@ -1,4 +1,4 @@
-/* Replays the regression corpora of nine libFuzzer targets through their
+/* Replays the regression corpora of ten libFuzzer targets through their
  * contract checks: tests/corpus/archive_index/ (the archive index reader,
  * tests/fuzz/fuzz_archive_index.c), tests/corpus/subtree/ (the index head and
  * subtree reader of a client's partial index, tests/fuzz/fuzz_subtree.c), tests/corpus/apo_chunk/ (the APO chunk
@@ -8,8 +8,10 @@
  * tests/fuzz/fuzz_config_catalog.c), tests/corpus/mesh_reader/ (the mesh
  * readers, vertex colour included, tests/fuzz/fuzz_mesh_reader.c),
  * tests/corpus/colour/ (the colour decoder, tests/fuzz/fuzz_colour.c),
- * tests/corpus/metadata/ (meshbake's sidecar metadata, tests/fuzz/fuzz_metadata.c) and
- * tests/corpus/annotations/ (a model's annotations, tests/fuzz/fuzz_annotations.c). Seeds named
+ * tests/corpus/metadata/ (meshbake's sidecar metadata, tests/fuzz/fuzz_metadata.c),
+ * tests/corpus/annotations/ (a model's annotations, tests/fuzz/fuzz_annotations.c) and
+ * tests/corpus/web_inflate/ (the browser build's inflater against zlib,
+ * tests/fuzz/fuzz_web_inflate.c). Seeds named
  * seed-*-ok and seed-*.cam must be accepted, the other seed-* refused;
  * fuzzer finds only need to run clean. */
 #include <dirent.h>
@@ -33,6 +35,7 @@
 #include "fuzz/fuzz_mesh_reader.c"
 #include "fuzz/fuzz_metadata.c"
 #include "fuzz/fuzz_subtree.c"
+#include "fuzz/fuzz_web_inflate.c"
 
 typedef bool (*fuzz_one_fn)(const uint8_t *data, size_t size);
 
@@ -130,6 +133,12 @@ static void test_annotations_corpus(void **state)
     assert_true(replay("tests/corpus/annotations", ms_fuzz_annotations_one) >= 26);
 }
 
+static void test_web_inflate_corpus(void **state)
+{
+    (void)state;
+    assert_true(replay("tests/corpus/web_inflate", ms_fuzz_web_inflate_one) >= 10);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -142,6 +151,7 @@ int main(void)
         cmocka_unit_test(test_colour_corpus),
         cmocka_unit_test(test_metadata_corpus),
         cmocka_unit_test(test_annotations_corpus),
+        cmocka_unit_test(test_web_inflate_corpus),
     };
     return cmocka_run_group_tests_name("fuzz_replay", tests, NULL, NULL);
 }

@@ -12,6 +12,7 @@
 /* A canonical Huffman code: how many codes of each length, and the symbols
  * in the order of their codes (by length, then by symbol). */
 typedef struct code {
+    unsigned longest; /* the longest code's length (0: no code) */
     uint16_t count[MAX_BITS + 1];
     uint16_t symbol[LITLEN_CODES];
 } code;
@@ -69,20 +70,36 @@ static bool put(reader *r, uint8_t byte)
     return true;
 }
 
+/* What a code is for, which decides the incomplete codes it may be (zlib's
+ * rule, so that both inflaters take the same streams: tests/fuzz/
+ * fuzz_web_inflate.c). */
+typedef enum code_kind {
+    CODE_FIXED,   /* the fixed block's, built here: its distance code leaves two codes out */
+    CODE_LENGTHS, /* a dynamic block's code of code lengths: complete, or no code at all */
+    CODE_DATA     /* a dynamic block's literal/length or distance code: complete, no code at
+                     all, or a single code of one bit */
+} code_kind;
+
 /* Builds the code of `n` symbols from their lengths (0: unused). Over-
- * subscribed lengths are refused; an incomplete code is kept (a code that is
- * not in it fails when read). */
-static bool build(reader *r, code *c, const uint8_t *lengths, unsigned n)
+ * subscribed lengths are refused, and incomplete ones but where `kind`
+ * allows them; a code not in an incomplete code fails when read. */
+static bool build(reader *r, code *c, const uint8_t *lengths, unsigned n, code_kind kind)
 {
     memset(c->count, 0, sizeof c->count);
     for (unsigned s = 0; s < n; ++s)
         c->count[lengths[s]]++;
     int left = 1;
+    unsigned longest = 0;
     for (unsigned len = 1; len <= MAX_BITS; ++len) {
         left = 2 * left - c->count[len];
         if (left < 0)
             return fault(r, MS_WEB_INFLATE_BAD, "a Huffman code has too many codes of a length");
+        if (c->count[len])
+            longest = len;
     }
+    if (left > 0 && longest > 0 && kind != CODE_FIXED && (kind == CODE_LENGTHS || longest != 1))
+        return fault(r, MS_WEB_INFLATE_BAD, "an incomplete Huffman code");
+    c->longest = longest;
     uint16_t first[MAX_BITS + 1];
     first[1] = 0;
     for (unsigned len = 1; len < MAX_BITS; ++len)
@@ -96,11 +113,12 @@ static bool build(reader *r, code *c, const uint8_t *lengths, unsigned n)
 
 /* Reads one symbol of code c, a bit at a time: the codes of each length are
  * consecutive numbers, the first of them following the last of the length
- * before, doubled. */
+ * before, doubled. Bits that no code of c starts with fail once the longest
+ * code's length is read (no further bit is asked for, as zlib does). */
 static bool decode(reader *r, const code *c, unsigned *symbol)
 {
     int value = 0, first = 0, index = 0;
-    for (unsigned len = 1; len <= MAX_BITS; ++len) {
+    for (unsigned len = 1; len <= c->longest; ++len) {
         unsigned bit;
         if (!take(r, 1, &bit))
             return false;
@@ -189,9 +207,9 @@ static bool fixed(reader *r)
     for (unsigned s = 0; s < LITLEN_CODES; ++s)
         lengths[s] = s < 144 ? 8 : s < 256 ? 9 : s < 280 ? 7 : 8;
     code litlen, dist;
-    build(r, &litlen, lengths, LITLEN_CODES);
+    build(r, &litlen, lengths, LITLEN_CODES, CODE_FIXED);
     memset(lengths, 5, DIST_CODES);
-    build(r, &dist, lengths, DIST_CODES);
+    build(r, &dist, lengths, DIST_CODES, CODE_FIXED);
     return codes(r, &litlen, &dist);
 }
 
@@ -215,7 +233,7 @@ static bool dynamic(reader *r)
         lengths[order[k]] = (uint8_t)len;
     }
     code lencode, litlen, dist;
-    if (!build(r, &lencode, lengths, 19))
+    if (!build(r, &lencode, lengths, 19, CODE_LENGTHS))
         return false;
     for (unsigned k = 0; k < nlen + ndist;) {
         unsigned s, repeat, extra;
@@ -249,7 +267,7 @@ static bool dynamic(reader *r)
     }
     if (lengths[256] == 0)
         return fault(r, MS_WEB_INFLATE_BAD, "a block without an end code");
-    if (!build(r, &litlen, lengths, nlen) || !build(r, &dist, lengths + nlen, ndist))
+    if (!build(r, &litlen, lengths, nlen, CODE_DATA) || !build(r, &dist, lengths + nlen, ndist, CODE_DATA))
         return false;
     return codes(r, &litlen, &dist);
 }
@@ -279,6 +297,8 @@ ms_web_inflate_result ms_web_inflate(const uint8_t *in, size_t in_size, size_t m
         fault(&r, MS_WEB_INFLATE_SHORT, "the input ends inside the stream");
     } else if ((in[0] & 0x0F) != 8 || in[0] >> 4 > 7 || (in[0] << 8 | in[1]) % 31 != 0) {
         fault(&r, MS_WEB_INFLATE_BAD, "incorrect header check");
+    } else if ((in[1] & 0x20) && in_size < 6) { /* zlib reads the dictionary's id first */
+        fault(&r, MS_WEB_INFLATE_SHORT, "the input ends inside the stream");
     } else if (in[1] & 0x20) {
         fault(&r, MS_WEB_INFLATE_DICT, "it needs a preset dictionary");
     } else {

@@ -21,16 +21,17 @@ FUZZ_TARGETS ?= $(FUZZ_ALL)
 FUZZ_BINS    := $(patsubst %,$(FUZZ_DIR)/fuzz_%,$(FUZZ_TARGETS))
 
 # From server/serve/: the side door's header parsing (fuzz_http_request) and the
-# config reader (fuzz_config_catalog).
+# config reader (fuzz_config_catalog); from client/web/: the browser build's own
+# inflater (fuzz_web_inflate, against zlib).
 LIB_SRCS   := $(filter-out %_main.c,$(wildcard common/*/*.c protocol/*.c)) \
               server/serve/ms_http_parse.c server/serve/ms_server_config.c \
-              server/serve/ms_http_cors.c
+              server/serve/ms_http_cors.c client/web/ms_web_inflate.c
 LIB_OBJS   := $(patsubst %.c,$(FUZZ_DIR)/obj/%.o,$(LIB_SRCS))
 SAN        := -fsanitize=address,undefined -fno-sanitize-recover=undefined
 FUZZ_CFLAGS := -std=c11 -D_DEFAULT_SOURCE -D_FILE_OFFSET_BITS=64 -O1 -g \
                -fno-omit-frame-pointer $(SAN) -fsanitize=fuzzer-no-link \
                -Wall -Wextra -Werror -Wshadow -Wstrict-prototypes -Wvla \
-               $(addprefix -I,$(wildcard common/*) protocol server/serve tests/support) -pthread
+               $(addprefix -I,$(wildcard common/*) protocol server/serve client/web tests/support) -pthread
 FUZZ_LIBS  := $(shell pkg-config --libs jansson libevent libpng zlib) -lm -pthread
 # the one version of the project, as the main Makefile gives it
 $(FUZZ_DIR)/obj/common/util/ms_version.o: FUZZ_CFLAGS += -DMS_VERSION='"$(shell cat VERSION)"'
