@@ -509,14 +509,10 @@ static ms_status encode_cell(pool *p, uint32_t node, ms_apo_builder **builder, c
     ms_mesh m_leaf; /* the cell's APO m: a leaf's full-precision complex, an internal cell's decoded stream */
     memset(&m_leaf, 0, sizeof m_leaf);
     bool m_given = apo && (leaf || st.bits == hi);
-    /* A leaf's mesh for its parent's M is APO's work too: timed as such
-     * (apo_cell adds its own time to this). */
-    double leaf_mesh_seconds = 0.0;
-    if (s == MS_OK && apo && leaf && st.vertex_count > 0) {
-        double t0 = ms_now_seconds();
+    double leaf_mesh_seconds = ms_now_seconds(); /* a leaf's mesh for its parent's M: APO's work */
+    if (s == MS_OK && apo && leaf && st.vertex_count > 0)
         s = leaf_mesh(&st, &b->box, &m_leaf, err);
-        leaf_mesh_seconds = ms_now_seconds() - t0;
-    }
+    leaf_mesh_seconds = ms_now_seconds() - leaf_mesh_seconds;
     if (s == MS_OK && st.vertex_count > 0) {
         ms_codec_encode_params ep = {
             .p_min = lo, .box = b->box, .compact_header = true, .ahead = p->params->ahead};
