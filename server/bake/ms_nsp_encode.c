@@ -560,7 +560,7 @@ static ms_status encode_cell(pool *p, uint32_t node, ms_apo_builder **builder, c
         s = ms_apo_builder_create(builder, err);
     if (s == MS_OK && apo && out->size > 0)
         s = apo_cell(p, node, hi, *builder, m_given ? &m_leaf : NULL, out, err);
-    out->apo_seconds += leaf_mesh_seconds;
+    out->apo_seconds += apo ? leaf_mesh_seconds : 0.0;
     ms_mesh_free(&m_leaf);
     if (s != MS_OK) {
         free(out->stream);
