@@ -297,6 +297,9 @@ static ms_status encode_cells(const ms_bake_options *o, ms_nsp_build *b,
         .colour_bits = r->colour_bits,
         .progress = on_progress,
         .progress_context = progress,
+        /* freed memory kept resident between cells' APO work: an eighth of
+         * the budget, as much as distribute's leaf buffers had */
+        .resident_free_max = o->mem_mb * ((size_t)1 << 20) / 8,
     };
     r->threads = ep.threads;
     ms_nsp_encode_stats es;

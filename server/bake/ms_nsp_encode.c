@@ -315,15 +315,21 @@ static ms_status full_precision_mesh(const ms_nsp_build *b, uint32_t node, ms_me
     return s;
 }
 
-/* Returns freed heap memory to the kernel. An internal cell's APO work frees
- * tens to hundreds of MB in large blocks that glibc keeps (its mmap threshold
- * grows with them), and Embree takes its BVH memory with mmap, not from that
- * heap: without this, the union's temporaries and the last build's arrays stay in
- * the RSS under the next build. */
-static void give_back_memory(void)
+/* Returns freed heap memory to the kernel once more of it is resident than
+ * the bake's budget allows (ms_nsp_encode_params.resident_free_max). An
+ * internal cell's APO work frees tens to hundreds of MB in large blocks that
+ * glibc keeps (its mmap threshold grows with them), and Embree takes its BVH
+ * memory with mmap, not from that heap: without this, the union's
+ * temporaries and the last build's arrays stay in the RSS under the next
+ * build. Below the limit they stay, and the next build reuses their pages
+ * without faulting them in again. */
+static void give_back_memory(const pool *p)
 {
 #ifdef __GLIBC__
-    malloc_trim(0);
+    if (mallinfo2().fordblks > p->params->resident_free_max)
+        malloc_trim(0);
+#else
+    (void)p;
 #endif
 }
 
@@ -408,7 +414,7 @@ static ms_status apo_cell(pool *p, uint32_t node, unsigned hi, ms_apo_builder *b
     /* the children's parts are in M now: free them before the build's peak */
     free_child_parts(p, node);
     if (!leaf)
-        give_back_memory();
+        give_back_memory(p);
     bool measured = ap->accuracy && !leaf;
     if (s == MS_OK && measured && !ap->sample_leaves)
         s = full_precision_mesh(b, node, &reference, err);
@@ -682,7 +688,7 @@ static void worker(void *arg, size_t block)
         }
         free_child_parts(p, node);
         if (b->nodes[node].first_child != MS_NSP_NONE && p->params->apo && p->params->apo->enabled)
-            give_back_memory();
+            give_back_memory(p);
         pthread_mutex_lock(&p->lock);
         if (s == MS_OK)
             s = finish_cell(p, node, &out, &err);
