@@ -315,14 +315,10 @@ static ms_status full_precision_mesh(const ms_nsp_build *b, uint32_t node, ms_me
     return s;
 }
 
-/* Returns freed heap memory to the kernel once more of it is resident than
- * the bake's budget allows (ms_nsp_encode_params.resident_free_max). An
- * internal cell's APO work frees tens to hundreds of MB in large blocks that
- * glibc keeps (its mmap threshold grows with them), and Embree takes its BVH
- * memory with mmap, not from that heap: without this, the union's
- * temporaries and the last build's arrays stay in the RSS under the next
- * build. Below the limit they stay, and the next build reuses their pages
- * without faulting them in again. */
+/* Gives freed heap memory back to the kernel once more of it is resident than
+ * the budget allows (resident_free_max): an internal cell's APO work frees
+ * tens to hundreds of MB that glibc keeps. Below that it stays, and the next
+ * build reuses its pages without faulting them in again. */
 static void give_back_memory(const pool *p)
 {
 #ifdef __GLIBC__
