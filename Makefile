@@ -306,6 +306,7 @@ WASM_SRCS   := $(filter-out $(WASM_SKIP),$(foreach r,$(WASM_ROOMS),$(call lib_sr
 WASM_OBJS   := $(patsubst %.c,$(WASM)/obj/%.o,$(WASM_SRCS))
 WASM_CFLAGS := $(CSTD) $(WARN) -O2 -DNDEBUG -Iweb/wasm/include $(addprefix -I,$(WASM_ROOMS))
 WASM_EXPORTS := malloc free ms_web_view_new ms_web_view_free ms_web_view_error ms_web_view_box \
+               ms_web_view_budget ms_web_view_forgotten_cells ms_web_view_forgotten_bytes \
                ms_web_view_cell_count ms_web_view_bounds ms_web_view_camera ms_web_view_culled ms_web_view_permit ms_web_view_plan \
                ms_web_view_plan_count ms_web_view_plan_cell ms_web_view_plan_bits \
                ms_web_view_plan_bytes ms_web_view_held ms_web_view_give ms_web_view_stitch \

@@ -472,6 +472,63 @@ static void test_server_gone_mid_stream(void **state)
     free(text);
 }
 
+/* The memory budget (#mem=MB): the page walked from the close-up to the
+ * whole sculpture and to a close-up of its other side with a budget of 20
+ * kB forgets cells (timing.forgottenCells) and completes with the very cut
+ * of the same walk without a budget (the same triangles and cells). */
+static json_t *walk_page(const fixture *f, const char *mem, const char *name)
+{
+    static const char near[] = "0.3,0.2,1.6,0,0,0,0,1,0,40", far[] = "0.9,0.6,3.2,0,0,0,0,1,0,40",
+                      back[] = "-0.3,0.2,-1.6,0,0,0,0,1,0,40";
+    char steps[2048], steps_file[700], command[4096], shot[700];
+    snprintf(steps, sizeof steps,
+             "[{\"method\": \"Runtime.evaluate\", \"params\": {\"expression\": \"location.hash = 'cam=%s&hud=0%s'\"}},\n"
+             " {\"settle\": true},\n"
+             " {\"method\": \"Runtime.evaluate\", \"params\": {\"expression\": \"location.hash = 'cam=%s&hud=0%s'\"}},\n"
+             " {\"settle\": true}]\n", far, mem, back, mem);
+    snprintf(steps_file, sizeof steps_file, "%s/%s-steps.json", f->dir, name);
+    ms_test_write_file(steps_file, steps, strlen(steps));
+    snprintf(shot, sizeof shot, "%s/%s.png", f->dir, name);
+    snprintf(command, sizeof command,
+             "tests/browser-page 'http://127.0.0.1:%u/view/demo#cam=%s&hud=0%s' --size %dx%d --out %s "
+             "--input %s --timeout 120", f->http_port, near, mem, WIDTH, HEIGHT, shot, steps_file);
+    json_t *report = ms_test_run_json(command, 0);
+    json_t *seen = json_object_get(report, "steps");
+    assert_int_equal(json_array_size(seen), 2);
+    return report;
+}
+
+static void test_memory_budget(void **state)
+{
+    fixture *f = *state;
+    MS_TEST_NEED_BROWSER(f->why_skip);
+    json_t *tight = walk_page(f, "&mem=0.02", "budget"), *plain = walk_page(f, "", "no-budget");
+    json_t *last = json_object_get(json_array_get(json_object_get(tight, "steps"), 1), "page");
+    json_t *last_plain = json_object_get(json_array_get(json_object_get(plain, "steps"), 1), "page");
+    json_t *timing = json_object_get(last, "timing");
+    json_int_t budget = json_integer_value(json_object_get(timing, "memoryBudget"));
+    json_int_t forgotten = json_integer_value(json_object_get(timing, "forgottenCells"));
+    double forgotten_bytes = json_number_value(json_object_get(timing, "forgottenBytes"));
+    printf("with #mem=0.02: budget %lld bytes, %lld cells and %.0f bytes forgotten; %lld triangles in %lld "
+           "cells (without a budget: %lld in %lld)\n", (long long)budget, (long long)forgotten, forgotten_bytes,
+           (long long)json_integer_value(json_object_get(last, "triangles")),
+           (long long)json_integer_value(json_object_get(last, "cells")),
+           (long long)json_integer_value(json_object_get(last_plain, "triangles")),
+           (long long)json_integer_value(json_object_get(last_plain, "cells")));
+    assert_string_equal(json_string_value(json_object_get(last, "state")), "complete");
+    assert_string_equal(json_string_value(json_object_get(last_plain, "state")), "complete");
+    assert_int_equal(budget, 20971); /* 0.02 MB */
+    assert_true(forgotten > 0);
+    assert_true(forgotten_bytes > 0);
+    assert_int_equal(json_integer_value(json_object_get(json_object_get(last_plain, "timing"), "forgottenCells")), 0);
+    assert_int_equal(json_integer_value(json_object_get(last, "triangles")),
+                     json_integer_value(json_object_get(last_plain, "triangles")));
+    assert_int_equal(json_integer_value(json_object_get(last, "cells")),
+                     json_integer_value(json_object_get(last_plain, "cells")));
+    json_decref(tight);
+    json_decref(plain);
+}
+
 /* A camera that leaves before its cells came: the page reached through a
  * relay with 150 ms each way, complete at the whole sculpture; then the
  * close-up (its plan asks for its cells at once, most of them waiting in
@@ -650,6 +707,7 @@ int main(void)
         cmocka_unit_test(test_missing_model_says_so),
         cmocka_unit_test(test_server_gone_mid_stream),
         cmocka_unit_test(test_camera_change_cancels),
+        cmocka_unit_test(test_memory_budget),
         cmocka_unit_test(test_preview_and_token),
         cmocka_unit_test(test_controls_and_view_text),
     };

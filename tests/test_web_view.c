@@ -282,6 +282,126 @@ static unsigned stream_all(ms_archive *a, ms_web_view *v, bool ordered, uint32_t
     }
 }
 
+/* Stream bytes held by a view's cells, split into what the budget may forget
+ * (hidden, not targeted) and the rest. */
+static void held_split(ms_web_view *v, uint64_t *forgettable, uint64_t *kept)
+{
+    ms_web_view_parts parts;
+    ms_web_view_parts_get(v, &parts);
+    *forgettable = *kept = 0;
+    for (uint32_t c = ms_view_next_known(parts.view, MS_ARCHIVE_NONE); c != MS_ARCHIVE_NONE;
+         c = ms_view_next_known(parts.view, c)) {
+        uint64_t b = ms_view_held_bytes(parts.view, c) + ms_view_held_colour_bytes(parts.view, c);
+        bool hidden = ms_view_state(parts.view, c) == MS_VIEW_HIDDEN &&
+                      ms_view_target(parts.view, c) == MS_VIEW_TARGET_HIDDEN;
+        *(hidden ? forgettable : kept) += b;
+    }
+}
+
+static double eye_distance(ms_web_view *v, uint32_t cell, const double eye[3])
+{
+    double cube[4];
+    assert_int_equal(ms_web_view_cell_cube(v, cell, cube), MS_OK);
+    double d2 = 0;
+    for (int a = 0; a < 3; ++a)
+        d2 += (cube[a] + 0.5 * cube[3] - eye[a]) * (cube[a] + 0.5 * cube[3] - eye[a]);
+    return sqrt(d2);
+}
+
+/* The memory budget: a view walked around the deep demo at close range holds
+ * at most its budget of received bytes once each view settles (or only what
+ * its cut needs), forgets the farthest unwanted cells first, fetches a cell
+ * again from its first byte when it is wanted again, and draws every view
+ * exactly as a view without a budget does. */
+static void budget_walk(const fixture *f, int divisor_num, int divisor_den, bool *partial)
+{
+    static const double EYES[][3] = {{0.5, 0.1, 0.3}, {-0.5, 0.1, 0.3}, {-0.3, 0.1, -0.5},
+                                     {0.4, -0.1, -0.4}, {0.5, 0.1, 0.3}};
+    enum { STEPS = sizeof EYES / sizeof *EYES };
+    size_t size, total = 0;
+    const uint8_t *blob = ms_archive_index_bytes(f->deep, &size);
+    for (uint32_t c = 0; c < ms_archive_get_header(f->deep)->cell_count; ++c)
+        total += ms_archive_get_cell(f->deep, c)->geometry_length;
+    ms_web_view *free_view, *tight;
+    ms_error err;
+    assert_int_equal(ms_web_view_new(blob, size, "deep", &free_view, &err), MS_OK);
+    assert_int_equal(ms_web_view_new(blob, size, "deep", &tight, &err), MS_OK);
+    const uint32_t budget = (uint32_t)(total * (uint64_t)divisor_num / (uint64_t)divisor_den);
+    *partial = false;
+    ms_web_view_budget(tight, budget);
+    uint64_t refetched = 0;
+    for (int k = 0; k < STEPS; ++k) {
+        assert_int_equal(ms_web_view_camera(free_view, EYES[k], TARGET, UP, 40, 640, 480, 0, 0, 1.0), MS_OK);
+        assert_int_equal(ms_web_view_camera(tight, EYES[k], TARGET, UP, 40, 640, 480, 0, 0, 1.0), MS_OK);
+        /* the first plan after the move: what it forgot is farther than what
+         * it kept of the cells it could forget */
+        uint32_t cells = ms_web_view_cell_count(tight);
+        uint32_t *before = calloc(cells, sizeof *before);
+        assert_non_null(before);
+        for (uint32_t c = 0; c < cells; ++c)
+            before[c] = ms_web_view_held(tight, c);
+        uint32_t forgotten = ms_web_view_forgotten_cells(tight);
+        int settled;
+        assert_int_equal(ms_web_view_plan(tight, 0, &settled), MS_OK);
+        ms_web_view_parts parts;
+        ms_web_view_parts_get(tight, &parts);
+        double nearest_forgotten = INFINITY, farthest_kept = 0;
+        for (uint32_t c = 0; c < cells; ++c) {
+            if (!before[c] || ms_view_state(parts.view, c) != MS_VIEW_HIDDEN ||
+                ms_view_target(parts.view, c) != MS_VIEW_TARGET_HIDDEN)
+                continue;
+            double d = eye_distance(tight, c, EYES[k]);
+            if (ms_web_view_held(tight, c) == 0)
+                nearest_forgotten = fmin(nearest_forgotten, d);
+            else
+                farthest_kept = fmax(farthest_kept, d);
+        }
+        if (ms_web_view_forgotten_cells(tight) > forgotten)
+            assert_true(nearest_forgotten >= farthest_kept);
+        free(before);
+        uint32_t first;
+        uint64_t free_bytes, tight_bytes;
+        stream_all(f->deep, free_view, false, &first, &free_bytes);
+        stream_all(f->deep, tight, false, &first, &tight_bytes);
+        refetched += tight_bytes - free_bytes;
+        uint64_t could, kept;
+        held_split(tight, &could, &kept);
+        printf("view %d: %llu bytes held (%llu of them forgettable; budget %llu of %zu), %llu cells and "
+               "%llu bytes forgotten so far, %llu bytes fetched again\n", k,
+               (unsigned long long)(could + kept), (unsigned long long)could, (unsigned long long)budget,
+               total, (unsigned long long)ms_web_view_forgotten_cells(tight),
+               (unsigned long long)ms_web_view_forgotten_bytes(tight), (unsigned long long)refetched);
+        assert_true(could + kept <= budget || could == 0);
+        *partial = *partial || (could > 0 && ms_web_view_forgotten_cells(tight) > 0);
+        assert_int_equal(ms_web_view_stitch(free_view), MS_OK);
+        assert_int_equal(ms_web_view_stitch(tight), MS_OK);
+        assert_int_equal(ms_web_view_vertex_count(tight), ms_web_view_vertex_count(free_view));
+        assert_int_equal(ms_web_view_triangle_count(tight), ms_web_view_triangle_count(free_view));
+        assert_memory_equal(ms_web_view_triangles(tight), ms_web_view_triangles(free_view),
+                            3 * (size_t)ms_web_view_triangle_count(free_view) * sizeof(uint32_t));
+        assert_memory_equal(ms_web_view_positions(tight), ms_web_view_positions(free_view),
+                            3 * (size_t)ms_web_view_vertex_count(free_view) * sizeof(float));
+    }
+    /* it forgot, and the way back to the first view fetched some again */
+    assert_true(ms_web_view_forgotten_cells(tight) > 0);
+    assert_true(ms_web_view_forgotten_bytes(tight) > 0);
+    assert_true(refetched > 0);
+    assert_true(ms_web_view_bytes_held(tight) < ms_web_view_bytes_held(free_view));
+    ms_web_view_free(free_view);
+    ms_web_view_free(tight);
+}
+
+static void test_budget_forgets_far_cells(void **state)
+{
+    fixture *f = *state;
+    bool partial;
+    /* a quarter of the model: every unwanted cell goes, the cut alone is more */
+    budget_walk(f, 1, 4, &partial);
+    /* two thirds: it stops once within the budget, unwanted cells left held */
+    budget_walk(f, 2, 3, &partial);
+    assert_true(partial);
+}
+
 /* Plans that look ahead list the whole target cut at once (fewer rounds,
  * parents before children) and end with the very cut, mesh and bytes of
  * plans of the next step; decoding on helper threads changes nothing of
@@ -923,6 +1043,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_streams_to_the_cut_of_every_byte),
         cmocka_unit_test(test_ahead_and_threads),
+        cmocka_unit_test(test_budget_forgets_far_cells),
         cmocka_unit_test(test_preview_cap),
         cmocka_unit_test(test_bounds_from_the_root),
         cmocka_unit_test(test_sections_and_casts),

@@ -4,6 +4,7 @@
 //   #cam=PX,PY,PZ,TX,TY,TZ,UX,UY,UZ,FOVY   position, target, up, degrees
 //   &tol=PIXELS                             screen tolerance (default 1)
 //   &culled=BITS                            bits given up outside the view (default 6)
+//   &mem=MB                                 received streams kept at most (docs/BROWSER.md "Memory")
 //   &hud=0                                  no overlay (pictures for tests)
 // The token is asked once, kept for the tab (sessionStorage) and sent as
 // Authorization by the worker, never in a URL. window.meshstream holds the
@@ -72,6 +73,11 @@ let camera = parseCamera(hash.get('cam'));   // or #view=mv1:..., read in start(
 const tolerance = Number(hash.get('tol')) > 0 ? Number(hash.get('tol')) : 1;
 // bits given up outside the view: the client core's 6 unless the URL says
 const culled = hash.get('culled') !== null && Number(hash.get('culled')) >= 0 ? Number(hash.get('culled')) : 6;
+// the memory budget, MB of received streams the worker keeps (docs/BROWSER.md
+// "Memory"): 64 MB a GB of the device's memory (navigator.deviceMemory, 4 GB
+// where the browser does not say), 16 to 1024 MB; #mem=MB says otherwise
+const memoryMb = Number(hash.get('mem')) > 0 ? Math.min(Number(hash.get('mem')), 4095)
+  : Math.min(1024, Math.max(16, 64 * (navigator.deviceMemory || 4)));
 if (hash.get('cam') && !parseCamera(hash.get('cam')))
   failPage('The camera in the URL is not ten numbers (#cam=PX,PY,PZ,TX,TY,TZ,UX,UY,UZ,FOVY).');
 
@@ -500,6 +506,7 @@ function start() {
     handle(m);
   };
   worker.postMessage({ type: 'start', name, token: sessionStorage.getItem(TOKEN_KEY) || '', culled,
+                       memory: Math.floor(memoryMb * 1048576),
                        layout: staticSite ? 'static' : 'door',
                        camera: camera ? workerCamera() : null });
   (boot.ready || Promise.resolve()).then(startGl);

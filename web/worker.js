@@ -1,7 +1,7 @@
 // The decoding worker of the viewer page (docs/BROWSER.md): the view decoder
 // of the C sources, compiled to WebAssembly (make wasm: meshstream.js and
 // meshstream.wasm, the interface of client/web/ms_web_view.h), fed over the
-// HTTP side door. Messages in: {type: 'start', name, token, camera, culled},
+// HTTP side door. Messages in: {type: 'start', name, token, camera, culled, memory},
 // {type: 'camera', camera} (a new camera: the loop plans again),
 // {type: 'sections', planes} (a b c d each: ms_web_view_sections; the page
 // sends a camera after them), {type: 'cast', rays: [{origin, direction,
@@ -545,6 +545,10 @@ async function run(msg) {
   }
   // A reader without a token reads a preview model to public_max_bits only.
   M._ms_web_view_culled(view, msg.culled);
+  // received streams kept at most (view.js: #mem=, or from the device's memory)
+  if (msg.memory > 0)
+    M._ms_web_view_budget(view, Math.min(msg.memory, 0xFFFFFFFF) >>> 0);
+  timing.memoryBudget = msg.memory > 0 ? msg.memory : 0;
   // A static tree holds only what its catalogue lists as public (meshexport
   // --full lists every bit): no server there widens it for a token.
   const preview = (!token || layout.ranged) && entry.public_max_bits < entry.bits;
@@ -621,6 +625,8 @@ async function run(msg) {
       postMesh(true, bytes);
       if (apoWanted(current))       // the APO chunks the view wants (web/worker-apo.js)
         bytes += await apoRound(name, token);
+      timing.forgottenCells = M._ms_web_view_forgotten_cells(view);
+      timing.forgottenBytes = M._ms_web_view_forgotten_bytes(view);
       postMessage({ type: 'complete', seq, bytes, rounds, preview, timing,
                     seconds: (performance.now() - started) / 1000 });
       while (!pendingCamera)

@@ -1,5 +1,6 @@
 /* The browser client's decoding core: see ms_web_view.h. */
 #include "ms_web_view.h"
+#include "ms_web_budget.h"
 
 #include <math.h>
 #include <stdbool.h>
@@ -56,6 +57,8 @@ struct ms_web_view {
     size_t subtree_count, subtree_cap;
     ms_pool *pool;          /* NULL: decoding on the caller's thread alone */
     ms_view_refine_jobs jobs; /* the pool's job list, kept between plans */
+    uint64_t budget;        /* ms_web_view_budget: stream bytes held at most (0: no limit) */
+    uint64_t forgotten_cells, forgotten_bytes; /* what the budget forgot, summed */
     ms_error err;
 };
 
@@ -428,6 +431,11 @@ ms_status ms_web_view_plan(ms_web_view *v, uint32_t max, int *settled)
             return st;
         changed = refined || r.splits || r.merges || r.refined || r.coarsened;
     }
+    /* over the budget: the cells this cut does not want go before it asks for more */
+    ms_status held = ms_web_budget_apply(v->view, v->index, v->camera.position, v->budget, &v->forgotten_cells,
+                                         &v->forgotten_bytes, &v->err);
+    if (held != MS_OK)
+        return held;
     /* pass 0: the next step (cells of the cut, and the children of a shown
      * cell about to split: the first rounds are small and each round's mesh
      * shows more); pass 1, ahead: the rest of the target cut, level by level */
@@ -669,17 +677,22 @@ const uint32_t *ms_web_view_run_firsts(const ms_web_view *v)
 
 ms_status ms_web_view_cell_cube(ms_web_view *v, uint32_t cell, double out[4])
 {
-    const ms_archive_header *h = ms_archive_get_header(v->index);
-    const ms_archive_cell *c = cell < ms_view_cell_count(v->view) ? ms_archive_get_cell(v->index, cell) : NULL;
-    if (!c)
-        return fail(v, MS_ERR_ARG, "no such cell");
-    double side = h->box_side;
-    for (unsigned l = 0; l < c->level; ++l)
-        side /= (double)h->n;
-    for (int a = 0; a < 3; ++a)
-        out[a] = h->box_origin[a] + (double)c->position[a] * side;
-    out[3] = side;
-    return MS_OK;
+    return ms_web_cell_cube(v->index, cell, out) ? MS_OK : fail(v, MS_ERR_ARG, "no such cell");
+}
+
+void ms_web_view_budget(ms_web_view *v, uint32_t bytes)
+{
+    v->budget = bytes;
+}
+
+uint32_t ms_web_view_forgotten_cells(const ms_web_view *v)
+{
+    return v->forgotten_cells > UINT32_MAX ? UINT32_MAX : (uint32_t)v->forgotten_cells;
+}
+
+double ms_web_view_forgotten_bytes(const ms_web_view *v)
+{
+    return (double)v->forgotten_bytes;
 }
 
 void ms_web_view_parts_get(ms_web_view *v, ms_web_view_parts *out)

@@ -220,6 +220,20 @@ const uint32_t *ms_web_view_run_firsts(const ms_web_view *view);
  * its APO chunk are given in. MS_ERR_ARG for a cell not in the model. */
 ms_status ms_web_view_cell_cube(ms_web_view *view, uint32_t cell, double out[4]);
 
+/* The memory budget (docs/BROWSER.md, "Memory"): at most `bytes` of the
+ * cells' received streams (geometry and colour) stay held. Each plan, once
+ * the cut is selected, forgets the cells the view neither shows nor targets,
+ * farthest from the camera first, until the view holds at most that; a cell
+ * forgotten and wanted again is planned again from its first byte. The cells
+ * shown or targeted are never forgotten (a shown cell keeps the bytes of the
+ * finer bits it had), so a cut that alone needs more holds what it needs. 0
+ * (the default): no limit. 32 bits: a WebAssembly module has at most 4 GiB. */
+void ms_web_view_budget(ms_web_view *view, uint32_t bytes);
+/* What the budget forgot since the view was made: cells, and their bytes (a
+ * double: exact to 2^53, and a plain number in JavaScript). */
+uint32_t ms_web_view_forgotten_cells(const ms_web_view *view);
+double ms_web_view_forgotten_bytes(const ms_web_view *view);
+
 /* For the room's own files (ms_web_apo.c): the view's index, decoder, camera
  * (NULL before ms_web_view_camera), selection parameters and error. */
 struct ms_archive;
