@@ -44,8 +44,8 @@
   // first thing worker.js says) and has the module: creating a context holds
   // this thread for about 0.1 s on SwiftShader, and both the worker's start
   // and the module's hand-over wait for a turn of this thread (the worker
-  // used to start only once the context was made: first pixels 350 to 410 ms
-  // on the test machine; docs/BROWSER.md, "First pixels"). Never more than
+  // used to start only once the context was made; docs/BROWSER.md, "First
+  // pixels"). Never more than
   // READY_WAIT_MS after this script: a worker slow to start does not hold
   // the page's own start.
   // (window.meshstream.timing says which came first: `glAfter`, 'worker' or

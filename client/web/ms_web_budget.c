@@ -55,8 +55,10 @@ static bool forgettable_cell(const ms_view *view, uint32_t cell)
 ms_status ms_web_budget_apply(ms_view *view, const ms_archive *index, const double eye[3], uint64_t budget,
                               uint64_t *cells, uint64_t *bytes, ms_error *err)
 {
+    if (budget == 0)
+        return MS_OK;
     uint64_t held = ms_web_held_stream_bytes(view);
-    if (budget == 0 || held <= budget)
+    if (held <= budget)
         return MS_OK;
     size_t n = 0;
     for (uint32_t c = ms_view_next_known(view, MS_ARCHIVE_NONE); c != MS_ARCHIVE_NONE; c = ms_view_next_known(view, c))
