@@ -23,6 +23,32 @@ static double now_s(void)
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
+/* For each program `named` lists ("failed programs: NAME(rc=N) ..."), the
+ * end of its own output in the log: the 3000 characters before its
+ * "=== NAME: rc=" line (a failure under the clone's load shows its
+ * assertion here, not in the log's end). */
+static void print_failed_outputs(const char *log, const char *named)
+{
+    const char *p = strchr(named, ':');
+    while (p && *p) {
+        p += strspn(p, ": ");
+        size_t n = strcspn(p, "( ");
+        if (n == 0 || n > 200)
+            break;
+        char marker[256];
+        snprintf(marker, sizeof marker, "=== %.*s: rc=", (int)n, p);
+        const char *at = strstr(log, marker);
+        if (at) { /* plain stdio: cmocka's messages are cut short */
+            const char *from = at - log > 3000 ? at - 3000 : log;
+            printf("--- the clone's output of %.*s:\n", (int)n, p);
+            fwrite(from, 1, (size_t)(at - from), stdout);
+            printf("\n");
+            fflush(stdout);
+        }
+        p = strchr(p + n, ' ');
+    }
+}
+
 static void test_clone_alone_passes_make_check(void **state)
 {
     (void)state;
@@ -60,11 +86,13 @@ static void test_clone_alone_passes_make_check(void **state)
                       seconds);
     if (status != 0 || failed != 0 || passed < 100) {
         /* which programs failed (run-tests names them before its summary),
-         * then the log's end */
+         * then each one's own output (what run-tests printed before its
+         * "=== NAME: rc=" line), else the log's end */
         const char *which = strstr(text, "failed programs:");
         char named[512] = "";
         if (which)
             snprintf(named, sizeof named, "%.*s", (int)strcspn(which, "\n"), which);
+        print_failed_outputs(text, named);
         size_t from = length > 3000 ? length - 3000 : 0;
         char tail[3100];
         snprintf(tail, sizeof tail, "%.*s", (int)(length - from), text + from);
