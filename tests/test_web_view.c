@@ -282,6 +282,20 @@ static unsigned stream_all(ms_archive *a, ms_web_view *v, bool ordered, uint32_t
     }
 }
 
+/* Two stitched views draw the same mesh: counts, triangles, positions and
+ * normals byte for byte. */
+static void assert_same_mesh(ms_web_view *a, ms_web_view *b)
+{
+    assert_int_equal(ms_web_view_vertex_count(a), ms_web_view_vertex_count(b));
+    assert_int_equal(ms_web_view_triangle_count(a), ms_web_view_triangle_count(b));
+    assert_memory_equal(ms_web_view_triangles(a), ms_web_view_triangles(b),
+                        3 * (size_t)ms_web_view_triangle_count(b) * sizeof(uint32_t));
+    assert_memory_equal(ms_web_view_positions(a), ms_web_view_positions(b),
+                        3 * (size_t)ms_web_view_vertex_count(b) * sizeof(float));
+    assert_memory_equal(ms_web_view_normals(a), ms_web_view_normals(b),
+                        3 * (size_t)ms_web_view_vertex_count(b) * sizeof(float));
+}
+
 /* Stream bytes held by a view's cells, split into what the budget may forget
  * (hidden, not targeted) and the rest. */
 static void held_split(ms_web_view *v, uint64_t *forgettable, uint64_t *kept)
@@ -375,12 +389,7 @@ static void budget_walk(const fixture *f, int divisor_num, int divisor_den, bool
         *partial = *partial || (could > 0 && ms_web_view_forgotten_cells(tight) > 0);
         assert_int_equal(ms_web_view_stitch(free_view), MS_OK);
         assert_int_equal(ms_web_view_stitch(tight), MS_OK);
-        assert_int_equal(ms_web_view_vertex_count(tight), ms_web_view_vertex_count(free_view));
-        assert_int_equal(ms_web_view_triangle_count(tight), ms_web_view_triangle_count(free_view));
-        assert_memory_equal(ms_web_view_triangles(tight), ms_web_view_triangles(free_view),
-                            3 * (size_t)ms_web_view_triangle_count(free_view) * sizeof(uint32_t));
-        assert_memory_equal(ms_web_view_positions(tight), ms_web_view_positions(free_view),
-                            3 * (size_t)ms_web_view_vertex_count(free_view) * sizeof(float));
+        assert_same_mesh(tight, free_view);
     }
     /* it forgot, and the way back to the first view fetched some again */
     assert_true(ms_web_view_forgotten_cells(tight) > 0);
@@ -440,14 +449,7 @@ static void test_ahead_and_threads(void **state)
     assert_int_equal(ms_web_view_bytes_held(ahead), ms_web_view_bytes_held(plain));
     assert_int_equal(ms_web_view_shown_cells(ahead), ms_web_view_shown_cells(plain));
     assert_int_equal(ms_web_view_max_bits(ahead), ms_web_view_max_bits(plain));
-    assert_int_equal(ms_web_view_vertex_count(ahead), ms_web_view_vertex_count(plain));
-    assert_int_equal(ms_web_view_triangle_count(ahead), ms_web_view_triangle_count(plain));
-    assert_memory_equal(ms_web_view_triangles(ahead), ms_web_view_triangles(plain),
-                        3 * (size_t)ms_web_view_triangle_count(plain) * sizeof(uint32_t));
-    assert_memory_equal(ms_web_view_positions(ahead), ms_web_view_positions(plain),
-                        3 * (size_t)ms_web_view_vertex_count(plain) * sizeof(float));
-    assert_memory_equal(ms_web_view_normals(ahead), ms_web_view_normals(plain),
-                        3 * (size_t)ms_web_view_vertex_count(plain) * sizeof(float));
+    assert_same_mesh(ahead, plain);
     /* off again: the next step only */
     assert_int_equal(ms_web_view_plan_ahead(ahead, 0), MS_OK);
     ms_web_view_free(plain);

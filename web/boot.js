@@ -45,9 +45,8 @@
   // this thread for about 0.1 s on SwiftShader, and both the worker's start
   // and the module's hand-over wait for a turn of this thread (the worker
   // used to start only once the context was made; docs/BROWSER.md, "First
-  // pixels"). Never more than
-  // READY_WAIT_MS after this script: a worker slow to start does not hold
-  // the page's own start.
+  // pixels"). Never more than READY_WAIT_MS after this script: a worker slow
+  // to start does not hold the page's own start.
   // (window.meshstream.timing says which came first: `glAfter`, 'worker' or
   // 'wait', with `aliveMs` and `glMs`.)
   const READY_WAIT_MS = 400;

@@ -506,7 +506,7 @@ function start() {
     handle(m);
   };
   worker.postMessage({ type: 'start', name, token: sessionStorage.getItem(TOKEN_KEY) || '', culled,
-                       memory: Math.floor(memoryMb * 1048576),
+                       memory: Math.max(1, Math.floor(memoryMb * 1048576)),
                        layout: staticSite ? 'static' : 'door',
                        camera: camera ? workerCamera() : null });
   (boot.ready || Promise.resolve()).then(startGl);

@@ -24,7 +24,8 @@ static uint64_t cell_stream_bytes(const ms_view *view, uint32_t cell)
     return (uint64_t)ms_view_held_bytes(view, cell) + (uint64_t)ms_view_held_colour_bytes(view, cell);
 }
 
-uint64_t ms_web_held_stream_bytes(const ms_view *view)
+/* Bytes of geometry and colour streams the view holds, over its known cells. */
+static uint64_t held_stream_bytes(const ms_view *view)
 {
     uint64_t total = 0;
     for (uint32_t c = ms_view_next_known(view, MS_ARCHIVE_NONE); c != MS_ARCHIVE_NONE; c = ms_view_next_known(view, c))
@@ -57,7 +58,7 @@ ms_status ms_web_budget_apply(ms_view *view, const ms_archive *index, const doub
 {
     if (budget == 0)
         return MS_OK;
-    uint64_t held = ms_web_held_stream_bytes(view);
+    uint64_t held = held_stream_bytes(view);
     if (held <= budget)
         return MS_OK;
     size_t n = 0;

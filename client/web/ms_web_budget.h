@@ -18,16 +18,14 @@
  * false for a cell with no record. */
 bool ms_web_cell_cube(const ms_archive *index, uint32_t cell, double out[4]);
 
-/* Bytes of geometry and colour streams the view holds, over its known cells. */
-uint64_t ms_web_held_stream_bytes(const ms_view *view);
-
 /* Forgets (ms_view_forget: bytes, colour and decoder) the HIDDEN cells the
  * last selection does not target, farthest first (the distance from eye to
  * the cell's cube's centre; equal distances by cell id), until the view
- * holds at most `budget` bytes (ms_web_held_stream_bytes) or none of them is
- * left: the cells shown or targeted are never forgotten, so a cut that alone
- * needs more keeps what it needs. budget 0: no limit. Adds the cells and
- * bytes forgotten to *cells and *bytes. MS_ERR_NOMEM (nothing forgotten). */
+ * holds at most `budget` bytes of geometry and colour streams (over its
+ * known cells) or none of them is left: the cells shown or targeted are never
+ * forgotten, so a cut that alone needs more keeps what it needs. budget 0: no
+ * limit. Adds the cells and bytes forgotten to *cells and *bytes.
+ * MS_ERR_NOMEM (nothing forgotten). */
 ms_status ms_web_budget_apply(ms_view *view, const ms_archive *index, const double eye[3], uint64_t budget,
                               uint64_t *cells, uint64_t *bytes, ms_error *err);
 

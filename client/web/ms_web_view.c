@@ -432,10 +432,10 @@ ms_status ms_web_view_plan(ms_web_view *v, uint32_t max, int *settled)
         changed = refined || r.splits || r.merges || r.refined || r.coarsened;
     }
     /* over the budget: the cells this cut does not want go before it asks for more */
-    ms_status held = ms_web_budget_apply(v->view, v->index, v->camera.position, v->budget, &v->forgotten_cells,
-                                         &v->forgotten_bytes, &v->err);
-    if (held != MS_OK)
-        return held;
+    ms_status forgot = ms_web_budget_apply(v->view, v->index, v->camera.position, v->budget,
+                                           &v->forgotten_cells, &v->forgotten_bytes, &v->err);
+    if (forgot != MS_OK)
+        return forgot;
     /* pass 0: the next step (cells of the cut, and the children of a shown
      * cell about to split: the first rounds are small and each round's mesh
      * shows more); pass 1, ahead: the rest of the target cut, level by level */
