@@ -343,7 +343,7 @@ DRACO3D     ?= $(or $(MESHSTREAM_DRACO3D),$(or $(XDG_CACHE_HOME),$(HOME)/.cache)
 DRACO3D_FILES := draco_decoder_nodejs.js draco_decoder.wasm
 .PHONY: wasm
 wasm: $(WASM)/site/meshstream.js $(WASM)/site/meshstream-mt.js $(patsubst web/%,$(WASM)/site/%,$(WEB_FILES)) \
-      $(WASM)/site/shaders.js
+      $(WASM)/site/shaders.js $(WASM)/site/viewer.js
 	@if [ -s "$(DRACO3D)/draco_decoder_nodejs.js" ] && [ -s "$(DRACO3D)/draco_decoder.wasm" ]; then \
 	  for f in $(DRACO3D_FILES); do cmp -s "$(DRACO3D)/$$f" $(WASM)/site/$$f || cp "$(DRACO3D)/$$f" $(WASM)/site/$$f; done; \
 	else \
@@ -373,6 +373,16 @@ $(WASM)/site/shaders.js: client/view/shaders/cell.vert.glsl client/view/shaders/
 $(WASM)/site/%: web/%
 	@mkdir -p $(dir $@)
 	cp $< $@
+# The viewer page's scripts after boot.js, in view.html's order, as the one
+# file it loads: one request where there were ten (a browser opens at most
+# six connections to a server, so the rest waited a round trip or two behind
+# them, and the worker's script and the model's first requests behind those;
+# docs/BROWSER.md, "First pixels").
+VIEWER_JS   := web/share.js web/light.js web/section.js web/measure.js web/tools.js $(WASM)/site/shaders.js \
+               web/camera.js web/render.js web/view.js web/annotations.js
+$(WASM)/site/viewer.js: $(VIEWER_JS)
+	@mkdir -p $(dir $@)
+	cat $^ > $@
 
 # The layering, for tests/test_layering.c and for reading: `make -s rooms`, and
 # `make -s room-flags ROOM=client/view` (the include paths that room compiles with).

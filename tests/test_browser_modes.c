@@ -254,6 +254,10 @@ static void test_apo_against_meshview(void **state)
            (long long)page_timing(page, "apoBytes"));
     assert_true(page_timing(page, "apoRequests") > 0);
     assert_true(page_timing(page, "apoBytes") > 0);
+    /* its part of the worker (worker-apo.js) read once a camera wanted APO */
+    json_t *keys = json_object_get(page, "keyframes");
+    assert_true(json_is_true(json_object_get(
+        json_object_get(json_array_get(keys, json_array_size(keys) - 1), "timing"), "apoLoaded")));
     /* the APO mode is what brings the page to meshview's APO picture: the
      * page's geometry shading of the same cameras (no chunk fetched, and so
      * every cell refined to the tolerance, not only those with a chunk) is
@@ -281,6 +285,7 @@ static void test_apo_against_meshview(void **state)
                "%.2f dB (%lld APO bytes)\n", k, psnr_apo, psnr_plain,
                (long long)json_integer_value(json_object_get(timing, "apoBytes")));
         assert_int_equal(json_integer_value(json_object_get(timing, "apoBytes")), 0); /* geometry: none fetched */
+        assert_false(json_is_true(json_object_get(timing, "apoLoaded")));             /* nor its script */
         assert_true(psnr_apo > psnr_plain);
     }
     json_decref(plain);

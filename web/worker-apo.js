@@ -1,6 +1,7 @@
-// The worker's APO part (docs/BROWSER.md, "APO"), loaded by worker.js with
-// the module and run in its global scope (M, view, layout, get, withHeap,
-// timing, pendingCamera, lastError are worker.js's). Once a camera's cut is
+// The worker's APO part (docs/BROWSER.md, "APO"), loaded by worker.js the
+// first time a camera wants APO (apoWanted) and run in its global scope (M,
+// view, layout, get, withHeap, timing, pendingCamera, lastError, apoWanted
+// are worker.js's). Once a camera's cut is
 // settled and the page's shading draws APO normals (meshview's rule: every
 // mode but --shading geometry), the client core's rule picks the chunks'
 // levels (ms_web_apo_plan: visible shown cells, not about to split, by
@@ -17,14 +18,6 @@
 
 const APO_LEVELS = 16;        // meshview's --apo-levels default: the footprint decides
 const DETAIL_TOLERANCE = 1;   // px: meshview's detail tolerance with APO (the core's tolerance_px)
-// px: meshview's --apo-min-tolerance default (MS_CORE_APO_MIN_TOLERANCE_DEFAULT):
-// at a finer geometric tolerance the chunks add bytes and no picture
-// (docs/ACCURACY.md, "Where APO pays"), so none is fetched
-const APO_MIN_TOLERANCE = 2;
-
-// Whether camera c's view fetches and draws APO: its shading asks for it and
-// its geometry is coarse enough to gain from it.
-const apoWanted = c => !!c.apo && c.tolerance >= APO_MIN_TOLERANCE;
 const APO_IN_FLIGHT = 16;
 let apoState = null, apoView = null;
 const apoHeld = new Map();    // cell: the stored chunk's bytes held (a prefix)
@@ -94,8 +87,6 @@ async function apoCell(name, token, cell, levels, end) {
 
 // The APO state of the worker's view (made afresh for a new view).
 function apoOf() {
-  for (const key of ['apoRequests', 'apoBytes', 'apoCheck'])
-    timing[key] = timing[key] || 0;
   if (apoView !== view) {
     M._ms_web_apo_free(apoState);
     apoState = M._ms_web_apo_new(view);

@@ -55,7 +55,6 @@ function loadModule() {
   }
   if (!threaded)
     importScripts('meshstream.js');
-  importScripts('worker-apo.js');     // the APO part: apoRound
   mark('loader');
   modulePromise = threaded
     ? createMeshstreamThreads({
@@ -266,8 +265,32 @@ function setCamera(c) {
   M._free(p);
   if (st !== 0)
     throw new Error('bad camera: ' + lastError());
-  apoCamera(c);                   // the geometry under APO (web/worker-apo.js)
+  // the geometry under APO (web/worker-apo.js), once a camera has wanted it
+  if (apoWanted(c) || apoLoaded) {
+    loadApo();
+    apoCamera(c);
+  }
 }
+
+// The APO part (web/worker-apo.js: apoCamera, apoRound), read the first time
+// a camera wants APO: a view drawn without it (the default 1 px tolerance,
+// --shading geometry) never waits for its script, which the first pixels
+// used to wait for (one more request before the decoder's start). Until
+// then the view selects as without APO.
+let apoLoaded = false;
+function loadApo() {
+  if (!apoLoaded) {
+    importScripts('worker-apo.js');
+    apoLoaded = timing.apoLoaded = true;
+  }
+}
+// px: meshview's --apo-min-tolerance default (MS_CORE_APO_MIN_TOLERANCE_DEFAULT):
+// at a finer geometric tolerance the chunks add bytes and no picture
+// (docs/ACCURACY.md, "Where APO pays"), so none is fetched
+const APO_MIN_TOLERANCE = 2;
+// Whether camera c's view fetches and draws APO: its shading asks for it and
+// its geometry is coarse enough to gain from it.
+const apoWanted = c => !!c.apo && c.tolerance >= APO_MIN_TOLERANCE;
 
 // Fetches what the cell lacks of its payload prefix at `bits` (null: all the
 // reader may read) and hands it over; returns the bytes received.
@@ -338,10 +361,12 @@ async function fetchSubtree(name, token, id, v, ticket) {
 // posted); boot: boot.js's milliseconds from the navigation (the page
 // asked for and answered, boot.js fetched and run) and the worker's clock
 // against the page's (workerClock: a mark + workerClock is from the
-// navigation).
+// navigation); pageAnswers: of the model's first three requests, those
+// boot.js made and this worker took its answer of; apoLoaded: whether a
+// camera wanted APO, so that its part (worker-apo.js) was read.
 const timing = { plan: 0, fetch: 0, wait: 0, stitch: 0, copy: 0, threads: 1, plans: 0, stitches: 0,
                  requests: 0, requestBytes: 0, cancelled: 0, subtrees: 0, indexWireBytes: 0, byHead: false,
-                 marks: {} };
+                 apoRequests: 0, apoBytes: 0, apoCheck: 0, pageAnswers: 0, apoLoaded: false, marks: {} };
 
 function mark(name) {
   if (!(name in timing.marks))
@@ -435,6 +460,40 @@ function nextCamera() {
   return new Promise(resolve => { wake = resolve; });
 }
 
+// The answers boot.js asked for itself (its 'prefetch' message's
+// pageFetches, each answered by an 'answer' message): a path's answer as
+// get() gives it, or get()'s own when the page's failed to arrive or was
+// told to wait (429: get() waits as the server says).
+const pageAnswers = new Map();    // path: {resolve, promise}
+function pageAnswer(path) {
+  if (!pageAnswers.has(path)) {
+    let resolve;
+    const promise = new Promise(r => { resolve = r; });
+    pageAnswers.set(path, { resolve, promise });
+  }
+  return pageAnswers.get(path);
+}
+function answered(msg) {
+  pageAnswer(msg.path).resolve(msg);
+}
+function firstRequest(msg, path) {
+  if (!Array.isArray(msg.pageFetches) || !msg.pageFetches.includes(path))
+    return get(path, msg.token);
+  return pageAnswer(path).promise.then(a => {
+    if (a.failed || a.status === 429)
+      return get(path, msg.token);
+    timing.pageAnswers++;
+    const bytes = new Uint8Array(a.body);
+    if (a.status !== 200 && a.status !== 206) {
+      const text = new TextDecoder().decode(bytes).trim().replace(/^error: /, '');
+      const e = new Error(text || ('the server answered ' + a.status));
+      e.status = a.status;
+      throw e;
+    }
+    return { status: a.status, bytes, headers: new Headers(Object.entries(a.headers).filter(([, v]) => v)) };
+  });
+}
+
 // The catalogue's entry and the index of the model a message names, asked for
 // at once: {name, token, layout, listing, index} (promises).
 let prefetched = null;
@@ -449,18 +508,18 @@ function prefetch(msg) {
   }
   // the catalogue's entries whose name (or title, description) holds NAME
   // (a page of at most 1000)
-  const listing = get(layout.catalogue(msg.name), msg.token).then(
+  const listing = firstRequest(msg, layout.catalogue(msg.name)).then(
     answer => JSON.parse(new TextDecoder().decode(answer.bytes)),
     e => { throw new Error('cannot read the catalogue: ' + e.message); });
   listing.catch(() => {});        // told by run(), if it runs
   // the index's failure is told after the catalogue's verdict (an unknown
   // model is named as such, not as the index's 404)
-  const index = get(layout.head(msg.name), msg.token).catch(e => e);
+  const index = firstRequest(msg, layout.head(msg.name)).catch(e => e);
   // the root cell, all of it the reader may read (no ?bits: never refused):
   // the first look draws from it without a round trip of its own, the home
   // camera is framed by it, and every view deeper than the root needs it
   // whole (a split cell stays at its finest bits)
-  const root = get(layout.cell(msg.name, 0, null), msg.token).catch(e => e);
+  const root = firstRequest(msg, layout.cell(msg.name, 0, null)).catch(e => e);
   return { name: msg.name, token: msg.token, layout: msg.layout, listing, index, root };
 }
 
@@ -580,7 +639,8 @@ async function run(msg) {
   // no subtree: drawn without waiting for one; the root came with the head).
   const firstLookCamera = c => {
     for (const times of FIRST_LOOK) {
-      const coarse = Object.assign({}, c, { tolerance: c.tolerance * times });
+      // (the first look draws no APO: its chunks come once a view settles)
+      const coarse = Object.assign({}, c, { tolerance: c.tolerance * times, apo: false });
       setCamera(coarse);
       if (plan(settledPtr) !== 0)
         throw new Error('selecting the cut: ' + lastError());
@@ -814,6 +874,10 @@ onmessage = e => {
   if (e.data.type === 'module') {
     mark('module from the page');
     fromPage(e.data);
+    return;
+  }
+  if (e.data.type === 'answer') {
+    answered(e.data);
     return;
   }
   if (e.data.type === 'prefetch') {
