@@ -403,6 +403,11 @@ static void test_cache_headers(void **state)
     assert_string_equal(ms_test_http_header(&r, "Cache-Control", value, sizeof value),
                         "private, max-age=3600");
     ms_test_http_free(&r);
+    /* The catalogue: the browser's for 10 s (the viewer page asks twice),
+     * no shared cache's (it changes with every rescan). */
+    get(f, "/catalog?limit=1000&q=dragon", NULL, 200, &r);
+    assert_string_equal(ms_test_http_header(&r, "Cache-Control", value, sizeof value), "private, max-age=10");
+    ms_test_http_free(&r);
     /* The token in the query string: refused, whatever the path, even when valid. */
     const char *query_token[] = {"/models/dragon/cells/6/geometry?token=s3cret-token",
                                  "/models/dragon/cells/6/geometry?bits=12&token=wrong",

@@ -37,33 +37,23 @@
                       bootFetched: ms(me && me.responseEnd), bootRan: ms(performance.now()),
                       timeOrigin: performance.timeOrigin };
   // The model's first three requests (its catalogue entry, its index's
-  // head, its root cell: what the first look is drawn from), made from here,
-  // where they start before the worker's script has come (a round trip or
-  // two on a distant server); each answer is handed to the worker
-  // ('answer'), which asks again itself for one that failed to arrive or
-  // was told to wait (429). The paths are worker.js's LAYOUTS': the worker
-  // takes an answer only for the path it would ask for.
+  // head, its root cell: what the first look is drawn from), sent from here
+  // too, before the worker's script has come (a round trip or two from a
+  // distant server): the worker's own requests for them, the same URLs with
+  // the same headers, are then answered by the browser's cache (the side
+  // door lets it keep them; a request still on its way is joined, not sent
+  // again). The paths are worker.js's LAYOUTS' (timing.warmAnswers counts
+  // the answers the cache gave).
   const token = sessionStorage.getItem(tokenKey) || '';
   const model = 'models/' + encodeURIComponent(name);
   const firstPaths = staticSite ? ['catalog.json', model + '.head', model + '/cells/0/geometry']
     : ['catalog?limit=1000&q=' + encodeURIComponent(name), model + '/head', model + '/cells/0/geometry'];
-  worker.postMessage({ type: 'prefetch', name, token, layout: staticSite ? 'static' : 'door', boot: bootTimes,
-                       pageFetches: firstPaths });
-  const ANSWER_WAIT_MS = 10000;   // worker.js's SILENCE_MS: then the worker asks itself
-  for (const path of firstPaths) {
-    const abort = new AbortController(), timer = setTimeout(() => abort.abort(), ANSWER_WAIT_MS);
+  for (const path of firstPaths)
     fetch(new URL('../' + path, location.href).href,
-          { headers: token ? { Authorization: 'Bearer ' + token } : {}, cache: 'default', signal: abort.signal })
-      .then(r => r.arrayBuffer().then(body => ({
-        type: 'answer', path, status: r.status, body,
-        headers: { 'content-encoding': r.headers.get('Content-Encoding') || '',
-                   'content-length': r.headers.get('Content-Length') || '' } })))
-      .catch(() => ({ type: 'answer', path, failed: true }))
-      .then(answer => {
-        clearTimeout(timer);
-        worker.postMessage(answer, answer.body ? [answer.body] : []);
-      });
-  }
+          { headers: token ? { Authorization: 'Bearer ' + token } : {}, cache: 'default' })
+      .then(r => r.arrayBuffer()).catch(() => null);   // the worker's own request tells what went wrong
+  worker.postMessage({ type: 'prefetch', name, token, layout: staticSite ? 'static' : 'door', boot: bootTimes,
+                       firstPaths });
   const handedOver = compiled.then(module => worker.postMessage({ type: 'module', file, module,
                                                                   at: Math.round(performance.now()) }));
   // view.js makes its WebGL context once the worker runs (its 'alive', the

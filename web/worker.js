@@ -361,12 +361,12 @@ async function fetchSubtree(name, token, id, v, ticket) {
 // posted); boot: boot.js's milliseconds from the navigation (the page
 // asked for and answered, boot.js fetched and run) and the worker's clock
 // against the page's (workerClock: a mark + workerClock is from the
-// navigation); pageAnswers: of the model's first three requests, those
-// boot.js made and this worker took its answer of; apoLoaded: whether a
-// camera wanted APO, so that its part (worker-apo.js) was read.
+// navigation); warmAnswers: of the model's first three requests, those
+// the browser's cache answered (boot.js sent them first); apoLoaded:
+// whether a camera wanted APO, so that its part (worker-apo.js) was read.
 const timing = { plan: 0, fetch: 0, wait: 0, stitch: 0, copy: 0, threads: 1, plans: 0, stitches: 0,
                  requests: 0, requestBytes: 0, cancelled: 0, subtrees: 0, indexWireBytes: 0, byHead: false,
-                 apoRequests: 0, apoBytes: 0, apoCheck: 0, pageAnswers: 0, apoLoaded: false, marks: {} };
+                 apoRequests: 0, apoBytes: 0, apoCheck: 0, warmAnswers: 0, apoLoaded: false, marks: {} };
 
 function mark(name) {
   if (!(name in timing.marks))
@@ -460,38 +460,15 @@ function nextCamera() {
   return new Promise(resolve => { wake = resolve; });
 }
 
-// The answers boot.js asked for itself (its 'prefetch' message's
-// pageFetches, each answered by an 'answer' message): a path's answer as
-// get() gives it, or get()'s own when the page's failed to arrive or was
-// told to wait (429: get() waits as the server says).
-const pageAnswers = new Map();    // path: {resolve, promise}
-function pageAnswer(path) {
-  if (!pageAnswers.has(path)) {
-    let resolve;
-    const promise = new Promise(r => { resolve = r; });
-    pageAnswers.set(path, { resolve, promise });
-  }
-  return pageAnswers.get(path);
-}
-function answered(msg) {
-  pageAnswer(msg.path).resolve(msg);
-}
-function firstRequest(msg, path) {
-  if (!Array.isArray(msg.pageFetches) || !msg.pageFetches.includes(path))
-    return get(path, msg.token);
-  return pageAnswer(path).promise.then(a => {
-    if (a.failed || a.status === 429)
-      return get(path, msg.token);
-    timing.pageAnswers++;
-    const bytes = new Uint8Array(a.body);
-    if (a.status !== 200 && a.status !== 206) {
-      const text = new TextDecoder().decode(bytes).trim().replace(/^error: /, '');
-      const e = new Error(text || ('the server answered ' + a.status));
-      e.status = a.status;
-      throw e;
-    }
-    return { status: a.status, bytes, headers: new Headers(Object.entries(a.headers).filter(([, v]) => v)) };
-  });
+// Of the paths boot.js asked for first (its prefetch message's firstPaths),
+// those whose last answer here came from the browser's cache: no byte on the
+// wire (a resource timing's transferSize), a body all the same.
+let firstPaths = [];
+function warmAnswers() {
+  return firstPaths.filter(path => {
+    const e = performance.getEntriesByName(new URL(path, ROOT).href).pop();
+    return !!e && e.transferSize === 0 && e.decodedBodySize > 0;
+  }).length;
 }
 
 // The catalogue's entry and the index of the model a message names, asked for
@@ -500,6 +477,8 @@ let prefetched = null;
 function prefetch(msg) {
   layout = LAYOUTS[msg.layout] || LAYOUTS.door;
   mark('prefetch');
+  if (Array.isArray(msg.firstPaths))
+    firstPaths = msg.firstPaths;
   if (msg.boot && typeof msg.boot.timeOrigin === 'number') {
     // boot.js's times, and this worker's clock against the page's
     timing.boot = Object.assign({}, msg.boot, {
@@ -508,18 +487,18 @@ function prefetch(msg) {
   }
   // the catalogue's entries whose name (or title, description) holds NAME
   // (a page of at most 1000)
-  const listing = firstRequest(msg, layout.catalogue(msg.name)).then(
+  const listing = get(layout.catalogue(msg.name), msg.token).then(
     answer => JSON.parse(new TextDecoder().decode(answer.bytes)),
     e => { throw new Error('cannot read the catalogue: ' + e.message); });
   listing.catch(() => {});        // told by run(), if it runs
   // the index's failure is told after the catalogue's verdict (an unknown
   // model is named as such, not as the index's 404)
-  const index = firstRequest(msg, layout.head(msg.name)).catch(e => e);
+  const index = get(layout.head(msg.name), msg.token).catch(e => e);
   // the root cell, all of it the reader may read (no ?bits: never refused):
   // the first look draws from it without a round trip of its own, the home
   // camera is framed by it, and every view deeper than the root needs it
   // whole (a split cell stays at its finest bits)
-  const root = firstRequest(msg, layout.cell(msg.name, 0, null)).catch(e => e);
+  const root = get(layout.cell(msg.name, 0, null), msg.token).catch(e => e);
   return { name: msg.name, token: msg.token, layout: msg.layout, listing, index, root };
 }
 
@@ -685,6 +664,7 @@ async function run(msg) {
       postMesh(true, bytes);
       if (apoWanted(current))       // the APO chunks the view wants (web/worker-apo.js)
         bytes += await apoRound(name, token);
+      timing.warmAnswers = warmAnswers();
       timing.forgottenCells = M._ms_web_view_forgotten_cells(view);
       timing.forgottenBytes = M._ms_web_view_forgotten_bytes(view);
       postMessage({ type: 'complete', seq, bytes, rounds, preview, timing,
@@ -874,10 +854,6 @@ onmessage = e => {
   if (e.data.type === 'module') {
     mark('module from the page');
     fromPage(e.data);
-    return;
-  }
-  if (e.data.type === 'answer') {
-    answered(e.data);
     return;
   }
   if (e.data.type === 'prefetch') {

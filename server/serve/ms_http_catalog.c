@@ -119,7 +119,15 @@ void ms_http_serve_catalog(ms_http_door *door, struct evhttp_request *req,
     struct evbuffer *body = evbuffer_new();
     if (body) {
         evbuffer_add_printf(body, "%s\n", text);
-        evhttp_add_header(evhttp_request_get_output_headers(req), "Content-Type", "application/json");
+        struct evkeyvalq *out = evhttp_request_get_output_headers(req);
+        evhttp_add_header(out, "Content-Type", "application/json");
+        /* Kept 10 s by the browser alone (shared caches keep no catalogue:
+         * it changes with every rescan, deploy/nginx.conf.in): the viewer
+         * page asks for its model's entry twice, boot.js first, then its
+         * worker, which the browser's cache answers (docs/BROWSER.md, "First
+         * pixels"); a page opened within 10 s of a rescan may list what was
+         * there before it. */
+        evhttp_add_header(out, "Cache-Control", "private, max-age=10");
         ms_http_reply(door, req, 200, "OK", body, evbuffer_get_length(body));
         evbuffer_free(body);
     }
