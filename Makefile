@@ -383,6 +383,13 @@ VIEWER_JS   := web/share.js web/light.js web/section.js web/measure.js web/tools
 $(WASM)/site/viewer.js: $(VIEWER_JS)
 	@mkdir -p $(dir $@)
 	cat $^ > $@
+# The decoding worker's script with both modules' loaders after it (it takes
+# the one the page can run): its loader no longer a request of its own, one
+# round trip after the worker's start (docs/BROWSER.md, "First pixels").
+# The helper threads still read meshstream-mt.js itself.
+$(WASM)/site/worker.js: web/worker.js $(WASM)/site/meshstream-mt.js $(WASM)/site/meshstream.js
+	@mkdir -p $(dir $@)
+	cat $^ > $@
 
 # The layering, for tests/test_layering.c and for reading: `make -s rooms`, and
 # `make -s room-flags ROOM=client/view` (the include paths that room compiles with).

@@ -210,6 +210,14 @@ static void test_page_routes(void **state)
         assert_int_equal(size, plain.body_length);
         assert_memory_equal(inflated, plain.body, size);
         free(inflated);
+        /* again: the same bytes, from the door's cache (ms_page_cache.h) */
+        ms_test_http_response again;
+        assert_int_equal(ms_test_http_get(f->http_port, "/web/view.js",
+                                          "Accept-Encoding: deflate\r\n", &again), 0);
+        assert_int_equal(again.status, 200);
+        assert_int_equal(again.body_length, packed.body_length);
+        assert_memory_equal(again.body, packed.body, packed.body_length);
+        ms_test_http_free(&again);
         ms_test_http_free(&plain);
         ms_test_http_free(&packed);
     }

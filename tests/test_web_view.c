@@ -810,10 +810,15 @@ static void test_index_by_subtree(void **state)
            (unsigned long long)s.cell_bytes, ms_web_view_shown_cells(byst),
            ms_web_view_triangle_count(byst));
     assert_int_equal(s.cell_bytes, w.cell_bytes);
-    /* exactly, for this demo (its bake is deterministic): the head, 18 of the
-     * other 23 subtrees (the cut's and, ahead, those of the cells within a
-     * bit of splitting), in 3 rounds against the whole index's 1 */
-    assert_int_equal(head_size, 283);
+    /* exactly, for this demo (its bake is deterministic): 18 of the other
+     * 23 subtrees (the cut's and, ahead, those of the cells within a bit of
+     * splitting), in 3 rounds against the whole index's 1; the head (the
+     * header and the root subtree, deflated) within a few bytes: the root's
+     * record holds its APO chunk's length and level table, which vary with
+     * the machine's floating point (libm's and Embree's code paths: 283
+     * bytes on the machine of 2026-12-06, 285 on the AVX-512 one of
+     * 2026-12-07, every other figure here the same) */
+    assert_true(head_size >= 270 && head_size <= 300);
     assert_int_equal(s.subtrees, 18);
     assert_int_equal(s.subtree_bytes, 23255);
     assert_int_equal(s.rounds, 3);

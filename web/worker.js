@@ -46,14 +46,17 @@ let modulePromise = null;
 function loadModule() {
   if (modulePromise)
     return modulePromise;
-  if (threaded) {
+  // make wasm appends both loaders to this file (the Makefile's site
+  // worker.js): one request where the loader was a second, read only once
+  // this one ran; a worker.js served as it is in web/ reads them here
+  if (threaded && typeof createMeshstreamThreads !== 'function') {
     try {
       importScripts('meshstream-mt.js');
     } catch (e) {
       threaded = false;           // a site built before the threaded module
     }
   }
-  if (!threaded)
+  if (!threaded && typeof createMeshstream !== 'function')
     importScripts('meshstream.js');
   mark('loader');
   modulePromise = threaded

@@ -26,10 +26,14 @@
 #include "ms_http_cors.h"
 #include "ms_http_internal.h"
 #include "ms_http_parse.h"
+#include "ms_page_cache.h"
 #include "ms_progress.h"
 #include "ms_server_internal.h"
 
 #define RATE_BUCKETS 1024
+/* The browser pages' deflated files kept (ms_page_cache.h): both modules and
+ * every page file of a site, a few hundred kB, with room. */
+#define PAGE_CACHE_BYTES (8u << 20)
 
 /* Token bucket per hashed client address (collisions share, which only errs on
  * the strict side). */
@@ -44,11 +48,13 @@ struct ms_http_door {
     ms_http_conns *conns;       /* the cap, the deadlines, the trickle priority */
     rate_bucket buckets[RATE_BUCKETS];
     double request_started;     /* when the request being handled arrived, for the access log */
+    ms_page_cache *pages;       /* the browser pages' files deflated (ms_http_pages.c) */
 };
 
 /* --- Small helpers ---------------------------------------------------------- */
 
 ms_server *ms_http_door_server(const ms_http_door *door) { return door->server; }
+ms_page_cache *ms_http_door_page_cache(ms_http_door *door) { return door->pages; }
 
 bool ms_http_is_head(struct evhttp_request *req)
 {
@@ -441,8 +447,9 @@ ms_status ms_http_door_open(ms_server *server, ms_http_door **out, uint16_t *bou
         return ms_error_set(err, MS_ERR_NOMEM, "http: out of memory");
     door->server = server;
     door->http = evhttp_new(server->base);
-    if (!door->http) {
-        free(door);
+    door->pages = ms_page_cache_new(PAGE_CACHE_BYTES);
+    if (!door->http || !door->pages) {
+        ms_http_door_close(door);
         return ms_error_set(err, MS_ERR_NOMEM, "http: cannot create the HTTP server");
     }
     evhttp_set_allowed_methods(door->http, EVHTTP_REQ_GET | EVHTTP_REQ_HEAD | EVHTTP_REQ_POST |
@@ -498,5 +505,6 @@ void ms_http_door_close(ms_http_door *door)
     if (door->http)
         evhttp_free(door->http); /* frees its connections, then the door's references go */
     ms_http_conns_free(door->conns);
+    ms_page_cache_free(door->pages);
     free(door);
 }

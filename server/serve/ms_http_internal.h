@@ -21,6 +21,8 @@ struct ms_server;
 
 /* The server the door belongs to. */
 struct ms_server *ms_http_door_server(const ms_http_door *door);
+/* The door's cache of deflated page files (ms_page_cache.h; its thread's). */
+struct ms_page_cache *ms_http_door_page_cache(ms_http_door *door);
 
 /* True for a HEAD request. */
 bool ms_http_is_head(struct evhttp_request *req);

@@ -9,14 +9,13 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/stat.h>
 #include <unistd.h>
-#include <zlib.h>
 
 #include "ms_catalog.h"
 #include "ms_http_door.h"
 #include "ms_http_internal.h"
 #include "ms_http_parse.h"
+#include "ms_page_cache.h"
 #include "ms_server_internal.h"
 
 /* The Content-Type of a page file by its name's ending, or NULL for a name
@@ -41,46 +40,6 @@ const char *ms_http_page_type(const char *name)
     return NULL;
 }
 
-/* Page files deflated on the way out when the reader accepts it: the page,
- * its scripts and the WebAssembly module are 230 kB as they are and about
- * 105 kB deflated, a browser's first load over a slow link. Files up to
- * PAGE_DEFLATE_MAX; a file that would not shrink goes out as it is. */
-#define PAGE_DEFLATE_MAX (4u << 20)
-
-/* The file at path deflated (zlib, RFC 1950: HTTP's "deflate") into a new
- * evbuffer, or NULL (not readable, too large, not shrinking, no memory: the
- * caller sends it as it is). */
-static struct evbuffer *deflated_file(const char *path, uint64_t *length)
-{
-    FILE *f = fopen(path, "rb");
-    if (!f)
-        return NULL;
-    struct stat st;
-    uint8_t *raw = NULL, *packed = NULL;
-    struct evbuffer *body = NULL;
-    if (fstat(fileno(f), &st) != 0 || !S_ISREG(st.st_mode) || st.st_size <= 0 ||
-        (uint64_t)st.st_size > PAGE_DEFLATE_MAX)
-        goto done;
-    size_t size = (size_t)st.st_size;
-    uLongf capacity = compressBound((uLong)size);
-    raw = malloc(size);
-    packed = malloc(capacity);
-    if (!raw || !packed || fread(raw, 1, size, f) != size ||
-        compress2(packed, &capacity, raw, (uLong)size, 6) != Z_OK || capacity >= size)
-        goto done;
-    body = evbuffer_new();
-    if (body && evbuffer_add(body, packed, capacity) != 0) {
-        evbuffer_free(body);
-        body = NULL;
-    }
-    *length = capacity;
-done:
-    free(raw);
-    free(packed);
-    fclose(f);
-    return body;
-}
-
 static void send_page(ms_http_door *door, struct evhttp_request *req, const char *name)
 {
     const char *dir = ms_http_door_server(door)->config.web_dir;
@@ -102,7 +61,7 @@ static void send_page(ms_http_door *door, struct evhttp_request *req, const char
     if (ms_http_accepts_coding(evhttp_find_header(evhttp_request_get_input_headers(req),
                                                   "Accept-Encoding"),
                                "deflate"))
-        body = deflated_file(path, &length);
+        body = ms_page_cache_deflated(ms_http_door_page_cache(door), path, &length);
     if (body)
         evhttp_add_header(out, "Content-Encoding", "deflate");
     else if (!(body = ms_http_file_body(door, req, path, "error: no such page file", &length)))
