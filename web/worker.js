@@ -24,9 +24,10 @@ postMessage({ type: 'alive' });
 // sends COOP and COEP; SharedArrayBuffer exists) the build with pthreads,
 // meshstream-mt, which decodes on several threads (ms_web_view_threads);
 // elsewhere (a static export's server without those headers, a frame of a
-// page that is not isolated) the single-threaded one. Its script is read
-// (importScripts waits for it) once the first message has sent the
-// model's first requests (boot.js's prefetch); its WebAssembly comes
+// page that is not isolated) the single-threaded one. Its loader comes
+// after this file's code in the site's worker.js (make wasm), or is read
+// (importScripts) once the first message has sent the model's first
+// requests (boot.js's prefetch); its WebAssembly comes
 // compiled from the page (boot.js's 'module' message: fetched and compiled
 // while this worker started), or, where the page could not, is fetched and
 // compiled here.
