@@ -359,6 +359,12 @@ static void test_viewer_draws_the_model(void **state)
          * worker's own were answered by the browser's cache (docs/BROWSER.md,
          * "First pixels"); no APO at 1 px: the worker's APO part never read */
         assert_int_equal(json_integer_value(json_object_get(timing, "warmAnswers")), 3);
+        /* the cells came several a request (the side door's cells route) */
+        json_int_t cells = json_integer_value(json_object_get(timing, "requests")),
+                   batches = json_integer_value(json_object_get(timing, "cellBatches"));
+        printf("%lld cells in %lld requests of several\n", (long long)cells, (long long)batches);
+        assert_true(batches > 0);
+        assert_true(cells > 2 * batches);
         assert_false(json_is_true(json_object_get(timing, "apoLoaded")));
         assert_true(first_index >= (json_int_t)f->head_size);
         assert_true(first_index < (json_int_t)f->index_size);
@@ -545,12 +551,13 @@ static void test_memory_budget(void **state)
 
 /* A camera that leaves before its cells came: the page reached through a
  * relay with 150 ms each way, complete at the whole sculpture; then the
- * close-up (its plan asks for its cells at once, most of them waiting in
- * the browser's queue behind its 6 connections), and 0.35 s later the
- * whole sculpture again. The close-up's requests still waiting are
- * cancelled (the page's counter), the server sees fewer requests than the
- * close-up needs (as the close-up alone, cold, asks for them: its own
- * page's counter), and the page completes at the sculpture. */
+ * close-up (its plan asks for its cells at once, in requests of up to 16
+ * cells, docs/BROWSER.md "The cells route"), and 0.35 s later the whole
+ * sculpture again. The close-up's requests still waiting for their answer
+ * are cancelled (the page's counter: their cells), the server sees fewer
+ * requests than the close-up has cells (as the close-up alone, cold, asks
+ * for them: its own page's counter), and the page completes at the
+ * sculpture. */
 static void test_camera_change_cancels(void **state)
 {
     fixture *f = *state;

@@ -297,6 +297,8 @@ static void test_static_viewer(void **state)
            (long long)json_integer_value(json_object_get(timing, "subtrees")),
            (long long)json_integer_value(json_object_get(timing, "indexWireBytes")));
     assert_true(json_integer_value(json_object_get(timing, "subtrees")) > 0);
+    /* a file server has no cells route: each cell its own byte range */
+    assert_int_equal(json_integer_value(json_object_get(timing, "cellBatches")), 0);
     json_decref(report);
     /* a site exported before heads were: the whole index, the same cut, the
      * head's 404 */

@@ -310,6 +310,95 @@ static void test_access_control(void **state)
     ms_archive_close(a);
 }
 
+/* One entry of a cells route answer (docs/BROWSER.md, "The cells route"):
+ * its fields, its bytes at *at, and *at moved past them. */
+typedef struct batch_item {
+    uint32_t cell, status, bits, from, length;
+    const uint8_t *bytes;
+} batch_item;
+
+static uint32_t le32(const uint8_t *p) { return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24; }
+
+static batch_item batch_next(const ms_test_http_response *r, size_t *at)
+{
+    assert_true(*at + 16 <= r->body_length);
+    const uint8_t *p = r->body + *at;
+    batch_item it = {le32(p), (uint32_t)p[4] | (uint32_t)p[5] << 8, (uint32_t)p[6] | (uint32_t)p[7] << 8,
+                     le32(p + 8), le32(p + 12), p + 16};
+    *at += 16;
+    assert_true(it.length <= r->body_length - *at);
+    *at += it.length;
+    return it;
+}
+
+/* Several cells' geometry in one answer: each entry the bytes the single
+ * route sends from FROM on, through the same check (the preview refuses
+ * without a token what it refuses there, and the token widens it); unknown
+ * cells and FROM past the prefix named per entry; bad queries refused whole. */
+static void test_cells_route(void **state)
+{
+    server_fixture *f = *state;
+    ms_archive *a = open_model(f, "dragon");
+    ms_test_http_response r, one;
+    get(f, "/models/dragon/cells?geometry=0.7.0,6.8.10,70.9.0,99999.3.0,6.8.999999,6.11.0", NULL, 200, &r);
+    assert_memory_equal(r.body, "MSB1", 4);
+    assert_int_equal(le32(r.body + 4), 6);
+    size_t at = 8;
+    batch_item it = batch_next(&r, &at); /* the root, all public */
+    assert_int_equal(it.cell, 0);
+    assert_int_equal(it.status, 200);
+    get(f, "/models/dragon/cells/0/geometry?bits=7", NULL, 200, &one);
+    assert_int_equal(it.length, one.body_length);
+    assert_memory_equal(it.bytes, one.body, one.body_length);
+    ms_test_http_free(&one);
+    it = batch_next(&r, &at); /* cell 6 to 8 bits, the first 10 bytes held */
+    assert_int_equal(it.status, 200);
+    assert_int_equal(it.bits, 8);
+    assert_int_equal(it.from, 10);
+    assert_int_equal(it.length, ms_archive_geometry_prefix(a, 6, 8) - 10);
+    size_t total;
+    assert_memory_equal(it.bytes, ms_archive_geometry(a, 6, &total) + 10, it.length);
+    it = batch_next(&r, &at); /* cell 70: beyond the preview */
+    assert_int_equal(it.cell, 70);
+    assert_int_equal(it.status, 403);
+    assert_int_equal(it.length, 0);
+    it = batch_next(&r, &at);
+    assert_int_equal(it.status, 404);
+    it = batch_next(&r, &at); /* more held than the prefix */
+    assert_int_equal(it.status, 416);
+    assert_int_equal(it.length, 0);
+    it = batch_next(&r, &at); /* 11 bits of cell 6: beyond the preview without a token */
+    assert_int_equal(it.status, 403);
+    assert_int_equal(at, r.body_length);
+    char value[64];
+    assert_string_equal(ms_test_http_header(&r, "Cache-Control", value, sizeof value), "public, max-age=3600");
+    ms_test_http_free(&r);
+    /* with the token: 11 bits of cell 6, and cell 70 */
+    get(f, "/models/dragon/cells?geometry=6.11.0,70.9.0", "Authorization: Bearer s3cret-token\r\n", 200, &r);
+    at = 8;
+    it = batch_next(&r, &at);
+    assert_int_equal(it.status, 200);
+    assert_int_equal(it.length, ms_archive_geometry_prefix(a, 6, 11));
+    it = batch_next(&r, &at);
+    assert_int_equal(it.status, 200);
+    assert_int_equal(it.length, ms_archive_geometry_prefix(a, 70, 9));
+    assert_string_equal(ms_test_http_header(&r, "Cache-Control", value, sizeof value), "private, max-age=3600");
+    ms_test_http_free(&r);
+    /* bad queries: refused whole, with one line */
+    char many[2048] = "/models/dragon/cells?geometry=0.7.0";
+    for (int k = 0; k < 64; ++k)
+        strcat(many, ",0.7.0");
+    const char *bad[] = {"/models/dragon/cells", "/models/dragon/cells?geometry=", "/models/dragon/cells?geometry=1.x.0",
+                         "/models/dragon/cells?geometry=1.7", "/models/dragon/cells?geometry=1.65.0",
+                         "/models/dragon/cells?geometry=1.7.0,,2.7.0", "/models/dragon/cells?geometry=1.7.0.4", many};
+    for (size_t i = 0; i < sizeof bad / sizeof *bad; ++i) {
+        get(f, bad[i], NULL, 400, &r);
+        assert_non_null(strstr((char *)r.body, "geometry= wants"));
+        ms_test_http_free(&r);
+    }
+    ms_archive_close(a);
+}
+
 /* Issue 19, item 1: the preview check runs on the clamped precision. Cell 6 of
  * dragon spans [7, 12] bits with an 8-bit preview: bits above the cell's top
  * (13, 17, 64) mean "all of it", which is beyond the preview without a token. */
@@ -1337,6 +1426,7 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_ranges_and_etags, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_index_deflated_when_accepted, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_access_control, start_server, stop_server),
+        cmocka_unit_test_setup_teardown(test_cells_route, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_preview_bypass_refused, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_cache_headers, start_server, stop_server),
         cmocka_unit_test_setup_teardown(test_sighup_reloads_access_rules, start_server, stop_server),

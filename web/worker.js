@@ -103,6 +103,9 @@ const LAYOUTS = {
     subtree: (name, id) => 'models/' + encodeURIComponent(name) + '/subtrees/' + id,
     cell: (name, cell, bits) => 'models/' + encodeURIComponent(name) + '/cells/' + cell +
                                 '/geometry' + (bits === null ? '' : '?bits=' + bits),
+    // several cells at once (fetchCells): {cell, bits, from} each
+    cells: (name, items) => 'models/' + encodeURIComponent(name) + '/cells?geometry=' +
+                            items.map(it => it.cell + '.' + it.bits + '.' + it.from).join(','),
     colour: (name, cell, bits) => 'models/' + encodeURIComponent(name) + '/cells/' + cell + '/colour?bits=' + bits,
     ranged: false,      // the server cuts the prefix at ?bits=
   },
@@ -122,6 +125,10 @@ let layout = LAYOUTS.door;
 // so that its network keeps the link busy while the worker decodes (a long
 // decode cannot issue requests; what waits in the browser's queue goes on).
 const IN_FLIGHT = 64;
+// Cells in one request of the side door's cells route (fetchCells): a level
+// of the cut in a round trip or two, where one request a cell kept each of
+// a browser's six connections busy a round trip a cell.
+const BATCH_CELLS = 16;
 const SILENCE_MS = 10000;   // a request with nothing heard for this long is abandoned
 const PLAN_MAX = 1024;      // cells listed by one plan
 const SHOW_EVERY_MS = 200;       // within a round, how often what came is decoded and shown
@@ -317,6 +324,61 @@ async function fetchCell(name, token, cell, bits, prefix, v, ticket) {
   return bytes.length;
 }
 
+// Several cells' geometry in one request (the side door's cells route,
+// docs/BROWSER.md "The cells route"): list holds [cell, bits, prefix] as the
+// plan lists them, each asked for from the bytes held on. A cell the server
+// refuses is asked for alone, whose answer says why; a server without the
+// route (404, 400) is asked cell by cell from then on (cellsRoute). Returns
+// the bytes received. ticket: as get()'s.
+let cellsRoute = true;
+async function fetchCells(name, token, list, v, ticket) {
+  v = v || view;
+  const items = list.map(([cell, bits, prefix]) => ({ cell, bits, prefix, from: M._ms_web_view_held(v, cell) }));
+  let answer = null;
+  try {
+    answer = await get(layout.cells(name, items), token, null, ticket);
+  } catch (e) {
+    if (e.cancelled || (e.status !== 404 && e.status !== 400))
+      throw e;
+    cellsRoute = false;
+  }
+  const alone = answer ? [] : items;
+  let got = 0;
+  if (answer) {
+    const b = answer.bytes, d = new DataView(b.buffer, b.byteOffset, b.byteLength);
+    const malformed = () => new Error('cells: the server\'s answer is malformed');
+    if (b.length < 8 || String.fromCharCode(b[0], b[1], b[2], b[3]) !== 'MSB1' ||
+        d.getUint32(4, true) !== items.length)
+      throw malformed();
+    let at = 8;
+    for (const it of items) {
+      if (at + 16 > b.length)
+        throw malformed();
+      const cell = d.getUint32(at, true), status = d.getUint16(at + 4, true);
+      const from = d.getUint32(at + 8, true), length = d.getUint32(at + 12, true);
+      at += 16;
+      if (cell !== it.cell || from !== it.from || length > b.length - at || (status !== 200 && length))
+        throw malformed();
+      if (status !== 200) {
+        alone.push(it);
+        continue;
+      }
+      if (length && withHeap(b.subarray(at, at + length), p => M._ms_web_view_give(v, cell, from, p, length)) !== 0)
+        throw new Error('cell ' + cell + ': ' + lastError(v));
+      at += length;
+      got += length;
+      timing.requests++;
+      timing.requestBytes += length;
+    }
+    if (at !== b.length)
+      throw malformed();
+    timing.cellBatches++;
+  }
+  for (const it of alone)
+    got += await fetchCell(name, token, it.cell, it.bits, it.prefix, v, ticket);
+  return got;
+}
+
 // Fetches what the cell lacks of its colour stream's prefix at `bits`
 // (prefix: its byte length, ms_web_view_plan_colour_bytes) and hands it
 // over; returns the bytes received. ticket: as get()'s.
@@ -356,8 +418,9 @@ async function fetchSubtree(name, token, id, v, ticket) {
 // nothing to do but wait for the network (wait), stitching the cut (stitch) and copying the
 // mesh out of the module to the page (copy); whether the module is the
 // threaded one (threaded) and the threads decoding (threads); counts:
-// plans, stitches, cell requests answered and their bytes (requests,
-// requestBytes), requests cancelled by a new camera (cancelled), subtrees
+// plans, stitches, cells answered and their bytes (requests,
+// requestBytes; cellBatches: requests of several cells, fetchCells), cells
+// and subtrees whose request a new camera cancelled (cancelled), subtrees
 // of the index fetched (subtrees; byHead: whether the index came by
 // subtree). indexWireBytes: the index's bytes as they travelled (head and
 // subtrees, or the whole blob deflated). marks: milliseconds
@@ -370,7 +433,8 @@ async function fetchSubtree(name, token, id, v, ticket) {
 // whether a camera wanted APO, so that its part (worker-apo.js) was read.
 const timing = { plan: 0, fetch: 0, wait: 0, stitch: 0, copy: 0, threads: 1, plans: 0, stitches: 0,
                  requests: 0, requestBytes: 0, cancelled: 0, subtrees: 0, indexWireBytes: 0, byHead: false,
-                 apoRequests: 0, apoBytes: 0, apoCheck: 0, warmAnswers: 0, apoLoaded: false, marks: {} };
+                 cellBatches: 0, apoRequests: 0, apoBytes: 0, apoCheck: 0, warmAnswers: 0, apoLoaded: false,
+                 marks: {} };
 
 function mark(name) {
   if (!(name in timing.marks))
@@ -769,11 +833,12 @@ async function run(msg) {
       try {
         got = kind === 'subtree' ? await fetchSubtree(name, token, what[0], view, ticket)
             : kind === 'colour' ? await fetchColour(name, token, what[0], what[1], what[2], ticket)
+            : kind === 'cells' ? await fetchCells(name, token, what[0], view, ticket)
                                  : await fetchCell(name, token, what[0], what[1], what[2], view, ticket);
       } catch (e) {
         if (!e.cancelled)
           throw e;
-        timing.cancelled++;
+        timing.cancelled += kind === 'cells' ? what[0].length : 1;   // cells (or subtrees) given up
         if (kind === 'subtree')
           subtreesAsked.delete(what[0]);
         return;
@@ -781,9 +846,9 @@ async function run(msg) {
         tickets.delete(ticket);
       }
       bytes += got;
-      if (kind === 'cell') {
+      if (kind === 'cell' || kind === 'cells') {
         need = Math.max(need - got, 0);
-        given++;
+        given += kind === 'cells' ? what[0].length : 1;
         fresh += got;
       }
       postMessage({ type: 'progress', bytes, need, rounds, wanted: count });
@@ -798,7 +863,14 @@ async function run(msg) {
         while (!failure && !pendingCamera && active < IN_FLIGHT &&
                (subtrees.length || next < wanted.length || colours.length)) {
           active++;
+          // the side door's cells route takes several at once, each from
+          // its bytes held on (a cell the plan wants whole, bits null, alone)
+          let batch = 0;
+          while (layout.cells && cellsRoute && batch < BATCH_CELLS && next + batch < wanted.length &&
+                 wanted[next + batch][1] !== null)
+            ++batch;
           job(subtrees.length ? ['subtree', subtrees.shift()]
+              : batch > 1 ? ['cells', wanted.slice(next, next += batch)]
               : next < wanted.length ? ['cell', ...wanted[next++]] : ['colour', ...colours.shift()]).then(
             () => { active--; pump(); },
             e => { active--; failure = failure || e; pump(); });

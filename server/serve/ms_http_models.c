@@ -136,6 +136,49 @@ static void serve_index(ms_http_door *door, struct evhttp_request *req, ms_model
         send_bytes(door, req, model, index, size, etag, false, "identity");
 }
 
+/* What a reader with `grant` may read of a cell's geometry or colour stream
+ * (stream) at `bits` (NULL: all the grant allows): *range its bytes from 0,
+ * *step the precision granted (clamped to the cell's). Returns the HTTP
+ * status, with *why the line of a refusal: 404 (no such cell), 403 (beyond
+ * the public preview), 500 (an inconsistent index, a damaged payload). The one
+ * permission check of a cell's bits for the side door's routes, as
+ * ms_access_resolve is the binary door's. */
+static int stream_range(ms_http_door *door, ms_model *model, const ms_access *grant, uint32_t cell,
+                        uint8_t stream, const uint32_t *bits, ms_proto_byte_range *range, uint32_t *step,
+                        const char **why)
+{
+    const ms_archive_cell *c = ms_archive_get_cell(model->archive, cell);
+    if (!c) {
+        *why = "error: no such cell";
+        return 404;
+    }
+    if (ms_access_cell_hidden(model, grant, cell)) {
+        *why = "error: this cell is beyond the public preview; a token is required";
+        return 403;
+    }
+    uint32_t b = c->bits_max;
+    if (bits)
+        b = *bits;
+    else if (grant->permitted_geometry_steps - 1u < b)
+        b = grant->permitted_geometry_steps - 1u; /* by default, all the grant allows */
+    ms_proto_cell_request entry = {cell, stream, MS_PROTO_UNIT_STEPS, 0, 0, 0};
+    entry.b = b < c->bits_max ? b : c->bits_max;
+    if (entry.b > MS_PROTO_MAX_STEP)
+        entry.b = MS_PROTO_MAX_STEP;
+    *step = entry.b;
+    ms_proto_fault fault = {.code = MS_PROTO_E_INTERNAL};
+    if (ms_access_resolve(model, grant, &entry, range, &fault, NULL) != MS_OK) {
+        *why = fault.code == MS_PROTO_E_FORBIDDEN ? "error: precision beyond the public preview needs a token"
+                                                  : "error: the cell's index is inconsistent";
+        return fault.code == MS_PROTO_E_FORBIDDEN ? 403 : 500;
+    }
+    if (range->end > 0 && !ms_server_payload_intact(ms_http_door_server(door), model, cell, stream)) {
+        *why = "error: the archive's copy of this payload is damaged";
+        return 500;
+    }
+    return 200;
+}
+
 /* A cell's geometry or colour stream (?bits=B: the prefix complete at B bits;
  * bits above the cell's own top mean all of it) or APO (?levels=L: the first L levels; by
  * default as many as the grant reads of it). The
@@ -163,18 +206,22 @@ static void serve_cell(ms_http_door *door, struct evhttp_request *req, ms_model 
     uint8_t stream = colour     ? MS_PROTO_STREAM_COLOUR
                      : geometry ? MS_PROTO_STREAM_GEOMETRY
                                 : MS_PROTO_STREAM_APO;
-    ms_proto_cell_request entry = {cell, stream, MS_PROTO_UNIT_STEPS, 0, 0, 0};
+    ms_proto_byte_range range = {0, 0};
+    uint32_t step = 0;
     bool empty = false;
     if (geometry) {
-        uint32_t bits = c->bits_max;
-        if (grant.permitted_geometry_steps - 1u < bits)
-            bits = grant.permitted_geometry_steps - 1u; /* by default, all the grant allows */
+        uint32_t bits;
         const char *bits_text = evhttp_find_header(query, "bits");
         if (bits_text && !ms_http_parse_u32(bits_text, 64, &bits)) {
             ms_http_send_text(door, req, 400, "Bad Request", "error: bits must be an integer in 0..64");
             return;
         }
-        entry.b = bits < c->bits_max ? bits : c->bits_max;
+        const char *why = NULL;
+        int status = stream_range(door, model, &grant, cell, stream, bits_text ? &bits : NULL, &range, &step, &why);
+        if (status != 200) {
+            ms_http_send_text(door, req, status, status == 403 ? "Forbidden" : "Internal Server Error", why);
+            return;
+        }
     } else {
         /* by default, all the grant allows (a preview reads fewer levels) */
         uint32_t permitted = ms_access_cell_apo_steps(model, &grant, cell);
@@ -190,23 +237,24 @@ static void serve_cell(ms_http_door *door, struct evhttp_request *req, ms_model 
             return;
         }
         empty = levels == 0; /* a cell without APO */
+        ms_proto_cell_request entry = {cell, stream, MS_PROTO_UNIT_STEPS, 0, 0, 0};
         entry.b = levels ? levels - 1 : 0;
-    }
-    if (entry.b > MS_PROTO_MAX_STEP)
-        entry.b = MS_PROTO_MAX_STEP;
-    ms_proto_byte_range range = {0, 0};
-    ms_proto_fault fault = {.code = MS_PROTO_E_INTERNAL};
-    if (!empty && ms_access_resolve(model, &grant, &entry, &range, &fault, NULL) != MS_OK) {
-        if (fault.code == MS_PROTO_E_FORBIDDEN)
-            ms_http_send_text(door, req, 403, "Forbidden", "error: precision beyond the public preview needs a token");
-        else
-            ms_http_send_text(door, req, 500, "Internal Server Error", "error: the cell's index is inconsistent");
-        return;
-    }
-    if (range.end > 0 && !ms_server_payload_intact(ms_http_door_server(door), model, cell, stream)) {
-        ms_http_send_text(door, req, 500, "Internal Server Error",
-                  "error: the archive's copy of this payload is damaged");
-        return;
+        if (entry.b > MS_PROTO_MAX_STEP)
+            entry.b = MS_PROTO_MAX_STEP;
+        step = entry.b;
+        ms_proto_fault fault = {.code = MS_PROTO_E_INTERNAL};
+        if (!empty && ms_access_resolve(model, &grant, &entry, &range, &fault, NULL) != MS_OK) {
+            if (fault.code == MS_PROTO_E_FORBIDDEN)
+                ms_http_send_text(door, req, 403, "Forbidden", "error: precision beyond the public preview needs a token");
+            else
+                ms_http_send_text(door, req, 500, "Internal Server Error", "error: the cell's index is inconsistent");
+            return;
+        }
+        if (range.end > 0 && !ms_server_payload_intact(ms_http_door_server(door), model, cell, stream)) {
+            ms_http_send_text(door, req, 500, "Internal Server Error",
+                      "error: the archive's copy of this payload is damaged");
+            return;
+        }
     }
     size_t total;
     const uint8_t *data = colour     ? ms_archive_colour(model->archive, cell, &total)
@@ -215,9 +263,131 @@ static void serve_cell(ms_http_door *door, struct evhttp_request *req, ms_model 
     char etag[160];
     snprintf(etag, sizeof etag, "\"%" PRIx64 "-%" PRIx64 "-%u-%c%u\"", model->file_inode,
              (uint64_t)model->file_mtime_ns, cell, colour ? 'c' : geometry ? 'g' : 'a',
-             geometry ? entry.b : (empty ? 0 : entry.b + 1));
+             geometry ? step : (empty ? 0 : step + 1));
     /* Resolved ranges of a STEPS request from step 0 start at byte 0. */
     send_bytes(door, req, model, data, range.end, etag, token_used, NULL);
+}
+
+/* Several cells' geometry in one answer: GET /models/NAME/cells?geometry=
+ * ID.BITS.FROM[,ID.BITS.FROM...] (at most MS_HTTP_BATCH_CELLS entries): for
+ * each, what GET /models/NAME/cells/ID/geometry?bits=BITS would send from byte
+ * FROM on (a reader holding a prefix asks for the rest), every cell through
+ * stream_range's check. A page far from the server reads a level of its cut
+ * in one round trip instead of one per six cells (a browser's connections).
+ * Body (docs/BROWSER.md, "The cells route"), little-endian: "MSB1", u32
+ * count, then per entry in the query's order u32 cell, u16 status (200; 403,
+ * 404, 500 with no bytes: the single route's refusal; 416: FROM past the
+ * prefix), u16 the bits granted, u32 FROM, u32 length, and length bytes. */
+#define MS_HTTP_BATCH_CELLS 64u
+
+typedef struct batch_entry {
+    uint32_t cell, bits, from;
+} batch_entry;
+
+/* The query's entries, or false with *why. */
+static bool parse_batch(const char *text, batch_entry *out, size_t *count, const char **why)
+{
+    *count = 0;
+    *why = "error: geometry= wants ID.BITS.FROM entries, comma-separated, at most 64";
+    if (!text || !*text)
+        return false;
+    for (const char *at = text;;) {
+        size_t length = strcspn(at, ",");
+        char item[40], *field[3];
+        if (*count == MS_HTTP_BATCH_CELLS || length == 0 || length >= sizeof item)
+            return false;
+        memcpy(item, at, length);
+        item[length] = '\0';
+        field[0] = item;
+        for (int k = 1; k < 3; ++k) {
+            char *dot = strchr(field[k - 1], '.');
+            if (!dot)
+                return false;
+            *dot = '\0';
+            field[k] = dot + 1;
+        }
+        batch_entry *e = &out[*count];
+        if (!ms_http_parse_u32(field[0], UINT32_MAX, &e->cell) || !ms_http_parse_u32(field[1], 64, &e->bits) ||
+            !ms_http_parse_u32(field[2], UINT32_MAX, &e->from))
+            return false;
+        ++*count;
+        if (at[length] == '\0')
+            return true;
+        at += length + 1;
+    }
+}
+
+static void put_u32(uint8_t *p, uint32_t v)
+{
+    for (int k = 0; k < 4; ++k)
+        p[k] = (uint8_t)(v >> (8 * k));
+}
+
+static void serve_cell_batch(ms_http_door *door, struct evhttp_request *req, ms_model *model,
+                             const struct evkeyvalq *query)
+{
+    batch_entry entries[MS_HTTP_BATCH_CELLS];
+    size_t count;
+    const char *why;
+    if (!parse_batch(evhttp_find_header(query, "geometry"), entries, &count, &why)) {
+        ms_http_send_text(door, req, 400, "Bad Request", why);
+        return;
+    }
+    bool token_used;
+    ms_access grant = ms_http_reader_grant(door, req, model, &token_used);
+    struct evbuffer *body = evbuffer_new();
+    uint8_t head[8] = {'M', 'S', 'B', '1'};
+    put_u32(head + 4, (uint32_t)count);
+    bool ok = body && evbuffer_add(body, head, sizeof head) == 0;
+    uint64_t sent = 0;
+    for (size_t i = 0; ok && i < count; ++i) {
+        ms_proto_byte_range range = {0, 0};
+        uint32_t step = 0;
+        int status = stream_range(door, model, &grant, entries[i].cell, MS_PROTO_STREAM_GEOMETRY, &entries[i].bits,
+                                  &range, &step, &why);
+        if (status == 200 && entries[i].from > range.end)
+            status = 416;
+        uint32_t length = status == 200 ? (uint32_t)(range.end - entries[i].from) : 0;
+        uint8_t fields[16];
+        put_u32(fields, entries[i].cell);
+        fields[4] = (uint8_t)status, fields[5] = (uint8_t)(status >> 8);
+        fields[6] = (uint8_t)step, fields[7] = (uint8_t)(step >> 8);
+        put_u32(fields + 8, entries[i].from);
+        put_u32(fields + 12, length);
+        ok = evbuffer_add(body, fields, sizeof fields) == 0;
+        if (ok && length) {
+            size_t total;
+            const uint8_t *data = ms_archive_geometry(model->archive, entries[i].cell, &total);
+            transfer *t = malloc(sizeof *t);
+            if (t) {
+                t->model = model, t->server = ms_http_door_server(door);
+                ms_model_ref(model);
+                ms_http_door_server(door)->metrics.transfers_in_flight++;
+            }
+            ok = t && evbuffer_add_reference(body, data + entries[i].from, length, release_transfer, t) == 0;
+            if (!ok && t)
+                release_transfer(NULL, 0, t);
+            sent += length;
+        }
+    }
+    if (!ok) {
+        if (body)
+            evbuffer_free(body);
+        ms_http_send_text(door, req, 500, "Internal Server Error", "error: out of memory");
+        return;
+    }
+    struct evkeyvalq *out = evhttp_request_get_output_headers(req);
+    evhttp_add_header(out, "Content-Type", "application/octet-stream");
+    evhttp_add_header(out, "Cache-Control", token_used ? "private, max-age=3600" : "public, max-age=3600");
+    evhttp_add_header(out, "Vary", "Authorization");
+    model->requests++;
+    size_t length = evbuffer_get_length(body);
+    if (!ms_http_is_head(req)) {
+        ms_http_door_server(door)->metrics.http_bytes_sent += sent;
+        model->bytes_sent += sent;
+    }
+    ms_http_reply(door, req, 200, "OK", body, length);
+    evbuffer_free(body);
 }
 
 /* The index head (what MODEL_OPENED's INDEX_DATA carries with encoding
@@ -339,6 +509,10 @@ bool ms_http_route_model(ms_http_door *door, struct evhttp_request *req, ms_mode
     }
     if (n == 2 && !strcmp(seg[1], "head")) {
         serve_head(door, req, model);
+        return true;
+    }
+    if (n == 2 && !strcmp(seg[1], "cells")) {
+        serve_cell_batch(door, req, model, query);
         return true;
     }
     if (n == 3 && !strcmp(seg[1], "subtrees")) {
