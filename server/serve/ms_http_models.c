@@ -37,6 +37,25 @@ static void release_transfer(const void *data, size_t length, void *extra)
     free(t);
 }
 
+/* Appends bytes [data, data + count) of the model's mapping to body by
+ * reference, the model kept mapped until they are sent; false when out of
+ * memory (nothing appended). */
+static bool add_payload(ms_http_door *door, ms_model *model, struct evbuffer *body, const uint8_t *data,
+                        size_t count)
+{
+    transfer *t = malloc(sizeof *t);
+    if (!t)
+        return false;
+    t->model = model, t->server = ms_http_door_server(door);
+    ms_model_ref(model);
+    ms_http_door_server(door)->metrics.transfers_in_flight++;
+    if (evbuffer_add_reference(body, data, count, release_transfer, t) != 0) {
+        release_transfer(NULL, 0, t);
+        return false;
+    }
+    return true;
+}
+
 /* Sends bytes [0, length) of data (inside model's mapping, or owned by the
  * model) honouring Range. private_answer: the body depends on the reader's
  * token, so only the reader's own cache may keep it; every answer varies with
@@ -93,20 +112,10 @@ static void send_bytes(ms_http_door *door, struct evhttp_request *req, ms_model 
         ms_http_send_text(door, req, 500, "Internal Server Error", "error: out of memory");
         return;
     }
-    if (count) {
-        transfer *t = malloc(sizeof *t);
-        if (t) {
-            t->model = model, t->server = ms_http_door_server(door);
-            ms_model_ref(model);
-            ms_http_door_server(door)->metrics.transfers_in_flight++;
-        }
-        if (!t || evbuffer_add_reference(body, data + first, (size_t)count, release_transfer, t) != 0) {
-            if (t)
-                release_transfer(NULL, 0, t);
-            evbuffer_free(body);
-            ms_http_send_text(door, req, 500, "Internal Server Error", "error: out of memory");
-            return;
-        }
+    if (count && !add_payload(door, model, body, data + first, (size_t)count)) {
+        evbuffer_free(body);
+        ms_http_send_text(door, req, 500, "Internal Server Error", "error: out of memory");
+        return;
     }
     ms_http_door_server(door)->metrics.http_bytes_sent += count;
     model->bytes_sent += count;
@@ -136,6 +145,29 @@ static void serve_index(ms_http_door *door, struct evhttp_request *req, ms_model
         send_bytes(door, req, model, index, size, etag, false, "identity");
 }
 
+/* The bytes from 0 of a cell's stream at *step (clamped to the protocol's
+ * top) that `grant` may read, as ms_access_resolve decides for the binary
+ * door, and whether the archive's copy is intact. Returns the HTTP status,
+ * with *why the line of a refusal (403, 500). */
+static int resolve_steps(ms_http_door *door, ms_model *model, const ms_access *grant, uint32_t cell,
+                         uint8_t stream, uint32_t *step, ms_proto_byte_range *range, const char **why)
+{
+    ms_proto_cell_request entry = {cell, stream, MS_PROTO_UNIT_STEPS, 0, 0, 0};
+    entry.b = *step > MS_PROTO_MAX_STEP ? MS_PROTO_MAX_STEP : *step;
+    *step = entry.b;
+    ms_proto_fault fault = {.code = MS_PROTO_E_INTERNAL};
+    if (ms_access_resolve(model, grant, &entry, range, &fault, NULL) != MS_OK) {
+        *why = fault.code == MS_PROTO_E_FORBIDDEN ? "error: precision beyond the public preview needs a token"
+                                                  : "error: the cell's index is inconsistent";
+        return fault.code == MS_PROTO_E_FORBIDDEN ? 403 : 500;
+    }
+    if (range->end > 0 && !ms_server_payload_intact(ms_http_door_server(door), model, cell, stream)) {
+        *why = "error: the archive's copy of this payload is damaged";
+        return 500;
+    }
+    return 200;
+}
+
 /* What a reader with `grant` may read of a cell's geometry or colour stream
  * (stream) at `bits` (NULL: all the grant allows): *range its bytes from 0,
  * *step the precision granted (clamped to the cell's). Returns the HTTP
@@ -161,22 +193,8 @@ static int stream_range(ms_http_door *door, ms_model *model, const ms_access *gr
         b = *bits;
     else if (grant->permitted_geometry_steps - 1u < b)
         b = grant->permitted_geometry_steps - 1u; /* by default, all the grant allows */
-    ms_proto_cell_request entry = {cell, stream, MS_PROTO_UNIT_STEPS, 0, 0, 0};
-    entry.b = b < c->bits_max ? b : c->bits_max;
-    if (entry.b > MS_PROTO_MAX_STEP)
-        entry.b = MS_PROTO_MAX_STEP;
-    *step = entry.b;
-    ms_proto_fault fault = {.code = MS_PROTO_E_INTERNAL};
-    if (ms_access_resolve(model, grant, &entry, range, &fault, NULL) != MS_OK) {
-        *why = fault.code == MS_PROTO_E_FORBIDDEN ? "error: precision beyond the public preview needs a token"
-                                                  : "error: the cell's index is inconsistent";
-        return fault.code == MS_PROTO_E_FORBIDDEN ? 403 : 500;
-    }
-    if (range->end > 0 && !ms_server_payload_intact(ms_http_door_server(door), model, cell, stream)) {
-        *why = "error: the archive's copy of this payload is damaged";
-        return 500;
-    }
-    return 200;
+    *step = b < c->bits_max ? b : c->bits_max;
+    return resolve_steps(door, model, grant, cell, stream, step, range, why);
 }
 
 /* A cell's geometry or colour stream (?bits=B: the prefix complete at B bits;
@@ -237,22 +255,11 @@ static void serve_cell(ms_http_door *door, struct evhttp_request *req, ms_model 
             return;
         }
         empty = levels == 0; /* a cell without APO */
-        ms_proto_cell_request entry = {cell, stream, MS_PROTO_UNIT_STEPS, 0, 0, 0};
-        entry.b = levels ? levels - 1 : 0;
-        if (entry.b > MS_PROTO_MAX_STEP)
-            entry.b = MS_PROTO_MAX_STEP;
-        step = entry.b;
-        ms_proto_fault fault = {.code = MS_PROTO_E_INTERNAL};
-        if (!empty && ms_access_resolve(model, &grant, &entry, &range, &fault, NULL) != MS_OK) {
-            if (fault.code == MS_PROTO_E_FORBIDDEN)
-                ms_http_send_text(door, req, 403, "Forbidden", "error: precision beyond the public preview needs a token");
-            else
-                ms_http_send_text(door, req, 500, "Internal Server Error", "error: the cell's index is inconsistent");
-            return;
-        }
-        if (range.end > 0 && !ms_server_payload_intact(ms_http_door_server(door), model, cell, stream)) {
-            ms_http_send_text(door, req, 500, "Internal Server Error",
-                      "error: the archive's copy of this payload is damaged");
+        step = levels ? levels - 1 : 0;
+        const char *why = NULL;
+        int status = empty ? 200 : resolve_steps(door, model, &grant, cell, stream, &step, &range, &why);
+        if (status != 200) {
+            ms_http_send_text(door, req, status, status == 403 ? "Forbidden" : "Internal Server Error", why);
             return;
         }
     }
@@ -358,15 +365,7 @@ static void serve_cell_batch(ms_http_door *door, struct evhttp_request *req, ms_
         if (ok && length) {
             size_t total;
             const uint8_t *data = ms_archive_geometry(model->archive, entries[i].cell, &total);
-            transfer *t = malloc(sizeof *t);
-            if (t) {
-                t->model = model, t->server = ms_http_door_server(door);
-                ms_model_ref(model);
-                ms_http_door_server(door)->metrics.transfers_in_flight++;
-            }
-            ok = t && evbuffer_add_reference(body, data + entries[i].from, length, release_transfer, t) == 0;
-            if (!ok && t)
-                release_transfer(NULL, 0, t);
+            ok = add_payload(door, model, body, data + entries[i].from, length);
             sent += length;
         }
     }
