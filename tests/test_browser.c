@@ -363,6 +363,23 @@ static void test_viewer_draws_the_model(void **state)
         json_int_t cells = json_integer_value(json_object_get(timing, "requests")),
                    batches = json_integer_value(json_object_get(timing, "cellBatches"));
         printf("%lld cells in %lld requests of several\n", (long long)cells, (long long)batches);
+        json_t *marks = json_object_get(timing, "marks");
+        printf("%lld subtrees in %lld requests of several; early subtrees asked at %lld ms, first mesh at %lld ms\n",
+               (long long)json_integer_value(json_object_get(timing, "subtrees")),
+               (long long)json_integer_value(json_object_get(timing, "subtreeBatches")),
+               (long long)json_integer_value(json_object_get(marks, "early subtrees")),
+               (long long)json_integer_value(json_object_get(marks, "mesh")));
+        /* the subtrees the camera's own plan wants were asked for before
+         * the first look was drawn (docs/BROWSER.md, "First pixels"), and
+         * several came in one request (the side door's subtrees route) */
+        json_int_t subtrees = json_integer_value(json_object_get(timing, "subtrees"));
+        json_t *early = json_object_get(marks, "early subtrees");
+        assert_non_null(early);
+        assert_true(json_integer_value(early) <= json_integer_value(json_object_get(marks, "mesh")));
+        if (subtrees > 1) {
+            assert_true(json_integer_value(json_object_get(timing, "subtreeBatches")) >= 1);
+            assert_true(json_integer_value(json_object_get(timing, "subtreeBatches")) < subtrees);
+        }
         assert_true(batches > 0);
         assert_true(cells > 2 * batches);
         assert_false(json_is_true(json_object_get(timing, "apoLoaded")));
@@ -424,6 +441,36 @@ static double seconds_now(void)
     struct timespec t;
     clock_gettime(CLOCK_MONOTONIC, &t);
     return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
+}
+
+/* A server (or anything between) whose batch answers do not hold together:
+ * the relay raises each answer's count by one, first the subtrees route's,
+ * then the cells route's. The page ends in `error` with one line naming the
+ * route, and nothing hangs (the close-up asks for several subtrees and
+ * several cells at once). */
+static void test_malformed_batches(void **state)
+{
+    fixture *f = *state;
+    MS_TEST_NEED_BROWSER(f->why_skip);
+    static const char *const magic[] = {"MSS1", "MSB1"};
+    static const char *const expect[] = {"Subtrees: the server's answer is malformed",
+                                         "Cells: the server's answer is malformed"};
+    for (int k = 0; k < 2; ++k) {
+        ms_test_delay *relay = NULL;
+        uint16_t relay_port;
+        assert_int_equal(ms_test_delay_start_mangling(f->http_port, 0.0, magic[k], &relay, &relay_port), 0);
+        char url[256], arguments[800];
+        snprintf(url, sizeof url, "http://127.0.0.1:%u/view/demo#cam=0.3,0.2,1.6,0,0,0,0,1,0,40&hud=0", relay_port);
+        snprintf(arguments, sizeof arguments, "--size 320x240 --out %s/malformed-%d.png --timeout 60", f->dir, k);
+        json_t *report = ms_test_browser_run(url, arguments);
+        ms_test_delay_stop(relay);
+        printf("%s answers bent: the page says %s, %s\n", magic[k],
+               json_string_value(json_object_get(report, "state")),
+               json_string_value(json_object_get(report, "message")));
+        assert_string_equal(json_string_value(json_object_get(report, "state")), "error");
+        assert_string_equal(json_string_value(json_object_get(report, "message")), expect[k]);
+        json_decref(report);
+    }
 }
 
 static void test_server_gone_mid_stream(void **state)
@@ -552,7 +599,8 @@ static void test_memory_budget(void **state)
 /* A camera that leaves before its cells came: the page reached through a
  * relay with 150 ms each way, complete at the whole sculpture; then the
  * close-up (its plan asks for its cells at once, in requests of up to 16
- * cells, docs/BROWSER.md "The cells route"), and 0.35 s later the whole
+ * cells, docs/BROWSER.md "The cells route"), and 0.15 s later (half the
+ * relay's round trip: none of them answered yet) the whole
  * sculpture again. The close-up's requests still waiting for their answer
  * are cancelled (the page's counter: their cells), the server sees fewer
  * requests than the close-up has cells (as the close-up alone, cold, asks
@@ -579,7 +627,7 @@ static void test_camera_change_cancels(void **state)
     char steps[2048], steps_file[700], command[4096];
     snprintf(steps, sizeof steps,
              "[{\"method\": \"Runtime.evaluate\", \"params\": {\"expression\": \"location.hash = 'cam=%s&hud=0'\"}},\n"
-             " {\"method\": \"Runtime.evaluate\", \"params\": {\"expression\": \"new Promise(r => setTimeout(r, 350))\", \"awaitPromise\": true}},\n"
+             " {\"method\": \"Runtime.evaluate\", \"params\": {\"expression\": \"new Promise(r => setTimeout(r, 150))\", \"awaitPromise\": true}},\n"
              " {\"method\": \"Runtime.evaluate\", \"params\": {\"expression\": \"location.hash = 'cam=%s&hud=0'\"}},\n"
              " {\"settle\": true}]\n", near, far);
     snprintf(steps_file, sizeof steps_file, "%s/cancel-steps.json", f->dir);
@@ -599,7 +647,7 @@ static void test_camera_change_cancels(void **state)
     json_t *timing = json_object_get(last, "timing");
     json_int_t cancelled = json_integer_value(json_object_get(timing, "cancelled"));
     json_int_t answered = json_integer_value(json_object_get(timing, "requests"));
-    printf("the close-up alone: %lld requests; with the camera gone after 0.35 s: %lld cancelled, %lld "
+    printf("the close-up alone: %lld requests; with the camera gone after 0.15 s: %lld cancelled, %lld "
            "answered in all, the server saw %llu model requests (catalogue and index included)\n",
            (long long)near_requests, (long long)cancelled, (long long)answered,
            (unsigned long long)(after - before));
@@ -726,6 +774,7 @@ int main(void)
         cmocka_unit_test(test_viewer_draws_the_model),
         cmocka_unit_test(test_catalogue_page),
         cmocka_unit_test(test_missing_model_says_so),
+        cmocka_unit_test(test_malformed_batches),
         cmocka_unit_test(test_server_gone_mid_stream),
         cmocka_unit_test(test_camera_change_cancels),
         cmocka_unit_test(test_memory_budget),

@@ -724,10 +724,87 @@ static void test_http_head_and_subtrees(void **state)
     expect_status(f, "/models/deep/subtrees/4294967296", NULL, 404);
     expect_status(f, "/models/deep/subtrees/x1", NULL, 404);
     expect_status(f, "/models/deep/subtrees/-1", NULL, 404);
-    expect_status(f, "/models/deep/subtrees", NULL, 404);
+    expect_status(f, "/models/deep/subtrees", NULL, 400); /* the subtrees route, without its list */
     expect_status(f, "/models/deep/subtrees/0/more", NULL, 404);
     expect_status(f, "/models/nosuch/head", NULL, 404);
     expect_status(f, "/models/nosuch/subtrees/0", NULL, 404);
+    free(ids);
+    ms_archive_close(a);
+}
+
+static uint32_t le32(const uint8_t *p)
+{
+    return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
+}
+
+/* The subtrees route (docs/BROWSER.md, "The subtrees route"): several
+ * subtrees in one answer, each the single route's bytes, an id that is no
+ * subtree named per entry with no bytes, public whatever the token; a list
+ * that is not one refused whole. */
+static void test_http_subtrees_route(void **state)
+{
+    fixture *f = *state;
+    ms_archive *a = open_archive(f, "deep");
+    uint32_t *ids;
+    size_t count;
+    subtree_ids(a, &ids, &count);
+    assert_true(count > 3);
+    char path[2048];
+    ms_test_http_response r;
+    for (int with_token = 0; with_token < 2; ++with_token)
+        for (size_t first = 0; first < count; first += 60) {
+            /* up to 60 subtrees, then three ids that are none, one of them a cell's */
+            size_t n = count - first < 60 ? count - first : 60;
+            int at = snprintf(path, sizeof path, "/models/deep/subtrees?ids=");
+            for (size_t i = 0; i < n; ++i)
+                at += snprintf(path + at, sizeof path - (size_t)at, "%u,", ids[first + i]);
+            snprintf(path + at, sizeof path - (size_t)at, "1,%u,4294967295", MS_TEST_DEEP_ARCHIVE_CELLS - 1);
+            assert_int_equal(ms_test_http_get(f->http_port, path, with_token ? "Authorization: Bearer " TOKEN "\r\n" : NULL,
+                                              &r), 0);
+            assert_int_equal(r.status, 200);
+            char value[64];
+            assert_string_equal(ms_test_http_header(&r, "Cache-Control", value, sizeof value), "public, max-age=3600");
+            assert_memory_equal(r.body, "MSS1", 4);
+            assert_int_equal(le32(r.body + 4), n + 3);
+            size_t pos = 8;
+            for (size_t i = 0; i < n + 3; ++i) {
+                assert_true(pos + 12 <= r.body_length);
+                const uint8_t *e = r.body + pos;
+                uint32_t id = le32(e), status = (uint32_t)e[4] | (uint32_t)e[5] << 8, length = le32(e + 8);
+                assert_int_equal(e[6] | e[7], 0);
+                pos += 12;
+                assert_true(length <= r.body_length - pos);
+                if (i < n) {
+                    size_t size;
+                    const uint8_t *stored = ms_archive_subtree(a, ids[first + i], &size);
+                    assert_int_equal(id, ids[first + i]);
+                    assert_int_equal(status, 200);
+                    assert_int_equal(length, size);
+                    assert_memory_equal(r.body + pos, stored, size);
+                } else {
+                    assert_int_equal(status, 404);
+                    assert_int_equal(length, 0);
+                }
+                pos += length;
+            }
+            assert_int_equal(pos, r.body_length);
+            ms_test_http_free(&r);
+        }
+    /* lists that are not one: refused whole, with one line */
+    char many[1024] = "/models/deep/subtrees?ids=0";
+    for (int k = 0; k < 64; ++k)
+        strcat(many, ",0");
+    const char *bad[] = {"/models/deep/subtrees?ids=", "/models/deep/subtrees?ids=0,,1", "/models/deep/subtrees?ids=x",
+                         "/models/deep/subtrees?ids=0.1", "/models/deep/subtrees?ids=4294967296",
+                         "/models/deep/subtrees?ids=0,", "/models/deep/subtrees?id=0", many};
+    for (size_t i = 0; i < sizeof bad / sizeof *bad; ++i) {
+        assert_int_equal(ms_test_http_get(f->http_port, bad[i], NULL, &r), 0);
+        if (r.status != 400)
+            fail_msg("%s: %d, expected 400", bad[i], r.status);
+        assert_non_null(strstr((const char *)r.body, "ids= wants subtree ids"));
+        ms_test_http_free(&r);
+    }
+    expect_status(f, "/models/nosuch/subtrees?ids=0", NULL, 404);
     free(ids);
     ms_archive_close(a);
 }
@@ -742,6 +819,7 @@ int main(void)
         cmocka_unit_test(test_subtree_priority_and_cancel),
         cmocka_unit_test(test_preview_reads_subtrees_only),
         cmocka_unit_test(test_http_head_and_subtrees),
+        cmocka_unit_test(test_http_subtrees_route),
     };
     return cmocka_run_group_tests(tests, start_server, stop_server);
 }

@@ -101,6 +101,8 @@ const LAYOUTS = {
     index: name => 'models/' + encodeURIComponent(name),
     head: name => 'models/' + encodeURIComponent(name) + '/head',
     subtree: (name, id) => 'models/' + encodeURIComponent(name) + '/subtrees/' + id,
+    // several subtrees at once (fetchSubtrees)
+    subtrees: (name, ids) => 'models/' + encodeURIComponent(name) + '/subtrees?ids=' + ids.join(','),
     cell: (name, cell, bits) => 'models/' + encodeURIComponent(name) + '/cells/' + cell +
                                 '/geometry' + (bits === null ? '' : '?bits=' + bits),
     // several cells at once (fetchCells): {cell, bits, from} each
@@ -129,6 +131,9 @@ const IN_FLIGHT = 64;
 // of the cut in a round trip or two, where one request a cell kept each of
 // a browser's six connections busy a round trip a cell.
 const BATCH_CELLS = 16;
+// Subtrees in one request of the side door's subtrees route (fetchSubtrees):
+// the server's most.
+const BATCH_SUBTREES = 64;
 const SILENCE_MS = 10000;   // a request with nothing heard for this long is abandoned
 const PLAN_MAX = 1024;      // cells listed by one plan
 const SHOW_EVERY_MS = 200;       // within a round, how often what came is decoded and shown
@@ -412,6 +417,59 @@ async function fetchSubtree(name, token, id, v, ticket) {
   return bytes.length;
 }
 
+// Several subtrees in one request (the side door's subtrees route,
+// docs/BROWSER.md "The subtrees route"), each handed to view v as it is
+// read; one the server refuses is asked for alone (its answer says why), and
+// a server without the route (404, 400; a static site) is asked subtree by
+// subtree from then on (subtreesRoute). Returns the bytes received.
+let subtreesRoute = true;
+async function fetchSubtrees(name, token, ids, v, ticket) {
+  let answer = null;
+  if (ids.length > 1 && layout.subtrees && subtreesRoute) {
+    try {
+      answer = await get(layout.subtrees(name, ids), token, null, ticket);
+    } catch (e) {
+      if (e.cancelled || (e.status !== 404 && e.status !== 400))
+        throw e;
+      subtreesRoute = false;
+    }
+  }
+  const alone = answer ? [] : ids.slice();
+  let got = 0;
+  if (answer) {
+    const b = answer.bytes, d = new DataView(b.buffer, b.byteOffset, b.byteLength);
+    const malformed = () => new Error('subtrees: the server\'s answer is malformed');
+    if (b.length < 8 || String.fromCharCode(b[0], b[1], b[2], b[3]) !== 'MSS1' ||
+        d.getUint32(4, true) !== ids.length)
+      throw malformed();
+    let at = 8;
+    for (const id of ids) {
+      if (at + 12 > b.length)
+        throw malformed();
+      const status = d.getUint16(at + 4, true), length = d.getUint32(at + 8, true);
+      if (d.getUint32(at, true) !== id || length > b.length - at - 12 || (status !== 200 && length))
+        throw malformed();
+      at += 12;
+      if (status !== 200) {
+        alone.push(id);
+        continue;
+      }
+      const piece = b.subarray(at, at + length);
+      at += length;
+      timing.subtrees++;
+      timing.indexWireBytes += length;
+      got += length;
+      if (withHeap(piece, p => M._ms_web_view_give_subtree(v || view, id, p, length)) !== 0)
+        throw new Error('the model\'s index: ' + lastError(v));
+    }
+    if (at !== b.length)
+      throw malformed();
+    timing.subtreeBatches++;
+  }
+  const each = await Promise.all(alone.map(id => fetchSubtree(name, token, id, v, ticket)));
+  return each.reduce((sum, n) => sum + n, got);
+}
+
 // Seconds spent, for the page's figures (window.meshstream.timing): selecting
 // and decoding (plan), the rounds of fetches from their first request to
 // their last answer, decoding included (fetch), of which the worker had
@@ -419,7 +477,8 @@ async function fetchSubtree(name, token, id, v, ticket) {
 // mesh out of the module to the page (copy); whether the module is the
 // threaded one (threaded) and the threads decoding (threads); counts:
 // plans, stitches, cells answered and their bytes (requests,
-// requestBytes; cellBatches: requests of several cells, fetchCells), cells
+// requestBytes; cellBatches: requests of several cells, fetchCells;
+// subtreeBatches: of several subtrees, fetchSubtrees), cells
 // and subtrees whose request a new camera cancelled (cancelled), subtrees
 // of the index fetched (subtrees; byHead: whether the index came by
 // subtree). indexWireBytes: the index's bytes as they travelled (head and
@@ -433,7 +492,7 @@ async function fetchSubtree(name, token, id, v, ticket) {
 // whether a camera wanted APO, so that its part (worker-apo.js) was read.
 const timing = { plan: 0, fetch: 0, wait: 0, stitch: 0, copy: 0, threads: 1, plans: 0, stitches: 0,
                  requests: 0, requestBytes: 0, cancelled: 0, subtrees: 0, indexWireBytes: 0, byHead: false,
-                 cellBatches: 0, apoRequests: 0, apoBytes: 0, apoCheck: 0, warmAnswers: 0, apoLoaded: false,
+                 cellBatches: 0, subtreeBatches: 0, apoRequests: 0, apoBytes: 0, apoCheck: 0, warmAnswers: 0, apoLoaded: false,
                  marks: {} };
 
 function mark(name) {
@@ -520,9 +579,10 @@ let pendingCamera = null, wake = null;
 const tickets = new Set();
 // The subtrees of the index asked for (in flight or held): each once.
 const subtreesAsked = new Set();
-// The subtrees the camera's own plan wants, asked for with the first look's
-// cells (run(), firstLookCamera).
-const earlySubtrees = [];
+// The subtrees the camera's own plan wants, asked for as soon as that plan is
+// made, while the first look decodes (run()): {ids, promise, ticket}; the
+// round that would ask for them waits for this request instead.
+let earlyFetch = null;
 
 function nextCamera() {
   return new Promise(resolve => { wake = resolve; });
@@ -670,8 +730,18 @@ async function run(msg) {
     M._ms_web_view_plan_ahead(view, 1);
     if (plan(settledPtr) !== 0)
       throw new Error('selecting the cut: ' + lastError());
+    const ids = [];
     for (let k = 0, n = M._ms_web_view_plan_subtree_count(view); k < n; ++k)
-      earlySubtrees.push(M._ms_web_view_plan_subtree(view, k));
+      ids.push(M._ms_web_view_plan_subtree(view, k));
+    if (ids.length) {
+      const ticket = { cancel: new AbortController(), started: false };
+      tickets.add(ticket);
+      ids.forEach(id => subtreesAsked.add(id));
+      const promise = fetchSubtrees(name, token, ids, view, ticket).finally(() => tickets.delete(ticket));
+      promise.catch(() => {});      // (its error is the round's, which awaits it)
+      earlyFetch = { ids, promise, ticket };
+      mark('early subtrees');
+    }
     pendingCamera = msg.camera;
   }
   while (!pendingCamera)
@@ -766,8 +836,10 @@ async function run(msg) {
     // the subtrees of the index the plan lacks: asked for before any cell
     // (each unblocks the splits below it), each once
     const subtrees = [];
+    let early = earlyFetch;       // the first look's request of subtrees, still this round's to wait for
+    earlyFetch = null;
     const listSubtrees = () => {
-      const ids = earlySubtrees.splice(0);
+      const ids = [];
       for (let k = 0, n = M._ms_web_view_plan_subtree_count(view); k < n; ++k)
         ids.push(M._ms_web_view_plan_subtree(view, k));
       for (const id of ids) {
@@ -778,7 +850,7 @@ async function run(msg) {
       }
     };
     listSubtrees();
-    if (!wanted.length && !subtrees.length && !colours.length)   // (never: a guard against a busy loop)
+    if (!wanted.length && !subtrees.length && !colours.length && !early)   // (never: a guard against a busy loop)
       throw new Error('selecting the cut: the plan wants subtrees it has asked for already');
     // the bytes this round still wants: the page's progress bar
     let need = planNeed(count);
@@ -831,16 +903,17 @@ async function run(msg) {
       tickets.add(ticket);
       let got;     // not `bytes += await`: jobs interleave
       try {
-        got = kind === 'subtree' ? await fetchSubtree(name, token, what[0], view, ticket)
+        got = kind === 'early' ? await what[0].promise
+            : kind === 'subtrees' ? await fetchSubtrees(name, token, what[0], view, ticket)
             : kind === 'colour' ? await fetchColour(name, token, what[0], what[1], what[2], ticket)
             : kind === 'cells' ? await fetchCells(name, token, what[0], view, ticket)
                                  : await fetchCell(name, token, what[0], what[1], what[2], view, ticket);
       } catch (e) {
         if (!e.cancelled)
           throw e;
-        timing.cancelled += kind === 'cells' ? what[0].length : 1;   // cells (or subtrees) given up
-        if (kind === 'subtree')
-          subtreesAsked.delete(what[0]);
+        const ids = kind === 'early' ? what[0].ids : kind === 'subtrees' ? what[0] : [];
+        timing.cancelled += kind === 'cells' ? what[0].length : kind === 'colour' || kind === 'cell' ? 1 : ids.length;
+        ids.forEach(id => subtreesAsked.delete(id));   // cells (or subtrees) given up
         return;
       } finally {
         tickets.delete(ticket);
@@ -852,7 +925,7 @@ async function run(msg) {
         fresh += got;
       }
       postMessage({ type: 'progress', bytes, need, rounds, wanted: count });
-      replan(kind === 'subtree');
+      replan(kind === 'subtrees' || kind === 'early');
     };
     // IN_FLIGHT requests at a time, subtrees first; a request that ends
     // starts the next, so what a plan adds mid-round goes out at once.
@@ -861,15 +934,23 @@ async function run(msg) {
       let active = 0, failure = null;
       const pump = () => {
         while (!failure && !pendingCamera && active < IN_FLIGHT &&
-               (subtrees.length || next < wanted.length || colours.length)) {
+               (early || subtrees.length || next < wanted.length || colours.length)) {
           active++;
+          if (early) {
+            job(['early', early]).then(() => { active--; pump(); },
+                                       e => { active--; failure = failure || e; pump(); });
+            early = null;
+            continue;
+          }
           // the side door's cells route takes several at once, each from
           // its bytes held on (a cell the plan wants whole, bits null, alone)
           let batch = 0;
           while (layout.cells && cellsRoute && batch < BATCH_CELLS && next + batch < wanted.length &&
                  wanted[next + batch][1] !== null)
             ++batch;
-          job(subtrees.length ? ['subtree', subtrees.shift()]
+          // the subtrees queued, in one request where the route takes several
+          const some = layout.subtrees && subtreesRoute ? BATCH_SUBTREES : 1;
+          job(subtrees.length ? ['subtrees', subtrees.splice(0, some)]
               : batch > 1 ? ['cells', wanted.slice(next, next += batch)]
               : next < wanted.length ? ['cell', ...wanted[next++]] : ['colour', ...colours.shift()]).then(
             () => { active--; pump(); },
@@ -880,6 +961,8 @@ async function run(msg) {
       };
       pump();
     });
+    if (early)                    // (a new camera came first: the next round waits for it)
+      earlyFetch = early;
     const roundSeconds = (performance.now() - fetchStart) / 1000;
     timing.fetch += roundSeconds;
     // the round's time the worker did not decode, stitch or copy: waiting on

@@ -291,32 +291,33 @@ typedef struct batch_entry {
     uint32_t cell, bits, from;
 } batch_entry;
 
-/* The query's entries, or false with *why. */
-static bool parse_batch(const char *text, batch_entry *out, size_t *count, const char **why)
+/* A batch query's list: at most `cap` comma-separated entries of `arity`
+ * dot-separated integers, field k at most max[k], into out (arity words an
+ * entry); false for anything else (empty, an empty entry, a stray dot). */
+static bool parse_u32_tuples(const char *text, unsigned arity, const uint32_t *max, uint32_t *out, size_t cap,
+                             size_t *count)
 {
     *count = 0;
-    *why = "error: geometry= wants ID.BITS.FROM entries, comma-separated, at most 64";
     if (!text || !*text)
         return false;
     for (const char *at = text;;) {
         size_t length = strcspn(at, ",");
         char item[40], *field[3];
-        if (*count == MS_HTTP_BATCH_CELLS || length == 0 || length >= sizeof item)
+        if (*count == cap || length == 0 || length >= sizeof item || arity > 3)
             return false;
         memcpy(item, at, length);
         item[length] = '\0';
         field[0] = item;
-        for (int k = 1; k < 3; ++k) {
+        for (unsigned k = 1; k < arity; ++k) {
             char *dot = strchr(field[k - 1], '.');
             if (!dot)
                 return false;
             *dot = '\0';
             field[k] = dot + 1;
         }
-        batch_entry *e = &out[*count];
-        if (!ms_http_parse_u32(field[0], UINT32_MAX, &e->cell) || !ms_http_parse_u32(field[1], 64, &e->bits) ||
-            !ms_http_parse_u32(field[2], UINT32_MAX, &e->from))
-            return false;
+        for (unsigned k = 0; k < arity; ++k)
+            if (!ms_http_parse_u32(field[k], max[k], &out[arity * *count + k]))
+                return false;
         ++*count;
         if (at[length] == '\0')
             return true;
@@ -324,10 +325,49 @@ static bool parse_batch(const char *text, batch_entry *out, size_t *count, const
     }
 }
 
+/* The query's entries, or false with *why. */
+static bool parse_batch(const char *text, batch_entry *out, size_t *count, const char **why)
+{
+    *why = "error: geometry= wants ID.BITS.FROM entries, comma-separated, at most 64";
+    uint32_t words[3 * MS_HTTP_BATCH_CELLS];
+    const uint32_t max[3] = {UINT32_MAX, 64, UINT32_MAX};
+    if (!parse_u32_tuples(text, 3, max, words, MS_HTTP_BATCH_CELLS, count))
+        return false;
+    for (size_t i = 0; i < *count; ++i)
+        out[i] = (batch_entry){words[3 * i], words[3 * i + 1], words[3 * i + 2]};
+    return true;
+}
+
 static void put_u32(uint8_t *p, uint32_t v)
 {
     for (int k = 0; k < 4; ++k)
         p[k] = (uint8_t)(v >> (8 * k));
+}
+
+/* A batch route's answer (cells, subtrees): body as built (ok: every entry
+ * went in; else 500 and body freed), `sent` its payload bytes for the
+ * figures; private_answer: the token widened it. */
+static void reply_batch(ms_http_door *door, struct evhttp_request *req, ms_model *model, struct evbuffer *body,
+                        bool ok, uint64_t sent, bool private_answer)
+{
+    if (!ok) {
+        if (body)
+            evbuffer_free(body);
+        ms_http_send_text(door, req, 500, "Internal Server Error", "error: out of memory");
+        return;
+    }
+    struct evkeyvalq *out = evhttp_request_get_output_headers(req);
+    evhttp_add_header(out, "Content-Type", "application/octet-stream");
+    evhttp_add_header(out, "Cache-Control", private_answer ? "private, max-age=3600" : "public, max-age=3600");
+    evhttp_add_header(out, "Vary", "Authorization");
+    model->requests++;
+    size_t length = evbuffer_get_length(body);
+    if (!ms_http_is_head(req)) {
+        ms_http_door_server(door)->metrics.http_bytes_sent += sent;
+        model->bytes_sent += sent;
+    }
+    ms_http_reply(door, req, 200, "OK", body, length);
+    evbuffer_free(body);
 }
 
 static void serve_cell_batch(ms_http_door *door, struct evhttp_request *req, ms_model *model,
@@ -369,24 +409,7 @@ static void serve_cell_batch(ms_http_door *door, struct evhttp_request *req, ms_
             sent += length;
         }
     }
-    if (!ok) {
-        if (body)
-            evbuffer_free(body);
-        ms_http_send_text(door, req, 500, "Internal Server Error", "error: out of memory");
-        return;
-    }
-    struct evkeyvalq *out = evhttp_request_get_output_headers(req);
-    evhttp_add_header(out, "Content-Type", "application/octet-stream");
-    evhttp_add_header(out, "Cache-Control", token_used ? "private, max-age=3600" : "public, max-age=3600");
-    evhttp_add_header(out, "Vary", "Authorization");
-    model->requests++;
-    size_t length = evbuffer_get_length(body);
-    if (!ms_http_is_head(req)) {
-        ms_http_door_server(door)->metrics.http_bytes_sent += sent;
-        model->bytes_sent += sent;
-    }
-    ms_http_reply(door, req, 200, "OK", body, length);
-    evbuffer_free(body);
+    reply_batch(door, req, model, body, ok, sent, token_used);
 }
 
 /* The index head (what MODEL_OPENED's INDEX_DATA carries with encoding
@@ -408,9 +431,29 @@ static void serve_head(ms_http_door *door, struct evhttp_request *req, ms_model 
     send_bytes(door, req, model, model->index_head, model->index_head_size, etag, false, NULL);
 }
 
-/* One subtree of the index by id (its stored zlib bytes, what stream INDEX
- * carries): 404 for an id that is not a subtree id of the model. The bytes do
- * not depend on the reader's token: always a public answer. */
+/* Subtree id's stored bytes (*data, *length: [0, stored size), what a STEPS
+ * request of the whole subtree resolves to) through ms_access_resolve, as
+ * stream INDEX carries them: 200, or 404 for an id that is not a subtree id
+ * of the model, 500 where it cannot be read (*why). */
+static int subtree_bytes(ms_model *model, const ms_access *grant, uint32_t id, const uint8_t **data,
+                         uint32_t *length, const char **why)
+{
+    const ms_proto_cell_request whole = {id, MS_PROTO_STREAM_INDEX, MS_PROTO_UNIT_STEPS, 0, 0, 0};
+    ms_proto_byte_range range;
+    ms_proto_fault fault = {.code = MS_PROTO_E_INTERNAL};
+    if (ms_access_resolve(model, grant, &whole, &range, &fault, NULL) != MS_OK) {
+        bool unknown = fault.code == MS_PROTO_E_UNKNOWN_CELL;
+        *why = unknown ? "error: no such subtree" : "error: the subtree cannot be read";
+        return unknown ? 404 : 500;
+    }
+    size_t size;
+    *data = ms_archive_subtree(model->archive, id, &size);
+    *length = (uint32_t)range.end;
+    return 200;
+}
+
+/* One subtree of the index by id. The bytes do not depend on the reader's
+ * token: always a public answer. */
 static void serve_subtree(ms_http_door *door, struct evhttp_request *req, ms_model *model,
                           const char *id_text)
 {
@@ -421,23 +464,60 @@ static void serve_subtree(ms_http_door *door, struct evhttp_request *req, ms_mod
     }
     bool token_used;
     ms_access grant = ms_http_reader_grant(door, req, model, &token_used);
-    const ms_proto_cell_request whole = {id, MS_PROTO_STREAM_INDEX, MS_PROTO_UNIT_STEPS, 0, 0, 0};
-    ms_proto_byte_range range;
-    ms_proto_fault fault = {.code = MS_PROTO_E_INTERNAL};
-    if (ms_access_resolve(model, &grant, &whole, &range, &fault, NULL) != MS_OK) {
-        if (fault.code == MS_PROTO_E_UNKNOWN_CELL)
-            ms_http_send_text(door, req, 404, "Not Found", "error: no such subtree");
-        else
-            ms_http_send_text(door, req, 500, "Internal Server Error",
-                              "error: the subtree cannot be read");
+    const uint8_t *stored = NULL;
+    uint32_t length = 0;
+    const char *why = NULL;
+    int status = subtree_bytes(model, &grant, id, &stored, &length, &why);
+    if (status != 200) {
+        ms_http_send_text(door, req, status, status == 404 ? "Not Found" : "Internal Server Error", why);
         return;
     }
-    size_t size;
-    const uint8_t *stored = ms_archive_subtree(model->archive, id, &size);
     char etag[80];
     snprintf(etag, sizeof etag, "\"%016" PRIx64 "-subtree-%" PRIu32 "\"", model->content_id, id);
-    /* A STEPS request of the whole subtree resolves to [0, stored size). */
-    send_bytes(door, req, model, stored, range.end, etag, false, NULL);
+    send_bytes(door, req, model, stored, length, etag, false, NULL);
+}
+
+/* Several subtrees of the index in one answer: GET /models/NAME/subtrees?ids=
+ * ID[,ID...] (at most MS_HTTP_BATCH_SUBTREES), each what
+ * /models/NAME/subtrees/ID sends, through the same subtree_bytes. A page
+ * far from the server learns a level of the index in one round trip, where
+ * one request a subtree queued behind a browser's six connections. Body
+ * (docs/BROWSER.md, "The subtrees route"), little-endian: "MSS1", u32 count,
+ * then per entry in the query's order u32 id, u16 status (200; 404, 500 with
+ * no bytes), u16 zero, u32 length, and length bytes. Public, like a subtree. */
+#define MS_HTTP_BATCH_SUBTREES 64u
+
+static void serve_subtree_batch(ms_http_door *door, struct evhttp_request *req, ms_model *model,
+                                const struct evkeyvalq *query)
+{
+    uint32_t ids[MS_HTTP_BATCH_SUBTREES];
+    const uint32_t max = UINT32_MAX;
+    size_t count;
+    if (!parse_u32_tuples(evhttp_find_header(query, "ids"), 1, &max, ids, MS_HTTP_BATCH_SUBTREES, &count)) {
+        ms_http_send_text(door, req, 400, "Bad Request", "error: ids= wants subtree ids, comma-separated, at most 64");
+        return;
+    }
+    bool token_used;
+    ms_access grant = ms_http_reader_grant(door, req, model, &token_used);
+    struct evbuffer *body = evbuffer_new();
+    uint8_t head[8] = {'M', 'S', 'S', '1'};
+    put_u32(head + 4, (uint32_t)count);
+    bool ok = body && evbuffer_add(body, head, sizeof head) == 0;
+    uint64_t sent = 0;
+    for (size_t i = 0; ok && i < count; ++i) {
+        const uint8_t *stored = NULL;
+        uint32_t length = 0;
+        const char *why;
+        int status = subtree_bytes(model, &grant, ids[i], &stored, &length, &why);
+        uint8_t fields[12] = {0};
+        put_u32(fields, ids[i]);
+        fields[4] = (uint8_t)status, fields[5] = (uint8_t)(status >> 8);
+        put_u32(fields + 8, status == 200 ? length : 0);
+        ok = evbuffer_add(body, fields, sizeof fields) == 0 &&
+             (status != 200 || add_payload(door, model, body, stored, length));
+        sent += status == 200 ? length : 0;
+    }
+    reply_batch(door, req, model, body, ok, sent, false);
 }
 
 /* The model compressed whole with Draco (ARCHIVE_DIR/NAME.drc, written by the
@@ -512,6 +592,10 @@ bool ms_http_route_model(ms_http_door *door, struct evhttp_request *req, ms_mode
     }
     if (n == 2 && !strcmp(seg[1], "cells")) {
         serve_cell_batch(door, req, model, query);
+        return true;
+    }
+    if (n == 2 && !strcmp(seg[1], "subtrees")) {
+        serve_subtree_batch(door, req, model, query);
         return true;
     }
     if (n == 3 && !strcmp(seg[1], "subtrees")) {

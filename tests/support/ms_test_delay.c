@@ -37,6 +37,8 @@ struct ms_test_delay {
     int listen_fd;
     uint16_t server_port;
     double delay_s;
+    bool mangling;
+    uint8_t magic[4];   /* with mangling: the byte after these, from the server, goes up by one */
     pair pairs[MAX_PAIRS];
     size_t pair_count;
     atomic_bool stop;
@@ -103,6 +105,9 @@ static bool read_side(ms_test_delay *d, pair *p, int i)
     c->next = NULL;
     c->due = now_s() + d->delay_s;
     c->size = n > 0 ? (size_t)n : 0;
+    for (size_t k = 0; d->mangling && i == 1 && k + 4 < c->size; ++k)
+        if (memcmp(c->data + k, d->magic, 4) == 0)
+            c->data[k + 4]++;
     if (n <= 0)
         p->read_done[i] = true;
     if (p->tail[i])
@@ -168,12 +173,21 @@ static void *relay_main(void *arg)
 
 int ms_test_delay_start(uint16_t server_port, double delay_s, ms_test_delay **out, uint16_t *port)
 {
+    return ms_test_delay_start_mangling(server_port, delay_s, NULL, out, port);
+}
+
+int ms_test_delay_start_mangling(uint16_t server_port, double delay_s, const char magic[4], ms_test_delay **out,
+                                 uint16_t *port)
+{
     *out = NULL;
     ms_test_delay *d = calloc(1, sizeof *d);
     if (!d)
         return -1;
     d->server_port = server_port;
     d->delay_s = delay_s;
+    d->mangling = magic != NULL;
+    if (magic)
+        memcpy(d->magic, magic, 4);
     struct sockaddr_in addr = {.sin_family = AF_INET, .sin_addr.s_addr = htonl(INADDR_LOOPBACK)};
     socklen_t len = sizeof addr;
     d->listen_fd = socket(AF_INET, SOCK_STREAM, 0);

@@ -17,6 +17,12 @@ typedef struct ms_test_delay ms_test_delay;
  * *port is where it listens. 0 on success, -1 on a socket or thread failure. */
 int ms_test_delay_start(uint16_t server_port, double delay_s, ms_test_delay **relay,
                         uint16_t *port);
+/* The same relay, bending what the server sends: wherever the 4 bytes of
+ * `magic` appear within one chunk read from the server, the byte after them
+ * is increased by one (a batch answer's count, docs/BROWSER.md "The cells
+ * route": a page must refuse it). */
+int ms_test_delay_start_mangling(uint16_t server_port, double delay_s, const char magic[4],
+                                 ms_test_delay **relay, uint16_t *port);
 /* Closes every connection and the relay, and frees it (NULL: nothing). */
 void ms_test_delay_stop(ms_test_delay *relay);
 /* The connections accepted so far. Thread-safe. */
