@@ -344,6 +344,21 @@ static void put_u32(uint8_t *p, uint32_t v)
         p[k] = (uint8_t)(v >> (8 * k));
 }
 
+/* A batch answer's body so far: its 4-byte magic and u32 count; NULL when
+ * out of memory. */
+static struct evbuffer *batch_body_new(const char magic[4], size_t count)
+{
+    struct evbuffer *body = evbuffer_new();
+    uint8_t head[8];
+    memcpy(head, magic, 4);
+    put_u32(head + 4, (uint32_t)count);
+    if (body && evbuffer_add(body, head, sizeof head) != 0) {
+        evbuffer_free(body);
+        body = NULL;
+    }
+    return body;
+}
+
 /* A batch route's answer (cells, subtrees): body as built (ok: every entry
  * went in; else 500 and body freed), `sent` its payload bytes for the
  * figures; private_answer: the token widened it. */
@@ -382,10 +397,8 @@ static void serve_cell_batch(ms_http_door *door, struct evhttp_request *req, ms_
     }
     bool token_used;
     ms_access grant = ms_http_reader_grant(door, req, model, &token_used);
-    struct evbuffer *body = evbuffer_new();
-    uint8_t head[8] = {'M', 'S', 'B', '1'};
-    put_u32(head + 4, (uint32_t)count);
-    bool ok = body && evbuffer_add(body, head, sizeof head) == 0;
+    struct evbuffer *body = batch_body_new("MSB1", count);
+    bool ok = body != NULL;
     uint64_t sent = 0;
     for (size_t i = 0; ok && i < count; ++i) {
         ms_proto_byte_range range = {0, 0};
@@ -499,10 +512,8 @@ static void serve_subtree_batch(ms_http_door *door, struct evhttp_request *req, 
     }
     bool token_used;
     ms_access grant = ms_http_reader_grant(door, req, model, &token_used);
-    struct evbuffer *body = evbuffer_new();
-    uint8_t head[8] = {'M', 'S', 'S', '1'};
-    put_u32(head + 4, (uint32_t)count);
-    bool ok = body && evbuffer_add(body, head, sizeof head) == 0;
+    struct evbuffer *body = batch_body_new("MSS1", count);
+    bool ok = body != NULL;
     uint64_t sent = 0;
     for (size_t i = 0; ok && i < count; ++i) {
         const uint8_t *stored = NULL;
