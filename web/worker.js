@@ -329,6 +329,46 @@ async function fetchCell(name, token, cell, bits, prefix, v, ticket) {
   return bytes.length;
 }
 
+// A batch route's answer (get()'s), or null where the server has no such
+// route (404, 400: an older meshserve); any other failure is thrown.
+async function askBatch(path, token, ticket) {
+  try {
+    return await get(path, token, null, ticket);
+  } catch (e) {
+    if (e.cancelled || (e.status !== 404 && e.status !== 400))
+      throw e;
+    return null;
+  }
+}
+
+// The entries of a batch route's answer (docs/BROWSER.md, "The cells
+// route", "The subtrees route"): `magic`, a u32 count, then per entry
+// fieldBytes of fields (a u32 key first, its u16 status at 4, its u32
+// length last) and length bytes. Checks the framing against keys (the
+// entries asked for, in order): [{d, at: the entry's fields in d, status,
+// bytes}], or throws "WHAT: the server's answer is malformed".
+function readBatch(b, magic, fieldBytes, keys, what) {
+  const d = new DataView(b.buffer, b.byteOffset, b.byteLength);
+  const malformed = () => new Error(what + ': the server\'s answer is malformed');
+  if (b.length < 8 || String.fromCharCode(b[0], b[1], b[2], b[3]) !== magic || d.getUint32(4, true) !== keys.length)
+    throw malformed();
+  const entries = [];
+  let at = 8;
+  for (const key of keys) {
+    if (at + fieldBytes > b.length)
+      throw malformed();
+    const status = d.getUint16(at + 4, true), length = d.getUint32(at + fieldBytes - 4, true);
+    const start = at + fieldBytes;
+    if (d.getUint32(at, true) !== key || length > b.length - start || (status !== 200 && length))
+      throw malformed();
+    entries.push({ d, at, status, bytes: b.subarray(start, start + length), malformed });
+    at = start + length;
+  }
+  if (at !== b.length)
+    throw malformed();
+  return entries;
+}
+
 // Several cells' geometry in one request (the side door's cells route,
 // docs/BROWSER.md "The cells route"): list holds [cell, bits, prefix] as the
 // plan lists them, each asked for from the bytes held on. A cell the server
@@ -339,44 +379,27 @@ let cellsRoute = true;
 async function fetchCells(name, token, list, v, ticket) {
   v = v || view;
   const items = list.map(([cell, bits, prefix]) => ({ cell, bits, prefix, from: M._ms_web_view_held(v, cell) }));
-  let answer = null;
-  try {
-    answer = await get(layout.cells(name, items), token, null, ticket);
-  } catch (e) {
-    if (e.cancelled || (e.status !== 404 && e.status !== 400))
-      throw e;
+  const answer = await askBatch(layout.cells(name, items), token, ticket);
+  if (!answer)
     cellsRoute = false;
-  }
   const alone = answer ? [] : items;
   let got = 0;
   if (answer) {
-    const b = answer.bytes, d = new DataView(b.buffer, b.byteOffset, b.byteLength);
-    const malformed = () => new Error('cells: the server\'s answer is malformed');
-    if (b.length < 8 || String.fromCharCode(b[0], b[1], b[2], b[3]) !== 'MSB1' ||
-        d.getUint32(4, true) !== items.length)
-      throw malformed();
-    let at = 8;
-    for (const it of items) {
-      if (at + 16 > b.length)
-        throw malformed();
-      const cell = d.getUint32(at, true), status = d.getUint16(at + 4, true);
-      const from = d.getUint32(at + 8, true), length = d.getUint32(at + 12, true);
-      at += 16;
-      if (cell !== it.cell || from !== it.from || length > b.length - at || (status !== 200 && length))
-        throw malformed();
-      if (status !== 200) {
+    const entries = readBatch(answer.bytes, 'MSB1', 16, items.map(it => it.cell), 'cells');
+    entries.forEach((e, k) => {
+      const it = items[k], length = e.bytes.length;
+      if (e.d.getUint32(e.at + 8, true) !== it.from)
+        throw e.malformed();
+      if (e.status !== 200) {
         alone.push(it);
-        continue;
+        return;
       }
-      if (length && withHeap(b.subarray(at, at + length), p => M._ms_web_view_give(v, cell, from, p, length)) !== 0)
-        throw new Error('cell ' + cell + ': ' + lastError(v));
-      at += length;
+      if (length && withHeap(e.bytes, p => M._ms_web_view_give(v, it.cell, it.from, p, length)) !== 0)
+        throw new Error('cell ' + it.cell + ': ' + lastError(v));
       got += length;
       timing.requests++;
       timing.requestBytes += length;
-    }
-    if (at !== b.length)
-      throw malformed();
+    });
     timing.cellBatches++;
   }
   for (const it of alone)
@@ -424,46 +447,25 @@ async function fetchSubtree(name, token, id, v, ticket) {
 // subtree from then on (subtreesRoute). Returns the bytes received.
 let subtreesRoute = true;
 async function fetchSubtrees(name, token, ids, v, ticket) {
-  let answer = null;
-  if (ids.length > 1 && layout.subtrees && subtreesRoute) {
-    try {
-      answer = await get(layout.subtrees(name, ids), token, null, ticket);
-    } catch (e) {
-      if (e.cancelled || (e.status !== 404 && e.status !== 400))
-        throw e;
-      subtreesRoute = false;
-    }
-  }
+  const answer = ids.length > 1 && layout.subtrees && subtreesRoute
+    ? await askBatch(layout.subtrees(name, ids), token, ticket) : null;
+  if (!answer && ids.length > 1 && layout.subtrees)
+    subtreesRoute = false;
   const alone = answer ? [] : ids.slice();
   let got = 0;
   if (answer) {
-    const b = answer.bytes, d = new DataView(b.buffer, b.byteOffset, b.byteLength);
-    const malformed = () => new Error('subtrees: the server\'s answer is malformed');
-    if (b.length < 8 || String.fromCharCode(b[0], b[1], b[2], b[3]) !== 'MSS1' ||
-        d.getUint32(4, true) !== ids.length)
-      throw malformed();
-    let at = 8;
-    for (const id of ids) {
-      if (at + 12 > b.length)
-        throw malformed();
-      const status = d.getUint16(at + 4, true), length = d.getUint32(at + 8, true);
-      if (d.getUint32(at, true) !== id || length > b.length - at - 12 || (status !== 200 && length))
-        throw malformed();
-      at += 12;
-      if (status !== 200) {
+    readBatch(answer.bytes, 'MSS1', 12, ids, 'subtrees').forEach((e, k) => {
+      const id = ids[k], length = e.bytes.length;
+      if (e.status !== 200) {
         alone.push(id);
-        continue;
+        return;
       }
-      const piece = b.subarray(at, at + length);
-      at += length;
       timing.subtrees++;
       timing.indexWireBytes += length;
       got += length;
-      if (withHeap(piece, p => M._ms_web_view_give_subtree(v || view, id, p, length)) !== 0)
+      if (withHeap(e.bytes, p => M._ms_web_view_give_subtree(v || view, id, p, length)) !== 0)
         throw new Error('the model\'s index: ' + lastError(v));
-    }
-    if (at !== b.length)
-      throw malformed();
+    });
     timing.subtreeBatches++;
   }
   const each = await Promise.all(alone.map(id => fetchSubtree(name, token, id, v, ticket)));
