@@ -189,12 +189,14 @@ static void test_index_damage_and_truncation(void **state)
     }
     ms_test_write_file(bad, (const uint8_t *)"hello", 5);
     expect_open_fails(bad, MS_ERR_FORMAT, "too short");
-    /* Version from the future, and the two versions before 3 (never released,
-     * no longer read): one line naming the version, before anything else. */
+    /* Version from the future, and the three versions before 4 (never
+     * released, no longer read): one line naming the version, before anything
+     * else. */
     static const struct { uint8_t version; const char *text; } versions[] = {
-        {4, "archive version 4, this build reads version 3"},
-        {2, "archive version 2, this build reads version 3"},
-        {1, "archive version 1, this build reads version 3"},
+        {5, "archive version 5, this build reads version 4"},
+        {3, "archive version 3, this build reads version 4"},
+        {2, "archive version 2, this build reads version 4"},
+        {1, "archive version 1, this build reads version 4"},
     };
     for (size_t k = 0; k < sizeof versions / sizeof *versions; ++k) {
         data[8] = versions[k].version;

@@ -1,8 +1,9 @@
 /* A model seen from ever farther by the client core alone (local mode, no
  * window; issue 30's test beside test_meshview's): the demo sculpture with its
  * box 400, 120, 60, 30 and 15 pixels tall in a 480x480 view draws a non-empty
- * cut at every distance, whose reported error (the true one) is above 0 and
- * within the 1 px tolerance; drawn by the study's
+ * cut at every distance, whose reported error (the measured surface error,
+ * docs/CODEC.md §4.3) is above 0 and within the 1 px tolerance, with at most 8
+ * triangles per covered pixel; drawn by the study's
  * CPU renderer, its silhouette overlaps that of the full model with an
  * intersection over union of at least 0.9 down to 30 px. The same cameras
  * are walked in from far to near by one core too, and out again, so the
@@ -122,6 +123,9 @@ static void check_view(const fixture *f, const ms_core_frame *frame, const ms_co
     assert_true(covered > 0);
     if (heights_px[k] >= 30)
         assert_true(iou >= 0.9);
+    /* the surface error lets a small model go coarse: a handful of triangles
+     * per covered pixel (the vertex bound gave 23 at 60 px, 19 at 15) */
+    assert_true((double)m->triangle_count <= 8.0 * (double)covered);
     ms_study_scene_free(cut);
     free(mask);
     free(ref);
@@ -167,10 +171,10 @@ static void test_each_distance_cold(void **state)
 }
 
 /* One core walked out and back in: every distance complete both ways, and
- * walking out the cut is a fresh view's: the hysteresis (0.2 bit) gives up a
- * bit once it is not needed at these distances, whose needs lie 0.70 bit
- * above a whole one (half a bit held one more here: 23 to 72 triangles per
- * covered pixel). */
+ * walking out the cut is a fresh view's or at most one bit finer (four times
+ * a surface's triangles): the hysteresis (0.2 bit) keeps a bit only where the
+ * need lies within 0.2 bit below a whole one (half a bit held one more at
+ * three of these distances: 23 to 72 triangles per covered pixel). */
 static void test_walked_out_and_in(void **state)
 {
     fixture *f = *state;
@@ -191,7 +195,11 @@ static void test_walked_out_and_in(void **state)
         if (step < KEYS) {
             ms_core_stats cold_st;
             ms_core_frame *cold = cold_view(f, k, &cold_st);
-            assert_int_equal(frame->mesh.triangle_count, cold->mesh.triangle_count);
+            if (frame->mesh.triangle_count != cold->mesh.triangle_count)
+                print_message("%g px tall walked out: %zu triangles, fresh %zu\n", heights_px[k],
+                              frame->mesh.triangle_count, cold->mesh.triangle_count);
+            assert_true(frame->mesh.triangle_count >= cold->mesh.triangle_count);
+            assert_true(frame->mesh.triangle_count <= 4 * cold->mesh.triangle_count + 64);
             ms_core_frame_free(cold);
         }
     }

@@ -35,10 +35,12 @@ double ms_sched_cell_need(const ms_archive *index, const frame_view *fv, double 
 {
     const ms_archive_header *h = ms_archive_get_header(index);
     double lo[3], hi[3];
-    ms_sched_cell_box(h, ms_archive_get_cell(index, cell), lo, hi);
+    const ms_archive_cell *rec = ms_archive_get_cell(index, cell);
+    ms_sched_cell_box(h, rec, lo, hi);
     *visible = ms_frustum_keeps_box(&fv->frustum, lo, hi, margin);
     double d = ms_camera_box_distance(&fv->cam, lo, hi);
-    double need = ms_screen_bits_needed(&fv->cam, h->box_side, d, fv->tolerance);
+    double ppu = d > 0 ? ms_camera_pixels_per_unit(&fv->cam) / d : INFINITY;
+    double need = ms_archive_bits_needed(h, rec, ppu, fv->tolerance);
     return isfinite(need) ? need : 64.0;
 }
 
@@ -134,7 +136,8 @@ static double cell_error_px(const ms_sched_input *in, const ms_sched_cell *c)
     if (d < in->fv.cam.near_distance)
         d = in->fv.cam.near_distance;
     if (c->error_bound < 0)
-        return ms_screen_error_px(&in->fv.cam, h->box_side, c->bits, d);
+        return ms_archive_cell_error(h, ms_archive_get_cell(in->index, c->id), c->bits) *
+               ms_camera_pixels_per_unit(&in->fv.cam) / d;
     return c->error_bound * ms_camera_pixels_per_unit(&in->fv.cam) / d;
 }
 

@@ -29,7 +29,8 @@ static void visit(selection *s, uint32_t id, unsigned depth)
     if (!ms_frustum_keeps_box(&s->frustum, lo, hi, s->margin))
         return;
     double distance = ms_camera_box_distance(s->camera, lo, hi);
-    double need = ms_screen_bits_needed(s->camera, h->box_side, distance, s->tolerance);
+    double ppu = distance > 0 ? ms_camera_pixels_per_unit(s->camera) / distance : INFINITY;
+    double need = ms_archive_bits_needed(h, c, ppu, s->tolerance);
     unsigned bits = c->bits_max;
     if (need < c->bits_max)
         bits = need <= c->bits_min ? c->bits_min : (unsigned)ceil(need);

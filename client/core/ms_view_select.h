@@ -2,8 +2,8 @@
  * selection of a client (DESIGN.md section 4, step 3), on a model's index
  * (ms_archive_open_index). From the root down, a cell is kept when its cube
  * meets the frustum (with a margin); its precision is the screen-space need
- * (ms_screen_bits_needed at the nearest point of its cube) clamped to its
- * window; when the need exceeds the window and the cell has children, the
+ * (ms_archive_bits_needed: its measured surface error at the nearest point
+ * of its cube) clamped to its window; when the need exceeds the window and the cell has children, the
  * children are visited too (the parent stays selected at its full window, as
  * the fallback a client draws until they arrive).
  *

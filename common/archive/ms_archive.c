@@ -307,7 +307,7 @@ static uint32_t table_word(const uint8_t *tables, uint64_t index)
 
 ms_status ms_archive_check_record(const char *path, const ms_archive_header *h,
                                   uint64_t payload_size, uint32_t id, const uint8_t *raw,
-                                  const ms_archive_cell *c, const ms_archive_cell *parent,
+                                  ms_archive_cell *c, const ms_archive_cell *parent,
                                   const uint8_t *tables, uint64_t table_words,
                                   uint64_t *next_table, ms_error *err)
 {
@@ -375,6 +375,16 @@ ms_status ms_archive_check_record(const char *path, const ms_archive_header *h,
     if (previous != c->geometry_length)
         return CELL_FAIL("%s: cell %u: geometry prefix table does not end at the payload length",
                          path, id);
+    /* the error table: never growing with the bits, within the model's box
+     * (at most two box sides) */
+    uint64_t error_first = ms_archive_error_table_first(h, c);
+    uint64_t error_cap = (uint64_t)2 * MS_ARCHIVE_ERROR_SCALE << h->bits;
+    for (uint64_t k = 0; k < geometry_words; ++k) {
+        uint32_t e = table_word(tables, error_first + k);
+        if (e > error_cap || (k > 0 && e > c->error[k - 1]))
+            return CELL_FAIL("%s: cell %u: surface error table out of range or growing", path, id);
+        c->error[k] = e;
+    }
     uint32_t prev_bytes = 0, prev_texels = 0;
     for (uint32_t l = 0; l < c->apo_levels; ++l) {
         uint32_t bytes = table_word(tables, c->table_first + geometry_words + 2 * l);
@@ -462,7 +472,7 @@ static ms_status archive_validate(const char *path, ms_archive *a, ms_error *err
             ms_archive_decode_cell(records + (size_t)id * MS_ARCHIVE_RECORD_SIZE, &a->cells[id]);
         uint64_t next_table = 0;
         for (uint32_t id = 0; status == MS_OK && id < a->header.cell_count; ++id) {
-            const ms_archive_cell *c = &a->cells[id];
+            ms_archive_cell *c = &a->cells[id];
             const ms_archive_cell *parent = id && c->parent < id ? &a->cells[c->parent] : NULL;
             status = ms_archive_check_record(path, &a->header, a->payload_size, id,
                                              records + (size_t)id * MS_ARCHIVE_RECORD_SIZE, c,
@@ -653,6 +663,42 @@ uint32_t ms_archive_geometry_prefix(const ms_archive *a, uint32_t cell, unsigned
     if (bits > c->bits_max)
         bits = c->bits_max;
     return table_word(tables, (uint64_t)c->table_first + (bits - c->bits_min));
+}
+
+static double error_unit(const ms_archive_header *h)
+{
+    return ldexp(h->box_side, -(int)h->bits) / MS_ARCHIVE_ERROR_SCALE;
+}
+
+double ms_archive_cell_error(const ms_archive_header *h, const ms_archive_cell *c, unsigned bits)
+{
+    if (bits < c->bits_min)
+        bits = c->bits_min;
+    if (bits > c->bits_max)
+        bits = c->bits_max;
+    return c->error[bits - c->bits_min] * error_unit(h);
+}
+
+double ms_archive_bits_needed(const ms_archive_header *h, const ms_archive_cell *c, double px_per_unit,
+                              double tolerance_px)
+{
+    if (!(px_per_unit < INFINITY))
+        return INFINITY;
+    const uint32_t *e = c->error;
+    unsigned window = (unsigned)c->bits_max - c->bits_min;
+    /* the error allowed, in stored units */
+    double allowed = tolerance_px / (px_per_unit * error_unit(h));
+    if (e[0] <= allowed) /* coarser than the window: doubling per bit */
+        return e[0] > 0 ? c->bits_min - log2(allowed / e[0]) : c->bits_min - 64.0;
+    for (unsigned k = 1; k <= window; ++k) {
+        if (e[k] > allowed)
+            continue;
+        if (e[k] == 0) /* exact at this bit: it is needed whole */
+            return c->bits_min + k;
+        /* geometric between k - 1 and k */
+        return c->bits_min + (k - 1) + log2(e[k - 1] / allowed) / log2((double)e[k - 1] / e[k]);
+    }
+    return c->bits_max + log2(e[window] / allowed); /* e[window] > allowed > 0 */
 }
 
 uint32_t ms_archive_apo_prefix(const ms_archive *a, uint32_t cell, unsigned level,

@@ -26,10 +26,10 @@ struct stat;
 
 /* The file version meshbake writes and the reader reads (the only one): the
  * index is stored as subtrees (ms_subtree.h). */
-#define MS_ARCHIVE_VERSION 3u
+#define MS_ARCHIVE_VERSION 4u
 /* The version of the index blob (ms_archive_index_bytes, what the server sends):
  * a 128-byte blob header followed by the raw index. */
-#define MS_ARCHIVE_BLOB_VERSION 1u
+#define MS_ARCHIVE_BLOB_VERSION 2u
 /* Header byte 120 of a file or index head: the index in subtrees. */
 #define MS_ARCHIVE_INDEX_SUBTREES 2u
 #define MS_ARCHIVE_HEADER_SIZE 128u
@@ -38,6 +38,8 @@ struct stat;
 #define MS_ARCHIVE_MAX_TABLE_WORDS (1u << 28)
 #define MS_ARCHIVE_MAX_APO_LEVELS 32u
 #define MS_ARCHIVE_NONE 0xFFFFFFFFu
+/* The most bits a cell's window spans (bits_max - bits_min + 1; p <= 20). */
+#define MS_ARCHIVE_MAX_WINDOW 21u
 
 typedef struct ms_archive_header {
     double box_origin[3];  /* world units */
@@ -81,6 +83,9 @@ typedef struct ms_archive_cell {
     uint32_t apo_length, apo_crc, apo_raw_length;
     uint32_t table_first;  /* first word of this cell's tables */
     uint8_t apo_levels;
+    /* In memory only, filled by the reader from the cell's tables: its surface
+     * error table (ms_archive_cell_error), error[b - bits_min] for bit b. */
+    uint32_t error[MS_ARCHIVE_MAX_WINDOW];
 } ms_archive_cell;
 
 typedef struct ms_archive ms_archive;
@@ -139,6 +144,28 @@ const uint8_t *ms_archive_apo(const ms_archive *archive, uint32_t cell, size_t *
  * The APO `level` is a depth, from 0: the prefix holds levels 0 .. level, that
  * is level + 1 levels (so the first L levels end at level L - 1). */
 uint32_t ms_archive_geometry_prefix(const ms_archive *archive, uint32_t cell, unsigned bits);
+
+/* The surface error table (docs/ARCHIVE.md, "Per-cell tables"): one word per
+ * bit of a cell's window, the measured error of the cell drawn at that
+ * precision (docs/CODEC.md §4.3) in 1/MS_ARCHIVE_ERROR_SCALE of the model's
+ * full-precision grid step (box_side / 2^bits), rounded up, never growing
+ * with the bits; the writer's default, for a cell it was given no
+ * measurement of, is the kd-cell's half-diagonal. */
+#define MS_ARCHIVE_ERROR_SCALE 256u
+/* The error of cell record c drawn at `bits` (clamped to its window), world
+ * units. Thread-safe. */
+double ms_archive_cell_error(const ms_archive_header *header, const ms_archive_cell *c, unsigned bits);
+/* The precision, as a real number of bits, at which c's error seen at
+ * px_per_unit pixels per world unit (the camera's pixels per unit over the
+ * distance) is tolerance_px: between two bits of its window, where the error
+ * interpolated geometrically between them reaches it; below the window,
+ * doubling per bit from its first; above, halving per bit from its last (the
+ * cell then wants its children). +INFINITY for an infinite px_per_unit. The
+ * selection's need (ms_view_select, the client core's scheduler) in place of
+ * the half-diagonal's ms_screen_bits_needed, which it equals on the writer's
+ * default table. Thread-safe. */
+double ms_archive_bits_needed(const ms_archive_header *header, const ms_archive_cell *c,
+                              double px_per_unit, double tolerance_px);
 uint32_t ms_archive_apo_prefix(const ms_archive *archive, uint32_t cell, unsigned level,
                                uint32_t *texels);
 

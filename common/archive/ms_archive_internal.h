@@ -107,12 +107,13 @@ void ms_archive_decode_cell(const uint8_t *raw, ms_archive_cell *c);
 
 /* Checks one record (raw: its 80 bytes, c: decoded) on its own and against its
  * parent (NULL for cell 0, or when the parent is not known: an error), with
- * its tables in `tables` (table_words words). *next_table is where its tables
+ * its tables in `tables` (table_words words), and fills its surface error
+ * table (ms_archive_cell.error) from them. *next_table is where its tables
  * must start (tables lie in record order without gaps); it is advanced past
  * them. Errors are MS_ERR_FORMAT, one line starting with `where`. */
 ms_status ms_archive_check_record(const char *where, const ms_archive_header *h,
                                   uint64_t payload_size, uint32_t id, const uint8_t *raw,
-                                  const ms_archive_cell *c, const ms_archive_cell *parent,
+                                  ms_archive_cell *c, const ms_archive_cell *parent,
                                   const uint8_t *tables, uint64_t table_words,
                                   uint64_t *next_table, ms_error *err);
 
@@ -121,13 +122,22 @@ ms_status ms_archive_check_record(const char *where, const ms_archive_header *h,
 bool ms_archive_cell_tables(const ms_archive *a, uint32_t cell, const ms_archive_cell **c,
                             const uint8_t **tables);
 
-/* Words of a cell's tables: its geometry prefix table, its APO level table and,
- * with colour, its colour prefix table and colour CRC. */
+/* Words of a cell's tables: its geometry prefix table, its APO level table,
+ * with colour its colour prefix table and colour CRC, then its surface error
+ * table. */
 static inline uint64_t ms_archive_cell_table_words(const ms_archive_header *h,
                                                    const ms_archive_cell *c)
 {
     uint64_t window = (uint64_t)c->bits_max - c->bits_min + 1;
-    return window + 2ull * c->apo_levels + (h->has_colour ? window + 1 : 0);
+    return window + 2ull * c->apo_levels + (h->has_colour ? window + 1 : 0) + window;
+}
+
+/* The first of a cell's surface error table words (one per bit of its window). */
+static inline uint64_t ms_archive_error_table_first(const ms_archive_header *h,
+                                                    const ms_archive_cell *c)
+{
+    return (uint64_t)c->table_first + ms_archive_cell_table_words(h, c) -
+           ((uint64_t)c->bits_max - c->bits_min + 1);
 }
 
 /* The first of a cell's colour table words (its prefix table; the CRC follows). */

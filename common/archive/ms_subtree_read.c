@@ -200,7 +200,8 @@ ms_status ms_subtree_blob_check(const char *where, const ms_archive_header *h, u
     uint64_t next_table = 0, claimed = 0;
     for (uint32_t i = 0; i < b->count; ++i) {
         uint32_t cell = ms_get_u32(b->ids + 4 * (size_t)i);
-        const ms_archive_cell *c = &cells[i], *parent = NULL;
+        ms_archive_cell *c = &cells[i];
+        const ms_archive_cell *parent = NULL;
         if (i < group) {
             if (cell != b->id + i)
                 return ms_error_set(err, MS_ERR_FORMAT, "%s: cell %u is not in its first group",

@@ -210,15 +210,11 @@ ms_status ms_view_cell_state_copy(const ms_view *view, uint32_t cell, ms_codec_s
 ms_status ms_view_cell_bounds(ms_view *view, uint32_t cell, double lo[3], double hi[3],
                               ms_error *err);
 
-/* The true error of a SHOWN cell's current complex (docs/CLIENT.md, "The
- * error of a cut"), world units: an upper bound of the distance from each
- * point it draws to every full-precision vertex that point stands for. From
- * its decoder, ms_codec_decoder_error_bound (geometry ahead: the farthest
- * point of the point's known occupied descendants, often well below the
- * half-diagonal, and above it for some points drawn off their centre);
- * without one (drawn at its kd-cells' centres) the kd-cell's half-diagonal,
- * (√3 / 2) · box_side / 2^bits. 0 for an empty cell; -1 for a cell not
- * SHOWN. Kept until the cell's precision or decoder changes. */
+/* The error of a SHOWN cell's current complex (docs/CLIENT.md, "The error of
+ * a cut"), world units: its record's measured surface error at its current
+ * precision (ms_archive_cell_error, docs/CODEC.md §4.3: how far the model's
+ * vertices lie from the surface drawn through their points). 0 for an empty
+ * cell; -1 for a cell not SHOWN. */
 double ms_view_cell_error_bound(ms_view *view, uint32_t cell);
 
 /* ---- selection: what the client calls every frame ---------------------- */
@@ -294,10 +290,10 @@ typedef struct ms_view_select_report {
  * precision their nearest point needs (with hysteresis against the current
  * state); culled cells get that need less culled_bits_less bits (a large value
  * keeps them at their bits_min; a small one keeps precision jumps at the
- * frustum border small). A shown cell whose error bound
- * (ms_view_cell_error_bound) projects above its tolerance gets one bit more
- * at least, and does not coarsen back to that precision while it would be
- * above it there. On a partly known view a cell whose children's
+ * frustum border small). The need is where the cell's measured surface
+ * error (its record's table, ms_archive_bits_needed) projects to its
+ * tolerance, so a cell shown at its target draws within it, whatever
+ * precisions it came through. On a partly known view a cell whose children's
  * records are not known gets bits_max instead of SPLIT; report (NULL: none)
  * lists such cells and those near splitting. With the root not known yet
  * every target is HIDDEN. */

@@ -73,17 +73,6 @@ typedef struct vcell {
     /* versions of the stitched triangles (ms_view_mesh.run_version) */
     uint8_t stitched_state, stitched_bits; /* as the last stitch saw them */
     uint64_t stamp;         /* renewed when a stitch sees them change */
-    /* ms_view_cell_error_bound's last answer (world units), for bound_bits
-     * with decoder bound_dec */
-    bool bound_valid;
-    uint8_t bound_bits;
-    const ms_codec_decoder *bound_dec;
-    double bound;
-    /* over_valid: its bound at over_bits (the same whenever it is decoded
-     * there), which the selection found above the tolerance and refined from */
-    bool over_valid;
-    uint8_t over_bits;
-    double over_bound;
     vpiece *piece;          /* the last stitch of the cell (NULL: none; dropped with the
                              * cache) */
 } vcell;

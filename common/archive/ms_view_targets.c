@@ -49,6 +49,12 @@ static double cell_tolerance(const ms_view_select_params *p, uint32_t cell,
     return p->tolerance_px;
 }
 
+/* Pixels per world unit at distance d (+INFINITY at the eye). */
+static double pixels_per_unit_at(const ms_camera *cam, double d)
+{
+    return d > 0 ? ms_camera_pixels_per_unit(cam) / d : INFINITY;
+}
+
 double ms_view_cell_need(const ms_view *v, const ms_camera *cam, uint32_t cell,
                          const ms_view_select_params *p)
 {
@@ -61,19 +67,20 @@ double ms_view_cell_need(const ms_view *v, const ms_camera *cam, uint32_t cell,
     params_frustum(cam, p, &f);
     if (!ms_frustum_keeps_box(&f, lo, hi, p->margin))
         return -1.0;
-    double d = ms_camera_box_distance(cam, lo, hi);
-    return ms_screen_bits_needed(cam, v->header.box_side, d, cell_tolerance(p, cell, &c->rec));
+    double ppu = pixels_per_unit_at(cam, ms_camera_box_distance(cam, lo, hi));
+    return ms_archive_bits_needed(&v->header, &c->rec, ppu, cell_tolerance(p, cell, &c->rec));
 }
 
-/* The need selection uses: culled cells get theirs less culled_bits_less. */
+/* The need selection uses: the bits at which the cell's measured error
+ * (ms_archive_bits_needed) projects to its tolerance at its box's nearest
+ * point; culled cells get theirs less culled_bits_less. */
 static double select_need(const ms_view *v, const ms_camera *cam, const ms_frustum *f,
                           const ms_view_select_params *p, uint32_t cell, const vcell *c)
 {
     double lo[3], hi[3];
     cell_box(v, &c->rec, lo, hi);
-    double need = ms_screen_bits_needed(cam, v->header.box_side,
-                                        ms_camera_box_distance(cam, lo, hi),
-                                        cell_tolerance(p, cell, &c->rec));
+    double ppu = pixels_per_unit_at(cam, ms_camera_box_distance(cam, lo, hi));
+    double need = ms_archive_bits_needed(&v->header, &c->rec, ppu, cell_tolerance(p, cell, &c->rec));
     if (!ms_frustum_keeps_box(f, lo, hi, p->margin))
         need -= p->culled_bits_less;
     return need;
@@ -99,46 +106,6 @@ static void list_push(uint32_t **list, size_t *count, size_t *cap, bool *failed,
     (*list)[(*count)++] = cell;
 }
 
-/* The true error of what a shown cell draws now (ms_view_cell_error_bound)
- * against its tolerance, once it is decoded (docs/CLIENT.md, "The error of a
- * cut"): above it (a point drawn off its centre may be up to the whole
- * diagonal from a vertex it stands for), one bit more at least, so that a
- * complete view is within its tolerance; the cell remembers that precision's
- * bound and coarsens back to it only when it is within the tolerance there
- * (no flicker between the two). The half-diagonal's need decides the rest: a
- * bound below it is not used to stop early (the cut would depend on the
- * precisions a cell came through, the next bit's bound being unknown before
- * it is decoded). */
-static unsigned bound_want(ms_view *v, const ms_camera *cam, const ms_frustum *f,
-                           const ms_view_select_params *p, uint32_t cell, vcell *c,
-                           unsigned current, unsigned top, unsigned want)
-{
-    if (c->state != MS_VIEW_SHOWN || c->rec.geometry_length == 0 || want > current)
-        return want;
-    double e = ms_view_cell_error_bound(v, cell);
-    if (!(e >= 0))
-        return want;
-    double lo[3], hi[3];
-    cell_box(v, &c->rec, lo, hi);
-    double d = ms_camera_box_distance(cam, lo, hi);
-    double tol = cell_tolerance(p, cell, &c->rec);
-    if (!ms_frustum_keeps_box(f, lo, hi, p->margin))
-        tol *= exp2(p->culled_bits_less);
-    double ppu = d > 0 ? ms_camera_pixels_per_unit(cam) / d : INFINITY;
-    if (want < current) {
-        if (c->over_valid && c->over_bits >= want && c->over_bits < current &&
-            c->over_bound * ppu > tol)
-            want = c->over_bits + 1u;
-        return want;
-    }
-    if (e * ppu <= tol || current >= top)
-        return want;
-    c->over_valid = true;
-    c->over_bits = (uint8_t)current;
-    c->over_bound = e;
-    return current + 1;
-}
-
 static void select_cell(ms_view *v, const ms_camera *cam, const ms_frustum *f,
                         const ms_view_select_params *p, uint32_t cell,
                         ms_view_select_report *report)
@@ -158,7 +125,6 @@ static void select_cell(ms_view *v, const ms_camera *cam, const ms_frustum *f,
     if (current > top)
         current = top;
     unsigned want = ms_select_bits(need, current, c->rec.bits_min, top, p->hysteresis);
-    want = bound_want(v, cam, f, p, cell, c, current, top, want);
     if (report && top < v->header.bits && need > (double)top)
         report->capped_count++;
     if (need > (double)top)

@@ -108,6 +108,19 @@ typedef struct ms_codec_region {
 
 #define MS_CODEC_NO_FREEZE 255
 
+/* Points on a model's surface with normals, what a surface error is measured
+ * against (ms_codec_encode_params.truth): n points, positions 3 doubles each
+ * in grid units (a vertex of full-precision kd-cell c stands at c + 0.5),
+ * normals 3 floats each, area-weighted (their lengths weigh them). Owned by
+ * the struct; release with ms_codec_truth_free. */
+typedef struct ms_codec_truth {
+    size_t n;
+    double *positions;
+    float *normals;
+} ms_codec_truth;
+
+void ms_codec_truth_free(ms_codec_truth *truth);
+
 typedef struct ms_codec_encode_params {
     unsigned p_min;       /* first precision bit of the window (0 = from one vertex) */
     ms_quant_box box;     /* world box written to the header */
@@ -140,6 +153,25 @@ typedef struct ms_codec_encode_params {
      * taken from the encoder's own forward pass instead of a second decode (the
      * bake's APO m of an internal cell). Freed by the caller (ms_mesh_free). */
     ms_mesh *mesh;
+    /* Optional, normally NULL: when set, receives the measured surface error
+     * of each precision of the window (docs/CODEC.md §4.3), P - p_min + 1
+     * entries, entry k for precision p_min + k, in grid units (box size / 2^P):
+     * over the cells of the stream's own region (all without a region), the
+     * largest distance of a full-precision vertex of `full` from the point
+     * drawn for it, along the summed normal of the vertices that point stands
+     * for (the whole distance where they face both ways; 0 at P measured
+     * against full itself). Taken by the
+     * forward pass, one pass over the points per bit. */
+    double *surface_error;
+    /* Optional with surface_error: the points it is measured against instead of
+     * `full`'s own vertices (an internal nSP cell's stream, whose vertices are
+     * not the model's: its children's summaries), in this stream's grid units. */
+    const ms_codec_truth *truth;
+    /* Optional: receives what a parent stream measures against in place of the
+     * points this one stands for: per vertex of the start state, the two of
+     * them farthest apart along their summed normal, each with half of it, in
+     * this stream's grid units (ms_codec_truth_free). */
+    ms_codec_truth *summary;
 } ms_codec_encode_params;
 
 /* Number of contexts of the prior (every kd-level of 20 bits plus connectivity). */

@@ -775,20 +775,19 @@ ms_status ms_codec_decoder_extend(ms_codec_decoder *d, const uint8_t *data, size
 ms_status ms_codec_run_encoder(ms_codec_header *h, const ms_codec_state *start,
                                const uint8_t *decisions, size_t n, const uint64_t *keys,
                                size_t nkeys, ms_rc_encoder *enc, uint64_t *context_counts,
-                               ms_mesh *mesh, ms_error *err)
+                               ms_mesh *mesh, const ms_surface_truth *truth, ms_error *err)
 {
     ms_codec_decoder *d = calloc(1, sizeof *d);
     if (!d)
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory encoding");
     d->h = *h;
-    d->enc = enc;
-    d->enc_h = h;
-    d->src = decisions;
-    d->src_n = n;
+    d->enc = enc, d->enc_h = h;
+    d->src = decisions, d->src_n = n;
     d->train = context_counts;
-    d->okeys = keys;
-    d->nokeys = nkeys;
+    d->okeys = keys, d->nokeys = nkeys;
     ms_status r = decoder_init(d, start, err);
+    if (r == MS_OK && truth) /* bit by bit, the surface error of each */
+        r = ms_surface_measure(d, truth, err);
     if (r == MS_OK)
         r = ms_codec_decoder_set_level(d, d->D, err);
     if (r == MS_OK && d->src_pos != n)

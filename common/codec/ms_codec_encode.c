@@ -645,6 +645,7 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
     ms_rc_encoder rc;
     ms_rc_encoder_init(&rc);
     uint8_t *dec = NULL;
+    ms_surface_truth truth = {0}; /* with params->surface_error or summary */
 
     if ((s = canonical_copy(full, &canon, err)) != MS_OK)
         goto done;
@@ -674,8 +675,15 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
     fill_header(&h, params, pmin, P, &start, &canon);
     /* Forward pass: the decoder itself chooses every context. */
     ms_cx_free(&e.cx);
-    s = ms_codec_run_encoder(&h, pmin == 0 ? NULL : &start, dec, nd, canon.cells,
-                             canon.vertex_count, &rc, params->context_counts, params->mesh, err);
+    bool measured = params->surface_error || params->summary;
+    if (measured && (s = ms_surface_prepare(&canon, params->truth, &truth, err)) != MS_OK)
+        goto done;
+    truth.error = params->surface_error;
+    s = ms_codec_run_encoder(&h, pmin == 0 ? NULL : &start, dec, nd, canon.cells, canon.vertex_count,
+                             &rc, params->context_counts, params->mesh,
+                             params->surface_error ? &truth : NULL, err);
+    if (s == MS_OK && params->summary)
+        s = ms_surface_summary(&truth, &start, params->summary, err);
     if (s == MS_OK && rc.failed)
         s = out_of_memory(err);
     if (s == MS_OK)
@@ -686,6 +694,7 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
     }
 done:
     free(dec);
+    ms_surface_release(&truth);
     ms_rc_encoder_free(&rc);
     ms_codec_state_free(&start);
     ms_codec_state_free(&canon);

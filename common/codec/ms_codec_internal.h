@@ -43,16 +43,28 @@ static inline bool cell_outside(const ms_complex *cx, const ms_codec_region *r, 
 ms_status ms_codec_parse_header(const uint8_t *data, size_t size, ms_codec_header *h,
                                 bool verify_crc, ms_error *err);
 
+/* What the surface error of an encode is measured against (ms_codec_surface.c):
+ * points in key order at the stream's precision with their keys, and where
+ * the forward pass writes the error of every precision of the window
+ * (ms_codec_encode_params.surface_error). */
+typedef struct ms_surface_truth {
+    ms_codec_truth points;
+    const uint64_t *keys;
+    uint64_t *keys_owned; /* keys when they are not the complex's own */
+    double *error;        /* p_max - p_min + 1 entries, grid units */
+} ms_surface_truth;
+
 /* The encoder's forward pass: runs the decoder from `start` over the window of h,
  * taking each binary decision from decisions[0..n) (decode order), or for the
  * geometry ahead (h->ahead > 0) from the sorted full keys[0..nkeys), and coding it
  * into enc with the decoder's contexts; fills h's chunk table. context_counts
  * (may be NULL) accumulates the decisions per context (ms_codec_encode_params);
- * mesh (may be NULL) receives the decoded mesh at the end (ms_codec_decoder_mesh). */
+ * mesh (may be NULL) receives the decoded mesh at the end (ms_codec_decoder_mesh);
+ * truth (may be NULL) receives the surface error of every bit (ms_surface_error). */
 ms_status ms_codec_run_encoder(ms_codec_header *h, const ms_codec_state *start,
                                const uint8_t *decisions, size_t n, const uint64_t *keys,
                                size_t nkeys, ms_rc_encoder *enc, uint64_t *context_counts,
-                               ms_mesh *mesh, ms_error *err);
+                               ms_mesh *mesh, const ms_surface_truth *truth, ms_error *err);
 
 /* Exports a complex whose live cells (order[0..n), sorted by key) all sit at
  * `level` as a canonical ms_codec_state; bound (NULL, or n values in order's
@@ -152,5 +164,26 @@ void ms_ahead_update_rep(ms_complex *cx, uint32_t s, unsigned level, unsigned de
 /* The mask of a cell at kd-level L (depth d) from its children's at L + 1
  * (depth dc; lo, hi: the first and second child's masks, 0 when absent). */
 uint64_t ms_ahead_parent_mask(uint64_t lo, uint64_t hi, unsigned d, unsigned dc);
+
+/* ms_codec_surface.c (docs/CODEC.md §4.3). The points of a measurement: the
+ * given ones (NULL: canon's own vertices at their cells' centres with their
+ * area-weighted normals) in key order at canon's precision; release with
+ * ms_surface_release. MS_ERR_NOMEM. */
+ms_status ms_surface_prepare(const ms_codec_state *canon, const ms_codec_truth *given,
+                             ms_surface_truth *truth, ms_error *err);
+void ms_surface_release(ms_surface_truth *truth);
+/* The surface error of what d draws now (at a bit boundary), grid units: over
+ * the cells of its own region, the largest distance of a point from its
+ * cell's drawn point along the cluster's summed normal, or the whole distance
+ * where those normals do not agree on a side. */
+double ms_surface_error(const ms_codec_decoder *d, const ms_surface_truth *truth);
+/* Runs d (an encoder's forward pass) bit by bit over its window, writing the
+ * surface error of each precision to truth->error. */
+ms_status ms_surface_measure(ms_codec_decoder *d, const ms_surface_truth *truth, ms_error *err);
+/* Per vertex of start (canonical, at its level) the two of the points it
+ * stands for that lie farthest apart along their summed normal, each with half
+ * of it (ms_codec_encode_params.summary). MS_ERR_NOMEM. */
+ms_status ms_surface_summary(const ms_surface_truth *truth, const ms_codec_state *start, ms_codec_truth *out,
+                             ms_error *err);
 
 #endif

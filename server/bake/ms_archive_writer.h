@@ -41,6 +41,13 @@ ms_status ms_archive_writer_put_geometry(ms_archive_writer *writer, uint32_t cel
                                          const uint32_t *prefix_table, uint32_t vertex_count,
                                          uint32_t triangle_count, ms_error *err);
 
+/* The cell's surface error table (ms_archive.h, MS_ARCHIVE_ERROR_SCALE): one
+ * word per bit of its window, never growing with the bits, each at most two
+ * box sides. Optional, at most once per cell: a cell without one gets its
+ * kd-cells' half-diagonals. */
+ms_status ms_archive_writer_put_error(ms_archive_writer *writer, uint32_t cell,
+                                      const uint32_t *error_table, ms_error *err);
+
 /* level_table has 2 * levels words (compressed bytes, texels per complete level
  * prefix). At most once per cell; only when the header has has_apo. */
 ms_status ms_archive_writer_put_apo(ms_archive_writer *writer, uint32_t cell,

@@ -210,3 +210,43 @@ ms_status ms_nsp_merge_states(const ms_codec_state *ch, unsigned nc, unsigned bi
         ms_codec_state_free(st);
     return s;
 }
+
+ms_status ms_nsp_leaf_mesh(const ms_codec_state *st, const ms_quant_box *box, ms_mesh *m, ms_error *err)
+{
+    ms_status s = ms_mesh_reserve(m, st->vertex_count, st->tri_count, err);
+    if (s != MS_OK)
+        return s;
+    double scale = box->size / (double)(1u << st->bits);
+    for (size_t i = 0; i < st->vertex_count; ++i) {
+        uint32_t c[3];
+        ms_quant_unkey(st->cells[i], st->bits, c);
+        for (int a = 0; a < 3; ++a)
+            m->positions[3 * i + (size_t)a] = box->origin[a] + 0.5 * (2.0 * c[a] + 1.0) * scale;
+    }
+    if (st->tri_count) /* an empty cell may have no triangle array at all */
+        memcpy(m->triangles, st->tris, 3 * st->tri_count * sizeof *m->triangles);
+    m->vertex_count = st->vertex_count;
+    m->triangle_count = st->tri_count;
+    return MS_OK;
+}
+
+bool ms_nsp_leaf_freezing(const ms_nsp_shape *sh, unsigned max_depth, unsigned depth, const uint32_t position[3],
+                          unsigned lo, uint8_t *lone, size_t n, ms_codec_region *region)
+{
+    unsigned depth_bits = depth * sh->log2n;
+    if (depth == 0 || depth_bits > lo)
+        return false;
+    region->log2_side = sh->bits - depth_bits;
+    for (int a = 0; a < 3; ++a)
+        region->min[a] = position[a] << region->log2_side;
+    unsigned Lmin = 3 * lo, D = 3 * sh->bits;
+    if (Lmin < 3 * sh->log2n * max_depth)
+        Lmin = 3 * sh->log2n * max_depth;
+    for (size_t v = 0; v < n; ++v) {
+        if (lone[v] == MS_CODEC_NO_FREEZE)
+            continue;
+        unsigned f = lone[v] < Lmin ? Lmin : lone[v];
+        lone[v] = f < D ? (uint8_t)f : MS_CODEC_NO_FREEZE;
+    }
+    return true;
+}

@@ -8,6 +8,7 @@
 #endif
 #include <stdio.h>
 #include <stdbool.h>
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -18,6 +19,7 @@
 #include "ms_nsp.h"
 #include "ms_nsp_cell_state.h"
 #include "ms_nsp_lone.h"
+#include "ms_nsp_surface.h"
 #include "ms_parallel.h"
 #include "ms_progress.h"
 
@@ -26,6 +28,9 @@ typedef struct task {
     uint32_t post;            /* post-order number (priority) */
     ms_codec_state *starts;   /* n^3 children's start states, once the first is done */
     ms_bake_apo_part *parts;  /* n^3 children's APO parts (this cell's M), likewise */
+    ms_codec_truth truth;     /* its children's summaries (model grid steps), what its
+                               * surface error is measured against; truth_cap points */
+    size_t truth_cap;
 } task;
 
 typedef struct pool {
@@ -228,6 +233,8 @@ typedef struct cell_out {
     uint8_t *colour;          /* the colour stream (ms_bake_colour.h), or NULL */
     size_t colour_size;
     uint32_t colour_table[MS_CODEC_MAX_BITS + 1];
+    uint32_t error_table[MS_CODEC_MAX_BITS + 1]; /* ms_archive_writer_put_error */
+    ms_codec_truth summary;   /* for the parent's surface error, model grid steps */
 } cell_out;
 
 /* ---- APO inputs ---------------------------------------------------------- */
@@ -398,7 +405,7 @@ static ms_status apo_cell(pool *p, uint32_t node, unsigned hi, ms_apo_builder *b
             s = ms_codec_decoder_mesh(d, &m, err);
         ms_codec_decoder_destroy(d);
     }
-    /* A leaf's m is its full-precision complex (leaf_mesh), which renders M
+    /* A leaf's m is its full-precision complex (ms_nsp_leaf_mesh), which renders M
      * by construction: no chunk, and no need to gather M to find that out,
      * unless a chunk is wanted anyway or --apo-verify asks for the check. */
     bool leaf_renders = leaf && !ap->every_cell && !ap->sample_leaves && !ap->verify;
@@ -437,56 +444,6 @@ static ms_status apo_cell(pool *p, uint32_t node, unsigned hi, ms_apo_builder *b
     return s;
 }
 
-/* A leaf's region and the levels its foreign vertices freeze at: the lone level,
- * not before the window starts, nor before a kd-cell lies inside one cell of the
- * deepest nSP level (a renderer finds the shown cell holding a frozen vertex
- * from its kd-cell). False when the tree's shape gives a region too fine for the
- * window (p_r < log2 n), where nothing freezes. */
-static bool leaf_freezing(const pool *p, const ms_nsp_node *nd, unsigned lo, uint8_t *lone,
-                          size_t n, ms_codec_region *region)
-{
-    const ms_nsp_shape *sh = &p->b->params.shape;
-    unsigned depth_bits = nd->depth * sh->log2n;
-    if (nd->depth == 0 || depth_bits > lo)
-        return false;
-    region->log2_side = sh->bits - depth_bits;
-    for (int a = 0; a < 3; ++a)
-        region->min[a] = nd->position[a] << region->log2_side;
-    unsigned Lmin = 3 * lo, D = 3 * sh->bits;
-    if (Lmin < 3 * sh->log2n * p->max_depth)
-        Lmin = 3 * sh->log2n * p->max_depth;
-    for (size_t v = 0; v < n; ++v) {
-        if (lone[v] == MS_CODEC_NO_FREEZE)
-            continue;
-        unsigned f = lone[v] < Lmin ? Lmin : lone[v];
-        lone[v] = f < D ? (uint8_t)f : MS_CODEC_NO_FREEZE;
-    }
-    return true;
-}
-
-/* A leaf's full-precision complex as the mesh its stream decodes to at bits_max
- * (same positions as ms_codec_decoder_mesh), for its APO chunk: the decoded one
- * has its frozen foreign vertices at coarse positions. */
-static ms_status leaf_mesh(const ms_codec_state *st, const ms_quant_box *box, ms_mesh *m,
-                           ms_error *err)
-{
-    ms_status s = ms_mesh_reserve(m, st->vertex_count, st->tri_count, err);
-    if (s != MS_OK)
-        return s;
-    double scale = box->size / (double)(1u << st->bits);
-    for (size_t i = 0; i < st->vertex_count; ++i) {
-        uint32_t c[3];
-        ms_quant_unkey(st->cells[i], st->bits, c);
-        for (int a = 0; a < 3; ++a)
-            m->positions[3 * i + (size_t)a] = box->origin[a] + 0.5 * (2.0 * c[a] + 1.0) * scale;
-    }
-    if (st->tri_count) /* an empty cell may have no triangle array at all */
-        memcpy(m->triangles, st->tris, 3 * st->tri_count * sizeof *m->triangles);
-    m->vertex_count = st->vertex_count;
-    m->triangle_count = st->tri_count;
-    return MS_OK;
-}
-
 static ms_status encode_cell(pool *p, uint32_t node, ms_apo_builder **builder, cell_out *out, ms_error *err)
 {
     const ms_nsp_build *b = p->b;
@@ -506,14 +463,15 @@ static ms_status encode_cell(pool *p, uint32_t node, ms_apo_builder **builder, c
     if (!leaf)
         s = check_partition(p, node, &st, err);
     ms_codec_region region;
-    bool freezing = leaf && leaf_freezing(p, nd, lo, freeze, st.vertex_count, &region);
+    bool freezing = leaf && ms_nsp_leaf_freezing(&b->params.shape, p->max_depth, nd->depth, nd->position, lo,
+                                                      freeze, st.vertex_count, &region);
     bool apo = p->params->apo && p->params->apo->enabled;
     ms_mesh m_leaf; /* the cell's APO m: a leaf's full-precision complex, an internal cell's decoded stream */
     memset(&m_leaf, 0, sizeof m_leaf);
     bool m_given = apo && (leaf || st.bits == hi);
     double leaf_mesh_seconds = ms_now_seconds(); /* a leaf's mesh for its parent's M: APO's work */
     if (s == MS_OK && apo && leaf && st.vertex_count > 0)
-        s = leaf_mesh(&st, &b->box, &m_leaf, err);
+        s = ms_nsp_leaf_mesh(&st, &b->box, &m_leaf, err);
     leaf_mesh_seconds = ms_now_seconds() - leaf_mesh_seconds;
     if (s == MS_OK && st.vertex_count > 0) {
         ms_codec_encode_params ep = {
@@ -526,7 +484,24 @@ static ms_status encode_cell(pool *p, uint32_t node, ms_apo_builder **builder, c
          * encoder's forward pass ends in that state, no second decode. */
         if (m_given && !leaf)
             ep.mesh = &m_leaf;
+        /* the surface error: a leaf against its own vertices, an internal
+         * cell against its children's summaries (in its stream's steps) */
+        double surface[MS_CODEC_MAX_BITS + 1];
+        ms_codec_truth *given = leaf ? NULL : &p->tasks[node].truth;
+        int to_stream = (int)st.bits - (int)b->params.shape.bits;
+        if (given)
+            ms_nsp_truth_scale(given, to_stream);
+        ep.surface_error = surface;
+        ep.truth = given;
+        if (nd->parent != MS_NSP_NONE)
+            ep.summary = &out->summary;
         s = ms_codec_encode(&st, &ep, &out->stream, &out->size, &out->start, err);
+        if (given)
+            ms_codec_truth_free(given);
+        if (s == MS_OK) {
+            ms_nsp_error_table(b->params.shape.bits, st.bits, lo, hi, surface, out->error_table);
+            ms_nsp_truth_scale(&out->summary, -to_stream);
+        }
         if (s == MS_OK && out->size > UINT32_MAX)
             s = ms_error_set(err, MS_ERR_RANGE, "cell %u: payload over 4 GiB",
                              p->cell_of_node[node]);
@@ -570,6 +545,7 @@ static ms_status encode_cell(pool *p, uint32_t node, ms_apo_builder **builder, c
         ms_codec_state_free(&out->start);
         ms_bake_apo_result_free(&out->apo);
         ms_bake_apo_part_free(&out->part);
+        ms_codec_truth_free(&out->summary);
         memset(out, 0, sizeof *out);
     }
     return s;
@@ -583,6 +559,8 @@ static ms_status finish_cell(pool *p, uint32_t node, cell_out *out, ms_error *er
     ms_status s = ms_archive_writer_put_geometry(p->writer, p->cell_of_node[node], out->stream,
                                                  (uint32_t)out->size, out->table, out->vertices,
                                                  out->triangles, err);
+    if (s == MS_OK) /* an empty cell draws nothing: no error */
+        s = ms_archive_writer_put_error(p->writer, p->cell_of_node[node], out->error_table, err);
     p->stats.geometry_bytes += out->size;
     p->stats.empty_cells += out->size == 0;
     free(out->stream);
@@ -631,6 +609,7 @@ static ms_status finish_cell(pool *p, uint32_t node, cell_out *out, ms_error *er
     if (s != MS_OK || nd->parent == MS_NSP_NONE) {
         ms_codec_state_free(&out->start);
         ms_bake_apo_part_free(&out->part);
+        ms_codec_truth_free(&out->summary);
         return s;
     }
     task *parent = &p->tasks[nd->parent];
@@ -642,9 +621,17 @@ static ms_status finish_cell(pool *p, uint32_t node, cell_out *out, ms_error *er
     if (!parent->starts || !parent->parts) {
         ms_codec_state_free(&out->start);
         ms_bake_apo_part_free(&out->part);
+        ms_codec_truth_free(&out->summary);
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory");
     }
     unsigned k = node - b->nodes[nd->parent].first_child;
+    bool appended = ms_nsp_truth_append(&parent->truth, &parent->truth_cap, &out->summary);
+    ms_codec_truth_free(&out->summary);
+    if (!appended) {
+        ms_codec_state_free(&out->start);
+        ms_bake_apo_part_free(&out->part);
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory");
+    }
     parent->starts[k] = out->start;
     parent->parts[k] = out->part;
     memset(&out->start, 0, sizeof out->start);
@@ -781,6 +768,7 @@ ms_status ms_nsp_encode_all(ms_nsp_build *build, const uint32_t *cell_of_node,
                 ms_codec_state_free(&p.tasks[v].starts[k]);
             free(p.tasks[v].starts);
         }
+        ms_codec_truth_free(&p.tasks[v].truth);
         free_child_parts(&p, v);
     }
     if (s == MS_OK && ap) { /* the byte budget, on the whole archive's chunks */

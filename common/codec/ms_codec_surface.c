@@ -1,0 +1,273 @@
+/* The measured surface error of each precision of a stream (docs/CODEC.md
+ * §4.3), taken by the encoder's forward pass at every bit boundary: how far
+ * the model's vertices a drawn point stands for lie from the surface drawn
+ * through it, along that surface's normal. A cut's selection uses it in place
+ * of the kd-cell's half-diagonal, which bounds how far a vertex slides along
+ * the surface too, and that costs nothing on screen. The points measured
+ * against are the stream's own vertices, or for a stream whose vertices are
+ * not the model's (an internal nSP cell's) the summaries its children's
+ * encodes gave (ms_codec_truth). */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "ms_codec_internal.h"
+#include "ms_complex.h"
+
+/* Below this coherence (the length of the summed normals over the sum of
+ * their lengths: 1 for a flat patch, 0 for the two sides of a thin sheet) a
+ * cluster is no surface patch with one normal, and the whole distance of each
+ * point from the drawn point counts. */
+#define COHERENT_NORMALS 0.5
+
+void ms_codec_truth_free(ms_codec_truth *t)
+{
+    free(t->positions);
+    free(t->normals);
+    memset(t, 0, sizeof *t);
+}
+
+static ms_status truth_alloc(ms_codec_truth *t, size_t n, ms_error *err)
+{
+    memset(t, 0, sizeof *t);
+    t->positions = malloc(3 * (n ? n : 1) * sizeof *t->positions);
+    t->normals = malloc(3 * (n ? n : 1) * sizeof *t->normals);
+    if (!t->positions || !t->normals) {
+        ms_codec_truth_free(t);
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory measuring the surface error");
+    }
+    t->n = n;
+    return MS_OK;
+}
+
+/* The vertices of a full-precision complex as points (their cells' centres)
+ * with area-weighted normals, in the complex's (sorted) vertex order. */
+static ms_status state_points(const ms_codec_state *full, ms_codec_truth *t, ms_error *err)
+{
+    size_t n = full->vertex_count;
+    ms_status s = truth_alloc(t, n, err);
+    double *acc = s == MS_OK ? calloc(3 * (n ? n : 1), sizeof *acc) : NULL;
+    if (s == MS_OK && !acc) {
+        ms_codec_truth_free(t);
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory measuring the surface error");
+    }
+    if (s != MS_OK)
+        return s;
+    for (size_t i = 0; i < n; ++i) {
+        uint32_t c[3];
+        ms_quant_unkey(full->cells[i], full->bits, c);
+        for (int a = 0; a < 3; ++a)
+            t->positions[3 * i + a] = c[a] + 0.5;
+    }
+    for (size_t k = 0; k < full->tri_count; ++k) {
+        const uint32_t *tri = full->tris + 3 * k;
+        const double *p0 = t->positions + 3 * tri[0], *p1 = t->positions + 3 * tri[1],
+                     *p2 = t->positions + 3 * tri[2];
+        double u[3], v[3];
+        for (int a = 0; a < 3; ++a)
+            u[a] = p1[a] - p0[a], v[a] = p2[a] - p0[a];
+        /* twice the area times the unit normal: area-weighted */
+        double cross[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};
+        for (int j = 0; j < 3; ++j)
+            for (int a = 0; a < 3; ++a)
+                acc[3 * tri[j] + a] += cross[a];
+    }
+    for (size_t i = 0; i < 3 * n; ++i)
+        t->normals[i] = (float)acc[i];
+    free(acc);
+    return MS_OK;
+}
+
+typedef struct keyed {
+    uint64_t key;
+    size_t index;
+} keyed;
+
+static int keyed_order(const void *a, const void *b)
+{
+    const keyed *x = a, *y = b;
+    if (x->key != y->key)
+        return x->key < y->key ? -1 : 1;
+    return x->index < y->index ? -1 : x->index > y->index;
+}
+
+/* The given points in key order at `bits` (positions outside the grid count at
+ * its border), with their keys. */
+static ms_status sorted_points(const ms_codec_truth *in, unsigned bits, ms_codec_truth *out,
+                               uint64_t **keys, ms_error *err)
+{
+    size_t n = in->n;
+    keyed *order = malloc((n ? n : 1) * sizeof *order);
+    *keys = malloc((n ? n : 1) * sizeof **keys);
+    ms_status s = order && *keys ? truth_alloc(out, n, err)
+                                 : ms_error_set(err, MS_ERR_NOMEM, "out of memory measuring the surface error");
+    if (s != MS_OK) {
+        free(order);
+        free(*keys);
+        *keys = NULL;
+        return s;
+    }
+    double top = ldexp(1.0, (int)bits) - 1;
+    for (size_t i = 0; i < n; ++i) {
+        uint32_t c[3];
+        for (int a = 0; a < 3; ++a) {
+            double x = floor(in->positions[3 * i + a]);
+            c[a] = (uint32_t)(x < 0 ? 0 : x > top ? top : x);
+        }
+        order[i] = (keyed){ms_quant_key(c[0], c[1], c[2], bits), i};
+    }
+    qsort(order, n, sizeof *order, keyed_order);
+    for (size_t i = 0; i < n; ++i) {
+        (*keys)[i] = order[i].key;
+        memcpy(out->positions + 3 * i, in->positions + 3 * order[i].index, 3 * sizeof *out->positions);
+        memcpy(out->normals + 3 * i, in->normals + 3 * order[i].index, 3 * sizeof *out->normals);
+    }
+    free(order);
+    return MS_OK;
+}
+
+ms_status ms_surface_prepare(const ms_codec_state *canon, const ms_codec_truth *given,
+                             ms_surface_truth *truth, ms_error *err)
+{
+    ms_codec_truth own;
+    ms_status s = state_points(canon, &own, err);
+    if (s != MS_OK)
+        return s;
+    truth->keys_owned = NULL;
+    if (!given) {
+        truth->points = own;
+        truth->keys = canon->cells;
+        return MS_OK;
+    }
+    ms_codec_truth_free(&own);
+    s = sorted_points(given, canon->bits, &truth->points, &truth->keys_owned, err);
+    truth->keys = truth->keys_owned;
+    return s;
+}
+
+void ms_surface_release(ms_surface_truth *truth)
+{
+    ms_codec_truth_free(&truth->points);
+    free(truth->keys_owned);
+    truth->keys_owned = NULL;
+}
+
+/* The summed normal of points [first, end) and whether they form one patch. */
+static bool cluster_normal(const float *normals, size_t first, size_t end, double sum[3], double *length)
+{
+    double lengths = 0;
+    sum[0] = sum[1] = sum[2] = 0;
+    for (size_t i = first; i < end; ++i) {
+        const float *nv = normals + 3 * i;
+        for (int a = 0; a < 3; ++a)
+            sum[a] += nv[a];
+        lengths += sqrt((double)nv[0] * nv[0] + (double)nv[1] * nv[1] + (double)nv[2] * nv[2]);
+    }
+    *length = sqrt(sum[0] * sum[0] + sum[1] * sum[1] + sum[2] * sum[2]);
+    return lengths > 0 && *length >= COHERENT_NORMALS * lengths;
+}
+
+/* The error of one cluster: points [first, end) drawn at twice-point rep2. */
+static double cluster_error(const ms_codec_truth *t, size_t first, size_t end, const int32_t rep2[4])
+{
+    double sum[3], length;
+    bool patch = cluster_normal(t->normals, first, end, sum, &length);
+    double worst = 0;
+    for (size_t i = first; i < end; ++i) {
+        const double *p = t->positions + 3 * i;
+        double d[3];
+        for (int a = 0; a < 3; ++a)
+            d[a] = p[a] - 0.5 * rep2[a];
+        double e = patch ? fabs(d[0] * sum[0] + d[1] * sum[1] + d[2] * sum[2]) / length
+                         : sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+        if (e > worst)
+            worst = e;
+    }
+    return worst;
+}
+
+double ms_surface_error(const ms_codec_decoder *d, const ms_surface_truth *truth)
+{
+    const ms_complex *cx = &d->cx;
+    const ms_codec_region *region = d->h.has_region ? &d->h.region : NULL;
+    int32_t (*at)[4] = cx->rep ? cx->rep : cx->cen;
+    unsigned D = 3 * cx->P;
+    size_t n = truth->points.n, i = 0;
+    double worst = 0;
+    /* the live cells (d->order) and the points are both in key order: each
+     * cell's points are the run of keys under its prefix */
+    for (uint32_t k = 0; k < d->norder && i < n; ++k) {
+        uint32_t s = d->order[k];
+        unsigned shift = D - ms_cx_level(cx, s);
+        uint64_t prefix = shift >= 64 ? 0 : cx->v[s].key >> shift;
+        while (i < n && (shift >= 64 ? 0 : truth->keys[i] >> shift) < prefix)
+            ++i;
+        size_t first = i;
+        while (i < n && (shift >= 64 ? 0 : truth->keys[i] >> shift) == prefix)
+            ++i;
+        if (first == i || (region && cell_outside(cx, region, s)))
+            continue; /* a foreign cell is drawn at its owner's point */
+        double e = cluster_error(&truth->points, first, i, at[s]);
+        if (e > worst)
+            worst = e;
+    }
+    return worst;
+}
+
+ms_status ms_surface_measure(ms_codec_decoder *d, const ms_surface_truth *truth, ms_error *err)
+{
+    for (unsigned L = d->Lmin; L <= d->D; L += 3) {
+        ms_status s = ms_codec_decoder_set_level(d, L, err);
+        if (s != MS_OK)
+            return s;
+        truth->error[(L - d->Lmin) / 3] = ms_surface_error(d, truth);
+    }
+    return MS_OK;
+}
+
+ms_status ms_surface_summary(const ms_surface_truth *truth, const ms_codec_state *start, ms_codec_truth *out,
+                             ms_error *err)
+{
+    ms_status s = truth_alloc(out, 2 * start->vertex_count, err);
+    if (s != MS_OK)
+        return s;
+    const ms_codec_truth *t = &truth->points;
+    unsigned shift = 3 * start->bits - start->level;
+    size_t i = 0, w = 0;
+    for (size_t k = 0; k < start->vertex_count; ++k) {
+        uint64_t prefix = shift >= 64 ? 0 : start->cells[k];
+        while (i < t->n && (shift >= 64 ? 0 : truth->keys[i] >> shift) < prefix)
+            ++i;
+        size_t first = i;
+        while (i < t->n && (shift >= 64 ? 0 : truth->keys[i] >> shift) == prefix)
+            ++i;
+        if (first == i)
+            continue;
+        double sum[3], length;
+        bool patch = cluster_normal(t->normals, first, i, sum, &length);
+        /* the extremes along the summed normal (along x for the two sides of a
+         * sheet), each carrying half of it */
+        double dir[3] = {1, 0, 0};
+        if (patch)
+            for (int a = 0; a < 3; ++a)
+                dir[a] = sum[a] / length;
+        size_t lo = first, hi = first;
+        double lo_v = INFINITY, hi_v = -INFINITY;
+        for (size_t j = first; j < i; ++j) {
+            const double *p = t->positions + 3 * j;
+            double v = p[0] * dir[0] + p[1] * dir[1] + p[2] * dir[2];
+            if (v < lo_v)
+                lo_v = v, lo = j;
+            if (v > hi_v)
+                hi_v = v, hi = j;
+        }
+        size_t pick[2] = {lo, hi};
+        for (int m = 0; m < 2; ++m, ++w) {
+            memcpy(out->positions + 3 * w, t->positions + 3 * pick[m], 3 * sizeof *out->positions);
+            for (int a = 0; a < 3; ++a)
+                out->normals[3 * w + a] = (float)(0.5 * sum[a]);
+        }
+    }
+    out->n = w;
+    return MS_OK;
+}
