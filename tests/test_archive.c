@@ -1,4 +1,5 @@
 /* Archive container: write, read back, and reject every kind of damage. */
+#include <math.h>
 #include <stdarg.h>
 #include <stddef.h>
 #include <setjmp.h>
@@ -271,6 +272,100 @@ static void test_structural_lies_rejected(void **state)
     tamper(f, 12, 40, 5, "geometry prefix table");
 }
 
+/* The byte of c's error table at bit bits_min + k inside the raw index. */
+static uint8_t *error_byte(uint8_t *raw, const ms_archive_cell *c, unsigned k)
+{
+    size_t window = (size_t)c->bits_max - c->bits_min + 1;
+    size_t words = window + 2u * c->apo_levels + (window + 3) / 4; /* no colour */
+    return raw + (size_t)CELLS * 80 + 4 * ((size_t)c->table_first + words - (window + 3) / 4) + k;
+}
+
+/* The surface error table: the writer keeps what it is given, or the
+ * half-diagonal; the reader's error and need follow it; a table beyond the
+ * diagonal, growing in world units, or with a byte after its last bit is
+ * refused. */
+static void test_surface_error_table(void **state)
+{
+    fixture *f = *state;
+    ms_archive *a;
+    ms_error err;
+    assert_int_equal(ms_archive_open(f->path, &a, &err), MS_OK);
+    const ms_archive_header *h = ms_archive_get_header(a);
+    unsigned measured_cells = 0;
+    for (uint32_t id = 0; id < CELLS; ++id) {
+        const ms_archive_cell *c = ms_archive_get_cell(a, id);
+        unsigned window = c->bits_max - c->bits_min + 1u;
+        uint8_t want[MS_ARCHIVE_MAX_WINDOW];
+        bool measured = ms_test_archive_error_table(id, window, want);
+        measured_cells += measured;
+        for (unsigned k = 0; k < window; ++k) {
+            double half = 0.5 * sqrt(3.0) * ldexp(h->box_side, -(int)(c->bits_min + k));
+            assert_int_equal(c->error[k], measured ? want[k] : 100);
+            assert_float_equal(ms_archive_cell_error(h, c, c->bits_min + k),
+                               (measured ? want[k] / 100.0 : 1.0) * half, 1e-12 * half);
+        }
+        assert_true(ms_archive_cell_error(h, c, c->bits_max + 3) == ms_archive_cell_error(h, c, c->bits_max));
+        assert_true(ms_archive_cell_error(h, c, 0) == ms_archive_cell_error(h, c, c->bits_min));
+    }
+    assert_int_equal(measured_cells, 32);
+
+    /* the default table (the root's) needs what the half-diagonal needs:
+     * log2(sqrt(3) / 2 * side * px_per_unit / tolerance), below, inside and
+     * above its window [0, 7] */
+    const ms_archive_cell *root = ms_archive_get_cell(a, 0);
+    const double needs[] = {-2.0, 0.0, 3.25, 7.0, 9.5};
+    for (size_t i = 0; i < sizeof needs / sizeof *needs; ++i) {
+        double ppu = 1.5 * exp2(needs[i]) / (0.5 * sqrt(3.0) * h->box_side);
+        assert_float_equal(ms_archive_bits_needed(h, root, ppu, 1.5), needs[i], 1e-9);
+    }
+    assert_true(isinf(ms_archive_bits_needed(h, root, INFINITY, 1.0)));
+
+    /* a measured leaf, window [7, 12]: geometric between two bits, doubling
+     * per bit below, halving above; a bit that errs by nothing is needed whole */
+    const ms_archive_cell *leaf = ms_archive_get_cell(a, 1);
+    assert_true(leaf->first_child == MS_ARCHIVE_NONE && leaf->bits_min == 7 && leaf->bits_max == 12);
+    double e0 = ms_archive_cell_error(h, leaf, 7), e3 = ms_archive_cell_error(h, leaf, 10),
+           e4 = ms_archive_cell_error(h, leaf, 11), e5 = ms_archive_cell_error(h, leaf, 12);
+    assert_true(ms_archive_cell_error(h, leaf, 9) > e3 && e3 > e4); /* this table's shape */
+    assert_float_equal(ms_archive_bits_needed(h, leaf, 1.0 / sqrt(e3 * e4), 1.0), 10.5, 1e-9);
+    assert_float_equal(ms_archive_bits_needed(h, leaf, 1.0 / (8 * e0), 1.0), 4.0, 1e-9);
+    assert_float_equal(ms_archive_bits_needed(h, leaf, 4.0 / e5, 1.0), 14.0, 1e-9);
+    ms_archive_cell exact = *leaf;
+    exact.error[5] = 0;
+    assert_float_equal(ms_archive_bits_needed(h, &exact, 1e9 / e5, 1.0), 12.0, 0);
+
+    /* the reader's refusals, each with its CRCs right */
+    size_t size, raw_size, blob_size;
+    uint8_t *data = ms_test_read_file(f->path, &size);
+    static const struct { unsigned k; uint8_t value; bool ok; } lies[] = {
+        {5, 0, true},     /* exact at the last bit */
+        {4, 0, false},    /* exact at a bit, then not */
+        {0, 200, true},   /* the whole diagonal */
+        {0, 201, false},  /* beyond it */
+        {1, 255, false},  /* more than twice the bit before (57) */
+        {6, 1, false},    /* a byte after the last bit's (6 bits, 8 bytes) */
+        {7, 1, false},
+    };
+    for (size_t i = 0; i < sizeof lies / sizeof *lies; ++i) {
+        uint8_t *raw = ms_test_archive_raw_index(data, size, &raw_size);
+        *error_byte(raw, leaf, lies[i].k) = lies[i].value;
+        uint8_t *blob = ms_test_archive_blob_with_index(data, size, raw, raw_size, &blob_size);
+        if (lies[i].ok) {
+            ms_archive *b;
+            if (ms_archive_open_index(blob, blob_size, "tampered", &b, &err) != MS_OK)
+                fail_msg("%s", err.text);
+            assert_int_equal(ms_archive_get_cell(b, 1)->error[lies[i].k], lies[i].value);
+            ms_archive_close(b);
+        } else {
+            expect_blob_fails(blob, blob_size, MS_ERR_FORMAT, "cell 1: surface error table");
+        }
+        free(blob);
+        free(raw);
+    }
+    free(data);
+    ms_archive_close(a);
+}
+
 static void test_writer_refuses_bad_use(void **state)
 {
     fixture *f = *state;
@@ -293,6 +388,17 @@ static void test_writer_refuses_bad_use(void **state)
     assert_int_equal(ms_archive_writer_put_geometry(w, 0, data, 16, table, 0, 0, &err), MS_OK);
     assert_int_equal(ms_archive_writer_put_geometry(w, 0, data, 16, table, 0, 0, &err), MS_ERR_ARG);
     assert_int_equal(ms_archive_writer_put_geometry(w, CELLS, data, 16, table, 0, 0, &err), MS_ERR_ARG);
+    /* Error tables (the root's window is 8 bits): beyond the diagonal,
+     * growing, out of range, twice. */
+    uint8_t over[8] = {201, 100, 50, 25, 12, 6, 3, 0}, growing[8] = {50, 101, 50, 25, 12, 6, 3, 0};
+    uint8_t error[8] = {200, 100, 50, 25, 12, 6, 3, 0};
+    assert_int_equal(ms_archive_writer_put_error(w, 0, over, &err), MS_ERR_ARG);
+    assert_non_null(strstr(err.text, "cell 0: surface errors out of range or growing"));
+    assert_int_equal(ms_archive_writer_put_error(w, 0, growing, &err), MS_ERR_ARG);
+    assert_int_equal(ms_archive_writer_put_error(w, CELLS, error, &err), MS_ERR_ARG);
+    assert_int_equal(ms_archive_writer_put_error(w, 0, error, &err), MS_OK);
+    assert_int_equal(ms_archive_writer_put_error(w, 0, error, &err), MS_ERR_ARG);
+    assert_non_null(strstr(err.text, "given twice"));
     /* Missing geometry for the other cells: finish fails and leaves nothing. */
     assert_int_equal(ms_archive_writer_finish(w, &err), MS_ERR_ARG);
     assert_non_null(strstr(err.text, "cell 1 has no geometry"));
@@ -422,6 +528,7 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_index_damage_and_truncation, setup, teardown),
         cmocka_unit_test_setup_teardown(test_payload_damage_found_by_verify, setup, teardown),
         cmocka_unit_test_setup_teardown(test_structural_lies_rejected, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_surface_error_table, setup, teardown),
         cmocka_unit_test_setup_teardown(test_writer_refuses_bad_use, setup, teardown),
         cmocka_unit_test_setup_teardown(test_index_blob_and_payload_checks, setup, teardown),
         cmocka_unit_test_setup_teardown(test_index_file, setup, teardown),

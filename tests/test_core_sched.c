@@ -445,8 +445,9 @@ static double child_need(const fixture *f, uint32_t id)
         lo[a] = h->box_origin[a] + side * rec->position[a];
         hi[a] = lo[a] + side;
     }
-    return ms_screen_bits_needed(&f->in.fv.cam, h->box_side,
-                                 ms_camera_box_distance(&f->in.fv.cam, lo, hi), 1.0);
+    /* the bits its measured error table asks for at its cube's nearest point */
+    double d = ms_camera_box_distance(&f->in.fv.cam, lo, hi);
+    return ms_archive_bits_needed(h, rec, ms_camera_pixels_per_unit(&f->in.fv.cam) / d, 1.0);
 }
 
 /* The eviction order: cells holding nothing are left out, the others least

@@ -406,8 +406,8 @@ static void test_budget_forgets_far_cells(void **state)
     bool partial;
     /* a quarter of the model: every unwanted cell goes, the cut alone is more */
     budget_walk(f, 1, 4, &partial);
-    /* two thirds: it stops once within the budget, unwanted cells left held */
-    budget_walk(f, 2, 3, &partial);
+    /* a half: it stops once within the budget, unwanted cells left held */
+    budget_walk(f, 1, 2, &partial);
     assert_true(partial);
 }
 
@@ -817,12 +817,13 @@ static void test_index_by_subtree(void **state)
      * record holds its APO chunk's length and level table, which vary with
      * the machine's floating point (libm's and Embree's code paths: 283
      * bytes on the machine of 2026-12-06, 285 on the AVX-512 one of
-     * 2026-12-07, every other figure here the same) */
-    assert_true(head_size >= 270 && head_size <= 300);
+     * 2026-12-07 before the error tables, 293 with them, every other figure
+     * here the same) */
+    assert_true(head_size >= 280 && head_size <= 310);
     assert_int_equal(s.subtrees, 18);
-    assert_int_equal(s.subtree_bytes, 23255);
+    assert_int_equal(s.subtree_bytes, 26457);
     assert_int_equal(s.rounds, 3);
-    assert_int_equal(s.cell_bytes, 33046);
+    assert_int_equal(s.cell_bytes, 26474);
     assert_int_equal(ms_web_view_bytes_held(byst), ms_web_view_bytes_held(whole));
     assert_int_equal(ms_web_view_shown_cells(byst), ms_web_view_shown_cells(whole));
     assert_int_equal(ms_web_view_max_bits(byst), ms_web_view_max_bits(whole));

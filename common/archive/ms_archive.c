@@ -375,15 +375,17 @@ ms_status ms_archive_check_record(const char *path, const ms_archive_header *h,
     if (previous != c->geometry_length)
         return CELL_FAIL("%s: cell %u: geometry prefix table does not end at the payload length",
                          path, id);
-    /* the error table: never growing with the bits, within the model's box
-     * (at most two box sides) */
-    uint64_t error_first = ms_archive_error_table_first(h, c);
-    uint64_t error_cap = (uint64_t)2 * MS_ARCHIVE_ERROR_SCALE << h->bits;
-    for (uint64_t k = 0; k < geometry_words; ++k) {
-        uint32_t e = table_word(tables, error_first + k);
-        if (e > error_cap || (k > 0 && e > c->error[k - 1]))
+    /* the error table: within the kd-cell's diagonal, never growing with the
+     * bits in world units (the half-diagonal halves each bit), nothing after
+     * its last byte */
+    const uint8_t *error = tables + 4 * ms_archive_error_table_first(h, c);
+    for (uint64_t k = 0; k < (geometry_words + 3) / 4 * 4; ++k) {
+        unsigned e = error[k];
+        if (k >= geometry_words ? e != 0
+                                : e > MS_ARCHIVE_ERROR_MAX || (k > 0 && e > 2u * c->error[k - 1]))
             return CELL_FAIL("%s: cell %u: surface error table out of range or growing", path, id);
-        c->error[k] = e;
+        if (k < geometry_words)
+            c->error[k] = (uint8_t)e;
     }
     uint32_t prev_bytes = 0, prev_texels = 0;
     for (uint32_t l = 0; l < c->apo_levels; ++l) {
@@ -665,9 +667,12 @@ uint32_t ms_archive_geometry_prefix(const ms_archive *a, uint32_t cell, unsigned
     return table_word(tables, (uint64_t)c->table_first + (bits - c->bits_min));
 }
 
-static double error_unit(const ms_archive_header *h)
+/* Entry k of c's error table in world units: its share of the half-diagonal
+ * at bit bits_min + k. */
+static double error_at(const ms_archive_header *h, const ms_archive_cell *c, unsigned k)
 {
-    return ldexp(h->box_side, -(int)h->bits) / MS_ARCHIVE_ERROR_SCALE;
+    double half_diagonal = 0.5 * sqrt(3.0) * ldexp(h->box_side, -(int)(c->bits_min + k));
+    return c->error[k] * half_diagonal / MS_ARCHIVE_ERROR_SCALE;
 }
 
 double ms_archive_cell_error(const ms_archive_header *h, const ms_archive_cell *c, unsigned bits)
@@ -676,7 +681,7 @@ double ms_archive_cell_error(const ms_archive_header *h, const ms_archive_cell *
         bits = c->bits_min;
     if (bits > c->bits_max)
         bits = c->bits_max;
-    return c->error[bits - c->bits_min] * error_unit(h);
+    return error_at(h, c, bits - c->bits_min);
 }
 
 double ms_archive_bits_needed(const ms_archive_header *h, const ms_archive_cell *c, double px_per_unit,
@@ -684,21 +689,20 @@ double ms_archive_bits_needed(const ms_archive_header *h, const ms_archive_cell 
 {
     if (!(px_per_unit < INFINITY))
         return INFINITY;
-    const uint32_t *e = c->error;
     unsigned window = (unsigned)c->bits_max - c->bits_min;
-    /* the error allowed, in stored units */
-    double allowed = tolerance_px / (px_per_unit * error_unit(h));
-    if (e[0] <= allowed) /* coarser than the window: doubling per bit */
-        return e[0] > 0 ? c->bits_min - log2(allowed / e[0]) : c->bits_min - 64.0;
+    double allowed = tolerance_px / px_per_unit; /* world units */
+    double before = error_at(h, c, 0);
+    if (before <= allowed) /* coarser than the window: doubling per bit */
+        return before > 0 ? c->bits_min - log2(allowed / before) : c->bits_min - 64.0;
     for (unsigned k = 1; k <= window; ++k) {
-        if (e[k] > allowed)
-            continue;
-        if (e[k] == 0) /* exact at this bit: it is needed whole */
+        double e = error_at(h, c, k);
+        if (e == 0) /* exact at this bit: it is needed whole */
             return c->bits_min + k;
-        /* geometric between k - 1 and k */
-        return c->bits_min + (k - 1) + log2(e[k - 1] / allowed) / log2((double)e[k - 1] / e[k]);
+        if (e <= allowed) /* geometric between k - 1 and k (before > allowed >= e) */
+            return c->bits_min + (k - 1) + log2(before / allowed) / log2(before / e);
+        before = e;
     }
-    return c->bits_max + log2(e[window] / allowed); /* e[window] > allowed > 0 */
+    return c->bits_max + log2(before / allowed); /* before > allowed > 0 */
 }
 
 uint32_t ms_archive_apo_prefix(const ms_archive *a, uint32_t cell, unsigned level,

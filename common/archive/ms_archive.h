@@ -85,7 +85,7 @@ typedef struct ms_archive_cell {
     uint8_t apo_levels;
     /* In memory only, filled by the reader from the cell's tables: its surface
      * error table (ms_archive_cell_error), error[b - bits_min] for bit b. */
-    uint32_t error[MS_ARCHIVE_MAX_WINDOW];
+    uint8_t error[MS_ARCHIVE_MAX_WINDOW];
 } ms_archive_cell;
 
 typedef struct ms_archive ms_archive;
@@ -145,13 +145,17 @@ const uint8_t *ms_archive_apo(const ms_archive *archive, uint32_t cell, size_t *
  * is level + 1 levels (so the first L levels end at level L - 1). */
 uint32_t ms_archive_geometry_prefix(const ms_archive *archive, uint32_t cell, unsigned bits);
 
-/* The surface error table (docs/ARCHIVE.md, "Per-cell tables"): one word per
- * bit of a cell's window, the measured error of the cell drawn at that
- * precision (docs/CODEC.md §4.3) in 1/MS_ARCHIVE_ERROR_SCALE of the model's
- * full-precision grid step (box_side / 2^bits), rounded up, never growing
- * with the bits; the writer's default, for a cell it was given no
- * measurement of, is the kd-cell's half-diagonal. */
-#define MS_ARCHIVE_ERROR_SCALE 256u
+/* The surface error table (docs/ARCHIVE.md, "Per-cell tables"): one byte per
+ * bit of a cell's window, four to a table word (its first bit in the first
+ * word's low byte, the bytes after its last 0): the measured error of the
+ * cell drawn at that precision (docs/CODEC.md §4.3), in 1/MS_ARCHIVE_ERROR_SCALE
+ * of its kd-cell's half-diagonal at that bit (sqrt(3) / 2 * box_side / 2^bits),
+ * rounded up; at most MS_ARCHIVE_ERROR_MAX (the whole diagonal), and in world
+ * units never growing with the bits (a byte is at most twice the one before).
+ * The writer's default, for a cell it was given no measurement of, is the
+ * half-diagonal itself. */
+#define MS_ARCHIVE_ERROR_SCALE 100u
+#define MS_ARCHIVE_ERROR_MAX 200u
 /* The error of cell record c drawn at `bits` (clamped to its window), world
  * units. Thread-safe. */
 double ms_archive_cell_error(const ms_archive_header *header, const ms_archive_cell *c, unsigned bits);

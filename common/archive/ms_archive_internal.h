@@ -129,15 +129,16 @@ static inline uint64_t ms_archive_cell_table_words(const ms_archive_header *h,
                                                    const ms_archive_cell *c)
 {
     uint64_t window = (uint64_t)c->bits_max - c->bits_min + 1;
-    return window + 2ull * c->apo_levels + (h->has_colour ? window + 1 : 0) + window;
+    return window + 2ull * c->apo_levels + (h->has_colour ? window + 1 : 0) + (window + 3) / 4;
 }
 
-/* The first of a cell's surface error table words (one per bit of its window). */
+/* The first of a cell's surface error table words (a byte per bit of its
+ * window, four to a word). */
 static inline uint64_t ms_archive_error_table_first(const ms_archive_header *h,
                                                     const ms_archive_cell *c)
 {
     return (uint64_t)c->table_first + ms_archive_cell_table_words(h, c) -
-           ((uint64_t)c->bits_max - c->bits_min + 1);
+           ((uint64_t)c->bits_max - c->bits_min + 4) / 4;
 }
 
 /* The first of a cell's colour table words (its prefix table; the CRC follows). */

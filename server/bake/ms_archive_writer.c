@@ -23,8 +23,8 @@ typedef struct cell_state {
     uint32_t *geometry_table;           /* bits_max - bits_min + 1 words */
     uint32_t *apo_table;                /* 2 * apo_levels words */
     uint32_t *colour_table;             /* bits_max - bits_min + 1 words, then the CRC */
-    uint32_t *error_table;              /* bits_max - bits_min + 1 words, or NULL: the default */
-    bool has_geometry, has_apo, has_colour;
+    uint8_t error_table[MS_ARCHIVE_MAX_WINDOW]; /* bits_max - bits_min + 1 bytes, if has_error */
+    bool has_geometry, has_apo, has_colour, has_error;
 } cell_state;
 
 struct ms_archive_writer {
@@ -42,14 +42,7 @@ struct ms_archive_writer {
 static uint64_t cell_table_words(const ms_archive_header *h, const ms_archive_cell *c)
 {
     uint64_t window = (uint64_t)c->bits_max - c->bits_min + 1;
-    return window + 2ull * c->apo_levels + (h->has_colour ? window + 1 : 0) + window;
-}
-
-/* A cell's surface error at bits without a measurement: its kd-cell's
- * half-diagonal, sqrt(3) / 2 * 2^(P - bits) grid steps, in the table's units. */
-static uint32_t default_error(const ms_archive_header *h, unsigned bits)
-{
-    return (uint32_t)ceil(0.5 * sqrt(3.0) * MS_ARCHIVE_ERROR_SCALE * ldexp(1.0, (int)h->bits - (int)bits));
+    return window + 2ull * c->apo_levels + (h->has_colour ? window + 1 : 0) + (window + 3) / 4;
 }
 
 static void writer_free(ms_archive_writer *w)
@@ -61,7 +54,7 @@ static void writer_free(ms_archive_writer *w)
     if (w->cells)
         for (uint32_t i = 0; i < w->header.cell_count; ++i)
             free(w->cells[i].geometry_table), free(w->cells[i].apo_table),
-                free(w->cells[i].colour_table), free(w->cells[i].error_table);
+                free(w->cells[i].colour_table);
     free(w->cells);
     free(w->path);
     free(w->partial_path);
@@ -228,21 +221,21 @@ ms_status ms_archive_writer_put_geometry(ms_archive_writer *w, uint32_t cell,
     return MS_OK;
 }
 
-ms_status ms_archive_writer_put_error(ms_archive_writer *w, uint32_t cell, const uint32_t *error_table,
+ms_status ms_archive_writer_put_error(ms_archive_writer *w, uint32_t cell, const uint8_t *error_table,
                                       ms_error *err)
 {
-    if (cell >= w->header.cell_count || w->cells[cell].error_table)
+    if (cell >= w->header.cell_count || w->cells[cell].has_error)
         return ms_error_set(err, MS_ERR_ARG, "archive writer: surface errors for cell %u given twice or out of range",
                             cell);
     cell_state *s = &w->cells[cell];
-    size_t words = (size_t)s->cell.bits_max - s->cell.bits_min + 1;
-    uint64_t cap = (uint64_t)2 * MS_ARCHIVE_ERROR_SCALE << w->header.bits;
-    for (size_t k = 0; k < words; ++k)
-        if (error_table[k] > cap || (k > 0 && error_table[k] > error_table[k - 1]))
+    size_t window = (size_t)s->cell.bits_max - s->cell.bits_min + 1;
+    for (size_t k = 0; k < window; ++k)
+        if (error_table[k] > MS_ARCHIVE_ERROR_MAX || (k > 0 && error_table[k] > 2u * error_table[k - 1]))
             return ms_error_set(err, MS_ERR_ARG, "archive writer: cell %u: surface errors out of range or growing",
                                 cell);
-    s->error_table = copy_table(error_table, words);
-    return s->error_table ? MS_OK : ms_error_set(err, MS_ERR_NOMEM, "%s: out of memory", w->path);
+    memcpy(s->error_table, error_table, window);
+    s->has_error = true;
+    return MS_OK;
 }
 
 ms_status ms_archive_writer_put_apo(ms_archive_writer *w, uint32_t cell, const uint8_t *data,
@@ -553,17 +546,19 @@ ms_status ms_archive_writer_finish(ms_archive_writer *w, ms_error *err)
         ms_archive_encode_cell(&s->cell, index + (size_t)id * MS_ARCHIVE_RECORD_SIZE);
         size_t geometry_words = (size_t)s->cell.bits_max - s->cell.bits_min + 1;
         size_t apo_end = geometry_words + 2u * s->cell.apo_levels;
-        size_t n = (size_t)cell_table_words(h, &s->cell), error_first = n - geometry_words;
-        for (size_t k = 0; k < n; ++k) {
-            size_t e = k - error_first; /* the error table's bit, at its end */
+        size_t n = (size_t)cell_table_words(h, &s->cell), error_first = n - (geometry_words + 3) / 4;
+        for (size_t k = 0; k < error_first; ++k) {
             uint32_t v = k < geometry_words ? s->geometry_table[k]
                          : k < apo_end      ? s->apo_table[k - geometry_words]
-                         : k < error_first  ? (s->has_colour ? s->colour_table[k - apo_end] : 0)
-                         : s->error_table   ? s->error_table[e]
-                                            : default_error(h, s->cell.bits_min + (unsigned)e);
+                         : s->has_colour    ? s->colour_table[k - apo_end]
+                                            : 0;
             uint8_t *p = words + 4 * ((size_t)s->cell.table_first + k);
             p[0] = (uint8_t)v, p[1] = (uint8_t)(v >> 8), p[2] = (uint8_t)(v >> 16), p[3] = (uint8_t)(v >> 24);
         }
+        /* the error table's bytes, the half-diagonal where none was given */
+        uint8_t *error = words + 4 * ((size_t)s->cell.table_first + error_first);
+        for (size_t k = 0; k < 4 * (n - error_first); ++k)
+            error[k] = k >= geometry_words ? 0 : s->has_error ? s->error_table[k] : MS_ARCHIVE_ERROR_SCALE;
     }
     /* The CRC covers the raw index; the file holds it as subtrees. */
     uint32_t index_crc = (uint32_t)crc32_z(0L, index, index_size);

@@ -42,11 +42,12 @@ ms_status ms_archive_writer_put_geometry(ms_archive_writer *writer, uint32_t cel
                                          uint32_t triangle_count, ms_error *err);
 
 /* The cell's surface error table (ms_archive.h, MS_ARCHIVE_ERROR_SCALE): one
- * word per bit of its window, never growing with the bits, each at most two
- * box sides. Optional, at most once per cell: a cell without one gets its
+ * byte per bit of its window (copied), each at most MS_ARCHIVE_ERROR_MAX and
+ * at most twice the one before (never growing in world units); MS_ERR_ARG
+ * otherwise. Optional, at most once per cell: a cell without one gets its
  * kd-cells' half-diagonals. */
 ms_status ms_archive_writer_put_error(ms_archive_writer *writer, uint32_t cell,
-                                      const uint32_t *error_table, ms_error *err);
+                                      const uint8_t *error_table, ms_error *err);
 
 /* level_table has 2 * levels words (compressed bytes, texels per complete level
  * prefix). At most once per cell; only when the header has has_apo. */

@@ -233,7 +233,7 @@ typedef struct cell_out {
     uint8_t *colour;          /* the colour stream (ms_bake_colour.h), or NULL */
     size_t colour_size;
     uint32_t colour_table[MS_CODEC_MAX_BITS + 1];
-    uint32_t error_table[MS_CODEC_MAX_BITS + 1]; /* ms_archive_writer_put_error */
+    uint8_t error_table[MS_CODEC_MAX_BITS + 1]; /* ms_archive_writer_put_error */
     ms_codec_truth summary;   /* for the parent's surface error, model grid steps */
 } cell_out;
 

@@ -8,20 +8,22 @@
 #include "ms_grow.h"
 
 void ms_nsp_error_table(unsigned model_bits, unsigned bits, unsigned lo, unsigned hi, const double *surface,
-                        uint32_t *table)
+                        uint8_t *table)
 {
     double step = ldexp(1.0, (int)model_bits - (int)bits); /* model steps per stream step */
-    double cap = ldexp(2.0 * MS_ARCHIVE_ERROR_SCALE, (int)model_bits), worst = 0;
+    double worst = 0; /* model steps, the most of this bit's and every finer one's */
     for (unsigned k = hi - lo + 1; k-- > 0;) {
         unsigned b = lo + k;
-        double least = b < model_bits ? MS_NSP_SURFACE_ERROR_FLOOR * 0.5 * sqrt(3.0) * ldexp(1.0, (int)(model_bits - b))
-                                      : 0;
+        double half_diagonal = 0.5 * sqrt(3.0) * ldexp(1.0, (int)model_bits - (int)b);
+        double least = b < model_bits ? MS_NSP_SURFACE_ERROR_FLOOR * half_diagonal : 0;
         if (surface[k] * step > worst)
             worst = surface[k] * step;
         if (least > worst)
             worst = least;
-        double scaled = ceil(worst * MS_ARCHIVE_ERROR_SCALE);
-        table[k] = (uint32_t)(scaled < cap ? scaled : cap);
+        /* the drawn point and the model's both lie in the kd-cell: the share
+         * is at most its diagonal, rounding aside */
+        double share = ceil(worst / half_diagonal * MS_ARCHIVE_ERROR_SCALE);
+        table[k] = (uint8_t)(share < MS_ARCHIVE_ERROR_MAX ? share : MS_ARCHIVE_ERROR_MAX);
     }
 }
 

@@ -20,12 +20,12 @@
 #define MS_NSP_SURFACE_ERROR_FLOOR 0.125
 
 /* A cell's surface error table (ms_archive_writer_put_error: hi - lo + 1
- * words) from what its encoder measured over its window [lo, hi] (surface,
+ * bytes) from what its encoder measured over its window [lo, hi] (surface,
  * in grid steps of its stream's `bits`): at least the floor below the
- * model's `model_bits`, never growing with the bits, in the archive's units,
- * rounded up and capped at two box sides. */
+ * model's `model_bits`, never growing with the bits, in the archive's units
+ * (hundredths of the half-diagonal), rounded up and capped at the diagonal. */
 void ms_nsp_error_table(unsigned model_bits, unsigned bits, unsigned lo, unsigned hi, const double *surface,
-                        uint32_t *table);
+                        uint8_t *table);
 
 /* Positions of t times 2^shift (between model grid steps and a stream's). */
 void ms_nsp_truth_scale(ms_codec_truth *t, int shift);

@@ -34,6 +34,13 @@ void ms_test_archive_fill(uint8_t *buf, uint32_t length, uint32_t seed)
 uint32_t ms_test_archive_geometry_length(uint32_t cell) { return 20 + (cell * 37) % 300; }
 uint32_t ms_test_archive_apo_levels(uint32_t cell) { return cell % 3 == 0 ? 0 : 1 + cell % 5; }
 
+bool ms_test_archive_error_table(uint32_t cell, unsigned window, uint8_t *table)
+{
+    for (unsigned k = 0; k < window; ++k) /* never more than twice the one before */
+        table[k] = (uint8_t)(50 + (cell * 7 + k * 13) % 50);
+    return cell % 4 == 1;
+}
+
 /* Writes a tree of h.cell_count cells with the synthetic payloads. */
 static void write_tree(const char *path, const ms_archive_header *hp, const uint32_t *first_child,
                        uint32_t salt)
@@ -69,6 +76,10 @@ static void write_tree(const char *path, const ms_archive_header *hp, const uint
                 ms_test_archive_fill(buf, len, cell + salt);
                 if (ms_archive_writer_put_geometry(w, cell, buf, len, table, cell * 3, cell * 5,
                                                    &err) != MS_OK)
+                    fail_msg("%s", err.text);
+                uint8_t error[MS_ARCHIVE_MAX_WINDOW];
+                if (ms_test_archive_error_table(cell, words, error) &&
+                    ms_archive_writer_put_error(w, cell, error, &err) != MS_OK)
                     fail_msg("%s", err.text);
             }
         }

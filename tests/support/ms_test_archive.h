@@ -5,6 +5,7 @@
 #ifndef MS_TEST_ARCHIVE_H
 #define MS_TEST_ARCHIVE_H
 
+#include <stdbool.h>
 #include <stdint.h>
 
 #include "ms_archive.h"
@@ -16,6 +17,10 @@ ms_archive_header ms_test_archive_header(void);
 void ms_test_archive_fill(uint8_t *buf, uint32_t length, uint32_t seed);
 uint32_t ms_test_archive_geometry_length(uint32_t cell); /* payload bytes */
 uint32_t ms_test_archive_apo_levels(uint32_t cell);      /* 0 = no chunk; 40 bytes a level */
+/* The surface error table given to a cell with `window` bits (every fourth
+ * cell from cell 1: hundredths of the half-diagonal between 50 and 99); false
+ * for the others, which get the writer's default (100 at every bit). */
+bool ms_test_archive_error_table(uint32_t cell, unsigned window, uint8_t *table);
 
 /* Writes the archive at path (fails the test on error). `salt` changes every
  * payload byte, to tell two versions of a model apart. */
