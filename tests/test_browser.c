@@ -460,7 +460,7 @@ static void test_malformed_batches(void **state)
         uint16_t relay_port;
         assert_int_equal(ms_test_delay_start_mangling(f->http_port, 0.0, magic[k], &relay, &relay_port), 0);
         char url[256], arguments[800];
-        snprintf(url, sizeof url, "http://127.0.0.1:%u/view/demo#cam=0.3,0.2,1.6,0,0,0,0,1,0,40&hud=0", relay_port);
+        snprintf(url, sizeof url, "http://127.0.0.1:%u/view/demo#cam=0.15,0.1,0.8,0,0,0,0,1,0,40&hud=0", relay_port);
         snprintf(arguments, sizeof arguments, "--size 320x240 --out %s/malformed-%d.png --timeout 60", f->dir, k);
         json_t *report = ms_test_browser_run(url, arguments);
         ms_test_delay_stop(relay);
@@ -540,13 +540,13 @@ static void test_server_gone_mid_stream(void **state)
 }
 
 /* The memory budget (#mem=MB): the page walked from the close-up to the
- * whole sculpture and to a close-up of its other side with a budget of 20
- * kB forgets cells (timing.forgottenCells) and completes with the very cut
+ * whole sculpture and to a close-up of its other side with a budget of 10
+ * kB (each close-up's cut about 18 kB) forgets cells (timing.forgottenCells) and completes with the very cut
  * of the same walk without a budget (the same triangles and cells). */
 static json_t *walk_page(const fixture *f, const char *mem, const char *name)
 {
-    static const char near[] = "0.3,0.2,1.6,0,0,0,0,1,0,40", far[] = "0.9,0.6,3.2,0,0,0,0,1,0,40",
-                      back[] = "-0.3,0.2,-1.6,0,0,0,0,1,0,40";
+    static const char near[] = "0.15,0.1,0.8,0,0,0,0,1,0,40", far[] = "0.9,0.6,3.2,0,0,0,0,1,0,40",
+                      back[] = "-0.15,0.1,-0.8,0,0,0,0,1,0,40";
     char steps[2048], steps_file[700], command[4096], shot[700];
     snprintf(steps, sizeof steps,
              "[{\"method\": \"Runtime.evaluate\", \"params\": {\"expression\": \"location.hash = 'cam=%s&hud=0%s'\"}},\n"
@@ -569,14 +569,14 @@ static void test_memory_budget(void **state)
 {
     fixture *f = *state;
     MS_TEST_NEED_BROWSER(f->why_skip);
-    json_t *tight = walk_page(f, "&mem=0.02", "budget"), *plain = walk_page(f, "", "no-budget");
+    json_t *tight = walk_page(f, "&mem=0.01", "budget"), *plain = walk_page(f, "", "no-budget");
     json_t *last = json_object_get(json_array_get(json_object_get(tight, "steps"), 1), "page");
     json_t *last_plain = json_object_get(json_array_get(json_object_get(plain, "steps"), 1), "page");
     json_t *timing = json_object_get(last, "timing");
     json_int_t budget = json_integer_value(json_object_get(timing, "memoryBudget"));
     json_int_t forgotten = json_integer_value(json_object_get(timing, "forgottenCells"));
     double forgotten_bytes = json_number_value(json_object_get(timing, "forgottenBytes"));
-    printf("with #mem=0.02: budget %lld bytes, %lld cells and %.0f bytes forgotten; %lld triangles in %lld "
+    printf("with #mem=0.01: budget %lld bytes, %lld cells and %.0f bytes forgotten; %lld triangles in %lld "
            "cells (without a budget: %lld in %lld)\n", (long long)budget, (long long)forgotten, forgotten_bytes,
            (long long)json_integer_value(json_object_get(last, "triangles")),
            (long long)json_integer_value(json_object_get(last, "cells")),
@@ -584,7 +584,7 @@ static void test_memory_budget(void **state)
            (long long)json_integer_value(json_object_get(last_plain, "cells")));
     assert_string_equal(json_string_value(json_object_get(last, "state")), "complete");
     assert_string_equal(json_string_value(json_object_get(last_plain, "state")), "complete");
-    assert_int_equal(budget, 20971); /* 0.02 MB */
+    assert_int_equal(budget, 10485); /* 0.01 MB */
     assert_true(forgotten > 0);
     assert_true(forgotten_bytes > 0);
     assert_int_equal(json_integer_value(json_object_get(json_object_get(last_plain, "timing"), "forgottenCells")), 0);
@@ -673,7 +673,7 @@ static void test_preview_and_token(void **state)
     fixture *f = *state;
     MS_TEST_NEED_BROWSER(f->why_skip);
     /* close to the surface: a camera that wants more than the preview */
-    static const char page[] = "/view/preview#cam=0.3,0.2,1.6,0,0,0,0,1,0,40&tol=1&hud=0";
+    static const char page[] = "/view/preview#cam=0.15,0.1,0.8,0,0,0,0,1,0,40&tol=1&hud=0";
     char shot[700];
     snprintf(shot, sizeof shot, "%s/preview.png", f->dir);
     uint64_t refused = forbidden(f);

@@ -93,7 +93,7 @@ typedef struct view_result {
 /* Runs a near and a far core (with the given budgets) until both views are
  * complete at once (with a shared budget: at its one tolerance, since a core
  * takes up a tolerance the other raised only on its next pass, up to 20 ms
- * later); fills res[2]; returns the largest sum of the two cores'
+ * later), their tolerances unchanged for 2.5 s; fills res[2]; returns the largest sum of the two cores'
  * memory seen while polling. */
 static uint64_t run_pair(ms_core_budget *shared, uint64_t each_target, view_result res[2])
 {
@@ -112,6 +112,7 @@ static uint64_t run_pair(ms_core_budget *shared, uint64_t each_target, view_resu
     ms_core_frame *frame[2] = {NULL, NULL};
     double until = ms_now_seconds() + WAIT_SECONDS;
     bool complete = false;
+    double tolerance[2] = {0, 0}, changed = ms_now_seconds();
     while (!complete && ms_now_seconds() < until) {
         ms_test_sleep_s(0.01);
         complete = true;
@@ -130,6 +131,13 @@ static uint64_t run_pair(ms_core_budget *shared, uint64_t each_target, view_resu
         }
         if (shared && complete)
             complete = res[0].stats.tolerance_px == res[1].stats.tolerance_px;
+        /* and settled: a budget steps its tolerance back down only when no
+         * loading was blocked for 2 s, so a view may complete on the way */
+        double now = ms_now_seconds();
+        for (int i = 0; i < 2; ++i)
+            if (res[i].stats.tolerance_px != tolerance[i])
+                tolerance[i] = res[i].stats.tolerance_px, changed = now;
+        complete = complete && now - changed > 2.5;
         most = sum > most ? sum : most;
     }
     /* a last frame published with the completing pass */
@@ -179,7 +187,11 @@ static void test_shared_budget_favours_near(void **state)
     /* the far view needs much less than the near one: the budget below binds
      * the near view only when its share is fair */
     assert_true(far_all * 4 < near_all);
-    uint64_t target = (near_all + far_all) / 2;
+    /* three fifths of their sum: a cut's memory grows about fourfold a bit
+     * (its decoded vertices), so the near view's steps here hold 71, 244 and
+     * 496 kB; the near view fits its 244 kB step beside the far one's 14 kB
+     * in 90 % of the shared budget, not in half of it */
+    uint64_t target = (near_all + far_all) * 3 / 5;
     uint64_t ceiling = target + target / 4;
 
     ms_core_budget *budget;

@@ -277,7 +277,7 @@ static void test_install_example_uninstall(void **state)
         else
             snprintf(source, sizeof source, sources[1], file);
         snprintf(cmd, sizeof cmd,
-                 "LD_LIBRARY_PATH='%s/usr/lib' timeout 120 '%s/client_example' '%s' 0.001 2>&1", root,
+                 "LD_LIBRARY_PATH='%s/usr/lib' timeout 120 '%s/client_example' '%s' 0.0001 2>&1", root,
                  dir, source);
         run_ok(cmd, out, sizeof out);
         if (strncmp(out, want_model, strlen(want_model)) != 0 || !strstr(out, want_view))

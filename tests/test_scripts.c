@@ -18,7 +18,7 @@
 static const char *const SCRIPTS[] = {
     "attack",       "bake-gallery", "bench",       "bench-apo",    "bench-apo-bake", "bench-bake", "bench-browser",
     "bench-bake-scale", "bench-client", "bench-client-scale", "bench-codec", "bench-collection",  "bench-codec-peer", "bench-limits", "bench-read", "bench-scene-link", "bench-scenes", "bench-serve",
-    "bench-valence", "bench-viewer", "cluster",    "demo",         "fetch-models",   "install-deps",   "run-tests",
+    "bench-valence", "bench-viewer", "cluster",    "demo",         "fetch-models",   "fuzz-seeds",     "install-deps",   "run-tests",
     "screenshots",  "study",
 };
 

@@ -66,9 +66,8 @@ static double cpu_lap(unsigned long long *mark)
 }
 
 /* Rounds of selection in one pass at most: a round that changed the view is
- * selected again, since a cell's true error is known only once it is decoded
- * (ms_view_select refines one that is above its tolerance), so the pass's
- * plan and its "complete" are those of the decoded view. */
+ * selected again (a split shows children no round has selected yet), so the
+ * pass's plan and its "complete" are those of the view it leaves. */
 #define SELECT_ROUNDS 4
 
 /* Selects the cells for the camera, refines and splits in waves on the pool

@@ -78,7 +78,7 @@ ms_status ms_subtree_blob_read(const char *where, const ms_archive_header *h, un
         t = ms_get_u32(head + 16);
         uint64_t m_cap = max_members(h, levels, id == 0);
         uint64_t t_cap = m * (uint64_t)(h->bits + 1 + 2 * MS_ARCHIVE_MAX_APO_LEVELS +
-                                          (h->has_colour ? h->bits + 2 : 0));
+                                          (h->has_colour ? h->bits + 2 : 0) + (h->bits + 4) / 4);
         if (t_cap > h->table_words)
             t_cap = h->table_words;
         if (memcmp(head, MS_SUBTREE_MAGIC, 4) != 0)

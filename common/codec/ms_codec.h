@@ -111,8 +111,10 @@ typedef struct ms_codec_region {
 /* Points on a model's surface with normals, what a surface error is measured
  * against (ms_codec_encode_params.truth): n points, positions 3 doubles each
  * in grid units (a vertex of full-precision kd-cell c stands at c + 0.5),
- * normals 3 floats each, area-weighted (their lengths weigh them). Owned by
- * the struct; release with ms_codec_truth_free. */
+ * normals 3 floats each, area-weighted (their lengths weigh them); a zero
+ * normal marks a sharp point (a corner, a crease, a lone vertex), whose whole
+ * distance from its drawn point counts. Owned by the struct; release with
+ * ms_codec_truth_free. */
 typedef struct ms_codec_truth {
     size_t n;
     double *positions;
@@ -169,8 +171,10 @@ typedef struct ms_codec_encode_params {
     const ms_codec_truth *truth;
     /* Optional: receives what a parent stream measures against in place of the
      * points this one stands for: per vertex of the start state, the two of
-     * them farthest apart along their summed normal, each with half of it, in
-     * this stream's grid units (ms_codec_truth_free). */
+     * them farthest apart along their summed normal, sharing it, and of its
+     * sharp ones (a corner or a crease: a zero normal) the two farthest apart
+     * along their widest axis, in this stream's grid units
+     * (ms_codec_truth_free). */
     ms_codec_truth *summary;
 } ms_codec_encode_params;
 

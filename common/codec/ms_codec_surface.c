@@ -19,6 +19,12 @@
  * cluster is no surface patch with one normal, and the whole distance of each
  * point from the drawn point counts. */
 #define COHERENT_NORMALS 0.5
+/* Below this coherence of its own faces' normals a vertex is sharp (a corner,
+ * or on a crease that turns the surface by more than about 80 degrees: two
+ * equal faces 83 degrees apart have 0.75): moved along any one of its
+ * faces it leaves another, so its whole distance counts, and it carries a zero
+ * normal to say so (a lone vertex, with no faces, is sharp too). */
+#define SHARP_VERTEX 0.75
 
 void ms_codec_truth_free(ms_codec_truth *t)
 {
@@ -41,12 +47,13 @@ static ms_status truth_alloc(ms_codec_truth *t, size_t n, ms_error *err)
 }
 
 /* The vertices of a full-precision complex as points (their cells' centres)
- * with area-weighted normals, in the complex's (sorted) vertex order. */
+ * with area-weighted normals (0 for a sharp vertex), in the complex's (sorted)
+ * vertex order. */
 static ms_status state_points(const ms_codec_state *full, ms_codec_truth *t, ms_error *err)
 {
     size_t n = full->vertex_count;
     ms_status s = truth_alloc(t, n, err);
-    double *acc = s == MS_OK ? calloc(3 * (n ? n : 1), sizeof *acc) : NULL;
+    double *acc = s == MS_OK ? calloc(4 * (n ? n : 1), sizeof *acc) : NULL; /* normal, lengths */
     if (s == MS_OK && !acc) {
         ms_codec_truth_free(t);
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory measuring the surface error");
@@ -68,12 +75,19 @@ static ms_status state_points(const ms_codec_state *full, ms_codec_truth *t, ms_
             u[a] = p1[a] - p0[a], v[a] = p2[a] - p0[a];
         /* twice the area times the unit normal: area-weighted */
         double cross[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};
-        for (int j = 0; j < 3; ++j)
+        double length = sqrt(cross[0] * cross[0] + cross[1] * cross[1] + cross[2] * cross[2]);
+        for (int j = 0; j < 3; ++j) {
             for (int a = 0; a < 3; ++a)
-                acc[3 * tri[j] + a] += cross[a];
+                acc[4 * tri[j] + a] += cross[a];
+            acc[4 * tri[j] + 3] += length;
+        }
     }
-    for (size_t i = 0; i < 3 * n; ++i)
-        t->normals[i] = (float)acc[i];
+    for (size_t i = 0; i < n; ++i) {
+        const double *x = acc + 4 * i;
+        bool sharp = !(sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]) >= SHARP_VERTEX * x[3]) || x[3] == 0;
+        for (int a = 0; a < 3; ++a)
+            t->normals[3 * i + a] = sharp ? 0.0f : (float)x[a];
+    }
     free(acc);
     return MS_OK;
 }
@@ -167,6 +181,11 @@ static bool cluster_normal(const float *normals, size_t first, size_t end, doubl
     return lengths > 0 && *length >= COHERENT_NORMALS * lengths;
 }
 
+static bool sharp_point(const float *normal)
+{
+    return normal[0] == 0 && normal[1] == 0 && normal[2] == 0;
+}
+
 /* The error of one cluster: points [first, end) drawn at twice-point rep2. */
 static double cluster_error(const ms_codec_truth *t, size_t first, size_t end, const int32_t rep2[4])
 {
@@ -178,8 +197,9 @@ static double cluster_error(const ms_codec_truth *t, size_t first, size_t end, c
         double d[3];
         for (int a = 0; a < 3; ++a)
             d[a] = p[a] - 0.5 * rep2[a];
-        double e = patch ? fabs(d[0] * sum[0] + d[1] * sum[1] + d[2] * sum[2]) / length
-                         : sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+        double e = patch && !sharp_point(t->normals + 3 * i)
+                       ? fabs(d[0] * sum[0] + d[1] * sum[1] + d[2] * sum[2]) / length
+                       : sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
         if (e > worst)
             worst = e;
     }
@@ -225,10 +245,34 @@ ms_status ms_surface_measure(ms_codec_decoder *d, const ms_surface_truth *truth,
     return MS_OK;
 }
 
+/* The points of [first, end) (only the sharp ones, or every one) lowest and
+ * highest along dir, into pick: how many (0 when there is none, 1 when they
+ * are the same point). */
+static int extremes(const ms_codec_truth *t, size_t first, size_t end, const double dir[3], bool sharp_only,
+                    size_t pick[2])
+{
+    size_t lo = end, hi = end;
+    double lo_v = INFINITY, hi_v = -INFINITY;
+    for (size_t j = first; j < end; ++j) {
+        if (sharp_only && !sharp_point(t->normals + 3 * j))
+            continue;
+        const double *p = t->positions + 3 * j;
+        double v = p[0] * dir[0] + p[1] * dir[1] + p[2] * dir[2];
+        if (v < lo_v)
+            lo_v = v, lo = j;
+        if (v > hi_v)
+            hi_v = v, hi = j;
+    }
+    if (lo == end)
+        return 0;
+    pick[0] = lo, pick[1] = hi;
+    return lo == hi ? 1 : 2;
+}
+
 ms_status ms_surface_summary(const ms_surface_truth *truth, const ms_codec_state *start, ms_codec_truth *out,
                              ms_error *err)
 {
-    ms_status s = truth_alloc(out, 2 * start->vertex_count, err);
+    ms_status s = truth_alloc(out, 4 * start->vertex_count, err);
     if (s != MS_OK)
         return s;
     const ms_codec_truth *t = &truth->points;
@@ -246,26 +290,30 @@ ms_status ms_surface_summary(const ms_surface_truth *truth, const ms_codec_state
         double sum[3], length;
         bool patch = cluster_normal(t->normals, first, i, sum, &length);
         /* the extremes along the summed normal (along x for the two sides of a
-         * sheet), each carrying half of it */
+         * sheet), sharing it */
         double dir[3] = {1, 0, 0};
         if (patch)
             for (int a = 0; a < 3; ++a)
                 dir[a] = sum[a] / length;
-        size_t lo = first, hi = first;
-        double lo_v = INFINITY, hi_v = -INFINITY;
-        for (size_t j = first; j < i; ++j) {
-            const double *p = t->positions + 3 * j;
-            double v = p[0] * dir[0] + p[1] * dir[1] + p[2] * dir[2];
-            if (v < lo_v)
-                lo_v = v, lo = j;
-            if (v > hi_v)
-                hi_v = v, hi = j;
-        }
-        size_t pick[2] = {lo, hi};
-        for (int m = 0; m < 2; ++m, ++w) {
+        size_t pick[4];
+        int picked = extremes(t, first, i, dir, false, pick);
+        for (int m = 0; m < picked; ++m, ++w) {
             memcpy(out->positions + 3 * w, t->positions + 3 * pick[m], 3 * sizeof *out->positions);
             for (int a = 0; a < 3; ++a)
-                out->normals[3 * w + a] = (float)(0.5 * sum[a]);
+                out->normals[3 * w + a] = (float)(sum[a] / picked);
+        }
+        /* and its sharp points' extremes along their widest axis, sharp still */
+        double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+        for (size_t j = first; j < i; ++j)
+            for (int a = 0; a < 3 && sharp_point(t->normals + 3 * j); ++a)
+                lo[a] = fmin(lo[a], t->positions[3 * j + a]), hi[a] = fmax(hi[a], t->positions[3 * j + a]);
+        int axis = hi[1] - lo[1] > hi[0] - lo[0] ? 1 : 0;
+        axis = hi[2] - lo[2] > hi[axis] - lo[axis] ? 2 : axis;
+        double along[3] = {axis == 0, axis == 1, axis == 2};
+        picked = extremes(t, first, i, along, true, pick);
+        for (int m = 0; m < picked; ++m, ++w) {
+            memcpy(out->positions + 3 * w, t->positions + 3 * pick[m], 3 * sizeof *out->positions);
+            memset(out->normals + 3 * w, 0, 3 * sizeof *out->normals);
         }
     }
     out->n = w;

@@ -383,7 +383,7 @@ static void handle_open_model(ms_serve_conn *c, uint32_t id, const ms_proto_open
     size_t wire_size = index_size;
     mo->index_size = (uint32_t)index_size;
     mo->index_crc32 = m->index_crc32;
-    mo->archive_version = MS_ARCHIVE_BLOB_VERSION; /* the blob, not the file: always 1 */
+    mo->archive_version = MS_ARCHIVE_BLOB_VERSION; /* the blob's own version, not the file's */
     if ((c->capabilities & MS_PROTO_CAP_INDEX_SUBTREES) && m->index_head) {
         wire = m->index_head;
         wire_size = m->index_head_size;

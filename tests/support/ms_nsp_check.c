@@ -403,7 +403,8 @@ static unsigned shown_levels(ms_view *v, unsigned levels[64], ms_nsp_view_check 
 
 /* The crack criterion: each boundary edge of the stitched triangles st (nbe
  * of them, be / be_tri) must be a boundary edge of q coarsened to one of the
- * shown levels, or a fold; the others count as cracks in r. */
+ * shown levels, the image of one of q's boundary edges with its two ends at
+ * their own levels, or a fold; the others count as cracks in r. */
 static void count_cracks(const ms_qmesh *q, const uint64_t *st, const uint64_t *be,
                          const uint32_t *be_tri, size_t nbe, const unsigned *levels, unsigned nl,
                          const uint64_t *ref, size_t nref, const uint32_t *mult, unsigned D,
@@ -441,6 +442,26 @@ static void count_cracks(const ms_qmesh *q, const uint64_t *st, const uint64_t *
         free(ut);
         ms_codec_state_free(&u);
     }
+    /* The image of one of the model's own boundary edges, its ends rounded to
+     * their two levels: the rim of a hole or a border that one of those
+     * levels alone closes (a hole smaller than its cells), so no uniform
+     * level has it, though the mixed image rightly does. */
+    uint64_t *ft = malloc((3 * fullst.tri_count + 3) * sizeof *ft), *fb;
+    assert_non_null(ft);
+    for (size_t t = 0; t < 3 * fullst.tri_count; ++t)
+        ft[t] = fullst.cells[fullst.tris[t]];
+    size_t nfb = boundary_pairs(ft, fullst.tri_count, &fb);
+    free(ft);
+    for (size_t e = 0; e < nbe; ++e) {
+        unsigned la = vid_level(D, be[2 * e]), lb = vid_level(D, be[2 * e + 1]);
+        uint64_t a = vid_aligned(D, be[2 * e]), b = vid_aligned(D, be[2 * e + 1]);
+        for (size_t k = 0; !ok[e] && k < nfb; ++k) {
+            uint64_t u = fb[2 * k], w = fb[2 * k + 1];
+            ok[e] = ((u >> (D - la)) == (a >> (D - la)) && (w >> (D - lb)) == (b >> (D - lb))) ||
+                    ((w >> (D - la)) == (a >> (D - la)) && (u >> (D - lb)) == (b >> (D - lb)));
+        }
+    }
+    free(fb);
     for (size_t e = 0; e < nbe; ++e) {
         if (ok[e])
             continue;
