@@ -13,6 +13,7 @@
 
 #include "ms_codec_internal.h"
 #include "ms_complex.h"
+#include "ms_radix_sort.h"
 
 /* Below this coherence (the length of the summed normals over the sum of
  * their lengths: 1 for a flat patch, 0 for the two sides of a thin sheet) a
@@ -92,49 +93,41 @@ static ms_status state_points(const ms_codec_state *full, ms_codec_truth *t, ms_
     return MS_OK;
 }
 
-typedef struct keyed {
-    uint64_t key;
-    size_t index;
-} keyed;
-
-static int keyed_order(const void *a, const void *b)
-{
-    const keyed *x = a, *y = b;
-    if (x->key != y->key)
-        return x->key < y->key ? -1 : 1;
-    return x->index < y->index ? -1 : x->index > y->index;
-}
-
 /* The given points in key order at `bits` (positions outside the grid count at
- * its border), with their keys. */
+ * its border), with their keys; equal keys keep their given order. */
 static ms_status sorted_points(const ms_codec_truth *in, unsigned bits, ms_codec_truth *out,
                                uint64_t **keys, ms_error *err)
 {
     size_t n = in->n;
-    keyed *order = malloc((n ? n : 1) * sizeof *order);
+    if (n > UINT32_MAX)
+        return ms_error_set(err, MS_ERR_RANGE, "%zu points to measure a surface error against", n);
+    uint32_t *order = malloc((n ? n : 1) * sizeof *order);
     *keys = malloc((n ? n : 1) * sizeof **keys);
     ms_status s = order && *keys ? truth_alloc(out, n, err)
                                  : ms_error_set(err, MS_ERR_NOMEM, "out of memory measuring the surface error");
-    if (s != MS_OK) {
-        free(order);
-        free(*keys);
-        *keys = NULL;
-        return s;
-    }
     double top = ldexp(1.0, (int)bits) - 1;
-    for (size_t i = 0; i < n; ++i) {
+    for (size_t i = 0; s == MS_OK && i < n; ++i) {
         uint32_t c[3];
         for (int a = 0; a < 3; ++a) {
             double x = floor(in->positions[3 * i + a]);
             c[a] = (uint32_t)(x < 0 ? 0 : x > top ? top : x);
         }
-        order[i] = (keyed){ms_quant_key(c[0], c[1], c[2], bits), i};
+        (*keys)[i] = ms_quant_key(c[0], c[1], c[2], bits);
+        order[i] = (uint32_t)i;
     }
-    qsort(order, n, sizeof *order, keyed_order);
+    if (s == MS_OK)
+        s = ms_radix_sort_pairs(*keys, order, n, bits ? 3 * bits : 1, err);
+    if (s != MS_OK) {
+        if (order && *keys)
+            ms_codec_truth_free(out);
+        free(order);
+        free(*keys);
+        *keys = NULL;
+        return s;
+    }
     for (size_t i = 0; i < n; ++i) {
-        (*keys)[i] = order[i].key;
-        memcpy(out->positions + 3 * i, in->positions + 3 * order[i].index, 3 * sizeof *out->positions);
-        memcpy(out->normals + 3 * i, in->normals + 3 * order[i].index, 3 * sizeof *out->normals);
+        memcpy(out->positions + 3 * i, in->positions + 3 * (size_t)order[i], 3 * sizeof *out->positions);
+        memcpy(out->normals + 3 * i, in->normals + 3 * (size_t)order[i], 3 * sizeof *out->normals);
     }
     free(order);
     return MS_OK;
