@@ -14,6 +14,7 @@
 
 #include "ms_archive.h"
 #include "ms_archive_writer.h"
+#include "ms_codec.h"
 #include "ms_test.h"
 #include "ms_test_archive.h"
 
@@ -161,6 +162,46 @@ static void test_every_header_byte_flip_rejected(void **state)
         data[i] ^= 0x10;
     }
     free(data);
+}
+
+/* The archive with header bytes 122 (smoothing rounds) and 123 (below which
+ * bit) set and its header CRC made right, written to DIR/smooth.msa. */
+static const char *with_smoothing(const fixture *f, uint8_t rounds, uint8_t bits, char *path, size_t size)
+{
+    size_t n;
+    uint8_t *data = ms_test_read_file(f->path, &n);
+    data[122] = rounds, data[123] = bits;
+    uint32_t crc = (uint32_t)crc32(0L, data, 124);
+    for (int i = 0; i < 4; ++i)
+        data[124 + i] = (uint8_t)(crc >> (8 * i));
+    snprintf(path, size, "%s/smooth.msa", f->dir);
+    ms_test_write_file(path, data, n);
+    free(data);
+    return path;
+}
+
+/* The smoothing fields (docs/ARCHIVE.md, header bytes 122 and 123): read as
+ * written, none by default; more rounds than the codec's maximum, rounds
+ * without a precision or the reverse, and a precision beyond p refused. */
+static void test_smoothing_fields(void **state)
+{
+    fixture *f = *state;
+    ms_archive *a;
+    ms_error err;
+    assert_int_equal(ms_archive_open(f->path, &a, &err), MS_OK);
+    assert_int_equal(ms_archive_get_header(a)->smooth_rounds, 0);
+    assert_int_equal(ms_archive_get_header(a)->smooth_bits, 0);
+    ms_archive_close(a);
+    char path[700];
+    assert_int_equal(ms_archive_open(with_smoothing(f, 3, 10, path, sizeof path), &a, &err), MS_OK);
+    assert_int_equal(ms_archive_get_header(a)->smooth_rounds, 3);
+    assert_int_equal(ms_archive_get_header(a)->smooth_bits, 10);
+    ms_archive_close(a);
+    expect_open_fails(with_smoothing(f, MS_CODEC_SMOOTH_ROUNDS_MAX + 1, 10, path, sizeof path), MS_ERR_RANGE,
+                      "smoothing 9 rounds below 10 bits");
+    expect_open_fails(with_smoothing(f, 3, 0, path, sizeof path), MS_ERR_RANGE, "smoothing 3 rounds below 0");
+    expect_open_fails(with_smoothing(f, 0, 5, path, sizeof path), MS_ERR_RANGE, "smoothing 0 rounds below 5");
+    expect_open_fails(with_smoothing(f, 3, 13, path, sizeof path), MS_ERR_RANGE, "below 1..12");
 }
 
 static void test_index_damage_and_truncation(void **state)
@@ -525,6 +566,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test_setup_teardown(test_roundtrip, setup, teardown),
         cmocka_unit_test_setup_teardown(test_every_header_byte_flip_rejected, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_smoothing_fields, setup, teardown),
         cmocka_unit_test_setup_teardown(test_index_damage_and_truncation, setup, teardown),
         cmocka_unit_test_setup_teardown(test_payload_damage_found_by_verify, setup, teardown),
         cmocka_unit_test_setup_teardown(test_structural_lies_rejected, setup, teardown),

@@ -8,7 +8,9 @@
  *     descendant's height), far below the half-diagonal;
  *   - the same square folded at a right angle: the vertices on the fold are
  *     sharp, so theirs is the whole distance again;
- *   - the summary a parent measures against: per start vertex its extremes.
+ *   - the summary a parent measures against: per start vertex its extremes;
+ *   - with smoothing (docs/CODEC.md §4.4): the cube's corners measured from
+ *     the points a client draws, the decoded state smoothed.
  * Exact at full precision: 0. */
 #include <math.h>
 #include <setjmp.h>
@@ -26,8 +28,11 @@
 #define BITS 10u
 
 /* Measures mesh's surface error at every bit (errors[BITS + 1], grid units),
- * geometry ahead 3 kd-levels as the bake draws; *summary when not NULL. */
-static void measure(const ms_mesh *mesh, double *errors, ms_codec_truth *summary)
+ * geometry ahead 3 kd-levels as the bake draws, smoothed by `rounds` below full
+ * precision; *summary when not NULL; the stream into *stream (the caller
+ * frees it) and the quantised mesh into *qm when not NULL. */
+static void measure_smoothed(const ms_mesh *mesh, unsigned rounds, double *errors, ms_codec_truth *summary,
+                             uint8_t **stream, size_t *stream_size, ms_qmesh *qm)
 {
     ms_error err;
     ms_qmesh q;
@@ -42,6 +47,8 @@ static void measure(const ms_mesh *mesh, double *errors, ms_codec_truth *summary
     par.ahead = 3;
     par.surface_error = errors;
     par.summary = summary;
+    par.smooth_rounds = rounds;
+    par.smooth_level = 3 * BITS;
     uint8_t *buf = NULL;
     size_t size = 0;
     ms_codec_state start;
@@ -49,9 +56,20 @@ static void measure(const ms_mesh *mesh, double *errors, ms_codec_truth *summary
         fail_msg("%s", err.text);
     if (summary)
         ms_codec_state_free(&start);
-    free(buf);
+    if (stream)
+        *stream = buf, *stream_size = size;
+    else
+        free(buf);
     ms_codec_state_free(&full);
-    ms_qmesh_free(&q);
+    if (qm)
+        *qm = q;
+    else
+        ms_qmesh_free(&q);
+}
+
+static void measure(const ms_mesh *mesh, double *errors, ms_codec_truth *summary)
+{
+    measure_smoothed(mesh, 0, errors, summary, NULL, NULL, NULL);
 }
 
 static void add_vertex(ms_mesh *m, double x, double y, double z)
@@ -66,19 +84,24 @@ static void add_triangle(ms_mesh *m, uint32_t a, uint32_t b, uint32_t c)
     t[0] = a, t[1] = b, t[2] = c;
 }
 
+static void unit_cube(ms_mesh *m)
+{
+    memset(m, 0, sizeof *m);
+    ms_error err;
+    assert_int_equal(ms_mesh_reserve(m, 8, 12, &err), MS_OK);
+    for (int v = 0; v < 8; ++v)
+        add_vertex(m, v & 1, (v >> 1) & 1, (v >> 2) & 1);
+    static const uint32_t faces[12][3] = {{0, 2, 1}, {1, 2, 3}, {4, 5, 6}, {5, 7, 6}, {0, 1, 4}, {1, 5, 4},
+                                          {2, 6, 3}, {3, 6, 7}, {0, 4, 2}, {2, 4, 6}, {1, 3, 5}, {3, 7, 5}};
+    for (int f = 0; f < 12; ++f)
+        add_triangle(m, faces[f][0], faces[f][1], faces[f][2]);
+}
+
 static void test_cube_corners(void **state)
 {
     (void)state;
     ms_mesh m;
-    memset(&m, 0, sizeof m);
-    ms_error err;
-    assert_int_equal(ms_mesh_reserve(&m, 8, 12, &err), MS_OK);
-    for (int v = 0; v < 8; ++v)
-        add_vertex(&m, v & 1, (v >> 1) & 1, (v >> 2) & 1);
-    static const uint32_t faces[12][3] = {{0, 2, 1}, {1, 2, 3}, {4, 5, 6}, {5, 7, 6}, {0, 1, 4}, {1, 5, 4},
-                                          {2, 6, 3}, {3, 6, 7}, {0, 4, 2}, {2, 4, 6}, {1, 3, 5}, {3, 7, 5}};
-    for (int f = 0; f < 12; ++f)
-        add_triangle(&m, faces[f][0], faces[f][1], faces[f][2]);
+    unit_cube(&m);
     double errors[BITS + 1];
     measure(&m, errors, NULL);
     /* a corner's grid point is 0.5 inside its extreme cell; the descendant a
@@ -88,6 +111,69 @@ static void test_cube_corners(void **state)
     /* a bit short, geometry ahead knows the grid point itself */
     assert_float_equal(errors[BITS - 1], 0.0, 0.0);
     assert_float_equal(errors[BITS], 0.0, 0.0);
+    ms_mesh_free(&m);
+}
+
+/* The cube smoothed (3 rounds below full precision): each corner is sharp and
+ * alone in its kd-cell, so the error is the largest whole distance from a
+ * corner to the point drawn for it, here worked out from the stream decoded
+ * at every bit and its state smoothed as a client does. */
+static void test_smoothed_cube_corners(void **state)
+{
+    (void)state;
+    ms_mesh m;
+    unit_cube(&m);
+    double plain[BITS + 1], smoothed[BITS + 1];
+    measure(&m, plain, NULL);
+    uint8_t *stream;
+    size_t size;
+    ms_qmesh q;
+    measure_smoothed(&m, 3, smoothed, NULL, &stream, &size, &q);
+    ms_codec_decoder *d;
+    ms_error err;
+    assert_int_equal(ms_codec_decoder_create(stream, size, NULL, NULL, &d, &err), MS_OK);
+    for (unsigned b = 1; b < BITS; ++b) {
+        assert_int_equal(ms_codec_decoder_set_level(d, 3 * b, &err), MS_OK);
+        ms_codec_state st;
+        assert_int_equal(ms_codec_decoder_state(d, &st, &err), MS_OK);
+        assert_int_equal(ms_codec_state_smooth(&st, 3, &err), MS_OK);
+        assert_int_equal(st.vertex_count, 8);
+        double worst = 0;
+        for (size_t k = 0; k < st.vertex_count; ++k) {
+            uint32_t xyz[3];
+            ms_quant_unkey(st.cells[k] << (3 * BITS - st.level), BITS, xyz);
+            double p[3], best = INFINITY;
+            for (int a = 0; a < 3; ++a)
+                p[a] = xyz[a] + st.rep[3 * k + a] / 65536.0 * (double)(1u << (BITS - b));
+            /* the corner in this kd-cell: the grid point nearest its centre */
+            for (size_t v = 0; v < q.vertex_count; ++v) {
+                double d2 = 0;
+                for (int a = 0; a < 3; ++a) {
+                    double c = q.coords[3 * v + a] + 0.5 - p[a];
+                    d2 += c * c;
+                }
+                if ((ms_quant_key(q.coords[3 * v], q.coords[3 * v + 1], q.coords[3 * v + 2], BITS) >>
+                     (3 * (BITS - b))) == st.cells[k])
+                    best = sqrt(d2);
+            }
+            assert_true(isfinite(best));
+            worst = best > worst ? best : worst;
+        }
+        assert_float_equal(smoothed[b], worst, 1e-9);
+        print_message("bit %u: %.3f plain, %.3f smoothed\n", b, plain[b], smoothed[b]);
+        /* bits 1 and 2: lambda's pull wins, the corner is drawn farther in;
+         * from bit 3 mu's push takes it to its cell's outer corner, half a
+         * grid cell from the vertex's point on every axis */
+        if (b < 3)
+            assert_true(smoothed[b] > plain[b]);
+        else
+            assert_float_equal(smoothed[b], 0.5 * sqrt(3.0), 1e-9);
+        ms_codec_state_free(&st);
+    }
+    assert_float_equal(smoothed[BITS], 0.0, 0.0);
+    ms_codec_decoder_destroy(d);
+    free(stream);
+    ms_qmesh_free(&q);
     ms_mesh_free(&m);
 }
 
@@ -172,6 +258,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_cube_corners),
+        cmocka_unit_test(test_smoothed_cube_corners),
         cmocka_unit_test(test_flat_and_folded),
         cmocka_unit_test(test_summary),
     };

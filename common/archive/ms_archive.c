@@ -3,6 +3,7 @@
 #include "ms_archive.h"
 #include "ms_input_file.h"
 #include "ms_archive_internal.h"
+#include "ms_codec.h"
 #include "ms_subtree.h"
 
 #include <errno.h>
@@ -53,7 +54,7 @@ static unsigned log2_exact(unsigned n)
 
 /* --- Encoding (used by the writer) ---------------------------------------- */
 
-/* The fields every header shares (docs/ARCHIVE.md), bytes 112..123 zero and
+/* The fields every header shares (docs/ARCHIVE.md), bytes 112..121 zero and
  * no header CRC yet. */
 static void encode_common(const ms_archive_header *h, uint32_t version, uint64_t index_size,
                           uint64_t payload_size, uint64_t file_size, uint32_t index_crc,
@@ -83,6 +84,7 @@ static void encode_common(const ms_archive_header *h, uint32_t version, uint64_t
     out[106] = h->has_colour ? h->colour_bits : 0;
     out[107] = h->has_colour && h->colour_alpha ? 1 : 0;
     ms_put_u32(out + 108, index_crc);
+    out[122] = h->smooth_rounds, out[123] = h->smooth_rounds ? h->smooth_bits : 0;
 }
 
 void ms_archive_encode_blob_header(const ms_archive_header *h, uint64_t index_size,
@@ -198,11 +200,11 @@ ms_status ms_archive_parse_header(const char *path, const uint8_t *p, size_t siz
     bool subtrees = kind != MS_HEADER_BLOB;
     if ((uint32_t)crc32(0L, p, 124) != ms_get_u32(p + 124))
         return ms_error_set(err, MS_ERR_CORRUPT, "%s: header checksum mismatch", path);
-    /* A blob reserves bytes 112..123; a file or head stores there the index's
+    /* A blob reserves bytes 112..121; a file or head stores there the index's
      * stored size (112..115), the subtree count (116..119), the encoding (120)
-     * and S (121). */
-    const uint8_t *reserved_tail = p + (subtrees ? 122 : 112);
-    size_t reserved_tail_size = subtrees ? 2 : 12;
+     * and S (121). Bytes 122 and 123: the smoothing, in every kind. */
+    const uint8_t *reserved_tail = p + 112;
+    size_t reserved_tail_size = subtrees ? 0 : 10;
     if (ms_get_u32(p + 12) != MS_ARCHIVE_HEADER_SIZE ||
         !all_zero(reserved_tail, reserved_tail_size) || (p[51] & ~3u))
         return ms_error_set(err, MS_ERR_FORMAT, "%s: bad header size or reserved bytes", path);
@@ -229,6 +231,7 @@ ms_status ms_archive_parse_header(const char *path, const uint8_t *p, size_t siz
     h->file_size = ms_get_u64(p + 96);
     h->apo_lead = p[104];
     h->apo_max_depth = p[105];
+    h->smooth_rounds = p[122], h->smooth_bits = p[123];
     ms_status colour = ms_archive_check_colour_header(path, p, h, err);
     if (colour != MS_OK)
         return colour;
@@ -254,6 +257,10 @@ ms_status ms_archive_parse_header(const char *path, const uint8_t *p, size_t siz
     if (h->root_bits < 1 || h->root_bits > h->bits)
         return ms_error_set(err, MS_ERR_RANGE, "%s: root bits %u outside 1..%u", path,
                             h->root_bits, h->bits);
+    if (h->smooth_rounds > MS_CODEC_SMOOTH_ROUNDS_MAX || (h->smooth_rounds == 0) != (h->smooth_bits == 0) ||
+        h->smooth_bits > h->bits)
+        return ms_error_set(err, MS_ERR_RANGE, "%s: smoothing %u rounds below %u bits (1..%u below 1..%u, "
+                            "or none)", path, h->smooth_rounds, h->smooth_bits, MS_CODEC_SMOOTH_ROUNDS_MAX, h->bits);
     if (h->cell_count < 1 || h->cell_count > MS_ARCHIVE_MAX_CELLS)
         return ms_error_set(err, MS_ERR_RANGE, "%s: %u cells outside 1..%u", path, h->cell_count,
                             MS_ARCHIVE_MAX_CELLS);

@@ -56,6 +56,13 @@ typedef struct ms_archive_header {
     bool has_colour;
     uint8_t colour_bits;   /* 1..8 bits per channel with colour, else 0 */
     bool colour_alpha;     /* the colour streams code alpha */
+    /* How a client draws a coarse vertex (docs/CODEC.md §4.4): at a precision
+     * below smooth_bits, at its point after smooth_rounds rounds of
+     * ms_codec_state_smooth over its cell's complex; both 0: no smoothing
+     * (bytes 122 and 123; rounds 1..MS_CODEC_SMOOTH_ROUNDS_MAX with bits in
+     * 1..bits, else both 0). The error tables measure those points. */
+    uint8_t smooth_rounds;
+    uint8_t smooth_bits;
     uint32_t cell_count;
     uint32_t table_words;
     uint32_t min_triangles; /* N_min used by the baker */

@@ -543,6 +543,7 @@ ms_status ms_view_cell_state_copy(const ms_view *v, uint32_t cell, ms_codec_stat
     const ms_codec_state *st = &c->start;
     *out = *st;
     out->bound = NULL; /* not the start state's to share */
+    out->rep = NULL;   /* a window's first level is drawn at its centres (docs/CODEC.md §4.1) */
     out->cells = malloc((st->vertex_count + 1) * sizeof *out->cells);
     out->tris = malloc((3 * st->tri_count + 1) * sizeof *out->tris);
     out->edges = malloc((2 * st->edge_count + 1) * sizeof *out->edges);

@@ -54,8 +54,14 @@ static ms_status refresh_cache(ms_view *v, uint32_t cell, ms_error *err)
         return MS_OK;
     ms_view_cache_drop(c);
     ms_status s = ms_view_cell_state_copy(v, cell, &c->cache, err);
-    if (s != MS_OK)
+    /* below the archive's smoothing precision a vertex is drawn at its
+     * smoothed point (docs/CODEC.md §4.4), never at full precision */
+    if (s == MS_OK && v->header.smooth_rounds > 0 && c->cache.level < 3u * v->header.smooth_bits)
+        s = ms_codec_state_smooth(&c->cache, v->header.smooth_rounds, err);
+    if (s != MS_OK) {
+        ms_view_cache_drop(c);
         return s;
+    }
     size_t n = c->cache.vertex_count;
     c->out_index = malloc((n ? n : 1) * sizeof *c->out_index);
     c->owner = malloc((n ? n : 1) * sizeof *c->owner);

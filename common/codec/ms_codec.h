@@ -84,6 +84,19 @@ void ms_codec_state_free(ms_codec_state *s);
  * edges). */
 ms_status ms_codec_state_from_qmesh(const ms_qmesh *q, ms_codec_state *out, ms_error *err);
 
+/* Smoothing of a coarse state's drawn points (docs/CODEC.md §4.4): `rounds`
+ * rounds of Taubin's lambda|mu smoothing over s's triangles, every point kept
+ * inside its kd-cell, written to s->rep (allocated when NULL, else replaced;
+ * the points start from s->rep, or the centres without it). Exact integer
+ * arithmetic: the result depends on the complex, not on its vertex order.
+ * rounds 0 leaves s as it is. The caller decides where it applies (never at
+ * the model's full precision: that would not be lossless). MS_ERR_ARG for more
+ * than MS_CODEC_SMOOTH_ROUNDS_MAX rounds or a level beyond 3 bits,
+ * MS_ERR_CORRUPT for a triangle naming no vertex, MS_ERR_NOMEM; s is unchanged
+ * on error. Not thread-safe on one state. */
+#define MS_CODEC_SMOOTH_ROUNDS_MAX 8u
+ms_status ms_codec_state_smooth(ms_codec_state *s, unsigned rounds, ms_error *err);
+
 /* Sorts vertices by cell, rotates each triangle to start at its smallest index
  * and sorts triangles and edges, so equal complexes compare equal with memcmp. */
 ms_status ms_codec_state_canonicalise(ms_codec_state *s, ms_error *err);
@@ -165,6 +178,12 @@ typedef struct ms_codec_encode_params {
      * against full itself). Taken by the
      * forward pass, one pass over the points per bit. */
     double *surface_error;
+    /* With surface_error: the smoothing a client draws this stream's vertices
+     * with (ms_codec_state_smooth, smooth_rounds rounds, 0..
+     * MS_CODEC_SMOOTH_ROUNDS_MAX, 0: none) at kd-levels below smooth_level
+     * (the model's, counted from its root like the stream's own), so the
+     * error is measured at the points drawn. */
+    unsigned smooth_rounds, smooth_level;
     /* Optional with surface_error: the points it is measured against instead of
      * `full`'s own vertices (an internal nSP cell's stream, whose vertices are
      * not the model's: its children's summaries), in this stream's grid units. */

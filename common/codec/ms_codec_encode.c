@@ -619,6 +619,9 @@ static ms_status check_params(const ms_codec_state *full, const ms_codec_encode_
         !isfinite(params->box.origin[0]) || !isfinite(params->box.origin[1]) ||
         !isfinite(params->box.origin[2]))
         return ms_error_set(err, MS_ERR_ARG, "encoder box must be finite with a positive size");
+    if (params->smooth_rounds > MS_CODEC_SMOOTH_ROUNDS_MAX)
+        return ms_error_set(err, MS_ERR_ARG, "encoder: %u smoothing rounds, at most %u", params->smooth_rounds,
+                            MS_CODEC_SMOOTH_ROUNDS_MAX);
     return MS_OK;
 }
 
@@ -679,6 +682,8 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
     if (measured && (s = ms_surface_prepare(&canon, params->truth, &truth, err)) != MS_OK)
         goto done;
     truth.error = params->surface_error;
+    truth.smooth_rounds = params->smooth_rounds;
+    truth.smooth_level = params->smooth_level;
     s = ms_codec_run_encoder(&h, pmin == 0 ? NULL : &start, dec, nd, canon.cells, canon.vertex_count,
                              &rc, params->context_counts, params->mesh,
                              params->surface_error ? &truth : NULL, err);

@@ -52,6 +52,9 @@ typedef struct ms_surface_truth {
     const uint64_t *keys;
     uint64_t *keys_owned; /* keys when they are not the complex's own */
     double *error;        /* p_max - p_min + 1 entries, grid units */
+    /* the smoothing a client applies below kd-level smooth_level (rounds 0:
+     * none; ms_codec_encode_params.smooth_rounds) */
+    unsigned smooth_rounds, smooth_level;
 } ms_surface_truth;
 
 /* The encoder's forward pass: runs the decoder from `start` over the window of h,
@@ -172,11 +175,13 @@ uint64_t ms_ahead_parent_mask(uint64_t lo, uint64_t hi, unsigned d, unsigned dc)
 ms_status ms_surface_prepare(const ms_codec_state *canon, const ms_codec_truth *given,
                              ms_surface_truth *truth, ms_error *err);
 void ms_surface_release(ms_surface_truth *truth);
-/* The surface error of what d draws now (at a bit boundary), grid units: over
- * the cells of its own region, the largest distance of a point from its
- * cell's drawn point along the cluster's summed normal, or the whole distance
- * where those normals do not agree on a side. */
-double ms_surface_error(const ms_codec_decoder *d, const ms_surface_truth *truth);
+/* The surface error of what d draws now (at a bit boundary), grid units, into
+ * *error: over the cells of its own region, the largest distance of a point
+ * from its cell's drawn point (smoothed where truth says) along the cluster's
+ * summed normal, or the whole distance where those normals do not agree on a
+ * side. MS_ERR_NOMEM. */
+ms_status ms_surface_error(const ms_codec_decoder *d, const ms_surface_truth *truth, double *error,
+                           ms_error *err);
 /* Runs d (an encoder's forward pass) bit by bit over its window, writing the
  * surface error of each precision to truth->error. */
 ms_status ms_surface_measure(ms_codec_decoder *d, const ms_surface_truth *truth, ms_error *err);

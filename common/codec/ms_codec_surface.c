@@ -179,8 +179,8 @@ static bool sharp_point(const float *normal)
     return normal[0] == 0 && normal[1] == 0 && normal[2] == 0;
 }
 
-/* The error of one cluster: points [first, end) drawn at twice-point rep2. */
-static double cluster_error(const ms_codec_truth *t, size_t first, size_t end, const int32_t rep2[4])
+/* The error of one cluster: points [first, end) drawn at `drawn` (grid units). */
+static double cluster_error(const ms_codec_truth *t, size_t first, size_t end, const double drawn[3])
 {
     double sum[3], length;
     bool patch = cluster_normal(t->normals, first, end, sum, &length);
@@ -189,7 +189,7 @@ static double cluster_error(const ms_codec_truth *t, size_t first, size_t end, c
         const double *p = t->positions + 3 * i;
         double d[3];
         for (int a = 0; a < 3; ++a)
-            d[a] = p[a] - 0.5 * rep2[a];
+            d[a] = p[a] - drawn[a];
         double e = patch && !sharp_point(t->normals + 3 * i)
                        ? fabs(d[0] * sum[0] + d[1] * sum[1] + d[2] * sum[2]) / length
                        : sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
@@ -199,11 +199,55 @@ static double cluster_error(const ms_codec_truth *t, size_t first, size_t end, c
     return worst;
 }
 
-double ms_surface_error(const ms_codec_decoder *d, const ms_surface_truth *truth)
+/* Where a client draws d's vertices now, grid units, 3 per live cell in key
+ * order (d->order): the smoothed points below truth->smooth_level (docs/CODEC.md
+ * §4.4, as ms_codec_state_smooth gives them from the exported state), else the
+ * representative points (twice-points, geometry ahead) or the centres. */
+static ms_status drawn_points(const ms_codec_decoder *d, const ms_surface_truth *truth, double *out,
+                              ms_error *err)
+{
+    const ms_complex *cx = &d->cx;
+    if (!truth->smooth_rounds || d->level >= truth->smooth_level) {
+        int32_t (*at)[4] = cx->rep ? cx->rep : cx->cen;
+        for (uint32_t k = 0; k < d->norder; ++k)
+            for (int a = 0; a < 3; ++a)
+                out[3 * k + a] = 0.5 * at[d->order[k]][a];
+        return MS_OK;
+    }
+    ms_codec_state st;
+    ms_status s = ms_codec_decoder_state(d, &st, err);
+    if (s == MS_OK)
+        s = ms_codec_state_smooth(&st, truth->smooth_rounds, err);
+    if (s != MS_OK) {
+        ms_codec_state_free(&st);
+        return s;
+    }
+    unsigned shift = 3 * st.bits - st.level;
+    for (size_t k = 0; k < st.vertex_count; ++k) {
+        uint32_t xyz[3];
+        ms_quant_unkey(shift >= 64 ? 0 : st.cells[k] << shift, st.bits, xyz);
+        for (int a = 0; a < 3; ++a) {
+            double width = (double)(1u << (st.bits - (st.level + 2u - (unsigned)a) / 3u));
+            out[3 * k + a] = xyz[a] + st.rep[3 * k + a] / 65536.0 * width;
+        }
+    }
+    ms_codec_state_free(&st);
+    return MS_OK;
+}
+
+ms_status ms_surface_error(const ms_codec_decoder *d, const ms_surface_truth *truth, double *error,
+                           ms_error *err)
 {
     const ms_complex *cx = &d->cx;
     const ms_codec_region *region = d->h.has_region ? &d->h.region : NULL;
-    int32_t (*at)[4] = cx->rep ? cx->rep : cx->cen;
+    double *drawn = malloc(3 * (d->norder ? d->norder : 1) * sizeof *drawn);
+    if (!drawn)
+        return ms_error_set(err, MS_ERR_NOMEM, "out of memory measuring the surface error");
+    ms_status st = drawn_points(d, truth, drawn, err);
+    if (st != MS_OK) {
+        free(drawn);
+        return st;
+    }
     unsigned D = 3 * cx->P;
     size_t n = truth->points.n, i = 0;
     double worst = 0;
@@ -220,11 +264,13 @@ double ms_surface_error(const ms_codec_decoder *d, const ms_surface_truth *truth
             ++i;
         if (first == i || (region && cell_outside(cx, region, s)))
             continue; /* a foreign cell is drawn at its owner's point */
-        double e = cluster_error(&truth->points, first, i, at[s]);
+        double e = cluster_error(&truth->points, first, i, drawn + 3 * k);
         if (e > worst)
             worst = e;
     }
-    return worst;
+    free(drawn);
+    *error = worst;
+    return MS_OK;
 }
 
 ms_status ms_surface_measure(ms_codec_decoder *d, const ms_surface_truth *truth, ms_error *err)
@@ -233,7 +279,9 @@ ms_status ms_surface_measure(ms_codec_decoder *d, const ms_surface_truth *truth,
         ms_status s = ms_codec_decoder_set_level(d, L, err);
         if (s != MS_OK)
             return s;
-        truth->error[(L - d->Lmin) / 3] = ms_surface_error(d, truth);
+        s = ms_surface_error(d, truth, &truth->error[(L - d->Lmin) / 3], err);
+        if (s != MS_OK)
+            return s;
     }
     return MS_OK;
 }

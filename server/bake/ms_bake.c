@@ -31,10 +31,25 @@ void ms_bake_options_default(ms_bake_options *o)
     o->mem_mb = 512;
     o->public_bits = -1;
     o->ahead = MS_CODEC_DEFAULT_AHEAD;
+    o->smooth_rounds = MS_BAKE_DEFAULT_SMOOTH_ROUNDS;
     o->thumbnail_up = -1;
     long cpus = sysconf(_SC_NPROCESSORS_ONLN);
     o->threads = cpus > 0 ? (unsigned)cpus : 1;
     ms_bake_apo_params_default(&o->apo);
+}
+
+unsigned ms_bake_smooth_bits(const uint64_t *lone_at_level, unsigned bits)
+{
+    uint64_t total = 0, alone = 0;
+    for (unsigned l = 0; l <= 3 * bits; ++l)
+        total += lone_at_level[l];
+    for (unsigned b = 1, l = 0; total > 0 && b <= bits; ++b) {
+        for (; l <= 3 * b; ++l)
+            alone += lone_at_level[l];
+        if (2 * alone >= total)
+            return b;
+    }
+    return total > 0 ? bits : 0;
 }
 
 size_t ms_bake_min_mem_mb(unsigned threads, uint32_t min_triangles)
@@ -236,6 +251,8 @@ static ms_archive_header archive_header(const ms_bake_options *o, const ms_nsp_b
     h.has_colour = r->colour;
     h.colour_bits = (uint8_t)r->colour_bits;
     h.colour_alpha = r->colour_alpha;
+    h.smooth_bits = o->smooth_rounds ? (uint8_t)ms_bake_smooth_bits(b->stats.lone_at_level, o->bits) : 0;
+    h.smooth_rounds = h.smooth_bits ? (uint8_t)o->smooth_rounds : 0;
     return h;
 }
 
@@ -293,6 +310,8 @@ static ms_status encode_cells(const ms_bake_options *o, ms_nsp_build *b,
         .threads = o->threads ? o->threads : 1,
         .apo = &o->apo,
         .ahead = o->ahead,
+        .smooth_rounds = r->smooth_rounds,
+        .smooth_level = 3 * r->smooth_bits,
         .colours = r->colour ? colours : NULL,
         .colour_bits = r->colour_bits,
         .progress = on_progress,
@@ -429,6 +448,8 @@ ms_status ms_bake(const ms_bake_options *o, ms_bake_report *r, ms_error *err)
     if ((s = order_cells(&b, &order, &first_child, &cell_of_node, err)) != MS_OK)
         goto done;
     ms_archive_header h = archive_header(o, &b, r);
+    r->smooth_rounds = h.smooth_rounds;
+    r->smooth_bits = h.smooth_bits;
     if ((s = ms_archive_writer_open(r->archive_path, &h, first_child, &w, err)) != MS_OK)
         goto done;
     if ((s = ms_archive_writer_set_subtree_levels(w, o->subtree_levels, err)) !=

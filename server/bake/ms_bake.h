@@ -65,6 +65,11 @@ typedef struct ms_bake_options {
     unsigned subtree_levels;  /* levels per index subtree, 1..8; 0: the default for n
                                * (ms_subtree_default_levels) */
     unsigned ahead;        /* geometry ahead of connectivity, kd-levels (ms_codec.h) */
+    /* Rounds of smoothing a client draws the coarse precisions with
+     * (ms_codec_state_smooth; 0..MS_CODEC_SMOOTH_ROUNDS_MAX, 0: none): below
+     * the precision where half the model's vertices are alone in their
+     * kd-cell (ms_bake_smooth_bits) */
+    unsigned smooth_rounds;
     /* Per-vertex colour, when the input has it (ms_bake_colour.h): colour_bits
      * per channel, 1..8 (0: MS_COLOUR_DEFAULT_BITS); no_colour leaves it out. */
     unsigned colour_bits;
@@ -78,14 +83,25 @@ typedef struct ms_bake_options {
 
 /* Defaults: 16 bits, n = 4, p_r = 7, N_min by model size (8000 up to 4 M input
  * triangles: ms_nsp_default_min_triangles), threads = online CPUs, 512 MB,
- * APO on with ms_bake_apo_params_default, geometry ahead by MS_CODEC_DEFAULT_AHEAD. */
+ * APO on with ms_bake_apo_params_default, geometry ahead by MS_CODEC_DEFAULT_AHEAD,
+ * MS_BAKE_DEFAULT_SMOOTH_ROUNDS rounds of smoothing (docs/ACCURACY.md). */
+#define MS_BAKE_DEFAULT_SMOOTH_ROUNDS 3u
 void ms_bake_options_default(ms_bake_options *options);
+
+/* The precision below which a client draws smoothed points: the first bit
+ * 1..bits at which at least half of the model's distinct vertices are alone
+ * in their kd-cell (lone_at_level[l]: how many are first alone at kd-level l,
+ * 0..3 bits; ms_nsp_build_stats). Above it most points stand for themselves
+ * and smoothing would move them off the surface. 0 for a model without
+ * vertices. */
+unsigned ms_bake_smooth_bits(const uint64_t *lone_at_level, unsigned bits);
 
 typedef struct ms_bake_report {
     char name[65];
     char archive_path[4096];
     uint64_t input_vertices, input_triangles;  /* as read (after the reader's cleaning) */
     uint64_t vertices, triangles;              /* welded, quantised */
+    unsigned smooth_rounds, smooth_bits;       /* the archive's smoothing (ms_archive_header) */
     uint64_t leaf_triangles;                   /* over all leaves */
     double duplicated_percent;                 /* (leaf_triangles - triangles) / triangles */
     uint64_t insertion_copies;                 /* ms_nsp_build_stats.insertion_copies */

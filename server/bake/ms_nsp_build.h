@@ -128,6 +128,9 @@ typedef struct ms_nsp_build_stats {
     uint64_t key_page_misses;      /* key-file pages read while distributing */
     ms_nsp_io io_read, io_quantise, io_distribute; /* temporary-file traffic per phase */
     double seconds_read, seconds_quantise, seconds_distribute;
+    /* Filled by ms_nsp_lone_segments: how many of the model's distinct
+     * vertices are first alone in their kd-cell at each kd-level (0..3 p) */
+    uint64_t lone_at_level[3 * MS_CODEC_MAX_BITS + 1];
 } ms_nsp_build_stats;
 
 typedef struct ms_nsp_build {

@@ -475,7 +475,8 @@ static ms_status encode_cell(pool *p, uint32_t node, ms_apo_builder **builder, c
     leaf_mesh_seconds = ms_now_seconds() - leaf_mesh_seconds;
     if (s == MS_OK && st.vertex_count > 0) {
         ms_codec_encode_params ep = {
-            .p_min = lo, .box = b->box, .compact_header = true, .ahead = p->params->ahead};
+            .p_min = lo, .box = b->box, .compact_header = true, .ahead = p->params->ahead,
+            .smooth_rounds = p->params->smooth_rounds, .smooth_level = p->params->smooth_level};
         if (freezing) {
             ep.region = &region;
             ep.freeze_level = freeze;

@@ -46,6 +46,8 @@ typedef struct ms_nsp_encode_params {
     unsigned threads; /* >= 1 */
     const ms_bake_apo_params *apo; /* NULL or not enabled: no APO chunks */
     unsigned ahead;   /* geometry ahead of connectivity, kd-levels (ms_codec.h) */
+    /* the smoothing the error tables measure (ms_codec_encode_params) */
+    unsigned smooth_rounds, smooth_level;
     /* NULL: no colour. Else every cell with vertices gets its colour stream
      * (ms_bake_colour.h) at colour_bits (1..8) per channel. */
     const struct ms_bake_colours *colours;

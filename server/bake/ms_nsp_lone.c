@@ -64,6 +64,7 @@ typedef struct segment_work {
     pthread_mutex_t lock;
     int64_t file_end;
     ms_nsp_io io;
+    uint64_t lone_at_level[3 * MS_CODEC_MAX_BITS + 1];
     bool failed;
     ms_error err;
 } segment_work;
@@ -126,6 +127,10 @@ static ms_status leaf_segment(segment_work *w, uint32_t node, uint64_t *io_read,
         nd->lone_at = at;
         nd->lone_count = (uint32_t)u;
         *io_written += bytes;
+        pthread_mutex_lock(&w->lock);
+        for (size_t i = 0; i < u; ++i)
+            w->lone_at_level[level[i] <= D ? level[i] : D]++;
+        pthread_mutex_unlock(&w->lock);
     }
     free(level);
     free(rec);
@@ -177,6 +182,7 @@ ms_status ms_nsp_lone_segments(ms_nsp_build *b, unsigned threads, ms_nsp_io *io,
     pthread_mutex_destroy(&w.lock);
     free(list);
     *io = w.io;
+    memcpy(b->stats.lone_at_level, w.lone_at_level, sizeof w.lone_at_level);
     if (s == MS_OK && w.failed) {
         *err = w.err;
         s = err->code != MS_OK ? err->code : MS_ERR_IO;
