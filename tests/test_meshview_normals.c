@@ -449,22 +449,25 @@ static void test_flipped_faces_shade_as_consistent_ones(void **state)
     assert_true(fabs(consistent_db - flipped_db) <= 1.0);
 }
 
-/* A scan's coarse levels without geometry ahead (meshbake --ahead 0; with it, a
- * window's last level still): their corners sit at kd-cell centres, so their
+/* A scan's coarse levels without geometry ahead or smoothing (meshbake --ahead 0
+ * --smooth 0; with ahead, a window's last level still): their corners sit at
+ * kd-cell centres, so their
  * triangles' normals are rough and many edges look sharper than the crease
  * angle; the crease test widens the angle by each triangle's slack, so the
  * default draws the dragon at 8 and 16 px as every edge smooth does (without
  * the slack: 3.6 dB lower on the full dragon, voxel steps) and far above
  * flat shading, against meshrender's smooth picture of the full mesh. Then the
- * default bake (geometry ahead: corners at their descendants' barycentres)
- * draws the same cuts better still. */
+ * default bake (geometry ahead: corners at their descendants' barycentres,
+ * smoothed below the precision where half the vertices are alone) draws the
+ * same cuts better still. */
 static void test_coarse_scan_levels_stay_smooth(void **state)
 {
     fixture *f = *state;
     char model[4096], bin[600], command[8192], cam[700], ref[800];
     ms_test_model_path(model, sizeof model, "stanford_dragon_vrip_res3.ply.gz");
     ms_test_bin_path(bin, sizeof bin, "meshbake");
-    snprintf(command, sizeof command, "%s %s -o %s --name scan --no-apo --min-tris 1500 --ahead 0 --json", bin,
+    snprintf(command, sizeof command, "%s %s -o %s --name scan --no-apo --min-tris 1500 --ahead 0 --smooth 0 --json",
+             bin,
              model, f->archives);
     json_decref(ms_test_run_json(command, 0));
     snprintf(command, sizeof command, "%s %s -o %s --name ahead --no-apo --min-tris 1500 --json", bin, model,

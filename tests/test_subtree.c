@@ -674,7 +674,7 @@ static void test_hostile_head(void **state)
         {2, 121, 8, true, MS_ERR_RANGE, "subtree depth 9"},
         {2, 121, 3, true, MS_ERR_FORMAT, "depth 1 in an archive of depth 2"},
         {2, 120, 3, true, MS_ERR_FORMAT, "index encoding 1"},
-        {2, 122, 1, true, MS_ERR_FORMAT, "reserved bytes"},
+        {2, 122, 1, true, MS_ERR_RANGE, "smoothing 1 rounds below 0 bits"}, /* rounds without a precision */
         {2, 118, 1, true, MS_ERR_RANGE, "subtrees outside"},
         {2, 140, 0x33, false, MS_ERR_CORRUPT, "head: subtree 0"},
     };
@@ -826,9 +826,9 @@ static void test_version_3_lies(void **state)
     ms_test_archive_seal(bad);
     expect_file_fails(f, bad, size, MS_ERR_FORMAT, "subtree 0: subtree of depth 1");
     FRESH();
-    bad[122] = 1;
+    bad[122] = 1; /* smoothing rounds without a precision */
     ms_test_archive_seal(bad);
-    expect_file_fails(f, bad, size, MS_ERR_FORMAT, "reserved bytes");
+    expect_file_fails(f, bad, size, MS_ERR_RANGE, "smoothing 1 rounds below 0 bits");
     FRESH();
     bad[128 + 40 + 5] ^= 0x40; /* inside the root subtree's stream */
     ms_status st;

@@ -118,6 +118,7 @@ static void test_bake_renders_and_keeps(void **state)
     assert_string_equal(e->metadata->creator, "M\xc3\xbcller");
     assert_null(e->metadata->licence);
     assert_true(e->has_thumbnail);
+    print_message("full thumbnail at %u bits\n", e->thumbnail_bits);
     assert_true(e->thumbnail_bits > 6);
     assert_int_equal(e->thumbnail_up, 1);
     e = ms_catalog_find(&c, "preview");

@@ -669,6 +669,9 @@ static void print_bake_text(const ms_bake_report *r)
     printf("archive:              %" PRIu64 " bytes, %.2f bits per vertex\n", r->archive_bytes,
            r->bits_per_vertex);
     printf("geometry:             %" PRIu64 " bytes\n", r->geometry_bytes);
+    if (r->smooth_rounds > 0)
+        printf("smoothing:            %u rounds below %u bits (half the vertices alone in their kd-cell)\n",
+               r->smooth_rounds, r->smooth_bits);
     if (r->colour)
         printf("colour:               %" PRIu64 " bytes, %u bits per channel, %s\n", r->colour_bytes,
                r->colour_bits, r->colour_alpha ? "rgba" : "rgb");
