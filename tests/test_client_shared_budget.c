@@ -240,6 +240,32 @@ static void test_shared_budget_favours_near(void **state)
     assert_true(shared[NEAR].stats.achieved_error_px < split[NEAR].stats.achieved_error_px);
 }
 
+/* A budget far below what the two views want (about the far view's whole
+ * need for both): neither model vanishes, each draws at least its root's
+ * coarsest level, and the ceiling still holds. */
+static void test_tight_budget_keeps_both(void **state)
+{
+    (void)state;
+    view_result free_run[2];
+    ms_core_budget *roomy;
+    ms_error err;
+    assert_int_equal(ms_core_budget_new(1ull << 40, 0, &roomy, &err), MS_OK);
+    run_pair(roomy, 0, free_run);
+    ms_core_budget_free(roomy);
+    uint64_t target = free_run[FAR].stats.memory;
+    ms_core_budget *budget;
+    assert_int_equal(ms_core_budget_new(target, 0, &budget, &err), MS_OK);
+    view_result tight[2];
+    uint64_t most = run_pair(budget, 0, tight);
+    print_message("tight %llu B: near %llu B, %llu triangles; far %llu B, %llu triangles; most held %llu\n",
+                  (unsigned long long)target, (unsigned long long)tight[NEAR].stats.memory,
+                  (unsigned long long)tight[NEAR].triangles, (unsigned long long)tight[FAR].stats.memory,
+                  (unsigned long long)tight[FAR].triangles, (unsigned long long)most);
+    ms_core_budget_free(budget);
+    assert_true(tight[NEAR].triangles > 0);
+    assert_true(tight[FAR].triangles > 0);
+}
+
 static void test_bad_budgets(void **state)
 {
     (void)state;
@@ -264,6 +290,7 @@ static void test_bad_budgets(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_tight_budget_keeps_both),
         cmocka_unit_test(test_bad_budgets),
         cmocka_unit_test(test_shared_budget_favours_near),
     };

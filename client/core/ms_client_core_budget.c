@@ -524,6 +524,15 @@ static uint64_t want_bytes(const ms_core *c, const want *w)
            w->decoded_growth;
 }
 
+/* The root's geometry up to MS_ARCHIVE_ROOT_FLOOR_BITS, the model's coarsest
+ * picture: loaded whatever the budget, as the index subtrees are, so that no
+ * model in view vanishes under a tight one. */
+static bool root_floor_want(const ms_core *c, const want *w)
+{
+    return w->cell == 0 && w->stream == STREAM_GEOMETRY && c->index &&
+           w->end <= ms_archive_geometry_prefix(c->index, 0, MS_ARCHIVE_ROOT_FLOOR_BITS);
+}
+
 /* Loading stays under the ceiling; to make room, evicts only cells clearly
  * (one bit) less useful than the one being loaded (candidates from *next on).
  * Returns how many of the pass's wants fit; the first refused one's
@@ -547,9 +556,10 @@ static size_t fit_wants(ms_core *c, dec_pass *pass, const evict_candidate *cand,
     size_t keep = 0;
     for (; keep < pass->wl.n; ++keep) {
         const want *w = &pass->wl.w[keep];
-        if (w->stream == STREAM_INDEX || ms_core_content_want(c, w))
+        if (w->stream == STREAM_INDEX || ms_core_content_want(c, w) || root_floor_want(c, w))
             continue; /* a subtree (the root's first bits) is small, and the cut cannot
-                         refine (the model cannot be placed) without it */
+                         refine (the model cannot be placed) without it; nor can the
+                         model be seen without its root's first bits */
         uint64_t need_bytes = want_bytes(c, w);
         if (planned + need_bytes <= ceiling) {
             planned += need_bytes;

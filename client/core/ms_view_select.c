@@ -31,6 +31,8 @@ static void visit(selection *s, uint32_t id, unsigned depth)
     double distance = ms_camera_box_distance(s->camera, lo, hi);
     double ppu = distance > 0 ? ms_camera_pixels_per_unit(s->camera) / distance : INFINITY;
     double need = ms_archive_bits_needed(h, c, ppu, s->tolerance);
+    if (id == 0 && need < MS_ARCHIVE_ROOT_FLOOR_BITS)
+        need = MS_ARCHIVE_ROOT_FLOOR_BITS; /* a model in view is drawn (ms_archive.h) */
     unsigned bits = c->bits_max;
     if (need < c->bits_max)
         bits = need <= c->bits_min ? c->bits_min : (unsigned)ceil(need);

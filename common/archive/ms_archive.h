@@ -166,6 +166,12 @@ uint32_t ms_archive_geometry_prefix(const ms_archive *archive, uint32_t cell, un
 /* The error of cell record c drawn at `bits` (clamped to its window), world
  * units. Thread-safe. */
 double ms_archive_cell_error(const ms_archive_header *header, const ms_archive_cell *c, unsigned bits);
+/* The root's precision a selection wants at least while the model's box is in
+ * the frustum, whatever the tolerance or a budget's factor: its coarsest
+ * picture (a few dozen vertices, a few hundred bytes), so no model in view
+ * vanishes (a client's budget loads it past its ceiling, as the index). */
+#define MS_ARCHIVE_ROOT_FLOOR_BITS 3u
+
 /* The precision, as a real number of bits, at which c's error seen at
  * px_per_unit pixels per world unit (the camera's pixels per unit over the
  * distance) is tolerance_px: between two bits of its window, where the error

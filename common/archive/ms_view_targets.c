@@ -73,7 +73,8 @@ double ms_view_cell_need(const ms_view *v, const ms_camera *cam, uint32_t cell,
 
 /* The need selection uses: the bits at which the cell's measured error
  * (ms_archive_bits_needed) projects to its tolerance at its box's nearest
- * point; culled cells get theirs less culled_bits_less. */
+ * point, for the root in view at least MS_ARCHIVE_ROOT_FLOOR_BITS; culled
+ * cells get theirs less culled_bits_less. */
 static double select_need(const ms_view *v, const ms_camera *cam, const ms_frustum *f,
                           const ms_view_select_params *p, uint32_t cell, const vcell *c)
 {
@@ -83,6 +84,8 @@ static double select_need(const ms_view *v, const ms_camera *cam, const ms_frust
     double need = ms_archive_bits_needed(&v->header, &c->rec, ppu, cell_tolerance(p, cell, &c->rec));
     if (!ms_frustum_keeps_box(f, lo, hi, p->margin))
         need -= p->culled_bits_less;
+    else if (cell == 0 && need < MS_ARCHIVE_ROOT_FLOOR_BITS)
+        need = MS_ARCHIVE_ROOT_FLOOR_BITS; /* however small or coarse, a model in view is drawn */
     return need;
 }
 
