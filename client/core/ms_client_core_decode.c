@@ -144,6 +144,7 @@ static void dec_step(ms_core *c, chunk_msg *chunks, const ms_camera *cam, uint64
     dec_pass_begin(c, for_content ? &content_camera : cam, &pass);
     pass.apo_on &= !for_content; /* the root's geometry alone */
     pass.for_content = for_content;
+    pass.sp.no_root_floor = for_content; /* the bounds' camera draws for nobody */
     pass.changed = apo_changed;
     w->plan_cpu += cpu_lap(&mark);
     if (!dec_select(c, &pass, &mark))

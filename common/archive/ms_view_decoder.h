@@ -248,11 +248,16 @@ typedef struct ms_view_select_params {
      * Default none. */
     unsigned section_count;
     double sections[MS_SECTIONS_MAX][4];
+    /* false (the default): the root of a model in view is wanted at
+     * MS_ARCHIVE_ROOT_FLOOR_BITS at least, so no model vanishes; true: as its
+     * need says (a client's own passes that only look for the model's
+     * bounds draw nothing for anyone). */
+    bool no_root_floor;
 } ms_view_select_params;
 
 /* 1 pixel, no margin, MS_SELECT_HYSTERESIS_DEFAULT bits of hysteresis, culled cells 2 bits coarser (keeps
  * the precision steps at the frustum border small: see ms_view_stitch), one
- * tolerance for every cell, no sections. */
+ * tolerance for every cell, no sections, the root's floor. */
 void ms_view_select_params_default(ms_view_select_params *params);
 
 /* Real-valued precision (bits) a cell needs for the camera, or -1 when it is

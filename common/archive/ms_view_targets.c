@@ -29,6 +29,7 @@ void ms_view_select_params_default(ms_view_select_params *p)
     p->chunkless_tolerance_scale = 0.0;
     p->permitted_steps = 0;
     p->section_count = 0;
+    p->no_root_floor = false;
 }
 
 /* The camera's frustum with the params' sections. */
@@ -84,7 +85,7 @@ static double select_need(const ms_view *v, const ms_camera *cam, const ms_frust
     double need = ms_archive_bits_needed(&v->header, &c->rec, ppu, cell_tolerance(p, cell, &c->rec));
     if (!ms_frustum_keeps_box(f, lo, hi, p->margin))
         need -= p->culled_bits_less;
-    else if (cell == 0 && need < MS_ARCHIVE_ROOT_FLOOR_BITS)
+    else if (cell == 0 && !p->no_root_floor && need < MS_ARCHIVE_ROOT_FLOOR_BITS)
         need = MS_ARCHIVE_ROOT_FLOOR_BITS; /* however small or coarse, a model in view is drawn */
     return need;
 }
