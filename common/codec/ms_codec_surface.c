@@ -222,8 +222,16 @@ static ms_status drawn_points(const ms_codec_decoder *d, const ms_surface_truth 
         ms_codec_state_free(&st);
         return s;
     }
+    /* the export keeps d->order's key order: vertex k is live cell order[k] */
     unsigned shift = 3 * st.bits - st.level;
-    for (size_t k = 0; k < st.vertex_count; ++k) {
+    for (size_t k = 0; k < st.vertex_count && s == MS_OK; ++k)
+        if (k >= d->norder || cx->v[d->order[k]].key >> shift != st.cells[k])
+            s = ms_error_set(err, MS_ERR_CORRUPT, "surface error: the exported state's vertex %zu is not "
+                             "the decoder's", k);
+    if (s == MS_OK && st.vertex_count != d->norder)
+        s = ms_error_set(err, MS_ERR_CORRUPT, "surface error: %zu exported vertices for %u live cells",
+                         st.vertex_count, d->norder);
+    for (size_t k = 0; k < st.vertex_count && s == MS_OK; ++k) {
         uint32_t xyz[3];
         ms_quant_unkey(shift >= 64 ? 0 : st.cells[k] << shift, st.bits, xyz);
         for (int a = 0; a < 3; ++a) {
@@ -232,7 +240,7 @@ static ms_status drawn_points(const ms_codec_decoder *d, const ms_surface_truth 
         }
     }
     ms_codec_state_free(&st);
-    return MS_OK;
+    return s;
 }
 
 ms_status ms_surface_error(const ms_codec_decoder *d, const ms_surface_truth *truth, double *error,
