@@ -89,9 +89,10 @@ static unsigned reference_smooth_bits(const char *ply, unsigned bits)
     return ms_bake_smooth_bits(hist, bits);
 }
 
-/* Opens dir/name.msa, shows its root at `bits` and stitches it: per vertex of
- * the stitched mesh, its distance from the point the stream draws for it
- * (dist, world units), and whether it lies inside its kd-cell. */
+/* Opens dir/name.msa, shows its root at `bits` and stitches it; asserts every
+ * stitched vertex lies inside its kd-cell; *max_moved: the largest distance
+ * (world units) of a drawn vertex from the point the stream gives it, *moved:
+ * how many of the *count vertices moved at all. */
 static void root_drawn(const char *dir, const char *name, unsigned bits, ms_archive_header *header,
                        double *max_moved, size_t *moved, size_t *count)
 {

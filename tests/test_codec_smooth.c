@@ -93,7 +93,8 @@ static void test_plane_staircase(void **state)
     print_message("plane: RMS %.3f -> %.3f grid units\n", before, after);
     assert_true(before > 1.0);
     assert_true(after <= 0.5 * before);
-    /* the x and y of a column stay at its centre's, by symmetry, inside */
+    /* most coordinates left their cell's centre (every one stays in its cell:
+     * a uint16 of its width) */
     size_t moved = 0;
     for (size_t i = 0; i < 3 * s.vertex_count; ++i)
         moved += s.rep[i] != 32768;
