@@ -35,6 +35,7 @@ typedef struct cell_case {
     ms_quant_box box;
     size_t foreign, frozen; /* foreign vertices; those with a freeze level */
     unsigned ahead;         /* geometry ahead of the streams encoded */
+    unsigned ahead_until;   /* where it stops, bits (0: the window's end) */
 } cell_case;
 
 static bool inside(const ms_codec_region *r, uint64_t key)
@@ -115,6 +116,7 @@ static ms_status encode_with(const cell_case *k, const ms_codec_region *region,
     par.freeze_level = freeze;
     par.compact_header = compact;
     par.ahead = k->ahead;
+    par.ahead_until = k->ahead_until;
     return ms_codec_encode(&k->full, &par, buf, size, start, err);
 }
 
@@ -125,9 +127,11 @@ static ms_status encode(const cell_case *k, const ms_codec_region *region, const
 }
 
 /* With geometry ahead, every own vertex is drawn inside its cell (at the last
- * level at its centre), a foreign one (which never runs ahead) at its centre. */
+ * level, and from where geometry ahead stops, at its centre), a foreign one
+ * (which never runs ahead) at its centre. */
 static void check_points(const cell_case *k, const ms_codec_state *s)
 {
+    unsigned end = k->ahead_until ? 3 * k->ahead_until : D;
     if (k->ahead == 0) {
         assert_null(s->rep);
         return;
@@ -137,19 +141,20 @@ static void check_points(const cell_case *k, const ms_codec_state *s)
     for (size_t i = 0; i < s->vertex_count; ++i) {
         bool own = inside(&k->region, s->cells[i] << (D - s->level));
         for (int a = 0; a < 3; ++a) {
-            if (!own || s->level == D)
+            if (!own || s->level >= end)
                 assert_int_equal(s->rep[3 * i + (size_t)a], 32768);
             off_centre += s->rep[3 * i + (size_t)a] != 32768;
         }
     }
-    assert_true((off_centre > 0) == (s->level < D));
+    assert_true((off_centre > 0) == (s->level < end));
 }
 
-static void check_frozen_levels(unsigned ahead)
+static void check_frozen_levels(unsigned ahead, unsigned until)
 {
     cell_case k;
     make_cell(&k);
     k.ahead = ahead;
+    k.ahead_until = until;
     assert_true(k.foreign > 20 && k.frozen == k.foreign); /* every foreign one freezes */
     ms_error err;
     uint8_t *with, *without;
@@ -245,17 +250,19 @@ static void check_frozen_levels(unsigned ahead)
 static void test_frozen_levels_and_state(void **state)
 {
     (void)state;
-    check_frozen_levels(0);
+    check_frozen_levels(0, 0);
 }
 
 /* The same with geometry ahead: foreign cells keep coding their geometry as
- * they go, own ones run ahead; frozen levels, states and points survive
- * coarsening and refining again. */
+ * they go, own ones run ahead (to the window's end, or to where it stops);
+ * frozen levels, states and points survive coarsening and refining again. */
 static void test_frozen_levels_with_geometry_ahead(void **state)
 {
     (void)state;
-    check_frozen_levels(MS_CODEC_DEFAULT_AHEAD);
-    check_frozen_levels(MS_CODEC_MAX_AHEAD);
+    check_frozen_levels(MS_CODEC_DEFAULT_AHEAD, 0);
+    check_frozen_levels(MS_CODEC_MAX_AHEAD, 0);
+    /* stopping inside the window [PMIN, BITS]: own cells inline from there */
+    check_frozen_levels(MS_CODEC_DEFAULT_AHEAD, PMIN + 2);
 }
 
 static void expect_refused(const cell_case *k, const ms_codec_region *region, const uint8_t *freeze,
@@ -359,7 +366,8 @@ static void test_damaged_region_bytes(void **state)
         {72 + 13, 1, "reserved bytes"},
         {72 + 0, 1, "not aligned"},                     /* min x = 1 */
         {72 + 1, 0x10, "not aligned"},                  /* min x = 4096: off the grid */
-        {7, 0x21, "flags"},                             /* an unknown flag (bit 5) */
+        {7, 0x21, "ahead by 0 kd-levels stopping at 1"},  /* a stop (bits 5-7) without ahead */
+        {7, 0x6D, "stopping at 3 bits, in a window [5"}, /* ahead 3 stopping before the window */
         {7, 0x1D, "at most 6"},                         /* geometry ahead by 7 */
     };
     for (size_t i = 0; i < sizeof cases / sizeof *cases; ++i) {

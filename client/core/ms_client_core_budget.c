@@ -12,7 +12,11 @@
  * time, when a what-if selection at the finer step says the cut would fit
  * under 90 % of the target (before, it waited for memory to fall below 70 %
  * of the target, so after a zoom-in whose close-up fits the budget but not
- * in 70 % of it the tolerance stayed raised for good).
+ * in 70 % of it the tolerance stayed raised for good). A what-if cannot see
+ * all that a finer cut will hold (reception buffers grow by doubling): when
+ * the cut it stepped to goes over the ceiling, no step goes that fine again
+ * for TOO_FINE_SECONDS, or the view would swing between two tolerances and
+ * never complete.
  *
  * A shared budget changes three things and nothing else: the memory compared
  * with the target and ceiling is every member's (each publishes its own after
@@ -52,6 +56,7 @@ struct ms_core_budget {
     uint64_t target, ceiling, peak;
     double tolerance_factor, culled_give_up;
     double last_step, last_blocked; /* ms_now_seconds */
+    double too_fine_factor, too_fine_until; /* ms_core_decoder's, too_fine_until in ms_now_seconds */
     budget_member members[MS_CORE_BUDGET_MAX_MEMBERS];
 };
 
@@ -75,6 +80,7 @@ ms_status ms_core_budget_new(uint64_t memory_target, uint64_t memory_ceiling,
     b->culled_give_up = 0.0;
     b->last_step = ms_now_seconds();
     b->last_blocked = -1e9;
+    b->too_fine_until = -1e9;
     *budget = b;
     return MS_OK;
 }
@@ -208,6 +214,8 @@ static void factor_begin(ms_core *c)
     c->dec.culled_give_up = b->culled_give_up;
     c->dec.last_budget_step = b->last_step - c->t0;
     c->dec.last_blocked = b->last_blocked - c->t0;
+    c->dec.too_fine_factor = b->too_fine_factor;
+    c->dec.too_fine_until = b->too_fine_until - c->t0;
 }
 
 static void factor_end(ms_core *c)
@@ -219,6 +227,8 @@ static void factor_end(ms_core *c)
     b->culled_give_up = c->dec.culled_give_up;
     b->last_step = c->dec.last_budget_step + c->t0;
     b->last_blocked = c->dec.last_blocked + c->t0;
+    b->too_fine_factor = c->dec.too_fine_factor;
+    b->too_fine_until = c->dec.too_fine_until + c->t0;
     pthread_mutex_unlock(&b->lock);
 }
 
@@ -399,6 +409,12 @@ bool ms_core_budget_ceiling(ms_core *c, dec_pass *pass)
         if (what_if_memory(c, pass, pass->factor, give_up) + bt.others_memory <= bt.ceiling)
             break;
         factor_begin(c);
+        if (round == 0) { /* the pass's own factor (later rounds see what it still holds) */
+            double t = ms_core_since_start(c);
+            c->dec.too_fine_factor = t < c->dec.too_fine_until ? fmax(c->dec.too_fine_factor, pass->factor)
+                                                                : pass->factor;
+            c->dec.too_fine_until = t + TOO_FINE_SECONDS;
+        }
         bool at_most = c->dec.tolerance_factor >= MAX_TOLERANCE_FACTOR &&
                        c->dec.culled_give_up >= MAX_CULLED_GIVE_UP;
         if (c->dec.culled_give_up < MAX_CULLED_GIVE_UP)
@@ -494,9 +510,12 @@ static void relax_step(ms_core *c, dec_pass *pass, const budget_terms *bt, doubl
     factor_begin(c);
     double factor = c->dec.tolerance_factor, give_up = c->dec.culled_give_up;
     bool due = t - c->dec.last_budget_step > 0.1 && t - c->dec.last_blocked > 2.0;
+    double too_fine = c->dec.too_fine_factor, too_fine_until = c->dec.too_fine_until;
     factor_end(c);
     double finer_factor, finer_give_up;
     if (!finer_step(factor, give_up, &finer_factor, &finer_give_up))
+        return;
+    if (t < too_fine_until && finer_factor <= too_fine * (1.0 + 1e-9))
         return;
     *finer_memory = what_if_memory(c, pass, finer_factor, finer_give_up);
     if (!due || *finer_memory + bt->others_finer > 0.9 * (double)bt->target)

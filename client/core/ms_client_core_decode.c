@@ -214,6 +214,7 @@ ms_status ms_core_decoder_init(ms_core *c, unsigned helpers, ms_error *err)
 {
     c->dec.tolerance_factor = 1.0;
     c->dec.last_blocked = -1e9;
+    c->dec.too_fine_until = -1e9;
     return ms_pool_new(helpers, &c->dec.pool, err);
 }
 

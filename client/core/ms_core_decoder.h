@@ -42,6 +42,10 @@
  * sees merges into the cells that reach into it. */
 #define MAX_CULLED_GIVE_UP 32.0
 #define CULLED_GIVE_UP_STEP 4.0
+/* How long the budget steps no finer than a tolerance whose cut went over the
+ * ceiling (ms_core_decoder.too_fine_factor): longer than a view takes to
+ * settle, so that it completes between two tries. */
+#define TOO_FINE_SECONDS 5.0
 
 /* Reception of one stream of one cell: the bytes from `base` (what the
  * consumer already took) onwards; out-of-order pieces as intervals. */
@@ -111,6 +115,11 @@ typedef struct ms_core_decoder {
                                  of o.culled_bits_less), 0 .. MAX_CULLED_GIVE_UP */
     ms_view_select_report what_if_report; /* scratch of the budget's what-if selection */
     bool budget_floor_warned; /* the "budget too small" warning was given */
+    /* The tolerance factor whose cut went over the ceiling (0: none) and until
+     * when (ms_core_since_start) the budget steps no finer than it: its what-if
+     * had said that cut would fit (it cannot see all of what a finer cut holds),
+     * and stepping back and forth would keep the view from ever completing */
+    double too_fine_factor, too_fine_until;
     uint64_t generation;
     /* the previous frame's drawing cells and their versions (ids ascending):
      * what the next frame's cells changed and removed are counted against */

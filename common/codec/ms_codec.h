@@ -48,6 +48,9 @@
 /* The default of the encoding programs (meshcodec, meshbake), by measurement
  * (docs/CODEC.md §4.1). */
 #define MS_CODEC_DEFAULT_AHEAD 3
+/* Geometry ahead may stop at a precision inside the window (header flags bits
+ * 5-7, docs/CODEC.md §4.1): at most this many bits; 0 is "never stops". */
+#define MS_CODEC_MAX_AHEAD_UNTIL 7
 #define MS_CODEC_MAX_BITS 20
 #define MS_CODEC_MAX_VERTICES (1u << 26)
 #define MS_CODEC_MAX_TRIANGLES (1u << 27)
@@ -157,6 +160,14 @@ typedef struct ms_codec_encode_params {
      * its connectivity, so a decoder draws a vertex at their barycentre (foreign
      * cells of a region never run ahead). 0: every vertex at its cell centre. */
     unsigned ahead;
+    /* Where geometry ahead stops, in precision bits, 0..MS_CODEC_MAX_AHEAD_UNTIL
+     * (0: at the window's end): a cell at kd-level L knows its descendants down
+     * to min(L + ahead, 3 ahead_until) only, and from kd-level 3 ahead_until on
+     * cells code their geometry with their connectivity and are drawn at their
+     * centres (the smoothing, ms_codec_state_smooth, takes over there). Costs no
+     * byte to a cut at or past that precision. Ignored without ahead; a window
+     * that starts at or past it is coded without geometry ahead. */
+    unsigned ahead_until;
     /* Training the prior (meshcodec train), normally NULL: when set, every coded
      * decision adds 1 to context_counts[2 i + bit], i its context in the prior's
      * layout; the array has 2 * ms_codec_prior_contexts() entries, owned by the
@@ -219,6 +230,7 @@ typedef struct ms_codec_header {
     bool compact;               /* flags bit 1: compact layout, box not in the stream (zero
                                  * here unless the decoder was given it) */
     unsigned ahead;             /* flags bits 2-4: geometry ahead, kd-levels */
+    unsigned ahead_until;       /* flags bits 5-7: where it stops, bits (0: the window's end) */
     uint32_t start_vertices, start_tris, start_edges;
     uint64_t start_checksum;
     uint32_t end_vertices, end_tris, end_edges;

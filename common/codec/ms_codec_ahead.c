@@ -212,6 +212,14 @@ uint64_t ms_ahead_parent_mask(uint64_t lo, uint64_t hi, unsigned d, unsigned dc)
     return lo | hi << (1u << (d - 1));
 }
 
+void ms_ahead_merged(ms_codec_decoder *d, uint32_t keep, unsigned level, uint64_t lo, uint64_t hi)
+{
+    ms_complex *cx = &d->cx;
+    unsigned depth = ms_ahead_depth(d, level);
+    cx->ahead[keep] = depth == 0 ? 1 : ms_ahead_parent_mask(lo, hi, depth, ms_ahead_depth(d, level + 1));
+    ms_ahead_update_rep(cx, keep, level, depth);
+}
+
 unsigned ms_ahead_state_depth(const ms_codec_decoder *d)
 {
     /* at the window's first level every cell knows only itself (the prelude

@@ -474,7 +474,9 @@ static ms_status refine_level(ms_codec_decoder *d, ms_error *err)
     const ms_codec_region *region = d->h.has_region ? &d->h.region : NULL;
     unsigned bits_in = (L - d->Lmin) / 3;
     lone_level lv = {0};
-    bool fast = cx->ahead && !d->enc;
+    /* past where geometry ahead stops, every cell codes its geometry inline */
+    bool ahead_here = cx->ahead && ms_ahead_depth(d, L) > 0;
+    bool fast = ahead_here && !d->enc;
     if (fast)
         lone_level_init(d, L, &lv);
     for (uint32_t k = 0; k < d->norder; ++k) {
@@ -492,7 +494,7 @@ static ms_status refine_level(ms_codec_decoder *d, ms_error *err)
                 continue;
             }
         }
-        if (cx->ahead && cx->ahead[s]) {
+        if (ahead_here && cx->ahead[s]) {
             if ((r = refine_ahead(d, s, L, &w, err)) != MS_OK)
                 return r;
             continue;
@@ -512,6 +514,8 @@ static ms_status refine_level(ms_codec_decoder *d, ms_error *err)
                 return r;
             }
             ms_cx_rep_follow(cx, s); /* s2 follows from its birth */
+            if (cx->ahead) /* past the stop, an own cell's half stays own (mask 1) */
+                cx->ahead[s2] = cx->ahead[s];
             d->order2[w++] = s;
             d->order2[w++] = s2;
         } else {
@@ -607,15 +611,11 @@ static ms_status coarsen_level(ms_codec_decoder *d, ms_error *err)
         int second = (v->key & child_bit) != 0;
         v->key &= ~child_bit;
         ms_cx_coarsen_cell(cx, keep, L, second);
-        if (mask_last) { /* runs ahead: the mask one level up, then its point */
-            unsigned depth = ms_ahead_depth(d, L);
-            uint64_t lo = first != MS_CX_NONE ? mask_first : second ? 0 : mask_last;
-            uint64_t hi = first != MS_CX_NONE || second ? mask_last : 0;
-            cx->ahead[keep] = ms_ahead_parent_mask(lo, hi, depth, ms_ahead_depth(d, L + 1));
-            ms_ahead_update_rep(cx, keep, L, depth);
-        } else {
+        if (mask_last) /* runs ahead: the mask one level up, then its point */
+            ms_ahead_merged(d, keep, L, first != MS_CX_NONE ? mask_first : second ? 0 : mask_last,
+                            first != MS_CX_NONE || second ? mask_last : 0);
+        else
             ms_cx_rep_follow(cx, keep);
-        }
         d->order2[w++] = keep;
     }
     for (uint32_t k = 0; k < w; ++k)

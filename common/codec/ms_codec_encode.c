@@ -474,8 +474,9 @@ static ms_status merge_group(enc *e, const ms_codec_encode_params *params, unsig
     bool foreign = params->region && cell_outside(&e->cx, params->region, last);
     if (foreign)
         put(e, 0); /* not frozen at L */
-    /* a cell that runs ahead codes its geometry from the keys (forward pass) */
-    bool geometry = foreign || params->ahead == 0;
+    /* a cell that runs ahead codes its geometry from the keys (forward pass),
+     * until the level where geometry ahead stops */
+    bool geometry = foreign || params->ahead == 0 || (params->ahead_until && L >= 3 * params->ahead_until);
     *keep = first != MS_CX_NONE ? first : last;
     if (first != MS_CX_NONE) {
         if (geometry)
@@ -567,6 +568,7 @@ static void fill_header(ms_codec_header *h, const ms_codec_encode_params *params
     h->box = params->box;
     h->compact = params->compact_header;
     h->ahead = params->ahead;
+    h->ahead_until = params->ahead_until;
     if (params->region) {
         h->has_region = true;
         h->region = *params->region;
@@ -612,6 +614,9 @@ static ms_status check_params(const ms_codec_state *full, const ms_codec_encode_
     if (params->ahead > MS_CODEC_MAX_AHEAD)
         return ms_error_set(err, MS_ERR_ARG, "geometry ahead by %u kd-levels (at most %u)",
                             params->ahead, MS_CODEC_MAX_AHEAD);
+    if (params->ahead_until > MS_CODEC_MAX_AHEAD_UNTIL)
+        return ms_error_set(err, MS_ERR_ARG, "geometry ahead stopping at %u bits (at most %u)",
+                            params->ahead_until, MS_CODEC_MAX_AHEAD_UNTIL);
     if (params->p_min > full->bits)
         return ms_error_set(err, MS_ERR_ARG, "p_min %u above the precision %u", params->p_min,
                             full->bits);
@@ -625,7 +630,20 @@ static ms_status check_params(const ms_codec_state *full, const ms_codec_encode_
     return MS_OK;
 }
 
-ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_params *params,
+/* The parameters with geometry ahead's stop where the header states it: none
+ * past the window (the window's end stops it first), no geometry ahead at all
+ * in a window that starts at or past it. */
+static ms_codec_encode_params window_params(const ms_codec_encode_params *params, unsigned P)
+{
+    ms_codec_encode_params w = *params;
+    if (w.ahead == 0 || w.ahead_until >= P)
+        w.ahead_until = 0;
+    else if (w.ahead_until != 0 && w.ahead_until <= w.p_min)
+        w.ahead = 0, w.ahead_until = 0;
+    return w;
+}
+
+ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_params *given,
                           uint8_t **out, size_t *out_size, ms_codec_state *start_out,
                           ms_error *err)
 {
@@ -633,9 +651,10 @@ ms_status ms_codec_encode(const ms_codec_state *full, const ms_codec_encode_para
     *out_size = 0;
     if (start_out)
         memset(start_out, 0, sizeof *start_out);
-    ms_status s = check_params(full, params, err);
+    ms_status s = check_params(full, given, err);
     if (s != MS_OK)
         return s;
+    const ms_codec_encode_params window = window_params(given, full->bits), *params = &window;
     unsigned P = full->bits, D = 3 * P, pmin = params->p_min, Lmin = 3 * pmin;
     enc e;
     memset(&e, 0, sizeof e);

@@ -9,7 +9,8 @@
 #include <string.h>
 #include <zlib.h>
 
-enum { FLAG_REGION = 1, FLAG_COMPACT = 2, AHEAD_SHIFT = 2, AHEAD_MASK = 7 << AHEAD_SHIFT };
+enum { FLAG_REGION = 1, FLAG_COMPACT = 2, AHEAD_SHIFT = 2, AHEAD_MASK = 7 << AHEAD_SHIFT, UNTIL_SHIFT = 5,
+       UNTIL_MASK = 7 << UNTIL_SHIFT };
 
 static void put32(uint8_t *p, uint32_t v)
 {
@@ -99,7 +100,7 @@ size_t ms_codec_write_header(uint8_t *p, const ms_codec_header *h)
     lead[5] = (uint8_t)h->p_max;
     lead[6] = (uint8_t)h->p_min;
     lead[7] = (uint8_t)((h->has_region ? FLAG_REGION : 0) | (h->compact ? FLAG_COMPACT : 0) |
-                        h->ahead << AHEAD_SHIFT);
+                        h->ahead << AHEAD_SHIFT | h->ahead_until << UNTIL_SHIFT);
     w_bytes(&w, lead, 8);
     if (h->compact) {
         w_var(&w, h->start_vertices);
@@ -294,13 +295,18 @@ ms_status ms_codec_parse_header(const uint8_t *data, size_t size, ms_codec_heade
     h->p_max = data[5];
     h->p_min = data[6];
     if (h->p_max < 1 || h->p_max > MS_CODEC_MAX_BITS || h->p_min > h->p_max ||
-        (data[7] & ~(unsigned)(FLAG_REGION | FLAG_COMPACT | AHEAD_MASK)))
+        (data[7] & ~(unsigned)(FLAG_REGION | FLAG_COMPACT | AHEAD_MASK | UNTIL_MASK)))
         return ms_error_set(err, MS_ERR_FORMAT, "bad precision window [%u, %u] or flags",
                             h->p_min, h->p_max);
     h->ahead = (data[7] & AHEAD_MASK) >> AHEAD_SHIFT;
     if (h->ahead > MS_CODEC_MAX_AHEAD)
         return ms_error_set(err, MS_ERR_FORMAT, "geometry ahead by %u kd-levels (at most %u)",
                             h->ahead, MS_CODEC_MAX_AHEAD);
+    h->ahead_until = (data[7] & UNTIL_MASK) >> UNTIL_SHIFT;
+    /* the encoder writes a stop only where it falls inside the window */
+    if (h->ahead_until && (h->ahead == 0 || h->ahead_until <= h->p_min || h->ahead_until >= h->p_max))
+        return ms_error_set(err, MS_ERR_FORMAT, "geometry ahead by %u kd-levels stopping at %u bits, in a "
+                            "window [%u, %u]", h->ahead, h->ahead_until, h->p_min, h->p_max);
     h->has_region = data[7] & FLAG_REGION;
     h->compact = data[7] & FLAG_COMPACT;
     unsigned nchunks = h->p_max - h->p_min;

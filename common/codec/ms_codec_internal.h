@@ -140,10 +140,13 @@ ms_status ms_codec_decoder_load_start(ms_codec_decoder *d, const ms_codec_state 
 
 /* Geometry ahead of connectivity (ms_codec_ahead.c, docs/CODEC.md §4.1). A cell
  * runs ahead when its mask (cx.ahead) is not 0: h.ahead > 0 and the cell is not
- * foreign. Its depth at kd-level L is min(h.ahead, D - L). */
+ * foreign. Its depth at kd-level L is min(h.ahead, E - L), E the window's end D
+ * or where geometry ahead stops (3 h.ahead_until), 0 from E on: there a cell
+ * (mask 1, itself) codes its geometry inline and is drawn at its centre. */
 static inline unsigned ms_ahead_depth(const ms_codec_decoder *d, unsigned level)
 {
-    unsigned left = d->D - level;
+    unsigned end = d->h.ahead_until ? 3 * d->h.ahead_until : d->D;
+    unsigned left = level < end ? end - level : 0;
     return left < d->h.ahead ? left : d->h.ahead;
 }
 /* The prelude at the start of the first chunk: every cell that runs ahead
@@ -167,6 +170,10 @@ void ms_ahead_update_rep(ms_complex *cx, uint32_t s, unsigned level, unsigned de
 /* The mask of a cell at kd-level L (depth d) from its children's at L + 1
  * (depth dc; lo, hi: the first and second child's masks, 0 when absent). */
 uint64_t ms_ahead_parent_mask(uint64_t lo, uint64_t hi, unsigned d, unsigned dc);
+/* Coarsening: cell keep (now at `level`) takes the mask merged from its
+ * children's (lo, hi: the first and second child's, 0 when absent), or knows
+ * only itself past where geometry ahead stops; then its point. */
+void ms_ahead_merged(ms_codec_decoder *d, uint32_t keep, unsigned level, uint64_t lo, uint64_t hi);
 
 /* ms_codec_surface.c (docs/CODEC.md §4.3). The points of a measurement: the
  * given ones (NULL: canon's own vertices at their cells' centres with their

@@ -61,7 +61,7 @@ static void print_usage(FILE *out)
           "                [--apo-max-depth 10] [--apo-tol 0.2] [--apo-budget 1]\n"
           "                [--apo-init-depth 0]\n"
           "                [--apo-verify] [--apo-accuracy] [--subtree-levels S] [--ahead 3]\n"
-          "                [--smooth 3] [--colour-bits 8] [--no-colour] [--metadata FILE.json]\n"
+          "                [--ahead-until 5] [--smooth 3] [--colour-bits 8] [--no-colour] [--metadata FILE.json]\n"
           "                [--no-thumbnail] [--up x|y|z] [--json]\n"
           "       meshbake --info FILE [--json]\n"
           "       meshbake --set-public-bits B -o ARCHIVE_DIR --name NAME\n"
@@ -100,6 +100,10 @@ static void print_usage(FILE *out)
           "                    (default 3): a coarse level draws each vertex at the\n"
           "                    barycentre of its known descendants, not at its kd-cell's\n"
           "                    centre (no staircase); 0 draws cell centres\n"
+          "  --ahead-until B   geometry ahead stops at B bits, 0..7 (default 5; 0: at\n"
+          "                    each cell's last bit): finer precisions code their geometry\n"
+          "                    with their connectivity and are drawn by the smoothing\n"
+          "                    alone, so their cuts cost no byte more than without it\n"
           "  --smooth R        a client draws the coarse precisions (below the one where\n"
           "                    half the vertices are alone in their kd-cell) smoothed:\n"
           "                    R rounds over each cell's complex, every point kept in\n"
@@ -297,7 +301,8 @@ static int parse_options(int argc, char **argv, bake_options *options)
         {"list", required_argument, NULL, 'l'},
         {"remove", required_argument, NULL, 'R'},
         {"subtree-levels", required_argument, NULL, 'Y'},
-        {"ahead", required_argument, NULL, 'K'}, {"smooth", required_argument, NULL, 'S'},
+        {"ahead", required_argument, NULL, 'K'},
+        {"ahead-until", required_argument, NULL, 'k'}, {"smooth", required_argument, NULL, 'S'},
         {"colour-bits", required_argument, NULL, 'c'}, {"no-colour", no_argument, NULL, 'Z'},
         {"metadata", required_argument, NULL, 'X'}, {"thumbnail", required_argument, NULL, 'B'},
         {"no-thumbnail", no_argument, NULL, 'O'}, {"up", required_argument, NULL, 'u'},
@@ -336,10 +341,11 @@ static int parse_options(int argc, char **argv, bake_options *options)
                 return status;
             options->bake.subtree_levels = (unsigned)value;
             break;
-        case 'K':
-            if (!option_int(long_options, c, optarg, 0, MS_CODEC_MAX_AHEAD, &value, &status))
+        case 'K': case 'k':
+            if (!option_int(long_options, c, optarg, 0, c == 'K' ? MS_CODEC_MAX_AHEAD : MS_CODEC_MAX_AHEAD_UNTIL,
+                            &value, &status))
                 return status;
-            options->bake.ahead = (unsigned)value;
+            *(c == 'K' ? &options->bake.ahead : &options->bake.ahead_until) = (unsigned)value;
             break;
         case 'S':
             if (!option_int(long_options, c, optarg, 0, MS_CODEC_SMOOTH_ROUNDS_MAX, &value, &status))
@@ -589,7 +595,7 @@ static void print_bake_json(const ms_bake_options *o, const ms_bake_report *r)
                                       r->apo_accuracy_median, "p90_deg", r->apo_accuracy_p90));
     json_t *root = json_pack(
         "{s:o, s:o, s:o, s:I, s:I, s:I, s:I, s:i, s:i, s:i, s:i, s:f, s:I, s:I, s:I, s:f, s:o, "
-        "s:f, s:i, s:f, s:f, s:I, s:o, s:{s:i, s:i, s:i, s:i, s:i, s:i, s:i, s:i}}",
+        "s:f, s:i, s:f, s:f, s:I, s:o, s:{s:i, s:i, s:i, s:i, s:i, s:i, s:i, s:i, s:i}}",
         "name", ms_json_text(r->name), "archive", ms_json_text(r->archive_path), "source",
         ms_json_text(o->input),
         "input_vertices", (json_int_t)r->input_vertices,
@@ -607,6 +613,7 @@ static void print_bake_json(const ms_bake_options *o, const ms_bake_report *r)
         "spilled_blocks", (json_int_t)r->blocks_written, "apo", apo,
         "parameters", "bits", (int)o->bits, "n", (int)o->n, "root_bits", (int)o->root_bits,
         "min_tris", (int)r->min_triangles, "mem_mb", (int)o->mem_mb, "ahead", (int)o->ahead,
+        "ahead_until", (int)o->ahead_until,
         "smooth_rounds", (int)r->smooth_rounds, "smooth_bits", (int)r->smooth_bits);
     const struct { const char *phase; const ms_nsp_io *io; } phases[] = {
         {"read", &r->io_read}, {"quantise", &r->io_quantise}, {"distribute", &r->io_distribute},

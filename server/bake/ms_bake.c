@@ -31,6 +31,7 @@ void ms_bake_options_default(ms_bake_options *o)
     o->mem_mb = 512;
     o->public_bits = -1;
     o->ahead = MS_CODEC_DEFAULT_AHEAD;
+    o->ahead_until = MS_BAKE_DEFAULT_AHEAD_UNTIL;
     o->smooth_rounds = MS_BAKE_DEFAULT_SMOOTH_ROUNDS;
     o->thumbnail_up = -1;
     long cpus = sysconf(_SC_NPROCESSORS_ONLN);
@@ -310,6 +311,7 @@ static ms_status encode_cells(const ms_bake_options *o, ms_nsp_build *b,
         .threads = o->threads ? o->threads : 1,
         .apo = &o->apo,
         .ahead = o->ahead,
+        .ahead_until = o->ahead_until,
         .smooth_rounds = r->smooth_rounds,
         .smooth_level = 3 * r->smooth_bits,
         .colours = r->colour ? colours : NULL,

@@ -65,6 +65,10 @@ typedef struct ms_bake_options {
     unsigned subtree_levels;  /* levels per index subtree, 1..8; 0: the default for n
                                * (ms_subtree_default_levels) */
     unsigned ahead;        /* geometry ahead of connectivity, kd-levels (ms_codec.h) */
+    /* Where geometry ahead stops, bits, 0..MS_CODEC_MAX_AHEAD_UNTIL (0: never;
+     * ms_codec_encode_params.ahead_until): past it the smoothing alone draws
+     * the coarse points, and a cut there costs no byte for geometry ahead */
+    unsigned ahead_until;
     /* Rounds of smoothing a client draws the coarse precisions with
      * (ms_codec_state_smooth; 0..MS_CODEC_SMOOTH_ROUNDS_MAX, 0: none): below
      * the precision where half the model's vertices are alone in their
@@ -84,7 +88,9 @@ typedef struct ms_bake_options {
 /* Defaults: 16 bits, n = 4, p_r = 7, N_min by model size (8000 up to 4 M input
  * triangles: ms_nsp_default_min_triangles), threads = online CPUs, 512 MB,
  * APO on with ms_bake_apo_params_default, geometry ahead by MS_CODEC_DEFAULT_AHEAD,
- * MS_BAKE_DEFAULT_SMOOTH_ROUNDS rounds of smoothing (docs/ACCURACY.md). */
+ * stopping at MS_BAKE_DEFAULT_AHEAD_UNTIL bits, MS_BAKE_DEFAULT_SMOOTH_ROUNDS rounds
+ * of smoothing (docs/ACCURACY.md). */
+#define MS_BAKE_DEFAULT_AHEAD_UNTIL 5u
 #define MS_BAKE_DEFAULT_SMOOTH_ROUNDS 3u
 void ms_bake_options_default(ms_bake_options *options);
 

@@ -476,6 +476,7 @@ static ms_status encode_cell(pool *p, uint32_t node, ms_apo_builder **builder, c
     if (s == MS_OK && st.vertex_count > 0) {
         ms_codec_encode_params ep = {
             .p_min = lo, .box = b->box, .compact_header = true, .ahead = p->params->ahead,
+            .ahead_until = p->params->ahead_until,
             .smooth_rounds = p->params->smooth_rounds, .smooth_level = p->params->smooth_level};
         if (freezing) {
             ep.region = &region;

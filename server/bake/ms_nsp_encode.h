@@ -46,6 +46,7 @@ typedef struct ms_nsp_encode_params {
     unsigned threads; /* >= 1 */
     const ms_bake_apo_params *apo; /* NULL or not enabled: no APO chunks */
     unsigned ahead;   /* geometry ahead of connectivity, kd-levels (ms_codec.h) */
+    unsigned ahead_until; /* where it stops, bits (ms_codec_encode_params.ahead_until) */
     /* the smoothing the error tables measure (ms_codec_encode_params) */
     unsigned smooth_rounds, smooth_level;
     /* NULL: no colour. Else every cell with vertices gets its colour stream

@@ -74,18 +74,26 @@ static void assert_valid_complex(const ms_codec_state *s)
     }
 }
 
+/* The level down to which a cell at kd-level L knows its descendants, with
+ * geometry ahead by k stopping at kd-level E (the window's end D, or 3 times
+ * the stop's bits): min(L + k, E), L itself at the stream's first level (0)
+ * and from E on. */
+static unsigned known_level(unsigned L, unsigned k, unsigned E)
+{
+    return L == 0 || L >= E ? L : L + k < E ? L + k : E;
+}
+
 /* With geometry ahead by k, every vertex of state a (kd-level L) is drawn at
- * the barycentre of the cells at level min(L + k, D) that hold vertices of the
+ * the barycentre of the cells at level known_level(L, k, E) that hold vertices of the
  * full complex canon inside it (up to the decoder's rounding to half a grid
  * unit: at D, its own centre; at level 0, before the first chunk's prelude,
  * too); with k = 0 the state has no points. */
 static void assert_ahead_points(const ms_codec_state *a, const ms_codec_state *canon, unsigned L,
-                                unsigned k)
+                                unsigned k, unsigned E)
 {
-    unsigned P = canon->bits, D = 3 * P;
     /* at the stream's first level (0) nothing is known ahead yet: the
-     * prelude is part of refining it */
-    unsigned M = L == 0 ? 0 : L + k < D ? L + k : D;
+     * prelude is part of refining it; nothing past E, where geometry ahead stops */
+    unsigned P = canon->bits, D = 3 * P, M = known_level(L, k, E);
     if (k == 0) {
         assert_null(a->rep);
         return;
@@ -139,10 +147,10 @@ static void assert_ahead_points(const ms_codec_state *a, const ms_codec_state *c
  * bound never exceeds the cell's whole diagonal; without anything known below
  * the cell it is exactly the half-diagonal. */
 static void assert_bounds(const ms_codec_state *a, const ms_codec_state *canon, unsigned L,
-                          unsigned k)
+                          unsigned k, unsigned E)
 {
     unsigned P = canon->bits, D = 3 * P;
-    unsigned M = L == 0 || k == 0 ? L : L + k < D ? L + k : D;
+    unsigned M = known_level(L, k, E);
     assert_non_null(a->bound);
     size_t j = 0;
     for (size_t i = 0; i < a->vertex_count; ++i) {
@@ -186,7 +194,7 @@ static void assert_bounds(const ms_codec_state *a, const ms_codec_state *canon, 
 }
 
 static void check_roundtrip_ahead(const ms_mesh *mesh, unsigned bits, unsigned level_step,
-                                  bool twice, unsigned ahead, ms_codec_check_result *res);
+                                  bool twice, unsigned ahead, unsigned until, ms_codec_check_result *res);
 
 void ms_codec_check_roundtrip_ex(const ms_mesh *mesh, unsigned bits, unsigned level_step,
                                  bool twice, unsigned aheads, ms_codec_check_result *res)
@@ -194,11 +202,15 @@ void ms_codec_check_roundtrip_ex(const ms_mesh *mesh, unsigned bits, unsigned le
     assert_true(aheads != 0);
     for (unsigned k = 0; k <= MS_CODEC_MAX_AHEAD; ++k)
         if (aheads & (1u << k))
-            check_roundtrip_ahead(mesh, bits, level_step, twice, k, res);
+            check_roundtrip_ahead(mesh, bits, level_step, twice, k, 0, res);
+    /* the default ahead stopping halfway: levels past the stop coded inline */
+    if (aheads & MS_CHECK_AHEAD_UNTIL)
+        check_roundtrip_ahead(mesh, bits, level_step, twice, MS_CODEC_DEFAULT_AHEAD,
+                              bits / 2 < MS_CODEC_MAX_AHEAD_UNTIL ? bits / 2 : MS_CODEC_MAX_AHEAD_UNTIL, res);
 }
 
 static void check_roundtrip_ahead(const ms_mesh *mesh, unsigned bits, unsigned level_step,
-                                  bool twice, unsigned ahead, ms_codec_check_result *res)
+                                  bool twice, unsigned ahead, unsigned until, ms_codec_check_result *res)
 {
     ms_error err;
     ms_qmesh q;
@@ -212,6 +224,7 @@ static void check_roundtrip_ahead(const ms_mesh *mesh, unsigned bits, unsigned l
     memset(&par, 0, sizeof par);
     par.box = q.box;
     par.ahead = ahead;
+    par.ahead_until = until;
     uint8_t *buf = NULL, *buf2 = NULL;
     size_t size = 0, size2 = 0;
     assert_int_equal(ms_codec_encode(&full, &par, &buf, &size, NULL, &err), MS_OK);
@@ -224,7 +237,7 @@ static void check_roundtrip_ahead(const ms_mesh *mesh, unsigned bits, unsigned l
 
     ms_codec_decoder *d;
     assert_int_equal(ms_codec_decoder_create(buf, size, NULL, NULL, &d, &err), MS_OK);
-    unsigned D = 3 * bits;
+    unsigned D = 3 * bits, E = until > 0 && until < bits ? 3 * until : D;
     assert_int_equal(ms_codec_decoder_available_level(d), D);
     if (ms_codec_decoder_set_level(d, D, &err) != MS_OK)
         fail_msg("decode failed: %s", err.text);
@@ -255,8 +268,8 @@ static void check_roundtrip_ahead(const ms_mesh *mesh, unsigned bits, unsigned l
             ms_codec_state a, r;
             assert_int_equal(ms_codec_decoder_state(d, &a, &err), MS_OK);
             assert_valid_complex(&a);
-            assert_ahead_points(&a, &canon, L, ahead);
-            assert_bounds(&a, &canon, L, ahead);
+            assert_ahead_points(&a, &canon, L, ahead, E);
+            assert_bounds(&a, &canon, L, ahead, E);
             ms_ref_coarsen(&canon, L, &r);
             if (!ms_codec_state_equal(&a, &r, false))
                 fail_msg("level %u differs from the reference: V %zu/%zu T %zu/%zu E %zu/%zu", L,
@@ -278,8 +291,8 @@ static void check_roundtrip_ahead(const ms_mesh *mesh, unsigned bits, unsigned l
         assert_true((s1.rep == NULL) == (s2.rep == NULL));
         if (s1.rep)
             assert_memory_equal(s1.rep, s2.rep, 3 * s1.vertex_count * sizeof *s1.rep);
-        assert_ahead_points(&s1, &canon, mid, ahead);
-        assert_bounds(&s1, &canon, mid, ahead);
+        assert_ahead_points(&s1, &canon, mid, ahead, E);
+        assert_bounds(&s1, &canon, mid, ahead, E);
         ms_codec_state_free(&s1);
         ms_codec_state_free(&s2);
         assert_int_equal(ms_codec_decoder_set_level(d, D, &err), MS_OK);

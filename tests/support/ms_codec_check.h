@@ -15,8 +15,10 @@ typedef struct ms_codec_check_result {
     ms_weld_report weld;
 } ms_codec_check_result;
 
-/* Which geometry-ahead settings a check encodes with: bit k for ahead k. */
-#define MS_CHECK_AHEAD_ALL (1u | 1u << 1 | 1u << 3 | 1u << MS_CODEC_MAX_AHEAD)
+/* Which geometry-ahead settings a check encodes with: bit k for ahead k;
+ * MS_CHECK_AHEAD_UNTIL for the default ahead stopping at half the bits. */
+#define MS_CHECK_AHEAD_UNTIL (1u << (MS_CODEC_MAX_AHEAD + 1))
+#define MS_CHECK_AHEAD_ALL (1u | 1u << 1 | 1u << 3 | 1u << MS_CODEC_MAX_AHEAD | MS_CHECK_AHEAD_UNTIL)
 #define MS_CHECK_AHEAD_DEFAULT (1u << MS_CODEC_DEFAULT_AHEAD)
 #define MS_CHECK_AHEAD_BOTH (1u | MS_CHECK_AHEAD_DEFAULT)
 
