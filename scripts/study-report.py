@@ -500,8 +500,9 @@ if ahead:
                 sizes.append(f"{model} ahead {a}: {load(name)['geometry_bytes']:,} B")
     w(f"No-APO bakes with `--ahead 0 --smooth 0` (\"ahead 0\" below: every vertex of a coarse level at its "
       f"kd-cell's centre, the codec before geometry ahead and smoothing) and the defaults (`--ahead "
-      f"{ahead_default}`: at the barycentre of its known descendants, and `--smooth 3`: below the precision where "
-      "half the vertices are alone in their kd-cell, smoothed inside it; docs/CODEC.md §4.1 and §4.4), the same "
+      f"{ahead_default}`: at the barycentre of its known descendants, up to `--ahead-until 5` bits only, and "
+      "`--smooth 5`: below the precision where half the vertices are alone in their kd-cell, smoothed inside "
+      "it; docs/CODEC.md §4.1 and §4.4), the same "
       "cameras and tolerances; geometry alone, drawn flat and smooth. Geometry of the whole model: "
       + "; ".join(sizes) + ". Bytes of a cut: geometry B = the shown and split cells' geometry prefixes, "
       "index + geometry B with the index blob a client fetches first. Hausdorff and RMS in model units and "

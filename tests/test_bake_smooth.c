@@ -8,7 +8,9 @@
  *     must agree with);
  *   - the view draws a coarse cell's vertices smoothed, each inside its
  *     kd-cell, and a bake with --smooth 0 draws exactly the stream's own
- *     points. */
+ *     points;
+ *   - geometry ahead stops where the default says (docs/CODEC.md §4.1): the
+ *     root's stream header, and no geometry ahead in the cells below it. */
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -141,6 +143,35 @@ static void root_drawn(const char *dir, const char *name, unsigned bits, ms_arch
     ms_archive_close(a);
 }
 
+/* The default bake's geometry ahead stops at MS_BAKE_DEFAULT_AHEAD_UNTIL bits:
+ * the root's stream (window [0, 7]) says so in its header, and every other
+ * cell's window starts past it, so runs no geometry ahead at all. */
+static void assert_ahead_stops(const char *dir, const char *name)
+{
+    char path[700];
+    snprintf(path, sizeof path, "%s/%s.msa", dir, name);
+    ms_archive *a;
+    ms_error err;
+    assert_int_equal(ms_archive_open(path, &a, &err), MS_OK);
+    const ms_archive_header *h = ms_archive_get_header(a);
+    unsigned cells = 0;
+    for (uint32_t i = 0; i < h->cell_count; ++i) {
+        size_t len;
+        const uint8_t *g = ms_archive_geometry(a, i, &len);
+        if (!g || len == 0)
+            continue;
+        ms_codec_header ch;
+        assert_int_equal(ms_codec_read_header(g, len, &ch, &err), MS_OK);
+        assert_true(i == 0 ? ch.p_min == 0 && ch.p_max > MS_BAKE_DEFAULT_AHEAD_UNTIL
+                           : ch.p_min >= MS_BAKE_DEFAULT_AHEAD_UNTIL);
+        assert_int_equal(ch.ahead, i == 0 ? MS_CODEC_DEFAULT_AHEAD : 0);
+        assert_int_equal(ch.ahead_until, i == 0 ? MS_BAKE_DEFAULT_AHEAD_UNTIL : 0);
+        cells++;
+    }
+    assert_true(cells > 1);
+    ms_archive_close(a);
+}
+
 static void test_demo_smoothing(void **state)
 {
     (void)state;
@@ -175,6 +206,7 @@ static void test_demo_smoothing(void **state)
     assert_int_equal(h.smooth_rounds, 0);
     assert_int_equal(h.smooth_bits, 0);
     assert_true(max_moved < 1e-12 * h.box_side);
+    assert_ahead_stops(dir, "smooth");
     ms_test_rmdir(dir);
 }
 

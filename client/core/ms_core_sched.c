@@ -280,6 +280,12 @@ static void schedule_shown(const ms_sched_input *in, ms_sched_plan *plan, const 
             plan->worst = e;
     }
     unsigned goal = ms_sched_goal(rec, c->id, c->target, in->root_goal_min);
+    /* its bytes are here but not yet decoded to the precision the view wants
+     * (the goal may be more: the root's bytes the content bounds need): the
+     * next pass draws it finer, so this one's cut is not the view's */
+    unsigned shown_goal = c->target < rec->bits_max ? c->target : rec->bits_max;
+    if (visible && c->target != MS_VIEW_TARGET_SPLIT && c->bits < shown_goal && c->avail >= shown_goal && !c->failed)
+        plan->complete = false;
     bool loading = schedule_geometry(in, plan, c, goal, visible, need);
     loading |= schedule_colour(in, plan, c, goal, visible, need);
     loading |= schedule_apo(in, plan, c, visible, need);

@@ -44,7 +44,7 @@ static const char *const top_usage =
     "Exit status: 0 on success, 1 for an input or processing error, 2 for a usage error.\n";
 
 static const char *const encode_usage =
-    "usage: meshcodec encode IN -o OUT [--bits P] [--ahead K]\n"
+    "usage: meshcodec encode IN -o OUT [--bits P] [--ahead K] [--ahead-until U]\n"
     "\n"
     "Reads IN, quantises it onto a cubic 2^P grid (P in 8..20, default 16), welds\n"
     "coincident points, drops degenerate and duplicate triangles, and writes the coded\n"
@@ -55,6 +55,8 @@ static const char *const encode_usage =
     "      --ahead K      geometry ahead of connectivity by K kd-levels, 0..6 (default\n"
     "                     3): coarse levels draw each vertex at the\n"
     "                     barycentre of its known descendants instead of its cell centre\n"
+    "      --ahead-until U  geometry ahead stops at U bits, 0..7 (default 0: at the\n"
+    "                     last bit); finer levels code their geometry inline\n"
     "  -h, --help         print this help and exit\n"
     "      --version      print the version and exit\n";
 
@@ -73,7 +75,8 @@ static const char *const decode_usage =
     "      --version      print the version and exit\n";
 
 static const char *const roundtrip_usage =
-    "usage: meshcodec roundtrip IN [--bits P] [--ahead K] [--colour-bits C] [--json]\n"
+    "usage: meshcodec roundtrip IN [--bits P] [--ahead K] [--ahead-until U] [--colour-bits C]\n"
+    "                           [--json]\n"
     "\n"
     "Quantises IN at P bits (default 16), encodes, decodes at full precision and checks\n"
     "that the result equals the quantised, welded input (same points, same oriented\n"
@@ -85,6 +88,7 @@ static const char *const roundtrip_usage =
     "\n"
     "  -b, --bits P       precision (default 16)\n"
     "      --ahead K      geometry ahead by K kd-levels (see encode --help)\n"
+    "      --ahead-until U  where it stops, bits (see encode --help)\n"
     "      --colour-bits C  colour precision, bits per channel, 1..8 (default 8)\n"
     "      --json         print one JSON object on stdout\n"
     "  -h, --help         print this help and exit\n"
@@ -138,6 +142,7 @@ typedef struct options {
     int input_count;
     int bits; /* -1 when not given */
     int ahead; /* geometry ahead, kd-levels */
+    int ahead_until; /* where it stops, bits (0: the last) */
     int colour_bits; /* roundtrip: colour precision (default 8) */
     bool json, ascii;
 } options;
@@ -150,6 +155,7 @@ static int parse(const char *cmd, const char *help, int argc, char **argv, optio
         {"output", required_argument, NULL, 'o'}, {"bits", required_argument, NULL, 'b'},
         {"json", no_argument, NULL, 'j'},         {"ascii", no_argument, NULL, 'a'},
         {"ahead", required_argument, NULL, 'A'},  {"help", no_argument, NULL, 'h'},
+        {"ahead-until", required_argument, NULL, 'U'},
         {"colour-bits", required_argument, NULL, 'C'},
         {NULL, 0, NULL, 0},
     };
@@ -176,14 +182,16 @@ static int parse(const char *cmd, const char *help, int argc, char **argv, optio
             o->bits = (int)v;
             break;
         }
-        case 'A': {
+        case 'A': case 'U': {
             int64_t v;
             ms_error e;
+            const char *opt = c == 'A' ? "--ahead" : "--ahead-until";
             if (allow_ascii) /* decode: the stream says */
-                return usage_error(cmd, "unknown option", "--ahead");
-            if (ms_option_int("--ahead", optarg, 0, MS_CODEC_MAX_AHEAD, &v, &e) != MS_OK)
+                return usage_error(cmd, "unknown option", opt);
+            if (ms_option_int(opt, optarg, 0, c == 'A' ? MS_CODEC_MAX_AHEAD : MS_CODEC_MAX_AHEAD_UNTIL, &v, &e) !=
+                MS_OK)
                 return usage_error(cmd, e.text, NULL);
-            o->ahead = (int)v;
+            *(c == 'A' ? &o->ahead : &o->ahead_until) = (int)v;
             break;
         }
         case 'C': {
@@ -256,7 +264,7 @@ static ms_status load_quantised(const char *path, unsigned bits, ms_qmesh *q,
     return load_quantised_colours(path, bits, q, weld, load, NULL, NULL, err);
 }
 
-static ms_status encode_q(const ms_qmesh *q, unsigned ahead, uint64_t *context_counts,
+static ms_status encode_q(const ms_qmesh *q, const options *o, uint64_t *context_counts,
                           uint8_t **buf, size_t *size, ms_error *err)
 {
     ms_codec_state full;
@@ -267,7 +275,8 @@ static ms_status encode_q(const ms_qmesh *q, unsigned ahead, uint64_t *context_c
     memset(&par, 0, sizeof par);
     par.box = q->box;
     par.context_counts = context_counts;
-    par.ahead = ahead;
+    par.ahead = (unsigned)o->ahead;
+    par.ahead_until = (unsigned)o->ahead_until;
     st = ms_codec_encode(&full, &par, buf, size, NULL, err);
     ms_codec_state_free(&full);
     return st;
@@ -365,7 +374,7 @@ static int cmd_encode(int argc, char **argv)
         return input_error("encode", &err);
     uint8_t *buf = NULL;
     size_t size = 0;
-    ms_status st = encode_q(&q, (unsigned)o.ahead, NULL, &buf, &size, &err);
+    ms_status st = encode_q(&q, &o, NULL, &buf, &size, &err);
     if (st == MS_OK)
         st = write_file(o.output, buf, size, &err);
     free(buf);
@@ -477,7 +486,7 @@ static int cmd_roundtrip(int argc, char **argv)
     uint8_t *buf = NULL;
     size_t size = 0;
     double t0 = now_seconds();
-    ms_status st = encode_q(&q, (unsigned)o.ahead, NULL, &buf, &size, &err);
+    ms_status st = encode_q(&q, &o, NULL, &buf, &size, &err);
     double t1 = now_seconds();
     ms_codec_decoder *d = NULL;
     double t2 = 0, t3 = 0;
@@ -619,7 +628,7 @@ static int cmd_train(int argc, char **argv)
             break;
         uint8_t *buf = NULL;
         size_t size = 0;
-        st = encode_q(&q, (unsigned)o.ahead, counts, &buf, &size, &err);
+        st = encode_q(&q, &o, counts, &buf, &size, &err);
         if (st == MS_OK)
             printf("%s: %zu vertices, %zu bytes with the current prior\n", o.inputs[i],
                    q.vertex_count, size);

@@ -91,7 +91,7 @@ typedef struct ms_bake_options {
  * stopping at MS_BAKE_DEFAULT_AHEAD_UNTIL bits, MS_BAKE_DEFAULT_SMOOTH_ROUNDS rounds
  * of smoothing (docs/ACCURACY.md). */
 #define MS_BAKE_DEFAULT_AHEAD_UNTIL 5u
-#define MS_BAKE_DEFAULT_SMOOTH_ROUNDS 3u
+#define MS_BAKE_DEFAULT_SMOOTH_ROUNDS 5u
 void ms_bake_options_default(ms_bake_options *options);
 
 /* The precision below which a client draws smoothed points: the first bit
