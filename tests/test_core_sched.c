@@ -156,12 +156,28 @@ static void test_root_bits(void **state)
     assert_true(plan.complete);
     ms_sched_plan_free(&plan);
 
+    /* every byte here but decoded to 5 of its 7 bits: nothing wanted, and yet
+     * not complete (the next pass draws it finer; a pass once said complete
+     * with leaves at 11 of their 14 bits) */
+    cells[0].bits = 5;
+    plan = plan_for(f, cells, 1);
+    assert_int_equal(plan.wl.n, 0);
+    assert_false(plan.complete);
+    ms_sched_plan_free(&plan);
+
     /* the content bounds want the root at root precision whatever its target */
     cells[0].bits = cells[0].avail = 0, cells[0].geo_end = 8, cells[0].target = 2;
     f->in.root_goal_min = 4;
     plan = plan_for(f, cells, 1);
     assert_int_equal(plan.wl.n, 4);
     assert_int_equal(plan.wl.w[3].end, prefix[4]);
+    ms_sched_plan_free(&plan);
+    /* those bytes held and the root drawn at its own target: complete, though
+     * it shows fewer bits than it holds */
+    cells[0].bits = 2, cells[0].avail = 4, cells[0].geo_end = prefix[4];
+    plan = plan_for(f, cells, 1);
+    assert_int_equal(plan.wl.n, 0);
+    assert_true(plan.complete);
     f->in.root_goal_min = 0;
     ms_sched_plan_free(&plan);
 }
