@@ -294,10 +294,10 @@ ms_status ms_codec_parse_header(const uint8_t *data, size_t size, ms_codec_heade
                             MS_CODEC_VERSION);
     h->p_max = data[5];
     h->p_min = data[6];
-    if (h->p_max < 1 || h->p_max > MS_CODEC_MAX_BITS || h->p_min > h->p_max ||
-        (data[7] & ~(unsigned)(FLAG_REGION | FLAG_COMPACT | AHEAD_MASK | UNTIL_MASK)))
-        return ms_error_set(err, MS_ERR_FORMAT, "bad precision window [%u, %u] or flags",
-                            h->p_min, h->p_max);
+    /* every bit of the flags byte has a meaning (0, 1, 2-4, 5-7): each field is
+     * checked below */
+    if (h->p_max < 1 || h->p_max > MS_CODEC_MAX_BITS || h->p_min > h->p_max)
+        return ms_error_set(err, MS_ERR_FORMAT, "bad precision window [%u, %u]", h->p_min, h->p_max);
     h->ahead = (data[7] & AHEAD_MASK) >> AHEAD_SHIFT;
     if (h->ahead > MS_CODEC_MAX_AHEAD)
         return ms_error_set(err, MS_ERR_FORMAT, "geometry ahead by %u kd-levels (at most %u)",

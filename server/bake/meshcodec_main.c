@@ -107,6 +107,7 @@ static const char *const train_usage =
     "      --ahead K      geometry ahead of connectivity by K kd-levels, 0..6 (default\n"
     "                     3): coarse levels draw each vertex at the\n"
     "                     barycentre of its known descendants instead of its cell centre\n"
+    "      --ahead-until U  where it stops, bits (see encode --help)\n"
     "  -h, --help         print this help and exit\n"
     "      --version      print the version and exit\n";
 
