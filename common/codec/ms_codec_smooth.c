@@ -20,7 +20,7 @@
 /* Units of a point along an axis: 1/65536 of a kd-cell's width (rep's unit). */
 #define CELL_UNITS 65536
 /* A vertex with more neighbour entries than this keeps its point: its sum of
- * positions (each < 2^36 units) stays far inside 64 bits. */
+ * positions (each < 2^37 units) stays far inside 64 bits. */
 #define MAX_NEIGHBOURS (1u << 24)
 
 static int64_t floor_div(int64_t v, int64_t d)
@@ -56,24 +56,45 @@ static ms_status neighbour_rows(const ms_codec_state *s, uint32_t **start, uint3
     return MS_OK;
 }
 
-/* One Jacobi step of weight w / 256 from pos into next, clamped to each cell. */
-static void smooth_step(const ms_codec_state *s, const uint32_t *start, const uint32_t *items,
-                        const int64_t *pos, const int64_t *cell, int w, int64_t *next)
+/* The smoothing's arrays, per vertex: its cell's index along each axis, the
+ * sum of its neighbour entries' cell indices (fixed while the points move),
+ * and its point's offset inside its cell, now and after the step. A point is
+ * cell * CELL_UNITS + offset; the offsets are all a step reads of the
+ * neighbours (6 bytes each rather than 24: the step waits on these loads). */
+typedef struct smooth_arrays {
+    const uint32_t *start, *items;
+    uint32_t *cell;    /* below 2^21 */
+    int64_t *cell_sum;
+    uint16_t *off, *next;
+} smooth_arrays;
+
+/* One Jacobi step of weight w / 256 from a->off into a->next, each point
+ * clamped to its cell. The rounded mean of the neighbours is exact: every
+ * point is >= 0, and a sum stays below 2^62 (at most 2^24 entries of points
+ * below 2^37). */
+static void smooth_step(size_t n, const smooth_arrays *a, int w)
 {
-    for (size_t i = 0; i < s->vertex_count; ++i) {
-        uint32_t deg = start[i + 1] - start[i];
-        for (int a = 0; a < 3; ++a) {
-            int64_t x = pos[3 * i + a];
-            if (deg > 0 && deg <= MAX_NEIGHBOURS) {
-                int64_t sum = 0;
-                for (uint32_t k = start[i]; k < start[i + 1]; ++k)
-                    sum += pos[3 * items[k] + a];
-                int64_t mean = floor_div(2 * sum + deg, 2 * (int64_t)deg); /* rounded */
-                x += floor_div((mean - x) * w, 256);
-                int64_t lo = cell[3 * i + a] * CELL_UNITS;
-                x = x < lo ? lo : x > lo + CELL_UNITS - 1 ? lo + CELL_UNITS - 1 : x;
-            }
-            next[3 * i + a] = x;
+    for (size_t i = 0; i < n; ++i) {
+        uint32_t first = a->start[i], deg = a->start[i + 1] - first;
+        const uint16_t *p = &a->off[3 * i];
+        uint16_t *q = &a->next[3 * i];
+        if (deg == 0 || deg > MAX_NEIGHBOURS) {
+            q[0] = p[0], q[1] = p[1], q[2] = p[2];
+            continue;
+        }
+        uint64_t sum[3] = {0, 0, 0};
+        for (uint32_t k = first; k < first + deg; ++k) {
+            const uint16_t *y = &a->off[3 * (size_t)a->items[k]];
+            sum[0] += y[0];
+            sum[1] += y[1];
+            sum[2] += y[2];
+        }
+        for (int c = 0; c < 3; ++c) {
+            uint64_t total = (uint64_t)a->cell_sum[3 * i + c] * CELL_UNITS + sum[c];
+            int64_t mean = (int64_t)((2 * total + deg) / (2 * (uint64_t)deg)); /* rounded */
+            int64_t lo = (int64_t)a->cell[3 * i + c] * CELL_UNITS, x = lo + p[c];
+            x += floor_div((mean - x) * w, 256);
+            q[c] = (uint16_t)(x < lo ? 0 : x > lo + CELL_UNITS - 1 ? CELL_UNITS - 1 : x - lo);
         }
     }
 }
@@ -96,13 +117,13 @@ ms_status ms_codec_state_smooth(ms_codec_state *s, unsigned rounds, ms_error *er
     ms_status st = neighbour_rows(s, &start, &items, err);
     if (st != MS_OK)
         return st;
-    int64_t *pos = malloc(3 * n * sizeof *pos), *next = malloc(3 * n * sizeof *next);
-    int64_t *cell = malloc(3 * n * sizeof *cell);
-    uint16_t *rep = s->rep ? s->rep : malloc(3 * n * sizeof *rep);
-    if (!pos || !next || !cell || !rep) {
-        free(start), free(items), free(pos), free(next), free(cell);
-        if (rep != s->rep)
-            free(rep);
+    smooth_arrays a = {.start = start, .items = items};
+    a.cell = malloc(3 * n * sizeof *a.cell);
+    a.cell_sum = calloc(3 * n, sizeof *a.cell_sum);
+    a.off = malloc(3 * n * sizeof *a.off);
+    a.next = malloc(3 * n * sizeof *a.next);
+    if (!a.cell || !a.cell_sum || !a.off || !a.next) {
+        free(start), free(items), free(a.cell), free(a.cell_sum), free(a.off), free(a.next);
         return ms_error_set(err, MS_ERR_NOMEM, "out of memory smoothing a state");
     }
     /* each point in units of its cell's width: its cell's index along the axis
@@ -111,19 +132,26 @@ ms_status ms_codec_state_smooth(ms_codec_state *s, unsigned rounds, ms_error *er
     for (size_t i = 0; i < n; ++i) {
         uint32_t xyz[3];
         ms_quant_unkey(shift >= 64 ? 0 : s->cells[i] << shift, s->bits, xyz);
-        for (int a = 0; a < 3; ++a) {
-            unsigned cut = (s->level + 2u - (unsigned)a) / 3u; /* times axis a is halved */
-            cell[3 * i + a] = xyz[a] >> (s->bits - cut);
-            pos[3 * i + a] = cell[3 * i + a] * CELL_UNITS + (s->rep ? s->rep[3 * i + a] : CELL_UNITS / 2);
+        for (int c = 0; c < 3; ++c) {
+            unsigned cut = (s->level + 2u - (unsigned)c) / 3u; /* times axis c is halved */
+            a.cell[3 * i + c] = xyz[c] >> (s->bits - cut);
+            a.off[3 * i + c] = s->rep ? s->rep[3 * i + c] : CELL_UNITS / 2;
         }
     }
+    for (size_t i = 0; i < n; ++i)
+        for (uint32_t k = start[i]; k < start[i + 1]; ++k)
+            for (int c = 0; c < 3; ++c)
+                a.cell_sum[3 * i + c] += a.cell[3 * (size_t)items[k] + c];
     for (unsigned r = 0; r < rounds; ++r) {
-        smooth_step(s, start, items, pos, cell, LAMBDA, next);
-        smooth_step(s, start, items, next, cell, MU, pos);
+        smooth_step(n, &a, LAMBDA);
+        uint16_t *t = a.off;
+        a.off = a.next, a.next = t;
+        smooth_step(n, &a, MU);
+        t = a.off;
+        a.off = a.next, a.next = t;
     }
-    for (size_t i = 0; i < 3 * n; ++i)
-        rep[i] = (uint16_t)(pos[i] - cell[i] * CELL_UNITS);
-    s->rep = rep;
-    free(start), free(items), free(pos), free(next), free(cell);
+    free(s->rep);
+    s->rep = a.off;
+    free(start), free(items), free(a.cell), free(a.cell_sum), free(a.next);
     return MS_OK;
 }
